@@ -1,0 +1,1 @@
+"""The in-memory robot graph: topics, services, actions, parameters and types."""

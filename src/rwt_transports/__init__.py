@@ -1,0 +1,1 @@
+"""Transports (WebSocket, TCP, UDP, stdio), the server entry point and the CLI."""
