@@ -1,0 +1,206 @@
+"""The in-memory robot graph: what every session and in-process participant shares.
+
+``Graph`` implements ``rwt_protocol.ports.GraphPort`` for sessions and offers an
+embedding API for Python code in the same process (the "robot that runs no ROS"):
+``create_publisher``, ``create_subscription``, ``topic_names_and_types``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+
+from rwt_protocol.errors import GraphError
+from rwt_protocol.names import resolve_name
+from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
+
+from .clock import Clock, SystemClock
+from .local import LocalPublisher, LocalSubscription
+from .topics import Topic
+from .types import Dialect, MessageType, TypeRegistry
+
+__all__ = ["Graph"]
+
+Message = dict[str, object]
+
+
+class Graph:
+    """Topics (and, later, services, actions and parameters) of one server.
+
+    Args:
+        registry: the message types; a ROS 2 registry by default.
+        clock: time source; the system clock by default.
+    """
+
+    def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
+        self.registry = registry or TypeRegistry(Dialect.ROS2)
+        self.clock: Clock = clock or SystemClock()
+        self.topics: dict[str, Topic] = {}
+        self._local_ids = itertools.count(1)
+
+    # ---- GraphPort ------------------------------------------------------------
+
+    def advertise(self, client: ClientId, topic: str, type_name: str, *, latch: bool) -> str:
+        """Register ``client`` as a publisher of ``topic`` (spec 3.3.1).
+
+        Returns:
+            The canonical type name.
+
+        Raises:
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            GraphError: the topic exists with another type.
+        """
+        msgtype = self.registry.message(type_name)
+        entry = self._topic(topic, msgtype)
+        entry.publishers[client] = latch or entry.publishers.get(client, False)
+        return entry.msgtype.name
+
+    def unadvertise(self, client: ClientId, topic: str) -> None:
+        """Remove ``client`` as a publisher; the topic goes when nobody uses it."""
+        entry = self.topics.get(resolve_name(topic))
+        if entry is not None:
+            entry.publishers.pop(client, None)
+            self._collect(entry)
+
+    def publish(
+        self, client: ClientId, topic: str, msg: object, *, latch: bool = False, path: str = "$"
+    ) -> tuple[str, ...]:
+        """Validate ``msg`` against the topic's type and deliver it (spec 3.3.3).
+
+        Publishing without advertising is allowed once the topic's type is known
+        (REF §2.3); the client then counts as a publisher until it leaves.
+
+        Args:
+            client: the publishing participant.
+            topic: topic name (any spelling).
+            msg: the message as decoded JSON (a dict).
+            latch: keep the message for later subscribers (D13).
+            path: JSON path of ``msg``, for error texts.
+
+        Returns:
+            Paths of the fields that were filled with defaults (D7).
+
+        Raises:
+            GraphError: the topic's type is unknown.
+            FieldError: ``msg`` does not fit the type (D9).
+        """
+        entry = self.topics.get(resolve_name(topic))
+        if entry is None:
+            raise GraphError(f"{topic} has no type yet (advertise it first)")
+        converted = entry.msgtype.from_json(msg, path=path, now=self.clock.wall())
+        latched = entry.publishers.setdefault(client, False) or latch
+        self._send(entry, converted.msg, latch=latched)
+        return converted.missing
+
+    def subscribe(
+        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
+    ) -> str:
+        """Attach ``sink`` as ``client``'s subscriber of ``topic`` (spec 3.3.4).
+
+        A new subscriber receives the latched message, if any, at once (D13).
+
+        Returns:
+            The canonical type name.
+
+        Raises:
+            GraphError: no type given and the topic is unknown, or a conflicting type.
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+        """
+        name = resolve_name(topic)
+        if type_name is None:
+            entry = self.topics.get(name)
+            if entry is None:
+                raise GraphError(f"cannot infer the type of {topic}: give a type")
+        else:
+            entry = self._topic(name, self.registry.message(type_name))
+        is_new = client not in entry.subscribers
+        entry.subscribers[client] = sink
+        if is_new and entry.latched is not None:
+            sink.on_message(entry.latched)
+        return entry.msgtype.name
+
+    def unsubscribe(self, client: ClientId, topic: str) -> None:
+        """Detach ``client`` from ``topic``."""
+        entry = self.topics.get(resolve_name(topic))
+        if entry is not None:
+            entry.subscribers.pop(client, None)
+            self._collect(entry)
+
+    def release(self, client: ClientId) -> None:
+        """Drop every registration of ``client`` (it disconnected)."""
+        for entry in list(self.topics.values()):
+            entry.publishers.pop(client, None)
+            entry.subscribers.pop(client, None)
+            self._collect(entry)
+
+    # ---- embedding API ---------------------------------------------------------
+
+    def create_publisher(
+        self, topic: str, type_name: str, *, latch: bool = False
+    ) -> LocalPublisher:
+        """Publish on ``topic`` from Python code in this process.
+
+        Args:
+            topic: topic name.
+            type_name: message type, ``std_msgs/msg/String`` or ``std_msgs/String``.
+            latch: transient-local durability: late subscribers get the last message.
+
+        Raises:
+            InvalidTypeName, UnknownType, GraphError: as ``advertise``.
+        """
+        client = self._local_client()
+        name = resolve_name(topic)
+        self.advertise(client, name, type_name, latch=latch)
+        return LocalPublisher(self, client, name, self.topics[name].msgtype, latch=latch)
+
+    def create_subscription(
+        self,
+        topic: str,
+        callback: Callable[[Message], None],
+        type_name: str | None = None,
+    ) -> LocalSubscription:
+        """Call ``callback(msg)`` with each message on ``topic``, in this process.
+
+        ``msg`` is the message as a dict in the internal form (``bytes`` for
+        ``uint8[]``); treat it as read-only, it is shared with other subscribers.
+
+        Raises:
+            GraphError, InvalidTypeName, UnknownType: as ``subscribe``.
+        """
+        client = self._local_client()
+        subscription = LocalSubscription(self, client, resolve_name(topic), callback)
+        self.subscribe(client, topic, type_name, subscription)
+        return subscription
+
+    def topic_names_and_types(self) -> list[tuple[str, str]]:
+        """Every topic in use with its canonical type, sorted by name."""
+        return sorted((name, t.msgtype.name) for name, t in self.topics.items())
+
+    # ---- internals ---------------------------------------------------------------
+
+    def publish_local(self, client: ClientId, topic: str, msg: Message, *, latch: bool) -> None:
+        """Deliver an already-converted message from an in-process publisher."""
+        entry = self.topics.get(topic)
+        if entry is None or client not in entry.publishers:
+            raise GraphError(f"the publisher of {topic} was closed")
+        self._send(entry, msg, latch=latch)
+
+    def _send(self, entry: Topic, msg: Message, *, latch: bool) -> None:
+        event = MessageEvent(entry.name, entry.msgtype.name, msg, self.clock.monotonic())
+        entry.fan_out(event, latch=latch)
+
+    def _topic(self, topic: str, msgtype: MessageType) -> Topic:
+        name = resolve_name(topic)
+        entry = self.topics.get(name)
+        if entry is None:
+            entry = self.topics[name] = Topic(name, msgtype)
+        else:
+            entry.check_type(msgtype)
+        return entry
+
+    def _collect(self, entry: Topic) -> None:
+        if not entry.in_use and self.topics.get(entry.name) is entry:
+            del self.topics[entry.name]
+
+    def _local_client(self) -> ClientId:
+        return f"local:{next(self._local_ids)}"

@@ -1,0 +1,74 @@
+"""Handles given to in-process publishers and subscribers (the embedding API)."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from rwt_protocol.ports import ClientId, MessageEvent
+
+if TYPE_CHECKING:
+    from .graph import Graph
+    from .types import MessageType
+
+__all__ = ["LocalPublisher", "LocalSubscription"]
+
+logger = logging.getLogger("rwt.graph")
+
+
+class LocalPublisher:
+    """Publishes on one topic from this process; made by ``Graph.create_publisher``."""
+
+    def __init__(
+        self, graph: Graph, client: ClientId, topic: str, msgtype: MessageType, *, latch: bool
+    ) -> None:
+        self._graph = graph
+        self._client = client
+        self.topic = topic
+        self.msgtype = msgtype
+        self.latch = latch
+
+    def publish(self, msg: object) -> None:
+        """Publish a message given as a dict or a rosbags message object.
+
+        Missing fields get their defaults (D7) and a missing header stamp is now
+        (D8), as for a client's publish.
+
+        Raises:
+            FieldError: ``msg`` does not fit the topic's type.
+            GraphError: the publisher was closed.
+        """
+        converted = self.msgtype.from_python(msg, now=self._graph.clock.wall())
+        self._graph.publish_local(self._client, self.topic, converted, latch=self.latch)
+
+    def close(self) -> None:
+        """Stop publishing; the topic goes when nobody else uses it."""
+        self._graph.unadvertise(self._client, self.topic)
+
+
+class LocalSubscription:
+    """Calls a Python callback with each message; made by ``Graph.create_subscription``."""
+
+    def __init__(
+        self,
+        graph: Graph,
+        client: ClientId,
+        topic: str,
+        callback: Callable[[dict[str, object]], None],
+    ) -> None:
+        self._graph = graph
+        self._client = client
+        self.topic = topic
+        self._callback = callback
+
+    def on_message(self, event: MessageEvent) -> None:
+        """Run the callback; its exceptions are logged, never propagated."""
+        try:
+            self._callback(event.msg)
+        except Exception:
+            logger.exception("callback of the subscription to %s failed", self.topic)
+
+    def close(self) -> None:
+        """Stop receiving messages."""
+        self._graph.unsubscribe(self._client, self.topic)

@@ -1,0 +1,67 @@
+"""Topics of the in-memory graph (spec 3.3.1-3.3.5, PROTOCOL-DECISIONS D11, D13).
+
+A topic's type is established by its first advertiser or subscriber; later
+participants must agree. A topic lives while it has a publisher or a subscriber.
+Each subscriber (one per client) receives every message once; the same
+``MessageEvent`` object goes to all of them, so encodings are shared.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+from rwt_protocol.errors import GraphError
+from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
+
+from .types import MessageType
+
+__all__ = ["Topic"]
+
+logger = logging.getLogger("rwt.graph")
+
+
+@dataclass(eq=False)
+class Topic:
+    """One topic: its type, publishers, subscribers and latched message.
+
+    Attributes:
+        name: resolved name (``/chatter``).
+        msgtype: the established message type.
+        publishers: client -> whether it publishes latched (transient local).
+        subscribers: client -> the sink receiving its messages.
+        latched: the last message of a latched publisher, replayed to each new
+            subscriber once (D13).
+    """
+
+    name: str
+    msgtype: MessageType
+    publishers: dict[ClientId, bool] = field(default_factory=dict)
+    subscribers: dict[ClientId, TopicSink] = field(default_factory=dict)
+    latched: MessageEvent | None = None
+
+    @property
+    def in_use(self) -> bool:
+        """Whether anyone still publishes or subscribes."""
+        return bool(self.publishers or self.subscribers)
+
+    def check_type(self, msgtype: MessageType) -> None:
+        """Refuse a participant that names another type (spec 3.3.1).
+
+        Raises:
+            GraphError: ``msgtype`` differs from the established type.
+        """
+        if msgtype.name != self.msgtype.name:
+            raise GraphError(
+                f"{self.name} is established with type {self.msgtype.name}, not {msgtype.name}"
+            )
+
+    def fan_out(self, event: MessageEvent, *, latch: bool) -> None:
+        """Deliver ``event`` to every subscriber; keep it if latched."""
+        if latch:
+            self.latched = event
+        for client, sink in list(self.subscribers.items()):
+            try:
+                sink.on_message(event)
+            except Exception:  # a broken subscriber must not hurt the others
+                logger.exception("subscriber %s of %s failed", client, self.name)

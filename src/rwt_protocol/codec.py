@@ -1,0 +1,146 @@
+"""The JSON codec: frames to op models and op models to frames.
+
+Decoding uses msgspec (fast, strict JSON). Python's ``json`` is the fallback for
+the non-standard literals ``NaN``/``Infinity`` that Python clients such as
+roslibpy emit (REF §3.1). Validation goes straight to the model named by
+``op`` (faster than trying the union and gives better errors); every failure
+becomes a ``RemoteProtocolError`` whose text names the field path
+(PROTOCOL-DECISIONS D1, STYLE.md "Errors").
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import msgspec
+from pydantic import ValidationError
+from pydantic_core import ErrorDetails
+
+from .errors import RemoteProtocolError
+from .ops import OP_MODELS, OpModel
+from .ops.base import json_type_name
+
+__all__ = ["decode_json", "encode_json", "encode_op", "parse", "parse_object", "peek_id"]
+
+_decoder = msgspec.json.Decoder()
+_encoder = msgspec.json.Encoder()
+
+_EXPECTED = {
+    "int_type": "int",
+    "int_parsing": "int",
+    "string_type": "str",
+    "bool_type": "bool",
+    "float_type": "number",
+    "dict_type": "object",
+    "list_type": "array",
+    "model_type": "object",
+}
+
+
+def decode_json(frame: str | bytes) -> object:
+    """Decode one JSON text.
+
+    Args:
+        frame: UTF-8 JSON text.
+
+    Returns:
+        The decoded value (dict, list, str, int, float, bool or None).
+
+    Raises:
+        RemoteProtocolError: the text is not JSON (not even with NaN/Infinity).
+    """
+    try:
+        return _decoder.decode(frame)
+    except msgspec.DecodeError:
+        pass
+    try:
+        return json.loads(frame)
+    except (ValueError, TypeError) as exc:
+        raise RemoteProtocolError(f"invalid JSON: {_short(str(exc))}") from None
+
+
+def encode_json(value: object) -> bytes:
+    """Encode a value as compact UTF-8 JSON.
+
+    ``bytes`` become base64 strings and non-finite floats become ``null``
+    (PROTOCOL-DECISIONS D10).
+    """
+    return _encoder.encode(value)
+
+
+def peek_id(obj: object) -> str | int | None:
+    """Return the ``id`` of a decoded frame if it is a valid id, for error reports."""
+    if isinstance(obj, dict):
+        value = obj.get("id")
+        if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
+            return value
+    return None
+
+
+def parse_object(obj: object) -> OpModel:
+    """Validate a decoded frame as an op.
+
+    Args:
+        obj: a decoded JSON (or CBOR) value.
+
+    Returns:
+        The op model for ``obj["op"]``.
+
+    Raises:
+        RemoteProtocolError: not an object, no string ``op``, unknown op, or a
+            field that does not validate; the text names the field path.
+    """
+    if not isinstance(obj, dict):
+        raise RemoteProtocolError(f"expected a JSON object, got {json_type_name(obj)}")
+    op = obj.get("op")
+    if op is None:
+        raise RemoteProtocolError("missing field at $.op")
+    if not isinstance(op, str):
+        raise RemoteProtocolError(f"expected str, got {json_type_name(op)} at $.op")
+    model = OP_MODELS.get(op)
+    if model is None:
+        raise RemoteProtocolError(f"unknown op {_short(op)!r}")
+    try:
+        return model.model_validate(obj)
+    except ValidationError as exc:
+        raise RemoteProtocolError(f"{op}: {_describe(exc.errors()[0])}") from None
+
+
+def parse(frame: str | bytes) -> OpModel:
+    """Decode and validate one JSON frame.
+
+    Raises:
+        RemoteProtocolError: see ``decode_json`` and ``parse_object``.
+    """
+    return parse_object(decode_json(frame))
+
+
+def encode_op(op: OpModel) -> bytes:
+    """Encode an op model as a JSON frame, leaving out optional fields that are unset.
+
+    ``op`` comes first, as the reference orders its keys (REF §1.1).
+    """
+    return _encoder.encode(op.model_dump(exclude_none=True))
+
+
+def _describe(error: ErrorDetails) -> str:
+    path = "$" + "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in error["loc"])
+    kind = error["type"]
+    got: Any = error.get("input")
+    if kind == "missing":
+        return f"missing field at {path}"
+    if kind in _EXPECTED:
+        return f"expected {_EXPECTED[kind]}, got {json_type_name(got)} at {path}"
+    if kind == "literal_error":
+        expected = error.get("ctx", {}).get("expected", "")
+        return f"expected one of {expected}, got {_short(repr(got))} at {path}"
+    if kind in ("greater_than_equal", "greater_than"):
+        sign = ">=" if kind == "greater_than_equal" else ">"
+        bound = error.get("ctx", {}).get("ge", error.get("ctx", {}).get("gt"))
+        return f"expected a number {sign} {bound}, got {_short(repr(got))} at {path}"
+    return f"{error['msg'].lower()} at {path}"
+
+
+def _short(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."

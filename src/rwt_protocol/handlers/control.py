@@ -1,0 +1,31 @@
+"""Handlers of set_level, status and auth (spec 3.2, ROS 1 edition 3.3)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..levels import StatusLevel
+from ..ops import Auth, SetLevel, Status
+
+if TYPE_CHECKING:
+    from ..session import Session
+
+__all__ = ["auth", "set_level", "status"]
+
+
+def set_level(session: Session, op: SetLevel, now: float) -> None:
+    """Change which status messages this connection receives (spec 3.2.1, D2).
+
+    A level outside the four is rejected by the op model, leaving the level as it was.
+    """
+    session.status_level = StatusLevel.from_wire(op.level)
+    session.report(StatusLevel.INFO, f"set_level: status level is {op.level}", op.id)
+
+
+def status(session: Session, op: Status, now: float) -> None:
+    """A client's status message: nothing to do (status flows server to client)."""
+
+
+def auth(session: Session, op: Auth, now: float) -> None:
+    """Credentials on a server without authentication: ignored (ROS 1 spec 3.3.1)."""
+    session.report(StatusLevel.INFO, "auth: authentication is not enabled; ignored")

@@ -1,0 +1,115 @@
+"""Handlers of the topic ops (spec 3.3.1-3.3.5, PROTOCOL-DECISIONS D3, D7, D11, D26)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..errors import GraphError
+from ..levels import StatusLevel
+from ..names import resolve_name
+from ..ops import Advertise, Publish, Subscribe, Unadvertise, Unsubscribe
+from ..subscriptions import TopicSubscription
+
+if TYPE_CHECKING:
+    from ..session import Session
+
+__all__ = ["advertise", "publish", "subscribe", "unadvertise", "unsubscribe"]
+
+_MAX_LISTED = 8
+
+
+def advertise(session: Session, op: Advertise, now: float) -> None:
+    """Register the client as a publisher of ``op.topic`` (spec 3.3.1).
+
+    Raises:
+        GraphError: bad or unknown type, or the topic has another type.
+    """
+    topic = resolve_name(op.topic)
+    type_name = session.graph.advertise(session.client_id, topic, op.type, latch=op.latch)
+    session.advertisements.setdefault(topic, set()).add(op.id)
+    session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
+
+
+def unadvertise(session: Session, op: Unadvertise, now: float) -> None:
+    """Drop one advertise id, or all of them, for ``op.topic`` (spec 3.3.2).
+
+    Raises:
+        GraphError: warning level when the client does not advertise the topic
+            or has no advertisement with ``op.id`` (spec 3.3.2, D3).
+    """
+    topic = resolve_name(op.topic)
+    ids = session.advertisements.get(topic)
+    if ids is None:
+        raise GraphError(f"{op.topic} is not advertised by this client", level=StatusLevel.WARNING)
+    if op.id is not None:
+        if op.id not in ids:
+            raise GraphError(
+                f"no advertisement with id {op.id!r} on {op.topic}", level=StatusLevel.WARNING
+            )
+        ids.discard(op.id)
+    else:
+        ids.clear()
+    if not ids:
+        del session.advertisements[topic]
+        session.graph.unadvertise(session.client_id, topic)
+    session.report(StatusLevel.INFO, f"unadvertise: {op.topic} unadvertised", op.id)
+
+
+def publish(session: Session, op: Publish, now: float) -> None:
+    """Publish ``op.msg`` on ``op.topic`` (spec 3.3.3).
+
+    A warning lists the fields filled with defaults (spec 3.3.3, D7).
+
+    Raises:
+        GraphError: unknown topic type, or a message that does not fit it (D9).
+    """
+    topic = resolve_name(op.topic)
+    missing = session.graph.publish(session.client_id, topic, op.msg, latch=op.latch, path="$.msg")
+    if missing:
+        listed = ", ".join(missing[:_MAX_LISTED])
+        more = f" and {len(missing) - _MAX_LISTED} more" if len(missing) > _MAX_LISTED else ""
+        session.report(StatusLevel.WARNING, f"publish: filled with defaults: {listed}{more}", op.id)
+
+
+def subscribe(session: Session, op: Subscribe, now: float) -> None:
+    """Add a subscription to ``op.topic`` (spec 3.3.4, merging per D11).
+
+    Raises:
+        GraphError: the type is unknown, cannot be inferred, or conflicts.
+    """
+    topic = resolve_name(op.topic)
+    subscription = session.subscriptions.get(topic)
+    if subscription is None:
+        subscription = TopicSubscription(topic, op.topic, session.deliver)
+        subscription.add(op)
+        subscription.type_name = session.graph.subscribe(
+            session.client_id, topic, op.type, subscription
+        )
+        session.subscriptions[topic] = subscription
+    else:
+        if op.type is not None:
+            session.graph.subscribe(session.client_id, topic, op.type, subscription)
+        subscription.add(op)
+    session.report(StatusLevel.INFO, f"subscribe: subscribed to {op.topic}", op.id)
+
+
+def unsubscribe(session: Session, op: Unsubscribe, now: float) -> None:
+    """Remove the subscription ``op.id``, or all of them, on ``op.topic`` (spec 3.3.5).
+
+    Raises:
+        GraphError: warning level when not subscribed or the id is unknown (D11).
+    """
+    topic = resolve_name(op.topic)
+    subscription = session.subscriptions.get(topic)
+    if subscription is None:
+        raise GraphError(f"not subscribed to {op.topic}", level=StatusLevel.WARNING)
+    if op.id is None:
+        subscription.requests.clear()
+    elif not subscription.remove(op.id):
+        raise GraphError(
+            f"no subscription with id {op.id!r} on {op.topic}", level=StatusLevel.WARNING
+        )
+    if not subscription.requests:
+        del session.subscriptions[topic]
+        session.graph.unsubscribe(session.client_id, topic)
+    session.report(StatusLevel.INFO, f"unsubscribe: unsubscribed from {op.topic}", op.id)

@@ -1,0 +1,81 @@
+"""Action ops (spec 3.3.10-3.3.15, ROS 2 edition)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from .base import Compression, FragmentSize, MessageId, OpModel
+
+__all__ = [
+    "ActionFeedback",
+    "ActionResult",
+    "AdvertiseAction",
+    "CancelActionGoal",
+    "SendActionGoal",
+    "UnadvertiseAction",
+]
+
+
+class AdvertiseAction(OpModel):
+    """Offer ``action`` of ``type``; goals arrive as ``send_action_goal`` (spec 3.3.10)."""
+
+    op: Literal["advertise_action"] = "advertise_action"
+    action: str
+    type: str
+    id: MessageId | None = None
+
+
+class UnadvertiseAction(OpModel):
+    """Withdraw an action this client advertised (spec 3.3.11)."""
+
+    op: Literal["unadvertise_action"] = "unadvertise_action"
+    action: str
+    id: MessageId | None = None
+
+
+class SendActionGoal(OpModel):
+    """Send a goal; in the other direction, a goal for an advertiser (spec 3.3.12).
+
+    ``feedback`` asks for ``action_feedback`` messages (default false, D18).
+    """
+
+    op: Literal["send_action_goal"] = "send_action_goal"
+    action: str
+    action_type: str
+    args: Any = None
+    id: MessageId | None = None
+    feedback: bool = False
+    fragment_size: FragmentSize | None = None
+    compression: Compression = "none"
+
+
+class CancelActionGoal(OpModel):
+    """Cancel the goal with ``id`` (spec 3.3.13)."""
+
+    op: Literal["cancel_action_goal"] = "cancel_action_goal"
+    action: str
+    id: MessageId
+
+
+class ActionFeedback(OpModel):
+    """Feedback for the goal ``id`` (spec 3.3.14)."""
+
+    op: Literal["action_feedback"] = "action_feedback"
+    action: str
+    id: MessageId
+    values: Any = None
+
+
+class ActionResult(OpModel):
+    """The result of the goal ``id`` (spec 3.3.15).
+
+    ``status`` is an ``action_msgs/GoalStatus`` code; an advertiser may omit it
+    (4 when ``result`` is true, 6 otherwise; PROTOCOL-DECISIONS D18).
+    """
+
+    op: Literal["action_result"] = "action_result"
+    action: str
+    id: MessageId
+    result: bool
+    values: Any = None
+    status: int | None = None

@@ -1,0 +1,73 @@
+"""Topic ops: advertise, unadvertise, publish, subscribe, unsubscribe (spec 3.3.1-3.3.5)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field
+
+from .base import Compression, FragmentSize, MessageId, NonNegativeInt, OpModel
+
+__all__ = ["Advertise", "Publish", "Subscribe", "Unadvertise", "Unsubscribe"]
+
+
+class Advertise(OpModel):
+    """Announce that this client publishes ``topic`` of ``type`` (spec 3.3.1).
+
+    ``latch`` and ``queue_size`` come from the ROS 1 edition; roslibjs and roslibpy
+    always send them (REF §2.1).
+    """
+
+    op: Literal["advertise"] = "advertise"
+    topic: str
+    type: str
+    id: MessageId | None = None
+    latch: bool = False
+    queue_size: NonNegativeInt = 100
+
+
+class Unadvertise(OpModel):
+    """Stop publishing ``topic`` (spec 3.3.2)."""
+
+    op: Literal["unadvertise"] = "unadvertise"
+    topic: str
+    id: MessageId | None = None
+
+
+class Publish(OpModel):
+    """A message on a topic, in either direction (spec 3.3.3).
+
+    ``msg`` is left unvalidated here: the topic's message type checks it, with
+    field paths (PROTOCOL-DECISIONS D9). ``latch`` is the ROS 1 extension (D13).
+    """
+
+    op: Literal["publish"] = "publish"
+    topic: str
+    msg: Any = Field(default_factory=dict)
+    id: MessageId | None = None
+    latch: bool = False
+
+
+class Subscribe(OpModel):
+    """Subscribe to ``topic`` (spec 3.3.4).
+
+    ``throttle_rate`` is in milliseconds; ``fragment_size`` in characters;
+    ``queue_length`` in messages (0 = no queueing).
+    """
+
+    op: Literal["subscribe"] = "subscribe"
+    topic: str
+    type: str | None = None
+    id: MessageId | None = None
+    throttle_rate: NonNegativeInt = 0
+    queue_length: NonNegativeInt = 0
+    fragment_size: FragmentSize | None = None
+    compression: Compression = "none"
+
+
+class Unsubscribe(OpModel):
+    """Remove the subscription ``id``, or every subscription to ``topic`` (spec 3.3.5)."""
+
+    op: Literal["unsubscribe"] = "unsubscribe"
+    topic: str
+    id: MessageId | None = None

@@ -1,0 +1,197 @@
+"""The sans-IO session: one peer's protocol state machine.
+
+Inputs: ``receive_frame(frame, now)``, deliveries from the graph (through the
+``TopicSink`` objects the session registers), ``handle_timer(now)``.
+Outputs: ``frames_to_send()``, ``commands_to_run()``, ``get_timer()``.
+Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
+given by the caller (STYLE.md, after aioquic).
+
+Errors follow PROTOCOL-DECISIONS D1: every rejected op produces a ``status``
+frame for this connection only (D29), filtered by the connection's level (D2),
+and the session keeps serving. An exception that is not an ``RwtError`` is a bug:
+it is logged and reported as an internal error, and the session still keeps
+serving.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from .codec import decode_json, encode_json, parse_object, peek_id
+from .errors import RwtError
+from .levels import StatusLevel
+from .ops import OpModel
+from .outbox import Outbox, OutFrame
+from .ports import ClientId, GraphPort, MessageEvent
+from .subscriptions import TopicSubscription
+
+__all__ = ["CloseConnection", "Command", "Session", "SessionConfig"]
+
+logger = logging.getLogger("rwt.session")
+
+MiB = 1024 * 1024
+
+
+@dataclass(frozen=True, slots=True)
+class SessionConfig:
+    """Per-connection settings.
+
+    Attributes:
+        status_level: the level a new connection starts at (D2, ``--status-level``).
+        send_buffer_limit: bytes of outgoing frames kept queued before the oldest
+            topic messages are dropped (D24, ``--send-buffer-limit``).
+    """
+
+    status_level: StatusLevel = StatusLevel.ERROR
+    send_buffer_limit: int = 16 * MiB
+
+
+@dataclass(frozen=True, slots=True)
+class CloseConnection:
+    """Command: close the connection (code per RFC 6455, reason for the peer)."""
+
+    code: int
+    reason: str
+
+
+Command = CloseConnection
+"""What a session asks its transport to do besides sending frames."""
+
+
+class Session:
+    """The protocol state of one server-side connection.
+
+    Args:
+        graph: the graph this session operates on.
+        client_id: this connection's identity in the graph; unique per server.
+        config: per-connection settings.
+        on_output: called (synchronously, without arguments) whenever frames or
+            commands become available, so a transport can wake its writer.
+    """
+
+    def __init__(
+        self,
+        graph: GraphPort,
+        client_id: ClientId,
+        *,
+        config: SessionConfig | None = None,
+        on_output: Callable[[], None] | None = None,
+    ) -> None:
+        self.graph = graph
+        self.client_id = client_id
+        self.config = config or SessionConfig()
+        self.status_level = self.config.status_level
+        self.subscriptions: dict[str, TopicSubscription] = {}
+        self.advertisements: dict[str, set[str | int | None]] = {}
+        self._outbox = Outbox(self.config.send_buffer_limit)
+        self._commands: list[Command] = []
+        self._on_output = on_output
+        self._closed = False
+
+    # ---- inputs -------------------------------------------------------------
+
+    def receive_frame(self, frame: str | bytes, now: float) -> None:
+        """Process one incoming frame (one JSON text).
+
+        Never raises for anything the peer sent; see the module docstring.
+        """
+        if self._closed:
+            return
+        op_name: str | None = None
+        op_id: str | int | None = None
+        try:
+            obj = decode_json(frame)
+            op_id = peek_id(obj)
+            op = parse_object(obj)
+            op_name = op.op  # type: ignore[attr-defined]
+            self.dispatch(op, now)
+        except RwtError as exc:
+            self.report(exc.level, _prefixed(op_name, exc.message), op_id)
+        except Exception:
+            logger.exception("bug while handling a frame from %s", self.client_id)
+            self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
+
+    def dispatch(self, op: OpModel, now: float) -> None:
+        """Run the handler for a validated op.
+
+        Raises:
+            RwtError: the op was refused; the caller reports it.
+        """
+        from .handlers import HANDLERS  # the table imports this module
+
+        HANDLERS[type(op)](self, op, now)
+
+    def handle_timer(self, now: float) -> None:
+        """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
+
+    def close(self) -> None:
+        """The connection is gone: release everything it held in the graph. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self.subscriptions.clear()
+        self.advertisements.clear()
+        self.graph.release(self.client_id)
+
+    # ---- outputs ------------------------------------------------------------
+
+    def frames_to_send(self) -> list[OutFrame]:
+        """Take every frame queued for the peer, oldest first."""
+        return self._outbox.drain()
+
+    def commands_to_run(self) -> list[Command]:
+        """Take every command queued for the transport."""
+        commands, self._commands = self._commands, []
+        return commands
+
+    def get_timer(self) -> float | None:
+        """The monotonic time at which ``handle_timer`` must next be called, or None."""
+        return None
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close`` was called."""
+        return self._closed
+
+    @property
+    def dropped_frames(self) -> int:
+        """Topic messages dropped so far because the peer was too slow (D24)."""
+        return self._outbox.dropped
+
+    # ---- helpers for handlers -------------------------------------------------
+
+    def send(self, frame: OutFrame) -> None:
+        """Queue a frame for the peer and wake the transport."""
+        if self._closed:
+            return
+        was_empty = len(self._outbox) == 0
+        self._outbox.push(frame)
+        if was_empty and self._on_output is not None:
+            self._on_output()
+
+    def send_op(self, message: dict[str, object]) -> None:
+        """Queue a JSON op that must not be dropped (responses, results, status)."""
+        self.send(OutFrame(encode_json(message)))
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
+        if not self.status_level.admits(level):
+            return
+        status: dict[str, object] = {"op": "status", "level": level.wire, "msg": text}
+        if op_id is not None:
+            status["id"] = op_id
+        self.send_op(status)
+
+    def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
+        """Queue one topic message for the peer, encoded once per spelling."""
+        from .encoding import publish_frame
+
+        self.send(publish_frame(subscription, event))
+
+
+def _prefixed(op_name: str | None, text: str) -> str:
+    if op_name is None or text.startswith(f"{op_name}: "):
+        return text
+    return f"{op_name}: {text}"

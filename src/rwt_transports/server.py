@@ -1,0 +1,154 @@
+"""The rosbridge server: listeners, one graph, one session per connection.
+
+``RosbridgeServer`` owns the graph and starts listeners on it; every transport
+makes a ``rwt_protocol.session.Session`` per connection (D22: one dispatcher
+behind all transports). The server also keeps the latched ``/client_count``
+topic that rosbridge publishes (PROTOCOL-DECISIONS D14).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import anyio
+from anyio.abc import SocketAttribute, SocketStream, TaskStatus
+
+from rwt_graph.graph import Graph
+from rwt_graph.local import LocalPublisher
+from rwt_protocol.errors import RwtError
+from rwt_protocol.session import Session, SessionConfig
+
+from .websocket import WebSocketOptions, serve_websocket_connection
+
+__all__ = ["RosbridgeServer", "ServerConfig"]
+
+logger = logging.getLogger("rwt.server")
+
+
+@dataclass(frozen=True)
+class ServerConfig:
+    """Settings of a server (names follow rosbridge_websocket's parameters).
+
+    Attributes:
+        host: address to bind (``--host``; 127.0.0.1 by default).
+        port: WebSocket port (``--port``; 0 picks a free one).
+        session: per-connection protocol settings.
+        websocket: WebSocket settings.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = 9090
+    session: SessionConfig = field(default_factory=SessionConfig)
+    websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
+
+
+class RosbridgeServer:
+    """Serves one graph to rosbridge clients.
+
+    Args:
+        graph: the graph to serve; a new ROS 2 graph by default.
+        config: server settings.
+    """
+
+    def __init__(self, graph: Graph | None = None, config: ServerConfig | None = None) -> None:
+        self.graph = graph or Graph()
+        self.config = config or ServerConfig()
+        self.sessions: dict[str, Session] = {}
+        self._ids = itertools.count(1)
+        self._client_count = _latched(self.graph, "/client_count", "std_msgs/msg/Int32")
+
+    async def serve(
+        self,
+        *,
+        task_status: TaskStatus[str] = anyio.TASK_STATUS_IGNORED,
+        on_listening: Callable[[str], None] | None = None,
+    ) -> None:
+        """Listen for WebSocket connections until cancelled.
+
+        Args:
+            task_status: receives the URL (``ws://HOST:PORT``) once listening,
+                for ``TaskGroup.start``.
+            on_listening: called with the same URL, for the CLI's first line.
+
+        Raises:
+            OSError: the address cannot be bound.
+        """
+        listener = await anyio.create_tcp_listener(
+            local_host=self.config.host, local_port=self.config.port, reuse_port=False
+        )
+        async with listener:
+            port = listener.extra(SocketAttribute.local_port)
+            url = f"ws://{_url_host(self.config.host)}:{port}"
+            logger.info("listening on %s", url)
+            if on_listening is not None:
+                on_listening(url)
+            task_status.started(url)
+            await listener.serve(self._handle_websocket)
+
+    async def _handle_websocket(self, stream: SocketStream) -> None:
+        peer = _peer(stream)
+        try:
+            await serve_websocket_connection(
+                stream, peer, self._new_session, self.config.websocket
+            )
+        except Exception:  # one broken connection must never take the server down
+            logger.exception("connection from %s failed", peer)
+
+    def _new_session(self, peer: str, on_output: Callable[[], None]) -> Session:
+        client_id = f"ws:{peer}#{next(self._ids)}"
+        session = _TrackedSession(self, self.graph, client_id, self.config.session, on_output)
+        self.sessions[client_id] = session
+        self._publish_client_count()
+        return session
+
+    def _session_closed(self, client_id: str) -> None:
+        self.sessions.pop(client_id, None)
+        self._publish_client_count()
+
+    def _publish_client_count(self) -> None:
+        if self._client_count is not None:
+            self._client_count.publish({"data": len(self.sessions)})
+
+
+class _TrackedSession(Session):
+    """A session that tells its server when it closes."""
+
+    def __init__(
+        self,
+        server: RosbridgeServer,
+        graph: Graph,
+        client_id: str,
+        config: SessionConfig,
+        on_output: Callable[[], None],
+    ) -> None:
+        super().__init__(graph, client_id, config=config, on_output=on_output)
+        self._server = server
+
+    def close(self) -> None:
+        was_closed = self.closed
+        super().close()
+        if not was_closed:
+            self._server._session_closed(self.client_id)
+
+
+def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
+    try:
+        return graph.create_publisher(topic, type_name, latch=True)
+    except RwtError as exc:  # a registry without the type: no such topic
+        logger.warning("not publishing %s: %s", topic, exc.message)
+        return None
+
+
+def _peer(stream: SocketStream) -> str:
+    try:
+        host, port = stream.extra(SocketAttribute.remote_address)[:2]
+    except (TypeError, ValueError):
+        return "unknown"
+    return f"{host}:{port}"
+
+
+def _url_host(host: str) -> str:
+    return f"[{host}]" if ":" in host else host
