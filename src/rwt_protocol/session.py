@@ -26,6 +26,7 @@ from .ops import OpModel
 from .outbox import Outbox, OutFrame
 from .ports import ClientId, GraphPort, MessageEvent
 from .subscriptions import TopicSubscription
+from .timers import TimerQueue
 
 __all__ = ["CloseConnection", "Command", "Session", "SessionConfig"]
 
@@ -87,6 +88,7 @@ class Session:
         self.advertisements: dict[str, set[str | int | None]] = {}
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._commands: list[Command] = []
+        self.timers = TimerQueue()
         self._on_output = on_output
         self._closed = False
 
@@ -125,12 +127,15 @@ class Session:
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
+        if not self._closed:
+            self.timers.run_due(now)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
         if self._closed:
             return
         self._closed = True
+        self.timers.clear()
         self.subscriptions.clear()
         self.advertisements.clear()
         self.graph.release(self.client_id)
@@ -148,7 +153,7 @@ class Session:
 
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
-        return None
+        return None if self._closed else self.timers.next_deadline()
 
     @property
     def closed(self) -> bool:
