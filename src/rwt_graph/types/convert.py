@@ -164,12 +164,12 @@ def _element_array(ftype: FieldType, element: ConvertFn) -> ConvertFn:
     def check(value: object, path: str, ctx: Context) -> object:
         if type(value) is not list and type(value) is not tuple:
             raise FieldError(path, f"expected {spelled}, got {json_kind(value)}")
-        count = len(value)  # type: ignore[arg-type]
+        count = len(value)
         if ftype.array is ArrayKind.FIXED and count != ftype.length:
             raise FieldError(path, f"expected {ftype.length} elements, got {count}")
         if ftype.array is ArrayKind.BOUNDED and count > (ftype.length or 0):
             raise FieldError(path, f"expected at most {ftype.length} elements, got {count}")
-        return [element(item, f"{path}[{i}]", ctx) for i, item in enumerate(value)]  # type: ignore[arg-type]
+        return [element(item, f"{path}[{i}]", ctx) for i, item in enumerate(value)]
 
     return check
 
@@ -193,8 +193,12 @@ def _plan_entry(spec: FieldSpec, dialect: Dialect, lookup: Lookup, header: bool)
     elif ftype.is_message:
         element, elem_default = lookup(ftype.base)
     elif ftype.array is ArrayKind.NONE:
-        return (spec.name, True, scalar_checker(ftype.base, dialect, ftype.string_bound),
-                _primitive_default(spec))
+        return (
+            spec.name,
+            True,
+            scalar_checker(ftype.base, dialect, ftype.string_bound),
+            _primitive_default(spec),
+        )
     else:
         return (spec.name, True, array_checker(ftype, dialect), _primitive_default(spec))
     if ftype.array is ArrayKind.NONE:
@@ -255,4 +259,3 @@ def compile_message(
         return {key: make(now) for key, _, _, make in plan}
 
     return convert, default
-

@@ -10,15 +10,15 @@ with a rosbags typestore.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from rosbags.typesys.base import Nodetype
+from rosbags.interfaces import Nodetype
 
 from .convert import is_time_type, time_keys
 from .names import Dialect
-from .spec import ArrayKind, FieldType, is_bytes_base
 from .sources import IDL_PLACEHOLDER
+from .spec import ArrayKind, FieldType, is_bytes_base
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -109,7 +109,7 @@ def to_rosbags(
     Raises:
         KeyError: ``store`` lacks the type (use ``TypeRegistry.typestore()``).
     """
-    cls = store.types[mtype.rosbags_name]
+    cls: Any = store.types[mtype.rosbags_name]
     kwargs = {
         spec.name: _rosbags_value(msg[spec.name], spec.type, mtype, store, resolve)
         for spec in mtype.fields

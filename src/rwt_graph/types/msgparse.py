@@ -222,9 +222,7 @@ def _constant(ftype: FieldType, name: str, text: str, dialect: Dialect) -> Const
     return Constant(name, ftype.base, value)
 
 
-def _parse_line(
-    line: str, package: str, dialect: Dialect
-) -> FieldSpec | Constant | None:
+def _parse_line(line: str, package: str, dialect: Dialect) -> FieldSpec | Constant | None:
     stripped = line.strip()
     if not stripped or stripped.startswith("#"):
         return None
@@ -235,7 +233,9 @@ def _parse_line(
     rest = match["rest"]
     if rest.startswith("="):
         keep_hash = dialect is Dialect.ROS1 and ftype.base == "string"
-        return _constant(ftype, match["name"], _value_text(rest[1:], ftype.base, keep_hash), dialect)
+        return _constant(
+            ftype, match["name"], _value_text(rest[1:], ftype.base, keep_hash), dialect
+        )
     value_text = _value_text(rest, ftype.base, keep_hash=False)
     if not value_text:
         return FieldSpec(match["name"], ftype)

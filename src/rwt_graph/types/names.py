@@ -123,6 +123,7 @@ def parse_type_name(name: str, kind: Kind = "msg") -> TypeName:
     if not isinstance(name, str) or "\\" in name:
         raise InvalidTypeName(str(name), kind)
     parts = [p for p in name.split("/") if p]
+    middle: str
     if len(parts) == 2:
         package, middle, tail = parts[0], kind, parts[1]
     elif len(parts) == 3:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import binascii
 import math
 from collections.abc import Callable
+from typing import cast
 
 from .names import Dialect
 from .spec import ArrayKind, FieldType, int_range, is_bytes_base
@@ -201,14 +202,16 @@ def _bytes_checker(ftype: FieldType, element: Checker) -> Checker:
     return check
 
 
-def _list_checker(ftype: FieldType, element: Checker, fast: Callable[[list[object]], bool]) -> Checker:
+def _list_checker(
+    ftype: FieldType, element: Checker, fast: Callable[[list[object]], bool]
+) -> Checker:
     spelled = ftype.spelled()
 
     def check(value: object) -> object:
         if type(value) is not list and type(value) is not tuple:
             raise Problem(f"expected {spelled}, got {json_kind(value)}")
-        _length_check(ftype, len(value))  # type: ignore[arg-type]
-        items: list[object] = list(value)  # type: ignore[call-overload]
+        _length_check(ftype, len(value))
+        items: list[object] = list(value)
         if items and not fast(items):
             return _each(element, items)
         return items
@@ -218,7 +221,10 @@ def _list_checker(ftype: FieldType, element: Checker, fast: Callable[[list[objec
 
 def _int_fast(low: int, high: int) -> Callable[[list[object]], bool]:
     def fast(items: list[object]) -> bool:
-        return set(map(type, items)) == {int} and low <= min(items) and max(items) <= high  # type: ignore[type-var,operator]
+        if set(map(type, items)) != {int}:
+            return False
+        ints = cast("list[int]", items)
+        return low <= min(ints) and max(ints) <= high
 
     return fast
 
@@ -226,7 +232,7 @@ def _int_fast(low: int, high: int) -> Callable[[list[object]], bool]:
 def _float32_fast(items: list[object]) -> bool:
     if set(map(type, items)) != {float}:
         return False
-    return not any(FLOAT32_MAX < abs(x) < math.inf for x in items)  # type: ignore[arg-type]
+    return not any(FLOAT32_MAX < abs(x) < math.inf for x in cast("list[float]", items))
 
 
 def _types_fast(kind: type) -> Callable[[list[object]], bool]:

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
 from .interop import fielddefs
+
+if TYPE_CHECKING:
+    from rosbags.interfaces.typing import Typesdict
 from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
 from .names import Dialect, Kind, TypeName, UnknownType, parse_type_name
@@ -36,7 +40,9 @@ class TypeRegistry:
         interface_dirs: extra folders of interface files, highest precedence first.
     """
 
-    def __init__(self, dialect: Dialect = Dialect.ROS2, interface_dirs: Sequence[Path] = ()) -> None:
+    def __init__(
+        self, dialect: Dialect = Dialect.ROS2, interface_dirs: Sequence[Path] = ()
+    ) -> None:
         self.dialect = Dialect(dialect)
         roots = [Path(folder) for folder in interface_dirs] + packaged_dirs(self.dialect)
         self._files = FileIndex(roots)
@@ -90,7 +96,9 @@ class TypeRegistry:
         key = f"{tname.package}/msg/{tname.type}"
         if path is not None:
             text = path.read_text(encoding="utf-8")
-            parsed = parse_message(text, package=tname.package, dialect=self.dialect, origin=str(path))
+            parsed = parse_message(
+                text, package=tname.package, dialect=self.dialect, origin=str(path)
+            )
             mtype = self._make(canonical, key, parsed)
         else:
             stored = store_message(self._store, key, self.dialect)
@@ -153,7 +161,9 @@ class TypeRegistry:
         types: list[MessageType] = []
         for part, section in zip(parts, sections, strict=True):
             origin = f"{path} ({part.lower()})"
-            parsed = parse_message(section, package=tname.package, dialect=self.dialect, origin=origin)
+            parsed = parse_message(
+                section, package=tname.package, dialect=self.dialect, origin=origin
+            )
             ros1 = self.dialect is Dialect.ROS1
             part_name = f"{canonical}{part}" if ros1 else f"{canonical}_{part}"
             rosbags_name = f"{tname.package}/{kind}/{tname.type}_{part}"
@@ -206,7 +216,9 @@ class TypeRegistry:
 
     def service_names(self) -> list[str]:
         """Canonical names of every service type, sorted."""
-        return sorted(TypeName(p, "srv", t).spelled(self.dialect) for p, t in self._files.names("srv"))
+        return sorted(
+            TypeName(p, "srv", t).spelled(self.dialect) for p, t in self._files.names("srv")
+        )
 
     def action_names(self) -> list[str]:
         """Canonical names of every action type, sorted."""
@@ -227,7 +239,9 @@ class TypeRegistry:
             DefinitionError: a file cannot be parsed.
         """
         if self._typestore is None:
-            own: list[MessageType] = [self.message(f"{p}/msg/{t}") for p, t in self._files.names("msg")]
+            own: list[MessageType] = [
+                self.message(f"{p}/msg/{t}") for p, t in self._files.names("msg")
+            ]
             for name in self.service_names():
                 service = self.service(name)
                 own += [service.request, service.response]
@@ -237,6 +251,7 @@ class TypeRegistry:
             merged: dict[str, object] = dict(store_for(self.dialect).fielddefs)
             merged.update({m.rosbags_name: fielddefs(m, self.message) for m in own})
             store = get_typestore(Stores.EMPTY)
-            store.register({k: v for k, v in merged.items() if k not in store.fielddefs})
+            fresh = {k: v for k, v in merged.items() if k not in store.fielddefs}
+            store.register(cast("Typesdict", fresh))
             self._typestore = store
         return self._typestore

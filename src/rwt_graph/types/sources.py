@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import cast
 
+from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.base import Nodetype
 from rosbags.typesys.store import Typestore
 
 from .msgparse import resolve_base
@@ -99,14 +100,14 @@ class FileIndex:
 def _store_type(node: tuple[object, object], dialect: Dialect) -> FieldType:
     kind, detail = node
     if kind == Nodetype.BASE:
-        base, bound = detail  # type: ignore[misc]
+        base, bound = cast("tuple[str, int]", detail)
         strings = base in ("string", "wstring") and bound
         return FieldType(base, string_bound=bound if strings else None)
     if kind == Nodetype.NAME:
         package, _, short = str(detail).partition("/msg/")
-        base, is_message = resolve_base(f"{package}/{short}", package, dialect)
-        return FieldType(base, is_message)
-    element_node, size = detail  # type: ignore[misc]
+        resolved, is_message = resolve_base(f"{package}/{short}", package, dialect)
+        return FieldType(resolved, is_message)
+    element_node, size = cast("tuple[tuple[object, object], int]", detail)
     element = _store_type(element_node, dialect)
     if kind == Nodetype.ARRAY:
         array, length = ArrayKind.FIXED, size
