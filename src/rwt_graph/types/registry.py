@@ -148,9 +148,8 @@ class TypeRegistry:
                     return (action.goal, action.result, action.feedback)[index]
         raise UnknownType(tname.spelled(self.dialect), "msg", package_known=True)
 
-    def _parts(self, name: str, kind: Kind) -> tuple[str, str, list[MessageType]]:
-        """Parse the file of a service or action into its canonical name, text and parts."""
-        tname = parse_type_name(name, kind)
+    def _parts(self, tname: TypeName, kind: Kind) -> tuple[str, list[MessageType]]:
+        """Parse the file of a service or action into its text and parts."""
         canonical = tname.spelled(self.dialect)
         path = self._files.find(tname.package, kind, tname.type)
         if path is None:
@@ -170,8 +169,9 @@ class TypeRegistry:
             types.append(self._make(part_name, rosbags_name, parsed))
         for mtype in types:
             mtype.dependency_names()
+        for mtype in types:
             self._messages[mtype.name] = mtype
-        return canonical, text, types
+        return text, types
 
     def service(self, name: str) -> ServiceType:
         """Find a service type (cached).
@@ -183,9 +183,14 @@ class TypeRegistry:
         """
         found = self._services.get(name)
         if found is None:
-            canonical, text, (request, response) = self._parts(name, "srv")
-            found = self._services.get(canonical) or ServiceType(canonical, request, response, text)
-            self._services[canonical] = self._services[name] = found
+            tname = parse_type_name(name, "srv")
+            canonical = tname.spelled(self.dialect)
+            found = self._services.get(canonical)
+            if found is None:
+                text, (request, response) = self._parts(tname, "srv")
+                found = self._services[canonical] = ServiceType(canonical, request, response, text)
+            if len(self._services) < _ALIAS_LIMIT:
+                self._services[name] = found
         return found
 
     def action(self, name: str) -> ActionType:
@@ -198,11 +203,15 @@ class TypeRegistry:
         """
         found = self._actions.get(name)
         if found is None:
-            canonical, text, (goal, result, feedback) = self._parts(name, "action")
-            found = self._actions.get(canonical) or ActionType(
-                canonical, goal, result, feedback, text
-            )
-            self._actions[canonical] = self._actions[name] = found
+            tname = parse_type_name(name, "action")
+            canonical = tname.spelled(self.dialect)
+            found = self._actions.get(canonical)
+            if found is None:
+                text, (goal, result, feedback) = self._parts(tname, "action")
+                found = ActionType(canonical, goal, result, feedback, text)
+                self._actions[canonical] = found
+            if len(self._actions) < _ALIAS_LIMIT:
+                self._actions[name] = found
         return found
 
     def message_names(self) -> list[str]:
