@@ -206,6 +206,8 @@ def _default(ftype: FieldType, text: str, dialect: Dialect) -> object:
         return array_checker(ftype, dialect)(_array_literal(text, ftype.base))
     except Problem as problem:
         raise ValueError(f"bad default {text!r}: {problem.problem}") from None
+    except ValueError as error:
+        raise ValueError(f"bad default {text!r}: {error}") from None
 
 
 def _constant(ftype: FieldType, name: str, text: str, dialect: Dialect) -> Constant:
