@@ -111,8 +111,8 @@ def test_comments_and_blank_lines_are_ignored_and_text_is_kept() -> None:
 
 def test_more_literal_forms() -> None:
     parsed = parse(
-        "int32 H=0x10\nint8 N=-5\nbool F=False\nbool T=1\nstring Q=\"a\\\"b\"\n"
-        "float32 e 1e3\nbool[2] pair [true, false]\nint32[] none []\nwstring w \"hi\""
+        'int32 H=0x10\nint8 N=-5\nbool F=False\nbool T=1\nstring Q="a\\"b"\n'
+        'float32 e 1e3\nbool[2] pair [true, false]\nint32[] none []\nwstring w "hi"'
     )
     assert [c.value for c in parsed.constants] == [16, -5, False, True, 'a"b']  # type: ignore[attr-defined]
     assert [f.default for f in parsed.fields] == [1000.0, [True, False], [], "hi"]  # type: ignore[attr-defined]
