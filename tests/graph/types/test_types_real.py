@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from types_support import NOW, roundtrip, same
 
-from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types import TypeRegistry
 from rwt_protocol.errors import FieldError
 
 NOW_ROS2 = {"sec": 1_700_000_000, "nanosec": 250_000_000}
