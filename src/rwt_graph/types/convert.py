@@ -126,9 +126,9 @@ def _time_checker(label: str, is_time: bool, dialect: Dialect) -> ConvertFn:
 
 
 def _raise_unknown(value: dict[str, object], known: tuple[str, ...], path: str) -> None:
-    for key in value:
-        if key not in known:
-            raise FieldError(path, f"unknown field {key!r}")
+    """Raise for the first key of ``value`` not in ``known`` (the caller counted one)."""
+    key = next(key for key in value if key not in known)
+    raise FieldError(path, f"unknown field {key!r}")
 
 
 def _const(value: object) -> DefaultFn:

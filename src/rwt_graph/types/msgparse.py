@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 _DECLARATION = re.compile(
-    r"(?P<type>[A-Za-z][A-Za-z0-9_/]*(?:<=\d+)?(?:\[(?:<=)?\d*\])?)\s+"
+    r"(?P<type>[A-Za-z][^\s#]*)\s+"
     r"(?P<name>[A-Za-z][A-Za-z0-9_]*)\s*(?P<rest>.*)\Z"
 )
 _TYPE = re.compile(

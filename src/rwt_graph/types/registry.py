@@ -219,8 +219,7 @@ class TypeRegistry:
         names = {TypeName(pkg, "msg", t) for pkg, t in self._files.names("msg")}
         for key in self._store.fielddefs:
             package, _, short = key.partition("/msg/")
-            if short:
-                names.add(TypeName(package, "msg", short))
+            names.add(TypeName(package, "msg", short))
         return sorted(name.spelled(self.dialect) for name in names)
 
     def service_names(self) -> list[str]:

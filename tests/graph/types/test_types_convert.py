@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import base64
 import math
+import tempfile
+from collections import OrderedDict, UserList
+from pathlib import Path
 
 import msgspec
 import pytest
 from types_support import NOW, roundtrip, same
 
 from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types.primitives import json_kind, scalar_checker
 from rwt_protocol.errors import FieldError
 
 INTS = [
@@ -254,3 +258,42 @@ def test_limits_round_trip(ros2: TypeRegistry) -> None:
         now=NOW,
     ).msg
     assert same(roundtrip(mtype, msg), msg)
+
+
+def test_arrays_of_messages_check_their_length(ros2: TypeRegistry) -> None:
+    inner = "rwt_test_msgs/Inner"
+    assert problem(ros2, inner, {"pair": [{}]}) == "expected 2 elements, got 1 at $.msg.pair"
+    assert problem(ros2, inner, {"pair": [{}, {"stamp": 1}]}) == (
+        "expected object (type builtin_interfaces/msg/Time), got int at $.msg.pair[1].stamp"
+    )
+    bounded = TypeRegistry(interface_dirs=[_bounded_dir()]).message("pkg/Bounded")
+    assert (
+        bounded.from_json({"points": [{}, {}]}, now=NOW).msg["points"]
+        == [{"x": 0.0, "y": 0.0, "z": 0.0}] * 2
+    )
+    with pytest.raises(FieldError, match=r"expected at most 2 elements, got 3 at \$.points"):
+        bounded.from_json({"points": [{}, {}, {}]}, now=NOW)
+
+
+def _bounded_dir() -> Path:
+    root = Path(tempfile.mkdtemp())
+    (root / "pkg" / "msg").mkdir(parents=True)
+    (root / "pkg" / "msg" / "Bounded.msg").write_text(
+        "geometry_msgs/Point[<=2] points\nstring<=2 code\n"
+    )
+    return root
+
+
+def test_bounded_string_rejects_non_strings() -> None:
+    bounded = TypeRegistry(interface_dirs=[_bounded_dir()]).message("pkg/Bounded")
+    with pytest.raises(FieldError, match=r"expected string<=2, got null at \$.code"):
+        bounded.from_json({"code": None}, now=NOW)
+
+
+def test_json_kind_names_and_checker_misuse() -> None:
+    assert json_kind(OrderedDict()) == "object"
+    assert json_kind(type("L", (list,), {})()) == "array"
+    assert json_kind(b"x") == "bytes"
+    assert json_kind(UserList()) == "UserList"
+    with pytest.raises(ValueError, match="not a scalar primitive"):
+        scalar_checker("time", Dialect.ROS2)

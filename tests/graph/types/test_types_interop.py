@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from types_support import DATA, NOW, same
 
-from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types import ArrayKind, Constant, Dialect, FieldSpec, FieldType, TypeRegistry
+from rwt_graph.types.sources import render_text
 from rwt_protocol.errors import FieldError
 
 RULE = "=" * 80
@@ -140,3 +141,48 @@ def test_packaged_folders_are_optional_and_data_dir_exists() -> None:
     assert TypeRegistry(Dialect.ROS1, [DATA / "missing"]).message("std_msgs/String").name == (
         "std_msgs/String"
     )
+
+
+def test_empty_messages_and_scalar_octets_serialize(ros2: TypeRegistry) -> None:
+    store = ros2.typestore()
+    nothing = ros2.service("rwt_test_msgs/Nothing").request
+    assert nothing.fields == ()
+    raw = store.serialize_cdr(nothing.to_rosbags({}, store), nothing.rosbags_name)
+    assert nothing.from_python(store.deserialize_cdr(raw, nothing.rosbags_name)) == {}
+    empty = ros2.message("std_msgs/Empty")
+    raw = store.serialize_cdr(empty.to_rosbags({}, store), empty.rosbags_name)
+    assert empty.from_python(store.deserialize_cdr(raw, empty.rosbags_name)) == {}
+    byte = ros2.message("std_msgs/Byte")
+    raw = store.serialize_cdr(byte.to_rosbags({"data": 200}, store), byte.rosbags_name)
+    assert byte.from_python(store.deserialize_cdr(raw, byte.rosbags_name)) == {"data": 200}
+    assert byte.from_python(store.types["std_msgs/msg/Byte"](data=-56)) == {"data": 200}
+    floats = store.types["std_msgs/msg/Float32"](data=np.float32(1.5))
+    assert ros2.message("std_msgs/Float32").from_python(floats) == {"data": 1.5}
+
+
+def test_rosbags_objects_with_python_sequences(ros2: TypeRegistry) -> None:
+    types = ros2.typestore().types
+    layout = types["std_msgs/msg/MultiArrayLayout"](
+        dim=[types["std_msgs/msg/MultiArrayDimension"](label="x", size=2, stride=2)],
+        data_offset=0,
+    )
+    array = types["std_msgs/msg/UInt8MultiArray"](layout=layout, data=b"\x01\x02")
+    msg = ros2.message("std_msgs/UInt8MultiArray").from_python(array)
+    assert msg["data"] == b"\x01\x02"
+    assert msg["layout"]["dim"] == [{"label": "x", "size": 2, "stride": 2}]  # type: ignore[index]
+
+
+def test_render_text_of_literals() -> None:
+    fields = [
+        FieldSpec("raw", FieldType("uint8", array=ArrayKind.UNBOUNDED), b"\x01\x02"),
+        FieldSpec("on", FieldType("bool", array=ArrayKind.FIXED, length=2), [True, False]),
+    ]
+    text = render_text(fields, [Constant("YES", "bool", True)], Dialect.ROS2)
+    assert text == "bool YES=true\nuint8[] raw [1, 2]\nbool[2] on [true, false]"
+
+
+def test_repr_and_cached_flags(ros2: TypeRegistry) -> None:
+    mtype = ros2.message("geometry_msgs/PoseStamped")
+    assert repr(mtype) == "MessageType('geometry_msgs/msg/PoseStamped')"
+    assert mtype.has_header and mtype.has_header
+    assert mtype.compiled() is mtype.compiled()

@@ -94,11 +94,14 @@ def test_type_names_inside_definitions_resolve_like_ros() -> None:
         ("u", "builtin_interfaces/msg/Duration", True),
         ("v", "builtin_interfaces/msg/Time", True),
     ]
-    ros1 = parse("Header a\ntime t\nbuiltin_interfaces/Duration u", Dialect.ROS1)
+    ros1 = parse(
+        "Header a\ntime t\nbuiltin_interfaces/Duration u\nbuiltin_interfaces/Other o", Dialect.ROS1
+    )
     assert [(f.type.base, f.type.is_message) for f in ros1.fields] == [  # type: ignore[attr-defined]
         ("std_msgs/Header", True),
         ("time", False),
         ("duration", False),
+        ("builtin_interfaces/Other", True),
     ]
 
 
@@ -112,10 +115,17 @@ def test_comments_and_blank_lines_are_ignored_and_text_is_kept() -> None:
 def test_more_literal_forms() -> None:
     parsed = parse(
         'int32 H=0x10\nint8 N=-5\nbool F=False\nbool T=1\nstring Q="a\\"b"\n'
-        'float32 e 1e3\nbool[2] pair [true, false]\nint32[] none []\nwstring w "hi"'
+        'float32 e 1e3\nbool[2] pair [true, false]\nint32[] none []\nwstring w "hi"\n'
+        "string[] bare [x, y z]"
     )
     assert [c.value for c in parsed.constants] == [16, -5, False, True, 'a"b']  # type: ignore[attr-defined]
-    assert [f.default for f in parsed.fields] == [1000.0, [True, False], [], "hi"]  # type: ignore[attr-defined]
+    assert [f.default for f in parsed.fields] == [  # type: ignore[attr-defined]
+        1000.0,
+        [True, False],
+        [],
+        "hi",
+        ["x", "y z"],
+    ]  # type: ignore[attr-defined]
 
 
 @pytest.mark.parametrize(
@@ -134,6 +144,8 @@ def test_more_literal_forms() -> None:
         ("int32<=3 a", "only strings have a bound: 'int32<=3'"),
         ("int32[<=] a", "bounded array without a bound: 'int32[<=]'"),
         ("a/b/c/d x", "malformed type 'a/b/c/d'"),
+        ("int32[x] a", "malformed type 'int32[x]'"),
+        ("string[] a [1, 2]", "bad default '[1, 2]': expected an array of strings"),
         ("float32 f 1e39", "bad default '1e39': expected float32"),
     ],
 )

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import pytest
+from types_support import DATA
 
 from rwt_graph.types import Dialect, InvalidTypeName, TypeRegistry, UnknownType
+from rwt_graph.types import registry as registry_module
 from rwt_protocol.errors import GraphError
 
 VALID_STRING_SPELLINGS = [
@@ -130,3 +132,29 @@ def test_every_listed_message_loads_and_accepts_its_default(dialect: Dialect) ->
     for name in registry.message_names():
         mtype = registry.message(name)
         assert mtype.from_json(mtype.default(), now=0.0).msg == mtype.default()
+
+
+def test_parts_resolve_before_their_service_or_action_is_loaded() -> None:
+    registry = TypeRegistry(Dialect.ROS2, [DATA])
+    request = registry.message("rwt_test_msgs/srv/AddInts_Request")
+    assert request is registry.service("rwt_test_msgs/AddInts").request
+    result = registry.message("rwt_test_msgs/action/Count_Result")
+    assert result is registry.action("rwt_test_msgs/Count").result
+    with pytest.raises(UnknownType, match=r"unknown message type 'rwt_test_msgs/srv/AddInts'"):
+        registry.message("rwt_test_msgs/srv/AddInts")
+    ros1 = TypeRegistry(Dialect.ROS1, [DATA])
+    assert ros1.message("rwt_test_msgs/CountGoal") is ros1.action("rwt_test_msgs/Count").goal
+    assert (
+        ros1.message("rwt_test_msgs/AddIntsRequest")
+        is ros1.service("rwt_test_msgs/AddInts").request
+    )
+    with pytest.raises(UnknownType, match=r"unknown message type 'rwt_test_msgs/NoneRequest'"):
+        ros1.message("rwt_test_msgs/NoneRequest")
+
+
+def test_alias_caches_are_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(registry_module, "_ALIAS_LIMIT", 0)
+    registry = TypeRegistry(Dialect.ROS2, [DATA])
+    assert registry.message("/std_msgs/String") is registry.message("/std_msgs/String")
+    assert registry.service("rwt_test_msgs/AddInts") is registry.service("rwt_test_msgs/AddInts")
+    assert registry.action("rwt_test_msgs/Count") is registry.action("rwt_test_msgs/Count")
