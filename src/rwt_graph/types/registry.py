@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
+
+from rwt_protocol.errors import GraphError
 
 from .interop import fielddefs
 
@@ -16,7 +19,7 @@ if TYPE_CHECKING:
 from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
 from .names import Dialect, Kind, TypeName, UnknownType, parse_type_name
-from .sources import FileIndex, packaged_dirs, store_for, store_message
+from .sources import FileIndex, packaged_dirs, store_message, stores_for
 
 __all__ = ["TypeRegistry"]
 
@@ -46,8 +49,9 @@ class TypeRegistry:
         self.dialect = Dialect(dialect)
         roots = [Path(folder) for folder in interface_dirs] + packaged_dirs(self.dialect)
         self._files = FileIndex(roots)
-        self._store = store_for(self.dialect)
-        self._packages = self._files.packages() | {k.split("/")[0] for k in self._store.fielddefs}
+        self._stores = stores_for(self.dialect)
+        self._store_keys = [key for store in self._stores for key in store.fielddefs]
+        self._packages = self._files.packages() | {k.split("/")[0] for k in self._store_keys}
         self._messages: dict[str, MessageType] = {}
         self._aliases: dict[str, MessageType] = {}
         self._services: dict[str, ServiceType] = {}
@@ -101,10 +105,10 @@ class TypeRegistry:
             )
             mtype = self._make(canonical, key, parsed)
         else:
-            stored = store_message(self._store, key, self.dialect)
+            stored = self._from_stores(key)
             if stored is None:
                 return self._part_or_unknown(tname)
-            mtype = self._make(canonical, key, ParsedMessage(*stored))
+            mtype = self._make(canonical, key, stored)
         if canonical in self._resolving:
             raise DefinitionError(canonical, 0, "the type uses itself")
         self._resolving.add(canonical)
@@ -114,6 +118,13 @@ class TypeRegistry:
             self._resolving.discard(canonical)
         self._messages[canonical] = mtype
         return mtype
+
+    def _from_stores(self, key: str) -> ParsedMessage | None:
+        for store in self._stores:
+            stored = store_message(store, key, self.dialect)
+            if stored is not None:
+                return ParsedMessage(*stored)
+        return None
 
     def _make(self, canonical: str, rosbags_name: str, parsed: ParsedMessage) -> MessageType:
         return MessageType(
@@ -217,7 +228,7 @@ class TypeRegistry:
     def message_names(self) -> list[str]:
         """Canonical names of every message type (files and store), sorted."""
         names = {TypeName(pkg, "msg", t) for pkg, t in self._files.names("msg")}
-        for key in self._store.fielddefs:
+        for key in self._store_keys:
             package, _, short = key.partition("/msg/")
             names.add(TypeName(package, "msg", short))
         return sorted(name.spelled(self.dialect) for name in names)
@@ -237,29 +248,37 @@ class TypeRegistry:
     def typestore(self) -> Typestore:
         """A rosbags typestore with every known message type, for serialization.
 
-        It starts from the dialect's store (ROS 2 Jazzy or ROS 1 Noetic) and adds
-        or replaces every message defined by files, and the request, response,
-        goal, result and feedback parts of every service and action, under their
-        ``rosbags_name``. Built once; treat it as read-only.
-
-        Raises:
-            UnknownType: a file-defined type uses an unknown type.
-            DefinitionError: a file cannot be parsed.
+        It starts from the dialect's stores (ROS 2 Jazzy; ROS 1 Noetic over
+        Jazzy, see ``stores_for``) and adds or replaces every message defined
+        by files, the request, response, goal, result and feedback parts of
+        every service and action, all under their ``rosbags_name``. A file type that fails to load
+        (unknown dependency, bad text) is left out; asking for it
+        by name raises. Built once; treat it as read-only.
         """
         if self._typestore is None:
-            own: list[MessageType] = [
-                self.message(f"{p}/msg/{t}") for p, t in self._files.names("msg")
-            ]
-            for name in self.service_names():
-                service = self.service(name)
-                own += [service.request, service.response]
-            for name in self.action_names():
-                action = self.action(name)
-                own += [action.goal, action.result, action.feedback]
-            merged: dict[str, object] = dict(store_for(self.dialect).fielddefs)
-            merged.update({m.rosbags_name: fielddefs(m, self.message) for m in own})
+            merged: dict[str, object] = {}
+            for fallback in reversed(stores_for(self.dialect)):
+                merged.update(fallback.fielddefs)
+            for mtype in self._file_types():
+                merged[mtype.rosbags_name] = fielddefs(mtype, self.message)
             store = get_typestore(Stores.EMPTY)
             fresh = {k: v for k, v in merged.items() if k not in store.fielddefs}
             store.register(cast("Typesdict", fresh))
             self._typestore = store
         return self._typestore
+
+    def _file_types(self) -> list[MessageType]:
+        """Every message type defined by files (parts included) that loads."""
+        found: list[MessageType] = []
+        for name in [f"{p}/msg/{t}" for p, t in self._files.names("msg")]:
+            with suppress(GraphError):
+                found.append(self.message(name))
+        for name in self.service_names():
+            with suppress(GraphError):
+                service = self.service(name)
+                found += [service.request, service.response]
+        for name in self.action_names():
+            with suppress(GraphError):
+                action = self.action(name)
+                found += [action.goal, action.result, action.feedback]
+        return found

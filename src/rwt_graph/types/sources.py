@@ -30,6 +30,7 @@ __all__ = [
     "render_text",
     "store_for",
     "store_message",
+    "stores_for",
 ]
 
 KINDS = ("msg", "srv", "action")
@@ -59,6 +60,18 @@ def store_for(dialect: Dialect) -> Typestore:
     an older client simply omits them and gets defaults). ROS 1 uses Noetic.
     """
     return get_typestore(Stores.ROS1_NOETIC if dialect is Dialect.ROS1 else Stores.ROS2_JAZZY)
+
+
+def stores_for(dialect: Dialect) -> list[Typestore]:
+    """The stores consulted for messages, first match wins.
+
+    ROS 1 falls back to the ROS 2 store: the packaged ROS 2 interfaces (for
+    example ``rcl_interfaces`` services) use ROS 2-only messages, which then
+    still resolve, with ROS 1 time spelling.
+    """
+    if dialect is Dialect.ROS1:
+        return [store_for(Dialect.ROS1), store_for(Dialect.ROS2)]
+    return [store_for(Dialect.ROS2)]
 
 
 class FileIndex:

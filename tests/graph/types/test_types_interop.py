@@ -186,3 +186,33 @@ def test_repr_and_cached_flags(ros2: TypeRegistry) -> None:
     assert repr(mtype) == "MessageType('geometry_msgs/msg/PoseStamped')"
     assert mtype.has_header and mtype.has_header
     assert mtype.compiled() is mtype.compiled()
+
+
+def test_ros1_falls_back_to_ros2_store_types(ros1: TypeRegistry) -> None:
+    log = ros1.message("rcl_interfaces/msg/Log")
+    assert log.name == "rcl_interfaces/Log"
+    assert log.default()["stamp"] == {"secs": 0, "nsecs": 0}
+    assert "rcl_interfaces/Log" in ros1.message_names()
+    store = ros1.typestore()
+    msg = log.from_json({"msg": "hi", "stamp": "now"}, now=NOW).msg
+    raw = store.serialize_ros1(log.to_rosbags(msg, store), log.rosbags_name)
+    assert log.from_python(store.deserialize_ros1(raw, log.rosbags_name)) == msg
+
+
+def test_typestore_leaves_out_types_that_fail_to_load(tmp_path: Path) -> None:
+    for kind, name, text in (
+        ("msg", "Good.msg", "int32 a\n"),
+        ("msg", "Dangling.msg", "Missing m\n"),
+        ("srv", "Broken.srv", "int32 a\n"),
+        ("action", "Broken.action", "int32 a\n---\nint32 b\n"),
+    ):
+        folder = tmp_path / "pkg" / kind
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_text(text)
+    registry = TypeRegistry(interface_dirs=[tmp_path])
+    store = registry.typestore()
+    assert "pkg/msg/Good" in store.fielddefs
+    assert "pkg/msg/Dangling" not in store.fielddefs
+    assert not any(
+        key.startswith("pkg/srv/") or key.startswith("pkg/action/") for key in store.fielddefs
+    )
