@@ -230,7 +230,16 @@ def compile_message(
         zero = dict.fromkeys(time_keys(dialect), 0)
         return _time_checker(name, is_time, dialect), lambda now: dict(zero)
     plan = tuple(_plan_entry(spec, dialect, lookup, is_header(name)) for spec in fields)
-    known = tuple(spec.name for spec in fields)
+
+    def default(now: float | None) -> object:
+        return {key: make(now) for key, _, _, make in plan}
+
+    return _message_converter(name, plan), default
+
+
+def _message_converter(name: str, plan: tuple[PlanEntry, ...]) -> ConvertFn:
+    """The converter of a message whose fields follow ``plan`` (see ``compile_message``)."""
+    known = tuple(key for key, _, _, _ in plan)
 
     def convert(value: object, path: str, ctx: Context) -> object:
         if type(value) is not dict:
@@ -255,7 +264,4 @@ def compile_message(
             _raise_unknown(value, known, path)
         return out
 
-    def default(now: float | None) -> object:
-        return {key: make(now) for key, _, _, make in plan}
-
-    return convert, default
+    return convert
