@@ -20,7 +20,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from .codec import decode_json, encode_json, parse_object, peek_id
+from .encoding import publish_frame
 from .errors import RwtError
+from .handlers import HANDLERS
 from .levels import StatusLevel
 from .ops import OpModel
 from .outbox import Outbox, OutFrame
@@ -121,8 +123,6 @@ class Session:
         Raises:
             RwtError: the op was refused; the caller reports it.
         """
-        from .handlers import HANDLERS  # the table imports this module
-
         HANDLERS[type(op)](self, op, now)
 
     def handle_timer(self, now: float) -> None:
@@ -191,8 +191,6 @@ class Session:
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, encoded once per spelling."""
-        from .encoding import publish_frame
-
         self.send(publish_frame(subscription, event))
 
 

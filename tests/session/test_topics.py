@@ -6,6 +6,7 @@ import json
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.session import Session, SessionConfig
 from tests.conftest import Peer
 
 
@@ -209,9 +210,21 @@ def test_bad_frames_never_stop_the_connection_or_touch_others(peers: tuple[Peer,
     a, b = peers
     b.send(op="subscribe", topic="/t", type="std_msgs/String")
     garbage = [
-        "not json", "5", '"op"', '"valid"', '["id", "op"]', "null", "true", "{}",
-        '{"op": ["x"]}', '{"op": {"k": 1}}', '{"op": "nope"}', '{"op": "subscribe"}',
-        '{"png": 1}', '{"op": "publish", "topic": "/t", "msg": "text"}', b"\xff\xfe",
+        "not json",
+        "5",
+        '"op"',
+        '"valid"',
+        '["id", "op"]',
+        "null",
+        "true",
+        "{}",
+        '{"op": ["x"]}',
+        '{"op": {"k": 1}}',
+        '{"op": "nope"}',
+        '{"op": "subscribe"}',
+        '{"png": 1}',
+        '{"op": "publish", "topic": "/t", "msg": "text"}',
+        b"\xff\xfe",
         '{"op": "subscribe", "topic": "/t", "fragment_size": -1}',
     ]
     for frame in garbage:
@@ -232,8 +245,6 @@ def test_status_goes_only_to_the_connection_that_caused_it(peers: tuple[Peer, Pe
 
 
 def test_slow_peer_loses_oldest_topic_messages_never_statuses(graph: Graph) -> None:
-    from rwt_protocol.session import Session, SessionConfig
-
     a = Peer(graph, "a")
     slow = Session(graph, "slow", config=SessionConfig(send_buffer_limit=2000))
     a.send(op="advertise", topic="/t", type="std_msgs/String")
