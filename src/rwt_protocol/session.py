@@ -25,6 +25,7 @@ from .errors import RwtError
 from .handlers import HANDLERS
 from .levels import StatusLevel
 from .ops import OpModel
+from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .ports import ClientId, GraphPort, MessageEvent
 from .subscriptions import TopicSubscription
@@ -176,8 +177,22 @@ class Session:
         if was_empty and self._on_output is not None:
             self._on_output()
 
-    def send_op(self, message: dict[str, object]) -> None:
-        """Queue a JSON op that must not be dropped (responses, results, status)."""
+    def send_op(
+        self,
+        message: dict[str, object],
+        *,
+        compression: Compression = "none",
+        fragment_size: int | None = None,
+    ) -> None:
+        """Queue an op that must not be dropped (responses, results, status, requests).
+
+        Args:
+            message: the op as a dict, ``op`` first; values in the internal form.
+            compression: the encoding the request asked for (``call_service`` and
+                ``send_action_goal`` replies, spec 3.3.8/3.3.12; encodings: issue 4).
+            fragment_size: split the encoded op into ``fragment`` ops above this many
+                characters (PROTOCOL-DECISIONS D19; issue 4).
+        """
         self.send(OutFrame(encode_json(message)))
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
