@@ -20,12 +20,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from .codec import decode_json, encode_json, parse_object, peek_id
+from .encoding import publish_frame
 from .errors import RwtError
+from .handlers import HANDLERS
 from .levels import StatusLevel
 from .ops import OpModel
+from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .ports import ClientId, GraphPort, MessageEvent
 from .subscriptions import TopicSubscription
+from .timers import TimerQueue
 
 __all__ = ["CloseConnection", "Command", "Session", "SessionConfig"]
 
@@ -87,6 +91,7 @@ class Session:
         self.advertisements: dict[str, set[str | int | None]] = {}
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._commands: list[Command] = []
+        self.timers = TimerQueue()
         self._on_output = on_output
         self._closed = False
 
@@ -119,18 +124,19 @@ class Session:
         Raises:
             RwtError: the op was refused; the caller reports it.
         """
-        from .handlers import HANDLERS  # the table imports this module
-
         HANDLERS[type(op)](self, op, now)
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
+        if not self._closed:
+            self.timers.run_due(now)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
         if self._closed:
             return
         self._closed = True
+        self.timers.clear()
         self.subscriptions.clear()
         self.advertisements.clear()
         self.graph.release(self.client_id)
@@ -148,7 +154,7 @@ class Session:
 
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
-        return None
+        return None if self._closed else self.timers.next_deadline()
 
     @property
     def closed(self) -> bool:
@@ -171,8 +177,22 @@ class Session:
         if was_empty and self._on_output is not None:
             self._on_output()
 
-    def send_op(self, message: dict[str, object]) -> None:
-        """Queue a JSON op that must not be dropped (responses, results, status)."""
+    def send_op(
+        self,
+        message: dict[str, object],
+        *,
+        compression: Compression = "none",
+        fragment_size: int | None = None,
+    ) -> None:
+        """Queue an op that must not be dropped (responses, results, status, requests).
+
+        Args:
+            message: the op as a dict, ``op`` first; values in the internal form.
+            compression: the encoding the request asked for (``call_service`` and
+                ``send_action_goal`` replies, spec 3.3.8/3.3.12; encodings: issue 4).
+            fragment_size: split the encoded op into ``fragment`` ops above this many
+                characters (PROTOCOL-DECISIONS D19; issue 4).
+        """
         self.send(OutFrame(encode_json(message)))
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
@@ -186,8 +206,6 @@ class Session:
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, encoded once per spelling."""
-        from .encoding import publish_frame
-
         self.send(publish_frame(subscription, event))
 
 

@@ -67,15 +67,12 @@ def serve(
     status_level: Annotated[
         LevelName, typer.Option(help="Status level of new connections.")
     ] = LevelName.ERROR,
-    max_message_size: Annotated[
-        int, typer.Option(help="Largest incoming message, bytes.")
-    ] = 10 * MiB,
+    max_message_size: Annotated[int, typer.Option(help="Largest incoming message, bytes.")] = 10
+    * MiB,
     send_buffer_limit: Annotated[
         int, typer.Option(help="Outgoing bytes queued per connection before dropping.")
     ] = 16 * MiB,
-    websocket_compression: Annotated[
-        bool, typer.Option(help="Offer permessage-deflate.")
-    ] = False,
+    websocket_compression: Annotated[bool, typer.Option(help="Offer permessage-deflate.")] = False,
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
     ] = None,
@@ -87,6 +84,7 @@ def serve(
         level=log_level.upper(),
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
+    logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
     registry = TypeRegistry(Dialect(dialect.value), interfaces or ())
     config = ServerConfig(
         host=host,

@@ -91,9 +91,7 @@ class RosbridgeServer:
     async def _handle_websocket(self, stream: SocketStream) -> None:
         peer = _peer(stream)
         try:
-            await serve_websocket_connection(
-                stream, peer, self._new_session, self.config.websocket
-            )
+            await serve_websocket_connection(stream, peer, self._new_session, self.config.websocket)
         except Exception:  # one broken connection must never take the server down
             logger.exception("connection from %s failed", peer)
 
@@ -143,11 +141,10 @@ def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
 
 
 def _peer(stream: SocketStream) -> str:
-    try:
-        host, port = stream.extra(SocketAttribute.remote_address)[:2]
-    except (TypeError, ValueError):
-        return "unknown"
-    return f"{host}:{port}"
+    address = stream.extra(SocketAttribute.remote_address, None)
+    if isinstance(address, tuple):
+        return f"{address[0]}:{address[1]}"
+    return str(address) if address else "unknown"
 
 
 def _url_host(host: str) -> str:

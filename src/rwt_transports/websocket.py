@@ -92,7 +92,7 @@ class _Connection:
             self.binary = frame.opcode is Opcode.BINARY
         elif frame.opcode is not Opcode.CONT:
             return None
-        self.parts.append(frame.data)
+        self.parts.append(bytes(frame.data))
         self.size += len(frame.data)
         if self.size > self.limit:
             self.parts, self.size = [], 0
@@ -183,6 +183,8 @@ async def _reader(conn: _Connection, session: Session) -> None:
             return
         protocol.receive_data(data)
         for event in protocol.events_received():
+            if not isinstance(event, Frame):
+                continue
             message = conn.assemble(event)
             if message is None:
                 continue

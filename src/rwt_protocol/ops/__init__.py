@@ -43,9 +43,9 @@ __all__ = [
     "SetLevel",
     "Status",
     "Subscribe",
+    "Unadvertise",
     "UnadvertiseAction",
     "UnadvertiseService",
-    "Unadvertise",
     "Unsubscribe",
 ]
 
@@ -97,7 +97,5 @@ _MODELS: tuple[type[OpModel], ...] = (
     Auth,
 )
 
-OP_MODELS: dict[str, type[OpModel]] = {
-    model.model_fields["op"].default: model for model in _MODELS
-}
+OP_MODELS: dict[str, type[OpModel]] = {model.model_fields["op"].default: model for model in _MODELS}
 """Wire name of each op -> its model class."""

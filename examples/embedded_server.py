@@ -1,0 +1,47 @@
+"""Serve an in-process robot to rosbridge clients.
+
+Python code publishes ``/counter`` (std_msgs/msg/Int32) once a second and prints
+every ``/cmd_vel`` (geometry_msgs/msg/Twist) a client sends. Run it, then connect
+roslibjs or roslibpy to the printed URL.
+
+    python examples/embedded_server.py [--port 9090] [--count N]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import anyio
+
+from rwt_graph.graph import Graph
+from rwt_transports.server import RosbridgeServer, ServerConfig
+
+
+def on_cmd_vel(msg: dict[str, object]) -> None:
+    """Print each velocity command."""
+    print("cmd_vel:", msg["linear"], msg["angular"], flush=True)
+
+
+async def main(port: int, count: int | None) -> None:
+    """Run the server and the publishing loop; stop after ``count`` messages if given."""
+    graph = Graph()
+    graph.create_subscription("/cmd_vel", on_cmd_vel, "geometry_msgs/msg/Twist")
+    counter = graph.create_publisher("/counter", "std_msgs/msg/Int32")
+    server = RosbridgeServer(graph, ServerConfig(port=port))
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        print(f"listening on {url}", flush=True)
+        n = 0
+        while count is None or n < count:
+            counter.publish({"data": n})
+            n += 1
+            await anyio.sleep(1.0)
+        tg.cancel_scope.cancel()
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--port", type=int, default=9090)
+    parser.add_argument("--count", type=int, default=None)
+    args = parser.parse_args()
+    anyio.run(main, args.port, args.count)

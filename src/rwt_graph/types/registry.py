@@ -1,0 +1,284 @@
+"""The type registry: resolves type strings to message, service and action types."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from contextlib import suppress
+from pathlib import Path
+from typing import TYPE_CHECKING, cast
+
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+
+from rwt_protocol.errors import GraphError
+
+from .interop import fielddefs
+
+if TYPE_CHECKING:
+    from rosbags.interfaces.typing import Typesdict
+from .message import ActionType, MessageType, ServiceType
+from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
+from .names import Dialect, Kind, TypeName, UnknownType, parse_type_name
+from .sources import FileIndex, packaged_dirs, store_message, stores_for
+
+__all__ = ["TypeRegistry"]
+
+_PARTS: dict[str, tuple[str, ...]] = {
+    "srv": ("Request", "Response"),
+    "action": ("Goal", "Result", "Feedback"),
+}
+_ALIAS_LIMIT = 4096
+
+
+class TypeRegistry:
+    """Every message, service and action type the server knows, by name.
+
+    Sources, highest precedence first: ``interface_dirs`` (each holding
+    ``<pkg>/msg|srv|action/*``), the packaged ROS 1 overlay (ROS 1 only), the
+    packaged interfaces, then the rosbags store of the dialect (messages only).
+    Files are listed at construction and parsed on first use; types are cached.
+
+    Args:
+        dialect: ROS 2 (default) or ROS 1 (PROTOCOL-DECISIONS D6).
+        interface_dirs: extra folders of interface files, highest precedence first.
+    """
+
+    def __init__(
+        self, dialect: Dialect = Dialect.ROS2, interface_dirs: Sequence[Path] = ()
+    ) -> None:
+        self.dialect = Dialect(dialect)
+        roots = [Path(folder) for folder in interface_dirs] + packaged_dirs(self.dialect)
+        self._files = FileIndex(roots)
+        self._stores = stores_for(self.dialect)
+        self._store_keys = [key for store in self._stores for key in store.fielddefs]
+        self._packages = self._files.packages() | {k.split("/")[0] for k in self._store_keys}
+        self._messages: dict[str, MessageType] = {}
+        self._aliases: dict[str, MessageType] = {}
+        self._services: dict[str, ServiceType] = {}
+        self._actions: dict[str, ActionType] = {}
+        self._typestore: Typestore | None = None
+        self._resolving: set[str] = set()
+
+    def canonical_name(self, name: str, kind: Kind = "msg") -> str:
+        """Validate a type string and spell it canonically, without looking it up.
+
+        Returns:
+            ``pkg/<kind>/Type`` in ROS 2, ``pkg/Type`` in ROS 1 (PROTOCOL-DECISIONS D5).
+
+        Raises:
+            InvalidTypeName: the string is malformed (REF §4.6).
+        """
+        return parse_type_name(name, kind).spelled(self.dialect)
+
+    def message(self, name: str) -> MessageType:
+        """Find a message type by any accepted spelling (cached).
+
+        ``pkg/srv/Type_Request`` and the other generated parts of services and
+        actions are messages too.
+
+        Raises:
+            InvalidTypeName: the string is malformed (REF §4.6).
+            UnknownType: no such type, or a type it uses is unknown.
+            DefinitionError: its definition (or a dependency's) cannot be parsed.
+        """
+        found = self._aliases.get(name)
+        if found is not None:
+            return found
+        found = self._message(parse_type_name(name, "msg"))
+        if len(self._aliases) < _ALIAS_LIMIT:
+            self._aliases[name] = found
+        return found
+
+    def _message(self, tname: TypeName) -> MessageType:
+        canonical = tname.spelled(self.dialect)
+        found = self._messages.get(canonical)
+        if found is not None:
+            return found
+        if tname.kind != "msg":
+            return self._part(tname, tname.kind)
+        path = self._files.find(tname.package, "msg", tname.type)
+        key = f"{tname.package}/msg/{tname.type}"
+        if path is not None:
+            text = path.read_text(encoding="utf-8")
+            parsed = parse_message(
+                text, package=tname.package, dialect=self.dialect, origin=str(path)
+            )
+            mtype = self._make(canonical, key, parsed)
+        else:
+            stored = self._from_stores(key)
+            if stored is None:
+                return self._part_or_unknown(tname)
+            mtype = self._make(canonical, key, stored)
+        if canonical in self._resolving:
+            raise DefinitionError(canonical, 0, "the type uses itself")
+        self._resolving.add(canonical)
+        try:
+            mtype.dependency_names()  # resolves (and so checks) every type it uses
+        finally:
+            self._resolving.discard(canonical)
+        self._messages[canonical] = mtype
+        return mtype
+
+    def _from_stores(self, key: str) -> ParsedMessage | None:
+        for store in self._stores:
+            stored = store_message(store, key, self.dialect)
+            if stored is not None:
+                return ParsedMessage(*stored)
+        return None
+
+    def _make(self, canonical: str, rosbags_name: str, parsed: ParsedMessage) -> MessageType:
+        return MessageType(
+            canonical,
+            parsed.fields,
+            parsed.constants,
+            parsed.text,
+            dialect=self.dialect,
+            rosbags_name=rosbags_name,
+            resolve=self.message,
+        )
+
+    def _part_or_unknown(self, tname: TypeName) -> MessageType:
+        """ROS 1 names service and action parts ``pkg/TypeRequest``; try those."""
+        for kind in ("srv", "action"):
+            try:
+                return self._part(tname, kind)
+            except UnknownType:
+                continue
+        known = tname.package in self._packages
+        raise UnknownType(tname.spelled(self.dialect), "msg", package_known=known)
+
+    def _part(self, tname: TypeName, kind: str) -> MessageType:
+        for index, part in enumerate(_PARTS[kind]):
+            for suffix in (f"_{part}", part):
+                if tname.type.endswith(suffix) and len(tname.type) > len(suffix):
+                    owner = f"{tname.package}/{kind}/{tname.type[: -len(suffix)]}"
+                    if kind == "srv":
+                        service = self.service(owner)
+                        return (service.request, service.response)[index]
+                    action = self.action(owner)
+                    return (action.goal, action.result, action.feedback)[index]
+        raise UnknownType(tname.spelled(self.dialect), "msg", package_known=True)
+
+    def _parts(self, tname: TypeName, kind: Kind) -> tuple[str, list[MessageType]]:
+        """Parse the file of a service or action into its text and parts."""
+        canonical = tname.spelled(self.dialect)
+        path = self._files.find(tname.package, kind, tname.type)
+        if path is None:
+            raise UnknownType(canonical, kind, package_known=tname.package in self._packages)
+        text = path.read_text(encoding="utf-8")
+        parts = _PARTS[kind]
+        sections = split_sections(text, len(parts), str(path))
+        types: list[MessageType] = []
+        for part, section in zip(parts, sections, strict=True):
+            origin = f"{path} ({part.lower()})"
+            parsed = parse_message(
+                section, package=tname.package, dialect=self.dialect, origin=origin
+            )
+            ros1 = self.dialect is Dialect.ROS1
+            part_name = f"{canonical}{part}" if ros1 else f"{canonical}_{part}"
+            rosbags_name = f"{tname.package}/{kind}/{tname.type}_{part}"
+            types.append(self._make(part_name, rosbags_name, parsed))
+        for mtype in types:
+            mtype.dependency_names()
+        for mtype in types:
+            self._messages[mtype.name] = mtype
+        return text, types
+
+    def service(self, name: str) -> ServiceType:
+        """Find a service type (cached).
+
+        Raises:
+            InvalidTypeName: the string is malformed (REF §4.6).
+            UnknownType: no ``.srv`` file defines it, or a type it uses is unknown.
+            DefinitionError: its text cannot be parsed.
+        """
+        found = self._services.get(name)
+        if found is None:
+            tname = parse_type_name(name, "srv")
+            canonical = tname.spelled(self.dialect)
+            found = self._services.get(canonical)
+            if found is None:
+                text, (request, response) = self._parts(tname, "srv")
+                found = self._services[canonical] = ServiceType(canonical, request, response, text)
+            if len(self._services) < _ALIAS_LIMIT:
+                self._services[name] = found
+        return found
+
+    def action(self, name: str) -> ActionType:
+        """Find an action type (cached).
+
+        Raises:
+            InvalidTypeName: the string is malformed (REF §4.6).
+            UnknownType: no ``.action`` file defines it, or a type it uses is unknown.
+            DefinitionError: its text cannot be parsed.
+        """
+        found = self._actions.get(name)
+        if found is None:
+            tname = parse_type_name(name, "action")
+            canonical = tname.spelled(self.dialect)
+            found = self._actions.get(canonical)
+            if found is None:
+                text, (goal, result, feedback) = self._parts(tname, "action")
+                found = ActionType(canonical, goal, result, feedback, text)
+                self._actions[canonical] = found
+            if len(self._actions) < _ALIAS_LIMIT:
+                self._actions[name] = found
+        return found
+
+    def message_names(self) -> list[str]:
+        """Canonical names of every message type (files and store), sorted."""
+        names = {TypeName(pkg, "msg", t) for pkg, t in self._files.names("msg")}
+        for key in self._store_keys:
+            package, _, short = key.partition("/msg/")
+            names.add(TypeName(package, "msg", short))
+        return sorted(name.spelled(self.dialect) for name in names)
+
+    def service_names(self) -> list[str]:
+        """Canonical names of every service type, sorted."""
+        return sorted(
+            TypeName(p, "srv", t).spelled(self.dialect) for p, t in self._files.names("srv")
+        )
+
+    def action_names(self) -> list[str]:
+        """Canonical names of every action type, sorted."""
+        return sorted(
+            TypeName(p, "action", t).spelled(self.dialect) for p, t in self._files.names("action")
+        )
+
+    def typestore(self) -> Typestore:
+        """A rosbags typestore with every known message type, for serialization.
+
+        It starts from the dialect's stores (ROS 2 Jazzy; ROS 1 Noetic over
+        Jazzy, see ``stores_for``) and adds or replaces every message defined
+        by files, the request, response, goal, result and feedback parts of
+        every service and action, all under their ``rosbags_name``. A file type that fails to load
+        (unknown dependency, bad text) is left out; asking for it
+        by name raises. Built once; treat it as read-only.
+        """
+        if self._typestore is None:
+            merged: dict[str, object] = {}
+            for fallback in reversed(stores_for(self.dialect)):
+                merged.update(fallback.fielddefs)
+            for mtype in self._file_types():
+                merged[mtype.rosbags_name] = fielddefs(mtype, self.message)
+            store = get_typestore(Stores.EMPTY)
+            fresh = {k: v for k, v in merged.items() if k not in store.fielddefs}
+            store.register(cast("Typesdict", fresh))
+            self._typestore = store
+        return self._typestore
+
+    def _file_types(self) -> list[MessageType]:
+        """Every message type defined by files (parts included) that loads."""
+        found: list[MessageType] = []
+        for name in [f"{p}/msg/{t}" for p, t in self._files.names("msg")]:
+            with suppress(GraphError):
+                found.append(self.message(name))
+        for name in self.service_names():
+            with suppress(GraphError):
+                service = self.service(name)
+                found += [service.request, service.response]
+        for name in self.action_names():
+            with suppress(GraphError):
+                action = self.action(name)
+                found += [action.goal, action.result, action.feedback]
+        return found

@@ -1,0 +1,184 @@
+"""Where type definitions come from: interface folders and rosbags stores.
+
+Precedence, high to low: the user's interface folders, the packaged ROS 1
+overlay (``rwt_graph/interfaces_ros1``, ROS 1 only), the packaged interfaces
+(``rwt_graph/interfaces``), then the rosbags store of the dialect. rosbags
+stores hold messages only and drop written defaults; :data:`STORE_DEFAULTS`
+puts back the ones ROS 2 writes, for when no packaged text overrides them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import cast
+
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+
+from .msgparse import resolve_base
+from .names import Dialect
+from .spec import ArrayKind, Constant, FieldSpec, FieldType
+
+__all__ = [
+    "IDL_PLACEHOLDER",
+    "KINDS",
+    "STORE_DEFAULTS",
+    "FileIndex",
+    "packaged_dirs",
+    "render_text",
+    "store_for",
+    "store_message",
+    "stores_for",
+]
+
+KINDS = ("msg", "srv", "action")
+
+#: Defaults written in ROS 2 definitions that rosbags drops (PROTOCOL-DECISIONS D7).
+STORE_DEFAULTS: dict[str, dict[str, object]] = {
+    "geometry_msgs/msg/Quaternion": {"w": 1.0},
+}
+
+#: The member rosbags (like the IDL) gives a ROS 2 message that has no fields.
+IDL_PLACEHOLDER = "structure_needs_at_least_one_member"
+
+_PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+
+
+def packaged_dirs(dialect: Dialect) -> list[Path]:
+    """The packaged interface folders for ``dialect``, highest precedence first."""
+    names = ["interfaces_ros1", "interfaces"] if dialect is Dialect.ROS1 else ["interfaces"]
+    return [_PACKAGE_ROOT / name for name in names]
+
+
+def store_for(dialect: Dialect) -> Typestore:
+    """A fresh rosbags typestore of the dialect.
+
+    ROS 2 uses Jazzy: it is the current long-term release and a superset of
+    Humble's types (a few gain fields, such as ``sensor_msgs/Range.variance``;
+    an older client simply omits them and gets defaults). ROS 1 uses Noetic.
+    """
+    return get_typestore(Stores.ROS1_NOETIC if dialect is Dialect.ROS1 else Stores.ROS2_JAZZY)
+
+
+def stores_for(dialect: Dialect) -> list[Typestore]:
+    """The stores consulted for messages, first match wins.
+
+    ROS 1 falls back to the ROS 2 store: the packaged ROS 2 interfaces (for
+    example ``rcl_interfaces`` services) use ROS 2-only messages, which then
+    still resolve, with ROS 1 time spelling.
+    """
+    if dialect is Dialect.ROS1:
+        return [store_for(Dialect.ROS1), store_for(Dialect.ROS2)]
+    return [store_for(Dialect.ROS2)]
+
+
+class FileIndex:
+    """The interface files found under a list of folders, first folder wins.
+
+    Each folder holds ``<pkg>/msg/*.msg``, ``<pkg>/srv/*.srv`` and
+    ``<pkg>/action/*.action``. Folders that do not exist are skipped.
+
+    Args:
+        roots: folders in precedence order, highest first.
+    """
+
+    def __init__(self, roots: Iterable[Path]) -> None:
+        self.files: dict[tuple[str, str, str], Path] = {}
+        for root in roots:
+            if not root.is_dir():
+                continue
+            for package in sorted(root.iterdir()):
+                for kind in KINDS:
+                    folder = package / kind
+                    if not folder.is_dir():
+                        continue
+                    for path in sorted(folder.glob(f"*.{kind}")):
+                        self.files.setdefault((package.name, kind, path.stem), path)
+
+    def find(self, package: str, kind: str, name: str) -> Path | None:
+        """The file defining ``package/kind/name``, or None."""
+        return self.files.get((package, kind, name))
+
+    def names(self, kind: str) -> list[tuple[str, str]]:
+        """``(package, type)`` pairs of every file of ``kind``."""
+        return [(pkg, name) for (pkg, k, name) in self.files if k == kind]
+
+    def packages(self) -> set[str]:
+        """Every package that has at least one file."""
+        return {pkg for (pkg, _, _) in self.files}
+
+
+def _store_type(node: tuple[object, object], dialect: Dialect) -> FieldType:
+    kind, detail = node
+    if kind == Nodetype.BASE:
+        base, bound = cast("tuple[str, int]", detail)
+        strings = base in ("string", "wstring") and bound
+        return FieldType(base, string_bound=bound if strings else None)
+    if kind == Nodetype.NAME:
+        package, _, short = str(detail).partition("/msg/")
+        resolved, is_message = resolve_base(f"{package}/{short}", package, dialect)
+        return FieldType(resolved, is_message)
+    element_node, size = cast("tuple[tuple[object, object], int]", detail)
+    element = _store_type(element_node, dialect)
+    if kind == Nodetype.ARRAY:
+        array, length = ArrayKind.FIXED, size
+    elif size:
+        array, length = ArrayKind.BOUNDED, size
+    else:
+        array, length = ArrayKind.UNBOUNDED, None
+    return FieldType(element.base, element.is_message, array, length, element.string_bound)
+
+
+def _render(ftype: FieldType, dialect: Dialect) -> str:
+    if not ftype.is_message:
+        return ftype.spelled()
+    package, _, rest = ftype.base.partition("/")
+    return ftype.spelled(f"{package}/{rest.rpartition('/')[2]}")
+
+
+def render_text(
+    fields: Sequence[FieldSpec], constants: Sequence[Constant], dialect: Dialect
+) -> str:
+    """Write ``.msg`` text for fields and constants (types without a source text)."""
+    lines = [f"{c.type} {c.name}={_literal(c.value)}" for c in constants]
+    for spec in fields:
+        line = f"{_render(spec.type, dialect)} {spec.name}"
+        if spec.default is not None:
+            line += f" {_literal(spec.default)}"
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def _literal(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, bytes):
+        value = list(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_literal(item) for item in value) + "]"
+    return str(value)
+
+
+def store_message(
+    store: Typestore, key: str, dialect: Dialect
+) -> tuple[tuple[FieldSpec, ...], tuple[Constant, ...], str] | None:
+    """Read a message from a rosbags store by its store key (``pkg/msg/Type``).
+
+    Returns:
+        ``(fields, constants, text)``, with :data:`STORE_DEFAULTS` applied, or
+        None when the store lacks the type.
+    """
+    definition = store.fielddefs.get(key)
+    if definition is None:
+        return None
+    consts, fielddefs = definition
+    defaults = STORE_DEFAULTS.get(key, {}) if dialect is Dialect.ROS2 else {}
+    fields = tuple(
+        FieldSpec(name, _store_type(node, dialect), defaults.get(name))
+        for name, node in fielddefs
+        if name != IDL_PLACEHOLDER
+    )
+    constants = tuple(Constant(name, ctype, value) for name, ctype, value in consts)
+    return fields, constants, render_text(fields, constants, dialect)

@@ -1,0 +1,64 @@
+"""Shared test helpers: sessions paired on one graph, with no sockets and no loop."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+
+import pytest
+
+from rwt_graph.graph import Graph
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.session import Session, SessionConfig
+
+
+class FakeClock:
+    """A clock the test moves by hand."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+        self.epoch = 1_700_000_000.25
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def wall(self) -> float:
+        return self.epoch
+
+
+class Peer:
+    """A client connection reduced to its session: send ops as dicts, read frames as dicts."""
+
+    def __init__(self, graph: Graph, name: str, level: StatusLevel = StatusLevel.ERROR) -> None:
+        self.session = Session(graph, name, config=SessionConfig(status_level=level))
+        self.clock = graph.clock
+
+    def send(self, **op: object) -> None:
+        self.send_raw(json.dumps(op))
+
+    def send_raw(self, frame: str | bytes) -> None:
+        self.session.receive_frame(frame, self.clock.monotonic())
+
+    def received(self) -> list[dict[str, object]]:
+        return [json.loads(frame.data) for frame in self.session.frames_to_send()]
+
+    def statuses(self) -> list[dict[str, object]]:
+        return [m for m in self.received() if m["op"] == "status"]
+
+
+@pytest.fixture
+def clock() -> FakeClock:
+    return FakeClock()
+
+
+@pytest.fixture
+def graph(clock: FakeClock) -> Graph:
+    return Graph(clock=clock)
+
+
+@pytest.fixture
+def peers(graph: Graph) -> Iterator[tuple[Peer, Peer]]:
+    a, b = Peer(graph, "a"), Peer(graph, "b")
+    yield a, b
+    a.session.close()
+    b.session.close()
