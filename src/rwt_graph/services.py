@@ -16,7 +16,7 @@ import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 
-from rwt_protocol.errors import FieldError, GraphError
+from rwt_protocol.errors import FieldError, GraphError, RwtError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
@@ -25,13 +25,24 @@ from .calls import Spawner, convert_args
 from .clock import Clock
 from .types import ServiceType, TypeRegistry
 
-__all__ = ["LocalServiceHandler", "PendingCall", "ServiceEntry", "Services"]
+__all__ = [
+    "Amend",
+    "CallerServiceHandler",
+    "LocalServiceHandler",
+    "PendingCall",
+    "ServiceEntry",
+    "Services",
+]
 
 logger = logging.getLogger("rwt.graph")
 
 Message = dict[str, object]
 LocalServiceHandler = Callable[[Message], Message | Awaitable[Message]]
 """An in-process service: takes the request dict, returns (or awaits) the response dict."""
+CallerServiceHandler = Callable[[ClientId, Message], Message | Awaitable[Message]]
+"""An in-process service that is also told who calls (rosapi filters names per client)."""
+Amend = Callable[[Message], Message]
+"""Rewrites a checked response of an in-process service before it is sent."""
 
 
 class PendingCall:
@@ -70,6 +81,9 @@ class ServiceEntry:
         owner: the providing participant.
         provider: the session to forward requests to, for client-advertised services.
         handler: the callable, for in-process services.
+        caller_handler: the callable, for in-process services told who calls.
+        amend: applied to each checked response of an in-process service (used
+            to add fields a client expects beyond the type, see rosapi get_time).
         pending: request id -> call, for client-advertised services.
     """
 
@@ -79,6 +93,8 @@ class ServiceEntry:
     owner: ClientId
     provider: ServiceProvider | None = None
     handler: LocalServiceHandler | None = None
+    caller_handler: CallerServiceHandler | None = None
+    amend: Amend | None = None
     pending: dict[str, PendingCall] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
@@ -160,7 +176,9 @@ class Services:
             raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
         request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())
         call = PendingCall(client, reply)
-        if entry.handler is not None:
+        if entry.caller_handler is not None:
+            self._run_local(entry, _with_caller(entry.caller_handler, client), request.msg, call)
+        elif entry.handler is not None:
             self._run_local(entry, entry.handler, request.msg, call)
         else:
             assert entry.provider is not None
@@ -221,6 +239,10 @@ class Services:
     ) -> None:
         try:
             outcome = handler(request)
+        except RwtError as exc:  # a refusal with a reason (rosapi: unknown type...), not a bug
+            logger.debug("service %s refused a call: %s", entry.spelling, exc.message)
+            call.resolve(False, f"service {entry.spelling} failed: {exc.message}")
+            return
         except Exception as exc:
             logger.exception("service %s failed", entry.spelling)
             call.resolve(False, f"service {entry.spelling} failed: {exc}")
@@ -251,7 +273,11 @@ class Services:
         except (FieldError, GraphError) as exc:
             call.resolve(False, f"service {entry.spelling} returned an invalid response: {exc}")
             return
-        call.resolve(True, msg)
+        call.resolve(True, msg if entry.amend is None else entry.amend(msg))
+
+
+def _with_caller(handler: CallerServiceHandler, caller: ClientId) -> LocalServiceHandler:
+    return lambda request: handler(caller, request)
 
 
 def _discard(awaitable: Awaitable[object]) -> None:

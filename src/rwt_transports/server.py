@@ -3,7 +3,9 @@
 ``RosbridgeServer`` owns the graph and starts listeners on it; every transport
 makes a ``rwt_protocol.session.Session`` per connection (D22: one dispatcher
 behind all transports). The server also keeps the latched ``/client_count``
-topic that rosbridge publishes (PROTOCOL-DECISIONS D14).
+and ``/connected_clients`` topics that rosbridge publishes (PROTOCOL-DECISIONS
+D14), from node ``/rosbridge_websocket``, and offers rosapi (REF §7.1) from node
+``/rosapi``. Each connection is a node of its own (``/rwt_client_<n>``).
 """
 
 from __future__ import annotations
@@ -19,14 +21,19 @@ from anyio.abc import SocketAttribute, SocketStream, TaskGroup, TaskStatus
 from rwt_graph.calls import Spawner
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
+from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
+from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import RwtError
 from rwt_protocol.session import Session, SessionConfig
 
 from .websocket import WebSocketOptions, serve_websocket_connection
 
-__all__ = ["RosbridgeServer", "ServerConfig", "spawner_for"]
+__all__ = ["SERVER_NODE", "RosbridgeServer", "ServerConfig", "spawner_for"]
 
 logger = logging.getLogger("rwt.server")
+
+#: The node of the server's own publishers, as rosbridge names it.
+SERVER_NODE = "/rosbridge_websocket"
 
 
 @dataclass(frozen=True)
@@ -38,12 +45,17 @@ class ServerConfig:
         port: WebSocket port (``--port``; 0 picks a free one).
         session: per-connection protocol settings.
         websocket: WebSocket settings.
+        rosapi: offer the ``/rosapi/*`` services.
+        rosapi_visibility: what each client may see through rosapi (access rules);
+            None shows everything.
     """
 
     host: str = "127.0.0.1"
     port: int = 9090
     session: SessionConfig = field(default_factory=SessionConfig)
     websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
+    rosapi: bool = True
+    rosapi_visibility: VisibilityFor | None = None
 
 
 class RosbridgeServer:
@@ -58,8 +70,16 @@ class RosbridgeServer:
         self.graph = graph or Graph()
         self.config = config or ServerConfig()
         self.sessions: dict[str, Session] = {}
+        self._connected: dict[str, dict[str, object]] = {}
         self._ids = itertools.count(1)
         self._client_count = _latched(self.graph, "/client_count", "std_msgs/msg/Int32")
+        self._connected_clients = _latched(
+            self.graph, "/connected_clients", "rosbridge_msgs/msg/ConnectedClients"
+        )
+        self._publish_clients()
+        self.rosapi: Rosapi | None = None
+        if self.config.rosapi:
+            self.rosapi = install_rosapi(self.graph, visibility=self.config.rosapi_visibility)
 
     async def serve(
         self,
@@ -103,17 +123,31 @@ class RosbridgeServer:
     def _new_session(self, peer: str, on_output: Callable[[], None]) -> Session:
         client_id = f"ws:{peer}#{next(self._ids)}"
         session = _TrackedSession(self, self.graph, client_id, self.config.session, on_output)
+        address = _address(peer)
+        self.graph.nodes.attach(client_id, host=address)
         self.sessions[client_id] = session
-        self._publish_client_count()
+        self._connected[client_id] = {
+            "ip_address": address,
+            "connection_time": time_value(self.graph.clock.wall(), self.graph.registry.dialect),
+        }
+        self._publish_clients()
         return session
 
     def _session_closed(self, client_id: str) -> None:
         self.sessions.pop(client_id, None)
-        self._publish_client_count()
+        self._connected.pop(client_id, None)
+        self._publish_clients()
 
-    def _publish_client_count(self) -> None:
+    def _publish_clients(self) -> None:
+        """Publish ``/client_count`` and ``/connected_clients`` (D14), both latched."""
         if self._client_count is not None:
             self._client_count.publish({"data": len(self.sessions)})
+        if self._connected_clients is not None:
+            clients = [
+                {"ip_address": info["ip_address"], "connection_time": info["connection_time"]}
+                for info in self._connected.values()
+            ]
+            self._connected_clients.publish({"clients": clients})
 
 
 class _TrackedSession(Session):
@@ -155,10 +189,16 @@ def spawner_for(tg: TaskGroup) -> Spawner:
 
 def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
     try:
-        return graph.create_publisher(topic, type_name, latch=True)
+        return graph.create_publisher(topic, type_name, latch=True, node=SERVER_NODE)
     except RwtError as exc:  # a registry without the type: no such topic
         logger.warning("not publishing %s: %s", topic, exc.message)
         return None
+
+
+def _address(peer: str) -> str:
+    """The address part of ``HOST:PORT`` (IPv6 addresses keep their colons)."""
+    host, sep, _ = peer.rpartition(":")
+    return host if sep else peer
 
 
 def _peer(stream: SocketStream) -> str:
