@@ -86,9 +86,11 @@ class _LineReader:
 class ServerProcess:
     """`python -m rwt_transports serve --host 127.0.0.1 --port 0` in a subprocess."""
 
-    def __init__(self, workdir: Path, extra_args: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self, workdir: Path, extra_args: tuple[str, ...] = (), cmd: list[str] | None = None
+    ) -> None:
         self.stderr_path = workdir / "rwt-serve.stderr"
-        self.cmd = [
+        self.cmd = cmd or [
             sys.executable,
             "-m",
             "rwt_transports",
@@ -100,7 +102,9 @@ class ServerProcess:
             *extra_args,
         ]
         self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        # This checkout's code, not whatever rwt an editable install points at.
+        path = os.pathsep.join(filter(None, [str(REPO / "src"), os.environ.get("PYTHONPATH")]))
+        env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=path)
         self.proc = subprocess.Popen(
             self.cmd,
             stdin=subprocess.DEVNULL,
@@ -265,12 +269,21 @@ class Outcome:
     wire: dict[str, dict[str, list]] = field(default_factory=dict)
     status_count: int = 0
     statuses: list[dict] = field(default_factory=list)
+    calls: dict[str, dict] = field(default_factory=dict)
 
     def add(self, result: dict) -> None:
         self.received.update(result["received"])
         self.wire.update(result["wire"])
         self.status_count += result["status_count"]
         self.statuses.extend(result["statuses"])
+        self.calls.update(result.get("calls", {}))
+
+    def ok(self, name: str) -> Any:
+        """What the `api` step recorded as `name` returned; fails if it reported an error."""
+        outcome = self.calls.get(name)
+        assert outcome is not None, f"no call recorded as {name!r}: {self.calls}"
+        assert "ok" in outcome, f"{name} failed: {outcome['error']}"
+        return outcome["ok"]
 
     def got(self, conn: str, topic: str) -> list:
         """Messages the user callback of `conn` got on `topic`."""
@@ -371,3 +384,11 @@ def quiet(ms: int) -> dict:
 
 def close(role: str) -> dict:
     return {"op": "close", "conn": role}
+
+
+def api(role: str, name: str, call: str, *args: Any, blocking: bool = False) -> dict:
+    """Call the client's rosapi helper `call` with `args`; record the outcome as `name`."""
+    step = {"op": "api", "conn": role, "as": name, "call": call, "args": list(args)}
+    if blocking:
+        step["blocking"] = True
+    return step

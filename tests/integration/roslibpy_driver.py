@@ -16,7 +16,9 @@ format (see client_harness.py, which writes the files and reads the output):
         {"op": "unsubscribe", "conn": "sub", "topic": "/chatter"},
         {"op": "wait", "conn": "sub", "topic": "/chatter", "count": 1},
         {"op": "quiet", "ms": 300},
-        {"op": "close", "conn": "pub"}]}
+        {"op": "close", "conn": "pub"},
+        {"op": "api", "conn": "sub", "call": "get_topics", "args": [], "as": "topics"},
+        {"op": "api", "conn": "sub", "call": "get_time", "blocking": true, "as": "now"}]}
 
 `sync` is a barrier: the connection publishes a token on its own sync topic and
 waits until it receives it back, which proves that the server has processed every
@@ -30,6 +32,13 @@ after unsubscribe). "status_count" counts status frames, which roslibpy cannot
 hand to user code (it logs "No handler registered for operation status" for each,
 without saying on which connection), so "statuses" stays empty here.
 
+`api` calls a method of the client's Ros object by name (roslibpy: `get_topics`,
+`get_param`...; roslib: `getTopics`..., and `Param.get`/`Param.set`/`Param.delete`
+with the parameter name as first argument) and records what it gave under
+"calls": {AS: {"ok": value} or {"error": text}}. roslibpy methods get a callback
+and an errback; with "blocking": true the method is called without them and its
+return value is recorded (roslibpy's `get_time` builds its Time only then).
+
 Exit codes: 0 done, 2 a step failed or timed out, 3 the whole scenario timed out,
 64 bad usage. Every wait is bounded.
 """
@@ -42,6 +51,7 @@ import os
 import sys
 import threading
 import time
+from collections import UserDict
 from urllib.parse import urlsplit
 
 import roslibpy
@@ -64,6 +74,17 @@ class _StatusCounter(logging.Handler):
         exc = record.exc_info[1] if record.exc_info else None
         if exc is not None and 'operation "status"' in str(exc):
             self.driver.count_status(record)
+
+
+def _plain(value: object) -> object:
+    """roslibpy's results (UserDicts such as Time) as plain JSON values."""
+    if isinstance(value, UserDict):
+        return {key: _plain(item) for key, item in value.data.items()}
+    if isinstance(value, dict):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(item) for item in value]
+    return value
 
 
 class Conn:
@@ -92,6 +113,7 @@ class Driver:
         self.cond = threading.Condition()
         self.current = "start"
         self.status_count = 0
+        self.calls: dict[str, dict] = {}
 
     # -- bookkeeping, called from roslibpy's reactor thread -------------------
     def count_status(self, record: logging.LogRecord) -> None:
@@ -210,6 +232,32 @@ class Driver:
             ),
         )
 
+    def do_api(self, step: dict) -> None:
+        conn = self.conn(step)
+        method = getattr(conn.ros, step["call"])
+        args = step.get("args", [])
+        if step.get("blocking"):
+            try:
+                value = method(*args)
+            except Exception as exc:
+                self.calls[step["as"]] = {"error": f"{type(exc).__name__}: {exc}"}
+            else:
+                self.calls[step["as"]] = {"ok": _plain(value)}
+            return
+        done = threading.Event()
+
+        def ok(value: object = None) -> None:
+            self.calls[step["as"]] = {"ok": _plain(value)}
+            done.set()
+
+        def failed(error: object) -> None:
+            self.calls[step["as"]] = {"error": str(error)}
+            done.set()
+
+        method(*args, callback=ok, errback=failed)
+        if not done.wait(self.step_timeout):
+            _die(2, f"timed out after {self.step_timeout:.1f}s waiting for {step['call']}")
+
     def do_quiet(self, step: dict) -> None:
         # A bounded window for negative assertions ("nothing more arrives").
         time.sleep(step["ms"] / 1000.0)
@@ -241,6 +289,7 @@ class Driver:
                 "wire": {c.name: c.wire for c in self.conns.values()},
                 "status_count": self.status_count,
                 "statuses": [],
+                "calls": self.calls,
             }
 
     def shutdown(self) -> None:

@@ -13,7 +13,7 @@
 //
 // Stdout: {"event": NAME} lines for `signal` steps, then one final line
 // {"result": {"received": {conn: {topic: [msg, ...]}}, "wire": {...},
-//             "status_count": n, "statuses": [frame, ...]}}.
+//             "status_count": n, "statuses": [frame, ...], "calls": {AS: {ok|error}}}}.
 // Exit codes: 0 done, 2 a step failed or timed out, 3 the whole scenario timed
 // out, 64 bad usage. Every wait is bounded.
 import { readFileSync } from "node:fs";
@@ -90,6 +90,7 @@ function nextLine() {
 // --- connections ------------------------------------------------------------
 const conns = new Map();
 const statuses = [];
+const calls = {};
 
 function conn(step) {
   const c = conns.get(step.conn);
@@ -211,6 +212,38 @@ const steps = {
     );
   },
 
+  async api(step) {
+    // A rosapi helper of Ros (getTopics...) or of Param (Param.get/set/delete, the
+    // parameter name first): record what its callback or failure callback got.
+    const c = conn(step);
+    const args = step.args ?? [];
+    let target = c.ros;
+    let method = step.call;
+    if (method.startsWith("Param.")) {
+      target = new ROSLIB.Param({ ros: c.ros, name: args.shift() });
+      method = method.slice("Param.".length);
+    }
+    if (typeof target[method] !== "function") throw new Error(`no method ${step.call}`);
+    let done = false;
+    target[method](
+      ...args,
+      (value) => {
+        calls[step.as] = { ok: value ?? null };
+        done = true;
+        notify();
+      },
+      (error) => {
+        calls[step.as] = { error: String(error?.message ?? error) };
+        done = true;
+        notify();
+      },
+    );
+    await until(
+      () => done,
+      () => `${step.call} to answer (${c.name})`,
+    );
+  },
+
   async quiet(step) {
     // A bounded window for negative assertions ("nothing more arrives").
     await new Promise((resolve) => setTimeout(resolve, step.ms));
@@ -247,7 +280,7 @@ async function main() {
     received[c.name] = c.received;
     wire[c.name] = c.wire;
   }
-  const result = { received, wire, status_count: statuses.length, statuses };
+  const result = { received, wire, status_count: statuses.length, statuses, calls };
   // Wait for the write to be flushed: a large result on a pipe is written in
   // pieces, and process.exit() would cut it.
   await new Promise((resolve) => process.stdout.write(JSON.stringify({ result }) + "\n", resolve));
