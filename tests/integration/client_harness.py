@@ -82,6 +82,13 @@ class _LineReader:
             raise TimeoutError from None
 
 
+def _close_pipes(proc: subprocess.Popen) -> None:
+    for pipe in (proc.stdin, proc.stdout):
+        if pipe is not None:
+            with contextlib.suppress(OSError, ValueError):
+                pipe.close()
+
+
 # --------------------------------------------------------------------------- server
 class ServerProcess:
     """`python -m rwt_transports serve --host 127.0.0.1 --port 0` in a subprocess."""
@@ -159,6 +166,7 @@ class ServerProcess:
                 self.proc.kill()
                 self.proc.wait(SERVER_STOP_TIMEOUT)
         self.returncode = self.proc.returncode
+        _close_pipes(self.proc)
         self._stderr.close()
         return self.returncode
 
@@ -258,6 +266,7 @@ class Driver:
             self.proc.kill()
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self.proc.wait(5)
+        _close_pipes(self.proc)
         self._stderr.close()
 
 
@@ -353,8 +362,11 @@ def connect(role: str) -> dict:
     return {"op": "connect", "conn": role}
 
 
-def subscribe(role: str, topic: str, msg_type: str) -> dict:
-    return {"op": "subscribe", "conn": role, "topic": topic, "type": msg_type}
+def subscribe(role: str, topic: str, msg_type: str | None) -> dict:
+    step = {"op": "subscribe", "conn": role, "topic": topic}
+    if msg_type is not None:
+        step["type"] = msg_type
+    return step
 
 
 def unsubscribe(role: str, topic: str) -> dict:

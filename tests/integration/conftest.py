@@ -6,7 +6,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from client_harness import ServerProcess, node_missing_reason
+
+from .client_harness import ServerProcess, node_missing_reason
 
 _NODE_MISSING = node_missing_reason()
 

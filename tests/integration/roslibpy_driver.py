@@ -143,9 +143,11 @@ class Driver:
             _die(2, f"step {self.current}: connection {name!r} was never opened")
         return self.conns[name]
 
-    def topic(self, conn: Conn, name: str, msg_type: str | None) -> roslibpy.Topic:
+    def topic(
+        self, conn: Conn, name: str, msg_type: str | None, typeless: bool = False
+    ) -> roslibpy.Topic:
         if name not in conn.topics:
-            if msg_type is None:
+            if msg_type is None and not typeless:
                 _die(2, f"step {self.current}: topic {name} needs a type on first use")
             conn.topics[name] = roslibpy.Topic(conn.ros, name, msg_type)
         return conn.topics[name]
@@ -182,7 +184,9 @@ class Driver:
         def on_message(msg: object) -> None:
             self._record(conn.received, name, msg)
 
-        self.topic(conn, name, step.get("type")).subscribe(on_message)
+        # A subscribe step may leave the type out (the server knows the topic):
+        # roslibpy then sends "type": null.
+        self.topic(conn, name, step.get("type"), typeless=True).subscribe(on_message)
 
     def do_unsubscribe(self, step: dict) -> None:
         conn = self.conn(step)

@@ -14,7 +14,8 @@ import base64
 from pathlib import Path
 
 import pytest
-from client_harness import (
+
+from .client_harness import (
     Outcome,
     ServerProcess,
     advertise,
@@ -302,4 +303,29 @@ def test_relative_and_absolute_names_meet(rwt_server, tmp_path, pub_client, sub_
     ]
     out = run_scenario(rwt_server.url, phases, {"pub": pub_client, "sub": sub_client}, tmp_path)
     assert out.got("sub", "abs_chatter") == [{"data": "one"}]
+    assert_no_error_status(out)
+
+
+# --------------------------------------------------------------------------- no type
+@pytest.mark.parametrize(("pub_client", "sub_client"), ALL)
+def test_subscribe_without_type_to_a_known_topic(rwt_server, tmp_path, pub_client, sub_client):
+    """Once a topic is advertised, a subscriber may leave the type out.
+
+    roslib then sends no `type`; roslibpy sends `"type": null`.
+    """
+    phases = [
+        (
+            "pub",
+            [
+                connect("pub"),
+                advertise("pub", "/typed_by_pub", "std_msgs/msg/Float64"),
+                sync("pub"),
+            ],
+        ),
+        ("sub", [connect("sub"), subscribe("sub", "/typed_by_pub", None), sync("sub")]),
+        ("pub", [publish("pub", "/typed_by_pub", {"data": 2.5}, {"data": -0.125}), sync("pub")]),
+        ("sub", [wait("sub", "/typed_by_pub", 2)]),
+    ]
+    out = run_scenario(rwt_server.url, phases, {"pub": pub_client, "sub": sub_client}, tmp_path)
+    assert out.got("sub", "/typed_by_pub") == [{"data": 2.5}, {"data": -0.125}]
     assert_no_error_status(out)

@@ -98,9 +98,9 @@ function conn(step) {
   return c;
 }
 
-function topic(c, name, type) {
+function topic(c, name, type, typeless = false) {
   if (!c.topics.has(name)) {
-    if (!type) throw new Error(`topic ${name} needs a type on first use`);
+    if (!type && !typeless) throw new Error(`topic ${name} needs a type on first use`);
     c.topics.set(name, new ROSLIB.Topic({ ros: c.ros, name, messageType: type }));
   }
   return c.topics.get(name);
@@ -169,7 +169,9 @@ const steps = {
       c.ros.on(name, (frame) => record(c.wire, name, frame.msg));
       c.wireListeners.add(name);
     }
-    topic(c, name, step.type).subscribe((msg) => record(c.received, name, msg));
+    // A subscribe step may leave the type out (the server knows the topic):
+    // roslib then sends no "type" at all.
+    topic(c, name, step.type, true).subscribe((msg) => record(c.received, name, msg));
   },
 
   async unsubscribe(step) {
