@@ -13,7 +13,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from client_harness import (
+
+from .client_harness import (
     REPO,
     Outcome,
     ServerProcess,

@@ -8,8 +8,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from client_harness import REPO, ServerProcess
 from websockets.sync.client import ClientConnection, connect
+
+from .client_harness import REPO, ServerProcess
 
 EXAMPLE = REPO / "examples" / "robot.py"
 TIMEOUT_S = 10.0
