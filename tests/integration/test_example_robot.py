@@ -88,3 +88,9 @@ def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:
             "publishing": ["/velocity"],
             "services": ["/lights"],
         }
+
+
+def test_the_readme_shows_the_example() -> None:
+    code = EXAMPLE.read_text()
+    body = code[code.index("graph = Graph()") :]
+    assert body in (REPO / "README.md").read_text()
