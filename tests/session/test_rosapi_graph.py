@@ -6,6 +6,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import Visibility, install_rosapi
+from rwt_protocol.errors import GraphError
 from tests.conftest import FakeClock, Peer
 from tests.session.rosapi_support import call, call_raw, connect
 
@@ -204,3 +205,19 @@ def test_visibility_hides_names_per_calling_client(graph: Graph) -> None:
     assert call(admin, "/rosapi/topics")["topics"] == ["/open", "/secret"]
     assert call(admin, "/rosapi/action_servers") == {"action_servers": ["/fibonacci"]}
     assert call(admin, "/rosapi/get_param_names")["names"] == ["/robot:public", "/robot:secret"]
+
+
+@pytest.mark.parametrize("node", ["9lives", "/a b", "/ok/-no", ""])
+def test_bad_node_names_are_refused_and_leave_nothing_behind(graph: Graph, node: str) -> None:
+    with pytest.raises(GraphError, match="invalid node name"):
+        graph.create_publisher("/p", "std_msgs/msg/String", node=node)
+    assert graph.topics == {} and graph.nodes.names() == set()
+
+
+def test_a_failed_registration_leaves_no_node(graph: Graph) -> None:
+    with pytest.raises(GraphError):
+        graph.create_service("/s", "std_srvs/srv/Nope", lambda request: {}, node="/x")
+    graph.create_publisher("/p", "std_msgs/msg/String")
+    with pytest.raises(GraphError):
+        graph.create_subscription("/p", lambda msg: None, "std_msgs/msg/Int32", node="/y")
+    assert graph.nodes.names() == {"/rwt"}
