@@ -23,11 +23,12 @@ from .codec import decode_json, encode_json, parse_object, peek_id
 from .encoding import publish_frame
 from .errors import RwtError
 from .handlers import HANDLERS
+from .handlers.providers import ProviderLink
 from .levels import StatusLevel
 from .ops import OpModel
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .ports import ClientId, GraphPort, MessageEvent
+from .ports import ClientId, GoalHandle, GraphPort, MessageEvent
 from .subscriptions import TopicSubscription
 from .timers import TimerQueue
 
@@ -46,10 +47,13 @@ class SessionConfig:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         send_buffer_limit: bytes of outgoing frames kept queued before the oldest
             topic messages are dropped (D24, ``--send-buffer-limit``).
+        call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
+            it fails (D16, ``--call-timeout``); None waits for ever.
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
     send_buffer_limit: int = 16 * MiB
+    call_timeout_s: float | None = 30.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,6 +93,8 @@ class Session:
         self.status_level = self.config.status_level
         self.subscriptions: dict[str, TopicSubscription] = {}
         self.advertisements: dict[str, set[str | int | None]] = {}
+        self.goals: dict[str | int | None, GoalHandle] = {}
+        self.provider_link = ProviderLink(self)
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._commands: list[Command] = []
         self.timers = TimerQueue()
@@ -139,6 +145,7 @@ class Session:
         self.timers.clear()
         self.subscriptions.clear()
         self.advertisements.clear()
+        self.goals.clear()
         self.graph.release(self.client_id)
 
     # ---- outputs ------------------------------------------------------------

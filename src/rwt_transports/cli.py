@@ -24,6 +24,7 @@ from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
+from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig
 from .websocket import WebSocketOptions
 
@@ -55,6 +56,9 @@ def main() -> None:
     """rwt: a ROS-free rosbridge v2 server, client and conformance suite."""
 
 
+app.command()(conformance)
+
+
 @app.command()
 def serve(
     host: Annotated[str, typer.Option(help="Address to bind.")] = "127.0.0.1",
@@ -72,6 +76,9 @@ def serve(
     send_buffer_limit: Annotated[
         int, typer.Option(help="Outgoing bytes queued per connection before dropping.")
     ] = 16 * MiB,
+    call_timeout: Annotated[
+        float, typer.Option(help="Seconds a call_service without timeout may wait; 0 = no limit.")
+    ] = 30.0,
     websocket_compression: Annotated[bool, typer.Option(help="Offer permessage-deflate.")] = False,
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
@@ -92,6 +99,7 @@ def serve(
         session=SessionConfig(
             status_level=StatusLevel.from_wire(status_level.value),
             send_buffer_limit=send_buffer_limit,
+            call_timeout_s=call_timeout if call_timeout > 0 else None,
         ),
         websocket=WebSocketOptions(
             max_message_size=max_message_size,
