@@ -10,7 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .. import ops
-from . import control, pending, topics
+from . import control, encodings, pending, topics
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -38,6 +38,6 @@ HANDLERS: dict[type[ops.OpModel], Handler] = {
     ops.CancelActionGoal: pending.refuse,
     ops.ActionFeedback: pending.refuse,
     ops.ActionResult: pending.refuse,
-    ops.Fragment: pending.refuse,
-    ops.Png: pending.refuse,
+    ops.Fragment: encodings.fragment,
+    ops.Png: encodings.png,
 }
