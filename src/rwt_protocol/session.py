@@ -25,11 +25,12 @@ from .encoding import encode_op_frames, publish_frames
 from .errors import RwtError
 from .fragments import Reassembler
 from .handlers import HANDLERS
+from .handlers.providers import ProviderLink
 from .levels import StatusLevel
 from .ops import OpModel
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .ports import ClientId, GraphPort, MessageCodec, MessageEvent
+from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
 from .subscriptions import TopicSubscription
 from .timers import Timer, TimerQueue
 
@@ -55,6 +56,8 @@ class SessionConfig:
             (D19, ``--max-pending-fragments``).
         fragment_timeout_s: seconds without a new part after which an incomplete
             message is dropped (D19, ``--fragment-timeout``; rosbridge's 600 s).
+        call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
+            it fails (D16, ``--call-timeout``); None waits for ever.
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
@@ -62,6 +65,7 @@ class SessionConfig:
     max_message_size: int = 10 * MiB
     max_pending_fragments: int = 16
     fragment_timeout_s: float = 600.0
+    call_timeout_s: float | None = 30.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +106,8 @@ class Session:
         self.status_level = self.config.status_level
         self.subscriptions: dict[str, TopicSubscription] = {}
         self.advertisements: dict[str, set[str | int | None]] = {}
+        self.goals: dict[str | int | None, GoalHandle] = {}
+        self.provider_link = ProviderLink(self)
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._commands: list[Command] = []
         self.timers = TimerQueue()
@@ -170,6 +176,7 @@ class Session:
         self.subscriptions.clear()
         self.fragments.clear()
         self.advertisements.clear()
+        self.goals.clear()
         self.graph.release(self.client_id)
 
     # ---- outputs ------------------------------------------------------------

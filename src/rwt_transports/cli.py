@@ -79,6 +79,9 @@ def serve(
     send_buffer_limit: Annotated[
         int, typer.Option(help="Outgoing bytes queued per connection before dropping.")
     ] = 16 * MiB,
+    call_timeout: Annotated[
+        float, typer.Option(help="Seconds a call_service without timeout may wait; 0 = no limit.")
+    ] = 30.0,
     websocket_compression: Annotated[bool, typer.Option(help="Offer permessage-deflate.")] = False,
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
@@ -102,6 +105,7 @@ def serve(
             max_message_size=max_message_size,
             max_pending_fragments=max_pending_fragments,
             fragment_timeout_s=fragment_timeout,
+            call_timeout_s=call_timeout if call_timeout > 0 else None,
         ),
         websocket=WebSocketOptions(
             max_message_size=max_message_size,

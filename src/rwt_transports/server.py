@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 
 import anyio
-from anyio.abc import SocketAttribute, SocketStream, TaskStatus
+from anyio.abc import SocketAttribute, SocketStream, TaskGroup, TaskStatus
 
+from rwt_graph.calls import Spawner
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
 from rwt_protocol.errors import RwtError
@@ -23,7 +24,7 @@ from rwt_protocol.session import Session, SessionConfig
 
 from .websocket import WebSocketOptions, serve_websocket_connection
 
-__all__ = ["RosbridgeServer", "ServerConfig"]
+__all__ = ["RosbridgeServer", "ServerConfig", "spawner_for"]
 
 logger = logging.getLogger("rwt.server")
 
@@ -79,14 +80,18 @@ class RosbridgeServer:
         listener = await anyio.create_tcp_listener(
             local_host=self.config.host, local_port=self.config.port, reuse_port=False
         )
-        async with listener:
+        async with listener, anyio.create_task_group() as tg:
+            self.graph.spawner = spawner_for(tg)
             port = listener.extra(SocketAttribute.local_port)
             url = f"ws://{_url_host(self.config.host)}:{port}"
             logger.info("listening on %s", url)
             if on_listening is not None:
                 on_listening(url)
             task_status.started(url)
-            await listener.serve(self._handle_websocket)
+            try:
+                await listener.serve(self._handle_websocket, task_group=tg)
+            finally:
+                self.graph.spawner = None
 
     async def _handle_websocket(self, stream: SocketStream) -> None:
         peer = _peer(stream)
@@ -130,6 +135,22 @@ class _TrackedSession(Session):
         super().close()
         if not was_closed:
             self._server._session_closed(self.client_id)
+
+
+def spawner_for(tg: TaskGroup) -> Spawner:
+    """A graph spawner running jobs in ``tg``; each job can be cancelled alone."""
+
+    def spawn(job: Callable[[], Awaitable[None]]) -> Callable[[], None]:
+        scope = anyio.CancelScope()
+
+        async def run() -> None:
+            with scope:
+                await job()
+
+        tg.start_soon(run)
+        return scope.cancel
+
+    return spawn
 
 
 def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
