@@ -212,7 +212,7 @@ class Session:
 
     def send_frames(self, frames: Sequence[OutFrame]) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport."""
-        if self._closed or not frames:
+        if self._closed:
             return
         was_empty = len(self._outbox) == 0
         self._outbox.extend(frames)

@@ -136,8 +136,6 @@ class TopicSubscription:
 
     def on_message(self, event: MessageEvent) -> None:
         """Receive one message from the graph (``TopicSink``); throttle and queue it (D12)."""
-        if not self.requests:
-            return
         now = event.now
         window = self.params.throttle_s
         if not self.queue and self._timer is None and self._open(now, window):
@@ -170,9 +168,10 @@ class TopicSubscription:
         self._timer = self._schedule(base + self.params.throttle_s, self._window_ended)
 
     def _window_ended(self, now: float) -> None:
+        # The queue is never empty here: a timer is armed only for a queued
+        # message, and ``close`` cancels it when it drops the queue.
         self._timer = None
-        if self.queue:
-            self._send(self.queue.popleft(), now)
+        self._send(self.queue.popleft(), now)
         self._arm(now)
 
     def _flush(self, now: float) -> None:

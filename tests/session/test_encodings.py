@@ -489,3 +489,59 @@ def test_status_stays_json_on_a_cbor_subscription(graph: Graph) -> None:
     sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="cbor", id="s")
     [frame] = sub.session.frames_to_send()
     assert not frame.binary and json.loads(frame.data)["op"] == "status"
+
+
+def test_cbor_types_arrays_inside_nested_messages_and_message_arrays(
+    graph: Graph, pub: Peer
+) -> None:
+    sub = Peer(graph, "sub")
+    sub.send(op="subscribe", topic="/odom", type="nav_msgs/Odometry", compression="cbor")
+    sub.send(op="subscribe", topic="/cloud", type="sensor_msgs/PointCloud", compression="cbor")
+    pub.send(op="publish", topic="/odom", msg={"pose": {"covariance": [0.5] * 36}})
+    channels = [{"name": "i", "values": [1.0, 2.0]}, {"name": "j", "values": []}]
+    pub.send(op="publish", topic="/cloud", msg={"channels": channels})
+    odom, cloud = decoded(sub)
+    covariance = odom["msg"]["pose"]["covariance"]
+    assert covariance == cbor2.CBORTag(86, np.full(36, 0.5, "<f8").tobytes())
+    assert odom["msg"]["twist"]["covariance"].tag == 86
+    assert [c["values"] for c in cloud["msg"]["channels"]] == [
+        cbor2.CBORTag(85, np.array([1.0, 2.0], "<f4").tobytes()),
+        cbor2.CBORTag(85, b""),
+    ]
+    assert cloud["msg"]["points"] == []
+
+
+def test_a_failure_reply_stays_plain_with_a_codec(graph: Graph, pub: Peer) -> None:
+    codec = graph.registry.codec(graph.registry.message("std_msgs/Int16MultiArray"))
+    failure = {"op": "service_response", "service": "/s", "values": "no", "result": False}
+    pub.session.send_op(failure, compression="cbor", codec=codec)
+    assert decoded(pub) == [failure]
+
+
+def test_a_message_that_cannot_be_encoded_is_reported_to_its_subscriber_only(
+    graph: Graph, pub: Peer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    codec = graph.registry.codec(graph.registry.message("std_msgs/String"))
+
+    def broken(msg: object) -> bytes:
+        raise KeyError("std_msgs/msg/String")
+
+    monkeypatch.setattr(codec, "serialize", broken)
+    raw, plain = Peer(graph, "raw"), Peer(graph, "plain")
+    raw.send(op="subscribe", topic="/c", type="std_msgs/String", compression="cbor-raw")
+    plain.send(op="subscribe", topic="/c", type="std_msgs/String")
+    pub.send(op="publish", topic="/c", msg={"data": "x"}, id="p")
+    [status] = raw.received()
+    assert status == {
+        "op": "status",
+        "level": "error",
+        "msg": "subscribe: cannot send a message of /c as cbor-raw",
+    }
+    assert plain.received() == [{"op": "publish", "topic": "/c", "msg": {"data": "x"}}]
+    assert pub.received() == []
+
+
+def test_cbor_raw_without_a_codec_falls_back_to_cbor() -> None:
+    event = MessageEvent("/c", "std_msgs/msg/String", {"data": "x"}, 0.0)
+    [frame] = encoding.publish_frames(event, "/c", "cbor-raw", None)
+    assert frame.binary and cbor2.loads(frame.data)["msg"] == {"data": "x"}
