@@ -13,6 +13,8 @@ import cbor2
 import msgspec
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
@@ -545,3 +547,19 @@ def test_cbor_raw_without_a_codec_falls_back_to_cbor() -> None:
     event = MessageEvent("/c", "std_msgs/msg/String", {"data": "x"}, 0.0)
     [frame] = encoding.publish_frames(event, "/c", "cbor-raw", None)
     assert frame.binary and cbor2.loads(frame.data)["msg"] == {"data": "x"}
+
+
+@settings(max_examples=60, deadline=None)
+@given(text=st.text(max_size=300), size=st.integers(1, 80), data=st.data())
+def test_any_fragmenting_of_a_publish_delivers_it_once(
+    text: str, size: int, data: st.DataObject
+) -> None:
+    graph = Graph(clock=FakeClock())
+    pub, sub = Peer(graph, "pub"), Peer(graph, "sub")
+    sub.send(op="subscribe", topic="/c", type="std_msgs/String")
+    op = json.dumps({"op": "publish", "topic": "/c", "msg": {"data": text}})
+    frames = data.draw(st.permutations(fragment_frames(op, "m", size)))
+    for frame in frames:
+        pub.send_raw(frame)
+    assert decoded(sub) == [{"op": "publish", "topic": "/c", "msg": {"data": text}}]
+    assert pub.received() == [] and pub.session.fragments.held_bytes == 0

@@ -1,4 +1,4 @@
-"""Binary WebSocket frames carry CBOR both ways (PROTOCOL-DECISIONS D21, D27)."""
+"""Encodings over a real WebSocket: CBOR frames both ways (D21, D27), throttle timers (D12)."""
 
 from __future__ import annotations
 
@@ -40,4 +40,29 @@ async def test_binary_ops_in_and_cbor_frames_out() -> None:
                 status = await ws.recv()
                 assert isinstance(status, str)
                 assert "invalid JSON" in json.loads(status)["msg"]
+        tg.cancel_scope.cancel()
+
+
+async def test_the_trailing_throttled_message_arrives_without_more_traffic() -> None:
+    # The trailing send is due on the session's timer while the writer is idle:
+    # scheduling it must wake the writer (Session.call_at), or it never goes out.
+    graph = Graph()
+    publisher = graph.create_publisher("/t", "std_msgs/msg/String")
+    server = RosbridgeServer(graph, ServerConfig(port=0))
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        with anyio.fail_after(10):
+            async with connect(url) as ws:
+                subscribe = {"op": "subscribe", "topic": "/t", "throttle_rate": 1000}
+                await ws.send(json.dumps({**subscribe, "type": "std_msgs/String"}))
+                await ws.send(json.dumps({"op": "set_level", "level": "info"}))
+                assert json.loads(await ws.recv())["op"] == "status"  # processed in order
+                publisher.publish({"data": "first"})
+                assert json.loads(await ws.recv())["msg"]["data"] == "first"
+                publisher.publish({"data": "second"})
+                publisher.publish({"data": "latest"})
+                received = []
+                while not received or received[-1] != "latest":
+                    received.append(json.loads(await ws.recv())["msg"]["data"])
+                assert received in (["latest"], ["second", "latest"])
         tg.cancel_scope.cancel()
