@@ -23,6 +23,7 @@ from .errors import RemoteProtocolError
 
 __all__ = [
     "FRAGMENT_OVERHEAD",
+    "MAX_PARTS",
     "PartKind",
     "Reassembler",
     "fragment_frames",
@@ -32,6 +33,11 @@ __all__ = [
 
 FRAGMENT_OVERHEAD = 64
 """Characters charged per held part on top of its data, so tiny parts stay bounded."""
+
+MAX_PARTS = 10_000
+"""The most parts one outgoing message is cut into (D24: a peer asking for
+``fragment_size`` 1 must not make the server build millions of frames); a smaller
+fragment size is raised for that message so that it fits."""
 
 _fresh = itertools.count(1)
 
@@ -71,9 +77,10 @@ def fragment_frames(text: str, op_id: str | int, size: int, *, op: str = "fragme
         op: ``fragment``, or ``png`` for the parts of a PNG message (D20).
 
     Returns:
-        One JSON frame per part, in order, ``{"op", "id", "data", "num", "total"}``.
+        One JSON frame per part, in order, ``{"op", "id", "data", "num", "total"}``;
+        never more than ``MAX_PARTS``.
     """
-    chunks = split_text(text, size)
+    chunks = split_text(text, max(size, -(-len(text) // MAX_PARTS)))
     total = len(chunks)
     return [
         encode_json({"op": op, "id": op_id, "data": chunk, "num": num, "total": total})

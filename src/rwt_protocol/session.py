@@ -56,6 +56,9 @@ class SessionConfig:
             (D19, ``--max-pending-fragments``).
         fragment_timeout_s: seconds without a new part after which an incomplete
             message is dropped (D19, ``--fragment-timeout``; rosbridge's 600 s).
+        max_queue_length: the most messages a throttled subscription queues; a
+            larger ``queue_length`` is capped with a warning (D12, D24,
+            ``--max-queue-length``).
         call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
             it fails (D16, ``--call-timeout``); None waits for ever.
     """
@@ -65,6 +68,7 @@ class SessionConfig:
     max_message_size: int = 10 * MiB
     max_pending_fragments: int = 16
     fragment_timeout_s: float = 600.0
+    max_queue_length: int = 100
     call_timeout_s: float | None = 30.0
 
 

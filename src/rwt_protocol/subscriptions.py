@@ -11,7 +11,8 @@ Throttle and queue follow D12 (REF §5.3 for the reference's behaviour):
   matter; the connection's outbox bounds what waits for a slow peer, D24);
 - ``throttle_rate`` T ms: leading edge, a message goes out at once when at least
   T has passed since the previous one; otherwise it waits in a queue of
-  ``max(1, queue_length)`` messages that drops its oldest, and the head goes out
+  ``max(1, queue_length)`` messages (at most the server's ``max_queue``, D24)
+  that drops its oldest, and the head goes out
   each time a window of T ends, so the latest message of a burst is always
   delivered (the reference loses it);
 - changing the parameters keeps the time of the last send and the queue; a
@@ -86,6 +87,8 @@ class TopicSubscription:
         spelling: the name as the client wrote it; delivered messages carry it (D26).
         deliver: sends one message to the client now (encoding is the caller's).
         schedule: runs a callback at a monotonic deadline (the session's timers).
+        max_queue: the most messages queued whatever ``queue_length`` asks
+            (a size the peer controls, PROTOCOL-DECISIONS D24).
     """
 
     def __init__(
@@ -94,6 +97,8 @@ class TopicSubscription:
         spelling: str,
         deliver: Callable[[TopicSubscription, MessageEvent], None],
         schedule: Schedule,
+        *,
+        max_queue: int = 100,
     ) -> None:
         self.topic = topic
         self.spelling = spelling
@@ -104,6 +109,7 @@ class TopicSubscription:
         self.last_sent: float | None = None
         self._deliver = deliver
         self._schedule = schedule
+        self._max_queue = max(1, max_queue)
         self._timer: Timer | None = None
 
     def add(self, request: Subscribe, now: float) -> None:
@@ -153,7 +159,7 @@ class TopicSubscription:
         self._deliver(self, event)
 
     def _trim(self) -> None:
-        keep = max(1, self.params.queue_length)
+        keep = min(max(1, self.params.queue_length), self._max_queue)
         while len(self.queue) > keep:
             self.queue.popleft()
 

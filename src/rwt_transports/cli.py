@@ -76,6 +76,9 @@ def serve(
     fragment_timeout: Annotated[
         float, typer.Option(min=0.001, help="Seconds without a new fragment before dropping.")
     ] = 600.0,
+    max_queue_length: Annotated[
+        int, typer.Option(min=1, help="Cap on a throttled subscription's queue_length.")
+    ] = 100,
     send_buffer_limit: Annotated[
         int, typer.Option(help="Outgoing bytes queued per connection before dropping.")
     ] = 16 * MiB,
@@ -105,6 +108,7 @@ def serve(
             max_message_size=max_message_size,
             max_pending_fragments=max_pending_fragments,
             fragment_timeout_s=fragment_timeout,
+            max_queue_length=max_queue_length,
             call_timeout_s=call_timeout if call_timeout > 0 else None,
         ),
         websocket=WebSocketOptions(

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.fragments import (
     FRAGMENT_OVERHEAD,
+    MAX_PARTS,
     PartKind,
     Reassembler,
     fragment_frames,
@@ -131,3 +132,11 @@ def test_clear_forgets_everything() -> None:
     parts.add(FRAG, "a", 0, 2, data="x", now=0.0)
     parts.clear()
     assert len(parts) == 0 and parts.held_bytes == 0 and parts.next_deadline() is None
+
+
+def test_a_tiny_fragment_size_is_raised_to_bound_the_part_count() -> None:
+    text = "x" * (MAX_PARTS * 3 + 1)
+    frames = fragment_frames(text, "m", 1)
+    assert len(frames) == 7501  # parts of ceil(30001 / 10000) = 4 characters
+    assert len(frames) <= MAX_PARTS
+    assert "".join(json.loads(f)["data"] for f in frames) == text

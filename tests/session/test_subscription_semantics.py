@@ -192,3 +192,20 @@ def test_in_process_latched_publisher(graph: Graph) -> None:
     again = Peer(graph, "again")
     again.send(op="subscribe", topic="/state", type="std_msgs/String")
     assert data(again) == []
+
+
+def test_queue_length_is_capped_with_a_warning(graph: Graph, clock: FakeClock) -> None:
+    pub, sub = setup(graph, throttle_rate=1000, queue_length=1_000_000)
+    [status] = sub.statuses()
+    assert status == {
+        "op": "status",
+        "level": "warning",
+        "msg": "subscribe: queue_length 1000000 capped at 100",
+        "id": "s",
+    }
+    for i in range(300):
+        publish_at(clock, pub, 100.0 + i * 0.001, str(i))
+    assert [m for m in sub.statuses()] == []
+    subscription = sub.session.subscriptions["/t"]
+    assert len(subscription.queue) == 100
+    assert subscription.queue[0].msg == {"data": "200"}

@@ -80,7 +80,13 @@ def subscribe(session: Session, op: Subscribe, now: float) -> None:
     topic = resolve_name(op.topic)
     subscription = session.subscriptions.get(topic)
     if subscription is None:
-        subscription = TopicSubscription(topic, op.topic, session.deliver, session.call_at)
+        subscription = TopicSubscription(
+            topic,
+            op.topic,
+            session.deliver,
+            session.call_at,
+            max_queue=session.config.max_queue_length,
+        )
         subscription.add(op, now)
         subscription.type_name = session.graph.subscribe(
             session.client_id, topic, op.type, subscription
@@ -90,6 +96,11 @@ def subscribe(session: Session, op: Subscribe, now: float) -> None:
         if op.type is not None:
             session.graph.subscribe(session.client_id, topic, op.type, subscription)
         subscription.add(op, now)
+    cap = session.config.max_queue_length
+    if op.queue_length > cap:
+        session.report(
+            StatusLevel.WARNING, f"subscribe: queue_length {op.queue_length} capped at {cap}", op.id
+        )
     session.report(StatusLevel.INFO, f"subscribe: subscribed to {op.topic}", op.id)
 
 
