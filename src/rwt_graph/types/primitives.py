@@ -274,10 +274,11 @@ def array_checker(ftype: FieldType, dialect: Dialect) -> Checker:
     if is_bytes_base(ftype.base):
         return _bytes_checker(ftype, element)
     ints = int_range(ftype.base, dialect)
-    if ftype.base == "byte" and dialect is Dialect.ROS2:
-        return _octets_checker(ftype, _list_checker(ftype, element, _int_fast(*ints)))
     if ints is not None:
-        return _list_checker(ftype, element, _int_fast(*ints))
+        checker = _list_checker(ftype, element, _int_fast(*ints))
+        if ftype.base == "byte" and dialect is Dialect.ROS2:
+            return _octets_checker(ftype, checker)
+        return checker
     if ftype.base == "float32":
         return _list_checker(ftype, element, _float32_fast)
     if ftype.base == "float64":
