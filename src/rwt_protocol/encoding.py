@@ -14,8 +14,9 @@ Decisions made here (the spec is silent):
   whole whatever the fragment size (the reference raises instead, REF §3.4);
 - a ``png`` op carries the JSON text of the op it replaces; its base64 data is
   split into ``png`` ops with ``id``/``num``/``total`` above the fragment size (D20);
-- ``cbor-raw`` for something other than a topic message (a service reply) is
-  sent as ``cbor``;
+- ``cbor-raw`` for something other than a topic message (a service reply), or
+  for a message whose publisher gave no ``MessageCodec``, is sent as ``cbor``;
+- a message is cut into at most ``fragments.MAX_PARTS`` parts (D24);
 - cbor-raw's ``secs``/``nsecs`` are the wall-clock time of publication, the same
   for every subscriber, so the frame can be shared (REF §3.5 stamps at forwarding).
 """
