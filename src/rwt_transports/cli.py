@@ -24,6 +24,7 @@ from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
+from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig
 from .websocket import WebSocketOptions
 
@@ -53,6 +54,9 @@ class DialectName(StrEnum):
 @app.callback()
 def main() -> None:
     """rwt: a ROS-free rosbridge v2 server, client and conformance suite."""
+
+
+app.command()(conformance)
 
 
 @app.command()
