@@ -563,3 +563,19 @@ def test_any_fragmenting_of_a_publish_delivers_it_once(
         pub.send_raw(frame)
     assert decoded(sub) == [{"op": "publish", "topic": "/c", "msg": {"data": text}}]
     assert pub.received() == [] and pub.session.fragments.held_bytes == 0
+
+
+def test_a_closed_session_sends_nothing_and_frees_its_parts(graph: Graph, clock: FakeClock) -> None:
+    woken: list[int] = []
+    session = Session(graph, "c", on_output=lambda: woken.append(1))
+    part = {"op": "fragment", "id": "x", "data": "{", "num": 0, "total": 2}
+    session.receive_frame(cbor2.dumps(part), clock.now, binary=True)
+    assert len(session.fragments) == 1 and woken == [1]  # the expiry timer
+    session.send(OutFrame(b"{}"))
+    assert [f.data for f in session.frames_to_send()] == [b"{}"]
+    session.close()
+    session.receive_frame(json.dumps({**part, "id": "y"}), clock.now)
+    session.send(OutFrame(b"{}"))
+    session.call_at(clock.now + 1, lambda now: None)
+    assert session.frames_to_send() == [] and len(session.fragments) == 0
+    assert woken == [1, 1] and session.get_timer() is None
