@@ -90,7 +90,7 @@ class Graph:
         """Remove ``client`` as a publisher; the topic goes when nobody uses it."""
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
-            entry.publishers.pop(client, None)
+            entry.remove_publisher(client)
             self._collect(entry)
 
     def publish(
@@ -122,7 +122,7 @@ class Graph:
         if client not in entry.publishers:
             self.nodes.name_of(client)
         latched = entry.publishers.setdefault(client, False) or latch
-        self._send(entry, converted.msg, latch=latched)
+        self._send(entry, converted.msg, latch=latched, client=client)
         return converted.missing
 
     def subscribe(
@@ -167,7 +167,7 @@ class Graph:
         calls and goals are forgotten.
         """
         for entry in list(self.topics.values()):
-            entry.publishers.pop(client, None)
+            entry.remove_publisher(client)
             entry.subscribers.pop(client, None)
             self._collect(entry)
         self.services.release(client)
@@ -444,11 +444,18 @@ class Graph:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        self._send(entry, msg, latch=latch)
+        self._send(entry, msg, latch=latch, client=client)
 
-    def _send(self, entry: Topic, msg: Message, *, latch: bool) -> None:
-        event = MessageEvent(entry.name, entry.msgtype.name, msg, self.clock.monotonic())
-        entry.fan_out(event, latch=latch)
+    def _send(self, entry: Topic, msg: Message, *, latch: bool, client: ClientId) -> None:
+        event = MessageEvent(
+            entry.name,
+            entry.msgtype.name,
+            msg,
+            self.clock.monotonic(),
+            stamp=self.clock.wall(),
+            codec=self.registry.codec(entry.msgtype),
+        )
+        entry.fan_out(event, latch=latch, client=client)
 
     def _topic(self, topic: str, msgtype: MessageType) -> Topic:
         name = resolve_name(topic)

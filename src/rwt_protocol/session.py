@@ -16,21 +16,23 @@ serving.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from .codec import decode_json, encode_json, parse_object, peek_id
-from .encoding import publish_frame
+from .codec import decode_json, parse_object, peek_id
+from .codec_cbor import decode_cbor
+from .encoding import encode_op_frames, publish_frames
 from .errors import RwtError
+from .fragments import Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .levels import StatusLevel
 from .ops import OpModel
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .ports import ClientId, GoalHandle, GraphPort, MessageEvent
+from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
 from .subscriptions import TopicSubscription
-from .timers import TimerQueue
+from .timers import Timer, TimerQueue
 
 __all__ = ["CloseConnection", "Command", "Session", "SessionConfig"]
 
@@ -47,12 +49,26 @@ class SessionConfig:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         send_buffer_limit: bytes of outgoing frames kept queued before the oldest
             topic messages are dropped (D24, ``--send-buffer-limit``).
+        max_message_size: the largest message reassembled from ``fragment`` or
+            ``png`` parts, and the most their pending parts may hold at once,
+            bytes (D19, D24, ``--max-message-size``).
+        max_pending_fragments: messages whose parts are still arriving, at most
+            (D19, ``--max-pending-fragments``).
+        fragment_timeout_s: seconds without a new part after which an incomplete
+            message is dropped (D19, ``--fragment-timeout``; rosbridge's 600 s).
+        max_queue_length: the most messages a throttled subscription queues; a
+            larger ``queue_length`` is capped with a warning (D12, D24,
+            ``--max-queue-length``).
         call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
             it fails (D16, ``--call-timeout``); None waits for ever.
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
     send_buffer_limit: int = 16 * MiB
+    max_message_size: int = 10 * MiB
+    max_pending_fragments: int = 16
+    fragment_timeout_s: float = 600.0
+    max_queue_length: int = 100
     call_timeout_s: float | None = 30.0
 
 
@@ -76,7 +92,8 @@ class Session:
         client_id: this connection's identity in the graph; unique per server.
         config: per-connection settings.
         on_output: called (synchronously, without arguments) whenever frames or
-            commands become available, so a transport can wake its writer.
+            commands become available or a timer is set, so a transport can wake
+            its writer and look at ``get_timer`` again.
     """
 
     def __init__(
@@ -98,13 +115,25 @@ class Session:
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._commands: list[Command] = []
         self.timers = TimerQueue()
+        self.fragments = Reassembler(
+            max_bytes=self.config.max_message_size,
+            max_pending=self.config.max_pending_fragments,
+            timeout_s=self.config.fragment_timeout_s,
+        )
+        self._fragment_timer: Timer | None = None
         self._on_output = on_output
         self._closed = False
 
     # ---- inputs -------------------------------------------------------------
 
-    def receive_frame(self, frame: str | bytes, now: float) -> None:
-        """Process one incoming frame (one JSON text).
+    def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Process one incoming frame: one JSON text, or one CBOR item when ``binary``.
+
+        Args:
+            frame: the frame's payload.
+            now: monotonic seconds.
+            binary: the frame came as binary (a WebSocket binary message): CBOR
+                (PROTOCOL-DECISIONS D21, D27).
 
         Never raises for anything the peer sent; see the module docstring.
         """
@@ -113,7 +142,10 @@ class Session:
         op_name: str | None = None
         op_id: str | int | None = None
         try:
-            obj = decode_json(frame)
+            if binary:
+                obj = decode_cbor(frame.encode() if isinstance(frame, str) else frame)
+            else:
+                obj = decode_json(frame)
             op_id = peek_id(obj)
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
@@ -143,7 +175,10 @@ class Session:
             return
         self._closed = True
         self.timers.clear()
+        for subscription in self.subscriptions.values():
+            subscription.close()
         self.subscriptions.clear()
+        self.fragments.clear()
         self.advertisements.clear()
         self.goals.clear()
         self.graph.release(self.client_id)
@@ -177,10 +212,14 @@ class Session:
 
     def send(self, frame: OutFrame) -> None:
         """Queue a frame for the peer and wake the transport."""
+        self.send_frames((frame,))
+
+    def send_frames(self, frames: Sequence[OutFrame]) -> None:
+        """Queue the frames of one message (its parts stay together, D24) and wake the transport."""
         if self._closed:
             return
         was_empty = len(self._outbox) == 0
-        self._outbox.push(frame)
+        self._outbox.extend(frames)
         if was_empty and self._on_output is not None:
             self._on_output()
 
@@ -190,17 +229,52 @@ class Session:
         *,
         compression: Compression = "none",
         fragment_size: int | None = None,
+        codec: MessageCodec | None = None,
     ) -> None:
         """Queue an op that must not be dropped (responses, results, status, requests).
 
         Args:
             message: the op as a dict, ``op`` first; values in the internal form.
             compression: the encoding the request asked for (``call_service`` and
-                ``send_action_goal`` replies, spec 3.3.8/3.3.12; encodings: issue 4).
-            fragment_size: split the encoded op into ``fragment`` ops above this many
-                characters (PROTOCOL-DECISIONS D19; issue 4).
+                ``send_action_goal`` replies, spec 3.3.8/3.3.12): ``none`` (JSON),
+                ``png`` (a ``png`` op, D20) or ``cbor``/``cbor-raw`` (one binary
+                CBOR frame, D21).
+            fragment_size: split JSON into ``fragment`` ops, and PNG data into
+                ``png`` parts, above this many characters (PROTOCOL-DECISIONS D19).
+            codec: the message type of the op's ``values`` (else ``msg``), so that
+                CBOR carries its numeric arrays as typed arrays (REF §3.2).
         """
-        self.send(OutFrame(encode_json(message)))
+        frames = encode_op_frames(
+            message, compression=compression, fragment_size=fragment_size, codec=codec
+        )
+        self.send_frames(frames)
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
+
+        Wakes the transport so that it sees the new deadline in ``get_timer``.
+        """
+        timer = self.timers.schedule(deadline, callback)
+        if self._on_output is not None and not self._closed:
+            self._on_output()
+        return timer
+
+    def watch_fragments(self) -> None:
+        """Make sure the earliest fragment deadline has a timer (D19 expiry)."""
+        deadline = self.fragments.next_deadline()
+        if deadline is not None and self._fragment_timer is None:
+            self._fragment_timer = self.call_at(deadline, self._expire_fragments)
+
+    def _expire_fragments(self, now: float) -> None:
+        self._fragment_timer = None
+        for kind, op_id, received, total in self.fragments.expire(now):
+            self.report(
+                StatusLevel.ERROR,
+                f"{kind}: message {op_id!r} dropped incomplete after"
+                f" {self.config.fragment_timeout_s:g} s ({received} of {total} parts)",
+                op_id,
+            )
+        self.watch_fragments()
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
@@ -212,8 +286,27 @@ class Session:
         self.send_op(status)
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
-        """Queue one topic message for the peer, encoded once per spelling."""
-        self.send(publish_frame(subscription, event))
+        """Queue one topic message for the peer, in the subscription's merged encoding.
+
+        The frames are made once per distinct form and shared with every other
+        subscriber asking for it (``encoding.publish_frames``). A message that
+        cannot be encoded (a bug, or a type the serializer lacks) is reported
+        as an error status and skipped; it never reaches the publisher.
+        """
+        params = subscription.params
+        try:
+            frames = publish_frames(
+                event, subscription.spelling, params.compression, params.fragment_size
+            )
+        except Exception:
+            logger.exception("cannot encode a message of %s as %s", event.topic, params.compression)
+            self.report(
+                StatusLevel.ERROR,
+                f"subscribe: cannot send a message of {subscription.spelling}"
+                f" as {params.compression}",
+            )
+            return
+        self.send_frames(frames)
 
 
 def _prefixed(op_name: str | None, text: str) -> str:

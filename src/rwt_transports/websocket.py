@@ -188,7 +188,7 @@ async def _reader(conn: _Connection, session: Session) -> None:
             message = conn.assemble(event)
             if message is None:
                 continue
-            session.receive_frame(message, anyio.current_time())
+            session.receive_frame(message, anyio.current_time(), binary=conn.binary)
         conn.signal()
 
 
