@@ -1,0 +1,91 @@
+"""``python -m benchmarks run [SCENARIO...]``: the suite of issue 8, and ``sweep``.
+
+Runs each selected scenario (default: B1-B11, B14, B15) against the bare relay
+and ``rwt serve`` in the same run, prints the table (medians of ``--runs`` runs
+with min-max, the rwt/bare ratio, the target and whether it was met, and the
+load generator's CPU to show its headroom), writes
+``benchmarks/results/suite.json`` and puts the table into
+``benchmarks/README.md``. ``--soak`` runs B15 for 30 minutes. ``--smoke`` runs
+every variant once on tiny counts without touching the README (CI).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from .report import markdown_table, save_json, update_readme
+from .runner import VariantResult, run_variant
+from .scenarios import all_variants
+from .scenarios.common import Context
+
+RESULTS = Path(__file__).resolve().parent / "results"
+README = Path(__file__).resolve().parent / "README.md"
+
+
+def _log(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the selected scenarios; exit status 1 when a correctness check failed."""
+    scale = 0.1 if args.smoke else 1.0
+    runs = 1 if args.smoke else args.runs
+    variants = all_variants(soak=args.soak, smoke=args.smoke)
+    wanted = {s.upper() for s in args.scenarios}
+    selected = [v for v in variants if not wanted or v.scenario in wanted]
+    results: list[VariantResult] = []
+    context: Context = {}
+    started = time.perf_counter()
+    for variant in selected:
+        _log(f"{variant.key}")
+        result = run_variant(
+            variant, runs=runs, scale=scale, uvloop=args.uvloop, log=_log, context=context
+        )
+        result.shown, result.target, result.met = variant.check(result.medians(), context)
+        context[variant.key] = result.medians()
+        results.append(result)
+    table = markdown_table(results)
+    elapsed = time.perf_counter() - started
+    header = (
+        f"Last run: `python -m benchmarks run{' --soak' if args.soak else ''}`, "
+        f"{runs} runs per variant, {elapsed / 60:.1f} min"
+        f"{', uvloop' if args.uvloop else ''}. Medians [min-max]."
+    )
+    print(table)
+    if not args.smoke:
+        save_json(results, args.out / "suite.json", vars(args) | {"out": str(args.out)})
+        if not args.scenarios:
+            update_readme(table, header, README)
+    errors = [e for r in results for e in r.errors]
+    for error in errors:
+        _log(f"error: {error}")
+    return 1 if errors else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse the command line and run."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    p_run = sub.add_parser("run", help="run scenarios and print the table")
+    p_run.add_argument("scenarios", nargs="*", help="B1 ... B15 (default: all)")
+    p_run.add_argument("--runs", type=int, default=5, help="runs per server and variant")
+    p_run.add_argument("--soak", action="store_true", help="B15 for 30 min")
+    p_run.add_argument("--smoke", action="store_true", help="one tiny run of each (CI)")
+    p_run.add_argument("--uvloop", action="store_true", help="run both servers on uvloop")
+    p_run.add_argument("--out", type=Path, default=RESULTS, help="where suite.json goes")
+    p_sweep = sub.add_parser("sweep", help="scaling sweep and its plots")
+    p_sweep.add_argument("--runs", type=int, default=3)
+    p_sweep.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    if args.command == "run":
+        return run(args)
+    from .sweep import sweep  # noqa: PLC0415  (matplotlib only when plotting)
+
+    return sweep(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+"""B14: the cost of checking one small inbound publish op, in-process.
+
+Run as ``python -m benchmarks.microbench`` with this checkout's ``src`` on
+PYTHONPATH; prints JSON. ``bare_us`` is msgspec decoding and re-encoding the
+same frame (the floor, BENCHMARKS.md: about 1 us); ``validate_us`` is what rwt
+does to a publish frame before handing the message to the graph: decode, check
+the op, convert the message against its type; ``receive_frame_us`` is the
+whole ``Session.receive_frame`` on a topic without subscribers.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+
+import msgspec
+
+FRAME = b'{"op":"publish","topic":"/b14","msg":{"data":"hello world, a small message"}}'
+
+
+def _per_call_us(fn: Callable[[], object], seconds: float = 0.3) -> float:
+    """Median over 5 batches of the time per call, microseconds."""
+    batch = 1000
+    start = time.perf_counter()
+    while time.perf_counter() - start < 0.05:
+        fn()
+    results = []
+    for _ in range(5):
+        count = 0
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds / 5:
+            for _ in range(batch):
+                fn()
+            count += batch
+        results.append((time.perf_counter() - start) / count * 1e6)
+    return sorted(results)[2]
+
+
+def measure() -> dict[str, float]:
+    """The three figures, in microseconds per frame."""
+    from rwt_graph.graph import Graph  # noqa: PLC0415
+    from rwt_protocol.session import Session  # noqa: PLC0415
+
+    from . import inbound  # noqa: PLC0415
+
+    graph = Graph()
+    session = Session(graph, "bench")
+    session.receive_frame(b'{"op":"advertise","topic":"/b14","type":"std_msgs/msg/String"}', 0.0)
+    validate = inbound.validator(graph)
+    decoder = msgspec.json.Decoder()
+    encoder = msgspec.json.Encoder()
+    return {
+        "bare_us": _per_call_us(lambda: encoder.encode(decoder.decode(FRAME))),
+        "validate_us": _per_call_us(lambda: validate(FRAME)),
+        "receive_frame_us": _per_call_us(lambda: session.receive_frame(FRAME, 1.0)),
+    }
+
+
+if __name__ == "__main__":
+    print(json.dumps(measure()))

@@ -1,0 +1,144 @@
+"""The results table, its JSON and the README section between the suite markers."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import subprocess
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from .runner import VariantResult
+from .servers import ROOT
+
+__all__ = ["markdown_table", "save_json", "update_readme"]
+
+BEGIN = "<!-- suite:begin -->"
+END = "<!-- suite:end -->"
+
+
+def _fmt(value: float) -> str:
+    if math.isnan(value):
+        return "-"
+    if abs(value) >= 1000:
+        return f"{value:,.0f}"
+    return f"{value:.3g}"
+
+
+def _cell(result: VariantResult, kind: str) -> str:
+    stats = result.medians().get(kind, {}).get(result.variant.primary)
+    if stats is None:
+        return "-"
+    return f"{_fmt(stats['median'])} [{_fmt(stats['min'])}-{_fmt(stats['max'])}]"
+
+
+def _ratio(result: VariantResult) -> str:
+    medians = result.medians()
+    primary = result.variant.primary
+    try:
+        bare = medians["bare"][primary]["median"]
+        rwt = medians["rwt"][primary]["median"]
+    except KeyError:
+        return "-"
+    return f"{rwt / bare:.2f}" if bare else "-"
+
+
+def _generator(result: VariantResult) -> str:
+    values = [
+        m["generator_cpu_pct"]
+        for runs in result.runs.values()
+        for m in runs
+        if "generator_cpu_pct" in m
+    ]
+    return f"{max(values):.0f} %" if values else "-"
+
+
+def _verdict(result: VariantResult) -> str:
+    if result.errors and not all(result.runs.values()):
+        return "FAIL (error)"
+    if result.met is None:
+        return "-"
+    return "pass" if result.met else "MISS"
+
+
+def markdown_table(results: Sequence[VariantResult]) -> str:
+    """One row per variant: medians [min-max] of bare and rwt, ratio, target, verdict."""
+    lines = [
+        "| id | scenario | unit | bare | rwt | rwt/bare | checked | target | result"
+        " | gen CPU max |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        v = r.variant
+        lines.append(
+            f"| {v.scenario} | {v.name} | {v.unit} | {_cell(r, 'bare')} | {_cell(r, 'rwt')} | "
+            f"{_ratio(r)} | {r.shown} | {r.target} | {_verdict(r)} | {_generator(r)} |"
+        )
+    return "\n".join(lines)
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        return out.stdout.strip()
+    except OSError:
+        return "unknown"
+
+
+def machine() -> dict[str, object]:
+    """What the figures were measured on."""
+    return {
+        "cpus": os.cpu_count(),
+        "load_average_1m": os.getloadavg()[0],
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "commit": _commit(),
+        "time": time.strftime("%Y-%m-%d %H:%M:%S"),
+    }
+
+
+def save_json(results: Sequence[VariantResult], path: Path, options: dict[str, object]) -> None:
+    """Every run's metrics, the medians and the verdicts."""
+    data = {
+        "machine": machine(),
+        "options": options,
+        "variants": [
+            {
+                "scenario": r.variant.scenario,
+                "name": r.variant.name,
+                "primary": r.variant.primary,
+                "unit": r.variant.unit,
+                "runs": r.runs,
+                "summary": r.medians(),
+                "errors": r.errors,
+                "checked": r.shown,
+                "target": r.target,
+                "met": r.met,
+            }
+            for r in results
+        ],
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=1, allow_nan=True) + "\n")
+
+
+def update_readme(table: str, header: str, readme: Path) -> None:
+    """Replace the text between the suite markers (added at the end if missing)."""
+    text = readme.read_text() if readme.exists() else "# Benchmarks\n"
+    block = f"{BEGIN}\n{header}\n\n{table}\n{END}"
+    if BEGIN in text and END in text:
+        before, _, rest = text.partition(BEGIN)
+        _, _, after = rest.partition(END)
+        text = before + block + after
+    else:
+        text = text.rstrip("\n") + "\n\n" + block + "\n"
+    readme.write_text(text)

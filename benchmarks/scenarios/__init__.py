@@ -1,0 +1,293 @@
+"""Scenario definitions (BENCHMARKS.md B1-B11, B14, B15) and their targets."""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+
+from .. import msgs
+from .checks import at_most, med
+from .common import Check, Context, Medians, Metrics, Run, Variant
+from .latency import cloud_sample, image_rate_run, mixed_run, topic_latency_run
+from .load import churn_run, idle_run, slow_consumer_run, topics_run
+from .services import service_run
+from .soak import microbench_run, soak_run
+from .suite import B1_STRING_KEY, throughput_variants
+
+__all__ = ["all_variants"]
+
+_CLOUD_POINTS = 300_000
+_B6_JSON_KEY = "B6 PointCloud2 300k points JSON, 10 Hz + Twist 100 Hz"
+
+
+def _bind(fn: object, **kwargs: object) -> callable:  # type: ignore[valid-type]
+    bound = partial(fn, **kwargs)  # type: ignore[call-overload]
+
+    def run(run: Run) -> Metrics:
+        return bound(run)  # type: ignore[no-any-return]
+
+    return run
+
+
+def _judge(*parts: tuple[str, str, bool | None]) -> tuple[str, str, bool | None]:
+    shown = "; ".join(p[0] for p in parts)
+    target = "; ".join(p[1] for p in parts)
+    verdicts = [p[2] for p in parts]
+    met = None if any(v is None for v in verdicts) else all(verdicts)
+    return shown, target, met
+
+
+def _value(
+    medians: Medians, metric: str, bound: float, fmt: str, above: bool = False, kind: str = "rwt"
+) -> tuple[str, str, bool | None]:
+    value = med(medians, kind, metric)
+    ok = None if math.isnan(value) else (value >= bound if above else value <= bound)
+    sign = ">=" if above else "<="
+    return fmt.format(value), f"{sign} {fmt.format(bound)}", ok
+
+
+def _b3(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    one = med(context.get(B1_STRING_KEY, {}), "rwt", "msg_per_s")
+    rate = med(medians, "rwt", "msg_per_s")
+    ratio = rate / one if not math.isnan(one) and one else float("nan")
+    fair = _value(medians, "fairness", 0.8, "{:.2f}", above=True)
+    part = (
+        f"{ratio:.2f}x 1-topic",
+        ">= 0.9x 1-topic rate",
+        None if math.isnan(ratio) else ratio >= 0.9,
+    )
+    return _judge(part, (f"fairness {fair[0]}", f"fairness {fair[1]}", fair[2]))
+
+
+def _b5(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    hz = med(medians, "rwt", "delivered_hz")
+    return f"{hz:.1f} Hz", "30.0 Hz to every subscriber (>= 29.7 measured)", hz >= 29.7
+
+
+def _b6(json_variant: bool) -> Check:
+    def check(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+        stall = _value(medians, "p99_ms", 20.0, "{:.1f} ms")
+        stall = (f"Twist p99 {stall[0]}", f"Twist p99 {stall[1]}", stall[2])
+        if json_variant:
+            return stall
+        json_cpu = med(context.get(_B6_JSON_KEY, {}), "rwt", "server_cpu_ms_per_big")
+        cbor_cpu = med(medians, "rwt", "server_cpu_ms_per_big")
+        ratio = json_cpu / cbor_cpu if cbor_cpu else float("nan")
+        cheaper = (
+            f"JSON/CBOR CPU {ratio:.1f}x",
+            "CBOR >= 2x cheaper",
+            None if math.isnan(ratio) else ratio >= 2.0,
+        )
+        return _judge(cheaper, stall)
+
+    return check
+
+
+def _b7_topic(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    p50 = (med(medians, "bare", "p50_ms"), med(medians, "rwt", "p50_ms"))
+    p99 = (med(medians, "bare", "p99_ms"), med(medians, "rwt", "p99_ms"))
+    return _judge(
+        (
+            f"p50 {p50[1]:.3f} ms (bare {p50[0]:.3f})",
+            "p50 <= bare + 0.25 ms",
+            p50[1] <= p50[0] + 0.25,
+        ),
+        (f"p99 {p99[1]:.2f} ms (bare {p99[0]:.2f})", "p99 <= 2x bare", p99[1] <= 2 * p99[0]),
+    )
+
+
+def _b8(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    cap_mb = 16 * 1024 * 1024 / 1e6 + 2.0  # the per-client send buffer cap + allocator slack
+    return _judge(
+        _value(medians, "rate_ratio", 0.9, "{:.2f}x", above=True),
+        (
+            *_value(medians, "rss_growth_mb", cap_mb, "{:.1f} MB")[:1],
+            f"RSS growth <= {cap_mb:.1f} MB (16 MiB cap)",
+            _value(medians, "rss_growth_mb", cap_mb, "{:.1f} MB")[2],
+        ),
+        (f"{med(medians, 'rwt', 'undelivered'):,.0f} dropped", "drops counted", True),
+    )
+
+
+def _b11(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    return _judge(
+        _value(medians, "idle_cpu_pct", 1.0, "{:.2f} % CPU"),
+        _value(medians, "kb_per_connection", 50.0, "{:.1f} KB/conn"),
+        _value(medians, "base_rss_mb", 50.0, "{:.1f} MB base"),
+    )
+
+
+def _b15(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    return _judge(
+        _value(medians, "rss_slope_mb_per_10min", 1.0, "{:.2f} MB/10 min"),
+        _value(medians, "p99_drift_pct", 20.0, "{:.0f} % p99 drift"),
+    )
+
+
+def _services() -> list[Variant]:
+    return [
+        Variant(
+            "B7",
+            "call_service to a client's service, 1 in flight",
+            _bind(service_run, in_process=False, window=1, calls=2000),
+            "p50_ms",
+            "ms",
+            at_most("p50_ms", 0.5, "ms"),
+        ),
+        Variant(
+            "B7",
+            "call_service to an in-process service, 1 in flight",
+            _bind(service_run, in_process=True, window=1, calls=2000),
+            "p50_ms",
+            "ms",
+            at_most("p50_ms", 0.5, "ms"),
+            kinds=("rwt",),
+        ),
+        Variant(
+            "B7",
+            "call_service to an in-process service, 64 in flight",
+            _bind(service_run, in_process=True, window=64, calls=20000),
+            "calls_per_s",
+            "calls/s",
+            lambda m, c: _value(m, "calls_per_s", 10000.0, "{:,.0f} calls/s", above=True),
+            kinds=("rwt",),
+        ),
+    ]
+
+
+def _cloud(binary: bool) -> callable:  # type: ignore[valid-type]
+    frames = {i: msgs.cloud_publish("/big", i, _CLOUD_POINTS, binary=binary) for i in range(2)}
+    return _bind(
+        mixed_run,
+        big=frames.__getitem__,
+        big_binary=binary,
+        big_type="sensor_msgs/msg/PointCloud2",
+        big_compression="cbor" if binary else "none",
+        big_hz=10.0,
+        duration_s=3.0,
+        sample=cloud_sample(binary),
+    )
+
+
+def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
+    """Every variant of the suite, in table order (``soak``: B8 60 s, B15 30 min)."""
+    variants = throughput_variants()
+    variants.insert(
+        4,
+        Variant(
+            "B3",
+            "10 publishers x 100 topics -> 1 subscriber of 1000",
+            _bind(topics_run, publishers=10, topics_each=100, duration_s=2.0),
+            "msg_per_s",
+            "msg/s",
+            _b3,
+        ),
+    )
+    for binary in (False, True):
+        for count in (1, 10):
+            label = "CBOR" if binary else "JSON"
+            variants.append(
+                Variant(
+                    "B5",
+                    f"Image 640x480 rgb8 {label} 30 Hz, 1 -> {count}",
+                    _bind(image_rate_run, binary=binary, subscribers=count, duration_s=3.0),
+                    "delivered_hz",
+                    "Hz",
+                    _b5,
+                )
+            )
+    for binary in (False, True):
+        label = "CBOR" if binary else "JSON"
+        variants.append(
+            Variant(
+                "B6",
+                f"PointCloud2 300k points {label}, 10 Hz + Twist 100 Hz",
+                _cloud(binary),
+                "server_cpu_ms_per_big",
+                "ms CPU/cloud",
+                _b6(not binary),
+            )
+        )
+    variants.append(
+        Variant(
+            "B7",
+            "String 100 B at 1 kHz, 1 -> 10",
+            _bind(topic_latency_run, subscribers=10, rate_hz=1000.0, duration_s=3.0),
+            "p50_ms",
+            "ms",
+            _b7_topic,
+        )
+    )
+    variants += _services()
+    variants.append(
+        Variant(
+            "B8",
+            f"9 reading + 1 stalled subscriber, 4 KB, {60 if soak else 5} s",
+            _bind(slow_consumer_run, readers=9, duration_s=60.0 if soak else 5.0, size=4000),
+            "rate_ratio",
+            "x rate",
+            _b8,
+            fresh_server=True,
+        )
+    )
+    variants.append(
+        Variant(
+            "B9",
+            "Twist 100 Hz + OccupancyGrid 1.1 MB CBOR 1 Hz, one connection",
+            _bind(
+                mixed_run,
+                big=partial(msgs.grid_cbor, "/big"),
+                big_binary=True,
+                big_type="nav_msgs/msg/OccupancyGrid",
+                big_compression="cbor",
+                big_hz=1.0,
+                duration_s=5.0,
+            ),
+            "p99_ms",
+            "ms",
+            at_most("p99_ms", 20.0, "ms"),
+        )
+    )
+    variants.append(
+        Variant(
+            "B10",
+            "50 clients within 1 s, 10 reconnecting 3x",
+            _bind(churn_run, clients=50, churners=10, rounds=3, spread_s=1.0),
+            "max_first_message_s",
+            "s",
+            at_most("max_first_message_s", 2.0, "s"),
+        )
+    )
+    variants.append(
+        Variant(
+            "B11",
+            "200 idle connections, 1000 advertised topics",
+            _bind(idle_run, connections=200, topics=1000, window_s=3.0),
+            "kb_per_connection",
+            "KB/conn",
+            _b11,
+            fresh_server=True,
+        )
+    )
+    variants.append(
+        Variant(
+            "B14",
+            "validation of a small publish op (in-process)",
+            microbench_run,
+            "us_per_op",
+            "us/op",
+            at_most("us_per_op", 1.0, "us"),
+        )
+    )
+    variants.append(
+        Variant(
+            "B15",
+            "soak: String at B1/2 + Image JSON 30 Hz" + (", 30 min" if soak else ", 20 s"),
+            _bind(soak_run, rate_hz=4000.0, duration_s=1800.0 if soak else 20.0),
+            "p99_ms",
+            "ms",
+            _b15,
+            runs=1,
+        )
+    )
+    return variants

@@ -1,0 +1,112 @@
+"""Start the two servers under test and read their CPU and memory from /proc.
+
+Both servers run as subprocesses bound to 127.0.0.1 on a free port; ``rwt
+serve`` runs from this checkout's ``src`` (PYTHONPATH), the bare relay is
+``benchmarks/relay.py``. Each prints ``listening on ws://HOST:PORT`` first.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["ROOT", "ProcStats", "Server", "start_server"]
+
+ROOT = Path(__file__).resolve().parent.parent
+_TICK_S = 1.0 / os.sysconf("SC_CLK_TCK")
+_START_LIMIT_S = 20.0
+
+
+@dataclass(frozen=True, slots=True)
+class ProcStats:
+    """A reading of one process: CPU seconds used so far and resident memory."""
+
+    cpu_s: float
+    rss_bytes: int
+
+
+class Server:
+    """One running server process (``kind`` is ``bare`` or ``rwt``)."""
+
+    def __init__(self, kind: str, process: subprocess.Popen[bytes], port: int) -> None:
+        self.kind = kind
+        self.process = process
+        self.port = port
+
+    def stats(self) -> ProcStats:
+        """CPU (user + system, from /proc/<pid>/stat) and VmRSS (/proc/<pid>/status)."""
+        pid = self.process.pid
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            fields = f.read().rpartition(")")[2].split()
+        cpu = (int(fields[11]) + int(fields[12])) * _TICK_S
+        rss = 0
+        with open(f"/proc/{pid}/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    rss = int(line.split()[1]) * 1024
+                    break
+        return ProcStats(cpu, rss)
+
+    def alive(self) -> bool:
+        """Whether the process is still running."""
+        return self.process.poll() is None
+
+    def stop(self) -> None:
+        """SIGTERM, then SIGKILL after 5 s."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(5.0)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(5.0)
+        if self.process.stdout is not None:
+            self.process.stdout.close()
+
+    def __enter__(self) -> Server:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def _command(kind: str, uvloop: bool, extra: list[str]) -> list[str]:
+    if kind == "bare":
+        command = [sys.executable, "-m", "benchmarks.relay", "--port", "0"]
+    else:
+        command = [sys.executable, "-m", "rwt_transports", "serve", "--port", "0"]
+        command += ["--log-level", "warning"]
+    if uvloop:
+        command.append("--uvloop")
+    return command + extra
+
+
+def start_server(kind: str, *, uvloop: bool = False, extra: list[str] | None = None) -> Server:
+    """Start ``bare`` (the relay) or ``rwt`` and wait for its listening line.
+
+    Raises:
+        RuntimeError: the process exited or said nothing within 20 s.
+    """
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
+    process = subprocess.Popen(
+        _command(kind, uvloop, extra or []),
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+    )
+    line: list[bytes] = []
+    reader = threading.Thread(target=lambda: line.append(process.stdout.readline()), daemon=True)  # type: ignore[union-attr]
+    reader.start()
+    reader.join(_START_LIMIT_S)
+    text = line[0].decode().strip() if line else ""
+    if not text.startswith("listening on ws://"):
+        process.kill()
+        raise RuntimeError(f"{kind} server did not start: {text!r}")
+    return Server(kind, process, int(text.rsplit(":", 1)[1]))

@@ -1,0 +1,73 @@
+"""The benchmark suite runs, and its checks catch a wrong server (issue 8).
+
+No timing is asserted here (issue 8 rules): the smoke run uses tiny counts and
+only checks that the runner completes and prints its table.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from benchmarks import msgs
+from benchmarks.loadgen.engine import ExactSubscriber, GeneratorError
+from benchmarks.loadgen.wire import FrameReader, client_frame, server_frame
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _exact(block: bytes, frame_len: int) -> ExactSubscriber:
+    sub = ExactSubscriber.__new__(ExactSubscriber)  # no socket: only the checking part
+    sub.block, sub.frame_len, sub.pos, sub.received = block, frame_len, 0, 0
+    sub.first_s = sub.last_s = None
+    return sub
+
+
+def test_exact_check_accepts_the_expected_stream_in_any_chunks() -> None:
+    frames = [server_frame(msgs.string_publish("/t", i)) for i in range(4)]
+    block = b"".join(frames)
+    sub = _exact(block, len(frames[0]))
+    stream = block * 2
+    for start in range(0, len(stream), 37):
+        sub.feed(stream[start : start + 37], 0.0)
+    assert sub.received == 8
+
+
+def test_exact_check_rejects_a_wrong_message() -> None:
+    frames = [server_frame(msgs.string_publish("/t", i)) for i in range(4)]
+    sub = _exact(b"".join(frames), len(frames[0]))
+    wrong = server_frame(msgs.string_publish("/t", 2))  # message 1 skipped
+    sub.feed(frames[0], 0.0)
+    with pytest.raises(GeneratorError, match="message 1"):
+        sub.feed(wrong, 0.0)
+
+
+def test_frame_reader_cuts_frames_of_every_header_size() -> None:
+    payloads = [b"a" * 5, b"b" * 300, b"c" * 70000]
+    data = b"".join(server_frame(p, binary=i == 1) for i, p in enumerate(payloads))
+    reader = FrameReader()
+    frames = []
+    for start in range(0, len(data), 1000):
+        frames += reader.feed(data[start : start + 1000])
+    assert [(op, len(p)) for op, p in frames] == [(1, 5), (2, 300), (1, 70000)]
+    assert client_frame(b"x")[1] & 0x80  # client frames are masked
+
+
+def test_runner_smoke() -> None:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(ROOT)]))
+    out = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "run", "B1", "B7", "--smoke"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    rows = [line for line in out.stdout.splitlines() if line.startswith("| B")]
+    assert [row.split("|")[1].strip() for row in rows] == ["B1", "B1", "B7", "B7", "B7", "B7"]
