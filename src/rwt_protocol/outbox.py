@@ -2,7 +2,9 @@
 
 PROTOCOL-DECISIONS D24: the bytes queued for a peer are bounded; above the bound
 the oldest *topic* messages are dropped, never service responses, action results
-or status messages. Drops are counted so the session can report them.
+or status messages. Drops are counted so the session can report them. The
+writer takes frames in bounded batches (``take``), so the frames a transport
+holds outside the queue stay small too.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ class Outbox:
     def __init__(self, limit_bytes: int) -> None:
         self._frames: deque[OutFrame] = deque()
         self._bytes = 0
+        self._kept_bytes = 0
         self.limit_bytes = limit_bytes
         self.dropped = 0
 
@@ -50,22 +53,54 @@ class Outbox:
         """Payload bytes currently queued."""
         return self._bytes
 
+    @property
+    def undroppable_bytes(self) -> int:
+        """Payload bytes of queued frames that may not be dropped."""
+        return self._kept_bytes
+
+    @property
+    def over_limit(self) -> bool:
+        """Whether more than ``limit_bytes`` are queued (only undroppable frames remain over it)."""
+        return self._bytes > self.limit_bytes
+
     def push(self, frame: OutFrame) -> None:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""
         self._frames.append(frame)
         self._bytes += len(frame.data)
+        if not frame.droppable:
+            self._kept_bytes += len(frame.data)
         if self._bytes > self.limit_bytes:
             self._shed()
 
-    def drain(self) -> list[OutFrame]:
-        """Remove and return every queued frame, oldest first."""
-        frames = list(self._frames)
-        self._frames.clear()
-        self._bytes = 0
+    def take(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Remove and return the oldest frames, oldest first.
+
+        Args:
+            max_bytes: stop once this many payload bytes are taken (at least one
+                frame is taken when any is queued); None takes everything.
+        """
+        if max_bytes is None:
+            frames = list(self._frames)
+            self._frames.clear()
+            self._bytes = self._kept_bytes = 0
+            return frames
+        frames = []
+        taken = 0
+        while self._frames and (not frames or taken + len(self._frames[0].data) <= max_bytes):
+            frame = self._frames.popleft()
+            frames.append(frame)
+            taken += len(frame.data)
+            if not frame.droppable:
+                self._kept_bytes -= len(frame.data)
+        self._bytes -= taken
         return frames
 
+    def drain(self) -> list[OutFrame]:
+        """Remove and return every queued frame, oldest first."""
+        return self.take()
+
     def _shed(self) -> None:
-        kept: deque[OutFrame] = deque()
+        kept: list[OutFrame] = []
         while self._frames and self._bytes > self.limit_bytes:
             frame = self._frames.popleft()
             if frame.droppable:
@@ -73,5 +108,4 @@ class Outbox:
                 self.dropped += 1
             else:
                 kept.append(frame)
-        kept.extend(self._frames)
-        self._frames = kept
+        self._frames.extendleft(reversed(kept))  # the undroppable ones keep their place

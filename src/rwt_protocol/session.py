@@ -11,34 +11,59 @@ frame for this connection only (D29), filtered by the connection's level (D2),
 and the session keeps serving. An exception that is not an ``RwtError`` is a bug:
 it is logged and reported as an internal error, and the session still keeps
 serving.
+
+Before dispatch every op passes two gates: authentication (D23; with an
+authenticator configured, the first op must be an admitted ``auth``, anything
+else gets an error status and the connection is closed) and the access rules
+(``AccessPolicy``: a denied op gets an error status and its failure reply, D4).
+
+The outgoing side is bounded (D24): above ``send_buffer_limit`` the oldest topic
+messages are dropped and counted, the first drop of each episode is reported as
+a warning status, and a connection that stays over the limit without taking
+any frames for ``send_timeout_s`` is closed with a reason.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import IntEnum
 
+from .access import AccessDeniedError, AccessPolicy
+from .auth import Authenticator
 from .codec import decode_json, encode_json, parse_object, peek_id
 from .encoding import publish_frame
-from .errors import RwtError
+from .errors import RemoteProtocolError, RwtError
 from .handlers import HANDLERS
 from .levels import StatusLevel
-from .ops import OpModel
+from .ops import Auth, OpModel
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .ports import ClientId, GraphPort, MessageEvent
+from .replies import failure_reply
 from .subscriptions import TopicSubscription
-from .timers import TimerQueue
+from .timers import Timer, TimerQueue
 
-__all__ = ["CloseConnection", "Command", "Session", "SessionConfig"]
+__all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"]
 
 logger = logging.getLogger("rwt.session")
 
 MiB = 1024 * 1024
 
 
-@dataclass(frozen=True, slots=True)
+class CloseCode(IntEnum):
+    """Why a session closes its connection, as RFC 6455 close codes (other transports log them)."""
+
+    NORMAL = 1000
+    GOING_AWAY = 1001  # server shutdown
+    POLICY_VIOLATION = 1008  # authentication failed, slow consumer
+    MESSAGE_TOO_BIG = 1009
+    INTERNAL_ERROR = 1011  # keepalive timeout
+    TRY_AGAIN_LATER = 1013  # too many connections
+
+
+@dataclass(frozen=True)
 class SessionConfig:
     """Per-connection settings.
 
@@ -46,17 +71,24 @@ class SessionConfig:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         send_buffer_limit: bytes of outgoing frames kept queued before the oldest
             topic messages are dropped (D24, ``--send-buffer-limit``).
+        send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
+            without taking any frame before it is closed (D24, ``--send-timeout``).
+        access: the access rules (``--topics-glob`` and friends).
+        authenticator: when set, the first op must be an ``auth`` it admits (D23).
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
     send_buffer_limit: int = 16 * MiB
+    send_timeout_s: float = 30.0
+    access: AccessPolicy = field(default_factory=AccessPolicy)
+    authenticator: Authenticator | None = None
 
 
 @dataclass(frozen=True, slots=True)
 class CloseConnection:
-    """Command: close the connection (code per RFC 6455, reason for the peer)."""
+    """Command: close the connection (code per RFC 6455, reason for the peer and the log)."""
 
-    code: int
+    code: CloseCode
     reason: str
 
 
@@ -71,8 +103,10 @@ class Session:
         graph: the graph this session operates on.
         client_id: this connection's identity in the graph; unique per server.
         config: per-connection settings.
-        on_output: called (synchronously, without arguments) whenever frames or
-            commands become available, so a transport can wake its writer.
+        on_output: called (synchronously, without arguments) whenever frames,
+            commands or timers become available, so a transport can wake its
+            writer and its timer task.
+        peer: the peer's address (``"host:port"``), for the authenticator and logs.
     """
 
     def __init__(
@@ -82,9 +116,11 @@ class Session:
         *,
         config: SessionConfig | None = None,
         on_output: Callable[[], None] | None = None,
+        peer: str = "",
     ) -> None:
         self.graph = graph
         self.client_id = client_id
+        self.peer = peer
         self.config = config or SessionConfig()
         self.status_level = self.config.status_level
         self.subscriptions: dict[str, TopicSubscription] = {}
@@ -94,6 +130,12 @@ class Session:
         self.timers = TimerQueue()
         self._on_output = on_output
         self._closed = False
+        self._closing = False  # input is ignored (close requested, or shutting down)
+        self._commands_closed = False  # a CloseConnection is queued: nothing more is sent
+        self._authenticated = self.config.authenticator is None
+        self._now = 0.0  # the latest monotonic time seen, for events without one
+        self._full_timer: Timer | None = None  # set while over the send buffer limit
+        self._takes = 0  # how many times the writer took frames (progress, D24)
 
     # ---- inputs -------------------------------------------------------------
 
@@ -101,9 +143,11 @@ class Session:
         """Process one incoming frame (one JSON text).
 
         Never raises for anything the peer sent; see the module docstring.
+        Frames arriving after the session asked to close are ignored.
         """
-        if self._closed:
+        if self._closed or self._closing:
             return
+        self._now = now
         op_name: str | None = None
         op_id: str | int | None = None
         try:
@@ -111,25 +155,109 @@ class Session:
             op_id = peek_id(obj)
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
-            self.dispatch(op, now)
+            if not self._authenticated:
+                self._authenticate(op)
+            else:
+                self.dispatch(op, now)
         except RwtError as exc:
             self.report(exc.level, _prefixed(op_name, exc.message), op_id)
+            if not self._authenticated:
+                self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
         except Exception:
             logger.exception("bug while handling a frame from %s", self.client_id)
             self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
 
     def dispatch(self, op: OpModel, now: float) -> None:
-        """Run the handler for a validated op.
+        """Check a validated op against the access rules, then run its handler.
 
         Raises:
-            RwtError: the op was refused; the caller reports it.
+            RwtError: the op was refused; the caller reports it. A denied
+                ``call_service``/``send_action_goal`` is also answered (D4).
         """
+        try:
+            self.config.access.check(op)
+        except AccessDeniedError as exc:
+            logger.warning(
+                "event=access_denied client=%s op=%s reason=%r",
+                self.client_id,
+                op.op,  # type: ignore[attr-defined]
+                exc.message,
+            )
+            reply = failure_reply(op, f"{op.op}: {exc.message}")  # type: ignore[attr-defined]
+            if reply is not None:
+                self.send_op(reply)
+            raise
         HANDLERS[type(op)](self, op, now)
+
+    def _authenticate(self, op: OpModel) -> None:
+        """The gate of D23: admit the connection on an accepted ``auth``, else close it.
+
+        Raises:
+            RemoteProtocolError: the op is not ``auth`` or was refused; the caller
+                reports it and closes the connection.
+        """
+        if not isinstance(op, Auth):
+            reply = failure_reply(op, "authentication required")
+            if reply is not None:
+                self.send_op(reply)
+            self._auth_failed(f"first op was {op.op}")  # type: ignore[attr-defined]
+            raise RemoteProtocolError("authentication required: the first op must be auth")
+        authenticator = self.config.authenticator
+        assert authenticator is not None  # only unauthenticated sessions get here
+        try:
+            admitted = authenticator(op, self.peer)
+        except Exception:
+            logger.exception("authenticator failed for %s", self.client_id)
+            admitted = False
+        if not admitted:
+            self._auth_failed("refused by the authenticator")
+            raise RemoteProtocolError("authentication failed")
+        self._authenticated = True
+        logger.info("event=auth_ok client=%s peer=%s level=%s", self.client_id, self.peer, op.level)
+        self.report(StatusLevel.INFO, "auth: authenticated")
+
+    def _auth_failed(self, reason: str) -> None:
+        logger.warning(
+            "event=auth_failed client=%s peer=%s reason=%r", self.client_id, self.peer, reason
+        )
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
         if not self._closed:
+            self._now = max(self._now, now)
             self.timers.run_due(now)
+
+    def request_close(self, code: CloseCode, reason: str) -> None:
+        """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
+
+        Later input is ignored and later frames are not queued. Idempotent: only
+        the first request counts.
+        """
+        if self._closed or self._commands_closed:
+            return
+        self._closing = True
+        self._commands_closed = True
+        logger.log(
+            logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
+            "event=closing client=%s code=%d reason=%r",
+            self.client_id,
+            code,
+            reason,
+        )
+        self._commands.append(CloseConnection(code, reason))
+        self._wake()
+
+    def begin_shutdown(self) -> None:
+        """The server is stopping: ignore further input and release what this client holds.
+
+        Releasing first lets the graph answer callers waiting on this client
+        (D4) while their connections can still send; the server then calls
+        ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
+        """
+        if self._closed:
+            return
+        self._closing = True
+        self.graph.release(self.client_id)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
@@ -143,9 +271,21 @@ class Session:
 
     # ---- outputs ------------------------------------------------------------
 
-    def frames_to_send(self) -> list[OutFrame]:
-        """Take every frame queued for the peer, oldest first."""
-        return self._outbox.drain()
+    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Take the frames queued for the peer, oldest first.
+
+        Args:
+            max_bytes: take at most about this many payload bytes (at least one
+                frame); None takes every frame. Taking frames counts as progress
+                for the send timeout (D24).
+        """
+        frames = self._outbox.take(max_bytes)
+        if frames:
+            self._takes += 1
+            if self._full_timer is not None and not self._outbox.over_limit:
+                self._full_timer.cancel()  # the episode is over: the peer caught up
+                self._full_timer = None
+        return frames
 
     def commands_to_run(self) -> list[Command]:
         """Take every command queued for the transport."""
@@ -162,19 +302,89 @@ class Session:
         return self._closed
 
     @property
+    def closing(self) -> bool:
+        """Whether the session stopped taking input (close requested or shutting down)."""
+        return self._closing or self._closed
+
+    @property
+    def authenticated(self) -> bool:
+        """Whether ops are served (always, without an authenticator)."""
+        return self._authenticated
+
+    @property
     def dropped_frames(self) -> int:
         """Topic messages dropped so far because the peer was too slow (D24)."""
         return self._outbox.dropped
 
+    @property
+    def queued_bytes(self) -> int:
+        """Payload bytes waiting to be taken by the transport."""
+        return self._outbox.queued_bytes
+
     # ---- helpers for handlers -------------------------------------------------
 
     def send(self, frame: OutFrame) -> None:
-        """Queue a frame for the peer and wake the transport."""
-        if self._closed:
+        """Queue a frame for the peer and wake the transport.
+
+        Past the limit, the oldest topic messages go (D24); when undroppable
+        frames alone exceed the limit the peer is not reading at all, and the
+        connection is closed rather than let memory grow.
+        """
+        if self._closed or self._commands_closed:
+            return
+        limit = self._outbox.limit_bytes
+        if not frame.droppable and self._outbox.undroppable_bytes > limit:
+            self.request_close(
+                CloseCode.POLICY_VIOLATION, f"send buffer overflow: over {limit} bytes unread"
+            )
             return
         was_empty = len(self._outbox) == 0
+        dropped = self._outbox.dropped
         self._outbox.push(frame)
-        if was_empty and self._on_output is not None:
+        if self._outbox.over_limit and self._full_timer is None:
+            self._start_full_episode(dropped)
+        if was_empty:
+            self._wake()
+
+    def _start_full_episode(self, dropped_before: int) -> None:
+        """The queue went over its limit: report once, and arm the send timeout (D24)."""
+        timeout_s = self.config.send_timeout_s
+        self._full_timer = self.timers.schedule(
+            self._now + timeout_s, self._make_full_check(self._takes)
+        )
+        logger.warning(
+            "event=slow_consumer client=%s limit_bytes=%d dropped_total=%d",
+            self.client_id,
+            self._outbox.limit_bytes,
+            dropped_before,
+        )
+        self.report(
+            StatusLevel.WARNING,
+            f"dropping the oldest topic messages: this connection reads slower than they "
+            f"arrive (send buffer limit {self._outbox.limit_bytes} bytes)",
+        )
+        self._wake()  # the timer task must learn the new deadline
+
+    def _make_full_check(self, takes: int) -> Callable[[float], None]:
+        def check(now: float) -> None:
+            if not self._outbox.over_limit:
+                self._full_timer = None
+            elif self._takes != takes:  # still full but moving: look again later
+                self._full_timer = self.timers.schedule(
+                    now + self.config.send_timeout_s, self._make_full_check(self._takes)
+                )
+            else:
+                self._full_timer = None
+                self.request_close(
+                    CloseCode.POLICY_VIOLATION,
+                    f"slow consumer: send buffer over {self._outbox.limit_bytes} bytes "
+                    f"for {self.config.send_timeout_s:g} s",
+                )
+
+        return check
+
+    def _wake(self) -> None:
+        if self._on_output is not None:
             self._on_output()
 
     def send_op(
@@ -206,6 +416,7 @@ class Session:
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, encoded once per spelling."""
+        self._now = max(self._now, event.now)
         self.send(publish_frame(subscription, event))
 
 
