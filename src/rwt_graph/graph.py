@@ -12,10 +12,24 @@ from collections.abc import Callable
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
-from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
+from rwt_protocol.ports import (
+    ActionProvider,
+    ClientId,
+    GoalDone,
+    GoalFeedback,
+    GoalHandle,
+    MessageEvent,
+    Pending,
+    ServiceProvider,
+    ServiceReply,
+    TopicSink,
+)
 
+from .actions import ActionEntry, Actions, LocalActionHandler
+from .calls import Spawner
 from .clock import Clock, SystemClock
-from .local import LocalPublisher, LocalSubscription
+from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
+from .services import LocalServiceHandler, ServiceEntry, Services
 from .topics import Topic
 from .types import Dialect, MessageType, TypeRegistry
 
@@ -36,6 +50,9 @@ class Graph:
         self.registry = registry or TypeRegistry(Dialect.ROS2)
         self.clock: Clock = clock or SystemClock()
         self.topics: dict[str, Topic] = {}
+        self.spawner: Spawner | None = None
+        self.services = Services(self.registry, self.clock, lambda: self.spawner)
+        self.actions = Actions(self.registry, self.clock, lambda: self.spawner)
         self._local_ids = itertools.count(1)
 
     # ---- GraphPort ------------------------------------------------------------
@@ -127,11 +144,132 @@ class Graph:
             self._collect(entry)
 
     def release(self, client: ClientId) -> None:
-        """Drop every registration of ``client`` (it disconnected)."""
+        """Drop every registration of ``client`` (it disconnected).
+
+        Its services and actions go, failing their pending callers (D15); its own
+        calls and goals are forgotten.
+        """
         for entry in list(self.topics.values()):
             entry.publishers.pop(client, None)
             entry.subscribers.pop(client, None)
             self._collect(entry)
+        self.services.release(client)
+        self.actions.release(client)
+
+    # ---- ServicePort: services and actions of clients ---------------------------
+
+    def advertise_service(
+        self, client: ClientId, service: str, type_name: str, provider: ServiceProvider
+    ) -> str:
+        """Offer ``service`` provided by a client session (spec 3.3.6, D15).
+
+        Raises:
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+        """
+        srvtype = self.registry.service(type_name)
+        entry = ServiceEntry(resolve_name(service), service, srvtype, client, provider=provider)
+        self.services.advertise(entry)
+        return srvtype.name
+
+    def unadvertise_service(self, client: ClientId, service: str) -> None:
+        """Withdraw ``service``; its pending calls fail (spec 3.3.7, D15).
+
+        Raises:
+            GraphError: ``client`` does not provide it.
+        """
+        self.services.unadvertise(client, service, reason="service {service} was unadvertised")
+
+    def call_service(
+        self,
+        client: ClientId,
+        service: str,
+        args: object,
+        reply: ServiceReply,
+        *,
+        type_name: str | None = None,
+        path: str = "$",
+    ) -> Pending:
+        """Call ``service``; ``reply(result, values)`` runs once (spec 3.3.8, D4).
+
+        ``args`` is an object, a list (positional, D25) or None. For an in-process
+        service with a sync handler, ``reply`` runs before this returns.
+
+        Raises:
+            GraphError: the service does not exist or has another type.
+            FieldError: ``args`` does not fit the request.
+        """
+        return self.services.call(client, service, args, reply, type_name=type_name, path=path)
+
+    def service_response(
+        self,
+        client: ClientId,
+        service: str,
+        request_id: str,
+        result: bool,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
+        """Answer a forwarded request (spec 3.3.9); see ``Services.respond`` for errors."""
+        self.services.respond(client, service, request_id, result, values, path=path)
+
+    def advertise_action(
+        self, client: ClientId, action: str, type_name: str, provider: ActionProvider
+    ) -> str:
+        """Offer ``action`` provided by a client session (spec 3.3.10, D15).
+
+        Raises:
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+        """
+        actiontype = self.registry.action(type_name)
+        name = resolve_name(action)
+        self.actions.advertise(
+            ActionEntry(name, action, type_name, actiontype, client, provider=provider)
+        )
+        return actiontype.name
+
+    def unadvertise_action(self, client: ClientId, action: str) -> None:
+        """Withdraw ``action``; its goals abort (spec 3.3.11)."""
+        self.actions.unadvertise(client, action)
+
+    def send_action_goal(
+        self,
+        client: ClientId,
+        action: str,
+        action_type: str,
+        args: object,
+        done: GoalDone,
+        feedback: GoalFeedback | None,
+        *,
+        path: str = "$",
+    ) -> GoalHandle:
+        """Send a goal; ``done(status, result, values)`` runs once (spec 3.3.12, D4, D18).
+
+        Raises:
+            GraphError: the action does not exist.
+            FieldError: ``args`` does not fit the goal.
+        """
+        return self.actions.send_goal(client, action, action_type, args, done, feedback, path=path)
+
+    def action_feedback(
+        self, client: ClientId, action: str, goal_id: str, values: object, *, path: str = "$"
+    ) -> None:
+        """Feedback from the provider (spec 3.3.14); see ``Actions.feedback``."""
+        self.actions.feedback(client, action, goal_id, values, path=path)
+
+    def action_result(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str,
+        status: int | None,
+        result: bool,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
+        """The provider's result (spec 3.3.15, D18); see ``Actions.result``."""
+        self.actions.result(client, action, goal_id, status, result, values, path=path)
 
     # ---- embedding API ---------------------------------------------------------
 
@@ -172,6 +310,50 @@ class Graph:
         self.subscribe(client, topic, type_name, subscription)
         return subscription
 
+    def create_service(
+        self, service: str, type_name: str, handler: LocalServiceHandler
+    ) -> LocalService:
+        """Provide ``service`` from Python code in this process.
+
+        Args:
+            service: service name.
+            type_name: ``std_srvs/srv/SetBool`` or ``std_srvs/SetBool``.
+            handler: ``handler(request) -> response``, a plain or async function of
+                dicts; missing response fields get defaults; an exception fails the
+                call with its text (D4). Async handlers need a running server.
+
+        Raises:
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+        """
+        client = self._local_client()
+        srvtype = self.registry.service(type_name)
+        name = resolve_name(service)
+        self.services.advertise(ServiceEntry(name, service, srvtype, client, handler=handler))
+        return LocalService(self, client, name)
+
+    def create_action_server(
+        self, action: str, type_name: str, handler: LocalActionHandler
+    ) -> LocalActionServer:
+        """Provide ``action`` from Python code in this process.
+
+        Args:
+            action: action name.
+            type_name: ``example_interfaces/action/Fibonacci`` or the short form.
+            handler: ``async def handler(goal, context) -> result``; it may call
+                ``context.publish_feedback(dict)`` and should honour
+                ``context.cancel_requested`` by raising ``GoalCanceled``.
+
+        Raises:
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+        """
+        client = self._local_client()
+        actiontype = self.registry.action(type_name)
+        name = resolve_name(action)
+        self.actions.advertise(
+            ActionEntry(name, action, type_name, actiontype, client, handler=handler)
+        )
+        return LocalActionServer(self, client, name)
+
     def topic_names_and_types(self) -> list[tuple[str, str]]:
         """Every topic in use with its canonical type, sorted by name."""
         return sorted((name, t.msgtype.name) for name, t in self.topics.items())
@@ -204,3 +386,7 @@ class Graph:
 
     def _local_client(self) -> ClientId:
         return f"local:{next(self._local_ids)}"
+
+    def local_client(self) -> ClientId:
+        """A fresh participant id for in-process code calling services or actions."""
+        return self._local_client()

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from rwt_protocol.errors import GraphError
 from rwt_protocol.ports import ClientId, MessageEvent
 
 if TYPE_CHECKING:
     from .graph import Graph
     from .types import MessageType
 
-__all__ = ["LocalPublisher", "LocalSubscription"]
+__all__ = ["LocalActionServer", "LocalPublisher", "LocalService", "LocalSubscription"]
 
 logger = logging.getLogger("rwt.graph")
 
@@ -72,3 +74,33 @@ class LocalSubscription:
     def close(self) -> None:
         """Stop receiving messages."""
         self._graph.unsubscribe(self._client, self.topic)
+
+
+class LocalService:
+    """An in-process service; made by ``Graph.create_service``."""
+
+    def __init__(self, graph: Graph, client: ClientId, service: str) -> None:
+        self._graph = graph
+        self._client = client
+        self.service = service
+
+    def close(self) -> None:
+        """Withdraw the service; pending callers get ``result: false`` (D15)."""
+        with contextlib.suppress(GraphError):  # already replaced by a newer advertiser
+            self._graph.services.unadvertise(
+                self._client, self.service, reason="service {service} was unadvertised"
+            )
+
+
+class LocalActionServer:
+    """An in-process action server; made by ``Graph.create_action_server``."""
+
+    def __init__(self, graph: Graph, client: ClientId, action: str) -> None:
+        self._graph = graph
+        self._client = client
+        self.action = action
+
+    def close(self) -> None:
+        """Withdraw the action; goals in flight abort (D4)."""
+        with contextlib.suppress(GraphError):
+            self._graph.actions.unadvertise(self._client, self.action)

@@ -36,11 +36,12 @@ from .codec import decode_json, encode_json, parse_object, peek_id
 from .encoding import publish_frame
 from .errors import RemoteProtocolError, RwtError
 from .handlers import HANDLERS
+from .handlers.providers import ProviderLink
 from .levels import StatusLevel
 from .ops import Auth, OpModel
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .ports import ClientId, GraphPort, MessageEvent
+from .ports import ClientId, GoalHandle, GraphPort, MessageEvent
 from .replies import failure_reply
 from .subscriptions import TopicSubscription
 from .timers import Timer, TimerQueue
@@ -75,6 +76,8 @@ class SessionConfig:
             without taking any frame before it is closed (D24, ``--send-timeout``).
         access: the access rules (``--topics-glob`` and friends).
         authenticator: when set, the first op must be an ``auth`` it admits (D23).
+        call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
+            it fails (D16, ``--call-timeout``); None waits for ever.
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
@@ -82,6 +85,7 @@ class SessionConfig:
     send_timeout_s: float = 30.0
     access: AccessPolicy = field(default_factory=AccessPolicy)
     authenticator: Authenticator | None = None
+    call_timeout_s: float | None = 30.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,6 +129,8 @@ class Session:
         self.status_level = self.config.status_level
         self.subscriptions: dict[str, TopicSubscription] = {}
         self.advertisements: dict[str, set[str | int | None]] = {}
+        self.goals: dict[str | int | None, GoalHandle] = {}
+        self.provider_link = ProviderLink(self)
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._commands: list[Command] = []
         self.timers = TimerQueue()
@@ -267,6 +273,7 @@ class Session:
         self.timers.clear()
         self.subscriptions.clear()
         self.advertisements.clear()
+        self.goals.clear()
         self.graph.release(self.client_id)
 
     # ---- outputs ------------------------------------------------------------

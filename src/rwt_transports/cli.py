@@ -115,6 +115,9 @@ def serve(
     allowed_origins: Annotated[
         str, typer.Option(help="Accepted WebSocket Origin patterns, comma-separated (any).")
     ] = "",
+    call_timeout: Annotated[
+        float, typer.Option(help="Seconds a call_service without timeout may wait; 0 = no limit.")
+    ] = 30.0,
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
     ] = None,
@@ -173,6 +176,7 @@ def serve(
             send_buffer_limit=send_buffer_limit,
             send_timeout_s=send_timeout,
             access=access,
+            call_timeout_s=call_timeout if call_timeout > 0 else None,
         ),
         websocket=WebSocketOptions(
             compression=websocket_compression,

@@ -19,7 +19,7 @@ import itertools
 import logging
 import ssl
 import sys
-from collections.abc import AsyncIterator, Callable, Coroutine
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
 from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -28,6 +28,7 @@ import anyio
 from anyio.abc import ByteStream, SocketAttribute, SocketStream, TaskGroup, TaskStatus
 from anyio.streams.tls import TLSListener
 
+from rwt_graph.calls import Spawner
 from rwt_graph.clock import Clock
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
@@ -43,7 +44,7 @@ from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
 from .websocket import WebSocketOptions, serve_websocket_connection
 
-__all__ = ["RosbridgeServer", "ServerConfig", "rosauth_authenticator"]
+__all__ = ["RosbridgeServer", "ServerConfig", "rosauth_authenticator", "spawner_for"]
 
 logger = logging.getLogger("rwt.server")
 
@@ -176,12 +177,16 @@ class RosbridgeServer:
                     on_listening(url)
             task_status.started(next(iter(self.urls.values()), ""))
             async with anyio.create_task_group() as connections:
-                async with anyio.create_task_group() as accepting:
-                    for runner in runners:
-                        accepting.start_soon(runner, connections)
-                    await self._stop.wait()
-                    accepting.cancel_scope.cancel()
-                await self._shutdown(connections)
+                self.graph.spawner = spawner_for(connections)  # async in-process handlers
+                try:
+                    async with anyio.create_task_group() as accepting:
+                        for runner in runners:
+                            accepting.start_soon(runner, connections)
+                        await self._stop.wait()
+                        accepting.cancel_scope.cancel()
+                    await self._shutdown(connections)
+                finally:
+                    self.graph.spawner = None
 
     def stop(self) -> None:
         """Stop serving gracefully (SIGTERM/SIGINT in ``rwt serve``); ``serve`` then returns."""
@@ -335,6 +340,22 @@ class RosbridgeServer:
     def _publish_client_count(self) -> None:
         if self._client_count is not None:
             self._client_count.publish({"data": len(self.sessions)})
+
+
+def spawner_for(tg: TaskGroup) -> Spawner:
+    """A graph spawner running jobs in ``tg``; each job can be cancelled alone."""
+
+    def spawn(job: Callable[[], Awaitable[None]]) -> Callable[[], None]:
+        scope = anyio.CancelScope()
+
+        async def run() -> None:
+            with scope:
+                await job()
+
+        tg.start_soon(run)
+        return scope.cancel
+
+    return spawn
 
 
 class _TrackedSession(Session):

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .. import ops
-from . import control, pending, topics
+from . import actions, control, services, topics
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -28,16 +28,16 @@ HANDLERS: dict[type[ops.OpModel], Handler] = {
     ops.SetLevel: control.set_level,
     ops.Status: control.status,
     ops.Auth: control.auth,
-    ops.CallService: pending.refuse_call_service,
-    ops.SendActionGoal: pending.refuse_send_action_goal,
-    ops.ServiceResponse: pending.refuse,
-    ops.AdvertiseService: pending.refuse,
-    ops.UnadvertiseService: pending.refuse,
-    ops.AdvertiseAction: pending.refuse,
-    ops.UnadvertiseAction: pending.refuse,
-    ops.CancelActionGoal: pending.refuse,
-    ops.ActionFeedback: pending.refuse,
-    ops.ActionResult: pending.refuse,
-    ops.Fragment: pending.refuse,
-    ops.Png: pending.refuse,
+    ops.AdvertiseService: services.advertise_service,
+    ops.UnadvertiseService: services.unadvertise_service,
+    ops.CallService: services.call_service,
+    ops.ServiceResponse: services.service_response,
+    ops.AdvertiseAction: actions.advertise_action,
+    ops.UnadvertiseAction: actions.unadvertise_action,
+    ops.SendActionGoal: actions.send_action_goal,
+    ops.CancelActionGoal: actions.cancel_action_goal,
+    ops.ActionFeedback: actions.action_feedback,
+    ops.ActionResult: actions.action_result,
+    ops.Fragment: control.not_supported,
+    ops.Png: control.not_supported,
 }

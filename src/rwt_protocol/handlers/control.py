@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from ..errors import RemoteProtocolError
 from ..levels import StatusLevel
-from ..ops import Auth, SetLevel, Status
+from ..ops import Auth, OpModel, SetLevel, Status
 
 if TYPE_CHECKING:
     from ..session import Session
 
-__all__ = ["auth", "set_level", "status"]
+__all__ = ["auth", "not_supported", "set_level", "status"]
 
 
 def set_level(session: Session, op: SetLevel, now: float) -> None:
@@ -36,3 +37,12 @@ def auth(session: Session, op: Auth, now: float) -> None:
         session.report(StatusLevel.INFO, "auth: authentication is not enabled; ignored")
     else:
         session.report(StatusLevel.INFO, "auth: already authenticated; ignored")
+
+
+def not_supported(session: Session, op: OpModel, now: float) -> None:
+    """Refuse an op this server does not serve yet.
+
+    Raises:
+        RemoteProtocolError: always.
+    """
+    raise RemoteProtocolError("not supported by this server yet")

@@ -1,0 +1,331 @@
+"""Actions of the in-memory graph (spec 3.3.10-3.3.15, PROTOCOL-DECISIONS D4, D15, D18).
+
+An action is provided by a client (its session receives ``send_action_goal``
+with goal ids ``action_goal:<name>:<n>``, REF §2.15, and ``cancel_action_goal``)
+or by Python code in this process (``LocalActionHandler``). Every goal ends with
+exactly one result for its caller: the provider's, or an abort with a reason when
+the provider goes away (D4).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+
+from rwt_protocol.errors import FieldError, GraphError
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.names import resolve_name
+from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
+
+from .calls import Spawner, convert_args, require_spawner
+from .clock import Clock
+from .types import ActionType, TypeRegistry
+
+__all__ = [
+    "ActionEntry",
+    "Actions",
+    "Goal",
+    "GoalCanceled",
+    "GoalContext",
+    "LocalActionHandler",
+]
+
+logger = logging.getLogger("rwt.graph")
+
+Message = dict[str, object]
+
+
+class GoalContext:
+    """What an in-process action handler gets besides the goal.
+
+    Attributes:
+        goal_id: the goal's id.
+        cancel_requested: set when the caller asked to cancel; a handler that
+            honours it returns (or raises ``GoalCanceled``) promptly.
+    """
+
+    def __init__(self, goal: Goal) -> None:
+        self._goal = goal
+        self.goal_id = goal.goal_id
+        self.cancel_requested = False
+
+    def publish_feedback(self, feedback: Message) -> None:
+        """Send feedback to the caller (validated against the feedback type).
+
+        Raises:
+            FieldError: ``feedback`` does not fit the type.
+        """
+        self._goal.feedback(feedback)
+
+
+LocalActionHandler = Callable[[Message, GoalContext], Awaitable[Message]]
+"""An in-process action server: ``async def handler(goal, context) -> result``.
+
+Raising ``GoalCanceled`` (or being cancelled) ends the goal CANCELED; any other
+exception ends it ABORTED."""
+
+
+class GoalCanceled(Exception):
+    """Raised by an in-process action handler that honours a cancel request."""
+
+
+class Goal:
+    """One goal in flight, held by its caller as a ``GoalHandle``."""
+
+    def __init__(
+        self,
+        entry: ActionEntry,
+        goal_id: str,
+        caller: ClientId,
+        done: GoalDone,
+        on_feedback: GoalFeedback | None,
+        clock: Clock,
+    ) -> None:
+        self.entry = entry
+        self.goal_id = goal_id
+        self.caller = caller
+        self._done: GoalDone | None = done
+        self._on_feedback = on_feedback
+        self._clock = clock
+        self.context: GoalContext | None = None
+        self.cancel_job: Callable[[], None] | None = None
+
+    @property
+    def finished(self) -> bool:
+        """Whether the caller has its result or stopped waiting."""
+        return self._done is None
+
+    def feedback(self, values: object, *, path: str = "$") -> None:
+        """Validate and forward one feedback message.
+
+        Raises:
+            FieldError: ``values`` does not fit the feedback type.
+        """
+        msg = self.entry.actiontype.feedback.from_json(values, path=path, now=self._clock.wall())
+        if self._on_feedback is not None and not self.finished:
+            self._on_feedback(msg.msg)
+
+    def finish(self, status: GoalStatus, result: bool, values: object) -> None:
+        """Give the caller its one result and drop the goal from its action."""
+        self.entry.goals.pop(self.goal_id, None)
+        done, self._done = self._done, None
+        if done is not None:
+            done(status, result, values)
+
+    def request_cancel(self) -> None:
+        """Ask the provider to cancel (spec 3.3.13)."""
+        if self.finished:
+            return
+        if self.entry.provider is not None:
+            self.entry.provider.on_action_cancel(self.goal_id, self.entry.spelling)
+        elif self.context is not None:
+            self.context.cancel_requested = True
+
+    def forget(self) -> None:
+        """The caller left: stop reporting to it and ask the provider to cancel."""
+        self.request_cancel()
+        self._done = None
+        self._on_feedback = None
+
+
+@dataclass(eq=False)
+class ActionEntry:
+    """One advertised action (see ``ServiceEntry`` for the fields' meaning)."""
+
+    name: str
+    spelling: str
+    type_spelling: str
+    actiontype: ActionType
+    owner: ClientId
+    provider: ActionProvider | None = None
+    handler: LocalActionHandler | None = None
+    goals: dict[str, Goal] = field(default_factory=dict)
+    counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+
+    def abort_all(self, reason: str) -> None:
+        """End every goal ABORTED with ``result: false`` and ``reason`` (D4)."""
+        for goal in list(self.goals.values()):
+            goal.finish(GoalStatus.ABORTED, False, reason)
+
+
+class Actions:
+    """The action table of a graph (arguments as for ``Services``)."""
+
+    def __init__(
+        self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
+    ) -> None:
+        self.registry = registry
+        self.clock = clock
+        self._spawner = spawner
+        self.entries: dict[str, ActionEntry] = {}
+
+    def advertise(self, entry: ActionEntry) -> None:
+        """Add ``entry``, replacing (and aborting the goals of) an older one (D15)."""
+        old = self.entries.get(entry.name)
+        self.entries[entry.name] = entry
+        if old is not None:
+            reason = f"action {old.spelling} was replaced by a newer advertiser"
+            old.abort_all(reason)
+            if old.provider is not None:
+                old.provider.on_action_lost(old.spelling, reason)
+
+    def owned(self, client: ClientId, action: str) -> ActionEntry:
+        """The entry of ``action`` if ``client`` provides it.
+
+        Raises:
+            GraphError: no such action, or another participant provides it.
+        """
+        entry = self.entries.get(resolve_name(action))
+        if entry is None or entry.owner != client:
+            raise GraphError(f"action {action} is not advertised by this client")
+        return entry
+
+    def unadvertise(self, client: ClientId, action: str) -> None:
+        """Remove an action ``client`` owns; abort its goals.
+
+        Raises:
+            GraphError: ``client`` does not provide ``action``.
+        """
+        entry = self.owned(client, action)
+        del self.entries[entry.name]
+        entry.abort_all(f"action {entry.spelling} was unadvertised")
+
+    def send_goal(
+        self,
+        client: ClientId,
+        action: str,
+        action_type: str,
+        args: object,
+        done: GoalDone,
+        on_feedback: GoalFeedback | None,
+        *,
+        path: str,
+    ) -> Goal:
+        """Start a goal (spec 3.3.12).
+
+        ``action_type`` is not checked: clients name one action in different
+        packages (``tf2_web_republisher_msgs`` or ``..._interfaces``, REF §7.3).
+
+        Raises:
+            GraphError: no such action.
+            FieldError: ``args`` does not fit the goal type.
+        """
+        entry = self.entries.get(resolve_name(action))
+        if entry is None:
+            raise GraphError(f"action {action} does not exist")
+        goal_msg = convert_args(entry.actiontype.goal, args, path=path, now=self.clock.wall())
+        goal_id = f"action_goal:{entry.spelling}:{next(entry.counter)}"
+        goal = Goal(entry, goal_id, client, done, on_feedback, self.clock)
+        entry.goals[goal_id] = goal
+        if entry.handler is not None:
+            self._run_local(entry, entry.handler, goal, goal_msg.msg)
+        else:
+            assert entry.provider is not None
+            entry.provider.on_action_goal(
+                goal_id, entry.spelling, entry.type_spelling, goal_msg.msg
+            )
+        return goal
+
+    def feedback(
+        self, client: ClientId, action: str, goal_id: str, values: object, *, path: str
+    ) -> None:
+        """Route the provider's feedback (spec 3.3.14).
+
+        Raises:
+            GraphError: not the provider; unknown goal (warning).
+            FieldError: ``values`` does not fit the feedback type.
+        """
+        self._goal(client, action, goal_id).feedback(values, path=path)
+
+    def result(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str,
+        status: int | None,
+        result: bool,
+        values: object,
+        *,
+        path: str,
+    ) -> None:
+        """Route the provider's result (spec 3.3.15, D18).
+
+        ``status`` defaults to SUCCEEDED when ``result`` is true, ABORTED otherwise;
+        the caller's ``result`` is true for every terminal status (D18).
+
+        Raises:
+            GraphError: not the provider; unknown goal (warning); status not terminal.
+            FieldError: ``values`` does not fit the result type (the goal aborts).
+        """
+        goal = self._goal(client, action, goal_id)
+        final = _terminal(status, result)
+        if not result:
+            goal.finish(final, True, goal.entry.actiontype.result.default())
+            return
+        try:
+            msg = goal.entry.actiontype.result.from_json(
+                {} if values is None else values, path=path, now=self.clock.wall()
+            )
+        except FieldError as exc:
+            goal.finish(
+                GoalStatus.ABORTED, False, f"invalid result from the provider: {exc.message}"
+            )
+            raise
+        goal.finish(final, True, msg.msg)
+
+    def release(self, client: ClientId) -> None:
+        """Drop the actions ``client`` provides; forget the goals it sent."""
+        for entry in list(self.entries.values()):
+            if entry.owner == client:
+                del self.entries[entry.name]
+                entry.abort_all(f"action {entry.spelling} is gone: its provider disconnected")
+            else:
+                for goal in list(entry.goals.values()):
+                    if goal.caller == client:
+                        goal.forget()
+
+    def _goal(self, client: ClientId, action: str, goal_id: str) -> Goal:
+        entry = self.owned(client, action)
+        goal = entry.goals.get(goal_id)
+        if goal is None:
+            raise GraphError(
+                f"no goal {goal_id!r} in progress on {action}", level=StatusLevel.WARNING
+            )
+        return goal
+
+    def _run_local(
+        self, entry: ActionEntry, handler: LocalActionHandler, goal: Goal, goal_msg: Message
+    ) -> None:
+        spawn = require_spawner(self._spawner(), f"action {entry.spelling}")
+        context = goal.context = GoalContext(goal)
+        result_type = entry.actiontype.result
+
+        async def run() -> None:
+            try:
+                outcome = await handler(goal_msg, context)
+                msg = result_type.from_python(outcome, now=self.clock.wall())
+            except GoalCanceled:
+                goal.finish(GoalStatus.CANCELED, True, result_type.default())
+            except Exception:
+                logger.exception("action %s failed on goal %s", entry.spelling, goal.goal_id)
+                goal.finish(GoalStatus.ABORTED, True, result_type.default())
+            else:
+                goal.finish(GoalStatus.SUCCEEDED, True, msg)
+            finally:  # cancelled by the event loop (the server is stopping)
+                goal.finish(GoalStatus.CANCELED, True, result_type.default())
+
+        goal.cancel_job = spawn(run)
+
+
+def _terminal(status: int | None, result: bool) -> GoalStatus:
+    if status is None:
+        return GoalStatus.SUCCEEDED if result else GoalStatus.ABORTED
+    try:
+        code = GoalStatus(status)
+    except ValueError:
+        raise GraphError(f"unknown goal status {status}") from None
+    if code not in (GoalStatus.SUCCEEDED, GoalStatus.CANCELED, GoalStatus.ABORTED):
+        raise GraphError(f"goal status {status} is not terminal (expected 4, 5 or 6)")
+    return code

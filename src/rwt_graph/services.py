@@ -1,0 +1,260 @@
+"""Services of the in-memory graph (spec 3.3.6-3.3.9, PROTOCOL-DECISIONS D4, D15-D17, D25).
+
+A service is provided either by a client (its session receives ``call_service``
+requests with ids ``service_request:<name>:<n>``, REF §2.7) or by Python code in
+this process (a sync or async callable). A service belongs to its provider:
+only it answers, it goes when the provider unadvertises or leaves, and a newer
+advertisement replaces it (D15). Every pending caller hears back: with the
+response, or with ``result: false`` and a reason (D4).
+"""
+
+from __future__ import annotations
+
+import inspect
+import itertools
+import logging
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+
+from rwt_protocol.errors import FieldError, GraphError
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.names import resolve_name
+from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
+
+from .calls import Spawner, convert_args
+from .clock import Clock
+from .types import ServiceType, TypeRegistry
+
+__all__ = ["LocalServiceHandler", "PendingCall", "ServiceEntry", "Services"]
+
+logger = logging.getLogger("rwt.graph")
+
+Message = dict[str, object]
+LocalServiceHandler = Callable[[Message], Message | Awaitable[Message]]
+"""An in-process service: takes the request dict, returns (or awaits) the response dict."""
+
+
+class PendingCall:
+    """One call in flight; resolves once, then forgets its caller."""
+
+    def __init__(self, caller: ClientId, reply: ServiceReply) -> None:
+        self.caller = caller
+        self._reply: ServiceReply | None = reply
+        self.cancel_job: Callable[[], None] | None = None
+
+    @property
+    def done(self) -> bool:
+        """Whether the caller has been answered or has stopped waiting."""
+        return self._reply is None
+
+    def resolve(self, result: bool, values: object) -> None:
+        """Answer the caller, at most once."""
+        reply, self._reply = self._reply, None
+        if reply is not None:
+            reply(result, values)
+
+    def forget(self) -> None:
+        """The caller stopped waiting (timeout or disconnect)."""
+        self._reply = None
+        if self.cancel_job is not None:
+            self.cancel_job()
+
+
+@dataclass(eq=False)
+class ServiceEntry:
+    """One advertised service.
+
+    Attributes:
+        name: resolved name; ``spelling``: as its provider wrote it (D26).
+        srvtype: the service type.
+        owner: the providing participant.
+        provider: the session to forward requests to, for client-advertised services.
+        handler: the callable, for in-process services.
+        pending: request id -> call, for client-advertised services.
+    """
+
+    name: str
+    spelling: str
+    srvtype: ServiceType
+    owner: ClientId
+    provider: ServiceProvider | None = None
+    handler: LocalServiceHandler | None = None
+    pending: dict[str, PendingCall] = field(default_factory=dict)
+    counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+
+    def fail_all(self, reason: str) -> None:
+        """Answer every pending call with ``result: false`` (D4, D15)."""
+        calls, self.pending = list(self.pending.values()), {}
+        for call in calls:
+            call.resolve(False, reason)
+
+
+class Services:
+    """The service table of a graph.
+
+    Args:
+        registry: resolves service types.
+        clock: wall time for header stamps in requests and responses.
+        spawner: returns the graph's current spawner (installed by the server).
+    """
+
+    def __init__(
+        self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
+    ) -> None:
+        self.registry = registry
+        self.clock = clock
+        self._spawner = spawner
+        self.entries: dict[str, ServiceEntry] = {}
+
+    def advertise(self, entry: ServiceEntry) -> None:
+        """Add ``entry``, replacing (and failing the calls of) an older one (D15)."""
+        old = self.entries.get(entry.name)
+        self.entries[entry.name] = entry
+        if old is not None:
+            reason = f"service {old.spelling} was replaced by a newer advertiser"
+            old.fail_all(reason)
+            if old.provider is not None:
+                old.provider.on_service_lost(old.spelling, reason)
+
+    def unadvertise(self, client: ClientId, service: str, *, reason: str) -> None:
+        """Remove a service ``client`` owns; fail its pending calls.
+
+        Raises:
+            GraphError: ``client`` does not provide ``service``.
+        """
+        entry = self.owned(client, service)
+        del self.entries[entry.name]
+        entry.fail_all(reason.format(service=entry.spelling))
+
+    def owned(self, client: ClientId, service: str) -> ServiceEntry:
+        """The entry of ``service`` if ``client`` provides it.
+
+        Raises:
+            GraphError: no such service, or another participant provides it.
+        """
+        entry = self.entries.get(resolve_name(service))
+        if entry is None or entry.owner != client:
+            raise GraphError(f"service {service} is not advertised by this client")
+        return entry
+
+    def call(
+        self,
+        client: ClientId,
+        service: str,
+        args: object,
+        reply: ServiceReply,
+        *,
+        type_name: str | None,
+        path: str,
+    ) -> PendingCall:
+        """Start a call to ``service`` (spec 3.3.8).
+
+        Raises:
+            GraphError: the service does not exist or has another type.
+            FieldError: ``args`` does not fit the request type.
+        """
+        entry = self.entries.get(resolve_name(service))
+        if entry is None:
+            raise GraphError(f"service {service} does not exist")
+        if type_name is not None and self.registry.service(type_name).name != entry.srvtype.name:
+            raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
+        request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())
+        call = PendingCall(client, reply)
+        if entry.handler is not None:
+            self._run_local(entry, entry.handler, request.msg, call)
+        else:
+            assert entry.provider is not None
+            request_id = f"service_request:{entry.spelling}:{next(entry.counter)}"
+            entry.pending[request_id] = call
+            entry.provider.on_service_request(request_id, entry.spelling, request.msg)
+        return call
+
+    def respond(
+        self,
+        client: ClientId,
+        service: str,
+        request_id: str,
+        result: bool,
+        values: object,
+        *,
+        path: str,
+    ) -> None:
+        """Route a provider's ``service_response`` to its caller (spec 3.3.9, D15, D28).
+
+        Raises:
+            GraphError: ``client`` does not provide ``service``; unknown request id
+                (warning: it may have timed out).
+            FieldError: ``values`` does not fit the response type (the caller gets
+                ``result: false`` too).
+        """
+        entry = self.owned(client, service)
+        call = entry.pending.pop(request_id, None)
+        if call is None:
+            raise GraphError(
+                f"no pending request {request_id!r} for {service}", level=StatusLevel.WARNING
+            )
+        if not result:
+            call.resolve(False, values if isinstance(values, str) else "service call failed")
+            return
+        try:
+            response = entry.srvtype.response.from_json(
+                {} if values is None else values, path=path, now=self.clock.wall()
+            )
+        except FieldError as exc:
+            call.resolve(False, f"invalid response from the provider: {exc.message}")
+            raise
+        call.resolve(True, response.msg)
+
+    def release(self, client: ClientId) -> None:
+        """Drop the services ``client`` provides; forget its own pending calls."""
+        for entry in list(self.entries.values()):
+            if entry.owner == client:
+                del self.entries[entry.name]
+                entry.fail_all(f"service {entry.spelling} is gone: its provider disconnected")
+            else:
+                for request_id, call in list(entry.pending.items()):
+                    if call.caller == client:
+                        del entry.pending[request_id]
+
+    def _run_local(
+        self, entry: ServiceEntry, handler: LocalServiceHandler, request: Message, call: PendingCall
+    ) -> None:
+        try:
+            outcome = handler(request)
+        except Exception as exc:
+            logger.exception("service %s failed", entry.spelling)
+            call.resolve(False, f"service {entry.spelling} failed: {exc}")
+            return
+        if not inspect.isawaitable(outcome):
+            self._finish(entry, outcome, call)
+            return
+        spawner = self._spawner()
+        if spawner is None:
+            _discard(outcome)
+            call.resolve(False, f"service {entry.spelling} is async but no event loop runs it")
+            return
+
+        async def wait() -> None:
+            try:
+                response = await outcome
+            except Exception as exc:
+                logger.exception("service %s failed", entry.spelling)
+                call.resolve(False, f"service {entry.spelling} failed: {exc}")
+            else:
+                self._finish(entry, response, call)
+
+        call.cancel_job = spawner(wait)
+
+    def _finish(self, entry: ServiceEntry, response: object, call: PendingCall) -> None:
+        try:
+            msg = entry.srvtype.response.from_python(response, now=self.clock.wall())
+        except (FieldError, GraphError) as exc:
+            call.resolve(False, f"service {entry.spelling} returned an invalid response: {exc}")
+            return
+        call.resolve(True, msg)
+
+
+def _discard(awaitable: Awaitable[object]) -> None:
+    close = getattr(awaitable, "close", None)
+    if close is not None:
+        close()  # a coroutine that will never run: close it to avoid a warning

@@ -1,0 +1,144 @@
+"""Handlers of the action ops (spec 3.3.10-3.3.15, PROTOCOL-DECISIONS D4, D15, D18)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..errors import GraphError, RwtError
+from ..levels import StatusLevel
+from ..ops import (
+    ActionFeedback,
+    ActionResult,
+    AdvertiseAction,
+    CancelActionGoal,
+    SendActionGoal,
+    UnadvertiseAction,
+)
+from ..ports import GoalStatus
+
+if TYPE_CHECKING:
+    from ..session import Session
+
+__all__ = [
+    "action_feedback",
+    "action_result",
+    "advertise_action",
+    "cancel_action_goal",
+    "send_action_goal",
+    "unadvertise_action",
+]
+
+
+def advertise_action(session: Session, op: AdvertiseAction, now: float) -> None:
+    """Offer an action provided by this client (spec 3.3.10; newest wins, D15).
+
+    Raises:
+        GraphError: bad or unknown action type.
+    """
+    type_name = session.graph.advertise_action(
+        session.client_id, op.action, op.type, session.provider_link
+    )
+    session.report(StatusLevel.INFO, f"advertise_action: {op.action} advertised as {type_name}")
+
+
+def unadvertise_action(session: Session, op: UnadvertiseAction, now: float) -> None:
+    """Withdraw an action of this client; its goals abort (spec 3.3.11).
+
+    Raises:
+        GraphError: this client does not provide the action.
+    """
+    session.graph.unadvertise_action(session.client_id, op.action)
+    session.report(StatusLevel.INFO, f"unadvertise_action: {op.action} unadvertised")
+
+
+def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
+    """Send a goal; feedback (when asked) and one result follow (spec 3.3.12, D18).
+
+    A refused goal is answered with ``action_result`` ``result: false``, status 6
+    (D4) and a status. ``action_type`` is not checked against the server's type
+    (clients name the same action in different packages, REF §7.3).
+
+    Raises:
+        RwtError: the action does not exist or ``args`` does not fit.
+    """
+    key = op.id
+    finished = False
+
+    def done(status: GoalStatus, result: bool, values: object) -> None:
+        nonlocal finished
+        finished = True
+        if handle is not None and session.goals.get(key) is handle:
+            del session.goals[key]
+        reply: dict[str, object] = {
+            "op": "action_result",
+            "action": op.action,
+            "values": values,
+            "status": int(status),
+            "result": result,
+        }
+        if op.id is not None:
+            reply["id"] = op.id
+        session.send_op(reply, compression=op.compression, fragment_size=op.fragment_size)
+
+    def feedback(values: dict[str, object]) -> None:
+        message: dict[str, object] = {
+            "op": "action_feedback",
+            "action": op.action,
+            "values": values,
+        }
+        if op.id is not None:
+            message["id"] = op.id
+        session.send_op(message, compression=op.compression, fragment_size=op.fragment_size)
+
+    handle = None
+    try:
+        handle = session.graph.send_action_goal(
+            session.client_id,
+            op.action,
+            op.action_type,
+            op.args,
+            done,
+            feedback if op.feedback else None,
+            path="$.args",
+        )
+    except RwtError as exc:
+        done(GoalStatus.ABORTED, False, exc.message)
+        raise
+    if not finished:
+        session.goals[key] = handle
+
+
+def cancel_action_goal(session: Session, op: CancelActionGoal, now: float) -> None:
+    """Ask to cancel this client's goal ``op.id`` (spec 3.3.13).
+
+    Raises:
+        GraphError: warning when no goal with that id is in progress.
+    """
+    handle = session.goals.get(op.id)
+    if handle is None:
+        raise GraphError(f"no goal {op.id!r} in progress", level=StatusLevel.WARNING)
+    handle.request_cancel()
+
+
+def action_feedback(session: Session, op: ActionFeedback, now: float) -> None:
+    """Feedback for a goal this client's action received (spec 3.3.14).
+
+    Raises:
+        GraphError: not this client's action, or no such goal (warning).
+        FieldError: ``values`` does not fit the feedback type.
+    """
+    session.graph.action_feedback(
+        session.client_id, op.action, str(op.id), op.values, path="$.values"
+    )
+
+
+def action_result(session: Session, op: ActionResult, now: float) -> None:
+    """The result of a goal this client's action received (spec 3.3.15, D18).
+
+    Raises:
+        GraphError: not this client's action, no such goal, or a bad status.
+        FieldError: ``values`` does not fit the result type.
+    """
+    session.graph.action_result(
+        session.client_id, op.action, str(op.id), op.status, op.result, op.values, path="$.values"
+    )

@@ -1,0 +1,57 @@
+"""The link from the graph to a session that advertised services or actions.
+
+It implements ``ServiceProvider`` and ``ActionProvider``: requests and goals for
+this client's services and actions become ``call_service``, ``send_action_goal``
+and ``cancel_action_goal`` frames (REF §2.7, §2.15, §2.16).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..levels import StatusLevel
+
+if TYPE_CHECKING:
+    from ..session import Session
+
+__all__ = ["ProviderLink"]
+
+
+class ProviderLink:
+    """Forwards the graph's requests to one session's peer."""
+
+    def __init__(self, session: Session) -> None:
+        self._session = session
+
+    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
+        """Send ``{"op":"call_service","id":...,"service":...,"args":{...}}``."""
+        self._session.send_op(
+            {"op": "call_service", "id": request_id, "service": service, "args": args}
+        )
+
+    def on_service_lost(self, service: str, reason: str) -> None:
+        """Warn the peer that its service was taken away (D15)."""
+        self._session.report(StatusLevel.WARNING, f"advertise_service: {reason}")
+
+    def on_action_goal(
+        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
+    ) -> None:
+        """Send ``send_action_goal`` with ``feedback: true`` (REF §2.15)."""
+        self._session.send_op(
+            {
+                "op": "send_action_goal",
+                "id": goal_id,
+                "action": action,
+                "action_type": action_type,
+                "args": args,
+                "feedback": True,
+            }
+        )
+
+    def on_action_cancel(self, goal_id: str, action: str) -> None:
+        """Send ``cancel_action_goal`` (REF §2.16)."""
+        self._session.send_op({"op": "cancel_action_goal", "id": goal_id, "action": action})
+
+    def on_action_lost(self, action: str, reason: str) -> None:
+        """Warn the peer that its action was taken away (D15)."""
+        self._session.report(StatusLevel.WARNING, f"advertise_action: {reason}")

@@ -1,0 +1,114 @@
+"""Handlers of the service ops (spec 3.3.6-3.3.9, PROTOCOL-DECISIONS D4, D15-D17, D25, D28)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..errors import RemoteProtocolError, RwtError
+from ..levels import StatusLevel
+from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
+from ..timers import Timer
+
+if TYPE_CHECKING:
+    from ..session import Session
+
+__all__ = ["advertise_service", "call_service", "service_response", "unadvertise_service"]
+
+
+def advertise_service(session: Session, op: AdvertiseService, now: float) -> None:
+    """Offer a service provided by this client (spec 3.3.6; newest wins, D15).
+
+    Raises:
+        GraphError: bad or unknown service type.
+    """
+    type_name = session.graph.advertise_service(
+        session.client_id, op.service, op.type, session.provider_link
+    )
+    session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
+
+
+def unadvertise_service(session: Session, op: UnadvertiseService, now: float) -> None:
+    """Withdraw a service of this client; its pending callers fail (spec 3.3.7, D15).
+
+    Raises:
+        GraphError: this client does not provide the service.
+    """
+    session.graph.unadvertise_service(session.client_id, op.service)
+    session.report(StatusLevel.INFO, f"unadvertise_service: {op.service} unadvertised")
+
+
+class _Call:
+    """A call this client made: answers it once, with its id and spelling (D26, D28)."""
+
+    def __init__(self, session: Session, op: CallService, op_id: str | int | None) -> None:
+        self.session = session
+        self.op = op
+        self.op_id = op_id
+        self.done = False
+        self.timer: Timer | None = None
+
+    def reply(self, result: bool, values: object) -> None:
+        if self.done:
+            return
+        self.done = True
+        if self.timer is not None:
+            self.timer.cancel()
+        message: dict[str, object] = {
+            "op": "service_response",
+            "service": self.op.service,
+            "values": values if values is not None else {},
+            "result": result,
+        }
+        if self.op_id is not None:
+            message["id"] = self.op_id
+        self.session.send_op(
+            message, compression=self.op.compression, fragment_size=self.op.fragment_size
+        )
+
+
+def call_service(session: Session, op: CallService, now: float) -> None:
+    """Call a service; the reply comes as ``service_response`` (spec 3.3.8).
+
+    ``name#id`` gives the id when ``id`` is absent (D25). The call never blocks
+    later ops (D16) and ends by ``op.timeout`` seconds or the server default
+    (D16); a refused call is answered with ``result: false`` (D4) and a status.
+    ``type`` is not checked: clients send ROS 1 names for rosapi (REF §2.6).
+
+    Raises:
+        RwtError: the service does not exist or ``args`` does not fit.
+    """
+    service, op_id = op.service, op.id
+    if op_id is None and "#" in service:
+        service, op_id = service.split("#", 1)
+    call = _Call(session, op, op_id)
+    try:
+        pending = session.graph.call_service(
+            session.client_id, service, op.args, call.reply, type_name=None, path="$.args"
+        )
+    except RwtError as exc:
+        call.reply(False, exc.message)
+        raise
+    timeout_s = op.timeout or session.config.call_timeout_s
+    if call.done or timeout_s is None:
+        return
+
+    def expire(at: float) -> None:
+        pending.forget()
+        call.reply(False, f"service call timed out after {timeout_s:g} s")
+
+    call.timer = session.timers.schedule(now + timeout_s, expire)
+
+
+def service_response(session: Session, op: ServiceResponse, now: float) -> None:
+    """Answer a request this client's service received (spec 3.3.9, D15).
+
+    Raises:
+        RemoteProtocolError: no ``id``.
+        GraphError: not this client's service, or no such pending request.
+        FieldError: ``values`` does not fit the response type.
+    """
+    if op.id is None:
+        raise RemoteProtocolError("missing field at $.id")
+    session.graph.service_response(
+        session.client_id, op.service, str(op.id), op.result, op.values, path="$.values"
+    )

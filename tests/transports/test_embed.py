@@ -1,0 +1,160 @@
+"""In-process services and actions, sync and async, called from Python and from sessions."""
+
+from __future__ import annotations
+
+import json
+
+import anyio
+import pytest
+
+from rwt_graph.actions import GoalCanceled, GoalContext
+from rwt_graph.graph import Graph
+from rwt_protocol.ports import GoalStatus
+from rwt_transports.embed import ServiceCallFailed, call_service, send_action_goal
+from rwt_transports.server import spawner_for
+from tests.conftest import Peer
+
+pytestmark = pytest.mark.anyio
+
+FIB = "example_interfaces/action/Fibonacci"
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+async def fibonacci(goal: dict[str, object], context: GoalContext) -> dict[str, object]:
+    order = goal["order"]
+    assert isinstance(order, int)
+    sequence = [0, 1]
+    for _ in range(1, order):
+        if context.cancel_requested:
+            raise GoalCanceled
+        sequence.append(sequence[-1] + sequence[-2])
+        context.publish_feedback({"sequence": list(sequence)})
+        await anyio.sleep(0)
+    return {"sequence": sequence}
+
+
+async def test_async_service_called_from_python_and_from_a_client() -> None:
+    graph = Graph()
+
+    async def add(request: dict[str, object]) -> dict[str, object]:
+        await anyio.sleep(0)
+        return {"sum": request["a"] + request["b"]}  # type: ignore[operator]
+
+    graph.create_service("/add", "example_interfaces/srv/AddTwoInts", add)
+    async with anyio.create_task_group() as tg:
+        graph.spawner = spawner_for(tg)
+        with anyio.fail_after(5):
+            assert await call_service(graph, "/add", {"a": 2, "b": 40}) == {"sum": 42}
+            client = Peer(graph, "c")
+            client.send(op="call_service", service="add", args=[1, 2], id="x")
+            while not (frames := client.received()):
+                await anyio.sleep(0.01)
+        assert frames == [
+            {
+                "op": "service_response",
+                "service": "add",
+                "values": {"sum": 3},
+                "result": True,
+                "id": "x",
+            }
+        ]
+        tg.cancel_scope.cancel()
+
+
+async def test_async_service_without_a_loop_fails_cleanly() -> None:
+    graph = Graph()
+
+    async def never(request: dict[str, object]) -> dict[str, object]:
+        return {}
+
+    graph.create_service("/e", "std_srvs/srv/Empty", never)
+    client = Peer(graph, "c")
+    client.send(op="call_service", service="/e")
+    [reply] = client.received()
+    assert reply["result"] is False and "no event loop" in str(reply["values"])
+
+
+async def test_python_caller_times_out_on_a_silent_provider() -> None:
+    graph = Graph()
+    provider = Peer(graph, "p")
+    provider.send(op="advertise_service", service="/slow", type="std_srvs/Trigger")
+    with anyio.fail_after(5), pytest.raises(ServiceCallFailed, match="timed out"):
+        await call_service(graph, "/slow", timeout_s=0.05)
+    assert provider.received()[0]["op"] == "call_service"
+
+
+async def test_in_process_action_server_with_feedback_for_python_and_clients() -> None:
+    graph = Graph()
+    graph.create_action_server("/fib", FIB, fibonacci)
+    feedback: list[dict[str, object]] = []
+    async with anyio.create_task_group() as tg:
+        graph.spawner = spawner_for(tg)
+        with anyio.fail_after(5):
+            outcome = await send_action_goal(
+                graph, "/fib", {"order": 5}, on_feedback=feedback.append
+            )
+        assert outcome.status is GoalStatus.SUCCEEDED
+        assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
+        assert feedback[-1] == {"sequence": [0, 1, 1, 2, 3, 5]}
+        assert len(feedback) == 4
+
+        client = Peer(graph, "c")
+        client.send(
+            op="send_action_goal",
+            action="/fib",
+            action_type=FIB,
+            args={"order": 3},
+            feedback=True,
+            id="g",
+        )
+        frames: list[dict[str, object]] = []
+        with anyio.fail_after(5):
+            while not frames or frames[-1]["op"] != "action_result":
+                frames += client.received()
+                await anyio.sleep(0.01)
+        assert [f["op"] for f in frames] == ["action_feedback", "action_feedback", "action_result"]
+        assert frames[-1]["values"] == {"sequence": [0, 1, 1, 2]} and frames[-1]["status"] == 4
+        tg.cancel_scope.cancel()
+
+
+async def test_in_process_goal_cancelled_by_a_client() -> None:
+    graph = Graph()
+    started = anyio.Event()
+
+    async def slow(goal: dict[str, object], context: GoalContext) -> dict[str, object]:
+        started.set()
+        while not context.cancel_requested:
+            await anyio.sleep(0.01)
+        raise GoalCanceled
+
+    graph.create_action_server("/slow", FIB, slow)
+    async with anyio.create_task_group() as tg:
+        graph.spawner = spawner_for(tg)
+        client = Peer(graph, "c")
+        client.send(op="send_action_goal", action="/slow", action_type=FIB, id=7)
+        with anyio.fail_after(5):
+            await started.wait()
+            client.send(op="cancel_action_goal", action="/slow", id=7)
+            while not (frames := client.received()):
+                await anyio.sleep(0.01)
+        assert json.loads(json.dumps(frames[0]))["status"] == 5
+        tg.cancel_scope.cancel()
+
+
+async def test_failing_action_handler_aborts_the_goal() -> None:
+    graph = Graph()
+
+    async def broken(goal: dict[str, object], context: GoalContext) -> dict[str, object]:
+        raise RuntimeError("motor fault")
+
+    graph.create_action_server("/broken", FIB, broken)
+    async with anyio.create_task_group() as tg:
+        graph.spawner = spawner_for(tg)
+        with anyio.fail_after(5):
+            outcome = await send_action_goal(graph, "/broken", {"order": 1})
+        assert outcome.status is GoalStatus.ABORTED
+        tg.cancel_scope.cancel()
