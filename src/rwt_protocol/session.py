@@ -166,7 +166,10 @@ class Session:
             else:
                 self.dispatch(op, now)
         except RwtError as exc:
-            self.report(exc.level, _prefixed(op_name, exc.message), op_id)
+            text = exc.message
+            if not self._authenticated and "authentication" not in text:
+                text = f"authentication required: {text}"
+            self.report(exc.level, _prefixed(op_name, text), op_id)
             if not self._authenticated:
                 self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
         except Exception:
@@ -289,7 +292,8 @@ class Session:
         frames = self._outbox.take(max_bytes)
         if frames:
             self._takes += 1
-            if self._full_timer is not None and not self._outbox.over_limit:
+            caught_up = self._outbox.queued_bytes <= self._outbox.limit_bytes // 2
+            if self._full_timer is not None and caught_up:
                 self._full_timer.cancel()  # the episode is over: the peer caught up
                 self._full_timer = None
         return frames
@@ -348,7 +352,8 @@ class Session:
         was_empty = len(self._outbox) == 0
         dropped = self._outbox.dropped
         self._outbox.push(frame)
-        if self._outbox.over_limit and self._full_timer is None:
+        full = self._outbox.dropped > dropped or self._outbox.over_limit
+        if full and self._full_timer is None:
             self._start_full_episode(dropped)
         if was_empty:
             self._wake()
@@ -374,19 +379,17 @@ class Session:
 
     def _make_full_check(self, takes: int) -> Callable[[float], None]:
         def check(now: float) -> None:
-            if not self._outbox.over_limit:
-                self._full_timer = None
-            elif self._takes != takes:  # still full but moving: look again later
+            if self._takes != takes:  # still full, but the peer is reading: look again later
                 self._full_timer = self.timers.schedule(
                     now + self.config.send_timeout_s, self._make_full_check(self._takes)
                 )
-            else:
-                self._full_timer = None
-                self.request_close(
-                    CloseCode.POLICY_VIOLATION,
-                    f"slow consumer: send buffer over {self._outbox.limit_bytes} bytes "
-                    f"for {self.config.send_timeout_s:g} s",
-                )
+                return
+            self._full_timer = None
+            self.request_close(
+                CloseCode.POLICY_VIOLATION,
+                f"slow consumer: send buffer over {self._outbox.limit_bytes} bytes "
+                f"for {self.config.send_timeout_s:g} s",
+            )
 
         return check
 
