@@ -62,6 +62,8 @@ class ServerConfig:
         udp_port: UDP port (``--udp-port``; None: no UDP socket).
         stdio: serve one session over stdin/stdout (``--stdio``); the server
             stops when that session ends.
+        stdio_fds: the (read, write) file descriptors of that session when not
+            stdin/stdout (a pipe pair or a socket, for embedding and tests).
         max_message_size: largest incoming message on every transport, bytes.
         max_connections: most simultaneous sessions over all transports; None
             for no limit (``--max-connections``).
@@ -80,6 +82,7 @@ class ServerConfig:
     tcp_port: int | None = None
     udp_port: int | None = None
     stdio: bool = False
+    stdio_fds: tuple[int, int] | None = None
     max_message_size: int = 10 * MiB
     max_connections: int | None = None
     certfile: Path | None = None
@@ -269,9 +272,8 @@ class RosbridgeServer:
             logger.exception("connection from %s failed", peer)
 
     async def _run_stdio(self, connections: TaskGroup) -> None:
-        channel = StdioChannel(
-            sys.stdin.fileno(), sys.stdout.fileno(), self.config.max_message_size
-        )
+        read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())
+        channel = StdioChannel(read_fd, write_fd, self.config.max_message_size)
         pump = ConnectionPump(channel)
         session = self.open_session("stdio", "stdio", pump.wake)
         if session is None:

@@ -4,8 +4,8 @@
 text per line each way (CBOR items, if a subscription asks for them, go out as
 they are, as on TCP); logs go to stderr only. This suits a parent process that
 runs rwt as a child. Pipes, terminals and sockets are polled without threads
-(so shutdown never waits on a blocked read); a regular file is read with
-blocking reads in a worker thread.
+(so shutdown never waits on a blocked read); a regular file (or /dev/null) is
+read with blocking reads in a worker thread.
 """
 
 from __future__ import annotations
@@ -30,7 +30,9 @@ _READ_SIZE = 65536
 
 
 def _pollable(fd: int) -> bool:
-    return not stat.S_ISREG(os.fstat(fd).st_mode)
+    """Whether epoll can watch ``fd``: pipes, sockets and terminals, not files or /dev/null."""
+    mode = os.fstat(fd).st_mode
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode) or (stat.S_ISCHR(mode) and os.isatty(fd))
 
 
 class StdioChannel:

@@ -1,0 +1,168 @@
+"""One transport contract, run over memory, WebSocket, TCP, UDP and stdio (D22).
+
+Every scenario pairs a client of the transport under test with an in-process
+(memory) client of the same server: they share one graph, so each scenario is
+also a cross-transport test.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import AsyncIterator
+
+import anyio
+import pytest
+
+from rwt_protocol import ops
+from rwt_protocol.handlers import HANDLERS, control
+from tests.transports.clients import TRANSPORTS, Client, Harness, running_server
+
+pytestmark = pytest.mark.anyio
+
+TIMEOUT_S = 10
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@pytest.fixture
+async def harness() -> AsyncIterator[Harness]:
+    async with running_server() as h:
+        yield h
+
+
+@pytest.fixture(params=TRANSPORTS)
+async def pair(request: pytest.FixtureRequest, harness: Harness) -> tuple[Client, Client]:
+    client = await harness.connect(request.param)
+    other = await harness.connect("memory", "other")
+    return client, other
+
+
+def is_op(name: str, **fields: object):  # type: ignore[no-untyped-def]
+    return lambda m: m.get("op") == name and all(m.get(k) == v for k, v in fields.items())
+
+
+async def test_subscriber_receives_what_another_transport_publishes(
+    pair: tuple[Client, Client],
+) -> None:
+    client, other = pair
+    with anyio.fail_after(TIMEOUT_S):
+        await client.send({"op": "subscribe", "topic": "/chatter", "type": "std_msgs/String"})
+        await client.send({"op": "set_level", "level": "info", "id": "barrier"})
+        await client.expect(is_op("status", id="barrier"))
+        await other.send({"op": "advertise", "topic": "/chatter", "type": "std_msgs/String"})
+        await other.send({"op": "publish", "topic": "/chatter", "msg": {"data": "hello"}})
+        message = await client.expect(is_op("publish"))
+    assert message == {"op": "publish", "topic": "/chatter", "msg": {"data": "hello"}}
+
+
+async def test_publisher_reaches_a_subscriber_on_another_transport(
+    pair: tuple[Client, Client],
+) -> None:
+    client, other = pair
+    with anyio.fail_after(TIMEOUT_S):
+        await other.send({"op": "subscribe", "topic": "/up", "type": "std_msgs/Int32"})
+        await other.send({"op": "set_level", "level": "info", "id": "barrier"})
+        await other.expect(is_op("status", id="barrier"))
+        await client.send({"op": "publish", "topic": "up", "msg": {"data": 42}})
+        message = await other.expect(is_op("publish"))
+    assert message["msg"] == {"data": 42}
+
+
+async def test_service_round_trip_across_transports(pair: tuple[Client, Client]) -> None:
+    client, other = pair
+    with anyio.fail_after(TIMEOUT_S):
+        await client.send(
+            {"op": "advertise_service", "service": "/set", "type": "std_srvs/SetBool"}
+        )
+        await client.send({"op": "set_level", "level": "info", "id": "barrier"})
+        await client.expect(is_op("status", id="barrier"))
+        await other.send(
+            {"op": "call_service", "service": "/set", "args": {"data": True}, "id": "c1"}
+        )
+        request = await client.expect(is_op("call_service"))
+        assert request["args"] == {"data": True}
+        await client.send(
+            {
+                "op": "service_response",
+                "service": "/set",
+                "id": request["id"],
+                "values": {"success": True, "message": "done"},
+                "result": True,
+            }
+        )
+        response = await other.expect(is_op("service_response"))
+    assert response == {
+        "op": "service_response",
+        "service": "/set",
+        "values": {"success": True, "message": "done"},
+        "result": True,
+        "id": "c1",
+    }
+
+
+async def test_client_calls_an_in_process_service(
+    pair: tuple[Client, Client], harness: Harness
+) -> None:
+    client, _ = pair
+    harness.server.graph.create_service(
+        "/add", "example_interfaces/srv/AddTwoInts", lambda r: {"sum": r["a"] + r["b"]}
+    )
+    with anyio.fail_after(TIMEOUT_S):
+        await client.send({"op": "call_service", "service": "add", "args": [2, 40], "id": 9})
+        response = await client.expect(is_op("service_response"))
+    assert response["values"] == {"sum": 42} and response["id"] == 9
+
+
+async def test_a_large_message_arrives_whole(pair: tuple[Client, Client]) -> None:
+    # UDP sends it as fragment ops (datagram limit); the client reassembles them.
+    client, other = pair
+    text = 'é{}"\\x' * 6000
+    with anyio.fail_after(TIMEOUT_S):
+        await client.send({"op": "subscribe", "topic": "/big", "type": "std_msgs/String"})
+        await client.send({"op": "set_level", "level": "info", "id": "barrier"})
+        await client.expect(is_op("status", id="barrier"))
+        await other.send({"op": "publish", "topic": "/big", "msg": {"data": text}})
+        message = await client.expect(is_op("publish"))
+    assert message["msg"]["data"] == text
+
+
+@pytest.mark.skipif(
+    HANDLERS[ops.Fragment] is control.not_supported,
+    reason="incoming fragment reassembly lands with issue 4",
+)
+async def test_a_message_sent_in_fragments_is_reassembled(pair: tuple[Client, Client]) -> None:
+    client, other = pair
+    whole = json.dumps({"op": "publish", "topic": "/frag", "msg": {"data": "pieces"}})
+    pieces = [whole[i : i + 10] for i in range(0, len(whole), 10)]
+    with anyio.fail_after(TIMEOUT_S):
+        await other.send({"op": "subscribe", "topic": "/frag", "type": "std_msgs/String"})
+        await other.send({"op": "set_level", "level": "info", "id": "barrier"})
+        await other.expect(is_op("status", id="barrier"))
+        await client.send({"op": "advertise", "topic": "/frag", "type": "std_msgs/String"})
+        for num, data in enumerate(pieces):
+            await client.send(
+                {"op": "fragment", "id": "f1", "data": data, "num": num, "total": len(pieces)}
+            )
+        message = await other.expect(is_op("publish"))
+    assert message["msg"] == {"data": "pieces"}
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [b"not json", b"5", b'{"op":"nope","id":"x"}', b'{"op":["publish"]}', b"}"],
+    ids=["invalid-json", "number", "unknown-op", "unhashable-op", "stray-brace"],
+)
+async def test_bad_frames_get_an_error_status_and_the_connection_keeps_serving(
+    pair: tuple[Client, Client], frame: bytes
+) -> None:
+    client, _ = pair
+    with anyio.fail_after(TIMEOUT_S):
+        await client.send_raw(frame + b"\n")
+        status = await client.expect(is_op("status"))
+        assert status["level"] == "error"
+        await client.send({"op": "set_level", "level": "info", "id": "after"})
+        after = await client.expect(is_op("status", id="after"))
+    assert after["level"] == "info"
