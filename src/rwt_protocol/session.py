@@ -90,10 +90,15 @@ class SessionConfig:
 
 @dataclass(frozen=True, slots=True)
 class CloseConnection:
-    """Command: close the connection (code per RFC 6455, reason for the peer and the log)."""
+    """Command: close the connection (code per RFC 6455, reason for the peer and the log).
+
+    ``abort`` means the peer is not reading: the transport need not wait for the
+    close to be delivered before cutting the connection (D24).
+    """
 
     code: CloseCode
     reason: str
+    abort: bool = False
 
 
 Command = CloseConnection
@@ -137,7 +142,7 @@ class Session:
         self._on_output = on_output
         self._closed = False
         self._closing = False  # input is ignored (close requested, or shutting down)
-        self._commands_closed = False  # a CloseConnection is queued: nothing more is sent
+        self._close_request: CloseConnection | None = None  # once set, nothing more is sent
         self._authenticated = self.config.authenticator is None
         self._now = 0.0  # the latest monotonic time seen, for events without one
         self._full_timer: Timer | None = None  # set while over the send buffer limit
@@ -236,16 +241,21 @@ class Session:
             self._now = max(self._now, now)
             self.timers.run_due(now)
 
-    def request_close(self, code: CloseCode, reason: str) -> None:
+    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
         """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
 
         Later input is ignored and later frames are not queued. Idempotent: only
         the first request counts.
+
+        Args:
+            code: the close code (WebSocket; logged on other transports).
+            reason: why, for the peer and the log.
+            abort: the peer is not reading (slow consumer): cut without waiting.
         """
-        if self._closed or self._commands_closed:
+        if self._closed or self._close_request is not None:
             return
         self._closing = True
-        self._commands_closed = True
+        self._close_request = CloseConnection(code, reason, abort)
         logger.log(
             logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
             "event=closing client=%s code=%d reason=%r",
@@ -253,8 +263,13 @@ class Session:
             code,
             reason,
         )
-        self._commands.append(CloseConnection(code, reason))
+        self._commands.append(self._close_request)
         self._wake()
+
+    @property
+    def close_request(self) -> CloseConnection | None:
+        """The close this session asked for, if any (also while the transport has it)."""
+        return self._close_request
 
     def begin_shutdown(self) -> None:
         """The server is stopping: ignore further input and release what this client holds.
@@ -341,12 +356,14 @@ class Session:
         frames alone exceed the limit the peer is not reading at all, and the
         connection is closed rather than let memory grow.
         """
-        if self._closed or self._commands_closed:
+        if self._closed or (self._close_request is not None):
             return
         limit = self._outbox.limit_bytes
         if not frame.droppable and self._outbox.undroppable_bytes > limit:
             self.request_close(
-                CloseCode.POLICY_VIOLATION, f"send buffer overflow: over {limit} bytes unread"
+                CloseCode.POLICY_VIOLATION,
+                f"send buffer overflow: over {limit} bytes unread",
+                abort=True,
             )
             return
         was_empty = len(self._outbox) == 0
@@ -389,6 +406,7 @@ class Session:
                 CloseCode.POLICY_VIOLATION,
                 f"slow consumer: send buffer over {self._outbox.limit_bytes} bytes "
                 f"for {self.config.send_timeout_s:g} s",
+                abort=True,
             )
 
         return check

@@ -197,10 +197,14 @@ class ConnectionPump:
             with anyio.move_on_after(delay):
                 await self._timer_wake.wait()
             session.handle_timer(anyio.current_time())
-        # Closing: the writer must get the close out; a peer that reads nothing stops it.
-        with anyio.move_on_after(CLOSE_WAIT_S):
+        # Closing: the writer must get the close out; a peer that reads nothing stops it,
+        # and one known not to read (abort) is not waited for.
+        request = session.close_request
+        with anyio.move_on_after(0 if request is not None and request.abort else CLOSE_WAIT_S):
             await self._writer_closed.wait()
         if not self._writer_closed.is_set():
             logger.warning("event=abort client=%s reason=%r", session.client_id, "close not sent")
+            if request is not None and request.abort:
+                self.close_reason = f"closed by server: {request.reason}"
             self.close_reason += " (aborted: the peer stopped reading)"
             scope.cancel()
