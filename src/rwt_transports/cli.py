@@ -105,7 +105,7 @@ def serve(
         Path | None, typer.Option(help="rosauth secret (first line): clients must send auth first.")
     ] = None,
     topics_glob: Annotated[
-        str, typer.Option(help="Allowed topics, fnmatch patterns: '[/a/*, /b]'.")
+        str, typer.Option(help="Allowed topics: fnmatch patterns, comma-separated.")
     ] = "",
     services_glob: Annotated[
         str, typer.Option(help="Allowed services (/rosapi/* always allowed).")
@@ -192,6 +192,11 @@ def serve(
         anyio.run(_run, server)
     except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
         _fail(str(exc))
+    except BaseExceptionGroup as group:  # the same, raised inside the task group
+        startup, rest = group.split((OSError, ValueError))
+        if startup is None or rest is not None:
+            raise
+        _fail("; ".join(str(exc) for exc in startup.exceptions))
 
 
 def _fail(message: str) -> NoReturn:
