@@ -184,7 +184,7 @@ class ConnectionPump:
             self.close_reason = f"closed by server: {command.reason}"
         await self.channel.close(command.code, command.reason)
         self._writer_closed.set()
-        if self.channel.awaits_peer_close:
+        if self.channel.awaits_peer_close and not command.abort:
             with anyio.move_on_after(CLOSE_WAIT_S):
                 await self._reader_done.wait()
         scope.cancel()

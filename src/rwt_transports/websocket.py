@@ -159,7 +159,9 @@ class WebSocketChannel:
                 await self._pong.wait()
             if not self._pong.is_set():
                 logger.warning("event=ping_timeout client=%s", session.client_id)
-                session.request_close(CloseCode.INTERNAL_ERROR, "keepalive ping timeout")
+                session.request_close(
+                    CloseCode.INTERNAL_ERROR, "keepalive ping timeout", abort=True
+                )
                 return
 
     async def flush(self) -> None:
