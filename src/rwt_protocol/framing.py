@@ -15,7 +15,12 @@ kept, and reported once as a ``FramingError``; the stream stays in step.
 
 A framer never raises for what the peer sent. Anything that is not JSON (a bare
 ``}``, a stray word) is passed on as a frame of its own, so the session reports
-it as invalid JSON (D1) and the stream carries on with the next value.
+it as invalid JSON (D1) and the stream carries on with the next value. An
+unterminated value would otherwise swallow everything after it, so the scanner
+resynchronises at a newline where JSON cannot go on: a raw newline inside a
+string (never valid JSON), or a line that starts with ``{"op"`` while an object
+is still open (line-oriented clients write one message per line; pretty-printed
+JSON never starts a line that way).
 """
 
 from __future__ import annotations
@@ -27,13 +32,15 @@ from enum import Enum, auto
 __all__ = ["FramerEvent", "FramingError", "InFrame", "JsonStreamFramer", "LineFramer"]
 
 _NOT_SPACE = re.compile(rb"[^ \t\r\n]")
-_CONTAINER_STOP = re.compile(rb'[{}\[\]"]')
-_STRING_STOP = re.compile(rb'["\\]')
+_CONTAINER_STOP = re.compile(rb'[{}\[\]"\n]')
+_STRING_STOP = re.compile(rb'["\\\n]')
 _TOKEN_STOP = re.compile(rb'[ \t\r\n{}\[\]"]')
 _OPENERS = frozenset(b"{[")
 _CLOSERS = frozenset(b"}]")
 _QUOTE = ord('"')
 _BACKSLASH = ord("\\")
+_NEWLINE = ord("\n")
+_NEXT_OP = b'{"op"'  # a line starting like this starts a new message (resync, see _scan_json)
 _CBOR_FIRST = range(0x80, 0xC0)  # CBOR arrays (major type 4) and maps (major type 5)
 
 
@@ -181,31 +188,33 @@ class JsonStreamFramer:
         return self._scan_json()
 
     def _scan_json(self) -> bool:
+        """Scan a string or container; True when it ended (or broke off at a newline)."""
         buf = self._buf
         while True:
-            if self._in_string:
-                match = _STRING_STOP.search(buf, self._pos)
-                if match is None:
-                    self._pos = len(buf)
-                    return False
-                if buf[match.start()] == _BACKSLASH:
-                    if match.start() + 1 >= len(buf):
-                        self._pos = match.start()  # rescan the escape with its next byte
-                        return False
-                    self._pos = match.start() + 2
-                    continue
-                self._pos = match.start() + 1
-                self._in_string = False
-                if self._mode is _Mode.STRING:
-                    return True
-                continue
-            match = _CONTAINER_STOP.search(buf, self._pos)
+            stop = _STRING_STOP if self._in_string else _CONTAINER_STOP
+            match = stop.search(buf, self._pos)
             if match is None:
                 self._pos = len(buf)
                 return False
-            self._pos = match.start() + 1
-            byte = buf[match.start()]
-            if byte == _QUOTE:
+            index = match.start()
+            byte = buf[index]
+            if byte == _NEWLINE:
+                ended = self._newline(index)
+                if ended is not None:
+                    return ended
+                continue
+            self._pos = index + 1
+            if self._in_string:
+                if byte == _BACKSLASH:
+                    if index + 1 >= len(buf):
+                        self._pos = index  # rescan the escape with its next byte
+                        return False
+                    self._pos = index + 2
+                    continue
+                self._in_string = False
+                if self._mode is _Mode.STRING:
+                    return True
+            elif byte == _QUOTE:
                 self._in_string = True
             elif byte in _OPENERS:
                 self._depth += 1
@@ -213,6 +222,19 @@ class JsonStreamFramer:
                 self._depth -= 1
                 if self._depth == 0:
                     return True
+
+    def _newline(self, index: int) -> bool | None:
+        """A raw newline at ``index``: end the broken frame there, wait, or go on (None)."""
+        if not self._in_string:
+            following = bytes(self._buf[index + 1 : index + 1 + len(_NEXT_OP)])
+            if len(following) < len(_NEXT_OP) and _NEXT_OP.startswith(following):
+                self._pos = index  # not enough bytes to tell yet
+                return False
+            if following != _NEXT_OP:
+                self._pos = index + 1
+                return None
+        self._pos = index  # the frame so far is invalid JSON; the session reports it
+        return True
 
     def _size(self) -> int:
         return self._pos - self._start

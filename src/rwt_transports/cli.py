@@ -28,6 +28,7 @@ from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
+from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
 from .websocket import WebSocketOptions
@@ -58,6 +59,9 @@ class DialectName(StrEnum):
 @app.callback()
 def main() -> None:
     """rwt: a ROS-free rosbridge v2 server, client and conformance suite."""
+
+
+app.command()(conformance)
 
 
 @app.command()

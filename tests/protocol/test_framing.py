@@ -52,7 +52,8 @@ def test_any_split_of_concatenated_json_gives_the_same_ops(
     messages: list[dict[str, object]], seps: list[bytes], cuts: list[int]
 ) -> None:
     data = b"".join(
-        json.dumps(m, ensure_ascii=bool(i % 2)).encode() + seps[i] for i, m in enumerate(messages)
+        json.dumps(m, ensure_ascii=bool(i % 2), indent=2 if i % 3 == 0 else None).encode() + seps[i]
+        for i, m in enumerate(messages)
     )
     whole = feed(JsonStreamFramer(LIMIT), [data])
     pieces = feed(JsonStreamFramer(LIMIT), split(data, cuts))
@@ -115,6 +116,41 @@ def test_braces_and_escaped_quotes_inside_strings_do_not_end_an_object() -> None
         chunks = [data[i : i + size] for i in range(0, len(data), size)]
         [event] = feed(JsonStreamFramer(LIMIT), chunks)
         assert isinstance(event, InFrame) and json.loads(event.data) == message
+
+
+def test_an_unterminated_object_is_cut_at_a_line_that_starts_a_new_op() -> None:
+    data = b'{"op": "subscribe", "topic": \n{"op":"set_level","level":"info"}\n'
+    for size in (1, 3, len(data)):
+        chunks = [data[i : i + size] for i in range(0, len(data), size)]
+        assert feed(JsonStreamFramer(LIMIT), chunks) == [
+            InFrame(b'{"op": "subscribe", "topic": '),
+            InFrame(b'{"op":"set_level","level":"info"}'),
+        ]
+
+
+def test_a_raw_newline_inside_a_string_ends_the_broken_frame() -> None:
+    data = b'{"op":"publish","msg":{"data":"unterminated\n{"op":"next"}'
+    assert feed(JsonStreamFramer(LIMIT), [data]) == [
+        InFrame(b'{"op":"publish","msg":{"data":"unterminated'),
+        InFrame(b'{"op":"next"}'),
+    ]
+
+
+def test_pretty_printed_objects_with_nested_lines_stay_whole() -> None:
+    message = {"op": "publish", "msg": {"list": [{"op": 1}, {"x": [1, 2]}], "s": "a\nb"}}
+    data = json.dumps(message, indent=4).encode()
+    assert b"\n" in data
+    assert feed(JsonStreamFramer(LIMIT), [data]) == [InFrame(data)]
+
+
+def test_an_oversized_unterminated_frame_does_not_swallow_the_rest() -> None:
+    framer = JsonStreamFramer(64)
+    events = framer.receive_data(b'{"op":"publish","msg":{"data":[' + b"1," * 100 + b"\n")
+    events += framer.receive_data(b'{"op":"after"}\n')
+    assert events == [
+        FramingError("frame larger than 64 bytes skipped"),
+        InFrame(b'{"op":"after"}'),
+    ]
 
 
 def test_an_oversized_frame_is_skipped_once_and_the_stream_continues() -> None:

@@ -1,0 +1,458 @@
+"""``Ros``: an async rosbridge client connection (the roslibpy ``Ros``, on anyio).
+
+One ``Ros`` owns one connection (WebSocket or TCP, ``connectors``) and one
+sans-IO ``ClientSession`` (``rwt_protocol.client``). A reader task turns frames
+into events and routes them: topic messages to subscribers, replies to the
+calls and goals waiting for them, requests to the services and actions this
+client offers. Callbacks may be plain functions or coroutine functions; their
+exceptions are logged, never propagated into the connection.
+
+When the connection drops and ``reconnect`` is on, ``Ros`` reconnects with
+back-off and replays the status level, advertisements, subscriptions and
+offered services and actions; calls and goals in flight fail with
+``ConnectionClosed``. Nothing relies on rwt's extensions: a foreign server
+that never answers makes a call time out with a clear error.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Self
+
+import anyio
+from anyio.abc import TaskGroup
+
+from rwt_protocol.client import (
+    ActionFeedbackReceived,
+    ActionResultReceived,
+    ClientEvent,
+    ClientSession,
+    GoalCancelRequested,
+    GoalRequested,
+    ServiceRequested,
+    ServiceResponded,
+    StatusReceived,
+    TopicMessage,
+)
+from rwt_protocol.errors import RwtError
+
+from ..connectors import Connection, ConnectionClosed, connect
+from .rosapi import RosapiMixin
+
+__all__ = ["CallTimeout", "Callback", "Ros", "ServiceError"]
+
+logger = logging.getLogger("rwt.client")
+
+Callback = Callable[..., object]
+"""A plain or ``async`` function; called with the event's payload."""
+
+
+class ServiceError(RwtError):
+    """A service call or goal ended with ``result: false``; ``values`` is the server's text."""
+
+    def __init__(self, message: str, values: object = None) -> None:
+        super().__init__(message)
+        self.values = values
+
+
+class CallTimeout(RwtError, TimeoutError):
+    """No reply came within the time allowed (the server may not serve it)."""
+
+
+@dataclass
+class _Waiter:
+    """A call or goal waiting for its reply."""
+
+    done: anyio.Event = field(default_factory=anyio.Event)
+    reply: ServiceResponded | ActionResultReceived | None = None
+    error: RwtError | None = None
+    on_feedback: Callback | None = None
+
+
+class Ros(RosapiMixin):
+    """A connection to a rosbridge server.
+
+    Args:
+        url: ``ws://HOST:PORT``, ``wss://...`` or ``tcp://HOST:PORT``.
+        reconnect: reconnect (with replay) when the connection drops.
+        timeout_s: default seconds for connecting and for service calls.
+        max_message_size: largest incoming message, bytes.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        *,
+        reconnect: bool = True,
+        timeout_s: float = 10.0,
+        max_message_size: int = 64 * 1024 * 1024,
+    ) -> None:
+        self.url = url
+        self.reconnect = reconnect
+        self.timeout_s = timeout_s
+        self.max_message_size = max_message_size
+        self.session = ClientSession()
+        self._conn: Connection | None = None
+        self._tasks: TaskGroup | None = None
+        self._write_lock = anyio.Lock()
+        self._topics: dict[str, dict[object, Callback]] = {}
+        self._waiters: dict[str | int, _Waiter] = {}
+        self._services: dict[str, Callback] = {}
+        self._actions: dict[str, Callback] = {}
+        self._server_goals: dict[str | int, ServerGoal] = {}
+        self._status_callbacks: list[Callback] = []
+        self._reconnect_callbacks: list[Callback] = []
+        self._connected = anyio.Event()
+        self._closing = False
+        self.reconnects = 0
+
+    # ---- lifetime -----------------------------------------------------------------
+
+    async def __aenter__(self) -> Self:
+        await self.connect()
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await self.close()
+
+    async def connect(self) -> None:
+        """Connect and start the reader task.
+
+        Raises:
+            ConnectionClosed: the server cannot be reached.
+        """
+        self._conn = await connect(
+            self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
+        )
+        self._tasks = anyio.create_task_group()
+        await self._tasks.__aenter__()
+        self._tasks.start_soon(self._read_loop)
+        self._connected.set()
+
+    async def close(self) -> None:
+        """Close the connection and stop every task; waiting calls fail. Idempotent."""
+        if self._tasks is None:
+            return
+        self._closing = True
+        self._fail_waiters("the client closed the connection")
+        if self._conn is not None:
+            await self._conn.aclose()
+        tasks, self._tasks = self._tasks, None
+        tasks.cancel_scope.cancel()
+        await tasks.__aexit__(None, None, None)
+
+    async def wait_connected(self) -> None:
+        """Wait until the connection is up (after a reconnect, once its replay was sent)."""
+        await self._connected.wait()
+
+    @property
+    def is_connected(self) -> bool:
+        """Whether the connection is up right now."""
+        return self._connected.is_set() and not self._closing
+
+    # ---- sending ------------------------------------------------------------------
+
+    async def flush(self) -> None:
+        """Send everything the session queued.
+
+        Raises:
+            ConnectionClosed: the connection is down and not coming back.
+        """
+        async with self._write_lock:
+            frames = self.session.frames_to_send()
+            if not frames:
+                return
+            if not self._connected.is_set():
+                return  # replayed or dropped on reconnect; see the module docstring
+            assert self._conn is not None
+            for frame in frames:
+                await self._conn.send(frame)
+
+    def spawn(self, function: Callback, *args: object) -> None:
+        """Run a callback: coroutine functions as tasks, plain ones now; errors logged."""
+        if inspect.iscoroutinefunction(function):
+            if self._tasks is not None:
+                self._tasks.start_soon(_logged, function, *args)
+            return
+        try:
+            function(*args)
+        except Exception:
+            logger.exception("callback %r failed", function)
+
+    # ---- calls ----------------------------------------------------------------------
+
+    async def call_service(
+        self,
+        service: str,
+        args: object = None,
+        *,
+        type_name: str | None = None,
+        timeout_s: float | None = None,
+    ) -> object:
+        """Call a service and return its response values (spec 3.3.8).
+
+        Args:
+            service: the service name.
+            args: the request as an object (or a positional list, D25).
+            type_name: the service type, sent as roslibjs does (servers may ignore it).
+            timeout_s: seconds to wait (default: ``timeout_s`` of this ``Ros``); also
+                sent to the server as ``timeout`` (rosbridge 2.2, D16).
+
+        Raises:
+            ServiceError: the reply had ``result: false``.
+            CallTimeout: no reply in time.
+            ConnectionClosed: the connection dropped first.
+        """
+        seconds = timeout_s or self.timeout_s
+        call_id = self.session.call_service(service, args, type=type_name, timeout=seconds)
+        waiter = self._waiters[call_id] = _Waiter()
+        try:
+            await self.flush()
+            with anyio.fail_after(seconds):
+                await waiter.done.wait()
+        except TimeoutError:
+            raise CallTimeout(
+                f"no service_response for {service} within {seconds:g} s "
+                "(the server may not provide it or may never answer)"
+            ) from None
+        finally:
+            self._waiters.pop(call_id, None)
+        return _values(waiter, service)
+
+    def goal_waiter(self, goal_id: str, on_feedback: Callback | None) -> _Waiter:
+        """Register a waiter for a goal's feedback and result (used by ``Action``)."""
+        waiter = self._waiters[goal_id] = _Waiter(on_feedback=on_feedback)
+        return waiter
+
+    def forget(self, op_id: str | int) -> None:
+        """Stop routing replies for ``op_id``."""
+        self._waiters.pop(op_id, None)
+
+    # ---- routing tables used by Topic, Service and Action ------------------------------
+
+    def add_topic_callback(self, topic: str, key: object, callback: Callback) -> None:
+        """Route messages of ``topic`` (as spelled here, D26) to ``callback``."""
+        self._topics.setdefault(topic, {})[key] = callback
+
+    def remove_topic_callback(self, topic: str, key: object) -> None:
+        """Stop routing messages of ``topic`` to the callback registered as ``key``."""
+        self._topics.get(topic, {}).pop(key, None)
+
+    def set_service_handler(self, service: str, handler: Callback | None) -> None:
+        """Route requests of an advertised service to ``handler`` (None removes it)."""
+        if handler is None:
+            self._services.pop(service, None)
+        else:
+            self._services[service] = handler
+
+    def set_action_handler(self, action: str, handler: Callback | None) -> None:
+        """Route goals of an advertised action to ``handler`` (None removes it)."""
+        if handler is None:
+            self._actions.pop(action, None)
+        else:
+            self._actions[action] = handler
+
+    # ---- status ----------------------------------------------------------------------
+
+    async def set_level(self, level: str) -> None:
+        """Choose which status messages arrive: info, warning, error or none (spec 3.2.1)."""
+        self.session.set_level(level)
+        await self.flush()
+
+    def on_reconnect(self, callback: Callback) -> None:
+        """Call ``callback(n)`` after the n-th reconnect, once its replay was sent."""
+        self._reconnect_callbacks.append(callback)
+
+    def on_status(self, callback: Callback) -> None:
+        """Call ``callback(StatusReceived)`` for each status message (spec 3.2.2)."""
+        self._status_callbacks.append(callback)
+
+    async def authenticate(
+        self, mac: str, client: str, dest: str, rand: str, t: float, level: str, end: float
+    ) -> None:
+        """Send ``auth`` (ROS 1 spec 3.3.1, D23): the first op on servers that need it."""
+        self.session.auth(mac, client, dest, rand, t, level, end)
+        await self.flush()
+
+    # ---- reader and reconnection -----------------------------------------------------------
+
+    async def _read_loop(self) -> None:
+        while True:
+            try:
+                assert self._conn is not None
+                while True:
+                    frame = await self._conn.receive()
+                    for event in self.session.receive_frame(frame):
+                        self._route(event)
+            except ConnectionClosed as exc:
+                self._connected = anyio.Event()
+                self._fail_waiters(f"connection lost: {exc.message}")
+                if self._closing or not self.reconnect:
+                    return
+                logger.warning("%s; reconnecting", exc.message)
+                await self._reconnect()
+
+    async def _reconnect(self) -> None:
+        delay_s = 0.1
+        while not self._closing:
+            try:
+                self._conn = await connect(
+                    self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
+                )
+            except ConnectionClosed:
+                await anyio.sleep(delay_s)  # back-off between attempts, not synchronisation
+                delay_s = min(delay_s * 2, 5.0)
+                continue
+            self.reconnects += 1
+            self.session.frames_to_send()  # whatever was queued while down is replayed instead
+            self.session.replay()
+            self._connected.set()
+            await self.flush()
+            for callback in self._reconnect_callbacks:
+                self.spawn(callback, self.reconnects)
+            return
+
+    def _fail_waiters(self, reason: str) -> None:
+        for waiter in self._waiters.values():
+            waiter.error = ConnectionClosed(reason)
+            waiter.done.set()
+        self._waiters.clear()
+
+    def _route(self, event: ClientEvent) -> None:
+        handler = _ROUTES.get(type(event))
+        if handler is not None:
+            handler(self, event)
+        else:
+            logger.debug("ignored from %s: %s", self.url, event)
+
+    def _on_message(self, event: TopicMessage) -> None:
+        for callback in list(self._topics.get(event.topic, {}).values()):
+            self.spawn(callback, event.msg)
+
+    def _on_reply(self, event: ServiceResponded | ActionResultReceived) -> None:
+        waiter = self._waiters.get(event.id)
+        if waiter is not None:
+            waiter.reply = event
+            waiter.done.set()
+
+    def _on_feedback(self, event: ActionFeedbackReceived) -> None:
+        waiter = self._waiters.get(event.id)
+        if waiter is not None and waiter.on_feedback is not None:
+            self.spawn(waiter.on_feedback, event.values)
+
+    def _on_request(self, event: ServiceRequested) -> None:
+        handler = self._services.get(event.service)
+        if handler is not None and self._tasks is not None:
+            self._tasks.start_soon(self._serve_request, handler, event)
+
+    async def _serve_request(self, handler: Callback, event: ServiceRequested) -> None:
+        try:
+            values = await _maybe_await(handler(event.args))
+            self.session.service_response(
+                event.service, event.id, {} if values is None else values, True
+            )
+        except Exception as exc:  # the caller gets result false with the text (D4)
+            self.session.service_response(
+                event.service, event.id, f"{type(exc).__name__}: {exc}", False
+            )
+        await self.flush()
+
+    def _on_goal(self, event: GoalRequested) -> None:
+        handler = self._actions.get(event.action)
+        if handler is not None and self._tasks is not None:
+            goal = self._server_goals[event.id] = ServerGoal(self, event)
+            self._tasks.start_soon(goal.run, handler)
+
+    def _on_cancel(self, event: GoalCancelRequested) -> None:
+        goal = self._server_goals.get(event.id)
+        if goal is not None:
+            goal.cancel_requested.set()
+
+    def _on_status(self, event: StatusReceived) -> None:
+        for callback in self._status_callbacks:
+            self.spawn(callback, event)
+
+
+class ServerGoal:
+    """A goal received by an action this client advertised (spec 3.3.12-3.3.15).
+
+    The handler gets this object: ``args`` is the goal, ``send_feedback`` sends
+    feedback, ``cancel_requested`` is set when the sender cancels. Returning
+    values ends the goal with status 4 (SUCCEEDED), or 5 (CANCELED) if
+    ``canceled()`` was called; raising ends it with status 6 (ABORTED).
+    """
+
+    def __init__(self, ros: Ros, event: GoalRequested) -> None:
+        self.ros = ros
+        self.id = event.id
+        self.action = event.action
+        self.args = event.args
+        self.cancel_requested = anyio.Event()
+        self._status = 4
+
+    async def send_feedback(self, values: object) -> None:
+        """Send ``action_feedback`` for this goal (spec 3.3.14)."""
+        self.ros.session.action_feedback(self.action, self.id, values)
+        await self.ros.flush()
+
+    def canceled(self) -> None:
+        """Mark the goal as canceled: its result goes out with status 5."""
+        self._status = 5
+
+    async def run(self, handler: Callback) -> None:
+        """Run the handler and send the result."""
+        try:
+            values = await _maybe_await(handler(self))
+            self.ros.session.action_result(
+                self.action, self.id, values or {}, status=self._status, result=True
+            )
+        except Exception as exc:
+            logger.warning("action %s goal %s aborted: %s", self.action, self.id, exc)
+            self.ros.session.action_result(self.action, self.id, {}, status=6, result=False)
+        finally:
+            self.ros._server_goals.pop(self.id, None)
+        await self.ros.flush()
+
+
+def _values(waiter: _Waiter, name: str) -> object:
+    if waiter.error is not None:
+        raise waiter.error
+    reply = waiter.reply
+    assert isinstance(reply, ServiceResponded)
+    if not reply.result:
+        raise ServiceError(f"{name} failed: {reply.values}", reply.values)
+    return reply.values
+
+
+async def _maybe_await(value: object) -> object:
+    if inspect.isawaitable(value):
+        return await value
+    return value
+
+
+async def _logged(function: Callable[..., Awaitable[object]], *args: object) -> None:
+    try:
+        await function(*args)
+    except Exception:
+        logger.exception("callback %r failed", function)
+
+
+_ROUTES: dict[type, Callable[[Ros, ClientEvent], None]] = {
+    TopicMessage: Ros._on_message,  # type: ignore[dict-item]
+    ServiceResponded: Ros._on_reply,  # type: ignore[dict-item]
+    ActionResultReceived: Ros._on_reply,  # type: ignore[dict-item]
+    ActionFeedbackReceived: Ros._on_feedback,  # type: ignore[dict-item]
+    ServiceRequested: Ros._on_request,  # type: ignore[dict-item]
+    GoalRequested: Ros._on_goal,  # type: ignore[dict-item]
+    GoalCancelRequested: Ros._on_cancel,  # type: ignore[dict-item]
+    StatusReceived: Ros._on_status,  # type: ignore[dict-item]
+}

@@ -1,0 +1,86 @@
+"""``rwt conformance URL``: check a rosbridge server against the suite."""
+
+from __future__ import annotations
+
+import sys
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+from urllib.parse import urlsplit
+
+import anyio
+import typer
+from rich.console import Console
+
+from .model import Profile, SuiteError, default_suite_dir, load_suite
+from .report import print_table, write_json, write_junit
+from .runner import RunOptions, run_suite
+
+__all__ = ["conformance", "server_url"]
+
+
+class TransportName(StrEnum):
+    """Transports the runner can use."""
+
+    WS = "ws"
+    TCP = "tcp"
+
+
+def server_url(url: str, transport: TransportName | None) -> str:
+    """The URL to connect to: ``HOST:PORT`` gets a scheme, ``--transport`` replaces one.
+
+    ``--transport tcp`` with ``ws://h:9090`` connects to ``tcp://h:9090``.
+    """
+    if "://" not in url:
+        url = f"{(transport or TransportName.WS).value}://{url}"
+    scheme = urlsplit(url).scheme
+    if transport is TransportName.TCP and scheme != "tcp":
+        return "tcp://" + urlsplit(url).netloc
+    if transport is TransportName.WS and scheme == "tcp":
+        return "ws://" + urlsplit(url).netloc
+    return url
+
+
+def conformance(
+    url: Annotated[
+        str, typer.Argument(help="Server: ws://HOST:PORT, tcp://HOST:PORT or HOST:PORT.")
+    ],
+    transport: Annotated[
+        TransportName | None, typer.Option(help="Transport (default: from the URL's scheme).")
+    ] = None,
+    profile: Annotated[
+        Profile,
+        typer.Option(help="strict: rwt's decisions; reference: rosbridge_suite's behaviour."),
+    ] = Profile.STRICT,
+    only: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Run only these requirement or case ids (patterns like 'D1*'); repeatable."
+        ),
+    ] = None,
+    junit: Annotated[Path | None, typer.Option(help="Write JUnit XML here.")] = None,
+    json_file: Annotated[
+        Path | None, typer.Option("--json", help="Write a JSON report here.")
+    ] = None,
+    suite: Annotated[
+        Path | None, typer.Option(help="Suite folder (default: the shipped suite).")
+    ] = None,
+    timeout: Annotated[float, typer.Option(help="Seconds one expected frame may take.")] = 3.0,
+) -> None:
+    """Check a rosbridge server against the conformance suite; exit 1 on any failure."""
+    console = Console() if sys.stdout.isatty() else Console(width=160)
+    try:
+        loaded = load_suite(suite or default_suite_dir())
+    except SuiteError as exc:
+        typer.echo(f"rwt conformance: {exc}", err=True)
+        raise typer.Exit(2) from None
+    patterns = tuple(p for item in only or () for p in item.split(",") if p)
+    options = RunOptions(server_url(url, transport), profile, patterns, expect_timeout_s=timeout)
+    result = anyio.run(run_suite, loaded, options)
+    print_table(result, console)
+    if junit is not None:
+        write_junit(result, junit)
+    if json_file is not None:
+        write_json(result, json_file)
+    if not result.ok:
+        raise typer.Exit(1)

@@ -1,0 +1,281 @@
+"""The conformance suite as data: requirements and cases, loaded from TOML.
+
+``requirements.toml`` lists one ``[[requirement]]`` per rule: a stable ``id``,
+the ``source`` it comes from (spec section, PROTOCOL-DECISIONS ``Dn`` or a
+REFERENCE-BEHAVIOUR scenario) and a one-line ``statement``. Each file in
+``cases/`` lists ``[[case]]`` tables: an ``id``, the ``requirements`` it checks, a
+``title`` and ``steps``, a transcript of frames to send and frames to expect
+on one or more connections (``on``, default ``"a"``; other names are peers
+that advertise, publish, provide services...).
+
+A step has exactly one action key:
+
+- ``send`` (a table: the op, sent as JSON text), ``send_raw`` (a string sent
+  as-is), ``send_binary`` (a table sent as one CBOR binary frame);
+- ``expect`` (a pattern, see ``match``; ``count`` asks for that many matching
+  frames, ``binary = true`` requires binary frames), ``expect_status`` (a
+  pattern for a ``status`` frame; strict profile only, since rosbridge_suite
+  never sends status, REF §1.3), ``expect_none`` (after a ``sync``, no received
+  frame may match the pattern);
+- ``sync = true`` (a round trip through a private topic: everything the server
+  sent this connection before it has arrived), ``open = true``, ``close =
+  true`` (connect or disconnect this connection now), ``expect_closed = true``
+  (the server closes this connection).
+
+Optional per step: ``profile`` (run only in ``strict`` or only in
+``reference``), ``timeout_s``, ``repeat`` (run the step N times with ``${i}``
+counting from 0), ``in_order`` (an ``expect`` whose frame must be the first
+received one with the pattern's ``op`` and ``topic``). Optional per case:
+``profiles``, ``transports`` (``ws``/``tcp``), ``pending`` (a reason: skipped
+until the feature exists).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from enum import StrEnum
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "Case",
+    "Profile",
+    "Requirement",
+    "Step",
+    "StepKind",
+    "Suite",
+    "SuiteError",
+    "default_suite_dir",
+    "load_suite",
+]
+
+
+class Profile(StrEnum):
+    """What a run holds the server to.
+
+    ``strict`` requires rwt's PROTOCOL-DECISIONS; ``reference`` accepts what
+    rosbridge_suite does where those decisions depart from it (silence
+    instead of ``status``, and so on).
+    """
+
+    STRICT = "strict"
+    REFERENCE = "reference"
+
+
+class StepKind(StrEnum):
+    """The action of one step (module docstring)."""
+
+    SEND = "send"
+    SEND_RAW = "send_raw"
+    SEND_BINARY = "send_binary"
+    EXPECT = "expect"
+    EXPECT_STATUS = "expect_status"
+    EXPECT_NONE = "expect_none"
+    EXPECT_CLOSED = "expect_closed"
+    SYNC = "sync"
+    OPEN = "open"
+    CLOSE = "close"
+
+
+_STEP_OPTIONS = {"on", "profile", "timeout_s", "count", "binary", "repeat", "in_order"}
+_CASE_KEYS = {"id", "title", "requirements", "steps", "profiles", "transports", "pending"}
+TRANSPORTS = ("ws", "tcp")
+
+
+class SuiteError(ValueError):
+    """The suite's data is malformed; the text names the file and the case."""
+
+
+@dataclass(frozen=True, slots=True)
+class Requirement:
+    """One rule the suite checks.
+
+    Attributes:
+        id: stable identifier (``spec.publish.unknown-topic``, ``D11``...).
+        source: where the rule comes from (``spec 3.3.3``, ``PROTOCOL-DECISIONS
+            D11``, ``REF §8.1 W1``).
+        statement: the rule in one sentence.
+    """
+
+    id: str
+    source: str
+    statement: str
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """One step of a case transcript.
+
+    Attributes:
+        kind: the action.
+        on: the connection it acts on.
+        value: the frame, pattern or raw text (None for sync/open/close).
+        count: how many matching frames an ``expect`` needs.
+        binary: an ``expect`` that requires binary (CBOR) frames.
+        profile: run only in this profile, or in both when None.
+        timeout_s: seconds this step may wait, or None for the run's default.
+        repeat: how many times the step runs (``${i}`` = 0, 1, ...).
+        in_order: the expected frame must be the first one received with the
+            pattern's ``op`` and ``topic``.
+    """
+
+    kind: StepKind
+    on: str = "a"
+    value: object = None
+    count: int = 1
+    binary: bool = False
+    profile: Profile | None = None
+    timeout_s: float | None = None
+    repeat: int = 1
+    in_order: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Case:
+    """A transcript checking one or more requirements."""
+
+    id: str
+    title: str
+    requirements: tuple[str, ...]
+    steps: tuple[Step, ...]
+    profiles: frozenset[Profile] = frozenset(Profile)
+    transports: frozenset[str] = frozenset(TRANSPORTS)
+    pending: str | None = None
+    file: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Suite:
+    """Requirements (in file order) and the cases that check them."""
+
+    requirements: dict[str, Requirement]
+    cases: tuple[Case, ...]
+    directory: Path = field(default_factory=Path)
+
+    def cases_for(self, requirement_id: str) -> list[Case]:
+        """The cases naming ``requirement_id``."""
+        return [case for case in self.cases if requirement_id in case.requirements]
+
+
+def default_suite_dir() -> Path:
+    """Where the shipped suite lives.
+
+    In an installed wheel the data is packaged as ``rwt_transports/conformance/
+    data``; in a source checkout it is the repository's ``conformance/`` folder.
+    """
+    packaged = Path(__file__).with_name("data")
+    if (packaged / "requirements.toml").is_file():
+        return packaged
+    return Path(__file__).resolve().parents[3] / "conformance"
+
+
+def load_suite(directory: Path | None = None) -> Suite:
+    """Load ``requirements.toml`` and every ``cases/*.toml`` of a suite folder.
+
+    Raises:
+        SuiteError: a file is not valid TOML, a key is unknown, an id repeats, or
+            a case names a requirement that does not exist.
+    """
+    directory = directory or default_suite_dir()
+    requirements = _load_requirements(directory / "requirements.toml")
+    cases: list[Case] = []
+    for path in sorted((directory / "cases").glob("*.toml")):
+        for table in _read(path).get("case", []):
+            cases.append(_case(table, path.name))
+    seen: set[str] = set()
+    for case in cases:
+        if case.id in seen:
+            raise SuiteError(f"{case.file}: case id {case.id!r} repeats")
+        seen.add(case.id)
+        unknown = [r for r in case.requirements if r not in requirements]
+        if unknown:
+            raise SuiteError(f"{case.file}: case {case.id!r} names unknown requirements {unknown}")
+    return Suite(requirements, tuple(cases), directory)
+
+
+def _read(path: Path) -> dict[str, Any]:
+    try:
+        with path.open("rb") as file:
+            return tomllib.load(file)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise SuiteError(f"{path.name}: {exc}") from None
+
+
+def _load_requirements(path: Path) -> dict[str, Requirement]:
+    requirements: dict[str, Requirement] = {}
+    for table in _read(path).get("requirement", []):
+        try:
+            requirement = Requirement(
+                id=str(table["id"]), source=str(table["source"]), statement=str(table["statement"])
+            )
+        except KeyError as exc:
+            raise SuiteError(f"{path.name}: requirement {table} lacks {exc}") from None
+        if requirement.id in requirements:
+            raise SuiteError(f"{path.name}: requirement id {requirement.id!r} repeats")
+        requirements[requirement.id] = requirement
+    return requirements
+
+
+def _case(table: dict[str, object], file: str) -> Case:
+    case_id = str(table.get("id", "?"))
+    where = f"{file}: case {case_id!r}"
+    unknown = set(table) - _CASE_KEYS
+    if unknown or "id" not in table or "requirements" not in table:
+        raise SuiteError(f"{where}: needs id and requirements; unknown keys {sorted(unknown)}")
+    steps = table.get("steps", [])
+    if not isinstance(steps, list):
+        raise SuiteError(f"{where}: steps must be an array")
+    try:
+        profiles = frozenset(Profile(p) for p in _strings(table.get("profiles", list(Profile))))
+        transports = frozenset(_strings(table.get("transports", list(TRANSPORTS))))
+    except ValueError as exc:
+        raise SuiteError(f"{where}: {exc}") from None
+    if not transports <= set(TRANSPORTS):
+        raise SuiteError(f"{where}: transports must be among {TRANSPORTS}")
+    pending = table.get("pending")
+    return Case(
+        id=case_id,
+        title=str(table.get("title", case_id)),
+        requirements=tuple(_strings(table["requirements"])),
+        steps=tuple(_step(step, f"{where} step {index + 1}") for index, step in enumerate(steps)),
+        profiles=profiles,
+        transports=transports,
+        pending=None if pending is None else str(pending),
+        file=file,
+    )
+
+
+def _step(table: object, where: str) -> Step:
+    if not isinstance(table, dict):
+        raise SuiteError(f"{where}: a step is a table")
+    actions = [key for key in table if key not in _STEP_OPTIONS]
+    if len(actions) != 1:
+        raise SuiteError(f"{where}: expected one action key, got {sorted(actions)}")
+    try:
+        kind = StepKind(actions[0])
+        profile = table.get("profile")
+        return Step(
+            kind=kind,
+            on=str(table.get("on", "a")),
+            value=None if kind in _FLAGS else table[actions[0]],
+            count=int(table.get("count", 1)),
+            binary=bool(table.get("binary", False)),
+            profile=None if profile is None else Profile(profile),
+            timeout_s=None if "timeout_s" not in table else float(table["timeout_s"]),
+            repeat=int(table.get("repeat", 1)),
+            in_order=bool(table.get("in_order", False)),
+        )
+    except ValueError as exc:
+        raise SuiteError(f"{where}: {exc}") from None
+
+
+_FLAGS = {StepKind.SYNC, StepKind.OPEN, StepKind.CLOSE, StepKind.EXPECT_CLOSED}
+
+
+def _strings(value: object) -> list[str]:
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, list):
+        return [str(item) for item in value]
+    raise ValueError(f"expected a string or an array of strings, got {value!r}")

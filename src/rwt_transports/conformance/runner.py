@@ -1,0 +1,456 @@
+"""Runs conformance cases against a rosbridge server over real connections.
+
+Each case gets fresh connections (opened on first use, closed at the end), its
+own names (``${ns}`` is unique per case and run, so cases never see each
+other's topics) and a bounded time: every wait is bounded by the step's
+timeout and the whole case by ``case_timeout_s``.
+
+A ``sync`` is a round trip through a topic private to the connection: the
+connection publishes a token on it and waits for the token to come back, so
+every frame the server sent the connection before has arrived. Absence checks
+(``expect_none``) run after one; that works with any server that keeps the
+order of one connection's frames, and needs no sleeping.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import itertools
+import json
+import secrets
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+from urllib.parse import urlsplit
+
+import anyio
+import cbor2
+
+from ..connectors import Connection, ConnectionClosed, connect
+from .match import JsonValue, describe, match, substitute
+from .model import Case, Profile, Requirement, Step, StepKind, Suite
+
+__all__ = [
+    "CaseResult",
+    "Outcome",
+    "RequirementResult",
+    "RunOptions",
+    "SuiteResult",
+    "run_suite",
+    "select",
+]
+
+SYNC_ID = "rwt_conformance_sync"
+SYNC_TYPE = "std_msgs/String"
+_SYNC_RESEND_S = 0.5
+
+
+class Outcome(StrEnum):
+    """The result of a case or a requirement."""
+
+    PASSED = "passed"
+    FAILED = "failed"
+    SKIPPED = "skipped"
+
+
+@dataclass(frozen=True, slots=True)
+class RunOptions:
+    """How to run the suite.
+
+    Attributes:
+        url: the server, ``ws://HOST:PORT`` or ``tcp://HOST:PORT``.
+        profile: what the server is held to (``Profile``).
+        only: run only cases whose id, or one of whose requirement ids, matches
+            one of these (shell-style patterns: ``D1*``).
+        expect_timeout_s: default bound of one wait, seconds.
+        case_timeout_s: bound of a whole case, seconds.
+    """
+
+    url: str
+    profile: Profile = Profile.STRICT
+    only: tuple[str, ...] = ()
+    expect_timeout_s: float = 3.0
+    case_timeout_s: float = 20.0
+
+    @property
+    def transport(self) -> str:
+        """``ws`` or ``tcp``, from the URL's scheme."""
+        return "tcp" if urlsplit(self.url).scheme == "tcp" else "ws"
+
+
+@dataclass(frozen=True, slots=True)
+class CaseResult:
+    """What one case did: outcome, a one-line detail, seconds taken."""
+
+    case: Case
+    outcome: Outcome
+    detail: str = ""
+    duration_s: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class RequirementResult:
+    """A requirement's outcome: failed if a case failed, passed if one passed."""
+
+    requirement: Requirement
+    outcome: Outcome
+    detail: str
+    cases: tuple[CaseResult, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class SuiteResult:
+    """Everything a run found."""
+
+    options: RunOptions
+    requirements: tuple[RequirementResult, ...]
+    cases: tuple[CaseResult, ...]
+    duration_s: float = 0.0
+
+    def count(self, outcome: Outcome) -> int:
+        """How many requirements ended with ``outcome``."""
+        return sum(1 for r in self.requirements if r.outcome is outcome)
+
+    @property
+    def ok(self) -> bool:
+        """True when no requirement failed."""
+        return self.count(Outcome.FAILED) == 0
+
+    def summary(self) -> str:
+        """``N passed, M failed, K skipped`` (requirements)."""
+        return ", ".join(f"{self.count(o)} {o.value}" for o in Outcome)
+
+
+class StepFailed(Exception):
+    """A step's expectation did not hold; the text is the detail shown."""
+
+
+def select(suite: Suite, only: tuple[str, ...]) -> tuple[list[Requirement], list[Case]]:
+    """Pick the requirements and cases an ``--only`` list names (all when empty)."""
+    if not only:
+        return list(suite.requirements.values()), list(suite.cases)
+
+    def hit(name: str) -> bool:
+        return any(fnmatch.fnmatchcase(name, pattern) for pattern in only)
+
+    requirements = [r for r in suite.requirements.values() if hit(r.id)]
+    chosen = {r.id for r in requirements}
+    cases = [c for c in suite.cases if hit(c.id) or chosen.intersection(c.requirements)]
+    named = {r for c in cases for r in c.requirements}
+    requirements += [suite.requirements[r] for r in suite.requirements if r in named - chosen]
+    return requirements, cases
+
+
+async def run_suite(
+    suite: Suite, options: RunOptions, *, on_case: Callable[[CaseResult], None] | None = None
+) -> SuiteResult:
+    """Run the selected cases one after another and grade the requirements.
+
+    Args:
+        suite: the loaded suite.
+        options: server URL, profile, selection, time bounds.
+        on_case: called after each case, for progress output.
+
+    Returns:
+        The results; never raises for what the server does.
+    """
+    started = time.monotonic()
+    requirements, cases = select(suite, options.only)
+    run_id = secrets.token_hex(3)
+    results: list[CaseResult] = []
+    for index, case in enumerate(cases):
+        result = await run_case(case, options, {"ns": f"rwtc_{run_id}/c{index}", "run": run_id})
+        results.append(result)
+        if on_case is not None:
+            on_case(result)
+    graded = tuple(
+        _grade(r, [c for c in results if r.id in c.case.requirements]) for r in requirements
+    )
+    return SuiteResult(options, graded, tuple(results), time.monotonic() - started)
+
+
+async def run_case(case: Case, options: RunOptions, variables: dict[str, JsonValue]) -> CaseResult:
+    """Run one case (or skip it, saying why)."""
+    reason = _skip_reason(case, options)
+    if reason is not None:
+        return CaseResult(case, Outcome.SKIPPED, reason)
+    started = time.monotonic()
+    run = _CaseRun(case, options, dict(variables))
+    try:
+        with anyio.fail_after(options.case_timeout_s):
+            await run.execute()
+    except StepFailed as exc:
+        return CaseResult(case, Outcome.FAILED, str(exc), time.monotonic() - started)
+    except TimeoutError:
+        detail = f"case exceeded {options.case_timeout_s:g} s at step {run.step_number}"
+        return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started)
+    except Exception as exc:  # a runner bug must not stop the suite
+        detail = f"step {run.step_number}: runner error {type(exc).__name__}: {exc}"
+        return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started)
+    finally:
+        with anyio.CancelScope(shield=True):
+            await run.close_all()
+    return CaseResult(case, Outcome.PASSED, "", time.monotonic() - started)
+
+
+def _skip_reason(case: Case, options: RunOptions) -> str | None:
+    if case.pending is not None:
+        return f"pending: {case.pending}"
+    if options.profile not in case.profiles:
+        return f"not part of the {options.profile.value} profile"
+    if options.transport not in case.transports:
+        return f"needs {'/'.join(sorted(case.transports))}"
+    return None
+
+
+def _grade(requirement: Requirement, results: list[CaseResult]) -> RequirementResult:
+    failed = [r for r in results if r.outcome is Outcome.FAILED]
+    passed = [r for r in results if r.outcome is Outcome.PASSED]
+    if failed:
+        outcome, detail = Outcome.FAILED, f"{failed[0].case.id}: {failed[0].detail}"
+    elif passed:
+        outcome, detail = Outcome.PASSED, f"{len(passed)} case{'s' * (len(passed) > 1)}"
+    elif results:
+        outcome, detail = Outcome.SKIPPED, results[0].detail
+    else:
+        outcome, detail = Outcome.SKIPPED, "no case selected"
+    return RequirementResult(requirement, outcome, detail, tuple(results))
+
+
+@dataclass
+class _Received:
+    value: JsonValue
+    binary: bool
+
+
+@dataclass
+class _Link:
+    """One connection of a case and what it has received so far."""
+
+    name: str
+    conn: Connection
+    sync_topic: str
+    frames: list[_Received] = field(default_factory=list)
+    arrived: anyio.Event = field(default_factory=anyio.Event)
+    tokens: set[str] = field(default_factory=set)
+    sync_ready: bool = False
+    closed_reason: str | None = None
+
+    def notify(self) -> None:
+        self.arrived.set()
+        self.arrived = anyio.Event()
+
+
+class _CaseRun:
+    def __init__(self, case: Case, options: RunOptions, variables: dict[str, JsonValue]) -> None:
+        self.case = case
+        self.options = options
+        self.variables = variables
+        self.links: dict[str, _Link] = {}
+        self.step_number = 0
+        self._tokens = itertools.count(1)
+        self._tasks: anyio.abc.TaskGroup | None = None
+
+    async def execute(self) -> None:
+        failure: StepFailed | None = None
+        async with anyio.create_task_group() as tasks:
+            self._tasks = tasks
+            try:
+                await self._steps()
+            except StepFailed as exc:  # raised after the task group, not wrapped in a group
+                failure = exc
+            tasks.cancel_scope.cancel()
+        if failure is not None:
+            raise failure
+
+    async def _steps(self) -> None:
+        for number, step in enumerate(self.case.steps, start=1):
+            self.step_number = number
+            if step.profile is not None and step.profile is not self.options.profile:
+                continue
+            if step.kind is StepKind.EXPECT_STATUS and self.options.profile is Profile.REFERENCE:
+                continue
+            where = f"step {number} ({step.kind.value} on {step.on})"
+            try:
+                for repetition in range(step.repeat):
+                    self.variables["i"] = repetition
+                    await self._run_step(step)
+            except StepFailed as exc:
+                raise StepFailed(f"{where}: {exc}") from None
+            except ConnectionClosed as exc:
+                raise StepFailed(f"{where}: {exc.message}") from None
+
+    async def close_all(self) -> None:
+        for link in self.links.values():
+            await link.conn.aclose()
+
+    async def _run_step(self, step: Step) -> None:
+        if step.kind is StepKind.CLOSE:
+            link = self.links.get(step.on)
+            if link is not None:
+                await link.conn.aclose()
+            return
+        link = await self._link(step.on)
+        timeout_s = step.timeout_s or self.options.expect_timeout_s
+        kind = step.kind
+        if kind in _SENDS:
+            try:
+                await link.conn.send(_SENDS[kind](self._sub(step.value)))
+            except ConnectionClosed as exc:  # later steps say whether closing was right
+                link.closed_reason = link.closed_reason or exc.message
+                link.notify()
+        elif kind in (StepKind.EXPECT, StepKind.EXPECT_STATUS):
+            pattern = self._sub(step.value)
+            if kind is StepKind.EXPECT_STATUS and isinstance(pattern, dict):
+                pattern = {"op": "status", **pattern}
+            for _ in range(step.count):
+                await self._expect(link, pattern, step, timeout_s)
+        elif kind is StepKind.EXPECT_NONE:
+            await self._sync(link, timeout_s)
+            self._expect_none(link, self._sub(step.value))
+        elif kind is StepKind.SYNC:
+            await self._sync(link, timeout_s)
+        elif kind is StepKind.EXPECT_CLOSED:
+            await self._expect_closed(link, timeout_s)
+
+    async def _expect_closed(self, link: _Link, timeout_s: float) -> None:
+        with anyio.move_on_after(timeout_s):
+            while link.closed_reason is None:
+                await link.arrived.wait()
+        if link.closed_reason is None:
+            raise StepFailed(f"the server kept the connection open for {timeout_s:g} s")
+
+    def _sub(self, value: object) -> JsonValue:
+        try:
+            return substitute(value, self.variables)
+        except KeyError as exc:
+            raise StepFailed(f"variable {exc} was never captured") from None
+
+    async def _link(self, name: str) -> _Link:
+        link = self.links.get(name)
+        if link is None:
+            url = self.options.url
+            conn = await connect(url, timeout_s=self.options.expect_timeout_s * 2)
+            topic = f"/{self.variables['ns']}/sync_{name}"
+            link = self.links[name] = _Link(name, conn, topic)
+            assert self._tasks is not None
+            self._tasks.start_soon(self._read, link)
+        return link
+
+    async def _read(self, link: _Link) -> None:
+        try:
+            while True:
+                frame = await link.conn.receive()
+                received = _decode(frame)
+                if not self._hidden(link, received.value):
+                    link.frames.append(received)
+                link.notify()
+        except ConnectionClosed as exc:
+            link.closed_reason = exc.message
+            link.notify()
+
+    def _hidden(self, link: _Link, value: JsonValue) -> bool:
+        if not isinstance(value, dict):
+            return False
+        if value.get("op") == "status" and (
+            self.options.profile is Profile.REFERENCE or value.get("id") == SYNC_ID
+        ):
+            return True
+        if value.get("op") == "publish" and value.get("topic") == link.sync_topic:
+            msg = value.get("msg")
+            if isinstance(msg, dict) and isinstance(msg.get("data"), str):
+                link.tokens.add(msg["data"])
+            return True
+        return False
+
+    async def _expect(self, link: _Link, pattern: JsonValue, step: Step, timeout_s: float) -> None:
+        with anyio.move_on_after(timeout_s):
+            while True:
+                for index, received in enumerate(link.frames):
+                    if step.binary and not received.binary:
+                        continue
+                    problem = match(pattern, received.value, self.variables)
+                    if problem is None:
+                        del link.frames[index]
+                        return
+                    if step.in_order and _same_stream(pattern, received.value):
+                        raise StepFailed(
+                            f"out of order: {describe(received.value, 100)} ({problem})"
+                        )
+                if link.closed_reason is not None:
+                    raise StepFailed(
+                        f"connection closed ({link.closed_reason}) before {describe(pattern, 120)}"
+                    )
+                await link.arrived.wait()
+        near = self._near(link, pattern)
+        raise StepFailed(f"no frame matching {describe(pattern, 160)} within {timeout_s:g} s{near}")
+
+    def _near(self, link: _Link, pattern: JsonValue) -> str:
+        if not link.frames:
+            return "; nothing else received"
+        op = pattern.get("op") if isinstance(pattern, dict) else None
+        same = [f for f in link.frames if isinstance(f.value, dict) and f.value.get("op") == op]
+        shown = same[-2:] or link.frames[-2:]
+        notes = [match(pattern, f.value, {}) or "matches but not binary" for f in shown]
+        return "; received " + "; ".join(
+            f"{describe(f.value, 100)} ({n})" for f, n in zip(shown, notes, strict=True)
+        )
+
+    def _expect_none(self, link: _Link, pattern: JsonValue) -> None:
+        for received in link.frames:
+            if match(pattern, received.value, {}) is None:
+                raise StepFailed(f"unexpected {describe(received.value, 160)}")
+
+    async def _sync(self, link: _Link, timeout_s: float) -> None:
+        if link.closed_reason is not None:
+            raise StepFailed(f"cannot sync: connection closed ({link.closed_reason})")
+        if not link.sync_ready:
+            base = {"topic": link.sync_topic, "type": SYNC_TYPE, "id": SYNC_ID}
+            await link.conn.send(json.dumps({"op": "subscribe", **base}))
+            await link.conn.send(json.dumps({"op": "advertise", **base}))
+            link.sync_ready = True
+        token = f"sync-{next(self._tokens)}"
+        publish = json.dumps(
+            {"op": "publish", "topic": link.sync_topic, "msg": {"data": token}, "id": SYNC_ID}
+        )
+        with anyio.move_on_after(timeout_s):
+            while token not in link.tokens:
+                await link.conn.send(publish)
+                with anyio.move_on_after(_SYNC_RESEND_S):
+                    while token not in link.tokens:
+                        if link.closed_reason is not None:
+                            raise StepFailed(
+                                f"connection closed ({link.closed_reason}) during sync"
+                            )
+                        await link.arrived.wait()
+            return
+        raise StepFailed(
+            f"sync: the server did not echo a publish on {link.sync_topic} within {timeout_s:g} s"
+        )
+
+
+_SENDS: dict[StepKind, Callable[[JsonValue], str | bytes]] = {
+    StepKind.SEND: json.dumps,
+    StepKind.SEND_RAW: str,
+    StepKind.SEND_BINARY: cbor2.dumps,
+}
+
+
+def _same_stream(pattern: JsonValue, value: JsonValue) -> bool:
+    """Whether ``value`` has the ``op`` and ``topic`` of ``pattern``."""
+    if not isinstance(pattern, dict) or not isinstance(value, dict):
+        return False
+    return all(value.get(key) == pattern.get(key) for key in ("op", "topic") if key in pattern)
+
+
+def _decode(frame: str | bytes) -> _Received:
+    if isinstance(frame, bytes):
+        try:
+            return _Received(cbor2.loads(frame), binary=True)
+        except Exception:  # anything cbor2 refuses is shown as bytes
+            return _Received(frame, binary=True)
+    try:
+        return _Received(json.loads(frame), binary=False)
+    except ValueError:
+        return _Received({"<not JSON>": frame[:200]}, binary=False)

@@ -1,0 +1,445 @@
+"""Client-side connections to a rosbridge server: WebSocket, TCP and a stdio subprocess.
+
+A ``Connection`` moves whole frames: ``send`` one JSON text (or one CBOR
+binary frame on WebSocket), ``receive`` the next frame. The Python client and
+the conformance runner both use these, so neither cares which transport is
+underneath (PROTOCOL-DECISIONS D22).
+
+- WebSocket (``ws://``, ``wss://``): websockets' sans-IO ``ClientProtocol``
+  driven from an anyio stream, as the server side does. Text frames carry JSON,
+  binary frames CBOR (D27). Incoming messages are limited to
+  ``max_message_size`` bytes (D24/D30).
+- TCP (``tcp://HOST:PORT``): JSON objects written one per line; incoming text
+  is split into JSON objects whether or not the server separates them
+  (rwt writes one per line, rosbridge_tcp writes them back to back, D22).
+- stdio: a subprocess speaking one JSON object per line on stdin/stdout.
+
+Every failure of the underlying stream is raised as ``ConnectionClosed`` (a
+``TransportError``), so callers catch only rwt's errors.
+"""
+
+from __future__ import annotations
+
+import codecs
+import re
+import ssl
+from collections import deque
+from collections.abc import Sequence
+from typing import Protocol
+from urllib.parse import urlsplit
+
+import anyio
+from anyio.abc import ByteStream, Process
+from websockets.client import ClientProtocol
+from websockets.exceptions import InvalidURI
+from websockets.frames import Frame, Opcode
+from websockets.http11 import Response
+from websockets.protocol import State
+from websockets.uri import parse_uri
+
+from rwt_protocol.errors import TransportError
+
+__all__ = [
+    "Connection",
+    "ConnectionClosed",
+    "StdioConnection",
+    "TcpConnection",
+    "WebSocketConnection",
+    "connect",
+]
+
+MiB = 1024 * 1024
+_READ_SIZE = 65536
+Frame_ = str | bytes
+"""A whole frame: JSON text as ``str``, CBOR as ``bytes``."""
+
+
+class ConnectionClosed(TransportError):
+    """The connection is closed, or could not be opened; ``message`` says why."""
+
+
+class Connection(Protocol):
+    """A connection that carries whole rosbridge frames."""
+
+    url: str
+
+    async def send(self, frame: str | bytes) -> None:
+        """Send one frame: ``str`` is JSON text, ``bytes`` a binary (CBOR) frame.
+
+        Raises:
+            ConnectionClosed: the connection is gone.
+        """
+
+    async def receive(self) -> str | bytes:
+        """Wait for the next frame.
+
+        Raises:
+            ConnectionClosed: the connection ended.
+        """
+
+    async def aclose(self) -> None:
+        """Close the connection; idempotent, never raises."""
+
+
+async def connect(
+    url: str,
+    *,
+    timeout_s: float = 10.0,
+    max_message_size: int = 64 * MiB,
+    ssl_context: ssl.SSLContext | None = None,
+) -> Connection:
+    """Open a connection to a rosbridge server.
+
+    Args:
+        url: ``ws://HOST:PORT[/path]``, ``wss://...`` or ``tcp://HOST:PORT``.
+        timeout_s: seconds allowed for connecting and the handshake.
+        max_message_size: largest incoming message, bytes.
+        ssl_context: TLS settings for ``wss://``; the system defaults otherwise.
+
+    Returns:
+        The open connection.
+
+    Raises:
+        ConnectionClosed: the server cannot be reached or refused the handshake.
+        ValueError: the URL's scheme is not one of the above.
+    """
+    scheme = urlsplit(url).scheme
+    with anyio.fail_after(timeout_s):
+        try:
+            if scheme in ("ws", "wss"):
+                return await WebSocketConnection.open(url, max_message_size, ssl_context)
+            if scheme == "tcp":
+                return await TcpConnection.open(url, max_message_size)
+        except TimeoutError:
+            raise
+        except (OSError, anyio.BrokenResourceError, anyio.EndOfStream) as exc:
+            raise ConnectionClosed(f"cannot connect to {url}: {exc}") from None
+    raise ValueError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss or tcp)")
+
+
+class WebSocketConnection:
+    """A WebSocket client connection (RFC 6455) over an anyio byte stream."""
+
+    def __init__(self, url: str, stream: ByteStream, protocol: ClientProtocol, limit: int) -> None:
+        self.url = url
+        self._stream = stream
+        self._protocol = protocol
+        self._limit = limit
+        self._messages: deque[Frame_] = deque()
+        self._parts: list[bytes] = []
+        self._size = 0
+        self._binary = False
+        self._write_lock = anyio.Lock()
+
+    @classmethod
+    async def open(
+        cls, url: str, max_message_size: int, ssl_context: ssl.SSLContext | None = None
+    ) -> WebSocketConnection:
+        """Connect and complete the opening handshake.
+
+        Raises:
+            ConnectionClosed: refused or broken handshake.
+            OSError: the TCP connection failed.
+        """
+        try:
+            uri = parse_uri(url)
+        except InvalidURI as exc:
+            raise ValueError(str(exc)) from None
+        stream: ByteStream
+        if uri.secure:
+            context = ssl_context or ssl.create_default_context()
+            stream = await anyio.connect_tcp(uri.host, uri.port, ssl_context=context, tls=True)
+        else:
+            stream = await anyio.connect_tcp(uri.host, uri.port)
+        protocol = ClientProtocol(uri, max_size=max_message_size)
+        conn = cls(url, stream, protocol, max_message_size)
+        protocol.send_request(protocol.connect())
+        await conn._flush()
+        while protocol.state is State.CONNECTING:
+            data = await stream.receive(_READ_SIZE)
+            protocol.receive_data(data)
+            for event in protocol.events_received():
+                state: State = protocol.state
+                if isinstance(event, Response) and state is not State.OPEN:
+                    await stream.aclose()
+                    raise ConnectionClosed(
+                        f"{url} refused the WebSocket handshake: {event.status_code}"
+                    )
+        return conn
+
+    async def send(self, frame: str | bytes) -> None:
+        """Send one text (``str``) or binary (``bytes``) message."""
+        if self._protocol.state is not State.OPEN:
+            raise ConnectionClosed(f"{self.url}: connection closed")
+        if isinstance(frame, str):
+            self._protocol.send_text(frame.encode())
+        else:
+            self._protocol.send_binary(frame)
+        await self._flush()
+
+    async def receive(self) -> str | bytes:
+        """Wait for the next whole message; answers pings on the way."""
+        while not self._messages:
+            if self._protocol.state is State.CLOSED:
+                raise ConnectionClosed(f"{self.url}: {self._close_reason()}")
+            try:
+                data = await self._stream.receive(_READ_SIZE)
+            except (
+                anyio.EndOfStream,
+                anyio.BrokenResourceError,
+                anyio.ClosedResourceError,
+                OSError,
+            ):
+                self._protocol.receive_eof()
+                raise ConnectionClosed(f"{self.url}: {self._close_reason()}") from None
+            self._protocol.receive_data(data)
+            for event in self._protocol.events_received():
+                self._collect(event)
+            await self._flush()
+        return self._messages.popleft()
+
+    async def aclose(self) -> None:
+        """Send a close frame (1000) and close the stream."""
+        try:
+            if self._protocol.state is State.OPEN:
+                self._protocol.send_close(1000)
+                await self._flush()
+        except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+            pass
+        await self._stream.aclose()
+
+    def _collect(self, event: object) -> None:
+        if not isinstance(event, Frame):
+            return
+        if event.opcode in (Opcode.TEXT, Opcode.BINARY):
+            self._parts, self._size = [], 0
+            self._binary = event.opcode is Opcode.BINARY
+        elif event.opcode is not Opcode.CONT:
+            return
+        self._parts.append(bytes(event.data))
+        self._size += len(event.data)
+        if self._size > self._limit:
+            self._protocol.fail(1009, "message too big")
+            self._parts, self._size = [], 0
+            return
+        if event.fin:
+            data = b"".join(self._parts)
+            self._parts, self._size = [], 0
+            self._messages.append(data if self._binary else data.decode("utf-8", "replace"))
+
+    async def _flush(self) -> None:
+        async with self._write_lock:
+            for data in self._protocol.data_to_send():
+                try:
+                    if data:
+                        await self._stream.send(data)
+                    else:
+                        await self._stream.send_eof()
+                except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+                    raise ConnectionClosed(f"{self.url}: connection lost") from None
+                except NotImplementedError:
+                    pass  # TLS streams cannot half-close; closing follows
+
+    def _close_reason(self) -> str:
+        close = self._protocol.close_rcvd
+        if close is None:
+            return "connection closed"
+        return f"closed by the server ({close.code} {close.reason})".rstrip()
+
+
+class JsonSplitter:
+    """Splits a text stream into top-level JSON objects or arrays, separated or not.
+
+    A sans-IO scanner that keeps its state between ``feed`` calls, so each
+    character is looked at once however the stream is chunked.
+
+    Args:
+        limit_bytes: the most buffered text while a value is incomplete.
+    """
+
+    _SPECIAL = re.compile(r'["\\{}\[\]]')
+
+    def __init__(self, limit_bytes: int) -> None:
+        self._buffer = ""
+        self._scanned = 0
+        self._depth = 0
+        self._in_string = False
+        self._start = 0
+        self._limit = limit_bytes
+
+    def feed(self, text: str) -> list[str]:
+        """Add text; return every complete JSON text found, in order.
+
+        Raises:
+            ConnectionClosed: the buffer would exceed the limit, or the stream has
+                text outside JSON objects.
+        """
+        self._buffer += text
+        found: list[str] = []
+        self._start = 0
+        position = self._scanned
+        for match in self._SPECIAL.finditer(self._buffer, position):
+            index = match.start()
+            if index >= position:
+                position = self._scan(match.group(), index, found)
+        if self._depth == 0:
+            self._check_gap(self._buffer[self._start :])
+            self._start = len(self._buffer)
+        self._buffer = self._buffer[self._start :]
+        self._scanned = max(0, position - self._start)
+        if len(self._buffer) > self._limit:
+            raise ConnectionClosed("incoming message exceeds the size limit")
+        return found
+
+    def _scan(self, char: str, index: int, found: list[str]) -> int:
+        """Take one special character at ``index``; return where scanning resumes."""
+        if self._in_string:
+            if char == "\\":
+                return index + 2  # skip the escaped character
+            if char == '"':
+                self._in_string = False
+        elif char == '"':
+            self._in_string = True
+        elif char in "{[":
+            if self._depth == 0:
+                self._check_gap(self._buffer[self._start : index])
+                self._start = index
+            self._depth += 1
+        else:
+            self._depth -= 1
+            if self._depth == 0:
+                found.append(self._buffer[self._start : index + 1])
+                self._start = index + 1
+            elif self._depth < 0:
+                raise ConnectionClosed("server sent text that is not JSON")
+        return index + 1
+
+    @staticmethod
+    def _check_gap(text: str) -> None:
+        if text.strip():
+            raise ConnectionClosed(f"server sent text that is not JSON: {text.strip()[:40]!r}")
+
+
+class _LineStreamConnection:
+    """Shared part of the TCP and stdio connections: JSON text out, JSON values in."""
+
+    url: str
+
+    def __init__(self, url: str, limit: int) -> None:
+        self.url = url
+        self._splitter = JsonSplitter(limit)
+        self._frames: deque[str] = deque()
+        self._decoder = _Utf8Decoder()
+
+    async def send(self, frame: str | bytes) -> None:
+        """Send one JSON text followed by a newline (binary frames are not supported)."""
+        if isinstance(frame, bytes):
+            raise ConnectionClosed(f"{self.url}: binary frames need a WebSocket connection")
+        try:
+            await self._write((frame.replace("\n", " ") + "\n").encode())
+        except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+            raise ConnectionClosed(f"{self.url}: connection lost") from None
+
+    async def receive(self) -> str | bytes:
+        """Wait for the next JSON value from the stream."""
+        while not self._frames:
+            try:
+                data = await self._read()
+            except (
+                anyio.EndOfStream,
+                anyio.BrokenResourceError,
+                anyio.ClosedResourceError,
+                OSError,
+            ):
+                raise ConnectionClosed(f"{self.url}: connection closed") from None
+            self._frames.extend(self._splitter.feed(self._decoder.decode(data)))
+        return self._frames.popleft()
+
+    async def _write(self, data: bytes) -> None:
+        raise NotImplementedError
+
+    async def _read(self) -> bytes:
+        raise NotImplementedError
+
+
+class _Utf8Decoder:
+    """Incremental UTF-8 decoding across read boundaries."""
+
+    def __init__(self) -> None:
+        self._decoder = codecs.getincrementaldecoder("utf-8")("replace")
+
+    def decode(self, data: bytes) -> str:
+        return self._decoder.decode(data)
+
+
+class TcpConnection(_LineStreamConnection):
+    """A rosbridge TCP connection (PROTOCOL-DECISIONS D22)."""
+
+    def __init__(self, url: str, stream: ByteStream, limit: int) -> None:
+        super().__init__(url, limit)
+        self._stream = stream
+
+    @classmethod
+    async def open(cls, url: str, max_message_size: int) -> TcpConnection:
+        """Connect to ``tcp://HOST:PORT``.
+
+        Raises:
+            ValueError: no port in the URL.
+            OSError: the connection failed.
+        """
+        parts = urlsplit(url)
+        if parts.hostname is None or parts.port is None:
+            raise ValueError(f"expected tcp://HOST:PORT, got {url!r}")
+        stream = await anyio.connect_tcp(parts.hostname, parts.port)
+        return cls(url, stream, max_message_size)
+
+    async def aclose(self) -> None:
+        """Close the socket."""
+        await self._stream.aclose()
+
+    async def _write(self, data: bytes) -> None:
+        await self._stream.send(data)
+
+    async def _read(self) -> bytes:
+        return await self._stream.receive(_READ_SIZE)
+
+
+class StdioConnection(_LineStreamConnection):
+    """A rosbridge server run as a subprocess, one JSON object per line on stdin/stdout."""
+
+    def __init__(self, command: Sequence[str], process: Process, limit: int) -> None:
+        super().__init__("stdio:" + " ".join(command), limit)
+        self.process = process
+
+    @classmethod
+    async def open(
+        cls, command: Sequence[str], max_message_size: int = 64 * MiB
+    ) -> StdioConnection:
+        """Start ``command`` with pipes for stdin and stdout (stderr is inherited).
+
+        Raises:
+            ConnectionClosed: the command cannot be started.
+        """
+        try:
+            process = await anyio.open_process(list(command), stderr=None)
+        except OSError as exc:
+            raise ConnectionClosed(f"cannot start {command[0]!r}: {exc}") from None
+        return cls(command, process, max_message_size)
+
+    async def aclose(self) -> None:
+        """Close stdin, then wait (at most 5 s) for the process before terminating it."""
+        if self.process.stdin is not None:
+            await self.process.stdin.aclose()
+        with anyio.move_on_after(5.0):
+            await self.process.wait()
+            return
+        self.process.terminate()
+        await self.process.wait()
+
+    async def _write(self, data: bytes) -> None:
+        assert self.process.stdin is not None  # opened with a pipe
+        await self.process.stdin.send(data)
+
+    async def _read(self) -> bytes:
+        assert self.process.stdout is not None  # opened with a pipe
+        return await self.process.stdout.receive(_READ_SIZE)

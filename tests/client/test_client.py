@@ -1,0 +1,269 @@
+"""The Python client against rwt's server: every feature, over each transport (issue 6)."""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import anyio
+import pytest
+from anyio.abc import TaskStatus
+from anyio.from_thread import start_blocking_portal
+
+from rwt_protocol.client import StatusReceived
+from rwt_transports.client import (
+    Action,
+    CallTimeout,
+    Param,
+    Ros,
+    ServerGoal,
+    Service,
+    ServiceError,
+    SyncRos,
+    Topic,
+    message_class,
+)
+from rwt_transports.server import RosbridgeServer, ServerConfig
+
+pytestmark = pytest.mark.anyio
+
+
+class Inbox:
+    """Collects callback values; ``wait(n)`` returns once n arrived (bounded)."""
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self._event = anyio.Event()
+
+    def __call__(self, item: Any) -> None:
+        self.items.append(item)
+        self._event.set()
+
+    async def wait(self, count: int = 1, timeout_s: float = 5.0) -> list[Any]:
+        with anyio.fail_after(timeout_s):
+            while len(self.items) < count:
+                await self._event.wait()
+                self._event = anyio.Event()
+        return self.items
+
+
+async def test_publish_and_subscribe(url: str) -> None:
+    async with Ros(url) as a, Ros(url) as b:
+        inbox = Inbox()
+        listener = Topic(b, "/chatter", "std_msgs/String")
+        await listener.subscribe(inbox)
+        await _sync(b)
+        talker = Topic(a, "/chatter", "std_msgs/msg/String")
+        await talker.publish({"data": "hello"})
+        assert await inbox.wait() == [{"data": "hello"}]
+        assert talker.is_advertised and listener.is_subscribed
+        await listener.unsubscribe()
+        await talker.unadvertise()
+        assert not talker.is_advertised and not listener.is_subscribed
+
+
+async def test_subscription_options_and_latching(url: str) -> None:
+    async with Ros(url) as a, Ros(url) as b:
+        latched = Topic(a, "/map", "std_msgs/Int32", latch=True)
+        await latched.publish({"data": 7})
+        await _sync(a)
+        inbox = Inbox()
+        topic = Topic(b, "/map", throttle_rate=0, queue_length=1, compression="none")
+        await topic.subscribe(inbox)
+        assert await inbox.wait() == [{"data": 7}]
+
+
+async def test_typed_messages(url: str) -> None:
+    point = message_class("geometry_msgs/msg/Point")
+    quaternion = message_class("geometry_msgs/Quaternion")
+    assert quaternion().w == 1.0
+    async with Ros(url) as a, Ros(url) as b:
+        inbox = Inbox()
+        await Topic(b, "/p", "geometry_msgs/Point", message_class=point).subscribe(inbox)
+        await _sync(b)
+        await Topic(a, "/p", "geometry_msgs/Point").publish(point(x=1.0, y=2.0))
+        [received] = await inbox.wait()
+        assert received == point(x=1.0, y=2.0, z=0.0)
+
+
+async def test_service_call_and_advertise(url: str) -> None:
+    async with Ros(url) as provider, Ros(url) as caller:
+        await Service(provider, "/add", "example_interfaces/AddTwoInts").advertise(
+            lambda req: {"sum": req["a"] + req["b"]}
+        )
+
+        async def set_bool(req: dict[str, Any]) -> dict[str, Any]:
+            return {"success": req["data"], "message": f"set to {req['data']}"}
+
+        await Service(provider, "/set_bool", "std_srvs/SetBool").advertise(set_bool)
+        await _sync(provider)
+        add = Service(caller, "/add", "example_interfaces/AddTwoInts")
+        assert await add.call({"a": 2, "b": 3}) == {"sum": 5}
+        assert await Service(caller, "/set_bool").call({"data": True}) == {
+            "success": True,
+            "message": "set to True",
+        }
+
+
+async def test_service_failures_are_clear_errors(url: str) -> None:
+    async with Ros(url) as provider, Ros(url) as caller:
+
+        def broken(req: object) -> object:
+            raise RuntimeError("disk on fire")
+
+        async def silent(req: object) -> object:
+            await anyio.sleep_forever()
+
+        await Service(provider, "/broken", "std_srvs/Trigger").advertise(broken)
+        await Service(provider, "/silent", "std_srvs/Trigger").advertise(silent)
+        await _sync(provider)
+        with pytest.raises(ServiceError, match="disk on fire"):
+            await Service(caller, "/broken").call()
+        with pytest.raises(ServiceError, match="/missing"):
+            await Service(caller, "/missing").call()
+        with pytest.raises(CallTimeout, match="no service_response for /silent"):
+            await Service(caller, "/silent").call(timeout_s=0.3)
+
+
+async def test_actions_with_feedback_and_cancel(url: str) -> None:
+    async with Ros(url) as server, Ros(url) as client:
+
+        async def fibonacci(goal: ServerGoal) -> dict[str, Any]:
+            sequence = [0, 1]
+            for _ in range(goal.args["order"] - 1):  # type: ignore[index]
+                sequence.append(sequence[-1] + sequence[-2])
+                await goal.send_feedback({"sequence": sequence})
+            return {"sequence": sequence}
+
+        async def forever(goal: ServerGoal) -> dict[str, Any]:
+            await goal.cancel_requested.wait()
+            goal.canceled()
+            return {"sequence": []}
+
+        await Action(server, "/fib", "example_interfaces/Fibonacci").advertise(fibonacci)
+        await Action(server, "/slow", "example_interfaces/Fibonacci").advertise(forever)
+        await _sync(server)
+        feedback = Inbox()
+        handle = await Action(client, "/fib", "example_interfaces/Fibonacci").send_goal(
+            {"order": 3}, on_feedback=feedback
+        )
+        result = await handle.result(timeout_s=5)
+        assert (result.status, result.result, result.values) == (
+            4,
+            True,
+            {"sequence": [0, 1, 1, 2]},
+        )
+        assert feedback.items == [{"sequence": [0, 1, 1]}, {"sequence": [0, 1, 1, 2]}]
+        slow = await Action(client, "/slow", "example_interfaces/Fibonacci").send_goal({"order": 1})
+        await slow.cancel()
+        assert (await slow.result(timeout_s=5)).status == 5
+
+
+async def test_status_level_and_callbacks(url: str) -> None:
+    async with Ros(url) as ros:
+        statuses = Inbox()
+        ros.on_status(statuses)
+        await ros.set_level("info")
+        await Topic(ros, "/s", "std_msgs/String").advertise()
+        [*_, last] = await statuses.wait(2)
+        assert isinstance(last, StatusReceived) and last.level == "info"
+        assert last.msg.startswith("advertise: ")
+        with pytest.raises(Exception, match="unknown status level"):
+            await ros.set_level("verbose")
+
+
+async def test_rosapi_helpers_and_params(url: str) -> None:
+    """rosapi as a peer serves it (rwt's own rosapi arrives with issue 3)."""
+    params: dict[str, str] = {}
+    async with Ros(url) as rosapi, Ros(url) as ros:
+        await Service(rosapi, "/rosapi/topics", "rosapi_msgs/srv/Topics").advertise(
+            lambda _: {
+                "topics": ["/a", "/b"],
+                "types": ["std_msgs/msg/String", "std_msgs/msg/Int32"],
+            }
+        )
+        await Service(rosapi, "/rosapi/set_param", "rosapi_msgs/srv/SetParam").advertise(
+            lambda req: params.__setitem__(req["name"], req["value"])
+        )
+        await Service(rosapi, "/rosapi/get_param", "rosapi_msgs/srv/GetParam").advertise(
+            lambda req: {"value": params.get(req["name"], req["default_value"])}
+        )
+        await _sync(rosapi)
+        assert await ros.get_topics() == ["/a", "/b"]
+        assert await ros.get_topics_and_types() == {
+            "/a": "std_msgs/msg/String",
+            "/b": "std_msgs/msg/Int32",
+        }
+        param = Param(ros, "/node:answer")
+        await param.set({"x": [1, 2]})
+        assert params == {"/node:answer": '{"x": [1, 2]}'}
+        assert await param.get() == {"x": [1, 2]}
+        with pytest.raises(ServiceError):
+            await ros.get_nodes()
+
+
+async def test_reconnect_resubscribes_and_readvertises(transport: str) -> None:
+    def config(port: int) -> ServerConfig:
+        return (
+            ServerConfig(port=port) if transport == "ws" else ServerConfig(port=None, tcp_port=port)
+        )
+
+    first = RosbridgeServer(config=config(0))
+    stop_first, first_stopped = anyio.CancelScope(), anyio.Event()
+
+    async def run_first(*, task_status: TaskStatus[str]) -> None:
+        try:
+            with stop_first:
+                await first.serve(task_status=task_status)
+        finally:
+            first_stopped.set()
+
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(run_first)  # the only listener's URL
+        port = int(url.rsplit(":", 1)[1])
+        async with Ros(url) as listener, Ros(url) as talker:
+            inbox, reconnected = Inbox(), Inbox()
+            listener.on_reconnect(reconnected)
+            talker.on_reconnect(reconnected)
+            await Topic(listener, "/r", "std_msgs/String").subscribe(inbox)
+            chatter = Topic(talker, "/r", "std_msgs/String")
+            await chatter.advertise()
+            stop_first.cancel()
+            await first_stopped.wait()
+            await tg.start(RosbridgeServer(config=config(port)).serve)
+            assert await reconnected.wait(2, timeout_s=10) == [1, 1]
+            await _sync(listener)
+            await chatter.publish({"data": "back"})
+            assert await inbox.wait() == [{"data": "back"}]
+        tg.cancel_scope.cancel()
+
+
+async def _sync(ros: Ros) -> None:
+    """A round trip: everything sent before has been processed by the server."""
+    inbox = Inbox()
+    topic = Topic(ros, f"/sync_{id(ros)}", "std_msgs/String")
+    await topic.subscribe(inbox)
+    await topic.publish({"data": "sync"})
+    await inbox.wait()
+    await topic.unsubscribe()
+
+
+def test_sync_facade() -> None:
+    received = threading.Event()
+    inbox: list[object] = []
+
+    def on_message(msg: object) -> None:
+        inbox.append(msg)
+        received.set()
+
+    with start_blocking_portal() as portal:
+        future, url = portal.start_task(RosbridgeServer(config=ServerConfig(port=0)).serve)
+        with SyncRos(url) as ros:
+            topic = ros.topic("/sync", "std_msgs/String")
+            ros.subscribe(topic, on_message)
+            ros.publish(topic, {"data": "blocking"})
+            assert received.wait(5)
+            with pytest.raises(ServiceError, match="/missing"):
+                ros.call_service("/missing")
+        future.cancel()
+    assert inbox == [{"data": "blocking"}]

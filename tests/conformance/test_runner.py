@@ -1,0 +1,127 @@
+"""The conformance runner against in-process servers: ours, and deliberately broken ones."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import anyio
+import pytest
+
+from rwt_graph.graph import Graph
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.names import resolve_name
+from rwt_protocol.ports import TopicSink
+from rwt_protocol.session import Session
+from rwt_transports.conformance import (
+    Outcome,
+    Profile,
+    RunOptions,
+    SuiteResult,
+    load_suite,
+    run_suite,
+)
+from rwt_transports.conformance.report import write_json, write_junit
+from rwt_transports.server import RosbridgeServer, ServerConfig, _TrackedSession
+
+pytestmark = pytest.mark.anyio
+
+SUITE = load_suite()
+
+
+class SilentSession(_TrackedSession):
+    """D1 switched off: refused ops are dropped without a status (rosbridge_suite's way)."""
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        pass
+
+
+class SilentServer(RosbridgeServer):
+    """A server whose connections never send status messages."""
+
+    def open_session(
+        self, transport: str, peer: str, on_output: Callable[[], None]
+    ) -> Session | None:
+        client_id = f"{transport}:{peer}#silent{len(self.sessions)}"
+        session = SilentSession(self, client_id, peer, on_output)
+        self.sessions[client_id] = session
+        return session
+
+
+class ForgetfulGraph(Graph):
+    """D13 switched off: latched messages are never replayed to later subscribers."""
+
+    def subscribe(self, client: str, topic: str, type_name: str | None, sink: TopicSink) -> str:
+        entry = self.topics.get(resolve_name(topic))
+        if entry is not None:
+            entry.latched = None
+        return super().subscribe(client, topic, type_name, sink)
+
+
+async def _run(server: RosbridgeServer, **options: Any) -> SuiteResult:
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        result = await run_suite(SUITE, RunOptions(url, **options))
+        tg.cancel_scope.cancel()
+    return result
+
+
+LOCAL = ServerConfig(port=0)
+
+
+async def test_our_server_passes_the_strict_profile(tmp_path: Path) -> None:
+    result = await _run(RosbridgeServer(config=LOCAL))
+    failures = [
+        (r.requirement.id, r.detail) for r in result.requirements if r.outcome is Outcome.FAILED
+    ]
+    assert failures == []
+    assert result.count(Outcome.PASSED) > 70
+    skipped = [c for c in result.cases if c.outcome is Outcome.SKIPPED]
+    assert all(c.detail.startswith(("pending: ", "not part of", "needs ")) for c in skipped)
+    write_junit(result, tmp_path / "junit.xml")
+    write_json(result, tmp_path / "report.json")
+    assert "<testsuite" in (tmp_path / "junit.xml").read_text()
+    assert '"failed": 0' in (tmp_path / "report.json").read_text()
+
+
+async def test_our_server_passes_the_reference_profile() -> None:
+    result = await _run(RosbridgeServer(config=LOCAL), profile=Profile.REFERENCE)
+    assert [r.requirement.id for r in result.requirements if r.outcome is Outcome.FAILED] == []
+
+
+async def test_a_server_without_status_messages_fails_d1() -> None:
+    result = await _run(
+        SilentServer(config=LOCAL), only=("D1", "D2", "spec.message.*"), expect_timeout_s=0.3
+    )
+    failed = {r.requirement.id for r in result.requirements if r.outcome is Outcome.FAILED}
+    assert {"D1", "D2", "spec.message.op"} <= failed
+    assert not result.ok
+    assert result.summary().split(", ")[1] == f"{len(failed)} failed"
+    [d1] = [r for r in result.requirements if r.requirement.id == "D1"]
+    assert "no frame matching {'op': 'status'" in d1.detail
+
+
+async def test_the_same_broken_server_passes_the_reference_profile_of_those_rules() -> None:
+    result = await _run(
+        SilentServer(config=LOCAL), only=("D1", "spec.message.*"), profile=Profile.REFERENCE
+    )
+    assert result.ok
+
+
+async def test_a_server_without_latching_fails_d13() -> None:
+    server = RosbridgeServer(ForgetfulGraph(), LOCAL)
+    result = await _run(server, only=("D13",), expect_timeout_s=0.5)
+    [d13] = [r for r in result.requirements if r.requirement.id == "D13"]
+    assert d13.outcome is Outcome.FAILED
+    assert "latched" in d13.detail
+
+
+async def test_a_server_that_is_not_there_fails_every_case_quickly() -> None:
+    with anyio.fail_after(30):
+        result = await run_suite(
+            SUITE, RunOptions("ws://127.0.0.1:1", only=("topics.*",), expect_timeout_s=0.5)
+        )
+    assert result.count(Outcome.PASSED) == 0
+    assert all(c.outcome is Outcome.FAILED for c in result.cases)
+    assert "cannot connect" in result.cases[0].detail

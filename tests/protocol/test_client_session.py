@@ -1,0 +1,196 @@
+"""The client role, sans-IO: ops out, events in (fragments, png, CBOR decoded)."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import struct
+
+import cbor2
+import pytest
+from PIL import Image
+
+from rwt_protocol.client import (
+    ActionFeedbackReceived,
+    ActionResultReceived,
+    ClientSession,
+    GoalCancelRequested,
+    GoalRequested,
+    ServiceRequested,
+    ServiceResponded,
+    StatusReceived,
+    TopicMessage,
+    UnknownOp,
+)
+from rwt_protocol.errors import LocalProtocolError
+
+PUBLISH = '{"op":"publish","topic":"/t","msg":{"data":"hello"}}'
+
+
+def sent(session: ClientSession) -> list[dict[str, object]]:
+    return [json.loads(frame) for frame in session.frames_to_send()]
+
+
+def test_ops_out_carry_ids_and_options() -> None:
+    session = ClientSession()
+    sub = session.subscribe("/t", "std_msgs/String", throttle_rate=100, fragment_size=None)
+    call = session.call_service("/s", {"a": 1}, timeout=2.0)
+    goal = session.send_action_goal(
+        "/f", "example_interfaces/Fibonacci", {"order": 2}, feedback=True
+    )
+    assert sent(session) == [
+        {
+            "op": "subscribe",
+            "id": sub,
+            "topic": "/t",
+            "type": "std_msgs/String",
+            "throttle_rate": 100,
+        },
+        {"op": "call_service", "id": call, "service": "/s", "args": {"a": 1}, "timeout": 2.0},
+        {
+            "op": "send_action_goal",
+            "id": goal,
+            "action": "/f",
+            "action_type": "example_interfaces/Fibonacci",
+            "args": {"order": 2},
+            "feedback": True,
+        },
+    ]
+    assert len({sub, call, goal}) == 3
+
+
+def test_replay_sends_standing_ops_again() -> None:
+    session = ClientSession()
+    session.set_level("info")
+    adv = session.advertise("/a", "std_msgs/String", latch=True)
+    session.subscribe("/b")
+    session.advertise_service("/s", "std_srvs/Trigger")
+    session.advertise_action("/f", "example_interfaces/Fibonacci")
+    session.unadvertise("/a", adv)
+    first = sent(session)
+    session.replay()
+    replayed = sent(session)
+    assert [op["op"] for op in replayed] == [
+        "set_level",
+        "subscribe",
+        "advertise_service",
+        "advertise_action",
+    ]
+    assert replayed[1:] == [first[2], first[3], first[4]]
+
+
+def test_bad_level_is_refused_locally() -> None:
+    with pytest.raises(LocalProtocolError):
+        ClientSession().set_level("loud")
+
+
+@pytest.mark.parametrize(
+    ("frame", "event"),
+    [
+        (PUBLISH, TopicMessage("/t", {"data": "hello"})),
+        (
+            '{"op":"service_response","service":"/s","id":"c:1","values":{"x":1},"result":true}',
+            ServiceResponded("c:1", "/s", True, {"x": 1}),
+        ),
+        (
+            '{"op":"call_service","service":"/s","id":"r:1","args":{}}',
+            ServiceRequested("r:1", "/s", {}),
+        ),
+        (
+            '{"op":"send_action_goal","action":"/f","id":"g","action_type":"T","args":{"order":1}}',
+            GoalRequested("g", "/f", "T", {"order": 1}, False),
+        ),
+        ('{"op":"cancel_action_goal","action":"/f","id":"g"}', GoalCancelRequested("g", "/f")),
+        (
+            '{"op":"action_feedback","action":"/f","id":"g","values":[1]}',
+            ActionFeedbackReceived("g", "/f", [1]),
+        ),
+        (
+            '{"op":"action_result","action":"/f","id":"g","values":{},"result":true}',
+            ActionResultReceived("g", "/f", True, 4, {}),
+        ),
+        (
+            '{"op":"action_result","action":"/f","id":"g","result":false}',
+            ActionResultReceived("g", "/f", False, 6, None),
+        ),
+        ('{"op":"status","level":"error","msg":"x","id":3}', StatusReceived("error", "x", 3)),
+    ],
+)
+def test_incoming_ops_become_events(frame: str, event: object) -> None:
+    assert ClientSession().receive_frame(frame) == [event]
+
+
+@pytest.mark.parametrize("frame", ["nope", "5", '{"op":"weird"}', '{"op":"publish"}', b"\xff\x00"])
+def test_unusable_frames_are_reported_not_raised(frame: str | bytes) -> None:
+    [event] = ClientSession().receive_frame(frame)
+    assert isinstance(event, UnknownOp)
+
+
+def test_fragments_are_reassembled_by_num_with_a_float_total() -> None:
+    session = ClientSession()
+    parts = [PUBLISH[i : i + 10] for i in range(0, len(PUBLISH), 10)]
+    frames = [
+        json.dumps(
+            {"op": "fragment", "id": 0, "data": part, "num": num, "total": len(parts) - 0.0000001}
+        )
+        for num, part in enumerate(parts)
+    ]
+    events = []
+    for frame in reversed(frames):
+        events += session.receive_frame(frame)
+    assert events == [TopicMessage("/t", {"data": "hello"})]
+
+
+def test_pending_fragments_are_bounded() -> None:
+    session = ClientSession(max_pending_fragment_bytes=100)
+    for n in range(20):
+        session.receive_frame(
+            json.dumps({"op": "fragment", "id": n, "data": "x" * 30, "num": 0, "total": 2})
+        )
+    assert session._fragment_bytes <= 100
+
+
+def _png(text: str) -> str:
+    data = text.encode()
+    width = int(math.sqrt(len(data) / 3))
+    height = math.ceil(len(data) / 3 / width)
+    data += b"\n" * (width * height * 3 - len(data))
+    buffer = io.BytesIO()
+    Image.frombytes("RGB", (width, height), data).save(buffer, "PNG")
+    return base64.b64encode(buffer.getvalue()).decode()
+
+
+def test_png_is_decoded_whole_or_in_parts() -> None:
+    session = ClientSession()
+    data = _png(PUBLISH)
+    assert session.receive_frame(json.dumps({"op": "png", "data": data})) == [
+        TopicMessage("/t", {"data": "hello"})
+    ]
+    half = len(data) // 2
+    first = {"op": "png", "id": "p", "data": data[:half], "num": 0, "total": 2}
+    second = {"op": "png", "id": "p", "data": data[half:], "num": 1, "total": 2}
+    assert session.receive_frame(json.dumps(second)) == []
+    assert session.receive_frame(json.dumps(first)) == [TopicMessage("/t", {"data": "hello"})]
+    [bad] = session.receive_frame(json.dumps({"op": "png", "data": "bm90IGEgcG5n"}))
+    assert isinstance(bad, UnknownOp)
+
+
+def test_cbor_frames_with_typed_arrays() -> None:
+    frame = cbor2.dumps(
+        {
+            "op": "publish",
+            "topic": "/c",
+            "msg": {
+                "f": cbor2.CBORTag(86, struct.pack("<2d", 1.5, -2.0)),
+                "i": cbor2.CBORTag(77, struct.pack("<3h", -1, 0, 7)),
+                "u": cbor2.CBORTag(70, struct.pack("<I", 4000000000)),
+                "raw": b"\x01\x02",
+            },
+        }
+    )
+    [event] = ClientSession().receive_frame(frame)
+    assert event == TopicMessage(
+        "/c", {"f": [1.5, -2.0], "i": [-1, 0, 7], "u": [4000000000], "raw": b"\x01\x02"}
+    )
