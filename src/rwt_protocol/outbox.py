@@ -95,10 +95,6 @@ class Outbox:
         self._bytes -= taken
         return frames
 
-    def drain(self) -> list[OutFrame]:
-        """Remove and return every queued frame, oldest first."""
-        return self.take()
-
     def _shed(self) -> None:
         kept: list[OutFrame] = []
         while self._frames and self._bytes > self.limit_bytes:

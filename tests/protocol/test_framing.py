@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rwt_protocol import framing
+from rwt_protocol.datagrams import fragment_datagrams
 from rwt_protocol.framing import FramerEvent, FramingError, InFrame, JsonStreamFramer, LineFramer
 
 LIMIT = 1 << 20
@@ -92,6 +93,25 @@ def test_cbor_with_indefinite_lengths_tags_and_floats_is_one_frame() -> None:
     events = JsonStreamFramer(LIMIT).receive_data(item + b'{"op":"next"}')
     assert events == [InFrame(item, binary=True), InFrame(b'{"op":"next"}')]
     assert cbor2.loads(item)["op"] == "publish"
+
+
+@pytest.mark.parametrize(
+    "item",
+    [
+        b"\x9f\xff",  # empty indefinite array
+        b"\x81\xff",  # a break where an item belongs counts as that item
+        b"\x9f\x1f\xff",  # an indefinite integer (invalid) inside
+        b"\x9f\xdf\xff",  # an indefinite tag (invalid) inside
+        b"\x9f\x1c\xff",  # a reserved additional-info byte (invalid) inside
+        b"\x80",  # empty array
+        b"\xa1\x60\x40",  # {"": b""}
+    ],
+)
+def test_cbor_edge_items_end_where_the_header_says(item: bytes) -> None:
+    events = JsonStreamFramer(LIMIT).receive_data(item + b"{}")
+    assert events[-1] == InFrame(b"{}")
+    assert all(isinstance(e, InFrame) and e.binary for e in events[:-1])
+    assert b"".join(e.data for e in events[:-1] if isinstance(e, InFrame)) in (item, item[:-1])
 
 
 def test_non_json_tokens_become_frames_of_their_own() -> None:
@@ -261,8 +281,34 @@ def test_a_long_line_is_skipped_to_its_newline() -> None:
     ]
 
 
+def test_a_long_line_split_over_chunks_is_skipped_once() -> None:
+    framer = LineFramer(10)
+    events = [
+        event
+        for chunk in (b"x" * 20, b"y" * 20, b"z\n{}\n")
+        for event in framer.receive_data(chunk)
+    ]
+    assert events == [FramingError("line longer than 10 bytes skipped"), InFrame(b"{}")]
+
+
 @pytest.mark.parametrize("tail", [b"{}", b"  {}  "])
 def test_a_last_line_without_newline_counts_at_eof(tail: bytes) -> None:
     framer = LineFramer(LIMIT)
     assert framer.receive_data(tail) == []
     assert framer.receive_eof() == [InFrame(b"{}")]
+
+
+def test_datagram_fragments_fit_and_reassemble() -> None:
+    small = b'{"op":"publish"}'
+    assert fragment_datagrams(small, 128, "m") == [small]
+    text = json.dumps({"op": "publish", "msg": {"data": 'é"\\x' * 3000}}, ensure_ascii=False)
+    parts = fragment_datagrams(text.encode(), 500, "m1")
+    assert all(len(p) <= 500 for p in parts)
+    decoded = [json.loads(p) for p in parts]
+    assert [d["num"] for d in decoded] == list(range(len(parts)))
+    assert {d["total"] for d in decoded} == {len(parts)} and {d["id"] for d in decoded} == {"m1"}
+    assert "".join(d["data"] for d in decoded) == text
+    with pytest.raises(ValueError, match="cannot carry"):
+        fragment_datagrams(text.encode(), 100, "m")
+    with pytest.raises(ValueError, match="cannot carry"):
+        fragment_datagrams(text.encode(), 130, "x" * 100)

@@ -8,10 +8,13 @@ import json
 import pytest
 
 from rwt_graph.graph import Graph
+from rwt_protocol import ops
 from rwt_protocol.access import AccessPolicy, Family, parse_glob_list
 from rwt_protocol.auth import RosauthVerifier, rosauth_mac
+from rwt_protocol.handlers import HANDLERS
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ops import Auth
+from rwt_protocol.ops import Auth, CallService, Subscribe
+from rwt_protocol.replies import failure_reply
 from rwt_protocol.session import CloseCode, CloseConnection, Session, SessionConfig
 from tests.conftest import FakeClock, Peer
 
@@ -398,3 +401,61 @@ def test_shutdown_releases_then_closes_with_going_away(graph: Graph) -> None:
     peer.session.request_close(CloseCode.GOING_AWAY, "server shutting down")
     peer.session.request_close(CloseCode.NORMAL, "second request is ignored")
     assert peer.commands() == [CloseConnection(CloseCode.GOING_AWAY, "server shutting down")]
+
+
+def test_a_closed_session_ignores_everything(graph: Graph) -> None:
+    peer = GatedPeer(graph, "a", SessionConfig())
+    peer.session.close()
+    peer.session.begin_shutdown()
+    peer.session.request_close(CloseCode.GOING_AWAY, "late")
+    peer.session.report(StatusLevel.ERROR, "late")
+    peer.send(op="advertise", topic="/t", type="std_msgs/String")
+    assert peer.received() == [] and peer.commands() == [] and "/t" not in graph.topics
+
+
+def test_a_bug_in_a_handler_is_an_internal_error_status(
+    graph: Graph, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken(session: Session, op: object, now: float) -> None:
+        raise KeyError("oops")
+
+    monkeypatch.setitem(HANDLERS, ops.SetLevel, broken)
+    peer = GatedPeer(graph, "a", SessionConfig())
+    peer.send(op="set_level", level="info", id="x")
+    assert peer.received() == [
+        {"op": "status", "level": "error", "msg": "set_level: internal error", "id": "x"}
+    ]
+
+
+def test_failure_replies_without_an_id_have_none() -> None:
+    reply = failure_reply(CallService(service="/s"), "no")
+    assert reply is not None and "id" not in reply
+    assert failure_reply(Subscribe(topic="/t"), "no") is None
+
+
+def test_parameter_services_without_a_name_are_left_to_rosapi(graph: Graph) -> None:
+    policy = AccessPolicy(params=("/public/*",))
+    for args in (None, [], {"name": 5}, "x"):
+        policy.check(CallService(service="/rosapi/get_param", args=args))
+
+
+def test_the_transport_is_woken_for_output_and_closes_are_idempotent(graph: Graph) -> None:
+    wakes: list[int] = []
+    session = Session(graph, "w", config=SessionConfig(), on_output=lambda: wakes.append(1))
+    session.receive_frame(b"5", 1.0)  # an error status: output
+    assert wakes and session.close_request is None
+    session.request_close(CloseCode.NORMAL, "bye")
+    assert session.close_request == CloseConnection(CloseCode.NORMAL, "bye")
+    session.close()
+    session.close()
+    session.handle_timer(1e9)
+    assert session.closed and session.get_timer() is None
+
+
+def test_bounded_batches_keep_undroppable_frames_counted(graph: Graph) -> None:
+    peer = limited(graph, 1 << 20)
+    peer.send(op="subscribe", topic="/nope", id=1)  # an error status
+    flood(graph, 3)
+    first = peer.session.frames_to_send(max_bytes=1)
+    assert len(first) == 1 and not first[0].droppable
+    assert len(peer.session.frames_to_send()) == 3
