@@ -10,8 +10,11 @@ Unlike the reference's brace scanner, which re-parses its whole buffer from
 every ``{`` against every ``}`` (O(n^2), REF §1.3), these scanners keep their
 state between chunks and look at every byte once, jumping with compiled regular
 expressions to the next byte that matters. Every frame is bounded by
-``max_frame_bytes`` (D24): a larger one is skipped to its end without being
-kept, and reported once as a ``FramingError``; the stream stays in step.
+``max_frame_bytes`` (D24): a larger JSON value is skipped to its end without
+being kept, and reported once as a ``FramingError``; the stream stays in step.
+A larger CBOR item ends the stream (a fatal ``FramingError``): its declared
+length cannot be trusted, and binary data offers no point to resynchronise (so
+a broken CBOR header holds the stream until ``max_frame_bytes`` or its end).
 
 A framer never raises for what the peer sent. Anything that is not JSON (a bare
 ``}``, a stray word) is passed on as a frame of its own, so the session reports
@@ -63,9 +66,11 @@ class FramingError:
 
     Attributes:
         message: lowercase text for a ``status`` frame (D1).
+        fatal: the stream cannot be followed any more; the connection must close.
     """
 
     message: str
+    fatal: bool = False
 
 
 FramerEvent = InFrame | FramingError
@@ -99,10 +104,13 @@ class JsonStreamFramer:
         self._depth = 0
         self._in_string = False
         self._skipping = False
+        self._dead = False  # an oversized CBOR item: nothing after it can be trusted
         self._cbor = _CborScanner()
 
     def receive_data(self, data: bytes) -> list[FramerEvent]:
         """Take the next chunk of the stream; return the frames it completed, in order."""
+        if self._dead:
+            return []
         self._buf += data
         events: list[FramerEvent] = []
         while self._step(events):
@@ -117,6 +125,8 @@ class JsonStreamFramer:
         open is reported as an incomplete frame.
         """
         events: list[FramerEvent] = []
+        if self._dead:
+            return events
         if self._mode is _Mode.TOKEN and not self._skipping:
             events.append(InFrame(bytes(self._buf[self._start :])))
         elif self._mode is not _Mode.IDLE:
@@ -134,6 +144,13 @@ class JsonStreamFramer:
             return self._begin(events)
         done = self._scan()
         if self._size() > self.max_frame_bytes and not self._skipping:
+            if self._mode is _Mode.CBOR:  # no resynchronising inside binary data
+                self._dead = True
+                self._buf.clear()
+                events.append(
+                    FramingError(f"CBOR item larger than {self.max_frame_bytes} bytes", fatal=True)
+                )
+                return False
             self._skipping = True
             events.append(FramingError(f"frame larger than {self.max_frame_bytes} bytes skipped"))
         if self._skipping:  # forget what was scanned, keeping the scan state

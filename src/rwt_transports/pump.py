@@ -157,6 +157,8 @@ class ConnectionPump:
             for event in events:
                 if isinstance(event, FramingError):
                     session.report(StatusLevel.ERROR, event.message)
+                    if event.fatal:
+                        session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
                     # TODO(issue 4): pass binary=event.binary once the session decodes CBOR.
                     session.receive_frame(event.data, anyio.current_time())

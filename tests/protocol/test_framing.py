@@ -187,7 +187,7 @@ def test_an_oversized_frame_is_skipped_once_and_the_stream_continues() -> None:
     assert len(framer._buf) == 0  # nothing of the skipped frame is kept
 
 
-def test_oversized_cbor_string_is_skipped_without_being_kept() -> None:
+def test_an_oversized_cbor_item_ends_the_stream_without_being_kept() -> None:
     framer = JsonStreamFramer(100)
     item = cbor2.dumps({"op": "publish", "msg": b"\x00" * 5000})
     events = []
@@ -195,7 +195,8 @@ def test_oversized_cbor_string_is_skipped_without_being_kept() -> None:
         events += framer.receive_data(item[i : i + 512])
         assert len(framer._buf) <= 512
     events += framer.receive_data(b"{}")
-    assert events == [FramingError("frame larger than 100 bytes skipped"), InFrame(b"{}")]
+    events += framer.receive_eof()
+    assert events == [FramingError("CBOR item larger than 100 bytes", fatal=True)]
 
 
 def test_buffer_stays_bounded_while_a_huge_value_streams_in() -> None:

@@ -8,14 +8,25 @@ also a cross-transport test.
 from __future__ import annotations
 
 import json
+import random
 from collections.abc import AsyncIterator
 
 import anyio
 import pytest
+from websockets.exceptions import ConnectionClosed
 
 from rwt_protocol import ops
+from rwt_protocol.access import AccessPolicy
 from rwt_protocol.handlers import HANDLERS, control
-from tests.transports.clients import TRANSPORTS, Client, Harness, running_server
+from rwt_protocol.session import SessionConfig
+from rwt_transports.server import ServerConfig
+from tests.transports.clients import (
+    TRANSPORTS,
+    Client,
+    Harness,
+    StreamClient,
+    running_server,
+)
 
 pytestmark = pytest.mark.anyio
 
@@ -166,3 +177,48 @@ async def test_bad_frames_get_an_error_status_and_the_connection_keeps_serving(
         await client.send({"op": "set_level", "level": "info", "id": "after"})
         after = await client.expect(is_op("status", id="after"))
     assert after["level"] == "info"
+
+
+async def test_random_bytes_never_break_the_server(
+    pair: tuple[Client, Client], harness: Harness
+) -> None:
+    """Only status frames or a clean close for the sender; nothing for anyone else."""
+    client, other = pair
+    rng = random.Random(5)
+    garbage = [rng.randbytes(rng.randrange(1, 600)) for _ in range(30)]
+    garbage += [b'{"op":"publish","topic":', b'"\\', b"[[[[", b"\x00" * 50, b"\n"]
+    with anyio.fail_after(TIMEOUT_S):
+        for chunk in garbage:
+            await client.send_raw(chunk)
+        await client.send({"op": "set_level", "level": "info", "id": "me"})
+        if isinstance(client, StreamClient) and client.name == "tcp":
+            # Random bytes may open a CBOR item that claims megabytes: only the end of
+            # the stream (or max_message_size) ends it. Everything before is a status.
+            assert client.stream is not None
+            await client.stream.send_eof()
+        try:
+            while (message := await client.receive()).get("id") != "me":
+                assert message["op"] == "status" and message["level"] == "error", message
+        except (anyio.EndOfStream, anyio.BrokenResourceError, ConnectionClosed):
+            pass  # a clean close
+        await other.send({"op": "set_level", "level": "info", "id": "fine"})
+        assert (await other.expect(is_op("status", id="fine")))["level"] == "info"
+        fresh = await harness.connect("ws", "fresh")
+        await fresh.send({"op": "set_level", "level": "info", "id": "new"})
+        assert (await fresh.expect(is_op("status", id="new")))["level"] == "info"
+
+
+async def test_access_rules_apply_on_every_transport() -> None:
+    policy = AccessPolicy(topics=("/public/*",), services=("/public/*",))
+    config = ServerConfig(session=SessionConfig(access=policy))
+    async with running_server(config) as harness:
+        for transport in TRANSPORTS:
+            client = await harness.connect(transport)
+            with anyio.fail_after(TIMEOUT_S):
+                await client.send({"op": "subscribe", "topic": "/secret", "id": "s"})
+                status = await client.expect(is_op("status", id="s"))
+                assert status["msg"] == "subscribe: topic /secret is not allowed on this server"
+                await client.send({"op": "call_service", "service": "/secret", "id": "c"})
+                reply = await client.expect(is_op("service_response", id="c"))
+                assert reply["result"] is False
+        assert "/secret" not in harness.server.graph.topics
