@@ -2,13 +2,17 @@
 
 ``Graph`` implements ``rwt_protocol.ports.GraphPort`` for sessions and offers an
 embedding API for Python code in the same process (the "robot that runs no ROS"):
-``create_publisher``, ``create_subscription``, ``topic_names_and_types``.
+``create_publisher``, ``create_subscription``, ``create_service``,
+``create_action_server``, ``params`` (the parameter store) and
+``topic_names_and_types``. Every participant belongs to a node (``nodes``), which
+rosapi reports.
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
@@ -29,7 +33,9 @@ from .actions import ActionEntry, Actions, LocalActionHandler
 from .calls import Spawner
 from .clock import Clock, SystemClock
 from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
-from .services import LocalServiceHandler, ServiceEntry, Services
+from .nodes import DEFAULT_NODE, Nodes, node_name
+from .params import Parameters
+from .services import Amend, CallerServiceHandler, LocalServiceHandler, ServiceEntry, Services
 from .topics import Topic
 from .types import Dialect, MessageType, TypeRegistry
 
@@ -39,11 +45,16 @@ Message = dict[str, object]
 
 
 class Graph:
-    """Topics (and, later, services, actions and parameters) of one server.
+    """Topics, services, actions, parameters and nodes of one server.
 
     Args:
-        registry: the message types; a ROS 2 registry by default.
+        registry: the message types; a ROS 2 registry by default. Its dialect is
+            also the naming of the parameters (``params``).
         clock: time source; the system clock by default.
+
+    Attributes:
+        params: the parameter store (``graph.params.set("/robot:speed", 1.0)``).
+        nodes: the node of each participant.
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -53,6 +64,8 @@ class Graph:
         self.spawner: Spawner | None = None
         self.services = Services(self.registry, self.clock, lambda: self.spawner)
         self.actions = Actions(self.registry, self.clock, lambda: self.spawner)
+        self.nodes = Nodes()
+        self.params = Parameters(self.registry.dialect)
         self._local_ids = itertools.count(1)
 
     # ---- GraphPort ------------------------------------------------------------
@@ -70,13 +83,14 @@ class Graph:
         msgtype = self.registry.message(type_name)
         entry = self._topic(topic, msgtype)
         entry.publishers[client] = latch or entry.publishers.get(client, False)
+        self.nodes.name_of(client)
         return entry.msgtype.name
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
         """Remove ``client`` as a publisher; the topic goes when nobody uses it."""
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
-            entry.publishers.pop(client, None)
+            entry.remove_publisher(client)
             self._collect(entry)
 
     def publish(
@@ -105,8 +119,10 @@ class Graph:
         if entry is None:
             raise GraphError(f"{topic} has no type yet (advertise it first)")
         converted = entry.msgtype.from_json(msg, path=path, now=self.clock.wall())
+        if client not in entry.publishers:
+            self.nodes.name_of(client)
         latched = entry.publishers.setdefault(client, False) or latch
-        self._send(entry, converted.msg, latch=latched)
+        self._send(entry, converted.msg, latch=latched, client=client)
         return converted.missing
 
     def subscribe(
@@ -132,6 +148,7 @@ class Graph:
             entry = self._topic(name, self.registry.message(type_name))
         is_new = client not in entry.subscribers
         entry.subscribers[client] = sink
+        self.nodes.name_of(client)
         if is_new and entry.latched is not None:
             sink.on_message(entry.latched)
         return entry.msgtype.name
@@ -150,11 +167,12 @@ class Graph:
         calls and goals are forgotten.
         """
         for entry in list(self.topics.values()):
-            entry.publishers.pop(client, None)
+            entry.remove_publisher(client)
             entry.subscribers.pop(client, None)
             self._collect(entry)
         self.services.release(client)
         self.actions.release(client)
+        self.nodes.forget(client)
 
     # ---- ServicePort: services and actions of clients ---------------------------
 
@@ -169,6 +187,7 @@ class Graph:
         srvtype = self.registry.service(type_name)
         entry = ServiceEntry(resolve_name(service), service, srvtype, client, provider=provider)
         self.services.advertise(entry)
+        self.nodes.name_of(client)
         return srvtype.name
 
     def unadvertise_service(self, client: ClientId, service: str) -> None:
@@ -177,7 +196,7 @@ class Graph:
         Raises:
             GraphError: ``client`` does not provide it.
         """
-        self.services.unadvertise(client, service, reason="service {service} was unadvertised")
+        self.services.unadvertise(client, service)
 
     def call_service(
         self,
@@ -226,6 +245,7 @@ class Graph:
         self.actions.advertise(
             ActionEntry(name, action, type_name, actiontype, client, provider=provider)
         )
+        self.nodes.name_of(client)
         return actiontype.name
 
     def unadvertise_action(self, client: ClientId, action: str) -> None:
@@ -274,7 +294,7 @@ class Graph:
     # ---- embedding API ---------------------------------------------------------
 
     def create_publisher(
-        self, topic: str, type_name: str, *, latch: bool = False
+        self, topic: str, type_name: str, *, latch: bool = False, node: str = DEFAULT_NODE
     ) -> LocalPublisher:
         """Publish on ``topic`` from Python code in this process.
 
@@ -282,13 +302,14 @@ class Graph:
             topic: topic name.
             type_name: message type, ``std_msgs/msg/String`` or ``std_msgs/String``.
             latch: transient-local durability: late subscribers get the last message.
+            node: the node rosapi lists as the publisher (``/rwt`` by default).
 
         Raises:
-            InvalidTypeName, UnknownType, GraphError: as ``advertise``.
+            InvalidTypeName, UnknownType, GraphError: as ``advertise``; a bad node name.
         """
-        client = self._local_client()
         name = resolve_name(topic)
-        self.advertise(client, name, type_name, latch=latch)
+        with self._participant(node) as client:
+            self.advertise(client, name, type_name, latch=latch)
         return LocalPublisher(self, client, name, self.topics[name].msgtype, latch=latch)
 
     def create_subscription(
@@ -296,22 +317,30 @@ class Graph:
         topic: str,
         callback: Callable[[Message], None],
         type_name: str | None = None,
+        *,
+        node: str = DEFAULT_NODE,
     ) -> LocalSubscription:
         """Call ``callback(msg)`` with each message on ``topic``, in this process.
 
         ``msg`` is the message as a dict in the internal form (``bytes`` for
         ``uint8[]``); treat it as read-only, it is shared with other subscribers.
+        ``node`` is the node rosapi lists as the subscriber.
 
         Raises:
-            GraphError, InvalidTypeName, UnknownType: as ``subscribe``.
+            GraphError, InvalidTypeName, UnknownType: as ``subscribe``; a bad node name.
         """
-        client = self._local_client()
-        subscription = LocalSubscription(self, client, resolve_name(topic), callback)
-        self.subscribe(client, topic, type_name, subscription)
+        with self._participant(node) as client:
+            subscription = LocalSubscription(self, client, resolve_name(topic), callback)
+            self.subscribe(client, topic, type_name, subscription)
         return subscription
 
     def create_service(
-        self, service: str, type_name: str, handler: LocalServiceHandler
+        self,
+        service: str,
+        type_name: str,
+        handler: LocalServiceHandler,
+        *,
+        node: str = DEFAULT_NODE,
     ) -> LocalService:
         """Provide ``service`` from Python code in this process.
 
@@ -321,18 +350,66 @@ class Graph:
             handler: ``handler(request) -> response``, a plain or async function of
                 dicts; missing response fields get defaults; an exception fails the
                 call with its text (D4). Async handlers need a running server.
+            node: the node rosapi lists as the provider.
 
         Raises:
             InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            GraphError: a bad node name.
         """
-        client = self._local_client()
+        return self._local_service(service, type_name, node, handler=handler)
+
+    def create_caller_service(
+        self,
+        service: str,
+        type_name: str,
+        handler: CallerServiceHandler,
+        *,
+        node: str = DEFAULT_NODE,
+        amend: Amend | None = None,
+    ) -> LocalService:
+        """Like ``create_service``, with ``handler(caller, request)`` told who calls.
+
+        ``caller`` is the calling participant (a connection's id); rosapi uses it
+        to show each client only the names it may see. ``amend(response)`` rewrites
+        each checked response before it is sent.
+
+        Raises:
+            InvalidTypeName, UnknownType, GraphError: as ``create_service``.
+        """
+        return self._local_service(service, type_name, node, caller_handler=handler, amend=amend)
+
+    def _local_service(
+        self,
+        service: str,
+        type_name: str,
+        node: str,
+        *,
+        handler: LocalServiceHandler | None = None,
+        caller_handler: CallerServiceHandler | None = None,
+        amend: Amend | None = None,
+    ) -> LocalService:
         srvtype = self.registry.service(type_name)
         name = resolve_name(service)
-        self.services.advertise(ServiceEntry(name, service, srvtype, client, handler=handler))
+        with self._participant(node) as client:
+            entry = ServiceEntry(
+                name,
+                service,
+                srvtype,
+                client,
+                handler=handler,
+                caller_handler=caller_handler,
+                amend=amend,
+            )
+            self.services.advertise(entry)
         return LocalService(self, client, name)
 
     def create_action_server(
-        self, action: str, type_name: str, handler: LocalActionHandler
+        self,
+        action: str,
+        type_name: str,
+        handler: LocalActionHandler,
+        *,
+        node: str = DEFAULT_NODE,
     ) -> LocalActionServer:
         """Provide ``action`` from Python code in this process.
 
@@ -342,16 +419,18 @@ class Graph:
             handler: ``async def handler(goal, context) -> result``; it may call
                 ``context.publish_feedback(dict)`` and should honour
                 ``context.cancel_requested`` by raising ``GoalCanceled``.
+            node: the node rosapi lists as the action server.
 
         Raises:
             InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            GraphError: a bad node name.
         """
-        client = self._local_client()
         actiontype = self.registry.action(type_name)
         name = resolve_name(action)
-        self.actions.advertise(
-            ActionEntry(name, action, type_name, actiontype, client, handler=handler)
-        )
+        with self._participant(node) as client:
+            self.actions.advertise(
+                ActionEntry(name, action, type_name, actiontype, client, handler=handler)
+            )
         return LocalActionServer(self, client, name)
 
     def topic_names_and_types(self) -> list[tuple[str, str]]:
@@ -365,11 +444,18 @@ class Graph:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        self._send(entry, msg, latch=latch)
+        self._send(entry, msg, latch=latch, client=client)
 
-    def _send(self, entry: Topic, msg: Message, *, latch: bool) -> None:
-        event = MessageEvent(entry.name, entry.msgtype.name, msg, self.clock.monotonic())
-        entry.fan_out(event, latch=latch)
+    def _send(self, entry: Topic, msg: Message, *, latch: bool, client: ClientId) -> None:
+        event = MessageEvent(
+            entry.name,
+            entry.msgtype.name,
+            msg,
+            self.clock.monotonic(),
+            stamp=self.clock.wall(),
+            codec=self.registry.codec(entry.msgtype),
+        )
+        entry.fan_out(event, latch=latch, client=client)
 
     def _topic(self, topic: str, msgtype: MessageType) -> Topic:
         name = resolve_name(topic)
@@ -386,6 +472,18 @@ class Graph:
 
     def _local_client(self) -> ClientId:
         return f"local:{next(self._local_ids)}"
+
+    @contextlib.contextmanager
+    def _participant(self, node: str) -> Iterator[ClientId]:
+        """A new in-process participant of ``node``, forgotten if its registration fails."""
+        checked = node_name(node)
+        client = self._local_client()
+        self.nodes.bind(client, checked)
+        try:
+            yield client
+        except BaseException:
+            self.nodes.forget(client)
+            raise
 
     def local_client(self) -> ClientId:
         """A fresh participant id for in-process code calling services or actions."""

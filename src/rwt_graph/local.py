@@ -47,6 +47,7 @@ class LocalPublisher:
     def close(self) -> None:
         """Stop publishing; the topic goes when nobody else uses it."""
         self._graph.unadvertise(self._client, self.topic)
+        self._graph.nodes.forget(self._client)
 
 
 class LocalSubscription:
@@ -74,6 +75,7 @@ class LocalSubscription:
     def close(self) -> None:
         """Stop receiving messages."""
         self._graph.unsubscribe(self._client, self.topic)
+        self._graph.nodes.forget(self._client)
 
 
 class LocalService:
@@ -87,9 +89,8 @@ class LocalService:
     def close(self) -> None:
         """Withdraw the service; pending callers get ``result: false`` (D15)."""
         with contextlib.suppress(GraphError):  # already replaced by a newer advertiser
-            self._graph.services.unadvertise(
-                self._client, self.service, reason="service {service} was unadvertised"
-            )
+            self._graph.services.unadvertise(self._client, self.service)
+        self._graph.nodes.forget(self._client)
 
 
 class LocalActionServer:
@@ -104,3 +105,4 @@ class LocalActionServer:
         """Withdraw the action; goals in flight abort (D4)."""
         with contextlib.suppress(GraphError):
             self._graph.actions.unadvertise(self._client, self.action)
+        self._graph.nodes.forget(self._client)

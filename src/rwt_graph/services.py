@@ -16,22 +16,33 @@ import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 
-from rwt_protocol.errors import FieldError, GraphError
+from rwt_protocol.errors import FieldError, GraphError, RwtError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
 
-from .calls import Spawner, convert_args
+from .calls import ProviderTable, Spawner, convert_args
 from .clock import Clock
 from .types import ServiceType, TypeRegistry
 
-__all__ = ["LocalServiceHandler", "PendingCall", "ServiceEntry", "Services"]
+__all__ = [
+    "Amend",
+    "CallerServiceHandler",
+    "LocalServiceHandler",
+    "PendingCall",
+    "ServiceEntry",
+    "Services",
+]
 
 logger = logging.getLogger("rwt.graph")
 
 Message = dict[str, object]
 LocalServiceHandler = Callable[[Message], Message | Awaitable[Message]]
 """An in-process service: takes the request dict, returns (or awaits) the response dict."""
+CallerServiceHandler = Callable[[ClientId, Message], Message | Awaitable[Message]]
+"""An in-process service that is also told who calls (rosapi filters names per client)."""
+Amend = Callable[[Message], Message]
+"""Rewrites a checked response of an in-process service before it is sent."""
 
 
 class PendingCall:
@@ -70,6 +81,9 @@ class ServiceEntry:
         owner: the providing participant.
         provider: the session to forward requests to, for client-advertised services.
         handler: the callable, for in-process services.
+        caller_handler: the callable, for in-process services told who calls.
+        amend: applied to each checked response of an in-process service (used
+            to add fields a client expects beyond the type, see rosapi get_time).
         pending: request id -> call, for client-advertised services.
     """
 
@@ -79,63 +93,30 @@ class ServiceEntry:
     owner: ClientId
     provider: ServiceProvider | None = None
     handler: LocalServiceHandler | None = None
+    caller_handler: CallerServiceHandler | None = None
+    amend: Amend | None = None
     pending: dict[str, PendingCall] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
-    def fail_all(self, reason: str) -> None:
+    def end_all(self, reason: str) -> None:
         """Answer every pending call with ``result: false`` (D4, D15)."""
         calls, self.pending = list(self.pending.values()), {}
         for call in calls:
             call.resolve(False, reason)
 
+    def tell_lost(self, reason: str) -> None:
+        """Warn a client provider that its service was replaced (D15)."""
+        if self.provider is not None:
+            self.provider.on_service_lost(self.spelling, reason)
 
-class Services:
-    """The service table of a graph.
 
-    Args:
-        registry: resolves service types.
-        clock: wall time for header stamps in requests and responses.
-        spawner: returns the graph's current spawner (installed by the server).
-    """
+class Services(ProviderTable[ServiceEntry]):
+    """The service table of a graph (see ``ProviderTable`` for the arguments)."""
 
     def __init__(
         self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
     ) -> None:
-        self.registry = registry
-        self.clock = clock
-        self._spawner = spawner
-        self.entries: dict[str, ServiceEntry] = {}
-
-    def advertise(self, entry: ServiceEntry) -> None:
-        """Add ``entry``, replacing (and failing the calls of) an older one (D15)."""
-        old = self.entries.get(entry.name)
-        self.entries[entry.name] = entry
-        if old is not None:
-            reason = f"service {old.spelling} was replaced by a newer advertiser"
-            old.fail_all(reason)
-            if old.provider is not None:
-                old.provider.on_service_lost(old.spelling, reason)
-
-    def unadvertise(self, client: ClientId, service: str, *, reason: str) -> None:
-        """Remove a service ``client`` owns; fail its pending calls.
-
-        Raises:
-            GraphError: ``client`` does not provide ``service``.
-        """
-        entry = self.owned(client, service)
-        del self.entries[entry.name]
-        entry.fail_all(reason.format(service=entry.spelling))
-
-    def owned(self, client: ClientId, service: str) -> ServiceEntry:
-        """The entry of ``service`` if ``client`` provides it.
-
-        Raises:
-            GraphError: no such service, or another participant provides it.
-        """
-        entry = self.entries.get(resolve_name(service))
-        if entry is None or entry.owner != client:
-            raise GraphError(f"service {service} is not advertised by this client")
-        return entry
+        super().__init__("service", registry, clock, spawner)
 
     def call(
         self,
@@ -160,7 +141,9 @@ class Services:
             raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
         request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())
         call = PendingCall(client, reply)
-        if entry.handler is not None:
+        if entry.caller_handler is not None:
+            self._run_local(entry, _with_caller(entry.caller_handler, client), request.msg, call)
+        elif entry.handler is not None:
             self._run_local(entry, entry.handler, request.msg, call)
         else:
             assert entry.provider is not None
@@ -210,7 +193,7 @@ class Services:
         for entry in list(self.entries.values()):
             if entry.owner == client:
                 del self.entries[entry.name]
-                entry.fail_all(f"service {entry.spelling} is gone: its provider disconnected")
+                entry.end_all(f"service {entry.spelling} is gone: its provider disconnected")
             else:
                 for request_id, call in list(entry.pending.items()):
                     if call.caller == client:
@@ -221,6 +204,10 @@ class Services:
     ) -> None:
         try:
             outcome = handler(request)
+        except RwtError as exc:  # a refusal with a reason (rosapi: unknown type...), not a bug
+            logger.debug("service %s refused a call: %s", entry.spelling, exc.message)
+            call.resolve(False, f"service {entry.spelling} failed: {exc.message}")
+            return
         except Exception as exc:
             logger.exception("service %s failed", entry.spelling)
             call.resolve(False, f"service {entry.spelling} failed: {exc}")
@@ -251,7 +238,11 @@ class Services:
         except (FieldError, GraphError) as exc:
             call.resolve(False, f"service {entry.spelling} returned an invalid response: {exc}")
             return
-        call.resolve(True, msg)
+        call.resolve(True, msg if entry.amend is None else entry.amend(msg))
+
+
+def _with_caller(handler: CallerServiceHandler, caller: ClientId) -> LocalServiceHandler:
+    return lambda request: handler(caller, request)
 
 
 def _discard(awaitable: Awaitable[object]) -> None:

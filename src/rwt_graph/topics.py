@@ -32,6 +32,8 @@ class Topic:
         subscribers: client -> the sink receiving its messages.
         latched: the last message of a latched publisher, replayed to each new
             subscriber once (D13).
+        latched_by: the publisher of ``latched``; the message goes when it does
+            (a transient-local sample lives with its publisher).
     """
 
     name: str
@@ -39,11 +41,19 @@ class Topic:
     publishers: dict[ClientId, bool] = field(default_factory=dict)
     subscribers: dict[ClientId, TopicSink] = field(default_factory=dict)
     latched: MessageEvent | None = None
+    latched_by: ClientId | None = None
 
     @property
     def in_use(self) -> bool:
         """Whether anyone still publishes or subscribes."""
         return bool(self.publishers or self.subscribers)
+
+    def remove_publisher(self, client: ClientId) -> None:
+        """Forget ``client`` as a publisher, and its latched message (D13)."""
+        self.publishers.pop(client, None)
+        if self.latched_by == client:
+            self.latched = None
+            self.latched_by = None
 
     def check_type(self, msgtype: MessageType) -> None:
         """Refuse a participant that names another type (spec 3.3.1).
@@ -56,12 +66,13 @@ class Topic:
                 f"{self.name} is established with type {self.msgtype.name}, not {msgtype.name}"
             )
 
-    def fan_out(self, event: MessageEvent, *, latch: bool) -> None:
-        """Deliver ``event`` to every subscriber; keep it if latched."""
+    def fan_out(self, event: MessageEvent, *, latch: bool, client: ClientId | None = None) -> None:
+        """Deliver ``event`` to every subscriber; keep it if latched (from ``client``)."""
         if latch:
             self.latched = event
-        for client, sink in list(self.subscribers.items()):
+            self.latched_by = client
+        for subscriber, sink in list(self.subscribers.items()):
             try:
                 sink.on_message(event)
             except Exception:  # a broken subscriber must not hurt the others
-                logger.exception("subscriber %s of %s failed", client, self.name)
+                logger.exception("subscriber %s of %s failed", subscriber, self.name)

@@ -1,31 +1,189 @@
-"""Outgoing encodings of topic messages.
+"""Outgoing encodings: JSON, fragments, PNG, CBOR and cbor-raw (spec 3.1, D19-D21).
 
-A message published to N subscribers is serialized once per distinct encoding
-(issue 4 "encode once"): ``MessageEvent.encoded`` caches each form, keyed by the
-encoding and, for the envelope, the topic spelling the subscriber used (D26).
+Topic messages are encoded once per distinct delivery form (issue 4 "encode
+once"): ``MessageEvent.encoded`` caches the frames under a key naming everything
+they depend on (topic spelling, D26; compression; fragment size), so a message
+published to N subscribers is converted and serialized once per form and the
+same frame objects are queued for each subscriber. Intermediate forms (the JSON
+text PNG compresses, the typed arrays, the raw serialization) are memoised on
+the event too.
+
+Decisions made here (the spec is silent):
+
+- fragment ops carry JSON text; CBOR and cbor-raw frames are binary and are sent
+  whole whatever the fragment size (the reference raises instead, REF §3.4);
+- a ``png`` op carries the JSON text of the op it replaces; its base64 data is
+  split into ``png`` ops with ``id``/``num``/``total`` above the fragment size (D20);
+- ``cbor-raw`` for something other than a topic message (a service reply), or
+  for a message whose publisher gave no ``MessageCodec``, is sent as ``cbor``;
+- a message is cut into at most ``fragments.MAX_PARTS`` parts (D24);
+- cbor-raw's ``secs``/``nsecs`` are the wall-clock time of publication, the same
+  for every subscriber, so the frame can be shared (REF §3.5 stamps at forwarding).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
+
 from .codec import encode_json
+from .codec_cbor import encode_cbor
+from .fragments import fragment_frames, fresh_id
+from .ops.base import Compression
 from .outbox import OutFrame
-from .ports import MessageEvent
-from .subscriptions import TopicSubscription
+from .png import encode_png
+from .ports import MessageCodec, MessageEvent
 
-__all__ = ["publish_frame"]
+__all__ = ["encode_op_frames", "json_frames", "png_frames", "publish_frames"]
+
+Frames = tuple[OutFrame, ...]
 
 
-def publish_frame(subscription: TopicSubscription, event: MessageEvent) -> OutFrame:
-    """Build the frame that delivers ``event`` to ``subscription``'s client.
+def _fits(text: bytes, size: int | None) -> bool:
+    # Bytes >= characters, so a short byte string fits without decoding it.
+    return size is None or len(text) <= size or len(text.decode()) <= size
+
+
+def json_frames(
+    text: bytes, op: str, op_id: object, size: int | None, *, droppable: bool = False
+) -> Frames:
+    """Send an op's JSON text whole, or as ``fragment`` ops above ``size`` characters (D19).
+
+    Args:
+        text: the op's UTF-8 JSON text.
+        op: the op's name, for a fresh fragment id.
+        op_id: the op's ``id``; the fragments carry it when it is a str or int.
+        size: the fragment size in characters, or None for no fragmentation.
+        droppable: topic data that may be dropped under pressure (D24).
+    """
+    if _fits(text, size):
+        return (OutFrame(text, droppable=droppable),)
+    assert size is not None
+    part_id = _part_id(op, op_id)
+    parts = fragment_frames(text.decode(), part_id, size)
+    return _grouped(parts, droppable)
+
+
+def png_frames(
+    text: bytes, op: str, op_id: object, size: int | None, *, droppable: bool = False
+) -> Frames:
+    """Send an op's JSON text as a ``png`` op, split into parts above ``size`` (D20, REF §3.3).
+
+    Args:
+        text: the op's UTF-8 JSON text.
+        op: the op's name, for a fresh id of the parts.
+        op_id: the op's ``id``; the parts carry it when it is a str or int.
+        size: characters of base64 data per ``png`` op, or None for one op.
+        droppable: topic data that may be dropped under pressure (D24).
+    """
+    data = encode_png(text)
+    if size is None or len(data) <= size:
+        return (OutFrame(encode_json({"op": "png", "data": data}), droppable=droppable),)
+    parts = fragment_frames(data, _part_id(op, op_id), size, op="png")
+    return _grouped(parts, droppable)
+
+
+def _grouped(parts: list[bytes], droppable: bool) -> Frames:
+    group = object()  # unique per message; the outbox drops a message's parts together
+    return tuple(OutFrame(part, droppable=droppable, group=group) for part in parts)
+
+
+def _part_id(op: str, op_id: object) -> str | int:
+    if isinstance(op_id, str) or (isinstance(op_id, int) and not isinstance(op_id, bool)):
+        return op_id
+    return fresh_id(op)
+
+
+def publish_frames(
+    event: MessageEvent, spelling: str, compression: Compression, fragment_size: int | None
+) -> Frames:
+    """The frames that deliver ``event`` to a subscriber, made once per form.
+
+    Args:
+        event: the published message.
+        spelling: the topic name as the subscriber wrote it (D26).
+        compression: the subscription's merged compression (D11).
+        fragment_size: the merged fragment size in characters, or None.
 
     Returns:
-        ``{"op":"publish","topic":<spelling>,"msg":<msg>}`` as JSON text; the
-        ``msg`` part is encoded once per event whatever the spelling.
+        The frames, shared by every subscriber asking for the same form.
     """
-    spelling = subscription.spelling
-    msg_json = event.encoded("json:msg", lambda: encode_json(event.msg))
-    data = event.encoded(
-        ("json", spelling),
-        lambda: b'{"op":"publish","topic":' + encode_json(spelling) + b',"msg":' + msg_json + b"}",
-    )
-    return OutFrame(data, droppable=True)
+    binary = compression in ("cbor", "cbor-raw")
+    size = None if binary else fragment_size
+    key = ("publish", spelling, compression, size)
+    return event.encoded(key, lambda: _make_publish(event, spelling, compression, size))
+
+
+def _make_publish(
+    event: MessageEvent, spelling: str, compression: Compression, size: int | None
+) -> Frames:
+    if compression == "cbor-raw" and event.codec is not None:
+        return (OutFrame(_raw_frame(event, spelling), binary=True, droppable=True),)
+    if compression in ("cbor", "cbor-raw"):
+        msg = event.memo(("memo", "typed"), lambda: _typed(event.msg, event.codec))
+        frame = encode_cbor({"op": "publish", "topic": spelling, "msg": msg})
+        return (OutFrame(frame, binary=True, droppable=True),)
+    text = event.memo(("memo", "json", spelling), lambda: _publish_json(event, spelling))
+    if compression == "png":
+        return png_frames(text, "publish", None, size, droppable=True)
+    return json_frames(text, "publish", None, size, droppable=True)
+
+
+def _publish_json(event: MessageEvent, spelling: str) -> bytes:
+    msg = event.memo(("memo", "json:msg"), lambda: encode_json(event.msg))
+    return b'{"op":"publish","topic":' + encode_json(spelling) + b',"msg":' + msg + b"}"
+
+
+def _raw_frame(event: MessageEvent, spelling: str) -> bytes:
+    codec = event.codec
+    assert codec is not None
+    data = event.memo(("memo", "raw"), lambda: codec.serialize(event.msg))
+    secs = math.floor(event.stamp)
+    nsecs = min(round((event.stamp - secs) * 1e9), 999_999_999)
+    msg = {"secs": secs, "nsecs": nsecs, "bytes": data}
+    return encode_cbor({"op": "publish", "topic": spelling, "msg": msg})
+
+
+def _typed(msg: Mapping[str, object], codec: MessageCodec | None) -> Mapping[str, object]:
+    return msg if codec is None else codec.typed(msg)
+
+
+def encode_op_frames(
+    message: Mapping[str, object],
+    *,
+    compression: Compression = "none",
+    fragment_size: int | None = None,
+    codec: MessageCodec | None = None,
+) -> Frames:
+    """Encode one op (a reply, a request, a status) in the form its request asked for.
+
+    Args:
+        message: the op as a dict, ``op`` first, values in the internal form.
+        compression: ``none`` (JSON), ``png``, or ``cbor``/``cbor-raw`` (a binary
+            CBOR frame; spec 3.3.8 and 3.3.12 let replies ask for compression).
+        fragment_size: fragment JSON and PNG above this many characters (D19).
+        codec: the type of the op's payload (``values``, else ``msg``), so that
+            CBOR sends its numeric arrays as typed arrays; plain arrays without it.
+
+    Returns:
+        The frames, none of them droppable (D24).
+    """
+    op = str(message.get("op", "op"))
+    if compression in ("cbor", "cbor-raw"):
+        return (OutFrame(encode_cbor(_typed_payload(message, codec)), binary=True),)
+    text = encode_json(message)
+    if compression == "png":
+        return png_frames(text, op, message.get("id"), fragment_size)
+    return json_frames(text, op, message.get("id"), fragment_size)
+
+
+def _typed_payload(
+    message: Mapping[str, object], codec: MessageCodec | None
+) -> Mapping[str, object]:
+    if codec is None:
+        return message
+    key = "values" if "values" in message else "msg"
+    payload = message.get(key)
+    if not isinstance(payload, Mapping):
+        return message
+    return {**message, key: codec.typed(payload)}

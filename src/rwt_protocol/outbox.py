@@ -2,14 +2,18 @@
 
 PROTOCOL-DECISIONS D24: the bytes queued for a peer are bounded; above the bound
 the oldest *topic* messages are dropped, never service responses, action results
-or status messages. Drops are counted so the session can report them. The
-writer takes frames in bounded batches (``take``), so the frames a transport
-holds outside the queue stay small too.
+or status messages. Drops are counted so the session can report them. The parts
+of one fragmented message share a ``group`` and are dropped together, so that a
+peer is not left with a message it can never complete (D19); a message whose
+first parts were already taken is never cut either. The writer takes frames in
+bounded batches (``take``), so the frames a transport holds outside the queue
+stay small too. Dropping is amortised O(1) per frame.
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 __all__ = ["OutFrame", "Outbox"]
@@ -23,11 +27,14 @@ class OutFrame:
         data: the payload (UTF-8 JSON text or CBOR bytes).
         binary: send as a binary frame (CBOR, D27) rather than text.
         droppable: may be dropped under pressure (topic messages only).
+        group: the parts of one fragmented message share a group (any hashable
+            that no other message uses); None for a whole message.
     """
 
     data: bytes
     binary: bool = False
     droppable: bool = False
+    group: object = None
 
 
 class Outbox:
@@ -42,6 +49,7 @@ class Outbox:
         self._frames: deque[OutFrame] = deque()
         self._bytes = 0
         self._kept_bytes = 0
+        self._sending_group: object = None  # partly taken: the rest must go too
         self.limit_bytes = limit_bytes
         self.dropped = 0
 
@@ -65,10 +73,18 @@ class Outbox:
 
     def push(self, frame: OutFrame) -> None:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""
-        self._frames.append(frame)
-        self._bytes += len(frame.data)
-        if not frame.droppable:
-            self._kept_bytes += len(frame.data)
+        self.extend((frame,))
+
+    def extend(self, frames: Iterable[OutFrame]) -> None:
+        """Queue several frames (the parts of one message), then drop if over the bound.
+
+        Queueing every part before dropping lets a message's parts go together.
+        """
+        for frame in frames:
+            self._frames.append(frame)
+            self._bytes += len(frame.data)
+            if not frame.droppable:
+                self._kept_bytes += len(frame.data)
         if self._bytes > self.limit_bytes:
             self._shed()
 
@@ -79,29 +95,46 @@ class Outbox:
             max_bytes: stop once this many payload bytes are taken (at least one
                 frame is taken when any is queued); None takes everything.
         """
-        if max_bytes is None:
-            frames = list(self._frames)
-            self._frames.clear()
-            self._bytes = self._kept_bytes = 0
-            return frames
-        frames = []
+        frames: list[OutFrame] = []
         taken = 0
-        while self._frames and (not frames or taken + len(self._frames[0].data) <= max_bytes):
+        while self._frames and (
+            max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
+        ):
             frame = self._frames.popleft()
             frames.append(frame)
             taken += len(frame.data)
             if not frame.droppable:
                 self._kept_bytes -= len(frame.data)
         self._bytes -= taken
+        last = frames[-1].group if frames else None
+        following = self._frames[0].group if self._frames else None
+        self._sending_group = last if last is not None and last == following else None
         return frames
+
+    def drain(self) -> list[OutFrame]:
+        """Remove and return every queued frame, oldest first."""
+        return self.take()
 
     def _shed(self) -> None:
         kept: list[OutFrame] = []
+        groups: set[object] = set()
         while self._frames and self._bytes > self.limit_bytes:
             frame = self._frames.popleft()
-            if frame.droppable:
-                self._bytes -= len(frame.data)
-                self.dropped += 1
+            if frame.droppable and (frame.group is None or frame.group != self._sending_group):
+                self._drop(frame, groups)
             else:
                 kept.append(frame)
-        self._frames.extendleft(reversed(kept))  # the undroppable ones keep their place
+        # The rest of a message whose first parts were dropped follows right after them.
+        while (
+            self._frames and self._frames[0].group is not None and self._frames[0].group in groups
+        ):
+            self._drop(self._frames.popleft(), groups)
+        self._frames.extendleft(reversed(kept))  # the kept ones keep their place
+
+    def _drop(self, frame: OutFrame, groups: set[object]) -> None:
+        self._bytes -= len(frame.data)
+        if frame.group is None:
+            self.dropped += 1
+        elif frame.group not in groups:
+            groups.add(frame.group)
+            self.dropped += 1

@@ -8,9 +8,9 @@ All calls are synchronous and never block: the graph is in-memory.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Mapping
 from enum import IntEnum
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 __all__ = [
     "ActionProvider",
@@ -20,6 +20,7 @@ __all__ = [
     "GoalHandle",
     "GoalStatus",
     "GraphPort",
+    "MessageCodec",
     "MessageEvent",
     "Pending",
     "ServicePort",
@@ -30,6 +31,28 @@ __all__ = [
 
 ClientId = str
 """Opaque identity of one connection (or in-process participant) in the graph."""
+
+
+class MessageCodec(Protocol):
+    """What the encoders need from a message's type (the graph provides it).
+
+    The protocol layer cannot read message types (layering), yet CBOR needs each
+    numeric array's element type (REF §3.2) and cbor-raw needs the dialect's wire
+    serialization (REF §3.5). ``rwt_graph`` implements this per message type.
+    """
+
+    def typed(self, msg: Mapping[str, object]) -> Mapping[str, object]:
+        """Return ``msg`` with every numeric array as a numpy array of its element type.
+
+        ``uint8[]``/``char[]`` stay ``bytes``; ``bool[]`` and ``string[]`` stay lists;
+        ROS 2 ``byte[]`` becomes ``uint8``. The result is only read (CBOR encoding).
+        """
+
+    def serialize(self, msg: Mapping[str, object]) -> bytes:
+        """The dialect's wire form: CDR with its 4-byte header (ROS 2), or ROS 1 serialization."""
+
+
+_T = TypeVar("_T")
 
 
 class MessageEvent:
@@ -44,28 +67,51 @@ class MessageEvent:
         msg: the message in the graph's internal form (a dict; ``bytes`` for
             ``uint8[]``), never mutated after publication.
         now: monotonic seconds when it was published.
+        stamp: wall-clock seconds since the epoch when it was published (the
+            ``secs``/``nsecs`` of cbor-raw, REF §3.5).
+        codec: the message type's encoder support, or None when the publisher
+            gave none (CBOR then sends plain arrays and cbor-raw is refused).
     """
 
-    __slots__ = ("_cache", "msg", "now", "topic", "type_name")
+    __slots__ = ("_cache", "codec", "encodings_made", "msg", "now", "stamp", "topic", "type_name")
 
-    def __init__(self, topic: str, type_name: str, msg: dict[str, object], now: float) -> None:
+    def __init__(
+        self,
+        topic: str,
+        type_name: str,
+        msg: dict[str, object],
+        now: float,
+        *,
+        stamp: float = 0.0,
+        codec: MessageCodec | None = None,
+    ) -> None:
         self.topic = topic
         self.type_name = type_name
         self.msg = msg
         self.now = now
-        self._cache: dict[Hashable, bytes] = {}
+        self.stamp = stamp
+        self.codec = codec
+        self.encodings_made = 0
+        self._cache: dict[Hashable, object] = {}
 
-    def encoded(self, key: Hashable, make: Callable[[], bytes]) -> bytes:
-        """Return the cached encoding for ``key``, making it on first use."""
-        frame = self._cache.get(key)
-        if frame is None:
-            frame = self._cache[key] = make()
-        return frame
+    def encoded(self, key: Hashable, make: Callable[[], _T]) -> _T:
+        """Return the delivery form for ``key``, making it on first use.
 
-    @property
-    def encodings_made(self) -> int:
-        """How many distinct encodings were made so far (for tests and benchmarks)."""
-        return len(self._cache)
+        ``key`` names everything the form depends on (encoding, topic spelling,
+        fragment size); each call of ``make`` counts in ``encodings_made``.
+        """
+        if key in self._cache:
+            return self._cache[key]  # type: ignore[return-value]
+        value = self._cache[key] = make()
+        self.encodings_made += 1
+        return value
+
+    def memo(self, key: Hashable, make: Callable[[], _T]) -> _T:
+        """Like ``encoded`` for an intermediate form (not counted in ``encodings_made``)."""
+        if key in self._cache:
+            return self._cache[key]  # type: ignore[return-value]
+        value = self._cache[key] = make()
+        return value
 
 
 class TopicSink(Protocol):

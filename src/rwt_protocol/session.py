@@ -26,23 +26,26 @@ any frames for ``send_timeout_s`` is closed with a reason.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from enum import IntEnum
 
-from .access import AccessDeniedError, AccessPolicy
+from . import gates
+from .access import AccessPolicy
 from .auth import Authenticator
-from .codec import decode_json, encode_json, parse_object, peek_id
-from .encoding import publish_frame
-from .errors import RemoteProtocolError, RwtError
+from .backpressure import SlowConsumerWatch
+from .codec import decode_json, parse_object, peek_id
+from .codec_cbor import decode_cbor
+from .commands import CloseCode, CloseConnection, Command
+from .encoding import encode_op_frames, publish_frames
+from .errors import RwtError
+from .fragments import Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .levels import StatusLevel
-from .ops import Auth, OpModel
+from .ops import OpModel
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .ports import ClientId, GoalHandle, GraphPort, MessageEvent
-from .replies import failure_reply
+from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
 from .subscriptions import TopicSubscription
 from .timers import Timer, TimerQueue
 
@@ -51,17 +54,6 @@ __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"
 logger = logging.getLogger("rwt.session")
 
 MiB = 1024 * 1024
-
-
-class CloseCode(IntEnum):
-    """Why a session closes its connection, as RFC 6455 close codes (other transports log them)."""
-
-    NORMAL = 1000
-    GOING_AWAY = 1001  # server shutdown
-    POLICY_VIOLATION = 1008  # authentication failed, slow consumer
-    MESSAGE_TOO_BIG = 1009
-    INTERNAL_ERROR = 1011  # keepalive timeout
-    TRY_AGAIN_LATER = 1013  # too many connections
 
 
 @dataclass(frozen=True)
@@ -76,6 +68,16 @@ class SessionConfig:
             without taking any frame before it is closed (D24, ``--send-timeout``).
         access: the access rules (``--topics-glob`` and friends).
         authenticator: when set, the first op must be an ``auth`` it admits (D23).
+        max_message_size: the largest message reassembled from ``fragment`` or
+            ``png`` parts, and the most their pending parts may hold at once,
+            bytes (D19, D24, ``--max-message-size``).
+        max_pending_fragments: messages whose parts are still arriving, at most
+            (D19, ``--max-pending-fragments``).
+        fragment_timeout_s: seconds without a new part after which an incomplete
+            message is dropped (D19, ``--fragment-timeout``; rosbridge's 600 s).
+        max_queue_length: the most messages a throttled subscription queues; a
+            larger ``queue_length`` is capped with a warning (D12, D24,
+            ``--max-queue-length``).
         call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
             it fails (D16, ``--call-timeout``); None waits for ever.
     """
@@ -85,24 +87,11 @@ class SessionConfig:
     send_timeout_s: float = 30.0
     access: AccessPolicy = field(default_factory=AccessPolicy)
     authenticator: Authenticator | None = None
+    max_message_size: int = 10 * MiB
+    max_pending_fragments: int = 16
+    fragment_timeout_s: float = 600.0
+    max_queue_length: int = 100
     call_timeout_s: float | None = 30.0
-
-
-@dataclass(frozen=True, slots=True)
-class CloseConnection:
-    """Command: close the connection (code per RFC 6455, reason for the peer and the log).
-
-    ``abort`` means the peer is not reading: the transport need not wait for the
-    close to be delivered before cutting the connection (D24).
-    """
-
-    code: CloseCode
-    reason: str
-    abort: bool = False
-
-
-Command = CloseConnection
-"""What a session asks its transport to do besides sending frames."""
 
 
 class Session:
@@ -112,9 +101,9 @@ class Session:
         graph: the graph this session operates on.
         client_id: this connection's identity in the graph; unique per server.
         config: per-connection settings.
-        on_output: called (synchronously, without arguments) whenever frames,
-            commands or timers become available, so a transport can wake its
-            writer and its timer task.
+        on_output: called (synchronously, without arguments) whenever frames or
+            commands become available or a timer is set, so a transport can wake
+            its writer and look at ``get_timer`` again.
         peer: the peer's address (``"host:port"``), for the authenticator and logs.
     """
 
@@ -137,21 +126,32 @@ class Session:
         self.goals: dict[str | int | None, GoalHandle] = {}
         self.provider_link = ProviderLink(self)
         self._outbox = Outbox(self.config.send_buffer_limit)
+        self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
         self.timers = TimerQueue()
+        self.fragments = Reassembler(
+            max_bytes=self.config.max_message_size,
+            max_pending=self.config.max_pending_fragments,
+            timeout_s=self.config.fragment_timeout_s,
+        )
+        self._fragment_timer: Timer | None = None
         self._on_output = on_output
         self._closed = False
         self._closing = False  # input is ignored (close requested, or shutting down)
         self._close_request: CloseConnection | None = None  # once set, nothing more is sent
         self._authenticated = self.config.authenticator is None
-        self._now = 0.0  # the latest monotonic time seen, for events without one
-        self._full_timer: Timer | None = None  # set while over the send buffer limit
-        self._takes = 0  # how many times the writer took frames (progress, D24)
+        self._now = 0.0  # the latest monotonic time seen, for output without one
 
     # ---- inputs -------------------------------------------------------------
 
-    def receive_frame(self, frame: str | bytes, now: float) -> None:
-        """Process one incoming frame (one JSON text).
+    def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Process one incoming frame: one JSON text, or one CBOR item when ``binary``.
+
+        Args:
+            frame: the frame's payload.
+            now: monotonic seconds.
+            binary: the frame came as binary (a WebSocket binary message, a CBOR
+                item on a stream): CBOR (PROTOCOL-DECISIONS D21, D27).
 
         Never raises for anything the peer sent; see the module docstring.
         Frames arriving after the session asked to close are ignored.
@@ -162,24 +162,30 @@ class Session:
         op_name: str | None = None
         op_id: str | int | None = None
         try:
-            obj = decode_json(frame)
+            if binary:
+                obj = decode_cbor(frame.encode() if isinstance(frame, str) else frame)
+            else:
+                obj = decode_json(frame)
             op_id = peek_id(obj)
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
-            if not self._authenticated:
-                self._authenticate(op)
-            else:
+            if self._authenticated:
                 self.dispatch(op, now)
+            else:
+                self._authenticated = gates.authenticate(self, op)
         except RwtError as exc:
-            text = exc.message
-            if not self._authenticated and "authentication" not in text:
-                text = f"authentication required: {text}"
-            self.report(exc.level, _prefixed(op_name, text), op_id)
-            if not self._authenticated:
-                self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
+            self._refused(exc, op_name, op_id)
         except Exception:
             logger.exception("bug while handling a frame from %s", self.client_id)
             self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
+
+    def _refused(self, exc: RwtError, op_name: str | None, op_id: str | int | None) -> None:
+        text = exc.message
+        if not self._authenticated and "authentication" not in text:
+            text = f"authentication required: {text}"
+        self.report(exc.level, _prefixed(op_name, text), op_id)
+        if not self._authenticated:  # D23: a connection that does not authenticate goes
+            self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
 
     def dispatch(self, op: OpModel, now: float) -> None:
         """Check a validated op against the access rules, then run its handler.
@@ -188,52 +194,8 @@ class Session:
             RwtError: the op was refused; the caller reports it. A denied
                 ``call_service``/``send_action_goal`` is also answered (D4).
         """
-        try:
-            self.config.access.check(op)
-        except AccessDeniedError as exc:
-            logger.warning(
-                "event=access_denied client=%s op=%s reason=%r",
-                self.client_id,
-                op.op,  # type: ignore[attr-defined]
-                exc.message,
-            )
-            reply = failure_reply(op, f"{op.op}: {exc.message}")  # type: ignore[attr-defined]
-            if reply is not None:
-                self.send_op(reply)
-            raise
+        gates.check_access(self, op)
         HANDLERS[type(op)](self, op, now)
-
-    def _authenticate(self, op: OpModel) -> None:
-        """The gate of D23: admit the connection on an accepted ``auth``, else close it.
-
-        Raises:
-            RemoteProtocolError: the op is not ``auth`` or was refused; the caller
-                reports it and closes the connection.
-        """
-        if not isinstance(op, Auth):
-            reply = failure_reply(op, "authentication required")
-            if reply is not None:
-                self.send_op(reply)
-            self._auth_failed(f"first op was {op.op}")  # type: ignore[attr-defined]
-            raise RemoteProtocolError("authentication required: the first op must be auth")
-        authenticator = self.config.authenticator
-        assert authenticator is not None  # only unauthenticated sessions get here
-        try:
-            admitted = authenticator(op, self.peer)
-        except Exception:
-            logger.exception("authenticator failed for %s", self.client_id)
-            admitted = False
-        if not admitted:
-            self._auth_failed("refused by the authenticator")
-            raise RemoteProtocolError("authentication failed")
-        self._authenticated = True
-        logger.info("event=auth_ok client=%s peer=%s level=%s", self.client_id, self.peer, op.level)
-        self.report(StatusLevel.INFO, "auth: authenticated")
-
-    def _auth_failed(self, reason: str) -> None:
-        logger.warning(
-            "event=auth_failed client=%s peer=%s reason=%r", self.client_id, self.peer, reason
-        )
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
@@ -266,11 +228,6 @@ class Session:
         self._commands.append(self._close_request)
         self._wake()
 
-    @property
-    def close_request(self) -> CloseConnection | None:
-        """The close this session asked for, if any (also while the transport has it)."""
-        return self._close_request
-
     def begin_shutdown(self) -> None:
         """The server is stopping: ignore further input and release what this client holds.
 
@@ -289,7 +246,10 @@ class Session:
             return
         self._closed = True
         self.timers.clear()
+        for subscription in self.subscriptions.values():
+            subscription.close()
         self.subscriptions.clear()
+        self.fragments.clear()
         self.advertisements.clear()
         self.goals.clear()
         self.graph.release(self.client_id)
@@ -306,11 +266,7 @@ class Session:
         """
         frames = self._outbox.take(max_bytes)
         if frames:
-            self._takes += 1
-            caught_up = self._outbox.queued_bytes <= self._outbox.limit_bytes // 2
-            if self._full_timer is not None and caught_up:
-                self._full_timer.cancel()  # the episode is over: the peer caught up
-                self._full_timer = None
+            self._watch.after_take()
         return frames
 
     def commands_to_run(self) -> list[Command]:
@@ -321,6 +277,11 @@ class Session:
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
         return None if self._closed else self.timers.next_deadline()
+
+    @property
+    def close_request(self) -> CloseConnection | None:
+        """The close this session asked for, if any (also while the transport has it)."""
+        return self._close_request
 
     @property
     def closed(self) -> bool:
@@ -350,16 +311,20 @@ class Session:
     # ---- helpers for handlers -------------------------------------------------
 
     def send(self, frame: OutFrame) -> None:
-        """Queue a frame for the peer and wake the transport.
+        """Queue a frame for the peer and wake the transport."""
+        self.send_frames((frame,))
+
+    def send_frames(self, frames: Sequence[OutFrame]) -> None:
+        """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
         Past the limit, the oldest topic messages go (D24); when undroppable
         frames alone exceed the limit the peer is not reading at all, and the
         connection is closed rather than let memory grow.
         """
-        if self._closed or (self._close_request is not None):
+        if self._closed or self._close_request is not None:
             return
         limit = self._outbox.limit_bytes
-        if not frame.droppable and self._outbox.undroppable_bytes > limit:
+        if self._outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
             self.request_close(
                 CloseCode.POLICY_VIOLATION,
                 f"send buffer overflow: over {limit} bytes unread",
@@ -368,52 +333,10 @@ class Session:
             return
         was_empty = len(self._outbox) == 0
         dropped = self._outbox.dropped
-        self._outbox.push(frame)
-        full = self._outbox.dropped > dropped or self._outbox.over_limit
-        if full and self._full_timer is None:
-            self._start_full_episode(dropped)
+        self._outbox.extend(frames)
+        self._watch.after_push(dropped, self._now)
         if was_empty:
             self._wake()
-
-    def _start_full_episode(self, dropped_before: int) -> None:
-        """The queue went over its limit: report once, and arm the send timeout (D24)."""
-        timeout_s = self.config.send_timeout_s
-        self._full_timer = self.timers.schedule(
-            self._now + timeout_s, self._make_full_check(self._takes)
-        )
-        logger.warning(
-            "event=slow_consumer client=%s limit_bytes=%d dropped_total=%d",
-            self.client_id,
-            self._outbox.limit_bytes,
-            dropped_before,
-        )
-        self.report(
-            StatusLevel.WARNING,
-            f"dropping the oldest topic messages: this connection reads slower than they "
-            f"arrive (send buffer limit {self._outbox.limit_bytes} bytes)",
-        )
-        self._wake()  # the timer task must learn the new deadline
-
-    def _make_full_check(self, takes: int) -> Callable[[float], None]:
-        def check(now: float) -> None:
-            if self._takes != takes:  # still full, but the peer is reading: look again later
-                self._full_timer = self.timers.schedule(
-                    now + self.config.send_timeout_s, self._make_full_check(self._takes)
-                )
-                return
-            self._full_timer = None
-            self.request_close(
-                CloseCode.POLICY_VIOLATION,
-                f"slow consumer: send buffer over {self._outbox.limit_bytes} bytes "
-                f"for {self.config.send_timeout_s:g} s",
-                abort=True,
-            )
-
-        return check
-
-    def _wake(self) -> None:
-        if self._on_output is not None:
-            self._on_output()
 
     def send_op(
         self,
@@ -421,17 +344,52 @@ class Session:
         *,
         compression: Compression = "none",
         fragment_size: int | None = None,
+        codec: MessageCodec | None = None,
     ) -> None:
         """Queue an op that must not be dropped (responses, results, status, requests).
 
         Args:
             message: the op as a dict, ``op`` first; values in the internal form.
             compression: the encoding the request asked for (``call_service`` and
-                ``send_action_goal`` replies, spec 3.3.8/3.3.12; encodings: issue 4).
-            fragment_size: split the encoded op into ``fragment`` ops above this many
-                characters (PROTOCOL-DECISIONS D19; issue 4).
+                ``send_action_goal`` replies, spec 3.3.8/3.3.12): ``none`` (JSON),
+                ``png`` (a ``png`` op, D20) or ``cbor``/``cbor-raw`` (one binary
+                CBOR frame, D21).
+            fragment_size: split JSON into ``fragment`` ops, and PNG data into
+                ``png`` parts, above this many characters (PROTOCOL-DECISIONS D19).
+            codec: the message type of the op's ``values`` (else ``msg``), so that
+                CBOR carries its numeric arrays as typed arrays (REF §3.2).
         """
-        self.send(OutFrame(encode_json(message)))
+        frames = encode_op_frames(
+            message, compression=compression, fragment_size=fragment_size, codec=codec
+        )
+        self.send_frames(frames)
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
+
+        Wakes the transport so that it sees the new deadline in ``get_timer``.
+        """
+        timer = self.timers.schedule(deadline, callback)
+        if not self._closed:
+            self._wake()
+        return timer
+
+    def watch_fragments(self) -> None:
+        """Make sure the earliest fragment deadline has a timer (D19 expiry)."""
+        deadline = self.fragments.next_deadline()
+        if deadline is not None and self._fragment_timer is None:
+            self._fragment_timer = self.call_at(deadline, self._expire_fragments)
+
+    def _expire_fragments(self, now: float) -> None:
+        self._fragment_timer = None
+        for kind, op_id, received, total in self.fragments.expire(now):
+            self.report(
+                StatusLevel.ERROR,
+                f"{kind}: message {op_id!r} dropped incomplete after"
+                f" {self.config.fragment_timeout_s:g} s ({received} of {total} parts)",
+                op_id,
+            )
+        self.watch_fragments()
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
@@ -443,9 +401,32 @@ class Session:
         self.send_op(status)
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
-        """Queue one topic message for the peer, encoded once per spelling."""
+        """Queue one topic message for the peer, in the subscription's merged encoding.
+
+        The frames are made once per distinct form and shared with every other
+        subscriber asking for it (``encoding.publish_frames``). A message that
+        cannot be encoded (a bug, or a type the serializer lacks) is reported
+        as an error status and skipped; it never reaches the publisher.
+        """
         self._now = max(self._now, event.now)
-        self.send(publish_frame(subscription, event))
+        params = subscription.params
+        try:
+            frames = publish_frames(
+                event, subscription.spelling, params.compression, params.fragment_size
+            )
+        except Exception:
+            logger.exception("cannot encode a message of %s as %s", event.topic, params.compression)
+            self.report(
+                StatusLevel.ERROR,
+                f"subscribe: cannot send a message of {subscription.spelling}"
+                f" as {params.compression}",
+            )
+            return
+        self.send_frames(frames)
+
+    def _wake(self) -> None:
+        if self._on_output is not None:
+            self._on_output()
 
 
 def _prefixed(op_name: str | None, text: str) -> str:

@@ -89,8 +89,20 @@ def serve(
         LevelName, typer.Option(help="Status level of new connections.")
     ] = LevelName.ERROR,
     max_message_size: Annotated[
-        int, typer.Option(help="Largest incoming message, bytes (every transport).")
+        int,
+        typer.Option(
+            help="Largest incoming message on every transport, also reassembled from parts, bytes."
+        ),
     ] = 10 * MiB,
+    max_pending_fragments: Annotated[
+        int, typer.Option(min=1, help="Messages per connection whose fragments are arriving.")
+    ] = 16,
+    fragment_timeout: Annotated[
+        float, typer.Option(min=0.001, help="Seconds without a new fragment before dropping.")
+    ] = 600.0,
+    max_queue_length: Annotated[
+        int, typer.Option(min=1, help="Cap on a throttled subscription's queue_length.")
+    ] = 100,
     send_buffer_limit: Annotated[
         int,
         typer.Option(help="Outgoing bytes queued per connection before dropping topic messages."),
@@ -180,6 +192,10 @@ def serve(
             send_buffer_limit=send_buffer_limit,
             send_timeout_s=send_timeout,
             access=access,
+            max_message_size=max_message_size,
+            max_pending_fragments=max_pending_fragments,
+            fragment_timeout_s=fragment_timeout,
+            max_queue_length=max_queue_length,
             call_timeout_s=call_timeout if call_timeout > 0 else None,
         ),
         websocket=WebSocketOptions(

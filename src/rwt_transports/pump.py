@@ -160,8 +160,7 @@ class ConnectionPump:
                     if event.fatal:
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
-                    # TODO(issue 4): pass binary=event.binary once the session decodes CBOR.
-                    session.receive_frame(event.data, anyio.current_time())
+                    session.receive_frame(event.data, anyio.current_time(), binary=event.binary)
             self._timer_wake.set()  # handlers may have scheduled timers
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:

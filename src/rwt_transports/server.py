@@ -6,7 +6,9 @@ UDP and stdio. Every connection, whatever its transport, gets a
 ``rwt_protocol.session.Session`` on the same graph through the same pump
 (PROTOCOL-DECISIONS D22), so a TCP client and a WebSocket client see each
 other's topics and services. The server also keeps the latched
-``/client_count`` topic that rosbridge publishes (D14), enforces
+``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
+(D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
+``/rosapi`` (listing only what the access rules let a client see), enforces
 ``max_connections``, and stops gracefully: the listeners close, every session
 releases what it holds (so callers waiting on it are answered), WebSocket
 clients get close code 1001, and after ``shutdown_grace_s`` whatever is left is
@@ -32,6 +34,10 @@ from rwt_graph.calls import Spawner
 from rwt_graph.clock import Clock
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
+from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
+from rwt_graph.rosapi.visibility import Visibility
+from rwt_graph.types.convert import time_value
+from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
 from rwt_protocol.errors import RwtError
 from rwt_protocol.ops import Auth
@@ -44,11 +50,21 @@ from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
 from .websocket import WebSocketOptions, serve_websocket_connection
 
-__all__ = ["RosbridgeServer", "ServerConfig", "rosauth_authenticator", "spawner_for"]
+__all__ = [
+    "SERVER_NODE",
+    "RosbridgeServer",
+    "ServerConfig",
+    "rosauth_authenticator",
+    "spawner_for",
+    "visibility_of",
+]
 
 logger = logging.getLogger("rwt.server")
 
 MiB = 1024 * 1024
+
+#: The node of the server's own publishers, as rosbridge names it.
+SERVER_NODE = "/rosbridge_websocket"
 
 
 @dataclass(frozen=True)
@@ -75,6 +91,9 @@ class ServerConfig:
         websocket: WebSocket settings (its ``max_message_size`` is replaced by
             the one above).
         udp: UDP settings (likewise).
+        rosapi: offer the ``/rosapi/*`` services.
+        rosapi_visibility: what each client may see through rosapi; by default
+            what ``session.access`` allows.
     """
 
     host: str = "127.0.0.1"
@@ -91,6 +110,8 @@ class ServerConfig:
     session: SessionConfig = field(default_factory=SessionConfig)
     websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
     udp: UdpOptions = field(default_factory=UdpOptions)
+    rosapi: bool = True
+    rosapi_visibility: VisibilityFor | None = None
 
 
 def rosauth_authenticator(secret: str, clock: Clock, max_skew_s: float = 5.0) -> Authenticator:
@@ -143,7 +164,18 @@ class RosbridgeServer:
         self.sessions: dict[str, Session] = {}
         self.urls: dict[str, str] = {}
         self._ids = itertools.count(1)
+        self._connected: dict[str, dict[str, object]] = {}
         self._client_count = _latched(self.graph, "/client_count", "std_msgs/msg/Int32")
+        self._connected_clients = _latched(
+            self.graph, "/connected_clients", "rosbridge_msgs/msg/ConnectedClients"
+        )
+        self._publish_clients()
+        self.rosapi: Rosapi | None = None
+        if self.config.rosapi:
+            visibility = self.config.rosapi_visibility
+            if visibility is None and session_config.access.restricted:
+                visibility = visibility_of(session_config.access)
+            self.rosapi = install_rosapi(self.graph, visibility=visibility)
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
@@ -331,18 +363,32 @@ class RosbridgeServer:
         client_id = f"{transport}:{peer}#{next(self._ids)}"
         session = _TrackedSession(self, client_id, peer, on_output)
         self.sessions[client_id] = session
-        self._publish_client_count()
+        address = _address(peer)
+        self.graph.nodes.attach(client_id, host=address)
+        self._connected[client_id] = {
+            "ip_address": address,
+            "connection_time": time_value(self.graph.clock.wall(), self.graph.registry.dialect),
+        }
+        self._publish_clients()
         return session
 
     def _session_closed(self, client_id: str) -> None:
         self.sessions.pop(client_id, None)
-        self._publish_client_count()
+        self._connected.pop(client_id, None)
+        self._publish_clients()
         if not self.sessions and self._all_closed is not None:
             self._all_closed.set()
 
-    def _publish_client_count(self) -> None:
+    def _publish_clients(self) -> None:
+        """Publish ``/client_count`` and ``/connected_clients`` (D14), both latched."""
         if self._client_count is not None:
             self._client_count.publish({"data": len(self.sessions)})
+        if self._connected_clients is not None:
+            clients = [
+                {"ip_address": info["ip_address"], "connection_time": info["connection_time"]}
+                for info in self._connected.values()
+            ]
+            self._connected_clients.publish({"clients": clients})
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
@@ -394,9 +440,9 @@ class _QuietTLSListener(TLSListener):
 def _answer_pending(graph: Graph, reason: str) -> None:
     """Fail every pending service call and goal, so no caller is left waiting (D4)."""
     for service in list(graph.services.entries.values()):
-        service.fail_all(reason)
+        service.end_all(reason)
     for action in list(graph.actions.entries.values()):
-        action.abort_all(reason)
+        action.end_all(reason)
 
 
 def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:
@@ -412,7 +458,7 @@ def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext 
 
 def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
     try:
-        return graph.create_publisher(topic, type_name, latch=True)
+        return graph.create_publisher(topic, type_name, latch=True, node=SERVER_NODE)
     except RwtError as exc:  # a registry without the type: no such topic
         logger.warning("not publishing %s: %s", topic, exc.message)
         return None
@@ -427,3 +473,20 @@ def _peer(stream: ByteStream | SocketStream) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
+
+
+def _address(peer: str) -> str:
+    """The address part of ``HOST:PORT`` (IPv6 addresses keep their colons)."""
+    host, sep, _ = peer.rpartition(":")
+    return host if sep else peer
+
+
+def visibility_of(policy: AccessPolicy) -> VisibilityFor:
+    """What rosapi shows every client under ``policy``: only what it may use."""
+    visibility = Visibility(
+        topics=lambda name: policy.allows(Family.TOPICS, name),
+        services=lambda name: policy.allows(Family.SERVICES, name),
+        params=lambda name: policy.allows(Family.PARAMS, name),
+        actions=lambda name: policy.allows(Family.ACTIONS, name),
+    )
+    return lambda client: visibility

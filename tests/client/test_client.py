@@ -173,33 +173,23 @@ async def test_status_level_and_callbacks(url: str) -> None:
 
 
 async def test_rosapi_helpers_and_params(url: str) -> None:
-    """rosapi as a peer serves it (rwt's own rosapi arrives with issue 3)."""
-    params: dict[str, str] = {}
-    async with Ros(url) as rosapi, Ros(url) as ros:
-        await Service(rosapi, "/rosapi/topics", "rosapi_msgs/srv/Topics").advertise(
-            lambda _: {
-                "topics": ["/a", "/b"],
-                "types": ["std_msgs/msg/String", "std_msgs/msg/Int32"],
-            }
-        )
-        await Service(rosapi, "/rosapi/set_param", "rosapi_msgs/srv/SetParam").advertise(
-            lambda req: params.__setitem__(req["name"], req["value"])
-        )
-        await Service(rosapi, "/rosapi/get_param", "rosapi_msgs/srv/GetParam").advertise(
-            lambda req: {"value": params.get(req["name"], req["default_value"])}
-        )
-        await _sync(rosapi)
-        assert await ros.get_topics() == ["/a", "/b"]
-        assert await ros.get_topics_and_types() == {
-            "/a": "std_msgs/msg/String",
-            "/b": "std_msgs/msg/Int32",
-        }
-        param = Param(ros, "/node:answer")
-        await param.set({"x": [1, 2]})
-        assert params == {"/node:answer": '{"x": [1, 2]}'}
-        assert await param.get() == {"x": [1, 2]}
-        with pytest.raises(ServiceError):
-            await ros.get_nodes()
+    """rwt's built-in rosapi (issue 3) answers the helpers."""
+    async with Ros(url) as ros:
+        await Topic(ros, "/a", "std_msgs/String").advertise()
+        await Topic(ros, "/b", "std_msgs/Int32").advertise()
+        await _sync(ros)
+        assert {"/a", "/b", "/client_count"} <= set(await ros.get_topics())
+        types = await ros.get_topics_and_types()
+        assert types["/a"] == "std_msgs/msg/String" and types["/b"] == "std_msgs/msg/Int32"
+        assert await ros.get_topic_type("/b") == "std_msgs/msg/Int32"
+        assert await ros.get_nodes() == ["/rosapi", "/rosbridge_websocket", "/rwt_client_1"]
+        param = Param(ros, "/rwt_client_1:answer")
+        await param.set([1, 2])
+        assert await param.get() == [1, 2]
+        assert await ros.get_params() == ["/rwt_client_1:answer"]
+        await ros.delete_param("/rwt_client_1:answer")
+        assert await ros.get_param("/rwt_client_1:answer", 7) == 7
+        assert await ros.get_time() > 1_600_000_000
 
 
 async def test_reconnect_resubscribes_and_readvertises(transport: str) -> None:

@@ -15,6 +15,7 @@ from .msgparse import DefinitionError, parse_message
 from .names import Dialect, InvalidTypeName, UnknownType
 from .registry import TypeRegistry
 from .spec import ArrayKind, Constant, FieldSpec, FieldType
+from .wire import WireCodec
 
 __all__ = [
     "ActionType",
@@ -30,5 +31,6 @@ __all__ = [
     "ServiceType",
     "TypeRegistry",
     "UnknownType",
+    "WireCodec",
     "parse_message",
 ]

@@ -246,11 +246,24 @@ def _never_fast(items: list[object]) -> bool:
     return False
 
 
+def _octets_checker(ftype: FieldType, as_list: Checker) -> Checker:
+    """ROS 2 ``byte[]`` (octets): a list of 0..255, or a byte string (CBOR sends one, D21)."""
+
+    def check(value: object) -> object:
+        if isinstance(value, bytes | bytearray):
+            _length_check(ftype, len(value))
+            return list(value)
+        return as_list(value)
+
+    return check
+
+
 def array_checker(ftype: FieldType, dialect: Dialect) -> Checker:
     """Build the checker of a primitive array field (not time, not messages).
 
     ``uint8``/``char`` arrays of any kind become ``bytes`` and accept a base64
-    string, an array of ints 0..255 or bytes (PROTOCOL-DECISIONS D10). Other
+    string, an array of ints 0..255 or bytes (PROTOCOL-DECISIONS D10); ROS 2
+    ``byte`` arrays are lists of octets that may come as bytes (CBOR). Other
     arrays become lists; fixed arrays need their exact length, bounded ones at
     most their bound (D9).
 
@@ -262,7 +275,10 @@ def array_checker(ftype: FieldType, dialect: Dialect) -> Checker:
         return _bytes_checker(ftype, element)
     ints = int_range(ftype.base, dialect)
     if ints is not None:
-        return _list_checker(ftype, element, _int_fast(*ints))
+        checker = _list_checker(ftype, element, _int_fast(*ints))
+        if ftype.base == "byte" and dialect is Dialect.ROS2:
+            return _octets_checker(ftype, checker)
+        return checker
     if ftype.base == "float32":
         return _list_checker(ftype, element, _float32_fast)
     if ftype.base == "float64":

@@ -20,6 +20,7 @@ from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
 from .names import Dialect, Kind, TypeName, UnknownType, parse_type_name
 from .sources import FileIndex, packaged_dirs, store_message, stores_for
+from .wire import WireCodec
 
 __all__ = ["TypeRegistry"]
 
@@ -58,6 +59,7 @@ class TypeRegistry:
         self._actions: dict[str, ActionType] = {}
         self._typestore: Typestore | None = None
         self._resolving: set[str] = set()
+        self._codecs: dict[str, WireCodec] = {}
 
     def canonical_name(self, name: str, kind: Kind = "msg") -> str:
         """Validate a type string and spell it canonically, without looking it up.
@@ -244,6 +246,17 @@ class TypeRegistry:
         return sorted(
             TypeName(p, "action", t).spelled(self.dialect) for p, t in self._files.names("action")
         )
+
+    def codec(self, mtype: MessageType) -> WireCodec:
+        """The encoder support (typed arrays, wire serialization) of ``mtype`` (cached).
+
+        It implements ``rwt_protocol.ports.MessageCodec`` for CBOR and cbor-raw
+        (PROTOCOL-DECISIONS D21).
+        """
+        found = self._codecs.get(mtype.name)
+        if found is None or found.mtype is not mtype:
+            found = self._codecs[mtype.name] = WireCodec(mtype, self.message, self.typestore)
+        return found
 
     def typestore(self) -> Typestore:
         """A rosbags typestore with every known message type, for serialization.

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .. import ops
-from . import actions, control, services, topics
+from . import actions, control, encodings, services, topics
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -38,6 +38,6 @@ HANDLERS: dict[type[ops.OpModel], Handler] = {
     ops.CancelActionGoal: actions.cancel_action_goal,
     ops.ActionFeedback: actions.action_feedback,
     ops.ActionResult: actions.action_result,
-    ops.Fragment: control.not_supported,
-    ops.Png: control.not_supported,
+    ops.Fragment: encodings.fragment,
+    ops.Png: encodings.png,
 }

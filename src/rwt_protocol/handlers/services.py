@@ -96,7 +96,7 @@ def call_service(session: Session, op: CallService, now: float) -> None:
         pending.forget()
         call.reply(False, f"service call timed out after {timeout_s:g} s")
 
-    call.timer = session.timers.schedule(now + timeout_s, expire)
+    call.timer = session.call_at(now + timeout_s, expire)
 
 
 def service_response(session: Session, op: ServiceResponse, now: float) -> None:

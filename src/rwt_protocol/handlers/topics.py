@@ -80,8 +80,14 @@ def subscribe(session: Session, op: Subscribe, now: float) -> None:
     topic = resolve_name(op.topic)
     subscription = session.subscriptions.get(topic)
     if subscription is None:
-        subscription = TopicSubscription(topic, op.topic, session.deliver)
-        subscription.add(op)
+        subscription = TopicSubscription(
+            topic,
+            op.topic,
+            session.deliver,
+            session.call_at,
+            max_queue=session.config.max_queue_length,
+        )
+        subscription.add(op, now)
         subscription.type_name = session.graph.subscribe(
             session.client_id, topic, op.type, subscription
         )
@@ -89,7 +95,12 @@ def subscribe(session: Session, op: Subscribe, now: float) -> None:
     else:
         if op.type is not None:
             session.graph.subscribe(session.client_id, topic, op.type, subscription)
-        subscription.add(op)
+        subscription.add(op, now)
+    cap = session.config.max_queue_length
+    if op.queue_length > cap:
+        session.report(
+            StatusLevel.WARNING, f"subscribe: queue_length {op.queue_length} capped at {cap}", op.id
+        )
     session.report(StatusLevel.INFO, f"subscribe: subscribed to {op.topic}", op.id)
 
 
@@ -104,12 +115,13 @@ def unsubscribe(session: Session, op: Unsubscribe, now: float) -> None:
     if subscription is None:
         raise GraphError(f"not subscribed to {op.topic}", level=StatusLevel.WARNING)
     if op.id is None:
-        subscription.requests.clear()
-    elif not subscription.remove(op.id):
+        subscription.close()
+    elif not subscription.remove(op.id, now):
         raise GraphError(
             f"no subscription with id {op.id!r} on {op.topic}", level=StatusLevel.WARNING
         )
     if not subscription.requests:
+        subscription.close()
         del session.subscriptions[topic]
         session.graph.unsubscribe(session.client_id, topic)
     session.report(StatusLevel.INFO, f"unsubscribe: unsubscribed from {op.topic}", op.id)

@@ -1,0 +1,28 @@
+"""A robot for roslibjs/roslibpy users: topics, a service, an action, parameters, rosapi."""
+
+import sys
+
+import anyio
+
+from rwt_graph.graph import Graph
+from rwt_transports.server import RosbridgeServer, ServerConfig
+
+graph = Graph()
+graph.params.declare("/rwt", {"max_speed": 1.0, "name": "rwt-bot"})
+velocity = graph.create_publisher("/velocity", "geometry_msgs/msg/Twist", latch=True)
+graph.create_subscription("/cmd_vel", velocity.publish, "geometry_msgs/msg/Twist")  # obeys at once
+graph.create_service("/lights", "std_srvs/srv/SetBool", lambda req: {"success": req["data"]})
+
+
+async def fibonacci(goal: dict, context) -> dict:
+    sequence = [0, 1]
+    for _ in range(1, goal["order"]):
+        sequence.append(sequence[-1] + sequence[-2])
+        context.publish_feedback({"sequence": sequence})
+        await anyio.sleep(0.01)
+    return {"sequence": sequence}
+
+
+graph.create_action_server("/fibonacci", "example_interfaces/action/Fibonacci", fibonacci)
+server = RosbridgeServer(graph, ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090))
+anyio.run(lambda: server.serve(on_listening=lambda url: print("listening on", url, flush=True)))

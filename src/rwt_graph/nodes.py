@@ -1,0 +1,92 @@
+"""Node names of the graph's participants, for rosapi (REF §7.1).
+
+ROS lists topics, services and parameters by node. Here every participant (a
+client connection, or a handle made by Python code in this process) belongs to
+one node: a connection is a node of its own, ``/rwt_client_<n>``; Python code
+names its node when it creates a publisher, service... (``/rwt`` by default).
+Several participants may share a node name; rosapi merges what they hold.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+
+from rwt_protocol.errors import GraphError
+from rwt_protocol.names import resolve_name
+from rwt_protocol.ports import ClientId
+
+__all__ = ["CLIENT_NODE_PREFIX", "DEFAULT_NODE", "Nodes", "node_name"]
+
+#: The node of Python code that does not name one.
+DEFAULT_NODE = "/rwt"
+#: Connections are nodes ``/rwt_client_1``, ``/rwt_client_2``... in order of arrival.
+CLIENT_NODE_PREFIX = "/rwt_client_"
+
+_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+def node_name(name: str) -> str:
+    """Check a node name and make it absolute (``robot`` -> ``/robot``).
+
+    Raises:
+        GraphError: a part of the name is not a ROS name token
+            (letters, digits, ``_``; not starting with a digit), or it is empty.
+    """
+    resolved = resolve_name(name)
+    tokens = resolved.split("/")[1:]
+    if not all(_TOKEN.match(token) for token in tokens):
+        raise GraphError(f"invalid node name {name!r}")
+    return resolved
+
+
+class Nodes:
+    """Which node each participant belongs to, and the host of each connection."""
+
+    def __init__(self) -> None:
+        self._names: dict[ClientId, str] = {}
+        self._hosts: dict[ClientId, str] = {}
+        self._numbers = itertools.count(1)
+
+    def attach(self, client: ClientId, *, host: str | None = None) -> str:
+        """Give a connection its own node (once; later calls keep the first name).
+
+        Args:
+            client: the connection's participant id.
+            host: the peer's address, reported by ROS 1 ``service_host``.
+
+        Returns:
+            The node name, ``/rwt_client_<n>``.
+        """
+        if host is not None:
+            self._hosts[client] = host
+        name = self._names.get(client)
+        if name is None:
+            name = self._names[client] = f"{CLIENT_NODE_PREFIX}{next(self._numbers)}"
+        return name
+
+    def bind(self, client: ClientId, node: str) -> None:
+        """Put an in-process participant in ``node`` (already checked by ``node_name``)."""
+        self._names[client] = node
+
+    def forget(self, client: ClientId) -> None:
+        """The participant is gone (disconnected, or its handle closed)."""
+        self._names.pop(client, None)
+        self._hosts.pop(client, None)
+
+    def name_of(self, client: ClientId) -> str:
+        """The node of ``client``; a participant never seen gets a client node."""
+        name = self._names.get(client)
+        return name if name is not None else self.attach(client)
+
+    def host_of(self, client: ClientId) -> str | None:
+        """The peer address of a connection, None for in-process participants."""
+        return self._hosts.get(client)
+
+    def names(self) -> set[str]:
+        """The nodes of every current participant."""
+        return set(self._names.values())
+
+    def clients_of(self, node: str) -> set[ClientId]:
+        """The participants that belong to ``node``."""
+        return {client for client, name in self._names.items() if name == node}

@@ -1,0 +1,431 @@
+"""The in-memory parameter store (REF §7.1 get/set/has/delete_param, get_param_names).
+
+ROS 2 parameters belong to nodes and are named ``"<node>:<param>"`` on rosapi
+(``/robot:max_speed``). Their values are ``bool``, ``int`` (int64), ``float``,
+``str`` or a list of one of those. A parameter declared by Python code keeps its
+type (an ``int`` is accepted for a ``float`` parameter and converted, as D9 does
+for messages) and may be read-only; a parameter created by a plain ``set`` takes
+any type.
+
+ROS 1 parameters are one tree of global names (``/robot/max_speed``): a value
+may also be a dict (a namespace) or a list of mixed values; ``get`` of a
+namespace returns the dict; names list the leaves.
+
+Every value handed in or out is copied, so callers cannot change the store
+behind its back. Watchers hear of every change.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import TypeAlias
+
+from rwt_protocol.errors import GraphError
+from rwt_protocol.names import resolve_name
+
+from .nodes import node_name
+from .types import Dialect
+
+__all__ = [
+    "ParamKind",
+    "ParamValue",
+    "ParamWatcher",
+    "ParameterError",
+    "ParameterNotSet",
+    "Parameters",
+]
+
+logger = logging.getLogger("rwt.graph")
+
+ParamValue: TypeAlias = "bool | int | float | str | list[ParamValue] | dict[str, ParamValue]"
+ParamWatcher: TypeAlias = "Callable[[str, ParamValue | None], None]"
+"""Called with ``(name, value)`` after each change; ``value`` is None for a deletion."""
+
+_INT64 = (-(2**63), 2**63 - 1)
+_INT32 = (-(2**31), 2**31 - 1)  # XML-RPC integers of the ROS 1 parameter server
+_MISSING = object()
+
+
+class ParameterError(GraphError):
+    """A parameter operation was refused: bad name, bad value, type change, read-only."""
+
+
+class ParameterNotSet(ParameterError):
+    """The parameter does not exist."""
+
+
+class ParamKind(StrEnum):
+    """ROS 2 parameter types (``rcl_interfaces/msg/ParameterType``); EMPTY_ARRAY fits any array."""
+
+    BOOL = "bool"
+    INTEGER = "integer"
+    DOUBLE = "double"
+    STRING = "string"
+    BOOL_ARRAY = "bool_array"
+    INTEGER_ARRAY = "integer_array"
+    DOUBLE_ARRAY = "double_array"
+    STRING_ARRAY = "string_array"
+    EMPTY_ARRAY = "empty_array"
+
+
+_ARRAY_OF = {
+    ParamKind.BOOL: ParamKind.BOOL_ARRAY,
+    ParamKind.INTEGER: ParamKind.INTEGER_ARRAY,
+    ParamKind.DOUBLE: ParamKind.DOUBLE_ARRAY,
+    ParamKind.STRING: ParamKind.STRING_ARRAY,
+}
+
+
+@dataclass
+class _Param:
+    value: ParamValue
+    kind: ParamKind
+    read_only: bool = False
+    fixed_type: bool = False
+
+
+def _scalar_kind(value: object, what: str) -> ParamKind:
+    if isinstance(value, bool):
+        return ParamKind.BOOL
+    if isinstance(value, int):
+        if not _INT64[0] <= value <= _INT64[1]:
+            raise ParameterError(f"{what}: integer {value} does not fit in int64")
+        return ParamKind.INTEGER
+    if isinstance(value, float):
+        return ParamKind.DOUBLE
+    if isinstance(value, str):
+        return ParamKind.STRING
+    raise ParameterError(
+        f"{what}: a ROS 2 parameter is a bool, int, float, str or a list of one of them, "
+        f"not {type(value).__name__}"
+    )
+
+
+def ros2_value(value: object, what: str = "value") -> tuple[ParamValue, ParamKind]:
+    """Check a ROS 2 parameter value; return it (copied, ints widened in float lists) and its kind.
+
+    Raises:
+        ParameterError: not a ROS 2 parameter value (dicts, None, nested or mixed lists).
+    """
+    if not isinstance(value, list | tuple):
+        return value, _scalar_kind(value, what)  # type: ignore[return-value]
+    if not value:
+        return [], ParamKind.EMPTY_ARRAY
+    kinds = {_scalar_kind(item, f"{what}[]") for item in value}
+    if kinds == {ParamKind.INTEGER, ParamKind.DOUBLE}:
+        return [float(item) for item in value], ParamKind.DOUBLE_ARRAY
+    if len(kinds) != 1:
+        raise ParameterError(f"{what}: the items of a ROS 2 array parameter must have one type")
+    return list(value), _ARRAY_OF[kinds.pop()]
+
+
+def ros1_value(value: object, what: str = "value") -> ParamValue:
+    """Check a ROS 1 parameter value (XML-RPC: no None, int32 integers); return a copy.
+
+    Raises:
+        ParameterError: None, a non-str dict key, an integer outside int32, another type.
+    """
+    if isinstance(value, bool | float | str):
+        return value
+    if isinstance(value, int):
+        if not _INT32[0] <= value <= _INT32[1]:
+            raise ParameterError(f"{what}: integer {value} does not fit in int32")
+        return value
+    if isinstance(value, list | tuple):
+        return [ros1_value(item, f"{what}[{i}]") for i, item in enumerate(value)]
+    if isinstance(value, dict):
+        out: dict[str, ParamValue] = {}
+        for key, item in value.items():
+            if not isinstance(key, str) or not key or "/" in key:
+                raise ParameterError(f"{what}: namespace keys are non-empty names, got {key!r}")
+            out[key] = ros1_value(item, f"{what}.{key}")
+        return out
+    raise ParameterError(f"{what}: a ROS 1 parameter cannot be {type(value).__name__}")
+
+
+def _fit(param: _Param, value: ParamValue, kind: ParamKind, name: str) -> ParamValue:
+    """The value to store in a parameter whose type is fixed (declared)."""
+    if kind is param.kind or (param.kind is ParamKind.EMPTY_ARRAY and kind.endswith("array")):
+        return value
+    if param.kind is ParamKind.DOUBLE and kind is ParamKind.INTEGER:
+        return float(value)  # type: ignore[arg-type]
+    if param.kind is ParamKind.DOUBLE_ARRAY and kind is ParamKind.INTEGER_ARRAY:
+        return [float(item) for item in value]  # type: ignore[union-attr, arg-type]
+    if kind is ParamKind.EMPTY_ARRAY and param.kind.endswith("array"):
+        return []
+    raise ParameterError(f"parameter {name} has type {param.kind}, not {kind}")
+
+
+def split_ros2_name(name: str) -> tuple[str, str]:
+    """Split ``"<node>:<param>"`` (REF §7.1); the node becomes absolute.
+
+    Raises:
+        ParameterError: no ``:``, an empty part, more than one ``:``, a bad node name.
+    """
+    node, sep, param = name.partition(":")
+    if not sep or not node or not param or ":" in param:
+        raise ParameterError(f"parameter name {name!r}: expected <node>:<parameter>")
+    try:
+        return node_name(node), param
+    except GraphError as exc:
+        raise ParameterError(f"parameter name {name!r}: {exc.message}") from None
+
+
+def to_json_safe(value: ParamValue) -> object:
+    """``value`` with non-finite floats as None, for JSON text (PROTOCOL-DECISIONS D10)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, list):
+        return [to_json_safe(item) for item in value]
+    if isinstance(value, dict):
+        return {key: to_json_safe(item) for key, item in value.items()}
+    return value
+
+
+class Parameters:
+    """The parameters of one graph, in the dialect's naming.
+
+    Args:
+        dialect: ROS 2 names ``"<node>:<param>"``; ROS 1 global names.
+        max_params: most parameters (ROS 1: leaves) the store holds; a ``set`` that
+            would go over is refused, so a client cannot grow it without bound.
+    """
+
+    def __init__(self, dialect: Dialect = Dialect.ROS2, *, max_params: int = 10_000) -> None:
+        self.dialect = dialect
+        self.max_params = max_params
+        self._nodes: dict[str, dict[str, _Param]] = {}  # ROS 2
+        self._tree: dict[str, ParamValue] = {}  # ROS 1
+        self._watchers: list[ParamWatcher] = []
+
+    @property
+    def ros1(self) -> bool:
+        """Whether names are ROS 1 global names."""
+        return self.dialect is Dialect.ROS1
+
+    # ---- public API ------------------------------------------------------------------
+
+    def declare(
+        self,
+        node: str,
+        values: Mapping[str, object],
+        *,
+        read_only: bool = False,
+        dynamic_typing: bool = False,
+    ) -> None:
+        """Declare parameters of ``node`` with their initial values.
+
+        In ROS 2 each keeps its type unless ``dynamic_typing``, and ``read_only``
+        ones refuse ``set`` and ``delete`` (from clients and from Python). In ROS 1
+        this sets ``<node>/<name>`` for each entry (types and read-only do not apply).
+
+        Raises:
+            ParameterError: a bad node or parameter name, or a bad value.
+        """
+        if self.ros1:
+            for name, value in values.items():
+                self.set(f"{node_name(node)}/{name}", value)
+            return
+        for name, value in values.items():
+            full = f"{node}:{name}"
+            node_key, param = split_ros2_name(full)
+            stored, kind = ros2_value(value, full)
+            self._check_room(node_key, param)
+            entry = _Param(stored, kind, read_only=read_only, fixed_type=not dynamic_typing)
+            self._nodes.setdefault(node_key, {})[param] = entry
+            self._notify(f"{node_key}:{param}", stored)
+
+    def set(self, name: str, value: object) -> None:
+        """Set a parameter, creating it (and, in ROS 2, its node's entry) if needed.
+
+        Raises:
+            ParameterError: bad name or value, a type change of a declared ROS 2
+                parameter, a read-only parameter, or the store is full.
+        """
+        if self.ros1:
+            key = resolve_name(name)
+            stored = ros1_value(value, key)
+            self._tree_set(key, stored)
+            self._notify(key, stored)
+            return
+        node, param = split_ros2_name(name)
+        full = f"{node}:{param}"
+        stored, kind = ros2_value(value, full)
+        entry = self._nodes.get(node, {}).get(param)
+        if entry is None:
+            self._check_room(node, param)
+            self._nodes.setdefault(node, {})[param] = _Param(stored, kind)
+        elif entry.read_only:
+            raise ParameterError(f"parameter {full} is read-only")
+        elif entry.fixed_type:
+            entry.value = _fit(entry, stored, kind, full)
+        else:
+            entry.value, entry.kind = stored, kind
+        self._notify(full, stored)
+
+    def get(self, name: str, default: object = _MISSING) -> ParamValue:
+        """A copy of the parameter's value (ROS 1: a namespace gives a dict).
+
+        Raises:
+            ParameterNotSet: it does not exist and no ``default`` was given.
+            ParameterError: a malformed name.
+        """
+        found = self._lookup(name)
+        if found is _MISSING:
+            if default is _MISSING:
+                raise ParameterNotSet(f"parameter {name} is not set")
+            return default  # type: ignore[return-value]
+        return copy.deepcopy(found)  # type: ignore[return-value]
+
+    def has(self, name: str) -> bool:
+        """Whether the parameter (ROS 1: or namespace) exists; False for a malformed name."""
+        try:
+            return self._lookup(name) is not _MISSING
+        except ParameterError:
+            return False
+
+    def delete(self, name: str) -> None:
+        """Remove a parameter (ROS 1: or a whole namespace).
+
+        Raises:
+            ParameterNotSet: it does not exist.
+            ParameterError: a malformed name, or a read-only ROS 2 parameter.
+        """
+        if self.ros1:
+            key = resolve_name(name)
+            self._tree_delete(key)
+            self._notify(key, None)
+            return
+        node, param = split_ros2_name(name)
+        params = self._nodes.get(node, {})
+        entry = params.get(param)
+        if entry is None:
+            raise ParameterNotSet(f"parameter {node}:{param} is not set")
+        if entry.read_only:
+            raise ParameterError(f"parameter {node}:{param} is read-only")
+        del params[param]
+        if not params:
+            del self._nodes[node]
+        self._notify(f"{node}:{param}", None)
+
+    def key(self, name: str) -> str:
+        """The name as the store spells it: ``/node:param`` (ROS 2) or absolute (ROS 1).
+
+        Raises:
+            ParameterError: a malformed ROS 2 name.
+        """
+        if self.ros1:
+            return resolve_name(name)
+        node, param = split_ros2_name(name)
+        return f"{node}:{param}"
+
+    def names(self) -> list[str]:
+        """Every parameter name, sorted: ``/node:param`` (ROS 2) or leaf global names (ROS 1)."""
+        if self.ros1:
+            return sorted(_leaves(self._tree, ""))
+        return sorted(f"{node}:{param}" for node, params in self._nodes.items() for param in params)
+
+    def nodes(self) -> frozenset[str]:
+        """The ROS 2 nodes that have parameters (none in ROS 1)."""
+        return frozenset(self._nodes)
+
+    def search(self, name: str) -> str:
+        """ROS 1 ``search_param`` from the root namespace: the global name if set, else ``""``."""
+        key = resolve_name(name)
+        return key if self.has(key) else ""
+
+    def watch(self, watcher: ParamWatcher) -> Callable[[], None]:
+        """Call ``watcher(name, value)`` after every change; returns a function that stops it."""
+        self._watchers.append(watcher)
+
+        def stop() -> None:
+            if watcher in self._watchers:
+                self._watchers.remove(watcher)
+
+        return stop
+
+    # ---- internals ---------------------------------------------------------------
+
+    def _notify(self, name: str, value: ParamValue | None) -> None:
+        for watcher in list(self._watchers):
+            try:
+                watcher(name, copy.deepcopy(value))
+            except Exception:  # one broken watcher must not stop the others
+                logger.exception("parameter watcher failed on %s", name)
+
+    def _check_room(self, node: str, param: str) -> None:
+        if param in self._nodes.get(node, {}):
+            return
+        if sum(len(params) for params in self._nodes.values()) >= self.max_params:
+            raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
+
+    def _lookup(self, name: str) -> object:
+        if self.ros1:
+            node: object = self._tree
+            for token in _tokens(resolve_name(name)):
+                if not isinstance(node, dict) or token not in node:
+                    return _MISSING
+                node = node[token]
+            return node
+        node_key, param = split_ros2_name(name)
+        entry = self._nodes.get(node_key, {}).get(param)
+        return _MISSING if entry is None else entry.value
+
+    def _tree_set(self, key: str, value: ParamValue) -> None:
+        tokens = _tokens(key)
+        if not tokens:
+            if not isinstance(value, dict):
+                raise ParameterError("the root namespace / can only be set to a dict")
+            self._check_leaves(_count(value) - _count(self._tree))
+            self._tree = value
+            return
+        old = self._lookup(key)
+        self._check_leaves(_count(value) - (0 if old is _MISSING else _count(old)))
+        node = self._tree
+        for token in tokens[:-1]:
+            child = node.get(token)
+            if not isinstance(child, dict):  # a value on the way becomes a namespace
+                child = node[token] = {}
+            node = child
+        node[tokens[-1]] = value
+
+    def _check_leaves(self, added: int) -> None:
+        if added > 0 and _count(self._tree) + added > self.max_params:
+            raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
+
+    def _tree_delete(self, key: str) -> None:
+        tokens = _tokens(key)
+        if not tokens:
+            self._tree = {}
+            return
+        node: object = self._tree
+        for token in tokens[:-1]:
+            node = node.get(token) if isinstance(node, dict) else None
+        if not isinstance(node, dict) or tokens[-1] not in node:
+            raise ParameterNotSet(f"parameter {key} is not set")
+        del node[tokens[-1]]
+
+
+def _tokens(key: str) -> list[str]:
+    return [token for token in key.split("/") if token]
+
+
+def _leaves(tree: Mapping[str, ParamValue], prefix: str) -> list[str]:
+    found: list[str] = []
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            found += _leaves(value, f"{prefix}/{key}")
+        else:
+            found.append(f"{prefix}/{key}")
+    return found
+
+
+def _count(value: object) -> int:
+    if isinstance(value, dict):
+        return sum(_count(item) for item in value.values())
+    return 1

@@ -1,0 +1,24 @@
+"""rosapi, built in: graph introspection and parameters as ``/rosapi/*`` services (REF §7.1).
+
+``install_rosapi(graph)`` registers them as in-process services of node
+``/rosapi``; ``RosbridgeServer`` does so for every server. Listings answer for
+the calling client through a ``Visibility`` (the hook for access rules).
+"""
+
+from __future__ import annotations
+
+from .install import ROSAPI_NODE, Rosapi, install_rosapi
+from .typedefs import TypeDef, typedefs
+from .visibility import EVERYTHING, NameFilter, Visibility, VisibilityFor
+
+__all__ = [
+    "EVERYTHING",
+    "ROSAPI_NODE",
+    "NameFilter",
+    "Rosapi",
+    "TypeDef",
+    "Visibility",
+    "VisibilityFor",
+    "install_rosapi",
+    "typedefs",
+]

@@ -1,0 +1,194 @@
+"""rosapi as in-process services of node ``/rosapi`` (REF §7.1, §7.2).
+
+``install_rosapi(graph)`` offers every ``/rosapi/*`` service of the graph's
+dialect: ROS 2 types ``rosapi_msgs/srv/<Name>`` (with ``get_ros_version`` and the
+newer ``interfaces``, ``action_type`` and action detail services), or ROS 1
+types ``rosapi/<Name>`` (with ``search_param`` and ``service_host``). Clients
+reach them by any spelling (``rosapi/topics`` resolves to ``/rosapi/topics``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from rwt_protocol.ports import ClientId
+
+from ..local import LocalService
+from ..types import Dialect
+from ..types.convert import time_keys, time_value
+from . import listing
+from .paramsrv import ROS1_HANDLERS, ROS2_HANDLERS
+from .typedefs import typedefs
+from .visibility import EVERYTHING, Visibility, VisibilityFor
+
+if TYPE_CHECKING:
+    from ..graph import Graph
+    from ..types import MessageType
+
+__all__ = ["ROSAPI_NODE", "Rosapi", "install_rosapi"]
+
+ROSAPI_NODE = "/rosapi"
+
+Message = dict[str, object]
+Handler = Callable[["Graph", Visibility, Message], Message]
+
+
+def _topics(graph: Graph, vis: Visibility, request: Message) -> Message:
+    names, types = listing.topics(graph, vis)
+    return {"topics": names, "types": types}
+
+
+def _topics_and_raw_types(graph: Graph, vis: Visibility, request: Message) -> Message:
+    names, types = listing.topics(graph, vis)
+    texts = [graph.registry.message(type_name).full_text() for type_name in types]
+    return {"topics": names, "types": types, "typedefs_full_text": texts}
+
+
+def _node_details(graph: Graph, vis: Visibility, request: Message) -> Message:
+    subscribing, publishing, services = listing.node_details(graph, vis, str(request["node"]))
+    return {"subscribing": subscribing, "publishing": publishing, "services": services}
+
+
+def _details(pick: Callable[[Graph, str], MessageType]) -> Handler:
+    def handler(graph: Graph, vis: Visibility, request: Message) -> Message:
+        return {"typedefs": typedefs(pick(graph, str(request["type"])), graph.registry.message)}
+
+    return handler
+
+
+def _interfaces(graph: Graph, vis: Visibility, request: Message) -> Message:
+    registry = graph.registry
+    names = registry.message_names() + registry.service_names() + registry.action_names()
+    return {"interfaces": sorted(names)}
+
+
+def _get_time(graph: Graph, vis: Visibility, request: Message) -> Message:
+    return {"time": time_value(graph.clock.wall(), graph.registry.dialect)}
+
+
+def _both_time_spellings(response: Message) -> Message:
+    """Add ``secs``/``nsecs`` to a ROS 2 time: roslibpy reads only those (REF §7.2)."""
+    stamp = response["time"]
+    if isinstance(stamp, dict):
+        sec_key, nsec_key = time_keys(Dialect.ROS2)
+        response["time"] = {**stamp, "secs": stamp[sec_key], "nsecs": stamp[nsec_key]}
+    return response
+
+
+def _common() -> dict[str, Handler]:
+    """The services both dialects have, by short name."""
+    return {
+        "topics": _topics,
+        "topics_for_type": lambda g, v, r: {
+            "topics": listing.topics_for_type(g, v, str(r["type"]))
+        },
+        "topics_and_raw_types": _topics_and_raw_types,
+        "services": lambda g, v, r: {"services": listing.services(g, v)},
+        "services_for_type": lambda g, v, r: {
+            "services": listing.services_for_type(g, v, str(r["type"]))
+        },
+        "nodes": lambda g, v, r: {"nodes": listing.node_names(g)},
+        "node_details": _node_details,
+        "action_servers": lambda g, v, r: {"action_servers": listing.action_servers(g, v)},
+        "topic_type": lambda g, v, r: {"type": listing.topic_type(g, v, str(r["topic"]))},
+        "service_type": lambda g, v, r: {"type": listing.service_type(g, v, str(r["service"]))},
+        "publishers": lambda g, v, r: {"publishers": listing.publishers(g, v, str(r["topic"]))},
+        "subscribers": lambda g, v, r: {"subscribers": listing.subscribers(g, v, str(r["topic"]))},
+        "service_providers": lambda g, v, r: {
+            "providers": listing.service_providers(g, v, str(r["service"]))
+        },
+        "service_node": lambda g, v, r: {"node": listing.service_node(g, v, str(r["service"]))},
+        "message_details": _details(lambda g, t: g.registry.message(t)),
+        "service_request_details": _details(lambda g, t: g.registry.service(t).request),
+        "service_response_details": _details(lambda g, t: g.registry.service(t).response),
+        "get_time": _get_time,
+    }
+
+
+def _ros2(distro: str) -> dict[str, Handler]:
+    return {
+        **_common(),
+        **ROS2_HANDLERS,
+        "get_ros_version": lambda g, v, r: {"version": 2, "distro": distro},
+        "interfaces": _interfaces,
+        "action_type": lambda g, v, r: {"type": listing.action_type(g, v, str(r["action"]))},
+        "action_goal_details": _details(lambda g, t: g.registry.action(t).goal),
+        "action_result_details": _details(lambda g, t: g.registry.action(t).result),
+        "action_feedback_details": _details(lambda g, t: g.registry.action(t).feedback),
+    }
+
+
+def _ros1() -> dict[str, Handler]:
+    return {
+        **_common(),
+        **ROS1_HANDLERS,
+        "service_host": lambda g, v, r: {"host": listing.service_host(g, v, str(r["service"]))},
+    }
+
+
+#: The type of each service, by short name, where it is not the short name in CamelCase.
+_TYPES = {
+    "action_servers": "GetActionServers",
+    "get_ros_version": "GetROSVersion",
+}
+
+
+def _type_short(service: str) -> str:
+    return _TYPES.get(service) or "".join(part.capitalize() for part in service.split("_"))
+
+
+@dataclass
+class Rosapi:
+    """The installed rosapi services; ``close()`` withdraws them all."""
+
+    services: list[LocalService] = field(default_factory=list)
+
+    def close(self) -> None:
+        """Withdraw every rosapi service (pending calls have already been answered)."""
+        for service in self.services:
+            service.close()
+        self.services.clear()
+
+
+def install_rosapi(
+    graph: Graph, *, visibility: VisibilityFor | None = None, distro: str = "jazzy"
+) -> Rosapi:
+    """Offer the rosapi services of ``graph``'s dialect, provided by node ``/rosapi``.
+
+    Args:
+        graph: the graph to describe and whose parameters to serve.
+        visibility: gives each calling client the names it may see (access rules);
+            None shows everything to everyone.
+        distro: the ROS 2 distribution ``get_ros_version`` reports; ``jazzy``
+            matches the bundled message definitions.
+
+    Returns:
+        A handle whose ``close()`` withdraws the services.
+    """
+    ros1 = graph.registry.dialect is Dialect.ROS1
+    table = _ros1() if ros1 else _ros2(distro)
+    package = "rosapi" if ros1 else "rosapi_msgs/srv"
+    rosapi = Rosapi()
+    for short, handler in table.items():
+        rosapi.services.append(
+            graph.create_caller_service(
+                f"/rosapi/{short}",
+                f"{package}/{_type_short(short)}",
+                _bound(graph, handler, visibility),
+                node=ROSAPI_NODE,
+                amend=_both_time_spellings if short == "get_time" and not ros1 else None,
+            )
+        )
+    return rosapi
+
+
+def _bound(
+    graph: Graph, handler: Handler, visibility: VisibilityFor | None
+) -> Callable[[ClientId, Message], Message]:
+    def serve(caller: ClientId, request: Message) -> Message:
+        vis = EVERYTHING if visibility is None else visibility(caller)
+        return handler(graph, vis, request)
+
+    return serve

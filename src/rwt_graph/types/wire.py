@@ -1,0 +1,136 @@
+"""What the protocol's encoders need from a message type (``rwt_protocol.ports.MessageCodec``).
+
+CBOR sends numeric arrays as RFC 8746 typed arrays whose tag depends on the
+element type (REF §3.2), which only the type knows: ``typed`` replaces each
+numeric array of a message with a numpy array of its element type (numpy
+converts a whole list in C). cbor-raw sends the dialect's wire serialization
+(REF §3.5): ``serialize`` builds the rosbags object and lets rosbags write CDR
+(ROS 2, with the 4-byte encapsulation header) or the ROS 1 format.
+
+Each type's plan is compiled once: a type without numeric arrays at any depth
+has no plan, and ``typed`` returns the message itself.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .convert import is_time_type
+from .names import Dialect
+from .spec import ArrayKind, FieldType, is_bytes_base
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+    from .message import MessageType
+
+__all__ = ["WireCodec", "compile_typed"]
+
+Msg = Mapping[str, object]
+Typer = Callable[[Msg], Msg]
+
+_NUMERIC: dict[str, str] = {
+    "int8": "int8",
+    "uint8": "uint8",
+    "int16": "int16",
+    "uint16": "uint16",
+    "int32": "int32",
+    "uint32": "uint32",
+    "int64": "int64",
+    "uint64": "uint64",
+    "float32": "float32",
+    "float64": "float64",
+}
+
+
+def _element_dtype(ftype: FieldType, dialect: Dialect) -> np.dtype[np.generic] | None:
+    """The numpy type of a primitive array's elements, or None when it stays a list/bytes."""
+    if ftype.is_message or is_bytes_base(ftype.base):
+        return None
+    if ftype.base == "byte":  # an octet in ROS 2, int8 in ROS 1 (REF §4.1)
+        return np.dtype("int8" if dialect is Dialect.ROS1 else "uint8")
+    name = _NUMERIC.get(ftype.base)
+    return None if name is None else np.dtype(name)
+
+
+def _field_typer(
+    ftype: FieldType, mtype: MessageType, resolve: Callable[[str], MessageType]
+) -> Callable[[object], object] | None:
+    if ftype.array is not ArrayKind.NONE:
+        dtype = _element_dtype(ftype, mtype.dialect)
+        if dtype is not None:
+            return lambda value: np.asarray(value, dtype=dtype)
+    if not ftype.is_message or is_time_type(ftype):
+        return None
+    inner = compile_typed(resolve(ftype.base), resolve)
+    if inner is None:
+        return None
+    if ftype.array is ArrayKind.NONE:
+        return inner  # type: ignore[return-value]
+    return lambda value: [inner(item) for item in value]  # type: ignore[attr-defined]
+
+
+def compile_typed(mtype: MessageType, resolve: Callable[[str], MessageType]) -> Typer | None:
+    """Compile the function that gives a message of ``mtype`` its typed arrays.
+
+    Returns:
+        A function mapping a message in the internal form to a shallow copy whose
+        numeric arrays (at any depth) are numpy arrays; None when the type has no
+        numeric array at any depth. ``uint8``/``char`` arrays stay ``bytes``,
+        ``bool``/``string`` arrays stay lists, times stay maps.
+    """
+    plan = [
+        (spec.name, typer)
+        for spec in mtype.fields
+        if (typer := _field_typer(spec.type, mtype, resolve)) is not None
+    ]
+    if not plan:
+        return None
+
+    def typed(msg: Msg) -> Msg:
+        out = dict(msg)
+        for name, typer in plan:
+            out[name] = typer(msg[name])
+        return out
+
+    return typed
+
+
+class WireCodec:
+    """The ``MessageCodec`` of one message type.
+
+    Args:
+        mtype: the message type.
+        resolve: finds nested message types by canonical name.
+        typestore: gives the registry's rosbags typestore (built on first use).
+    """
+
+    def __init__(
+        self,
+        mtype: MessageType,
+        resolve: Callable[[str], MessageType],
+        typestore: Callable[[], Typestore],
+    ) -> None:
+        self.mtype = mtype
+        self._typer = compile_typed(mtype, resolve)
+        self._typestore = typestore
+
+    def typed(self, msg: Msg) -> Msg:
+        """``msg`` with numeric arrays as numpy arrays (for CBOR typed arrays, REF §3.2)."""
+        return msg if self._typer is None else self._typer(msg)
+
+    def serialize(self, msg: Msg) -> bytes:
+        """The dialect's wire serialization of ``msg`` (for cbor-raw, REF §3.5).
+
+        Raises:
+            KeyError: the typestore lacks the type (a definition that failed to load).
+        """
+        store = self._typestore()
+        obj = self.mtype.to_rosbags(dict(msg), store)
+        name = self.mtype.rosbags_name
+        if self.mtype.dialect is Dialect.ROS1:
+            return bytes(store.serialize_ros1(obj, name))
+        return bytes(store.serialize_cdr(obj, name))

@@ -1,0 +1,220 @@
+"""Fragmentation of large messages, both directions (spec 3.1.1, PROTOCOL-DECISIONS D19).
+
+Outgoing: the text of one op is cut into chunks of ``fragment_size`` characters,
+each sent as its own ``fragment`` op with the op's id (or a fresh one), integer
+``num`` from 0 and integer ``total`` (the reference sends a float total and id 0,
+REF §3.4). ``png`` ops are split the same way (D20), by their base64 ``data``.
+
+Incoming: a ``Reassembler`` per connection (the reference shares one store among
+all clients) collects parts by ``num`` in any order, refuses duplicates and
+parts that disagree with earlier ones, bounds what it holds (D24) and forgets
+messages that stop arriving. It reads no clock: ``now`` comes from the caller
+and the session drives expiry from its timer.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from .codec import encode_json
+from .errors import RemoteProtocolError
+
+__all__ = [
+    "FRAGMENT_OVERHEAD",
+    "MAX_PARTS",
+    "PartKind",
+    "Reassembler",
+    "fragment_frames",
+    "fresh_id",
+    "split_text",
+]
+
+FRAGMENT_OVERHEAD = 64
+"""Characters charged per held part on top of its data, so tiny parts stay bounded."""
+
+MAX_PARTS = 10_000
+"""The most parts one outgoing message is cut into (D24: a peer asking for
+``fragment_size`` 1 must not make the server build millions of frames); a smaller
+fragment size is raised for that message so that it fits."""
+
+_fresh = itertools.count(1)
+
+
+def fresh_id(op: str) -> str:
+    """A new id for the parts of an op that has none: ``rwt:<op>:<n>``, unique per process.
+
+    Never empty or 0: roslibjs ignores fragments whose id is falsy.
+    """
+    return f"rwt:{op}:{next(_fresh)}"
+
+
+def split_text(text: str, size: int) -> list[str]:
+    """Cut ``text`` into consecutive chunks of ``size`` characters (the last may be shorter).
+
+    Args:
+        text: the text to cut; empty text gives one empty chunk.
+        size: characters per chunk, at least 1.
+
+    Raises:
+        ValueError: ``size`` is below 1.
+    """
+    if size < 1:
+        raise ValueError(f"fragment size must be at least 1, got {size}")
+    if not text:
+        return [""]
+    return [text[start : start + size] for start in range(0, len(text), size)]
+
+
+def fragment_frames(text: str, op_id: str | int, size: int, *, op: str = "fragment") -> list[bytes]:
+    """Build the ``fragment`` (or ``png``) ops that carry ``text`` in parts.
+
+    Args:
+        text: the JSON text of the op to send (for ``png``: its base64 data).
+        op_id: the id every part carries (D19).
+        size: characters of ``text`` per part.
+        op: ``fragment``, or ``png`` for the parts of a PNG message (D20).
+
+    Returns:
+        One JSON frame per part, in order, ``{"op", "id", "data", "num", "total"}``;
+        never more than ``MAX_PARTS``.
+    """
+    chunks = split_text(text, max(size, -(-len(text) // MAX_PARTS)))
+    total = len(chunks)
+    return [
+        encode_json({"op": op, "id": op_id, "data": chunk, "num": num, "total": total})
+        for num, chunk in enumerate(chunks)
+    ]
+
+
+class PartKind(StrEnum):
+    """Which op the parts belong to: their ids live in separate spaces."""
+
+    FRAGMENT = "fragment"
+    PNG = "png"
+
+
+@dataclass(slots=True)
+class _Pending:
+    total: int
+    deadline: float
+    size: int = 0
+    parts: dict[int, str] = field(default_factory=dict)
+
+
+class Reassembler:
+    """The partly received messages of one connection.
+
+    Args:
+        max_bytes: the most characters held at once, over every pending message
+            (each part costs its data plus ``FRAGMENT_OVERHEAD``); also the largest
+            message that can be reassembled (``--max-message-size``).
+        max_pending: the most messages pending at once (``--max-pending-fragments``).
+        timeout_s: seconds after its latest part at which an incomplete message is
+            forgotten (``--fragment-timeout``).
+    """
+
+    def __init__(self, *, max_bytes: int, max_pending: int, timeout_s: float) -> None:
+        self.max_bytes = max_bytes
+        self.max_pending = max_pending
+        self.timeout_s = timeout_s
+        self._pending: dict[tuple[PartKind, str | int], _Pending] = {}
+        self._bytes = 0
+
+    def __len__(self) -> int:
+        return len(self._pending)
+
+    @property
+    def held_bytes(self) -> int:
+        """Characters (with per-part overhead) currently held."""
+        return self._bytes
+
+    def add(
+        self, kind: PartKind, op_id: str | int, num: int, total: int, *, data: str, now: float
+    ) -> str | None:
+        """Take one part; return the whole text once every part arrived.
+
+        Args:
+            kind: the op that carried the part.
+            op_id: the message id the parts share.
+            num: index of this part, 0-based.
+            total: number of parts.
+            data: this part's text.
+            now: monotonic seconds, for expiry.
+
+        Returns:
+            The parts' data joined in ``num`` order when complete, else None.
+
+        Raises:
+            RemoteProtocolError: ``num`` not below ``total``, a ``total`` that differs
+                from earlier parts, a duplicate ``num``, too many pending messages,
+                or more than ``max_bytes`` held; a message over the byte bound is
+                dropped whole, since it can never complete.
+        """
+        if num >= total:
+            raise RemoteProtocolError(f"num {num} is not below total {total} (id {op_id!r})")
+        key = (kind, op_id)
+        entry = self._pending.get(key)
+        if entry is None:
+            if total == 1:
+                self._check_size(key, len(data) + FRAGMENT_OVERHEAD)
+                return data
+            if len(self._pending) >= self.max_pending:
+                raise RemoteProtocolError(
+                    f"too many incomplete messages (limit {self.max_pending}); id {op_id!r} refused"
+                )
+            entry = self._pending[key] = _Pending(total, now + self.timeout_s)
+        elif total != entry.total:
+            raise RemoteProtocolError(
+                f"total {total} differs from {entry.total} of earlier parts of id {op_id!r}"
+            )
+        elif num in entry.parts:
+            raise RemoteProtocolError(f"duplicate part {num} of id {op_id!r}")
+        cost = len(data) + FRAGMENT_OVERHEAD
+        self._check_size(key, cost)
+        entry.parts[num] = data
+        entry.size += cost
+        self._bytes += cost
+        entry.deadline = now + self.timeout_s
+        if len(entry.parts) < entry.total:
+            return None
+        self._drop(key)
+        return "".join(entry.parts[i] for i in range(entry.total))
+
+    def _check_size(self, key: tuple[PartKind, str | int], cost: int) -> None:
+        if self._bytes + cost <= self.max_bytes:
+            return
+        self._drop(key)
+        raise RemoteProtocolError(
+            f"message {key[1]!r} dropped: incomplete messages would hold more than"
+            f" {self.max_bytes} bytes"
+        )
+
+    def _drop(self, key: tuple[PartKind, str | int]) -> None:
+        entry = self._pending.pop(key, None)
+        if entry is not None:
+            self._bytes -= entry.size
+
+    def next_deadline(self) -> float | None:
+        """The earliest time at which a pending message expires, or None."""
+        return min((e.deadline for e in self._pending.values()), default=None)
+
+    def expire(self, now: float) -> list[tuple[PartKind, str | int, int, int]]:
+        """Forget every message whose deadline is at or before ``now``.
+
+        Returns:
+            ``(kind, id, parts received, total)`` of each forgotten message.
+        """
+        expired = [key for key, entry in self._pending.items() if entry.deadline <= now]
+        gone: list[tuple[PartKind, str | int, int, int]] = []
+        for key in expired:
+            entry = self._pending[key]
+            gone.append((key[0], key[1], len(entry.parts), entry.total))
+            self._drop(key)
+        return gone
+
+    def clear(self) -> None:
+        """Forget everything (the connection closed)."""
+        self._pending.clear()
+        self._bytes = 0

@@ -1,0 +1,199 @@
+"""The parameter store from Python: ROS 2 node parameters and the ROS 1 tree (REF §7.1)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rwt_graph.graph import Graph
+from rwt_graph.params import ParameterError, ParameterNotSet, Parameters
+from rwt_graph.types import Dialect, TypeRegistry
+
+# ---- ROS 2 ---------------------------------------------------------------------------
+
+
+def test_declared_parameters_are_named_node_colon_param() -> None:
+    params = Graph().params
+    params.declare("robot", {"max_speed": 1.5, "name": "r2", "wheels": [1, 2]})
+    assert params.names() == ["/robot:max_speed", "/robot:name", "/robot:wheels"]
+    assert params.get("/robot:max_speed") == 1.5
+    assert params.get("robot:name") == "r2"  # the node resolves to /robot
+    assert params.nodes() == {"/robot"}
+
+
+def test_declared_type_is_kept_and_ints_widen_to_float() -> None:
+    params = Parameters()
+    params.declare("/n", {"speed": 0.5, "gains": [0.1, 0.2], "mode": "auto"})
+    params.set("/n:speed", 2)
+    assert params.get("/n:speed") == 2.0 and isinstance(params.get("/n:speed"), float)
+    params.set("/n:gains", [1, 2.5])
+    assert params.get("/n:gains") == [1.0, 2.5]
+    params.set("/n:gains", [])
+    assert params.get("/n:gains") == []
+    with pytest.raises(ParameterError, match="has type double, not string"):
+        params.set("/n:speed", "fast")
+    with pytest.raises(ParameterError, match="has type string, not integer"):
+        params.set("/n:mode", 3)
+    assert params.get("/n:mode") == "auto"
+
+
+def test_undeclared_and_dynamically_typed_parameters_change_type() -> None:
+    params = Parameters()
+    params.set("/n:free", 1)
+    params.set("/n:free", "one")
+    params.declare("/n", {"dyn": True}, dynamic_typing=True)
+    params.set("/n:dyn", [1, 2])
+    assert params.get("/n:free") == "one" and params.get("/n:dyn") == [1, 2]
+
+
+def test_read_only_parameters_refuse_set_and_delete() -> None:
+    params = Parameters()
+    params.declare("/robot", {"model": "turtle"}, read_only=True)
+    with pytest.raises(ParameterError, match="read-only"):
+        params.set("/robot:model", "hare")
+    with pytest.raises(ParameterError, match="read-only"):
+        params.delete("/robot:model")
+    assert params.get("/robot:model") == "turtle"
+
+
+@pytest.mark.parametrize(
+    ("value", "problem"),
+    [
+        ({"a": 1}, "not dict"),
+        (None, "not NoneType"),
+        ([1, "a"], "must have one type"),
+        ([True, 1], "must have one type"),
+        ([[1]], "not list"),
+        (2**63, "does not fit in int64"),
+    ],
+)
+def test_values_ros2_cannot_hold_are_refused(value: object, problem: str) -> None:
+    params = Parameters()
+    with pytest.raises(ParameterError, match=problem):
+        params.set("/n:p", value)
+    assert not params.has("/n:p")
+
+
+@pytest.mark.parametrize("name", ["no_colon", ":p", "/n:", "/n:a:b", "/9bad:p", "/n-1:p"])
+def test_malformed_ros2_names_are_refused(name: str) -> None:
+    params = Parameters()
+    with pytest.raises(ParameterError):
+        params.set(name, 1)
+    assert params.has(name) is False
+
+
+def test_get_default_has_and_delete() -> None:
+    params = Parameters()
+    with pytest.raises(ParameterNotSet):
+        params.get("/n:p")
+    assert params.get("/n:p", 7) == 7
+    params.set("/n:p", 1)
+    assert params.has("/n:p")
+    params.delete("/n:p")
+    assert not params.has("/n:p") and params.nodes() == set()
+    with pytest.raises(ParameterNotSet):
+        params.delete("/n:p")
+
+
+def test_values_are_copies_both_ways() -> None:
+    params = Parameters()
+    mine = [1, 2]
+    params.set("/n:list", mine)
+    mine.append(3)
+    got = params.get("/n:list")
+    assert isinstance(got, list)
+    got.append(4)
+    assert params.get("/n:list") == [1, 2]
+
+
+def test_watchers_hear_sets_and_deletes_until_stopped() -> None:
+    params = Parameters()
+    seen: list[tuple[str, object]] = []
+    stop = params.watch(lambda name, value: seen.append((name, value)))
+
+    def broken(name: str, value: object) -> None:
+        raise RuntimeError("watcher bug")
+
+    params.watch(broken)
+    params.declare("n", {"a": 1})
+    params.set("/n:a", 2)
+    params.delete("/n:a")
+    stop()
+    params.set("/n:b", 3)
+    assert seen == [("/n:a", 1), ("/n:a", 2), ("/n:a", None)]
+
+
+def test_the_store_is_bounded() -> None:
+    params = Parameters(max_params=2)
+    params.set("/n:a", 1)
+    params.set("/n:b", 1)
+    params.set("/n:a", 2)  # replacing is fine
+    with pytest.raises(ParameterError, match="full"):
+        params.set("/n:c", 1)
+
+
+# ---- ROS 1 ---------------------------------------------------------------------------
+
+
+def ros1() -> Parameters:
+    return Graph(TypeRegistry(Dialect.ROS1)).params
+
+
+def test_ros1_names_are_global_and_namespaces_are_dicts() -> None:
+    params = ros1()
+    params.set("/robot/speed", 1.5)
+    params.set("robot/arm", {"joints": 6, "names": ["a", 1, True]})
+    assert params.names() == ["/robot/arm/joints", "/robot/arm/names", "/robot/speed"]
+    assert params.get("/robot") == {
+        "speed": 1.5,
+        "arm": {"joints": 6, "names": ["a", 1, True]},
+    }
+    assert params.has("/robot/arm") and not params.has("/robot/leg")
+    params.delete("/robot/arm")
+    assert params.names() == ["/robot/speed"]
+    with pytest.raises(ParameterNotSet):
+        params.delete("/robot/arm")
+
+
+def test_ros1_declare_uses_the_node_namespace_and_search_finds_globals() -> None:
+    params = ros1()
+    params.declare("/camera", {"fps": 30})
+    assert params.get("/camera/fps") == 30
+    assert params.search("camera/fps") == "/camera/fps"
+    assert params.search("nothing") == ""
+
+
+def test_ros1_setting_under_a_value_makes_it_a_namespace() -> None:
+    params = ros1()
+    params.set("/a", 1)
+    params.set("/a/b", 2)
+    assert params.get("/a") == {"b": 2}
+    params.set("/", {"x": 1})
+    assert params.names() == ["/x"]
+    with pytest.raises(ParameterError, match="only be set to a dict"):
+        params.set("/", 3)
+
+
+@pytest.mark.parametrize(
+    ("value", "problem"),
+    [(None, "cannot be NoneType"), (2**31, "int32"), ({"a/b": 1}, "namespace keys")],
+)
+def test_ros1_refuses_what_xmlrpc_cannot_carry(value: object, problem: str) -> None:
+    with pytest.raises(ParameterError, match=problem):
+        ros1().set("/p", value)
+
+
+def test_ros1_store_bound_counts_leaves() -> None:
+    params = Parameters(Dialect.ROS1, max_params=3)
+    params.set("/ns", {"a": 1, "b": 2})
+    params.set("/ns", {"a": 1, "b": 2, "c": 3})  # replaces two leaves by three
+    with pytest.raises(ParameterError, match="full"):
+        params.set("/other", 1)
+
+
+def test_nan_is_kept_in_python() -> None:
+    params = Parameters()
+    params.set("/n:x", math.nan)
+    value = params.get("/n:x")
+    assert isinstance(value, float) and math.isnan(value)

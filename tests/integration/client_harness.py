@@ -1,0 +1,406 @@
+"""Start `rwt serve` and drive real rosbridge clients (roslibpy, roslib in Node) against it.
+
+A scenario is a list of phases, each `(role, steps)`. The steps of a role use a
+connection named after the role. When both roles use the same client library the
+phases run in one driver process, in order; when they differ (cross-client) each
+role gets its own process, and the harness hands over between phases: the role
+that finishes a phase prints a `signal`, the role whose phase comes next was
+blocked on an `await` and gets a line on stdin. The step format is documented in
+roslibpy_driver.py.
+
+Every wait here is bounded; a failure message carries the drivers' stderr.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent.parent
+JS_DIR = REPO / "tests" / "js"
+JS_DRIVER = JS_DIR / "rosclient.mjs"
+PY_DRIVER = HERE / "roslibpy_driver.py"
+
+SERVER_START_TIMEOUT = 20.0
+SERVER_STOP_TIMEOUT = 10.0
+#: Bound for a driver process to finish once the scenario is under way.
+DRIVER_TIMEOUT = 40.0
+#: Written into each scenario: a driver gives up on its own before the harness does.
+SCENARIO_TIMEOUT_MS = 30000
+STEP_TIMEOUT_MS = 10000
+
+CLIENTS = ("roslibpy", "roslibjs")
+
+
+def node_missing_reason() -> str | None:
+    """Why the Node client tests cannot run here, or None when they can."""
+    if shutil.which("node") is None:
+        return "node is not on PATH (CI installs Node 20)"
+    if not (JS_DIR / "node_modules" / "roslib").is_dir():
+        return "tests/js/node_modules is missing: run `npm ci --prefix tests/js`"
+    return None
+
+
+class _LineReader:
+    """Reads a pipe's lines on a thread so that every read can be bounded."""
+
+    def __init__(self, pipe: Any, name: str) -> None:
+        self.lines: queue.Queue[str | None] = queue.Queue()
+        self.seen: list[str] = []
+        self._thread = threading.Thread(target=self._run, args=(pipe,), name=name, daemon=True)
+        self._thread.start()
+
+    def _run(self, pipe: Any) -> None:
+        with contextlib.suppress(ValueError, OSError):
+            for raw in pipe:
+                line = raw.decode("utf-8", "replace").rstrip("\r\n")
+                self.seen.append(line)
+                self.lines.put(line)
+        self.lines.put(None)
+
+    def get(self, deadline: float) -> str | None:
+        """The next line, None at end of file; raises TimeoutError past `deadline`."""
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError
+        try:
+            return self.lines.get(timeout=left)
+        except queue.Empty:
+            raise TimeoutError from None
+
+
+def _close_pipes(proc: subprocess.Popen) -> None:
+    for pipe in (proc.stdin, proc.stdout):
+        if pipe is not None:
+            with contextlib.suppress(OSError, ValueError):
+                pipe.close()
+
+
+# --------------------------------------------------------------------------- server
+class ServerProcess:
+    """`python -m rwt_transports serve --host 127.0.0.1 --port 0` in a subprocess."""
+
+    def __init__(
+        self, workdir: Path, extra_args: tuple[str, ...] = (), cmd: list[str] | None = None
+    ) -> None:
+        self.stderr_path = workdir / "rwt-serve.stderr"
+        self.cmd = cmd or [
+            sys.executable,
+            "-m",
+            "rwt_transports",
+            "serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            "0",
+            *extra_args,
+        ]
+        self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
+        # This checkout's code, not whatever rwt an editable install points at.
+        path = os.pathsep.join(filter(None, [str(REPO / "src"), os.environ.get("PYTHONPATH")]))
+        env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=path)
+        self.proc = subprocess.Popen(
+            self.cmd,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+            cwd=workdir,
+            env=env,
+        )
+        self._stdout = _LineReader(self.proc.stdout, "rwt-serve-stdout")
+        self.url = self._read_url()
+        self.returncode: int | None = None
+
+    def _read_url(self) -> str:
+        deadline = time.monotonic() + SERVER_START_TIMEOUT
+        try:
+            line = self._stdout.get(deadline)
+        except TimeoutError:
+            self.stop()
+            raise RuntimeError(
+                f"`{' '.join(self.cmd)}` printed nothing within {SERVER_START_TIMEOUT:.0f}s\n"
+                f"stderr:\n{self.stderr_text()}"
+            ) from None
+        prefix = "listening on "
+        if line is None or not line.startswith(prefix + "ws://"):
+            self.stop()
+            raise RuntimeError(
+                f"`{' '.join(self.cmd)}` first stdout line was {line!r}, expected "
+                f"'listening on ws://HOST:PORT' (exit code {self.proc.poll()})\n"
+                f"stderr:\n{self.stderr_text()}"
+            )
+        return line[len(prefix) :].strip()
+
+    @property
+    def port(self) -> int:
+        return int(self.url.rsplit(":", 1)[1].split("/", 1)[0])
+
+    def stderr_text(self) -> str:
+        if not self._stderr.closed:
+            self._stderr.flush()
+        try:
+            return self.stderr_path.read_text("utf-8", "replace")
+        except OSError as exc:
+            return f"<could not read server stderr: {exc}>"
+
+    def stop(self) -> int | None:
+        """SIGINT, then SIGKILL if it does not stop in time. Returns the exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(SERVER_STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(SERVER_STOP_TIMEOUT)
+        self.returncode = self.proc.returncode
+        _close_pipes(self.proc)
+        self._stderr.close()
+        return self.returncode
+
+
+# --------------------------------------------------------------------------- drivers
+class DriverError(AssertionError):
+    pass
+
+
+class Driver:
+    """One client process running a list of steps (roslibpy or roslib-in-Node)."""
+
+    def __init__(self, client: str, url: str, steps: list[dict], workdir: Path, label: str) -> None:
+        self.client = client
+        self.label = label
+        scenario = {
+            "timeout_ms": SCENARIO_TIMEOUT_MS,
+            "step_timeout_ms": STEP_TIMEOUT_MS,
+            "steps": steps,
+        }
+        fd, path = tempfile.mkstemp(prefix=f"{label}-", suffix=".json", dir=workdir)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(scenario, f)
+        if client == "roslibpy":
+            cmd = [sys.executable, str(PY_DRIVER), url, path]
+            cwd = HERE
+        elif client == "roslibjs":
+            node = shutil.which("node")
+            if node is None:
+                raise DriverError(node_missing_reason())
+            cmd = [node, str(JS_DRIVER), url, path]
+            cwd = JS_DIR
+        else:
+            raise ValueError(client)
+        self.stderr_path = Path(path).with_suffix(".stderr")
+        self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in kill()
+        self.proc = subprocess.Popen(
+            cmd,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+            cwd=cwd,
+        )
+        self._stdout = _LineReader(self.proc.stdout, f"{label}-stdout")
+        self.result: dict | None = None
+
+    def describe(self) -> str:
+        if not self._stderr.closed:
+            self._stderr.flush()
+        err = self.stderr_path.read_text("utf-8", "replace")
+        out = "\n".join(line[:500] for line in self._stdout.seen)
+        return (
+            f"--- {self.label} ({self.client}) exit={self.proc.poll()}\n"
+            f"stdout:\n{out}\nstderr:\n{err}"
+        )
+
+    def _next(self, deadline: float, wanted: str) -> dict:
+        while True:
+            try:
+                line = self._stdout.get(deadline)
+            except TimeoutError:
+                raise DriverError(f"{self.label}: timed out waiting for {wanted}") from None
+            if line is None:
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    self.proc.wait(5)
+                raise DriverError(f"{self.label}: exited before {wanted}")
+            try:
+                return json.loads(line)
+            except ValueError:
+                continue  # not one of ours (a library printing); keep it in the log
+
+    def wait_event(self, name: str, deadline: float) -> None:
+        frame = self._next(deadline, f"event {name!r}")
+        if frame.get("event") != name:
+            raise DriverError(f"{self.label}: expected event {name!r}, got {frame}")
+
+    def go(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(b"go\n")
+        self.proc.stdin.flush()
+
+    def wait_result(self, deadline: float) -> dict:
+        frame = self._next(deadline, "its result")
+        if "result" not in frame:
+            raise DriverError(f"{self.label}: expected the result, got {frame}")
+        try:
+            code = self.proc.wait(max(0.1, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            raise DriverError(f"{self.label}: printed its result but did not exit") from None
+        if code != 0:
+            raise DriverError(f"{self.label}: exit code {code} after its result")
+        self.result = frame["result"]
+        return self.result
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.proc.wait(5)
+        _close_pipes(self.proc)
+        self._stderr.close()
+
+
+@dataclass
+class Outcome:
+    """What the clients saw, merged over driver processes."""
+
+    received: dict[str, dict[str, list]] = field(default_factory=dict)
+    wire: dict[str, dict[str, list]] = field(default_factory=dict)
+    status_count: int = 0
+    statuses: list[dict] = field(default_factory=list)
+    calls: dict[str, dict] = field(default_factory=dict)
+
+    def add(self, result: dict) -> None:
+        self.received.update(result["received"])
+        self.wire.update(result["wire"])
+        self.status_count += result["status_count"]
+        self.statuses.extend(result["statuses"])
+        self.calls.update(result.get("calls", {}))
+
+    def ok(self, name: str) -> Any:
+        """What the `api` step recorded as `name` returned; fails if it reported an error."""
+        outcome = self.calls.get(name)
+        assert outcome is not None, f"no call recorded as {name!r}: {self.calls}"
+        assert "ok" in outcome, f"{name} failed: {outcome['error']}"
+        return outcome["ok"]
+
+    def got(self, conn: str, topic: str) -> list:
+        """Messages the user callback of `conn` got on `topic`."""
+        return self.received.get(conn, {}).get(topic, [])
+
+    def on_wire(self, conn: str, topic: str) -> list:
+        """Every publish frame `conn` got for `topic` (also after unsubscribe)."""
+        return self.wire.get(conn, {}).get(topic, [])
+
+
+Phase = tuple[str, list[dict]]
+
+
+def run_scenario(url: str, phases: list[Phase], clients: dict[str, str], workdir: Path) -> Outcome:
+    """Run `phases`; `clients` maps each role to "roslibpy" or "roslibjs"."""
+    roles = list(dict.fromkeys(role for role, _ in phases))
+    kinds = {clients[r] for r in roles}
+    drivers: list[Driver] = []
+    deadline = time.monotonic() + DRIVER_TIMEOUT
+    outcome = Outcome()
+    try:
+        if len(kinds) == 1:
+            steps = [s for _, phase_steps in phases for s in phase_steps]
+            d = Driver(kinds.pop(), url, steps, workdir, "+".join(roles))
+            drivers.append(d)
+            outcome.add(d.wait_result(deadline))
+            return outcome
+
+        per_role: dict[str, list[dict]] = {r: [] for r in roles}
+        handovers: list[tuple[str, str, str]] = []  # (from role, to role, event)
+        for i, (role, phase_steps) in enumerate(phases):
+            if i > 0 and phases[i - 1][0] != role:
+                event = f"phase{i}"
+                prev = phases[i - 1][0]
+                per_role[prev].append({"op": "signal", "name": event})
+                per_role[role].append({"op": "await"})
+                handovers.append((prev, role, event))
+            per_role[role].extend(phase_steps)
+        # A role whose first phase is not the first one starts blocked on `await`
+        # (added above), so both processes can start (and pay their start-up) at once.
+        by_role = {
+            role: Driver(clients[role], url, steps, workdir, role)
+            for role, steps in per_role.items()
+        }
+        drivers.extend(by_role.values())
+        for prev, nxt, event in handovers:
+            by_role[prev].wait_event(event, deadline)
+            by_role[nxt].go()
+        for d in drivers:
+            outcome.add(d.wait_result(deadline))
+        return outcome
+    except DriverError as exc:
+        for d in drivers:
+            if d.proc.poll() is None:
+                d.proc.kill()
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    d.proc.wait(5)
+        details = "\n".join(d.describe() for d in drivers)
+        raise DriverError(f"{exc}\n{details}") from None
+    finally:
+        for d in drivers:
+            d.kill()
+
+
+# --------------------------------------------------------------------------- helpers
+def connect(role: str) -> dict:
+    return {"op": "connect", "conn": role}
+
+
+def subscribe(role: str, topic: str, msg_type: str | None) -> dict:
+    step = {"op": "subscribe", "conn": role, "topic": topic}
+    if msg_type is not None:
+        step["type"] = msg_type
+    return step
+
+
+def unsubscribe(role: str, topic: str) -> dict:
+    return {"op": "unsubscribe", "conn": role, "topic": topic}
+
+
+def advertise(role: str, topic: str, msg_type: str) -> dict:
+    return {"op": "advertise", "conn": role, "topic": topic, "type": msg_type}
+
+
+def publish(role: str, topic: str, *msgs: Any) -> dict:
+    return {"op": "publish", "conn": role, "topic": topic, "msgs": list(msgs)}
+
+
+def sync(role: str) -> dict:
+    """Barrier: everything `role` sent before has been processed by the server."""
+    return {"op": "sync", "conn": role}
+
+
+def wait(role: str, topic: str, count: int) -> dict:
+    return {"op": "wait", "conn": role, "topic": topic, "count": count}
+
+
+def quiet(ms: int) -> dict:
+    return {"op": "quiet", "ms": ms}
+
+
+def close(role: str) -> dict:
+    return {"op": "close", "conn": role}
+
+
+def api(role: str, name: str, call: str, *args: Any, blocking: bool = False) -> dict:
+    """Call the client's rosapi helper `call` with `args`; record the outcome as `name`."""
+    step = {"op": "api", "conn": role, "as": name, "call": call, "args": list(args)}
+    if blocking:
+        step["blocking"] = True
+    return step

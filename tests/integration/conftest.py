@@ -1,0 +1,38 @@
+"""Fixtures for the real-client integration tests: a fresh `rwt serve` per test."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from .client_harness import ServerProcess, node_missing_reason
+
+_NODE_MISSING = node_missing_reason()
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    if item.get_closest_marker("node") is not None and _NODE_MISSING is not None:
+        pytest.skip(f"roslib-in-Node tests skipped: {_NODE_MISSING}")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator:
+    """On a failure, attach the server's stderr to the report."""
+    report = yield
+    server = getattr(item, "_rwt_server", None)
+    if server is not None and report.failed:
+        report.sections.append(("rwt serve stderr", server.stderr_text() or "<empty>"))
+    return report
+
+
+@pytest.fixture
+def rwt_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+    """`rwt serve --port 0` in a subprocess; yields it (`.url`, `.port`)."""
+    server = ServerProcess(tmp_path)
+    request.node._rwt_server = server
+    try:
+        yield server
+    finally:
+        server.stop()

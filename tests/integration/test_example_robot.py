@@ -1,0 +1,96 @@
+"""examples/robot.py (the README's robot in under 30 lines) driven by a raw WebSocket client."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from websockets.sync.client import ClientConnection, connect
+
+from .client_harness import REPO, ServerProcess
+
+EXAMPLE = REPO / "examples" / "robot.py"
+TIMEOUT_S = 10.0
+
+
+@pytest.fixture
+def robot(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+    server = ServerProcess(tmp_path, cmd=[sys.executable, str(EXAMPLE), "0"])
+    request.node._rwt_server = server
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def send(ws: ClientConnection, **op: object) -> None:
+    ws.send(json.dumps(op))
+
+
+def expect(ws: ClientConnection, op: str) -> dict:
+    """The next frame with this op (every wait bounded)."""
+    while True:
+        frame = json.loads(ws.recv(timeout=TIMEOUT_S))
+        if frame["op"] == op:
+            return frame
+
+
+def rosapi(ws: ClientConnection, service: str, **args: object) -> dict:
+    send(ws, op="call_service", service=service, args=args, id=service)
+    reply = expect(ws, "service_response")
+    assert reply["id"] == service and reply["result"] is True, reply
+    return reply["values"]
+
+
+def test_the_example_is_under_30_lines() -> None:
+    assert len(EXAMPLE.read_text().splitlines()) < 30
+
+
+def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:
+    with connect(robot.url) as ws:
+        send(ws, op="subscribe", topic="/velocity")
+        send(ws, op="advertise", topic="/cmd_vel", type="geometry_msgs/Twist")
+        send(ws, op="publish", topic="/cmd_vel", msg={"linear": {"x": 0.5}})
+        velocity = expect(ws, "publish")
+        assert velocity["topic"] == "/velocity"
+        assert velocity["msg"]["linear"] == {"x": 0.5, "y": 0.0, "z": 0.0}
+
+        send(ws, op="call_service", service="/lights", args={"data": True}, id="l")
+        lights = expect(ws, "service_response")
+        assert lights["values"] == {"success": True, "message": ""} and lights["result"] is True
+
+        send(
+            ws,
+            op="send_action_goal",
+            action="/fibonacci",
+            action_type="example_interfaces/action/Fibonacci",
+            args={"order": 5},
+            feedback=True,
+            id="g",
+        )
+        assert expect(ws, "action_feedback")["values"] == {"sequence": [0, 1, 1]}
+        result = expect(ws, "action_result")
+        assert result["status"] == 4 and result["result"] is True
+        assert result["values"] == {"sequence": [0, 1, 1, 2, 3, 5]}
+
+        assert rosapi(ws, "/rosapi/get_param", name="/rwt:max_speed")["value"] == "1.0"
+        assert rosapi(ws, "/rosapi/set_param", name="/rwt:max_speed", value="2.5") == {
+            "successful": True,
+            "reason": "",
+        }
+        assert rosapi(ws, "/rosapi/get_param", name="/rwt:max_speed")["value"] == "2.5"
+        assert rosapi(ws, "/rosapi/action_servers") == {"action_servers": ["/fibonacci"]}
+        assert rosapi(ws, "/rosapi/node_details", node="/rwt") == {
+            "subscribing": ["/cmd_vel"],
+            "publishing": ["/velocity"],
+            "services": ["/lights"],
+        }
+
+
+def test_the_readme_shows_the_example() -> None:
+    code = EXAMPLE.read_text()
+    body = code[code.index("graph = Graph()") :]
+    assert body in (REPO / "README.md").read_text()

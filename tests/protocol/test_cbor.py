@@ -1,0 +1,102 @@
+"""The CBOR codec (spec 3.1.3, PROTOCOL-DECISIONS D21, D27, REF §3.2)."""
+
+from __future__ import annotations
+
+import cbor2
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rwt_protocol.codec_cbor import TYPED_ARRAY_TAGS, decode_cbor, encode_cbor
+from rwt_protocol.errors import RemoteProtocolError
+
+INTS = {
+    "int8": (-(2**7), 2**7 - 1),
+    "uint16": (0, 2**16 - 1),
+    "uint32": (0, 2**32 - 1),
+    "uint64": (0, 2**64 - 1),
+    "int16": (-(2**15), 2**15 - 1),
+    "int32": (-(2**31), 2**31 - 1),
+    "int64": (-(2**63), 2**63 - 1),
+}
+
+
+def _values(dtype: str) -> st.SearchStrategy[list[object]]:
+    if dtype in INTS:
+        low, high = INTS[dtype]
+        return st.lists(st.integers(low, high), max_size=40)
+    width = 32 if dtype == "float32" else 64
+    return st.lists(st.floats(width=width, allow_nan=False), max_size=40)
+
+
+@pytest.mark.parametrize("dtype", sorted(set(TYPED_ARRAY_TAGS) - {"uint8"}))
+@given(data=st.data())
+def test_typed_array_round_trip_for_every_numeric_type(dtype: str, data: st.DataObject) -> None:
+    values = data.draw(_values(dtype))
+    frame = encode_cbor({"op": "publish", "msg": {"data": np.asarray(values, dtype=dtype)}})
+    tag = cbor2.loads(frame)["msg"]["data"]
+    assert isinstance(tag, cbor2.CBORTag)
+    assert tag.tag == TYPED_ARRAY_TAGS[dtype]
+    assert tag.value == np.asarray(values, dtype=np.dtype(dtype).newbyteorder("<")).tobytes()
+    assert decode_cbor(frame) == {"op": "publish", "msg": {"data": values}}
+
+
+@given(values=st.binary(max_size=100))
+def test_uint8_arrays_are_plain_byte_strings(values: bytes) -> None:
+    array = np.frombuffer(values, dtype=np.uint8)
+    frame = encode_cbor({"bytes": values, "array": array})
+    assert cbor2.loads(frame) == {"bytes": values, "array": values}
+
+
+def test_big_endian_input_is_packed_little_endian() -> None:
+    frame = encode_cbor({"a": np.array([1, 2], dtype=">i4")})
+    assert cbor2.loads(frame)["a"] == cbor2.CBORTag(78, b"\x01\x00\x00\x00\x02\x00\x00\x00")
+
+
+def test_bools_floats_times_and_strings_keep_their_cbor_types() -> None:
+    msg = {
+        "flags": np.array([True, False]),
+        "x": 1.5,
+        "stamp": {"sec": 3, "nanosec": 4},
+        "names": ["a", "b"],
+        "nan": float("nan"),
+    }
+    frame = encode_cbor(msg)
+    assert b"\xfb\x3f\xf8\x00\x00\x00\x00\x00\x00" in frame  # 1.5 as a float64
+    decoded = cbor2.loads(frame)
+    assert decoded["flags"] == [True, False]
+    assert decoded["stamp"] == {"sec": 3, "nanosec": 4}
+    assert decoded["names"] == ["a", "b"]
+    assert decoded["nan"] != decoded["nan"]
+
+
+def test_values_without_a_cbor_form_are_a_bug() -> None:
+    with pytest.raises(TypeError):
+        encode_cbor({"x": object()})
+
+
+def test_client_typed_arrays_decode_big_endian_too() -> None:
+    frame = cbor2.dumps(
+        {"a": cbor2.CBORTag(74, b"\x00\x00\x00\x01"), "b": cbor2.CBORTag(64, b"\x05")}
+    )
+    assert decode_cbor(frame) == {"a": [1], "b": [5]}
+
+
+@pytest.mark.parametrize(
+    ("frame", "text"),
+    [
+        (b"", "invalid CBOR"),
+        (b"\xff", "invalid CBOR"),
+        (b"\xa0\x00", "bytes after the first data item"),
+        (b"\x81" * 1000, "nesting depth"),
+        (bytes.fromhex("c640"), "unsupported CBOR tag 6"),
+        (bytes.fromhex("d84e4100"), "partial element"),
+        (bytes.fromhex("d84e01"), "unsupported CBOR tag 78"),
+        (bytes.fromhex("d81c81d81d00"), "shared values"),
+        (bytes.fromhex("5bffffffffffffffff"), "invalid CBOR"),
+    ],
+)
+def test_bad_cbor_is_a_remote_error(frame: bytes, text: str) -> None:
+    with pytest.raises(RemoteProtocolError, match=text):
+        decode_cbor(frame)
