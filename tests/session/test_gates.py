@@ -14,6 +14,7 @@ from rwt_protocol.auth import RosauthVerifier, rosauth_mac
 from rwt_protocol.handlers import HANDLERS
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Auth, CallService, Subscribe
+from rwt_protocol.outbox import Outbox, OutFrame
 from rwt_protocol.replies import failure_reply
 from rwt_protocol.session import CloseCode, CloseConnection, Session, SessionConfig
 from tests.conftest import FakeClock, Peer
@@ -459,3 +460,23 @@ def test_bounded_batches_keep_undroppable_frames_counted(graph: Graph) -> None:
     first = peer.session.frames_to_send(max_bytes=1)
     assert len(first) == 1 and not first[0].droppable
     assert len(peer.session.frames_to_send()) == 3
+
+
+def test_a_fragmented_message_already_partly_sent_is_never_cut() -> None:
+    box = Outbox(limit_bytes=10)
+    group = object()
+    box.extend([OutFrame(part, droppable=True, group=group) for part in (b"aaaa", b"bbbb", b"cc")])
+    assert [f.data for f in box.take(max_bytes=4)] == [b"aaaa"]  # the peer has part 1
+    box.push(OutFrame(b"dddddddd", droppable=True))  # over the limit: something must go
+    assert [f.data for f in box.take()] == [b"bbbb", b"cc"]  # the rest of the message
+    assert box.dropped == 1  # the newer whole message went instead
+
+
+def test_dropping_many_small_frames_is_linear(graph: Graph) -> None:
+    box = Outbox(limit_bytes=1000)
+    box.push(OutFrame(b"s" * 10))  # an undroppable frame at the front stays there
+    for i in range(20000):
+        box.push(OutFrame(b"%08d" % i, droppable=True))
+    frames = box.take()
+    assert frames[0].data == b"s" * 10 and frames[-1].data == b"%08d" % 19999
+    assert box.dropped == 20000 - (len(frames) - 1)

@@ -12,11 +12,13 @@ import random
 from collections.abc import AsyncIterator
 
 import anyio
+import cbor2
 import pytest
 from websockets.exceptions import ConnectionClosed
 
 from rwt_protocol import ops
 from rwt_protocol.access import AccessPolicy
+from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
 from rwt_protocol.handlers import HANDLERS, control
 from rwt_protocol.session import SessionConfig
 from rwt_transports.server import ServerConfig
@@ -222,3 +224,50 @@ async def test_access_rules_apply_on_every_transport() -> None:
                 reply = await client.expect(is_op("service_response", id="c"))
                 assert reply["result"] is False
         assert "/secret" not in harness.server.graph.topics
+
+
+async def test_tcp_carries_cbor_both_ways(harness: Harness) -> None:
+    """CBOR maps in, told apart from JSON by their first byte; CBOR items out (D21, D22)."""
+    stream = await anyio.connect_tcp("127.0.0.1", harness.port("tcp"))
+    framer = JsonStreamFramer(1 << 20)
+    events: list[FramerEvent] = []
+    async with stream:
+        with anyio.fail_after(TIMEOUT_S):
+            await stream.send(
+                cbor2.dumps(
+                    {
+                        "op": "subscribe",
+                        "topic": "/c",
+                        "type": "std_msgs/String",
+                        "compression": "cbor",
+                    }
+                )
+                + b'{"op":"advertise","topic":"/c","type":"std_msgs/String"}'
+                + cbor2.dumps({"op": "publish", "topic": "/c", "msg": {"data": "binary"}})
+                + b'\n{"op":"set_level","level":"info","id":"done"}\n'
+            )
+            while not any(isinstance(e, InFrame) and b'"done"' in e.data for e in events):
+                events += framer.receive_data(await stream.receive())
+    frames = [e for e in events if isinstance(e, InFrame)]
+    [cbor_frame] = [f for f in frames if f.binary]
+    assert cbor2.loads(cbor_frame.data) == {
+        "op": "publish",
+        "topic": "/c",
+        "msg": {"data": "binary"},
+    }
+    assert all(json.loads(f.data)["op"] == "status" for f in frames if not f.binary)
+
+
+async def test_rosapi_lists_only_what_the_access_rules_allow() -> None:
+    policy = AccessPolicy(topics=("/public/*",))
+    async with running_server(ServerConfig(session=SessionConfig(access=policy))) as harness:
+        graph = harness.server.graph
+        graph.create_publisher("/public/chat", "std_msgs/msg/String")
+        graph.create_publisher("/secret/plans", "std_msgs/msg/String")
+        client = await harness.connect("ws")
+        with anyio.fail_after(TIMEOUT_S):
+            await client.send({"op": "call_service", "service": "/rosapi/topics", "id": "t"})
+            reply = await client.expect(is_op("service_response", id="t"))
+    assert reply["result"] is True
+    assert "/public/chat" in reply["values"]["topics"]
+    assert "/secret/plans" not in reply["values"]["topics"]
