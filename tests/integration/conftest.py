@@ -49,3 +49,14 @@ def fixture_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[S
         yield server
     finally:
         server.stop()
+
+
+@pytest.fixture
+def interfaces_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+    """`rwt serve --interfaces tests/integration/data` (the custom rwt_test_interfaces)."""
+    server = ServerProcess(tmp_path, ("--interfaces", str(TEST_INTERFACES)))
+    request.node._rwt_server = server
+    try:
+        yield server
+    finally:
+        server.stop()

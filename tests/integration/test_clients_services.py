@@ -13,14 +13,12 @@ service loaded with `--interfaces tests/integration/data`.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from .client_harness import (
     HARNESS,
-    TEST_INTERFACES,
     Outcome,
     Phase,
     ServerProcess,
@@ -217,22 +215,9 @@ def test_twelve_concurrent_calls_answered_newest_first(
     )
 
 
-@pytest.fixture
-def serve_with_interfaces(
-    request: pytest.FixtureRequest, tmp_path: Path
-) -> Iterator[ServerProcess]:
-    """`rwt serve --interfaces tests/integration/data`."""
-    server = ServerProcess(tmp_path, ("--interfaces", str(TEST_INTERFACES)))
-    request.node._rwt_server = server
-    try:
-        yield server
-    finally:
-        server.stop()
-
-
 @pytest.mark.node
 def test_provider_killed_mid_call_fails_the_waiting_callers(
-    serve_with_interfaces: ServerProcess, tmp_path: Path
+    interfaces_server: ServerProcess, tmp_path: Path
 ) -> None:
     """SIGKILL a roslibpy and a roslib provider while a call waits on each: both callers
     hear back with result false and the reason, long before the 30 s call timeout."""
@@ -260,7 +245,7 @@ def test_provider_killed_mid_call_fails_the_waiting_callers(
     ]
     clients = {"py_provider": PY, "js_provider": JS, "py_caller": PY, "js_caller": JS}
 
-    outcome = run_scenario(serve_with_interfaces.url, phases, clients, tmp_path)
+    outcome = run_scenario(interfaces_server.url, phases, clients, tmp_path)
 
     # roslibpy's errback and roslib's failure callback get the reason text
     assert outcome.error("py_caller") == "service /js/hold is gone: its provider disconnected"
