@@ -559,19 +559,32 @@ def cancel_goal(role: str, name: str) -> dict:
     return {"op": "cancel_goal", "conn": role, "as": name}
 
 
-def inproc(server: ServerProcess, *commands: dict) -> HarnessStep:
+def inproc(server: ServerProcess, *commands: dict, wait: bool = True) -> HarnessStep:
     """A harness phase: serve_fixture.py's in-process caller runs `commands` at once.
 
-    Each command is {"op": "call"|"goal", "as": NAME, ...} (see serve_fixture.py);
-    once all replied, what each got goes into the outcome as for a driver's calls
-    (`calls`, `feedback`), and the order they ended in under `order["inproc"]`.
+    Each command is {"op": "call"|"goal", "as": NAME, ...} (see serve_fixture.py).
+    With `wait` the phase ends once all replied (as `inproc_wait`); without, at
+    once, and a later `inproc_wait` phase collects the replies.
     """
 
     def run(running: Running) -> None:
         for command in commands:
             server.command(**command)
-        names = [command["as"] for command in commands]
-        for name, reply in server.replies(names).items():
+        if wait:
+            inproc_wait(server, *(command["as"] for command in commands))(running)
+
+    return run
+
+
+def inproc_wait(server: ServerProcess, *names: str) -> HarnessStep:
+    """A harness phase: wait for the in-process replies `names` (bounded).
+
+    What each got goes into the outcome as for a driver's calls (`calls`,
+    `feedback`), and the order they ended in under `order["inproc"]`.
+    """
+
+    def run(running: Running) -> None:
+        for name, reply in server.replies(list(names)).items():
             running.outcome.calls[name] = {k: v for k, v in reply.items() if k in ("ok", "error")}
             if "feedback" in reply:
                 running.outcome.feedback[name] = reply["feedback"]

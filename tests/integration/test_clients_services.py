@@ -27,6 +27,7 @@ from .client_harness import (
     connect,
     inproc,
     inproc_call,
+    inproc_wait,
     kill,
     run_scenario,
     sync,
@@ -217,10 +218,11 @@ def test_twelve_concurrent_calls_answered_newest_first(
 
 @pytest.mark.node
 def test_provider_killed_mid_call_fails_the_waiting_callers(
-    interfaces_server: ServerProcess, tmp_path: Path
+    fixture_server: ServerProcess, tmp_path: Path
 ) -> None:
-    """SIGKILL a roslibpy and a roslib provider while a call waits on each: both callers
-    hear back with result false and the reason, long before the 30 s call timeout."""
+    """SIGKILL a roslibpy and a roslib provider while calls wait on them: every caller
+    (roslib, roslibpy, in-process) hears back with the reason, long before the 30 s
+    call timeout."""
     args = {"points": POINTS, "factor": 3.0}
 
     def provide(role: str, service: str, srv_type: str) -> Phase:
@@ -235,18 +237,22 @@ def test_provider_killed_mid_call_fails_the_waiting_callers(
     phases: list[Phase] = [
         provide("py_provider", "/py/hold", SCALE),
         provide("js_provider", "/js/hold", "rwt_test_interfaces/Scale"),
-        ask("py_caller", "/js/hold"),
         ask("js_caller", "/py/hold"),
+        ask("py_caller", "/js/hold"),
+        (HARNESS, inproc(fixture_server, inproc_call("inproc", "/js/hold", args), wait=False)),
+        # roslibpy's provider blocks in its first callback: it reads no second request
         ("py_provider", [wait_served("py_provider", "/py/hold", 1)]),
-        ("js_provider", [wait_served("js_provider", "/js/hold", 1)]),
+        ("js_provider", [wait_served("js_provider", "/js/hold", 2)]),
         (HARNESS, kill("py_provider", "js_provider")),
         ("py_caller", [wait_calls("py_caller")]),
         ("js_caller", [wait_calls("js_caller")]),
+        (HARNESS, inproc_wait(fixture_server, "inproc")),
     ]
     clients = {"py_provider": PY, "js_provider": JS, "py_caller": PY, "js_caller": JS}
 
-    outcome = run_scenario(interfaces_server.url, phases, clients, tmp_path)
+    outcome = run_scenario(fixture_server.url, phases, clients, tmp_path)
 
-    # roslibpy's errback and roslib's failure callback get the reason text
-    assert outcome.error("py_caller") == "service /js/hold is gone: its provider disconnected"
+    # roslibpy's errback, roslib's failure callback and ServiceCallFailed get the reason
     assert outcome.error("js_caller") == "service /py/hold is gone: its provider disconnected"
+    assert outcome.error("py_caller") == "service /js/hold is gone: its provider disconnected"
+    assert outcome.error("inproc") == "service /js/hold is gone: its provider disconnected"
