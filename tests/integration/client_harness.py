@@ -347,7 +347,7 @@ class Outcome:
         assert "ok" in outcome, f"{name} failed: {outcome['error']}"
         return outcome["ok"]
 
-    def error(self, name: str) -> str:
+    def error(self, name: str) -> Any:
         """What the failure callback of the call recorded as `name` got; fails if it succeeded."""
         outcome = self.calls.get(name)
         assert outcome is not None, f"no call recorded as {name!r}: {self.calls}"

@@ -7,7 +7,8 @@ order 5 succeeds after four feedback messages, order 100 waits for a cancel,
 order -1 aborts. Clients: roslib (`Action.sendGoal`, `cancelGoal`), roslibpy 2.x
 (`ActionClient.send_goal`, `cancel_goal`) and in-process code
 (`rwt_transports.embed.send_action_goal`, which has no cancel of its own: a
-cancelled wait forgets the goal). roslibpy has no action server.
+cancelled wait forgets the goal). roslibpy has no action server. A roslib
+action server killed mid-goal aborts every waiting goal with the reason.
 """
 
 from __future__ import annotations
@@ -26,11 +27,14 @@ from .client_harness import (
     connect,
     inproc,
     inproc_goal,
+    inproc_wait,
+    kill,
     run_scenario,
     send_goal,
     sync,
     wait_calls,
     wait_feedback,
+    wait_served,
 )
 
 PY, JS = "roslibpy", "roslibjs"
@@ -124,6 +128,39 @@ def test_goals_feedback_cancel_and_abort_across_clients_and_servers(
         GOALS["done"],
         GOALS["abort"],
     ]
+
+
+@pytest.mark.node
+def test_action_server_killed_mid_goal_aborts_the_waiting_goals(
+    fixture_server: ServerProcess, tmp_path: Path
+) -> None:
+    """SIGKILL a roslib action server while goals of roslib, roslibpy and in-process code
+    wait: each ends ABORTED with the reason (D4)."""
+    hold = GOALS["cancel"]  # waits for a cancel that never comes
+    action = "/js/fibonacci"
+
+    def goal(conn: str) -> dict:
+        return send_goal(conn, conn, action, FIBONACCI, hold, wait=False)
+
+    phases: list[Phase] = [
+        ("server", [connect("srv"), advertise_action("srv", action, FIBONACCI), sync("srv")]),
+        ("js", [connect("jsc"), goal("jsc")]),
+        ("py", [connect("pyc"), goal("pyc")]),
+        (HARNESS, inproc(fixture_server, inproc_goal("inproc", action, hold), wait=False)),
+        ("server", [wait_served("srv", action, 3)]),
+        (HARNESS, kill("server")),
+        ("js", [wait_calls("jsc")]),
+        ("py", [wait_calls("pyc")]),
+        (HARNESS, inproc_wait(fixture_server, "inproc")),
+    ]
+
+    outcome = run_scenario(fixture_server.url, phases, {"server": JS, "js": JS, "py": PY}, tmp_path)
+
+    reason = "action /js/fibonacci is gone: its provider disconnected"
+    assert outcome.error("jsc") == f"GoalError: Action was aborted: {reason}"
+    assert outcome.error("pyc") == {"status": 6, "values": reason}  # roslibpy's errback
+    assert outcome.error("inproc") == reason  # ServiceCallFailed
+    assert outcome.feedback["jsc"] == outcome.feedback["pyc"] == [{"sequence": [0, 1]}]
 
 
 def _js_json(value: object) -> str:
