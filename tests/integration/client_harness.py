@@ -385,11 +385,35 @@ HarnessStep = Callable[[Running], None]
 Phase = tuple[str, list[dict] | HarnessStep]
 
 
+def _switches(phases: list[Phase]) -> dict[int, str]:
+    """Phase index -> the previous phase's role, wherever the role changes."""
+    return {i: phases[i - 1][0] for i in range(1, len(phases)) if phases[i - 1][0] != phases[i][0]}
+
+
+def _role_steps(phases: list[Phase], roles: list[str]) -> dict[str, list[dict]]:
+    """Each driver role's steps, with a `signal` where it hands over and an `await`
+    where it takes over (a role whose first phase is not the first one starts
+    blocked on `await`, so all processes can start, and pay their start-up, at once)."""
+    per_role: dict[str, list[dict]] = {r: [] for r in roles}
+    switches = _switches(phases)
+    for i, (role, steps) in enumerate(phases):
+        prev = switches.get(i)
+        if prev is not None and prev != HARNESS:
+            per_role[prev].append({"op": "signal", "name": f"phase{i}"})
+        if prev is not None and role != HARNESS:
+            per_role[role].append({"op": "await"})
+        if role != HARNESS:
+            assert isinstance(steps, list), f"phase {i} of {role} must be a list of steps"
+            per_role[role].extend(steps)
+    return per_role
+
+
 def run_scenario(url: str, phases: list[Phase], clients: dict[str, str], workdir: Path) -> Outcome:
     """Run `phases`; `clients` maps each role to "roslibpy" or "roslibjs".
 
     A phase of role HARNESS is a callable run here, between the drivers' phases
-    (an in-process call, killing a role, the Python client...).
+    (an in-process call, killing a role, the Python client...). Without one,
+    roles of one client library share one process; otherwise each role has its own.
     """
     roles = list(dict.fromkeys(role for role, _ in phases if role != HARNESS))
     kinds = {clients[r] for r in roles}
@@ -398,40 +422,29 @@ def run_scenario(url: str, phases: list[Phase], clients: dict[str, str], workdir
     running = Running(outcome)
     try:
         if len(kinds) == 1 and all(role != HARNESS for role, _ in phases):
-            steps = [s for _, phase_steps in phases for s in phase_steps]  # type: ignore[union-attr]
+            # one process runs the phases in order: no handovers needed
+            steps = [s for _, phase in phases if isinstance(phase, list) for s in phase]
             d = Driver(kinds.pop(), url, steps, workdir, "+".join(roles))
             running.drivers[d.label] = d
             outcome.add(d.wait_result(deadline))
             return outcome
 
-        per_role: dict[str, list[dict]] = {r: [] for r in roles}
-        for i, (role, phase_steps) in enumerate(phases):
-            prev = phases[i - 1][0] if i > 0 else role
-            if prev != role:
-                if prev != HARNESS:
-                    per_role[prev].append({"op": "signal", "name": f"phase{i}"})
-                if role != HARNESS:
-                    per_role[role].append({"op": "await"})
-            if role != HARNESS:
-                per_role[role].extend(phase_steps)  # type: ignore[arg-type]
-        # A role whose first phase is not the first one starts blocked on `await`
-        # (added above), so all processes can start (and pay their start-up) at once.
-        for role, steps in per_role.items():
+        for role, steps in _role_steps(phases, roles).items():
             running.drivers[role] = Driver(clients[role], url, steps, workdir, role)
-        for i, (role, phase_steps) in enumerate(phases):
-            prev = phases[i - 1][0] if i > 0 else role
-            if prev != role:
-                if prev != HARNESS:
-                    running.drivers[prev].wait_event(f"phase{i}", deadline)
-                if role != HARNESS:
-                    running.drivers[role].go()
-            if role == HARNESS:
-                phase_steps(running)  # type: ignore[operator]
+        switches = _switches(phases)
+        for i, (role, phase) in enumerate(phases):
+            prev = switches.get(i)
+            if prev is not None and prev != HARNESS:
+                running.drivers[prev].wait_event(f"phase{i}", deadline)
+            if prev is not None and role != HARNESS:
+                running.drivers[role].go()
+            if callable(phase):
+                phase(running)
         for role, d in running.drivers.items():
             if role not in running.killed:
                 outcome.add(d.wait_result(deadline))
         return outcome
-    except DriverError as exc:
+    except AssertionError as exc:  # DriverError, or a harness phase's own check
         for d in running.drivers.values():
             if d.proc.poll() is None:
                 d.proc.kill()
