@@ -127,14 +127,32 @@ class ConnectionPump:
         self._timer_wake = anyio.Event()
         self._reader_done = anyio.Event()
         self._writer_closed = anyio.Event()
+        self._session: Session | None = None
+        self._timer_deadline: float | None = None
 
     def wake(self) -> None:
         """The session has output (frames, commands or a new timer)."""
         self._writer_wake.set()
-        self._timer_wake.set()
+        self._wake_timers()
+
+    def _wake_timers(self) -> None:
+        """Wake the timer task only when it has something new to look at.
+
+        Waking it for every queued frame would cost a task switch per message
+        per subscriber (issue 8's profile); it needs to run again only when the
+        earliest deadline changed or the session started closing.
+        """
+        session = self._session
+        if (
+            session is None
+            or session.closing
+            or session.get_timer() != self._timer_deadline
+        ):
+            self._timer_wake.set()
 
     async def run(self, session: Session) -> None:
         """Serve ``session`` until the peer leaves or the session closes, then close it."""
+        self._session = session
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
@@ -161,12 +179,13 @@ class ConnectionPump:
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
                     session.receive_frame(event.data, anyio.current_time(), binary=event.binary)
-            self._timer_wake.set()  # handlers may have scheduled timers
+            self._wake_timers()  # handlers may have scheduled timers
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:
             while True:
-                self._writer_wake = anyio.Event()
+                if self._writer_wake.is_set():  # a fresh event only after a wake-up
+                    self._writer_wake = anyio.Event()
                 frames = session.frames_to_send(BATCH_BYTES)
                 if frames:
                     await self.channel.send(frames)
@@ -193,7 +212,7 @@ class ConnectionPump:
     async def _timers(self, session: Session, scope: anyio.CancelScope) -> None:
         while not session.closing:
             self._timer_wake = anyio.Event()
-            deadline = session.get_timer()
+            deadline = self._timer_deadline = session.get_timer()
             delay = None if deadline is None else max(0.0, deadline - anyio.current_time())
             with anyio.move_on_after(delay):
                 await self._timer_wake.wait()

@@ -21,6 +21,7 @@ import contextlib
 import fnmatch
 import logging
 import os
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -47,6 +48,8 @@ logger = logging.getLogger("rwt.websocket")
 
 MiB = 1024 * 1024
 _READ_SIZE = 65536
+_WRITE_BATCH = 65536
+"""Small frames are joined into writes of about this many bytes; larger frames go alone."""
 _HANDSHAKE_LIMIT_S = 10.0
 
 
@@ -120,17 +123,56 @@ class WebSocketChannel:
         return messages
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
-        """Send data frames; text for JSON, binary for CBOR (D27)."""
+        """Send data frames; text for JSON, binary for CBOR (D27).
+
+        Without permessage-deflate, frames are framed here once and the framed
+        bytes are kept on the ``OutFrame``, which every subscriber of the same
+        form shares (issue 8: encode once, frame once); a batch of small frames
+        goes out in one write. With deflate, websockets frames each message.
+        """
         async with self._lock:
-            try:
-                for frame in frames:
-                    if frame.binary:
-                        self.protocol.send_binary(frame.data)
-                    else:
-                        self.protocol.send_text(frame.data)
-            except InvalidState:
-                raise anyio.ClosedResourceError from None
-            await self._flush_locked()
+            if self.protocol.extensions:
+                self._send_through_protocol(frames)
+                await self._flush_locked()
+                return
+            if self.protocol.state is not State.OPEN:
+                raise anyio.ClosedResourceError
+            await self._flush_locked()  # control frames queued by the protocol go first
+            await self._write_framed(frames)
+
+    def _send_through_protocol(self, frames: Sequence[OutFrame]) -> None:
+        try:
+            for frame in frames:
+                if frame.binary:
+                    self.protocol.send_binary(frame.data)
+                else:
+                    self.protocol.send_text(frame.data)
+        except InvalidState:
+            raise anyio.ClosedResourceError from None
+
+    async def _write_framed(self, frames: Sequence[OutFrame]) -> None:
+        batch: list[bytes] = []
+        size = 0
+        for frame in frames:
+            if len(frame.data) >= _WRITE_BATCH:
+                # Large: header and payload as they are, no copy of the payload.
+                if batch:
+                    await self.stream.send(b"".join(batch))
+                    batch, size = [], 0
+                await self.stream.send(_header(len(frame.data), frame.binary))
+                await self.stream.send(frame.data)
+                continue
+            data = frame.framed
+            if data is None:
+                data = _header(len(frame.data), frame.binary) + frame.data
+                object.__setattr__(frame, "framed", data)  # shared: framed once for all
+            batch.append(data)
+            size += len(data)
+            if size >= _WRITE_BATCH:
+                await self.stream.send(b"".join(batch))
+                batch, size = [], 0
+        if batch:
+            await self.stream.send(batch[0] if len(batch) == 1 else b"".join(batch))
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame with ``code`` and ``reason``."""
@@ -282,6 +324,16 @@ async def serve_websocket_connection(
             session.close()
             return
         await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
+
+
+def _header(length: int, binary: bool) -> bytes:
+    """The header of a whole unmasked server frame (RFC 6455 5.2): FIN, opcode, length."""
+    first = 0x82 if binary else 0x81
+    if length < 126:
+        return bytes((first, length))
+    if length < 65536:
+        return struct.pack("!BBH", first, 126, length)
+    return struct.pack("!BBQ", first, 127, length)
 
 
 def _agent(headers: Headers) -> str:
