@@ -5,15 +5,22 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rwt_graph.graph import Graph
-from rwt_protocol.codec import decode_json, parse_object
+from rwt_protocol.codec import decode_json, decode_publish, parse_object
+from rwt_protocol.names import resolve_name
 
 
 def validator(graph: Graph) -> Callable[[bytes], object]:
-    """A function doing what ``Session.receive_frame`` does to a publish frame before delivery."""
+    """What ``Session.receive_frame`` does to a publish frame before delivering it.
+
+    Decode and check the op (the msgspec hot path when there is one, else the
+    general path), then convert the message against the topic's type.
+    """
 
     def validate(frame: bytes) -> object:
-        op = parse_object(decode_json(frame))
-        entry = graph.topics[op.topic]  # type: ignore[attr-defined]
-        return entry.msgtype.from_json(op.msg, path="$.msg", now=0.0)  # type: ignore[attr-defined]
+        op = decode_publish(frame)
+        if op is None:
+            op = parse_object(decode_json(frame))  # type: ignore[assignment]
+        entry = graph.topics[resolve_name(op.topic)]  # type: ignore[union-attr]
+        return entry.msgtype.from_json(op.msg, path="$.msg", now=0.0)  # type: ignore[union-attr]
 
     return validate

@@ -33,6 +33,7 @@ from .ops import (
     CancelActionGoal,
     OpModel,
     Publish,
+    PublishFrame,
     SendActionGoal,
     Subscribe,
     Unadvertise,
@@ -63,10 +64,11 @@ class AccessDeniedError(RemoteProtocolError):
     """An op names something the server's access rules do not allow (error status, D1)."""
 
 
-_OP_FAMILIES: Mapping[type[OpModel], tuple[Family, str]] = {
+_OP_FAMILIES: Mapping[type[OpModel | PublishFrame], tuple[Family, str]] = {
     Advertise: (Family.TOPICS, "topic"),
     Unadvertise: (Family.TOPICS, "topic"),
     Publish: (Family.TOPICS, "topic"),
+    PublishFrame: (Family.TOPICS, "topic"),
     Subscribe: (Family.TOPICS, "topic"),
     Unsubscribe: (Family.TOPICS, "topic"),
     CallService: (Family.SERVICES, "service"),
@@ -158,7 +160,7 @@ class AccessPolicy:
         """The names a client may see, in their order (for rosapi's listings)."""
         return [name for name in names if self.allows(family, name)]
 
-    def check(self, op: OpModel) -> None:
+    def check(self, op: OpModel | PublishFrame) -> None:
         """Refuse an op that names something not allowed; do nothing otherwise.
 
         Raises:

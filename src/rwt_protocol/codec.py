@@ -18,13 +18,23 @@ from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 
 from .errors import RemoteProtocolError
-from .ops import OP_MODELS, OpModel
+from .ops import OP_MODELS, OpModel, PublishFrame
 from .ops.base import json_type_name
 
-__all__ = ["decode_json", "encode_json", "encode_op", "parse", "parse_object", "peek_id"]
+__all__ = [
+    "decode_json",
+    "decode_publish",
+    "encode_json",
+    "encode_op",
+    "parse",
+    "parse_object",
+    "peek_id",
+]
 
 _decoder = msgspec.json.Decoder()
 _encoder = msgspec.json.Encoder()
+_publish_decoder = msgspec.json.Decoder(PublishFrame)
+_PUBLISH = b'"publish"'
 
 _EXPECTED = {
     "int_type": "int",
@@ -58,6 +68,25 @@ def decode_json(frame: str | bytes) -> object:
         return json.loads(frame)
     except (ValueError, TypeError) as exc:
         raise RemoteProtocolError(f"invalid JSON: {_short(str(exc))}") from None
+
+
+def decode_publish(frame: str | bytes) -> PublishFrame | None:
+    """Decode a ``publish`` op in one msgspec pass (the hot path, issue 8).
+
+    Returns:
+        The op, or None when ``frame`` is not a valid publish op in standard
+        JSON; the caller then takes the general path (``decode_json`` and
+        ``parse_object``), which explains what is wrong. Never raises.
+    """
+    if isinstance(frame, bytes):
+        if _PUBLISH not in frame[:48]:
+            return None
+    elif '"publish"' not in frame[:48]:
+        return None
+    try:
+        return _publish_decoder.decode(frame)
+    except msgspec.DecodeError:  # also ValidationError: wrong op, wrong field types
+        return None
 
 
 def encode_json(value: object) -> bytes:

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from .access import AccessDeniedError
 from .errors import RemoteProtocolError
 from .levels import StatusLevel
-from .ops import Auth, OpModel
+from .ops import Auth, OpModel, PublishFrame
 from .replies import failure_reply
 
 if TYPE_CHECKING:
@@ -65,7 +65,7 @@ def authenticate(session: Session, op: OpModel) -> bool:
     return True
 
 
-def check_access(session: Session, op: OpModel) -> None:
+def check_access(session: Session, op: OpModel | PublishFrame) -> None:
     """Refuse an op the access rules deny, answering a call or goal (D4).
 
     Raises:
@@ -75,11 +75,11 @@ def check_access(session: Session, op: OpModel) -> None:
     try:
         session.config.access.check(op)
     except AccessDeniedError as exc:
-        name: str = op.op  # type: ignore[attr-defined]
+        name: str = op.op  # type: ignore[union-attr]
         logger.warning(
             "event=access_denied client=%s op=%s reason=%r", session.client_id, name, exc.message
         )
-        reply = failure_reply(op, f"{name}: {exc.message}")
+        reply = failure_reply(op, f"{name}: {exc.message}") if isinstance(op, OpModel) else None
         if reply is not None:
             session.send_op(reply)
         raise

@@ -33,7 +33,7 @@ from . import gates
 from .access import AccessPolicy
 from .auth import Authenticator
 from .backpressure import SlowConsumerWatch
-from .codec import decode_json, parse_object, peek_id
+from .codec import decode_json, decode_publish, parse_object, peek_id
 from .codec_cbor import decode_cbor
 from .commands import CloseCode, CloseConnection, Command
 from .encoding import encode_op_frames, publish_frames
@@ -42,7 +42,7 @@ from .fragments import Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .levels import StatusLevel
-from .ops import OpModel
+from .ops import OpModel, PublishFrame
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
@@ -162,6 +162,11 @@ class Session:
         op_name: str | None = None
         op_id: str | int | None = None
         try:
+            fast = None if binary or not self._authenticated else decode_publish(frame)
+            if fast is not None:  # the publish hot path: no pydantic (issue 8)
+                op_name, op_id = "publish", fast.id
+                self.dispatch(fast, now)
+                return
             if binary:
                 obj = decode_cbor(frame.encode() if isinstance(frame, str) else frame)
             else:
@@ -187,7 +192,7 @@ class Session:
         if not self._authenticated:  # D23: a connection that does not authenticate goes
             self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
 
-    def dispatch(self, op: OpModel, now: float) -> None:
+    def dispatch(self, op: OpModel | PublishFrame, now: float) -> None:
         """Check a validated op against the access rules, then run its handler.
 
         Raises:

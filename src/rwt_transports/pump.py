@@ -143,11 +143,7 @@ class ConnectionPump:
         earliest deadline changed or the session started closing.
         """
         session = self._session
-        if (
-            session is None
-            or session.closing
-            or session.get_timer() != self._timer_deadline
-        ):
+        if session is None or session.closing or session.get_timer() != self._timer_deadline:
             self._timer_wake.set()
 
     async def run(self, session: Session) -> None:
@@ -172,13 +168,14 @@ class ConnectionPump:
                 events = await self.channel.receive()
             except _BROKEN:
                 return
+            now = anyio.current_time()  # the batch arrived at once: one clock read for all
             for event in events:
                 if isinstance(event, FramingError):
                     session.report(StatusLevel.ERROR, event.message)
                     if event.fatal:
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
-                    session.receive_frame(event.data, anyio.current_time(), binary=event.binary)
+                    session.receive_frame(event.data, now, binary=event.binary)
             self._wake_timers()  # handlers may have scheduled timers
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:

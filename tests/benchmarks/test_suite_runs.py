@@ -12,10 +12,10 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from benchmarks import msgs
 from benchmarks.loadgen.engine import ExactSubscriber, GeneratorError
 from benchmarks.loadgen.wire import FrameReader, client_frame, server_frame
+
+from benchmarks import msgs
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -19,10 +19,11 @@ __all__ = ["HANDLERS", "Handler"]
 
 Handler = Callable[["Session", Any, float], None]
 
-HANDLERS: dict[type[ops.OpModel], Handler] = {
+HANDLERS: dict[type[ops.OpModel | ops.PublishFrame], Handler] = {
     ops.Advertise: topics.advertise,
     ops.Unadvertise: topics.unadvertise,
     ops.Publish: topics.publish,
+    ops.PublishFrame: topics.publish,
     ops.Subscribe: topics.subscribe,
     ops.Unsubscribe: topics.unsubscribe,
     ops.SetLevel: control.set_level,

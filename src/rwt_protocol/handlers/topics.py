@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 from ..errors import GraphError
 from ..levels import StatusLevel
 from ..names import resolve_name
-from ..ops import Advertise, Publish, Subscribe, Unadvertise, Unsubscribe
+from ..ops import Advertise, Publish, PublishFrame, Subscribe, Unadvertise, Unsubscribe
 from ..subscriptions import TopicSubscription
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ def unadvertise(session: Session, op: Unadvertise, now: float) -> None:
     session.report(StatusLevel.INFO, f"unadvertise: {op.topic} unadvertised", op.id)
 
 
-def publish(session: Session, op: Publish, now: float) -> None:
+def publish(session: Session, op: Publish | PublishFrame, now: float) -> None:
     """Publish ``op.msg`` on ``op.topic`` (spec 3.3.3).
 
     A warning lists the fields filled with defaults (spec 3.3.3, D7).

@@ -21,7 +21,7 @@ from .actions import (
 from .base import OpModel
 from .control import Auth, Fragment, Png, SetLevel, Status
 from .services import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
-from .topics import Advertise, Publish, Subscribe, Unadvertise, Unsubscribe
+from .topics import Advertise, Publish, PublishFrame, Subscribe, Unadvertise, Unsubscribe
 
 __all__ = [
     "OP_MODELS",
@@ -38,6 +38,7 @@ __all__ = [
     "OpModel",
     "Png",
     "Publish",
+    "PublishFrame",
     "SendActionGoal",
     "ServiceResponse",
     "SetLevel",
