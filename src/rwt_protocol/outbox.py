@@ -29,18 +29,18 @@ class OutFrame:
         droppable: may be dropped under pressure (topic messages only).
         group: the parts of one fragmented message share a group (any hashable
             that no other message uses); None for a whole message.
-        framed: the transport's encoding of this frame (a WebSocket frame with its
+        header: the transport's header for this frame (a WebSocket frame
             header), made by the first connection that sends it and reused by
             every other: one frame object goes to all subscribers of a form
-            (``encoding.publish_frames``), so it is framed once (issue 8). Set
-            only through ``with_framed``-style code in a transport.
+            (``encoding.publish_frames``), so it is framed once (issue 8). Only
+            the header is kept, so a queued frame costs its payload once.
     """
 
     data: bytes
     binary: bool = False
     droppable: bool = False
     group: object = None
-    framed: bytes | None = field(default=None, compare=False, repr=False)
+    header: bytes | None = field(default=None, compare=False, repr=False)
 
 
 class Outbox:

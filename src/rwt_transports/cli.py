@@ -12,6 +12,7 @@ per listener, the WebSocket one first, so scripts can use ``--port 0`` (with
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import signal
 import sys
@@ -151,6 +152,9 @@ def serve(
         float, typer.Option(help="Seconds of silence after which a UDP peer is forgotten.")
     ] = 300.0,
     log_level: Annotated[str, typer.Option(help="Log level on stderr.")] = "info",
+    uvloop: Annotated[
+        bool, typer.Option(help="Run on uvloop (pip install 'rwt[bench]' or uvloop).")
+    ] = False,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT/SIGTERM."""
     logging.basicConfig(
@@ -208,8 +212,10 @@ def serve(
         udp=UdpOptions(datagram_bytes=udp_datagram_size, idle_timeout_s=udp_idle_timeout),
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
+    if uvloop and importlib.util.find_spec("uvloop") is None:
+        _fail("--uvloop needs the uvloop package")
     try:
-        anyio.run(_run, server)
+        anyio.run(_run, server, backend_options={"use_uvloop": uvloop})
     except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
         _fail(str(exc))
     except BaseExceptionGroup as group:  # the same, raised inside the task group

@@ -125,10 +125,11 @@ class WebSocketChannel:
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send data frames; text for JSON, binary for CBOR (D27).
 
-        Without permessage-deflate, frames are framed here once and the framed
-        bytes are kept on the ``OutFrame``, which every subscriber of the same
-        form shares (issue 8: encode once, frame once); a batch of small frames
-        goes out in one write. With deflate, websockets frames each message.
+        Without permessage-deflate, frames are framed here: the header is made
+        once and kept on the ``OutFrame``, which every subscriber of the same
+        form shares (issue 8: encode once, frame once), and a batch of small
+        frames goes out in one write. With deflate, websockets frames each
+        message.
         """
         async with self._lock:
             if self.protocol.extensions:
@@ -154,25 +155,25 @@ class WebSocketChannel:
         batch: list[bytes] = []
         size = 0
         for frame in frames:
+            header = frame.header
+            if header is None:
+                header = _header(len(frame.data), frame.binary)
+                object.__setattr__(frame, "header", header)  # shared: framed once for all
             if len(frame.data) >= _WRITE_BATCH:
                 # Large: header and payload as they are, no copy of the payload.
                 if batch:
                     await self.stream.send(b"".join(batch))
                     batch, size = [], 0
-                await self.stream.send(_header(len(frame.data), frame.binary))
+                await self.stream.send(header)
                 await self.stream.send(frame.data)
                 continue
-            data = frame.framed
-            if data is None:
-                data = _header(len(frame.data), frame.binary) + frame.data
-                object.__setattr__(frame, "framed", data)  # shared: framed once for all
-            batch.append(data)
-            size += len(data)
+            batch += (header, frame.data)
+            size += len(header) + len(frame.data)
             if size >= _WRITE_BATCH:
                 await self.stream.send(b"".join(batch))
                 batch, size = [], 0
         if batch:
-            await self.stream.send(batch[0] if len(batch) == 1 else b"".join(batch))
+            await self.stream.send(b"".join(batch))
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame with ``code`` and ``reason``."""

@@ -84,8 +84,23 @@ async def test_help_documents_every_option() -> None:
         "--websocket-ping-interval",
         "--websocket-ping-timeout",
         "--log-level",
+        "--uvloop",
     ):
         assert option in text, option
+
+
+async def test_uvloop_server_relays_a_message() -> None:
+    pytest.importorskip("uvloop")
+    async with rwt_serve("--port", "0", "--uvloop") as (_, urls):
+        url = urls["ws"]
+        async with connect(url) as sub, connect(url) as pub:
+            await sub.send('{"op":"subscribe","topic":"/u","type":"std_msgs/String"}')
+            await sub.send('{"op":"call_service","service":"/rosapi/get_time","id":"sync"}')
+            with anyio.fail_after(10):
+                assert '"id":"sync"' in await sub.recv()
+                await pub.send('{"op":"publish","topic":"/u","msg":{"data":"hi"}}')
+                reply = json.loads(await sub.recv())
+        assert reply == {"op": "publish", "topic": "/u", "msg": {"data": "hi"}}
 
 
 async def test_one_command_serves_every_transport_on_one_graph() -> None:
