@@ -4,7 +4,10 @@
 rosbridge_websocket's parameters where one exists (``port``, ``address`` is
 ``--host`` here as issue 2 asks, ``max_message_size``, ``use_compression`` is
 ``--websocket-compression``). Logs go to stderr; the first stdout line is
-``listening on ws://HOST:PORT`` so scripts can use ``--port 0``.
+``listening on ws://HOST:PORT`` so scripts can use ``--port 0``; with ``--video``
+the second is ``video on http://HOST:PORT`` (web_video_server's paths and port
+8080 by default). ``--depthcloud DEPTH[,RGB]`` runs depthcloud_encoder's job on
+the same graph.
 """
 
 from __future__ import annotations
@@ -20,12 +23,14 @@ import anyio
 import typer
 
 from rwt_graph.graph import Graph
+from rwt_graph.media.depthcloud_node import DepthCloudEncoder
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
 from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig
+from .video import VideoConfig, serve_video
 from .websocket import WebSocketOptions
 
 __all__ = ["app", "main"]
@@ -93,6 +98,23 @@ def serve(
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
     ] = None,
+    video: Annotated[
+        bool, typer.Option(help="Also serve image topics over HTTP (web_video_server).")
+    ] = False,
+    video_port: Annotated[int, typer.Option(help="HTTP port of --video; 0 picks one.")] = 8080,
+    depthcloud: Annotated[
+        str | None,
+        typer.Option(
+            metavar="DEPTH_TOPIC[,RGB_TOPIC]",
+            help="Encode this depth (and colour) topic on /depthcloud_encoded (ros3djs).",
+        ),
+    ] = None,
+    depthcloud_max_depth: Annotated[
+        float, typer.Option(min=0.001, help="Metres per depth tile (near 0..d, far d..2d).")
+    ] = 1.0,
+    depthcloud_tile_size: Annotated[
+        int, typer.Option(min=16, help="Side of each depth-cloud tile, pixels.")
+    ] = 512,
     log_level: Annotated[str, typer.Option(help="Log level on stderr.")] = "info",
 ) -> None:
     """Run a rosbridge server on an in-memory graph until Ctrl-C."""
@@ -122,19 +144,32 @@ def serve(
         ),
     )
     server = RosbridgeServer(Graph(registry), config)
+    if depthcloud:
+        depth_topic, _, rgb_topic = depthcloud.partition(",")
+        DepthCloudEncoder(
+            server.graph,
+            depth_topic,
+            rgb_topic or None,
+            max_depth_per_tile=depthcloud_max_depth,
+            tile_size=depthcloud_tile_size,
+        )
+    video_config = VideoConfig(host=host, port=video_port) if video else None
     try:
-        anyio.run(_run, server)
+        anyio.run(_run, server, video_config)
     except OSError as exc:
         typer.echo(f"rwt serve: {exc}", err=True)
         raise typer.Exit(1) from None
 
 
-async def _run(server: RosbridgeServer) -> None:
+async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
     def announce(url: str) -> None:
         print(f"listening on {url}", flush=True)
+        if video_url:
+            print(f"video on {video_url}", flush=True)
 
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, tg.cancel_scope)
+        video_url = await tg.start(serve_video, server.graph, video) if video else None
         await server.serve(on_listening=announce)
 
 
