@@ -22,6 +22,7 @@ from rwt_graph.media import ImageError, compressed_content_type, image_to_displa
 from .params import StreamParams, StreamType
 
 __all__ = [
+    "BOUNDARY",
     "VIDEO_CONTENT_TYPES",
     "EncodeError",
     "FrameEncoder",
@@ -30,10 +31,13 @@ __all__ = [
     "VideoFrameEncoder",
     "VideoPacket",
     "make_encoder",
+    "multipart_part",
     "stamp_seconds",
 ]
 
 Message = Mapping[str, object]
+
+BOUNDARY = "boundarydonotcross"  # web_video_server's multipart boundary
 
 #: What a video stream's response holds.
 VIDEO_CONTENT_TYPES: Mapping[StreamType, str] = {
@@ -76,6 +80,20 @@ class VideoPacket:
     keyframe: bool
 
 
+def multipart_part(part: Part) -> bytes:
+    """One part of web_video_server's ``multipart/x-mixed-replace`` stream.
+
+    The stream starts with ``--BOUNDARY\\r\\n``; each part is its headers
+    (Content-type, X-Timestamp, Content-Length), the image and the next boundary.
+    """
+    head = (
+        f"Content-type: {part.content_type}\r\n"
+        f"X-Timestamp: {part.stamp_s:.6f}\r\n"
+        f"Content-Length: {len(part.data)}\r\n\r\n"
+    )
+    return b"".join((head.encode(), part.data, f"\r\n--{BOUNDARY}\r\n".encode()))
+
+
 class FrameEncoder(Protocol):
     """Turns one message into what is sent to viewers (called from a worker thread)."""
 
@@ -91,8 +109,8 @@ class Muxer(Protocol):
         """Mux ``packet``; the bytes to send now. Raises ``EncodeError``."""
         ...
 
-    def close(self) -> None:
-        """Free the container."""
+    def close(self) -> bytes:
+        """Free the container; returns its last bytes."""
         ...
 
 

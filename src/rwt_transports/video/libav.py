@@ -193,10 +193,14 @@ class VideoMuxer:
             raise EncodeError(f"muxer: {exc}") from None
         return self._sink.take()
 
-    def close(self) -> None:
-        """Free the container (its trailer is not sent: the viewer has gone)."""
+    def close(self) -> bytes:
+        """Close the container; returns what it wrote last (the held frame, a trailer).
+
+        A server drops these bytes: the viewer has gone.
+        """
         with contextlib.suppress(Exception):  # after a muxer error it may fail again
             self._container.close()
+        return self._sink.take()
 
 
 class _Collect(io.RawIOBase):

@@ -30,7 +30,7 @@ from anyio.abc import SocketAttribute, SocketStream, TaskStatus
 from rwt_graph.graph import Graph
 from rwt_protocol.errors import RwtError
 
-from .encoders import VIDEO_CONTENT_TYPES, EncodeError
+from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError, multipart_part
 from .hub import PartViewer, SharedStream, StreamHub, VideoViewer
 from .pages import stream_viewer_page, topic_list_page
 from .params import ParamError, StreamParams, StreamType, parse_stream_params
@@ -39,7 +39,6 @@ __all__ = ["VideoConfig", "serve_video"]
 
 logger = logging.getLogger("rwt.video")
 
-BOUNDARY = "boundarydonotcross"  # web_video_server's multipart boundary
 _REQUEST_LIMIT_S = 10.0
 _READ_SIZE = 65536
 _NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
@@ -243,13 +242,7 @@ async def _send_parts(http: _Http, viewer: PartViewer) -> None:
     await http.start(200, f"multipart/x-mixed-replace;boundary={BOUNDARY}")
     await http.send(f"--{BOUNDARY}\r\n".encode())
     while True:
-        part = await viewer.next_part()
-        head = (
-            f"Content-type: {part.content_type}\r\n"
-            f"X-Timestamp: {part.stamp_s:.6f}\r\n"
-            f"Content-Length: {len(part.data)}\r\n\r\n"
-        )
-        await http.send(b"".join((head.encode(), part.data, f"\r\n--{BOUNDARY}\r\n".encode())))
+        await http.send(multipart_part(await viewer.next_part()))
 
 
 async def _send_video(http: _Http, params: StreamParams, viewer: VideoViewer) -> None:
