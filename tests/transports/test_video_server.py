@@ -117,7 +117,7 @@ def decode_frames(data: bytes) -> list[np.ndarray]:
 async def read_video(client: httpx.AsyncClient, frames: int, **params: str) -> list[np.ndarray]:
     async with client.stream("GET", "/stream", params=params) as response:
         assert response.status_code == 200
-        expected = "video/webm" if params["type"] == "vp8" else "video/mp4"
+        expected = "video/mp4" if params["type"] == "h264" else "video/webm"
         assert response.headers["content-type"] == expected
         data = b""
         async for chunk in response.aiter_bytes():
@@ -204,12 +204,13 @@ async def test_ros_compressed_without_a_compressed_topic_falls_back_to_mjpeg() -
     assert Image.open(io.BytesIO(data)).size == (64, 48)
 
 
-async def test_vp8_stream_decodes_with_pyav() -> None:
+@pytest.mark.parametrize("codec", ["vp8", "vp9"])
+async def test_webm_stream_decodes_with_pyav(codec: str) -> None:
     graph = Graph()
     async with video_server(graph) as client, camera(graph, "/cam", solid((30, 160, 220))):
         with anyio.fail_after(TIMEOUT_S):
             frames = await read_video(
-                client, 5, topic="/cam", type="vp8", width="320", height="240", bitrate="300000"
+                client, 5, topic="/cam", type=codec, width="320", height="240", bitrate="300000"
             )
     assert all(frame.shape == (240, 320, 3) for frame in frames)
     assert np.abs(frames[-1].astype(int).mean(axis=(0, 1)) - (30, 160, 220)).max() <= 12

@@ -42,6 +42,7 @@ BOUNDARY = "boundarydonotcross"  # web_video_server's multipart boundary
 #: What a video stream's response holds.
 VIDEO_CONTENT_TYPES: Mapping[StreamType, str] = {
     StreamType.VP8: "video/webm",
+    StreamType.VP9: "video/webm",
     StreamType.H264: "video/mp4",
 }
 

@@ -42,6 +42,7 @@ class _Codec:
 CODECS: Mapping[StreamType, _Codec] = {
     # live: no cues, no seeking back (web_video_server streams the same way)
     StreamType.VP8: _Codec("webm", "libvpx", "video/webm", {"live": "1"}),
+    StreamType.VP9: _Codec("webm", "libvpx-vp9", "video/webm", {"live": "1"}),
     # fragmented MP4, one fragment per frame, so a browser can play it as it comes
     StreamType.H264: _Codec(
         "mp4",
@@ -135,7 +136,7 @@ class VideoEncoder:
 
     def _codec_options(self) -> dict[str, str]:
         bounds = {"qmin": str(self.params.qmin), "qmax": str(self.params.qmax), "bf": "0"}
-        if self.params.type is StreamType.VP8:
+        if self.params.type in (StreamType.VP8, StreamType.VP9):
             return bounds | {
                 "deadline": "realtime",
                 "cpu-used": "8",

@@ -3,7 +3,7 @@
 Laid out as web_video_server's: image topics grouped under the camera whose
 ``camera_info`` topic shares their prefix, each with links to its viewer page,
 its stream and a snapshot; the viewer page holds an ``<img>`` (mjpeg, png,
-ros_compressed) or a ``<video>`` (vp8, h264) pointing at ``/stream``.
+ros_compressed) or a ``<video>`` (vp8, vp9, h264) pointing at ``/stream``.
 """
 
 from __future__ import annotations

@@ -19,18 +19,19 @@ __all__ = ["ParamError", "StreamParams", "StreamType", "parse_stream_params"]
 
 
 class StreamType(StrEnum):
-    """The ``type`` values web_video_server serves (vp9 is not offered here)."""
+    """The ``type`` values web_video_server serves."""
 
     MJPEG = "mjpeg"
     PNG = "png"
     ROS_COMPRESSED = "ros_compressed"
     VP8 = "vp8"
+    VP9 = "vp9"
     H264 = "h264"
 
     @property
     def is_video(self) -> bool:
         """Encoded by a video codec into a container (PyAV), not frame by frame."""
-        return self in (StreamType.VP8, StreamType.H264)
+        return self in (StreamType.VP8, StreamType.VP9, StreamType.H264)
 
 
 class ParamError(ValueError):

@@ -2,7 +2,7 @@
 
 Paths as web_video_server serves them: ``/`` lists the image topics,
 ``/stream?topic=...&type=...`` streams one (``multipart/x-mixed-replace`` for
-mjpeg, png and ros_compressed; WebM for vp8; fragmented MP4 for h264),
+mjpeg, png and ros_compressed; WebM for vp8 and vp9; fragmented MP4 for h264),
 ``/stream_viewer?topic=...`` is a page showing that stream and
 ``/snapshot?topic=...`` answers one JPEG. Like web_video_server every response
 closes its connection and allows any origin (ros3djs loads the stream into a
@@ -11,7 +11,7 @@ same shape as the WebSocket transport.
 
 Differences, all answering with a status where web_video_server would hang or
 stream nothing: a topic that does not exist is 404, a topic of another type
-400, vp8/h264 without PyAV installed 501, and a snapshot without a frame
+400, vp8/vp9/h264 without PyAV installed 501, and a snapshot without a frame
 within ``snapshot_timeout_s`` 503.
 """
 
