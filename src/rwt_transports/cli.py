@@ -9,6 +9,7 @@ rosbridge_websocket's parameters where one exists (``port``, ``address`` is
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import signal
 import sys
@@ -93,6 +94,10 @@ def serve(
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
     ] = None,
+    tf: Annotated[
+        bool,
+        typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
+    ] = True,
     log_level: Annotated[str, typer.Option(help="Log level on stderr.")] = "info",
 ) -> None:
     """Run a rosbridge server on an in-memory graph until Ctrl-C."""
@@ -121,6 +126,7 @@ def serve(
             url_path=url_path,
         ),
     )
+    config = dataclasses.replace(config, tf=tf)
     server = RosbridgeServer(Graph(registry), config)
     try:
         anyio.run(_run, server)

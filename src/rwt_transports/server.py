@@ -4,8 +4,9 @@
 makes a ``rwt_protocol.session.Session`` per connection (D22: one dispatcher
 behind all transports). The server also keeps the latched ``/client_count``
 and ``/connected_clients`` topics that rosbridge publishes (PROTOCOL-DECISIONS
-D14), from node ``/rosbridge_websocket``, and offers rosapi (REF §7.1) from node
-``/rosapi``. Each connection is a node of its own (``/rwt_client_<n>``).
+D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
+``/rosapi`` and tf2_web_republisher (REF §7.3) from node ``/tf2_web_republisher``.
+Each connection is a node of its own (``/rwt_client_<n>``).
 """
 
 from __future__ import annotations
@@ -22,10 +23,12 @@ from rwt_graph.calls import Spawner
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
+from rwt_graph.tf import TFRepublisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import RwtError
 from rwt_protocol.session import Session, SessionConfig
 
+from .tf import install_tf_republisher
 from .websocket import WebSocketOptions, serve_websocket_connection
 
 __all__ = ["SERVER_NODE", "RosbridgeServer", "ServerConfig", "spawner_for"]
@@ -48,6 +51,8 @@ class ServerConfig:
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi (access rules);
             None shows everything.
+        tf: offer tf2_web_republisher's action and service with a TF buffer fed by
+            ``/tf`` and ``/tf_static`` (``rwt serve --no-tf`` turns it off).
     """
 
     host: str = "127.0.0.1"
@@ -56,6 +61,7 @@ class ServerConfig:
     websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
     rosapi: bool = True
     rosapi_visibility: VisibilityFor | None = None
+    tf: bool = True
 
 
 class RosbridgeServer:
@@ -80,6 +86,9 @@ class RosbridgeServer:
         self.rosapi: Rosapi | None = None
         if self.config.rosapi:
             self.rosapi = install_rosapi(self.graph, visibility=self.config.rosapi_visibility)
+        self.tf: TFRepublisher | None = None
+        if self.config.tf:
+            self.tf = install_tf_republisher(self.graph)
 
     async def serve(
         self,

@@ -79,18 +79,27 @@ async def test_rosapi_names_the_server_rosapi_and_each_connection(
     graph.create_publisher("/battery", "sensor_msgs/msg/BatteryState", node="/power")
     async with connect(url) as first, connect(url) as second:
         assert await rosapi(first, "/rosapi/nodes") == {
-            "nodes": ["/power", "/rosapi", "/rosbridge_websocket", "/rwt_client_1", "/rwt_client_2"]
+            "nodes": [
+                "/power",
+                "/rosapi",
+                "/rosbridge_websocket",
+                "/rwt_client_1",
+                "/rwt_client_2",
+                "/tf2_web_republisher",
+            ]
         }
         assert await rosapi(second, "rosapi/publishers", topic="/client_count") == {
             "publishers": ["/rosbridge_websocket"]
         }
         topics = await rosapi(second, "/rosapi/topics")
         assert topics == {
-            "topics": ["/battery", "/client_count", "/connected_clients"],
+            "topics": ["/battery", "/client_count", "/connected_clients", "/tf", "/tf_static"],
             "types": [
                 "sensor_msgs/msg/BatteryState",
                 "std_msgs/msg/Int32",
                 "rosbridge_msgs/msg/ConnectedClients",
+                "tf2_msgs/msg/TFMessage",
+                "tf2_msgs/msg/TFMessage",
             ],
         }
     async with connect(url) as third:
@@ -98,4 +107,12 @@ async def test_rosapi_names_the_server_rosapi_and_each_connection(
         while (await next_op(third, "publish"))["msg"] != {"data": 1}:
             pass  # the server has not seen both others leave yet
         nodes = await rosapi(third, "/rosapi/nodes")
-        assert nodes == {"nodes": ["/power", "/rosapi", "/rosbridge_websocket", "/rwt_client_3"]}
+        assert nodes == {
+            "nodes": [
+                "/power",
+                "/rosapi",
+                "/rosbridge_websocket",
+                "/rwt_client_3",
+                "/tf2_web_republisher",
+            ]
+        }
