@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
@@ -341,7 +341,6 @@ class Graph:
         handler: LocalServiceHandler,
         *,
         node: str = DEFAULT_NODE,
-        also_accepts: Sequence[str] = (),
     ) -> LocalService:
         """Provide ``service`` from Python code in this process.
 
@@ -352,15 +351,12 @@ class Graph:
                 dicts; missing response fields get defaults; an exception fails the
                 call with its text (D4). Async handlers need a running server.
             node: the node rosapi lists as the provider.
-            also_accepts: other service types a caller may name in ``call_service``
-                (the same interface under another package name).
 
         Raises:
-            InvalidTypeName, UnknownType: ``type_name`` or an alias is bad or unknown.
+            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
             GraphError: a bad node name.
         """
-        aliases = frozenset(self.registry.service(name).name for name in also_accepts)
-        return self._local_service(service, type_name, node, handler=handler, aliases=aliases)
+        return self._local_service(service, type_name, node, handler=handler)
 
     def create_caller_service(
         self,
@@ -391,7 +387,6 @@ class Graph:
         handler: LocalServiceHandler | None = None,
         caller_handler: CallerServiceHandler | None = None,
         amend: Amend | None = None,
-        aliases: frozenset[str] = frozenset(),
     ) -> LocalService:
         srvtype = self.registry.service(type_name)
         name = resolve_name(service)
@@ -404,7 +399,6 @@ class Graph:
                 handler=handler,
                 caller_handler=caller_handler,
                 amend=amend,
-                aliases=aliases,
             )
             self.services.advertise(entry)
         return LocalService(self, client, name)

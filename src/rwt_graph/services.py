@@ -84,8 +84,6 @@ class ServiceEntry:
         caller_handler: the callable, for in-process services told who calls.
         amend: applied to each checked response of an in-process service (used
             to add fields a client expects beyond the type, see rosapi get_time).
-        aliases: canonical names of other service types a caller may name for
-            this one (one interface shipped under several package names, REF §7.3).
         pending: request id -> call, for client-advertised services.
     """
 
@@ -97,7 +95,6 @@ class ServiceEntry:
     handler: LocalServiceHandler | None = None
     caller_handler: CallerServiceHandler | None = None
     amend: Amend | None = None
-    aliases: frozenset[str] = frozenset()
     pending: dict[str, PendingCall] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
@@ -175,12 +172,8 @@ class Services:
         entry = self.entries.get(resolve_name(service))
         if entry is None:
             raise GraphError(f"service {service} does not exist")
-        if type_name is not None:
-            asked = self.registry.service(type_name).name
-            if asked != entry.srvtype.name and asked not in entry.aliases:
-                raise GraphError(
-                    f"service {service} has type {entry.srvtype.name}, not {type_name}"
-                )
+        if type_name is not None and self.registry.service(type_name).name != entry.srvtype.name:
+            raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
         request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())
         call = PendingCall(client, reply)
         if entry.caller_handler is not None:

@@ -109,10 +109,6 @@ class TFRepublisher:
             "tf2_web_republisher/srv/RepublishTFs",
             self.republish,
             node=node,
-            also_accepts=(
-                "tf2_web_republisher_msgs/srv/RepublishTFs",
-                "tf2_web_republisher_interfaces/srv/RepublishTFs",
-            ),
         )
         self._closers.append(service.close)
         if ros1:
