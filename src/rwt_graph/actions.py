@@ -19,7 +19,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
 
-from .calls import Spawner, convert_args, require_spawner
+from .calls import ProviderTable, Spawner, convert_args, require_spawner
 from .clock import Clock
 from .types import ActionType, TypeRegistry
 
@@ -144,53 +144,24 @@ class ActionEntry:
     goals: dict[str, Goal] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
-    def abort_all(self, reason: str) -> None:
+    def end_all(self, reason: str) -> None:
         """End every goal ABORTED with ``result: false`` and ``reason`` (D4)."""
         for goal in list(self.goals.values()):
             goal.finish(GoalStatus.ABORTED, False, reason)
 
+    def tell_lost(self, reason: str) -> None:
+        """Warn a client provider that its action was replaced (D15)."""
+        if self.provider is not None:
+            self.provider.on_action_lost(self.spelling, reason)
 
-class Actions:
-    """The action table of a graph (arguments as for ``Services``)."""
+
+class Actions(ProviderTable[ActionEntry]):
+    """The action table of a graph (see ``ProviderTable`` for the arguments)."""
 
     def __init__(
         self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
     ) -> None:
-        self.registry = registry
-        self.clock = clock
-        self._spawner = spawner
-        self.entries: dict[str, ActionEntry] = {}
-
-    def advertise(self, entry: ActionEntry) -> None:
-        """Add ``entry``, replacing (and aborting the goals of) an older one (D15)."""
-        old = self.entries.get(entry.name)
-        self.entries[entry.name] = entry
-        if old is not None:
-            reason = f"action {old.spelling} was replaced by a newer advertiser"
-            old.abort_all(reason)
-            if old.provider is not None:
-                old.provider.on_action_lost(old.spelling, reason)
-
-    def owned(self, client: ClientId, action: str) -> ActionEntry:
-        """The entry of ``action`` if ``client`` provides it.
-
-        Raises:
-            GraphError: no such action, or another participant provides it.
-        """
-        entry = self.entries.get(resolve_name(action))
-        if entry is None or entry.owner != client:
-            raise GraphError(f"action {action} is not advertised by this client")
-        return entry
-
-    def unadvertise(self, client: ClientId, action: str) -> None:
-        """Remove an action ``client`` owns; abort its goals.
-
-        Raises:
-            GraphError: ``client`` does not provide ``action``.
-        """
-        entry = self.owned(client, action)
-        del self.entries[entry.name]
-        entry.abort_all(f"action {entry.spelling} was unadvertised")
+        super().__init__("action", registry, clock, spawner)
 
     def send_goal(
         self,
@@ -280,7 +251,7 @@ class Actions:
         for entry in list(self.entries.values()):
             if entry.owner == client:
                 del self.entries[entry.name]
-                entry.abort_all(f"action {entry.spelling} is gone: its provider disconnected")
+                entry.end_all(f"action {entry.spelling} is gone: its provider disconnected")
             else:
                 for goal in list(entry.goals.values()):
                     if goal.caller == client:

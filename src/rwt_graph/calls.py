@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable
+from typing import Generic, Protocol, TypeVar
 
 from rwt_protocol.errors import FieldError, GraphError
+from rwt_protocol.names import resolve_name
 from rwt_protocol.ops.base import json_type_name
+from rwt_protocol.ports import ClientId
 
-from .types import Converted, MessageType
+from .clock import Clock
+from .types import Converted, MessageType, TypeRegistry
 
-__all__ = ["Spawner", "convert_args", "require_spawner"]
+__all__ = ["Offer", "ProviderTable", "Spawner", "convert_args", "require_spawner"]
 
 Spawner = Callable[[Callable[[], Awaitable[None]]], Callable[[], None]]
 """Runs an async job in the server's event loop; returns a function that cancels it.
@@ -55,3 +59,77 @@ def require_spawner(spawner: Spawner | None, what: str) -> Spawner:
     if spawner is None:
         raise GraphError(f"{what} is async but no event loop runs this graph")
     return spawner
+
+
+class Offer(Protocol):
+    """An advertised service or action, as its table sees it."""
+
+    name: str
+    spelling: str
+    owner: ClientId
+
+    def end_all(self, reason: str) -> None:
+        """Answer every caller waiting on this offer with a failure and ``reason`` (D4)."""
+
+    def tell_lost(self, reason: str) -> None:
+        """Tell a client provider that the offer was taken from it (D15)."""
+
+
+E = TypeVar("E", bound=Offer)
+
+
+class ProviderTable(Generic[E]):
+    """Advertised services or actions by resolved name; each belongs to its provider.
+
+    PROTOCOL-DECISIONS D15: a newer advertisement replaces an older one (whose
+    callers fail and whose provider is told); only the owner may withdraw it.
+
+    Args:
+        kind: ``"service"`` or ``"action"``, for error texts.
+        registry: resolves types.
+        clock: wall time for header stamps.
+        spawner: returns the graph's current spawner (installed by the server).
+    """
+
+    def __init__(
+        self,
+        kind: str,
+        registry: TypeRegistry,
+        clock: Clock,
+        spawner: Callable[[], Spawner | None],
+    ) -> None:
+        self.kind = kind
+        self.registry = registry
+        self.clock = clock
+        self._spawner = spawner
+        self.entries: dict[str, E] = {}
+
+    def advertise(self, entry: E) -> None:
+        """Add ``entry``, replacing an older one with the same name (D15)."""
+        old = self.entries.get(entry.name)
+        self.entries[entry.name] = entry
+        if old is not None:
+            reason = f"{self.kind} {old.spelling} was replaced by a newer advertiser"
+            old.end_all(reason)
+            old.tell_lost(reason)
+
+    def owned(self, client: ClientId, name: str) -> E:
+        """The entry of ``name`` if ``client`` provides it.
+
+        Raises:
+            GraphError: no such entry, or another participant provides it.
+        """
+        entry = self.entries.get(resolve_name(name))
+        if entry is None or entry.owner != client:
+            raise GraphError(f"{self.kind} {name} is not advertised by this client")
+        return entry
+
+    def unadvertise(self, client: ClientId, name: str) -> None:
+        """Remove an entry ``client`` owns; its callers fail (D15).
+
+        Raises:
+            GraphError: ``client`` does not provide ``name``.
+        """
+        entry = self.owned(client, name)
+        del self.entries[entry.name]
+        entry.end_all(f"{self.kind} {entry.spelling} was unadvertised")

@@ -196,7 +196,7 @@ class Graph:
         Raises:
             GraphError: ``client`` does not provide it.
         """
-        self.services.unadvertise(client, service, reason="service {service} was unadvertised")
+        self.services.unadvertise(client, service)
 
     def call_service(
         self,

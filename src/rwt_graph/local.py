@@ -89,9 +89,7 @@ class LocalService:
     def close(self) -> None:
         """Withdraw the service; pending callers get ``result: false`` (D15)."""
         with contextlib.suppress(GraphError):  # already replaced by a newer advertiser
-            self._graph.services.unadvertise(
-                self._client, self.service, reason="service {service} was unadvertised"
-            )
+            self._graph.services.unadvertise(self._client, self.service)
         self._graph.nodes.forget(self._client)
 
 

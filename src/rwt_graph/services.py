@@ -21,7 +21,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
 
-from .calls import Spawner, convert_args
+from .calls import ProviderTable, Spawner, convert_args
 from .clock import Clock
 from .types import ServiceType, TypeRegistry
 
@@ -98,60 +98,25 @@ class ServiceEntry:
     pending: dict[str, PendingCall] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
-    def fail_all(self, reason: str) -> None:
+    def end_all(self, reason: str) -> None:
         """Answer every pending call with ``result: false`` (D4, D15)."""
         calls, self.pending = list(self.pending.values()), {}
         for call in calls:
             call.resolve(False, reason)
 
+    def tell_lost(self, reason: str) -> None:
+        """Warn a client provider that its service was replaced (D15)."""
+        if self.provider is not None:
+            self.provider.on_service_lost(self.spelling, reason)
 
-class Services:
-    """The service table of a graph.
 
-    Args:
-        registry: resolves service types.
-        clock: wall time for header stamps in requests and responses.
-        spawner: returns the graph's current spawner (installed by the server).
-    """
+class Services(ProviderTable[ServiceEntry]):
+    """The service table of a graph (see ``ProviderTable`` for the arguments)."""
 
     def __init__(
         self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
     ) -> None:
-        self.registry = registry
-        self.clock = clock
-        self._spawner = spawner
-        self.entries: dict[str, ServiceEntry] = {}
-
-    def advertise(self, entry: ServiceEntry) -> None:
-        """Add ``entry``, replacing (and failing the calls of) an older one (D15)."""
-        old = self.entries.get(entry.name)
-        self.entries[entry.name] = entry
-        if old is not None:
-            reason = f"service {old.spelling} was replaced by a newer advertiser"
-            old.fail_all(reason)
-            if old.provider is not None:
-                old.provider.on_service_lost(old.spelling, reason)
-
-    def unadvertise(self, client: ClientId, service: str, *, reason: str) -> None:
-        """Remove a service ``client`` owns; fail its pending calls.
-
-        Raises:
-            GraphError: ``client`` does not provide ``service``.
-        """
-        entry = self.owned(client, service)
-        del self.entries[entry.name]
-        entry.fail_all(reason.format(service=entry.spelling))
-
-    def owned(self, client: ClientId, service: str) -> ServiceEntry:
-        """The entry of ``service`` if ``client`` provides it.
-
-        Raises:
-            GraphError: no such service, or another participant provides it.
-        """
-        entry = self.entries.get(resolve_name(service))
-        if entry is None or entry.owner != client:
-            raise GraphError(f"service {service} is not advertised by this client")
-        return entry
+        super().__init__("service", registry, clock, spawner)
 
     def call(
         self,
@@ -228,7 +193,7 @@ class Services:
         for entry in list(self.entries.values()):
             if entry.owner == client:
                 del self.entries[entry.name]
-                entry.fail_all(f"service {entry.spelling} is gone: its provider disconnected")
+                entry.end_all(f"service {entry.spelling} is gone: its provider disconnected")
             else:
                 for request_id, call in list(entry.pending.items()):
                     if call.caller == client:
