@@ -35,10 +35,13 @@ ROS2_ROSAPI = [
     "services_for_type", "set_param", "subscribers", "topic_type", "topics",
     "topics_and_raw_types", "topics_for_type",
 ]  # fmt: skip
-# The server offers tf2_web_republisher by default: /republish_tfs, /tf, /tf_static.
+# The server offers tf2_web_republisher by default: /republish_tfs, /tf, /tf_static
+# and the actionlib topics of /tf2_web_republisher (REF §7.3).
 SERVICES = ["/lights", "/republish_tfs", *(f"/rosapi/{name}" for name in ROS2_ROSAPI)]
+ACTIONLIB = ["cancel", "feedback", "goal", "result", "status"]
 TOPICS = [
-    "/chatter", "/client_count", "/cmd_vel", "/connected_clients", "/tf", "/tf_static", "/velocity"
+    "/chatter", "/client_count", "/cmd_vel", "/connected_clients", "/tf",
+    *(f"/tf2_web_republisher/{name}" for name in ACTIONLIB), "/tf_static", "/velocity",
 ]  # fmt: skip
 TYPES = [
     "std_msgs/msg/String",
@@ -46,6 +49,11 @@ TYPES = [
     "geometry_msgs/msg/Twist",
     "rosbridge_msgs/msg/ConnectedClients",
     "tf2_msgs/msg/TFMessage",
+    "actionlib_msgs/msg/GoalID",
+    "tf2_web_republisher/msg/TFSubscriptionActionFeedback",
+    "tf2_web_republisher/msg/TFSubscriptionActionGoal",
+    "tf2_web_republisher/msg/TFSubscriptionActionResult",
+    "actionlib_msgs/msg/GoalStatusArray",
     "tf2_msgs/msg/TFMessage",
     "geometry_msgs/msg/Twist",
 ]

@@ -3,8 +3,8 @@
 ``TFBuffer`` keeps the frame tree from ``/tf`` and ``/tf_static`` and answers
 lookups; ``TFSubscription`` decides which transforms a republisher client gets at
 each tick; ``install_tf_republisher(graph, sleep)`` wires both into a graph as the
-``/tf2_web_republisher`` action, the ``/republish_tfs`` service and, in ROS 1,
-the actionlib topics (REF §7.3).
+``/tf2_web_republisher`` action, the ``/republish_tfs`` service and the
+actionlib topics of ``/tf2_web_republisher`` (REF §7.3).
 """
 
 from __future__ import annotations

@@ -1,12 +1,13 @@
-"""The ROS 1 actionlib face of the TF republisher, for roslibjs ``TFClient`` (REF §7.3).
+"""The actionlib face of the TF republisher, for roslibjs ``TFClient`` (REF §7.3).
 
 roslibjs ``TFClient`` speaks actionlib over plain topics: it publishes
 ``TFSubscriptionActionGoal`` messages on ``/tf2_web_republisher/goal`` and
 ``actionlib_msgs/GoalID`` on ``/tf2_web_republisher/cancel``, and reads
 ``TFSubscriptionActionFeedback`` from ``/tf2_web_republisher/feedback``, matching
 feedback to its goal by ``status.goal_id.id``. This module serves those topics
-(plus ``status`` and ``result``, so rosapi lists the action server) in the ROS 1
-dialect.
+(plus ``status`` and ``result``, so ROS 1 rosapi lists the action server). It does
+so in the ROS 2 dialect too: actionlib is ROS 1, but roslib 2.x's ``TFClient``
+(the one ros3djs uses) speaks nothing else, and a ROS-free server can offer both.
 
 Topics carry no sender, so a goal whose client left without cancelling cannot be
 told apart from a live one; a goal therefore also ends once ``feedback`` has had

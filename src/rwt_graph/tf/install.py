@@ -12,9 +12,9 @@ tf2_web_republisher node gives a ROS system (REF §7.3), on node
 - the service ``/republish_tfs`` (``RepublishTFs``; roslibpy ``TFClient``):
   answers ``topic_name``, a new latched ``TFArray`` topic ``/tf_repub_<n>`` that
   ticks while it has subscribers and goes after ``timeout`` without any;
-- in the ROS 1 dialect, also the actionlib topics ``/tf2_web_republisher/goal``,
-  ``cancel``, ``feedback``, ``status`` and ``result`` (roslibjs ``TFClient``), see
-  ``actionlib.py``.
+- the actionlib topics ``/tf2_web_republisher/goal``, ``cancel``, ``feedback``,
+  ``status`` and ``result`` (roslibjs ``TFClient``, which ros3djs uses), in either
+  dialect; see ``actionlib.py``.
 
 The graph keeps no clock loop and imports no event loop (STYLE.md), so the caller
 injects ``sleep(seconds)``, an awaitable such as ``anyio.sleep``; the ticking loops
@@ -111,8 +111,7 @@ class TFRepublisher:
             node=node,
         )
         self._closers.append(service.close)
-        if ros1:
-            self._closers.append(ActionlibServer(self).start())
+        self._closers.append(ActionlibServer(self).start())
 
     def close(self) -> None:
         """Withdraw everything ``start`` registered (running loops end at their next tick)."""
