@@ -18,7 +18,11 @@ format (see client_harness.py, which writes the files and reads the output):
         {"op": "quiet", "ms": 300},
         {"op": "close", "conn": "pub"},
         {"op": "api", "conn": "sub", "call": "get_topics", "args": [], "as": "topics"},
-        {"op": "api", "conn": "sub", "call": "get_time", "blocking": true, "as": "now"}]}
+        {"op": "api", "conn": "sub", "call": "get_time", "blocking": true, "as": "now"},
+        {"op": "tf", "conn": "sub", "as": "tf", "client": "TFClient", "fixed_frame": "base_link",
+         "frames": ["arm"], "angular_thres": 0.1, "trans_thres": 0.05, "rate": 10.0},
+        {"op": "tf_wait", "as": "tf", "frame": "arm", "count": 3},
+        {"op": "tf_dispose", "as": "tf"}]}
 
 `sync` is a barrier: the connection publishes a token on its own sync topic and
 waits until it receives it back, which proves that the server has processed every
@@ -39,6 +43,14 @@ with the parameter name as first argument) and records what it gave under
 and an errback; with "blocking": true the method is called without them and its
 return value is recorded (roslibpy's `get_time` builds its Time only then).
 
+`tf` makes a TF client of the library (roslibpy: `TFClient`, which uses the
+`/republish_tfs` service; roslib: `TFClient` (actionlib topics), `ROS2TFClient`
+(the action), or `TFClient+service`: roslib's TFClient fed through its
+`processResponse` from a `/republish_tfs` call, the service route older roslibjs
+took in non-groovy mode) and subscribes to `frames`; every transform a frame's
+callback gets is recorded under "tf": {AS: {frame: [{translation, rotation}]}}.
+`tf_wait` waits for `count` transforms of a frame; `tf_dispose` disposes the client.
+
 Exit codes: 0 done, 2 a step failed or timed out, 3 the whole scenario timed out,
 64 bad usage. Every wait is bounded.
 """
@@ -55,6 +67,7 @@ from collections import UserDict
 from urllib.parse import urlsplit
 
 import roslibpy
+import roslibpy.tf
 
 
 def _die(code: int, message: str) -> None:
@@ -114,6 +127,8 @@ class Driver:
         self.current = "start"
         self.status_count = 0
         self.calls: dict[str, dict] = {}
+        self.tf: dict[str, dict[str, list]] = {}
+        self.tf_clients: dict[str, roslibpy.tf.TFClient] = {}
 
     # -- bookkeeping, called from roslibpy's reactor thread -------------------
     def count_status(self, record: logging.LogRecord) -> None:
@@ -262,6 +277,38 @@ class Driver:
         if not done.wait(self.step_timeout):
             _die(2, f"timed out after {self.step_timeout:.1f}s waiting for {step['call']}")
 
+    def do_tf(self, step: dict) -> None:
+        conn = self.conn(step)
+        if step["client"] != "TFClient":
+            _die(64, f"roslibpy has no TF client {step['client']!r}")
+        client = roslibpy.tf.TFClient(
+            conn.ros,
+            fixed_frame=step["fixed_frame"],
+            angular_threshold=step["angular_thres"],
+            translation_threshold=step["trans_thres"],
+            rate=step["rate"],
+        )
+        got: dict[str, list] = {frame: [] for frame in step["frames"]}
+        with self.cond:
+            self.tf[step["as"]] = got
+            self.tf_clients[step["as"]] = client
+        for frame in step["frames"]:
+
+            def on_transform(transform: dict, frame: str = frame) -> None:
+                self._record(got, frame, _plain(transform))
+
+            client.subscribe(frame, on_transform)
+
+    def do_tf_wait(self, step: dict) -> None:
+        got, frame, count = self.tf[step["as"]], step["frame"], step["count"]
+        self._until(
+            lambda: len(got[frame]) >= count,
+            lambda: f"{count} transforms of {frame} ({step['as']}, got {len(got[frame])})",
+        )
+
+    def do_tf_dispose(self, step: dict) -> None:
+        self.tf_clients[step["as"]].dispose()
+
     def do_quiet(self, step: dict) -> None:
         # A bounded window for negative assertions ("nothing more arrives").
         time.sleep(step["ms"] / 1000.0)
@@ -294,6 +341,7 @@ class Driver:
                 "status_count": self.status_count,
                 "statuses": [],
                 "calls": self.calls,
+                "tf": self.tf,
             }
 
     def shutdown(self) -> None:

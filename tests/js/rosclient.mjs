@@ -91,6 +91,7 @@ function nextLine() {
 const conns = new Map();
 const statuses = [];
 const calls = {};
+const tfs = {};
 
 function conn(step) {
   const c = conns.get(step.conn);
@@ -246,6 +247,80 @@ const steps = {
     );
   },
 
+  async tf(step) {
+    // A TF client of roslib subscribed to step.frames; see roslibpy_driver.py.
+    const c = conn(step);
+    const options = {
+      ros: c.ros,
+      fixedFrame: step.fixed_frame,
+      angularThres: step.angular_thres,
+      transThres: step.trans_thres,
+      rate: step.rate,
+    };
+    let client;
+    if (step.client === "ROS2TFClient") client = new ROSLIB.ROS2TFClient(options);
+    else if (step.client === "TFClient") client = new ROSLIB.TFClient(options);
+    else if (step.client === "TFClient+service") {
+      // Its actionlib goal is never sent (the update is delayed for ever); the
+      // transforms come through processResponse, as in older roslibjs's non-groovy mode.
+      client = new ROSLIB.TFClient({ ...options, updateDelay: 2 ** 31 - 1 });
+    } else throw new Error(`no TF client ${step.client}`);
+    const got = {};
+    for (const frame of step.frames) {
+      got[frame] = [];
+      client.subscribe(frame, (t) => {
+        got[frame].push({ translation: { ...t.translation }, rotation: { ...t.rotation } });
+        notify();
+      });
+    }
+    tfs[step.as] = { client, got };
+    if (step.client === "TFClient+service") {
+      const service = new ROSLIB.Service({
+        ros: c.ros,
+        name: "/republish_tfs",
+        serviceType: "tf2_web_republisher/RepublishTFs",
+      });
+      const request = {
+        source_frames: Object.keys(client.frameInfos),
+        target_frame: client.fixedFrame,
+        angular_thres: client.angularThres,
+        trans_thres: client.transThres,
+        rate: client.rate,
+        timeout: client.topicTimeout,
+      };
+      let answered = false;
+      service.callService(
+        request,
+        (response) => {
+          client.processResponse(response);
+          answered = true;
+          notify();
+        },
+        (error) => {
+          calls[step.as] = { error: String(error) };
+          answered = true;
+          notify();
+        },
+      );
+      await until(
+        () => answered,
+        () => `/republish_tfs to answer (${c.name})`,
+      );
+    }
+  },
+
+  async tf_wait(step) {
+    const got = tfs[step.as].got[step.frame];
+    await until(
+      () => got.length >= step.count,
+      () => `${step.count} transforms of ${step.frame} (${step.as}, got ${got.length})`,
+    );
+  },
+
+  async tf_dispose(step) {
+    tfs[step.as].client.dispose();
+  },
+
   async quiet(step) {
     // A bounded window for negative assertions ("nothing more arrives").
     await new Promise((resolve) => setTimeout(resolve, step.ms));
@@ -282,7 +357,8 @@ async function main() {
     received[c.name] = c.received;
     wire[c.name] = c.wire;
   }
-  const result = { received, wire, status_count: statuses.length, statuses, calls };
+  const tf = Object.fromEntries(Object.entries(tfs).map(([name, t]) => [name, t.got]));
+  const result = { received, wire, status_count: statuses.length, statuses, calls, tf };
   // Wait for the write to be flushed: a large result on a pipe is written in
   // pieces, and process.exit() would cut it.
   await new Promise((resolve) => process.stdout.write(JSON.stringify({ result }) + "\n", resolve));
