@@ -18,6 +18,7 @@ samples each; peers cannot grow it beyond that.
 from __future__ import annotations
 
 import bisect
+import functools
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ import numpy as np
 
 from rwt_protocol.errors import GraphError
 
-from .transform import Matrix, from_message, identity, interpolate, inverse
+from .transform import Matrix, from_message, identity, interpolate, inverse, quaternion
 
 __all__ = [
     "DisconnectedFramesError",
@@ -78,7 +79,7 @@ def stamp_seconds(stamp: Mapping[str, object]) -> float:
 
 @dataclass(frozen=True)
 class StampedTransform:
-    """The result of a lookup.
+    """The result of a lookup (shared by every caller until the tree changes: read only).
 
     Attributes:
         target: the frame the result is expressed in (``header.frame_id``).
@@ -91,6 +92,28 @@ class StampedTransform:
     source: str
     stamp: float
     matrix: Matrix
+
+    @functools.cached_property
+    def translation(self) -> tuple[float, float, float]:
+        """``(x, y, z)`` in metres, as plain floats."""
+        x, y, z = (float(v) for v in self.matrix[:3, 3])
+        return x, y, z
+
+    @functools.cached_property
+    def rotation(self) -> tuple[float, float, float, float]:
+        """The unit quaternion ``(x, y, z, w)``, ``w >= 0``, as plain floats."""
+        x, y, z, w = (float(v) for v in quaternion(self.matrix))
+        return x, y, z, w
+
+    @functools.cached_property
+    def transform(self) -> dict[str, object]:
+        """The ``geometry_msgs/Transform`` dict (internal form); treat it as read only."""
+        x, y, z = self.translation
+        qx, qy, qz, qw = self.rotation
+        return {
+            "translation": {"x": x, "y": y, "z": z},
+            "rotation": {"x": qx, "y": qy, "z": qz, "w": qw},
+        }
 
 
 class _Link:

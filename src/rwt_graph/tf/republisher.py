@@ -24,8 +24,7 @@ from dataclasses import dataclass
 from rwt_graph.types import Dialect
 from rwt_graph.types.convert import time_value
 
-from .buffer import TFBuffer, TFError, normalize_frame
-from .transform import Matrix, rotation_angle, to_message, translation_distance
+from .buffer import StampedTransform, TFBuffer, TFError, normalize_frame
 
 __all__ = ["DEFAULT_RATE_HZ", "MAX_RATE_HZ", "TFRequest", "TFSubscription"]
 
@@ -98,7 +97,7 @@ class _Pair:
 
     def __init__(self, source: str) -> None:
         self.source = source
-        self.sent: Matrix | None = None
+        self.sent: StampedTransform | None = None
         self.failing = False
 
 
@@ -133,9 +132,9 @@ class TFSubscription:
                     pair.failing = True
                 continue
             pair.failing = False
-            if not self._moved(pair.sent, found.matrix):
+            if not self._moved(pair.sent, found):
                 continue
-            pair.sent = found.matrix
+            pair.sent = found
             out.append(
                 {
                     "header": {
@@ -143,17 +142,19 @@ class TFSubscription:
                         "frame_id": target,
                     },
                     "child_frame_id": pair.source,
-                    "transform": to_message(found.matrix),
+                    "transform": found.transform,
                 }
             )
         return out
 
-    def _moved(self, sent: Matrix | None, now: Matrix) -> bool:
+    def _moved(self, sent: StampedTransform | None, now: StampedTransform) -> bool:
         request = self.request
-        return (
-            sent is None
-            or request.trans_thres == 0.0
-            or request.angular_thres == 0.0
-            or translation_distance(sent, now) > request.trans_thres
-            or rotation_angle(sent, now) > request.angular_thres
-        )
+        if sent is None or request.trans_thres == 0.0 or request.angular_thres == 0.0:
+            return True
+        if sent is now:  # the same lookup result (the tree did not change)
+            return False
+        if math.dist(sent.translation, now.translation) > request.trans_thres:
+            return True
+        # the angle between two orientations: 2 acos |q1 . q2| (plain floats: fast)
+        dot = abs(sum(a * b for a, b in zip(sent.rotation, now.rotation, strict=True)))
+        return 2 * math.acos(min(1.0, dot)) > request.angular_thres
