@@ -4,7 +4,10 @@ PROTOCOL-DECISIONS D24: the bytes queued for a peer are bounded; above the bound
 the oldest *topic* messages are dropped, never service responses, action results
 or status messages. Drops are counted so the session can report them. The parts
 of one fragmented message share a ``group`` and are dropped together, so that a
-peer is not left with a message it can never complete (D19).
+peer is not left with a message it can never complete (D19); a message whose
+first parts were already taken is never cut either. The writer takes frames in
+bounded batches (``take``), so the frames a transport holds outside the queue
+stay small too. Dropping is amortised O(1) per frame.
 """
 
 from __future__ import annotations
@@ -45,6 +48,8 @@ class Outbox:
     def __init__(self, limit_bytes: int) -> None:
         self._frames: deque[OutFrame] = deque()
         self._bytes = 0
+        self._kept_bytes = 0
+        self._sending_group: object = None  # partly taken: the rest must go too
         self.limit_bytes = limit_bytes
         self.dropped = 0
 
@@ -56,12 +61,19 @@ class Outbox:
         """Payload bytes currently queued."""
         return self._bytes
 
+    @property
+    def undroppable_bytes(self) -> int:
+        """Payload bytes of queued frames that may not be dropped."""
+        return self._kept_bytes
+
+    @property
+    def over_limit(self) -> bool:
+        """Whether more than ``limit_bytes`` are queued (only undroppable frames remain over it)."""
+        return self._bytes > self.limit_bytes
+
     def push(self, frame: OutFrame) -> None:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""
-        self._frames.append(frame)
-        self._bytes += len(frame.data)
-        if self._bytes > self.limit_bytes:
-            self._shed()
+        self.extend((frame,))
 
     def extend(self, frames: Iterable[OutFrame]) -> None:
         """Queue several frames (the parts of one message), then drop if over the bound.
@@ -71,31 +83,53 @@ class Outbox:
         for frame in frames:
             self._frames.append(frame)
             self._bytes += len(frame.data)
+            if not frame.droppable:
+                self._kept_bytes += len(frame.data)
         if self._bytes > self.limit_bytes:
             self._shed()
 
-    def drain(self) -> list[OutFrame]:
-        """Remove and return every queued frame, oldest first."""
-        frames = list(self._frames)
-        self._frames.clear()
-        self._bytes = 0
+    def take(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Remove and return the oldest frames, oldest first.
+
+        Args:
+            max_bytes: stop once this many payload bytes are taken (at least one
+                frame is taken when any is queued); None takes everything.
+        """
+        frames: list[OutFrame] = []
+        taken = 0
+        while self._frames and (
+            max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
+        ):
+            frame = self._frames.popleft()
+            frames.append(frame)
+            taken += len(frame.data)
+            if not frame.droppable:
+                self._kept_bytes -= len(frame.data)
+        self._bytes -= taken
+        last = frames[-1].group if frames else None
+        following = self._frames[0].group if self._frames else None
+        self._sending_group = last if last is not None and last == following else None
         return frames
 
+    def drain(self) -> list[OutFrame]:
+        """Remove and return every queued frame, oldest first."""
+        return self.take()
+
     def _shed(self) -> None:
-        kept: deque[OutFrame] = deque()
+        kept: list[OutFrame] = []
         groups: set[object] = set()
         while self._frames and self._bytes > self.limit_bytes:
             frame = self._frames.popleft()
-            if frame.droppable:
+            if frame.droppable and (frame.group is None or frame.group != self._sending_group):
                 self._drop(frame, groups)
             else:
                 kept.append(frame)
-        for frame in self._frames:
-            if frame.group is not None and frame.group in groups:
-                self._drop(frame, groups)
-            else:
-                kept.append(frame)
-        self._frames = kept
+        # The rest of a message whose first parts were dropped follows right after them.
+        while (
+            self._frames and self._frames[0].group is not None and self._frames[0].group in groups
+        ):
+            self._drop(self._frames.popleft(), groups)
+        self._frames.extendleft(reversed(kept))  # the kept ones keep their place
 
     def _drop(self, frame: OutFrame, groups: set[object]) -> None:
         self._bytes -= len(frame.data)

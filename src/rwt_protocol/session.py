@@ -11,16 +11,31 @@ frame for this connection only (D29), filtered by the connection's level (D2),
 and the session keeps serving. An exception that is not an ``RwtError`` is a bug:
 it is logged and reported as an internal error, and the session still keeps
 serving.
+
+Before dispatch every op passes two gates: authentication (D23; with an
+authenticator configured, the first op must be an admitted ``auth``, anything
+else gets an error status and the connection is closed) and the access rules
+(``AccessPolicy``: a denied op gets an error status and its failure reply, D4).
+
+The outgoing side is bounded (D24): above ``send_buffer_limit`` the oldest topic
+messages are dropped and counted, the first drop of each episode is reported as
+a warning status, and a connection that stays over the limit without taking
+any frames for ``send_timeout_s`` is closed with a reason.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from . import gates
+from .access import AccessPolicy
+from .auth import Authenticator
+from .backpressure import SlowConsumerWatch
 from .codec import decode_json, parse_object, peek_id
 from .codec_cbor import decode_cbor
+from .commands import CloseCode, CloseConnection, Command
 from .encoding import encode_op_frames, publish_frames
 from .errors import RwtError
 from .fragments import Reassembler
@@ -34,14 +49,14 @@ from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
 from .subscriptions import TopicSubscription
 from .timers import Timer, TimerQueue
 
-__all__ = ["CloseConnection", "Command", "Session", "SessionConfig"]
+__all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"]
 
 logger = logging.getLogger("rwt.session")
 
 MiB = 1024 * 1024
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True)
 class SessionConfig:
     """Per-connection settings.
 
@@ -49,6 +64,10 @@ class SessionConfig:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         send_buffer_limit: bytes of outgoing frames kept queued before the oldest
             topic messages are dropped (D24, ``--send-buffer-limit``).
+        send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
+            without taking any frame before it is closed (D24, ``--send-timeout``).
+        access: the access rules (``--topics-glob`` and friends).
+        authenticator: when set, the first op must be an ``auth`` it admits (D23).
         max_message_size: the largest message reassembled from ``fragment`` or
             ``png`` parts, and the most their pending parts may hold at once,
             bytes (D19, D24, ``--max-message-size``).
@@ -65,23 +84,14 @@ class SessionConfig:
 
     status_level: StatusLevel = StatusLevel.ERROR
     send_buffer_limit: int = 16 * MiB
+    send_timeout_s: float = 30.0
+    access: AccessPolicy = field(default_factory=AccessPolicy)
+    authenticator: Authenticator | None = None
     max_message_size: int = 10 * MiB
     max_pending_fragments: int = 16
     fragment_timeout_s: float = 600.0
     max_queue_length: int = 100
     call_timeout_s: float | None = 30.0
-
-
-@dataclass(frozen=True, slots=True)
-class CloseConnection:
-    """Command: close the connection (code per RFC 6455, reason for the peer)."""
-
-    code: int
-    reason: str
-
-
-Command = CloseConnection
-"""What a session asks its transport to do besides sending frames."""
 
 
 class Session:
@@ -94,6 +104,7 @@ class Session:
         on_output: called (synchronously, without arguments) whenever frames or
             commands become available or a timer is set, so a transport can wake
             its writer and look at ``get_timer`` again.
+        peer: the peer's address (``"host:port"``), for the authenticator and logs.
     """
 
     def __init__(
@@ -103,9 +114,11 @@ class Session:
         *,
         config: SessionConfig | None = None,
         on_output: Callable[[], None] | None = None,
+        peer: str = "",
     ) -> None:
         self.graph = graph
         self.client_id = client_id
+        self.peer = peer
         self.config = config or SessionConfig()
         self.status_level = self.config.status_level
         self.subscriptions: dict[str, TopicSubscription] = {}
@@ -113,6 +126,7 @@ class Session:
         self.goals: dict[str | int | None, GoalHandle] = {}
         self.provider_link = ProviderLink(self)
         self._outbox = Outbox(self.config.send_buffer_limit)
+        self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
         self.timers = TimerQueue()
         self.fragments = Reassembler(
@@ -123,6 +137,10 @@ class Session:
         self._fragment_timer: Timer | None = None
         self._on_output = on_output
         self._closed = False
+        self._closing = False  # input is ignored (close requested, or shutting down)
+        self._close_request: CloseConnection | None = None  # once set, nothing more is sent
+        self._authenticated = self.config.authenticator is None
+        self._now = 0.0  # the latest monotonic time seen, for output without one
 
     # ---- inputs -------------------------------------------------------------
 
@@ -132,13 +150,15 @@ class Session:
         Args:
             frame: the frame's payload.
             now: monotonic seconds.
-            binary: the frame came as binary (a WebSocket binary message): CBOR
-                (PROTOCOL-DECISIONS D21, D27).
+            binary: the frame came as binary (a WebSocket binary message, a CBOR
+                item on a stream): CBOR (PROTOCOL-DECISIONS D21, D27).
 
         Never raises for anything the peer sent; see the module docstring.
+        Frames arriving after the session asked to close are ignored.
         """
-        if self._closed:
+        if self._closed or self._closing:
             return
+        self._now = now
         op_name: str | None = None
         op_id: str | int | None = None
         try:
@@ -149,25 +169,76 @@ class Session:
             op_id = peek_id(obj)
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
-            self.dispatch(op, now)
+            if self._authenticated:
+                self.dispatch(op, now)
+            else:
+                self._authenticated = gates.authenticate(self, op)
         except RwtError as exc:
-            self.report(exc.level, _prefixed(op_name, exc.message), op_id)
+            self._refused(exc, op_name, op_id)
         except Exception:
             logger.exception("bug while handling a frame from %s", self.client_id)
             self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
 
+    def _refused(self, exc: RwtError, op_name: str | None, op_id: str | int | None) -> None:
+        text = exc.message
+        if not self._authenticated and "authentication" not in text:
+            text = f"authentication required: {text}"
+        self.report(exc.level, _prefixed(op_name, text), op_id)
+        if not self._authenticated:  # D23: a connection that does not authenticate goes
+            self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
+
     def dispatch(self, op: OpModel, now: float) -> None:
-        """Run the handler for a validated op.
+        """Check a validated op against the access rules, then run its handler.
 
         Raises:
-            RwtError: the op was refused; the caller reports it.
+            RwtError: the op was refused; the caller reports it. A denied
+                ``call_service``/``send_action_goal`` is also answered (D4).
         """
+        gates.check_access(self, op)
         HANDLERS[type(op)](self, op, now)
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
         if not self._closed:
+            self._now = max(self._now, now)
             self.timers.run_due(now)
+
+    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
+        """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
+
+        Later input is ignored and later frames are not queued. Idempotent: only
+        the first request counts.
+
+        Args:
+            code: the close code (WebSocket; logged on other transports).
+            reason: why, for the peer and the log.
+            abort: the peer is not reading (slow consumer): cut without waiting.
+        """
+        if self._closed or self._close_request is not None:
+            return
+        self._closing = True
+        self._close_request = CloseConnection(code, reason, abort)
+        logger.log(
+            logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
+            "event=closing client=%s code=%d reason=%r",
+            self.client_id,
+            code,
+            reason,
+        )
+        self._commands.append(self._close_request)
+        self._wake()
+
+    def begin_shutdown(self) -> None:
+        """The server is stopping: ignore further input and release what this client holds.
+
+        Releasing first lets the graph answer callers waiting on this client
+        (D4) while their connections can still send; the server then calls
+        ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
+        """
+        if self._closed:
+            return
+        self._closing = True
+        self.graph.release(self.client_id)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
@@ -185,9 +256,18 @@ class Session:
 
     # ---- outputs ------------------------------------------------------------
 
-    def frames_to_send(self) -> list[OutFrame]:
-        """Take every frame queued for the peer, oldest first."""
-        return self._outbox.drain()
+    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Take the frames queued for the peer, oldest first.
+
+        Args:
+            max_bytes: take at most about this many payload bytes (at least one
+                frame); None takes every frame. Taking frames counts as progress
+                for the send timeout (D24).
+        """
+        frames = self._outbox.take(max_bytes)
+        if frames:
+            self._watch.after_take()
+        return frames
 
     def commands_to_run(self) -> list[Command]:
         """Take every command queued for the transport."""
@@ -199,14 +279,34 @@ class Session:
         return None if self._closed else self.timers.next_deadline()
 
     @property
+    def close_request(self) -> CloseConnection | None:
+        """The close this session asked for, if any (also while the transport has it)."""
+        return self._close_request
+
+    @property
     def closed(self) -> bool:
         """Whether ``close`` was called."""
         return self._closed
 
     @property
+    def closing(self) -> bool:
+        """Whether the session stopped taking input (close requested or shutting down)."""
+        return self._closing or self._closed
+
+    @property
+    def authenticated(self) -> bool:
+        """Whether ops are served (always, without an authenticator)."""
+        return self._authenticated
+
+    @property
     def dropped_frames(self) -> int:
         """Topic messages dropped so far because the peer was too slow (D24)."""
         return self._outbox.dropped
+
+    @property
+    def queued_bytes(self) -> int:
+        """Payload bytes waiting to be taken by the transport."""
+        return self._outbox.queued_bytes
 
     # ---- helpers for handlers -------------------------------------------------
 
@@ -215,13 +315,28 @@ class Session:
         self.send_frames((frame,))
 
     def send_frames(self, frames: Sequence[OutFrame]) -> None:
-        """Queue the frames of one message (its parts stay together, D24) and wake the transport."""
-        if self._closed:
+        """Queue the frames of one message (its parts stay together, D24) and wake the transport.
+
+        Past the limit, the oldest topic messages go (D24); when undroppable
+        frames alone exceed the limit the peer is not reading at all, and the
+        connection is closed rather than let memory grow.
+        """
+        if self._closed or self._close_request is not None:
+            return
+        limit = self._outbox.limit_bytes
+        if self._outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
+            self.request_close(
+                CloseCode.POLICY_VIOLATION,
+                f"send buffer overflow: over {limit} bytes unread",
+                abort=True,
+            )
             return
         was_empty = len(self._outbox) == 0
+        dropped = self._outbox.dropped
         self._outbox.extend(frames)
-        if was_empty and self._on_output is not None:
-            self._on_output()
+        self._watch.after_push(dropped, self._now)
+        if was_empty:
+            self._wake()
 
     def send_op(
         self,
@@ -255,8 +370,8 @@ class Session:
         Wakes the transport so that it sees the new deadline in ``get_timer``.
         """
         timer = self.timers.schedule(deadline, callback)
-        if self._on_output is not None and not self._closed:
-            self._on_output()
+        if not self._closed:
+            self._wake()
         return timer
 
     def watch_fragments(self) -> None:
@@ -293,6 +408,7 @@ class Session:
         cannot be encoded (a bug, or a type the serializer lacks) is reported
         as an error status and skipped; it never reaches the publisher.
         """
+        self._now = max(self._now, event.now)
         params = subscription.params
         try:
             frames = publish_frames(
@@ -307,6 +423,10 @@ class Session:
             )
             return
         self.send_frames(frames)
+
+    def _wake(self) -> None:
+        if self._on_output is not None:
+            self._on_output()
 
 
 def _prefixed(op_name: str | None, text: str) -> str:

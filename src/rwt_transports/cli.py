@@ -1,32 +1,36 @@
 """The ``rwt`` command line.
 
-``rwt serve`` runs a rosbridge server on an in-memory graph. Option names follow
-rosbridge_websocket's parameters where one exists (``port``, ``address`` is
+``rwt serve`` runs a rosbridge server on an in-memory graph, on every transport
+asked for at once (WebSocket, TCP, UDP, stdio; one graph, D22). Option names
+follow rosbridge's parameters where one exists (``port``, ``address`` is
 ``--host`` here as issue 2 asks, ``max_message_size``, ``use_compression`` is
-``--websocket-compression``). Logs go to stderr; the first stdout line is
-``listening on ws://HOST:PORT`` so scripts can use ``--port 0``.
+``--websocket-compression``, ``certfile``/``keyfile``, ``topics_glob``...). Logs
+go to stderr as ``key=value`` lines; stdout gets one ``listening on URL`` line
+per listener, the WebSocket one first, so scripts can use ``--port 0`` (with
+``--stdio``, stdout is the session and those lines go to stderr).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import signal
 import sys
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import anyio
 import typer
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
+from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
 from .conformance.cli import conformance
-from .server import RosbridgeServer, ServerConfig
+from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
+from .udp import UdpOptions
 from .websocket import WebSocketOptions
 
 __all__ = ["app", "main"]
@@ -62,8 +66,20 @@ app.command()(conformance)
 
 @app.command()
 def serve(
-    host: Annotated[str, typer.Option(help="Address to bind.")] = "127.0.0.1",
+    host: Annotated[str, typer.Option(help="Address every listener binds.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="WebSocket port; 0 picks a free port.")] = 9090,
+    websocket: Annotated[
+        bool, typer.Option(help="Serve WebSocket on --port (--no-websocket: don't).")
+    ] = True,
+    tcp_port: Annotated[
+        int | None, typer.Option(help="Also serve raw TCP on this port (0: a free one).")
+    ] = None,
+    udp_port: Annotated[
+        int | None, typer.Option(help="Also serve UDP on this port (0: a free one).")
+    ] = None,
+    stdio: Annotated[
+        bool, typer.Option(help="Also serve one session on stdin/stdout; stop when it ends.")
+    ] = False,
     dialect: Annotated[DialectName, typer.Option(help="ROS message dialect.")] = DialectName.ROS2,
     interfaces: Annotated[
         list[Path] | None,
@@ -73,7 +89,10 @@ def serve(
         LevelName, typer.Option(help="Status level of new connections.")
     ] = LevelName.ERROR,
     max_message_size: Annotated[
-        int, typer.Option(help="Largest incoming message, also reassembled from parts, bytes.")
+        int,
+        typer.Option(
+            help="Largest incoming message on every transport, also reassembled from parts, bytes."
+        ),
     ] = 10 * MiB,
     max_pending_fragments: Annotated[
         int, typer.Option(min=1, help="Messages per connection whose fragments are arriving.")
@@ -85,35 +104,98 @@ def serve(
         int, typer.Option(min=1, help="Cap on a throttled subscription's queue_length.")
     ] = 100,
     send_buffer_limit: Annotated[
-        int, typer.Option(help="Outgoing bytes queued per connection before dropping.")
+        int,
+        typer.Option(help="Outgoing bytes queued per connection before dropping topic messages."),
     ] = 16 * MiB,
+    send_timeout: Annotated[
+        float, typer.Option(help="Seconds a connection may stay over the send buffer limit.")
+    ] = 30.0,
+    max_connections: Annotated[
+        int | None, typer.Option(help="Most simultaneous connections (all transports).")
+    ] = None,
+    certfile: Annotated[
+        Path | None, typer.Option(help="PEM certificate: TLS (wss, TLS over TCP).")
+    ] = None,
+    keyfile: Annotated[Path | None, typer.Option(help="PEM private key for --certfile.")] = None,
+    auth_secret_file: Annotated[
+        Path | None, typer.Option(help="rosauth secret (first line): clients must send auth first.")
+    ] = None,
+    topics_glob: Annotated[
+        str, typer.Option(help="Allowed topics: fnmatch patterns, comma-separated.")
+    ] = "",
+    services_glob: Annotated[
+        str, typer.Option(help="Allowed services (/rosapi/* always allowed).")
+    ] = "",
+    params_glob: Annotated[str, typer.Option(help="Allowed parameters.")] = "",
+    actions_glob: Annotated[str, typer.Option(help="Allowed actions.")] = "",
+    allowed_origins: Annotated[
+        str, typer.Option(help="Accepted WebSocket Origin patterns, comma-separated (any).")
+    ] = "",
     call_timeout: Annotated[
         float, typer.Option(help="Seconds a call_service without timeout may wait; 0 = no limit.")
     ] = 30.0,
-    websocket_compression: Annotated[bool, typer.Option(help="Offer permessage-deflate.")] = False,
     url_path: Annotated[
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
     ] = None,
+    websocket_compression: Annotated[bool, typer.Option(help="Offer permessage-deflate.")] = False,
+    websocket_ping_interval: Annotated[
+        float, typer.Option(help="Seconds between WebSocket keepalive pings (0: none).")
+    ] = 0.0,
+    websocket_ping_timeout: Annotated[
+        float, typer.Option(help="Seconds to wait for a pong before closing.")
+    ] = 30.0,
+    udp_datagram_size: Annotated[
+        int, typer.Option(help="Outgoing UDP messages above this many bytes are fragmented.")
+    ] = 8192,
+    udp_idle_timeout: Annotated[
+        float, typer.Option(help="Seconds of silence after which a UDP peer is forgotten.")
+    ] = 300.0,
     tf: Annotated[
         bool,
         typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
     ] = True,
     log_level: Annotated[str, typer.Option(help="Log level on stderr.")] = "info",
 ) -> None:
-    """Run a rosbridge server on an in-memory graph until Ctrl-C."""
+    """Run a rosbridge server on an in-memory graph until SIGINT/SIGTERM."""
     logging.basicConfig(
         stream=sys.stderr,
         level=log_level.upper(),
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
-    registry = TypeRegistry(Dialect(dialect.value), interfaces or ())
+    if not (websocket or tcp_port is not None or udp_port is not None or stdio):
+        _fail("nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio")
+    graph = Graph(TypeRegistry(Dialect(dialect.value), interfaces or ()))
+    authenticator = None
+    if auth_secret_file is not None:
+        try:
+            secret = auth_secret_file.read_text("utf-8").splitlines()[0].strip()
+        except (OSError, IndexError) as exc:
+            _fail(f"cannot read --auth-secret-file: {exc}")
+        if not secret:
+            _fail("--auth-secret-file: the first line is empty")
+        authenticator = rosauth_authenticator(secret, graph.clock)
+    access = AccessPolicy(
+        topics=parse_glob_list(topics_glob),
+        services=parse_glob_list(services_glob),
+        params=parse_glob_list(params_glob),
+        actions=parse_glob_list(actions_glob),
+    )
     config = ServerConfig(
         host=host,
-        port=port,
+        port=port if websocket else None,
+        tcp_port=tcp_port,
+        udp_port=udp_port,
+        stdio=stdio,
+        max_message_size=max_message_size,
+        max_connections=max_connections,
+        certfile=certfile,
+        keyfile=keyfile,
         session=SessionConfig(
             status_level=StatusLevel.from_wire(status_level.value),
             send_buffer_limit=send_buffer_limit,
+            send_timeout_s=send_timeout,
+            access=access,
             max_message_size=max_message_size,
             max_pending_fragments=max_pending_fragments,
             fragment_timeout_s=fragment_timeout,
@@ -121,32 +203,52 @@ def serve(
             call_timeout_s=call_timeout if call_timeout > 0 else None,
         ),
         websocket=WebSocketOptions(
-            max_message_size=max_message_size,
             compression=websocket_compression,
             url_path=url_path,
+            allowed_origins=tuple(o.strip() for o in allowed_origins.split(",") if o.strip()),
+            ping_interval_s=websocket_ping_interval,
+            ping_timeout_s=websocket_ping_timeout,
         ),
+        udp=UdpOptions(datagram_bytes=udp_datagram_size, idle_timeout_s=udp_idle_timeout),
+        tf=tf,
     )
-    config = dataclasses.replace(config, tf=tf)
-    server = RosbridgeServer(Graph(registry), config)
+    server = RosbridgeServer(graph, config, authenticator=authenticator)
     try:
         anyio.run(_run, server)
-    except OSError as exc:
-        typer.echo(f"rwt serve: {exc}", err=True)
-        raise typer.Exit(1) from None
+    except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
+        _fail(str(exc))
+    except BaseExceptionGroup as group:  # the same, raised inside the task group
+        startup, rest = group.split((OSError, ValueError))
+        if startup is None or rest is not None:
+            raise
+        _fail("; ".join(str(exc) for exc in startup.exceptions))
+
+
+def _fail(message: str) -> NoReturn:
+    typer.echo(f"rwt serve: {message}", err=True)
+    raise typer.Exit(1)
 
 
 async def _run(server: RosbridgeServer) -> None:
+    out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
+
     def announce(url: str) -> None:
-        print(f"listening on {url}", flush=True)
+        print(f"listening on {url}", file=out, flush=True)
 
     async with anyio.create_task_group() as tg:
-        tg.start_soon(_stop_on_signal, tg.cancel_scope)
+        tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
         await server.serve(on_listening=announce)
+        tg.cancel_scope.cancel()
 
 
-async def _stop_on_signal(scope: anyio.CancelScope) -> None:
+async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> None:
+    """First SIGINT/SIGTERM: stop gracefully; a second one: stop at once."""
     with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
         async for signum in signals:
-            logging.getLogger("rwt.server").info("stopping on %s", signal.Signals(signum).name)
-            scope.cancel()
-            return
+            logging.getLogger("rwt.server").info(
+                "event=signal name=%s", signal.Signals(signum).name
+            )
+            if server._stop_requested:
+                scope.cancel()
+                return
+            server.stop()

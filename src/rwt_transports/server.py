@@ -1,39 +1,70 @@
-"""The rosbridge server: listeners, one graph, one session per connection.
+"""The rosbridge server: listeners on every transport, one graph, one session per connection.
 
-``RosbridgeServer`` owns the graph and starts listeners on it; every transport
-makes a ``rwt_protocol.session.Session`` per connection (D22: one dispatcher
-behind all transports). The server also keeps the latched ``/client_count``
-and ``/connected_clients`` topics that rosbridge publishes (PROTOCOL-DECISIONS
-D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
-``/rosapi`` and tf2_web_republisher (REF §7.3) from node ``/tf2_web_republisher``.
-Each connection is a node of its own (``/rwt_client_<n>``).
+``RosbridgeServer`` owns the graph and runs the listeners configured in
+``ServerConfig`` side by side: WebSocket (``ws``/``wss``), TCP (plain or TLS),
+UDP and stdio. Every connection, whatever its transport, gets a
+``rwt_protocol.session.Session`` on the same graph through the same pump
+(PROTOCOL-DECISIONS D22), so a TCP client and a WebSocket client see each
+other's topics and services. The server also keeps the latched
+``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
+(D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
+``/rosapi`` (listing only what the access rules let a client see) and
+tf2_web_republisher (REF §7.3) from node ``/tf2_web_republisher``, enforces
+``max_connections``, and stops gracefully: the listeners close, every session
+releases what it holds (so callers waiting on it are answered), WebSocket
+clients get close code 1001, and after ``shutdown_grace_s`` whatever is left is
+cut.
 """
 
 from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Awaitable, Callable
-from dataclasses import dataclass, field
+import ssl
+import sys
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
+from contextlib import AsyncExitStack, asynccontextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import anyio
-from anyio.abc import SocketAttribute, SocketStream, TaskGroup, TaskStatus
+from anyio.abc import ByteStream, SocketAttribute, SocketStream, TaskGroup, TaskStatus
+from anyio.streams.tls import TLSListener
 
 from rwt_graph.calls import Spawner
+from rwt_graph.clock import Clock
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
+from rwt_graph.rosapi.visibility import Visibility
 from rwt_graph.tf import TFRepublisher
 from rwt_graph.types.convert import time_value
+from rwt_protocol.access import AccessPolicy, Family
+from rwt_protocol.auth import Authenticator, RosauthVerifier
 from rwt_protocol.errors import RwtError
-from rwt_protocol.session import Session, SessionConfig
+from rwt_protocol.ops import Auth
+from rwt_protocol.session import CloseCode, Session, SessionConfig
 
+from .memory import MemoryConnection, memory_pair
+from .pump import ConnectionPump, run_connection
+from .stdio import StdioChannel
+from .tcp import serve_tcp_connection
 from .tf import install_tf_republisher
+from .udp import UdpOptions, serve_udp
 from .websocket import WebSocketOptions, serve_websocket_connection
 
-__all__ = ["SERVER_NODE", "RosbridgeServer", "ServerConfig", "spawner_for"]
+__all__ = [
+    "SERVER_NODE",
+    "RosbridgeServer",
+    "ServerConfig",
+    "rosauth_authenticator",
+    "spawner_for",
+    "visibility_of",
+]
 
 logger = logging.getLogger("rwt.server")
+
+MiB = 1024 * 1024
 
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
@@ -41,43 +72,105 @@ SERVER_NODE = "/rosbridge_websocket"
 
 @dataclass(frozen=True)
 class ServerConfig:
-    """Settings of a server (names follow rosbridge_websocket's parameters).
+    """Settings of a server (names follow rosbridge's parameters where it has one).
 
     Attributes:
-        host: address to bind (``--host``; 127.0.0.1 by default).
-        port: WebSocket port (``--port``; 0 picks a free one).
-        session: per-connection protocol settings.
-        websocket: WebSocket settings.
+        host: address every listener binds (``--host``).
+        port: WebSocket port (``--port``; 0 picks a free one; None: no WebSocket).
+        tcp_port: TCP port (``--tcp-port``; None: no TCP listener).
+        udp_port: UDP port (``--udp-port``; None: no UDP socket).
+        stdio: serve one session over stdin/stdout (``--stdio``); the server
+            stops when that session ends.
+        stdio_fds: the (read, write) file descriptors of that session when not
+            stdin/stdout (a pipe pair or a socket, for embedding and tests).
+        max_message_size: largest incoming message on every transport, bytes.
+        max_connections: most simultaneous sessions over all transports; None
+            for no limit (``--max-connections``).
+        certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
+        keyfile: PEM private key for it (``--keyfile``).
+        shutdown_grace_s: seconds a stopping server waits for connections to
+            close before cutting them.
+        session: per-connection protocol settings (limits, access, auth).
+        websocket: WebSocket settings (its ``max_message_size`` is replaced by
+            the one above).
+        udp: UDP settings (likewise).
         rosapi: offer the ``/rosapi/*`` services.
-        rosapi_visibility: what each client may see through rosapi (access rules);
-            None shows everything.
-        tf: offer tf2_web_republisher's action and service with a TF buffer fed by
-            ``/tf`` and ``/tf_static`` (``rwt serve --no-tf`` turns it off).
+        rosapi_visibility: what each client may see through rosapi; by default
+            what ``session.access`` allows.
+        tf: offer tf2_web_republisher's action, actionlib topics and service with a
+            TF buffer fed by ``/tf`` and ``/tf_static`` (``rwt serve --no-tf``: off).
     """
 
     host: str = "127.0.0.1"
-    port: int = 9090
+    port: int | None = 9090
+    tcp_port: int | None = None
+    udp_port: int | None = None
+    stdio: bool = False
+    stdio_fds: tuple[int, int] | None = None
+    max_message_size: int = 10 * MiB
+    max_connections: int | None = None
+    certfile: Path | None = None
+    keyfile: Path | None = None
+    shutdown_grace_s: float = 5.0
     session: SessionConfig = field(default_factory=SessionConfig)
     websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
+    udp: UdpOptions = field(default_factory=UdpOptions)
     rosapi: bool = True
     rosapi_visibility: VisibilityFor | None = None
     tf: bool = True
 
 
+def rosauth_authenticator(secret: str, clock: Clock, max_skew_s: float = 5.0) -> Authenticator:
+    """The rosauth MAC check (D23) as an authenticator, reading wall time from ``clock``.
+
+    Args:
+        secret: the shared secret.
+        clock: where the current wall time comes from (the graph's clock).
+        max_skew_s: how far in the future ``t`` may be, seconds.
+    """
+    verifier = RosauthVerifier(secret, max_skew_s)
+
+    def authenticate(op: Auth, peer: str) -> bool:
+        problem = verifier.problem(op, clock.wall())
+        if problem is not None:
+            logger.warning("event=auth_rejected peer=%s reason=%r", peer, problem)
+        return problem is None
+
+    return authenticate
+
+
+Runner = Callable[[TaskGroup], Coroutine[object, object, None]]
+
+
 class RosbridgeServer:
-    """Serves one graph to rosbridge clients.
+    """Serves one graph to rosbridge clients over every configured transport.
 
     Args:
         graph: the graph to serve; a new ROS 2 graph by default.
         config: server settings.
+        authenticator: admits or refuses each connection's ``auth`` op (D23);
+            it receives the op and the peer address and returns True to admit.
+            It overrides ``config.session.authenticator``. See
+            ``rosauth_authenticator`` for rosauth's MAC check.
     """
 
-    def __init__(self, graph: Graph | None = None, config: ServerConfig | None = None) -> None:
+    def __init__(
+        self,
+        graph: Graph | None = None,
+        config: ServerConfig | None = None,
+        *,
+        authenticator: Authenticator | None = None,
+    ) -> None:
         self.graph = graph or Graph()
         self.config = config or ServerConfig()
+        session_config = self.config.session
+        if authenticator is not None:
+            session_config = replace(session_config, authenticator=authenticator)
+        self.session_config = session_config
         self.sessions: dict[str, Session] = {}
-        self._connected: dict[str, dict[str, object]] = {}
+        self.urls: dict[str, str] = {}
         self._ids = itertools.count(1)
+        self._connected: dict[str, dict[str, object]] = {}
         self._client_count = _latched(self.graph, "/client_count", "std_msgs/msg/Int32")
         self._connected_clients = _latched(
             self.graph, "/connected_clients", "rosbridge_msgs/msg/ConnectedClients"
@@ -85,10 +178,19 @@ class RosbridgeServer:
         self._publish_clients()
         self.rosapi: Rosapi | None = None
         if self.config.rosapi:
-            self.rosapi = install_rosapi(self.graph, visibility=self.config.rosapi_visibility)
+            visibility = self.config.rosapi_visibility
+            if visibility is None and session_config.access.restricted:
+                visibility = visibility_of(session_config.access)
+            self.rosapi = install_rosapi(self.graph, visibility=visibility)
         self.tf: TFRepublisher | None = None
         if self.config.tf:
             self.tf = install_tf_republisher(self.graph)
+        self._stop_requested = False
+        self._stop: anyio.Event | None = None
+        self._all_closed: anyio.Event | None = None
+        self._stopping = False
+
+    # ---- running --------------------------------------------------------------
 
     async def serve(
         self,
@@ -96,45 +198,182 @@ class RosbridgeServer:
         task_status: TaskStatus[str] = anyio.TASK_STATUS_IGNORED,
         on_listening: Callable[[str], None] | None = None,
     ) -> None:
-        """Listen for WebSocket connections until cancelled.
+        """Run every configured listener until ``stop()`` (graceful) or cancellation.
 
         Args:
-            task_status: receives the URL (``ws://HOST:PORT``) once listening,
-                for ``TaskGroup.start``.
-            on_listening: called with the same URL, for the CLI's first line.
+            task_status: receives the first listener's URL (the WebSocket one,
+                ``ws://HOST:PORT``, when there is one) for ``TaskGroup.start``;
+                ``urls`` has them all by then.
+            on_listening: called with each listener's URL, in order.
 
         Raises:
-            OSError: the address cannot be bound.
+            OSError: an address cannot be bound.
+            ssl.SSLError: the certificate or key cannot be loaded.
         """
-        listener = await anyio.create_tcp_listener(
-            local_host=self.config.host, local_port=self.config.port, reuse_port=False
-        )
-        async with listener, anyio.create_task_group() as tg:
-            self.graph.spawner = spawner_for(tg)
-            port = listener.extra(SocketAttribute.local_port)
-            url = f"ws://{_url_host(self.config.host)}:{port}"
-            logger.info("listening on %s", url)
-            if on_listening is not None:
-                on_listening(url)
-            task_status.started(url)
-            try:
-                await listener.serve(self._handle_websocket, task_group=tg)
-            finally:
-                self.graph.spawner = None
+        self._stop = anyio.Event()
+        if self._stop_requested:
+            self._stop.set()
+        async with AsyncExitStack() as stack:
+            runners = await self._open_listeners(stack)
+            for url in self.urls.values():
+                logger.info("event=listening url=%s", url)
+                if on_listening is not None:
+                    on_listening(url)
+            task_status.started(next(iter(self.urls.values()), ""))
+            async with anyio.create_task_group() as connections:
+                self.graph.spawner = spawner_for(connections)  # async in-process handlers
+                try:
+                    async with anyio.create_task_group() as accepting:
+                        for runner in runners:
+                            accepting.start_soon(runner, connections)
+                        await self._stop.wait()
+                        accepting.cancel_scope.cancel()
+                    await self._shutdown(connections)
+                finally:
+                    self.graph.spawner = None
 
-    async def _handle_websocket(self, stream: SocketStream) -> None:
+    def stop(self) -> None:
+        """Stop serving gracefully (SIGTERM/SIGINT in ``rwt serve``); ``serve`` then returns."""
+        self._stop_requested = True
+        if self._stop is not None:
+            self._stop.set()
+
+    async def _shutdown(self, connections: TaskGroup) -> None:
+        self._stopping = True
+        sessions = list(self.sessions.values())
+        logger.info("event=shutdown sessions=%d", len(sessions))
+        _answer_pending(self.graph, "server shutting down")  # while callers can still read
+        for session in sessions:
+            session.begin_shutdown()
+        for session in sessions:
+            session.request_close(CloseCode.GOING_AWAY, "server shutting down")
+        self._all_closed = anyio.Event()
+        if not self.sessions:
+            self._all_closed.set()
+        with anyio.move_on_after(self.config.shutdown_grace_s):
+            await self._all_closed.wait()
+        connections.cancel_scope.cancel()
+
+    async def _open_listeners(self, stack: AsyncExitStack) -> list[Runner]:
+        config = self.config
+        tls = _tls_context(config.certfile, config.keyfile)
+        runners: list[Runner] = []
+        if config.port is not None:
+            runners.append(await self._stream_listener(stack, config.port, tls, "websocket"))
+        if config.tcp_port is not None:
+            runners.append(await self._stream_listener(stack, config.tcp_port, tls, "tcp"))
+        if config.udp_port is not None:
+            sock = await anyio.create_udp_socket(local_host=config.host, local_port=config.udp_port)
+            await stack.enter_async_context(sock)
+            port = sock.extra(SocketAttribute.local_port)
+            self.urls["udp"] = f"udp://{_url_host(config.host)}:{port}"
+            options = replace(config.udp, max_message_size=config.max_message_size)
+
+            async def run_udp(connections: TaskGroup) -> None:
+                await serve_udp(sock, self, options)
+
+            runners.append(run_udp)
+        if config.stdio:
+            self.urls["stdio"] = "stdio:"
+            runners.append(self._run_stdio)
+        return runners
+
+    async def _stream_listener(
+        self, stack: AsyncExitStack, port: int, tls: ssl.SSLContext | None, kind: str
+    ) -> Runner:
+        listener = await anyio.create_tcp_listener(local_host=self.config.host, local_port=port)
+        await stack.enter_async_context(listener)
+        bound = listener.extra(SocketAttribute.local_port)
+        scheme = {"websocket": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[kind][tls is not None]
+        self.urls[kind] = f"{scheme}://{_url_host(self.config.host)}:{bound}"
+        handler = self._handle_websocket if kind == "websocket" else self._handle_tcp
+        served = _QuietTLSListener(listener, tls, standard_compatible=False) if tls else listener
+
+        async def run(connections: TaskGroup) -> None:
+            await served.serve(handler, task_group=connections)
+
+        return run
+
+    # ---- connections ------------------------------------------------------------
+
+    async def _handle_websocket(self, stream: ByteStream) -> None:
         peer = _peer(stream)
+        options = replace(self.config.websocket, max_message_size=self.config.max_message_size)
         try:
-            await serve_websocket_connection(stream, peer, self._new_session, self.config.websocket)
+            await serve_websocket_connection(stream, peer, self, options)
         except Exception:  # one broken connection must never take the server down
             logger.exception("connection from %s failed", peer)
 
-    def _new_session(self, peer: str, on_output: Callable[[], None]) -> Session:
-        client_id = f"ws:{peer}#{next(self._ids)}"
-        session = _TrackedSession(self, self.graph, client_id, self.config.session, on_output)
+    async def _handle_tcp(self, stream: ByteStream) -> None:
+        peer = _peer(stream)
+        transport = "tls" if self.config.certfile is not None else "tcp"
+        try:
+            await serve_tcp_connection(stream, peer, self, self.config.max_message_size, transport)
+        except Exception:
+            logger.exception("connection from %s failed", peer)
+
+    async def _run_stdio(self, connections: TaskGroup) -> None:
+        read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())
+        channel = StdioChannel(read_fd, write_fd, self.config.max_message_size)
+        pump = ConnectionPump(channel)
+        session = self.open_session("stdio", "stdio", pump.wake)
+        if session is None:
+            return
+
+        async def run() -> None:
+            try:
+                with channel:
+                    await run_connection(pump, session)
+            finally:
+                self.stop()  # the parent process ended the session: nothing left to serve
+
+        connections.start_soon(run)
+
+    @asynccontextmanager
+    async def connect_memory(self) -> AsyncIterator[MemoryConnection]:
+        """Open an in-process client connection (same gates and limits as a socket).
+
+        Yields:
+            the client's end; the connection closes when the block exits.
+
+        Raises:
+            RwtError: the server is full or stopping.
+        """
+        channel, client = memory_pair()
+        pump = ConnectionPump(channel)
+        session = self.open_session("memory", "memory", pump.wake)
+        if session is None:
+            raise RwtError("too many connections")
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(run_connection, pump, session)
+            try:
+                yield client
+            finally:
+                await client.aclose()
+
+    def open_session(
+        self, transport: str, peer: str, on_output: Callable[[], None]
+    ) -> Session | None:
+        """Make the session of a new connection on this server's graph.
+
+        Args:
+            transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``stdio`` or ``memory``;
+                the client id is ``<transport>:<peer>#<n>``.
+            peer: the peer's address.
+            on_output: the pump's wake-up.
+
+        Returns:
+            The session, or None when ``max_connections`` is reached or the
+            server is stopping.
+        """
+        limit = self.config.max_connections
+        if self._stopping or (limit is not None and len(self.sessions) >= limit):
+            return None
+        client_id = f"{transport}:{peer}#{next(self._ids)}"
+        session = _TrackedSession(self, client_id, peer, on_output)
+        self.sessions[client_id] = session
         address = _address(peer)
         self.graph.nodes.attach(client_id, host=address)
-        self.sessions[client_id] = session
         self._connected[client_id] = {
             "ip_address": address,
             "connection_time": time_value(self.graph.clock.wall(), self.graph.registry.dialect),
@@ -146,6 +385,8 @@ class RosbridgeServer:
         self.sessions.pop(client_id, None)
         self._connected.pop(client_id, None)
         self._publish_clients()
+        if not self.sessions and self._all_closed is not None:
+            self._all_closed.set()
 
     def _publish_clients(self) -> None:
         """Publish ``/client_count`` and ``/connected_clients`` (D14), both latched."""
@@ -157,27 +398,6 @@ class RosbridgeServer:
                 for info in self._connected.values()
             ]
             self._connected_clients.publish({"clients": clients})
-
-
-class _TrackedSession(Session):
-    """A session that tells its server when it closes."""
-
-    def __init__(
-        self,
-        server: RosbridgeServer,
-        graph: Graph,
-        client_id: str,
-        config: SessionConfig,
-        on_output: Callable[[], None],
-    ) -> None:
-        super().__init__(graph, client_id, config=config, on_output=on_output)
-        self._server = server
-
-    def close(self) -> None:
-        was_closed = self.closed
-        super().close()
-        if not was_closed:
-            self._server._session_closed(self.client_id)
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
@@ -196,6 +416,55 @@ def spawner_for(tg: TaskGroup) -> Spawner:
     return spawn
 
 
+class _TrackedSession(Session):
+    """A session that tells its server when it closes."""
+
+    def __init__(
+        self, server: RosbridgeServer, client_id: str, peer: str, on_output: Callable[[], None]
+    ) -> None:
+        super().__init__(
+            server.graph, client_id, config=server.session_config, on_output=on_output, peer=peer
+        )
+        self._server = server
+
+    def close(self) -> None:
+        was_closed = self.closed
+        super().close()
+        if not was_closed:
+            self._server._session_closed(self.client_id)
+
+
+class _QuietTLSListener(TLSListener):
+    """A TLS listener that logs a failed handshake in one line, without a traceback."""
+
+    @staticmethod
+    async def handle_handshake_error(exc: BaseException, stream: anyio.abc.AnyByteStream) -> None:
+        await anyio.aclose_forcefully(stream)
+        if isinstance(exc, Exception) and not isinstance(exc, anyio.get_cancelled_exc_class()):
+            logger.info("event=tls_handshake_failed reason=%r", str(exc) or type(exc).__name__)
+            return
+        raise exc
+
+
+def _answer_pending(graph: Graph, reason: str) -> None:
+    """Fail every pending service call and goal, so no caller is left waiting (D4)."""
+    for service in list(graph.services.entries.values()):
+        service.end_all(reason)
+    for action in list(graph.actions.entries.values()):
+        action.end_all(reason)
+
+
+def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:
+    """A server TLS context from PEM files (rosbridge's ``certfile``/``keyfile``), or None."""
+    if certfile is None and keyfile is None:
+        return None
+    if certfile is None:
+        raise ValueError("--keyfile needs --certfile")
+    context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+    context.load_cert_chain(certfile, keyfile)
+    return context
+
+
 def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
     try:
         return graph.create_publisher(topic, type_name, latch=True, node=SERVER_NODE)
@@ -204,13 +473,7 @@ def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
         return None
 
 
-def _address(peer: str) -> str:
-    """The address part of ``HOST:PORT`` (IPv6 addresses keep their colons)."""
-    host, sep, _ = peer.rpartition(":")
-    return host if sep else peer
-
-
-def _peer(stream: SocketStream) -> str:
+def _peer(stream: ByteStream | SocketStream) -> str:
     address = stream.extra(SocketAttribute.remote_address, None)
     if isinstance(address, tuple):
         return f"{address[0]}:{address[1]}"
@@ -219,3 +482,20 @@ def _peer(stream: SocketStream) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
+
+
+def _address(peer: str) -> str:
+    """The address part of ``HOST:PORT`` (IPv6 addresses keep their colons)."""
+    host, sep, _ = peer.rpartition(":")
+    return host if sep else peer
+
+
+def visibility_of(policy: AccessPolicy) -> VisibilityFor:
+    """What rosapi shows every client under ``policy``: only what it may use."""
+    visibility = Visibility(
+        topics=lambda name: policy.allows(Family.TOPICS, name),
+        services=lambda name: policy.allows(Family.SERVICES, name),
+        params=lambda name: policy.allows(Family.PARAMS, name),
+        actions=lambda name: policy.allows(Family.ACTIONS, name),
+    )
+    return lambda client: visibility

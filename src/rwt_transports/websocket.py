@@ -1,23 +1,27 @@
 """WebSocket transport: websockets' sans-IO protocol driven from anyio streams.
 
 Why this shape (issue 2): websockets' ``ServerProtocol`` does the RFC 6455
-parsing and framing without I/O, so one anyio task per connection reads bytes
-into it and one writer task owns every write. That gives us what the protocol
-needs and the asyncio server hides: a single writer per connection draining the
+parsing and framing without I/O, so the connection pump (pump.py) can drive it
+like every other transport: a single writer per connection draining the
 session's bounded outbox (D24), frames written without a per-subscriber await
-in the publish path, the same code over plain TCP or TLS streams, and anyio's
-structured cancellation for shutdown.
+in the publish path, the same code over plain TCP or TLS streams (wss), and
+anyio's structured cancellation for shutdown.
 
 Text frames carry JSON, binary frames CBOR (D27). permessage-deflate is off
 unless enabled (D30: Node's ``ws`` offers it; we decline). Incoming messages are
 limited to ``max_message_size`` bytes (10 MiB default, D24/D30); a larger one
 closes the connection with code 1009 (as rosbridge's tornado does, REF §1.1).
+Origins and the URL path are checked at the handshake (``--allowed-origins``,
+``--url-path``); keepalive pings are optional (``--websocket-ping-interval``).
 """
 
 from __future__ import annotations
 
+import contextlib
+import fnmatch
 import logging
-from collections.abc import Callable
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import anyio
@@ -27,11 +31,15 @@ from websockets.exceptions import InvalidState
 from websockets.extensions.base import ServerExtensionFactory
 from websockets.extensions.permessage_deflate import ServerPerMessageDeflateFactory
 from websockets.frames import Frame, Opcode
-from websockets.http11 import Request
+from websockets.http11 import Request, Response
 from websockets.protocol import State
 from websockets.server import ServerProtocol
 
-from rwt_protocol.session import CloseConnection, Session
+from rwt_protocol.framing import FramerEvent, InFrame
+from rwt_protocol.outbox import OutFrame
+from rwt_protocol.session import CloseCode, Session
+
+from .pump import ConnectionPump, SessionHost, run_connection
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
@@ -49,60 +57,146 @@ class WebSocketOptions:
     Attributes:
         max_message_size: largest incoming message in bytes (``--max-message-size``).
         compression: offer permessage-deflate (``--websocket-compression``).
-        url_path: the only path accepted, or None for any path.
+        url_path: the only path accepted, or None for any path (``--url-path``).
+        allowed_origins: fnmatch patterns of accepted ``Origin`` headers; empty
+            accepts any origin, as rosbridge does (``--allowed-origins``). A
+            request without ``Origin`` (not a browser) is always accepted.
+        ping_interval_s: seconds between keepalive pings; 0 sends none
+            (``--websocket-ping-interval``, rosbridge's default 0).
+        ping_timeout_s: seconds to wait for the pong before closing with 1011
+            (``--websocket-ping-timeout``, rosbridge's default 30).
     """
 
     max_message_size: int = 10 * MiB
     compression: bool = False
     url_path: str | None = None
+    allowed_origins: tuple[str, ...] = ()
+    ping_interval_s: float = 0.0
+    ping_timeout_s: float = 30.0
 
 
-SessionFactory = Callable[[str, Callable[[], None]], Session]
-"""Makes the session of a new connection from (peer address, wake-up callback)."""
+class WebSocketChannel:
+    """One accepted WebSocket connection as a pump ``Channel``.
 
+    The reader, the writer and the keepalive all write to the stream, each under
+    one lock, always through ``protocol.data_to_send()``: bytes go out in the
+    order the protocol made them.
+    """
 
-class _Connection:
-    """One WebSocket connection: protocol state, session and the writer's wake-up."""
+    transport = "ws"
+    awaits_peer_close = True
 
-    def __init__(self, stream: ByteStream, protocol: ServerProtocol, limit: int) -> None:
+    def __init__(self, stream: ByteStream, protocol: ServerProtocol, options: WebSocketOptions):
         self.stream = stream
         self.protocol = protocol
-        self.limit = limit
-        self.wake = anyio.Event()
-        self.parts: list[bytes] = []
-        self.size = 0
-        self.binary = False
+        self.options = options
+        self._lock = anyio.Lock()
+        self._parts: list[bytes] = []
+        self._size = 0
+        self._binary = False
+        self._eof = False
+        self._pong = anyio.Event()
 
-    def signal(self) -> None:
-        self.wake.set()
+    async def receive(self) -> Sequence[FramerEvent]:
+        """Read, parse, answer control frames; return the whole data messages."""
+        if self._eof or self.protocol.state is State.CLOSED:
+            raise anyio.EndOfStream
+        try:
+            data = await self.stream.receive(_READ_SIZE)
+        except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
+            self.protocol.receive_eof()
+            self._eof = True
+            raise anyio.EndOfStream from None
+        self.protocol.receive_data(data)
+        messages: list[FramerEvent] = []
+        for event in self.protocol.events_received():
+            if isinstance(event, Frame):
+                if event.opcode is Opcode.PONG:
+                    self._pong.set()
+                message = self._assemble(event)
+                if message is not None:
+                    messages.append(message)
+        await self.flush()  # pongs, the close handshake, a 1009 failure
+        return messages
 
-    async def flush(self) -> bool:
-        """Write what the protocol has queued; return False once the stream must close."""
+    async def send(self, frames: Sequence[OutFrame]) -> None:
+        """Send data frames; text for JSON, binary for CBOR (D27)."""
+        async with self._lock:
+            try:
+                for frame in frames:
+                    if frame.binary:
+                        self.protocol.send_binary(frame.data)
+                    else:
+                        self.protocol.send_text(frame.data)
+            except InvalidState:
+                raise anyio.ClosedResourceError from None
+            await self._flush_locked()
+
+    async def close(self, code: CloseCode, reason: str) -> None:
+        """Send a close frame with ``code`` and ``reason``."""
+        async with self._lock:
+            try:
+                self.protocol.send_close(int(code), reason[:120])
+            except InvalidState:
+                return  # already closing
+            await self._flush_locked()
+
+    async def background(self, session: Session) -> None:
+        """Keepalive: ping every interval; no pong in time closes the connection (1011)."""
+        interval = self.options.ping_interval_s
+        if interval <= 0:
+            return
+        while True:
+            await anyio.sleep(interval)
+            self._pong = anyio.Event()
+            with anyio.move_on_after(self.options.ping_timeout_s):
+                async with self._lock:
+                    try:
+                        self.protocol.send_ping(os.urandom(4))
+                    except InvalidState:
+                        return
+                    await self._flush_locked()
+                await self._pong.wait()
+            if not self._pong.is_set():
+                logger.warning("event=ping_timeout client=%s", session.client_id)
+                session.request_close(
+                    CloseCode.INTERNAL_ERROR, "keepalive ping timeout", abort=True
+                )
+                return
+
+    async def flush(self) -> None:
+        """Send whatever the protocol has queued (handshake response, control frames)."""
+        async with self._lock:
+            await self._flush_locked()
+
+    async def _flush_locked(self) -> None:
         for data in self.protocol.data_to_send():
             if data:
                 await self.stream.send(data)
-            else:
-                return False
-        return True
+            elif not self._eof:  # websockets asks for the TCP connection to end
+                self._eof = True
+                # TLS cannot half-close; the pump closes the stream anyway.
+                with contextlib.suppress(NotImplementedError, OSError, anyio.BrokenResourceError):
+                    await self.stream.send_eof()
 
-    def assemble(self, frame: Frame) -> bytes | None:
+    def _assemble(self, frame: Frame) -> InFrame | None:
         """Collect fragmented data frames; return a whole message when complete."""
         if frame.opcode in (Opcode.TEXT, Opcode.BINARY):
-            self.parts, self.size = [], 0
-            self.binary = frame.opcode is Opcode.BINARY
+            self._parts, self._size = [], 0
+            self._binary = frame.opcode is Opcode.BINARY
         elif frame.opcode is not Opcode.CONT:
             return None
-        self.parts.append(bytes(frame.data))
-        self.size += len(frame.data)
-        if self.size > self.limit:
-            self.parts, self.size = [], 0
-            self.protocol.fail(1009, "message too big")
+        self._parts.append(bytes(frame.data))
+        self._size += len(frame.data)
+        if self._size > self.options.max_message_size:
+            self._parts, self._size = [], 0
+            self.protocol.fail(int(CloseCode.MESSAGE_TOO_BIG), "message too big")
             return None
         if not frame.fin:
             return None
-        data = b"".join(self.parts)
-        self.parts, self.size = [], 0
-        return data
+        data = b"".join(self._parts)
+        self._parts, self._size = [], 0
+        return InFrame(data, binary=self._binary)
 
 
 def _make_protocol(options: WebSocketOptions) -> ServerProtocol:
@@ -112,13 +206,12 @@ def _make_protocol(options: WebSocketOptions) -> ServerProtocol:
     return ServerProtocol(max_size=options.max_message_size, extensions=extensions)
 
 
-async def _handshake(conn: _Connection, options: WebSocketOptions) -> Request | None:
-    protocol = conn.protocol
+async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> Request | None:
     with anyio.move_on_after(_HANDSHAKE_LIMIT_S):
         while True:
             try:
-                data = await conn.stream.receive(_READ_SIZE)
-            except (anyio.EndOfStream, anyio.BrokenResourceError):
+                data = await stream.receive(_READ_SIZE)
+            except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
                 return None
             protocol.receive_data(data)
             for event in protocol.events_received():
@@ -129,100 +222,67 @@ async def _handshake(conn: _Connection, options: WebSocketOptions) -> Request | 
     return None
 
 
-def _respond(conn: _Connection, request: Request, options: WebSocketOptions) -> None:
-    protocol = conn.protocol
+def _refusal(request: Request, options: WebSocketOptions) -> tuple[int, str] | None:
+    """Why the handshake is refused (HTTP status, text), or None to accept it."""
     path = request.path.split("?", 1)[0]
     if options.url_path is not None and path != options.url_path:
-        response = protocol.reject(404, f"no rosbridge endpoint at {path}\n")
-    else:
-        response = protocol.accept(request)
-    protocol.send_response(response)
+        return 404, f"no rosbridge endpoint at {path}"
+    origin = request.headers.get("Origin")
+    if (
+        origin is not None
+        and options.allowed_origins
+        and not any(fnmatch.fnmatchcase(origin, p) for p in options.allowed_origins)
+    ):
+        return 403, f"origin {origin} is not allowed"
+    return None
 
 
 async def serve_websocket_connection(
-    stream: ByteStream, peer: str, make_session: SessionFactory, options: WebSocketOptions
+    stream: ByteStream, peer: str, host: SessionHost, options: WebSocketOptions
 ) -> None:
     """Run one WebSocket connection to its end.
 
     Args:
         stream: the connected byte stream (TCP, or TLS over TCP).
         peer: the peer's address, for logs and the client id.
-        make_session: builds the protocol session once the handshake succeeded.
+        host: makes the protocol session once the handshake is acceptable.
         options: WebSocket settings.
 
     Never raises for what the peer does; the stream is closed on return.
     """
-    conn = _Connection(stream, _make_protocol(options), options.max_message_size)
+    protocol = _make_protocol(options)
     async with stream:
-        request = await _handshake(conn, options)
+        request = await _handshake(stream, protocol)
         if request is None:
             return
-        _respond(conn, request, options)
-        if not await conn.flush() or conn.protocol.state is not State.OPEN:
-            return
-        session = make_session(peer, conn.signal)
-        logger.info("connect %s (%s)", session.client_id, _agent(request.headers))
+        channel = WebSocketChannel(stream, protocol, options)
+        pump = ConnectionPump(channel)
+        refusal = _refusal(request, options)
+        session = None
+        if refusal is None:
+            session = host.open_session(channel.transport, peer, pump.wake)
+            if session is None:
+                refusal = 503, "too many connections"
+        response: Response
+        if refusal is not None:
+            logger.info("event=refused peer=%s status=%d reason=%r", peer, *refusal)
+            response = protocol.reject(refusal[0], refusal[1] + "\n")
+        else:
+            response = protocol.accept(request)
+        protocol.send_response(response)
         try:
-            async with anyio.create_task_group() as tg:
-                tg.start_soon(_writer, conn, session, tg.cancel_scope)
-                await _reader(conn, session)
-                tg.cancel_scope.cancel()
-        finally:
+            await channel.flush()
+        except (anyio.BrokenResourceError, OSError):
+            if session is not None:
+                session.close()
+            return
+        if session is None:
+            return
+        if protocol.state is not State.OPEN:
             session.close()
-            logger.info("disconnect %s", session.client_id)
-
-
-async def _reader(conn: _Connection, session: Session) -> None:
-    protocol = conn.protocol
-    while protocol.state in (State.OPEN, State.CLOSING):
-        try:
-            data = await conn.stream.receive(_READ_SIZE)
-        except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
-            protocol.receive_eof()
-            conn.signal()
             return
-        protocol.receive_data(data)
-        for event in protocol.events_received():
-            if not isinstance(event, Frame):
-                continue
-            message = conn.assemble(event)
-            if message is None:
-                continue
-            session.receive_frame(message, anyio.current_time(), binary=conn.binary)
-        conn.signal()
-
-
-async def _writer(conn: _Connection, session: Session, scope: anyio.CancelScope) -> None:
-    protocol = conn.protocol
-    try:
-        while True:
-            deadline = session.get_timer()
-            delay = None if deadline is None else max(0.0, deadline - anyio.current_time())
-            with anyio.move_on_after(delay):
-                await conn.wake.wait()
-            conn.wake = anyio.Event()
-            session.handle_timer(anyio.current_time())
-            _frames_to_protocol(protocol, session)
-            if not await conn.flush() or protocol.state is State.CLOSED:
-                scope.cancel()
-                return
-    except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
-        scope.cancel()
-
-
-def _frames_to_protocol(protocol: ServerProtocol, session: Session) -> None:
-    try:
-        for frame in session.frames_to_send():
-            if frame.binary:
-                protocol.send_binary(frame.data)
-            else:
-                protocol.send_text(frame.data)
-        for command in session.commands_to_run():
-            if isinstance(command, CloseConnection):
-                protocol.send_close(command.code, command.reason)
-    except InvalidState:
-        pass  # closing: frames queued after the close frame are discarded
+        await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
 
 
 def _agent(headers: Headers) -> str:
-    return headers.get("User-Agent", "unknown agent")
+    return headers.get("User-Agent", "unknown")

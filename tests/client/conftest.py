@@ -17,16 +17,14 @@ def anyio_backend() -> str:
 
 @pytest.fixture(params=["ws", "tcp"])
 def transport(request: pytest.FixtureRequest) -> str:
-    if request.param == "tcp" and not hasattr(ServerConfig(), "tcp_port"):
-        pytest.skip("rwt serves TCP with issue 5")
     return str(request.param)
 
 
 @pytest.fixture
 async def url(transport: str) -> AsyncIterator[str]:
     """The URL of a fresh in-process server over ``transport``."""
-    server = RosbridgeServer(config=ServerConfig(port=0))
+    server = RosbridgeServer(config=ServerConfig(port=0, tcp_port=0))
     async with anyio.create_task_group() as tg:
-        ws_url = await tg.start(server.serve)
-        yield ws_url if transport == "ws" else ws_url.replace("ws://", "tcp://")
+        await tg.start(server.serve)
+        yield server.urls["websocket" if transport == "ws" else "tcp"]
         tg.cancel_scope.cancel()

@@ -198,7 +198,12 @@ async def test_rosapi_helpers_and_params(url: str) -> None:
 
 
 async def test_reconnect_resubscribes_and_readvertises(transport: str) -> None:
-    first = RosbridgeServer(config=ServerConfig(port=0))
+    def config(port: int) -> ServerConfig:
+        return (
+            ServerConfig(port=port) if transport == "ws" else ServerConfig(port=None, tcp_port=port)
+        )
+
+    first = RosbridgeServer(config=config(0))
     stop_first, first_stopped = anyio.CancelScope(), anyio.Event()
 
     async def run_first(*, task_status: TaskStatus[str]) -> None:
@@ -209,9 +214,8 @@ async def test_reconnect_resubscribes_and_readvertises(transport: str) -> None:
             first_stopped.set()
 
     async with anyio.create_task_group() as tg:
-        url = await tg.start(run_first)
+        url = await tg.start(run_first)  # the only listener's URL
         port = int(url.rsplit(":", 1)[1])
-        url = url if transport == "ws" else url.replace("ws://", "tcp://")
         async with Ros(url) as listener, Ros(url) as talker:
             inbox, reconnected = Inbox(), Inbox()
             listener.on_reconnect(reconnected)
@@ -221,7 +225,7 @@ async def test_reconnect_resubscribes_and_readvertises(transport: str) -> None:
             await chatter.advertise()
             stop_first.cancel()
             await first_stopped.wait()
-            await tg.start(RosbridgeServer(config=ServerConfig(port=port)).serve)
+            await tg.start(RosbridgeServer(config=config(port)).serve)
             assert await reconnected.wait(2, timeout_s=10) == [1, 1]
             await _sync(listener)
             await chatter.publish({"data": "back"})

@@ -17,6 +17,9 @@ SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
 
 
+_SERVE = [sys.executable, "-m", "rwt_transports", "serve"]
+
+
 def _rwt(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "rwt_transports", *args],
@@ -32,7 +35,7 @@ def _rwt(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
 def served_url() -> Iterator[str]:
     """``rwt serve --port 0`` in a subprocess; yields its ws:// URL."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "rwt_transports", "serve", "--port", "0", "--log-level", "warning"],
+        [*_SERVE, "--port", "0", "--log-level", "warning"],
         env=ENV,
         stdout=subprocess.PIPE,
         text=True,
@@ -86,9 +89,23 @@ def test_only_selects_requirements(served_url: str) -> None:
     assert "D26" in run.stdout and "D13" not in run.stdout
 
 
-@pytest.mark.skip(reason="rwt serve has no TCP listener yet (issue 5); enable with --tcp-port")
-def test_strict_profile_over_tcp_passes_completely() -> None:  # pragma: no cover
-    raise AssertionError("enable when issue 5 lands")
+def test_strict_profile_over_tcp_passes_completely() -> None:
+    process = subprocess.Popen(
+        [*_SERVE, "--no-websocket", "--tcp-port", "0", "--log-level", "warning"],
+        env=ENV,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert process.stdout is not None
+    try:
+        line = process.stdout.readline()
+        assert line.startswith("listening on tcp://"), line
+        run = _rwt("conformance", line.removeprefix("listening on ").strip())
+        assert run.returncode == 0, run.stdout[-3000:]
+        assert " 0 failed" in run.stdout.strip().splitlines()[-1]
+    finally:
+        process.terminate()
+        process.wait(10)
 
 
 def test_server_url_spelling() -> None:

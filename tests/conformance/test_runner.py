@@ -40,10 +40,12 @@ class SilentSession(_TrackedSession):
 class SilentServer(RosbridgeServer):
     """A server whose connections never send status messages."""
 
-    def _new_session(self, peer: str, on_output: Callable[[], None]) -> Session:
-        client_id = f"ws:{peer}#silent"
-        session = SilentSession(self, self.graph, client_id, self.config.session, on_output)
-        self.sessions[client_id + str(id(session))] = session
+    def open_session(
+        self, transport: str, peer: str, on_output: Callable[[], None]
+    ) -> Session | None:
+        client_id = f"{transport}:{peer}#silent{len(self.sessions)}"
+        session = SilentSession(self, client_id, peer, on_output)
+        self.sessions[client_id] = session
         return session
 
 

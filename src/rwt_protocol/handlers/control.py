@@ -28,8 +28,15 @@ def status(session: Session, op: Status, now: float) -> None:
 
 
 def auth(session: Session, op: Auth, now: float) -> None:
-    """Credentials on a server without authentication: ignored (ROS 1 spec 3.3.1)."""
-    session.report(StatusLevel.INFO, "auth: authentication is not enabled; ignored")
+    """Credentials after the first op, or on a server without authentication: ignored.
+
+    The authentication gate itself (D23) is in the session; this handler only
+    sees ``auth`` ops it let through (ROS 1 spec 3.3.1).
+    """
+    if session.config.authenticator is None:
+        session.report(StatusLevel.INFO, "auth: authentication is not enabled; ignored")
+    else:
+        session.report(StatusLevel.INFO, "auth: already authenticated; ignored")
 
 
 def not_supported(session: Session, op: OpModel, now: float) -> None:

@@ -1,0 +1,109 @@
+"""rosauth authentication (ROS 1 edition 3.3.1, PROTOCOL-DECISIONS D23, REF §2.22).
+
+A trusted web server gives the browser a MAC computed from a secret it shares
+with the robot; the client sends it in the first op, ``auth``. The session
+asks an ``Authenticator`` whether to admit the connection; ``RosauthVerifier``
+is the standard one (rosauth's ``ros_mac_authentication``), and embedding code
+may pass any callable instead (a token check, a user database...).
+
+Nothing here reads a clock: the wall time is passed in.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from .ops import Auth
+
+__all__ = ["Authenticator", "RosauthVerifier", "rosauth_mac"]
+
+Authenticator = Callable[[Auth, str], bool]
+"""Decides an ``auth`` op: called with the op and the peer address (``"host:port"``).
+
+Returns True to admit the connection. It runs on the event loop, so it must not
+block; an exception it raises counts as a refusal (and is logged).
+"""
+
+
+def _seconds(value: float) -> str:
+    """Whole seconds as rosauth hashes them (``ros::Time::sec`` of the value)."""
+    return str(math.floor(value))
+
+
+def rosauth_mac(
+    secret: str, *, client: str, dest: str, rand: str, t: float, level: str, end: float
+) -> str:
+    """Compute the rosauth MAC: lowercase hex SHA-512 of the fields concatenated.
+
+    Args:
+        secret: the shared secret (the first line of the secret file).
+        client: the client's address, as the trusted source wrote it.
+        dest: the server's address, likewise.
+        rand: the random string of the trusted source.
+        t: issue time, seconds since the epoch; only whole seconds count.
+        level: the user level string.
+        end: expiry time, seconds since the epoch; only whole seconds count.
+
+    Returns:
+        128 lowercase hex digits: ``sha512(secret + client + dest + rand + t +
+        level + end)`` with ``t`` and ``end`` as whole seconds, as rosauth does.
+    """
+    text = f"{secret}{client}{dest}{rand}{_seconds(t)}{level}{_seconds(end)}"
+    return hashlib.sha512(text.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class RosauthVerifier:
+    """Checks ``auth`` ops against a shared secret (``--auth-secret-file``, D23).
+
+    Attributes:
+        secret: the shared secret.
+        max_skew_s: how far in the future ``t`` may be, in seconds, for clocks
+            that are not quite in step (rosauth tolerates 5 s).
+    """
+
+    secret: str = field(repr=False)
+    max_skew_s: float = 5.0
+
+    def problem(self, op: Auth, wall_now: float) -> str | None:
+        """Say what is wrong with ``op`` at ``wall_now``; None when it is valid.
+
+        Valid means: ``t - max_skew_s <= wall_now <= end`` (D23) and the MAC
+        matches (compared in constant time).
+
+        Args:
+            op: the client's ``auth`` op.
+            wall_now: the current time, seconds since the epoch.
+        """
+        if wall_now > op.end:
+            return f"expired (end {op.end:.0f} is before now {wall_now:.0f})"
+        if op.t - self.max_skew_s > wall_now:
+            return f"not yet valid (t {op.t:.0f} is after now {wall_now:.0f})"
+        expected = rosauth_mac(
+            self.secret,
+            client=op.client,
+            dest=op.dest,
+            rand=op.rand,
+            t=op.t,
+            level=op.level,
+            end=op.end,
+        )
+        if not hmac.compare_digest(expected.encode(), op.mac.lower().encode("utf-8")):
+            return "MAC does not match"
+        return None
+
+    @classmethod
+    def from_file(cls, text: str, max_skew_s: float = 5.0) -> RosauthVerifier:
+        """Make a verifier from a secret file's contents (its first line, as rosauth reads it).
+
+        Raises:
+            ValueError: the first line is empty.
+        """
+        secret = text.splitlines()[0].strip() if text.strip() else ""
+        if not secret:
+            raise ValueError("the secret file's first line is empty")
+        return cls(secret, max_skew_s)

@@ -1,0 +1,91 @@
+"""The two gates every op passes before its handler: authentication and access rules.
+
+- Authentication (ROS 1 edition 3.3.1, PROTOCOL-DECISIONS D23): with an
+  authenticator configured, the first op must be an ``auth`` it admits; any
+  other op first, or a refused ``auth``, gets an error status and the
+  connection is closed (the session does both).
+- Access rules (``AccessPolicy``, rosbridge's ``*_glob`` parameters): a denied
+  op gets an error status and, for calls and goals, its failure reply (D1, D4).
+
+Both log one structured line per refusal (``event=auth_failed``,
+``event=access_denied``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+from .access import AccessDeniedError
+from .errors import RemoteProtocolError
+from .levels import StatusLevel
+from .ops import Auth, OpModel
+from .replies import failure_reply
+
+if TYPE_CHECKING:
+    from .session import Session
+
+__all__ = ["authenticate", "check_access"]
+
+logger = logging.getLogger("rwt.session")
+
+
+def authenticate(session: Session, op: OpModel) -> bool:
+    """Decide the first op of a connection that must authenticate (D23).
+
+    Returns:
+        True when ``op`` is an ``auth`` the authenticator admits.
+
+    Raises:
+        RemoteProtocolError: the op is not ``auth``, or it was refused; the
+            session reports it and closes the connection. A call or goal is
+            answered with its failure reply first (D4).
+    """
+    if not isinstance(op, Auth):
+        reply = failure_reply(op, "authentication required")
+        if reply is not None:
+            session.send_op(reply)
+        _failed(session, f"first op was {op.op}")  # type: ignore[attr-defined]
+        raise RemoteProtocolError("authentication required: the first op must be auth")
+    authenticator = session.config.authenticator
+    if authenticator is None:  # pragma: no cover - the session only asks when there is one
+        return True
+    try:
+        admitted = authenticator(op, session.peer)
+    except Exception:
+        logger.exception("authenticator failed for %s", session.client_id)
+        admitted = False
+    if not admitted:
+        _failed(session, "refused by the authenticator")
+        raise RemoteProtocolError("authentication failed")
+    logger.info(
+        "event=auth_ok client=%s peer=%s level=%s", session.client_id, session.peer, op.level
+    )
+    session.report(StatusLevel.INFO, "auth: authenticated")
+    return True
+
+
+def check_access(session: Session, op: OpModel) -> None:
+    """Refuse an op the access rules deny, answering a call or goal (D4).
+
+    Raises:
+        AccessDeniedError: the op names a topic, service, action or parameter
+            outside the rules.
+    """
+    try:
+        session.config.access.check(op)
+    except AccessDeniedError as exc:
+        name: str = op.op  # type: ignore[attr-defined]
+        logger.warning(
+            "event=access_denied client=%s op=%s reason=%r", session.client_id, name, exc.message
+        )
+        reply = failure_reply(op, f"{name}: {exc.message}")
+        if reply is not None:
+            session.send_op(reply)
+        raise
+
+
+def _failed(session: Session, reason: str) -> None:
+    logger.warning(
+        "event=auth_failed client=%s peer=%s reason=%r", session.client_id, session.peer, reason
+    )

@@ -1,0 +1,211 @@
+"""The connection pump: one sans-IO session driven over any transport.
+
+Every transport (WebSocket, TCP, UDP, stdio, in-memory) reduces a connection to a
+``Channel``: receive a batch of frames, send a batch of frames, close. The pump
+runs the rest the same way everywhere (D22, one dispatcher behind all
+transports), in three tasks per connection:
+
+- the reader feeds incoming frames to ``Session.receive_frame``;
+- the writer takes bounded batches from the session's outbox and sends them,
+  then carries out commands (``CloseConnection``); it is the only task that
+  writes frames, so a publish never awaits a socket (STYLE.md);
+- the timer task calls ``Session.handle_timer`` when ``get_timer`` says, even
+  while the writer is stuck on a peer that does not read: that is how the send
+  timeout (D24) can close a stalled connection. If the writer cannot even get
+  the close out within ``CLOSE_WAIT_S``, the connection is aborted.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import anyio
+
+from rwt_protocol.framing import FramerEvent, FramingError
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.outbox import OutFrame
+from rwt_protocol.session import CloseCode, CloseConnection, Session
+
+__all__ = ["CLOSE_WAIT_S", "Channel", "ConnectionPump", "SessionHost", "run_connection"]
+
+logger = logging.getLogger("rwt.server")
+
+BATCH_BYTES = 64 * 1024
+"""Bytes the writer takes from the outbox at a time: what it holds outside the bound."""
+
+CLOSE_WAIT_S = 5.0
+"""Seconds a close may take (sending it, then the peer's end) before the connection is cut."""
+
+
+class Channel(Protocol):
+    """One connection's frame I/O, as the pump needs it."""
+
+    transport: str
+    """Short transport name for logs and client ids (``ws``, ``tcp``, ``udp``, ``stdio``)."""
+
+    awaits_peer_close: bool
+    """Whether, after ``close``, the peer answers (a WebSocket close frame) and the
+    reader should be given ``CLOSE_WAIT_S`` to see it."""
+
+    async def receive(self) -> Sequence[FramerEvent]:
+        """Wait for the next incoming frames (possibly none, e.g. control frames only).
+
+        Raises:
+            anyio.EndOfStream: the peer is gone or the connection is closed.
+        """
+
+    async def send(self, frames: Sequence[OutFrame]) -> None:
+        """Send frames in order; returns when the transport took them.
+
+        Raises:
+            anyio.BrokenResourceError: the connection broke.
+        """
+
+    async def close(self, code: CloseCode, reason: str) -> None:
+        """Start closing: tell the peer where the transport can (WebSocket close frame)."""
+
+    async def background(self, session: Session) -> None:
+        """Run transport chores (WebSocket keepalive) until cancelled; may return at once."""
+
+
+class SessionHost(Protocol):
+    """What a transport needs from the server: sessions on its one graph (D22)."""
+
+    def open_session(
+        self, transport: str, peer: str, on_output: Callable[[], None]
+    ) -> Session | None:
+        """Make the session of a new connection; None when the server is full
+        (``--max-connections``) or stopping."""
+
+
+async def run_connection(pump: ConnectionPump, session: Session, detail: str = "") -> None:
+    """Run ``pump`` for ``session``, logging the connection's start and end (structured)."""
+    channel = pump.channel
+    logger.info(
+        "event=connect client=%s transport=%s peer=%s%s",
+        session.client_id,
+        channel.transport,
+        session.peer,
+        f" {detail}" if detail else "",
+    )
+    started = anyio.current_time()
+    try:
+        await pump.run(session)
+    finally:
+        logger.info(
+            "event=disconnect client=%s reason=%r dropped=%d duration_s=%.1f",
+            session.client_id,
+            pump.close_reason,
+            session.dropped_frames,
+            anyio.current_time() - started,
+        )
+
+
+_BROKEN = (
+    anyio.BrokenResourceError,
+    anyio.ClosedResourceError,
+    anyio.EndOfStream,
+    OSError,
+)
+
+
+class ConnectionPump:
+    """Runs one session over one channel until either side ends it.
+
+    Args:
+        channel: the connection.
+
+    Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
+    """
+
+    def __init__(self, channel: Channel) -> None:
+        self.channel = channel
+        self.close_reason = "peer closed the connection"
+        self._writer_wake = anyio.Event()
+        self._timer_wake = anyio.Event()
+        self._reader_done = anyio.Event()
+        self._writer_closed = anyio.Event()
+
+    def wake(self) -> None:
+        """The session has output (frames, commands or a new timer)."""
+        self._writer_wake.set()
+        self._timer_wake.set()
+
+    async def run(self, session: Session) -> None:
+        """Serve ``session`` until the peer leaves or the session closes, then close it."""
+        try:
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._writer, session, tg.cancel_scope)
+                tg.start_soon(self._timers, session, tg.cancel_scope)
+                tg.start_soon(self.channel.background, session)
+                await self._reader(session)
+                self._reader_done.set()
+                # The peer's input ended; it may still read (a half-closed TCP
+                # stream, stdin at EOF): send what is queued, then close.
+                session.request_close(CloseCode.NORMAL, "end of input")
+        finally:
+            session.close()
+
+    async def _reader(self, session: Session) -> None:
+        while True:
+            try:
+                events = await self.channel.receive()
+            except _BROKEN:
+                return
+            for event in events:
+                if isinstance(event, FramingError):
+                    session.report(StatusLevel.ERROR, event.message)
+                    if event.fatal:
+                        session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
+                else:
+                    session.receive_frame(event.data, anyio.current_time(), binary=event.binary)
+            self._timer_wake.set()  # handlers may have scheduled timers
+
+    async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
+        try:
+            while True:
+                self._writer_wake = anyio.Event()
+                frames = session.frames_to_send(BATCH_BYTES)
+                if frames:
+                    await self.channel.send(frames)
+                    continue
+                for command in session.commands_to_run():
+                    if isinstance(command, CloseConnection):
+                        await self._close(command, scope)
+                        return
+                await self._writer_wake.wait()
+        except _BROKEN:
+            self.close_reason = "connection broken while sending"
+            scope.cancel()
+
+    async def _close(self, command: CloseConnection, scope: anyio.CancelScope) -> None:
+        if not self._reader_done.is_set():
+            self.close_reason = f"closed by server: {command.reason}"
+        await self.channel.close(command.code, command.reason)
+        self._writer_closed.set()
+        if self.channel.awaits_peer_close and not command.abort:
+            with anyio.move_on_after(CLOSE_WAIT_S):
+                await self._reader_done.wait()
+        scope.cancel()
+
+    async def _timers(self, session: Session, scope: anyio.CancelScope) -> None:
+        while not session.closing:
+            self._timer_wake = anyio.Event()
+            deadline = session.get_timer()
+            delay = None if deadline is None else max(0.0, deadline - anyio.current_time())
+            with anyio.move_on_after(delay):
+                await self._timer_wake.wait()
+            session.handle_timer(anyio.current_time())
+        # Closing: the writer must get the close out; a peer that reads nothing stops it,
+        # and one known not to read (abort) is not waited for.
+        request = session.close_request
+        with anyio.move_on_after(0 if request is not None and request.abort else CLOSE_WAIT_S):
+            await self._writer_closed.wait()
+        if not self._writer_closed.is_set():
+            logger.warning("event=abort client=%s reason=%r", session.client_id, "close not sent")
+            if request is not None and request.abort:
+                self.close_reason = f"closed by server: {request.reason}"
+            self.close_reason += " (aborted: the peer stopped reading)"
+            scope.cancel()

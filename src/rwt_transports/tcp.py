@@ -1,0 +1,98 @@
+"""TCP transport (PROTOCOL-DECISIONS D22), plain or TLS.
+
+In: concatenated JSON values (any whitespace between them, or none) and CBOR
+items, split by ``rwt_protocol.framing.JsonStreamFramer`` (linear, bounded by
+``--max-message-size``). Out: one JSON object per line; CBOR items as they are
+(self-delimiting, and their first byte is never ``{``), so rosbridge_tcp
+readers that split on newlines or scan braces both work.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import anyio
+from anyio.abc import ByteStream
+
+from rwt_protocol.framing import FramerEvent, JsonStreamFramer
+from rwt_protocol.outbox import OutFrame
+from rwt_protocol.session import CloseCode, Session
+
+from .pump import ConnectionPump, SessionHost, run_connection
+
+__all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
+
+logger = logging.getLogger("rwt.tcp")
+
+_READ_SIZE = 65536
+_CLOSE_LIMIT_S = 1.0
+_TOO_MANY = b'{"op":"status","level":"error","msg":"too many connections"}\n'
+
+
+def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:
+    """Join outgoing frames for a byte stream: JSON text plus a newline, CBOR as is."""
+    return b"".join(frame.data if frame.binary else frame.data + b"\n" for frame in frames)
+
+
+class StreamChannel:
+    """A byte stream carrying rosbridge frames (TCP or TLS) as a pump ``Channel``."""
+
+    awaits_peer_close = False
+
+    def __init__(self, stream: ByteStream, max_message_size: int, transport: str = "tcp"):
+        self.stream = stream
+        self.transport = transport
+        self._framer = JsonStreamFramer(max_message_size)
+        self._ended = False
+
+    async def receive(self) -> Sequence[FramerEvent]:
+        """Read the next chunk and return the frames it completes."""
+        if self._ended:
+            raise anyio.EndOfStream
+        try:
+            data = await self.stream.receive(_READ_SIZE)
+        except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
+            self._ended = True
+            events = self._framer.receive_eof()
+            if events:
+                return events
+            raise anyio.EndOfStream from None
+        return self._framer.receive_data(data)
+
+    async def send(self, frames: Sequence[OutFrame]) -> None:
+        """Write the frames in one go."""
+        await self.stream.send(encode_stream_frames(frames))
+
+    async def close(self, code: CloseCode, reason: str) -> None:
+        """Close the stream (TCP has no close frame; the reason is in the server log)."""
+        with anyio.move_on_after(_CLOSE_LIMIT_S):
+            await self.stream.aclose()
+        await anyio.aclose_forcefully(self.stream)
+
+    async def background(self, session: Session) -> None:
+        """Nothing to do: TCP keepalive is the kernel's."""
+
+
+async def serve_tcp_connection(
+    stream: ByteStream, peer: str, host: SessionHost, max_message_size: int, transport: str
+) -> None:
+    """Run one TCP (or TLS) connection to its end; never raises for what the peer does.
+
+    Args:
+        stream: the connected stream.
+        peer: the peer's address, for logs and the client id.
+        host: makes the session.
+        max_message_size: the largest incoming frame, in bytes.
+        transport: ``tcp`` or ``tls``, for logs and client ids.
+    """
+    async with stream:
+        channel = StreamChannel(stream, max_message_size, transport)
+        pump = ConnectionPump(channel)
+        session = host.open_session(transport, peer, pump.wake)
+        if session is None:
+            logger.info("event=refused peer=%s reason='too many connections'", peer)
+            with anyio.move_on_after(_CLOSE_LIMIT_S):
+                await stream.send(_TOO_MANY)
+            return
+        await run_connection(pump, session)

@@ -1,0 +1,179 @@
+"""UDP transport: one datagram per message, one session per peer address (D22).
+
+Every (host, port) that sends a datagram gets a session, as rosbridge_udp
+does (REF §3.6). A datagram is one frame: JSON text, or CBOR when its first
+byte says so (D21). Outgoing messages larger than ``datagram_bytes`` go out as
+``fragment`` ops (spec 3.1.1, D19), each within the size, so no message is
+silently lost to the datagram limit. UDP has no connection close: a peer that
+sends nothing for ``idle_timeout_s`` is forgotten (its session closed).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import anyio
+from anyio.abc import TaskGroup, UDPSocket
+from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
+
+from rwt_protocol.datagrams import fragment_datagrams
+from rwt_protocol.framing import FramerEvent, FramingError, InFrame
+from rwt_protocol.outbox import OutFrame
+from rwt_protocol.session import CloseCode, Session
+
+from .pump import ConnectionPump, SessionHost, run_connection
+
+__all__ = ["UdpOptions", "serve_udp"]
+
+logger = logging.getLogger("rwt.udp")
+
+MAX_UDP_PAYLOAD = 65507
+"""The largest IPv4 UDP payload, bytes."""
+
+_QUEUED_DATAGRAMS = 256  # per peer; more arriving before the session reads them are dropped
+_TOO_MANY = b'{"op":"status","level":"error","msg":"too many connections"}'
+
+Address = tuple[str, int]
+
+
+@dataclass(frozen=True, slots=True)
+class UdpOptions:
+    """UDP settings.
+
+    Attributes:
+        max_message_size: the largest incoming datagram kept, bytes.
+        datagram_bytes: outgoing messages above this many bytes go out as
+            ``fragment`` ops (``--udp-datagram-size``; at most 65507).
+        idle_timeout_s: seconds without a datagram after which a peer's session
+            is closed (``--udp-idle-timeout``).
+    """
+
+    max_message_size: int = MAX_UDP_PAYLOAD
+    datagram_bytes: int = 8192
+    idle_timeout_s: float = 300.0
+
+
+def _classify(data: bytes, max_bytes: int) -> FramerEvent:
+    if len(data) > max_bytes:
+        return FramingError(f"datagram larger than {max_bytes} bytes skipped")
+    first = data.lstrip()[:1]
+    return InFrame(data, binary=bool(first) and 0x80 <= first[0] < 0xC0)
+
+
+class UdpChannel:
+    """One UDP peer of a shared socket as a pump ``Channel``."""
+
+    transport = "udp"
+    awaits_peer_close = False
+
+    def __init__(
+        self,
+        sock: UDPSocket,
+        address: Address,
+        inbox: MemoryObjectReceiveStream[bytes],
+        options: UdpOptions,
+    ) -> None:
+        self.sock = sock
+        self.address = address
+        self.inbox = inbox
+        self.options = options
+        self._ids = itertools.count(1)
+
+    async def receive(self) -> Sequence[FramerEvent]:
+        """Wait for the peer's next datagram; its end after ``idle_timeout_s`` of silence."""
+        with anyio.move_on_after(self.options.idle_timeout_s):
+            data = await self.inbox.receive()  # EndOfStream once the listener forgets us
+            return [_classify(data, self.options.max_message_size)]
+        raise anyio.EndOfStream
+
+    async def send(self, frames: Sequence[OutFrame]) -> None:
+        """Send each frame as a datagram, JSON above the size as ``fragment`` ops."""
+        limit = self.options.datagram_bytes
+        host, port = self.address
+        for frame in frames:
+            if frame.binary or len(frame.data) <= limit:
+                if len(frame.data) > MAX_UDP_PAYLOAD:
+                    logger.warning(
+                        "event=udp_drop peer=%s:%d bytes=%d", host, port, len(frame.data)
+                    )
+                    continue
+                await self.sock.sendto(frame.data, host, port)
+                continue
+            message_id = f"udp:{next(self._ids)}"
+            for datagram in fragment_datagrams(frame.data, limit, message_id):
+                await self.sock.sendto(datagram, host, port)
+
+    async def close(self, code: CloseCode, reason: str) -> None:
+        """Nothing to tell the peer: UDP has no close."""
+
+    async def background(self, session: Session) -> None:
+        """Nothing to do."""
+
+
+async def serve_udp(sock: UDPSocket, host: SessionHost, options: UdpOptions) -> None:
+    """Serve every peer of ``sock`` until cancelled.
+
+    Args:
+        sock: the bound UDP socket.
+        host: makes the sessions.
+        options: UDP settings.
+    """
+    async with anyio.create_task_group() as tg:
+        endpoint = _Endpoint(sock, host, options, tg)
+        async for data, address in sock:
+            await endpoint.dispatch(data, address)
+
+
+class _Endpoint:
+    """The peers of one UDP socket: address -> the inbox of that peer's session."""
+
+    def __init__(
+        self, sock: UDPSocket, host: SessionHost, options: UdpOptions, tg: TaskGroup
+    ) -> None:
+        self.sock = sock
+        self.host = host
+        self.options = options
+        self.tg = tg
+        self.peers: dict[Address, MemoryObjectSendStream[bytes]] = {}
+
+    async def dispatch(self, data: bytes, address: Address) -> None:
+        inbox = self.peers.get(address)
+        if inbox is None:
+            inbox = await self._open(address)
+            if inbox is None:
+                return
+        try:
+            inbox.send_nowait(data)
+        except anyio.WouldBlock:
+            logger.warning("event=udp_overrun peer=%s:%d", *address)
+
+    async def _open(self, address: Address) -> MemoryObjectSendStream[bytes] | None:
+        send, receive = anyio.create_memory_object_stream[bytes](_QUEUED_DATAGRAMS)
+        channel = UdpChannel(self.sock, address, receive, self.options)
+        pump = ConnectionPump(channel)
+        session = self.host.open_session("udp", f"{address[0]}:{address[1]}", pump.wake)
+        if session is None:
+            logger.info("event=refused peer=%s:%d reason='too many connections'", *address)
+            await self.sock.sendto(_TOO_MANY, *address)
+            return None
+        self.peers[address] = send
+        self.tg.start_soon(self._run, pump, session, address, receive)
+        return send
+
+    async def _run(
+        self,
+        pump: ConnectionPump,
+        session: Session,
+        address: Address,
+        receive: MemoryObjectReceiveStream[bytes],
+    ) -> None:
+        try:
+            await run_connection(pump, session)
+        finally:
+            send = self.peers.pop(address, None)
+            if send is not None:
+                send.close()
+            receive.close()

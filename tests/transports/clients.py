@@ -1,0 +1,254 @@
+"""Minimal rosbridge test clients for every transport, and an in-process server fixture.
+
+Each client sends ops (or raw bytes) and reads JSON messages, reassembling
+``fragment`` ops as real clients do. Every wait is bounded by the caller's
+``anyio.fail_after``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import ssl
+from collections.abc import AsyncIterator, Callable
+from contextlib import AsyncExitStack, asynccontextmanager
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import anyio
+from anyio.abc import ByteStream
+from websockets.asyncio.client import ClientConnection, connect
+
+from rwt_transports.memory import MemoryConnection
+from rwt_transports.server import RosbridgeServer, ServerConfig
+
+Message = dict[str, Any]
+TRANSPORTS = ("memory", "ws", "tcp", "udp", "stdio")
+
+
+@dataclass
+class Client:
+    """Base: JSON in, JSON out, fragments reassembled (spec 3.1.1)."""
+
+    name: str
+    parts: dict[object, dict[int, str]] = field(default_factory=dict)
+    backlog: list[Message] = field(default_factory=list)
+
+    async def send_raw(self, data: bytes) -> None:
+        raise NotImplementedError
+
+    async def _receive_raw(self) -> bytes | str:
+        raise NotImplementedError
+
+    async def aclose(self) -> None:
+        raise NotImplementedError
+
+    async def send(self, op: Message) -> None:
+        await self.send_raw(json.dumps(op).encode() + self.terminator)
+
+    @property
+    def terminator(self) -> bytes:
+        """What ends a frame: a newline for line-framed stdio (harmless on TCP)."""
+        return b"\n" if isinstance(self, StreamClient) else b""
+
+    async def receive(self) -> Message:
+        """The next whole message (fragments reassembled)."""
+        while True:
+            message = json.loads(await self._receive_raw())
+            if message.get("op") != "fragment":
+                return message  # type: ignore[no-any-return]
+            parts = self.parts.setdefault(message["id"], {})
+            parts[message["num"]] = message["data"]
+            if len(parts) == message["total"]:
+                del self.parts[message["id"]]
+                return json.loads("".join(parts[i] for i in range(message["total"])))  # type: ignore[no-any-return]
+
+    async def expect(self, predicate: Callable[[Message], bool]) -> Message:
+        """Read until a message matches; keep the others in ``backlog``."""
+        for i, message in enumerate(self.backlog):
+            if predicate(message):
+                return self.backlog.pop(i)
+        while True:
+            message = await self.receive()
+            if predicate(message):
+                return message
+            self.backlog.append(message)
+
+
+@dataclass
+class MemoryClient(Client):
+    connection: MemoryConnection | None = None
+
+    async def send_raw(self, data: bytes) -> None:
+        assert self.connection is not None
+        await self.connection.send_frame(data)
+
+    async def _receive_raw(self) -> bytes:
+        assert self.connection is not None
+        return (await self.connection.receive_frame()).data
+
+    async def aclose(self) -> None:
+        pass  # the server's context manager closes it
+
+
+@dataclass
+class WsClient(Client):
+    ws: ClientConnection | None = None
+
+    async def send_raw(self, data: bytes) -> None:
+        assert self.ws is not None
+        await self.ws.send(data.decode("utf-8", "replace"))
+
+    async def _receive_raw(self) -> bytes | str:
+        assert self.ws is not None
+        return await self.ws.recv()
+
+    async def aclose(self) -> None:
+        assert self.ws is not None
+        await self.ws.close()
+
+
+@dataclass
+class StreamClient(Client):
+    """TCP (or TLS, or a stdio pipe pair): concatenated JSON in, JSON lines out."""
+
+    stream: ByteStream | None = None
+    buffer: bytes = b""
+
+    async def send_raw(self, data: bytes) -> None:
+        assert self.stream is not None
+        await self.stream.send(data)
+
+    async def _receive_raw(self) -> bytes:
+        assert self.stream is not None
+        while b"\n" not in self.buffer:
+            self.buffer += await self.stream.receive()
+        line, self.buffer = self.buffer.split(b"\n", 1)
+        return line
+
+    async def aclose(self) -> None:
+        assert self.stream is not None
+        await self.stream.aclose()
+
+
+@dataclass
+class UdpClient(Client):
+    sock: Any = None
+
+    async def send_raw(self, data: bytes) -> None:
+        await self.sock.send(data)
+
+    async def _receive_raw(self) -> bytes:
+        return await self.sock.receive()  # type: ignore[no-any-return]
+
+    async def aclose(self) -> None:
+        await self.sock.aclose()
+
+
+class PipeStream(ByteStream):
+    """The client's end of a stdio session: writes to the server's stdin, reads its stdout."""
+
+    def __init__(self, write_fd: int, read_fd: int) -> None:
+        self.write_fd, self.read_fd = write_fd, read_fd
+        os.set_blocking(read_fd, False)
+        os.set_blocking(write_fd, False)
+
+    async def receive(self, max_bytes: int = 65536) -> bytes:
+        while True:
+            await anyio.wait_readable(self.read_fd)
+            try:
+                data = os.read(self.read_fd, max_bytes)
+            except BlockingIOError:
+                continue
+            if not data:
+                raise anyio.EndOfStream
+            return data
+
+    async def send(self, item: bytes) -> None:
+        view = memoryview(item)
+        while view:
+            await anyio.wait_writable(self.write_fd)
+            try:
+                view = view[os.write(self.write_fd, view) :]
+            except BlockingIOError:
+                continue
+
+    async def send_eof(self) -> None:
+        os.close(self.write_fd)
+        self.write_fd = -1
+
+    async def aclose(self) -> None:
+        for fd in (self.write_fd, self.read_fd):
+            if fd >= 0:
+                os.close(fd)
+        self.write_fd = self.read_fd = -1
+
+
+@dataclass
+class Harness:
+    """A running in-process server with every transport, and a way to connect to each."""
+
+    server: RosbridgeServer
+    stack: AsyncExitStack
+    stdio_client: PipeStream
+    ssl_context: ssl.SSLContext | None = None
+
+    def port(self, kind: str) -> int:
+        return int(self.server.urls[kind].rsplit(":", 1)[1])
+
+    async def connect(self, transport: str, name: str | None = None) -> Client:
+        name = name or transport
+        if transport == "memory":
+            connection = await self.stack.enter_async_context(self.server.connect_memory())
+            return MemoryClient(name, connection=connection)
+        if transport == "ws":
+            scheme = "wss" if self.ssl_context else "ws"
+            ws = await connect(
+                f"{scheme}://127.0.0.1:{self.port('websocket')}", ssl=self.ssl_context
+            )
+            self.stack.push_async_callback(ws.close)
+            return WsClient(name, ws=ws)
+        if transport == "tcp":
+            stream: ByteStream = await anyio.connect_tcp(
+                "127.0.0.1", self.port("tcp"), ssl_context=self.ssl_context
+            )
+            self.stack.push_async_callback(anyio.aclose_forcefully, stream)
+            return StreamClient(name, stream=stream)
+        if transport == "udp":
+            sock = await anyio.create_connected_udp_socket("127.0.0.1", self.port("udp"))
+            self.stack.push_async_callback(sock.aclose)
+            return UdpClient(name, sock=sock)
+        if transport == "stdio":
+            return StreamClient(name, stream=self.stdio_client)
+        raise ValueError(transport)
+
+
+@asynccontextmanager
+async def running_server(
+    config: ServerConfig | None = None, **server_kw: Any
+) -> AsyncIterator[Harness]:
+    """An in-process server with WebSocket, TCP, UDP and stdio (on pipes), all on free ports."""
+    to_server_r, to_server_w = os.pipe()
+    from_server_r, from_server_w = os.pipe()
+    config = replace(
+        config or ServerConfig(),
+        port=0,
+        tcp_port=0,
+        udp_port=0,
+        stdio=True,
+        stdio_fds=(to_server_r, from_server_w),
+    )
+    server = RosbridgeServer(config=config, **server_kw)
+    pipe = PipeStream(to_server_w, from_server_r)
+    async with AsyncExitStack() as stack, anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        harness = Harness(server, stack, pipe)
+        try:
+            yield harness
+        finally:
+            await stack.aclose()
+            server.stop()
+        # let the server end on its own; then close what the test did not
+    for fd in (to_server_r, from_server_w):
+        os.close(fd)
+    await pipe.aclose()
