@@ -12,12 +12,14 @@ static frame comes once, and the eager client sees the small steps the others sk
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from websockets.sync.client import connect as connect_ws
 
 from .client_harness import (
     REPO,
@@ -110,3 +112,17 @@ def test_roslib_tf_clients(tf_robot: ServerProcess, tmp_path: Path) -> None:
         check_thresholds(outcome, client.lower())
     check_eager(outcome, "eager")
     assert outcome.statuses == []  # nothing the server refused
+
+
+def test_rwt_serve_no_tf_offers_none_of_it(tmp_path: Path) -> None:
+    server = ServerProcess(tmp_path, extra_args=("--no-tf",))
+    try:
+        with connect_ws(server.url) as ws:
+            ws.send(json.dumps({"op": "call_service", "service": "/rosapi/nodes", "id": "n"}))
+            nodes = json.loads(ws.recv(timeout=10))
+            assert "/tf2_web_republisher" not in nodes["values"]["nodes"]
+            ws.send(json.dumps({"op": "call_service", "service": "/republish_tfs", "id": "r"}))
+            refused = json.loads(ws.recv(timeout=10))
+            assert refused["result"] is False and "does not exist" in refused["values"]
+    finally:
+        server.stop()

@@ -128,7 +128,7 @@ class TFSubscription:
                 found = self.buffer.lookup(target, pair.source)
             except TFError as exc:
                 if not pair.failing:  # once per failure streak, as the ROS node does
-                    logger.info("cannot transform %s to %s: %s", pair.source, target, exc.message)
+                    logger.debug("cannot transform %s to %s: %s", pair.source, target, exc.message)
                     pair.failing = True
                 continue
             pair.failing = False
