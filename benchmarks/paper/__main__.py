@@ -110,9 +110,10 @@ def main(argv: Sequence[str] | None = None) -> list[Row]:
     parser.add_argument("--readme", type=Path, default=README, help="README to update")
     args = parser.parse_args(argv)
     names = available(args.only.split(",") if args.only else None)
-    rows = run_all(names, args.quick)
     machine = f"{platform.machine()}, {platform.python_implementation()}"
     machine += f" {platform.python_version()}, {os.cpu_count()} cores"
+    machine += f", load {os.getloadavg()[0]:.1f} at the start"  # times drift with it
+    rows = run_all(names, args.quick)
     mode = "quick (smoke test, numbers mean nothing)" if args.quick else "full"
     Console().print(table(rows, f"rwt vs the Robot Web Tools paper ({mode})"))
     args.results.parent.mkdir(parents=True, exist_ok=True)
