@@ -174,6 +174,13 @@ class Graph:
         self.actions.release(client)
         self.nodes.forget(client)
 
+    def fail_pending(self, reason: str) -> None:
+        """Answer every pending service call and goal with a failure (D4; server shutdown)."""
+        for service in list(self.services.entries.values()):
+            service.end_all(reason)
+        for action in list(self.actions.entries.values()):
+            action.end_all(reason)
+
     # ---- ServicePort: services and actions of clients ---------------------------
 
     def advertise_service(

@@ -18,19 +18,14 @@ accepts that a server never sends ``status``).
 
 from __future__ import annotations
 
-import base64
-import binascii
-import io
 import itertools
 import json
-import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-import cbor2
-from PIL import Image
-
+from .codec_cbor import decode_cbor
 from .errors import LocalProtocolError, RemoteProtocolError
+from .png import decode_png
 
 __all__ = [
     "ActionFeedbackReceived",
@@ -385,7 +380,9 @@ class ClientSession:
         """
         try:
             value = decode_cbor(frame) if isinstance(frame, bytes) else json.loads(frame)
-        except (ValueError, cbor2.CBORDecodeError) as exc:
+        except RemoteProtocolError as exc:
+            return [UnknownOp(frame, f"undecodable frame: {exc.message}")]
+        except ValueError as exc:
             return [UnknownOp(frame, f"undecodable frame: {exc}")]
         return self._dispatch(value)
 
@@ -419,9 +416,12 @@ class ClientSession:
         if not isinstance(data, str):
             return [UnknownOp(value, "malformed png")]
         try:
-            return self.receive_frame(decode_png(data))
+            text = decode_png(data, max_bytes=self._fragment_limit).decode("utf-8")
         except RemoteProtocolError as exc:
-            return [UnknownOp(value, exc.message)]
+            return [UnknownOp(value, f"png: {exc.message}")]
+        except UnicodeDecodeError:
+            return [UnknownOp(value, "png: the image does not hold UTF-8 text")]
+        return self.receive_frame(text)
 
     def _collect(self, value: dict[str, object], kind: str) -> str | UnknownOp | None:
         """Store one part; return the whole text (joined by ``num``) once complete."""
@@ -512,49 +512,3 @@ _PARSERS = {
     "action_result": _parse_result,
     "status": _parse_status,
 }
-
-
-def decode_png(data: str) -> str:
-    """Decode a ``png`` op's data to the JSON text it carries (spec 3.1.2, REF §3.3).
-
-    Raises:
-        RemoteProtocolError: not base64, not a PNG, or not UTF-8 inside.
-    """
-    try:
-        with Image.open(io.BytesIO(base64.b64decode(data, validate=True))) as image:
-            raw = image.convert("RGB").tobytes()
-        return raw.rstrip(b"\n\x00").decode("utf-8")
-    except (binascii.Error, OSError, ValueError) as exc:
-        raise RemoteProtocolError(f"png: cannot decode: {exc}") from None
-
-
-_TYPED_ARRAYS = {
-    64: "B",
-    69: "H",
-    70: "I",
-    71: "Q",
-    72: "b",
-    77: "h",
-    78: "i",
-    79: "q",
-    85: "f",
-    86: "d",
-}
-"""CBOR typed-array tags (draft-ietf-cbor-array-tags, little-endian) -> struct codes (REF §3.2)."""
-
-
-def _typed_array(tag: cbor2.CBORTag, immutable: bool) -> object:
-    code = _TYPED_ARRAYS.get(tag.tag)
-    if code is None or not isinstance(tag.value, bytes):
-        return tag
-    count = len(tag.value) // struct.calcsize(code)
-    return list(struct.unpack(f"<{count}{code}", tag.value[: count * struct.calcsize(code)]))
-
-
-def decode_cbor(frame: bytes) -> object:
-    """Decode a binary frame: CBOR with typed arrays turned into lists (spec 3.1.3, D21).
-
-    Raises:
-        cbor2.CBORDecodeError: not CBOR.
-    """
-    return cbor2.loads(frame, tag_hook=_typed_array)

@@ -20,8 +20,6 @@ Every failure of the underlying stream is raised as ``ConnectionClosed`` (a
 
 from __future__ import annotations
 
-import codecs
-import re
 import ssl
 from collections import deque
 from collections.abc import Sequence
@@ -38,6 +36,7 @@ from websockets.protocol import State
 from websockets.uri import parse_uri
 
 from rwt_protocol.errors import TransportError
+from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
 
 __all__ = [
     "Connection",
@@ -247,79 +246,6 @@ class WebSocketConnection:
         return f"closed by the server ({close.code} {close.reason})".rstrip()
 
 
-class JsonSplitter:
-    """Splits a text stream into top-level JSON objects or arrays, separated or not.
-
-    A sans-IO scanner that keeps its state between ``feed`` calls, so each
-    character is looked at once however the stream is chunked.
-
-    Args:
-        limit_bytes: the most buffered text while a value is incomplete.
-    """
-
-    _SPECIAL = re.compile(r'["\\{}\[\]]')
-
-    def __init__(self, limit_bytes: int) -> None:
-        self._buffer = ""
-        self._scanned = 0
-        self._depth = 0
-        self._in_string = False
-        self._start = 0
-        self._limit = limit_bytes
-
-    def feed(self, text: str) -> list[str]:
-        """Add text; return every complete JSON text found, in order.
-
-        Raises:
-            ConnectionClosed: the buffer would exceed the limit, or the stream has
-                text outside JSON objects.
-        """
-        self._buffer += text
-        found: list[str] = []
-        self._start = 0
-        position = self._scanned
-        for match in self._SPECIAL.finditer(self._buffer, position):
-            index = match.start()
-            if index >= position:
-                position = self._scan(match.group(), index, found)
-        if self._depth == 0:
-            self._check_gap(self._buffer[self._start :])
-            self._start = len(self._buffer)
-        self._buffer = self._buffer[self._start :]
-        self._scanned = max(0, position - self._start)
-        if len(self._buffer) > self._limit:
-            raise ConnectionClosed("incoming message exceeds the size limit")
-        return found
-
-    def _scan(self, char: str, index: int, found: list[str]) -> int:
-        """Take one special character at ``index``; return where scanning resumes."""
-        if self._in_string:
-            if char == "\\":
-                return index + 2  # skip the escaped character
-            if char == '"':
-                self._in_string = False
-        elif char == '"':
-            self._in_string = True
-        elif char in "{[":
-            if self._depth == 0:
-                self._check_gap(self._buffer[self._start : index])
-                self._start = index
-            self._depth += 1
-        else:
-            self._depth -= 1
-            if self._depth == 0:
-                found.append(self._buffer[self._start : index + 1])
-                self._start = index + 1
-            elif self._depth < 0:
-                raise ConnectionClosed("server sent text that is not JSON")
-        return index + 1
-
-    @staticmethod
-    def _check_gap(text: str) -> None:
-        if text.strip():
-            raise ConnectionClosed(f"server sent text that is not JSON: {text.strip()[:40]!r}")
-
-
 class _LineStreamConnection:
     """Shared part of the TCP and stdio connections: JSON text out, JSON values in."""
 
@@ -327,9 +253,8 @@ class _LineStreamConnection:
 
     def __init__(self, url: str, limit: int) -> None:
         self.url = url
-        self._splitter = JsonSplitter(limit)
-        self._frames: deque[str] = deque()
-        self._decoder = _Utf8Decoder()
+        self._framer = JsonStreamFramer(limit)
+        self._frames: deque[str | bytes] = deque()
 
     async def send(self, frame: str | bytes) -> None:
         """Send one JSON text followed by a newline (binary frames are not supported)."""
@@ -352,24 +277,23 @@ class _LineStreamConnection:
                 OSError,
             ):
                 raise ConnectionClosed(f"{self.url}: connection closed") from None
-            self._frames.extend(self._splitter.feed(self._decoder.decode(data)))
+            self._take(self._framer.receive_data(data))
         return self._frames.popleft()
+
+    def _take(self, events: list[FramerEvent]) -> None:
+        # The server's own framer (rwt_protocol.framing) also reads CBOR items,
+        # which a TCP server sends for CBOR subscriptions (D22).
+        for event in events:
+            if isinstance(event, InFrame):
+                self._frames.append(event.data if event.binary else event.data.decode())
+            elif event.fatal:
+                raise ConnectionClosed(f"{self.url}: {event.message}")
 
     async def _write(self, data: bytes) -> None:
         raise NotImplementedError
 
     async def _read(self) -> bytes:
         raise NotImplementedError
-
-
-class _Utf8Decoder:
-    """Incremental UTF-8 decoding across read boundaries."""
-
-    def __init__(self) -> None:
-        self._decoder = codecs.getincrementaldecoder("utf-8")("replace")
-
-    def decode(self, data: bytes) -> str:
-        return self._decoder.decode(data)
 
 
 class TcpConnection(_LineStreamConnection):

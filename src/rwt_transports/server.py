@@ -242,7 +242,7 @@ class RosbridgeServer:
         self._stopping = True
         sessions = list(self.sessions.values())
         logger.info("event=shutdown sessions=%d", len(sessions))
-        _answer_pending(self.graph, "server shutting down")  # while callers can still read
+        self.graph.fail_pending("server shutting down")  # while callers can still read
         for session in sessions:
             session.begin_shutdown()
         for session in sessions:
@@ -444,14 +444,6 @@ class _QuietTLSListener(TLSListener):
             logger.info("event=tls_handshake_failed reason=%r", str(exc) or type(exc).__name__)
             return
         raise exc
-
-
-def _answer_pending(graph: Graph, reason: str) -> None:
-    """Fail every pending service call and goal, so no caller is left waiting (D4)."""
-    for service in list(graph.services.entries.values()):
-        service.end_all(reason)
-    for action in list(graph.actions.entries.values()):
-        action.end_all(reason)
 
 
 def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:

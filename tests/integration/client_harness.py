@@ -24,6 +24,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,10 @@ REPO = HERE.parent.parent
 JS_DIR = REPO / "tests" / "js"
 JS_DRIVER = JS_DIR / "rosclient.mjs"
 PY_DRIVER = HERE / "roslibpy_driver.py"
+#: A server with in-process services, an action server and an in-process caller.
+SERVE_FIXTURE = HERE / "serve_fixture.py"
+#: `--interfaces` folder with the test interface package rwt_test_interfaces.
+TEST_INTERFACES = HERE / "data"
 
 SERVER_START_TIMEOUT = 20.0
 SERVER_STOP_TIMEOUT = 10.0
@@ -91,10 +96,19 @@ def _close_pipes(proc: subprocess.Popen) -> None:
 
 # --------------------------------------------------------------------------- server
 class ServerProcess:
-    """`python -m rwt_transports serve --host 127.0.0.1 --port 0` in a subprocess."""
+    """`python -m rwt_transports serve --host 127.0.0.1 --port 0` in a subprocess.
+
+    With `control=True` (for serve_fixture.py) the server's stdin is a pipe:
+    `command()` writes one JSON line, `replies()` reads the JSON lines it prints.
+    """
 
     def __init__(
-        self, workdir: Path, extra_args: tuple[str, ...] = (), cmd: list[str] | None = None
+        self,
+        workdir: Path,
+        extra_args: tuple[str, ...] = (),
+        cmd: list[str] | None = None,
+        *,
+        control: bool = False,
     ) -> None:
         self.stderr_path = workdir / "rwt-serve.stderr"
         self.cmd = cmd or [
@@ -114,7 +128,7 @@ class ServerProcess:
         env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=path)
         self.proc = subprocess.Popen(
             self.cmd,
-            stdin=subprocess.DEVNULL,
+            stdin=subprocess.PIPE if control else subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,
             cwd=workdir,
@@ -123,6 +137,8 @@ class ServerProcess:
         self._stdout = _LineReader(self.proc.stdout, "rwt-serve-stdout")
         self.url = self._read_url()
         self.returncode: int | None = None
+        self._replies: dict[str, dict] = {}
+        self.reply_order: list[str] = []
 
     def _read_url(self) -> str:
         deadline = time.monotonic() + SERVER_START_TIMEOUT
@@ -156,8 +172,37 @@ class ServerProcess:
         except OSError as exc:
             return f"<could not read server stderr: {exc}>"
 
+    def command(self, **command: Any) -> None:
+        """Send one command line to serve_fixture.py (see its docstring)."""
+        assert self.proc.stdin is not None, "start the server with control=True"
+        self.proc.stdin.write(json.dumps(command).encode() + b"\n")
+        self.proc.stdin.flush()
+
+    def replies(
+        self, names: list[str], timeout_s: float = STEP_TIMEOUT_MS / 1000
+    ) -> dict[str, dict]:
+        """The replies to the commands sent `as` each of `names`, in any order (bounded)."""
+        deadline = time.monotonic() + timeout_s
+        while not all(name in self._replies for name in names):
+            try:
+                line = self._stdout.get(deadline)
+            except TimeoutError:
+                missing = [n for n in names if n not in self._replies]
+                raise DriverError(f"server: no reply for {missing} in {timeout_s:g}s") from None
+            if line is None:
+                raise DriverError(f"server exited (code {self.proc.poll()}) before replying")
+            reply = json.loads(line)
+            self._replies[reply["as"]] = reply
+            self.reply_order.append(reply["as"])
+        return {name: self._replies[name] for name in names}
+
     def stop(self) -> int | None:
         """SIGINT, then SIGKILL if it does not stop in time. Returns the exit code."""
+        if self.proc.stdin is not None:  # serve_fixture.py stops when its stdin closes
+            with contextlib.suppress(OSError, ValueError):
+                self.proc.stdin.close()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.proc.wait(SERVER_STOP_TIMEOUT)
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
             try:
@@ -272,7 +317,7 @@ class Driver:
 
 @dataclass
 class Outcome:
-    """What the clients saw, merged over driver processes."""
+    """What the clients saw, merged over driver processes (and harness phases)."""
 
     received: dict[str, dict[str, list]] = field(default_factory=dict)
     wire: dict[str, dict[str, list]] = field(default_factory=dict)
@@ -280,6 +325,10 @@ class Outcome:
     statuses: list[dict] = field(default_factory=list)
     calls: dict[str, dict] = field(default_factory=dict)
     tf: dict[str, dict[str, list]] = field(default_factory=dict)
+    served: dict[str, dict[str, list]] = field(default_factory=dict)
+    feedback: dict[str, list] = field(default_factory=dict)
+    goal_ids: dict[str, str] = field(default_factory=dict)
+    order: dict[str, list[str]] = field(default_factory=dict)
 
     def add(self, result: dict) -> None:
         self.received.update(result["received"])
@@ -288,13 +337,24 @@ class Outcome:
         self.statuses.extend(result["statuses"])
         self.calls.update(result.get("calls", {}))
         self.tf.update(result.get("tf", {}))
+        self.served.update(result.get("served", {}))
+        self.feedback.update(result.get("feedback", {}))
+        self.goal_ids.update(result.get("goal_ids", {}))
+        self.order.update(result.get("order", {}))
 
     def ok(self, name: str) -> Any:
-        """What the `api` step recorded as `name` returned; fails if it reported an error."""
+        """What the call recorded as `name` returned; fails if it reported an error."""
         outcome = self.calls.get(name)
         assert outcome is not None, f"no call recorded as {name!r}: {self.calls}"
         assert "ok" in outcome, f"{name} failed: {outcome['error']}"
         return outcome["ok"]
+
+    def error(self, name: str) -> Any:
+        """What the failure callback of the call recorded as `name` got; fails if it succeeded."""
+        outcome = self.calls.get(name)
+        assert outcome is not None, f"no call recorded as {name!r}: {self.calls}"
+        assert "error" in outcome, f"{name} succeeded with {outcome['ok']!r}"
+        return outcome["error"]
 
     def got(self, conn: str, topic: str) -> list:
         """Messages the user callback of `conn` got on `topic`."""
@@ -305,57 +365,97 @@ class Outcome:
         return self.wire.get(conn, {}).get(topic, [])
 
 
-Phase = tuple[str, list[dict]]
+#: The role of phases that the harness itself runs (a callable instead of steps).
+HARNESS = "harness"
+
+
+class Running:
+    """What a harness phase gets: the outcome so far and the driver processes by role."""
+
+    def __init__(self, outcome: Outcome) -> None:
+        self.outcome = outcome
+        self.drivers: dict[str, Driver] = {}
+        self.killed: set[str] = set()
+
+    def kill(self, role: str) -> None:
+        """SIGKILL the process of `role` (its connections drop without a close frame)."""
+        self.drivers[role].kill()
+        self.killed.add(role)
+
+
+HarnessStep = Callable[[Running], None]
+Phase = tuple[str, list[dict] | HarnessStep]
+
+
+def _switches(phases: list[Phase]) -> dict[int, str]:
+    """Phase index -> the previous phase's role, wherever the role changes."""
+    return {i: phases[i - 1][0] for i in range(1, len(phases)) if phases[i - 1][0] != phases[i][0]}
+
+
+def _role_steps(phases: list[Phase], roles: list[str]) -> dict[str, list[dict]]:
+    """Each driver role's steps, with a `signal` where it hands over and an `await`
+    where it takes over (a role whose first phase is not the first one starts
+    blocked on `await`, so all processes can start, and pay their start-up, at once)."""
+    per_role: dict[str, list[dict]] = {r: [] for r in roles}
+    switches = _switches(phases)
+    for i, (role, steps) in enumerate(phases):
+        prev = switches.get(i)
+        if prev is not None and prev != HARNESS:
+            per_role[prev].append({"op": "signal", "name": f"phase{i}"})
+        if prev is not None and role != HARNESS:
+            per_role[role].append({"op": "await"})
+        if role != HARNESS:
+            assert isinstance(steps, list), f"phase {i} of {role} must be a list of steps"
+            per_role[role].extend(steps)
+    return per_role
 
 
 def run_scenario(url: str, phases: list[Phase], clients: dict[str, str], workdir: Path) -> Outcome:
-    """Run `phases`; `clients` maps each role to "roslibpy" or "roslibjs"."""
-    roles = list(dict.fromkeys(role for role, _ in phases))
+    """Run `phases`; `clients` maps each role to "roslibpy" or "roslibjs".
+
+    A phase of role HARNESS is a callable run here, between the drivers' phases
+    (an in-process call, killing a role, the Python client...). Without one,
+    roles of one client library share one process; otherwise each role has its own.
+    """
+    roles = list(dict.fromkeys(role for role, _ in phases if role != HARNESS))
     kinds = {clients[r] for r in roles}
-    drivers: list[Driver] = []
     deadline = time.monotonic() + DRIVER_TIMEOUT
     outcome = Outcome()
+    running = Running(outcome)
     try:
-        if len(kinds) == 1:
-            steps = [s for _, phase_steps in phases for s in phase_steps]
+        if len(kinds) == 1 and all(role != HARNESS for role, _ in phases):
+            # one process runs the phases in order: no handovers needed
+            steps = [s for _, phase in phases if isinstance(phase, list) for s in phase]
             d = Driver(kinds.pop(), url, steps, workdir, "+".join(roles))
-            drivers.append(d)
+            running.drivers[d.label] = d
             outcome.add(d.wait_result(deadline))
             return outcome
 
-        per_role: dict[str, list[dict]] = {r: [] for r in roles}
-        handovers: list[tuple[str, str, str]] = []  # (from role, to role, event)
-        for i, (role, phase_steps) in enumerate(phases):
-            if i > 0 and phases[i - 1][0] != role:
-                event = f"phase{i}"
-                prev = phases[i - 1][0]
-                per_role[prev].append({"op": "signal", "name": event})
-                per_role[role].append({"op": "await"})
-                handovers.append((prev, role, event))
-            per_role[role].extend(phase_steps)
-        # A role whose first phase is not the first one starts blocked on `await`
-        # (added above), so both processes can start (and pay their start-up) at once.
-        by_role = {
-            role: Driver(clients[role], url, steps, workdir, role)
-            for role, steps in per_role.items()
-        }
-        drivers.extend(by_role.values())
-        for prev, nxt, event in handovers:
-            by_role[prev].wait_event(event, deadline)
-            by_role[nxt].go()
-        for d in drivers:
-            outcome.add(d.wait_result(deadline))
+        for role, steps in _role_steps(phases, roles).items():
+            running.drivers[role] = Driver(clients[role], url, steps, workdir, role)
+        switches = _switches(phases)
+        for i, (role, phase) in enumerate(phases):
+            prev = switches.get(i)
+            if prev is not None and prev != HARNESS:
+                running.drivers[prev].wait_event(f"phase{i}", deadline)
+            if prev is not None and role != HARNESS:
+                running.drivers[role].go()
+            if callable(phase):
+                phase(running)
+        for role, d in running.drivers.items():
+            if role not in running.killed:
+                outcome.add(d.wait_result(deadline))
         return outcome
-    except DriverError as exc:
-        for d in drivers:
+    except AssertionError as exc:  # DriverError, or a harness phase's own check
+        for d in running.drivers.values():
             if d.proc.poll() is None:
                 d.proc.kill()
                 with contextlib.suppress(subprocess.TimeoutExpired):
                     d.proc.wait(5)
-        details = "\n".join(d.describe() for d in drivers)
+        details = "\n".join(d.describe() for d in running.drivers.values())
         raise DriverError(f"{exc}\n{details}") from None
     finally:
-        for d in drivers:
+        for d in running.drivers.values():
             d.kill()
 
 
@@ -439,3 +539,123 @@ def tf_wait(name: str, frame: str, count: int) -> dict:
 
 def tf_dispose(name: str) -> dict:
     return {"op": "tf_dispose", "as": name}
+
+
+def advertise_service(role: str, service: str, srv_type: str, reply: str, **options: Any) -> dict:
+    """Provide `service`, answering by the rule `reply` (see roslibpy_driver.py)."""
+    return {
+        "op": "advertise_service",
+        "conn": role,
+        "service": service,
+        "type": srv_type,
+        "reply": reply,
+        **options,
+    }
+
+
+def call(
+    role: str, name: str, service: str, srv_type: str, args: Any = None, *, wait: bool = True
+) -> dict:
+    """Call `service`; record what the callback or failure callback got as `name`."""
+    step = {"op": "call", "conn": role, "as": name, "service": service, "type": srv_type}
+    if args is not None:
+        step["args"] = args
+    if not wait:
+        step["wait"] = False
+    return step
+
+
+def wait_calls(*names: str) -> dict:
+    """Wait until the calls or goals recorded as `names` ended."""
+    return {"op": "wait_calls", "as": list(names)}
+
+
+def wait_served(role: str, service: str, count: int) -> dict:
+    """Wait until the provider `role` got `count` requests (or goals) for `service`."""
+    return {"op": "wait_served", "conn": role, "service": service, "count": count}
+
+
+def advertise_action(role: str, action: str, action_type: str) -> dict:
+    """Serve `action` by the Fibonacci rules (see roslibpy_driver.py)."""
+    return {"op": "advertise_action", "conn": role, "action": action, "type": action_type}
+
+
+def send_goal(
+    role: str, name: str, action: str, action_type: str, args: Any, *, wait: bool = True
+) -> dict:
+    """Send a goal; its feedback and result are recorded as `name`."""
+    step = {
+        "op": "send_goal",
+        "conn": role,
+        "as": name,
+        "action": action,
+        "type": action_type,
+        "args": args,
+    }
+    if not wait:
+        step["wait"] = False
+    return step
+
+
+def wait_feedback(name: str, count: int) -> dict:
+    """Wait until the goal recorded as `name` got `count` feedback messages."""
+    return {"op": "wait_feedback", "as": name, "count": count}
+
+
+def cancel_goal(role: str, name: str) -> dict:
+    """Cancel the goal recorded as `name` with the client's own cancel method."""
+    return {"op": "cancel_goal", "conn": role, "as": name}
+
+
+def inproc(server: ServerProcess, *commands: dict, wait: bool = True) -> HarnessStep:
+    """A harness phase: serve_fixture.py's in-process caller runs `commands` at once.
+
+    Each command is {"op": "call"|"goal", "as": NAME, ...} (see serve_fixture.py).
+    With `wait` the phase ends once all replied (as `inproc_wait`); without, at
+    once, and a later `inproc_wait` phase collects the replies.
+    """
+
+    def run(running: Running) -> None:
+        for command in commands:
+            server.command(**command)
+        if wait:
+            inproc_wait(server, *(command["as"] for command in commands))(running)
+
+    return run
+
+
+def inproc_wait(server: ServerProcess, *names: str) -> HarnessStep:
+    """A harness phase: wait for the in-process replies `names` (bounded).
+
+    What each got goes into the outcome as for a driver's calls (`calls`,
+    `feedback`), and the order they ended in under `order["inproc"]`.
+    """
+
+    def run(running: Running) -> None:
+        for name, reply in server.replies(list(names)).items():
+            running.outcome.calls[name] = {k: v for k, v in reply.items() if k in ("ok", "error")}
+            if "feedback" in reply:
+                running.outcome.feedback[name] = reply["feedback"]
+        running.outcome.order["inproc"] = [n for n in server.reply_order if n in names]
+
+    return run
+
+
+def inproc_call(name: str, service: str, args: Any = None) -> dict:
+    """An in-process call (`rwt_transports.embed.call_service`) for `inproc`."""
+    return {"op": "call", "as": name, "service": service, "args": args}
+
+
+def inproc_goal(name: str, action: str, args: Any) -> dict:
+    """An in-process goal (`rwt_transports.embed.send_action_goal`) for `inproc`."""
+    return {"op": "goal", "as": name, "action": action, "args": args}
+
+
+def kill(*roles: str) -> HarnessStep:
+    """A harness phase: SIGKILL the processes of `roles`."""
+
+    def run(running: Running) -> None:
+        for role in roles:
+            running.kill(role)
+
+    return run

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from .client_harness import ServerProcess, node_missing_reason
+from .client_harness import SERVE_FIXTURE, TEST_INTERFACES, ServerProcess, node_missing_reason
 
 _NODE_MISSING = node_missing_reason()
 
@@ -31,6 +32,29 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Itera
 def rwt_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
     """`rwt serve --port 0` in a subprocess; yields it (`.url`, `.port`)."""
     server = ServerProcess(tmp_path)
+    request.node._rwt_server = server
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def fixture_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+    """serve_fixture.py: in-process services, a Fibonacci action and an in-process caller."""
+    cmd = [sys.executable, str(SERVE_FIXTURE), "--interfaces", str(TEST_INTERFACES)]
+    server = ServerProcess(tmp_path, cmd=cmd, control=True)
+    request.node._rwt_server = server
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def interfaces_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+    """`rwt serve --interfaces tests/integration/data` (the custom rwt_test_interfaces)."""
+    server = ServerProcess(tmp_path, ("--interfaces", str(TEST_INTERFACES)))
     request.node._rwt_server = server
     try:
         yield server

@@ -51,6 +51,56 @@ took in non-groovy mode) and subscribes to `frames`; every transform a frame's
 callback gets is recorded under "tf": {AS: {frame: [{translation, rotation}]}}.
 `tf_wait` waits for `count` transforms of a frame; `tf_dispose` disposes the client.
 
+Services and actions (the result also carries "served", "feedback", "goal_ids"
+and "order", see below):
+
+    {"op": "advertise_service", "conn": "p", "service": "/add",
+     "type": "example_interfaces/AddTwoInts", "reply": "add"},
+    {"op": "call", "conn": "c", "as": "sum", "service": "/add",
+     "type": "example_interfaces/AddTwoInts", "args": {"a": 1, "b": 2}, "wait": false},
+    {"op": "wait_calls", "as": ["sum"]},
+    {"op": "wait_served", "conn": "p", "service": "/add", "count": 1},
+    {"op": "advertise_action", "conn": "p", "action": "/fib",
+     "type": "example_interfaces/action/Fibonacci"},
+    {"op": "send_goal", "conn": "c", "as": "g", "action": "/fib",
+     "type": "example_interfaces/action/Fibonacci", "args": {"order": 5}, "wait": false},
+    {"op": "wait_feedback", "as": "g", "count": 1},
+    {"op": "cancel_goal", "conn": "c", "as": "g"}
+
+`advertise_service` answers every request by the rule `reply` (serve_fixture.py
+follows the same rules in process):
+    set_bool  {success: data, message: "on" or "off"}      (std_srvs/SetBool)
+    trigger   {success: true, message: "triggered"}        (std_srvs/Trigger)
+    empty     {}                                           (std_srvs/Empty)
+    add       {sum: a + b}                                 (AddTwoInts)
+    scale     {points: each point times factor, note: "<n> points"}
+              (rwt_test_interfaces/Scale, tests/integration/data)
+    refuse    fails the call: roslib throws Error("refused") from advertiseAsync;
+              roslibpy returns False (it cannot give a reason)
+    hold      never answers (the test kills the provider); roslibpy blocks its
+              reactor thread in the callback, since it answers when the callback returns
+    gather    roslib only: holds requests until "count" wait, then answers them by
+              the `add` rule, newest first (roslibpy answers inside its callback, so
+              it cannot hold a request)
+Each request the provider got is recorded under "served": {conn: {service: [args]}}.
+
+`call` calls the client's Service with a callback and a failure callback and
+records what they got under "calls": {AS: {"ok": values} or {"error": ...}};
+the names of finished calls are appended to "order": {conn: [AS, ...]} as the
+callbacks run. "wait": false returns at once (concurrent calls); `wait_calls`
+waits for several. `wait_served` waits until a provider got `count` requests.
+
+`advertise_action` (roslib only: roslibpy 2.x has no action server) serves
+goals by the Fibonacci rules, also followed by serve_fixture.py: an order below 0
+is aborted (setFailed); an order from 100 on sends one feedback {sequence: [0, 1]}
+and waits for a cancel, then ends canceled with that sequence (setCanceled);
+otherwise one feedback per new term, then succeeded with the sequence
+(order 5: [0, 1, 1, 2, 3, 5]). Goals are recorded under "served" too.
+`send_goal` records the result callback's value or the failure callback's
+under "calls" (roslibpy: {"status": n, "values": result} from either callback),
+each feedback under "feedback": {AS: [values]} and the id the client returned
+under "goal_ids": {AS: id}. `cancel_goal` cancels it with the client's own method.
+
 Exit codes: 0 done, 2 a step failed or timed out, 3 the whole scenario timed out,
 64 bad usage. Every wait is bounded.
 """
@@ -64,6 +114,7 @@ import sys
 import threading
 import time
 from collections import UserDict
+from enum import Enum
 from urllib.parse import urlsplit
 
 import roslibpy
@@ -97,7 +148,29 @@ def _plain(value: object) -> object:
         return {key: _plain(item) for key, item in value.items()}
     if isinstance(value, list | tuple):
         return [_plain(item) for item in value]
+    if isinstance(value, Enum):  # roslibpy's GoalStatus in action results
+        return value.value
     return value
+
+
+def _set_bool(request: dict) -> dict:
+    return {"success": request["data"], "message": "on" if request["data"] else "off"}
+
+
+def _scale(request: dict) -> dict:
+    factor = request["factor"]
+    points = [{"x": p["x"] * factor, "y": p["y"] * factor} for p in request["points"]]
+    return {"points": points, "note": f"{len(points)} points"}
+
+
+#: The `reply` rules of `advertise_service` that compute a response.
+REPLIES = {
+    "set_bool": _set_bool,
+    "trigger": lambda request: {"success": True, "message": "triggered"},
+    "empty": lambda request: {},
+    "add": lambda request: {"sum": request["a"] + request["b"]},
+    "scale": _scale,
+}
 
 
 class Conn:
@@ -111,6 +184,8 @@ class Conn:
         self.closed = False
         self.sync_counter = 0
         self.sync_seen: set[str] = set()
+        self.served: dict[str, list] = {}
+        self.services: dict[str, roslibpy.Service] = {}
 
 
 class Driver:
@@ -129,6 +204,10 @@ class Driver:
         self.calls: dict[str, dict] = {}
         self.tf: dict[str, dict[str, list]] = {}
         self.tf_clients: dict[str, roslibpy.tf.TFClient] = {}
+        self.order: dict[str, list[str]] = {}
+        self.feedback: dict[str, list] = {}
+        self.goals: dict[str, tuple[roslibpy.ActionClient, str]] = {}
+        self.overall = scenario.get("timeout_ms", 30000) / 1000.0
 
     # -- bookkeeping, called from roslibpy's reactor thread -------------------
     def count_status(self, record: logging.LogRecord) -> None:
@@ -309,6 +388,99 @@ class Driver:
     def do_tf_dispose(self, step: dict) -> None:
         self.tf_clients[step["as"]].dispose()
 
+    # -- services and actions --------------------------------------------------------
+    def _finish(self, conn: Conn, name: str, outcome: dict) -> None:
+        with self.cond:
+            self.calls[name] = outcome
+            self.order.setdefault(conn.name, []).append(name)
+            self.cond.notify_all()
+
+    def do_advertise_service(self, step: dict) -> None:
+        conn = self.conn(step)
+        name, reply = step["service"], step["reply"]
+        if reply == "gather":
+            _die(64, "roslibpy answers when Service.advertise's callback returns: no 'gather'")
+        if reply not in REPLIES and reply not in ("refuse", "hold"):
+            _die(64, f"unknown reply rule {reply!r}")
+        conn.served.setdefault(name, [])
+
+        def handler(request: dict, response: roslibpy.ServiceResponse) -> bool:
+            self._record(conn.served, name, _plain(request))
+            if reply == "hold":
+                # roslibpy sends the response when this returns: block its reactor
+                # thread until the test kills this process (bounded by the scenario).
+                threading.Event().wait(self.overall)
+                return False
+            if reply == "refuse":
+                return False
+            response.update(REPLIES[reply](request))
+            return True
+
+        service = roslibpy.Service(conn.ros, name, step["type"])
+        service.advertise(handler)
+        conn.services[name] = service
+
+    def do_call(self, step: dict) -> None:
+        conn = self.conn(step)
+        name = step["as"]
+        service = roslibpy.Service(conn.ros, step["service"], step["type"])
+        service.call(
+            roslibpy.ServiceRequest(step.get("args", {})),
+            callback=lambda response: self._finish(conn, name, {"ok": _plain(response)}),
+            errback=lambda error: self._finish(conn, name, {"error": _plain(error)}),
+        )
+        if step.get("wait", True):
+            self._wait_calls([name])
+
+    def _wait_calls(self, names: list[str]) -> None:
+        self._until(
+            lambda: all(name in self.calls for name in names),
+            lambda: f"{[n for n in names if n not in self.calls]} to end",
+        )
+
+    def do_wait_calls(self, step: dict) -> None:
+        self._wait_calls(step["as"])
+
+    def do_wait_served(self, step: dict) -> None:
+        conn = self.conn(step)
+        name, count = step["service"], step["count"]
+        self._until(
+            lambda: len(conn.served.get(name, [])) >= count,
+            lambda: f"{count} requests for {name} at {conn.name}",
+        )
+
+    def do_advertise_action(self, step: dict) -> None:
+        # Its protocol answers send_action_goal with "Action server capabilities
+        # not yet implemented".
+        _die(64, "roslibpy 2.x has no action server")
+
+    def do_send_goal(self, step: dict) -> None:
+        conn = self.conn(step)
+        name = step["as"]
+        client = roslibpy.ActionClient(conn.ros, step["action"], step["type"])
+        with self.cond:
+            self.feedback[name] = []
+        goal_id = client.send_goal(
+            roslibpy.Goal(step["args"]),
+            lambda result: self._finish(conn, name, {"ok": _plain(result)}),
+            lambda feedback: self._record(self.feedback, name, _plain(feedback)),
+            lambda error: self._finish(conn, name, {"error": _plain(error)}),
+        )
+        self.goals[name] = (client, goal_id)
+        if step.get("wait", True):
+            self._wait_calls([name])
+
+    def do_wait_feedback(self, step: dict) -> None:
+        name, count = step["as"], step["count"]
+        self._until(
+            lambda: len(self.feedback.get(name, [])) >= count,
+            lambda: f"{count} feedback messages for {name}",
+        )
+
+    def do_cancel_goal(self, step: dict) -> None:
+        client, goal_id = self.goals[step["as"]]
+        client.cancel_goal(goal_id)
+
     def do_quiet(self, step: dict) -> None:
         # A bounded window for negative assertions ("nothing more arrives").
         time.sleep(step["ms"] / 1000.0)
@@ -342,6 +514,10 @@ class Driver:
                 "statuses": [],
                 "calls": self.calls,
                 "tf": self.tf,
+                "served": {c.name: c.served for c in self.conns.values()},
+                "feedback": self.feedback,
+                "goal_ids": {name: goal_id for name, (_, goal_id) in self.goals.items()},
+                "order": self.order,
             }
 
     def shutdown(self) -> None:

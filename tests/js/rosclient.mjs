@@ -13,7 +13,12 @@
 //
 // Stdout: {"event": NAME} lines for `signal` steps, then one final line
 // {"result": {"received": {conn: {topic: [msg, ...]}}, "wire": {...},
-//             "status_count": n, "statuses": [frame, ...], "calls": {AS: {ok|error}}}}.
+//             "status_count": n, "statuses": [frame, ...], "calls": {AS: {ok|error}},
+//             "served": {conn: {name: [args, ...]}}, "feedback": {AS: [values, ...]},
+//             "goal_ids": {AS: id}, "order": {conn: [AS, ...]}}}.
+// Services use roslib's Service (advertise / advertiseAsync / callService),
+// actions its ROS 2 Action (advertise + sendFeedback / setSucceeded /
+// setCanceled / setFailed; sendGoal / cancelGoal).
 // Exit codes: 0 done, 2 a step failed or timed out, 3 the whole scenario timed
 // out, 64 bad usage. Every wait is bounded.
 import { readFileSync } from "node:fs";
@@ -92,6 +97,42 @@ const conns = new Map();
 const statuses = [];
 const calls = {};
 const tfs = {};
+const order = {};
+const feedback = {};
+const goals = new Map();
+
+// The `reply` rules of `advertise_service` that compute a response (the same as
+// in roslibpy_driver.py and serve_fixture.py).
+const REPLIES = {
+  set_bool: (r) => ({ success: r.data, message: r.data ? "on" : "off" }),
+  trigger: () => ({ success: true, message: "triggered" }),
+  empty: () => ({}),
+  add: (r) => ({ sum: r.a + r.b }),
+  scale: (r) => ({
+    points: r.points.map((p) => ({ x: p.x * r.factor, y: p.y * r.factor })),
+    note: `${r.points.length} points`,
+  }),
+};
+// Fibonacci goals from this order on wait for a cancel.
+const HOLD_ORDER = 100;
+
+function finish(c, name, outcome) {
+  calls[name] = outcome;
+  (order[c.name] ??= []).push(name);
+  notify();
+}
+
+function untilCalls(names) {
+  return until(
+    () => names.every((n) => n in calls),
+    () => `${JSON.stringify(names.filter((n) => !(n in calls)))} to end`,
+  );
+}
+
+function served(c, name, args) {
+  (c.served[name] ??= []).push(args);
+  notify();
+}
 
 function conn(step) {
   const c = conns.get(step.conn);
@@ -148,6 +189,9 @@ const steps = {
       syncCounter: 0,
       syncSeen: new Set(),
       closed: false,
+      served: {},
+      services: new Map(),
+      actions: new Map(),
     };
     ros.on("close", () => {
       c.closed = true;
@@ -321,6 +365,141 @@ const steps = {
     tfs[step.as].client.dispose();
   },
 
+  async advertise_service(step) {
+    const c = conn(step);
+    const name = step.service;
+    const service = new ROSLIB.Service({ ros: c.ros, name, serviceType: step.type });
+    c.served[name] ??= [];
+    const rule = REPLIES[step.reply];
+    if (rule) {
+      // The classic form: fill in the response object, return true.
+      await service.advertise((request, response) => {
+        served(c, name, request);
+        Object.assign(response, rule(request));
+        return true;
+      });
+    } else if (step.reply === "refuse") {
+      await service.advertiseAsync(async (request) => {
+        served(c, name, request);
+        throw new Error("refused");
+      });
+    } else if (step.reply === "hold") {
+      await service.advertiseAsync((request) => {
+        served(c, name, request);
+        return new Promise(() => {}); // never answered: the test kills this process
+      });
+    } else if (step.reply === "gather") {
+      const held = [];
+      await service.advertiseAsync((request) => {
+        served(c, name, request);
+        return new Promise((resolve) => {
+          held.push(() => resolve(REPLIES.add(request)));
+          // All there: resolve newest first; roslib sends each response in the
+          // order its promise resolved. Wait a microtask, so that roslib awaits
+          // this last promise before it is resolved, like the others.
+          if (held.length === step.count) {
+            queueMicrotask(() => {
+              for (const answer of held.splice(0).reverse()) answer();
+            });
+          }
+        });
+      });
+    } else throw new Error(`unknown reply rule ${JSON.stringify(step.reply)}`);
+    c.services.set(name, service);
+  },
+
+  async call(step) {
+    const c = conn(step);
+    const service = new ROSLIB.Service({ ros: c.ros, name: step.service, serviceType: step.type });
+    const name = step.as;
+    service.callService(
+      step.args ?? {},
+      (values) => finish(c, name, { ok: values ?? null }),
+      (error) => finish(c, name, { error: String(error?.message ?? error) }),
+    );
+    if (step.wait !== false) await untilCalls([name]);
+  },
+
+  async wait_calls(step) {
+    await untilCalls(step.as);
+  },
+
+  async wait_served(step) {
+    const c = conn(step);
+    const got = () => (c.served[step.service] ?? []).length;
+    await until(
+      () => got() >= step.count,
+      () => `${step.count} requests for ${step.service} at ${c.name} (got ${got()})`,
+    );
+  },
+
+  async advertise_action(step) {
+    const c = conn(step);
+    const name = step.action;
+    const action = new ROSLIB.Action({ ros: c.ros, name, actionType: step.type });
+    c.served[name] ??= [];
+    const held = new Map(); // goal id -> sequence so far, for goals waiting for a cancel
+    action.advertise(
+      (goal, id) => {
+        served(c, name, goal);
+        if (goal.order < 0) {
+          action.setFailed(id);
+          return;
+        }
+        const sequence = [0, 1];
+        if (goal.order >= HOLD_ORDER) {
+          held.set(id, sequence);
+          action.sendFeedback(id, { sequence });
+          return;
+        }
+        for (let i = 1; i < goal.order; i++) {
+          sequence.push(sequence.at(-1) + sequence.at(-2));
+          action.sendFeedback(id, { sequence: [...sequence] });
+        }
+        action.setSucceeded(id, { sequence });
+      },
+      (id) => {
+        const sequence = held.get(id);
+        if (sequence === undefined) return;
+        held.delete(id);
+        action.setCanceled(id, { sequence });
+      },
+    );
+    c.actions.set(name, action);
+  },
+
+  async send_goal(step) {
+    const c = conn(step);
+    const action = new ROSLIB.Action({ ros: c.ros, name: step.action, actionType: step.type });
+    const name = step.as;
+    feedback[name] = [];
+    const id = action.sendGoal(
+      step.args,
+      (result) => finish(c, name, { ok: result ?? null }),
+      (values) => {
+        feedback[name].push(values);
+        notify();
+      },
+      (error) => finish(c, name, { error: String(error) }),
+    );
+    goals.set(name, { action, id });
+    if (step.wait !== false) await untilCalls([name]);
+  },
+
+  async wait_feedback(step) {
+    const got = () => (feedback[step.as] ?? []).length;
+    await until(
+      () => got() >= step.count,
+      () => `${step.count} feedback messages for ${step.as} (got ${got()})`,
+    );
+  },
+
+  async cancel_goal(step) {
+    const goal = goals.get(step.as);
+    if (!goal) throw new Error(`no goal sent as ${step.as}`);
+    goal.action.cancelGoal(goal.id);
+  },
+
   async quiet(step) {
     // A bounded window for negative assertions ("nothing more arrives").
     await new Promise((resolve) => setTimeout(resolve, step.ms));
@@ -353,12 +532,26 @@ async function main() {
   }
   const received = {};
   const wire = {};
+  const servedBy = {};
   for (const c of conns.values()) {
     received[c.name] = c.received;
     wire[c.name] = c.wire;
+    servedBy[c.name] = c.served;
   }
   const tf = Object.fromEntries(Object.entries(tfs).map(([name, t]) => [name, t.got]));
-  const result = { received, wire, status_count: statuses.length, statuses, calls, tf };
+  const goalIds = Object.fromEntries([...goals].map(([name, goal]) => [name, goal.id]));
+  const result = {
+    received,
+    wire,
+    status_count: statuses.length,
+    statuses,
+    calls,
+    served: servedBy,
+    feedback,
+    goal_ids: goalIds,
+    order,
+    tf,
+  };
   // Wait for the write to be flushed: a large result on a pipe is written in
   // pieces, and process.exit() would cut it.
   await new Promise((resolve) => process.stdout.write(JSON.stringify({ result }) + "\n", resolve));

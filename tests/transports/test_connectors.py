@@ -1,39 +1,19 @@
-"""Client connectors: the JSON stream splitter and the TCP connection (D22)."""
+"""Client connectors: the TCP connection splits a JSON stream cut anywhere (D22)."""
 
 from __future__ import annotations
 
-import itertools
 import json
 
 import anyio
 import pytest
 from anyio.abc import SocketStream
-from hypothesis import given
-from hypothesis import strategies as st
 
-from rwt_transports.connectors import ConnectionClosed, JsonSplitter, connect
+from rwt_transports.connectors import ConnectionClosed, connect
 
 OBJECTS = [
     {"op": "publish", "msg": {"data": 'a"}\\{[' + str(i)}, "l": [1, [2, {}]]} for i in range(12)
 ]
 TEXT = "".join(json.dumps(o) + ("\n" if i % 2 else "") for i, o in enumerate(OBJECTS))
-
-
-@given(st.lists(st.integers(min_value=1, max_value=len(TEXT)), max_size=30))
-def test_any_chunking_gives_the_same_objects(cuts: list[int]) -> None:
-    splitter = JsonSplitter(1_000_000)
-    points = sorted({0, len(TEXT), *cuts})
-    found: list[str] = []
-    for start, end in itertools.pairwise(points):
-        found += splitter.feed(TEXT[start:end])
-    assert [json.loads(text) for text in found] == OBJECTS
-
-
-def test_text_outside_objects_and_oversized_values_are_errors() -> None:
-    with pytest.raises(ConnectionClosed, match="not JSON"):
-        JsonSplitter(100).feed('{"op": "x"} garbage {')
-    with pytest.raises(ConnectionClosed, match="size limit"):
-        JsonSplitter(10).feed('{"op": "' + "x" * 20)
 
 
 @pytest.mark.anyio
