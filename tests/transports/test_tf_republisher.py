@@ -254,3 +254,17 @@ async def test_without_tf_the_server_offers_none_of_it() -> None:
     assert "/republish_tfs" not in server.graph.services.entries
     assert "/tf" not in server.graph.topics
     assert RosbridgeServer().tf is not None
+
+
+async def test_closing_the_republisher_ends_its_loops_and_withdraws_it(robot: Robot) -> None:
+    client = Peer(robot.graph, "web")
+    client.send(op="send_action_goal", action="/tf2_web_republisher", action_type="t", args=GOAL)
+    client.send(op="call_service", service="/republish_tfs", args=GOAL)
+    await robot.ticks.settle()
+    assert robot.tf.active == 2
+    robot.tf.close()
+    await robot.ticks.tick()
+    assert robot.tf.active == 0 and robot.ticks.sleeping == 0
+    assert "/republish_tfs" not in robot.graph.services.entries
+    assert sorted(robot.graph.topics) == ["/tf", "/tf_static"]  # the robot's publishers
+    assert not robot.graph.topics["/tf"].subscribers

@@ -80,6 +80,7 @@ class TFRepublisher:
         self.dialect = graph.registry.dialect
         self._topic_ids = itertools.count()
         self._closers: list[Callable[[], None]] = []
+        self.closed = False
 
     def start(self) -> None:
         """Subscribe to ``/tf`` and ``/tf_static``; offer the action and the service.
@@ -115,6 +116,7 @@ class TFRepublisher:
 
     def close(self) -> None:
         """Withdraw everything ``start`` registered (running loops end at their next tick)."""
+        self.closed = True
         closers, self._closers = self._closers, []
         for close in reversed(closers):
             close()
@@ -171,7 +173,7 @@ class TFRepublisher:
         """
         subscription = self.subscription(goal)
         with self.slot():
-            while not context.cancel_requested:
+            while not (context.cancel_requested or self.closed):
                 transforms = subscription.changed()
                 if transforms:
                     context.publish_feedback({"transforms": transforms})
@@ -224,7 +226,7 @@ class TFRepublisher:
         """
         clock = self.graph.clock
         last_subscribed = clock.monotonic()
-        while True:
+        while not self.closed:
             now = clock.monotonic()
             if self.has_subscribers(publisher.topic):
                 last_subscribed = now
