@@ -24,12 +24,15 @@ from .clock import Clock
 from .types import ActionType, TypeRegistry
 
 __all__ = [
+    "CANCEL_GOAL_TYPE",
     "ActionEntry",
     "Actions",
     "Goal",
     "GoalCanceled",
     "GoalContext",
     "LocalActionHandler",
+    "cancel_goals_handler",
+    "cancel_service_name",
 ]
 
 logger = logging.getLogger("rwt.graph")
@@ -300,3 +303,34 @@ def _terminal(status: int | None, result: bool) -> GoalStatus:
     if code not in (GoalStatus.SUCCEEDED, GoalStatus.CANCELED, GoalStatus.ABORTED):
         raise GraphError(f"goal status {status} is not terminal (expected 4, 5 or 6)")
     return code
+
+
+CANCEL_GOAL_TYPE = "action_msgs/srv/CancelGoal"
+_ERROR_NONE = 0
+_ERROR_UNKNOWN_GOAL_ID = 2
+
+
+def cancel_service_name(action: str) -> str:
+    """The ROS 2 cancel service of an action: ``<action>/_action/cancel_goal``."""
+    return f"{action.rstrip('/')}/_action/cancel_goal"
+
+
+def cancel_goals_handler(entry: ActionEntry) -> Callable[[Message], Message]:
+    """The handler of ``entry``'s ``action_msgs/srv/CancelGoal`` service.
+
+    A request with a zero goal id cancels every goal of the action (what roslib's
+    ``Action.cancelAllGoals`` sends). Goals here are named by rosbridge ids, not
+    UUIDs, so a non-zero id answers ``ERROR_UNKNOWN_GOAL_ID``; a stamp is not used.
+    """
+
+    def cancel(request: Message) -> Message:
+        info = request.get("goal_info")
+        goal_id = info.get("goal_id") if isinstance(info, dict) else None
+        uuid = goal_id.get("uuid") if isinstance(goal_id, dict) else b""
+        if isinstance(uuid, bytes | bytearray | list) and any(uuid):
+            return {"return_code": _ERROR_UNKNOWN_GOAL_ID, "goals_canceling": []}
+        for goal in list(entry.goals.values()):
+            goal.request_cancel()
+        return {"return_code": _ERROR_NONE, "goals_canceling": []}
+
+    return cancel

@@ -104,5 +104,5 @@ class LocalActionServer:
     def close(self) -> None:
         """Withdraw the action; goals in flight abort (D4)."""
         with contextlib.suppress(GraphError):
-            self._graph.actions.unadvertise(self._client, self.action)
+            self._graph.unadvertise_action(self._client, self.action)
         self._graph.nodes.forget(self._client)

@@ -164,6 +164,10 @@ class ServerProcess:
     def port(self) -> int:
         return int(self.url.rsplit(":", 1)[1].split("/", 1)[0])
 
+    def next_stdout_line(self, timeout_s: float = SERVER_START_TIMEOUT) -> str | None:
+        """The server's next stdout line (``video on http://...`` with ``--video``)."""
+        return self._stdout.get(time.monotonic() + timeout_s)
+
     def stderr_text(self) -> str:
         if not self._stderr.closed:
             self._stderr.flush()
