@@ -156,6 +156,10 @@ def serve(
     udp_idle_timeout: Annotated[
         float, typer.Option(help="Seconds of silence after which a UDP peer is forgotten.")
     ] = 300.0,
+    tf: Annotated[
+        bool,
+        typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
+    ] = True,
     video: Annotated[
         bool, typer.Option(help="Also serve image topics over HTTP (web_video_server).")
     ] = False,
@@ -229,6 +233,7 @@ def serve(
             ping_timeout_s=websocket_ping_timeout,
         ),
         udp=UdpOptions(datagram_bytes=udp_datagram_size, idle_timeout_s=udp_idle_timeout),
+        tf=tf,
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
