@@ -54,13 +54,26 @@ class GoalContext:
         self.goal_id = goal.goal_id
         self.cancel_requested = False
 
-    def publish_feedback(self, feedback: Message) -> None:
-        """Send feedback to the caller (validated against the feedback type).
+    def publish_feedback(self, feedback: Message, *, validated: bool = False) -> None:
+        """Send feedback to the caller, validated against the feedback type.
+
+        Args:
+            feedback: the feedback message as a dict.
+            validated: the caller vouches that ``feedback`` is already in the
+                internal form of the feedback type (every field present, in
+                declaration order, with the types the conversion gives; see
+                ``MessageType.from_json``), so it is forwarded unchecked. Only for
+                in-process producers that build their messages themselves (the
+                TF republisher); the caller keeps ``feedback`` unchanged afterwards.
+                Feedback from clients is always checked (spec 3.3.14).
 
         Raises:
-            FieldError: ``feedback`` does not fit the type.
+            FieldError: ``feedback`` does not fit the type (``validated`` false).
         """
-        self._goal.feedback(feedback)
+        if validated:
+            self._goal.forward_feedback(feedback)
+        else:
+            self._goal.feedback(feedback)
 
 
 LocalActionHandler = Callable[[Message, GoalContext], Awaitable[Message]]
@@ -107,8 +120,12 @@ class Goal:
             FieldError: ``values`` does not fit the feedback type.
         """
         msg = self.entry.actiontype.feedback.from_json(values, path=path, now=self._clock.wall())
+        self.forward_feedback(msg.msg)
+
+    def forward_feedback(self, msg: Message) -> None:
+        """Forward feedback already in the internal form, unchecked (in-process producers)."""
         if self._on_feedback is not None and not self.finished:
-            self._on_feedback(msg.msg)
+            self._on_feedback(msg)
 
     def finish(self, status: GoalStatus, result: bool, values: object) -> None:
         """Give the caller its one result and drop the goal from its action."""

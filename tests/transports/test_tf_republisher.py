@@ -217,6 +217,10 @@ async def test_actionlib_topics_serve_a_roslibjs_tfclient_goal(any_robot: Robot)
     ros1 = any_robot.graph.registry.dialect is Dialect.ROS1
     stamp = {"secs": 1, "nsecs": 0} if ros1 else {"sec": 1, "nanosec": 0}
     assert transforms[0]["header"]["stamp"] == stamp
+    # sent unchecked, yet complete: checking what the client got changes nothing
+    feedback_type = any_robot.graph.registry.message(f"{PKG}/TFSubscriptionActionFeedback")
+    checked = feedback_type.from_json(feedback["msg"], now=0.0)
+    assert checked.missing == () and checked.msg == feedback["msg"]
 
     client.send(op="subscribe", topic=f"{ns}/result", type=f"{PKG}/TFSubscriptionActionResult")
     client.send(op="publish", topic=f"{ns}/cancel", msg={"id": "goal_1"})

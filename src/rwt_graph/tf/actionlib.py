@@ -145,12 +145,24 @@ class ActionlibServer:
                 idle_since = now
                 transforms = subscription.changed()
                 if transforms:
-                    feedback = {"transforms": transforms}
-                    self.feedback.publish({"status": status, "feedback": feedback})
+                    self._publish_feedback(status, transforms)
             elif now - idle_since >= ORPHAN_TIMEOUT_S:
                 logger.debug("TF goal %s: nobody reads its feedback, ended", state.goal_id["id"])
                 return
             await self.republisher.sleep(subscription.request.period_s)
+
+    def _publish_feedback(self, status: Message, transforms: list[Message]) -> None:
+        """Publish ``TFSubscriptionActionFeedback``, checking only its small envelope.
+
+        The header (stamped now, D8) and status are converted as any publish is;
+        the transforms are already in the internal form (``TFSubscription.changed``)
+        and are not checked again, one by one, at every tick.
+        """
+        msgtype = self.feedback.msgtype
+        envelope = {"status": status, "feedback": {"transforms": []}}
+        msg = msgtype.from_python(envelope, now=self.republisher.graph.clock.wall())
+        msg["feedback"] = {"transforms": transforms}
+        self.feedback.publish(msg, validated=True)
 
     def _publish_status(self) -> None:
         self.status.publish(

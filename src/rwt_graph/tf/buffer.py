@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rwt_graph.types import Dialect
+from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import GraphError
 
 from .transform import Matrix, from_message, identity, interpolate, inverse, quaternion
@@ -114,6 +116,32 @@ class StampedTransform:
             "translation": {"x": x, "y": y, "z": z},
             "rotation": {"x": qx, "y": qy, "z": qz, "w": qw},
         }
+
+    @functools.cached_property
+    def _messages(self) -> dict[Dialect, dict[str, object]]:
+        return {}
+
+    def message(self, dialect: Dialect) -> dict[str, object]:
+        """The ``geometry_msgs/TransformStamped`` dict, in the internal form of ``dialect``.
+
+        Every field is there in declaration order (``header.seq`` is 0 in ROS 1),
+        as the type's conversion would give it, so it may be sent unchecked. It is
+        built once per dialect and shared by every caller: treat it as read only.
+        """
+        built = self._messages.get(dialect)
+        if built is None:
+            stamp = time_value(self.stamp, dialect)
+            header: dict[str, object] = (
+                {"seq": 0, "stamp": stamp, "frame_id": self.target}
+                if dialect is Dialect.ROS1
+                else {"stamp": stamp, "frame_id": self.target}
+            )
+            built = self._messages[dialect] = {
+                "header": header,
+                "child_frame_id": self.source,
+                "transform": self.transform,
+            }
+        return built
 
 
 class _Link:

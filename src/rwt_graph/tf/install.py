@@ -176,7 +176,8 @@ class TFRepublisher:
             while not (context.cancel_requested or self.closed):
                 transforms = subscription.changed()
                 if transforms:
-                    context.publish_feedback({"transforms": transforms})
+                    # built here in the internal form: no need to check it again
+                    context.publish_feedback({"transforms": transforms}, validated=True)
                 await self.sleep(subscription.request.period_s)
         raise GoalCanceled
 
@@ -232,7 +233,7 @@ class TFRepublisher:
                 last_subscribed = now
                 transforms = subscription.changed()
                 if transforms:
-                    publisher.publish({"transforms": transforms})
+                    publisher.publish({"transforms": transforms}, validated=True)
             elif now - last_subscribed >= timeout_s:
                 logger.debug("%s: no subscriber for %.1f s, removed", publisher.topic, timeout_s)
                 return

@@ -22,7 +22,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from rwt_graph.types import Dialect
-from rwt_graph.types.convert import time_value
 
 from .buffer import StampedTransform, TFBuffer, TFError, normalize_frame
 
@@ -119,7 +118,10 @@ class TFSubscription:
     def changed(self) -> list[dict[str, object]]:
         """The ``geometry_msgs/TransformStamped`` dicts to send at this tick.
 
-        Each returned pair counts as sent: later ticks compare against it.
+        They are in the internal form of the dialect (``StampedTransform.message``),
+        so feedback made of them may be sent unchecked, and shared with every other
+        subscription that sends the same lookup: read only. Each returned pair
+        counts as sent: later ticks compare against it.
         """
         out: list[dict[str, object]] = []
         target = self.request.target_frame
@@ -135,16 +137,7 @@ class TFSubscription:
             if not self._moved(pair.sent, found):
                 continue
             pair.sent = found
-            out.append(
-                {
-                    "header": {
-                        "stamp": time_value(found.stamp, self.dialect),
-                        "frame_id": target,
-                    },
-                    "child_frame_id": pair.source,
-                    "transform": found.transform,
-                }
-            )
+            out.append(found.message(self.dialect))
         return out
 
     def _moved(self, sent: StampedTransform | None, now: StampedTransform) -> bool:

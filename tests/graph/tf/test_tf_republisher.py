@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import pytest
 from tests.tf_support import transform
 
 from rwt_graph.tf import TFBuffer, TFError, TFRequest, TFSubscription
-from rwt_graph.types import Dialect
+from rwt_graph.types import Dialect, TypeRegistry
 
 ANGLE = 0.1  # rad
 DISTANCE = 0.05  # m
@@ -88,16 +89,19 @@ def test_pairs_that_cannot_be_looked_up_wait_until_they_can(buffer: TFBuffer) ->
 
 
 @pytest.mark.parametrize(
-    ("dialect", "stamp"),
-    [(Dialect.ROS2, {"sec": 1, "nanosec": 0}), (Dialect.ROS1, {"secs": 1, "nsecs": 0})],
+    ("dialect", "header"),
+    [
+        (Dialect.ROS2, {"stamp": {"sec": 1, "nanosec": 0}, "frame_id": "base"}),
+        (Dialect.ROS1, {"seq": 0, "stamp": {"secs": 1, "nsecs": 0}, "frame_id": "base"}),
+    ],
 )
 def test_sent_transforms_are_stamped_transforms_of_the_dialect(
-    buffer: TFBuffer, dialect: Dialect, stamp: dict[str, int]
+    buffer: TFBuffer, dialect: Dialect, header: dict[str, object]
 ) -> None:
     subscription = TFSubscription(buffer, request(["/arm"], target="/base"), dialect)
     assert subscription.changed() == [
         {
-            "header": {"stamp": stamp, "frame_id": "base"},
+            "header": header,
             "child_frame_id": "arm",
             "transform": {
                 "translation": {"x": 0.0, "y": 0.0, "z": 0.0},
@@ -105,6 +109,36 @@ def test_sent_transforms_are_stamped_transforms_of_the_dialect(
             },
         }
     ]
+
+
+@pytest.mark.parametrize(
+    ("dialect", "feedback_type", "array_type"),
+    [
+        (
+            Dialect.ROS2,
+            "tf2_web_republisher_interfaces/action/TFSubscription",
+            "tf2_web_republisher_interfaces/msg/TFArray",
+        ),
+        (Dialect.ROS1, "tf2_web_republisher/TFSubscription", "tf2_web_republisher/TFArray"),
+    ],
+)
+def test_sent_transforms_are_already_what_checking_them_would_give(
+    dialect: Dialect, feedback_type: str, array_type: str
+) -> None:
+    """They go out unchecked (``validated=True``): checking them must change nothing."""
+    buffer = TFBuffer()
+    buffer.set_transform(
+        transform("base", "arm", (1.0, -2.0, 0.25), yaw=-2.5, at=7.123), static=False
+    )
+    buffer.set_transform(transform("arm", "hand", (0.0, 0.5, 0.0), yaw=0.3), static=True)
+    subscription = TFSubscription(buffer, request(["arm", "hand"]), dialect)
+    sent = {"transforms": subscription.changed()}
+    registry = TypeRegistry(dialect=dialect)
+    for msgtype in (registry.action(feedback_type).feedback, registry.message(array_type)):
+        checked = msgtype.from_json(sent, now=0.0)
+        assert checked.missing == ()
+        assert checked.msg == sent
+        assert msgspec.json.encode(checked.msg) == msgspec.json.encode(sent)  # same key order
 
 
 def test_requests_are_normalised_and_bounded() -> None:
