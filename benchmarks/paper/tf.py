@@ -194,7 +194,8 @@ class Capture:
 
     raw: list[int]
     republished: list[int]
-    tick_ms: list[float]
+    tick_ms: list[float] = field(default_factory=list)
+    tick_cpu_ms: list[float] = field(default_factory=list)
 
 
 async def capture(duration_s: float, clients: int = CLIENTS) -> Capture:
@@ -216,7 +217,7 @@ async def capture(duration_s: float, clients: int = CLIENTS) -> Capture:
     }
     web = [Session(graph, f"web{i}") for i in range(clients)]
     seconds = math.ceil(duration_s)
-    out = Capture([0] * seconds, [0] * seconds, [])
+    out = Capture([0] * seconds, [0] * seconds)
     dt = 1.0 / RATE_HZ
     async with anyio.create_task_group() as tg:
         graph.spawner = spawner_for(tg)
@@ -241,9 +242,10 @@ async def capture(duration_s: float, clients: int = CLIENTS) -> Capture:
             trace.step(clock.t, dt)
             clock.t = (step + 1) * dt
             publisher.publish(trace.message(clock.wall()))
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.thread_time()
             await ticks.tick()
             out.tick_ms.append((time.perf_counter() - start) * 1000)
+            out.tick_cpu_ms.append((time.thread_time() - start_cpu) * 1000)
         tg.cancel_scope.cancel()
     return out
 

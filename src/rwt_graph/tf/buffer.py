@@ -17,19 +17,15 @@ samples each; peers cannot grow it beyond that.
 
 from __future__ import annotations
 
-import bisect
-import functools
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 
-from rwt_graph.types import Dialect
-from rwt_graph.types.convert import time_value
-from rwt_protocol.errors import GraphError
-
-from .transform import Matrix, from_message, identity, interpolate, inverse, quaternion
+from .errors import DisconnectedFramesError, ExtrapolationError, TFError, UnknownFrameError
+from .links import Link, Route
+from .stamped import StampedTransform
+from .transform import from_message, identity
 
 __all__ = [
     "DisconnectedFramesError",
@@ -44,26 +40,12 @@ __all__ = [
 
 logger = logging.getLogger("rwt.tf")
 
-#: Stamps closer than this are the same instant (seconds).
-_SAME_TIME_S = 1e-9
 #: Lookups remembered until the tree changes.
 _MEMO_LIMIT = 10_000
-
-
-class TFError(GraphError):
-    """A transform could not be stored or looked up; the message says why."""
-
-
-class UnknownFrameError(TFError):
-    """A frame no transform names (neither as child nor as parent)."""
-
-
-class DisconnectedFramesError(TFError):
-    """Both frames exist but lie in different trees."""
-
-
-class ExtrapolationError(TFError):
-    """The lookup time is outside the history a link still holds."""
+#: ``lookup_each`` lists remembered until the tree changes.
+_EACH_LIMIT = 1_000
+#: Links held by remembered routes between frames, at most.
+_ROUTE_ITEMS_LIMIT = 100_000
 
 
 def normalize_frame(frame_id: str) -> str:
@@ -77,119 +59,6 @@ def stamp_seconds(stamp: Mapping[str, object]) -> float:
     nsec = stamp.get("nanosec", stamp.get("nsecs", 0))
     assert isinstance(sec, int) and isinstance(nsec, int)
     return sec + nsec * 1e-9
-
-
-@dataclass(frozen=True)
-class StampedTransform:
-    """The result of a lookup (shared by every caller until the tree changes: read only).
-
-    Attributes:
-        target: the frame the result is expressed in (``header.frame_id``).
-        source: the frame whose pose it is (``child_frame_id``).
-        stamp: seconds of the time it holds at; 0.0 when only static links are used.
-        matrix: the 4x4 transform mapping ``source`` coordinates to ``target``'s.
-    """
-
-    target: str
-    source: str
-    stamp: float
-    matrix: Matrix
-
-    @functools.cached_property
-    def translation(self) -> tuple[float, float, float]:
-        """``(x, y, z)`` in metres, as plain floats."""
-        x, y, z = (float(v) for v in self.matrix[:3, 3])
-        return x, y, z
-
-    @functools.cached_property
-    def rotation(self) -> tuple[float, float, float, float]:
-        """The unit quaternion ``(x, y, z, w)``, ``w >= 0``, as plain floats."""
-        x, y, z, w = (float(v) for v in quaternion(self.matrix))
-        return x, y, z, w
-
-    @functools.cached_property
-    def transform(self) -> dict[str, object]:
-        """The ``geometry_msgs/Transform`` dict (internal form); treat it as read only."""
-        x, y, z = self.translation
-        qx, qy, qz, qw = self.rotation
-        return {
-            "translation": {"x": x, "y": y, "z": z},
-            "rotation": {"x": qx, "y": qy, "z": qz, "w": qw},
-        }
-
-    @functools.cached_property
-    def _messages(self) -> dict[Dialect, dict[str, object]]:
-        return {}
-
-    def message(self, dialect: Dialect) -> dict[str, object]:
-        """The ``geometry_msgs/TransformStamped`` dict, in the internal form of ``dialect``.
-
-        Every field is there in declaration order (``header.seq`` is 0 in ROS 1),
-        as the type's conversion would give it, so it may be sent unchecked. It is
-        built once per dialect and shared by every caller: treat it as read only.
-        """
-        built = self._messages.get(dialect)
-        if built is None:
-            stamp = time_value(self.stamp, dialect)
-            header: dict[str, object] = (
-                {"seq": 0, "stamp": stamp, "frame_id": self.target}
-                if dialect is Dialect.ROS1
-                else {"stamp": stamp, "frame_id": self.target}
-            )
-            built = self._messages[dialect] = {
-                "header": header,
-                "child_frame_id": self.source,
-                "transform": self.transform,
-            }
-        return built
-
-
-class _Link:
-    """The transform from one frame to its parent, over time."""
-
-    __slots__ = ("parent", "stamps", "static", "values")
-
-    def __init__(self, parent: str, *, static: bool) -> None:
-        self.parent = parent
-        self.static = static
-        self.stamps: list[float] = []
-        self.values: list[Matrix] = []
-
-    @property
-    def latest(self) -> float:
-        return self.stamps[-1]
-
-    def add(self, stamp: float, value: Matrix, cache_time_s: float, max_samples: int) -> None:
-        if self.static:
-            self.stamps, self.values = [stamp], [value]
-            return
-        index = bisect.bisect_left(self.stamps, stamp - _SAME_TIME_S)
-        if index < len(self.stamps) and abs(self.stamps[index] - stamp) <= _SAME_TIME_S:
-            self.values[index] = value
-        else:
-            self.stamps.insert(index, stamp)
-            self.values.insert(index, value)
-        oldest = bisect.bisect_left(self.stamps, self.stamps[-1] - cache_time_s)
-        drop = max(oldest, len(self.stamps) - max_samples)
-        if drop > 0:
-            del self.stamps[:drop], self.values[:drop]
-
-    def at(self, time: float | None, child: str) -> Matrix:
-        """The value at ``time`` (None: the latest), interpolated between samples."""
-        if self.static or time is None:
-            return self.values[-1]
-        stamps = self.stamps
-        if time > stamps[-1] + _SAME_TIME_S or time < stamps[0] - _SAME_TIME_S:
-            raise ExtrapolationError(
-                f"lookup at {time:.6f} s needs {child} -> {self.parent} outside its history"
-                f" [{stamps[0]:.6f}, {stamps[-1]:.6f}] s"
-            )
-        index = bisect.bisect_left(stamps, time - _SAME_TIME_S)
-        if abs(stamps[index] - time) <= _SAME_TIME_S:
-            return self.values[index]
-        before, after = stamps[index - 1], stamps[index]
-        ratio = (time - before) / (after - before)
-        return interpolate(self.values[index - 1], self.values[index], ratio)
 
 
 class TFBuffer:
@@ -211,10 +80,15 @@ class TFBuffer:
         self.max_samples = max_samples
         self.max_frames = max_frames
         self.version = 0
-        self._links: dict[str, _Link] = {}
+        self._links: dict[str, Link] = {}
         self._parents: dict[str, int] = {}  # frame -> number of links naming it as parent
-        self._memo: dict[tuple[str, str], StampedTransform] = {}
+        # per version: results (errors too) of single lookups and of lookup_each
+        self._memo: dict[tuple[str, str], StampedTransform | TFError] = {}
+        self._each: dict[tuple[str, tuple[str, ...]], list[StampedTransform | TFError]] = {}
         self._memo_version = -1
+        # (target, source) -> the links between them, until the tree's shape changes
+        self._routes: dict[tuple[str, str], Route] = {}
+        self._route_items = 0
 
     # ---- storing ---------------------------------------------------------------
 
@@ -265,7 +139,7 @@ class TFBuffer:
         link.add(stamp_seconds(stamp_value), matrix, self.cache_time_s, self.max_samples)
         self.version += 1
 
-    def _link(self, child: str, parent: str, *, static: bool) -> _Link:
+    def _link(self, child: str, parent: str, *, static: bool) -> Link:
         link = self._links.get(child)
         if link is not None and link.parent == parent and link.static == static:
             return link
@@ -273,9 +147,14 @@ class TFBuffer:
             raise TFError(f"more than {self.max_frames} frames: {child!r} refused")
         if link is not None:
             self._unref(link.parent)
+        self._forget_routes()
         self._parents[parent] = self._parents.get(parent, 0) + 1
-        link = self._links[child] = _Link(parent, static=static)
+        link = self._links[child] = Link(parent, static=static)
         return link
+
+    def _forget_routes(self) -> None:
+        self._routes.clear()
+        self._route_items = 0
 
     def _unref(self, parent: str) -> None:
         count = self._parents[parent] - 1
@@ -288,6 +167,7 @@ class TFBuffer:
         """Forget every frame."""
         self._links.clear()
         self._parents.clear()
+        self._forget_routes()
         self.version += 1
 
     # ---- queries ----------------------------------------------------------------
@@ -309,19 +189,58 @@ class TFBuffer:
     def lookup(self, target_frame: str, source_frame: str) -> StampedTransform:
         """The transform of ``source_frame`` in ``target_frame`` at their latest common time.
 
+        Results are remembered until the tree changes (``version``): asking again,
+        from any caller, costs a dict lookup and returns the same object.
+
         Raises:
             UnknownFrameError: a frame no transform names.
             DisconnectedFramesError: the frames are in different trees.
             ExtrapolationError: a link no longer holds the common time.
             TFError: the links form a loop.
         """
-        target, source = normalize_frame(target_frame), normalize_frame(source_frame)
-        if self._memo_version != self.version or len(self._memo) >= _MEMO_LIMIT:
+        found = self._found(normalize_frame(target_frame), normalize_frame(source_frame))
+        if isinstance(found, TFError):
+            raise type(found)(found.message)  # a fresh one: callers may keep or chain it
+        return found
+
+    def lookup_each(
+        self, target_frame: str, source_frames: tuple[str, ...]
+    ) -> list[StampedTransform | TFError]:
+        """``lookup(target_frame, source)`` for every source, errors returned in place.
+
+        The list is computed once per ``version`` for a given ``(target_frame,
+        source_frames)`` and then shared by every caller that asks the same (the
+        TF republisher's goals at one tick): treat it and its items as read only.
+        """
+        self._check_version()
+        key = (target_frame, source_frames)
+        found = self._each.get(key)
+        if found is None:
+            if len(self._each) >= _EACH_LIMIT:
+                self._each.clear()
+            target = normalize_frame(target_frame)
+            found = [self._found(target, normalize_frame(s)) for s in source_frames]
+            self._each[key] = found
+        return found
+
+    def _check_version(self) -> None:
+        if self._memo_version != self.version:
             self._memo.clear()
+            self._each.clear()
             self._memo_version = self.version
+
+    def _found(self, target: str, source: str) -> StampedTransform | TFError:
+        """The memoised result of one lookup of normalised frames, or its error."""
+        self._check_version()
         found = self._memo.get((target, source))
         if found is None:
-            found = self._memo[(target, source)] = self._lookup(target, source)
+            if len(self._memo) >= _MEMO_LIMIT:
+                self._memo.clear()
+            try:
+                found = self._lookup(target, source)
+            except TFError as exc:
+                found = exc
+            self._memo[(target, source)] = found
         return found
 
     def _lookup(self, target: str, source: str) -> StampedTransform:
@@ -329,11 +248,38 @@ class TFBuffer:
             if not (frame in self._links or frame in self._parents):
                 raise UnknownFrameError(f"frame {frame!r} does not exist")
         if target == source:
-            return StampedTransform(target, source, 0.0, identity())
-        source_up = self._path_up(source)
+            matrix = identity()
+            matrix.flags.writeable = False
+            return StampedTransform(target, source, 0.0, matrix)
+        route = self._route(target, source)
+        time = min(link.stamps[-1] for link in route.moving) if route.moving else None
+        matrix = route.matrix(time)
+        last = route.last
+        if last is not None and last.matrix is matrix:  # nothing moved: reuse what it derived
+            found = last.restamped(time or 0.0)
+        else:
+            found = StampedTransform(target, source, time or 0.0, matrix)
+        route.last = found
+        return found
+
+    def _route(self, target: str, source: str) -> Route:
+        """The links between two frames, remembered until the tree's shape changes."""
+        route = self._routes.get((target, source))
+        if route is None:
+            route = self._find_route(target, source)
+            size = len(route.up) + len(route.down)
+            self._route_items += size
+            if self._route_items > _ROUTE_ITEMS_LIMIT:  # a huge tree: memory stays bounded
+                self._forget_routes()
+                self._route_items = size
+            self._routes[(target, source)] = route
+        return route
+
+    def _find_route(self, target: str, source: str) -> Route:
+        source_up = self._walk_up(source)
         depth = {frame: index for index, frame in enumerate(source_up)}
         target_up: list[str] = []
-        for frame in self._path_up(target):
+        for frame in self._walk_up(target):
             if frame in depth:
                 break
             target_up.append(frame)
@@ -342,17 +288,11 @@ class TFBuffer:
                 f"frames {target!r} and {source!r} are not connected (roots"
                 f" {target_up[-1]!r} and {source_up[-1]!r})"
             )
-        source_links = source_up[: depth[frame]]
-        stamps = [
-            self._links[f].latest for f in (*source_links, *target_up) if not self._links[f].static
-        ]
-        time = min(stamps) if stamps else None
-        in_common = self._chain(source_links, time) if source_links else identity()
-        target_in_common = self._chain(target_up, time) if target_up else identity()
-        return StampedTransform(target, source, time or 0.0, inverse(target_in_common) @ in_common)
+        up = tuple((f, self._links[f]) for f in source_up[: depth[frame]])
+        down = tuple((f, self._links[f]) for f in target_up)
+        return Route(up, down)
 
-    def _path_up(self, frame: str) -> list[str]:
-        """``frame`` and its ancestors up to the root."""
+    def _walk_up(self, frame: str) -> list[str]:
         path = [frame]
         seen = {frame}
         link = self._links.get(frame)
@@ -363,10 +303,3 @@ class TFBuffer:
             seen.add(link.parent)
             link = self._links.get(link.parent)
         return path
-
-    def _chain(self, frames: list[str], time: float | None) -> Matrix:
-        """The pose of ``frames[0]`` in the parent of ``frames[-1]``."""
-        pose = self._links[frames[0]].at(time, frames[0])
-        for frame in frames[1:]:
-            pose = self._links[frame].at(time, frame) @ pose
-        return pose

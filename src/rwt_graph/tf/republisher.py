@@ -124,30 +124,28 @@ class TFSubscription:
         counts as sent: later ticks compare against it.
         """
         out: list[dict[str, object]] = []
-        target = self.request.target_frame
-        for pair in self._pairs:
-            try:
-                found = self.buffer.lookup(target, pair.source)
-            except TFError as exc:
-                if not pair.failing:  # once per failure streak, as the ROS node does
-                    logger.debug("cannot transform %s to %s: %s", pair.source, target, exc.message)
-                    pair.failing = True
+        request = self.request
+        trans_thres, angular_thres = request.trans_thres, request.angular_thres
+        every_tick = trans_thres == 0.0 or angular_thres == 0.0
+        # computed once per tree version for every subscription asking the same
+        results = self.buffer.lookup_each(request.target_frame, request.source_frames)
+        for pair, found in zip(self._pairs, results, strict=True):
+            if isinstance(found, TFError):
+                self._failed(pair, found)
                 continue
             pair.failing = False
-            if not self._moved(pair.sent, found):
-                continue
-            pair.sent = found
-            out.append(found.message(self.dialect))
+            sent = pair.sent
+            if (
+                every_tick
+                or sent is None
+                or (sent is not found and found.moved_from(sent, trans_thres, angular_thres))
+            ):
+                pair.sent = found
+                out.append(found.message(self.dialect))
         return out
 
-    def _moved(self, sent: StampedTransform | None, now: StampedTransform) -> bool:
-        request = self.request
-        if sent is None or request.trans_thres == 0.0 or request.angular_thres == 0.0:
-            return True
-        if sent is now:  # the same lookup result (the tree did not change)
-            return False
-        if math.dist(sent.translation, now.translation) > request.trans_thres:
-            return True
-        # the angle between two orientations: 2 acos |q1 . q2| (plain floats: fast)
-        dot = abs(sum(a * b for a, b in zip(sent.rotation, now.rotation, strict=True)))
-        return 2 * math.acos(min(1.0, dot)) > request.angular_thres
+    def _failed(self, pair: _Pair, error: TFError) -> None:
+        if not pair.failing:  # once per failure streak, as the ROS node does
+            target = self.request.target_frame
+            logger.debug("cannot transform %s to %s: %s", pair.source, target, error.message)
+            pair.failing = True
