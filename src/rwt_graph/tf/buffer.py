@@ -9,10 +9,20 @@ them has data for (tf2's ``TimePointZero`` lookup), interpolating each link's
 history there. Frame ids are normalised by stripping a leading ``/``, as
 tf2_web_republisher and its clients do (REF §7.3).
 
+Lookups are computed once per tree ``version`` (every stored transform makes a
+new one), however many callers ask: the TF republisher's goals at one tick share
+one computation per pair (``lookup_each``). The route between two frames is
+remembered until the tree's shape changes, with the products along it, which
+are reused while the links below them keep their values (see ``links.py``).
+Neither the wall clock nor the monotonic one is an input of a lookup (it is
+taken at the frames' latest common time, not at now), so time passing alone
+changes no answer.
+
 Simplifications, documented: a link whose parent changes forgets its history
 (tf2 keeps the parent per sample), and a link turning static or dynamic starts
 over. Memory is bounded by ``max_frames`` links of at most ``max_samples``
-samples each; peers cannot grow it beyond that.
+samples each, and by the limits on what is remembered below; peers cannot grow
+it beyond that.
 """
 
 from __future__ import annotations
@@ -44,8 +54,8 @@ logger = logging.getLogger("rwt.tf")
 _MEMO_LIMIT = 10_000
 #: ``lookup_each`` lists remembered until the tree changes.
 _EACH_LIMIT = 1_000
-#: Links held by remembered routes between frames, at most.
-_ROUTE_ITEMS_LIMIT = 100_000
+#: Links held by remembered routes between frames, at most (each with one 4x4 product).
+_ROUTE_ITEMS_LIMIT = 50_000
 
 
 def normalize_frame(frame_id: str) -> str:
@@ -239,7 +249,7 @@ class TFBuffer:
             try:
                 found = self._lookup(target, source)
             except TFError as exc:
-                found = exc
+                found = exc.with_traceback(None)  # kept: let go of the frames it saw
             self._memo[(target, source)] = found
         return found
 

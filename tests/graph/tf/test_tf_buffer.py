@@ -178,3 +178,95 @@ def test_a_zero_quaternion_counts_as_no_rotation() -> None:
     msg["transform"]["rotation"] = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 0.0}  # type: ignore[index]
     buffer.set_transform(msg, static=True)
     np.testing.assert_allclose(quaternion(buffer.lookup("a", "b").matrix), [0, 0, 0, 1])
+
+
+def counting_lookups(buffer: TFBuffer, monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str]]:
+    """Record every lookup the buffer actually computes (rather than remembers)."""
+    computed: list[tuple[str, str]] = []
+    compute = buffer._lookup
+
+    def counted(target: str, source: str) -> object:
+        computed.append((target, source))
+        return compute(target, source)
+
+    monkeypatch.setattr(buffer, "_lookup", counted)
+    return computed
+
+
+def test_a_lookup_is_computed_once_until_a_transform_arrives(
+    robot: TFBuffer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    computed = counting_lookups(robot, monkeypatch)
+    first = robot.lookup("map", "arm")
+    assert robot.lookup("/map", "arm") is first
+    assert robot.lookup_each("map", ("arm", "camera"))[0] is first
+    assert computed == [("map", "arm"), ("map", "camera")]
+    # the same values again, at a later stamp: a new tree version, computed again
+    robot.set_transform(transform("base_link", "arm", (1.0, 0.0, 0.0), at=2.0), static=False)
+    again = robot.lookup("map", "arm")
+    assert again is not first and computed[-1] == ("map", "arm")
+    assert again.stamp == 1.0  # still the latest common time: map -> odom holds 1 s
+    assert again.matrix.tobytes() == first.matrix.tobytes()
+
+
+def test_errors_are_computed_once_but_raised_afresh(
+    robot: TFBuffer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    computed = counting_lookups(robot, monkeypatch)
+    raised = []
+    for _ in range(3):
+        with pytest.raises(UnknownFrameError, match="'nowhere' does not exist") as info:
+            robot.lookup("map", "nowhere")
+        raised.append(info.value)
+    assert len(computed) == 1
+    assert raised[0] is not raised[1] is not raised[2]
+    [error] = robot.lookup_each("map", ("nowhere",))
+    assert isinstance(error, UnknownFrameError) and len(computed) == 1
+
+
+def test_results_are_read_only() -> None:
+    buffer = TFBuffer()
+    buffer.set_transform(transform("a", "b", (1.0, 0.0, 0.0)), static=False)
+    for found in (buffer.lookup("a", "b"), buffer.lookup("b", "a"), buffer.lookup("a", "a")):
+        with pytest.raises(ValueError, match="read-only"):
+            found.matrix[0, 3] = 5.0
+
+
+def chain_message(step: int) -> dict[str, object]:
+    """a -> b -> c -> d -> e, each turned and shifted; ``step`` moves one link in three."""
+    links = [("a", "b"), ("b", "c"), ("c", "d"), ("d", "e")]
+    moved = step % 3  # the leaf side, the middle, the top in turn
+    transforms = [
+        transform(parent, child, (0.1 * i + 0.3, -0.2, 0.05 * i), yaw=0.4 * i - 0.7, at=step + 1)
+        for i, (parent, child) in enumerate(links)
+    ]
+    position = transforms[3 - moved]["transform"]["translation"]  # type: ignore[index]
+    position["x"] += 0.01 * step  # type: ignore[index]
+    transforms[1 + (moved == 1)]["transform"]["rotation"] = (  # type: ignore[index]
+        transform("", "", yaw=0.013 * step)["transform"]["rotation"]  # type: ignore[index]
+    )
+    return tf_message(*transforms)
+
+
+def test_reused_products_give_bit_for_bit_what_a_fresh_buffer_gives() -> None:
+    buffer = TFBuffer()
+    pairs = [("a", "e"), ("e", "a"), ("b", "e"), ("c", "a"), ("e", "c")]
+    for step in range(7):
+        msg = chain_message(step)
+        buffer.add_message(msg, static=False)
+        fresh = TFBuffer()
+        fresh.add_message(msg, static=False)
+        for target, source in pairs:
+            kept, new = buffer.lookup(target, source), fresh.lookup(target, source)
+            assert kept.matrix.tobytes() == new.matrix.tobytes(), (step, target, source)
+            assert (kept.translation, kept.rotation) == (new.translation, new.rotation)
+            assert kept.stamp == new.stamp == step + 1
+
+
+def test_routes_follow_a_new_parent_and_a_frame_turning_static(robot: TFBuffer) -> None:
+    assert position(robot, "map", "arm") == [3.0, 1.0, 0.0]
+    robot.set_transform(transform("odom", "arm", (0.0, 5.0, 0.0)), static=False)
+    assert position(robot, "map", "arm") == [1.0, 5.0, 0.0]
+    robot.set_transform(transform("odom", "arm", (0.0, 6.0, 0.0), at=0.0), static=True)
+    assert position(robot, "map", "arm") == [1.0, 6.0, 0.0]
+    assert robot.lookup("arm", "odom").stamp == 0.0  # only a static link between them

@@ -88,6 +88,28 @@ def test_pairs_that_cannot_be_looked_up_wait_until_they_can(buffer: TFBuffer) ->
     assert sent(subscription) == {"gripper": 0.5}
 
 
+def test_goals_asking_the_same_share_each_lookup_and_message_at_a_tick(
+    buffer: TFBuffer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    computed: list[tuple[str, str]] = []
+    compute = buffer._lookup
+    monkeypatch.setattr(buffer, "_lookup", lambda *pair: computed.append(pair) or compute(*pair))
+    goals = [TFSubscription(buffer, request(["arm", "head"]), Dialect.ROS2) for _ in range(9)]
+    goals.append(TFSubscription(buffer, request(["head"], trans_thres=0.0), Dialect.ROS2))
+    ticks = [[goal.changed() for goal in goals] for _ in range(2)]
+    assert sorted(computed) == [("base", "arm"), ("base", "head")]  # once for ten goals, two ticks
+    first = ticks[0]
+    assert all(sent[0] is first[0][0] and sent[1] is first[0][1] for sent in first[:9])
+    assert first[9][0] is first[0][1]  # the same head transform, built once
+    assert ticks[1][:9] == [[]] * 9 and len(ticks[1][9]) == 1  # a zero threshold: every tick
+
+    move(buffer, "arm", x=0.2)  # a new transform: the next tick looks up again
+    moved = [goal.changed() for goal in goals]
+    assert sorted(computed[2:]) == [("base", "arm"), ("base", "head")]
+    assert [len(sent) for sent in moved] == [1] * 10
+    assert all(sent[0]["transform"]["translation"]["x"] == 0.2 for sent in moved[:9])  # type: ignore[index]
+
+
 @pytest.mark.parametrize(
     ("dialect", "header"),
     [
