@@ -10,10 +10,12 @@ None where it gives none), ``ours``, ``unit`` and ``note``.
 
 from __future__ import annotations
 
-__all__ = ["MODULES", "ROW_KEYS", "Row"]
+__all__ = ["FIGURES", "MODULES", "ROW_KEYS", "Row"]
 
 #: The benchmark modules, in the paper's order (IV.A-IV.D).
 MODULES = ("tf", "video", "depthcloud", "png")
+#: The figure or table each module's rows belong to (``--only`` keeps the others' rows).
+FIGURES = {"tf": "Fig. 3", "video": "Table I", "depthcloud": "Table II", "png": "Table III"}
 ROW_KEYS = ("figure", "metric", "paper", "ours", "unit", "note")
 
 Row = dict[str, object]

@@ -36,3 +36,33 @@ def test_a_readme_without_markers_gets_a_section(tmp_path: Path) -> None:
     main(["--quick", "--only", "png", "--results", str(results), "--readme", str(readme)])
     text = readme.read_text()
     assert text.count(BEGIN) == 1 and text.index(BEGIN) < text.index("Table III") < text.index(END)
+
+
+def test_only_replaces_its_modules_rows_and_keeps_the_others(tmp_path: Path) -> None:
+    readme, results = tmp_path / "README.md", tmp_path / "paper.json"
+    readme.write_text(f"# Benchmarks\n\n{BEGIN}\n{END}\n")
+    earlier = [
+        {
+            "figure": figure,
+            "metric": "earlier",
+            "paper": None,
+            "ours": 1.0,
+            "unit": "ms",
+            "note": "",
+        }
+        for figure in ("Fig. 3", "Table III")
+    ]
+    payload = {"quick": True, "machine": "m", "modules": ["tf", "png"], "rows": earlier}
+    results.write_text(json.dumps(payload))
+    main(["--quick", "--only", "png", "--results", str(results), "--readme", str(readme)])
+    saved = json.loads(results.read_text())
+    assert saved["modules"] == ["tf", "png"]
+    assert [row["figure"] for row in saved["rows"] if row["metric"] == "earlier"] == ["Fig. 3"]
+    assert saved["rows"][-1]["figure"] == "Table III"  # the paper's order
+    text = readme.read_text()
+    assert "| Fig. 3 | earlier |" in text and "tf kept from an earlier run" in text
+
+    payload["quick"] = False  # rows of a full run are not mixed with a quick one
+    results.write_text(json.dumps(payload))
+    main(["--quick", "--only", "png", "--results", str(results), "--readme", str(readme)])
+    assert {row["figure"] for row in json.loads(results.read_text())["rows"]} == {"Table III"}
