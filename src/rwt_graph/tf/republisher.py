@@ -114,6 +114,10 @@ class TFSubscription:
         self.request = request
         self.dialect = dialect
         self._pairs = [_Pair(source) for source in request.source_frames]
+        # a name that kept a leading "/" after TFRequest stripped one ("//arm") is looked
+        # up without it, but sent as the request spells it (rare: messages built apart)
+        names = (request.target_frame, *request.source_frames)
+        self._respelled = any(normalize_frame(name) != name for name in names)
 
     def changed(self) -> list[dict[str, object]]:
         """The ``geometry_msgs/TransformStamped`` dicts to send at this tick.
@@ -141,8 +145,15 @@ class TFSubscription:
                 or (sent is not found and found.moved_from(sent, trans_thres, angular_thres))
             ):
                 pair.sent = found
-                out.append(found.message(self.dialect))
+                message = found.message(self.dialect)
+                out.append(self._respell(message, pair) if self._respelled else message)
         return out
+
+    def _respell(self, message: dict[str, object], pair: _Pair) -> dict[str, object]:
+        header = message["header"]
+        assert isinstance(header, dict)
+        header = {**header, "frame_id": self.request.target_frame}
+        return {**message, "header": header, "child_frame_id": pair.source}
 
     def _failed(self, pair: _Pair, error: TFError) -> None:
         if not pair.failing:  # once per failure streak, as the ROS node does

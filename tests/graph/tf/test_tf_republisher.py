@@ -163,6 +163,20 @@ def test_sent_transforms_are_already_what_checking_them_would_give(
         assert msgspec.json.encode(checked.msg) == msgspec.json.encode(sent)  # same key order
 
 
+def test_names_are_sent_as_the_request_spells_them_after_one_slash_goes() -> None:
+    buffer = TFBuffer()
+    buffer.set_transform(transform("base", "arm", (1.0, 0.0, 0.0)), static=False)
+    plain = TFSubscription(buffer, request(["/arm"], target="/base"), Dialect.ROS2)
+    doubled = TFSubscription(buffer, request(["//arm"], target="//base"), Dialect.ROS2)
+    [sent] = plain.changed()
+    [respelled] = doubled.changed()  # looked up as arm in base, named /arm in /base
+    assert (sent["child_frame_id"], sent["header"]["frame_id"]) == ("arm", "base")  # type: ignore[index]
+    assert respelled["child_frame_id"] == "/arm"
+    assert respelled["header"]["frame_id"] == "/base"  # type: ignore[index]
+    assert respelled["transform"] == sent["transform"]
+    assert sent["header"]["frame_id"] == "base"  # type: ignore[index]  # the shared one intact
+
+
 def test_requests_are_normalised_and_bounded() -> None:
     asked = request(["/arm", "arm", "", "head"], target="/base", rate=0.0)
     assert asked.source_frames == ("arm", "head") and asked.target_frame == "base"
