@@ -40,10 +40,6 @@ class Link:
         self.stamps: list[float] = []
         self.values: list[Matrix] = []
 
-    @property
-    def latest(self) -> float:
-        return self.stamps[-1]
-
     def add(self, stamp: float, value: Matrix, cache_time_s: float, max_samples: int) -> None:
         """Store ``value`` at ``stamp``; history beyond the bounds is dropped.
 
