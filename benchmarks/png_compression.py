@@ -140,17 +140,26 @@ def measure(name: str, type_name: str, msg: dict[str, object], runs: int) -> dic
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description="B13: PNG compression vs paper Table III")
-    parser.add_argument("--runs", type=int, default=15)
-    runs = parser.parse_args().runs
-    cases = [
+def cases() -> list[tuple[str, str, dict[str, object]]]:
+    """The messages of Table III: (name, type, message)."""
+    return [
         ("Map (732x413)", "nav_msgs/msg/OccupancyGrid", occupancy_grid()),
         ("3D Point Array Marker", "visualization_msgs/msg/Marker", marker(8, 1500)),
         ("3D Line Strip Marker", "visualization_msgs/msg/Marker", marker(4, 1500)),
         ("3D Line List Marker", "visualization_msgs/msg/Marker", marker(5, 2800)),
     ]
-    rows = [measure(name, type_name, msg, runs) for name, type_name, msg in cases]
+
+
+def measure_all(runs: int) -> list[dict[str, object]]:
+    """``measure`` every case of ``cases()``."""
+    return [measure(name, type_name, msg, runs) for name, type_name, msg in cases()]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="B13: PNG compression vs paper Table III")
+    parser.add_argument("--runs", type=int, default=15)
+    runs = parser.parse_args().runs
+    rows = measure_all(runs)
     header = (
         f"{'message':<22} {'JSON KB':>8} {'png op KB':>9} {'PNG KB':>7} {'publish ms':>10}"
         f" {'png ms':>7} {'Pillow ms':>9} {'ratio':>5} | paper: {'KB':>6} {'-> KB':>6} {'ms':>5}"

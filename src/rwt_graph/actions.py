@@ -24,12 +24,15 @@ from .clock import Clock
 from .types import ActionType, TypeRegistry
 
 __all__ = [
+    "CANCEL_GOAL_TYPE",
     "ActionEntry",
     "Actions",
     "Goal",
     "GoalCanceled",
     "GoalContext",
     "LocalActionHandler",
+    "cancel_goals_handler",
+    "cancel_service_name",
 ]
 
 logger = logging.getLogger("rwt.graph")
@@ -51,13 +54,26 @@ class GoalContext:
         self.goal_id = goal.goal_id
         self.cancel_requested = False
 
-    def publish_feedback(self, feedback: Message) -> None:
-        """Send feedback to the caller (validated against the feedback type).
+    def publish_feedback(self, feedback: Message, *, validated: bool = False) -> None:
+        """Send feedback to the caller, validated against the feedback type.
+
+        Args:
+            feedback: the feedback message as a dict.
+            validated: the caller vouches that ``feedback`` is already in the
+                internal form of the feedback type (every field present, in
+                declaration order, with the types the conversion gives; see
+                ``MessageType.from_json``), so it is forwarded unchecked. Only for
+                in-process producers that build their messages themselves (the
+                TF republisher); the caller keeps ``feedback`` unchanged afterwards.
+                Feedback from clients is always checked (spec 3.3.14).
 
         Raises:
-            FieldError: ``feedback`` does not fit the type.
+            FieldError: ``feedback`` does not fit the type (``validated`` false).
         """
-        self._goal.feedback(feedback)
+        if validated:
+            self._goal.forward_feedback(feedback)
+        else:
+            self._goal.feedback(feedback)
 
 
 LocalActionHandler = Callable[[Message, GoalContext], Awaitable[Message]]
@@ -104,8 +120,12 @@ class Goal:
             FieldError: ``values`` does not fit the feedback type.
         """
         msg = self.entry.actiontype.feedback.from_json(values, path=path, now=self._clock.wall())
+        self.forward_feedback(msg.msg)
+
+    def forward_feedback(self, msg: Message) -> None:
+        """Forward feedback already in the internal form, unchecked (in-process producers)."""
         if self._on_feedback is not None and not self.finished:
-            self._on_feedback(msg.msg)
+            self._on_feedback(msg)
 
     def finish(self, status: GoalStatus, result: bool, values: object) -> None:
         """Give the caller its one result and drop the goal from its action."""
@@ -300,3 +320,34 @@ def _terminal(status: int | None, result: bool) -> GoalStatus:
     if code not in (GoalStatus.SUCCEEDED, GoalStatus.CANCELED, GoalStatus.ABORTED):
         raise GraphError(f"goal status {status} is not terminal (expected 4, 5 or 6)")
     return code
+
+
+CANCEL_GOAL_TYPE = "action_msgs/srv/CancelGoal"
+_ERROR_NONE = 0
+_ERROR_UNKNOWN_GOAL_ID = 2
+
+
+def cancel_service_name(action: str) -> str:
+    """The ROS 2 cancel service of an action: ``<action>/_action/cancel_goal``."""
+    return f"{action.rstrip('/')}/_action/cancel_goal"
+
+
+def cancel_goals_handler(entry: ActionEntry) -> Callable[[Message], Message]:
+    """The handler of ``entry``'s ``action_msgs/srv/CancelGoal`` service.
+
+    A request with a zero goal id cancels every goal of the action (what roslib's
+    ``Action.cancelAllGoals`` sends). Goals here are named by rosbridge ids, not
+    UUIDs, so a non-zero id answers ``ERROR_UNKNOWN_GOAL_ID``; a stamp is not used.
+    """
+
+    def cancel(request: Message) -> Message:
+        info = request.get("goal_info")
+        goal_id = info.get("goal_id") if isinstance(info, dict) else None
+        uuid = goal_id.get("uuid") if isinstance(goal_id, dict) else b""
+        if isinstance(uuid, bytes | bytearray | list) and any(uuid):
+            return {"return_code": _ERROR_UNKNOWN_GOAL_ID, "goals_canceling": []}
+        for goal in list(entry.goals.values()):
+            goal.request_cancel()
+        return {"return_code": _ERROR_NONE, "goals_canceling": []}
+
+    return cancel

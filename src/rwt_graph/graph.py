@@ -29,7 +29,14 @@ from rwt_protocol.ports import (
     TopicSink,
 )
 
-from .actions import ActionEntry, Actions, LocalActionHandler
+from .actions import (
+    CANCEL_GOAL_TYPE,
+    ActionEntry,
+    Actions,
+    LocalActionHandler,
+    cancel_goals_handler,
+    cancel_service_name,
+)
 from .calls import Spawner
 from .clock import Clock, SystemClock
 from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
@@ -249,15 +256,22 @@ class Graph:
         """
         actiontype = self.registry.action(type_name)
         name = resolve_name(action)
-        self.actions.advertise(
+        self._offer_action(
             ActionEntry(name, action, type_name, actiontype, client, provider=provider)
         )
         self.nodes.name_of(client)
         return actiontype.name
 
     def unadvertise_action(self, client: ClientId, action: str) -> None:
-        """Withdraw ``action``; its goals abort (spec 3.3.11)."""
+        """Withdraw ``action`` and its cancel service; its goals abort (spec 3.3.11).
+
+        Raises:
+            GraphError: ``client`` does not provide it.
+        """
+        entry = self.actions.owned(client, action)
         self.actions.unadvertise(client, action)
+        with contextlib.suppress(GraphError):  # replaced by another participant meanwhile
+            self.services.unadvertise(client, cancel_service_name(entry.name))
 
     def send_action_goal(
         self,
@@ -435,10 +449,21 @@ class Graph:
         actiontype = self.registry.action(type_name)
         name = resolve_name(action)
         with self._participant(node) as client:
-            self.actions.advertise(
+            self._offer_action(
                 ActionEntry(name, action, type_name, actiontype, client, handler=handler)
             )
         return LocalActionServer(self, client, name)
+
+    def _offer_action(self, entry: ActionEntry) -> None:
+        # ROS 2 action servers also answer <action>/_action/cancel_goal, which
+        # roslib's Action.cancelAllGoals calls; it belongs to the same provider.
+        self.actions.advertise(entry)
+        service = cancel_service_name(entry.name)
+        srvtype = self.registry.service(CANCEL_GOAL_TYPE)
+        handler = cancel_goals_handler(entry)
+        self.services.advertise(
+            ServiceEntry(service, service, srvtype, entry.owner, handler=handler)
+        )
 
     def topic_names_and_types(self) -> list[tuple[str, str]]:
         """Every topic in use with its canonical type, sorted by name."""

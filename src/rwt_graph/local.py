@@ -31,16 +31,29 @@ class LocalPublisher:
         self.msgtype = msgtype
         self.latch = latch
 
-    def publish(self, msg: object) -> None:
+    def publish(self, msg: object, *, validated: bool = False) -> None:
         """Publish a message given as a dict or a rosbags message object.
 
         Missing fields get their defaults (D7) and a missing header stamp is now
         (D8), as for a client's publish.
 
+        Args:
+            msg: the message.
+            validated: the caller vouches that ``msg`` is a dict already in the
+                internal form of the topic's type (every field present, in
+                declaration order, with the types ``MessageType.from_json`` gives),
+                so it is sent unchecked. Only for producers in this process that
+                build their messages themselves (the TF republisher); the caller
+                keeps ``msg`` unchanged afterwards, as subscribers share it.
+
         Raises:
-            FieldError: ``msg`` does not fit the topic's type.
+            FieldError: ``msg`` does not fit the topic's type (``validated`` false).
             GraphError: the publisher was closed.
         """
+        if validated:
+            assert isinstance(msg, dict)
+            self._graph.publish_local(self._client, self.topic, msg, latch=self.latch)
+            return
         converted = self.msgtype.from_python(msg, now=self._graph.clock.wall())
         self._graph.publish_local(self._client, self.topic, converted, latch=self.latch)
 
@@ -104,5 +117,5 @@ class LocalActionServer:
     def close(self) -> None:
         """Withdraw the action; goals in flight abort (D4)."""
         with contextlib.suppress(GraphError):
-            self._graph.actions.unadvertise(self._client, self.action)
+            self._graph.unadvertise_action(self._client, self.action)
         self._graph.nodes.forget(self._client)

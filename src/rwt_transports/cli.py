@@ -7,7 +7,10 @@ follow rosbridge's parameters where one exists (``port``, ``address`` is
 ``--websocket-compression``, ``certfile``/``keyfile``, ``topics_glob``...). Logs
 go to stderr as ``key=value`` lines; stdout gets one ``listening on URL`` line
 per listener, the WebSocket one first, so scripts can use ``--port 0`` (with
-``--stdio``, stdout is the session and those lines go to stderr).
+``--stdio``, stdout is the session and those lines go to stderr). With ``--video``
+a ``video on http://HOST:PORT`` line follows them (web_video_server's paths, port
+8080 by default); ``--depthcloud DEPTH[,RGB]`` runs depthcloud_encoder's job on
+the same graph.
 """
 
 from __future__ import annotations
@@ -22,8 +25,10 @@ from typing import Annotated, NoReturn
 
 import anyio
 import typer
+from anyio.abc import TaskStatus
 
 from rwt_graph.graph import Graph
+from rwt_graph.media.depthcloud_node import DepthCloudEncoder
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
@@ -32,6 +37,7 @@ from rwt_protocol.session import SessionConfig
 from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
+from .video import VideoConfig, serve_video
 from .websocket import WebSocketOptions
 
 __all__ = ["app", "main"]
@@ -151,6 +157,27 @@ def serve(
     udp_idle_timeout: Annotated[
         float, typer.Option(help="Seconds of silence after which a UDP peer is forgotten.")
     ] = 300.0,
+    tf: Annotated[
+        bool,
+        typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
+    ] = True,
+    video: Annotated[
+        bool, typer.Option(help="Also serve image topics over HTTP (web_video_server).")
+    ] = False,
+    video_port: Annotated[int, typer.Option(help="HTTP port of --video; 0 picks one.")] = 8080,
+    depthcloud: Annotated[
+        str | None,
+        typer.Option(
+            metavar="DEPTH_TOPIC[,RGB_TOPIC]",
+            help="Encode this depth (and colour) topic on /depthcloud_encoded (ros3djs).",
+        ),
+    ] = None,
+    depthcloud_max_depth: Annotated[
+        float, typer.Option(min=0.001, help="Metres per depth tile (near 0..d, far d..2d).")
+    ] = 1.0,
+    depthcloud_tile_size: Annotated[
+        int, typer.Option(min=16, help="Side of each depth-cloud tile, pixels.")
+    ] = 512,
     log_level: Annotated[str, typer.Option(help="Log level on stderr.")] = "info",
     uvloop: Annotated[
         bool, typer.Option(help="Run on uvloop (pip install 'rwt[bench]' or uvloop).")
@@ -210,12 +237,23 @@ def serve(
             ping_timeout_s=websocket_ping_timeout,
         ),
         udp=UdpOptions(datagram_bytes=udp_datagram_size, idle_timeout_s=udp_idle_timeout),
+        tf=tf,
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
+    if depthcloud:
+        depth_topic, _, rgb_topic = depthcloud.partition(",")
+        DepthCloudEncoder(
+            graph,
+            depth_topic,
+            rgb_topic or None,
+            max_depth_per_tile=depthcloud_max_depth,
+            tile_size=depthcloud_tile_size,
+        )
+    video_config = VideoConfig(host=host, port=video_port) if video else None
     if uvloop and importlib.util.find_spec("uvloop") is None:
         _fail("--uvloop needs the uvloop package")
     try:
-        anyio.run(_run, server, backend_options={"use_uvloop": uvloop})
+        anyio.run(_run, server, video_config, backend_options={"use_uvloop": uvloop})
     except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
         _fail(str(exc))
     except BaseExceptionGroup as group:  # the same, raised inside the task group
@@ -230,7 +268,7 @@ def _fail(message: str) -> NoReturn:
     raise typer.Exit(1)
 
 
-async def _run(server: RosbridgeServer) -> None:
+async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
     out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
 
     def announce(url: str) -> None:
@@ -238,8 +276,15 @@ async def _run(server: RosbridgeServer) -> None:
 
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
-        await server.serve(on_listening=announce)
-        tg.cancel_scope.cancel()
+        video_url = await tg.start(serve_video, server.graph, video) if video else None
+
+        async def serve(*, task_status: TaskStatus[str]) -> None:
+            await server.serve(on_listening=announce, task_status=task_status)
+            tg.cancel_scope.cancel()  # stopped gracefully: the video server goes too
+
+        await tg.start(serve)
+        if video_url:
+            print(f"video on {video_url}", file=out, flush=True)
 
 
 async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> None:

@@ -1,7 +1,8 @@
 """Client-side connections to a rosbridge server: WebSocket, TCP and a stdio subprocess.
 
-A ``Connection`` moves whole frames: ``send`` one JSON text (or one CBOR
-binary frame on WebSocket), ``receive`` the next frame. The Python client and
+A ``Connection`` moves whole frames: ``send`` one JSON text (``str``) or one
+CBOR item (``bytes``: a binary frame on WebSocket, an item in the stream on
+TCP), ``receive`` the next frame. The Python client and
 the conformance runner both use these, so neither cares which transport is
 underneath (PROTOCOL-DECISIONS D22).
 
@@ -9,9 +10,11 @@ underneath (PROTOCOL-DECISIONS D22).
   driven from an anyio stream, as the server side does. Text frames carry JSON,
   binary frames CBOR (D27). Incoming messages are limited to
   ``max_message_size`` bytes (D24/D30).
-- TCP (``tcp://HOST:PORT``): JSON objects written one per line; incoming text
-  is split into JSON objects whether or not the server separates them
-  (rwt writes one per line, rosbridge_tcp writes them back to back, D22).
+- TCP (``tcp://HOST:PORT``): JSON objects written one per line, CBOR items
+  (``bytes``) as they are; the incoming stream is split into JSON objects
+  whether or not the server separates them (rwt writes one per line,
+  rosbridge_tcp writes them back to back, D22), and into CBOR items, which
+  ``receive`` returns as ``bytes``.
 - stdio: a subprocess speaking one JSON object per line on stdin/stdout.
 
 Every failure of the underlying stream is raised as ``ConnectionClosed`` (a
@@ -256,12 +259,27 @@ class _LineStreamConnection:
         self._framer = JsonStreamFramer(limit)
         self._frames: deque[str | bytes] = deque()
 
+    carries_cbor = False
+    """Whether the stream takes CBOR items (TCP does, D22; stdio is JSON lines only)."""
+
     async def send(self, frame: str | bytes) -> None:
-        """Send one JSON text followed by a newline (binary frames are not supported)."""
+        """Send one JSON text followed by a newline, or one CBOR item as it is.
+
+        A CBOR item (``bytes``, a map or an array, D21) needs no delimiter: it is
+        self-delimiting, and its first byte tells it apart from JSON (D22).
+
+        Raises:
+            ConnectionClosed: the connection is gone, or ``bytes`` on a stream
+                that carries JSON only (stdio).
+        """
         if isinstance(frame, bytes):
-            raise ConnectionClosed(f"{self.url}: binary frames need a WebSocket connection")
+            if not self.carries_cbor:
+                raise ConnectionClosed(f"{self.url}: this transport carries JSON text only")
+            data = frame
+        else:
+            data = (frame.replace("\n", " ") + "\n").encode()
         try:
-            await self._write((frame.replace("\n", " ") + "\n").encode())
+            await self._write(data)
         except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
             raise ConnectionClosed(f"{self.url}: connection lost") from None
 
@@ -297,7 +315,9 @@ class _LineStreamConnection:
 
 
 class TcpConnection(_LineStreamConnection):
-    """A rosbridge TCP connection (PROTOCOL-DECISIONS D22)."""
+    """A rosbridge TCP connection (PROTOCOL-DECISIONS D22): JSON texts and CBOR items."""
+
+    carries_cbor = True
 
     def __init__(self, url: str, stream: ByteStream, limit: int) -> None:
         super().__init__(url, limit)

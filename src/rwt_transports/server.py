@@ -8,7 +8,8 @@ UDP and stdio. Every connection, whatever its transport, gets a
 other's topics and services. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
 (D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
-``/rosapi`` (listing only what the access rules let a client see), enforces
+``/rosapi`` (listing only what the access rules let a client see) and
+tf2_web_republisher (REF §7.3) from node ``/tf2_web_republisher``, enforces
 ``max_connections``, and stops gracefully: the listeners close, every session
 releases what it holds (so callers waiting on it are answered), WebSocket
 clients get close code 1001, and after ``shutdown_grace_s`` whatever is left is
@@ -36,6 +37,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
+from rwt_graph.tf import TFRepublisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
@@ -47,6 +49,7 @@ from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
+from .tf import install_tf_republisher
 from .udp import UdpOptions, serve_udp
 from .websocket import WebSocketOptions, serve_websocket_connection
 
@@ -94,6 +97,8 @@ class ServerConfig:
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi; by default
             what ``session.access`` allows.
+        tf: offer tf2_web_republisher's action, actionlib topics and service with a
+            TF buffer fed by ``/tf`` and ``/tf_static`` (``rwt serve --no-tf``: off).
     """
 
     host: str = "127.0.0.1"
@@ -112,6 +117,7 @@ class ServerConfig:
     udp: UdpOptions = field(default_factory=UdpOptions)
     rosapi: bool = True
     rosapi_visibility: VisibilityFor | None = None
+    tf: bool = True
 
 
 def rosauth_authenticator(secret: str, clock: Clock, max_skew_s: float = 5.0) -> Authenticator:
@@ -176,6 +182,9 @@ class RosbridgeServer:
             if visibility is None and session_config.access.restricted:
                 visibility = visibility_of(session_config.access)
             self.rosapi = install_rosapi(self.graph, visibility=visibility)
+        self.tf: TFRepublisher | None = None
+        if self.config.tf:
+            self.tf = install_tf_republisher(self.graph)
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None

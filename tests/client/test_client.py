@@ -182,7 +182,12 @@ async def test_rosapi_helpers_and_params(url: str) -> None:
         types = await ros.get_topics_and_types()
         assert types["/a"] == "std_msgs/msg/String" and types["/b"] == "std_msgs/msg/Int32"
         assert await ros.get_topic_type("/b") == "std_msgs/msg/Int32"
-        assert await ros.get_nodes() == ["/rosapi", "/rosbridge_websocket", "/rwt_client_1"]
+        assert await ros.get_nodes() == [
+            "/rosapi",
+            "/rosbridge_websocket",
+            "/rwt_client_1",
+            "/tf2_web_republisher",
+        ]
         param = Param(ros, "/rwt_client_1:answer")
         await param.set([1, 2])
         assert await param.get() == [1, 2]

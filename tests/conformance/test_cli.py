@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from rwt_transports.conformance.cli import TransportName, server_url
+from rwt_transports.conformance.runner import NEEDS_SECRET
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
@@ -31,37 +32,93 @@ def _rwt(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     )
 
 
-@pytest.fixture(scope="module")
-def served_url() -> Iterator[str]:
-    """``rwt serve --port 0`` in a subprocess; yields its ws:// URL."""
+SECRET = "conformance-secret-\u00e9"
+AUTH_REQUIREMENTS = {"D23", "spec1.auth.required"}
+
+
+def _serve(*args: str) -> tuple[subprocess.Popen[str], dict[str, str]]:
+    """``rwt serve`` on free ports (WebSocket and TCP); returns it and its URLs by scheme."""
     process = subprocess.Popen(
-        [*_SERVE, "--port", "0", "--log-level", "warning"],
+        [*_SERVE, "--port", "0", "--tcp-port", "0", "--log-level", "error", *args],
         env=ENV,
         stdout=subprocess.PIPE,
         text=True,
     )
     assert process.stdout is not None
-    line = process.stdout.readline()
-    assert line.startswith("listening on "), line
+    urls: dict[str, str] = {}
+    for _ in range(2):
+        line = process.stdout.readline()
+        assert line.startswith("listening on "), line
+        url = line.removeprefix("listening on ").strip()
+        urls[url.split("://")[0]] = url
+    return process, urls
+
+
+@pytest.fixture(scope="module")
+def secret_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("auth") / "secret"
+    path.write_text(SECRET + "\nsecond line ignored\n", encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def servers(secret_file: Path) -> Iterator[dict[str, dict[str, str]]]:
+    """Two ``rwt serve`` subprocesses: ``open`` and ``secured`` (--auth-secret-file)."""
+    plain, plain_urls = _serve()
     try:
-        yield line.removeprefix("listening on ").strip()
+        secured, secured_urls = _serve("--auth-secret-file", str(secret_file))
+        try:
+            yield {"open": plain_urls, "secured": secured_urls}
+        finally:
+            secured.terminate()
+            secured.wait(timeout=10)
     finally:
-        process.terminate()
-        process.wait(timeout=10)
+        plain.terminate()
+        plain.wait(timeout=10)
 
 
-def test_strict_profile_over_websocket_passes_completely(served_url: str, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def served_url(servers: dict[str, dict[str, str]]) -> str:
+    return servers["open"]["ws"]
+
+
+@pytest.mark.parametrize("transport", ["ws", "tcp"])
+@pytest.mark.parametrize("server", ["open", "secured"])
+def test_strict_profile_passes_completely(
+    servers: dict[str, dict[str, str]],
+    secret_file: Path,
+    tmp_path: Path,
+    transport: str,
+    server: str,
+) -> None:
+    """Issue 6: every requirement passes over both transports; only the auth ones need a secret."""
     report = tmp_path / "report.json"
     junit = tmp_path / "junit.xml"
-    run = _rwt("conformance", served_url, "--json", str(report), "--junit", str(junit))
+    auth = ["--auth-secret-file", str(secret_file)] if server == "secured" else []
+    url = servers[server][transport]
+    run = _rwt("conformance", url, *auth, "--json", str(report), "--junit", str(junit))
     assert run.returncode == 0, run.stdout[-3000:]
-    summary = json.loads(report.read_text())["summary"]
+    document = json.loads(report.read_text())
+    summary = document["summary"]
     assert summary["failed"] == 0
-    assert summary["passed"] >= 100
+    skipped = {r["id"]: r["detail"] for r in document["requirements"] if r["result"] == "skipped"}
+    if server == "secured":
+        assert skipped == {}
+    else:  # skipped by design: an open server cannot show what a secured one does
+        assert skipped == dict.fromkeys(AUTH_REQUIREMENTS, NEEDS_SECRET)
+    assert summary["passed"] == len(document["requirements"]) - len(skipped) >= 190 - 2
     last = run.stdout.strip().splitlines()[-1]
-    assert last.startswith(f"{summary['passed']} passed, 0 failed, {summary['skipped']} skipped")
+    assert last.startswith(f"{summary['passed']} passed, 0 failed, {len(skipped)} skipped")
     assert "D26" in run.stdout and "spec 3.3.3" in run.stdout
     assert 'failures="0"' in junit.read_text()
+
+
+def test_an_unusable_secret_file_is_refused(tmp_path: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.write_text("\n")
+    run = _rwt("conformance", "ws://127.0.0.1:1", "--auth-secret-file", str(empty))
+    assert run.returncode == 2
+    assert "first line is empty" in run.stderr
 
 
 def test_a_failing_requirement_makes_the_exit_code_non_zero(
@@ -87,25 +144,6 @@ def test_only_selects_requirements(served_url: str) -> None:
     run = _rwt("conformance", served_url, "--only", "D26", "--only", "spec.publish.*")
     assert run.returncode == 0
     assert "D26" in run.stdout and "D13" not in run.stdout
-
-
-def test_strict_profile_over_tcp_passes_completely() -> None:
-    process = subprocess.Popen(
-        [*_SERVE, "--no-websocket", "--tcp-port", "0", "--log-level", "warning"],
-        env=ENV,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    assert process.stdout is not None
-    try:
-        line = process.stdout.readline()
-        assert line.startswith("listening on tcp://"), line
-        run = _rwt("conformance", line.removeprefix("listening on ").strip())
-        assert run.returncode == 0, run.stdout[-3000:]
-        assert " 0 failed" in run.stdout.strip().splitlines()[-1]
-    finally:
-        process.terminate()
-        process.wait(10)
 
 
 def test_server_url_spelling() -> None:

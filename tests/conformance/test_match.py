@@ -73,3 +73,14 @@ def test_substitute_keeps_types_and_splices_text() -> None:
     }
     with pytest.raises(KeyError):
         substitute("${missing}", variables)
+
+
+def test_byte_strings() -> None:
+    assert match("<bytes>", b"", {}) is None
+    assert match("<bytes>", "", {}) == "$: expected bytes, got ''"
+    assert match({"d": "<bytes:0102FF>"}, {"d": b"\x01\x02\xff"}, {}) is None
+    assert (
+        match("<bytes:0102ff>", b"\x01\x02", {})
+        == "$: expected the bytes 0102ff, got <2 bytes: 0102>"
+    )
+    assert match("<bytes:00>", [0], {}) == "$: expected the bytes 00, got [0]"

@@ -9,7 +9,9 @@ from typing import Any
 import anyio
 import pytest
 
+from rwt_graph.clock import SystemClock
 from rwt_graph.graph import Graph
+from rwt_protocol.auth import Authenticator
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import TopicSink
@@ -23,7 +25,13 @@ from rwt_transports.conformance import (
     run_suite,
 )
 from rwt_transports.conformance.report import write_json, write_junit
-from rwt_transports.server import RosbridgeServer, ServerConfig, _TrackedSession
+from rwt_transports.conformance.runner import NEEDS_SECRET
+from rwt_transports.server import (
+    RosbridgeServer,
+    ServerConfig,
+    _TrackedSession,
+    rosauth_authenticator,
+)
 
 pytestmark = pytest.mark.anyio
 
@@ -125,3 +133,57 @@ async def test_a_server_that_is_not_there_fails_every_case_quickly() -> None:
     assert result.count(Outcome.PASSED) == 0
     assert all(c.outcome is Outcome.FAILED for c in result.cases)
     assert "cannot connect" in result.cases[0].detail
+
+
+SECRET = "s3cret"
+AUTH_ONLY = ("D23", "spec1.auth.*", "D22")
+
+
+def _secured(authenticator: Authenticator) -> RosbridgeServer:
+    return RosbridgeServer(config=LOCAL, authenticator=authenticator)
+
+
+@pytest.mark.parametrize("profile", list(Profile))
+async def test_a_secured_server_passes_the_auth_cases(profile: Profile) -> None:
+    server = _secured(rosauth_authenticator(SECRET, SystemClock()))
+    result = await _run(server, only=AUTH_ONLY, auth_secret=SECRET, profile=profile)
+    outcomes = {r.requirement.id: r.outcome for r in result.requirements}
+    assert set(outcomes.values()) == {Outcome.PASSED}
+    assert {"D23", "spec1.auth.required", "spec1.auth.disabled"} <= set(outcomes)
+    assert "D22" in outcomes  # its connections authenticated first
+    assert {c.case.id for c in result.cases} >= {
+        "connections.auth-first-op",
+        "connections.auth-bad-mac",
+        "connections.auth-expired",
+        "connections.auth-valid",
+    }
+
+
+async def test_a_server_admitting_any_auth_fails_d23() -> None:
+    result = await _run(
+        _secured(lambda op, peer: True), only=AUTH_ONLY, auth_secret=SECRET, expect_timeout_s=0.3
+    )
+    outcomes = {c.case.id: c.outcome for c in result.cases}
+    assert outcomes["connections.auth-bad-mac"] is Outcome.FAILED
+    assert outcomes["connections.auth-expired"] is Outcome.FAILED
+    assert outcomes["connections.auth-first-op"] is Outcome.PASSED
+    [d23] = [r for r in result.requirements if r.requirement.id == "D23"]
+    assert d23.outcome is Outcome.FAILED
+    assert "no frame matching {'op': 'status', 'level': 'error'}" in d23.detail
+
+
+async def test_a_server_refusing_every_auth_fails_the_valid_case() -> None:
+    result = await _run(
+        _secured(lambda op, peer: False), only=AUTH_ONLY, auth_secret=SECRET, expect_timeout_s=0.3
+    )
+    outcomes = {c.case.id: c.outcome for c in result.cases}
+    assert outcomes["connections.auth-valid"] is Outcome.FAILED
+    assert outcomes["connections.transport"] is Outcome.FAILED  # D22: its connections are refused
+
+
+async def test_without_the_secret_the_auth_cases_are_skipped_and_a_secured_server_fails() -> None:
+    server = _secured(rosauth_authenticator(SECRET, SystemClock()))
+    result = await _run(server, only=AUTH_ONLY, expect_timeout_s=0.3)
+    outcomes = {r.requirement.id: (r.outcome, r.detail) for r in result.requirements}
+    assert outcomes["D23"] == (Outcome.SKIPPED, NEEDS_SECRET)
+    assert outcomes["D22"][0] is Outcome.FAILED

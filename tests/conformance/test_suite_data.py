@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from rwt_protocol.ops import OP_MODELS
-from rwt_transports.conformance.model import SuiteError, load_suite
+from rwt_transports.conformance.model import TRANSPORTS, SuiteError, load_suite
 
 SUITE = load_suite()
 
@@ -75,4 +75,31 @@ def test_a_repeated_case_id_is_refused(tmp_path: Path) -> None:
     case = '[[case]]\nid = "c"\nrequirements = ["r1"]\nsteps = []\n'
     folder = _write_suite(tmp_path, case + case)
     with pytest.raises(SuiteError, match="repeats"):
+        load_suite(folder)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_every_requirement_has_a_case_on_each_transport(transport: str) -> None:
+    """Issue 6: both transports pass every requirement, so each needs a case that runs there."""
+    covered = {r for c in SUITE.cases if transport in c.transports for r in c.requirements}
+    assert set(SUITE.requirements) - covered == set()
+
+
+def test_only_the_frame_size_cases_depend_on_the_transport() -> None:
+    single = {c.id: set(c.transports) for c in SUITE.cases if set(c.transports) != set(TRANSPORTS)}
+    assert single == {"connections.frame-limit": {"ws"}, "connections.frame-limit-tcp": {"tcp"}}
+
+
+def test_the_auth_cases_authenticate_themselves() -> None:
+    authenticating = [c for c in SUITE.cases if c.authenticates]
+    assert {r for c in authenticating for r in c.requirements} == {"D23", "spec1.auth.required"}
+
+
+def test_send_auth_takes_known_fields_only(tmp_path: Path) -> None:
+    folder = _write_suite(
+        tmp_path,
+        '[[case]]\nid = "c"\nrequirements = ["r1"]\nauthenticates = true\n'
+        'steps = [{ send_auth = { secret = "x" } }]\n',
+    )
+    with pytest.raises(SuiteError, match="send_auth takes a table"):
         load_suite(folder)

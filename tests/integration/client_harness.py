@@ -164,6 +164,10 @@ class ServerProcess:
     def port(self) -> int:
         return int(self.url.rsplit(":", 1)[1].split("/", 1)[0])
 
+    def next_stdout_line(self, timeout_s: float = SERVER_START_TIMEOUT) -> str | None:
+        """The server's next stdout line (``video on http://...`` with ``--video``)."""
+        return self._stdout.get(time.monotonic() + timeout_s)
+
     def stderr_text(self) -> str:
         if not self._stderr.closed:
             self._stderr.flush()
@@ -324,6 +328,7 @@ class Outcome:
     status_count: int = 0
     statuses: list[dict] = field(default_factory=list)
     calls: dict[str, dict] = field(default_factory=dict)
+    tf: dict[str, dict[str, list]] = field(default_factory=dict)
     served: dict[str, dict[str, list]] = field(default_factory=dict)
     feedback: dict[str, list] = field(default_factory=dict)
     goal_ids: dict[str, str] = field(default_factory=dict)
@@ -335,6 +340,7 @@ class Outcome:
         self.status_count += result["status_count"]
         self.statuses.extend(result["statuses"])
         self.calls.update(result.get("calls", {}))
+        self.tf.update(result.get("tf", {}))
         self.served.update(result.get("served", {}))
         self.feedback.update(result.get("feedback", {}))
         self.goal_ids.update(result.get("goal_ids", {}))
@@ -504,6 +510,39 @@ def api(role: str, name: str, call: str, *args: Any, blocking: bool = False) -> 
     if blocking:
         step["blocking"] = True
     return step
+
+
+def tf_client(
+    role: str,
+    name: str,
+    client: str,
+    frames: list[str],
+    *,
+    fixed_frame: str = "base_link",
+    angular_thres: float = 2.0,
+    trans_thres: float = 0.01,
+    rate: float = 10.0,
+) -> dict:
+    """Make the library's TF client `client` subscribed to `frames`, recorded as `name`."""
+    return {
+        "op": "tf",
+        "conn": role,
+        "as": name,
+        "client": client,
+        "frames": frames,
+        "fixed_frame": fixed_frame,
+        "angular_thres": angular_thres,
+        "trans_thres": trans_thres,
+        "rate": rate,
+    }
+
+
+def tf_wait(name: str, frame: str, count: int) -> dict:
+    return {"op": "tf_wait", "as": name, "frame": frame, "count": count}
+
+
+def tf_dispose(name: str) -> dict:
+    return {"op": "tf_dispose", "as": name}
 
 
 def advertise_service(role: str, service: str, srv_type: str, reply: str, **options: Any) -> dict:

@@ -18,7 +18,11 @@ format (see client_harness.py, which writes the files and reads the output):
         {"op": "quiet", "ms": 300},
         {"op": "close", "conn": "pub"},
         {"op": "api", "conn": "sub", "call": "get_topics", "args": [], "as": "topics"},
-        {"op": "api", "conn": "sub", "call": "get_time", "blocking": true, "as": "now"}]}
+        {"op": "api", "conn": "sub", "call": "get_time", "blocking": true, "as": "now"},
+        {"op": "tf", "conn": "sub", "as": "tf", "client": "TFClient", "fixed_frame": "base_link",
+         "frames": ["arm"], "angular_thres": 0.1, "trans_thres": 0.05, "rate": 10.0},
+        {"op": "tf_wait", "as": "tf", "frame": "arm", "count": 3},
+        {"op": "tf_dispose", "as": "tf"}]}
 
 `sync` is a barrier: the connection publishes a token on its own sync topic and
 waits until it receives it back, which proves that the server has processed every
@@ -38,6 +42,14 @@ with the parameter name as first argument) and records what it gave under
 "calls": {AS: {"ok": value} or {"error": text}}. roslibpy methods get a callback
 and an errback; with "blocking": true the method is called without them and its
 return value is recorded (roslibpy's `get_time` builds its Time only then).
+
+`tf` makes a TF client of the library (roslibpy: `TFClient`, which uses the
+`/republish_tfs` service; roslib: `TFClient` (actionlib topics), `ROS2TFClient`
+(the action), or `TFClient+service`: roslib's TFClient fed through its
+`processResponse` from a `/republish_tfs` call, the service route older roslibjs
+took in non-groovy mode) and subscribes to `frames`; every transform a frame's
+callback gets is recorded under "tf": {AS: {frame: [{translation, rotation}]}}.
+`tf_wait` waits for `count` transforms of a frame; `tf_dispose` disposes the client.
 
 Services and actions (the result also carries "served", "feedback", "goal_ids"
 and "order", see below):
@@ -106,6 +118,7 @@ from enum import Enum
 from urllib.parse import urlsplit
 
 import roslibpy
+import roslibpy.tf
 
 
 def _die(code: int, message: str) -> None:
@@ -189,6 +202,8 @@ class Driver:
         self.current = "start"
         self.status_count = 0
         self.calls: dict[str, dict] = {}
+        self.tf: dict[str, dict[str, list]] = {}
+        self.tf_clients: dict[str, roslibpy.tf.TFClient] = {}
         self.order: dict[str, list[str]] = {}
         self.feedback: dict[str, list] = {}
         self.goals: dict[str, tuple[roslibpy.ActionClient, str]] = {}
@@ -341,6 +356,38 @@ class Driver:
         if not done.wait(self.step_timeout):
             _die(2, f"timed out after {self.step_timeout:.1f}s waiting for {step['call']}")
 
+    def do_tf(self, step: dict) -> None:
+        conn = self.conn(step)
+        if step["client"] != "TFClient":
+            _die(64, f"roslibpy has no TF client {step['client']!r}")
+        client = roslibpy.tf.TFClient(
+            conn.ros,
+            fixed_frame=step["fixed_frame"],
+            angular_threshold=step["angular_thres"],
+            translation_threshold=step["trans_thres"],
+            rate=step["rate"],
+        )
+        got: dict[str, list] = {frame: [] for frame in step["frames"]}
+        with self.cond:
+            self.tf[step["as"]] = got
+            self.tf_clients[step["as"]] = client
+        for frame in step["frames"]:
+
+            def on_transform(transform: dict, frame: str = frame) -> None:
+                self._record(got, frame, _plain(transform))
+
+            client.subscribe(frame, on_transform)
+
+    def do_tf_wait(self, step: dict) -> None:
+        got, frame, count = self.tf[step["as"]], step["frame"], step["count"]
+        self._until(
+            lambda: len(got[frame]) >= count,
+            lambda: f"{count} transforms of {frame} ({step['as']}, got {len(got[frame])})",
+        )
+
+    def do_tf_dispose(self, step: dict) -> None:
+        self.tf_clients[step["as"]].dispose()
+
     # -- services and actions --------------------------------------------------------
     def _finish(self, conn: Conn, name: str, outcome: dict) -> None:
         with self.cond:
@@ -466,6 +513,7 @@ class Driver:
                 "status_count": self.status_count,
                 "statuses": [],
                 "calls": self.calls,
+                "tf": self.tf,
                 "served": {c.name: c.served for c in self.conns.values()},
                 "feedback": self.feedback,
                 "goal_ids": {name: goal_id for name, (_, goal_id) in self.goals.items()},

@@ -35,16 +35,29 @@ ROS2_ROSAPI = [
     "services_for_type", "set_param", "subscribers", "topic_type", "topics",
     "topics_and_raw_types", "topics_for_type",
 ]  # fmt: skip
-SERVICES = ["/lights", *(f"/rosapi/{name}" for name in ROS2_ROSAPI)]
-TOPICS = ["/chatter", "/client_count", "/cmd_vel", "/connected_clients", "/velocity"]
+# The server offers tf2_web_republisher by default: /republish_tfs, /tf, /tf_static
+# and the actionlib topics of /tf2_web_republisher (REF §7.3).
+SERVICES = ["/lights", "/republish_tfs", *(f"/rosapi/{name}" for name in ROS2_ROSAPI)]
+ACTIONLIB = ["cancel", "feedback", "goal", "result", "status"]
+TOPICS = [
+    "/chatter", "/client_count", "/cmd_vel", "/connected_clients", "/tf",
+    *(f"/tf2_web_republisher/{name}" for name in ACTIONLIB), "/tf_static", "/velocity",
+]  # fmt: skip
 TYPES = [
     "std_msgs/msg/String",
     "std_msgs/msg/Int32",
     "geometry_msgs/msg/Twist",
     "rosbridge_msgs/msg/ConnectedClients",
+    "tf2_msgs/msg/TFMessage",
+    "actionlib_msgs/msg/GoalID",
+    "tf2_web_republisher/msg/TFSubscriptionActionFeedback",
+    "tf2_web_republisher/msg/TFSubscriptionActionGoal",
+    "tf2_web_republisher/msg/TFSubscriptionActionResult",
+    "actionlib_msgs/msg/GoalStatusArray",
+    "tf2_msgs/msg/TFMessage",
     "geometry_msgs/msg/Twist",
 ]
-NODES = ["/rosapi", "/rosbridge_websocket", "/rwt", "/rwt_client_1"]
+NODES = ["/rosapi", "/rosbridge_websocket", "/rwt", "/rwt_client_1", "/tf2_web_republisher"]
 ROBOT_NODE = {"subscribing": ["/cmd_vel"], "publishing": ["/velocity"], "services": ["/lights"]}
 CLIENT_NODE = {"subscribing": ["/velocity"], "publishing": ["/chatter"], "services": []}
 VECTOR3 = {
@@ -124,7 +137,9 @@ def test_roslibpy_rosapi_helpers(robot: ServerProcess, tmp_path: Path) -> None:
     assert outcome.ok("robot_node") == ROBOT_NODE
     assert outcome.ok("client_node") == CLIENT_NODE
     assert outcome.ok("details") == {"typedefs": TWIST_TYPEDEFS}
-    assert outcome.ok("action_servers") == {"action_servers": ["/fibonacci"]}
+    assert outcome.ok("action_servers") == {
+        "action_servers": ["/fibonacci", "/tf2_web_republisher"]
+    }
     assert outcome.ok("params") == ["/rwt:max_speed", "/rwt:name"]
     assert outcome.ok("speed") == 1.0
     assert outcome.ok("speed_after") == 2.5
@@ -176,7 +191,7 @@ def test_roslib_rosapi_helpers(robot: ServerProcess, tmp_path: Path) -> None:
     assert outcome.ok("client_node") == CLIENT_NODE
     assert outcome.ok("details") == TWIST_TYPEDEFS
     assert outcome.ok("request")["typedefs"][0]["type"] == "std_srvs/SetBool_Request"
-    assert outcome.ok("action_servers") == ["/fibonacci"]
+    assert outcome.ok("action_servers") == ["/fibonacci", "/tf2_web_republisher"]
     assert outcome.ok("params") == ["/rwt:max_speed", "/rwt:name"]
     assert outcome.ok("speed") == 1.0
     assert outcome.ok("set") == {"successful": True, "reason": ""}

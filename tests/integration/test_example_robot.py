@@ -82,7 +82,9 @@ def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:
             "reason": "",
         }
         assert rosapi(ws, "/rosapi/get_param", name="/rwt:max_speed")["value"] == "2.5"
-        assert rosapi(ws, "/rosapi/action_servers") == {"action_servers": ["/fibonacci"]}
+        assert rosapi(ws, "/rosapi/action_servers") == {
+            "action_servers": ["/fibonacci", "/tf2_web_republisher"]  # built in, REF §7.3
+        }
         assert rosapi(ws, "/rosapi/node_details", node="/rwt") == {
             "subscribing": ["/cmd_vel"],
             "publishing": ["/velocity"],

@@ -96,6 +96,7 @@ function nextLine() {
 const conns = new Map();
 const statuses = [];
 const calls = {};
+const tfs = {};
 const order = {};
 const feedback = {};
 const goals = new Map();
@@ -290,6 +291,80 @@ const steps = {
     );
   },
 
+  async tf(step) {
+    // A TF client of roslib subscribed to step.frames; see roslibpy_driver.py.
+    const c = conn(step);
+    const options = {
+      ros: c.ros,
+      fixedFrame: step.fixed_frame,
+      angularThres: step.angular_thres,
+      transThres: step.trans_thres,
+      rate: step.rate,
+    };
+    let client;
+    if (step.client === "ROS2TFClient") client = new ROSLIB.ROS2TFClient(options);
+    else if (step.client === "TFClient") client = new ROSLIB.TFClient(options);
+    else if (step.client === "TFClient+service") {
+      // Its actionlib goal is never sent (the update is delayed for ever); the
+      // transforms come through processResponse, as in older roslibjs's non-groovy mode.
+      client = new ROSLIB.TFClient({ ...options, updateDelay: 2 ** 31 - 1 });
+    } else throw new Error(`no TF client ${step.client}`);
+    const got = {};
+    for (const frame of step.frames) {
+      got[frame] = [];
+      client.subscribe(frame, (t) => {
+        got[frame].push({ translation: { ...t.translation }, rotation: { ...t.rotation } });
+        notify();
+      });
+    }
+    tfs[step.as] = { client, got };
+    if (step.client === "TFClient+service") {
+      const service = new ROSLIB.Service({
+        ros: c.ros,
+        name: "/republish_tfs",
+        serviceType: "tf2_web_republisher/RepublishTFs",
+      });
+      const request = {
+        source_frames: Object.keys(client.frameInfos),
+        target_frame: client.fixedFrame,
+        angular_thres: client.angularThres,
+        trans_thres: client.transThres,
+        rate: client.rate,
+        timeout: client.topicTimeout,
+      };
+      let answered = false;
+      service.callService(
+        request,
+        (response) => {
+          client.processResponse(response);
+          answered = true;
+          notify();
+        },
+        (error) => {
+          calls[step.as] = { error: String(error) };
+          answered = true;
+          notify();
+        },
+      );
+      await until(
+        () => answered,
+        () => `/republish_tfs to answer (${c.name})`,
+      );
+    }
+  },
+
+  async tf_wait(step) {
+    const got = tfs[step.as].got[step.frame];
+    await until(
+      () => got.length >= step.count,
+      () => `${step.count} transforms of ${step.frame} (${step.as}, got ${got.length})`,
+    );
+  },
+
+  async tf_dispose(step) {
+    tfs[step.as].client.dispose();
+  },
+
   async advertise_service(step) {
     const c = conn(step);
     const name = step.service;
@@ -463,6 +538,7 @@ async function main() {
     wire[c.name] = c.wire;
     servedBy[c.name] = c.served;
   }
+  const tf = Object.fromEntries(Object.entries(tfs).map(([name, t]) => [name, t.got]));
   const goalIds = Object.fromEntries([...goals].map(([name, goal]) => [name, goal.id]));
   const result = {
     received,
@@ -474,6 +550,7 @@ async function main() {
     feedback,
     goal_ids: goalIds,
     order,
+    tf,
   };
   // Wait for the write to be flushed: a large result on a pipe is written in
   // pieces, and process.exit() would cut it.

@@ -159,3 +159,33 @@ def test_cancel_of_an_unknown_goal_warns(graph: Graph) -> None:
     client = Peer(graph, "c", level=StatusLevel.WARNING)
     client.send(op="cancel_action_goal", action="/fib", id="nope")
     assert client.statuses()[0]["level"] == "warning"
+
+
+def test_cancel_goal_service_cancels_every_goal_like_ros2(graph: Graph) -> None:
+    """roslib's Action.cancelAllGoals calls <action>/_action/cancel_goal with empty args."""
+    server, client, other = Peer(graph, "s"), Peer(graph, "c"), Peer(graph, "o")
+    server.send(op="advertise_action", action="/fib", type=FIB)
+    client.send(op="send_action_goal", action="/fib", action_type=FIB, id="a")
+    other.send(op="send_action_goal", action="/fib", action_type=FIB, id="b")
+    goal_ids = [g["id"] for g in server.received()]
+    client.send(op="call_service", service="/fib/_action/cancel_goal", args={}, id="all")
+    cancels = server.received()
+    assert [(c["op"], c["id"]) for c in cancels] == [("cancel_action_goal", g) for g in goal_ids]
+    [reply] = client.received()
+    assert reply["result"] is True and reply["values"]["return_code"] == 0
+    client.send(
+        op="call_service",
+        service="/fib/_action/cancel_goal",
+        args={"goal_info": {"goal_id": {"uuid": list(range(1, 17))}}},
+        id="one",
+    )
+    [unknown] = client.received()
+    assert unknown["values"]["return_code"] == 2
+
+
+def test_cancel_goal_service_goes_with_its_action(graph: Graph) -> None:
+    server, client = Peer(graph, "s"), Peer(graph, "c")
+    server.send(op="advertise_action", action="/fib", type=FIB)
+    server.send(op="unadvertise_action", action="/fib")
+    client.send(op="call_service", service="/fib/_action/cancel_goal", id=1)
+    assert "does not exist" in str(client.received()[0]["values"])

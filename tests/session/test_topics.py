@@ -271,3 +271,16 @@ def test_in_process_publisher_and_subscriber_meet_clients(graph: Graph) -> None:
     b.send(op="subscribe", topic="/odom_count", type="std_msgs/Int32")
     graph.create_publisher("/odom_count", "std_msgs/Int32").publish({"data": 7})
     assert b.received() == [{"op": "publish", "topic": "/odom_count", "msg": {"data": 7}}]
+
+
+def test_a_validated_local_publish_sends_what_the_checked_one_sends(graph: Graph) -> None:
+    subscriber = Peer(graph, "b")
+    subscriber.send(op="subscribe", topic="/pose", type="geometry_msgs/msg/PoseStamped")
+    publisher = graph.create_publisher("/pose", "geometry_msgs/msg/PoseStamped")
+    given = {"header": {"frame_id": "map"}, "pose": {"position": {"x": 1, "y": -2.5}}}
+    publisher.publish(given)
+    internal = publisher.msgtype.from_python(given, now=graph.clock.wall())
+    publisher.publish(internal, validated=True)
+    checked, trusted = (frame.data for frame in subscriber.session.frames_to_send())
+    assert trusted == checked
+    assert json.loads(checked)["msg"]["pose"]["position"] == {"x": 1.0, "y": -2.5, "z": 0.0}

@@ -1,31 +1,37 @@
-"""Client connectors: the TCP connection splits a JSON stream cut anywhere (D22)."""
+"""Client connectors: the TCP connection splits a JSON and CBOR stream cut anywhere (D22)."""
 
 from __future__ import annotations
 
 import json
+import sys
 
 import anyio
+import cbor2
 import pytest
 from anyio.abc import SocketStream
 
-from rwt_transports.connectors import ConnectionClosed, connect
+from rwt_transports.connectors import ConnectionClosed, StdioConnection, connect
 
 OBJECTS = [
     {"op": "publish", "msg": {"data": 'a"}\\{[' + str(i)}, "l": [1, [2, {}]]} for i in range(12)
 ]
+CBOR_ITEM = cbor2.dumps({"op": "publish", "topic": "/t", "msg": {"data": b"\x00\n{"}})
 TEXT = "".join(json.dumps(o) + ("\n" if i % 2 else "") for i, o in enumerate(OBJECTS))
 
 
 @pytest.mark.anyio
 @pytest.mark.parametrize("anyio_backend", ["asyncio"])
 async def test_tcp_connection_sends_lines_and_splits_what_it_receives() -> None:
-    received: list[bytes] = []
+    request = b'{"op": "subscribe",  "topic": "/t"}\n' + CBOR_ITEM
+    received = bytearray()
 
     async def serve(stream: SocketStream) -> None:
         async with stream:
-            received.append(await stream.receive())
-            for start in range(0, len(TEXT), 7):  # concatenated, cut anywhere
-                await stream.send(TEXT[start : start + 7].encode())
+            while len(received) < len(request):
+                received.extend(await stream.receive())
+            reply = TEXT.encode() + CBOR_ITEM
+            for start in range(0, len(reply), 7):  # concatenated, cut anywhere
+                await stream.send(reply[start : start + 7])
 
     listener = await anyio.create_tcp_listener(local_host="127.0.0.1", local_port=0)
     port = listener.extra(anyio.abc.SocketAttribute.local_port)
@@ -33,12 +39,13 @@ async def test_tcp_connection_sends_lines_and_splits_what_it_receives() -> None:
         tg.start_soon(listener.serve, serve)
         conn = await connect(f"tcp://127.0.0.1:{port}")
         await conn.send('{"op": "subscribe",\n "topic": "/t"}')
+        await conn.send(CBOR_ITEM)  # a CBOR item goes as it is (D22)
         with anyio.fail_after(5):
             frames = [json.loads(await conn.receive()) for _ in OBJECTS]
+            item = await conn.receive()
         assert frames == OBJECTS
-        assert received == [b'{"op": "subscribe",  "topic": "/t"}\n']
-        with pytest.raises(ConnectionClosed):
-            await conn.send(b"\x00")
+        assert bytes(received) == request
+        assert item == CBOR_ITEM  # CBOR items come back as bytes
         await conn.aclose()
         tg.cancel_scope.cancel()
 
@@ -50,3 +57,19 @@ async def test_unreachable_servers_and_bad_urls() -> None:
         await connect("ws://127.0.0.1:1")
     with pytest.raises(ValueError, match="unsupported URL scheme"):
         await connect("http://127.0.0.1:1")
+
+
+@pytest.mark.anyio
+@pytest.mark.parametrize("anyio_backend", ["asyncio"])
+async def test_stdio_connection_carries_json_lines_only() -> None:
+    conn = await StdioConnection.open(
+        [sys.executable, "-c", "import sys; sys.stdout.write(sys.stdin.readline())"]
+    )
+    try:
+        with pytest.raises(ConnectionClosed, match="JSON text only"):
+            await conn.send(CBOR_ITEM)
+        await conn.send('{"op": "status"}')
+        with anyio.fail_after(10):
+            assert json.loads(await conn.receive()) == {"op": "status"}
+    finally:
+        await conn.aclose()

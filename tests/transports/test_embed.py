@@ -121,6 +121,33 @@ async def test_in_process_action_server_with_feedback_for_python_and_clients() -
         tg.cancel_scope.cancel()
 
 
+async def test_feedback_marked_validated_reaches_the_client_as_checked_feedback_does() -> None:
+    graph = Graph()
+    given = {"sequence": [0, 1, 1]}
+    internal = graph.registry.action(FIB).feedback.from_json(given, now=0.0).msg
+
+    async def twice(goal: dict[str, object], context: GoalContext) -> dict[str, object]:
+        context.publish_feedback(given)
+        context.publish_feedback(internal, validated=True)
+        return {"sequence": []}
+
+    graph.create_action_server("/twice", FIB, twice)
+    async with anyio.create_task_group() as tg:
+        graph.spawner = spawner_for(tg)
+        client = Peer(graph, "c")
+        client.send(op="send_action_goal", action="/twice", action_type=FIB, feedback=True)
+        frames: list[str | bytes] = []
+        with anyio.fail_after(5):
+            while len(frames) < 3:
+                frames += [frame.data for frame in client.session.frames_to_send()]
+                await anyio.wait_all_tasks_blocked()
+        checked, trusted, result = frames
+        assert trusted == checked
+        assert json.loads(checked)["values"] == {"sequence": [0, 1, 1]}
+        assert json.loads(result)["op"] == "action_result"
+        tg.cancel_scope.cancel()
+
+
 async def test_in_process_goal_cancelled_by_a_client() -> None:
     graph = Graph()
     started = anyio.Event()

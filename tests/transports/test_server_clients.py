@@ -79,23 +79,43 @@ async def test_rosapi_names_the_server_rosapi_and_each_connection(
     graph.create_publisher("/battery", "sensor_msgs/msg/BatteryState", node="/power")
     async with connect(url) as first, connect(url) as second:
         assert await rosapi(first, "/rosapi/nodes") == {
-            "nodes": ["/power", "/rosapi", "/rosbridge_websocket", "/rwt_client_1", "/rwt_client_2"]
+            "nodes": [
+                "/power",
+                "/rosapi",
+                "/rosbridge_websocket",
+                "/rwt_client_1",
+                "/rwt_client_2",
+                "/tf2_web_republisher",
+            ]
         }
         assert await rosapi(second, "rosapi/publishers", topic="/client_count") == {
             "publishers": ["/rosbridge_websocket"]
         }
         topics = await rosapi(second, "/rosapi/topics")
-        assert topics == {
-            "topics": ["/battery", "/client_count", "/connected_clients"],
-            "types": [
-                "sensor_msgs/msg/BatteryState",
-                "std_msgs/msg/Int32",
-                "rosbridge_msgs/msg/ConnectedClients",
-            ],
+        listed = dict(zip(topics["topics"], topics["types"], strict=True))
+        assert {
+            name: listed[name] for name in ("/battery", "/client_count", "/connected_clients")
+        } == {
+            "/battery": "sensor_msgs/msg/BatteryState",
+            "/client_count": "std_msgs/msg/Int32",
+            "/connected_clients": "rosbridge_msgs/msg/ConnectedClients",
         }
+        # the rest is the built-in tf2_web_republisher's (tests/transports/test_tf_republisher.py)
+        assert all(
+            name.startswith("/tf")
+            for name in set(listed) - {"/battery", "/client_count", "/connected_clients"}
+        )
     async with connect(url) as third:
         await third.send(json.dumps({"op": "subscribe", "topic": "/client_count"}))
         while (await next_op(third, "publish"))["msg"] != {"data": 1}:
             pass  # the server has not seen both others leave yet
         nodes = await rosapi(third, "/rosapi/nodes")
-        assert nodes == {"nodes": ["/power", "/rosapi", "/rosbridge_websocket", "/rwt_client_3"]}
+        assert nodes == {
+            "nodes": [
+                "/power",
+                "/rosapi",
+                "/rosbridge_websocket",
+                "/rwt_client_3",
+                "/tf2_web_republisher",
+            ]
+        }

@@ -117,17 +117,17 @@ def node_details(graph: Graph, vis: Visibility, node: str) -> tuple[list[str], .
     subscribing = [
         topic
         for topic, entry in sorted(graph.topics.items())
-        if vis.topic(topic) and members.intersection(entry.subscribers)
+        if _shows(topic, vis.topic) and members.intersection(entry.subscribers)
     ]
     publishing = [
         topic
         for topic, entry in sorted(graph.topics.items())
-        if vis.topic(topic) and members.intersection(entry.publishers)
+        if _shows(topic, vis.topic) and members.intersection(entry.publishers)
     ]
     provided = sorted(
         service
         for service, entry in graph.services.entries.items()
-        if vis.service(service) and entry.owner in members
+        if _shows(service, vis.service) and entry.owner in members
     )
     return subscribing, publishing, provided
 

@@ -12,6 +12,8 @@ import anyio
 import typer
 from rich.console import Console
 
+from rwt_protocol.auth import RosauthVerifier
+
 from .model import Profile, SuiteError, default_suite_dir, load_suite
 from .report import print_table, write_json, write_junit
 from .runner import RunOptions, run_suite
@@ -41,6 +43,15 @@ def server_url(url: str, transport: TransportName | None) -> str:
     return url
 
 
+def _read_secret(path: Path) -> str:
+    """The rosauth secret in ``path`` (its first line, read as ``rwt serve`` reads it, D23)."""
+    try:
+        return RosauthVerifier.from_file(path.read_text("utf-8")).secret
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        typer.echo(f"rwt conformance: cannot use --auth-secret-file: {exc}", err=True)
+        raise typer.Exit(2) from None
+
+
 def conformance(
     url: Annotated[
         str, typer.Argument(help="Server: ws://HOST:PORT, tcp://HOST:PORT or HOST:PORT.")
@@ -66,6 +77,13 @@ def conformance(
         Path | None, typer.Option(help="Suite folder (default: the shipped suite).")
     ] = None,
     timeout: Annotated[float, typer.Option(help="Seconds one expected frame may take.")] = 3.0,
+    auth_secret_file: Annotated[
+        Path | None,
+        typer.Option(
+            help="The server's rosauth secret (first line, as `rwt serve --auth-secret-file`):"
+            " every connection authenticates first, and the auth cases run."
+        ),
+    ] = None,
 ) -> None:
     """Check a rosbridge server against the conformance suite; exit 1 on any failure."""
     console = Console() if sys.stdout.isatty() else Console(width=160)
@@ -75,7 +93,13 @@ def conformance(
         typer.echo(f"rwt conformance: {exc}", err=True)
         raise typer.Exit(2) from None
     patterns = tuple(p for item in only or () for p in item.split(",") if p)
-    options = RunOptions(server_url(url, transport), profile, patterns, expect_timeout_s=timeout)
+    options = RunOptions(
+        server_url(url, transport),
+        profile,
+        patterns,
+        expect_timeout_s=timeout,
+        auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
+    )
     result = anyio.run(run_suite, loaded, options)
     print_table(result, console)
     if junit is not None:

@@ -9,7 +9,9 @@ for what TOML cannot say and for "any value of this kind":
   letters ``A`` (large frames without large files; ``A`` is also valid base64).
 - in patterns only: ``"<any>"`` (present, any value), ``"<absent>"`` (the key
   must be missing), ``"<str>"``, ``"<int>"``, ``"<number>"``, ``"<bool>"``,
-  ``"<object>"``, ``"<array>"``, ``"<positive>"`` (a number above 0),
+  ``"<object>"``, ``"<array>"``, ``"<bytes>"`` (a CBOR byte string),
+  ``"<bytes:HEX>"`` (a byte string holding exactly these bytes, in hex),
+  ``"<positive>"`` (a number above 0),
   ``"<re:REGEX>"`` (a string matching REGEX,
   searched), ``"<capture:name>"`` (any value, remembered as ``name``).
 
@@ -38,6 +40,7 @@ _KINDS: dict[str, tuple[type, ...]] = {
     "<bool>": (bool,),
     "<object>": (dict,),
     "<array>": (list,),
+    "<bytes>": (bytes,),
 }
 
 
@@ -157,6 +160,11 @@ def _match_sentinel(
         if isinstance(actual, int | float) and not isinstance(actual, bool) and actual > 0:
             return None
         return f"{path}: expected a number above 0, got {describe(actual)}"
+    if pattern.startswith("<bytes:"):
+        expected = pattern[len("<bytes:") : -1]
+        if isinstance(actual, bytes) and actual.hex() == expected.lower():
+            return None
+        return f"{path}: expected the bytes {expected}, got {describe(actual)}"
     if pattern.startswith("<capture:"):
         found[pattern[len("<capture:") : -1]] = actual
         return None
@@ -175,5 +183,8 @@ def _match_sentinel(
 
 def describe(value: JsonValue, limit: int = 60) -> str:
     """Show a value briefly for a mismatch text."""
-    text = f"<{len(value)} bytes>" if isinstance(value, bytes) else repr(value)
+    if isinstance(value, bytes):
+        text = f"<{len(value)} bytes{': ' + value.hex() if len(value) <= 16 else ''}>"
+    else:
+        text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -11,9 +11,14 @@ that advertise, publish, provide services...).
 A step has exactly one action key:
 
 - ``send`` (a table: the op, sent as JSON text), ``send_raw`` (a string sent
-  as-is), ``send_binary`` (a table sent as one CBOR binary frame);
+  as-is), ``send_binary`` (a table sent as one CBOR item: a binary frame on
+  WebSocket, an item in the stream on TCP, D21/D22), ``send_auth`` (a rosauth
+  ``auth`` op made with the server's secret, valid from now for 60 s; the
+  table may replace ``mac``, ``client``, ``dest``, ``rand`` or ``level``, and
+  move ``t``/``end`` with ``t_offset_s``/``end_offset_s`` from now, D23);
 - ``expect`` (a pattern, see ``match``; ``count`` asks for that many matching
-  frames, ``binary = true`` requires binary frames), ``expect_status`` (a
+  frames, ``binary = true`` requires CBOR frames, ``binary = false`` JSON text
+  frames), ``expect_status`` (a
   pattern for a ``status`` frame; strict profile only, since rosbridge_suite
   never sends status, REF §1.3), ``expect_none`` (after a ``sync``, no received
   frame may match the pattern);
@@ -27,7 +32,9 @@ Optional per step: ``profile`` (run only in ``strict`` or only in
 counting from 0), ``in_order`` (an ``expect`` whose frame must be the first
 received one with the pattern's ``op`` and ``topic``). Optional per case:
 ``profiles``, ``transports`` (``ws``/``tcp``), ``pending`` (a reason: skipped
-until the feature exists).
+until the feature exists), ``authenticates = true`` (the case sends ``auth``
+itself: it needs the server's secret, and the runner does not authenticate
+its connections first).
 """
 
 from __future__ import annotations
@@ -69,6 +76,7 @@ class StepKind(StrEnum):
     SEND = "send"
     SEND_RAW = "send_raw"
     SEND_BINARY = "send_binary"
+    SEND_AUTH = "send_auth"
     EXPECT = "expect"
     EXPECT_STATUS = "expect_status"
     EXPECT_NONE = "expect_none"
@@ -79,7 +87,16 @@ class StepKind(StrEnum):
 
 
 _STEP_OPTIONS = {"on", "profile", "timeout_s", "count", "binary", "repeat", "in_order"}
-_CASE_KEYS = {"id", "title", "requirements", "steps", "profiles", "transports", "pending"}
+_CASE_KEYS = {
+    "id",
+    "title",
+    "requirements",
+    "steps",
+    "profiles",
+    "transports",
+    "pending",
+    "authenticates",
+}
 TRANSPORTS = ("ws", "tcp")
 
 
@@ -112,7 +129,8 @@ class Step:
         on: the connection it acts on.
         value: the frame, pattern or raw text (None for sync/open/close).
         count: how many matching frames an ``expect`` needs.
-        binary: an ``expect`` that requires binary (CBOR) frames.
+        binary: an ``expect`` that requires CBOR frames (True) or JSON text
+            frames (False); None takes either.
         profile: run only in this profile, or in both when None.
         timeout_s: seconds this step may wait, or None for the run's default.
         repeat: how many times the step runs (``${i}`` = 0, 1, ...).
@@ -124,7 +142,7 @@ class Step:
     on: str = "a"
     value: object = None
     count: int = 1
-    binary: bool = False
+    binary: bool | None = None
     profile: Profile | None = None
     timeout_s: float | None = None
     repeat: int = 1
@@ -142,6 +160,7 @@ class Case:
     profiles: frozenset[Profile] = frozenset(Profile)
     transports: frozenset[str] = frozenset(TRANSPORTS)
     pending: str | None = None
+    authenticates: bool = False
     file: str = ""
 
 
@@ -242,6 +261,7 @@ def _case(table: dict[str, object], file: str) -> Case:
         profiles=profiles,
         transports=transports,
         pending=None if pending is None else str(pending),
+        authenticates=bool(table.get("authenticates", False)),
         file=file,
     )
 
@@ -255,12 +275,14 @@ def _step(table: object, where: str) -> Step:
     try:
         kind = StepKind(actions[0])
         profile = table.get("profile")
+        if kind is StepKind.SEND_AUTH:
+            _check_auth_fields(table[actions[0]])
         return Step(
             kind=kind,
             on=str(table.get("on", "a")),
             value=None if kind in _FLAGS else table[actions[0]],
             count=int(table.get("count", 1)),
-            binary=bool(table.get("binary", False)),
+            binary=None if "binary" not in table else bool(table["binary"]),
             profile=None if profile is None else Profile(profile),
             timeout_s=None if "timeout_s" not in table else float(table["timeout_s"]),
             repeat=int(table.get("repeat", 1)),
@@ -268,6 +290,15 @@ def _step(table: object, where: str) -> Step:
         )
     except ValueError as exc:
         raise SuiteError(f"{where}: {exc}") from None
+
+
+AUTH_FIELDS = frozenset({"mac", "client", "dest", "rand", "level", "t_offset_s", "end_offset_s"})
+"""What a ``send_auth`` table may set (the rest is made from the secret and the clock)."""
+
+
+def _check_auth_fields(value: object) -> None:
+    if not isinstance(value, dict) or not set(value) <= AUTH_FIELDS:
+        raise ValueError(f"send_auth takes a table with keys among {sorted(AUTH_FIELDS)}")
 
 
 _FLAGS = {StepKind.SYNC, StepKind.OPEN, StepKind.CLOSE, StepKind.EXPECT_CLOSED}

@@ -10,6 +10,11 @@ connection publishes a token on it and waits for the token to come back, so
 every frame the server sent the connection before has arrived. Absence checks
 (``expect_none``) run after one; that works with any server that keeps the
 order of one connection's frames, and needs no sleeping.
+
+With the server's rosauth secret (``RunOptions.auth_secret``, D23) every
+connection sends a valid ``auth`` first, so the whole suite runs against a
+secured server; cases marked ``authenticates`` send theirs themselves
+(``send_auth``), and are skipped without the secret.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import anyio
 import cbor2
 
 from ..connectors import Connection, ConnectionClosed, connect
+from .frames import Received, auth_op, decode_frame
 from .match import JsonValue, describe, match, substitute
 from .model import Case, Profile, Requirement, Step, StepKind, Suite
 
@@ -41,6 +47,7 @@ __all__ = [
     "select",
 ]
 
+NEEDS_SECRET = "needs --auth-secret-file (the server's rosauth secret)"
 SYNC_ID = "rwt_conformance_sync"
 SYNC_TYPE = "std_msgs/String"
 _SYNC_RESEND_S = 0.5
@@ -65,6 +72,8 @@ class RunOptions:
             one of these (shell-style patterns: ``D1*``).
         expect_timeout_s: default bound of one wait, seconds.
         case_timeout_s: bound of a whole case, seconds.
+        auth_secret: the server's rosauth secret (D23), or None when the
+            server does not authenticate.
     """
 
     url: str
@@ -72,6 +81,7 @@ class RunOptions:
     only: tuple[str, ...] = ()
     expect_timeout_s: float = 3.0
     case_timeout_s: float = 20.0
+    auth_secret: str | None = field(default=None, repr=False)
 
     @property
     def transport(self) -> str:
@@ -201,6 +211,8 @@ def _skip_reason(case: Case, options: RunOptions) -> str | None:
         return f"not part of the {options.profile.value} profile"
     if options.transport not in case.transports:
         return f"needs {'/'.join(sorted(case.transports))}"
+    if case.authenticates and options.auth_secret is None:
+        return NEEDS_SECRET
     return None
 
 
@@ -219,19 +231,13 @@ def _grade(requirement: Requirement, results: list[CaseResult]) -> RequirementRe
 
 
 @dataclass
-class _Received:
-    value: JsonValue
-    binary: bool
-
-
-@dataclass
 class _Link:
     """One connection of a case and what it has received so far."""
 
     name: str
     conn: Connection
     sync_topic: str
-    frames: list[_Received] = field(default_factory=list)
+    frames: list[Received] = field(default_factory=list)
     arrived: anyio.Event = field(default_factory=anyio.Event)
     tokens: set[str] = field(default_factory=set)
     sync_ready: bool = False
@@ -294,9 +300,13 @@ class _CaseRun:
         link = await self._link(step.on)
         timeout_s = step.timeout_s or self.options.expect_timeout_s
         kind = step.kind
-        if kind in _SENDS:
+        if kind in _SENDS or kind is StepKind.SEND_AUTH:
+            if kind is StepKind.SEND_AUTH:
+                frame: str | bytes = json.dumps(self._auth_op(step.value))
+            else:
+                frame = _SENDS[kind](self._sub(step.value))
             try:
-                await link.conn.send(_SENDS[kind](self._sub(step.value)))
+                await link.conn.send(frame)
             except ConnectionClosed as exc:  # later steps say whether closing was right
                 link.closed_reason = link.closed_reason or exc.message
                 link.notify()
@@ -332,6 +342,8 @@ class _CaseRun:
         if link is None:
             url = self.options.url
             conn = await connect(url, timeout_s=self.options.expect_timeout_s * 2)
+            if self.options.auth_secret is not None and not self.case.authenticates:
+                await conn.send(json.dumps(self._auth_op({})))
             topic = f"/{self.variables['ns']}/sync_{name}"
             link = self.links[name] = _Link(name, conn, topic)
             assert self._tasks is not None
@@ -342,7 +354,7 @@ class _CaseRun:
         try:
             while True:
                 frame = await link.conn.receive()
-                received = _decode(frame)
+                received = decode_frame(frame)
                 if not self._hidden(link, received.value):
                     link.frames.append(received)
                 link.notify()
@@ -368,7 +380,7 @@ class _CaseRun:
         with anyio.move_on_after(timeout_s):
             while True:
                 for index, received in enumerate(link.frames):
-                    if step.binary and not received.binary:
+                    if step.binary is not None and step.binary is not received.binary:
                         continue
                     problem = match(pattern, received.value, self.variables)
                     if problem is None:
@@ -383,19 +395,34 @@ class _CaseRun:
                         f"connection closed ({link.closed_reason}) before {describe(pattern, 120)}"
                     )
                 await link.arrived.wait()
-        near = self._near(link, pattern)
+        near = self._near(link, pattern, step)
         raise StepFailed(f"no frame matching {describe(pattern, 160)} within {timeout_s:g} s{near}")
 
-    def _near(self, link: _Link, pattern: JsonValue) -> str:
+    def _near(self, link: _Link, pattern: JsonValue, step: Step) -> str:
         if not link.frames:
             return "; nothing else received"
         op = pattern.get("op") if isinstance(pattern, dict) else None
         same = [f for f in link.frames if isinstance(f.value, dict) and f.value.get("op") == op]
         shown = same[-2:] or link.frames[-2:]
-        notes = [match(pattern, f.value, {}) or "matches but not binary" for f in shown]
+        kind = "CBOR" if step.binary else "JSON text"
+        notes = [match(pattern, f.value, {}) or f"matches but is not {kind}" for f in shown]
         return "; received " + "; ".join(
             f"{describe(f.value, 100)} ({n})" for f, n in zip(shown, notes, strict=True)
         )
+
+    def _auth_op(self, fields: object) -> dict[str, JsonValue]:
+        secret = self.options.auth_secret
+        if secret is None:  # only authenticating cases send auth, and they need the secret
+            raise StepFailed("send_auth needs the server's secret")
+        given = self._sub(fields)
+        try:
+            return auth_op(
+                secret,
+                given if isinstance(given, dict) else {},
+                urlsplit(self.options.url).hostname or "",
+            )
+        except ValueError as exc:
+            raise StepFailed(f"send_auth: {exc}") from None
 
     def _expect_none(self, link: _Link, pattern: JsonValue) -> None:
         for received in link.frames:
@@ -442,15 +469,3 @@ def _same_stream(pattern: JsonValue, value: JsonValue) -> bool:
     if not isinstance(pattern, dict) or not isinstance(value, dict):
         return False
     return all(value.get(key) == pattern.get(key) for key in ("op", "topic") if key in pattern)
-
-
-def _decode(frame: str | bytes) -> _Received:
-    if isinstance(frame, bytes):
-        try:
-            return _Received(cbor2.loads(frame), binary=True)
-        except Exception:  # anything cbor2 refuses is shown as bytes
-            return _Received(frame, binary=True)
-    try:
-        return _Received(json.loads(frame), binary=False)
-    except ValueError:
-        return _Received({"<not JSON>": frame[:200]}, binary=False)

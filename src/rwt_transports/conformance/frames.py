@@ -1,0 +1,122 @@
+"""What the runner sends and how it reads what it receives.
+
+Received frames are decoded for matching: JSON text as JSON; a CBOR frame (a
+WebSocket binary message, a CBOR item on TCP, D21/D22) with cbor2, typed-array
+tags (RFC 8746, REF §3.2) shown as ``{"cbor_tag": TAG, "values": [...]}`` so a
+case can check both the tag and the numbers; any other tag as ``{"cbor_tag":
+TAG, "value": ...}``. Byte strings stay ``bytes`` (patterns ``"<bytes>"``,
+``"<bytes:HEX>"``).
+
+``auth_op`` makes rosauth ``auth`` ops (PROTOCOL-DECISIONS D23).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import secrets
+import struct
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import cbor2
+
+from rwt_protocol.auth import rosauth_mac
+
+from .match import JsonValue
+
+__all__ = ["AUTH_VALIDITY_S", "Received", "auth_op", "decode_frame"]
+
+AUTH_VALIDITY_S = 60
+"""Seconds an ``auth`` op made by the runner stays valid."""
+
+_TYPED_ARRAYS = range(64, 88)  # RFC 8746 section 2: 0b010_f_s_e_ll
+
+
+@dataclass
+class Received:
+    """A decoded frame and whether it came as CBOR (binary)."""
+
+    value: JsonValue
+    binary: bool
+
+
+def decode_frame(frame: str | bytes) -> Received:
+    """Decode a received frame for matching; never raises (undecodable data is shown)."""
+    if isinstance(frame, bytes):
+        try:
+            return Received(cbor2.loads(frame, tag_hook=_tag), binary=True)
+        except Exception:  # anything cbor2 refuses is shown as bytes
+            return Received(frame, binary=True)
+    try:
+        return Received(json.loads(frame), binary=False)
+    except ValueError:
+        return Received({"<not JSON>": frame[:200]}, binary=False)
+
+
+def _tag(tag: cbor2.CBORTag, _immutable: bool) -> JsonValue:
+    if tag.tag in _TYPED_ARRAYS and isinstance(tag.value, bytes):
+        values = _typed_array(tag.tag, tag.value)
+        if values is not None:
+            return {"cbor_tag": tag.tag, "values": values}
+    return {"cbor_tag": tag.tag, "value": tag.value}
+
+
+def _typed_array(tag: int, data: bytes) -> list[JsonValue] | None:
+    """The numbers of an RFC 8746 typed array, or None for a form Python cannot unpack."""
+    is_float, signed, little = bool(tag & 0x10), bool(tag & 0x08), bool(tag & 0x04)
+    size_code = tag & 0x03
+    if is_float:
+        if size_code == 3:  # binary128
+            return None
+        code, size = "efd"[size_code], 2 << size_code
+    else:
+        size = 1 << size_code
+        code = "bhiq"[size_code] if signed else "BHIQ"[size_code]
+        if tag == 68:  # uint8, clamped arithmetic: the same bytes
+            little = True
+    if len(data) % size:
+        return None
+    order = "<" if little else ">"
+    return list(struct.unpack(f"{order}{len(data) // size}{code}", data))
+
+
+def auth_op(secret: str, given: Mapping[str, object], dest: str) -> dict[str, JsonValue]:
+    """A rosauth ``auth`` op (D23) valid from now for ``AUTH_VALIDITY_S`` seconds.
+
+    Args:
+        secret: the server's shared secret.
+        given: fields replacing the made ones (``mac``, ``client``, ``dest``,
+            ``rand``, ``level``) and ``t_offset_s``/``end_offset_s``, seconds
+            added to the current wall time for ``t`` and ``end``.
+        dest: the server's host, the default ``dest``.
+
+    Returns:
+        The op; ``t`` and ``end`` are whole seconds since the epoch, and ``mac``
+        is rosauth's MAC over the final fields unless ``given`` has one.
+    """
+    now = math.floor(time.time())
+    client = str(given.get("client", "rwt-conformance"))
+    dest = str(given.get("dest", dest))
+    rand = str(given.get("rand", secrets.token_hex(8)))
+    level = str(given.get("level", "admin"))
+    t = now + _whole(given.get("t_offset_s", 0))
+    end = now + _whole(given.get("end_offset_s", AUTH_VALIDITY_S))
+    mac = rosauth_mac(secret, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
+    return {
+        "op": "auth",
+        "mac": str(given.get("mac", mac)),
+        "client": client,
+        "dest": dest,
+        "rand": rand,
+        "t": t,
+        "level": level,
+        "end": end,
+    }
+
+
+def _whole(value: object) -> int:
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return math.floor(value)
+    raise ValueError(f"expected a number of seconds, got {value!r}")

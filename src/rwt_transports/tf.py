@@ -1,0 +1,29 @@
+"""The TF republisher with the event loop's sleep: ``install_tf_republisher(graph)``.
+
+``rwt_graph.tf`` holds the buffer and the republishing logic and knows no event
+loop; this module passes it ``anyio.sleep``. ``RosbridgeServer`` calls it unless
+``ServerConfig.tf`` is false (``rwt serve --no-tf``).
+"""
+
+from __future__ import annotations
+
+import anyio
+
+from rwt_graph.graph import Graph
+from rwt_graph.tf import TF_NODE, TFRepublisher
+from rwt_graph.tf import install_tf_republisher as _install
+
+__all__ = ["install_tf_republisher"]
+
+
+def install_tf_republisher(graph: Graph, *, node: str = TF_NODE) -> TFRepublisher:
+    """Give ``graph`` a TF buffer, the ``/tf2_web_republisher`` action and ``/republish_tfs``.
+
+    The ticking runs in the event loop of the server that serves ``graph``
+    (``graph.spawner``); lookups from Python work at once:
+    ``install_tf_republisher(graph).buffer.lookup("map", "gripper")``.
+
+    Raises:
+        GraphError: ``/tf`` or ``/tf_static`` is in use with another type.
+    """
+    return _install(graph, anyio.sleep, node=node)

@@ -1,0 +1,263 @@
+"""Shared streams: one subscription and one encoder per distinct stream, many viewers.
+
+A ``SharedStream`` exists while some viewer watches its ``StreamParams``. The
+graph's callback only keeps the newest message and wakes the stream's encoder
+task, which encodes in a worker thread and offers the result to every viewer;
+frames that arrive while it encodes are skipped. A viewer never makes the
+encoder wait: a still-image viewer keeps only the newest part, a video viewer
+keeps a bounded run of packets and, past that, drops them and restarts at the
+next keyframe. So a stalled viewer costs a bounded amount of memory and never
+slows another (issue 7: "a slow viewer skips frames, never buffers without bound").
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections import deque
+from collections.abc import Callable, Iterator, Mapping
+from typing import Protocol, TypeVar
+
+import anyio
+import anyio.to_thread
+from anyio.abc import TaskGroup
+
+from rwt_graph.graph import Graph
+from rwt_graph.local import LocalSubscription
+
+from .encoders import (
+    EncodeError,
+    FrameEncoder,
+    Muxer,
+    Part,
+    VideoFrameEncoder,
+    VideoPacket,
+    make_encoder,
+)
+from .params import StreamParams
+
+__all__ = ["PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
+
+logger = logging.getLogger("rwt.video")
+
+Message = Mapping[str, object]
+
+#: A video viewer further behind than this drops what it holds and waits for a keyframe.
+MAX_PENDING_PACKETS = 60
+MAX_PENDING_BYTES = 8 * 1024 * 1024
+
+
+class Viewer(Protocol):
+    """One HTTP response fed by a shared stream."""
+
+    def offer(self, items: list[Part] | list[VideoPacket]) -> None:
+        """Take the stream's newest output; must not block."""
+        ...
+
+
+V = TypeVar("V", bound=Viewer)
+
+
+class PartViewer:
+    """A multipart or snapshot viewer: holds only the newest encoded image.
+
+    Args:
+        latest: the stream's last encoded parts, shown at once (may be empty).
+    """
+
+    def __init__(self, latest: list[Part] | None = None) -> None:
+        self._latest: Part | None = latest[-1] if latest else None
+        self._ready = anyio.Event()
+
+    def offer(self, items: list[Part] | list[VideoPacket]) -> None:
+        """Replace the held part by the newest one (a slow viewer skips frames)."""
+        part = items[-1] if items else None
+        if isinstance(part, Part):
+            self._latest = part
+            self._ready.set()
+
+    async def next_part(self) -> Part:
+        """Wait for a part not yet taken."""
+        while self._latest is None:
+            await self._ready.wait()
+            self._ready = anyio.Event()
+        part, self._latest = self._latest, None
+        return part
+
+
+class VideoViewer:
+    """A video viewer: its own container over the shared packets, from a keyframe on."""
+
+    def __init__(self, stream: SharedStream) -> None:
+        self._stream = stream
+        self._pending: deque[VideoPacket] = deque()
+        self._pending_bytes = 0
+        self._muxer: Muxer | None = None
+        self._waiting_for_keyframe = True
+        self._ready = anyio.Event()
+
+    def offer(self, items: list[Part] | list[VideoPacket]) -> None:
+        """Queue packets; drop them all past the bounds and wait for a keyframe."""
+        for packet in items:
+            if not isinstance(packet, VideoPacket):
+                continue
+            if self._waiting_for_keyframe and not packet.keyframe:
+                continue
+            self._waiting_for_keyframe = False
+            self._pending.append(packet)
+            self._pending_bytes += len(packet.data)
+        if len(self._pending) > MAX_PENDING_PACKETS or self._pending_bytes > MAX_PENDING_BYTES:
+            self._pending.clear()
+            self._pending_bytes = 0
+            self._waiting_for_keyframe = True
+        if self._pending:
+            self._ready.set()
+
+    async def next_chunk(self) -> bytes:
+        """Container bytes for the packets queued since the last call (waits for some).
+
+        Raises:
+            EncodeError: the muxer failed; the viewer cannot go on.
+        """
+        while True:
+            if self._waiting_for_keyframe and self._muxer is not None:
+                self._stream.request_keyframe()  # resynchronise a viewer that fell behind
+            await self._ready.wait()
+            self._ready = anyio.Event()
+            chunks = []
+            while self._pending:
+                packet = self._pending.popleft()
+                self._pending_bytes -= len(packet.data)
+                if self._muxer is None:
+                    self._muxer = self._stream.muxer()
+                chunks.append(self._muxer.add(packet))
+            data = b"".join(chunks)
+            if data:
+                return data
+
+    def close(self) -> None:
+        """Free the container."""
+        if self._muxer is not None:
+            self._muxer.close()
+
+
+class SharedStream:
+    """One topic encoded one way for every viewer that asks for the same params."""
+
+    def __init__(self, params: StreamParams, encoder: FrameEncoder) -> None:
+        self.params = params
+        self.encoder = encoder
+        self.viewers: set[Viewer] = set()
+        self.last_parts: list[Part] = []  # for viewers that join between frames
+        self.subscription: LocalSubscription | None = None
+        self.scope = anyio.CancelScope()
+        self._latest: Message | None = None
+        self._wake = anyio.Event()
+        self._last_error = ""
+
+    def on_message(self, msg: Message) -> None:
+        """The graph's callback: keep only the newest message and wake the encoder."""
+        self._latest = msg
+        self._wake.set()
+
+    def request_keyframe(self) -> None:
+        """Ask a video encoder for a keyframe at the next frame."""
+        if isinstance(self.encoder, VideoFrameEncoder):
+            self.encoder.request_keyframe()
+
+    def muxer(self) -> Muxer:
+        """A container for a new video viewer.
+
+        Raises:
+            EncodeError: not a video stream, or no frame encoded yet.
+        """
+        if not isinstance(self.encoder, VideoFrameEncoder):
+            raise EncodeError(f"{self.params.type} is not a video stream")
+        return self.encoder.muxer()
+
+    async def run(self) -> None:
+        """Encode the newest message whenever one arrives, until cancelled."""
+        with self.scope:
+            while True:
+                await self._wake.wait()
+                self._wake = anyio.Event()
+                msg, self._latest = self._latest, None
+                if msg is None:
+                    continue
+                try:
+                    items = await anyio.to_thread.run_sync(self.encoder.encode, msg)
+                except EncodeError as exc:
+                    self._log_once(str(exc))
+                    continue
+                parts = [item for item in items if isinstance(item, Part)]
+                if parts:
+                    self.last_parts = parts
+                for viewer in list(self.viewers):
+                    viewer.offer(items)
+
+    def _log_once(self, text: str) -> None:
+        if text != self._last_error:  # once per cause, not per frame
+            logger.warning("%s (%s): frame skipped: %s", self.params.topic, self.params.type, text)
+            self._last_error = text
+
+
+class StreamHub:
+    """The shared streams of one video server.
+
+    Args:
+        graph: where topics are subscribed.
+        task_group: runs the streams' encoder tasks.
+    """
+
+    def __init__(self, graph: Graph, task_group: TaskGroup) -> None:
+        self.graph = graph
+        self._tg = task_group
+        self.streams: dict[StreamParams, SharedStream] = {}
+
+    @contextlib.contextmanager
+    def watching(
+        self, params: StreamParams, type_name: str, make_viewer: Callable[[SharedStream], V]
+    ) -> Iterator[V]:
+        """Attach a viewer made by ``make_viewer(stream)`` while the block runs.
+
+        The first viewer of ``params`` subscribes ``params.topic`` as
+        ``type_name`` and starts the encoder; the last one to leave stops both.
+        The topic subscribed is ``params.source_topic``. A video stream is asked
+        for a keyframe so that the new viewer starts soon.
+
+        Raises:
+            EncodeError: the encoder cannot be made (PyAV missing).
+            GraphError, InvalidTypeName, UnknownType: the topic cannot be
+                subscribed as ``type_name``.
+        """
+        stream = self.streams.get(params)
+        if stream is None:
+            stream = self._start(params, type_name)
+        viewer = make_viewer(stream)
+        stream.viewers.add(viewer)
+        stream.request_keyframe()
+        try:
+            yield viewer
+        finally:
+            stream.viewers.discard(viewer)
+            if isinstance(viewer, VideoViewer):
+                viewer.close()
+            if not stream.viewers and self.streams.get(params) is stream:
+                self._stop(stream)
+
+    def _start(self, params: StreamParams, type_name: str) -> SharedStream:
+        stream = SharedStream(params, make_encoder(params))
+        stream.subscription = self.graph.create_subscription(
+            params.source_topic, stream.on_message, type_name, node="/web_video_server"
+        )
+        self.streams[params] = stream
+        self._tg.start_soon(stream.run)
+        logger.info("streaming %s as %s", params.topic, params.type)
+        return stream
+
+    def _stop(self, stream: SharedStream) -> None:
+        del self.streams[stream.params]
+        if stream.subscription is not None:
+            stream.subscription.close()
+        stream.scope.cancel()
+        logger.info("stopped streaming %s as %s", stream.params.topic, stream.params.type)

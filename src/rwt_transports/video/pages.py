@@ -1,0 +1,76 @@
+"""The HTML pages of the video server: the topic list and the stream viewer.
+
+Laid out as web_video_server's: image topics grouped under the camera whose
+``camera_info`` topic shares their prefix, each with links to its viewer page,
+its stream and a snapshot; the viewer page holds an ``<img>`` (mjpeg, png,
+ros_compressed) or a ``<video>`` (vp8, vp9, h264) pointing at ``/stream``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+from html import escape
+from urllib.parse import urlencode
+
+from .params import StreamParams, StreamType
+
+__all__ = ["stream_viewer_page", "topic_list_page"]
+
+
+def topic_list_page(topics: list[tuple[str, str]]) -> str:
+    """The ``/`` page for the graph's ``(topic, type)`` pairs."""
+    images = [name for name, kind in topics if kind.replace("/msg/", "/") == "sensor_msgs/Image"]
+    cameras = [
+        name.removesuffix("camera_info")
+        for name, kind in topics
+        if kind.replace("/msg/", "/") == "sensor_msgs/CameraInfo" and name.endswith("/camera_info")
+    ]
+    lines = [
+        "<html><head><title>ROS Image Topic List</title></head>",
+        "<body><h1>Available ROS Image Topics:</h1>",
+        "<ul>",
+    ]
+    for base in cameras:
+        mine = [name for name in images if name.startswith(base)]
+        images = [name for name in images if name not in mine]
+        items = "".join(_topic_item(name, name[len(base) :]) for name in mine)
+        lines.append(f"<li>{escape(base)}<ul>{items}</ul></li>")
+    lines.append("</ul><ul>")
+    lines.extend(_topic_item(name, name) for name in images)
+    lines.append("</ul></body></html>")
+    return "\n".join(lines)
+
+
+def stream_viewer_page(params: StreamParams) -> str:
+    """The ``/stream_viewer`` page: the stream in an element a browser plays."""
+    source = escape(f"/stream?{_query(params)}")
+    if params.type.is_video:
+        element = f'<video src="{source}" autoplay="true" preload="none"></video>'
+    else:
+        element = f'<img src="{source}"></img>'
+    title = escape(params.topic)
+    return f"<html><head><title>{title}</title></head><body><h1>{title}</h1>{element}</body></html>"
+
+
+def _topic_item(topic: str, label: str) -> str:
+    query = urlencode({"topic": topic})
+    return (
+        f'<li><a href="/stream_viewer?{escape(query)}">{escape(label)}</a> '
+        f'(<a href="/stream?{escape(query)}">Stream</a>) '
+        f'(<a href="/snapshot?{escape(query)}">Snapshot</a>)</li>'
+    )
+
+
+def _query(params: StreamParams) -> str:
+    """The query that asks for ``params`` again (defaults left out)."""
+    default = StreamParams(topic=params.topic, type=params.type)
+    pairs: list[tuple[str, str]] = [("topic", params.topic), ("type", params.type.value)]
+    for field in fields(StreamParams):
+        value = getattr(params, field.name)
+        if field.name in ("topic", "type") or value == getattr(default, field.name):
+            continue
+        if field.name == "invert":
+            pairs.append(("invert", ""))
+        elif field.name != "quality" or params.type in (StreamType.MJPEG, StreamType.PNG):
+            pairs.append((field.name, str(value)))
+    return urlencode(pairs)

@@ -1,0 +1,149 @@
+"""What a ``/stream`` or ``/snapshot`` URL asks for, with web_video_server's defaults.
+
+Query parameters and defaults follow web_video_server (REFERENCE: its
+``ImageTransportImageStreamer``, ``MjpegStreamer``, ``PngStreamer`` and
+``LibavStreamer``): ``type`` (mjpeg), ``quality`` (95 for JPEG, PNG
+compression level 3 for png), ``width``/``height`` (-1: the image's own),
+``invert`` (present: rotate 180 degrees), ``bitrate`` (100000 bit/s), ``qmin``
+(10), ``qmax`` (42) and ``gop`` (25) for the video codecs. Two requests with the
+same ``StreamParams`` share one encoder.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from enum import StrEnum
+
+__all__ = ["ParamError", "StreamParams", "StreamType", "parse_stream_params"]
+
+
+class StreamType(StrEnum):
+    """The ``type`` values web_video_server serves."""
+
+    MJPEG = "mjpeg"
+    PNG = "png"
+    ROS_COMPRESSED = "ros_compressed"
+    VP8 = "vp8"
+    VP9 = "vp9"
+    H264 = "h264"
+
+    @property
+    def is_video(self) -> bool:
+        """Encoded by a video codec into a container (PyAV), not frame by frame."""
+        return self in (StreamType.VP8, StreamType.VP9, StreamType.H264)
+
+
+class ParamError(ValueError):
+    """A query parameter that cannot be used; ``status`` is the HTTP status to answer."""
+
+    def __init__(self, message: str, status: int = 400) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+@dataclass(frozen=True)
+class StreamParams:
+    """One stream's settings; equal params mean one shared encoder.
+
+    Attributes:
+        topic: the image topic (resolved, with a leading slash).
+        type: the encoding.
+        quality: JPEG quality 1..100, or the PNG compression level 0..9.
+        width, height: output size in pixels; -1 keeps the image's.
+        invert: rotate by 180 degrees.
+        bitrate: target video bit rate, bit/s.
+        qmin, qmax: video quantiser bounds.
+        gop: video keyframe interval, frames.
+    """
+
+    topic: str
+    type: StreamType = StreamType.MJPEG
+    quality: int = 95
+    width: int = -1
+    height: int = -1
+    invert: bool = False
+    bitrate: int = 100_000
+    qmin: int = 10
+    qmax: int = 42
+    gop: int = 25
+
+    @property
+    def source_topic(self) -> str:
+        """The topic subscribed: ``<topic>/compressed`` for ros_compressed (image_transport)."""
+        if self.type is StreamType.ROS_COMPRESSED:
+            return f"{self.topic.rstrip('/')}/compressed"
+        return self.topic
+
+    def with_type(self, stream_type: StreamType) -> StreamParams:
+        """The same stream as another type (ros_compressed falls back to mjpeg)."""
+        return replace(self, type=stream_type, quality=_default_quality(stream_type, None))
+
+
+def parse_stream_params(
+    query: Mapping[str, str], default_type: StreamType = StreamType.MJPEG
+) -> StreamParams:
+    """Read a request's query parameters.
+
+    Args:
+        query: the decoded query (last value of each name).
+        default_type: used when ``type`` is absent (web_video_server's
+            ``default_stream_type``).
+
+    Returns:
+        The parameters; parameters a type does not use keep their defaults so
+        that they do not split one stream into several.
+
+    Raises:
+        ParamError: no ``topic`` (400), an unknown ``type`` (404, as
+            web_video_server), or a number that is not an integer or out of range (400).
+    """
+    topic = query.get("topic", "")
+    if not topic:
+        raise ParamError("missing query parameter topic")
+    try:
+        stream_type = StreamType(query.get("type", default_type.value))
+    except ValueError:
+        raise ParamError(f"unknown stream type {query.get('type')!r}", status=404) from None
+    params = StreamParams(
+        topic=topic if topic.startswith("/") else f"/{topic}",
+        type=stream_type,
+        quality=_default_quality(stream_type, query),
+        width=_int(query, "width", -1, low=-1),
+        height=_int(query, "height", -1, low=-1),
+        invert="invert" in query,
+    )
+    if stream_type.is_video:
+        params = replace(
+            params,
+            bitrate=_int(query, "bitrate", 100_000, low=1),
+            qmin=_int(query, "qmin", 10, low=0, high=63),
+            qmax=_int(query, "qmax", 42, low=0, high=63),
+            gop=_int(query, "gop", 25, low=1),
+        )
+    if params.width == 0 or params.height == 0:
+        raise ParamError("width and height must be positive (or -1 for the image's)")
+    return params
+
+
+def _default_quality(stream_type: StreamType, query: Mapping[str, str] | None) -> int:
+    if stream_type is StreamType.MJPEG:
+        return _int(query or {}, "quality", 95, low=1, high=100)
+    if stream_type is StreamType.PNG:
+        return _int(query or {}, "quality", 3, low=0, high=9)
+    return 0  # not used by this type
+
+
+def _int(
+    query: Mapping[str, str], name: str, default: int, *, low: int, high: int = 1 << 30
+) -> int:
+    raw = query.get(name)
+    if raw is None or raw == "":
+        return default
+    try:
+        value = int(raw)
+    except ValueError:
+        raise ParamError(f"{name}={raw!r} is not an integer") from None
+    if not low <= value <= high:
+        raise ParamError(f"{name}={value} is outside {low}..{high}")
+    return value
