@@ -136,3 +136,17 @@ def print_rows(rows: list[dict[str, object]]) -> None:
             f"{row['figure']:<9} {row['metric']:<46} paper {paper:>9}  ours {row['ours']:>10.1f}"
             f" {row['unit']:<6} {row['note']}"
         )
+
+
+def paper_row(
+    figure: str, metric: str, paper: float | None, ours: float, note: str, unit: str = "KB/s"
+) -> dict[str, object]:
+    """One row of the paper runner's table (``benchmarks/paper/__main__.py``)."""
+    return {
+        "figure": figure,
+        "metric": metric,
+        "paper": paper,
+        "ours": round(ours, 2),
+        "unit": unit,
+        "note": note,
+    }

@@ -22,6 +22,7 @@ Usage: ``python -m benchmarks.paper.depthcloud [--quick]``.
 from __future__ import annotations
 
 import argparse
+import functools
 import statistics
 import time
 from collections.abc import Iterator
@@ -34,7 +35,19 @@ from rwt_graph.media import CameraIntrinsics, array_to_image, decode_depthcloud
 from rwt_graph.media.depthcloud_node import DepthCloudEncoder
 from rwt_transports.video.params import StreamParams, StreamType
 
-from ._streams import KB, RATE_HZ, StreamResult, mjpeg, print_rows, rosbridge_bytes, stamp, video
+from ._streams import (
+    KB,
+    RATE_HZ,
+    StreamResult,
+    mjpeg,
+    paper_row,
+    print_rows,
+    rosbridge_bytes,
+    stamp,
+    video,
+)
+
+_row = functools.partial(paper_row, "Table II")
 
 #: Table II, KB/s: ROS internal (point cloud) and web streaming (means).
 PAPER = {"pointcloud": 5591.6, "web": 568.4}
@@ -212,19 +225,6 @@ def _codec_rows(
             "mm",
         ),
     ]
-
-
-def _row(
-    metric: str, paper: float | None, ours: float, note: str, unit: str = "KB/s"
-) -> dict[str, object]:
-    return {
-        "figure": "Table II",
-        "metric": metric,
-        "paper": paper,
-        "ours": round(ours, 2),
-        "unit": unit,
-        "note": note,
-    }
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ Usage: ``python -m benchmarks.paper.video [--quick]``.
 from __future__ import annotations
 
 import argparse
+import functools
 from collections.abc import Iterator
 
 import numpy as np
@@ -25,7 +26,9 @@ from PIL import Image
 from rwt_graph.media import array_to_image
 from rwt_transports.video.params import StreamParams, StreamType
 
-from ._streams import KB, RATE_HZ, mjpeg, print_rows, rosbridge_bytes, stamp, video
+from ._streams import KB, RATE_HZ, mjpeg, paper_row, print_rows, rosbridge_bytes, stamp, video
+
+_row = functools.partial(paper_row, "Table I")
 
 #: Table I, KB/s: web MJPEG, web VP8, ROS raw, ROS compressed, ROS theora (means).
 PAPER = {"mjpeg": 1317.0, "vp8": 342.2, "raw": 12052.5, "compressed": 1309.3, "theora": 19.4}
@@ -81,19 +84,6 @@ def run(quick: bool) -> list[dict[str, object]]:
         _row("MJPEG encode CPU per frame", None, jpeg.cpu_ms_per_frame, "Pillow", "ms"),
         _row("VP8 encode CPU per frame", None, vp8.cpu_ms_per_frame, "libvpx realtime", "ms"),
     ]
-
-
-def _row(
-    metric: str, paper: float | None, ours: float, note: str, unit: str = "KB/s"
-) -> dict[str, object]:
-    return {
-        "figure": "Table I",
-        "metric": metric,
-        "paper": paper,
-        "ours": round(ours, 2),
-        "unit": unit,
-        "note": note,
-    }
 
 
 if __name__ == "__main__":
