@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import suppress
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, TypeVar, cast
 
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
@@ -29,6 +29,8 @@ _PARTS: dict[str, tuple[str, ...]] = {
     "action": ("Goal", "Result", "Feedback"),
 }
 _ALIAS_LIMIT = 4096
+
+T = TypeVar("T", ServiceType, ActionType)
 
 
 class TypeRegistry:
@@ -194,17 +196,12 @@ class TypeRegistry:
             UnknownType: no ``.srv`` file defines it, or a type it uses is unknown.
             DefinitionError: its text cannot be parsed.
         """
-        found = self._services.get(name)
-        if found is None:
-            tname = parse_type_name(name, "srv")
-            canonical = tname.spelled(self.dialect)
-            found = self._services.get(canonical)
-            if found is None:
-                text, (request, response) = self._parts(tname, "srv")
-                found = self._services[canonical] = ServiceType(canonical, request, response, text)
-            if len(self._services) < _ALIAS_LIMIT:
-                self._services[name] = found
-        return found
+
+        def build(canonical: str, tname: TypeName) -> ServiceType:
+            text, (request, response) = self._parts(tname, "srv")
+            return ServiceType(canonical, request, response, text)
+
+        return self._lookup(self._services, name, "srv", build)
 
     def action(self, name: str) -> ActionType:
         """Find an action type (cached).
@@ -214,17 +211,31 @@ class TypeRegistry:
             UnknownType: no ``.action`` file defines it, or a type it uses is unknown.
             DefinitionError: its text cannot be parsed.
         """
-        found = self._actions.get(name)
+
+        def build(canonical: str, tname: TypeName) -> ActionType:
+            text, (goal, result, feedback) = self._parts(tname, "action")
+            return ActionType(canonical, goal, result, feedback, text)
+
+        return self._lookup(self._actions, name, "action", build)
+
+    def _lookup(
+        self,
+        cache: dict[str, T],
+        name: str,
+        kind: Kind,
+        build: Callable[[str, TypeName], T],
+    ) -> T:
+        # Cached by canonical name, and by each spelling asked for (bounded, as
+        # the spellings come from peers).
+        found = cache.get(name)
         if found is None:
-            tname = parse_type_name(name, "action")
+            tname = parse_type_name(name, kind)
             canonical = tname.spelled(self.dialect)
-            found = self._actions.get(canonical)
+            found = cache.get(canonical)
             if found is None:
-                text, (goal, result, feedback) = self._parts(tname, "action")
-                found = ActionType(canonical, goal, result, feedback, text)
-                self._actions[canonical] = found
-            if len(self._actions) < _ALIAS_LIMIT:
-                self._actions[name] = found
+                found = cache[canonical] = build(canonical, tname)
+            if len(cache) < _ALIAS_LIMIT:
+                cache[name] = found
         return found
 
     def message_names(self) -> list[str]:
