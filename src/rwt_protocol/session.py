@@ -63,7 +63,9 @@ class SessionConfig:
     Attributes:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         send_buffer_limit: bytes of outgoing frames kept queued before the oldest
-            topic messages are dropped (D24, ``--send-buffer-limit``).
+            topic messages are dropped (D24, ``--send-buffer-limit``); each frame
+            counts its payload plus ``outbox.FRAME_OVERHEAD_BYTES``, so the
+            limit bounds the memory a stalled peer holds.
         send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
             without taking any frame before it is closed (D24, ``--send-timeout``).
         access: the access rules (``--topics-glob`` and friends).

@@ -112,7 +112,10 @@ def serve(
     ] = 100,
     send_buffer_limit: Annotated[
         int,
-        typer.Option(help="Outgoing bytes queued per connection before dropping topic messages."),
+        typer.Option(
+            help="Outgoing bytes queued per connection (payload plus a fixed cost a frame)"
+            " before dropping topic messages."
+        ),
     ] = 16 * MiB,
     send_timeout: Annotated[
         float, typer.Option(help="Seconds a connection may stay over the send buffer limit.")

@@ -7,8 +7,12 @@ transports), in three tasks per connection:
 
 - the reader feeds incoming frames to ``Session.receive_frame``;
 - the writer takes bounded batches from the session's outbox and sends them,
-  then carries out commands (``CloseConnection``); it is the only task that
-  writes frames, so a publish never awaits a socket (STYLE.md);
+  then carries out commands (``CloseConnection``); a publish never awaits a
+  socket (STYLE.md). While the writer is idle, a channel that can write
+  without blocking (``DirectChannel``: a plain socket with nothing buffered)
+  is written from the publish path itself, in ``wake``: a message to ten idle
+  subscribers then costs no task switch (issue 8). Whatever it cannot take at
+  once is left to the writer, so frames keep their order either way;
 - the timer task calls ``Session.handle_timer`` when ``get_timer`` says, even
   while the writer is stuck on a peer that does not read: that is how the send
   timeout (D24) can close a stalled connection. If the writer cannot even get
@@ -19,7 +23,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import anyio
 
@@ -28,7 +32,14 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, CloseConnection, Session
 
-__all__ = ["CLOSE_WAIT_S", "Channel", "ConnectionPump", "SessionHost", "run_connection"]
+__all__ = [
+    "CLOSE_WAIT_S",
+    "Channel",
+    "ConnectionPump",
+    "DirectChannel",
+    "SessionHost",
+    "run_connection",
+]
 
 logger = logging.getLogger("rwt.server")
 
@@ -68,6 +79,26 @@ class Channel(Protocol):
 
     async def background(self, session: Session) -> None:
         """Run transport chores (WebSocket keepalive) until cancelled; may return at once."""
+
+
+@runtime_checkable
+class DirectChannel(Protocol):
+    """A channel that can also write without awaiting (issue 8).
+
+    The pump calls ``send_now`` only while its writer is idle and only after
+    ``can_send_now`` said yes, so nothing else is writing and order is kept.
+    """
+
+    def can_send_now(self) -> bool:
+        """Whether ``send_now`` would write at once, nothing else being written."""
+
+    def send_now(self, frames: Sequence[OutFrame]) -> None:
+        """Write ``frames`` now, without blocking; what the socket cannot take
+        at once stays in the transport, ahead of anything sent later.
+
+        Raises:
+            RuntimeError: the transport refused (it is closing).
+        """
 
 
 class SessionHost(Protocol):
@@ -129,11 +160,39 @@ class ConnectionPump:
         self._writer_closed = anyio.Event()
         self._session: Session | None = None
         self._timer_deadline: float | None = None
+        self._direct = channel if isinstance(channel, DirectChannel) else None
+        self._writer_idle = False  # waiting for a wake-up, holding no frames
 
     def wake(self) -> None:
         """The session has output (frames, commands or a new timer)."""
-        self._writer_wake.set()
+        if not (self._writer_idle and self._send_now()):
+            self._writer_wake.set()
         self._wake_timers()
+
+    def _send_now(self) -> bool:
+        """Write queued frames from the caller if the channel can take them now.
+
+        Called synchronously from ``Session.send_frames`` (the publish path),
+        only while the writer is idle. Returns True when nothing is left for
+        the writer: every frame went to the transport and no close is pending.
+        """
+        session = self._session
+        channel = self._direct
+        if (
+            session is None
+            or channel is None
+            or session.close_request is not None
+            or not channel.can_send_now()
+        ):
+            return False
+        frames = session.frames_to_send(BATCH_BYTES)
+        if frames:
+            try:
+                channel.send_now(frames)
+            except Exception:  # a publish must never fail for another peer's socket
+                logger.debug("event=direct_send_failed client=%s", session.client_id)
+                return False  # the writer finds the broken stream and ends the connection
+        return session.queued_bytes == 0
 
     def _wake_timers(self) -> None:
         """Wake the timer task only when it has something new to look at.
@@ -191,7 +250,11 @@ class ConnectionPump:
                     if isinstance(command, CloseConnection):
                         await self._close(command, scope)
                         return
-                await self._writer_wake.wait()
+                self._writer_idle = True
+                try:
+                    await self._writer_wake.wait()
+                finally:
+                    self._writer_idle = False
         except _BROKEN:
             self.close_reason = "connection broken while sending"
             scope.cancel()

@@ -19,6 +19,7 @@ from rwt_protocol.framing import FramerEvent, JsonStreamFramer
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session
 
+from .direct import DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
@@ -45,6 +46,7 @@ class StreamChannel:
         self.transport = transport
         self._framer = JsonStreamFramer(max_message_size)
         self._ended = False
+        self._direct = DirectWriter.for_stream(stream)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read the next chunk and return the frames it completes."""
@@ -63,6 +65,20 @@ class StreamChannel:
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Write the frames in one go."""
         await self.stream.send(encode_stream_frames(frames))
+
+    def can_send_now(self) -> bool:
+        """Whether ``send_now`` may write at once: a plain socket, nothing buffered (issue 8)."""
+        return self._direct is not None and self._direct.ready
+
+    def send_now(self, frames: Sequence[OutFrame]) -> None:
+        """Write the frames without awaiting; call only when ``can_send_now`` is True.
+
+        Raises:
+            RuntimeError: not a plain socket, or the transport started closing.
+        """
+        if self._direct is None:
+            raise RuntimeError("not a plain socket: send through the writer")
+        self._direct.write(encode_stream_frames(frames))
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Close the stream (TCP has no close frame; the reason is in the server log)."""

@@ -40,6 +40,7 @@ from rwt_protocol.framing import FramerEvent, InFrame
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session
 
+from .direct import DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
@@ -83,7 +84,8 @@ class WebSocketChannel:
 
     The reader, the writer and the keepalive all write to the stream, each under
     one lock, always through ``protocol.data_to_send()``: bytes go out in the
-    order the protocol made them.
+    order the protocol made them. On a plain socket, the pump may also write
+    from the publish path (``send_now``) while nobody holds the lock.
     """
 
     transport = "ws"
@@ -93,7 +95,10 @@ class WebSocketChannel:
         self.stream = stream
         self.protocol = protocol
         self.options = options
-        self._lock = anyio.Lock()
+        # fast_acquire: an uncontended lock is taken without a checkpoint (one
+        # task switch less per batch); the sends under it still checkpoint.
+        self._lock = anyio.Lock(fast_acquire=True)
+        self._direct = DirectWriter.for_stream(stream)
         self._parts: list[bytes] = []
         self._size = 0
         self._binary = False
@@ -141,6 +146,38 @@ class WebSocketChannel:
             await self._flush_locked()  # control frames queued by the protocol go first
             await self._write_framed(frames)
 
+    def can_send_now(self) -> bool:
+        """Whether ``send_now`` may write at once (issue 8).
+
+        True only on a plain socket whose transport has nothing buffered, with
+        no other write in progress (the lock is free), the connection open and
+        no permessage-deflate (websockets must frame those messages itself).
+        """
+        direct = self._direct
+        return (
+            direct is not None
+            and not self._lock.locked()
+            and self.protocol.state is State.OPEN
+            and not self.protocol.extensions
+            and direct.ready
+        )
+
+    def send_now(self, frames: Sequence[OutFrame]) -> None:
+        """Write ``frames`` without awaiting; call only when ``can_send_now`` is True.
+
+        Control frames the protocol queued (pongs) go first, as in ``send``.
+
+        Raises:
+            RuntimeError: the transport refused the bytes (it started closing).
+        """
+        direct = self._direct
+        if direct is None:
+            raise RuntimeError("not a plain socket: send through the writer")
+        chunks = [data for data in self.protocol.data_to_send() if data]
+        chunks += _framed(frames)
+        for chunk in chunks:
+            direct.write(chunk)
+
     def _send_through_protocol(self, frames: Sequence[OutFrame]) -> None:
         try:
             for frame in frames:
@@ -152,28 +189,8 @@ class WebSocketChannel:
             raise anyio.ClosedResourceError from None
 
     async def _write_framed(self, frames: Sequence[OutFrame]) -> None:
-        batch: list[bytes] = []
-        size = 0
-        for frame in frames:
-            header = frame.header
-            if header is None:
-                header = _header(len(frame.data), frame.binary)
-                object.__setattr__(frame, "header", header)  # shared: framed once for all
-            if len(frame.data) >= _WRITE_BATCH:
-                # Large: header and payload as they are, no copy of the payload.
-                if batch:
-                    await self.stream.send(b"".join(batch))
-                    batch, size = [], 0
-                await self.stream.send(header)
-                await self.stream.send(frame.data)
-                continue
-            batch += (header, frame.data)
-            size += len(header) + len(frame.data)
-            if size >= _WRITE_BATCH:
-                await self.stream.send(b"".join(batch))
-                batch, size = [], 0
-        if batch:
-            await self.stream.send(b"".join(batch))
+        for chunk in _framed(frames):
+            await self.stream.send(chunk)
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame with ``code`` and ``reason``."""
@@ -325,6 +342,38 @@ async def serve_websocket_connection(
             session.close()
             return
         await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
+
+
+def _framed(frames: Sequence[OutFrame]) -> list[bytes]:
+    """The writes that send ``frames`` as whole WebSocket frames, in order.
+
+    The header is made once and kept on the ``OutFrame``, which every
+    subscriber of the same form shares (issue 8: frame once). Small frames are
+    joined into writes of about ``_WRITE_BATCH`` bytes; a large frame goes as
+    its header and its payload, without a copy of the payload.
+    """
+    writes: list[bytes] = []
+    batch: list[bytes] = []
+    size = 0
+    for frame in frames:
+        header = frame.header
+        if header is None:
+            header = _header(len(frame.data), frame.binary)
+            object.__setattr__(frame, "header", header)  # shared: framed once for all
+        if len(frame.data) >= _WRITE_BATCH:
+            if batch:
+                writes.append(b"".join(batch))
+                batch, size = [], 0
+            writes += (header, frame.data)
+            continue
+        batch += (header, frame.data)
+        size += len(header) + len(frame.data)
+        if size >= _WRITE_BATCH:
+            writes.append(b"".join(batch))
+            batch, size = [], 0
+    if batch:
+        writes.append(b"".join(batch))
+    return writes
 
 
 def _header(length: int, binary: bool) -> bytes:
