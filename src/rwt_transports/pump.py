@@ -10,9 +10,10 @@ transports), in three tasks per connection:
   then carries out commands (``CloseConnection``); a publish never awaits a
   socket (STYLE.md). While the writer is idle, a channel that can write
   without blocking (``DirectChannel``: a plain socket with nothing buffered)
-  is written from the publish path itself, in ``wake``: a message to ten idle
-  subscribers then costs no task switch (issue 8). Whatever it cannot take at
-  once is left to the writer, so frames keep their order either way;
+  is written without it: at the end of the reader's batch that published
+  (``flush_deferred``), one write per connection, so a message to ten idle
+  subscribers costs no task switch (issue 8). Whatever the socket cannot take
+  at once is left to the writer, so frames keep their order either way;
 - the timer task calls ``Session.handle_timer`` when ``get_timer`` says, even
   while the writer is stuck on a peer that does not read: that is how the send
   timeout (D24) can close a stalled connection. If the writer cannot even get
@@ -21,7 +22,9 @@ transports), in three tasks per connection:
 
 from __future__ import annotations
 
+import asyncio
 import logging
+import threading
 from collections.abc import Callable, Sequence
 from typing import Protocol, runtime_checkable
 
@@ -38,6 +41,7 @@ __all__ = [
     "ConnectionPump",
     "DirectChannel",
     "SessionHost",
+    "flush_deferred",
     "run_connection",
 ]
 
@@ -142,6 +146,38 @@ _BROKEN = (
 )
 
 
+class _Deferred(threading.local):
+    """Idle connections with frames to write at the end of the current batch.
+
+    Per thread, as an event loop is: a pump is only ever flushed by its own loop.
+    """
+
+    def __init__(self) -> None:
+        self.pumps: list[ConnectionPump] = []
+
+
+_deferred = _Deferred()
+
+
+def flush_deferred() -> None:
+    """Write what the idle connections woken since the last flush have queued (issue 8).
+
+    A reader calls it after each batch of incoming frames, so a publish fanned
+    out to idle subscribers goes out before the reader waits again, and the
+    many frames of a burst go out in one write per connection (as the writer
+    would batch them), not one system call each. Output made outside a reader
+    (in-process publishers, timers, service tasks) is flushed by a loop
+    callback scheduled at the first deferral. A connection whose socket cannot
+    take the frames at once gets its writer woken instead.
+    """
+    pumps = _deferred.pumps
+    while pumps:
+        batch = pumps[:]
+        pumps.clear()
+        for pump in batch:
+            pump._flush_deferred()
+
+
 class ConnectionPump:
     """Runs one session over one channel until either side ends it.
 
@@ -162,19 +198,45 @@ class ConnectionPump:
         self._timer_deadline: float | None = None
         self._direct = channel if isinstance(channel, DirectChannel) else None
         self._writer_idle = False  # waiting for a wake-up, holding no frames
+        self._deferred = False  # in the list of ``flush_deferred``
 
     def wake(self) -> None:
         """The session has output (frames, commands or a new timer)."""
-        if not (self._writer_idle and self._send_now()):
+        session = self._session
+        if (
+            self._writer_idle
+            and self._direct is not None
+            and session is not None
+            and session.close_request is None
+        ):
+            if not self._deferred:
+                self._defer()
+        else:
             self._writer_wake.set()
         self._wake_timers()
+
+    def _defer(self) -> None:
+        """Leave the frames for ``flush_deferred`` instead of waking the writer."""
+        pumps = _deferred.pumps
+        if not pumps:
+            try:  # for output made outside a reader; a reader flushes sooner
+                asyncio.get_running_loop().call_soon(flush_deferred)
+            except RuntimeError:  # no asyncio loop (the direct path needs one)
+                self._writer_wake.set()
+                return
+        pumps.append(self)
+        self._deferred = True
+
+    def _flush_deferred(self) -> None:
+        self._deferred = False
+        if not (self._writer_idle and self._send_now()):
+            self._writer_wake.set()
 
     def _send_now(self) -> bool:
         """Write queued frames from the caller if the channel can take them now.
 
-        Called synchronously from ``Session.send_frames`` (the publish path),
-        only while the writer is idle. Returns True when nothing is left for
-        the writer: every frame went to the transport and no close is pending.
+        Called only while the writer is idle. Returns True when nothing is left
+        for the writer: every frame went to the transport and no close is pending.
         """
         session = self._session
         channel = self._direct
@@ -235,6 +297,7 @@ class ConnectionPump:
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
                     session.receive_frame(event.data, now, binary=event.binary)
+            flush_deferred()  # what this batch published goes out now, in one write each
             self._wake_timers()  # handlers may have scheduled timers
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:

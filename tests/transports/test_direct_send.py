@@ -22,7 +22,7 @@ import trustme
 from rwt_graph.graph import Graph
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session, SessionConfig
-from rwt_transports.pump import ConnectionPump
+from rwt_transports.pump import ConnectionPump, flush_deferred
 from rwt_transports.server import ServerConfig
 from rwt_transports.tcp import StreamChannel
 from rwt_transports.websocket import WebSocketChannel
@@ -134,6 +134,7 @@ class FakeChannel:
     def __init__(self) -> None:
         self.wire: list[tuple[str, bytes]] = []
         self.ready = True
+        self.writes = 0
         self.closed: tuple[CloseCode, str] | None = None
         self.stop = anyio.Event()
 
@@ -143,12 +144,14 @@ class FakeChannel:
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         await anyio.lowlevel.checkpoint()
+        self.writes += 1
         self.wire += [("writer", f.data) for f in frames]
 
     def can_send_now(self) -> bool:
         return self.ready
 
     def send_now(self, frames: Sequence[OutFrame]) -> None:
+        self.writes += 1
         self.wire += [("now", f.data) for f in frames]
 
     async def close(self, code: CloseCode, reason: str) -> None:
@@ -183,20 +186,20 @@ async def test_the_pump_mixes_both_paths_without_reordering(
         for i in numbers:
             publisher.publish({"data": str(i)})
 
-    publish(0, 1)  # the writer is idle: written at once
+    publish(0, 1, 2)  # the writer is idle: written together at the end of the batch
+    flush_deferred()
     channel.ready = False
-    publish(2, 3)  # the socket is busy: queued, the writer is woken
+    publish(3)  # the socket is busy: the writer is woken
+    flush_deferred()
     channel.ready = True
-    publish(4)  # behind 2 and 3 in the queue: the writer sends all three
+    publish(4)  # behind 3 in the queue: the writer sends both
     await anyio.wait_all_tasks_blocked()
-    channel.ready = False
-    publish(5, 6)
-    await anyio.wait_all_tasks_blocked()  # the writer sends them
-    channel.ready = True
-    publish(7)
+    publish(5)  # idle again: at once, by the loop callback when no reader flushes
+    await anyio.wait_all_tasks_blocked()
     sent = [(path, int(data.split(b'"data":"')[1].split(b'"')[0])) for path, data in channel.wire]
-    assert [n for _, n in sent] == list(range(8))
-    assert [path for path, _ in sent] == ["now"] * 2 + ["writer"] * 5 + ["now"]
+    assert [n for _, n in sent] == list(range(6))
+    assert [path for path, _ in sent] == ["now"] * 3 + ["writer"] * 2 + ["now"]
+    assert channel.writes == 3  # 0-2 in one write, 3-4 in one: never one system call a frame
 
 
 @pytest.mark.parametrize("anyio_backend", ["asyncio"])
