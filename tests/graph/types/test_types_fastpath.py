@@ -43,12 +43,32 @@ def test_every_known_type_converts_alike_on_both_paths(
     ("name", "value"),
     [
         ("std_msgs/msg/String", {"data": "hi"}),
-        ("geometry_msgs/msg/Twist", {"linear": {"x": 1.0, "y": 0.0, "z": -2.5}, "angular": {"x": 0.0, "y": 0.0, "z": 0.5}}),
+        (
+            "geometry_msgs/msg/Twist",
+            {"linear": {"x": 1.0, "y": 0.0, "z": -2.5}, "angular": {"x": 0.0, "y": 0.0, "z": 0.5}},
+        ),
         ("std_msgs/msg/Header", {"stamp": {"sec": 5, "nanosec": 7}, "frame_id": "map"}),
-        ("sensor_msgs/msg/Image", {"header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "c"}, "height": 1, "width": 2, "encoding": "mono8", "is_bigendian": 0, "step": 2, "data": "AAE="}),
-        ("std_msgs/msg/Float32MultiArray", {"layout": {"dim": [{"label": "x", "size": 2, "stride": 2}], "data_offset": 0}, "data": [1.5, -2.0]}),
+        (
+            "sensor_msgs/msg/Image",
+            {
+                "header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "c"},
+                "height": 1,
+                "width": 2,
+                "encoding": "mono8",
+                "is_bigendian": 0,
+                "step": 2,
+                "data": "AAE=",
+            },
+        ),
+        (
+            "std_msgs/msg/Float32MultiArray",
+            {
+                "layout": {"dim": [{"label": "x", "size": 2, "stride": 2}], "data_offset": 0},
+                "data": [1.5, -2.0],
+            },
+        ),
     ],
-)  # fmt: skip
+)
 def test_complete_well_typed_values_take_the_fast_path(
     ros2: TypeRegistry, name: str, value: dict[str, object]
 ) -> None:
@@ -77,9 +97,7 @@ def test_complete_well_typed_values_take_the_fast_path(
         ("geometry_msgs/msg/Polygon", {"points": [{"x": 1.0, "y": 2.0}]}),  # inner default
     ],
 )
-def test_anything_else_takes_the_general_path(
-    ros2: TypeRegistry, name: str, value: object
-) -> None:
+def test_anything_else_takes_the_general_path(ros2: TypeRegistry, name: str, value: object) -> None:
     assert ros2.message(name).fast(value) is None
 
 
