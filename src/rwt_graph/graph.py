@@ -367,7 +367,9 @@ class Graph:
         """Call ``callback(msg)`` with each message on ``topic``, in this process.
 
         ``msg`` is the message as a dict in the internal form (``bytes`` for
-        ``uint8[]``); treat it as read-only, it is shared with other subscribers.
+        ``uint8[]``; other numeric arrays are lists, or read-only numpy arrays
+        when a client sent them as CBOR typed arrays, D27); treat it as
+        read-only, it is shared with other subscribers.
         ``node`` is the node rosapi lists as the subscriber.
 
         Raises:

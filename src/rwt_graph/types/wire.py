@@ -16,13 +16,12 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from .convert import is_time_type
 from .names import Dialect
 from .spec import ArrayKind, FieldType, is_bytes_base
 
 if TYPE_CHECKING:
+    import numpy as np
     from rosbags.typesys.store import Typestore
 
     from .message import MessageType
@@ -48,6 +47,8 @@ _NUMERIC: dict[str, str] = {
 
 def _element_dtype(ftype: FieldType, dialect: Dialect) -> np.dtype[np.generic] | None:
     """The numpy type of a primitive array's elements, or None when it stays a list/bytes."""
+    import numpy as np  # noqa: PLC0415 - a server without CBOR subscribers never needs it
+
     if ftype.is_message or is_bytes_base(ftype.base):
         return None
     if ftype.base == "byte":  # an octet in ROS 2, int8 in ROS 1 (REF §4.1)
@@ -62,7 +63,9 @@ def _field_typer(
     if ftype.array is not ArrayKind.NONE:
         dtype = _element_dtype(ftype, mtype.dialect)
         if dtype is not None:
-            return lambda value: np.asarray(value, dtype=dtype)
+            from numpy import asarray  # noqa: PLC0415 - loaded by _element_dtype
+
+            return lambda value: asarray(value, dtype=dtype)
     if not ftype.is_message or is_time_type(ftype):
         return None
     inner = compile_typed(resolve(ftype.base), resolve)
