@@ -21,7 +21,6 @@ from .names import Dialect
 from .spec import ArrayKind, FieldType, is_bytes_base
 
 if TYPE_CHECKING:
-    import numpy as np
     from rosbags.typesys.store import Typestore
 
     from .message import MessageType
@@ -45,16 +44,13 @@ _NUMERIC: dict[str, str] = {
 }
 
 
-def _element_dtype(ftype: FieldType, dialect: Dialect) -> np.dtype[np.generic] | None:
-    """The numpy type of a primitive array's elements, or None when it stays a list/bytes."""
-    import numpy as np  # noqa: PLC0415 - a server without CBOR subscribers never needs it
-
+def _element_dtype(ftype: FieldType, dialect: Dialect) -> str | None:
+    """The numpy type name of a primitive array's elements, or None when it stays a list/bytes."""
     if ftype.is_message or is_bytes_base(ftype.base):
         return None
     if ftype.base == "byte":  # an octet in ROS 2, int8 in ROS 1 (REF §4.1)
-        return np.dtype("int8" if dialect is Dialect.ROS1 else "uint8")
-    name = _NUMERIC.get(ftype.base)
-    return None if name is None else np.dtype(name)
+        return "int8" if dialect is Dialect.ROS1 else "uint8"
+    return _NUMERIC.get(ftype.base)
 
 
 def _field_typer(
@@ -63,7 +59,8 @@ def _field_typer(
     if ftype.array is not ArrayKind.NONE:
         dtype = _element_dtype(ftype, mtype.dialect)
         if dtype is not None:
-            from numpy import asarray  # noqa: PLC0415 - loaded by _element_dtype
+            # Loaded only for types with numeric arrays: an idle server needs no numpy.
+            from numpy import asarray  # noqa: PLC0415
 
             return lambda value: asarray(value, dtype=dtype)
     if not ftype.is_message or is_time_type(ftype):
