@@ -6,7 +6,6 @@ from collections.abc import Callable
 
 from rwt_graph.graph import Graph
 from rwt_protocol.codec import decode_json, decode_publish, parse_object
-from rwt_protocol.names import resolve_name
 
 
 def validator(graph: Graph) -> Callable[[bytes], object]:
@@ -20,7 +19,6 @@ def validator(graph: Graph) -> Callable[[bytes], object]:
         op = decode_publish(frame)
         if op is None:
             op = parse_object(decode_json(frame))  # type: ignore[assignment]
-        entry = graph.topics[resolve_name(op.topic)]  # type: ignore[union-attr]
-        return entry.msgtype.from_json(op.msg, path="$.msg", now=0.0)  # type: ignore[union-attr]
+        return graph.convert_publish(op.topic, op.msg, path="$.msg")  # type: ignore[union-attr]
 
     return validate

@@ -122,15 +122,38 @@ class Graph:
             GraphError: the topic's type is unknown.
             FieldError: ``msg`` does not fit the type (D9).
         """
-        entry = self.topics.get(resolve_name(topic))
-        if entry is None:
-            raise GraphError(f"{topic} has no type yet (advertise it first)")
-        converted = entry.msgtype.from_json(msg, path=path, now=self.clock.wall())
+        entry, converted, missing = self.convert_publish(topic, msg, path=path)
         if client not in entry.publishers:
             self.nodes.name_of(client)
         latched = entry.publishers.setdefault(client, False) or latch
-        self._send(entry, converted.msg, latch=latched, client=client)
-        return converted.missing
+        self._send(entry, converted, latch=latched, client=client)
+        return missing
+
+    def convert_publish(
+        self, topic: str, msg: object, *, path: str = "$"
+    ) -> tuple[Topic, Message, tuple[str, ...]]:
+        """Find ``topic`` and convert ``msg`` to its type: the check half of ``publish``.
+
+        Returns:
+            The topic's entry, the message in the internal form and the paths
+            of the fields filled with defaults (D7).
+
+        Raises:
+            GraphError: the topic's type is unknown.
+            FieldError: ``msg`` does not fit the type (D9).
+        """
+        # Names are kept resolved, so a name found as given needs no resolving.
+        entry = self.topics.get(topic)
+        if entry is None:
+            entry = self.topics.get(resolve_name(topic))
+            if entry is None:
+                raise GraphError(f"{topic} has no type yet (advertise it first)")
+        msgtype = entry.msgtype
+        converted = msgtype.fast(msg)  # complete and well-typed: no clock, no context
+        if converted is not None:
+            return entry, converted, ()
+        result = msgtype.from_json(msg, path=path, now=self.clock.wall())
+        return entry, result.msg, result.missing
 
     def subscribe(
         self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
@@ -344,7 +367,9 @@ class Graph:
         """Call ``callback(msg)`` with each message on ``topic``, in this process.
 
         ``msg`` is the message as a dict in the internal form (``bytes`` for
-        ``uint8[]``); treat it as read-only, it is shared with other subscribers.
+        ``uint8[]``; other numeric arrays are lists, or read-only numpy arrays
+        when a client sent them as CBOR typed arrays, D27); treat it as
+        read-only, it is shared with other subscribers.
         ``node`` is the node rosapi lists as the subscriber.
 
         Raises:

@@ -8,20 +8,27 @@ are float64; times are maps (``{sec, nanosec}``, ROS 1 ``{secs, nsecs}``) as in
 the internal form. numpy packs each array in one call, with no Python loop over
 the elements.
 
-Incoming binary frames are CBOR too (D27). Typed arrays in them become lists
-again, so the graph checks their values as it checks JSON arrays.
+Incoming binary frames are CBOR too (D27). The server keeps their typed arrays
+as read-only numpy arrays over the received bytes (``typed_arrays=True``): the
+graph checks a whole array at once by its element type and range, and a
+subscriber asking for CBOR gets the same array back without a Python loop
+over its elements (BENCHMARKS.md B9: a 1.1 M-cell map took 100 ms as a list).
+Without it (the Python client) typed arrays become lists.
 """
 
 from __future__ import annotations
 
+import functools
 import io
-
-import cbor2
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING
 
 from .errors import RemoteProtocolError
 from .ops.base import json_type_name
+
+if TYPE_CHECKING:
+    import cbor2
+    import numpy as np
+    import numpy.typing as npt
 
 __all__ = ["TYPED_ARRAY_TAGS", "decode_cbor", "encode_cbor"]
 
@@ -39,28 +46,26 @@ TYPED_ARRAY_TAGS: dict[str, int] = {
 }
 """numpy element type -> RFC 8746 tag of its little-endian typed array (REF §3.2)."""
 
-_DTYPE_OF_TAG: dict[int, np.dtype[np.generic]] = {
-    tag: np.dtype(name).newbyteorder("<") for name, tag in TYPED_ARRAY_TAGS.items()
-}
-# RFC 8746 big-endian variants (tags 65-68, 73-75, 81-83) and the clamped uint8 (68).
-_DTYPE_OF_TAG.update(
-    {
-        65: np.dtype(">u2"),
-        66: np.dtype(">u4"),
-        67: np.dtype(">u8"),
-        68: np.dtype("u1"),
-        73: np.dtype(">i2"),
-        74: np.dtype(">i4"),
-        75: np.dtype(">i8"),
-        81: np.dtype(">f4"),
-        82: np.dtype(">f8"),
-    }
-)
+
+@functools.cache
+def _dtype_of_tag() -> dict[int, np.dtype[np.generic]]:
+    """RFC 8746 tag -> numpy element type, built on first use (numpy loads lazily)."""
+    import numpy as np  # noqa: PLC0415 - a server without CBOR clients never needs numpy
+
+    table = {tag: np.dtype(name).newbyteorder("<") for name, tag in TYPED_ARRAY_TAGS.items()}
+    # Big-endian variants (tags 65-67, 73-75, 81-82) and the clamped uint8 (68).
+    big = {65: ">u2", 66: ">u4", 67: ">u8", 68: "u1", 73: ">i2", 74: ">i4", 75: ">i8"}
+    table.update({tag: np.dtype(code) for tag, code in {**big, 81: ">f4", 82: ">f8"}.items()})
+    return table
+
 
 _MAX_DEPTH = 200
 
 
 def _encode_array(encoder: cbor2.CBOREncoder, value: object) -> None:
+    import cbor2  # noqa: PLC0415 - loaded by encode_cbor
+    import numpy as np  # noqa: PLC0415 - loaded: ``value`` is an array or unknown
+
     if not isinstance(value, np.ndarray):
         raise TypeError(f"cannot encode {type(value).__name__} as CBOR")
     array: npt.NDArray[np.generic] = value
@@ -81,16 +86,30 @@ def encode_cbor(value: object) -> bytes:
     Raises:
         TypeError: a value has no CBOR form (a bug in the caller).
     """
+    import cbor2  # noqa: PLC0415 - loaded on first use: JSON-only servers never need it
+
     return cbor2.dumps(value, default=_encode_array)
 
 
-def _decode_tag(tag: cbor2.CBORTag, immutable: bool) -> object:
-    dtype = _DTYPE_OF_TAG.get(tag.tag)
+def _typed_array(tag: cbor2.CBORTag) -> npt.NDArray[np.generic]:
+    import numpy as np  # noqa: PLC0415 - loaded by _dtype_of_tag
+
+    dtype = _dtype_of_tag().get(tag.tag)
     if dtype is None or not isinstance(tag.value, bytes):
         raise RemoteProtocolError(f"unsupported CBOR tag {tag.tag}")
     if len(tag.value) % dtype.itemsize:
         raise RemoteProtocolError(f"typed array of tag {tag.tag} has a partial element")
-    return np.frombuffer(tag.value, dtype=dtype).tolist()
+    return np.frombuffer(tag.value, dtype=dtype)  # read-only: a view of immutable bytes
+
+
+def _tag_as_list(tag: cbor2.CBORTag, immutable: bool) -> object:
+    return _typed_array(tag).tolist()
+
+
+def _tag_as_array(tag: cbor2.CBORTag, immutable: bool) -> object:
+    array = _typed_array(tag)
+    # Big-endian tags become native order once here, so consumers see one layout.
+    return array if array.dtype.isnative else array.astype(array.dtype.newbyteorder("="))
 
 
 def _refuse_sharing(value: object, immutable: bool) -> object:
@@ -101,23 +120,30 @@ def _refuse_sharing(value: object, immutable: bool) -> object:
 _NO_SHARING = {28: _refuse_sharing, 29: _refuse_sharing}
 
 
-def decode_cbor(frame: bytes) -> object:
+def decode_cbor(frame: bytes, *, typed_arrays: bool = False) -> object:
     """Decode one binary frame.
 
     Args:
         frame: one CBOR data item.
+        typed_arrays: keep typed arrays (RFC 8746) as read-only 1-D numpy arrays
+            in native byte order; otherwise they become lists.
 
     Returns:
-        The decoded value; typed arrays (RFC 8746) become lists.
+        The decoded value.
 
     Raises:
         RemoteProtocolError: not CBOR, trailing bytes, too deeply nested, or an
             unsupported tag.
     """
+    import cbor2  # noqa: PLC0415 - loaded on first use: JSON-only servers never need it
+
     stream = io.BytesIO(frame)
     try:
         decoder = cbor2.CBORDecoder(
-            stream, tag_hook=_decode_tag, max_depth=_MAX_DEPTH, semantic_decoders=_NO_SHARING
+            stream,
+            tag_hook=_tag_as_array if typed_arrays else _tag_as_list,
+            max_depth=_MAX_DEPTH,
+            semantic_decoders=_NO_SHARING,
         )
         value = decoder.decode()
     except (cbor2.CBORDecodeError, ValueError, TypeError, RecursionError) as exc:

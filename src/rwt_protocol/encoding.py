@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from .codec import encode_json
+from .codec import encode_json, encode_publish_json
 from .codec_cbor import encode_cbor
 from .fragments import fragment_frames, fresh_id
 from .ops.base import Compression
@@ -130,8 +130,7 @@ def _make_publish(
 
 
 def _publish_json(event: MessageEvent, spelling: str) -> bytes:
-    msg = event.memo(("memo", "json:msg"), lambda: encode_json(event.msg))
-    return b'{"op":"publish","topic":' + encode_json(spelling) + b',"msg":' + msg + b"}"
+    return encode_publish_json(spelling, event.msg)
 
 
 def _raw_frame(event: MessageEvent, spelling: str) -> bytes:

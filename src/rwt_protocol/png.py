@@ -21,8 +21,6 @@ import io
 import math
 import warnings
 
-from PIL import Image
-
 from .errors import RemoteProtocolError
 
 __all__ = ["decode_png", "encode_png", "png_dimensions"]
@@ -51,6 +49,8 @@ def encode_png(data: bytes) -> str:
     Returns:
         The standard, padded base64 of the PNG file (the ``data`` of a ``png`` op).
     """
+    from PIL import Image  # noqa: PLC0415 (Pillow loads with the first png op: issue 8, B11)
+
     width, height = png_dimensions(len(data))
     padded = data + _PAD * (width * height * 3 - len(data))
     image = Image.frombytes("RGB", (width, height), padded)
@@ -73,6 +73,8 @@ def decode_png(text: str, *, max_bytes: int) -> bytes:
         RemoteProtocolError: not base64, not a PNG, a mode other than 8-bit
             L/RGB/RGBA, more than ``max_bytes`` of pixels, or a corrupt file.
     """
+    from PIL import Image  # noqa: PLC0415 (see encode_png)
+
     try:
         raw = binascii.a2b_base64(text, strict_mode=True)
     except binascii.Error:

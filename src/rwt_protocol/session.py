@@ -170,7 +170,9 @@ class Session:
                 self.dispatch(fast, now)
                 return
             if binary:
-                obj = decode_cbor(frame.encode() if isinstance(frame, str) else frame)
+                obj = decode_cbor(
+                    frame.encode() if isinstance(frame, str) else frame, typed_arrays=True
+                )
             else:
                 obj = decode_json(frame)
             op_id = peek_id(obj)

@@ -21,14 +21,13 @@ import signal
 import sys
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
 import anyio
 import typer
 from anyio.abc import TaskStatus
 
 from rwt_graph.graph import Graph
-from rwt_graph.media.depthcloud_node import DepthCloudEncoder
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
@@ -37,8 +36,10 @@ from rwt_protocol.session import SessionConfig
 from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
-from .video import VideoConfig, serve_video
 from .websocket import WebSocketOptions
+
+if TYPE_CHECKING:
+    from .video import VideoConfig
 
 __all__ = ["app", "main"]
 
@@ -244,6 +245,9 @@ def serve(
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
+        # numpy and Pillow load only when asked for (issue 8: B11 base memory)
+        from rwt_graph.media.depthcloud_node import DepthCloudEncoder  # noqa: PLC0415
+
         depth_topic, _, rgb_topic = depthcloud.partition(",")
         DepthCloudEncoder(
             graph,
@@ -252,7 +256,7 @@ def serve(
             max_depth_per_tile=depthcloud_max_depth,
             tile_size=depthcloud_tile_size,
         )
-    video_config = VideoConfig(host=host, port=video_port) if video else None
+    video_config = _video_config(host, video_port) if video else None
     if uvloop and importlib.util.find_spec("uvloop") is None:
         _fail("--uvloop needs the uvloop package")
     try:
@@ -264,6 +268,13 @@ def serve(
         if startup is None or rest is not None:
             raise
         _fail("; ".join(str(exc) for exc in startup.exceptions))
+
+
+def _video_config(host: str, port: int) -> VideoConfig:
+    # the video server (Pillow, numpy) loads only with --video (issue 8: B11 base memory)
+    from .video import VideoConfig  # noqa: PLC0415
+
+    return VideoConfig(host=host, port=port)
 
 
 def _fail(message: str) -> NoReturn:
@@ -279,7 +290,11 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
 
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
-        video_url = await tg.start(serve_video, server.graph, video) if video else None
+        video_url = None
+        if video is not None:
+            from .video import serve_video  # noqa: PLC0415 (see _video_config)
+
+            video_url = await tg.start(serve_video, server.graph, video)
 
         async def serve(*, task_status: TaskStatus[str]) -> None:
             await server.serve(on_listening=announce, task_status=task_status)

@@ -28,9 +28,8 @@ it beyond that.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Mapping
-
-import numpy as np
 
 from .errors import DisconnectedFramesError, ExtrapolationError, TFError, UnknownFrameError
 from .links import Link, Route
@@ -143,7 +142,7 @@ class TFBuffer:
         value = transform["transform"]
         assert isinstance(value, Mapping)
         matrix = from_message(value)
-        if not np.isfinite(matrix).all():
+        if not all(math.isfinite(v) for row in matrix.tolist() for v in row):
             raise TFError(f"transform {parent!r} -> {child!r} is not finite")
         link = self._link(child, parent, static=static)
         link.add(stamp_seconds(stamp_value), matrix, self.cache_time_s, self.max_samples)

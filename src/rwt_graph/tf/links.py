@@ -12,18 +12,32 @@ bit for bit what computing it afresh gives.
 from __future__ import annotations
 
 import bisect
+import functools
+from typing import TYPE_CHECKING
 
 from .errors import ExtrapolationError
 from .stamped import StampedTransform
-from .transform import Matrix, identity, interpolate, inverse
+from .transform import identity, interpolate, inverse
+
+if TYPE_CHECKING:
+    from .transform import Matrix
 
 __all__ = ["Link", "Route"]
 
 #: Stamps closer than this are the same instant (seconds).
 _SAME_TIME_S = 1e-9
-#: Operands only, never returned.
-_IDENTITY = identity()
-_IDENTITY_INVERSE = inverse(_IDENTITY)
+
+
+@functools.cache
+def _identities() -> tuple[Matrix, Matrix]:
+    """The identity and its inverse: operands only, never returned.
+
+    Made on first use, not at import: numpy loads with the first transform
+    (issue 8, B11 base memory). Cached, so routes can compare them by identity.
+    """
+    unit = identity()
+    return unit, inverse(unit)
+
 
 Step = tuple[str, "Link"]
 """A frame and its link to its parent."""
@@ -116,14 +130,14 @@ class Route:
         Raises:
             ExtrapolationError: a link does not hold ``time``.
         """
-        in_common = _chain(self.up, self._up_poses, time) if self.up else _IDENTITY
+        in_common = _chain(self.up, self._up_poses, time) if self.up else _identities()[0]
         if self.down:
             target_in_common = _chain(self.down, self._down_poses, time)
             if self._inverse is None or self._inverse[0] is not target_in_common:
                 self._inverse = (target_in_common, inverse(target_in_common))
             to_target = self._inverse[1]
         else:
-            to_target = _IDENTITY_INVERSE
+            to_target = _identities()[1]
         product = self._product
         if product is None or product[0] is not to_target or product[1] is not in_common:
             matrix = to_target @ in_common

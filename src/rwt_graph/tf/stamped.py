@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from rwt_graph.types import Dialect
 from rwt_graph.types.convert import time_value
 
-from .transform import Matrix, quaternion_tuple
+from .transform import quaternion_tuple
+
+if TYPE_CHECKING:
+    from .transform import Matrix
 
 __all__ = ["StampedTransform"]
 

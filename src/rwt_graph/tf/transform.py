@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import TYPE_CHECKING, TypeAlias
 
-import numpy as np
-import numpy.typing as npt
+if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
 
 __all__ = [
     "Matrix",
@@ -28,14 +30,19 @@ __all__ = [
     "translation_distance",
 ]
 
-Matrix = npt.NDArray[np.float64]
+Matrix: TypeAlias = "npt.NDArray[np.float64]"
 """A 4x4 homogeneous rigid transform."""
+
+# Each function imports numpy itself: `rwt serve` installs the TF republisher at
+# start but needs numpy only with the first transform (issue 8, B11 base memory).
 
 _AXES = ("x", "y", "z")
 
 
 def identity() -> Matrix:
     """The identity transform."""
+    import numpy as np  # noqa: PLC0415
+
     return np.eye(4)
 
 
@@ -45,6 +52,8 @@ def from_parts(translation: npt.ArrayLike, rotation: npt.ArrayLike) -> Matrix:
     The quaternion is normalised; a zero quaternion (an all-default message in
     ROS 1, where ``w`` starts at 0) counts as no rotation.
     """
+    import numpy as np  # noqa: PLC0415
+
     x, y, z, w = (float(v) for v in np.asarray(rotation, dtype=np.float64))
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     if norm < 1e-12:
@@ -78,11 +87,15 @@ def from_message(transform: Mapping[str, object]) -> Matrix:
 
 def quaternion(matrix: Matrix) -> npt.NDArray[np.float64]:
     """The unit quaternion ``(x, y, z, w)`` of a transform's rotation, with ``w >= 0``."""
+    import numpy as np  # noqa: PLC0415
+
     return np.array(quaternion_tuple(matrix))
 
 
 def quaternion_tuple(matrix: Matrix) -> tuple[float, float, float, float]:
     """``quaternion(matrix)`` as plain floats (cheaper: the TF republisher needs many)."""
+    import numpy as np  # noqa: PLC0415
+
     # plain floats do the same IEEE operations as numpy scalars, several times faster
     (m00, m01, m02, _), (m10, m11, m12, _), (m20, m21, m22, _), _ = matrix.tolist()
     trace = m00 + m11 + m22
@@ -116,6 +129,8 @@ def to_message(matrix: Matrix) -> dict[str, object]:
 
 def inverse(matrix: Matrix) -> Matrix:
     """The inverse of a rigid transform (transpose of the rotation)."""
+    import numpy as np  # noqa: PLC0415
+
     out = np.eye(4)
     rotation_t = matrix[:3, :3].T
     out[:3, :3] = rotation_t
@@ -144,6 +159,8 @@ def interpolate(a: Matrix, b: Matrix, ratio: float) -> Matrix:
 
 def translation_distance(a: Matrix, b: Matrix) -> float:
     """Distance in metres between the origins of two transforms."""
+    import numpy as np  # noqa: PLC0415
+
     return float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
 
 
@@ -153,5 +170,7 @@ def rotation_angle(a: Matrix, b: Matrix) -> float:
     From the trace of ``R_a^T R_b`` (``cos angle = (trace - 1) / 2``), clipped
     against rounding; 0 for equal orientations, pi at most.
     """
+    import numpy as np  # noqa: PLC0415
+
     trace = float(np.einsum("ij,ij->", a[:3, :3], b[:3, :3]))
     return math.acos(min(1.0, max(-1.0, (trace - 1.0) / 2.0)))

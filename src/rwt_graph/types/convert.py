@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 from rwt_protocol.errors import FieldError
 
@@ -32,17 +31,22 @@ __all__ = [
 ]
 
 
-@dataclass(slots=True)
 class Context:
     """State of one conversion: the clock and the fields the input omitted.
+
+    A plain slotted class: one is built per converted message, and this is
+    the cheapest to build (the publish hot path, BENCHMARKS.md B14).
 
     Attributes:
         now: wall-clock seconds since the epoch, for ``"now"`` and header stamps.
         missing: JSON paths of omitted fields, in the order met (PROTOCOL-DECISIONS D7).
     """
 
-    now: float
-    missing: list[str] = field(default_factory=list)
+    __slots__ = ("missing", "now")
+
+    def __init__(self, now: float) -> None:
+        self.now = now
+        self.missing: list[str] = []
 
 
 ConvertFn = Callable[[object, str, Context], object]

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 from rosbags.interfaces import Nodetype
 
 from .convert import is_time_type, time_keys
@@ -47,6 +46,8 @@ _DTYPES: dict[str, str] = {
 
 
 def _plain_value(value: object, ftype: FieldType, dialect: Dialect, resolve: Resolve) -> object:
+    import numpy as np  # noqa: PLC0415 - loaded already: rosbags objects hold numpy arrays
+
     if ftype.array is not ArrayKind.NONE:
         if isinstance(value, np.ndarray):
             if is_bytes_base(ftype.base):
@@ -80,13 +81,15 @@ def from_rosbags(obj: object, mtype: MessageType, resolve: Resolve) -> dict[str,
 def _rosbags_value(
     value: object, ftype: FieldType, mtype: MessageType, store: Typestore, resolve: Resolve
 ) -> object:
+    import numpy as np  # noqa: PLC0415 - only cbor-raw and embedding callers need it
+
     if ftype.array is not ArrayKind.NONE:
         if ftype.base in _DTYPES:
-            if isinstance(value, bytes):
-                return np.frombuffer(value, dtype=np.uint8).copy()
+            if isinstance(value, bytes):  # a read-only view: serializing reads it only
+                return np.frombuffer(value, dtype=np.uint8)
             if ftype.base == "byte" and mtype.dialect is Dialect.ROS2:
-                return np.array(value, dtype=np.uint8).view(np.int8)
-            return np.array(value, dtype=_DTYPES[ftype.base])
+                return np.asarray(value, dtype=np.uint8).view(np.int8)
+            return np.asarray(value, dtype=_DTYPES[ftype.base])
         element = ftype.element
         return [_rosbags_value(v, element, mtype, store, resolve) for v in value]  # type: ignore[attr-defined]
     if is_time_type(ftype):

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from rwt_protocol.errors import FieldError
 
 from .convert import Context, ConvertFn, DefaultFn, compile_message, is_header, is_time_type
+from .fastpath import FastFn, compile_fast
 from .interop import from_rosbags, to_rosbags
 from .names import Dialect
 from .spec import Constant, FieldSpec
@@ -21,9 +22,16 @@ __all__ = ["ActionType", "Converted", "MessageType", "ServiceType"]
 _RULE = "=" * 80
 
 
-@dataclass(frozen=True, slots=True)
-class Converted:
+def _no_fast(value: object) -> None:
+    """The fast converter of a type that has none: every value takes the general path."""
+    return None
+
+
+class Converted(NamedTuple):
     """The result of converting a JSON value to a message.
+
+    A named tuple: one is built per published message, and a tuple is the
+    cheapest immutable record to build (BENCHMARKS.md B14).
 
     Attributes:
         msg: the message in the internal form (a dict with every field).
@@ -70,6 +78,11 @@ class MessageType:
         self._text = text.rstrip("\n")
         self._resolve = resolve
         self._compiled: tuple[ConvertFn, DefaultFn] | None = None
+        self._convert: ConvertFn | None = None
+        self._fast: FastFn | None = None
+        #: ``fast(value)``: the internal form of a complete, well-typed value, else
+        #: None (see ``fastpath``); compiled on the first call.
+        self.fast: FastFn = self._first_fast
         self._has_header: bool | None = None
 
     def __repr__(self) -> str:
@@ -83,6 +96,26 @@ class MessageType:
 
     def _lookup(self, name: str) -> tuple[ConvertFn, DefaultFn]:
         return self._resolve(name).compiled()
+
+    def fast_converter(self) -> FastFn | None:
+        """The generated converter of complete, well-typed values (``fastpath``), or None."""
+        fast = self._fast_or_none()
+        return None if fast is _no_fast else fast
+
+    def _first_fast(self, value: object) -> dict[str, object] | None:
+        self.fast = self._fast_or_none()
+        return self.fast(value)
+
+    def _fast_or_none(self) -> FastFn:
+        if self._fast is None:
+            self._fast = self._compile_fast()
+        return self._fast
+
+    def _compile_fast(self) -> FastFn:
+        found = compile_fast(
+            self.name, self.fields, self.dialect, lambda name: self._resolve(name).fast_converter()
+        )
+        return _no_fast if found is None else found
 
     @property
     def has_header(self) -> bool:
@@ -109,9 +142,16 @@ class MessageType:
             FieldError: a value does not fit its field (D9, D10), a key is not a
                 field, or ``value`` is not an object; the error names the path.
         """
+        fast_msg = self.fast(value)
+        if fast_msg is not None:
+            return Converted(fast_msg, ())
+        convert = self._convert
+        if convert is None:
+            convert = self._convert = self.compiled()[0]
         ctx = Context(now)
-        msg = self.compiled()[0](value, path, ctx)
-        return Converted(msg, tuple(ctx.missing))  # type: ignore[arg-type]
+        msg = convert(value, path, ctx)
+        missing = ctx.missing
+        return Converted(msg, tuple(missing) if missing else ())  # type: ignore[arg-type]
 
     def default(self, *, now: float | None = None) -> dict[str, object]:
         """Build the default value: written defaults, else zeros, empty arrays.

@@ -16,8 +16,6 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from .convert import is_time_type
 from .names import Dialect
 from .spec import ArrayKind, FieldType, is_bytes_base
@@ -46,14 +44,13 @@ _NUMERIC: dict[str, str] = {
 }
 
 
-def _element_dtype(ftype: FieldType, dialect: Dialect) -> np.dtype[np.generic] | None:
-    """The numpy type of a primitive array's elements, or None when it stays a list/bytes."""
+def _element_dtype(ftype: FieldType, dialect: Dialect) -> str | None:
+    """The numpy type name of a primitive array's elements, or None when it stays a list/bytes."""
     if ftype.is_message or is_bytes_base(ftype.base):
         return None
     if ftype.base == "byte":  # an octet in ROS 2, int8 in ROS 1 (REF §4.1)
-        return np.dtype("int8" if dialect is Dialect.ROS1 else "uint8")
-    name = _NUMERIC.get(ftype.base)
-    return None if name is None else np.dtype(name)
+        return "int8" if dialect is Dialect.ROS1 else "uint8"
+    return _NUMERIC.get(ftype.base)
 
 
 def _field_typer(
@@ -62,7 +59,10 @@ def _field_typer(
     if ftype.array is not ArrayKind.NONE:
         dtype = _element_dtype(ftype, mtype.dialect)
         if dtype is not None:
-            return lambda value: np.asarray(value, dtype=dtype)
+            # Loaded only for types with numeric arrays: an idle server needs no numpy.
+            from numpy import asarray  # noqa: PLC0415
+
+            return lambda value: asarray(value, dtype=dtype)
     if not ftype.is_message or is_time_type(ftype):
         return None
     inner = compile_typed(resolve(ftype.base), resolve)

@@ -63,8 +63,9 @@ def publish(session: Session, op: Publish | PublishFrame, now: float) -> None:
     Raises:
         GraphError: unknown topic type, or a message that does not fit it (D9).
     """
-    topic = resolve_name(op.topic)
-    missing = session.graph.publish(session.client_id, topic, op.msg, latch=op.latch, path="$.msg")
+    missing = session.graph.publish(
+        session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg"
+    )
     if missing:
         listed = ", ".join(missing[:_MAX_LISTED])
         more = f" and {len(missing) - _MAX_LISTED} more" if len(missing) > _MAX_LISTED else ""

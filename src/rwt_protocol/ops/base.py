@@ -69,6 +69,10 @@ Compression = Literal["none", "png", "cbor", "cbor-raw"]
 
 
 class OpModel(BaseModel):
-    """Base of every op model: strict, frozen, unknown fields ignored."""
+    """Base of every op model: strict, frozen, unknown fields ignored.
 
-    model_config = ConfigDict(strict=True, frozen=True, extra="ignore")
+    Each model's validator is built when first used, not at import: a server
+    pays only for the ops its clients send (issue 8, B11 base memory).
+    """
+
+    model_config = ConfigDict(strict=True, frozen=True, extra="ignore", defer_build=True)

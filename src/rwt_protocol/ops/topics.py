@@ -59,11 +59,11 @@ class PublishFrame(msgspec.Struct, frozen=True):
     error its field path (D1), so both paths accept and refuse the same frames.
     """
 
+    op: Literal["publish"]  # required: a frame without ``op`` is refused (D1)
     topic: str
     msg: Any = msgspec.field(default_factory=dict)
     id: str | int | None = None
     latch: bool = False
-    op: Literal["publish"] = "publish"
 
 
 class Subscribe(OpModel):

@@ -11,8 +11,19 @@ Usage from Python::
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .model import Case, Profile, Requirement, Suite, SuiteError, load_suite
-from .runner import CaseResult, Outcome, RequirementResult, RunOptions, SuiteResult, run_suite
+
+if TYPE_CHECKING:
+    from .runner import (
+        CaseResult,
+        Outcome,
+        RequirementResult,
+        RunOptions,
+        SuiteResult,
+        run_suite,
+    )
 
 __all__ = [
     "Case",
@@ -28,3 +39,17 @@ __all__ = [
     "load_suite",
     "run_suite",
 ]
+
+_RUNNER_NAMES = frozenset(
+    ("CaseResult", "Outcome", "RequirementResult", "RunOptions", "SuiteResult", "run_suite")
+)
+
+
+def __getattr__(name: str) -> object:
+    # The runner (connectors, cbor2) loads on first use, not with ``rwt serve``,
+    # whose command line registers ``rwt conformance`` beside it (issue 8, B11).
+    if name in _RUNNER_NAMES:
+        from . import runner  # noqa: PLC0415
+
+        return getattr(runner, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

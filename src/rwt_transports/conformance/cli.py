@@ -10,13 +10,10 @@ from urllib.parse import urlsplit
 
 import anyio
 import typer
-from rich.console import Console
 
 from rwt_protocol.auth import RosauthVerifier
 
 from .model import Profile, SuiteError, default_suite_dir, load_suite
-from .report import print_table, write_json, write_junit
-from .runner import RunOptions, run_suite
 
 __all__ = ["conformance", "server_url"]
 
@@ -86,6 +83,13 @@ def conformance(
     ] = None,
 ) -> None:
     """Check a rosbridge server against the conformance suite; exit 1 on any failure."""
+    # Imported here: `rwt serve` registers this command, and must not pay for the
+    # runner, its clients and rich at start (issue 8, B11 base memory).
+    from rich.console import Console  # noqa: PLC0415
+
+    from .report import print_table, write_json, write_junit  # noqa: PLC0415
+    from .runner import RunOptions, run_suite  # noqa: PLC0415
+
     console = Console() if sys.stdout.isatty() else Console(width=160)
     try:
         loaded = load_suite(suite or default_suite_dir())
