@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import io
+import sys
 from typing import TYPE_CHECKING
 
 from .errors import RemoteProtocolError
@@ -83,12 +84,72 @@ def _encode_array(encoder: cbor2.CBOREncoder, value: object) -> None:
 def encode_cbor(value: object) -> bytes:
     """Encode an op (a dict in the internal form, numeric arrays as numpy) as CBOR.
 
+    Byte strings and numeric arrays of 64 KiB or more within the op's first
+    three map levels (an image's ``data`` in ``msg``, cbor-raw's ``bytes``) are
+    spliced into the frame with one copy; cbor2 copies such a payload several
+    times (4 ms for 4 MiB, BENCHMARKS.md B4). The bytes are the same either way.
+
     Raises:
         TypeError: a value has no CBOR form (a bug in the caller).
     """
     import cbor2  # noqa: PLC0415 - loaded on first use: JSON-only servers never need it
 
+    if _has_blob(value, 0):
+        return b"".join(_map_parts(value, 0))  # type: ignore[arg-type]
     return cbor2.dumps(value, default=_encode_array)
+
+
+#: Byte strings and typed arrays at least this long are spliced (see ``encode_cbor``).
+_LARGE = 64 * 1024
+_MAP_LEVELS = 3
+
+
+def _head(major: int, length: int) -> bytes:
+    """The initial bytes of a CBOR item: ``major`` type and ``length`` argument (RFC 8949 §3)."""
+    if length < 24:
+        return bytes((major << 5 | length,))
+    for extra, size in ((24, 1), (25, 2), (26, 4)):
+        if length < 1 << (8 * size):
+            return bytes((major << 5 | extra,)) + length.to_bytes(size, "big")
+    return bytes((major << 5 | 27,)) + length.to_bytes(8, "big")
+
+
+def _blob_parts(value: object) -> list[bytes | memoryview] | None:
+    """A large byte string or 1-D numeric array as CBOR parts, payload uncopied; else None."""
+    if type(value) is bytes:
+        return [_head(2, len(value)), value] if len(value) >= _LARGE else None
+    numpy = sys.modules.get("numpy")  # an array exists only once numpy is loaded
+    if numpy is None or not isinstance(value, numpy.ndarray):
+        return None
+    name = value.dtype.name
+    if value.nbytes < _LARGE or value.ndim != 1 or name not in TYPED_ARRAY_TAGS:
+        return None
+    little = numpy.ascontiguousarray(value.astype(value.dtype.newbyteorder("<"), copy=False))
+    data = memoryview(little).cast("B")
+    head = [] if name == "uint8" else [_head(6, TYPED_ARRAY_TAGS[name])]  # uint8: plain bytes
+    return [*head, _head(2, len(data)), data]
+
+
+def _has_blob(value: object, level: int) -> bool:
+    if type(value) is not dict or level >= _MAP_LEVELS:
+        return False
+    return any(_blob_parts(v) is not None or _has_blob(v, level + 1) for v in value.values())
+
+
+def _map_parts(value: dict[object, object], level: int) -> list[bytes | memoryview]:
+    import cbor2  # noqa: PLC0415 - loaded by encode_cbor
+
+    parts: list[bytes | memoryview] = [_head(5, len(value))]
+    for key, item in value.items():
+        parts.append(cbor2.dumps(key))
+        blob = _blob_parts(item)
+        if blob is not None:
+            parts += blob
+        elif type(item) is dict and level + 1 < _MAP_LEVELS:
+            parts += _map_parts(item, level + 1)
+        else:
+            parts.append(cbor2.dumps(item, default=_encode_array))
+    return parts
 
 
 def _typed_array(tag: cbor2.CBORTag) -> npt.NDArray[np.generic]:

@@ -33,6 +33,7 @@ from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
+from .allocator import tune_allocator
 from .conformance.cli import conformance
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
@@ -186,6 +187,14 @@ def serve(
     uvloop: Annotated[
         bool, typer.Option(help="Run on uvloop (pip install 'rwt[bench]' or uvloop).")
     ] = False,
+    heap_keep: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="MiB of freed heap kept for the next large message (glibc); 0: the "
+            "system default, which maps and unmaps every buffer of a large message.",
+        ),
+    ] = 64,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT/SIGTERM."""
     logging.basicConfig(
@@ -196,6 +205,8 @@ def serve(
     logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
     if not (websocket or tcp_port is not None or udp_port is not None or stdio):
         _fail("nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio")
+    if heap_keep:
+        tune_allocator(heap_keep * 1024 * 1024)
     graph = Graph(TypeRegistry(Dialect(dialect.value), interfaces or ()))
     authenticator = None
     if auth_secret_file is not None:

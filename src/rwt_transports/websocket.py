@@ -48,10 +48,13 @@ __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 logger = logging.getLogger("rwt.websocket")
 
 MiB = 1024 * 1024
-_READ_SIZE = 65536
+_READ_SIZE = 1024 * 1024
+"""Most bytes taken from the stream at once: whatever the event loop has read (asyncio
+reads 256 KiB at a time), so a large message is parsed in few steps (issue 8, B4)."""
 _WRITE_BATCH = 65536
 """Small frames are joined into writes of about this many bytes; larger frames go alone."""
 _HANDSHAKE_LIMIT_S = 10.0
+_DATA_OPCODES = (Opcode.TEXT, Opcode.BINARY, Opcode.CONT)
 
 
 @dataclass(frozen=True, slots=True)
@@ -117,14 +120,20 @@ class WebSocketChannel:
             raise anyio.EndOfStream from None
         self.protocol.receive_data(data)
         messages: list[FramerEvent] = []
+        control = False
         for event in self.protocol.events_received():
             if isinstance(event, Frame):
                 if event.opcode is Opcode.PONG:
                     self._pong.set()
+                control = control or event.opcode not in _DATA_OPCODES
                 message = self._assemble(event)
                 if message is not None:
                     messages.append(message)
-        await self.flush()  # pongs, the close handshake, a 1009 failure
+        # Only a control frame (a ping to answer, the close handshake) or a failure
+        # (1002, 1009) makes the protocol write; data frames alone never do, and
+        # taking the lock for nothing costs more than parsing a chunk (issue 8).
+        if control or self.protocol.state is not State.OPEN:
+            await self.flush()
         return messages
 
     async def send(self, frames: Sequence[OutFrame]) -> None:

@@ -100,3 +100,31 @@ def test_client_typed_arrays_decode_big_endian_too() -> None:
 def test_bad_cbor_is_a_remote_error(frame: bytes, text: str) -> None:
     with pytest.raises(RemoteProtocolError, match=text):
         decode_cbor(frame)
+
+
+def _plain(value: object) -> bytes:
+    """What cbor2 makes of an op on its own (the reference for spliced frames)."""
+    from rwt_protocol.codec_cbor import _encode_array  # noqa: PLC0415
+
+    return cbor2.dumps(value, default=_encode_array)
+
+
+@pytest.mark.parametrize("size", [65535, 65536, 70000, 2**24 + 3])
+@pytest.mark.parametrize("dtype", ["uint8", "int8", ">i4", "<f4", "float64", "uint64"])
+def test_large_payloads_are_spliced_into_the_same_bytes(size: int, dtype: str) -> None:
+    array = np.arange(size // np.dtype(dtype).itemsize).astype(dtype)
+    msg = {"header": {"frame_id": "cam"}, "data": array, "raw": bytes(size), "n": list(range(30))}
+    op = {"op": "publish", "topic": "/big", "msg": msg, **{f"k{i}": i for i in range(25)}}
+    frame = encode_cbor(op)
+    assert frame == _plain(op)
+    decoded = decode_cbor(frame, typed_arrays=True)
+    data = decoded["msg"]["data"]  # type: ignore[index]
+    if array.dtype == np.uint8:  # uint8 arrays travel as plain byte strings (REF §3.2)
+        data = np.frombuffer(data, np.uint8)
+    assert np.array_equal(data, array)
+    assert decoded["msg"]["raw"] == bytes(size)  # type: ignore[index]
+
+
+def test_payloads_deeper_than_the_splice_levels_are_encoded_too() -> None:
+    op = {"op": "publish", "msg": {"a": {"b": {"data": bytes(70000)}}, "blob": bytes(70000)}}
+    assert encode_cbor(op) == _plain(op)
