@@ -128,7 +128,11 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
             data: bytes = msg[key]  # type: ignore[assignment]
             ready[key] = msgspec.Raw(b"".join((b'"', pybase64.b64encode(data), b'"')))
         msg = ready
-    return _encoder.encode({"op": "publish", "topic": topic, "msg": msg})
+    text = _encoder.encode({"op": "publish", "topic": topic, "msg": msg})
+    # msgspec's output keeps its buffer's spare capacity (up to ~2 KB); a copy of a
+    # small frame is exact, so a queue of them holds what the send-buffer limit
+    # counts (D24, BENCHMARKS.md B8). A large frame's slack is negligible.
+    return bytes(memoryview(text)) if len(text) < _LARGE_BYTES else text
 
 
 def peek_id(obj: object) -> str | int | None:
