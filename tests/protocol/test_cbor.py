@@ -128,3 +128,35 @@ def test_large_payloads_are_spliced_into_the_same_bytes(size: int, dtype: str) -
 def test_payloads_deeper_than_the_splice_levels_are_encoded_too() -> None:
     op = {"op": "publish", "msg": {"a": {"b": {"data": bytes(70000)}}, "blob": bytes(70000)}}
     assert encode_cbor(op) == _plain(op)
+
+
+@pytest.mark.parametrize("typed", [True, False])
+@pytest.mark.parametrize("dtype", ["uint8", "int8", ">i4", "<f4", "float64"])
+def test_large_frames_decode_alike_through_the_splicer(typed: bool, dtype: str) -> None:
+    array = np.arange(70000).astype(dtype)
+    tag = {"uint8": 64, "int8": 72, ">i4": 74, "<f4": 85, "float64": 86}[dtype]
+    msg = {"header": {"frame_id": "cam", "stamp": {"sec": 1}}, "n": [1, 2.5, None, True]}
+    op = {
+        "op": "publish",
+        "topic": "/big",
+        "msg": {**msg, "data": cbor2.CBORTag(tag, array.tobytes()), "raw": bytes(70000)},
+    }
+    got = decode_cbor(cbor2.dumps(op), typed_arrays=typed)
+    data = got["msg"].pop("data")  # type: ignore[index, union-attr]
+    assert got == {"op": "publish", "topic": "/big", "msg": {**msg, "raw": bytes(70000)}}
+    assert isinstance(data, np.ndarray) is typed
+    assert np.array_equal(np.asarray(data), array)
+
+
+@pytest.mark.parametrize(
+    ("frame", "text"),
+    [
+        (cbor2.dumps({"msg": {"data": bytes(70000)}})[:-5], "invalid CBOR"),  # cut short
+        (cbor2.dumps({"msg": {"data": bytes(70000)}}) + b"\x00", "bytes after the first"),
+        (cbor2.dumps({"msg": {"d": cbor2.CBORTag(77, bytes(70001))}}), "partial element"),
+        (cbor2.dumps({"msg": {"d": cbor2.CBORTag(99, bytes(70000))}}), "unsupported CBOR tag 99"),
+    ],
+)
+def test_large_bad_frames_are_refused(frame: bytes, text: str) -> None:
+    with pytest.raises(RemoteProtocolError, match=text):
+        decode_cbor(frame, typed_arrays=True)
