@@ -118,6 +118,8 @@ def _blob_parts(value: object) -> list[bytes | memoryview] | None:
     """A large byte string or 1-D numeric array as CBOR parts, payload uncopied; else None."""
     if type(value) is bytes:
         return [_head(2, len(value)), value] if len(value) >= _LARGE else None
+    if type(value) is memoryview and value.nbytes >= _LARGE and value.c_contiguous:
+        return [_head(2, value.nbytes), value.cast("B")]  # cbor-raw's serialization
     numpy = sys.modules.get("numpy")  # an array exists only once numpy is loaded
     if numpy is None or not isinstance(value, numpy.ndarray):
         return None

@@ -48,8 +48,11 @@ class MessageCodec(Protocol):
         ROS 2 ``byte[]`` becomes ``uint8``. The result is only read (CBOR encoding).
         """
 
-    def serialize(self, msg: Mapping[str, object]) -> bytes:
-        """The dialect's wire form: CDR with its 4-byte header (ROS 2), or ROS 1 serialization."""
+    def serialize(self, msg: Mapping[str, object]) -> bytes | memoryview:
+        """The dialect's wire form: CDR with its 4-byte header (ROS 2), or ROS 1 serialization.
+
+        A large result may be a read-only byte view (no copy into ``bytes``).
+        """
 
 
 _T = TypeVar("_T")

@@ -160,3 +160,10 @@ def test_large_frames_decode_alike_through_the_splicer(typed: bool, dtype: str) 
 def test_large_bad_frames_are_refused(frame: bytes, text: str) -> None:
     with pytest.raises(RemoteProtocolError, match=text):
         decode_cbor(frame, typed_arrays=True)
+
+
+def test_a_large_byte_view_is_spliced_as_a_byte_string() -> None:
+    data = bytes(range(256)) * 300
+    view = memoryview(bytearray(data)).toreadonly()  # what rosbags' serializer returns
+    frame = encode_cbor({"op": "publish", "msg": {"secs": 1, "nsecs": 2, "bytes": view}})
+    assert frame == cbor2.dumps({"op": "publish", "msg": {"secs": 1, "nsecs": 2, "bytes": data}})

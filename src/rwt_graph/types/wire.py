@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 __all__ = ["WireCodec", "compile_typed"]
 
 Msg = Mapping[str, object]
+_LARGE_VIEW = 64 * 1024
 Typer = Callable[[Msg], Msg]
 
 _NUMERIC: dict[str, str] = {
@@ -122,8 +123,12 @@ class WireCodec:
         """``msg`` with numeric arrays as numpy arrays (for CBOR typed arrays, REF §3.2)."""
         return msg if self._typer is None else self._typer(msg)
 
-    def serialize(self, msg: Msg) -> bytes:
+    def serialize(self, msg: Msg) -> bytes | memoryview:
         """The dialect's wire serialization of ``msg`` (for cbor-raw, REF §3.5).
+
+        Returns:
+            The bytes; from 64 KiB on, rosbags' read-only view of its own fresh
+            buffer, which the CBOR encoder splices without a copy (B4).
 
         Raises:
             KeyError: the typestore lacks the type (a definition that failed to load).
@@ -132,5 +137,7 @@ class WireCodec:
         obj = self.mtype.to_rosbags(dict(msg), store)
         name = self.mtype.rosbags_name
         if self.mtype.dialect is Dialect.ROS1:
-            return bytes(store.serialize_ros1(obj, name))
-        return bytes(store.serialize_cdr(obj, name))
+            raw = store.serialize_ros1(obj, name)
+        else:
+            raw = store.serialize_cdr(obj, name)
+        return raw if len(raw) >= _LARGE_VIEW else bytes(raw)
