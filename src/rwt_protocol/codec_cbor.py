@@ -132,10 +132,20 @@ def _blob_parts(value: object) -> list[bytes | memoryview] | None:
     return [*head, _head(2, len(data)), data]
 
 
+def _is_blob(value: object) -> bool:
+    """Whether ``_blob_parts`` splices ``value`` (without building its parts)."""
+    if type(value) is bytes:
+        return len(value) >= _LARGE
+    if type(value) is memoryview:
+        return value.nbytes >= _LARGE
+    numpy = sys.modules.get("numpy")
+    return numpy is not None and isinstance(value, numpy.ndarray) and value.nbytes >= _LARGE
+
+
 def _has_blob(value: object, level: int) -> bool:
     if type(value) is not dict or level >= _MAP_LEVELS:
         return False
-    return any(_blob_parts(v) is not None or _has_blob(v, level + 1) for v in value.values())
+    return any(_is_blob(v) or _has_blob(v, level + 1) for v in value.values())
 
 
 def _map_parts(value: dict[object, object], level: int) -> list[bytes | memoryview]:

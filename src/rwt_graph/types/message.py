@@ -79,7 +79,6 @@ class MessageType:
         self._resolve = resolve
         self._compiled: tuple[ConvertFn, DefaultFn] | None = None
         self._convert: ConvertFn | None = None
-        self._fast: FastFn | None = None
         #: ``fast(value)``: the internal form of a complete, well-typed value, else
         #: None (see ``fastpath``); compiled on the first call.
         self.fast: FastFn = self._first_fast
@@ -99,17 +98,16 @@ class MessageType:
 
     def fast_converter(self) -> FastFn | None:
         """The generated converter of complete, well-typed values (``fastpath``), or None."""
-        fast = self._fast_or_none()
+        fast = self._compiled_fast()
         return None if fast is _no_fast else fast
 
     def _first_fast(self, value: object) -> dict[str, object] | None:
-        self.fast = self._fast_or_none()
-        return self.fast(value)
+        return self._compiled_fast()(value)
 
-    def _fast_or_none(self) -> FastFn:
-        if self._fast is None:
-            self._fast = self._compile_fast()
-        return self._fast
+    def _compiled_fast(self) -> FastFn:
+        if self.fast == self._first_fast:  # not compiled yet
+            self.fast = self._compile_fast()
+        return self.fast
 
     def _compile_fast(self) -> FastFn:
         found = compile_fast(
