@@ -74,7 +74,7 @@ def decode_json(frame: str | bytes) -> object:
     """
     try:
         return _decoder.decode(frame)
-    except msgspec.DecodeError:
+    except (msgspec.DecodeError, UnicodeDecodeError):  # msgspec raises the latter for bad UTF-8
         pass
     try:
         return json.loads(frame)
@@ -95,7 +95,7 @@ def decode_publish(frame: str | bytes) -> PublishFrame | None:
     # cheaper than any scan of the head (BENCHMARKS.md B14).
     try:
         return _publish_decoder.decode(frame)
-    except msgspec.DecodeError:  # also ValidationError: wrong op, wrong field types
+    except (msgspec.DecodeError, UnicodeDecodeError):  # also ValidationError: wrong op, fields
         return None
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from rwt_graph.graph import Graph
@@ -135,6 +135,7 @@ ops = st.builds(
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@example(frames=[b'"\x80"'])  # invalid UTF-8 in a JSON string
 @given(frames=st.lists(st.binary(max_size=60) | json_values.map(json.dumps).map(str.encode)))
 def test_arbitrary_bytes_and_json_values_only_ever_get_statuses(frames: list[bytes]) -> None:
     graph = Graph(clock=FakeClock())
