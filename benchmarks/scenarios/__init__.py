@@ -117,11 +117,22 @@ def _b11(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
     )
 
 
-def _b15(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
-    return _judge(
-        _value(medians, "rss_slope_mb_per_10min", 1.0, "{:.2f} MB/10 min"),
-        _value(medians, "p99_drift_pct", 20.0, "{:.0f} % p99 drift"),
-    )
+def _b15(soak: bool) -> Check:
+    """B15's verdict: only the 30-minute form can judge a slope per 10 minutes.
+
+    In the short form's minute after the warm-up, one step of the allocator
+    (0.1-0.3 MB) reads as 1-3 MB per 10 min, and the p99 of a third is a few
+    seconds of a shared machine; its figures are shown, not judged.
+    """
+
+    def judge(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+        slope = _value(medians, "rss_slope_mb_per_10min", 1.0, "{:.2f} MB/10 min")
+        drift = _value(medians, "p99_drift_pct", 20.0, "{:.0f} % p99 drift")
+        if soak:
+            return _judge(slope, drift)
+        return f"{slope[0]}; {drift[0]}", "not judged: too short (B15 needs --soak)", None
+
+    return judge
 
 
 def _services() -> list[Variant]:
@@ -282,11 +293,11 @@ def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
     variants.append(
         Variant(
             "B15",
-            "soak: String at B1/2 + Image JSON 30 Hz" + (", 30 min" if soak else ", 20 s"),
-            _bind(soak_run, rate_hz=4000.0, duration_s=1800.0 if soak else 20.0),
+            "soak: String at B1/2 + Image JSON 30 Hz" + (", 30 min" if soak else ", 90 s"),
+            _bind(soak_run, rate_hz=4000.0, duration_s=1800.0 if soak else 90.0),
             "p99_ms",
             "ms",
-            _b15,
+            _b15(soak),
             runs=1,
         )
     )

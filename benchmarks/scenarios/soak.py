@@ -25,6 +25,9 @@ from .latency import LatencyTrack
 
 __all__ = ["microbench_run", "soak_run"]
 
+Sample = tuple[float, float]
+"""(perf_counter seconds, RSS MB)."""
+
 
 def microbench_run(run: Run) -> Metrics:
     """B14 in a fresh interpreter on this checkout's ``src``; ``us_per_op`` per kind."""
@@ -51,8 +54,10 @@ def soak_run(run: Run, *, rate_hz: float, duration_s: float) -> Metrics:
     before (``run.context``), the same rate for both servers.
 
     RSS is sampled every second; the slope (MB per 10 min) is fitted over the
-    samples after the first tenth. The String latency p99 of the first and
-    the last third give the drift.
+    samples after the warm-up (the first tenth, at least the first 30 s: the
+    server's heap and the sockets' buffers grow to their working size in the
+    first seconds, which a short run would otherwise read as a leak). The
+    String latency p99 of the first and the last third give the drift.
     """
     duration = duration_s * run.scale
     b1 = run.context.get("B1 String 100 B, 1 -> 1", {}).get("rwt", {}).get("msg_per_s")
@@ -60,11 +65,9 @@ def soak_run(run: Run, *, rate_hz: float, duration_s: float) -> Metrics:
         rate_hz = b1["median"] / 2
     topic, image_topic = "/b15", "/b15_image"
     track = LatencyTrack(lambda i: msgs.string_publish(topic, i % 10**msgs.SEQ_DIGITS))
-    stamps: list[float] = []
 
     def check(opcode: int, payload: bytes, now: float) -> None:
         track.check(payload, now)
-        stamps.append(now)
 
     sub = ParsingSubscriber(
         run.port, run.kind, [msgs.subscribe(topic, "std_msgs/msg/String")], check
@@ -97,7 +100,7 @@ def soak_run(run: Run, *, rate_hz: float, duration_s: float) -> Metrics:
         duration_s=duration,
         group="image",
     )
-    samples: list[tuple[float, float]] = []
+    samples: list[Sample] = []
     stop = threading.Event()
 
     def sample() -> None:
@@ -127,7 +130,7 @@ def soak_run(run: Run, *, rate_hz: float, duration_s: float) -> Metrics:
     first, last = percentile_ms(lat[:third], 0.99), percentile_ms(lat[-third:], 0.99)
     settle()
     return {
-        "rss_slope_mb_per_10min": _slope(samples[len(samples) // 10 :]) * 600.0,
+        "rss_slope_mb_per_10min": _slope(_after_warmup(samples, duration)) * 600.0,
         "p99_first_ms": first,
         "p99_last_ms": last,
         "p99_drift_pct": 100.0 * (last - first) / first if first else float("nan"),
@@ -135,6 +138,16 @@ def soak_run(run: Run, *, rate_hz: float, duration_s: float) -> Metrics:
         "server_rss_mb": samples[-1][1] if samples else float("nan"),
         "rate_hz": rate_hz,
     }
+
+
+def _after_warmup(samples: list[Sample], duration_s: float) -> list[Sample]:
+    """The RSS samples taken after the first tenth of the run and at least 30 s in
+    (a third of a run shorter than 90 s, such as the smoke run)."""
+    if not samples:
+        return samples
+    start = samples[0][0] - 1.0  # the sampler's first sample comes a second in
+    warmup = max(duration_s / 10, min(30.0, duration_s / 3))
+    return [(t, mb) for t, mb in samples if t - start >= warmup]
 
 
 def _slope(samples: list[tuple[float, float]]) -> float:
