@@ -65,12 +65,11 @@ def soak_run(run: Run, *, rate_hz: float, duration_s: float) -> Metrics:
         rate_hz = b1["median"] / 2
     topic, image_topic = "/b15", "/b15_image"
     track = LatencyTrack(lambda i: msgs.string_publish(topic, i % 10**msgs.SEQ_DIGITS))
-
-    def check(opcode: int, payload: bytes, now: float) -> None:
-        track.check(payload, now)
-
     sub = ParsingSubscriber(
-        run.port, run.kind, [msgs.subscribe(topic, "std_msgs/msg/String")], check
+        run.port,
+        run.kind,
+        [msgs.subscribe(topic, "std_msgs/msg/String")],
+        lambda opcode, payload, now: track.check(payload, now),
     )
     pub = RatePublisher(
         run.port,
@@ -150,7 +149,7 @@ def _after_warmup(samples: list[Sample], duration_s: float) -> list[Sample]:
     return [(t, mb) for t, mb in samples if t - start >= warmup]
 
 
-def _slope(samples: list[tuple[float, float]]) -> float:
+def _slope(samples: list[Sample]) -> float:
     """Least-squares slope of (seconds, MB): MB per second."""
     if len(samples) < 2:
         return float("nan")
