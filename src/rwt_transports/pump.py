@@ -154,9 +154,21 @@ class _Deferred(threading.local):
 
     def __init__(self) -> None:
         self.pumps: list[ConnectionPump] = []
+        self.in_batch = False  # a reader is handling a batch and flushes at its end
 
 
 _deferred = _Deferred()
+
+
+def _clock() -> Callable[[], float]:
+    """The event loop's clock, as ``anyio.current_time`` reads it, without its lookups.
+
+    On asyncio (and uvloop) that is ``loop.time``; other backends keep anyio's.
+    """
+    try:
+        return asyncio.get_running_loop().time
+    except RuntimeError:
+        return anyio.current_time
 
 
 def flush_deferred() -> None:
@@ -217,8 +229,9 @@ class ConnectionPump:
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer."""
-        pumps = _deferred.pumps
-        if not pumps:
+        deferred = _deferred
+        pumps = deferred.pumps
+        if not pumps and not deferred.in_batch:
             try:  # for output made outside a reader; a reader flushes sooner
                 asyncio.get_running_loop().call_soon(flush_deferred)
             except RuntimeError:  # no asyncio loop (the direct path needs one)
@@ -284,19 +297,25 @@ class ConnectionPump:
             session.close()
 
     async def _reader(self, session: Session) -> None:
+        clock = _clock()
+        deferred = _deferred
         while True:
             try:
                 events = await self.channel.receive()
             except _BROKEN:
                 return
-            now = anyio.current_time()  # the batch arrived at once: one clock read for all
-            for event in events:
-                if isinstance(event, FramingError):
-                    session.report(StatusLevel.ERROR, event.message)
-                    if event.fatal:
-                        session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
-                else:
-                    session.receive_frame(event.data, now, binary=event.binary)
+            now = clock()  # the batch arrived at once: one clock read for all
+            deferred.in_batch = True
+            try:
+                for event in events:
+                    if isinstance(event, FramingError):
+                        session.report(StatusLevel.ERROR, event.message)
+                        if event.fatal:
+                            session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
+                    else:
+                        session.receive_frame(event.data, now, binary=event.binary)
+            finally:
+                deferred.in_batch = False
             flush_deferred()  # what this batch published goes out now, in one write each
             self._wake_timers()  # handlers may have scheduled timers
 

@@ -19,7 +19,7 @@ from rwt_protocol.framing import FramerEvent, JsonStreamFramer
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session
 
-from .direct import DirectWriter
+from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
@@ -47,13 +47,17 @@ class StreamChannel:
         self._framer = JsonStreamFramer(max_message_size)
         self._ended = False
         self._direct = DirectWriter.for_stream(stream)
+        self._reader = DirectReader.for_stream(stream)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read the next chunk and return the frames it completes."""
         if self._ended:
             raise anyio.EndOfStream
         try:
-            data = await self.stream.receive(_READ_SIZE)
+            if self._reader is not None:
+                data = await self._reader.receive(_READ_SIZE)
+            else:
+                data = await self.stream.receive(_READ_SIZE)
         except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
             self._ended = True
             events = self._framer.receive_eof()

@@ -5,7 +5,11 @@ parsing and framing without I/O, so the connection pump (pump.py) can drive it
 like every other transport: a single writer per connection draining the
 session's bounded outbox (D24), frames written without a per-subscriber await
 in the publish path, the same code over plain TCP or TLS streams (wss), and
-anyio's structured cancellation for shutdown.
+anyio's structured cancellation for shutdown. Two shortcuts (issue 8), each
+falling back to websockets: whole data frames are read ahead of its parser
+(wsread.py) unless permessage-deflate is on or the client sent frames with its
+upgrade request, and a plain socket is read and written through its asyncio
+transport (direct.py).
 
 Text frames carry JSON, binary frames CBOR (D27). permessage-deflate is off
 unless enabled (D30: Node's ``ws`` offers it; we decline). Incoming messages are
@@ -40,8 +44,9 @@ from rwt_protocol.framing import FramerEvent, InFrame
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session
 
-from .direct import DirectWriter
+from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
+from .wsread import FrameReader
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
@@ -102,6 +107,9 @@ class WebSocketChannel:
         # task switch less per batch); the sends under it still checkpoint.
         self._lock = anyio.Lock(fast_acquire=True)
         self._direct = DirectWriter.for_stream(stream)
+        self._reader = DirectReader.for_stream(stream)
+        self.frames: FrameReader | None = None
+        """Reads whole messages ahead of websockets; set once the handshake allows it."""
         self._parts: list[bytes] = []
         self._size = 0
         self._binary = False
@@ -113,28 +121,54 @@ class WebSocketChannel:
         if self._eof or self.protocol.state is State.CLOSED:
             raise anyio.EndOfStream
         try:
-            data = await self.stream.receive(_READ_SIZE)
+            reader = self._reader
+            if reader is not None:
+                data = await reader.receive(_READ_SIZE)
+            else:
+                data = await self.stream.receive(_READ_SIZE)
         except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
             self.protocol.receive_eof()
             self._eof = True
             raise anyio.EndOfStream from None
-        self.protocol.receive_data(data)
-        messages: list[FramerEvent] = []
-        control = False
-        for event in self.protocol.events_received():
-            if isinstance(event, Frame):
-                if event.opcode is Opcode.PONG:
-                    self._pong.set()
-                control = control or event.opcode not in _DATA_OPCODES
-                message = self._assemble(event)
-                if message is not None:
-                    messages.append(message)
+        messages, control = self.read_chunk(data)
         # Only a control frame (a ping to answer, the close handshake) or a failure
         # (1002, 1009) makes the protocol write; data frames alone never do, and
         # taking the lock for nothing costs more than parsing a chunk (issue 8).
         if control or self.protocol.state is not State.OPEN:
+            if self._reader is not None:
+                self._reader.pause()  # nothing piles up while the peer is slow to read
             await self.flush()
         return messages
+
+    def read_chunk(self, data: bytes) -> tuple[list[FramerEvent], bool]:
+        """Parse one received chunk, without I/O.
+
+        Returns the whole data messages it completes, in order, and whether it
+        held a control frame (the protocol may then have bytes to send). With
+        ``frames`` set, whole messages are read there and the other frames
+        passed to websockets in their place in the stream.
+        """
+        messages: list[FramerEvent] = []
+        control = False
+        frames = self.frames
+        if frames is not None and self.protocol.state is not State.OPEN:
+            frames.stop()  # closing: websockets reads (or drops) what is left
+        for item in frames.feed(data) if frames is not None else (data,):
+            if isinstance(item, InFrame):  # read by ``FrameReader``
+                messages.append(item)
+                continue
+            self.protocol.receive_data(item)
+            for event in self.protocol.events_received():
+                if isinstance(event, Frame):
+                    if event.opcode is Opcode.PONG:
+                        self._pong.set()
+                    control = control or event.opcode not in _DATA_OPCODES
+                    message = self._assemble(event)
+                    if message is not None:
+                        messages.append(message)
+            if frames is not None and self.protocol.state is not State.OPEN:
+                frames.stop()  # websockets failed the connection or got a close frame
+        return messages, control
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send data frames; text for JSON, binary for CBOR (D27).
@@ -275,17 +309,24 @@ def _make_protocol(options: WebSocketOptions) -> ServerProtocol:
     return ServerProtocol(max_size=options.max_message_size, extensions=extensions)
 
 
-async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> Request | None:
+async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> tuple[Request, bool] | None:
+    """Read the upgrade request; also whether it ended exactly where the bytes read end.
+
+    Only then does the next byte start a frame that websockets has not begun to
+    parse, so that ``FrameReader`` may read from there.
+    """
+    received = bytearray()  # bounded: websockets refuses an oversized request
     with anyio.move_on_after(_HANDSHAKE_LIMIT_S):
         while True:
             try:
                 data = await stream.receive(_READ_SIZE)
             except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
                 return None
+            received += data
             protocol.receive_data(data)
             for event in protocol.events_received():
                 if isinstance(event, Request):
-                    return event
+                    return event, received.find(b"\r\n\r\n") + 4 == len(received)
             if protocol.state is not State.CONNECTING:
                 return None
     return None
@@ -321,9 +362,10 @@ async def serve_websocket_connection(
     """
     protocol = _make_protocol(options)
     async with stream:
-        request = await _handshake(stream, protocol)
-        if request is None:
+        handshake = await _handshake(stream, protocol)
+        if handshake is None:
             return
+        request, at_frame_start = handshake
         channel = WebSocketChannel(stream, protocol, options)
         pump = ConnectionPump(channel)
         refusal = _refusal(request, options)
@@ -339,6 +381,8 @@ async def serve_websocket_connection(
         else:
             response = protocol.accept(request)
         protocol.send_response(response)
+        if at_frame_start and not protocol.extensions:  # deflate's frames are websockets' to read
+            channel.frames = FrameReader(options.max_message_size)
         try:
             await channel.flush()
         except (anyio.BrokenResourceError, OSError):
