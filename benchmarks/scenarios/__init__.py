@@ -233,30 +233,20 @@ def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
                     _b5,
                 )
             )
-    for binary in (False, True):
-        label = "CBOR" if binary else "JSON"
-        variants.append(
-            Variant(
-                "B6",
-                f"PointCloud2 300k points {label}, 10 Hz + Twist 100 Hz",
-                _cloud(binary),
-                "server_cpu_ms_per_big",
-                "ms CPU/cloud",
-                _b6(not binary),
+    b6_forms = (("+ Twist 100 Hz", 100.0, _b6), ("alone (Twist 1 Hz)", 1.0, _b6_alone))
+    for form, twist_hz, check in b6_forms:  # judged, then the clouds' own cost
+        for binary in (False, True):
+            label = "CBOR" if binary else "JSON"
+            variants.append(
+                Variant(
+                    "B6",
+                    f"PointCloud2 300k points {label}, 10 Hz {form}",
+                    _cloud(binary, twist_hz=twist_hz),
+                    "server_cpu_ms_per_big",
+                    "ms CPU/cloud",
+                    check(not binary),
+                )
             )
-        )
-    for binary in (False, True):
-        label = "CBOR" if binary else "JSON"
-        variants.append(
-            Variant(
-                "B6",
-                f"PointCloud2 300k points {label}, 10 Hz alone (Twist 1 Hz)",
-                _cloud(binary, twist_hz=1.0),
-                "server_cpu_ms_per_big",
-                "ms CPU/cloud",
-                _b6_alone(not binary),
-            )
-        )
     variants.append(
         Variant(
             "B7",
