@@ -6,7 +6,8 @@ parse every frame, check it is the expected message and take its latency.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from array import array
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import cbor2
@@ -41,7 +42,8 @@ class LatencyTrack:
     make: Callable[[int], bytes]
     marker: bytes = b'"data":"'
     publisher: RatePublisher | None = None
-    latencies_s: list[float] = field(default_factory=list)
+    latencies_s: array[float] = field(default_factory=lambda: array("d"))
+    """Seconds, in arrival order (an array: see ``RatePublisher.sent_at``)."""
 
     def seq_of(self, payload: bytes) -> int:
         start = payload.find(self.marker)
@@ -106,7 +108,7 @@ def _finish(
     run: Run,
     pub: RatePublisher,
     subs: list[Subscriber],
-    latencies: list[float] | Callable[[], list[float]],
+    latencies: Sequence[float] | Callable[[], Sequence[float]],
     messages: int,
     others: list[RatePublisher] = (),  # type: ignore[assignment]
 ) -> Metrics:
