@@ -35,6 +35,7 @@ from rwt_protocol.session import SessionConfig
 
 from .allocator import tune_allocator
 from .conformance.cli import conformance
+from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
 from .websocket import WebSocketOptions
@@ -270,6 +271,7 @@ def serve(
     video_config = _video_config(host, video_port) if video else None
     if uvloop and importlib.util.find_spec("uvloop") is None:
         _fail("--uvloop needs the uvloop package")
+    freeze_startup_objects()
     try:
         anyio.run(_run, server, video_config, backend_options={"use_uvloop": uvloop})
     except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError

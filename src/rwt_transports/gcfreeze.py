@@ -1,0 +1,27 @@
+"""Keep the server's start-up objects out of the cyclic garbage collector (issue 8, B15).
+
+Every object alive once the server is built (modules, message definitions,
+compiled converters, op models) lives as long as the process, yet each full
+collection walks all of them again: 24-32 ms of a stopped event loop every
+minute or two under B15's load, which every client sees as a latency spike.
+``gc.freeze`` moves them to the permanent generation, which collections skip;
+what is allocated later is collected as before.
+"""
+
+from __future__ import annotations
+
+import gc
+
+__all__ = ["freeze_startup_objects"]
+
+
+def freeze_startup_objects() -> int:
+    """Collect once, then freeze what survives; returns the number of frozen objects.
+
+    Call it once, after the server and its graph are built and before it
+    serves. The objects frozen are never collected, so garbage is collected
+    first.
+    """
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()

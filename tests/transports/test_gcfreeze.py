@@ -1,0 +1,41 @@
+"""Start-up objects leave the collector's generations; later garbage is still collected."""
+
+from __future__ import annotations
+
+import gc
+import weakref
+from collections.abc import Iterator
+
+import pytest
+
+from rwt_transports.gcfreeze import freeze_startup_objects
+
+
+@pytest.fixture
+def unfrozen() -> Iterator[None]:
+    yield
+    gc.unfreeze()
+
+
+class _Node:
+    def __init__(self) -> None:
+        self.other: _Node | None = None
+
+
+def _cycle() -> weakref.ref[_Node]:
+    a, b = _Node(), _Node()
+    a.other, b.other = b, a
+    return weakref.ref(a)
+
+
+@pytest.mark.usefixtures("unfrozen")
+def test_live_objects_are_frozen_and_new_cycles_still_collected() -> None:
+    kept = _Node()
+    garbage = _cycle()  # unreachable before the freeze: collected, not frozen
+    frozen = freeze_startup_objects()
+    assert garbage() is None
+    assert frozen == gc.get_freeze_count() > 0
+    assert not any(obj is kept for obj in gc.get_objects())  # in the permanent generation
+    later = _cycle()
+    gc.collect()
+    assert later() is None
