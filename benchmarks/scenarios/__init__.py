@@ -65,47 +65,54 @@ def _b5(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
     return f"{hz:.1f} Hz", "30.0 Hz to every subscriber (>= 29.7 measured)", hz >= 29.7
 
 
-def _b6(json_variant: bool) -> Check:
+def _b6_stall(json_variant: bool) -> Check:
+    """B6 with a 100 Hz Twist on the same connection: judged on "no stall of other topics".
+
+    The CBOR row also shows JSON/CBOR CPU per cloud with all of the server's
+    CPU charged to the clouds, Twist included. That is not judged: the Twist's
+    100 wake-ups a second cost both encodings the same (about 4 ms a cloud for
+    rwt, 3 ms for the relay), which pulls any ratio toward 1. "Cheaper" is
+    judged on the clouds' own cost (``_b6_cost``).
+    """
+
     def check(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
         stall = _value(medians, "p99_ms", 20.0, "{:.1f} ms")
         stall = (f"Twist p99 {stall[0]}", f"Twist p99 {stall[1]}", stall[2])
         if json_variant:
             return stall
-        json_cpu = med(context.get(_B6_JSON_KEY, {}), "rwt", "server_cpu_ms_per_big")
-        cbor_cpu = med(medians, "rwt", "server_cpu_ms_per_big")
-        ratio = json_cpu / cbor_cpu if cbor_cpu else float("nan")
-        cheaper = (
-            f"JSON/CBOR CPU {ratio:.1f}x",
-            "CBOR >= 2x cheaper",
-            None if math.isnan(ratio) else ratio >= 2.0,
-        )
-        return _judge(cheaper, stall)
+        ratio = _cloud_ratio(context.get(_B6_JSON_KEY, {}), medians, "rwt")
+        return f"{stall[0]}; JSON/CBOR CPU {ratio:.1f}x with the Twist", stall[1], stall[2]
 
     return check
 
 
-def _b6_alone(json_variant: bool) -> Check:
-    """The clouds' own cost (the Twist at 1 Hz): shown beside B6, not judged.
+def _b6_cost(json_variant: bool) -> Check:
+    """B6 "CBOR >= 2x cheaper than JSON", on the clouds' own cost (the Twist at 1 Hz).
 
-    B6's verdict stays on the rows with the 100 Hz Twist, whose CPU is charged
-    to the clouds there (about 4-5 ms of rwt's per cloud, the same for both
-    encodings).
+    Server CPU per cloud, JSON over CBOR, medians of the same run; the bare
+    relay's ratio is shown beside it.
     """
 
     def check(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
-        note = "not judged: B6 is judged with the 100 Hz Twist"
-        bare = med(medians, "bare", "server_cpu_ms_per_big")
-        rwt = med(medians, "rwt", "server_cpu_ms_per_big")
         if json_variant:
-            return f"{rwt:.1f} ms (bare {bare:.1f})", note, None
+            bare = med(medians, "bare", "server_cpu_ms_per_big")
+            rwt = med(medians, "rwt", "server_cpu_ms_per_big")
+            return f"{rwt:.1f} ms (bare {bare:.1f})", "(the CBOR row compares)", None
         json_row = context.get(_B6_ALONE_JSON_KEY, {})
-        ratios = [
-            med(json_row, kind, "server_cpu_ms_per_big") / cpu if cpu else float("nan")
-            for kind, cpu in (("rwt", rwt), ("bare", bare))
-        ]
-        return f"JSON/CBOR CPU {ratios[0]:.1f}x (bare {ratios[1]:.1f}x)", note, None
+        ratio, bare = (_cloud_ratio(json_row, medians, kind) for kind in ("rwt", "bare"))
+        return (
+            f"JSON/CBOR CPU {ratio:.1f}x (bare {bare:.1f}x)",
+            "CBOR >= 2x cheaper",
+            None if math.isnan(ratio) else ratio >= 2.0,
+        )
 
     return check
+
+
+def _cloud_ratio(json_row: Medians, cbor_row: Medians, kind: str) -> float:
+    json_cpu = med(json_row, kind, "server_cpu_ms_per_big")
+    cbor_cpu = med(cbor_row, kind, "server_cpu_ms_per_big")
+    return json_cpu / cbor_cpu if cbor_cpu else float("nan")
 
 
 def _b7_topic(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
@@ -200,7 +207,7 @@ def _cloud(binary: bool, twist_hz: float = 100.0) -> callable:  # type: ignore[v
         big_type="sensor_msgs/msg/PointCloud2",
         big_compression="cbor" if binary else "none",
         big_hz=10.0,
-        duration_s=3.0,
+        duration_s=5.0,  # 50 clouds: CPU ticks of 10 ms are 0.2 ms a cloud
         sample=cloud_sample(binary),
         twist_hz=twist_hz,
     )
@@ -233,8 +240,8 @@ def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
                     _b5,
                 )
             )
-    b6_forms = (("+ Twist 100 Hz", 100.0, _b6), ("alone (Twist 1 Hz)", 1.0, _b6_alone))
-    for form, twist_hz, check in b6_forms:  # judged, then the clouds' own cost
+    b6_forms = (("+ Twist 100 Hz", 100.0, _b6_stall), ("alone (Twist 1 Hz)", 1.0, _b6_cost))
+    for form, twist_hz, check in b6_forms:
         for binary in (False, True):
             label = "CBOR" if binary else "JSON"
             variants.append(
