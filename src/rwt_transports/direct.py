@@ -38,6 +38,8 @@ class _Transport(Protocol):
 
     def is_closing(self) -> bool: ...
 
+    def is_reading(self) -> bool: ...
+
     def pause_reading(self) -> None: ...
 
     def resume_reading(self) -> None: ...
@@ -65,7 +67,14 @@ def _asyncio_parts(stream: object) -> tuple[_Transport, _StreamProtocol] | None:
     protocol = getattr(stream, "_protocol", None)
     if not all(
         callable(getattr(transport, name, None))
-        for name in ("write", "get_write_buffer_size", "is_closing", "pause_reading")
+        for name in (
+            "write",
+            "get_write_buffer_size",
+            "is_closing",
+            "is_reading",
+            "pause_reading",
+            "resume_reading",
+        )
     ) or not all(
         hasattr(protocol, name) for name in ("read_queue", "read_event", "exception", "is_at_eof")
     ):
@@ -135,9 +144,16 @@ class DirectReader:
     await anything else first (a flush of control frames to a peer that may
     not be reading) calls ``pause``; the next ``receive`` resumes reading.
     Only one task may read.
+
+    Whether the socket is being read is asked of the transport each time, not
+    remembered: anyio's listener leaves a new connection reading, and its
+    ``receive`` pauses only when it had to wait. A handshake whose bytes were
+    already queued left reading on, which a remembered "paused" flag hid from
+    ``pause``, and a peer that never read its pongs was buffered without bound
+    (seen on uvloop under load).
     """
 
-    __slots__ = ("_paused", "_protocol", "_stream", "_transport")
+    __slots__ = ("_protocol", "_stream", "_transport")
 
     def __init__(
         self, stream: ByteReceiveStream, transport: _Transport, protocol: _StreamProtocol
@@ -145,7 +161,6 @@ class DirectReader:
         self._stream = stream
         self._transport = transport
         self._protocol = protocol
-        self._paused = True  # anyio's own reads (the handshake) leave it paused
 
     @classmethod
     def for_stream(cls, stream: ByteReceiveStream) -> DirectReader | None:
@@ -166,9 +181,8 @@ class DirectReader:
         if not queue:
             if protocol.is_at_eof or protocol.exception is not None or self._transport.is_closing():
                 return await self._stream.receive(max_bytes)
-            if self._paused:
+            if not self._transport.is_reading():
                 self._transport.resume_reading()
-                self._paused = False
             event = protocol.read_event
             event.clear()  # nothing is queued; only new data (or the end) sets it
             await event.wait()
@@ -184,7 +198,6 @@ class DirectReader:
 
     def pause(self) -> None:
         """Stop reading from the socket until the next ``receive`` waits."""
-        if not self._paused:
-            self._paused = True
-            if not self._transport.is_closing():
-                self._transport.pause_reading()
+        transport = self._transport
+        if transport.is_reading() and not transport.is_closing():
+            transport.pause_reading()
