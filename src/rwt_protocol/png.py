@@ -77,7 +77,7 @@ def decode_png(text: str, *, max_bytes: int) -> bytes:
 
     try:
         raw = binascii.a2b_base64(text, strict_mode=True)
-    except binascii.Error:
+    except ValueError:  # binascii.Error, or a non-ASCII character in the text
         raise RemoteProtocolError("data is not valid base64") from None
     try:
         with warnings.catch_warnings():

@@ -122,6 +122,8 @@ def test_mixed_filters_grayscale_rgba_and_nul_padding_decode() -> None:
 def test_bad_data_is_refused() -> None:
     with pytest.raises(RemoteProtocolError, match="not valid base64"):
         decode_png("not base64!", max_bytes=MiB)
+    with pytest.raises(RemoteProtocolError, match="not valid base64"):
+        decode_png("\x80", max_bytes=MiB)  # not ASCII (found by hypothesis)
     with pytest.raises(RemoteProtocolError, match="not a valid PNG"):
         decode_png(base64.b64encode(b"GIF89a....").decode(), max_bytes=MiB)
     truncated = base64.b64decode(encode_png(b"x" * 3000))[:-30]

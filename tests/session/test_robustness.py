@@ -149,6 +149,7 @@ def test_arbitrary_bytes_and_json_values_only_ever_get_statuses(frames: list[byt
 
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@example(messages=[{"op": "png", "topic": None, "data": "\x80"}])  # non-ASCII base64
 @given(messages=st.lists(ops, max_size=5))
 def test_arbitrary_ops_never_raise_nor_hit_an_internal_error(
     messages: list[dict[str, object]],
