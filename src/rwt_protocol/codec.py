@@ -69,26 +69,28 @@ def check_nesting(value: object, openings: int | None = None, *, level: int = 1)
     Raises:
         RemoteProtocolError: ``nesting deeper than N``.
 
-    One pass over the containers with an explicit stack (no recursion), linear
-    in their number; scalars inside arrays are only type-tested.
+    The walk goes level by level over the containers only (no recursion),
+    linear in the number of values; scalars are only type-tested.
     """
     if openings is not None and openings <= MAX_NESTING:
         return
-    stack: list[tuple[object, int]] = [(value, level)]
-    while stack:
-        item, depth = stack.pop()
-        if type(item) is dict:
-            children: Iterable[object] = item.values()
-        elif type(item) is list:
-            children = item
-        else:
-            continue
-        if depth > MAX_NESTING:
-            raise nesting_error()
-        stack.extend((child, depth + 1) for child in children if type(child) in _CONTAINERS)
-
-
-_CONTAINERS = (dict, list)
+    items: list[object] = [value]
+    depth = level
+    while items:
+        below: list[object] = []
+        for item in items:
+            children: Iterable[object]
+            if type(item) is dict:
+                children = item.values()
+            elif type(item) is list:
+                children = item
+            else:
+                continue
+            if depth > MAX_NESTING:
+                raise nesting_error()
+            below += [c for c in children if type(c) is dict or type(c) is list]
+        items = below
+        depth += 1
 
 
 def _openings(frame: str | bytes) -> int:
