@@ -29,7 +29,7 @@ from pydantic_core import ErrorDetails
 from .errors import RemoteProtocolError
 from .names import name_problem
 from .ops import OP_MODELS, OpModel, PublishFrame
-from .ops.base import json_type_name
+from .ops.base import INT64_MAX, INT64_MIN, json_type_name
 
 __all__ = [
     "MAX_NESTING",
@@ -62,8 +62,9 @@ def check_nesting(value: object, openings: int | None = None, *, level: int = 1)
 
     Args:
         value: a decoded frame.
-        openings: how many ``[`` and ``{`` its text has, if known: when there
-            are at most ``MAX_NESTING`` the value cannot be deeper, and is not walked.
+        openings: a bound of its nesting known from its text (how many ``[``
+            and ``{`` it has), if any: at most ``MAX_NESTING`` and the value is
+            not walked.
         level: the level of ``value`` itself (2 for an op's ``msg``).
 
     Raises:
@@ -94,9 +95,24 @@ def check_nesting(value: object, openings: int | None = None, *, level: int = 1)
 
 
 def _openings(frame: str | bytes) -> int:
+    """An upper bound of the nesting of a JSON text that decoded (its ``[`` and ``{``)."""
+    if len(frame) <= 2 * MAX_NESTING:  # each level takes two brackets: no need to count
+        return len(frame) // 2
     if isinstance(frame, str):
         return frame.count("[") + frame.count("{")
     return frame.count(b"[") + frame.count(b"{")
+
+
+_VALID_TOPICS: set[str] = set()
+"""Topic names already found valid (at most 4096): the hot path sees few names."""
+
+
+def _topic_ok(topic: str) -> bool:
+    if name_problem(topic) is not None:
+        return False
+    if len(_VALID_TOPICS) < 4096:
+        _VALID_TOPICS.add(topic)
+    return True
 
 
 # A JSON escape that may be half a surrogate pair, or a raw surrogate in a str frame.
@@ -202,12 +218,16 @@ def decode_publish(frame: str | bytes) -> PublishFrame | None:
         op = _publish_decoder.decode(frame)
     except (msgspec.DecodeError, UnicodeError, RecursionError):  # also ValidationError
         return None
-    if name_problem(op.topic) is not None:
+    if op.topic not in _VALID_TOPICS and not _topic_ok(op.topic):
         return None
-    try:
-        check_nesting(op.msg, _openings(frame), level=2)
-    except RemoteProtocolError:
+    op_id = op.id
+    if op_id is not None and type(op_id) is int and not INT64_MIN <= op_id <= INT64_MAX:
         return None
+    if len(frame) > 2 * MAX_NESTING:  # shorter frames cannot nest deeper (see _openings)
+        try:
+            check_nesting(op.msg, _openings(frame), level=2)
+        except RemoteProtocolError:
+            return None
     return op
 
 

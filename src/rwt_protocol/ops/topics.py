@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 import msgspec
 from pydantic import Field
 
 from .base import (
-    INT64_MAX,
-    INT64_MIN,
     Compression,
     FragmentSize,
     GraphName,
@@ -63,8 +61,8 @@ class PublishFrame(msgspec.Struct, frozen=True):
 
     The same fields, defaults and checks as ``Publish`` (``topic`` a string,
     ``id`` a string or an integer but not a bool, ``latch`` a bool, unknown
-    fields ignored, ``id`` within signed 64 bits), done in C while decoding
-    instead of by pydantic after it.
+    fields ignored), done in C while decoding instead of by pydantic after it;
+    ``codec.decode_publish`` adds the edge rules (topic name, ``id`` range, nesting).
     A frame this cannot decode goes through the general path, which gives the
     error its field path (D1), so both paths accept and refuse the same frames.
     """
@@ -72,7 +70,7 @@ class PublishFrame(msgspec.Struct, frozen=True):
     op: Literal["publish"]  # required: a frame without ``op`` is refused (D1)
     topic: str  # its name rules are checked by ``codec.decode_publish``
     msg: Any = msgspec.field(default_factory=dict)
-    id: str | Annotated[int, msgspec.Meta(ge=INT64_MIN, le=INT64_MAX)] | None = None
+    id: str | int | None = None  # its 64-bit range is checked by ``codec.decode_publish``
     latch: bool = False
 
 
