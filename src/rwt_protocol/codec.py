@@ -268,11 +268,17 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
 
 
 def peek_id(obj: object) -> str | int | None:
-    """Return the ``id`` of a decoded frame if it is a valid id, for error reports."""
+    """Return the ``id`` of a decoded frame if it is a valid id, for error reports.
+
+    An integer outside signed 64 bits is not a valid id (``ops.base.MessageId``):
+    its refusal is not echoed with it.
+    """
     if isinstance(obj, dict):
         value = obj.get("id")
-        if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
+        if isinstance(value, str):
             return value
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value if INT64_MIN <= value <= INT64_MAX else None
     return None
 
 

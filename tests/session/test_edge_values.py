@@ -61,6 +61,33 @@ SURROGATE_OPS: dict[str, dict[str, Any]] = {
         "id": LONE,
     },
     "status-msg": {"op": "status", "level": "error", "msg": LONE},
+    "service_response-values": {
+        "op": "service_response",
+        "service": "/s",
+        "id": "service_request:/s:1",
+        "result": True,
+        "values": {"message": LONE},
+    },
+    "service_response-failure-text": {
+        "op": "service_response",
+        "service": "/s",
+        "id": "service_request:/s:1",
+        "result": False,
+        "values": LONE,
+    },
+    "action_feedback-values": {
+        "op": "action_feedback",
+        "action": "/fib",
+        "id": "g",
+        "values": {"partial_sequence": [], "note": LONE},
+    },
+    "action_result-values": {
+        "op": "action_result",
+        "action": "/fib",
+        "id": "g",
+        "result": False,
+        "values": LONE,
+    },
 }
 
 
@@ -136,8 +163,10 @@ def test_integers_beyond_64_bits_are_refused(
 ) -> None:
     sender, other = pair(graph)
     sender.send(**op)
-    [text] = error_texts(sender)
-    assert f"at {field or '$.status'}" in text
+    [status] = sender.statuses()
+    assert status["level"] == "error" and f"at {field or '$.status'}" in str(status["msg"])
+    if field == "$.id":
+        assert "id" not in status  # an id out of range is not echoed
     still_served(sender, other)
 
 
