@@ -50,6 +50,7 @@ __all__ = [
     "png_frames",
     "publish_frames",
     "safe_op_frames",
+    "safe_publish_frames",
 ]
 
 Frames = tuple[OutFrame, ...]
@@ -242,6 +243,20 @@ def safe_op_frames(
         failure = EncodeFailure(_clean(str(message.get("op", "op"))), _reason(exc))
         return (OutFrame(encode_json(_replacement(message, failure))),), failure
     return frames, None
+
+
+def safe_publish_frames(
+    event: MessageEvent, spelling: str, compression: Compression, fragment_size: int | None
+) -> Frames | EncodeFailure:
+    """``publish_frames``, made total: the frames, or why the message has no such form.
+
+    The subscriber is then told with an error status and the message skipped;
+    the publisher never hears of it (its message was valid for its type).
+    """
+    try:
+        return publish_frames(event, spelling, compression, fragment_size)
+    except Exception as exc:  # any encoder error, as in ``safe_op_frames``
+        return EncodeFailure("publish", _reason(exc))
 
 
 def _replacement(message: Mapping[str, object], failure: EncodeFailure) -> dict[str, object]:

@@ -36,7 +36,7 @@ from .backpressure import SlowConsumerWatch
 from .codec import decode_json, decode_publish, parse_object, peek_id
 from .codec_cbor import decode_cbor
 from .commands import CloseCode, CloseConnection, Command
-from .encoding import EncodeFailure, publish_frames, safe_op_frames
+from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
 from .errors import RwtError
 from .fragments import Reassembler
 from .handlers import HANDLERS
@@ -398,6 +398,7 @@ class Session:
         self.send_frames(frames)
 
     def _unencodable(self, failure: EncodeFailure) -> None:
+        """Log an op that had no wire form: one warning per connection, then debug lines."""
         level = logging.WARNING if self._log_once("encode") else logging.DEBUG
         logger.log(
             level,
@@ -447,22 +448,18 @@ class Session:
         """Queue one topic message for the peer, in the subscription's merged encoding.
 
         The frames are made once per distinct form and shared with every other
-        subscriber asking for it (``encoding.publish_frames``). A message that
-        cannot be encoded (a bug, or a type the serializer lacks) is reported
-        as an error status and skipped, logged once per connection; it never
-        reaches the publisher.
+        subscriber asking for it (``encoding.safe_publish_frames``). A message
+        that cannot be encoded (a bug, or a type the serializer lacks) is
+        reported as an error status and skipped, logged once per connection;
+        it never reaches the publisher.
         """
         self._now = max(self._now, event.now)
         params = subscription.params
-        try:
-            frames = publish_frames(
-                event, subscription.spelling, params.compression, params.fragment_size
-            )
-        except Exception:
-            if self._log_once("deliver"):
-                logger.exception(
-                    "cannot encode a message of %s as %s", event.topic, params.compression
-                )
+        frames = safe_publish_frames(
+            event, subscription.spelling, params.compression, params.fragment_size
+        )
+        if isinstance(frames, EncodeFailure):
+            self._unencodable(frames)
             self.report(
                 StatusLevel.ERROR,
                 f"subscribe: cannot send a message of {subscription.spelling}"

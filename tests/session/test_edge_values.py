@@ -278,3 +278,24 @@ def test_a_bug_is_logged_once_and_reported_every_time(
     assert [m["msg"] for m in sender.statuses()] == ["set_level: internal error"] * 3
     assert len([r for r in caplog.records if r.exc_info]) == 1
     still_served(sender, other)
+
+
+def test_an_unencodable_message_from_in_process_code_is_reported_and_logged_once(
+    graph: Graph, caplog: pytest.LogCaptureFixture
+) -> None:
+    publisher = graph.create_publisher("/inproc", "std_msgs/String")
+    subscriber, other = pair(graph)
+    subscriber.send(op="subscribe", topic="/inproc")
+    with caplog.at_level(logging.DEBUG, logger="rwt.session"):
+        for _ in range(3):
+            publisher.publish({"data": LONE})
+    statuses = subscriber.statuses()
+    assert [s["msg"] for s in statuses] == [
+        "subscribe: cannot send a message of /inproc as none"
+    ] * 3
+    warnings = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(warnings) == 1 and not warnings[0].exc_info
+    assert "event=unencodable" in warnings[0].getMessage()
+    publisher.publish({"data": "fine"})
+    assert subscriber.received() == [{"op": "publish", "topic": "/inproc", "msg": {"data": "fine"}}]
+    still_served(subscriber, other)
