@@ -13,13 +13,14 @@ import itertools
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 from rwt_protocol.errors import FieldError, GraphError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
 
-from .calls import ProviderTable, Spawner, convert_args, require_spawner
+from .calls import ProviderTable, Spawner, convert_args, guarded, require_spawner
 from .clock import Clock
 from .types import ActionType, TypeRegistry
 
@@ -165,9 +166,13 @@ class ActionEntry:
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     def end_all(self, reason: str) -> None:
-        """End every goal ABORTED with ``result: false`` and ``reason`` (D4)."""
+        """End every goal ABORTED with ``result: false`` and ``reason`` (D4); one failing
+        result does not keep the others from theirs."""
         for goal in list(self.goals.values()):
-            goal.finish(GoalStatus.ABORTED, False, reason)
+            guarded(
+                f"aborting goal {goal.goal_id} of {self.spelling}",
+                partial(goal.finish, GoalStatus.ABORTED, False, reason),
+            )
 
     def tell_lost(self, reason: str) -> None:
         """Warn a client provider that its action was replaced (D15)."""
@@ -275,7 +280,7 @@ class Actions(ProviderTable[ActionEntry]):
             else:
                 for goal in list(entry.goals.values()):
                     if goal.caller == client:
-                        goal.forget()
+                        guarded(f"forgetting goal {goal.goal_id}", goal.forget)
 
     def _goal(self, client: ClientId, action: str, goal_id: str) -> Goal:
         entry = self.owned(client, action)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Awaitable, Callable
 from typing import Generic, Protocol, TypeVar
 
@@ -13,7 +14,23 @@ from rwt_protocol.ports import ClientId
 from .clock import Clock
 from .types import Converted, MessageType, TypeRegistry
 
-__all__ = ["Offer", "ProviderTable", "Spawner", "convert_args", "require_spawner"]
+__all__ = ["Offer", "ProviderTable", "Spawner", "convert_args", "guarded", "require_spawner"]
+
+logger = logging.getLogger("rwt.graph")
+
+
+def guarded(what: str, step: Callable[[], None]) -> None:
+    """Run one step of a cleanup; an exception is logged (a bug) and the cleanup goes on.
+
+    A client's disconnect releases many things (topics, services, goals, other
+    callers' replies); one failing step must not leave the rest registered,
+    a zombie service or action (docs/limits.md).
+    """
+    try:
+        step()
+    except Exception:
+        logger.exception("%s failed; the cleanup goes on", what)
+
 
 Spawner = Callable[[Callable[[], Awaitable[None]]], Callable[[], None]]
 """Runs an async job in the server's event loop; returns a function that cancels it.

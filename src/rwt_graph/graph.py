@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 from collections.abc import Callable, Iterator
+from functools import partial
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
@@ -37,7 +38,7 @@ from .actions import (
     cancel_goals_handler,
     cancel_service_name,
 )
-from .calls import Spawner
+from .calls import Spawner, guarded
 from .clock import Clock, SystemClock
 from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
 from .nodes import DEFAULT_NODE, Nodes, node_name
@@ -194,15 +195,19 @@ class Graph:
         """Drop every registration of ``client`` (it disconnected).
 
         Its services and actions go, failing their pending callers (D15); its own
-        calls and goals are forgotten.
+        calls and goals are forgotten. Each step runs even if an earlier one
+        failed (logged as a bug), so nothing of the client stays registered.
         """
         for entry in list(self.topics.values()):
-            entry.remove_publisher(client)
-            entry.subscribers.pop(client, None)
-            self._collect(entry)
-        self.services.release(client)
-        self.actions.release(client)
-        self.nodes.forget(client)
+            guarded(f"releasing {client} from {entry.name}", partial(self._drop, entry, client))
+        guarded(f"releasing the services of {client}", lambda: self.services.release(client))
+        guarded(f"releasing the actions of {client}", lambda: self.actions.release(client))
+        guarded(f"forgetting the node of {client}", lambda: self.nodes.forget(client))
+
+    def _drop(self, entry: Topic, client: ClientId) -> None:
+        entry.remove_publisher(client)
+        entry.subscribers.pop(client, None)
+        self._collect(entry)
 
     def fail_pending(self, reason: str) -> None:
         """Answer every pending service call and goal with a failure (D4; server shutdown)."""

@@ -26,7 +26,7 @@ from enum import StrEnum
 from typing import TypeAlias
 
 from rwt_protocol.errors import GraphError
-from rwt_protocol.names import resolve_name
+from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
 from .nodes import node_name
 from .types import Dialect
@@ -38,6 +38,7 @@ __all__ = [
     "ParameterError",
     "ParameterNotSet",
     "Parameters",
+    "check_param_name",
 ]
 
 logger = logging.getLogger("rwt.graph")
@@ -176,6 +177,30 @@ def split_ros2_name(name: str) -> tuple[str, str]:
         raise ParameterError(f"parameter name {name!r}: {exc.message}") from None
 
 
+def check_param_name(name: str, *, ros1: bool) -> None:
+    """Check the name of a parameter being created, so that listing it never fails.
+
+    ROS 1 names are graph resource names (``names.name_problem``) or ``/``; a ROS 2
+    ``<node>:<param>`` name is checked by ``split_ros2_name`` (node part) and here
+    (the parameter part, which ROS 2 lets hold ``.`` and more): at most
+    ``MAX_NAME_LENGTH`` characters of valid Unicode (docs/limits.md).
+
+    Raises:
+        ParameterError: the name breaks these rules.
+    """
+    root = ros1 and resolve_name(name) == "/"  # ROS 1: setting "/" sets the whole tree
+    problem = name_problem(name) if ros1 and not root else None
+    if problem is None and len(name) > MAX_NAME_LENGTH:
+        problem = f"name longer than {MAX_NAME_LENGTH} characters"
+    if problem is None and not name.isascii():
+        try:
+            name.encode()
+        except UnicodeEncodeError:
+            problem = "name is not valid Unicode (lone surrogate)"
+    if problem is not None:
+        raise ParameterError(f"parameter name: {problem}")
+
+
 def to_json_safe(value: ParamValue) -> object:
     """``value`` with non-finite floats as None, for JSON text (PROTOCOL-DECISIONS D10)."""
     if isinstance(value, float) and not math.isfinite(value):
@@ -247,6 +272,7 @@ class Parameters:
             ParameterError: bad name or value, a type change of a declared ROS 2
                 parameter, a read-only parameter, or the store is full.
         """
+        check_param_name(name, ros1=self.ros1)
         if self.ros1:
             key = resolve_name(name)
             stored = ros1_value(value, key)

@@ -15,13 +15,14 @@ import itertools
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 from rwt_protocol.errors import FieldError, GraphError, RwtError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
 
-from .calls import ProviderTable, Spawner, convert_args
+from .calls import ProviderTable, Spawner, convert_args, guarded
 from .clock import Clock
 from .types import ServiceType, TypeRegistry
 
@@ -99,10 +100,11 @@ class ServiceEntry:
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     def end_all(self, reason: str) -> None:
-        """Answer every pending call with ``result: false`` (D4, D15)."""
+        """Answer every pending call with ``result: false`` (D4, D15); one failing reply
+        does not keep the others from theirs."""
         calls, self.pending = list(self.pending.values()), {}
         for call in calls:
-            call.resolve(False, reason)
+            guarded(f"failing a call to {self.spelling}", partial(call.resolve, False, reason))
 
     def tell_lost(self, reason: str) -> None:
         """Warn a client provider that its service was replaced (D15)."""

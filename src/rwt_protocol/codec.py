@@ -6,12 +6,19 @@ roslibpy emit (REF §3.1). Validation goes straight to the model named by
 ``op`` (faster than trying the union and gives better errors); every failure
 becomes a ``RemoteProtocolError`` whose text names the field path
 (PROTOCOL-DECISIONS D1, STYLE.md "Errors").
+
+Edge rules (docs/limits.md): a frame nested deeper than ``MAX_NESTING`` is
+refused with one status ``nesting deeper than N`` (checked without recursion,
+and a decoder's own ``RecursionError`` means the same); a string with a lone
+surrogate (``"\\ud800"``, which msgspec refuses but ``json`` accepts) is refused,
+so every string the server holds can be encoded again.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+import re
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import msgspec
@@ -20,10 +27,13 @@ from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 
 from .errors import RemoteProtocolError
+from .names import name_problem
 from .ops import OP_MODELS, OpModel, PublishFrame
-from .ops.base import json_type_name
+from .ops.base import INT64_MAX, INT64_MIN, json_type_name
 
 __all__ = [
+    "MAX_NESTING",
+    "check_nesting",
     "decode_json",
     "decode_publish",
     "encode_json",
@@ -35,6 +45,102 @@ __all__ = [
 ]
 
 _decoder = msgspec.json.Decoder()
+
+MAX_NESTING = 100
+"""The deepest nesting of arrays and objects (maps) accepted in an incoming frame,
+JSON or CBOR; the op object itself is level 1 (docs/limits.md). ROS messages
+nest a few levels; a deeper frame is refused with ``nesting deeper than 100``."""
+
+
+def nesting_error() -> RemoteProtocolError:
+    """The one error a too deeply nested frame gets (JSON or CBOR)."""
+    return RemoteProtocolError(f"nesting deeper than {MAX_NESTING}")
+
+
+def check_nesting(value: object, openings: int | None = None, *, level: int = 1) -> None:
+    """Refuse a decoded value nested deeper than ``MAX_NESTING``.
+
+    Args:
+        value: a decoded frame.
+        openings: a bound of its nesting known from its text (how many ``[``
+            and ``{`` it has), if any: at most ``MAX_NESTING`` and the value is
+            not walked.
+        level: the level of ``value`` itself (2 for an op's ``msg``).
+
+    Raises:
+        RemoteProtocolError: ``nesting deeper than N``.
+
+    The walk goes level by level over the containers only (no recursion),
+    linear in the number of values; scalars are only type-tested.
+    """
+    if openings is not None and openings <= MAX_NESTING:
+        return
+    items: list[object] = [value]
+    depth = level
+    while items:
+        below: list[object] = []
+        for item in items:
+            children: Iterable[object]
+            if type(item) is dict:
+                children = item.values()
+            elif type(item) is list:
+                children = item
+            else:
+                continue
+            if depth > MAX_NESTING:
+                raise nesting_error()
+            below += [c for c in children if type(c) is dict or type(c) is list]
+        items = below
+        depth += 1
+
+
+def _openings(frame: str | bytes) -> int:
+    """An upper bound of the nesting of a JSON text that decoded (its ``[`` and ``{``)."""
+    if len(frame) <= 2 * MAX_NESTING:  # each level takes two brackets: no need to count
+        return len(frame) // 2
+    if isinstance(frame, str):
+        return frame.count("[") + frame.count("{")
+    return frame.count(b"[") + frame.count(b"{")
+
+
+_VALID_TOPICS: set[str] = set()
+"""Topic names already found valid (at most 4096): the hot path sees few names."""
+
+
+def _topic_ok(topic: str) -> bool:
+    if name_problem(topic) is not None:
+        return False
+    if len(_VALID_TOPICS) < 4096:
+        _VALID_TOPICS.add(topic)
+    return True
+
+
+# A JSON escape that may be half a surrogate pair, or a raw surrogate in a str frame.
+_MAYBE_SURROGATE_TEXT = re.compile(r"\\u[dD][89a-fA-F]|[\ud800-\udfff]")
+_MAYBE_SURROGATE_BYTES = re.compile(rb"\\u[dD][89a-fA-F]")
+
+
+def _check_unicode(frame: str | bytes, value: object) -> None:
+    """Refuse a value holding a string with a lone surrogate (not valid Unicode)."""
+    pattern = _MAYBE_SURROGATE_TEXT if isinstance(frame, str) else _MAYBE_SURROGATE_BYTES
+    if pattern.search(frame) is None:  # type: ignore[arg-type]
+        return
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if type(item) is str:
+            if not item.isascii():
+                try:
+                    item.encode()
+                except UnicodeEncodeError:
+                    raise RemoteProtocolError(
+                        "invalid JSON: a string has a lone surrogate (not valid Unicode)"
+                    ) from None
+        elif type(item) is dict:
+            stack.extend(item.keys())
+            stack.extend(item.values())
+        elif type(item) is list:
+            stack.extend(item)
 
 
 def _encode_other(value: object) -> object:
@@ -70,16 +176,30 @@ def decode_json(frame: str | bytes) -> object:
         The decoded value (dict, list, str, int, float, bool or None).
 
     Raises:
-        RemoteProtocolError: the text is not JSON (not even with NaN/Infinity).
+        RemoteProtocolError: the text is not JSON (not even with NaN/Infinity),
+            is nested deeper than ``MAX_NESTING``, or has a string with a lone
+            surrogate.
     """
     try:
-        return _decoder.decode(frame)
-    except (msgspec.DecodeError, UnicodeDecodeError):  # msgspec raises the latter for bad UTF-8
-        pass
+        value = _decoder.decode(frame)
+    except (msgspec.DecodeError, UnicodeError):  # bad UTF-8; a str frame with a surrogate
+        value = _fallback(frame)
+    except RecursionError:  # msgspec stops at the interpreter's recursion limit
+        raise nesting_error() from None
+    check_nesting(value, _openings(frame))
+    return value
+
+
+def _fallback(frame: str | bytes) -> object:
+    """``json`` for what msgspec refuses: NaN/Infinity, and the error text."""
     try:
-        return json.loads(frame)
+        value = json.loads(frame)
+    except RecursionError:
+        raise nesting_error() from None
     except (ValueError, TypeError) as exc:
         raise RemoteProtocolError(f"invalid JSON: {_short(str(exc))}") from None
+    _check_unicode(frame, value)
+    return value
 
 
 def decode_publish(frame: str | bytes) -> PublishFrame | None:
@@ -87,16 +207,28 @@ def decode_publish(frame: str | bytes) -> PublishFrame | None:
 
     Returns:
         The op, or None when ``frame`` is not a valid publish op in standard
-        JSON; the caller then takes the general path (``decode_json`` and
-        ``parse_object``), which explains what is wrong. Never raises.
+        JSON (or breaks an edge rule: topic name, nesting); the caller then
+        takes the general path (``decode_json`` and ``parse_object``), which
+        explains what is wrong. Never raises.
     """
     # No look at the op first: the typed decode stops at the first field that
     # does not fit (``op`` comes first from roslib and roslibpy), which is
     # cheaper than any scan of the head (BENCHMARKS.md B14).
     try:
-        return _publish_decoder.decode(frame)
-    except (msgspec.DecodeError, UnicodeDecodeError):  # also ValidationError: wrong op, fields
+        op = _publish_decoder.decode(frame)
+    except (msgspec.DecodeError, UnicodeError, RecursionError):  # also ValidationError
         return None
+    if op.topic not in _VALID_TOPICS and not _topic_ok(op.topic):
+        return None
+    op_id = op.id
+    if op_id is not None and type(op_id) is int and not INT64_MIN <= op_id <= INT64_MAX:
+        return None
+    if len(frame) > 2 * MAX_NESTING:  # shorter frames cannot nest deeper (see _openings)
+        try:
+            check_nesting(op.msg, _openings(frame), level=2)
+        except RemoteProtocolError:
+            return None
+    return op
 
 
 def encode_json(value: object) -> bytes:
@@ -136,11 +268,17 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
 
 
 def peek_id(obj: object) -> str | int | None:
-    """Return the ``id`` of a decoded frame if it is a valid id, for error reports."""
+    """Return the ``id`` of a decoded frame if it is a valid id, for error reports.
+
+    An integer outside signed 64 bits is not a valid id (``ops.base.MessageId``):
+    its refusal is not echoed with it.
+    """
     if isinstance(obj, dict):
         value = obj.get("id")
-        if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
+        if isinstance(value, str):
             return value
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value if INT64_MIN <= value <= INT64_MAX else None
     return None
 
 
@@ -201,11 +339,27 @@ def _describe(error: ErrorDetails) -> str:
     if kind == "literal_error":
         expected = error.get("ctx", {}).get("expected", "")
         return f"expected one of {expected}, got {_short(repr(got))} at {path}"
-    if kind in ("greater_than_equal", "greater_than"):
-        sign = ">=" if kind == "greater_than_equal" else ">"
-        bound = error.get("ctx", {}).get("ge", error.get("ctx", {}).get("gt"))
-        return f"expected a number {sign} {bound}, got {_short(repr(got))} at {path}"
+    if kind in _BOUNDS:
+        sign, key = _BOUNDS[kind]
+        bound = error.get("ctx", {}).get(key)
+        return f"expected a number {sign} {bound}, got {_shown_number(got)} at {path}"
+    if kind in ("graph_name", "id_range"):  # our own texts: keep their case
+        return f"{error['msg']} at {path}"
     return f"{error['msg'].lower()} at {path}"
+
+
+_BOUNDS = {
+    "greater_than_equal": (">=", "ge"),
+    "greater_than": (">", "gt"),
+    "less_than_equal": ("<=", "le"),
+}
+
+
+def _shown_number(value: object) -> str:
+    # A huge int cannot even be printed (over 4300 digits raises ValueError).
+    if isinstance(value, int) and value.bit_length() > 64:
+        return f"an integer of {value.bit_length()} bits"
+    return _short(repr(value))
 
 
 def _short(text: str, limit: int = 80) -> str:

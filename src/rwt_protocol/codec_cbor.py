@@ -23,6 +23,7 @@ import io
 import sys
 from typing import TYPE_CHECKING
 
+from .codec import MAX_NESTING, check_nesting, nesting_error
 from .errors import RemoteProtocolError
 from .ops.base import json_type_name
 
@@ -58,9 +59,6 @@ def _dtype_of_tag() -> dict[int, np.dtype[np.generic]]:
     big = {65: ">u2", 66: ">u4", 67: ">u8", 68: "u1", 73: ">i2", 74: ">i4", 75: ">i8"}
     table.update({tag: np.dtype(code) for tag, code in {**big, 81: ">f4", 82: ">f8"}.items()})
     return table
-
-
-_MAX_DEPTH = 200
 
 
 def _encode_array(encoder: cbor2.CBOREncoder, value: object) -> None:
@@ -190,7 +188,24 @@ def _refuse_sharing(value: object, immutable: bool) -> object:
     raise RemoteProtocolError("shared values (CBOR tags 28/29) are not accepted")
 
 
-_NO_SHARING = {28: _refuse_sharing, 29: _refuse_sharing}
+#: Bignums (tags 2/3) beyond what CBOR's plain integers hold (64 bits and sign) are
+#: refused: no ROS type is wider, and a huge one cannot even be printed as JSON.
+_BIGNUM_BYTES = 8
+
+
+def _bignum(value: object, negative: bool) -> int:
+    if not isinstance(value, bytes) or len(value.lstrip(b"\0")) > _BIGNUM_BYTES:
+        raise RemoteProtocolError("invalid CBOR: integer out of range (wider than 64 bits)")
+    number = int.from_bytes(value, "big")
+    return -1 - number if negative else number
+
+
+_SEMANTIC = {
+    2: lambda value, immutable: _bignum(value, False),
+    3: lambda value, immutable: _bignum(value, True),
+    28: _refuse_sharing,
+    29: _refuse_sharing,
+}
 
 
 def decode_cbor(frame: bytes, *, typed_arrays: bool = False) -> object:
@@ -205,8 +220,10 @@ def decode_cbor(frame: bytes, *, typed_arrays: bool = False) -> object:
         The decoded value.
 
     Raises:
-        RemoteProtocolError: not CBOR, trailing bytes, too deeply nested, or an
-            unsupported tag.
+        RemoteProtocolError: not CBOR, trailing bytes, nested deeper than
+            ``codec.MAX_NESTING`` (``nesting deeper than N``), a bignum wider
+            than 64 bits, or an unsupported tag. Text strings are strict UTF-8
+            (cbor2), so a lone surrogate is refused too.
     """
     import cbor2  # noqa: PLC0415 - loaded on first use: JSON-only servers never need it
 
@@ -215,18 +232,25 @@ def decode_cbor(frame: bytes, *, typed_arrays: bool = False) -> object:
         decoder = cbor2.CBORDecoder(
             stream,
             tag_hook=_tag_as_array if typed_arrays else _tag_as_list,
-            max_depth=_MAX_DEPTH,
-            semantic_decoders=_NO_SHARING,
+            max_depth=MAX_NESTING,  # cbor2 counts levels as check_nesting does
+            semantic_decoders=_SEMANTIC,
         )
         if len(frame) >= _LARGE:
             try:
-                return _Splicer(frame, decoder, stream, typed_arrays).whole()
+                value = _Splicer(frame, decoder, stream, typed_arrays).whole()
             except _NotSpliced:
                 stream.seek(0)  # let cbor2 decode it, and explain what is wrong
+            else:
+                check_nesting(value)  # cbor2 counted the levels below the spliced maps only
+                return value
         value = decoder.decode()
-    except (cbor2.CBORDecodeError, ValueError, TypeError, RecursionError) as exc:
+    except RecursionError:
+        raise nesting_error() from None
+    except (cbor2.CBORDecodeError, ValueError, TypeError) as exc:
         if isinstance(exc.__cause__, RemoteProtocolError):
             raise exc.__cause__ from None
+        if "nesting depth" in str(exc):  # cbor2's max_depth
+            raise nesting_error() from None
         raise RemoteProtocolError(f"invalid CBOR: {_first_line(exc)}") from None
     if stream.tell() != len(frame):
         raise RemoteProtocolError("invalid CBOR: bytes after the first data item")

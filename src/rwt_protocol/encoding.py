@@ -19,12 +19,20 @@ Decisions made here (the spec is silent):
 - a message is cut into at most ``fragments.MAX_PARTS`` parts (D24);
 - cbor-raw's ``secs``/``nsecs`` are the wall-clock time of publication, the same
   for every subscriber, so the frame can be shared (REF §3.5 stamps at forwarding).
+
+Encoding is total (docs/limits.md): ``safe_op_frames`` never raises. An op that
+has no JSON/CBOR form (a string with a lone surrogate, an integer too long to
+print, a value without a wire form) is replaced by what its receiver can use:
+a reply (``service_response``, ``action_result``) by its failure reply
+(``result: false``, the reason in ``values``, D4), anything else by an error
+status naming the op.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import NamedTuple
 
 from .codec import encode_json, encode_publish_json
 from .codec_cbor import encode_cbor
@@ -33,8 +41,17 @@ from .ops.base import Compression
 from .outbox import OutFrame
 from .png import encode_png
 from .ports import MessageCodec, MessageEvent
+from .replies import GOAL_ABORTED
 
-__all__ = ["encode_op_frames", "json_frames", "png_frames", "publish_frames"]
+__all__ = [
+    "EncodeFailure",
+    "encode_op_frames",
+    "json_frames",
+    "png_frames",
+    "publish_frames",
+    "safe_op_frames",
+    "safe_publish_frames",
+]
 
 Frames = tuple[OutFrame, ...]
 
@@ -186,3 +203,101 @@ def _typed_payload(
     if not isinstance(payload, Mapping):
         return message
     return {**message, key: codec.typed(payload)}
+
+
+class EncodeFailure(NamedTuple):
+    """Why an outgoing op could not be encoded, and what was sent instead.
+
+    Attributes:
+        op: the op's name (``service_response``...).
+        reason: the encoder's error, one short line.
+    """
+
+    op: str
+    reason: str
+
+
+#: The ops a caller waits for: an unencodable one is replaced by a failure reply (D4).
+_REPLY_NAMES = {"service_response": "service", "action_result": "action"}
+
+
+def safe_op_frames(
+    message: Mapping[str, object],
+    *,
+    compression: Compression = "none",
+    fragment_size: int | None = None,
+    codec: MessageCodec | None = None,
+) -> tuple[Frames, EncodeFailure | None]:
+    """``encode_op_frames``, made total: never raises.
+
+    Returns:
+        The frames, and None; or, when ``message`` cannot be encoded, frames
+        that replace it (a failure reply for ``service_response`` and
+        ``action_result``, else an error status, both plain JSON) and the failure.
+    """
+    try:
+        frames = encode_op_frames(
+            message, compression=compression, fragment_size=fragment_size, codec=codec
+        )
+    except Exception as exc:  # any encoder error: TypeError, ValueError, UnicodeError, cbor2's
+        failure = EncodeFailure(_clean(str(message.get("op", "op"))), _reason(exc))
+        return (OutFrame(encode_json(_replacement(message, failure))),), failure
+    return frames, None
+
+
+def safe_publish_frames(
+    event: MessageEvent, spelling: str, compression: Compression, fragment_size: int | None
+) -> Frames | EncodeFailure:
+    """``publish_frames``, made total: the frames, or why the message has no such form.
+
+    The subscriber is then told with an error status and the message skipped;
+    the publisher never hears of it (its message was valid for its type).
+    """
+    try:
+        return publish_frames(event, spelling, compression, fragment_size)
+    except Exception as exc:  # any encoder error, as in ``safe_op_frames``
+        return EncodeFailure("publish", _reason(exc))
+
+
+def _replacement(message: Mapping[str, object], failure: EncodeFailure) -> dict[str, object]:
+    """The op sent instead of an unencodable one: only clean strings, bools and small ints."""
+    text = f"cannot encode the {failure.op}: {failure.reason}"
+    name_key = _REPLY_NAMES.get(failure.op)
+    out: dict[str, object]
+    if name_key is not None:
+        out = {"op": failure.op, name_key: _clean(str(message.get(name_key, ""))), "values": text}
+        if failure.op == "action_result":
+            out["status"] = GOAL_ABORTED
+        out["result"] = False
+    elif failure.op == "status":
+        level = message.get("level")
+        out = {"op": "status", "level": level if level in _LEVELS else "error"}
+        out["msg"] = _clean(str(message.get("msg", "")))
+    else:
+        out = {"op": "status", "level": "error", "msg": f"{failure.op}: {text}"}
+    op_id = _clean_id(message.get("id"))
+    if op_id is not None:
+        out["id"] = op_id
+    return out
+
+
+_LEVELS = ("info", "warning", "error")
+
+
+def _clean(text: str, limit: int = 200) -> str:
+    """``text`` as valid Unicode (lone surrogates escaped), at most ``limit`` characters."""
+    text = text if len(text) <= limit else text[: limit - 3] + "..."
+    return text.encode("utf-8", "backslashreplace").decode()
+
+
+def _clean_id(op_id: object) -> str | int | None:
+    if isinstance(op_id, str):
+        return _clean(op_id, 1000)
+    if isinstance(op_id, int) and not isinstance(op_id, bool) and op_id.bit_length() < 64:
+        return op_id
+    return None
+
+
+def _reason(exc: BaseException) -> str:
+    lines = str(exc).splitlines()
+    return _clean(lines[0] if lines else type(exc).__name__, 160)

@@ -36,7 +36,7 @@ from .backpressure import SlowConsumerWatch
 from .codec import decode_json, decode_publish, parse_object, peek_id
 from .codec_cbor import decode_cbor
 from .commands import CloseCode, CloseConnection, Command
-from .encoding import encode_op_frames, publish_frames
+from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
 from .errors import RwtError
 from .fragments import Reassembler
 from .handlers import HANDLERS
@@ -143,6 +143,7 @@ class Session:
         self._close_request: CloseConnection | None = None  # once set, nothing more is sent
         self._authenticated = self.config.authenticator is None
         self._now = 0.0  # the latest monotonic time seen, for output without one
+        self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
 
     # ---- inputs -------------------------------------------------------------
 
@@ -185,8 +186,25 @@ class Session:
         except RwtError as exc:
             self._refused(exc, op_name, op_id)
         except Exception:
+            self._bug(op_name, op_id)
+
+    def _bug(self, op_name: str | None, op_id: str | int | None) -> None:
+        """Report an exception that is not an ``RwtError``: a bug, logged once per connection."""
+        if self._log_once("bug"):
             logger.exception("bug while handling a frame from %s", self.client_id)
+        else:
+            logger.debug("bug while handling a frame from %s", self.client_id, exc_info=True)
+        try:
             self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
+        except Exception:  # the report is total; a bug there must still not reach the transport
+            logger.debug("cannot report a bug to %s", self.client_id, exc_info=True)
+
+    def _log_once(self, kind: str) -> bool:
+        """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""
+        if kind in self._logged:
+            return False
+        self._logged.add(kind)
+        return True
 
     def _refused(self, exc: RwtError, op_name: str | None, op_id: str | int | None) -> None:
         text = exc.message
@@ -367,11 +385,28 @@ class Session:
                 ``png`` parts, above this many characters (PROTOCOL-DECISIONS D19).
             codec: the message type of the op's ``values`` (else ``msg``), so that
                 CBOR carries its numeric arrays as typed arrays (REF §3.2).
+
+        Never raises: an op with no wire form is replaced by its failure reply
+        (a waiting caller still hears back, D4) or an error status
+        (``encoding.safe_op_frames``), and one line is logged per connection.
         """
-        frames = encode_op_frames(
+        frames, failure = safe_op_frames(
             message, compression=compression, fragment_size=fragment_size, codec=codec
         )
+        if failure is not None:
+            self._unencodable(failure)
         self.send_frames(frames)
+
+    def _unencodable(self, failure: EncodeFailure) -> None:
+        """Log an op that had no wire form: one warning per connection, then debug lines."""
+        level = logging.WARNING if self._log_once("encode") else logging.DEBUG
+        logger.log(
+            level,
+            "event=unencodable client=%s op=%s reason=%r",
+            self.client_id,
+            failure.op,
+            failure.reason,
+        )
 
     def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
         """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
@@ -413,18 +448,18 @@ class Session:
         """Queue one topic message for the peer, in the subscription's merged encoding.
 
         The frames are made once per distinct form and shared with every other
-        subscriber asking for it (``encoding.publish_frames``). A message that
-        cannot be encoded (a bug, or a type the serializer lacks) is reported
-        as an error status and skipped; it never reaches the publisher.
+        subscriber asking for it (``encoding.safe_publish_frames``). A message
+        that cannot be encoded (a bug, or a type the serializer lacks) is
+        reported as an error status and skipped, logged once per connection;
+        it never reaches the publisher.
         """
         self._now = max(self._now, event.now)
         params = subscription.params
-        try:
-            frames = publish_frames(
-                event, subscription.spelling, params.compression, params.fragment_size
-            )
-        except Exception:
-            logger.exception("cannot encode a message of %s as %s", event.topic, params.compression)
+        frames = safe_publish_frames(
+            event, subscription.spelling, params.compression, params.fragment_size
+        )
+        if isinstance(frames, EncodeFailure):
+            self._unencodable(frames)
             self.report(
                 StatusLevel.ERROR,
                 f"subscribe: cannot send a message of {subscription.spelling}"

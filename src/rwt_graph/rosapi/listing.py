@@ -3,10 +3,14 @@
 Every function answers for one calling client (its ``Visibility``). Names come
 back resolved and sorted; types in the canonical form of the dialect (D5).
 Hidden names (a part starting with ``_``) are left out of listings, as ROS 2 does.
+A name that cannot go on the wire (not valid Unicode; the protocol edge refuses
+them, in-process code might not) is left out and logged, so one bad entry never
+fails a listing for every client.
 """
 
 from __future__ import annotations
 
+import logging
 import platform
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
@@ -25,6 +29,7 @@ if TYPE_CHECKING:
 __all__ = [
     "action_servers",
     "action_type",
+    "encodable",
     "node_details",
     "node_names",
     "publishers",
@@ -40,6 +45,26 @@ __all__ = [
     "topics_for_type",
 ]
 
+logger = logging.getLogger("rwt.graph")
+
+
+def encodable(name: str) -> bool:
+    """Whether ``name`` can be sent (valid Unicode); logs the ones that cannot."""
+    if name.isascii():
+        return True
+    try:
+        name.encode()
+    except UnicodeEncodeError:
+        if name not in _UNLISTED and len(_UNLISTED) < 100:  # one line per name, bounded
+            _UNLISTED.add(name)
+            logger.warning("event=unlisted reason='not valid Unicode' name=%a", name[:200])
+        return False
+    return True
+
+
+_UNLISTED: set[str] = set()
+
+
 #: The topics of a ROS 1 actionlib server ``<ns>``; rosapi lists ``<ns>`` when all exist.
 _ROS1_ACTION_TOPICS = ("goal", "cancel", "status", "feedback", "result")
 
@@ -49,7 +74,7 @@ def topics(graph: Graph, vis: Visibility) -> tuple[list[str], list[str]]:
     pairs = [
         (name, entry.msgtype.name)
         for name, entry in sorted(graph.topics.items())
-        if not is_hidden(name) and vis.topic(name)
+        if _shows(name, vis.topic)
     ]
     return [name for name, _ in pairs], [type_name for _, type_name in pairs]
 
@@ -81,7 +106,7 @@ def services(graph: Graph, vis: Visibility) -> list[str]:
 
 
 def _shows(name: str, allowed: Callable[[str], bool]) -> bool:
-    return not is_hidden(name) and allowed(name)
+    return not is_hidden(name) and allowed(name) and encodable(name)
 
 
 def services_for_type(graph: Graph, vis: Visibility, type_name: str) -> list[str]:
@@ -101,7 +126,7 @@ def service_type(graph: Graph, vis: Visibility, service: str) -> str:
 
 def node_names(graph: Graph) -> list[str]:
     """Every node: of participants, and (ROS 2) of parameters."""
-    return sorted(graph.nodes.names() | graph.params.nodes())
+    return sorted(name for name in graph.nodes.names() | graph.params.nodes() if encodable(name))
 
 
 def node_details(graph: Graph, vis: Visibility, node: str) -> tuple[list[str], ...]:
@@ -188,13 +213,15 @@ def service_host(graph: Graph, vis: Visibility, service: str) -> str:
 
 def action_servers(graph: Graph, vis: Visibility) -> list[str]:
     """Visible actions; in ROS 1 also the namespaces with all five actionlib topics."""
-    found = {name for name in graph.actions.entries if vis.action(name)}
+    found = {name for name in graph.actions.entries if vis.action(name) and encodable(name)}
     if graph.registry.dialect is Dialect.ROS1:
         for name in graph.topics:
             namespace, _, leaf = name.rpartition("/")
             if leaf == "goal" and namespace and vis.action(namespace):
                 wanted = (f"{namespace}/{topic}" for topic in _ROS1_ACTION_TOPICS)
-                if all(topic in graph.topics and vis.topic(topic) for topic in wanted):
+                if encodable(namespace) and all(
+                    topic in graph.topics and vis.topic(topic) for topic in wanted
+                ):
                     found.add(namespace)
     return sorted(found)
 

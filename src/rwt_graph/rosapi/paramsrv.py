@@ -22,7 +22,7 @@ import json
 from typing import TYPE_CHECKING
 
 from ..params import ParameterError, ParamValue, to_json_safe
-from .listing import node_names
+from .listing import encodable, node_names
 from .visibility import Visibility
 
 if TYPE_CHECKING:
@@ -114,7 +114,7 @@ def ros2_delete_param(graph: Graph, vis: Visibility, request: Message) -> Messag
 
 def get_param_names(graph: Graph, vis: Visibility, request: Message) -> Message:
     """``GetParamNames``: every visible parameter name."""
-    return {"names": [name for name in graph.params.names() if vis.param(name)]}
+    return {"names": [name for name in graph.params.names() if vis.param(name) and encodable(name)]}
 
 
 # ---- ROS 1 ------------------------------------------------------------------------

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from .base import Compression, FragmentSize, MessageId, OpModel
+from .base import Compression, FragmentSize, GraphName, Int64, MessageId, OpModel
 
 __all__ = [
     "ActionFeedback",
@@ -20,7 +20,7 @@ class AdvertiseAction(OpModel):
     """Offer ``action`` of ``type``; goals arrive as ``send_action_goal`` (spec 3.3.10)."""
 
     op: Literal["advertise_action"] = "advertise_action"
-    action: str
+    action: GraphName
     type: str
     id: MessageId | None = None
 
@@ -29,7 +29,7 @@ class UnadvertiseAction(OpModel):
     """Withdraw an action this client advertised (spec 3.3.11)."""
 
     op: Literal["unadvertise_action"] = "unadvertise_action"
-    action: str
+    action: GraphName
     id: MessageId | None = None
 
 
@@ -40,7 +40,7 @@ class SendActionGoal(OpModel):
     """
 
     op: Literal["send_action_goal"] = "send_action_goal"
-    action: str
+    action: GraphName
     action_type: str
     args: Any = None
     id: MessageId | None = None
@@ -53,7 +53,7 @@ class CancelActionGoal(OpModel):
     """Cancel the goal with ``id`` (spec 3.3.13)."""
 
     op: Literal["cancel_action_goal"] = "cancel_action_goal"
-    action: str
+    action: GraphName
     id: MessageId
 
 
@@ -61,7 +61,7 @@ class ActionFeedback(OpModel):
     """Feedback for the goal ``id`` (spec 3.3.14)."""
 
     op: Literal["action_feedback"] = "action_feedback"
-    action: str
+    action: GraphName
     id: MessageId
     values: Any = None
 
@@ -74,8 +74,8 @@ class ActionResult(OpModel):
     """
 
     op: Literal["action_result"] = "action_result"
-    action: str
+    action: GraphName
     id: MessageId
     result: bool
     values: Any = None
-    status: int | None = None
+    status: Int64 | None = None

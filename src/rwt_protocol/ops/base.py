@@ -10,12 +10,19 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PlainValidator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainValidator
 from pydantic_core import PydanticCustomError
 
+from ..names import name_problem
+
 __all__ = [
+    "INT64_MAX",
+    "INT64_MIN",
+    "CallName",
     "Compression",
     "FragmentSize",
+    "GraphName",
+    "Int64",
     "MessageId",
     "NonNegativeInt",
     "OpModel",
@@ -44,10 +51,20 @@ def json_type_name(value: object) -> str:
     return type(value).__name__
 
 
+INT64_MIN = -(2**63)
+INT64_MAX = 2**63 - 1
+"""Every integer field of an op, ``id`` included, fits in a signed 64-bit integer:
+a peer cannot make the server hold, print or echo a huge number (docs/limits.md)."""
+
+
 def _validate_id(value: object) -> str | int:
     # Spec 1: "an arbitrary string or integer ID"; echoed exactly as sent (D25, D28).
-    if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
+    if isinstance(value, str):
         return value
+    if isinstance(value, int) and not isinstance(value, bool):
+        if INT64_MIN <= value <= INT64_MAX:
+            return value
+        raise PydanticCustomError("id_range", "expected an id within signed 64 bits")
     raise PydanticCustomError(
         "id_type", "expected str or int, got {got}", {"got": json_type_name(value)}
     )
@@ -56,13 +73,34 @@ def _validate_id(value: object) -> str | int:
 MessageId = Annotated[str | int, PlainValidator(_validate_id)]
 """An op id: a string or an integer, never a bool (spec 1)."""
 
-NonNegativeInt = Annotated[int, Field(ge=0)]
-PositiveInt = Annotated[int, Field(ge=1)]
-FragmentSize = Annotated[int, Field(ge=1)]
+Int64 = Annotated[int, Field(ge=INT64_MIN, le=INT64_MAX)]
+NonNegativeInt = Annotated[int, Field(ge=0, le=INT64_MAX)]
+PositiveInt = Annotated[int, Field(ge=1, le=INT64_MAX)]
+FragmentSize = Annotated[int, Field(ge=1, le=INT64_MAX)]
 """A fragment size in characters (JSON) or bytes (binary); at least 1 (REF §1.4 traps)."""
 
 Seconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 """A positive, finite duration in seconds."""
+
+
+def _check_name(value: str) -> str:
+    problem = name_problem(value)
+    if problem is not None:
+        raise PydanticCustomError("graph_name", problem)
+    return value
+
+
+def _check_call_name(value: str) -> str:
+    # ``service#id`` gives a call its id (D25): only the part before ``#`` is a name.
+    _check_name(value.split("#", 1)[0])
+    return value
+
+
+GraphName = Annotated[str, AfterValidator(_check_name)]
+"""A topic, service or action name, checked against ROS's naming rules (``names.name_problem``)."""
+
+CallName = Annotated[str, AfterValidator(_check_call_name)]
+"""A ``call_service`` service name: a ``GraphName``, optionally followed by ``#id`` (D25)."""
 
 Compression = Literal["none", "png", "cbor", "cbor-raw"]
 """The ``compression`` values of spec 3.3.4."""

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from .base import Compression, FragmentSize, MessageId, OpModel, Seconds
+from .base import CallName, Compression, FragmentSize, GraphName, MessageId, OpModel, Seconds
 
 __all__ = ["AdvertiseService", "CallService", "ServiceResponse", "UnadvertiseService"]
 
@@ -16,7 +16,7 @@ class AdvertiseService(OpModel):
     """Offer ``service`` of ``type``; requests arrive as ``call_service`` (spec 3.3.6)."""
 
     op: Literal["advertise_service"] = "advertise_service"
-    service: str
+    service: GraphName
     type: str
     id: MessageId | None = None
 
@@ -25,7 +25,7 @@ class UnadvertiseService(OpModel):
     """Withdraw a service this client advertised (spec 3.3.7)."""
 
     op: Literal["unadvertise_service"] = "unadvertise_service"
-    service: str
+    service: GraphName
     id: MessageId | None = None
 
 
@@ -38,7 +38,7 @@ class CallService(OpModel):
     """
 
     op: Literal["call_service"] = "call_service"
-    service: str
+    service: CallName
     args: Any = None
     id: MessageId | None = None
     fragment_size: FragmentSize | None = None
@@ -55,7 +55,7 @@ class ServiceResponse(OpModel):
     """
 
     op: Literal["service_response"] = "service_response"
-    service: str
+    service: GraphName
     result: bool
     values: Any = None
     id: MessageId | None = None

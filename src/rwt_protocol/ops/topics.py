@@ -7,7 +7,14 @@ from typing import Any, Literal
 import msgspec
 from pydantic import Field
 
-from .base import Compression, FragmentSize, MessageId, NonNegativeInt, OpModel
+from .base import (
+    Compression,
+    FragmentSize,
+    GraphName,
+    MessageId,
+    NonNegativeInt,
+    OpModel,
+)
 
 __all__ = ["Advertise", "Publish", "PublishFrame", "Subscribe", "Unadvertise", "Unsubscribe"]
 
@@ -20,7 +27,7 @@ class Advertise(OpModel):
     """
 
     op: Literal["advertise"] = "advertise"
-    topic: str
+    topic: GraphName
     type: str
     id: MessageId | None = None
     latch: bool = False
@@ -31,7 +38,7 @@ class Unadvertise(OpModel):
     """Stop publishing ``topic`` (spec 3.3.2)."""
 
     op: Literal["unadvertise"] = "unadvertise"
-    topic: str
+    topic: GraphName
     id: MessageId | None = None
 
 
@@ -43,7 +50,7 @@ class Publish(OpModel):
     """
 
     op: Literal["publish"] = "publish"
-    topic: str
+    topic: GraphName
     msg: Any = Field(default_factory=dict)
     id: MessageId | None = None
     latch: bool = False
@@ -54,15 +61,16 @@ class PublishFrame(msgspec.Struct, frozen=True):
 
     The same fields, defaults and checks as ``Publish`` (``topic`` a string,
     ``id`` a string or an integer but not a bool, ``latch`` a bool, unknown
-    fields ignored), done in C while decoding instead of by pydantic after it.
+    fields ignored), done in C while decoding instead of by pydantic after it;
+    ``codec.decode_publish`` adds the edge rules (topic name, ``id`` range, nesting).
     A frame this cannot decode goes through the general path, which gives the
     error its field path (D1), so both paths accept and refuse the same frames.
     """
 
     op: Literal["publish"]  # required: a frame without ``op`` is refused (D1)
-    topic: str
+    topic: str  # its name rules are checked by ``codec.decode_publish``
     msg: Any = msgspec.field(default_factory=dict)
-    id: str | int | None = None
+    id: str | int | None = None  # its 64-bit range is checked by ``codec.decode_publish``
     latch: bool = False
 
 
@@ -74,7 +82,7 @@ class Subscribe(OpModel):
     """
 
     op: Literal["subscribe"] = "subscribe"
-    topic: str
+    topic: GraphName
     type: str | None = None
     id: MessageId | None = None
     throttle_rate: NonNegativeInt = 0
@@ -87,5 +95,5 @@ class Unsubscribe(OpModel):
     """Remove the subscription ``id``, or every subscription to ``topic`` (spec 3.3.5)."""
 
     op: Literal["unsubscribe"] = "unsubscribe"
-    topic: str
+    topic: GraphName
     id: MessageId | None = None
