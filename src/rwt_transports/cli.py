@@ -171,6 +171,12 @@ def serve(
         bool, typer.Option(help="Also serve image topics over HTTP (web_video_server).")
     ] = False,
     video_port: Annotated[int, typer.Option(help="HTTP port of --video; 0 picks one.")] = 8080,
+    video_max_connections: Annotated[
+        int, typer.Option(min=1, help="Most HTTP connections of --video at once (503 beyond).")
+    ] = 64,
+    video_max_streams: Annotated[
+        int, typer.Option(min=1, help="Most distinct --video streams (encoders) at once.")
+    ] = 16,
     depthcloud: Annotated[
         str | None,
         typer.Option(
@@ -268,7 +274,9 @@ def serve(
             max_depth_per_tile=depthcloud_max_depth,
             tile_size=depthcloud_tile_size,
         )
-    video_config = _video_config(host, video_port) if video else None
+    video_config = (
+        _video_config(host, video_port, video_max_connections, video_max_streams) if video else None
+    )
     if uvloop and importlib.util.find_spec("uvloop") is None:
         _fail("--uvloop needs the uvloop package")
     freeze_startup_objects()
@@ -283,11 +291,13 @@ def serve(
         _fail("; ".join(str(exc) for exc in startup.exceptions))
 
 
-def _video_config(host: str, port: int) -> VideoConfig:
-    # the video server (Pillow, numpy) loads only with --video (issue 8: B11 base memory)
+def _video_config(host: str, port: int, max_connections: int, max_streams: int) -> VideoConfig:
+    # the video server (Pillow, numpy) loads only with --video (B11: base memory)
     from .video import VideoConfig  # noqa: PLC0415
 
-    return VideoConfig(host=host, port=port)
+    return VideoConfig(
+        host=host, port=port, max_connections=max_connections, max_streams=max_streams
+    )
 
 
 def _fail(message: str) -> NoReturn:

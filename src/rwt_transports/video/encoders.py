@@ -19,7 +19,7 @@ from PIL import Image
 
 from rwt_graph.media import ImageError, compressed_content_type, image_to_display
 
-from .params import StreamParams, StreamType
+from .params import MAX_PIXELS, StreamParams, StreamType
 
 __all__ = [
     "BOUNDARY",
@@ -155,7 +155,8 @@ def prepare(msg: Message, params: StreamParams, *, keep_alpha: bool = False) -> 
     Like web_video_server, a missing width or height keeps the image's own.
 
     Raises:
-        EncodeError: the image cannot be read.
+        EncodeError: the image cannot be read, or the frame would be scaled up to
+            more than ``params.MAX_PIXELS`` pixels (docs/limits.md).
     """
     try:
         pixels = image_to_display(msg, keep_alpha=keep_alpha)
@@ -168,6 +169,8 @@ def prepare(msg: Message, params: StreamParams, *, keep_alpha: bool = False) -> 
         params.width if params.width > 0 else image.width,
         params.height if params.height > 0 else image.height,
     )
+    if size[0] * size[1] > max(MAX_PIXELS, image.width * image.height):  # no upscaling past it
+        raise EncodeError(f"a {size[0]}x{size[1]} frame is over {MAX_PIXELS} pixels")
     if size != image.size:
         image = image.resize(size, Image.Resampling.BILINEAR)
     return image

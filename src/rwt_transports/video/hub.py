@@ -34,7 +34,7 @@ from .encoders import (
     VideoPacket,
     make_encoder,
 )
-from .params import StreamParams
+from .params import ParamError, StreamParams
 
 __all__ = ["PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
 
@@ -189,6 +189,9 @@ class SharedStream:
                 except EncodeError as exc:
                     self._log_once(str(exc))
                     continue
+                except Exception as exc:  # a bug, or MemoryError: skip the frame, keep serving
+                    self._log_once(f"encoder failed: {type(exc).__name__}: {exc}")
+                    continue
                 parts = [item for item in items if isinstance(item, Part)]
                 if parts:
                     self.last_parts = parts
@@ -207,11 +210,15 @@ class StreamHub:
     Args:
         graph: where topics are subscribed.
         task_group: runs the streams' encoder tasks.
+        max_streams: the most distinct streams (encoders) at once; each holds a few
+            frames of at most ``params.MAX_PIXELS`` pixels, so this bounds the
+            encoders' memory (docs/limits.md).
     """
 
-    def __init__(self, graph: Graph, task_group: TaskGroup) -> None:
+    def __init__(self, graph: Graph, task_group: TaskGroup, max_streams: int = 16) -> None:
         self.graph = graph
         self._tg = task_group
+        self.max_streams = max_streams
         self.streams: dict[StreamParams, SharedStream] = {}
 
     @contextlib.contextmanager
@@ -226,6 +233,7 @@ class StreamHub:
         for a keyframe so that the new viewer starts soon.
 
         Raises:
+            ParamError: ``max_streams`` distinct streams run already (status 503).
             EncodeError: the encoder cannot be made (PyAV missing).
             GraphError, InvalidTypeName, UnknownType: the topic cannot be
                 subscribed as ``type_name``.
@@ -246,6 +254,8 @@ class StreamHub:
                 self._stop(stream)
 
     def _start(self, params: StreamParams, type_name: str) -> SharedStream:
+        if len(self.streams) >= self.max_streams:
+            raise ParamError(f"{self.max_streams} distinct streams run already", status=503)
         stream = SharedStream(params, make_encoder(params))
         stream.subscription = self.graph.create_subscription(
             params.source_topic, stream.on_message, type_name, node="/web_video_server"

@@ -15,7 +15,29 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
-__all__ = ["ParamError", "StreamParams", "StreamType", "parse_stream_params"]
+__all__ = [
+    "MAX_BITRATE",
+    "MAX_GOP",
+    "MAX_PIXELS",
+    "MAX_SIDE",
+    "ParamError",
+    "StreamParams",
+    "StreamType",
+    "parse_stream_params",
+]
+
+MAX_SIDE = 4096
+"""The largest ``width`` or ``height`` a request may ask for, pixels (docs/limits.md)."""
+
+MAX_PIXELS = 3840 * 2160
+"""The most pixels of one output frame (4K UHD), asked for or kept from the image:
+an encoder holds a few frames of this size, so this bounds its memory (docs/limits.md)."""
+
+MAX_BITRATE = 100_000_000
+"""The highest video ``bitrate``, bit/s (docs/limits.md)."""
+
+MAX_GOP = 1000
+"""The longest keyframe interval ``gop``, frames (docs/limits.md)."""
 
 
 class StreamType(StrEnum):
@@ -96,7 +118,10 @@ def parse_stream_params(
 
     Raises:
         ParamError: no ``topic`` (400), an unknown ``type`` (404, as
-            web_video_server), or a number that is not an integer or out of range (400).
+            web_video_server), or a number that is not an integer or out of range (400):
+            ``width``/``height`` over ``MAX_SIDE`` or their product over
+            ``MAX_PIXELS``, ``bitrate`` over ``MAX_BITRATE``, ``gop`` over ``MAX_GOP``,
+            ``qmin`` over ``qmax`` (docs/limits.md).
     """
     topic = query.get("topic", "")
     if not topic:
@@ -109,20 +134,24 @@ def parse_stream_params(
         topic=topic if topic.startswith("/") else f"/{topic}",
         type=stream_type,
         quality=_default_quality(stream_type, query),
-        width=_int(query, "width", -1, low=-1),
-        height=_int(query, "height", -1, low=-1),
+        width=_int(query, "width", -1, low=-1, high=MAX_SIDE),
+        height=_int(query, "height", -1, low=-1, high=MAX_SIDE),
         invert="invert" in query,
     )
     if stream_type.is_video:
         params = replace(
             params,
-            bitrate=_int(query, "bitrate", 100_000, low=1),
+            bitrate=_int(query, "bitrate", 100_000, low=1, high=MAX_BITRATE),
             qmin=_int(query, "qmin", 10, low=0, high=63),
             qmax=_int(query, "qmax", 42, low=0, high=63),
-            gop=_int(query, "gop", 25, low=1),
+            gop=_int(query, "gop", 25, low=1, high=MAX_GOP),
         )
+        if params.qmin > params.qmax:
+            raise ParamError(f"qmin={params.qmin} is above qmax={params.qmax}")
     if params.width == 0 or params.height == 0:
         raise ParamError("width and height must be positive (or -1 for the image's)")
+    if params.width * params.height > MAX_PIXELS:
+        raise ParamError(f"width x height is over {MAX_PIXELS} pixels")
     return params
 
 
@@ -134,16 +163,15 @@ def _default_quality(stream_type: StreamType, query: Mapping[str, str] | None) -
     return 0  # not used by this type
 
 
-def _int(
-    query: Mapping[str, str], name: str, default: int, *, low: int, high: int = 1 << 30
-) -> int:
+def _int(query: Mapping[str, str], name: str, default: int, *, low: int, high: int) -> int:
     raw = query.get(name)
     if raw is None or raw == "":
         return default
-    try:
-        value = int(raw)
-    except ValueError:
-        raise ParamError(f"{name}={raw!r} is not an integer") from None
+    # int() parses at most 4300 digits; anything longer than 12 is out of range anyway
+    if len(raw) > 12 or not raw.lstrip("-").isdigit() or not raw.isascii():
+        shown = raw if len(raw) <= 20 else raw[:17] + "..."
+        raise ParamError(f"{name}={shown!r} is not an integer in {low}..{high}")
+    value = int(raw)
     if not low <= value <= high:
         raise ParamError(f"{name}={value} is outside {low}..{high}")
     return value

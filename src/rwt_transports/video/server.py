@@ -17,6 +17,7 @@ within ``snapshot_timeout_s`` 503.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 from collections.abc import Awaitable, Callable
@@ -53,12 +54,18 @@ class VideoConfig:
         port: HTTP port (``port``, 8080); 0 picks a free one.
         default_stream_type: the ``type`` when a request gives none.
         snapshot_timeout_s: how long ``/snapshot`` waits for a frame, seconds.
+        max_connections: the most HTTP connections at once (viewers included); the
+            next one is answered 503 at once (docs/limits.md).
+        max_streams: the most distinct streams (topic, type and parameters; one
+            encoder each) at once; a request for another one is answered 503.
     """
 
     host: str = "127.0.0.1"
     port: int = 8080
     default_stream_type: StreamType = StreamType.MJPEG
     snapshot_timeout_s: float = 10.0
+    max_connections: int = 64
+    max_streams: int = 16
 
 
 async def serve_video(
@@ -82,16 +89,52 @@ async def serve_video(
         local_host=config.host, local_port=config.port, reuse_port=False
     )
     async with listener, anyio.create_task_group() as tg:
-        hub = StreamHub(graph, tg)
+        hub = StreamHub(graph, tg, config.max_streams)
         port = listener.extra(SocketAttribute.local_port)
         host = f"[{config.host}]" if ":" in config.host else config.host
         url = f"http://{host}:{port}"
         logger.info("video server on %s", url)
         task_status.started(url)
-        await listener.serve(functools.partial(_serve_connection, hub, config), task_group=tg)
+        gate = _Gate(config.max_connections)
+        await listener.serve(functools.partial(_serve_connection, hub, config, gate), task_group=tg)
 
 
-async def _serve_connection(hub: StreamHub, config: VideoConfig, stream: SocketStream) -> None:
+class _Gate:
+    """Counts the open connections against ``VideoConfig.max_connections``."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit = limit
+        self.open = 0
+        self.refusing = False  # log once per episode
+
+
+_BUSY = (
+    b"HTTP/1.1 503 Service Unavailable\r\nConnection: close\r\n"
+    b"Content-Type: text/plain; charset=utf-8\r\nContent-Length: 26\r\n\r\n"
+    b"503 too many connections\r\n"
+)
+
+
+async def _serve_connection(
+    hub: StreamHub, config: VideoConfig, gate: _Gate, stream: SocketStream
+) -> None:
+    if gate.open >= gate.limit:
+        if not gate.refusing:
+            logger.warning("event=refused reason='too many video connections' limit=%d", gate.limit)
+            gate.refusing = True
+        with anyio.move_on_after(1.0), contextlib.suppress(Exception):
+            async with stream:
+                await stream.send(_BUSY)
+        return
+    gate.refusing = False
+    gate.open += 1
+    try:
+        await _serve_request(hub, config, stream)
+    finally:
+        gate.open -= 1
+
+
+async def _serve_request(hub: StreamHub, config: VideoConfig, stream: SocketStream) -> None:
     try:
         async with stream:
             http = _Http(stream)
