@@ -281,7 +281,13 @@ class ConnectionPump:
             self._timer_wake.set()
 
     async def run(self, session: Session) -> None:
-        """Serve ``session`` until the peer leaves or the session closes, then close it."""
+        """Serve ``session`` until the peer leaves or the session closes, then close it.
+
+        Never raises for a bug in this connection's tasks (reader, writer, timers,
+        the channel's background task): it is logged with its traceback, the
+        connection is closed (WebSocket: 1011 ``internal error``) and released,
+        and every other connection goes on (docs/limits.md, containment).
+        """
         self._session = session
         try:
             async with anyio.create_task_group() as tg:
@@ -293,8 +299,23 @@ class ConnectionPump:
                 # The peer's input ended; it may still read (a half-closed TCP
                 # stream, stdin at EOF): send what is queued, then close.
                 session.request_close(CloseCode.NORMAL, "end of input")
+        except Exception:  # ExceptionGroup included: a bug, contained to this connection
+            logger.exception("event=bug client=%s: connection closed", session.client_id)
+            self.close_reason = "internal error"
+            await self._close_after_bug()
         finally:
-            session.close()
+            try:
+                session.close()
+            except Exception:
+                logger.exception("event=bug client=%s: release failed", session.client_id)
+
+    async def _close_after_bug(self) -> None:
+        """Tell the peer (best effort, bounded): the connection cannot go on."""
+        with anyio.move_on_after(CLOSE_WAIT_S, shield=True):
+            try:
+                await self.channel.close(CloseCode.INTERNAL_ERROR, "internal error")
+            except Exception:  # the channel may be what broke
+                logger.debug("close after a bug failed", exc_info=True)
 
     async def _reader(self, session: Session) -> None:
         clock = _clock()

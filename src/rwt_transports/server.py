@@ -384,9 +384,9 @@ class RosbridgeServer:
     def _session_closed(self, client_id: str) -> None:
         self.sessions.pop(client_id, None)
         self._connected.pop(client_id, None)
-        self._publish_clients()
         if not self.sessions and self._all_closed is not None:
             self._all_closed.set()
+        self._publish_clients()
 
     def _publish_clients(self) -> None:
         """Publish ``/client_count`` and ``/connected_clients`` (D14), both latched."""
@@ -408,7 +408,10 @@ def spawner_for(tg: TaskGroup) -> Spawner:
 
         async def run() -> None:
             with scope:
-                await job()
+                try:
+                    await job()
+                except Exception:  # a bug in an in-process handler: never the server's end
+                    logger.exception("event=bug in a spawned job; it is dropped")
 
         tg.start_soon(run)
         return scope.cancel

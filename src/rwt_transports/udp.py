@@ -124,7 +124,10 @@ async def serve_udp(sock: UDPSocket, host: SessionHost, options: UdpOptions) -> 
     async with anyio.create_task_group() as tg:
         endpoint = _Endpoint(sock, host, options, tg)
         async for data, address in sock:
-            await endpoint.dispatch(data, address)
+            try:
+                await endpoint.dispatch(data, address)
+            except Exception:  # a bug: lose this datagram, never the socket's other peers
+                logger.exception("event=bug peer=%s:%d: datagram dropped", *address[:2])
 
 
 class _Endpoint:

@@ -1,0 +1,107 @@
+"""A bug in one connection closes that connection only (docs/limits.md, containment).
+
+The fault is injected (a session method that raises, as any future bug would), so
+these tests hold whatever input would trigger one: the server keeps serving every
+other client, on every transport, and the faulty connection is closed cleanly.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import AsyncIterator
+
+import anyio
+import pytest
+from websockets.exceptions import ConnectionClosed
+
+from rwt_graph.graph import Graph
+from rwt_protocol.session import Session
+from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.transports.clients import Client, Harness, StreamClient, WsClient, running_server
+from tests.transports.test_contract import is_op
+
+pytestmark = pytest.mark.anyio
+
+TIMEOUT_S = 10
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@pytest.fixture
+async def harness() -> AsyncIterator[Harness]:
+    async with running_server() as h:
+        yield h
+
+
+@pytest.fixture
+def faulty_frames(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any frame holding ``boom`` raises inside the session: a stand-in for a bug."""
+    real = Session.receive_frame
+
+    def receive_frame(self: Session, frame: str | bytes, now: float, *, binary: bool = False):  # type: ignore[no-untyped-def]
+        text = frame if isinstance(frame, str) else bytes(frame).decode("latin-1")
+        if "boom" in text:
+            raise RuntimeError("injected bug")
+        return real(self, frame, now, binary=binary)
+
+    monkeypatch.setattr(Session, "receive_frame", receive_frame)
+
+
+async def served(client: Client, tag: str) -> None:
+    await client.send({"op": "call_service", "service": "/rosapi/topics", "id": tag})
+    assert (await client.expect(is_op("service_response", id=tag)))["result"] is True
+
+
+async def assert_closed(client: Client) -> None:
+    """The connection was closed by the server: a WebSocket with 1011, a stream at EOF."""
+    if isinstance(client, WsClient):
+        assert client.ws is not None
+        with pytest.raises(ConnectionClosed) as closed:
+            while True:
+                await client.ws.recv()
+        assert closed.value.rcvd is not None and closed.value.rcvd.code == 1011
+    elif isinstance(client, StreamClient):
+        with pytest.raises((anyio.EndOfStream, anyio.BrokenResourceError)):
+            while True:
+                await client.receive()
+
+
+@pytest.mark.usefixtures("faulty_frames")
+@pytest.mark.parametrize("transport", ["memory", "ws", "tcp", "udp"])
+async def test_a_bug_closes_only_its_connection(harness: Harness, transport: str) -> None:
+    # (connections are opened outside fail_after: a memory connection's scope outlives it)
+    bystander = await harness.connect("tcp" if transport == "ws" else "ws", "bystander")
+    victim = await harness.connect(transport, "victim")
+    with anyio.fail_after(TIMEOUT_S):
+        await served(bystander, "before")
+        await served(victim, "victim-before")
+        await victim.send({"op": "set_level", "level": "info", "id": "boom"})
+        await assert_closed(victim)
+        await served(bystander, "after")
+    again = await harness.connect(transport, "again")
+    with anyio.fail_after(TIMEOUT_S):
+        await served(again, "again")
+    assert all(not s.closed for s in harness.server.sessions.values())
+
+
+async def test_a_bug_in_an_async_in_process_service_is_contained() -> None:
+    graph = Graph()
+
+    async def broken(request: dict[str, object]) -> dict[str, object]:
+        raise RuntimeError("injected bug")
+
+    graph.create_service("/broken", "std_srvs/srv/Trigger", broken)
+    server = RosbridgeServer(graph, ServerConfig(port=0))
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        async with server.connect_memory() as connection:
+            with anyio.fail_after(TIMEOUT_S):
+                await connection.send({"op": "call_service", "service": "/broken", "id": "1"})
+                reply = json.loads((await connection.receive_frame()).data)
+                assert reply["op"] == "service_response" and reply["result"] is False
+                await connection.send({"op": "call_service", "service": "/rosapi/topics"})
+                assert json.loads((await connection.receive_frame()).data)["result"] is True
+        server.stop()
