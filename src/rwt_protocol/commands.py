@@ -13,6 +13,7 @@ class CloseCode(IntEnum):
 
     NORMAL = 1000
     GOING_AWAY = 1001  # server shutdown
+    INVALID_DATA = 1007  # a text message that is not UTF-8 (RFC 6455 section 8.1)
     POLICY_VIOLATION = 1008  # authentication failed, slow consumer
     MESSAGE_TOO_BIG = 1009
     INTERNAL_ERROR = 1011  # keepalive timeout

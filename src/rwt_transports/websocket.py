@@ -168,7 +168,26 @@ class WebSocketChannel:
                         messages.append(message)
             if frames is not None and self.protocol.state is not State.OPEN:
                 frames.stop()  # websockets failed the connection or got a close frame
-        return messages, control
+        return self._valid_text(messages), control
+
+    def _valid_text(self, messages: list[FramerEvent]) -> list[FramerEvent]:
+        """The messages up to the first text one that is not UTF-8; that one fails
+        the connection with 1007, as RFC 6455 section 8.1 requires.
+
+        JSON is almost always ASCII, which ``isascii`` tells at memory speed; only
+        other texts are decoded to check them.
+        """
+        for index, message in enumerate(messages):
+            if not isinstance(message, InFrame) or message.binary or message.data.isascii():
+                continue
+            try:
+                message.data.decode()
+            except UnicodeDecodeError:
+                if self.frames is not None:
+                    self.frames.stop()
+                self.protocol.fail(int(CloseCode.INVALID_DATA), "invalid UTF-8 in a text message")
+                return messages[:index]
+        return messages
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send data frames; text for JSON, binary for CBOR (D27).
