@@ -39,6 +39,7 @@ __all__ = [
     "ParameterNotSet",
     "Parameters",
     "check_param_name",
+    "value_size",
 ]
 
 logger = logging.getLogger("rwt.graph")
@@ -219,11 +220,22 @@ class Parameters:
         dialect: ROS 2 names ``"<node>:<param>"``; ROS 1 global names.
         max_params: most parameters (ROS 1: leaves) the store holds; a ``set`` that
             would go over is refused, so a client cannot grow it without bound.
+        max_bytes: most bytes all values may hold together (strings count their
+            UTF-8 bytes, numbers and bools 8); a ``set`` that would go over is
+            refused (docs/limits.md).
     """
 
-    def __init__(self, dialect: Dialect = Dialect.ROS2, *, max_params: int = 10_000) -> None:
+    def __init__(
+        self,
+        dialect: Dialect = Dialect.ROS2,
+        *,
+        max_params: int = 10_000,
+        max_bytes: int = 64 * 1024 * 1024,
+    ) -> None:
         self.dialect = dialect
         self.max_params = max_params
+        self.max_bytes = max_bytes
+        self._bytes = 0  # the values' sizes (``value_size``), kept up to date
         self._nodes: dict[str, dict[str, _Param]] = {}  # ROS 2
         self._tree: dict[str, ParamValue] = {}  # ROS 1
         self._watchers: list[ParamWatcher] = []
@@ -261,6 +273,8 @@ class Parameters:
             node_key, param = split_ros2_name(full)
             stored, kind = ros2_value(value, full)
             self._check_room(node_key, param)
+            old = self._nodes.get(node_key, {}).get(param)
+            self._grow(stored, None if old is None else old.value)
             entry = _Param(stored, kind, read_only=read_only, fixed_type=not dynamic_typing)
             self._nodes.setdefault(node_key, {})[param] = entry
             self._notify(f"{node_key}:{param}", stored)
@@ -285,12 +299,16 @@ class Parameters:
         entry = self._nodes.get(node, {}).get(param)
         if entry is None:
             self._check_room(node, param)
+            self._grow(stored, None)
             self._nodes.setdefault(node, {})[param] = _Param(stored, kind)
         elif entry.read_only:
             raise ParameterError(f"parameter {full} is read-only")
         elif entry.fixed_type:
-            entry.value = _fit(entry, stored, kind, full)
+            fitted = _fit(entry, stored, kind, full)
+            self._grow(fitted, entry.value)
+            entry.value = fitted
         else:
+            self._grow(stored, entry.value)
             entry.value, entry.kind = stored, kind
         self._notify(full, stored)
 
@@ -334,6 +352,7 @@ class Parameters:
             raise ParameterNotSet(f"parameter {node}:{param} is not set")
         if entry.read_only:
             raise ParameterError(f"parameter {node}:{param} is read-only")
+        self._bytes -= value_size(entry.value)
         del params[param]
         if not params:
             del self._nodes[node]
@@ -384,6 +403,17 @@ class Parameters:
             except Exception:  # one broken watcher must not stop the others
                 logger.exception("parameter watcher failed on %s", name)
 
+    def _grow(self, new: ParamValue, old: ParamValue | None) -> None:
+        """Account for ``old`` becoming ``new``; refuse it if the store would be over ``max_bytes``.
+
+        Raises:
+            ParameterError: the values would hold more than ``max_bytes``.
+        """
+        total = self._bytes + value_size(new) - (0 if old is None else value_size(old))
+        if total > self.max_bytes and total > self._bytes:
+            raise ParameterError(f"the parameter store is full ({self.max_bytes} bytes)")
+        self._bytes = total
+
     def _check_room(self, node: str, param: str) -> None:
         if param in self._nodes.get(node, {}):
             return
@@ -408,10 +438,12 @@ class Parameters:
             if not isinstance(value, dict):
                 raise ParameterError("the root namespace / can only be set to a dict")
             self._check_leaves(_count(value) - _count(self._tree))
+            self._grow(value, self._tree)
             self._tree = value
             return
         old = self._lookup(key)
         self._check_leaves(_count(value) - (0 if old is _MISSING else _count(old)))
+        self._grow(value, None if old is _MISSING else old)  # type: ignore[arg-type]
         node = self._tree
         for token in tokens[:-1]:
             child = node.get(token)
@@ -427,13 +459,14 @@ class Parameters:
     def _tree_delete(self, key: str) -> None:
         tokens = _tokens(key)
         if not tokens:
-            self._tree = {}
+            self._tree, self._bytes = {}, 0
             return
         node: object = self._tree
         for token in tokens[:-1]:
             node = node.get(token) if isinstance(node, dict) else None
         if not isinstance(node, dict) or tokens[-1] not in node:
             raise ParameterNotSet(f"parameter {key} is not set")
+        self._bytes -= value_size(node[tokens[-1]])
         del node[tokens[-1]]
 
 
@@ -449,6 +482,18 @@ def _leaves(tree: Mapping[str, ParamValue], prefix: str) -> list[str]:
         else:
             found.append(f"{prefix}/{key}")
     return found
+
+
+def value_size(value: object) -> int:
+    """The bytes a parameter value counts against ``Parameters.max_bytes``: UTF-8 bytes
+    of strings and keys, 8 per number or bool, summed over lists and dicts."""
+    if isinstance(value, str):
+        return len(value) if value.isascii() else len(value.encode("utf-8", "surrogatepass"))
+    if isinstance(value, dict):
+        return sum(value_size(key) + value_size(item) for key, item in value.items())
+    if isinstance(value, list):
+        return sum(value_size(item) for item in value)
+    return 8
 
 
 def _count(value: object) -> int:

@@ -197,3 +197,20 @@ def test_nan_is_kept_in_python() -> None:
     params.set("/n:x", math.nan)
     value = params.get("/n:x")
     assert isinstance(value, float) and math.isnan(value)
+
+
+@pytest.mark.parametrize("dialect", [Dialect.ROS2, Dialect.ROS1])
+def test_the_values_bytes_are_bounded_and_freed(dialect: Dialect) -> None:
+    # A client could otherwise fill max_params parameters with max-size strings.
+    params = Parameters(dialect, max_bytes=1000)
+    name = "/n:p{}" if dialect is Dialect.ROS2 else "/n/p{}"
+    params.set(name.format(1), "x" * 600)
+    with pytest.raises(ParameterError, match="full \\(1000 bytes\\)"):
+        params.set(name.format(2), "y" * 600)
+    assert not params.has(name.format(2))
+    params.set(name.format(1), "z" * 900)  # replacing counts the difference
+    with pytest.raises(ParameterError, match="full"):
+        params.set(name.format(1), "z" * 1001)
+    params.delete(name.format(1))
+    params.set(name.format(2), "y" * 990)  # deleting freed the room
+    assert params.get(name.format(2)) == "y" * 990
