@@ -35,6 +35,7 @@ from rwt_protocol.session import SessionConfig
 
 from .allocator import tune_allocator
 from .conformance.cli import conformance
+from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
@@ -124,7 +125,12 @@ def serve(
         float, typer.Option(help="Seconds a connection may stay over the send buffer limit.")
     ] = 30.0,
     max_connections: Annotated[
-        int | None, typer.Option(help="Most simultaneous connections (all transports).")
+        int | None,
+        typer.Option(
+            min=1,
+            help="Most simultaneous connections (all transports; a socket counts from accept)."
+            " Default: the soft RLIMIT_NOFILE minus a reserve of min(128, limit/2) + 16.",
+        ),
     ] = None,
     certfile: Annotated[
         Path | None, typer.Option(help="PEM certificate: TLS (wss, TLS over TCP).")
@@ -202,6 +208,15 @@ def serve(
             "system default, which maps and unmaps every buffer of a large message.",
         ),
     ] = 64,
+    handshake_timeout: Annotated[
+        float,
+        typer.Option(
+            min=0.001, help="Seconds an accepted socket has to finish its TLS/WebSocket handshake."
+        ),
+    ] = 10.0,
+    raise_fd_limit: Annotated[
+        bool, typer.Option(help="Raise the soft RLIMIT_NOFILE to the hard limit at start-up.")
+    ] = True,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT/SIGTERM."""
     logging.basicConfig(
@@ -214,6 +229,8 @@ def serve(
         _fail("nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio")
     if heap_keep:
         tune_allocator(heap_keep * 1024 * 1024)
+    if raise_fd_limit:
+        raise_nofile_limit()
     graph = Graph(TypeRegistry(Dialect(dialect.value), interfaces or ()))
     authenticator = None
     if auth_secret_file is not None:
@@ -260,6 +277,7 @@ def serve(
         ),
         udp=UdpOptions(datagram_bytes=udp_datagram_size, idle_timeout_s=udp_idle_timeout),
         tf=tf,
+        handshake_timeout_s=handshake_timeout,
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:

@@ -138,6 +138,9 @@ async def run_connection(pump: ConnectionPump, session: Session, detail: str = "
         )
 
 
+INTERNAL_ERROR_STATUS = b'{"op":"status","level":"error","msg":"internal error"}'
+"""What a peer is told before its connection is closed for a bug in the server."""
+
 _BROKEN = (
     anyio.BrokenResourceError,
     anyio.ClosedResourceError,
@@ -310,8 +313,16 @@ class ConnectionPump:
                 logger.exception("event=bug client=%s: release failed", session.client_id)
 
     async def _close_after_bug(self) -> None:
-        """Tell the peer (best effort, bounded): the connection cannot go on."""
+        """Tell the peer (best effort, bounded): the connection cannot go on.
+
+        An error status first (the only word a TCP, stdio or UDP peer gets), then the
+        close (WebSocket: 1011 ``internal error``).
+        """
         with anyio.move_on_after(CLOSE_WAIT_S, shield=True):
+            try:
+                await self.channel.send([OutFrame(INTERNAL_ERROR_STATUS)])
+            except Exception:  # the channel may be what broke
+                logger.debug("error status after a bug not sent", exc_info=True)
             try:
                 await self.channel.close(CloseCode.INTERNAL_ERROR, "internal error")
             except Exception:  # the channel may be what broke

@@ -18,8 +18,11 @@ cut.
 
 from __future__ import annotations
 
+import contextvars
+import errno
 import itertools
 import logging
+import math
 import ssl
 import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
@@ -28,8 +31,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import anyio
-from anyio.abc import ByteStream, SocketAttribute, SocketStream, TaskGroup, TaskStatus
-from anyio.streams.tls import TLSListener
+from anyio.abc import (
+    ByteStream,
+    SocketAttribute,
+    SocketListener,
+    SocketStream,
+    TaskGroup,
+    TaskStatus,
+)
+from anyio.streams.tls import TLSStream
 
 from rwt_graph.calls import Spawner
 from rwt_graph.clock import Clock
@@ -45,6 +55,7 @@ from rwt_protocol.errors import RwtError
 from rwt_protocol.ops import Auth
 from rwt_protocol.session import CloseCode, Session, SessionConfig
 
+from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
 from .stdio import StdioChannel
@@ -66,6 +77,13 @@ logger = logging.getLogger("rwt.server")
 
 MiB = 1024 * 1024
 
+_TLS_FAILURES = (ssl.SSLError, OSError, anyio.BrokenResourceError, anyio.EndOfStream)
+
+_ACCEPT_BACKOFF_S = 0.1
+"""First pause of the accept loop after ``accept()`` failed (EMFILE...); doubles per failure."""
+_ACCEPT_BACKOFF_MAX_S = 1.0
+"""Longest pause of the accept loop between two failed ``accept()`` calls."""
+
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
 
@@ -84,8 +102,10 @@ class ServerConfig:
         stdio_fds: the (read, write) file descriptors of that session when not
             stdin/stdout (a pipe pair or a socket, for embedding and tests).
         max_message_size: largest incoming message on every transport, bytes.
-        max_connections: most simultaneous sessions over all transports; None
-            for no limit (``--max-connections``).
+        max_connections: most simultaneous connections over all transports
+            (``--max-connections``); a stream socket counts from ``accept()``,
+            before its TLS/WebSocket handshake. None: derived from the soft
+            RLIMIT_NOFILE when serving starts (``fdlimit.default_max_connections``).
         certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
         keyfile: PEM private key for it (``--keyfile``).
         shutdown_grace_s: seconds a stopping server waits for connections to
@@ -99,6 +119,11 @@ class ServerConfig:
             what ``session.access`` allows.
         tf: offer tf2_web_republisher's action, actionlib topics and service with a
             TF buffer fed by ``/tf`` and ``/tf_static`` (``rwt serve --no-tf``: off).
+        handshake_timeout_s: seconds an accepted WebSocket or TLS socket has to
+            finish its handshake before it is closed (``--handshake-timeout``).
+        clients_interval_s: ``/client_count`` and ``/connected_clients`` are
+            published at most once per this many seconds, with the latest state
+            (the first change at once), so connection churn costs O(changes).
     """
 
     host: str = "127.0.0.1"
@@ -118,6 +143,8 @@ class ServerConfig:
     rosapi: bool = True
     rosapi_visibility: VisibilityFor | None = None
     tf: bool = True
+    handshake_timeout_s: float = 10.0
+    clients_interval_s: float = 0.5
 
 
 def rosauth_authenticator(secret: str, clock: Clock, max_skew_s: float = 5.0) -> Authenticator:
@@ -171,6 +198,10 @@ class RosbridgeServer:
         self.urls: dict[str, str] = {}
         self._ids = itertools.count(1)
         self._connected: dict[str, dict[str, object]] = {}
+        self._limit = self.config.max_connections  # resolved from RLIMIT_NOFILE in serve
+        self._handshaking = 0  # accepted stream sockets without a session yet
+        self._slot_freed: anyio.Event | None = None  # the accept loops wait on it when full
+        self._clients_changed: anyio.Event | None = None  # None: publish at once (not serving)
         self._client_count = _latched(self.graph, "/client_count", "std_msgs/msg/Int32")
         self._connected_clients = _latched(
             self.graph, "/connected_clients", "rosbridge_msgs/msg/ConnectedClients"
@@ -213,6 +244,9 @@ class RosbridgeServer:
         self._stop = anyio.Event()
         if self._stop_requested:
             self._stop.set()
+        if self._limit is None:
+            self._limit = default_max_connections()
+        logger.info("event=max_connections limit=%s", self._limit)
         async with AsyncExitStack() as stack:
             runners = await self._open_listeners(stack)
             for url in self.urls.values():
@@ -222,6 +256,8 @@ class RosbridgeServer:
             task_status.started(next(iter(self.urls.values()), ""))
             async with anyio.create_task_group() as connections:
                 self.graph.spawner = spawner_for(connections)  # async in-process handlers
+                self._clients_changed = anyio.Event()
+                connections.start_soon(self._publish_clients_loop)
                 try:
                     async with anyio.create_task_group() as accepting:
                         for runner in runners:
@@ -231,6 +267,8 @@ class RosbridgeServer:
                     await self._shutdown(connections)
                 finally:
                     self.graph.spawner = None
+                    self._clients_changed = None
+                    self._publish_clients()  # the final state, latched
 
     def stop(self) -> None:
         """Stop serving gracefully (SIGTERM/SIGINT in ``rwt serve``); ``serve`` then returns."""
@@ -270,7 +308,7 @@ class RosbridgeServer:
             options = replace(config.udp, max_message_size=config.max_message_size)
 
             async def run_udp(connections: TaskGroup) -> None:
-                await serve_udp(sock, self, options)
+                await _contained("udp endpoint", serve_udp(sock, self, options))
 
             runners.append(run_udp)
         if config.stdio:
@@ -287,30 +325,111 @@ class RosbridgeServer:
         scheme = {"websocket": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[kind][tls is not None]
         self.urls[kind] = f"{scheme}://{_url_host(self.config.host)}:{bound}"
         handler = self._handle_websocket if kind == "websocket" else self._handle_tcp
-        served = _QuietTLSListener(listener, tls, standard_compatible=False) if tls else listener
 
         async def run(connections: TaskGroup) -> None:
-            await served.serve(handler, task_group=connections)
+            async with anyio.create_task_group() as sockets:  # one per address family
+                for each in listener.listeners:
+                    assert isinstance(each, SocketListener)  # what create_tcp_listener makes
+                    sockets.start_soon(self._accept_loop, each, handler, tls, connections)
 
         return run
+
+    async def _accept_loop(
+        self,
+        listener: SocketListener,
+        handler: Callable[[ByteStream], Awaitable[None]],
+        tls: ssl.SSLContext | None,
+        connections: TaskGroup,
+    ) -> None:
+        """Accept connections until cancelled; never ends for a failed ``accept()``.
+
+        Out of descriptors (EMFILE, ENFILE) or kernel memory (ENOBUFS, ENOMEM),
+        ``accept()`` fails while the connection waits in the backlog: the loop
+        pauses (``_ACCEPT_BACKOFF_S`` doubling up to ``_ACCEPT_BACKOFF_MAX_S``),
+        logs ``event=accept_backoff`` once per episode, and serves the existing
+        connections meanwhile. It also stops accepting while ``max_connections``
+        plus ``REFUSING_SOCKETS`` sockets are held (docs/limits.md).
+        """
+        delay = 0.0
+        while True:
+            await self._accept_slot()
+            try:
+                stream = await listener.accept()
+            except OSError as exc:
+                if not delay:
+                    logger.warning(
+                        "event=accept_backoff errno=%s reason=%r connections=%d handshaking=%d",
+                        errno.errorcode.get(exc.errno or 0, exc.errno),
+                        exc.strerror or str(exc),
+                        len(self.sessions),
+                        self._handshaking,
+                    )
+                delay = min(_ACCEPT_BACKOFF_MAX_S, delay * 2 if delay else _ACCEPT_BACKOFF_S)
+                await anyio.sleep(delay)
+                continue
+            if delay:
+                logger.info("event=accept_resumed")
+                delay = 0.0
+            self._handshaking += 1
+            connections.start_soon(self._serve_socket, stream, handler, tls)
+
+    async def _accept_slot(self) -> None:
+        """Wait while the server holds all the sockets it may (sessions and handshakes)."""
+        while (limit := self._limit) is not None and (
+            len(self.sessions) + self._handshaking >= limit + REFUSING_SOCKETS
+        ):
+            self._slot_freed = anyio.Event()
+            await self._slot_freed.wait()
+
+    def _free_slot(self) -> None:
+        if self._slot_freed is not None:
+            self._slot_freed.set()
+
+    async def _serve_socket(
+        self,
+        stream: SocketStream,
+        handler: Callable[[ByteStream], Awaitable[None]],
+        tls: ssl.SSLContext | None,
+    ) -> None:
+        """Run one accepted socket: TLS and transport handshakes within the timeout, then
+        its session (``open_session`` lifts the deadline); a bug ends this socket only."""
+        peer = _peer(stream)
+        pending = _Pending()
+        _PENDING.set(pending)  # this task's context: open_session finds it
+        try:
+            with anyio.CancelScope(
+                deadline=anyio.current_time() + self.config.handshake_timeout_s
+            ) as pending.scope:
+                served: ByteStream = stream
+                if tls is not None:
+                    try:
+                        served = await TLSStream.wrap(
+                            stream, server_side=True, ssl_context=tls, standard_compatible=False
+                        )
+                    except _TLS_FAILURES as exc:
+                        reason = str(exc) or type(exc).__name__
+                        logger.info("event=tls_handshake_failed peer=%s reason=%r", peer, reason)
+                        return
+                await _contained(f"connection from {peer}", handler(served))
+            if pending.scope.cancelled_caught and not pending.admitted:
+                logger.info("event=handshake_timeout peer=%s", peer)
+        finally:
+            await anyio.aclose_forcefully(stream)
+            if not pending.admitted:
+                self._handshaking -= 1
+                self._free_slot()
 
     # ---- connections ------------------------------------------------------------
 
     async def _handle_websocket(self, stream: ByteStream) -> None:
         peer = _peer(stream)
         options = replace(self.config.websocket, max_message_size=self.config.max_message_size)
-        try:
-            await serve_websocket_connection(stream, peer, self, options)
-        except Exception:  # one broken connection must never take the server down
-            logger.exception("connection from %s failed", peer)
+        await serve_websocket_connection(stream, peer, self, options)
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)
         transport = "tls" if self.config.certfile is not None else "tcp"
-        try:
-            await serve_tcp_connection(stream, peer, self, self.config.max_message_size, transport)
-        except Exception:
-            logger.exception("connection from %s failed", peer)
+        await serve_tcp_connection(stream, peer, self, self.config.max_message_size, transport)
 
     async def _run_stdio(self, connections: TaskGroup) -> None:
         read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())
@@ -323,9 +442,9 @@ class RosbridgeServer:
         async def run() -> None:
             try:
                 with channel:
-                    await run_connection(pump, session)
+                    await _contained("stdio session", run_connection(pump, session))
             finally:
-                self.stop()  # the parent process ended the session: nothing left to serve
+                self.stop()  # the session ended (the parent's input, or a bug): nothing left
 
         connections.start_soon(run)
 
@@ -363,12 +482,20 @@ class RosbridgeServer:
             on_output: the pump's wake-up.
 
         Returns:
-            The session, or None when ``max_connections`` is reached or the
-            server is stopping.
+            The session, or None when ``max_connections`` is reached (sockets
+            still in their handshake count) or the server is stopping.
         """
-        limit = self.config.max_connections
-        if self._stopping or (limit is not None and len(self.sessions) >= limit):
+        pending = _PENDING.get(None)
+        if pending is not None and pending.admitted:
+            pending = None  # a task of an admitted connection, not a new one
+        others = self._handshaking - (pending is not None)
+        limit = self._limit
+        if self._stopping or (limit is not None and len(self.sessions) + others >= limit):
             return None
+        if pending is not None:  # the socket's handshake is over: no deadline, a session now
+            pending.admitted = True
+            pending.scope.deadline = math.inf
+            self._handshaking -= 1
         client_id = f"{transport}:{peer}#{next(self._ids)}"
         session = _TrackedSession(self, client_id, peer, on_output)
         self.sessions[client_id] = session
@@ -378,26 +505,47 @@ class RosbridgeServer:
             "ip_address": address,
             "connection_time": time_value(self.graph.clock.wall(), self.graph.registry.dialect),
         }
-        self._publish_clients()
+        self._clients_churned()
         return session
 
     def _session_closed(self, client_id: str) -> None:
         self.sessions.pop(client_id, None)
         self._connected.pop(client_id, None)
+        self._free_slot()
         if not self.sessions and self._all_closed is not None:
             self._all_closed.set()
-        self._publish_clients()
+        self._clients_churned()
+
+    def _clients_churned(self) -> None:
+        """A connection came or went: publish the client topics, coalesced while serving."""
+        if self._clients_changed is None:
+            self._publish_clients()
+        else:
+            self._clients_changed.set()
+
+    async def _publish_clients_loop(self) -> None:
+        """Publish the client topics at most once per ``clients_interval_s``, the latest state.
+
+        The first change after a quiet interval goes out at once; the ones during
+        the interval after it are published together at its end. Each publish
+        sends the whole list to every subscriber, so publishing per connection
+        cost O(connections x subscribers) per change.
+        """
+        while self._clients_changed is not None:
+            await self._clients_changed.wait()
+            self._clients_changed = anyio.Event()
+            try:
+                self._publish_clients()
+            except Exception:  # a bug here must not end the server's task group
+                logger.exception("event=bug task=publish_clients")
+            await anyio.sleep(self.config.clients_interval_s)
 
     def _publish_clients(self) -> None:
         """Publish ``/client_count`` and ``/connected_clients`` (D14), both latched."""
         if self._client_count is not None:
             self._client_count.publish({"data": len(self.sessions)})
-        if self._connected_clients is not None:
-            clients = [
-                {"ip_address": info["ip_address"], "connection_time": info["connection_time"]}
-                for info in self._connected.values()
-            ]
-            self._connected_clients.publish({"clients": clients})
+        if self._connected_clients is not None:  # entries are built once, at connect
+            self._connected_clients.publish({"clients": list(self._connected.values())})
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
@@ -432,21 +580,37 @@ class _TrackedSession(Session):
 
     def close(self) -> None:
         was_closed = self.closed
-        super().close()
-        if not was_closed:
-            self._server._session_closed(self.client_id)
+        try:
+            super().close()
+        finally:  # even if releasing raised, the server forgets the connection
+            if not was_closed:
+                self._server._session_closed(self.client_id)
 
 
-class _QuietTLSListener(TLSListener):
-    """A TLS listener that logs a failed handshake in one line, without a traceback."""
+class _Pending:
+    """An accepted socket still in its handshake: its deadline, and whether it got a session."""
 
-    @staticmethod
-    async def handle_handshake_error(exc: BaseException, stream: anyio.abc.AnyByteStream) -> None:
-        await anyio.aclose_forcefully(stream)
-        if isinstance(exc, Exception) and not isinstance(exc, anyio.get_cancelled_exc_class()):
-            logger.info("event=tls_handshake_failed reason=%r", str(exc) or type(exc).__name__)
-            return
-        raise exc
+    __slots__ = ("admitted", "scope")
+
+    def __init__(self) -> None:
+        self.admitted = False
+        self.scope = anyio.CancelScope()
+
+
+_PENDING: contextvars.ContextVar[_Pending | None] = contextvars.ContextVar(
+    "rwt_pending_socket", default=None
+)
+"""The socket the current connection task serves, so ``open_session`` can lift its deadline."""
+
+
+async def _contained(what: str, work: Awaitable[None]) -> None:
+    """Await ``work``; an exception (a bug: everything expected is handled where it
+    happens) is logged once with its traceback instead of reaching the server's task
+    group, which would end every connection (docs/limits.md). Cancellation passes."""
+    try:
+        await work
+    except* Exception as group:
+        logger.error("event=bug task=%r", what, exc_info=group.exceptions[0])
 
 
 def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:

@@ -8,16 +8,26 @@ other client, on every transport, and the faulty connection is closed cleanly.
 from __future__ import annotations
 
 import json
+import logging
+import os
 from collections.abc import AsyncIterator
 
 import anyio
 import pytest
+from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
 from rwt_graph.graph import Graph
 from rwt_protocol.session import Session
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from tests.transports.clients import Client, Harness, StreamClient, WsClient, running_server
+from tests.transports.clients import (
+    Client,
+    Harness,
+    PipeStream,
+    StreamClient,
+    WsClient,
+    running_server,
+)
 from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
@@ -105,3 +115,65 @@ async def test_a_bug_in_an_async_in_process_service_is_contained() -> None:
                 await connection.send({"op": "call_service", "service": "/rosapi/topics"})
                 assert json.loads((await connection.receive_frame()).data)["result"] is True
         server.stop()
+
+
+BUGGY_LINE = b'{"op":"publish","topic":"/boom","msg":{}}\n'
+INTERNAL_ERROR = {"op": "status", "level": "error", "msg": "internal error"}
+
+
+@pytest.mark.usefixtures("faulty_frames")
+@pytest.mark.parametrize("transport", ["ws", "tcp", "udp"])
+async def test_a_bug_is_logged_once_and_the_peer_told_before_the_close(
+    harness: Harness, transport: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    bystander = await harness.connect("ws", "bystander")
+    victim = await harness.connect(transport, "victim")
+    with anyio.fail_after(TIMEOUT_S):
+        await served(victim, "victim-before")
+        sessions = len(harness.server.sessions)
+        caplog.clear()
+        with caplog.at_level(logging.ERROR):
+            await victim.send_raw(BUGGY_LINE)
+            if isinstance(victim, WsClient):
+                assert victim.ws is not None
+                assert json.loads(await victim.ws.recv()) == INTERNAL_ERROR
+                with pytest.raises(ConnectionClosed) as closed:
+                    await victim.ws.recv()
+                assert closed.value.rcvd is not None
+                assert closed.value.rcvd.reason == "internal error"
+            else:
+                assert await victim.receive() == INTERNAL_ERROR
+            while len(harness.server.sessions) == sessions:  # released, UDP peers too
+                await anyio.sleep(0.01)
+        bugs = [r for r in caplog.records if "event=bug" in r.getMessage()]
+        assert len(bugs) == 1 and bugs[0].exc_info is not None
+        await served(bystander, "after")
+
+
+@pytest.mark.usefixtures("faulty_frames")
+async def test_a_bug_in_the_stdio_session_ends_it_in_order() -> None:
+    """stdio is the server's lifeline (it stops when that session ends): a bug ends the
+    session with an error status and the server stops gracefully instead of crashing."""
+    to_server_r, to_server_w = os.pipe()
+    from_server_r, from_server_w = os.pipe()
+    config = ServerConfig(port=0, stdio=True, stdio_fds=(to_server_r, from_server_w))
+    server = RosbridgeServer(config=config)
+    stdio = StreamClient("stdio", stream=PipeStream(to_server_w, from_server_r))
+    try:
+        with anyio.fail_after(TIMEOUT_S):
+            async with anyio.create_task_group() as tg:
+                await tg.start(server.serve)
+                async with connect(server.urls["websocket"]) as other:
+                    await served(stdio, "hello")
+                    await stdio.send_raw(BUGGY_LINE)
+                    assert await stdio.receive() == INTERNAL_ERROR
+                    with pytest.raises(ConnectionClosed) as closed:
+                        await other.recv()
+                    assert closed.value.rcvd is not None and closed.value.rcvd.code == 1001
+            # serve returned by itself; a crash would have raised out of the task group
+        assert server.sessions == {}
+    finally:
+        for fd in (to_server_r, from_server_w):
+            os.close(fd)
+        assert stdio.stream is not None
+        await stdio.stream.aclose()
