@@ -378,7 +378,8 @@ class RosbridgeServer:
         while (limit := self._limit) is not None and (
             len(self.sessions) + self._handshaking >= limit + REFUSING_SOCKETS
         ):
-            self._slot_freed = anyio.Event()
+            if self._slot_freed is None or self._slot_freed.is_set():
+                self._slot_freed = anyio.Event()  # one for every listener waiting
             await self._slot_freed.wait()
 
     def _free_slot(self) -> None:

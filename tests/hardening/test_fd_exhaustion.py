@@ -22,7 +22,13 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import anyio
+import pytest
+from websockets.asyncio.client import connect as ws_connect
+from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
+
+from rwt_transports.server import RosbridgeServer, ServerConfig
 
 REPO = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "PYTHONPATH": f"{REPO / 'src'}{os.pathsep}{REPO}", "PYTHONUNBUFFERED": "1"}
@@ -135,3 +141,30 @@ def test_the_default_max_connections_keeps_accept_within_the_descriptors(
     assert "event=accept_backoff" not in text  # never ran out of descriptors
     soft = FD_LIMIT
     assert f"event=max_connections limit={soft - min(128, soft // 2) - 16}" in text
+
+
+@pytest.mark.anyio
+@pytest.mark.parametrize("anyio_backend", ["asyncio"])
+async def test_sockets_in_their_handshake_count_against_max_connections(
+    anyio_backend: str,
+) -> None:
+    config = ServerConfig(port=0, tcp_port=0, max_connections=2, handshake_timeout_s=30)
+    server = RosbridgeServer(config=config)
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        ws_port = int(url.rsplit(":", 1)[1])
+        tcp_port = int(server.urls["tcp"].rsplit(":", 1)[1])
+        with anyio.fail_after(30):
+            idle = [await anyio.connect_tcp("127.0.0.1", ws_port) for _ in range(2)]
+            # (the backlog is first in, first out: they are accepted before the next one)
+            with pytest.raises(InvalidStatus) as refused:
+                await ws_connect(url)
+            assert refused.value.response.status_code == 503
+            async with await anyio.connect_tcp("127.0.0.1", tcp_port) as tcp:
+                assert b"too many connections" in await tcp.receive()
+            for sock in idle:
+                await sock.aclose()
+            async with ws_connect(url) as ws:  # their descriptors are free again
+                await ws.send(json.dumps({"op": "set_level", "level": "info", "id": "ok"}))
+                assert json.loads(await ws.recv())["id"] == "ok"
+        tg.cancel_scope.cancel()
