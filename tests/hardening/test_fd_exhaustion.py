@@ -37,17 +37,18 @@ IDLE_SOCKETS = 260
 WAIT_S = 60.0  # a bound on waiting for the server, not a speed requirement
 
 
-# ``python -m rwt_transports serve ...`` after lowering the child's own limit
-LOW_LIMIT_RWT = (
-    "import resource, runpy, sys;"
-    f"resource.setrlimit(resource.RLIMIT_NOFILE, ({FD_LIMIT}, {FD_LIMIT}));"
-    "sys.argv[0] = 'rwt';"
-    "runpy.run_module('rwt_transports', run_name='__main__')"
-)
+def limited_rwt(soft: int, hard: int) -> list[str]:
+    """``python -m rwt_transports serve ...`` after lowering the child's own limits."""
+    code = (
+        "import resource, runpy, sys;"
+        f"resource.setrlimit(resource.RLIMIT_NOFILE, ({soft}, {hard}));"
+        "sys.argv[0] = 'rwt';"
+        "runpy.run_module('rwt_transports', run_name='__main__')"
+    )
+    return [sys.executable, "-c", code, "serve", "--host", "127.0.0.1", "--port", "0"]
 
 
-SERVE = [sys.executable, "-c", LOW_LIMIT_RWT, "serve", "--host", "127.0.0.1", "--port", "0"]
-SERVE += ["--tcp-port", "0", "--no-tf"]
+SERVE = [*limited_rwt(FD_LIMIT, FD_LIMIT), "--tcp-port", "0", "--no-tf"]
 
 
 @contextmanager
@@ -168,3 +169,29 @@ async def test_sockets_in_their_handshake_count_against_max_connections(
                 await ws.send(json.dumps({"op": "set_level", "level": "info", "id": "ok"}))
                 assert json.loads(await ws.recv())["id"] == "ok"
         tg.cancel_scope.cancel()
+
+
+@pytest.mark.parametrize(("raise_limit", "limit"), [(True, 256), (False, 84)])  # minus reserves
+def test_the_soft_limit_is_raised_to_the_hard_one_unless_told_not_to(
+    tmp_path: Path, raise_limit: bool, limit: int
+) -> None:
+    log = tmp_path / "serve.log"
+    option = "--raise-fd-limit" if raise_limit else "--no-raise-fd-limit"
+    with log.open("wb") as stderr:
+        process = subprocess.Popen(
+            [*limited_rwt(200, 400), "--no-tf", option],
+            env=ENV,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=stderr,
+        )
+    try:
+        assert process.stdout is not None
+        assert process.stdout.readline().startswith(b"listening on ")
+        text = log.read_text()
+        assert f"event=max_connections limit={limit}" in text
+        assert ("event=fd_limit soft=400 hard=400 raised_from=200" in text) is raise_limit
+    finally:
+        process.kill()
+        process.wait(10)
+        process.stdout.close()  # type: ignore[union-attr]
