@@ -245,7 +245,14 @@ class ConnectionPump:
 
     def _flush_deferred(self) -> None:
         self._deferred = False
-        if not (self._writer_idle and self._send_now()):
+        try:
+            sent = self._writer_idle and self._send_now()
+        except Exception:  # this connection's bug, run from another's task: leave it to
+            # this connection's writer, which meets it again and is contained (logged there)
+            client = self._session.client_id if self._session is not None else "?"
+            logger.debug("event=direct_send_bug client=%s", client, exc_info=True)
+            sent = False
+        if not sent:
             self._writer_wake.set()
 
     def _send_now(self) -> bool:

@@ -177,3 +177,29 @@ async def test_a_bug_in_the_stdio_session_ends_it_in_order() -> None:
             os.close(fd)
         assert stdio.stream is not None
         await stdio.stream.aclose()
+
+
+async def test_a_bug_in_a_subscriber_s_output_spares_the_publisher(
+    harness: Harness, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A subscriber's output is written from the publisher's task when the subscriber is
+    idle; a bug there belongs to the subscriber's connection, not the publisher's."""
+    publisher = await harness.connect("ws", "publisher")
+    victim = await harness.connect("ws", "victim")
+    with anyio.fail_after(TIMEOUT_S):
+        await victim.send({"op": "subscribe", "topic": "/chatter", "type": "std_msgs/String"})
+        await served(victim, "subscribed")
+        sessions = harness.server.sessions.items()
+        victims = {cid for cid, session in sessions if "/chatter" in session.subscriptions}
+        assert len(victims) == 1
+        real = Session.frames_to_send
+
+        def frames_to_send(self: Session, max_bytes: int | None = None):  # type: ignore[no-untyped-def]
+            if self.client_id in victims and self.queued_bytes:
+                raise RuntimeError("injected bug in a subscriber's output")
+            return real(self, max_bytes)
+
+        monkeypatch.setattr(Session, "frames_to_send", frames_to_send)
+        await publisher.send({"op": "publish", "topic": "/chatter", "msg": {"data": "hi"}})
+        await assert_closed(victim)
+        await served(publisher, "after")
