@@ -401,17 +401,7 @@ class RosbridgeServer:
             with anyio.CancelScope(
                 deadline=anyio.current_time() + self.config.handshake_timeout_s
             ) as pending.scope:
-                served: ByteStream = stream
-                if tls is not None:
-                    try:
-                        served = await TLSStream.wrap(
-                            stream, server_side=True, ssl_context=tls, standard_compatible=False
-                        )
-                    except _TLS_FAILURES as exc:
-                        reason = str(exc) or type(exc).__name__
-                        logger.info("event=tls_handshake_failed peer=%s reason=%r", peer, reason)
-                        return
-                await _contained(f"connection from {peer}", handler(served))
+                await _contained(f"connection from {peer}", self._run_socket(stream, handler, tls))
             if pending.scope.cancelled_caught and not pending.admitted:
                 logger.info("event=handshake_timeout peer=%s", peer)
         finally:
@@ -419,6 +409,24 @@ class RosbridgeServer:
             if not pending.admitted:
                 self._handshaking -= 1
                 self._free_slot()
+
+    @staticmethod
+    async def _run_socket(
+        stream: SocketStream,
+        handler: Callable[[ByteStream], Awaitable[None]],
+        tls: ssl.SSLContext | None,
+    ) -> None:
+        served: ByteStream = stream
+        if tls is not None:
+            try:
+                served = await TLSStream.wrap(
+                    stream, server_side=True, ssl_context=tls, standard_compatible=False
+                )
+            except _TLS_FAILURES as exc:
+                reason = str(exc) or type(exc).__name__
+                logger.info("event=tls_handshake_failed peer=%s reason=%r", _peer(stream), reason)
+                return
+        await handler(served)
 
     # ---- connections ------------------------------------------------------------
 
