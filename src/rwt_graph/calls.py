@@ -14,7 +14,25 @@ from rwt_protocol.ports import ClientId
 from .clock import Clock
 from .types import Converted, MessageType, TypeRegistry
 
-__all__ = ["Offer", "ProviderTable", "Spawner", "convert_args", "guarded", "require_spawner"]
+__all__ = [
+    "LOCAL_PREFIX",
+    "Offer",
+    "ProviderTable",
+    "Spawner",
+    "convert_args",
+    "guarded",
+    "is_local",
+    "require_spawner",
+]
+
+LOCAL_PREFIX = "local:"
+"""Participant ids of in-process code (the server's built-ins and embedding code)."""
+
+
+def is_local(client: ClientId) -> bool:
+    """Whether ``client`` is in-process code rather than a client connection."""
+    return client.startswith(LOCAL_PREFIX)
+
 
 logger = logging.getLogger("rwt.graph")
 
@@ -122,8 +140,18 @@ class ProviderTable(Generic[E]):
         self.entries: dict[str, E] = {}
 
     def advertise(self, entry: E) -> None:
-        """Add ``entry``, replacing an older one with the same name (D15)."""
+        """Add ``entry``, replacing an older one with the same name (D15).
+
+        A client connection cannot replace an in-process provider (rosapi, the TF
+        republisher, a service of the embedding program): those names are the
+        server's (docs/limits.md, reserved names).
+
+        Raises:
+            GraphError: a client tried to replace an in-process provider.
+        """
         old = self.entries.get(entry.name)
+        if old is not None and is_local(old.owner) and not is_local(entry.owner):
+            raise GraphError(f"{self.kind} {entry.spelling} is reserved by the server")
         self.entries[entry.name] = entry
         if old is not None:
             reason = f"{self.kind} {old.spelling} was replaced by a newer advertiser"

@@ -38,7 +38,7 @@ from .actions import (
     cancel_goals_handler,
     cancel_service_name,
 )
-from .calls import Spawner, guarded
+from .calls import LOCAL_PREFIX, Spawner, guarded, is_local
 from .clock import Clock, SystemClock
 from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
 from .nodes import DEFAULT_NODE, Nodes, node_name
@@ -75,6 +75,8 @@ class Graph:
         self.nodes = Nodes()
         self.params = Parameters(self.registry.dialect)
         self._local_ids = itertools.count(1)
+        self._reserved_topics: set[str] = set()
+        self._reserved_prefixes: tuple[str, ...] = ()
 
     # ---- GraphPort ------------------------------------------------------------
 
@@ -89,6 +91,7 @@ class Graph:
             GraphError: the topic exists with another type.
         """
         msgtype = self.registry.message(type_name)
+        self._check_reserved(client, topic)
         entry = self._topic(topic, msgtype)
         entry.publishers[client] = latch or entry.publishers.get(client, False)
         self.nodes.name_of(client)
@@ -124,7 +127,8 @@ class Graph:
             FieldError: ``msg`` does not fit the type (D9).
         """
         entry, converted, missing = self.convert_publish(topic, msg, path=path)
-        if client not in entry.publishers:
+        if client not in entry.publishers:  # the first publish of this client: check it once
+            self._check_reserved(client, entry.name)
             self.nodes.name_of(client)
         latched = entry.publishers.setdefault(client, False) or latch
         self._send(entry, converted, latch=latched, client=client)
@@ -343,7 +347,13 @@ class Graph:
     # ---- embedding API ---------------------------------------------------------
 
     def create_publisher(
-        self, topic: str, type_name: str, *, latch: bool = False, node: str = DEFAULT_NODE
+        self,
+        topic: str,
+        type_name: str,
+        *,
+        latch: bool = False,
+        node: str = DEFAULT_NODE,
+        reserved: bool = False,
     ) -> LocalPublisher:
         """Publish on ``topic`` from Python code in this process.
 
@@ -352,11 +362,14 @@ class Graph:
             type_name: message type, ``std_msgs/msg/String`` or ``std_msgs/String``.
             latch: transient-local durability: late subscribers get the last message.
             node: the node rosapi lists as the publisher (``/rwt`` by default).
+            reserved: only in-process code may publish on the topic (``reserve_topic``).
 
         Raises:
             InvalidTypeName, UnknownType, GraphError: as ``advertise``; a bad node name.
         """
         name = resolve_name(topic)
+        if reserved:
+            self.reserve_topic(name)
         with self._participant(node) as client:
             self.advertise(client, name, type_name, latch=latch)
         return LocalPublisher(self, client, name, self.topics[name].msgtype, latch=latch)
@@ -532,8 +545,25 @@ class Graph:
         if not entry.in_use and self.topics.get(entry.name) is entry:
             del self.topics[entry.name]
 
+    def reserve_topic(self, name: str) -> None:
+        """Keep topic ``name`` (or, ending in ``*``, every topic starting so) for
+        in-process publishers: a client's ``advertise`` or ``publish`` on it is
+        refused, so it cannot forge what the server publishes there (docs/limits.md).
+        """
+        if name.endswith("*"):
+            self._reserved_prefixes += (resolve_name(name[:-1]) if name[:-1] else "/",)
+        else:
+            self._reserved_topics.add(resolve_name(name))
+
+    def _check_reserved(self, client: ClientId, topic: str) -> None:
+        if is_local(client):
+            return
+        name = resolve_name(topic)
+        if name in self._reserved_topics or name.startswith(self._reserved_prefixes):
+            raise GraphError(f"topic {topic} is reserved by the server")
+
     def _local_client(self) -> ClientId:
-        return f"local:{next(self._local_ids)}"
+        return f"{LOCAL_PREFIX}{next(self._local_ids)}"
 
     @contextlib.contextmanager
     def _participant(self, node: str) -> Iterator[ClientId]:

@@ -148,12 +148,15 @@ class AccessPolicy:
         Topic, service and action names are resolved first (``chatter`` is
         ``/chatter``, D26); parameter names are matched as written.
         """
+        return self._allows(family, name, calling=True)
+
+    def _allows(self, family: Family, name: str, *, calling: bool) -> bool:
         matcher = self._matchers[family]
         if matcher is None:
             return True
         resolved = name if family is Family.PARAMS else resolve_name(name)
-        if family is Family.SERVICES and resolved.startswith(ROSAPI_PREFIX):
-            return True
+        if calling and family is Family.SERVICES and resolved.startswith(ROSAPI_PREFIX):
+            return True  # calling rosapi, never advertising over it
         return matcher.fullmatch(resolved) is not None
 
     def filter(self, family: Family, names: Iterable[str]) -> list[str]:
@@ -172,7 +175,7 @@ class AccessPolicy:
             return
         family, attribute = entry
         name: str = getattr(op, attribute)
-        if not self.allows(family, name):
+        if not self._allows(family, name, calling=isinstance(op, CallService)):
             raise AccessDeniedError(f"{family.value[:-1]} {name} is not allowed on this server")
         if isinstance(op, CallService) and resolve_name(op.service) in _PARAM_SERVICES:
             param = _param_name(op.args)

@@ -635,7 +635,7 @@ def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext 
 
 def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:
     try:
-        return graph.create_publisher(topic, type_name, latch=True, node=SERVER_NODE)
+        return graph.create_publisher(topic, type_name, latch=True, node=SERVER_NODE, reserved=True)
     except RwtError as exc:  # a registry without the type: no such topic
         logger.warning("not publishing %s: %s", topic, exc.message)
         return None

@@ -70,7 +70,9 @@ class DepthCloudEncoder:
         self._colours: deque[Message] = deque(maxlen=_KEPT_COLOUR_FRAMES)
         self._pending: Message | None = None
         self._last_error = ""
-        self._publisher: LocalPublisher = graph.create_publisher(topic, IMAGE_TYPE, node=node)
+        self._publisher: LocalPublisher = graph.create_publisher(
+            topic, IMAGE_TYPE, node=node, reserved=True
+        )
         self._subscriptions: list[LocalSubscription] = []
         try:
             self._subscriptions.append(

@@ -67,13 +67,13 @@ class ActionlibServer:
         """
         graph, node = self.republisher.graph, self.republisher.node
         self.feedback = graph.create_publisher(
-            f"{_NS}/feedback", f"{_PKG}/TFSubscriptionActionFeedback", node=node
+            f"{_NS}/feedback", f"{_PKG}/TFSubscriptionActionFeedback", node=node, reserved=True
         )
         self.status = graph.create_publisher(
-            f"{_NS}/status", "actionlib_msgs/GoalStatusArray", node=node
+            f"{_NS}/status", "actionlib_msgs/GoalStatusArray", node=node, reserved=True
         )
         self.result = graph.create_publisher(
-            f"{_NS}/result", f"{_PKG}/TFSubscriptionActionResult", node=node
+            f"{_NS}/result", f"{_PKG}/TFSubscriptionActionResult", node=node, reserved=True
         )
         goal = graph.create_subscription(
             f"{_NS}/goal", self.on_goal, f"{_PKG}/TFSubscriptionActionGoal", node=node

@@ -51,6 +51,9 @@ Sleep = Callable[[float], Awaitable[None]]
 
 #: The node of everything the republisher registers, as the ROS node is named.
 TF_NODE = "/tf2_web_republisher"
+#: The topics ``/republish_tfs`` answers with: ``/tf_repub_0``, ``/tf_repub_1``, ...
+REPUBLISH_TOPIC_PREFIX = "/tf_repub_"
+
 #: A ``/republish_tfs`` topic lives at least this long without subscribers, so the
 #: client has time to subscribe after the response (seconds).
 MIN_TOPIC_TIMEOUT_S = 1.0
@@ -81,6 +84,7 @@ class TFRepublisher:
         self._topic_ids = itertools.count()
         self._closers: list[Callable[[], None]] = []
         self.closed = False
+        graph.reserve_topic(f"{REPUBLISH_TOPIC_PREFIX}*")  # clients can neither squat nor forge
 
     def start(self) -> None:
         """Subscribe to ``/tf`` and ``/tf_static``; offer the action and the service.
@@ -195,7 +199,7 @@ class TFRepublisher:
         assert isinstance(timeout, dict)
         timeout_s = max(stamp_seconds(timeout), MIN_TOPIC_TIMEOUT_S)
         spawn = require_spawner(self.graph.spawner, "service /republish_tfs")
-        name = f"/tf_repub_{next(self._topic_ids)}"
+        name = f"{REPUBLISH_TOPIC_PREFIX}{next(self._topic_ids)}"
         self.reserve()  # counted now and released by the job: a refusal fails this call
         try:
             publisher = self.graph.create_publisher(
