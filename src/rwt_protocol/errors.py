@@ -14,6 +14,7 @@ from .levels import StatusLevel
 __all__ = [
     "FieldError",
     "GraphError",
+    "LimitError",
     "LocalProtocolError",
     "ProtocolError",
     "RemoteProtocolError",
@@ -43,6 +44,10 @@ class ProtocolError(RwtError):
 
 class RemoteProtocolError(ProtocolError):
     """The peer sent something invalid; it becomes a ``status`` frame (D1)."""
+
+
+class LimitError(RemoteProtocolError):
+    """The op would take this connection over one of its caps (docs/limits.md)."""
 
 
 class LocalProtocolError(ProtocolError):

@@ -28,11 +28,23 @@ __all__ = [
     "Reassembler",
     "fragment_frames",
     "fresh_id",
+    "held_size",
     "split_text",
 ]
 
 FRAGMENT_OVERHEAD = 64
-"""Characters charged per held part on top of its data, so tiny parts stay bounded."""
+"""Bytes charged per held part on top of its data, so tiny parts stay bounded."""
+
+
+def held_size(text: str) -> int:
+    """The bytes ``text`` takes in memory: 1, 2 or 4 per character, by its widest one,
+    as CPython stores strings. A held part costs this, not its length in characters,
+    so astral characters cannot hold 4x the limit (docs/limits.md)."""
+    if text.isascii():
+        return len(text)
+    widest = ord(max(text))
+    return len(text) * (1 if widest < 0x100 else 2 if widest < 0x10000 else 4)
+
 
 MAX_PARTS = 10_000
 """The most parts one outgoing message is cut into (D24: a peer asking for
@@ -107,7 +119,7 @@ class Reassembler:
     """The partly received messages of one connection.
 
     Args:
-        max_bytes: the most characters held at once, over every pending message
+        max_bytes: the most bytes (``held_size``) held at once, over every pending message
             (each part costs its data plus ``FRAGMENT_OVERHEAD``); also the largest
             message that can be reassembled (``--max-message-size``).
         max_pending: the most messages pending at once (``--max-pending-fragments``).
@@ -158,7 +170,7 @@ class Reassembler:
         entry = self._pending.get(key)
         if entry is None:
             if total == 1:
-                self._check_size(key, len(data) + FRAGMENT_OVERHEAD)
+                self._check_size(key, held_size(data) + FRAGMENT_OVERHEAD)
                 return data
             if len(self._pending) >= self.max_pending:
                 raise RemoteProtocolError(
@@ -171,7 +183,7 @@ class Reassembler:
             )
         elif num in entry.parts:
             raise RemoteProtocolError(f"duplicate part {num} of id {op_id!r}")
-        cost = len(data) + FRAGMENT_OVERHEAD
+        cost = held_size(data) + FRAGMENT_OVERHEAD
         self._check_size(key, cost)
         entry.parts[num] = data
         entry.size += cost

@@ -37,7 +37,7 @@ from .codec import decode_json, decode_publish, parse_object, peek_id
 from .codec_cbor import decode_cbor
 from .commands import CloseCode, CloseConnection, Command
 from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
-from .errors import RwtError
+from .errors import LimitError, RwtError
 from .fragments import Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
@@ -82,6 +82,17 @@ class SessionConfig:
             ``--max-queue-length``).
         call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
             it fails (D16, ``--call-timeout``); None waits for ever.
+        max_subscriptions: topics one connection may subscribe to at once
+            (``--max-subscriptions``); the next ``subscribe`` gets an error status.
+        max_advertisements: topics, services and actions one connection may
+            advertise at once, together (``--max-advertisements``).
+        max_ids_per_topic: ``subscribe`` or ``advertise`` ids one connection may
+            hold on one topic (merged per D11).
+        max_pending_calls: ``call_service`` ops of one connection waiting for their
+            reply (``--max-pending-calls``); the next is answered ``result: false``.
+        max_pending_goals: ``send_action_goal`` ops of one connection waiting for
+            their result (``--max-pending-goals``); the next gets a failed result.
+        All caps are listed with what a client sees in docs/limits.md.
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
@@ -94,6 +105,11 @@ class SessionConfig:
     fragment_timeout_s: float = 600.0
     max_queue_length: int = 100
     call_timeout_s: float | None = 30.0
+    max_subscriptions: int = 1000
+    max_advertisements: int = 1000
+    max_ids_per_topic: int = 100
+    max_pending_calls: int = 1000
+    max_pending_goals: int = 1000
 
 
 class Session:
@@ -126,6 +142,9 @@ class Session:
         self.subscriptions: dict[str, TopicSubscription] = {}
         self.advertisements: dict[str, set[str | int | None]] = {}
         self.goals: dict[str | int | None, GoalHandle] = {}
+        self.offers: set[tuple[str, str]] = set()  # ("service" | "action", resolved name)
+        self.pending_calls = 0  # call_service ops waiting for their reply
+        self.pending_goals = 0  # send_action_goal ops waiting for their result
         self.provider_link = ProviderLink(self)
         self._outbox = Outbox(self.config.send_buffer_limit)
         self._watch = SlowConsumerWatch(self, self._outbox)
@@ -278,6 +297,7 @@ class Session:
         self.subscriptions.clear()
         self.fragments.clear()
         self.advertisements.clear()
+        self.offers.clear()
         self.goals.clear()
         self.graph.release(self.client_id)
 
@@ -467,6 +487,15 @@ class Session:
             )
             return
         self.send_frames(frames)
+
+    def check_cap(self, count: int, cap: int, what: str) -> None:
+        """Refuse an op that would hold more than ``cap`` of ``what`` (docs/limits.md).
+
+        Raises:
+            LimitError: ``count`` (what the connection holds now) reached ``cap``.
+        """
+        if count >= cap:
+            raise LimitError(f"{what}: this connection holds {cap} already (the server's limit)")
 
     def _wake(self) -> None:
         if self._on_output is not None:

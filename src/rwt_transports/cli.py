@@ -114,6 +114,18 @@ def serve(
     max_queue_length: Annotated[
         int, typer.Option(min=1, help="Cap on a throttled subscription's queue_length.")
     ] = 100,
+    max_subscriptions: Annotated[
+        int, typer.Option(min=1, help="Topics one connection may subscribe to at once.")
+    ] = 1000,
+    max_advertisements: Annotated[
+        int, typer.Option(min=1, help="Topics, services and actions one connection advertises.")
+    ] = 1000,
+    max_pending_calls: Annotated[
+        int, typer.Option(min=1, help="Service calls of one connection awaiting their reply.")
+    ] = 1000,
+    max_pending_goals: Annotated[
+        int, typer.Option(min=1, help="Action goals of one connection awaiting their result.")
+    ] = 1000,
     send_buffer_limit: Annotated[
         int,
         typer.Option(
@@ -267,6 +279,10 @@ def serve(
             fragment_timeout_s=fragment_timeout,
             max_queue_length=max_queue_length,
             call_timeout_s=call_timeout if call_timeout > 0 else None,
+            max_subscriptions=max_subscriptions,
+            max_advertisements=max_advertisements,
+            max_pending_calls=max_pending_calls,
+            max_pending_goals=max_pending_goals,
         ),
         websocket=WebSocketOptions(
             compression=websocket_compression,

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import GraphError, RwtError
 from ..levels import StatusLevel
+from ..names import resolve_name
 from ..ops import (
     ActionFeedback,
     ActionResult,
@@ -15,6 +16,7 @@ from ..ops import (
     UnadvertiseAction,
 )
 from ..ports import GoalStatus
+from .topics import offered
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -35,9 +37,13 @@ def advertise_action(session: Session, op: AdvertiseAction, now: float) -> None:
     Raises:
         GraphError: bad or unknown action type.
     """
+    key = ("action", resolve_name(op.action))
+    if key not in session.offers:
+        session.check_cap(offered(session), session.config.max_advertisements, "advertisements")
     type_name = session.graph.advertise_action(
         session.client_id, op.action, op.type, session.provider_link
     )
+    session.offers.add(key)
     session.report(StatusLevel.INFO, f"advertise_action: {op.action} advertised as {type_name}")
 
 
@@ -48,6 +54,7 @@ def unadvertise_action(session: Session, op: UnadvertiseAction, now: float) -> N
         GraphError: this client does not provide the action.
     """
     session.graph.unadvertise_action(session.client_id, op.action)
+    session.offers.discard(("action", resolve_name(op.action)))
     session.report(StatusLevel.INFO, f"unadvertise_action: {op.action} unadvertised")
 
 
@@ -66,6 +73,10 @@ def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
 
     def done(status: GoalStatus, result: bool, values: object) -> None:
         nonlocal finished
+        if finished:
+            return
+        if handle is not None:  # counted in session.pending_goals
+            session.pending_goals -= 1
         finished = True
         if handle is not None and session.goals.get(key) is handle:
             del session.goals[key]
@@ -92,6 +103,7 @@ def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
 
     handle = None
     try:
+        session.check_cap(session.pending_goals, session.config.max_pending_goals, "pending goals")
         handle = session.graph.send_action_goal(
             session.client_id,
             op.action,
@@ -106,6 +118,7 @@ def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
         raise
     if not finished:
         session.goals[key] = handle
+        session.pending_goals += 1
 
 
 def cancel_action_goal(session: Session, op: CancelActionGoal, now: float) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ..levels import StatusLevel
+from ..names import resolve_name
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -31,6 +32,7 @@ class ProviderLink:
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """Warn the peer that its service was taken away (D15)."""
+        self._session.offers.discard(("service", resolve_name(service)))
         self._session.report(StatusLevel.WARNING, f"advertise_service: {reason}")
 
     def on_action_goal(
@@ -54,4 +56,5 @@ class ProviderLink:
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """Warn the peer that its action was taken away (D15)."""
+        self._session.offers.discard(("action", resolve_name(action)))
         self._session.report(StatusLevel.WARNING, f"advertise_action: {reason}")

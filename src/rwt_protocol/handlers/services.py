@@ -6,8 +6,10 @@ from typing import TYPE_CHECKING
 
 from ..errors import RemoteProtocolError, RwtError
 from ..levels import StatusLevel
+from ..names import resolve_name
 from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
 from ..timers import Timer
+from .topics import offered
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -21,9 +23,13 @@ def advertise_service(session: Session, op: AdvertiseService, now: float) -> Non
     Raises:
         GraphError: bad or unknown service type.
     """
+    key = ("service", resolve_name(op.service))
+    if key not in session.offers:
+        session.check_cap(offered(session), session.config.max_advertisements, "advertisements")
     type_name = session.graph.advertise_service(
         session.client_id, op.service, op.type, session.provider_link
     )
+    session.offers.add(key)
     session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
 
 
@@ -34,6 +40,7 @@ def unadvertise_service(session: Session, op: UnadvertiseService, now: float) ->
         GraphError: this client does not provide the service.
     """
     session.graph.unadvertise_service(session.client_id, op.service)
+    session.offers.discard(("service", resolve_name(op.service)))
     session.report(StatusLevel.INFO, f"unadvertise_service: {op.service} unadvertised")
 
 
@@ -45,12 +52,15 @@ class _Call:
         self.op = op
         self.op_id = op_id
         self.done = False
+        self.counted = False  # in ``session.pending_calls`` until answered
         self.timer: Timer | None = None
 
     def reply(self, result: bool, values: object) -> None:
         if self.done:
             return
         self.done = True
+        if self.counted:
+            self.session.pending_calls -= 1
         if self.timer is not None:
             self.timer.cancel()
         message: dict[str, object] = {
@@ -82,14 +92,19 @@ def call_service(session: Session, op: CallService, now: float) -> None:
         service, op_id = service.split("#", 1)
     call = _Call(session, op, op_id)
     try:
+        session.check_cap(session.pending_calls, session.config.max_pending_calls, "pending calls")
         pending = session.graph.call_service(
             session.client_id, service, op.args, call.reply, type_name=None, path="$.args"
         )
     except RwtError as exc:
         call.reply(False, exc.message)
         raise
+    if call.done:
+        return
+    call.counted = True
+    session.pending_calls += 1
     timeout_s = op.timeout or session.config.call_timeout_s
-    if call.done or timeout_s is None:
+    if timeout_s is None:
         return
 
     def expire(at: float) -> None:

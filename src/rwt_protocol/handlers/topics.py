@@ -13,7 +13,7 @@ from ..subscriptions import TopicSubscription
 if TYPE_CHECKING:
     from ..session import Session
 
-__all__ = ["advertise", "publish", "subscribe", "unadvertise", "unsubscribe"]
+__all__ = ["advertise", "offered", "publish", "subscribe", "unadvertise", "unsubscribe"]
 
 _MAX_LISTED = 8
 
@@ -25,9 +25,19 @@ def advertise(session: Session, op: Advertise, now: float) -> None:
         GraphError: bad or unknown type, or the topic has another type.
     """
     topic = resolve_name(op.topic)
+    ids = session.advertisements.get(topic)
+    if ids is None:
+        session.check_cap(offered(session), session.config.max_advertisements, "advertisements")
+    elif op.id not in ids:
+        session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {op.topic}")
     type_name = session.graph.advertise(session.client_id, topic, op.type, latch=op.latch)
     session.advertisements.setdefault(topic, set()).add(op.id)
     session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
+
+
+def offered(session: Session) -> int:
+    """Topics, services and actions this connection advertises (one cap for all)."""
+    return len(session.advertisements) + len(session.offers)
 
 
 def unadvertise(session: Session, op: Unadvertise, now: float) -> None:
@@ -80,6 +90,12 @@ def subscribe(session: Session, op: Subscribe, now: float) -> None:
     """
     topic = resolve_name(op.topic)
     subscription = session.subscriptions.get(topic)
+    if subscription is None:
+        cap = session.config.max_subscriptions
+        session.check_cap(len(session.subscriptions), cap, "subscriptions")
+    elif op.id not in subscription.requests:
+        cap = session.config.max_ids_per_topic
+        session.check_cap(len(subscription.requests), cap, f"ids on {op.topic}")
     if subscription is None:
         subscription = TopicSubscription(
             topic,
