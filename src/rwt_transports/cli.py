@@ -178,6 +178,15 @@ def serve(
     udp_datagram_size: Annotated[
         int, typer.Option(help="Outgoing UDP messages above this many bytes are fragmented.")
     ] = 8192,
+    udp_max_sessions: Annotated[
+        int, typer.Option(min=1, help="Most UDP sessions at once (within --max-connections).")
+    ] = 256,
+    udp_trust_source_address: Annotated[
+        bool,
+        typer.Option(
+            help="Serve UDP peers without validating their address (only on a trusted link)."
+        ),
+    ] = False,
     udp_idle_timeout: Annotated[
         float, typer.Option(help="Seconds of silence after which a UDP peer is forgotten.")
     ] = 300.0,
@@ -291,7 +300,12 @@ def serve(
             ping_interval_s=websocket_ping_interval,
             ping_timeout_s=websocket_ping_timeout,
         ),
-        udp=UdpOptions(datagram_bytes=udp_datagram_size, idle_timeout_s=udp_idle_timeout),
+        udp=UdpOptions(
+            datagram_bytes=udp_datagram_size,
+            idle_timeout_s=udp_idle_timeout,
+            max_sessions=udp_max_sessions,
+            trust_source_address=udp_trust_source_address,
+        ),
         tf=tf,
         handshake_timeout_s=handshake_timeout,
     )

@@ -1,8 +1,11 @@
 """UDP transport: one datagram per message, one session per peer address (D22).
 
-Every (host, port) that sends a datagram gets a session, as rosbridge_udp
-does (REF §3.6). A datagram is one frame: JSON text, or CBOR when its first
-byte says so (D21). Outgoing messages larger than ``datagram_bytes`` go out as
+Every (host, port) that proves it receives at its address gets a session
+(``udp_validation``: a token exchange, and the token on every datagram, so a
+forged source address can neither draw a stream nor act inside another peer's
+session; ``trust_source_address`` restores rosbridge_udp's trust in the address
+for trusted links, REF §3.6). A datagram is one frame: JSON text, or CBOR when
+its first byte says so (D21). Outgoing messages larger than ``datagram_bytes`` go out as
 ``fragment`` ops (spec 3.1.1, D19), each within the size, so no message is
 silently lost to the datagram limit. UDP has no connection close: a peer that
 sends nothing for ``idle_timeout_s`` is forgotten (its session closed).
@@ -25,6 +28,7 @@ from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session
 
 from .pump import ConnectionPump, SessionHost, run_connection
+from .udp_validation import AddressValidator, split_token
 
 __all__ = ["UdpOptions", "serve_udp"]
 
@@ -49,11 +53,18 @@ class UdpOptions:
             ``fragment`` ops (``--udp-datagram-size``; at most 65507).
         idle_timeout_s: seconds without a datagram after which a peer's session
             is closed (``--udp-idle-timeout``).
+        max_sessions: most UDP sessions at once (``--udp-max-sessions``), within
+            the server's ``max_connections``.
+        trust_source_address: serve any source address without validation, as
+            rosbridge_udp does (``--udp-trust-source-address``): only on a link
+            where addresses cannot be forged (docs/limits.md).
     """
 
     max_message_size: int = MAX_UDP_PAYLOAD
     datagram_bytes: int = 8192
     idle_timeout_s: float = 300.0
+    max_sessions: int = 256
+    trust_source_address: bool = False
 
 
 def _classify(data: bytes, max_bytes: int) -> FramerEvent:
@@ -130,6 +141,12 @@ async def serve_udp(sock: UDPSocket, host: SessionHost, options: UdpOptions) -> 
                 logger.exception("event=bug peer=%s:%d: datagram dropped", *address[:2])
 
 
+@dataclass(slots=True)
+class _Peer:
+    inbox: MemoryObjectSendStream[bytes]
+    token: str | None  # every datagram carries it (None: the source address is trusted)
+
+
 class _Endpoint:
     """The peers of one UDP socket: address -> the inbox of that peer's session."""
 
@@ -140,31 +157,63 @@ class _Endpoint:
         self.host = host
         self.options = options
         self.tg = tg
-        self.peers: dict[Address, MemoryObjectSendStream[bytes]] = {}
+        self.peers: dict[Address, _Peer] = {}
+        self.validator = AddressValidator()
+        self._dropping = False  # a forged or unvalidated datagram was logged (once per episode)
 
     async def dispatch(self, data: bytes, address: Address) -> None:
-        inbox = self.peers.get(address)
-        if inbox is None:
-            inbox = await self._open(address)
-            if inbox is None:
+        """Hand a datagram to its peer's session; validate an unknown address first."""
+        address = (address[0], address[1])
+        peer = self.peers.get(address)
+        token: str | None = None
+        if not self.options.trust_source_address:
+            split = split_token(data)
+            if peer is not None and (split is None or split[0] != peer.token):
+                self._drop("forged", address)  # not the session's token: not its peer
                 return
+            if peer is None and (split is None or not self.validator.valid(split[0], address)):
+                await self._challenge(data, address)
+                return
+            assert split is not None
+            token, data = split
+        if peer is None:
+            peer = await self._open(address, token)
+            if peer is None:
+                return
+        self._dropping = False
         try:
-            inbox.send_nowait(data)
+            peer.inbox.send_nowait(data)
         except anyio.WouldBlock:
             logger.warning("event=udp_overrun peer=%s:%d", *address)
 
-    async def _open(self, address: Address) -> MemoryObjectSendStream[bytes] | None:
+    async def _challenge(self, data: bytes, address: Address) -> None:
+        reply = self.validator.challenge(address, len(data))
+        if reply is None:
+            self._drop("too short to answer", address)
+            return
+        await self.sock.sendto(reply, *address)
+
+    def _drop(self, why: str, address: Address) -> None:
+        if not self._dropping:
+            logger.info("event=udp_dropped peer=%s:%d reason=%r", *address, why)
+            self._dropping = True
+
+    async def _open(self, address: Address, token: str | None) -> _Peer | None:
         send, receive = anyio.create_memory_object_stream[bytes](_QUEUED_DATAGRAMS)
         channel = UdpChannel(self.sock, address, receive, self.options)
         pump = ConnectionPump(channel)
-        session = self.host.open_session("udp", f"{address[0]}:{address[1]}", pump.wake)
+        session = None
+        if len(self.peers) < self.options.max_sessions:
+            session = self.host.open_session("udp", f"{address[0]}:{address[1]}", pump.wake)
         if session is None:
             logger.info("event=refused peer=%s:%d reason='too many connections'", *address)
             await self.sock.sendto(_TOO_MANY, *address)
+            send.close()
+            receive.close()
             return None
-        self.peers[address] = send
+        peer = self.peers[address] = _Peer(send, token)
         self.tg.start_soon(self._run, pump, session, address, receive)
-        return send
+        return peer
 
     async def _run(
         self,
@@ -176,7 +225,7 @@ class _Endpoint:
         try:
             await run_connection(pump, session)
         finally:
-            send = self.peers.pop(address, None)
-            if send is not None:
-                send.close()
+            peer = self.peers.pop(address, None)
+            if peer is not None:
+                peer.inbox.close()
             receive.close()

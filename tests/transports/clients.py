@@ -21,6 +21,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from rwt_transports.memory import MemoryConnection
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt_transports.udp_validation import CHALLENGE_TEXT, MIN_PROBE_BYTES
 
 Message = dict[str, Any]
 TRANSPORTS = ("memory", "ws", "tcp", "udp", "stdio")
@@ -131,12 +132,26 @@ class StreamClient(Client):
         await self.stream.aclose()
 
 
+async def validate_udp(sock: Any) -> bytes:
+    """The UDP address validation (docs/limits.md): a padded probe, then the token.
+
+    Returns:
+        The prefix of every later datagram: the token and a newline.
+    """
+    await sock.send(b'{"op":"status"}'.ljust(MIN_PROBE_BYTES))
+    while True:
+        reply = json.loads(await sock.receive())
+        if reply.get("msg") == CHALLENGE_TEXT:
+            return reply["id"].encode() + b"\n"  # type: ignore[no-any-return]
+
+
 @dataclass
 class UdpClient(Client):
     sock: Any = None
+    prefix: bytes = b""  # the address-validation token and a newline
 
     async def send_raw(self, data: bytes) -> None:
-        await self.sock.send(data)
+        await self.sock.send(self.prefix + data)
 
     async def _receive_raw(self) -> bytes:
         return await self.sock.receive()  # type: ignore[no-any-return]
@@ -217,7 +232,9 @@ class Harness:
         if transport == "udp":
             sock = await anyio.create_connected_udp_socket("127.0.0.1", self.port("udp"))
             self.stack.push_async_callback(sock.aclose)
-            return UdpClient(name, sock=sock)
+            with anyio.fail_after(10):
+                prefix = await validate_udp(sock)
+            return UdpClient(name, sock=sock, prefix=prefix)
         if transport == "stdio":
             return StreamClient(name, stream=self.stdio_client)
         raise ValueError(transport)

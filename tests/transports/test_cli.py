@@ -18,6 +18,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
+from tests.transports.clients import validate_udp
 from tests.transports.realclients import REPO, run_python
 
 pytestmark = pytest.mark.anyio
@@ -112,8 +113,9 @@ async def test_one_command_serves_every_transport_on_one_graph() -> None:
         tcp = await anyio.connect_tcp("127.0.0.1", port(urls["tcp"]))
         await tcp.send(b'{"op":"advertise","topic":"/from_tcp","type":"std_msgs/String"}')
         udp = await anyio.create_connected_udp_socket("127.0.0.1", port(urls["udp"]))
-        await udp.send(b'{"op":"subscribe","topic":"/from_tcp","type":"std_msgs/String"}')
-        await udp.send(b'{"op":"set_level","level":"info","id":"b"}')
+        token = await validate_udp(udp)
+        await udp.send(token + b'{"op":"subscribe","topic":"/from_tcp","type":"std_msgs/String"}')
+        await udp.send(token + b'{"op":"set_level","level":"info","id":"b"}')
         with anyio.fail_after(10):
             while json.loads(await udp.receive()).get("id") != "b":
                 pass

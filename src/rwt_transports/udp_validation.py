@@ -1,0 +1,113 @@
+"""UDP address validation: a peer proves it receives at its address before it is served.
+
+UDP's source address is whatever the sender writes, so without a check a datagram
+with a forged source could make the server stream to a victim (reflection and
+amplification) or act inside another peer's session. As QUIC does, the server
+answers an address it has not validated with one small datagram holding a token
+(at most ``AMPLIFICATION`` times the bytes it received, so it is never an
+amplifier), and creates a session only for a datagram that carries that token:
+only a peer that receives at the address can know it. Every datagram of the
+session then carries the same token, so a forged source cannot act inside it
+even after the peer authenticated.
+
+What a UDP client does (docs/limits.md, "UDP"):
+
+1. Send any datagram of at least ``MIN_PROBE_BYTES`` bytes (pad JSON with
+   spaces), e.g. its first op. It is not served; the answer is
+   ``{"op":"status","level":"warning","msg":"udp: address validation","id":TOKEN}``.
+2. Send every datagram as ``TOKEN``, a newline (``\\n``), then the JSON or CBOR
+   frame. Replies come as plain datagrams, as before.
+3. If that challenge arrives again (the session was idle past
+   ``--udp-idle-timeout`` and the token expired), take the new token and resend.
+
+Tokens are an HMAC of the peer's address and a 30 s epoch under a key made at
+start-up; one is accepted for a new session during its epoch and the next one.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import hmac
+import json
+import re
+import secrets
+import time
+from collections.abc import Callable
+
+__all__ = [
+    "AMPLIFICATION",
+    "CHALLENGE_TEXT",
+    "MIN_PROBE_BYTES",
+    "AddressValidator",
+    "split_token",
+]
+
+AMPLIFICATION = 3
+"""The most bytes sent to an unvalidated address per byte received from it (QUIC's rule)."""
+
+MIN_PROBE_BYTES = 64
+"""A first datagram at least this long is always answered with a challenge."""
+
+CHALLENGE_TEXT = "udp: address validation"
+"""The ``msg`` of the challenge status."""
+
+EPOCH_S = 30.0
+"""Seconds a token is issued for; it is accepted for a new session one epoch longer."""
+
+_TOKEN = re.compile(rb"[A-Za-z0-9_-]{22}")
+
+Address = tuple[str, int]
+
+
+class AddressValidator:
+    """Issues and checks the tokens of one UDP socket.
+
+    Args:
+        key: the HMAC key; a fresh random one by default (tokens die with the server).
+        clock: monotonic seconds.
+    """
+
+    def __init__(self, key: bytes | None = None, clock: Callable[[], float] = time.monotonic):
+        self._key = key or secrets.token_bytes(32)
+        self._clock = clock
+
+    def token(self, address: Address, epoch: int | None = None) -> str:
+        """The token of ``address`` for ``epoch`` (the current one by default): 22 characters."""
+        if epoch is None:
+            epoch = self._epoch()
+        message = f"{address[0]}|{address[1]}|{epoch}".encode()
+        digest = hmac.new(self._key, message, hashlib.sha256).digest()[:16]
+        return base64.urlsafe_b64encode(digest).rstrip(b"=").decode("ascii")
+
+    def valid(self, token: str, address: Address) -> bool:
+        """Whether ``token`` was issued to ``address`` in this epoch or the one before."""
+        epoch = self._epoch()
+        return any(hmac.compare_digest(token, self.token(address, e)) for e in (epoch, epoch - 1))
+
+    def challenge(self, address: Address, received: int) -> bytes | None:
+        """The datagram answering ``received`` bytes from an unvalidated ``address``.
+
+        Returns:
+            The challenge status, or None when it would be more than
+            ``AMPLIFICATION`` times ``received`` (a datagram too short to answer).
+        """
+        status = {
+            "op": "status",
+            "level": "warning",
+            "msg": CHALLENGE_TEXT,
+            "id": self.token(address),
+        }
+        reply = json.dumps(status, separators=(",", ":")).encode()
+        return reply if len(reply) <= AMPLIFICATION * received else None
+
+    def _epoch(self) -> int:
+        return int(self._clock() // EPOCH_S)
+
+
+def split_token(data: bytes) -> tuple[str, bytes] | None:
+    """``(token, frame)`` of a datagram sent as ``TOKEN\\nframe``, or None if it is not one."""
+    token, newline, frame = data.partition(b"\n")
+    if not newline or _TOKEN.fullmatch(token) is None:
+        return None
+    return token.decode("ascii"), frame

@@ -1,0 +1,201 @@
+"""UDP does not trust the source address (docs/limits.md, UDP).
+
+Before, a 62-byte ``subscribe`` from an address that never spoke again drew a
+stream to it until the idle timeout (a reflection and amplification tool), and a
+datagram with a forged source address acted inside that peer's session, after
+it authenticated too. Forged datagrams are sent for real here: a raw socket
+writes the UDP header itself, with the victim's source port (needs root).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import struct
+from collections.abc import AsyncIterator
+from dataclasses import replace
+
+import anyio
+import pytest
+from anyio.abc import SocketAttribute
+
+from rwt_graph.graph import Graph
+from rwt_protocol.ops import Auth
+from rwt_transports.server import ServerConfig
+from rwt_transports.udp import UdpOptions
+from rwt_transports.udp_validation import AMPLIFICATION, CHALLENGE_TEXT
+from tests.transports.clients import Harness, UdpClient, running_server, validate_udp
+from tests.transports.test_contract import is_op
+
+pytestmark = pytest.mark.anyio
+
+TIMEOUT_S = 10
+SUBSCRIBE = b'{"op":"subscribe","topic":"/camera","type":"std_msgs/String"}'
+needs_root = pytest.mark.skipif(os.geteuid() != 0, reason="forging a source port needs root")
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+async def camera(graph: Graph) -> None:
+    """Publish on /camera every 10 ms: what a reflected subscription would stream."""
+    publisher = graph.create_publisher("/camera", "std_msgs/msg/String")
+    while True:
+        publisher.publish({"data": "x" * 500})
+        await anyio.sleep(0.01)
+
+
+@pytest.fixture
+async def harness() -> AsyncIterator[Harness]:
+    graph = Graph()
+    async with running_server(graph=graph) as h, anyio.create_task_group() as tg:
+        tg.start_soon(camera, graph)
+        yield h
+        tg.cancel_scope.cancel()
+
+
+def udp_sessions(harness: Harness) -> int:
+    return sum(1 for client_id in harness.server.sessions if client_id.startswith("udp:"))
+
+
+async def datagrams_within(sock: socket.socket, seconds: float) -> list[bytes]:
+    received = []
+    with anyio.move_on_after(seconds):
+        while True:
+            await anyio.wait_readable(sock)
+            received.append(sock.recv(65536))
+    return received
+
+
+def forge(port_from: int, port_to: int, payload: bytes) -> None:
+    """Send ``payload`` to 127.0.0.1:``port_to`` as if from 127.0.0.1:``port_from``."""
+    raw = socket.socket(socket.AF_INET, socket.SOCK_RAW, socket.IPPROTO_UDP)
+    try:
+        header = struct.pack("!HHHH", port_from, port_to, 8 + len(payload), 0)  # no checksum
+        raw.sendto(header + payload, ("127.0.0.1", 0))
+    finally:
+        raw.close()
+
+
+async def forging_works(server_port: int) -> None:
+    """A forged probe from a port we listen on draws the challenge there: forging works."""
+    witness = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    witness.setblocking(False)
+    witness.bind(("127.0.0.1", 0))
+    try:
+        forge(witness.getsockname()[1], server_port, SUBSCRIBE)
+        [challenge] = await datagrams_within(witness, 0.5)
+        assert json.loads(challenge)["msg"] == CHALLENGE_TEXT
+    finally:
+        witness.close()
+
+
+async def test_an_unvalidated_subscribe_draws_one_small_answer_and_no_stream(
+    harness: Harness,
+) -> None:
+    victim = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    victim.setblocking(False)
+    victim.bind(("127.0.0.1", 0))
+    try:
+        victim.sendto(SUBSCRIBE, ("127.0.0.1", harness.port("udp")))
+        received = await datagrams_within(victim, 1.0)
+    finally:
+        victim.close()
+    assert len(received) == 1
+    assert len(received[0]) <= AMPLIFICATION * len(SUBSCRIBE)
+    assert json.loads(received[0])["msg"] == CHALLENGE_TEXT
+    assert udp_sessions(harness) == 0
+
+
+async def test_a_datagram_too_short_to_answer_gets_nothing(harness: Harness) -> None:
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.setblocking(False)
+    try:
+        probe.sendto(b"{}", ("127.0.0.1", harness.port("udp")))
+        assert await datagrams_within(probe, 0.5) == []
+    finally:
+        probe.close()
+
+
+@needs_root
+async def test_a_forged_source_cannot_act_inside_an_authenticated_session() -> None:
+    def admit(op: Auth, peer: str) -> bool:
+        return op.mac == "secret"
+
+    async with running_server(ServerConfig(), authenticator=admit) as harness:
+        victim = await harness.connect("udp", "victim")
+        assert isinstance(victim, UdpClient)
+        listener = await harness.connect("ws", "listener")
+        with anyio.fail_after(TIMEOUT_S):
+            for client in (victim, listener):
+                await client.send(
+                    {
+                        "op": "auth",
+                        "mac": "secret",
+                        "client": "c",
+                        "dest": "d",
+                        "rand": "r",
+                        "t": 0,
+                        "level": "admin",
+                        "end": 0,
+                    }
+                )
+            await listener.send({"op": "subscribe", "topic": "/cmd", "type": "std_msgs/String"})
+            await listener.send({"op": "set_level", "level": "info", "id": "ready"})
+            await listener.expect(is_op("status", id="ready"))
+            await victim.send({"op": "advertise", "topic": "/cmd", "type": "std_msgs/String"})
+            await victim.send({"op": "set_level", "level": "info", "id": "advertised"})
+            await victim.expect(is_op("status", id="advertised"))
+            server_port = harness.port("udp")
+            await forging_works(server_port)
+            victim_port = victim.sock.extra(SocketAttribute.local_port)
+            forged = b'{"op":"publish","topic":"/cmd","msg":{"data":"forged"}}'
+            forge(victim_port, server_port, forged)  # no token
+            forge(victim_port, server_port, b"A" * 22 + b"\n" + forged)  # a guessed one
+            await anyio.sleep(0.2)
+            await victim.send({"op": "publish", "topic": "/cmd", "msg": {"data": "real"}})
+            message = await listener.expect(is_op("publish", topic="/cmd"))
+            assert message["msg"] == {"data": "real"}  # the forged ones never arrived
+            await victim.send({"op": "set_level", "level": "info", "id": "alive"})
+            assert (await victim.expect(is_op("status", id="alive")))["level"] == "info"
+
+
+async def test_udp_sessions_are_capped_and_the_others_served() -> None:
+    config = ServerConfig(udp=UdpOptions(max_sessions=2))
+    async with running_server(config) as harness:
+        first, second, third = [await harness.connect("udp", f"c{i}") for i in range(3)]
+        with anyio.fail_after(TIMEOUT_S):
+            for client in (first, second):
+                await client.send({"op": "set_level", "level": "info", "id": "in"})
+                assert (await client.expect(is_op("status", id="in")))["level"] == "info"
+            await third.send({"op": "set_level", "level": "info", "id": "in"})
+            assert (await third.receive())["msg"] == "too many connections"
+            await first.send({"op": "call_service", "service": "/rosapi/topics", "id": "t"})
+            assert (await first.expect(is_op("service_response", id="t")))["result"] is True
+
+
+async def test_trusting_the_source_address_serves_plain_datagrams() -> None:
+    config = ServerConfig()
+    config = replace(config, udp=UdpOptions(trust_source_address=True))
+    async with running_server(config) as harness:
+        sock = await anyio.create_connected_udp_socket("127.0.0.1", harness.port("udp"))
+        async with sock:
+            with anyio.fail_after(TIMEOUT_S):
+                await sock.send(b'{"op":"set_level","level":"info","id":"plain"}')
+                assert json.loads(await sock.receive())["id"] == "plain"
+
+
+async def test_a_validated_client_keeps_its_token_for_the_session(harness: Harness) -> None:
+    sock = await anyio.create_connected_udp_socket("127.0.0.1", harness.port("udp"))
+    async with sock:
+        with anyio.fail_after(TIMEOUT_S):
+            prefix = await validate_udp(sock)
+            await sock.send(prefix + b'{"op":"set_level","level":"info","id":"one"}')
+            assert json.loads(await sock.receive())["id"] == "one"
+            assert udp_sessions(harness) == 1
+            await sock.send(b'{"op":"set_level","level":"info","id":"bare"}')  # no token: dropped
+            await sock.send(prefix + b'{"op":"set_level","level":"info","id":"two"}')
+            assert json.loads(await sock.receive())["id"] == "two"
