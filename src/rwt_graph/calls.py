@@ -53,7 +53,7 @@ def guarded(what: str, step: Callable[[], None]) -> None:
 Spawner = Callable[[Callable[[], Awaitable[None]]], Callable[[], None]]
 """Runs an async job in the server's event loop; returns a function that cancels it.
 
-The graph does no I/O and knows no event loop (STYLE.md), so whoever runs it (the
+The graph does no I/O and knows no event loop, so whoever runs it (the
 server) installs a spawner for async in-process services and actions."""
 
 

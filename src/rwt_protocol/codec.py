@@ -5,7 +5,7 @@ the non-standard literals ``NaN``/``Infinity`` that Python clients such as
 roslibpy emit (REF §3.1). Validation goes straight to the model named by
 ``op`` (faster than trying the union and gives better errors); every failure
 becomes a ``RemoteProtocolError`` whose text names the field path
-(PROTOCOL-DECISIONS D1, STYLE.md "Errors").
+(PROTOCOL-DECISIONS D1).
 
 Edge rules (docs/limits.md): a frame nested deeper than ``MAX_NESTING`` is
 refused with one status ``nesting deeper than N`` (checked without recursion,
@@ -203,7 +203,7 @@ def _fallback(frame: str | bytes) -> object:
 
 
 def decode_publish(frame: str | bytes) -> PublishFrame | None:
-    """Decode a ``publish`` op in one msgspec pass (the hot path, issue 8).
+    """Decode a ``publish`` op in one msgspec pass (the hot path, benchmarks/README.md B14).
 
     Returns:
         The op, or None when ``frame`` is not a valid publish op in standard

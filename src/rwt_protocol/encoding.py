@@ -1,10 +1,10 @@
 """Outgoing encodings: JSON, fragments, PNG, CBOR and cbor-raw (spec 3.1, D19-D21).
 
-Topic messages are encoded once per distinct delivery form (issue 4 "encode
-once"): ``MessageEvent.encoded`` caches the frames under a key naming everything
-they depend on (topic spelling, D26; compression; fragment size), so a message
-published to N subscribers is converted and serialized once per form and the
-same frame objects are queued for each subscriber. Intermediate forms (the JSON
+Topic messages are encoded once per distinct delivery form: ``MessageEvent.encoded``
+caches the frames under a key naming everything they depend on (topic spelling,
+D26; compression; fragment size), so a message published to N subscribers is
+converted and serialized once per form and the same frame objects are queued for
+each subscriber. Intermediate forms (the JSON
 text PNG compresses, the typed arrays, the raw serialization) are memoised on
 the event too.
 

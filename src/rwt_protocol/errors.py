@@ -28,7 +28,7 @@ class RwtError(Exception):
 
     Args:
         message: lowercase text without a trailing period, shaped
-            ``<what> (expected X, got Y) at <path>`` where that applies (STYLE.md).
+            ``<what> (expected X, got Y) at <path>`` where that applies.
         level: the status level the error is reported at when it reaches a client.
     """
 

@@ -10,7 +10,7 @@ bounded batches (``take``), so the frames a transport holds outside the queue
 stay small too. Dropping is amortised O(1) per frame.
 
 The bound is on memory, not only payload: each queued frame is charged its
-payload plus ``FRAME_OVERHEAD_BYTES`` (issue 8, B8), so a peer that reads
+payload plus ``FRAME_OVERHEAD_BYTES`` (benchmarks B8), so a peer that reads
 nothing holds at most about ``limit_bytes`` of server memory whatever the frame
 size (at 100 B a frame, counting payload alone let the queue take twice the
 limit).
@@ -49,7 +49,7 @@ class OutFrame:
         header: the transport's header for this frame (a WebSocket frame
             header), made by the first connection that sends it and reused by
             every other: one frame object goes to all subscribers of a form
-            (``encoding.publish_frames``), so it is framed once (issue 8). Only
+            (``encoding.publish_frames``), so it is framed once (benchmarks/README.md). Only
             the header is kept, so a queued frame costs its payload once.
     """
 

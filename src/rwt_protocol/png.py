@@ -49,7 +49,7 @@ def encode_png(data: bytes) -> str:
     Returns:
         The standard, padded base64 of the PNG file (the ``data`` of a ``png`` op).
     """
-    from PIL import Image  # noqa: PLC0415 (Pillow loads with the first png op: issue 8, B11)
+    from PIL import Image  # noqa: PLC0415 (Pillow loads with the first png op: benchmarks B11)
 
     width, height = png_dimensions(len(data))
     padded = data + _PAD * (width * height * 3 - len(data))

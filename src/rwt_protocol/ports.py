@@ -1,6 +1,6 @@
 """The interface between the protocol session and whatever graph backs it.
 
-``rwt_protocol`` cannot import the graph (layering, STYLE.md), so the session
+``rwt_protocol`` cannot import the graph (layering), so the session
 talks to a ``GraphPort`` and the graph calls back into a ``TopicSink``. Both are
 structural ``typing.Protocol`` types; ``rwt_graph.Graph`` implements the port.
 All calls are synchronous and never block: the graph is in-memory.
@@ -62,7 +62,7 @@ class MessageEvent:
     """One message published on a topic, shared by every subscriber.
 
     Subscribers encode through ``encoded`` so that a message published to N
-    subscribers is serialized once per distinct encoding (issue 4 "encode once").
+    subscribers is serialized once per distinct encoding ("encode once").
 
     Attributes:
         topic: resolved topic name (``/chatter``).

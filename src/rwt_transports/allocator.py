@@ -1,4 +1,4 @@
-"""Keep large message buffers in the heap between messages (glibc only; issue 8, B4/B6/B9).
+"""Keep large message buffers in the heap between messages (glibc only; benchmarks B4/B6/B9).
 
 Every large message passes through several buffers of its size: the WebSocket
 frame, the decoded payload, the encoded frame a subscriber gets. glibc serves

@@ -3,7 +3,7 @@
 ``rwt serve`` runs a rosbridge server on an in-memory graph, on every transport
 asked for at once (WebSocket, TCP, UDP, stdio; one graph, D22). Option names
 follow rosbridge's parameters where one exists (``port``, ``address`` is
-``--host`` here as issue 2 asks, ``max_message_size``, ``use_compression`` is
+``--host`` here, ``max_message_size``, ``use_compression`` is
 ``--websocket-compression``, ``certfile``/``keyfile``, ``topics_glob``...). Logs
 go to stderr as ``key=value`` lines; stdout gets one ``listening on URL`` line
 per listener, the WebSocket one first, so scripts can use ``--port 0`` (with
@@ -311,7 +311,7 @@ def serve(
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
-        # numpy and Pillow load only when asked for (issue 8: B11 base memory)
+        # numpy and Pillow load only when asked for (benchmarks B11 base memory)
         from rwt_graph.media.depthcloud_node import DepthCloudEncoder  # noqa: PLC0415
 
         depth_topic, _, rgb_topic = depthcloud.partition(",")

@@ -1,4 +1,4 @@
-"""Direct use of the asyncio transport under an anyio socket stream (issue 8).
+"""Direct use of the asyncio transport under an anyio socket stream (benchmarks/README.md).
 
 Writing: a connection's writer task (pump.py) sends every frame by default.
 For a small message fanned out to many subscribers that costs several task

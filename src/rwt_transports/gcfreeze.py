@@ -1,4 +1,4 @@
-"""Keep the server's start-up objects out of the cyclic garbage collector (issue 8, B15).
+"""Keep the server's start-up objects out of the cyclic garbage collector (benchmarks B15).
 
 Every object alive once the server is built (modules, message definitions,
 compiled converters, op models) lives as long as the process, yet each full

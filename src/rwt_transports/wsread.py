@@ -1,4 +1,4 @@
-"""Whole client messages taken off the stream before websockets' parser (issue 8, B4/B6).
+"""Whole client messages taken off the stream before websockets' parser (benchmarks B4/B6).
 
 websockets' sans-IO parser appends each chunk it is given to one ``bytearray``,
 cuts every frame back out of it and then unmasks it: three copies of a large

@@ -16,7 +16,7 @@ tf2_web_republisher node gives a ROS system (REF §7.3), on node
   ``status`` and ``result`` (roslibjs ``TFClient``, which ros3djs uses), in either
   dialect; see ``actionlib.py``.
 
-The graph keeps no clock loop and imports no event loop (STYLE.md), so the caller
+The graph keeps no clock loop and imports no event loop, so the caller
 injects ``sleep(seconds)``, an awaitable such as ``anyio.sleep``; the ticking loops
 run through ``graph.spawner``, which a running server installs.
 """

@@ -33,7 +33,7 @@ def _identities() -> tuple[Matrix, Matrix]:
     """The identity and its inverse: operands only, never returned.
 
     Made on first use, not at import: numpy loads with the first transform
-    (issue 8, B11 base memory). Cached, so routes can compare them by identity.
+    (benchmarks B11 base memory). Cached, so routes can compare them by identity.
     """
     unit = identity()
     return unit, inverse(unit)

@@ -34,7 +34,7 @@ Matrix: TypeAlias = "npt.NDArray[np.float64]"
 """A 4x4 homogeneous rigid transform."""
 
 # Each function imports numpy itself: `rwt serve` installs the TF republisher at
-# start but needs numpy only with the first transform (issue 8, B11 base memory).
+# start but needs numpy only with the first transform (benchmarks B11 base memory).
 
 _AXES = ("x", "y", "z")
 

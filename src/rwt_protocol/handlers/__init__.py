@@ -1,4 +1,4 @@
-"""The dispatcher table: op model -> handler (STYLE.md: a table, not an if/elif chain).
+"""The dispatcher table: op model -> handler (a table, not an if/elif chain).
 
 A handler is ``handler(session, op, now) -> None``; it raises ``RwtError`` to
 refuse the op, which the session turns into a ``status`` frame.

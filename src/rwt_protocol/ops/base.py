@@ -110,7 +110,7 @@ class OpModel(BaseModel):
     """Base of every op model: strict, frozen, unknown fields ignored.
 
     Each model's validator is built when first used, not at import: a server
-    pays only for the ops its clients send (issue 8, B11 base memory).
+    pays only for the ops its clients send (benchmarks B11 base memory).
     """
 
     model_config = ConfigDict(strict=True, frozen=True, extra="ignore", defer_build=True)

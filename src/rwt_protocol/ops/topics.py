@@ -57,7 +57,7 @@ class Publish(OpModel):
 
 
 class PublishFrame(msgspec.Struct, frozen=True):
-    """``Publish`` as msgspec decodes it straight from JSON: the publish hot path (issue 8).
+    """``Publish`` as msgspec decodes it straight from JSON: the publish hot path (benchmarks B14).
 
     The same fields, defaults and checks as ``Publish`` (``topic`` a string,
     ``id`` a string or an integer but not a bool, ``latch`` a bool, unknown

@@ -47,7 +47,7 @@ _RUNNER_NAMES = frozenset(
 
 def __getattr__(name: str) -> object:
     # The runner (connectors, cbor2) loads on first use, not with ``rwt serve``,
-    # whose command line registers ``rwt conformance`` beside it (issue 8, B11).
+    # whose command line registers ``rwt conformance`` beside it (benchmarks B11).
     if name in _RUNNER_NAMES:
         from . import runner  # noqa: PLC0415
 

@@ -84,7 +84,7 @@ def conformance(
 ) -> None:
     """Check a rosbridge server against the conformance suite; exit 1 on any failure."""
     # Imported here: `rwt serve` registers this command, and must not pay for the
-    # runner, its clients and rich at start (issue 8, B11 base memory).
+    # runner, its clients and rich at start (benchmarks B11 base memory).
     from rich.console import Console  # noqa: PLC0415
 
     from .report import print_table, write_json, write_junit  # noqa: PLC0415

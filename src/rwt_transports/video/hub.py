@@ -7,7 +7,7 @@ frames that arrive while it encodes are skipped. A viewer never makes the
 encoder wait: a still-image viewer keeps only the newest part, a video viewer
 keeps a bounded run of packets and, past that, drops them and restarts at the
 next keyframe. So a stalled viewer costs a bounded amount of memory and never
-slows another (issue 7: "a slow viewer skips frames, never buffers without bound").
+slows another (docs/limits.md).
 """
 
 from __future__ import annotations
