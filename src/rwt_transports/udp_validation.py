@@ -55,6 +55,14 @@ CHALLENGE_TEXT = "udp: address validation"
 EPOCH_S = 30.0
 """Seconds a token is issued for; it is accepted for a new session one epoch longer."""
 
+CHALLENGE_BUDGET_BYTES = 1024
+"""The most challenge bytes sent to one address per epoch, however many datagrams claim
+it: a forged source draws at most this much towards its victim (docs/limits.md)."""
+
+MAX_CHALLENGED = 4096
+"""Addresses whose challenge bytes are counted per epoch; past them (a flood of forged
+sources) no more challenges go out until the epoch ends."""
+
 _TOKEN = re.compile(rb"[A-Za-z0-9_-]{22}")
 
 Address = tuple[str, int]
@@ -71,6 +79,8 @@ class AddressValidator:
     def __init__(self, key: bytes | None = None, clock: Callable[[], float] = time.monotonic):
         self._key = key or secrets.token_bytes(32)
         self._clock = clock
+        self._sent: dict[Address, int] = {}  # challenge bytes per address, this epoch
+        self._sent_epoch = -1
 
     def token(self, address: Address, epoch: int | None = None) -> str:
         """The token of ``address`` for ``epoch`` (the current one by default): 22 characters."""
@@ -90,7 +100,9 @@ class AddressValidator:
 
         Returns:
             The challenge status, or None when it would be more than
-            ``AMPLIFICATION`` times ``received`` (a datagram too short to answer).
+            ``AMPLIFICATION`` times ``received`` (a datagram too short to answer),
+            or would take ``address`` past ``CHALLENGE_BUDGET_BYTES`` this epoch,
+            or ``MAX_CHALLENGED`` other addresses were answered this epoch.
         """
         status = {
             "op": "status",
@@ -99,7 +111,18 @@ class AddressValidator:
             "id": self.token(address),
         }
         reply = json.dumps(status, separators=(",", ":")).encode()
-        return reply if len(reply) <= AMPLIFICATION * received else None
+        if len(reply) > AMPLIFICATION * received:
+            return None
+        epoch = self._epoch()
+        if epoch != self._sent_epoch:
+            self._sent, self._sent_epoch = {}, epoch
+        sent = self._sent.get(address)
+        if sent is None and len(self._sent) >= MAX_CHALLENGED:
+            return None
+        if (sent or 0) + len(reply) > CHALLENGE_BUDGET_BYTES:
+            return None
+        self._sent[address] = (sent or 0) + len(reply)
+        return reply
 
     def _epoch(self) -> int:
         return int(self._clock() // EPOCH_S)

@@ -24,7 +24,7 @@ from rwt_graph.graph import Graph
 from rwt_protocol.ops import Auth
 from rwt_transports.server import ServerConfig
 from rwt_transports.udp import UdpOptions
-from rwt_transports.udp_validation import AMPLIFICATION, CHALLENGE_TEXT
+from rwt_transports.udp_validation import AMPLIFICATION, CHALLENGE_BUDGET_BYTES, CHALLENGE_TEXT
 from tests.transports.clients import Harness, UdpClient, running_server, validate_udp
 from tests.transports.test_contract import is_op
 
@@ -199,3 +199,21 @@ async def test_a_validated_client_keeps_its_token_for_the_session(harness: Harne
             await sock.send(b'{"op":"set_level","level":"info","id":"bare"}')  # no token: dropped
             await sock.send(prefix + b'{"op":"set_level","level":"info","id":"two"}')
             assert json.loads(await sock.receive())["id"] == "two"
+
+
+async def test_challenges_to_one_address_are_capped_in_bytes(harness: Harness) -> None:
+    # A forged source can draw challenges towards its victim, but only so many bytes.
+    victim = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    victim.setblocking(False)
+    victim.bind(("127.0.0.1", 0))
+    try:
+        for _ in range(100):
+            victim.sendto(SUBSCRIBE, ("127.0.0.1", harness.port("udp")))
+        received = await datagrams_within(victim, 1.0)
+    finally:
+        victim.close()
+    assert len(received) >= 1 and sum(map(len, received)) <= CHALLENGE_BUDGET_BYTES
+    healthy = await harness.connect("udp", "healthy")  # another address is still answered
+    with anyio.fail_after(TIMEOUT_S):
+        await healthy.send({"op": "set_level", "level": "info", "id": "ok"})
+        assert (await healthy.expect(is_op("status", id="ok")))["level"] == "info"
