@@ -182,11 +182,6 @@ def test_fragments_count_bytes_held_not_characters(graph: Graph) -> None:
 
 
 @pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
 async def harness() -> AsyncIterator[Harness]:
     config = ServerConfig(
         session=SessionConfig(

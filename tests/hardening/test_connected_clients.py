@@ -23,11 +23,6 @@ KEPT = 5  # TCP connections that stay
 INTERVAL_S = 0.5
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 async def tcp_round_trip(port: int, tag: str) -> None:
     async with await anyio.connect_tcp("127.0.0.1", port) as tcp:
         await tcp.send(json.dumps({"op": "set_level", "level": "info", "id": tag}).encode())

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-from collections.abc import AsyncIterator
 
 import anyio
 import pytest
@@ -26,24 +25,12 @@ from tests.transports.clients import (
     PipeStream,
     StreamClient,
     WsClient,
-    running_server,
 )
 from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
 
 TIMEOUT_S = 10
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
-async def harness() -> AsyncIterator[Harness]:
-    async with running_server() as h:
-        yield h
 
 
 @pytest.fixture

@@ -9,7 +9,6 @@ uses no recursion, and a decoder's own ``RecursionError`` (msgspec, json) on
 from __future__ import annotations
 
 import logging
-from collections.abc import AsyncIterator
 
 import anyio
 import cbor2
@@ -20,7 +19,7 @@ from rwt_protocol.codec import MAX_NESTING
 from tests.conftest import Peer
 from tests.hardening.test_unencodable import send_binary
 from tests.session.test_robustness import pair, still_served
-from tests.transports.clients import TRANSPORTS, Harness, running_server
+from tests.transports.clients import TRANSPORTS, Harness
 from tests.transports.test_contract import is_op
 
 TOO_DEEP = f"nesting deeper than {MAX_NESTING}"
@@ -142,17 +141,6 @@ def test_a_wide_frame_of_many_small_objects_is_served(graph: Graph) -> None:
 
 TIMEOUT_S = 10
 LEVELS = 30_000  # deeper than any recursion limit; 60 KB fits one UDP datagram
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
-async def harness() -> AsyncIterator[Harness]:
-    async with running_server() as h:
-        yield h
 
 
 @pytest.mark.anyio

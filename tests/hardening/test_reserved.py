@@ -66,11 +66,6 @@ ATTEMPTS = {
 }
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 def robot() -> Graph:
     graph = Graph()
     graph.create_service("/lights", "std_srvs/srv/SetBool", lambda req: {"success": True})

@@ -35,11 +35,6 @@ SUBSCRIBE = b'{"op":"subscribe","topic":"/camera","type":"std_msgs/String"}'
 needs_root = pytest.mark.skipif(os.geteuid() != 0, reason="forging a source port needs root")
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 async def camera(graph: Graph) -> None:
     """Publish on /camera every 10 ms: what a reflected subscription would stream."""
     publisher = graph.create_publisher("/camera", "std_msgs/msg/String")

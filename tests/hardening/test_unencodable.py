@@ -11,7 +11,6 @@ replaced by its failure reply.
 from __future__ import annotations
 
 import json
-from collections.abc import AsyncIterator
 
 import anyio
 import cbor2
@@ -23,7 +22,6 @@ from tests.transports.clients import (
     Harness,
     MemoryClient,
     WsClient,
-    running_server,
 )
 from tests.transports.test_contract import is_op
 
@@ -43,17 +41,6 @@ SURROGATE_FRAMES = {
     ),
     "message-field": b'{"op":"publish","topic":"/probe","msg":{"data":"\\ud800"}}',
 }
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
-async def harness() -> AsyncIterator[Harness]:
-    async with running_server() as h:
-        yield h
 
 
 async def still_served(client: Client, harness: Harness, tag: str) -> None:

@@ -18,11 +18,6 @@ TIMEOUT_S = 10
 INVALID = b'{"op":"publish","topic":"/a","msg":{"data":"\xc3\x28"}}'  # 0xC3 0x28: not UTF-8
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @pytest.fixture(params=[False, True], ids=["plain", "deflate"])
 async def url(request: pytest.FixtureRequest) -> AsyncIterator[str]:
     options = WebSocketOptions(compression=request.param)

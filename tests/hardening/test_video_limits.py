@@ -22,11 +22,6 @@ from tests.transports.test_video_server import TIMEOUT_S, camera, solid, video_s
 pytestmark = pytest.mark.anyio
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 async def assert_snapshot_served(client: httpx.AsyncClient, topic: str = "/cam") -> None:
     """A healthy viewer still gets a JPEG."""
     with anyio.fail_after(TIMEOUT_S):
