@@ -140,6 +140,14 @@ class WebSocketChannel:
             await self.flush()
         return messages
 
+    def pause_reading(self) -> None:
+        """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).
+
+        Only the direct reader needs it: anyio's own ``receive`` pauses after each chunk.
+        """
+        if self._reader is not None:
+            self._reader.pause()
+
     def read_chunk(self, data: bytes) -> tuple[list[FramerEvent], bool]:
         """Parse one received chunk, without I/O.
 
@@ -155,7 +163,10 @@ class WebSocketChannel:
             frames.stop()  # closing: websockets reads (or drops) what is left
         for item in frames.feed(data) if frames is not None else (data,):
             if isinstance(item, InFrame):  # read by ``FrameReader``
-                messages.append(item)
+                if self._accept_text(item):
+                    messages.append(item)
+                elif frames is not None:
+                    frames.stop()  # failed (1007): websockets discards the rest
                 continue
             self.protocol.receive_data(item)
             for event in self.protocol.events_received():
@@ -164,11 +175,28 @@ class WebSocketChannel:
                         self._pong.set()
                     control = control or event.opcode not in _DATA_OPCODES
                     message = self._assemble(event)
-                    if message is not None:
+                    if message is not None and self._accept_text(message):
                         messages.append(message)
             if frames is not None and self.protocol.state is not State.OPEN:
                 frames.stop()  # websockets failed the connection or got a close frame
         return messages, control
+
+    def _accept_text(self, message: InFrame) -> bool:
+        """Whether ``message`` may be handled; a text message that is not UTF-8 fails
+        the connection with 1007 (RFC 6455 8.1; websockets' parser does not check
+        the text of frames it only splits, and ``FrameReader`` reads around it).
+
+        ASCII, the common JSON text, is recognised without decoding.
+        """
+        data = message.data
+        if message.binary or data.isascii():
+            return True
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            self.protocol.fail(1007, f"invalid UTF-8 at position {exc.start}")
+            return False
+        return True
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send data frames; text for JSON, binary for CBOR (D27).
