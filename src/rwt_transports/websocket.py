@@ -115,6 +115,7 @@ class WebSocketChannel:
         self._binary = False
         self._eof = False
         self._pong = anyio.Event()
+        self._failed: str | None = None  # a text message was not UTF-8: read no more (1007)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read, parse, answer control frames; return the whole data messages."""
@@ -163,10 +164,10 @@ class WebSocketChannel:
             frames.stop()  # closing: websockets reads (or drops) what is left
         for item in frames.feed(data) if frames is not None else (data,):
             if isinstance(item, InFrame):  # read by ``FrameReader``
-                if self._accept_text(item):
+                if self._failed is None and self._accept_text(item):
                     messages.append(item)
                 elif frames is not None:
-                    frames.stop()  # failed (1007): websockets discards the rest
+                    frames.stop()  # websockets parses the rest, as it would without ``frames``
                 continue
             self.protocol.receive_data(item)
             for event in self.protocol.events_received():
@@ -175,16 +176,21 @@ class WebSocketChannel:
                         self._pong.set()
                     control = control or event.opcode not in _DATA_OPCODES
                     message = self._assemble(event)
-                    if message is not None and self._accept_text(message):
-                        messages.append(message)
+                    if message is not None and self._failed is None and self._accept_text(message):
+                        messages.append(message)  # none after a failure in this chunk
             if frames is not None and self.protocol.state is not State.OPEN:
                 frames.stop()  # websockets failed the connection or got a close frame
+        if self._failed is not None and self.protocol.state is State.OPEN:
+            # After the chunk, as if websockets had checked it: a failure it found
+            # in a later frame of the same chunk comes first either way.
+            self.protocol.fail(1007, self._failed)
+            control = True
         return messages, control
 
     def _accept_text(self, message: InFrame) -> bool:
         """Whether ``message`` may be handled; a text message that is not UTF-8 fails
-        the connection with 1007 (RFC 6455 8.1; websockets' parser does not check
-        the text of frames it only splits, and ``FrameReader`` reads around it).
+        the connection with 1007 at the end of the chunk (RFC 6455 8.1; websockets'
+        sans-IO parser does not check text, and ``FrameReader`` reads around it).
 
         ASCII, the common JSON text, is recognised without decoding.
         """
@@ -194,7 +200,7 @@ class WebSocketChannel:
         try:
             data.decode("utf-8")
         except UnicodeDecodeError as exc:
-            self.protocol.fail(1007, f"invalid UTF-8 at position {exc.start}")
+            self._failed = f"invalid UTF-8 at position {exc.start}"
             return False
         return True
 
