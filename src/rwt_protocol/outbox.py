@@ -93,6 +93,23 @@ class Outbox:
         return self._kept_bytes
 
     @property
+    def high_water_bytes(self) -> int:
+        """Queued bytes above which the input that fills this queue is paused: half the limit.
+
+        Input backpressure (docs/limits.md): a reader whose frames pushed a
+        queue over this mark stops reading until it is back under
+        ``low_water_bytes`` or its peer stops taking frames, so a peer that
+        reads loses nothing to a burst and the drop rule (D24) is left to peers
+        that do not read.
+        """
+        return self.limit_bytes // 2
+
+    @property
+    def low_water_bytes(self) -> int:
+        """Queued bytes under which paused input resumes: a quarter of the limit."""
+        return self.limit_bytes // 4
+
+    @property
     def over_limit(self) -> bool:
         """Whether more than ``limit_bytes`` are queued (only undroppable frames remain over it)."""
         return self._bytes > self.limit_bytes

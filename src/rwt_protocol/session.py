@@ -355,6 +355,16 @@ class Session:
         """Payload bytes waiting to be taken by the transport."""
         return self._outbox.queued_bytes
 
+    @property
+    def queued_reply_bytes(self) -> int:
+        """Bytes of queued frames that are never dropped (replies, statuses; D24)."""
+        return self._outbox.undroppable_bytes
+
+    @property
+    def water_marks(self) -> tuple[int, int]:
+        """The outbox's (high, low) watermarks in bytes, for input backpressure (docs/limits.md)."""
+        return self._outbox.high_water_bytes, self._outbox.low_water_bytes
+
     # ---- helpers for handlers -------------------------------------------------
 
     def send(self, frame: OutFrame) -> None:
@@ -382,8 +392,8 @@ class Session:
         dropped = self._outbox.dropped
         self._outbox.extend(frames)
         self._watch.after_push(dropped, self._now)
-        if was_empty:
-            self._wake()
+        if was_empty or self._outbox.queued_bytes > self._outbox.high_water_bytes:
+            self._wake()  # above the high watermark too: the transport applies backpressure
 
     def send_op(
         self,

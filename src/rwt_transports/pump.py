@@ -18,6 +18,23 @@ transports), in three tasks per connection:
   while the writer is stuck on a peer that does not read: that is how the send
   timeout (D24) can close a stalled connection. If the writer cannot even get
   the close out within ``CLOSE_WAIT_S``, the connection is aborted.
+
+Input is flow-controlled (docs/limits.md), so that a burst reaches a peer that
+reads instead of being dropped, and one connection cannot monopolise the loop:
+
+- backpressure: when the frames a reader handled pushed a connection's outbox
+  over its high watermark (half ``--send-buffer-limit``), the reader stops
+  reading (``PausableChannel``) until that outbox is back under the low
+  watermark (a quarter), for as long as its peer keeps taking frames. A peer
+  that takes nothing for ``INPUT_STALL_S`` is not waited for again until it
+  takes something: the drop and close rules (D24) deal with it, and it cannot
+  freeze the publisher for its other subscribers. A reader waits for its own
+  outbox only for the replies and statuses in it (they are never dropped), so
+  a peer sending garbage faster than it reads the answers is slowed, not
+  buffered without bound;
+- fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
+  ``READ_SLICE_BYTES`` bytes, then pauses its socket and yields to the loop,
+  so a flood of tiny frames on one connection does not hold the others up.
 """
 
 from __future__ import annotations
@@ -29,6 +46,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol, runtime_checkable
 
 import anyio
+import anyio.lowlevel
 
 from rwt_protocol.framing import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
@@ -52,6 +70,17 @@ BATCH_BYTES = 64 * 1024
 
 CLOSE_WAIT_S = 5.0
 """Seconds a close may take (sending it, then the peer's end) before the connection is cut."""
+
+READ_SLICE_FRAMES = 256
+"""Frames a reader handles before it yields to the event loop (fairness, docs/limits.md)."""
+
+READ_SLICE_BYTES = 256 * 1024
+"""Bytes of frames a reader handles before it yields to the event loop (fairness)."""
+
+INPUT_STALL_S = 1.0
+"""Seconds without taking a frame after which a peer counts as not reading for
+input backpressure: a reader stops waiting for its outbox (docs/limits.md). Its
+queue then drops and it is closed after ``--send-timeout`` (D24)."""
 
 
 class Channel(Protocol):
@@ -83,6 +112,14 @@ class Channel(Protocol):
 
     async def background(self, session: Session) -> None:
         """Run transport chores (WebSocket keepalive) until cancelled; may return at once."""
+
+
+@runtime_checkable
+class PausableChannel(Protocol):
+    """A channel whose socket can stop being read between ``receive`` calls."""
+
+    def pause_reading(self) -> None:
+        """Stop reading from the socket; the next ``receive`` that must wait resumes it."""
 
 
 @runtime_checkable
@@ -158,6 +195,7 @@ class _Deferred(threading.local):
     def __init__(self) -> None:
         self.pumps: list[ConnectionPump] = []
         self.in_batch = False  # a reader is handling a batch and flushes at its end
+        self.backlogged: list[ConnectionPump] = []  # over the high watermark in this batch
 
 
 _deferred = _Deferred()
@@ -214,6 +252,14 @@ class ConnectionPump:
         self._direct = channel if isinstance(channel, DirectChannel) else None
         self._writer_idle = False  # waiting for a wake-up, holding no frames
         self._deferred = False  # in the list of ``flush_deferred``
+        self._pausable = channel if isinstance(channel, PausableChannel) else None
+        self._high_water = self._low_water = 0  # the session's outbox watermarks
+        self._backlogged = False  # in ``_deferred.backlogged``
+        self._takes = 0  # batches the transport took: the peer's progress
+        self._stalled_at = -1  # ``_takes`` when it was last seen not reading
+        self._progress: anyio.Event | None = None  # set at the next take, for waiting readers
+        self._slice_frames = 0  # frames and bytes handled since the reader last yielded
+        self._slice_bytes = 0
 
     def wake(self) -> None:
         """The session has output (frames, commands or a new timer)."""
@@ -229,6 +275,23 @@ class ConnectionPump:
         else:
             self._writer_wake.set()
         self._wake_timers()
+        if (
+            session is not None
+            and not self._backlogged
+            and session.queued_bytes > self._high_water
+            and _deferred.in_batch
+            and self._stalled_at != self._takes
+        ):
+            self._backlogged = True
+            _deferred.backlogged.append(self)
+
+    def _took(self) -> None:
+        """The transport took frames: the peer makes progress; wake readers waiting on it."""
+        self._takes += 1
+        event = self._progress
+        if event is not None:
+            self._progress = None
+            event.set()
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer."""
@@ -277,6 +340,7 @@ class ConnectionPump:
             except Exception:  # a publish must never fail for another peer's socket
                 logger.debug("event=direct_send_failed client=%s", session.client_id)
                 return False  # the writer finds the broken stream and ends the connection
+            self._took()
         return session.queued_bytes == 0
 
     def _wake_timers(self) -> None:
@@ -299,6 +363,7 @@ class ConnectionPump:
         and every other connection goes on (docs/limits.md, containment).
         """
         self._session = session
+        self._high_water, self._low_water = session.water_marks
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
@@ -318,6 +383,7 @@ class ConnectionPump:
                 session.close()
             except Exception:
                 logger.exception("event=bug client=%s: release failed", session.client_id)
+            self._took()  # readers waiting on this outbox stop waiting
 
     async def _close_after_bug(self) -> None:
         """Tell the peer (best effort, bounded): the connection cannot go on.
@@ -337,26 +403,100 @@ class ConnectionPump:
 
     async def _reader(self, session: Session) -> None:
         clock = _clock()
-        deferred = _deferred
         while True:
             try:
                 events = await self.channel.receive()
             except _BROKEN:
                 return
             now = clock()  # the batch arrived at once: one clock read for all
-            deferred.in_batch = True
-            try:
-                for event in events:
-                    if isinstance(event, FramingError):
-                        session.report(StatusLevel.ERROR, event.message)
-                        if event.fatal:
-                            session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
-                    else:
-                        session.receive_frame(event.data, now, binary=event.binary)
-            finally:
-                deferred.in_batch = False
-            flush_deferred()  # what this batch published goes out now, in one write each
-            self._wake_timers()  # handlers may have scheduled timers
+            start, count = 0, len(events)
+            while True:
+                start = self._handle(session, events, start, now)
+                flush_deferred()  # what this slice published goes out now, in one write each
+                self._wake_timers()  # handlers may have scheduled timers
+                await self._apply_backpressure()
+                if start >= count:
+                    break
+                await self._yield_slice()
+                now = clock()
+            if self._slice_frames >= READ_SLICE_FRAMES or self._slice_bytes >= READ_SLICE_BYTES:
+                await self._yield_slice()
+
+    def _handle(
+        self, session: Session, events: Sequence[FramerEvent], start: int, now: float
+    ) -> int:
+        """Handle ``events`` from ``start`` until the slice is full; return where it stopped."""
+        deferred = _deferred
+        deferred.in_batch = True
+        frames, size = self._slice_frames, self._slice_bytes
+        index, count = start, len(events)
+        try:
+            while index < count and frames < READ_SLICE_FRAMES and size < READ_SLICE_BYTES:
+                event = events[index]
+                index += 1
+                frames += 1
+                if isinstance(event, FramingError):
+                    session.report(StatusLevel.ERROR, event.message)
+                    if event.fatal:
+                        session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
+                else:
+                    size += len(event.data)
+                    session.receive_frame(event.data, now, binary=event.binary)
+        finally:
+            deferred.in_batch = False
+            self._slice_frames, self._slice_bytes = frames, size
+        return index
+
+    async def _yield_slice(self) -> None:
+        """Let the other connections run (fairness); the socket is not read meanwhile."""
+        self._slice_frames = self._slice_bytes = 0
+        if self._pausable is not None:
+            self._pausable.pause_reading()
+        await anyio.lowlevel.checkpoint()
+
+    async def _apply_backpressure(self) -> None:
+        """Wait while the outboxes this reader's last slice filled are over their high watermark.
+
+        Reading is paused meanwhile, so the peer's sends back up in TCP.
+        """
+        deferred = _deferred
+        backlogged = deferred.backlogged
+        if not backlogged:
+            return
+        deferred.backlogged = []
+        for pump in backlogged:
+            pump._backlogged = False
+        for pump in backlogged:
+            if pump._over_water(own=pump is self, mark=pump._high_water):
+                if self._pausable is not None:
+                    self._pausable.pause_reading()
+                await self._wait_for(pump)
+
+    def _over_water(self, *, own: bool, mark: int) -> bool:
+        """Whether this connection's outbox is above ``mark`` for a reader to wait on.
+
+        A reader waits on its own outbox only for what is never dropped (replies,
+        statuses); on another connection's for all it queued.
+        """
+        session = self._session
+        if session is None or session.closing:
+            return False
+        return (session.queued_reply_bytes if own else session.queued_bytes) > mark
+
+    async def _wait_for(self, pump: ConnectionPump) -> None:
+        """Wait until ``pump``'s outbox is under its low watermark, while its peer takes frames."""
+        own = pump is self
+        while pump._over_water(own=own, mark=pump._low_water):
+            takes = pump._takes
+            progress = pump._progress
+            if progress is None:
+                progress = pump._progress = anyio.Event()
+            with anyio.move_on_after(INPUT_STALL_S):
+                await progress.wait()
+            if pump._takes == takes:  # not reading: left to the drop and close rules (D24)
+                if not own:
+                    pump._stalled_at = takes
+                return
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:
@@ -366,6 +506,7 @@ class ConnectionPump:
                 frames = session.frames_to_send(BATCH_BYTES)
                 if frames:
                     await self.channel.send(frames)
+                    self._took()
                     continue
                 for command in session.commands_to_run():
                     if isinstance(command, CloseConnection):

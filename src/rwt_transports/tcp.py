@@ -66,6 +66,14 @@ class StreamChannel:
             raise anyio.EndOfStream from None
         return self._framer.receive_data(data)
 
+    def pause_reading(self) -> None:
+        """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).
+
+        Only the direct reader needs it: anyio's own ``receive`` pauses after each chunk.
+        """
+        if self._reader is not None:
+            self._reader.pause()
+
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Write the frames in one go."""
         await self.stream.send(encode_stream_frames(frames))

@@ -115,6 +115,7 @@ class WebSocketChannel:
         self._binary = False
         self._eof = False
         self._pong = anyio.Event()
+        self._failed: str | None = None  # a text message was not UTF-8: read no more (1007)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read, parse, answer control frames; return the whole data messages."""
@@ -140,6 +141,14 @@ class WebSocketChannel:
             await self.flush()
         return messages
 
+    def pause_reading(self) -> None:
+        """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).
+
+        Only the direct reader needs it: anyio's own ``receive`` pauses after each chunk.
+        """
+        if self._reader is not None:
+            self._reader.pause()
+
     def read_chunk(self, data: bytes) -> tuple[list[FramerEvent], bool]:
         """Parse one received chunk, without I/O.
 
@@ -155,7 +164,10 @@ class WebSocketChannel:
             frames.stop()  # closing: websockets reads (or drops) what is left
         for item in frames.feed(data) if frames is not None else (data,):
             if isinstance(item, InFrame):  # read by ``FrameReader``
-                messages.append(item)
+                if self._failed is None and self._accept_text(item):
+                    messages.append(item)
+                elif frames is not None:
+                    frames.stop()  # websockets parses the rest, as it would without ``frames``
                 continue
             self.protocol.receive_data(item)
             for event in self.protocol.events_received():
@@ -164,30 +176,33 @@ class WebSocketChannel:
                         self._pong.set()
                     control = control or event.opcode not in _DATA_OPCODES
                     message = self._assemble(event)
-                    if message is not None:
-                        messages.append(message)
+                    if message is not None and self._failed is None and self._accept_text(message):
+                        messages.append(message)  # none after a failure in this chunk
             if frames is not None and self.protocol.state is not State.OPEN:
                 frames.stop()  # websockets failed the connection or got a close frame
-        return self._valid_text(messages), control
+        if self._failed is not None and self.protocol.state is State.OPEN:
+            # After the chunk, as if websockets had checked it: a failure it found
+            # in a later frame of the same chunk comes first either way.
+            self.protocol.fail(int(CloseCode.INVALID_DATA), self._failed)
+            control = True
+        return messages, control
 
-    def _valid_text(self, messages: list[FramerEvent]) -> list[FramerEvent]:
-        """The messages up to the first text one that is not UTF-8; that one fails
-        the connection with 1007, as RFC 6455 section 8.1 requires.
+    def _accept_text(self, message: InFrame) -> bool:
+        """Whether ``message`` may be handled; a text message that is not UTF-8 fails
+        the connection with 1007 at the end of the chunk (RFC 6455 8.1; websockets'
+        sans-IO parser does not check text, and ``FrameReader`` reads around it).
 
-        JSON is almost always ASCII, which ``isascii`` tells at memory speed; only
-        other texts are decoded to check them.
+        ASCII, the common JSON text, is recognised without decoding.
         """
-        for index, message in enumerate(messages):
-            if not isinstance(message, InFrame) or message.binary or message.data.isascii():
-                continue
-            try:
-                message.data.decode()
-            except UnicodeDecodeError:
-                if self.frames is not None:
-                    self.frames.stop()
-                self.protocol.fail(int(CloseCode.INVALID_DATA), "invalid UTF-8 in a text message")
-                return messages[:index]
-        return messages
+        data = message.data
+        if message.binary or data.isascii():
+            return True
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            self._failed = f"invalid UTF-8 at position {exc.start}"
+            return False
+        return True
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send data frames; text for JSON, binary for CBOR (D27).
