@@ -10,6 +10,7 @@ and prints the failing example and its reproduction blob.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Iterator
 from concurrent.futures import Future
@@ -56,7 +57,9 @@ class Live:
         """Start the server and connect its bystanders (in one task: their cancel scopes)."""
         from tests.fuzz.test_transports import connect_bystanders  # noqa: PLC0415
 
-        async def host(*, task_status: TaskStatus[tuple[Harness, list[Client], anyio.Event]]) -> None:
+        async def host(
+            *, task_status: TaskStatus[tuple[Harness, list[Client], anyio.Event]]
+        ) -> None:
             stop = anyio.Event()
             async with running_server() as harness:
                 bystanders = await connect_bystanders(harness)
@@ -79,10 +82,8 @@ class Live:
     def close(self) -> None:
         if self.future is not None and not self.future.done() and self.stop is not None:
             self.portal.call(self.stop.set)
-            try:
+            with contextlib.suppress(Exception):
                 self.future.result(timeout=30)
-            except Exception:  # noqa: BLE001  (its death was reported by the example)
-                pass
 
 
 @pytest.fixture(scope="module")

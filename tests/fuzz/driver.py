@@ -10,6 +10,7 @@ the B18 benchmark (``benchmarks/fuzz.py``) both drive connections through it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
@@ -41,6 +42,9 @@ REPLY_OPS = frozenset(
 STATUS_LEVELS = frozenset({"info", "warning", "error"})
 
 
+_GONE = (anyio.BrokenResourceError, anyio.ClosedResourceError, ConnectionError)
+
+
 class Violation(AssertionError):
     """The server broke the fuzz invariant."""
 
@@ -62,7 +66,9 @@ def decode(data: bytes | str, binary: bool) -> Message:
             text = data if isinstance(data, str) else data.decode("utf-8")
             value = json.loads(text, parse_constant=_no_constants)
     except (ValueError, cbor2.CBORDecodeError) as exc:
-        raise Violation(f"the server sent an undecodable frame {bytes(data)[:200]!r}: {exc}") from exc
+        raise Violation(
+            f"the server sent an undecodable frame {bytes(data)[:200]!r}: {exc}"
+        ) from exc
     if not isinstance(value, dict):
         raise Violation(f"the server sent a frame that is not an object: {value!r:.200}")
     return value
@@ -105,7 +111,9 @@ class Wire:
                 raise Violation(f"malformed fragment from the server: {message!r:.300}") from exc
 
 
-async def exchange(wire: Wire, frames: list[tuple[bytes, bool]], tag: str, timeout_s: float) -> bool:
+async def exchange(
+    wire: Wire, frames: list[tuple[bytes, bool]], tag: str, timeout_s: float
+) -> bool:
     """Send ``frames`` and a barrier, check every answer until the barrier's; False if closed.
 
     Raises:
@@ -200,10 +208,8 @@ def stream_wire(stream: ByteStream, *, eof_after: bool) -> Wire:
     async def finish() -> None:
         # A frame may open a CBOR item or a string claiming megabytes: only the end
         # of the stream ends it, so the barrier's answer may never come; EOF ends it.
-        try:
+        with contextlib.suppress(*_GONE):
             await stream.send_eof()
-        except (anyio.BrokenResourceError, anyio.ClosedResourceError, ConnectionError):
-            pass
 
     return Wire(send, next_frame, finish if eof_after else None)
 

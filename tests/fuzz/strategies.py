@@ -44,7 +44,9 @@ def encoded(op: Any, binary: bool) -> tuple[bytes, bool]:
     return (grammar.to_cbor(op), True) if binary else (grammar.to_json(op), False)
 
 
-def frames(binary_ok: bool = True, max_bytes: int | None = None) -> st.SearchStrategy[tuple[bytes, bool]]:
+def frames(
+    binary_ok: bool = True, max_bytes: int | None = None
+) -> st.SearchStrategy[tuple[bytes, bool]]:
     """One fuzzed frame (bytes, binary); ``max_bytes`` cuts it to fit a datagram."""
     ops = st.one_of(valid_ops(), hostile_ops())
     as_binary = st.booleans() if binary_ok else st.just(False)
@@ -57,7 +59,9 @@ def frames(binary_ok: bool = True, max_bytes: int | None = None) -> st.SearchStr
     return strategy
 
 
-def sequences(binary_ok: bool = True, max_bytes: int | None = None) -> st.SearchStrategy[list[tuple[bytes, bool]]]:
+def sequences(
+    binary_ok: bool = True, max_bytes: int | None = None
+) -> st.SearchStrategy[list[tuple[bytes, bool]]]:
     """A short burst of fuzzed frames sent on one connection."""
     return st.lists(frames(binary_ok, max_bytes), min_size=1, max_size=6)
 

@@ -55,7 +55,9 @@ async def check_bystanders(bystanders: list[Client], tag: str) -> None:
         try:
             with anyio.fail_after(TIMEOUT_S):
                 await client.send({"op": "publish", "topic": topic, "msg": {"data": tag}})
-                await client.expect(lambda m: m.get("op") == "publish" and m.get("msg") == {"data": tag})
+                await client.expect(
+                    lambda m: m.get("op") == "publish" and m.get("msg") == {"data": tag}
+                )
                 await client.send({"op": "call_service", "service": "/rosapi/topics", "id": tag})
                 reply = await client.expect(is_op("service_response", id=tag))
         except Exception as exc:
@@ -65,7 +67,9 @@ async def check_bystanders(bystanders: list[Client], tag: str) -> None:
         client.backlog.clear()  # publishes of fuzzed ops on shared names are not its business
 
 
-async def _exchange_on(harness: Harness, transport: str, frames: list[tuple[bytes, bool]], tag: str) -> None:
+async def _exchange_on(
+    harness: Harness, transport: str, frames: list[tuple[bytes, bool]], tag: str
+) -> None:
     if transport == "memory":
         async with harness.server.connect_memory() as connection:
             await driver.exchange(driver.memory_wire(connection), frames, tag, TIMEOUT_S)
@@ -74,9 +78,13 @@ async def _exchange_on(harness: Harness, transport: str, frames: list[tuple[byte
             await driver.exchange(driver.ws_wire(ws), frames, tag, TIMEOUT_S)
     elif transport == "tcp":
         async with await anyio.connect_tcp("127.0.0.1", harness.port("tcp")) as stream:
-            await driver.exchange(driver.stream_wire(stream, eof_after=True), frames, tag, TIMEOUT_S)
+            await driver.exchange(
+                driver.stream_wire(stream, eof_after=True), frames, tag, TIMEOUT_S
+            )
     elif transport == "udp":
-        async with await anyio.create_connected_udp_socket("127.0.0.1", harness.port("udp")) as sock:
+        async with await anyio.create_connected_udp_socket(
+            "127.0.0.1", harness.port("udp")
+        ) as sock:
             wire = driver.udp_wire(sock)
             await driver.udp_handshake(wire)
             await driver.exchange(wire, frames, tag, TIMEOUT_S)
