@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .report import markdown_table, save_json, update_readme
 from .runner import VariantResult, run_variant
-from .scenarios import all_variants
+from .scenarios import all_variants, fuzz
 from .scenarios.common import Context
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -33,9 +33,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the selected scenarios; exit status 1 when a correctness check failed."""
     scale = 0.1 if args.smoke else 1.0
     runs = 1 if args.smoke else args.runs
+    fuzz.SETTINGS["frames"] = args.frames
     variants = all_variants(soak=args.soak, smoke=args.smoke)
     wanted = {s.upper() for s in args.scenarios}
-    selected = [v for v in variants if not wanted or v.scenario in wanted]
+    # B18 (a million fuzzed frames) runs only when named.
+    selected = [v for v in variants if v.scenario in wanted or (not wanted and v.scenario != "B18")]
     results: list[VariantResult] = []
     context: Context = {}
     started = time.perf_counter()
@@ -70,12 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     p_run = sub.add_parser("run", help="run scenarios and print the table")
-    p_run.add_argument("scenarios", nargs="*", help="B1 ... B15 (default: all)")
+    p_run.add_argument("scenarios", nargs="*", help="B1 ... B18 (default: all but B18)")
     p_run.add_argument("--runs", type=int, default=5, help="runs per server and variant")
     p_run.add_argument("--soak", action="store_true", help="B15 for 30 min")
     p_run.add_argument("--smoke", action="store_true", help="one tiny run of each (CI)")
     p_run.add_argument("--uvloop", action="store_true", help="run both servers on uvloop")
     p_run.add_argument("--out", type=Path, default=RESULTS, help="where suite.json goes")
+    p_run.add_argument("--frames", type=int, default=1_000_000, help="B18: fuzzed frames to send")
     p_sweep = sub.add_parser("sweep", help="scaling sweep and its plots")
     p_sweep.add_argument("--runs", type=int, default=3)
     p_sweep.add_argument("--out", type=Path, default=RESULTS)

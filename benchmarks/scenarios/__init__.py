@@ -8,6 +8,7 @@ from functools import partial
 from .. import msgs
 from .checks import at_most, med
 from .common import Check, Context, Medians, Metrics, Run, Variant
+from .fuzz import fuzz_run
 from .latency import cloud_sample, image_rate_run, mixed_run, topic_latency_run
 from .load import churn_run, idle_run, slow_consumer_run, topics_run
 from .services import service_run
@@ -165,6 +166,20 @@ def _b15(soak: bool) -> Check:
         return f"{slope[0]}; {drift[0]}", "not judged: too short (B15 needs --soak)", None
 
     return judge
+
+
+def _b18(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    frames = med(medians, "rwt", "frames")
+    violations = med(medians, "rwt", "violations")
+    rss = (med(medians, "rwt", "rss_before_mb"), med(medians, "rwt", "rss_after_mb"))
+    shown = (
+        f"{frames:,.0f} frames, {violations:.0f} violations, RSS {rss[0]:.0f} -> {rss[1]:.0f} MB"
+    )
+    return (
+        shown,
+        "0 violations, server and bystander alive",
+        None if math.isnan(violations) else violations == 0,
+    )
 
 
 def _services() -> list[Variant]:
@@ -333,6 +348,19 @@ def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
             "p99_ms",
             "ms",
             _b15(soak),
+            runs=1,
+        )
+    )
+    variants.append(
+        Variant(
+            "B18",
+            "fuzz: grammar-built hostile frames over WebSocket, TCP and UDP",
+            fuzz_run,
+            "frames_per_s",
+            "frames/s",
+            _b18,
+            kinds=("rwt",),
+            server_args=("--tcp-port", "0", "--udp-port", "0"),
             runs=1,
         )
     )

@@ -71,3 +71,23 @@ def test_runner_smoke() -> None:
     assert out.returncode == 0, out.stderr[-2000:]
     rows = [line for line in out.stdout.splitlines() if line.startswith("| B")]
     assert [row.split("|")[1].strip() for row in rows] == ["B1", "B1", "B7", "B7", "B7", "B7"]
+
+
+def test_fuzz_benchmark_smoke_runs_and_reports() -> None:
+    """B18's smoke form sends its fuzzed frames and finds no violation.
+
+    A violation (a frame outside the invariant, a dead server, a bystander not
+    served) makes the run exit 1 with the violations listed. No timing is asserted.
+    """
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(ROOT)]))
+    result = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "run", "B18", "--smoke", "--frames", "600"],
+        check=False,
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert "| B18 | fuzz" in result.stdout, result.stderr[-2000:]
+    assert result.returncode == 0, result.stderr[-3000:]

@@ -1,0 +1,1 @@
+"""Grammar-aware fuzzing of every transport (hardening): strategies, tests, frame grammar."""
