@@ -192,6 +192,11 @@ def decode_json(frame: str | bytes) -> object:
 
 def _fallback(frame: str | bytes) -> object:
     """``json`` for what msgspec refuses: NaN/Infinity, and the error text."""
+    if isinstance(frame, bytes):
+        try:  # strictly: json.loads would decode CESU-8 surrogate bytes into lone surrogates
+            frame = frame.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise RemoteProtocolError(f"invalid JSON: not UTF-8 at byte {exc.start}") from None
     try:
         value = json.loads(frame)
     except RecursionError:

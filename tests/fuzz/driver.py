@@ -24,6 +24,7 @@ from websockets.exceptions import ConnectionClosed
 
 from rwt_protocol.framing import FramingError, InFrame, JsonStreamFramer
 from rwt_transports.memory import MemoryConnection
+from tests.transports.clients import validate_udp
 
 Message = dict[str, Any]
 REPLY_OPS = frozenset(
@@ -92,6 +93,7 @@ class Wire:
     send: Callable[[bytes, bool], Awaitable[None]]
     next_frame: Callable[[], Awaitable[tuple[bytes | str, bool]]]
     finish: Callable[[], Awaitable[None]] | None = None
+    handshake: Callable[[], Awaitable[None]] | None = None
     parts: dict[object, dict[int, str]] = field(default_factory=dict)
 
     async def receive(self) -> Message:
@@ -215,21 +217,26 @@ def stream_wire(stream: ByteStream, *, eof_after: bool) -> Wire:
 
 
 def udp_wire(sock: Any) -> Wire:
-    """A wire over a connected UDP socket: one datagram a frame, no close."""
+    """A wire over a connected UDP socket: one datagram a frame, no close; every
+    datagram carries the address-validation token (docs/limits.md, UDP)."""
+    prefix = b""
 
     async def next_frame() -> tuple[bytes, bool]:
         data: bytes = await sock.receive()
         return data, data[:1] not in (b"{", b"[", b" ")
 
     async def send(data: bytes, binary: bool) -> None:
-        await sock.send(data)
+        await sock.send(prefix + data)
 
-    return Wire(send, next_frame)
+    async def handshake() -> None:
+        nonlocal prefix
+        with anyio.fail_after(10):
+            prefix = await validate_udp(sock)
+
+    return Wire(send, next_frame, handshake=handshake)
 
 
 async def udp_handshake(wire: Wire) -> None:
-    """The address-validation step a UDP client takes before its session (none on main).
-
-    The design of the UDP handshake is in progress (its own branch); swap this
-    function for it once merged: every UDP wire here goes through it.
-    """
+    """The address validation a UDP client does before its session (docs/limits.md)."""
+    assert wire.handshake is not None
+    await wire.handshake()

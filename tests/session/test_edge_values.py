@@ -299,3 +299,11 @@ def test_an_unencodable_message_from_in_process_code_is_reported_and_logged_once
     publisher.publish({"data": "fine"})
     assert subscriber.received() == [{"op": "publish", "topic": "/inproc", "msg": {"data": "fine"}}]
     still_served(subscriber, other)
+
+
+def test_cesu8_surrogate_bytes_are_not_utf8() -> None:
+    # json.loads would decode these bytes into a lone surrogate; the frame is refused.
+    peer = Peer(Graph(clock=FakeClock()), "c")
+    peer.send_raw(b'{"op":"set_level","level":"info","id":"\xed\xa0\x80"}')
+    [status] = peer.received()
+    assert status["level"] == "error" and "not UTF-8" in status["msg"]
