@@ -4,7 +4,7 @@ Inputs: ``receive_frame(frame, now)``, deliveries from the graph (through the
 ``TopicSink`` objects the session registers), ``handle_timer(now)``.
 Outputs: ``frames_to_send()``, ``commands_to_run()``, ``get_timer()``.
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
-given by the caller (STYLE.md, after aioquic).
+given by the caller (after aioquic).
 
 Errors follow PROTOCOL-DECISIONS D1: every rejected op produces a ``status``
 frame for this connection only (D29), filtered by the connection's level (D2),
@@ -185,7 +185,7 @@ class Session:
         op_id: str | int | None = None
         try:
             fast = None if binary or not self._authenticated else decode_publish(frame)
-            if fast is not None:  # the publish hot path: no pydantic (issue 8)
+            if fast is not None:  # the publish hot path: no pydantic
                 op_name, op_id = "publish", fast.id
                 self.dispatch(fast, now)
                 return

@@ -8,11 +8,11 @@ transports), in three tasks per connection:
 - the reader feeds incoming frames to ``Session.receive_frame``;
 - the writer takes bounded batches from the session's outbox and sends them,
   then carries out commands (``CloseConnection``); a publish never awaits a
-  socket (STYLE.md). While the writer is idle, a channel that can write
+  socket. While the writer is idle, a channel that can write
   without blocking (``DirectChannel``: a plain socket with nothing buffered)
   is written without it: at the end of the reader's batch that published
   (``flush_deferred``), one write per connection, so a message to ten idle
-  subscribers costs no task switch (issue 8). Whatever the socket cannot take
+  subscribers costs no task switch. Whatever the socket cannot take
   at once is left to the writer, so frames keep their order either way;
 - the timer task calls ``Session.handle_timer`` when ``get_timer`` says, even
   while the writer is stuck on a peer that does not read: that is how the send
@@ -124,7 +124,7 @@ class PausableChannel(Protocol):
 
 @runtime_checkable
 class DirectChannel(Protocol):
-    """A channel that can also write without awaiting (issue 8).
+    """A channel that can also write without awaiting.
 
     The pump calls ``send_now`` only while its writer is idle and only after
     ``can_send_now`` said yes, so nothing else is writing and order is kept.
@@ -213,7 +213,7 @@ def _clock() -> Callable[[], float]:
 
 
 def flush_deferred() -> None:
-    """Write what the idle connections woken since the last flush have queued (issue 8).
+    """Write what the idle connections woken since the last flush have queued.
 
     A reader calls it after each batch of incoming frames, so a publish fanned
     out to idle subscribers goes out before the reader waits again, and the
@@ -347,7 +347,7 @@ class ConnectionPump:
         """Wake the timer task only when it has something new to look at.
 
         Waking it for every queued frame would cost a task switch per message
-        per subscriber (issue 8's profile); it needs to run again only when the
+        per subscriber (the benchmarks' profile); it needs to run again only when the
         earliest deadline changed or the session started closing.
         """
         session = self._session

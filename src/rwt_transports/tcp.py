@@ -79,7 +79,7 @@ class StreamChannel:
         await self.stream.send(encode_stream_frames(frames))
 
     def can_send_now(self) -> bool:
-        """Whether ``send_now`` may write at once: a plain socket, nothing buffered (issue 8)."""
+        """Whether ``send_now`` may write at once: a plain socket, nothing buffered."""
         return self._direct is not None and self._direct.ready
 
     def send_now(self, frames: Sequence[OutFrame]) -> None:

@@ -1,11 +1,11 @@
 """WebSocket transport: websockets' sans-IO protocol driven from anyio streams.
 
-Why this shape (issue 2): websockets' ``ServerProtocol`` does the RFC 6455
+Why this shape: websockets' ``ServerProtocol`` does the RFC 6455
 parsing and framing without I/O, so the connection pump (pump.py) can drive it
 like every other transport: a single writer per connection draining the
 session's bounded outbox (D24), frames written without a per-subscriber await
 in the publish path, the same code over plain TCP or TLS streams (wss), and
-anyio's structured cancellation for shutdown. Two shortcuts (issue 8), each
+anyio's structured cancellation for shutdown. Two shortcuts (for the benchmarks), each
 falling back to websockets: whole data frames are read ahead of its parser
 (wsread.py) unless permessage-deflate is on or the client sent frames with its
 upgrade request, and a plain socket is read and written through its asyncio
@@ -55,7 +55,7 @@ logger = logging.getLogger("rwt.websocket")
 MiB = 1024 * 1024
 _READ_SIZE = 1024 * 1024
 """Most bytes taken from the stream at once: whatever the event loop has read (asyncio
-reads 256 KiB at a time), so a large message is parsed in few steps (issue 8, B4)."""
+reads 256 KiB at a time), so a large message is parsed in few steps (benchmarks B4)."""
 _WRITE_BATCH = 65536
 """Small frames are joined into writes of about this many bytes; larger frames go alone."""
 _HANDSHAKE_LIMIT_S = 10.0
@@ -134,7 +134,7 @@ class WebSocketChannel:
         messages, control = self.read_chunk(data)
         # Only a control frame (a ping to answer, the close handshake) or a failure
         # (1002, 1009) makes the protocol write; data frames alone never do, and
-        # taking the lock for nothing costs more than parsing a chunk (issue 8).
+        # taking the lock for nothing costs more than parsing a chunk.
         if control or self.protocol.state is not State.OPEN:
             if self._reader is not None:
                 self._reader.pause()  # nothing piles up while the peer is slow to read
@@ -209,7 +209,7 @@ class WebSocketChannel:
 
         Without permessage-deflate, frames are framed here: the header is made
         once and kept on the ``OutFrame``, which every subscriber of the same
-        form shares (issue 8: encode once, frame once), and a batch of small
+        form shares (encode once, frame once), and a batch of small
         frames goes out in one write. With deflate, websockets frames each
         message.
         """
@@ -224,7 +224,7 @@ class WebSocketChannel:
             await self._write_framed(frames)
 
     def can_send_now(self) -> bool:
-        """Whether ``send_now`` may write at once (issue 8).
+        """Whether ``send_now`` may write at once.
 
         True only on a plain socket whose transport has nothing buffered, with
         no other write in progress (the lock is free), the connection open and
@@ -435,7 +435,7 @@ def _framed(frames: Sequence[OutFrame]) -> list[bytes]:
     """The writes that send ``frames`` as whole WebSocket frames, in order.
 
     The header is made once and kept on the ``OutFrame``, which every
-    subscriber of the same form shares (issue 8: frame once). Small frames are
+    subscriber of the same form shares (frame once). Small frames are
     joined into writes of about ``_WRITE_BATCH`` bytes; a large frame goes as
     its header and its payload, without a copy of the payload.
     """
