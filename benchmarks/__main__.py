@@ -1,4 +1,4 @@
-"""``python -m benchmarks run [SCENARIO...]``: the suite of issue 8, and ``sweep``.
+"""``python -m benchmarks run [SCENARIO...]``: the benchmark suite, and ``sweep``.
 
 Runs each selected scenario (default: B1-B11, B14, B15) against the bare relay
 and ``rwt serve`` in the same run, prints the table (medians of ``--runs`` runs

@@ -8,7 +8,7 @@ advertise, then a ``call_service`` to ``/rosapi/get_time``) and waits for one
 frame (the service reply; the bare relay's ``ready``), so no message is
 published before every subscription exists.
 
-Every delivered message is checked (issue 8 "a fast wrong server cannot pass"):
+Every delivered message is checked ("a fast wrong server cannot pass"):
 ``ExactSubscriber`` compares the whole byte stream with the expected frames,
 ``ParsingSubscriber`` hands each frame to a check of the scenario's.
 """

@@ -3,7 +3,7 @@
 A cbor-raw delivery of a 4 MiB image is a frame whose payload ends with the
 image's data. Cutting such frames out of the stream (``FrameReader``) costs the
 generator four copies of every byte; with ten subscribers it became the
-bottleneck of B4 (issue 8: the load generator must not be). ``TailSubscriber``
+bottleneck of B4 (the load generator must not be). ``TailSubscriber``
 walks the stream as it arrives instead: it parses each frame header, keeps the
 first bytes of the payload for a topic check, and compares the tail with the
 expected data in place (``bytes.startswith`` on a memoryview: a memcmp, no copy).

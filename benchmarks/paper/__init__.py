@@ -1,4 +1,4 @@
-"""The Robot Web Tools paper's measurements, reproduced side by side with rwt's (issue 7).
+"""The Robot Web Tools paper's measurements, reproduced side by side with rwt's.
 
 Each module in ``MODULES`` that exists exposes ``run(quick: bool) -> list[Row]``;
 ``python -m benchmarks.paper [--quick]`` runs them all, prints one table, writes

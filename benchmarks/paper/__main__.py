@@ -119,7 +119,7 @@ def rewrite_readme(path: Path, section: str) -> None:
         tail = rest.split(END, 1)[1]
         text = head + block + tail
     else:
-        text = text.rstrip("\n") + "\n\n## The paper's measurements (issue 7)\n\n" + block + "\n"
+        text = text.rstrip("\n") + "\n\n## The paper's measurements\n\n" + block + "\n"
     path.write_text(text, encoding="utf-8")
 
 

@@ -71,7 +71,7 @@ def _raw_subscribers(run: Run, stream: Stream, setup: list[bytes], count: int) -
     The CDR bytes are the last item of the frame's map and end with the image
     data, so the frame itself ends with it; ``TailSubscriber`` compares that
     tail in place for every frame, so the generator keeps pace with ten 4 MiB
-    subscribers (issue 8: count and content of every delivered message).
+    subscribers (count and content of every delivered message).
     """
     data = [cbor2.loads(stream.make(i))["msg"]["data"] for i in range(stream.period)]
     mark = cbor2.dumps(stream.topic)

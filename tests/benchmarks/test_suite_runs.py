@@ -1,6 +1,6 @@
-"""The benchmark suite runs, and its checks catch a wrong server (issue 8).
+"""The benchmark suite runs, and its checks catch a wrong server.
 
-No timing is asserted here (issue 8 rules): the smoke run uses tiny counts and
+No timing is asserted here (the project's rule): the smoke run uses tiny counts and
 only checks that the runner completes and prints its table.
 """
 

@@ -1,4 +1,4 @@
-"""The Python client against rwt's server: every feature, over each transport (issue 6)."""
+"""The Python client against rwt's server: every feature, over each transport."""
 
 from __future__ import annotations
 
@@ -173,7 +173,7 @@ async def test_status_level_and_callbacks(url: str) -> None:
 
 
 async def test_rosapi_helpers_and_params(url: str) -> None:
-    """rwt's built-in rosapi (issue 3) answers the helpers."""
+    """rwt's built-in rosapi answers the helpers."""
     async with Ros(url) as ros:
         await Topic(ros, "/a", "std_msgs/String").advertise()
         await Topic(ros, "/b", "std_msgs/Int32").advertise()

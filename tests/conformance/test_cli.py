@@ -1,4 +1,4 @@
-"""``rwt conformance`` against ``rwt serve`` (the CI run of issue 6), as subprocesses."""
+"""``rwt conformance`` against ``rwt serve`` (as CI runs it), as subprocesses."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The suite's data: every requirement has a case, every case names requirements (issue 6)."""
+"""The suite's data: every requirement has a case, every case names requirements."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Actions with real clients: roslib (Node) and in-process servers, three kinds of client (issue 3).
+"""Actions with real clients: roslib (Node) and in-process servers, three kinds of client.
 
 Action servers: roslib's ROS 2 `Action.advertise` (sendFeedback, setSucceeded,
 setCanceled, setFailed) and an in-process `Graph.create_action_server` in

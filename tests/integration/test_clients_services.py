@@ -1,4 +1,4 @@
-"""Services with real clients: roslibpy, roslib (Node) and in-process code, each way (issue 3).
+"""Services with real clients: roslibpy, roslib (Node) and in-process code, each way.
 
 Providers: roslibpy (`Service.advertise`), roslib (`Service.advertise`, and
 `advertiseAsync` where the answer comes later) and Python code in the server

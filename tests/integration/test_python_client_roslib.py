@@ -1,4 +1,4 @@
-"""The Python client (`rwt_transports.client`) with a roslib (Node) peer via `rwt serve` (issue 6).
+"""The Python client (`rwt_transports.client`) with a roslib (Node) peer via `rwt serve`.
 
 The client calls services and sends goals that roslib provides (`Service.advertise`,
 `advertiseAsync`, `Action.advertise`), then provides a service and an action that

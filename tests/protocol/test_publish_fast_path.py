@@ -1,4 +1,4 @@
-"""The msgspec publish path accepts exactly what the general path accepts (issue 8)."""
+"""The msgspec publish path accepts exactly what the general path accepts."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The send buffer limit bounds memory, not only payload (D24, issue 8 B8).
+"""The send buffer limit bounds memory, not only payload (D24, benchmarks B8).
 
 Each queued frame is charged its payload plus ``FRAME_OVERHEAD_BYTES``, so a
 peer that reads nothing holds about the limit whatever the frame size; drops

@@ -1,4 +1,4 @@
-"""CBOR typed arrays stay numpy arrays through the graph (D21, D27; issue 8, B9)."""
+"""CBOR typed arrays stay numpy arrays through the graph (D21, D27; benchmarks B9)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The allocator tuning behind ``rwt serve --heap-keep`` (issue 8, B4/B6/B9)."""
+"""The allocator tuning behind ``rwt serve --heap-keep`` (benchmarks B4/B6/B9)."""
 
 from __future__ import annotations
 

@@ -16,10 +16,8 @@ import cbor2
 import pytest
 from websockets.exceptions import ConnectionClosed
 
-from rwt_protocol import ops
 from rwt_protocol.access import AccessPolicy
 from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
-from rwt_protocol.handlers import HANDLERS, control
 from rwt_protocol.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.transports.clients import (
@@ -142,10 +140,6 @@ async def test_a_large_message_arrives_whole(pair: tuple[Client, Client]) -> Non
     assert message["msg"]["data"] == text
 
 
-@pytest.mark.skipif(
-    HANDLERS[ops.Fragment] is control.not_supported,
-    reason="incoming fragment reassembly lands with issue 4",
-)
 async def test_a_message_sent_in_fragments_is_reassembled(pair: tuple[Client, Client]) -> None:
     client, other = pair
     whole = json.dumps({"op": "publish", "topic": "/frag", "msg": {"data": "pieces"}})

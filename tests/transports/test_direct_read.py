@@ -1,4 +1,4 @@
-"""Reading a plain socket without pausing it after each chunk keeps input bounded (issue 8).
+"""Reading a plain socket without pausing it after each chunk keeps input bounded.
 
 ``DirectReader`` leaves a connection readable while its reader waits, and the
 WebSocket channel pauses it before the one other await of its reader: the

@@ -1,4 +1,4 @@
-"""Frames written from the publish path keep their order with the writer's (issue 8).
+"""Frames written from the publish path keep their order with the writer's.
 
 While a connection's writer is idle and its socket has nothing buffered, the
 pump writes a publish's frames at once (``send_now``); otherwise the writer task

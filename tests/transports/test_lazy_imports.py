@@ -1,4 +1,4 @@
-"""`rwt serve` starts without what only some features need (issue 8, B11 base memory).
+"""`rwt serve` starts without what only some features need (benchmarks B11, base memory).
 
 The idle default server (in-memory graph, rosapi, TF) must stay small: modules
 that only png compression, video, depth clouds or the conformance runner use load

@@ -1,7 +1,7 @@
 """Whole messages read ahead of websockets: the connection must behave as with websockets alone.
 
 ``FrameReader`` reads whole text and binary frames itself and passes every
-other frame to websockets (issue 8). For any stream of client frames, valid or
+other frame to websockets. For any stream of client frames, valid or
 not, cut into chunks anywhere, the channel must return the same messages in the
 same order, send the same bytes back (pongs, the close frame) and end in the
 same state as a channel on which websockets reads everything.

@@ -1,4 +1,4 @@
-"""The generated fast converter agrees with the general one, or steps aside (issue 8, B14)."""
+"""The generated fast converter agrees with the general one, or steps aside (benchmarks B14)."""
 
 from __future__ import annotations
 
