@@ -74,6 +74,23 @@ def _classify(data: bytes, max_bytes: int) -> FramerEvent:
     return InFrame(data, binary=bool(first) and 0x80 <= first[0] < 0xC0)
 
 
+class SharedSocket:
+    """The UDP socket every peer's session writes to, one datagram at a time.
+
+    anyio lets one task write a socket at a time (``BusyResourceError`` otherwise),
+    and every peer's writer, the challenges and the refusals share one socket.
+    """
+
+    def __init__(self, sock: UDPSocket) -> None:
+        self._sock = sock
+        self._lock = anyio.Lock()
+
+    async def sendto(self, data: bytes, host: str, port: int) -> None:
+        """Send one datagram to ``(host, port)``, after the writes already waiting."""
+        async with self._lock:
+            await self._sock.sendto(data, host, port)
+
+
 class UdpChannel:
     """One UDP peer of a shared socket as a pump ``Channel``."""
 
@@ -82,7 +99,7 @@ class UdpChannel:
 
     def __init__(
         self,
-        sock: UDPSocket,
+        sock: SharedSocket,
         address: Address,
         inbox: MemoryObjectReceiveStream[bytes],
         options: UdpOptions,
@@ -153,7 +170,7 @@ class _Endpoint:
     def __init__(
         self, sock: UDPSocket, host: SessionHost, options: UdpOptions, tg: TaskGroup
     ) -> None:
-        self.sock = sock
+        self.sock = SharedSocket(sock)
         self.host = host
         self.options = options
         self.tg = tg

@@ -212,3 +212,20 @@ async def test_challenges_to_one_address_are_capped_in_bytes(harness: Harness) -
     with anyio.fail_after(TIMEOUT_S):
         await healthy.send({"op": "set_level", "level": "info", "id": "ok"})
         assert (await healthy.expect(is_op("status", id="ok")))["level"] == "info"
+
+
+async def test_udp_peers_written_at_once_all_stay_served(
+    harness: Harness, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Every peer's writer shares one socket; two writing at once once closed a session.
+    peers = [await harness.connect("udp", f"peer{i}") for i in range(8)]
+    with anyio.fail_after(TIMEOUT_S):
+        for peer in peers:
+            await peer.send({"op": "subscribe", "topic": "/camera", "type": "std_msgs/String"})
+        for peer in peers:  # the camera publishes every 10 ms: several messages each
+            for _ in range(5):
+                await peer.expect(is_op("publish", topic="/camera"))
+        for peer in peers:
+            await peer.send({"op": "set_level", "level": "info", "id": "alive"})
+            await peer.expect(is_op("status", id="alive"))
+    assert "event=bug" not in caplog.text
