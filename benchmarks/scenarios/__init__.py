@@ -360,7 +360,9 @@ def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
             "frames/s",
             _b18,
             kinds=("rwt",),
-            server_args=("--tcp-port", "0", "--udp-port", "0"),
+            # UDP has no close: each burst's session lives until the idle timeout, and
+            # past --udp-max-sessions new ones are refused; a short timeout keeps few.
+            server_args=("--tcp-port", "0", "--udp-port", "0", "--udp-idle-timeout", "2"),
             runs=1,
         )
     )

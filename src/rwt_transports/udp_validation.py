@@ -15,6 +15,7 @@ What a UDP client does (docs/limits.md, "UDP"):
 1. Send any datagram of at least ``MIN_PROBE_BYTES`` bytes (pad JSON with
    spaces), e.g. its first op. It is not served; the answer is
    ``{"op":"status","level":"warning","msg":"udp: address validation","id":TOKEN}``.
+   UDP may lose either datagram: without an answer within a second, send it again.
 2. Send every datagram as ``TOKEN``, a newline (``\\n``), then the JSON or CBOR
    frame. Replies come as plain datagrams, as before.
 3. If that challenge arrives again (the session was idle past

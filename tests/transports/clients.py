@@ -138,11 +138,13 @@ async def validate_udp(sock: Any) -> bytes:
     Returns:
         The prefix of every later datagram: the token and a newline.
     """
-    await sock.send(b'{"op":"status"}'.ljust(MIN_PROBE_BYTES))
-    while True:
-        reply = json.loads(await sock.receive())
-        if reply.get("msg") == CHALLENGE_TEXT:
-            return reply["id"].encode() + b"\n"  # type: ignore[no-any-return]
+    while True:  # UDP loses datagrams: a probe without an answer is sent again
+        await sock.send(b'{"op":"status"}'.ljust(MIN_PROBE_BYTES))
+        with anyio.move_on_after(1.0):
+            while True:
+                reply = json.loads(await sock.receive())
+                if reply.get("msg") == CHALLENGE_TEXT:
+                    return reply["id"].encode() + b"\n"  # type: ignore[no-any-return]
 
 
 @dataclass
