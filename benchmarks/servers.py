@@ -80,7 +80,7 @@ def _command(kind: str, uvloop: bool, extra: list[str]) -> list[str]:
         command = [sys.executable, "-m", "benchmarks.relay", "--port", "0"]
     else:
         command = [sys.executable, "-m", "rwt_transports", "serve", "--port", "0"]
-        command += ["--log-level", "warning"]
+        command += ["--log-level", os.environ.get("RWT_BENCH_LOG_LEVEL", "warning")]
     if uvloop:
         command.append("--uvloop")
     return command + extra

@@ -186,8 +186,14 @@ class _Endpoint:
         if not self.options.trust_source_address:
             split = split_token(data)
             if peer is not None and (split is None or split[0] != peer.token):
-                self._drop("forged", address)  # not the session's token: not its peer
-                return
+                if split is None or not self.validator.valid(split[0], address):
+                    self._drop("forged", address)  # not the session's token: not its peer
+                    await self._challenge(data, address)  # a restarted client re-validates
+                    return
+                # A fresh token for this address: whoever sent it receives there, so it
+                # is the address's peer now (a client restarted on the same port).
+                self._forget(address, peer)
+                peer = None
             if peer is None and (split is None or not self.validator.valid(split[0], address)):
                 await self._challenge(data, address)
                 return
@@ -229,20 +235,25 @@ class _Endpoint:
             receive.close()
             return None
         peer = self.peers[address] = _Peer(send, token)
-        self.tg.start_soon(self._run, pump, session, address, receive)
+        self.tg.start_soon(self._run, pump, session, address, peer, receive)
         return peer
+
+    def _forget(self, address: Address, peer: _Peer) -> None:
+        """End ``peer``'s session (its inbox ends) and free its address at once."""
+        if self.peers.get(address) is peer:
+            del self.peers[address]
+        peer.inbox.close()
 
     async def _run(
         self,
         pump: ConnectionPump,
         session: Session,
         address: Address,
+        peer: _Peer,
         receive: MemoryObjectReceiveStream[bytes],
     ) -> None:
         try:
             await run_connection(pump, session)
         finally:
-            peer = self.peers.pop(address, None)
-            if peer is not None:
-                peer.inbox.close()
+            self._forget(address, peer)  # not a newer peer of the same address
             receive.close()

@@ -191,7 +191,9 @@ async def test_a_validated_client_keeps_its_token_for_the_session(harness: Harne
             await sock.send(prefix + b'{"op":"set_level","level":"info","id":"one"}')
             assert json.loads(await sock.receive())["id"] == "one"
             assert udp_sessions(harness) == 1
-            await sock.send(b'{"op":"set_level","level":"info","id":"bare"}')  # no token: dropped
+            bare = b'{"op":"set_level","level":"info","id":"bare"}'
+            await sock.send(bare)  # no token: not served, only challenged
+            assert json.loads(await sock.receive())["msg"] == CHALLENGE_TEXT
             await sock.send(prefix + b'{"op":"set_level","level":"info","id":"two"}')
             assert json.loads(await sock.receive())["id"] == "two"
 
@@ -229,3 +231,23 @@ async def test_udp_peers_written_at_once_all_stay_served(
             await peer.send({"op": "set_level", "level": "info", "id": "alive"})
             await peer.expect(is_op("status", id="alive"))
     assert "event=bug" not in caplog.text
+
+
+async def test_a_client_restarted_on_the_same_port_validates_again(harness: Harness) -> None:
+    # Its old session still holds the address; a fresh token for it takes over at once.
+    first = await anyio.create_udp_socket(local_host="127.0.0.1", local_port=0)
+    port = first.extra(SocketAttribute.local_port)
+    server = ("127.0.0.1", harness.port("udp"))
+    await first.aclose()
+    for run in ("first", "restarted"):
+        sock = await anyio.create_connected_udp_socket(
+            *server, local_host="127.0.0.1", local_port=port
+        )
+        async with sock:
+            with anyio.fail_after(TIMEOUT_S):
+                prefix = await validate_udp(sock)
+                await sock.send(
+                    prefix + b'{"op":"set_level","level":"info","id":"%s"}' % run.encode()
+                )
+                assert json.loads(await sock.receive())["id"] == run
+    assert udp_sessions(harness) == 1  # the old session was replaced, not kept
