@@ -37,11 +37,6 @@ SLOW_EVERY = 500
 
 
 @pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
 async def harness() -> AsyncIterator[Harness]:
     config = ServerConfig(session=SessionConfig(send_buffer_limit=LIMIT, send_timeout_s=1.0))
     async with running_server(config) as h:

@@ -13,30 +13,18 @@ flood is still being handled. Every flood frame is still answered.
 from __future__ import annotations
 
 import json
-from collections.abc import AsyncIterator
 
 import anyio
 import anyio.to_thread
 import pytest
 
 from tests.hardening.peers import TcpPeer, settle
-from tests.transports.clients import Harness, running_server
+from tests.transports.clients import Harness
 
 pytestmark = pytest.mark.anyio
 
 FLOOD = 100_000
 TOPIC = "/fair"
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
-async def harness() -> AsyncIterator[Harness]:
-    async with running_server() as h:
-        yield h
 
 
 def count_statuses(peer: TcpPeer, count: int) -> int:

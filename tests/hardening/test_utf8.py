@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import socket
-from collections.abc import AsyncIterator
 
 import anyio
 import anyio.to_thread
@@ -20,20 +19,9 @@ from websockets.frames import Close
 from websockets.uri import parse_uri
 
 from tests.hardening.peers import TIMEOUT_S, WsPeer, settle
-from tests.transports.clients import Harness, running_server
+from tests.transports.clients import Harness
 
 pytestmark = pytest.mark.anyio
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
-async def harness() -> AsyncIterator[Harness]:
-    async with running_server() as h:
-        yield h
 
 
 class RawWs:
