@@ -21,9 +21,9 @@ from PIL import Image
 
 from rwt_graph.graph import Graph
 from rwt_protocol.session import Session
-from rwt_transports.video.encoders import StillEncoder, multipart_part
-from rwt_transports.video.libav import VideoEncoder
-from rwt_transports.video.params import StreamParams, StreamType
+from rwt_video.encoders import StillEncoder, multipart_part
+from rwt_video.libav import VideoEncoder
+from rwt_video.params import StreamParams, StreamType
 
 RATE_HZ = 30.0
 KB = 1000.0

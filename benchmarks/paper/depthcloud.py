@@ -33,7 +33,7 @@ import numpy as np
 from rwt_graph.graph import Graph
 from rwt_graph.media import CameraIntrinsics, array_to_image, decode_depthcloud
 from rwt_graph.media.depthcloud_node import DepthCloudEncoder
-from rwt_transports.video.params import StreamParams, StreamType
+from rwt_video.params import StreamParams, StreamType
 
 from ._streams import (
     KB,

@@ -24,7 +24,7 @@ import numpy as np
 from PIL import Image
 
 from rwt_graph.media import array_to_image
-from rwt_transports.video.params import StreamParams, StreamType
+from rwt_video.params import StreamParams, StreamType
 
 from ._streams import KB, RATE_HZ, mjpeg, paper_row, print_rows, rosbridge_bytes, stamp, video
 

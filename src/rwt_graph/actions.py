@@ -15,7 +15,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from functools import partial
 
-from rwt_protocol.errors import FieldError, GraphError
+from rwt_protocol.errors import FieldError, GraphError, RwtError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
@@ -29,7 +29,7 @@ __all__ = [
     "ActionEntry",
     "Actions",
     "Goal",
-    "GoalCanceled",
+    "GoalCanceledError",
     "GoalContext",
     "LocalActionHandler",
     "cancel_goals_handler",
@@ -47,7 +47,7 @@ class GoalContext:
     Attributes:
         goal_id: the goal's id.
         cancel_requested: set when the caller asked to cancel; a handler that
-            honours it returns (or raises ``GoalCanceled``) promptly.
+            honours it returns (or raises ``GoalCanceledError``) promptly.
     """
 
     def __init__(self, goal: Goal) -> None:
@@ -80,12 +80,15 @@ class GoalContext:
 LocalActionHandler = Callable[[Message, GoalContext], Awaitable[Message]]
 """An in-process action server: ``async def handler(goal, context) -> result``.
 
-Raising ``GoalCanceled`` (or being cancelled) ends the goal CANCELED; any other
+Raising ``GoalCanceledError`` (or being cancelled) ends the goal CANCELED; any other
 exception ends it ABORTED."""
 
 
-class GoalCanceled(Exception):
+class GoalCanceledError(RwtError):
     """Raised by an in-process action handler that honours a cancel request."""
+
+    def __init__(self, message: str = "goal canceled") -> None:
+        super().__init__(message)
 
 
 class Goal:
@@ -302,7 +305,7 @@ class Actions(ProviderTable[ActionEntry]):
             try:
                 outcome = await handler(goal_msg, context)
                 msg = result_type.from_python(outcome, now=self.clock.wall())
-            except GoalCanceled:
+            except GoalCanceledError:
                 goal.finish(GoalStatus.CANCELED, True, result_type.default())
             except Exception:
                 logger.exception("action %s failed on goal %s", entry.spelling, goal.goal_id)

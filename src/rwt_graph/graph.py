@@ -87,7 +87,7 @@ class Graph:
             The canonical type name.
 
         Raises:
-            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
             GraphError: the topic exists with another type.
         """
         msgtype = self.registry.message(type_name)
@@ -172,7 +172,7 @@ class Graph:
 
         Raises:
             GraphError: no type given and the topic is unknown, or a conflicting type.
-            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
         """
         name = resolve_name(topic)
         if type_name is None:
@@ -228,7 +228,7 @@ class Graph:
         """Offer ``service`` provided by a client session (spec 3.3.6, D15).
 
         Raises:
-            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
         """
         srvtype = self.registry.service(type_name)
         entry = ServiceEntry(resolve_name(service), service, srvtype, client, provider=provider)
@@ -284,7 +284,7 @@ class Graph:
         """Offer ``action`` provided by a client session (spec 3.3.10, D15).
 
         Raises:
-            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
         """
         actiontype = self.registry.action(type_name)
         name = resolve_name(action)
@@ -365,7 +365,7 @@ class Graph:
             reserved: only in-process code may publish on the topic (``reserve_topic``).
 
         Raises:
-            InvalidTypeName, UnknownType, GraphError: as ``advertise``; a bad node name.
+            InvalidTypeNameError, UnknownTypeError, GraphError: as ``advertise``; a bad node name.
         """
         name = resolve_name(topic)
         if reserved:
@@ -391,7 +391,7 @@ class Graph:
         ``node`` is the node rosapi lists as the subscriber.
 
         Raises:
-            GraphError, InvalidTypeName, UnknownType: as ``subscribe``; a bad node name.
+            GraphError, InvalidTypeNameError, UnknownTypeError: as ``subscribe``; a bad node name.
         """
         with self._participant(node) as client:
             subscription = LocalSubscription(self, client, resolve_name(topic), callback)
@@ -417,7 +417,7 @@ class Graph:
             node: the node rosapi lists as the provider.
 
         Raises:
-            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
             GraphError: a bad node name.
         """
         return self._local_service(service, type_name, node, handler=handler)
@@ -438,7 +438,7 @@ class Graph:
         each checked response before it is sent.
 
         Raises:
-            InvalidTypeName, UnknownType, GraphError: as ``create_service``.
+            InvalidTypeNameError, UnknownTypeError, GraphError: as ``create_service``.
         """
         return self._local_service(service, type_name, node, caller_handler=handler, amend=amend)
 
@@ -482,11 +482,11 @@ class Graph:
             type_name: ``example_interfaces/action/Fibonacci`` or the short form.
             handler: ``async def handler(goal, context) -> result``; it may call
                 ``context.publish_feedback(dict)`` and should honour
-                ``context.cancel_requested`` by raising ``GoalCanceled``.
+                ``context.cancel_requested`` by raising ``GoalCanceledError``.
             node: the node rosapi lists as the action server.
 
         Raises:
-            InvalidTypeName, UnknownType: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
             GraphError: a bad node name.
         """
         actiontype = self.registry.action(type_name)

@@ -36,7 +36,7 @@ __all__ = [
     "ParamValue",
     "ParamWatcher",
     "ParameterError",
-    "ParameterNotSet",
+    "ParameterNotSetError",
     "Parameters",
     "check_param_name",
     "value_size",
@@ -57,7 +57,7 @@ class ParameterError(GraphError):
     """A parameter operation was refused: bad name, bad value, type change, read-only."""
 
 
-class ParameterNotSet(ParameterError):
+class ParameterNotSetError(ParameterError):
     """The parameter does not exist."""
 
 
@@ -316,13 +316,13 @@ class Parameters:
         """A copy of the parameter's value (ROS 1: a namespace gives a dict).
 
         Raises:
-            ParameterNotSet: it does not exist and no ``default`` was given.
+            ParameterNotSetError: it does not exist and no ``default`` was given.
             ParameterError: a malformed name.
         """
         found = self._lookup(name)
         if found is _MISSING:
             if default is _MISSING:
-                raise ParameterNotSet(f"parameter {name} is not set")
+                raise ParameterNotSetError(f"parameter {name} is not set")
             return default  # type: ignore[return-value]
         return copy.deepcopy(found)  # type: ignore[return-value]
 
@@ -337,7 +337,7 @@ class Parameters:
         """Remove a parameter (ROS 1: or a whole namespace).
 
         Raises:
-            ParameterNotSet: it does not exist.
+            ParameterNotSetError: it does not exist.
             ParameterError: a malformed name, or a read-only ROS 2 parameter.
         """
         if self.ros1:
@@ -349,7 +349,7 @@ class Parameters:
         params = self._nodes.get(node, {})
         entry = params.get(param)
         if entry is None:
-            raise ParameterNotSet(f"parameter {node}:{param} is not set")
+            raise ParameterNotSetError(f"parameter {node}:{param} is not set")
         if entry.read_only:
             raise ParameterError(f"parameter {node}:{param} is read-only")
         self._bytes -= value_size(entry.value)
@@ -465,7 +465,7 @@ class Parameters:
         for token in tokens[:-1]:
             node = node.get(token) if isinstance(node, dict) else None
         if not isinstance(node, dict) or tokens[-1] not in node:
-            raise ParameterNotSet(f"parameter {key} is not set")
+            raise ParameterNotSetError(f"parameter {key} is not set")
         self._bytes -= value_size(node[tokens[-1]])
         del node[tokens[-1]]
 

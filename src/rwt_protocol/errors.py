@@ -1,10 +1,36 @@
 """The error tree of rwt.
 
-``RwtError`` is the root. Errors that a peer caused (``RemoteProtocolError``, and
-graph errors such as an unknown type) carry the status level they are reported
-at; the session turns them into ``status`` frames in one place (PROTOCOL-DECISIONS
-D1). ``LocalProtocolError`` means embedding code misused the API and is raised to
-it. Any other exception escaping rwt is a bug.
+``RwtError`` is the root of every error rwt raises on purpose; catching it
+catches them all. Any other exception escaping rwt is a bug::
+
+    RwtError
+    ├── ProtocolError                     the rosbridge protocol was not followed
+    │   ├── RemoteProtocolError           the peer's fault: becomes a status frame (D1)
+    │   │   ├── LimitError                a per-connection cap (docs/limits.md)
+    │   │   └── AccessDeniedError         rwt_protocol.access: a --*-glob rule
+    │   └── LocalProtocolError            embedding code misused the API
+    ├── GraphError                        the graph refused an operation
+    │   ├── FieldError                    a value does not fit its type (D9)
+    │   ├── DefinitionError               rwt_graph.types: a bad .msg/.srv/.action text
+    │   ├── InvalidTypeNameError          rwt_graph.types: not a ROS type name
+    │   ├── UnknownTypeError              rwt_graph.types: no such type
+    │   ├── ParameterError                rwt_graph.params
+    │   │   └── ParameterNotSetError
+    │   ├── ImageError                    rwt_graph.media: an image that cannot be read
+    │   └── TFError                       rwt_graph.tf: unknown, disconnected, extrapolation
+    ├── ServiceCallError                  a call or goal answered ``result: false``
+    │   └── CallTimeoutError              ... or not answered in time (also a TimeoutError)
+    ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
+    ├── TransportError                    a transport failed (mapped at the boundary)
+    │   └── ConnectionClosedError         rwt_client.connectors: the connection is gone
+    ├── VideoError                        rwt_video
+    │   ├── StreamParamError              a query parameter that cannot be used (HTTP 4xx)
+    │   └── EncodeError                   a frame that cannot be encoded (skipped)
+    ├── SuiteError                        rwt_conformance: malformed suite data
+    └── StepFailedError                   rwt_conformance: a step's expectation failed
+
+Errors a peer caused carry the status level they are reported at; the session
+turns them into ``status`` frames in one place (docs/decisions.md, D1).
 """
 
 from __future__ import annotations
@@ -12,6 +38,7 @@ from __future__ import annotations
 from .levels import StatusLevel
 
 __all__ = [
+    "CallTimeoutError",
     "FieldError",
     "GraphError",
     "LimitError",
@@ -19,6 +46,7 @@ __all__ = [
     "ProtocolError",
     "RemoteProtocolError",
     "RwtError",
+    "ServiceCallError",
     "TransportError",
 ]
 
@@ -74,3 +102,20 @@ class FieldError(GraphError):
 
 class TransportError(RwtError):
     """A transport failed; mapped from anyio/websockets errors at the boundary."""
+
+
+class ServiceCallError(RwtError):
+    """A service call or action goal failed: answered ``result: false`` (D4, D28).
+
+    Args:
+        message: what failed, ``call to /add_two_ints failed: ...``.
+        values: the server's ``values`` (its error text, D28), if any.
+    """
+
+    def __init__(self, message: str, values: object = None) -> None:
+        super().__init__(message)
+        self.values = values
+
+
+class CallTimeoutError(ServiceCallError, TimeoutError):
+    """No answer came within the time allowed; the call or goal is forgotten."""

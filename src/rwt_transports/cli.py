@@ -27,6 +27,7 @@ import anyio
 import typer
 from anyio.abc import TaskStatus
 
+from rwt_conformance.cli import conformance
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy, parse_glob_list
@@ -34,7 +35,6 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
 from .allocator import tune_allocator
-from .conformance.cli import conformance
 from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
@@ -42,7 +42,7 @@ from .udp import UdpOptions
 from .websocket import WebSocketOptions
 
 if TYPE_CHECKING:
-    from .video import VideoConfig
+    from rwt_video import VideoConfig
 
 __all__ = ["app", "main"]
 
@@ -341,7 +341,7 @@ def serve(
 
 def _video_config(host: str, port: int, max_connections: int, max_streams: int) -> VideoConfig:
     # the video server (Pillow, numpy) loads only with --video (B11: base memory)
-    from .video import VideoConfig  # noqa: PLC0415
+    from rwt_video import VideoConfig  # noqa: PLC0415
 
     return VideoConfig(
         host=host, port=port, max_connections=max_connections, max_streams=max_streams
@@ -363,7 +363,7 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
         video_url = None
         if video is not None:
-            from .video import serve_video  # noqa: PLC0415 (see _video_config)
+            from rwt_video import serve_video  # noqa: PLC0415 (see _video_config)
 
             video_url = await tg.start(serve_video, server.graph, video)
 

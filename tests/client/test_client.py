@@ -10,19 +10,19 @@ import pytest
 from anyio.abc import TaskStatus
 from anyio.from_thread import start_blocking_portal
 
-from rwt_protocol.client import StatusReceived
-from rwt_transports.client import (
+from rwt_client import (
     Action,
-    CallTimeout,
+    CallTimeoutError,
     Param,
     Ros,
     ServerGoal,
     Service,
-    ServiceError,
+    ServiceCallError,
     SyncRos,
     Topic,
     message_class,
 )
+from rwt_protocol.client import StatusReceived
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 pytestmark = pytest.mark.anyio
@@ -117,11 +117,11 @@ async def test_service_failures_are_clear_errors(url: str) -> None:
         await Service(provider, "/broken", "std_srvs/Trigger").advertise(broken)
         await Service(provider, "/silent", "std_srvs/Trigger").advertise(silent)
         await _sync(provider)
-        with pytest.raises(ServiceError, match="disk on fire"):
+        with pytest.raises(ServiceCallError, match="disk on fire"):
             await Service(caller, "/broken").call()
-        with pytest.raises(ServiceError, match="/missing"):
+        with pytest.raises(ServiceCallError, match="/missing"):
             await Service(caller, "/missing").call()
-        with pytest.raises(CallTimeout, match="no service_response for /silent"):
+        with pytest.raises(CallTimeoutError, match="no service_response for /silent"):
             await Service(caller, "/silent").call(timeout_s=0.3)
 
 
@@ -258,7 +258,7 @@ def test_sync_facade() -> None:
             ros.subscribe(topic, on_message)
             ros.publish(topic, {"data": "blocking"})
             assert received.wait(5)
-            with pytest.raises(ServiceError, match="/missing"):
+            with pytest.raises(ServiceCallError, match="/missing"):
                 ros.call_service("/missing")
         future.cancel()
     assert inbox == [{"data": "blocking"}]

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from rwt_transports.conformance.cli import TransportName, server_url
-from rwt_transports.conformance.runner import NEEDS_SECRET
+from rwt_conformance.cli import TransportName, server_url
+from rwt_conformance.runner import NEEDS_SECRET
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}

@@ -8,9 +8,9 @@ import time
 import cbor2
 import pytest
 
+from rwt_conformance.frames import AUTH_VALIDITY_S, auth_op, decode_frame
 from rwt_protocol.auth import RosauthVerifier
 from rwt_protocol.ops import Auth
-from rwt_transports.conformance.frames import AUTH_VALIDITY_S, auth_op, decode_frame
 
 
 @pytest.mark.parametrize(

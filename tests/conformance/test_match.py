@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rwt_transports.conformance.match import match, substitute
+from rwt_conformance.match import match, substitute
 
 
 def test_object_patterns_match_a_subset_of_keys() -> None:

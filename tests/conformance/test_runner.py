@@ -9,14 +9,7 @@ from typing import Any
 import anyio
 import pytest
 
-from rwt_graph.clock import SystemClock
-from rwt_graph.graph import Graph
-from rwt_protocol.auth import Authenticator
-from rwt_protocol.levels import StatusLevel
-from rwt_protocol.names import resolve_name
-from rwt_protocol.ports import TopicSink
-from rwt_protocol.session import Session
-from rwt_transports.conformance import (
+from rwt_conformance import (
     Outcome,
     Profile,
     RunOptions,
@@ -24,8 +17,15 @@ from rwt_transports.conformance import (
     load_suite,
     run_suite,
 )
-from rwt_transports.conformance.report import write_json, write_junit
-from rwt_transports.conformance.runner import NEEDS_SECRET
+from rwt_conformance.report import write_json, write_junit
+from rwt_conformance.runner import NEEDS_SECRET
+from rwt_graph.clock import SystemClock
+from rwt_graph.graph import Graph
+from rwt_protocol.auth import Authenticator
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.names import resolve_name
+from rwt_protocol.ports import TopicSink
+from rwt_protocol.session import Session
 from rwt_transports.server import (
     RosbridgeServer,
     ServerConfig,

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from rwt_conformance.model import TRANSPORTS, SuiteError, load_suite
 from rwt_protocol.ops import OP_MODELS
-from rwt_transports.conformance.model import TRANSPORTS, SuiteError, load_suite
 
 SUITE = load_suite()
 

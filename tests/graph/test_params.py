@@ -7,7 +7,7 @@ import math
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_graph.params import ParameterError, ParameterNotSet, Parameters
+from rwt_graph.params import ParameterError, ParameterNotSetError, Parameters
 from rwt_graph.types import Dialect, TypeRegistry
 
 # ---- ROS 2 ---------------------------------------------------------------------------
@@ -85,14 +85,14 @@ def test_malformed_ros2_names_are_refused(name: str) -> None:
 
 def test_get_default_has_and_delete() -> None:
     params = Parameters()
-    with pytest.raises(ParameterNotSet):
+    with pytest.raises(ParameterNotSetError):
         params.get("/n:p")
     assert params.get("/n:p", 7) == 7
     params.set("/n:p", 1)
     assert params.has("/n:p")
     params.delete("/n:p")
     assert not params.has("/n:p") and params.nodes() == set()
-    with pytest.raises(ParameterNotSet):
+    with pytest.raises(ParameterNotSetError):
         params.delete("/n:p")
 
 
@@ -152,7 +152,7 @@ def test_ros1_names_are_global_and_namespaces_are_dicts() -> None:
     assert params.has("/robot/arm") and not params.has("/robot/leg")
     params.delete("/robot/arm")
     assert params.names() == ["/robot/speed"]
-    with pytest.raises(ParameterNotSet):
+    with pytest.raises(ParameterNotSetError):
         params.delete("/robot/arm")
 
 

@@ -646,12 +646,12 @@ def inproc_wait(server: ServerProcess, *names: str) -> HarnessStep:
 
 
 def inproc_call(name: str, service: str, args: Any = None) -> dict:
-    """An in-process call (`rwt_transports.embed.call_service`) for `inproc`."""
+    """An in-process call (`rwt_transports.async_calls.call_service`) for `inproc`."""
     return {"op": "call", "as": name, "service": service, "args": args}
 
 
 def inproc_goal(name: str, action: str, args: Any) -> dict:
-    """An in-process goal (`rwt_transports.embed.send_action_goal`) for `inproc`."""
+    """An in-process goal (`rwt_transports.async_calls.send_action_goal`) for `inproc`."""
     return {"op": "goal", "as": name, "action": action, "args": args}
 
 

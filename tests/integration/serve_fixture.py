@@ -27,7 +27,7 @@ concurrently, answers come in the order they end):
         -> {"as": NAME, "ok": {"status": n, "values": result}, "feedback": [...]}
            or {"as": NAME, "error": text, "feedback": [...]}
 
-They go through `rwt_transports.embed.call_service` and `send_action_goal`,
+They go through `rwt_transports.async_calls.call_service` and `send_action_goal`,
 the API embedding code uses. Stops on SIGINT/SIGTERM or when stdin closes.
 """
 
@@ -42,11 +42,11 @@ from pathlib import Path
 import anyio
 from anyio.abc import TaskGroup
 
-from rwt_graph.actions import GoalCanceled, GoalContext
+from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.errors import RwtError
-from rwt_transports.embed import call_service, send_action_goal
+from rwt_transports.async_calls import call_service, send_action_goal
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 #: Requests /inproc/gather holds before it answers them, newest first.
@@ -114,7 +114,7 @@ async def fibonacci(goal: Message, context: GoalContext) -> Message:
         # real action server does.
         while not context.cancel_requested:
             await anyio.sleep(0.005)
-        raise GoalCanceled
+        raise GoalCanceledError
     for _ in range(1, order):
         sequence.append(sequence[-1] + sequence[-2])
         context.publish_feedback({"sequence": list(sequence)})

@@ -6,7 +6,7 @@ serve_fixture.py; both follow the drivers' Fibonacci rules (roslibpy_driver.py):
 order 5 succeeds after four feedback messages, order 100 waits for a cancel,
 order -1 aborts. Clients: roslib (`Action.sendGoal`, `cancelGoal`), roslibpy 2.x
 (`ActionClient.send_goal`, `cancel_goal`) and in-process code
-(`rwt_transports.embed.send_action_goal`, which has no cancel of its own: a
+(`rwt_transports.async_calls.send_action_goal`, which has no cancel of its own: a
 cancelled wait forgets the goal). roslibpy has no action server. A roslib
 action server killed mid-goal aborts every waiting goal with the reason.
 """
@@ -45,7 +45,7 @@ GOALS = {"done": {"order": 5}, "cancel": {"order": 100}, "abort": {"order": -1}}
 FIB5 = {"sequence": [0, 1, 1, 2, 3, 5]}
 FEEDBACK5 = [{"sequence": [0, 1, 1, 2, 3, 5][:n]} for n in range(3, 7)]
 #: The result a canceled goal ends with: roslib's server sends the sequence so
-#: far (setCanceled); an in-process server that raises GoalCanceled sends the default.
+#: far (setCanceled); an in-process server that raises GoalCanceledError sends the default.
 CANCELED = {"roslib": {"sequence": [0, 1]}, "inproc": {"sequence": []}}
 #: Aborted goals carry the default result (setFailed sends none, D18).
 ABORTED = {"sequence": []}
@@ -159,7 +159,7 @@ def test_action_server_killed_mid_goal_aborts_the_waiting_goals(
     reason = "action /js/fibonacci is gone: its provider disconnected"
     assert outcome.error("jsc") == f"GoalError: Action was aborted: {reason}"
     assert outcome.error("pyc") == {"status": 6, "values": reason}  # roslibpy's errback
-    assert outcome.error("inproc") == reason  # ServiceCallFailed
+    assert outcome.error("inproc") == reason  # ServiceCallError
     assert outcome.feedback["jsc"] == outcome.feedback["pyc"] == [{"sequence": [0, 1]}]
 
 

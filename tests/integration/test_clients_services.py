@@ -4,7 +4,7 @@ Providers: roslibpy (`Service.advertise`), roslib (`Service.advertise`, and
 `advertiseAsync` where the answer comes later) and Python code in the server
 process (`Graph.create_service`, in serve_fixture.py). Callers: roslibpy
 (`Service.call` with callbacks), roslib (`Service.callService`) and in-process
-code (`rwt_transports.embed.call_service`, driven through serve_fixture.py's
+code (`rwt_transports.async_calls.call_service`, driven through serve_fixture.py's
 stdin). Every provider follows the same reply rules (roslibpy_driver.py), so
 one table of expectations fits all nine pairs. The service types are SetBool,
 Trigger, Empty, AddTwoInts and `rwt_test_interfaces/srv/Scale`, a custom
@@ -252,7 +252,7 @@ def test_provider_killed_mid_call_fails_the_waiting_callers(
 
     outcome = run_scenario(fixture_server.url, phases, clients, tmp_path)
 
-    # roslibpy's errback, roslib's failure callback and ServiceCallFailed get the reason
+    # roslibpy's errback, roslib's failure callback and ServiceCallError get the reason
     assert outcome.error("js_caller") == "service /py/hold is gone: its provider disconnected"
     assert outcome.error("py_caller") == "service /js/hold is gone: its provider disconnected"
     assert outcome.error("inproc") == "service /js/hold is gone: its provider disconnected"

@@ -1,4 +1,4 @@
-"""The Python client (`rwt_transports.client`) with a roslib (Node) peer via `rwt serve`.
+"""The Python client (`rwt_client`) with a roslib (Node) peer via `rwt serve`.
 
 The client calls services and sends goals that roslib provides (`Service.advertise`,
 `advertiseAsync`, `Action.advertise`), then provides a service and an action that
@@ -16,7 +16,7 @@ from typing import Any
 import anyio
 import pytest
 
-from rwt_transports.client import Action, Ros, ServerGoal, Service, ServiceError, SyncRos
+from rwt_client import Action, Ros, ServerGoal, Service, ServiceCallError, SyncRos
 
 from .client_harness import (
     HARNESS,
@@ -55,7 +55,7 @@ async def call_roslib(ros: Ros) -> dict[str, Any]:
         "add": await Service(ros, "/js/add", ADD).call({"a": 2, "b": 3}),
         "scale": await Service(ros, "/js/scale", SCALE).call({"points": POINTS, "factor": 0.5}),
     }
-    with pytest.raises(ServiceError) as refused:
+    with pytest.raises(ServiceCallError) as refused:
         await Service(ros, "/js/refuse", TRIGGER).call()
     seen["refuse"] = refused.value.values
 

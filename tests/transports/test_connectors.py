@@ -10,7 +10,7 @@ import cbor2
 import pytest
 from anyio.abc import SocketStream
 
-from rwt_transports.connectors import ConnectionClosed, StdioConnection, connect
+from rwt_client.connectors import ConnectionClosedError, StdioConnection, connect
 
 OBJECTS = [
     {"op": "publish", "msg": {"data": 'a"}\\{[' + str(i)}, "l": [1, [2, {}]]} for i in range(12)
@@ -53,7 +53,7 @@ async def test_tcp_connection_sends_lines_and_splits_what_it_receives() -> None:
 @pytest.mark.anyio
 @pytest.mark.parametrize("anyio_backend", ["asyncio"])
 async def test_unreachable_servers_and_bad_urls() -> None:
-    with pytest.raises(ConnectionClosed, match="cannot connect"):
+    with pytest.raises(ConnectionClosedError, match="cannot connect"):
         await connect("ws://127.0.0.1:1")
     with pytest.raises(ValueError, match="unsupported URL scheme"):
         await connect("http://127.0.0.1:1")
@@ -66,7 +66,7 @@ async def test_stdio_connection_carries_json_lines_only() -> None:
         [sys.executable, "-c", "import sys; sys.stdout.write(sys.stdin.readline())"]
     )
     try:
-        with pytest.raises(ConnectionClosed, match="JSON text only"):
+        with pytest.raises(ConnectionClosedError, match="JSON text only"):
             await conn.send(CBOR_ITEM)
         await conn.send('{"op": "status"}')
         with anyio.fail_after(10):

@@ -23,8 +23,8 @@ LAZY = (
     "cbor2",
     "av",
     "rich",
-    "rwt_transports.conformance.runner",
-    "rwt_transports.video.server",
+    "rwt_conformance.runner",
+    "rwt_video.server",
     "rwt_graph.media.depthcloud",
 )
 

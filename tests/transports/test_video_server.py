@@ -17,7 +17,7 @@ from PIL import Image
 
 from rwt_graph.graph import Graph
 from rwt_graph.media import array_to_image
-from rwt_transports.video import VideoConfig, serve_video
+from rwt_video import VideoConfig, serve_video
 
 pytestmark = pytest.mark.anyio
 

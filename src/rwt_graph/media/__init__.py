@@ -1,6 +1,6 @@
 """Images as numpy arrays: ``sensor_msgs/Image`` conversion and the depth-cloud codec.
 
-Pure numpy, no I/O: the video server (``rwt_transports.video``) and the
+Pure numpy, no I/O: the video server (``rwt_video``) and the
 depth-cloud encoder node build on these.
 """
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rwt_protocol.errors import GraphError
+
 __all__ = [
     "ImageError",
     "array_to_image",
@@ -30,7 +32,7 @@ U8Array = npt.NDArray[np.uint8]
 F32Array = npt.NDArray[np.float32]
 
 
-class ImageError(ValueError):
+class ImageError(GraphError):
     """An image message that cannot be converted (unknown encoding, short data)."""
 
 

@@ -29,7 +29,7 @@ import logging
 from collections.abc import Awaitable, Callable, Iterator
 from typing import TYPE_CHECKING
 
-from rwt_graph.actions import GoalCanceled, GoalContext
+from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.calls import require_spawner
 from rwt_graph.local import LocalPublisher
 from rwt_graph.types import Dialect
@@ -172,7 +172,7 @@ class TFRepublisher:
         """Tick a ``TFSubscription`` goal until it is cancelled (then it ends CANCELED).
 
         Raises:
-            GoalCanceled: the caller cancelled (or left).
+            GoalCanceledError: the caller cancelled (or left).
             TFError: the goal is unusable or too many run (the goal aborts).
         """
         subscription = self.subscription(goal)
@@ -183,7 +183,7 @@ class TFRepublisher:
                     # built here in the internal form: no need to check it again
                     context.publish_feedback({"transforms": transforms}, validated=True)
                 await self.sleep(subscription.request.period_s)
-        raise GoalCanceled
+        raise GoalCanceledError
 
     # ---- the service (roslibpy, roslibjs processResponse) -------------------------
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from .message import ActionType, Converted, MessageType, ServiceType
 from .msgparse import DefinitionError, parse_message
-from .names import Dialect, InvalidTypeName, UnknownType
+from .names import Dialect, InvalidTypeNameError, UnknownTypeError
 from .registry import TypeRegistry
 from .spec import ArrayKind, Constant, FieldSpec, FieldType
 from .wire import WireCodec
@@ -26,11 +26,11 @@ __all__ = [
     "Dialect",
     "FieldSpec",
     "FieldType",
-    "InvalidTypeName",
+    "InvalidTypeNameError",
     "MessageType",
     "ServiceType",
     "TypeRegistry",
-    "UnknownType",
+    "UnknownTypeError",
     "WireCodec",
     "parse_message",
 ]

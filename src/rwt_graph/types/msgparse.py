@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from rwt_protocol.errors import GraphError
 
-from .names import Dialect, InvalidTypeName, parse_type_name
+from .names import Dialect, InvalidTypeNameError, parse_type_name
 from .primitives import Problem, array_checker, scalar_checker
 from .spec import PRIMITIVES, ArrayKind, Constant, FieldSpec, FieldType
 
@@ -93,7 +93,7 @@ def resolve_base(token: str, package: str, dialect: Dialect) -> tuple[str, bool]
         ``(base, is_message)`` where a message base is its canonical name.
 
     Raises:
-        InvalidTypeName: a slashed name is malformed.
+        InvalidTypeNameError: a slashed name is malformed.
     """
     if token in _TIME_TYPES:
         if dialect is Dialect.ROS1:
@@ -120,7 +120,7 @@ def _parse_type(token: str, package: str, dialect: Dialect) -> FieldType:
         raise ValueError(f"malformed type {token!r}")
     try:
         base, is_message = resolve_base(match["base"], package, dialect)
-    except InvalidTypeName:
+    except InvalidTypeNameError:
         raise ValueError(f"malformed type {token!r}") from None
     string_bound = int(match["sbound"]) if match["sbound"] else None
     if string_bound is not None and base not in ("string", "wstring"):

@@ -3,7 +3,7 @@
 A type string names a message, service or action as ``pkg/Type`` or
 ``pkg/<kind>/Type``; both forms mean the same type (PROTOCOL-DECISIONS D5).
 Redundant, leading and trailing slashes are ignored; everything else listed as
-invalid in REF §4.6 raises :class:`InvalidTypeName`.
+invalid in REF §4.6 raises :class:`InvalidTypeNameError`.
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ from rwt_protocol.errors import GraphError
 
 __all__ = [
     "Dialect",
-    "InvalidTypeName",
+    "InvalidTypeNameError",
     "Kind",
     "TypeName",
-    "UnknownType",
+    "UnknownTypeError",
     "parse_type_name",
 ]
 
@@ -42,7 +42,7 @@ class Dialect(StrEnum):
     ROS1 = "ros1"
 
 
-class InvalidTypeName(GraphError):
+class InvalidTypeNameError(GraphError):
     """A type string is malformed (REF §4.6).
 
     Args:
@@ -58,7 +58,7 @@ class InvalidTypeName(GraphError):
         self.kind = kind
 
 
-class UnknownType(GraphError):
+class UnknownTypeError(GraphError):
     """A well-formed type string names no known type (REF §4.6).
 
     Args:
@@ -115,13 +115,13 @@ def parse_type_name(name: str, kind: Kind = "msg") -> TypeName:
         The parsed name; the kind of a two-part name is ``kind``.
 
     Raises:
-        InvalidTypeName: empty, only slashes, one component, more than three,
+        InvalidTypeNameError: empty, only slashes, one component, more than three,
             a backslash, a middle component that is not an interface kind, or a
             component that is not an identifier (REF §4.6). Primitive names
             such as ``int32`` have one component and are therefore rejected.
     """
     if not isinstance(name, str) or "\\" in name:
-        raise InvalidTypeName(str(name), kind)
+        raise InvalidTypeNameError(str(name), kind)
     parts = [p for p in name.split("/") if p]
     middle: str
     if len(parts) == 2:
@@ -130,9 +130,9 @@ def parse_type_name(name: str, kind: Kind = "msg") -> TypeName:
         package, middle, tail = parts
         allowed = ("msg", "srv", "action") if kind == "msg" else (kind,)
         if middle not in allowed:
-            raise InvalidTypeName(name, kind)
+            raise InvalidTypeNameError(name, kind)
     else:
-        raise InvalidTypeName(name, kind)
+        raise InvalidTypeNameError(name, kind)
     if not (_IDENT.match(package) and _IDENT.match(tail)):
-        raise InvalidTypeName(name, kind)
+        raise InvalidTypeNameError(name, kind)
     return TypeName(package, middle, tail)

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
 from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
-from .names import Dialect, Kind, TypeName, UnknownType, parse_type_name
+from .names import Dialect, Kind, TypeName, UnknownTypeError, parse_type_name
 from .sources import FileIndex, packaged_dirs, store_message, stores_for
 from .wire import WireCodec
 
@@ -70,7 +70,7 @@ class TypeRegistry:
             ``pkg/<kind>/Type`` in ROS 2, ``pkg/Type`` in ROS 1 (PROTOCOL-DECISIONS D5).
 
         Raises:
-            InvalidTypeName: the string is malformed (REF §4.6).
+            InvalidTypeNameError: the string is malformed (REF §4.6).
         """
         return parse_type_name(name, kind).spelled(self.dialect)
 
@@ -81,8 +81,8 @@ class TypeRegistry:
         actions are messages too.
 
         Raises:
-            InvalidTypeName: the string is malformed (REF §4.6).
-            UnknownType: no such type, or a type it uses is unknown.
+            InvalidTypeNameError: the string is malformed (REF §4.6).
+            UnknownTypeError: no such type, or a type it uses is unknown.
             DefinitionError: its definition (or a dependency's) cannot be parsed.
         """
         found = self._aliases.get(name)
@@ -146,10 +146,10 @@ class TypeRegistry:
         for kind in ("srv", "action"):
             try:
                 return self._part(tname, kind)
-            except UnknownType:
+            except UnknownTypeError:
                 continue
         known = tname.package in self._packages
-        raise UnknownType(tname.spelled(self.dialect), "msg", package_known=known)
+        raise UnknownTypeError(tname.spelled(self.dialect), "msg", package_known=known)
 
     def _part(self, tname: TypeName, kind: str) -> MessageType:
         for index, part in enumerate(_PARTS[kind]):
@@ -161,14 +161,14 @@ class TypeRegistry:
                         return (service.request, service.response)[index]
                     action = self.action(owner)
                     return (action.goal, action.result, action.feedback)[index]
-        raise UnknownType(tname.spelled(self.dialect), "msg", package_known=True)
+        raise UnknownTypeError(tname.spelled(self.dialect), "msg", package_known=True)
 
     def _parts(self, tname: TypeName, kind: Kind) -> tuple[str, list[MessageType]]:
         """Parse the file of a service or action into its text and parts."""
         canonical = tname.spelled(self.dialect)
         path = self._files.find(tname.package, kind, tname.type)
         if path is None:
-            raise UnknownType(canonical, kind, package_known=tname.package in self._packages)
+            raise UnknownTypeError(canonical, kind, package_known=tname.package in self._packages)
         text = path.read_text(encoding="utf-8")
         parts = _PARTS[kind]
         sections = split_sections(text, len(parts), str(path))
@@ -192,8 +192,8 @@ class TypeRegistry:
         """Find a service type (cached).
 
         Raises:
-            InvalidTypeName: the string is malformed (REF §4.6).
-            UnknownType: no ``.srv`` file defines it, or a type it uses is unknown.
+            InvalidTypeNameError: the string is malformed (REF §4.6).
+            UnknownTypeError: no ``.srv`` file defines it, or a type it uses is unknown.
             DefinitionError: its text cannot be parsed.
         """
 
@@ -207,8 +207,8 @@ class TypeRegistry:
         """Find an action type (cached).
 
         Raises:
-            InvalidTypeName: the string is malformed (REF §4.6).
-            UnknownType: no ``.action`` file defines it, or a type it uses is unknown.
+            InvalidTypeNameError: the string is malformed (REF §4.6).
+            UnknownTypeError: no ``.action`` file defines it, or a type it uses is unknown.
             DefinitionError: its text cannot be parsed.
         """
 

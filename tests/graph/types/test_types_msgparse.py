@@ -13,7 +13,7 @@ from rwt_graph.types import (
     Dialect,
     FieldType,
     TypeRegistry,
-    UnknownType,
+    UnknownTypeError,
     parse_message,
 )
 
@@ -176,7 +176,7 @@ def test_unknown_and_recursive_dependencies(tmp_path: Path) -> None:
     (msg / "A.msg").write_text("B b\n")
     (msg / "B.msg").write_text("A a\n")
     registry = TypeRegistry(interface_dirs=[tmp_path])
-    with pytest.raises(UnknownType, match=r"unknown message type 'pkg/msg/Missing'"):
+    with pytest.raises(UnknownTypeError, match=r"unknown message type 'pkg/msg/Missing'"):
         registry.message("pkg/Dangling")
     with pytest.raises(DefinitionError, match=r"uses itself"):
         registry.message("pkg/A")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from types_support import DATA
 
-from rwt_graph.types import Dialect, InvalidTypeName, TypeRegistry, UnknownType
+from rwt_graph.types import Dialect, InvalidTypeNameError, TypeRegistry, UnknownTypeError
 from rwt_graph.types import registry as registry_module
 from rwt_protocol.errors import GraphError
 
@@ -51,7 +51,7 @@ def test_irregular_but_valid_message_names_resolve_to_one_type(
     ],
 )
 def test_invalid_message_names_raise_invalid_type_name(ros2: TypeRegistry, name: str) -> None:
-    with pytest.raises(InvalidTypeName) as caught:
+    with pytest.raises(InvalidTypeNameError) as caught:
         ros2.message(name)
     assert caught.value.message == (
         f"{name!r} is not a valid type name (expected pkg/Type or pkg/msg/Type)"
@@ -61,26 +61,26 @@ def test_invalid_message_names_raise_invalid_type_name(ros2: TypeRegistry, name:
 
 @pytest.mark.parametrize("name", ["bad", "not/better/even/still", "std_srvs/msg/Empty", ""])
 def test_invalid_service_and_action_names(ros2: TypeRegistry, name: str) -> None:
-    with pytest.raises(InvalidTypeName, match=r"expected pkg/Type or pkg/srv/Type"):
+    with pytest.raises(InvalidTypeNameError, match=r"expected pkg/Type or pkg/srv/Type"):
         ros2.service(name)
-    with pytest.raises(InvalidTypeName, match=r"expected pkg/Type or pkg/action/Type"):
+    with pytest.raises(InvalidTypeNameError, match=r"expected pkg/Type or pkg/action/Type"):
         ros2.action(name.replace("msg", "srv"))
 
 
 def test_unknown_class_and_unknown_package_are_distinguished(ros2: TypeRegistry) -> None:
-    with pytest.raises(UnknownType) as caught:
+    with pytest.raises(UnknownTypeError) as caught:
         ros2.message("std_msgs/Spool")
     assert caught.value.message == "unknown message type 'std_msgs/msg/Spool'"
     assert caught.value.package_known
-    with pytest.raises(UnknownType) as caught:
+    with pytest.raises(UnknownTypeError) as caught:
         ros2.message("no_such_pkg/Thing")
     assert caught.value.message == (
         "unknown message type 'no_such_pkg/msg/Thing' (no package 'no_such_pkg')"
     )
     assert not caught.value.package_known
-    with pytest.raises(UnknownType, match=r"^unknown service type 'rwt_test_msgs/srv/Nope'$"):
+    with pytest.raises(UnknownTypeError, match=r"^unknown service type 'rwt_test_msgs/srv/Nope'$"):
         ros2.service("rwt_test_msgs/Nope")
-    with pytest.raises(UnknownType, match=r"^unknown action type 'std_msgs/action/Nope'$"):
+    with pytest.raises(UnknownTypeError, match=r"^unknown action type 'std_msgs/action/Nope'$"):
         ros2.action("std_msgs/Nope")
 
 
@@ -102,7 +102,7 @@ def test_canonical_name_only_validates(ros2: TypeRegistry, ros1: TypeRegistry) -
     assert ros2.canonical_name("a/srv/B", "srv") == "a/srv/B"
     assert ros2.canonical_name("a/B", "action") == "a/action/B"
     assert ros1.canonical_name("std_msgs/msg/String") == "std_msgs/String"
-    with pytest.raises(InvalidTypeName):
+    with pytest.raises(InvalidTypeNameError):
         ros2.canonical_name("a/msg/B", "srv")
 
 
@@ -140,7 +140,7 @@ def test_parts_resolve_before_their_service_or_action_is_loaded() -> None:
     assert request is registry.service("rwt_test_msgs/AddInts").request
     result = registry.message("rwt_test_msgs/action/Count_Result")
     assert result is registry.action("rwt_test_msgs/Count").result
-    with pytest.raises(UnknownType, match=r"unknown message type 'rwt_test_msgs/srv/AddInts'"):
+    with pytest.raises(UnknownTypeError, match=r"unknown message type 'rwt_test_msgs/srv/AddInts'"):
         registry.message("rwt_test_msgs/srv/AddInts")
     ros1 = TypeRegistry(Dialect.ROS1, [DATA])
     assert ros1.message("rwt_test_msgs/CountGoal") is ros1.action("rwt_test_msgs/Count").goal
@@ -148,7 +148,7 @@ def test_parts_resolve_before_their_service_or_action_is_loaded() -> None:
         ros1.message("rwt_test_msgs/AddIntsRequest")
         is ros1.service("rwt_test_msgs/AddInts").request
     )
-    with pytest.raises(UnknownType, match=r"unknown message type 'rwt_test_msgs/NoneRequest'"):
+    with pytest.raises(UnknownTypeError, match=r"unknown message type 'rwt_test_msgs/NoneRequest'"):
         ros1.message("rwt_test_msgs/NoneRequest")
 
 

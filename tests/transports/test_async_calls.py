@@ -7,10 +7,10 @@ import json
 import anyio
 import pytest
 
-from rwt_graph.actions import GoalCanceled, GoalContext
+from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import GoalStatus
-from rwt_transports.embed import ServiceCallFailed, call_service, send_action_goal
+from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_transports.server import spawner_for
 from tests.conftest import Peer
 
@@ -30,7 +30,7 @@ async def fibonacci(goal: dict[str, object], context: GoalContext) -> dict[str, 
     sequence = [0, 1]
     for _ in range(1, order):
         if context.cancel_requested:
-            raise GoalCanceled
+            raise GoalCanceledError
         sequence.append(sequence[-1] + sequence[-2])
         context.publish_feedback({"sequence": list(sequence)})
         await anyio.sleep(0)
@@ -82,7 +82,7 @@ async def test_python_caller_times_out_on_a_silent_provider() -> None:
     graph = Graph()
     provider = Peer(graph, "p")
     provider.send(op="advertise_service", service="/slow", type="std_srvs/Trigger")
-    with anyio.fail_after(5), pytest.raises(ServiceCallFailed, match="timed out"):
+    with anyio.fail_after(5), pytest.raises(ServiceCallError, match="timed out"):
         await call_service(graph, "/slow", timeout_s=0.05)
     assert provider.received()[0]["op"] == "call_service"
 
@@ -156,7 +156,7 @@ async def test_in_process_goal_cancelled_by_a_client() -> None:
         started.set()
         while not context.cancel_requested:
             await anyio.sleep(0.01)
-        raise GoalCanceled
+        raise GoalCanceledError
 
     graph.create_action_server("/slow", FIB, slow)
     async with anyio.create_task_group() as tg:

@@ -9,8 +9,8 @@ import anyio
 
 from rwt_protocol.client import ActionResultReceived
 
-from ..connectors import ConnectionClosed
-from .ros import Callback, CallTimeout, Ros, ServiceError
+from .connectors import ConnectionClosedError
+from .ros import Callback, CallTimeoutError, Ros, ServiceCallError
 from .typed import MessageClass, to_wire
 
 __all__ = ["Action", "GoalHandle", "Param", "Service", "Topic"]
@@ -136,9 +136,9 @@ class Service:
         """Call the service; return the response values.
 
         Raises:
-            ServiceError: ``result: false`` (the text is in ``values``).
-            CallTimeout: no reply within ``timeout_s``.
-            ConnectionClosed: the connection dropped.
+            ServiceCallError: ``result: false`` (the text is in ``values``).
+            CallTimeoutError: no reply within ``timeout_s``.
+            ConnectionClosedError: the connection dropped.
         """
         return await self.ros.call_service(
             self.name, to_wire(request), type_name=self.service_type, timeout_s=timeout_s
@@ -179,14 +179,14 @@ class GoalHandle:
         """Wait for the ``action_result``; ``status`` says how it ended (D18).
 
         Raises:
-            CallTimeout: no result within ``timeout_s`` (None waits forever).
-            ConnectionClosed: the connection dropped.
+            CallTimeoutError: no result within ``timeout_s`` (None waits forever).
+            ConnectionClosedError: the connection dropped.
         """
         try:
             with anyio.fail_after(timeout_s):
                 await self._waiter.done.wait()
         except TimeoutError:
-            raise CallTimeout(
+            raise CallTimeoutError(
                 f"no action_result for {self.action.name} within {timeout_s:g} s"
             ) from None
         finally:
@@ -256,4 +256,4 @@ class Param:
         await self.ros.delete_param(self.name)
 
 
-_ = (ConnectionClosed, ServiceError)  # re-exported by the package
+_ = (ConnectionClosedError, ServiceCallError)  # re-exported by the package

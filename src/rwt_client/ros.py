@@ -10,7 +10,7 @@ exceptions are logged, never propagated into the connection.
 When the connection drops and ``reconnect`` is on, ``Ros`` reconnects with
 back-off and replays the status level, advertisements, subscriptions and
 offered services and actions; calls and goals in flight fail with
-``ConnectionClosed``. Nothing relies on rwt's extensions: a foreign server
+``ConnectionClosedError``. Nothing relies on rwt's extensions: a foreign server
 that never answers makes a call time out with a clear error.
 """
 
@@ -38,29 +38,17 @@ from rwt_protocol.client import (
     StatusReceived,
     TopicMessage,
 )
-from rwt_protocol.errors import RwtError
+from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
 
-from ..connectors import Connection, ConnectionClosed, connect
+from .connectors import Connection, ConnectionClosedError, connect
 from .rosapi import RosapiMixin
 
-__all__ = ["CallTimeout", "Callback", "Ros", "ServiceError"]
+__all__ = ["CallTimeoutError", "Callback", "Ros", "ServiceCallError"]
 
 logger = logging.getLogger("rwt.client")
 
 Callback = Callable[..., object]
 """A plain or ``async`` function; called with the event's payload."""
-
-
-class ServiceError(RwtError):
-    """A service call or goal ended with ``result: false``; ``values`` is the server's text."""
-
-    def __init__(self, message: str, values: object = None) -> None:
-        super().__init__(message)
-        self.values = values
-
-
-class CallTimeout(RwtError, TimeoutError):
-    """No reply came within the time allowed (the server may not serve it)."""
 
 
 @dataclass
@@ -128,7 +116,7 @@ class Ros(RosapiMixin):
         """Connect and start the reader task.
 
         Raises:
-            ConnectionClosed: the server cannot be reached.
+            ConnectionClosedError: the server cannot be reached.
         """
         self._conn = await connect(
             self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
@@ -165,7 +153,7 @@ class Ros(RosapiMixin):
         """Send everything the session queued.
 
         Raises:
-            ConnectionClosed: the connection is down and not coming back.
+            ConnectionClosedError: the connection is down and not coming back.
         """
         async with self._write_lock:
             frames = self.session.frames_to_send()
@@ -208,9 +196,9 @@ class Ros(RosapiMixin):
                 sent to the server as ``timeout`` (rosbridge 2.2, D16).
 
         Raises:
-            ServiceError: the reply had ``result: false``.
-            CallTimeout: no reply in time.
-            ConnectionClosed: the connection dropped first.
+            ServiceCallError: the reply had ``result: false``.
+            CallTimeoutError: no reply in time.
+            ConnectionClosedError: the connection dropped first.
         """
         seconds = timeout_s or self.timeout_s
         call_id = self.session.call_service(service, args, type=type_name, timeout=seconds)
@@ -220,7 +208,7 @@ class Ros(RosapiMixin):
             with anyio.fail_after(seconds):
                 await waiter.done.wait()
         except TimeoutError:
-            raise CallTimeout(
+            raise CallTimeoutError(
                 f"no service_response for {service} within {seconds:g} s "
                 "(the server may not provide it or may never answer)"
             ) from None
@@ -293,7 +281,7 @@ class Ros(RosapiMixin):
                     frame = await self._conn.receive()
                     for event in self.session.receive_frame(frame):
                         self._route(event)
-            except ConnectionClosed as exc:
+            except ConnectionClosedError as exc:
                 self._connected = anyio.Event()
                 self._fail_waiters(f"connection lost: {exc.message}")
                 if self._closing or not self.reconnect:
@@ -308,7 +296,7 @@ class Ros(RosapiMixin):
                 self._conn = await connect(
                     self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
                 )
-            except ConnectionClosed:
+            except ConnectionClosedError:
                 await anyio.sleep(delay_s)  # back-off between attempts, not synchronisation
                 delay_s = min(delay_s * 2, 5.0)
                 continue
@@ -323,7 +311,7 @@ class Ros(RosapiMixin):
 
     def _fail_waiters(self, reason: str) -> None:
         for waiter in self._waiters.values():
-            waiter.error = ConnectionClosed(reason)
+            waiter.error = ConnectionClosedError(reason)
             waiter.done.set()
         self._waiters.clear()
 
@@ -429,7 +417,7 @@ def _values(waiter: _Waiter, name: str) -> object:
     reply = waiter.reply
     assert isinstance(reply, ServiceResponded)
     if not reply.result:
-        raise ServiceError(f"{name} failed: {reply.values}", reply.values)
+        raise ServiceCallError(f"{name} failed: {reply.values}", reply.values)
     return reply.values
 
 

@@ -42,7 +42,7 @@ def message_class(type_name: str, registry: TypeRegistry | None = None) -> type[
         registry: where to look the type up; a ROS 2 registry by default.
 
     Raises:
-        InvalidTypeName, UnknownType: as ``TypeRegistry.message``.
+        InvalidTypeNameError, UnknownTypeError: as ``TypeRegistry.message``.
     """
     registry = registry or _default_registry(Dialect.ROS2)
     msgtype = registry.message(type_name)

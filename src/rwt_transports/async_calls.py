@@ -13,16 +13,12 @@ from dataclasses import dataclass
 import anyio
 
 from rwt_graph.graph import Graph
-from rwt_protocol.errors import RwtError
+from rwt_protocol.errors import ServiceCallError
 from rwt_protocol.ports import GoalStatus
 
-__all__ = ["GoalOutcome", "ServiceCallFailed", "call_service", "send_action_goal"]
+__all__ = ["GoalOutcome", "ServiceCallError", "call_service", "send_action_goal"]
 
 Message = dict[str, object]
-
-
-class ServiceCallFailed(RwtError):
-    """A service call or goal failed; the message says why (D4)."""
 
 
 @dataclass(frozen=True)
@@ -48,7 +44,7 @@ async def call_service(
         The response message as a dict.
 
     Raises:
-        ServiceCallFailed: the call failed, or timed out (the call is forgotten).
+        ServiceCallError: the call failed, or timed out (the call is forgotten).
         GraphError, FieldError: the service does not exist or ``args`` does not fit.
     """
     done = anyio.Event()
@@ -63,10 +59,10 @@ async def call_service(
         await done.wait()
     if not outcome:
         pending.forget()
-        raise ServiceCallFailed(f"call to {service} timed out after {timeout_s:g} s")
+        raise ServiceCallError(f"call to {service} timed out after {timeout_s:g} s")
     result, values = outcome[0]
     if not result or not isinstance(values, dict):
-        raise ServiceCallFailed(str(values))
+        raise ServiceCallError(str(values))
     return values
 
 
@@ -83,7 +79,7 @@ async def send_action_goal(
     Cancelling the waiting task (or the timeout) asks the action server to cancel.
 
     Raises:
-        ServiceCallFailed: the goal could not run (``result: false``) or timed out.
+        ServiceCallError: the goal could not run (``result: false``) or timed out.
         GraphError, FieldError: the action does not exist or ``goal`` does not fit.
     """
     done = anyio.Event()
@@ -101,8 +97,8 @@ async def send_action_goal(
         if not outcome:
             handle.forget()
     if not outcome:
-        raise ServiceCallFailed(f"goal to {action} timed out after {timeout_s:g} s")
+        raise ServiceCallError(f"goal to {action} timed out after {timeout_s:g} s")
     status, result, values = outcome[0]
     if not result or not isinstance(values, dict):
-        raise ServiceCallFailed(str(values))
+        raise ServiceCallError(str(values))
     return GoalOutcome(status, values)

@@ -34,7 +34,7 @@ from .encoders import (
     VideoPacket,
     make_encoder,
 )
-from .params import ParamError, StreamParams
+from .params import StreamParamError, StreamParams
 
 __all__ = ["PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
 
@@ -233,9 +233,9 @@ class StreamHub:
         for a keyframe so that the new viewer starts soon.
 
         Raises:
-            ParamError: ``max_streams`` distinct streams run already (status 503).
+            StreamParamError: ``max_streams`` distinct streams run already (status 503).
             EncodeError: the encoder cannot be made (PyAV missing).
-            GraphError, InvalidTypeName, UnknownType: the topic cannot be
+            GraphError, InvalidTypeNameError, UnknownTypeError: the topic cannot be
                 subscribed as ``type_name``.
         """
         stream = self.streams.get(params)
@@ -255,7 +255,7 @@ class StreamHub:
 
     def _start(self, params: StreamParams, type_name: str) -> SharedStream:
         if len(self.streams) >= self.max_streams:
-            raise ParamError(f"{self.max_streams} distinct streams run already", status=503)
+            raise StreamParamError(f"{self.max_streams} distinct streams run already", status=503)
         stream = SharedStream(params, make_encoder(params))
         stream.subscription = self.graph.create_subscription(
             params.source_topic, stream.on_message, type_name, node="/web_video_server"

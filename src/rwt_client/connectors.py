@@ -17,7 +17,7 @@ underneath (PROTOCOL-DECISIONS D22).
   ``receive`` returns as ``bytes``.
 - stdio: a subprocess speaking one JSON object per line on stdin/stdout.
 
-Every failure of the underlying stream is raised as ``ConnectionClosed`` (a
+Every failure of the underlying stream is raised as ``ConnectionClosedError`` (a
 ``TransportError``), so callers catch only rwt's errors.
 """
 
@@ -43,7 +43,7 @@ from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
 
 __all__ = [
     "Connection",
-    "ConnectionClosed",
+    "ConnectionClosedError",
     "StdioConnection",
     "TcpConnection",
     "WebSocketConnection",
@@ -56,7 +56,7 @@ Frame_ = str | bytes
 """A whole frame: JSON text as ``str``, CBOR as ``bytes``."""
 
 
-class ConnectionClosed(TransportError):
+class ConnectionClosedError(TransportError):
     """The connection is closed, or could not be opened; ``message`` says why."""
 
 
@@ -69,14 +69,14 @@ class Connection(Protocol):
         """Send one frame: ``str`` is JSON text, ``bytes`` a binary (CBOR) frame.
 
         Raises:
-            ConnectionClosed: the connection is gone.
+            ConnectionClosedError: the connection is gone.
         """
 
     async def receive(self) -> str | bytes:
         """Wait for the next frame.
 
         Raises:
-            ConnectionClosed: the connection ended.
+            ConnectionClosedError: the connection ended.
         """
 
     async def aclose(self) -> None:
@@ -102,7 +102,7 @@ async def connect(
         The open connection.
 
     Raises:
-        ConnectionClosed: the server cannot be reached or refused the handshake.
+        ConnectionClosedError: the server cannot be reached or refused the handshake.
         ValueError: the URL's scheme is not one of the above.
     """
     scheme = urlsplit(url).scheme
@@ -115,7 +115,7 @@ async def connect(
         except TimeoutError:
             raise
         except (OSError, anyio.BrokenResourceError, anyio.EndOfStream) as exc:
-            raise ConnectionClosed(f"cannot connect to {url}: {exc}") from None
+            raise ConnectionClosedError(f"cannot connect to {url}: {exc}") from None
     raise ValueError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss or tcp)")
 
 
@@ -140,7 +140,7 @@ class WebSocketConnection:
         """Connect and complete the opening handshake.
 
         Raises:
-            ConnectionClosed: refused or broken handshake.
+            ConnectionClosedError: refused or broken handshake.
             OSError: the TCP connection failed.
         """
         try:
@@ -164,7 +164,7 @@ class WebSocketConnection:
                 state: State = protocol.state
                 if isinstance(event, Response) and state is not State.OPEN:
                     await stream.aclose()
-                    raise ConnectionClosed(
+                    raise ConnectionClosedError(
                         f"{url} refused the WebSocket handshake: {event.status_code}"
                     )
         return conn
@@ -172,7 +172,7 @@ class WebSocketConnection:
     async def send(self, frame: str | bytes) -> None:
         """Send one text (``str``) or binary (``bytes``) message."""
         if self._protocol.state is not State.OPEN:
-            raise ConnectionClosed(f"{self.url}: connection closed")
+            raise ConnectionClosedError(f"{self.url}: connection closed")
         if isinstance(frame, str):
             self._protocol.send_text(frame.encode())
         else:
@@ -183,7 +183,7 @@ class WebSocketConnection:
         """Wait for the next whole message; answers pings on the way."""
         while not self._messages:
             if self._protocol.state is State.CLOSED:
-                raise ConnectionClosed(f"{self.url}: {self._close_reason()}")
+                raise ConnectionClosedError(f"{self.url}: {self._close_reason()}")
             try:
                 data = await self._stream.receive(_READ_SIZE)
             except (
@@ -193,7 +193,7 @@ class WebSocketConnection:
                 OSError,
             ):
                 self._protocol.receive_eof()
-                raise ConnectionClosed(f"{self.url}: {self._close_reason()}") from None
+                raise ConnectionClosedError(f"{self.url}: {self._close_reason()}") from None
             self._protocol.receive_data(data)
             for event in self._protocol.events_received():
                 self._collect(event)
@@ -238,7 +238,7 @@ class WebSocketConnection:
                     else:
                         await self._stream.send_eof()
                 except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
-                    raise ConnectionClosed(f"{self.url}: connection lost") from None
+                    raise ConnectionClosedError(f"{self.url}: connection lost") from None
                 except NotImplementedError:
                     pass  # TLS streams cannot half-close; closing follows
 
@@ -269,19 +269,19 @@ class _LineStreamConnection:
         self-delimiting, and its first byte tells it apart from JSON (D22).
 
         Raises:
-            ConnectionClosed: the connection is gone, or ``bytes`` on a stream
+            ConnectionClosedError: the connection is gone, or ``bytes`` on a stream
                 that carries JSON only (stdio).
         """
         if isinstance(frame, bytes):
             if not self.carries_cbor:
-                raise ConnectionClosed(f"{self.url}: this transport carries JSON text only")
+                raise ConnectionClosedError(f"{self.url}: this transport carries JSON text only")
             data = frame
         else:
             data = (frame.replace("\n", " ") + "\n").encode()
         try:
             await self._write(data)
         except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
-            raise ConnectionClosed(f"{self.url}: connection lost") from None
+            raise ConnectionClosedError(f"{self.url}: connection lost") from None
 
     async def receive(self) -> str | bytes:
         """Wait for the next JSON value from the stream."""
@@ -294,7 +294,7 @@ class _LineStreamConnection:
                 anyio.ClosedResourceError,
                 OSError,
             ):
-                raise ConnectionClosed(f"{self.url}: connection closed") from None
+                raise ConnectionClosedError(f"{self.url}: connection closed") from None
             self._take(self._framer.receive_data(data))
         return self._frames.popleft()
 
@@ -305,7 +305,7 @@ class _LineStreamConnection:
             if isinstance(event, InFrame):
                 self._frames.append(event.data if event.binary else event.data.decode())
             elif event.fatal:
-                raise ConnectionClosed(f"{self.url}: {event.message}")
+                raise ConnectionClosedError(f"{self.url}: {event.message}")
 
     async def _write(self, data: bytes) -> None:
         raise NotImplementedError
@@ -362,12 +362,12 @@ class StdioConnection(_LineStreamConnection):
         """Start ``command`` with pipes for stdin and stdout (stderr is inherited).
 
         Raises:
-            ConnectionClosed: the command cannot be started.
+            ConnectionClosedError: the command cannot be started.
         """
         try:
             process = await anyio.open_process(list(command), stderr=None)
         except OSError as exc:
-            raise ConnectionClosed(f"cannot start {command[0]!r}: {exc}") from None
+            raise ConnectionClosedError(f"cannot start {command[0]!r}: {exc}") from None
         return cls(command, process, max_message_size)
 
     async def aclose(self) -> None:

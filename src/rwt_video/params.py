@@ -15,14 +15,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
+from rwt_protocol.errors import RwtError
+
 __all__ = [
     "MAX_BITRATE",
     "MAX_GOP",
     "MAX_PIXELS",
     "MAX_SIDE",
-    "ParamError",
+    "StreamParamError",
     "StreamParams",
     "StreamType",
+    "VideoError",
     "parse_stream_params",
 ]
 
@@ -56,7 +59,11 @@ class StreamType(StrEnum):
         return self in (StreamType.VP8, StreamType.VP9, StreamType.H264)
 
 
-class ParamError(ValueError):
+class VideoError(RwtError):
+    """Root of the video server's errors."""
+
+
+class StreamParamError(VideoError):
     """A query parameter that cannot be used; ``status`` is the HTTP status to answer."""
 
     def __init__(self, message: str, status: int = 400) -> None:
@@ -117,7 +124,7 @@ def parse_stream_params(
         that they do not split one stream into several.
 
     Raises:
-        ParamError: no ``topic`` (400), an unknown ``type`` (404, as
+        StreamParamError: no ``topic`` (400), an unknown ``type`` (404, as
             web_video_server), or a number that is not an integer or out of range (400):
             ``width``/``height`` over ``MAX_SIDE`` or their product over
             ``MAX_PIXELS``, ``bitrate`` over ``MAX_BITRATE``, ``gop`` over ``MAX_GOP``,
@@ -125,11 +132,11 @@ def parse_stream_params(
     """
     topic = query.get("topic", "")
     if not topic:
-        raise ParamError("missing query parameter topic")
+        raise StreamParamError("missing query parameter topic")
     try:
         stream_type = StreamType(query.get("type", default_type.value))
     except ValueError:
-        raise ParamError(f"unknown stream type {query.get('type')!r}", status=404) from None
+        raise StreamParamError(f"unknown stream type {query.get('type')!r}", status=404) from None
     params = StreamParams(
         topic=topic if topic.startswith("/") else f"/{topic}",
         type=stream_type,
@@ -147,11 +154,11 @@ def parse_stream_params(
             gop=_int(query, "gop", 25, low=1, high=MAX_GOP),
         )
         if params.qmin > params.qmax:
-            raise ParamError(f"qmin={params.qmin} is above qmax={params.qmax}")
+            raise StreamParamError(f"qmin={params.qmin} is above qmax={params.qmax}")
     if params.width == 0 or params.height == 0:
-        raise ParamError("width and height must be positive (or -1 for the image's)")
+        raise StreamParamError("width and height must be positive (or -1 for the image's)")
     if params.width * params.height > MAX_PIXELS:
-        raise ParamError(f"width x height is over {MAX_PIXELS} pixels")
+        raise StreamParamError(f"width x height is over {MAX_PIXELS} pixels")
     return params
 
 
@@ -170,8 +177,8 @@ def _int(query: Mapping[str, str], name: str, default: int, *, low: int, high: i
     # int() parses at most 4300 digits; anything longer than 12 is out of range anyway
     if len(raw) > 12 or not raw.lstrip("-").isdigit() or not raw.isascii():
         shown = raw if len(raw) <= 20 else raw[:17] + "..."
-        raise ParamError(f"{name}={shown!r} is not an integer in {low}..{high}")
+        raise StreamParamError(f"{name}={shown!r} is not an integer in {low}..{high}")
     value = int(raw)
     if not low <= value <= high:
-        raise ParamError(f"{name}={value} is outside {low}..{high}")
+        raise StreamParamError(f"{name}={value} is outside {low}..{high}")
     return value

@@ -19,7 +19,7 @@ from PIL import Image
 
 from rwt_graph.media import ImageError, compressed_content_type, image_to_display
 
-from .params import MAX_PIXELS, StreamParams, StreamType
+from .params import MAX_PIXELS, StreamParams, StreamType, VideoError
 
 __all__ = [
     "BOUNDARY",
@@ -47,7 +47,7 @@ VIDEO_CONTENT_TYPES: Mapping[StreamType, str] = {
 }
 
 
-class EncodeError(Exception):
+class EncodeError(VideoError):
     """A frame that cannot be encoded (bad image, codec failure); the frame is skipped."""
 
 

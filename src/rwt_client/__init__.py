@@ -4,7 +4,7 @@ Shaped like roslibpy (``Ros``, ``Topic``, ``Service``, ``Action``, ``Param``),
 on anyio, over WebSocket or TCP::
 
     import anyio
-    from rwt_transports.client import Ros, Topic
+    from rwt_client import Ros, Topic
 
     async def main() -> None:
         async with Ros("ws://127.0.0.1:9090") as ros:
@@ -19,22 +19,22 @@ on anyio, over WebSocket or TCP::
 
 from __future__ import annotations
 
-from ..connectors import ConnectionClosed
 from .api import Action, GoalHandle, Param, Service, Topic
-from .ros import CallTimeout, Ros, ServerGoal, ServiceError
+from .connectors import ConnectionClosedError
+from .ros import CallTimeoutError, Ros, ServerGoal, ServiceCallError
 from .sync import SyncRos
 from .typed import message_class
 
 __all__ = [
     "Action",
-    "CallTimeout",
-    "ConnectionClosed",
+    "CallTimeoutError",
+    "ConnectionClosedError",
     "GoalHandle",
     "Param",
     "Ros",
     "ServerGoal",
     "Service",
-    "ServiceError",
+    "ServiceCallError",
     "SyncRos",
     "Topic",
     "message_class",

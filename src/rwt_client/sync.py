@@ -48,7 +48,7 @@ class SyncRos:
         """Connect; the connection lives in one task of the background loop.
 
         Raises:
-            ConnectionClosed: the server cannot be reached.
+            ConnectionClosedError: the server cannot be reached.
         """
         self._main, self._stop = self._portal.start_task(self._hold)
 

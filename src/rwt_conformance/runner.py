@@ -32,7 +32,9 @@ from urllib.parse import urlsplit
 import anyio
 import cbor2
 
-from ..connectors import Connection, ConnectionClosed, connect
+from rwt_client.connectors import Connection, ConnectionClosedError, connect
+from rwt_protocol.errors import RwtError
+
 from .frames import Received, auth_op, decode_frame
 from .match import JsonValue, describe, match, substitute
 from .model import Case, Profile, Requirement, Step, StepKind, Suite
@@ -132,7 +134,7 @@ class SuiteResult:
         return ", ".join(f"{self.count(o)} {o.value}" for o in Outcome)
 
 
-class StepFailed(Exception):
+class StepFailedError(RwtError):
     """A step's expectation did not hold; the text is the detail shown."""
 
 
@@ -190,7 +192,7 @@ async def run_case(case: Case, options: RunOptions, variables: dict[str, JsonVal
     try:
         with anyio.fail_after(options.case_timeout_s):
             await run.execute()
-    except StepFailed as exc:
+    except StepFailedError as exc:
         return CaseResult(case, Outcome.FAILED, str(exc), time.monotonic() - started)
     except TimeoutError:
         detail = f"case exceeded {options.case_timeout_s:g} s at step {run.step_number}"
@@ -259,12 +261,12 @@ class _CaseRun:
         self._tasks: anyio.abc.TaskGroup | None = None
 
     async def execute(self) -> None:
-        failure: StepFailed | None = None
+        failure: StepFailedError | None = None
         async with anyio.create_task_group() as tasks:
             self._tasks = tasks
             try:
                 await self._steps()
-            except StepFailed as exc:  # raised after the task group, not wrapped in a group
+            except StepFailedError as exc:  # raised after the task group, not wrapped in a group
                 failure = exc
             tasks.cancel_scope.cancel()
         if failure is not None:
@@ -282,10 +284,10 @@ class _CaseRun:
                 for repetition in range(step.repeat):
                     self.variables["i"] = repetition
                     await self._run_step(step)
-            except StepFailed as exc:
-                raise StepFailed(f"{where}: {exc}") from None
-            except ConnectionClosed as exc:
-                raise StepFailed(f"{where}: {exc.message}") from None
+            except StepFailedError as exc:
+                raise StepFailedError(f"{where}: {exc}") from None
+            except ConnectionClosedError as exc:
+                raise StepFailedError(f"{where}: {exc.message}") from None
 
     async def close_all(self) -> None:
         for link in self.links.values():
@@ -307,7 +309,7 @@ class _CaseRun:
                 frame = _SENDS[kind](self._sub(step.value))
             try:
                 await link.conn.send(frame)
-            except ConnectionClosed as exc:  # later steps say whether closing was right
+            except ConnectionClosedError as exc:  # later steps say whether closing was right
                 link.closed_reason = link.closed_reason or exc.message
                 link.notify()
         elif kind in (StepKind.EXPECT, StepKind.EXPECT_STATUS):
@@ -329,13 +331,13 @@ class _CaseRun:
             while link.closed_reason is None:
                 await link.arrived.wait()
         if link.closed_reason is None:
-            raise StepFailed(f"the server kept the connection open for {timeout_s:g} s")
+            raise StepFailedError(f"the server kept the connection open for {timeout_s:g} s")
 
     def _sub(self, value: object) -> JsonValue:
         try:
             return substitute(value, self.variables)
         except KeyError as exc:
-            raise StepFailed(f"variable {exc} was never captured") from None
+            raise StepFailedError(f"variable {exc} was never captured") from None
 
     async def _link(self, name: str) -> _Link:
         link = self.links.get(name)
@@ -358,7 +360,7 @@ class _CaseRun:
                 if not self._hidden(link, received.value):
                     link.frames.append(received)
                 link.notify()
-        except ConnectionClosed as exc:
+        except ConnectionClosedError as exc:
             link.closed_reason = exc.message
             link.notify()
 
@@ -387,16 +389,18 @@ class _CaseRun:
                         del link.frames[index]
                         return
                     if step.in_order and _same_stream(pattern, received.value):
-                        raise StepFailed(
+                        raise StepFailedError(
                             f"out of order: {describe(received.value, 100)} ({problem})"
                         )
                 if link.closed_reason is not None:
-                    raise StepFailed(
+                    raise StepFailedError(
                         f"connection closed ({link.closed_reason}) before {describe(pattern, 120)}"
                     )
                 await link.arrived.wait()
         near = self._near(link, pattern, step)
-        raise StepFailed(f"no frame matching {describe(pattern, 160)} within {timeout_s:g} s{near}")
+        raise StepFailedError(
+            f"no frame matching {describe(pattern, 160)} within {timeout_s:g} s{near}"
+        )
 
     def _near(self, link: _Link, pattern: JsonValue, step: Step) -> str:
         if not link.frames:
@@ -413,7 +417,7 @@ class _CaseRun:
     def _auth_op(self, fields: object) -> dict[str, JsonValue]:
         secret = self.options.auth_secret
         if secret is None:  # only authenticating cases send auth, and they need the secret
-            raise StepFailed("send_auth needs the server's secret")
+            raise StepFailedError("send_auth needs the server's secret")
         given = self._sub(fields)
         try:
             return auth_op(
@@ -422,16 +426,16 @@ class _CaseRun:
                 urlsplit(self.options.url).hostname or "",
             )
         except ValueError as exc:
-            raise StepFailed(f"send_auth: {exc}") from None
+            raise StepFailedError(f"send_auth: {exc}") from None
 
     def _expect_none(self, link: _Link, pattern: JsonValue) -> None:
         for received in link.frames:
             if match(pattern, received.value, {}) is None:
-                raise StepFailed(f"unexpected {describe(received.value, 160)}")
+                raise StepFailedError(f"unexpected {describe(received.value, 160)}")
 
     async def _sync(self, link: _Link, timeout_s: float) -> None:
         if link.closed_reason is not None:
-            raise StepFailed(f"cannot sync: connection closed ({link.closed_reason})")
+            raise StepFailedError(f"cannot sync: connection closed ({link.closed_reason})")
         if not link.sync_ready:
             base = {"topic": link.sync_topic, "type": SYNC_TYPE, "id": SYNC_ID}
             await link.conn.send(json.dumps({"op": "subscribe", **base}))
@@ -447,12 +451,12 @@ class _CaseRun:
                 with anyio.move_on_after(_SYNC_RESEND_S):
                     while token not in link.tokens:
                         if link.closed_reason is not None:
-                            raise StepFailed(
+                            raise StepFailedError(
                                 f"connection closed ({link.closed_reason}) during sync"
                             )
                         await link.arrived.wait()
             return
-        raise StepFailed(
+        raise StepFailedError(
             f"sync: the server did not echo a publish on {link.sync_topic} within {timeout_s:g} s"
         )
 

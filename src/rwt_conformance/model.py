@@ -45,6 +45,8 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
+from rwt_protocol.errors import RwtError
+
 __all__ = [
     "Case",
     "Profile",
@@ -100,7 +102,7 @@ _CASE_KEYS = {
 TRANSPORTS = ("ws", "tcp")
 
 
-class SuiteError(ValueError):
+class SuiteError(RwtError):
     """The suite's data is malformed; the text names the file and the case."""
 
 
@@ -178,15 +180,12 @@ class Suite:
 
 
 def default_suite_dir() -> Path:
-    """Where the shipped suite lives.
+    """Where the shipped suite lives: this package's folder.
 
-    In an installed wheel the data is packaged as ``rwt_transports/conformance/
-    data``; in a source checkout it is the repository's ``conformance/`` folder.
+    ``requirements.toml`` and ``cases/*.toml`` are package data, so a source
+    checkout and an installed wheel find them in the same place.
     """
-    packaged = Path(__file__).with_name("data")
-    if (packaged / "requirements.toml").is_file():
-        return packaged
-    return Path(__file__).resolve().parents[3] / "conformance"
+    return Path(__file__).parent
 
 
 def load_suite(directory: Path | None = None) -> Suite:

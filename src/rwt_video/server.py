@@ -34,7 +34,7 @@ from rwt_protocol.errors import RwtError
 from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError, multipart_part
 from .hub import PartViewer, SharedStream, StreamHub, VideoViewer
 from .pages import stream_viewer_page, topic_list_page
-from .params import ParamError, StreamParams, StreamType, parse_stream_params
+from .params import StreamParamError, StreamParams, StreamType, parse_stream_params
 
 __all__ = ["VideoConfig", "serve_video"]
 
@@ -232,7 +232,7 @@ async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.
     try:
         params = _checked(hub.graph, parse_stream_params(query, config.default_stream_type))
         await handler(hub, config, http, params)
-    except ParamError as exc:
+    except StreamParamError as exc:
         await http.error(exc.status, str(exc))
 
 
@@ -240,7 +240,7 @@ def _checked(graph: Graph, params: StreamParams) -> StreamParams:
     """``params`` after checking the topic; ros_compressed falls back to mjpeg.
 
     Raises:
-        ParamError: no such topic (404) or not an image topic (400).
+        StreamParamError: no such topic (404) or not an image topic (400).
     """
     types = {name: _short(type_name) for name, type_name in graph.topic_names_and_types()}
     if params.type is StreamType.ROS_COMPRESSED:
@@ -250,9 +250,9 @@ def _checked(graph: Graph, params: StreamParams) -> StreamParams:
         params = params.with_type(StreamType.MJPEG)  # as web_video_server does
     found = types.get(params.topic)
     if found is None:
-        raise ParamError(f"topic {params.topic} does not exist", status=404)
+        raise StreamParamError(f"topic {params.topic} does not exist", status=404)
     if found != "sensor_msgs/Image":
-        raise ParamError(f"topic {params.topic} is a {found}, not a sensor_msgs/Image")
+        raise StreamParamError(f"topic {params.topic} is a {found}, not a sensor_msgs/Image")
     return params
 
 

@@ -2,7 +2,7 @@
 
 Each is one ``call_service`` to ``/rosapi/<name>``; the shapes are rosbridge
 ROS 2's (``pkg/msg/Type``, ``sec``/``nanosec``). A server without rosapi makes
-them fail with ``ServiceError`` or ``CallTimeout``.
+them fail with ``ServiceCallError`` or ``CallTimeoutError``.
 """
 
 from __future__ import annotations

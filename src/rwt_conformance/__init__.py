@@ -3,7 +3,7 @@
 Usage from Python::
 
     import anyio
-    from rwt_transports.conformance import RunOptions, load_suite, run_suite
+    from rwt_conformance import RunOptions, load_suite, run_suite
 
     result = anyio.run(run_suite, load_suite(), RunOptions("ws://127.0.0.1:9090"))
     print(result.summary())
