@@ -19,6 +19,8 @@ on anyio, over WebSocket or TCP::
 
 from __future__ import annotations
 
+from rwt_protocol.levels import StatusLevel
+
 from .api import Action, GoalHandle, Param, Service, Topic
 from .connectors import ConnectionClosedError
 from .ros import CallTimeoutError, Ros, ServerGoal, ServiceCallError
@@ -35,6 +37,7 @@ __all__ = [
     "ServerGoal",
     "Service",
     "ServiceCallError",
+    "StatusLevel",
     "SyncRos",
     "Topic",
     "message_class",

@@ -39,6 +39,7 @@ from rwt_protocol.client import (
     TopicMessage,
 )
 from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
+from rwt_protocol.levels import StatusLevel
 
 from .connectors import Connection, ConnectionClosedError, connect
 from .rosapi import RosapiMixin
@@ -251,8 +252,8 @@ class Ros(RosapiMixin):
 
     # ---- status ----------------------------------------------------------------------
 
-    async def set_level(self, level: str) -> None:
-        """Choose which status messages arrive: info, warning, error or none (spec 3.2.1)."""
+    async def set_level(self, level: StatusLevel) -> None:
+        """Choose which status messages arrive: ``StatusLevel.INFO`` ... ``NONE`` (spec 3.2.1)."""
         self.session.set_level(level)
         await self.flush()
 
@@ -279,7 +280,7 @@ class Ros(RosapiMixin):
                 assert self._conn is not None
                 while True:
                     frame = await self._conn.receive()
-                    for event in self.session.receive_frame(frame):
+                    for event in self.session.receive_frame(frame, anyio.current_time()):
                         self._route(event)
             except ConnectionClosedError as exc:
                 self._connected = anyio.Event()

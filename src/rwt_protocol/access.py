@@ -34,6 +34,7 @@ from .ops import (
     OpModel,
     Publish,
     PublishFrame,
+    PublishView,
     SendActionGoal,
     Subscribe,
     Unadvertise,
@@ -64,7 +65,7 @@ class AccessDeniedError(RemoteProtocolError):
     """An op names something the server's access rules do not allow (error status, D1)."""
 
 
-_OP_FAMILIES: Mapping[type[OpModel | PublishFrame], tuple[Family, str]] = {
+_OP_FAMILIES: Mapping[type, tuple[Family, str]] = {
     Advertise: (Family.TOPICS, "topic"),
     Unadvertise: (Family.TOPICS, "topic"),
     Publish: (Family.TOPICS, "topic"),
@@ -163,7 +164,7 @@ class AccessPolicy:
         """The names a client may see, in their order (for rosapi's listings)."""
         return [name for name in names if self.allows(family, name)]
 
-    def check(self, op: OpModel | PublishFrame) -> None:
+    def check(self, op: OpModel | PublishView) -> None:
         """Refuse an op that names something not allowed; do nothing otherwise.
 
         Raises:

@@ -19,13 +19,44 @@ accepts that a server never sends ``status``).
 from __future__ import annotations
 
 import itertools
-import json
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, TypeGuard
 
+from pydantic import ValidationError
+
+from .codec import decode_json, decode_publish, encode_json, parse_object
 from .codec_cbor import decode_cbor
-from .errors import LocalProtocolError, RemoteProtocolError
+from .errors import RemoteProtocolError
+from .fragments import PartKind, Reassembler
+from .levels import StatusLevel
+from .ops import (
+    ActionFeedback,
+    ActionResult,
+    AdvertiseAction,
+    AdvertiseService,
+    Auth,
+    CallService,
+    CancelActionGoal,
+    Fragment,
+    OpModel,
+    Png,
+    Publish,
+    SendActionGoal,
+    ServiceResponse,
+    SetLevel,
+    Status,
+    Subscribe,
+    Unadvertise,
+    UnadvertiseAction,
+    UnadvertiseService,
+    Unsubscribe,
+)
+from .ops import Advertise as AdvertiseOp
 from .png import decode_png
+from .ports import GoalStatus
+from .roles import Role
 
 __all__ = [
     "ActionFeedbackReceived",
@@ -34,6 +65,7 @@ __all__ = [
     "ClientSession",
     "GoalCancelRequested",
     "GoalRequested",
+    "Role",
     "ServiceRequested",
     "ServiceResponded",
     "StatusReceived",
@@ -143,26 +175,34 @@ ClientEvent = (
 """Everything ``ClientSession.receive_frame`` can report."""
 
 
-@dataclass
-class _Partial:
-    total: int
-    parts: dict[int, str] = field(default_factory=dict)
-    size: int = 0
-
-
 class ClientSession:
     """One client connection's protocol state.
 
     Args:
         max_pending_fragment_bytes: bound on the text of incomplete fragmented
-            messages kept at once; the oldest partial message is dropped beyond it.
+            messages kept at once (the server's ``Reassembler``, D19); a message
+            that would go over it is dropped and reported as an ``UnknownOp``.
+        max_pending_fragments: incomplete fragmented messages kept at once.
+        fragment_timeout_s: seconds after its latest part at which an
+            incomplete message is forgotten (``now`` comes with each frame).
     """
 
-    def __init__(self, *, max_pending_fragment_bytes: int = 64 * MiB) -> None:
+    our_role = Role.CLIENT
+
+    def __init__(
+        self,
+        *,
+        max_pending_fragment_bytes: int = 64 * MiB,
+        max_pending_fragments: int = 64,
+        fragment_timeout_s: float = 600.0,
+    ) -> None:
         self._out: list[str] = []
         self._counter = itertools.count(1)
-        self._fragments: dict[OpId, _Partial] = {}
-        self._fragment_bytes = 0
+        self._fragments = Reassembler(
+            max_bytes=max_pending_fragment_bytes,
+            max_pending=max_pending_fragments,
+            timeout_s=fragment_timeout_s,
+        )
         self._fragment_limit = max_pending_fragment_bytes
         self.subscriptions: dict[OpId, Message] = {}
         """Subscribe ops by id, replayed after a reconnect."""
@@ -183,7 +223,7 @@ class ClientSession:
 
     def send_op(self, op: Mapping[str, object]) -> None:
         """Queue any op as given (for ops this class has no method for)."""
-        self._out.append(json.dumps(op, separators=(",", ":")))
+        self._out.append(encode_json(op).decode())
 
     def new_id(self, prefix: str) -> str:
         """A fresh id like roslibjs makes: ``<prefix>:<n>``."""
@@ -192,7 +232,7 @@ class ClientSession:
     def replay(self) -> None:
         """Queue again every standing op (level, advertisements, subscriptions, services)."""
         if self.level is not None:
-            self.send_op({"op": "set_level", "level": self.level})
+            self.send_op(SetLevel.frame(level=self.level))
         for group in (self.advertisements, self.subscriptions, self.services, self.actions):
             for op in group.values():
                 self.send_op(op)
@@ -206,10 +246,7 @@ class ClientSession:
             The subscription id, for ``unsubscribe``.
         """
         sub_id = self.new_id(f"subscribe:{topic}")
-        op: Message = {"op": "subscribe", "id": sub_id, "topic": topic}
-        if type_name is not None:
-            op["type"] = type_name
-        op.update({k: v for k, v in options.items() if v is not None})
+        op = Subscribe.frame(topic=topic, type=type_name, id=sub_id, **options)
         self.subscriptions[sub_id] = op
         self.send_op(op)
         return sub_id
@@ -217,7 +254,7 @@ class ClientSession:
     def unsubscribe(self, topic: str, sub_id: OpId) -> None:
         """Queue ``unsubscribe`` of one subscription (spec 3.3.5)."""
         self.subscriptions.pop(sub_id, None)
-        self.send_op({"op": "unsubscribe", "id": sub_id, "topic": topic})
+        self.send_op(Unsubscribe.frame(topic=topic, id=sub_id))
 
     def advertise(
         self, topic: str, type_name: str, *, latch: bool = False, queue_size: int = 100
@@ -228,8 +265,9 @@ class ClientSession:
             The advertisement id, for ``unadvertise``.
         """
         adv_id = self.new_id(f"advertise:{topic}")
-        op: Message = {"op": "advertise", "id": adv_id, "topic": topic, "type": type_name}
-        op.update(latch=latch, queue_size=queue_size)
+        op = AdvertiseOp.frame(
+            topic=topic, type=type_name, id=adv_id, latch=latch, queue_size=queue_size
+        )
         self.advertisements[adv_id] = op
         self.send_op(op)
         return adv_id
@@ -237,14 +275,11 @@ class ClientSession:
     def unadvertise(self, topic: str, adv_id: OpId) -> None:
         """Queue ``unadvertise`` of one advertisement (spec 3.3.2)."""
         self.advertisements.pop(adv_id, None)
-        self.send_op({"op": "unadvertise", "id": adv_id, "topic": topic})
+        self.send_op(Unadvertise.frame(topic=topic, id=adv_id))
 
     def publish(self, topic: str, msg: object, *, latch: bool = False) -> None:
         """Queue ``publish`` (spec 3.3.3)."""
-        op: Message = {"op": "publish", "topic": topic, "msg": msg}
-        if latch:
-            op["latch"] = True
-        self.send_op(op)
+        self.send_op(Publish.frame(topic=topic, msg=msg, latch=True if latch else None))
 
     # ---- services and actions ------------------------------------------------
 
@@ -255,35 +290,27 @@ class ClientSession:
             The call id; the reply is a ``ServiceResponded`` with it.
         """
         call_id = self.new_id(f"call_service:{service}")
-        op: Message = {"op": "call_service", "id": call_id, "service": service}
-        op["args"] = {} if args is None else args
-        op.update({k: v for k, v in options.items() if v is not None})
-        self.send_op(op)
+        args = {} if args is None else args
+        self.send_op(CallService.frame(service=service, args=args, id=call_id, **options))
         return call_id
 
     def advertise_service(self, service: str, type_name: str) -> None:
         """Queue ``advertise_service`` (spec 3.3.6)."""
-        op: Message = {"op": "advertise_service", "service": service, "type": type_name}
+        op = AdvertiseService.frame(service=service, type=type_name)
         self.services[service] = op
         self.send_op(op)
 
     def unadvertise_service(self, service: str) -> None:
         """Queue ``unadvertise_service`` (spec 3.3.7)."""
         self.services.pop(service, None)
-        self.send_op({"op": "unadvertise_service", "service": service})
+        self.send_op(UnadvertiseService.frame(service=service))
 
     def service_response(
         self, service: str, request_id: OpId, values: object, result: bool
     ) -> None:
         """Queue the answer to a ``ServiceRequested`` (spec 3.3.9; ``values`` always set, D28)."""
         self.send_op(
-            {
-                "op": "service_response",
-                "service": service,
-                "id": request_id,
-                "values": values,
-                "result": result,
-            }
+            ServiceResponse.frame(service=service, result=result, values=values, id=request_id)
         )
 
     def send_action_goal(
@@ -295,220 +322,186 @@ class ClientSession:
             The goal id; feedback and result events carry it.
         """
         goal_id = self.new_id(f"send_action_goal:{action}")
-        op: Message = {
-            "op": "send_action_goal",
-            "id": goal_id,
-            "action": action,
-            "action_type": action_type,
-        }
-        op["args"] = {} if args is None else args
-        op.update({k: v for k, v in options.items() if v is not None})
-        self.send_op(op)
+        args = {} if args is None else args
+        self.send_op(
+            SendActionGoal.frame(
+                action=action, action_type=action_type, args=args, id=goal_id, **options
+            )
+        )
         return goal_id
 
     def cancel_action_goal(self, action: str, goal_id: OpId) -> None:
         """Queue ``cancel_action_goal`` (spec 3.3.13)."""
-        self.send_op({"op": "cancel_action_goal", "id": goal_id, "action": action})
+        self.send_op(CancelActionGoal.frame(action=action, id=goal_id))
 
     def advertise_action(self, action: str, type_name: str) -> None:
         """Queue ``advertise_action`` (spec 3.3.10)."""
-        op: Message = {"op": "advertise_action", "action": action, "type": type_name}
+        op = AdvertiseAction.frame(action=action, type=type_name)
         self.actions[action] = op
         self.send_op(op)
 
     def unadvertise_action(self, action: str) -> None:
         """Queue ``unadvertise_action`` (spec 3.3.11)."""
         self.actions.pop(action, None)
-        self.send_op({"op": "unadvertise_action", "action": action})
+        self.send_op(UnadvertiseAction.frame(action=action))
 
     def action_feedback(self, action: str, goal_id: OpId, values: object) -> None:
         """Queue feedback for a ``GoalRequested`` (spec 3.3.14)."""
-        self.send_op({"op": "action_feedback", "id": goal_id, "action": action, "values": values})
+        self.send_op(ActionFeedback.frame(action=action, id=goal_id, values=values))
 
     def action_result(
         self, action: str, goal_id: OpId, values: object, *, status: int, result: bool
     ) -> None:
         """Queue the result of a ``GoalRequested`` (spec 3.3.15; status per GoalStatus, D18)."""
         self.send_op(
-            {
-                "op": "action_result",
-                "id": goal_id,
-                "action": action,
-                "values": values,
-                "status": status,
-                "result": result,
-            }
+            ActionResult.frame(
+                action=action, id=goal_id, result=result, values=values, status=int(status)
+            )
         )
 
     # ---- status and auth -------------------------------------------------------
 
-    def set_level(self, level: str) -> None:
-        """Queue ``set_level`` (spec 3.2.1); remembered for reconnects.
-
-        Raises:
-            LocalProtocolError: ``level`` is not info, warning, error or none.
-        """
-        if level not in ("info", "warning", "error", "none"):
-            raise LocalProtocolError(f"unknown status level {level!r}")
-        self.level = level
-        self.send_op({"op": "set_level", "level": level})
+    def set_level(self, level: StatusLevel) -> None:
+        """Queue ``set_level`` (spec 3.2.1); remembered for reconnects."""
+        self.level = level.wire
+        self.send_op(SetLevel.frame(level=level.wire))
 
     def auth(
         self, mac: str, client: str, dest: str, rand: str, t: float, level: str, end: float
     ) -> None:
         """Queue ``auth`` (ROS 1 spec 3.3.1, D23); times in seconds since the epoch."""
         self.send_op(
-            {
-                "op": "auth",
-                "mac": mac,
-                "client": client,
-                "dest": dest,
-                "rand": rand,
-                "t": t,
-                "level": level,
-                "end": end,
-            }
+            Auth.frame(mac=mac, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
         )
 
     # ---- input ------------------------------------------------------------------
 
-    def receive_frame(self, frame: str | bytes) -> list[ClientEvent]:
+    def receive_frame(self, frame: str | bytes, now: float = 0.0) -> list[ClientEvent]:
         """Turn one frame from the server into events (none for a partial fragment).
 
-        Binary frames are CBOR (D27); text frames JSON. Never raises for what the
-        server sent: anything unusable becomes an ``UnknownOp``.
+        Binary frames are CBOR (D27); text frames JSON. Each op is validated by
+        its model (``rwt_protocol.ops``), as the server validates what it
+        receives: ``"result": "false"`` is not a boolean. Never raises for what
+        the server sent: anything unusable becomes an ``UnknownOp``.
+
+        Args:
+            frame: one text (JSON) or binary (CBOR) frame.
+            now: monotonic seconds, for forgetting incomplete fragmented messages.
         """
+        if isinstance(frame, str):
+            fast = decode_publish(frame)
+            if fast is not None:
+                return [TopicMessage(fast.topic, fast.msg)]
         try:
-            value = decode_cbor(frame) if isinstance(frame, bytes) else json.loads(frame)
+            value = decode_cbor(frame) if isinstance(frame, bytes) else decode_json(frame)
         except RemoteProtocolError as exc:
             return [UnknownOp(frame, f"undecodable frame: {exc.message}")]
-        except ValueError as exc:
-            return [UnknownOp(frame, f"undecodable frame: {exc}")]
-        return self._dispatch(value)
+        return self._dispatch(value, now)
 
-    def _dispatch(self, value: object) -> list[ClientEvent]:
-        if not isinstance(value, dict) or not isinstance(value.get("op"), str):
-            return [UnknownOp(value, "not an op")]
-        parse = _PARSERS.get(value["op"])
-        if parse is not None:
-            try:
-                return [parse(value)]
-            except (KeyError, TypeError, ValueError) as exc:
-                return [UnknownOp(value, f"malformed {value['op']}: {exc}")]
-        if value["op"] == "fragment":
-            return self._fragment(value)
-        if value["op"] == "png":
-            return self._png(value)
-        return [UnknownOp(value, f"unknown op {value['op']!r}")]
-
-    def _fragment(self, value: dict[str, object]) -> list[ClientEvent]:
-        text = self._collect(value, "fragment")
-        if isinstance(text, UnknownOp):
-            return [text]
-        return [] if text is None else self.receive_frame(text)
-
-    def _png(self, value: dict[str, object]) -> list[ClientEvent]:
-        data: object = value.get("data")
-        if isinstance(value.get("total"), int | float) and value["total"] != 1:
-            data = self._collect(value, "png")  # a PNG split into parts (D20)
-            if data is None or isinstance(data, UnknownOp):
-                return [] if data is None else [data]
-        if not isinstance(data, str):
-            return [UnknownOp(value, "malformed png")]
+    def _dispatch(self, value: object, now: float) -> list[ClientEvent]:
+        if isinstance(value, dict) and value.get("op") in ("fragment", "png"):
+            return self._part(value, now)
         try:
-            text = decode_png(data, max_bytes=self._fragment_limit).decode("utf-8")
+            op = parse_object(value)
+        except RemoteProtocolError as exc:
+            return [UnknownOp(value, exc.message)]
+        event = _EVENTS.get(type(op))
+        if event is None:
+            return [UnknownOp(value, f"unexpected op {type(op).__name__} from a server")]
+        return [event(op)]
+
+    def _part(self, value: dict[str, object], now: float) -> list[ClientEvent]:
+        """A ``fragment`` or ``png`` op: collect its parts, then decode the whole (D19, D20)."""
+        kind = PartKind(str(value["op"]))
+        # the reference computes ``total`` by a division, a float near the count (REF §3.4)
+        counts = {k: round(v) for k in ("num", "total") if _finite_float(v := value.get(k))}
+        try:
+            part: Fragment | Png = _PART_MODELS[kind].model_validate({**value, **counts})
+        except ValidationError as exc:
+            return [UnknownOp(value, f"malformed {kind}: {exc.errors()[0]['msg']}")]
+        self._fragments.expire(now)
+        text: str | None = part.data
+        if part.total not in (None, 1):
+            try:
+                text = self._fragments.add(
+                    kind, part.id or "", part.num or 0, part.total or 1, data=part.data, now=now
+                )
+            except RemoteProtocolError as exc:
+                return [UnknownOp(value, f"{kind}: {exc.message}")]
+        if text is None:
+            return []
+        if kind is PartKind.FRAGMENT:
+            return self.receive_frame(text, now)
+        try:
+            whole = decode_png(text, max_bytes=self._fragment_limit).decode("utf-8")
         except RemoteProtocolError as exc:
             return [UnknownOp(value, f"png: {exc.message}")]
         except UnicodeDecodeError:
             return [UnknownOp(value, "png: the image does not hold UTF-8 text")]
-        return self.receive_frame(text)
-
-    def _collect(self, value: dict[str, object], kind: str) -> str | UnknownOp | None:
-        """Store one part; return the whole text (joined by ``num``) once complete."""
-        part_id, data, num, total = (value.get(k) for k in ("id", "data", "num", "total"))
-        if (
-            not isinstance(data, str)
-            or not isinstance(num, int | float)
-            or not isinstance(total, int | float)
-        ):
-            return UnknownOp(value, f"malformed {kind}")
-        key: OpId = f"{kind}:{part_id}"
-        partial = self._fragments.setdefault(
-            key, _Partial(max(1, round(total)))
-        )  # REF §3.4 float total
-        if int(num) not in partial.parts:
-            partial.parts[int(num)] = data
-            partial.size += len(data)
-            self._fragment_bytes += len(data)
-        self._bound_fragments(key)
-        if len(partial.parts) < partial.total:
-            return None
-        del self._fragments[key]
-        self._fragment_bytes -= partial.size
-        return "".join(partial.parts[i] for i in sorted(partial.parts))
-
-    def _bound_fragments(self, keep: OpId) -> None:
-        while self._fragment_bytes > self._fragment_limit and len(self._fragments) > 1:
-            oldest = next(k for k in self._fragments if k != keep)
-            self._fragment_bytes -= self._fragments.pop(oldest).size
+        return self.receive_frame(whole, now)
 
 
-def _opt_id(value: dict[str, object]) -> OpId:
-    op_id = value.get("id")
-    return op_id if isinstance(op_id, str | int) else ""
+def _finite_float(value: object) -> TypeGuard[float]:
+    return isinstance(value, float) and math.isfinite(value)
 
 
-def _parse_publish(v: dict[str, object]) -> ClientEvent:
-    return TopicMessage(str(v["topic"]), v.get("msg"))
-
-
-def _parse_service_response(v: dict[str, object]) -> ClientEvent:
-    return ServiceResponded(_opt_id(v), str(v["service"]), bool(v["result"]), v.get("values"))
-
-
-def _parse_call_service(v: dict[str, object]) -> ClientEvent:
-    return ServiceRequested(_opt_id(v), str(v["service"]), v.get("args"))
-
-
-def _parse_goal(v: dict[str, object]) -> ClientEvent:
-    return GoalRequested(
-        _opt_id(v),
-        str(v["action"]),
-        str(v.get("action_type", "")),
-        v.get("args"),
-        bool(v.get("feedback", False)),
-    )
-
-
-def _parse_cancel(v: dict[str, object]) -> ClientEvent:
-    return GoalCancelRequested(_opt_id(v), str(v["action"]))
-
-
-def _parse_feedback(v: dict[str, object]) -> ClientEvent:
-    return ActionFeedbackReceived(_opt_id(v), str(v["action"]), v.get("values"))
-
-
-def _parse_result(v: dict[str, object]) -> ClientEvent:
-    status = v.get("status")
-    result = bool(v["result"])
-    code = status if isinstance(status, int) else (4 if result else 6)  # D18 defaults
-    return ActionResultReceived(_opt_id(v), str(v["action"]), result, code, v.get("values"))
-
-
-def _parse_status(v: dict[str, object]) -> ClientEvent:
-    op_id = v.get("id")
-    return StatusReceived(
-        str(v["level"]), str(v["msg"]), op_id if isinstance(op_id, str | int) else None
-    )
-
-
-_PARSERS = {
-    "publish": _parse_publish,
-    "service_response": _parse_service_response,
-    "call_service": _parse_call_service,
-    "send_action_goal": _parse_goal,
-    "cancel_action_goal": _parse_cancel,
-    "action_feedback": _parse_feedback,
-    "action_result": _parse_result,
-    "status": _parse_status,
+_PART_MODELS: dict[PartKind, type[Fragment | Png]] = {
+    PartKind.FRAGMENT: Fragment,
+    PartKind.PNG: Png,
 }
+
+
+def _goal_status(op: ActionResult) -> int:
+    if op.status is not None:
+        return op.status
+    # an advertiser may leave ``status`` out (D18)
+    return GoalStatus.SUCCEEDED if op.result else GoalStatus.ABORTED
+
+
+def _id(op_id: OpId | None) -> OpId:
+    return op_id if op_id is not None else ""
+
+
+def _topic_message(op: Publish) -> ClientEvent:
+    return TopicMessage(op.topic, op.msg)
+
+
+def _service_responded(op: ServiceResponse) -> ClientEvent:
+    return ServiceResponded(_id(op.id), op.service, op.result, op.values)
+
+
+def _service_requested(op: CallService) -> ClientEvent:
+    return ServiceRequested(_id(op.id), op.service, op.args)
+
+
+def _goal_requested(op: SendActionGoal) -> ClientEvent:
+    return GoalRequested(_id(op.id), op.action, op.action_type, op.args, op.feedback)
+
+
+def _cancel_requested(op: CancelActionGoal) -> ClientEvent:
+    return GoalCancelRequested(op.id, op.action)
+
+
+def _feedback(op: ActionFeedback) -> ClientEvent:
+    return ActionFeedbackReceived(op.id, op.action, op.values)
+
+
+def _result(op: ActionResult) -> ClientEvent:
+    return ActionResultReceived(op.id, op.action, op.result, _goal_status(op), op.values)
+
+
+def _status(op: Status) -> ClientEvent:
+    return StatusReceived(op.level, op.msg, op.id)
+
+
+_EVENTS: dict[type[OpModel], Callable[[Any], ClientEvent]] = {
+    Publish: _topic_message,
+    ServiceResponse: _service_responded,
+    CallService: _service_requested,
+    SendActionGoal: _goal_requested,
+    CancelActionGoal: _cancel_requested,
+    ActionFeedback: _feedback,
+    ActionResult: _result,
+    Status: _status,
+}
+"""The ops a server sends a client, each with the event it becomes."""

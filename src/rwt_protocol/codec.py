@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import Any, cast
 
 import msgspec
 import pybase64
@@ -28,7 +28,7 @@ from pydantic_core import ErrorDetails
 
 from .errors import RemoteProtocolError
 from .names import name_problem
-from .ops import OP_MODELS, OpModel, PublishFrame
+from .ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
 from .ops.base import INT64_MAX, INT64_MIN, json_type_name
 
 __all__ = [
@@ -37,9 +37,7 @@ __all__ = [
     "decode_json",
     "decode_publish",
     "encode_json",
-    "encode_op",
     "encode_publish_json",
-    "parse",
     "parse_object",
     "peek_id",
 ]
@@ -207,7 +205,7 @@ def _fallback(frame: str | bytes) -> object:
     return value
 
 
-def decode_publish(frame: str | bytes) -> PublishFrame | None:
+def decode_publish(frame: str | bytes) -> PublishView | None:
     """Decode a ``publish`` op in one msgspec pass (the hot path, benchmarks/README.md B14).
 
     Returns:
@@ -220,7 +218,7 @@ def decode_publish(frame: str | bytes) -> PublishFrame | None:
     # does not fit (``op`` comes first from roslib and roslibpy), which is
     # cheaper than any scan of the head (BENCHMARKS.md B14).
     try:
-        op = _publish_decoder.decode(frame)
+        op = cast(PublishView, _publish_decoder.decode(frame))
     except (msgspec.DecodeError, UnicodeError, RecursionError):  # also ValidationError
         return None
     if op.topic not in _VALID_TOPICS and not _topic_ok(op.topic):
@@ -265,7 +263,7 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
             data: bytes = msg[key]  # type: ignore[assignment]
             ready[key] = msgspec.Raw(b"".join((b'"', pybase64.b64encode(data), b'"')))
         msg = ready
-    text = _encoder.encode({"op": "publish", "topic": topic, "msg": msg})
+    text = _encoder.encode(Publish.frame(topic=topic, msg=msg))
     # msgspec's output keeps its buffer's spare capacity (up to ~2 KB); a copy of a
     # small frame is exact, so a queue of them holds what the send-buffer limit
     # counts (D24, BENCHMARKS.md B8). A large frame's slack is negligible.
@@ -314,23 +312,6 @@ def parse_object(obj: object) -> OpModel:
         return model.model_validate(obj)
     except ValidationError as exc:
         raise RemoteProtocolError(f"{op}: {_describe(exc.errors()[0])}") from None
-
-
-def parse(frame: str | bytes) -> OpModel:
-    """Decode and validate one JSON frame.
-
-    Raises:
-        RemoteProtocolError: see ``decode_json`` and ``parse_object``.
-    """
-    return parse_object(decode_json(frame))
-
-
-def encode_op(op: OpModel) -> bytes:
-    """Encode an op model as a JSON frame, leaving out optional fields that are unset.
-
-    ``op`` comes first, as the reference orders its keys (REF §1.1).
-    """
-    return _encoder.encode(op.model_dump(exclude_none=True))
 
 
 def _describe(error: ErrorDetails) -> str:

@@ -9,6 +9,7 @@ size. Clients reassemble them as they do for ``fragment_size``.
 from __future__ import annotations
 
 from .codec import encode_json
+from .ops import Fragment
 
 __all__ = ["fragment_datagrams"]
 
@@ -34,13 +35,7 @@ def fragment_datagrams(data: bytes, max_bytes: int, message_id: str) -> list[byt
     if max_bytes < _MIN_DATAGRAM:
         raise ValueError(f"a datagram of {max_bytes} bytes cannot carry fragments")
     text = data.decode("utf-8", "replace")
-    envelope = {
-        "op": "fragment",
-        "id": message_id,
-        "data": "",
-        "num": len(text),
-        "total": len(text),
-    }
+    envelope = Fragment.frame(id=message_id, data="", num=len(text), total=len(text))
     budget = max_bytes - len(encode_json(envelope))
     if budget < 8:
         raise ValueError(f"a datagram of {max_bytes} bytes cannot carry fragment {message_id!r}")
@@ -58,6 +53,6 @@ def fragment_datagrams(data: bytes, max_bytes: int, message_id: str) -> list[byt
         start += len(piece)
     total = len(pieces)
     return [
-        encode_json({"op": "fragment", "id": message_id, "data": p, "num": i, "total": total})
+        encode_json(Fragment.frame(id=message_id, data=p, num=i, total=total))
         for i, p in enumerate(pieces)
     ]

@@ -37,11 +37,11 @@ from typing import NamedTuple
 from .codec import encode_json, encode_publish_json
 from .codec_cbor import encode_cbor
 from .fragments import fragment_frames, fresh_id
+from .ops import Png, Publish
 from .ops.base import Compression
 from .outbox import OutFrame
 from .png import encode_png
-from .ports import MessageCodec, MessageEvent
-from .replies import GOAL_ABORTED
+from .ports import GoalStatus, MessageCodec, MessageEvent
 
 __all__ = [
     "EncodeFailure",
@@ -95,7 +95,7 @@ def png_frames(
     """
     data = encode_png(text)
     if size is None or len(data) <= size:
-        return (OutFrame(encode_json({"op": "png", "data": data}), droppable=droppable),)
+        return (OutFrame(encode_json(Png.frame(data=data)), droppable=droppable),)
     parts = fragment_frames(data, _part_id(op, op_id), size, op="png")
     return _grouped(parts, droppable)
 
@@ -138,7 +138,7 @@ def _make_publish(
         return (OutFrame(_raw_frame(event, spelling), binary=True, droppable=True),)
     if compression in ("cbor", "cbor-raw"):
         msg = event.memo(("memo", "typed"), lambda: _typed(event.msg, event.codec))
-        frame = encode_cbor({"op": "publish", "topic": spelling, "msg": msg})
+        frame = encode_cbor(Publish.frame(topic=spelling, msg=msg))
         return (OutFrame(frame, binary=True, droppable=True),)
     text = event.memo(("memo", "json", spelling), lambda: _publish_json(event, spelling))
     if compression == "png":
@@ -157,7 +157,7 @@ def _raw_frame(event: MessageEvent, spelling: str) -> bytes:
     secs = math.floor(event.stamp)
     nsecs = min(round((event.stamp - secs) * 1e9), 999_999_999)
     msg = {"secs": secs, "nsecs": nsecs, "bytes": data}
-    return encode_cbor({"op": "publish", "topic": spelling, "msg": msg})
+    return encode_cbor(Publish.frame(topic=spelling, msg=msg))
 
 
 def _typed(msg: Mapping[str, object], codec: MessageCodec | None) -> Mapping[str, object]:
@@ -267,7 +267,7 @@ def _replacement(message: Mapping[str, object], failure: EncodeFailure) -> dict[
     if name_key is not None:
         out = {"op": failure.op, name_key: _clean(str(message.get(name_key, ""))), "values": text}
         if failure.op == "action_result":
-            out["status"] = GOAL_ABORTED
+            out["status"] = int(GoalStatus.ABORTED)
         out["result"] = False
     elif failure.op == "status":
         level = message.get("level")

@@ -20,6 +20,7 @@ from enum import StrEnum
 
 from .codec import encode_json
 from .errors import RemoteProtocolError
+from .ops import Fragment, Png
 
 __all__ = [
     "FRAGMENT_OVERHEAD",
@@ -94,8 +95,9 @@ def fragment_frames(text: str, op_id: str | int, size: int, *, op: str = "fragme
     """
     chunks = split_text(text, max(size, -(-len(text) // MAX_PARTS)))
     total = len(chunks)
+    model = Png if op == "png" else Fragment
     return [
-        encode_json({"op": op, "id": op_id, "data": chunk, "num": num, "total": total})
+        encode_json(model.frame(id=op_id, data=chunk, num=num, total=total))
         for num, chunk in enumerate(chunks)
     ]
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from .access import AccessDeniedError
 from .errors import RemoteProtocolError
 from .levels import StatusLevel
-from .ops import Auth, OpModel, PublishFrame
+from .ops import Auth, OpModel, PublishView
 from .replies import failure_reply
 
 if TYPE_CHECKING:
@@ -65,7 +65,7 @@ def authenticate(session: Session, op: OpModel) -> bool:
     return True
 
 
-def check_access(session: Session, op: OpModel | PublishFrame) -> None:
+def check_access(session: Session, op: OpModel | PublishView) -> None:
     """Refuse an op the access rules deny, answering a call or goal (D4).
 
     Raises:

@@ -8,12 +8,10 @@ service, a closed connection).
 
 from __future__ import annotations
 
-from .ops import CallService, OpModel, SendActionGoal
+from .ops import ActionResult, CallService, OpModel, SendActionGoal, ServiceResponse
+from .ports import GoalStatus
 
-__all__ = ["GOAL_ABORTED", "failure_reply"]
-
-GOAL_ABORTED = 6
-"""``action_msgs/GoalStatus`` STATUS_ABORTED, the ``status`` of a refused goal (D4, D28)."""
+__all__ = ["failure_reply"]
 
 
 def failure_reply(op: OpModel, text: str) -> dict[str, object] | None:
@@ -29,19 +27,11 @@ def failure_reply(op: OpModel, text: str) -> dict[str, object] | None:
         ``send_action_goal``, with the request's name and ``id`` exactly as sent
         (D26, D28); None otherwise.
     """
-    reply: dict[str, object]
     if isinstance(op, CallService):
-        reply = {"op": "service_response", "service": op.service, "values": text, "result": False}
-    elif isinstance(op, SendActionGoal):
-        reply = {
-            "op": "action_result",
-            "action": op.action,
-            "values": text,
-            "status": GOAL_ABORTED,
-            "result": False,
-        }
-    else:
-        return None
-    if op.id is not None:
-        reply["id"] = op.id
-    return reply
+        return ServiceResponse.frame(service=op.service, result=False, values=text, id=op.id)
+    if isinstance(op, SendActionGoal):
+        aborted = int(GoalStatus.ABORTED)
+        return ActionResult.frame(
+            action=op.action, id=op.id, result=False, values=text, status=aborted
+        )
+    return None

@@ -42,10 +42,11 @@ from .fragments import Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .levels import StatusLevel
-from .ops import OpModel, PublishFrame
+from .ops import OpModel, PublishView, Status
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
+from .roles import Role
 from .subscriptions import TopicSubscription
 from .timers import Timer, TimerQueue
 
@@ -123,7 +124,11 @@ class Session:
             commands become available or a timer is set, so a transport can wake
             its writer and look at ``get_timer`` again.
         peer: the peer's address (``"host:port"``), for the authenticator and logs.
+
+    The client end is ``client.ClientSession``: the same ops, the other ``our_role``.
     """
+
+    our_role = Role.SERVER
 
     def __init__(
         self,
@@ -233,7 +238,7 @@ class Session:
         if not self._authenticated:  # D23: a connection that does not authenticate goes
             self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
 
-    def dispatch(self, op: OpModel | PublishFrame, now: float) -> None:
+    def dispatch(self, op: OpModel | PublishView, now: float) -> None:
         """Check a validated op against the access rules, then run its handler.
 
         Raises:
@@ -469,10 +474,7 @@ class Session:
         """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
         if not self.status_level.admits(level):
             return
-        status: dict[str, object] = {"op": "status", "level": level.wire, "msg": text}
-        if op_id is not None:
-            status["id"] = op_id
-        self.send_op(status)
+        self.send_op(Status.frame(level=level.wire, msg=text, id=op_id))
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, in the subscription's merged encoding.

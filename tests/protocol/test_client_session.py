@@ -24,7 +24,7 @@ from rwt_protocol.client import (
     TopicMessage,
     UnknownOp,
 )
-from rwt_protocol.errors import LocalProtocolError
+from rwt_protocol.levels import StatusLevel
 
 PUBLISH = '{"op":"publish","topic":"/t","msg":{"data":"hello"}}'
 
@@ -63,7 +63,7 @@ def test_ops_out_carry_ids_and_options() -> None:
 
 def test_replay_sends_standing_ops_again() -> None:
     session = ClientSession()
-    session.set_level("info")
+    session.set_level(StatusLevel.INFO)
     adv = session.advertise("/a", "std_msgs/String", latch=True)
     session.subscribe("/b")
     session.advertise_service("/s", "std_srvs/Trigger")
@@ -81,9 +81,10 @@ def test_replay_sends_standing_ops_again() -> None:
     assert replayed[1:] == [first[2], first[3], first[4]]
 
 
-def test_bad_level_is_refused_locally() -> None:
-    with pytest.raises(LocalProtocolError):
-        ClientSession().set_level("loud")
+def test_set_level_sends_the_wire_spelling() -> None:
+    session = ClientSession()
+    session.set_level(StatusLevel.WARNING)
+    assert sent(session) == [{"op": "set_level", "level": "warning"}]
 
 
 @pytest.mark.parametrize(
@@ -143,13 +144,20 @@ def test_fragments_are_reassembled_by_num_with_a_float_total() -> None:
     assert events == [TopicMessage("/t", {"data": "hello"})]
 
 
-def test_pending_fragments_are_bounded() -> None:
-    session = ClientSession(max_pending_fragment_bytes=100)
-    for n in range(20):
-        session.receive_frame(
-            json.dumps({"op": "fragment", "id": n, "data": "x" * 30, "num": 0, "total": 2})
-        )
-    assert session._fragment_bytes <= 100
+def test_pending_fragments_are_bounded_and_forgotten() -> None:
+    session = ClientSession(max_pending_fragment_bytes=400, fragment_timeout_s=10)
+
+    def part(n: int, num: int, now: float) -> list[object]:
+        frame = {"op": "fragment", "id": n, "data": PUBLISH[num * 27 : num * 27 + 27]}
+        return list(session.receive_frame(json.dumps({**frame, "num": num, "total": 2}), now))
+
+    refused = [events for n in range(20) if (events := part(n, 0, now=1.0))]
+    # about four incomplete messages fit in 400 bytes; the rest are reported, not held
+    assert 10 <= len(refused) <= 17
+    assert all(isinstance(e, UnknownOp) and "dropped" in e.reason for [e] in refused)
+    # once the held ones are forgotten (10 s after their last part) there is room again
+    assert part(99, 0, now=20.0) == []
+    assert part(99, 1, now=20.0) == [TopicMessage("/t", {"data": "hello"})]
 
 
 def _png(text: str) -> str:
@@ -194,3 +202,15 @@ def test_cbor_frames_with_typed_arrays() -> None:
     assert event == TopicMessage(
         "/c", {"f": [1.5, -2.0], "i": [-1, 0, 7], "u": [4000000000], "raw": b"\x01\x02"}
     )
+
+
+def test_replies_are_validated_by_the_op_models() -> None:
+    """A reply the server got wrong is reported, never read loosely (``"false"`` is not true)."""
+    session = ClientSession()
+    [event] = session.receive_frame(
+        '{"op":"service_response","service":"/s","id":"c:1","result":"false","values":{}}'
+    )
+    assert isinstance(event, UnknownOp)
+    assert "expected bool, got str at $.result" in event.reason
+    [event] = session.receive_frame('{"op":"action_result","action":"/a","id":"g","result":true}')
+    assert event == ActionResultReceived("g", "/a", True, 4, None)  # status omitted (D18)

@@ -9,9 +9,17 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rwt_protocol.codec import encode_op, parse
+from rwt_protocol.codec import decode_json, parse_object
 from rwt_protocol.errors import RemoteProtocolError
-from rwt_protocol.ops import OP_MODELS
+from rwt_protocol.ops import OP_MODELS, OpModel
+
+
+def parse(frame: str | bytes) -> OpModel:
+    return parse_object(decode_json(frame))
+
+
+def encode_op(op: OpModel) -> bytes:
+    return json.dumps(op.to_frame()).encode()
 
 # One example of every op, with every optional field the spec or real clients use.
 EXAMPLES: dict[str, dict[str, object]] = {

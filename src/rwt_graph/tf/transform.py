@@ -25,9 +25,6 @@ __all__ = [
     "inverse",
     "quaternion",
     "quaternion_tuple",
-    "rotation_angle",
-    "to_message",
-    "translation_distance",
 ]
 
 Matrix: TypeAlias = "npt.NDArray[np.float64]"
@@ -117,16 +114,6 @@ def quaternion_tuple(matrix: Matrix) -> tuple[float, float, float, float]:
     return (-x, -y, -z, -w) if w < 0 else (x, y, z, w)
 
 
-def to_message(matrix: Matrix) -> dict[str, object]:
-    """A ``geometry_msgs/Transform`` dict (internal form) of a transform."""
-    x, y, z, w = (float(v) for v in quaternion(matrix))
-    tx, ty, tz = (float(v) for v in matrix[:3, 3])
-    return {
-        "translation": {"x": tx, "y": ty, "z": tz},
-        "rotation": {"x": x, "y": y, "z": z, "w": w},
-    }
-
-
 def inverse(matrix: Matrix) -> Matrix:
     """The inverse of a rigid transform (transpose of the rotation)."""
     import numpy as np  # noqa: PLC0415
@@ -155,22 +142,3 @@ def interpolate(a: Matrix, b: Matrix, ratio: float) -> Matrix:
         q = (math.sin((1 - ratio) * theta) * qa + math.sin(ratio * theta) * qb) / math.sin(theta)
     translation = a[:3, 3] + ratio * (b[:3, 3] - a[:3, 3])
     return from_parts(translation, q)
-
-
-def translation_distance(a: Matrix, b: Matrix) -> float:
-    """Distance in metres between the origins of two transforms."""
-    import numpy as np  # noqa: PLC0415
-
-    return float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
-
-
-def rotation_angle(a: Matrix, b: Matrix) -> float:
-    """Angle in radians of the rotation that turns ``a``'s orientation into ``b``'s.
-
-    From the trace of ``R_a^T R_b`` (``cos angle = (trace - 1) / 2``), clipped
-    against rounding; 0 for equal orientations, pi at most.
-    """
-    import numpy as np  # noqa: PLC0415
-
-    trace = float(np.einsum("ij,ij->", a[:3, :3], b[:3, :3]))
-    return math.acos(min(1.0, max(-1.0, (trace - 1.0) / 2.0)))

@@ -19,7 +19,7 @@ __all__ = ["HANDLERS", "Handler"]
 
 Handler = Callable[["Session", Any, float], None]
 
-HANDLERS: dict[type[ops.OpModel | ops.PublishFrame], Handler] = {
+HANDLERS: dict[type, Handler] = {
     ops.Advertise: topics.advertise,
     ops.Unadvertise: topics.unadvertise,
     ops.Publish: topics.publish,

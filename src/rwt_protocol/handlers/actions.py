@@ -80,25 +80,13 @@ def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
         finished = True
         if handle is not None and session.goals.get(key) is handle:
             del session.goals[key]
-        reply: dict[str, object] = {
-            "op": "action_result",
-            "action": op.action,
-            "values": values,
-            "status": int(status),
-            "result": result,
-        }
-        if op.id is not None:
-            reply["id"] = op.id
+        reply = ActionResult.frame(
+            action=op.action, id=op.id, result=result, values=values, status=int(status)
+        )
         session.send_op(reply, compression=op.compression, fragment_size=op.fragment_size)
 
     def feedback(values: dict[str, object]) -> None:
-        message: dict[str, object] = {
-            "op": "action_feedback",
-            "action": op.action,
-            "values": values,
-        }
-        if op.id is not None:
-            message["id"] = op.id
+        message = ActionFeedback.frame(action=op.action, id=op.id, values=values)
         session.send_op(message, compression=op.compression, fragment_size=op.fragment_size)
 
     handle = None

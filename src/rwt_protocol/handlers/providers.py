@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from ..levels import StatusLevel
 from ..names import resolve_name
+from ..ops import CallService, CancelActionGoal, SendActionGoal
 
 if TYPE_CHECKING:
     from ..session import Session
@@ -26,9 +27,7 @@ class ProviderLink:
 
     def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
         """Send ``{"op":"call_service","id":...,"service":...,"args":{...}}``."""
-        self._session.send_op(
-            {"op": "call_service", "id": request_id, "service": service, "args": args}
-        )
+        self._session.send_op(CallService.frame(service=service, args=args, id=request_id))
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """Warn the peer that its service was taken away (D15)."""
@@ -40,19 +39,14 @@ class ProviderLink:
     ) -> None:
         """Send ``send_action_goal`` with ``feedback: true`` (REF §2.15)."""
         self._session.send_op(
-            {
-                "op": "send_action_goal",
-                "id": goal_id,
-                "action": action,
-                "action_type": action_type,
-                "args": args,
-                "feedback": True,
-            }
+            SendActionGoal.frame(
+                action=action, action_type=action_type, args=args, id=goal_id, feedback=True
+            )
         )
 
     def on_action_cancel(self, goal_id: str, action: str) -> None:
         """Send ``cancel_action_goal`` (REF §2.16)."""
-        self._session.send_op({"op": "cancel_action_goal", "id": goal_id, "action": action})
+        self._session.send_op(CancelActionGoal.frame(action=action, id=goal_id))
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """Warn the peer that its action was taken away (D15)."""

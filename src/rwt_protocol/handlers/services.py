@@ -63,14 +63,12 @@ class _Call:
             self.session.pending_calls -= 1
         if self.timer is not None:
             self.timer.cancel()
-        message: dict[str, object] = {
-            "op": "service_response",
-            "service": self.op.service,
-            "values": values if values is not None else {},
-            "result": result,
-        }
-        if self.op_id is not None:
-            message["id"] = self.op_id
+        message = ServiceResponse.frame(
+            service=self.op.service,
+            result=result,
+            values=values if values is not None else {},
+            id=self.op_id,
+        )
         self.session.send_op(
             message, compression=self.op.compression, fragment_size=self.op.fragment_size
         )

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 from ..errors import GraphError
 from ..levels import StatusLevel
 from ..names import resolve_name
-from ..ops import Advertise, Publish, PublishFrame, Subscribe, Unadvertise, Unsubscribe
+from ..ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
 from ..subscriptions import TopicSubscription
 
 if TYPE_CHECKING:
@@ -65,7 +65,7 @@ def unadvertise(session: Session, op: Unadvertise, now: float) -> None:
     session.report(StatusLevel.INFO, f"unadvertise: {op.topic} unadvertised", op.id)
 
 
-def publish(session: Session, op: Publish | PublishFrame, now: float) -> None:
+def publish(session: Session, op: PublishView, now: float) -> None:
     """Publish ``op.msg`` on ``op.topic`` (spec 3.3.3).
 
     A warning lists the fields filled with defaults (spec 3.3.3, D7).

@@ -1,14 +1,12 @@
-"""One pydantic model per rosbridge op, and the union of them all.
+"""One pydantic model per rosbridge op: each op's one definition.
 
-``Op`` is a discriminated union on ``op`` covering both spec editions;
-``OP_MODELS`` maps each wire name to its model.
+``OP_MODELS`` maps each wire name to its model (both spec editions). The
+models validate what a peer sends (``codec.parse_object``), build what rwt
+sends (``OpModel.frame``), in the server and the client alike; ``ops.wire``
+generates the msgspec decoder of the publish hot path from them.
 """
 
 from __future__ import annotations
-
-from typing import Annotated
-
-from pydantic import Field
 
 from .actions import (
     ActionFeedback,
@@ -21,7 +19,8 @@ from .actions import (
 from .base import OpModel
 from .control import Auth, Fragment, Png, SetLevel, Status
 from .services import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
-from .topics import Advertise, Publish, PublishFrame, Subscribe, Unadvertise, Unsubscribe
+from .topics import Advertise, Publish, Subscribe, Unadvertise, Unsubscribe
+from .wire import PublishFrame, PublishView, wire_struct
 
 __all__ = [
     "OP_MODELS",
@@ -34,11 +33,11 @@ __all__ = [
     "CallService",
     "CancelActionGoal",
     "Fragment",
-    "Op",
     "OpModel",
     "Png",
     "Publish",
     "PublishFrame",
+    "PublishView",
     "SendActionGoal",
     "ServiceResponse",
     "SetLevel",
@@ -48,32 +47,8 @@ __all__ = [
     "UnadvertiseAction",
     "UnadvertiseService",
     "Unsubscribe",
+    "wire_struct",
 ]
-
-Op = Annotated[
-    Advertise
-    | Unadvertise
-    | Publish
-    | Subscribe
-    | Unsubscribe
-    | AdvertiseService
-    | UnadvertiseService
-    | CallService
-    | ServiceResponse
-    | AdvertiseAction
-    | UnadvertiseAction
-    | SendActionGoal
-    | CancelActionGoal
-    | ActionFeedback
-    | ActionResult
-    | Fragment
-    | Png
-    | SetLevel
-    | Status
-    | Auth,
-    Field(discriminator="op"),
-]
-"""Any rosbridge op, discriminated by its ``op`` field."""
 
 _MODELS: tuple[type[OpModel], ...] = (
     Advertise,

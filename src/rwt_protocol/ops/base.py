@@ -8,11 +8,13 @@ client's business). Wire names are the spec's, verbatim.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from functools import cache
+from typing import Annotated, Literal, NamedTuple
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainValidator
 from pydantic_core import PydanticCustomError
 
+from ..errors import LocalProtocolError
 from ..names import name_problem
 
 __all__ = [
@@ -109,8 +111,66 @@ Compression = Literal["none", "png", "cbor", "cbor-raw"]
 class OpModel(BaseModel):
     """Base of every op model: strict, frozen, unknown fields ignored.
 
+    The model is the op's one definition, for both directions and both roles:
+    what a peer sends is validated by it (``codec.parse_object``), what rwt
+    sends is built by ``frame`` from its field list, and the msgspec decoder of
+    the publish hot path is generated from it (``ops.wire``).
+
     Each model's validator is built when first used, not at import: a server
     pays only for the ops its clients send (benchmarks B11 base memory).
     """
 
     model_config = ConfigDict(strict=True, frozen=True, extra="ignore", defer_build=True)
+
+    @classmethod
+    def frame(cls, **fields: object) -> dict[str, object]:
+        """Build this op as an outgoing frame: a dict, ``op`` first, in field order.
+
+        A field given as None is left out (the spec's optional fields are
+        absent rather than null); values are not validated (rwt builds them).
+
+        Args:
+            **fields: the op's fields by wire name, ``op`` excepted.
+
+        Returns:
+            ``{"op": ..., field: value, ...}``, ready for the encoders.
+
+        Raises:
+            LocalProtocolError: a field the op does not have, or a required
+                field missing (a bug in the caller, not the peer's fault).
+        """
+        shape = _shape(cls)
+        unknown = fields.keys() - shape.names
+        missing = shape.required - fields.keys()
+        if unknown or missing:
+            raise LocalProtocolError(
+                f"{shape.op}: unknown fields {sorted(unknown)}, missing {sorted(missing)}"
+            )
+        out: dict[str, object] = {"op": shape.op}
+        for name in shape.order:
+            value = fields.get(name)
+            if value is not None:
+                out[name] = value
+        return out
+
+    def to_frame(self) -> dict[str, object]:
+        """This op as an outgoing frame (``frame`` of its fields that are not None)."""
+        return type(self).frame(**{name: getattr(self, name) for name in _shape(type(self)).order})
+
+
+class _Shape(NamedTuple):
+    op: str
+    order: tuple[str, ...]
+    names: frozenset[str]
+    required: frozenset[str]
+
+
+@cache
+def _shape(model: type[OpModel]) -> _Shape:
+    fields = {name: info for name, info in model.model_fields.items() if name != "op"}
+    return _Shape(
+        op=model.model_fields["op"].default,
+        order=tuple(fields),
+        names=frozenset(fields),
+        required=frozenset(name for name, info in fields.items() if info.is_required()),
+    )

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-import msgspec
 from pydantic import Field
 
 from .base import (
@@ -16,7 +15,7 @@ from .base import (
     OpModel,
 )
 
-__all__ = ["Advertise", "Publish", "PublishFrame", "Subscribe", "Unadvertise", "Unsubscribe"]
+__all__ = ["Advertise", "Publish", "Subscribe", "Unadvertise", "Unsubscribe"]
 
 
 class Advertise(OpModel):
@@ -53,24 +52,6 @@ class Publish(OpModel):
     topic: GraphName
     msg: Any = Field(default_factory=dict)
     id: MessageId | None = None
-    latch: bool = False
-
-
-class PublishFrame(msgspec.Struct, frozen=True):
-    """``Publish`` as msgspec decodes it straight from JSON: the publish hot path (benchmarks B14).
-
-    The same fields, defaults and checks as ``Publish`` (``topic`` a string,
-    ``id`` a string or an integer but not a bool, ``latch`` a bool, unknown
-    fields ignored), done in C while decoding instead of by pydantic after it;
-    ``codec.decode_publish`` adds the edge rules (topic name, ``id`` range, nesting).
-    A frame this cannot decode goes through the general path, which gives the
-    error its field path (D1), so both paths accept and refuse the same frames.
-    """
-
-    op: Literal["publish"]  # required: a frame without ``op`` is refused (D1)
-    topic: str  # its name rules are checked by ``codec.decode_publish``
-    msg: Any = msgspec.field(default_factory=dict)
-    id: str | int | None = None  # its 64-bit range is checked by ``codec.decode_publish``
     latch: bool = False
 
 

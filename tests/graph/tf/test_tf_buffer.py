@@ -15,7 +15,7 @@ from rwt_graph.tf import (
     TFError,
     UnknownFrameError,
 )
-from rwt_graph.tf.transform import quaternion, to_message
+from rwt_graph.tf.transform import quaternion
 
 QUARTER = math.pi / 2
 
@@ -25,7 +25,7 @@ def position(buffer: TFBuffer, target: str, source: str) -> list[float]:
 
 
 def yaw(buffer: TFBuffer, target: str, source: str) -> float:
-    msg = to_message(buffer.lookup(target, source).matrix)
+    msg = buffer.lookup(target, source).transform
     return yaw_of(msg["rotation"])  # type: ignore[arg-type]
 
 

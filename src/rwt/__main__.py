@@ -1,0 +1,5 @@
+"""``python -m rwt``: the ``rwt`` command."""
+
+from rwt._cli import main
+
+main()
