@@ -21,6 +21,7 @@ def parse(frame: str | bytes) -> OpModel:
 def encode_op(op: OpModel) -> bytes:
     return json.dumps(op.to_frame()).encode()
 
+
 # One example of every op, with every optional field the spec or real clients use.
 EXAMPLES: dict[str, dict[str, object]] = {
     "advertise": {
