@@ -1,0 +1,147 @@
+"""Every code block of the README and docs/ runs (docs/README.md, "Code blocks")."""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+import trustme
+
+from .blocks import LANGUAGES, REPO, Block, bash_commands, blocks_of, markdown_files
+
+BLOCKS = [block for path in markdown_files() for block in blocks_of(path)]
+RUNNABLE = [b for b in BLOCKS if b.language in ("python", "bash", "json")]
+CI_RUN = (REPO / ".ci" / "run").read_text("utf-8").splitlines()
+
+
+def test_every_block_has_a_known_language() -> None:
+    unknown = [f"{b.name} ({b.language or 'no language'})" for b in BLOCKS]
+    unknown = [name for name, b in zip(unknown, BLOCKS, strict=True) if b.language not in LANGUAGES]
+    assert not unknown, f"fences must be one of {LANGUAGES}: {unknown}"
+
+
+def test_the_readme_has_the_two_quick_start_commands_and_ci_runs_the_second() -> None:
+    quick = blocks_of(REPO / "README.md")[0]
+    serve, test = bash_commands(quick.text)
+    assert serve.endswith("&& rwt serve")
+    assert test in CI_RUN  # .ci/run runs the README's test command verbatim
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder with what the docs' commands name: cert.pem, key.pem, secret.txt."""
+    path = tmp_path_factory.mktemp("docs")
+    authority = trustme.CA()
+    cert = authority.issue_cert("127.0.0.1", "localhost")
+    cert.private_key_pem.write_to_path(str(path / "key.pem"))
+    cert.cert_chain_pems[0].write_to_path(str(path / "cert.pem"))
+    (path / "secret.txt").write_text("a-secret-of-sixteen-chars\n")
+    for name in ("examples", "benchmarks", "conformance", "src", "tests", "pyproject.toml"):
+        (path / name).symlink_to(REPO / name)
+    return path
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO / "src"), str(REPO)])
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+@contextmanager
+def _running(command: str, cwd: Path) -> Iterator[str]:
+    """Start ``command``, wait for its ``listening on`` line, stop it afterwards.
+
+    Its stderr goes to a file and its stdout is drained by a thread: a server
+    that logs every connection must never block on a full pipe.
+    """
+    log = cwd / "server.log"
+    with log.open("w") as stderr:
+        process = subprocess.Popen(
+            ["bash", "-c", f"exec {command}"],
+            cwd=cwd,
+            env=_env(),
+            stdout=subprocess.PIPE,
+            stderr=stderr,
+            text=True,
+            start_new_session=True,
+        )
+    assert process.stdout is not None
+    seen: list[str] = []
+    try:
+        for line in process.stdout:
+            seen.append(line)
+            if "listening on" in line:
+                break
+        else:
+            pytest.fail(f"{command!r} exited without listening: {log.read_text()[-2000:]}")
+        threading.Thread(target=process.stdout.read, daemon=True).start()
+        yield "".join(seen)
+    finally:
+        os.killpg(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        assert "Traceback" not in log.read_text(), log.read_text()[-4000:]
+
+
+def _run(command: str, cwd: Path) -> None:
+    """Run one command of a bash block, as a user would type it."""
+    if command in CI_RUN:
+        return  # the test command itself: .ci/run runs it (test above), not run again here
+    parts = [part.strip() for part in command.split("&&")]
+    for part in parts:
+        words = shlex.split(part)
+        if words[:4] == ["python", "-m", "pip", "install"]:
+            # resolve what the user would install (the extras exist), without touching this env
+            words = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *words[4:]]
+            _shell(words, REPO)
+        elif words[:2] == ["rwt", "serve"] or (words[:1] == ["python"] and "examples/" in part):
+            with _running(part, cwd):
+                pass
+        else:
+            _shell(["bash", "-c", part], cwd)
+
+
+def _shell(args: list[str], cwd: Path) -> None:
+    """Run ``args`` to completion; it must exit 0."""
+    result = subprocess.run(
+        args, check=False, cwd=cwd, env=_env(), capture_output=True, text=True, timeout=300
+    )
+    assert result.returncode == 0, f"{args}: {result.stdout[-2000:]}{result.stderr[-2000:]}"
+
+
+@pytest.mark.parametrize("block", RUNNABLE, ids=[b.name for b in RUNNABLE])
+def test_block_runs(block: Block, workdir: Path, tmp_path: Path) -> None:
+    if block.language == "json":
+        try:
+            json.loads(block.text)
+        except ValueError:
+            for line in block.text.splitlines():
+                if line.strip():
+                    json.loads(line)
+        return
+    with _running(block.start, workdir) if block.start else _nothing():
+        if block.language == "python":
+            script = tmp_path / "block.py"
+            script.write_text(block.text, "utf-8")
+            _shell([sys.executable, str(script)], workdir)
+        else:
+            for command in bash_commands(block.text):
+                _run(command, workdir)
+
+
+@contextmanager
+def _nothing() -> Iterator[None]:
+    yield
