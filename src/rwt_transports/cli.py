@@ -130,8 +130,8 @@ def _print_version(value: bool) -> None:
     if value:
         try:
             version = importlib.metadata.version("rwt")
-        except importlib.metadata.PackageNotFoundError:  # run from a source tree
-            version = "unknown"
+        except importlib.metadata.PackageNotFoundError:  # a source tree, not installed
+            version = "0+unknown"  # as rwt.__version__
         typer.echo(f"rwt {version}")
         raise typer.Exit
 
