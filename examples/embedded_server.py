@@ -10,6 +10,7 @@ roslibjs or roslibpy to the printed URL.
 from __future__ import annotations
 
 import argparse
+from contextlib import suppress
 
 import anyio
 
@@ -44,4 +45,5 @@ if __name__ == "__main__":
     parser.add_argument("--port", type=int, default=9090)
     parser.add_argument("--count", type=int, default=None)
     args = parser.parse_args()
-    anyio.run(main, args.port, args.count)
+    with suppress(KeyboardInterrupt):  # Ctrl-C: stop without a traceback
+        anyio.run(main, args.port, args.count)

@@ -1,11 +1,11 @@
 """A robot for roslibjs/roslibpy users: topics, a service, an action, parameters, rosapi."""
 
 import sys
+from contextlib import suppress
 
 import anyio
 
-from rwt_graph.graph import Graph
-from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt import Graph, RosbridgeServer, ServerConfig
 
 graph = Graph()
 graph.params.declare("/rwt", {"max_speed": 1.0, "name": "rwt-bot"})
@@ -25,4 +25,5 @@ async def fibonacci(goal: dict, context) -> dict:
 
 graph.create_action_server("/fibonacci", "example_interfaces/action/Fibonacci", fibonacci)
 server = RosbridgeServer(graph, ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090))
-anyio.run(lambda: server.serve(on_listening=lambda url: print("listening on", url, flush=True)))
+with suppress(KeyboardInterrupt):  # Ctrl-C: stop without a traceback
+    anyio.run(lambda: server.serve(on_listening=lambda url: print("listening on", url, flush=True)))

@@ -12,6 +12,7 @@ beyond their thresholds.
 import itertools
 import math
 import sys
+from contextlib import suppress
 
 import anyio
 
@@ -52,4 +53,5 @@ async def main() -> None:
         await server.serve(on_listening=lambda url: print("listening on", url, flush=True))
 
 
-anyio.run(main)
+with suppress(KeyboardInterrupt):  # Ctrl-C: stop without a traceback
+    anyio.run(main)

@@ -3,9 +3,10 @@
 Each module in ``MODULES`` that exists exposes ``run(quick: bool) -> list[Row]``;
 ``python -m benchmarks.paper [--quick]`` runs them all, prints one table, writes
 ``benchmarks/results/paper.json`` and rewrites the marked section of
-``benchmarks/README.md``. A row is a dict with the keys of ``ROW_KEYS``:
-``figure`` ("Fig. 3", "Table I"...), ``metric``, ``paper`` (the paper's number,
-None where it gives none), ``ours``, ``unit`` and ``note``.
+``benchmarks/README.md`` (``--quick``: copies under ``benchmarks/results/quick/``).
+A row is a dict with the keys of ``ROW_KEYS``: ``figure`` ("Fig. 3", "Table I"...),
+``metric``, ``paper`` (the paper's number, None where it gives none), ``ours``,
+``unit`` and ``note``.
 """
 
 from __future__ import annotations

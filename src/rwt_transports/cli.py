@@ -1,31 +1,27 @@
-"""The ``rwt`` command line.
+"""The ``rwt`` command line: ``rwt serve`` and ``rwt conformance``.
 
-``rwt serve`` runs a rosbridge server on an in-memory graph, on every transport
-asked for at once (WebSocket, TCP, UDP, stdio; one graph, D22). Option names
-follow rosbridge's parameters where one exists (``port``, ``address`` is
-``--host`` here, ``max_message_size``, ``use_compression`` is
-``--websocket-compression``, ``certfile``/``keyfile``, ``topics_glob``...). Logs
-go to stderr as ``key=value`` lines; stdout gets one ``listening on URL`` line
-per listener, the WebSocket one first, so scripts can use ``--port 0`` (with
-``--stdio``, stdout is the session and those lines go to stderr). With ``--video``
-a ``video on http://HOST:PORT`` line follows them (web_video_server's paths, port
-8080 by default); ``--depthcloud DEPTH[,RGB]`` runs depthcloud_encoder's job on
-the same graph.
+``rwt serve`` runs every transport asked for on one graph (D22). Its help text,
+the docstring of ``serve``, is what users read: it names no internal documents.
+Bad option values are refused at start with a one-line usage error (exit code 2,
+see ``cli_checks``); an address that cannot be bound names its listener (exit 1).
 """
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 import logging
 import signal
 import sys
+from collections.abc import Sequence
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import anyio
 import typer
 from anyio.abc import TaskStatus
+from typer.core import TyperGroup
 
 from rwt_conformance.cli import conformance
 from rwt_graph.graph import Graph
@@ -35,6 +31,18 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
 from .allocator import tune_allocator
+from .cli_checks import (
+    ClickException,
+    ListenError,
+    NoArgsIsHelpError,
+    OptionError,
+    check_directories,
+    check_glob_list,
+    check_readable_file,
+    check_tls,
+    error_line,
+    usage_error,
+)
 from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
@@ -46,9 +54,51 @@ if TYPE_CHECKING:
 
 __all__ = ["app", "main"]
 
-app = typer.Typer(no_args_is_help=True, add_completion=False, help=__doc__)
-
 MiB = 1024 * 1024
+PORT_RANGE: dict[str, Any] = {"min": 0, "max": 65535}
+VIDEO_PORT = 8080
+UVLOOP_EXTRA = 'pip install "rwt[uvloop]"'
+
+
+class _RwtGroup(TyperGroup):
+    """The ``rwt`` group: an error is one line on stderr, not a usage box or a traceback."""
+
+    def main(
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        windows_expand_args: bool = True,
+        **extra: Any,
+    ) -> Any:
+        """Run the command line; in standalone mode, exit with its code (2: a usage error)."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, windows_expand_args, **extra)
+        try:
+            code = super().main(
+                args, prog_name or "rwt", complete_var, False, windows_expand_args, **extra
+            )
+        except ClickException as exc:
+            if NoArgsIsHelpError is not None and isinstance(exc, NoArgsIsHelpError):
+                typer.echo(str(exc), err=True)  # `rwt` alone: the help
+            else:
+                typer.echo(error_line(exc), err=True)
+            sys.exit(getattr(exc, "exit_code", 1))
+        except typer.Abort:
+            typer.echo("rwt: aborted", err=True)
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+# rich_markup_mode=None: click's plain help, which wraps at 80 columns where rich's
+# tables cut option names, and prints [brackets] (rwt[uvloop]) instead of eating them
+app = typer.Typer(
+    cls=_RwtGroup,
+    no_args_is_help=True,
+    add_completion=False,
+    rich_markup_mode=None,
+)
 
 
 class LevelName(StrEnum):
@@ -67,26 +117,59 @@ class DialectName(StrEnum):
     ROS1 = "ros1"
 
 
+class LogLevel(StrEnum):
+    """Log levels as the CLI accepts them."""
+
+    DEBUG = "debug"
+    INFO = "info"
+    WARNING = "warning"
+    ERROR = "error"
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        try:
+            version = importlib.metadata.version("rwt")
+        except importlib.metadata.PackageNotFoundError:  # a source tree, not installed
+            version = "0+unknown"  # as rwt.__version__
+        typer.echo(f"rwt {version}")
+        raise typer.Exit
+
+
 @app.callback()
-def main() -> None:
-    """rwt: a ROS-free rosbridge v2 server, client and conformance suite."""
+def main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", is_eager=True, callback=_print_version, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
+    """rwt: a ROS-free rosbridge v2 server, client and conformance suite.
+
+    Run a server with 'rwt serve'; check one with 'rwt conformance URL'.
+    """
 
 
-app.command()(conformance)
+app.command(short_help="Check a rosbridge server against the conformance suite.")(conformance)
 
 
-@app.command()
+@app.command(short_help="Run a rosbridge server.")
 def serve(
     host: Annotated[str, typer.Option(help="Address every listener binds.")] = "127.0.0.1",
-    port: Annotated[int, typer.Option(help="WebSocket port; 0 picks a free port.")] = 9090,
+    port: Annotated[
+        int, typer.Option(**PORT_RANGE, help="WebSocket port; 0 picks a free port.")
+    ] = 9090,
     websocket: Annotated[
         bool, typer.Option(help="Serve WebSocket on --port (--no-websocket: don't).")
     ] = True,
     tcp_port: Annotated[
-        int | None, typer.Option(help="Also serve raw TCP on this port (0: a free one).")
+        int | None,
+        typer.Option(**PORT_RANGE, help="Also serve raw TCP on this port (0: a free one)."),
     ] = None,
     udp_port: Annotated[
-        int | None, typer.Option(help="Also serve UDP on this port (0: a free one).")
+        int | None,
+        typer.Option(**PORT_RANGE, help="Also serve UDP on this port (0: a free one)."),
     ] = None,
     stdio: Annotated[
         bool, typer.Option(help="Also serve one session on stdin/stdout; stop when it ends.")
@@ -94,7 +177,11 @@ def serve(
     dialect: Annotated[DialectName, typer.Option(help="ROS message dialect.")] = DialectName.ROS2,
     interfaces: Annotated[
         list[Path] | None,
-        typer.Option(help="Extra interface directory (<pkg>/msg|srv|action/...); repeatable."),
+        typer.Option(
+            callback=check_directories,
+            metavar="DIR",
+            help="Extra interface directory, laid out as PKG/msg, PKG/srv, PKG/action; repeatable.",
+        ),
     ] = None,
     status_level: Annotated[
         LevelName, typer.Option(help="Status level of new connections.")
@@ -102,7 +189,8 @@ def serve(
     max_message_size: Annotated[
         int,
         typer.Option(
-            help="Largest incoming message on every transport, also reassembled from parts, bytes."
+            min=1,
+            help="Largest incoming message on every transport, also reassembled from parts, bytes.",
         ),
     ] = 10 * MiB,
     max_pending_fragments: Annotated[
@@ -129,8 +217,9 @@ def serve(
     send_buffer_limit: Annotated[
         int,
         typer.Option(
+            min=1,
             help="Outgoing bytes queued per connection (payload plus a fixed cost a frame)"
-            " before dropping topic messages."
+            " before dropping topic messages.",
         ),
     ] = 16 * MiB,
     send_timeout: Annotated[
@@ -145,22 +234,55 @@ def serve(
         ),
     ] = None,
     certfile: Annotated[
-        Path | None, typer.Option(help="PEM certificate: TLS (wss, TLS over TCP).")
+        Path | None,
+        typer.Option(
+            callback=check_readable_file,
+            metavar="FILE",
+            help="PEM certificate: TLS (wss, TLS over TCP).",
+        ),
     ] = None,
-    keyfile: Annotated[Path | None, typer.Option(help="PEM private key for --certfile.")] = None,
+    keyfile: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file, metavar="FILE", help="PEM private key for --certfile."
+        ),
+    ] = None,
     auth_secret_file: Annotated[
-        Path | None, typer.Option(help="rosauth secret (first line): clients must send auth first.")
+        Path | None,
+        typer.Option(
+            callback=check_readable_file,
+            metavar="FILE",
+            help="rosauth secret (its first line): clients must send auth first.",
+        ),
     ] = None,
     topics_glob: Annotated[
-        str, typer.Option(help="Allowed topics: fnmatch patterns, comma-separated.")
+        str,
+        typer.Option(
+            callback=check_glob_list,
+            metavar="PATTERNS",
+            help="Allowed topics: fnmatch patterns, as /a/*,/b or [/a/*, /b] (default: all).",
+        ),
     ] = "",
     services_glob: Annotated[
-        str, typer.Option(help="Allowed services (/rosapi/* always allowed).")
+        str,
+        typer.Option(
+            callback=check_glob_list,
+            metavar="PATTERNS",
+            help="Allowed services (/rosapi/* always allowed).",
+        ),
     ] = "",
-    params_glob: Annotated[str, typer.Option(help="Allowed parameters.")] = "",
-    actions_glob: Annotated[str, typer.Option(help="Allowed actions.")] = "",
+    params_glob: Annotated[
+        str, typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Allowed parameters.")
+    ] = "",
+    actions_glob: Annotated[
+        str, typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Allowed actions.")
+    ] = "",
     allowed_origins: Annotated[
-        str, typer.Option(help="Accepted WebSocket Origin patterns, comma-separated (any).")
+        str,
+        typer.Option(
+            metavar="PATTERNS",
+            help="Accepted WebSocket Origin patterns, comma-separated (default: any).",
+        ),
     ] = "",
     call_timeout: Annotated[
         float, typer.Option(help="Seconds a call_service without timeout may wait; 0 = no limit.")
@@ -195,9 +317,16 @@ def serve(
         typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
     ] = True,
     video: Annotated[
-        bool, typer.Option(help="Also serve image topics over HTTP (web_video_server).")
+        bool, typer.Option(help="Also serve image topics over HTTP (as web_video_server).")
     ] = False,
-    video_port: Annotated[int, typer.Option(help="HTTP port of --video; 0 picks one.")] = 8080,
+    video_port: Annotated[
+        int | None,
+        typer.Option(
+            **PORT_RANGE,
+            help=f"HTTP port of the video server (default {VIDEO_PORT}; 0 picks a free one);"
+            " implies --video.",
+        ),
+    ] = None,
     video_max_connections: Annotated[
         int, typer.Option(min=1, help="Most HTTP connections of --video at once (503 beyond).")
     ] = 64,
@@ -217,9 +346,9 @@ def serve(
     depthcloud_tile_size: Annotated[
         int, typer.Option(min=16, help="Side of each depth-cloud tile, pixels.")
     ] = 512,
-    log_level: Annotated[str, typer.Option(help="Log level on stderr.")] = "info",
+    log_level: Annotated[LogLevel, typer.Option(help="Log level on stderr.")] = LogLevel.INFO,
     uvloop: Annotated[
-        bool, typer.Option(help="Run on uvloop (pip install 'rwt[bench]' or uvloop).")
+        bool, typer.Option(help=f"Run on uvloop (install it with: {UVLOOP_EXTRA}).")
     ] = False,
     heap_keep: Annotated[
         int,
@@ -239,29 +368,41 @@ def serve(
         bool, typer.Option(help="Raise the soft RLIMIT_NOFILE to the hard limit at start-up.")
     ] = True,
 ) -> None:
-    """Run a rosbridge server on an in-memory graph until SIGINT/SIGTERM."""
+    """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
+
+    Every transport asked for runs at once on one graph: WebSocket (--port), raw
+    TCP (--tcp-port), UDP (--udp-port) and one session on stdin/stdout (--stdio).
+    Options are named after rosbridge_server's parameters where one exists: port,
+    address (--host here), max_message_size, use_compression
+    (--websocket-compression), certfile, keyfile, topics_glob and the other globs.
+
+    Logs go to stderr as key=value lines. stdout gets one "listening on URL" line
+    per listener, the WebSocket one first, so scripts can use --port 0 (with
+    --stdio, stdout carries the session and these lines go to stderr). With
+    --video, a "video on http://HOST:PORT" line follows: image topics over HTTP
+    on web_video_server's paths. --depthcloud DEPTH[,RGB] encodes a depth (and
+    colour) topic for ros3djs, as depthcloud_encoder does.
+    """
+    if not (websocket or tcp_port is not None or udp_port is not None or stdio):
+        raise usage_error(
+            "nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio"
+        )
+    check_tls(certfile, keyfile)
+    secret = None if auth_secret_file is None else _read_secret(auth_secret_file)
+    if uvloop and importlib.util.find_spec("uvloop") is None:
+        _fail(f"--uvloop needs uvloop: {UVLOOP_EXTRA}")
     logging.basicConfig(
         stream=sys.stderr,
-        level=log_level.upper(),
+        level=log_level.value.upper(),
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
-    if not (websocket or tcp_port is not None or udp_port is not None or stdio):
-        _fail("nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio")
     if heap_keep:
         tune_allocator(heap_keep * 1024 * 1024)
     if raise_fd_limit:
         raise_nofile_limit()
     graph = Graph(TypeRegistry(Dialect(dialect.value), interfaces or ()))
-    authenticator = None
-    if auth_secret_file is not None:
-        try:
-            secret = auth_secret_file.read_text("utf-8").splitlines()[0].strip()
-        except (OSError, IndexError) as exc:
-            _fail(f"cannot read --auth-secret-file: {exc}")
-        if not secret:
-            _fail("--auth-secret-file: the first line is empty")
-        authenticator = rosauth_authenticator(secret, graph.clock)
+    authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
     access = AccessPolicy(
         topics=parse_glob_list(topics_glob),
         services=parse_glob_list(services_glob),
@@ -322,21 +463,37 @@ def serve(
             max_depth_per_tile=depthcloud_max_depth,
             tile_size=depthcloud_tile_size,
         )
-    video_config = (
-        _video_config(host, video_port, video_max_connections, video_max_streams) if video else None
-    )
-    if uvloop and importlib.util.find_spec("uvloop") is None:
-        _fail("--uvloop needs the uvloop package")
+    video_config = None
+    if video or video_port is not None:  # a video port asks for the video server
+        video_config = _video_config(
+            host,
+            VIDEO_PORT if video_port is None else video_port,
+            video_max_connections,
+            video_max_streams,
+        )
     freeze_startup_objects()
     try:
         anyio.run(_run, server, video_config, backend_options={"use_uvloop": uvloop})
-    except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
-        _fail(str(exc))
-    except BaseExceptionGroup as group:  # the same, raised inside the task group
-        startup, rest = group.split((OSError, ValueError))
-        if startup is None or rest is not None:
+    except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
+        message = _startup_error(exc)
+        if message is None:
             raise
-        _fail("; ".join(str(exc) for exc in startup.exceptions))
+        _fail(message)
+
+
+def _read_secret(path: Path) -> str:
+    """The rosauth secret: the first line of ``path``, refused (exit 2) when empty."""
+    try:
+        lines = path.read_text("utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.reason if isinstance(exc, UnicodeDecodeError) else exc.strerror
+        raise OptionError(
+            f"cannot read {path}: {reason}", param_hint="--auth-secret-file"
+        ) from None
+    secret = lines[0].strip() if lines else ""
+    if not secret:
+        raise OptionError(f"the first line of {path} is empty", param_hint="--auth-secret-file")
+    return secret
 
 
 def _video_config(host: str, port: int, max_connections: int, max_streams: int) -> VideoConfig:
@@ -353,6 +510,39 @@ def _fail(message: str) -> NoReturn:
     raise typer.Exit(1)
 
 
+def _startup_error(exc: BaseException) -> str | None:
+    """The one-line message of an error that stops ``rwt serve`` at start; None for a bug."""
+    if isinstance(exc, BaseExceptionGroup):  # raised inside a task group
+        messages = []
+        for each in exc.exceptions:
+            message = _startup_error(each)
+            if message is None:
+                return None
+            messages.append(message)
+        return "; ".join(messages)
+    if isinstance(exc, ListenError | OSError | ValueError):  # ssl.SSLError is an OSError
+        return str(exc)
+    return None
+
+
+def _unbound_listener(server: RosbridgeServer) -> tuple[str, str, int] | None:
+    """The listener that failed to open: the first configured one without a URL.
+
+    The server opens its listeners in this order and records each one's URL as it
+    binds, so after an OSError the first one missing is the one that failed.
+    """
+    config = server.config
+    listeners = (
+        ("websocket", "WebSocket", config.port),
+        ("tcp", "TCP", config.tcp_port),
+        ("udp", "UDP", config.udp_port),
+    )
+    for key, name, port in listeners:
+        if port is not None and key not in server.urls:
+            return name, config.host, port
+    return None
+
+
 async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
     out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
 
@@ -365,10 +555,19 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
         if video is not None:
             from rwt_video import serve_video  # noqa: PLC0415 (see _video_config)
 
-            video_url = await tg.start(serve_video, server.graph, video)
+            try:
+                video_url = await tg.start(serve_video, server.graph, video)
+            except OSError as exc:
+                raise ListenError("HTTP video", video.host, video.port, exc) from exc
 
         async def serve(*, task_status: TaskStatus[str]) -> None:
-            await server.serve(on_listening=announce, task_status=task_status)
+            try:
+                await server.serve(on_listening=announce, task_status=task_status)
+            except OSError as exc:
+                failed = _unbound_listener(server)
+                if failed is None:
+                    raise
+                raise ListenError(*failed, exc) from exc
             tg.cancel_scope.cancel()  # stopped gracefully: the video server goes too
 
         await tg.start(serve)
@@ -387,3 +586,7 @@ async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> 
                 scope.cancel()
                 return
             server.stop()
+
+
+if __name__ == "__main__":  # python -m rwt_transports.cli
+    app(prog_name="rwt")

@@ -1,0 +1,50 @@
+"""Ctrl-C stops every example that serves forever quietly: no KeyboardInterrupt traceback."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from .client_harness import REPO
+
+ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
+TIMEOUT_S = 60  # a bound on a hung example, not a speed requirement
+
+#: Each example that runs until interrupted, with the arguments that pick a free port.
+SERVING = {
+    "embedded_server.py": ["--port", "0"],
+    "robot.py": ["0"],
+    "tf_robot.py": ["0"],
+}
+
+
+def test_every_example_is_covered() -> None:
+    assert set(SERVING) == {path.name for path in (REPO / "examples").glob("*.py")}
+
+
+@pytest.mark.parametrize("example", sorted(SERVING))
+def test_ctrl_c_stops_the_example_quietly(example: str) -> None:
+    process = subprocess.Popen(
+        [sys.executable, str(REPO / "examples" / example), *SERVING[example]],
+        env=ENV,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stdout is not None
+        ready = process.stdout.readline()  # blocks until it serves (or ends)
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=TIMEOUT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert ready.startswith("listening on ws://"), stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert process.returncode in (0, 130), stderr

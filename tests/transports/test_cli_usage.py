@@ -1,0 +1,330 @@
+"""What a user sees of `rwt` when an option is wrong: one line naming it, no traceback.
+
+Usage errors exit with 2 and say which option and why (``rwt serve: --port: ...``);
+an address that cannot be bound exits with 1 and names the listener and the
+address. The help of every command reads cleanly at 80 columns and names no
+internal document. Most cases run the real command line in a subprocess; the
+many small usage cases use typer's CliRunner, which drives the same group.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import tomllib
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from rwt_transports.cli import app
+from rwt_transports.cli_checks import check_glob_list
+from tests.transports.realclients import REPO
+
+ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
+RWT = [sys.executable, "-m", "rwt_transports.cli"]
+SERVE = [*RWT, "serve", "--host", "127.0.0.1", "--log-level", "warning"]
+TIMEOUT_S = 60  # a bound on a hung process, not a speed requirement
+
+
+def rwt(*args: str, command: list[str] = RWT, **env: str) -> subprocess.CompletedProcess[str]:
+    """Run the real command line to its end."""
+    return subprocess.run(
+        [*command, *args],
+        env={**ENV, **env},
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_S,
+        check=False,
+    )
+
+
+def invoke(*args: str) -> tuple[int, str]:
+    """Run ``rwt ARGS`` in-process; its exit code and stderr."""
+    result = CliRunner().invoke(app, list(args), prog_name="rwt")
+    return result.exit_code, result.stderr
+
+
+def only_line(stderr: str) -> str:
+    """The one line of an error on stderr (log lines aside); fails on a traceback."""
+    assert "Traceback" not in stderr, stderr
+    lines = [line for line in stderr.splitlines() if line.startswith("rwt")]
+    assert len(lines) == 1, stderr
+    return lines[0]
+
+
+# ---- addresses in use -------------------------------------------------------------
+
+
+@pytest.fixture
+def taken_tcp_port() -> Iterator[int]:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen()
+        yield sock.getsockname()[1]
+
+
+@pytest.fixture
+def taken_udp_port() -> Iterator[int]:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        yield sock.getsockname()[1]
+
+
+@pytest.mark.parametrize(
+    ("listener", "option", "kind"),
+    [
+        ("WebSocket", "--port", "tcp"),
+        ("TCP", "--tcp-port", "tcp"),
+        ("UDP", "--udp-port", "udp"),
+        ("HTTP video", "--video-port", "tcp"),
+    ],
+)
+def test_an_address_in_use_names_the_listener_and_the_port(
+    listener: str, option: str, kind: str, request: pytest.FixtureRequest
+) -> None:
+    port = request.getfixturevalue(f"taken_{kind}_port")
+    args = [option, str(port)] if option == "--port" else ["--port", "0", option, str(port)]
+    run = rwt(*args, command=SERVE)
+    assert run.returncode == 1
+    assert only_line(run.stderr) == (
+        f"rwt serve: cannot listen for {listener} on 127.0.0.1:{port}: address already in use"
+    )
+    assert "listening on" not in run.stdout
+
+
+# ---- option values refused at start ----------------------------------------------
+
+
+def test_a_usage_error_is_one_line_from_the_real_command() -> None:
+    run = rwt("serve", "--port", "99999")
+    assert run.returncode == 2
+    assert only_line(run.stderr).startswith("rwt serve: --port: ")
+    assert run.stderr.count("\n") == 1 and run.stdout == ""
+
+
+@pytest.mark.parametrize("option", ["--certfile", "--keyfile", "--auth-secret-file"])
+def test_a_missing_file_is_named(
+    option: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, stderr = invoke("serve", option, "cert.pem")
+    assert code == 2
+    assert only_line(stderr) == f"rwt serve: {option}: no such file: cert.pem"
+
+
+def test_a_folder_is_not_a_file(tmp_path: Path) -> None:
+    code, stderr = invoke("serve", "--certfile", str(tmp_path))
+    assert code == 2
+    assert only_line(stderr) == f"rwt serve: --certfile: not a file: {tmp_path}"
+
+
+def test_a_file_that_is_no_certificate_is_refused(tmp_path: Path) -> None:
+    cert = tmp_path / "cert.pem"
+    cert.write_text("not a certificate\n")
+    code, stderr = invoke("serve", "--certfile", str(cert))
+    assert code == 2
+    assert only_line(stderr).startswith(f"rwt serve: --certfile: cannot load {cert}: ")
+
+
+def test_a_key_without_a_certificate_is_refused(tmp_path: Path) -> None:
+    key = tmp_path / "key.pem"
+    key.write_text("")
+    code, stderr = invoke("serve", "--keyfile", str(key))
+    assert code == 2
+    assert only_line(stderr) == "rwt serve: --keyfile needs --certfile"
+
+
+def test_an_empty_secret_file_is_refused(tmp_path: Path) -> None:
+    secret = tmp_path / "secret"
+    secret.write_text("\n")
+    code, stderr = invoke("serve", "--auth-secret-file", str(secret))
+    assert code == 2
+    assert only_line(stderr) == (
+        f"rwt serve: --auth-secret-file: the first line of {secret} is empty"
+    )
+
+
+@pytest.mark.parametrize("option", ["--port", "--tcp-port", "--udp-port", "--video-port"])
+@pytest.mark.parametrize("value", ["99999", "65536", "-1"])
+def test_a_port_out_of_range_is_a_usage_error(option: str, value: str) -> None:
+    code, stderr = invoke("serve", option, value)
+    assert code == 2
+    assert only_line(stderr).startswith(f"rwt serve: {option}: ")
+
+
+@pytest.mark.parametrize(
+    "option", ["--topics-glob", "--services-glob", "--params-glob", "--actions-glob"]
+)
+def test_a_malformed_glob_is_a_usage_error_naming_the_option(option: str) -> None:
+    code, stderr = invoke("serve", option, "[/robot/*, /tf")
+    assert code == 2
+    assert only_line(stderr) == (
+        f"rwt serve: {option}: an unclosed '[' in pattern '[/robot/*'"
+        " (write a list as /a/*,/b or [/a/*, /b])"
+    )
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "",
+        "[]",
+        "/a/*,/b",
+        "[/robot/*, /tf]",
+        "['/robot/*', \"/tf\"]",
+        "/cam[0-9]/image",
+        "[/cam[0-9]/*, /tf]",
+        "/a[!b]",
+        "/x[]]",
+        "chatter",
+    ],
+)
+def test_globs_the_server_understands_pass(text: str) -> None:
+    assert check_glob_list(text) == text
+
+
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        ("[/robot/*, /tf", "an unclosed '['"),
+        ("/robot/*, /tf]", "a ']' without '['"),
+        ("/a/* /b", "a blank"),
+        ("/cam[0-9/image", "an unclosed '['"),
+        ("/a[]", "an unclosed '['"),
+        ("/a'b", "a quote"),
+    ],
+)
+def test_globs_that_would_silently_match_nothing_are_refused(text: str, problem: str) -> None:
+    with pytest.raises(typer.BadParameter, match=re.escape(problem)):
+        check_glob_list(text)
+
+
+def test_a_missing_interfaces_folder_is_named(tmp_path: Path) -> None:
+    missing = tmp_path / "interfaces"
+    code, stderr = invoke("serve", "--interfaces", str(tmp_path), "--interfaces", str(missing))
+    assert code == 2
+    assert only_line(stderr) == f"rwt serve: --interfaces: no such directory: {missing}"
+    (tmp_path / "file").write_text("")
+    code, stderr = invoke("serve", "--interfaces", str(tmp_path / "file"))
+    assert code == 2
+    assert only_line(stderr).endswith(f"not a directory: {tmp_path / 'file'}")
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["serve", "--no-websocket"], "rwt serve: nothing to serve: --no-websocket needs"),
+        (["serve", "--log-level", "loud"], "rwt serve: --log-level: 'loud' is not one of"),
+        (["serve", "--prot", "1"], "rwt serve: no such option: --prot"),
+        (["nosuch"], "rwt: no such command 'nosuch'"),
+    ],
+)
+def test_other_usage_errors_are_one_line(args: list[str], expected: str) -> None:
+    code, stderr = invoke(*args)
+    assert code == 2
+    assert only_line(stderr).startswith(expected)
+
+
+# ---- --version, --help ------------------------------------------------------------
+
+
+def test_version() -> None:
+    run = rwt("--version")
+    assert run.returncode == 0, run.stderr
+    assert run.stdout == f"rwt {importlib.metadata.version('rwt')}\n"
+
+
+#: Internal references and markup that have no place in help text.
+NOT_IN_HELP = {
+    "an issue number": r"\b[Ii]ssue \d+|#\d+\b",
+    # a decision id such as D22 (an --only pattern like 'D1*' is an example value)
+    "a decision id": r"(?<![\w'])D\d+\b(?![*?])",
+    "the decisions document": r"PROTOCOL-DECISIONS",
+    "a reference section": r"REF §|§",
+    "RST markup": r"``|:\w+:`",
+    "a rich box": r"[╭╰│…]",
+}
+
+
+def commands() -> list[list[str]]:
+    """`rwt` and each of its commands, as argument lists for --help."""
+    group = typer.main.get_command(app)
+    assert isinstance(group, typer.core.TyperGroup)
+    return [[], *([name] for name in sorted(group.commands))]
+
+
+@pytest.mark.parametrize("command", commands(), ids=lambda c: " ".join(["rwt", *c]))
+def test_help_is_for_users_and_fits_80_columns(command: list[str]) -> None:
+    run = rwt(*command, "--help", COLUMNS="80")
+    assert run.returncode == 0, run.stderr
+    text = run.stdout
+    assert text.startswith("Usage: rwt")
+    for what, pattern in NOT_IN_HELP.items():
+        found = re.search(pattern, text)
+        assert found is None, f"{what} in `rwt {' '.join(command)} --help`: {found}"
+    too_wide = [line for line in text.splitlines() if len(line) > 80]
+    assert not too_wide, too_wide
+
+
+def test_the_commands_are_listed() -> None:
+    text = rwt("--help", COLUMNS="80").stdout
+    assert re.search(r"^  conformance +\S", text, re.MULTILINE)
+    assert re.search(r"^  serve +\S", text, re.MULTILINE)
+
+
+# ---- --video-port, --uvloop -------------------------------------------------------
+
+
+def test_video_port_implies_video() -> None:
+    process = subprocess.Popen(
+        [*SERVE, "--port", "0", "--video-port", "0"],
+        env=ENV,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stdout is not None
+        first = process.stdout.readline()
+        second = process.stdout.readline()
+    finally:
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=TIMEOUT_S)
+    assert first.startswith("listening on ws://"), stderr
+    assert second.startswith("video on http://127.0.0.1:"), stderr
+    assert process.returncode == 0, stderr
+
+
+def test_the_help_of_video_port_says_it_implies_video() -> None:
+    text = " ".join(rwt("serve", "--help").stdout.split())
+    assert "implies --video" in text
+
+
+def test_uvloop_names_its_extra() -> None:
+    extras = tomllib.loads((REPO / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    assert any(dep.startswith("uvloop") for dep in extras["uvloop"])
+    assert 'pip install "rwt[uvloop]"' in " ".join(rwt("serve", "--help").stdout.split())
+
+
+def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
+    # The child cannot import uvloop (a None entry in sys.modules hides a package).
+    code = (
+        "import runpy, sys;"
+        "sys.modules['uvloop'] = None;"
+        "runpy.run_module('rwt_transports.cli', run_name='__main__')"
+    )
+    run = rwt("serve", "--port", "0", "--uvloop", command=[sys.executable, "-c", code])
+    assert run.returncode == 1
+    assert only_line(run.stderr) == 'rwt serve: --uvloop needs uvloop: pip install "rwt[uvloop]"'
