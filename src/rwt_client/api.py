@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import anyio
 
@@ -12,6 +11,9 @@ from rwt_protocol.client import ActionResultReceived
 from .connectors import ConnectionClosedError
 from .ros import Callback, CallTimeoutError, Ros, ServiceCallError
 from .typed import MessageClass, to_wire
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = ["Action", "GoalHandle", "Param", "Service", "Topic"]
 

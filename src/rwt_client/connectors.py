@@ -25,12 +25,10 @@ from __future__ import annotations
 
 import ssl
 from collections import deque
-from collections.abc import Sequence
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 from urllib.parse import urlsplit
 
 import anyio
-from anyio.abc import ByteStream, Process
 from websockets.client import ClientProtocol
 from websockets.exceptions import InvalidURI
 from websockets.frames import Frame, Opcode
@@ -40,6 +38,11 @@ from websockets.uri import parse_uri
 
 from rwt_protocol.errors import TransportError
 from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from anyio.abc import ByteStream, Process
 
 __all__ = [
     "Connection",

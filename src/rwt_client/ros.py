@@ -20,11 +20,9 @@ import inspect
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
-from types import TracebackType
-from typing import Self
+from typing import TYPE_CHECKING, Self
 
 import anyio
-from anyio.abc import TaskGroup
 
 from rwt_protocol.client import (
     ActionFeedbackReceived,
@@ -39,10 +37,16 @@ from rwt_protocol.client import (
     TopicMessage,
 )
 from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
-from rwt_protocol.levels import StatusLevel
 
 from .connectors import Connection, ConnectionClosedError, connect
 from .rosapi import RosapiMixin
+
+if TYPE_CHECKING:
+    from types import TracebackType
+
+    from anyio.abc import TaskGroup
+
+    from rwt_protocol.levels import StatusLevel
 
 __all__ = ["CallTimeoutError", "Callback", "Ros", "ServiceCallError"]
 

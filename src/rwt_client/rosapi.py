@@ -8,8 +8,10 @@ them fail with ``ServiceCallError`` or ``CallTimeoutError``.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
 
 __all__ = ["RosapiMixin"]
 

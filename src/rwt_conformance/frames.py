@@ -17,14 +17,17 @@ import math
 import secrets
 import struct
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cbor2
 
 from rwt_protocol.auth import rosauth_mac
 
-from .match import JsonValue
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from .match import JsonValue
 
 __all__ = ["AUTH_VALIDITY_S", "Received", "auth_op", "decode_frame"]
 

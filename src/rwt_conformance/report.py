@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.table import Table
 
 from .runner import Outcome, SuiteResult
+
+if TYPE_CHECKING:
+    from pathlib import Path
 
 __all__ = ["print_table", "write_json", "write_junit"]
 

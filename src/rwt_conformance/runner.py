@@ -24,9 +24,9 @@ import itertools
 import json
 import secrets
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
 import anyio
@@ -38,6 +38,9 @@ from rwt_protocol.errors import RwtError
 from .frames import Received, auth_op, decode_frame
 from .match import JsonValue, describe, match, substitute
 from .model import Case, Profile, Requirement, Step, StepKind, Suite
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     "CaseResult",

@@ -14,6 +14,7 @@ import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from functools import partial
+from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import FieldError, GraphError, RwtError
 from rwt_protocol.levels import StatusLevel
@@ -21,8 +22,10 @@ from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
 
 from .calls import ProviderTable, Spawner, convert_args, guarded, require_spawner
-from .clock import Clock
-from .types import ActionType, TypeRegistry
+
+if TYPE_CHECKING:
+    from .clock import Clock
+    from .types import ActionType, TypeRegistry
 
 __all__ = [
     "CANCEL_GOAL_TYPE",
@@ -169,8 +172,10 @@ class ActionEntry:
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     def end_all(self, reason: str) -> None:
-        """End every goal ABORTED with ``result: false`` and ``reason`` (D4); one failing
-        result does not keep the others from theirs."""
+        """End every goal ABORTED with ``result: false`` and ``reason`` (D4).
+
+        One failing result does not keep the others from theirs.
+        """
         for goal in list(self.goals.values()):
             guarded(
                 f"aborting goal {goal.goal_id} of {self.spelling}",

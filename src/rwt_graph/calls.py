@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Awaitable, Callable
-from typing import Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Generic, Protocol, TypeVar
 
 from rwt_protocol.errors import FieldError, GraphError
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ops.base import json_type_name
-from rwt_protocol.ports import ClientId
 
-from .clock import Clock
-from .types import Converted, MessageType, TypeRegistry
+if TYPE_CHECKING:
+    from rwt_protocol.ports import ClientId
+
+    from .clock import Clock
+    from .types import Converted, MessageType, TypeRegistry
 
 __all__ = [
     "LOCAL_PREFIX",

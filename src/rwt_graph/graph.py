@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import contextlib
 import itertools
-from collections.abc import Callable, Iterator
 from functools import partial
+from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
@@ -46,6 +46,9 @@ from .params import Parameters
 from .services import Amend, CallerServiceHandler, LocalServiceHandler, ServiceEntry, Services
 from .topics import Topic
 from .types import Dialect, MessageType, TypeRegistry
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterator
 
 __all__ = ["Graph"]
 
@@ -546,9 +549,10 @@ class Graph:
             del self.topics[entry.name]
 
     def reserve_topic(self, name: str) -> None:
-        """Keep topic ``name`` (or, ending in ``*``, every topic starting so) for
-        in-process publishers: a client's ``advertise`` or ``publish`` on it is
-        refused, so it cannot forge what the server publishes there (docs/limits.md).
+        """Keep topic ``name`` (or, ending in ``*``, every topic starting so) for in-process code.
+
+        A client's ``advertise`` or ``publish`` on it is refused, so it cannot
+        forge what the server publishes there (docs/limits.md).
         """
         if name.endswith("*"):
             self._reserved_prefixes += (resolve_name(name[:-1]) if name[:-1] else "/",)

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
-from rwt_protocol.ports import ClientId, MessageEvent
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rwt_protocol.ports import ClientId, MessageEvent
+
     from .graph import Graph
     from .types import MessageType
 

@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import itertools
 import re
+from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
-from rwt_protocol.ports import ClientId
+
+if TYPE_CHECKING:
+    from rwt_protocol.ports import ClientId
 
 __all__ = ["CLIENT_NODE_PREFIX", "DEFAULT_NODE", "Nodes", "node_name"]
 

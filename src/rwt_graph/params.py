@@ -20,16 +20,18 @@ from __future__ import annotations
 import copy
 import logging
 import math
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TypeAlias
+from typing import TYPE_CHECKING, TypeAlias
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
 from .nodes import node_name
 from .types import Dialect
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Mapping
 
 __all__ = [
     "ParamKind",
@@ -485,8 +487,10 @@ def _leaves(tree: Mapping[str, ParamValue], prefix: str) -> list[str]:
 
 
 def value_size(value: object) -> int:
-    """The bytes a parameter value counts against ``Parameters.max_bytes``: UTF-8 bytes
-    of strings and keys, 8 per number or bool, summed over lists and dicts."""
+    """Count the bytes a parameter value holds against ``Parameters.max_bytes``.
+
+    UTF-8 bytes of strings and keys, 8 per number or bool, summed over lists and dicts.
+    """
     if isinstance(value, str):
         return len(value) if value.isascii() else len(value.encode("utf-8", "surrogatepass"))
     if isinstance(value, dict):

@@ -16,6 +16,7 @@ import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from functools import partial
+from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import FieldError, GraphError, RwtError
 from rwt_protocol.levels import StatusLevel
@@ -23,8 +24,10 @@ from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
 
 from .calls import ProviderTable, Spawner, convert_args, guarded
-from .clock import Clock
-from .types import ServiceType, TypeRegistry
+
+if TYPE_CHECKING:
+    from .clock import Clock
+    from .types import ServiceType, TypeRegistry
 
 __all__ = [
     "Amend",
@@ -100,8 +103,10 @@ class ServiceEntry:
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     def end_all(self, reason: str) -> None:
-        """Answer every pending call with ``result: false`` (D4, D15); one failing reply
-        does not keep the others from theirs."""
+        """Answer every pending call with ``result: false`` (D4, D15).
+
+        One failing reply does not keep the others from theirs.
+        """
         calls, self.pending = list(self.pending.values()), {}
         for call in calls:
             guarded(f"failing a call to {self.spelling}", partial(call.resolve, False, reason))

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
-from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
 
-from .types import MessageType
+if TYPE_CHECKING:
+    from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
+
+    from .types import MessageType
 
 __all__ = ["Topic"]
 

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import fnmatch
 import re
-from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 from .errors import RemoteProtocolError
 from .names import resolve_name
@@ -42,6 +42,9 @@ from .ops import (
     UnadvertiseService,
     Unsubscribe,
 )
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Mapping, Sequence
 
 __all__ = ["AccessDeniedError", "AccessPolicy", "Family", "parse_glob_list"]
 

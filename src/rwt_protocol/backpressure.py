@@ -12,16 +12,17 @@ to half the limit.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from .commands import CloseCode
 from .levels import StatusLevel
-from .outbox import Outbox
-from .timers import Timer
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from .outbox import Outbox
     from .session import Session
+    from .timers import Timer
 
 __all__ = ["SlowConsumerWatch"]
 

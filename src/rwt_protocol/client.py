@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, TypeGuard
+from typing import TYPE_CHECKING, Any, TypeGuard
 
 from pydantic import ValidationError
 
@@ -30,7 +29,6 @@ from .codec import decode_json, decode_publish, encode_json, parse_object
 from .codec_cbor import decode_cbor
 from .errors import RemoteProtocolError
 from .fragments import PartKind, Reassembler
-from .levels import StatusLevel
 from .ops import (
     ActionFeedback,
     ActionResult,
@@ -57,6 +55,11 @@ from .ops import Advertise as AdvertiseOp
 from .png import decode_png
 from .ports import GoalStatus
 from .roles import Role
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Mapping
+
+    from .levels import StatusLevel
 
 __all__ = [
     "ActionFeedbackReceived",

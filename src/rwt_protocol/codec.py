@@ -1,4 +1,4 @@
-"""The JSON codec: frames to op models and op models to frames.
+r"""The JSON codec: frames to op models and op models to frames.
 
 Decoding uses msgspec (fast, strict JSON). Python's ``json`` is the fallback for
 the non-standard literals ``NaN``/``Infinity`` that Python clients such as
@@ -18,18 +18,21 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterable, Mapping
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import msgspec
 import pybase64
 from pydantic import ValidationError
-from pydantic_core import ErrorDetails
 
 from .errors import RemoteProtocolError
 from .names import name_problem
 from .ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
 from .ops.base import INT64_MAX, INT64_MIN, json_type_name
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Mapping
+
+    from pydantic_core import ErrorDetails
 
 __all__ = [
     "MAX_NESTING",
@@ -142,7 +145,7 @@ def _check_unicode(frame: str | bytes, value: object) -> None:
 
 
 def _encode_other(value: object) -> object:
-    """msgspec's hook for values it does not know: numpy arrays and scalars (D27)."""
+    """Msgspec's hook for values it does not know: numpy arrays and scalars (D27)."""
     tolist = getattr(value, "tolist", None)  # duck-typed: no numpy import here
     if tolist is None:
         raise TypeError(f"cannot encode {type(value).__name__} as JSON")
@@ -218,7 +221,7 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
     # does not fit (``op`` comes first from roslib and roslibpy), which is
     # cheaper than any scan of the head (BENCHMARKS.md B14).
     try:
-        op = cast(PublishView, _publish_decoder.decode(frame))
+        op = cast("PublishView", _publish_decoder.decode(frame))
     except (msgspec.DecodeError, UnicodeError, RecursionError):  # also ValidationError
         return None
     if op.topic not in _VALID_TOPICS and not _topic_ok(op.topic):

@@ -32,16 +32,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from .codec import encode_json, encode_publish_json
 from .codec_cbor import encode_cbor
 from .fragments import fragment_frames, fresh_id
 from .ops import Png, Publish
-from .ops.base import Compression
 from .outbox import OutFrame
 from .png import encode_png
 from .ports import GoalStatus, MessageCodec, MessageEvent
+
+if TYPE_CHECKING:
+    from .ops.base import Compression
 
 __all__ = [
     "EncodeFailure",

@@ -38,9 +38,12 @@ FRAGMENT_OVERHEAD = 64
 
 
 def held_size(text: str) -> int:
-    """The bytes ``text`` takes in memory: 1, 2 or 4 per character, by its widest one,
-    as CPython stores strings. A held part costs this, not its length in characters,
-    so astral characters cannot hold 4x the limit (docs/limits.md)."""
+    """Count the bytes ``text`` takes in memory, as CPython stores strings.
+
+    1, 2 or 4 per character, by its widest one. A held part costs this, not its
+    length in characters, so astral characters cannot hold 4x the limit
+    (docs/limits.md).
+    """
     if text.isascii():
         return len(text)
     widest = ord(max(text))

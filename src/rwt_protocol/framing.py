@@ -347,7 +347,7 @@ class _CborScanner:
 
 
 class LineFramer:
-    """Split a byte stream into lines, one JSON text each (stdio, D22).
+    r"""Split a byte stream into lines, one JSON text each (stdio, D22).
 
     Args:
         max_frame_bytes: the longest line kept, in bytes; a longer one is

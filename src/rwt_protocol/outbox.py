@@ -19,8 +19,11 @@ limit).
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
 __all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox"]
 

@@ -1,4 +1,4 @@
-"""PNG compression of op texts (spec 3.1.2, PROTOCOL-DECISIONS D20, REF §3.3).
+r"""PNG compression of op texts (spec 3.1.2, PROTOCOL-DECISIONS D20, REF §3.3).
 
 The Robot Web Tools paper (section IV.D) packs the JSON text of a message into
 the pixels of an RGB image so that browsers can inflate it with their built-in
@@ -60,7 +60,7 @@ def encode_png(data: bytes) -> str:
 
 
 def decode_png(text: str, *, max_bytes: int) -> bytes:
-    """Unpack the bytes carried by a base64 PNG (the inverse of ``encode_png``).
+    r"""Unpack the bytes carried by a base64 PNG (the inverse of ``encode_png``).
 
     Args:
         text: standard base64 of a PNG file.

@@ -26,12 +26,11 @@ any frames for ``send_timeout_s`` is closed with a reason.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from . import gates
 from .access import AccessPolicy
-from .auth import Authenticator
 from .backpressure import SlowConsumerWatch
 from .codec import decode_json, decode_publish, parse_object, peek_id
 from .codec_cbor import decode_cbor
@@ -43,12 +42,17 @@ from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .levels import StatusLevel
 from .ops import OpModel, PublishView, Status
-from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
 from .roles import Role
-from .subscriptions import TopicSubscription
 from .timers import Timer, TimerQueue
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from .auth import Authenticator
+    from .ops.base import Compression
+    from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
+    from .subscriptions import TopicSubscription
 
 __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"]
 

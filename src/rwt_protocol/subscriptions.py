@@ -27,11 +27,14 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from .ops import Subscribe
-from .ops.base import Compression
-from .ports import MessageEvent
 from .timers import Timer
+
+if TYPE_CHECKING:
+    from .ops import Subscribe
+    from .ops.base import Compression
+    from .ports import MessageEvent
 
 __all__ = ["MergedParams", "TopicSubscription", "merge"]
 

@@ -7,14 +7,18 @@ timeout. In-process and client-advertised providers look the same.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_graph.graph import Graph
 from rwt_protocol.errors import ServiceCallError
-from rwt_protocol.ports import GoalStatus
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rwt_graph.graph import Graph
+    from rwt_protocol.ports import GoalStatus
 
 __all__ = ["GoalOutcome", "ServiceCallError", "call_service", "send_action_goal"]
 

@@ -20,11 +20,13 @@ other backends have no transport; those always use anyio's stream.
 
 from __future__ import annotations
 
-import asyncio
-from collections import deque
-from typing import Protocol, cast
+from typing import TYPE_CHECKING, Protocol, cast
 
-from anyio.abc import ByteReceiveStream
+if TYPE_CHECKING:
+    import asyncio
+    from collections import deque
+
+    from anyio.abc import ByteReceiveStream
 
 __all__ = ["DirectReader", "DirectWriter"]
 
@@ -79,7 +81,7 @@ def _asyncio_parts(stream: object) -> tuple[_Transport, _StreamProtocol] | None:
         hasattr(protocol, name) for name in ("read_queue", "read_event", "exception", "is_at_eof")
     ):
         return None
-    return cast(_Transport, transport), cast(_StreamProtocol, protocol)
+    return cast("_Transport", transport), cast("_StreamProtocol", protocol)
 
 
 class DirectWriter:

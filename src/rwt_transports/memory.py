@@ -8,15 +8,20 @@ as every network client (D22).
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import anyio
-from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
 from rwt_protocol.framing import FramerEvent, InFrame
 from rwt_protocol.outbox import OutFrame
-from rwt_protocol.session import CloseCode, Session
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
+
+    from rwt_protocol.session import CloseCode, Session
 
 __all__ = ["MemoryChannel", "MemoryConnection", "memory_pair"]
 

@@ -42,8 +42,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
-from collections.abc import Callable, Sequence
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import anyio
 import anyio.lowlevel
@@ -52,6 +51,9 @@ from rwt_protocol.framing import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, CloseConnection, Session
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
 
 __all__ = [
     "CLOSE_WAIT_S",
@@ -134,8 +136,10 @@ class DirectChannel(Protocol):
         """Whether ``send_now`` would write at once, nothing else being written."""
 
     def send_now(self, frames: Sequence[OutFrame]) -> None:
-        """Write ``frames`` now, without blocking; what the socket cannot take
-        at once stays in the transport, ahead of anything sent later.
+        """Write ``frames`` now, without blocking.
+
+        What the socket cannot take at once stays in the transport, ahead of
+        anything sent later.
 
         Raises:
             RuntimeError: the transport refused (it is closing).
@@ -148,8 +152,10 @@ class SessionHost(Protocol):
     def open_session(
         self, transport: str, peer: str, on_output: Callable[[], None]
     ) -> Session | None:
-        """Make the session of a new connection; None when the server is full
-        (``--max-connections``) or stopping."""
+        """Make the session of a new connection.
+
+        None when the server is full (``--max-connections``) or stopping.
+        """
 
 
 async def run_connection(pump: ConnectionPump, session: Session, detail: str = "") -> None:

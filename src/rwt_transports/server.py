@@ -28,7 +28,7 @@ import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
 from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field, replace
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import anyio
 from anyio.abc import (
@@ -41,18 +41,13 @@ from anyio.abc import (
 )
 from anyio.streams.tls import TLSStream
 
-from rwt_graph.calls import Spawner
-from rwt_graph.clock import Clock
 from rwt_graph.graph import Graph
-from rwt_graph.local import LocalPublisher
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
-from rwt_graph.tf import TFRepublisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import Auth
 from rwt_protocol.session import CloseCode, Session, SessionConfig
 
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
@@ -63,6 +58,15 @@ from .tcp import serve_tcp_connection
 from .tf import install_tf_republisher
 from .udp import UdpOptions, serve_udp
 from .websocket import WebSocketOptions, serve_websocket_connection
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from rwt_graph.calls import Spawner
+    from rwt_graph.clock import Clock
+    from rwt_graph.local import LocalPublisher
+    from rwt_graph.tf import TFRepublisher
+    from rwt_protocol.ops import Auth
 
 __all__ = [
     "SERVER_NODE",
@@ -392,8 +396,10 @@ class RosbridgeServer:
         handler: Callable[[ByteStream], Awaitable[None]],
         tls: ssl.SSLContext | None,
     ) -> None:
-        """Run one accepted socket: TLS and transport handshakes within the timeout, then
-        its session (``open_session`` lifts the deadline); a bug ends this socket only."""
+        """Run one accepted socket: handshakes within the timeout, then its session.
+
+        ``open_session`` lifts the handshake deadline; a bug ends this socket only.
+        """
         peer = _peer(stream)
         pending = _Pending()
         _PENDING.set(pending)  # this task's context: open_session finds it
@@ -613,9 +619,12 @@ _PENDING: contextvars.ContextVar[_Pending | None] = contextvars.ContextVar(
 
 
 async def _contained(what: str, work: Awaitable[None]) -> None:
-    """Await ``work``; an exception (a bug: everything expected is handled where it
-    happens) is logged once with its traceback instead of reaching the server's task
-    group, which would end every connection (docs/limits.md). Cancellation passes."""
+    """Await ``work``, containing any exception it raises.
+
+    An exception (a bug: everything expected is handled where it happens) is
+    logged once with its traceback instead of reaching the server's task group,
+    which would end every connection (docs/limits.md). Cancellation passes.
+    """
     try:
         await work
     except* Exception as group:

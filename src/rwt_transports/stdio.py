@@ -14,15 +14,19 @@ import contextlib
 import errno
 import os
 import stat
-from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import anyio
 
 from rwt_protocol.framing import FramerEvent, LineFramer
-from rwt_protocol.outbox import OutFrame
-from rwt_protocol.session import CloseCode, Session
 
 from .tcp import encode_stream_frames
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from rwt_protocol.outbox import OutFrame
+    from rwt_protocol.session import CloseCode, Session
 
 __all__ = ["StdioChannel"]
 

@@ -10,17 +10,22 @@ readers that split on newlines or scan braces both work.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import anyio
-from anyio.abc import ByteStream
 
 from rwt_protocol.framing import FramerEvent, JsonStreamFramer
-from rwt_protocol.outbox import OutFrame
-from rwt_protocol.session import CloseCode, Session
 
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from anyio.abc import ByteStream
+
+    from rwt_protocol.outbox import OutFrame
+    from rwt_protocol.session import CloseCode, Session
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 

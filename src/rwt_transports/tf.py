@@ -7,11 +7,15 @@ loop; this module passes it ``anyio.sleep``. ``RosbridgeServer`` calls it unless
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import anyio
 
-from rwt_graph.graph import Graph
 from rwt_graph.tf import TF_NODE, TFRepublisher
 from rwt_graph.tf import install_tf_republisher as _install
+
+if TYPE_CHECKING:
+    from rwt_graph.graph import Graph
 
 __all__ = ["install_tf_republisher"]
 

@@ -15,20 +15,25 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import anyio
-from anyio.abc import TaskGroup, UDPSocket
-from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
 from rwt_protocol.datagrams import fragment_datagrams
 from rwt_protocol.framing import FramerEvent, FramingError, InFrame
-from rwt_protocol.outbox import OutFrame
-from rwt_protocol.session import CloseCode, Session
 
 from .pump import ConnectionPump, SessionHost, run_connection
 from .udp_validation import AddressValidator, split_token
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from anyio.abc import TaskGroup, UDPSocket
+    from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
+
+    from rwt_protocol.outbox import OutFrame
+    from rwt_protocol.session import CloseCode, Session
 
 __all__ = ["UdpOptions", "serve_udp"]
 

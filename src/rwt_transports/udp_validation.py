@@ -1,4 +1,4 @@
-"""UDP address validation: a peer proves it receives at its address before it is served.
+r"""UDP address validation: a peer proves it receives at its address before it is served.
 
 UDP's source address is whatever the sender writes, so without a check a datagram
 with a forged source could make the server stream to a victim (reflection and
@@ -34,7 +34,10 @@ import json
 import re
 import secrets
 import time
-from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     "AMPLIFICATION",
@@ -130,7 +133,7 @@ class AddressValidator:
 
 
 def split_token(data: bytes) -> tuple[str, bytes] | None:
-    """``(token, frame)`` of a datagram sent as ``TOKEN\\nframe``, or None if it is not one."""
+    r"""``(token, frame)`` of a datagram sent as ``TOKEN\nframe``, or None if it is not one."""
     token, newline, frame = data.partition(b"\n")
     if not newline or _TOKEN.fullmatch(token) is None:
         return None

@@ -26,14 +26,11 @@ import fnmatch
 import logging
 import os
 import struct
-from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import anyio
-from anyio.abc import ByteStream
-from websockets.datastructures import Headers
 from websockets.exceptions import InvalidState
-from websockets.extensions.base import ServerExtensionFactory
 from websockets.extensions.permessage_deflate import ServerPerMessageDeflateFactory
 from websockets.frames import Frame, Opcode
 from websockets.http11 import Request, Response
@@ -41,12 +38,20 @@ from websockets.protocol import State
 from websockets.server import ServerProtocol
 
 from rwt_protocol.framing import FramerEvent, InFrame
-from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session
 
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
 from .wsread import FrameReader
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from anyio.abc import ByteStream
+    from websockets.datastructures import Headers
+    from websockets.extensions.base import ServerExtensionFactory
+
+    from rwt_protocol.outbox import OutFrame
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
@@ -188,9 +193,11 @@ class WebSocketChannel:
         return messages, control
 
     def _accept_text(self, message: InFrame) -> bool:
-        """Whether ``message`` may be handled; a text message that is not UTF-8 fails
-        the connection with 1007 at the end of the chunk (RFC 6455 8.1; websockets'
-        sans-IO parser does not check text, and ``FrameReader`` reads around it).
+        """Tell whether ``message`` may be handled.
+
+        A text message that is not UTF-8 fails the connection with 1007 at the
+        end of the chunk (RFC 6455 8.1; websockets' sans-IO parser does not check
+        text, and ``FrameReader`` reads around it).
 
         ASCII, the common JSON text, is recognised without decoding.
         """

@@ -26,10 +26,12 @@ after the handshake request.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from rwt_protocol.framing import InFrame
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
 
 try:  # websockets' C unmasking, as websockets itself picks it
     from websockets.speedups import apply_mask

@@ -82,7 +82,7 @@ class VideoPacket:
 
 
 def multipart_part(part: Part) -> bytes:
-    """One part of web_video_server's ``multipart/x-mixed-replace`` stream.
+    r"""One part of web_video_server's ``multipart/x-mixed-replace`` stream.
 
     The stream starts with ``--BOUNDARY\\r\\n``; each part is its headers
     (Content-type, X-Timestamp, Content-Length), the image and the next boundary.

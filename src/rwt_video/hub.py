@@ -16,14 +16,10 @@ import contextlib
 import logging
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import anyio
 import anyio.to_thread
-from anyio.abc import TaskGroup
-
-from rwt_graph.graph import Graph
-from rwt_graph.local import LocalSubscription
 
 from .encoders import (
     EncodeError,
@@ -35,6 +31,12 @@ from .encoders import (
     make_encoder,
 )
 from .params import StreamParamError, StreamParams
+
+if TYPE_CHECKING:
+    from anyio.abc import TaskGroup
+
+    from rwt_graph.graph import Graph
+    from rwt_graph.local import LocalSubscription
 
 __all__ = ["PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
 

@@ -13,8 +13,8 @@ import fractions
 import io
 import threading
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import av
 import av.container
@@ -25,6 +25,9 @@ from PIL import Image
 
 from .encoders import EncodeError, Message, VideoPacket, prepare, stamp_seconds
 from .params import StreamParams, StreamType
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
 
 __all__ = ["CODECS", "VideoEncoder", "VideoMuxer"]
 

@@ -22,19 +22,22 @@ import functools
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl, urlsplit
 
 import anyio
 import h11
 from anyio.abc import SocketAttribute, SocketStream, TaskStatus
 
-from rwt_graph.graph import Graph
 from rwt_protocol.errors import RwtError
 
 from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError, multipart_part
 from .hub import PartViewer, SharedStream, StreamHub, VideoViewer
 from .pages import stream_viewer_page, topic_list_page
 from .params import StreamParamError, StreamParams, StreamType, parse_stream_params
+
+if TYPE_CHECKING:
+    from rwt_graph.graph import Graph
 
 __all__ = ["VideoConfig", "serve_video"]
 

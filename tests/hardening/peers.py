@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import socket
 from collections import deque
+from contextlib import ExitStack
 from typing import Any
 
 from websockets.sync.client import ClientConnection, connect
@@ -54,8 +55,9 @@ class WsPeer:
     """rosbridge over WebSocket (websockets' blocking client)."""
 
     def __init__(self, port: int) -> None:
-        self.ws: ClientConnection = connect(
-            f"ws://127.0.0.1:{port}", open_timeout=TIMEOUT_S, max_size=None
+        self._stack = ExitStack()  # websockets wants its connection used as a context
+        self.ws: ClientConnection = self._stack.enter_context(
+            connect(f"ws://127.0.0.1:{port}", open_timeout=TIMEOUT_S, max_size=None)
         )
 
     def send(self, op: Message) -> None:
@@ -65,7 +67,7 @@ class WsPeer:
         return json.loads(self.ws.recv(timeout=TIMEOUT_S))  # type: ignore[no-any-return]
 
     def close(self) -> None:
-        self.ws.close()
+        self._stack.close()
 
 
 Peer = TcpPeer | WsPeer

@@ -40,6 +40,7 @@ import sys
 from pathlib import Path
 
 import anyio
+import anyio.lowlevel
 from anyio.abc import TaskGroup
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
@@ -118,7 +119,7 @@ async def fibonacci(goal: Message, context: GoalContext) -> Message:
     for _ in range(1, order):
         sequence.append(sequence[-1] + sequence[-2])
         context.publish_feedback({"sequence": list(sequence)})
-        await anyio.sleep(0)
+        await anyio.lowlevel.checkpoint()
     return {"sequence": sequence}
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import anyio
+import anyio.lowlevel
 import pytest
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
@@ -33,7 +34,7 @@ async def fibonacci(goal: dict[str, object], context: GoalContext) -> dict[str, 
             raise GoalCanceledError
         sequence.append(sequence[-1] + sequence[-2])
         context.publish_feedback({"sequence": list(sequence)})
-        await anyio.sleep(0)
+        await anyio.lowlevel.checkpoint()
     return {"sequence": sequence}
 
 
@@ -41,7 +42,7 @@ async def test_async_service_called_from_python_and_from_a_client() -> None:
     graph = Graph()
 
     async def add(request: dict[str, object]) -> dict[str, object]:
-        await anyio.sleep(0)
+        await anyio.lowlevel.checkpoint()
         return {"sum": request["a"] + request["b"]}  # type: ignore[operator]
 
     graph.create_service("/add", "example_interfaces/srv/AddTwoInts", add)

@@ -97,7 +97,7 @@ async def test_a_burst_beyond_the_socket_buffer_and_then_small_messages_arrive_i
             small = list(range(BURST, BURST + 50))
             for i in small:  # the writer is idle again and the socket empty
                 publisher.publish({"data": f"{i}:"})
-                await anyio.sleep(0)
+                await anyio.lowlevel.checkpoint()
             assert await numbers(client, len(small)) == small
     assert paths["now"] >= len(small) and paths["writer"] > 0
 

@@ -28,11 +28,14 @@ published ``bgr8`` image, so the bytes match depthcloud_encoder's.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
 
 __all__ = [
     "DEPTH_LEVELS",
@@ -230,7 +233,8 @@ def decode_depthcloud(
 
     Args:
         image: (2T, 2T, 3) uint8 in the published ``bgr8`` byte order.
-        width, height: size of the source depth image.
+        width: width of the source depth image, pixels.
+        height: height of the source depth image, pixels.
         max_depth_per_tile: the d used to encode.
         tolerance: codec noise to allow, in levels of 765.
 

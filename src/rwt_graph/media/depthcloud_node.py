@@ -10,11 +10,14 @@ from __future__ import annotations
 import logging
 from collections import deque
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
-from ..graph import Graph
-from ..local import LocalPublisher, LocalSubscription
 from .depthcloud import encode_depthcloud
 from .images import ImageError, array_to_image, depth_to_metres, image_to_display
+
+if TYPE_CHECKING:
+    from ..graph import Graph
+    from ..local import LocalPublisher, LocalSubscription
 
 __all__ = ["DEFAULT_TOPIC", "DepthCloudEncoder"]
 

@@ -13,9 +13,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from rwt_protocol.ports import ClientId
-
-from ..local import LocalService
 from ..types import Dialect
 from ..types.convert import time_keys, time_value
 from . import listing
@@ -24,7 +21,10 @@ from .typedefs import typedefs
 from .visibility import EVERYTHING, Visibility, VisibilityFor
 
 if TYPE_CHECKING:
+    from rwt_protocol.ports import ClientId
+
     from ..graph import Graph
+    from ..local import LocalService
     from ..types import MessageType
 
 __all__ = ["ROSAPI_NODE", "Rosapi", "install_rosapi"]

@@ -12,19 +12,21 @@ from __future__ import annotations
 
 import logging
 import platform
-from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
-from rwt_protocol.ports import ClientId
 
 from ..types import Dialect
-from ..types.names import Kind
 from .visibility import Visibility, is_hidden
 
 if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable
+
+    from rwt_protocol.ports import ClientId
+
     from ..graph import Graph
+    from ..types.names import Kind
 
 __all__ = [
     "action_servers",

@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING
 
 from ..params import ParameterError, ParamValue, to_json_safe
 from .listing import encodable, node_names
-from .visibility import Visibility
 
 if TYPE_CHECKING:
     from ..graph import Graph
+    from .visibility import Visibility
 
 __all__ = ["ROS1_HANDLERS", "ROS2_HANDLERS"]
 

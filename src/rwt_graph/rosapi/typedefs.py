@@ -1,4 +1,4 @@
-"""``rosapi/TypeDef`` descriptions of message types (REF §7.1 message_details and friends).
+r"""``rosapi/TypeDef`` descriptions of message types (REF §7.1 message_details and friends).
 
 A TypeDef is ``{type, fieldnames, fieldtypes, fieldarraylen, examples, constnames,
 constvalues}``, all parallel lists of strings except ``fieldarraylen``:
@@ -24,9 +24,12 @@ rosapi does.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from ..types import ArrayKind, Dialect, FieldSpec, FieldType, MessageType
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = ["TypeDef", "typedef_name", "typedefs"]
 

@@ -18,17 +18,18 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
 
 from .buffer import TFError
-from .republisher import TFSubscription
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from .install import TFRepublisher
+    from .republisher import TFSubscription
 
 __all__ = ["ORPHAN_TIMEOUT_S", "ActionlibServer"]
 

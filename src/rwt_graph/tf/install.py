@@ -31,7 +31,6 @@ from typing import TYPE_CHECKING
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.calls import require_spawner
-from rwt_graph.local import LocalPublisher
 from rwt_graph.types import Dialect
 
 from .actionlib import ActionlibServer
@@ -40,6 +39,7 @@ from .republisher import TFRequest, TFSubscription
 
 if TYPE_CHECKING:
     from rwt_graph.graph import Graph
+    from rwt_graph.local import LocalPublisher
 
 __all__ = ["MIN_TOPIC_TIMEOUT_S", "TF_NODE", "Sleep", "TFRepublisher", "install_tf_republisher"]
 

@@ -16,10 +16,10 @@ import functools
 from typing import TYPE_CHECKING
 
 from .errors import ExtrapolationError
-from .stamped import StampedTransform
 from .transform import identity, interpolate, inverse
 
 if TYPE_CHECKING:
+    from .stamped import StampedTransform
     from .transform import Matrix
 
 __all__ = ["Link", "Route"]

@@ -18,12 +18,15 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-
-from rwt_graph.types import Dialect
+from typing import TYPE_CHECKING
 
 from .buffer import StampedTransform, TFBuffer, TFError, normalize_frame
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from rwt_graph.types import Dialect
 
 __all__ = ["DEFAULT_RATE_HZ", "MAX_RATE_HZ", "TFRequest", "TFSubscription"]
 
@@ -80,8 +83,10 @@ class TFRequest:
 
     @property
     def period_s(self) -> float:
-        """Seconds between ticks: ``1 / rate``, ``DEFAULT_RATE_HZ`` when rate is not positive,
-        and no faster than ``MAX_RATE_HZ``."""
+        """Seconds between ticks: ``1 / rate``, within the allowed rates.
+
+        ``DEFAULT_RATE_HZ`` when rate is not positive, and no faster than ``MAX_RATE_HZ``.
+        """
         rate = self.rate if math.isfinite(self.rate) and self.rate > 0 else DEFAULT_RATE_HZ
         return 1.0 / min(rate, MAX_RATE_HZ)
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -11,11 +10,14 @@ from rwt_protocol.errors import FieldError
 from .convert import Context, ConvertFn, DefaultFn, compile_message, is_header, is_time_type
 from .fastpath import FastFn, compile_fast
 from .interop import from_rosbags, to_rosbags
-from .names import Dialect
-from .spec import Constant, FieldSpec
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rosbags.typesys.store import Typestore
+
+    from .names import Dialect
+    from .spec import Constant, FieldSpec
 
 __all__ = ["ActionType", "Converted", "MessageType", "ServiceType"]
 

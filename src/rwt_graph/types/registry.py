@@ -2,20 +2,21 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
 from contextlib import suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar, cast
 
 from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.store import Typestore
 
 from rwt_protocol.errors import GraphError
 
 from .interop import fielddefs
 
 if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
     from rosbags.interfaces.typing import Typesdict
+    from rosbags.typesys.store import Typestore
 from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
 from .names import Dialect, Kind, TypeName, UnknownTypeError, parse_type_name

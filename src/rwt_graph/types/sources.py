@@ -9,17 +9,20 @@ puts back the ones ROS 2 writes, for when no packaged text overrides them.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.store import Typestore
 
 from .msgparse import resolve_base
 from .names import Dialect
 from .spec import ArrayKind, Constant, FieldSpec, FieldType
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Sequence
+
+    from rosbags.typesys.store import Typestore
 
 __all__ = [
     "IDL_PLACEHOLDER",

@@ -6,9 +6,9 @@ from typing import TYPE_CHECKING
 
 from ..errors import RemoteProtocolError
 from ..levels import StatusLevel
-from ..ops import Auth, OpModel, SetLevel, Status
 
 if TYPE_CHECKING:
+    from ..ops import Auth, OpModel, SetLevel, Status
     from ..session import Session
 
 __all__ = ["auth", "not_supported", "set_level", "status"]

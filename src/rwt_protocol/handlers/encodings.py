@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING
 
 from ..errors import RemoteProtocolError
 from ..fragments import PartKind
-from ..ops import Fragment, Png
 from ..png import decode_png
 
 if TYPE_CHECKING:
+    from ..ops import Fragment, Png
     from ..session import Session
 
 __all__ = ["fragment", "png"]

@@ -8,11 +8,11 @@ from ..errors import RemoteProtocolError, RwtError
 from ..levels import StatusLevel
 from ..names import resolve_name
 from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
-from ..timers import Timer
 from .topics import offered
 
 if TYPE_CHECKING:
     from ..session import Session
+    from ..timers import Timer
 
 __all__ = ["advertise_service", "call_service", "service_response", "unadvertise_service"]
 

@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING
 from ..errors import GraphError
 from ..levels import StatusLevel
 from ..names import resolve_name
-from ..ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
 from ..subscriptions import TopicSubscription
 
 if TYPE_CHECKING:
+    from ..ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
     from ..session import Session
 
 __all__ = ["advertise", "offered", "publish", "subscribe", "unadvertise", "unsubscribe"]

@@ -15,13 +15,16 @@ twin refuses takes the general path, which explains what is wrong.
 from __future__ import annotations
 
 from functools import cache
-from typing import Annotated, Any, Literal, Protocol, Union, get_args, get_origin
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Protocol, Union, get_args, get_origin
 
 import msgspec
-from pydantic.fields import FieldInfo
 
-from .base import OpModel
 from .topics import Publish
+
+if TYPE_CHECKING:
+    from pydantic.fields import FieldInfo
+
+    from .base import OpModel
 
 __all__ = ["PublishFrame", "PublishView", "wire_struct"]
 
@@ -82,12 +85,21 @@ class PublishView(Protocol):
     """
 
     @property
-    def op(self) -> Literal["publish"]: ...
+    def op(self) -> Literal["publish"]:
+        """The ``op`` field."""
+
     @property
-    def topic(self) -> str: ...
+    def topic(self) -> str:
+        """The ``topic`` field."""
+
     @property
-    def msg(self) -> Any: ...
+    def msg(self) -> Any:
+        """The ``msg`` field."""
+
     @property
-    def id(self) -> str | int | None: ...
+    def id(self) -> str | int | None:
+        """The ``id`` field."""
+
     @property
-    def latch(self) -> bool: ...
+    def latch(self) -> bool:
+        """The ``latch`` field."""
