@@ -128,6 +128,9 @@ class Session:
             commands become available or a timer is set, so a transport can wake
             its writer and look at ``get_timer`` again.
         peer: the peer's address (``"host:port"``), for the authenticator and logs.
+        on_closed: called once with ``client_id`` when the session closes (after
+            it released what it held, even if releasing raised), so its owner
+            can forget the connection.
 
     The client end is ``client.ClientSession``: the same ops, the other ``our_role``.
     """
@@ -142,6 +145,7 @@ class Session:
         config: SessionConfig | None = None,
         on_output: Callable[[], None] | None = None,
         peer: str = "",
+        on_closed: Callable[[ClientId], None] | None = None,
     ) -> None:
         self.graph = graph
         self.client_id = client_id
@@ -166,6 +170,7 @@ class Session:
         )
         self._fragment_timer: Timer | None = None
         self._on_output = on_output
+        self._on_closed = on_closed
         self._closed = False
         self._closing = False  # input is ignored (close requested, or shutting down)
         self._close_request: CloseConnection | None = None  # once set, nothing more is sent
@@ -300,15 +305,19 @@ class Session:
         if self._closed:
             return
         self._closed = True
-        self.timers.clear()
-        for subscription in self.subscriptions.values():
-            subscription.close()
-        self.subscriptions.clear()
-        self.fragments.clear()
-        self.advertisements.clear()
-        self.offers.clear()
-        self.goals.clear()
-        self.graph.release(self.client_id)
+        try:
+            self.timers.clear()
+            for subscription in self.subscriptions.values():
+                subscription.close()
+            self.subscriptions.clear()
+            self.fragments.clear()
+            self.advertisements.clear()
+            self.offers.clear()
+            self.goals.clear()
+            self.graph.release(self.client_id)
+        finally:  # even if releasing raised, the owner forgets the connection
+            if self._on_closed is not None:
+                self._on_closed(self.client_id)
 
     # ---- outputs ------------------------------------------------------------
 

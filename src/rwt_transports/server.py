@@ -512,7 +512,14 @@ class RosbridgeServer:
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         client_id = f"{transport}:{peer}#{next(self._ids)}"
-        session = _TrackedSession(self, client_id, peer, on_output)
+        session = Session(
+            self.graph,
+            client_id,
+            config=self.session_config,
+            on_output=on_output,
+            peer=peer,
+            on_closed=self._session_closed,
+        )
         self.sessions[client_id] = session
         address = _address(peer)
         self.graph.nodes.attach(client_id, host=address)
@@ -580,26 +587,6 @@ def spawner_for(tg: TaskGroup) -> Spawner:
         return scope.cancel
 
     return spawn
-
-
-class _TrackedSession(Session):
-    """A session that tells its server when it closes."""
-
-    def __init__(
-        self, server: RosbridgeServer, client_id: str, peer: str, on_output: Callable[[], None]
-    ) -> None:
-        super().__init__(
-            server.graph, client_id, config=server.session_config, on_output=on_output, peer=peer
-        )
-        self._server = server
-
-    def close(self) -> None:
-        was_closed = self.closed
-        try:
-            super().close()
-        finally:  # even if releasing raised, the server forgets the connection
-            if not was_closed:
-                self._server._session_closed(self.client_id)
 
 
 class _Pending:
