@@ -2,7 +2,7 @@
 
 Run as ``python -m benchmarks.microbench`` with this checkout's ``src`` on
 PYTHONPATH; prints JSON. ``bare_us`` is msgspec decoding and re-encoding the
-same frame (the floor, BENCHMARKS.md: about 1 us); ``validate_us`` is what rwt
+same frame (the floor, docs/benchmarks.md: about 1 us); ``validate_us`` is what rwt
 does to a publish frame before handing the message to the graph: decode, check
 the op, convert the message against its type; ``receive_frame_us`` is the
 whole ``Session.receive_frame`` on a topic without subscribers.

@@ -11,7 +11,7 @@ each through rwt to a subscriber with ``compression: "png"``, and reports:
 - rwt's time from publish to queued frame (conversion, JSON, PNG, base64), and
   the PNG step alone (``encode_png`` of the JSON text);
 - a bare Pillow encode of the same padded bytes, in the same run, and the ratio
-  of rwt's PNG step to it (target <= 1.3, BENCHMARKS.md B13).
+  of rwt's PNG step to it (target <= 1.3, B13).
 
 Times are medians over ``--runs`` repetitions. Usage:
 

@@ -1,4 +1,4 @@
-"""The bare relay every scenario is measured against (BENCHMARKS.md).
+"""The bare relay every scenario is measured against (docs/benchmarks.md).
 
 A minimal ``websockets`` server: each incoming message is forwarded with
 ``broadcast()`` to every other connection that connected on ``/sub/<group>``

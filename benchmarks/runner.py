@@ -1,7 +1,7 @@
 """Runs variants against both servers, interleaved, and summarises them.
 
 Ratios are only meaningful within one run on these shared machines
-(BENCHMARKS.md), so every variant starts one bare relay and one ``rwt serve``
+(docs/benchmarks.md), so every variant starts one bare relay and one ``rwt serve``
 and alternates between them run by run (bare first on even runs, rwt first on
 odd ones). A run that fails its correctness check marks the variant failed; it
 is never silently dropped.

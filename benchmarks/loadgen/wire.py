@@ -1,7 +1,7 @@
 """Raw-socket WebSocket client pieces: handshake, pre-built frames, frame parsing.
 
 The load generator must be lighter than the servers it measures
-(BENCHMARKS.md), so it does not run a WebSocket library per message: client
+(docs/benchmarks.md), so it does not run a WebSocket library per message: client
 frames are built once before a run (masked with the all-zero key, which RFC 6455
 allows and which leaves the payload as it is) and written in batches; incoming
 bytes are either compared with the expected byte stream at C speed

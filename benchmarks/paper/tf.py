@@ -298,7 +298,7 @@ def _cost_rows(got: Capture, duration: float) -> list[dict[str, object]]:
             "ours": statistics.median(got.tick_cpu_ms),
             "unit": "ms",
             "note": f"median (wall {statistics.median(got.tick_ms):.2f}); by phase: {phases}"
-            " (BENCHMARKS.md B12: <= 1 ms)",
+            " (B12: <= 1 ms)",
         },
         {
             "figure": FIGURE,

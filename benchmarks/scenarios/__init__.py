@@ -1,4 +1,4 @@
-"""Scenario definitions (BENCHMARKS.md B1-B11, B14, B15) and their targets."""
+"""Scenario definitions (B1-B11, B14, B15) and their targets."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Target judgements shared by the scenarios (BENCHMARKS.md's targets)."""
+"""Target judgements shared by the scenarios (docs/benchmarks.md's targets)."""
 
 from __future__ import annotations
 

@@ -58,7 +58,7 @@ def _fanout_check(subscribers: int) -> callable:  # type: ignore[valid-type]
 
 
 def throughput_variants() -> list[Variant]:
-    """B1, B2 and B4 (BENCHMARKS.md)."""
+    """B1, B2 and B4 (docs/benchmarks.md)."""
     variants = [
         Variant(
             "B1",

@@ -4,7 +4,7 @@ A ``Connection`` moves whole frames: ``send`` one JSON text (``str``) or one
 CBOR item (``bytes``: a binary frame on WebSocket, an item in the stream on
 TCP), ``receive`` the next frame. The Python client and
 the conformance runner both use these, so neither cares which transport is
-underneath (PROTOCOL-DECISIONS D22).
+underneath (D22).
 
 - WebSocket (``ws://``, ``wss://``): websockets' sans-IO ``ClientProtocol``
   driven from an anyio stream, as the server side does. Text frames carry JSON,
@@ -318,7 +318,7 @@ class _LineStreamConnection:
 
 
 class TcpConnection(_LineStreamConnection):
-    """A rosbridge TCP connection (PROTOCOL-DECISIONS D22): JSON texts and CBOR items."""
+    """A rosbridge TCP connection (D22): JSON texts and CBOR items."""
 
     carries_cbor = True
 

@@ -7,7 +7,7 @@ case can check both the tag and the numbers; any other tag as ``{"cbor_tag":
 TAG, "value": ...}``. Byte strings stay ``bytes`` (patterns ``"<bytes>"``,
 ``"<bytes:HEX>"``).
 
-``auth_op`` makes rosauth ``auth`` ops (PROTOCOL-DECISIONS D23).
+``auth_op`` makes rosauth ``auth`` ops (D23).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The conformance suite as data: requirements and cases, loaded from TOML.
 
 ``requirements.toml`` lists one ``[[requirement]]`` per rule: a stable ``id``,
-the ``source`` it comes from (spec section, PROTOCOL-DECISIONS ``Dn`` or a
-REFERENCE-BEHAVIOUR scenario) and a one-line ``statement``. Each file in
+the ``source`` it comes from (spec section, docs/decisions.md ``Dn`` or a
+docs/reference-behaviour.md scenario) and a one-line ``statement``. Each file in
 ``cases/`` lists ``[[case]]`` tables: an ``id``, the ``requirements`` it checks, a
 ``title`` and ``steps``, a transcript of frames to send and frames to expect
 on one or more connections (``on``, default ``"a"``; other names are peers
@@ -63,7 +63,7 @@ __all__ = [
 class Profile(StrEnum):
     """What a run holds the server to.
 
-    ``strict`` requires rwt's PROTOCOL-DECISIONS; ``reference`` accepts what
+    ``strict`` requires rwt's docs/decisions.md; ``reference`` accepts what
     rosbridge_suite does where those decisions depart from it (silence
     instead of ``status``, and so on).
     """
@@ -112,7 +112,7 @@ class Requirement:
 
     Attributes:
         id: stable identifier (``spec.publish.unknown-topic``, ``D11``...).
-        source: where the rule comes from (``spec 3.3.3``, ``PROTOCOL-DECISIONS
+        source: where the rule comes from (``spec 3.3.3``, ``docs/decisions.md
             D11``, ``REF §8.1 W1``).
         statement: the rule in one sentence.
     """

@@ -1,4 +1,4 @@
-"""Actions of the in-memory graph (spec 3.3.10-3.3.15, PROTOCOL-DECISIONS D4, D15, D18).
+"""Actions of the in-memory graph (spec 3.3.10-3.3.15, D4, D15, D18).
 
 An action is provided by a client (its session receives ``send_action_goal``
 with goal ids ``action_goal:<name>:<n>``, REF §2.15, and ``cancel_action_goal``)

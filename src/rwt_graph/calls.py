@@ -60,7 +60,7 @@ server) installs a spawner for async in-process services and actions."""
 
 
 def convert_args(msgtype: MessageType, args: object, *, path: str, now: float) -> Converted:
-    """Build a request or goal from ``args`` (REF §4.4, PROTOCOL-DECISIONS D25).
+    """Build a request or goal from ``args`` (REF §4.4, D25).
 
     Args:
         msgtype: the request or goal type.
@@ -118,7 +118,7 @@ E = TypeVar("E", bound=Offer)
 class ProviderTable(Generic[E]):
     """Advertised services or actions by resolved name; each belongs to its provider.
 
-    PROTOCOL-DECISIONS D15: a newer advertisement replaces an older one (whose
+    D15: a newer advertisement replaces an older one (whose
     callers fail and whose provider is told); only the owner may withdraw it.
 
     Args:

@@ -205,7 +205,7 @@ def check_param_name(name: str, *, ros1: bool) -> None:
 
 
 def to_json_safe(value: ParamValue) -> object:
-    """``value`` with non-finite floats as None, for JSON text (PROTOCOL-DECISIONS D10)."""
+    """``value`` with non-finite floats as None, for JSON text (D10)."""
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, list):

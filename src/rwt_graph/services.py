@@ -1,4 +1,4 @@
-"""Services of the in-memory graph (spec 3.3.6-3.3.9, PROTOCOL-DECISIONS D4, D15-D17, D25).
+"""Services of the in-memory graph (spec 3.3.6-3.3.9, D4, D15-D17, D25).
 
 A service is provided either by a client (its session receives ``call_service``
 requests with ids ``service_request:<name>:<n>``, REF §2.7) or by Python code in

@@ -1,4 +1,4 @@
-"""Topics of the in-memory graph (spec 3.3.1-3.3.5, PROTOCOL-DECISIONS D11, D13).
+"""Topics of the in-memory graph (spec 3.3.1-3.3.5, D11, D13).
 
 A topic's type is established by its first advertiser or subscriber; later
 participants must agree. A topic lives while it has a publisher or a subscriber.

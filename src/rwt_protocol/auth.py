@@ -1,4 +1,4 @@
-"""rosauth authentication (ROS 1 edition 3.3.1, PROTOCOL-DECISIONS D23, REF §2.22).
+"""rosauth authentication (ROS 1 edition 3.3.1, D23, REF §2.22).
 
 A trusted web server gives the browser a MAC computed from a secret it shares
 with the robot; the client sends it in the first op, ``auth``. The session

@@ -1,4 +1,4 @@
-"""Slow consumers (PROTOCOL-DECISIONS D24, REF §9.1): report once, close if stalled.
+"""Slow consumers (D24, REF §9.1): report once, close if stalled.
 
 The outbox drops the oldest topic messages above its limit. This watch turns
 that into what a user sees: the first drop of an episode is logged

@@ -5,7 +5,7 @@ the non-standard literals ``NaN``/``Infinity`` that Python clients such as
 roslibpy emit (REF §3.1). Validation goes straight to the model named by
 ``op`` (faster than trying the union and gives better errors); every failure
 becomes a ``RemoteProtocolError`` whose text names the field path
-(PROTOCOL-DECISIONS D1).
+(D1).
 
 Edge rules (docs/limits.md): a frame nested deeper than ``MAX_NESTING`` is
 refused with one status ``nesting deeper than N`` (checked without recursion,
@@ -219,7 +219,7 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
     """
     # No look at the op first: the typed decode stops at the first field that
     # does not fit (``op`` comes first from roslib and roslibpy), which is
-    # cheaper than any scan of the head (BENCHMARKS.md B14).
+    # cheaper than any scan of the head (B14).
     try:
         op = cast("PublishView", _publish_decoder.decode(frame))
     except (msgspec.DecodeError, UnicodeError, RecursionError):  # also ValidationError
@@ -241,7 +241,7 @@ def encode_json(value: object) -> bytes:
     """Encode a value as compact UTF-8 JSON.
 
     ``bytes`` become base64 strings, numpy arrays (CBOR typed arrays kept by
-    the server) JSON arrays, and non-finite floats ``null`` (PROTOCOL-DECISIONS D10).
+    the server) JSON arrays, and non-finite floats ``null`` (D10).
     """
     return _encoder.encode(value)
 
@@ -257,7 +257,7 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
     with fewer copies of a large message: byte strings among the message's own
     fields (an image's or a point cloud's ``data``) of 64 KiB or more are
     base64-encoded by pybase64 (several times faster than msgspec's encoder,
-    BENCHMARKS.md B6) and spliced in as they are.
+    B6) and spliced in as they are.
     """
     large = [k for k, v in msg.items() if type(v) is bytes and len(v) >= _LARGE_BYTES]
     if large:
@@ -269,7 +269,7 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
     text = _encoder.encode(Publish.frame(topic=topic, msg=msg))
     # msgspec's output keeps its buffer's spare capacity (up to ~2 KB); a copy of a
     # small frame is exact, so a queue of them holds what the send-buffer limit
-    # counts (D24, BENCHMARKS.md B8). A large frame's slack is negligible.
+    # counts (D24, B8). A large frame's slack is negligible.
     return bytes(memoryview(text)) if len(text) < _LARGE_BYTES else text
 
 

@@ -1,4 +1,4 @@
-"""The CBOR codec: ops as binary frames (spec 3.1.3, PROTOCOL-DECISIONS D21, D27, REF §3.2).
+"""The CBOR codec: ops as binary frames (spec 3.1.3, D21, D27, REF §3.2).
 
 Outgoing, cbor2 encodes the op map; numeric arrays, which ``MessageCodec.typed``
 has turned into numpy arrays, become RFC 8746 typed arrays: a byte string of the
@@ -12,7 +12,7 @@ Incoming binary frames are CBOR too (D27). The server keeps their typed arrays
 as read-only numpy arrays over the received bytes (``typed_arrays=True``): the
 graph checks a whole array at once by its element type and range, and a
 subscriber asking for CBOR gets the same array back without a Python loop
-over its elements (BENCHMARKS.md B9: a 1.1 M-cell map took 100 ms as a list).
+over its elements (B9: a 1.1 M-cell map took 100 ms as a list).
 Without it (the Python client) typed arrays become lists.
 """
 
@@ -85,7 +85,7 @@ def encode_cbor(value: object) -> bytes:
     Byte strings and numeric arrays of 64 KiB or more within the op's first
     three map levels (an image's ``data`` in ``msg``, cbor-raw's ``bytes``) are
     spliced into the frame with one copy; cbor2 copies such a payload several
-    times (4 ms for 4 MiB, BENCHMARKS.md B4). The bytes are the same either way.
+    times (4 ms for 4 MiB, B4). The bytes are the same either way.
 
     Raises:
         TypeError: a value has no CBOR form (a bug in the caller).
@@ -267,7 +267,7 @@ class _Splicer:
     cbor2 reads a long byte string in 64 KiB chunks and joins them (a guard
     against lengths that lie), 2 ms for 4 MiB; here the length is checked
     against the frame and the payload is one slice: a copy for a byte string,
-    a read-only numpy view for a typed array (BENCHMARKS.md B4, B6). Every
+    a read-only numpy view for a typed array (B4, B6). Every
     other item is decoded by cbor2, so values are the same either way.
     """
 

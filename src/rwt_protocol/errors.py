@@ -87,7 +87,7 @@ class GraphError(RwtError):
 
 
 class FieldError(GraphError):
-    """A message value does not fit its type (PROTOCOL-DECISIONS D9).
+    """A message value does not fit its type (D9).
 
     Args:
         path: JSON path of the offending value, ``$.msg.pose.position.x``.

@@ -1,4 +1,4 @@
-"""Fragmentation of large messages, both directions (spec 3.1.1, PROTOCOL-DECISIONS D19).
+"""Fragmentation of large messages, both directions (spec 3.1.1, D19).
 
 Outgoing: the text of one op is cut into chunks of ``fragment_size`` characters,
 each sent as its own ``fragment`` op with the op's id (or a fresh one), integer

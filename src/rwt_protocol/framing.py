@@ -1,6 +1,6 @@
 """Sans-IO framers for byte-stream transports: bytes in, whole frames out.
 
-PROTOCOL-DECISIONS D22: TCP carries concatenated JSON values (whitespace or
+D22: TCP carries concatenated JSON values (whitespace or
 newlines between them allowed; rosbridge_tcp readers send no delimiter) and
 self-delimiting CBOR items, told apart by their first byte (a JSON value starts
 with ASCII, a CBOR map or array with a byte in ``0x80-0xbf``, D21); stdio

@@ -1,6 +1,6 @@
 """The two gates every op passes before its handler: authentication and access rules.
 
-- Authentication (ROS 1 edition 3.3.1, PROTOCOL-DECISIONS D23): with an
+- Authentication (ROS 1 edition 3.3.1, D23): with an
   authenticator configured, the first op must be an ``auth`` it admits; any
   other op first, or a refused ``auth``, gets an error status and the
   connection is closed (the session does both).

@@ -2,7 +2,7 @@
 
 Spec 3.2: four levels, ``none`` < ``error`` < ``warning`` < ``info``; a client at
 level L receives status messages of level L and every level below it.
-PROTOCOL-DECISIONS D2 makes ``error`` the default.
+D2 makes ``error`` the default.
 """
 
 from __future__ import annotations

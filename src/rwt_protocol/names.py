@@ -1,4 +1,4 @@
-"""ROS graph names: resolution for routing (PROTOCOL-DECISIONS D26).
+"""ROS graph names: resolution for routing (D26).
 
 ``chatter``, ``/chatter`` and ``//chatter/`` name one topic; clients still get
 every name back in their own spelling, so callers keep the spelling and use the

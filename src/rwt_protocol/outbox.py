@@ -1,6 +1,6 @@
 """The bounded queue of frames waiting to go out on one connection.
 
-PROTOCOL-DECISIONS D24: the bytes queued for a peer are bounded; above the bound
+D24: the bytes queued for a peer are bounded; above the bound
 the oldest *topic* messages are dropped, never service responses, action results
 or status messages. Drops are counted so the session can report them. The parts
 of one fragmented message share a ``group`` and are dropped together, so that a

@@ -1,4 +1,4 @@
-r"""PNG compression of op texts (spec 3.1.2, PROTOCOL-DECISIONS D20, REF §3.3).
+r"""PNG compression of op texts (spec 3.1.2, D20, REF §3.3).
 
 The Robot Web Tools paper (section IV.D) packs the JSON text of a message into
 the pixels of an RGB image so that browsers can inflate it with their built-in

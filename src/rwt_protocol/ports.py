@@ -138,7 +138,7 @@ class GoalStatus(IntEnum):
 
 ServiceReply = Callable[[bool, object], None]
 """Called once with ``(result, values)``: values is a response dict on success,
-an error text on failure (PROTOCOL-DECISIONS D28)."""
+an error text on failure (D28)."""
 
 GoalFeedback = Callable[[dict[str, object]], None]
 """Called with each feedback message of a goal."""

@@ -6,7 +6,7 @@ Outputs: ``frames_to_send()``, ``commands_to_run()``, ``get_timer()``.
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
 given by the caller (after aioquic).
 
-Errors follow PROTOCOL-DECISIONS D1: every rejected op produces a ``status``
+Errors follow D1: every rejected op produces a ``status``
 frame for this connection only (D29), filtered by the connection's level (D2),
 and the session keeps serving. An exception that is not an ``RwtError`` is a bug:
 it is logged and reported as an internal error, and the session still keeps
@@ -187,7 +187,7 @@ class Session:
             frame: the frame's payload.
             now: monotonic seconds.
             binary: the frame came as binary (a WebSocket binary message, a CBOR
-                item on a stream): CBOR (PROTOCOL-DECISIONS D21, D27).
+                item on a stream): CBOR (D21, D27).
 
         Never raises for anything the peer sent; see the module docstring.
         Frames arriving after the session asked to close are ignored.
@@ -430,7 +430,7 @@ class Session:
                 ``png`` (a ``png`` op, D20) or ``cbor``/``cbor-raw`` (one binary
                 CBOR frame, D21).
             fragment_size: split JSON into ``fragment`` ops, and PNG data into
-                ``png`` parts, above this many characters (PROTOCOL-DECISIONS D19).
+                ``png`` parts, above this many characters (D19).
             codec: the message type of the op's ``values`` (else ``msg``), so that
                 CBOR carries its numeric arrays as typed arrays (REF §3.2).
 

@@ -1,6 +1,6 @@
 """One client's subscriptions to one topic: merged parameters, throttle and queue.
 
-Spec 3.3.4 and PROTOCOL-DECISIONS D11: a client with several subscriptions to a
+Spec 3.3.4 and D11: a client with several subscriptions to a
 topic receives one copy of each message; the merged parameters are the lowest
 ``throttle_rate``, the lowest ``fragment_size``, the highest ``queue_length`` and
 the strongest ``compression`` (``cbor-raw`` > ``cbor`` > ``png`` > ``none``).
@@ -91,7 +91,7 @@ class TopicSubscription:
         deliver: sends one message to the client now (encoding is the caller's).
         schedule: runs a callback at a monotonic deadline (the session's timers).
         max_queue: the most messages queued whatever ``queue_length`` asks
-            (a size the peer controls, PROTOCOL-DECISIONS D24).
+            (a size the peer controls, D24).
     """
 
     def __init__(

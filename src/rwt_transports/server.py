@@ -4,7 +4,7 @@
 ``ServerConfig`` side by side: WebSocket (``ws``/``wss``), TCP (plain or TLS),
 UDP and stdio. Every connection, whatever its transport, gets a
 ``rwt_protocol.session.Session`` on the same graph through the same pump
-(PROTOCOL-DECISIONS D22), so a TCP client and a WebSocket client see each
+(D22), so a TCP client and a WebSocket client see each
 other's topics and services. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
 (D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node

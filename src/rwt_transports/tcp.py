@@ -1,4 +1,4 @@
-"""TCP transport (PROTOCOL-DECISIONS D22), plain or TLS.
+"""TCP transport (D22), plain or TLS.
 
 In: concatenated JSON values (any whitespace between them, or none) and CBOR
 items, split by ``rwt_protocol.framing.JsonStreamFramer`` (linear, bounded by

@@ -70,11 +70,16 @@ def servers(secret_file: Path) -> Iterator[dict[str, dict[str, str]]]:
         try:
             yield {"open": plain_urls, "secured": secured_urls}
         finally:
-            secured.terminate()
-            secured.wait(timeout=10)
+            _stop(secured)
     finally:
-        plain.terminate()
-        plain.wait(timeout=10)
+        _stop(plain)
+
+
+def _stop(process: subprocess.Popen[str]) -> None:
+    process.terminate()
+    process.wait(timeout=10)
+    if process.stdout is not None:
+        process.stdout.close()
 
 
 @pytest.fixture(scope="module")

@@ -29,7 +29,6 @@ from rwt_protocol.session import Session
 from rwt_transports.server import (
     RosbridgeServer,
     ServerConfig,
-    _TrackedSession,
     rosauth_authenticator,
 )
 
@@ -38,7 +37,7 @@ pytestmark = pytest.mark.anyio
 SUITE = load_suite()
 
 
-class SilentSession(_TrackedSession):
+class SilentSession(Session):
     """D1 switched off: refused ops are dropped without a status (rosbridge_suite's way)."""
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
@@ -52,7 +51,14 @@ class SilentServer(RosbridgeServer):
         self, transport: str, peer: str, on_output: Callable[[], None]
     ) -> Session | None:
         client_id = f"{transport}:{peer}#silent{len(self.sessions)}"
-        session = SilentSession(self, client_id, peer, on_output)
+        session = SilentSession(
+            self.graph,
+            client_id,
+            config=self.session_config,
+            on_output=on_output,
+            peer=peer,
+            on_closed=self._session_closed,
+        )
         self.sessions[client_id] = session
         return session
 

@@ -77,6 +77,7 @@ def _running(command: str, cwd: Path) -> Iterator[str]:
         )
     assert process.stdout is not None
     seen: list[str] = []
+    drain: threading.Thread | None = None
     try:
         for line in process.stdout:
             seen.append(line)
@@ -84,7 +85,8 @@ def _running(command: str, cwd: Path) -> Iterator[str]:
                 break
         else:
             pytest.fail(f"{command!r} exited without listening: {log.read_text()[-2000:]}")
-        threading.Thread(target=process.stdout.read, daemon=True).start()
+        drain = threading.Thread(target=process.stdout.read, daemon=True)
+        drain.start()
         yield "".join(seen)
     finally:
         os.killpg(process.pid, signal.SIGTERM)
@@ -93,6 +95,9 @@ def _running(command: str, cwd: Path) -> Iterator[str]:
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
+        if drain is not None:
+            drain.join(timeout=5)
+        process.stdout.close()
         assert "Traceback" not in log.read_text(), log.read_text()[-4000:]
 
 

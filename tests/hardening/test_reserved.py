@@ -113,7 +113,7 @@ async def test_a_reserved_name_cannot_be_taken(
 
 
 async def test_a_client_service_can_still_be_replaced_by_another_client(harness: Harness) -> None:
-    # PROTOCOL-DECISIONS D15 (newest advertiser wins) holds between clients.
+    # D15 (newest advertiser wins) holds between clients.
     first, second = await harness.connect("ws", "first"), await harness.connect("ws", "second")
     with anyio.fail_after(TIMEOUT_S):
         await first.send({"op": "set_level", "level": "warning"})

@@ -1,6 +1,6 @@
 """Encodings with real clients: roslib (Node) and roslibpy against an in-process server.
 
-Issue 4, spec 3.1, PROTOCOL-DECISIONS D19-D21, D27. The server runs in this
+Issue 4, spec 3.1, D19-D21, D27. The server runs in this
 process (anyio), so the test owns its graph: in-process publishers answer a
 client's "ready" message, in-process services answer calls, an in-process
 subscription checks what fragments reassembled into. Each client runs in its

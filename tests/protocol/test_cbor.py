@@ -1,4 +1,4 @@
-"""The CBOR codec (spec 3.1.3, PROTOCOL-DECISIONS D21, D27, REF §3.2)."""
+"""The CBOR codec (spec 3.1.3, D21, D27, REF §3.2)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Fragmentation and reassembly (spec 3.1.1, PROTOCOL-DECISIONS D19)."""
+"""Fragmentation and reassembly (spec 3.1.1, D19)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""PNG compression (spec 3.1.2, PROTOCOL-DECISIONS D20, REF §3.3, paper section IV.D)."""
+"""PNG compression (spec 3.1.2, D20, REF §3.3, paper section IV.D)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Encodings through sessions on one graph: CBOR, cbor-raw, PNG, fragments, encode once.
 
-Spec 3.1, 3.3.4; PROTOCOL-DECISIONS D19-D21, D27; REF §3.2-§3.5.
+Spec 3.1, 3.3.4; D19-D21, D27; REF §3.2-§3.5.
 """
 
 from __future__ import annotations

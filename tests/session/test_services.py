@@ -1,6 +1,6 @@
 """Services through sessions on one graph: routing, timeouts, cleanup (spec 3.3.6-3.3.9).
 
-PROTOCOL-DECISIONS D4, D15-D17, D25, D26, D28; REF §2.6-2.10, §6.1, §8 W2-W4, L13-L21.
+D4, D15-D17, D25, D26, D28; REF §2.6-2.10, §6.1, §8 W2-W4, L13-L21.
 """
 
 from __future__ import annotations

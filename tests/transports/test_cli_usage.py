@@ -248,7 +248,7 @@ NOT_IN_HELP = {
     "an issue number": r"\b[Ii]ssue \d+|#\d+\b",
     # a decision id such as D22 (an --only pattern like 'D1*' is an example value)
     "a decision id": r"(?<![\w'])D\d+\b(?![*?])",
-    "the decisions document": r"PROTOCOL-DECISIONS",
+    "the decisions document": r"docs/decisions.md",
     "a reference section": r"REF §|§",
     "RST markup": r"``|:\w+:`",
     "a rich box": r"[╭╰│…]",

@@ -1,6 +1,6 @@
 """The message type registry and the JSON <-> message conversion.
 
-``TypeRegistry`` resolves type strings (PROTOCOL-DECISIONS D5) to
+``TypeRegistry`` resolves type strings (D5) to
 ``MessageType``/``ServiceType``/``ActionType`` objects, read from interface
 files and rosbags stores. A ``MessageType`` converts JSON-decoded values to the
 internal message form (a plain dict; ``uint8[]`` as bytes; times as

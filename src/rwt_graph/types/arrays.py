@@ -4,10 +4,10 @@ A CBOR typed array (RFC 8746) reaches the graph as a read-only 1-D numpy array
 (``rwt_protocol.codec_cbor``). Such an array is checked as a whole, by its
 element type and, when that type is wider than the field's, by its minimum
 and maximum, and stays a numpy array in the internal form, so a large map or
-point cloud never becomes a Python list (BENCHMARKS.md B9). Arrays whose
+point cloud never becomes a Python list (B9). Arrays whose
 element kind does not fit the field (floats for an int field, ints for a
 bool field...) return None here; the caller checks them as lists, which
-gives the usual per-element error texts (PROTOCOL-DECISIONS D9).
+gives the usual per-element error texts (D9).
 
 numpy is looked up, not imported: an array can only exist once numpy is
 loaded, and a server that never sees one never loads it.

@@ -35,11 +35,11 @@ class Context:
     """State of one conversion: the clock and the fields the input omitted.
 
     A plain slotted class: one is built per converted message, and this is
-    the cheapest to build (the publish hot path, BENCHMARKS.md B14).
+    the cheapest to build (the publish hot path, B14).
 
     Attributes:
         now: wall-clock seconds since the epoch, for ``"now"`` and header stamps.
-        missing: JSON paths of omitted fields, in the order met (PROTOCOL-DECISIONS D7).
+        missing: JSON paths of omitted fields, in the order met (D7).
     """
 
     __slots__ = ("missing", "now")
@@ -70,7 +70,7 @@ def is_time_type(ftype: FieldType) -> bool:
 
 
 def is_header(name: str) -> bool:
-    """Whether ``name`` is the canonical name of ``std_msgs/Header`` (PROTOCOL-DECISIONS D8)."""
+    """Whether ``name`` is the canonical name of ``std_msgs/Header`` (D8)."""
     return name in _HEADER_NAMES
 
 
@@ -188,7 +188,7 @@ def _plan_entry(spec: FieldSpec, dialect: Dialect, lookup: Lookup, header: bool)
         element: ConvertFn = _time_checker(ftype.base, is_time, dialect)
         zero_time = dict.fromkeys(time_keys(dialect), 0)
         if header and spec.name == "stamp" and ftype.array is ArrayKind.NONE:
-            # PROTOCOL-DECISIONS D8: an omitted stamp is the current time.
+            # D8: an omitted stamp is the current time.
             elem_default: DefaultFn = lambda now: (  # noqa: E731
                 dict(zero_time) if now is None else time_value(now, dialect)
             )
@@ -226,7 +226,7 @@ def compile_message(
         every field in declaration order, fills omitted fields with their
         defaults (recording their paths in ``ctx.missing``) and raises
         ``FieldError`` for a non-object, an unknown key or a bad value
-        (PROTOCOL-DECISIONS D7-D10). ``default(now)`` builds the default value;
+        (D7-D10). ``default(now)`` builds the default value;
         header stamps are ``now`` when it is given (D8).
     """
     if name in _TIME_NAMES:

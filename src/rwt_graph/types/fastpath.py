@@ -1,4 +1,4 @@
-"""A generated converter for messages that need nothing but type checks (BENCHMARKS.md B14).
+"""A generated converter for messages that need nothing but type checks (B14).
 
 Most published messages carry every field, each of the right JSON kind. For
 those, conversion is a handful of ``type(v) is ...`` tests and one dict; the
@@ -8,7 +8,7 @@ paths. So each message type also gets a *fast* function, generated as Python
 source once per type (as ``dataclasses`` does for ``__init__``), that either
 returns the internal form or ``None``; ``None`` sends the value down the
 general path, which fills defaults, converts ints to floats, accepts the other
-dialect's time keys and gives the error texts (PROTOCOL-DECISIONS D7-D10).
+dialect's time keys and gives the error texts (D7-D10).
 
 Whatever the fast function returns, the general converter would have returned
 too: it only accepts values the general path keeps unchanged (strings, ints

@@ -33,12 +33,12 @@ class Converted(NamedTuple):
     """The result of converting a JSON value to a message.
 
     A named tuple: one is built per published message, and a tuple is the
-    cheapest immutable record to build (BENCHMARKS.md B14).
+    cheapest immutable record to build (B14).
 
     Attributes:
         msg: the message in the internal form (a dict with every field).
         missing: JSON paths of the fields the input omitted and that were filled
-            with defaults, for the warning of PROTOCOL-DECISIONS D7. An omitted
+            with defaults, for the warning of D7. An omitted
             nested message is one path, not one per field inside it.
     """
 
@@ -119,7 +119,7 @@ class MessageType:
 
     @property
     def has_header(self) -> bool:
-        """Whether a ``std_msgs/Header`` occurs anywhere in this type (PROTOCOL-DECISIONS D8)."""
+        """Whether a ``std_msgs/Header`` occurs anywhere in this type (D8)."""
         if self._has_header is None:
             self._has_header = is_header(self.name) or any(
                 is_header(name) for name in self.dependency_names()
@@ -133,7 +133,7 @@ class MessageType:
             value: the decoded JSON (dicts, lists, str, int, float, bool, None).
             path: JSON path of ``value``, used in error texts (``$.msg``).
             now: wall-clock seconds since the epoch, used for ``"now"`` and for
-                header stamps that are omitted (PROTOCOL-DECISIONS D8).
+                header stamps that are omitted (D8).
 
         Returns:
             The message and the paths of omitted fields (D7).
@@ -158,7 +158,7 @@ class MessageType:
 
         Args:
             now: when given, header stamps are this time (seconds since the
-                epoch, PROTOCOL-DECISIONS D8); otherwise they are zero.
+                epoch, D8); otherwise they are zero.
         """
         return self.compiled()[1](now)  # type: ignore[return-value]
 

@@ -1,7 +1,7 @@
 """A parser of ``.msg``, ``.srv`` and ``.action`` text.
 
 rosbags' field definitions drop the default values written in a definition, and
-PROTOCOL-DECISIONS D7 needs them, so rwt reads interface text itself. Grammar
+D7 needs them, so rwt reads interface text itself. Grammar
 (ROS 2 with the ROS 1 forms): one declaration per line, ``TYPE NAME [DEFAULT]``
 or ``TYPE NAME=VALUE`` for a constant; ``#`` starts a comment; types may be
 bounded strings (``string<=N``) and arrays (``[N]``, ``[<=N]``, ``[]``); a line

@@ -1,7 +1,7 @@
 """Type strings: the dialect, their parsing and their canonical spelling.
 
 A type string names a message, service or action as ``pkg/Type`` or
-``pkg/<kind>/Type``; both forms mean the same type (PROTOCOL-DECISIONS D5).
+``pkg/<kind>/Type``; both forms mean the same type (D5).
 Redundant, leading and trailing slashes are ignored; everything else listed as
 invalid in REF §4.6 raises :class:`InvalidTypeNameError`.
 """
@@ -31,7 +31,7 @@ _IDENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 
 
 class Dialect(StrEnum):
-    """Which ROS generation the server speaks (PROTOCOL-DECISIONS D6).
+    """Which ROS generation the server speaks (D6).
 
     ``ROS2`` uses ``sec``/``nanosec`` times and ``pkg/msg/Type`` names; ``ROS1``
     uses ``secs``/``nsecs``, ``pkg/Type`` names, a ``seq`` in ``std_msgs/Header``,

@@ -1,4 +1,4 @@
-"""Checkers for primitive values and primitive arrays (PROTOCOL-DECISIONS D9, D10).
+"""Checkers for primitive values and primitive arrays (D9, D10).
 
 Each checker takes one JSON-decoded value and returns it in the internal form, or
 raises :class:`Problem`. A ``Problem`` carries the text and the part of the JSON
@@ -79,7 +79,7 @@ def _float_checker(name: str, limit: float) -> Checker:
             except OverflowError:
                 raise Problem(f"expected {name} in [{-limit!r}, {limit!r}], got {value}") from None
         elif value is None:
-            return math.nan  # PROTOCOL-DECISIONS D10: null means NaN
+            return math.nan  # D10: null means NaN
         else:
             raise Problem(f"expected {name}, got {json_kind(value)}")
         if limit < abs(result) < math.inf:
@@ -126,7 +126,7 @@ def scalar_checker(base: str, dialect: Dialect, string_bound: int | None = None)
     Returns:
         A function mapping a JSON value to the internal form (ints, floats -
         with ``null`` as NaN -, bools, strs) and raising :class:`Problem` when
-        the value does not fit (PROTOCOL-DECISIONS D9).
+        the value does not fit (D9).
 
     Raises:
         ValueError: ``base`` is not such a primitive.
@@ -262,7 +262,7 @@ def array_checker(ftype: FieldType, dialect: Dialect) -> Checker:
     """Build the checker of a primitive array field (not time, not messages).
 
     ``uint8``/``char`` arrays of any kind become ``bytes`` and accept a base64
-    string, an array of ints 0..255 or bytes (PROTOCOL-DECISIONS D10); ROS 2
+    string, an array of ints 0..255 or bytes (D10); ROS 2
     ``byte`` arrays are lists of octets that may come as bytes (CBOR). Other
     arrays become lists; fixed arrays need their exact length, bounded ones at
     most their bound (D9).

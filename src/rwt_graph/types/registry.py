@@ -43,7 +43,7 @@ class TypeRegistry:
     Files are listed at construction and parsed on first use; types are cached.
 
     Args:
-        dialect: ROS 2 (default) or ROS 1 (PROTOCOL-DECISIONS D6).
+        dialect: ROS 2 (default) or ROS 1 (D6).
         interface_dirs: extra folders of interface files, highest precedence first.
     """
 
@@ -68,7 +68,7 @@ class TypeRegistry:
         """Validate a type string and spell it canonically, without looking it up.
 
         Returns:
-            ``pkg/<kind>/Type`` in ROS 2, ``pkg/Type`` in ROS 1 (PROTOCOL-DECISIONS D5).
+            ``pkg/<kind>/Type`` in ROS 2, ``pkg/Type`` in ROS 1 (D5).
 
         Raises:
             InvalidTypeNameError: the string is malformed (REF §4.6).
@@ -263,7 +263,7 @@ class TypeRegistry:
         """The encoder support (typed arrays, wire serialization) of ``mtype`` (cached).
 
         It implements ``rwt_protocol.ports.MessageCodec`` for CBOR and cbor-raw
-        (PROTOCOL-DECISIONS D21).
+        (D21).
         """
         found = self._codecs.get(mtype.name)
         if found is None or found.mtype is not mtype:

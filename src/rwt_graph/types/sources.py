@@ -38,7 +38,7 @@ __all__ = [
 
 KINDS = ("msg", "srv", "action")
 
-#: Defaults written in ROS 2 definitions that rosbags drops (PROTOCOL-DECISIONS D7).
+#: Defaults written in ROS 2 definitions that rosbags drops (D7).
 STORE_DEFAULTS: dict[str, dict[str, object]] = {
     "geometry_msgs/msg/Quaternion": {"w": 1.0},
 }

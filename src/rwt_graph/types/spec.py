@@ -64,7 +64,7 @@ def int_range(base: str, dialect: Dialect) -> tuple[int, int] | None:
 
 
 def is_bytes_base(base: str) -> bool:
-    """Whether arrays of ``base`` are held as ``bytes`` (PROTOCOL-DECISIONS D10)."""
+    """Whether arrays of ``base`` are held as ``bytes`` (D10)."""
     return base in ("uint8", "char")
 
 
@@ -114,7 +114,7 @@ class FieldSpec:
         name: the field name.
         type: its type.
         default: the default written in the definition (``float64 w 1``), in the
-            internal form (PROTOCOL-DECISIONS D7); None when the text has none, in
+            internal form (D7); None when the text has none, in
             which case the type's zero value applies.
     """
 

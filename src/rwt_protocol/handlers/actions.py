@@ -1,4 +1,4 @@
-"""Handlers of the action ops (spec 3.3.10-3.3.15, PROTOCOL-DECISIONS D4, D15, D18)."""
+"""Handlers of the action ops (spec 3.3.10-3.3.15, D4, D15, D18)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from ..ports import GoalStatus
 from .topics import offered
 
 if TYPE_CHECKING:
-    from ..session import Session
+    from .context import HandlerContext
 
 __all__ = [
     "action_feedback",
@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 
-def advertise_action(session: Session, op: AdvertiseAction, now: float) -> None:
+def advertise_action(session: HandlerContext, op: AdvertiseAction, now: float) -> None:
     """Offer an action provided by this client (spec 3.3.10; newest wins, D15).
 
     Raises:
@@ -47,7 +47,7 @@ def advertise_action(session: Session, op: AdvertiseAction, now: float) -> None:
     session.report(StatusLevel.INFO, f"advertise_action: {op.action} advertised as {type_name}")
 
 
-def unadvertise_action(session: Session, op: UnadvertiseAction, now: float) -> None:
+def unadvertise_action(session: HandlerContext, op: UnadvertiseAction, now: float) -> None:
     """Withdraw an action of this client; its goals abort (spec 3.3.11).
 
     Raises:
@@ -58,7 +58,7 @@ def unadvertise_action(session: Session, op: UnadvertiseAction, now: float) -> N
     session.report(StatusLevel.INFO, f"unadvertise_action: {op.action} unadvertised")
 
 
-def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
+def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) -> None:
     """Send a goal; feedback (when asked) and one result follow (spec 3.3.12, D18).
 
     A refused goal is answered with ``action_result`` ``result: false``, status 6
@@ -109,7 +109,7 @@ def send_action_goal(session: Session, op: SendActionGoal, now: float) -> None:
         session.pending_goals += 1
 
 
-def cancel_action_goal(session: Session, op: CancelActionGoal, now: float) -> None:
+def cancel_action_goal(session: HandlerContext, op: CancelActionGoal, now: float) -> None:
     """Ask to cancel this client's goal ``op.id`` (spec 3.3.13).
 
     Raises:
@@ -121,7 +121,7 @@ def cancel_action_goal(session: Session, op: CancelActionGoal, now: float) -> No
     handle.request_cancel()
 
 
-def action_feedback(session: Session, op: ActionFeedback, now: float) -> None:
+def action_feedback(session: HandlerContext, op: ActionFeedback, now: float) -> None:
     """Feedback for a goal this client's action received (spec 3.3.14).
 
     Raises:
@@ -133,7 +133,7 @@ def action_feedback(session: Session, op: ActionFeedback, now: float) -> None:
     )
 
 
-def action_result(session: Session, op: ActionResult, now: float) -> None:
+def action_result(session: HandlerContext, op: ActionResult, now: float) -> None:
     """The result of a goal this client's action received (spec 3.3.15, D18).
 
     Raises:

@@ -9,12 +9,12 @@ from ..levels import StatusLevel
 
 if TYPE_CHECKING:
     from ..ops import Auth, OpModel, SetLevel, Status
-    from ..session import Session
+    from .context import HandlerContext
 
 __all__ = ["auth", "not_supported", "set_level", "status"]
 
 
-def set_level(session: Session, op: SetLevel, now: float) -> None:
+def set_level(session: HandlerContext, op: SetLevel, now: float) -> None:
     """Change which status messages this connection receives (spec 3.2.1, D2).
 
     A level outside the four is rejected by the op model, leaving the level as it was.
@@ -23,11 +23,11 @@ def set_level(session: Session, op: SetLevel, now: float) -> None:
     session.report(StatusLevel.INFO, f"set_level: status level is {op.level}", op.id)
 
 
-def status(session: Session, op: Status, now: float) -> None:
+def status(session: HandlerContext, op: Status, now: float) -> None:
     """A client's status message: nothing to do (status flows server to client)."""
 
 
-def auth(session: Session, op: Auth, now: float) -> None:
+def auth(session: HandlerContext, op: Auth, now: float) -> None:
     """Credentials after the first op, or on a server without authentication: ignored.
 
     The authentication gate itself (D23) is in the session; this handler only
@@ -39,7 +39,7 @@ def auth(session: Session, op: Auth, now: float) -> None:
         session.report(StatusLevel.INFO, "auth: already authenticated; ignored")
 
 
-def not_supported(session: Session, op: OpModel, now: float) -> None:
+def not_supported(session: HandlerContext, op: OpModel, now: float) -> None:
     """Refuse an op this server does not serve yet.
 
     Raises:

@@ -1,4 +1,4 @@
-"""Handlers of ``fragment`` and ``png`` (spec 3.1.1-3.1.2, PROTOCOL-DECISIONS D19, D20).
+"""Handlers of ``fragment`` and ``png`` (spec 3.1.1-3.1.2, D19, D20).
 
 A completed message is processed as if it had arrived as one frame, so the
 parts of any op work, including parts of a ``png`` op and a ``png`` op inside
@@ -16,12 +16,12 @@ from ..png import decode_png
 
 if TYPE_CHECKING:
     from ..ops import Fragment, Png
-    from ..session import Session
+    from .context import HandlerContext
 
 __all__ = ["fragment", "png"]
 
 
-def fragment(session: Session, op: Fragment, now: float) -> None:
+def fragment(session: HandlerContext, op: Fragment, now: float) -> None:
     """Take one part of a fragmented message; process the message once complete (D19).
 
     Raises:
@@ -33,7 +33,7 @@ def fragment(session: Session, op: Fragment, now: float) -> None:
         session.receive_frame(text, now)
 
 
-def png(session: Session, op: Png, now: float) -> None:
+def png(session: HandlerContext, op: Png, now: float) -> None:
     """Decode a PNG-compressed op, or one part of it, and process it (D20).
 
     ``id``, ``num`` and ``total`` come together (a part) or not at all (a whole

@@ -14,7 +14,7 @@ from ..names import resolve_name
 from ..ops import CallService, CancelActionGoal, SendActionGoal
 
 if TYPE_CHECKING:
-    from ..session import Session
+    from .context import HandlerContext
 
 __all__ = ["ProviderLink"]
 
@@ -22,7 +22,7 @@ __all__ = ["ProviderLink"]
 class ProviderLink:
     """Forwards the graph's requests to one session's peer."""
 
-    def __init__(self, session: Session) -> None:
+    def __init__(self, session: HandlerContext) -> None:
         self._session = session
 
     def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:

@@ -1,4 +1,4 @@
-"""Handlers of the service ops (spec 3.3.6-3.3.9, PROTOCOL-DECISIONS D4, D15-D17, D25, D28)."""
+"""Handlers of the service ops (spec 3.3.6-3.3.9, D4, D15-D17, D25, D28)."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseSer
 from .topics import offered
 
 if TYPE_CHECKING:
-    from ..session import Session
     from ..timers import Timer
+    from .context import HandlerContext
 
 __all__ = ["advertise_service", "call_service", "service_response", "unadvertise_service"]
 
 
-def advertise_service(session: Session, op: AdvertiseService, now: float) -> None:
+def advertise_service(session: HandlerContext, op: AdvertiseService, now: float) -> None:
     """Offer a service provided by this client (spec 3.3.6; newest wins, D15).
 
     Raises:
@@ -33,7 +33,7 @@ def advertise_service(session: Session, op: AdvertiseService, now: float) -> Non
     session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
 
 
-def unadvertise_service(session: Session, op: UnadvertiseService, now: float) -> None:
+def unadvertise_service(session: HandlerContext, op: UnadvertiseService, now: float) -> None:
     """Withdraw a service of this client; its pending callers fail (spec 3.3.7, D15).
 
     Raises:
@@ -47,7 +47,7 @@ def unadvertise_service(session: Session, op: UnadvertiseService, now: float) ->
 class _Call:
     """A call this client made: answers it once, with its id and spelling (D26, D28)."""
 
-    def __init__(self, session: Session, op: CallService, op_id: str | int | None) -> None:
+    def __init__(self, session: HandlerContext, op: CallService, op_id: str | int | None) -> None:
         self.session = session
         self.op = op
         self.op_id = op_id
@@ -74,7 +74,7 @@ class _Call:
         )
 
 
-def call_service(session: Session, op: CallService, now: float) -> None:
+def call_service(session: HandlerContext, op: CallService, now: float) -> None:
     """Call a service; the reply comes as ``service_response`` (spec 3.3.8).
 
     ``name#id`` gives the id when ``id`` is absent (D25). The call never blocks
@@ -112,7 +112,7 @@ def call_service(session: Session, op: CallService, now: float) -> None:
     call.timer = session.call_at(now + timeout_s, expire)
 
 
-def service_response(session: Session, op: ServiceResponse, now: float) -> None:
+def service_response(session: HandlerContext, op: ServiceResponse, now: float) -> None:
     """Answer a request this client's service received (spec 3.3.9, D15).
 
     Raises:

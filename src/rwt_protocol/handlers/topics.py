@@ -1,4 +1,4 @@
-"""Handlers of the topic ops (spec 3.3.1-3.3.5, PROTOCOL-DECISIONS D3, D7, D11, D26)."""
+"""Handlers of the topic ops (spec 3.3.1-3.3.5, D3, D7, D11, D26)."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ from ..subscriptions import TopicSubscription
 
 if TYPE_CHECKING:
     from ..ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
-    from ..session import Session
+    from .context import HandlerContext
 
 __all__ = ["advertise", "offered", "publish", "subscribe", "unadvertise", "unsubscribe"]
 
 _MAX_LISTED = 8
 
 
-def advertise(session: Session, op: Advertise, now: float) -> None:
+def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
     """Register the client as a publisher of ``op.topic`` (spec 3.3.1).
 
     Raises:
@@ -35,12 +35,12 @@ def advertise(session: Session, op: Advertise, now: float) -> None:
     session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
 
 
-def offered(session: Session) -> int:
+def offered(session: HandlerContext) -> int:
     """Topics, services and actions this connection advertises (one cap for all)."""
     return len(session.advertisements) + len(session.offers)
 
 
-def unadvertise(session: Session, op: Unadvertise, now: float) -> None:
+def unadvertise(session: HandlerContext, op: Unadvertise, now: float) -> None:
     """Drop one advertise id, or all of them, for ``op.topic`` (spec 3.3.2).
 
     Raises:
@@ -65,7 +65,7 @@ def unadvertise(session: Session, op: Unadvertise, now: float) -> None:
     session.report(StatusLevel.INFO, f"unadvertise: {op.topic} unadvertised", op.id)
 
 
-def publish(session: Session, op: PublishView, now: float) -> None:
+def publish(session: HandlerContext, op: PublishView, now: float) -> None:
     """Publish ``op.msg`` on ``op.topic`` (spec 3.3.3).
 
     A warning lists the fields filled with defaults (spec 3.3.3, D7).
@@ -82,7 +82,7 @@ def publish(session: Session, op: PublishView, now: float) -> None:
         session.report(StatusLevel.WARNING, f"publish: filled with defaults: {listed}{more}", op.id)
 
 
-def subscribe(session: Session, op: Subscribe, now: float) -> None:
+def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
     """Add a subscription to ``op.topic`` (spec 3.3.4, merging per D11).
 
     Raises:
@@ -121,7 +121,7 @@ def subscribe(session: Session, op: Subscribe, now: float) -> None:
     session.report(StatusLevel.INFO, f"subscribe: subscribed to {op.topic}", op.id)
 
 
-def unsubscribe(session: Session, op: Unsubscribe, now: float) -> None:
+def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
     """Remove the subscription ``op.id``, or all of them, on ``op.topic`` (spec 3.3.5).
 
     Raises:

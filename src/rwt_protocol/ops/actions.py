@@ -70,7 +70,7 @@ class ActionResult(OpModel):
     """The result of the goal ``id`` (spec 3.3.15).
 
     ``status`` is an ``action_msgs/GoalStatus`` code; an advertiser may omit it
-    (4 when ``result`` is true, 6 otherwise; PROTOCOL-DECISIONS D18).
+    (4 when ``result`` is true, 6 otherwise; D18).
     """
 
     op: Literal["action_result"] = "action_result"

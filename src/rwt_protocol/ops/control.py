@@ -12,7 +12,7 @@ __all__ = ["Auth", "Fragment", "Png", "SetLevel", "Status"]
 
 
 class Fragment(OpModel):
-    """One part of a message split by its JSON text (spec 3.1.1, PROTOCOL-DECISIONS D19).
+    """One part of a message split by its JSON text (spec 3.1.1, D19).
 
     ``num`` counts from 0; ``total`` is the integer number of parts.
     """
@@ -52,7 +52,7 @@ class Status(OpModel):
 
 
 class Auth(OpModel):
-    """rosauth credentials (ROS 1 edition 3.3.1, PROTOCOL-DECISIONS D23).
+    """rosauth credentials (ROS 1 edition 3.3.1, D23).
 
     ``t`` and ``end`` are seconds since the epoch (roslibjs sends floats).
     """

@@ -51,7 +51,7 @@ class ServiceResponse(OpModel):
     """The answer to a ``call_service`` (spec 3.3.9).
 
     ``values`` is an object on success and may be an error text when ``result``
-    is false (PROTOCOL-DECISIONS D28).
+    is false (D28).
     """
 
     op: Literal["service_response"] = "service_response"

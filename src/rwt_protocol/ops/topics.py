@@ -45,7 +45,7 @@ class Publish(OpModel):
     """A message on a topic, in either direction (spec 3.3.3).
 
     ``msg`` is left unvalidated here: the topic's message type checks it, with
-    field paths (PROTOCOL-DECISIONS D9). ``latch`` is the ROS 1 extension (D13).
+    field paths (D9). ``latch`` is the ROS 1 extension (D13).
     """
 
     op: Literal["publish"] = "publish"

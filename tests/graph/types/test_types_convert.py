@@ -1,4 +1,4 @@
-"""JSON -> internal conversion of primitives and arrays (PROTOCOL-DECISIONS D7, D9, D10)."""
+"""JSON -> internal conversion of primitives and arrays (D7, D9, D10)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Type strings (PROTOCOL-DECISIONS D5, REF §4.6, §8.4 L58)."""
+"""Type strings (D5, REF §4.6, §8.4 L58)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The message codec for CBOR and cbor-raw (PROTOCOL-DECISIONS D21, REF §3.2, §3.5).
+"""The message codec for CBOR and cbor-raw (D21, REF §3.2, §3.5).
 
 Property: for every primitive array type (unbounded, fixed and bounded), a
 message goes through ``WireCodec.typed`` and the CBOR encoder and comes back,

@@ -1,0 +1,79 @@
+"""What a handler may use of its connection: the session's surface for handlers.
+
+Handlers see a ``HandlerContext``, not the whole ``Session``: the graph, this
+connection's state (its subscriptions, advertisements, offers, goals and
+counters), and the few actions a handler takes (send an op, report a status,
+set a timer, check a cap, feed a reassembled frame back). The transport-facing
+half of the session (``frames_to_send``, ``close``, ``request_close``, the
+outbox) is out of a handler's reach. ``Session`` satisfies this protocol.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from ..fragments import Reassembler
+    from ..levels import StatusLevel
+    from ..ops.base import Compression
+    from ..ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
+    from ..subscriptions import TopicSubscription
+    from ..timers import Timer
+    from .providers import ProviderLink
+
+__all__ = ["HandlerContext"]
+
+
+class HandlerContext(Protocol):
+    """One connection as its handlers see it (implemented by ``Session``)."""
+
+    graph: GraphPort
+    client_id: ClientId
+    peer: str
+    status_level: StatusLevel
+    subscriptions: dict[str, TopicSubscription]
+    advertisements: dict[str, set[str | int | None]]
+    goals: dict[str | int | None, GoalHandle]
+    offers: set[tuple[str, str]]
+    pending_calls: int
+    pending_goals: int
+    provider_link: ProviderLink
+    fragments: Reassembler
+
+    @property
+    def config(self) -> SessionSettings:
+        """The connection's settings (limits, access rules, authenticator)."""
+
+    def send_op(
+        self,
+        message: dict[str, object],
+        *,
+        compression: Compression = "none",
+        fragment_size: int | None = None,
+        codec: MessageCodec | None = None,
+    ) -> None:
+        """Queue an op that must not be dropped (``Session.send_op``)."""
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Send a ``status`` frame if the connection's level admits it (D1-D3)."""
+
+    def check_cap(self, count: int, cap: int, what: str) -> None:
+        """Raise ``LimitError`` when ``count`` already reached ``cap`` (docs/limits.md)."""
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` once ``now >= deadline``."""
+
+    def watch_fragments(self) -> None:
+        """Make sure the earliest fragment deadline has a timer (D19)."""
+
+    def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Handle a frame reassembled from parts as if it had just arrived."""
+
+    def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
+        """Queue one topic message for the peer (the subscription's sink)."""
+
+
+if TYPE_CHECKING:
+    from ..session import SessionConfig as SessionSettings
