@@ -18,6 +18,7 @@ from typing import Protocol, runtime_checkable
 from PIL import Image
 
 from rwt_graph.media import ImageError, compressed_content_type, image_to_display
+from rwt_graph.types.convert import header_stamp
 
 from .params import MAX_PIXELS, StreamParams, StreamType, VideoError
 
@@ -209,12 +210,5 @@ class CompressedPassThrough:
 
 def stamp_seconds(msg: Message) -> float:
     """The message's header stamp in seconds (either dialect), 0.0 without one."""
-    header = msg.get("header")
-    stamp = header.get("stamp") if isinstance(header, Mapping) else None
-    if not isinstance(stamp, Mapping):
-        return 0.0
-    sec = stamp.get("sec", stamp.get("secs", 0))
-    nsec = stamp.get("nanosec", stamp.get("nsecs", 0))
-    if isinstance(sec, int) and isinstance(nsec, int):
-        return sec + nsec / 1e9
-    return 0.0
+    sec, nsec = header_stamp(msg) or (0, 0)
+    return sec + nsec / 1e9

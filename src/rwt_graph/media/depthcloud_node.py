@@ -12,6 +12,7 @@ from collections import deque
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from ..types.convert import header_stamp
 from .depthcloud import encode_depthcloud
 from .images import ImageError, array_to_image, depth_to_metres, image_to_display
 
@@ -163,13 +164,6 @@ class DepthCloudEncoder:
 
 
 def _stamp_ns(msg: Message) -> int:
-    """The header stamp in nanoseconds (either dialect's time fields)."""
-    header = msg.get("header")
-    stamp = header.get("stamp") if isinstance(header, Mapping) else None
-    if not isinstance(stamp, Mapping):
-        return 0
-    sec = stamp.get("sec", stamp.get("secs", 0))
-    nsec = stamp.get("nanosec", stamp.get("nsecs", 0))
-    if isinstance(sec, int) and isinstance(nsec, int):
-        return sec * 1_000_000_000 + nsec
-    return 0
+    """The header stamp in nanoseconds (either dialect's time fields); 0 without one."""
+    sec, nsec = header_stamp(msg) or (0, 0)
+    return sec * 1_000_000_000 + nsec

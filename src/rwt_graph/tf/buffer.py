@@ -31,6 +31,7 @@ import logging
 import math
 from collections.abc import Mapping
 
+from ..types.convert import time_parts
 from .errors import DisconnectedFramesError, ExtrapolationError, TFError, UnknownFrameError
 from .links import Link, Route
 from .stamped import StampedTransform
@@ -64,9 +65,9 @@ def normalize_frame(frame_id: str) -> str:
 
 def stamp_seconds(stamp: Mapping[str, object]) -> float:
     """Seconds of a ROS time dict in either dialect (``sec/nanosec``, ``secs/nsecs``)."""
-    sec = stamp.get("sec", stamp.get("secs", 0))
-    nsec = stamp.get("nanosec", stamp.get("nsecs", 0))
-    assert isinstance(sec, int) and isinstance(nsec, int)
+    parts = time_parts(stamp)
+    assert parts is not None  # converted messages always hold valid times
+    sec, nsec = parts
     return sec + nsec * 1e-9
 
 

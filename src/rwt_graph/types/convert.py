@@ -11,7 +11,7 @@ others also take the JSON path and the conversion context (times, messages).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from rwt_protocol.errors import FieldError
 
@@ -24,9 +24,11 @@ __all__ = [
     "ConvertFn",
     "DefaultFn",
     "compile_message",
+    "header_stamp",
     "is_header",
     "is_time_type",
     "time_keys",
+    "time_parts",
     "time_value",
 ]
 
@@ -85,6 +87,27 @@ def time_value(now: float, dialect: Dialect) -> dict[str, object]:
     seconds = math.floor(now)
     nanos = min(round((now - seconds) * 1e9), 999_999_999)
     return {sec_key: int(seconds), nsec_key: int(nanos)}
+
+
+def time_parts(value: object) -> tuple[int, int] | None:
+    """``(seconds, nanoseconds)`` of a time value in either dialect, or None.
+
+    Reads ``{sec, nanosec}`` (ROS 2) and ``{secs, nsecs}`` (ROS 1), a missing
+    part being 0 (REF §4.1); None when ``value`` is not such a dict of ints.
+    """
+    if not isinstance(value, Mapping):
+        return None
+    sec = value.get("sec", value.get("secs", 0))
+    nsec = value.get("nanosec", value.get("nsecs", 0))
+    if type(sec) is int and type(nsec) is int:
+        return sec, nsec
+    return None
+
+
+def header_stamp(msg: Mapping[str, object]) -> tuple[int, int] | None:
+    """``time_parts`` of a message's ``header.stamp``; None without one."""
+    header = msg.get("header")
+    return time_parts(header.get("stamp")) if isinstance(header, Mapping) else None
 
 
 def _time_ranges(is_time: bool, dialect: Dialect) -> tuple[str, str]:

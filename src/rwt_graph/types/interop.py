@@ -16,6 +16,7 @@ from rosbags.interfaces import Nodetype
 
 from .convert import is_time_type, time_keys
 from .names import Dialect
+from .primitives import NUMPY_DTYPES
 from .sources import IDL_PLACEHOLDER
 from .spec import ArrayKind, FieldType, is_bytes_base
 
@@ -28,21 +29,8 @@ __all__ = ["fielddefs", "from_rosbags", "to_rosbags"]
 
 Resolve = Callable[[str], "MessageType"]
 
-_DTYPES: dict[str, str] = {
-    "bool": "bool",
-    "int8": "int8",
-    "uint8": "uint8",
-    "char": "uint8",
-    "int16": "int16",
-    "uint16": "uint16",
-    "int32": "int32",
-    "uint32": "uint32",
-    "int64": "int64",
-    "uint64": "uint64",
-    "float32": "float32",
-    "float64": "float64",
-    "byte": "int8",
-}
+# rosbags keeps ``byte`` arrays as int8 and ``char`` arrays as uint8, in both dialects
+_DTYPES: dict[str, str] = {**NUMPY_DTYPES, "bool": "bool", "char": "uint8", "byte": "int8"}
 
 
 def _plain_value(value: object, ftype: FieldType, dialect: Dialect, resolve: Resolve) -> object:

@@ -23,6 +23,7 @@ from .spec import ArrayKind, FieldType, int_range, is_bytes_base
 
 __all__ = [
     "FLOAT32_MAX",
+    "NUMPY_DTYPES",
     "Checker",
     "Problem",
     "array_checker",
@@ -30,6 +31,24 @@ __all__ = [
     "scalar_checker",
     "zero_value",
 ]
+
+NUMPY_DTYPES: dict[str, str] = {
+    name: name
+    for name in (
+        "int8",
+        "uint8",
+        "int16",
+        "uint16",
+        "int32",
+        "uint32",
+        "int64",
+        "uint64",
+        "float32",
+        "float64",
+    )
+}
+"""The numpy dtype of each numeric primitive (it has the primitive's name); ``bool``,
+``char`` and ``byte`` are left to their users (a byte is uint8 in ROS 2, int8 in ROS 1)."""
 
 Checker = Callable[[object], object]
 

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 from .convert import is_time_type
 from .names import Dialect
+from .primitives import NUMPY_DTYPES
 from .spec import ArrayKind, FieldType, is_bytes_base
 
 if TYPE_CHECKING:
@@ -31,19 +32,6 @@ Msg = Mapping[str, object]
 _LARGE_VIEW = 64 * 1024
 Typer = Callable[[Msg], Msg]
 
-_NUMERIC: dict[str, str] = {
-    "int8": "int8",
-    "uint8": "uint8",
-    "int16": "int16",
-    "uint16": "uint16",
-    "int32": "int32",
-    "uint32": "uint32",
-    "int64": "int64",
-    "uint64": "uint64",
-    "float32": "float32",
-    "float64": "float64",
-}
-
 
 def _element_dtype(ftype: FieldType, dialect: Dialect) -> str | None:
     """The numpy type name of a primitive array's elements, or None when it stays a list/bytes."""
@@ -51,7 +39,7 @@ def _element_dtype(ftype: FieldType, dialect: Dialect) -> str | None:
         return None
     if ftype.base == "byte":  # an octet in ROS 2, int8 in ROS 1 (REF §4.1)
         return "int8" if dialect is Dialect.ROS1 else "uint8"
-    return _NUMERIC.get(ftype.base)
+    return NUMPY_DTYPES.get(ftype.base)
 
 
 def _field_typer(
