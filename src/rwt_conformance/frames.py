@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import cbor2
 
-from rwt_protocol.auth import rosauth_mac
+from rwt_protocol.auth import rosauth_op
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -106,17 +106,10 @@ def auth_op(secret: str, given: Mapping[str, object], dest: str) -> dict[str, Js
     level = str(given.get("level", "admin"))
     t = now + _whole(given.get("t_offset_s", 0))
     end = now + _whole(given.get("end_offset_s", AUTH_VALIDITY_S))
-    mac = rosauth_mac(secret, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
-    return {
-        "op": "auth",
-        "mac": str(given.get("mac", mac)),
-        "client": client,
-        "dest": dest,
-        "rand": rand,
-        "t": t,
-        "level": level,
-        "end": end,
-    }
+    op = rosauth_op(secret, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
+    if "mac" in given:
+        op["mac"] = str(given["mac"])
+    return op
 
 
 def _whole(value: object) -> int:

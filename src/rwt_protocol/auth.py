@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from .ops import Auth
 
-__all__ = ["Authenticator", "RosauthVerifier", "rosauth_mac"]
+__all__ = ["Authenticator", "RosauthVerifier", "rosauth_mac", "rosauth_op"]
 
 Authenticator = Callable[[Auth, str], bool]
 """Decides an ``auth`` op: called with the op and the peer address (``"host:port"``).
@@ -54,6 +54,27 @@ def rosauth_mac(
     """
     text = f"{secret}{client}{dest}{rand}{_seconds(t)}{level}{_seconds(end)}"
     return hashlib.sha512(text.encode("utf-8")).hexdigest()
+
+
+def rosauth_op(
+    secret: str, *, client: str, dest: str, rand: str, t: float, level: str, end: float
+) -> dict[str, object]:
+    """Build a signed ``auth`` op (ROS 1 spec 3.3.1, D23): the fields and their ``mac``.
+
+    Args:
+        secret: the shared secret.
+        client: the client's address, as the trusted source wrote it.
+        dest: the server's address, likewise.
+        rand: the random string of the trusted source.
+        t: issue time, seconds since the epoch.
+        level: the user level string.
+        end: expiry time, seconds since the epoch.
+
+    Returns:
+        ``{"op": "auth", "mac": ..., "client": ..., ...}``, ready to send.
+    """
+    mac = rosauth_mac(secret, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
+    return Auth.frame(mac=mac, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
 
 
 @dataclass(frozen=True)
