@@ -101,21 +101,9 @@ app = typer.Typer(
 )
 
 
-class LevelName(StrEnum):
-    """Status levels as the CLI accepts them."""
-
-    NONE = "none"
-    ERROR = "error"
-    WARNING = "warning"
-    INFO = "info"
-
-
-class DialectName(StrEnum):
-    """Dialects as the CLI accepts them."""
-
-    ROS2 = "ros2"
-    ROS1 = "ros1"
-
+# typer offers an enum's values as choices: the status levels' wire spellings, made
+# from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)
+LevelName = StrEnum("LevelName", [(level.name, level.wire) for level in StatusLevel])  # type: ignore[misc]
 
 class LogLevel(StrEnum):
     """Log levels as the CLI accepts them."""
@@ -174,7 +162,7 @@ def serve(
     stdio: Annotated[
         bool, typer.Option(help="Also serve one session on stdin/stdout; stop when it ends.")
     ] = False,
-    dialect: Annotated[DialectName, typer.Option(help="ROS message dialect.")] = DialectName.ROS2,
+    dialect: Annotated[Dialect, typer.Option(help="ROS message dialect.")] = Dialect.ROS2,
     interfaces: Annotated[
         list[Path] | None,
         typer.Option(
@@ -185,7 +173,7 @@ def serve(
     ] = None,
     status_level: Annotated[
         LevelName, typer.Option(help="Status level of new connections.")
-    ] = LevelName.ERROR,
+    ] = LevelName[StatusLevel.ERROR.name],
     max_message_size: Annotated[
         int,
         typer.Option(
@@ -401,7 +389,7 @@ def serve(
         tune_allocator(heap_keep * 1024 * 1024)
     if raise_fd_limit:
         raise_nofile_limit()
-    graph = Graph(TypeRegistry(Dialect(dialect.value), interfaces or ()))
+    graph = Graph(TypeRegistry(dialect, interfaces or ()))
     authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
     access = AccessPolicy(
         topics=parse_glob_list(topics_glob),
