@@ -31,13 +31,14 @@ from urllib.parse import urlsplit
 import anyio
 from websockets.client import ClientProtocol
 from websockets.exceptions import InvalidURI
-from websockets.frames import Frame, Opcode
+from websockets.frames import Frame
 from websockets.http11 import Response
 from websockets.protocol import State
 from websockets.uri import parse_uri
 
 from rwt_protocol.errors import TransportError
 from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
+from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -129,11 +130,8 @@ class WebSocketConnection:
         self.url = url
         self._stream = stream
         self._protocol = protocol
-        self._limit = limit
         self._messages: deque[Frame_] = deque()
-        self._parts: list[bytes] = []
-        self._size = 0
-        self._binary = False
+        self._assembler = MessageAssembler(limit)
         self._write_lock = anyio.Lock()
 
     @classmethod
@@ -214,23 +212,18 @@ class WebSocketConnection:
         await self._stream.aclose()
 
     def _collect(self, event: object) -> None:
-        if not isinstance(event, Frame):
+        kind = FrameKind.of(event.opcode) if isinstance(event, Frame) else None
+        if kind is None:
             return
-        if event.opcode in (Opcode.TEXT, Opcode.BINARY):
-            self._parts, self._size = [], 0
-            self._binary = event.opcode is Opcode.BINARY
-        elif event.opcode is not Opcode.CONT:
-            return
-        self._parts.append(bytes(event.data))
-        self._size += len(event.data)
-        if self._size > self._limit:
+        assert isinstance(event, Frame)
+        try:
+            message = self._assembler.add(kind, event.data, fin=event.fin)
+        except MessageTooBigError:
             self._protocol.fail(1009, "message too big")
-            self._parts, self._size = [], 0
             return
-        if event.fin:
-            data = b"".join(self._parts)
-            self._parts, self._size = [], 0
-            self._messages.append(data if self._binary else data.decode("utf-8", "replace"))
+        if message is not None:
+            data = message.data
+            self._messages.append(data if message.binary else data.decode("utf-8", "replace"))
 
     async def _flush(self) -> None:
         async with self._write_lock:

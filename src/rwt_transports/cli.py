@@ -105,6 +105,7 @@ app = typer.Typer(
 # from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)
 LevelName = StrEnum("LevelName", [(level.name, level.wire) for level in StatusLevel])  # type: ignore[misc]
 
+
 class LogLevel(StrEnum):
     """Log levels as the CLI accepts them."""
 

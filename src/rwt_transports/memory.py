@@ -98,6 +98,7 @@ class MemoryConnection:
     async def aclose(self) -> None:
         """Close the client's end; the server sees the end of input."""
         self._send.close()
+        self._receive.close()
 
 
 def memory_pair() -> tuple[MemoryChannel, MemoryConnection]:

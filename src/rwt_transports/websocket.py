@@ -38,6 +38,7 @@ from websockets.protocol import State
 from websockets.server import ServerProtocol
 
 from rwt_protocol.framing import FramerEvent, InFrame
+from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.session import CloseCode, Session
 
 from .direct import DirectReader, DirectWriter
@@ -115,9 +116,7 @@ class WebSocketChannel:
         self._reader = DirectReader.for_stream(stream)
         self.frames: FrameReader | None = None
         """Reads whole messages ahead of websockets; set once the handshake allows it."""
-        self._parts: list[bytes] = []
-        self._size = 0
-        self._binary = False
+        self._messages = MessageAssembler(options.max_message_size)
         self._eof = False
         self._pong = anyio.Event()
         self._failed: str | None = None  # a text message was not UTF-8: read no more (1007)
@@ -325,22 +324,14 @@ class WebSocketChannel:
 
     def _assemble(self, frame: Frame) -> InFrame | None:
         """Collect fragmented data frames; return a whole message when complete."""
-        if frame.opcode in (Opcode.TEXT, Opcode.BINARY):
-            self._parts, self._size = [], 0
-            self._binary = frame.opcode is Opcode.BINARY
-        elif frame.opcode is not Opcode.CONT:
+        kind = FrameKind.of(frame.opcode)
+        if kind is None:
             return None
-        self._parts.append(bytes(frame.data))
-        self._size += len(frame.data)
-        if self._size > self.options.max_message_size:
-            self._parts, self._size = [], 0
+        try:
+            return self._messages.add(kind, frame.data, fin=frame.fin)
+        except MessageTooBigError:
             self.protocol.fail(int(CloseCode.MESSAGE_TOO_BIG), "message too big")
             return None
-        if not frame.fin:
-            return None
-        data = b"".join(self._parts)
-        self._parts, self._size = [], 0
-        return InFrame(data, binary=self._binary)
 
 
 def _make_protocol(options: WebSocketOptions) -> ServerProtocol:
