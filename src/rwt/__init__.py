@@ -24,14 +24,15 @@ from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from rwt_client import Action, Ros, Service, ServiceCallError, SyncRos, Topic
+    from rwt_client import Action, Ros, Service, SyncRos, Topic
     from rwt_graph.graph import Graph
-    from rwt_protocol.errors import RwtError
+    from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
     from rwt_transports.async_calls import GoalOutcome, call_service, send_action_goal
     from rwt_transports.server import RosbridgeServer, ServerConfig
 
 __all__ = [
     "Action",
+    "CallTimeoutError",
     "GoalOutcome",
     "Graph",
     "Ros",
@@ -49,6 +50,7 @@ __all__ = [
 
 _HOMES = {
     "Action": "rwt_client",
+    "CallTimeoutError": "rwt_protocol.errors",
     "Graph": "rwt_graph.graph",
     "GoalOutcome": "rwt_transports.async_calls",
     "Ros": "rwt_client",

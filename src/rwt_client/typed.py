@@ -11,9 +11,10 @@ from __future__ import annotations
 import copy
 import dataclasses
 from functools import cache
-from typing import Any, Protocol, Self
+from typing import TYPE_CHECKING, Any, Protocol, Self
 
-from rwt_graph.types import Dialect, TypeRegistry
+if TYPE_CHECKING:
+    from rwt_graph.types import TypeRegistry
 
 __all__ = ["MessageClass", "message_class", "to_wire"]
 
@@ -30,8 +31,11 @@ class MessageClass(Protocol):
 
 
 @cache
-def _default_registry(dialect: Dialect) -> TypeRegistry:
-    return TypeRegistry(dialect)
+def _default_registry() -> TypeRegistry:
+    # the definitions come from the graph's registry: the ``typed`` extra (rosbags)
+    from rwt_graph.types import Dialect, TypeRegistry  # noqa: PLC0415
+
+    return TypeRegistry(Dialect.ROS2)
 
 
 def message_class(type_name: str, registry: TypeRegistry | None = None) -> type[Any]:
@@ -43,8 +47,10 @@ def message_class(type_name: str, registry: TypeRegistry | None = None) -> type[
 
     Raises:
         InvalidTypeNameError, UnknownTypeError: as ``TypeRegistry.message``.
+        ModuleNotFoundError: the ``typed`` extra (``pip install "rwt[typed]"``) is
+            not installed.
     """
-    registry = registry or _default_registry(Dialect.ROS2)
+    registry = registry or _default_registry()
     msgtype = registry.message(type_name)
     defaults = msgtype.default()
     fields = [

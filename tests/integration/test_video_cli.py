@@ -80,6 +80,9 @@ def test_depthcloud_reaches_roslibpy_and_the_mjpeg_stream(
     finally:
         client.kill()
         client.wait()
+        for pipe in (client.stdin, client.stdout, client.stderr):
+            if pipe is not None:
+                pipe.close()
 
     # the Image message roslibpy received: lossless, within half a quantisation step
     tiles = np.frombuffer(out.read_bytes(), dtype=np.uint8).reshape(2 * TILE, 2 * TILE, 3)
