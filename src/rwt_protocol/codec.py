@@ -325,7 +325,7 @@ def _describe(error: ErrorDetails) -> str:
         return f"missing field at {path}"
     if kind in _EXPECTED:
         return f"expected {_EXPECTED[kind]}, got {json_type_name(got)} at {path}"
-    if kind == "literal_error":
+    if kind in ("literal_error", "enum"):
         expected = error.get("ctx", {}).get("expected", "")
         return f"expected one of {expected}, got {_short(repr(got))} at {path}"
     if kind in _BOUNDS:

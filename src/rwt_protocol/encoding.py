@@ -32,18 +32,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 from .codec import encode_json, encode_publish_json
 from .codec_cbor import encode_cbor
 from .fragments import fragment_frames, fresh_id
 from .ops import Png, Publish
+from .ops.base import Compression
 from .outbox import OutFrame
 from .png import encode_png
 from .ports import GoalStatus, MessageCodec, MessageEvent
-
-if TYPE_CHECKING:
-    from .ops.base import Compression
 
 __all__ = [
     "EncodeFailure",
@@ -169,7 +167,7 @@ def _typed(msg: Mapping[str, object], codec: MessageCodec | None) -> Mapping[str
 def encode_op_frames(
     message: Mapping[str, object],
     *,
-    compression: Compression = "none",
+    compression: Compression = Compression.NONE,
     fragment_size: int | None = None,
     codec: MessageCodec | None = None,
 ) -> Frames:
@@ -226,7 +224,7 @@ _REPLY_NAMES = {"service_response": "service", "action_result": "action"}
 def safe_op_frames(
     message: Mapping[str, object],
     *,
-    compression: Compression = "none",
+    compression: Compression = Compression.NONE,
     fragment_size: int | None = None,
     codec: MessageCodec | None = None,
 ) -> tuple[Frames, EncodeFailure | None]:

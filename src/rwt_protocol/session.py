@@ -42,6 +42,7 @@ from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .levels import StatusLevel
 from .ops import OpModel, PublishView, Status
+from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .roles import Role
 from .timers import Timer, TimerQueue
@@ -50,7 +51,6 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from .auth import Authenticator
-    from .ops.base import Compression
     from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
     from .subscriptions import TopicSubscription
 
@@ -417,7 +417,7 @@ class Session:
         self,
         message: dict[str, object],
         *,
-        compression: Compression = "none",
+        compression: Compression = Compression.NONE,
         fragment_size: int | None = None,
         codec: MessageCodec | None = None,
     ) -> None:

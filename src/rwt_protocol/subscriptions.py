@@ -29,16 +29,21 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from .ops.base import Compression
 from .timers import Timer
 
 if TYPE_CHECKING:
     from .ops import Subscribe
-    from .ops.base import Compression
     from .ports import MessageEvent
 
 __all__ = ["MergedParams", "TopicSubscription", "merge"]
 
-_STRENGTH: dict[Compression, int] = {"none": 0, "png": 1, "cbor": 2, "cbor-raw": 3}
+_STRENGTH: dict[Compression, int] = {
+    Compression.NONE: 0,
+    Compression.PNG: 1,
+    Compression.CBOR: 2,
+    Compression.CBOR_RAW: 3,
+}
 
 SubscriptionKey = str | int | None
 """A subscription id as sent, or None for a subscription without id."""
@@ -61,7 +66,7 @@ class MergedParams:
     throttle_rate_ms: int = 0
     queue_length: int = 0
     fragment_size: int | None = None
-    compression: Compression = "none"
+    compression: Compression = Compression.NONE
 
     @property
     def throttle_s(self) -> float:

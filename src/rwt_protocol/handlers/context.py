@@ -12,12 +12,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Protocol
 
+from ..ops.base import Compression
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from ..fragments import Reassembler
     from ..levels import StatusLevel
-    from ..ops.base import Compression
     from ..ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
     from ..subscriptions import TopicSubscription
     from ..timers import Timer
@@ -50,7 +51,7 @@ class HandlerContext(Protocol):
         self,
         message: dict[str, object],
         *,
-        compression: Compression = "none",
+        compression: Compression = Compression.NONE,
         fragment_size: int | None = None,
         codec: MessageCodec | None = None,
     ) -> None:

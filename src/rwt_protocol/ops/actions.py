@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from .base import Compression, FragmentSize, GraphName, Int64, MessageId, OpModel
+from .base import Compression, CompressionField, FragmentSize, GraphName, Int64, MessageId, OpModel
 
 __all__ = [
     "ActionFeedback",
@@ -46,7 +46,7 @@ class SendActionGoal(OpModel):
     id: MessageId | None = None
     feedback: bool = False
     fragment_size: FragmentSize | None = None
-    compression: Compression = "none"
+    compression: CompressionField = Compression.NONE
 
 
 class CancelActionGoal(OpModel):

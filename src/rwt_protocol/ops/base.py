@@ -8,8 +8,9 @@ client's business). Wire names are the spec's, verbatim.
 
 from __future__ import annotations
 
+from enum import StrEnum
 from functools import cache
-from typing import Annotated, Literal, NamedTuple
+from typing import Annotated, NamedTuple
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainValidator
 from pydantic_core import PydanticCustomError
@@ -22,6 +23,7 @@ __all__ = [
     "INT64_MIN",
     "CallName",
     "Compression",
+    "CompressionField",
     "FragmentSize",
     "GraphName",
     "Int64",
@@ -104,8 +106,19 @@ GraphName = Annotated[str, AfterValidator(_check_name)]
 CallName = Annotated[str, AfterValidator(_check_call_name)]
 """A ``call_service`` service name: a ``GraphName``, optionally followed by ``#id`` (D25)."""
 
-Compression = Literal["none", "png", "cbor", "cbor-raw"]
-"""The ``compression`` values of spec 3.3.4."""
+
+class Compression(StrEnum):
+    """The ``compression`` values of spec 3.3.4 (D20, D21)."""
+
+    NONE = "none"
+    PNG = "png"
+    CBOR = "cbor"
+    CBOR_RAW = "cbor-raw"
+
+
+CompressionField = Annotated[Compression, Field(strict=False)]
+"""A ``compression`` field: the wire's string becomes the enum (strict mode would
+want the enum itself); any other value is refused."""
 
 
 class OpModel(BaseModel):

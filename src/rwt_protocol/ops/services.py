@@ -7,7 +7,16 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from .base import CallName, Compression, FragmentSize, GraphName, MessageId, OpModel, Seconds
+from .base import (
+    CallName,
+    Compression,
+    CompressionField,
+    FragmentSize,
+    GraphName,
+    MessageId,
+    OpModel,
+    Seconds,
+)
 
 __all__ = ["AdvertiseService", "CallService", "ServiceResponse", "UnadvertiseService"]
 
@@ -42,7 +51,7 @@ class CallService(OpModel):
     args: Any = None
     id: MessageId | None = None
     fragment_size: FragmentSize | None = None
-    compression: Compression = "none"
+    compression: CompressionField = Compression.NONE
     type: str | None = None
     timeout: Seconds | None = None
 

@@ -8,6 +8,7 @@ from pydantic import Field
 
 from .base import (
     Compression,
+    CompressionField,
     FragmentSize,
     GraphName,
     MessageId,
@@ -69,7 +70,7 @@ class Subscribe(OpModel):
     throttle_rate: NonNegativeInt = 0
     queue_length: NonNegativeInt = 0
     fragment_size: FragmentSize | None = None
-    compression: Compression = "none"
+    compression: CompressionField = Compression.NONE
 
 
 class Unsubscribe(OpModel):
