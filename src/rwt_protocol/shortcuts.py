@@ -36,8 +36,10 @@ The shortcuts (name: what; module; benchmark; general path):
   ``rwt_protocol.codec.encode_publish_json``; B6 JSON, B5 JSON;
   ``encode_json`` of the whole op.
 - ``cbor-splice-encode``: large byte strings and typed arrays written between
-  cbor2-encoded heads with one copy; ``rwt_protocol.codec_cbor.encode_cbor``;
-  B4, B6 (4-7 ms for 4 MiB through cbor2); ``cbor2.dumps`` of the whole op.
+  cbor2-encoded heads with one copy (and cbor-raw's serialization kept as
+  rosbags' view for it, ``rwt_graph.types.wire``);
+  ``rwt_protocol.codec_cbor.encode_cbor``; B4, B6 (4-7 ms for 4 MiB through
+  cbor2); ``cbor2.dumps`` of the whole op.
 - ``cbor-splice-decode``: the first map levels of a large frame parsed here,
   large payloads taken as one slice or a numpy view
   (``rwt_protocol.codec_cbor._Splicer``); B4, B6 (2 ms for 4 MiB through
