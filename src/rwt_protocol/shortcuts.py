@@ -2,12 +2,12 @@
 
 A shortcut is a second, faster path beside a general one that does the same
 job: generated code, a second parser, a library's private internals. Each was
-kept because a benchmark (benchmarks/README.md, scenarios B1-B19) showed the
-gain, and each is checked against its general path by tests. The general path
-stays in the code, and the environment variable ``RWT_NO_SHORTCUTS`` selects
-it: to tell whether a bug is a shortcut's, to measure what a shortcut still
-buys, or to run on a library version whose internals changed. docs/shortcuts.md
-is the user's page.
+kept because a benchmark scenario (``B<n>``, docs/benchmarks.md; the measured
+gains are in benchmarks/README.md) showed the gain, and tests check each one
+against its general path. The general path stays in the code, and the
+environment variable ``RWT_NO_SHORTCUTS`` selects it: to tell whether a bug is
+a shortcut's, to measure what a shortcut still buys, or to run on a library
+version whose internals changed. docs/shortcuts.md is the user's page.
 
 ``RWT_NO_SHORTCUTS`` (read by ``switched_off``):
 
@@ -28,7 +28,7 @@ The shortcuts (name: what; module; benchmark; general path):
   ``rwt_graph.types.fastpath``; B14 (2.1 -> 0.67 us a small publish); the
   compiled field plan of ``rwt_graph.types.convert.compile_message``.
 - ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
-  pass (``PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
+  pass (``ops.wire.PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
   (pydantic was 8 % of B1); ``decode_json`` then ``parse_object`` (pydantic).
   Listed only, no switch yet: its call site belongs to the ops redesign.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
@@ -95,7 +95,7 @@ class Shortcut:
         name: the name ``RWT_NO_SHORTCUTS`` and ``enabled`` take.
         module: the dotted path of what implements it (a module's function or class).
         what: what it does instead of the general path.
-        benchmark: the scenarios (benchmarks/README.md) that justify it.
+        benchmark: the scenarios (docs/benchmarks.md) that justify it.
         fallback: the general path taken when it is off.
         switchable: whether ``RWT_NO_SHORTCUTS`` can turn it off yet.
     """
@@ -119,7 +119,7 @@ SHORTCUTS: tuple[Shortcut, ...] = (
     Shortcut(
         "publish-decode",
         "rwt_protocol.codec.decode_publish",
-        "a publish op decoded and checked by msgspec in one pass (ops.topics.PublishFrame)",
+        "a publish op decoded and checked by msgspec in one pass (ops.wire.PublishFrame)",
         "B14, B1",
         "rwt_protocol.codec.decode_json then parse_object (pydantic)",
         switchable=False,  # its call site belongs to the ops redesign

@@ -112,8 +112,11 @@ class DirectWriter:
 
     @classmethod
     def for_stream(cls, stream: object) -> DirectWriter | None:
-        """The direct writer of ``stream``; None when it is not a plain asyncio socket
-        or the ``direct-write`` shortcut is off."""
+        """The direct writer of ``stream``, or None.
+
+        None when ``stream`` is not a plain asyncio socket or the ``direct-write``
+        shortcut is off.
+        """
         parts = _asyncio_parts(stream) if enabled("direct-write") else None
         return None if parts is None else cls(*parts)
 
@@ -171,8 +174,11 @@ class DirectReader:
 
     @classmethod
     def for_stream(cls, stream: ByteReceiveStream) -> DirectReader | None:
-        """The direct reader of ``stream``; None when it is not a plain asyncio socket
-        or the ``direct-read`` shortcut is off."""
+        """The direct reader of ``stream``, or None.
+
+        None when ``stream`` is not a plain asyncio socket or the ``direct-read``
+        shortcut is off.
+        """
         parts = _asyncio_parts(stream) if enabled("direct-read") else None
         return None if parts is None else cls(stream, *parts)
 
