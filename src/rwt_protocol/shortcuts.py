@@ -30,7 +30,8 @@ The shortcuts (name: what; module; benchmark; general path):
 - ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
   pass (``ops.wire.PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
   (pydantic was 8 % of B1); ``decode_json`` then ``parse_object`` (pydantic).
-  Listed only, no switch yet: its call site belongs to the ops redesign.
+  Listed only, no switch yet: its call site (the session's publish path) was
+  left to the ops redesign.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
   by pybase64 and spliced in as ``msgspec.Raw``;
   ``rwt_protocol.codec.encode_publish_json``; B6 JSON, B5 JSON;
@@ -122,7 +123,7 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "a publish op decoded and checked by msgspec in one pass (ops.wire.PublishFrame)",
         "B14, B1",
         "rwt_protocol.codec.decode_json then parse_object (pydantic)",
-        switchable=False,  # its call site belongs to the ops redesign
+        switchable=False,  # its call site was left to the ops redesign
     ),
     Shortcut(
         "json-base64-splice",
