@@ -28,6 +28,7 @@ from .errors import RemoteProtocolError
 from .names import name_problem
 from .ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
 from .ops.base import INT64_MAX, INT64_MIN, json_type_name
+from .shortcuts import enabled
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Mapping
@@ -248,6 +249,8 @@ def encode_json(value: object) -> bytes:
 
 #: bytes at least this long are base64-encoded by pybase64 instead of msgspec.
 _LARGE_BYTES = 64 * 1024
+#: The ``json-base64-splice`` shortcut (shortcuts.py); off, msgspec encodes them too.
+_SPLICE_BASE64 = enabled("json-base64-splice")
 
 
 def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
@@ -257,9 +260,13 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
     with fewer copies of a large message: byte strings among the message's own
     fields (an image's or a point cloud's ``data``) of 64 KiB or more are
     base64-encoded by pybase64 (several times faster than msgspec's encoder,
-    B6) and spliced in as they are.
+    B6) and spliced in as they are (shortcut ``json-base64-splice``).
     """
-    large = [k for k, v in msg.items() if type(v) is bytes and len(v) >= _LARGE_BYTES]
+    large = (
+        [k for k, v in msg.items() if type(v) is bytes and len(v) >= _LARGE_BYTES]
+        if _SPLICE_BASE64
+        else None
+    )
     if large:
         ready = dict(msg)
         for key in large:

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 from .codec import MAX_NESTING, check_nesting, nesting_error
 from .errors import RemoteProtocolError
 from .ops.base import json_type_name
+from .shortcuts import enabled
 
 if TYPE_CHECKING:
     import cbor2
@@ -85,14 +86,15 @@ def encode_cbor(value: object) -> bytes:
     Byte strings and numeric arrays of 64 KiB or more within the op's first
     three map levels (an image's ``data`` in ``msg``, cbor-raw's ``bytes``) are
     spliced into the frame with one copy; cbor2 copies such a payload several
-    times (4 ms for 4 MiB, B4). The bytes are the same either way.
+    times (4 ms for 4 MiB, B4). The bytes are the same either way (shortcut
+    ``cbor-splice-encode``; off, cbor2 encodes the whole op).
 
     Raises:
         TypeError: a value has no CBOR form (a bug in the caller).
     """
     import cbor2  # noqa: PLC0415 - loaded on first use: JSON-only servers never need it
 
-    if _has_blob(value, 0):
+    if _SPLICE_ENCODE and _has_blob(value, 0):
         return b"".join(_map_parts(value, 0))  # type: ignore[arg-type]
     return cbor2.dumps(value, default=_encode_array)
 
@@ -100,6 +102,9 @@ def encode_cbor(value: object) -> bytes:
 #: Byte strings and typed arrays at least this long are spliced (see ``encode_cbor``).
 _LARGE = 64 * 1024
 _MAP_LEVELS = 3
+#: The shortcuts of this module (shortcuts.py), chosen once at import.
+_SPLICE_ENCODE = enabled("cbor-splice-encode")
+_SPLICE_DECODE = enabled("cbor-splice-decode")
 
 
 def _head(major: int, length: int) -> bytes:
@@ -235,7 +240,7 @@ def decode_cbor(frame: bytes, *, typed_arrays: bool = False) -> object:
             max_depth=MAX_NESTING,  # cbor2 counts levels as check_nesting does
             semantic_decoders=_SEMANTIC,
         )
-        if len(frame) >= _LARGE:
+        if _SPLICE_DECODE and len(frame) >= _LARGE:
             try:
                 value = _Splicer(frame, decoder, stream, typed_arrays).whole()
             except _NotSpliced:
@@ -268,7 +273,8 @@ class _Splicer:
     against lengths that lie), 2 ms for 4 MiB; here the length is checked
     against the frame and the payload is one slice: a copy for a byte string,
     a read-only numpy view for a typed array (B4, B6). Every
-    other item is decoded by cbor2, so values are the same either way.
+    other item is decoded by cbor2, so values are the same either way
+    (shortcut ``cbor-splice-decode``).
     """
 
     def __init__(self, frame: bytes, decoder: cbor2.CBORDecoder, stream: io.BytesIO, typed: bool):

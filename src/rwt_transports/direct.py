@@ -15,7 +15,9 @@ reading on while the pump waits for input and takes what has arrived at once.
 
 Only plain sockets on the asyncio backend (the default loop or uvloop) qualify:
 a TLS stream encrypts in anyio and must be read and written through it, and
-other backends have no transport; those always use anyio's stream.
+other backends have no transport; those always use anyio's stream. Both are
+shortcuts (``direct-read``, ``direct-write``: rwt_protocol/shortcuts.py); with
+one switched off, ``for_stream`` gives None and anyio's stream is used.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ if TYPE_CHECKING:
     from collections import deque
 
     from anyio.abc import ByteReceiveStream
+
+from rwt_protocol.shortcuts import enabled
 
 __all__ = ["DirectReader", "DirectWriter"]
 
@@ -108,8 +112,12 @@ class DirectWriter:
 
     @classmethod
     def for_stream(cls, stream: object) -> DirectWriter | None:
-        """The direct writer of ``stream``, or None when it is not a plain asyncio socket."""
-        parts = _asyncio_parts(stream)
+        """The direct writer of ``stream``, or None.
+
+        None when ``stream`` is not a plain asyncio socket or the ``direct-write``
+        shortcut is off.
+        """
+        parts = _asyncio_parts(stream) if enabled("direct-write") else None
         return None if parts is None else cls(*parts)
 
     @property
@@ -166,8 +174,12 @@ class DirectReader:
 
     @classmethod
     def for_stream(cls, stream: ByteReceiveStream) -> DirectReader | None:
-        """The direct reader of ``stream``, or None when it is not a plain asyncio socket."""
-        parts = _asyncio_parts(stream)
+        """The direct reader of ``stream``, or None.
+
+        None when ``stream`` is not a plain asyncio socket or the ``direct-read``
+        shortcut is off.
+        """
+        parts = _asyncio_parts(stream) if enabled("direct-read") else None
         return None if parts is None else cls(stream, *parts)
 
     async def receive(self, max_bytes: int) -> bytes:

@@ -13,7 +13,9 @@ transports), in three tasks per connection:
   is written without it: at the end of the reader's batch that published
   (``flush_deferred``), one write per connection, so a message to ten idle
   subscribers costs no task switch. Whatever the socket cannot take
-  at once is left to the writer, so frames keep their order either way;
+  at once is left to the writer, so frames keep their order either way.
+  This is the ``deferred-send`` shortcut (rwt_protocol/shortcuts.py): off,
+  every output wakes the writer;
 - the timer task calls ``Session.handle_timer`` when ``get_timer`` says, even
   while the writer is stuck on a peer that does not read: that is how the send
   timeout (D24) can close a stalled connection. If the writer cannot even get
@@ -51,6 +53,7 @@ from rwt_protocol.framing import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, CloseConnection, Session
+from rwt_protocol.shortcuts import enabled
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -210,8 +213,11 @@ _deferred = _Deferred()
 def _clock() -> Callable[[], float]:
     """The event loop's clock, as ``anyio.current_time`` reads it, without its lookups.
 
-    On asyncio (and uvloop) that is ``loop.time``; other backends keep anyio's.
+    On asyncio (and uvloop) that is ``loop.time``; other backends, and the
+    ``loop-clock`` shortcut switched off, keep anyio's.
     """
+    if not enabled("loop-clock"):
+        return anyio.current_time
     try:
         return asyncio.get_running_loop().time
     except RuntimeError:
@@ -255,7 +261,10 @@ class ConnectionPump:
         self._writer_closed = anyio.Event()
         self._session: Session | None = None
         self._timer_deadline: float | None = None
-        self._direct = channel if isinstance(channel, DirectChannel) else None
+        # The ``deferred-send`` shortcut: off, the pump never writes from the publish path.
+        self._direct = (
+            channel if isinstance(channel, DirectChannel) and enabled("deferred-send") else None
+        )
         self._writer_idle = False  # waiting for a wake-up, holding no frames
         self._deferred = False  # in the list of ``flush_deferred``
         self._pausable = channel if isinstance(channel, PausableChannel) else None

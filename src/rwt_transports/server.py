@@ -49,6 +49,7 @@ from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
 from rwt_protocol.errors import RwtError
 from rwt_protocol.session import CloseCode, Session, SessionConfig
+from rwt_protocol.shortcuts import switched_off
 
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .memory import MemoryConnection, memory_pair
@@ -251,6 +252,9 @@ class RosbridgeServer:
         if self._limit is None:
             self._limit = default_max_connections()
         logger.info("event=max_connections limit=%s", self._limit)
+        off = switched_off()
+        if off:  # a slower server than the benchmarks measured: say so once
+            logger.info("event=shortcuts_off names=%s", ",".join(sorted(off)))
         async with AsyncExitStack() as stack:
             runners = await self._open_listeners(stack)
             for url in self.urls.values():

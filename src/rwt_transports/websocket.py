@@ -5,11 +5,13 @@ parsing and framing without I/O, so the connection pump (pump.py) can drive it
 like every other transport: a single writer per connection draining the
 session's bounded outbox (D24), frames written without a per-subscriber await
 in the publish path, the same code over plain TCP or TLS streams (wss), and
-anyio's structured cancellation for shutdown. Two shortcuts (for the benchmarks), each
-falling back to websockets: whole data frames are read ahead of its parser
-(wsread.py) unless permessage-deflate is on or the client sent frames with its
-upgrade request, and a plain socket is read and written through its asyncio
-transport (direct.py).
+anyio's structured cancellation for shutdown. Shortcuts (for the benchmarks;
+listed, with their switch, in rwt_protocol/shortcuts.py), each falling back to
+websockets or anyio: whole data frames are read ahead of its parser (wsread.py,
+``ws-frame-reader``) unless permessage-deflate is on or the client sent frames
+with its upgrade request; data frames are framed here (``ws-frame-writer``)
+unless permessage-deflate is on; and a plain socket is read and written
+through its asyncio transport (direct.py).
 
 Text frames carry JSON, binary frames CBOR (D27). permessage-deflate is off
 unless enabled (D30: Node's ``ws`` offers it; we decline). Incoming messages are
@@ -40,6 +42,7 @@ from websockets.server import ServerProtocol
 from rwt_protocol.framing import FramerEvent, InFrame
 from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.session import CloseCode, Session
+from rwt_protocol.shortcuts import enabled
 
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
@@ -114,6 +117,8 @@ class WebSocketChannel:
         self._lock = anyio.Lock(fast_acquire=True)
         self._direct = DirectWriter.for_stream(stream)
         self._reader = DirectReader.for_stream(stream)
+        # ``ws-frame-writer``: off, websockets frames every data message.
+        self._frame_here = enabled("ws-frame-writer")
         self.frames: FrameReader | None = None
         """Reads whole messages ahead of websockets; set once the handshake allows it."""
         self._messages = MessageAssembler(options.max_message_size)
@@ -216,11 +221,11 @@ class WebSocketChannel:
         Without permessage-deflate, frames are framed here: the header is made
         once and kept on the ``OutFrame``, which every subscriber of the same
         form shares (encode once, frame once), and a batch of small
-        frames goes out in one write. With deflate, websockets frames each
-        message.
+        frames goes out in one write. With deflate, or the ``ws-frame-writer``
+        shortcut off, websockets frames each message.
         """
         async with self._lock:
-            if self.protocol.extensions:
+            if self.protocol.extensions or not self._frame_here:
                 self._send_through_protocol(frames)
                 await self._flush_locked()
                 return
@@ -252,12 +257,17 @@ class WebSocketChannel:
 
         Raises:
             RuntimeError: the transport refused the bytes (it started closing).
+            anyio.ClosedResourceError: websockets refused to frame them (closing).
         """
         direct = self._direct
         if direct is None:
             raise RuntimeError("not a plain socket: send through the writer")
-        chunks = [data for data in self.protocol.data_to_send() if data]
-        chunks += _framed(frames)
+        if self._frame_here:
+            chunks = [data for data in self.protocol.data_to_send() if data]
+            chunks += _framed(frames)
+        else:  # queued behind the control frames, as ``send`` does
+            self._send_through_protocol(frames)
+            chunks = [data for data in self.protocol.data_to_send() if data]
         for chunk in chunks:
             direct.write(chunk)
 
@@ -413,7 +423,8 @@ async def serve_websocket_connection(
         else:
             response = protocol.accept(request)
         protocol.send_response(response)
-        if at_frame_start and not protocol.extensions:  # deflate's frames are websockets' to read
+        # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
+        if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
             channel.frames = FrameReader(options.max_message_size)
         try:
             await channel.flush()

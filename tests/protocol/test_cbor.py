@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from rwt_protocol import codec_cbor
 from rwt_protocol.codec_cbor import TYPED_ARRAY_TAGS, decode_cbor, encode_cbor
 from rwt_protocol.errors import RemoteProtocolError
 
@@ -102,6 +103,13 @@ def test_bad_cbor_is_a_remote_error(frame: bytes, text: str) -> None:
         decode_cbor(frame)
 
 
+@pytest.fixture
+def splicing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The splicer on whatever ``RWT_NO_SHORTCUTS`` says: these tests compare it with cbor2."""
+    monkeypatch.setattr(codec_cbor, "_SPLICE_ENCODE", True)
+    monkeypatch.setattr(codec_cbor, "_SPLICE_DECODE", True)
+
+
 def _plain(value: object) -> bytes:
     """What cbor2 makes of an op on its own (the reference for spliced frames)."""
     from rwt_protocol.codec_cbor import _encode_array  # noqa: PLC0415
@@ -109,6 +117,7 @@ def _plain(value: object) -> bytes:
     return cbor2.dumps(value, default=_encode_array)
 
 
+@pytest.mark.usefixtures("splicing")
 @pytest.mark.parametrize("size", [65535, 65536, 70000, 2**24 + 3])
 @pytest.mark.parametrize("dtype", ["uint8", "int8", ">i4", "<f4", "float64", "uint64"])
 def test_large_payloads_are_spliced_into_the_same_bytes(size: int, dtype: str) -> None:
@@ -125,11 +134,13 @@ def test_large_payloads_are_spliced_into_the_same_bytes(size: int, dtype: str) -
     assert decoded["msg"]["raw"] == bytes(size)  # type: ignore[index]
 
 
+@pytest.mark.usefixtures("splicing")
 def test_payloads_deeper_than_the_splice_levels_are_encoded_too() -> None:
     op = {"op": "publish", "msg": {"a": {"b": {"data": bytes(70000)}}, "blob": bytes(70000)}}
     assert encode_cbor(op) == _plain(op)
 
 
+@pytest.mark.usefixtures("splicing")
 @pytest.mark.parametrize("typed", [True, False])
 @pytest.mark.parametrize("dtype", ["uint8", "int8", ">i4", "<f4", "float64"])
 def test_large_frames_decode_alike_through_the_splicer(typed: bool, dtype: str) -> None:
@@ -148,6 +159,7 @@ def test_large_frames_decode_alike_through_the_splicer(typed: bool, dtype: str) 
     assert np.array_equal(np.asarray(data), array)
 
 
+@pytest.mark.usefixtures("splicing")
 @pytest.mark.parametrize(
     ("frame", "text"),
     [
@@ -162,6 +174,7 @@ def test_large_bad_frames_are_refused(frame: bytes, text: str) -> None:
         decode_cbor(frame, typed_arrays=True)
 
 
+@pytest.mark.usefixtures("splicing")
 def test_a_large_byte_view_is_spliced_as_a_byte_string() -> None:
     data = bytes(range(256)) * 300
     view = memoryview(bytearray(data)).toreadonly()  # what rosbags' serializer returns

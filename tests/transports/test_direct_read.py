@@ -20,6 +20,7 @@ import anyio.to_thread
 import pytest
 from anyio.abc import SocketAttribute
 
+from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.direct import DirectReader
 from rwt_transports.server import ServerConfig
 from tests.transports.clients import running_server
@@ -105,9 +106,12 @@ def _hello_then_flood(port: int, go: threading.Event) -> int:
         sock.close()
 
 
-async def test_pause_holds_the_peer_back_after_an_early_first_read() -> None:
+async def test_pause_holds_the_peer_back_after_an_early_first_read(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """anyio's ``receive`` leaves reading on when the bytes were queued before it was
     called (a handshake that arrived at once); ``pause`` must still stop reading."""
+    monkeypatch.delenv(ENV_VAR, raising=False)  # the direct reader itself, whatever the switch
     go = threading.Event()
     async with await anyio.create_tcp_listener(local_host="127.0.0.1") as listener:
         port = listener.extra(SocketAttribute.local_port)

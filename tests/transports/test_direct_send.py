@@ -4,7 +4,9 @@ While a connection's writer is idle and its socket has nothing buffered, the
 pump writes a publish's frames at once (``send_now``); otherwise the writer task
 sends them. A subscriber must see every message in publish order whichever way
 each went, on the default loop and on uvloop, over WebSocket and TCP; a TLS
-stream always goes through the writer.
+stream always goes through the writer. These are the ``direct-write`` and
+``deferred-send`` shortcuts (rwt_protocol.shortcuts): the tests turn them on
+whatever ``RWT_NO_SHORTCUTS`` says (connections choose when they are made).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import trustme
 from rwt_graph.graph import Graph
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, Session, SessionConfig
+from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.pump import ConnectionPump, flush_deferred
 from rwt_transports.server import ServerConfig
 from rwt_transports.tcp import StreamChannel
@@ -41,6 +44,11 @@ BURST = 128  # 32 MiB: more than the kernel takes without the peer reading
 )
 def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
     return "asyncio", request.param
+
+
+@pytest.fixture(autouse=True)
+def shortcuts_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(ENV_VAR, raising=False)
 
 
 @pytest.fixture

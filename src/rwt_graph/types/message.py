@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
 from rwt_protocol.errors import FieldError
+from rwt_protocol.shortcuts import enabled
 
 from .convert import Context, ConvertFn, DefaultFn, compile_message, is_header, is_time_type
 from .fastpath import FastFn, compile_fast
@@ -82,8 +83,9 @@ class MessageType:
         self._compiled: tuple[ConvertFn, DefaultFn] | None = None
         self._convert: ConvertFn | None = None
         #: ``fast(value)``: the internal form of a complete, well-typed value, else
-        #: None (see ``fastpath``); compiled on the first call.
-        self.fast: FastFn = self._first_fast
+        #: None (see ``fastpath``); compiled on the first call. With the shortcut
+        #: off (``RWT_NO_SHORTCUTS``) always None: every value takes the general path.
+        self.fast: FastFn = self._first_fast if enabled("generated-converters") else _no_fast
         self._has_header: bool | None = None
 
     def __repr__(self) -> str:

@@ -16,6 +16,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
+from rwt_protocol.shortcuts import enabled
+
 from .convert import is_time_type
 from .names import Dialect
 from .primitives import NUMPY_DTYPES
@@ -30,6 +32,9 @@ __all__ = ["WireCodec", "compile_typed"]
 
 Msg = Mapping[str, object]
 _LARGE_VIEW = 64 * 1024
+#: The view is for the ``cbor-splice-encode`` shortcut only: cbor2 would write a
+#: memoryview as an array of integers, so without the splicer it gets bytes.
+_KEEP_VIEW = enabled("cbor-splice-encode")
 Typer = Callable[[Msg], Msg]
 
 
@@ -116,7 +121,8 @@ class WireCodec:
 
         Returns:
             The bytes; from 64 KiB on, rosbags' read-only view of its own fresh
-            buffer, which the CBOR encoder splices without a copy (B4).
+            buffer, which the CBOR encoder splices without a copy (B4), unless
+            that shortcut (``cbor-splice-encode``) is off.
 
         Raises:
             KeyError: the typestore lacks the type (a definition that failed to load).
@@ -128,4 +134,4 @@ class WireCodec:
             raw = store.serialize_ros1(obj, name)
         else:
             raw = store.serialize_cdr(obj, name)
-        return raw if len(raw) >= _LARGE_VIEW else bytes(raw)
+        return raw if _KEEP_VIEW and len(raw) >= _LARGE_VIEW else bytes(raw)

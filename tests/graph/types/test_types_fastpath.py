@@ -1,4 +1,9 @@
-"""The generated fast converter agrees with the general one, or steps aside (benchmarks B14)."""
+"""The generated fast converter agrees with the general one, or steps aside (benchmarks B14).
+
+It is the ``generated-converters`` shortcut (rwt_protocol.shortcuts): these
+tests build their registries with it on whatever ``RWT_NO_SHORTCUTS`` says, so
+that a run without shortcuts still compares it with the general path.
+"""
 
 from __future__ import annotations
 
@@ -6,10 +11,35 @@ import math
 
 import msgspec
 import pytest
-from types_support import NOW
+from types_support import DATA, NOW
 
-from rwt_graph.types import TypeRegistry
+from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.convert import Context
+from rwt_graph.types.message import _no_fast
+from rwt_protocol.shortcuts import ENV_VAR
+
+
+def _registry(dialect: Dialect, switch: str | None) -> TypeRegistry:
+    """A registry whose every message type was built with ``RWT_NO_SHORTCUTS=switch``."""
+    with pytest.MonkeyPatch.context() as patch:
+        if switch is None:
+            patch.delenv(ENV_VAR, raising=False)
+        else:
+            patch.setenv(ENV_VAR, switch)
+        registry = TypeRegistry(dialect, [DATA])
+        for name in registry.message_names():  # types choose when built: build them all now
+            registry.message(name).fast_converter()
+    return registry
+
+
+@pytest.fixture(scope="module")
+def ros2() -> TypeRegistry:
+    return _registry(Dialect.ROS2, None)
+
+
+@pytest.fixture(scope="module")
+def ros1() -> TypeRegistry:
+    return _registry(Dialect.ROS1, None)
 
 
 def _general(registry: TypeRegistry, name: str, value: object) -> tuple[object, list[str]]:
@@ -114,3 +144,14 @@ def test_ros1_times_use_the_ros1_keys(ros1: TypeRegistry) -> None:
     value = {"seq": 3, "stamp": {"secs": 4, "nsecs": 5}, "frame_id": "base"}
     assert header.fast(value) == value
     assert header.fast({"seq": 3, "stamp": {"sec": 4, "nanosec": 5}, "frame_id": "b"}) is None
+
+
+@pytest.mark.parametrize("dialect", [Dialect.ROS2, Dialect.ROS1])
+def test_switched_off_every_type_takes_the_general_path_alike(dialect: Dialect) -> None:
+    without = _registry(dialect, "generated-converters")
+    with_fast = _registry(dialect, None)
+    for name in without.message_names():
+        mtype = without.message(name)
+        assert mtype.fast is _no_fast and mtype.fast_converter() is None, name
+        value = msgspec.json.decode(msgspec.json.encode(mtype.default(now=NOW)))
+        assert mtype.from_json(value, now=NOW) == with_fast.message(name).from_json(value, now=NOW)

@@ -1,0 +1,254 @@
+"""The performance shortcuts, listed in one place, and the one switch that turns them off.
+
+A shortcut is a second, faster path beside a general one that does the same
+job: generated code, a second parser, a library's private internals. Each was
+kept because a benchmark scenario (``B<n>``, docs/benchmarks.md; the measured
+gains are in benchmarks/README.md) showed the gain, and tests check each one
+against its general path. The general path stays in the code, and the
+environment variable ``RWT_NO_SHORTCUTS`` selects it: to tell whether a bug is
+a shortcut's, to measure what a shortcut still buys, or to run on a library
+version whose internals changed. docs/shortcuts.md is the user's page.
+
+``RWT_NO_SHORTCUTS`` (read by ``switched_off``):
+
+- unset, empty or ``0``: every shortcut on;
+- ``1`` or ``all``: every shortcut that has a switch off;
+- ``name1,name2``: those off (unknown names are an error, not ignored, so a
+  misspelt name cannot leave a shortcut on unnoticed).
+
+Each call site asks ``enabled(name)`` once, when its module is imported or
+its object built (a connection's channel or pump, a message type), never per
+message. Set the variable before the process starts: a module imported
+earlier keeps the choice it made.
+
+The shortcuts (name: what; module; benchmark; general path):
+
+- ``generated-converters``: a converter per message type generated as Python
+  source and compiled (``exec``) for complete, well-typed values;
+  ``rwt_graph.types.fastpath``; B14 (2.1 -> 0.67 us a small publish); the
+  compiled field plan of ``rwt_graph.types.convert.compile_message``.
+- ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
+  pass (``ops.wire.PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
+  (pydantic was 8 % of B1); ``decode_json`` then ``parse_object`` (pydantic).
+  Listed only, no switch yet: its call site (the session's publish path) was
+  left to the ops redesign.
+- ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
+  by pybase64 and spliced in as ``msgspec.Raw``;
+  ``rwt_protocol.codec.encode_publish_json``; B6 JSON, B5 JSON;
+  ``encode_json`` of the whole op.
+- ``cbor-splice-encode``: large byte strings and typed arrays written between
+  cbor2-encoded heads with one copy (and cbor-raw's serialization kept as
+  rosbags' view for it, ``rwt_graph.types.wire``);
+  ``rwt_protocol.codec_cbor.encode_cbor``; B4, B6 (4-7 ms for 4 MiB through
+  cbor2); ``cbor2.dumps`` of the whole op.
+- ``cbor-splice-decode``: the first map levels of a large frame parsed here,
+  large payloads taken as one slice or a numpy view
+  (``rwt_protocol.codec_cbor._Splicer``); B4, B6 (2 ms for 4 MiB through
+  cbor2); cbor2's decoder on the whole frame.
+- ``ws-frame-reader``: whole client data frames cut and unmasked before
+  websockets' parser; ``rwt_transports.wsread.FrameReader``; B6 (CBOR 7.05 ->
+  5.79 ms a cloud), B1 (55 k -> 85 k msg/s); websockets'
+  ``ServerProtocol.receive_data`` on every byte.
+- ``ws-frame-writer``: server data frames framed by rwt, each header made once
+  for all subscribers, small frames joined into one write;
+  ``rwt_transports.websocket``; B1, B2; websockets' ``send_text`` and
+  ``send_binary`` per frame.
+- ``direct-read``: anyio's read queue taken from its asyncio protocol without
+  pausing and resuming the socket per chunk (private anyio attributes);
+  ``rwt_transports.direct.DirectReader``; B6 (100 Hz Twist: -15 % CPU);
+  anyio's ``SocketStream.receive``.
+- ``direct-write``: bytes handed to the asyncio transport under anyio's stream
+  without awaiting (private anyio attributes);
+  ``rwt_transports.direct.DirectWriter``; B7, B2; anyio's
+  ``SocketStream.send`` from the connection's writer task.
+- ``deferred-send``: an idle connection's frames written at the end of the
+  reader's batch, one write per connection, from a thread-local list
+  (``flush_deferred``); ``rwt_transports.pump``; B7 (latency), B2 (fan-out);
+  waking the connection's writer task for each output.
+- ``loop-clock``: the pump reads ``loop.time`` itself, the value
+  ``anyio.current_time`` returns on asyncio; ``rwt_transports.pump``; B6
+  (5 % of the 100 Hz Twist's samples); ``anyio.current_time``.
+
+Reading the environment is not I/O in the sense of this package's rule (no
+sockets, files, clocks or threads): it is the process's configuration.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from dataclasses import dataclass
+
+__all__ = ["ENV_VAR", "SHORTCUTS", "Shortcut", "enabled", "report", "switched_off"]
+
+ENV_VAR = "RWT_NO_SHORTCUTS"
+"""The environment variable that switches shortcuts off (see the module docstring)."""
+
+_ALL = ("1", "all")
+_NONE = ("", "0")
+
+
+@dataclass(frozen=True, slots=True)
+class Shortcut:
+    """One performance shortcut.
+
+    Attributes:
+        name: the name ``RWT_NO_SHORTCUTS`` and ``enabled`` take.
+        module: the dotted path of what implements it (a module's function or class).
+        what: what it does instead of the general path.
+        benchmark: the scenarios (docs/benchmarks.md) that justify it.
+        fallback: the general path taken when it is off.
+        switchable: whether ``RWT_NO_SHORTCUTS`` can turn it off yet.
+    """
+
+    name: str
+    module: str
+    what: str
+    benchmark: str
+    fallback: str
+    switchable: bool = True
+
+
+SHORTCUTS: tuple[Shortcut, ...] = (
+    Shortcut(
+        "generated-converters",
+        "rwt_graph.types.fastpath.compile_fast",
+        "a converter per message type, generated Python source, for complete well-typed values",
+        "B14",
+        "rwt_graph.types.convert.compile_message (MessageType.from_json's general path)",
+    ),
+    Shortcut(
+        "publish-decode",
+        "rwt_protocol.codec.decode_publish",
+        "a publish op decoded and checked by msgspec in one pass (ops.wire.PublishFrame)",
+        "B14, B1",
+        "rwt_protocol.codec.decode_json then parse_object (pydantic)",
+        switchable=False,  # its call site was left to the ops redesign
+    ),
+    Shortcut(
+        "json-base64-splice",
+        "rwt_protocol.codec.encode_publish_json",
+        "large byte strings base64-encoded by pybase64, spliced in as msgspec.Raw",
+        "B6, B5 (JSON)",
+        "rwt_protocol.codec.encode_json of the whole op",
+    ),
+    Shortcut(
+        "cbor-splice-encode",
+        "rwt_protocol.codec_cbor.encode_cbor",
+        "large byte strings and typed arrays written between cbor2 heads, one copy",
+        "B4, B6 (CBOR)",
+        "cbor2.dumps of the whole op",
+    ),
+    Shortcut(
+        "cbor-splice-decode",
+        "rwt_protocol.codec_cbor._Splicer",
+        "a large frame's first map levels parsed here, payloads as one slice or a numpy view",
+        "B4, B6 (CBOR)",
+        "cbor2.CBORDecoder on the whole frame",
+    ),
+    Shortcut(
+        "ws-frame-reader",
+        "rwt_transports.wsread.FrameReader",
+        "whole client data frames cut and unmasked ahead of websockets' parser",
+        "B6, B1, B2",
+        "websockets' ServerProtocol.receive_data on every byte",
+    ),
+    Shortcut(
+        "ws-frame-writer",
+        "rwt_transports.websocket._framed",
+        "server data frames framed once for all subscribers, small ones joined in one write",
+        "B1, B2",
+        "websockets' ServerProtocol.send_text / send_binary per frame",
+    ),
+    Shortcut(
+        "direct-read",
+        "rwt_transports.direct.DirectReader",
+        "anyio's read queue taken without pausing the socket per chunk (private attributes)",
+        "B6 (100 Hz Twist)",
+        "anyio SocketStream.receive",
+    ),
+    Shortcut(
+        "direct-write",
+        "rwt_transports.direct.DirectWriter",
+        "bytes handed to the asyncio transport under anyio's stream without awaiting",
+        "B7, B2",
+        "anyio SocketStream.send from the connection's writer task",
+    ),
+    Shortcut(
+        "deferred-send",
+        "rwt_transports.pump.flush_deferred",
+        "an idle connection written at the end of the reader's batch (thread-local list)",
+        "B7, B2",
+        "waking the connection's writer task (ConnectionPump._writer)",
+    ),
+    Shortcut(
+        "loop-clock",
+        "rwt_transports.pump._clock",
+        "the event loop's time read directly, as anyio.current_time does on asyncio",
+        "B6 (100 Hz Twist)",
+        "anyio.current_time",
+    ),
+)
+"""Every shortcut, in the order of a message's way from decoding to the socket."""
+
+_BY_NAME = {shortcut.name: shortcut for shortcut in SHORTCUTS}
+
+
+def switched_off(value: str | None = None) -> frozenset[str]:
+    """The names of the shortcuts that ``RWT_NO_SHORTCUTS`` turns off.
+
+    Args:
+        value: the variable's value; None reads the environment.
+
+    Raises:
+        ValueError: the value names a shortcut that does not exist or has no
+            switch (a typo must not leave the shortcut on unnoticed).
+    """
+    return _parse(os.environ.get(ENV_VAR, "") if value is None else value)
+
+
+@functools.lru_cache(maxsize=8)  # asked once per connection: parse each value once
+def _parse(value: str) -> frozenset[str]:
+    value = value.strip()
+    if value.lower() in _NONE:
+        return frozenset()
+    if value.lower() in _ALL:
+        return frozenset(s.name for s in SHORTCUTS if s.switchable)
+    names = frozenset(part.strip() for part in value.split(",") if part.strip())
+    for name in sorted(names):
+        shortcut = _BY_NAME.get(name)
+        if shortcut is None:
+            known = ", ".join(s.name for s in SHORTCUTS if s.switchable)
+            raise ValueError(f"{ENV_VAR}: no shortcut named {name!r} (known: {known})")
+        if not shortcut.switchable:
+            raise ValueError(f"{ENV_VAR}: {name!r} has no switch yet (docs/shortcuts.md)")
+    return names
+
+
+def enabled(name: str) -> bool:
+    """Whether the shortcut ``name`` is on in this process's environment.
+
+    Call it once per module import or object construction, not per message.
+
+    Raises:
+        KeyError: no shortcut has that name (a bug at the call site).
+        ValueError: ``RWT_NO_SHORTCUTS`` is invalid (see ``switched_off``).
+    """
+    if name not in _BY_NAME:
+        raise KeyError(name)
+    return name not in switched_off()
+
+
+def report(value: str | None = None) -> str:
+    """A text table of every shortcut, whether it is on, and its benchmark and fallback.
+
+    Args:
+        value: a ``RWT_NO_SHORTCUTS`` value; None reads the environment.
+    """
+    off = switched_off(value)
+    width = max(len(s.name) for s in SHORTCUTS)
+    lines = []
+    for s in SHORTCUTS:
+        state = "off" if s.name in off else ("on" if s.switchable else "on (no switch)")
+        lines.append(f"{s.name:<{width}}  {state:<14}  {s.benchmark:<17}  fallback: {s.fallback}")
+    return "\n".join(lines)

@@ -1,0 +1,258 @@
+"""The list of performance shortcuts and its switch; the codecs' shortcuts against the general path.
+
+rwt_protocol.shortcuts is the one place that lists them (docs/shortcuts.md is
+its page); ``RWT_NO_SHORTCUTS`` switches them off. The JSON and CBOR encoders'
+shortcuts must give the bytes, and the CBOR decoder's the values, that the
+general path gives. tests/transports/test_shortcuts_switch.py checks a whole
+server.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import cbor2
+import numpy as np
+import pytest
+
+from rwt_protocol import codec, codec_cbor, shortcuts
+from rwt_protocol.codec import encode_publish_json
+from rwt_protocol.codec_cbor import decode_cbor, encode_cbor
+from rwt_protocol.errors import RemoteProtocolError
+from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS, enabled, report, switched_off
+
+REPO = Path(__file__).resolve().parents[2]
+NAMES = [s.name for s in SHORTCUTS]
+SWITCHABLE = frozenset(s.name for s in SHORTCUTS if s.switchable)
+
+
+def _resolve(path: str) -> object:
+    """The object at a dotted path: the longest importable module, then attributes."""
+    parts = path.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            found: object = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        for name in parts[cut:]:
+            found = getattr(found, name)
+        return found
+    raise ImportError(path)
+
+
+def test_every_shortcut_names_code_that_exists_and_a_benchmark() -> None:
+    assert len(set(NAMES)) == len(NAMES)
+    scenarios = (REPO / "docs" / "benchmarks.md").read_text()
+    for shortcut in SHORTCUTS:
+        assert re.fullmatch(r"[a-z0-9]+(-[a-z0-9]+)*", shortcut.name)
+        assert callable(_resolve(shortcut.module)), shortcut.module
+        ids = re.findall(r"B\d+", shortcut.benchmark)
+        assert ids, shortcut.name
+        for scenario in ids:
+            assert f"| {scenario} |" in scenarios, scenario
+        assert shortcut.what and shortcut.fallback
+
+
+def test_the_module_docstring_and_the_docs_page_list_every_shortcut() -> None:
+    page = (REPO / "docs" / "shortcuts.md").read_text()
+    for shortcut in SHORTCUTS:
+        assert f"``{shortcut.name}``" in (shortcuts.__doc__ or ""), shortcut.name
+        row = next((line for line in page.splitlines() if f"| `{shortcut.name}` |" in line), "")
+        assert row, f"docs/shortcuts.md has no row for {shortcut.name}"
+        assert shortcut.module.split(".")[0] in row
+        for scenario in re.findall(r"B\d+", shortcut.benchmark):
+            assert scenario in row, (shortcut.name, scenario)
+    assert ENV_VAR in page
+
+
+@pytest.mark.parametrize(
+    ("value", "off"),
+    [
+        ("", frozenset()),
+        ("0", frozenset()),
+        ("  ", frozenset()),
+        ("1", SWITCHABLE),
+        ("ALL", SWITCHABLE),
+        ("direct-read", {"direct-read"}),
+        (" ws-frame-reader ,cbor-splice-decode,", {"ws-frame-reader", "cbor-splice-decode"}),
+    ],
+)
+def test_the_switch_value(value: str, off: frozenset[str]) -> None:
+    assert switched_off(value) == off
+
+
+@pytest.mark.parametrize(
+    ("value", "text"),
+    [
+        ("direct-reed", "no shortcut named 'direct-reed'"),
+        ("true", "no shortcut named 'true'"),
+        ("loop-clock,publish-decode", "'publish-decode' has no switch yet"),
+    ],
+)
+def test_a_wrong_switch_value_is_an_error_not_ignored(value: str, text: str) -> None:
+    with pytest.raises(ValueError, match=text):
+        switched_off(value)
+
+
+def test_enabled_reads_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(ENV_VAR, "loop-clock")
+    assert not enabled("loop-clock")
+    assert enabled("direct-read")
+    assert enabled("publish-decode")  # listed, without a switch: always on
+    monkeypatch.setenv(ENV_VAR, "1")
+    assert not any(enabled(name) for name in SWITCHABLE)
+    monkeypatch.delenv(ENV_VAR)
+    assert all(enabled(name) for name in NAMES)
+    with pytest.raises(KeyError):
+        enabled("no-such-shortcut")
+
+
+def test_the_report_shows_each_state() -> None:
+    lines = report("loop-clock").splitlines()
+    assert len(lines) == len(SHORTCUTS)
+    states = {line.split()[0]: line.split()[1] for line in lines}
+    assert states["loop-clock"] == "off"
+    assert states["direct-read"] == "on"
+    assert "no switch" in next(line for line in lines if line.startswith("publish-decode"))
+
+
+def test_the_codecs_choose_at_import() -> None:
+    """The protocol's shortcuts are chosen when their module is imported."""
+    code = (
+        "from rwt_protocol import codec, codec_cbor;"
+        "print(codec._SPLICE_BASE64, codec_cbor._SPLICE_ENCODE, codec_cbor._SPLICE_DECODE)"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
+    for value, expected in [("1", "False False False"), ("0", "True True True")]:
+        result = subprocess.run(
+            [sys.executable, "-c", code],
+            env={**env, ENV_VAR: value},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        assert result.stdout.split() == expected.split()
+    bad = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**env, ENV_VAR: "cbor-splice"},
+        capture_output=True,
+        check=False,
+    )
+    assert bad.returncode != 0 and b"no shortcut named 'cbor-splice'" in bad.stderr
+
+
+# The encoders and the decoder, with each shortcut on and off in turn.
+
+LARGE = 64 * 1024
+
+
+def _pixels(n: int) -> bytes:
+    return bytes(i % 251 for i in range(n))
+
+
+JSON_MESSAGES = [
+    {"data": "hello"},
+    {"data": _pixels(LARGE - 1)},  # just below the splice size
+    {"data": _pixels(LARGE), "encoding": "mono8", "height": 1},
+    {"header": {"frame_id": "c"}, "a": _pixels(70000), "b": b"", "c": _pixels(LARGE * 3)},
+    {"nested": {"data": _pixels(70000)}},  # only the message's own fields are spliced
+]
+
+
+@pytest.mark.parametrize("msg", JSON_MESSAGES, ids=range(len(JSON_MESSAGES)))
+def test_json_base64_splice_gives_the_general_bytes(
+    msg: dict[str, object], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    frames = []
+    for on in (True, False):
+        monkeypatch.setattr(codec, "_SPLICE_BASE64", on)
+        frames.append(encode_publish_json("/t", msg))
+    assert frames[0] == frames[1]
+    assert frames[1] == codec.encode_json({"op": "publish", "topic": "/t", "msg": msg})
+
+
+def _cbor_ops() -> list[dict[str, object]]:
+    floats = np.linspace(-1, 1, 20000, dtype=np.float32)
+    return [
+        {"op": "publish", "topic": "/s", "msg": {"data": "hello"}},
+        {"op": "publish", "topic": "/i", "msg": {"header": {"seq": 1}, "data": _pixels(LARGE)}},
+        {"op": "publish", "topic": "/f", "msg": {"data": floats, "n": [1, 2.5, None, True]}},
+        {"op": "publish", "topic": "/u", "msg": {"data": np.arange(70000, dtype=np.uint8)}},
+        {"op": "publish", "msg": {"a": {"b": {"c": _pixels(70000)}}, "d": np.arange(30000)}},
+        {"op": "service_response", "values": {"big": _pixels(LARGE * 2)}, "result": True},
+    ]
+
+
+@pytest.mark.parametrize("op", _cbor_ops(), ids=range(len(_cbor_ops())))
+def test_cbor_splice_encode_gives_the_general_bytes(
+    op: dict[str, object], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    frames = []
+    for on in (True, False):
+        monkeypatch.setattr(codec_cbor, "_SPLICE_ENCODE", on)
+        frames.append(encode_cbor(op))
+    assert frames[0] == frames[1]
+    assert frames[1] == cbor2.dumps(op, default=codec_cbor._encode_array)
+
+
+def _same(a: object, b: object) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (
+            isinstance(a, np.ndarray)
+            and isinstance(b, np.ndarray)
+            and a.dtype == b.dtype
+            and np.array_equal(a, b)
+        )
+    if isinstance(a, dict) and isinstance(b, dict):
+        return list(a) == list(b) and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(map(_same, a, b))
+    return type(a) is type(b) and a == b
+
+
+def _cbor_frames() -> list[bytes]:
+    big_endian = np.arange(20000, dtype=">i4").tobytes()
+    frames = [encode_cbor(op) for op in _cbor_ops()]
+    frames.append(cbor2.dumps({"op": "publish", "msg": {"d": cbor2.CBORTag(74, big_endian)}}))
+    frames.append(cbor2.dumps({"op": "publish", "msg": {"d": cbor2.CBORTag(64, _pixels(LARGE))}}))
+    frames.append(cbor2.dumps([_pixels(LARGE)]))  # not a map: cbor2 all the way
+    return frames
+
+
+@pytest.mark.parametrize("typed", [True, False])
+@pytest.mark.parametrize("frame", _cbor_frames(), ids=range(len(_cbor_frames())))
+def test_cbor_splice_decode_gives_the_general_values(
+    frame: bytes, typed: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    values = []
+    for on in (True, False):
+        monkeypatch.setattr(codec_cbor, "_SPLICE_DECODE", on)
+        values.append(decode_cbor(frame, typed_arrays=typed))
+    assert _same(values[0], values[1])
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        cbor2.dumps({"msg": {"data": bytes(70000)}})[:-5],
+        cbor2.dumps({"msg": {"data": bytes(70000)}}) + b"\x00",
+        cbor2.dumps({"msg": {"d": cbor2.CBORTag(77, bytes(70001))}}),
+        cbor2.dumps({"msg": {"d": cbor2.CBORTag(99, bytes(70000))}}),
+    ],
+    ids=["cut short", "trailing bytes", "partial element", "unknown tag"],
+)
+def test_cbor_splice_decode_refuses_with_the_general_text(
+    frame: bytes, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    texts = []
+    for on in (True, False):
+        monkeypatch.setattr(codec_cbor, "_SPLICE_DECODE", on)
+        with pytest.raises(RemoteProtocolError) as caught:
+            decode_cbor(frame, typed_arrays=True)
+        texts.append(str(caught.value))
+    assert texts[0] == texts[1]
