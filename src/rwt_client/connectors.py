@@ -156,19 +156,26 @@ class WebSocketConnection:
             stream = await anyio.connect_tcp(uri.host, uri.port)
         protocol = ClientProtocol(uri, max_size=max_message_size)
         conn = cls(url, stream, protocol, max_message_size)
+        try:
+            await conn._handshake()
+        except BaseException:  # refused, broken or cancelled: the socket must not leak
+            await anyio.aclose_forcefully(stream)
+            raise
+        return conn
+
+    async def _handshake(self) -> None:
+        """Send the opening request and read until the answer (RFC 6455 4.1)."""
+        protocol = self._protocol
         protocol.send_request(protocol.connect())
-        await conn._flush()
+        await self._flush()
         while protocol.state is State.CONNECTING:
-            data = await stream.receive(_READ_SIZE)
-            protocol.receive_data(data)
+            protocol.receive_data(await self._stream.receive(_READ_SIZE))
             for event in protocol.events_received():
                 state: State = protocol.state
                 if isinstance(event, Response) and state is not State.OPEN:
-                    await stream.aclose()
                     raise ConnectionClosedError(
-                        f"{url} refused the WebSocket handshake: {event.status_code}"
+                        f"{self.url} refused the WebSocket handshake: {event.status_code}"
                     )
-        return conn
 
     async def send(self, frame: str | bytes) -> None:
         """Send one text (``str``) or binary (``bytes``) message."""
@@ -207,9 +214,12 @@ class WebSocketConnection:
             if self._protocol.state is State.OPEN:
                 self._protocol.send_close(1000)
                 await self._flush()
-        except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+        except (ConnectionClosedError, anyio.BrokenResourceError, anyio.ClosedResourceError):
+            pass  # the peer is gone already: only the socket is left to close
+        except OSError:
             pass
-        await self._stream.aclose()
+        finally:
+            await self._stream.aclose()
 
     def _collect(self, event: object) -> None:
         kind = FrameKind.of(event.opcode) if isinstance(event, Frame) else None

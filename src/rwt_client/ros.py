@@ -289,6 +289,8 @@ class Ros(RosapiMixin):
             except ConnectionClosedError as exc:
                 self._connected = anyio.Event()
                 self._fail_waiters(f"connection lost: {exc.message}")
+                if self._conn is not None:
+                    await self._conn.aclose()  # the lost connection's socket; never raises
                 if self._closing or not self.reconnect:
                     return
                 logger.warning("%s; reconnecting", exc.message)
