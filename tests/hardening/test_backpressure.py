@@ -160,5 +160,5 @@ async def test_a_subscriber_that_does_not_read_is_dropped_and_closed_not_waited_
     # The server is up: a new client is served.
     late = await anyio.to_thread.run_sync(open_peer, "ws", addresses)
     await anyio.to_thread.run_sync(settle, late, "late")
-    for peer in (reader, publisher, late):
+    for peer in (reader, stalled, publisher, late):
         peer.close()
