@@ -45,6 +45,7 @@ from .ops import OpModel, PublishView, Status
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
 from .roles import Role
+from .shortcuts import enabled
 from .timers import Timer, TimerQueue
 
 if TYPE_CHECKING:
@@ -59,6 +60,9 @@ __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"
 logger = logging.getLogger("rwt.session")
 
 MiB = 1024 * 1024
+
+
+_PUBLISH_DECODE = enabled("publish-decode")  # docs/shortcuts.md
 
 
 @dataclass(frozen=True)
@@ -198,7 +202,11 @@ class Session:
         op_name: str | None = None
         op_id: str | int | None = None
         try:
-            fast = None if binary or not self._authenticated else decode_publish(frame)
+            fast = (
+                None
+                if binary or not self._authenticated or not _PUBLISH_DECODE
+                else decode_publish(frame)
+            )
             if fast is not None:  # the publish hot path: no pydantic
                 op_name, op_id = "publish", fast.id
                 self.dispatch(fast, now)

@@ -30,8 +30,6 @@ The shortcuts (name: what; module; benchmark; general path):
 - ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
   pass (``ops.wire.PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
   (pydantic was 8 % of B1); ``decode_json`` then ``parse_object`` (pydantic).
-  Listed only, no switch yet: its call site (the session's publish path) was
-  left to the ops redesign.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
   by pybase64 and spliced in as ``msgspec.Raw``;
   ``rwt_protocol.codec.encode_publish_json``; B6 JSON, B5 JSON;
@@ -98,7 +96,6 @@ class Shortcut:
         what: what it does instead of the general path.
         benchmark: the scenarios (docs/benchmarks.md) that justify it.
         fallback: the general path taken when it is off.
-        switchable: whether ``RWT_NO_SHORTCUTS`` can turn it off yet.
     """
 
     name: str
@@ -106,7 +103,6 @@ class Shortcut:
     what: str
     benchmark: str
     fallback: str
-    switchable: bool = True
 
 
 SHORTCUTS: tuple[Shortcut, ...] = (
@@ -123,7 +119,6 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "a publish op decoded and checked by msgspec in one pass (ops.wire.PublishFrame)",
         "B14, B1",
         "rwt_protocol.codec.decode_json then parse_object (pydantic)",
-        switchable=False,  # its call site was left to the ops redesign
     ),
     Shortcut(
         "json-base64-splice",
@@ -201,8 +196,8 @@ def switched_off(value: str | None = None) -> frozenset[str]:
         value: the variable's value; None reads the environment.
 
     Raises:
-        ValueError: the value names a shortcut that does not exist or has no
-            switch (a typo must not leave the shortcut on unnoticed).
+        ValueError: the value names a shortcut that does not exist (a typo
+            must not leave the shortcut on unnoticed).
     """
     return _parse(os.environ.get(ENV_VAR, "") if value is None else value)
 
@@ -213,15 +208,13 @@ def _parse(value: str) -> frozenset[str]:
     if value.lower() in _NONE:
         return frozenset()
     if value.lower() in _ALL:
-        return frozenset(s.name for s in SHORTCUTS if s.switchable)
+        return frozenset(_BY_NAME)
     names = frozenset(part.strip() for part in value.split(",") if part.strip())
     for name in sorted(names):
         shortcut = _BY_NAME.get(name)
         if shortcut is None:
-            known = ", ".join(s.name for s in SHORTCUTS if s.switchable)
+            known = ", ".join(_BY_NAME)
             raise ValueError(f"{ENV_VAR}: no shortcut named {name!r} (known: {known})")
-        if not shortcut.switchable:
-            raise ValueError(f"{ENV_VAR}: {name!r} has no switch yet (docs/shortcuts.md)")
     return names
 
 
@@ -249,6 +242,6 @@ def report(value: str | None = None) -> str:
     width = max(len(s.name) for s in SHORTCUTS)
     lines = []
     for s in SHORTCUTS:
-        state = "off" if s.name in off else ("on" if s.switchable else "on (no switch)")
+        state = "off" if s.name in off else "on"
         lines.append(f"{s.name:<{width}}  {state:<14}  {s.benchmark:<17}  fallback: {s.fallback}")
     return "\n".join(lines)

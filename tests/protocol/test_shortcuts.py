@@ -28,7 +28,7 @@ from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS, enabled, report, switched
 
 REPO = Path(__file__).resolve().parents[2]
 NAMES = [s.name for s in SHORTCUTS]
-SWITCHABLE = frozenset(s.name for s in SHORTCUTS if s.switchable)
+SWITCHABLE = frozenset(s.name for s in SHORTCUTS)
 
 
 def _resolve(path: str) -> object:
@@ -91,7 +91,6 @@ def test_the_switch_value(value: str, off: frozenset[str]) -> None:
     [
         ("direct-reed", "no shortcut named 'direct-reed'"),
         ("true", "no shortcut named 'true'"),
-        ("loop-clock,publish-decode", "'publish-decode' has no switch yet"),
     ],
 )
 def test_a_wrong_switch_value_is_an_error_not_ignored(value: str, text: str) -> None:
@@ -103,7 +102,7 @@ def test_enabled_reads_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(ENV_VAR, "loop-clock")
     assert not enabled("loop-clock")
     assert enabled("direct-read")
-    assert enabled("publish-decode")  # listed, without a switch: always on
+    assert enabled("publish-decode")
     monkeypatch.setenv(ENV_VAR, "1")
     assert not any(enabled(name) for name in SWITCHABLE)
     monkeypatch.delenv(ENV_VAR)
@@ -118,7 +117,7 @@ def test_the_report_shows_each_state() -> None:
     states = {line.split()[0]: line.split()[1] for line in lines}
     assert states["loop-clock"] == "off"
     assert states["direct-read"] == "on"
-    assert "no switch" in next(line for line in lines if line.startswith("publish-decode"))
+    assert states["publish-decode"] == "on"
 
 
 def test_the_codecs_choose_at_import() -> None:

@@ -30,6 +30,7 @@ from anyio.abc import ByteStream
 from rwt_graph.graph import Graph
 from rwt_graph.types import message as message_module
 from rwt_protocol import codec, codec_cbor
+from rwt_protocol import session as session_module
 from rwt_transports import direct, pump, websocket, wsread
 from rwt_transports.server import ServerConfig
 from tests.conftest import FakeClock
@@ -62,6 +63,7 @@ def install_counters() -> Counter[str]:
     websocket._framed = _count(counts, "ws-frame-writer", websocket._framed)  # type: ignore[assignment]
     direct.DirectWriter.write = _count(counts, "direct-write", direct.DirectWriter.write)  # type: ignore[method-assign]
     pump.ConnectionPump._defer = _count(counts, "deferred-send", pump.ConnectionPump._defer)  # type: ignore[method-assign]
+    session_module.decode_publish = _count(counts, "publish-decode", session_module.decode_publish)  # type: ignore[assignment]
 
     receive = direct.DirectReader.receive
 

@@ -30,7 +30,7 @@ from rwt_transports.pump import ConnectionPump
 from rwt_transports.websocket import WebSocketChannel, WebSocketOptions
 
 REPO = Path(__file__).resolve().parents[2]
-SWITCHABLE = {s.name for s in SHORTCUTS if s.switchable}
+SWITCHABLE = {s.name for s in SHORTCUTS}
 
 
 def probe(value: str | None) -> dict[str, Any]:
