@@ -81,7 +81,9 @@ class SessionConfig:
         authenticator: when set, the first op must be an ``auth`` it admits (D23).
         max_message_size: the largest message reassembled from ``fragment`` or
             ``png`` parts, and the most their pending parts may hold at once,
-            bytes (D19, D24, ``--max-message-size``).
+            bytes (D19, D24, ``--max-message-size``). A ``RosbridgeServer`` sets
+            it from its ``ServerConfig.max_message_size``, the one limit of all
+            its transports.
         max_pending_fragments: messages whose parts are still arriving, at most
             (D19, ``--max-pending-fragments``).
         fragment_timeout_s: seconds without a new part after which an incomplete

@@ -413,7 +413,6 @@ def serve(
             send_buffer_limit=send_buffer_limit,
             send_timeout_s=send_timeout,
             access=access,
-            max_message_size=max_message_size,
             max_pending_fragments=max_pending_fragments,
             fragment_timeout_s=fragment_timeout,
             max_queue_length=max_queue_length,

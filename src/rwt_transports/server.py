@@ -116,9 +116,8 @@ class ServerConfig:
         shutdown_grace_s: seconds a stopping server waits for connections to
             close before cutting them.
         session: per-connection protocol settings (limits, access, auth).
-        websocket: WebSocket settings (its ``max_message_size`` is replaced by
-            the one above).
-        udp: UDP settings (likewise).
+        websocket: WebSocket settings.
+        udp: UDP settings.
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi; by default
             what ``session.access`` allows.
@@ -195,7 +194,8 @@ class RosbridgeServer:
     ) -> None:
         self.graph = graph or Graph()
         self.config = config or ServerConfig()
-        session_config = self.config.session
+        # one size limit for every transport and for reassembly: the session's is set here
+        session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
         if authenticator is not None:
             session_config = replace(session_config, authenticator=authenticator)
         self.session_config = session_config
@@ -313,10 +313,10 @@ class RosbridgeServer:
             await stack.enter_async_context(sock)
             port = sock.extra(SocketAttribute.local_port)
             self.urls["udp"] = f"udp://{_url_host(config.host)}:{port}"
-            options = replace(config.udp, max_message_size=config.max_message_size)
 
             async def run_udp(connections: TaskGroup) -> None:
-                await _contained("udp endpoint", serve_udp(sock, self, options))
+                work = serve_udp(sock, self, config.udp, config.max_message_size)
+                await _contained("udp endpoint", work)
 
             runners.append(run_udp)
         if config.stdio:
@@ -442,8 +442,9 @@ class RosbridgeServer:
 
     async def _handle_websocket(self, stream: ByteStream) -> None:
         peer = _peer(stream)
-        options = replace(self.config.websocket, max_message_size=self.config.max_message_size)
-        await serve_websocket_connection(stream, peer, self, options)
+        await serve_websocket_connection(
+            stream, peer, self, self.config.websocket, self.config.max_message_size
+        )
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)

@@ -53,7 +53,6 @@ class UdpOptions:
     """UDP settings.
 
     Attributes:
-        max_message_size: the largest incoming datagram kept, bytes.
         datagram_bytes: outgoing messages above this many bytes go out as
             ``fragment`` ops (``--udp-datagram-size``; at most 65507).
         idle_timeout_s: seconds without a datagram after which a peer's session
@@ -65,7 +64,6 @@ class UdpOptions:
             where addresses cannot be forged (docs/limits.md).
     """
 
-    max_message_size: int = MAX_UDP_PAYLOAD
     datagram_bytes: int = 8192
     idle_timeout_s: float = 300.0
     max_sessions: int = 256
@@ -108,18 +106,20 @@ class UdpChannel:
         address: Address,
         inbox: MemoryObjectReceiveStream[bytes],
         options: UdpOptions,
+        max_message_size: int,
     ) -> None:
         self.sock = sock
         self.address = address
         self.inbox = inbox
         self.options = options
+        self.max_message_size = max_message_size
         self._ids = itertools.count(1)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Wait for the peer's next datagram; its end after ``idle_timeout_s`` of silence."""
         with anyio.move_on_after(self.options.idle_timeout_s):
             data = await self.inbox.receive()  # EndOfStream once the listener forgets us
-            return [_classify(data, self.options.max_message_size)]
+            return [_classify(data, self.max_message_size)]
         raise anyio.EndOfStream
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
@@ -146,16 +146,20 @@ class UdpChannel:
         """Nothing to do."""
 
 
-async def serve_udp(sock: UDPSocket, host: SessionHost, options: UdpOptions) -> None:
+async def serve_udp(
+    sock: UDPSocket, host: SessionHost, options: UdpOptions, max_message_size: int
+) -> None:
     """Serve every peer of ``sock`` until cancelled.
 
     Args:
         sock: the bound UDP socket.
         host: makes the sessions.
         options: UDP settings.
+        max_message_size: the largest incoming datagram handled, bytes
+            (``--max-message-size``); a larger one gets an error status.
     """
     async with anyio.create_task_group() as tg:
-        endpoint = _Endpoint(sock, host, options, tg)
+        endpoint = _Endpoint(sock, host, options, max_message_size, tg)
         async for data, address in sock:
             try:
                 await endpoint.dispatch(data, address)
@@ -173,11 +177,17 @@ class _Endpoint:
     """The peers of one UDP socket: address -> the inbox of that peer's session."""
 
     def __init__(
-        self, sock: UDPSocket, host: SessionHost, options: UdpOptions, tg: TaskGroup
+        self,
+        sock: UDPSocket,
+        host: SessionHost,
+        options: UdpOptions,
+        max_message_size: int,
+        tg: TaskGroup,
     ) -> None:
         self.sock = SharedSocket(sock)
         self.host = host
         self.options = options
+        self.max_message_size = max_message_size
         self.tg = tg
         self.peers: dict[Address, _Peer] = {}
         self.validator = AddressValidator()
@@ -228,7 +238,7 @@ class _Endpoint:
 
     async def _open(self, address: Address, token: str | None) -> _Peer | None:
         send, receive = anyio.create_memory_object_stream[bytes](_QUEUED_DATAGRAMS)
-        channel = UdpChannel(self.sock, address, receive, self.options)
+        channel = UdpChannel(self.sock, address, receive, self.options, self.max_message_size)
         pump = ConnectionPump(channel)
         session = None
         if len(self.peers) < self.options.max_sessions:

@@ -76,7 +76,6 @@ class WebSocketOptions:
     """WebSocket settings of a listener.
 
     Attributes:
-        max_message_size: largest incoming message in bytes (``--max-message-size``).
         compression: offer permessage-deflate (``--websocket-compression``).
         url_path: the only path accepted, or None for any path (``--url-path``).
         allowed_origins: fnmatch patterns of accepted ``Origin`` headers; empty
@@ -88,7 +87,6 @@ class WebSocketOptions:
             (``--websocket-ping-timeout``, rosbridge's default 30).
     """
 
-    max_message_size: int = 10 * MiB
     compression: bool = False
     url_path: str | None = None
     allowed_origins: tuple[str, ...] = ()
@@ -108,7 +106,13 @@ class WebSocketChannel:
     transport = "ws"
     awaits_peer_close = True
 
-    def __init__(self, stream: ByteStream, protocol: ServerProtocol, options: WebSocketOptions):
+    def __init__(
+        self,
+        stream: ByteStream,
+        protocol: ServerProtocol,
+        options: WebSocketOptions,
+        max_message_size: int,
+    ):
         self.stream = stream
         self.protocol = protocol
         self.options = options
@@ -121,7 +125,8 @@ class WebSocketChannel:
         self._frame_here = enabled("ws-frame-writer")
         self.frames: FrameReader | None = None
         """Reads whole messages ahead of websockets; set once the handshake allows it."""
-        self._messages = MessageAssembler(options.max_message_size)
+        self.max_message_size = max_message_size
+        self._messages = MessageAssembler(max_message_size)
         self._eof = False
         self._pong = anyio.Event()
         self._failed: str | None = None  # a text message was not UTF-8: read no more (1007)
@@ -344,11 +349,11 @@ class WebSocketChannel:
             return None
 
 
-def _make_protocol(options: WebSocketOptions) -> ServerProtocol:
+def _make_protocol(options: WebSocketOptions, max_message_size: int) -> ServerProtocol:
     extensions: list[ServerExtensionFactory] | None = None
     if options.compression:
         extensions = [ServerPerMessageDeflateFactory()]
-    return ServerProtocol(max_size=options.max_message_size, extensions=extensions)
+    return ServerProtocol(max_size=max_message_size, extensions=extensions)
 
 
 async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> tuple[Request, bool] | None:
@@ -390,7 +395,11 @@ def _refusal(request: Request, options: WebSocketOptions) -> tuple[int, str] | N
 
 
 async def serve_websocket_connection(
-    stream: ByteStream, peer: str, host: SessionHost, options: WebSocketOptions
+    stream: ByteStream,
+    peer: str,
+    host: SessionHost,
+    options: WebSocketOptions,
+    max_message_size: int,
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -399,16 +408,18 @@ async def serve_websocket_connection(
         peer: the peer's address, for logs and the client id.
         host: makes the protocol session once the handshake is acceptable.
         options: WebSocket settings.
+        max_message_size: the largest incoming message, bytes (``--max-message-size``);
+            a larger one closes the connection with 1009 (D24).
 
     Never raises for what the peer does; the stream is closed on return.
     """
-    protocol = _make_protocol(options)
+    protocol = _make_protocol(options, max_message_size)
     async with stream:
         handshake = await _handshake(stream, protocol)
         if handshake is None:
             return
         request, at_frame_start = handshake
-        channel = WebSocketChannel(stream, protocol, options)
+        channel = WebSocketChannel(stream, protocol, options, max_message_size)
         pump = ConnectionPump(channel)
         refusal = _refusal(request, options)
         session = None
@@ -425,7 +436,7 @@ async def serve_websocket_connection(
         protocol.send_response(response)
         # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
         if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
-            channel.frames = FrameReader(options.max_message_size)
+            channel.frames = FrameReader(max_message_size)
         try:
             await channel.flush()
         except (anyio.BrokenResourceError, OSError):

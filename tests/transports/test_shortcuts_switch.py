@@ -90,7 +90,7 @@ def anyio_backend() -> str:
 
 def _channel() -> WebSocketChannel:
     protocol = ServerProtocol(max_size=1 << 20, state=State.OPEN)
-    return WebSocketChannel(object(), protocol, WebSocketOptions())  # type: ignore[arg-type]
+    return WebSocketChannel(object(), protocol, WebSocketOptions(), 10 * 2**20)  # type: ignore[arg-type]
 
 
 def test_each_call_site_takes_the_general_path_when_switched_off(
@@ -145,7 +145,7 @@ async def test_framing_here_writes_the_bytes_websockets_would(
         monkeypatch.setenv(ENV_VAR, value)
         wire = _Wire()
         protocol = ServerProtocol(max_size=1 << 20, state=State.OPEN)
-        channel = WebSocketChannel(wire, protocol, WebSocketOptions())  # type: ignore[arg-type]
+        channel = WebSocketChannel(wire, protocol, WebSocketOptions(), 10 * 2**20)  # type: ignore[arg-type]
         await channel.send([OutFrame(data, binary=binary) for data, binary in payloads])
         wires[value] = b"".join(wire.sent)
     assert wires[""] == wires["ws-frame-writer"]

@@ -76,6 +76,7 @@ async def test_a_client_that_does_not_trust_the_certificate_fails_and_others_go_
         await plain.send(b"GET / HTTP/1.1\r\n\r\n")  # not TLS at all
         with pytest.raises((anyio.EndOfStream, anyio.BrokenResourceError, OSError)):
             await plain.receive()
+        await plain.aclose()
         ws = await tls_harness.connect("ws")
         await ws.send({"op": "set_level", "level": "info", "id": "ok"})
         assert (await ws.expect(is_op("status", id="ok")))["level"] == "info"

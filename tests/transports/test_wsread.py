@@ -67,7 +67,7 @@ class Spec:
 def channel(max_size: int, fast: bool) -> WebSocketChannel:
     """A server channel in the OPEN state, reading with or without ``FrameReader``."""
     protocol = ServerProtocol(max_size=max_size, state=State.OPEN)
-    ws = WebSocketChannel(object(), protocol, WebSocketOptions(max_message_size=max_size))  # type: ignore[arg-type]
+    ws = WebSocketChannel(object(), protocol, WebSocketOptions(), max_size)  # type: ignore[arg-type]
     if fast:
         ws.frames = FrameReader(max_size)
     return ws
