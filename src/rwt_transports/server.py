@@ -185,6 +185,9 @@ class RosbridgeServer:
             ``rosauth_authenticator`` for rosauth's MAC check.
     """
 
+    session_class: type[Session] = Session
+    """What each connection's session is (a subclass can change how it reports, for tests)."""
+
     def __init__(
         self,
         graph: Graph | None = None,
@@ -517,7 +520,7 @@ class RosbridgeServer:
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         client_id = f"{transport}:{peer}#{next(self._ids)}"
-        session = Session(
+        session = self.session_class(
             self.graph,
             client_id,
             config=self.session_config,

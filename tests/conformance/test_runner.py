@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -47,20 +46,7 @@ class SilentSession(Session):
 class SilentServer(RosbridgeServer):
     """A server whose connections never send status messages."""
 
-    def open_session(
-        self, transport: str, peer: str, on_output: Callable[[], None]
-    ) -> Session | None:
-        client_id = f"{transport}:{peer}#silent{len(self.sessions)}"
-        session = SilentSession(
-            self.graph,
-            client_id,
-            config=self.session_config,
-            on_output=on_output,
-            peer=peer,
-            on_closed=self._session_closed,
-        )
-        self.sessions[client_id] = session
-        return session
+    session_class = SilentSession
 
 
 class ForgetfulGraph(Graph):
