@@ -1,0 +1,179 @@
+"""Golden tests of the rmw_zenoh wire (rwt_zenoh.wire).
+
+Each expectation is derived from ros2/rmw_zenoh, rmw_zenoh_cpp/src/detail/ at
+rolling commit bfc065f8 (2024-10-16), file and line named in the test; the
+attachment follows attachment_helpers.cpp of the Zenoh 1.x line
+(``serialize_to_zbytes``: int64, int64, then the 16-byte GID as a Zenoh
+serialization sequence).
+"""
+
+from __future__ import annotations
+
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from rwt_zenoh.wire import (
+    DEFAULT_QOS,
+    INFINITE,
+    Attachment,
+    Durability,
+    Entity,
+    EntityKind,
+    History,
+    QoS,
+    Reliability,
+    Topic,
+    WireError,
+    dds_type_name,
+    demangle,
+    mangle,
+    qos_from_keyexpr,
+    qos_to_keyexpr,
+    ros_type_name,
+    topic_keyexpr,
+    zid_text,
+)
+
+STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+ZID = "aac3178e146ba6f1fc6e6a4085e77f21"
+
+
+def test_the_type_hash_is_rosbags_rihs01() -> None:
+    # the hash rmw_zenoh puts in keys and tokens is rosidl's RIHS01 (rmw_publisher_data.cpp:60-70)
+    assert get_typestore(Stores.ROS2_JAZZY).hash_rihs01("std_msgs/msg/String") == STRING_HASH
+
+
+def test_dds_type_names() -> None:
+    # type_support_common.cpp:32-46: "<pkg>::<kind>::dds_::<Name>_"
+    assert dds_type_name("std_msgs/msg/String") == "std_msgs::msg::dds_::String_"
+    assert dds_type_name("example_interfaces/srv/AddTwoInts") == (
+        "example_interfaces::srv::dds_::AddTwoInts_"
+    )
+    assert ros_type_name("geometry_msgs::msg::dds_::Twist_") == "geometry_msgs/msg/Twist"
+    with pytest.raises(WireError):
+        dds_type_name("std_msgs/String")
+    with pytest.raises(WireError):
+        ros_type_name("std_msgs/msg/String")
+
+
+def test_topic_keys() -> None:
+    # liveliness_utils.cpp:74-87: domain, the name without its outer slashes, type, hash
+    dds = dds_type_name("std_msgs/msg/String")
+    assert topic_keyexpr(0, "/chatter", dds, STRING_HASH) == (
+        f"0/chatter/std_msgs::msg::dds_::String_/{STRING_HASH}"
+    )
+    assert topic_keyexpr(7, "/robot/odom/", "x", "h") == "7/robot/odom/x/h"
+
+
+def test_names_are_mangled_with_percent() -> None:
+    # liveliness_utils.cpp:656: every "/" becomes "%"
+    assert mangle("/") == "%"
+    assert mangle("/robot/odom") == "%robot%odom"
+    assert demangle(mangle("/a/b")) == "/a/b"
+
+
+@pytest.mark.parametrize(
+    ("qos", "text"),
+    [
+        # qos.cpp:18-33: reliable, transient local, keep last 42, infinite durations
+        (DEFAULT_QOS, "::,:,:,:,,"),
+        # liveliness_utils.cpp:237-297: only what differs from the default is written
+        (QoS(durability=Durability.VOLATILE, depth=10), ":2:,10:,:,:,,"),
+        (
+            QoS(Reliability.BEST_EFFORT, Durability.VOLATILE, History.KEEP_ALL, 1, (1, 5)),
+            "2:2:2,1:1,5:,:,,",
+        ),
+    ],
+)
+def test_qos_strings(qos: QoS, text: str) -> None:
+    assert qos_to_keyexpr(qos) == text
+    assert qos_from_keyexpr(text) == qos
+
+
+def test_bad_qos_strings_are_refused() -> None:
+    # liveliness_utils.cpp:301-360: six fields, known policies, unsigned numbers
+    for text in ("1:2", "9::,:,:,:,,", "::x,:,:,:,,", "::,-1:,:,:,,", "::,:,:,:,"):
+        with pytest.raises(WireError):
+            qos_from_keyexpr(text)
+
+
+def test_a_publisher_token() -> None:
+    # liveliness_utils.cpp:395-447: admin space, domain, zid, nid, eid, kind, enclave,
+    # namespace, node, then topic, type, hash and QoS; "/" alone mangles to "%"
+    qos = QoS(durability=Durability.VOLATILE, depth=7)
+    entity = Entity(
+        0,
+        ZID,
+        0,
+        10,
+        EntityKind.PUBLISHER,
+        "/",
+        "talker",
+        topic=Topic("/chatter", dds_type_name("std_msgs/msg/String"), STRING_HASH, qos),
+    )
+    assert entity.token() == (
+        f"@ros2_lv/0/{ZID}/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/"
+        f"{STRING_HASH}/:2:,7:,:,:,,"
+    )
+    assert Entity.parse(entity.token()) == entity
+
+
+def test_a_node_token() -> None:
+    node = Entity(3, ZID, 2, 2, EntityKind.NODE, "/robot", "arm")
+    assert node.token() == f"@ros2_lv/3/{ZID}/2/2/NN/%/%robot/arm"
+    assert Entity.parse(node.token()) == node
+
+
+@pytest.mark.parametrize(
+    "token",
+    [
+        f"@other/0/{ZID}/0/1/NN/%/%/n",  # not the admin space
+        f"@ros2_lv/0/{ZID}/0/1/XX/%/%/n",  # unknown kind
+        f"@ros2_lv/0/{ZID}/0/1/MP/%/%/n",  # a publisher without its topic
+        f"@ros2_lv/0/{ZID}//1/NN/%/%/n",  # an empty part
+    ],
+)
+def test_bad_tokens_are_refused(token: str) -> None:
+    # liveliness_utils.cpp:495-560
+    with pytest.raises(WireError):
+        Entity.parse(token)
+
+
+def test_zid_text_reads_the_little_endian_id_from_its_top() -> None:
+    # liveliness_utils.cpp:375-385: bytes from the most significant, hex without padding
+    assert zid_text(bytes([0x21, 0x7F, 0x0A]) + bytes(13)) == "0" * 13 + "a7f21"
+
+
+def test_the_gid_is_xxh3_128_of_the_token() -> None:
+    # liveliness_utils.cpp:449-452: low 64 bits then high 64 bits, as stored on x86
+    xxhash = pytest.importorskip("xxhash")
+    entity = Entity(0, ZID, 0, 0, EntityKind.NODE, "/", "talker")
+    digest = xxhash.xxh3_128_intdigest(entity.token().encode())
+    assert entity.gid() == digest.to_bytes(16, "little")
+    assert len({Entity(0, ZID, 0, i, EntityKind.NODE, "/", "n").gid() for i in range(50)}) == 50
+
+
+def test_the_attachment_bytes() -> None:
+    attachment = Attachment(1, 1_700_000_000_123_456_789, bytes(range(16)))
+    data = attachment.encode()
+    assert data.hex() == (
+        "0100000000000000"  # sequence number, int64 little endian
+        "15cd853dfe9c9717"  # source timestamp, ns
+        "10"  # the GID as a sequence: LEB128 length 16
+        "000102030405060708090a0b0c0d0e0f"
+    )
+    assert Attachment.decode(data) == attachment
+    with pytest.raises(WireError):
+        Attachment.decode(data[:-1])
+
+
+def test_the_attachment_matches_zenohs_own_serializer() -> None:
+    zenoh_ext = pytest.importorskip("zenoh.ext")
+    gid = bytes(range(16))
+    ours = Attachment(5, -2, gid).encode()
+    theirs = zenoh_ext.z_serialize((zenoh_ext.Int64(5), zenoh_ext.Int64(-2), gid)).to_bytes()
+    assert ours == theirs
+
+
+def test_durations_default_to_infinite() -> None:
+    assert DEFAULT_QOS.deadline == DEFAULT_QOS.lifespan == INFINITE == (9223372036, 854775807)
