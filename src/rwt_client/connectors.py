@@ -97,10 +97,12 @@ async def connect(
     """Open a connection to a rosbridge server.
 
     Args:
-        url: ``ws://HOST:PORT[/path]``, ``wss://...`` or ``tcp://HOST:PORT``.
+        url: ``ws://HOST:PORT[/path]``, ``wss://...``, ``tcp://HOST:PORT`` or
+            ``tcp+tls://HOST:PORT``.
         timeout_s: seconds allowed for connecting and the handshake.
         max_message_size: largest incoming message, bytes.
-        ssl_context: TLS settings for ``wss://``; the system defaults otherwise.
+        ssl_context: TLS settings for ``wss://`` and ``tcp+tls://``; the system
+            defaults otherwise.
 
     Returns:
         The open connection.
@@ -114,13 +116,30 @@ async def connect(
         try:
             if scheme in ("ws", "wss"):
                 return await WebSocketConnection.open(url, max_message_size, ssl_context)
-            if scheme == "tcp":
-                return await TcpConnection.open(url, max_message_size)
+            if scheme in ("tcp", "tcp+tls"):
+                return await TcpConnection.open(url, max_message_size, ssl_context)
         except TimeoutError:
             raise
         except (OSError, anyio.BrokenResourceError, anyio.EndOfStream) as exc:
             raise ConnectionClosedError(f"cannot connect to {url}: {exc}") from None
-    raise ValueError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss or tcp)")
+    raise ValueError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss, tcp or tcp+tls)")
+
+
+async def close_quietly(stream: ByteStream) -> None:
+    """Close ``stream``, cutting it when a clean close fails.
+
+    A TLS peer that already closed, or sent data after its close_notify
+    (``APPLICATION_DATA_AFTER_CLOSE_NOTIFY``), must not turn closing into an error.
+    """
+    try:
+        await stream.aclose()
+    except (
+        OSError,
+        anyio.BrokenResourceError,
+        anyio.ClosedResourceError,
+        anyio.BusyResourceError,  # TLS: its close_notify exchange reads, as the reader task does
+    ):
+        await anyio.aclose_forcefully(stream)
 
 
 class WebSocketConnection:
@@ -219,7 +238,7 @@ class WebSocketConnection:
         except OSError:
             pass
         finally:
-            await self._stream.aclose()
+            await close_quietly(self._stream)
 
     def _collect(self, event: object) -> None:
         kind = FrameKind.of(event.opcode) if isinstance(event, Frame) else None
@@ -330,22 +349,31 @@ class TcpConnection(_LineStreamConnection):
         self._stream = stream
 
     @classmethod
-    async def open(cls, url: str, max_message_size: int) -> TcpConnection:
-        """Connect to ``tcp://HOST:PORT``.
+    async def open(
+        cls, url: str, max_message_size: int, ssl_context: ssl.SSLContext | None = None
+    ) -> TcpConnection:
+        """Connect to ``tcp://HOST:PORT``, or ``tcp+tls://HOST:PORT`` (TLS, as ``rwt serve``).
 
         Raises:
             ValueError: no port in the URL.
-            OSError: the connection failed.
+            OSError: the connection failed (``ssl.SSLError``: the TLS handshake).
         """
         parts = urlsplit(url)
         if parts.hostname is None or parts.port is None:
             raise ValueError(f"expected tcp://HOST:PORT, got {url!r}")
-        stream = await anyio.connect_tcp(parts.hostname, parts.port)
+        stream: ByteStream
+        if parts.scheme == "tcp+tls":
+            context = ssl_context or ssl.create_default_context()
+            stream = await anyio.connect_tcp(
+                parts.hostname, parts.port, ssl_context=context, tls=True
+            )
+        else:
+            stream = await anyio.connect_tcp(parts.hostname, parts.port)
         return cls(url, stream, max_message_size)
 
     async def aclose(self) -> None:
         """Close the socket."""
-        await self._stream.aclose()
+        await close_quietly(self._stream)
 
     async def _write(self, data: bytes) -> None:
         await self._stream.send(data)

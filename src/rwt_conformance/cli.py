@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ssl
 import sys
 from enum import StrEnum
 from pathlib import Path
@@ -11,6 +12,7 @@ from urllib.parse import urlsplit
 import anyio
 import typer
 
+from rwt_client.connectors import ConnectionClosedError, connect
 from rwt_protocol.auth import RosauthVerifier
 
 from .model import Profile, SuiteError, default_suite_dir, load_suite
@@ -28,15 +30,17 @@ class TransportName(StrEnum):
 def server_url(url: str, transport: TransportName | None) -> str:
     """The URL to connect to: ``HOST:PORT`` gets a scheme, ``--transport`` replaces one.
 
-    ``--transport tcp`` with ``ws://h:9090`` connects to ``tcp://h:9090``.
+    ``--transport tcp`` with ``ws://h:9090`` connects to ``tcp://h:9090``; TLS
+    stays: ``wss://`` becomes ``tcp+tls://`` and back.
     """
     if "://" not in url:
         url = f"{(transport or TransportName.WS).value}://{url}"
-    scheme = urlsplit(url).scheme
-    if transport is TransportName.TCP and scheme != "tcp":
-        return "tcp://" + urlsplit(url).netloc
-    if transport is TransportName.WS and scheme == "tcp":
-        return "ws://" + urlsplit(url).netloc
+    parts = urlsplit(url)
+    tls = parts.scheme in ("wss", "tcp+tls")
+    if transport is TransportName.TCP and parts.scheme not in ("tcp", "tcp+tls"):
+        return ("tcp+tls://" if tls else "tcp://") + parts.netloc
+    if transport is TransportName.WS and parts.scheme in ("tcp", "tcp+tls"):
+        return ("wss://" if tls else "ws://") + parts.netloc
     return url
 
 
@@ -49,9 +53,42 @@ def _read_secret(path: Path) -> str:
         raise typer.Exit(2) from None
 
 
+def _tls_context(cafile: Path | None, insecure: bool) -> ssl.SSLContext | None:
+    """The TLS settings for ``wss://`` and ``tcp+tls://`` servers; None: the system's."""
+    if insecure:
+        typer.echo("rwt conformance: --insecure: the server's certificate is not checked", err=True)
+        context = ssl.create_default_context()
+        context.check_hostname = False
+        context.verify_mode = ssl.CERT_NONE
+        return context
+    if cafile is None:
+        return None
+    try:
+        return ssl.create_default_context(cafile=str(cafile))
+    except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError
+        typer.echo(f"rwt conformance: --cafile: cannot use {cafile}: {exc}", err=True)
+        raise typer.Exit(2) from None
+
+
+async def _reachable(url: str, context: ssl.SSLContext | None, timeout_s: float) -> str | None:
+    """Connect once before the suite: why the server cannot be used, or None."""
+    try:
+        conn = await connect(url, timeout_s=timeout_s, ssl_context=context)
+    except ConnectionClosedError as exc:
+        text = exc.message
+        if "CERTIFICATE_VERIFY_FAILED" in text:
+            text += " (trust its authority with --cafile FILE, or skip the check with --insecure)"
+        return text
+    except TimeoutError:
+        return f"cannot connect to {url}: no answer within {timeout_s:g} s"
+    await conn.aclose()
+    return None
+
+
 def conformance(
     url: Annotated[
-        str, typer.Argument(help="Server: ws://HOST:PORT, tcp://HOST:PORT or HOST:PORT.")
+        str,
+        typer.Argument(help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT."),
     ],
     transport: Annotated[
         TransportName | None, typer.Option(help="Transport (default: from the URL's scheme).")
@@ -81,6 +118,16 @@ def conformance(
             " every connection authenticates first, and the auth cases run."
         ),
     ] = None,
+    cafile: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="FILE",
+            help="Trust the certificate authorities in this PEM file (wss://, tcp+tls://).",
+        ),
+    ] = None,
+    insecure: Annotated[
+        bool, typer.Option("--insecure", help="Do not check the server's TLS certificate.")
+    ] = False,
 ) -> None:
     """Check a rosbridge server against the conformance suite; exit 1 on any failure."""
     # Imported here: `rwt serve` registers this command, and must not pay for the
@@ -97,13 +144,19 @@ def conformance(
         typer.echo(f"rwt conformance: {exc}", err=True)
         raise typer.Exit(2) from None
     patterns = tuple(p for item in only or () for p in item.split(",") if p)
+    context = _tls_context(cafile, insecure)
     options = RunOptions(
         server_url(url, transport),
         profile,
         patterns,
         expect_timeout_s=timeout,
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
+        ssl_context=context,
     )
+    problem = anyio.run(_reachable, options.url, context, 2 * timeout)
+    if problem is not None:
+        typer.echo(f"rwt conformance: {problem}", err=True)
+        raise typer.Exit(2)
     result = anyio.run(run_suite, loaded, options)
     print_table(result, console)
     if junit is not None:

@@ -40,6 +40,7 @@ from .match import JsonValue, describe, match, substitute
 from .model import Case, Profile, Requirement, Step, StepKind, Suite
 
 if TYPE_CHECKING:
+    import ssl
     from collections.abc import Callable
 
 __all__ = [
@@ -79,6 +80,8 @@ class RunOptions:
         case_timeout_s: bound of a whole case, seconds.
         auth_secret: the server's rosauth secret (D23), or None when the
             server does not authenticate.
+        ssl_context: TLS settings for ``wss://`` and ``tcp+tls://`` (``--cafile``,
+            ``--insecure``); the system's trusted authorities when None.
     """
 
     url: str
@@ -87,11 +90,12 @@ class RunOptions:
     expect_timeout_s: float = 3.0
     case_timeout_s: float = 20.0
     auth_secret: str | None = field(default=None, repr=False)
+    ssl_context: ssl.SSLContext | None = field(default=None, repr=False)
 
     @property
     def transport(self) -> str:
-        """``ws`` or ``tcp``, from the URL's scheme."""
-        return "tcp" if urlsplit(self.url).scheme == "tcp" else "ws"
+        """``ws`` or ``tcp``, from the URL's scheme (``wss`` and ``tcp+tls`` included)."""
+        return "tcp" if urlsplit(self.url).scheme in ("tcp", "tcp+tls") else "ws"
 
 
 @dataclass(frozen=True, slots=True)
@@ -346,7 +350,11 @@ class _CaseRun:
         link = self.links.get(name)
         if link is None:
             url = self.options.url
-            conn = await connect(url, timeout_s=self.options.expect_timeout_s * 2)
+            conn = await connect(
+                url,
+                timeout_s=self.options.expect_timeout_s * 2,
+                ssl_context=self.options.ssl_context,
+            )
             if self.options.auth_secret is not None and not self.case.authenticates:
                 await conn.send(json.dumps(self._auth_op({})))
             topic = f"/{self.variables['ns']}/sync_{name}"
