@@ -83,17 +83,39 @@ def idle_sockets(port: int, count: int) -> list[socket.socket]:
 
 
 def ws_served(port: int) -> None:
-    with connect(f"ws://127.0.0.1:{port}", open_timeout=WAIT_S) as ws:
-        ws.send(json.dumps({"op": "set_level", "level": "info", "id": "healthy"}))
-        reply = json.loads(ws.recv(timeout=WAIT_S))
-        assert reply["op"] == "status" and reply["id"] == "healthy"
+    """A WebSocket client is served, reconnecting (as clients do) while refused with 503.
+
+    Sockets in their handshake count against ``--max-connections``, so a client
+    accepted while idle sockets accepted just before it still hold their slots is
+    refused; once their handshake timeout closes them, it is served.
+    """
+    deadline = time.monotonic() + WAIT_S
+    while True:
+        try:
+            with connect(f"ws://127.0.0.1:{port}", open_timeout=WAIT_S) as ws:
+                ws.send(json.dumps({"op": "set_level", "level": "info", "id": "healthy"}))
+                reply = json.loads(ws.recv(timeout=WAIT_S))
+                assert reply["op"] == "status" and reply["id"] == "healthy"
+                return
+        except InvalidStatus as refused:
+            assert refused.response.status_code == 503
+            assert time.monotonic() < deadline, "still refused: too many connections"
+            time.sleep(0.2)
 
 
 def tcp_served(port: int) -> None:
-    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as tcp:
-        tcp.sendall(b'{"op":"set_level","level":"info","id":"healthy"}')
-        reply = json.loads(tcp.makefile("rb").readline())
+    """A TCP client is served, reconnecting while told "too many connections"."""
+    deadline = time.monotonic() + WAIT_S
+    while True:
+        with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as tcp:
+            tcp.sendall(b'{"op":"set_level","level":"info","id":"healthy"}')
+            reply = json.loads(tcp.makefile("rb").readline())
+        if reply.get("msg") == "too many connections":
+            assert time.monotonic() < deadline, "still refused: too many connections"
+            time.sleep(0.2)
+            continue
         assert reply["op"] == "status" and reply["id"] == "healthy"
+        return
 
 
 def wait_for(process: subprocess.Popen[bytes], log: Path, text: str) -> None:
