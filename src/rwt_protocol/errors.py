@@ -7,7 +7,9 @@ catches them all. Any other exception escaping rwt is a bug::
     ├── ProtocolError                     the rosbridge protocol was not followed
     │   ├── RemoteProtocolError           the peer's fault: becomes a status frame (D1)
     │   │   ├── LimitError                a per-connection cap (docs/limits.md)
-    │   │   └── AccessDeniedError         rwt_protocol.access: a --*-glob rule
+    │   │   ├── MessageTooBigError        rwt_protocol.messages: over --max-message-size
+    │   │   ├── AccessDeniedError         rwt_protocol.access: a --*-glob rule
+    │   │   └── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation
     │   ├── FieldError                    a value does not fit its type (D9)
@@ -17,12 +19,16 @@ catches them all. Any other exception escaping rwt is a bug::
     │   ├── ParameterError                rwt_graph.params
     │   │   └── ParameterNotSetError
     │   ├── ImageError                    rwt_graph.media: an image that cannot be read
-    │   └── TFError                       rwt_graph.tf: unknown, disconnected, extrapolation
+    │   └── TFError                       rwt_graph.tf
+    │       ├── UnknownFrameError         no such frame in the buffer
+    │       ├── DisconnectedFramesError   the two frames are in different trees
+    │       └── ExtrapolationError        the time is outside the buffered range
     ├── ServiceCallError                  a call or goal answered ``result: false``
     │   └── CallTimeoutError              ... or not answered in time (also a TimeoutError)
     ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
     ├── TransportError                    a transport failed (mapped at the boundary)
-    │   └── ConnectionClosedError         rwt_client.connectors: the connection is gone
+    │   ├── ConnectionClosedError         rwt_client.connectors: the connection is gone
+    │   └── ListenError                   rwt_transports: a listener cannot bind its address
     ├── VideoError                        rwt_video
     │   ├── StreamParamError              a query parameter that cannot be used (HTTP 4xx)
     │   └── EncodeError                   a frame that cannot be encoded (skipped)

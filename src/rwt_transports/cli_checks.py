@@ -16,6 +16,7 @@ from typing import Any, Protocol, cast
 import typer
 
 from rwt_protocol.access import parse_glob_list
+from rwt_protocol.errors import TransportError
 
 __all__ = [
     "ClickException",
@@ -62,7 +63,7 @@ def usage_error(message: str) -> Exception:
     return _UsageError(message)
 
 
-class ListenError(Exception):
+class ListenError(TransportError):
     """A listener could not bind its address: the message names it, the address and why."""
 
     def __init__(self, listener: str, host: str, port: int, cause: OSError) -> None:

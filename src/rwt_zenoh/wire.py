@@ -23,6 +23,8 @@ import struct
 from dataclasses import dataclass, field, replace
 from enum import IntEnum, StrEnum
 
+from rwt_protocol.errors import RemoteProtocolError
+
 __all__ = [
     "ADMIN_SPACE",
     "DEFAULT_QOS",
@@ -55,8 +57,11 @@ GID_SIZE = 16
 """``RMW_GID_STORAGE_SIZE`` in bytes."""
 
 
-class WireError(ValueError):
-    """A key expression, token, QoS string or attachment that is not rmw_zenoh's form."""
+class WireError(RemoteProtocolError):
+    """A key expression, token, QoS string or attachment that is not rmw_zenoh's form.
+
+    A peer on the Zenoh network sent it: the sample or token is ignored, never trusted.
+    """
 
 
 class EntityKind(StrEnum):
