@@ -1,5 +1,5 @@
 #!/usr/bin/env node
-// Drive the real roslib (roslibjs 2.x) through the encodings of issue 4: cbor and
+// Drive the real roslib (roslibjs 2.x) through the encodings of docs/decisions.md: cbor and
 // png subscriptions, a fragmented service response, a publish sent as fragments.
 //
 // Usage: node encodings.mjs WS_URL SPEC.json
