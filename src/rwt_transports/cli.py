@@ -14,9 +14,11 @@ import logging
 import signal
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+from urllib.parse import urlsplit
 
 import anyio
 import typer
@@ -24,6 +26,7 @@ from anyio.abc import TaskStatus
 from typer.core import TyperGroup
 
 from rwt_conformance.cli import conformance
+from rwt_console import ConsoleSite
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy, parse_glob_list
@@ -305,6 +308,13 @@ def serve(
         bool,
         typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
     ] = True,
+    console: Annotated[
+        bool | None,
+        typer.Option(
+            help="Serve the web console at http://HOST:PORT/ (default: on, off with"
+            " --allowed-origins)."
+        ),
+    ] = None,
     video: Annotated[
         bool, typer.Option(help="Also serve image topics over HTTP (as web_video_server).")
     ] = False,
@@ -391,6 +401,8 @@ def serve(
     if raise_fd_limit:
         raise_nofile_limit()
     graph = Graph(TypeRegistry(dialect, interfaces or ()))
+    origins = tuple(o.strip() for o in allowed_origins.split(",") if o.strip())
+    site = _console_site(console, origins, url_path, certfile is not None, secret is not None)
     authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
     access = AccessPolicy(
         topics=parse_glob_list(topics_glob),
@@ -425,9 +437,10 @@ def serve(
         websocket=WebSocketOptions(
             compression=websocket_compression,
             url_path=url_path,
-            allowed_origins=tuple(o.strip() for o in allowed_origins.split(",") if o.strip()),
+            allowed_origins=origins,
             ping_interval_s=websocket_ping_interval,
             ping_timeout_s=websocket_ping_timeout,
+            console=site,
         ),
         udp=UdpOptions(
             datagram_bytes=udp_datagram_size,
@@ -458,6 +471,7 @@ def serve(
             VIDEO_PORT if video_port is None else video_port,
             video_max_connections,
             video_max_streams,
+            site,
         )
     freeze_startup_objects()
     try:
@@ -484,12 +498,38 @@ def _read_secret(path: Path) -> str:
     return secret
 
 
-def _video_config(host: str, port: int, max_connections: int, max_streams: int) -> VideoConfig:
+def _console_site(
+    wanted: bool | None, origins: tuple[str, ...], url_path: str | None, tls: bool, auth: bool
+) -> ConsoleSite | None:
+    """The console of the WebSocket port, or None when it is off (docs/console.md).
+
+    By default it is on, except with --allowed-origins: the operator chose which
+    web pages may reach the robot, and the robot's own page is not one of them
+    unless --console says so (its origin must then be allowed too). With
+    --auth-secret-file it stays on: the page asks for the ``auth`` op first.
+    """
+    if wanted is None:
+        wanted = not origins
+    if not wanted:
+        return None
+    return ConsoleSite(websocket_path=url_path or "/", websocket_tls=tls, auth=auth)
+
+
+def _video_config(
+    host: str, port: int, max_connections: int, max_streams: int, site: ConsoleSite | None
+) -> VideoConfig:
     # the video server (Pillow, numpy) loads only with --video (B11: base memory)
     from rwt_video import VideoConfig  # noqa: PLC0415
 
+    console = None
+    if site is not None:  # the same page under /console/; its WebSocket port is set in _run
+        console = replace(site, root_is_console=False)
     return VideoConfig(
-        host=host, port=port, max_connections=max_connections, max_streams=max_streams
+        host=host,
+        port=port,
+        max_connections=max_connections,
+        max_streams=max_streams,
+        console=console,
     )
 
 
@@ -547,6 +587,9 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
                 video_url = await tg.start(serve_video, server.graph, video)
             except OSError as exc:
                 raise ListenError("HTTP video", video.host, video.port, exc) from exc
+            site = server.config.websocket.console
+            if site is not None:  # the console on the WebSocket port shows the streams
+                site.video_port = urlsplit(video_url).port
 
         async def serve(*, task_status: TaskStatus[str]) -> None:
             try:
@@ -559,6 +602,9 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
             tg.cancel_scope.cancel()  # stopped gracefully: the video server goes too
 
         await tg.start(serve)
+        ws_url = server.urls.get("websocket")
+        if video is not None and video.console is not None and ws_url:
+            video.console.websocket_port = urlsplit(ws_url).port
         if video_url:
             print(f"video on {video_url}", file=out, flush=True)
 
