@@ -1,0 +1,128 @@
+"""The console in headless Chromium against `rwt serve --video`, with a roslibpy robot.
+
+One browser and one server for the module; the scenarios run in order on one
+page, as a user would click through it (docs/console.md).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from collections.abc import Iterator
+
+import pytest
+from PIL import Image
+
+from .cdp import Browser, Page
+from .conftest import RobotProcess
+from .robot import BLUE, RED
+
+TOPIC_ROW = '#topics tbody tr[data-name="{}"]'
+
+
+@pytest.fixture(scope="module")
+def page(browser: Browser, video_server: tuple[str, str], robot: RobotProcess) -> Iterator[Page]:
+    ws_url, _ = video_server
+    page = browser.new_page()
+    page.goto(ws_url.replace("ws://", "http://") + "/")
+    page.wait_for("!!document.querySelector('#status.ok')", what="the console to connect")
+    yield page
+    page.close()
+
+
+def test_loads_without_console_errors(page: Page) -> None:
+    assert page.text("#status") == "connected"
+    page.wait_for(f"!!document.querySelector('{TOPIC_ROW.format('/client_count')}')")
+    assert page.errors() == []
+
+
+def test_all_assets_come_from_the_server(page: Page, video_server: tuple[str, str]) -> None:
+    """Chromium resolves no other host: the page loaded, so nothing came from elsewhere."""
+    ws_url, _ = video_server
+    origin = ws_url.removeprefix("ws://")
+    urls = page.requested_urls()
+    assert any(url.endswith("/console/main.js") for url in urls)
+    assert any(url.startswith("ws://") for url in urls)
+    assert all(url.split("://", 1)[1].startswith(origin) for url in urls), urls
+
+
+def test_lists_a_topic_published_from_python(page: Page) -> None:
+    row = TOPIC_ROW.format("/console_test/chatter")
+    page.wait_for(f"!!document.querySelector('{row}')", what="the chatter topic")
+    cells = page.evaluate(f"[...document.querySelector('{row}').cells].map(c => c.textContent)")
+    assert cells[:3] == ["/console_test/chatter", "std_msgs/msg/String", "1"]
+    services = page.evaluate(
+        "[...document.querySelectorAll('#services li')].map(l => l.textContent)"
+    )
+    assert "/console_test/add" in services
+    assert "/rosapi/topics" in services
+
+
+def test_echoes_a_topic(page: Page) -> None:
+    page.click(TOPIC_ROW.format("/console_test/chatter"))
+    text = page.wait_for(
+        "(t => /hello \\d+/.test(t) && t)(document.querySelector('#echo-output').textContent)",
+        what="a chatter message in the echo",
+    )
+    assert '"hello' in text
+    page.wait_for("/[1-9][0-9.]* Hz/.test(document.querySelector('#echo-stats').textContent)")
+
+
+def test_publishes_from_the_form(page: Page, robot: RobotProcess) -> None:
+    page.click(TOPIC_ROW.format("/console_test/command"))
+    page.wait_for("!!document.querySelector('#publish-fields input[name=\"msg.data\"]')")
+    page.fill('#publish-fields input[name="msg.data"]', "go forward")
+    page.click("#publish")
+    assert robot.next_command() == {"data": "go forward"}
+    assert "published" in page.text("#publish-result")
+
+
+def test_calls_a_service_provided_by_roslibpy(page: Page) -> None:
+    page.click('#services li[data-name="/console_test/add"]')
+    page.wait_for("!!document.querySelector('#service-fields input[name=\"req.b\"]')")
+    page.fill('#service-fields input[name="req.a"]', "20")
+    page.fill('#service-fields input[name="req.b"]', "22")
+    page.click("#service-call")
+    text = page.wait_for(
+        "(t => t.includes('sum') && t)(document.querySelector('#service-result').textContent)"
+    )
+    assert "sum: 42" in text
+
+
+def test_shows_an_image_topic(page: Page) -> None:
+    page.click('#tabs button[data-tab="images"]')
+    selector = '#images figure[data-topic="/camera/image"] img'
+    page.wait_for(
+        f"(i => i && i.naturalWidth > 0)(document.querySelector('{selector}'))",
+        what="the MJPEG image",
+    )
+    shot = Image.open(io.BytesIO(page.screenshot(selector))).convert("RGB")
+    width, height = shot.size
+    left = shot.getpixel((width // 4, height // 2))
+    right = shot.getpixel((3 * width // 4, height // 2))
+    assert all(abs(a - b) < 40 for a, b in zip(left, RED, strict=True)), left
+    assert all(abs(a - b) < 40 for a, b in zip(right, BLUE, strict=True)), right
+
+
+def test_tf_tree_lists_frames(page: Page) -> None:
+    page.click('#tabs button[data-tab="tf"]')
+    path = page.wait_for(
+        "(f => f && [...(function* (n) { while (n && n.dataset) {"
+        " if (n.dataset.frame) yield n.dataset.frame; n = n.parentElement; } })(f)])"
+        "(document.querySelector('#tf-tree li[data-frame=\"camera\"]'))",
+        what="the camera frame in the TF tree",
+    )
+    assert path == ["camera", "base_link", "odom", "map"]
+
+
+def test_server_tab_shows_connections(page: Page) -> None:
+    page.click('#tabs button[data-tab="server"]')
+    count = page.wait_for("Number(document.querySelector('#client-count').textContent) || 0")
+    assert count >= 2  # the robot and this page
+    rows = page.evaluate("document.querySelectorAll('#clients tbody tr').length")
+    assert rows == count
+    assert page.errors() == []
+
+
+def test_no_errors_after_the_tour(page: Page) -> None:
+    assert page.errors() == [], json.dumps(page.errors())
