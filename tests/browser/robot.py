@@ -7,7 +7,9 @@ JSON line per message received on /console_test/command; stops when stdin closes
 
 from __future__ import annotations
 
+import base64
 import json
+import os
 import sys
 import threading
 import time
@@ -33,6 +35,19 @@ def image() -> dict[str, Any]:
     }
 
 
+def noise(width: int = 160, height: int = 120) -> dict[str, Any]:
+    """rgb8 noise, new every call: a video encoder has something to encode each frame."""
+    return {
+        "header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": "camera"},
+        "height": height,
+        "width": width,
+        "encoding": "rgb8",
+        "is_bigendian": 0,
+        "step": width * 3,
+        "data": base64.b64encode(os.urandom(width * height * 3)).decode(),  # uint8[] as base64
+    }
+
+
 def transform(parent: str, child: str, x: float) -> dict[str, Any]:
     return {
         "header": {"stamp": {"sec": int(time.time()), "nanosec": 0}, "frame_id": parent},
@@ -45,7 +60,7 @@ def transform(parent: str, child: str, x: float) -> dict[str, Any]:
 
 
 class Robot:
-    """A roslibpy client that publishes a chatter, an image and TF, and serves /console_test/add.
+    """A roslibpy client that publishes a chatter, images and TF, and serves /console_test/add.
 
     What arrives on /console_test/command (published by the page) is printed as JSON.
     """
@@ -57,9 +72,10 @@ class Robot:
         self._stop = threading.Event()
         self.chatter = roslibpy.Topic(self.ros, "/console_test/chatter", "std_msgs/msg/String")
         self.camera = roslibpy.Topic(self.ros, "/camera/image", "sensor_msgs/msg/Image")
+        self.noise = roslibpy.Topic(self.ros, "/camera/noise", "sensor_msgs/msg/Image")
         self.tf = roslibpy.Topic(self.ros, "/tf", "tf2_msgs/msg/TFMessage")
         self.tf_static = roslibpy.Topic(self.ros, "/tf_static", "tf2_msgs/msg/TFMessage")
-        for topic in (self.chatter, self.camera, self.tf, self.tf_static):
+        for topic in (self.chatter, self.camera, self.noise, self.tf, self.tf_static):
             topic.advertise()
         self.command = roslibpy.Topic(self.ros, "/console_test/command", "std_msgs/msg/String")
         self.command.subscribe(lambda msg: print(json.dumps(msg), flush=True))
@@ -82,6 +98,7 @@ class Robot:
             self.chatter.publish(roslibpy.Message({"data": f"hello {self.count}"}))
             if self.count % 2 == 0:
                 self.camera.publish(roslibpy.Message(frame))
+            self.noise.publish(roslibpy.Message(noise()))
             self.tf.publish(roslibpy.Message({"transforms": [transform("odom", "base_link", 0.1)]}))
             if self.count % 10 == 1:  # latched or not, the page sees it within a second
                 static = [transform("map", "odom", 1.0), transform("base_link", "camera", 0.2)]

@@ -104,6 +104,18 @@ def test_shows_an_image_topic(page: Page) -> None:
     assert all(abs(a - b) < 40 for a, b in zip(right, BLUE, strict=True)), right
 
 
+def test_shows_an_image_topic_as_vp8(page: Page) -> None:
+    """The console starts the muted VP8 <video> with play(): it plays on its own."""
+    page.evaluate(
+        "(s => { s.value = 'vp8'; s.dispatchEvent(new Event('change')); })"
+        "(document.getElementById('image-kind'))"
+    )
+    playing(page, '#images figure[data-topic="/camera/noise"] video')
+    assert page.evaluate(
+        "document.querySelector('#images figure[data-topic=\"/camera/noise\"] button').hidden"
+    )
+
+
 def test_tf_tree_lists_frames(page: Page) -> None:
     page.click('#tabs button[data-tab="tf"]')
     path = page.wait_for(
@@ -126,3 +138,28 @@ def test_server_tab_shows_connections(page: Page) -> None:
 
 def test_no_errors_after_the_tour(page: Page) -> None:
     assert page.errors() == [], json.dumps(page.errors())
+
+
+def playing(page: Page, selector: str) -> None:
+    """Wait until the <video> has data to play (readyState >= 3) and its time advances."""
+    video = f"document.querySelector({json.dumps(selector)})"
+    page.wait_for(f"(v => v && v.readyState >= 3)({video})", 20, f"{selector} to have data")
+    start = page.evaluate(f"{video}.currentTime")
+    page.wait_for(f"{video}.currentTime > {start} + 0.2", 20, f"{selector} to play")
+    assert not page.evaluate(f"{video}.paused")
+
+
+def test_the_video_viewer_plays_vp8(
+    browser: Browser, video_server: tuple[str, str], robot: RobotProcess
+) -> None:
+    """web_video_server's viewer page under Chromium's default autoplay policy."""
+    _, video_url = video_server
+    viewer = browser.new_page()
+    try:
+        # noise: a small still image makes too few bytes a second for Chromium to start
+        viewer.goto(f"{video_url}/stream_viewer?topic=/camera/noise&type=vp8")
+        playing(viewer, "video")
+        assert viewer.evaluate("document.getElementById('play').hidden")
+        assert viewer.errors() == []
+    finally:
+        viewer.close()
