@@ -51,7 +51,7 @@ def stream_viewer_page(params: StreamParams) -> str:
     source = escape(f"/stream?{_query(params)}")
     if params.type.is_video:
         element = (
-            f'<video id="stream" src="{source}" autoplay muted playsinline></video>'
+            f'<video src="{source}" id="stream" autoplay muted playsinline></video>'
             '<p><button id="play" type="button" hidden>&#9654; Play</button></p>'
             f"<script>{_START_VIDEO}</script>"
         )
