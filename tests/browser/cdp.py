@@ -244,12 +244,15 @@ class Page:
     def screenshot(self, selector: str) -> bytes:
         """A PNG of the element matching ``selector``, at its size on the page."""
         box = self.evaluate(
-            f"(() => {{ const r = document.querySelector({json.dumps(selector)})"
-            ".getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()"
+            f"(() => {{ const e = document.querySelector({json.dumps(selector)});"
+            " e.scrollIntoView(); const r = e.getBoundingClientRect();"
+            " return [r.x + scrollX, r.y + scrollY, r.width, r.height]; })()"
         )
         x, y, width, height = box
         clip = {"x": x, "y": y, "width": width, "height": height, "scale": 1}
-        data = self.send("Page.captureScreenshot", format="png", clip=clip)["data"]
+        data = self.send(
+            "Page.captureScreenshot", format="png", clip=clip, captureBeyondViewport=True
+        )["data"]
         return base64.b64decode(data)
 
     def errors(self) -> list[str]:

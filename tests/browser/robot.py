@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import os
 import sys
 import threading
@@ -71,11 +72,12 @@ class Robot:
         self.count = 0
         self._stop = threading.Event()
         self.chatter = roslibpy.Topic(self.ros, "/console_test/chatter", "std_msgs/msg/String")
+        self.point = roslibpy.Topic(self.ros, "/console_test/point", "geometry_msgs/msg/Point")
         self.camera = roslibpy.Topic(self.ros, "/camera/image", "sensor_msgs/msg/Image")
         self.noise = roslibpy.Topic(self.ros, "/camera/noise", "sensor_msgs/msg/Image")
         self.tf = roslibpy.Topic(self.ros, "/tf", "tf2_msgs/msg/TFMessage")
         self.tf_static = roslibpy.Topic(self.ros, "/tf_static", "tf2_msgs/msg/TFMessage")
-        for topic in (self.chatter, self.camera, self.noise, self.tf, self.tf_static):
+        for topic in (self.chatter, self.point, self.camera, self.noise, self.tf, self.tf_static):
             topic.advertise()
         self.command = roslibpy.Topic(self.ros, "/console_test/command", "std_msgs/msg/String")
         self.command.subscribe(lambda msg: print(json.dumps(msg), flush=True))
@@ -96,6 +98,8 @@ class Robot:
         while not self._stop.wait(0.1):
             self.count += 1
             self.chatter.publish(roslibpy.Message({"data": f"hello {self.count}"}))
+            wave = math.sin(self.count / 5)
+            self.point.publish(roslibpy.Message({"x": wave, "y": -wave, "z": 0.5}))
             if self.count % 2 == 0:
                 self.camera.publish(roslibpy.Message(frame))
             self.noise.publish(roslibpy.Message(noise()))

@@ -10,10 +10,11 @@ import io
 import json
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 from PIL import Image
 
-from .cdp import Browser, Page
+from .cdp import Browser, Page, wait_until
 from .conftest import RobotProcess
 from .robot import BLUE, RED
 
@@ -66,6 +67,32 @@ def test_echoes_a_topic(page: Page) -> None:
     )
     assert '"hello' in text
     page.wait_for("/[1-9][0-9.]* Hz/.test(document.querySelector('#echo-stats').textContent)")
+    row = TOPIC_ROW.format("/console_test/chatter")
+    rate = page.wait_for(f"Number(document.querySelector('{row} .hz').textContent)")
+    assert rate > 1  # about 10 Hz, measured in the page
+    assert page.text(f"{row} .bw").endswith("B/s")
+
+
+def test_plots_numeric_fields(page: Page) -> None:
+    page.click(TOPIC_ROW.format("/console_test/point"))
+    checked = page.wait_for(
+        "(b => b.length && b)([...document.querySelectorAll('#plot-fields input:checked')]"
+        ".map(i => i.value))",
+        what="the plotted fields",
+    )
+    assert checked == ["x", "y", "z"]  # three numbers or fewer are plotted at once
+
+    def lines_drawn() -> bool:
+        plot = Image.open(io.BytesIO(page.screenshot("#plot"))).convert("RGB")
+        # below the legend row, where only the lines are
+        area = plot.crop((0, plot.height // 5, plot.width, plot.height))
+        rgb = np.asarray(area).astype(int)
+        r, b = rgb[..., 0], rgb[..., 2]
+        blue = int(((b > 150) & (r < 100)).sum())  # x: '#2b7bd6'
+        red = int(((r > 150) & (b < 100)).sum())  # y: '#d6472b'
+        return blue > 20 and red > 20  # lines across the plot, not a dot
+
+    wait_until(lines_drawn, 10, "the x and y lines on the plot")
 
 
 def test_publishes_from_the_form(page: Page, robot: RobotProcess) -> None:

@@ -145,7 +145,10 @@ async function main() {
     if (name === 'tf') tf.start(types);
   });
   let clientsWatched = false;
+  let refreshing = false; // a slow graph must not pile up refreshes
   const refresh = async () => {
+    if (refreshing) return;
+    refreshing = true;
     try {
       await graph.refresh();
       const rows = [...document.querySelectorAll('#topics tbody tr')];
@@ -157,6 +160,8 @@ async function main() {
       }
     } catch (error) {
       logStatus({ level: 'error', msg: `refresh failed: ${error.message}` });
+    } finally {
+      refreshing = false;
     }
   };
   document.getElementById('refresh').addEventListener('click', refresh);

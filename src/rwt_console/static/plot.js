@@ -37,11 +37,13 @@ export class Plot {
     ctx.clearRect(0, 0, width, height);
     let lo = Infinity;
     let hi = -Infinity;
+    let t0 = Infinity;
     let t1 = -Infinity;
     for (const points of this.series.values()) {
       for (const [t, v] of points) {
         lo = Math.min(lo, v);
         hi = Math.max(hi, v);
+        t0 = Math.min(t0, t);
         t1 = Math.max(t1, t);
       }
     }
@@ -50,8 +52,10 @@ export class Plot {
       hi += 1;
       lo -= 1;
     }
-    const t0 = t1 - WINDOW_S;
-    const x = (t) => ((t - t0) / WINDOW_S) * (width - 50) + 45;
+    // the last WINDOW_S seconds, or all the data while there is less of it
+    t0 = Math.max(t0, t1 - WINDOW_S);
+    const span = Math.max(t1 - t0, 1e-3);
+    const x = (t) => ((t - t0) / span) * (width - 50) + 45;
     const y = (v) => height - 15 - ((v - lo) / (hi - lo)) * (height - 30);
     ctx.fillStyle = '#666';
     ctx.font = '11px sans-serif';
