@@ -12,7 +12,7 @@ images and video from any HTTP origin (the video server is on another port).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
 
@@ -87,6 +87,8 @@ class ConsoleSite:
         auth: the server asks for the rosauth ``auth`` op first (``--auth-secret-file``).
         root_is_console: ``/`` serves the page (the WebSocket port); the video
             server keeps ``/`` for web_video_server's topic list.
+        limits: the server's limits the page lists, by command-line option name
+            (``{"--max-message-size": 10485760, ...}``; docs/limits.md).
     """
 
     websocket_path: str = "/"
@@ -95,6 +97,7 @@ class ConsoleSite:
     video_port: int | None = None
     auth: bool = False
     root_is_console: bool = True
+    limits: dict[str, object] = field(default_factory=dict)
 
     def config(self) -> dict[str, object]:
         """What ``/console/config.json`` answers (its fields are described in docs/console.md)."""
@@ -106,6 +109,7 @@ class ConsoleSite:
             },
             "video": None if self.video_port is None else {"port": self.video_port},
             "auth": self.auth,
+            "limits": self.limits,
         }
 
     def handles(self, target: str) -> bool:

@@ -451,6 +451,8 @@ def serve(
         tf=tf,
         handshake_timeout_s=handshake_timeout,
     )
+    if site is not None:
+        site.limits = _limits(config)
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
         # numpy and Pillow load only when asked for (benchmarks B11 base memory)
@@ -513,6 +515,22 @@ def _console_site(
     if not wanted:
         return None
     return ConsoleSite(websocket_path=url_path or "/", websocket_tls=tls, auth=auth)
+
+
+def _limits(config: ServerConfig) -> dict[str, object]:
+    """The limits the console lists, by option name (docs/limits.md)."""
+    session = config.session
+    return {
+        "--max-message-size": config.max_message_size,
+        "--max-connections": config.max_connections or "from the open-files limit",
+        "--send-buffer-limit": session.send_buffer_limit,
+        "--max-queue-length": session.max_queue_length,
+        "--max-subscriptions": session.max_subscriptions,
+        "--max-advertisements": session.max_advertisements,
+        "--max-pending-calls": session.max_pending_calls,
+        "--max-pending-goals": session.max_pending_goals,
+        "--call-timeout": session.call_timeout_s or 0,
+    }
 
 
 def _video_config(

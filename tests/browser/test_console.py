@@ -160,6 +160,8 @@ def test_server_tab_shows_connections(page: Page) -> None:
     assert count >= 2  # the robot and this page
     rows = page.evaluate("document.querySelectorAll('#clients tbody tr').length")
     assert rows == count
+    limit = page.text('#limits tr[data-name="--max-message-size"] td:last-child')
+    assert limit == str(10 * 1024 * 1024)
     assert page.errors() == []
 
 

@@ -59,11 +59,11 @@ def test_the_console_and_the_websocket_share_the_port(serve) -> None:
     assert fields["Content-Type"] == "text/html; charset=utf-8"
     assert b'<script type="module" src="/console/main.js">' in body
     status, fields, body = http_get(server.url, "/console/config.json")
-    assert json.loads(body) == {
-        "websocket": {"port": None, "path": "/", "tls": False},
-        "video": None,
-        "auth": False,
-    }
+    config = json.loads(body)
+    assert config["websocket"] == {"port": None, "path": "/", "tls": False}
+    assert config["video"] is None
+    assert config["auth"] is False
+    assert config["limits"]["--max-message-size"] == 10 * 1024 * 1024  # rwt serve's default
     for target in ("/console/../../../etc/passwd", "/console/%2e%2e/site.py", "/nothing"):
         status, _, body = http_get(server.url, target)
         assert status == 404, target
@@ -73,10 +73,11 @@ def test_the_console_and_the_websocket_share_the_port(serve) -> None:
 
 
 def test_url_path_moves_the_websocket_not_the_console(serve) -> None:
-    server = serve("--url-path", "/rosbridge")
+    server = serve("--url-path", "/rosbridge", "--max-subscriptions", "7")
     assert http_get(server.url, "/")[0] == 200
     config = json.loads(http_get(server.url, "/console/config.json")[2])
     assert config["websocket"]["path"] == "/rosbridge"
+    assert config["limits"]["--max-subscriptions"] == 7
     assert anyio.run(rosapi_topics, server.url + "/rosbridge")
 
 

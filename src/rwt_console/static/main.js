@@ -107,9 +107,16 @@ async function connect(config) {
   return ros;
 }
 
+function showLimits(limits) {
+  const body = document.querySelector('#limits tbody');
+  body.replaceChildren(...Object.entries(limits ?? {}).map(([name, value]) =>
+    el('tr', { dataset: { name } }, el('td', { text: name }), el('td', { text: String(value) }))));
+}
+
 async function main() {
   const response = await fetch('/console/config.json', { cache: 'no-store' });
   const config = await response.json();
+  showLimits(config.limits);
   let ros;
   try {
     ros = await connect(config);
