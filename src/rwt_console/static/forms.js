@@ -14,12 +14,20 @@ function parseExample(example, fallback) {
   }
 }
 
+function zero(type, byType) {
+  if (byType.has(type)) return {};
+  if (type === 'bool') return false;
+  if (INTEGER.has(type) || FLOAT.has(type)) return 0;
+  return '';
+}
+
 function field(name, type, arrayLength, example, byType, depth, path) {
   const id = `f-${path.join('-')}`;
   const label = el('label', { for: id, text: `${name} `, title: arrayLength >= 0 ? `${type}[]` : type });
   if (arrayLength >= 0 || (depth >= MAX_DEPTH && byType.has(type))) {
     const input = el('textarea', { id, name: path.join('.'), rows: 2, placeholder: '[] (JSON)' });
-    input.value = arrayLength >= 0 ? '[]' : '{}';
+    // a fixed-size array (float64[9] covariance) starts with its size, an unbounded one empty
+    input.value = arrayLength >= 0 ? JSON.stringify(Array(arrayLength).fill(zero(type, byType))) : '{}';
     const read = () => {
       try {
         return JSON.parse(input.value || (arrayLength >= 0 ? '[]' : '{}'));

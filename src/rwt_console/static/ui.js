@@ -17,12 +17,15 @@ export function el(tag, attributes = {}, ...children) {
 }
 
 const MAX_TREE_ITEMS = 200; // a long array shows its first items, then how many more
+const MAX_LEAF_CHARS = 500; // a long string (base64 image data) shows its start
 
 export function jsonTree(value, key = null, open = true) {
   const label = key === null ? null : el('span', { class: 'key', text: `${key}: ` });
   if (value === null || typeof value !== 'object') {
     const kind = value === null ? 'null' : typeof value;
-    return el('div', { class: 'leaf' }, label, el('span', { class: `v-${kind}`, text: JSON.stringify(value) }));
+    let text = JSON.stringify(value);
+    if (text.length > MAX_LEAF_CHARS) text = `${text.slice(0, MAX_LEAF_CHARS)}… (${text.length} characters)`;
+    return el('div', { class: 'leaf' }, label, el('span', { class: `v-${kind}`, text }));
   }
   const entries = Array.isArray(value) ? value.map((v, i) => [i, v]) : Object.entries(value);
   const summary = Array.isArray(value) ? `[${value.length}]` : `{${entries.length}}`;
