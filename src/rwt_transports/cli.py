@@ -381,6 +381,9 @@ def serve(
     --video, a "video on http://HOST:PORT" line follows: image topics over HTTP
     on web_video_server's paths. --depthcloud DEPTH[,RGB] encodes a depth (and
     colour) topic for ros3djs, as depthcloud_encoder does.
+
+    A browser opening http://HOST:PORT/ (the WebSocket port) gets the web console:
+    the live graph, echo, publish, calls, actions, images and TF.
     """
     if not (websocket or tcp_port is not None or udp_port is not None or stdio):
         raise usage_error(
