@@ -92,7 +92,10 @@ async function connect(config) {
   document.getElementById('server-url').textContent = url;
   const ros = new Rosbridge(url);
   ros.on('status', logStatus);
-  ros.on('close', (event) => setStatus(`disconnected (${event.code}${event.reason ? ` ${event.reason}` : ''})`, 'bad'));
+  ros.on('close', (event) => {
+    const why = `${event.code}${event.reason ? ` ${event.reason}` : ''}`;
+    setStatus(`disconnected (${why}): reload the page to reconnect`, 'bad');
+  });
   let auth = null;
   if (config.auth) {
     setStatus('authentication needed', 'bad');

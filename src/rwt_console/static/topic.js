@@ -40,11 +40,16 @@ export class TopicView {
     const meter = new Meter();
     this.meter = meter;
     this.graph.meters.set(topic, meter);
-    this.unsubscribe = this.ros.subscribe(topic, type, (msg, bytes) => {
-      meter.record(bytes);
-      this.receive(msg);
-    });
     const fields = document.getElementById('publish-fields');
+    try {
+      this.unsubscribe = this.ros.subscribe(topic, type, (msg, bytes) => {
+        meter.record(bytes);
+        this.receive(msg);
+      });
+    } catch (error) {
+      this.unsubscribe = null;
+      showError(document.getElementById('echo-output'), error);
+    }
     fields.replaceChildren(el('p', { class: 'muted', text: 'loading the type…' }));
     try {
       const details = await this.ros.callService('/rosapi/message_details', { type });
