@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import json
 import socket
+import ssl
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import anyio
 import pytest
+import trustme
 from websockets.asyncio.client import connect
 
 from tests.integration.client_harness import ServerProcess
@@ -16,14 +20,20 @@ from tests.integration.client_harness import ServerProcess
 TIMEOUT_S = 10.0
 
 
-def http_get(url: str, target: str, method: str = "GET") -> tuple[int, dict[str, str], bytes]:
+def http_get(
+    url: str, target: str, method: str = "GET", tls: ssl.SSLContext | None = None
+) -> tuple[int, dict[str, str], bytes]:
     """One raw HTTP/1.1 request (the target is sent exactly as given, unnormalised)."""
     host, port = url.split("://", 1)[1].split("/", 1)[0].rsplit(":", 1)
-    with socket.create_connection((host, int(port)), timeout=TIMEOUT_S) as sock:
+    raw = socket.create_connection((host, int(port)), timeout=TIMEOUT_S)
+    with raw if tls is None else tls.wrap_socket(raw, server_hostname=host) as sock:
         sock.sendall(f"{method} {target} HTTP/1.1\r\nHost: {host}:{port}\r\n\r\n".encode())
         data = b""
-        while chunk := sock.recv(65536):
-            data += chunk
+        try:
+            while chunk := sock.recv(65536):
+                data += chunk
+        except ssl.SSLEOFError:  # the server closes without close_notify: the reply is whole
+            pass
     head, _, body = data.partition(b"\r\n\r\n")
     lines = head.decode("latin-1").split("\r\n")
     fields = dict(line.split(": ", 1) for line in lines[1:])
@@ -120,3 +130,29 @@ def test_the_video_port_serves_the_console_too(serve) -> None:
     assert status == 200 and b"rwt console" in body
     status, _, body = http_get(video_url, "/")  # web_video_server's topic list stays
     assert status == 200 and b"Available ROS Image Topics" in body
+
+
+def test_over_tls_the_page_is_https_and_connects_with_wss(tmp_path: Path) -> None:
+    ca = trustme.CA()
+    cert = ca.issue_cert("127.0.0.1")
+    certfile, keyfile = tmp_path / "cert.pem", tmp_path / "key.pem"
+    cert.cert_chain_pems[0].write_to_path(certfile)
+    cert.private_key_pem.write_to_path(keyfile)
+    args = ("--port", "0", "--certfile", str(certfile), "--keyfile", str(keyfile))
+    command = [sys.executable, "-m", "rwt_transports", "serve", "--host", "127.0.0.1", *args]
+    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        assert server.stdout is not None
+        line = server.stdout.readline().decode()  # the server prints it at once, or exits
+        assert line.startswith("listening on wss://"), line
+        url = line.removeprefix("listening on ").strip()
+        context = ssl.create_default_context()
+        ca.configure_trust(context)
+        status, _, body = http_get(url, "/", tls=context)
+        assert status == 200 and b"rwt console" in body
+        config = json.loads(http_get(url, "/console/config.json", tls=context)[2])
+        assert config["websocket"]["tls"] is True
+    finally:
+        server.terminate()
+        server.wait(10)
+        server.stdout.close()
