@@ -168,7 +168,11 @@ class Browser:
             self.proc.kill()
             self.proc.wait(10)
         self.log.close()
-        shutil.rmtree(self.profile, ignore_errors=True)
+        # Chromium's helper processes may still write a file or two as they exit
+        deadline = time.monotonic() + 5
+        while self.profile.exists() and time.monotonic() < deadline:
+            shutil.rmtree(self.profile, ignore_errors=True)
+            time.sleep(0.1)
 
 
 class Page:
