@@ -152,6 +152,7 @@ def test_tf_tree_lists_frames(page: Page) -> None:
         what="the camera frame in the TF tree",
     )
     assert path == ["camera", "base_link", "odom", "map"]
+    assert page.evaluate("document.getElementById('tf-tree').childNodes.length") == 1  # no cycle
 
 
 def test_server_tab_shows_connections(page: Page) -> None:

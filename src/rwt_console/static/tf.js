@@ -50,7 +50,8 @@ export class TfView {
     const tree = el('ul', { class: 'tf-tree' }, roots.map(branch));
     const lost = [...frames].filter((frame) => !seen.has(frame)); // cycles have no root
     const out = document.getElementById('tf-tree');
-    out.replaceChildren(tree, lost.length ? el('p', { class: 'error', text: `in a cycle: ${lost.join(', ')}` }) : null);
+    out.replaceChildren(tree);
+    if (lost.length) out.append(el('p', { class: 'error', text: `in a cycle: ${lost.join(', ')}` }));
   }
 }
 
