@@ -198,3 +198,17 @@ def test_the_video_viewer_plays(
         assert viewer.errors() == []
     finally:
         viewer.close()
+
+
+def test_the_console_from_the_video_port(browser: Browser, video_server: tuple[str, str]) -> None:
+    """Served by the video server, the page finds the WebSocket through config.json."""
+    ws_url, video_url = video_server
+    console = browser.new_page()
+    try:
+        console.goto(f"{video_url}/console/")
+        console.wait_for("!!document.querySelector('#status.ok')", what="the console to connect")
+        assert console.text("#server-url") == ws_url + "/"
+        console.wait_for(f"!!document.querySelector('{TOPIC_ROW.format('/camera/image')}')")
+        assert console.errors() == []
+    finally:
+        console.close()
