@@ -73,6 +73,16 @@ def test_echoes_a_topic(page: Page) -> None:
     assert page.text(f"{row} .bw").endswith("B/s")
 
 
+def test_echoes_a_latched_topic_the_page_already_watches(page: Page) -> None:
+    """/client_count is latched, and the page subscribed to it first: the echo still shows it."""
+    page.click(TOPIC_ROW.format("/client_count"))
+    text = page.wait_for(
+        "(t => /data: [0-9]+/.test(t) && t)(document.querySelector('#echo-output').textContent)",
+        what="the latched client count in the echo",
+    )
+    assert int(text.split("data: ")[1]) >= 2  # the robot and this page
+
+
 def test_plots_numeric_fields(page: Page) -> None:
     page.click(TOPIC_ROW.format("/console_test/point"))
     checked = page.wait_for(

@@ -10,6 +10,7 @@ export class Rosbridge {
     this.nextId = 1;
     this.pending = new Map(); // id -> {resolve, reject, onFeedback}
     this.topics = new Map(); // topic -> Set of handlers
+    this.last = new Map(); // topic -> its newest message, for a second handler of the topic
     this.advertised = new Set();
     this.listeners = { close: [], status: [], open: [] };
   }
@@ -65,7 +66,9 @@ export class Rosbridge {
     switch (message.op) {
       case 'publish': {
         const handlers = this.topics.get(message.topic);
-        if (handlers) for (const handler of handlers) handler(message.msg, text.length);
+        if (!handlers) break;
+        this.last.set(message.topic, message.msg);
+        for (const handler of handlers) handler(message.msg, text.length);
         break;
       }
       case 'service_response': {
@@ -123,6 +126,9 @@ export class Rosbridge {
       handlers = new Set();
       this.topics.set(topic, handlers);
       this.send({ op: 'subscribe', id: `sub:${topic}`, topic, type, ...options });
+    } else if (this.last.has(topic)) {
+      // one subscription per topic: a latched message came only once, so replay the newest
+      handler(this.last.get(topic), 0, true);
     }
     handlers.add(handler);
     return () => this.unsubscribe(topic, handler);
@@ -134,6 +140,7 @@ export class Rosbridge {
     handlers.delete(handler);
     if (handlers.size === 0) {
       this.topics.delete(topic);
+      this.last.delete(topic);
       if (this.connected) this.send({ op: 'unsubscribe', id: `sub:${topic}`, topic });
     }
   }

@@ -42,8 +42,8 @@ export class TopicView {
     this.graph.meters.set(topic, meter);
     const fields = document.getElementById('publish-fields');
     try {
-      this.unsubscribe = this.ros.subscribe(topic, type, (msg, bytes) => {
-        meter.record(bytes);
+      this.unsubscribe = this.ros.subscribe(topic, type, (msg, bytes, replayed) => {
+        if (!replayed) meter.record(bytes); // the rate counts what arrives, not a replay
         this.receive(msg);
       });
     } catch (error) {
