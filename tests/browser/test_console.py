@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import json
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -71,6 +72,20 @@ def test_echoes_a_topic(page: Page) -> None:
     rate = page.wait_for(f"Number(document.querySelector('{row} .hz').textContent)")
     assert rate > 1  # about 10 Hz, measured in the page
     assert page.text(f"{row} .bw").endswith("B/s")
+
+
+def test_echo_pauses_and_keeps_the_last_n(page: Page) -> None:
+    page.fill("#echo-keep", "2")
+    messages = "document.querySelectorAll('#echo-output .message')"
+    page.wait_for(f"{messages}.length === 2", what="the echo to keep two messages")
+    page.click("#echo-pause")
+    assert page.text("#echo-pause") == "Resume"
+    held = page.text("#echo-output")
+    time.sleep(0.5)  # five more messages arrive meanwhile; none is shown
+    assert page.text("#echo-output") == held
+    page.click("#echo-pause")
+    page.wait_for(f"document.querySelector('#echo-output').textContent !== {json.dumps(held)}")
+    assert page.evaluate(f"{messages}.length") == 2
 
 
 def test_echoes_a_latched_topic_the_page_already_watches(page: Page) -> None:
