@@ -226,8 +226,11 @@ async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.
     if config.console is not None and config.console.handles(target):
         reply = config.console.answer(request.method.decode("latin-1"), target)
         fields = dict(reply.headers)
-        del fields["Content-Length"], fields["Cache-Control"]  # ``reply`` sets both
-        await http.reply(reply.status, fields.pop("Content-Type"), reply.body, **fields)
+        del fields["Cache-Control"]  # ``start`` sets its own
+        # Content-Length as the reply says: for HEAD, the size a GET would get
+        await http.start(reply.status, fields.pop("Content-Type"), **fields)
+        await http.send(reply.body)
+        await http.stream.send(http.conn.send(h11.EndOfMessage()))
         return
     if request.method != b"GET":
         await http.error(405, "only GET is served")

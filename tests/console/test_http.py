@@ -128,6 +128,10 @@ def test_the_video_port_serves_the_console_too(serve) -> None:
     assert config["websocket"] == {"port": ws_port, "path": "/", "tls": False}
     status, _, body = http_get(video_url, "/console/")
     assert status == 200 and b"rwt console" in body
+    size = len(http_get(video_url, "/console/main.js")[2])
+    for url in (server.url, video_url):
+        status, fields, body = http_get(url, "/console/main.js", "HEAD")
+        assert (status, fields["Content-Length"], body) == (200, str(size), b"")
     status, _, body = http_get(video_url, "/")  # web_video_server's topic list stays
     assert status == 200 and b"Available ROS Image Topics" in body
 
