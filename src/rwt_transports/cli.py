@@ -14,9 +14,11 @@ import logging
 import signal
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+from urllib.parse import urlsplit
 
 import anyio
 import typer
@@ -24,6 +26,7 @@ from anyio.abc import TaskStatus
 from typer.core import TyperGroup
 
 from rwt_conformance.cli import conformance
+from rwt_console import ConsoleSite
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy, parse_glob_list
@@ -305,6 +308,13 @@ def serve(
         bool,
         typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
     ] = True,
+    console: Annotated[
+        bool | None,
+        typer.Option(
+            help="Serve the web console at http://HOST:PORT/ (default: on, off with"
+            " --allowed-origins)."
+        ),
+    ] = None,
     video: Annotated[
         bool, typer.Option(help="Also serve image topics over HTTP (as web_video_server).")
     ] = False,
@@ -371,6 +381,9 @@ def serve(
     --video, a "video on http://HOST:PORT" line follows: image topics over HTTP
     on web_video_server's paths. --depthcloud DEPTH[,RGB] encodes a depth (and
     colour) topic for ros3djs, as depthcloud_encoder does.
+
+    A browser opening http://HOST:PORT/ (the WebSocket port) gets the web console:
+    the live graph, echo, publish, calls, actions, images and TF.
     """
     if not (websocket or tcp_port is not None or udp_port is not None or stdio):
         raise usage_error(
@@ -391,6 +404,8 @@ def serve(
     if raise_fd_limit:
         raise_nofile_limit()
     graph = Graph(TypeRegistry(dialect, interfaces or ()))
+    origins = tuple(o.strip() for o in allowed_origins.split(",") if o.strip())
+    site = _console_site(console, origins, url_path, certfile is not None, secret is not None)
     authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
     access = AccessPolicy(
         topics=parse_glob_list(topics_glob),
@@ -425,9 +440,10 @@ def serve(
         websocket=WebSocketOptions(
             compression=websocket_compression,
             url_path=url_path,
-            allowed_origins=tuple(o.strip() for o in allowed_origins.split(",") if o.strip()),
+            allowed_origins=origins,
             ping_interval_s=websocket_ping_interval,
             ping_timeout_s=websocket_ping_timeout,
+            console=site,
         ),
         udp=UdpOptions(
             datagram_bytes=udp_datagram_size,
@@ -438,6 +454,8 @@ def serve(
         tf=tf,
         handshake_timeout_s=handshake_timeout,
     )
+    if site is not None:
+        site.limits = _limits(config)
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
         # numpy and Pillow load only when asked for (benchmarks B11 base memory)
@@ -458,6 +476,7 @@ def serve(
             VIDEO_PORT if video_port is None else video_port,
             video_max_connections,
             video_max_streams,
+            site,
         )
     freeze_startup_objects()
     try:
@@ -484,12 +503,54 @@ def _read_secret(path: Path) -> str:
     return secret
 
 
-def _video_config(host: str, port: int, max_connections: int, max_streams: int) -> VideoConfig:
+def _console_site(
+    wanted: bool | None, origins: tuple[str, ...], url_path: str | None, tls: bool, auth: bool
+) -> ConsoleSite | None:
+    """The console of the WebSocket port, or None when it is off (docs/console.md).
+
+    By default it is on, except with --allowed-origins: the operator chose which
+    web pages may reach the robot, and the robot's own page is not one of them
+    unless --console says so (its origin must then be allowed too). With
+    --auth-secret-file it stays on: the page asks for the ``auth`` op first.
+    """
+    if wanted is None:
+        wanted = not origins
+    if not wanted:
+        return None
+    return ConsoleSite(websocket_path=url_path or "/", websocket_tls=tls, auth=auth)
+
+
+def _limits(config: ServerConfig) -> dict[str, object]:
+    """The limits the console lists, by option name (docs/limits.md)."""
+    session = config.session
+    return {
+        "--max-message-size": config.max_message_size,
+        "--max-connections": config.max_connections or "from the open-files limit",
+        "--send-buffer-limit": session.send_buffer_limit,
+        "--max-queue-length": session.max_queue_length,
+        "--max-subscriptions": session.max_subscriptions,
+        "--max-advertisements": session.max_advertisements,
+        "--max-pending-calls": session.max_pending_calls,
+        "--max-pending-goals": session.max_pending_goals,
+        "--call-timeout": session.call_timeout_s or 0,
+    }
+
+
+def _video_config(
+    host: str, port: int, max_connections: int, max_streams: int, site: ConsoleSite | None
+) -> VideoConfig:
     # the video server (Pillow, numpy) loads only with --video (B11: base memory)
     from rwt_video import VideoConfig  # noqa: PLC0415
 
+    console = None
+    if site is not None:  # the same page under /console/; its WebSocket port is set in _run
+        console = replace(site, root_is_console=False)
     return VideoConfig(
-        host=host, port=port, max_connections=max_connections, max_streams=max_streams
+        host=host,
+        port=port,
+        max_connections=max_connections,
+        max_streams=max_streams,
+        console=console,
     )
 
 
@@ -547,6 +608,9 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
                 video_url = await tg.start(serve_video, server.graph, video)
             except OSError as exc:
                 raise ListenError("HTTP video", video.host, video.port, exc) from exc
+            site = server.config.websocket.console
+            if site is not None:  # the console on the WebSocket port shows the streams
+                site.video_port = urlsplit(video_url).port
 
         async def serve(*, task_status: TaskStatus[str]) -> None:
             try:
@@ -559,6 +623,9 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
             tg.cancel_scope.cancel()  # stopped gracefully: the video server goes too
 
         await tg.start(serve)
+        ws_url = server.urls.get("websocket")
+        if video is not None and video.console is not None and ws_url:
+            video.console.websocket_port = urlsplit(ws_url).port
         if video_url:
             print(f"video on {video_url}", file=out, flush=True)
 

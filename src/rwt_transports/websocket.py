@@ -39,6 +39,7 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 from websockets.server import ServerProtocol
 
+from rwt_console.site import http_response_bytes
 from rwt_protocol.framing import FramerEvent, InFrame
 from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.session import CloseCode, Session
@@ -55,6 +56,7 @@ if TYPE_CHECKING:
     from websockets.datastructures import Headers
     from websockets.extensions.base import ServerExtensionFactory
 
+    from rwt_console import ConsoleSite
     from rwt_protocol.outbox import OutFrame
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
@@ -85,6 +87,9 @@ class WebSocketOptions:
             (``--websocket-ping-interval``, rosbridge's default 0).
         ping_timeout_s: seconds to wait for the pong before closing with 1011
             (``--websocket-ping-timeout``, rosbridge's default 30).
+        console: answers plain HTTP GET/HEAD requests (no ``Upgrade``) with the
+            web console (``--console``, docs/console.md); None: such requests
+            fail the handshake as before.
     """
 
     compression: bool = False
@@ -92,6 +97,7 @@ class WebSocketOptions:
     allowed_origins: tuple[str, ...] = ()
     ping_interval_s: float = 0.0
     ping_timeout_s: float = 30.0
+    console: ConsoleSite | None = None
 
 
 class WebSocketChannel:
@@ -419,6 +425,9 @@ async def serve_websocket_connection(
         if handshake is None:
             return
         request, at_frame_start = handshake
+        if options.console is not None and not _is_upgrade(request):
+            await _serve_console(stream, request, options.console, peer)
+            return
         channel = WebSocketChannel(stream, protocol, options, max_message_size)
         pump = ConnectionPump(channel)
         refusal = _refusal(request, options)
@@ -449,6 +458,22 @@ async def serve_websocket_connection(
             session.close()
             return
         await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
+
+
+def _is_upgrade(request: Request) -> bool:
+    """Whether ``request`` asks for a WebSocket (RFC 6455 4.2.1: ``Upgrade: websocket``)."""
+    return any("websocket" in value.lower() for value in request.headers.get_all("Upgrade"))
+
+
+async def _serve_console(
+    stream: ByteStream, request: Request, console: ConsoleSite, peer: str
+) -> None:
+    """Answer a plain HTTP request with the console's file (docs/console.md), then close."""
+    method = getattr(request, "method", "GET")  # websockets < 15 parses GET only
+    reply = console.answer(method, request.path)
+    logger.debug("event=console peer=%s path=%r status=%d", peer, request.path, reply.status)
+    with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+        await stream.send(http_response_bytes(reply))
 
 
 def _framed(frames: Sequence[OutFrame]) -> list[bytes]:

@@ -4,6 +4,11 @@ Laid out as web_video_server's: image topics grouped under the camera whose
 ``camera_info`` topic shares their prefix, each with links to its viewer page,
 its stream and a snapshot; the viewer page holds an ``<img>`` (mjpeg, png,
 ros_compressed) or a ``<video>`` (vp8, vp9, h264) pointing at ``/stream``.
+
+The ``<video>`` is muted and started by script: Chromium's default autoplay
+policy lets a muted video play without a user's gesture, but a headless or
+background tab may still hold ``autoplay`` back until the page calls ``play()``;
+when even that is refused, a Play button appears (docs/video.md).
 """
 
 from __future__ import annotations
@@ -45,11 +50,27 @@ def stream_viewer_page(params: StreamParams) -> str:
     """The ``/stream_viewer`` page: the stream in an element a browser plays."""
     source = escape(f"/stream?{_query(params)}")
     if params.type.is_video:
-        element = f'<video src="{source}" autoplay="true" preload="none"></video>'
+        element = (
+            f'<video src="{source}" id="stream" autoplay muted playsinline></video>'
+            '<p><button id="play" type="button" hidden>&#9654; Play</button></p>'
+            f"<script>{_START_VIDEO}</script>"
+        )
     else:
         element = f'<img src="{source}"></img>'
     title = escape(params.topic)
-    return f"<html><head><title>{title}</title></head><body><h1>{title}</h1>{element}</body></html>"
+    head = f'<title>{title}</title><link rel="icon" href="data:,">'  # no /favicon.ico 404
+    return f"<html><head>{head}</head><body><h1>{title}</h1>{element}</body></html>"
+
+
+_START_VIDEO = (
+    "const video = document.getElementById('stream');"
+    "const button = document.getElementById('play');"
+    "video.muted = true;"  # the property decides the autoplay policy, not the attribute
+    "const start = () => video.play().then(() => { button.hidden = true; },"
+    " () => { button.hidden = false; });"
+    "button.addEventListener('click', start);"
+    "start();"
+)
 
 
 def _topic_item(topic: str, label: str) -> str:

@@ -37,6 +37,7 @@ from .pages import stream_viewer_page, topic_list_page
 from .params import StreamParamError, StreamParams, StreamType, parse_stream_params
 
 if TYPE_CHECKING:
+    from rwt_console import ConsoleSite
     from rwt_graph.graph import Graph
 
 __all__ = ["VideoConfig", "serve_video"]
@@ -61,6 +62,7 @@ class VideoConfig:
             next one is answered 503 at once (docs/limits.md).
         max_streams: the most distinct streams (topic, type and parameters; one
             encoder each) at once; a request for another one is answered 503.
+        console: the web console under ``/console/`` (docs/console.md); None: not served.
     """
 
     host: str = "127.0.0.1"
@@ -69,6 +71,7 @@ class VideoConfig:
     snapshot_timeout_s: float = 10.0
     max_connections: int = 64
     max_streams: int = 16
+    console: ConsoleSite | None = None
 
 
 async def serve_video(
@@ -219,6 +222,16 @@ class _Http:
 
 
 async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.Request) -> None:
+    target = request.target.decode("latin-1")
+    if config.console is not None and config.console.handles(target):
+        reply = config.console.answer(request.method.decode("latin-1"), target)
+        fields = dict(reply.headers)
+        del fields["Cache-Control"]  # ``start`` sets its own
+        # Content-Length as the reply says: for HEAD, the size a GET would get
+        await http.start(reply.status, fields.pop("Content-Type"), **fields)
+        await http.send(reply.body)
+        await http.stream.send(http.conn.send(h11.EndOfMessage()))
+        return
     if request.method != b"GET":
         await http.error(405, "only GET is served")
         return
