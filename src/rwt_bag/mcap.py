@@ -1,0 +1,164 @@
+"""A rosbag2 MCAP writer that keeps the bag readable while it grows (checkpoints).
+
+rosbags' MCAP storage writes the summary and footer, and rosbag2's
+``metadata.yaml``, only when the bag is closed, so a recorder killed mid-run
+would leave a file no reader opens. ``CheckpointWriter.checkpoint`` closes the
+pending chunk and writes a complete summary, footer and ``metadata.yaml`` after
+it; the next checkpoint writes its chunk over the previous summary. Between
+checkpoints the chunk grows in memory, so a killed recorder leaves a bag that
+reads up to its last checkpoint. The new tail (chunk, indexes, summary, footer)
+is written with one ``write`` call, which keeps the time in which a kill could
+leave a torn tail as short as a copy into the page cache.
+
+Chunks close when they reach ``CHUNK_BYTES`` (as in rosbags) or when the
+recorder asks for a checkpoint (on a timer).
+"""
+
+from __future__ import annotations
+
+from io import BytesIO
+from typing import TYPE_CHECKING, Any
+
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from rosbags.rosbag2.enums import CompressionMode
+
+__all__ = ["CHUNK_BYTES", "CheckpointWriter"]
+
+#: rosbags closes a chunk past 1 MiB; so do we, through a checkpoint.
+CHUNK_BYTES = 1 << 20
+
+
+class _Tail:
+    """A file stand-in that collects writes from ``offset`` on, for one ``write``."""
+
+    def __init__(self, offset: int) -> None:
+        self._offset = offset
+        self.buffer = BytesIO()
+
+    def write(self, data: bytes | memoryview) -> int:
+        return self.buffer.write(data)
+
+    def tell(self) -> int:
+        return self._offset + self.buffer.tell()
+
+    def close(self) -> None:
+        """The real file stays open: the bag goes on after the checkpoint."""
+
+
+class _McapStorage(McapWriter):
+    """rosbags' MCAP storage whose chunks close only at a checkpoint."""
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        super().__init__(path, compression)
+        self.in_checkpoint = False
+        self.chunk_full = False
+
+    def close_chunk(self) -> None:
+        """Close the chunk during a checkpoint; else only note that one is due.
+
+        rosbags closes a full chunk from ``write``, straight into the file over the
+        last summary; deferring it to the checkpoint keeps the file readable.
+        """
+        if self.in_checkpoint:
+            super().close_chunk()
+        else:
+            self.chunk_full = True
+
+    def pending_bytes(self) -> int:
+        """Bytes of messages in the chunk not yet in the file."""
+        return int(self.chunk.bio.tell())
+
+
+class _Sqlite3Storage(Sqlite3Writer):
+    """rosbags' sqlite3 storage that can commit before it closes."""
+
+    chunk_full = False
+
+    def pending_bytes(self) -> int:
+        """Unknown for sqlite3; the recorder checkpoints it on its timer."""
+        return 0
+
+
+class CheckpointWriter(Writer):
+    """A rosbag2 writer (MCAP or sqlite3) with ``checkpoint``.
+
+    Args:
+        path: the bag directory to create.
+        storage_plugin: MCAP or sqlite3.
+    """
+
+    STORAGE_PLUGINS = {StoragePlugin.MCAP: _McapStorage, StoragePlugin.SQLITE3: _Sqlite3Storage}
+
+    def __init__(self, path: Path, *, storage_plugin: StoragePlugin) -> None:
+        super().__init__(path, version=9, storage_plugin=storage_plugin)
+
+    @property
+    def checkpoint_due(self) -> bool:
+        """Whether the chunk in memory is full (MCAP)."""
+        storage: Any = self.storage
+        return storage is not None and bool(storage.chunk_full)
+
+    def checkpoint(self) -> None:
+        """Make everything written so far readable: the file's tail and ``metadata.yaml``.
+
+        Raises:
+            OSError: the file cannot be written.
+        """
+        storage: Any = self.storage
+        if isinstance(storage, _McapStorage):
+            self._checkpoint_mcap(storage)
+        elif storage is not None:
+            storage.conn.commit()
+            self._write_metadata(storage)
+
+    def _checkpoint_mcap(self, storage: _McapStorage) -> None:
+        file = storage.bio
+        tail = _Tail(file.tell())
+        storage.bio = tail  # type: ignore[assignment]  # a file stand-in
+        storage.in_checkpoint = True
+        try:
+            if storage.pending_bytes():
+                storage.close_chunk()
+            data_end = tail.tell()
+            self._write_metadata(storage)  # the summary into ``tail``, metadata.yaml
+        finally:
+            storage.bio = file
+            storage.in_checkpoint = False
+            storage.chunk_full = False
+        file.write(tail.buffer.getbuffer())
+        file.flush()
+        file.truncate()
+        file.seek(data_end)  # the next chunk goes over this summary
+
+    def _write_metadata(self, storage: Any) -> None:
+        """Run rosbags' ``close`` (storage tail, metadata.yaml) on a storage that stays open."""
+        real_close = storage.close
+
+        def tail_only(version: int, metadata: str) -> None:
+            if isinstance(storage, _McapStorage):
+                real_close(version, metadata)  # writes into the ``_Tail``; the file stays open
+
+        storage.close = tail_only
+        try:
+            Writer.close(self)  # computes the metadata from the counts; sets storage None
+        finally:
+            del storage.close
+            self.storage = storage
+
+    def close(self) -> None:
+        """Write the final tail and metadata, and close the file."""
+        storage: Any = self.storage
+        if storage is None:
+            return
+        if isinstance(storage, _McapStorage):
+            self._checkpoint_mcap(storage)
+            storage.bio.close()
+            self.storage = None
+        else:
+            Writer.close(self)
