@@ -117,6 +117,7 @@ class Player:
         topics: Sequence[str] = (),
         clock: float | None = None,
         check: bool = True,
+        linger: bool = False,
     ) -> None:
         if not rate > 0:
             raise BagError(f"the rate must be above 0, not {rate}")
@@ -126,6 +127,7 @@ class Player:
         self.loop = loop
         self.clock_hz = clock
         self.check = check
+        self.linger = linger
         self.stats = PlayStats()
         self.source = BagSource(self.paths, graph.registry, topics)
         self._start_offset_ns = max(0, int(start_offset * 1e9))
@@ -278,9 +280,19 @@ class Player:
                 position = self._seek_to
                 continue
             self.stats.loops += 1
-            if not self.loop:
+            if self.loop:
+                position = self.start_ns
+            elif self.linger:
+                position = await self._next_seek()
+            else:
                 return
-            position = self.start_ns
+
+    async def _next_seek(self) -> int:
+        """Wait at the end of the bag until ``seek`` (``linger``)."""
+        self._seek_to = None
+        while self._seek_to is None:
+            await self._changed.wait()
+        return self._seek_to
 
     async def _play_from(self, start_ns: int) -> None:
         send, receive = anyio.create_memory_object_stream[_Item](_QUEUE)

@@ -159,7 +159,7 @@ class Recorder:
             BagWriter, self.path, self.fmt, self.graph.registry.typestore(), self._split
         )
         try:
-            self._discover()
+            self.discover()
             task_status.started()
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._discover_loop)
@@ -172,9 +172,9 @@ class Recorder:
     async def _discover_loop(self) -> None:
         while True:
             await anyio.sleep(self._discover_s)
-            self._discover()
+            self.discover()
 
-    def _discover(self) -> None:
+    def discover(self) -> None:
         """Subscribe to each matching topic not yet recorded."""
         for name, entry in list(self.graph.topics.items()):
             if name in self._subscriptions or not self.matches(name):
