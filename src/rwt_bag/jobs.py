@@ -55,6 +55,7 @@ class PlayOptions:
     topics: Sequence[str] = ()
     clock: float | None = None
     check: bool = True
+    paused: bool = False
 
 
 class BagJobs:
@@ -102,6 +103,7 @@ class BagJobs:
                 clock=play.clock,
                 check=play.check,
                 linger=stop_at_end is None,
+                paused=play.paused,
             )
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:

@@ -118,6 +118,7 @@ class Player:
         clock: float | None = None,
         check: bool = True,
         linger: bool = False,
+        paused: bool = False,
     ) -> None:
         if not rate > 0:
             raise BagError(f"the rate must be above 0, not {rate}")
@@ -132,7 +133,7 @@ class Player:
         self.source = BagSource(self.paths, graph.registry, topics)
         self._start_offset_ns = max(0, int(start_offset * 1e9))
         self._publishers: dict[str, LocalPublisher] = {}
-        self._paused = False
+        self._paused = paused
         self._changed = anyio.Event()
         self._seek_to: int | None = None
         self._segment: anyio.CancelScope | None = None

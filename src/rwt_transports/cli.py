@@ -43,6 +43,7 @@ from .cli_bag import (
     SplitDuration,
     SplitSize,
     StartOffset,
+    StartPaused,
     bag_app,
     bag_jobs,
     play_options,
@@ -400,6 +401,7 @@ def serve(
     start_offset: StartOffset = 0.0,
     clock: Clock = None,
     play_check: Check = True,
+    start_paused: StartPaused = False,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
 
@@ -521,6 +523,7 @@ def serve(
             topics=play_topics,
             clock=clock,
             check=play_check,
+            paused=start_paused,
         ),
         command="serve",
     )
@@ -552,6 +555,7 @@ def play(
     start_offset: StartOffset = 0.0,
     clock: Clock = None,
     check: Check = True,
+    start_paused: StartPaused = False,
     dialect: DialectOption = Dialect.ROS2,
     interfaces: Interfaces = None,
 ) -> None:
@@ -572,6 +576,7 @@ def play(
         topics=topics,
         clock=clock,
         check=check,
+        paused=start_paused,
     )
     jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
     try:

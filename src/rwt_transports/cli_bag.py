@@ -69,6 +69,9 @@ Clock = Annotated[
         help="Publish /clock at this rate and answer rosapi get_time with bag time.",
     ),
 ]
+StartPaused = Annotated[
+    bool, typer.Option(help="Start paused; /rwt/player/resume starts playback.")
+]
 Check = Annotated[
     bool,
     typer.Option(help="Decode the whole bag before publishing (--no-check: start at once)."),
@@ -100,11 +103,14 @@ def play_options(
     topics: str,
     clock: float | None,
     check: bool,
+    paused: bool = False,
 ) -> PlayOptions | None:
     """``PlayOptions`` of ``--play`` (None without it)."""
     if not paths:
         return None
-    return PlayOptions(paths, rate, loop, start_offset, parse_glob_list(topics), clock, check)
+    return PlayOptions(
+        paths, rate, loop, start_offset, parse_glob_list(topics), clock, check, paused
+    )
 
 
 def bag_jobs(
