@@ -228,16 +228,20 @@ class Player:
         return await self._tg.__aexit__(exc_type, exc, tb)
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
-        """Play the bag (forever with ``loop``); publishers go when this returns.
+        """Play the bag (forever with ``loop``); publishers and the file close at the end.
 
         Raises:
             BagError: the bag is corrupt (found by ``check`` before anything is
                 published, or while playing), or a topic of the bag exists in the
                 graph with another type.
         """
-        if self.check:
-            await anyio.to_thread.run_sync(self.source.check_all)
-        self._advertise()
+        try:
+            if self.check:
+                await anyio.to_thread.run_sync(self.source.check_all)
+            self._advertise()
+        except BaseException:
+            self.source.close()
+            raise
         try:
             async with anyio.create_task_group() as tg:
                 if self.clock_hz:
@@ -253,6 +257,7 @@ class Player:
             for publisher in self._publishers.values():
                 publisher.close()
             self._publishers.clear()
+            self.source.close()
 
     def _advertise(self) -> None:
         """A publisher per topic, all or none (a conflicting topic publishes nothing)."""

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype, QosDurability
 
+from rwt_graph.types import Dialect
 from rwt_protocol.errors import GraphError
 
 from .errors import BagError
@@ -116,7 +117,11 @@ class BagSource:
             if any(fnmatch.fnmatchcase(c.topic, p) for p in patterns)
         ]
         self.connections = chosen
-        self.topics = self._check(chosen)
+        try:
+            self.topics = self._check(chosen)
+        except BagError:
+            self._reader.close()
+            raise
 
     @property
     def start_ns(self) -> int:
@@ -145,11 +150,19 @@ class BagSource:
             if ours != theirs:
                 raise BagError(
                     f"{where}: the bag's definition differs from the graph's "
-                    f"({self._registry.dialect.value} {mtype.name})"
+                    f"({self._registry.dialect.value} {mtype.name}){self._dialect_hint()}"
                 )
             latched = is_latched(conn.topic, conn.msgtype, conn.ext)
             found[conn.id] = BagTopic(conn.topic, conn.msgtype, mtype, latched, conn.msgcount)
         return found
+
+    def _dialect_hint(self) -> str:
+        """A hint when the bag's ROS version is not the graph's dialect."""
+        bag_ros1 = not self._reader.is2
+        if bag_ros1 == (self._registry.dialect is Dialect.ROS1):
+            return ""
+        wanted = "ros1" if bag_ros1 else "ros2"
+        return f"; a ROS {1 if bag_ros1 else 2} bag plays on a {wanted} graph (--dialect {wanted})"
 
     def messages(
         self, start_ns: int | None = None
