@@ -166,13 +166,14 @@ async def record_remote(
         url, path, registry, topics=topics, fmt=fmt, split=split, compression=compression
     )
     async with anyio.create_task_group() as tg:
-        tg.start_soon(_cancel_on_signal, tg.cancel_scope)
-        await tg.start(remote.run)
+        tg.start_soon(_stop_on_signal, remote.stop)
         tg.start_soon(show_progress, lambda **kw: record_line(remote.recorder, **kw), out)
+        await remote.run()
+        tg.cancel_scope.cancel()
 
 
-async def _cancel_on_signal(scope: anyio.CancelScope) -> None:
+async def _stop_on_signal(stop: Callable[[], None]) -> None:
     with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
         async for _ in signals:
-            scope.cancel()
+            stop()
             return

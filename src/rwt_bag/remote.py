@@ -76,9 +76,10 @@ class RemoteRecorder:
         self._discover_s = discover_s
         self._bridged: dict[str, Topic] = {}
         self._skipped: set[str] = set()
+        self._stop = anyio.Event()
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
-        """Record until cancelled (or the connection is lost for good).
+        """Record until ``stop`` or cancelled.
 
         Raises:
             BagError: the bag cannot be created.
@@ -88,9 +89,20 @@ class RemoteRecorder:
             await tg.start(self.recorder.run)
             await self._discover(ros)
             task_status.started()
-            while True:
-                await anyio.sleep(self._discover_s)
-                await self._discover(ros)
+            while not self._stop.is_set():
+                with anyio.move_on_after(self._discover_s):
+                    await self._stop.wait()
+                if not self._stop.is_set():
+                    await self._discover(ros)
+            tg.cancel_scope.cancel()  # the recorder writes the rest and closes the bag
+
+    def stop(self) -> None:
+        """End ``run`` gracefully: the bag is closed, then the connection.
+
+        (Cancelling ``run`` also closes the bag, but interrupts the client's
+        close handshake.)
+        """
+        self._stop.set()
 
     async def _discover(self, ros: Ros) -> None:
         try:
