@@ -16,11 +16,11 @@ from typing import TYPE_CHECKING, TextIO
 import anyio
 
 from .controls import serve_controls
+from .formats import BagFormat, SplitPolicy
 from .player import Player
 from .progress import play_line, record_line, show_progress
 from .recorder import Recorder
 from .remote import RemoteRecorder
-from .writer import BagFormat, SplitPolicy
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence

@@ -29,7 +29,8 @@ import anyio.to_thread
 from rwt_graph.types import Dialect
 
 from .errors import BagError
-from .writer import BagFormat, BagWriter, SplitPolicy, TopicInfo
+from .formats import BagFormat, SplitPolicy
+from .writer import BagWriter, TopicInfo
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.types import TypeRegistry
 
-    from .writer import BagFormat, SplitPolicy
+    from .formats import BagFormat, SplitPolicy
 
 __all__ = ["RemoteRecorder"]
 

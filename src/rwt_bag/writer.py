@@ -10,7 +10,6 @@ hash) from the registry's typestore. A split starts a new bag next to the first:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,20 +25,13 @@ from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 
 from .errors import BagError
+from .formats import BagFormat, SplitPolicy
 from .mcap import CheckpointWriter
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
 __all__ = ["BagFormat", "BagWriter", "SplitPolicy", "TopicInfo", "split_path"]
-
-
-class BagFormat(StrEnum):
-    """The bag formats ``rwt record`` writes."""
-
-    MCAP = "mcap"
-    SQLITE3 = "sqlite3"
-    ROS1 = "ros1"
 
 
 @dataclass(frozen=True)
@@ -55,19 +47,6 @@ class TopicInfo:
     topic: str
     msgtype: str
     latched: bool
-
-
-@dataclass(frozen=True)
-class SplitPolicy:
-    """When to start a new bag file; None: never.
-
-    Attributes:
-        max_bytes: serialized message bytes per file.
-        max_seconds: receive-time span per file.
-    """
-
-    max_bytes: int | None = None
-    max_seconds: float | None = None
 
 
 _INFINITE = QosTime(sec=2147483647, nsec=4294967295)

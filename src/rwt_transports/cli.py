@@ -23,7 +23,8 @@ import typer
 from anyio.abc import TaskStatus
 from typer.core import TyperGroup
 
-from rwt_bag import BagError, BagFormat
+from rwt_bag.errors import BagError
+from rwt_bag.formats import BagFormat
 from rwt_conformance.cli import conformance
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry

@@ -14,14 +14,15 @@ from typing import TYPE_CHECKING, Annotated, NoReturn
 import anyio
 import typer
 
-from rwt_bag import BagError, BagFormat, SplitPolicy, bag_info
-from rwt_bag.jobs import BagJobs, PlayOptions, RecordOptions, record_remote
+from rwt_bag.errors import BagError
+from rwt_bag.formats import BagFormat, SplitPolicy
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import parse_glob_list
 
 from .cli_checks import check_directories, check_glob_list
 
 if TYPE_CHECKING:
+    from rwt_bag.jobs import BagJobs, PlayOptions, RecordOptions
     from rwt_graph.graph import Graph
 
 __all__ = ["bag_app", "bag_jobs", "play_options", "record", "record_options", "split_policy"]
@@ -91,6 +92,8 @@ def record_options(
     """``RecordOptions`` of ``--record`` (None without it)."""
     if path is None:
         return None
+    from rwt_bag.jobs import RecordOptions  # noqa: PLC0415 - rosbags' writers only when used
+
     return RecordOptions(path, parse_glob_list(topics) or ("*",), fmt, split)
 
 
@@ -108,6 +111,8 @@ def play_options(
     """``PlayOptions`` of ``--play`` (None without it)."""
     if not paths:
         return None
+    from rwt_bag.jobs import PlayOptions  # noqa: PLC0415 - see record_options
+
     return PlayOptions(
         paths, rate, loop, start_offset, parse_glob_list(topics), clock, check, paused
     )
@@ -124,6 +129,8 @@ def bag_jobs(
     """The ``BagJobs`` of the options, or None; a bad bag exits with one line (code 1)."""
     if record is None and play is None:
         return None
+    from rwt_bag.jobs import BagJobs  # noqa: PLC0415 - see record_options
+
     try:
         return BagJobs(
             graph,
@@ -163,6 +170,8 @@ def record(
     """
     if compression not in ("cbor", "none"):
         _fail("record", f"--compression must be cbor or none, not {compression}")
+    from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
+
     registry = TypeRegistry(dialect, interfaces or ())
     try:
         anyio.run(
@@ -194,6 +203,8 @@ def info(
     bag: Annotated[list[Path], typer.Argument(help="The bag (several: split parts, as one).")],
 ) -> None:
     """Print a bag's topics, types, message counts and duration, like ros2 bag info."""
+    from rwt_bag.info import bag_info  # noqa: PLC0415 - see record_options
+
     try:
         typer.echo(bag_info(bag).format())
     except BagError as exc:
