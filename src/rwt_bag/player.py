@@ -18,7 +18,6 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from itertools import islice
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -46,9 +45,12 @@ __all__ = ["PlayStats", "Player"]
 
 logger = logging.getLogger("rwt.bag")
 
-_Item = tuple[BagTopic, int, dict[str, object]]
-_READ_AHEAD = 16  # messages decoded per trip to the reader thread
-_QUEUE = 32  # decoded messages waiting to be published
+_Item = tuple[BagTopic, int, dict[str, object], int]  # topic, bag time ns, message, bytes
+#: One trip to the reader thread decodes up to this many messages or bytes, so
+#: the thread hop is paid once per batch, not per message.
+_BATCH_MESSAGES = 512
+_BATCH_BYTES = 8 * 1024 * 1024
+_QUEUE = 2  # decoded batches waiting to be published: bounded memory (~16 MB)
 
 
 @dataclass
@@ -301,28 +303,28 @@ class Player:
         return self._seek_to
 
     async def _play_from(self, start_ns: int) -> None:
-        send, receive = anyio.create_memory_object_stream[_Item](_QUEUE)
+        send, receive = anyio.create_memory_object_stream[list[_Item]](_QUEUE)
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._produce, send, start_ns)
             await self._consume(receive)
 
-    async def _produce(self, send: MemoryObjectSendStream[_Item], start_ns: int) -> None:
+    async def _produce(self, send: MemoryObjectSendStream[list[_Item]], start_ns: int) -> None:
         messages = self.source.messages(start_ns)
         async with send:
             while True:
                 batch = await anyio.to_thread.run_sync(_take, messages)
                 if not batch:
                     return
-                for item in batch:
-                    await send.send(item)
+                await send.send(batch)
 
-    async def _consume(self, receive: MemoryObjectReceiveStream[_Item]) -> None:
+    async def _consume(self, receive: MemoryObjectReceiveStream[list[_Item]]) -> None:
         async with receive:
-            async for topic, ns, msg in receive:
-                await self._wait_until(ns)
-                self._position_ns = ns
-                self._publishers[topic.topic].publish(msg, validated=True)
-                self.stats.messages += 1
+            async for batch in receive:
+                for topic, ns, msg, _ in batch:
+                    await self._wait_until(ns)
+                    self._position_ns = ns
+                    self._publishers[topic.topic].publish(msg, validated=True)
+                    self.stats.messages += 1
 
     async def _wait_until(self, ns: int) -> None:
         while True:
@@ -349,5 +351,12 @@ class Player:
 
 
 def _take(messages: Iterator[_Item]) -> list[_Item]:
-    """The next few decoded messages (in the reader thread)."""
-    return list(islice(messages, _READ_AHEAD))
+    """The next decoded messages, up to a batch's count or bytes (in the reader thread)."""
+    batch: list[_Item] = []
+    size = 0
+    for item in messages:
+        batch.append(item)
+        size += item[3]
+        if len(batch) >= _BATCH_MESSAGES or size >= _BATCH_BYTES:
+            break
+    return batch
