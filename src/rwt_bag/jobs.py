@@ -154,9 +154,13 @@ async def record_remote(
     fmt: BagFormat = BagFormat.MCAP,
     split: SplitPolicy | None = None,
     compression: str = "cbor",
+    duration: float | None = None,
     out: TextIO = sys.stdout,
 ) -> None:
     """``rwt record URL OUT``: record until SIGINT/SIGTERM, showing progress on ``out``.
+
+    With ``duration``, recording also stops that many seconds after it started
+    (connected and subscribed).
 
     Raises:
         BagError: the bag cannot be created.
@@ -167,9 +171,17 @@ async def record_remote(
     )
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, remote.stop)
+        if duration is not None:
+            tg.start_soon(_stop_after, remote, duration)
         tg.start_soon(show_progress, lambda **kw: record_line(remote.recorder, **kw), out)
         await remote.run()
         tg.cancel_scope.cancel()
+
+
+async def _stop_after(remote: RemoteRecorder, seconds: float) -> None:
+    await remote.started.wait()
+    await anyio.sleep(seconds)
+    remote.stop()
 
 
 async def _stop_on_signal(stop: Callable[[], None]) -> None:

@@ -54,6 +54,7 @@ class RemoteRecorder:
 
     Attributes:
         recorder: the ``Recorder`` of the local graph (its ``stats``).
+        started: set once connected and subscribed to the topics found first.
     """
 
     def __init__(
@@ -77,6 +78,7 @@ class RemoteRecorder:
         self._bridged: dict[str, Topic] = {}
         self._skipped: set[str] = set()
         self._stop = anyio.Event()
+        self.started = anyio.Event()
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
         """Record until ``stop`` or cancelled.
@@ -88,6 +90,7 @@ class RemoteRecorder:
         async with Ros(self.url) as ros, anyio.create_task_group() as tg:
             await tg.start(self.recorder.run)
             await self._discover(ros)
+            self.started.set()
             task_status.started()
             while not self._stop.is_set():
                 with anyio.move_on_after(self._discover_s):

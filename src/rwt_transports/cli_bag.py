@@ -158,10 +158,14 @@ def record(
     compression: Annotated[
         str, typer.Option(help="Subscription compression: cbor (binary) or none (JSON).")
     ] = "cbor",
+    duration: Annotated[
+        float | None,
+        typer.Option(min=0.001, metavar="SECONDS", help="Stop after recording this long."),
+    ] = None,
     dialect: DialectOption = Dialect.ROS2,
     interfaces: Interfaces = None,
 ) -> None:
-    """Record topics of a rosbridge server into a bag until SIGINT or SIGTERM.
+    """Record topics of a rosbridge server into a bag until SIGINT, SIGTERM or --duration.
 
     Subscribes, as a client, to every topic the server lists (rosapi) that
     matches --topics, also to topics that appear later, and writes each message
@@ -183,6 +187,7 @@ def record(
                 fmt=fmt,
                 split=split_policy(split_size, split_duration),
                 compression=compression,
+                duration=duration,
             )
         )
     except (BagError, OSError) as exc:
