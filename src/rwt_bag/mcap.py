@@ -10,8 +10,10 @@ reads up to its last checkpoint. The new tail (chunk, indexes, summary, footer)
 is written with one ``write`` call, which keeps the time in which a kill could
 leave a torn tail as short as a copy into the page cache.
 
-Chunks close when they reach ``CHUNK_BYTES`` (as in rosbags) or when the
-recorder asks for a checkpoint (on a timer).
+Chunks close when they reach ``CHUNK_BYTES`` or when the recorder asks for a
+checkpoint (on a timer). The chunk is larger than rosbags' 1 MiB so that a
+stream of large messages (1 MB images) is not checkpointed at every message:
+each checkpoint also rewrites the summary and ``metadata.yaml``.
 """
 
 from __future__ import annotations
@@ -30,8 +32,8 @@ if TYPE_CHECKING:
 
 __all__ = ["CHUNK_BYTES", "CheckpointWriter"]
 
-#: rosbags closes a chunk past 1 MiB; so do we, through a checkpoint.
-CHUNK_BYTES = 1 << 20
+#: A chunk in memory is checkpointed from this size on (bounds the memory and the loss).
+CHUNK_BYTES = 8 << 20
 
 
 class _Tail:
@@ -57,18 +59,16 @@ class _McapStorage(McapWriter):
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         super().__init__(path, compression)
         self.in_checkpoint = False
-        self.chunk_full = False
 
     def close_chunk(self) -> None:
-        """Close the chunk during a checkpoint; else only note that one is due.
+        """Close the chunk during a checkpoint only.
 
-        rosbags closes a full chunk from ``write``, straight into the file over the
-        last summary; deferring it to the checkpoint keeps the file readable.
+        rosbags closes a chunk from ``write`` past 1 MiB, straight into the file
+        over the last summary; the checkpoint closes it instead, keeping the file
+        readable.
         """
         if self.in_checkpoint:
             super().close_chunk()
-        else:
-            self.chunk_full = True
 
     def pending_bytes(self) -> int:
         """Bytes of messages in the chunk not yet in the file."""
@@ -77,8 +77,6 @@ class _McapStorage(McapWriter):
 
 class _Sqlite3Storage(Sqlite3Writer):
     """rosbags' sqlite3 storage that can commit before it closes."""
-
-    chunk_full = False
 
     def pending_bytes(self) -> int:
         """Unknown for sqlite3; the recorder checkpoints it on its timer."""
@@ -100,9 +98,9 @@ class CheckpointWriter(Writer):
 
     @property
     def checkpoint_due(self) -> bool:
-        """Whether the chunk in memory is full (MCAP)."""
+        """Whether the chunk in memory is full (MCAP, ``CHUNK_BYTES``)."""
         storage: Any = self.storage
-        return storage is not None and bool(storage.chunk_full)
+        return storage is not None and storage.pending_bytes() >= CHUNK_BYTES
 
     def checkpoint(self) -> None:
         """Make everything written so far readable: the file's tail and ``metadata.yaml``.
@@ -130,7 +128,6 @@ class CheckpointWriter(Writer):
         finally:
             storage.bio = file
             storage.in_checkpoint = False
-            storage.chunk_full = False
         file.write(tail.buffer.getbuffer())
         file.flush()
         file.truncate()

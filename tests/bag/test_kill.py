@@ -1,7 +1,7 @@
 """`rwt record URL OUT` and signals: SIGINT or SIGTERM close the bag, SIGKILL leaves it readable.
 
-roslibpy publishes numbered messages (20 kB each, 100 per second, so MCAP chunks
-fill as well as the one-second checkpoints run) into a live `rwt serve`;
+roslibpy publishes numbered messages (20 kB each, 100 per second) into a live
+`rwt serve`;
 `rwt record` records them as a client. Killed with SIGKILL mid-run, the bag
 (without any repair) opens with rosbags and holds an unbroken run of messages
 up to its last checkpoint; stopped with SIGINT or SIGTERM, it holds every
