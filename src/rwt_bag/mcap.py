@@ -95,6 +95,8 @@ class CheckpointWriter(Writer):
 
     def __init__(self, path: Path, *, storage_plugin: StoragePlugin) -> None:
         super().__init__(path, version=9, storage_plugin=storage_plugin)
+        self._metadata: str | None = None  # the MCAP metadata record of the last full checkpoint
+        self._metadata_connections = -1
 
     @property
     def checkpoint_due(self) -> bool:
@@ -102,20 +104,28 @@ class CheckpointWriter(Writer):
         storage: Any = self.storage
         return storage is not None and storage.pending_bytes() >= CHUNK_BYTES
 
-    def checkpoint(self) -> None:
+    def checkpoint(self, *, full: bool = True) -> None:
         """Make everything written so far readable: the file's tail and ``metadata.yaml``.
+
+        Args:
+            full: also rewrite ``metadata.yaml`` (counts and times; rosbags renders
+                it as YAML, which costs milliseconds). A partial checkpoint (a full
+                chunk between timed ones) writes the MCAP summary only, unless a
+                topic was added since the last full one: readers take the topics
+                from ``metadata.yaml``.
 
         Raises:
             OSError: the file cannot be written.
         """
         storage: Any = self.storage
         if isinstance(storage, _McapStorage):
-            self._checkpoint_mcap(storage)
+            stale = len(self.connections) != self._metadata_connections
+            self._checkpoint_mcap(storage, full=full or stale or self._metadata is None)
         elif storage is not None:
             storage.conn.commit()
             self._write_metadata(storage)
 
-    def _checkpoint_mcap(self, storage: _McapStorage) -> None:
+    def _checkpoint_mcap(self, storage: _McapStorage, *, full: bool = True) -> None:
         file = storage.bio
         tail = _Tail(file.tell())
         storage.bio = tail  # type: ignore[assignment]  # a file stand-in
@@ -124,7 +134,11 @@ class CheckpointWriter(Writer):
             if storage.pending_bytes():
                 storage.close_chunk()
             data_end = tail.tell()
-            self._write_metadata(storage)  # the summary into ``tail``, metadata.yaml
+            if full:
+                self._write_metadata(storage)  # the summary into ``tail``, metadata.yaml
+            else:
+                assert self._metadata is not None  # full is forced until there is one
+                McapWriter.close(storage, self.version, self._metadata)  # the summary only
         finally:
             storage.bio = file
             storage.in_checkpoint = False
@@ -140,6 +154,8 @@ class CheckpointWriter(Writer):
         def tail_only(version: int, metadata: str) -> None:
             if isinstance(storage, _McapStorage):
                 real_close(version, metadata)  # writes into the ``_Tail``; the file stays open
+                self._metadata = metadata
+                self._metadata_connections = len(self.connections)
 
         storage.close = tail_only
         try:

@@ -318,8 +318,14 @@ class Player:
                 await send.send(batch)
 
     async def _consume(self, receive: MemoryObjectReceiveStream[list[_Item]]) -> None:
+        first = True
         async with receive:
             async for batch in receive:
+                if first and not self._paused:
+                    # the schedule starts when the first message is ready, not when
+                    # the reader thread was asked for it (its first read takes a while)
+                    self._anchor(self._anchor_ns)
+                    first = False
                 for topic, ns, msg, _ in batch:
                     await self._wait_until(ns)
                     self._position_ns = ns

@@ -125,9 +125,9 @@ class _File:
     def checkpoint_due(self) -> bool:
         return isinstance(self.writer, CheckpointWriter) and self.writer.checkpoint_due
 
-    def checkpoint(self) -> None:
+    def checkpoint(self, *, full: bool = True) -> None:
         if isinstance(self.writer, CheckpointWriter):
-            self.writer.checkpoint()
+            self.writer.checkpoint(full=full)
 
     def close(self) -> None:
         self.writer.close()
@@ -177,7 +177,7 @@ class BagWriter:
             file = self._next_file(file)
         file.write(info, ns, raw)
         if file.checkpoint_due:
-            file.checkpoint()
+            file.checkpoint(full=False)
 
     def _should_split(self, file: _File, ns: int) -> bool:
         if file.first_ns is None:
