@@ -119,20 +119,14 @@ class BagSource:
         ]
         self.connections = chosen
         try:
+            #: times of the first and last message, ns since the epoch (kept after close)
+            self.start_ns = int(self._reader.start_time)
+            self.end_ns = int(self._reader.end_time)
             self.topics = self._check(chosen)
         except BagError:
             self._reader.close()
             raise
 
-    @property
-    def start_ns(self) -> int:
-        """Time of the first message, nanoseconds since the epoch."""
-        return int(self._reader.start_time)
-
-    @property
-    def end_ns(self) -> int:
-        """Time of the last message, nanoseconds since the epoch."""
-        return int(self._reader.end_time)
 
     def _check(self, connections: list[Any]) -> dict[int, BagTopic]:
         """The graph's type of each connection (by id), refusing unknown or conflicting ones."""
