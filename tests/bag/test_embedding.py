@@ -167,3 +167,17 @@ async def test_recorded_then_played_in_process(tmp_path: Path) -> None:
     got = _listen(replay)
     await rwt.Player(replay, tmp_path / "r.bag").run()
     assert [w for _, w in got] == [f"m{i}" for i in range(5)]
+
+
+async def test_recorder_splits_by_duration(tmp_path: Path) -> None:
+    graph = rwt.Graph()
+    pub = graph.create_publisher("/tick", "std_msgs/String")
+    recorder = rwt.Recorder(graph, tmp_path / "t", split=SplitPolicy(max_seconds=0.2))
+    async with recorder:
+        await _publish(pub, 12, gap_s=0.05)  # about 0.6 s of messages
+    assert len(recorder.paths) >= 3
+    words = [m["data"] for p in recorder.paths for m in read_bag(p)["/tick"]]
+    assert words == [f"m{i}" for i in range(12)]
+    for path in recorder.paths:
+        with AnyReader([path]) as reader:
+            assert reader.duration < 0.2e9 + 1
