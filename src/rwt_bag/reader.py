@@ -127,7 +127,6 @@ class BagSource:
             self._reader.close()
             raise
 
-
     def _check(self, connections: list[Any]) -> dict[int, BagTopic]:
         """The graph's type of each connection (by id), refusing unknown or conflicting ones."""
         found: dict[int, BagTopic] = {}
