@@ -4,7 +4,7 @@ roslibpy publishes numbered messages (20 kB each, 100 per second) into a live
 `rwt serve`;
 `rwt record` records them as a client. Killed with SIGKILL mid-run, the bag
 (without any repair) opens with rosbags and holds an unbroken run of messages
-up to its last checkpoint; stopped with SIGINT or SIGTERM, it holds every
+up to its last checkpoint; stopped with SIGTERM (or SIGINT), it holds every
 message up to the stop and the recorder prints its one summary line.
 """
 
@@ -103,10 +103,11 @@ async def test_sigkill_leaves_a_readable_bag(tmp_path: Path) -> None:
     assert got == list(range(got[0], got[0] + len(got))), "a gap or a reordering"
 
 
-@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-async def test_signal_closes_the_bag(tmp_path: Path, how: signal.Signals) -> None:
+async def test_sigterm_closes_the_bag(tmp_path: Path) -> None:
+    """SIGINT takes the same path (one signal receiver for both); the serve --record
+    round trips stop their server with SIGINT."""
     start = time.monotonic()
-    got, output, code = await _record_and_stop(tmp_path, how)
+    got, output, code = await _record_and_stop(tmp_path, signal.SIGTERM)
     assert code == 0, output
     assert time.monotonic() - start < 60
     assert len(got) >= 100, got
