@@ -9,6 +9,7 @@ What embedding code and client code need, in one import::
     # await server.serve()  -- inside an anyio event loop
 
     # await rwt.call_service(graph, "/add_two_ints", {"a": 1, "b": 2})
+    # async with rwt.Recorder(graph, "run1"): ...        # record topics into a bag
     # async with rwt.Ros("ws://127.0.0.1:9090") as ros: ...
 
 Names load when first used (PEP 562), so the client (``Ros``, ``SyncRos``,
@@ -24,6 +25,7 @@ from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from rwt_bag import Player, Recorder
     from rwt_client import Action, Ros, Service, SyncRos, Topic
     from rwt_graph.graph import Graph
     from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
@@ -35,6 +37,8 @@ __all__ = [
     "CallTimeoutError",
     "GoalOutcome",
     "Graph",
+    "Player",
+    "Recorder",
     "Ros",
     "RosbridgeServer",
     "RwtError",
@@ -53,6 +57,8 @@ _HOMES = {
     "CallTimeoutError": "rwt_protocol.errors",
     "Graph": "rwt_graph.graph",
     "GoalOutcome": "rwt_transports.async_calls",
+    "Player": "rwt_bag",
+    "Recorder": "rwt_bag",
     "Ros": "rwt_client",
     "RosbridgeServer": "rwt_transports.server",
     "RwtError": "rwt_protocol.errors",

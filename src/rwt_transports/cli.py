@@ -25,6 +25,8 @@ import typer
 from anyio.abc import TaskStatus
 from typer.core import TyperGroup
 
+from rwt_bag.errors import BagError
+from rwt_bag.formats import BagFormat
 from rwt_conformance.cli import conformance
 from rwt_console import ConsoleSite
 from rwt_graph.graph import Graph
@@ -34,6 +36,25 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
 from .allocator import tune_allocator
+from .cli_bag import (
+    Check,
+    Clock,
+    DialectOption,
+    Format,
+    Interfaces,
+    Loop,
+    Rate,
+    SplitDuration,
+    SplitSize,
+    StartOffset,
+    StartPaused,
+    bag_app,
+    bag_jobs,
+    play_options,
+    record,
+    record_options,
+    split_policy,
+)
 from .cli_checks import (
     ClickException,
     ListenError,
@@ -53,6 +74,7 @@ from .udp import UdpOptions
 from .websocket import WebSocketOptions
 
 if TYPE_CHECKING:
+    from rwt_bag.jobs import BagJobs
     from rwt_video import VideoConfig
 
 __all__ = ["app", "main"]
@@ -144,6 +166,8 @@ def main(
 
 
 app.command(short_help="Check a rosbridge server against the conformance suite.")(conformance)
+app.command(short_help="Record topics of a rosbridge server into a bag.")(record)
+app.add_typer(bag_app, name="bag", short_help="Inspect bags.")
 
 
 @app.command(short_help="Run a rosbridge server.")
@@ -366,6 +390,29 @@ def serve(
     raise_fd_limit: Annotated[
         bool, typer.Option(help="Raise the soft RLIMIT_NOFILE to the hard limit at start-up.")
     ] = True,
+    record: Annotated[
+        Path | None, typer.Option(metavar="BAG", help="Record the graph's topics into this bag.")
+    ] = None,
+    record_topics: Annotated[
+        str,
+        typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Topics --record records."),
+    ] = "",
+    record_format: Format = BagFormat.MCAP,
+    record_split_size: SplitSize = None,
+    record_split_duration: SplitDuration = None,
+    play: Annotated[
+        list[Path] | None,
+        typer.Option(metavar="BAG", help="Play this bag into the graph (repeat: split parts)."),
+    ] = None,
+    play_topics: Annotated[
+        str, typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Topics --play plays.")
+    ] = "",
+    rate: Rate = 1.0,
+    loop: Loop = False,
+    start_offset: StartOffset = 0.0,
+    clock: Clock = None,
+    play_check: Check = True,
+    start_paused: StartPaused = False,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
 
@@ -380,7 +427,9 @@ def serve(
     --stdio, stdout carries the session and these lines go to stderr). With
     --video, a "video on http://HOST:PORT" line follows: image topics over HTTP
     on web_video_server's paths. --depthcloud DEPTH[,RGB] encodes a depth (and
-    colour) topic for ros3djs, as depthcloud_encoder does.
+    colour) topic for ros3djs, as depthcloud_encoder does. --record BAG records
+    topics into a bag while serving; --play BAG publishes a bag's topics with
+    their timing, pausable through the /rwt/player/* services.
 
     A browser opening http://HOST:PORT/ (the WebSocket port) gets the web console:
     the live graph, echo, publish, calls, actions, images and TF.
@@ -478,14 +527,86 @@ def serve(
             video_max_streams,
             site,
         )
+    jobs = bag_jobs(
+        graph,
+        record_options(
+            record,
+            record_topics,
+            record_format,
+            split_policy(record_split_size, record_split_duration),
+        ),
+        play_options(
+            play,
+            rate=rate,
+            loop=loop,
+            start_offset=start_offset,
+            topics=play_topics,
+            clock=clock,
+            check=play_check,
+            paused=start_paused,
+        ),
+        command="serve",
+    )
     freeze_startup_objects()
     try:
-        anyio.run(_run, server, video_config, backend_options={"use_uvloop": uvloop})
+        anyio.run(_run, server, video_config, jobs, backend_options={"use_uvloop": uvloop})
     except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
         message = _startup_error(exc)
         if message is None:
             raise
         _fail(message)
+
+
+@app.command(short_help="Serve a bag's topics as a live robot.")
+def play(
+    bag: Annotated[list[Path], typer.Argument(help="The bag (several: split parts, as one).")],
+    host: Annotated[str, typer.Option(help="Address the WebSocket server binds.")] = "127.0.0.1",
+    port: Annotated[
+        int, typer.Option(**PORT_RANGE, help="WebSocket port; 0 picks a free port.")
+    ] = 9090,
+    topics: Annotated[
+        str,
+        typer.Option(
+            callback=check_glob_list, metavar="PATTERNS", help="Topics to play; default: all."
+        ),
+    ] = "",
+    rate: Rate = 1.0,
+    loop: Loop = False,
+    start_offset: StartOffset = 0.0,
+    clock: Clock = None,
+    check: Check = True,
+    start_paused: StartPaused = False,
+    dialect: DialectOption = Dialect.ROS2,
+    interfaces: Interfaces = None,
+) -> None:
+    """Serve a bag over rosbridge (WebSocket) with its original timing, then stop.
+
+    Web clients see the bag as a live robot: TF through tf2_web_republisher,
+    /tf_static and maps latched, rosapi. The /rwt/player/pause, resume, seek and
+    get_status services control playback. Use 'rwt serve --play' for every
+    server option (TCP, video, TLS...) and to keep serving after the end.
+    """
+    graph = Graph(TypeRegistry(dialect, interfaces or ()))
+    server = RosbridgeServer(graph, ServerConfig(host=host, port=port))
+    options = play_options(
+        bag,
+        rate=rate,
+        loop=loop,
+        start_offset=start_offset,
+        topics=topics,
+        clock=clock,
+        check=check,
+        paused=start_paused,
+    )
+    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
+    try:
+        anyio.run(_run, server, None, jobs)
+    except (OSError, ValueError, ListenError, BaseExceptionGroup, BagError) as exc:
+        message = _startup_error(exc)
+        if message is None:
+            raise
+        typer.echo(f"rwt play: {message}", err=True)
+        raise typer.Exit(1) from None
 
 
 def _read_secret(path: Path) -> str:
@@ -569,7 +690,7 @@ def _startup_error(exc: BaseException) -> str | None:
                 return None
             messages.append(message)
         return "; ".join(messages)
-    if isinstance(exc, ListenError | OSError | ValueError):  # ssl.SSLError is an OSError
+    if isinstance(exc, ListenError | OSError | ValueError | BagError):  # SSLError: an OSError
         return str(exc)
     return None
 
@@ -592,7 +713,9 @@ def _unbound_listener(server: RosbridgeServer) -> tuple[str, str, int] | None:
     return None
 
 
-async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
+async def _run(
+    server: RosbridgeServer, video: VideoConfig | None, jobs: BagJobs | None = None
+) -> None:
     out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
 
     def announce(url: str) -> None:
@@ -600,6 +723,8 @@ async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
 
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
+        if jobs is not None:  # a bag to play is checked before anything is served
+            await tg.start(jobs.run)
         video_url = None
         if video is not None:
             from rwt_video import serve_video  # noqa: PLC0415 (see _video_config)

@@ -32,10 +32,16 @@ def render() -> str:
     """
     root = typer.main.get_command(app)
     parts = [_HEADER, _command("rwt", root)]
-    commands: dict[str, Any] = getattr(root, "commands", {})
-    for name in sorted(commands):
-        parts.append(_command(f"rwt {name}", commands[name]))
+    _subcommands("rwt", root, parts)
     return "\n".join(parts)
+
+
+def _subcommands(prefix: str, group: Any, parts: list[str]) -> None:
+    """Each command of ``group``, sorted, and those of its groups (``rwt bag info``)."""
+    commands: dict[str, Any] = getattr(group, "commands", {})
+    for name in sorted(commands):
+        parts.append(_command(f"{prefix} {name}", commands[name]))
+        _subcommands(f"{prefix} {name}", commands[name], parts)
 
 
 def _command(name: str, command: Any) -> str:

@@ -13,6 +13,8 @@ PUBLIC = [
     "CallTimeoutError",
     "GoalOutcome",
     "Graph",
+    "Player",
+    "Recorder",
     "Ros",
     "RosbridgeServer",
     "RwtError",

@@ -17,6 +17,7 @@ TIMEOUT_S = 60  # a bound on a hung example, not a speed requirement
 #: Each example that runs until interrupted, with the arguments that pick a free port.
 SERVING = {
     "embedded_server.py": ["--port", "0"],
+    "moving_robot.py": ["0"],
     "robot.py": ["0"],
     "tf_robot.py": ["0"],
 }

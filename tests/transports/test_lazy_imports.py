@@ -1,7 +1,7 @@
 """`rwt serve` starts without what only some features need (benchmarks B11, base memory).
 
 The idle default server (in-memory graph, rosapi, TF) must stay small: modules
-that only png compression, video, depth clouds or the conformance runner use load
+that only png compression, video, depth clouds, bags or the conformance runner use load
 with their first use, and pydantic builds an op's validator with the first frame
 of that op. A subprocess, so this test sees a fresh interpreter.
 """
@@ -26,6 +26,9 @@ LAZY = (
     "rwt_conformance.runner",
     "rwt_video.server",
     "rwt_graph.media.depthcloud",
+    "rwt_bag.jobs",
+    "rosbags.rosbag2.writer",
+    "rosbags.highlevel",
 )
 
 SCRIPT = """

@@ -1,0 +1,191 @@
+"""Record and replay as jobs of a running server or command (``rwt serve --record/--play``).
+
+``BagJobs`` holds what the command line asked for, opens and checks it before
+anything is served (a bad bag fails at start, naming the topic and type), and
+runs it next to the server: the recorder, the player with its ``/rwt/player``
+services, and the progress display.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, TextIO
+
+import anyio
+
+from .controls import serve_controls
+from .formats import BagFormat, SplitPolicy
+from .player import Player
+from .progress import play_line, record_line, show_progress
+from .recorder import Recorder
+from .remote import RemoteRecorder
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+    from pathlib import Path
+
+    from anyio.abc import TaskStatus
+
+    from rwt_graph.graph import Graph
+    from rwt_graph.types import TypeRegistry
+
+__all__ = ["BagJobs", "PlayOptions", "RecordOptions", "record_remote"]
+
+
+@dataclass(frozen=True)
+class RecordOptions:
+    """``--record`` and its options."""
+
+    path: Path
+    topics: Sequence[str] = ("*",)
+    fmt: BagFormat = BagFormat.MCAP
+    split: SplitPolicy = field(default_factory=SplitPolicy)
+
+
+@dataclass(frozen=True)
+class PlayOptions:
+    """``--play`` and its options."""
+
+    paths: Sequence[Path]
+    rate: float = 1.0
+    loop: bool = False
+    start_offset: float = 0.0
+    topics: Sequence[str] = ()
+    clock: float | None = None
+    check: bool = True
+    paused: bool = False
+
+
+class BagJobs:
+    """The recorder and player of one server.
+
+    Args:
+        graph: the server's graph.
+        record: what to record, if anything.
+        play: what to play, if anything.
+        progress: where to show progress (a terminal: live; else a final line).
+        stop_at_end: called when the player reaches the bag's end (``rwt play``
+            stops its server); None: the player lingers (``rwt serve --play``).
+
+    Raises:
+        BagError: the bag to play cannot be read, or has an unknown or
+            conflicting type; the bag to record cannot fit the graph's dialect.
+    """
+
+    def __init__(
+        self,
+        graph: Graph,
+        *,
+        record: RecordOptions | None = None,
+        play: PlayOptions | None = None,
+        progress: TextIO | None = None,
+        stop_at_end: Callable[[], None] | None = None,
+    ) -> None:
+        self.graph = graph
+        self.progress = progress
+        self.stop_at_end = stop_at_end
+        self.recorder = None
+        self.player = None
+        if record is not None:
+            self.recorder = Recorder(
+                graph, record.path, topics=record.topics, fmt=record.fmt, split=record.split
+            )
+        if play is not None:
+            self.player = Player(
+                graph,
+                play.paths,
+                rate=play.rate,
+                loop=play.loop,
+                start_offset=play.start_offset,
+                topics=play.topics,
+                clock=play.clock,
+                check=play.check,
+                linger=stop_at_end is None,
+                paused=play.paused,
+            )
+
+    async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
+        """Run until cancelled (or, with ``stop_at_end``, until the bag has played).
+
+        Raises:
+            BagError: as ``Player.run`` and ``Recorder.run``.
+        """
+        services = [] if self.player is None else serve_controls(self.graph, self.player)
+        try:
+            async with anyio.create_task_group() as tg:
+                if self.recorder is not None:
+                    await tg.start(self.recorder.run)
+                if self.player is not None:
+                    await tg.start(self._play, tg.cancel_scope)
+                if self.progress is not None:
+                    line = self._record_line if self.player is None else self._play_line
+                    tg.start_soon(show_progress, line, self.progress)
+                task_status.started()
+        finally:
+            for service in services:
+                service.close()
+
+    async def _play(
+        self, scope: anyio.CancelScope, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED
+    ) -> None:
+        assert self.player is not None
+        await self.player.run(task_status=task_status)
+        scope.cancel()  # the bag has played (no loop, no linger): the progress line goes too
+        if self.stop_at_end is not None:
+            self.stop_at_end()
+
+    def _record_line(self, *, final: bool = False) -> str:
+        assert self.recorder is not None
+        return record_line(self.recorder, final=final)
+
+    def _play_line(self, *, final: bool = False) -> str:
+        assert self.player is not None
+        return play_line(self.player, final=final)
+
+
+async def record_remote(
+    url: str,
+    path: Path,
+    registry: TypeRegistry,
+    *,
+    topics: Sequence[str] = ("*",),
+    fmt: BagFormat = BagFormat.MCAP,
+    split: SplitPolicy | None = None,
+    compression: str = "cbor",
+    duration: float | None = None,
+    out: TextIO = sys.stdout,
+) -> None:
+    """``rwt record URL OUT``: record until SIGINT/SIGTERM, showing progress on ``out``.
+
+    With ``duration``, recording also stops that many seconds after it started
+    (connected and subscribed).
+
+    Raises:
+        BagError: the bag cannot be created.
+        OSError, TransportError: the server cannot be reached.
+    """
+    remote = RemoteRecorder(
+        url, path, registry, topics=topics, fmt=fmt, split=split, compression=compression
+    )
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(_stop_on_signal, remote.stop)
+        if duration is not None:
+            tg.start_soon(_stop_after, remote, duration)
+        tg.start_soon(show_progress, lambda **kw: record_line(remote.recorder, **kw), out)
+        await remote.run()
+        tg.cancel_scope.cancel()
+
+
+async def _stop_after(remote: RemoteRecorder, seconds: float) -> None:
+    await remote.started.wait()
+    await anyio.sleep(seconds)
+    remote.stop()
+
+
+async def _stop_on_signal(stop: Callable[[], None]) -> None:
+    with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+        async for _ in signals:
+            stop()
+            return

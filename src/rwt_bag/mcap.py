@@ -1,0 +1,177 @@
+"""A rosbag2 MCAP writer that keeps the bag readable while it grows (checkpoints).
+
+rosbags' MCAP storage writes the summary and footer, and rosbag2's
+``metadata.yaml``, only when the bag is closed, so a recorder killed mid-run
+would leave a file no reader opens. ``CheckpointWriter.checkpoint`` closes the
+pending chunk and writes a complete summary, footer and ``metadata.yaml`` after
+it; the next checkpoint writes its chunk over the previous summary. Between
+checkpoints the chunk grows in memory, so a killed recorder leaves a bag that
+reads up to its last checkpoint. The new tail (chunk, indexes, summary, footer)
+is written with one ``write`` call, which keeps the time in which a kill could
+leave a torn tail as short as a copy into the page cache.
+
+Chunks close when they reach ``CHUNK_BYTES`` or when the recorder asks for a
+checkpoint (on a timer). The chunk is larger than rosbags' 1 MiB so that a
+stream of large messages (1 MB images) is not checkpointed at every message:
+each checkpoint also rewrites the summary and ``metadata.yaml``.
+"""
+
+from __future__ import annotations
+
+from io import BytesIO
+from typing import TYPE_CHECKING, Any
+
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from rosbags.rosbag2.enums import CompressionMode
+
+__all__ = ["CHUNK_BYTES", "CheckpointWriter"]
+
+#: A chunk in memory is checkpointed from this size on (bounds the memory and the loss).
+CHUNK_BYTES = 8 << 20
+
+
+class _Tail:
+    """A file stand-in that collects writes from ``offset`` on, for one ``write``."""
+
+    def __init__(self, offset: int) -> None:
+        self._offset = offset
+        self.buffer = BytesIO()
+
+    def write(self, data: bytes | memoryview) -> int:
+        return self.buffer.write(data)
+
+    def tell(self) -> int:
+        return self._offset + self.buffer.tell()
+
+    def close(self) -> None:
+        """The real file stays open: the bag goes on after the checkpoint."""
+
+
+class _McapStorage(McapWriter):
+    """rosbags' MCAP storage whose chunks close only at a checkpoint."""
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        super().__init__(path, compression)
+        self.in_checkpoint = False
+
+    def close_chunk(self) -> None:
+        """Close the chunk during a checkpoint only.
+
+        rosbags closes a chunk from ``write`` past 1 MiB, straight into the file
+        over the last summary; the checkpoint closes it instead, keeping the file
+        readable.
+        """
+        if self.in_checkpoint:
+            super().close_chunk()
+
+    def pending_bytes(self) -> int:
+        """Bytes of messages in the chunk not yet in the file."""
+        return int(self.chunk.bio.tell())
+
+
+class _Sqlite3Storage(Sqlite3Writer):
+    """rosbags' sqlite3 storage that can commit before it closes."""
+
+    def pending_bytes(self) -> int:
+        """Unknown for sqlite3; the recorder checkpoints it on its timer."""
+        return 0
+
+
+class CheckpointWriter(Writer):
+    """A rosbag2 writer (MCAP or sqlite3) with ``checkpoint``.
+
+    Args:
+        path: the bag directory to create.
+        storage_plugin: MCAP or sqlite3.
+    """
+
+    STORAGE_PLUGINS = {StoragePlugin.MCAP: _McapStorage, StoragePlugin.SQLITE3: _Sqlite3Storage}
+
+    def __init__(self, path: Path, *, storage_plugin: StoragePlugin) -> None:
+        super().__init__(path, version=9, storage_plugin=storage_plugin)
+        self._metadata: str | None = None  # the MCAP metadata record of the last full checkpoint
+        self._metadata_connections = -1
+
+    @property
+    def checkpoint_due(self) -> bool:
+        """Whether the chunk in memory is full (MCAP, ``CHUNK_BYTES``)."""
+        storage: Any = self.storage
+        return storage is not None and storage.pending_bytes() >= CHUNK_BYTES
+
+    def checkpoint(self, *, full: bool = True) -> None:
+        """Make everything written so far readable: the file's tail and ``metadata.yaml``.
+
+        Args:
+            full: also rewrite ``metadata.yaml`` (counts and times; rosbags renders
+                it as YAML, which costs milliseconds). A partial checkpoint (a full
+                chunk between timed ones) writes the MCAP summary only, unless a
+                topic was added since the last full one: readers take the topics
+                from ``metadata.yaml``.
+
+        Raises:
+            OSError: the file cannot be written.
+        """
+        storage: Any = self.storage
+        if isinstance(storage, _McapStorage):
+            stale = len(self.connections) != self._metadata_connections
+            self._checkpoint_mcap(storage, full=full or stale or self._metadata is None)
+        elif storage is not None:
+            storage.conn.commit()
+            self._write_metadata(storage)
+
+    def _checkpoint_mcap(self, storage: _McapStorage, *, full: bool = True) -> None:
+        file = storage.bio
+        tail = _Tail(file.tell())
+        storage.bio = tail  # type: ignore[assignment]  # a file stand-in
+        storage.in_checkpoint = True
+        try:
+            if storage.pending_bytes():
+                storage.close_chunk()
+            data_end = tail.tell()
+            if full:
+                self._write_metadata(storage)  # the summary into ``tail``, metadata.yaml
+            else:
+                assert self._metadata is not None  # full is forced until there is one
+                McapWriter.close(storage, self.version, self._metadata)  # the summary only
+        finally:
+            storage.bio = file
+            storage.in_checkpoint = False
+        file.write(tail.buffer.getbuffer())
+        file.flush()
+        file.truncate()
+        file.seek(data_end)  # the next chunk goes over this summary
+
+    def _write_metadata(self, storage: Any) -> None:
+        """Run rosbags' ``close`` (storage tail, metadata.yaml) on a storage that stays open."""
+        real_close = storage.close
+
+        def tail_only(version: int, metadata: str) -> None:
+            if isinstance(storage, _McapStorage):
+                real_close(version, metadata)  # writes into the ``_Tail``; the file stays open
+                self._metadata = metadata
+                self._metadata_connections = len(self.connections)
+
+        storage.close = tail_only
+        try:
+            Writer.close(self)  # computes the metadata from the counts; sets storage None
+        finally:
+            del storage.close
+            self.storage = storage
+
+    def close(self) -> None:
+        """Write the final tail and metadata, and close the file."""
+        storage: Any = self.storage
+        if storage is None:
+            return
+        if isinstance(storage, _McapStorage):
+            self._checkpoint_mcap(storage)
+            storage.bio.close()
+            self.storage = None
+        else:
+            Writer.close(self)

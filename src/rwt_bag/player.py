@@ -1,0 +1,368 @@
+"""Replay a bag into a graph with its original timing (``rwt play``, ``rwt serve --play``).
+
+Every topic of the bag gets an in-process publisher (node ``/rwt_player``),
+latched where the bag says so or for ``/tf_static`` and maps (``reader``). A
+message recorded ``t`` seconds after the playback's start point is published
+``t / rate`` seconds after playback started; a reader thread decodes ahead
+into a bounded queue so the event loop only waits and publishes.
+
+With ``clock`` the player publishes ``/clock`` (rosgraph_msgs/Clock) and the
+graph's wall clock reads bag time (so rosapi ``get_time`` and default header
+stamps follow the bag, as with ``use_sim_time``). ``pause``, ``resume`` and
+``seek`` drive it from Python; ``serve_controls`` offers them as services under
+``/rwt/player/`` (``controls``).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import anyio
+import anyio.to_thread
+
+from rwt_graph.types.convert import time_value
+from rwt_protocol.errors import GraphError
+
+from .errors import BagError
+from .reader import BagSource, BagTopic
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator, Sequence
+    from types import TracebackType
+
+    from anyio.abc import TaskGroup, TaskStatus
+    from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
+
+    from rwt_graph.clock import Clock
+    from rwt_graph.graph import Graph
+    from rwt_graph.local import LocalPublisher
+
+__all__ = ["PlayStats", "Player"]
+
+logger = logging.getLogger("rwt.bag")
+
+_Item = tuple[BagTopic, int, dict[str, object], int]  # topic, bag time ns, message, bytes
+#: One trip to the reader thread decodes up to this many messages or bytes, so
+#: the thread hop is paid once per batch, not per message.
+_BATCH_MESSAGES = 512
+_BATCH_BYTES = 8 * 1024 * 1024
+_QUEUE = 2  # decoded batches waiting to be published: bounded memory (~16 MB)
+
+
+@dataclass
+class PlayStats:
+    """What a player has published.
+
+    Attributes:
+        messages: messages published.
+        loops: completed passes over the bag.
+    """
+
+    messages: int = 0
+    loops: int = 0
+
+
+class BagClock:
+    """The graph's clock during playback with ``clock``: wall time is bag time."""
+
+    def __init__(self, real: Clock, player: Player) -> None:
+        self.real = real
+        self._player = player
+
+    def monotonic(self) -> float:
+        """The real monotonic clock (timeouts stay real)."""
+        return self.real.monotonic()
+
+    def wall(self) -> float:
+        """The bag time of the playback position, seconds since the epoch."""
+        return self._player.bag_time_ns() / 1e9
+
+
+class Player:
+    """Publishes the messages of a bag into ``graph`` with their timing.
+
+    Use it as an async context manager (playing in the background) or run
+    ``await player.run()``, which returns at the bag's end (never with ``loop``)::
+
+        player = Player(graph, [Path("run1")], rate=2.0)
+        await player.run()
+
+    Args:
+        graph: where to publish.
+        paths: the bag (several for split parts, read as one).
+        rate: speed factor (2.0: twice as fast).
+        loop: start over at the end.
+        start_offset: seconds into the bag to start at.
+        topics: glob patterns of the topics to play; all by default.
+        clock: publish ``/clock`` at this many Hz and make the graph's wall clock
+            bag time; None: neither.
+        check: decode every message once before publishing anything, so a corrupt
+            bag fails at start (set False to start large bags at once).
+
+    Raises:
+        BagError: as ``BagSource`` (the bag cannot be read, an unknown or
+            conflicting type), or a bad ``rate``.
+    """
+
+    def __init__(
+        self,
+        graph: Graph,
+        paths: Sequence[Path | str] | Path | str,
+        *,
+        rate: float = 1.0,
+        loop: bool = False,
+        start_offset: float = 0.0,
+        topics: Sequence[str] = (),
+        clock: float | None = None,
+        check: bool = True,
+        linger: bool = False,
+        paused: bool = False,
+    ) -> None:
+        if not rate > 0:
+            raise BagError(f"the rate must be above 0, not {rate}")
+        self.graph = graph
+        self.paths = [Path(paths)] if isinstance(paths, str | Path) else [Path(p) for p in paths]
+        self.rate = rate
+        self.loop = loop
+        self.clock_hz = clock
+        self.check = check
+        self.linger = linger
+        self.stats = PlayStats()
+        self.source = BagSource(self.paths, graph.registry, topics)
+        self._start_offset_ns = max(0, int(start_offset * 1e9))
+        self._publishers: dict[str, LocalPublisher] = {}
+        self._paused = paused
+        self._changed = anyio.Event()
+        self._seek_to: int | None = None
+        self._segment: anyio.CancelScope | None = None
+        self._anchor_mono = 0.0
+        self._anchor_ns = self.start_ns
+        self._position_ns = self.start_ns
+        self._tg: TaskGroup | None = None
+        self._real_clock: Clock | None = None
+
+    # ---- state ----------------------------------------------------------------
+
+    @property
+    def start_ns(self) -> int:
+        """Bag time where playback starts (the first message plus ``start_offset``)."""
+        return min(self.source.start_ns + self._start_offset_ns, self.source.end_ns)
+
+    @property
+    def duration_s(self) -> float:
+        """Seconds from the bag's first to its last message."""
+        return max(0, self.source.end_ns - self.source.start_ns) / 1e9
+
+    @property
+    def paused(self) -> bool:
+        """Whether playback is paused."""
+        return self._paused
+
+    @property
+    def position_s(self) -> float:
+        """Seconds from the bag's start of the playback position."""
+        return (self.bag_time_ns() - self.source.start_ns) / 1e9
+
+    def bag_time_ns(self) -> int:
+        """The bag time of the playback position, nanoseconds since the epoch."""
+        if self._paused:
+            return self._position_ns
+        elapsed = (time.monotonic() - self._anchor_mono) * self.rate
+        return min(self._anchor_ns + int(elapsed * 1e9), self.source.end_ns)
+
+    def pause(self) -> None:
+        """Stop publishing until ``resume``; ``/clock`` stands still."""
+        if not self._paused:
+            self._position_ns = self.bag_time_ns()
+            self._paused = True
+            self._notify()
+
+    def resume(self) -> None:
+        """Go on from where ``pause`` stopped."""
+        if self._paused:
+            self._paused = False
+            self._anchor(self._position_ns)
+            self._notify()
+
+    def seek(self, offset_s: float) -> None:
+        """Go to ``offset_s`` seconds from the bag's start (clamped to the bag).
+
+        Latched topics keep their last message; messages between the old and the
+        new position are not published.
+        """
+        span = self.source.end_ns - self.source.start_ns
+        target = self.source.start_ns + min(max(0, int(offset_s * 1e9)), span)
+        self._seek_to = target
+        self._position_ns = target
+        self._anchor(target)
+        if self._segment is not None:
+            self._segment.cancel()
+        self._notify()
+
+    def _anchor(self, bag_ns: int) -> None:
+        self._anchor_ns = bag_ns
+        self._anchor_mono = time.monotonic()
+
+    def _notify(self) -> None:
+        self._changed.set()
+        self._changed = anyio.Event()
+
+    # ---- running --------------------------------------------------------------
+
+    async def __aenter__(self) -> Player:
+        self._tg = anyio.create_task_group()
+        await self._tg.__aenter__()
+        await self._tg.start(self.run)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        assert self._tg is not None
+        self._tg.cancel_scope.cancel()
+        return await self._tg.__aexit__(exc_type, exc, tb)
+
+    async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
+        """Play the bag (forever with ``loop``); publishers and the file close at the end.
+
+        Raises:
+            BagError: the bag is corrupt (found by ``check`` before anything is
+                published, or while playing), or a topic of the bag exists in the
+                graph with another type.
+        """
+        try:
+            if self.check:
+                await anyio.to_thread.run_sync(self.source.check_all)
+            self._advertise()
+        except BaseException:
+            self.source.close()
+            raise
+        try:
+            async with anyio.create_task_group() as tg:
+                if self.clock_hz:
+                    self._real_clock = self.graph.clock
+                    self.graph.clock = BagClock(self._real_clock, self)
+                    tg.start_soon(self._publish_clock, self.clock_hz)
+                task_status.started()
+                await self._play()
+                tg.cancel_scope.cancel()
+        finally:
+            if self._real_clock is not None:
+                self.graph.clock = self._real_clock
+            for publisher in self._publishers.values():
+                publisher.close()
+            self._publishers.clear()
+            self.source.close()
+
+    def _advertise(self) -> None:
+        """A publisher per topic, all or none (a conflicting topic publishes nothing)."""
+        try:
+            for topic in self.source.topics.values():
+                if topic.topic not in self._publishers:
+                    self._publishers[topic.topic] = self.graph.create_publisher(
+                        topic.topic, topic.mtype.name, latch=topic.latched, node="/rwt_player"
+                    )
+        except GraphError as exc:
+            for publisher in self._publishers.values():
+                publisher.close()
+            self._publishers.clear()
+            raise BagError(f"cannot play {topic.topic} (type {topic.msgtype}): {exc}") from exc
+
+    async def _play(self) -> None:
+        position = self.start_ns
+        while True:
+            self._anchor(position)
+            self._position_ns = position
+            self._seek_to = None
+            with anyio.CancelScope() as self._segment:
+                await self._play_from(position)
+            self._segment = None
+            if self._seek_to is not None:
+                position = self._seek_to
+                continue
+            self.stats.loops += 1
+            if self.loop:
+                position = self.start_ns
+            elif self.linger:
+                position = await self._next_seek()
+            else:
+                return
+
+    async def _next_seek(self) -> int:
+        """Wait at the end of the bag until ``seek`` (``linger``)."""
+        self._seek_to = None
+        while self._seek_to is None:
+            await self._changed.wait()
+        return self._seek_to
+
+    async def _play_from(self, start_ns: int) -> None:
+        send, receive = anyio.create_memory_object_stream[list[_Item]](_QUEUE)
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(self._produce, send, start_ns)
+            await self._consume(receive)
+
+    async def _produce(self, send: MemoryObjectSendStream[list[_Item]], start_ns: int) -> None:
+        messages = self.source.messages(start_ns)
+        async with send:
+            while True:
+                batch = await anyio.to_thread.run_sync(_take, messages)
+                if not batch:
+                    return
+                await send.send(batch)
+
+    async def _consume(self, receive: MemoryObjectReceiveStream[list[_Item]]) -> None:
+        first = True
+        async with receive:
+            async for batch in receive:
+                if first and not self._paused:
+                    # the schedule starts when the first message is ready, not when
+                    # the reader thread was asked for it (its first read takes a while)
+                    self._anchor(self._anchor_ns)
+                    first = False
+                for topic, ns, msg, _ in batch:
+                    await self._wait_until(ns)
+                    self._position_ns = ns
+                    self._publishers[topic.topic].publish(msg, validated=True)
+                    self.stats.messages += 1
+
+    async def _wait_until(self, ns: int) -> None:
+        while True:
+            changed = self._changed
+            if self._paused:
+                await changed.wait()
+                continue
+            delay = self._anchor_mono + (ns - self._anchor_ns) / 1e9 / self.rate - time.monotonic()
+            if delay <= 0:
+                return
+            with anyio.move_on_after(delay):
+                await changed.wait()
+
+    async def _publish_clock(self, hz: float) -> None:
+        publisher = self.graph.create_publisher("/clock", "rosgraph_msgs/Clock", node="/rwt_player")
+        dialect = self.graph.registry.dialect
+        try:
+            while True:
+                now = self.bag_time_ns() / 1e9
+                publisher.publish({"clock": time_value(now, dialect)}, validated=True)
+                await anyio.sleep(1 / hz)
+        finally:
+            publisher.close()
+
+
+def _take(messages: Iterator[_Item]) -> list[_Item]:
+    """The next decoded messages, up to a batch's count or bytes (in the reader thread)."""
+    batch: list[_Item] = []
+    size = 0
+    for item in messages:
+        batch.append(item)
+        size += item[3]
+        if len(batch) >= _BATCH_MESSAGES or size >= _BATCH_BYTES:
+            break
+    return batch

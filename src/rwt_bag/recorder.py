@@ -1,0 +1,254 @@
+"""Record topics of a graph into a bag (``rwt record``, ``rwt serve --record``).
+
+The recorder subscribes in-process to every topic whose name matches one of its
+patterns, including topics that appear later (it looks every ``discover_s``).
+Each message is serialized where it is delivered (CDR for a ROS 2 graph, the
+ROS 1 format for a ROS 1 graph, from the registry's rosbags typestore) and
+stamped with the graph's wall clock: the receive time. A writer thread takes the
+queued messages in batches, so the event loop never waits for the disk. The
+queue is bounded in bytes: past ``max_queue_bytes`` messages are dropped and
+counted (``stats.dropped``), as a slow disk must not exhaust memory.
+
+ROS 2 bags are checkpointed every ``checkpoint_s`` and at each full MCAP chunk
+(``rwt_bag.mcap``): a killed recorder leaves a bag that reads up to the last
+checkpoint. Closing (the context's end, or cancelling ``run``) writes the rest.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import anyio
+import anyio.to_thread
+
+from rwt_graph.types import Dialect
+
+from .errors import BagError
+from .formats import BagFormat, SplitPolicy
+from .writer import BagWriter, TopicInfo
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from types import TracebackType
+
+    from anyio.abc import TaskStatus
+
+    from rwt_graph.graph import Graph
+    from rwt_graph.local import LocalSubscription
+    from rwt_graph.types import MessageType
+
+__all__ = ["RecordStats", "Recorder"]
+
+logger = logging.getLogger("rwt.bag")
+
+_Item = tuple[TopicInfo, int, bytes | memoryview]
+
+
+@dataclass
+class RecordStats:
+    """What a recorder has done so far.
+
+    Attributes:
+        messages: messages written (queued ones not yet).
+        bytes: serialized bytes written.
+        dropped: messages dropped because the queue was full.
+        started: ``time.monotonic()`` at start.
+        topics: message count per recorded topic.
+    """
+
+    messages: int = 0
+    bytes: int = 0
+    dropped: int = 0
+    started: float = field(default_factory=time.monotonic)
+    topics: dict[str, int] = field(default_factory=dict)
+
+
+class Recorder:
+    """Records topics of ``graph`` into the bag at ``path``.
+
+    Use it as an async context manager (it records until the block ends) or
+    run ``await recorder.run()`` in a task and cancel it to stop::
+
+        async with Recorder(graph, Path("run1"), topics=["/tf", "/scan"]):
+            await anyio.sleep(10)
+
+    Args:
+        graph: the graph to record from.
+        path: the bag to create: a directory for ROS 2 bags, a file for ROS 1.
+        topics: glob patterns of the topic names to record (``/tf*``); all by default.
+        fmt: MCAP (default), sqlite3, or ROS 1; ROS 1 bags need a ROS 1 graph.
+        split: when to start a new file (``BagWriter``).
+        checkpoint_s: seconds between checkpoints of a ROS 2 bag.
+        discover_s: seconds between looks for new matching topics.
+        max_queue_bytes: bytes of messages waiting for the disk before dropping.
+
+    Raises:
+        BagError: the format does not fit the graph's dialect.
+    """
+
+    def __init__(
+        self,
+        graph: Graph,
+        path: Path | str,
+        *,
+        topics: Sequence[str] = ("*",),
+        fmt: BagFormat | str = BagFormat.MCAP,
+        split: SplitPolicy | None = None,
+        checkpoint_s: float = 1.0,
+        discover_s: float = 0.2,
+        max_queue_bytes: int = 256 * 1024 * 1024,
+    ) -> None:
+        self.graph = graph
+        self.path = Path(path)
+        self.fmt = BagFormat(fmt)
+        ros1_graph = graph.registry.dialect is Dialect.ROS1
+        if (self.fmt is BagFormat.ROS1) != ros1_graph:
+            wanted = "a ROS 1" if self.fmt is BagFormat.ROS1 else "a ROS 2"
+            raise BagError(f"a {self.fmt.value} bag needs {wanted} graph (--dialect)")
+        self.patterns = tuple(topics) or ("*",)
+        self.stats = RecordStats()
+        self._split = split
+        self._checkpoint_s = checkpoint_s
+        self._discover_s = discover_s
+        self._max_queue = max_queue_bytes
+        self._queue: list[_Item] = []
+        self._queued_bytes = 0
+        self._wake = anyio.Event()
+        self._subscriptions: dict[str, LocalSubscription] = {}
+        self._writer: BagWriter | None = None
+        self._tg: anyio.abc.TaskGroup | None = None
+
+    @property
+    def paths(self) -> list[Path]:
+        """The files written so far (more than one after a split)."""
+        return list(self._writer.paths) if self._writer else [self.path]
+
+    def matches(self, topic: str) -> bool:
+        """Whether ``topic`` is recorded (a pattern matches its resolved name)."""
+        return any(fnmatch.fnmatchcase(topic, pattern) for pattern in self.patterns)
+
+    async def __aenter__(self) -> Recorder:
+        self._tg = anyio.create_task_group()
+        await self._tg.__aenter__()
+        await self._tg.start(self.run)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        assert self._tg is not None
+        self._tg.cancel_scope.cancel()
+        return await self._tg.__aexit__(exc_type, exc, tb)
+
+    async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
+        """Record until cancelled; the bag is complete when this returns.
+
+        Raises:
+            BagError: the bag cannot be created.
+            OSError: the disk refused the data.
+        """
+        self.stats = RecordStats()
+        self._writer = await anyio.to_thread.run_sync(
+            BagWriter, self.path, self.fmt, self.graph.registry.typestore(), self._split
+        )
+        try:
+            self.discover()
+            task_status.started()
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._discover_loop)
+                await self._write_loop()
+        finally:
+            with anyio.CancelScope(shield=True):
+                self._unsubscribe()
+                await anyio.to_thread.run_sync(self._finish)
+
+    async def _discover_loop(self) -> None:
+        while True:
+            await anyio.sleep(self._discover_s)
+            self.discover()
+
+    def discover(self) -> None:
+        """Subscribe to each matching topic not yet recorded."""
+        for name, entry in list(self.graph.topics.items()):
+            if name in self._subscriptions or not self.matches(name):
+                continue
+            latched = any(entry.publishers.values()) or entry.latched is not None
+            info = TopicInfo(name, entry.msgtype.rosbags_name, latched)
+            callback = self._sink(info, entry.msgtype)
+            self._subscriptions[name] = self.graph.create_subscription(
+                name, callback, node="/rwt_recorder"
+            )
+            logger.info("event=record topic=%s type=%s", name, entry.msgtype.name)
+
+    def _sink(self, info: TopicInfo, mtype: MessageType) -> _Callback:
+        codec = self.graph.registry.codec(mtype)
+        clock = self.graph.clock
+
+        def on_message(msg: dict[str, object]) -> None:
+            raw = codec.serialize(msg)
+            if self._queued_bytes + len(raw) > self._max_queue:
+                self.stats.dropped += 1
+                return
+            self._queue.append((info, int(clock.wall() * 1e9), raw))
+            self._queued_bytes += len(raw)
+            self._wake.set()
+
+        return on_message
+
+    async def _write_loop(self) -> None:
+        next_checkpoint = time.monotonic() + self._checkpoint_s
+        while True:
+            with anyio.move_on_after(max(0.0, next_checkpoint - time.monotonic())):
+                await self._wake.wait()
+            self._wake = anyio.Event()
+            await self._flush()
+            if time.monotonic() >= next_checkpoint:
+                assert self._writer is not None
+                await anyio.to_thread.run_sync(self._writer.checkpoint)
+                next_checkpoint = time.monotonic() + self._checkpoint_s
+
+    async def _flush(self) -> None:
+        batch, self._queue = self._queue, []
+        self._queued_bytes = 0
+        if batch:
+            await anyio.to_thread.run_sync(self._write_batch, batch)
+
+    def _write_batch(self, batch: list[_Item]) -> None:
+        writer = self._writer
+        assert writer is not None
+        stats = self.stats
+        for info, ns, raw in batch:
+            writer.write(info, ns, raw)
+            stats.messages += 1
+            stats.bytes += len(raw)
+            stats.topics[info.topic] = stats.topics.get(info.topic, 0) + 1
+
+    def _unsubscribe(self) -> None:
+        for subscription in self._subscriptions.values():
+            subscription.close()
+        self._subscriptions.clear()
+
+    def _finish(self) -> None:
+        """Write what is queued and close the bag (in the writer thread)."""
+        batch, self._queue = self._queue, []
+        writer = self._writer
+        if writer is None:
+            return
+        try:
+            self._write_batch(batch)
+        finally:
+            writer.close()
+
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    _Callback = Callable[[dict[str, object]], None]

@@ -1,0 +1,206 @@
+"""Bag files on disk: ROS 2 (MCAP, sqlite3) and ROS 1, split by size or duration.
+
+``BagWriter`` takes already-serialized messages (CDR for ROS 2 bags, the ROS 1
+format for ROS 1 bags) with their receive time and writes them with rosbags'
+writers, which also write each type's definition (and its MD5 sum or RIHS01
+hash) from the registry's typestore. A split starts a new bag next to the first:
+``run`` then ``run_1``, ``run_2``... (``run.bag``, ``run_1.bag``... for ROS 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag1 import Writer as Ros1Writer
+from rosbags.rosbag2 import StoragePlugin
+
+from .errors import BagError
+from .formats import BagFormat, SplitPolicy
+from .mcap import CheckpointWriter
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+__all__ = ["BagFormat", "BagWriter", "SplitPolicy", "TopicInfo", "split_path"]
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """What a bag records about one topic.
+
+    Attributes:
+        topic: resolved name.
+        msgtype: rosbags' name of the type (``std_msgs/msg/String``).
+        latched: transient-local (ROS 2 QoS) or latching (ROS 1 connection header).
+    """
+
+    topic: str
+    msgtype: str
+    latched: bool
+
+
+_INFINITE = QosTime(sec=2147483647, nsec=4294967295)
+
+
+def _qos(latched: bool) -> Qos:
+    """The offered QoS a rosbag2 player reads back to latch a topic (or not)."""
+    durability = QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE
+    return Qos(
+        history=QosHistory.KEEP_LAST,
+        depth=1 if latched else 10,
+        reliability=QosReliability.RELIABLE,
+        durability=durability,
+        deadline=_INFINITE,
+        lifespan=_INFINITE,
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=_INFINITE,
+        avoid_ros_namespace_conventions=False,
+    )
+
+
+def split_path(path: Path, index: int) -> Path:
+    """The path of split file ``index`` (0: ``path`` itself; then ``stem_N.suffix``)."""
+    if index == 0:
+        return path
+    return path.with_name(f"{path.stem}_{index}{path.suffix}")
+
+
+class _File:
+    """One open bag file."""
+
+    def __init__(self, path: Path, fmt: BagFormat, typestore: Typestore) -> None:
+        self.path = path
+        self.fmt = fmt
+        self._typestore = typestore
+        self.connections: dict[TopicInfo, Any] = {}
+        self.bytes = 0
+        self.first_ns: int | None = None
+        self.writer: Any
+        try:
+            if fmt is BagFormat.ROS1:
+                self.writer = Ros1Writer(path)
+            else:
+                plugin = StoragePlugin.MCAP if fmt is BagFormat.MCAP else StoragePlugin.SQLITE3
+                self.writer = CheckpointWriter(path, storage_plugin=plugin)
+            self.writer.open()
+        except Exception as exc:  # rosbags' WriterError, OSError: the path is taken or bad
+            raise BagError(f"cannot create the bag {path}: {exc}") from exc
+
+    def write(self, info: TopicInfo, ns: int, raw: bytes | memoryview) -> None:
+        connection = self.connections.get(info)
+        if connection is None:
+            connection = self.connections[info] = self._connect(info)
+        self.writer.write(connection, ns, raw)
+        self.bytes += len(raw)
+        if self.first_ns is None:
+            self.first_ns = ns
+
+    def _connect(self, info: TopicInfo) -> Any:
+        if self.fmt is BagFormat.ROS1:
+            return self.writer.add_connection(
+                info.topic,
+                info.msgtype,
+                typestore=self._typestore,
+                callerid="/rwt_recorder",
+                latching=1 if info.latched else 0,
+            )
+        return self.writer.add_connection(
+            info.topic,
+            info.msgtype,
+            typestore=self._typestore,
+            offered_qos_profiles=[_qos(info.latched)],
+        )
+
+    @property
+    def checkpoint_due(self) -> bool:
+        return isinstance(self.writer, CheckpointWriter) and self.writer.checkpoint_due
+
+    def checkpoint(self, *, full: bool = True) -> None:
+        if isinstance(self.writer, CheckpointWriter):
+            self.writer.checkpoint(full=full)
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+class BagWriter:
+    """Writes serialized messages to a bag, split into files by ``split``.
+
+    Not thread-safe: one thread calls it at a time (the recorder's writer thread).
+
+    Args:
+        path: the bag to create (a directory for ROS 2, a ``.bag`` file for ROS 1).
+        fmt: the format.
+        typestore: a rosbags typestore holding every recorded type
+            (``TypeRegistry.typestore()``).
+        split: when to start a new file.
+
+    Raises:
+        BagError: the bag cannot be created (it exists, or its folder is missing).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        fmt: BagFormat,
+        typestore: Typestore,
+        split: SplitPolicy | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.fmt = fmt
+        self._typestore = typestore
+        self._split = split or SplitPolicy()
+        self.paths: list[Path] = [self.path]
+        self._file: _File | None = _File(self.path, fmt, typestore)
+
+    def write(self, info: TopicInfo, ns: int, raw: bytes | memoryview) -> None:
+        """Write one message received at ``ns`` (nanoseconds since the epoch).
+
+        Raises:
+            BagError: the writer was closed.
+            OSError: the disk refused the data.
+        """
+        file = self._file
+        if file is None:
+            raise BagError(f"the bag {self.path} is closed")
+        if self._should_split(file, ns):
+            file = self._next_file(file)
+        file.write(info, ns, raw)
+        if file.checkpoint_due:
+            file.checkpoint(full=False)
+
+    def _should_split(self, file: _File, ns: int) -> bool:
+        if file.first_ns is None:
+            return False
+        limit_bytes, limit_s = self._split.max_bytes, self._split.max_seconds
+        if limit_bytes is not None and file.bytes >= limit_bytes:
+            return True
+        return limit_s is not None and (ns - file.first_ns) >= limit_s * 1e9
+
+    def _next_file(self, file: _File) -> _File:
+        file.close()
+        path = split_path(self.path, len(self.paths))
+        self.paths.append(path)
+        self._file = _File(path, self.fmt, self._typestore)
+        return self._file
+
+    def checkpoint(self) -> None:
+        """Make what was written so far readable if the process dies (ROS 2 bags)."""
+        if self._file is not None:
+            self._file.checkpoint()
+
+    def close(self) -> None:
+        """Finish the file (index, summary, metadata); later calls do nothing."""
+        file, self._file = self._file, None
+        if file is not None:
+            file.close()

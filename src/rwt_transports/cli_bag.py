@@ -1,0 +1,216 @@
+"""The ``rwt record``, ``rwt play`` and ``rwt bag info`` commands (record and replay).
+
+The work is in ``rwt_bag``; this module turns options into its objects. Shared
+option types (``RecordTopics``, ``Rate``...) are also used by ``rwt serve``'s
+``--record`` and ``--play`` options.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, NoReturn
+
+import anyio
+import typer
+
+from rwt_bag.errors import BagError
+from rwt_bag.formats import BagFormat, SplitPolicy
+from rwt_graph.types import Dialect, TypeRegistry
+from rwt_protocol.access import parse_glob_list
+
+from .cli_checks import check_directories, check_glob_list
+
+if TYPE_CHECKING:
+    from rwt_bag.jobs import BagJobs, PlayOptions, RecordOptions
+    from rwt_graph.graph import Graph
+
+__all__ = ["bag_app", "bag_jobs", "play_options", "record", "record_options", "split_policy"]
+
+MB = 1_000_000
+
+Patterns = Annotated[
+    str,
+    typer.Option(
+        "--topics",
+        callback=check_glob_list,
+        metavar="PATTERNS",
+        help="Topics, comma-separated glob patterns (/tf*,/scan); default: all.",
+    ),
+]
+FORMAT_HELP = "mcap, sqlite3 (ROS 2 bags) or ros1 (needs --dialect ros1)."
+Format = Annotated[BagFormat, typer.Option(help=FORMAT_HELP)]
+SplitSize = Annotated[
+    float | None,
+    typer.Option(min=0.001, metavar="MB", help="Start a new file after this many megabytes."),
+]
+SplitDuration = Annotated[
+    float | None,
+    typer.Option(min=0.001, metavar="SECONDS", help="Start a new file after this many seconds."),
+]
+DialectOption = Annotated[Dialect, typer.Option(help="ROS message dialect.")]
+Interfaces = Annotated[
+    list[Path] | None,
+    typer.Option(
+        callback=check_directories,
+        metavar="DIR",
+        help="Extra interface directory (PKG/msg, PKG/srv, PKG/action); repeatable.",
+    ),
+]
+Rate = Annotated[float, typer.Option(min=0.001, help="Playback speed (2: twice as fast).")]
+Loop = Annotated[bool, typer.Option(help="Start over at the end of the bag.")]
+StartOffset = Annotated[
+    float, typer.Option(min=0.0, metavar="SECONDS", help="Start this far into the bag.")
+]
+Clock = Annotated[
+    float | None,
+    typer.Option(
+        min=0.001,
+        metavar="HZ",
+        help="Publish /clock at this rate and answer rosapi get_time with bag time.",
+    ),
+]
+StartPaused = Annotated[
+    bool, typer.Option(help="Start paused; /rwt/player/resume starts playback.")
+]
+Check = Annotated[
+    bool,
+    typer.Option(help="Decode the whole bag before publishing (--no-check: start at once)."),
+]
+
+
+def split_policy(size_mb: float | None, duration_s: float | None) -> SplitPolicy:
+    """The split policy of ``--split-size``/``--split-duration``."""
+    return SplitPolicy(
+        max_bytes=None if size_mb is None else int(size_mb * MB), max_seconds=duration_s
+    )
+
+
+def record_options(
+    path: Path | None, topics: str, fmt: BagFormat, split: SplitPolicy
+) -> RecordOptions | None:
+    """``RecordOptions`` of ``--record`` (None without it)."""
+    if path is None:
+        return None
+    from rwt_bag.jobs import RecordOptions  # noqa: PLC0415 - rosbags' writers only when used
+
+    return RecordOptions(path, parse_glob_list(topics) or ("*",), fmt, split)
+
+
+def play_options(
+    paths: list[Path] | None,
+    *,
+    rate: float,
+    loop: bool,
+    start_offset: float,
+    topics: str,
+    clock: float | None,
+    check: bool,
+    paused: bool = False,
+) -> PlayOptions | None:
+    """``PlayOptions`` of ``--play`` (None without it)."""
+    if not paths:
+        return None
+    from rwt_bag.jobs import PlayOptions  # noqa: PLC0415 - see record_options
+
+    return PlayOptions(
+        paths, rate, loop, start_offset, parse_glob_list(topics), clock, check, paused
+    )
+
+
+def bag_jobs(
+    graph: Graph,
+    record: RecordOptions | None,
+    play: PlayOptions | None,
+    *,
+    command: str,
+    stop_at_end: object = None,
+) -> BagJobs | None:
+    """The ``BagJobs`` of the options, or None; a bad bag exits with one line (code 1)."""
+    if record is None and play is None:
+        return None
+    from rwt_bag.jobs import BagJobs  # noqa: PLC0415 - see record_options
+
+    try:
+        return BagJobs(
+            graph,
+            record=record,
+            play=play,
+            progress=sys.stdout if command != "serve" else None,
+            stop_at_end=stop_at_end,  # type: ignore[arg-type]
+        )
+    except BagError as exc:
+        _fail(command, str(exc))
+
+
+def _fail(command: str, message: str) -> NoReturn:
+    typer.echo(f"rwt {command}: {message}", err=True)
+    raise typer.Exit(1)
+
+
+def record(
+    url: Annotated[str, typer.Argument(help="The rosbridge server: ws://, wss:// or tcp://.")],
+    out: Annotated[Path, typer.Argument(help="The bag to create (a folder; a .bag file).")],
+    topics: Patterns = "",
+    fmt: Annotated[BagFormat, typer.Option("--format", help=FORMAT_HELP)] = BagFormat.MCAP,
+    split_size: SplitSize = None,
+    split_duration: SplitDuration = None,
+    compression: Annotated[
+        str, typer.Option(help="Subscription compression: cbor (binary) or none (JSON).")
+    ] = "cbor",
+    duration: Annotated[
+        float | None,
+        typer.Option(min=0.001, metavar="SECONDS", help="Stop after recording this long."),
+    ] = None,
+    dialect: DialectOption = Dialect.ROS2,
+    interfaces: Interfaces = None,
+) -> None:
+    """Record topics of a rosbridge server into a bag until SIGINT, SIGTERM or --duration.
+
+    Subscribes, as a client, to every topic the server lists (rosapi) that
+    matches --topics, also to topics that appear later, and writes each message
+    with its receive time and its type's definition. ROS 2 bags stay readable if
+    the recorder is killed (up to the last second or so).
+    """
+    if compression not in ("cbor", "none"):
+        _fail("record", f"--compression must be cbor or none, not {compression}")
+    from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
+
+    registry = TypeRegistry(dialect, interfaces or ())
+    try:
+        anyio.run(
+            lambda: record_remote(
+                url,
+                out,
+                registry,
+                topics=parse_glob_list(topics) or ("*",),
+                fmt=fmt,
+                split=split_policy(split_size, split_duration),
+                compression=compression,
+                duration=duration,
+            )
+        )
+    except (BagError, OSError) as exc:
+        _fail("record", str(exc))
+    except BaseExceptionGroup as group:
+        _fail("record", "; ".join(str(e) for e in group.exceptions))
+
+
+bag_app = typer.Typer(
+    no_args_is_help=True,
+    rich_markup_mode=None,
+    help="Inspect bags (ROS 1, ROS 2 sqlite3 and MCAP).",
+)
+
+
+@bag_app.command("info", short_help="Print a bag's topics, types, counts and duration.")
+def info(
+    bag: Annotated[list[Path], typer.Argument(help="The bag (several: split parts, as one).")],
+) -> None:
+    """Print a bag's topics, types, message counts and duration, like ros2 bag info."""
+    from rwt_bag.info import bag_info  # noqa: PLC0415 - see record_options
+
+    try:
+        typer.echo(bag_info(bag).format())
+    except BagError as exc:
+        _fail("bag info", str(exc))
