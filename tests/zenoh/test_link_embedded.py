@@ -1,0 +1,129 @@
+"""Two graphs in one process, linked over Zenoh on loopback: the embedding API across processes.
+
+Each graph has its own Zenoh session (so each is "remote" to the other, as two
+processes are); what one graph's code publishes, provides or lists, the other's
+code sees as if the graphs were one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import TYPE_CHECKING
+
+import anyio
+import pytest
+
+from rwt_graph.graph import Graph
+from rwt_graph.rosapi.listing import publishers, subscribers, topics
+from rwt_graph.rosapi.visibility import EVERYTHING
+from rwt_zenoh.link import ZenohLink, open_link
+
+from .support import endpoint, peer
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator, Callable
+
+pytestmark = pytest.mark.anyio
+
+WAIT_S = 10.0  # every wait for the network is bounded by this
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@contextlib.asynccontextmanager
+async def linked(count: int) -> AsyncIterator[list[tuple[Graph, ZenohLink]]]:
+    """``count`` graphs, each linked by its own session; all connect to the first."""
+    first = endpoint()
+    async with contextlib.AsyncExitStack() as stack:
+        pairs = []
+        for index in range(count):
+            graph = Graph()
+            options = peer(listen=first) if index == 0 else peer(connect=(first,))
+            link = await stack.enter_async_context(open_link(graph, options))
+            pairs.append((graph, link))
+        yield pairs
+
+
+async def until(condition: Callable[[], bool], what: str) -> None:
+    with anyio.fail_after(WAIT_S):
+        while not condition():
+            await anyio.sleep(0.02)
+
+
+async def test_a_message_published_on_one_graph_reaches_the_other_once() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        got_b: list[dict[str, object]] = []
+        got_a: list[dict[str, object]] = []
+        b.create_subscription("/chatter", got_b.append, "std_msgs/msg/String", node="/listener")
+        a.create_subscription("/chatter", got_a.append, "std_msgs/msg/String")
+        talker = a.create_publisher("/chatter", "std_msgs/msg/String", node="/talker")
+        # B's rosapi lists A's publisher once B's link has seen its token
+        await until(lambda: "/talker" in publishers(b, EVERYTHING, "/chatter"), "publisher")
+        await until(lambda: "/listener" in subscribers(a, EVERYTHING, "/chatter"), "subscriber")
+        talker.publish({"data": "hello"})
+        await until(lambda: len(got_b) == 1, "delivery")
+        await anyio.sleep(0.3)  # anything extra (an echo) would arrive meanwhile
+        assert got_b == [{"data": "hello"}]
+        assert got_a == [{"data": "hello"}]  # the local subscriber, once: no echo from B
+
+
+async def test_three_graphs_deliver_each_message_once_without_loops() -> None:
+    async with linked(3) as pairs:
+        received: list[list[dict[str, object]]] = []
+        for index, (graph, _) in enumerate(pairs):
+            inbox: list[dict[str, object]] = []
+            received.append(inbox)
+            graph.create_subscription("/n", inbox.append, "std_msgs/msg/Int32", node=f"/s{index}")
+        a = pairs[0][0]
+        pub = a.create_publisher("/n", "std_msgs/msg/Int32", node="/talker")
+        for graph, _ in pairs[1:]:
+            await until(lambda g=graph: "/talker" in publishers(g, EVERYTHING, "/n"), "publisher")
+        await until(lambda: {"/s1", "/s2"} <= set(subscribers(a, EVERYTHING, "/n")), "subs")
+        for number in range(5):
+            pub.publish({"data": number})
+        await until(lambda: all(len(inbox) == 5 for inbox in received), "delivery")
+        await anyio.sleep(0.3)
+        for inbox in received:
+            assert [msg["data"] for msg in inbox] == [0, 1, 2, 3, 4]
+
+
+async def test_a_late_subscriber_gets_the_last_latched_message() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        latched = a.create_publisher("/map", "std_msgs/msg/String", latch=True, node="/mapper")
+        latched.publish({"data": "old"})
+        latched.publish({"data": "map v2"})
+        await until(lambda: "/mapper" in publishers(b, EVERYTHING, "/map"), "publisher")
+        got: list[dict[str, object]] = []
+        b.create_subscription("/map", got.append, "std_msgs/msg/String")
+        await until(lambda: len(got) == 1, "latched message")
+        second: list[dict[str, object]] = []
+        b.create_subscription("/map", second.append, node="/other")  # a later one, locally
+        assert got == [{"data": "map v2"}]
+        assert second == [{"data": "map v2"}]
+
+
+async def test_rosapi_lists_topics_of_both_graphs_and_forgets_them() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        pub = b.create_publisher("/only_on_b", "std_msgs/msg/Bool", node="/b_node")
+        await until(lambda: "/only_on_b" in topics(a, EVERYTHING)[0], "listing")
+        names, types = topics(a, EVERYTHING)
+        assert types[names.index("/only_on_b")] == "std_msgs/msg/Bool"
+        assert "/b_node" in a.nodes.names()
+        pub.close()
+        await until(lambda: "/only_on_b" not in topics(a, EVERYTHING)[0], "forgetting")
+        await until(lambda: "/b_node" not in a.nodes.names(), "node gone")
+
+
+async def test_types_are_checked_on_both_sides() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        got: list[dict[str, object]] = []
+        b.create_subscription("/x", got.append, "std_msgs/msg/Int32", node="/b")
+        pub = a.create_publisher("/x", "std_msgs/msg/String", node="/a")
+        await anyio.sleep(0.5)
+        pub.publish({"data": "text"})  # another type: the keys differ, nothing arrives
+        await anyio.sleep(0.3)
+        assert got == []
+        assert "/a" not in publishers(b, EVERYTHING, "/x")  # refused by B's graph
