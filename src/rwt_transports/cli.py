@@ -43,6 +43,7 @@ from .cli_checks import (
     error_line,
     usage_error,
 )
+from .cli_zenoh import ZENOH_EXTRA, linked, run_router, zenoh_options
 from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
@@ -51,6 +52,7 @@ from .websocket import WebSocketOptions
 
 if TYPE_CHECKING:
     from rwt_video import VideoConfig
+    from rwt_zenoh.config import ZenohOptions
 
 __all__ = ["app", "main"]
 
@@ -104,6 +106,13 @@ app = typer.Typer(
 # typer offers an enum's values as choices: the status levels' wire spellings, made
 # from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)
 LevelName = StrEnum("LevelName", [(level.name, level.wire) for level in StatusLevel])  # type: ignore[misc]
+
+
+class ZenohMode(StrEnum):
+    """How ``rwt serve --zenoh`` joins: as a peer, or as a client of a router."""
+
+    PEER = "peer"
+    CLIENT = "client"
 
 
 class LogLevel(StrEnum):
@@ -356,6 +365,33 @@ def serve(
     raise_fd_limit: Annotated[
         bool, typer.Option(help="Raise the soft RLIMIT_NOFILE to the hard limit at start-up.")
     ] = True,
+    zenoh: Annotated[
+        bool, typer.Option(help=f"Share the graph over a Zenoh network ({ZENOH_EXTRA}).")
+    ] = False,
+    zenoh_config: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file, metavar="FILE", help="Zenoh's JSON5 config file."
+        ),
+    ] = None,
+    zenoh_connect: Annotated[
+        list[str] | None,
+        typer.Option(metavar="ENDPOINT", help="Zenoh endpoint to connect to; repeatable."),
+    ] = None,
+    zenoh_listen: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="ENDPOINT",
+            help="Zenoh endpoint to listen on (tcp/127.0.0.1:0 if none); repeatable.",
+        ),
+    ] = None,
+    zenoh_mode: Annotated[
+        ZenohMode, typer.Option(help="Join as a Zenoh peer, or as a client of a router.")
+    ] = ZenohMode.PEER,
+    domain_id: Annotated[
+        int | None,
+        typer.Option(min=0, help="ROS domain on Zenoh (default: ROS_DOMAIN_ID, else 0)."),
+    ] = None,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
 
@@ -371,6 +407,10 @@ def serve(
     --video, a "video on http://HOST:PORT" line follows: image topics over HTTP
     on web_video_server's paths. --depthcloud DEPTH[,RGB] encodes a depth (and
     colour) topic for ros3djs, as depthcloud_encoder does.
+
+    With --zenoh, several servers (and ROS 2 nodes on rmw_zenoh) share one graph:
+    peers find each other through --zenoh-connect/--zenoh-listen endpoints or a
+    router ('rwt router'); multicast scouting stays off.
     """
     if not (websocket or tcp_port is not None or udp_port is not None or stdio):
         raise usage_error(
@@ -390,6 +430,18 @@ def serve(
         tune_allocator(heap_keep * 1024 * 1024)
     if raise_fd_limit:
         raise_nofile_limit()
+    zenoh_link = None
+    if zenoh:
+        try:
+            zenoh_link = zenoh_options(
+                mode=zenoh_mode.value,
+                connect=zenoh_connect,
+                listen=zenoh_listen,
+                config_file=zenoh_config,
+                domain_id=domain_id,
+            )
+        except ValueError as exc:
+            _fail(str(exc))
     graph = Graph(TypeRegistry(dialect, interfaces or ()))
     authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
     access = AccessPolicy(
@@ -461,7 +513,7 @@ def serve(
         )
     freeze_startup_objects()
     try:
-        anyio.run(_run, server, video_config, backend_options={"use_uvloop": uvloop})
+        anyio.run(_run, server, video_config, zenoh_link, backend_options={"use_uvloop": uvloop})
     except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
         message = _startup_error(exc)
         if message is None:
@@ -531,13 +583,15 @@ def _unbound_listener(server: RosbridgeServer) -> tuple[str, str, int] | None:
     return None
 
 
-async def _run(server: RosbridgeServer, video: VideoConfig | None) -> None:
+async def _run(
+    server: RosbridgeServer, video: VideoConfig | None, zenoh: ZenohOptions | None = None
+) -> None:
     out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
 
     def announce(url: str) -> None:
         print(f"listening on {url}", file=out, flush=True)
 
-    async with anyio.create_task_group() as tg:
+    async with linked(server.graph, zenoh), anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
         video_url = None
         if video is not None:
@@ -574,6 +628,34 @@ async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> 
                 scope.cancel()
                 return
             server.stop()
+
+
+@app.command(short_help="Run a Zenoh router for rwt servers and ROS 2 nodes.")
+def router(
+    listen: Annotated[
+        list[str] | None,
+        typer.Option(metavar="ENDPOINT", help="Endpoint to listen on; repeatable."),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file, metavar="FILE", help="Zenoh's JSON5 config file."
+        ),
+    ] = None,
+) -> None:
+    """Run a Zenoh router until SIGINT or SIGTERM, from this install: no other binary.
+
+    Servers started with 'rwt serve --zenoh --zenoh-mode client --zenoh-connect
+    ENDPOINT' (and ROS 2 nodes on rmw_zenoh) meet through it. It listens on
+    tcp/127.0.0.1:7447 unless told otherwise; give --listen tcp/0.0.0.0:7447 to
+    let other machines in. stdout gets one "router listening on ENDPOINT" line per
+    endpoint.
+    """
+    try:
+        run_router(listen or ["tcp/127.0.0.1:7447"], config)
+    except ValueError as exc:
+        typer.echo(f"rwt router: {exc}", err=True)
+        raise typer.Exit(1) from None
 
 
 if __name__ == "__main__":  # python -m rwt_transports.cli
