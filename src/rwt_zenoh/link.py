@@ -25,11 +25,13 @@ import contextlib
 import itertools
 import logging
 import time
+from collections import deque
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, cast
 
 import anyio
+import anyio.lowlevel
 import zenoh.ext
 
 import zenoh
@@ -75,6 +77,10 @@ PRIVATE_NAMES = ("/client_count", "/connected_clients", "/rosapi/*")
 already answers for the whole network). ``*`` ends a prefix."""
 
 #: QoS of a latched (transient local) and of a plain publisher's token.
+MAX_QUEUED = 100_000
+"""Remote samples waiting for the event loop beyond which new ones are dropped."""
+_DRAIN_BATCH = 1000
+
 _LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=1)
 _VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=10)
 
@@ -188,6 +194,10 @@ class ZenohLink:
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         self._call_ids = itertools.count(1)
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake: asyncio.Event | None = None
+        self._events: deque[tuple[Callable[..., None], tuple[object, ...]]] = deque()
+        self._signalled = False
+        self._dropped = 0
         self._closed = False
         self._liveliness: Any = None
 
@@ -197,22 +207,46 @@ class ZenohLink:
         """Link until cancelled; then withdraw every token and forget every remote entity.
 
         Raises:
-            RuntimeError: the event loop is not asyncio's (Zenoh's threads hand
-                events over with ``call_soon_threadsafe``).
+            RuntimeError: the event loop is not asyncio's (Zenoh's threads wake
+                the link's task with ``call_soon_threadsafe``).
         """
         self._loop = asyncio.get_running_loop()
+        self._wake = asyncio.Event()
         self.graph.taps.append(self._tap)
         try:
             self._liveliness = self.session.liveliness().declare_subscriber(
                 f"@ros2_lv/{self.domain_id}/**", self._on_token_thread, history=True
             )
             self._sweep()
-            task_status.started()
-            while True:
-                await anyio.sleep(self.sweep_s)
-                self._sweep()
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._sweeper)
+                task_status.started()
+                await self._drain()
         finally:
             self._close()
+
+    async def _sweeper(self) -> None:
+        while True:
+            await anyio.sleep(self.sweep_s)
+            self._sweep()
+
+    async def _drain(self) -> None:
+        """Handle what Zenoh's threads handed over, in order, in this task.
+
+        A task rather than bare loop callbacks: handlers may start async work
+        (an async in-process service), which needs a task's context.
+        """
+        assert self._wake is not None
+        events = self._events
+        while True:
+            await self._wake.wait()
+            self._signalled = False
+            self._wake.clear()
+            while events:
+                callback, args = events.popleft()
+                self._guarded(callback, *args)
+                if len(events) > _DRAIN_BATCH:
+                    await anyio.lowlevel.checkpoint()  # others run during a flood
 
     def _close(self) -> None:
         self._closed = True
@@ -239,13 +273,26 @@ class ZenohLink:
             self.graph.release(relay)
         self._relays.clear()
 
-    def _soon(self, callback: Callable[..., None], *args: object) -> None:
-        """Run ``callback(*args)`` on the link's loop (called from Zenoh's threads)."""
-        loop = self._loop
-        if loop is None or self._closed:
+    def _soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
+        """Run ``callback(*args)`` in the link's task (called from Zenoh's threads).
+
+        Samples beyond ``MAX_QUEUED`` waiting ones are dropped (and counted in the
+        log), so a peer publishing faster than this process reads cannot exhaust
+        its memory; tokens and replies are never dropped.
+        """
+        loop, wake = self._loop, self._wake
+        if loop is None or wake is None or self._closed:
             return
-        with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
-            loop.call_soon_threadsafe(self._guarded, callback, *args)
+        if sample and len(self._events) >= MAX_QUEUED:
+            self._dropped += 1
+            if self._dropped & (self._dropped - 1) == 0:  # 1, 2, 4, 8...: bounded logging
+                logger.warning("event=zenoh_samples_dropped count=%d", self._dropped)
+            return
+        self._events.append((callback, args))
+        if not self._signalled:
+            self._signalled = True
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(wake.set)
 
     def _guarded(self, callback: Callable[..., None], *args: object) -> None:
         if self._closed:
@@ -422,6 +469,7 @@ class ZenohLink:
                 type_name,
                 sample.payload.to_bytes(),
                 None if attachment is None else attachment.to_bytes(),
+                sample=True,
             )
 
         handle = zenoh.ext.declare_advanced_subscriber(

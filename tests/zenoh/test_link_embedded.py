@@ -8,14 +8,17 @@ code sees as if the graphs were one.
 from __future__ import annotations
 
 import contextlib
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import anyio
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_graph.rosapi.listing import publishers, subscribers, topics
+from rwt_graph.rosapi.listing import publishers, service_node, services, subscribers, topics
 from rwt_graph.rosapi.visibility import EVERYTHING
+from rwt_protocol.errors import FieldError, RwtError
+from rwt_transports.async_calls import ServiceCallError, call_service
+from rwt_transports.server import spawner_for
 from rwt_zenoh.link import ZenohLink, open_link
 
 from .support import endpoint, peer
@@ -127,3 +130,57 @@ async def test_types_are_checked_on_both_sides() -> None:
         await anyio.sleep(0.3)
         assert got == []
         assert "/a" not in publishers(b, EVERYTHING, "/x")  # refused by B's graph
+
+
+async def test_a_service_of_one_graph_is_called_from_the_other() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+
+        def add(request: dict[str, Any]) -> dict[str, Any]:
+            return {"sum": request["a"] + request["b"]}
+
+        def refuse(request: dict[str, Any]) -> dict[str, Any]:
+            raise RwtError("refused by B")
+
+        b.create_service("/b/add", "example_interfaces/srv/AddTwoInts", add, node="/adder")
+        b.create_service("/b/refuse", "std_srvs/srv/Trigger", refuse, node="/adder")
+        await until(lambda: {"/b/add", "/b/refuse"} <= set(services(a, EVERYTHING)), "services")
+        assert service_node(a, EVERYTHING, "/b/add") == "/adder"
+        assert await call_service(a, "/b/add", {"a": 2, "b": 40}) == {"sum": 42}
+        with pytest.raises(ServiceCallError, match="refused by B"):
+            await call_service(a, "/b/refuse")
+        with pytest.raises(FieldError):  # checked against the type on the caller's side
+            await call_service(a, "/b/add", {"a": "two"})
+
+
+async def test_callers_fail_at_once_when_the_providing_graph_leaves() -> None:
+    first = endpoint()
+    a, b = Graph(), Graph()
+    started = anyio.Event()
+
+    async def never(request: dict[str, Any]) -> dict[str, Any]:
+        started.set()
+        await anyio.sleep_forever()
+        raise AssertionError  # pragma: no cover
+
+    async with open_link(a, peer(listen=first)), anyio.create_task_group() as tg:
+        b.spawner = spawner_for(tg)
+        b.create_service("/b/slow", "std_srvs/srv/Trigger", never, node="/slow")
+        outcome: list[BaseException] = []
+
+        async def caller(timeout_s: float) -> None:
+            try:
+                await call_service(a, "/b/slow", timeout_s=timeout_s)
+            except ServiceCallError as exc:
+                outcome.append(exc)
+
+        async with open_link(b, peer(connect=(first,))):
+            await until(lambda: "/b/slow" in a.services.entries, "service")
+            await caller(0.3)  # a timeout on the caller's side
+            assert "timed out" in str(outcome.pop())
+            tg.start_soon(caller, WAIT_S)
+            with anyio.fail_after(WAIT_S):
+                await started.wait()
+        # B left (its tokens went): the caller is answered false at once
+        await until(lambda: bool(outcome), "the failed call")
+        assert "/b/slow" not in a.services.entries
+        tg.cancel_scope.cancel()
