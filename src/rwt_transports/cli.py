@@ -43,12 +43,13 @@ from .cli_checks import (
     error_line,
     usage_error,
 )
-from .cli_zenoh import ZENOH_EXTRA, linked, run_router, zenoh_options
+from .cli_zenoh import ZENOH_EXTRA, linked, require_zenoh, run_router, zenoh_options
 from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
 from .websocket import WebSocketOptions
+from .workers import run_workers
 
 if TYPE_CHECKING:
     from rwt_video import VideoConfig
@@ -392,6 +393,15 @@ def serve(
         int | None,
         typer.Option(min=0, help="ROS domain on Zenoh (default: ROS_DOMAIN_ID, else 0)."),
     ] = None,
+    workers: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Server processes sharing the ports (SO_REUSEPORT, Linux) and one graph "
+            "over Zenoh on loopback; restarted when they die.",
+        ),
+    ] = 1,
+    reuse_port: Annotated[bool, typer.Option(hidden=True)] = False,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
 
@@ -410,7 +420,8 @@ def serve(
 
     With --zenoh, several servers (and ROS 2 nodes on rmw_zenoh) share one graph:
     peers find each other through --zenoh-connect/--zenoh-listen endpoints or a
-    router ('rwt router'); multicast scouting stays off.
+    router ('rwt router'); multicast scouting stays off. --workers N runs N such
+    servers on the same ports, one graph, supervised by this process.
     """
     if not (websocket or tcp_port is not None or udp_port is not None or stdio):
         raise usage_error(
@@ -430,18 +441,21 @@ def serve(
         tune_allocator(heap_keep * 1024 * 1024)
     if raise_fd_limit:
         raise_nofile_limit()
+    if workers > 1:
+        shared_only = not (stdio or udp_port is not None or video or video_port is not None)
+        _serve_workers(
+            workers,
+            host=host,
+            port=port if websocket else None,
+            tcp_port=tcp_port,
+            zenoh_mode=zenoh_mode,
+            shared_only=shared_only,
+        )
     zenoh_link = None
     if zenoh:
-        try:
-            zenoh_link = zenoh_options(
-                mode=zenoh_mode.value,
-                connect=zenoh_connect,
-                listen=zenoh_listen,
-                config_file=zenoh_config,
-                domain_id=domain_id,
-            )
-        except ValueError as exc:
-            _fail(str(exc))
+        zenoh_link = _zenoh_options(
+            zenoh_mode, zenoh_connect, zenoh_listen, zenoh_config, domain_id
+        )
     graph = Graph(TypeRegistry(dialect, interfaces or ()))
     authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
     access = AccessPolicy(
@@ -489,6 +503,7 @@ def serve(
         ),
         tf=tf,
         handshake_timeout_s=handshake_timeout,
+        reuse_port=reuse_port,
     )
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
@@ -519,6 +534,47 @@ def serve(
         if message is None:
             raise
         _fail(message)
+
+
+def _serve_workers(
+    count: int,
+    *,
+    host: str,
+    port: int | None,
+    tcp_port: int | None,
+    zenoh_mode: ZenohMode,
+    shared_only: bool,
+) -> NoReturn:
+    """``--workers N``: supervise N servers, then exit with their status."""
+    if not shared_only:
+        raise usage_error("--workers shares TCP ports: not with --stdio, --udp-port or --video")
+    try:
+        require_zenoh("--workers")
+        status = run_workers(
+            count, host=host, port=port, tcp_port=tcp_port, zenoh_mode=zenoh_mode.value
+        )
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    raise typer.Exit(status)
+
+
+def _zenoh_options(
+    mode: ZenohMode,
+    connect: list[str] | None,
+    listen: list[str] | None,
+    config_file: Path | None,
+    domain_id: int | None,
+) -> ZenohOptions:
+    try:
+        return zenoh_options(
+            mode=mode.value,
+            connect=connect,
+            listen=listen,
+            config_file=config_file,
+            domain_id=domain_id,
+        )
+    except ValueError as exc:
+        _fail(str(exc))
 
 
 def _read_secret(path: Path) -> str:

@@ -54,6 +54,14 @@ class Process:
             raise AssertionError(f"{self.name}: no line ({exc!r})\n{self.stderr()}") from None
         return raw.decode("utf-8", "replace")
 
+    async def rest(self) -> str:
+        """Everything left on stdout, once the process has ended."""
+        chunks = []
+        with anyio.fail_after(LINE_TIMEOUT_S), contextlib.suppress(anyio.EndOfStream):
+            while True:
+                chunks.append(await self._stdout.receive())
+        return b"".join(chunks).decode("utf-8", "replace")
+
     def stderr(self) -> str:
         """What it wrote on stderr so far (the last 4000 characters)."""
         return self.log.read_text("utf-8", "replace")[-4000:]
