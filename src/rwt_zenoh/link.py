@@ -40,6 +40,7 @@ from rwt_graph.nodes import CLIENT_NODE_PREFIX
 from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
+from .link_actions import ActionLink
 from .payload import decode_message, encode_message, service_hash, type_hash
 from .wire import (
     Attachment,
@@ -121,6 +122,7 @@ class _Remote:
     client: ClientId
     node: str
     mirrored: bool = False
+    waiting: bool = False  # a service shadowed by another provider: tried again each sweep
 
 
 @dataclass(eq=False)
@@ -200,6 +202,7 @@ class ZenohLink:
         self._dropped = 0
         self._closed = False
         self._liveliness: Any = None
+        self._actions = ActionLink(self)
 
     # ---- running ----------------------------------------------------------------
 
@@ -261,6 +264,7 @@ class ZenohLink:
         for handle in handles:
             if handle is not None:
                 guarded("undeclaring a zenoh entity", handle.undeclare)
+        self._actions.close()
         self._exports.clear()
         self._node_tokens.clear()
         self._pubs.clear()
@@ -302,6 +306,70 @@ class ZenohLink:
         except Exception:
             logger.exception("zenoh link: handling %s failed", getattr(callback, "__name__", ""))
 
+    # ---- what the action half uses ---------------------------------------------------
+
+    @property
+    def caller(self) -> ClientId:
+        """The participant calling local services and actions for remote callers."""
+        return self._caller
+
+    def is_ours(self, client: ClientId) -> bool:
+        """Whether ``client`` is one of the link's participants."""
+        return ours(client)
+
+    def is_private(self, name: str) -> bool:
+        """Whether ``name`` stays in this process (``private``)."""
+        return _is_private(name, self.private)
+
+    def node_entity(self, node: str) -> Entity:
+        """The node entity of ``node`` as the network sees it."""
+        return self._node_entity(node)
+
+    def next_id(self) -> int:
+        """A new entity id in this session."""
+        return next(self._ids)
+
+    def soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
+        """Run ``callback(*args)`` in the link's task (from a Zenoh thread); see ``_soon``."""
+        self._soon(callback, *args, sample=sample)
+
+    def query(
+        self,
+        key: str,
+        payload: bytes,
+        answer: Callable[[bool, object], None],
+        timeout_s: float,
+    ) -> None:
+        """Send a query; ``answer(ok, value)`` runs once in the link's task.
+
+        ``value`` is the first reply's payload (bytes) when ``ok``, else the error
+        reply's text or "no reply" when every reply is in or ``timeout_s`` passed.
+        """
+        outcome: list[tuple[bool, object]] = []
+
+        def on_reply(reply: zenoh.Reply) -> None:  # a Zenoh thread
+            if outcome:
+                return
+            if reply.ok is not None:
+                outcome.append((True, reply.ok.payload.to_bytes()))
+            else:
+                error = reply.err
+                outcome.append((False, "" if error is None else error.payload.to_string()))
+            self._soon(answer, *outcome[0])
+
+        def on_done() -> None:  # a Zenoh thread
+            if not outcome:
+                outcome.append((False, "no reply from the network"))
+                self._soon(answer, *outcome[0])
+
+        self.session.get(
+            key,
+            zenoh.handlers.Callback(on_reply, on_done),
+            payload=payload,
+            attachment=Attachment(next(self._call_ids), time.time_ns(), bytes(16)).encode(),
+            timeout=timeout_s,
+        )
+
     # ---- local entities, outward ---------------------------------------------------
 
     def _sweep(self) -> None:
@@ -318,9 +386,10 @@ class ZenohLink:
         self._sweep_subscribers()
         self._sweep_publishers()
         self._sweep_relays()
+        self._actions.sweep()
         for remote in self._remote.values():
-            if not remote.mirrored and remote.entity.kind is EntityKind.SERVICE:
-                self._mirror(remote)  # a local provider may have gone
+            if remote.waiting:
+                self._mirror(remote)  # the local provider that shadowed it may have gone
 
     def _wanted(self) -> dict[tuple[EntityKind, ClientId, str], tuple[str, bool]]:
         """The local entities to share: (kind, participant, name) -> (type, latched)."""
@@ -584,7 +653,13 @@ class ZenohLink:
         try:
             type_name = ros_type_name(topic.dds_type)
             if entity.kind is EntityKind.SERVICE:
+                as_action = self._actions.mirror(remote)
+                if as_action is not None:
+                    remote.waiting = not as_action
+                    remote.mirrored = as_action
+                    return
                 existing = graph.services.entries.get(topic.name)
+                remote.waiting = existing is not None
                 if existing is not None:
                     return  # a local provider (or another remote one) answers: keep it
                 graph.nodes.bind(remote.client, remote.node)
@@ -683,6 +758,8 @@ class ZenohLink:
             finally:
                 query.drop()  # type: ignore[no-untyped-call]  # answered: free it now
 
+        if self._actions.try_cancel(topic.name, query):
+            return
         try:
             srvtype = registry.service(export.type_name)
             payload = query.payload
@@ -713,31 +790,13 @@ class ZenohLink:
             return
         # the hash is matched by a wildcard: see payload.service_hash
         key = topic_keyexpr(self.domain_id, service, topic.dds_type, "*")
-        outcome: list[tuple[bool, object]] = []
 
-        def on_reply(reply: zenoh.Reply) -> None:  # a Zenoh thread
-            if outcome:
-                return
-            if reply.ok is not None:
-                outcome.append((True, reply.ok.payload.to_bytes()))
-            else:
-                error = reply.err
-                text = "" if error is None else error.payload.to_string()
-                outcome.append((False, f"service {service} failed: {text}"))
-            self._soon(self._finish_call, remote, srvtype, request_id, *outcome[0])
+        def answer(ok: bool, value: object) -> None:
+            if not ok:
+                value = f"service {service} failed: {value}"
+            self._finish_call(remote, srvtype, request_id, ok, value)
 
-        def on_done() -> None:  # a Zenoh thread: every reply is in, or the timeout passed
-            if not outcome:
-                outcome.append((False, f"service {service}: no reply from the network"))
-                self._soon(self._finish_call, remote, srvtype, request_id, *outcome[0])
-
-        self.session.get(
-            key,
-            zenoh.handlers.Callback(on_reply, on_done),
-            payload=payload,
-            attachment=Attachment(next(self._call_ids), time.time_ns(), bytes(16)).encode(),
-            timeout=self.call_timeout_s,
-        )
+        self.query(key, payload, answer, self.call_timeout_s)
 
     def _finish_call(
         self, remote: _Remote, srvtype: ServiceType, request_id: str, ok: bool, value: object

@@ -13,11 +13,20 @@ from typing import TYPE_CHECKING, Any
 import anyio
 import pytest
 
+from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
-from rwt_graph.rosapi.listing import publishers, service_node, services, subscribers, topics
+from rwt_graph.rosapi.listing import (
+    action_servers,
+    publishers,
+    service_node,
+    services,
+    subscribers,
+    topics,
+)
 from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_protocol.errors import FieldError, RwtError
-from rwt_transports.async_calls import ServiceCallError, call_service
+from rwt_protocol.ports import GoalStatus
+from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_transports.server import spawner_for
 from rwt_zenoh.link import ZenohLink, open_link
 
@@ -183,4 +192,50 @@ async def test_callers_fail_at_once_when_the_providing_graph_leaves() -> None:
         # B left (its tokens went): the caller is answered false at once
         await until(lambda: bool(outcome), "the failed call")
         assert "/b/slow" not in a.services.entries
+        tg.cancel_scope.cancel()
+
+
+async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
+    first = endpoint()
+    a, b = Graph(), Graph()
+
+    async def fibonacci(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        sequence = [0, 1]
+        for _ in range(goal["order"] - 1):
+            if context.cancel_requested:
+                raise GoalCanceledError
+            sequence.append(sequence[-1] + sequence[-2])
+            context.publish_feedback({"sequence": list(sequence)})
+            await anyio.sleep(0.05 if goal["order"] < 50 else 0.2)
+        return {"sequence": sequence}
+
+    async with (
+        anyio.create_task_group() as tg,
+        open_link(a, peer(listen=first)),
+        open_link(b, peer(connect=(first,))),
+    ):
+        b.spawner = spawner_for(tg)
+        b.create_action_server("/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f")
+        await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
+        feedback: list[dict[str, Any]] = []
+        outcome = await send_action_goal(
+            a, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
+        )
+        assert outcome.status is GoalStatus.SUCCEEDED
+        assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
+        assert feedback == [{"sequence": [0, 1, 1, 2, 3, 5][: n + 3]} for n in range(4)]
+        # a cancel from A reaches B's goal
+        done: list[tuple[GoalStatus, bool, object]] = []
+        handle = a.send_action_goal(
+            a.local_client(),
+            "/fib",
+            "",
+            {"order": 100},
+            lambda *outcome: done.append(outcome),
+            feedback.append,
+        )
+        await until(lambda: len(feedback) > 5, "the long goal's feedback")
+        handle.request_cancel()
+        await until(lambda: bool(done), "the canceled goal")
+        assert done[0][0] is GoalStatus.CANCELED
         tg.cancel_scope.cancel()
