@@ -400,3 +400,56 @@ for line in sys.stdin:
                 except AssertionError:
                     continue
             assert got is not None, "B never got A's messages through the router"
+
+
+async def test_an_action_served_by_roslib_on_b_runs_goals_of_roslibpy_on_a() -> None:
+    a_ep = endpoint()
+    async with (
+        serving("A", listen=a_ep) as (_, a_url),
+        serving("B", connect=(a_ep,)) as (_, b_url),
+        node_client(
+            roslib(
+                """
+                const ros = await connect(URL);
+                const action = new ROSLIB.Action({
+                  ros, name: "/fib", actionType: "example_interfaces/action/Fibonacci",
+                });
+                action.advertise((goal, id) => {
+                  const sequence = [0, 1];
+                  for (let i = 1; i < goal.order; i++) {
+                    sequence.push(sequence.at(-1) + sequence.at(-2));
+                    action.sendFeedback(id, { sequence: [...sequence] });
+                  }
+                  action.setSucceeded(id, { sequence });
+                }, () => {});
+                say("advertised");
+                process.stdin.on("data", () => {});
+                """,
+                b_url,
+            ),
+            "roslib-B",
+        ) as server,
+    ):
+        assert (await server.line()).strip() == "advertised"
+        async with python_client(
+            roslibpy(
+                """
+ros = connect(URL)
+servers = roslibpy.Service(ros, "/rosapi/action_servers", "rosapi_msgs/srv/GetActionServers")
+listed = lambda: servers.call(roslibpy.ServiceRequest({}), timeout=5)["action_servers"]
+until("B's action", lambda: "/fib" in listed())
+client = roslibpy.ActionClient(ros, "/fib", "example_interfaces/action/Fibonacci")
+feedback, done = [], threading.Event()
+def result(value):
+    say("result", json.dumps(value["values"]), "feedback", len(feedback))
+    done.set()
+client.send_goal(roslibpy.Goal({"order": 5}), result, feedback.append,
+                 lambda error: (say("error", error), done.set()))
+done.wait(20)
+""",
+                a_url,
+            ),
+            "roslibpy-A",
+        ) as caller:
+            line = (await caller.line()).strip()
+            assert line == 'result {"sequence": [0, 1, 1, 2, 3, 5]} feedback 4', line
