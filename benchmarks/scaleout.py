@@ -9,7 +9,8 @@ are what carry over to another machine):
 - Z2 fan-out: 1 publisher and 100 subscribers on the port of ``rwt serve
   --workers 2``, aggregate deliveries/s, against a plain single ``rwt serve``.
 - Z3 throughput A->B, 100 B and 1 MB messages, msg/s and MB/s, against a bare
-  Zenoh publisher/subscriber pair in two processes (the same payload sizes).
+  Zenoh publisher/subscriber pair in two processes (the same payload sizes), and
+  next to both clients on server A (what the link adds to a rosbridge server).
 
 The load generator is this one Python process (``websockets``), whose own CPU
 bounds what it can measure on a small machine; ``results/scaleout.json`` keeps
@@ -285,6 +286,7 @@ async def measure(quick: bool) -> dict[str, Any]:
             (100, max(200, int(5000 * scale))),
             (1_000_000, max(5, int(40 * scale))),
         ):
+            results[f"Z3 rwt in-process {size} B"] = await throughput(a, a, size, count)
             results[f"Z3 rwt {size} B"] = await throughput(a, b, size, count)
             results[f"Z3 bare zenoh {size} B"] = await bare(size, count)
     count = max(20, int(300 * scale))
@@ -313,7 +315,14 @@ def table(results: dict[str, Any]) -> str:
     ]
     for size in (100, 1_000_000):
         ours, ref = results[f"Z3 rwt {size} B"], results[f"Z3 bare zenoh {size} B"]
+        local = results[f"Z3 rwt in-process {size} B"]
         label = "100 B" if size == 100 else "1 MB"
+        rows.append(
+            f"| Z3 A->B {label}, msg/s vs both clients on A; delivered | "
+            f"{ours['msg_per_s']:,.0f}; {ours['got']}/{ours['sent']} | "
+            f"{local['msg_per_s']:,.0f}; {local['got']}/{local['sent']} | "
+            f"{ours['msg_per_s'] / local['msg_per_s']:.2f} | - |"
+        )
         rows.append(
             f"| Z3 A->B {label}, msg/s (MB/s) vs bare Zenoh; delivered | "
             f"{ours['msg_per_s']:,.0f} ({ours['mb_per_s']:.1f}); {ours['got']}/{ours['sent']} | "
