@@ -41,6 +41,7 @@ from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
 from .link_actions import ActionLink
+from .link_params import ParamLink
 from .payload import decode_message, encode_message, service_hash, type_hash
 from .wire import (
     Attachment,
@@ -203,6 +204,7 @@ class ZenohLink:
         self._closed = False
         self._liveliness: Any = None
         self._actions = ActionLink(self)
+        self._params = ParamLink(self)
 
     # ---- running ----------------------------------------------------------------
 
@@ -265,6 +267,7 @@ class ZenohLink:
             if handle is not None:
                 guarded("undeclaring a zenoh entity", handle.undeclare)
         self._actions.close()
+        self._params.close()
         self._exports.clear()
         self._node_tokens.clear()
         self._pubs.clear()
@@ -387,6 +390,7 @@ class ZenohLink:
         self._sweep_publishers()
         self._sweep_relays()
         self._actions.sweep()
+        self._params.sweep()
         for remote in self._remote.values():
             if remote.waiting:
                 self._mirror(remote)  # the local provider that shadowed it may have gone
@@ -653,6 +657,7 @@ class ZenohLink:
         try:
             type_name = ros_type_name(topic.dds_type)
             if entity.kind is EntityKind.SERVICE:
+                self._params.mirror(remote)
                 as_action = self._actions.mirror(remote)
                 if as_action is not None:
                     remote.waiting = not as_action
@@ -685,6 +690,7 @@ class ZenohLink:
         remote.mirrored = True
 
     def _unmirror(self, remote: _Remote) -> None:
+        self._params.unmirror(remote)
         if remote.mirrored:
             self.graph.release(remote.client)  # its services fail their callers (D15)
             remote.mirrored = False

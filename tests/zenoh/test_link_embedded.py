@@ -17,6 +17,7 @@ from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi.listing import (
     action_servers,
+    node_names,
     publishers,
     service_node,
     services,
@@ -239,3 +240,21 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
         await until(lambda: bool(done), "the canceled goal")
         assert done[0][0] is GoalStatus.CANCELED
         tg.cancel_scope.cancel()
+
+
+async def test_parameters_of_a_node_of_one_graph_are_read_and_set_from_the_other() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        b.params.declare("/camera", {"fps": 30, "name": "front", "gains": [1.5, 2.0]})
+        # a node shows in rosapi with its parameters, read through its parameter services
+        await until(lambda: a.params.get("/camera:name", None) == "front", "replica")
+        assert a.params.get("/camera:fps") == 30
+        assert a.params.get("/camera:gains") == [1.5, 2.0]
+        assert "/camera" in node_names(a)
+        # set on A (what rosapi set_param does): it reaches the node on B
+        a.params.set("/camera:fps", 15)
+        await until(lambda: b.params.get("/camera:fps") == 15, "set on B")
+        # changed on B: A's copy follows
+        b.params.set("/camera:name", "rear")
+        await until(lambda: a.params.get("/camera:name", None) == "rear", "refreshed")
+        b.params.delete("/camera:gains")
+        await until(lambda: not a.params.has("/camera:gains"), "deleted")
