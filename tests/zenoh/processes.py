@@ -21,7 +21,9 @@ import anyio
 from anyio.abc import Process as AnyioProcess
 from anyio.streams.buffered import BufferedByteReceiveStream
 
-from rwt_zenoh.config import is_loopback_endpoint
+from rwt_zenoh.config import ZenohOptions
+
+from .support import checked
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
@@ -104,8 +106,9 @@ async def serving(
 ) -> AsyncIterator[tuple[Process, str]]:
     """``rwt serve --zenoh`` on 127.0.0.1 only; yields the process and its ws:// URL."""
     args = ["serve", "--port", "0", "--zenoh", "--no-tf"]
-    endpoints = ([listen] if listen else []) + list(connect)
-    assert all(is_loopback_endpoint(e) for e in endpoints), endpoints
+    # the config the server makes of these options: loopback only, multicast off
+    mode = extra[extra.index("--zenoh-mode") + 1] if "--zenoh-mode" in extra else "peer"
+    checked(ZenohOptions(mode=mode, listen=(listen,) if listen else (), connect=connect))
     if listen:
         args += ["--zenoh-listen", listen]
     for each in connect:

@@ -31,8 +31,8 @@ def checked(options: ZenohOptions) -> ZenohOptions:
     assert json.loads(config.get_json("scouting/multicast/enabled")) is False
     for section in ("listen/endpoints", "connect/endpoints"):
         endpoints = json.loads(config.get_json(section))
-        if isinstance(endpoints, dict):  # per-mode form: {"peer": [...], ...}
-            endpoints = [e for each in endpoints.values() for e in each]
+        if isinstance(endpoints, dict):  # per-mode form: {"peer": [...], ...}: this mode's
+            endpoints = endpoints.get(options.mode, [])
         assert all(is_loopback_endpoint(e) for e in endpoints), endpoints
     return options
 
