@@ -42,6 +42,7 @@ from rwt_protocol.errors import RwtError
 from .config import ZenohOptions, make_config
 from .link_actions import ActionLink
 from .link_params import ParamLink
+from .link_services import RemoteService, serve_query
 from .payload import decode_message, encode_message, service_hash, type_hash
 from .wire import (
     Attachment,
@@ -64,7 +65,6 @@ if TYPE_CHECKING:
 
     from rwt_graph.graph import Graph
     from rwt_graph.topics import Topic as GraphTopic
-    from rwt_graph.types import ServiceType
     from rwt_protocol.ports import ClientId, MessageEvent
 
 __all__ = ["PARTICIPANT_PREFIX", "PRIVATE_NAMES", "ZenohLink", "open_link"]
@@ -460,7 +460,7 @@ class ZenohLink:
             keyexpr = topic_keyexpr(self.domain_id, name, topic.dds_type, topic.type_hash)
             export.queryable = self.session.declare_queryable(
                 keyexpr,
-                lambda query: self._soon(self._on_query, export, query),
+                lambda query: self._soon(serve_query, self, export, query),
                 allowed_origin=zenoh.Locality.REMOTE,
             )
         self._exports[key] = export
@@ -611,6 +611,14 @@ class ZenohLink:
     def _encode(self, entry: GraphTopic, event: MessageEvent) -> bytes:
         return encode_message(self.graph.registry, entry.msgtype, event.msg)
 
+    def cancels_goal(self, service: str, query: zenoh.Query) -> bool:
+        """Whether ``query`` to ``service`` canceled a remote caller's goal (it is answered)."""
+        return self._actions.try_cancel(service, query)
+
+    def attachment(self, export: _Export) -> bytes:
+        """The next attachment of ``export``'s samples or replies."""
+        return self._attachment(export)
+
     def _attachment(self, export: _Export) -> bytes:
         return Attachment(next(export.sequence), time.time_ns(), export.gid).encode()
 
@@ -668,7 +676,7 @@ class ZenohLink:
                 if existing is not None:
                     return  # a local provider (or another remote one) answers: keep it
                 graph.nodes.bind(remote.client, remote.node)
-                provider = _RemoteService(self, remote, graph.registry.service(type_name))
+                provider = RemoteService(self, remote, graph.registry.service(type_name))
                 graph.advertise_service(remote.client, topic.name, type_name, provider)
             elif entity.kind is EntityKind.PUBLISHER:
                 graph.nodes.bind(remote.client, remote.node)
@@ -738,112 +746,6 @@ class ZenohLink:
                 del self._relays[topic]
                 self.graph.release(relay)
                 self.graph.nodes.forget(relay)
-
-    # ---- services -----------------------------------------------------------------------
-
-    def _on_query(self, export: _Export, query: zenoh.Query) -> None:
-        """A remote caller's request for a local service: call it in the graph."""
-        topic = export.entity.topic
-        assert topic is not None
-        registry = self.graph.registry
-        answered = False
-
-        def reply(result: bool, values: object) -> None:
-            nonlocal answered
-            if answered:
-                return
-            answered = True
-            try:
-                if result:
-                    assert isinstance(values, dict)
-                    srvtype = registry.service(export.type_name)
-                    response = encode_message(registry, srvtype.response, values)
-                    query.reply(query.key_expr, response, attachment=self._attachment(export))
-                else:
-                    query.reply_err(str(values))
-            finally:
-                query.drop()  # type: ignore[no-untyped-call]  # answered: free it now
-
-        if self._actions.try_cancel(topic.name, query):
-            return
-        try:
-            srvtype = registry.service(export.type_name)
-            payload = query.payload
-            request = decode_message(
-                registry, srvtype.request, b"" if payload is None else payload.to_bytes()
-            )
-            self.graph.call_service(self._caller, topic.name, request, reply)
-        except (RwtError, WireError) as exc:
-            reply(False, f"service {topic.name} failed: {exc}")
-
-    def call_remote(
-        self, remote: _Remote, srvtype: ServiceType, request_id: str, args: dict[str, object]
-    ) -> None:
-        """Send a local caller's request to a remote service as a query.
-
-        The reply, an error, or no reply within ``call_timeout_s`` comes back as the
-        provider's ``service_response``; if the provider goes first, its release
-        has already answered the caller (D15).
-        """
-        topic = remote.entity.topic
-        assert topic is not None
-        service = topic.name
-        registry = self.graph.registry
-        try:
-            payload = encode_message(registry, srvtype.request, args)
-        except (RwtError, WireError) as exc:
-            self._respond(remote, service, request_id, False, str(exc))
-            return
-        # the hash is matched by a wildcard: see payload.service_hash
-        key = topic_keyexpr(self.domain_id, service, topic.dds_type, "*")
-
-        def answer(ok: bool, value: object) -> None:
-            if not ok:
-                value = f"service {service} failed: {value}"
-            self._finish_call(remote, srvtype, request_id, ok, value)
-
-        self.query(key, payload, answer, self.call_timeout_s)
-
-    def _finish_call(
-        self, remote: _Remote, srvtype: ServiceType, request_id: str, ok: bool, value: object
-    ) -> None:
-        if ok:
-            assert isinstance(value, bytes)
-            try:
-                value = decode_message(self.graph.registry, srvtype.response, value)
-            except WireError as exc:
-                ok, value = False, str(exc)
-        topic = remote.entity.topic
-        assert topic is not None
-        self._respond(remote, topic.name, request_id, ok, value)
-
-    def _respond(
-        self, remote: _Remote, service: str, request_id: str, ok: bool, value: object
-    ) -> None:
-        entry = self.graph.services.entries.get(service)
-        if entry is None or entry.owner != remote.client or request_id not in entry.pending:
-            return  # timed out, or the provider is gone (its callers were answered)
-        if ok:
-            entry.pending.pop(request_id).resolve(True, value)
-        else:
-            self.graph.service_response(remote.client, service, request_id, False, value)
-
-
-class _RemoteService:
-    """The provider of a remote service in the graph: forwards each call as a query."""
-
-    def __init__(self, link: ZenohLink, remote: _Remote, srvtype: ServiceType) -> None:
-        self._link = link
-        self._remote = remote
-        self._srvtype = srvtype
-
-    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
-        """Forward a request (``args`` in the graph's internal form)."""
-        self._link.call_remote(self._remote, self._srvtype, request_id, args)
-
-    def on_service_lost(self, service: str, reason: str) -> None:
-        """A local provider replaced the remote one here; the remote one lives on."""
-        logger.info("event=zenoh_service_shadowed service=%s reason=%r", service, reason)
 
 
 @asynccontextmanager
