@@ -8,6 +8,7 @@ code sees as if the graphs were one.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import anyio
@@ -258,3 +259,21 @@ async def test_parameters_of_a_node_of_one_graph_are_read_and_set_from_the_other
         await until(lambda: a.params.get("/camera:name", None) == "rear", "refreshed")
         b.params.delete("/camera:gains")
         await until(lambda: not a.params.has("/camera:gains"), "deleted")
+
+
+async def test_graphs_of_another_domain_stay_apart() -> None:
+    first = endpoint()
+    a, same, other = Graph(), Graph(), Graph()
+    other_domain = replace(peer(connect=(first,)), domain_id=7)
+    async with (
+        open_link(a, peer(listen=first)),
+        open_link(same, peer(connect=(first,))),
+        open_link(other, other_domain),
+    ):
+        a.create_publisher("/in_domain_0", "std_msgs/msg/Empty", node="/talker")
+        other.create_publisher("/in_domain_7", "std_msgs/msg/Empty", node="/other")
+        await until(lambda: "/in_domain_0" in topics(same, EVERYTHING)[0], "same domain")
+        await anyio.sleep(0.5)  # the other domain's tokens had as long to arrive
+        assert "/in_domain_0" not in topics(other, EVERYTHING)[0]
+        assert "/in_domain_7" not in topics(a, EVERYTHING)[0]
+        assert "/in_domain_7" not in topics(same, EVERYTHING)[0]
