@@ -441,6 +441,8 @@ def serve(
         tune_allocator(heap_keep * 1024 * 1024)
     if raise_fd_limit:
         raise_nofile_limit()
+    if (zenoh or workers > 1) and dialect is not Dialect.ROS2:
+        raise usage_error("--zenoh and --workers speak rmw_zenoh's ROS 2 types: not --dialect ros1")
     if workers > 1:
         shared_only = not (stdio or udp_port is not None or video or video_port is not None)
         _serve_workers(

@@ -133,3 +133,9 @@ def test_graph_taps_see_each_publish_and_a_broken_tap_hurts_nobody() -> None:
     subscription.close()
     publisher.close()
     assert "/t" not in graph.topics  # a tap keeps no topic alive
+
+
+def test_zenoh_refuses_the_ros1_dialect() -> None:
+    result = CliRunner().invoke(app, ["serve", "--zenoh", "--dialect", "ros1"], prog_name="rwt")
+    assert result.exit_code == 2
+    assert "not --dialect ros1" in result.stderr
