@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import logging
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -44,13 +45,15 @@ from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscri
 from .nodes import DEFAULT_NODE, Nodes, node_name
 from .params import Parameters
 from .services import Amend, CallerServiceHandler, LocalServiceHandler, ServiceEntry, Services
-from .topics import Topic
+from .topics import Tap, Topic
 from .types import Dialect, MessageType, TypeRegistry
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
 __all__ = ["Graph"]
+
+logger = logging.getLogger("rwt.graph")
 
 Message = dict[str, object]
 
@@ -66,6 +69,7 @@ class Graph:
     Attributes:
         params: the parameter store (``graph.params.set("/robot:speed", 1.0)``).
         nodes: the node of each participant.
+        taps: functions that see every published message (``topics.Tap``).
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -80,6 +84,7 @@ class Graph:
         self._local_ids = itertools.count(1)
         self._reserved_topics: set[str] = set()
         self._reserved_prefixes: tuple[str, ...] = ()
+        self.taps: list[Tap] = []
 
     # ---- GraphPort ------------------------------------------------------------
 
@@ -534,6 +539,11 @@ class Graph:
             codec=self.registry.codec(entry.msgtype),
         )
         entry.fan_out(event, latch=latch, client=client)
+        for tap in self.taps:
+            try:
+                tap(entry, event, client, latch)
+            except Exception:  # a broken tap must not fail the publisher
+                logger.exception("tap of %s failed", entry.name)
 
     def _topic(self, topic: str, msgtype: MessageType) -> Topic:
         name = resolve_name(topic)

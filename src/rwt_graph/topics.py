@@ -9,6 +9,7 @@ Each subscriber (one per client) receives every message once; the same
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -19,9 +20,16 @@ if TYPE_CHECKING:
 
     from .types import MessageType
 
-__all__ = ["Topic"]
+__all__ = ["Tap", "Topic"]
 
 logger = logging.getLogger("rwt.graph")
+
+Tap = Callable[["Topic", "MessageEvent", "ClientId", bool], None]
+"""Sees every message published in a graph: ``tap(topic, event, publisher, latched)``.
+
+A tap is no subscriber: it keeps no topic alive and rosapi does not list it. A
+link to other processes (``rwt_zenoh``) uses one to forward what is published
+here, and skips what it published itself."""
 
 
 @dataclass(eq=False)

@@ -67,15 +67,18 @@ from .cli_checks import (
     error_line,
     usage_error,
 )
+from .cli_zenoh import ZENOH_EXTRA, linked, require_zenoh, run_router, zenoh_options
 from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
 from .server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from .udp import UdpOptions
 from .websocket import WebSocketOptions
+from .workers import run_workers
 
 if TYPE_CHECKING:
     from rwt_bag.jobs import BagJobs
     from rwt_video import VideoConfig
+    from rwt_zenoh.config import ZenohOptions
 
 __all__ = ["app", "main"]
 
@@ -129,6 +132,13 @@ app = typer.Typer(
 # typer offers an enum's values as choices: the status levels' wire spellings, made
 # from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)
 LevelName = StrEnum("LevelName", [(level.name, level.wire) for level in StatusLevel])  # type: ignore[misc]
+
+
+class ZenohMode(StrEnum):
+    """How ``rwt serve --zenoh`` joins: as a peer, or as a client of a router."""
+
+    PEER = "peer"
+    CLIENT = "client"
 
 
 class LogLevel(StrEnum):
@@ -413,6 +423,42 @@ def serve(
     clock: Clock = None,
     play_check: Check = True,
     start_paused: StartPaused = False,
+    zenoh: Annotated[
+        bool, typer.Option(help=f"Share the graph over a Zenoh network ({ZENOH_EXTRA}).")
+    ] = False,
+    zenoh_config: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file, metavar="FILE", help="Zenoh's JSON5 config file."
+        ),
+    ] = None,
+    zenoh_connect: Annotated[
+        list[str] | None,
+        typer.Option(metavar="ENDPOINT", help="Zenoh endpoint to connect to; repeatable."),
+    ] = None,
+    zenoh_listen: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="ENDPOINT",
+            help="Zenoh endpoint to listen on (tcp/127.0.0.1:0 if none); repeatable.",
+        ),
+    ] = None,
+    zenoh_mode: Annotated[
+        ZenohMode, typer.Option(help="Join as a Zenoh peer, or as a client of a router.")
+    ] = ZenohMode.PEER,
+    domain_id: Annotated[
+        int | None,
+        typer.Option(min=0, help="ROS domain on Zenoh (default: ROS_DOMAIN_ID, else 0)."),
+    ] = None,
+    workers: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Server processes sharing the ports (SO_REUSEPORT, Linux) and one graph "
+            "over Zenoh on loopback; restarted when they die.",
+        ),
+    ] = 1,
+    reuse_port: Annotated[bool, typer.Option(hidden=True)] = False,
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
 
@@ -431,6 +477,11 @@ def serve(
     topics into a bag while serving; --play BAG publishes a bag's topics with
     their timing, pausable through the /rwt/player/* services.
 
+    With --zenoh, several servers (and ROS 2 nodes on rmw_zenoh) share one graph:
+    peers find each other through --zenoh-connect/--zenoh-listen endpoints or a
+    router ('rwt router'); multicast scouting stays off. --workers N runs N such
+    servers on the same ports, one graph, supervised by this process.
+
     A browser opening http://HOST:PORT/ (the WebSocket port) gets the web console:
     the live graph, echo, publish, calls, actions, images and TF.
     """
@@ -442,16 +493,24 @@ def serve(
     secret = None if auth_secret_file is None else _read_secret(auth_secret_file)
     if uvloop and importlib.util.find_spec("uvloop") is None:
         _fail(f"--uvloop needs uvloop: {UVLOOP_EXTRA}")
-    logging.basicConfig(
-        stream=sys.stderr,
-        level=log_level.value.upper(),
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-    )
-    logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
-    if heap_keep:
-        tune_allocator(heap_keep * 1024 * 1024)
-    if raise_fd_limit:
-        raise_nofile_limit()
+    _set_up_process(log_level, heap_keep, raise_fd_limit)
+    if (zenoh or workers > 1) and dialect is not Dialect.ROS2:
+        raise usage_error("--zenoh and --workers speak rmw_zenoh's ROS 2 types: not --dialect ros1")
+    if workers > 1:
+        shared_only = not (stdio or udp_port is not None or video or video_port is not None)
+        _serve_workers(
+            workers,
+            host=host,
+            port=port if websocket else None,
+            tcp_port=tcp_port,
+            zenoh_mode=zenoh_mode,
+            shared_only=shared_only,
+        )
+    zenoh_link = None
+    if zenoh:
+        zenoh_link = _zenoh_options(
+            zenoh_mode, zenoh_connect, zenoh_listen, zenoh_config, domain_id
+        )
     graph = Graph(TypeRegistry(dialect, interfaces or ()))
     origins = tuple(o.strip() for o in allowed_origins.split(",") if o.strip())
     site = _console_site(console, origins, url_path, certfile is not None, secret is not None)
@@ -502,22 +561,13 @@ def serve(
         ),
         tf=tf,
         handshake_timeout_s=handshake_timeout,
+        reuse_port=reuse_port,
     )
     if site is not None:
         site.limits = _limits(config)
     server = RosbridgeServer(graph, config, authenticator=authenticator)
     if depthcloud:
-        # numpy and Pillow load only when asked for (benchmarks B11 base memory)
-        from rwt_graph.media.depthcloud_node import DepthCloudEncoder  # noqa: PLC0415
-
-        depth_topic, _, rgb_topic = depthcloud.partition(",")
-        DepthCloudEncoder(
-            graph,
-            depth_topic,
-            rgb_topic or None,
-            max_depth_per_tile=depthcloud_max_depth,
-            tile_size=depthcloud_tile_size,
-        )
+        _depthcloud_encoder(graph, depthcloud, depthcloud_max_depth, depthcloud_tile_size)
     video_config = None
     if video or video_port is not None:  # a video port asks for the video server
         video_config = _video_config(
@@ -549,12 +599,39 @@ def serve(
     )
     freeze_startup_objects()
     try:
-        anyio.run(_run, server, video_config, jobs, backend_options={"use_uvloop": uvloop})
+        anyio.run(
+            _run, server, video_config, jobs, zenoh_link, backend_options={"use_uvloop": uvloop}
+        )
     except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
         message = _startup_error(exc)
         if message is None:
             raise
         _fail(message)
+
+
+def _set_up_process(log_level: LogLevel, heap_keep_mib: int, raise_fd_limit: bool) -> None:
+    """The server process's logging, allocator (``--heap-keep``) and descriptor limit."""
+    logging.basicConfig(
+        stream=sys.stderr,
+        level=log_level.value.upper(),
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
+    logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
+    if heap_keep_mib:
+        tune_allocator(heap_keep_mib * 1024 * 1024)
+    if raise_fd_limit:
+        raise_nofile_limit()
+
+
+def _depthcloud_encoder(graph: Graph, topics: str, max_depth: float, tile_size: int) -> None:
+    """``--depthcloud DEPTH[,RGB]``: encode those topics for ros3djs on the graph."""
+    # numpy and Pillow load only when asked for (benchmarks B11 base memory)
+    from rwt_graph.media.depthcloud_node import DepthCloudEncoder  # noqa: PLC0415
+
+    depth_topic, _, rgb_topic = topics.partition(",")
+    DepthCloudEncoder(
+        graph, depth_topic, rgb_topic or None, max_depth_per_tile=max_depth, tile_size=tile_size
+    )
 
 
 @app.command(short_help="Serve a bag's topics as a live robot.")
@@ -607,6 +684,47 @@ def play(
             raise
         typer.echo(f"rwt play: {message}", err=True)
         raise typer.Exit(1) from None
+
+
+def _serve_workers(
+    count: int,
+    *,
+    host: str,
+    port: int | None,
+    tcp_port: int | None,
+    zenoh_mode: ZenohMode,
+    shared_only: bool,
+) -> NoReturn:
+    """``--workers N``: supervise N servers, then exit with their status."""
+    if not shared_only:
+        raise usage_error("--workers shares TCP ports: not with --stdio, --udp-port or --video")
+    try:
+        require_zenoh("--workers")
+        status = run_workers(
+            count, host=host, port=port, tcp_port=tcp_port, zenoh_mode=zenoh_mode.value
+        )
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    raise typer.Exit(status)
+
+
+def _zenoh_options(
+    mode: ZenohMode,
+    connect: list[str] | None,
+    listen: list[str] | None,
+    config_file: Path | None,
+    domain_id: int | None,
+) -> ZenohOptions:
+    try:
+        return zenoh_options(
+            mode=mode.value,
+            connect=connect,
+            listen=listen,
+            config_file=config_file,
+            domain_id=domain_id,
+        )
+    except ValueError as exc:
+        _fail(str(exc))
 
 
 def _read_secret(path: Path) -> str:
@@ -714,14 +832,17 @@ def _unbound_listener(server: RosbridgeServer) -> tuple[str, str, int] | None:
 
 
 async def _run(
-    server: RosbridgeServer, video: VideoConfig | None, jobs: BagJobs | None = None
+    server: RosbridgeServer,
+    video: VideoConfig | None,
+    jobs: BagJobs | None = None,
+    zenoh: ZenohOptions | None = None,
 ) -> None:
     out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
 
     def announce(url: str) -> None:
         print(f"listening on {url}", file=out, flush=True)
 
-    async with anyio.create_task_group() as tg:
+    async with linked(server.graph, zenoh), anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
         if jobs is not None:  # a bag to play is checked before anything is served
             await tg.start(jobs.run)
@@ -766,6 +887,34 @@ async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> 
                 scope.cancel()
                 return
             server.stop()
+
+
+@app.command(short_help="Run a Zenoh router for rwt servers and ROS 2 nodes.")
+def router(
+    listen: Annotated[
+        list[str] | None,
+        typer.Option(metavar="ENDPOINT", help="Endpoint to listen on; repeatable."),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file, metavar="FILE", help="Zenoh's JSON5 config file."
+        ),
+    ] = None,
+) -> None:
+    """Run a Zenoh router until SIGINT or SIGTERM, from this install: no other binary.
+
+    Servers started with 'rwt serve --zenoh --zenoh-mode client --zenoh-connect
+    ENDPOINT' (and ROS 2 nodes on rmw_zenoh) meet through it. It listens on
+    tcp/127.0.0.1:7447 unless told otherwise; give --listen tcp/0.0.0.0:7447 to
+    let other machines in. stdout gets one "router listening on ENDPOINT" line per
+    endpoint.
+    """
+    try:
+        run_router(listen or ["tcp/127.0.0.1:7447"], config)
+    except ValueError as exc:
+        typer.echo(f"rwt router: {exc}", err=True)
+        raise typer.Exit(1) from None
 
 
 if __name__ == "__main__":  # python -m rwt_transports.cli

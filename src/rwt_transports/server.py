@@ -128,6 +128,8 @@ class ServerConfig:
         clients_interval_s: ``/client_count`` and ``/connected_clients`` are
             published at most once per this many seconds, with the latest state
             (the first change at once), so connection churn costs O(changes).
+        reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
+            ``rwt serve --workers N`` share one port (Linux spreads connections).
     """
 
     host: str = "127.0.0.1"
@@ -149,6 +151,7 @@ class ServerConfig:
     tf: bool = True
     handshake_timeout_s: float = 10.0
     clients_interval_s: float = 0.5
+    reuse_port: bool = False
 
 
 def rosauth_authenticator(secret: str, clock: Clock, max_skew_s: float = 5.0) -> Authenticator:
@@ -330,7 +333,9 @@ class RosbridgeServer:
     async def _stream_listener(
         self, stack: AsyncExitStack, port: int, tls: ssl.SSLContext | None, kind: str
     ) -> Runner:
-        listener = await anyio.create_tcp_listener(local_host=self.config.host, local_port=port)
+        listener = await anyio.create_tcp_listener(
+            local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
+        )
         await stack.enter_async_context(listener)
         bound = listener.extra(SocketAttribute.local_port)
         scheme = {"websocket": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[kind][tls is not None]

@@ -1,6 +1,11 @@
-"""rwt on Zenoh: the rmw_zenoh wire, so rwt processes and ROS 2 nodes share one graph.
+"""rwt on Zenoh: one graph shared by several processes, and by ROS 2 nodes on rmw_zenoh.
 
-``rwt_zenoh.wire`` is the mapping itself, sans-IO: key expressions, liveliness
-tokens, QoS strings, type names and hashes, and the sample attachment, as
-rmw_zenoh writes them (docs/zenoh.md names the rmw_zenoh version followed).
+- ``wire`` and ``payload``: the rmw_zenoh mapping, sans-IO (key expressions,
+  liveliness tokens, QoS strings, type names and hashes, attachments, CDR).
+- ``config``: the Zenoh session of ``rwt serve --zenoh`` (loopback and no
+  multicast unless told otherwise).
+- ``link``: ``ZenohLink``/``open_link``, a graph's topics and services mirrored
+  both ways; ``link_actions`` and ``link_params`` add actions and parameters.
+
+docs/scaling.md is the user's page; docs/zenoh.md names the rmw_zenoh version followed.
 """

@@ -15,9 +15,16 @@ from rwt_graph.types import Dialect
 from .wire import WireError
 
 if TYPE_CHECKING:
-    from rwt_graph.types import TypeRegistry
+    from rwt_graph.types import MessageType, ServiceType, TypeRegistry
 
-__all__ = ["decode_sample", "encode_sample", "type_hash"]
+__all__ = [
+    "decode_message",
+    "decode_sample",
+    "encode_message",
+    "encode_sample",
+    "service_hash",
+    "type_hash",
+]
 
 
 def _ros2(registry: TypeRegistry) -> None:
@@ -64,3 +71,41 @@ def decode_sample(registry: TypeRegistry, type_name: str, data: bytes) -> dict[s
     except Exception as exc:  # rosbags raises assorted errors for malformed bytes
         raise WireError(f"{type_name}: not a CDR message of this type ({exc})") from None
     return mtype.from_python(obj)
+
+
+def encode_message(registry: TypeRegistry, mtype: MessageType, msg: dict[str, object]) -> bytes:
+    """Serialize a message of any part type (a service's request or response) to CDR.
+
+    Raises:
+        WireError: ``registry`` is not ROS 2.
+    """
+    _ros2(registry)
+    return bytes(registry.codec(mtype).serialize(msg))
+
+
+def decode_message(registry: TypeRegistry, mtype: MessageType, data: bytes) -> dict[str, object]:
+    """Read the CDR of a message of any part type into the internal form.
+
+    Raises:
+        WireError: ``registry`` is not ROS 2, or ``data`` is not a CDR message of the type.
+    """
+    _ros2(registry)
+    try:
+        obj = registry.typestore().deserialize_cdr(data, mtype.rosbags_name)
+    except Exception as exc:  # rosbags raises assorted errors for malformed bytes
+        raise WireError(f"{mtype.name}: not a CDR message of this type ({exc})") from None
+    return mtype.from_python(obj)
+
+
+def service_hash(registry: TypeRegistry, srvtype: ServiceType) -> str:
+    """The type hash a service's key and token carry: RIHS01 of its request type.
+
+    rosidl hashes a service as one description of its request, response and
+    event messages; rwt does not compute that yet, so callers match a service's
+    key with a wildcard in place of the hash (docs/zenoh.md).
+
+    Raises:
+        WireError: ``registry`` is not ROS 2.
+    """
+    _ros2(registry)
+    return str(registry.typestore().hash_rihs01(srvtype.request.rosbags_name))

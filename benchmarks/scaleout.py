@@ -1,0 +1,351 @@
+"""``python -m benchmarks scaleout``: rwt over Zenoh, measured against itself and bare Zenoh.
+
+Three measurements, each in one run on one machine state (ratios, not absolutes,
+are what carry over to another machine):
+
+- Z1 latency: a 100 B ``std_msgs/String`` publish from a WebSocket client on
+  server A to a subscriber on server B (two ``rwt serve --zenoh`` processes on
+  loopback), p50/p99, next to both clients on one server (in-process).
+- Z2 fan-out: 1 publisher and 100 subscribers on the port of ``rwt serve
+  --workers 2``, aggregate deliveries/s, against a plain single ``rwt serve``.
+- Z3 throughput A->B, 100 B and 1 MB messages, msg/s and MB/s, against a bare
+  Zenoh publisher/subscriber pair in two processes (the same payload sizes), and
+  next to both clients on server A (what the link adds to a rosbridge server).
+
+The load generator is this one Python process (``websockets``), whose own CPU
+bounds what it can measure on a small machine; ``results/scaleout.json`` keeps
+every figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import websockets
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "benchmarks" / "results" / "scaleout.json"
+TIMEOUT_S = 120.0
+
+
+def _free_port() -> int:
+    import socket  # noqa: PLC0415
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
+
+
+@contextlib.asynccontextmanager
+async def server(*args: str) -> Any:
+    """``rwt serve --port 0 --no-tf ARGS``; yields its ws:// URL; stopped at the end."""
+    cmd = [sys.executable, "-m", "rwt_transports.cli", "serve", "--port", "0", "--no-tf"]
+    cmd += ["--log-level", "warning", *args]
+    proc = await asyncio.create_subprocess_exec(
+        *cmd, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, env=_env()
+    )
+    try:
+        assert proc.stdout is not None
+        line = await asyncio.wait_for(proc.stdout.readline(), TIMEOUT_S)
+        yield line.decode().strip().removeprefix("listening on ")
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            proc.terminate()
+        try:
+            await asyncio.wait_for(proc.wait(), 15)
+        except TimeoutError:
+            proc.kill()
+            await proc.wait()
+
+
+async def connect(url: str) -> Any:
+    return await websockets.connect(url, max_size=None, compression=None, ping_interval=None)
+
+
+def publish_frame(topic: str, data: str) -> str:
+    return json.dumps({"op": "publish", "topic": topic, "msg": {"data": data}})
+
+
+async def subscribe(ws: Any, topic: str) -> None:
+    await ws.send(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/msg/String"}))
+
+
+async def advertise(ws: Any, topic: str) -> None:
+    await ws.send(json.dumps({"op": "advertise", "topic": topic, "type": "std_msgs/msg/String"}))
+
+
+async def until_flowing(pub: Any, subs: list[Any], topic: str) -> None:
+    """Publish probes until every subscriber got one (discovery across processes is eventual)."""
+    pending = set(range(len(subs)))
+    deadline = time.monotonic() + TIMEOUT_S
+    while pending and time.monotonic() < deadline:
+        await pub.send(publish_frame(topic, "probe"))
+        for index in list(pending):
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(subs[index].recv(), 0.05)
+                pending.discard(index)
+    if pending:
+        raise RuntimeError(f"{len(pending)} subscribers never got a message")
+    await asyncio.sleep(0.5)
+    for ws in subs:  # drop the probes still in flight
+        with contextlib.suppress(TimeoutError):
+            while True:
+                await asyncio.wait_for(ws.recv(), 0.05)
+
+
+async def latency(pub_url: str, sub_url: str, count: int) -> dict[str, float]:
+    """p50/p99 of one 100 B publish at a time, milliseconds."""
+    pub, sub = await connect(pub_url), await connect(sub_url)
+    try:
+        await subscribe(sub, "/lat")
+        await advertise(pub, "/lat")
+        await until_flowing(pub, [sub], "/lat")
+        times = []
+        for number in range(count):
+            data = f"{number:010d}".ljust(100, "x")
+            start = time.perf_counter()
+            await pub.send(publish_frame("/lat", data))
+            while data not in await asyncio.wait_for(sub.recv(), TIMEOUT_S):
+                pass
+            times.append((time.perf_counter() - start) * 1000)
+        times.sort()
+        return {"p50_ms": times[len(times) // 2], "p99_ms": times[int(len(times) * 0.99) - 1]}
+    finally:
+        await pub.close()
+        await sub.close()
+
+
+async def fan_out(url: str, subscribers: int, count: int) -> dict[str, float]:
+    """Deliveries/s of ``count`` 100 B messages to ``subscribers`` clients on ``url``."""
+    subs = [await connect(url) for _ in range(subscribers)]
+    pub = await connect(url)
+    try:
+        for ws in subs:
+            await subscribe(ws, "/fan")
+        await advertise(pub, "/fan")
+        await until_flowing(pub, subs, "/fan")
+        data = "y" * 100
+        start = time.perf_counter()
+
+        last = [start]
+
+        async def drain(ws: Any) -> int:
+            got = 0
+            with contextlib.suppress(TimeoutError):
+                while got < count:
+                    await asyncio.wait_for(ws.recv(), 3)
+                    got += 1
+                    last[0] = max(last[0], time.perf_counter())
+            return got
+
+        receivers = [asyncio.create_task(drain(ws)) for ws in subs]
+        for _ in range(count):
+            await pub.send(publish_frame("/fan", data))
+        delivered = sum(await asyncio.gather(*receivers))
+        elapsed = last[0] - start
+        return {
+            "deliveries_per_s": delivered / elapsed,
+            "delivered": delivered,
+            "expected": count * len(subs),
+        }
+    finally:
+        for ws in [*subs, pub]:
+            await ws.close()
+
+
+async def throughput(pub_url: str, sub_url: str, size: int, count: int) -> dict[str, float]:
+    """msg/s and MB/s of ``count`` messages of ``size`` bytes from A to B."""
+    pub, sub = await connect(pub_url), await connect(sub_url)
+    try:
+        await subscribe(sub, "/tp")
+        await advertise(pub, "/tp")
+        await until_flowing(pub, [sub], "/tp")
+        frame = publish_frame("/tp", "z" * size)
+        start = time.perf_counter()
+
+        last = [start]
+
+        async def drain() -> int:
+            """Count until all came or 3 s pass without one (a lost message)."""
+            got = 0
+            with contextlib.suppress(TimeoutError):
+                while got < count:
+                    await asyncio.wait_for(sub.recv(), 3)
+                    got += 1
+                    last[0] = time.perf_counter()
+            return got
+
+        receiver = asyncio.create_task(drain())
+        for _ in range(count):
+            await pub.send(frame)
+        got = await receiver
+        elapsed = last[0] - start
+        rate = got / elapsed
+        return {"msg_per_s": rate, "mb_per_s": rate * size / 1e6, "got": got, "sent": count}
+    finally:
+        await pub.close()
+        await sub.close()
+
+
+BARE_SUB = """
+import sys, time, zenoh, threading
+ep, count = sys.argv[1], int(sys.argv[2])
+c = zenoh.Config()
+c.insert_json5("mode", '"peer"'); c.insert_json5("scouting/multicast/enabled", "false")
+c.insert_json5("listen/endpoints", f'["{ep}"]')
+s = zenoh.open(c)
+got = [0, 0.0]; done = threading.Event()
+def on(sample):
+    got[0] += 1
+    got[1] = time.time()
+    if got[0] == count:
+        done.set()
+sub = s.declare_subscriber("bench/tp", on)
+print("ready", flush=True)
+while not done.wait(3) and not (got[0] and time.time() - got[1] > 3):
+    pass  # until all came, or 3 s passed without one
+print(got[1], got[0], flush=True)
+s.close()
+"""
+
+BARE_PUB = """
+import sys, time, zenoh
+ep, count, size = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+c = zenoh.Config()
+c.insert_json5("mode", '"peer"'); c.insert_json5("scouting/multicast/enabled", "false")
+c.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+c.insert_json5("connect/endpoints", f'["{ep}"]')
+s = zenoh.open(c)
+pub = s.declare_publisher("bench/tp")
+deadline = time.time() + 30
+while pub.matching_status.matching is False and time.time() < deadline:
+    time.sleep(0.01)
+payload = b"z" * size
+print(time.time(), flush=True)
+for _ in range(count):
+    pub.put(payload)
+time.sleep(5)
+s.close()
+"""
+
+
+async def bare(size: int, count: int) -> dict[str, float]:
+    """The same transfer between two bare Zenoh sessions in two processes."""
+    ep = f"tcp/127.0.0.1:{_free_port()}"
+    sub = await asyncio.create_subprocess_exec(
+        sys.executable, "-c", BARE_SUB, ep, str(count), stdout=subprocess.PIPE, env=_env()
+    )
+    pub = None
+    try:
+        assert sub.stdout is not None
+        await asyncio.wait_for(sub.stdout.readline(), TIMEOUT_S)  # ready
+        pub = await asyncio.create_subprocess_exec(
+            sys.executable, "-c", BARE_PUB, ep, str(count), str(size),
+            stdout=subprocess.PIPE, env=_env(),
+        )  # fmt: skip
+        assert pub.stdout is not None
+        start = float(await asyncio.wait_for(pub.stdout.readline(), TIMEOUT_S))
+        end, got = (await asyncio.wait_for(sub.stdout.readline(), TIMEOUT_S)).split()
+        elapsed = float(end) - start
+        rate = int(got) / elapsed
+        return {"msg_per_s": rate, "mb_per_s": rate * size / 1e6, "got": int(got), "sent": count}
+    finally:
+        for proc in (sub, pub):
+            if proc is not None:
+                with contextlib.suppress(ProcessLookupError):
+                    proc.kill()
+                await proc.wait()
+
+
+async def measure(quick: bool) -> dict[str, Any]:
+    scale = 0.1 if quick else 1.0
+    results: dict[str, Any] = {}
+    hub = f"tcp/127.0.0.1:{_free_port()}"
+    async with (
+        server("--zenoh", "--zenoh-listen", hub) as a,
+        server("--zenoh", "--zenoh-connect", hub) as b,
+    ):
+        n = max(20, int(1000 * scale))
+        results["Z1 in-process"] = await latency(a, a, n)
+        results["Z1 A->B"] = await latency(a, b, n)
+        for size, count in (
+            (100, max(200, int(5000 * scale))),
+            (1_000_000, max(5, int(40 * scale))),
+        ):
+            results[f"Z3 rwt in-process {size} B"] = await throughput(a, a, size, count)
+            results[f"Z3 rwt {size} B"] = await throughput(a, b, size, count)
+            results[f"Z3 bare zenoh {size} B"] = await bare(size, count)
+    count = max(20, int(300 * scale))
+    async with server() as single:
+        results["Z2 1 worker"] = await fan_out(single, 100, count)
+    async with server("--workers", "2") as pair:
+        await asyncio.sleep(2)  # both workers listening (the first prints the line)
+        results["Z2 2 workers"] = await fan_out(pair, 100, count)
+    return results
+
+
+def table(results: dict[str, Any]) -> str:
+    lat_in, lat_ab = results["Z1 in-process"], results["Z1 A->B"]
+    one, two = results["Z2 1 worker"], results["Z2 2 workers"]
+    rows = [
+        "| measure | rwt | reference | ratio | target |",
+        "|---|---|---|---|---|",
+        f"| Z1 latency 100 B, p50 ms (A->B vs in-process) | {lat_ab['p50_ms']:.2f} | "
+        f"{lat_in['p50_ms']:.2f} | {lat_ab['p50_ms'] / lat_in['p50_ms']:.2f} | - |",
+        f"| Z1 latency 100 B, p99 ms (A->B vs in-process) | {lat_ab['p99_ms']:.2f} | "
+        f"{lat_in['p99_ms']:.2f} | {lat_ab['p99_ms'] / lat_in['p99_ms']:.2f} | - |",
+        f"| Z2 deliveries/s, 1 pub -> 100 subs (--workers 2 vs 1); delivered | "
+        f"{two['deliveries_per_s']:,.0f}; {two['delivered']}/{two['expected']} | "
+        f"{one['deliveries_per_s']:,.0f}; {one['delivered']}/{one['expected']} | "
+        f"{two['deliveries_per_s'] / one['deliveries_per_s']:.2f} | >= 1.6 |",
+    ]
+    for size in (100, 1_000_000):
+        ours, ref = results[f"Z3 rwt {size} B"], results[f"Z3 bare zenoh {size} B"]
+        local = results[f"Z3 rwt in-process {size} B"]
+        label = "100 B" if size == 100 else "1 MB"
+        rows.append(
+            f"| Z3 A->B {label}, msg/s vs both clients on A; delivered | "
+            f"{ours['msg_per_s']:,.0f}; {ours['got']}/{ours['sent']} | "
+            f"{local['msg_per_s']:,.0f}; {local['got']}/{local['sent']} | "
+            f"{ours['msg_per_s'] / local['msg_per_s']:.2f} | - |"
+        )
+        rows.append(
+            f"| Z3 A->B {label}, msg/s (MB/s) vs bare Zenoh; delivered | "
+            f"{ours['msg_per_s']:,.0f} ({ours['mb_per_s']:.1f}); {ours['got']}/{ours['sent']} | "
+            f"{ref['msg_per_s']:,.0f} ({ref['mb_per_s']:.1f}); {ref['got']}/{ref['sent']} | "
+            f"{ours['msg_per_s'] / ref['msg_per_s']:.2f} | >= 0.7 |"
+        )
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the three measurements, print the table and save the figures."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks scaleout", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="a tenth of the counts (smoke)")
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    started = time.perf_counter()
+    results = asyncio.run(measure(args.quick))
+    print(table(results))
+    results["elapsed_s"] = time.perf_counter() - started
+    if not args.quick:
+        args.out.write_text(json.dumps(results, indent=2) + "\n", "utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,114 @@
+"""``rwt serve --zenoh`` and ``rwt router``: the command line's side of the Zenoh link.
+
+The ``zenoh`` extra loads only when these are used, so a plain ``rwt serve``
+neither needs nor imports it (docs/scaling.md).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import signal
+from typing import TYPE_CHECKING
+
+import anyio
+import typer
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator
+    from pathlib import Path
+
+    from rwt_graph.graph import Graph
+    from rwt_zenoh.config import ZenohOptions
+
+__all__ = ["ZENOH_EXTRA", "linked", "require_zenoh", "run_router", "zenoh_options"]
+
+ZENOH_EXTRA = 'pip install "rwt[zenoh]"'
+
+
+def require_zenoh(option: str) -> None:
+    """Check the extra is installed.
+
+    Raises:
+        ValueError: it is not; the text says how to install it.
+    """
+    if importlib.util.find_spec("zenoh") is None or importlib.util.find_spec("xxhash") is None:
+        raise ValueError(f"{option} needs Eclipse Zenoh: {ZENOH_EXTRA}")
+
+
+def zenoh_options(
+    *,
+    mode: str,
+    connect: list[str] | None,
+    listen: list[str] | None,
+    config_file: Path | None,
+    domain_id: int | None,
+) -> ZenohOptions:
+    """The link's options from the command line (``domain_id`` None: ``ROS_DOMAIN_ID`` or 0).
+
+    Raises:
+        ValueError: the extra is missing.
+    """
+    require_zenoh("--zenoh")
+    from rwt_zenoh.config import ZenohOptions, default_domain_id  # noqa: PLC0415
+
+    return ZenohOptions(
+        mode=mode,
+        connect=tuple(connect or ()),
+        listen=tuple(listen or ()),
+        config_file=config_file,
+        domain_id=default_domain_id() if domain_id is None else domain_id,
+    )
+
+
+@contextlib.asynccontextmanager
+async def linked(graph: Graph, options: ZenohOptions | None) -> AsyncIterator[None]:
+    """Link ``graph`` to Zenoh while the block runs (nothing when ``options`` is None).
+
+    Raises:
+        ValueError: Zenoh cannot start (a bad config, an endpoint in use...): one line.
+    """
+    if options is None:
+        yield
+        return
+    import zenoh  # noqa: PLC0415
+    from rwt_zenoh.link import open_link  # noqa: PLC0415
+
+    try:
+        async with open_link(graph, options):
+            yield
+    except zenoh.ZError as exc:  # opening or closing the session
+        raise ValueError(f"zenoh: {exc}") from None
+
+
+def run_router(listen: list[str], config_file: Path | None) -> None:
+    """Run a Zenoh router in this process until SIGINT or SIGTERM.
+
+    Prints ``router listening on ENDPOINT`` per endpoint and ``router <zid>``.
+
+    Raises:
+        ValueError: the extra is missing, or Zenoh cannot start.
+    """
+    require_zenoh("rwt router")
+    import zenoh  # noqa: PLC0415
+    from rwt_zenoh.config import ZenohOptions, make_config  # noqa: PLC0415
+
+    options = ZenohOptions(mode="router", listen=tuple(listen), config_file=config_file)
+    try:
+        session = zenoh.open(make_config(options))
+    except zenoh.ZError as exc:
+        raise ValueError(f"zenoh: {exc}") from None
+    try:
+        for endpoint in listen:
+            typer.echo(f"router listening on {endpoint}")
+        typer.echo(f"router {session.info.zid()}")
+        anyio.run(_until_signal)
+    finally:
+        session.close()  # type: ignore[no-untyped-call]
+
+
+async def _until_signal() -> None:
+    with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+        async for _ in signals:
+            typer.echo("router stopping", err=True)
+            return

@@ -1,0 +1,237 @@
+"""``rwt serve --workers N``: N server processes on one port and one graph, supervised.
+
+Each worker is ``rwt serve`` itself with the same options, its WebSocket and TCP
+listeners bound with SO_REUSEPORT on the same port (the kernel spreads new
+connections over them), and its graph linked to the others' over Zenoh on
+loopback: worker 0 listens on a hub endpoint the others connect to (peers then
+gossip and mesh). The parent serves nothing: it prints each ``listening on`` line
+once, restarts a worker that dies (logged, with a growing pause if it keeps
+dying), and on SIGTERM or SIGINT stops them all gracefully (docs/scaling.md).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import signal
+import socket
+import subprocess
+import sys
+from typing import TYPE_CHECKING
+
+import anyio
+from anyio.streams.buffered import BufferedByteReceiveStream
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator, Sequence
+
+__all__ = [
+    "WorkerPlan",
+    "child_args",
+    "reserve_port",
+    "reuse_port_supported",
+    "run_workers",
+]
+
+logger = logging.getLogger("rwt.workers")
+
+STOP_GRACE_S = 10.0
+"""How long stopping workers get before they are killed, seconds."""
+RESTART_PAUSES_S = (0.5, 1.0, 2.0, 5.0)
+"""Pauses before restarting a worker that died; the last repeats."""
+STABLE_S = 10.0
+"""A worker that ran this long before dying is restarted after the first pause again."""
+
+#: serve options the parent sets itself for each worker (with their value).
+_REPLACED = ("--workers", "--port", "--tcp-port")
+
+
+def reuse_port_supported() -> bool:
+    """Whether this platform spreads connections over SO_REUSEPORT sockets (Linux)."""
+    return sys.platform.startswith("linux") and hasattr(socket, "SO_REUSEPORT")
+
+
+def reserve_port(host: str, port: int) -> socket.socket:
+    """A bound, not listening, SO_REUSEPORT socket holding ``port`` (0: a free one).
+
+    Raises:
+        OSError: the port cannot be bound.
+    """
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+        sock.bind((host, port))
+    except OSError:
+        sock.close()
+        raise
+    return sock
+
+
+def _without(args: Sequence[str], names: Sequence[str]) -> Iterator[str]:
+    """``args`` without the options ``names`` (each with its value, either spelling)."""
+    skip = False
+    for arg in args:
+        if skip:
+            skip = False
+            continue
+        name = arg.split("=", 1)[0]
+        if name in names:
+            skip = "=" not in arg
+            continue
+        yield arg
+
+
+class WorkerPlan:
+    """What differs between workers: the ports they share and their Zenoh endpoints.
+
+    Args:
+        args: the ``serve`` options as given (``--workers`` and ports are replaced).
+        port: the WebSocket port all workers bind (None: no WebSocket).
+        tcp_port: the TCP port all workers bind (None: no TCP).
+        hub: the loopback endpoint worker 0 listens on; None when the workers
+            reach each other otherwise (``--zenoh-mode client``: through a router).
+    """
+
+    def __init__(
+        self, args: Sequence[str], port: int | None, tcp_port: int | None, hub: str | None
+    ) -> None:
+        self.args = list(args)
+        self.port = port
+        self.tcp_port = tcp_port
+        self.hub = hub
+
+    def command(self, index: int) -> list[str]:
+        """The command line of worker ``index``."""
+        return [sys.executable, "-m", "rwt_transports.cli", "serve", *child_args(self, index)]
+
+
+def child_args(plan: WorkerPlan, index: int) -> list[str]:
+    """The ``serve`` options of worker ``index``.
+
+    A ``--zenoh-listen`` of the user goes to worker 0 only: two processes cannot
+    listen on one Zenoh endpoint.
+    """
+    names = [*_REPLACED, *(() if index == 0 else ("--zenoh-listen",))]
+    args = list(_without(plan.args, names))
+    if plan.port is not None:
+        args += ["--port", str(plan.port)]
+    if plan.tcp_port is not None:
+        args += ["--tcp-port", str(plan.tcp_port)]
+    args += ["--reuse-port", "--zenoh"]
+    if plan.hub is not None:
+        args += ["--zenoh-listen" if index == 0 else "--zenoh-connect", plan.hub]
+    return args
+
+
+def run_workers(
+    count: int, *, host: str, port: int | None, tcp_port: int | None, zenoh_mode: str
+) -> int:
+    """Run and supervise ``count`` workers until SIGTERM or SIGINT; the exit status.
+
+    The ``serve`` options are read from ``sys.argv`` (after ``serve``); a port 0
+    becomes one free port all workers share, held by the parent until they run.
+
+    Raises:
+        ValueError: SO_REUSEPORT is not available (not Linux).
+        OSError: a port cannot be bound.
+    """
+    if not reuse_port_supported():
+        raise ValueError("--workers needs SO_REUSEPORT to share ports: Linux only")
+    argv = sys.argv[1:]
+    args = argv[argv.index("serve") + 1 :] if "serve" in argv else argv
+    with contextlib.ExitStack() as holds:
+        ports: list[int | None] = []
+        for wanted in (port, tcp_port):
+            if wanted is None:
+                ports.append(None)
+                continue
+            sock = holds.enter_context(reserve_port(host, wanted))
+            ports.append(sock.getsockname()[1])
+        hub = None
+        if zenoh_mode == "peer":
+            with reserve_port("127.0.0.1", 0) as probe:
+                hub = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
+        plan = WorkerPlan(args, ports[0], ports[1], hub)
+        # the reservations go once the workers listen: they are in the same group
+        return anyio.run(_supervise, plan, count, holds.pop_all())
+
+
+async def _supervise(plan: WorkerPlan, count: int, holds: contextlib.ExitStack) -> int:
+    printed: set[str] = set()
+    stopping = anyio.Event()
+    with holds:  # the reserved ports, released when supervision ends
+        return await _supervise_all(plan, count, printed, stopping)
+
+
+async def _supervise_all(
+    plan: WorkerPlan, count: int, printed: set[str], stopping: anyio.Event
+) -> int:
+    async with anyio.create_task_group() as tg:
+        for index in range(count):
+            tg.start_soon(_keep_running, plan, index, printed, stopping)
+        with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+            async for signum in signals:
+                logger.info("event=signal name=%s", signal.Signals(signum).name)
+                stopping.set()
+                break
+    return 0
+
+
+async def _keep_running(
+    plan: WorkerPlan, index: int, printed: set[str], stopping: anyio.Event
+) -> None:
+    failures = 0
+    while not stopping.is_set():
+        started = anyio.current_time()
+        code = await _run_once(plan, index, printed, stopping)
+        if stopping.is_set():
+            logger.info("event=worker_stopped worker=%d code=%s", index, code)
+            return
+        if anyio.current_time() - started > STABLE_S:
+            failures = 0
+        pause = RESTART_PAUSES_S[min(failures, len(RESTART_PAUSES_S) - 1)]
+        failures += 1
+        logger.warning("event=worker_exit worker=%d code=%s restart_in_s=%g", index, code, pause)
+        with anyio.move_on_after(pause):
+            await stopping.wait()
+
+
+async def _run_once(
+    plan: WorkerPlan, index: int, printed: set[str], stopping: anyio.Event
+) -> int | None:
+    process = await anyio.open_process(plan.command(index), stdin=subprocess.DEVNULL, stderr=None)
+    logger.info("event=worker_started worker=%d pid=%d", index, process.pid)
+    assert process.stdout is not None
+    stdout = BufferedByteReceiveStream(process.stdout)
+
+    async def relay() -> None:
+        """Print each distinct stdout line once, whichever worker says it first."""
+        with contextlib.suppress(
+            anyio.EndOfStream, anyio.IncompleteRead, anyio.BrokenResourceError
+        ):
+            while True:
+                line = (await stdout.receive_until(b"\n", 65536)).decode("utf-8", "replace")
+                if line not in printed:
+                    printed.add(line)
+                    print(line, flush=True)  # noqa: T201 - the serve command's stdout
+
+    async def stop_when_asked() -> None:
+        await stopping.wait()
+        with contextlib.suppress(ProcessLookupError):
+            process.send_signal(signal.SIGTERM)
+        with anyio.move_on_after(STOP_GRACE_S):
+            await process.wait()
+        with contextlib.suppress(ProcessLookupError):
+            process.kill()
+
+    try:
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(relay)
+            tg.start_soon(stop_when_asked)
+            code = await process.wait()
+            tg.cancel_scope.cancel()
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            process.kill()  # only if the supervisor itself is cancelled mid-way
+    return code

@@ -1,0 +1,772 @@
+"""The Zenoh link: one graph's entities mirrored to and from a Zenoh network.
+
+A ``ZenohLink`` attaches to a ``Graph`` as its clients do, through the graph's
+public API, and speaks rmw_zenoh's wire (``wire``, ``payload``):
+
+- outward, every local publisher, subscription and service gets its liveliness
+  token; what local publishers publish (seen through a graph tap) is put on the
+  topic's key; a local service answers queries on its key;
+- inward, every remote token becomes a participant of the graph (``zenoh:``
+  ids, in the remote node), so rosapi lists the whole network; remote samples
+  are published in the graph by their publisher's participant; a call to a
+  remote service is a query.
+
+Nothing that came from Zenoh goes back to it: the tap skips the link's own
+participants, and Zenoh delivers a session's samples only to other sessions
+(``Locality.REMOTE``), so with any number of processes each sample reaches each
+subscriber once. Zenoh calls back on its own threads; every event is handed to
+the event loop that runs the link, so the graph is only touched there.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import logging
+import time
+from collections import deque
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
+
+import anyio
+import anyio.lowlevel
+import zenoh.ext
+
+import zenoh
+from rwt_graph.calls import guarded
+from rwt_graph.nodes import CLIENT_NODE_PREFIX
+from rwt_protocol.errors import RwtError
+
+from .config import ZenohOptions, make_config
+from .link_actions import ActionLink
+from .link_params import ParamLink
+from .link_services import RemoteService, serve_query
+from .payload import decode_message, encode_message, service_hash, type_hash
+from .wire import (
+    Attachment,
+    Durability,
+    Entity,
+    EntityKind,
+    QoS,
+    Topic,
+    WireError,
+    dds_type_name,
+    ros_type_name,
+    topic_keyexpr,
+    zid_text,
+)
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator, Callable
+
+    from anyio.abc import TaskStatus
+
+    from rwt_graph.graph import Graph
+    from rwt_graph.topics import Topic as GraphTopic
+    from rwt_protocol.ports import ClientId, MessageEvent
+
+__all__ = ["PARTICIPANT_PREFIX", "PRIVATE_NAMES", "ZenohLink", "open_link"]
+
+logger = logging.getLogger("rwt.zenoh")
+
+PARTICIPANT_PREFIX = "zenoh:"
+"""Participant ids of the link: remote entities, its relays and its caller."""
+
+PRIVATE_NAMES = ("/client_count", "/connected_clients", "/rosapi/*")
+"""Names each server keeps to itself: its own client counts and its rosapi (which
+already answers for the whole network). ``*`` ends a prefix."""
+
+#: QoS of a latched (transient local) and of a plain publisher's token.
+MAX_QUEUED = 100_000
+"""Remote samples waiting for the event loop beyond which new ones are dropped."""
+_DRAIN_BATCH = 1000
+
+_LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=1)
+_VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=10)
+
+
+def ours(client: ClientId) -> bool:
+    """Whether ``client`` is one of the link's participants (it came from Zenoh)."""
+    return client.startswith(PARTICIPANT_PREFIX)
+
+
+class _NullSink:
+    """The sink of a remote subscription: its samples travel over Zenoh, not here."""
+
+    def on_message(self, event: MessageEvent) -> None:
+        """Drop the message."""
+
+
+_NULL_SINK = _NullSink()
+
+
+@dataclass(eq=False)
+class _Export:
+    """A local entity as the network sees it: its token and the state of its samples."""
+
+    entity: Entity
+    token: Any  # zenoh.LivelinessToken
+    type_name: str
+    latched: bool = False
+    gid: bytes = b""
+    sequence: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+    queryable: Any = None  # zenoh.Queryable of a service
+
+
+@dataclass(eq=False)
+class _Remote:
+    """A remote entity, from its token, and the participant that stands for it here."""
+
+    entity: Entity
+    client: ClientId
+    node: str
+    mirrored: bool = False
+    waiting: bool = False  # a service shadowed by another provider: tried again each sweep
+
+
+@dataclass(eq=False)
+class _Data:
+    """The Zenoh publishers or subscriber of one topic and its type."""
+
+    type_name: str
+    key: str
+    handle: Any
+    latched: Any = None  # the cache-keeping publisher of latched samples
+    latched_sent: object = None  # the last latched event put there
+
+
+def _full_node(entity: Entity) -> str:
+    namespace = entity.namespace.rstrip("/")
+    return f"{namespace}/{entity.node}"
+
+
+def _is_private(name: str, private: tuple[str, ...]) -> bool:
+    for pattern in private:
+        if pattern.endswith("*"):
+            if name.startswith(pattern[:-1]):
+                return True
+        elif name == pattern:
+            return True
+    return False
+
+
+class ZenohLink:
+    """Mirrors a graph's entities to and from a Zenoh session (see the module text).
+
+    Args:
+        graph: the graph to link; touched only on the event loop running ``run``.
+        session: an open Zenoh session; the link does not close it.
+        domain_id: the ROS domain, the first part of every key.
+        private: names never shared (``PRIVATE_NAMES``; ``*`` ends a prefix).
+        sweep_s: how often local changes are looked for, seconds (rosapi elsewhere
+            sees a change within this plus Zenoh's propagation).
+        call_timeout_s: how long a call to a remote service waits for its reply.
+
+    Attributes:
+        zid: the session's id as rmw_zenoh prints it.
+    """
+
+    def __init__(
+        self,
+        graph: Graph,
+        session: zenoh.Session,
+        *,
+        domain_id: int = 0,
+        private: tuple[str, ...] = PRIVATE_NAMES,
+        sweep_s: float = 0.1,
+        call_timeout_s: float = 60.0,
+    ) -> None:
+        self.graph = graph
+        self.session = session
+        self.domain_id = domain_id
+        self.private = private
+        self.sweep_s = sweep_s
+        self.call_timeout_s = call_timeout_s
+        self.zid = zid_text(bytes(cast("Any", session.info.zid())))
+        self._ids = itertools.count(1)  # node and entity ids share one counter, as in rmw_zenoh
+        self._node_ids: dict[str, int] = {}
+        self._exports: dict[tuple[EntityKind, ClientId, str], _Export] = {}
+        self._node_tokens: dict[str, Any] = {}
+        self._pubs: dict[str, _Data] = {}
+        self._subs: dict[str, _Data] = {}
+        self._remote: dict[str, _Remote] = {}
+        self._by_gid: dict[bytes, _Remote] = {}
+        self._relays: dict[str, ClientId] = {}
+        self._caller = f"{PARTICIPANT_PREFIX}caller"
+        self._call_ids = itertools.count(1)
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake: asyncio.Event | None = None
+        self._events: deque[tuple[Callable[..., None], tuple[object, ...]]] = deque()
+        self._signalled = False
+        self._dropped = 0
+        self._closed = False
+        self._liveliness: Any = None
+        self._actions = ActionLink(self)
+        self._params = ParamLink(self)
+
+    # ---- running ----------------------------------------------------------------
+
+    async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
+        """Link until cancelled; then withdraw every token and forget every remote entity.
+
+        Raises:
+            RuntimeError: the event loop is not asyncio's (Zenoh's threads wake
+                the link's task with ``call_soon_threadsafe``).
+        """
+        self._loop = asyncio.get_running_loop()
+        self._wake = asyncio.Event()
+        self.graph.taps.append(self._tap)
+        try:
+            self._liveliness = self.session.liveliness().declare_subscriber(
+                f"@ros2_lv/{self.domain_id}/**", self._on_token_thread, history=True
+            )
+            self._sweep()
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._sweeper)
+                task_status.started()
+                await self._drain()
+        finally:
+            self._close()
+
+    async def _sweeper(self) -> None:
+        while True:
+            await anyio.sleep(self.sweep_s)
+            self._sweep()
+
+    async def _drain(self) -> None:
+        """Handle what Zenoh's threads handed over, in order, in this task.
+
+        A task rather than bare loop callbacks: handlers may start async work
+        (an async in-process service), which needs a task's context.
+        """
+        assert self._wake is not None
+        events = self._events
+        while True:
+            await self._wake.wait()
+            self._signalled = False
+            self._wake.clear()
+            while events:
+                callback, args = events.popleft()
+                self._guarded(callback, *args)
+                if len(events) > _DRAIN_BATCH:
+                    await anyio.lowlevel.checkpoint()  # others run during a flood
+
+    def _close(self) -> None:
+        self._closed = True
+        with contextlib.suppress(ValueError):
+            self.graph.taps.remove(self._tap)
+        handles: list[Any] = [self._liveliness]
+        handles += [export.queryable for export in self._exports.values()]
+        handles += [export.token for export in self._exports.values()]
+        handles += list(self._node_tokens.values())
+        for data in [*self._pubs.values(), *self._subs.values()]:
+            handles += [data.handle, data.latched]
+        for handle in handles:
+            if handle is not None:
+                guarded("undeclaring a zenoh entity", handle.undeclare)
+        self._actions.close()
+        self._params.close()
+        self._exports.clear()
+        self._node_tokens.clear()
+        self._pubs.clear()
+        self._subs.clear()
+        for remote in list(self._remote.values()):
+            self._unmirror(remote)
+        self._remote.clear()
+        self._by_gid.clear()
+        for relay in self._relays.values():
+            self.graph.release(relay)
+        self._relays.clear()
+
+    def _soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
+        """Run ``callback(*args)`` in the link's task (called from Zenoh's threads).
+
+        Samples beyond ``MAX_QUEUED`` waiting ones are dropped (and counted in the
+        log), so a peer publishing faster than this process reads cannot exhaust
+        its memory; tokens and replies are never dropped.
+        """
+        loop, wake = self._loop, self._wake
+        if loop is None or wake is None or self._closed:
+            return
+        if sample and len(self._events) >= MAX_QUEUED:
+            self._dropped += 1
+            if self._dropped & (self._dropped - 1) == 0:  # 1, 2, 4, 8...: bounded logging
+                logger.warning("event=zenoh_samples_dropped count=%d", self._dropped)
+            return
+        self._events.append((callback, args))
+        if not self._signalled:
+            self._signalled = True
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(wake.set)
+
+    def _guarded(self, callback: Callable[..., None], *args: object) -> None:
+        if self._closed:
+            return
+        try:
+            callback(*args)
+        except Exception:
+            logger.exception("zenoh link: handling %s failed", getattr(callback, "__name__", ""))
+
+    # ---- what the action half uses ---------------------------------------------------
+
+    @property
+    def caller(self) -> ClientId:
+        """The participant calling local services and actions for remote callers."""
+        return self._caller
+
+    def is_ours(self, client: ClientId) -> bool:
+        """Whether ``client`` is one of the link's participants."""
+        return ours(client)
+
+    def is_private(self, name: str) -> bool:
+        """Whether ``name`` stays in this process (``private``)."""
+        return _is_private(name, self.private)
+
+    def node_entity(self, node: str) -> Entity:
+        """The node entity of ``node`` as the network sees it."""
+        return self._node_entity(node)
+
+    def next_id(self) -> int:
+        """A new entity id in this session."""
+        return next(self._ids)
+
+    def soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
+        """Run ``callback(*args)`` in the link's task (from a Zenoh thread); see ``_soon``."""
+        self._soon(callback, *args, sample=sample)
+
+    def query(
+        self,
+        key: str,
+        payload: bytes,
+        answer: Callable[[bool, object], None],
+        timeout_s: float,
+    ) -> None:
+        """Send a query; ``answer(ok, value)`` runs once in the link's task.
+
+        ``value`` is the first reply's payload (bytes) when ``ok``, else the error
+        reply's text or "no reply" when every reply is in or ``timeout_s`` passed.
+        """
+        outcome: list[tuple[bool, object]] = []
+
+        def on_reply(reply: zenoh.Reply) -> None:  # a Zenoh thread
+            if outcome:
+                return
+            if reply.ok is not None:
+                outcome.append((True, reply.ok.payload.to_bytes()))
+            else:
+                error = reply.err
+                outcome.append((False, "" if error is None else error.payload.to_string()))
+            self._soon(answer, *outcome[0])
+
+        def on_done() -> None:  # a Zenoh thread
+            if not outcome:
+                outcome.append((False, "no reply from the network"))
+                self._soon(answer, *outcome[0])
+
+        self.session.get(
+            key,
+            zenoh.handlers.Callback(on_reply, on_done),
+            payload=payload,
+            attachment=Attachment(next(self._call_ids), time.time_ns(), bytes(16)).encode(),
+            timeout=timeout_s,
+        )
+
+    # ---- local entities, outward ---------------------------------------------------
+
+    def _sweep(self) -> None:
+        """Bring tokens, subscribers and publishers in line with the graph."""
+        wanted = self._wanted()
+        for key in list(self._exports):
+            export = self._exports[key]
+            if wanted.get(key) != (export.type_name, export.latched):
+                self._unexport(key)
+        for key, (type_name, latched) in wanted.items():
+            if key not in self._exports:
+                self._export(key, type_name, latched=latched)
+        self._sweep_nodes()
+        self._sweep_subscribers()
+        self._sweep_publishers()
+        self._sweep_relays()
+        self._actions.sweep()
+        self._params.sweep()
+        for remote in self._remote.values():
+            if remote.waiting:
+                self._mirror(remote)  # the local provider that shadowed it may have gone
+
+    def _wanted(self) -> dict[tuple[EntityKind, ClientId, str], tuple[str, bool]]:
+        """The local entities to share: (kind, participant, name) -> (type, latched)."""
+        wanted: dict[tuple[EntityKind, ClientId, str], tuple[str, bool]] = {}
+        for name, entry in self.graph.topics.items():
+            if _is_private(name, self.private):
+                continue
+            type_name = entry.msgtype.name
+            for client, latched in entry.publishers.items():
+                if not ours(client):
+                    wanted[(EntityKind.PUBLISHER, client, name)] = (type_name, latched)
+            for client in entry.subscribers:
+                if not ours(client):
+                    wanted[(EntityKind.SUBSCRIPTION, client, name)] = (type_name, False)
+        for name, service in self.graph.services.entries.items():
+            if not ours(service.owner) and not _is_private(name, self.private):
+                wanted[(EntityKind.SERVICE, service.owner, name)] = (service.srvtype.name, False)
+        return wanted
+
+    def _node_id(self, node: str) -> int:
+        nid = self._node_ids.get(node)
+        if nid is None:
+            nid = self._node_ids[node] = next(self._ids)
+        return nid
+
+    def _node_entity(self, node: str) -> Entity:
+        """The node as others see it; client nodes get the session id, being per process."""
+        if node.startswith(CLIENT_NODE_PREFIX):
+            node = f"{node}_{self.zid[:8]}"
+        namespace, _, name = node.rpartition("/")
+        nid = self._node_id(node)
+        return Entity(self.domain_id, self.zid, nid, nid, EntityKind.NODE, namespace or "/", name)
+
+    def _export(
+        self, key: tuple[EntityKind, ClientId, str], type_name: str, *, latched: bool
+    ) -> _Export | None:
+        kind, client, name = key
+        node = self._node_entity(self.graph.nodes.name_of(client))
+        registry = self.graph.registry
+        try:
+            if kind is EntityKind.SERVICE:
+                srvtype = registry.service(type_name)
+                type_hash_text = service_hash(registry, srvtype)
+            else:
+                type_hash_text = type_hash(registry, type_name)
+        except (RwtError, WireError) as exc:
+            logger.debug("zenoh link: %s %s is not shared: %s", kind.name.lower(), name, exc)
+            return None
+        qos = _LATCHED_QOS if latched else _VOLATILE_QOS
+        topic = Topic(name, dds_type_name(type_name), type_hash_text, qos)
+        entity = Entity(
+            self.domain_id,
+            self.zid,
+            node.nid,
+            next(self._ids),
+            kind,
+            node.namespace,
+            node.node,
+            topic=topic,
+        )
+        token = self.session.liveliness().declare_token(entity.token())
+        export = _Export(entity, token, type_name, latched=latched, gid=entity.gid())
+        if kind is EntityKind.SERVICE:
+            keyexpr = topic_keyexpr(self.domain_id, name, topic.dds_type, topic.type_hash)
+            export.queryable = self.session.declare_queryable(
+                keyexpr,
+                lambda query: self._soon(serve_query, self, export, query),
+                allowed_origin=zenoh.Locality.REMOTE,
+            )
+        self._exports[key] = export
+        return export
+
+    def _unexport(self, key: tuple[EntityKind, ClientId, str]) -> None:
+        export = self._exports.pop(key)
+        if export.queryable is not None:
+            guarded("undeclaring a queryable", export.queryable.undeclare)
+        guarded("undeclaring a token", export.token.undeclare)
+
+    def _sweep_nodes(self) -> None:
+        nodes = {self.graph.nodes.name_of(client) for _, client, _ in self._exports}
+        for node in list(self._node_tokens):
+            if node not in nodes:
+                guarded("undeclaring a node token", self._node_tokens.pop(node).undeclare)
+        for node in nodes - self._node_tokens.keys():
+            token = self._node_entity(node).token()
+            self._node_tokens[node] = self.session.liveliness().declare_token(token)
+
+    def _sweep_subscribers(self) -> None:
+        """A Zenoh subscriber for each topic local subscribers listen to, of its type."""
+        listening: dict[str, str] = {}
+        for kind, _, name in self._exports:
+            entry = self.graph.topics.get(name)
+            if entry is not None and kind is EntityKind.SUBSCRIPTION:
+                listening[name] = entry.msgtype.name
+        for name, data in list(self._subs.items()):
+            if listening.get(name) != data.type_name:
+                guarded("undeclaring a subscriber", self._subs.pop(name).handle.undeclare)
+        for name, type_name in listening.items():
+            if name not in self._subs:
+                self._subscribe(name, type_name)
+
+    def _sweep_publishers(self) -> None:
+        """Zenoh publishers only while local ones publish; the latched cache while one latches."""
+        publishing: dict[str, bool] = {}
+        for kind, _, name in self._exports:
+            entry = self.graph.topics.get(name)
+            if entry is not None and kind is EntityKind.PUBLISHER:
+                latched = any(flag for c, flag in entry.publishers.items() if not ours(c))
+                publishing[name] = publishing.get(name, False) or latched
+        for name, data in list(self._pubs.items()):
+            entry = self.graph.topics.get(name)
+            if name not in publishing or entry is None or entry.msgtype.name != data.type_name:
+                self._drop_publisher(name)
+            elif not publishing[name] and data.latched is not None:
+                guarded("undeclaring a latched publisher", data.latched.undeclare)
+                data.latched = data.latched_sent = None
+        for name, latched in publishing.items():
+            entry = self.graph.topics.get(name)
+            if not latched or entry is None or entry.latched is None:
+                continue
+            owner = entry.latched_by
+            if owner is not None and not ours(owner):  # published before the link saw it
+                self._put_latched(entry, entry.latched, owner)
+
+    def _drop_publisher(self, name: str) -> None:
+        data = self._pubs.pop(name)
+        for handle in (data.handle, data.latched):
+            if handle is not None:
+                guarded("undeclaring a publisher", handle.undeclare)
+
+    def _subscribe(self, name: str, type_name: str) -> None:
+        registry = self.graph.registry
+        try:
+            key = topic_keyexpr(
+                self.domain_id, name, dds_type_name(type_name), type_hash(registry, type_name)
+            )
+        except (RwtError, WireError) as exc:
+            logger.debug("zenoh link: not subscribing to %s: %s", name, exc)
+            return
+
+        def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
+            attachment = sample.attachment
+            self._soon(
+                self._on_sample,
+                name,
+                type_name,
+                sample.payload.to_bytes(),
+                None if attachment is None else attachment.to_bytes(),
+                sample=True,
+            )
+
+        handle = zenoh.ext.declare_advanced_subscriber(
+            self.session,
+            key,
+            on_sample,
+            allowed_origin=zenoh.Locality.REMOTE,
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+        )
+        self._subs[name] = _Data(type_name, key, handle)
+
+    def _publisher(self, entry: GraphTopic) -> _Data:
+        data = self._pubs.get(entry.name)
+        if data is None:
+            type_name = entry.msgtype.name
+            key = topic_keyexpr(
+                self.domain_id,
+                entry.name,
+                dds_type_name(type_name),
+                type_hash(self.graph.registry, type_name),
+            )
+            handle = self.session.declare_publisher(key, allowed_destination=zenoh.Locality.REMOTE)
+            data = self._pubs[entry.name] = _Data(type_name, key, handle)
+        return data
+
+    def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
+        """Forward what a local publisher published (the graph calls this on the loop)."""
+        if ours(client) or self._closed or _is_private(entry.name, self.private):
+            return
+        if latch:
+            self._put_latched(entry, event, client)
+            return
+        export = self._publisher_export(entry, client)
+        if export is not None:
+            data = self._publisher(entry)
+            data.handle.put(self._encode(entry, event), attachment=self._attachment(export))
+
+    def _publisher_export(self, entry: GraphTopic, client: ClientId) -> _Export | None:
+        key = (EntityKind.PUBLISHER, client, entry.name)
+        export = self._exports.get(key)
+        if export is None:
+            export = self._export(
+                key, entry.msgtype.name, latched=entry.publishers.get(client, False)
+            )
+            self._sweep_nodes()
+        return export
+
+    def _put_latched(self, entry: GraphTopic, event: MessageEvent, client: ClientId) -> None:
+        export = self._publisher_export(entry, client)
+        if export is None:
+            return
+        data = self._publisher(entry)
+        if data.latched_sent is event:
+            return
+        if data.latched is None:
+            data.latched = zenoh.ext.declare_advanced_publisher(
+                self.session,
+                data.key,
+                allowed_destination=zenoh.Locality.REMOTE,
+                cache=zenoh.ext.CacheConfig(max_samples=1),
+                publisher_detection=True,
+            )
+        data.latched.put(self._encode(entry, event), attachment=self._attachment(export))
+        data.latched_sent = event
+
+    def _encode(self, entry: GraphTopic, event: MessageEvent) -> bytes:
+        return encode_message(self.graph.registry, entry.msgtype, event.msg)
+
+    def cancels_goal(self, service: str, query: zenoh.Query) -> bool:
+        """Whether ``query`` to ``service`` canceled a remote caller's goal (it is answered)."""
+        return self._actions.try_cancel(service, query)
+
+    def attachment(self, export: _Export) -> bytes:
+        """The next attachment of ``export``'s samples or replies."""
+        return self._attachment(export)
+
+    def _attachment(self, export: _Export) -> bytes:
+        return Attachment(next(export.sequence), time.time_ns(), export.gid).encode()
+
+    # ---- remote entities, inward ------------------------------------------------------
+
+    def _on_token_thread(self, sample: zenoh.Sample) -> None:  # a Zenoh thread
+        alive = sample.kind == zenoh.SampleKind.PUT
+        self._soon(self._on_token, str(sample.key_expr), alive)
+
+    def _on_token(self, token: str, alive: bool) -> None:
+        if not alive:
+            remote = self._remote.pop(token, None)
+            if remote is not None:
+                self._by_gid.pop(remote.entity.gid(), None)
+                self._unmirror(remote)
+            return
+        if token in self._remote:
+            return
+        try:
+            entity = Entity.parse(token)
+        except WireError as exc:
+            logger.debug("zenoh link: ignored token: %s", exc)
+            return
+        if entity.zid == self.zid or entity.kind is EntityKind.CLIENT:
+            return
+        suffix = "node" if entity.kind is EntityKind.NODE else str(entity.eid)
+        client = f"{PARTICIPANT_PREFIX}{entity.zid}:{suffix}"
+        remote = self._remote[token] = _Remote(entity, client, _full_node(entity))
+        if entity.kind is EntityKind.PUBLISHER:
+            self._by_gid[entity.gid()] = remote
+        self._mirror(remote)
+
+    def _mirror(self, remote: _Remote) -> None:
+        """Make ``remote`` a participant of the graph (once it fits there)."""
+        entity, graph = remote.entity, self.graph
+        if entity.kind is EntityKind.NODE:
+            graph.nodes.bind(remote.client, remote.node)
+            remote.mirrored = True
+            return
+        topic = entity.topic
+        assert topic is not None  # Entity.parse guarantees it for every other kind
+        if _is_private(topic.name, self.private):
+            return
+        try:
+            type_name = ros_type_name(topic.dds_type)
+            if entity.kind is EntityKind.SERVICE:
+                self._params.mirror(remote)
+                as_action = self._actions.mirror(remote)
+                if as_action is not None:
+                    remote.waiting = not as_action
+                    remote.mirrored = as_action
+                    return
+                existing = graph.services.entries.get(topic.name)
+                remote.waiting = existing is not None
+                if existing is not None:
+                    return  # a local provider (or another remote one) answers: keep it
+                graph.nodes.bind(remote.client, remote.node)
+                provider = RemoteService(self, remote, graph.registry.service(type_name))
+                graph.advertise_service(remote.client, topic.name, type_name, provider)
+            elif entity.kind is EntityKind.PUBLISHER:
+                graph.nodes.bind(remote.client, remote.node)
+                latched = topic.qos.durability is Durability.TRANSIENT_LOCAL
+                graph.advertise(remote.client, topic.name, type_name, latch=latched)
+                self._adopt_relayed(topic.name, remote.client, latched=latched)
+            elif entity.kind is EntityKind.SUBSCRIPTION:
+                graph.nodes.bind(remote.client, remote.node)
+                graph.subscribe(remote.client, topic.name, type_name, _NULL_SINK)
+        except (RwtError, WireError) as exc:
+            graph.nodes.forget(remote.client)
+            logger.info(
+                "event=zenoh_skip kind=%s name=%s reason=%r",
+                entity.kind.name.lower(),
+                topic.name,
+                str(exc),
+            )
+            return
+        remote.mirrored = True
+
+    def _unmirror(self, remote: _Remote) -> None:
+        self._params.unmirror(remote)
+        if remote.mirrored:
+            self.graph.release(remote.client)  # its services fail their callers (D15)
+            remote.mirrored = False
+
+    def _on_sample(
+        self, topic: str, type_name: str, payload: bytes, attachment: bytes | None
+    ) -> None:
+        """Publish a remote sample in the graph, by its publisher's participant."""
+        entry = self.graph.topics.get(topic)
+        if entry is None or entry.msgtype.name != type_name:
+            return
+        try:
+            msg = decode_message(self.graph.registry, entry.msgtype, payload)
+            source = None if attachment is None else Attachment.decode(attachment).source_gid
+        except (WireError, RwtError) as exc:
+            logger.warning("event=zenoh_bad_sample topic=%s reason=%r", topic, str(exc))
+            return
+        remote = None if source is None else self._by_gid.get(source)
+        if remote is not None and remote.mirrored and remote.client in entry.publishers:
+            latched = remote.entity.topic is not None and (
+                remote.entity.topic.qos.durability is Durability.TRANSIENT_LOCAL
+            )
+            self.graph.publish_local(remote.client, topic, msg, latch=latched)
+            return
+        # The sample outran its publisher's token: a relay publishes it meanwhile.
+        relay = self._relays.get(topic)
+        if relay is None:
+            relay = self._relays[topic] = f"{PARTICIPANT_PREFIX}relay:{topic}"
+            self.graph.nodes.bind(relay, "/rwt_zenoh")
+            self.graph.advertise(relay, topic, type_name, latch=False)
+        self.graph.publish_local(relay, topic, msg, latch=False)
+
+    def _adopt_relayed(self, topic: str, client: ClientId, *, latched: bool) -> None:
+        """A latched sample a relay delivered belongs to its publisher, now known."""
+        entry = self.graph.topics.get(topic)
+        relay = self._relays.get(topic)
+        if entry is not None and relay is not None and latched and entry.latched_by == relay:
+            entry.latched_by = client
+
+    def _sweep_relays(self) -> None:
+        for topic, relay in list(self._relays.items()):
+            entry = self.graph.topics.get(topic)
+            known = entry is not None and any(ours(c) and c != relay for c in entry.publishers)
+            if entry is None or known or topic not in self._subs:
+                del self._relays[topic]
+                self.graph.release(relay)
+                self.graph.nodes.forget(relay)
+
+
+@asynccontextmanager
+async def open_link(graph: Graph, options: ZenohOptions) -> AsyncIterator[ZenohLink]:
+    """Open a Zenoh session for ``options`` and link ``graph`` while the block runs.
+
+    Raises:
+        ValueError: a bad option or config file (see ``make_config``).
+        zenoh.ZError: Zenoh cannot start (an endpoint cannot be bound...).
+    """
+    config = make_config(options)
+    # rosbags' type store takes a while to build: not on the event loop
+    await anyio.to_thread.run_sync(graph.registry.typestore)
+    session = await anyio.to_thread.run_sync(zenoh.open, config)
+    try:
+        async with anyio.create_task_group() as tg:
+            link = ZenohLink(graph, session, domain_id=options.domain_id)
+            await tg.start(link.run)
+            try:
+                yield link
+            finally:
+                tg.cancel_scope.cancel()
+    finally:
+        await anyio.to_thread.run_sync(session.close)

@@ -1,0 +1,452 @@
+"""Actions across processes: the Zenoh link's half for ROS 2 actions (``actions``' mapping).
+
+Provider side: each local action server gets the ``send_goal`` and ``get_result``
+queryables and their tokens (its ``cancel_goal`` service is in the graph's
+service table, shared like any service). A ``send_goal`` query starts a goal in
+the graph for the remote caller; its feedback is put on the ``feedback`` key; a
+``get_result`` query is answered when the goal ends; a ``cancel_goal`` query
+naming one of these goals cancels it.
+
+Caller side: a remote ``send_goal`` token makes the action a graph action whose
+provider forwards each goal as those queries; feedback samples reach the goal's
+caller; when the remote server's token goes, its goals abort (D15).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass, field
+from functools import partial
+from typing import TYPE_CHECKING, Any
+
+import zenoh.ext
+
+import zenoh
+from rwt_graph.actions import CANCEL_GOAL_TYPE
+from rwt_graph.calls import guarded
+from rwt_protocol.errors import RwtError
+from rwt_protocol.ports import GoalStatus
+
+from .actions import (
+    CANCEL_SUFFIX,
+    FEEDBACK_SUFFIX,
+    GET_RESULT_SUFFIX,
+    SEND_GOAL_SUFFIX,
+    ActionWire,
+    action_of,
+)
+from .payload import decode_message, encode_message
+from .wire import Entity, EntityKind, Topic, WireError, topic_keyexpr
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rwt_protocol.ports import ClientId
+
+    from .link import ZenohLink, _Remote
+
+__all__ = ["ActionLink"]
+
+logger = logging.getLogger("rwt.zenoh")
+
+MAX_SERVED = 10_000
+"""Goals of remote callers held at once (running, or ended and not yet fetched)."""
+RESULT_TIMEOUT_S = 24 * 3600.0
+"""How long a caller's ``get_result`` query waits for its goal to end."""
+
+
+@dataclass(eq=False)
+class _Served:
+    """A goal a remote caller sent to a local action server."""
+
+    action: str
+    wire: ActionWire
+    handle: Any = None  # the graph's GoalHandle
+    outcome: tuple[GoalStatus, bool, object] | None = None
+    waiting: list[Any] = field(default_factory=list)  # get_result queries
+
+
+@dataclass(eq=False)
+class _Offer:
+    """A local action server as the network sees it."""
+
+    owner: ClientId
+    tokens: list[Any]
+    queryables: list[Any]
+
+
+class _RemoteAction:
+    """The provider of a remote action in the graph: forwards each goal as queries."""
+
+    def __init__(self, link: ActionLink, remote: _Remote, action: str, wire: ActionWire) -> None:
+        self.link = link
+        self.remote = remote
+        self.action = action
+        self.wire = wire
+
+    def on_action_goal(
+        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
+    ) -> None:
+        """Send the goal (``args`` in the graph's internal form)."""
+        self.link.send_remote_goal(self, goal_id, args)
+
+    def on_action_cancel(self, goal_id: str, action: str) -> None:
+        """Ask the remote server to cancel."""
+        self.link.cancel_remote_goal(self, goal_id)
+
+    def on_action_lost(self, action: str, reason: str) -> None:
+        """A local server replaced the remote one here."""
+        logger.info("event=zenoh_action_shadowed action=%s reason=%r", action, reason)
+
+
+class ActionLink:
+    """The action half of a ``ZenohLink`` (see the module text)."""
+
+    def __init__(self, link: ZenohLink) -> None:
+        self.link = link
+        self._wires: dict[str, ActionWire] = {}
+        self._offers: dict[str, _Offer] = {}
+        self._served: dict[bytes, _Served] = {}
+        self._feedback_pubs: dict[str, Any] = {}
+        self._feedback_subs: dict[str, Any] = {}
+        self._calling: dict[bytes, tuple[_RemoteAction, str]] = {}
+
+    def wire(self, type_name: str) -> ActionWire:
+        """The wire of an action type (cached)."""
+        wire = self._wires.get(type_name)
+        if wire is None:
+            registry = self.link.graph.registry
+            wire = self._wires[type_name] = ActionWire(registry, registry.action(type_name))
+        return wire
+
+    def _key(self, name: str, wire: ActionWire, part: str, hash_text: str = "*") -> str:
+        return topic_keyexpr(self.link.domain_id, name, wire.dds_type(part), hash_text)
+
+    def _hash(self, wire: ActionWire, part: str) -> str:
+        name = f"{wire.actiontype.name}_{part}"
+        name = f"{name}_Request" if part in ("SendGoal", "GetResult") else name
+        return str(self.link.graph.registry.typestore().hash_rihs01(name))
+
+    # ---- provider side ------------------------------------------------------------
+
+    def sweep(self) -> None:
+        """Offer each local action server; withdraw the ones gone."""
+        link = self.link
+        wanted = {
+            name: entry
+            for name, entry in link.graph.actions.entries.items()
+            if not link.is_ours(entry.owner) and not link.is_private(name)
+        }
+        for name in list(self._offers):
+            entry = wanted.get(name)
+            if entry is None or entry.owner != self._offers[name].owner:
+                self._withdraw(name)
+        for name, entry in wanted.items():
+            if name not in self._offers:
+                try:
+                    self._offer(name, entry.owner, entry.actiontype.name)
+                except (RwtError, WireError) as exc:
+                    logger.debug("zenoh link: action %s is not shared: %s", name, exc)
+
+    def _offer(self, name: str, owner: ClientId, type_name: str) -> None:
+        link = self.link
+        wire = self.wire(type_name)
+        node = link.node_entity(link.graph.nodes.name_of(owner))
+        tokens, queryables = [], []
+        for suffix, part, handler in (
+            (SEND_GOAL_SUFFIX, "SendGoal", self._on_send_goal),
+            (GET_RESULT_SUFFIX, "GetResult", self._on_get_result),
+        ):
+            hash_text = self._hash(wire, part)
+            topic = Topic(name + suffix, wire.dds_type(part), hash_text)
+            entity = Entity(
+                link.domain_id,
+                link.zid,
+                node.nid,
+                link.next_id(),
+                EntityKind.SERVICE,
+                node.namespace,
+                node.node,
+                topic=topic,
+            )
+            tokens.append(link.session.liveliness().declare_token(entity.token()))
+            queryables.append(
+                link.session.declare_queryable(
+                    self._key(name + suffix, wire, part, hash_text),
+                    self._on_query_thread(handler, name, wire),
+                    allowed_origin=zenoh.Locality.REMOTE,
+                )
+            )
+        self._offers[name] = _Offer(owner, tokens, queryables)
+
+    def _on_query_thread(
+        self, handler: Callable[[str, ActionWire, zenoh.Query], None], name: str, wire: ActionWire
+    ) -> Callable[[zenoh.Query], None]:
+        def on_query(query: zenoh.Query) -> None:  # a Zenoh thread
+            self.link.soon(handler, name, wire, query)
+
+        return on_query
+
+    def _withdraw(self, name: str) -> None:
+        offer = self._offers.pop(name)
+        for handle in [*offer.queryables, *offer.tokens]:
+            guarded("undeclaring an action's entity", handle.undeclare)
+        publisher = self._feedback_pubs.pop(name, None)
+        if publisher is not None:
+            guarded("undeclaring a feedback publisher", publisher.undeclare)
+
+    def _on_send_goal(self, action: str, wire: ActionWire, query: zenoh.Query) -> None:
+        link = self.link
+        goal_id = b""
+        try:
+            goal_id, goal = wire.read_send_goal(_payload(query))
+            if len(self._served) >= MAX_SERVED or goal_id in self._served:
+                query.reply(query.key_expr, wire.accepted(False, link.graph.clock.wall()))
+                return
+            served = self._served[goal_id] = _Served(action, wire)
+            served.handle = link.graph.send_action_goal(
+                link.caller,
+                action,
+                "",
+                goal,
+                partial(self._goal_done, goal_id),
+                partial(self._goal_feedback, action, wire, goal_id),
+            )
+            query.reply(query.key_expr, wire.accepted(True, link.graph.clock.wall()))
+        except (RwtError, WireError) as exc:
+            self._served.pop(goal_id, None)
+            query.reply_err(f"action {action} refused the goal: {exc}")
+        finally:
+            query.drop()  # type: ignore[no-untyped-call]
+
+    def _goal_feedback(
+        self, action: str, wire: ActionWire, goal_id: bytes, msg: dict[str, object]
+    ) -> None:
+        publisher = self._feedback_pubs.get(action)
+        if publisher is None:
+            key = self._key(
+                action + FEEDBACK_SUFFIX,
+                wire,
+                "FeedbackMessage",
+                self._hash(wire, "FeedbackMessage"),
+            )
+            publisher = self._feedback_pubs[action] = self.link.session.declare_publisher(
+                key, allowed_destination=zenoh.Locality.REMOTE
+            )
+        publisher.put(wire.feedback(goal_id, msg))
+
+    def _goal_done(self, goal_id: bytes, status: GoalStatus, result: bool, values: object) -> None:
+        served = self._served.get(goal_id)
+        if served is None:
+            return
+        served.outcome = (status, result, values)
+        waiting, served.waiting = served.waiting, []
+        for query in waiting:
+            self._answer(goal_id, served, query)
+
+    def _on_get_result(self, action: str, wire: ActionWire, query: zenoh.Query) -> None:
+        try:
+            goal_id = wire.read_get_result(_payload(query))
+        except WireError as exc:
+            query.reply_err(str(exc))
+            query.drop()  # type: ignore[no-untyped-call]
+            return
+        served = self._served.get(goal_id)
+        if served is None:
+            query.reply_err(f"action {action}: unknown goal")
+            query.drop()  # type: ignore[no-untyped-call]
+        elif served.outcome is None:
+            served.waiting.append(query)
+        else:
+            self._answer(goal_id, served, query)
+
+    def _answer(self, goal_id: bytes, served: _Served, query: zenoh.Query) -> None:
+        assert served.outcome is not None
+        status, result, values = served.outcome
+        try:
+            if result and isinstance(values, dict):
+                query.reply(query.key_expr, served.wire.result(int(status), values))
+            else:
+                query.reply_err(str(values))
+        finally:
+            query.drop()  # type: ignore[no-untyped-call]
+            self._served.pop(goal_id, None)
+
+    def try_cancel(self, service: str, query: zenoh.Query) -> bool:
+        """Cancel one of the goals remote callers sent, if ``query`` names one."""
+        if not service.endswith(CANCEL_SUFFIX):
+            return False
+        registry = self.link.graph.registry
+        srvtype = registry.service(CANCEL_GOAL_TYPE)
+        try:
+            request = decode_message(registry, srvtype.request, _payload(query))
+        except WireError:
+            return False
+        info = request.get("goal_info")
+        goal_id = info.get("goal_id") if isinstance(info, dict) else None
+        uuid = goal_id.get("uuid") if isinstance(goal_id, dict) else None
+        served = self._served.get(bytes(uuid)) if isinstance(uuid, bytes | bytearray) else None
+        if served is None or served.handle is None:
+            return False
+        served.handle.request_cancel()
+        response = {"return_code": 0, "goals_canceling": [info]}
+        try:
+            query.reply(query.key_expr, encode_message(registry, srvtype.response, response))
+        finally:
+            query.drop()  # type: ignore[no-untyped-call]
+        return True
+
+    # ---- caller side ----------------------------------------------------------------
+
+    def mirror(self, remote: _Remote) -> bool | None:
+        """Mirror a remote ``send_goal`` service as a graph action.
+
+        Returns:
+            None: not an action's; False: not now (a local one answers); True: done.
+
+        Raises:
+            RwtError, WireError: the action type is unknown here.
+        """
+        topic = remote.entity.topic
+        assert topic is not None
+        found = action_of(topic.name, topic.dds_type)
+        if found is None:
+            return None
+        action, type_name = found
+        graph = self.link.graph
+        if action in graph.actions.entries:
+            return False
+        wire = self.wire(type_name)
+        graph.nodes.bind(remote.client, remote.node)
+        graph.advertise_action(
+            remote.client, action, type_name, _RemoteAction(self, remote, action, wire)
+        )
+        return True
+
+    def send_remote_goal(
+        self, provider: _RemoteAction, goal_id: str, args: dict[str, object]
+    ) -> None:
+        """Send a local caller's goal to the remote server."""
+        link = self.link
+        uuid = os.urandom(16)
+        try:
+            payload = provider.wire.send_goal(uuid, args)
+        except (RwtError, WireError) as exc:
+            self._finish(provider, goal_id, GoalStatus.ABORTED, False, str(exc))
+            return
+        self._calling[uuid] = (provider, goal_id)
+        self._listen_feedback(provider)
+        key = self._key(provider.action + SEND_GOAL_SUFFIX, provider.wire, "SendGoal")
+
+        def accepted(ok: bool, value: object) -> None:
+            if not ok:
+                self._end(uuid, GoalStatus.ABORTED, False, value)
+                return
+            assert isinstance(value, bytes)
+            if not provider.wire.read_accepted(value):
+                self._end(uuid, GoalStatus.ABORTED, False, f"{provider.action} rejected the goal")
+                return
+            result_key = self._key(provider.action + GET_RESULT_SUFFIX, provider.wire, "GetResult")
+            link.query(
+                result_key, provider.wire.get_result(uuid), partial(resulted), RESULT_TIMEOUT_S
+            )
+
+        def resulted(ok: bool, value: object) -> None:
+            if not ok:
+                self._end(uuid, GoalStatus.ABORTED, False, value)
+                return
+            assert isinstance(value, bytes)
+            status, result = provider.wire.read_result(value)
+            try:
+                final = GoalStatus(status)
+            except ValueError:
+                final = GoalStatus.ABORTED
+            self._end(uuid, final, True, result)
+
+        link.query(key, payload, accepted, link.call_timeout_s)
+
+    def _end(self, uuid: bytes, status: GoalStatus, result: bool, values: object) -> None:
+        calling = self._calling.pop(uuid, None)
+        if calling is not None:
+            self._finish(calling[0], calling[1], status, result, values)
+
+    def _finish(
+        self,
+        provider: _RemoteAction,
+        goal_id: str,
+        status: GoalStatus,
+        result: bool,
+        values: object,
+    ) -> None:
+        entry = self.link.graph.actions.entries.get(provider.action)
+        if entry is None or entry.owner != provider.remote.client:
+            return  # the server went: its goals were aborted already (D15)
+        goal = entry.goals.get(goal_id)
+        if goal is not None:
+            goal.finish(status, result, values)
+
+    def _listen_feedback(self, provider: _RemoteAction) -> None:
+        action = provider.action
+        if action in self._feedback_subs:
+            return
+        key = self._key(action + FEEDBACK_SUFFIX, provider.wire, "FeedbackMessage")
+        wire = provider.wire
+
+        def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
+            self.link.soon(self._on_feedback, wire, sample.payload.to_bytes(), sample=True)
+
+        self._feedback_subs[action] = self.link.session.declare_subscriber(
+            key, on_sample, allowed_origin=zenoh.Locality.REMOTE
+        )
+
+    def _on_feedback(self, wire: ActionWire, payload: bytes) -> None:
+        try:
+            uuid, feedback = wire.read_feedback(payload)
+        except (RwtError, WireError) as exc:
+            logger.warning("event=zenoh_bad_feedback reason=%r", str(exc))
+            return
+        calling = self._calling.get(uuid)
+        if calling is None:
+            return  # another process's goal
+        provider, goal_id = calling
+        entry = self.link.graph.actions.entries.get(provider.action)
+        goal = None if entry is None else entry.goals.get(goal_id)
+        if goal is not None:
+            goal.forward_feedback(feedback)
+
+    def cancel_remote_goal(self, provider: _RemoteAction, goal_id: str) -> None:
+        """Ask the remote server to cancel a goal sent from here."""
+        uuid = next(
+            (u for u, (p, g) in self._calling.items() if p is provider and g == goal_id), None
+        )
+        if uuid is None:
+            return
+        registry = self.link.graph.registry
+        srvtype = registry.service(CANCEL_GOAL_TYPE)
+        stamp = {"sec": 0, "nanosec": 0}
+        request: dict[str, object] = {"goal_info": {"goal_id": {"uuid": uuid}, "stamp": stamp}}
+        payload = encode_message(registry, srvtype.request, request)
+        key = topic_keyexpr(
+            self.link.domain_id,
+            provider.action + CANCEL_SUFFIX,
+            "action_msgs::srv::dds_::CancelGoal_",
+            "*",
+        )
+        self.link.query(key, payload, lambda ok, value: None, self.link.call_timeout_s)
+
+    def close(self) -> None:
+        """Withdraw everything; goals of remote callers end for them when this process goes."""
+        for name in list(self._offers):
+            self._withdraw(name)
+        for handle in [*self._feedback_pubs.values(), *self._feedback_subs.values()]:
+            guarded("undeclaring an action's entity", handle.undeclare)
+        self._feedback_pubs.clear()
+        self._feedback_subs.clear()
+        self._calling.clear()
+        self._served.clear()
+
+
+def _payload(query: zenoh.Query) -> bytes:
+    payload = query.payload
+    return b"" if payload is None else payload.to_bytes()

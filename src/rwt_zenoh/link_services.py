@@ -1,0 +1,129 @@
+"""Services across processes: local services answer Zenoh queries; remote ones are queried.
+
+``serve_query`` runs a remote caller's request through the graph (so a local
+provider, client or in-process, answers it); ``RemoteService`` is the graph's
+provider of a service of another process, each call a Zenoh query matching the
+service's key with a wildcard hash (``payload.service_hash``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+from rwt_protocol.errors import RwtError
+
+from .payload import decode_message, encode_message
+from .wire import WireError, topic_keyexpr
+
+if TYPE_CHECKING:
+    import zenoh
+    from rwt_graph.types import ServiceType
+
+    from .link import ZenohLink, _Export, _Remote
+
+__all__ = ["RemoteService", "serve_query"]
+
+logger = logging.getLogger("rwt.zenoh")
+
+
+def serve_query(link: ZenohLink, export: _Export, query: zenoh.Query) -> None:
+    """A remote caller's request for a local service: call it in the graph.
+
+    The reply is the response's CDR, or an error reply with the failure's text.
+    """
+    topic = export.entity.topic
+    assert topic is not None
+    registry = link.graph.registry
+    answered = False
+
+    def reply(result: bool, values: object) -> None:
+        nonlocal answered
+        if answered:
+            return
+        answered = True
+        try:
+            if result:
+                assert isinstance(values, dict)
+                srvtype = registry.service(export.type_name)
+                response = encode_message(registry, srvtype.response, values)
+                query.reply(query.key_expr, response, attachment=link.attachment(export))
+            else:
+                query.reply_err(str(values))
+        finally:
+            query.drop()  # type: ignore[no-untyped-call]  # answered: free it now
+
+    if link.cancels_goal(topic.name, query):
+        return
+    try:
+        srvtype = registry.service(export.type_name)
+        payload = query.payload
+        request = decode_message(
+            registry, srvtype.request, b"" if payload is None else payload.to_bytes()
+        )
+        link.graph.call_service(link.caller, topic.name, request, reply)
+    except (RwtError, WireError) as exc:
+        reply(False, f"service {topic.name} failed: {exc}")
+
+
+class RemoteService:
+    """The provider of a remote service in the graph: forwards each call as a query.
+
+    The reply, an error, or no reply within the link's ``call_timeout_s`` comes
+    back as the provider's response; if the provider goes first, its release has
+    already answered the caller (D15).
+    """
+
+    def __init__(self, link: ZenohLink, remote: _Remote, srvtype: ServiceType) -> None:
+        self._link = link
+        self._remote = remote
+        self._srvtype = srvtype
+
+    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
+        """Send a local caller's request (``args`` in the internal form) as a query."""
+        remote, srvtype = self._remote, self._srvtype
+        topic = remote.entity.topic
+        assert topic is not None
+        service = topic.name
+        registry = self._link.graph.registry
+        try:
+            payload = encode_message(registry, srvtype.request, args)
+        except (RwtError, WireError) as exc:
+            self._respond(remote, service, request_id, False, str(exc))
+            return
+        # the hash is matched by a wildcard: see payload.service_hash
+        key = topic_keyexpr(self._link.domain_id, service, topic.dds_type, "*")
+
+        def answer(ok: bool, value: object) -> None:
+            if not ok:
+                value = f"service {service} failed: {value}"
+            self._finish(request_id, ok, value)
+
+        self._link.query(key, payload, answer, self._link.call_timeout_s)
+
+    def _finish(self, request_id: str, ok: bool, value: object) -> None:
+        if ok:
+            assert isinstance(value, bytes)
+            try:
+                value = decode_message(self._link.graph.registry, self._srvtype.response, value)
+            except WireError as exc:
+                ok, value = False, str(exc)
+        topic = self._remote.entity.topic
+        assert topic is not None
+        self._respond(self._remote, topic.name, request_id, ok, value)
+
+    def _respond(
+        self, remote: _Remote, service: str, request_id: str, ok: bool, value: object
+    ) -> None:
+        graph = self._link.graph
+        entry = graph.services.entries.get(service)
+        if entry is None or entry.owner != remote.client or request_id not in entry.pending:
+            return  # timed out, or the provider is gone (its callers were answered)
+        if ok:
+            entry.pending.pop(request_id).resolve(True, value)
+        else:
+            graph.service_response(remote.client, service, request_id, False, value)
+
+    def on_service_lost(self, service: str, reason: str) -> None:
+        """A local provider replaced the remote one here; the remote one lives on."""
+        logger.info("event=zenoh_service_shadowed service=%s reason=%r", service, reason)

@@ -1,0 +1,279 @@
+"""Two graphs in one process, linked over Zenoh on loopback: the embedding API across processes.
+
+Each graph has its own Zenoh session (so each is "remote" to the other, as two
+processes are); what one graph's code publishes, provides or lists, the other's
+code sees as if the graphs were one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
+
+import anyio
+import pytest
+
+from rwt_graph.actions import GoalCanceledError, GoalContext
+from rwt_graph.graph import Graph
+from rwt_graph.rosapi.listing import (
+    action_servers,
+    node_names,
+    publishers,
+    service_node,
+    services,
+    subscribers,
+    topics,
+)
+from rwt_graph.rosapi.visibility import EVERYTHING
+from rwt_protocol.errors import FieldError, RwtError
+from rwt_protocol.ports import GoalStatus
+from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
+from rwt_transports.server import spawner_for
+from rwt_zenoh.link import ZenohLink, open_link
+
+from .support import endpoint, peer
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator, Callable
+
+pytestmark = pytest.mark.anyio
+
+WAIT_S = 10.0  # every wait for the network is bounded by this
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@contextlib.asynccontextmanager
+async def linked(count: int) -> AsyncIterator[list[tuple[Graph, ZenohLink]]]:
+    """``count`` graphs, each linked by its own session; all connect to the first."""
+    first = endpoint()
+    async with contextlib.AsyncExitStack() as stack:
+        pairs = []
+        for index in range(count):
+            graph = Graph()
+            options = peer(listen=first) if index == 0 else peer(connect=(first,))
+            link = await stack.enter_async_context(open_link(graph, options))
+            pairs.append((graph, link))
+        yield pairs
+
+
+async def until(condition: Callable[[], bool], what: str) -> None:
+    with anyio.fail_after(WAIT_S):
+        while not condition():
+            await anyio.sleep(0.02)
+
+
+async def test_a_message_published_on_one_graph_reaches_the_other_once() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        got_b: list[dict[str, object]] = []
+        got_a: list[dict[str, object]] = []
+        b.create_subscription("/chatter", got_b.append, "std_msgs/msg/String", node="/listener")
+        a.create_subscription("/chatter", got_a.append, "std_msgs/msg/String")
+        talker = a.create_publisher("/chatter", "std_msgs/msg/String", node="/talker")
+        # B's rosapi lists A's publisher once B's link has seen its token
+        await until(lambda: "/talker" in publishers(b, EVERYTHING, "/chatter"), "publisher")
+        await until(lambda: "/listener" in subscribers(a, EVERYTHING, "/chatter"), "subscriber")
+        talker.publish({"data": "hello"})
+        await until(lambda: len(got_b) == 1, "delivery")
+        await anyio.sleep(0.3)  # anything extra (an echo) would arrive meanwhile
+        assert got_b == [{"data": "hello"}]
+        assert got_a == [{"data": "hello"}]  # the local subscriber, once: no echo from B
+
+
+async def test_three_graphs_deliver_each_message_once_without_loops() -> None:
+    async with linked(3) as pairs:
+        received: list[list[dict[str, object]]] = []
+        for index, (graph, _) in enumerate(pairs):
+            inbox: list[dict[str, object]] = []
+            received.append(inbox)
+            graph.create_subscription("/n", inbox.append, "std_msgs/msg/Int32", node=f"/s{index}")
+        a = pairs[0][0]
+        pub = a.create_publisher("/n", "std_msgs/msg/Int32", node="/talker")
+        for graph, _ in pairs[1:]:
+            await until(lambda g=graph: "/talker" in publishers(g, EVERYTHING, "/n"), "publisher")
+        await until(lambda: {"/s1", "/s2"} <= set(subscribers(a, EVERYTHING, "/n")), "subs")
+        for number in range(5):
+            pub.publish({"data": number})
+        await until(lambda: all(len(inbox) == 5 for inbox in received), "delivery")
+        await anyio.sleep(0.3)
+        for inbox in received:
+            assert [msg["data"] for msg in inbox] == [0, 1, 2, 3, 4]
+
+
+async def test_a_late_subscriber_gets_the_last_latched_message() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        latched = a.create_publisher("/map", "std_msgs/msg/String", latch=True, node="/mapper")
+        latched.publish({"data": "old"})
+        latched.publish({"data": "map v2"})
+        await until(lambda: "/mapper" in publishers(b, EVERYTHING, "/map"), "publisher")
+        got: list[dict[str, object]] = []
+        b.create_subscription("/map", got.append, "std_msgs/msg/String")
+        await until(lambda: len(got) == 1, "latched message")
+        second: list[dict[str, object]] = []
+        b.create_subscription("/map", second.append, node="/other")  # a later one, locally
+        assert got == [{"data": "map v2"}]
+        assert second == [{"data": "map v2"}]
+
+
+async def test_rosapi_lists_topics_of_both_graphs_and_forgets_them() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        pub = b.create_publisher("/only_on_b", "std_msgs/msg/Bool", node="/b_node")
+        await until(lambda: "/only_on_b" in topics(a, EVERYTHING)[0], "listing")
+        names, types = topics(a, EVERYTHING)
+        assert types[names.index("/only_on_b")] == "std_msgs/msg/Bool"
+        assert "/b_node" in a.nodes.names()
+        pub.close()
+        await until(lambda: "/only_on_b" not in topics(a, EVERYTHING)[0], "forgetting")
+        await until(lambda: "/b_node" not in a.nodes.names(), "node gone")
+
+
+async def test_types_are_checked_on_both_sides() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        got: list[dict[str, object]] = []
+        b.create_subscription("/x", got.append, "std_msgs/msg/Int32", node="/b")
+        pub = a.create_publisher("/x", "std_msgs/msg/String", node="/a")
+        await anyio.sleep(0.5)
+        pub.publish({"data": "text"})  # another type: the keys differ, nothing arrives
+        await anyio.sleep(0.3)
+        assert got == []
+        assert "/a" not in publishers(b, EVERYTHING, "/x")  # refused by B's graph
+
+
+async def test_a_service_of_one_graph_is_called_from_the_other() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+
+        def add(request: dict[str, Any]) -> dict[str, Any]:
+            return {"sum": request["a"] + request["b"]}
+
+        def refuse(request: dict[str, Any]) -> dict[str, Any]:
+            raise RwtError("refused by B")
+
+        b.create_service("/b/add", "example_interfaces/srv/AddTwoInts", add, node="/adder")
+        b.create_service("/b/refuse", "std_srvs/srv/Trigger", refuse, node="/adder")
+        await until(lambda: {"/b/add", "/b/refuse"} <= set(services(a, EVERYTHING)), "services")
+        assert service_node(a, EVERYTHING, "/b/add") == "/adder"
+        assert await call_service(a, "/b/add", {"a": 2, "b": 40}) == {"sum": 42}
+        with pytest.raises(ServiceCallError, match="refused by B"):
+            await call_service(a, "/b/refuse")
+        with pytest.raises(FieldError):  # checked against the type on the caller's side
+            await call_service(a, "/b/add", {"a": "two"})
+
+
+async def test_callers_fail_at_once_when_the_providing_graph_leaves() -> None:
+    first = endpoint()
+    a, b = Graph(), Graph()
+    started = anyio.Event()
+
+    async def never(request: dict[str, Any]) -> dict[str, Any]:
+        started.set()
+        await anyio.sleep_forever()
+        raise AssertionError  # pragma: no cover
+
+    async with open_link(a, peer(listen=first)), anyio.create_task_group() as tg:
+        b.spawner = spawner_for(tg)
+        b.create_service("/b/slow", "std_srvs/srv/Trigger", never, node="/slow")
+        outcome: list[BaseException] = []
+
+        async def caller(timeout_s: float) -> None:
+            try:
+                await call_service(a, "/b/slow", timeout_s=timeout_s)
+            except ServiceCallError as exc:
+                outcome.append(exc)
+
+        async with open_link(b, peer(connect=(first,))):
+            await until(lambda: "/b/slow" in a.services.entries, "service")
+            await caller(0.3)  # a timeout on the caller's side
+            assert "timed out" in str(outcome.pop())
+            tg.start_soon(caller, WAIT_S)
+            with anyio.fail_after(WAIT_S):
+                await started.wait()
+        # B left (its tokens went): the caller is answered false at once
+        await until(lambda: bool(outcome), "the failed call")
+        assert "/b/slow" not in a.services.entries
+        tg.cancel_scope.cancel()
+
+
+async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
+    first = endpoint()
+    a, b = Graph(), Graph()
+
+    async def fibonacci(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        sequence = [0, 1]
+        for _ in range(goal["order"] - 1):
+            if context.cancel_requested:
+                raise GoalCanceledError
+            sequence.append(sequence[-1] + sequence[-2])
+            context.publish_feedback({"sequence": list(sequence)})
+            await anyio.sleep(0.05 if goal["order"] < 50 else 0.2)
+        return {"sequence": sequence}
+
+    async with (
+        anyio.create_task_group() as tg,
+        open_link(a, peer(listen=first)),
+        open_link(b, peer(connect=(first,))),
+    ):
+        b.spawner = spawner_for(tg)
+        b.create_action_server("/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f")
+        await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
+        feedback: list[dict[str, Any]] = []
+        outcome = await send_action_goal(
+            a, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
+        )
+        assert outcome.status is GoalStatus.SUCCEEDED
+        assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
+        assert feedback == [{"sequence": [0, 1, 1, 2, 3, 5][: n + 3]} for n in range(4)]
+        # a cancel from A reaches B's goal
+        done: list[tuple[GoalStatus, bool, object]] = []
+        handle = a.send_action_goal(
+            a.local_client(),
+            "/fib",
+            "",
+            {"order": 100},
+            lambda *outcome: done.append(outcome),
+            feedback.append,
+        )
+        await until(lambda: len(feedback) > 5, "the long goal's feedback")
+        handle.request_cancel()
+        await until(lambda: bool(done), "the canceled goal")
+        assert done[0][0] is GoalStatus.CANCELED
+        tg.cancel_scope.cancel()
+
+
+async def test_parameters_of_a_node_of_one_graph_are_read_and_set_from_the_other() -> None:
+    async with linked(2) as [(a, _), (b, _)]:
+        b.params.declare("/camera", {"fps": 30, "name": "front", "gains": [1.5, 2.0]})
+        # a node shows in rosapi with its parameters, read through its parameter services
+        await until(lambda: a.params.get("/camera:name", None) == "front", "replica")
+        assert a.params.get("/camera:fps") == 30
+        assert a.params.get("/camera:gains") == [1.5, 2.0]
+        assert "/camera" in node_names(a)
+        # set on A (what rosapi set_param does): it reaches the node on B
+        a.params.set("/camera:fps", 15)
+        await until(lambda: b.params.get("/camera:fps") == 15, "set on B")
+        # changed on B: A's copy follows
+        b.params.set("/camera:name", "rear")
+        await until(lambda: a.params.get("/camera:name", None) == "rear", "refreshed")
+        b.params.delete("/camera:gains")
+        await until(lambda: not a.params.has("/camera:gains"), "deleted")
+
+
+async def test_graphs_of_another_domain_stay_apart() -> None:
+    first = endpoint()
+    a, same, other = Graph(), Graph(), Graph()
+    other_domain = replace(peer(connect=(first,)), domain_id=7)
+    async with (
+        open_link(a, peer(listen=first)),
+        open_link(same, peer(connect=(first,))),
+        open_link(other, other_domain),
+    ):
+        a.create_publisher("/in_domain_0", "std_msgs/msg/Empty", node="/talker")
+        other.create_publisher("/in_domain_7", "std_msgs/msg/Empty", node="/other")
+        await until(lambda: "/in_domain_0" in topics(same, EVERYTHING)[0], "same domain")
+        await anyio.sleep(0.5)  # the other domain's tokens had as long to arrive
+        assert "/in_domain_0" not in topics(other, EVERYTHING)[0]
+        assert "/in_domain_7" not in topics(a, EVERYTHING)[0]
+        assert "/in_domain_7" not in topics(same, EVERYTHING)[0]
