@@ -24,7 +24,7 @@ import itertools
 import json
 import secrets
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
@@ -35,9 +35,10 @@ import cbor2
 from rwt_client.connectors import Connection, ConnectionClosedError, connect
 from rwt_protocol.errors import RwtError
 
+from .detect import detect_dialect
 from .frames import Received, auth_op, decode_frame
 from .match import JsonValue, describe, match, substitute
-from .model import Case, Profile, Requirement, Step, StepKind, Suite
+from .model import Case, Dialect, Profile, Requirement, Step, StepKind, Suite
 
 if TYPE_CHECKING:
     import ssl
@@ -82,6 +83,8 @@ class RunOptions:
             server does not authenticate.
         ssl_context: TLS settings for ``wss://`` and ``tcp+tls://`` (``--cafile``,
             ``--insecure``); the system's trusted authorities when None.
+        dialect: the server's ROS edition; None asks the server first
+            (``detect_dialect``).
     """
 
     url: str
@@ -91,6 +94,7 @@ class RunOptions:
     case_timeout_s: float = 20.0
     auth_secret: str | None = field(default=None, repr=False)
     ssl_context: ssl.SSLContext | None = field(default=None, repr=False)
+    dialect: Dialect | None = None
 
     @property
     def transport(self) -> str:
@@ -120,7 +124,7 @@ class RequirementResult:
 
 @dataclass(frozen=True, slots=True)
 class SuiteResult:
-    """Everything a run found."""
+    """Everything a run found; ``options.dialect`` is the dialect the cases spoke."""
 
     options: RunOptions
     requirements: tuple[RequirementResult, ...]
@@ -175,6 +179,11 @@ async def run_suite(
         The results; never raises for what the server does.
     """
     started = time.monotonic()
+    if options.dialect is None:
+        dialect, _how = await detect_dialect(
+            options.url, options.ssl_context, options.expect_timeout_s, options.auth_secret
+        )
+        options = replace(options, dialect=dialect)
     requirements, cases = select(suite, options.only)
     run_id = secrets.token_hex(3)
     results: list[CaseResult] = []
@@ -216,8 +225,9 @@ async def run_case(case: Case, options: RunOptions, variables: dict[str, JsonVal
 def _skip_reason(case: Case, options: RunOptions) -> str | None:
     if case.pending is not None:
         return f"pending: {case.pending}"
-    if options.profile not in case.profiles:
-        return f"not part of the {options.profile.value} profile"
+    reason = case.skip_reason(options.profile, options.dialect or Dialect.ROS2)
+    if reason is not None:
+        return reason
     if options.transport not in case.transports:
         return f"needs {'/'.join(sorted(case.transports))}"
     if case.authenticates and options.auth_secret is None:
@@ -283,6 +293,8 @@ class _CaseRun:
         for number, step in enumerate(self.case.steps, start=1):
             self.step_number = number
             if step.profile is not None and step.profile is not self.options.profile:
+                continue
+            if step.dialect is not None and step.dialect is not self.options.dialect:
                 continue
             if step.kind is StepKind.EXPECT_STATUS and self.options.profile is Profile.REFERENCE:
                 continue

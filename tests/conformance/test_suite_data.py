@@ -11,6 +11,7 @@ from rwt_conformance.model import TRANSPORTS, SuiteError, load_suite
 from rwt_protocol.ops import OP_MODELS
 
 SUITE = load_suite()
+APPLIES = 'profiles = "strict"\ndialects = ["ros1", "ros2"]\n'
 
 
 def test_every_requirement_is_covered_by_a_case() -> None:
@@ -57,7 +58,10 @@ def _write_suite(folder: Path, cases: str) -> Path:
 
 
 def test_a_case_naming_an_unknown_requirement_is_refused(tmp_path: Path) -> None:
-    folder = _write_suite(tmp_path, '[[case]]\nid = "c"\nrequirements = ["r2"]\nsteps = []\n')
+    folder = _write_suite(
+        tmp_path,
+        '[[case]]\nid = "c"\nrequirements = ["r2"]\n' + APPLIES + "steps = []\n",
+    )
     with pytest.raises(SuiteError, match="unknown requirements"):
         load_suite(folder)
 
@@ -65,14 +69,16 @@ def test_a_case_naming_an_unknown_requirement_is_refused(tmp_path: Path) -> None
 def test_a_step_with_two_actions_is_refused(tmp_path: Path) -> None:
     folder = _write_suite(
         tmp_path,
-        '[[case]]\nid = "c"\nrequirements = ["r1"]\nsteps = [{ sync = true, close = true }]\n',
+        '[[case]]\nid = "c"\nrequirements = ["r1"]\n'
+        + APPLIES
+        + "steps = [{ sync = true, close = true }]\n",
     )
     with pytest.raises(SuiteError, match="one action key"):
         load_suite(folder)
 
 
 def test_a_repeated_case_id_is_refused(tmp_path: Path) -> None:
-    case = '[[case]]\nid = "c"\nrequirements = ["r1"]\nsteps = []\n'
+    case = '[[case]]\nid = "c"\nrequirements = ["r1"]\n' + APPLIES + "steps = []\n"
     folder = _write_suite(tmp_path, case + case)
     with pytest.raises(SuiteError, match="repeats"):
         load_suite(folder)
@@ -98,7 +104,7 @@ def test_the_auth_cases_authenticate_themselves() -> None:
 def test_send_auth_takes_known_fields_only(tmp_path: Path) -> None:
     folder = _write_suite(
         tmp_path,
-        '[[case]]\nid = "c"\nrequirements = ["r1"]\nauthenticates = true\n'
+        '[[case]]\nid = "c"\nrequirements = ["r1"]\n' + APPLIES + "authenticates = true\n"
         'steps = [{ send_auth = { secret = "x" } }]\n',
     )
     with pytest.raises(SuiteError, match="send_auth takes a table"):
