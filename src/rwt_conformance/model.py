@@ -31,9 +31,11 @@ Optional per step: ``profile`` (run only in ``strict`` or only in
 ``reference``), ``dialect`` (run only against a ``ros1`` or only against a
 ``ros2`` server: the time spelling ``secs``/``nsecs`` or ``sec``/``nanosec``,
 type names ``pkg/Type`` or ``pkg/msg/Type``, rosapi's field names),
-``timeout_s``, ``repeat`` (run the step N times with ``${i}`` counting from
-0), ``in_order`` (an ``expect`` whose frame must be the first
-received one with the pattern's ``op`` and ``topic``).
+``not_in`` (a ``skip`` key or a list of them, such as ``"reference+ros1"``:
+left out there, for a step the reference is known to fail), ``timeout_s``,
+``repeat`` (run the step N times with ``${i}`` counting from 0),
+``in_order`` (an ``expect`` whose frame must be the first received one with the
+pattern's ``op`` and ``topic``).
 
 Every case says where it applies: ``profiles`` (``strict``, ``reference``) and
 ``dialects`` (``ros1``, ``ros2``) are required. Whatever a case leaves out has its
@@ -110,7 +112,17 @@ class StepKind(StrEnum):
     CLOSE = "close"
 
 
-_STEP_OPTIONS = {"on", "profile", "dialect", "timeout_s", "count", "binary", "repeat", "in_order"}
+_STEP_OPTIONS = {
+    "on",
+    "profile",
+    "dialect",
+    "not_in",
+    "timeout_s",
+    "count",
+    "binary",
+    "repeat",
+    "in_order",
+}
 _CASE_KEYS = {
     "id",
     "title",
@@ -159,6 +171,8 @@ class Step:
             frames (False); None takes either.
         profile: run only in this profile, or in both when None.
         dialect: run only against a server of this dialect, or both when None.
+        not_in: ``skip`` keys (profile, dialect, ``profile+dialect``) where the
+            step is left out.
         timeout_s: seconds this step may wait, or None for the run's default.
         repeat: how many times the step runs (``${i}`` = 0, 1, ...).
         in_order: the expected frame must be the first one received with the
@@ -172,9 +186,25 @@ class Step:
     binary: bool | None = None
     profile: Profile | None = None
     dialect: Dialect | None = None
+    not_in: frozenset[str] = frozenset()
     timeout_s: float | None = None
     repeat: int = 1
     in_order: bool = False
+
+    def runs_in(self, profile: Profile, dialect: Dialect) -> bool:
+        """Whether the step runs in ``profile`` against a ``dialect`` server.
+
+        ``expect_status`` steps run in ``strict`` only: rosbridge_suite never
+        sends status (docs/reference-behaviour.md REF §2.21).
+        """
+        if self.profile is not None and self.profile is not profile:
+            return False
+        if self.dialect is not None and self.dialect is not dialect:
+            return False
+        if self.kind is StepKind.EXPECT_STATUS and profile is Profile.REFERENCE:
+            return False
+        where = {profile.value, dialect.value, f"{profile.value}+{dialect.value}"}
+        return not self.not_in & where
 
 
 @dataclass(frozen=True, slots=True)
@@ -332,6 +362,7 @@ def _step(table: object, where: str) -> Step:
             binary=None if "binary" not in table else bool(table["binary"]),
             profile=None if profile is None else Profile(profile),
             dialect=None if dialect is None else Dialect(dialect),
+            not_in=_not_in(table.get("not_in", [])),
             timeout_s=None if "timeout_s" not in table else float(table["timeout_s"]),
             repeat=int(table.get("repeat", 1)),
             in_order=bool(table.get("in_order", False)),
@@ -351,6 +382,13 @@ def _skip_table(value: object) -> dict[str, str]:
     if not isinstance(value, dict) or not set(value) <= SKIP_KEYS:
         raise ValueError(f"skip takes a table with keys among {sorted(SKIP_KEYS)}")
     return {str(key): str(reason) for key, reason in value.items()}
+
+
+def _not_in(value: object) -> frozenset[str]:
+    keys = frozenset(_strings(value))
+    if not keys <= SKIP_KEYS:
+        raise ValueError(f"not_in takes keys among {sorted(SKIP_KEYS)}")
+    return keys
 
 
 AUTH_FIELDS = frozenset({"mac", "client", "dest", "rand", "level", "t_offset_s", "end_offset_s"})
