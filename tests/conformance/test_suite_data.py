@@ -206,6 +206,14 @@ def test_the_reference_profile_sends_fragments_in_order_and_takes_float_totals()
     }
     assert whole
     assert all(nums == sorted(nums) for nums in whole.values()), whole  # type: ignore[type-var]
+    # anything else must be refused outright: a kept part stays in a store shared by all
+    # clients, and its expiry later loses another message's part
+    kept = [
+        key
+        for key, parts in sent.items()
+        if key not in whole and any(num is not None and total is not None for num, total in parts)
+    ]
+    assert kept == []
 
 
 def test_the_ros1_reference_profile_uses_no_ros2_only_feature() -> None:
