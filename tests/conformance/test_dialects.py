@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import anyio
@@ -9,7 +10,9 @@ import pytest
 
 from rwt_conformance import Outcome, Profile, RunOptions, SuiteResult, load_suite, run_suite
 from rwt_conformance.detect import detect_dialect
+from rwt_conformance.frames import Received
 from rwt_conformance.model import Dialect, SuiteError
+from rwt_conformance.runner import _CaseRun, _Link
 from rwt_graph.graph import Graph
 from rwt_graph.types.names import Dialect as GraphDialect
 from rwt_graph.types.registry import TypeRegistry
@@ -114,3 +117,31 @@ def test_skip_reasons_are_given_per_profile_dialect_and_both(tmp_path: Path) -> 
     assert loaded.skip_reason(Profile.STRICT, Dialect.ROS1) == "REF §4.3: no such type"
     assert loaded.skip_reason(Profile.REFERENCE, Dialect.ROS2) == "REF §1.4: stalls"
     assert loaded.skip_reason(Profile.STRICT, Dialect.ROS2) is None
+
+
+def _parts(message: dict[str, object], size: int, fragment_id: object) -> list[Received]:
+    text = json.dumps(message)
+    pieces = [text[i : i + size] for i in range(0, len(text), size)]
+    return [
+        Received(
+            {"op": "fragment", "id": fragment_id, "data": p, "num": n, "total": len(pieces) / 1},
+            False,
+        )
+        for n, p in enumerate(pieces)
+    ]
+
+
+def test_a_sync_echo_cut_into_fragments_still_counts_and_leaves_no_frames() -> None:
+    """rosbridge_suite's fragment_size applies to all later output (REF §1.3)."""
+    case = SUITE.cases[0]
+    run = _CaseRun(case, RunOptions("ws://127.0.0.1:1", dialect=Dialect.ROS1), {"ns": "n"})
+    link = _Link("a", None, "/n/sync_a")  # type: ignore[arg-type]
+    echo = {"op": "publish", "topic": "/n/sync_a", "msg": {"data": "sync-1"}}
+    other = {"op": "publish", "topic": "/n/t", "msg": {"data": "keep me"}}
+    for part in _parts(other, 20, 0) + _parts(echo, 20, 0):
+        link.frames.append(part)
+        run._defragment(link, part)
+    assert link.tokens == {"sync-1"}
+    kept = [f.value for f in link.frames]
+    assert len(kept) == len(_parts(other, 20, 0))  # the case still sees the other message's parts
+    assert all(isinstance(v, dict) and v["op"] == "fragment" for v in kept)
