@@ -15,7 +15,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["ROOT", "ProcStats", "Server", "start_server"]
+__all__ = ["ROOT", "ProcStats", "Server", "proc_stats", "start_server"]
 
 ROOT = Path(__file__).resolve().parent.parent
 _TICK_S = 1.0 / os.sysconf("SC_CLK_TCK")
@@ -30,6 +30,20 @@ class ProcStats:
     rss_bytes: int
 
 
+def proc_stats(pid: int) -> ProcStats:
+    """CPU (user + system, /proc/<pid>/stat) and VmRSS (/proc/<pid>/status) of a process."""
+    with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+        fields = f.read().rpartition(")")[2].split()
+    cpu = (int(fields[11]) + int(fields[12])) * _TICK_S
+    rss = 0
+    with open(f"/proc/{pid}/status", encoding="ascii") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                rss = int(line.split()[1]) * 1024
+                break
+    return ProcStats(cpu, rss)
+
+
 class Server:
     """One running server process (``kind`` is ``bare`` or ``rwt``)."""
 
@@ -40,17 +54,7 @@ class Server:
 
     def stats(self) -> ProcStats:
         """CPU (user + system, from /proc/<pid>/stat) and VmRSS (/proc/<pid>/status)."""
-        pid = self.process.pid
-        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
-            fields = f.read().rpartition(")")[2].split()
-        cpu = (int(fields[11]) + int(fields[12])) * _TICK_S
-        rss = 0
-        with open(f"/proc/{pid}/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("VmRSS:"):
-                    rss = int(line.split()[1]) * 1024
-                    break
-        return ProcStats(cpu, rss)
+        return proc_stats(self.process.pid)
 
     def alive(self) -> bool:
         """Whether the process is still running."""

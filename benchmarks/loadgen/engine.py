@@ -58,8 +58,9 @@ class Peer:
 
     Args:
         port: the server's port.
-        kind: ``bare`` (connects to ``/sub`` when ``receives``) or ``rwt``.
-        setup: payloads of the setup ops (rwt only; the barrier is appended).
+        kind: ``bare`` (connects to ``/sub`` when ``receives``), ``rwt`` or
+            ``rosbridge`` (rosbridge_suite, benchmarks/peer.py).
+        setup: payloads of the setup ops (not for the bare relay; the barrier is appended).
         receives: whether this peer receives topic data (bare relay's ``/sub``).
         rcvbuf: the socket's receive buffer in bytes, else the system's default.
         group: the bare relay's routing group (a topic); rwt ignores the path.
@@ -78,7 +79,7 @@ class Peer:
         path = f"/{'sub' if receives else 'pub'}/{group}"
         self.sock, rest = connect(port, path, rcvbuf=rcvbuf)
         self.kind = kind
-        if kind == "rwt":
+        if kind != "bare":
             self.sock.sendall(b"".join(client_frame(p) for p in [*setup, BARRIER]))
         self.leftover = self._barrier(rest)
         self.sock.setblocking(False)
@@ -92,7 +93,7 @@ class Peer:
                 raise GeneratorError("closed before the barrier")
             frames = reader.feed(chunk)
         payload = frames[0][1]
-        expected = b'"id":"barrier"' if self.kind == "rwt" else b"ready"
+        expected = b"ready" if self.kind == "bare" else b'"id":"barrier"'
         if expected not in payload:
             raise GeneratorError(f"unexpected first frame {payload[:120]!r}")
         extra = b"".join(frame_bytes(op, p) for op, p in frames[1:])

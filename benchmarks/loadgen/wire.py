@@ -19,6 +19,7 @@ __all__ = [
     "OP_BINARY",
     "OP_TEXT",
     "FrameReader",
+    "as_served",
     "client_frame",
     "connect",
     "server_frame",
@@ -41,6 +42,15 @@ def client_frame(payload: bytes, *, binary: bool = False) -> bytes:
     """One complete client-to-server frame (FIN, masked with the zero key)."""
     first = 0x80 | (OP_BINARY if binary else OP_TEXT)
     return _header(len(payload), first, 0x80) + _ZERO_MASK + payload
+
+
+def as_served(kind: str, payload: bytes) -> bytes:
+    """The JSON text a server of ``kind`` writes for the compact ``payload`` rwt writes.
+
+    rosbridge_suite 0.11 (ROS 1) serializes with ujson, which escapes every
+    ``/`` as ``\\/``; rwt and the bare relay write the payload as it is.
+    """
+    return payload.replace(b"/", b"\\/") if kind == "rosbridge" else payload
 
 
 def server_frame(payload: bytes, *, binary: bool = False) -> bytes:

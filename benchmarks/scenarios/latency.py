@@ -24,7 +24,7 @@ from ..loadgen.engine import (
     percentile_ms,
     run_loop,
 )
-from ..loadgen.wire import OP_BINARY, OP_TEXT, client_frame, server_frame
+from ..loadgen.wire import OP_BINARY, OP_TEXT, as_served, client_frame, server_frame
 from .common import Metrics, Run, server_figures, settle
 
 __all__ = ["LatencyTrack", "image_rate_run", "mixed_run", "topic_latency_run"]
@@ -41,6 +41,8 @@ class LatencyTrack:
 
     make: Callable[[int], bytes]
     marker: bytes = b'"data":"'
+    kind: str = "rwt"
+    """The server's kind: how it writes the payload (``as_served``)."""
     publisher: RatePublisher | None = None
     latencies_s: array[float] = field(default_factory=lambda: array("d"))
     """Seconds, in arrival order (an array: see ``RatePublisher.sent_at``)."""
@@ -54,7 +56,7 @@ class LatencyTrack:
 
     def check(self, payload: bytes, now: float) -> None:
         seq = self.seq_of(payload)
-        if payload != self.make(seq):
+        if payload != as_served(self.kind, self.make(seq)):
             raise GeneratorError(f"wrong content for message {seq}: {payload[:80]!r}")
         assert self.publisher is not None
         self.latencies_s.append(now - self.publisher.sent_at[seq])
@@ -78,10 +80,20 @@ class _TwistTrack(LatencyTrack):
         return int(payload[start : start + _SEQ])
 
 
-def topic_latency_run(run: Run, *, subscribers: int, rate_hz: float, duration_s: float) -> Metrics:
+def topic_latency_run(
+    run: Run,
+    *,
+    subscribers: int,
+    rate_hz: float,
+    duration_s: float,
+    type_name: str = "std_msgs/msg/String",
+) -> Metrics:
     """B7: 100 B String at ``rate_hz`` to ``subscribers``; p50/p99 latency in ms."""
-    topic, type_name = "/b7", "std_msgs/msg/String"
-    tracks = [LatencyTrack(lambda i: msgs.string_publish(topic, i)) for _ in range(subscribers)]
+    topic = "/b7"
+    tracks = [
+        LatencyTrack(lambda i: msgs.string_publish(topic, i), kind=run.kind)
+        for _ in range(subscribers)
+    ]
     subs = [
         ParsingSubscriber(
             run.port,

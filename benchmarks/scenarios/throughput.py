@@ -24,7 +24,7 @@ from ..loadgen.engine import (
     run_loop,
 )
 from ..loadgen.tail import TailStream, TailSubscriber
-from ..loadgen.wire import client_frame, server_frame
+from ..loadgen.wire import as_served, client_frame, server_frame
 from .common import Metrics, Run, server_figures, settle
 
 __all__ = ["Stream", "stream_run"]
@@ -57,7 +57,7 @@ def _subscribers(run: Run, stream: Stream, count: int) -> list[Subscriber]:
     setup = [msgs.subscribe(stream.topic, stream.type_name, stream.compression)]
     if run.kind == "rwt" and stream.compression == "cbor-raw":
         return _raw_subscribers(run, stream, setup, count)
-    payloads = [stream.make(i) for i in range(stream.period)]
+    payloads = [as_served(run.kind, stream.make(i)) for i in range(stream.period)]
     block = b"".join(server_frame(p, binary=stream.binary) for p in payloads)
     frame_len = len(block) // stream.period
     if any(len(p) != len(payloads[0]) for p in payloads):

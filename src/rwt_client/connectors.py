@@ -217,6 +217,7 @@ class WebSocketConnection:
                 anyio.EndOfStream,
                 anyio.BrokenResourceError,
                 anyio.ClosedResourceError,
+                anyio.BusyResourceError,  # TLS: aclose's close_notify exchange is reading
                 OSError,
             ):
                 self._protocol.receive_eof()
@@ -317,6 +318,7 @@ class _LineStreamConnection:
                 anyio.EndOfStream,
                 anyio.BrokenResourceError,
                 anyio.ClosedResourceError,
+                anyio.BusyResourceError,  # TLS: aclose's close_notify exchange is reading
                 OSError,
             ):
                 raise ConnectionClosedError(f"{self.url}: connection closed") from None

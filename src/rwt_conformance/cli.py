@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ssl
 import sys
+from dataclasses import replace
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
@@ -15,7 +16,7 @@ import typer
 from rwt_client.connectors import ConnectionClosedError, connect
 from rwt_protocol.auth import RosauthVerifier
 
-from .model import Profile, SuiteError, default_suite_dir, load_suite
+from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
 
 __all__ = ["conformance", "server_url"]
 
@@ -97,6 +98,13 @@ def conformance(
         Profile,
         typer.Option(help="strict: rwt's decisions; reference: rosbridge_suite's behaviour."),
     ] = Profile.STRICT,
+    dialect: Annotated[
+        Dialect | None,
+        typer.Option(
+            help="The server's ROS edition (times, type names, rosapi fields);"
+            " default: ask the server (/rosapi/get_ros_version, std_msgs/Header)."
+        ),
+    ] = None,
     only: Annotated[
         list[str] | None,
         typer.Option(
@@ -134,6 +142,7 @@ def conformance(
     # runner, its clients and rich at start (benchmarks B11 base memory).
     from rich.console import Console  # noqa: PLC0415
 
+    from .detect import detect_dialect  # noqa: PLC0415
     from .report import print_table, write_json, write_junit  # noqa: PLC0415
     from .runner import RunOptions, run_suite  # noqa: PLC0415
 
@@ -152,11 +161,18 @@ def conformance(
         expect_timeout_s=timeout,
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
         ssl_context=context,
+        dialect=dialect,
     )
     problem = anyio.run(_reachable, options.url, context, 2 * timeout)
     if problem is not None:
         typer.echo(f"rwt conformance: {problem}", err=True)
         raise typer.Exit(2)
+    if dialect is None:
+        found, how = anyio.run(detect_dialect, options.url, context, timeout, options.auth_secret)
+        options = replace(options, dialect=found)
+        console.print(f"dialect: {found.value} ({how})")
+    else:
+        console.print(f"dialect: {dialect.value} (--dialect)")
     result = anyio.run(run_suite, loaded, options)
     print_table(result, console)
     if junit is not None:

@@ -28,13 +28,24 @@ A step has exactly one action key:
   (the server closes this connection).
 
 Optional per step: ``profile`` (run only in ``strict`` or only in
-``reference``), ``timeout_s``, ``repeat`` (run the step N times with ``${i}``
-counting from 0), ``in_order`` (an ``expect`` whose frame must be the first
-received one with the pattern's ``op`` and ``topic``). Optional per case:
-``profiles``, ``transports`` (``ws``/``tcp``), ``pending`` (a reason: skipped
-until the feature exists), ``authenticates = true`` (the case sends ``auth``
-itself: it needs the server's secret, and the runner does not authenticate
-its connections first).
+``reference``), ``dialect`` (run only against a ``ros1`` or only against a
+``ros2`` server: the time spelling ``secs``/``nsecs`` or ``sec``/``nanosec``,
+type names ``pkg/Type`` or ``pkg/msg/Type``, rosapi's field names),
+``not_in`` (a ``skip`` key or a list of them, such as ``"reference+ros1"``:
+left out there, for a step the reference is known to fail), ``timeout_s``,
+``repeat`` (run the step N times with ``${i}`` counting from 0),
+``in_order`` (an ``expect`` whose frame must be the first received one with the
+pattern's ``op`` and ``topic``).
+
+Every case says where it applies: ``profiles`` (``strict``, ``reference``) and
+``dialects`` (``ros1``, ``ros2``) are required. Whatever a case leaves out has its
+reason in ``skip``, a table keyed by the profile, the dialect or
+``"profile+dialect"`` (``{ "reference+ros1" = "REF §1.3: ..." }``, which
+also narrows a case that otherwise runs everywhere); the runner reports the
+reason when it skips. Optional per case: ``transports`` (``ws``/``tcp``),
+``pending`` (a reason: skipped until the feature exists), ``authenticates =
+true`` (the case sends ``auth`` itself: it needs the server's secret, and the
+runner does not authenticate its connections first).
 """
 
 from __future__ import annotations
@@ -49,6 +60,7 @@ from rwt_protocol.errors import RwtError
 
 __all__ = [
     "Case",
+    "Dialect",
     "Profile",
     "Requirement",
     "Step",
@@ -72,6 +84,18 @@ class Profile(StrEnum):
     REFERENCE = "reference"
 
 
+class Dialect(StrEnum):
+    """The ROS edition a server speaks (how times, type names and rosapi fields look).
+
+    ``ros1``: ``secs``/``nsecs``, ``pkg/Type``, rosbridge_suite 0.11.x;
+    ``ros2``: ``sec``/``nanosec``, ``pkg/msg/Type``, rosbridge_suite 2.x
+    (docs/reference-behaviour.md REF §4.3, §4.6).
+    """
+
+    ROS1 = "ros1"
+    ROS2 = "ros2"
+
+
 class StepKind(StrEnum):
     """The action of one step (module docstring)."""
 
@@ -88,13 +112,25 @@ class StepKind(StrEnum):
     CLOSE = "close"
 
 
-_STEP_OPTIONS = {"on", "profile", "timeout_s", "count", "binary", "repeat", "in_order"}
+_STEP_OPTIONS = {
+    "on",
+    "profile",
+    "dialect",
+    "not_in",
+    "timeout_s",
+    "count",
+    "binary",
+    "repeat",
+    "in_order",
+}
 _CASE_KEYS = {
     "id",
     "title",
     "requirements",
     "steps",
     "profiles",
+    "dialects",
+    "skip",
     "transports",
     "pending",
     "authenticates",
@@ -134,6 +170,9 @@ class Step:
         binary: an ``expect`` that requires CBOR frames (True) or JSON text
             frames (False); None takes either.
         profile: run only in this profile, or in both when None.
+        dialect: run only against a server of this dialect, or both when None.
+        not_in: ``skip`` keys (profile, dialect, ``profile+dialect``) where the
+            step is left out.
         timeout_s: seconds this step may wait, or None for the run's default.
         repeat: how many times the step runs (``${i}`` = 0, 1, ...).
         in_order: the expected frame must be the first one received with the
@@ -146,24 +185,55 @@ class Step:
     count: int = 1
     binary: bool | None = None
     profile: Profile | None = None
+    dialect: Dialect | None = None
+    not_in: frozenset[str] = frozenset()
     timeout_s: float | None = None
     repeat: int = 1
     in_order: bool = False
 
+    def runs_in(self, profile: Profile, dialect: Dialect) -> bool:
+        """Whether the step runs in ``profile`` against a ``dialect`` server.
+
+        ``expect_status`` steps run in ``strict`` only: rosbridge_suite never
+        sends status (docs/reference-behaviour.md REF §2.21).
+        """
+        if self.profile is not None and self.profile is not profile:
+            return False
+        if self.dialect is not None and self.dialect is not dialect:
+            return False
+        if self.kind is StepKind.EXPECT_STATUS and profile is Profile.REFERENCE:
+            return False
+        where = {profile.value, dialect.value, f"{profile.value}+{dialect.value}"}
+        return not self.not_in & where
+
 
 @dataclass(frozen=True, slots=True)
 class Case:
-    """A transcript checking one or more requirements."""
+    """A transcript checking one or more requirements.
+
+    ``skip`` maps what the case leaves out (a profile, a dialect, or
+    ``"profile+dialect"``) to the reason shown when it is skipped there.
+    """
 
     id: str
     title: str
     requirements: tuple[str, ...]
     steps: tuple[Step, ...]
     profiles: frozenset[Profile] = frozenset(Profile)
+    dialects: frozenset[Dialect] = frozenset(Dialect)
+    skip: dict[str, str] = field(default_factory=dict)
     transports: frozenset[str] = frozenset(TRANSPORTS)
     pending: str | None = None
     authenticates: bool = False
     file: str = ""
+
+    def skip_reason(self, profile: Profile, dialect: Dialect) -> str | None:
+        """Why the case does not run in ``profile`` against a ``dialect`` server, or None."""
+        if profile not in self.profiles:
+            return self.skip.get(profile.value, f"not part of the {profile.value} profile")
+        if dialect not in self.dialects:
+            return self.skip.get(dialect.value, f"not for a {dialect.value} server")
+        return self.skip.get(f"{profile.value}+{dialect.value}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -239,13 +309,18 @@ def _case(table: dict[str, object], file: str) -> Case:
     case_id = str(table.get("id", "?"))
     where = f"{file}: case {case_id!r}"
     unknown = set(table) - _CASE_KEYS
-    if unknown or "id" not in table or "requirements" not in table:
-        raise SuiteError(f"{where}: needs id and requirements; unknown keys {sorted(unknown)}")
+    if unknown or not {"id", "requirements", "profiles", "dialects"} <= set(table):
+        raise SuiteError(
+            f"{where}: needs id, requirements, profiles and dialects;"
+            f" unknown keys {sorted(unknown)}"
+        )
     steps = table.get("steps", [])
     if not isinstance(steps, list):
         raise SuiteError(f"{where}: steps must be an array")
     try:
-        profiles = frozenset(Profile(p) for p in _strings(table.get("profiles", list(Profile))))
+        profiles = frozenset(Profile(p) for p in _strings(table["profiles"]))
+        dialects = frozenset(Dialect(d) for d in _strings(table["dialects"]))
+        skip = _skip_table(table.get("skip", {}))
         transports = frozenset(_strings(table.get("transports", list(TRANSPORTS))))
     except ValueError as exc:
         raise SuiteError(f"{where}: {exc}") from None
@@ -258,6 +333,8 @@ def _case(table: dict[str, object], file: str) -> Case:
         requirements=tuple(_strings(table["requirements"])),
         steps=tuple(_step(step, f"{where} step {index + 1}") for index, step in enumerate(steps)),
         profiles=profiles,
+        dialects=dialects,
+        skip=skip,
         transports=transports,
         pending=None if pending is None else str(pending),
         authenticates=bool(table.get("authenticates", False)),
@@ -274,6 +351,7 @@ def _step(table: object, where: str) -> Step:
     try:
         kind = StepKind(actions[0])
         profile = table.get("profile")
+        dialect = table.get("dialect")
         if kind is StepKind.SEND_AUTH:
             _check_auth_fields(table[actions[0]])
         return Step(
@@ -283,12 +361,34 @@ def _step(table: object, where: str) -> Step:
             count=int(table.get("count", 1)),
             binary=None if "binary" not in table else bool(table["binary"]),
             profile=None if profile is None else Profile(profile),
+            dialect=None if dialect is None else Dialect(dialect),
+            not_in=_not_in(table.get("not_in", [])),
             timeout_s=None if "timeout_s" not in table else float(table["timeout_s"]),
             repeat=int(table.get("repeat", 1)),
             in_order=bool(table.get("in_order", False)),
         )
     except ValueError as exc:
         raise SuiteError(f"{where}: {exc}") from None
+
+
+SKIP_KEYS = frozenset(
+    [*(p.value for p in Profile), *(d.value for d in Dialect)]
+    + [f"{p.value}+{d.value}" for p in Profile for d in Dialect]
+)
+"""What a case's ``skip`` table may be keyed by."""
+
+
+def _skip_table(value: object) -> dict[str, str]:
+    if not isinstance(value, dict) or not set(value) <= SKIP_KEYS:
+        raise ValueError(f"skip takes a table with keys among {sorted(SKIP_KEYS)}")
+    return {str(key): str(reason) for key, reason in value.items()}
+
+
+def _not_in(value: object) -> frozenset[str]:
+    keys = frozenset(_strings(value))
+    if not keys <= SKIP_KEYS:
+        raise ValueError(f"not_in takes keys among {sorted(SKIP_KEYS)}")
+    return keys
 
 
 AUTH_FIELDS = frozenset({"mac", "client", "dest", "rand", "level", "t_offset_s", "end_offset_s"})

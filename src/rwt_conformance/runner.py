@@ -24,7 +24,7 @@ import itertools
 import json
 import secrets
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
@@ -35,9 +35,10 @@ import cbor2
 from rwt_client.connectors import Connection, ConnectionClosedError, connect
 from rwt_protocol.errors import RwtError
 
+from .detect import detect_dialect
 from .frames import Received, auth_op, decode_frame
 from .match import JsonValue, describe, match, substitute
-from .model import Case, Profile, Requirement, Step, StepKind, Suite
+from .model import Case, Dialect, Profile, Requirement, Step, StepKind, Suite
 
 if TYPE_CHECKING:
     import ssl
@@ -82,6 +83,8 @@ class RunOptions:
             server does not authenticate.
         ssl_context: TLS settings for ``wss://`` and ``tcp+tls://`` (``--cafile``,
             ``--insecure``); the system's trusted authorities when None.
+        dialect: the server's ROS edition; None asks the server first
+            (``detect_dialect``).
     """
 
     url: str
@@ -91,6 +94,7 @@ class RunOptions:
     case_timeout_s: float = 20.0
     auth_secret: str | None = field(default=None, repr=False)
     ssl_context: ssl.SSLContext | None = field(default=None, repr=False)
+    dialect: Dialect | None = None
 
     @property
     def transport(self) -> str:
@@ -120,7 +124,7 @@ class RequirementResult:
 
 @dataclass(frozen=True, slots=True)
 class SuiteResult:
-    """Everything a run found."""
+    """Everything a run found; ``options.dialect`` is the dialect the cases spoke."""
 
     options: RunOptions
     requirements: tuple[RequirementResult, ...]
@@ -175,6 +179,11 @@ async def run_suite(
         The results; never raises for what the server does.
     """
     started = time.monotonic()
+    if options.dialect is None:
+        dialect, _how = await detect_dialect(
+            options.url, options.ssl_context, options.expect_timeout_s, options.auth_secret
+        )
+        options = replace(options, dialect=dialect)
     requirements, cases = select(suite, options.only)
     run_id = secrets.token_hex(3)
     results: list[CaseResult] = []
@@ -216,8 +225,9 @@ async def run_case(case: Case, options: RunOptions, variables: dict[str, JsonVal
 def _skip_reason(case: Case, options: RunOptions) -> str | None:
     if case.pending is not None:
         return f"pending: {case.pending}"
-    if options.profile not in case.profiles:
-        return f"not part of the {options.profile.value} profile"
+    reason = case.skip_reason(options.profile, options.dialect or Dialect.ROS2)
+    if reason is not None:
+        return reason
     if options.transport not in case.transports:
         return f"needs {'/'.join(sorted(case.transports))}"
     if case.authenticates and options.auth_secret is None:
@@ -251,6 +261,7 @@ class _Link:
     tokens: set[str] = field(default_factory=set)
     sync_ready: bool = False
     closed_reason: str | None = None
+    fragments: dict[str, list[Received]] = field(default_factory=dict)
 
     def notify(self) -> None:
         self.arrived.set()
@@ -282,9 +293,7 @@ class _CaseRun:
     async def _steps(self) -> None:
         for number, step in enumerate(self.case.steps, start=1):
             self.step_number = number
-            if step.profile is not None and step.profile is not self.options.profile:
-                continue
-            if step.kind is StepKind.EXPECT_STATUS and self.options.profile is Profile.REFERENCE:
+            if not step.runs_in(self.options.profile, self.options.dialect or Dialect.ROS2):
                 continue
             where = f"step {number} ({step.kind.value} on {step.on})"
             try:
@@ -370,6 +379,7 @@ class _CaseRun:
                 received = decode_frame(frame)
                 if not self._hidden(link, received.value):
                     link.frames.append(received)
+                    self._defragment(link, received)
                 link.notify()
         except ConnectionClosedError as exc:
             link.closed_reason = exc.message
@@ -388,6 +398,35 @@ class _CaseRun:
                 link.tokens.add(msg["data"])
             return True
         return False
+
+    def _defragment(self, link: _Link, received: Received) -> None:
+        """Join outgoing ``fragment`` ops, so a sync works through fragmentation.
+
+        rosbridge_suite applies a ``fragment_size`` given on any op to all
+        later output of the connection (docs/reference-behaviour.md REF §1.3),
+        sync echoes included. Parts are joined by ``num`` once they parse; a
+        joined sync echo counts as one and its parts are taken out of the
+        frames a case sees. Parts of one id restart at ``num`` 0.
+        """
+        value = received.value
+        if not isinstance(value, dict) or value.get("op") != "fragment":
+            return
+        key, num, data = str(value.get("id")), value.get("num"), value.get("data")
+        if not isinstance(num, int) or not isinstance(data, str):
+            return
+        parts = link.fragments.setdefault(key, [])
+        if num == 0:
+            parts.clear()
+        parts.append(received)
+        try:
+            joined = json.loads(
+                "".join(_fragment_data(p) for p in sorted(parts, key=_fragment_num))
+            )
+        except ValueError:
+            return
+        del link.fragments[key]
+        if self._hidden(link, joined):
+            link.frames[:] = [f for f in link.frames if not any(f is p for p in parts)]
 
     async def _expect(self, link: _Link, pattern: JsonValue, step: Step, timeout_s: float) -> None:
         with anyio.move_on_after(timeout_s):
@@ -477,6 +516,16 @@ _SENDS: dict[StepKind, Callable[[JsonValue], str | bytes]] = {
     StepKind.SEND_RAW: str,
     StepKind.SEND_BINARY: cbor2.dumps,
 }
+
+
+def _fragment_num(part: Received) -> int:
+    value = part.value
+    return value["num"] if isinstance(value, dict) and isinstance(value.get("num"), int) else 0
+
+
+def _fragment_data(part: Received) -> str:
+    value = part.value
+    return value["data"] if isinstance(value, dict) and isinstance(value.get("data"), str) else ""
 
 
 def _same_stream(pattern: JsonValue, value: JsonValue) -> bool:

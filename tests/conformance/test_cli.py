@@ -32,6 +32,7 @@ def _rwt(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     )
 
 
+APPLIES = 'profiles = "strict"\ndialects = ["ros1", "ros2"]\n'
 SECRET = "conformance-secret-\u00e9"
 AUTH_REQUIREMENTS = {"D23", "spec1.auth.required"}
 
@@ -135,7 +136,7 @@ def test_a_failing_requirement_makes_the_exit_code_non_zero(
         '[[requirement]]\nid = "wrong"\nsource = "spec 3.3.3"\nstatement = "fails on purpose"\n'
     )
     (suite / "cases" / "c.toml").write_text(
-        '[[case]]\nid = "c"\nrequirements = ["wrong"]\nsteps = [\n'
+        '[[case]]\nid = "c"\nrequirements = ["wrong"]\n' + APPLIES + "steps = [\n"
         ' { send = { op = "subscribe", topic = "/client_count", type = "std_msgs/Int32" } },\n'
         ' { expect = { op = "publish", msg = { data = -1 } }, timeout_s = 0.3 },\n]\n'
     )

@@ -2,15 +2,25 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
 import pytest
 
-from rwt_conformance.model import TRANSPORTS, SuiteError, load_suite
+from rwt_conformance.model import (
+    TRANSPORTS,
+    Dialect,
+    Profile,
+    Step,
+    StepKind,
+    SuiteError,
+    load_suite,
+)
 from rwt_protocol.ops import OP_MODELS
 
 SUITE = load_suite()
+APPLIES = 'profiles = "strict"\ndialects = ["ros1", "ros2"]\n'
 
 
 def test_every_requirement_is_covered_by_a_case() -> None:
@@ -57,7 +67,10 @@ def _write_suite(folder: Path, cases: str) -> Path:
 
 
 def test_a_case_naming_an_unknown_requirement_is_refused(tmp_path: Path) -> None:
-    folder = _write_suite(tmp_path, '[[case]]\nid = "c"\nrequirements = ["r2"]\nsteps = []\n')
+    folder = _write_suite(
+        tmp_path,
+        '[[case]]\nid = "c"\nrequirements = ["r2"]\n' + APPLIES + "steps = []\n",
+    )
     with pytest.raises(SuiteError, match="unknown requirements"):
         load_suite(folder)
 
@@ -65,14 +78,16 @@ def test_a_case_naming_an_unknown_requirement_is_refused(tmp_path: Path) -> None
 def test_a_step_with_two_actions_is_refused(tmp_path: Path) -> None:
     folder = _write_suite(
         tmp_path,
-        '[[case]]\nid = "c"\nrequirements = ["r1"]\nsteps = [{ sync = true, close = true }]\n',
+        '[[case]]\nid = "c"\nrequirements = ["r1"]\n'
+        + APPLIES
+        + "steps = [{ sync = true, close = true }]\n",
     )
     with pytest.raises(SuiteError, match="one action key"):
         load_suite(folder)
 
 
 def test_a_repeated_case_id_is_refused(tmp_path: Path) -> None:
-    case = '[[case]]\nid = "c"\nrequirements = ["r1"]\nsteps = []\n'
+    case = '[[case]]\nid = "c"\nrequirements = ["r1"]\n' + APPLIES + "steps = []\n"
     folder = _write_suite(tmp_path, case + case)
     with pytest.raises(SuiteError, match="repeats"):
         load_suite(folder)
@@ -98,8 +113,118 @@ def test_the_auth_cases_authenticate_themselves() -> None:
 def test_send_auth_takes_known_fields_only(tmp_path: Path) -> None:
     folder = _write_suite(
         tmp_path,
-        '[[case]]\nid = "c"\nrequirements = ["r1"]\nauthenticates = true\n'
+        '[[case]]\nid = "c"\nrequirements = ["r1"]\n' + APPLIES + "authenticates = true\n"
         'steps = [{ send_auth = { secret = "x" } }]\n',
     )
     with pytest.raises(SuiteError, match="send_auth takes a table"):
         load_suite(folder)
+
+
+def test_every_case_says_where_it_applies_and_why_not_elsewhere() -> None:
+    """What a case leaves out (a profile, a dialect) has a reason citing the docs."""
+    cites = re.compile(r"REF §\d|\bD\d+\b")
+    for case in SUITE.cases:
+        assert case.profiles, case.id
+        assert case.dialects, case.id
+        for profile in Profile:
+            for dialect in Dialect:
+                reason = case.skip_reason(profile, dialect)
+                if reason is not None:
+                    assert cites.search(reason), (case.id, profile, dialect, reason)
+
+
+def _reference_steps() -> list[tuple[str, Dialect, Step]]:
+    """Every step that runs in the reference profile, with its case and dialect."""
+    return [
+        (case.id, dialect, step)
+        for case in SUITE.cases
+        for dialect in Dialect
+        if case.skip_reason(Profile.REFERENCE, dialect) is None
+        for step in case.steps
+        if step.runs_in(Profile.REFERENCE, dialect)
+    ]
+
+
+def _stalls_the_reference(step: Step) -> bool:
+    """A frame REF §1.4 says kills the reference's worker for that client."""
+    if step.kind is StepKind.SEND_RAW:
+        try:
+            value = json.loads(str(step.value))
+        except ValueError:
+            return False  # invalid JSON is buffered, not fatal (REF §1.3)
+        if isinstance(value, (str, list)):
+            return "id" in value or "op" in value
+        return not isinstance(value, dict)
+    if step.kind is not StepKind.SEND or not isinstance(step.value, dict):
+        return False
+    frame = step.value
+    size = frame.get("fragment_size")
+    return (
+        isinstance(frame.get("op"), (list, dict))
+        or ("png" in frame and "msg" not in frame)
+        or ("fragment_size" in frame and (not isinstance(size, int) or size < 1))
+    )
+
+
+def test_the_reference_profile_uses_no_connection_after_stalling_it() -> None:
+    """A stalled connection is never served again; other connections are (REF §1.4)."""
+    stalled: set[tuple[str, Dialect, str]] = set()
+    used_after: list[tuple[str, Dialect, str]] = []
+    for case_id, dialect, step in _reference_steps():
+        key = (case_id, dialect, step.on)
+        if key in stalled and step.kind is not StepKind.CLOSE:
+            used_after.append(key)
+        if _stalls_the_reference(step):
+            stalled.add(key)
+    assert stalled  # the suite does check that other connections keep being served
+    assert used_after == []
+
+
+def test_the_reference_profile_sends_no_cbor() -> None:
+    """REF §3.2: rosbridge_suite accepts no CBOR from clients."""
+    assert [(c, d) for c, d, s in _reference_steps() if s.kind is StepKind.SEND_BINARY] == []
+
+
+def test_the_reference_profile_sends_fragments_in_order_and_takes_float_totals() -> None:
+    """REF §3.4: parts are joined in arrival order; outgoing ``total`` is a float."""
+    sent: dict[tuple[str, Dialect, str], list[tuple[object, object]]] = {}
+    for case_id, dialect, step in _reference_steps():
+        frame = step.value if isinstance(step.value, dict) else {}
+        if frame.get("op") != "fragment":
+            continue
+        if step.kind is StepKind.SEND:
+            key = (case_id, dialect, str(frame.get("id")))
+            sent.setdefault(key, []).append((frame.get("num"), frame.get("total")))
+        else:
+            assert frame.get("total") != "<int>", case_id
+    # a message meant to be reassembled: every num of 0..total-1 once, one integer total
+    whole = {
+        key: [num for num, _ in parts]
+        for key, parts in sent.items()
+        if {total for _, total in parts} == {len(parts)}
+        and sorted(num for num, _ in parts) == list(range(len(parts)))  # type: ignore[type-var]
+    }
+    assert whole
+    assert all(nums == sorted(nums) for nums in whole.values()), whole  # type: ignore[type-var]
+    # anything else must be refused outright: a kept part stays in a store shared by all
+    # clients, and its expiry later loses another message's part
+    kept = [
+        key
+        for key, parts in sent.items()
+        if key not in whole and any(num is not None and total is not None for num, total in parts)
+    ]
+    assert kept == []
+
+
+def test_the_ros1_reference_profile_uses_no_ros2_only_feature() -> None:
+    """0.11.x has no action ops (REF §1.3) and no call timeout (REF §2.6)."""
+    action_ops = {op for op in OP_MODELS if "action" in op}
+    used = [
+        c
+        for c, d, s in _reference_steps()
+        if d is Dialect.ROS1
+        and s.kind is StepKind.SEND
+        and isinstance(s.value, dict)
+        and (str(s.value.get("op")) in action_ops or "timeout" in s.value)
+    ]
+    assert used == []

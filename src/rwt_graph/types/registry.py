@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 
     from rosbags.interfaces.typing import Typesdict
     from rosbags.typesys.store import Typestore
+from .genaction import wrapper_of, wrapper_text
 from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
 from .names import Dialect, Kind, TypeName, UnknownTypeError, parse_type_name
@@ -143,7 +144,14 @@ class TypeRegistry:
         )
 
     def _part_or_unknown(self, tname: TypeName) -> MessageType:
-        """ROS 1 names service and action parts ``pkg/TypeRequest``; try those."""
+        """ROS 1 names service and action parts ``pkg/TypeRequest``; try those.
+
+        ROS 1 also knows the wrappers genaction makes of an ``.action`` file
+        (``pkg/XActionGoal``...; :mod:`.genaction`).
+        """
+        wrapper = self._genaction(tname) if self.dialect is Dialect.ROS1 else None
+        if wrapper is not None:
+            return wrapper
         for kind in ("srv", "action"):
             try:
                 return self._part(tname, kind)
@@ -163,6 +171,23 @@ class TypeRegistry:
                     action = self.action(owner)
                     return (action.goal, action.result, action.feedback)[index]
         raise UnknownTypeError(tname.spelled(self.dialect), "msg", package_known=True)
+
+    def _genaction(self, tname: TypeName) -> MessageType | None:
+        """A genaction wrapper of a ROS 1 ``.action`` file, or None (no such file)."""
+        split = wrapper_of(tname.type)
+        if split is None or self._files.find(tname.package, "action", split[0]) is None:
+            return None
+        action, suffix = split
+        self.action(f"{tname.package}/{action}")  # checks the file and caches its parts
+        canonical = tname.spelled(self.dialect)
+        text = wrapper_text(action, suffix)
+        parsed = parse_message(
+            text, package=tname.package, dialect=self.dialect, origin=f"genaction {canonical}"
+        )
+        mtype = self._make(canonical, f"{tname.package}/msg/{tname.type}", parsed)
+        self._messages[canonical] = mtype
+        mtype.dependency_names()
+        return mtype
 
     def _parts(self, tname: TypeName, kind: Kind) -> tuple[str, list[MessageType]]:
         """Parse the file of a service or action into its text and parts."""

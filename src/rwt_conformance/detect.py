@@ -1,0 +1,111 @@
+"""Which ROS edition a server speaks, asked of the server itself.
+
+Two questions, over one connection, each bounded:
+
+1. ``/rosapi/get_ros_version`` (rosapi of rosbridge_suite 2.x and rwt): its
+   ``version`` is 1 or 2.
+2. When that service is absent (rosbridge_suite 0.11.x has none,
+   docs/reference-behaviour.md REF §7.1), ``/rosapi/message_details`` of
+   ``std_msgs/Header``: ROS 1's header starts with ``seq`` and its stamp is a
+   ``time``; ROS 2's has neither.
+
+A server that answers neither is taken to be ROS 2, the default of rwt and of
+rosbridge_suite's current branch, and the answer says so.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import TYPE_CHECKING
+from urllib.parse import urlsplit
+
+import anyio
+
+from rwt_client.connectors import Connection, ConnectionClosedError, connect
+
+from .frames import auth_op, decode_frame
+from .model import Dialect
+
+if TYPE_CHECKING:
+    import ssl
+
+__all__ = ["detect_dialect"]
+
+
+async def detect_dialect(
+    url: str,
+    ssl_context: ssl.SSLContext | None = None,
+    timeout_s: float = 3.0,
+    auth_secret: str | None = None,
+) -> tuple[Dialect, str]:
+    """Ask the server at ``url`` which dialect it speaks.
+
+    Args:
+        url: the server (``ws://``, ``wss://``, ``tcp://``, ``tcp+tls://``).
+        ssl_context: TLS settings, as for the run.
+        timeout_s: bound of each question, seconds.
+        auth_secret: the server's rosauth secret (D23), when it asks for one.
+
+    Returns:
+        The dialect and how it was found (one line, printed by the CLI).
+        Never raises for what the server does: an unreachable or silent
+        server gives ROS 2, "assumed".
+    """
+    try:
+        conn = await connect(url, timeout_s=2 * timeout_s, ssl_context=ssl_context)
+    except (ConnectionClosedError, TimeoutError):
+        return Dialect.ROS2, "assumed (the server could not be reached)"
+    try:
+        if auth_secret is not None:
+            host = urlsplit(url).hostname or ""
+            await conn.send(json.dumps(auth_op(auth_secret, {}, host)))
+        version = await _call(conn, "/rosapi/get_ros_version", {}, timeout_s)
+        if isinstance(version, dict) and version.get("version") in (1, 2):
+            dialect = Dialect.ROS1 if version["version"] == 1 else Dialect.ROS2
+            return dialect, f"/rosapi/get_ros_version says {version['version']}"
+        details = await _call(
+            conn, "/rosapi/message_details", {"type": "std_msgs/Header"}, timeout_s
+        )
+        names = _header_fields(details)
+        if names is not None:
+            dialect = Dialect.ROS1 if "seq" in names else Dialect.ROS2
+            return dialect, f"std_msgs/Header has fields {', '.join(names)}"
+        return Dialect.ROS2, "assumed (rosapi answered neither get_ros_version nor message_details)"
+    except ConnectionClosedError as exc:
+        return Dialect.ROS2, f"assumed (the server closed the connection: {exc.message})"
+    finally:
+        with anyio.CancelScope(shield=True):
+            await conn.aclose()
+
+
+async def _call(
+    conn: Connection, service: str, args: dict[str, object], timeout_s: float
+) -> object:
+    """The ``values`` of a successful call, or None (failed, or no answer in time)."""
+    call_id = f"rwt_conformance_detect:{service}"
+    await conn.send(
+        json.dumps({"op": "call_service", "service": service, "args": args, "id": call_id})
+    )
+    with anyio.move_on_after(timeout_s):
+        while True:
+            value = decode_frame(await conn.receive()).value
+            if (
+                isinstance(value, dict)
+                and value.get("op") == "service_response"
+                and value.get("id") == call_id
+            ):
+                return value.get("values") if value.get("result") is True else None
+    return None
+
+
+def _header_fields(details: object) -> list[str] | None:
+    """The field names of the first typedef of a ``message_details`` answer."""
+    if not isinstance(details, dict):
+        return None
+    typedefs = details.get("typedefs")
+    if not isinstance(typedefs, list) or not typedefs or not isinstance(typedefs[0], dict):
+        return None
+    names = typedefs[0].get("fieldnames")
+    if not isinstance(names, list):
+        return None
+    return [str(name) for name in names]
