@@ -27,14 +27,14 @@ import anyio.to_thread
 from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import GraphError
 
+from .background import BackgroundJob
 from .errors import BagError
 from .reader import BagSource, BagTopic
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
-    from types import TracebackType
 
-    from anyio.abc import TaskGroup, TaskStatus
+    from anyio.abc import TaskStatus
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
     from rwt_graph.clock import Clock
@@ -82,7 +82,7 @@ class BagClock:
         return self._player.bag_time_ns() / 1e9
 
 
-class Player:
+class Player(BackgroundJob):
     """Publishes the messages of a bag into ``graph`` with their timing.
 
     Use it as an async context manager (playing in the background) or run
@@ -142,7 +142,6 @@ class Player:
         self._anchor_mono = 0.0
         self._anchor_ns = self.start_ns
         self._position_ns = self.start_ns
-        self._tg: TaskGroup | None = None
         self._real_clock: Clock | None = None
 
     # ---- state ----------------------------------------------------------------
@@ -212,22 +211,6 @@ class Player:
         self._changed = anyio.Event()
 
     # ---- running --------------------------------------------------------------
-
-    async def __aenter__(self) -> Player:
-        self._tg = anyio.create_task_group()
-        await self._tg.__aenter__()
-        await self._tg.start(self.run)
-        return self
-
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> bool | None:
-        assert self._tg is not None
-        self._tg.cancel_scope.cancel()
-        return await self._tg.__aexit__(exc_type, exc, tb)
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
         """Play the bag (forever with ``loop``); publishers and the file close at the end.

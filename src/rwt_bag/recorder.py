@@ -28,13 +28,13 @@ import anyio.to_thread
 
 from rwt_graph.types import Dialect
 
+from .background import BackgroundJob
 from .errors import BagError
 from .formats import BagFormat, SplitPolicy
 from .writer import BagWriter, TopicInfo
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
-    from types import TracebackType
 
     from anyio.abc import TaskStatus
 
@@ -68,7 +68,7 @@ class RecordStats:
     topics: dict[str, int] = field(default_factory=dict)
 
 
-class Recorder:
+class Recorder(BackgroundJob):
     """Records topics of ``graph`` into the bag at ``path``.
 
     Use it as an async context manager (it records until the block ends) or
@@ -121,7 +121,6 @@ class Recorder:
         self._wake = anyio.Event()
         self._subscriptions: dict[str, LocalSubscription] = {}
         self._writer: BagWriter | None = None
-        self._tg: anyio.abc.TaskGroup | None = None
 
     @property
     def paths(self) -> list[Path]:
@@ -131,22 +130,6 @@ class Recorder:
     def matches(self, topic: str) -> bool:
         """Whether ``topic`` is recorded (a pattern matches its resolved name)."""
         return any(fnmatch.fnmatchcase(topic, pattern) for pattern in self.patterns)
-
-    async def __aenter__(self) -> Recorder:
-        self._tg = anyio.create_task_group()
-        await self._tg.__aenter__()
-        await self._tg.start(self.run)
-        return self
-
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> bool | None:
-        assert self._tg is not None
-        self._tg.cancel_scope.cancel()
-        return await self._tg.__aexit__(exc_type, exc, tb)
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
         """Record until cancelled; the bag is complete when this returns.
