@@ -111,8 +111,8 @@ async def test_burst_reaches_a_reading_subscriber_whole_and_in_order(
     assert not [s for s in statuses if "dropping" in s]
     # The server is up and serves the publisher's connection still.
     await anyio.to_thread.run_sync(settle, publisher, "after")
-    for peer in (subscriber, publisher):
-        peer.close()
+    for peer in (subscriber, publisher):  # off the loop: a WebSocket close awaits the server
+        await anyio.to_thread.run_sync(peer.close)
 
 
 def drain_until_closed(sock: socket.socket) -> int:
@@ -160,5 +160,5 @@ async def test_a_subscriber_that_does_not_read_is_dropped_and_closed_not_waited_
     # The server is up: a new client is served.
     late = await anyio.to_thread.run_sync(open_peer, "ws", addresses)
     await anyio.to_thread.run_sync(settle, late, "late")
-    for peer in (reader, stalled, publisher, late):
-        peer.close()
+    for peer in (reader, stalled, publisher, late):  # off the loop, as above
+        await anyio.to_thread.run_sync(peer.close)

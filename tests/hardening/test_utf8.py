@@ -96,7 +96,7 @@ async def test_invalid_utf8_text_closes_with_1007(harness: Harness, parts: tuple
         # The server serves the next client.
         late = await anyio.to_thread.run_sync(WsPeer, port)
         await anyio.to_thread.run_sync(settle, late, "late")
-        late.close()
+        await anyio.to_thread.run_sync(late.close)  # its close handshake needs the loop
 
 
 async def test_valid_non_ascii_text_is_served(harness: Harness) -> None:
