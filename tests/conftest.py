@@ -6,10 +6,18 @@ import json
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import Session, SessionConfig
+
+# Property tests check behaviour, never speed: no per-example deadline, and no health
+# check that fails a test because a shared, loaded machine generated examples slowly.
+settings.register_profile(
+    "rwt", deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
+)
+settings.load_profile("rwt")
 
 
 class FakeClock:
