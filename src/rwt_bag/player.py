@@ -49,8 +49,11 @@ _Item = tuple[BagTopic, int, dict[str, object], int]  # topic, bag time ns, mess
 #: One trip to the reader thread decodes up to this many messages or bytes, so
 #: the thread hop is paid once per batch, not per message.
 _BATCH_MESSAGES = 512
-_BATCH_BYTES = 8 * 1024 * 1024
-_QUEUE = 2  # decoded batches waiting to be published: bounded memory (~16 MB)
+#: 1 MiB keeps the decoded bytes alive at once small, so the allocator reuses
+#: the buffers freed after publishing; with 8 MiB every large message (an image)
+#: landed on fresh pages, which cost more than its copy (B20).
+_BATCH_BYTES = 1024 * 1024
+_QUEUE = 2  # decoded batches waiting to be published: bounded memory (~3 MB)
 
 
 @dataclass
@@ -309,11 +312,17 @@ class Player(BackgroundJob):
                     # the reader thread was asked for it (its first read takes a while)
                     self._anchor(self._anchor_ns)
                     first = False
+                publishers, stats = self._publishers, self.stats
                 for topic, ns, msg, _ in batch:
-                    await self._wait_until(ns)
+                    if self._paused or self._due(ns) > time.monotonic():
+                        await self._wait_until(ns)  # not yet (or paused): wait
                     self._position_ns = ns
-                    self._publishers[topic.topic].publish(msg, validated=True)
-                    self.stats.messages += 1
+                    publishers[topic.topic].publish(msg, validated=True)
+                    stats.messages += 1
+
+    def _due(self, ns: int) -> float:
+        """The monotonic time at which the message of bag time ``ns`` is published."""
+        return self._anchor_mono + (ns - self._anchor_ns) / 1e9 / self.rate
 
     async def _wait_until(self, ns: int) -> None:
         while True:
@@ -321,7 +330,7 @@ class Player(BackgroundJob):
             if self._paused:
                 await changed.wait()
                 continue
-            delay = self._anchor_mono + (ns - self._anchor_ns) / 1e9 / self.rate - time.monotonic()
+            delay = self._due(ns) - time.monotonic()
             if delay <= 0:
                 return
             with anyio.move_on_after(delay):

@@ -20,7 +20,6 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype, QosDurability
 
 from rwt_graph.types import Dialect
-from rwt_graph.types.interop import from_rosbags
 from rwt_protocol.errors import GraphError
 
 from .errors import BagError
@@ -192,7 +191,7 @@ class BagSource:
         field, no conversion) takes nearly every message; the full conversion
         is the fallback, as for ``MessageType.from_python``.
         """
-        plain = from_rosbags(obj, mtype, self._registry.message)
+        plain = mtype.plain_from_rosbags(obj)
         fast = mtype.fast(plain)
         return fast if fast is not None else mtype.from_json(plain, now=0.0).msg
 

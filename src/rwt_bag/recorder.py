@@ -172,11 +172,11 @@ class Recorder(BackgroundJob):
             logger.info("event=record topic=%s type=%s", name, entry.msgtype.name)
 
     def _sink(self, info: TopicInfo, mtype: MessageType) -> _Callback:
-        codec = self.graph.registry.codec(mtype)
+        serialize = self.graph.registry.codec(mtype).serializer()
         clock = self.graph.clock
 
         def on_message(msg: dict[str, object]) -> None:
-            raw = codec.serialize(msg)
+            raw = serialize(msg)
             if self._queued_bytes + len(raw) > self._max_queue:
                 self.stats.dropped += 1
                 return
@@ -208,11 +208,17 @@ class Recorder(BackgroundJob):
         writer = self._writer
         assert writer is not None
         stats = self.stats
-        for info, ns, raw in batch:
-            writer.write(info, ns, raw)
-            stats.messages += 1
-            stats.bytes += len(raw)
-            stats.topics[info.topic] = stats.topics.get(info.topic, 0) + 1
+        topics = stats.topics
+        count = size = 0
+        try:
+            for info, ns, raw in batch:
+                writer.write(info, ns, raw)
+                topics[info.topic] = topics.get(info.topic, 0) + 1
+                count += 1
+                size += len(raw)
+        finally:  # counted once per batch, also when the disk refused the rest
+            stats.messages += count
+            stats.bytes += size
 
     def _unsubscribe(self) -> None:
         for subscription in self._subscriptions.values():

@@ -49,6 +49,9 @@ class TopicInfo:
     latched: bool
 
 
+#: Bytes written between two looks at the size of the chunk in memory.
+_CHECK_BYTES = 64 * 1024
+
 _INFINITE = QosTime(sec=2147483647, nsec=4294967295)
 
 
@@ -85,6 +88,7 @@ class _File:
         self.connections: dict[TopicInfo, Any] = {}
         self.bytes = 0
         self.first_ns: int | None = None
+        self._unchecked = 0  # bytes written since the chunk's size was last looked at
         self.writer: Any
         try:
             if fmt is BagFormat.ROS1:
@@ -101,7 +105,9 @@ class _File:
         if connection is None:
             connection = self.connections[info] = self._connect(info)
         self.writer.write(connection, ns, raw)
-        self.bytes += len(raw)
+        size = len(raw)
+        self.bytes += size
+        self._unchecked += size
         if self.first_ns is None:
             self.first_ns = ns
 
@@ -123,6 +129,14 @@ class _File:
 
     @property
     def checkpoint_due(self) -> bool:
+        """Whether the MCAP chunk in memory is full, looked at once per ``_CHECK_BYTES``.
+
+        Asking the storage for every message cost as much as writing a small
+        one (B20); a chunk closes at most ``_CHECK_BYTES`` (and one message) late.
+        """
+        if self._unchecked < _CHECK_BYTES:
+            return False
+        self._unchecked = 0
         return isinstance(self.writer, CheckpointWriter) and self.writer.checkpoint_due
 
     def checkpoint(self, *, full: bool = True) -> None:

@@ -27,6 +27,10 @@ The shortcuts (name: what; module; benchmark; general path):
   source and compiled (``exec``) for complete, well-typed values;
   ``rwt_graph.types.fastpath``; B14 (2.1 -> 0.67 us a small publish); the
   compiled field plan of ``rwt_graph.types.convert.compile_message``.
+- ``rosbags-converters``: a converter per message type to and from rosbags'
+  message objects, generated as Python source (recording and replaying bags,
+  cbor-raw); ``rwt_graph.types.rosbagsfast``; B20; the field walk of
+  ``rwt_graph.types.interop.to_rosbags`` / ``from_rosbags``.
 - ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
   pass (``ops.wire.PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
   (pydantic was 8 % of B1); ``decode_json`` then ``parse_object`` (pydantic).
@@ -112,6 +116,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "a converter per message type, generated Python source, for complete well-typed values",
         "B14",
         "rwt_graph.types.convert.compile_message (MessageType.from_json's general path)",
+    ),
+    Shortcut(
+        "rosbags-converters",
+        "rwt_graph.types.rosbagsfast.compile_to_rosbags",
+        "a converter per message type to and from rosbags objects, generated Python source",
+        "B20",
+        "rwt_graph.types.interop.to_rosbags / from_rosbags (a walk of the fields)",
     ),
     Shortcut(
         "publish-decode",

@@ -54,6 +54,9 @@ def install_counters() -> Counter[str]:
     message_module.compile_fast = _count(  # type: ignore[assignment]
         counts, "generated-converters", message_module.compile_fast
     )
+    message_module.compile_to_rosbags = _count(  # type: ignore[assignment]
+        counts, "rosbags-converters", message_module.compile_to_rosbags
+    )
     codec.pybase64 = SimpleNamespace(  # type: ignore[assignment]
         b64encode=_count(counts, "json-base64-splice", pybase64.b64encode)
     )

@@ -11,6 +11,7 @@ from rwt_protocol.shortcuts import enabled
 from .convert import Context, ConvertFn, DefaultFn, compile_message, is_header, is_time_type
 from .fastpath import FastFn, compile_fast
 from .interop import from_rosbags, to_rosbags
+from .rosbagsfast import FromFn, ToFn, compile_from_rosbags, compile_to_rosbags
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -87,6 +88,10 @@ class MessageType:
         #: off (``RWT_NO_SHORTCUTS``) always None: every value takes the general path.
         self.fast: FastFn = self._first_fast if enabled("generated-converters") else _no_fast
         self._has_header: bool | None = None
+        #: generated rosbags converters (``rosbagsfast``), unless that shortcut is off
+        self._rosbags_fast = enabled("rosbags-converters")
+        self._to_rosbags: tuple[Typestore, ToFn] | None = None
+        self._from_rosbags: FromFn | None = None
 
     def __repr__(self) -> str:
         return f"MessageType({self.name!r})"
@@ -183,7 +188,7 @@ class MessageType:
         if isinstance(msgtype, str) and not isinstance(obj, dict):
             if msgtype != self.rosbags_name:
                 raise FieldError("$", f"expected object (type {self.name}), got {msgtype}")
-            obj = from_rosbags(obj, self, self._resolve)
+            obj = self.plain_from_rosbags(obj)
         return self.from_json(obj, now=0.0 if now is None else now).msg
 
     def to_rosbags(self, msg: dict[str, object], typestore: Typestore) -> object:
@@ -196,7 +201,50 @@ class MessageType:
         Raises:
             KeyError: the store lacks this type or ``msg`` lacks a field.
         """
-        return to_rosbags(msg, self, typestore, self._resolve)
+        return self.to_rosbags_converter(typestore)(msg)
+
+    def to_rosbags_converter(self, typestore: Typestore) -> ToFn:
+        """The function ``msg -> rosbags object`` of ``to_rosbags`` for ``typestore`` (cached).
+
+        Generated once per type (``rosbagsfast``); the general walk of
+        ``interop.to_rosbags`` when the ``rosbags-converters`` shortcut is off.
+
+        Raises:
+            KeyError: the store lacks this type or a nested one.
+        """
+        cached = self._to_rosbags
+        if cached is not None and cached[0] is typestore:
+            return cached[1]
+        if self._rosbags_fast:
+            found = compile_to_rosbags(
+                self, typestore, lambda name: self._resolve(name).to_rosbags_converter(typestore)
+            )
+        else:
+
+            def found(msg: dict[str, object]) -> object:
+                return to_rosbags(msg, self, typestore, self._resolve)
+
+        self._to_rosbags = (typestore, found)
+        return found
+
+    def plain_from_rosbags(self, obj: object) -> dict[str, object]:
+        """A rosbags message object of this type as JSON-like values, unchecked.
+
+        The result still goes through ``fast`` or ``from_json`` to become the
+        internal form (its numeric arrays are lists, its times ``sec``/``nanosec``).
+        """
+        return self.from_rosbags_converter()(obj)
+
+    def from_rosbags_converter(self) -> FromFn:
+        """The function of ``plain_from_rosbags`` (generated on first use, then cached)."""
+        if self._from_rosbags is None:
+            if self._rosbags_fast:
+                self._from_rosbags = compile_from_rosbags(
+                    self, lambda name: self._resolve(name).from_rosbags_converter()
+                )
+            else:
+                self._from_rosbags = lambda obj: from_rosbags(obj, self, self._resolve)
+        return self._from_rosbags
 
     def definition_text(self) -> str:
         """The definition text of this type alone, ending in a newline (empty if no lines)."""

@@ -111,6 +111,7 @@ class WireCodec:
         self.mtype = mtype
         self._typer = compile_typed(mtype, resolve)
         self._typestore = typestore
+        self._serializer: Callable[[Msg], memoryview] | None = None
 
     def typed(self, msg: Msg) -> Msg:
         """``msg`` with numeric arrays as numpy arrays (for CBOR typed arrays, REF §3.2)."""
@@ -127,11 +128,28 @@ class WireCodec:
         Raises:
             KeyError: the typestore lacks the type (a definition that failed to load).
         """
-        store = self._typestore()
-        obj = self.mtype.to_rosbags(dict(msg), store)
-        name = self.mtype.rosbags_name
-        if self.mtype.dialect is Dialect.ROS1:
-            raw = store.serialize_ros1(obj, name)
-        else:
-            raw = store.serialize_cdr(obj, name)
+        raw = self.serializer()(msg)
         return raw if _KEEP_VIEW and len(raw) >= _LARGE_VIEW else bytes(raw)
+
+    def serializer(self) -> Callable[[Msg], memoryview]:
+        """The function giving rosbags' serialization of a message, as its read-only view.
+
+        Built once per codec from the type's rosbags converter and the
+        dialect's rosbags serializer (CDR for ROS 2, the ROS 1 format); a
+        recorder calls it for every message (B20).
+
+        Raises:
+            KeyError: the typestore lacks the type (a definition that failed to load).
+        """
+        if self._serializer is None:
+            store = self._typestore()
+            to_rosbags = self.mtype.to_rosbags_converter(store)
+            name = self.mtype.rosbags_name
+            ros1 = self.mtype.dialect is Dialect.ROS1
+            write = store.serialize_ros1 if ros1 else store.serialize_cdr
+
+            def serialize(msg: Msg) -> memoryview:
+                return write(to_rosbags(msg), name)  # type: ignore[arg-type]  # read only
+
+            self._serializer = serialize
+        return self._serializer
