@@ -73,14 +73,25 @@ def decode_sample(registry: TypeRegistry, type_name: str, data: bytes) -> dict[s
     return mtype.from_python(obj)
 
 
-def encode_message(registry: TypeRegistry, mtype: MessageType, msg: dict[str, object]) -> bytes:
+def encode_message(
+    registry: TypeRegistry, mtype: MessageType, msg: dict[str, object]
+) -> bytes | bytearray:
     """Serialize a message of any part type (a service's request or response) to CDR.
+
+    Returns:
+        The CDR bytes; a large message's come as rosbags' own fresh buffer (a
+        ``bytearray`` nobody else holds), which Zenoh takes as it takes ``bytes``:
+        copying 1 MB into ``bytes`` first cost as much as serializing it.
 
     Raises:
         WireError: ``registry`` is not ROS 2.
     """
     _ros2(registry)
-    return bytes(registry.codec(mtype).serialize(msg))
+    raw = registry.codec(mtype).serialize(msg)
+    owner = raw.obj if isinstance(raw, memoryview) else None
+    if isinstance(owner, bytearray) and len(owner) == raw.nbytes:  # type: ignore[union-attr]
+        return owner
+    return bytes(raw)
 
 
 def decode_message(registry: TypeRegistry, mtype: MessageType, data: bytes) -> dict[str, object]:
