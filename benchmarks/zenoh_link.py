@@ -89,15 +89,19 @@ async def _receiver(endpoint: str, size: int, count: int) -> None:
     from rwt_zenoh.link import open_link  # noqa: PLC0415
 
     graph = Graph()
-    got: list[float] = [0, 0.0]
+    got: list[float] = [0, 0.0, 0.0, 0.0]  # count, last wall time, CPU at first and last
+
     probed = asyncio.Event()
 
     def on_message(msg: dict[str, object]) -> None:
         if _probe(msg):
             probed.set()
             return
+        if not got[0]:
+            got[2] = time.process_time()
         got[0] += 1
         got[1] = time.time()
+        got[3] = time.process_time()
 
     async with open_link(graph, _options(endpoint, None)):
         graph.create_subscription("/tp", on_message, SIZES[size][0], node="/counter")
@@ -110,7 +114,8 @@ async def _receiver(endpoint: str, size: int, count: int) -> None:
             if got[0] == last:
                 break
             last = got[0]
-        print(got[1], int(got[0]), flush=True)
+        cpu_us = (got[3] - got[2]) / max(got[0] - 1, 1) * 1e6  # all threads of B
+        print(got[1], int(got[0]), cpu_us, flush=True)
 
 
 async def _sender(endpoint: str, size: int, count: int) -> None:
@@ -136,11 +141,12 @@ async def _sender(endpoint: str, size: int, count: int) -> None:
         await asyncio.sleep(0.2)  # the last probes are through
         msg = message(size)
         print(time.time(), flush=True)
+        cpu = time.process_time()
         for number in range(count):
             pub.publish(msg)
             if number % 64 == 63:
                 await asyncio.sleep(0)  # the link's other work (tokens, sweeps) runs
-        print("sent", flush=True)
+        print((time.process_time() - cpu) / count * 1e6, flush=True)  # all threads of A
         sys.stdin.readline()  # until the parent has B's figures
 
 
@@ -168,7 +174,7 @@ while got[0] < count:
     if got[0] == last:
         break
     last = got[0]
-print(got[1], got[0], flush=True)
+print(got[1], got[0], 0, flush=True)
 s.close()
 """
 
@@ -191,7 +197,7 @@ payload = b"z" * size
 print(time.time(), flush=True)
 for _ in range(count):
     pub.put(payload)
-print("sent", flush=True)
+print(0, flush=True)
 sys.stdin.readline()
 s.close()
 """
@@ -210,20 +216,28 @@ async def _line(proc: asyncio.subprocess.Process) -> str:
 
 
 async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str, float]:
-    """One transfer of ``count`` messages A->B; ``kind`` is ``link`` or ``bare``.
+    """One transfer of ``count`` messages A->B.
+
+    ``kind``: ``link``; ``link-general``, the link with ``RWT_NO_SHORTCUTS=zenoh-sample-batch``
+    (what that shortcut buys, measured in the same run); ``bare``, plain Zenoh.
 
     Returns:
-        ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``.
+        ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``; for
+        the link, ``sender_cpu_us`` and ``receiver_cpu_us``: each process's CPU
+        time (all its threads) per message while it sent or received (0 for bare).
     """
     payload = cdr_size(size)
-    if kind == "link":
+    env = _env()
+    if kind == "link-general":  # the link without its zenoh-sample-batch shortcut
+        env["RWT_NO_SHORTCUTS"] = "zenoh-sample-batch"
+    if kind.startswith("link"):
         role = [sys.executable, "-m", "benchmarks.zenoh_link"]
         sub_cmd = [*role, "receive", endpoint, str(size), str(count)]
         pub_cmd = [*role, "send", endpoint, str(size), str(count)]
     else:
         sub_cmd = [sys.executable, "-c", BARE_SUB, endpoint, str(count)]
         pub_cmd = [sys.executable, "-c", BARE_PUB, endpoint, str(count), str(payload)]
-    pipes: dict[str, Any] = {"stdout": subprocess.PIPE, "stdin": subprocess.PIPE, "env": _env()}
+    pipes: dict[str, Any] = {"stdout": subprocess.PIPE, "stdin": subprocess.PIPE, "env": env}
     procs: list[asyncio.subprocess.Process] = []
     try:
         sub = await asyncio.create_subprocess_exec(*sub_cmd, **pipes)
@@ -236,10 +250,18 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
         pub.stdin.write(b"go\n")
         await pub.stdin.drain()
         start = float(await _line(pub))
-        end, got = (await _line(sub)).split()
+        sender_cpu = float(await _line(pub))
+        end, got, receiver_cpu = (await _line(sub)).split()
         elapsed = max(float(end) - start, 1e-9)
         rate = int(got) / elapsed
-        return {"msg_per_s": rate, "mb_per_s": rate * payload / 1e6, "got": int(got), "sent": count}
+        return {
+            "msg_per_s": rate,
+            "mb_per_s": rate * payload / 1e6,
+            "got": int(got),
+            "sent": count,
+            "sender_cpu_us": sender_cpu,
+            "receiver_cpu_us": float(receiver_cpu),
+        }
     finally:
         for proc in procs:
             with contextlib.suppress(ProcessLookupError):
