@@ -158,15 +158,22 @@ async def fan_out(url: str, subscribers: int, count: int) -> dict[str, float]:
                     last[0] = max(last[0], time.perf_counter())
             return got
 
+        cpu = time.process_time()
         receivers = [asyncio.create_task(drain(ws)) for ws in subs]
         for _ in range(count):
             await pub.send(publish_frame("/fan", data))
         delivered = sum(await asyncio.gather(*receivers))
         elapsed = last[0] - start
+        # The generator's own CPU until the last delivery (the idle wait after it, 3 s
+        # of nothing, costs next to none): near 1.0 means one core is all it had,
+        # and then it, not the server, bounds the figure.
+        generator_cpu = time.process_time() - cpu
         return {
             "deliveries_per_s": delivered / elapsed,
             "delivered": delivered,
             "expected": count * len(subs),
+            "generator_cpu_share": generator_cpu / elapsed,
+            "generator_cpu_us_per_delivery": generator_cpu / max(delivered, 1) * 1e6,
         }
     finally:
         for ws in [*subs, pub]:
@@ -274,6 +281,10 @@ def table(results: dict[str, Any]) -> str:
         f"{two['deliveries_per_s']:,.0f}; {two['delivered']}/{two['expected']} | "
         f"{one['deliveries_per_s']:,.0f}; {one['delivered']}/{one['expected']} | "
         f"{two['deliveries_per_s'] / one['deliveries_per_s']:.2f} | >= 1.6 |",
+        f"| Z2 load generator CPU (one process): share of a core; us/delivery "
+        f"(--workers 2 vs 1) | {two['generator_cpu_share']:.2f}; "
+        f"{two['generator_cpu_us_per_delivery']:.1f} | {one['generator_cpu_share']:.2f}; "
+        f"{one['generator_cpu_us_per_delivery']:.1f} | - | - |",
     ]
     for size in (100, 1_000_000):
         label = "100 B" if size == 100 else "1 MB"
