@@ -63,10 +63,6 @@ The shortcuts (name: what; module; benchmark; general path):
   reader's batch, one write per connection, from a thread-local list
   (``flush_deferred``); ``rwt_transports.pump``; B7 (latency), B2 (fan-out);
   waking the connection's writer task for each output.
-- ``zenoh-sample-batch``: a Zenoh subscriber's samples queued in Zenoh's own
-  channel and taken by the event loop a batch at a time, one thread wake-up per
-  batch; ``rwt_zenoh.feed.SampleFeed``; Z3 (benchmarks/README.md, "Scaling
-  out"); a Python callback per sample (``rwt_zenoh.link.ZenohLink._subscribe``).
 - ``loop-clock``: the pump reads ``loop.time`` itself, the value
   ``anyio.current_time`` returns on asyncio; ``rwt_transports.pump``; B6
   (5 % of the 100 Hz Twist's samples); ``anyio.current_time``.
@@ -179,13 +175,6 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "an idle connection written at the end of the reader's batch (thread-local list)",
         "B7, B2",
         "waking the connection's writer task (ConnectionPump._writer)",
-    ),
-    Shortcut(
-        "zenoh-sample-batch",
-        "rwt_zenoh.feed.SampleFeed",
-        "a Zenoh subscriber's samples queued in Zenoh's channel, taken by the loop in batches",
-        "Z3 (benchmarks/README.md, Scaling out)",
-        "a Python callback per sample handing it to the loop (ZenohLink._subscribe)",
     ),
     Shortcut(
         "loop-clock",

@@ -37,10 +37,8 @@ import zenoh
 from rwt_graph.calls import guarded
 from rwt_graph.nodes import CLIENT_NODE_PREFIX
 from rwt_protocol.errors import RwtError
-from rwt_protocol.shortcuts import enabled
 
 from .config import ZenohOptions, make_config
-from .feed import SampleFeed
 from .link_actions import ActionLink
 from .link_params import ParamLink
 from .link_services import RemoteService, serve_query
@@ -86,7 +84,6 @@ MAX_QUEUED = 100_000
 """Remote samples waiting for the event loop beyond which new ones are dropped."""
 _DRAIN_BATCH = 1000
 _PRIVATE_CACHE = 10_000
-_BATCHED = enabled("zenoh-sample-batch")
 
 _LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=1)
 _VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=10)
@@ -140,7 +137,6 @@ class _Data:
     handle: Any
     latched: Any = None  # the cache-keeping publisher of latched samples
     latched_sent: object = None  # the last latched event put there
-    feed: SampleFeed | None = None  # a subscriber's batches (zenoh-sample-batch)
 
 
 def _full_node(entity: Entity) -> str:
@@ -277,9 +273,6 @@ class ZenohLink:
         for handle in handles:
             if handle is not None:
                 guarded("undeclaring a zenoh entity", handle.undeclare)
-        for data in self._subs.values():
-            if data.feed is not None:
-                data.feed.close()
         self._actions.close()
         self._params.close()
         self._exports.clear()
@@ -504,7 +497,7 @@ class ZenohLink:
                 listening[name] = entry.msgtype.name
         for name, data in list(self._subs.items()):
             if listening.get(name) != data.type_name:
-                self._drop_subscriber(name)
+                guarded("undeclaring a subscriber", self._subs.pop(name).handle.undeclare)
         for name, type_name in listening.items():
             if name not in self._subs:
                 self._subscribe(name, type_name)
@@ -532,12 +525,6 @@ class ZenohLink:
             if owner is not None and not ours(owner):  # published before the link saw it
                 self._put_latched(entry, entry.latched, owner)
 
-    def _drop_subscriber(self, name: str) -> None:
-        data = self._subs.pop(name)
-        guarded("undeclaring a subscriber", data.handle.undeclare)
-        if data.feed is not None:
-            data.feed.close()
-
     def _drop_publisher(self, name: str) -> None:
         data = self._pubs.pop(name)
         for handle in (data.handle, data.latched):
@@ -554,50 +541,25 @@ class ZenohLink:
             logger.debug("zenoh link: not subscribing to %s: %s", name, exc)
             return
 
-        history = zenoh.ext.HistoryConfig(detect_late_publishers=True)
-        feed = None
-        handle: Any
-        if _BATCHED:
-            handle = zenoh.ext.declare_advanced_subscriber(
-                self.session,
-                key,
-                zenoh.handlers.RingChannel(MAX_QUEUED),
-                allowed_origin=zenoh.Locality.REMOTE,
-                history=history,
+        def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
+            attachment = sample.attachment
+            self._soon(
+                self._on_sample,
+                name,
+                type_name,
+                sample.payload.to_bytes(),
+                None if attachment is None else attachment.to_bytes(),
+                sample=True,
             )
 
-            def on_batched(sample: zenoh.Sample) -> None:  # the loop
-                self._guarded(self._on_zenoh_sample, name, type_name, sample)
-
-            feed = SampleFeed(handle.handler, on_batched, self._soon)
-        else:
-
-            def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
-                attachment = sample.attachment
-                self._soon(
-                    self._on_sample,
-                    name,
-                    type_name,
-                    sample.payload.to_bytes(),
-                    None if attachment is None else attachment.to_bytes(),
-                    sample=True,
-                )
-
-            handle = zenoh.ext.declare_advanced_subscriber(
-                self.session,
-                key,
-                on_sample,
-                allowed_origin=zenoh.Locality.REMOTE,
-                history=history,
-            )
-        self._subs[name] = _Data(type_name, key, handle, feed=feed)
-
-    def _on_zenoh_sample(self, topic: str, type_name: str, sample: zenoh.Sample) -> None:
-        attachment = sample.attachment
-        payload = sample.payload.to_bytes()
-        self._on_sample(
-            topic, type_name, payload, None if attachment is None else attachment.to_bytes()
+        handle = zenoh.ext.declare_advanced_subscriber(
+            self.session,
+            key,
+            on_sample,
+            allowed_origin=zenoh.Locality.REMOTE,
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
         )
+        self._subs[name] = _Data(type_name, key, handle)
 
     def _publisher(self, entry: GraphTopic) -> _Data:
         data = self._pubs.get(entry.name)

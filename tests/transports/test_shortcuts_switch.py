@@ -30,9 +30,7 @@ from rwt_transports.pump import ConnectionPump
 from rwt_transports.websocket import WebSocketChannel, WebSocketOptions
 
 REPO = Path(__file__).resolve().parents[2]
-# The Zenoh link's shortcut is not on a server's way without --zenoh: tests/zenoh
-# checks it against its general path (test_link_embedded.py).
-SWITCHABLE = {s.name for s in SHORTCUTS if not s.module.startswith("rwt_zenoh.")}
+SWITCHABLE = {s.name for s in SHORTCUTS}
 
 
 def probe(value: str | None) -> dict[str, Any]:

@@ -30,8 +30,6 @@ from rwt_protocol.errors import FieldError, RwtError
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_transports.server import spawner_for
-from rwt_zenoh import link as link_module
-from rwt_zenoh.feed import BATCH
 from rwt_zenoh.link import ZenohLink, open_link
 
 from .support import endpoint, peer
@@ -279,26 +277,3 @@ async def test_graphs_of_another_domain_stay_apart() -> None:
         assert "/in_domain_0" not in topics(other, EVERYTHING)[0]
         assert "/in_domain_7" not in topics(a, EVERYTHING)[0]
         assert "/in_domain_7" not in topics(same, EVERYTHING)[0]
-
-
-@pytest.mark.parametrize("batched", [True, False], ids=["zenoh-sample-batch", "per-sample"])
-async def test_a_flood_arrives_whole_and_in_order_both_ways_of_receiving(
-    batched: bool, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """More samples than one batch of the feed: every one, in order, with or without it."""
-    monkeypatch.setattr(link_module, "_BATCHED", batched)
-    count = 3 * BATCH + 7
-    async with linked(2) as [(a, _), (b, link_b)]:
-        got: list[dict[str, object]] = []
-        b.create_subscription("/flood", got.append, "std_msgs/msg/Int32", node="/listener")
-        pub = a.create_publisher("/flood", "std_msgs/msg/Int32", node="/talker")
-        await until(lambda: "/listener" in subscribers(a, EVERYTHING, "/flood"), "subscriber")
-        await until(lambda: "/talker" in publishers(b, EVERYTHING, "/flood"), "publisher")
-        data = link_b._subs["/flood"]
-        assert (data.feed is not None) is batched
-        pub.publish({"data": -1})  # the route is up once B gets one
-        await until(lambda: len(got) == 1, "first delivery")
-        for number in range(count):
-            pub.publish({"data": number})
-        await until(lambda: len(got) == count + 1, "every message")
-        assert [msg["data"] for msg in got[1:]] == list(range(count))
