@@ -218,11 +218,10 @@ async def link_level(size: int, count: int, rounds: int) -> dict[str, Any]:
     """Z3 at the link (``zenoh_link``): graph A -> graph B against bare Zenoh, interleaved.
 
     Returns:
-        ``link``, ``link-general`` (its ``zenoh-sample-batch`` shortcut off) and
-        ``bare``: the round with the median rate of each, and every round's rate
-        under ``rounds``.
+        ``link`` and ``bare``: the round with the median rate of each, and every
+        round's rate under ``rounds``.
     """
-    runs: dict[str, list[dict[str, float]]] = {"link": [], "link-general": [], "bare": []}
+    runs: dict[str, list[dict[str, float]]] = {"link": [], "bare": []}
     for _ in range(rounds):
         for kind, done in runs.items():
             done.append(await run_pair(kind, size, count, f"tcp/127.0.0.1:{_free_port()}"))
@@ -256,7 +255,6 @@ async def measure(quick: bool) -> dict[str, Any]:
     ):
         pair = await link_level(size, count, 1 if quick else 3)
         results[f"Z3 link {size} B"] = pair["link"]
-        results[f"Z3 link, shortcut off, {size} B"] = pair["link-general"]
         results[f"Z3 bare zenoh {size} B"] = pair["bare"]
     count = max(20, int(300 * scale))
     async with server() as single:
@@ -295,17 +293,9 @@ def table(results: dict[str, Any]) -> str:
             f"{ref['msg_per_s']:,.0f} ({ref['mb_per_s']:.1f}); {ref['got']}/{ref['sent']} | "
             f"{link['msg_per_s'] / ref['msg_per_s']:.2f} | >= 0.7 |"
         )
-        general = results[f"Z3 link, shortcut off, {size} B"]
         rows.append(
-            f"| Z3 link {label}: CPU us/msg of A; of B (zenoh-sample-batch on vs off) | "
-            f"{link['sender_cpu_us']:,.0f}; {link['receiver_cpu_us']:,.0f} | "
-            f"{general['sender_cpu_us']:,.0f}; {general['receiver_cpu_us']:,.0f} | "
-            f"{link['receiver_cpu_us'] / general['receiver_cpu_us']:.2f} (B) | - |"
-        )
-        rows.append(
-            f"| Z3 link {label}, msg/s (zenoh-sample-batch on vs off) | "
-            f"{link['msg_per_s']:,.0f} | {general['msg_per_s']:,.0f} | "
-            f"{link['msg_per_s'] / general['msg_per_s']:.2f} | - |"
+            f"| Z3 link {label}: CPU us/msg of A; of B (all threads) | "
+            f"{link['sender_cpu_us']:,.0f}; {link['receiver_cpu_us']:,.0f} | - | - | - |"
         )
     for size in (100, 1_000_000):
         label = "100 B" if size == 100 else "1 MB"

@@ -218,8 +218,7 @@ async def _line(proc: asyncio.subprocess.Process) -> str:
 async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str, float]:
     """One transfer of ``count`` messages A->B.
 
-    ``kind``: ``link``; ``link-general``, the link with ``RWT_NO_SHORTCUTS=zenoh-sample-batch``
-    (what that shortcut buys, measured in the same run); ``bare``, plain Zenoh.
+    ``kind``: ``link`` (two graphs with their links) or ``bare`` (plain Zenoh).
 
     Returns:
         ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``; for
@@ -228,9 +227,7 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
     """
     payload = cdr_size(size)
     env = _env()
-    if kind == "link-general":  # the link without its zenoh-sample-batch shortcut
-        env["RWT_NO_SHORTCUTS"] = "zenoh-sample-batch"
-    if kind.startswith("link"):
+    if kind == "link":
         role = [sys.executable, "-m", "benchmarks.zenoh_link"]
         sub_cmd = [*role, "receive", endpoint, str(size), str(count)]
         pub_cmd = [*role, "send", endpoint, str(size), str(count)]
