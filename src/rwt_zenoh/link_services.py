@@ -3,7 +3,8 @@
 ``serve_query`` runs a remote caller's request through the graph (so a local
 provider, client or in-process, answers it); ``RemoteService`` is the graph's
 provider of a service of another process, each call a Zenoh query matching the
-service's key with a wildcard hash (``payload.service_hash``).
+service's key with a wildcard in place of the type hash, which providers'
+keys carry (``payload.service_hash``), so another distribution's hash still matches.
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ class RemoteService:
         except (RwtError, WireError) as exc:
             self._respond(remote, service, request_id, False, str(exc))
             return
-        # the hash is matched by a wildcard: see payload.service_hash
+        # the hash is matched by a wildcard: see the module text
         key = topic_keyexpr(self._link.domain_id, service, topic.dds_type, "*")
 
         def answer(ok: bool, value: object) -> None:

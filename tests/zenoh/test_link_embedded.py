@@ -277,3 +277,22 @@ async def test_graphs_of_another_domain_stay_apart() -> None:
         assert "/in_domain_0" not in topics(other, EVERYTHING)[0]
         assert "/in_domain_7" not in topics(a, EVERYTHING)[0]
         assert "/in_domain_7" not in topics(same, EVERYTHING)[0]
+
+
+async def test_a_flood_arrives_whole_and_in_order() -> None:
+    """More samples than the link hands the graph in one turn: every one, in order."""
+    count = 1200
+    async with linked(2) as [(a, _), (b, _)]:
+        got: list[dict[str, object]] = []
+        b.create_subscription("/flood", got.append, "std_msgs/msg/Int32", node="/listener")
+        pub = a.create_publisher("/flood", "std_msgs/msg/Int32", node="/talker")
+        await until(lambda: "/listener" in subscribers(a, EVERYTHING, "/flood"), "subscriber")
+        await until(lambda: "/talker" in publishers(b, EVERYTHING, "/flood"), "publisher")
+        pub.publish({"data": -1})  # the route is up once B gets one
+        await until(lambda: len(got) == 1, "first delivery")
+        for number in range(count):
+            pub.publish({"data": number})
+            if number % 100 == 99:
+                await anyio.sleep(0.005)  # bursts, so Zenoh's congestion control keeps all
+        await until(lambda: len(got) == count + 1, "every message")
+        assert [msg["data"] for msg in got[1:]] == list(range(count))
