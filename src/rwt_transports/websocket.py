@@ -377,12 +377,27 @@ async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> tuple[Requ
                 return None
             received += data
             protocol.receive_data(data)
+            if protocol.handshake_exc is not None:  # not HTTP, not GET, too long, ...
+                await _refuse_malformed(stream, protocol)
+                return None
             for event in protocol.events_received():
                 if isinstance(event, Request):
                     return event, received.find(b"\r\n\r\n") + 4 == len(received)
             if protocol.state is not State.CONNECTING:
                 return None
     return None
+
+
+async def _refuse_malformed(stream: ByteStream, protocol: ServerProtocol) -> None:
+    """Answer a request websockets cannot parse with a 400 that says why.
+
+    The peer hears at once instead of waiting for the handshake timeout; the
+    caller closes the stream.
+    """
+    reason = str(protocol.handshake_exc) or "malformed HTTP request"
+    response = protocol.reject(400, f"{reason}\n")
+    with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+        await stream.send(response.serialize())
 
 
 def _refusal(request: Request, options: WebSocketOptions) -> tuple[int, str] | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import socket
@@ -125,3 +126,32 @@ async def test_clients_that_answer_pings_stay_connected() -> None:
                     await ws.send(json.dumps({"op": "set_level", "level": "info", "id": i}))
                     assert json.loads(await ws.recv())["id"] == i
                     await anyio.sleep(0.05)
+
+
+@pytest.mark.parametrize(
+    ("request_bytes", "reason"),
+    [
+        (b"GARBAGE\r\n\r\n", b"did not receive a valid HTTP request"),
+        (b"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\n\r\nhi", b"valid HTTP request"),
+        (b"GET /\xed\xa0\x80 HTTP/1.1\r\nHost: x\r\n\r\n", b"valid HTTP request"),
+        (b"GET /" + b"a" * 100_000 + b" HTTP/1.1\r\nHost: x\r\n\r\n", b"expected no more than"),
+    ],
+    ids=["not-http", "post", "not-utf8-path", "huge-path"],
+)
+async def test_a_request_that_is_not_a_handshake_is_answered_400_at_once(
+    request_bytes: bytes, reason: bytes
+) -> None:
+    """Not left waiting for the handshake timeout (10 s here): a 400 that says why."""
+    async with running_server(ServerConfig(handshake_timeout_s=10)) as harness:
+        with anyio.fail_after(5):
+            async with await anyio.connect_tcp("127.0.0.1", harness.port("websocket")) as peer:
+                await peer.send(request_bytes)
+                answer = b""
+                with contextlib.suppress(anyio.EndOfStream, anyio.BrokenResourceError):
+                    while True:
+                        answer += await peer.receive()
+        assert answer.startswith(b"HTTP/1.1 400 ")
+        assert reason in answer
+        ws = await harness.connect("ws")  # and the server serves the next client
+        await ws.send({"op": "call_service", "service": "/rosapi/topics", "id": "after"})
+        assert (await ws.expect(lambda m: m.get("id") == "after"))["result"] is True
