@@ -339,6 +339,33 @@ class ZenohLink:
         """A new entity id in this session."""
         return next(self._ids)
 
+    def declare_service(
+        self, node: str, topic: Topic, on_query: Callable[[zenoh.Query], None]
+    ) -> list[Any]:
+        """Offer a service of ``node`` on Zenoh: its liveliness token and its queryable.
+
+        ``on_query`` runs on a Zenoh thread (hand the query to ``soon``); queries of
+        this session itself are not routed to it. Returns the two handles to
+        undeclare, queryable first.
+        """
+        owner = self._node_entity(node)
+        entity = Entity(
+            self.domain_id,
+            self.zid,
+            owner.nid,
+            next(self._ids),
+            EntityKind.SERVICE,
+            owner.namespace,
+            owner.node,
+            topic=topic,
+        )
+        token = self.session.liveliness().declare_token(entity.token())
+        keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
+        queryable = self.session.declare_queryable(
+            keyexpr, on_query, allowed_origin=zenoh.Locality.REMOTE
+        )
+        return [queryable, token]
+
     def soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
         """Run ``callback(*args)`` in the link's task (from a Zenoh thread); see ``_soon``."""
         self._soon(callback, *args, sample=sample)

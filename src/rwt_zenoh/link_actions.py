@@ -37,7 +37,7 @@ from .actions import (
     action_of,
 )
 from .payload import decode_message, encode_message
-from .wire import Entity, EntityKind, Topic, WireError, topic_keyexpr
+from .wire import Topic, WireError, topic_keyexpr
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -72,8 +72,7 @@ class _Offer:
     """A local action server as the network sees it."""
 
     owner: ClientId
-    tokens: list[Any]
-    queryables: list[Any]
+    handles: list[Any]  # each service's queryable and liveliness token
 
 
 class _RemoteAction:
@@ -152,33 +151,15 @@ class ActionLink:
     def _offer(self, name: str, owner: ClientId, type_name: str) -> None:
         link = self.link
         wire = self.wire(type_name)
-        node = link.node_entity(link.graph.nodes.name_of(owner))
-        tokens, queryables = [], []
+        node = link.graph.nodes.name_of(owner)
+        handles: list[Any] = []
         for suffix, part, handler in (
             (SEND_GOAL_SUFFIX, "SendGoal", self._on_send_goal),
             (GET_RESULT_SUFFIX, "GetResult", self._on_get_result),
         ):
-            hash_text = self._hash(wire, part)
-            topic = Topic(name + suffix, wire.dds_type(part), hash_text)
-            entity = Entity(
-                link.domain_id,
-                link.zid,
-                node.nid,
-                link.next_id(),
-                EntityKind.SERVICE,
-                node.namespace,
-                node.node,
-                topic=topic,
-            )
-            tokens.append(link.session.liveliness().declare_token(entity.token()))
-            queryables.append(
-                link.session.declare_queryable(
-                    self._key(name + suffix, wire, part, hash_text),
-                    self._on_query_thread(handler, name, wire),
-                    allowed_origin=zenoh.Locality.REMOTE,
-                )
-            )
-        self._offers[name] = _Offer(owner, tokens, queryables)
+            topic = Topic(name + suffix, wire.dds_type(part), self._hash(wire, part))
+            handles += link.declare_service(node, topic, self._on_query_thread(handler, name, wire))
+        self._offers[name] = _Offer(owner, handles)
 
     def _on_query_thread(
         self, handler: Callable[[str, ActionWire, zenoh.Query], None], name: str, wire: ActionWire
@@ -190,7 +171,7 @@ class ActionLink:
 
     def _withdraw(self, name: str) -> None:
         offer = self._offers.pop(name)
-        for handle in [*offer.queryables, *offer.tokens]:
+        for handle in offer.handles:
             guarded("undeclaring an action's entity", handle.undeclare)
         publisher = self._feedback_pubs.pop(name, None)
         if publisher is not None:

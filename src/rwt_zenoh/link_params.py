@@ -20,17 +20,17 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-import zenoh
 from rwt_graph.calls import guarded
 from rwt_graph.params import ParameterError
 from rwt_protocol.errors import RwtError
 
 from .payload import decode_message, encode_message, service_hash
-from .wire import Entity, EntityKind, Topic, WireError, dds_type_name, topic_keyexpr
+from .wire import Topic, WireError, dds_type_name, topic_keyexpr
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    import zenoh
     from rwt_graph.params import ParamValue
 
     from .link import ZenohLink, _Remote
@@ -157,30 +157,11 @@ class ParamLink:
 
     def _offer(self, node: str) -> None:
         link = self.link
-        entity_node = link.node_entity(node)
         handles: list[Any] = []
         for part, srvtype in self._types.items():
-            name = f"{node}/{part}"
             hash_text = service_hash(link.graph.registry, srvtype)
-            topic = Topic(name, dds_type_name(srvtype.name), hash_text)
-            entity = Entity(
-                link.domain_id,
-                link.zid,
-                entity_node.nid,
-                link.next_id(),
-                EntityKind.SERVICE,
-                entity_node.namespace,
-                entity_node.node,
-                topic=topic,
-            )
-            handles.append(link.session.liveliness().declare_token(entity.token()))
-            handles.append(
-                link.session.declare_queryable(
-                    topic_keyexpr(link.domain_id, name, topic.dds_type, hash_text),
-                    self._on_query_thread(node, part),
-                    allowed_origin=zenoh.Locality.REMOTE,
-                )
-            )
+            topic = Topic(f"{node}/{part}", dds_type_name(srvtype.name), hash_text)
+            handles += link.declare_service(node, topic, self._on_query_thread(node, part))
         self._offers[node] = handles
 
     def _on_query_thread(self, node: str, part: str) -> Callable[[zenoh.Query], None]:
