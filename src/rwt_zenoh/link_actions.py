@@ -36,7 +36,7 @@ from .actions import (
     ActionWire,
     action_of,
 )
-from .payload import decode_message, encode_message
+from .payload import decode_message, encode_message, message_hash, named_service_hash
 from .wire import Topic, WireError, topic_keyexpr
 
 if TYPE_CHECKING:
@@ -123,9 +123,11 @@ class ActionLink:
         return topic_keyexpr(self.link.domain_id, name, wire.dds_type(part), hash_text)
 
     def _hash(self, wire: ActionWire, part: str) -> str:
-        name = f"{wire.actiontype.name}_{part}"
-        name = f"{name}_Request" if part in ("SendGoal", "GetResult") else name
-        return str(self.link.graph.registry.typestore().hash_rihs01(name))
+        """The RIHS01 of an action's part: its two services' hash, its feedback message's."""
+        name, registry = f"{wire.actiontype.name}_{part}", self.link.graph.registry
+        if part in ("SendGoal", "GetResult"):
+            return named_service_hash(registry, name)
+        return message_hash(registry, name)
 
     # ---- provider side ------------------------------------------------------------
 

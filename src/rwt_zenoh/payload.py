@@ -28,6 +28,8 @@ __all__ = [
     "decode_sample",
     "encode_message",
     "encode_sample",
+    "message_hash",
+    "named_service_hash",
     "service_hash",
     "type_hash",
 ]
@@ -39,15 +41,18 @@ def _ros2(registry: TypeRegistry) -> None:
 
 
 def type_hash(registry: TypeRegistry, type_name: str) -> str:
-    """The RIHS01 hash of a message type, as keys and tokens carry it.
+    """The RIHS01 hash of a message type, as rosidl computes it and keys and tokens carry.
+
+    A ``char`` field counts as ``uint8``, as rosidl reads it from a ``.msg``
+    file (checked against rosidl's generated hash of ``std_msgs/msg/Char``,
+    tests/zenoh/test_payload.py); rosbags alone would hash it as ``char``.
 
     Raises:
         WireError: ``registry`` is not ROS 2.
         UnknownTypeError, InvalidTypeNameError: the type is not known.
     """
     _ros2(registry)
-    mtype = registry.message(type_name)
-    return str(registry.typestore().hash_rihs01(mtype.rosbags_name))
+    return message_hash(registry, registry.message(type_name).rosbags_name)
 
 
 def encode_sample(registry: TypeRegistry, type_name: str, msg: dict[str, object]) -> bytes:
@@ -117,24 +122,40 @@ def decode_message(registry: TypeRegistry, mtype: MessageType, data: bytes) -> d
 def service_hash(registry: TypeRegistry, srvtype: ServiceType) -> str:
     """The RIHS01 type hash of a service, as rosidl computes it and its keys carry.
 
+    See ``named_service_hash``, which this applies to the service's name (checked
+    against the hash rosidl generated for ``std_srvs/srv/SetBool`` and the one
+    rmw_zenoh's design document shows for ``example_interfaces/srv/AddTwoInts``,
+    tests/zenoh/test_payload.py).
+
+    Raises:
+        WireError: ``registry`` is not ROS 2.
+        KeyError: the typestore lacks a part of the service.
+    """
+    return named_service_hash(registry, srvtype.request.rosbags_name.removesuffix("_Request"))
+
+
+def named_service_hash(registry: TypeRegistry, name: str) -> str:
+    """The RIHS01 hash of the service ``name``, its parts in the registry's type store.
+
+    ``name`` is ``pkg/srv/Name``, or an action's ``pkg/action/Name_SendGoal`` or
+    ``pkg/action/Name_GetResult``; the parts are ``<name>_Request`` and
+    ``<name>_Response``.
+
     rosidl hashes a service as one type description: a structure named after
-    the service (``pkg/srv/Name``) with the fields ``request_message``,
-    ``response_message`` and ``event_message``, the event message
-    (``pkg/srv/Name_Event``) holding ``service_msgs/msg/ServiceEventInfo info``,
-    ``Name_Request[<=1] request`` and ``Name_Response[<=1] response``. rosbags'
-    own RIHS01 (``Typestore.hash_rihs01``) hashes that description here, given
-    the two made-up structures beside the store's; a ``char`` field counts as
-    ``uint8``, as rosidl reads it from a ``.msg`` file (checked against the hash
-    rosidl generated for ``std_srvs/srv/SetBool``, tests/zenoh/test_payload.py).
+    the service with the fields ``request_message``, ``response_message`` and
+    ``event_message``, the event message (``<name>_Event``) holding
+    ``service_msgs/msg/ServiceEventInfo info``, ``<name>_Request[<=1] request``
+    and ``<name>_Response[<=1] response``; an action's two services are hashed
+    the same way. rosbags' own RIHS01 (``Typestore.hash_rihs01``) hashes that
+    description here, given the two made-up structures beside the store's; a
+    ``char`` field counts as ``uint8``, as in ``type_hash``.
 
     Raises:
         WireError: ``registry`` is not ROS 2.
         KeyError: the typestore lacks a part of the service.
     """
     _ros2(registry)
-    request, response = srvtype.request.rosbags_name, srvtype.response.rosbags_name
-    name = request.removesuffix("_Request")
-    event = f"{name}_Event"
+    request, response, event = f"{name}_Request", f"{name}_Response", f"{name}_Event"
     made_up: dict[str, Any] = {
         name: (
             [],
@@ -153,6 +174,24 @@ def service_hash(registry: TypeRegistry, srvtype: ServiceType) -> str:
             ],
         ),
     }
+    return _rihs01(registry, name, made_up)
+
+
+def message_hash(registry: TypeRegistry, name: str) -> str:
+    """The RIHS01 hash of a structure in the registry's type store, as ``type_hash`` computes it.
+
+    ``name`` is rosbags' name of it, such as an action's ``pkg/action/Name_FeedbackMessage``.
+
+    Raises:
+        WireError: ``registry`` is not ROS 2.
+        KeyError: the typestore lacks the structure.
+    """
+    _ros2(registry)
+    return _rihs01(registry, name, {})
+
+
+def _rihs01(registry: TypeRegistry, name: str, made_up: dict[str, Any]) -> str:
+    """The RIHS01 of ``name`` over the store plus ``made_up``, as rosidl reads types."""
     definitions = _RosidlDefinitions(made_up, registry.typestore().fielddefs)
     # hash_rihs01 reads nothing of its store but ``fielddefs``: a view stands in for it
     view = cast("Typestore", SimpleNamespace(fielddefs=definitions))

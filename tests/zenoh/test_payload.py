@@ -7,7 +7,15 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_zenoh.payload import decode_sample, encode_sample, service_hash, type_hash
+from rwt_zenoh.actions import ActionWire
+from rwt_zenoh.payload import (
+    decode_sample,
+    encode_sample,
+    message_hash,
+    named_service_hash,
+    service_hash,
+    type_hash,
+)
 from rwt_zenoh.wire import WireError
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
@@ -49,6 +57,17 @@ def test_type_hashes_are_rihs01() -> None:
     assert type_hash(REGISTRY, "std_msgs/String").startswith("RIHS01_")
 
 
+# rosidl's hash of std_msgs/msg/Char ("char data"), from the C code rosidl_generator_c
+# generated for it (char__description.c: std_msgs__msg__Char__get_type_hash), whose
+# type description gives the field FIELD_TYPE_UINT8: rosidl reads a .msg char as uint8.
+CHAR_HASH = "RIHS01_3ad2d04dd29ba19d04b16659afa3ccaedd691914b02a64e82e252f2fa6a586a9"
+
+
+def test_a_char_field_hashes_as_rosidls_uint8() -> None:
+    assert type_hash(REGISTRY, "std_msgs/msg/Char") == CHAR_HASH
+    assert JAZZY.hash_rihs01("std_msgs/msg/Char") != CHAR_HASH  # rosbags alone keeps char
+
+
 def test_garbage_bytes_are_a_wire_error() -> None:
     with pytest.raises(WireError):
         decode_sample(REGISTRY, "sensor_msgs/msg/LaserScan", b"\x00\x01\x00\x00\xff")
@@ -73,6 +92,36 @@ def test_a_service_hash_is_rosidls_hash_of_the_service() -> None:
     assert service_hash(REGISTRY, srvtype) == SET_BOOL_HASH
     # not the request's hash, which keys carried before
     assert type_hash(REGISTRY, "std_srvs/srv/SetBool_Request") == SET_BOOL_REQUEST_HASH
+
+
+# The key of the add_two_ints service (example_interfaces/srv/AddTwoInts) in
+# rmw_zenoh's docs/design.md, "Topic and Service name mapping to Zenoh key expressions".
+ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
+
+
+def test_a_service_hash_is_the_one_rmw_zenoh_shows() -> None:
+    srvtype = REGISTRY.service("example_interfaces/srv/AddTwoInts")
+    assert service_hash(REGISTRY, srvtype) == ADD_TWO_INTS_HASH
+
+
+# rosidl's hashes of example_interfaces/action/Fibonacci's parts, from the C header
+# rosidl_generator_c generated for it (fibonacci__struct.h, Jazzy's "Type Hash for
+# interface" form: example_interfaces__action__Fibonacci_SendGoal__TYPE_HASH and its
+# GetResult and FeedbackMessage twins). rmw_zenoh keys an action's two services by
+# the service's hash (rmw_service_data.cpp: type_support->get_type_hash_func).
+FIBONACCI = {
+    "SendGoal": "RIHS01_d1a57fb2a4afe8c21e34fb10db206f16ce6729b28531141472df92277c55b557",
+    "GetResult": "RIHS01_1b0de0d5d29dc955d92f546706568428632771db13ec84c15ec1c1a59f424a57",
+    "FeedbackMessage": "RIHS01_c1de71afd52e49a89c53d8262366884185bc0a02f78ce051c4e46b0a7fe59bb2",
+}
+
+
+def test_an_actions_parts_hash_as_rosidl_hashes_them() -> None:
+    ActionWire(REGISTRY, REGISTRY.action("example_interfaces/action/Fibonacci"))  # its parts
+    base = "example_interfaces/action/Fibonacci"
+    assert named_service_hash(REGISTRY, f"{base}_SendGoal") == FIBONACCI["SendGoal"]
+    assert named_service_hash(REGISTRY, f"{base}_GetResult") == FIBONACCI["GetResult"]
+    assert message_hash(REGISTRY, f"{base}_FeedbackMessage") == FIBONACCI["FeedbackMessage"]
 
 
 def test_a_service_hash_depends_on_both_parts() -> None:
