@@ -11,7 +11,13 @@ embedding program uses it (``open_link``, docs/zenoh.md):
   link decodes each sample and publishes it in B's graph).
 
 The reference is a bare Zenoh publisher and subscriber in two processes carrying
-payloads of the same CDR sizes, callbacks that only count. The rate is messages
+payloads of the same CDR sizes, callbacks that only count.
+
+Every process of both pairs keeps 64 MiB of freed heap for the next message
+(``rwt_transports.allocator.tune_allocator``), as ``rwt serve`` does by default
+(``--heap-keep``): with glibc's defaults each 1 MB buffer (the CDR, Zenoh's copy,
+the decoded bytes) is mapped afresh, and a 1 MB message cost each side about
+500 page faults and four times the CPU. The rate is messages
 delivered per second, from A's first publish to B's last delivery (wall clock,
 one machine). Each side is ``python -m benchmarks.zenoh_link ROLE ...``; the
 parent (``run_pair``) starts B, then A, and tells A when B got a probe (Zenoh's
@@ -32,6 +38,8 @@ from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 120.0
+HEAP_KEEP = 64 * 1024 * 1024
+"""Bytes of freed heap each process keeps, ``rwt serve``'s default ``--heap-keep``."""
 IDLE_S = 3.0
 """A receiver that saw nothing for this long has seen all it will (a loss)."""
 
@@ -150,12 +158,14 @@ async def _sender(endpoint: str, size: int, count: int) -> None:
         sys.stdin.readline()  # until the parent has B's figures
 
 
-BARE_SUB = """
+BARE_SUB = f"""
 import sys, time, threading, zenoh
+from rwt_transports.allocator import tune_allocator
+tune_allocator({HEAP_KEEP})
 ep, count = sys.argv[1], int(sys.argv[2])
 c = zenoh.Config()
 c.insert_json5("mode", '"peer"'); c.insert_json5("scouting/multicast/enabled", "false")
-c.insert_json5("listen/endpoints", f'["{ep}"]')
+c.insert_json5("listen/endpoints", f'["{{ep}}"]')
 s = zenoh.open(c)
 got = [0, 0.0]; probed = threading.Event()
 def on(sample):
@@ -178,12 +188,14 @@ print(got[1], got[0], 0, flush=True)
 s.close()
 """
 
-BARE_PUB = """
+BARE_PUB = f"""
 import sys, time, threading, zenoh
+from rwt_transports.allocator import tune_allocator
+tune_allocator({HEAP_KEEP})
 ep, count, size = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 c = zenoh.Config()
 c.insert_json5("mode", '"peer"'); c.insert_json5("scouting/multicast/enabled", "false")
-c.insert_json5("connect/endpoints", f'["{ep}"]')
+c.insert_json5("connect/endpoints", f'["{{ep}}"]')
 s = zenoh.open(c)
 go = threading.Event()
 threading.Thread(target=lambda: (sys.stdin.readline(), go.set()), daemon=True).start()
@@ -268,6 +280,9 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
 
 def main(argv: list[str]) -> int:
     """``receive|send ENDPOINT SIZE COUNT``: one side of a link transfer (for ``run_pair``)."""
+    from rwt_transports.allocator import tune_allocator  # noqa: PLC0415
+
+    tune_allocator(HEAP_KEEP)
     role, endpoint, size, count = argv[0], argv[1], int(argv[2]), int(argv[3])
     side = _receiver if role == "receive" else _sender
     asyncio.run(side(endpoint, size, count))
