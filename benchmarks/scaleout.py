@@ -7,7 +7,10 @@ are what carry over to another machine):
   server A to a subscriber on server B (two ``rwt serve --zenoh`` processes on
   loopback), p50/p99, next to both clients on one server (in-process).
 - Z2 fan-out: 1 publisher and 100 subscribers on the port of ``rwt serve
-  --workers 2``, aggregate deliveries/s, against a plain single ``rwt serve``.
+  --workers 2``, aggregate deliveries/s, against a plain single ``rwt serve``;
+  once with a ``websockets`` generator (one message at a time) and once with the
+  suite's raw-socket generator (``fanout_raw``: a window-paced stream, a few us
+  of generator CPU per delivery).
 - Z3 throughput A->B, 100 B and 1 MB messages, msg/s and MB/s. At the link
   (``zenoh_link``): a graph publishing in process A, a graph subscription counting
   in process B, each graph with its Zenoh link, against a bare Zenoh
@@ -36,6 +39,7 @@ from typing import Any
 
 import websockets
 
+from .fanout_raw import fan_out_raw
 from .zenoh_link import run_pair
 
 REPO = Path(__file__).resolve().parents[1]
@@ -262,6 +266,12 @@ async def measure(quick: bool) -> dict[str, Any]:
     async with server("--workers", "2") as pair:
         await asyncio.sleep(2)  # both workers listening (the first prints the line)
         results["Z2 2 workers"] = await fan_out(pair, 100, count)
+    duration = max(0.5, 3.0 * scale)
+    for label, args in (("1 worker", ()), ("2 workers", ("--workers", "2"))):
+        async with server(*args) as url:
+            await asyncio.sleep(2)
+            port = int(url.rsplit(":", 1)[1].split("/")[0])
+            results[f"Z2 raw {label}"] = await asyncio.to_thread(fan_out_raw, port, 100, duration)
     return results
 
 
@@ -283,6 +293,17 @@ def table(results: dict[str, Any]) -> str:
         f"(--workers 2 vs 1) | {two['generator_cpu_share']:.2f}; "
         f"{two['generator_cpu_us_per_delivery']:.1f} | {one['generator_cpu_share']:.2f}; "
         f"{one['generator_cpu_us_per_delivery']:.1f} | - | - |",
+    ]
+    raw_one, raw_two = results["Z2 raw 1 worker"], results["Z2 raw 2 workers"]
+    rows += [
+        f"| Z2 raw-socket generator: deliveries/s (--workers 2 vs 1); delivered | "
+        f"{raw_two['deliveries_per_s']:,.0f}; {raw_two['delivered']}/{raw_two['expected']} | "
+        f"{raw_one['deliveries_per_s']:,.0f}; {raw_one['delivered']}/{raw_one['expected']} | "
+        f"{raw_two['deliveries_per_s'] / raw_one['deliveries_per_s']:.2f} | >= 1.6 |",
+        f"| Z2 raw-socket generator CPU: share of a core; us/delivery (--workers 2 vs 1) | "
+        f"{raw_two['generator_cpu_share']:.2f}; {raw_two['generator_cpu_us_per_delivery']:.1f} | "
+        f"{raw_one['generator_cpu_share']:.2f}; {raw_one['generator_cpu_us_per_delivery']:.1f} "
+        f"| - | - |",
     ]
     for size in (100, 1_000_000):
         label = "100 B" if size == 100 else "1 MB"
