@@ -20,6 +20,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype, QosDurability
 
 from rwt_graph.types import Dialect
+from rwt_graph.types.wire import wire_input
 from rwt_protocol.errors import GraphError
 
 from .errors import BagError
@@ -176,7 +177,8 @@ class BagSource:
                 raise BagError(f"cannot read {_names(self.paths)}: {_reason(exc)}") from exc
             topic = self.topics[conn.id]
             try:
-                msg = self._convert(topic.mtype, reader.deserialize(raw, conn.msgtype))
+                obj = reader.deserialize(wire_input(raw), conn.msgtype)  # type: ignore[arg-type]
+                msg = self._convert(topic.mtype, obj)
             except Exception as exc:  # a corrupt payload: rosbags raises struct/index errors
                 raise BagError(
                     f"{_names(self.paths)}: a message of {topic.topic} (type {topic.msgtype}) "

@@ -17,6 +17,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from rwt_graph.types import Dialect
+from rwt_graph.types.wire import wire_input
 
 from .wire import WireError
 
@@ -76,12 +77,7 @@ def decode_sample(registry: TypeRegistry, type_name: str, data: bytes) -> dict[s
         UnknownTypeError, InvalidTypeNameError: the type is not known.
     """
     _ros2(registry)
-    mtype = registry.message(type_name)
-    try:
-        obj = registry.typestore().deserialize_cdr(data, mtype.rosbags_name)
-    except Exception as exc:  # rosbags raises assorted errors for malformed bytes
-        raise WireError(f"{type_name}: not a CDR message of this type ({exc})") from None
-    return mtype.from_python(obj)
+    return decode_message(registry, registry.message(type_name), data)
 
 
 def encode_message(
@@ -113,7 +109,7 @@ def decode_message(registry: TypeRegistry, mtype: MessageType, data: bytes) -> d
     """
     _ros2(registry)
     try:
-        obj = registry.typestore().deserialize_cdr(data, mtype.rosbags_name)
+        obj = registry.typestore().deserialize_cdr(wire_input(data), mtype.rosbags_name)
     except Exception as exc:  # rosbags raises assorted errors for malformed bytes
         raise WireError(f"{mtype.name}: not a CDR message of this type ({exc})") from None
     return mtype.from_python(obj)

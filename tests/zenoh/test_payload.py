@@ -131,3 +131,23 @@ def test_a_service_hash_depends_on_both_parts() -> None:
     }
     assert len(hashes) == 3
     assert all(text.startswith("RIHS01_") and len(text) == 71 for text in hashes)
+
+
+def test_a_large_message_comes_back_whole() -> None:
+    # 1 MB: rosbags reads it through a view (rwt_graph.types.wire.wire_input)
+    pixels = bytes(range(256)) * 4096
+    msg = {
+        "header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "cam"},
+        "height": 1024,
+        "width": 1024,
+        "encoding": "mono8",
+        "is_bigendian": 0,
+        "step": 1024,
+        "data": pixels,
+    }
+    data = encode_sample(REGISTRY, "sensor_msgs/msg/Image", msg)
+    back = decode_sample(REGISTRY, "sensor_msgs/msg/Image", data)
+    assert back["data"] == pixels
+    assert isinstance(back["data"], bytes)
+    assert back["header"] == msg["header"]
+    assert (back["height"], back["width"], back["encoding"]) == (1024, 1024, "mono8")

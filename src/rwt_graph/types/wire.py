@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
     from .message import MessageType
 
-__all__ = ["WireCodec", "compile_typed"]
+__all__ = ["WireCodec", "compile_typed", "wire_input"]
 
 Msg = Mapping[str, object]
 _LARGE_VIEW = 64 * 1024
@@ -36,6 +36,17 @@ _LARGE_VIEW = 64 * 1024
 #: memoryview as an array of integers, so without the splicer it gets bytes.
 _KEEP_VIEW = enabled("cbor-splice-encode")
 Typer = Callable[[Msg], Msg]
+
+
+def wire_input(data: bytes) -> bytes | memoryview:
+    """``data`` (a serialized message) as rosbags' deserializers read it fastest.
+
+    rosbags' ``Typestore.deserialize_cdr`` cuts off the 4-byte encapsulation
+    header with a slice, which copies a ``bytes`` object but not a view: for a
+    1 MB image that copy was half of its 120 us decode. A small message decodes a
+    little faster from ``bytes``, so only one of at least 64 KiB becomes a view.
+    """
+    return memoryview(data) if len(data) >= _LARGE_VIEW else data
 
 
 def _element_dtype(ftype: FieldType, dialect: Dialect) -> str | None:
