@@ -19,12 +19,15 @@ import ctypes.util
 import logging
 import sys
 
-__all__ = ["MMAP_THRESHOLD_MAX", "tune_allocator"]
+__all__ = ["HEAP_KEEP_MIB", "MMAP_THRESHOLD_MAX", "tune_allocator"]
 
 logger = logging.getLogger("rwt.allocator")
 
 #: glibc's largest mmap threshold on 64-bit systems (``DEFAULT_MMAP_THRESHOLD_MAX``), bytes.
 MMAP_THRESHOLD_MAX = 32 * 1024 * 1024
+#: MiB of freed heap rwt's own processes keep by default (``rwt serve --heap-keep``,
+#: ``rwt play``, ``rwt record``).
+HEAP_KEEP_MIB = 64
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
 

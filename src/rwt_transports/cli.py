@@ -35,7 +35,7 @@ from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import SessionConfig
 
-from .allocator import tune_allocator
+from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_bag import (
     Check,
     Clock,
@@ -390,7 +390,7 @@ def serve(
             help="MiB of freed heap kept for the next large message (glibc); 0: the "
             "system default, which maps and unmaps every buffer of a large message.",
         ),
-    ] = 64,
+    ] = HEAP_KEEP_MIB,
     handshake_timeout: Annotated[
         float,
         typer.Option(
@@ -663,6 +663,7 @@ def play(
     get_status services control playback. Use 'rwt serve --play' for every
     server option (TCP, video, TLS...) and to keep serving after the end.
     """
+    tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     graph = Graph(TypeRegistry(dialect, interfaces or ()))
     server = RosbridgeServer(graph, ServerConfig(host=host, port=port))
     options = play_options(

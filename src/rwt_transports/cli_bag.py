@@ -19,6 +19,7 @@ from rwt_bag.formats import BagFormat, SplitPolicy
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import parse_glob_list
 
+from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_checks import check_directories, check_glob_list
 
 if TYPE_CHECKING:
@@ -176,6 +177,7 @@ def record(
         _fail("record", f"--compression must be cbor or none, not {compression}")
     from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
 
+    tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     registry = TypeRegistry(dialect, interfaces or ())
     try:
         anyio.run(
