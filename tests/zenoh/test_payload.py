@@ -151,3 +151,13 @@ def test_a_large_message_comes_back_whole() -> None:
     assert isinstance(back["data"], bytes)
     assert back["header"] == msg["header"]
     assert (back["height"], back["width"], back["encoding"]) == (1024, 1024, "mono8")
+
+
+@pytest.mark.parametrize(
+    "body",
+    [b"\xff" * 100_000, (10**9).to_bytes(4, "little") * 30_000, b"\xed\xa0\x80" * 40_000],
+    ids=["ones", "huge-lengths", "surrogate-bytes"],
+)
+def test_large_garbage_read_through_a_view_is_a_wire_error(body: bytes) -> None:
+    with pytest.raises(WireError):
+        decode_sample(REGISTRY, "sensor_msgs/msg/Image", b"\x00\x01\x00\x00" + body)
