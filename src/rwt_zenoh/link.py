@@ -44,7 +44,6 @@ from .link_params import ParamLink
 from .link_services import RemoteService, serve_query
 from .payload import decode_message, encode_message, service_hash, type_hash
 from .wire import (
-    Attachment,
     Durability,
     Entity,
     EntityKind,
@@ -53,7 +52,9 @@ from .wire import (
     WireError,
     attachment_gid,
     dds_type_name,
+    gid_of,
     pack_attachment,
+    reply_attachment,
     ros_type_name,
     topic_keyexpr,
     zid_text,
@@ -198,6 +199,10 @@ class ZenohLink:
         self._relays: dict[str, ClientId] = {}
         self._private_names: dict[str, bool] = {}
         self._caller = f"{PARTICIPANT_PREFIX}caller"
+        # A ROS 2 service keeps requests by client GID and sequence number, and refuses
+        # a second request with both equal (rmw_service_data.cpp ``take_request``): the
+        # calls of each process carry a GID of their own.
+        self.caller_gid = gid_of(f"{self.zid}/caller")
         self._call_ids = itertools.count(1)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: asyncio.Event | None = None
@@ -361,10 +366,29 @@ class ZenohLink:
         )
         token = self.session.liveliness().declare_token(entity.token())
         keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
-        queryable = self.session.declare_queryable(
-            keyexpr, on_query, allowed_origin=zenoh.Locality.REMOTE
-        )
+        queryable = self.declare_queryable(keyexpr, on_query)
         return [queryable, token]
+
+    def declare_queryable(self, keyexpr: str, on_query: Callable[[zenoh.Query], None]) -> Any:
+        """A service's queryable as rmw_zenoh declares one: complete, for others only.
+
+        Complete because a ROS 2 client's query targets complete queryables only
+        (rmw_service_data.cpp ``qable_options.complete``; rmw_client_data.cpp
+        ``send_request``, ``Z_QUERY_TARGET_ALL_COMPLETE``).
+        """
+        return self.session.declare_queryable(
+            keyexpr, on_query, complete=True, allowed_origin=zenoh.Locality.REMOTE
+        )
+
+    def reply(self, query: zenoh.Query, payload: bytes | bytearray) -> None:
+        """Answer ``query`` to one of this process's services with ``payload`` (CDR).
+
+        The reply carries the request's sequence number and client GID
+        (``wire.reply_attachment``), which a ROS 2 client needs to take it.
+        """
+        asked = query.attachment
+        attachment = reply_attachment(None if asked is None else asked.to_bytes(), time.time_ns())
+        query.reply(query.key_expr, payload, attachment=attachment)
 
     def soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
         """Run ``callback(*args)`` in the link's task (from a Zenoh thread); see ``_soon``."""
@@ -403,7 +427,7 @@ class ZenohLink:
             key,
             zenoh.handlers.Callback(on_reply, on_done),
             payload=payload,
-            attachment=Attachment(next(self._call_ids), time.time_ns(), bytes(16)).encode(),
+            attachment=pack_attachment(next(self._call_ids), time.time_ns(), self.caller_gid),
             timeout=timeout_s,
         )
 
@@ -492,10 +516,8 @@ class ZenohLink:
         export = _Export(entity, token, type_name, latched=latched, gid=entity.gid())
         if kind is EntityKind.SERVICE:
             keyexpr = topic_keyexpr(self.domain_id, name, topic.dds_type, topic.type_hash)
-            export.queryable = self.session.declare_queryable(
-                keyexpr,
-                lambda query: self._soon(serve_query, self, export, query),
-                allowed_origin=zenoh.Locality.REMOTE,
+            export.queryable = self.declare_queryable(
+                keyexpr, lambda query: self._soon(serve_query, self, export, query)
             )
         self._exports[key] = export
         return export
@@ -657,10 +679,6 @@ class ZenohLink:
     def cancels_goal(self, service: str, query: zenoh.Query) -> bool:
         """Whether ``query`` to ``service`` canceled a remote caller's goal (it is answered)."""
         return self._actions.try_cancel(service, query)
-
-    def attachment(self, export: _Export) -> bytes:
-        """The next attachment of ``export``'s samples or replies."""
-        return self._attachment(export)
 
     def _attachment(self, export: _Export) -> bytes:
         return pack_attachment(next(export.sequence), time.time_ns(), export.gid)

@@ -185,7 +185,7 @@ class ActionLink:
         try:
             goal_id, goal = wire.read_send_goal(_payload(query))
             if len(self._served) >= MAX_SERVED or goal_id in self._served:
-                query.reply(query.key_expr, wire.accepted(False, link.graph.clock.wall()))
+                link.reply(query, wire.accepted(False, link.graph.clock.wall()))
                 return
             served = self._served[goal_id] = _Served(action, wire)
             served.handle = link.graph.send_action_goal(
@@ -196,7 +196,7 @@ class ActionLink:
                 partial(self._goal_done, goal_id),
                 partial(self._goal_feedback, action, wire, goal_id),
             )
-            query.reply(query.key_expr, wire.accepted(True, link.graph.clock.wall()))
+            link.reply(query, wire.accepted(True, link.graph.clock.wall()))
         except (RwtError, WireError) as exc:
             self._served.pop(goal_id, None)
             query.reply_err(f"action {action} refused the goal: {exc}")
@@ -249,7 +249,7 @@ class ActionLink:
         status, result, values = served.outcome
         try:
             if result and isinstance(values, dict):
-                query.reply(query.key_expr, served.wire.result(int(status), values))
+                self.link.reply(query, served.wire.result(int(status), values))
             else:
                 query.reply_err(str(values))
         finally:
@@ -275,7 +275,7 @@ class ActionLink:
         served.handle.request_cancel()
         response = {"return_code": 0, "goals_canceling": [info]}
         try:
-            query.reply(query.key_expr, encode_message(registry, srvtype.response, response))
+            self.link.reply(query, encode_message(registry, srvtype.response, response))
         finally:
             query.drop()  # type: ignore[no-untyped-call]
         return True

@@ -179,7 +179,7 @@ class ParamLink:
                 registry, srvtype.request, b"" if payload is None else payload.to_bytes()
             )
             response = getattr(self, f"_{part}")(node, request)
-            query.reply(query.key_expr, encode_message(registry, srvtype.response, response))
+            self.link.reply(query, encode_message(registry, srvtype.response, response))
         except (RwtError, WireError) as exc:
             query.reply_err(f"{node}/{part} failed: {exc}")
         finally:

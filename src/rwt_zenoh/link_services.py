@@ -48,7 +48,7 @@ def serve_query(link: ZenohLink, export: _Export, query: zenoh.Query) -> None:
                 assert isinstance(values, dict)
                 srvtype = registry.service(export.type_name)
                 response = encode_message(registry, srvtype.response, values)
-                query.reply(query.key_expr, response, attachment=link.attachment(export))
+                link.reply(query, response)
             else:
                 query.reply_err(str(values))
         finally:

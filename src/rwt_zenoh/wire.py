@@ -41,10 +41,12 @@ __all__ = [
     "attachment_gid",
     "dds_type_name",
     "demangle",
+    "gid_of",
     "mangle",
     "pack_attachment",
     "qos_from_keyexpr",
     "qos_to_keyexpr",
+    "reply_attachment",
     "ros_type_name",
     "topic_keyexpr",
 ]
@@ -307,15 +309,12 @@ class Entity:
         return "/".join(parts)
 
     def gid(self) -> bytes:
-        """The entity's 16-byte GID: XXH3-128 of its token, low then high 64 bits, little endian.
+        """The entity's 16-byte GID: ``gid_of`` its token.
 
         Raises:
             ModuleNotFoundError: ``xxhash`` (the ``zenoh`` extra) is not installed.
         """
-        import xxhash  # noqa: PLC0415 - only the Zenoh link needs GIDs
-
-        digest = xxhash.xxh3_128_intdigest(self.token().encode())
-        return struct.pack("<QQ", digest & (2**64 - 1), digest >> 64)
+        return gid_of(self.token())
 
     @classmethod
     def parse(cls, token: str) -> Entity:
@@ -358,6 +357,21 @@ class Entity:
     def with_topic(self, topic: Topic) -> Entity:
         """This entity with another topic (a node's publisher from its node)."""
         return replace(self, topic=topic)
+
+
+def gid_of(text: str) -> bytes:
+    """A 16-byte GID as rmw_zenoh derives an entity's from its token.
+
+    XXH3-128 of ``text`` (UTF-8), low then high 64 bits, little endian
+    (liveliness_utils.cpp ``Entity::Entity``).
+
+    Raises:
+        ModuleNotFoundError: ``xxhash`` (the ``zenoh`` extra) is not installed.
+    """
+    import xxhash  # noqa: PLC0415 - only the Zenoh link needs GIDs
+
+    digest = xxhash.xxh3_128_intdigest(text.encode())
+    return struct.pack("<QQ", digest & (2**64 - 1), digest >> 64)
 
 
 def zid_text(zid: bytes) -> str:
@@ -420,6 +434,25 @@ def pack_attachment(sequence_number: int, source_timestamp: int, source_gid: byt
     if len(source_gid) != GID_SIZE:
         raise WireError(f"gid of {len(source_gid)} bytes (expected {GID_SIZE})")
     return _ATTACHMENT.pack(sequence_number, source_timestamp, GID_SIZE, source_gid)
+
+
+def reply_attachment(request: bytes | None, source_timestamp: int) -> bytes:
+    """The attachment of a service's reply to a request carrying ``request``.
+
+    rmw_zenoh's service answers with the request's sequence number and its client's
+    GID, and its own source timestamp (rmw_service_data.cpp ``send_response``); a
+    ROS 2 client pairs the response with its call by that sequence number
+    (rmw_client_data.cpp ``take_response``) and refuses a reply without an
+    attachment. A request without rmw_zenoh's attachment (a plain Zenoh ``get``)
+    is answered with sequence number 0 and a zero GID.
+    """
+    try:
+        asked = Attachment.decode(request) if request is not None else None
+    except WireError:
+        asked = None
+    if asked is None:
+        return pack_attachment(0, source_timestamp, bytes(GID_SIZE))
+    return pack_attachment(asked.sequence_number, source_timestamp, asked.source_gid)
 
 
 def attachment_gid(data: bytes) -> bytes:

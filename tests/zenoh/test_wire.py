@@ -26,9 +26,11 @@ from rwt_zenoh.wire import (
     WireError,
     dds_type_name,
     demangle,
+    gid_of,
     mangle,
     qos_from_keyexpr,
     qos_to_keyexpr,
+    reply_attachment,
     ros_type_name,
     topic_keyexpr,
     zid_text,
@@ -151,6 +153,33 @@ def test_the_gid_is_xxh3_128_of_the_token() -> None:
     digest = xxhash.xxh3_128_intdigest(entity.token().encode())
     assert entity.gid() == digest.to_bytes(16, "little")
     assert len({Entity(0, ZID, 0, i, EntityKind.NODE, "/", "n").gid() for i in range(50)}) == 50
+
+
+def test_gid_of_is_the_entity_gid_of_its_token() -> None:
+    pytest.importorskip("xxhash")
+    entity = Entity(0, ZID, 0, 7, EntityKind.NODE, "/", "talker")
+    assert gid_of(entity.token()) == entity.gid()
+    assert gid_of("a") != gid_of("b")
+
+
+def test_a_reply_carries_the_request_sequence_number_and_client_gid() -> None:
+    # rmw_service_data.cpp send_response: the request's sequence number and writer GUID,
+    # the service's own timestamp; rmw_client_data.cpp take_response reads them back
+    request = Attachment(42, 1_000, bytes(range(16))).encode()
+    reply = Attachment.decode(reply_attachment(request, 2_000))
+    assert reply == Attachment(42, 2_000, bytes(range(16)))
+    assert reply_attachment(request, 2_000).hex() == (
+        "2a00000000000000"  # the request's sequence number
+        "d007000000000000"  # the reply's own source timestamp (2000 ns)
+        "10"  # the GID's length
+        "000102030405060708090a0b0c0d0e0f"  # the client's GID
+    )
+
+
+def test_a_request_without_rmw_zenoh_attachment_is_answered_with_sequence_zero() -> None:
+    for request in (None, b"", b"not an attachment", bytes(40)):
+        reply = Attachment.decode(reply_attachment(request, 5))
+        assert reply == Attachment(0, 5, bytes(16))
 
 
 def test_the_attachment_bytes() -> None:

@@ -1,0 +1,274 @@
+"""ROS 2 peers on the same Zenoh network as a linked graph.
+
+No ROS 2 runs on this machine, so two stand-ins check that a ROS 2 node on
+rmw_zenoh is just another peer:
+
+- a bare Zenoh session doing exactly what rmw_zenoh's client and service do
+  (rmw_client_data.cpp ``send_request``, rmw_service_data.cpp ``take_request``
+  and ``send_response``, ros2/rmw_zenoh rolling): a query that targets complete
+  queryables only, with the client's sequence number and GID attached; a reply
+  that must carry them back, since a ROS 2 client pairs a response with its call
+  by that sequence number;
+- zenoh-ros2-sdk (ROBOTIS, on PyPI), an rmw_zenoh-compatible Python library
+  written independently of rwt, as a whole peer: topics both ways, services both
+  ways, and each side's graph listing the other's nodes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import anyio
+import pytest
+
+import zenoh
+from rwt_graph.graph import Graph
+from rwt_graph.rosapi.listing import publishers, services, subscribers
+from rwt_graph.rosapi.visibility import EVERYTHING
+from rwt_graph.types.registry import TypeRegistry
+from rwt_transports.async_calls import call_service
+from rwt_transports.server import spawner_for
+from rwt_zenoh.config import make_config
+from rwt_zenoh.link import open_link
+from rwt_zenoh.payload import decode_sample, encode_sample, named_service_hash
+from rwt_zenoh.wire import Attachment, Entity, EntityKind, Topic, pack_attachment
+
+from .processes import Process, started
+from .support import endpoint, peer
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator, Callable
+
+    from rwt_graph.actions import GoalContext
+
+pytestmark = pytest.mark.anyio
+
+WAIT_S = 10.0
+ADD_TYPE = "example_interfaces/srv/AddTwoInts"
+# the keys a ROS 2 node derives (hashes pinned in test_payload.py from rosidl's output)
+ADD_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
+SEND_GOAL_HASH = "RIHS01_d1a57fb2a4afe8c21e34fb10db206f16ce6729b28531141472df92277c55b557"
+ADD_KEY = f"0/add/example_interfaces::srv::dds_::AddTwoInts_/{ADD_HASH}"
+SEND_GOAL_TYPE = "example_interfaces::action::dds_::Fibonacci_SendGoal_"
+SEND_GOAL_KEY = f"0/fib/_action/send_goal/{SEND_GOAL_TYPE}/{SEND_GOAL_HASH}"
+CLIENT_GID = bytes(range(100, 116))
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@contextlib.contextmanager
+def bare_session(connect: str | None = None, listen: str | None = None) -> Any:
+    """A plain Zenoh session on loopback, multicast off."""
+    session = zenoh.open(make_config(peer(listen=listen, connect=(connect,) if connect else ())))
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+async def until(condition: Callable[[], bool], what: str) -> None:
+    with anyio.fail_after(WAIT_S, shield=False):
+        while not condition():
+            await anyio.sleep(0.02)
+
+
+def ros2_call(session: Any, key: str, payload: bytes, sequence: int) -> list[Any]:
+    """One request as rmw_zenoh's client sends it; the replies (blocking, on a thread)."""
+    replies = session.get(
+        key,
+        payload=payload,
+        attachment=pack_attachment(sequence, time.time_ns(), CLIENT_GID),
+        target=zenoh.QueryTarget.ALL_COMPLETE,
+        consolidation=zenoh.ConsolidationMode.NONE,
+        timeout=3.0,
+    )
+    return list(replies)
+
+
+async def ros2_call_until_answered(session: Any, key: str, payload: bytes) -> tuple[Any, int]:
+    """Call until a reply comes (the service's route takes a moment); it and its sequence."""
+    for sequence in range(41, 41 + int(WAIT_S / 0.2)):
+        replies = await anyio.to_thread.run_sync(ros2_call, session, key, payload, sequence)
+        if replies:
+            assert len(replies) == 1, replies
+            return replies[0], sequence
+        await anyio.sleep(0.2)
+    raise AssertionError(f"no reply to a ROS 2 client's query on {key}")
+
+
+async def test_a_ros2_client_calls_a_service_and_gets_its_sequence_number_back() -> None:
+    first = endpoint()
+    graph = Graph()
+    graph.create_service("/add", ADD_TYPE, lambda req: {"sum": req["a"] + req["b"]}, node="/adder")
+    registry = TypeRegistry()
+    request = encode_sample(registry, f"{ADD_TYPE}_Request", {"a": 2, "b": 40})
+    async with open_link(graph, peer(listen=first)):
+        with bare_session(first) as session:
+            reply, sequence = await ros2_call_until_answered(session, ADD_KEY, request)
+    assert reply.ok is not None, reply.err.payload.to_string()
+    response = decode_sample(registry, f"{ADD_TYPE}_Response", reply.ok.payload.to_bytes())
+    assert response == {"sum": 42}
+    # what rmw_zenoh's take_response reads to pair the response with the call
+    attachment = Attachment.decode(reply.ok.attachment.to_bytes())
+    assert attachment.sequence_number == sequence
+    assert attachment.source_gid == CLIENT_GID
+    assert abs(attachment.source_timestamp - time.time_ns()) < 60e9
+
+
+async def test_a_ros2_action_client_sends_a_goal_and_gets_its_sequence_number_back() -> None:
+    first = endpoint()
+    graph = Graph()
+
+    async def fibonacci(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        return {"sequence": [0, 1, 1][: goal["order"]]}
+
+    from rwt_zenoh.actions import ActionWire  # noqa: PLC0415 - the goal's CDR
+
+    registry = graph.registry
+    wire = ActionWire(registry, registry.action("example_interfaces/action/Fibonacci"))
+    async with anyio.create_task_group() as tg, open_link(graph, peer(listen=first)):
+        graph.spawner = spawner_for(tg)
+        graph.create_action_server(
+            "/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f"
+        )
+        with bare_session(first) as session:
+            request = wire.send_goal(bytes(range(16)), {"order": 3})
+            reply, sequence = await ros2_call_until_answered(session, SEND_GOAL_KEY, request)
+        tg.cancel_scope.cancel()
+    assert reply.ok is not None, reply.err.payload.to_string()
+    assert wire.read_accepted(reply.ok.payload.to_bytes()) is True
+    attachment = Attachment.decode(reply.ok.attachment.to_bytes())
+    assert (attachment.sequence_number, attachment.source_gid) == (sequence, CLIENT_GID)
+
+
+async def test_a_ros2_client_reads_a_node_parameter_and_gets_its_sequence_number_back() -> None:
+    first = endpoint()
+    graph = Graph()
+    graph.params.declare("/camera", {"fps": 30})
+    registry = graph.registry
+    service = "rcl_interfaces/srv/GetParameters"
+    key = "0/camera/get_parameters/rcl_interfaces::srv::dds_::GetParameters_/" + named_service_hash(
+        registry, service
+    )
+    request = encode_sample(registry, f"{service}_Request", {"names": ["fps"]})
+    async with open_link(graph, peer(listen=first)):
+        with bare_session(first) as session:
+            reply, sequence = await ros2_call_until_answered(session, key, request)
+    assert reply.ok is not None, reply.err.payload.to_string()
+    response = decode_sample(registry, f"{service}_Response", reply.ok.payload.to_bytes())
+    values: Any = response["values"]
+    assert [value["integer_value"] for value in values] == [30]
+    attachment = Attachment.decode(reply.ok.attachment.to_bytes())
+    assert (attachment.sequence_number, attachment.source_gid) == (sequence, CLIENT_GID)
+
+
+async def test_calls_to_a_ros2_service_carry_each_process_own_client_gid() -> None:
+    """A ROS 2 service refuses a second request with the same GID and sequence number."""
+    first = endpoint()
+    asked: list[Attachment] = []
+
+    registry = TypeRegistry()
+
+    def serve(query: Any) -> None:  # a Zenoh thread: the service as rmw_zenoh answers
+        request = Attachment.decode(query.attachment.to_bytes())
+        asked.append(request)
+        values = decode_sample(registry, f"{ADD_TYPE}_Request", query.payload.to_bytes())
+        total = {"sum": sum(values.values())}
+        response = encode_sample(registry, f"{ADD_TYPE}_Response", total)
+        back = pack_attachment(request.sequence_number, time.time_ns(), request.source_gid)
+        query.reply(query.key_expr, response, attachment=back)
+
+    add = Topic("/add", "example_interfaces::srv::dds_::AddTwoInts_", ADD_HASH)
+    entity = Entity(0, "1234abcd", 1, 2, EntityKind.SERVICE, "/", "ros2_adder", topic=add)
+    a, b = Graph(), Graph()
+    with bare_session(listen=first) as session:
+        queryable = session.declare_queryable(ADD_KEY, serve, complete=True)
+        token = session.liveliness().declare_token(entity.token())
+        async with (
+            open_link(a, peer(connect=(first,))) as link_a,
+            open_link(b, peer(connect=(first,))) as link_b,
+        ):
+            await until(lambda: "/add" in services(a, EVERYTHING), "A sees the service")
+            await until(lambda: "/add" in services(b, EVERYTHING), "B sees the service")
+            assert await call_service(a, "/add", {"a": 1, "b": 2}) == {"sum": 3}
+            assert await call_service(a, "/add", {"a": 3, "b": 4}) == {"sum": 7}
+            assert await call_service(b, "/add", {"a": 5, "b": 6}) == {"sum": 11}
+            gids = [link_a.caller_gid, link_a.caller_gid, link_b.caller_gid]
+        token.undeclare()
+        queryable.undeclare()
+    assert [request.source_gid for request in asked] == gids
+    assert link_a.caller_gid != link_b.caller_gid
+    assert bytes(16) not in gids
+    assert asked[0].sequence_number < asked[1].sequence_number  # per caller, increasing
+
+
+# ---- zenoh-ros2-sdk as a whole peer ------------------------------------------------------
+
+SDK_PEER = Path(__file__).with_name("sdk_peer.py")
+
+
+class SdkPeer:
+    """The SDK peer process and its commands (``sdk_peer.py``)."""
+
+    def __init__(self, process: Process) -> None:
+        self.process = process
+
+    async def ask(self, command: str) -> Any:
+        stdin = self.process.process.stdin
+        assert stdin is not None
+        await stdin.send(f"{command}\n".encode())
+        return json.loads(await self.process.line())
+
+
+@contextlib.asynccontextmanager
+async def sdk_peer(connect: str) -> AsyncIterator[SdkPeer]:
+    pytest.importorskip("zenoh_ros2_sdk", reason="zenoh-ros2-sdk is in the test extra")
+    async with started([sys.executable, str(SDK_PEER), connect], "zenoh-ros2-sdk") as process:
+        assert (await process.line()).strip() == "ready", process.stderr()
+        yield SdkPeer(process)
+
+
+async def test_zenoh_ros2_sdk_nodes_and_a_linked_graph_share_topics_and_services() -> None:
+    first = endpoint()
+    graph = Graph()
+    heard: list[dict[str, object]] = []
+    graph.create_subscription("/from_sdk", heard.append, "std_msgs/msg/String", node="/listener")
+    talker = graph.create_publisher("/to_sdk", "std_msgs/msg/String", node="/talker")
+    graph.create_service(
+        "/rwt/add", ADD_TYPE, lambda req: {"sum": 100 * req["a"] + req["b"]}, node="/adder"
+    )
+    async with open_link(graph, peer(listen=first)), sdk_peer(first) as sdk:
+        # the SDK's nodes, from their liveliness tokens, in the graph's rosapi
+        await until(lambda: "/sdk/add" in services(graph, EVERYTHING), "the SDK's service")
+        await until(lambda: bool(publishers(graph, EVERYTHING, "/from_sdk")), "its publisher")
+        await until(lambda: bool(subscribers(graph, EVERYTHING, "/to_sdk")), "its subscriber")
+        assert publishers(graph, EVERYTHING, "/from_sdk") == ["/sdk_talker"]
+        assert "/sdk_listener" in subscribers(graph, EVERYTHING, "/to_sdk")
+        # the SDK publishes, the graph's subscription hears it (once per publish)
+        with anyio.fail_after(WAIT_S):
+            while not heard:
+                await sdk.ask("publish hello from the sdk")
+                await anyio.sleep(0.1)
+        assert heard[0] == {"data": "hello from the sdk"}
+        # the graph publishes, the SDK's subscriber decodes it
+        with anyio.fail_after(WAIT_S):
+            while not await sdk.ask("received"):
+                talker.publish({"data": "hello from rwt"})
+                await anyio.sleep(0.1)
+        assert set(await sdk.ask("received")) == {"hello from rwt"}
+        # services both ways: the graph calls the SDK's; the SDK's client calls the graph's
+        assert await call_service(graph, "/sdk/add", {"a": 2, "b": 40}) == {"sum": 42}
+        assert await sdk.ask("call /rwt/add 4 5") == 405
+        # the SDK lists the graph's entities with their ROS 2 types
+        seen = await sdk.ask("graph")
+        assert seen["topics"]["/to_sdk"] == ["std_msgs/msg/String"]
+        assert seen["topics"]["/from_sdk"] == ["std_msgs/msg/String"]
+        assert seen["services"]["/rwt/add"] == [ADD_TYPE]
