@@ -3,8 +3,10 @@
 Followed: ros2/rmw_zenoh, ``rmw_zenoh_cpp/src/detail/`` at rolling commit
 bfc065f8 (2024-10-16) for key expressions, liveliness tokens, QoS strings and
 entity GIDs (``liveliness_utils.cpp``, ``qos.cpp``, ``type_support_common.cpp``),
-and the Zenoh 1.x attachment of ``attachment_helpers.cpp`` (sequence number,
-source timestamp, source GID in the Zenoh serialization format). docs/zenoh.md
+all unchanged in its Zenoh 1.x line but the session id in tokens, which that line
+prints as Zenoh does (``zid_text``); and the Zenoh 1.x attachment of
+``attachment_helpers.cpp`` (sequence number, source timestamp, source GID in the
+Zenoh serialization format). docs/zenoh.md
 shows each form with an example; tests/zenoh/test_wire.py pins them.
 
 - A topic's data key: ``<domain>/<topic without leading or trailing />/<dds type>/<type hash>``,
@@ -375,12 +377,14 @@ def gid_of(text: str) -> bytes:
 
 
 def zid_text(zid: bytes) -> str:
-    """Print a Zenoh id as rmw_zenoh does (``zid_to_str``).
+    """Print a Zenoh id as Zenoh does (``zenoh::Id::to_string``, ``str(zid)`` in Python).
 
-    Each byte of the little-endian u128, from the most significant, in lowercase
-    hex without leading zeros.
+    rmw_zenoh's Zenoh 1.x line writes this form in its tokens (liveliness_utils.cpp
+    ``Entity::make``, at 3411fdec): the little-endian u128 in lowercase hex,
+    without leading zeros. (The Zenoh 0.11 line, at bfc065f8, printed each byte
+    without its leading zero.)
     """
-    return "".join(f"{byte:x}" for byte in reversed(zid))
+    return f"{int.from_bytes(zid, 'little'):x}"
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,8 @@ then answers each command on stdin with one JSON line:
 - ``call SERVICE A B``: call ``SERVICE`` (AddTwoInts) with a client of the SDK;
   the sum, or ``null`` when no response came within 3 s.
 - ``graph``: the topics and services the SDK sees, from liveliness tokens.
+- ``latched TOPIC``: subscribe to ``TOPIC`` as transient local, as a late joiner;
+  the texts received within 2 s (the publishers' caches answer its query).
 
 The SDK keeps one Zenoh session per process, hence a process of its own.
 """
@@ -28,6 +30,8 @@ os.environ["ZENOH_CONFIG_OVERRIDE"] = (
     'listen/endpoints=["tcp/127.0.0.1:0"];scouting/multicast/enabled=false'
 )
 
+import time  # noqa: E402
+
 from zenoh_ros2_sdk import (  # noqa: E402 - after the environment it reads
     ROS2Publisher,
     ROS2ServiceClient,
@@ -36,6 +40,7 @@ from zenoh_ros2_sdk import (  # noqa: E402 - after the environment it reads
     get_service_names_and_types,
     get_topic_names_and_types,
 )
+from zenoh_ros2_sdk.qos import QosDurability, QosProfile  # noqa: E402
 
 STRING = "string data"
 ADD = ("example_interfaces/srv/AddTwoInts", "int64 a\nint64 b", "int64 sum")
@@ -88,6 +93,21 @@ def call(service: str, a: int, b: int) -> int | None:
     return None if response is None else int(response.sum)
 
 
+def latched(topic: str) -> list[str]:
+    texts: list[str] = []
+    ROS2Subscriber(
+        topic,
+        "std_msgs/msg/String",
+        lambda msg: texts.append(msg.data),
+        msg_definition=STRING,
+        node_name="sdk_late_listener",
+        qos=QosProfile(durability=QosDurability.TRANSIENT_LOCAL),
+        **where,
+    )
+    time.sleep(2.0)
+    return texts
+
+
 print("ready", flush=True)
 for line in sys.stdin:
     command, _, rest = line.strip().partition(" ")
@@ -100,6 +120,8 @@ for line in sys.stdin:
     elif command == "call":
         service, a, b = rest.split()
         answer = call(service, int(a), int(b))
+    elif command == "latched":
+        answer = latched(rest)
     elif command == "graph":
         answer = {
             "topics": dict(get_topic_names_and_types(**where)),

@@ -10,8 +10,9 @@ rmw_zenoh is just another peer:
   that must carry them back, since a ROS 2 client pairs a response with its call
   by that sequence number;
 - zenoh-ros2-sdk (ROBOTIS, on PyPI), an rmw_zenoh-compatible Python library
-  written independently of rwt, as a whole peer: topics both ways, services both
-  ways, and each side's graph listing the other's nodes.
+  written independently of rwt, as a whole peer: topics both ways, a latched
+  topic for its late subscriber, services both ways, and each side's graph
+  listing the other's nodes.
 """
 
 from __future__ import annotations
@@ -245,7 +246,10 @@ async def test_zenoh_ros2_sdk_nodes_and_a_linked_graph_share_topics_and_services
     graph.create_service(
         "/rwt/add", ADD_TYPE, lambda req: {"sum": 100 * req["a"] + req["b"]}, node="/adder"
     )
+    mapper = graph.create_publisher("/map", "std_msgs/msg/String", latch=True, node="/mapper")
     async with open_link(graph, peer(listen=first)), sdk_peer(first) as sdk:
+        mapper.publish({"data": "map v1"})
+        mapper.publish({"data": "map v2"})
         # the SDK's nodes, from their liveliness tokens, in the graph's rosapi
         await until(lambda: "/sdk/add" in services(graph, EVERYTHING), "the SDK's service")
         await until(lambda: bool(publishers(graph, EVERYTHING, "/from_sdk")), "its publisher")
@@ -267,6 +271,9 @@ async def test_zenoh_ros2_sdk_nodes_and_a_linked_graph_share_topics_and_services
         # services both ways: the graph calls the SDK's; the SDK's client calls the graph's
         assert await call_service(graph, "/sdk/add", {"a": 2, "b": 40}) == {"sum": 42}
         assert await sdk.ask("call /rwt/add 4 5") == 405
+        # a late transient-local subscriber of the SDK gets the latched message from the
+        # publisher's cache, which it finds by the session id in the publisher's token
+        assert await sdk.ask("latched /map") == ["map v2"]
         # the SDK lists the graph's entities with their ROS 2 types
         seen = await sdk.ask("graph")
         assert seen["topics"]["/to_sdk"] == ["std_msgs/msg/String"]

@@ -2,9 +2,9 @@
 
 Each expectation is derived from ros2/rmw_zenoh, rmw_zenoh_cpp/src/detail/ at
 rolling commit bfc065f8 (2024-10-16), file and line named in the test; the
-attachment follows attachment_helpers.cpp of the Zenoh 1.x line
-(``serialize_to_zbytes``: int64, int64, then the 16-byte GID as a Zenoh
-serialization sequence).
+session id in tokens and the attachment follow its Zenoh 1.x line: the id as
+Zenoh prints it, and attachment_helpers.cpp (``serialize_to_zbytes``: int64,
+int64, then the 16-byte GID as a Zenoh serialization sequence).
 """
 
 from __future__ import annotations
@@ -141,9 +141,25 @@ def test_bad_tokens_are_refused(token: str) -> None:
         Entity.parse(token)
 
 
-def test_zid_text_reads_the_little_endian_id_from_its_top() -> None:
-    # liveliness_utils.cpp:375-385: bytes from the most significant, hex without padding
-    assert zid_text(bytes([0x21, 0x7F, 0x0A]) + bytes(13)) == "0" * 13 + "a7f21"
+def test_zid_text_is_zenoh_own_form_of_the_id() -> None:
+    # liveliness_utils.cpp Entity::make (Zenoh 1.x line, 3411fdec): zid.to_string(), the
+    # little-endian u128 in lowercase hex without leading zeros
+    assert zid_text(bytes([0x21, 0x7F, 0x0A]) + bytes(13)) == "a7f21"
+    assert zid_text(bytes(range(1, 17))) == "100f0e0d0c0b0a090807060504030201"
+
+
+def test_zid_text_matches_zenoh_for_real_sessions() -> None:
+    zenoh = pytest.importorskip("zenoh")
+    from rwt_zenoh.config import ZenohOptions, make_config  # noqa: PLC0415
+
+    config = make_config(ZenohOptions(listen=(), connect=()))
+    for _ in range(16):  # random ids: bytes below 0x10 in most, a top one in some
+        session = zenoh.open(config)
+        try:
+            zid = session.info.zid()
+            assert zid_text(bytes(zid)) == str(zid)
+        finally:
+            session.close()
 
 
 def test_the_gid_is_xxh3_128_of_the_token() -> None:
