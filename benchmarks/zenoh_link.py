@@ -168,12 +168,16 @@ c.insert_json5("mode", '"peer"'); c.insert_json5("scouting/multicast/enabled", "
 c.insert_json5("listen/endpoints", f'["{{ep}}"]')
 s = zenoh.open(c)
 got = [0, 0.0]; probed = threading.Event()
+cpu = [0.0, 0.0]
 def on(sample):
     if sample.payload.to_bytes()[:5] == b"probe":
         probed.set()
         return
+    if not got[0]:
+        cpu[0] = time.process_time()
     got[0] += 1
     got[1] = time.time()
+    cpu[1] = time.process_time()
 sub = s.declare_subscriber("bench/tp", on)
 print("ready", flush=True)
 probed.wait(120)
@@ -184,7 +188,7 @@ while got[0] < count:
     if got[0] == last:
         break
     last = got[0]
-print(got[1], got[0], 0, flush=True)
+print(got[1], got[0], (cpu[1] - cpu[0]) / max(got[0] - 1, 1) * 1e6, flush=True)
 s.close()
 """
 
@@ -207,9 +211,10 @@ while not go.is_set() and time.time() < deadline:
 time.sleep(0.2)
 payload = b"z" * size
 print(time.time(), flush=True)
+cpu = time.process_time()
 for _ in range(count):
     pub.put(payload)
-print(0, flush=True)
+print((time.process_time() - cpu) / count * 1e6, flush=True)
 sys.stdin.readline()
 s.close()
 """
@@ -233,9 +238,9 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
     ``kind``: ``link`` (two graphs with their links) or ``bare`` (plain Zenoh).
 
     Returns:
-        ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``; for
-        the link, ``sender_cpu_us`` and ``receiver_cpu_us``: each process's CPU
-        time (all its threads) per message while it sent or received (0 for bare).
+        ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``,
+        ``sender_cpu_us`` and ``receiver_cpu_us``: each process's CPU time (all
+        its threads) per message while it sent or received.
     """
     payload = cdr_size(size)
     env = _env()
