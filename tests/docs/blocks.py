@@ -39,10 +39,23 @@ class Block:
 
 
 def markdown_files() -> list[Path]:
-    """Every Markdown file a user reads: READMEs and docs/ (not node_modules)."""
+    """Every Markdown file a user reads: READMEs and docs/.
+
+    Not other projects' READMEs: installed packages (node_modules, a virtualenv
+    such as ``.venv`` in the clone) and hidden directories are skipped.
+    """
     files = [*REPO.glob("*.md"), *REPO.glob("docs/**/*.md")]
-    files += [p for p in REPO.glob("*/**/README.md") if "node_modules" not in p.parts]
+    files += [p for p in REPO.glob("*/**/README.md") if _ours(p.relative_to(REPO))]
     return sorted(set(files))
+
+
+def _ours(path: Path) -> bool:
+    if any(part.startswith(".") or part in _NOT_OURS for part in path.parts):
+        return False
+    return not any((REPO / parent / "pyvenv.cfg").exists() for parent in path.parents)
+
+
+_NOT_OURS = frozenset({"node_modules", "site-packages"})
 
 
 def blocks_of(path: Path) -> list[Block]:

@@ -34,9 +34,9 @@ def test_live_objects_are_frozen_and_new_cycles_still_collected() -> None:
     garbage = _cycle()  # unreachable before the freeze: collected, not frozen
     frozen = freeze_startup_objects()
     assert garbage() is None
-    # at least what it froze: a server another test left running in a thread of
-    # this process may freeze its own start-up objects meanwhile
-    assert 0 < frozen <= gc.get_freeze_count()
+    # (gc.get_freeze_count() is not compared: a server another test left running in
+    # a thread of this process may freeze its own objects meanwhile, or free frozen ones)
+    assert frozen > 0
     assert not any(obj is kept for obj in gc.get_objects())  # in the permanent generation
     later = _cycle()
     gc.collect()
