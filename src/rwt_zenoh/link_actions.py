@@ -14,8 +14,10 @@ caller; when the remote server's token goes, its goals abort (D15).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import os
+import time
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -37,10 +39,10 @@ from .actions import (
     action_of,
 )
 from .payload import decode_message, encode_message, message_hash, named_service_hash
-from .wire import Topic, WireError, topic_keyexpr
+from .wire import Topic, WireError, gid_of, pack_attachment, topic_keyexpr
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Iterator
 
     from rwt_protocol.ports import ClientId
 
@@ -65,6 +67,19 @@ class _Served:
     handle: Any = None  # the graph's GoalHandle
     outcome: tuple[GoalStatus, bool, object] | None = None
     waiting: list[Any] = field(default_factory=list)  # get_result queries
+
+
+@dataclass(eq=False)
+class _FeedbackPublisher:
+    """Where a local action server's feedback goes: a publisher with its own GID.
+
+    Each sample carries rmw_zenoh's attachment, without which a ROS 2 subscription
+    drops it (rmw_subscription_data.cpp: "Unable to obtain attachment").
+    """
+
+    handle: Any
+    gid: bytes
+    sequence: Iterator[int] = field(default_factory=lambda: itertools.count(1))
 
 
 @dataclass(eq=False)
@@ -107,7 +122,7 @@ class ActionLink:
         self._wires: dict[str, ActionWire] = {}
         self._offers: dict[str, _Offer] = {}
         self._served: dict[bytes, _Served] = {}
-        self._feedback_pubs: dict[str, Any] = {}
+        self._feedback_pubs: dict[str, _FeedbackPublisher] = {}
         self._feedback_subs: dict[str, Any] = {}
         self._calling: dict[bytes, tuple[_RemoteAction, str]] = {}
 
@@ -177,7 +192,7 @@ class ActionLink:
             guarded("undeclaring an action's entity", handle.undeclare)
         publisher = self._feedback_pubs.pop(name, None)
         if publisher is not None:
-            guarded("undeclaring a feedback publisher", publisher.undeclare)
+            guarded("undeclaring a feedback publisher", publisher.handle.undeclare)
 
     def _on_send_goal(self, action: str, wire: ActionWire, query: zenoh.Query) -> None:
         link = self.link
@@ -214,10 +229,13 @@ class ActionLink:
                 "FeedbackMessage",
                 self._hash(wire, "FeedbackMessage"),
             )
-            publisher = self._feedback_pubs[action] = self.link.session.declare_publisher(
+            handle = self.link.session.declare_publisher(
                 key, allowed_destination=zenoh.Locality.REMOTE
             )
-        publisher.put(wire.feedback(goal_id, msg))
+            gid = gid_of(f"{self.link.zid}/{action}{FEEDBACK_SUFFIX}")
+            publisher = self._feedback_pubs[action] = _FeedbackPublisher(handle, gid)
+        attachment = pack_attachment(next(publisher.sequence), time.time_ns(), publisher.gid)
+        publisher.handle.put(wire.feedback(goal_id, msg), attachment=attachment)
 
     def _goal_done(self, goal_id: bytes, status: GoalStatus, result: bool, values: object) -> None:
         served = self._served.get(goal_id)
@@ -422,7 +440,8 @@ class ActionLink:
         """Withdraw everything; goals of remote callers end for them when this process goes."""
         for name in list(self._offers):
             self._withdraw(name)
-        for handle in [*self._feedback_pubs.values(), *self._feedback_subs.values()]:
+        handles = [p.handle for p in self._feedback_pubs.values()]
+        for handle in [*handles, *self._feedback_subs.values()]:
             guarded("undeclaring an action's entity", handle.undeclare)
         self._feedback_pubs.clear()
         self._feedback_subs.clear()
