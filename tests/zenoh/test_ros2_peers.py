@@ -305,3 +305,32 @@ async def test_zenoh_ros2_sdk_nodes_and_a_linked_graph_share_topics_and_services
         assert seen["topics"]["/to_sdk"] == ["std_msgs/msg/String"]
         assert seen["topics"]["/from_sdk"] == ["std_msgs/msg/String"]
         assert seen["services"]["/rwt/add"] == [ADD_TYPE]
+
+
+async def test_queries_with_forged_attachments_are_answered_and_the_service_carries_on() -> None:
+    first = endpoint()
+    graph = Graph()
+    graph.create_service("/add", ADD_TYPE, lambda req: {"sum": req["a"] + req["b"]}, node="/a")
+    registry = TypeRegistry()
+    request = encode_sample(registry, f"{ADD_TYPE}_Request", {"a": 1, "b": 1})
+    forged = [b"", b"\xff" * 33, bytes(1 << 20), (2**63 - 1).to_bytes(8, "little") * 5]
+
+    def call(session: Any, attachment: bytes, payload: bytes) -> list[Any]:
+        return list(session.get(ADD_KEY, payload=payload, attachment=attachment, timeout=3.0))
+
+    async with open_link(graph, peer(listen=first)):
+        with bare_session(first) as session:
+            await ros2_call_until_answered(session, ADD_KEY, request)  # the route is up
+            for attachment in forged:
+                [reply] = await anyio.to_thread.run_sync(call, session, attachment, request)
+                back = Attachment.decode(reply.ok.attachment.to_bytes())
+                assert (back.sequence_number, back.source_gid) == (0, bytes(16))
+            # a payload that is not the request's CDR gets an error reply, not silence
+            [bad] = await anyio.to_thread.run_sync(call, session, bytes(16), b"\xff" * 3)
+            assert bad.err is not None
+            # and a real caller is still served
+            reply, sequence = await ros2_call_until_answered(session, ADD_KEY, request)
+    assert decode_sample(registry, f"{ADD_TYPE}_Response", reply.ok.payload.to_bytes()) == {
+        "sum": 2
+    }
+    assert Attachment.decode(reply.ok.attachment.to_bytes()).sequence_number == sequence
