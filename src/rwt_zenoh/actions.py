@@ -33,6 +33,7 @@ __all__ = [
     "SEND_GOAL_SUFFIX",
     "ActionWire",
     "action_of",
+    "stamp_of",
 ]
 
 SEND_GOAL_SUFFIX = "/_action/send_goal"
@@ -57,6 +58,12 @@ def action_of(service: str, dds_type: str) -> tuple[str, str] | None:
     if kind != "action":
         return None
     return service[: -len(SEND_GOAL_SUFFIX)], f"{package}/action/{name[: -len('_SendGoal_')]}"
+
+
+def stamp_of(seconds: float) -> tuple[int, int]:
+    """``builtin_interfaces/msg/Time`` of ``seconds`` since the epoch: ``(sec, nanosec)``."""
+    sec = int(seconds)
+    return sec, min(int((seconds - sec) * 1e9), 999_999_999)
 
 
 class ActionWire:
@@ -139,7 +146,8 @@ class ActionWire:
 
     def accepted(self, accepted: bool, now: float) -> bytes:
         """A ``SendGoal`` response stamped ``now`` (seconds since the epoch)."""
-        stamp = self.registry.typestore().types[_TIME](sec=int(now), nanosec=int((now % 1) * 1e9))
+        sec, nanosec = stamp_of(now)
+        stamp = self.registry.typestore().types[_TIME](sec=sec, nanosec=nanosec)
         return self._encode(self.send_goal_response, accepted=accepted, stamp=stamp)
 
     def read_accepted(self, data: bytes) -> bool:

@@ -44,10 +44,11 @@ from .link_params import ParamLink
 from .link_services import RemoteService, serve_query
 from .payload import decode_message, encode_message, service_hash, type_hash
 from .wire import (
+    LATCHED_QOS,
+    VOLATILE_QOS,
     Durability,
     Entity,
     EntityKind,
-    QoS,
     Topic,
     WireError,
     attachment_gid,
@@ -80,14 +81,10 @@ PRIVATE_NAMES = ("/client_count", "/connected_clients", "/rosapi/*")
 """Names each server keeps to itself: its own client counts and its rosapi (which
 already answers for the whole network). ``*`` ends a prefix."""
 
-#: QoS of a latched (transient local) and of a plain publisher's token.
 MAX_QUEUED = 100_000
 """Remote samples waiting for the event loop beyond which new ones are dropped."""
 _DRAIN_BATCH = 1000
 _PRIVATE_CACHE = 10_000
-
-_LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=1)
-_VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=10)
 
 
 def ours(client: ClientId) -> bool:
@@ -119,6 +116,32 @@ class _Export:
 
 
 @dataclass(eq=False)
+class OwnPublisher:
+    """A publisher the link itself owns (an action's feedback or status topic).
+
+    It has its liveliness token, so ROS 2 counts it (an action client waits for a
+    feedback publisher: rcl_action ``rcl_action_server_is_available``), and each
+    sample carries rmw_zenoh's attachment with the publisher's GID and sequence,
+    without which a ROS 2 subscription drops it (rmw_subscription_data.cpp).
+    """
+
+    token: Any  # zenoh.LivelinessToken
+    handle: Any  # zenoh.Publisher, or an advanced one keeping the last samples
+    gid: bytes
+    sequence: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+
+    def put(self, payload: bytes | bytearray) -> None:
+        """Publish one CDR sample."""
+        attachment = pack_attachment(next(self.sequence), time.time_ns(), self.gid)
+        self.handle.put(payload, attachment=attachment)
+
+    def undeclare(self) -> None:
+        """Withdraw the publisher and its token."""
+        guarded("undeclaring a publisher", self.handle.undeclare)
+        guarded("undeclaring a token", self.token.undeclare)
+
+
+@dataclass(eq=False)
 class _Remote:
     """A remote entity, from its token, and the participant that stands for it here."""
 
@@ -138,6 +161,21 @@ class _Data:
     handle: Any
     latched: Any = None  # the cache-keeping publisher of latched samples
     latched_sent: object = None  # the last latched event put there
+
+
+def _caching_publisher(session: zenoh.Session, keyexpr: str, depth: int) -> Any:
+    """A transient local publisher as rmw_zenoh's.
+
+    Its last ``depth`` samples are kept for late subscribers, which find it by
+    publisher detection.
+    """
+    return zenoh.ext.declare_advanced_publisher(
+        session,
+        keyexpr,
+        allowed_destination=zenoh.Locality.REMOTE,
+        cache=zenoh.ext.CacheConfig(max_samples=depth),
+        publisher_detection=True,
+    )
 
 
 def _full_node(entity: Entity) -> str:
@@ -344,6 +382,19 @@ class ZenohLink:
         """A new entity id in this session."""
         return next(self._ids)
 
+    def _entity(self, node: str, kind: EntityKind, topic: Topic) -> Entity:
+        owner = self._node_entity(node)
+        return Entity(
+            self.domain_id,
+            self.zid,
+            owner.nid,
+            next(self._ids),
+            kind,
+            owner.namespace,
+            owner.node,
+            topic=topic,
+        )
+
     def declare_service(
         self, node: str, topic: Topic, on_query: Callable[[zenoh.Query], None]
     ) -> list[Any]:
@@ -353,21 +404,29 @@ class ZenohLink:
         this session itself are not routed to it. Returns the two handles to
         undeclare, queryable first.
         """
-        owner = self._node_entity(node)
-        entity = Entity(
-            self.domain_id,
-            self.zid,
-            owner.nid,
-            next(self._ids),
-            EntityKind.SERVICE,
-            owner.namespace,
-            owner.node,
-            topic=topic,
-        )
+        entity = self._entity(node, EntityKind.SERVICE, topic)
         token = self.session.liveliness().declare_token(entity.token())
         keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
         queryable = self.declare_queryable(keyexpr, on_query)
         return [queryable, token]
+
+    def declare_publisher(self, node: str, topic: Topic) -> OwnPublisher:
+        """A publisher of ``node`` on ``topic``, with its token (see ``OwnPublisher``).
+
+        A transient local ``topic.qos`` keeps its last ``depth`` samples for late
+        subscribers, as a latched topic's publisher does. Samples go to other
+        sessions only.
+        """
+        entity = self._entity(node, EntityKind.PUBLISHER, topic)
+        keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
+        if topic.qos.durability is Durability.TRANSIENT_LOCAL:
+            handle = _caching_publisher(self.session, keyexpr, topic.qos.depth)
+        else:
+            handle = self.session.declare_publisher(
+                keyexpr, allowed_destination=zenoh.Locality.REMOTE
+            )
+        token = self.session.liveliness().declare_token(entity.token())
+        return OwnPublisher(token, handle, entity.gid())
 
     def declare_queryable(self, keyexpr: str, on_query: Callable[[zenoh.Query], None]) -> Any:
         """A service's queryable as rmw_zenoh declares one: complete, for others only.
@@ -500,7 +559,7 @@ class ZenohLink:
         except (RwtError, WireError) as exc:
             logger.debug("zenoh link: %s %s is not shared: %s", kind.name.lower(), name, exc)
             return None
-        qos = _LATCHED_QOS if latched else _VOLATILE_QOS
+        qos = LATCHED_QOS if latched else VOLATILE_QOS
         topic = Topic(name, dds_type_name(type_name), type_hash_text, qos)
         entity = Entity(
             self.domain_id,
@@ -663,13 +722,7 @@ class ZenohLink:
         if data.latched_sent is event:
             return
         if data.latched is None:
-            data.latched = zenoh.ext.declare_advanced_publisher(
-                self.session,
-                data.key,
-                allowed_destination=zenoh.Locality.REMOTE,
-                cache=zenoh.ext.CacheConfig(max_samples=1),
-                publisher_detection=True,
-            )
+            data.latched = _caching_publisher(self.session, data.key, LATCHED_QOS.depth)
         data.latched.put(self._encode(entry, event), attachment=self._attachment(export))
         data.latched_sent = event
 

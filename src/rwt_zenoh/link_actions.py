@@ -2,10 +2,16 @@
 
 Provider side: each local action server gets the ``send_goal`` and ``get_result``
 queryables and their tokens (its ``cancel_goal`` service is in the graph's
-service table, shared like any service). A ``send_goal`` query starts a goal in
-the graph for the remote caller; its feedback is put on the ``feedback`` key; a
-``get_result`` query is answered when the goal ends; a ``cancel_goal`` query
-naming one of these goals cancels it.
+service table, shared like any service), and the ``feedback`` and ``status``
+publishers with theirs: a ROS 2 action client waits for all three services and a
+feedback publisher (rcl_action ``rcl_action_server_is_available``), and ``ros2
+action list`` finds actions by their feedback topics (rcl_action graph.c). A
+``send_goal`` query starts a goal in the graph for the remote caller; its feedback
+is put on the ``feedback`` key; a ``get_result`` query is answered when the goal
+ends; a ``cancel_goal`` query naming one of these goals cancels it. The
+``status`` topic carries the state of those goals (``GoalStatusArray``), as a
+ROS 2 action server publishes it on each change; goals of local callers have
+rosbridge ids, not UUIDs, and are not in it.
 
 Caller side: a remote ``send_goal`` token makes the action a graph action whose
 provider forwards each goal as those queries; feedback samples reach the goal's
@@ -14,10 +20,8 @@ caller; when the remote server's token goes, its goals abort (D15).
 
 from __future__ import annotations
 
-import itertools
 import logging
 import os
-import time
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -37,16 +41,24 @@ from .actions import (
     SEND_GOAL_SUFFIX,
     ActionWire,
     action_of,
+    stamp_of,
 )
 from .payload import decode_message, encode_message, message_hash, named_service_hash
-from .wire import Topic, WireError, gid_of, pack_attachment, topic_keyexpr
+from .wire import (
+    LATCHED_QOS,
+    VOLATILE_QOS,
+    Topic,
+    WireError,
+    dds_type_name,
+    topic_keyexpr,
+)
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterator
+    from collections.abc import Callable
 
     from rwt_protocol.ports import ClientId
 
-    from .link import ZenohLink, _Remote
+    from .link import OwnPublisher, ZenohLink, _Remote
 
 __all__ = ["ActionLink"]
 
@@ -56,6 +68,8 @@ MAX_SERVED = 10_000
 """Goals of remote callers held at once (running, or ended and not yet fetched)."""
 RESULT_TIMEOUT_S = 24 * 3600.0
 """How long a caller's ``get_result`` query waits for its goal to end."""
+STATUS_SUFFIX = "/_action/status"
+GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 
 
 @dataclass(eq=False)
@@ -64,22 +78,11 @@ class _Served:
 
     action: str
     wire: ActionWire
+    accepted_at: float  # seconds since the epoch
     handle: Any = None  # the graph's GoalHandle
+    status: GoalStatus = GoalStatus.EXECUTING  # the provider has it at once
     outcome: tuple[GoalStatus, bool, object] | None = None
     waiting: list[Any] = field(default_factory=list)  # get_result queries
-
-
-@dataclass(eq=False)
-class _FeedbackPublisher:
-    """Where a local action server's feedback goes: a publisher with its own GID.
-
-    Each sample carries rmw_zenoh's attachment, without which a ROS 2 subscription
-    drops it (rmw_subscription_data.cpp: "Unable to obtain attachment").
-    """
-
-    handle: Any
-    gid: bytes
-    sequence: Iterator[int] = field(default_factory=lambda: itertools.count(1))
 
 
 @dataclass(eq=False)
@@ -88,6 +91,8 @@ class _Offer:
 
     owner: ClientId
     handles: list[Any]  # each service's queryable and liveliness token
+    feedback: OwnPublisher
+    status: OwnPublisher
 
 
 class _RemoteAction:
@@ -122,7 +127,7 @@ class ActionLink:
         self._wires: dict[str, ActionWire] = {}
         self._offers: dict[str, _Offer] = {}
         self._served: dict[bytes, _Served] = {}
-        self._feedback_pubs: dict[str, _FeedbackPublisher] = {}
+        self._status_due: set[str] = set()  # actions whose status is to be published
         self._feedback_subs: dict[str, Any] = {}
         self._calling: dict[bytes, tuple[_RemoteAction, str]] = {}
 
@@ -176,7 +181,22 @@ class ActionLink:
         ):
             topic = Topic(name + suffix, wire.dds_type(part), self._hash(wire, part))
             handles += link.declare_service(node, topic, self._on_query_thread(handler, name, wire))
-        self._offers[name] = _Offer(owner, handles)
+        part = "FeedbackMessage"
+        feedback = Topic(
+            name + FEEDBACK_SUFFIX, wire.dds_type(part), self._hash(wire, part), VOLATILE_QOS
+        )
+        status = Topic(
+            name + STATUS_SUFFIX,
+            dds_type_name(GOAL_STATUS_ARRAY),
+            message_hash(link.graph.registry, GOAL_STATUS_ARRAY),
+            LATCHED_QOS,
+        )
+        self._offers[name] = _Offer(
+            owner,
+            handles,
+            link.declare_publisher(node, feedback),
+            link.declare_publisher(node, status),
+        )
 
     def _on_query_thread(
         self, handler: Callable[[str, ActionWire, zenoh.Query], None], name: str, wire: ActionWire
@@ -190,9 +210,8 @@ class ActionLink:
         offer = self._offers.pop(name)
         for handle in offer.handles:
             guarded("undeclaring an action's entity", handle.undeclare)
-        publisher = self._feedback_pubs.pop(name, None)
-        if publisher is not None:
-            guarded("undeclaring a feedback publisher", publisher.handle.undeclare)
+        offer.feedback.undeclare()
+        offer.status.undeclare()
 
     def _on_send_goal(self, action: str, wire: ActionWire, query: zenoh.Query) -> None:
         link = self.link
@@ -202,7 +221,7 @@ class ActionLink:
             if len(self._served) >= MAX_SERVED or goal_id in self._served:
                 link.reply(query, wire.accepted(False, link.graph.clock.wall()))
                 return
-            served = self._served[goal_id] = _Served(action, wire)
+            served = self._served[goal_id] = _Served(action, wire, link.graph.clock.wall())
             served.handle = link.graph.send_action_goal(
                 link.caller,
                 action,
@@ -211,7 +230,8 @@ class ActionLink:
                 partial(self._goal_done, goal_id),
                 partial(self._goal_feedback, action, wire, goal_id),
             )
-            link.reply(query, wire.accepted(True, link.graph.clock.wall()))
+            link.reply(query, wire.accepted(True, served.accepted_at))
+            self._status_changed(action)
         except (RwtError, WireError) as exc:
             self._served.pop(goal_id, None)
             query.reply_err(f"action {action} refused the goal: {exc}")
@@ -221,27 +241,17 @@ class ActionLink:
     def _goal_feedback(
         self, action: str, wire: ActionWire, goal_id: bytes, msg: dict[str, object]
     ) -> None:
-        publisher = self._feedback_pubs.get(action)
-        if publisher is None:
-            key = self._key(
-                action + FEEDBACK_SUFFIX,
-                wire,
-                "FeedbackMessage",
-                self._hash(wire, "FeedbackMessage"),
-            )
-            handle = self.link.session.declare_publisher(
-                key, allowed_destination=zenoh.Locality.REMOTE
-            )
-            gid = gid_of(f"{self.link.zid}/{action}{FEEDBACK_SUFFIX}")
-            publisher = self._feedback_pubs[action] = _FeedbackPublisher(handle, gid)
-        attachment = pack_attachment(next(publisher.sequence), time.time_ns(), publisher.gid)
-        publisher.handle.put(wire.feedback(goal_id, msg), attachment=attachment)
+        offer = self._offers.get(action)
+        if offer is not None:
+            offer.feedback.put(wire.feedback(goal_id, msg))
 
     def _goal_done(self, goal_id: bytes, status: GoalStatus, result: bool, values: object) -> None:
         served = self._served.get(goal_id)
         if served is None:
             return
         served.outcome = (status, result, values)
+        served.status = status
+        self._status_changed(served.action)
         waiting, served.waiting = served.waiting, []
         for query in waiting:
             self._answer(goal_id, served, query)
@@ -291,12 +301,39 @@ class ActionLink:
         if served is None or served.handle is None:
             return False
         served.handle.request_cancel()
+        if served.outcome is None:
+            served.status = GoalStatus.CANCELING
+            self._status_changed(served.action)
         response = {"return_code": 0, "goals_canceling": [info]}
         try:
             self.link.reply(query, encode_message(registry, srvtype.response, response))
         finally:
             query.drop()  # type: ignore[no-untyped-call]
         return True
+
+    def _status_changed(self, action: str) -> None:
+        """Publish ``action``'s status once the events at hand are handled.
+
+        So a burst of goals costs one ``GoalStatusArray``, not one per goal.
+        """
+        if action not in self._status_due:
+            self._status_due.add(action)
+            self.link.soon(self._publish_status, action)
+
+    def _publish_status(self, action: str) -> None:
+        self._status_due.discard(action)
+        offer = self._offers.get(action)
+        if offer is None:
+            return
+        status_list: list[dict[str, object]] = []
+        for goal_id, served in self._served.items():
+            if served.action == action:
+                sec, nanosec = stamp_of(served.accepted_at)
+                info = {"goal_id": {"uuid": goal_id}, "stamp": {"sec": sec, "nanosec": nanosec}}
+                status_list.append({"goal_info": info, "status": int(served.status)})
+        registry = self.link.graph.registry
+        msgtype = registry.message(GOAL_STATUS_ARRAY)
+        offer.status.put(encode_message(registry, msgtype, {"status_list": status_list}))
 
     # ---- caller side ----------------------------------------------------------------
 
@@ -440,10 +477,8 @@ class ActionLink:
         """Withdraw everything; goals of remote callers end for them when this process goes."""
         for name in list(self._offers):
             self._withdraw(name)
-        handles = [p.handle for p in self._feedback_pubs.values()]
-        for handle in [*handles, *self._feedback_subs.values()]:
+        for handle in self._feedback_subs.values():
             guarded("undeclaring an action's entity", handle.undeclare)
-        self._feedback_pubs.clear()
         self._feedback_subs.clear()
         self._calling.clear()
         self._served.clear()

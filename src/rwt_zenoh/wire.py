@@ -31,6 +31,8 @@ __all__ = [
     "ADMIN_SPACE",
     "DEFAULT_QOS",
     "INFINITE",
+    "LATCHED_QOS",
+    "VOLATILE_QOS",
     "Attachment",
     "Durability",
     "Entity",
@@ -139,6 +141,14 @@ class QoS:
 
 DEFAULT_QOS = QoS()
 """rmw_zenoh's defaults (qos.cpp): reliable, transient local, keep last 42, infinite durations."""
+
+VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=10)
+"""A plain topic's profile and an action's feedback's (``rmw_qos_profile_default``,
+rmw/qos_profiles.h): reliable, volatile, keep last 10."""
+
+LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=1)
+"""A latched topic's profile and an action's status's
+(``rcl_action_qos_profile_status_default``): reliable, transient local, keep last 1."""
 
 
 def qos_to_keyexpr(qos: QoS) -> str:

@@ -22,12 +22,14 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import anyio
 import pytest
+import zenoh.ext
 
 import zenoh
+from rwt_graph.actions import GoalCanceledError
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi.listing import publishers, services, subscribers
 from rwt_graph.rosapi.visibility import EVERYTHING
@@ -37,7 +39,7 @@ from rwt_transports.server import spawner_for
 from rwt_zenoh.config import make_config
 from rwt_zenoh.link import open_link
 from rwt_zenoh.payload import decode_sample, encode_sample, named_service_hash
-from rwt_zenoh.wire import Attachment, Entity, EntityKind, Topic, pack_attachment
+from rwt_zenoh.wire import Attachment, Durability, Entity, EntityKind, Topic, pack_attachment
 
 from .processes import Process, started
 from .support import endpoint, peer
@@ -62,7 +64,12 @@ FEEDBACK_KEY = (
     "0/fib/_action/feedback/example_interfaces::action::dds_::Fibonacci_FeedbackMessage_/"
     + FEEDBACK_HASH
 )
+STATUS_HASH = "RIHS01_6c1684b00f177d37438febe6e709fc4e2b0d4248dca4854946f9ed8b30cda83e"
+STATUS_KEY = f"0/fib/_action/status/action_msgs::msg::dds_::GoalStatusArray_/{STATUS_HASH}"
+CANCEL_HASH = "RIHS01_573d8b0a534451d7bc2ac8c5ffde8ac14b8593b7001175d0cd6516dcbeb8689a"
+CANCEL_KEY = f"0/fib/_action/cancel_goal/action_msgs::srv::dds_::CancelGoal_/{CANCEL_HASH}"
 CLIENT_GID = bytes(range(100, 116))
+GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 
 
 @pytest.fixture
@@ -174,6 +181,132 @@ async def test_a_ros2_action_client_sends_a_goal_and_takes_its_feedback() -> Non
         (bytes(range(16)), {"sequence": [0, 1, 1, 2]}),
         (bytes(range(16)), {"sequence": [0, 1, 1, 2, 3]}),
     ]
+
+
+async def tokens_of(session: Any) -> list[Entity]:
+    """Every ROS 2 entity on the network, from its liveliness token."""
+
+    def get() -> list[Entity]:
+        replies = session.liveliness().get("@ros2_lv/0/**", timeout=2.0)
+        return [Entity.parse(str(reply.ok.key_expr)) for reply in replies if reply.ok]
+
+    return await anyio.to_thread.run_sync(get)
+
+
+REGISTRY = TypeRegistry()
+
+
+def status_codes(samples: list[Any], goal_id: bytes) -> list[int]:
+    """The successive states of one goal in ``GoalStatusArray`` samples, repeats removed."""
+    codes: list[int] = []
+    for sample in samples:
+        array = decode_sample(REGISTRY, GOAL_STATUS_ARRAY, sample.payload.to_bytes())
+        for status in cast("list[Any]", array["status_list"]):
+            if status["goal_info"]["goal_id"]["uuid"] == goal_id and (
+                not codes or codes[-1] != status["status"]
+            ):
+                codes.append(status["status"])
+    return codes
+
+
+async def test_a_ros2_action_client_finds_the_server_and_follows_its_goals_status() -> None:
+    """What rclpy and rclcpp action clients need of a server besides its services.
+
+    ``wait_for_server`` waits for the three services and a feedback publisher
+    (rcl_action action_client.c ``rcl_action_server_is_available``); ``ros2 action
+    list`` finds actions by their feedback topics (rcl_action graph.c); a client's
+    goal handles follow the ``status`` topic, transient local, keep last 1
+    (``rcl_action_qos_profile_status_default``).
+    """
+    first = endpoint()
+    graph = Graph()
+
+    async def patient(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        for _ in range(goal["order"]):  # 50 ms a step, unless canceled
+            if context.cancel_requested:
+                raise GoalCanceledError
+            await anyio.sleep(0.05)
+        return {"sequence": [0, 1]}
+
+    from rwt_zenoh.actions import ActionWire  # noqa: PLC0415 - the goal's CDR
+
+    registry = graph.registry
+    wire = ActionWire(registry, registry.action("example_interfaces/action/Fibonacci"))
+    done, stopped = bytes(range(16)), bytes(range(16, 32))
+    statuses: list[Any] = []
+    async with anyio.create_task_group() as tg, open_link(graph, peer(listen=first)):
+        graph.spawner = spawner_for(tg)
+        graph.create_action_server(
+            "/fib", "example_interfaces/action/Fibonacci", patient, node="/fib_server"
+        )
+        with bare_session(first) as session:
+            entities: list[Entity] = []
+            with anyio.fail_after(WAIT_S):
+                while len([e for e in entities if e.node == "fib_server"]) < 5:
+                    await anyio.sleep(0.05)
+                    entities = await tokens_of(session)
+            status_sub = zenoh.ext.declare_advanced_subscriber(
+                session,
+                STATUS_KEY,
+                statuses.append,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+            )
+            reply, _ = await ros2_call_until_answered(
+                session, SEND_GOAL_KEY, wire.send_goal(done, {"order": 4})
+            )
+            assert wire.read_accepted(reply.ok.payload.to_bytes())
+            await until(lambda: status_codes(statuses, done)[-1:] == [4], "SUCCEEDED")
+            reply, _ = await ros2_call_until_answered(
+                session, SEND_GOAL_KEY, wire.send_goal(stopped, {"order": 1000})
+            )
+            await until(lambda: status_codes(statuses, stopped) == [2], "EXECUTING")
+            info = {"goal_id": {"uuid": stopped}, "stamp": {"sec": 0, "nanosec": 0}}
+            cancel = encode_sample(
+                registry, "action_msgs/srv/CancelGoal_Request", {"goal_info": info}
+            )
+            reply, _ = await ros2_call_until_answered(session, CANCEL_KEY, cancel)
+            await until(lambda: status_codes(statuses, stopped)[-1:] == [5], "CANCELED")
+            status_sub.undeclare()
+            # a late subscriber gets the last status from the publisher's cache
+            late: list[Any] = []
+            late_sub = zenoh.ext.declare_advanced_subscriber(
+                session,
+                STATUS_KEY,
+                late.append,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+            )
+            await until(lambda: bool(late), "the latched status")
+            late_sub.undeclare()
+        tg.cancel_scope.cancel()
+    server = {(e.kind, e.topic.name): e for e in entities if e.node == "fib_server" and e.topic}
+    assert set(server) == {
+        (EntityKind.SERVICE, "/fib/_action/send_goal"),
+        (EntityKind.SERVICE, "/fib/_action/get_result"),
+        (EntityKind.SERVICE, "/fib/_action/cancel_goal"),
+        (EntityKind.PUBLISHER, "/fib/_action/feedback"),
+        (EntityKind.PUBLISHER, "/fib/_action/status"),
+    }
+    feedback = server[(EntityKind.PUBLISHER, "/fib/_action/feedback")].topic
+    assert feedback is not None
+    assert f"0/fib/_action/feedback/{feedback.dds_type}/{feedback.type_hash}" == FEEDBACK_KEY
+    status = server[(EntityKind.PUBLISHER, "/fib/_action/status")]
+    assert status.topic is not None
+    assert (status.topic.dds_type, status.topic.type_hash) == (
+        "action_msgs::msg::dds_::GoalStatusArray_",
+        STATUS_HASH,
+    )
+    assert (status.topic.qos.durability, status.topic.qos.depth) == (Durability.TRANSIENT_LOCAL, 1)
+    # the goals' states in order: EXECUTING then SUCCEEDED; EXECUTING, CANCELING, CANCELED
+    assert status_codes(statuses, done) == [2, 4]
+    assert status_codes(statuses, stopped) == [2, 3, 5]
+    attached = [Attachment.decode(sample.attachment.to_bytes()) for sample in statuses]
+    assert {a.source_gid for a in attached} == {status.gid()}
+    numbers = [a.sequence_number for a in attached]
+    assert numbers == sorted(numbers)
+    assert status_codes(late[-1:], stopped) == [5]
+    accepted_at = decode_sample(REGISTRY, GOAL_STATUS_ARRAY, late[-1].payload.to_bytes())
+    stamps = [s["goal_info"]["stamp"]["sec"] for s in cast("list[Any]", accepted_at["status_list"])]
+    assert all(abs(stamp - time.time()) < 60 for stamp in stamps)
 
 
 async def test_a_ros2_client_reads_a_node_parameter_and_gets_its_sequence_number_back() -> None:
