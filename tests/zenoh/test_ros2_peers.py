@@ -8,7 +8,8 @@ rmw_zenoh is just another peer:
   and ``send_response``, ros2/rmw_zenoh rolling): a query that targets complete
   queryables only, with the client's sequence number and GID attached; a reply
   that must carry them back, since a ROS 2 client pairs a response with its call
-  by that sequence number;
+  by that sequence number; the same session plays a ROS 2 action client (the
+  tokens it waits for, the ``status`` topic) and a ROS 2 action server;
 - zenoh-ros2-sdk (ROBOTIS, on PyPI), an rmw_zenoh-compatible Python library
   written independently of rwt, as a whole peer: topics both ways, a latched
   topic for its late subscriber, services both ways, and each side's graph
@@ -20,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import json
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -31,10 +33,11 @@ import zenoh.ext
 import zenoh
 from rwt_graph.actions import GoalCanceledError
 from rwt_graph.graph import Graph
-from rwt_graph.rosapi.listing import publishers, services, subscribers
+from rwt_graph.rosapi.listing import action_servers, publishers, services, subscribers
 from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_graph.types.registry import TypeRegistry
-from rwt_transports.async_calls import call_service
+from rwt_protocol.ports import GoalStatus
+from rwt_transports.async_calls import call_service, send_action_goal
 from rwt_transports.server import spawner_for
 from rwt_zenoh.config import make_config
 from rwt_zenoh.link import open_link
@@ -70,6 +73,8 @@ CANCEL_HASH = "RIHS01_573d8b0a534451d7bc2ac8c5ffde8ac14b8593b7001175d0cd6516dcbe
 CANCEL_KEY = f"0/fib/_action/cancel_goal/action_msgs::srv::dds_::CancelGoal_/{CANCEL_HASH}"
 CLIENT_GID = bytes(range(100, 116))
 GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
+CANCEL_GOAL = "action_msgs/srv/CancelGoal"
+FIBONACCI = "example_interfaces/action/Fibonacci"
 
 
 @pytest.fixture
@@ -242,7 +247,7 @@ async def test_a_ros2_action_client_finds_the_server_and_follows_its_goals_statu
         with bare_session(first) as session:
             entities: list[Entity] = []
             with anyio.fail_after(WAIT_S):
-                while len([e for e in entities if e.node == "fib_server"]) < 5:
+                while len([e for e in entities if e.node == "fib_server" and e.topic]) < 5:
                     await anyio.sleep(0.05)
                     entities = await tokens_of(session)
             status_sub = zenoh.ext.declare_advanced_subscriber(
@@ -307,6 +312,151 @@ async def test_a_ros2_action_client_finds_the_server_and_follows_its_goals_statu
     accepted_at = decode_sample(REGISTRY, GOAL_STATUS_ARRAY, late[-1].payload.to_bytes())
     stamps = [s["goal_info"]["stamp"]["sec"] for s in cast("list[Any]", accepted_at["status_list"])]
     assert all(abs(stamp - time.time()) < 60 for stamp in stamps)
+
+
+class Ros2ActionServer:
+    """``/fib`` served as rcl_action's server on rmw_zenoh serves it (Zenoh threads).
+
+    Its node's and entities' tokens; complete queryables for ``send_goal``,
+    ``get_result`` and ``cancel_goal``, whose replies carry the request's sequence
+    number and GID; feedback samples with the publisher's attachment. A goal of
+    order n runs n - 1 steps of 50 ms; ``get_result`` is answered when it ends.
+    """
+
+    FEEDBACK_GID = bytes(range(200, 216))
+
+    def __init__(self, session: Any, wire: Any) -> None:
+        self.wire = wire
+        self.asked: list[tuple[str, Attachment]] = []  # (service, the request's attachment)
+        self.canceled: set[bytes] = set()
+        self.results: dict[bytes, tuple[int, dict[str, Any]]] = {}
+        self.waiting: dict[bytes, Any] = {}
+        self.lock = threading.Lock()
+        registry = wire.registry
+        node = Entity(0, "1234abcd", 1, 1, EntityKind.NODE, "/", "ros2_fib")
+        hashes = {
+            "send_goal": SEND_GOAL_HASH,
+            "get_result": named_service_hash(registry, f"{FIBONACCI}_GetResult"),
+            "cancel_goal": CANCEL_HASH,
+        }
+        types = {
+            "send_goal": SEND_GOAL_TYPE,
+            "get_result": wire.dds_type("GetResult"),
+            "cancel_goal": "action_msgs::srv::dds_::CancelGoal_",
+        }
+        handlers = {
+            "send_goal": self.on_send_goal,
+            "get_result": self.on_get_result,
+            "cancel_goal": self.on_cancel,
+        }
+        self.handles: list[Any] = [session.liveliness().declare_token(node.token())]
+        for eid, name in enumerate(handlers, start=2):
+            topic = Topic(f"/fib/_action/{name}", types[name], hashes[name])
+            entity = Entity(0, "1234abcd", 1, eid, EntityKind.SERVICE, "/", "ros2_fib", topic=topic)
+            key = f"0/fib/_action/{name}/{types[name]}/{hashes[name]}"
+            self.handles.append(session.liveliness().declare_token(entity.token()))
+            self.handles.append(session.declare_queryable(key, handlers[name], complete=True))
+        self.feedback = session.declare_publisher(FEEDBACK_KEY)
+        self.handles.append(self.feedback)
+
+    def close(self) -> None:
+        for handle in self.handles:
+            handle.undeclare()
+
+    def reply(self, query: Any, payload: bytes) -> None:
+        asked = Attachment.decode(query.attachment.to_bytes())
+        back = pack_attachment(asked.sequence_number, time.time_ns(), asked.source_gid)
+        query.reply(query.key_expr, payload, attachment=back)
+        query.drop()
+
+    def on_send_goal(self, query: Any) -> None:
+        self.asked.append(("send_goal", Attachment.decode(query.attachment.to_bytes())))
+        goal_id, goal = self.wire.read_send_goal(query.payload.to_bytes())
+        self.reply(query, self.wire.accepted(True, time.time()))
+        threading.Thread(target=self.execute, args=(goal_id, goal["order"]), daemon=True).start()
+
+    def execute(self, goal_id: bytes, order: int) -> None:
+        sequence, status = [0, 1], 4  # SUCCEEDED
+        for step in range(1, order):
+            if goal_id in self.canceled:
+                status = 5  # CANCELED
+                break
+            time.sleep(0.05)
+            sequence.append(sequence[-1] + sequence[-2])
+            attachment = pack_attachment(step, time.time_ns(), self.FEEDBACK_GID)
+            payload = self.wire.feedback(goal_id, {"sequence": list(sequence)})
+            self.feedback.put(payload, attachment=attachment)
+        with self.lock:
+            self.results[goal_id] = (status, {"sequence": sequence})
+            query = self.waiting.pop(goal_id, None)
+        if query is not None:
+            self.reply(query, self.wire.result(status, {"sequence": sequence}))
+
+    def on_get_result(self, query: Any) -> None:
+        self.asked.append(("get_result", Attachment.decode(query.attachment.to_bytes())))
+        goal_id = self.wire.read_get_result(query.payload.to_bytes())
+        with self.lock:
+            ended = self.results.get(goal_id)
+            if ended is None:
+                self.waiting[goal_id] = query
+                return
+        self.reply(query, self.wire.result(*ended))
+
+    def on_cancel(self, query: Any) -> None:
+        self.asked.append(("cancel_goal", Attachment.decode(query.attachment.to_bytes())))
+        request = decode_sample(REGISTRY, f"{CANCEL_GOAL}_Request", query.payload.to_bytes())
+        info: Any = request["goal_info"]
+        self.canceled.add(bytes(info["goal_id"]["uuid"]))
+        response = {"return_code": 0, "goals_canceling": [info]}
+        self.reply(
+            "cancel_goal", query, encode_sample(REGISTRY, f"{CANCEL_GOAL}_Response", response)
+        )
+
+
+async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> None:
+    """rwt as a ROS 2 action client: goal, feedback, result and cancel, each call
+    carrying the process's client GID and its own sequence number."""
+    first = endpoint()
+    graph = Graph()
+    from rwt_zenoh.actions import ActionWire  # noqa: PLC0415 - the goal's CDR
+
+    wire = ActionWire(graph.registry, graph.registry.action(FIBONACCI))
+    feedback: list[dict[str, Any]] = []
+    with bare_session(listen=first) as session:
+        server = Ros2ActionServer(session, wire)
+        try:
+            async with open_link(graph, peer(connect=(first,))) as link:
+                await until(lambda: "/fib" in action_servers(graph, EVERYTHING), "the action")
+                outcome = await send_action_goal(
+                    graph, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
+                )
+                done: list[tuple[GoalStatus, bool, object]] = []
+                handle = graph.send_action_goal(
+                    graph.local_client(),
+                    "/fib",
+                    "",
+                    {"order": 1000},
+                    lambda *ended: done.append(ended),
+                    None,
+                )
+                await until(lambda: len(server.asked) >= 4, "the second goal's result request")
+                handle.request_cancel()
+                await until(lambda: bool(done), "the canceled goal's end")
+        finally:
+            server.close()
+    assert outcome.status is GoalStatus.SUCCEEDED
+    assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
+    # feedback in order (the first may come before the route to rwt's subscriber is up)
+    assert feedback
+    assert feedback[-1] == {"sequence": [0, 1, 1, 2, 3, 5]}
+    assert [len(f["sequence"]) for f in feedback] == sorted({len(f["sequence"]) for f in feedback})
+    assert done[0][:2] == (GoalStatus.CANCELED, True)
+    called = [name for name, _ in server.asked]
+    assert called == ["send_goal", "get_result", "send_goal", "get_result", "cancel_goal"]
+    attachments = [attachment for _, attachment in server.asked]
+    assert {a.source_gid for a in attachments} == {link.caller_gid}
+    numbers = [a.sequence_number for a in attachments]
+    assert numbers == sorted(set(numbers))  # a request is refused if one repeats
 
 
 async def test_a_ros2_client_reads_a_node_parameter_and_gets_its_sequence_number_back() -> None:
