@@ -39,6 +39,7 @@ from rwt_graph.types.registry import TypeRegistry
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.async_calls import call_service, send_action_goal
 from rwt_transports.server import spawner_for
+from rwt_zenoh.actions import ActionWire
 from rwt_zenoh.config import make_config
 from rwt_zenoh.link import open_link
 from rwt_zenoh.payload import decode_sample, encode_sample, named_service_hash
@@ -122,6 +123,16 @@ async def ros2_call_until_answered(session: Any, key: str, payload: bytes) -> tu
     raise AssertionError(f"no reply to a ROS 2 client's query on {key}")
 
 
+@contextlib.asynccontextmanager
+async def serving_fib(graph: Graph, handler: Any, node: str, listen: str) -> AsyncIterator[None]:
+    """``/fib`` served in ``graph`` by ``handler``, the graph linked, listening on ``listen``."""
+    async with anyio.create_task_group() as tg, open_link(graph, peer(listen=listen)):
+        graph.spawner = spawner_for(tg)
+        graph.create_action_server("/fib", FIBONACCI, handler, node=node)
+        yield
+        tg.cancel_scope.cancel()
+
+
 async def test_a_ros2_client_calls_a_service_and_gets_its_sequence_number_back() -> None:
     first = endpoint()
     graph = Graph()
@@ -153,23 +164,15 @@ async def test_a_ros2_action_client_sends_a_goal_and_takes_its_feedback() -> Non
             context.publish_feedback({"sequence": list(sequence)})
         return {"sequence": sequence}
 
-    from rwt_zenoh.actions import ActionWire  # noqa: PLC0415 - the goal's CDR
-
-    registry = graph.registry
-    wire = ActionWire(registry, registry.action("example_interfaces/action/Fibonacci"))
+    wire = ActionWire(graph.registry, graph.registry.action(FIBONACCI))
     samples: list[Any] = []
-    async with anyio.create_task_group() as tg, open_link(graph, peer(listen=first)):
-        graph.spawner = spawner_for(tg)
-        graph.create_action_server(
-            "/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f"
-        )
+    async with serving_fib(graph, fibonacci, "/f", first):
         with bare_session(first) as session:
             feedback = session.declare_subscriber(FEEDBACK_KEY, samples.append)
             request = wire.send_goal(bytes(range(16)), {"order": 4})
             reply, sequence = await ros2_call_until_answered(session, SEND_GOAL_KEY, request)
             await until(lambda: len(samples) >= 3, "three feedback samples")
             feedback.undeclare()
-        tg.cancel_scope.cancel()
     assert reply.ok is not None, reply.err.payload.to_string()
     assert wire.read_accepted(reply.ok.payload.to_bytes()) is True
     attachment = Attachment.decode(reply.ok.attachment.to_bytes())
@@ -233,17 +236,11 @@ async def test_a_ros2_action_client_finds_the_server_and_follows_its_goals_statu
             await anyio.sleep(0.05)
         return {"sequence": [0, 1]}
 
-    from rwt_zenoh.actions import ActionWire  # noqa: PLC0415 - the goal's CDR
-
     registry = graph.registry
-    wire = ActionWire(registry, registry.action("example_interfaces/action/Fibonacci"))
+    wire = ActionWire(registry, registry.action(FIBONACCI))
     done, stopped = bytes(range(16)), bytes(range(16, 32))
     statuses: list[Any] = []
-    async with anyio.create_task_group() as tg, open_link(graph, peer(listen=first)):
-        graph.spawner = spawner_for(tg)
-        graph.create_action_server(
-            "/fib", "example_interfaces/action/Fibonacci", patient, node="/fib_server"
-        )
+    async with serving_fib(graph, patient, "/fib_server", first):
         with bare_session(first) as session:
             entities: list[Entity] = []
             with anyio.fail_after(WAIT_S):
@@ -282,7 +279,6 @@ async def test_a_ros2_action_client_finds_the_server_and_follows_its_goals_statu
             )
             await until(lambda: bool(late), "the latched status")
             late_sub.undeclare()
-        tg.cancel_scope.cancel()
     server = {(e.kind, e.topic.name): e for e in entities if e.node == "fib_server" and e.topic}
     assert set(server) == {
         (EntityKind.SERVICE, "/fib/_action/send_goal"),
@@ -418,8 +414,6 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
     carrying the process's client GID and its own sequence number."""
     first = endpoint()
     graph = Graph()
-    from rwt_zenoh.actions import ActionWire  # noqa: PLC0415 - the goal's CDR
-
     wire = ActionWire(graph.registry, graph.registry.action(FIBONACCI))
     feedback: list[dict[str, Any]] = []
     with bare_session(listen=first) as session:
