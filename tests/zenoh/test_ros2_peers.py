@@ -76,6 +76,7 @@ CLIENT_GID = bytes(range(100, 116))
 GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 CANCEL_GOAL = "action_msgs/srv/CancelGoal"
 FIBONACCI = "example_interfaces/action/Fibonacci"
+REGISTRY = TypeRegistry()
 
 
 @pytest.fixture
@@ -123,6 +124,13 @@ async def ros2_call_until_answered(session: Any, key: str, payload: bytes) -> tu
     raise AssertionError(f"no reply to a ROS 2 client's query on {key}")
 
 
+def adder_graph() -> Graph:
+    """A graph whose node ``/adder`` serves ``/add`` (``AddTwoInts``)."""
+    graph = Graph()
+    graph.create_service("/add", ADD_TYPE, lambda req: {"sum": req["a"] + req["b"]}, node="/adder")
+    return graph
+
+
 @contextlib.asynccontextmanager
 async def serving_fib(graph: Graph, handler: Any, node: str, listen: str) -> AsyncIterator[None]:
     """``/fib`` served in ``graph`` by ``handler``, the graph linked, listening on ``listen``."""
@@ -135,9 +143,8 @@ async def serving_fib(graph: Graph, handler: Any, node: str, listen: str) -> Asy
 
 async def test_a_ros2_client_calls_a_service_and_gets_its_sequence_number_back() -> None:
     first = endpoint()
-    graph = Graph()
-    graph.create_service("/add", ADD_TYPE, lambda req: {"sum": req["a"] + req["b"]}, node="/adder")
-    registry = TypeRegistry()
+    graph = adder_graph()
+    registry = REGISTRY
     request = encode_sample(registry, f"{ADD_TYPE}_Request", {"a": 2, "b": 40})
     async with open_link(graph, peer(listen=first)):
         with bare_session(first) as session:
@@ -199,9 +206,6 @@ async def tokens_of(session: Any) -> list[Entity]:
         return [Entity.parse(str(reply.ok.key_expr)) for reply in replies if reply.ok]
 
     return await anyio.to_thread.run_sync(get)
-
-
-REGISTRY = TypeRegistry()
 
 
 def status_codes(samples: list[Any], goal_id: bytes) -> list[int]:
@@ -586,9 +590,8 @@ async def test_zenoh_ros2_sdk_nodes_and_a_linked_graph_share_topics_and_services
 
 async def test_queries_with_forged_attachments_are_answered_and_the_service_carries_on() -> None:
     first = endpoint()
-    graph = Graph()
-    graph.create_service("/add", ADD_TYPE, lambda req: {"sum": req["a"] + req["b"]}, node="/a")
-    registry = TypeRegistry()
+    graph = adder_graph()
+    registry = REGISTRY
     request = encode_sample(registry, f"{ADD_TYPE}_Request", {"a": 1, "b": 1})
     forged = [b"", b"\xff" * 33, bytes(1 << 20), (2**63 - 1).to_bytes(8, "little") * 5]
 
@@ -611,3 +614,58 @@ async def test_queries_with_forged_attachments_are_answered_and_the_service_carr
         "sum": 2
     }
     assert Attachment.decode(reply.ok.attachment.to_bytes()).sequence_number == sequence
+
+
+async def test_forged_goals_and_cancels_are_refused_and_the_status_lists_only_real_goals() -> None:
+    """A peer's garbage, a goal id sent twice and cancels of unknown or malformed goals."""
+    first = endpoint()
+    graph = Graph()
+    started: list[int] = []
+
+    async def counting(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        started.append(goal["order"])
+        while not context.cancel_requested:
+            await anyio.sleep(0.02)
+        raise GoalCanceledError
+
+    wire = ActionWire(graph.registry, graph.registry.action(FIBONACCI))
+    real = bytes(range(16))
+    statuses: list[Any] = []
+
+    def call(session: Any, key: str, payload: bytes) -> list[Any]:
+        return ros2_call(session, key, payload, 7)
+
+    async with serving_fib(graph, counting, "/fib_server", first):
+        with bare_session(first) as session:
+            status_sub = session.declare_subscriber(STATUS_KEY, statuses.append)
+            reply, _ = await ros2_call_until_answered(
+                session, SEND_GOAL_KEY, wire.send_goal(real, {"order": 1})
+            )
+            assert wire.read_accepted(reply.ok.payload.to_bytes())
+            # the same goal id again: refused, and no second goal starts
+            [again] = await anyio.to_thread.run_sync(
+                call, session, SEND_GOAL_KEY, wire.send_goal(real, {"order": 2})
+            )
+            assert wire.read_accepted(again.ok.payload.to_bytes()) is False
+            # garbage and a goal that does not fit its type: error replies
+            for payload in (b"", b"\xff" * 7, bytes(1 << 20)):
+                [bad] = await anyio.to_thread.run_sync(call, session, SEND_GOAL_KEY, payload)
+                assert bad.err is not None
+            # cancels of an unknown goal and a malformed cancel: the real goal runs on
+            stamp = {"sec": 2**31 - 1, "nanosec": 999_999_999}
+            unknown = {"goal_id": {"uuid": b"\xff" * 16}, "stamp": stamp}
+            request = f"{CANCEL_GOAL}_Request"
+            for payload in (encode_sample(REGISTRY, request, {"goal_info": unknown}), b"\x00"):
+                await anyio.to_thread.run_sync(call, session, CANCEL_KEY, payload)
+            await until(lambda: bool(status_codes(statuses, real)), "the real goal's status")
+            assert status_codes(statuses, real) == [2]
+            # the real goal is still cancelable, and the status shows only it
+            info = {"goal_id": {"uuid": real}, "stamp": {"sec": 0, "nanosec": 0}}
+            cancel = encode_sample(REGISTRY, request, {"goal_info": info})
+            await anyio.to_thread.run_sync(call, session, CANCEL_KEY, cancel)
+            await until(lambda: status_codes(statuses, real)[-1:] == [5], "CANCELED")
+            status_sub.undeclare()
+    assert started == [1]
+    last = decode_sample(REGISTRY, GOAL_STATUS_ARRAY, statuses[-1].payload.to_bytes())
+    goals = [s["goal_info"]["goal_id"]["uuid"] for s in cast("list[Any]", last["status_list"])]
+    assert goals == [real]
