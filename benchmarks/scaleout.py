@@ -40,7 +40,7 @@ from typing import Any
 import websockets
 
 from .fanout_raw import fan_out_raw
-from .zenoh_link import run_pair
+from .zenoh_link import rclpy_available, run_pair
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results" / "scaleout.json"
@@ -62,7 +62,10 @@ def _env() -> dict[str, str]:
 
 @contextlib.asynccontextmanager
 async def server(*args: str) -> Any:
-    """``rwt serve --port 0 --no-tf ARGS``; yields its ws:// URL; stopped at the end."""
+    """``rwt serve --port 0 --no-tf ARGS``; yields its ws:// URL; stopped at the end.
+
+    The server's process id is ``SERVER_PIDS[url]`` while it runs.
+    """
     cmd = [sys.executable, "-m", "rwt_transports.cli", "serve", "--port", "0", "--no-tf"]
     cmd += ["--log-level", "warning", *args]
     proc = await asyncio.create_subprocess_exec(
@@ -71,7 +74,9 @@ async def server(*args: str) -> Any:
     try:
         assert proc.stdout is not None
         line = await asyncio.wait_for(proc.stdout.readline(), TIMEOUT_S)
-        yield line.decode().strip().removeprefix("listening on ")
+        url = line.decode().strip().removeprefix("listening on ")
+        SERVER_PIDS[url] = proc.pid
+        yield url
     finally:
         with contextlib.suppress(ProcessLookupError):
             proc.terminate()
@@ -80,6 +85,52 @@ async def server(*args: str) -> Any:
         except TimeoutError:
             proc.kill()
             await proc.wait()
+
+
+SERVER_PIDS: dict[str, int] = {}
+
+
+def tree_cpu_s(pid: int) -> float:
+    """CPU seconds (user + system, all threads) of ``pid`` and its live descendants.
+
+    Read from /proc (``stat`` fields 14 and 15, in clock ticks; ``task/*/children``).
+    """
+    total = 0.0
+    pending = [pid]
+    while pending:
+        current = pending.pop()
+        try:
+            fields = Path(f"/proc/{current}/stat").read_text().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+            for task in Path(f"/proc/{current}/task").iterdir():
+                pending += [int(c) for c in (task / "children").read_text().split()]
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+    return total
+
+
+async def workers_cpu(workers: int, duration_s: float) -> dict[str, float]:
+    """Servers' CPU per delivery of the raw-socket fan-out (1 -> 100) on ``rwt serve``.
+
+    ``workers`` > 1 runs ``--workers N``; every process of the server is counted
+    (the parent and each worker, read from /proc), the generator's are not.
+
+    Returns:
+        ``server_cpu_us_per_delivery``, ``deliveries_per_s``, ``delivered``, ``expected``.
+    """
+    args = ("--workers", str(workers)) if workers > 1 else ()
+    async with server(*args) as url:
+        await asyncio.sleep(2)  # every worker listening
+        port = int(url.rsplit(":", 1)[1].split("/")[0])
+        before = tree_cpu_s(SERVER_PIDS[url])
+        raw = await asyncio.to_thread(fan_out_raw, port, 100, duration_s)
+        used = tree_cpu_s(SERVER_PIDS[url]) - before
+    return {
+        "server_cpu_us_per_delivery": used / max(raw["delivered"], 1) * 1e6,
+        "deliveries_per_s": raw["deliveries_per_s"],
+        "delivered": raw["delivered"],
+        "expected": raw["expected"],
+    }
 
 
 async def connect(url: str) -> Any:
@@ -219,13 +270,17 @@ async def throughput(pub_url: str, sub_url: str, size: int, count: int) -> dict[
 
 
 async def link_level(size: int, count: int, rounds: int) -> dict[str, Any]:
-    """Z3 at the link (``zenoh_link``): graph A -> graph B against bare Zenoh, interleaved.
+    """Z3 at the link (``zenoh_link``): graph A -> graph B against bare Zenoh and rclpy.
+
+    The three kinds alternate within each round (rclpy only where it imports).
 
     Returns:
-        ``link`` and ``bare``: the round with the median rate of each, and every
-        round's rate under ``rounds``.
+        ``link``, ``bare`` and ``rclpy``: the round with the median rate of each, and
+        every round's rate under ``rounds``.
     """
     runs: dict[str, list[dict[str, float]]] = {"link": [], "bare": []}
+    if rclpy_available():
+        runs["rclpy"] = []
     for _ in range(rounds):
         for kind, done in runs.items():
             done.append(await run_pair(kind, size, count, f"tcp/127.0.0.1:{_free_port()}"))
@@ -260,6 +315,8 @@ async def measure(quick: bool) -> dict[str, Any]:
         pair = await link_level(size, count, 1 if quick else 3)
         results[f"Z3 link {size} B"] = pair["link"]
         results[f"Z3 bare zenoh {size} B"] = pair["bare"]
+        if "rclpy" in pair:
+            results[f"Z3 rclpy {size} B"] = pair["rclpy"]
     count = max(20, int(300 * scale))
     async with server() as single:
         results["Z2 1 worker"] = await fan_out(single, 100, count)
@@ -272,6 +329,8 @@ async def measure(quick: bool) -> dict[str, Any]:
             await asyncio.sleep(2)
             port = int(url.rsplit(":", 1)[1].split("/")[0])
             results[f"Z2 raw {label}"] = await asyncio.to_thread(fan_out_raw, port, 100, duration)
+    for workers in (1, 2):
+        results[f"Z2 server CPU {workers}"] = await workers_cpu(workers, duration)
     return results
 
 
@@ -305,6 +364,14 @@ def table(results: dict[str, Any]) -> str:
         f"{raw_one['generator_cpu_share']:.2f}; {raw_one['generator_cpu_us_per_delivery']:.1f} "
         f"| - | - |",
     ]
+    cpu_one, cpu_two = results["Z2 server CPU 1"], results["Z2 server CPU 2"]
+    rows.append(
+        f"| Z2 servers' CPU us/delivery, all processes (--workers 2 vs 1, raw-socket "
+        f"generator) | {cpu_two['server_cpu_us_per_delivery']:.2f} | "
+        f"{cpu_one['server_cpu_us_per_delivery']:.2f} | "
+        f"{cpu_two['server_cpu_us_per_delivery'] / cpu_one['server_cpu_us_per_delivery']:.2f}"
+        f" | <= 1.15 |"
+    )
     for size in (100, 1_000_000):
         label = "100 B" if size == 100 else "1 MB"
         link, ref = results[f"Z3 link {size} B"], results[f"Z3 bare zenoh {size} B"]
@@ -312,8 +379,23 @@ def table(results: dict[str, Any]) -> str:
             f"| Z3 link A->B {label} (graph to graph), msg/s (MB/s) vs bare Zenoh; delivered | "
             f"{link['msg_per_s']:,.0f} ({link['mb_per_s']:.1f}); {link['got']}/{link['sent']} | "
             f"{ref['msg_per_s']:,.0f} ({ref['mb_per_s']:.1f}); {ref['got']}/{ref['sent']} | "
-            f"{link['msg_per_s'] / ref['msg_per_s']:.2f} | >= 0.7 |"
+            f"{link['msg_per_s'] / ref['msg_per_s']:.2f} | "
+            f"{'>= 0.7' if size > 100 else '- (rclpy is the goal)'} |"
         )
+        rclpy = results.get(f"Z3 rclpy {size} B")
+        if rclpy is not None:
+            rows.append(
+                f"| Z3 link A->B {label} vs rclpy (Fast DDS, reliable, keep all), msg/s; "
+                f"delivered | {link['msg_per_s']:,.0f}; {link['got']}/{link['sent']} | "
+                f"{rclpy['msg_per_s']:,.0f}; {rclpy['got']}/{rclpy['sent']} | "
+                f"{link['msg_per_s'] / rclpy['msg_per_s']:.2f} | "
+                f"{'>= 1.0' if size == 100 else '-'} |"
+            )
+            rows.append(
+                f"| Z3 {label}: CPU us/msg of A; of B, link vs rclpy | "
+                f"{link['sender_cpu_us']:,.0f}; {link['receiver_cpu_us']:,.0f} | "
+                f"{rclpy['sender_cpu_us']:,.0f}; {rclpy['receiver_cpu_us']:,.0f} | - | - |"
+            )
         rows.append(
             f"| Z3 link {label}: CPU us/msg of A; of B (all threads) vs bare Zenoh | "
             f"{link['sender_cpu_us']:,.0f}; {link['receiver_cpu_us']:,.0f} | "

@@ -10,8 +10,13 @@ embedding program uses it (``open_link``, docs/zenoh.md):
 - process B: a graph, its link, a subscription counting what reaches it (the
   link decodes each sample and publishes it in B's graph).
 
-The reference is a bare Zenoh publisher and subscriber in two processes carrying
-payloads of the same CDR sizes, callbacks that only count.
+Two references run in the same round: a bare Zenoh publisher and subscriber in two
+processes carrying payloads of the same CDR sizes, callbacks that only count; and
+real rclpy (PyPI's ROS 2 Kilted wheels), a publisher node and a subscription node in
+two processes over Fast DDS on loopback, with the same message types, reliable and
+keep all (so nothing is lost), the subscription taking each message as a Python
+object as a ROS 2 program does: what a user would otherwise pick to move ROS
+messages between two Python processes.
 
 Every process of both pairs keeps 64 MiB of freed heap for the next message
 (``rwt_transports.allocator.tune_allocator``), as ``rwt serve`` does by default
@@ -220,8 +225,98 @@ s.close()
 """
 
 
+RCLPY_COMMON = f"""
+import sys, time, threading, rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy, DurabilityPolicy
+from rwt_transports.allocator import tune_allocator
+tune_allocator({HEAP_KEEP})
+count, size = int(sys.argv[1]), int(sys.argv[2])
+if size == 100:
+    from std_msgs.msg import String as Msg
+    def make(marker):
+        m = Msg(); m.data = (marker or "z").ljust(100, "z"); return m
+    def is_probe(m):
+        return m.data.startswith("probe")
+else:
+    from sensor_msgs.msg import Image as Msg
+    side = int(size ** 0.5)
+    def make(marker):
+        m = Msg(); m.header.frame_id = marker; m.height = m.width = m.step = side
+        m.encoding = "mono8"; m.data = bytes(side * side); return m
+    def is_probe(m):
+        return m.header.frame_id == "probe"
+qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_ALL,
+                 durability=DurabilityPolicy.VOLATILE)
+rclpy.init()
+"""
+
+RCLPY_SUB = (
+    RCLPY_COMMON
+    + """
+node = rclpy.create_node("bench_counter")
+got = [0, 0.0]; cpu = [0.0, 0.0]; probed = threading.Event()
+def on(m):
+    if is_probe(m):
+        probed.set(); return
+    if not got[0]:
+        cpu[0] = time.process_time()
+    got[0] += 1; got[1] = time.time(); cpu[1] = time.process_time()
+node.create_subscription(Msg, "/tp", on, qos)
+executor = rclpy.executors.SingleThreadedExecutor(); executor.add_node(node)
+threading.Thread(target=executor.spin, daemon=True).start()
+print("ready", flush=True)
+probed.wait(120)
+print("flowing", flush=True)
+last = -1
+while got[0] < count:
+    time.sleep(3)
+    if got[0] == last:
+        break
+    last = got[0]
+print(got[1], got[0], (cpu[1] - cpu[0]) / max(got[0] - 1, 1) * 1e6, flush=True)
+executor.shutdown(); rclpy.shutdown()
+"""
+)
+
+RCLPY_PUB = (
+    RCLPY_COMMON
+    + """
+node = rclpy.create_node("bench_talker")
+pub = node.create_publisher(Msg, "/tp", qos)
+go = threading.Event()
+threading.Thread(target=lambda: (sys.stdin.readline(), go.set()), daemon=True).start()
+probe = make("probe")
+deadline = time.time() + 120
+while not go.is_set() and time.time() < deadline:
+    pub.publish(probe)
+    time.sleep(0.05)
+time.sleep(0.2)
+msg = make("")
+print(time.time(), flush=True)
+cpu = time.process_time()
+for _ in range(count):
+    pub.publish(msg)
+print((time.process_time() - cpu) / count * 1e6, flush=True)
+sys.stdin.readline()
+rclpy.shutdown()
+"""
+)
+
+
+def rclpy_available() -> bool:
+    """Whether rclpy (the ``ros2`` extra's ROS 2 wheels, or a sourced ROS 2) imports."""
+    import importlib.util  # noqa: PLC0415
+
+    return importlib.util.find_spec("rclpy") is not None
+
+
 def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(REPO / "src") + os.pathsep + str(REPO)}
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src") + os.pathsep + str(REPO)}
+    # rclpy pairs: a private domain, discovery on this machine only
+    env.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    return env
 
 
 async def _line(proc: asyncio.subprocess.Process) -> str:
@@ -235,7 +330,8 @@ async def _line(proc: asyncio.subprocess.Process) -> str:
 async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str, float]:
     """One transfer of ``count`` messages A->B.
 
-    ``kind``: ``link`` (two graphs with their links) or ``bare`` (plain Zenoh).
+    ``kind``: ``link`` (two graphs with their links), ``bare`` (plain Zenoh) or
+    ``rclpy`` (two rclpy nodes over Fast DDS; ``endpoint`` unused).
 
     Returns:
         ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``,
@@ -248,6 +344,9 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
         role = [sys.executable, "-m", "benchmarks.zenoh_link"]
         sub_cmd = [*role, "receive", endpoint, str(size), str(count)]
         pub_cmd = [*role, "send", endpoint, str(size), str(count)]
+    elif kind == "rclpy":
+        sub_cmd = [sys.executable, "-c", RCLPY_SUB, str(count), str(size)]
+        pub_cmd = [sys.executable, "-c", RCLPY_PUB, str(count), str(size)]
     else:
         sub_cmd = [sys.executable, "-c", BARE_SUB, endpoint, str(count)]
         pub_cmd = [sys.executable, "-c", BARE_PUB, endpoint, str(count), str(payload)]

@@ -1,16 +1,20 @@
-"""The suite against the real rosbridge_suite (ROS 1) and `rwt serve --dialect ros1`, together.
+"""The suite against the real rosbridge_suite and `rwt serve` in the same dialect, together.
 
     RWT_ROSBRIDGE_ROS1_URL=ws://127.0.0.1:19090 python conformance/differential.py
     python conformance/differential.py --peer-url ws://127.0.0.1:19090 --profile reference
+    RWT_ROSBRIDGE_ROS2_URL=ws://127.0.0.1:9590 python conformance/differential.py --dialect ros2
 
-The peer is a running rosbridge_suite 0.11.x (its ``rosbridge_websocket`` with
-``rosapi``); how to start one is up to the machine, this script only connects. rwt
-runs in this process on a free port, as ``rwt serve --dialect ros1`` would. Both
-servers get the same cases in the same run, in the ROS 1 dialect, in each profile
-asked for; the output is one markdown table per profile of the cases whose
-outcomes differ, then the totals. Exit code 0 when the reference profile has no
-failure on either server (or when no peer is given: it says it skips), 1 otherwise, 2 when
-the peer cannot be reached.
+The peer is a running rosbridge_suite, 0.11.x for ROS 1 or 2.1.0 for ROS 2 (its
+``rosbridge_websocket`` with ``rosapi``); how to start one is up to the machine, this
+script only connects. rwt runs in this process on a free port, as ``rwt serve
+--dialect ros1`` (or ``ros2``) would. Both servers get the same cases in the same
+run, in the peer's dialect, in each profile asked for; the output is one markdown
+table per profile of the cases whose outcomes differ, then the totals. Exit code 0
+when the reference profile has no failure on either server (or when no peer is given:
+it says it skips), 1 otherwise, 2 when the peer cannot be reached. Where the peer
+breaks the spec, the reference profile accepts its recorded way
+(docs/reference-behaviour.md §12, ``Step.defect``). Run the reference profile first:
+the strict one can stall a ROS 2 peer's rosapi (REF §12.9).
 """
 
 from __future__ import annotations
@@ -31,8 +35,20 @@ from rwt_graph.types.registry import TypeRegistry
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 PEER_ENV = "RWT_ROSBRIDGE_ROS1_URL"
-PEER_NAME = "rosbridge_suite (ROS 1)"
-RWT_NAME = "rwt serve --dialect ros1"
+PEER2_ENV = "RWT_ROSBRIDGE_ROS2_URL"
+PEER_ENVS = {Dialect.ROS1: PEER_ENV, Dialect.ROS2: PEER2_ENV}
+"""The variable giving the peer of each dialect."""
+_VERSIONS = {Dialect.ROS1: "0.11.x", Dialect.ROS2: "2.1.0"}
+
+
+def peer_name(dialect: Dialect) -> str:
+    """How the report names the peer: ``rosbridge_suite (ROS 1)``."""
+    return f"rosbridge_suite (ROS {dialect.value[-1]})"
+
+
+def rwt_name(dialect: Dialect) -> str:
+    """How the report names rwt: ``rwt serve --dialect ros1``."""
+    return f"rwt serve --dialect {dialect.value}"
 
 
 @dataclass(frozen=True)
@@ -42,6 +58,7 @@ class Differential:
     profile: Profile
     peer: SuiteResult
     rwt: SuiteResult
+    dialect: Dialect = Dialect.ROS1
 
     def differing(self) -> list[tuple[str, str, str, str]]:
         """``(case, peer outcome, rwt outcome, detail)`` for every case whose outcome differs."""
@@ -55,33 +72,41 @@ class Differential:
         return rows
 
 
-async def run(peer_url: str, profiles: list[Profile], timeout_s: float = 3.0) -> list[Differential]:
-    """Run the suite in each profile against the peer and an in-process ROS 1 rwt.
+async def run(
+    peer_url: str,
+    profiles: list[Profile],
+    timeout_s: float = 3.0,
+    dialect: Dialect = Dialect.ROS1,
+) -> list[Differential]:
+    """Run the suite in each profile against the peer and an in-process rwt of ``dialect``.
 
     Raises:
-        ConnectionError: the peer does not answer as a ROS 1 rosbridge server.
+        ConnectionError: the peer does not answer as a rosbridge server of ``dialect``.
     """
-    dialect, how = await detect_dialect(peer_url, timeout_s=timeout_s)
-    if dialect is not Dialect.ROS1 or how.startswith("assumed"):
-        raise ConnectionError(f"{peer_url} is not a ROS 1 rosbridge server: {how}")
+    found, how = await detect_dialect(peer_url, timeout_s=timeout_s)
+    if found is not dialect or how.startswith("assumed"):
+        edition = dialect.value[-1]
+        raise ConnectionError(f"{peer_url} is not a ROS {edition} rosbridge server: {how}")
     suite = load_suite()
-    server = RosbridgeServer(Graph(TypeRegistry(GraphDialect.ROS1)), ServerConfig(port=0))
+    graph_dialect = GraphDialect.ROS1 if dialect is Dialect.ROS1 else GraphDialect.ROS2
+    server = RosbridgeServer(Graph(TypeRegistry(graph_dialect)), ServerConfig(port=0))
     results = []
     async with anyio.create_task_group() as tasks:
         rwt_url = await tasks.start(server.serve)
         for profile in profiles:
-            options = {"profile": profile, "dialect": Dialect.ROS1, "expect_timeout_s": timeout_s}
+            options = {"profile": profile, "dialect": dialect, "expect_timeout_s": timeout_s}
             peer = await run_suite(suite, RunOptions(peer_url, **options))  # type: ignore[arg-type]
             rwt = await run_suite(suite, RunOptions(rwt_url, **options))  # type: ignore[arg-type]
-            results.append(Differential(profile, peer, rwt))
+            results.append(Differential(profile, peer, rwt, dialect))
         tasks.cancel_scope.cancel()
     return results
 
 
 def render(results: list[Differential]) -> str:
     """The markdown report: totals, then the differing cases of each profile."""
+    dialect = results[0].dialect if results else Dialect.ROS1
     lines = [
-        f"| profile | {PEER_NAME} | {RWT_NAME} |",
+        f"| profile | {peer_name(dialect)} | {rwt_name(dialect)} |",
         "|---|---|---|",
     ]
     for result in results:
@@ -92,7 +117,7 @@ def render(results: list[Differential]) -> str:
         if rows:
             lines += [
                 "",
-                f"| case | {PEER_NAME} | {RWT_NAME} | first difference |",
+                f"| case | {peer_name(dialect)} | {rwt_name(dialect)} | first difference |",
                 "|---|---|---|---|",
             ]
             lines += [f"| {c} | {p} | {r} | {d[:140]} |" for c, p, r, d in rows]
@@ -110,22 +135,27 @@ def _totals(result: SuiteResult) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Parse options, run, print the report; the exit code of the module docstring."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--peer-url", default=os.environ.get(PEER_ENV), help=f"default ${PEER_ENV}")
+    parser.add_argument(
+        "--dialect", choices=[d.value for d in Dialect], default="ros1", help="the peer's"
+    )
+    parser.add_argument("--peer-url", help=f"default ${PEER_ENV} (ros1) or ${PEER2_ENV} (ros2)")
     parser.add_argument(
         "--profile", action="append", choices=[p.value for p in Profile], help="default: both"
     )
     parser.add_argument("--timeout", type=float, default=3.0, help="seconds per expected frame")
     args = parser.parse_args(argv)
-    if not args.peer_url:
+    dialect = Dialect(args.dialect)
+    peer_url = args.peer_url or os.environ.get(PEER_ENVS[dialect])
+    if not peer_url:
         print(
-            f"differential: skipped: no rosbridge_suite (ROS 1) to compare with;"
-            f" set {PEER_ENV} or give --peer-url",
+            f"differential: skipped: no {peer_name(dialect)} ({_VERSIONS[dialect]}) to compare"
+            f" with; set {PEER_ENVS[dialect]} or give --peer-url",
             file=sys.stderr,
         )
         return 0
     profiles = [Profile(p) for p in args.profile or [Profile.REFERENCE, Profile.STRICT]]
     try:
-        results = anyio.run(run, args.peer_url, profiles, args.timeout)
+        results = anyio.run(run, peer_url, profiles, args.timeout, dialect)
     except ConnectionError as exc:
         print(f"differential: {exc}", file=sys.stderr)
         return 2

@@ -7,6 +7,7 @@ from functools import partial
 
 from .. import msgs
 from .checks import at_most, med
+from .clients_churn import clients_churn_run
 from .common import Check, Context, Medians, Metrics, Run, Variant
 from .fuzz import fuzz_run
 from .latency import cloud_sample, image_rate_run, mixed_run, topic_latency_run
@@ -182,6 +183,18 @@ def _b18(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
     )
 
 
+def _b10_clients(medians: Medians, context: Context) -> tuple[str, str, bool | None]:
+    """Shown, not judged: what churn costs a bystander, and the lists each subscriber got."""
+    quiet, amid = med(medians, "rwt", "quiet_p99_ms"), med(medians, "rwt", "churn_p99_ms")
+    lists = med(medians, "rwt", "lists_per_subscriber")
+    cpu = med(medians, "rwt", "server_cpu_pct")
+    shown = (
+        f"bystander p99 {amid:.1f} ms amid churn, {quiet:.1f} ms quiet; "
+        f"{lists:.0f} lists per subscriber; server CPU {cpu:.0f} %"
+    )
+    return shown, "(shown: the cost of churn)", None
+
+
 def _services() -> list[Variant]:
     return [
         Variant(
@@ -317,6 +330,19 @@ def all_variants(*, soak: bool = False, smoke: bool = False) -> list[Variant]:
             "max_first_message_s",
             "s",
             at_most("max_first_message_s", 2.0, "s"),
+        )
+    )
+    variants.append(
+        Variant(
+            "B10",
+            "/connected_clients: 1000 subscribers, 3000 clients churning",
+            _bind(clients_churn_run, subscribers=1000, churn=3000, round_trips=100),
+            "churn_p99_ms",
+            "ms",
+            _b10_clients,
+            kinds=("rwt",),  # the relay has no client list
+            fresh_server=True,
+            runs=1,
         )
     )
     variants.append(

@@ -14,7 +14,13 @@ service            type                             does
 
 from __future__ import annotations
 
+import logging
+import math
 from typing import TYPE_CHECKING
+
+from rwt_graph.ratelog import EpisodeLog
+
+from .errors import BagError
 
 if TYPE_CHECKING:
     from rwt_graph.graph import Graph
@@ -28,13 +34,21 @@ PREFIX = "/rwt/player"
 
 Message = dict[str, object]
 
+logger = logging.getLogger("rwt.bag")
+
 
 def serve_controls(graph: Graph, player: Player, prefix: str = PREFIX) -> list[LocalService]:
     """Offer ``player``'s controls as services of ``graph``; close them to withdraw.
 
+    A refused request (a seek to NaN, infinity or outside the bag) is answered
+    with ``success: false`` and the reason, logged once per episode
+    (``rwt_graph.ratelog.EpisodeLog``): a client calling in a loop cannot write
+    the server's log at its own rate.
+
     Raises:
         GraphError: a service name is taken by another provider.
     """
+    episodes = EpisodeLog(logger)
 
     def pause(request: Message) -> Message:
         player.pause()
@@ -45,8 +59,13 @@ def serve_controls(graph: Graph, player: Player, prefix: str = PREFIX) -> list[L
         return {"success": True, "message": f"playing from {player.position_s:.3f} s"}
 
     def seek(request: Message) -> Message:
-        offset = float(request["offset"])  # type: ignore[arg-type]  # float64 by its type
-        player.seek(offset)
+        offset = request["offset"]
+        try:
+            seconds = float(offset) if isinstance(offset, int | float) else math.nan
+            player.seek(seconds, clamp=False)
+        except BagError as exc:
+            episodes.log(logging.WARNING, "player_seek", "event=player_seek_refused reason=%s", exc)
+            return {"success": False, "message": f"seek: {exc}"}
         return {"success": True, "message": f"at {player.position_s:.3f} s"}
 
     def status(request: Message) -> Message:

@@ -9,8 +9,11 @@ from typing import TYPE_CHECKING
 
 from rosbags.highlevel import AnyReader
 
+from rwt_protocol.names import name_problem
+
 from .errors import BagError
-from .reader import is_latched
+from .inflate import ReadBudget, bag_bytes
+from .reader import is_latched, last_ns
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -70,10 +73,24 @@ class BagInfo:
         for t in self.topics:
             latched = " | Latched" if t.latched else ""
             rows.append(
-                f"  Topic: {t.topic} | Type: {t.msgtype} | Count: {t.count} | "
-                f"Serialization Format: {t.serialization}{latched}"
+                f"  Topic: {_shown(t.topic, topic=True)} | Type: {_shown(t.msgtype)} | "
+                f"Count: {t.count} | Serialization Format: {_shown(t.serialization)}{latched}"
             )
         return "\n".join(rows)
+
+
+def _shown(text: str, *, topic: bool = False) -> str:
+    """``text`` as printed, escaped and cut where a bag could abuse a terminal.
+
+    Control or bidirectional characters, or thousands of characters, are not
+    written as they are. A topic name a client could not use is marked: it is
+    not played (docs/limits.md).
+    """
+    bad = name_problem(text) is not None if topic else not text.isprintable() or len(text) > 200
+    if not bad:
+        return text
+    cut = text if len(text) <= 60 else text[:57] + "..."
+    return ascii(cut) + (" (invalid name, not played)" if topic else "")
 
 
 def _size(size: int) -> str:
@@ -86,25 +103,25 @@ def _size(size: int) -> str:
 
 
 def _when(ns: int) -> str:
-    moment = datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC)
-    return f"{moment.isoformat(timespec='milliseconds')} ({ns / 1e9:.9f})"
-
-
-def _disk_size(path: Path) -> int:
-    if path.is_dir():
-        return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
-    return path.stat().st_size
+    moment = datetime.datetime.fromtimestamp(ns // 10**9, tz=datetime.UTC)
+    # integers, not a float: seconds since the epoch in a double keep only microseconds
+    seconds, nanos = divmod(ns, 10**9)
+    return f"{moment:%Y-%m-%dT%H:%M:%S}.{nanos:09d}+00:00 ({seconds}.{nanos:09d})"
 
 
 def bag_info(paths: Sequence[Path | str] | Path | str) -> BagInfo:
     """Read the summary of a bag (or of split parts read as one).
 
     Raises:
-        BagError: a file is missing or is not a readable bag.
+        BagError: a file is missing or is not a readable bag, or it decompresses
+            past the limits of ``rwt_bag.inflate``.
     """
     files = [Path(paths)] if isinstance(paths, str | Path) else [Path(p) for p in paths]
     try:
-        with AnyReader(files) as reader:
+        reader = AnyReader(files)
+        with ReadBudget.for_paths(files).active():  # a summary-less MCAP is scanned
+            reader.open()
+        try:
             counts: dict[tuple[str, str], int] = {}
             topics: dict[tuple[str, str], TopicSummary] = {}
             for conn in reader.connections:
@@ -117,12 +134,14 @@ def bag_info(paths: Sequence[Path | str] | Path | str) -> BagInfo:
             return BagInfo(
                 paths=tuple(files),
                 storage=storage,
-                size=sum(_disk_size(f) for f in files),
+                size=bag_bytes(files),
                 start_ns=int(reader.start_time) if reader.message_count else 0,
-                end_ns=int(reader.end_time) if reader.message_count else 0,
+                end_ns=last_ns(reader) if reader.message_count else 0,
                 messages=int(reader.message_count),
                 topics=tuple(sorted(topics.values(), key=lambda t: (t.topic, t.msgtype))),
             )
+        finally:
+            reader.close()
     except BagError:
         raise
     except Exception as exc:  # rosbags' reader errors, OSError, decoding errors
@@ -131,4 +150,7 @@ def bag_info(paths: Sequence[Path | str] | Path | str) -> BagInfo:
 
 
 def _storage(path: Path) -> str:
+    """The storage of a ROS 2 bag: a folder's files, or a bare file's own suffix."""
+    if path.is_file():
+        return "mcap" if path.suffix == ".mcap" else "sqlite3"
     return "mcap" if any(path.glob("*.mcap")) else "sqlite3"

@@ -8,6 +8,7 @@ services, and the progress display.
 
 from __future__ import annotations
 
+import logging
 import signal
 import sys
 from dataclasses import dataclass, field
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING, TextIO
 import anyio
 
 from .controls import serve_controls
+from .errors import BagError
 from .formats import BagFormat, SplitPolicy
 from .player import Player
 from .progress import play_line, record_line, show_progress
@@ -33,15 +35,23 @@ if TYPE_CHECKING:
 
 __all__ = ["BagJobs", "PlayOptions", "RecordOptions", "record_remote"]
 
+logger = logging.getLogger("rwt.bag")
+
 
 @dataclass(frozen=True)
 class RecordOptions:
-    """``--record`` and its options."""
+    """``--record`` and its options.
+
+    Attributes:
+        max_bytes: ``--record-max-size`` without ``--record-split``: stop recording
+            there (bytes of serialized messages); None: no limit.
+    """
 
     path: Path
     topics: Sequence[str] = ("*",)
     fmt: BagFormat = BagFormat.MCAP
     split: SplitPolicy = field(default_factory=SplitPolicy)
+    max_bytes: int | None = None
 
 
 @dataclass(frozen=True)
@@ -90,7 +100,12 @@ class BagJobs:
         self.player = None
         if record is not None:
             self.recorder = Recorder(
-                graph, record.path, topics=record.topics, fmt=record.fmt, split=record.split
+                graph,
+                record.path,
+                topics=record.topics,
+                fmt=record.fmt,
+                split=record.split,
+                max_bytes=record.max_bytes,
             )
         if play is not None:
             self.player = Player(
@@ -131,7 +146,25 @@ class BagJobs:
         self, scope: anyio.CancelScope, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED
     ) -> None:
         assert self.player is not None
-        await self.player.run(task_status=task_status)
+        started = False
+
+        def on_started(value: None = None) -> None:
+            nonlocal started
+            started = True
+            task_status.started(value)
+
+        status = _Started(on_started)
+        try:
+            await self.player.run(task_status=status)
+        except BaseException as exc:
+            # Before the start (the check pass) the error stops the command, as a bad
+            # bag must. Later (``--no-play-check``) a corrupt part or a decompression
+            # limit ends playback only: ``rwt serve`` goes on serving its clients.
+            error = _only_bag_error(exc)
+            if error is None or not started or self.stop_at_end is not None:
+                raise
+            logger.error("event=play_failed reason=%s (playback stopped; serving on)", error)
+            return
         scope.cancel()  # the bag has played (no loop, no linger): the progress line goes too
         if self.stop_at_end is not None:
             self.stop_at_end()
@@ -189,3 +222,20 @@ async def _stop_on_signal(stop: Callable[[], None]) -> None:
         async for _ in signals:
             stop()
             return
+
+
+class _Started:
+    """A ``TaskStatus`` that also tells ``BagJobs`` the player has started."""
+
+    def __init__(self, callback: Callable[[None], None]) -> None:
+        self._callback = callback
+
+    def started(self, value: None = None) -> None:
+        self._callback(value)
+
+
+def _only_bag_error(exc: BaseException) -> BagError | None:
+    """The ``BagError`` that ``exc`` is, or that its task groups hold alone; else None."""
+    while isinstance(exc, BaseExceptionGroup) and len(exc.exceptions) == 1:
+        exc = exc.exceptions[0]
+    return exc if isinstance(exc, BagError) else None

@@ -98,6 +98,19 @@ def _write_at(file: BinaryIO, pieces: list[bytes | bytearray | memoryview], offs
             views[0] = views[0][written:]
 
 
+def _last_bytes(pieces: list[bytes | bytearray | memoryview], count: int) -> bytes:
+    """The last ``count`` bytes of ``pieces`` joined (without joining the rest)."""
+    out: list[bytes] = []
+    for piece in reversed(pieces):
+        if count <= 0:
+            break
+        view = memoryview(piece).cast("B")
+        take = min(count, view.nbytes)
+        out.append(bytes(view[view.nbytes - take :]))
+        count -= take
+    return b"".join(reversed(out))
+
+
 class _McapStorage(McapWriter):
     """rosbags' MCAP storage whose chunks close only at a checkpoint."""
 
@@ -141,6 +154,7 @@ class CheckpointWriter(Writer):
     def __init__(self, path: Path, *, storage_plugin: StoragePlugin) -> None:
         super().__init__(path, version=9, storage_plugin=storage_plugin)
         self._metadata: str | None = None  # the MCAP metadata record of the last full checkpoint
+        self._summary = b""  # the file's tail after the last checkpoint's data (summary, footer)
         self._metadata_connections = -1
 
     @property
@@ -188,9 +202,27 @@ class CheckpointWriter(Writer):
         finally:
             storage.bio = file
             storage.in_checkpoint = False
-        _write_at(file, tail.pieces(), tail_start)
-        file.truncate(tail.tell())
+        try:
+            _write_at(file, tail.pieces(), tail_start)
+            file.truncate(tail.tell())
+        except OSError:
+            # the disk is full (or the file at its size limit): the new tail went out
+            # in part, over the last summary. Put that summary back, so the bag reads
+            # as it did at the last checkpoint, and let the recorder stop.
+            self._restore(file, tail_start)
+            raise
         file.seek(data_end)  # the next chunk goes over this summary
+        # kept to restore it should the next checkpoint fail (a few KB: indexes, footer)
+        self._summary = _last_bytes(tail.pieces(), tail.tell() - data_end)
+
+    def _restore(self, file: BinaryIO, offset: int) -> None:
+        """Cut ``file`` back to ``offset`` and write the last checkpoint's summary there."""
+        try:
+            file.truncate(offset)
+            if self._summary:
+                os.pwrite(file.fileno(), self._summary, offset)
+        except OSError:  # not even that: the bag ends where the disk stopped it
+            return
 
     def _write_metadata(self, storage: Any) -> None:
         """Run rosbags' ``close`` (storage tail, metadata.yaml) on a storage that stays open."""
@@ -215,8 +247,10 @@ class CheckpointWriter(Writer):
         if storage is None:
             return
         if isinstance(storage, _McapStorage):
-            self._checkpoint_mcap(storage)
-            storage.bio.close()
-            self.storage = None
+            try:
+                self._checkpoint_mcap(storage)
+            finally:  # also when the disk refused the tail: the file is not left open
+                storage.bio.close()
+                self.storage = None
         else:
             Writer.close(self)

@@ -16,6 +16,7 @@ stamps follow the bag, as with ``use_sim_time``). ``pause``, ``resume`` and
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -190,14 +191,27 @@ class Player(BackgroundJob):
             self._anchor(self._position_ns)
             self._notify()
 
-    def seek(self, offset_s: float) -> None:
-        """Go to ``offset_s`` seconds from the bag's start (clamped to the bag).
+    def seek(self, offset_s: float, *, clamp: bool = True) -> None:
+        """Go to ``offset_s`` seconds from the bag's start.
 
         Latched topics keep their last message; messages between the old and the
         new position are not published.
+
+        Args:
+            offset_s: seconds from the bag's first message.
+            clamp: move an offset outside ``0..duration_s`` to the nearest end;
+                False: refuse it (the ``/rwt/player/seek`` service).
+
+        Raises:
+            BagError: ``offset_s`` is NaN or infinite, or outside the bag and not
+                ``clamp``.
         """
         span = self.source.end_ns - self.source.start_ns
-        target = self.source.start_ns + min(max(0, int(offset_s * 1e9)), span)
+        if not math.isfinite(offset_s):
+            raise BagError(f"offset {offset_s} is not a finite number of seconds")
+        if not clamp and not 0 <= offset_s <= span / 1e9:
+            raise BagError(f"offset {offset_s:.6g} s is outside the bag (0 to {span / 1e9:.3f} s)")
+        target = self.source.start_ns + min(int(max(offset_s, 0.0) * 1e9), span)
         self._seek_to = target
         self._position_ns = target
         self._anchor(target)
@@ -307,11 +321,14 @@ class Player(BackgroundJob):
         first = True
         async with receive:
             async for batch in receive:
-                if first and not self._paused:
+                if first:
                     # the schedule starts when the first message is ready, not when
-                    # the reader thread was asked for it (its first read takes a while)
-                    self._anchor(self._anchor_ns)
+                    # the reader thread was asked for it (its first read takes a while);
+                    # paused, ``resume`` sets it. Once only: a later batch re-anchoring
+                    # at the old position stalled playback for as long as it had played
                     first = False
+                    if not self._paused:
+                        self._anchor(self._anchor_ns)
                 publishers, stats = self._publishers, self.stats
                 for topic, ns, msg, _ in batch:
                     if self._paused or self._due(ns) > time.monotonic():

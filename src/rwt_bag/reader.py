@@ -12,6 +12,7 @@ any publication (D7-D10).
 from __future__ import annotations
 
 import fnmatch
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,10 +21,12 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype, QosDurability
 
 from rwt_graph.types import Dialect
-from rwt_graph.types.wire import wire_input
+from rwt_graph.types.wire import read_cdr, wire_input
 from rwt_protocol.errors import GraphError
+from rwt_protocol.names import name_problem
 
 from .errors import BagError
+from .inflate import ReadBudget
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
@@ -33,6 +36,8 @@ if TYPE_CHECKING:
     from rwt_graph.types import MessageType, TypeRegistry
 
 __all__ = ["BagSource", "BagTopic", "is_latched"]
+
+logger = logging.getLogger("rwt.bag")
 
 #: Topics replayed latched even when the bag keeps no QoS (rosbags' writer adds
 #: none by default): static transforms, and maps by their type.
@@ -87,6 +92,11 @@ def _node_shape(store: Typestore, node: Any, seen: frozenset[str]) -> object:
     return detail
 
 
+def last_ns(reader: AnyReader) -> int:
+    """The time of a bag's last message: rosbags' ``end_time`` is one nanosecond past it."""
+    return max(int(reader.start_time), int(reader.end_time) - 1)
+
+
 class BagSource:
     """One or more bag files (split parts) read as one, in time order.
 
@@ -108,7 +118,10 @@ class BagSource:
         self._registry = registry
         try:
             self._reader = AnyReader(self.paths, default_typestore=registry.typestore())
-            self._reader.open()
+            with ReadBudget.for_paths(self.paths).active():  # a summary-less MCAP is scanned
+                self._reader.open()
+        except BagError:  # past a decompression limit: the text names the bag already
+            raise
         except Exception as exc:  # rosbags raises its own errors, OSError, struct/zstd errors
             raise BagError(f"cannot read {_names(self.paths)}: {_reason(exc)}") from exc
         patterns = tuple(topics) or ("*",)
@@ -117,15 +130,40 @@ class BagSource:
             for c in self._reader.connections
             if any(fnmatch.fnmatchcase(c.topic, p) for p in patterns)
         ]
+        chosen = self._valid_names(chosen)
         self.connections = chosen
         try:
             #: times of the first and last message, ns since the epoch (kept after close)
             self.start_ns = int(self._reader.start_time)
-            self.end_ns = int(self._reader.end_time)
+            self.end_ns = last_ns(self._reader)
             self.topics = self._check(chosen)
         except BagError:
             self._reader.close()
             raise
+
+    def _valid_names(self, connections: list[Any]) -> list[Any]:
+        """The connections whose topic is a name a client's ``advertise`` would accept.
+
+        A bag is input like any client's (docs/limits.md): ``/x y``, ``/../..``,
+        control characters or a 5000-character name are skipped, with one log
+        line naming the bag, how many were skipped and the first reason.
+        """
+        kept: list[Any] = []
+        problems: list[str] = []
+        for conn in connections:
+            problem = name_problem(conn.topic)
+            if problem is None:
+                kept.append(conn)
+            else:
+                problems.append(problem)
+        if problems:
+            logger.warning(
+                "event=bag_topics_skipped bag=%s count=%d reason=%s",
+                _names(self.paths),
+                len(problems),
+                problems[0],
+            )
+        return kept
 
     def _check(self, connections: list[Any]) -> dict[int, BagTopic]:
         """The graph's type of each connection (by id), refusing unknown or conflicting ones."""
@@ -164,20 +202,28 @@ class BagSource:
         """Each message from ``start_ns`` on, as ``(topic, bag time ns, message, bytes)``.
 
         Raises:
-            BagError: a message cannot be read or decoded (names topic and type).
+            BagError: a message cannot be read or decoded (names topic and type), or
+                the pass decompresses past the limits of ``rwt_bag.inflate``.
         """
         reader = self._reader
-        iterator = reader.messages(connections=self.connections, start=start_ns)
+        budget = ReadBudget.for_paths(self.paths)  # one per pass: bounded work per read
+        iterator = budget.iterate(reader.messages(connections=self.connections, start=start_ns))
         while True:
             try:
                 conn, ns, raw = next(iterator)
             except StopIteration:
                 return
+            except BagError:
+                raise
             except Exception as exc:
                 raise BagError(f"cannot read {_names(self.paths)}: {_reason(exc)}") from exc
             topic = self.topics[conn.id]
             try:
-                obj = reader.deserialize(wire_input(raw), conn.msgtype)  # type: ignore[arg-type]
+                obj = (
+                    read_cdr(reader.typestore, wire_input(raw), conn.msgtype)  # trailing bytes
+                    if reader.is2
+                    else reader.deserialize(wire_input(raw), conn.msgtype)  # type: ignore[arg-type]
+                )
                 msg = self._convert(topic.mtype, obj)
             except Exception as exc:  # a corrupt payload: rosbags raises struct/index errors
                 raise BagError(

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import fnmatch
 import logging
+import sqlite3
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ from typing import TYPE_CHECKING
 import anyio
 import anyio.to_thread
 
+from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.types import Dialect
 
 from .background import BackgroundJob
@@ -42,11 +44,22 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalSubscription
     from rwt_graph.types import MessageType
 
-__all__ = ["RecordStats", "Recorder"]
+__all__ = ["MAX_RECORD_TOPICS", "RecordStats", "Recorder"]
 
 logger = logging.getLogger("rwt.bag")
 
+#: What a bag writer raises when the disk refuses data: OSError (ENOSPC, EFBIG,
+#: EIO) from the MCAP and ROS 1 writers, sqlite3.Error ("database or disk is full")
+#: from the sqlite3 one.
+WRITE_ERRORS = (OSError, sqlite3.Error)
+
 _Item = tuple[TopicInfo, int, bytes | memoryview]
+
+#: Distinct topics (name and type) one recording takes (docs/limits.md). Each
+#: stays in the bag's connection table, which every checkpoint rewrites (rosbags
+#: renders its metadata.yaml, milliseconds per topic): clients inventing names
+#: must not grow that work without bound. Real robots have a few hundred.
+MAX_RECORD_TOPICS = 1000
 
 
 @dataclass
@@ -86,6 +99,13 @@ class Recorder(BackgroundJob):
         checkpoint_s: seconds between checkpoints of a ROS 2 bag.
         discover_s: seconds between looks for new matching topics.
         max_queue_bytes: bytes of messages waiting for the disk before dropping.
+        max_bytes: stop recording (the bag is closed, the graph goes on) before
+            the serialized messages pass this many bytes; None: no limit. To start
+            a new part instead, give ``split`` a ``max_bytes``.
+
+    Attributes:
+        stats: what was recorded so far (``RecordStats``).
+        full: ``max_bytes`` was reached and recording has stopped.
 
     Raises:
         BagError: the format does not fit the graph's dialect.
@@ -102,6 +122,7 @@ class Recorder(BackgroundJob):
         checkpoint_s: float = 1.0,
         discover_s: float = 0.2,
         max_queue_bytes: int = 256 * 1024 * 1024,
+        max_bytes: int | None = None,
     ) -> None:
         self.graph = graph
         self.path = Path(path)
@@ -121,6 +142,17 @@ class Recorder(BackgroundJob):
         self._wake = anyio.Event()
         self._subscriptions: dict[str, LocalSubscription] = {}
         self._writer: BagWriter | None = None
+        self._max_bytes = max_bytes
+        self._accepted_bytes = 0  # queued or written, counted against ``max_bytes``
+        self.full = False  # ``max_bytes`` reached (or a write failed): recording has stopped
+        self.failed: str | None = None  # why the disk refused data, if it did
+        self._log = EpisodeLog(logger)  # topics past the cap: once per episode
+        self._taken: set[tuple[str, str]] = set()  # (topic, type) recorded: MAX_RECORD_TOPICS
+
+    @property
+    def live_topics(self) -> int:
+        """Topics subscribed to now (each still has a publisher or another subscriber)."""
+        return len(self._subscriptions)
 
     @property
     def paths(self) -> list[Path]:
@@ -134,9 +166,13 @@ class Recorder(BackgroundJob):
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
         """Record until cancelled; the bag is complete when this returns.
 
+        A write error (a full disk, a file size limit, a storage error) ends the
+        recording, not its caller: one error line names the bag and the cause, the
+        subscriptions go, and the bag keeps what reached it (readable up to its last
+        checkpoint, as after a kill); ``failed`` holds the cause.
+
         Raises:
             BagError: the bag cannot be created.
-            OSError: the disk refused the data.
         """
         self.stats = RecordStats()
         self._writer = await anyio.to_thread.run_sync(
@@ -147,11 +183,20 @@ class Recorder(BackgroundJob):
             task_status.started()
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._discover_loop)
-                await self._write_loop()
+                try:
+                    await self._write_loop()  # returns when ``max_bytes`` is reached
+                except WRITE_ERRORS as exc:
+                    self._fail(exc)
+                tg.cancel_scope.cancel()
         finally:
             with anyio.CancelScope(shield=True):
                 self._unsubscribe()
                 await anyio.to_thread.run_sync(self._finish)
+            from .progress import record_line  # noqa: PLC0415 - rich, for the CLI's lines
+
+            # what was recorded and what was not, once, however the recording ended
+            level = logging.WARNING if self.stats.dropped or self.failed else logging.INFO
+            logger.log(level, "event=record_done %s", record_line(self, final=True))
 
     async def _discover_loop(self) -> None:
         while True:
@@ -159,32 +204,92 @@ class Recorder(BackgroundJob):
             self.discover()
 
     def discover(self) -> None:
-        """Subscribe to each matching topic not yet recorded."""
+        """Subscribe to each matching topic not yet recorded; let go of abandoned ones."""
+        if self.full:
+            return
+        self._forget_abandoned()
         for name, entry in list(self.graph.topics.items()):
             if name in self._subscriptions or not self.matches(name):
                 continue
+            key = (name, entry.msgtype.name)
+            if key not in self._taken:
+                if len(self._taken) >= MAX_RECORD_TOPICS:
+                    self._log.log(
+                        logging.WARNING,
+                        "record_topics_full",
+                        "event=record_topics_full topic=%s limit=%d bag=%s (not recorded)",
+                        name,
+                        MAX_RECORD_TOPICS,
+                        self.path,
+                    )
+                    continue
+                self._taken.add(key)
+                # once per topic and type: at most MAX_RECORD_TOPICS lines, however
+                # often clients bring a topic back
+                logger.info("event=record topic=%s type=%s", name, entry.msgtype.name)
             latched = any(entry.publishers.values()) or entry.latched is not None
             info = TopicInfo(name, entry.msgtype.rosbags_name, latched)
             callback = self._sink(info, entry.msgtype)
             self._subscriptions[name] = self.graph.create_subscription(
                 name, callback, node="/rwt_recorder"
             )
-            logger.info("event=record topic=%s type=%s", name, entry.msgtype.name)
+
+    def _forget_abandoned(self) -> None:
+        """Unsubscribe from topics whose only participant left is the recorder.
+
+        Their client left: keeping the subscription would keep the topic in the
+        graph with the type that client gave it (refusing anyone who brings it
+        back with another type) and grow the recorder with every topic ever seen.
+        """
+        topics = self.graph.topics
+        for name, subscription in list(self._subscriptions.items()):
+            entry = topics.get(name)
+            if entry is not None and (
+                entry.publishers or any(s is not subscription for s in entry.subscribers.values())
+            ):
+                continue
+            del self._subscriptions[name]
+            subscription.close()
 
     def _sink(self, info: TopicInfo, mtype: MessageType) -> _Callback:
         serialize = self.graph.registry.codec(mtype).serializer()
         clock = self.graph.clock
 
         def on_message(msg: dict[str, object]) -> None:
+            if self.full:
+                return
             raw = serialize(msg)
+            if self._max_bytes is not None and self._accepted_bytes + len(raw) > self._max_bytes:
+                self._stop_full()
+                return
             if self._queued_bytes + len(raw) > self._max_queue:
                 self.stats.dropped += 1
+                self._log.log(
+                    logging.WARNING,
+                    "record_dropped",
+                    "event=record_dropped bag=%s reason='the disk is slower than the messages' "
+                    "queue_bytes=%d (the summary at the end counts them)",
+                    self.path,
+                    self._max_queue,
+                )
                 return
             self._queue.append((info, int(clock.wall() * 1e9), raw))
             self._queued_bytes += len(raw)
+            self._accepted_bytes += len(raw)
             self._wake.set()
 
         return on_message
+
+    def _stop_full(self) -> None:
+        """``max_bytes`` is reached: write what is queued, close the bag, record no more."""
+        self.full = True
+        self._wake.set()
+        logger.warning(
+            "event=record_stopped reason=max_size limit_bytes=%d bag=%s "
+            "(recording stopped; the server goes on; --record-split starts new parts instead)",
+            self._max_bytes,
+            self.path,
+        )
 
     async def _write_loop(self) -> None:
         next_checkpoint = time.monotonic() + self._checkpoint_s
@@ -193,6 +298,8 @@ class Recorder(BackgroundJob):
                 await self._wake.wait()
             self._wake = anyio.Event()
             await self._flush()
+            if self.full:
+                return
             if time.monotonic() >= next_checkpoint:
                 assert self._writer is not None
                 await anyio.to_thread.run_sync(self._writer.checkpoint)
@@ -225,6 +332,18 @@ class Recorder(BackgroundJob):
             subscription.close()
         self._subscriptions.clear()
 
+    def _fail(self, exc: BaseException) -> None:
+        """The disk refused data: stop recording, keep serving (docs/record-replay.md)."""
+        self.failed = f"{type(exc).__name__}: {exc}"
+        self.full = True
+        self._unsubscribe()
+        logger.error(
+            "event=record_failed bag=%s reason=%r (recording stopped; the server goes on; "
+            "the bag holds what was written up to its last checkpoint)",
+            self.path,
+            self.failed,
+        )
+
     def _finish(self) -> None:
         """Write what is queued and close the bag (in the writer thread)."""
         batch, self._queue = self._queue, []
@@ -232,9 +351,18 @@ class Recorder(BackgroundJob):
         if writer is None:
             return
         try:
-            self._write_batch(batch)
+            if self.failed is None:
+                self._write_batch(batch)
+        except WRITE_ERRORS as exc:
+            self._fail(exc)
         finally:
-            writer.close()
+            try:
+                writer.close()
+            except WRITE_ERRORS as exc:  # the footer did not fit: the last checkpoint stays
+                if self.failed is None:
+                    self._fail(exc)
+                else:
+                    logger.debug("closing %s after a write error: %s", self.path, exc)
 
 
 if TYPE_CHECKING:

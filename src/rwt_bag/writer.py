@@ -176,6 +176,10 @@ class BagWriter:
         self._split = split or SplitPolicy()
         self.paths: list[Path] = [self.path]
         self._file: _File | None = _File(self.path, fmt, typestore)
+        # the last message of each latched topic, written again at the start of every
+        # split part (as ros2 bag record --repeat-transient-local does): a part played
+        # alone still has its /tf_static and maps
+        self._latched: dict[TopicInfo, bytes | memoryview] = {}
 
     def write(self, info: TopicInfo, ns: int, raw: bytes | memoryview) -> None:
         """Write one message received at ``ns`` (nanoseconds since the epoch).
@@ -189,7 +193,12 @@ class BagWriter:
             raise BagError(f"the bag {self.path} is closed")
         if self._should_split(file, ns):
             file = self._next_file(file)
+            for kept, data in self._latched.items():
+                if kept != info:  # stamped with the part's first time: its range holds them
+                    file.write(kept, ns, data)
         file.write(info, ns, raw)
+        if info.latched:
+            self._latched[info] = raw
         if file.checkpoint_due:
             file.checkpoint(full=False)
 

@@ -9,7 +9,9 @@ underneath (D22).
 - WebSocket (``ws://``, ``wss://``): websockets' sans-IO ``ClientProtocol``
   driven from an anyio stream, as the server side does. Text frames carry JSON,
   binary frames CBOR (D27). Incoming messages are limited to
-  ``max_message_size`` bytes (D24/D30).
+  ``max_message_size`` bytes (D24/D30): a bigger one fails the connection
+  (close 1009, decided from the frame's header), which then ends at once
+  (``closed by the client (1009 ...)``) however much more the server sends.
 - TCP (``tcp://HOST:PORT``): JSON objects written one per line, CBOR items
   (``bytes``) as they are; the incoming stream is split into JSON objects
   whether or not the server separates them (rwt writes one per line,
@@ -190,8 +192,9 @@ class WebSocketConnection:
         while protocol.state is State.CONNECTING:
             protocol.receive_data(await self._stream.receive(_READ_SIZE))
             for event in protocol.events_received():
-                state: State = protocol.state
-                if isinstance(event, Response) and state is not State.OPEN:
+                if not isinstance(event, Response):
+                    self._collect(event)  # frames that came with the answer are the server's first
+                elif protocol.handshake_exc is not None:
                     raise ConnectionClosedError(
                         f"{self.url} refused the WebSocket handshake: {event.status_code}"
                     )
@@ -199,7 +202,7 @@ class WebSocketConnection:
     async def send(self, frame: str | bytes) -> None:
         """Send one text (``str``) or binary (``bytes``) message."""
         if self._protocol.state is not State.OPEN:
-            raise ConnectionClosedError(f"{self.url}: connection closed")
+            raise ConnectionClosedError(f"{self.url}: {self._close_reason()}")
         if isinstance(frame, str):
             self._protocol.send_text(frame.encode())
         else:
@@ -210,6 +213,12 @@ class WebSocketConnection:
         """Wait for the next whole message; answers pings on the way."""
         while not self._messages:
             if self._protocol.state is State.CLOSED:
+                raise ConnectionClosedError(f"{self.url}: {self._close_reason()}")
+            if self._failed():
+                # RFC 6455 7.1.7: after failing the connection (a message over
+                # the limit, invalid UTF-8, a protocol error) nothing more is
+                # read; a server that goes on sending must not keep it open.
+                await close_quietly(self._stream)  # no close frame: the server may not read
                 raise ConnectionClosedError(f"{self.url}: {self._close_reason()}")
             try:
                 data = await self._stream.receive(_READ_SIZE)
@@ -268,9 +277,17 @@ class WebSocketConnection:
                 except NotImplementedError:
                     pass  # TLS streams cannot half-close; closing follows
 
+    def _failed(self) -> bool:
+        """Whether this side failed the connection (sent a close other than 1000 first)."""
+        sent = self._protocol.close_sent
+        return sent is not None and sent.code != 1000 and self._protocol.close_rcvd is None
+
     def _close_reason(self) -> str:
         close = self._protocol.close_rcvd
         if close is None:
+            sent = self._protocol.close_sent
+            if self._failed() and sent is not None:
+                return f"closed by the client ({sent.code} {sent.reason})".rstrip()
             return "connection closed"
         return f"closed by the server ({close.code} {close.reason})".rstrip()
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, Protocol
 
+from rwt_protocol.codec import decode_json_text
+
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
@@ -89,10 +91,17 @@ class RosapiMixin:
         return _strings(await _rosapi(self, "get_param_names"), "names")
 
     async def get_param(self: _Caller, name: str, default: object = None) -> object:
-        """A parameter's value, decoded from its JSON text (``/rosapi/get_param``)."""
+        """A parameter's value, decoded from its JSON text (``/rosapi/get_param``).
+
+        Raises:
+            RemoteProtocolError: the server's text breaks the rules of JSON text
+                in values (``rwt_protocol.codec.decode_json_text``).
+        """
         args = {"name": name, "default_value": "" if default is None else json.dumps(default)}
         text = (await _rosapi(self, "get_param", args)).get("value", "")
-        return json.loads(text) if isinstance(text, str) and text else default
+        if not isinstance(text, str) or not text:
+            return default
+        return decode_json_text(text, "get_param value")
 
     async def set_param(self: _Caller, name: str, value: object) -> None:
         """Set a parameter to ``value`` (sent as JSON text, ``/rosapi/set_param``)."""

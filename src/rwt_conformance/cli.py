@@ -16,6 +16,12 @@ import typer
 from rwt_client.connectors import ConnectionClosedError, connect
 from rwt_protocol.auth import RosauthVerifier
 
+from .bounds import (
+    CASE_BUDGET_BYTES,
+    CASE_TIMEOUT_S,
+    MAX_FRAME_BYTES,
+    close_within,
+)
 from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
 
 __all__ = ["conformance", "server_url"]
@@ -82,7 +88,7 @@ async def _reachable(url: str, context: ssl.SSLContext | None, timeout_s: float)
         return text
     except TimeoutError:
         return f"cannot connect to {url}: no answer within {timeout_s:g} s"
-    await conn.aclose()
+    await close_within(conn)
     return None
 
 
@@ -118,7 +124,25 @@ def conformance(
     suite: Annotated[
         Path | None, typer.Option(help="Suite folder (default: the shipped suite).")
     ] = None,
-    timeout: Annotated[float, typer.Option(help="Seconds one expected frame may take.")] = 3.0,
+    timeout: Annotated[
+        float, typer.Option(help="Seconds one expected frame, or one send, may take.")
+    ] = 3.0,
+    case_timeout: Annotated[
+        float, typer.Option(min=0.001, help="Seconds one whole case may take.")
+    ] = CASE_TIMEOUT_S,
+    max_frame_bytes: Annotated[
+        int,
+        typer.Option(
+            min=1, help="Largest frame taken from the server, bytes; a bigger one fails the case."
+        ),
+    ] = MAX_FRAME_BYTES,
+    case_budget_bytes: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Bytes of received frames one case may hold unconsumed; more fails the case.",
+        ),
+    ] = CASE_BUDGET_BYTES,
     auth_secret_file: Annotated[
         Path | None,
         typer.Option(
@@ -159,6 +183,9 @@ def conformance(
         profile,
         patterns,
         expect_timeout_s=timeout,
+        case_timeout_s=case_timeout,
+        max_frame_bytes=max_frame_bytes,
+        case_budget_bytes=case_budget_bytes,
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
         ssl_context=context,
         dialect=dialect,
@@ -168,7 +195,9 @@ def conformance(
         typer.echo(f"rwt conformance: {problem}", err=True)
         raise typer.Exit(2)
     if dialect is None:
-        found, how = anyio.run(detect_dialect, options.url, context, timeout, options.auth_secret)
+        found, how = anyio.run(
+            detect_dialect, options.url, context, timeout, options.auth_secret, max_frame_bytes
+        )
         options = replace(options, dialect=found)
         console.print(f"dialect: {found.value} ({how})")
     else:

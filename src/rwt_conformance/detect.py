@@ -10,7 +10,9 @@ Two questions, over one connection, each bounded:
    ``time``; ROS 2's has neither.
 
 A server that answers neither is taken to be ROS 2, the default of rwt and of
-rosbridge_suite's current branch, and the answer says so.
+rosbridge_suite's current branch, and the answer says so. So is a server that
+breaks the runner's bounds (``bounds``): sends that do not go out, frames too
+big or too deep; every send, wait and the close are bounded in time.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import anyio
 
 from rwt_client.connectors import Connection, ConnectionClosedError, connect
 
+from .bounds import MAX_FRAME_BYTES, SendTimeoutError, close_within, send_within
 from .frames import auth_op, decode_frame
 from .model import Dialect
 
@@ -37,6 +40,7 @@ async def detect_dialect(
     ssl_context: ssl.SSLContext | None = None,
     timeout_s: float = 3.0,
     auth_secret: str | None = None,
+    max_frame_bytes: int = MAX_FRAME_BYTES,
 ) -> tuple[Dialect, str]:
     """Ask the server at ``url`` which dialect it speaks.
 
@@ -45,6 +49,7 @@ async def detect_dialect(
         ssl_context: TLS settings, as for the run.
         timeout_s: bound of each question, seconds.
         auth_secret: the server's rosauth secret (D23), when it asks for one.
+        max_frame_bytes: largest frame taken from the server, bytes.
 
     Returns:
         The dialect and how it was found (one line, printed by the CLI).
@@ -52,13 +57,15 @@ async def detect_dialect(
         server gives ROS 2, "assumed".
     """
     try:
-        conn = await connect(url, timeout_s=2 * timeout_s, ssl_context=ssl_context)
+        conn = await connect(
+            url, timeout_s=2 * timeout_s, max_message_size=max_frame_bytes, ssl_context=ssl_context
+        )
     except (ConnectionClosedError, TimeoutError):
         return Dialect.ROS2, "assumed (the server could not be reached)"
     try:
         if auth_secret is not None:
             host = urlsplit(url).hostname or ""
-            await conn.send(json.dumps(auth_op(auth_secret, {}, host)))
+            await send_within(conn, json.dumps(auth_op(auth_secret, {}, host)), timeout_s)
         version = await _call(conn, "/rosapi/get_ros_version", {}, timeout_s)
         if isinstance(version, dict) and version.get("version") in (1, 2):
             dialect = Dialect.ROS1 if version["version"] == 1 else Dialect.ROS2
@@ -73,9 +80,10 @@ async def detect_dialect(
         return Dialect.ROS2, "assumed (rosapi answered neither get_ros_version nor message_details)"
     except ConnectionClosedError as exc:
         return Dialect.ROS2, f"assumed (the server closed the connection: {exc.message})"
+    except SendTimeoutError as exc:
+        return Dialect.ROS2, f"assumed ({exc})"
     finally:
-        with anyio.CancelScope(shield=True):
-            await conn.aclose()
+        await close_within(conn)
 
 
 async def _call(
@@ -83,9 +91,8 @@ async def _call(
 ) -> object:
     """The ``values`` of a successful call, or None (failed, or no answer in time)."""
     call_id = f"rwt_conformance_detect:{service}"
-    await conn.send(
-        json.dumps({"op": "call_service", "service": service, "args": args, "id": call_id})
-    )
+    call = {"op": "call_service", "service": service, "args": args, "id": call_id}
+    await send_within(conn, json.dumps(call), timeout_s)
     with anyio.move_on_after(timeout_s):
         while True:
             value = decode_frame(await conn.receive()).value
@@ -108,4 +115,5 @@ def _header_fields(details: object) -> list[str] | None:
     names = typedefs[0].get("fieldnames")
     if not isinstance(names, list):
         return None
-    return [str(name) for name in names]
+    # repr's escapes keep what the server wrote printable (lone surrogates, controls)
+    return [name if isinstance(name, str) and name.isprintable() else repr(name) for name in names]

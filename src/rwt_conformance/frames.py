@@ -7,11 +7,17 @@ case can check both the tag and the numbers; any other tag as ``{"cbor_tag":
 TAG, "value": ...}``. Byte strings stay ``bytes`` (patterns ``"<bytes>"``,
 ``"<bytes:HEX>"``).
 
+A frame nested deeper than ``bounds.MAX_NESTING`` is not decoded: its
+``Received`` has a ``problem`` the runner fails the case with (matching and
+reporting walk values recursively; docs/conformance.md, "Against a hostile
+server").
+
 ``auth_op`` makes rosauth ``auth`` ops (D23).
 """
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import secrets
@@ -23,13 +29,17 @@ from typing import TYPE_CHECKING
 import cbor2
 
 from rwt_protocol.auth import rosauth_op
+from rwt_protocol.codec import check_nesting
+from rwt_protocol.errors import RemoteProtocolError
+
+from .bounds import MAX_NESTING
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
     from .match import JsonValue
 
-__all__ = ["AUTH_VALIDITY_S", "Received", "auth_op", "decode_frame"]
+__all__ = ["AUTH_VALIDITY_S", "NESTING_PROBLEM", "Received", "auth_op", "decode_frame"]
 
 AUTH_VALIDITY_S = 60
 """Seconds an ``auth`` op made by the runner stays valid."""
@@ -39,23 +49,61 @@ _TYPED_ARRAYS = range(64, 88)  # RFC 8746 section 2: 0b010_f_s_e_ll
 
 @dataclass
 class Received:
-    """A decoded frame and whether it came as CBOR (binary)."""
+    """A decoded frame: its value, whether it came as CBOR (binary), its size.
+
+    Attributes:
+        value: the decoded value (a placeholder when ``problem`` is set).
+        binary: True for a CBOR frame.
+        size: the frame's length as received (characters of a text frame,
+            bytes of a binary one): what the runner counts against a case's budget.
+        problem: why the frame cannot be judged (too deeply nested), or None.
+    """
 
     value: JsonValue
     binary: bool
+    size: int = 0
+    problem: str | None = None
+
+
+NESTING_PROBLEM = f"the server sent a frame nested deeper than {MAX_NESTING} levels"
 
 
 def decode_frame(frame: str | bytes) -> Received:
-    """Decode a received frame for matching; never raises (undecodable data is shown)."""
-    if isinstance(frame, bytes):
-        try:
-            return Received(cbor2.loads(frame, tag_hook=_tag), binary=True)
-        except Exception:  # anything cbor2 refuses is shown as bytes
-            return Received(frame, binary=True)
+    """Decode a received frame for matching; never raises (undecodable data is shown).
+
+    Text that is not JSON becomes ``{"<not JSON>": its first 200 characters}``,
+    CBOR that cbor2 refuses stays ``bytes``; a frame nested deeper than
+    ``MAX_NESTING`` gets ``problem`` ``NESTING_PROBLEM`` (checked without
+    recursion, as the server core checks its input).
+    """
+    binary = isinstance(frame, bytes)
     try:
-        return Received(json.loads(frame), binary=False)
+        value = _decode_cbor(frame) if isinstance(frame, bytes) else _decode_json(frame)
+        check_nesting(value)
+    except (RecursionError, RemoteProtocolError):
+        return Received(None, binary, len(frame), NESTING_PROBLEM)
+    return Received(value, binary, len(frame))
+
+
+def _decode_json(frame: str) -> JsonValue:
+    """JSON (NaN and Infinity too), or the text shown; RecursionError when too deep."""
+    try:
+        return json.loads(frame)
     except ValueError:
-        return Received({"<not JSON>": frame[:200]}, binary=False)
+        return {"<not JSON>": frame[:200]}
+
+
+def _decode_cbor(frame: bytes) -> JsonValue:
+    """CBOR, or the bytes shown; RecursionError when deeper than ``MAX_NESTING``."""
+    decoder = cbor2.CBORDecoder(io.BytesIO(frame), tag_hook=_tag, max_depth=MAX_NESTING)
+    try:
+        return decoder.decode()
+    except RecursionError:
+        raise
+    except Exception as exc:  # anything else cbor2 refuses is shown as bytes
+        if "nesting depth" in str(exc):  # cbor2's max_depth, as rwt_protocol.codec_cbor reads it
+            raise RecursionError(str(exc)) from None
+        return frame
 
 
 def _tag(tag: cbor2.CBORTag, _immutable: bool) -> JsonValue:

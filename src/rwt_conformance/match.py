@@ -185,9 +185,17 @@ def _match_sentinel(
 
 
 def describe(value: JsonValue, limit: int = 60) -> str:
-    """Show a value briefly for a mismatch text."""
+    """Show a value briefly for a mismatch text.
+
+    ``repr`` keeps it printable (lone surrogates and control characters come out
+    escaped); a value holding an integer too long for ``repr`` (over Python's
+    4300 digits, a CBOR bignum) is named, not shown.
+    """
     if isinstance(value, bytes):
         text = f"<{len(value)} bytes{': ' + value.hex() if len(value) <= 16 else ''}>"
     else:
-        text = repr(value)
+        try:
+            text = repr(value)
+        except ValueError:  # int over sys.get_int_max_str_digits()
+            text = "<a value with an integer too long to show>"
     return text if len(text) <= limit else text[: limit - 3] + "..."

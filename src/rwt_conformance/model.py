@@ -33,9 +33,19 @@ Optional per step: ``profile`` (run only in ``strict`` or only in
 type names ``pkg/Type`` or ``pkg/msg/Type``, rosapi's field names),
 ``not_in`` (a ``skip`` key or a list of them, such as ``"reference+ros1"``:
 left out there, for a step the reference is known to fail), ``timeout_s``,
-``repeat`` (run the step N times with ``${i}`` counting from 0),
+``repeat`` (run the step N times with ``${i}`` counting from 0), ``pace_s``
+(seconds between the repetitions of a repeated step: a paced burst, for a
+server that keeps only the last few messages of a burst per topic, REF §5.1),
 ``in_order`` (an ``expect`` whose frame must be the first received one with the
-pattern's ``op`` and ``topic``).
+pattern's ``op`` and ``topic``), ``defect`` and ``unless_defect`` (below).
+
+Where the reference breaks the spec, a case records what it does: steps with
+``defect = "REF §12.x"`` (narrowed by ``profile``/``dialect`` to where it applies)
+are the reference's way, steps with ``unless_defect = true`` the spec's way they
+stand in for. Where a ``defect`` step applies, the runner tries the spec's way
+first and the reference's way on fresh connections if that fails; either
+passes, and the case's detail names the reference's way when that is the one
+that held. A server that keeps to the spec passes the reference profile too.
 
 Every case says where it applies: ``profiles`` (``strict``, ``reference``) and
 ``dialects`` (``ros1``, ``ros2``) are required. Whatever a case leaves out has its
@@ -121,7 +131,10 @@ _STEP_OPTIONS = {
     "count",
     "binary",
     "repeat",
+    "pace_s",
     "in_order",
+    "defect",
+    "unless_defect",
 }
 _CASE_KEYS = {
     "id",
@@ -175,8 +188,12 @@ class Step:
             step is left out.
         timeout_s: seconds this step may wait, or None for the run's default.
         repeat: how many times the step runs (``${i}`` = 0, 1, ...).
+        pace_s: seconds between two repetitions (0: back to back).
         in_order: the expected frame must be the first one received with the
             pattern's ``op`` and ``topic``.
+        defect: the docs/reference-behaviour.md section of a reference defect this
+            step expects (module docstring), or None.
+        unless_defect: a step of the spec's way, left out of the reference's.
     """
 
     kind: StepKind
@@ -189,7 +206,10 @@ class Step:
     not_in: frozenset[str] = frozenset()
     timeout_s: float | None = None
     repeat: int = 1
+    pace_s: float = 0.0
     in_order: bool = False
+    defect: str | None = None
+    unless_defect: bool = False
 
     def runs_in(self, profile: Profile, dialect: Dialect) -> bool:
         """Whether the step runs in ``profile`` against a ``dialect`` server.
@@ -226,6 +246,15 @@ class Case:
     pending: str | None = None
     authenticates: bool = False
     file: str = ""
+
+    def defects(self, profile: Profile, dialect: Dialect) -> tuple[str, ...]:
+        """The reference defects this case accepts in ``profile`` against ``dialect``.
+
+        Returns:
+            The ``defect`` sections of its steps that run there, in order, once each.
+        """
+        found = [s.defect for s in self.steps if s.defect and s.runs_in(profile, dialect)]
+        return tuple(dict.fromkeys(found))
 
     def skip_reason(self, profile: Profile, dialect: Dialect) -> str | None:
         """Why the case does not run in ``profile`` against a ``dialect`` server, or None."""
@@ -365,6 +394,9 @@ def _step(table: object, where: str) -> Step:
             not_in=_not_in(table.get("not_in", [])),
             timeout_s=None if "timeout_s" not in table else float(table["timeout_s"]),
             repeat=int(table.get("repeat", 1)),
+            pace_s=float(table.get("pace_s", 0.0)),
+            defect=None if "defect" not in table else str(table["defect"]),
+            unless_defect=bool(table.get("unless_defect", False)),
             in_order=bool(table.get("in_order", False)),
         )
     except ValueError as exc:

@@ -2,8 +2,14 @@
 
 Each case gets fresh connections (opened on first use, closed at the end), its
 own names (``${ns}`` is unique per case and run, so cases never see each
-other's topics) and a bounded time: every wait is bounded by the step's
-timeout and the whole case by ``case_timeout_s``.
+other's topics) and a bounded time: every wait and every send is bounded by
+the step's timeout, the whole case by ``case_timeout_s`` and each close by
+``bounds.CLOSE_TIMEOUT_S``.
+
+The server is not trusted (``bounds``): a frame over ``max_frame_bytes`` closes
+its connection, a frame nested too deeply or more unconsumed frames than
+``case_budget_bytes`` fail the case at once, each with its reason; the run
+goes on with the next case.
 
 A ``sync`` is a round trip through a topic private to the connection: the
 connection publishes a token on it and waits for the token to come back, so
@@ -33,8 +39,17 @@ import anyio
 import cbor2
 
 from rwt_client.connectors import Connection, ConnectionClosedError, connect
-from rwt_protocol.errors import RwtError
+from rwt_protocol.codec import decode_json_text
+from rwt_protocol.errors import RemoteProtocolError, RwtError
 
+from .bounds import (
+    CASE_BUDGET_BYTES,
+    CASE_TIMEOUT_S,
+    MAX_FRAME_BYTES,
+    SendTimeoutError,
+    close_within,
+    send_within,
+)
 from .detect import detect_dialect
 from .frames import Received, auth_op, decode_frame
 from .match import JsonValue, describe, match, substitute
@@ -78,7 +93,12 @@ class RunOptions:
         only: run only cases whose id, or one of whose requirement ids, matches
             one of these (shell-style patterns: ``D1*``).
         expect_timeout_s: default bound of one wait, seconds.
-        case_timeout_s: bound of a whole case, seconds.
+        case_timeout_s: bound of a whole case, seconds (``bounds.CASE_TIMEOUT_S``).
+        max_frame_bytes: largest frame taken from the server, bytes; a bigger
+            one closes its connection (``bounds.MAX_FRAME_BYTES``).
+        case_budget_bytes: bytes of received frames a case may hold unconsumed,
+            all its connections together; more fails the case
+            (``bounds.CASE_BUDGET_BYTES``).
         auth_secret: the server's rosauth secret (D23), or None when the
             server does not authenticate.
         ssl_context: TLS settings for ``wss://`` and ``tcp+tls://`` (``--cafile``,
@@ -91,7 +111,9 @@ class RunOptions:
     profile: Profile = Profile.STRICT
     only: tuple[str, ...] = ()
     expect_timeout_s: float = 3.0
-    case_timeout_s: float = 20.0
+    case_timeout_s: float = CASE_TIMEOUT_S
+    max_frame_bytes: int = MAX_FRAME_BYTES
+    case_budget_bytes: int = CASE_BUDGET_BYTES
     auth_secret: str | None = field(default=None, repr=False)
     ssl_context: ssl.SSLContext | None = field(default=None, repr=False)
     dialect: Dialect | None = None
@@ -181,7 +203,11 @@ async def run_suite(
     started = time.monotonic()
     if options.dialect is None:
         dialect, _how = await detect_dialect(
-            options.url, options.ssl_context, options.expect_timeout_s, options.auth_secret
+            options.url,
+            options.ssl_context,
+            options.expect_timeout_s,
+            options.auth_secret,
+            options.max_frame_bytes,
         )
         options = replace(options, dialect=dialect)
     requirements, cases = select(suite, options.only)
@@ -198,27 +224,59 @@ async def run_suite(
     return SuiteResult(options, graded, tuple(results), time.monotonic() - started)
 
 
+AS_THE_REFERENCE = "as the reference does"
+"""How a case's detail starts when it passed the reference's way (a recorded defect)."""
+
+
 async def run_case(case: Case, options: RunOptions, variables: dict[str, JsonValue]) -> CaseResult:
-    """Run one case (or skip it, saying why)."""
+    """Run one case (or skip it, saying why).
+
+    A case recording a reference defect where it applies (``Step.defect``,
+    docs/conformance.md) runs the spec's way first and, if that fails, the
+    reference's way on fresh connections and names (``${ns}`` gets ``_ref``);
+    it passes when either holds, its detail then ``as the reference does (REF
+    §12.x)``.
+    """
     reason = _skip_reason(case, options)
     if reason is not None:
         return CaseResult(case, Outcome.SKIPPED, reason)
+    defects = case.defects(options.profile, options.dialect or Dialect.ROS2)
+    spec = await _run_way(case, options, variables, reference_way=False)
+    if not defects or spec.outcome is Outcome.PASSED:
+        return spec
+    ns = f"{variables['ns']}_ref"
+    ref = await _run_way(case, options, {**variables, "ns": ns}, reference_way=True)
+    cited = ", ".join(defects)
+    seconds = spec.duration_s + ref.duration_s
+    if ref.outcome is Outcome.PASSED:
+        detail = f"{AS_THE_REFERENCE} ({cited}); the spec's way: {spec.detail}"
+        return CaseResult(case, Outcome.PASSED, detail, seconds)
+    detail = f"the spec's way: {spec.detail}; the reference's way ({cited}): {ref.detail}"
+    return CaseResult(case, Outcome.FAILED, detail, seconds)
+
+
+async def _run_way(
+    case: Case, options: RunOptions, variables: dict[str, JsonValue], *, reference_way: bool
+) -> CaseResult:
+    """Run the case's steps one way: the spec's (no ``defect`` step) or the reference's.
+
+    The reference's way leaves out the ``unless_defect`` steps instead.
+    """
     started = time.monotonic()
-    run = _CaseRun(case, options, dict(variables))
+    run = _CaseRun(case, options, dict(variables), reference_way=reference_way)
     try:
         with anyio.fail_after(options.case_timeout_s):
             await run.execute()
     except StepFailedError as exc:
         return CaseResult(case, Outcome.FAILED, str(exc), time.monotonic() - started)
     except TimeoutError:
-        detail = f"case exceeded {options.case_timeout_s:g} s at step {run.step_number}"
+        detail = f"case timed out after {options.case_timeout_s:g} s at step {run.step_number}"
         return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started)
     except Exception as exc:  # a runner bug must not stop the suite
         detail = f"step {run.step_number}: runner error {type(exc).__name__}: {exc}"
         return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started)
     finally:
-        with anyio.CancelScope(shield=True):
-            await run.close_all()
+        await run.close_all()
     return CaseResult(case, Outcome.PASSED, "", time.monotonic() - started)
 
 
@@ -262,6 +320,12 @@ class _Link:
     sync_ready: bool = False
     closed_reason: str | None = None
     fragments: dict[str, list[Received]] = field(default_factory=dict)
+    kept_bytes: int = 0
+    """Bytes of ``frames`` (``Received.size``), counted against the case's budget."""
+
+    def drop(self, received: Received) -> None:
+        """Forget a kept frame: consumed by an ``expect``, or a joined sync echo."""
+        self.kept_bytes -= received.size
 
     def notify(self) -> None:
         self.arrived.set()
@@ -269,14 +333,23 @@ class _Link:
 
 
 class _CaseRun:
-    def __init__(self, case: Case, options: RunOptions, variables: dict[str, JsonValue]) -> None:
+    def __init__(
+        self,
+        case: Case,
+        options: RunOptions,
+        variables: dict[str, JsonValue],
+        *,
+        reference_way: bool = False,
+    ) -> None:
         self.case = case
+        self.reference_way = reference_way
         self.options = options
         self.variables = variables
         self.links: dict[str, _Link] = {}
         self.step_number = 0
         self._tokens = itertools.count(1)
         self._tasks: anyio.abc.TaskGroup | None = None
+        self._violation: str | None = None
 
     async def execute(self) -> None:
         failure: StepFailedError | None = None
@@ -287,33 +360,51 @@ class _CaseRun:
             except StepFailedError as exc:  # raised after the task group, not wrapped in a group
                 failure = exc
             tasks.cancel_scope.cancel()
+        if self._violation is not None:  # what the server did stopped the steps
+            step = self.case.steps[self.step_number - 1] if self.step_number else None
+            where = f"step {self.step_number} ({step.kind.value} on {step.on})" if step else ""
+            raise StepFailedError(f"{where}: {self._violation}".lstrip(": "))
         if failure is not None:
             raise failure
+
+    def _violated(self, link: _Link, reason: str) -> None:
+        """Stop the case: the server broke one of the runner's bounds (``bounds``)."""
+        if self._violation is None:
+            self._violation = f"connection {link.name}: {reason}"
+        assert self._tasks is not None
+        self._tasks.cancel_scope.cancel()
 
     async def _steps(self) -> None:
         for number, step in enumerate(self.case.steps, start=1):
             self.step_number = number
             if not step.runs_in(self.options.profile, self.options.dialect or Dialect.ROS2):
                 continue
+            if step.unless_defect if self.reference_way else step.defect is not None:
+                continue
             where = f"step {number} ({step.kind.value} on {step.on})"
             try:
                 for repetition in range(step.repeat):
+                    if repetition and step.pace_s:
+                        await anyio.sleep(step.pace_s)
                     self.variables["i"] = repetition
                     await self._run_step(step)
             except StepFailedError as exc:
                 raise StepFailedError(f"{where}: {exc}") from None
             except ConnectionClosedError as exc:
                 raise StepFailedError(f"{where}: {exc.message}") from None
+            except SendTimeoutError as exc:
+                raise StepFailedError(f"{where}: {exc}") from None
 
     async def close_all(self) -> None:
+        """Close every connection, each within ``bounds.CLOSE_TIMEOUT_S`` (shielded)."""
         for link in self.links.values():
-            await link.conn.aclose()
+            await close_within(link.conn)
 
     async def _run_step(self, step: Step) -> None:
         if step.kind is StepKind.CLOSE:
             link = self.links.get(step.on)
             if link is not None:
-                await link.conn.aclose()
+                await close_within(link.conn)
             return
         link = await self._link(step.on)
         timeout_s = step.timeout_s or self.options.expect_timeout_s
@@ -324,7 +415,7 @@ class _CaseRun:
             else:
                 frame = _SENDS[kind](self._sub(step.value))
             try:
-                await link.conn.send(frame)
+                await send_within(link.conn, frame, timeout_s)
             except ConnectionClosedError as exc:  # later steps say whether closing was right
                 link.closed_reason = link.closed_reason or exc.message
                 link.notify()
@@ -362,10 +453,12 @@ class _CaseRun:
             conn = await connect(
                 url,
                 timeout_s=self.options.expect_timeout_s * 2,
+                max_message_size=self.options.max_frame_bytes,
                 ssl_context=self.options.ssl_context,
             )
             if self.options.auth_secret is not None and not self.case.authenticates:
-                await conn.send(json.dumps(self._auth_op({})))
+                auth = json.dumps(self._auth_op({}))
+                await send_within(conn, auth, self.options.expect_timeout_s)
             topic = f"/{self.variables['ns']}/sync_{name}"
             link = self.links[name] = _Link(name, conn, topic)
             assert self._tasks is not None
@@ -377,13 +470,29 @@ class _CaseRun:
             while True:
                 frame = await link.conn.receive()
                 received = decode_frame(frame)
+                if received.problem is not None:
+                    self._violated(link, received.problem)
+                    return
                 if not self._hidden(link, received.value):
-                    link.frames.append(received)
+                    self._keep(link, received)
                     self._defragment(link, received)
                 link.notify()
         except ConnectionClosedError as exc:
             link.closed_reason = exc.message
             link.notify()
+
+    def _keep(self, link: _Link, received: Received) -> None:
+        """Keep a frame for the steps, within the case's byte budget."""
+        budget = self.options.case_budget_bytes
+        if sum(other.kept_bytes for other in self.links.values()) + received.size > budget:
+            self._violated(
+                link,
+                f"the server sent more than {budget} bytes the case did not consume"
+                " (the case's budget, --case-budget-bytes)",
+            )
+            return
+        link.frames.append(received)
+        link.kept_bytes += received.size
 
     def _hidden(self, link: _Link, value: JsonValue) -> bool:
         if not isinstance(value, dict):
@@ -419,13 +528,16 @@ class _CaseRun:
             parts.clear()
         parts.append(received)
         try:
-            joined = json.loads(
-                "".join(_fragment_data(p) for p in sorted(parts, key=_fragment_num))
+            joined = decode_json_text(
+                "".join(_fragment_data(p) for p in sorted(parts, key=_fragment_num)), "fragments"
             )
-        except ValueError:
+        except RemoteProtocolError:
             return
         del link.fragments[key]
         if self._hidden(link, joined):
+            for part in parts:
+                if any(f is part for f in link.frames):
+                    link.drop(part)
             link.frames[:] = [f for f in link.frames if not any(f is p for p in parts)]
 
     async def _expect(self, link: _Link, pattern: JsonValue, step: Step, timeout_s: float) -> None:
@@ -436,7 +548,7 @@ class _CaseRun:
                         continue
                     problem = match(pattern, received.value, self.variables)
                     if problem is None:
-                        del link.frames[index]
+                        link.drop(link.frames.pop(index))
                         return
                     if step.in_order and _same_stream(pattern, received.value):
                         raise StepFailedError(
@@ -488,8 +600,8 @@ class _CaseRun:
             raise StepFailedError(f"cannot sync: connection closed ({link.closed_reason})")
         if not link.sync_ready:
             base = {"topic": link.sync_topic, "type": SYNC_TYPE, "id": SYNC_ID}
-            await link.conn.send(json.dumps({"op": "subscribe", **base}))
-            await link.conn.send(json.dumps({"op": "advertise", **base}))
+            await send_within(link.conn, json.dumps({"op": "subscribe", **base}), timeout_s)
+            await send_within(link.conn, json.dumps({"op": "advertise", **base}), timeout_s)
             link.sync_ready = True
         token = f"sync-{next(self._tokens)}"
         publish = json.dumps(
@@ -497,7 +609,7 @@ class _CaseRun:
         )
         with anyio.move_on_after(timeout_s):
             while token not in link.tokens:
-                await link.conn.send(publish)
+                await send_within(link.conn, publish, timeout_s)
                 with anyio.move_on_after(_SYNC_RESEND_S):
                     while token not in link.tokens:
                         if link.closed_reason is not None:

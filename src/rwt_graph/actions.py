@@ -22,6 +22,7 @@ from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
 
 from .calls import ProviderTable, Spawner, convert_args, guarded, require_spawner
+from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
     from .clock import Clock
@@ -40,6 +41,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
 
@@ -114,6 +116,7 @@ class Goal:
         self._clock = clock
         self.context: GoalContext | None = None
         self.cancel_job: Callable[[], None] | None = None
+        self.on_finished: Callable[[], None] | None = None  # its table forgets it
 
     @property
     def finished(self) -> bool:
@@ -137,6 +140,9 @@ class Goal:
     def finish(self, status: GoalStatus, result: bool, values: object) -> None:
         """Give the caller its one result and drop the goal from its action."""
         self.entry.goals.pop(self.goal_id, None)
+        finished, self.on_finished = self.on_finished, None
+        if finished is not None:
+            finished()
         done, self._done = self._done, None
         if done is not None:
             done(status, result, values)
@@ -195,6 +201,8 @@ class Actions(ProviderTable[ActionEntry]):
         self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
     ) -> None:
         super().__init__("action", registry, clock, spawner)
+        # caller -> its goals in flight, so that a caller's release costs its goals
+        self._goals_of: dict[ClientId, set[Goal]] = {}
 
     def send_goal(
         self,
@@ -213,7 +221,8 @@ class Actions(ProviderTable[ActionEntry]):
         packages (``tf2_web_republisher_msgs`` or ``..._interfaces``, REF §7.3).
 
         Raises:
-            GraphError: no such action.
+            GraphError: no such action, or its client provider is busy
+                (docs/limits.md).
             FieldError: ``args`` does not fit the goal type.
         """
         entry = self.entries.get(resolve_name(action))
@@ -223,13 +232,20 @@ class Actions(ProviderTable[ActionEntry]):
         goal_id = f"action_goal:{entry.spelling}:{next(entry.counter)}"
         goal = Goal(entry, goal_id, client, done, on_feedback, self.clock)
         entry.goals[goal_id] = goal
+        self._goals_of.setdefault(client, set()).add(goal)
+        goal.on_finished = partial(self._untrack, goal)
         if entry.handler is not None:
             self._run_local(entry, entry.handler, goal, goal_msg.msg)
         else:
             assert entry.provider is not None
-            entry.provider.on_action_goal(
-                goal_id, entry.spelling, entry.type_spelling, goal_msg.msg
-            )
+            try:
+                entry.provider.on_action_goal(
+                    goal_id, entry.spelling, entry.type_spelling, goal_msg.msg
+                )
+            except RwtError as exc:  # refused (provider busy): the caller's goal fails
+                del entry.goals[goal_id]
+                self.log_refusal(entry.spelling, client, exc.message)
+                raise
         return goal
 
     def feedback(
@@ -280,15 +296,22 @@ class Actions(ProviderTable[ActionEntry]):
         goal.finish(final, True, msg.msg)
 
     def release(self, client: ClientId) -> None:
-        """Drop the actions ``client`` provides; forget the goals it sent."""
-        for entry in list(self.entries.values()):
-            if entry.owner == client:
-                del self.entries[entry.name]
-                entry.end_all(f"action {entry.spelling} is gone: its provider disconnected")
-            else:
-                for goal in list(entry.goals.values()):
-                    if goal.caller == client:
-                        guarded(f"forgetting goal {goal.goal_id}", goal.forget)
+        """Drop the actions ``client`` provides; forget the goals it sent.
+
+        Costs what ``client`` provides and sent, not the size of the table.
+        """
+        for entry in self.take_owned(client):
+            entry.end_all(f"action {entry.spelling} is gone: its provider disconnected")
+        for goal in sorted(self._goals_of.pop(client, ()), key=lambda g: g.goal_id):
+            if goal.entry.goals.get(goal.goal_id) is goal:
+                guarded(f"forgetting goal {goal.goal_id}", goal.forget)
+
+    def _untrack(self, goal: Goal) -> None:
+        goals = self._goals_of.get(goal.caller)
+        if goals is not None:
+            goals.discard(goal)
+            if not goals:
+                del self._goals_of[goal.caller]
 
     def _goal(self, client: ClientId, action: str, goal_id: str) -> Goal:
         entry = self.owned(client, action)
@@ -313,7 +336,14 @@ class Actions(ProviderTable[ActionEntry]):
             except GoalCanceledError:
                 goal.finish(GoalStatus.CANCELED, True, result_type.default())
             except Exception:
-                logger.exception("action %s failed on goal %s", entry.spelling, goal.goal_id)
+                _episodes.log(
+                    logging.ERROR,
+                    f"action_failed {entry.name}",
+                    "action %s failed on goal %s",
+                    entry.spelling,
+                    goal.goal_id,
+                    exc_info=True,
+                )
                 goal.finish(GoalStatus.ABORTED, True, result_type.default())
             else:
                 goal.finish(GoalStatus.SUCCEEDED, True, msg)

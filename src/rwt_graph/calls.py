@@ -10,6 +10,8 @@ from rwt_protocol.errors import FieldError, GraphError
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ops.base import json_type_name
 
+from .ratelog import EpisodeLog
+
 if TYPE_CHECKING:
     from rwt_protocol.ports import ClientId
 
@@ -37,6 +39,7 @@ def is_local(client: ClientId) -> bool:
 
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 
 def guarded(what: str, step: Callable[[], None]) -> None:
@@ -49,7 +52,9 @@ def guarded(what: str, step: Callable[[], None]) -> None:
     try:
         step()
     except Exception:
-        logger.exception("%s failed; the cleanup goes on", what)
+        _episodes.log(
+            logging.ERROR, "cleanup_failed", "%s failed; the cleanup goes on", what, exc_info=True
+        )
 
 
 Spawner = Callable[[Callable[[], Awaitable[None]]], Callable[[], None]]
@@ -140,21 +145,47 @@ class ProviderTable(Generic[E]):
         self.clock = clock
         self._spawner = spawner
         self.entries: dict[str, E] = {}
+        self.reserved: set[str] = set()
+        """Resolved names no client may advertise even while nothing provides them."""
+        self._refusals = EpisodeLog(logger)  # callers can trigger them at will
+        self._owned: dict[ClientId, set[str]] = {}  # provider -> its names: release is O(held)
+
+    def log_refusal(self, spelling: str, caller: str, reason: str) -> None:
+        """Log that a client provider of ``spelling`` refused a request (busy, docs/limits.md).
+
+        One line per provider name per episode, repeats counted (``EpisodeLog``):
+        its callers decide how often this happens.
+        """
+        self._refusals.log(
+            logging.WARNING,
+            f"{self.kind}:{spelling}",
+            "event=provider_busy %s=%s caller=%s reason=%r",
+            self.kind,
+            spelling,
+            caller,
+            reason,
+        )
 
     def advertise(self, entry: E) -> None:
         """Add ``entry``, replacing an older one with the same name (D15).
 
         A client connection cannot replace an in-process provider (rosapi, the TF
-        republisher, a service of the embedding program): those names are the
+        republisher, a service of the embedding program), nor take a name in
+        ``reserved`` (rosapi's names of the other dialect): those names are the
         server's (docs/limits.md, reserved names).
 
         Raises:
-            GraphError: a client tried to replace an in-process provider.
+            GraphError: a client tried to take a name of the server's.
         """
         old = self.entries.get(entry.name)
-        if old is not None and is_local(old.owner) and not is_local(entry.owner):
+        if not is_local(entry.owner) and (
+            entry.name in self.reserved or (old is not None and is_local(old.owner))
+        ):
             raise GraphError(f"{self.kind} {entry.spelling} is reserved by the server")
         self.entries[entry.name] = entry
+        if old is not None:
+            self._disown(old)
+        self._owned.setdefault(entry.owner, set()).add(entry.name)
         if old is not None:
             reason = f"{self.kind} {old.spelling} was replaced by a newer advertiser"
             old.end_all(reason)
@@ -179,4 +210,25 @@ class ProviderTable(Generic[E]):
         """
         entry = self.owned(client, name)
         del self.entries[entry.name]
+        self._disown(entry)
         entry.end_all(f"{self.kind} {entry.spelling} was unadvertised")
+
+    def take_owned(self, client: ClientId) -> list[E]:
+        """Remove and return every entry ``client`` provides (it left), in name order.
+
+        Costs what ``client`` provides, not the size of the table.
+        """
+        taken = []
+        for name in sorted(self._owned.pop(client, ())):
+            entry = self.entries.get(name)
+            if entry is not None and entry.owner == client:
+                del self.entries[name]
+                taken.append(entry)
+        return taken
+
+    def _disown(self, entry: E) -> None:
+        names = self._owned.get(entry.owner)
+        if names is not None:
+            names.discard(entry.name)
+            if not names:
+                del self._owned[entry.owner]

@@ -44,6 +44,7 @@ from .clock import Clock, SystemClock
 from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
 from .nodes import DEFAULT_NODE, Nodes, node_name
 from .params import Parameters
+from .ratelog import EpisodeLog
 from .services import Amend, CallerServiceHandler, LocalServiceHandler, ServiceEntry, Services
 from .topics import Tap, Topic
 from .types import Dialect, MessageType, TypeRegistry
@@ -54,6 +55,7 @@ if TYPE_CHECKING:
 __all__ = ["Graph"]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
 
@@ -70,6 +72,8 @@ class Graph:
         params: the parameter store (``graph.params.set("/robot:speed", 1.0)``).
         nodes: the node of each participant.
         taps: functions that see every published message (``topics.Tap``).
+        type_checks: functions of links telling why they cannot carry a type
+            (``type_warning``); a link adds one while it runs.
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -85,6 +89,11 @@ class Graph:
         self._reserved_topics: set[str] = set()
         self._reserved_prefixes: tuple[str, ...] = ()
         self.taps: list[Tap] = []
+        self.type_checks: list[Callable[[str], str | None]] = []
+        # client -> the topics it publishes or subscribes to, so that its release
+        # costs what it holds, not the size of the graph (a peer's thousands of
+        # entities leave one by one: docs/limits.md, "Zenoh peers")
+        self._held: dict[ClientId, set[str]] = {}
 
     # ---- GraphPort ------------------------------------------------------------
 
@@ -102,6 +111,7 @@ class Graph:
         self._check_reserved(client, topic)
         entry = self._topic(topic, msgtype)
         entry.publishers[client] = latch or entry.publishers.get(client, False)
+        self._hold(client, entry.name)
         self.nodes.name_of(client)
         return entry.msgtype.name
 
@@ -110,6 +120,7 @@ class Graph:
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
             entry.remove_publisher(client)
+            self._unhold(client, entry)
             self._collect(entry)
 
     def publish(
@@ -137,6 +148,7 @@ class Graph:
         entry, converted, missing = self.convert_publish(topic, msg, path=path)
         if client not in entry.publishers:  # the first publish of this client: check it once
             self._check_reserved(client, entry.name)
+            self._hold(client, entry.name)
             self.nodes.name_of(client)
         latched = entry.publishers.setdefault(client, False) or latch
         self._send(entry, converted, latch=latched, client=client)
@@ -191,6 +203,7 @@ class Graph:
             entry = self._topic(name, self.registry.message(type_name))
         is_new = client not in entry.subscribers
         entry.subscribers[client] = sink
+        self._hold(client, entry.name)
         self.nodes.name_of(client)
         if is_new and entry.latched is not None:
             sink.on_message(entry.latched)
@@ -201,6 +214,7 @@ class Graph:
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
             entry.subscribers.pop(client, None)
+            self._unhold(client, entry)
             self._collect(entry)
 
     def release(self, client: ClientId) -> None:
@@ -209,17 +223,53 @@ class Graph:
         Its services and actions go, failing their pending callers (D15); its own
         calls and goals are forgotten. Each step runs even if an earlier one
         failed (logged as a bug), so nothing of the client stays registered.
+        Its cost is proportional to what ``client`` holds, not to the graph's size.
         """
-        for entry in list(self.topics.values()):
-            guarded(f"releasing {client} from {entry.name}", partial(self._drop, entry, client))
+        for name in sorted(self._held.pop(client, ())):
+            entry = self.topics.get(name)
+            if entry is not None:
+                guarded(f"releasing {client} from {name}", partial(self._drop, entry, client))
         guarded(f"releasing the services of {client}", lambda: self.services.release(client))
         guarded(f"releasing the actions of {client}", lambda: self.actions.release(client))
         guarded(f"forgetting the node of {client}", lambda: self.nodes.forget(client))
+
+    def type_warning(self, type_name: str) -> str | None:
+        """Why a link cannot carry ``type_name`` (the package to install), or None.
+
+        The session reports it as a warning status after an advertise or a
+        subscribe that succeeded here: the graph has the type, the other
+        middleware cannot carry it (docs/ros2.md).
+        """
+        for check in self.type_checks:
+            warning = check(type_name)
+            if warning:
+                return warning
+        return None
 
     def _drop(self, entry: Topic, client: ClientId) -> None:
         entry.remove_publisher(client)
         entry.subscribers.pop(client, None)
         self._collect(entry)
+
+    def held_topics(self, client: ClientId) -> frozenset[str]:
+        """The topics ``client`` publishes or subscribes to (resolved names)."""
+        return frozenset(self._held.get(client, ()))
+
+    def _hold(self, client: ClientId, name: str) -> None:
+        held = self._held.get(client)
+        if held is None:
+            held = self._held[client] = set()
+        held.add(name)
+
+    def _unhold(self, client: ClientId, entry: Topic) -> None:
+        """Forget that ``client`` holds ``entry`` once it neither publishes nor subscribes."""
+        if client in entry.publishers or client in entry.subscribers:
+            return
+        held = self._held.get(client)
+        if held is not None:
+            held.discard(entry.name)
+            if not held:
+                del self._held[client]
 
     def fail_pending(self, reason: str) -> None:
         """Answer every pending service call and goal with a failure (D4; server shutdown)."""
@@ -543,7 +593,13 @@ class Graph:
             try:
                 tap(entry, event, client, latch)
             except Exception:  # a broken tap must not fail the publisher
-                logger.exception("tap of %s failed", entry.name)
+                _episodes.log(
+                    logging.ERROR,
+                    f"tap_failed {entry.name}",
+                    "tap of %s failed",
+                    entry.name,
+                    exc_info=True,
+                )
 
     def _topic(self, topic: str, msgtype: MessageType) -> Topic:
         name = resolve_name(topic)

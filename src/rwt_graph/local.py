@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
 
+from .ratelog import EpisodeLog
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -19,6 +21,7 @@ if TYPE_CHECKING:
 __all__ = ["LocalActionServer", "LocalPublisher", "LocalService", "LocalSubscription"]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 
 class LocalPublisher:
@@ -85,7 +88,13 @@ class LocalSubscription:
         try:
             self._callback(event.msg)
         except Exception:
-            logger.exception("callback of the subscription to %s failed", self.topic)
+            _episodes.log(
+                logging.ERROR,
+                f"callback_failed {self.topic}",
+                "callback of the subscription to %s failed",
+                self.topic,
+                exc_info=True,
+            )
 
     def close(self) -> None:
         """Stop receiving messages."""

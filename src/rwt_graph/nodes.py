@@ -49,6 +49,7 @@ class Nodes:
     def __init__(self) -> None:
         self._names: dict[ClientId, str] = {}
         self._hosts: dict[ClientId, str] = {}
+        self._members: dict[str, set[ClientId]] = {}  # node -> participants: no walk per query
         self._numbers = itertools.count(1)
 
     def attach(self, client: ClientId, *, host: str | None = None) -> str:
@@ -65,22 +66,37 @@ class Nodes:
             self._hosts[client] = host
         name = self._names.get(client)
         if name is None:
-            name = self._names[client] = f"{CLIENT_NODE_PREFIX}{next(self._numbers)}"
+            name = f"{CLIENT_NODE_PREFIX}{next(self._numbers)}"
+            self.bind(client, name)
         return name
 
     def bind(self, client: ClientId, node: str) -> None:
         """Put an in-process participant in ``node`` (already checked by ``node_name``)."""
+        self._leave(client)
         self._names[client] = node
+        self._members.setdefault(node, set()).add(client)
 
     def forget(self, client: ClientId) -> None:
         """The participant is gone (disconnected, or its handle closed)."""
-        self._names.pop(client, None)
+        self._leave(client)
         self._hosts.pop(client, None)
+
+    def _leave(self, client: ClientId) -> None:
+        node = self._names.pop(client, None)
+        if node is not None:
+            members = self._members[node]
+            members.discard(client)
+            if not members:
+                del self._members[node]
 
     def name_of(self, client: ClientId) -> str:
         """The node of ``client``; a participant never seen gets a client node."""
         name = self._names.get(client)
         return name if name is not None else self.attach(client)
+
+    def node_of(self, client: ClientId) -> str | None:
+        """The node of ``client`` if it has one; unlike ``name_of``, never makes one."""
+        return self._names.get(client)
 
     def host_of(self, client: ClientId) -> str | None:
         """The peer address of a connection, None for in-process participants."""
@@ -88,8 +104,8 @@ class Nodes:
 
     def names(self) -> set[str]:
         """The nodes of every current participant."""
-        return set(self._names.values())
+        return set(self._members)
 
     def clients_of(self, node: str) -> set[ClientId]:
         """The participants that belong to ``node``."""
-        return {client for client, name in self._names.items() if name == node}
+        return set(self._members.get(node, ()))

@@ -24,10 +24,12 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import TYPE_CHECKING, TypeAlias
 
+from rwt_protocol.codec import valid_unicode
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
 from .nodes import node_name
+from .ratelog import EpisodeLog
 from .types import Dialect
 
 if TYPE_CHECKING:
@@ -45,6 +47,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 ParamValue: TypeAlias = "bool | int | float | str | list[ParamValue] | dict[str, ParamValue]"
 ParamWatcher: TypeAlias = "Callable[[str, ParamValue | None], None]"
@@ -103,11 +106,18 @@ def _scalar_kind(value: object, what: str) -> ParamKind:
     if isinstance(value, float):
         return ParamKind.DOUBLE
     if isinstance(value, str):
+        _check_text(value, what)
         return ParamKind.STRING
     raise ParameterError(
         f"{what}: a ROS 2 parameter is a bool, int, float, str or a list of one of them, "
         f"not {type(value).__name__}"
     )
+
+
+def _check_text(value: str, what: str) -> None:
+    """Refuse a string no wire form holds (JSON, UTF-8, CDR), so every reader can read it."""
+    if not valid_unicode(value):
+        raise ParameterError(f"{what}: a string is not valid Unicode (lone surrogate)")
 
 
 def ros2_value(value: object, what: str = "value") -> tuple[ParamValue, ParamKind]:
@@ -134,7 +144,10 @@ def ros1_value(value: object, what: str = "value") -> ParamValue:
     Raises:
         ParameterError: None, a non-str dict key, an integer outside int32, another type.
     """
-    if isinstance(value, bool | float | str):
+    if isinstance(value, str):
+        _check_text(value, what)
+        return value
+    if isinstance(value, bool | float):
         return value
     if isinstance(value, int):
         if not _INT32[0] <= value <= _INT32[1]:
@@ -147,6 +160,7 @@ def ros1_value(value: object, what: str = "value") -> ParamValue:
         for key, item in value.items():
             if not isinstance(key, str) or not key or "/" in key:
                 raise ParameterError(f"{what}: namespace keys are non-empty names, got {key!r}")
+            _check_text(key, what)
             out[key] = ros1_value(item, f"{what}.{key}")
         return out
     raise ParameterError(f"{what}: a ROS 1 parameter cannot be {type(value).__name__}")
@@ -195,11 +209,8 @@ def check_param_name(name: str, *, ros1: bool) -> None:
     problem = name_problem(name) if ros1 and not root else None
     if problem is None and len(name) > MAX_NAME_LENGTH:
         problem = f"name longer than {MAX_NAME_LENGTH} characters"
-    if problem is None and not name.isascii():
-        try:
-            name.encode()
-        except UnicodeEncodeError:
-            problem = "name is not valid Unicode (lone surrogate)"
+    if problem is None and not valid_unicode(name):
+        problem = "name is not valid Unicode (lone surrogate)"
     if problem is not None:
         raise ParameterError(f"parameter name: {problem}")
 
@@ -239,6 +250,7 @@ class Parameters:
         self.max_bytes = max_bytes
         self._bytes = 0  # the values' sizes (``value_size``), kept up to date
         self._nodes: dict[str, dict[str, _Param]] = {}  # ROS 2
+        self._count = 0  # ROS 2 parameters held: a new one checks room without a walk
         self._tree: dict[str, ParamValue] = {}  # ROS 1
         self._watchers: list[ParamWatcher] = []
 
@@ -279,6 +291,8 @@ class Parameters:
             self._grow(stored, None if old is None else old.value)
             entry = _Param(stored, kind, read_only=read_only, fixed_type=not dynamic_typing)
             self._nodes.setdefault(node_key, {})[param] = entry
+            if old is None:
+                self._count += 1
             self._notify(f"{node_key}:{param}", stored)
 
     def set(self, name: str, value: object) -> None:
@@ -303,6 +317,7 @@ class Parameters:
             self._check_room(node, param)
             self._grow(stored, None)
             self._nodes.setdefault(node, {})[param] = _Param(stored, kind)
+            self._count += 1
         elif entry.read_only:
             raise ParameterError(f"parameter {full} is read-only")
         elif entry.fixed_type:
@@ -356,6 +371,7 @@ class Parameters:
             raise ParameterError(f"parameter {node}:{param} is read-only")
         self._bytes -= value_size(entry.value)
         del params[param]
+        self._count -= 1
         if not params:
             del self._nodes[node]
         self._notify(f"{node}:{param}", None)
@@ -403,7 +419,13 @@ class Parameters:
             try:
                 watcher(name, copy.deepcopy(value))
             except Exception:  # one broken watcher must not stop the others
-                logger.exception("parameter watcher failed on %s", name)
+                _episodes.log(
+                    logging.ERROR,
+                    "watcher_failed",
+                    "parameter watcher failed on %s",
+                    name,
+                    exc_info=True,
+                )
 
     def _grow(self, new: ParamValue, old: ParamValue | None) -> None:
         """Account for ``old`` becoming ``new``; refuse it if the store would be over ``max_bytes``.
@@ -419,7 +441,7 @@ class Parameters:
     def _check_room(self, node: str, param: str) -> None:
         if param in self._nodes.get(node, {}):
             return
-        if sum(len(params) for params in self._nodes.values()) >= self.max_params:
+        if self._count >= self.max_params:
             raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
 
     def _lookup(self, name: str) -> object:

@@ -24,6 +24,7 @@ from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
 
 from .calls import ProviderTable, Spawner, convert_args, guarded
+from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
     from .clock import Clock
@@ -39,6 +40,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
 LocalServiceHandler = Callable[[Message], Message | Awaitable[Message]]
@@ -56,6 +58,7 @@ class PendingCall:
         self.caller = caller
         self._reply: ServiceReply | None = reply
         self.cancel_job: Callable[[], None] | None = None
+        self.on_settled: Callable[[], None] | None = None  # its table forgets it
 
     @property
     def done(self) -> bool:
@@ -65,6 +68,9 @@ class PendingCall:
     def resolve(self, result: bool, values: object) -> None:
         """Answer the caller, at most once."""
         reply, self._reply = self._reply, None
+        settled, self.on_settled = self.on_settled, None
+        if settled is not None:
+            settled()
         if reply is not None:
             reply(result, values)
 
@@ -124,6 +130,9 @@ class Services(ProviderTable[ServiceEntry]):
         self, registry: TypeRegistry, clock: Clock, spawner: Callable[[], Spawner | None]
     ) -> None:
         super().__init__("service", registry, clock, spawner)
+        # caller -> its calls waiting on client providers, so that a caller's
+        # release costs its own calls, not every pending call of the graph
+        self._calls_of: dict[ClientId, set[tuple[ServiceEntry, str]]] = {}
 
     def call(
         self,
@@ -138,7 +147,8 @@ class Services(ProviderTable[ServiceEntry]):
         """Start a call to ``service`` (spec 3.3.8).
 
         Raises:
-            GraphError: the service does not exist or has another type.
+            GraphError: the service does not exist or has another type, or its
+                client provider is busy (docs/limits.md).
             FieldError: ``args`` does not fit the request type.
         """
         entry = self.entries.get(resolve_name(service))
@@ -156,7 +166,14 @@ class Services(ProviderTable[ServiceEntry]):
             assert entry.provider is not None
             request_id = f"service_request:{entry.spelling}:{next(entry.counter)}"
             entry.pending[request_id] = call
-            entry.provider.on_service_request(request_id, entry.spelling, request.msg)
+            self._track(call, entry, request_id)
+            try:
+                entry.provider.on_service_request(request_id, entry.spelling, request.msg)
+            except RwtError as exc:  # refused (provider busy): the caller fails, nothing waits
+                del entry.pending[request_id]
+                self._untrack(call.caller, (entry, request_id))
+                self.log_refusal(entry.spelling, client, exc.message)
+                raise
         return call
 
     def respond(
@@ -196,15 +213,29 @@ class Services(ProviderTable[ServiceEntry]):
         call.resolve(True, response.msg)
 
     def release(self, client: ClientId) -> None:
-        """Drop the services ``client`` provides; forget its own pending calls."""
-        for entry in list(self.entries.values()):
-            if entry.owner == client:
-                del self.entries[entry.name]
-                entry.end_all(f"service {entry.spelling} is gone: its provider disconnected")
-            else:
-                for request_id, call in list(entry.pending.items()):
-                    if call.caller == client:
-                        del entry.pending[request_id]
+        """Drop the services ``client`` provides; forget its own pending calls.
+
+        Costs what ``client`` provides and calls, not the size of the table.
+        """
+        for entry in self.take_owned(client):
+            entry.end_all(f"service {entry.spelling} is gone: its provider disconnected")
+        for entry, request_id in list(self._calls_of.pop(client, ())):
+            call = entry.pending.get(request_id)
+            if call is not None and call.caller == client:
+                del entry.pending[request_id]
+                call.on_settled = None
+
+    def _track(self, call: PendingCall, entry: ServiceEntry, request_id: str) -> None:
+        key = (entry, request_id)
+        self._calls_of.setdefault(call.caller, set()).add(key)
+        call.on_settled = partial(self._untrack, call.caller, key)
+
+    def _untrack(self, caller: ClientId, key: tuple[ServiceEntry, str]) -> None:
+        calls = self._calls_of.get(caller)
+        if calls is not None:
+            calls.discard(key)
+            if not calls:
+                del self._calls_of[caller]
 
     def _run_local(
         self, entry: ServiceEntry, handler: LocalServiceHandler, request: Message, call: PendingCall
@@ -216,8 +247,7 @@ class Services(ProviderTable[ServiceEntry]):
             call.resolve(False, f"service {entry.spelling} failed: {exc.message}")
             return
         except Exception as exc:
-            logger.exception("service %s failed", entry.spelling)
-            call.resolve(False, f"service {entry.spelling} failed: {exc}")
+            _failed(entry, call, exc)
             return
         if not inspect.isawaitable(outcome):
             self._finish(entry, outcome, call)
@@ -232,8 +262,7 @@ class Services(ProviderTable[ServiceEntry]):
             try:
                 response = await outcome
             except Exception as exc:
-                logger.exception("service %s failed", entry.spelling)
-                call.resolve(False, f"service {entry.spelling} failed: {exc}")
+                _failed(entry, call, exc)
             else:
                 self._finish(entry, response, call)
 
@@ -246,6 +275,21 @@ class Services(ProviderTable[ServiceEntry]):
             call.resolve(False, f"service {entry.spelling} returned an invalid response: {exc}")
             return
         call.resolve(True, msg if entry.amend is None else entry.amend(msg))
+
+
+def _failed(entry: ServiceEntry, call: PendingCall, exc: Exception) -> None:
+    """Tell the caller that an in-process handler raised, and log it once per episode.
+
+    A bug of the embedding program; its callers decide how often it happens.
+    """
+    _episodes.log(
+        logging.ERROR,
+        f"service_failed {entry.name}",
+        "service %s failed",
+        entry.spelling,
+        exc_info=True,
+    )
+    call.resolve(False, f"service {entry.spelling} failed: {exc}")
 
 
 def _with_caller(handler: CallerServiceHandler, caller: ClientId) -> LocalServiceHandler:

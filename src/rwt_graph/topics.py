@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
 
+from .ratelog import EpisodeLog
+
 if TYPE_CHECKING:
     from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
 
@@ -23,6 +25,7 @@ if TYPE_CHECKING:
 __all__ = ["Tap", "Topic"]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Tap = Callable[["Topic", "MessageEvent", "ClientId", bool], None]
 """Sees every message published in a graph: ``tap(topic, event, publisher, latched)``.
@@ -86,4 +89,11 @@ class Topic:
             try:
                 sink.on_message(event)
             except Exception:  # a broken subscriber must not hurt the others
-                logger.exception("subscriber %s of %s failed", subscriber, self.name)
+                _episodes.log(
+                    logging.ERROR,
+                    f"subscriber_failed {self.name}",
+                    "subscriber %s of %s failed",
+                    subscriber,
+                    self.name,
+                    exc_info=True,
+                )

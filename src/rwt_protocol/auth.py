@@ -7,6 +7,15 @@ is the standard one (rosauth's ``ros_mac_authentication``), and embedding code
 may pass any callable instead (a token check, a user database...).
 
 Nothing here reads a clock: the wall time is passed in.
+
+rosauth's MAC is over the fields concatenated and names no connection, so a
+captured ``auth`` op is accepted on any new connection until its ``end``, and a
+digit moved from ``t`` into ``rand`` keeps it valid (docs/server.md,
+authentication). rwt's opt-in connection binding (``--auth-bind-connection``,
+PROTOCOL-DECISIONS D31) closes both: the server sends each connection a
+challenge first (a ``status`` op with ``id`` ``auth_challenge`` whose ``msg`` is
+a fresh nonce), the client's ``rand`` must be that nonce, and the MAC is
+``bound_mac``: an HMAC-SHA512 over the fields one per line.
 """
 
 from __future__ import annotations
@@ -14,12 +23,27 @@ from __future__ import annotations
 import hashlib
 import hmac
 import math
+import secrets
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .ops import Auth
 
-__all__ = ["Authenticator", "RosauthVerifier", "rosauth_mac", "rosauth_op"]
+__all__ = [
+    "AUTH_CHALLENGE_ID",
+    "Authenticator",
+    "RosauthVerifier",
+    "bound_mac",
+    "new_challenge",
+    "rosauth_mac",
+    "rosauth_op",
+]
+
+AUTH_CHALLENGE_ID = "auth_challenge"
+"""The ``id`` of the ``status`` op carrying a connection's challenge (D31)."""
+
+#: The first line of the text ``bound_mac`` signs: names the scheme and its version.
+BOUND_MAC_LABEL = "rwt-auth-bound-1"
 
 Authenticator = Callable[[Auth, str], bool]
 """Decides an ``auth`` op: called with the op and the peer address (``"host:port"``).
@@ -56,6 +80,42 @@ def rosauth_mac(
     return hashlib.sha512(text.encode("utf-8")).hexdigest()
 
 
+def new_challenge() -> str:
+    """A fresh connection challenge: 32 lowercase hex digits (128 random bits)."""
+    return secrets.token_hex(16)
+
+
+def bound_mac(
+    secret: str, *, client: str, dest: str, rand: str, t: float, level: str, end: float
+) -> str:
+    r"""Compute the connection-bound MAC of ``--auth-bind-connection`` (D31).
+
+    Args:
+        secret: the shared secret.
+        client: the client's address, as the trusted source wrote it.
+        dest: the server's address, likewise.
+        rand: the connection's challenge (the ``msg`` of the server's
+            ``auth_challenge`` status).
+        t: issue time, seconds since the epoch; only whole seconds count.
+        level: the user level string.
+        end: expiry time, seconds since the epoch; only whole seconds count.
+
+    Returns:
+        128 lowercase hex digits: HMAC-SHA512 keyed with ``secret`` (UTF-8) of
+        ``"rwt-auth-bound-1\nCLIENT\nDEST\nRAND\nT\nLEVEL\nEND"`` (UTF-8), ``T``
+        and ``END`` as whole seconds in decimal: each field on its own line, so
+        no two field lists sign the same text.
+
+    Raises:
+        ValueError: a field holds a line break (it could not be told apart).
+    """
+    fields = [BOUND_MAC_LABEL, client, dest, rand, _seconds(t), level, _seconds(end)]
+    if any("\n" in field or "\r" in field for field in fields):
+        raise ValueError("auth fields cannot hold line breaks")
+    text = "\n".join(fields)
+    return hmac.new(secret.encode("utf-8"), text.encode("utf-8"), hashlib.sha512).hexdigest()
+
+
 def rosauth_op(
     secret: str, *, client: str, dest: str, rand: str, t: float, level: str, end: float
 ) -> dict[str, object]:
@@ -85,10 +145,14 @@ class RosauthVerifier:
         secret: the shared secret.
         max_skew_s: how far in the future ``t`` may be, in seconds, for clocks
             that are not quite in step (rosauth tolerates 5 s).
+        bound: expect ``bound_mac`` instead of rosauth's MAC
+            (``--auth-bind-connection``, D31); the session checks that ``rand``
+            is the connection's challenge.
     """
 
     secret: str = field(repr=False)
     max_skew_s: float = 5.0
+    bound: bool = False
 
     def problem(self, op: Auth, wall_now: float) -> str | None:
         """Say what is wrong with ``op`` at ``wall_now``; None when it is valid.
@@ -104,15 +168,19 @@ class RosauthVerifier:
             return f"expired (end {op.end:.0f} is before now {wall_now:.0f})"
         if op.t - self.max_skew_s > wall_now:
             return f"not yet valid (t {op.t:.0f} is after now {wall_now:.0f})"
-        expected = rosauth_mac(
-            self.secret,
-            client=op.client,
-            dest=op.dest,
-            rand=op.rand,
-            t=op.t,
-            level=op.level,
-            end=op.end,
-        )
+        mac = bound_mac if self.bound else rosauth_mac
+        try:
+            expected = mac(
+                self.secret,
+                client=op.client,
+                dest=op.dest,
+                rand=op.rand,
+                t=op.t,
+                level=op.level,
+                end=op.end,
+            )
+        except ValueError as exc:
+            return str(exc)
         if not hmac.compare_digest(expected.encode(), op.mac.lower().encode("utf-8")):
             return "MAC does not match"
         return None

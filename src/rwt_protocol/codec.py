@@ -12,6 +12,12 @@ refused with one status ``nesting deeper than N`` (checked without recursion,
 and a decoder's own ``RecursionError`` means the same); a string with a lone
 surrogate (``"\\ud800"``, which msgspec refuses but ``json`` accepts) is refused,
 so every string the server holds can be encoded again.
+
+JSON text carried inside a message (a rosapi parameter value, a client's view of
+one, a frame a conformance run receives) is decoded by ``decode_json_text`` under
+the same rules, and its integers must fit in 64 bits: no ROS type holds more, and
+a longer one cannot even be printed in an error (docs/limits.md, JSON text in
+values).
 """
 
 from __future__ import annotations
@@ -39,11 +45,13 @@ __all__ = [
     "MAX_NESTING",
     "check_nesting",
     "decode_json",
+    "decode_json_text",
     "decode_publish",
     "encode_json",
     "encode_publish_json",
     "parse_object",
     "peek_id",
+    "valid_unicode",
 ]
 
 _decoder = msgspec.json.Decoder()
@@ -122,6 +130,22 @@ _MAYBE_SURROGATE_TEXT = re.compile(r"\\u[dD][89a-fA-F]|[\ud800-\udfff]")
 _MAYBE_SURROGATE_BYTES = re.compile(rb"\\u[dD][89a-fA-F]")
 
 
+def valid_unicode(text: str) -> bool:
+    """Whether ``text`` is valid Unicode: no lone surrogate (an unpaired U+D800-U+DFFF).
+
+    Python strings may hold lone surrogates (``json`` decodes the escape into
+    one); UTF-8, JSON encoders and CDR refuse them, so a string the server
+    keeps must pass this (the one check, used for frames, names and values).
+    """
+    if text.isascii():
+        return True
+    try:
+        text.encode()
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def _check_unicode(frame: str | bytes, value: object) -> None:
     """Refuse a value holding a string with a lone surrogate (not valid Unicode)."""
     pattern = _MAYBE_SURROGATE_TEXT if isinstance(frame, str) else _MAYBE_SURROGATE_BYTES
@@ -131,13 +155,10 @@ def _check_unicode(frame: str | bytes, value: object) -> None:
     while stack:
         item = stack.pop()
         if type(item) is str:
-            if not item.isascii():
-                try:
-                    item.encode()
-                except UnicodeEncodeError:
-                    raise RemoteProtocolError(
-                        "invalid JSON: a string has a lone surrogate (not valid Unicode)"
-                    ) from None
+            if not valid_unicode(item):
+                raise RemoteProtocolError(
+                    "invalid JSON: a string has a lone surrogate (not valid Unicode)"
+                )
         elif type(item) is dict:
             stack.extend(item.keys())
             stack.extend(item.values())
@@ -206,6 +227,47 @@ def _fallback(frame: str | bytes) -> object:
     except (ValueError, TypeError) as exc:
         raise RemoteProtocolError(f"invalid JSON: {_short(str(exc))}") from None
     _check_unicode(frame, value)
+    return value
+
+
+#: The integers a JSON text in a value may hold: int64 and uint64, the widest ROS types.
+_INT_RANGE = (INT64_MIN, 2**64 - 1)
+
+
+def decode_json_text(text: str | bytes, what: str) -> object:
+    """Decode JSON text a peer put inside a message, under the rules of frames.
+
+    The text of a rosapi ``set_param`` ``value`` or ``get_param`` default, a
+    parameter value a server answers, a frame a conformance run receives: the
+    rules of ``decode_json`` (standard JSON plus ``NaN``/``Infinity``, which
+    Python clients send, at most ``MAX_NESTING`` levels, no lone surrogate) and
+    integers within int64/uint64.
+
+    Args:
+        text: the JSON text.
+        what: names the text in errors (``"set_param value"``).
+
+    Returns:
+        The decoded value (dict, list, str, int, float, bool or None).
+
+    Raises:
+        RemoteProtocolError: ``"<what>: invalid JSON: ..."``, ``"<what>: nesting
+            deeper than 100"`` or ``"<what>: an integer does not fit in 64 bits"``.
+    """
+    try:
+        value = decode_json(text)
+    except RemoteProtocolError as exc:
+        raise RemoteProtocolError(f"{what}: {exc.message}") from None
+    low, high = _INT_RANGE
+    stack = [value]
+    while stack:  # nesting is bounded above, but a walk without recursion costs nothing
+        item = stack.pop()
+        if type(item) is int and not low <= item <= high:
+            raise RemoteProtocolError(f"{what}: an integer does not fit in 64 bits")
+        if type(item) is dict:
+            stack.extend(item.values())
+        elif type(item) is list:
+            stack.extend(item)
     return value
 
 

@@ -9,7 +9,8 @@ catches them all. Any other exception escaping rwt is a bug::
     │   │   ├── LimitError                a per-connection cap (docs/limits.md)
     │   │   ├── MessageTooBigError        rwt_protocol.messages: over --max-message-size
     │   │   ├── AccessDeniedError         rwt_protocol.access: a --*-glob rule
-    │   │   └── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
+    │   │   ├── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
+    │   │   └── CdrError                  rwt_graph.types.wire: bytes that are not the type's CDR
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation
     │   ├── FieldError                    a value does not fit its type (D9)
@@ -28,7 +29,8 @@ catches them all. Any other exception escaping rwt is a bug::
     ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
     ├── TransportError                    a transport failed (mapped at the boundary)
     │   ├── ConnectionClosedError         rwt_client.connectors: the connection is gone
-    │   └── ListenError                   rwt_transports: a listener cannot bind its address
+    │   ├── ListenError                   rwt_transports: a listener cannot bind its address
+    │   └── SendTimeoutError              rwt_conformance: a server that does not read
     ├── VideoError                        rwt_video
     │   ├── StreamParamError              a query parameter that cannot be used (HTTP 4xx)
     │   └── EncodeError                   a frame that cannot be encoded (skipped)

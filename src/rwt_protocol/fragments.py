@@ -25,6 +25,7 @@ from .ops import Fragment, Png
 __all__ = [
     "FRAGMENT_OVERHEAD",
     "MAX_PARTS",
+    "FragmentBudget",
     "PartKind",
     "Reassembler",
     "fragment_frames",
@@ -112,6 +113,37 @@ class PartKind(StrEnum):
     PNG = "png"
 
 
+class FragmentBudget:
+    """The bytes of incomplete messages every connection of a server may hold together.
+
+    Each connection's ``Reassembler`` is bounded by ``--max-message-size`` alone, so
+    thousands of connections could hold thousands of times that; they all draw
+    from this one budget (``--max-fragment-memory``, docs/limits.md), and a part
+    that would take it past ``limit`` is refused.
+
+    Args:
+        limit: bytes (``held_size`` plus ``FRAGMENT_OVERHEAD`` a part) held at once,
+            over all connections.
+    """
+
+    __slots__ = ("limit", "used")
+
+    def __init__(self, limit: int) -> None:
+        self.limit = limit
+        self.used = 0
+
+    def take(self, cost: int) -> bool:
+        """Charge ``cost`` bytes if they fit under ``limit``; whether they were charged."""
+        if self.used + cost > self.limit:
+            return False
+        self.used += cost
+        return True
+
+    def give(self, cost: int) -> None:
+        """Return ``cost`` bytes charged before."""
+        self.used -= cost
+
+
 @dataclass(slots=True)
 class _Pending:
     total: int
@@ -130,12 +162,22 @@ class Reassembler:
         max_pending: the most messages pending at once (``--max-pending-fragments``).
         timeout_s: seconds after its latest part at which an incomplete message is
             forgotten (``--fragment-timeout``).
+        shared: the server-wide budget every part is also charged to
+            (``--max-fragment-memory``); None: this connection's bound alone.
     """
 
-    def __init__(self, *, max_bytes: int, max_pending: int, timeout_s: float) -> None:
+    def __init__(
+        self,
+        *,
+        max_bytes: int,
+        max_pending: int,
+        timeout_s: float,
+        shared: FragmentBudget | None = None,
+    ) -> None:
         self.max_bytes = max_bytes
         self.max_pending = max_pending
         self.timeout_s = timeout_s
+        self.shared = shared
         self._pending: dict[tuple[PartKind, str | int], _Pending] = {}
         self._bytes = 0
 
@@ -166,7 +208,8 @@ class Reassembler:
         Raises:
             RemoteProtocolError: ``num`` not below ``total``, a ``total`` that differs
                 from earlier parts, a duplicate ``num``, too many pending messages,
-                or more than ``max_bytes`` held; a message over the byte bound is
+                more than ``max_bytes`` held, or a part the server-wide ``shared``
+                budget cannot take; a message whose part is refused for bytes is
                 dropped whole, since it can never complete.
         """
         if num >= total:
@@ -190,6 +233,12 @@ class Reassembler:
             raise RemoteProtocolError(f"duplicate part {num} of id {op_id!r}")
         cost = held_size(data) + FRAGMENT_OVERHEAD
         self._check_size(key, cost)
+        if self.shared is not None and not self.shared.take(cost):
+            self._drop(key)
+            raise RemoteProtocolError(
+                f"message {op_id!r} dropped: the server holds {self.shared.limit} bytes of"
+                " incomplete messages from all connections already (the server's limit)"
+            )
         entry.parts[num] = data
         entry.size += cost
         self._bytes += cost
@@ -212,6 +261,8 @@ class Reassembler:
         entry = self._pending.pop(key, None)
         if entry is not None:
             self._bytes -= entry.size
+            if self.shared is not None:
+                self.shared.give(entry.size)
 
     def next_deadline(self) -> float | None:
         """The earliest time at which a pending message expires, or None."""
@@ -233,5 +284,7 @@ class Reassembler:
 
     def clear(self) -> None:
         """Forget everything (the connection closed)."""
+        if self.shared is not None:
+            self.shared.give(self._bytes)
         self._pending.clear()
         self._bytes = 0

@@ -7,12 +7,14 @@
 - Access rules (``AccessPolicy``, rosbridge's ``*_glob`` parameters): a denied
   op gets an error status and, for calls and goals, its failure reply (D1, D4).
 
-Both log one structured line per refusal (``event=auth_failed``,
-``event=access_denied``).
+Both log a structured line (``event=auth_failed``, ``event=access_denied``) once
+per episode of refusals, repeats counted (``ratelog.EpisodeLog``): a client
+repeating them cannot write the log at its own rate.
 """
 
 from __future__ import annotations
 
+import hmac
 import logging
 from typing import TYPE_CHECKING
 
@@ -20,6 +22,7 @@ from .access import AccessDeniedError
 from .errors import RemoteProtocolError
 from .levels import StatusLevel
 from .ops import Auth, OpModel, PublishView
+from .ratelog import EpisodeLog
 from .replies import failure_reply
 
 if TYPE_CHECKING:
@@ -28,6 +31,7 @@ if TYPE_CHECKING:
 __all__ = ["authenticate", "check_access"]
 
 logger = logging.getLogger("rwt.session")
+_episodes = EpisodeLog(logger)  # no clock here: each line passes the session's time
 
 
 def authenticate(session: Session, op: OpModel) -> bool:
@@ -50,10 +54,22 @@ def authenticate(session: Session, op: OpModel) -> bool:
     authenticator = session.config.authenticator
     if authenticator is None:  # pragma: no cover - the session only asks when there is one
         return True
+    nonce = session.auth_nonce
+    if nonce is not None and not hmac.compare_digest(op.rand.encode(), nonce.encode()):
+        # bound to the connection (D31): a captured auth op fails on any other one
+        _failed(session, "rand is not this connection's auth_challenge")
+        raise RemoteProtocolError("authentication failed")
     try:
         admitted = authenticator(op, session.peer)
     except Exception:
-        logger.exception("authenticator failed for %s", session.client_id)
+        _episodes.log(
+            logging.ERROR,
+            "authenticator_failed",
+            "authenticator failed for %s",
+            session.client_id,
+            exc_info=True,
+            now=session.now,
+        )
         admitted = False
     if not admitted:
         _failed(session, "refused by the authenticator")
@@ -76,8 +92,14 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
         session.config.access.check(op)
     except AccessDeniedError as exc:
         name: str = op.op  # type: ignore[union-attr]
-        logger.warning(
-            "event=access_denied client=%s op=%s reason=%r", session.client_id, name, exc.message
+        _episodes.log(
+            logging.WARNING,
+            "access_denied",
+            "event=access_denied client=%s op=%s reason=%r",
+            session.client_id,
+            name,
+            exc.message,
+            now=session.now,
         )
         reply = failure_reply(op, f"{name}: {exc.message}") if isinstance(op, OpModel) else None
         if reply is not None:
@@ -86,6 +108,12 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
 
 
 def _failed(session: Session, reason: str) -> None:
-    logger.warning(
-        "event=auth_failed client=%s peer=%s reason=%r", session.client_id, session.peer, reason
+    _episodes.log(
+        logging.WARNING,
+        "auth_failed",
+        "event=auth_failed client=%s peer=%s reason=%r",
+        session.client_id,
+        session.peer,
+        reason,
+        now=session.now,
     )

@@ -101,9 +101,10 @@ class Outbox:
 
         Input backpressure (docs/limits.md): a reader whose frames pushed a
         queue over this mark stops reading until it is back under
-        ``low_water_bytes`` or its peer stops taking frames, so a peer that
-        reads loses nothing to a burst and the drop rule (D24) is left to peers
-        that do not read.
+        ``low_water_bytes``, within the peer's hold budget (``--hold-budget``),
+        so a peer that keeps up on average loses nothing to a burst and the
+        drop rule (D24) is left to peers that read slower than their topics
+        come, or not at all.
         """
         return self.limit_bytes // 2
 
@@ -116,6 +117,18 @@ class Outbox:
     def over_limit(self) -> bool:
         """Whether more than ``limit_bytes`` are queued (only undroppable frames remain over it)."""
         return self._bytes > self.limit_bytes
+
+    def fits_kept(self, frames: Iterable[OutFrame]) -> bool:
+        """Whether ``frames``, never to be dropped, fit under ``limit_bytes`` with those kept.
+
+        An empty queue takes anything, so one request larger than the limit
+        can still go through alone. Used to refuse a provider's requests that do
+        not fit rather than close it (docs/limits.md, provider busy).
+        """
+        if not self._kept_bytes:
+            return True
+        cost = sum(len(frame.data) + self.frame_overhead_bytes for frame in frames)
+        return self._kept_bytes + cost <= self.limit_bytes
 
     def push(self, frame: OutFrame) -> None:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""

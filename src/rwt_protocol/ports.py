@@ -165,7 +165,12 @@ class ServiceProvider(Protocol):
     """The session side of a client-advertised service (spec 3.3.6, REF §2.7)."""
 
     def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
-        """Forward a request; ``service`` is spelled as the provider advertised it (D26)."""
+        """Forward a request; ``service`` is spelled as the provider advertised it (D26).
+
+        Raises:
+            RwtError: the provider cannot take it now (busy, docs/limits.md);
+                the caller fails with the reason.
+        """
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """The service was taken away from this provider (replaced, D15)."""
@@ -177,7 +182,12 @@ class ActionProvider(Protocol):
     def on_action_goal(
         self, goal_id: str, action: str, action_type: str, args: dict[str, object]
     ) -> None:
-        """Forward a goal; names spelled as the provider advertised them (D26)."""
+        """Forward a goal; names spelled as the provider advertised them (D26).
+
+        Raises:
+            RwtError: the provider cannot take it now (busy, docs/limits.md);
+                the caller's goal is aborted with the reason.
+        """
 
     def on_action_cancel(self, goal_id: str, action: str) -> None:
         """Forward a cancel request for ``goal_id``."""
@@ -292,3 +302,6 @@ class GraphPort(ServicePort, Protocol):
 
     def release(self, client: ClientId) -> None:
         """Drop everything ``client`` holds (it disconnected)."""
+
+    def type_warning(self, type_name: str) -> str | None:
+        """Why a link of the graph cannot carry ``type_name`` (what to install), or None."""

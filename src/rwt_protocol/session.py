@@ -31,15 +31,18 @@ from typing import TYPE_CHECKING
 
 from . import gates
 from .access import AccessPolicy
+from .auth import AUTH_CHALLENGE_ID, new_challenge
 from .backpressure import SlowConsumerWatch
 from .codec import decode_json, decode_publish, parse_object, peek_id
 from .codec_cbor import decode_cbor
 from .commands import CloseCode, CloseConnection, Command
 from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
-from .errors import LimitError, RwtError
-from .fragments import Reassembler
+from .errors import GraphError, LimitError, RwtError
+from .fragments import FragmentBudget, Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
+from .idle import IdleWatch
+from .inflate import InflateJob, TokenBucket
 from .levels import StatusLevel
 from .ops import OpModel, PublishView, Status
 from .ops.base import Compression
@@ -52,6 +55,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from .auth import Authenticator
+    from .png import PendingPng
     from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
     from .subscriptions import TopicSubscription
 
@@ -60,6 +64,16 @@ __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"
 logger = logging.getLogger("rwt.session")
 
 MiB = 1024 * 1024
+
+HOLD_BUDGET_S = 5.0
+"""Default ``SessionConfig.hold_budget_s``: seconds a congested connection may hold
+back its publishers and callers per episode (docs/limits.md, input backpressure).
+
+Long enough for a subscriber that reads to take a burst whole (B19: 200,000
+messages, the publisher held about half of the time), short against a stream
+a subscriber cannot keep up with: after it, that subscriber loses its own
+oldest messages and the publisher and every other subscriber go at full rate.
+"""
 
 
 _PUBLISH_DECODE = enabled("publish-decode")  # docs/shortcuts.md
@@ -77,8 +91,18 @@ class SessionConfig:
             limit bounds the memory a stalled peer holds.
         send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
             without taking any frame before it is closed (D24, ``--send-timeout``).
+        hold_budget_s: seconds a connection whose outbox is congested may hold
+            back the readers that fill it (input backpressure, ``--hold-budget``),
+            in all, from its first hold until it has taken everything queued;
+            past it the connection is slow and loses its own oldest topic
+            messages (D24) instead (docs/limits.md).
         access: the access rules (``--topics-glob`` and friends).
         authenticator: when set, the first op must be an ``auth`` it admits (D23).
+        auth_challenge: with an authenticator, send each connection a challenge
+            first (a ``status`` with ``id`` ``auth_challenge`` and the nonce as
+            ``msg``) and admit only an ``auth`` whose ``rand`` is that nonce
+            (``--auth-bind-connection``, D31); the authenticator then checks a
+            MAC that covers ``rand`` (``RosauthVerifier(bound=True)``).
         max_message_size: the largest message reassembled from ``fragment`` or
             ``png`` parts, and the most their pending parts may hold at once,
             bytes (D19, D24, ``--max-message-size``). A ``RosbridgeServer`` sets
@@ -103,14 +127,24 @@ class SessionConfig:
             reply (``--max-pending-calls``); the next is answered ``result: false``.
         max_pending_goals: ``send_action_goal`` ops of one connection waiting for
             their result (``--max-pending-goals``); the next gets a failed result.
+        idle_timeout_s: seconds after which a connection whose peer sent nothing and
+            that holds nothing (no subscription, advertisement, offer, goal, pending
+            call or goal, incomplete message) is closed (``idle.IdleWatch``); None:
+            never. A ``RosbridgeServer`` sets it from ``ServerConfig.idle_timeout_s``
+            for WebSocket and TCP connections (``--idle-timeout``).
+        png_inflate_rate: bytes a second of ``png`` images one connection may have
+            inflated, after a burst of ``max_message_size`` (``--png-inflate-rate``;
+            ``inflate.TokenBucket``): past it, its later ``png`` ops wait.
         All caps are listed with what a client sees in docs/limits.md.
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
     send_buffer_limit: int = 16 * MiB
     send_timeout_s: float = 30.0
+    hold_budget_s: float = HOLD_BUDGET_S
     access: AccessPolicy = field(default_factory=AccessPolicy)
     authenticator: Authenticator | None = None
+    auth_challenge: bool = False
     max_message_size: int = 10 * MiB
     max_pending_fragments: int = 16
     fragment_timeout_s: float = 600.0
@@ -121,6 +155,8 @@ class SessionConfig:
     max_ids_per_topic: int = 100
     max_pending_calls: int = 1000
     max_pending_goals: int = 1000
+    png_inflate_rate: int = 8 * MiB
+    idle_timeout_s: float | None = None
 
 
 class Session:
@@ -137,6 +173,9 @@ class Session:
         on_closed: called once with ``client_id`` when the session closes (after
             it released what it held, even if releasing raised), so its owner
             can forget the connection.
+        fragment_budget: the server-wide bound on incomplete ``fragment``/``png``
+            parts that every connection's parts are also charged to
+            (``--max-fragment-memory``); None: only this connection's bound.
 
     The client end is ``client.ClientSession``: the same ops, the other ``our_role``.
     """
@@ -152,6 +191,7 @@ class Session:
         on_output: Callable[[], None] | None = None,
         peer: str = "",
         on_closed: Callable[[ClientId], None] | None = None,
+        fragment_budget: FragmentBudget | None = None,
     ) -> None:
         self.graph = graph
         self.client_id = client_id
@@ -173,8 +213,16 @@ class Session:
             max_bytes=self.config.max_message_size,
             max_pending=self.config.max_pending_fragments,
             timeout_s=self.config.fragment_timeout_s,
+            shared=fragment_budget,
         )
         self._fragment_timer: Timer | None = None
+        self._inflate_budget = TokenBucket(
+            self.config.png_inflate_rate, max(self.config.max_message_size, 1)
+        )
+        self._jobs: list[InflateJob] = []
+        self.runs_jobs = False  # set by a transport that runs ``take_job``'s jobs
+        timeout = self.config.idle_timeout_s
+        self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
         self._on_closed = on_closed
         self._closed = False
@@ -183,6 +231,12 @@ class Session:
         self._authenticated = self.config.authenticator is None
         self._now = 0.0  # the latest monotonic time seen, for output without one
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
+        self.auth_nonce: str | None = None
+        """This connection's challenge (D31), sent before anything else; None without one."""
+        if self.config.auth_challenge and not self._authenticated:
+            self.auth_nonce = new_challenge()
+            # before any op, whatever the status level: the client needs it to authenticate
+            self.send_op(Status.frame(level="info", msg=self.auth_nonce, id=AUTH_CHALLENGE_ID))
 
     # ---- inputs -------------------------------------------------------------
 
@@ -201,6 +255,8 @@ class Session:
         if self._closed or self._closing:
             return
         self._now = now
+        if self._idle is not None:
+            self._idle.last_input = now
         op_name: str | None = None
         op_id: str | int | None = None
         try:
@@ -230,6 +286,59 @@ class Session:
             self._refused(exc, op_name, op_id)
         except Exception:
             self._bug(op_name, op_id)
+
+    def inflate_png(self, png: PendingPng, op_id: str | int | None, now: float) -> None:
+        """Inflate a ``png`` op's image, then handle its text as a frame (D20).
+
+        The inflated bytes are charged to this connection's budget
+        (``png_inflate_rate``). With a transport that ``runs_jobs``, the work
+        becomes a job (``take_job``) that waits for the budget and runs off the
+        event loop; the transport reads no further frame of this connection
+        until it is done (``finish_job``), so ops keep their order. Without one
+        (a bare session), it is inflated at once.
+
+        Raises:
+            RemoteProtocolError: the PNG is corrupt (inflated at once only).
+        """
+        wait = self._inflate_budget.charge(png.pixel_bytes, now)
+        if not self.runs_jobs:
+            self.receive_frame(png.inflate(), now)
+            return
+        self._jobs.append(InflateJob(png, op_id, now + wait))
+
+    def start(self, now: float) -> None:
+        """The transport serves the connection from ``now``: time-driven rules count from it."""
+        if self._idle is not None:
+            self._idle.start(now)
+
+    def take_job(self) -> InflateJob | None:
+        """The oldest job waiting for the transport to run it (``InflateJob.run``), or None."""
+        return self._jobs.pop(0) if self._jobs else None
+
+    @property
+    def has_jobs(self) -> bool:
+        """Whether jobs wait: the transport runs them before the next frame."""
+        return bool(self._jobs)
+
+    def finish_job(self, job: InflateJob, result: bytes | BaseException, now: float) -> None:
+        """Take a job's outcome: its text is handled as a frame, its error reported.
+
+        Args:
+            job: what ``take_job`` gave.
+            result: what ``job.run()`` returned, or the exception it raised.
+            now: monotonic seconds.
+        """
+        if self._closed or self._closing:
+            return
+        if isinstance(result, RwtError):
+            self._refused(result, "png", job.op_id)
+        elif isinstance(result, BaseException):
+            try:  # a bug in the job: reported and logged with its traceback, as in a handler
+                raise result
+            except Exception:
+                self._bug("png", job.op_id)
+        else:
+            self.receive_frame(result, now)
 
     def _bug(self, op_name: str | None, op_id: str | int | None) -> None:
         """Report an exception that is not an ``RwtError``: a bug, logged once per connection."""
@@ -359,6 +468,11 @@ class Session:
         return self._close_request
 
     @property
+    def now(self) -> float:
+        """The latest monotonic time the session was given, in seconds (0 before any input)."""
+        return self._now
+
+    @property
     def closed(self) -> bool:
         """Whether ``close`` was called."""
         return self._closed
@@ -453,6 +567,31 @@ class Session:
         )
         if failure is not None:
             self._unencodable(failure)
+        self.send_frames(frames)
+
+    def send_request(self, message: dict[str, object], what: str) -> None:
+        """Queue a request to this connection's peer as a provider, if it has room.
+
+        ``message`` is a ``call_service`` (or goal) the graph forwards to the
+        service this peer advertised; ``what`` names it for the error
+        (``service /add``). Requests are never dropped (D24), so a request
+        that would take the replies and requests waiting for this peer over
+        ``send_buffer_limit`` is refused: the caller fails at once and the
+        provider, which is not at fault, stays connected (docs/limits.md).
+
+        Raises:
+            GraphError: ``<what>: provider busy ...``; nothing was queued.
+        """
+        frames, failure = safe_op_frames(message)
+        if failure is not None:
+            self._unencodable(failure)
+        outbox = self._outbox
+        if not outbox.fits_kept(frames):
+            raise GraphError(
+                f"{what}: provider busy: {outbox.undroppable_bytes} bytes of requests wait "
+                f"for it already and this one would take them over its send buffer limit "
+                f"({outbox.limit_bytes} bytes); try again later"
+            )
         self.send_frames(frames)
 
     def _unencodable(self, failure: EncodeFailure) -> None:

@@ -33,7 +33,8 @@ from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.session import HOLD_BUDGET_S, SessionConfig
+from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
 from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_bag import (
@@ -44,12 +45,15 @@ from .cli_bag import (
     Interfaces,
     Loop,
     Rate,
+    RecordMaxSize,
+    RecordSplit,
     SplitDuration,
     SplitSize,
     StartOffset,
     StartPaused,
     bag_app,
     bag_jobs,
+    dialect_for,
     play_options,
     record,
     record_options,
@@ -67,6 +71,7 @@ from .cli_checks import (
     error_line,
     usage_error,
 )
+from .cli_ros2 import linked_ros2, ros2_interface_dirs, ros2_options
 from .cli_zenoh import ZENOH_EXTRA, linked, require_zenoh, run_router, zenoh_options
 from .fdlimit import raise_nofile_limit
 from .gcfreeze import freeze_startup_objects
@@ -77,6 +82,7 @@ from .workers import run_workers
 
 if TYPE_CHECKING:
     from rwt_bag.jobs import BagJobs
+    from rwt_ros2 import Ros2Options
     from rwt_video import VideoConfig
     from rwt_zenoh.config import ZenohOptions
 
@@ -141,6 +147,13 @@ class ZenohMode(StrEnum):
     CLIENT = "client"
 
 
+class ZenohRmwCompat(StrEnum):
+    """Which rmw_zenoh's token defaults ``rwt serve --zenoh`` speaks (docs/zenoh.md)."""
+
+    CURRENT = "current"
+    PRE_2025 = "pre-2025"
+
+
 class LogLevel(StrEnum):
     """Log levels as the CLI accepts them."""
 
@@ -200,7 +213,7 @@ def serve(
     stdio: Annotated[
         bool, typer.Option(help="Also serve one session on stdin/stdout; stop when it ends.")
     ] = False,
-    dialect: Annotated[Dialect, typer.Option(help="ROS message dialect.")] = Dialect.ROS2,
+    dialect: DialectOption = None,
     interfaces: Annotated[
         list[Path] | None,
         typer.Option(
@@ -222,6 +235,12 @@ def serve(
     max_pending_fragments: Annotated[
         int, typer.Option(min=1, help="Messages per connection whose fragments are arriving.")
     ] = 16,
+    max_fragment_memory: Annotated[
+        int,
+        typer.Option(
+            min=1, help="Bytes of incomplete fragmented messages all connections hold together."
+        ),
+    ] = 256 * MiB,
     fragment_timeout: Annotated[
         float, typer.Option(min=0.001, help="Seconds without a new fragment before dropping.")
     ] = 600.0,
@@ -240,6 +259,14 @@ def serve(
     max_pending_goals: Annotated[
         int, typer.Option(min=1, help="Action goals of one connection awaiting their result.")
     ] = 1000,
+    png_inflate_rate: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Bytes a second of png images one connection may have inflated (after a"
+            " burst of --max-message-size); its later png ops wait.",
+        ),
+    ] = 8 * MiB,
     send_buffer_limit: Annotated[
         int,
         typer.Option(
@@ -251,6 +278,15 @@ def serve(
     send_timeout: Annotated[
         float, typer.Option(help="Seconds a connection may stay over the send buffer limit.")
     ] = 30.0,
+    hold_budget: Annotated[
+        float,
+        typer.Option(
+            min=0.0,
+            help="Seconds a connection that reads slower than its topics come may hold"
+            " their publishers back (in all, until it catches up); then it loses its"
+            " oldest messages instead.",
+        ),
+    ] = HOLD_BUDGET_S,
     max_connections: Annotated[
         int | None,
         typer.Option(
@@ -259,6 +295,22 @@ def serve(
             " Default: the soft RLIMIT_NOFILE minus a reserve of min(128, limit/2) + 16.",
         ),
     ] = None,
+    max_connections_per_host: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Connections one host (source IP) may hold once 3/4 of --max-connections"
+            " are taken.",
+        ),
+    ] = 64,
+    idle_timeout: Annotated[
+        float,
+        typer.Option(
+            min=0,
+            help="Seconds after which a WebSocket or TCP connection that sent nothing and"
+            " holds nothing (no subscription, advertisement, call...) is closed; 0: never.",
+        ),
+    ] = 600.0,
     certfile: Annotated[
         Path | None,
         typer.Option(
@@ -281,6 +333,14 @@ def serve(
             help="rosauth secret (its first line): clients must send auth first.",
         ),
     ] = None,
+    auth_bind_connection: Annotated[
+        bool,
+        typer.Option(
+            help="With --auth-secret-file: send each connection a challenge first and "
+            "accept only an auth whose rand is it, signed with rwt's bound MAC "
+            "(no replay on another connection; not rosauth-compatible).",
+        ),
+    ] = False,
     topics_glob: Annotated[
         str,
         typer.Option(
@@ -329,6 +389,12 @@ def serve(
     udp_max_sessions: Annotated[
         int, typer.Option(min=1, help="Most UDP sessions at once (within --max-connections).")
     ] = 256,
+    udp_max_sessions_per_host: Annotated[
+        int,
+        typer.Option(
+            min=1, help="UDP sessions one host may hold once 3/4 of --udp-max-sessions are taken."
+        ),
+    ] = 16,
     udp_trust_source_address: Annotated[
         bool,
         typer.Option(
@@ -410,6 +476,8 @@ def serve(
     record_format: Format = BagFormat.MCAP,
     record_split_size: SplitSize = None,
     record_split_duration: SplitDuration = None,
+    record_max_size: RecordMaxSize = None,
+    record_split: RecordSplit = False,
     play: Annotated[
         list[Path] | None,
         typer.Option(metavar="BAG", help="Play this bag into the graph (repeat: split parts)."),
@@ -446,6 +514,28 @@ def serve(
     zenoh_mode: Annotated[
         ZenohMode, typer.Option(help="Join as a Zenoh peer, or as a client of a router.")
     ] = ZenohMode.PEER,
+    zenoh_rmw_compat: Annotated[
+        ZenohRmwCompat,
+        typer.Option(
+            help="rmw_zenoh's token defaults: 'current' (March 2025 on: empty durability is "
+            "volatile) or 'pre-2025' (it is transient local)."
+        ),
+    ] = ZenohRmwCompat.CURRENT,
+    zenoh_queue_bytes: Annotated[
+        int,
+        typer.Option(
+            min=64 * 1024,
+            metavar="BYTES",
+            help="Bytes of Zenoh samples waiting to be handled; past it the oldest of the "
+            "busiest topic are dropped. Also the largest Zenoh message accepted.",
+        ),
+    ] = MAX_QUEUED_BYTES,
+    zenoh_max_entities: Annotated[
+        int,
+        typer.Option(
+            min=1, help="Remote Zenoh entities (liveliness tokens) mirrored; more are ignored."
+        ),
+    ] = MAX_REMOTE_ENTITIES,
     domain_id: Annotated[
         int | None,
         typer.Option(min=0, help="ROS domain on Zenoh (default: ROS_DOMAIN_ID, else 0)."),
@@ -459,6 +549,17 @@ def serve(
         ),
     ] = 1,
     reuse_port: Annotated[bool, typer.Option(hidden=True)] = False,
+    ros2: Annotated[
+        bool,
+        typer.Option(
+            help="Link the graph to ROS 2 through rclpy (ROS sourced, or pip install "
+            "'rwt[ros2]'); ROS_DOMAIN_ID and the middleware come from the environment."
+        ),
+    ] = False,
+    ros2_node_name: Annotated[
+        str, typer.Option(help="Name of the rclpy node standing for the graph.")
+    ] = "rwt",
+    ros2_namespace: Annotated[str, typer.Option(help="Namespace of that node.")] = "/",
 ) -> None:
     """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
 
@@ -482,15 +583,20 @@ def serve(
     router ('rwt router'); multicast scouting stays off. --workers N runs N such
     servers on the same ports, one graph, supervised by this process.
 
+    With --ros2, an rclpy node (--ros2-node-name, default rwt) joins the ROS 2
+    graph: its topics, services and nodes appear to rosbridge clients, and theirs
+    to ROS 2 nodes (docs/ros2.md).
+
     A browser opening http://HOST:PORT/ (the WebSocket port) gets the web console:
     the live graph, echo, publish, calls, actions, images and TF.
     """
+    dialect = dialect_for(dialect, play or (), record_format if record else None)
     if not (websocket or tcp_port is not None or udp_port is not None or stdio):
         raise usage_error(
             "nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio"
         )
     check_tls(certfile, keyfile)
-    secret = None if auth_secret_file is None else _read_secret(auth_secret_file)
+    secret = _secret_checked(auth_secret_file, bind_connection=auth_bind_connection)
     if uvloop and importlib.util.find_spec("uvloop") is None:
         _fail(f"--uvloop needs uvloop: {UVLOOP_EXTRA}")
     _set_up_process(log_level, heap_keep, raise_fd_limit)
@@ -509,12 +615,23 @@ def serve(
     zenoh_link = None
     if zenoh:
         zenoh_link = _zenoh_options(
-            zenoh_mode, zenoh_connect, zenoh_listen, zenoh_config, domain_id
+            zenoh_mode, zenoh_connect, zenoh_listen, zenoh_config, domain_id, zenoh_rmw_compat
         )
-    graph = Graph(TypeRegistry(dialect, interfaces or ()))
+        zenoh_link = replace(
+            zenoh_link, queue_bytes=zenoh_queue_bytes, max_entities=zenoh_max_entities
+        )
+    ros2_link = _ros2_options(ros2_node_name, ros2_namespace, dialect, workers) if ros2 else None
+    interface_dirs = list(interfaces or ())
+    if ros2_link is not None:  # the robot's own definitions, after the user's
+        interface_dirs += ros2_interface_dirs()
+    graph = Graph(TypeRegistry(dialect, interface_dirs))
     origins = tuple(o.strip() for o in allowed_origins.split(",") if o.strip())
     site = _console_site(console, origins, url_path, certfile is not None, secret is not None)
-    authenticator = None if secret is None else rosauth_authenticator(secret, graph.clock)
+    authenticator = (
+        None
+        if secret is None
+        else rosauth_authenticator(secret, graph.clock, bind_connection=auth_bind_connection)
+    )
     access = AccessPolicy(
         topics=parse_glob_list(topics_glob),
         services=parse_glob_list(services_glob),
@@ -528,13 +645,17 @@ def serve(
         udp_port=udp_port,
         stdio=stdio,
         max_message_size=max_message_size,
+        max_fragment_memory=max_fragment_memory,
         max_connections=max_connections,
+        max_connections_per_host=max_connections_per_host,
+        idle_timeout_s=idle_timeout or None,
         certfile=certfile,
         keyfile=keyfile,
         session=SessionConfig(
             status_level=StatusLevel.from_wire(status_level.value),
             send_buffer_limit=send_buffer_limit,
             send_timeout_s=send_timeout,
+            hold_budget_s=hold_budget,
             access=access,
             max_pending_fragments=max_pending_fragments,
             fragment_timeout_s=fragment_timeout,
@@ -544,6 +665,8 @@ def serve(
             max_advertisements=max_advertisements,
             max_pending_calls=max_pending_calls,
             max_pending_goals=max_pending_goals,
+            auth_challenge=auth_bind_connection,
+            png_inflate_rate=png_inflate_rate,
         ),
         websocket=WebSocketOptions(
             compression=websocket_compression,
@@ -557,6 +680,7 @@ def serve(
             datagram_bytes=udp_datagram_size,
             idle_timeout_s=udp_idle_timeout,
             max_sessions=udp_max_sessions,
+            max_sessions_per_host=udp_max_sessions_per_host,
             trust_source_address=udp_trust_source_address,
         ),
         tf=tf,
@@ -584,6 +708,8 @@ def serve(
             record_topics,
             record_format,
             split_policy(record_split_size, record_split_duration),
+            max_size=record_max_size,
+            split_at_max=record_split,
         ),
         play_options(
             play,
@@ -600,7 +726,13 @@ def serve(
     freeze_startup_objects()
     try:
         anyio.run(
-            _run, server, video_config, jobs, zenoh_link, backend_options={"use_uvloop": uvloop}
+            _run,
+            server,
+            video_config,
+            jobs,
+            zenoh_link,
+            ros2_link,
+            backend_options={"use_uvloop": uvloop},
         )
     except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
         message = _startup_error(exc)
@@ -653,7 +785,7 @@ def play(
     clock: Clock = None,
     check: Check = True,
     start_paused: StartPaused = False,
-    dialect: DialectOption = Dialect.ROS2,
+    dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
     """Serve a bag over rosbridge (WebSocket) with its original timing, then stop.
@@ -664,7 +796,7 @@ def play(
     server option (TCP, video, TLS...) and to keep serving after the end.
     """
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
-    graph = Graph(TypeRegistry(dialect, interfaces or ()))
+    graph = Graph(TypeRegistry(dialect_for(dialect, bag), interfaces or ()))
     server = RosbridgeServer(graph, ServerConfig(host=host, port=port))
     options = play_options(
         bag,
@@ -715,6 +847,7 @@ def _zenoh_options(
     listen: list[str] | None,
     config_file: Path | None,
     domain_id: int | None,
+    rmw_compat: ZenohRmwCompat,
 ) -> ZenohOptions:
     try:
         return zenoh_options(
@@ -723,9 +856,18 @@ def _zenoh_options(
             listen=listen,
             config_file=config_file,
             domain_id=domain_id,
+            rmw_compat=rmw_compat.value,
         )
     except ValueError as exc:
         _fail(str(exc))
+
+
+def _secret_checked(path: Path | None, *, bind_connection: bool) -> str | None:
+    """The rosauth secret of ``--auth-secret-file``, if given; usage error on a bad pair."""
+    secret = None if path is None else _read_secret(path)
+    if bind_connection and secret is None:
+        raise usage_error("--auth-bind-connection needs --auth-secret-file")
+    return secret
 
 
 def _read_secret(path: Path) -> str:
@@ -794,6 +936,17 @@ def _video_config(
     )
 
 
+def _ros2_options(node_name: str, namespace: str, dialect: Dialect, workers: int) -> Ros2Options:
+    if dialect is not Dialect.ROS2:
+        raise usage_error("--ros2 carries ROS 2 types: not --dialect ros1")
+    if workers > 1:
+        raise usage_error("--ros2 links one process's graph: not with --workers")
+    try:
+        return ros2_options(node_name, namespace)
+    except ValueError as exc:
+        _fail(str(exc))
+
+
 def _fail(message: str) -> NoReturn:
     typer.echo(f"rwt serve: {message}", err=True)
     raise typer.Exit(1)
@@ -837,13 +990,18 @@ async def _run(
     video: VideoConfig | None,
     jobs: BagJobs | None = None,
     zenoh: ZenohOptions | None = None,
+    ros2: Ros2Options | None = None,
 ) -> None:
     out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
 
     def announce(url: str) -> None:
         print(f"listening on {url}", file=out, flush=True)
 
-    async with linked(server.graph, zenoh), anyio.create_task_group() as tg:
+    async with (
+        linked(server.graph, zenoh),
+        linked_ros2(server.graph, ros2),
+        anyio.create_task_group() as tg,
+    ):
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
         if jobs is not None:  # a bag to play is checked before anything is served
             await tg.start(jobs.run)

@@ -23,10 +23,21 @@ from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_checks import check_directories, check_glob_list
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from rwt_bag.jobs import BagJobs, PlayOptions, RecordOptions
     from rwt_graph.graph import Graph
 
-__all__ = ["bag_app", "bag_jobs", "play_options", "record", "record_options", "split_policy"]
+__all__ = [
+    "RecordMaxSize",
+    "RecordSplit",
+    "bag_app",
+    "bag_jobs",
+    "play_options",
+    "record",
+    "record_options",
+    "split_policy",
+]
 
 MB = 1_000_000
 
@@ -39,7 +50,7 @@ Patterns = Annotated[
         help="Topics, comma-separated glob patterns (/tf*,/scan); default: all.",
     ),
 ]
-FORMAT_HELP = "mcap, sqlite3 (ROS 2 bags) or ros1 (needs --dialect ros1)."
+FORMAT_HELP = "mcap, sqlite3 (ROS 2 bags) or ros1 (a ROS 1 graph)."
 Format = Annotated[BagFormat, typer.Option(help=FORMAT_HELP)]
 SplitSize = Annotated[
     float | None,
@@ -49,7 +60,40 @@ SplitDuration = Annotated[
     float | None,
     typer.Option(min=0.001, metavar="SECONDS", help="Start a new file after this many seconds."),
 ]
-DialectOption = Annotated[Dialect, typer.Option(help="ROS message dialect.")]
+DialectOption = Annotated[
+    Dialect | None,
+    typer.Option(
+        help="ROS message dialect (default: ros1 for a ROS 1 bag or recording, else ros2)."
+    ),
+]
+
+ROS1_BAG_MAGIC = b"#ROSBAG V2.0\n"
+"""The first line of every ROS 1 bag file."""
+
+
+def dialect_for(
+    dialect: Dialect | None, bags: Sequence[Path] = (), fmt: BagFormat | None = None
+) -> Dialect:
+    """The dialect: ``--dialect`` as given, else what the bag says.
+
+    ROS 1 for a ROS 1 bag to play (its file starts with ``ROS1_BAG_MAGIC``) or a
+    ``ros1`` recording, ROS 2 otherwise.
+    """
+    if dialect is not None:
+        return dialect
+    if fmt is BagFormat.ROS1 or any(_is_ros1_bag(path) for path in bags):
+        return Dialect.ROS1
+    return Dialect.ROS2
+
+
+def _is_ros1_bag(path: Path) -> bool:
+    try:
+        with path.open("rb") as file:
+            return file.read(len(ROS1_BAG_MAGIC)) == ROS1_BAG_MAGIC
+    except OSError:  # a folder (a ROS 2 bag) or missing: the reader says so later
+        return False
+
+
 Interfaces = Annotated[
     list[Path] | None,
     typer.Option(
@@ -87,15 +131,46 @@ def split_policy(size_mb: float | None, duration_s: float | None) -> SplitPolicy
     )
 
 
+RecordMaxSize = Annotated[
+    int | None,
+    typer.Option(
+        min=1,
+        metavar="BYTES",
+        help="Stop recording (the server goes on) at this many bytes of messages; "
+        "with --record-split, start a new part there instead.",
+    ),
+]
+RecordSplit = Annotated[
+    bool,
+    typer.Option(help="At --record-max-size, start a new part (BAG_1, ...) instead of stopping."),
+]
+
+
 def record_options(
-    path: Path | None, topics: str, fmt: BagFormat, split: SplitPolicy
+    path: Path | None,
+    topics: str,
+    fmt: BagFormat,
+    split: SplitPolicy,
+    *,
+    max_size: int | None = None,
+    split_at_max: bool = False,
 ) -> RecordOptions | None:
-    """``RecordOptions`` of ``--record`` (None without it)."""
+    """``RecordOptions`` of ``--record`` (None without it).
+
+    ``max_size`` (bytes) stops recording there, or with ``split_at_max`` starts a
+    new part there (the smaller of it and ``split.max_bytes``), as ``ros2 bag
+    record --max-bag-size`` splits.
+    """
     if path is None:
         return None
     from rwt_bag.jobs import RecordOptions  # noqa: PLC0415 - rosbags' writers only when used
 
-    return RecordOptions(path, parse_glob_list(topics) or ("*",), fmt, split)
+    stop_at = max_size
+    if max_size is not None and split_at_max:
+        part = max_size if split.max_bytes is None else min(split.max_bytes, max_size)
+        split = SplitPolicy(max_bytes=part, max_seconds=split.max_seconds)
+        stop_at = None
+    return RecordOptions(path, parse_glob_list(topics) or ("*",), fmt, split, stop_at)
 
 
 def play_options(
@@ -163,7 +238,7 @@ def record(
         float | None,
         typer.Option(min=0.001, metavar="SECONDS", help="Stop after recording this long."),
     ] = None,
-    dialect: DialectOption = Dialect.ROS2,
+    dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
     """Record topics of a rosbridge server into a bag until SIGINT, SIGTERM or --duration.
@@ -178,7 +253,7 @@ def record(
     from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
 
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
-    registry = TypeRegistry(dialect, interfaces or ())
+    registry = TypeRegistry(dialect_for(dialect, (), fmt), interfaces or ())
     try:
         anyio.run(
             lambda: record_remote(

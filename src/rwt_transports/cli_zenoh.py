@@ -43,6 +43,7 @@ def zenoh_options(
     listen: list[str] | None,
     config_file: Path | None,
     domain_id: int | None,
+    rmw_compat: str = "current",
 ) -> ZenohOptions:
     """The link's options from the command line (``domain_id`` None: ``ROS_DOMAIN_ID`` or 0).
 
@@ -51,6 +52,7 @@ def zenoh_options(
     """
     require_zenoh("--zenoh")
     from rwt_zenoh.config import ZenohOptions, default_domain_id  # noqa: PLC0415
+    from rwt_zenoh.wire import RmwCompat  # noqa: PLC0415
 
     return ZenohOptions(
         mode=mode,
@@ -58,6 +60,7 @@ def zenoh_options(
         listen=tuple(listen or ()),
         config_file=config_file,
         domain_id=default_domain_id() if domain_id is None else domain_id,
+        rmw_compat=RmwCompat(rmw_compat),
     )
 
 

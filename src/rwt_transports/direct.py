@@ -22,7 +22,8 @@ one switched off, ``for_stream`` gives None and anyio's stream is used.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol, cast
+import select
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 if TYPE_CHECKING:
     import asyncio
@@ -49,6 +50,8 @@ class _Transport(Protocol):
     def pause_reading(self) -> None: ...
 
     def resume_reading(self) -> None: ...
+
+    def get_extra_info(self, name: str, default: Any = None) -> Any: ...
 
 
 class _StreamProtocol(Protocol):
@@ -80,6 +83,7 @@ def _asyncio_parts(stream: object) -> tuple[_Transport, _StreamProtocol] | None:
             "is_reading",
             "pause_reading",
             "resume_reading",
+            "get_extra_info",
         )
     ) or not all(
         hasattr(protocol, name) for name in ("read_queue", "read_event", "exception", "is_at_eof")
@@ -209,6 +213,23 @@ class DirectReader:
         if not queue:
             protocol.read_event.clear()
         return chunk
+
+    def input_pending(self) -> bool:
+        """Whether ``receive`` would return at once.
+
+        True for input queued by the loop or readable in the kernel, and for the
+        end of the connection. One ``poll`` system call; readers ask it of new
+        connections (admission.py).
+        """
+        protocol = self._protocol
+        if protocol.read_queue or protocol.is_at_eof or protocol.exception is not None:
+            return True
+        sock = self._transport.get_extra_info("socket")
+        if sock is None:
+            return True  # closed: ``receive`` says so at once
+        poller = select.poll()
+        poller.register(sock.fileno(), select.POLLIN)
+        return bool(poller.poll(0))
 
     def pause(self) -> None:
         """Stop reading from the socket until the next ``receive`` waits."""

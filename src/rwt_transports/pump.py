@@ -24,19 +24,30 @@ transports), in three tasks per connection:
 Input is flow-controlled (docs/limits.md), so that a burst reaches a peer that
 reads instead of being dropped, and one connection cannot monopolise the loop:
 
-- backpressure: when the frames a reader handled pushed a connection's outbox
-  over its high watermark (half ``--send-buffer-limit``), the reader stops
-  reading (``PausableChannel``) until that outbox is back under the low
-  watermark (a quarter), for as long as its peer keeps taking frames. A peer
-  that takes nothing for ``INPUT_STALL_S`` is not waited for again until it
-  takes something: the drop and close rules (D24) deal with it, and it cannot
-  freeze the publisher for its other subscribers. A reader waits for its own
-  outbox only for the replies and statuses in it (they are never dropped), so
-  a peer sending garbage faster than it reads the answers is slowed, not
-  buffered without bound;
+- backpressure with a hold budget: when the frames a reader handled pushed
+  another connection's outbox over its high watermark (half
+  ``--send-buffer-limit``), the reader stops reading (``PausableChannel``)
+  until that outbox is back under the low watermark (a quarter). A congested
+  peer may hold its publishers (and callers) back for at most
+  ``--hold-budget`` seconds in all, counted from its first hold until it has
+  caught up (taken everything queued): a burst it keeps up with on average
+  arrives whole, while a peer that reads slower than its topics come, for
+  longer than that, is *slow*: it is no longer waited for and loses its own
+  oldest topic messages (D24), so it never slows the publisher or anyone
+  else for good. A peer that takes nothing for ``INPUT_STALL_S`` during a
+  hold is slow at once. The drop and close rules (D24) deal with a slow peer.
+  A reader waits for its own outbox only for the replies and statuses in it
+  (they are never dropped), so a peer sending garbage faster than it reads the
+  answers is slowed, not buffered without bound;
 - fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
   ``READ_SLICE_BYTES`` bytes, then pauses its socket and yields to the loop,
-  so a flood of tiny frames on one connection does not hold the others up.
+  so a flood of tiny frames on one connection does not hold the others up;
+- jobs: a frame that left the session a job (a ``png`` op to inflate,
+  ``Session.take_job``) stops the slice; the reader waits until the job's
+  ``ready_at`` (the connection's own budget), runs it in a worker thread (at
+  most ``INFLATE_THREADS`` at once over the server) and hands the result back
+  before it handles the next frame, so ops keep their order and only the
+  sender waits.
 """
 
 from __future__ import annotations
@@ -44,16 +55,21 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
+import weakref
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import anyio
 import anyio.lowlevel
+import anyio.to_thread
 
+from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.framing import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
+
+from . import admission
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -69,6 +85,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.server")
+_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 BATCH_BYTES = 64 * 1024
 """Bytes the writer takes from the outbox at a time: what it holds outside the bound."""
@@ -82,10 +99,29 @@ READ_SLICE_FRAMES = 256
 READ_SLICE_BYTES = 256 * 1024
 """Bytes of frames a reader handles before it yields to the event loop (fairness)."""
 
+INFLATE_THREADS = 1
+"""Worker threads inflating ``png`` ops at once, over all connections of an event loop:
+what a flood of them can take from the loop (Pillow holds the GIL in parts of it)."""
+
+_inflate_limiters: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, anyio.CapacityLimiter] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _inflate_limiter() -> anyio.CapacityLimiter:
+    """The ``INFLATE_THREADS`` limiter of the running event loop."""
+    loop = asyncio.get_running_loop()
+    limiter = _inflate_limiters.get(loop)
+    if limiter is None:
+        limiter = _inflate_limiters[loop] = anyio.CapacityLimiter(INFLATE_THREADS)
+    return limiter
+
+
 INPUT_STALL_S = 1.0
-"""Seconds without taking a frame after which a peer counts as not reading for
-input backpressure: a reader stops waiting for its outbox (docs/limits.md). Its
-queue then drops and it is closed after ``--send-timeout`` (D24)."""
+"""Seconds without taking a frame, during a hold, after which a peer counts as
+slow at once for input backpressure: readers stop waiting for it before its
+hold budget is spent (docs/limits.md). Its queue then drops and it is closed
+after ``--send-timeout`` (D24)."""
 
 
 class Channel(Protocol):
@@ -125,6 +161,14 @@ class PausableChannel(Protocol):
 
     def pause_reading(self) -> None:
         """Stop reading from the socket; the next ``receive`` that must wait resumes it."""
+
+
+@runtime_checkable
+class ProbingChannel(Protocol):
+    """A channel that can tell whether input is already here, without reading it."""
+
+    def input_pending(self) -> bool:
+        """Whether ``receive`` would return at once; False when it cannot tell."""
 
 
 @runtime_checkable
@@ -271,10 +315,16 @@ class ConnectionPump:
         self._high_water = self._low_water = 0  # the session's outbox watermarks
         self._backlogged = False  # in ``_deferred.backlogged``
         self._takes = 0  # batches the transport took: the peer's progress
-        self._stalled_at = -1  # ``_takes`` when it was last seen not reading
+        # The hold budget (docs/limits.md): seconds this peer held readers back in
+        # its current episode, charged once however many readers waited together.
+        self._hold_budget = 0.0
+        self._held_s = 0.0
+        self._held_to = 0.0  # the time up to which holding is charged
+        self._slow = False  # budget spent or stalled: not waited for until caught up
         self._progress: anyio.Event | None = None  # set at the next take, for waiting readers
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
+        self._job_wait: anyio.Event | None = None  # set when the session starts closing
 
     def wake(self) -> None:
         """The session has output (frames, commands or a new timer)."""
@@ -290,19 +340,29 @@ class ConnectionPump:
         else:
             self._writer_wake.set()
         self._wake_timers()
+        if self._job_wait is not None and session is not None and session.closing:
+            self._job_wait.set()  # a reader waiting for its budget stops waiting
         if (
             session is not None
             and not self._backlogged
             and session.queued_bytes > self._high_water
             and _deferred.in_batch
-            and self._stalled_at != self._takes
+            and not self._slow
         ):
             self._backlogged = True
             _deferred.backlogged.append(self)
 
     def _took(self) -> None:
-        """The transport took frames: the peer makes progress; wake readers waiting on it."""
+        """The transport took frames: the peer makes progress; wake readers waiting on it.
+
+        Having taken everything queued, the peer caught up: its hold episode
+        ends, and it may hold readers back again for a whole budget.
+        """
         self._takes += 1
+        session = self._session
+        if session is None or session.queued_bytes == 0:
+            self._held_s = 0.0
+            self._slow = False
         event = self._progress
         if event is not None:
             self._progress = None
@@ -379,6 +439,9 @@ class ConnectionPump:
         """
         self._session = session
         self._high_water, self._low_water = session.water_marks
+        self._hold_budget = session.config.hold_budget_s
+        session.runs_jobs = True  # ``_run_jobs`` inflates png ops off the loop
+        session.start(_clock()())
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
@@ -417,19 +480,43 @@ class ConnectionPump:
                 logger.debug("close after a bug failed", exc_info=True)
 
     async def _reader(self, session: Session) -> None:
+        # A starting connection's first input goes before what the others got
+        # after it (admission.py): their readers ask this probe.
+        ticket = admission.current_ticket()
+        channel = self.channel
+        if ticket is not None:
+            if isinstance(channel, ProbingChannel):
+                ticket.watch(channel.input_pending)
+            else:  # it cannot tell (TLS): it goes in turn
+                ticket.release()
+                ticket = None
+        try:
+            await self._read(session, ticket)
+        finally:
+            if ticket is not None:
+                ticket.release()
+
+    async def _read(self, session: Session, ticket: admission.Ticket | None) -> None:
         clock = _clock()
         while True:
             try:
                 events = await self.channel.receive()
             except _BROKEN:
                 return
+            if ticket is None and admission.starting():
+                await admission.wait_for_new()  # what new connections sent earlier goes first
             now = clock()  # the batch arrived at once: one clock read for all
             start, count = 0, len(events)
             while True:
                 start = self._handle(session, events, start, now)
                 flush_deferred()  # what this slice published goes out now, in one write each
+                if ticket is not None:
+                    ticket.release()
+                    ticket = None
                 self._wake_timers()  # handlers may have scheduled timers
                 await self._apply_backpressure()
+                if session.has_jobs:
+                    await self._run_jobs(session, clock)
                 if start >= count:
                     break
                 await self._yield_slice()
@@ -457,10 +544,41 @@ class ConnectionPump:
                 else:
                     size += len(event.data)
                     session.receive_frame(event.data, now, binary=event.binary)
+                    if session.has_jobs:  # run it before the next frame (order)
+                        break
         finally:
             deferred.in_batch = False
             self._slice_frames, self._slice_bytes = frames, size
         return index
+
+    async def _run_jobs(self, session: Session, clock: Callable[[], float]) -> None:
+        """Run the session's jobs in turn: each after its ``ready_at``, in a worker thread.
+
+        The socket is not read meanwhile: the sender waits for its own budget.
+        """
+        while (job := session.take_job()) is not None:
+            self._slice_frames = self._slice_bytes = 0  # this waits: the others run
+            if self._pausable is not None:
+                self._pausable.pause_reading()
+            delay = job.ready_at - clock()
+            if delay > 0 and not session.closing:
+                self._job_wait = anyio.Event()
+                with anyio.move_on_after(delay):
+                    await self._job_wait.wait()
+                self._job_wait = None
+            if session.closing:  # nothing more is handled; read on, for the peer's close
+                while session.take_job() is not None:
+                    pass
+                return
+            result: bytes | BaseException
+            try:
+                result = await anyio.to_thread.run_sync(job.run, limiter=_inflate_limiter())
+            except Exception as exc:  # the session reports it (an RwtError) or logs a bug
+                result = exc
+            session.finish_job(job, result, clock())
+            flush_deferred()
+            self._wake_timers()
+            await self._apply_backpressure()
 
     async def _yield_slice(self) -> None:
         """Let the other connections run (fairness); the socket is not read meanwhile."""
@@ -499,19 +617,49 @@ class ConnectionPump:
         return (session.queued_reply_bytes if own else session.queued_bytes) > mark
 
     async def _wait_for(self, pump: ConnectionPump) -> None:
-        """Wait until ``pump``'s outbox is under its low watermark, while its peer takes frames."""
+        """Wait until ``pump``'s outbox is under its low watermark, within its hold budget.
+
+        Another connection is waited for only while it is not slow: the time
+        waited is charged to its budget (``--hold-budget``), and once that is
+        spent, or it took nothing for ``INPUT_STALL_S``, it is slow and left to
+        the drop and close rules (D24) until it catches up. A reader's own
+        outbox (replies only) is waited for while its peer takes frames.
+        """
         own = pump is self
         while pump._over_water(own=own, mark=pump._low_water):
+            wait_s = INPUT_STALL_S
+            if not own:
+                if pump._slow:
+                    return
+                left = pump._hold_budget - pump._held_s
+                if left <= 0:
+                    pump._slow = True
+                    return
+                wait_s = min(wait_s, left)
             takes = pump._takes
             progress = pump._progress
             if progress is None:
                 progress = pump._progress = anyio.Event()
-            with anyio.move_on_after(INPUT_STALL_S):
+            start = anyio.current_time()
+            with anyio.move_on_after(wait_s):
                 await progress.wait()
+            if not own:
+                pump._charge_hold(start, anyio.current_time())
             if pump._takes == takes:  # not reading: left to the drop and close rules (D24)
                 if not own:
-                    pump._stalled_at = takes
+                    pump._slow = True
                 return
+
+    def _charge_hold(self, start: float, end: float) -> None:
+        """Charge the time from ``start`` to ``end`` (s) that a reader waited to the budget.
+
+        Readers waiting together are charged once: only time after what was
+        already charged counts.
+        """
+        start = max(start, self._held_to)
+        if end > start:
+            self._held_s += end - start
+            self._held_to = end
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:
@@ -560,7 +708,13 @@ class ConnectionPump:
         with anyio.move_on_after(0 if request is not None and request.abort else CLOSE_WAIT_S):
             await self._writer_closed.wait()
         if not self._writer_closed.is_set():
-            logger.warning("event=abort client=%s reason=%r", session.client_id, "close not sent")
+            _episodes.log(
+                logging.WARNING,
+                "abort",
+                "event=abort client=%s reason=%r",
+                session.client_id,
+                "close not sent",
+            )
             if request is not None and request.abort:
                 self.close_reason = f"closed by server: {request.reason}"
             self.close_reason += " (aborted: the peer stopped reading)"

@@ -23,6 +23,7 @@ import errno
 import itertools
 import logging
 import math
+import socket
 import ssl
 import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
@@ -42,18 +43,22 @@ from anyio.abc import (
 from anyio.streams.tls import TLSStream
 
 from rwt_graph.graph import Graph
+from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
 from rwt_graph.types.convert import time_value
 from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
 from rwt_protocol.errors import RwtError
+from rwt_protocol.fragments import FragmentBudget
 from rwt_protocol.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
+from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
+from .shares import HostShares, host_key
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .tf import install_tf_republisher
@@ -79,6 +84,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.server")
+_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 MiB = 1024 * 1024
 
@@ -88,6 +94,9 @@ _ACCEPT_BACKOFF_S = 0.1
 """First pause of the accept loop after ``accept()`` failed (EMFILE...); doubles per failure."""
 _ACCEPT_BACKOFF_MAX_S = 1.0
 """Longest pause of the accept loop between two failed ``accept()`` calls."""
+
+_NETWORK = frozenset({"ws", "tcp", "tls", "udp"})
+"""Transports whose connections count against their host's share (not stdio, memory)."""
 
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
@@ -107,10 +116,22 @@ class ServerConfig:
         stdio_fds: the (read, write) file descriptors of that session when not
             stdin/stdout (a pipe pair or a socket, for embedding and tests).
         max_message_size: largest incoming message on every transport, bytes.
+        max_fragment_memory: bytes of incomplete ``fragment``/``png`` messages all
+            connections may hold together (``--max-fragment-memory``); a part past
+            it is refused with an error status and its message dropped
+            (``rwt_protocol.fragments.FragmentBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake. None: derived from the soft
             RLIMIT_NOFILE when serving starts (``fdlimit.default_max_connections``).
+        max_connections_per_host: connections one host (source IP; IPv6 by /64)
+            may hold once ``shares.SHARES_FROM`` of ``max_connections`` are taken
+            (``--max-connections-per-host``); before that anyone gets one, so local
+            use, where every client is 127.0.0.1, is not limited. WebSocket, TCP and
+            UDP count; stdio and in-process connections do not.
+        idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
+            sent nothing and that holds nothing is closed (``--idle-timeout``;
+            ``rwt_protocol.idle``); None: never. UDP has ``udp.idle_timeout_s``.
         certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
         keyfile: PEM private key for it (``--keyfile``).
         shutdown_grace_s: seconds a stopping server waits for connections to
@@ -128,6 +149,10 @@ class ServerConfig:
         clients_interval_s: ``/client_count`` and ``/connected_clients`` are
             published at most once per this many seconds, with the latest state
             (the first change at once), so connection churn costs O(changes).
+        clients_fanout_per_s: most client-list entries (``/connected_clients``)
+            sent per second over all its subscribers: a publish sends the whole
+            list to each, clients x subscribers entries (about 60 bytes each), so
+            with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
     """
@@ -139,7 +164,10 @@ class ServerConfig:
     stdio: bool = False
     stdio_fds: tuple[int, int] | None = None
     max_message_size: int = 10 * MiB
+    max_fragment_memory: int = 256 * MiB
     max_connections: int | None = None
+    max_connections_per_host: int = 64
+    idle_timeout_s: float | None = 600.0
     certfile: Path | None = None
     keyfile: Path | None = None
     shutdown_grace_s: float = 5.0
@@ -151,23 +179,35 @@ class ServerConfig:
     tf: bool = True
     handshake_timeout_s: float = 10.0
     clients_interval_s: float = 0.5
+    clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
 
 
-def rosauth_authenticator(secret: str, clock: Clock, max_skew_s: float = 5.0) -> Authenticator:
+def rosauth_authenticator(
+    secret: str, clock: Clock, max_skew_s: float = 5.0, *, bind_connection: bool = False
+) -> Authenticator:
     """The rosauth MAC check (D23) as an authenticator, reading wall time from ``clock``.
 
     Args:
         secret: the shared secret.
         clock: where the current wall time comes from (the graph's clock).
         max_skew_s: how far in the future ``t`` may be, seconds.
+        bind_connection: check ``bound_mac`` instead of rosauth's MAC
+            (``--auth-bind-connection``, D31); the sessions must then send a
+            challenge (``SessionConfig(auth_challenge=True)``).
     """
-    verifier = RosauthVerifier(secret, max_skew_s)
+    verifier = RosauthVerifier(secret, max_skew_s, bound=bind_connection)
 
     def authenticate(op: Auth, peer: str) -> bool:
         problem = verifier.problem(op, clock.wall())
         if problem is not None:
-            logger.warning("event=auth_rejected peer=%s reason=%r", peer, problem)
+            _episodes.log(
+                logging.WARNING,
+                "auth_rejected",
+                "event=auth_rejected peer=%s reason=%r",
+                peer,
+                problem,
+            )
         return problem is None
 
     return authenticate
@@ -205,6 +245,14 @@ class RosbridgeServer:
         if authenticator is not None:
             session_config = replace(session_config, authenticator=authenticator)
         self.session_config = session_config
+        self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
+        # stream connections (not stdio, not in-process) close when idle
+        self._stream_session_config = replace(
+            session_config, idle_timeout_s=self.config.idle_timeout_s or None
+        )
+        self._shares = HostShares(self.config.max_connections_per_host)
+        self._hosts: dict[str, str] = {}  # client id -> its host, for the shares
+        self._refusals = EpisodeLog(logger)
         self.sessions: dict[str, Session] = {}
         self.urls: dict[str, str] = {}
         self._ids = itertools.count(1)
@@ -367,10 +415,11 @@ class RosbridgeServer:
         plus ``REFUSING_SOCKETS`` sockets are held (docs/limits.md).
         """
         delay = 0.0
+        raw = listener.extra(SocketAttribute.raw_socket)
         while True:
             await self._accept_slot()
             try:
-                stream = await listener.accept()
+                sock = await _accept(raw)
             except OSError as exc:
                 if not delay:
                     logger.warning(
@@ -387,7 +436,10 @@ class RosbridgeServer:
                 logger.info("event=accept_resumed")
                 delay = 0.0
             self._handshaking += 1
-            connections.start_soon(self._serve_socket, stream, handler, tls)
+            # Plain TCP: the client may have sent already; handle that first (admission.py).
+            # TLS waits for the peer's handshake first, WebSocket for its request.
+            ticket = admission.hold() if handler == self._handle_tcp and tls is None else None
+            connections.start_soon(self._serve_socket, sock, handler, tls, ticket)
 
     async def _accept_slot(self) -> None:
         """Wait while the server holds all the sockets it may (sessions and handshakes)."""
@@ -404,26 +456,41 @@ class RosbridgeServer:
 
     async def _serve_socket(
         self,
-        stream: SocketStream,
+        sock: socket.socket,
         handler: Callable[[ByteStream], Awaitable[None]],
         tls: ssl.SSLContext | None,
+        ticket: admission.Ticket | None = None,
     ) -> None:
         """Run one accepted socket: handshakes within the timeout, then its session.
 
         ``open_session`` lifts the handshake deadline; a bug ends this socket only.
+        ``ticket``: held from accept until the reader handled the input already
+        there (admission.py).
         """
-        peer = _peer(stream)
         pending = _Pending()
         _PENDING.set(pending)  # this task's context: open_session finds it
+        if ticket is not None:
+            ticket.serve()
+        stream: SocketStream | None = None
         try:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # as anyio's accept does
+            stream = await SocketStream.from_socket(sock)
+            peer = _peer(stream)
             with anyio.CancelScope(
                 deadline=anyio.current_time() + self.config.handshake_timeout_s
             ) as pending.scope:
                 await _contained(f"connection from {peer}", self._run_socket(stream, handler, tls))
             if pending.scope.cancelled_caught and not pending.admitted:
                 logger.info("event=handshake_timeout peer=%s", peer)
+        except OSError as exc:  # the peer left before its socket was set up
+            logger.info("event=accept_failed reason=%r", exc.strerror or str(exc))
         finally:
-            await anyio.aclose_forcefully(stream)
+            if ticket is not None:
+                ticket.release()
+            if stream is not None:
+                await anyio.aclose_forcefully(stream)
+            else:
+                sock.close()
             if not pending.admitted:
                 self._handshaking -= 1
                 self._free_slot()
@@ -518,23 +585,40 @@ class RosbridgeServer:
             pending = None  # a task of an admitted connection, not a new one
         others = self._handshaking - (pending is not None)
         limit = self._limit
-        if self._stopping or (limit is not None and len(self.sessions) + others >= limit):
+        taken = len(self.sessions) + others
+        if self._stopping or (limit is not None and taken >= limit):
+            return None
+        address = _address(peer)
+        host = host_key(address) if transport in _NETWORK else None
+        if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
+            self._refusals.log(
+                logging.WARNING,
+                f"share:{host}",
+                "event=refused peer=%s reason='host share' held=%d share=%d",
+                peer,
+                self._shares.held(host),
+                self._shares.share,
+            )
             return None
         if pending is not None:  # the socket's handshake is over: no deadline, a session now
             pending.admitted = True
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         client_id = f"{transport}:{peer}#{next(self._ids)}"
+        stream = transport in ("ws", "tcp", "tls")
         session = self.session_class(
             self.graph,
             client_id,
-            config=self.session_config,
+            config=self._stream_session_config if stream else self.session_config,
             on_output=on_output,
             peer=peer,
             on_closed=self._session_closed,
+            fragment_budget=self.fragment_budget,
         )
         self.sessions[client_id] = session
-        address = _address(peer)
+        if host is not None:
+            self._shares.add(host)
+            self._hosts[client_id] = host
         self.graph.nodes.attach(client_id, host=address)
         self._connected[client_id] = {
             "ip_address": address,
@@ -545,6 +629,9 @@ class RosbridgeServer:
 
     def _session_closed(self, client_id: str) -> None:
         self.sessions.pop(client_id, None)
+        host = self._hosts.pop(client_id, None)
+        if host is not None:
+            self._shares.remove(host)
         self._connected.pop(client_id, None)
         self._free_slot()
         if not self.sessions and self._all_closed is not None:
@@ -559,7 +646,7 @@ class RosbridgeServer:
             self._clients_changed.set()
 
     async def _publish_clients_loop(self) -> None:
-        """Publish the client topics at most once per ``clients_interval_s``, the latest state.
+        """Publish the client topics at most once per ``_clients_wait()``, the latest state.
 
         The first change after a quiet interval goes out at once; the ones during
         the interval after it are published together at its end. Each publish
@@ -573,7 +660,17 @@ class RosbridgeServer:
                 self._publish_clients()
             except Exception:  # a bug here must not end the server's task group
                 logger.exception("event=bug task=publish_clients")
-            await anyio.sleep(self.config.clients_interval_s)
+            await anyio.sleep(self._clients_wait())
+
+    def _clients_wait(self) -> float:
+        """Seconds before the client topics go out again.
+
+        ``clients_interval_s``, or longer while one publish sends more entries
+        (clients x subscribers) than ``clients_fanout_per_s`` allows in it.
+        """
+        topic = self.graph.topics.get("/connected_clients")
+        entries = len(self._connected) * (len(topic.subscribers) if topic is not None else 0)
+        return max(self.config.clients_interval_s, entries / self.config.clients_fanout_per_s)
 
     def _publish_clients(self) -> None:
         """Publish ``/client_count`` and ``/connected_clients`` (D14), both latched."""
@@ -640,6 +737,25 @@ def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext 
     context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
     context.load_cert_chain(certfile, keyfile)
     return context
+
+
+async def _accept(listener: socket.socket) -> socket.socket:
+    """The next connection of ``listener``, taken in the loop turn that finds it ready.
+
+    Not anyio's ``accept``, which sets the stream up before it returns: the
+    server would learn of the connection only a few loop turns later, after
+    the older connections' input that arrived meanwhile (admission.py).
+
+    Raises:
+        OSError: ``accept()`` failed (EMFILE, ENFILE, ENOBUFS, ENOMEM, ...).
+    """
+    while True:
+        await anyio.wait_readable(listener)
+        try:
+            sock, _ = listener.accept()
+        except BlockingIOError:  # taken by another process sharing the socket
+            continue
+        return sock
 
 
 def _latched(graph: Graph, topic: str, type_name: str) -> LocalPublisher | None:

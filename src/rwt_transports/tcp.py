@@ -16,6 +16,7 @@ import anyio
 
 from rwt_protocol.framing import FramerEvent, JsonStreamFramer
 
+from . import admission
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
 
@@ -71,6 +72,13 @@ class StreamChannel:
             raise anyio.EndOfStream from None
         return self._framer.receive_data(data)
 
+    def input_pending(self) -> bool:
+        """Whether input is here already (a new connection's first read, admission.py).
+
+        False when that cannot be told without reading (TLS, anyio's own stream).
+        """
+        return self._reader is not None and self._reader.input_pending()
+
     def pause_reading(self) -> None:
         """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).
 
@@ -124,6 +132,9 @@ async def serve_tcp_connection(
         pump = ConnectionPump(channel)
         session = host.open_session(transport, peer, pump.wake)
         if session is None:
+            ticket = admission.current_ticket()
+            if ticket is not None:  # its input is not read: nothing to put first
+                ticket.release()
             logger.info("event=refused peer=%s reason='too many connections'", peer)
             with anyio.move_on_after(_CLOSE_LIMIT_S):
                 await stream.send(_TOO_MANY)

@@ -20,10 +20,12 @@ from typing import TYPE_CHECKING
 
 import anyio
 
+from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.datagrams import fragment_datagrams
 from rwt_protocol.framing import FramerEvent, FramingError, InFrame
 
 from .pump import ConnectionPump, SessionHost, run_connection
+from .shares import HostShares, host_key
 from .udp_validation import AddressValidator, split_token
 
 if TYPE_CHECKING:
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
 __all__ = ["UdpOptions", "serve_udp"]
 
 logger = logging.getLogger("rwt.udp")
+_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 MAX_UDP_PAYLOAD = 65507
 """The largest IPv4 UDP payload, bytes."""
@@ -59,6 +62,9 @@ class UdpOptions:
             is closed (``--udp-idle-timeout``).
         max_sessions: most UDP sessions at once (``--udp-max-sessions``), within
             the server's ``max_connections``.
+        max_sessions_per_host: UDP sessions one host (source IP) may hold once
+            ``shares.SHARES_FROM`` of ``max_sessions`` are taken
+            (``--udp-max-sessions-per-host``); before that anyone gets one.
         trust_source_address: serve any source address without validation, as
             rosbridge_udp does (``--udp-trust-source-address``): only on a link
             where addresses cannot be forged (docs/limits.md).
@@ -67,6 +73,7 @@ class UdpOptions:
     datagram_bytes: int = 8192
     idle_timeout_s: float = 300.0
     max_sessions: int = 256
+    max_sessions_per_host: int = 16
     trust_source_address: bool = False
 
 
@@ -129,8 +136,13 @@ class UdpChannel:
         for frame in frames:
             if frame.binary or len(frame.data) <= limit:
                 if len(frame.data) > MAX_UDP_PAYLOAD:
-                    logger.warning(
-                        "event=udp_drop peer=%s:%d bytes=%d", host, port, len(frame.data)
+                    _episodes.log(
+                        logging.WARNING,
+                        "udp_drop",
+                        "event=udp_drop peer=%s:%d bytes=%d",
+                        host,
+                        port,
+                        len(frame.data),
                     )
                     continue
                 await self.sock.sendto(frame.data, host, port)
@@ -191,6 +203,7 @@ class _Endpoint:
         self.tg = tg
         self.peers: dict[Address, _Peer] = {}
         self.validator = AddressValidator()
+        self.shares = HostShares(options.max_sessions_per_host)
         self._dropping = False  # a forged or unvalidated datagram was logged (once per episode)
 
     async def dispatch(self, data: bytes, address: Address) -> None:
@@ -203,7 +216,9 @@ class _Endpoint:
             if peer is not None and (split is None or split[0] != peer.token):
                 if split is None or not self.validator.valid(split[0], address):
                     self._drop("forged", address)  # not the session's token: not its peer
-                    await self._challenge(data, address)  # a restarted client re-validates
+                    # A restarted client re-validates; the session's own client, told the
+                    # address has a session, keeps its token (a forged datagram costs it nothing).
+                    await self._challenge(data, address, has_session=True)
                     return
                 # A fresh token for this address: whoever sent it receives there, so it
                 # is the address's peer now (a client restarted on the same port).
@@ -222,10 +237,10 @@ class _Endpoint:
         try:
             peer.inbox.send_nowait(data)
         except anyio.WouldBlock:
-            logger.warning("event=udp_overrun peer=%s:%d", *address)
+            _episodes.log(logging.WARNING, "udp_overrun", "event=udp_overrun peer=%s:%d", *address)
 
-    async def _challenge(self, data: bytes, address: Address) -> None:
-        reply = self.validator.challenge(address, len(data))
+    async def _challenge(self, data: bytes, address: Address, *, has_session: bool = False) -> None:
+        reply = self.validator.challenge(address, len(data), has_session=has_session)
         if reply is None:
             self._drop("too short to answer", address)
             return
@@ -241,7 +256,9 @@ class _Endpoint:
         channel = UdpChannel(self.sock, address, receive, self.options, self.max_message_size)
         pump = ConnectionPump(channel)
         session = None
-        if len(self.peers) < self.options.max_sessions:
+        host = host_key(address[0])
+        taken, limit = len(self.peers), self.options.max_sessions
+        if taken < limit and self.shares.admits(host, taken, limit):
             session = self.host.open_session("udp", f"{address[0]}:{address[1]}", pump.wake)
         if session is None:
             logger.info("event=refused peer=%s:%d reason='too many connections'", *address)
@@ -250,6 +267,7 @@ class _Endpoint:
             receive.close()
             return None
         peer = self.peers[address] = _Peer(send, token)
+        self.shares.add(host)
         self.tg.start_soon(self._run, pump, session, address, peer, receive)
         return peer
 
@@ -257,6 +275,7 @@ class _Endpoint:
         """End ``peer``'s session (its inbox ends) and free its address at once."""
         if self.peers.get(address) is peer:
             del self.peers[address]
+            self.shares.remove(host_key(address[0]))
         peer.inbox.close()
 
     async def _run(

@@ -20,6 +20,10 @@ What a UDP client does (docs/limits.md, "UDP"):
    frame. Replies come as plain datagrams, as before.
 3. If that challenge arrives again (the session was idle past
    ``--udp-idle-timeout`` and the token expired), take the new token and resend.
+   A challenge whose ``msg`` is ``SESSION_CHALLENGE_TEXT`` says the server still
+   holds a session for the address: a client that holds a token ignores it (a
+   datagram without that token drew it, perhaps forged); only a client without
+   one (restarted on the same port) takes its token, which replaces the session.
 
 Tokens are an HMAC of the peer's address and a 30 s epoch under a key made at
 start-up; one is accepted for a new session during its epoch and the next one.
@@ -43,6 +47,7 @@ __all__ = [
     "AMPLIFICATION",
     "CHALLENGE_TEXT",
     "MIN_PROBE_BYTES",
+    "SESSION_CHALLENGE_TEXT",
     "AddressValidator",
     "split_token",
 ]
@@ -55,6 +60,13 @@ MIN_PROBE_BYTES = 64
 
 CHALLENGE_TEXT = "udp: address validation"
 """The ``msg`` of the challenge status."""
+
+SESSION_CHALLENGE_TEXT = "udp: address validation; this address has a session"
+"""The ``msg`` of the challenge to an address the server holds a validated session for.
+
+Anyone can draw it with a datagram forged from that address, so a client that holds
+its session's token ignores it (its session goes on); taking its token would replace
+the session, with its subscriptions and authentication (docs/limits.md, UDP)."""
 
 EPOCH_S = 30.0
 """Seconds a token is issued for; it is accepted for a new session one epoch longer."""
@@ -99,8 +111,16 @@ class AddressValidator:
         epoch = self._epoch()
         return any(hmac.compare_digest(token, self.token(address, e)) for e in (epoch, epoch - 1))
 
-    def challenge(self, address: Address, received: int) -> bytes | None:
+    def challenge(
+        self, address: Address, received: int, *, has_session: bool = False
+    ) -> bytes | None:
         """The datagram answering ``received`` bytes from an unvalidated ``address``.
+
+        Args:
+            address: where the datagram claims to come from.
+            received: its length, bytes.
+            has_session: the address holds a validated session: the challenge says
+                so (``SESSION_CHALLENGE_TEXT``), so that its client keeps its token.
 
         Returns:
             The challenge status, or None when it would be more than
@@ -111,7 +131,7 @@ class AddressValidator:
         status = {
             "op": "status",
             "level": "warning",
-            "msg": CHALLENGE_TEXT,
+            "msg": SESSION_CHALLENGE_TEXT if has_session else CHALLENGE_TEXT,
             "id": self.token(address),
         }
         reply = json.dumps(status, separators=(",", ":")).encode()

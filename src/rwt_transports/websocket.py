@@ -45,8 +45,9 @@ from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigErro
 from rwt_protocol.session import CloseCode, Session
 from rwt_protocol.shortcuts import enabled
 
+from . import admission
 from .direct import DirectReader, DirectWriter
-from .pump import ConnectionPump, SessionHost, run_connection
+from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
@@ -133,20 +134,21 @@ class WebSocketChannel:
         """Reads whole messages ahead of websockets; set once the handshake allows it."""
         self.max_message_size = max_message_size
         self._messages = MessageAssembler(max_message_size)
-        self._eof = False
+        self._eof = False  # the peer's end (or the wait for it) is over: read no more
+        self._eof_sent = False
         self._pong = anyio.Event()
         self._failed: str | None = None  # a text message was not UTF-8: read no more (1007)
+        self._closing_deadline: float | None = None  # set by the first read after our close
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read, parse, answer control frames; return the whole data messages."""
         if self._eof or self.protocol.state is State.CLOSED:
             raise anyio.EndOfStream
         try:
-            reader = self._reader
-            if reader is not None:
-                data = await reader.receive(_READ_SIZE)
+            if self.protocol.state is State.OPEN:
+                data = await self._read()
             else:
-                data = await self.stream.receive(_READ_SIZE)
+                data = await self._read_while_closing()
         except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
             self.protocol.receive_eof()
             self._eof = True
@@ -160,6 +162,38 @@ class WebSocketChannel:
                 self._reader.pause()  # nothing piles up while the peer is slow to read
             await self.flush()
         return messages
+
+    async def _read(self) -> bytes:
+        reader = self._reader
+        if reader is not None:
+            return await reader.receive(_READ_SIZE)
+        return await self.stream.receive(_READ_SIZE)
+
+    async def _read_while_closing(self) -> bytes:
+        """Read (for websockets to discard) what the peer sends after our close frame.
+
+        The socket stays open until the peer's end, or ``CLOSE_WAIT_S`` after the
+        close frame went out. Closing it with unread bytes, while a peer that has
+        not yet read our close frame is still sending, makes the kernel reset the
+        connection; a client whose write then fails (asyncio's transport) stops
+        reading and never sees the close frame (RFC 6455 7.1.1: the server ends the
+        TCP connection once the close handshake is done).
+
+        Raises:
+            anyio.EndOfStream: the peer's end, or the wait is over.
+        """
+        if self._closing_deadline is None:
+            self._closing_deadline = anyio.current_time() + CLOSE_WAIT_S
+        with anyio.move_on_after(self._closing_deadline - anyio.current_time()):
+            return await self._read()
+        raise anyio.EndOfStream
+
+    def input_pending(self) -> bool:
+        """Whether input is here already (a new connection's first read, admission.py).
+
+        False when that cannot be told without reading (TLS, anyio's own stream).
+        """
+        return self._reader is not None and self._reader.input_pending()
 
     def pause_reading(self) -> None:
         """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).
@@ -236,12 +270,14 @@ class WebSocketChannel:
         shortcut off, websockets frames each message.
         """
         async with self._lock:
+            if self.protocol.state is not State.OPEN:
+                # Closing: no data frame may follow the close frame (RFC 6455 5.5.1);
+                # the reader waits for the peer's end before the socket is closed.
+                return
             if self.protocol.extensions or not self._frame_here:
                 self._send_through_protocol(frames)
                 await self._flush_locked()
                 return
-            if self.protocol.state is not State.OPEN:
-                raise anyio.ClosedResourceError
             await self._flush_locked()  # control frames queued by the protocol go first
             await self._write_framed(frames)
 
@@ -337,8 +373,9 @@ class WebSocketChannel:
         for data in self.protocol.data_to_send():
             if data:
                 await self.stream.send(data)
-            elif not self._eof:  # websockets asks for the TCP connection to end
-                self._eof = True
+            elif not self._eof_sent:  # websockets asks for the TCP connection to end
+                # Our side only: the reader goes on until the peer's end (``receive``).
+                self._eof_sent = True
                 # TLS cannot half-close; the pump closes the stream anyway.
                 with contextlib.suppress(NotImplementedError, OSError, anyio.BrokenResourceError):
                     await self.stream.send_eof()
@@ -461,18 +498,32 @@ async def serve_websocket_connection(
         # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
         if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
             channel.frames = FrameReader(max_message_size)
+        # From the response on, the client may send: what it sends first is handled
+        # before what others send after it (admission.py).
+        ticket = admission.hold()
+        ticket.serve()
         try:
-            await channel.flush()
-        except (anyio.BrokenResourceError, OSError):
-            if session is not None:
-                session.close()
-            return
-        if session is None:
-            return
-        if protocol.state is not State.OPEN:
+            await _open(channel, pump, session, request)
+        finally:
+            ticket.release()
+
+
+async def _open(
+    channel: WebSocketChannel, pump: ConnectionPump, session: Session | None, request: Request
+) -> None:
+    """Send the handshake response; run the session if the connection was accepted."""
+    try:
+        await channel.flush()
+    except (anyio.BrokenResourceError, OSError):
+        if session is not None:
             session.close()
-            return
-        await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
+        return
+    if session is None:
+        return
+    if channel.protocol.state is not State.OPEN:
+        session.close()
+        return
+    await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
 
 
 def _is_upgrade(request: Request) -> bool:

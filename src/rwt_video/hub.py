@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 import anyio
 import anyio.to_thread
 
+from rwt_graph.ratelog import EpisodeLog
+
 from .encoders import (
     EncodeError,
     FrameEncoder,
@@ -41,6 +43,7 @@ if TYPE_CHECKING:
 __all__ = ["PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
 
 logger = logging.getLogger("rwt.video")
+_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 Message = Mapping[str, object]
 
@@ -155,7 +158,6 @@ class SharedStream:
         self.scope = anyio.CancelScope()
         self._latest: Message | None = None
         self._wake = anyio.Event()
-        self._last_error = ""
 
     def on_message(self, msg: Message) -> None:
         """The graph's callback: keep only the newest message and wake the encoder."""
@@ -201,9 +203,15 @@ class SharedStream:
                     viewer.offer(items)
 
     def _log_once(self, text: str) -> None:
-        if text != self._last_error:  # once per cause, not per frame
-            logger.warning("%s (%s): frame skipped: %s", self.params.topic, self.params.type, text)
-            self._last_error = text
+        # once per episode of skipped frames of this stream, whatever their causes
+        _episodes.log(
+            logging.WARNING,
+            f"frame_skipped {self.params.topic} {self.params.type}",
+            "%s (%s): frame skipped: %s",
+            self.params.topic,
+            self.params.type,
+            text,
+        )
 
 
 class StreamHub:
@@ -264,7 +272,13 @@ class StreamHub:
         )
         self.streams[params] = stream
         self._tg.start_soon(stream.run)
-        logger.info("streaming %s as %s", params.topic, params.type)
+        _episodes.log(
+            logging.INFO,
+            f"stream {params.topic} {params.type}",
+            "streaming %s as %s",
+            params.topic,
+            params.type,
+        )
         return stream
 
     def _stop(self, stream: SharedStream) -> None:
@@ -272,4 +286,10 @@ class StreamHub:
         if stream.subscription is not None:
             stream.subscription.close()
         stream.scope.cancel()
-        logger.info("stopped streaming %s as %s", stream.params.topic, stream.params.type)
+        _episodes.log(
+            logging.INFO,
+            f"stream_stopped {stream.params.topic} {stream.params.type}",
+            "stopped streaming %s as %s",
+            stream.params.topic,
+            stream.params.type,
+        )

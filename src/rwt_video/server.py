@@ -29,6 +29,7 @@ import anyio
 import h11
 from anyio.abc import SocketAttribute, SocketStream, TaskStatus
 
+from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
 
 from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError, multipart_part
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
 __all__ = ["VideoConfig", "serve_video"]
 
 logger = logging.getLogger("rwt.video")
+_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 _REQUEST_LIMIT_S = 10.0
 _READ_SIZE = 65536
@@ -126,7 +128,12 @@ async def _serve_connection(
 ) -> None:
     if gate.open >= gate.limit:
         if not gate.refusing:
-            logger.warning("event=refused reason='too many video connections' limit=%d", gate.limit)
+            _episodes.log(
+                logging.WARNING,
+                "refused",
+                "event=refused reason='too many video connections' limit=%d",
+                gate.limit,
+            )
             gate.refusing = True
         with anyio.move_on_after(1.0), contextlib.suppress(Exception):
             async with stream:
@@ -157,7 +164,7 @@ async def _serve_request(hub: StreamHub, config: VideoConfig, stream: SocketStre
     except h11.ProtocolError as exc:
         logger.debug("bad HTTP request: %s", exc)
     except Exception:  # one broken connection must never take the server down
-        logger.exception("video connection failed")
+        _episodes.log(logging.ERROR, "failed", "video connection failed", exc_info=True)
 
 
 async def _cancel_on_close(stream: SocketStream, scope: anyio.CancelScope) -> None:
@@ -262,7 +269,13 @@ def _checked(graph: Graph, params: StreamParams) -> StreamParams:
     if params.type is StreamType.ROS_COMPRESSED:
         if types.get(params.source_topic) == "sensor_msgs/CompressedImage":
             return params
-        logger.warning("no %s: streaming %s as mjpeg", params.source_topic, params.topic)
+        _episodes.log(
+            logging.WARNING,
+            f"no_source {params.topic}",
+            "no %s: streaming %s as mjpeg",
+            params.source_topic,
+            params.topic,
+        )
         params = params.with_type(StreamType.MJPEG)  # as web_video_server does
     found = types.get(params.topic)
     if found is None:
@@ -310,7 +323,13 @@ async def _send_video(http: _Http, params: StreamParams, viewer: VideoViewer) ->
         try:
             chunk = await viewer.next_chunk()
         except EncodeError as exc:
-            logger.warning("video viewer of %s stopped: %s", params.topic, exc)
+            _episodes.log(
+                logging.WARNING,
+                f"viewer_stopped {params.topic}",
+                "video viewer of %s stopped: %s",
+                params.topic,
+                exc,
+            )
             return
         await http.send(chunk)
 

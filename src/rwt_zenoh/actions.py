@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 from rosbags.typesys import get_types_from_msg
 
+from rwt_graph.types.wire import read_cdr
+
 from .wire import WireError
 
 if TYPE_CHECKING:
@@ -114,7 +116,7 @@ class ActionWire:
 
     def _decode(self, name: str, data: bytes) -> Any:
         try:
-            return self.registry.typestore().deserialize_cdr(data, name)
+            return read_cdr(self.registry.typestore(), data, name)
         except Exception as exc:  # rosbags raises assorted errors for malformed bytes
             raise WireError(f"{name}: not a CDR message of this type ({exc})") from None
 

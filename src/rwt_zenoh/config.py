@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 from ipaddress import ip_address
 from typing import TYPE_CHECKING
 
+from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
+from .wire import RmwCompat
+
 if TYPE_CHECKING:
     from pathlib import Path
 
@@ -33,6 +36,8 @@ Mode = str
 """``peer``, ``client`` or ``router`` (Zenoh's ``mode``)."""
 
 MODES = ("peer", "client", "router")
+
+_HEADROOM = 64 * 1024  # a message's key, attachment and framing besides its payload
 
 LOOPBACK_LISTEN = "tcp/127.0.0.1:0"
 """Where a peer listens when told nothing: this machine only, as rmw_zenoh's default
@@ -60,6 +65,12 @@ class ZenohOptions:
         domain_id: the ROS domain, the first part of every key.
         multicast: multicast scouting (off, as in rmw_zenoh; discovery goes
             through endpoints or a router).
+        rmw_compat: which rmw_zenoh's token defaults to speak (``--zenoh-rmw-compat``;
+            docs/zenoh.md, "Which rmw_zenoh").
+        queue_bytes: bytes of remote samples waiting for the event loop at most
+            (``--zenoh-queue-bytes``); also the largest message Zenoh accepts.
+        max_entities: remote entities (liveliness tokens) mirrored at once
+            (``--zenoh-max-entities``).
     """
 
     mode: Mode = "peer"
@@ -68,6 +79,9 @@ class ZenohOptions:
     config_file: Path | None = None
     domain_id: int = field(default_factory=default_domain_id)
     multicast: bool = False
+    rmw_compat: RmwCompat = RmwCompat.CURRENT
+    queue_bytes: int = MAX_QUEUED_BYTES
+    max_entities: int = MAX_REMOTE_ENTITIES
 
 
 def make_config(options: ZenohOptions) -> zenoh.Config:
@@ -91,6 +105,11 @@ def make_config(options: ZenohOptions) -> zenoh.Config:
     config.insert_json5("mode", json.dumps(options.mode))
     config.insert_json5("scouting/multicast/enabled", json.dumps(options.multicast))
     config.insert_json5("timestamping/enabled", "true")
+    # a sample larger than the queue could never wait in it: Zenoh need not reassemble
+    # one (its default accepts 1 GiB messages from any peer)
+    config.insert_json5(
+        "transport/link/rx/max_message_size", json.dumps(options.queue_bytes + _HEADROOM)
+    )
     if options.connect:
         config.insert_json5("connect/endpoints", json.dumps(list(options.connect)))
     listen = list(options.listen)

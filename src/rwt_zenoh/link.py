@@ -28,6 +28,7 @@ import time
 from collections import deque
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Any, cast
 
 import anyio
@@ -35,13 +36,19 @@ import zenoh.ext
 
 import zenoh
 from rwt_graph.calls import guarded
+from rwt_graph.link import NULL_SINK, PRIVATE_NAMES, Kind, LinkRules
 from rwt_graph.nodes import CLIENT_NODE_PREFIX
+from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
+from .inbox import Inbox, Sample
+from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, RELIABLE_WAIT_S
 from .link_actions import ActionLink
+from .link_clients import LINK_NODE, ClientEntities
 from .link_params import ParamLink
 from .link_services import RemoteService, serve_query
+from .outbox import Outbox
 from .payload import decode_message, encode_message, service_hash, type_hash
 from .wire import (
     LATCHED_QOS,
@@ -49,11 +56,11 @@ from .wire import (
     Durability,
     Entity,
     EntityKind,
+    RmwCompat,
     Topic,
     WireError,
     attachment_gid,
     dds_type_name,
-    gid_of,
     pack_attachment,
     reply_attachment,
     ros_type_name,
@@ -77,29 +84,20 @@ logger = logging.getLogger("rwt.zenoh")
 PARTICIPANT_PREFIX = "zenoh:"
 """Participant ids of the link: remote entities, its relays and its caller."""
 
-PRIVATE_NAMES = ("/client_count", "/connected_clients", "/rosapi/*")
-"""Names each server keeps to itself: its own client counts and its rosapi (which
-already answers for the whole network). ``*`` ends a prefix."""
-
-MAX_QUEUED = 100_000
-"""Remote samples waiting for the event loop beyond which new ones are dropped."""
 _DRAIN_BATCH = 1000
-_PRIVATE_CACHE = 10_000
+_SWEEP_DUTY = 10  # a sweep that took t seconds is followed by a pause of at least 10 t
+_DRAIN_BYTES = 4 * 1024 * 1024  # sample bytes handled between two yields to other tasks
+#: The graph's kinds of local entity as rmw_zenoh's tokens name them.
+_KINDS = {
+    Kind.PUBLISHER: EntityKind.PUBLISHER,
+    Kind.SUBSCRIPTION: EntityKind.SUBSCRIPTION,
+    Kind.SERVICE: EntityKind.SERVICE,
+}
 
 
 def ours(client: ClientId) -> bool:
     """Whether ``client`` is one of the link's participants (it came from Zenoh)."""
     return client.startswith(PARTICIPANT_PREFIX)
-
-
-class _NullSink:
-    """The sink of a remote subscription: its samples travel over Zenoh, not here."""
-
-    def on_message(self, event: MessageEvent) -> None:
-        """Drop the message."""
-
-
-_NULL_SINK = _NullSink()
 
 
 @dataclass(eq=False)
@@ -148,8 +146,8 @@ class _Remote:
     entity: Entity
     client: ClientId
     node: str
+    gid: bytes = b""  # of a publisher, kept: computing it hashes the whole token
     mirrored: bool = False
-    waiting: bool = False  # a service shadowed by another provider: tried again each sweep
 
 
 @dataclass(eq=False)
@@ -183,18 +181,10 @@ def _full_node(entity: Entity) -> str:
     return f"{namespace}/{entity.node}"
 
 
-def _is_private(name: str, private: tuple[str, ...]) -> bool:
-    for pattern in private:
-        if pattern.endswith("*"):
-            if name.startswith(pattern[:-1]):
-                return True
-        elif name == pattern:
-            return True
-    return False
-
-
 class ZenohLink:
     """Mirrors a graph's entities to and from a Zenoh session (see the module text).
+
+    It follows the link contract of ``rwt_graph.link`` (``rules``).
 
     Args:
         graph: the graph to link; touched only on the event loop running ``run``.
@@ -204,9 +194,16 @@ class ZenohLink:
         sweep_s: how often local changes are looked for, seconds (rosapi elsewhere
             sees a change within this plus Zenoh's propagation).
         call_timeout_s: how long a call to a remote service waits for its reply.
+        compat: whose token defaults to write and read (``RmwCompat``).
+        queue_bytes: bytes of remote samples waiting for the event loop at most
+            (``limits.MAX_QUEUED_BYTES``; past it the oldest of a topic go).
+        max_entities: remote entities (tokens) mirrored at once
+            (``limits.MAX_REMOTE_ENTITIES``; tokens past it are ignored).
 
     Attributes:
         zid: the session's id as rmw_zenoh prints it.
+        peer_log: the log of what peers cause on every sample or token (bad ones,
+            refused ones, ones past a limit): one line per episode, repeats counted.
     """
 
     def __init__(
@@ -218,11 +215,16 @@ class ZenohLink:
         private: tuple[str, ...] = PRIVATE_NAMES,
         sweep_s: float = 0.1,
         call_timeout_s: float = 60.0,
+        compat: RmwCompat = RmwCompat.CURRENT,
+        queue_bytes: int = MAX_QUEUED_BYTES,
+        max_entities: int = MAX_REMOTE_ENTITIES,
     ) -> None:
         self.graph = graph
+        self.compat = compat
         self.session = session
         self.domain_id = domain_id
         self.private = private
+        self.rules = LinkRules(PARTICIPANT_PREFIX, private)
         self.sweep_s = sweep_s
         self.call_timeout_s = call_timeout_s
         self.zid = zid_text(bytes(cast("Any", session.info.zid())))
@@ -234,19 +236,24 @@ class ZenohLink:
         self._subs: dict[str, _Data] = {}
         self._remote: dict[str, _Remote] = {}
         self._by_gid: dict[bytes, _Remote] = {}
+        # services shadowed by another provider, tried again each sweep (a set, not a
+        # flag walked over every remote entity per sweep)
+        self._waiting: set[_Remote] = set()
         self._relays: dict[str, ClientId] = {}
-        self._private_names: dict[str, bool] = {}
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         # A ROS 2 service keeps requests by client GID and sequence number, and refuses
-        # a second request with both equal (rmw_service_data.cpp ``take_request``): the
-        # calls of each process carry a GID of their own.
-        self.caller_gid = gid_of(f"{self.zid}/caller")
-        self._call_ids = itertools.count(1)
+        # a second request with both equal (rmw_service_data.cpp ``take_request``):
+        # each caller's calls go out as a client entity of its own, numbered from 1.
+        self.clients = ClientEntities(self)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: asyncio.Event | None = None
         self._events: deque[tuple[Callable[..., None], tuple[object, ...]]] = deque()
         self._signalled = False
-        self._dropped = 0
+        self.peer_log = EpisodeLog(logger)
+        self._inbox = Inbox(queue_bytes, drop_log=EpisodeLog(logger))  # on Zenoh's threads
+        self._outbox = Outbox()  # Zenoh's blocking puts, off the loop
+        self._drained_bytes = 0
+        self.max_entities = max_entities
         self._closed = False
         self._liveliness: Any = None
         self._actions = ActionLink(self)
@@ -277,9 +284,15 @@ class ZenohLink:
             self._close()
 
     async def _sweeper(self) -> None:
+        # A sweep walks the graph's topics and services: in a large graph (a peer's
+        # tens of thousands of entities) the pause after it grows with its cost, so
+        # sweeping takes at most 1/_SWEEP_DUTY of the event loop's time.
+        pause = self.sweep_s
         while True:
-            await anyio.sleep(self.sweep_s)
+            await anyio.sleep(pause)
+            started = time.monotonic()
             self._sweep()
+            pause = max(self.sweep_s, (time.monotonic() - started) * _SWEEP_DUTY)
 
     async def _drain(self) -> None:
         """Handle what Zenoh's threads handed over, in order, in this task.
@@ -296,10 +309,15 @@ class ZenohLink:
             while events:
                 # A batch at a time, then others run (during a flood); one yield per
                 # batch, not per event: a checkpoint per sample was a quarter of B's
-                # time in Z3 (benchmarks/README.md, "Scaling out").
+                # time in Z3 (benchmarks/README.md, "Scaling out"). A batch ends early
+                # after _DRAIN_BYTES of samples, so large ones (images) do not hold
+                # the loop for long.
+                self._drained_bytes = 0
                 for _ in range(min(len(events), _DRAIN_BATCH)):
                     callback, args = events.popleft()
                     self._guarded(callback, *args)
+                    if self._drained_bytes >= _DRAIN_BYTES:
+                        break
                 if events:
                     await asyncio.sleep(0)
 
@@ -311,6 +329,8 @@ class ZenohLink:
         handles += [export.queryable for export in self._exports.values()]
         handles += [export.token for export in self._exports.values()]
         handles += list(self._node_tokens.values())
+        self._outbox.close()  # what the local publishers sent goes out first
+        self._inbox.close()  # Zenoh threads waiting for room give up
         for data in [*self._pubs.values(), *self._subs.values()]:
             handles += [data.handle, data.latched]
         for handle in handles:
@@ -318,6 +338,7 @@ class ZenohLink:
                 guarded("undeclaring a zenoh entity", handle.undeclare)
         self._actions.close()
         self._params.close()
+        self.clients.close()
         self._exports.clear()
         self._node_tokens.clear()
         self._pubs.clear()
@@ -330,20 +351,14 @@ class ZenohLink:
             self.graph.release(relay)
         self._relays.clear()
 
-    def _soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
+    def _soon(self, callback: Callable[..., None], *args: object) -> None:
         """Run ``callback(*args)`` in the link's task (called from Zenoh's threads).
 
-        Samples beyond ``MAX_QUEUED`` waiting ones are dropped (and counted in the
-        log), so a peer publishing faster than this process reads cannot exhaust
-        its memory; tokens and replies are never dropped.
+        For tokens, replies and queries, which are never dropped; samples go
+        through ``soon_sample``, bounded in bytes.
         """
         loop, wake = self._loop, self._wake
         if loop is None or wake is None or self._closed:
-            return
-        if sample and len(self._events) >= MAX_QUEUED:
-            self._dropped += 1
-            if self._dropped & (self._dropped - 1) == 0:  # 1, 2, 4, 8...: bounded logging
-                logger.warning("event=zenoh_samples_dropped count=%d", self._dropped)
             return
         self._events.append((callback, args))
         if not self._signalled:
@@ -372,7 +387,7 @@ class ZenohLink:
 
     def is_private(self, name: str) -> bool:
         """Whether ``name`` stays in this process (``private``)."""
-        return _is_private(name, self.private)
+        return self.rules.is_private(name)
 
     def node_entity(self, node: str) -> Entity:
         """The node entity of ``node`` as the network sees it."""
@@ -382,7 +397,8 @@ class ZenohLink:
         """A new entity id in this session."""
         return next(self._ids)
 
-    def _entity(self, node: str, kind: EntityKind, topic: Topic) -> Entity:
+    def entity_of(self, node: str, kind: EntityKind, topic: Topic) -> Entity:
+        """A new entity of ``node`` (a fresh id in this session) on ``topic``."""
         owner = self._node_entity(node)
         return Entity(
             self.domain_id,
@@ -393,6 +409,7 @@ class ZenohLink:
             owner.namespace,
             owner.node,
             topic=topic,
+            compat=self.compat,
         )
 
     def declare_service(
@@ -404,7 +421,7 @@ class ZenohLink:
         this session itself are not routed to it. Returns the two handles to
         undeclare, queryable first.
         """
-        entity = self._entity(node, EntityKind.SERVICE, topic)
+        entity = self.entity_of(node, EntityKind.SERVICE, topic)
         token = self.session.liveliness().declare_token(entity.token())
         keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
         queryable = self.declare_queryable(keyexpr, on_query)
@@ -417,7 +434,7 @@ class ZenohLink:
         subscribers, as a latched topic's publisher does. Samples go to other
         sessions only.
         """
-        entity = self._entity(node, EntityKind.PUBLISHER, topic)
+        entity = self.entity_of(node, EntityKind.PUBLISHER, topic)
         keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
         if topic.qos.durability is Durability.TRANSIENT_LOCAL:
             handle = _caching_publisher(self.session, keyexpr, topic.qos.depth)
@@ -449,9 +466,41 @@ class ZenohLink:
         attachment = reply_attachment(None if asked is None else asked.to_bytes(), time.time_ns())
         query.reply(query.key_expr, payload, attachment=attachment)
 
-    def soon(self, callback: Callable[..., None], *args: object, sample: bool = False) -> None:
+    def soon(self, callback: Callable[..., None], *args: object) -> None:
         """Run ``callback(*args)`` in the link's task (from a Zenoh thread); see ``_soon``."""
-        self._soon(callback, *args, sample=sample)
+        self._soon(callback, *args)
+
+    def soon_sample(
+        self,
+        key: str,
+        deliver: Callable[[bytes, bytes | None], None],
+        payload: bytes,
+        attachment: bytes | None = None,
+        *,
+        reliable: bool = False,
+    ) -> None:
+        """Run ``deliver(payload, attachment)`` in the link's task (from a Zenoh thread).
+
+        A ``reliable`` sample (put with congestion control BLOCK) waits up to
+        ``limits.RELIABLE_WAIT_S`` for room in a full queue, holding its peer back,
+        before the rule below applies (docs/zenoh.md, "Reliability").
+
+        The samples waiting are bounded in bytes (``queue_bytes``): past it the
+        oldest samples of the busiest ``key`` (a topic) are dropped, logged once
+        per episode, so a peer publishing faster than this process decodes
+        cannot exhaust its memory (docs/limits.md, "Zenoh peers").
+        """
+        if self._loop is None or self._closed:
+            return
+        wait_s = RELIABLE_WAIT_S if reliable else 0.0
+        if self._inbox.put(key, Sample(deliver, payload, attachment), wait_s=wait_s):
+            self._soon(self._take_sample, key)
+
+    def _take_sample(self, key: str) -> None:
+        sample = self._inbox.take(key)
+        if sample is not None:
+            self._drained_bytes += sample.size
+            sample.deliver(sample.payload, sample.attachment)
 
     def query(
         self,
@@ -459,8 +508,11 @@ class ZenohLink:
         payload: bytes | bytearray,
         answer: Callable[[bool, object], None],
         timeout_s: float,
+        attachment: bytes,
     ) -> None:
         """Send a query; ``answer(ok, value)`` runs once in the link's task.
+
+        ``attachment`` is the calling client entity's (``clients.attachment``).
 
         ``value`` is the first reply's payload (bytes) when ``ok``, else the error
         reply's text or "no reply" when every reply is in or ``timeout_s`` passed.
@@ -486,7 +538,7 @@ class ZenohLink:
             key,
             zenoh.handlers.Callback(on_reply, on_done),
             payload=payload,
-            attachment=pack_attachment(next(self._call_ids), time.time_ns(), self.caller_gid),
+            attachment=attachment,
             timeout=timeout_s,
         )
 
@@ -502,33 +554,22 @@ class ZenohLink:
         for key, (type_name, latched) in wanted.items():
             if key not in self._exports:
                 self._export(key, type_name, latched=latched)
+        self.clients.sweep()
         self._sweep_nodes()
         self._sweep_subscribers()
         self._sweep_publishers()
         self._sweep_relays()
         self._actions.sweep()
         self._params.sweep()
-        for remote in self._remote.values():
-            if remote.waiting:
-                self._mirror(remote)  # the local provider that shadowed it may have gone
+        for remote in list(self._waiting):
+            self._mirror(remote)  # the local provider that shadowed it may have gone
 
     def _wanted(self) -> dict[tuple[EntityKind, ClientId, str], tuple[str, bool]]:
         """The local entities to share: (kind, participant, name) -> (type, latched)."""
-        wanted: dict[tuple[EntityKind, ClientId, str], tuple[str, bool]] = {}
-        for name, entry in self.graph.topics.items():
-            if _is_private(name, self.private):
-                continue
-            type_name = entry.msgtype.name
-            for client, latched in entry.publishers.items():
-                if not ours(client):
-                    wanted[(EntityKind.PUBLISHER, client, name)] = (type_name, latched)
-            for client in entry.subscribers:
-                if not ours(client):
-                    wanted[(EntityKind.SUBSCRIPTION, client, name)] = (type_name, False)
-        for name, service in self.graph.services.entries.items():
-            if not ours(service.owner) and not _is_private(name, self.private):
-                wanted[(EntityKind.SERVICE, service.owner, name)] = (service.srvtype.name, False)
-        return wanted
+        wanted = self.rules.wanted(self.graph)
+        return {
+            (_KINDS[kind], client, name): value for (kind, client, name), value in wanted.items()
+        }
 
     def _node_id(self, node: str) -> int:
         nid = self._node_ids.get(node)
@@ -542,7 +583,16 @@ class ZenohLink:
             node = f"{node}_{self.zid[:8]}"
         namespace, _, name = node.rpartition("/")
         nid = self._node_id(node)
-        return Entity(self.domain_id, self.zid, nid, nid, EntityKind.NODE, namespace or "/", name)
+        return Entity(
+            self.domain_id,
+            self.zid,
+            nid,
+            nid,
+            EntityKind.NODE,
+            namespace or "/",
+            name,
+            compat=self.compat,
+        )
 
     def _export(
         self, key: tuple[EntityKind, ClientId, str], type_name: str, *, latched: bool
@@ -570,6 +620,7 @@ class ZenohLink:
             node.namespace,
             node.node,
             topic=topic,
+            compat=self.compat,
         )
         token = self.session.liveliness().declare_token(entity.token())
         export = _Export(entity, token, type_name, latched=latched, gid=entity.gid())
@@ -589,6 +640,7 @@ class ZenohLink:
 
     def _sweep_nodes(self) -> None:
         nodes = {self.graph.nodes.name_of(client) for _, client, _ in self._exports}
+        nodes |= self.clients.nodes()
         for node in list(self._node_tokens):
             if node not in nodes:
                 guarded("undeclaring a node token", self._node_tokens.pop(node).undeclare)
@@ -649,15 +701,16 @@ class ZenohLink:
             logger.debug("zenoh link: not subscribing to %s: %s", name, exc)
             return
 
+        deliver = partial(self._on_sample, name, type_name)
+
         def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
             attachment = sample.attachment
-            self._soon(
-                self._on_sample,
+            self.soon_sample(
                 name,
-                type_name,
+                deliver,
                 sample.payload.to_bytes(),
                 None if attachment is None else attachment.to_bytes(),
-                sample=True,
+                reliable=sample.congestion_control == zenoh.CongestionControl.BLOCK,
             )
 
         handle = zenoh.ext.declare_advanced_subscriber(
@@ -679,13 +732,21 @@ class ZenohLink:
                 dds_type_name(type_name),
                 type_hash(self.graph.registry, type_name),
             )
-            handle = self.session.declare_publisher(key, allowed_destination=zenoh.Locality.REMOTE)
+            # BLOCK: a full transmission queue waits (on the outbox's thread) rather
+            # than drops, as rmw_zenoh's reliable KEEP_ALL publishers do (docs/zenoh.md,
+            # "Reliability"); Zenoh's default, DROP, lost 1 MB samples in a burst.
+            handle = self.session.declare_publisher(
+                key,
+                allowed_destination=zenoh.Locality.REMOTE,
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                reliability=zenoh.Reliability.RELIABLE,
+            )
             data = self._pubs[entry.name] = _Data(type_name, key, handle)
         return data
 
     def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         """Forward what a local publisher published (the graph calls this on the loop)."""
-        if ours(client) or self._closed or self._private_topic(entry.name):
+        if ours(client) or self._closed or self.rules.is_private(entry.name):
             return
         if latch:
             self._put_latched(entry, event, client)
@@ -693,16 +754,8 @@ class ZenohLink:
         export = self._publisher_export(entry, client)
         if export is not None:
             data = self._publisher(entry)
-            data.handle.put(self._encode(entry, event), attachment=self._attachment(export))
-
-    def _private_topic(self, name: str) -> bool:
-        """``is_private(name)``, remembered: the tap asks for every message."""
-        private = self._private_names.get(name)
-        if private is None:
-            if len(self._private_names) >= _PRIVATE_CACHE:
-                self._private_names.clear()  # bounded: topic names come from clients
-            private = self._private_names[name] = _is_private(name, self.private)
-        return private
+            payload = self._encode(entry, event)
+            self._outbox.put(data.key, data.handle, payload, self._attachment(export))
 
     def _publisher_export(self, entry: GraphTopic, client: ClientId) -> _Export | None:
         key = (EntityKind.PUBLISHER, client, entry.name)
@@ -746,23 +799,36 @@ class ZenohLink:
         if not alive:
             remote = self._remote.pop(token, None)
             if remote is not None:
-                self._by_gid.pop(remote.entity.gid(), None)
+                self._by_gid.pop(remote.gid, None)
+                self._waiting.discard(remote)
                 self._unmirror(remote)
             return
         if token in self._remote:
             return
         try:
-            entity = Entity.parse(token)
+            entity = Entity.parse(token, self.compat)
         except WireError as exc:
-            logger.debug("zenoh link: ignored token: %s", exc)
+            self.peer_log.log(
+                logging.DEBUG, "zenoh_bad_token", "zenoh link: ignored token: %s", exc
+            )
             return
         if entity.zid == self.zid or entity.kind is EntityKind.CLIENT:
+            return
+        if len(self._remote) >= self.max_entities:
+            self.peer_log.log(
+                logging.WARNING,
+                "zenoh_entities_full",
+                "event=zenoh_entity_ignored limit=%d reason=%r",
+                self.max_entities,
+                "the link mirrors no more remote entities (--zenoh-max-entities)",
+            )
             return
         suffix = "node" if entity.kind is EntityKind.NODE else str(entity.eid)
         client = f"{PARTICIPANT_PREFIX}{entity.zid}:{suffix}"
         remote = self._remote[token] = _Remote(entity, client, _full_node(entity))
         if entity.kind is EntityKind.PUBLISHER:
-            self._by_gid[entity.gid()] = remote
+            remote.gid = entity.gid()
+            self._by_gid[remote.gid] = remote
         self._mirror(remote)
 
     def _mirror(self, remote: _Remote) -> None:
@@ -774,7 +840,7 @@ class ZenohLink:
             return
         topic = entity.topic
         assert topic is not None  # Entity.parse guarantees it for every other kind
-        if _is_private(topic.name, self.private):
+        if self.rules.is_private(topic.name):
             return
         try:
             type_name = ros_type_name(topic.dds_type)
@@ -782,11 +848,11 @@ class ZenohLink:
                 self._params.mirror(remote)
                 as_action = self._actions.mirror(remote)
                 if as_action is not None:
-                    remote.waiting = not as_action
+                    self._wait(remote, waiting=not as_action)
                     remote.mirrored = as_action
                     return
                 existing = graph.services.entries.get(topic.name)
-                remote.waiting = existing is not None
+                self._wait(remote, waiting=existing is not None)
                 if existing is not None:
                     return  # a local provider (or another remote one) answers: keep it
                 graph.nodes.bind(remote.client, remote.node)
@@ -799,10 +865,12 @@ class ZenohLink:
                 self._adopt_relayed(topic.name, remote.client, latched=latched)
             elif entity.kind is EntityKind.SUBSCRIPTION:
                 graph.nodes.bind(remote.client, remote.node)
-                graph.subscribe(remote.client, topic.name, type_name, _NULL_SINK)
+                graph.subscribe(remote.client, topic.name, type_name, NULL_SINK)
         except (RwtError, WireError) as exc:
             graph.nodes.forget(remote.client)
-            logger.info(
+            self.peer_log.log(
+                logging.INFO,
+                f"zenoh_skip:{entity.kind.name}",
                 "event=zenoh_skip kind=%s name=%s reason=%r",
                 entity.kind.name.lower(),
                 topic.name,
@@ -810,6 +878,12 @@ class ZenohLink:
             )
             return
         remote.mirrored = True
+
+    def _wait(self, remote: _Remote, *, waiting: bool) -> None:
+        if waiting:
+            self._waiting.add(remote)
+        else:
+            self._waiting.discard(remote)
 
     def _unmirror(self, remote: _Remote) -> None:
         self._params.unmirror(remote)
@@ -828,7 +902,13 @@ class ZenohLink:
             msg = decode_message(self.graph.registry, entry.msgtype, payload)
             source = None if attachment is None else attachment_gid(attachment)
         except (WireError, RwtError) as exc:
-            logger.warning("event=zenoh_bad_sample topic=%s reason=%r", topic, str(exc))
+            self.peer_log.log(
+                logging.WARNING,
+                f"zenoh_bad_sample:{topic}",
+                "event=zenoh_bad_sample topic=%s reason=%r",
+                topic,
+                str(exc),
+            )
             return
         remote = None if source is None else self._by_gid.get(source)
         if remote is not None and remote.mirrored and remote.client in entry.publishers:
@@ -840,9 +920,21 @@ class ZenohLink:
         # The sample outran its publisher's token: a relay publishes it meanwhile.
         relay = self._relays.get(topic)
         if relay is None:
-            relay = self._relays[topic] = f"{PARTICIPANT_PREFIX}relay:{topic}"
-            self.graph.nodes.bind(relay, "/rwt_zenoh")
-            self.graph.advertise(relay, topic, type_name, latch=False)
+            relay = f"{PARTICIPANT_PREFIX}relay:{topic}"
+            self.graph.nodes.bind(relay, LINK_NODE)
+            try:
+                self.graph.advertise(relay, topic, type_name, latch=False)
+            except RwtError as exc:  # a topic reserved by the server: not the network's
+                self.graph.nodes.forget(relay)
+                self.peer_log.log(
+                    logging.WARNING,
+                    f"zenoh_sample_refused:{topic}",
+                    "event=zenoh_sample_refused topic=%s reason=%r",
+                    topic,
+                    exc.message,
+                )
+                return
+            self._relays[topic] = relay
         self.graph.publish_local(relay, topic, msg, latch=False)
 
     def _adopt_relayed(self, topic: str, client: ClientId, *, latched: bool) -> None:
@@ -876,7 +968,14 @@ async def open_link(graph: Graph, options: ZenohOptions) -> AsyncIterator[ZenohL
     session = await anyio.to_thread.run_sync(zenoh.open, config)
     try:
         async with anyio.create_task_group() as tg:
-            link = ZenohLink(graph, session, domain_id=options.domain_id)
+            link = ZenohLink(
+                graph,
+                session,
+                domain_id=options.domain_id,
+                compat=options.rmw_compat,
+                queue_bytes=options.queue_bytes,
+                max_entities=options.max_entities,
+            )
             await tg.start(link.run)
             try:
                 yield link

@@ -43,9 +43,16 @@ from .actions import (
     action_of,
     stamp_of,
 )
-from .payload import decode_message, encode_message, message_hash, named_service_hash
+from .payload import (
+    decode_message,
+    encode_message,
+    message_hash,
+    named_service_hash,
+    service_hash,
+)
 from .wire import (
     LATCHED_QOS,
+    SERVICES_QOS,
     VOLATILE_QOS,
     Topic,
     WireError,
@@ -142,6 +149,36 @@ class ActionLink:
     def _key(self, name: str, wire: ActionWire, part: str, hash_text: str = "*") -> str:
         return topic_keyexpr(self.link.domain_id, name, wire.dds_type(part), hash_text)
 
+    def _call(
+        self,
+        provider: _RemoteAction,
+        goal_id: str,
+        part: str,
+        payload: bytes | bytearray,
+        answer: Callable[[bool, object], None],
+        timeout_s: float,
+    ) -> None:
+        """Call the remote server's ``part`` service as the goal's caller's client of it.
+
+        ``part`` is ``SendGoal``, ``GetResult`` or ``CancelGoal``.
+        """
+        link = self.link
+        graph = link.graph
+        entry = graph.actions.entries.get(provider.action)
+        goal = None if entry is None else entry.goals.get(goal_id)
+        node = link.clients.caller_node(None if goal is None else goal.caller)
+        if part == "CancelGoal":
+            name, dds_type = provider.action + CANCEL_SUFFIX, dds_type_name(CANCEL_GOAL_TYPE)
+            hash_text = service_hash(graph.registry, graph.registry.service(CANCEL_GOAL_TYPE))
+            key = topic_keyexpr(link.domain_id, name, dds_type, "*")
+        else:
+            suffix = SEND_GOAL_SUFFIX if part == "SendGoal" else GET_RESULT_SUFFIX
+            name, dds_type = provider.action + suffix, provider.wire.dds_type(part)
+            hash_text = self._hash(provider.wire, part)
+            key = self._key(name, provider.wire, part)
+        attachment = link.clients.attachment(node, name, dds_type, hash_text)
+        link.query(key, payload, answer, timeout_s, attachment)
+
     def _hash(self, wire: ActionWire, part: str) -> str:
         """The RIHS01 of an action's part: its two services' hash, its feedback message's."""
         name, registry = f"{wire.actiontype.name}_{part}", self.link.graph.registry
@@ -154,11 +191,7 @@ class ActionLink:
     def sweep(self) -> None:
         """Offer each local action server; withdraw the ones gone."""
         link = self.link
-        wanted = {
-            name: entry
-            for name, entry in link.graph.actions.entries.items()
-            if not link.is_ours(entry.owner) and not link.is_private(name)
-        }
+        wanted = link.rules.local_actions(link.graph)
         for name in list(self._offers):
             entry = wanted.get(name)
             if entry is None or entry.owner != self._offers[name].owner:
@@ -179,7 +212,7 @@ class ActionLink:
             (SEND_GOAL_SUFFIX, "SendGoal", self._on_send_goal),
             (GET_RESULT_SUFFIX, "GetResult", self._on_get_result),
         ):
-            topic = Topic(name + suffix, wire.dds_type(part), self._hash(wire, part))
+            topic = Topic(name + suffix, wire.dds_type(part), self._hash(wire, part), SERVICES_QOS)
             handles += link.declare_service(node, topic, self._on_query_thread(handler, name, wire))
         part = "FeedbackMessage"
         feedback = Topic(
@@ -375,7 +408,6 @@ class ActionLink:
             return
         self._calling[uuid] = (provider, goal_id)
         self._listen_feedback(provider)
-        key = self._key(provider.action + SEND_GOAL_SUFFIX, provider.wire, "SendGoal")
 
         def accepted(ok: bool, value: object) -> None:
             if not ok:
@@ -385,9 +417,13 @@ class ActionLink:
             if not provider.wire.read_accepted(value):
                 self._end(uuid, GoalStatus.ABORTED, False, f"{provider.action} rejected the goal")
                 return
-            result_key = self._key(provider.action + GET_RESULT_SUFFIX, provider.wire, "GetResult")
-            link.query(
-                result_key, provider.wire.get_result(uuid), partial(resulted), RESULT_TIMEOUT_S
+            self._call(
+                provider,
+                goal_id,
+                "GetResult",
+                provider.wire.get_result(uuid),
+                resulted,
+                RESULT_TIMEOUT_S,
             )
 
         def resulted(ok: bool, value: object) -> None:
@@ -402,7 +438,7 @@ class ActionLink:
                 final = GoalStatus.ABORTED
             self._end(uuid, final, True, result)
 
-        link.query(key, payload, accepted, link.call_timeout_s)
+        self._call(provider, goal_id, "SendGoal", payload, accepted, link.call_timeout_s)
 
     def _end(self, uuid: bytes, status: GoalStatus, result: bool, values: object) -> None:
         calling = self._calling.pop(uuid, None)
@@ -431,8 +467,11 @@ class ActionLink:
         key = self._key(action + FEEDBACK_SUFFIX, provider.wire, "FeedbackMessage")
         wire = provider.wire
 
+        def deliver(payload: bytes, _attachment: bytes | None) -> None:
+            self._on_feedback(wire, payload)
+
         def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
-            self.link.soon(self._on_feedback, wire, sample.payload.to_bytes(), sample=True)
+            self.link.soon_sample(action + FEEDBACK_SUFFIX, deliver, sample.payload.to_bytes())
 
         self._feedback_subs[action] = self.link.session.declare_subscriber(
             key, on_sample, allowed_origin=zenoh.Locality.REMOTE
@@ -442,7 +481,12 @@ class ActionLink:
         try:
             uuid, feedback = wire.read_feedback(payload)
         except (RwtError, WireError) as exc:
-            logger.warning("event=zenoh_bad_feedback reason=%r", str(exc))
+            self.link.peer_log.log(
+                logging.WARNING,
+                "zenoh_bad_feedback",
+                "event=zenoh_bad_feedback reason=%r",
+                str(exc),
+            )
             return
         calling = self._calling.get(uuid)
         if calling is None:
@@ -465,13 +509,14 @@ class ActionLink:
         stamp = {"sec": 0, "nanosec": 0}
         request: dict[str, object] = {"goal_info": {"goal_id": {"uuid": uuid}, "stamp": stamp}}
         payload = encode_message(registry, srvtype.request, request)
-        key = topic_keyexpr(
-            self.link.domain_id,
-            provider.action + CANCEL_SUFFIX,
-            "action_msgs::srv::dds_::CancelGoal_",
-            "*",
+        self._call(
+            provider,
+            goal_id,
+            "CancelGoal",
+            payload,
+            lambda ok, value: None,
+            self.link.call_timeout_s,
         )
-        self.link.query(key, payload, lambda ok, value: None, self.link.call_timeout_s)
 
     def close(self) -> None:
         """Withdraw everything; goals of remote callers end for them when this process goes."""

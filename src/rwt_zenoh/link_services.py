@@ -94,13 +94,18 @@ class RemoteService:
             return
         # the hash is matched by a wildcard: see the module text
         key = topic_keyexpr(self._link.domain_id, service, topic.dds_type, "*")
+        graph = self._link.graph
+        entry = graph.services.entries.get(service)
+        call = None if entry is None else entry.pending.get(request_id)
+        node = self._link.clients.caller_node(None if call is None else call.caller)
+        attachment = self._link.clients.attachment(node, service, topic.dds_type, topic.type_hash)
 
         def answer(ok: bool, value: object) -> None:
             if not ok:
                 value = f"service {service} failed: {value}"
             self._finish(request_id, ok, value)
 
-        self._link.query(key, payload, answer, self._link.call_timeout_s)
+        self._link.query(key, payload, answer, self._link.call_timeout_s, attachment)
 
     def _finish(self, request_id: str, ok: bool, value: object) -> None:
         if ok:

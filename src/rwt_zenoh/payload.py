@@ -8,16 +8,13 @@ a type added with ``--interfaces`` travels like a shipped one.
 
 from __future__ import annotations
 
-from collections import ChainMap
-from collections.abc import Iterator, Mapping
-from types import SimpleNamespace
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
 
 from rwt_graph.types import Dialect
-from rwt_graph.types.wire import wire_input
+from rwt_graph.types.hashes import rihs01
+from rwt_graph.types.wire import read_cdr, wire_input
 
 from .wire import WireError
 
@@ -109,7 +106,7 @@ def decode_message(registry: TypeRegistry, mtype: MessageType, data: bytes) -> d
     """
     _ros2(registry)
     try:
-        obj = registry.typestore().deserialize_cdr(wire_input(data), mtype.rosbags_name)
+        obj = read_cdr(registry.typestore(), wire_input(data), mtype.rosbags_name)
     except Exception as exc:  # rosbags raises assorted errors for malformed bytes
         raise WireError(f"{mtype.name}: not a CDR message of this type ({exc})") from None
     return mtype.from_python(obj)
@@ -187,34 +184,5 @@ def message_hash(registry: TypeRegistry, name: str) -> str:
 
 
 def _rihs01(registry: TypeRegistry, name: str, made_up: dict[str, Any]) -> str:
-    """The RIHS01 of ``name`` over the store plus ``made_up``, as rosidl reads types."""
-    definitions = _RosidlDefinitions(made_up, registry.typestore().fielddefs)
-    # hash_rihs01 reads nothing of its store but ``fielddefs``: a view stands in for it
-    view = cast("Typestore", SimpleNamespace(fielddefs=definitions))
-    return str(Typestore.hash_rihs01(view, name))
-
-
-class _RosidlDefinitions(Mapping[str, Any]):
-    """rosbags' field definitions with ``made_up`` ones first, ``char`` read as ``uint8``."""
-
-    def __init__(self, made_up: dict[str, Any], store: Mapping[str, Any]) -> None:
-        self._defs = ChainMap(made_up, store)  # type: ignore[arg-type]
-
-    def __getitem__(self, name: str) -> Any:
-        consts, fields = self._defs[name]
-        return consts, [(field, _uint8_chars(desc)) for field, desc in fields]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._defs)
-
-    def __len__(self) -> int:
-        return len(self._defs)
-
-
-def _uint8_chars(desc: Any) -> Any:
-    kind, rest = desc
-    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-        return kind, (_uint8_chars(rest[0]), rest[1])
-    if kind == Nodetype.BASE and rest[0] == "char":
-        return kind, ("uint8", rest[1])
-    return desc
+    """The RIHS01 of ``name`` over the store plus ``made_up`` (``rwt_graph.types.hashes``)."""
+    return rihs01(registry, name, made_up)

@@ -16,7 +16,12 @@ shows each form with an example; tests/zenoh/test_wire.py pins them.
   each name has its ``/`` replaced by ``%`` (so ``/`` alone becomes ``%``).
 - A QoS string: ``<reliability>:<durability>:<history>,<depth>:<deadline s>,<ns>:<lifespan
   s>,<ns>:<liveliness>,<lease s>,<ns>``, each field empty when it equals rmw_zenoh's default
-  (reliable, transient local, keep last 42, infinite durations, automatic liveliness).
+  (reliable, volatile, keep last 42, infinite durations, automatic liveliness).
+
+rmw_zenoh's default durability changed in March 2025 (rmw_zenoh 0.6 on Jazzy and later,
+backported to Humble): before, it was transient local, so an empty durability field meant
+transient local; since, it means volatile. ``RmwCompat`` picks which of the two a link
+writes and reads (docs/zenoh.md, "Which rmw_zenoh").
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import struct
 from dataclasses import dataclass, field, replace
 from enum import IntEnum, StrEnum
 
+from rwt_graph.link import DEFAULT_DEPTH, LATCHED_DEPTH
 from rwt_protocol.errors import RemoteProtocolError
 
 __all__ = [
@@ -32,6 +38,8 @@ __all__ = [
     "DEFAULT_QOS",
     "INFINITE",
     "LATCHED_QOS",
+    "PRE_2025_DEFAULT_QOS",
+    "SERVICES_QOS",
     "VOLATILE_QOS",
     "Attachment",
     "Durability",
@@ -41,6 +49,7 @@ __all__ = [
     "Liveliness",
     "QoS",
     "Reliability",
+    "RmwCompat",
     "WireError",
     "attachment_gid",
     "dds_type_name",
@@ -130,7 +139,7 @@ class QoS:
     """A QoS profile as rmw_zenoh encodes it in a token (durations as (s, ns))."""
 
     reliability: Reliability = Reliability.RELIABLE
-    durability: Durability = Durability.TRANSIENT_LOCAL
+    durability: Durability = Durability.VOLATILE
     history: History = History.KEEP_LAST
     depth: int = 42
     deadline: Duration = INFINITE
@@ -140,24 +149,50 @@ class QoS:
 
 
 DEFAULT_QOS = QoS()
-"""rmw_zenoh's defaults (qos.cpp): reliable, transient local, keep last 42, infinite durations."""
+"""rmw_zenoh's defaults (qos.cpp): reliable, volatile, keep last 42, infinite durations."""
 
-VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=10)
+PRE_2025_DEFAULT_QOS = QoS(durability=Durability.TRANSIENT_LOCAL)
+"""rmw_zenoh's defaults before March 2025: the same, but transient local."""
+
+
+class RmwCompat(StrEnum):
+    """Which rmw_zenoh's token defaults a link writes and reads (``--zenoh-rmw-compat``).
+
+    ``current``: rmw_zenoh since March 2025 (Jazzy, Kilted, Rolling, and Humble's
+    backport), whose empty durability field is volatile. ``pre-2025``: the releases
+    before it, whose empty field is transient local. Both sides of a link must agree:
+    otherwise a volatile topic looks latched to one of them and a latched one volatile.
+    """
+
+    CURRENT = "current"
+    PRE_2025 = "pre-2025"
+
+    @property
+    def defaults(self) -> QoS:
+        """The profile whose fields a token leaves empty."""
+        return DEFAULT_QOS if self is RmwCompat.CURRENT else PRE_2025_DEFAULT_QOS
+
+
+VOLATILE_QOS = QoS(durability=Durability.VOLATILE, depth=DEFAULT_DEPTH)
 """A plain topic's profile and an action's feedback's (``rmw_qos_profile_default``,
 rmw/qos_profiles.h): reliable, volatile, keep last 10."""
 
-LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=1)
+SERVICES_QOS = QoS(durability=Durability.VOLATILE, depth=DEFAULT_DEPTH)
+"""A service's, a client's and an action's services' profile (``rmw_qos_profile_services_default``,
+rmw/qos_profiles.h): reliable, volatile, keep last 10."""
+
+LATCHED_QOS = QoS(durability=Durability.TRANSIENT_LOCAL, depth=LATCHED_DEPTH)
 """A latched topic's profile and an action's status's
 (``rcl_action_qos_profile_status_default``): reliable, transient local, keep last 1."""
 
 
-def qos_to_keyexpr(qos: QoS) -> str:
+def qos_to_keyexpr(qos: QoS, defaults: QoS = DEFAULT_QOS) -> str:
     """Encode ``qos`` as rmw_zenoh's token field: defaults are left empty (``qos_to_keyexpr``)."""
 
     def part(value: int, default: int) -> str:
         return "" if value == default else str(int(value))
 
-    d = DEFAULT_QOS
+    d = defaults
     return ":".join(
         [
             part(qos.reliability, d.reliability),
@@ -176,8 +211,8 @@ def qos_to_keyexpr(qos: QoS) -> str:
     )
 
 
-def qos_from_keyexpr(text: str) -> QoS:
-    """Decode a token's QoS field (``keyexpr_to_qos``); empty fields take the defaults.
+def qos_from_keyexpr(text: str, defaults: QoS = DEFAULT_QOS) -> QoS:
+    """Decode a token's QoS field (``keyexpr_to_qos``); empty fields take ``defaults``.
 
     Raises:
         WireError: too few fields, or a value that is not a known policy or a number.
@@ -188,7 +223,7 @@ def qos_from_keyexpr(text: str) -> QoS:
     history, deadline, lifespan, liveliness = (p.split(",") for p in parts[2:6])
     if min(len(history), len(deadline), len(lifespan)) < 2 or len(liveliness) < 3:
         raise WireError(f"qos {text!r}: a field lacks its ',' parts")
-    d = DEFAULT_QOS
+    d = defaults
     try:
         return QoS(
             reliability=Reliability(_int(parts[0], d.reliability)),
@@ -285,6 +320,9 @@ class Entity:
         namespace: the node's namespace (``/`` for none).
         node: the node's name.
         topic: the topic, type and QoS, for every kind but a node.
+        compat: whose defaults the token's QoS field leaves empty.
+        received: the token as a peer declared it, for a parsed entity: its GID is
+            the hash of that text, whatever this side would write for it.
     """
 
     domain_id: int
@@ -296,6 +334,8 @@ class Entity:
     node: str
     enclave: str = "/"
     topic: Topic | None = None
+    compat: RmwCompat = field(default=RmwCompat.CURRENT, compare=False)
+    received: str | None = field(default=None, compare=False, repr=False)
 
     def token(self) -> str:
         """The liveliness key expression (``Entity::Entity``: empty parts end it)."""
@@ -316,21 +356,21 @@ class Entity:
                 mangle(t.name),
                 mangle(t.dds_type),
                 mangle(t.type_hash),
-                qos_to_keyexpr(t.qos),
+                qos_to_keyexpr(t.qos, self.compat.defaults),
             ]
         return "/".join(parts)
 
     def gid(self) -> bytes:
-        """The entity's 16-byte GID: ``gid_of`` its token.
+        """The entity's 16-byte GID: ``gid_of`` its token, as received when it was.
 
         Raises:
             ModuleNotFoundError: ``xxhash`` (the ``zenoh`` extra) is not installed.
         """
-        return gid_of(self.token())
+        return gid_of(self.received if self.received is not None else self.token())
 
     @classmethod
-    def parse(cls, token: str) -> Entity:
-        """Read a liveliness token (``Entity::make(keyexpr)``).
+    def parse(cls, token: str, compat: RmwCompat = RmwCompat.CURRENT) -> Entity:
+        """Read a liveliness token (``Entity::make(keyexpr)``); empty QoS fields per ``compat``.
 
         Raises:
             WireError: not under ``@ros2_lv``, an empty or unknown part, or a
@@ -352,7 +392,7 @@ class Entity:
                 demangle(parts[9]),
                 demangle(parts[10]),
                 demangle(parts[11]),
-                qos_from_keyexpr(parts[12]),
+                qos_from_keyexpr(parts[12], compat.defaults),
             )
         return cls(
             domain_id,
@@ -364,6 +404,8 @@ class Entity:
             demangle(parts[8]),
             enclave=demangle(parts[6]),
             topic=topic,
+            compat=compat,
+            received=token,
         )
 
     def with_topic(self, topic: Topic) -> Entity:

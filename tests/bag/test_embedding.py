@@ -181,3 +181,27 @@ async def test_recorder_splits_by_duration(tmp_path: Path) -> None:
     for path in recorder.paths:
         with AnyReader([path]) as reader:
             assert reader.duration < 0.2e9 + 1
+
+
+@pytest.mark.parametrize("fmt", ["mcap", "ros1"])
+async def test_each_split_part_repeats_the_latched_topics(tmp_path: Path, fmt: str) -> None:
+    """As ros2 bag record --repeat-transient-local: a part played alone has its /tf_static."""
+    ros1 = fmt == "ros1"
+    graph = rwt.Graph(TypeRegistry(Dialect.ROS1)) if ros1 else rwt.Graph()
+    static = graph.create_publisher("/static", "std_msgs/String", latch=True)
+    pub = graph.create_publisher("/big", "std_msgs/String")
+    path = tmp_path / ("part.bag" if ros1 else "part")
+    recorder = rwt.Recorder(
+        graph, path, fmt="ros1" if ros1 else "mcap", split=SplitPolicy(max_bytes=3000)
+    )
+    async with recorder:
+        static.publish({"data": "map"})
+        await anyio.sleep(0.05)
+        for i in range(10):
+            pub.publish({"data": f"{i:04d}" + "x" * 996})
+            await anyio.sleep(0.01)
+    assert len(recorder.paths) >= 3
+    for part in recorder.paths:
+        assert [m["data"] for m in read_bag(part)["/static"]] == ["map"], part
+    numbers = [int(m["data"][:4]) for p in recorder.paths for m in read_bag(p)["/big"]]
+    assert numbers == list(range(10))  # the other topics are not repeated

@@ -1,10 +1,11 @@
-"""B19's smoke form runs, and every message of the burst reaches the reading subscriber."""
+"""B19's smoke form runs, and every message of the burst reaches the reading subscriber,
+with and without a slow reader present (docs/limits.md, hold budget)."""
 
 from __future__ import annotations
 
 import warnings
 
-from benchmarks.burst import SMOKE_COUNT, run_burst
+from benchmarks.burst import SMOKE_COUNT, SMOKE_STREAM_FRAMES, run_burst, run_slow_reader
 
 
 def test_burst_smoke_delivers_every_message() -> None:
@@ -13,3 +14,12 @@ def test_burst_smoke_delivers_every_message() -> None:
         results = run_burst(SMOKE_COUNT)
     assert results["rwt"].delivered == results["rwt"].sent == SMOKE_COUNT
     assert results["bare"].delivered == SMOKE_COUNT
+
+
+def test_slow_reader_variant_smoke_costs_the_others_nothing() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        bursts, streams = run_slow_reader(SMOKE_COUNT, SMOKE_STREAM_FRAMES)
+    assert bursts["rwt"].delivered == SMOKE_COUNT  # the reading subscriber lost nothing
+    assert streams["rwt"].bystander == SMOKE_STREAM_FRAMES  # nor did the bystander
+    assert streams["rwt"].slow < SMOKE_STREAM_FRAMES  # the slow reader read at its pace

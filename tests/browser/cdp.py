@@ -53,6 +53,7 @@ class Browser:
             executable,
             "--headless=new",
             "--disable-gpu",
+            "--window-size=1280,900",  # a desktop's; the responsive test emulates others
             "--disable-dev-shm-usage",
             "--no-first-run",
             "--no-default-browser-check",
@@ -239,6 +240,31 @@ class Page:
             f" e.value = {json.dumps(value)};"
             " e.dispatchEvent(new Event('input', {bubbles: true})); })()"
         )
+
+    def key(self, kind: str, key: str, code: int) -> None:
+        """One key event (``keyDown`` or ``keyUp``) of ``key`` on the focused element."""
+        self.send(
+            "Input.dispatchKeyEvent",
+            type=kind,
+            key=key,
+            code=f"Key{key.upper()}" if len(key) == 1 else key,
+            windowsVirtualKeyCode=code,
+        )
+
+    def press(self, key: str, code: int) -> None:
+        """Press and release ``key`` (``Enter``, ``ArrowRight``...; ``code`` its key code)
+        on the focused element, through Chromium's input pipeline as a keyboard would."""
+        text = {"Enter": "\r", " ": " "}.get(key)
+        for kind in ("keyDown", "keyUp"):
+            params: dict[str, Any] = {
+                "type": kind,
+                "key": key,
+                "code": "Space" if key == " " else key,
+                "windowsVirtualKeyCode": code,
+            }
+            if kind == "keyDown" and text:
+                params["text"] = text
+            self.send("Input.dispatchKeyEvent", **params)
 
     def text(self, selector: str) -> str:
         """The text of the first element matching ``selector`` ('' when there is none)."""

@@ -81,16 +81,32 @@ class Robot:
             topic.advertise()
         self.command = roslibpy.Topic(self.ros, "/console_test/command", "std_msgs/msg/String")
         self.command.subscribe(lambda msg: print(json.dumps(msg), flush=True))
+        self.cmd_vel = roslibpy.Topic(self.ros, "/cmd_vel", "geometry_msgs/msg/Twist")
+        self.cmd_vel.subscribe(lambda msg: print(json.dumps({"cmd_vel": msg}), flush=True))
         self.service = roslibpy.Service(
             self.ros, "/console_test/add", "example_interfaces/srv/AddTwoInts"
         )
         self.service.advertise(self._add)
+        self.lights_on: list[bool] = []
+        self.lights = roslibpy.Service(self.ros, "/console_test/lights", "std_srvs/srv/SetBool")
+        self.lights.advertise(self._switch)
+        # the page publishes here; an out-of-range value is refused by the server
+        self.level = roslibpy.Topic(self.ros, "/console_test/level", "std_msgs/msg/Int8")
+        self.level.advertise()
+        self.rosout = roslibpy.Topic(self.ros, "/rosout", "rcl_interfaces/msg/Log")
+        self.rosout.advertise()
         self._thread = threading.Thread(target=self._publish, daemon=True)
         self._thread.start()
 
     @staticmethod
     def _add(request: dict[str, Any], response: dict[str, Any]) -> bool:
         response["sum"] = request["a"] + request["b"]
+        return True
+
+    def _switch(self, request: dict[str, Any], response: dict[str, Any]) -> bool:
+        self.lights_on.append(request["data"])
+        response["success"] = request["data"] is True
+        response["message"] = f"lights {'on' if request['data'] else 'off'}"
         return True
 
     def _publish(self) -> None:
@@ -104,6 +120,11 @@ class Robot:
                 self.camera.publish(roslibpy.Message(frame))
             self.noise.publish(roslibpy.Message(noise()))
             self.tf.publish(roslibpy.Message({"transforms": [transform("odom", "base_link", 0.1)]}))
+            if self.count % 5 == 0:
+                level, text = (30, "battery low") if self.count % 10 == 0 else (20, "tick")
+                stamp = {"sec": int(time.time()), "nanosec": 0}
+                line = {"stamp": stamp, "level": level, "name": "robot", "msg": text}
+                self.rosout.publish(roslibpy.Message(line))
             if self.count % 10 == 1:  # latched or not, the page sees it within a second
                 static = [transform("map", "odom", 1.0), transform("base_link", "camera", 0.2)]
                 self.tf_static.publish(roslibpy.Message({"transforms": static}))

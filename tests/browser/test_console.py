@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import time
 from collections.abc import Iterator
 
@@ -69,6 +70,16 @@ def test_echoes_a_topic(page: Page) -> None:
     assert '"hello' in text
     page.wait_for("/[1-9][0-9.]* Hz/.test(document.querySelector('#echo-stats').textContent)")
     row = TOPIC_ROW.format("/console_test/chatter")
+    details = page.wait_for(
+        "(t => /window [1-9]/.test(t) && t)(document.getElementById('echo-details').textContent)",
+        what="ros2 topic hz's figures",
+    )
+    # about 10 Hz: intervals near 0.1 s; the window's messages and their sizes
+    gaps = [float(x) for x in re.findall(r"(?:min|max) ([0-9.]+)s", details)]
+    assert len(gaps) == 2
+    assert 0.01 < gaps[0] <= gaps[1] < 2
+    assert "std dev" in details
+    assert re.search(r"mean [1-9][0-9]* B min [1-9][0-9]* B max [1-9][0-9]* B", details)
     rate = page.wait_for(f"Number(document.querySelector('{row} .hz').textContent)")
     assert rate > 1  # about 10 Hz, measured in the page
     assert page.text(f"{row} .bw").endswith("B/s")
@@ -139,6 +150,217 @@ def test_calls_a_service_provided_by_roslibpy(page: Page) -> None:
         "(t => t.includes('sum') && t)(document.querySelector('#service-result').textContent)"
     )
     assert "sum: 42" in text
+
+
+def test_calls_a_set_bool_service_with_a_checkbox(page: Page) -> None:
+    """rosapi names ROS 2's bool 'boolean': the form still offers a checkbox and sends true."""
+    page.click('#services li[data-name="/console_test/lights"]')
+    box = '#service-fields input[name="req.data"]'
+    page.wait_for(f"!!document.querySelector('{box}')", what="the SetBool form")
+    assert page.evaluate(f"document.querySelector('{box}').type") == "checkbox"
+    page.click(box)
+    page.click("#service-call")
+    text = page.wait_for(
+        "(t => t.includes('message') && t)(document.querySelector('#service-result').textContent)",
+        what="the SetBool response",
+    )
+    assert "lights on" in text
+    assert "success: true" in text
+
+
+def test_a_refused_publish_shows_the_server_error_beside_the_button(page: Page) -> None:
+    page.click(TOPIC_ROW.format("/console_test/level"))
+    field = '#publish-fields input[name="msg.data"]'
+    page.wait_for(f"!!document.querySelector('{field}')", what="the Int8 form")
+    page.fill(field, "1000")  # an int8 holds -128..127
+    page.click("#publish")
+    text = page.wait_for(
+        "(t => t.startsWith('refused') && t)"
+        "(document.getElementById('publish-result').textContent)",
+        what="the refusal beside Publish",
+    )
+    assert "1000" in text or "range" in text, text
+    assert page.evaluate("document.getElementById('publish-result').className") == "error"
+    page.fill(field, "100")
+    page.click("#publish")
+    page.wait_for(
+        "document.getElementById('publish-result').textContent.startsWith('published')",
+        what="a good publish after the refusal",
+    )
+
+
+def test_the_graph_is_chosen_with_the_keyboard_and_tabs_are_aria_tabs(page: Page) -> None:
+    item = '#services li[data-name="/console_test/add"]'
+    page.wait_for(f"!!document.querySelector('{item}')")
+    assert page.evaluate(f"document.querySelector('{item}').tabIndex") == 0
+    page.evaluate(f"document.querySelector('{item}').focus()")
+    page.press("Enter", 13)
+    page.wait_for(
+        "document.getElementById('service-name').textContent === '/console_test/add'"
+        " && !document.getElementById('tab-service').hidden",
+        what="the service chosen with Enter",
+    )
+    assert page.evaluate("document.getElementById('tabs').getAttribute('role')") == "tablist"
+    selected = page.evaluate(
+        "[...document.querySelectorAll('#tabs [role=tab][aria-selected=true]')]"
+        ".map(b => b.dataset.tab)"
+    )
+    assert selected == ["service"]
+    page.evaluate("document.querySelector('#tabs [aria-selected=true]').focus()")
+    page.press("ArrowRight", 39)
+    page.wait_for("!document.getElementById('tab-action').hidden", what="the next tab")
+    row = TOPIC_ROW.format("/console_test/chatter")
+    page.evaluate(f"document.querySelector('{row}').focus()")
+    page.press(" ", 32)
+    page.wait_for(
+        "document.getElementById('topic-name').textContent === '/console_test/chatter'",
+        what="the topic chosen with Space",
+    )
+
+
+def test_rows_are_updated_in_place_not_rebuilt(page: Page) -> None:
+    """A row pressed between two refreshes is the same row when released (no lost clicks)."""
+    row = TOPIC_ROW.format("/console_test/chatter")
+    page.evaluate(f"window.keptRow = document.querySelector('{row}')")
+    page.evaluate("window.keptItem = document.querySelector('#services li')")
+    time.sleep(4.5)  # two refreshes of the graph (every 2 s)
+    assert page.evaluate(f"window.keptRow === document.querySelector('{row}')")
+    assert page.evaluate("window.keptRow.isConnected && window.keptItem.isConnected")
+
+
+def test_one_column_at_800_px_and_names_wrap_only_after_a_slash(page: Page) -> None:
+    page.send(
+        "Emulation.setDeviceMetricsOverride",
+        width=800,
+        height=600,
+        deviceScaleFactor=1,
+        mobile=False,
+    )
+    try:
+        width = page.wait_for(
+            "(a => a.left === document.querySelector('main').getBoundingClientRect().left"
+            " && a.width)(document.querySelector('aside').getBoundingClientRect())",
+            what="the graph above the views, in one column",
+        )
+        assert width > 700  # the whole width, not a squeezed column
+        row = TOPIC_ROW.format("/console_test/chatter")
+        # a break opportunity after each '/', none inside a part
+        assert page.evaluate(f"document.querySelector('{row} td wbr') !== null")
+        assert page.evaluate(f"document.querySelectorAll('{row} td:first-child wbr').length") == 2
+        wrap = page.evaluate(f"getComputedStyle(document.querySelector('{row} td')).overflowWrap")
+        assert wrap == "break-word"
+        page.send(
+            "Emulation.setDeviceMetricsOverride",
+            width=1400,
+            height=900,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
+        page.wait_for(  # two columns on a wide window
+            "document.querySelector('aside').getBoundingClientRect().left"
+            " < document.querySelector('main').getBoundingClientRect().left",
+            what="two columns at 1400 px",
+        )
+    finally:
+        page.send("Emulation.clearDeviceMetricsOverride")
+
+
+def test_counts_are_not_asked_for_every_topic_at_every_refresh(page: Page) -> None:
+    """Publisher counts cost a call per topic: every 20 s, not every 2 s (docs/console.md)."""
+    topics = page.wait_for(
+        "(n => n >= 5 && n)(document.querySelectorAll('#topics tbody tr').length)",
+        what="the robot's topics",
+    )
+    page.evaluate(
+        "window.countCalls = 0; const send = WebSocket.prototype.send;"
+        " WebSocket.prototype.send = function (data) {"
+        " if (String(data).includes('/rosapi/publishers')) window.countCalls += 1;"
+        " return send.call(this, data); }"
+    )
+    time.sleep(5)  # two refreshes or more
+    calls = page.evaluate("window.countCalls")
+    page.evaluate("delete window.countCalls")
+    # two refreshes or more asking for every topic would be 2 * topics; now at most one
+    # round of all (every 20 s) and the selected topic's at each refresh
+    assert calls < 2 * topics
+
+
+def test_the_graph_filter_hides_what_does_not_match(page: Page) -> None:
+    visible_topics = (
+        "[...document.querySelectorAll('#topics tbody tr')].filter(r => !r.hidden)"
+        ".map(r => r.dataset.name)"
+    )
+    visible_services = (
+        "[...document.querySelectorAll('#services li')].filter(l => !l.hidden)"
+        ".map(l => l.dataset.name)"
+    )
+    page.fill("#graph-filter", "chatter")
+    assert page.evaluate(visible_topics) == ["/console_test/chatter"]
+    page.fill("#graph-filter", "/console_test/*")
+    shown = page.evaluate(visible_topics)
+    assert "/console_test/point" in shown
+    assert all(name.startswith("/console_test/") for name in shown)
+    services = page.evaluate(visible_services)
+    assert "/console_test/add" in services
+    assert "/rosapi/topics" not in services
+    page.fill("#graph-filter", "")
+    assert "/client_count" in page.evaluate(visible_topics)
+
+
+def test_the_log_tab_shows_rosout_with_a_level_filter_and_a_search(page: Page) -> None:
+    page.click('#tabs button[data-tab="log"]')
+    shown = "[...document.querySelectorAll('#rosout-log li')].filter(l => !l.hidden)"
+    page.wait_for(
+        f"{shown}.some(l => l.textContent.includes('[warn] robot: battery low'))"
+        f" && {shown}.some(l => l.textContent.includes('[info] robot: tick'))",
+        what="rosout lines at info and warn",
+    )
+    page.evaluate(
+        "(s => { s.value = 'warn'; s.dispatchEvent(new Event('input')); })"
+        "(document.getElementById('log-level'))"
+    )
+    levels = page.evaluate(f"[...new Set({shown}.map(l => l.dataset.level))]")
+    assert levels == ["warn"]
+    page.evaluate(
+        "(s => { s.value = 'info'; s.dispatchEvent(new Event('input')); })"
+        "(document.getElementById('log-level'))"
+    )
+    page.fill("#log-search", "battery")
+    texts = page.evaluate(f"{shown}.map(l => l.textContent)")
+    assert texts
+    assert all("battery low" in text for text in texts)
+    page.fill("#log-search", "")
+
+
+def test_teleop_sends_twists_while_a_key_is_held_and_a_stop_on_release(
+    page: Page, robot: RobotProcess
+) -> None:
+    page.click('#tabs button[data-tab="teleop"]')
+    page.evaluate("document.getElementById('teleop-pad').focus()")
+    page.key("keyDown", "w", 87)
+    time.sleep(0.5)  # held: about five Twists
+    page.key("keyUp", "w", 87)
+    twists = []
+    while True:
+        line = robot.next_command()
+        if "cmd_vel" not in line:
+            continue
+        twists.append(line["cmd_vel"])
+        if twists[-1]["linear"]["x"] == 0:
+            break
+    assert len(twists) >= 3  # repeated while held, then the stop
+    assert all(t["linear"]["x"] == 0.5 and t["angular"]["z"] == 0 for t in twists[:-1])
+    assert twists[-1]["linear"] == {"x": 0.0, "y": 0.0, "z": 0.0}
+    assert page.text("#teleop-state") == "stopped"
+    # the dead-man: a key held when the pad loses the focus stops too
+    page.evaluate("document.getElementById('teleop-pad').focus()")
+    page.key("keyDown", "d", 68)
+    page.evaluate("document.getElementById('teleop-topic').focus()")
+    while True:
+        line = robot.next_command()
+        if "cmd_vel" in line and line["cmd_vel"]["angular"]["z"] == 0:
+            break
+    assert page.text("#teleop-state") == "stopped"
 
 
 def test_shows_an_image_topic(page: Page) -> None:

@@ -8,7 +8,7 @@ import time
 import cbor2
 import pytest
 
-from rwt_conformance.frames import AUTH_VALIDITY_S, auth_op, decode_frame
+from rwt_conformance.frames import AUTH_VALIDITY_S, NESTING_PROBLEM, auth_op, decode_frame
 from rwt_protocol.auth import RosauthVerifier
 from rwt_protocol.ops import Auth
 
@@ -43,6 +43,13 @@ def test_other_tags_bytes_and_garbage() -> None:
     assert decode_frame(b"\xff\x00").value == b"\xff\x00"
     assert decode_frame("{nope").value == {"<not JSON>": "{nope"}
     assert decode_frame('{"op": "x"}').binary is False
+
+
+def test_hostile_json_from_a_server_is_shown_not_raised() -> None:
+    deep = "[" * 100_000 + "]" * 100_000  # past the interpreter's recursion limit
+    assert decode_frame(deep).problem == NESTING_PROBLEM  # the case fails with this reason
+    assert decode_frame('{"s": "\\ud800"}').problem is None  # read, and shown escaped
+    assert decode_frame("[NaN]").value != [0.0]  # Python servers' NaN is still read
 
 
 def test_auth_ops_carry_rosauth_macs() -> None:

@@ -228,3 +228,32 @@ def test_the_ros1_reference_profile_uses_no_ros2_only_feature() -> None:
         and (str(s.value.get("op")) in action_ops or "timeout" in s.value)
     ]
     assert used == []
+
+
+def test_each_recorded_defect_of_the_ros2_reference_cites_its_section() -> None:
+    """Steps expecting what rosbridge_suite 2.1.0 does against the spec cite REF §12 and
+    apply to the ROS 2 reference only; the case's title says so too."""
+    recorded = [case for case in SUITE.cases if case.defects(Profile.REFERENCE, Dialect.ROS2)]
+    assert len(recorded) == 7
+    for case in recorded:
+        assert re.search(r"REF §[\d., §]*12\.\d", case.title), case.id
+        for step in case.steps:
+            if step.defect is not None:
+                assert re.fullmatch(r"REF §12\.\d+", step.defect), case.id
+                assert (step.profile, step.dialect) == (Profile.REFERENCE, Dialect.ROS2), case.id
+                assert not step.unless_defect, case.id
+    for case in SUITE.cases:
+        for profile in Profile:
+            assert not case.defects(profile, Dialect.ROS1), case.id  # ROS 1: unchanged
+        if any(step.unless_defect for step in case.steps):
+            assert case in recorded, case.id
+
+
+def test_paced_sends_are_repeated_and_for_ros2_only() -> None:
+    """Pacing (``pace_s``) is for 2.1.0's 10-deep subscriptions (REF §12.8); ROS 1 bursts."""
+    paced = [(case.id, step) for case in SUITE.cases for step in case.steps if step.pace_s]
+    assert paced
+    for case_id, step in paced:
+        assert step.repeat > 1, case_id
+        assert step.dialect is Dialect.ROS2, case_id
+        assert 0 < step.pace_s <= 0.02, case_id

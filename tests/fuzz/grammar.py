@@ -204,6 +204,43 @@ HOSTILE: tuple[Gen, ...] = (
 )
 
 
+def _nested_text(rng: random.Random) -> str:
+    depth = rng.choice((101, 2000, 100_000))
+    return "[" * depth + "]" * depth
+
+
+# JSON texts of rosapi parameter values (``set_param`` ``value``, ``get_param``
+# ``default_value``): what roslibjs sends as ``JSON.stringify(value)``, and worse.
+PARAM_TEXTS: tuple[Gen, ...] = (
+    _const("1.5"),
+    _const('"fast"'),
+    _const("[1, 2, 3]"),
+    _const('"\\ud800"'),  # a lone surrogate, escaped as JSON writes it
+    _const('["ok", "\\udfff"]'),
+    _const('{"k": "\\ud83d"}'),
+    _nested_text,
+    _const(str(2**70)),  # past 64 bits
+    lambda rng: "9" * rng.choice((4301, 20_000)),  # past Python's 4300 digits
+    _const("NaN"),
+    _const("[Infinity, -Infinity]"),
+    _const("1e400"),
+    lambda rng: json.dumps("x" * rng.choice((10_000, 200_000))),  # giant string
+    _const(""),
+    _const("not json"),
+)
+PARAM_NAMES = ("/rosapi:fuzz", "/rosapi:fuzz_b", "/nowhere:p", "bad name")
+
+
+def param_op(rng: random.Random) -> dict[str, Any]:
+    """A rosapi ``set_param`` or ``get_param`` call whose JSON text is from ``PARAM_TEXTS``."""
+    name, text = rng.choice(PARAM_NAMES), rng.choice(PARAM_TEXTS)(rng)
+    if rng.random() < 0.6:
+        service, args = "/rosapi/set_param", {"name": name, "value": text}
+    else:
+        service, args = "/rosapi/get_param", {"name": name, "default_value": text}
+    return {"op": "call_service", "service": service, "args": args, "id": _id(rng)}
+
+
 def valid_op(rng: random.Random, name: str | None = None) -> dict[str, Any]:
     """A well-formed op ``name`` (random if None), with some of its optional fields."""
     name = name or rng.choice(OP_NAMES)
@@ -294,10 +331,12 @@ def raw_frames(rng: random.Random) -> tuple[bytes, bool]:
 
 
 def fuzz_frame(rng: random.Random, *, binary_ok: bool = True) -> tuple[bytes, bool]:
-    """One fuzzed frame (bytes, binary): valid, hostile JSON or CBOR op, or raw bytes."""
+    """One fuzzed frame (bytes, binary): valid, parameter, hostile JSON or CBOR op, or raw bytes."""
     kind = rng.random()
     if kind < 0.15:
         op = valid_op(rng)
+    elif kind < 0.25:
+        op = param_op(rng)
     elif kind < 0.85:
         op = hostile_op(rng)
     else:
@@ -308,3 +347,160 @@ def fuzz_frame(rng: random.Random, *, binary_ok: bool = True) -> tuple[bytes, bo
     if binary_ok and rng.random() < 0.2:
         return to_cbor(op), True
     return to_json(op), False
+
+
+# ---- the bag player's services (docs/record-replay.md) -----------------------
+
+PLAYER_SERVICES = ("/rwt/player/seek", "/rwt/player/pause", "/rwt/player/resume")
+PLAYER_TYPES = {
+    "/rwt/player/seek": "rwt_msgs/Seek",
+    "/rwt/player/pause": "std_srvs/Trigger",
+    "/rwt/player/resume": "std_srvs/Trigger",
+    "/rwt/player/get_status": "rwt_msgs/GetPlayerStatus",
+}
+SEEK_OFFSETS: tuple[Gen, ...] = (
+    lambda rng: rng.uniform(-1.0, 3.0),
+    _const(0.0),
+    _const(Raw("NaN")),
+    _const(Raw("Infinity")),
+    _const(Raw("-Infinity")),
+    _const(Raw("1e400")),
+    _const(-1e300),
+    _const(1e300),
+    _const(2**64),
+    _const("0.5"),
+    _const(None),
+    _const([0.5]),
+)
+
+
+def player_call(rng: random.Random) -> dict[str, Any]:
+    """A ``call_service`` of a player service: valid, or with a hostile offset or field."""
+    service = rng.choice((*PLAYER_SERVICES, "/rwt/player/get_status"))
+    args: Any = {}
+    if service == "/rwt/player/seek":
+        args = {"offset": rng.choice(SEEK_OFFSETS)(rng)}
+    op: dict[str, Any] = {"op": "call_service", "service": service, "args": args, "id": _id(rng)}
+    if rng.random() < 0.3:
+        op["type"] = PLAYER_TYPES[service]
+    if rng.random() < 0.2:
+        field = rng.choice(("args", "id", "service", "timeout"))
+        op[field] = hostile_value(rng)
+    return op
+
+
+# What a hostile server sends a client (the conformance runner's inputs): replies
+# shaped like the server ops of the spec with hostile fields, and raw frames
+# (deep, undecodable, not UTF-8, lone surrogates).
+SERVER_OPS = ("publish", "service_response", "status", "fragment", "action_result", "png")
+
+
+def server_op(rng: random.Random) -> dict[str, Any]:
+    """A server op (``SERVER_OPS``) with one to three fields made hostile."""
+    return hostile_op(rng, rng.choice(SERVER_OPS))
+
+
+def server_raw_frame(rng: random.Random) -> tuple[bytes, bool]:
+    """A raw frame no well-behaved server writes: (bytes, binary)."""
+    depth = rng.choice((101, 1000, 200_000))
+    choice = rng.randrange(8)
+    frames: list[tuple[bytes, bool]] = [
+        (b"[" * depth + b"]" * depth, False),  # deeper than any limit
+        (b'{"op":"publish","msg":' + b'{"a":' * depth + b"1" + b"}" * depth + b"}", False),
+        (b"\x81" * depth + b"\x00", True),  # CBOR arrays nested as deep
+        (b'{"op":"publish","topic":"/\xff\xfe","msg":{}}', False),  # text not UTF-8
+        (b'{"op":"status","level":"error","msg":"\\ud800"}', False),  # a lone surrogate
+        (b"NaN", False),
+        (bytes(rng.randrange(256) for _ in range(rng.randrange(1, 64))), True),
+        (b'{"op":"fragment","id":"x","num":' + b"9" * 5000 + b',"data":"{","total":2}', False),
+    ]
+    return frames[choice]
+
+
+def server_frames(rng: random.Random) -> list[tuple[bytes, bool]]:
+    """A burst a hostile server answers with: server ops (JSON or CBOR) and raw frames."""
+    burst: list[tuple[bytes, bool]] = []
+    for _ in range(rng.randint(1, 5)):
+        if rng.random() < 0.4:
+            burst.append(server_raw_frame(rng))
+        else:
+            op = server_op(rng)
+            burst.append((to_cbor(op), True) if rng.random() < 0.2 else (to_json(op), False))
+    return burst
+
+
+# ---- Zenoh peers ------------------------------------------------------------------
+# What a hostile peer on the Zenoh network sends a linked graph: liveliness tokens
+# (rmw_zenoh's ``@ros2_lv/...`` keys, wire.Entity) with odd parts, and samples with
+# garbage payloads and attachments (docs/limits.md, "Zenoh peers").
+
+ZENOH_KINDS = ("NN", "MP", "MS", "SS", "SC", "XX", "")
+ZENOH_TOPICS = ("/fuzz", "/chatter", "/rosapi/topics", "/client_count", "/connected_clients")
+STRING_DDS = "std_msgs::msg::dds_::String_"
+_ODD_PARTS: tuple[Gen, ...] = (
+    _const(""),
+    _const("%"),
+    _const("%%%"),
+    _const("*"),
+    _const("**"),
+    _const("$*"),
+    _const("é" * 3),
+    _const("\ud800"),  # a lone surrogate: Zenoh cannot carry it, the link must not see it
+    _const("\x00"),
+    lambda rng: str(rng.choice((10**40, -1, 2**63, -(2**63) - 1))),
+    lambda rng: "a" * rng.choice((256, 5000)),
+    lambda rng: rng.choice(BAD_ROS_NAMES).replace("/", "%"),
+    lambda rng: ":".join(str(rng.randint(-5, 10**20)) for _ in range(rng.randint(0, 12))),
+)
+
+
+def zenoh_token(rng: random.Random, zid: str, n: int) -> str:
+    """A liveliness token of entity ``n`` of session ``zid``: valid, or with odd parts."""
+    kind = rng.choice(ZENOH_KINDS[:4])
+    topic = rng.choice(ZENOH_TOPICS).replace("/", "%")
+    parts = ["@ros2_lv", "0", zid, "1", str(n), kind, "%", "%", "fuzz_node"]
+    if kind != "NN":
+        parts += [topic, STRING_DDS, "RIHS01_" + "0" * 64, "::,10:,:,:,,"]
+    if rng.random() < 0.7:
+        for _ in range(rng.randint(1, 3)):
+            parts[rng.randrange(1, len(parts))] = rng.choice(_ODD_PARTS)(rng)
+    if rng.random() < 0.1:
+        parts = parts[: rng.randrange(1, len(parts))]  # cut short
+    if rng.random() < 0.1:
+        parts.append(rng.choice(_ODD_PARTS)(rng))  # one part too many
+    return "/".join(parts)
+
+
+def _cdr_string(text: bytes) -> bytes:
+    # CDR little-endian encapsulation, then a String's length (with its NUL) and bytes
+    return b"\x00\x01\x00\x00" + (len(text) + 1).to_bytes(4, "little") + text + b"\x00"
+
+
+_PAYLOADS: tuple[Gen, ...] = (
+    lambda rng: _cdr_string(b"fuzz"),
+    _const(b""),
+    _const(b"\x00\x01\x00\x00"),
+    _const(b"\x00\x01\x00\x00\xff\xff\xff\xff"),  # a length of 4 GiB
+    _const(b"\x00\x00\x00\x00\x05\x00\x00\x00abcd\x00"),  # big-endian header
+    _const(b"\x00\x01\x00\x00\x05\x00\x00\x00\xff\xfe\xfd\xfc\x00"),  # not UTF-8
+    lambda rng: _cdr_string(b"x" * rng.randint(0, 200))[: rng.randint(0, 60)],  # truncated
+    lambda rng: rng.randbytes(rng.randint(1, 300)),
+    lambda rng: _cdr_string(b"tail") + rng.randbytes(rng.randint(1, 16)),
+)
+_ATTACHMENTS: tuple[Gen, ...] = (
+    _const(None),
+    _const(b""),
+    lambda rng: rng.randbytes(rng.randint(1, 64)),
+    lambda rng: (
+        rng.randint(0, 2**63 - 1).to_bytes(8, "little")
+        + rng.randint(0, 2**63 - 1).to_bytes(8, "little")
+        + bytes([rng.choice((16, 0, 255))])
+        + rng.randbytes(16)
+    ),
+)
+
+
+def zenoh_sample(rng: random.Random) -> tuple[str, bytes, bytes | None]:
+    """A sample a peer puts: (topic, CDR payload or garbage, attachment or garbage)."""
+    topic = rng.choice(("/fuzz", "/chatter"))
+    return topic, rng.choice(_PAYLOADS)(rng), rng.choice(_ATTACHMENTS)(rng)

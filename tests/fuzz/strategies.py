@@ -1,8 +1,9 @@
 """Hypothesis strategies for rosbridge ops and hostile frames, built on ``grammar``.
 
 ``valid_ops`` draws each op of the spec with valid shapes; ``hostile_ops`` the
-same with fields replaced by hostile values; ``frames`` mixes those (JSON or
-CBOR) with raw hostile frames. The op name is drawn by hypothesis (it shrinks
+same with fields replaced by hostile values; ``param_ops`` rosapi parameter calls
+with hostile JSON texts; ``frames`` mixes those (JSON or CBOR) with raw hostile
+frames. The op name is drawn by hypothesis (it shrinks
 to the simplest op); the rest from a hypothesis-seeded ``random.Random``.
 """
 
@@ -34,6 +35,12 @@ def hostile_ops(draw: st.DrawFn) -> dict[str, Any]:
 
 
 @st.composite
+def param_ops(draw: st.DrawFn) -> dict[str, Any]:
+    """A rosapi parameter call carrying a (often hostile) JSON text."""
+    return grammar.param_op(draw(seeded))
+
+
+@st.composite
 def raw_frames(draw: st.DrawFn) -> tuple[bytes, bool]:
     """A raw hostile frame: (bytes, binary)."""
     return grammar.raw_frames(draw(seeded))
@@ -48,7 +55,7 @@ def frames(
     binary_ok: bool = True, max_bytes: int | None = None
 ) -> st.SearchStrategy[tuple[bytes, bool]]:
     """One fuzzed frame (bytes, binary); ``max_bytes`` cuts it to fit a datagram."""
-    ops = st.one_of(valid_ops(), hostile_ops())
+    ops = st.one_of(valid_ops(), hostile_ops(), param_ops())
     as_binary = st.booleans() if binary_ok else st.just(False)
     strategy = st.one_of(st.builds(encoded, ops, as_binary), raw_frames())
     if not binary_ok:
@@ -66,6 +73,35 @@ def sequences(
     return st.lists(frames(binary_ok, max_bytes), min_size=1, max_size=6)
 
 
+@st.composite
+def player_calls(draw: st.DrawFn) -> tuple[bytes, bool]:
+    """A call of a bag player's service, valid or hostile, as a JSON or CBOR frame."""
+    rng, binary = draw(seeded), draw(st.booleans())
+    return encoded(grammar.player_call(rng), binary)
+
+
 def rng_for(seed: int) -> random.Random:
     """A seeded generator for the benchmark's grammar-driven frames."""
     return random.Random(seed)
+
+
+@st.composite
+def zenoh_peer_actions(draw: st.DrawFn) -> list[tuple[str, Any]]:
+    """What a hostile Zenoh peer does, in order: ``("token", key)`` declares a
+    liveliness token (``grammar.zenoh_token``, under a zid of its choosing: a peer
+    may claim any), ``("untoken", key)`` withdraws one, ``("sample", (topic,
+    payload, attachment))`` puts a sample (``grammar.zenoh_sample``)."""
+    rng = draw(seeded)
+    zid = rng.randbytes(16).hex()
+    actions: list[tuple[str, Any]] = []
+    declared: list[str] = []
+    for n in range(draw(st.integers(1, 12))):
+        roll = rng.random()
+        if roll < 0.4:
+            declared.append(grammar.zenoh_token(rng, zid, n + 2))
+            actions.append(("token", declared[-1]))
+        elif roll < 0.5 and declared:
+            actions.append(("untoken", declared.pop(rng.randrange(len(declared)))))
+        else:
+            actions.append(("sample", grammar.zenoh_sample(rng)))
+    return actions

@@ -66,6 +66,8 @@ def test_read_only_parameters_refuse_set_and_delete() -> None:
         ([True, 1], "must have one type"),
         ([[1]], "not list"),
         (2**63, "does not fit in int64"),
+        ("\ud800", "not valid Unicode"),
+        (["ok", "\udfff"], "not valid Unicode"),
     ],
 )
 def test_values_ros2_cannot_hold_are_refused(value: object, problem: str) -> None:
@@ -177,7 +179,13 @@ def test_ros1_setting_under_a_value_makes_it_a_namespace() -> None:
 
 @pytest.mark.parametrize(
     ("value", "problem"),
-    [(None, "cannot be NoneType"), (2**31, "int32"), ({"a/b": 1}, "namespace keys")],
+    [
+        (None, "cannot be NoneType"),
+        (2**31, "int32"),
+        ({"a/b": 1}, "namespace keys"),
+        ({"a": ["\ud800"]}, "not valid Unicode"),
+        ({"\ud800": 1}, "not valid Unicode"),
+    ],
 )
 def test_ros1_refuses_what_xmlrpc_cannot_carry(value: object, problem: str) -> None:
     with pytest.raises(ParameterError, match=problem):

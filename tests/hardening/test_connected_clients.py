@@ -8,12 +8,14 @@ right, while every other client is still served.
 
 from __future__ import annotations
 
+import contextlib
 import json
 
 import anyio
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
 
+from rwt_protocol.framing import InFrame, JsonStreamFramer
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 pytestmark = pytest.mark.anyio
@@ -80,4 +82,62 @@ async def test_churn_publishes_the_client_list_at_most_once_per_interval() -> No
                     assert len(latest["msg"]["clients"]) in (expected, expected + 1)  # + late
                 for tcp in kept:
                     await tcp.aclose()
+        tg.cancel_scope.cancel()
+
+
+SUBSCRIBERS = 60  # TCP connections subscribed to /connected_clients
+FANOUT_PER_S = 3600.0  # entries a second: 60 x 60 entries per list, so one list a second
+FAST_INTERVAL_S = 0.05  # the interval alone would allow 20 lists a second
+
+
+async def test_many_subscribers_get_a_list_as_often_as_the_fanout_allows_and_the_last_right() -> (
+    None
+):
+    """A list goes to every subscriber, so its cost is clients x subscribers entries:
+    ``clients_fanout_per_s`` stretches the interval to keep that rate, and every
+    subscriber still ends with the final list."""
+    config = ServerConfig(
+        port=0,
+        tcp_port=0,
+        clients_interval_s=FAST_INTERVAL_S,
+        clients_fanout_per_s=FANOUT_PER_S,
+    )
+    server = RosbridgeServer(config=config)
+    lists: list[list[int]] = [[] for _ in range(SUBSCRIBERS)]  # list lengths, per subscriber
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        tcp_port = int(server.urls["tcp"].rsplit(":", 1)[1])
+        with anyio.fail_after(120):
+            subscribers = [await anyio.connect_tcp("127.0.0.1", tcp_port) for _ in lists]
+
+            async def read(index: int) -> None:
+                framer = JsonStreamFramer(1 << 24)
+                with contextlib.suppress(anyio.ClosedResourceError):  # closed at the end
+                    async for chunk in subscribers[index]:
+                        for event in framer.receive_data(chunk):
+                            assert isinstance(event, InFrame)
+                            message = json.loads(event.data)
+                            if message.get("topic") == "/connected_clients":
+                                lists[index].append(len(message["msg"]["clients"]))
+
+            for index, stream in enumerate(subscribers):
+                tg.start_soon(read, index)
+                await stream.send(
+                    json.dumps({"op": "subscribe", "topic": "/connected_clients"}).encode()
+                )
+            while any(not got or got[-1] != SUBSCRIBERS for got in lists):
+                await anyio.sleep(0.05)
+            before = [len(got) for got in lists]
+            started = anyio.current_time()
+            for i in range(CHURN):
+                await tcp_round_trip(tcp_port, f"churn-{i}")
+            while any(got[-1] != SUBSCRIBERS for got in lists):  # the final list, everywhere
+                await anyio.sleep(0.05)
+            elapsed = anyio.current_time() - started
+            # every list has at least SUBSCRIBERS entries and goes to SUBSCRIBERS
+            interval = SUBSCRIBERS * SUBSCRIBERS / FANOUT_PER_S
+            most = max(len(got) - n for got, n in zip(lists, before, strict=True))
+            assert most <= elapsed / interval + 2, (most, elapsed)
+            for stream in subscribers:
+                await stream.aclose()
         tg.cancel_scope.cancel()

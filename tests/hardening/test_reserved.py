@@ -15,6 +15,7 @@ import anyio
 import pytest
 
 from rwt_graph.graph import Graph
+from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import AccessPolicy
 from rwt_protocol.session import SessionConfig
 from rwt_transports.server import ServerConfig
@@ -110,6 +111,50 @@ async def test_a_reserved_name_cannot_be_taken(
         await attacker.aclose()
     with anyio.fail_after(TIMEOUT_S):
         assert "/client_count" in await rosapi_topics(other, "gone")  # still there
+
+
+#: rosapi services only the other dialect has, and a service type this dialect knows.
+OTHER_DIALECT = {
+    Dialect.ROS1: (
+        [
+            "/rosapi/get_ros_version",
+            "/rosapi/interfaces",
+            "/rosapi/action_type",
+            "/rosapi/action_goal_details",
+            "/rosapi/action_result_details",
+            "/rosapi/action_feedback_details",
+        ],
+        "std_srvs/Trigger",
+    ),
+    Dialect.ROS2: (["/rosapi/search_param", "/rosapi/service_host"], "std_srvs/srv/Trigger"),
+}
+
+
+@pytest.mark.parametrize("dialect", [Dialect.ROS1, Dialect.ROS2])
+@pytest.mark.parametrize("transport", TRANSPORTS)
+async def test_rosapi_names_of_the_other_dialect_are_reserved(
+    transport: str, dialect: Dialect
+) -> None:
+    names, type_name = OTHER_DIALECT[dialect]
+    with anyio.fail_after(TIMEOUT_S):
+        async with running_server(graph=Graph(TypeRegistry(dialect))) as harness:
+            attacker = await harness.connect(transport, "attacker")
+            other = await harness.connect("memory", "other")
+            for name in names:
+                await attacker.send(
+                    {"op": "advertise_service", "service": name, "type": type_name, "id": name}
+                )
+                status = await attacker.expect(is_op("status", id=name))
+                assert status["level"] == "error"
+                assert (
+                    status["msg"] == f"advertise_service: service {name} is reserved by the server"
+                )
+            # no forged answer: the call finds no provider
+            await other.send({"op": "call_service", "service": names[0], "id": "forged?"})
+            reply = await other.expect(is_op("service_response", id="forged?"))
+            assert reply["result"] is False, reply
+            await other.send({"op": "call_service", "service": "/rosapi/nodes", "id": "n"})
+            assert (await other.expect(is_op("service_response", id="n")))["result"] is True
 
 
 async def test_a_client_service_can_still_be_replaced_by_another_client(harness: Harness) -> None:

@@ -24,14 +24,30 @@ from rwt_graph.graph import Graph
 from rwt_protocol.ops import Auth
 from rwt_transports.server import ServerConfig
 from rwt_transports.udp import UdpOptions
-from rwt_transports.udp_validation import AMPLIFICATION, CHALLENGE_BUDGET_BYTES, CHALLENGE_TEXT
-from tests.transports.clients import Harness, UdpClient, running_server, validate_udp
+from rwt_transports.udp_validation import (
+    AMPLIFICATION,
+    CHALLENGE_BUDGET_BYTES,
+    CHALLENGE_TEXT,
+    SESSION_CHALLENGE_TEXT,
+    AddressValidator,
+)
+from tests.transports.clients import Harness, Message, UdpClient, running_server, validate_udp
 from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
 
 TIMEOUT_S = 10
 SUBSCRIBE = b'{"op":"subscribe","topic":"/camera","type":"std_msgs/String"}'
+AUTH = {
+    "op": "auth",
+    "mac": "secret",
+    "client": "c",
+    "dest": "d",
+    "rand": "r",
+    "t": 0,
+    "level": "admin",
+    "end": 0,
+}
 needs_root = pytest.mark.skipif(os.geteuid() != 0, reason="forging a source port needs root")
 
 
@@ -126,18 +142,7 @@ async def test_a_forged_source_cannot_act_inside_an_authenticated_session() -> N
         listener = await harness.connect("ws", "listener")
         with anyio.fail_after(TIMEOUT_S):
             for client in (victim, listener):
-                await client.send(
-                    {
-                        "op": "auth",
-                        "mac": "secret",
-                        "client": "c",
-                        "dest": "d",
-                        "rand": "r",
-                        "t": 0,
-                        "level": "admin",
-                        "end": 0,
-                    }
-                )
+                await client.send(AUTH)
             await listener.send({"op": "subscribe", "topic": "/cmd", "type": "std_msgs/String"})
             await listener.send({"op": "set_level", "level": "info", "id": "ready"})
             await listener.expect(is_op("status", id="ready"))
@@ -193,7 +198,7 @@ async def test_a_validated_client_keeps_its_token_for_the_session(harness: Harne
             assert udp_sessions(harness) == 1
             bare = b'{"op":"set_level","level":"info","id":"bare"}'
             await sock.send(bare)  # no token: not served, only challenged
-            assert json.loads(await sock.receive())["msg"] == CHALLENGE_TEXT
+            assert json.loads(await sock.receive())["msg"] == SESSION_CHALLENGE_TEXT
             await sock.send(prefix + b'{"op":"set_level","level":"info","id":"two"}')
             assert json.loads(await sock.receive())["id"] == "two"
 
@@ -251,3 +256,65 @@ async def test_a_client_restarted_on_the_same_port_validates_again(harness: Harn
                 )
                 assert json.loads(await sock.receive())["id"] == run
     assert udp_sessions(harness) == 1  # the old session was replaced, not kept
+
+
+def follow_challenge(client: UdpClient, challenge: Message) -> None:
+    """Do what docs/limits.md tells a client that holds a token to do with a challenge.
+
+    A plain one (its session is gone) gives the new token, which it takes; one
+    saying the address has a session is ignored.
+    """
+    if challenge["msg"] == CHALLENGE_TEXT:
+        client.prefix = challenge["id"].encode() + b"\n"
+
+
+def is_challenge(message: Message) -> bool:
+    return message.get("msg") in (CHALLENGE_TEXT, SESSION_CHALLENGE_TEXT)
+
+
+@needs_root
+async def test_a_forged_datagram_after_the_token_epoch_costs_the_session_nothing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Once the 30 s epoch rolled, the challenge a forged datagram drew carried a new
+    # token; the victim, taking it as the docs said, lost its session, its
+    # subscription and its authentication to a fresh one.
+    epoch = [0]
+    monkeypatch.setattr(AddressValidator, "_epoch", lambda self: epoch[0])
+
+    def admit(op: Auth, peer: str) -> bool:
+        return op.mac == "secret"
+
+    graph = Graph()
+    async with (
+        running_server(ServerConfig(), graph=graph, authenticator=admit) as harness,
+        anyio.create_task_group() as tg,
+    ):
+        victim = await harness.connect("udp", "victim")
+        assert isinstance(victim, UdpClient)
+        listener = await harness.connect("ws", "listener")
+        with anyio.fail_after(TIMEOUT_S):
+            for client in (victim, listener):
+                await client.send(AUTH)
+            await listener.send({"op": "subscribe", "topic": "/cmd", "type": "std_msgs/String"})
+            await listener.send({"op": "set_level", "level": "info", "id": "ready"})
+            await listener.expect(is_op("status", id="ready"))
+            await victim.send(json.loads(SUBSCRIBE))
+            await victim.send({"op": "advertise", "topic": "/cmd", "type": "std_msgs/String"})
+            await victim.send({"op": "set_level", "level": "info", "id": "set"})
+            await victim.expect(is_op("status", id="set"))
+            server_port = harness.port("udp")
+            await forging_works(server_port)
+            epoch[0] += 1  # the token epoch rolls: a challenge now carries a new token
+            victim_port = victim.sock.extra(SocketAttribute.local_port)
+            forge(victim_port, server_port, SUBSCRIBE)
+            follow_challenge(victim, await victim.expect(is_challenge))
+            tg.start_soon(camera, graph)
+            await victim.expect(is_op("publish", topic="/camera"))  # still subscribed
+            await victim.send({"op": "publish", "topic": "/cmd", "msg": {"data": "still me"}})
+            await victim.send({"op": "set_level", "level": "info", "id": "alive"})
+            assert (await victim.expect(is_op("status", id="alive")))["level"] == "info"
+            message = await listener.expect(is_op("publish", topic="/cmd"))
+            assert message["msg"] == {"data": "still me"}  # still authenticated
+        assert udp_sessions(harness) == 1
+        tg.cancel_scope.cancel()

@@ -71,7 +71,7 @@ def test_set_param_creates_a_parameter_on_an_existing_node(robot: Graph, web: Pe
         ("/ghost:p", "1", "node /ghost does not exist"),
         ("/robot:max_speed", '"fast"', "parameter /robot:max_speed has type double, not string"),
         ("/robot:model", '"hare"', "parameter /robot:model is read-only"),
-        ("/robot:max_speed", "fast", "value must be JSON text, got 'fast'"),
+        ("/robot:max_speed", "fast", "set_param value: invalid JSON: Expecting value"),
         ("/robot:new", '{"a": 1}', "/robot:new: a ROS 2 parameter is a bool, int, float, str"),
         ("max_speed", "1", "parameter name 'max_speed': expected <node>:<parameter>"),
     ],

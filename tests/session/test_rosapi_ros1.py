@@ -95,7 +95,10 @@ def test_get_param_default_field_and_missing_values(web: Peer) -> None:
 
 @pytest.mark.parametrize(
     ("value", "reason"),
-    [("not json", "value must be JSON text"), ("null", "a ROS 1 parameter cannot be NoneType")],
+    [
+        ("not json", "set_param value: invalid JSON"),
+        ("null", "a ROS 1 parameter cannot be NoneType"),
+    ],
 )
 def test_refused_set_param_fails_the_call(ros1: Graph, web: Peer, value: str, reason: str) -> None:
     reply = call_raw(web, "/rosapi/set_param", name="/p", value=value)

@@ -284,3 +284,25 @@ def test_a_validated_local_publish_sends_what_the_checked_one_sends(graph: Graph
     checked, trusted = (frame.data for frame in subscriber.session.frames_to_send())
     assert trusted == checked
     assert json.loads(checked)["msg"]["pose"]["position"] == {"x": 1.0, "y": -2.5, "z": 0.0}
+
+
+def test_a_type_a_link_cannot_carry_gets_a_warning_and_the_op_stands(graph: Graph) -> None:
+    graph.type_checks.append(
+        lambda name: None if name == "std_msgs/msg/String" else f"no package for {name}"
+    )
+    a, b = Peer(graph, "a"), Peer(graph, "b")
+    a.send(op="set_level", level="warning")
+    a.send(op="advertise", topic="/ok", type="std_msgs/String", id="a0")
+    a.send(op="advertise", topic="/n", type="std_msgs/Int32", id="a1")
+    a.send(op="subscribe", topic="/m", type="std_msgs/Float64", id="s1")
+    a.send(op="advertise_service", service="/srv", type="std_srvs/SetBool")
+    a.send(op="advertise_action", action="/fib", type="example_interfaces/action/Fibonacci")
+    texts = [(s["level"], s.get("id"), s["msg"]) for s in a.statuses()]
+    assert texts == [
+        ("warning", "a1", "advertise: no package for std_msgs/msg/Int32"),
+        ("warning", "s1", "subscribe: no package for std_msgs/msg/Float64"),
+        ("warning", None, "advertise_service: no package for std_srvs/srv/SetBool"),
+        ("warning", None, "advertise_action: no package for example_interfaces/action/Fibonacci"),
+    ]
+    b.send(op="publish", topic="/n", msg={"data": 1})  # the topic stands in the graph
+    assert b.statuses() == []

@@ -21,7 +21,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from rwt_transports.memory import MemoryConnection
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from rwt_transports.udp_validation import CHALLENGE_TEXT, MIN_PROBE_BYTES
+from rwt_transports.udp_validation import CHALLENGE_TEXT, MIN_PROBE_BYTES, SESSION_CHALLENGE_TEXT
 
 Message = dict[str, Any]
 TRANSPORTS = ("memory", "ws", "tcp", "udp", "stdio")
@@ -135,6 +135,9 @@ class StreamClient(Client):
 async def validate_udp(sock: Any) -> bytes:
     """The UDP address validation (docs/limits.md): a padded probe, then the token.
 
+    A client without a token takes either challenge (a session its address still
+    has, from a run before, is replaced).
+
     Returns:
         The prefix of every later datagram: the token and a newline.
     """
@@ -143,7 +146,7 @@ async def validate_udp(sock: Any) -> bytes:
         with anyio.move_on_after(1.0):
             while True:
                 reply = json.loads(await sock.receive())
-                if reply.get("msg") == CHALLENGE_TEXT:
+                if reply.get("msg") in (CHALLENGE_TEXT, SESSION_CHALLENGE_TEXT):
                     return reply["id"].encode() + b"\n"  # type: ignore[no-any-return]
 
 

@@ -414,8 +414,9 @@ class Ros2ActionServer:
 
 
 async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> None:
-    """rwt as a ROS 2 action client: goal, feedback, result and cancel, each call
-    carrying the process's client GID and its own sequence number."""
+    """rwt as a ROS 2 action client: goal, feedback, result and cancel, each service
+    called through a client entity of its own, as rcl_action's client has three:
+    a token the network sees, a GID, and sequence numbers from 1."""
     first = endpoint()
     graph = Graph()
     wire = ActionWire(graph.registry, graph.registry.action(FIBONACCI))
@@ -423,7 +424,7 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
     with bare_session(listen=first) as session:
         server = Ros2ActionServer(session, wire)
         try:
-            async with open_link(graph, peer(connect=(first,))) as link:
+            async with open_link(graph, peer(connect=(first,))):
                 await until(lambda: "/fib" in action_servers(graph, EVERYTHING), "the action")
                 outcome = await send_action_goal(
                     graph, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
@@ -440,6 +441,11 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
                 await until(lambda: len(server.asked) >= 4, "the second goal's result request")
                 handle.request_cancel()
                 await until(lambda: bool(done), "the canceled goal's end")
+                clients = {
+                    e.topic.name: e.gid()
+                    for e in await tokens_of(session)
+                    if e.kind is EntityKind.CLIENT and e.topic is not None
+                }
         finally:
             server.close()
     assert outcome.status is GoalStatus.SUCCEEDED
@@ -451,10 +457,14 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
     assert done[0][:2] == (GoalStatus.CANCELED, True)
     called = [name for name, _ in server.asked]
     assert called == ["send_goal", "get_result", "send_goal", "get_result", "cancel_goal"]
-    attachments = [attachment for _, attachment in server.asked]
-    assert {a.source_gid for a in attachments} == {link.caller_gid}
-    numbers = [a.sequence_number for a in attachments]
-    assert numbers == sorted(set(numbers))  # a request is refused if one repeats
+    by_service: dict[str, list[Attachment]] = {}
+    for name, attachment in server.asked:
+        by_service.setdefault(name, []).append(attachment)
+    for name, asked in by_service.items():
+        # one GID per service, the client token's; numbered from 1 (a repeat is refused)
+        assert {a.source_gid for a in asked} == {clients[f"/fib/_action/{name}"]}
+        assert [a.sequence_number for a in asked] == list(range(1, len(asked) + 1))
+    assert len({asked[0].source_gid for asked in by_service.values()}) == 3
 
 
 async def test_a_ros2_client_reads_a_node_parameter_and_gets_its_sequence_number_back() -> None:
@@ -501,21 +511,23 @@ async def test_calls_to_a_ros2_service_carry_each_process_own_client_gid() -> No
         queryable = session.declare_queryable(ADD_KEY, serve, complete=True)
         token = session.liveliness().declare_token(entity.token())
         async with (
-            open_link(a, peer(connect=(first,))) as link_a,
-            open_link(b, peer(connect=(first,))) as link_b,
+            open_link(a, peer(connect=(first,))),
+            open_link(b, peer(connect=(first,))),
         ):
             await until(lambda: "/add" in services(a, EVERYTHING), "A sees the service")
             await until(lambda: "/add" in services(b, EVERYTHING), "B sees the service")
             assert await call_service(a, "/add", {"a": 1, "b": 2}) == {"sum": 3}
             assert await call_service(a, "/add", {"a": 3, "b": 4}) == {"sum": 7}
             assert await call_service(b, "/add", {"a": 5, "b": 6}) == {"sum": 11}
-            gids = [link_a.caller_gid, link_a.caller_gid, link_b.caller_gid]
+            # each process's caller is a client entity of /add, its token on the network
+            clients = [e for e in await tokens_of(session) if e.kind is EntityKind.CLIENT]
         token.undeclare()
         queryable.undeclare()
-    assert [request.source_gid for request in asked] == gids
-    assert link_a.caller_gid != link_b.caller_gid
-    assert bytes(16) not in gids
-    assert asked[0].sequence_number < asked[1].sequence_number  # per caller, increasing
+    assert sorted(e.topic.name for e in clients if e.topic) == ["/add", "/add"]
+    gid_a, gid_b = asked[0].source_gid, asked[2].source_gid
+    assert [request.source_gid for request in asked] == [gid_a, gid_a, gid_b]
+    assert {e.gid() for e in clients} == {gid_a, gid_b}  # two entities, two GIDs
+    assert [request.sequence_number for request in asked] == [1, 2, 1]  # per client, from 1
 
 
 # ---- zenoh-ros2-sdk as a whole peer ------------------------------------------------------

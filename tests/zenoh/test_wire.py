@@ -15,6 +15,7 @@ from rosbags.typesys import Stores, get_typestore
 from rwt_zenoh.wire import (
     DEFAULT_QOS,
     INFINITE,
+    PRE_2025_DEFAULT_QOS,
     Attachment,
     Durability,
     Entity,
@@ -22,6 +23,7 @@ from rwt_zenoh.wire import (
     History,
     QoS,
     Reliability,
+    RmwCompat,
     Topic,
     WireError,
     dds_type_name,
@@ -77,19 +79,67 @@ def test_names_are_mangled_with_percent() -> None:
 @pytest.mark.parametrize(
     ("qos", "text"),
     [
-        # qos.cpp:18-33: reliable, transient local, keep last 42, infinite durations
+        # qos.cpp: reliable, volatile (since March 2025), keep last 42, infinite durations
         (DEFAULT_QOS, "::,:,:,:,,"),
         # liveliness_utils.cpp:237-297: only what differs from the default is written
-        (QoS(durability=Durability.VOLATILE, depth=10), ":2:,10:,:,:,,"),
+        (QoS(durability=Durability.VOLATILE, depth=10), "::,10:,:,:,,"),
+        (QoS(durability=Durability.TRANSIENT_LOCAL, depth=1), ":1:,1:,:,:,,"),
         (
             QoS(Reliability.BEST_EFFORT, Durability.VOLATILE, History.KEEP_ALL, 1, (1, 5)),
-            "2:2:2,1:1,5:,:,,",
+            "2::2,1:1,5:,:,,",
         ),
     ],
 )
 def test_qos_strings(qos: QoS, text: str) -> None:
     assert qos_to_keyexpr(qos) == text
     assert qos_from_keyexpr(text) == qos
+
+
+@pytest.mark.parametrize(
+    ("qos", "current", "pre_2025"),
+    [
+        # a plain topic: current rmw_zenoh leaves its durability empty, the older wrote 2
+        (QoS(durability=Durability.VOLATILE, depth=10), "::,10:,:,:,,", ":2:,10:,:,:,,"),
+        # /tf_static, /map: current rmw_zenoh writes 1, the older left it empty
+        (QoS(durability=Durability.TRANSIENT_LOCAL, depth=1), ":1:,1:,:,:,,", "::,1:,:,:,,"),
+    ],
+)
+def test_durability_defaults_per_rmw_zenoh_release(qos: QoS, current: str, pre_2025: str) -> None:
+    assert qos_to_keyexpr(qos, RmwCompat.CURRENT.defaults) == current
+    assert qos_to_keyexpr(qos, RmwCompat.PRE_2025.defaults) == pre_2025
+    assert qos_from_keyexpr(current, RmwCompat.CURRENT.defaults) == qos
+    assert qos_from_keyexpr(pre_2025, RmwCompat.PRE_2025.defaults) == qos
+    # the default is the current release: an empty durability is volatile
+    assert qos_from_keyexpr("::,1:,:,:,,").durability is Durability.VOLATILE
+    assert qos_from_keyexpr("::,1:,:,:,,", PRE_2025_DEFAULT_QOS).durability is (
+        Durability.TRANSIENT_LOCAL
+    )
+
+
+def test_a_token_parsed_with_the_compat_writes_back_the_same() -> None:
+    token = (
+        f"@ros2_lv/0/{ZID}/0/10/MP/%/%/talker/%tf_static/tf2_msgs::msg::dds_::TFMessage_/"
+        f"{STRING_HASH}/::,1:,:,:,,"
+    )
+    old = Entity.parse(token, RmwCompat.PRE_2025)
+    assert old.topic is not None
+    assert old.topic.qos.durability is Durability.TRANSIENT_LOCAL
+    assert old.token() == token
+    assert Entity.parse(token).topic.qos.durability is Durability.VOLATILE  # type: ignore[union-attr]
+
+
+def test_a_remote_gid_is_the_hash_of_the_token_as_received() -> None:
+    # a peer may spell a default out (here reliability 1 and depth 42 written in full):
+    # its GID, which its samples' attachments carry, hashes the text it declared
+    pytest.importorskip("xxhash")
+    token = (
+        f"@ros2_lv/0/{ZID}/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/"
+        f"{STRING_HASH}/1:1:1,42:,:,:,,"
+    )
+    entity = Entity.parse(token)
+    assert entity.token() != token  # this side would write the defaults empty
+    assert entity.gid() == gid_of(token)
+    assert entity.gid() != gid_of(entity.token())
 
 
 def test_bad_qos_strings_are_refused() -> None:
@@ -115,7 +165,7 @@ def test_a_publisher_token() -> None:
     )
     assert entity.token() == (
         f"@ros2_lv/0/{ZID}/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/"
-        f"{STRING_HASH}/:2:,7:,:,:,,"
+        f"{STRING_HASH}/::,7:,:,:,,"
     )
     assert Entity.parse(entity.token()) == entity
 

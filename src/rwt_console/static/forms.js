@@ -2,8 +2,18 @@
 // input per primitive field, a fieldset per nested message, JSON for arrays.
 import { el } from './ui.js';
 
-const INTEGER = new Set(['byte', 'char', 'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64']);
-const FLOAT = new Set(['float32', 'float64', 'double', 'float']);
+// Every primitive name rosapi reports: ROS 1's .msg names, and ROS 2's IDL names
+// (boolean, octet, float, double; string<N> for a bounded string), see
+// rwt_graph/rosapi/typedefs.py.
+const BOOL = new Set(['bool', 'boolean']);
+const INTEGER = new Set(['byte', 'octet', 'char', 'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64']);
+const FLOAT = new Set(['float32', 'float64', 'double', 'float', 'long double']);
+
+// 'string<10>' -> 'string': the bound does not change the input
+function baseType(type) {
+  const open = type.indexOf('<');
+  return open > 0 && !type.includes('/') ? type.slice(0, open) : type;
+}
 const MAX_DEPTH = 8; // recursive message types stop here (the field becomes JSON)
 
 function parseExample(example, fallback) {
@@ -16,14 +26,15 @@ function parseExample(example, fallback) {
 
 function zero(type, byType) {
   if (byType.has(type)) return {};
-  if (type === 'bool') return false;
+  if (BOOL.has(type)) return false;
   if (INTEGER.has(type) || FLOAT.has(type)) return 0;
   return '';
 }
 
-function field(name, type, arrayLength, example, byType, depth, path) {
+function field(name, rawType, arrayLength, example, byType, depth, path) {
+  const type = baseType(rawType);
   const id = `f-${path.join('-')}`;
-  const label = el('label', { for: id, text: `${name} `, title: arrayLength >= 0 ? `${type}[]` : type });
+  const label = el('label', { for: id, text: `${name} `, title: arrayLength >= 0 ? `${rawType}[]` : rawType });
   if (arrayLength >= 0 || (depth >= MAX_DEPTH && byType.has(type))) {
     const input = el('textarea', { id, name: path.join('.'), rows: 2, placeholder: '[] (JSON)' });
     // a fixed-size array (float64[9] covariance) starts with its size, an unbounded one empty
@@ -42,8 +53,9 @@ function field(name, type, arrayLength, example, byType, depth, path) {
     const node = el('fieldset', { class: 'nested' }, el('legend', { text: `${name} (${type})` }), inner.nodes);
     return { node, read: inner.read };
   }
-  if (type === 'bool') {
+  if (BOOL.has(type)) {
     const input = el('input', { id, name: path.join('.'), type: 'checkbox' });
+    input.checked = example === 'True' || example === 'true';
     return { node: el('div', { class: 'field' }, label, input), read: () => input.checked };
   }
   if (INTEGER.has(type) || FLOAT.has(type)) {

@@ -1,9 +1,12 @@
 // The graph on the left: topics (with publisher/subscriber counts and the rates
 // measured in this page), services, action servers, nodes and parameters.
-import { el, formatBytes } from './ui.js';
+import { choosable, el, formatBytes, rosName, syncChildren } from './ui.js';
 
 const MAX_COUNTED_TOPICS = 200; // publisher/subscriber counts cost two calls per topic
 const MAX_PARAM_VALUES = 100;
+// counts are asked for every COUNT_EVERY refreshes (20 s), the selected topic's each
+// time: 200 topics cost 400 calls a round, which every 2 s was 200 calls a second
+const COUNT_EVERY = 10;
 
 export class GraphView {
   constructor(ros, handlers) {
@@ -11,6 +14,25 @@ export class GraphView {
     this.handlers = handlers; // {topic(name, type), service(name), action(name)}
     this.meters = new Map(); // topic -> Meter (set by the topic view)
     this.selected = null;
+    this.counts = new Map(); // topic -> [publishers, subscribers], last asked
+    this.rounds = 0;
+    this.filter = document.getElementById('graph-filter');
+    this.filter.addEventListener('input', () => this.applyFilter());
+  }
+
+  // Hide the rows and items whose name does not match the filter: a part of the name,
+  // or a glob with * (any characters) and ? (one), as ros2 topic list | grep does.
+  applyFilter() {
+    const text = this.filter.value.trim();
+    let matches = () => true;
+    if (text.includes('*') || text.includes('?')) {
+      const escaped = text.replace(/[.+^${}()|[\]\\]/g, '\\$&');
+      const pattern = new RegExp(`^${escaped.replace(/\*/g, '.*').replace(/\?/g, '.')}$`);
+      matches = (name) => pattern.test(name);
+    } else if (text) {
+      matches = (name) => name.includes(text);
+    }
+    for (const node of document.querySelectorAll('#graph [data-name]')) node.hidden = !matches(node.dataset.name);
   }
 
   async refresh() {
@@ -27,26 +49,45 @@ export class GraphView {
     this.showList('actions', actions.action_servers, (name) => this.handlers.action(name));
     this.showList('nodes', nodes.nodes, null);
     await this.showParams(params.names);
+    this.applyFilter();
   }
 
   async showTopics(names, types) {
-    const counts = await Promise.all(names.slice(0, MAX_COUNTED_TOPICS).map(async (topic) => {
+    const full = this.rounds % COUNT_EVERY === 0;
+    this.rounds += 1;
+    const counted = names.slice(0, MAX_COUNTED_TOPICS)
+      .filter((topic) => full || topic === this.selected || !this.counts.has(topic));
+    await Promise.all(counted.map(async (topic) => {
       const [pubs, subs] = await Promise.all([
         this.ros.callService('/rosapi/publishers', { topic }),
         this.ros.callService('/rosapi/subscribers', { topic }),
       ]);
-      return [pubs.publishers.length, subs.subscribers.length];
+      this.counts.set(topic, [pubs.publishers.length, subs.subscribers.length]);
     }));
+    const known = new Set(names);
+    for (const topic of this.counts.keys()) if (!known.has(topic)) this.counts.delete(topic);
+    const counts = names.map((topic) => this.counts.get(topic));
     const body = document.querySelector('#topics tbody');
-    body.replaceChildren(...names.map((name, i) => {
-      const [pubs, subs] = counts[i] ?? ['?', '?'];
-      const row = el('tr', { dataset: { name, type: types[i] }, onclick: () => this.handlers.topic(name, types[i]) },
-        el('td', { text: name }), el('td', { class: 'muted', text: types[i] }),
-        el('td', { text: pubs }), el('td', { text: subs }),
+    const index = new Map(names.map((name, i) => [name, i]));
+    const setText = (cell, text) => {
+      if (cell.textContent !== String(text)) cell.textContent = text;
+    };
+    syncChildren(body, names, (name) => {
+      const row = el('tr', { dataset: { name } },
+        el('td', {}, rosName(name)), el('td', { class: 'muted' }), el('td'), el('td'),
         el('td', { class: 'hz' }), el('td', { class: 'bw' }));
-      if (name === this.selected) row.classList.add('selected');
-      return row;
-    }));
+      // the type is read when chosen: it may change while the row stays
+      return choosable(row, () => this.handlers.topic(name, row.dataset.type));
+    }, () => {});
+    for (const row of body.children) {
+      const i = index.get(row.dataset.name);
+      const [pubs, subs] = counts[i] ?? ['?', '?'];
+      row.dataset.type = types[i];
+      setText(row.cells[1], types[i]);
+      setText(row.cells[2], pubs);
+      setText(row.cells[3], subs);
+      row.classList.toggle('selected', row.dataset.name === this.selected);
+    }
     document.getElementById('topic-count').textContent = `(${names.length})`;
     this.showRates();
   }
@@ -62,9 +103,10 @@ export class GraphView {
 
   showList(id, names, onChoose) {
     const list = document.getElementById(id);
-    list.replaceChildren(...names.map((name) => el('li', {
-      dataset: { name }, text: name, onclick: onChoose ? () => onChoose(name) : undefined,
-    })));
+    syncChildren(list, names, (name) => {
+      const item = el('li', { dataset: { name } }, rosName(name));
+      return onChoose ? choosable(item, () => onChoose(name)) : item;
+    }, () => {});
     document.getElementById(`${id.replace(/s$/, '')}-count`).textContent = `(${names.length})`;
   }
 
@@ -72,8 +114,14 @@ export class GraphView {
     const values = await Promise.all(names.slice(0, MAX_PARAM_VALUES).map((name) =>
       this.ros.callService('/rosapi/get_param', { name }).then((r) => r.value, () => '?')));
     const body = document.querySelector('#params tbody');
-    body.replaceChildren(...names.map((name, i) =>
-      el('tr', { dataset: { name } }, el('td', { text: name }), el('td', { class: 'muted', text: values[i] ?? '' }))));
+    const shown = new Map(names.map((name, i) => [name, values[i] ?? '']));
+    syncChildren(body, names,
+      (name) => el('tr', { dataset: { name } }, el('td', {}, rosName(name)), el('td', { class: 'muted' })),
+      () => {});
+    for (const row of body.children) {
+      const text = String(shown.get(row.dataset.name));
+      if (row.cells[1].textContent !== text) row.cells[1].textContent = text;
+    }
     document.getElementById('param-count').textContent = `(${names.length})`;
   }
 }

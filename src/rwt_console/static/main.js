@@ -3,6 +3,8 @@
 import { ActionView, ServiceView } from './calls.js';
 import { GraphView } from './graph.js';
 import { ImagesView } from './images.js';
+import { LogView } from './log.js';
+import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
 import { TopicView } from './topic.js';
@@ -24,9 +26,12 @@ function setStatus(text, state) {
   status.className = `status ${state}`;
 }
 
-function askForAuth() {
+// The auth form: its fields fill from a pasted op; it never submits itself (a GET
+// would put mac and rand in the URL and the history), each submit resolves waitAuth.
+let authWaiter = null;
+
+function setUpAuthForm() {
   const form = document.getElementById('auth');
-  form.hidden = false;
   const json = document.getElementById('auth-json');
   json.addEventListener('input', () => {
     try {
@@ -38,25 +43,55 @@ function askForAuth() {
       // not JSON (yet): the fields stay as typed
     }
   });
-  return new Promise((resolve) => {
-    form.addEventListener('submit', (event) => {
-      event.preventDefault();
-      const fields = {};
-      for (const name of ['mac', 'client', 'dest', 'rand', 'level']) fields[name] = form.elements[name].value;
-      for (const name of ['t', 'end']) fields[name] = Number(form.elements[name].value);
-      resolve(fields);
-    }, { once: true });
+  form.addEventListener('submit', (event) => {
+    event.preventDefault();
+    const fields = {};
+    for (const name of ['mac', 'client', 'dest', 'rand', 'level']) fields[name] = form.elements[name].value;
+    for (const name of ['t', 'end']) fields[name] = Number(form.elements[name].value);
+    if (authWaiter) authWaiter(fields);
+    authWaiter = null;
   });
 }
 
+function askForAuth() {
+  document.getElementById('auth').hidden = false;
+  return new Promise((resolve) => {
+    authWaiter = resolve;
+  });
+}
+
+// The tabs as ARIA describes them (tablist, tab with aria-selected, tabpanel), so a
+// screen reader names them and a keyboard moves between them with the arrow keys.
 function wireTabs(onChange) {
-  const buttons = document.querySelectorAll('#tabs button');
+  const buttons = [...document.querySelectorAll('#tabs button')];
+  document.getElementById('tabs').setAttribute('role', 'tablist');
+  for (const button of buttons) {
+    button.setAttribute('role', 'tab');
+    button.setAttribute('aria-controls', `tab-${button.dataset.tab}`);
+  }
+  for (const section of document.querySelectorAll('main .tab')) section.setAttribute('role', 'tabpanel');
   const select = (name) => {
-    for (const button of buttons) button.classList.toggle('active', button.dataset.tab === name);
+    for (const button of buttons) {
+      const active = button.dataset.tab === name;
+      button.classList.toggle('active', active);
+      button.setAttribute('aria-selected', String(active));
+      button.tabIndex = active ? 0 : -1;
+    }
     for (const section of document.querySelectorAll('main .tab')) section.hidden = section.id !== `tab-${name}`;
     onChange(name);
   };
-  for (const button of buttons) button.addEventListener('click', () => select(button.dataset.tab));
+  buttons.forEach((button, i) => {
+    button.addEventListener('click', () => select(button.dataset.tab));
+    button.addEventListener('keydown', (event) => {
+      const step = { ArrowRight: 1, ArrowLeft: -1 }[event.key];
+      if (!step) return;
+      const next = buttons[(i + step + buttons.length) % buttons.length];
+      next.focus();
+      select(next.dataset.tab);
+    });
+  });
+  const active = buttons.find((button) => button.classList.contains('active')) ?? buttons[0];
+  select(active.dataset.tab);
   return select;
 }
 
@@ -87,25 +122,65 @@ function watchClients(ros, types) {
   }
 }
 
-async function connect(config) {
-  const url = websocketUrl(config);
-  document.getElementById('server-url').textContent = url;
+async function connectOnce(url, auth) {
   const ros = new Rosbridge(url);
-  ros.on('status', logStatus);
+  let closed = null;
   ros.on('close', (event) => {
-    const why = `${event.code}${event.reason ? ` ${event.reason}` : ''}`;
-    setStatus(`disconnected (${why}): reload the page to reconnect`, 'bad');
+    closed = event;
   });
-  let auth = null;
-  if (config.auth) {
-    setStatus('authentication needed', 'bad');
-    auth = await askForAuth();
-  }
   await ros.connect();
   if (auth) ros.authenticate(auth);
   // the server answers nothing to a good auth op and closes on a bad one: a first call tells
-  await ros.callService('/rosapi/topics');
+  try {
+    await ros.callService('/rosapi/topics');
+  } catch (error) {
+    // the close names the reason (a bad MAC, an expired op...): say it, not the call's fate
+    await new Promise((resolve) => setTimeout(resolve, 50));
+    if (closed && closed.reason) throw new Error(closed.reason);
+    throw error;
+  }
+  return ros;
+}
+
+async function connect(config) {
+  const url = websocketUrl(config);
+  document.getElementById('server-url').textContent = url;
+  let ros;
+  if (!config.auth) {
+    ros = await connectOnce(url, null);
+  } else {
+    setUpAuthForm();
+    setStatus('authentication needed', 'bad');
+    for (;;) {
+      const auth = await askForAuth();
+      try {
+        ros = await connectOnce(url, auth);
+        break;
+      } catch (error) {
+        setStatus(`refused: ${error.message}`, 'bad');
+        document.getElementById('auth-error').textContent = `the server refused this auth op: ${error.message}`;
+      }
+    }
+  }
+  ros.on('status', logStatus);
+  let lastClose = '';
+  ros.on('close', (event) => {
+    lastClose = `${event.code}${event.reason ? ` ${event.reason}` : ''}`;
+    setStatus(`disconnected (${lastClose})`, 'bad');
+  });
+  ros.on('reconnecting', (delay) => {
+    setStatus(`disconnected (${lastClose}): reconnecting in ${(delay / 1000).toFixed(1)} s`, 'bad');
+  });
+  ros.on('open', () => {
+    setStatus('connected', 'ok');
+    ros.setLevel('warning');
+  });
+  ros.reconnect();
+  // connections start at level error (docs/limits.md): the Server tab shows warnings too,
+  // such as messages dropped for this page reading slowly
+  ros.setLevel('warning');
   document.getElementById('auth').hidden = true;
+  document.getElementById('auth-error').textContent = '';
   setStatus('connected', 'ok');
   return ros;
 }
@@ -124,8 +199,7 @@ async function main() {
   try {
     ros = await connect(config);
   } catch (error) {
-    setStatus(config.auth ? `refused: ${error.message}` : error.message, 'bad');
-    if (config.auth) document.getElementById('auth-error').textContent = 'the server refused this auth op';
+    setStatus(error.message, 'bad');
     return;
   }
   const graph = new GraphView(ros, {
@@ -149,10 +223,13 @@ async function main() {
   const actions = new ActionView(ros);
   const images = new ImagesView(config);
   const tf = new TfView(ros);
+  const log = new LogView(ros);
+  new TeleopView(ros, (topic) => types.get(topic)); // eslint-disable-line no-new
   let types = new Map();
   const selectTab = wireTabs((name) => {
     images.setActive(name === 'images');
     if (name === 'tf') tf.start(types);
+    if (name === 'log') log.start(types);
   });
   let clientsWatched = false;
   let refreshing = false; // a slow graph must not pile up refreshes

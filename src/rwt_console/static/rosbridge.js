@@ -12,7 +12,11 @@ export class Rosbridge {
     this.topics = new Map(); // topic -> Set of handlers
     this.last = new Map(); // topic -> its newest message, for a second handler of the topic
     this.advertised = new Set();
-    this.listeners = { close: [], status: [], open: [] };
+    this.subscribed = new Map(); // topic -> the subscribe op, sent again after a reconnect
+    this.listeners = { close: [], status: [], open: [], reconnecting: [] };
+    this.auth = null; // the auth op's fields, sent again on each new socket
+    this.retries = 0;
+    this.closing = false;
   }
 
   on(event, handler) {
@@ -23,24 +27,54 @@ export class Rosbridge {
     for (const handler of this.listeners[event]) handler(value);
   }
 
+  // The first connection; later drops reconnect by themselves once reconnect() is on.
   connect() {
     return new Promise((resolve, reject) => {
-      const socket = new WebSocket(this.url);
-      this.socket = socket;
+      const socket = this.open();
       socket.onopen = () => {
         this.emit('open', this.url);
         resolve();
       };
       socket.onerror = () => reject(new RosbridgeError(`cannot connect to ${this.url}`));
-      socket.onclose = (event) => {
-        for (const call of this.pending.values()) {
-          call.reject(new RosbridgeError(`connection closed (${event.code} ${event.reason})`));
-        }
-        this.pending.clear();
-        this.emit('close', event);
-      };
-      socket.onmessage = (event) => this.receive(event.data);
     });
+  }
+
+  open() {
+    const socket = new WebSocket(this.url);
+    this.socket = socket;
+    socket.onclose = (event) => {
+      for (const call of this.pending.values()) {
+        call.reject(new RosbridgeError(`connection closed (${event.code} ${event.reason})`));
+      }
+      this.pending.clear();
+      this.emit('close', event);
+      if (this.reconnecting && !this.closing) this.scheduleReconnect();
+    };
+    socket.onmessage = (event) => this.receive(event.data);
+    return socket;
+  }
+
+  // After a drop: try again after a growing delay with jitter (0.5 s doubling to at
+  // most 30 s, times 0.5-1.5, so that a server's clients do not all come back at
+  // once); on success the auth op and every subscription go again.
+  reconnect() {
+    this.reconnecting = true;
+  }
+
+  scheduleReconnect() {
+    const delay = Math.min(30000, 500 * 2 ** this.retries) * (0.5 + Math.random());
+    this.retries += 1;
+    this.emit('reconnecting', delay);
+    setTimeout(() => {
+      const socket = this.open();
+      socket.onopen = () => {
+        this.retries = 0;
+        if (this.auth) this.send({ op: 'auth', ...this.auth });
+        this.advertised.clear();
+        for (const op of this.subscribed.values()) this.send(op);
+        this.emit('open', this.url);
+      };
+    }, delay);
   }
 
   get connected() {
@@ -89,6 +123,9 @@ export class Rosbridge {
         break;
       }
       case 'status': {
+        if (message.id && message.id.startsWith('adv:') && message.level === 'error') {
+          this.advertised.delete(message.id.slice(4)); // refused: advertise again next time
+        }
         this.emit('status', message);
         if (message.id && (message.level === 'error')) {
           const call = this.take(message.id);
@@ -125,7 +162,9 @@ export class Rosbridge {
     if (!handlers) {
       handlers = new Set();
       this.topics.set(topic, handlers);
-      this.send({ op: 'subscribe', id: `sub:${topic}`, topic, type, ...options });
+      const op = { op: 'subscribe', id: `sub:${topic}`, topic, type, ...options };
+      this.subscribed.set(topic, op);
+      this.send(op);
     } else if (this.last.has(topic)) {
       // one subscription per topic: a latched message came only once, so replay the newest
       handler(this.last.get(topic), 0, true);
@@ -140,17 +179,48 @@ export class Rosbridge {
     handlers.delete(handler);
     if (handlers.size === 0) {
       this.topics.delete(topic);
+      this.subscribed.delete(topic);
       this.last.delete(topic);
       if (this.connected) this.send({ op: 'unsubscribe', id: `sub:${topic}`, topic });
     }
   }
 
+  // Returns the ids of the ops sent: a refusal comes back as an error status
+  // carrying one of them (errorFor), success as nothing.
   publish(topic, type, msg) {
+    const ids = [];
     if (!this.advertised.has(topic)) {
-      this.send({ op: 'advertise', id: `adv:${topic}`, topic, type });
+      const id = `adv:${topic}`;
+      this.send({ op: 'advertise', id, topic, type });
       this.advertised.add(topic);
+      ids.push(id);
     }
-    this.send({ op: 'publish', topic, msg });
+    const id = this.id('pub');
+    this.send({ op: 'publish', id, topic, msg });
+    ids.push(id);
+    return ids;
+  }
+
+  // The first error status naming one of ids within ms, or null: how an op that
+  // has no reply (advertise, publish) learns that the server refused it.
+  errorFor(ids, ms) {
+    const wanted = new Set(ids);
+    return new Promise((resolve) => {
+      const handler = (message) => {
+        if (message.level === 'error' && wanted.has(message.id)) done(message);
+      };
+      const done = (message) => {
+        clearTimeout(timer);
+        this.listeners.status = this.listeners.status.filter((h) => h !== handler);
+        resolve(message);
+      };
+      const timer = setTimeout(() => done(null), ms);
+      this.on('status', handler);
+    });
+  }
+
+  setLevel(level) {
+    this.send({ op: 'set_level', level });
   }
 
   sendActionGoal(action, actionType, args, onFeedback) {
@@ -168,10 +238,12 @@ export class Rosbridge {
   }
 
   authenticate(fields) {
+    this.auth = fields;
     this.send({ op: 'auth', ...fields });
   }
 
   close() {
+    this.closing = true;
     if (this.socket) this.socket.close();
   }
 }

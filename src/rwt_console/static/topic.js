@@ -5,6 +5,9 @@ import { Meter } from './meter.js';
 import { Plot, numericFields } from './plot.js';
 import { el, formatBytes, jsonTree, showError } from './ui.js';
 
+const REFUSAL_WAIT_MS = 3000;
+const ECHO_INTERVAL_MS = 100; // the echo redraws at most 10 times a second
+
 export class TopicView {
   constructor(ros, graph) {
     this.ros = ros;
@@ -27,6 +30,9 @@ export class TopicView {
     if (this.unsubscribe) this.unsubscribe();
     if (this.topic) this.graph.meters.delete(this.topic);
     this.topic = topic;
+    clearTimeout(this.drawTimer);
+    this.drawTimer = null;
+    this.pending = null;
     this.type = type;
     this.plotted.clear();
     this.plot.clear();
@@ -67,6 +73,20 @@ export class TopicView {
     this.offerPlotFields(numbers);
     for (const [name, value] of numbers) if (this.plotted.has(name)) this.plot.add(name, value, t);
     if (this.paused) return;
+    // a fast topic (a camera at 30 Hz) is drawn at most every ECHO_INTERVAL_MS, the
+    // newest message each time: building its tree is what costs, not receiving it
+    this.pending = msg;
+    if (this.drawTimer) return;
+    const wait = Math.max(0, (this.drawnAt ?? 0) + ECHO_INTERVAL_MS - performance.now());
+    this.drawTimer = setTimeout(() => this.draw(), wait);
+  }
+
+  draw() {
+    this.drawTimer = null;
+    const msg = this.pending;
+    this.pending = null;
+    if (msg === null || this.paused) return;
+    this.drawnAt = performance.now();
     const output = document.getElementById('echo-output');
     output.prepend(el('div', { class: 'message' }, jsonTree(msg)));
     const keep = Math.max(1, Math.min(100, Number(document.getElementById('echo-keep').value) || 5));
@@ -99,21 +119,37 @@ export class TopicView {
 
   showStats() {
     if (!this.meter) return;
-    const { hz, bytesPerSecond } = this.meter.read();
+    const reading = this.meter.read();
+    const { hz, bytesPerSecond } = reading;
     document.getElementById('echo-stats').textContent = `${hz.toFixed(1)} Hz, ${formatBytes(bytesPerSecond)}`;
+    // as ros2 topic hz and ros2 topic bw print them
+    document.getElementById('echo-details').textContent =
+      `average rate ${hz.toFixed(3)}; min ${reading.minGap.toFixed(3)}s max ${reading.maxGap.toFixed(3)}s`
+      + ` std dev ${reading.stdDev.toFixed(5)}s window ${reading.window};`
+      + ` ${formatBytes(bytesPerSecond)} from ${reading.window} messages,`
+      + ` mean ${reading.meanSize.toFixed(0)} B min ${reading.minSize} B max ${reading.maxSize} B`;
     this.graph.showRates();
   }
 
-  publish() {
+  // The server answers a good publish with nothing and a refused one with an error
+  // status naming its id: shown here, beside the button, for REFUSAL_WAIT_MS.
+  async publish() {
     const result = document.getElementById('publish-result');
+    let ids;
     try {
       const msg = this.form.read();
-      this.ros.publish(this.topic, this.type, msg);
+      ids = this.ros.publish(this.topic, this.type, msg);
       result.className = 'muted';
       result.textContent = `published at ${new Date().toLocaleTimeString()}`;
     } catch (error) {
       result.className = 'error';
       result.textContent = error.message;
+      return;
+    }
+    const refused = await this.ros.errorFor(ids, REFUSAL_WAIT_MS);
+    if (refused) {
+      result.className = 'error';
+      result.textContent = `refused: ${refused.msg}`;
     }
   }
 }

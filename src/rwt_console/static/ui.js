@@ -16,7 +16,7 @@ export function el(tag, attributes = {}, ...children) {
   return node;
 }
 
-const MAX_TREE_ITEMS = 200; // a long array shows its first items, then how many more
+const MAX_TREE_ITEMS = 32; // a long array shows its first items, then how many more
 const MAX_LEAF_CHARS = 500; // a long string (base64 image data) shows its start
 
 export function jsonTree(value, key = null, open = true) {
@@ -35,6 +35,52 @@ export function jsonTree(value, key = null, open = true) {
   if (entries.length > MAX_TREE_ITEMS) {
     node.append(el('div', { class: 'muted', text: `… ${entries.length - MAX_TREE_ITEMS} more` }));
   }
+  return node;
+}
+
+// Keep parent's children in line with keys (in order), reusing the child of each key
+// (data-key): rows a user is pressing are not replaced under the pointer, and only
+// changed rows are touched. make(key) builds a child; update(child, key) refreshes it.
+export function syncChildren(parent, keys, make, update) {
+  const old = new Map([...parent.children].map((child) => [child.dataset.key, child]));
+  let at = parent.firstElementChild;
+  for (const key of keys) {
+    let child = old.get(key);
+    if (child) {
+      old.delete(key);
+      update(child, key);
+    } else {
+      child = make(key);
+      child.dataset.key = key;
+    }
+    if (child !== at) parent.insertBefore(child, at);
+    else at = at.nextElementSibling;
+  }
+  for (const child of old.values()) child.remove();
+}
+
+// A ROS name that may wrap after each '/' and nowhere else (unless one part alone is
+// wider than its box): /robot/arm/joint_states, not /robot/arm/joi-nt_states.
+export function rosName(name) {
+  const node = el('span', { class: 'ros-name' });
+  name.split('/').forEach((part, i) => {
+    if (i > 0) node.append('/', document.createElement('wbr'));
+    node.append(part);
+  });
+  return node;
+}
+
+// A list item or table row a keyboard can reach and choose (Enter or Space).
+export function choosable(node, onChoose) {
+  node.tabIndex = 0;
+  node.setAttribute('role', 'button');
+  node.addEventListener('click', onChoose);
+  node.addEventListener('keydown', (event) => {
+    if (event.key === 'Enter' || event.key === ' ') {
+      event.preventDefault();
+      onChoose();
+    }
+  });
   return node;
 }
 

@@ -12,6 +12,7 @@ from collections import deque
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from ..ratelog import EpisodeLog
 from ..types.convert import header_stamp
 from .depthcloud import encode_depthcloud
 from .images import ImageError, array_to_image, depth_to_metres, image_to_display
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
 __all__ = ["DEFAULT_TOPIC", "DepthCloudEncoder"]
 
 logger = logging.getLogger("rwt.depthcloud")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 #: Where depthcloud_encoder publishes (``depthcloud_encoded`` in its namespace).
 DEFAULT_TOPIC = "/depthcloud_encoded"
@@ -157,7 +159,9 @@ class DepthCloudEncoder:
             encoded = self.encode(depth_msg, colour_msg)
         except ImageError as exc:
             if str(exc) != self._last_error:  # once per cause, not 30 times a second
-                logger.warning("depth cloud frame skipped: %s", exc)
+                _episodes.log(
+                    logging.WARNING, "depthcloud_skipped", "depth cloud frame skipped: %s", exc
+                )
                 self._last_error = str(exc)
             return
         self._publisher.publish(encoded)

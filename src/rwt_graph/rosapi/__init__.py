@@ -7,7 +7,7 @@ the calling client through a ``Visibility`` (the hook for access rules).
 
 from __future__ import annotations
 
-from .install import ROSAPI_NODE, Rosapi, install_rosapi
+from .install import ROSAPI_NODE, Rosapi, install_rosapi, rosapi_service_names
 from .typedefs import TypeDef, typedefs
 from .visibility import EVERYTHING, NameFilter, Visibility, VisibilityFor
 
@@ -20,5 +20,6 @@ __all__ = [
     "Visibility",
     "VisibilityFor",
     "install_rosapi",
+    "rosapi_service_names",
     "typedefs",
 ]

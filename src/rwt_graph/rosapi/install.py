@@ -5,6 +5,9 @@ dialect: ROS 2 types ``rosapi_msgs/srv/<Name>`` (with ``get_ros_version`` and th
 newer ``interfaces``, ``action_type`` and action detail services), or ROS 1
 types ``rosapi/<Name>`` (with ``search_param`` and ``service_host``). Clients
 reach them by any spelling (``rosapi/topics`` resolves to ``/rosapi/topics``).
+The names of the other dialect's services are reserved too, so no client can
+offer, say, a forged ``/rosapi/get_ros_version`` on a ROS 1 server
+(docs/limits.md, reserved names).
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ if TYPE_CHECKING:
     from ..local import LocalService
     from ..types import MessageType
 
-__all__ = ["ROSAPI_NODE", "Rosapi", "install_rosapi"]
+__all__ = ["ROSAPI_NODE", "Rosapi", "install_rosapi", "rosapi_service_names"]
 
 ROSAPI_NODE = "/rosapi"
 
@@ -139,17 +142,31 @@ def _type_short(service: str) -> str:
     return _TYPES.get(service) or "".join(part.capitalize() for part in service.split("_"))
 
 
+def rosapi_service_names() -> frozenset[str]:
+    """Every ``/rosapi/*`` service name of either dialect (resolved names)."""
+    return frozenset(f"/rosapi/{short}" for short in {**_ros1(), **_ros2("")})
+
+
 @dataclass
 class Rosapi:
-    """The installed rosapi services; ``close()`` withdraws them all."""
+    """The installed rosapi services; ``close()`` withdraws them all.
+
+    ``reserved`` holds the names of the other dialect's rosapi services, kept
+    from clients while rosapi is installed.
+    """
 
     services: list[LocalService] = field(default_factory=list)
+    reserved: set[str] = field(default_factory=set)
+    graph: Graph | None = None
 
     def close(self) -> None:
         """Withdraw every rosapi service (pending calls have already been answered)."""
         for service in self.services:
             service.close()
         self.services.clear()
+        if self.graph is not None:
+            self.graph.services.reserved -= self.reserved
+        self.reserved.clear()
 
 
 def install_rosapi(
@@ -170,7 +187,9 @@ def install_rosapi(
     ros1 = graph.registry.dialect is Dialect.ROS1
     table = _ros1() if ros1 else _ros2(distro)
     package = "rosapi" if ros1 else "rosapi_msgs/srv"
-    rosapi = Rosapi()
+    rosapi = Rosapi(graph=graph)
+    rosapi.reserved = set(rosapi_service_names().difference(f"/rosapi/{s}" for s in table))
+    graph.services.reserved |= rosapi.reserved
     for short, handler in table.items():
         rosapi.services.append(
             graph.create_caller_service(

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
 
+from ..ratelog import EpisodeLog
 from ..types import Dialect
 from .visibility import Visibility, is_hidden
 
@@ -48,6 +49,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.graph")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 
 def encodable(name: str) -> bool:
@@ -59,7 +61,12 @@ def encodable(name: str) -> bool:
     except UnicodeEncodeError:
         if name not in _UNLISTED and len(_UNLISTED) < 100:  # one line per name, bounded
             _UNLISTED.add(name)
-            logger.warning("event=unlisted reason='not valid Unicode' name=%a", name[:200])
+            _episodes.log(
+                logging.WARNING,
+                "unlisted",
+                "event=unlisted reason='not valid Unicode' name=%a",
+                name[:200],
+            )
         return False
     return True
 

@@ -1,7 +1,11 @@
 """The parameter services of rosapi (REF §7.1 set/get/has/delete_param, get_param_names).
 
 Values travel as JSON text both ways (roslibjs and roslibpy send
-``JSON.stringify(value)`` and parse the reply's ``value``).
+``JSON.stringify(value)`` and parse the reply's ``value``). A client's text is
+decoded by ``rwt_protocol.codec.decode_json_text``, under the rules of frames
+(no lone surrogate, at most 100 levels, 64-bit integers; docs/limits.md), so a
+value every other client reads back, and the Zenoh link shares, can always be
+encoded again.
 
 ROS 2 (``rosapi_msgs``): names are ``"<node>:<param>"``; a refusal is an answer
 with ``successful: false`` and a ``reason`` (roslibjs then calls the failure
@@ -21,6 +25,9 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING
 
+from rwt_protocol.codec import decode_json_text
+from rwt_protocol.errors import RemoteProtocolError
+
 from ..params import ParameterError, ParamValue, to_json_safe
 from .listing import encodable, node_names
 
@@ -38,19 +45,28 @@ def _dumps(value: object) -> str:
 
 
 def _loads(text: object, what: str) -> ParamValue:
+    """The value of a client's JSON text.
+
+    Raises:
+        ParameterError: the text breaks the rules of ``decode_json_text``.
+    """
     try:
-        return json.loads(str(text))  # type: ignore[no-any-return]
-    except ValueError:
-        raise ParameterError(f"{what} must be JSON text, got {text!r}") from None
+        return decode_json_text(str(text), what)  # type: ignore[return-value]
+    except RemoteProtocolError as exc:
+        raise ParameterError(exc.message) from None
 
 
 def _default(text: object) -> object:
-    """A ``default_value``/``default``: JSON if it parses, else the text itself (as rosapi)."""
+    """A ``default_value``/``default``: JSON if it decodes, else the text itself (as rosapi).
+
+    Text that does not decode under the rules (a lone surrogate, deep nesting) is
+    also taken as the string it is: a valid string, answered as it came.
+    """
     if text == "":
         return None
     try:
-        return json.loads(str(text))
-    except ValueError:
+        return decode_json_text(str(text), "default")
+    except RemoteProtocolError:
         return text
 
 
@@ -73,7 +89,7 @@ def ros2_set_param(graph: Graph, vis: Visibility, request: Message) -> Message:
     """``SetParam``: set ``name`` to the JSON ``value``."""
     try:
         name = _visible(vis, graph.params.key(str(request["name"])))
-        value = _loads(request["value"], "value")
+        value = _loads(request["value"], "set_param value")
         node = name.partition(":")[0]
         if node not in node_names(graph):
             raise ParameterError(f"node {node} does not exist")
@@ -127,7 +143,7 @@ def ros1_set_param(graph: Graph, vis: Visibility, request: Message) -> Message:
         ParameterError: bad JSON, a hidden name, or a value the store refuses.
     """
     name = _visible(vis, graph.params.key(str(request["name"])))
-    graph.params.set(name, _loads(request["value"], "value"))
+    graph.params.set(name, _loads(request["value"], "set_param value"))
     return {}
 
 

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
 
+from ..ratelog import EpisodeLog
 from .buffer import TFError
 
 if TYPE_CHECKING:
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
 __all__ = ["ORPHAN_TIMEOUT_S", "ActionlibServer"]
 
 logger = logging.getLogger("rwt.tf")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
 
@@ -106,7 +108,9 @@ class ActionlibServer:
                 raise TFError("no event loop runs this graph")
             self.republisher.reserve()
         except RwtError as exc:
-            logger.warning("TF goal %s rejected: %s", key, exc.message)
+            _episodes.log(
+                logging.WARNING, "tf_goal_rejected", "TF goal %s rejected: %s", key, exc.message
+            )
             self._publish_result(goal_id, REJECTED, exc.message)
             return
         old = self.goals.get(key)
@@ -119,7 +123,9 @@ class ActionlibServer:
             try:
                 await self._run(state, subscription)
             except Exception:  # a spawned job must not take the server down
-                logger.exception("TF goal %s failed", key)
+                _episodes.log(
+                    logging.ERROR, "tf_goal_failed", "TF goal %s failed", key, exc_info=True
+                )
             finally:
                 self.republisher.release()
                 if self.goals.get(key) is state:

@@ -33,6 +33,7 @@ from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.calls import require_spawner
 from rwt_graph.types import Dialect
 
+from ..ratelog import EpisodeLog
 from .actionlib import ActionlibServer
 from .buffer import TFBuffer, TFError, stamp_seconds
 from .republisher import TFRequest, TFSubscription
@@ -44,6 +45,7 @@ if TYPE_CHECKING:
 __all__ = ["MIN_TOPIC_TIMEOUT_S", "TF_NODE", "Sleep", "TFRepublisher", "install_tf_republisher"]
 
 logger = logging.getLogger("rwt.tf")
+_episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
 Sleep = Callable[[float], Awaitable[None]]
@@ -213,7 +215,13 @@ class TFRepublisher:
             try:
                 await self._serve_topic(publisher, subscription, timeout_s)
             except Exception:  # a spawned job must not take the server down
-                logger.exception("republishing on %s failed", name)
+                _episodes.log(
+                    logging.ERROR,
+                    f"republish_failed {name}",
+                    "republishing on %s failed",
+                    name,
+                    exc_info=True,
+                )
             finally:
                 self.release()
                 publisher.close()

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
+from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.shortcuts import enabled
 
 from .convert import is_time_type
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
 
     from .message import MessageType
 
-__all__ = ["WireCodec", "compile_typed", "wire_input"]
+__all__ = ["CDR_TRAILING_SLACK", "CdrError", "WireCodec", "compile_typed", "read_cdr", "wire_input"]
 
 Msg = Mapping[str, object]
 _LARGE_VIEW = 64 * 1024
@@ -47,6 +48,47 @@ def wire_input(data: bytes) -> bytes | memoryview:
     little faster from ``bytes``, so only one of at least 64 KiB becomes a view.
     """
     return memoryview(data) if len(data) >= _LARGE_VIEW else data
+
+
+class CdrError(RemoteProtocolError, ValueError):
+    """Bytes that are not a CDR message of the expected type (a peer sent them).
+
+    Also a ``ValueError``, which rosbags' own errors are.
+    """
+
+
+#: Bytes after a CDR payload accepted whatever its size (see ``read_cdr``).
+CDR_TRAILING_SLACK = 64
+
+
+def read_cdr(store: Typestore, data: bytes | memoryview, name: str) -> object:
+    """Deserialize the CDR message ``data`` of rosbags type ``name``, trailing bytes allowed.
+
+    rosbags' ``Typestore.deserialize_cdr`` refuses more than 3 bytes after the
+    payload, but real writers leave more: rmw sizes a serialized message's
+    buffer by its estimate, which counts worst-case alignment, so rclpy's
+    ``serialize_message`` of a ``sensor_msgs/JointState`` carries 8 bytes past
+    its fields. Alignment padding never outweighs the fields it aligns, so up
+    to the payload's own size plus ``CDR_TRAILING_SLACK`` bytes may follow it;
+    more is not a message of this type (a megabyte of zeros is no goal).
+
+    Raises:
+        CdrError: ``data`` has no CDR encapsulation header, is too short or
+            malformed for the type, or has more bytes after it than allowed.
+        KeyError: the typestore lacks ``name``.
+    """
+    if len(data) < 4 or bytes(data[:2]) not in {b"\x00\x00", b"\x00\x01"}:
+        raise CdrError("not CDR: no little or big endian CDR encapsulation header")
+    msgdef = store.get_msgdef(name)
+    func = msgdef.deserialize_cdr_le if data[1] else msgdef.deserialize_cdr_be
+    try:
+        message, used = func(data[4:], 0, msgdef.cls, store)
+    except Exception as exc:  # struct, unicode, index and value errors of a short buffer
+        raise CdrError(f"cannot deserialize {name}: {exc}") from None
+    trailing = len(data) - 4 - used
+    if trailing > used + CDR_TRAILING_SLACK:
+        raise CdrError(f"{name}: {trailing} bytes after a payload of {used}")
+    return message
 
 
 def _element_dtype(ftype: FieldType, dialect: Dialect) -> str | None:

@@ -16,7 +16,7 @@ from ..ops import (
     UnadvertiseAction,
 )
 from ..ports import GoalStatus
-from .topics import offered
+from .topics import offered, report_type_warning
 
 if TYPE_CHECKING:
     from .context import HandlerContext
@@ -44,6 +44,7 @@ def advertise_action(session: HandlerContext, op: AdvertiseAction, now: float) -
         session.client_id, op.action, op.type, session.provider_link
     )
     session.offers.add(key)
+    report_type_warning(session, "advertise_action", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_action: {op.action} advertised as {type_name}")
 
 

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
 
     from ..fragments import Reassembler
     from ..levels import StatusLevel
+    from ..png import PendingPng
     from ..ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
     from ..subscriptions import TopicSubscription
     from ..timers import Timer
@@ -57,6 +58,13 @@ class HandlerContext(Protocol):
     ) -> None:
         """Queue an op that must not be dropped (``Session.send_op``)."""
 
+    def send_request(self, message: dict[str, object], what: str) -> None:
+        """Queue a request to this peer as a provider if it has room (``Session.send_request``).
+
+        Raises:
+            GraphError: ``<what>: provider busy ...`` (docs/limits.md).
+        """
+
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Send a ``status`` frame if the connection's level admits it (D1-D3)."""
 
@@ -71,6 +79,9 @@ class HandlerContext(Protocol):
 
     def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
         """Handle a frame reassembled from parts as if it had just arrived."""
+
+    def inflate_png(self, png: PendingPng, op_id: str | int | None, now: float) -> None:
+        """Inflate a ``png`` op's image at the connection's pace, then handle its text."""
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer (the subscription's sink)."""

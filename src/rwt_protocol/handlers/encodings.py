@@ -3,7 +3,9 @@
 A completed message is processed as if it had arrived as one frame, so the
 parts of any op work, including parts of a ``png`` op and a ``png`` op inside
 fragments. Parts are kept per connection (``Session.fragments``) and expire on
-the session's timer.
+the session's timer. A PNG's header is checked here; its inflating is paced by
+the connection's budget and may run off the event loop (``Session.inflate_png``,
+docs/limits.md).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import RemoteProtocolError
 from ..fragments import PartKind
-from ..png import decode_png
+from ..png import read_png
 
 if TYPE_CHECKING:
     from ..ops import Fragment, Png
@@ -50,5 +52,5 @@ def png(session: HandlerContext, op: Png, now: float) -> None:
         data = session.fragments.add(PartKind.PNG, op.id, op.num, op.total, data=op.data, now=now)
         session.watch_fragments()
     if data is not None:
-        text = decode_png(data, max_bytes=session.config.max_message_size)
-        session.receive_frame(text, now)
+        png = read_png(data, max_bytes=session.config.max_message_size)
+        session.inflate_png(png, op.id, now)

@@ -26,8 +26,16 @@ class ProviderLink:
         self._session = session
 
     def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
-        """Send ``{"op":"call_service","id":...,"service":...,"args":{...}}``."""
-        self._session.send_op(CallService.frame(service=service, args=args, id=request_id))
+        """Send ``{"op":"call_service","id":...,"service":...,"args":{...}}``.
+
+        Raises:
+            GraphError: ``service <name>: provider busy ...``: the requests
+                waiting for this peer leave no room (docs/limits.md); the
+                caller fails, the provider stays connected.
+        """
+        self._session.send_request(
+            CallService.frame(service=service, args=args, id=request_id), f"service {service}"
+        )
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """Warn the peer that its service was taken away (D15)."""
@@ -37,11 +45,17 @@ class ProviderLink:
     def on_action_goal(
         self, goal_id: str, action: str, action_type: str, args: dict[str, object]
     ) -> None:
-        """Send ``send_action_goal`` with ``feedback: true`` (REF §2.15)."""
-        self._session.send_op(
+        """Send ``send_action_goal`` with ``feedback: true`` (REF §2.15).
+
+        Raises:
+            GraphError: ``action <name>: provider busy ...``, as for a service
+                request (docs/limits.md); the caller's goal is aborted.
+        """
+        self._session.send_request(
             SendActionGoal.frame(
                 action=action, action_type=action_type, args=args, id=goal_id, feedback=True
-            )
+            ),
+            f"action {action}",
         )
 
     def on_action_cancel(self, goal_id: str, action: str) -> None:

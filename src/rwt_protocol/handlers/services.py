@@ -8,7 +8,7 @@ from ..errors import RemoteProtocolError, RwtError
 from ..levels import StatusLevel
 from ..names import resolve_name
 from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
-from .topics import offered
+from .topics import offered, report_type_warning
 
 if TYPE_CHECKING:
     from ..timers import Timer
@@ -30,6 +30,7 @@ def advertise_service(session: HandlerContext, op: AdvertiseService, now: float)
         session.client_id, op.service, op.type, session.provider_link
     )
     session.offers.add(key)
+    report_type_warning(session, "advertise_service", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
 
 

@@ -13,7 +13,15 @@ if TYPE_CHECKING:
     from ..ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
     from .context import HandlerContext
 
-__all__ = ["advertise", "offered", "publish", "subscribe", "unadvertise", "unsubscribe"]
+__all__ = [
+    "advertise",
+    "offered",
+    "publish",
+    "report_type_warning",
+    "subscribe",
+    "unadvertise",
+    "unsubscribe",
+]
 
 _MAX_LISTED = 8
 
@@ -32,7 +40,17 @@ def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
         session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {op.topic}")
     type_name = session.graph.advertise(session.client_id, topic, op.type, latch=op.latch)
     session.advertisements.setdefault(topic, set()).add(op.id)
+    report_type_warning(session, "advertise", type_name, op.id)
     session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
+
+
+def report_type_warning(
+    session: HandlerContext, op: str, type_name: str, op_id: str | int | None
+) -> None:
+    """A warning status when a link of the graph cannot carry ``type_name`` (docs/ros2.md)."""
+    warning = session.graph.type_warning(type_name)
+    if warning:
+        session.report(StatusLevel.WARNING, f"{op}: {warning}", op_id)
 
 
 def offered(session: HandlerContext) -> int:
@@ -109,6 +127,7 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
             session.client_id, topic, op.type, subscription
         )
         session.subscriptions[topic] = subscription
+        report_type_warning(session, "subscribe", subscription.type_name, op.id)
     else:
         if op.type is not None:
             session.graph.subscribe(session.client_id, topic, op.type, subscription)

@@ -1,0 +1,545 @@
+"""``python -m benchmarks.ros2_bridge``: real ROS 2 to WebSocket clients through a bridge.
+
+A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS on
+loopback) publishes on a private domain; a bridge carries each message to 1 or 10
+WebSocket subscribers (``websockets`` clients in this process that only count and
+read the stamp). Three receivers, in one run and on one machine state:
+
+- ``rwt``: ``rwt serve --ros2 --no-tf`` from this checkout (docs/ros2.md);
+- ``rosbridge``: the real rosbridge_suite 2.1.0 for ROS 2 (``rosbridge_websocket``
+  + ``rosapi_node``), restarted before each case because it slows down over time.
+  It is found through ``RWT_ROSBRIDGE_ROS2_DIR``: the directory holding its
+  ``start_rosbridge_ros2.sh PORT DOMAIN`` and ``stop.sh PORT``; unset, those cases
+  are skipped and the report says why;
+- ``rclpy``: the ceiling, a bare rclpy subscription in its own process (one
+  subscriber: ROS 2 delivers to each subscribing process on its own).
+
+Messages: a 100 B ``std_msgs/msg/String`` (its data starts with the publish time,
+``time.time()`` in seconds) published as fast as rclpy can and paced at
+``PACED_HZ``; a 640x480 rgb8 ``sensor_msgs/msg/Image`` at 30 Hz (the header stamp
+is the publish time). Each case: the publisher sends probes until every
+subscriber got one (discovery is eventual), then the timed messages for
+``seconds``; a subscriber idle for ``IDLE_S`` has seen all it will.
+
+Reported per case: delivered msg/s (all subscribers together, from the first
+timed publish to the last delivery), loss (1 - deliveries / (sent x
+subscribers)), p50 and p99 latency (receive wall time minus the stamp, one
+machine, so one clock) and the receiving process's CPU per delivery in us (user
++ system from ``/proc/<pid>/stat``, read at the last delivery).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import os
+import re
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from .servers import ROOT, Server, proc_stats, start_server
+
+__all__ = ["CASES", "Case", "Result", "main", "rclpy_available", "run_case", "table", "verdicts"]
+
+PEER_ENV = "RWT_ROSBRIDGE_ROS2_DIR"
+"""Directory of ``start_rosbridge_ros2.sh`` and ``stop.sh`` (the rosbridge_suite peer)."""
+PROFILE = ROOT / "tests" / "ros2" / "fastdds_loopback.xml"
+PACED_HZ = 500
+"""The paced String rate: below the ~600 msg/s rosbridge_suite 2.1.0 tops out at here."""
+IMAGE_HZ = 30
+PROBE_EVERY_S = 0.05
+DISCOVERY_S = 60.0
+"""Bound on waiting for every subscriber's first probe."""
+IDLE_S = 2.0
+"""A subscriber that saw nothing for this long has seen all it will (a loss)."""
+SETTLE_S = 10.0
+"""Bound on waiting for a new bridge to go idle (under 10 % of a core) before a case."""
+KINDS = ("rwt", "rosbridge", "rclpy")
+LABELS = {
+    "rwt": "rwt serve --ros2",
+    "rosbridge": "rosbridge_suite 2.1.0",
+    "rclpy": "bare rclpy subscriber",
+}
+TYPES = {"string": "std_msgs/msg/String", "image": "sensor_msgs/msg/Image"}
+
+
+@dataclass(frozen=True, slots=True)
+class Case:
+    """One measurement: message ``kind`` (``string``/``image``), rate (0 = as fast as rclpy can)."""
+
+    kind: str
+    hz: int
+    subscribers: int
+
+    @property
+    def label(self) -> str:
+        """``String max``, ``String 500 Hz``, ``Image 30 Hz``."""
+        rate = "max" if not self.hz else f"{self.hz} Hz"
+        return f"{'String 100 B' if self.kind == 'string' else 'Image 640x480'} {rate}"
+
+
+CASES = [
+    Case(kind, hz, subs)
+    for kind, hz in (("string", 0), ("string", PACED_HZ), ("image", IMAGE_HZ))
+    for subs in (1, 10)
+]
+
+
+@dataclass(slots=True)
+class Result:
+    """The figures of one case on one receiver (see the module docstring)."""
+
+    receiver: str
+    case: str
+    subscribers: int
+    sent: int
+    delivered: int
+    msg_per_s: float
+    loss: float
+    p50_ms: float
+    p99_ms: float
+    cpu_us_per_delivery: float
+    clients_cpu: float = 0.0
+    """This process's CPU share while the WebSocket subscribers read (1.0 = one core)."""
+
+
+PUB = r"""
+import sys, time, threading, rclpy
+from rclpy.qos import QoSProfile
+kind, hz, seconds, topic = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+rclpy.init()
+node = rclpy.create_node("bench_talker")
+if kind == "string":
+    from std_msgs.msg import String as Msg
+    msg = Msg()
+    def probe():
+        m = Msg(); m.data = "probe"; return m
+    def stamp(m):
+        m.data = f"{time.time():.6f}".ljust(100, "x")
+else:
+    from sensor_msgs.msg import Image as Msg
+    msg = Msg(); msg.height, msg.width, msg.encoding = 480, 640, "rgb8"
+    msg.step = 640 * 3; msg.data = bytes(640 * 480 * 3)
+    def probe():
+        m = Msg(); m.header.frame_id = "probe"; return m
+    def stamp(m):
+        now = time.time_ns()
+        m.header.stamp.sec, m.header.stamp.nanosec = now // 1_000_000_000, now % 1_000_000_000
+pub = node.create_publisher(Msg, topic, QoSProfile(depth=100))
+go = threading.Event()
+threading.Thread(target=lambda: (sys.stdin.readline(), go.set()), daemon=True).start()
+print("ready", flush=True)
+p = probe()
+end = time.time() + 120
+while not go.is_set() and time.time() < end:
+    pub.publish(p)
+    time.sleep(0.05)
+time.sleep(0.3)  # the last probes are through
+print(time.time(), flush=True)
+sent, start = 0, time.monotonic()
+while time.monotonic() - start < seconds:
+    stamp(msg)
+    pub.publish(msg)
+    sent += 1
+    if hz:
+        delay = start + sent / hz - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+print(sent, flush=True)
+sys.stdin.readline()
+rclpy.shutdown()
+"""
+
+SUB = r"""
+import sys, time, json, threading, rclpy
+kind, topic = sys.argv[1], sys.argv[2]
+rclpy.init()
+node = rclpy.create_node("bench_counter")
+lat, probed, state = [], threading.Event(), [0.0]
+if kind == "string":
+    from std_msgs.msg import String as Msg
+    def on(m):
+        now = time.time()
+        if m.data == "probe":
+            probed.set(); return
+        lat.append(now - float(m.data[:17])); state[0] = now
+else:
+    from sensor_msgs.msg import Image as Msg
+    def on(m):
+        now = time.time()
+        if m.header.frame_id == "probe":
+            probed.set(); return
+        lat.append(now - m.header.stamp.sec - m.header.stamp.nanosec / 1e9); state[0] = now
+node.create_subscription(Msg, topic, on, 10)
+ex = rclpy.executors.SingleThreadedExecutor(); ex.add_node(node)
+threading.Thread(target=ex.spin, daemon=True).start()
+print("ready", flush=True)
+probed.wait(120)
+print("probed", flush=True)
+sys.stdin.readline()
+print(json.dumps({"lat": lat, "last": state[0]}), flush=True)
+ex.shutdown(); rclpy.shutdown()
+"""
+
+_STRING_STAMP = re.compile(rb'"data"\s*:\s*"([0-9]+\.[0-9]+)')
+_IMAGE_STAMP = re.compile(rb'"sec"\s*:\s*([0-9]+)\s*,\s*"nanosec"\s*:\s*([0-9]+)')
+
+
+def rclpy_available() -> bool:
+    """Whether rclpy (the ``ros2`` extra's ROS 2 wheels, or a sourced ROS 2) imports."""
+    import importlib.util  # noqa: PLC0415
+
+    return importlib.util.find_spec("rclpy") is not None
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    """The ROS 2 environment of every process of a run: private domain, loopback only."""
+    return {
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+        "ROS_DOMAIN_ID": str(domain),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "FASTDDS_DEFAULT_PROFILES_FILE": str(PROFILE),
+        "PYTHONUNBUFFERED": "1",
+    }
+
+
+def _stamp(kind: str, frame: bytes) -> float | None:
+    """The publish time in a delivered frame (seconds), None for a probe."""
+    if kind == "string":
+        found = _STRING_STAMP.search(frame, 0, 400)
+        return float(found.group(1)) if found else None
+    found = _IMAGE_STAMP.search(frame, 0, 600) or _IMAGE_STAMP.search(frame)
+    if found is None or b'"probe"' in frame[:600]:
+        return None
+    return int(found.group(1)) + int(found.group(2)) / 1e9
+
+
+class Counter:
+    """One WebSocket subscriber: counts timed messages and their latencies (s)."""
+
+    def __init__(self) -> None:
+        self.probed = asyncio.Event()
+        self.latencies: list[float] = []
+        self.last = 0.0
+
+    async def run(self, url: str, topic: str, kind: str) -> None:
+        """Subscribe to ``topic`` and read until cancelled."""
+        import websockets  # noqa: PLC0415
+
+        async with websockets.connect(url, max_size=None, compression=None) as ws:
+            sub = {"op": "subscribe", "topic": topic, "type": TYPES[kind]}
+            await ws.send(json.dumps(sub))
+            async for frame in ws:
+                now = time.time()
+                data = frame.encode() if isinstance(frame, str) else frame
+                stamp = _stamp(kind, data)
+                if stamp is None:
+                    self.probed.set()
+                    continue
+                self.latencies.append(now - stamp)
+                self.last = now
+
+
+def _percentile(values: list[float], q: float) -> float:
+    if not values:
+        return float("nan")
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+async def _line(proc: asyncio.subprocess.Process, within: float = DISCOVERY_S) -> str:
+    assert proc.stdout is not None
+    line = await asyncio.wait_for(proc.stdout.readline(), within)
+    if not line:
+        raise RuntimeError(f"a benchmark process ended early (status {await proc.wait()})")
+    return line.decode().strip()
+
+
+async def _say(proc: asyncio.subprocess.Process) -> None:
+    assert proc.stdin is not None
+    proc.stdin.write(b"go\n")
+    await proc.stdin.drain()
+
+
+@contextlib.asynccontextmanager
+async def _child(code: str, *args: str, env: dict[str, str]) -> Any:
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-c",
+        code,
+        *args,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+    try:
+        yield proc
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            proc.kill()
+        await proc.wait()
+
+
+def _cpu(pid: int) -> float:
+    return proc_stats(pid).cpu_s
+
+
+async def _settle(pid: int) -> None:
+    """Wait (at most ``SETTLE_S``) for the bridge to go idle: it loads types at start."""
+    end = time.monotonic() + SETTLE_S
+    while time.monotonic() < end:
+        before = _cpu(pid)
+        await asyncio.sleep(0.5)
+        if _cpu(pid) - before < 0.05:
+            return
+
+
+async def _drain(counters: list[Counter], pid: int, sent_task: asyncio.Task[str]) -> float:
+    """Wait for the publisher to finish and the subscribers to go idle; CPU at the last delivery."""
+    cpu = _cpu(pid)
+    total = -1
+    idle_since = time.monotonic()
+    while True:
+        await asyncio.sleep(0.1)
+        now_total = sum(len(c.latencies) for c in counters)
+        if now_total != total:
+            total, idle_since, cpu = now_total, time.monotonic(), _cpu(pid)
+        elif sent_task.done() and time.monotonic() - idle_since > IDLE_S:
+            return cpu
+
+
+def _result(
+    receiver: str,
+    case: Case,
+    sent: int,
+    start: float,
+    latencies: list[float],
+    last: float,
+    cpu_s: float,
+    subscribers: int,
+) -> Result:
+    delivered = len(latencies)
+    elapsed = max(last - start, 1e-9)
+    return Result(
+        receiver=receiver,
+        case=case.label,
+        subscribers=subscribers,
+        sent=sent,
+        delivered=delivered,
+        msg_per_s=delivered / elapsed if delivered else 0.0,
+        loss=1 - delivered / max(sent * subscribers, 1),
+        p50_ms=_percentile(latencies, 0.5) * 1e3,
+        p99_ms=_percentile(latencies, 0.99) * 1e3,
+        cpu_us_per_delivery=cpu_s / max(delivered, 1) * 1e6,
+    )
+
+
+async def _through_bridge(
+    receiver: str, url: str, pid: int, case: Case, seconds: float, env: dict[str, str]
+) -> Result:
+    topic = f"/bench_{receiver}_{case.kind}_{case.hz}_{case.subscribers}"
+    counters = [Counter() for _ in range(case.subscribers)]
+    tasks = [asyncio.create_task(c.run(url, topic, case.kind)) for c in counters]
+    try:
+        async with _child(PUB, case.kind, str(case.hz), str(seconds), topic, env=env) as pub:
+            await _line(pub)  # ready
+            probed = asyncio.gather(*(c.probed.wait() for c in counters))
+            await asyncio.wait_for(probed, DISCOVERY_S)
+            await _settle(pid)
+            await _say(pub)
+            start = float(await _line(pub))
+            cpu0, own0 = _cpu(pid), time.process_time()
+            sent_task = asyncio.create_task(_line(pub, seconds + DISCOVERY_S))
+            cpu1 = await _drain(counters, pid, sent_task)
+            own = (time.process_time() - own0) / max(time.time() - start, 1e-9)
+            sent = int(await sent_task)
+    finally:
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+    latencies = [x for c in counters for x in c.latencies]
+    last = max(c.last for c in counters)
+    result = _result(receiver, case, sent, start, latencies, last, cpu1 - cpu0, case.subscribers)
+    result.clients_cpu = own
+    return result
+
+
+async def _bare(case: Case, seconds: float, env: dict[str, str]) -> Result:
+    topic = f"/bench_rclpy_{case.kind}_{case.hz}"
+    async with (
+        _child(SUB, case.kind, topic, env=env) as sub,
+        _child(PUB, case.kind, str(case.hz), str(seconds), topic, env=env) as pub,
+    ):
+        await _line(sub)  # ready
+        await _line(pub)  # ready
+        await _line(sub)  # probed
+        await _say(pub)
+        start = float(await _line(pub))
+        cpu0 = _cpu(sub.pid)
+        sent = int(await _line(pub, seconds + DISCOVERY_S))
+        await asyncio.sleep(IDLE_S)
+        cpu1 = _cpu(sub.pid)
+        await _say(sub)
+        report = json.loads(await _line(sub))
+    return _result("rclpy", case, sent, start, report["lat"], report["last"], cpu1 - cpu0, 1)
+
+
+def _start_rwt(domain: int) -> Server:
+    """``rwt serve --ros2 --no-tf`` (``start_server`` passes on ``os.environ``) on ``domain``."""
+    saved = dict(os.environ)
+    os.environ.update(ros_env(domain))
+    try:
+        return start_server("rwt", extra=["--ros2", "--no-tf"])
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+
+
+def _free_port() -> int:
+    """A port nobody listens on now (the peer's scripts take a fixed port, not 0)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+def _start_rosbridge(tools: Path, port: int, domain: int) -> int:
+    """Start a fresh rosbridge_suite on ``port``; its websocket process's pid."""
+    out = subprocess.run(
+        [str(tools / "start_rosbridge_ros2.sh"), str(port), str(domain)],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=180,
+    ).stdout
+    found = re.search(r"ROSBRIDGE_PID=(\d+)", out)
+    if found is None:
+        raise RuntimeError(f"rosbridge_suite did not start: {out!r}")
+    return int(found.group(1))
+
+
+async def run_case(
+    receiver: str, case: Case, seconds: float, domain: int, tools: Path | None = None
+) -> Result:
+    """One ``case`` on ``receiver`` (``rwt``, ``rosbridge`` with ``tools``, or ``rclpy``).
+
+    Starts (and stops) the bridge; the ROS 2 processes use ``domain``.
+
+    Raises:
+        RuntimeError: a process did not start or ended early.
+        TimeoutError: discovery took longer than ``DISCOVERY_S``.
+    """
+    env = {**os.environ, **ros_env(domain)}
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
+    if receiver == "rclpy":
+        return await _bare(case, seconds, env)
+    if receiver == "rwt":
+        with await asyncio.to_thread(_start_rwt, domain) as server:
+            url = f"ws://127.0.0.1:{server.port}"
+            return await _through_bridge("rwt", url, server.process.pid, case, seconds, env)
+    assert tools is not None
+    port = _free_port()
+    try:
+        pid = await asyncio.to_thread(_start_rosbridge, tools, port, domain)
+        url = f"ws://127.0.0.1:{port}"
+        return await _through_bridge("rosbridge", url, pid, case, seconds, env)
+    finally:
+        stop = [str(tools / "stop.sh"), str(port)]  # only what this start recorded
+        await asyncio.to_thread(subprocess.run, stop, capture_output=True, check=False)
+
+
+def table(results: list[Result]) -> str:
+    """The Markdown table of ``results``."""
+    lines = [
+        "| case | subs | receiver | sent | delivered msg/s | loss | p50 ms | p99 ms "
+        "| CPU us/delivery | clients' CPU |",
+        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for r in results:
+        lines.append(
+            f"| {r.case} | {r.subscribers} | {LABELS[r.receiver]} | {r.sent} | {r.msg_per_s:,.0f} "
+            f"| {r.loss:.1%} | {r.p50_ms:.1f} | {r.p99_ms:.1f} | {r.cpu_us_per_delivery:.0f} "
+            f"| {'-' if r.receiver == 'rclpy' else f'{r.clients_cpu:.0%}'} |"
+        )
+    return "\n".join(lines)
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def verdicts(results: list[Result]) -> list[str]:
+    """The targets of the ROS 2 bridge benchmark, each with the figures it was judged on."""
+    by = {(r.receiver, r.case, r.subscribers): r for r in results}
+    out = []
+    for case in CASES:
+        name = f"{case.label} 1->{case.subscribers}"
+        rwt = by.get(("rwt", case.label, case.subscribers))
+        ref = by.get(("rosbridge", case.label, case.subscribers))
+        bare = by.get(("rclpy", case.label, 1))
+        if rwt and ref and not case.hz:
+            ratio = rwt.msg_per_s / max(ref.msg_per_s, 1e-9)
+            out.append(f"{name}: delivered {ratio:.1f}x rosbridge (>= 10x): {_met(ratio >= 10)}")
+        if rwt and ref and case.hz and ref.loss == 0:
+            out.append(f"{name}: rosbridge lossless, rwt loss {rwt.loss:.1%}: {_met(not rwt.loss)}")
+        if rwt and bare and case.subscribers == 1:
+            ratio = rwt.cpu_us_per_delivery / max(bare.cpu_us_per_delivery, 1e-9)
+            out.append(f"{name}: CPU/delivery {ratio:.1f}x bare rclpy (<= 2x): {_met(ratio <= 2)}")
+        if rwt and case.kind == "image":
+            p99 = rwt.p99_ms
+            out.append(f"{name}: p99 {p99:.1f} ms (<= 20 ms): {_met(p99 <= 20)}")
+    return out
+
+
+async def run_all(
+    receivers: list[str], cases: list[Case], seconds: float, domain: int, tools: Path | None
+) -> list[Result]:
+    """Every case on every receiver, in that order (rclpy: the 1-subscriber cases only)."""
+    results = []
+    for case in cases:
+        for receiver in receivers:
+            if receiver == "rclpy" and case.subscribers != 1:
+                continue
+            print(f"{case.label} 1->{case.subscribers} {receiver}...", file=sys.stderr, flush=True)
+            results.append(await run_case(receiver, case, seconds, domain, tools))
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run every case; print the Markdown table and the verdicts (``--json``: every figure)."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.ros2_bridge")
+    parser.add_argument("--seconds", type=float, default=5.0, help="timed publishing per case")
+    parser.add_argument(
+        "--receivers", default=",".join(KINDS), help="comma-separated: rwt,rosbridge,rclpy"
+    )
+    parser.add_argument("--domain", type=int, default=130 + os.getpid() % 10, help="ROS_DOMAIN_ID")
+    parser.add_argument("--json", type=Path, help="write the results here")
+    args = parser.parse_args(argv)
+    if not rclpy_available():
+        print('skipped: rclpy is not importable (pip install "rwt[ros2]")')
+        return 0
+    receivers = [r for r in args.receivers.split(",") if r]
+    tools = Path(os.environ[PEER_ENV]) if os.environ.get(PEER_ENV) else None
+    if "rosbridge" in receivers and tools is None:
+        print(f"rosbridge_suite skipped: {PEER_ENV} (start_rosbridge_ros2.sh's dir) is unset")
+        receivers.remove("rosbridge")
+    results = asyncio.run(run_all(receivers, CASES, args.seconds, args.domain, tools))
+    print(table(results))
+    print()
+    for line in verdicts(results):
+        print(f"- {line}")
+    if args.json:
+        args.json.write_text(json.dumps([asdict(r) for r in results], indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,98 @@
+"""Parameter values as ROS 2's ``rcl_interfaces/msg/ParameterValue``, both ways.
+
+One conversion for every link that reaches ROS 2 nodes' parameter services
+(the Zenoh link, the ROS 2 link). ROS 2 parameters keep their type; so does
+rwt's store.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .params import ParameterError
+
+if TYPE_CHECKING:
+    from .params import ParamValue
+    from .types import MessageType
+
+__all__ = ["PARAM_SERVICES", "from_wire", "to_wire", "type_code"]
+
+PARAM_SERVICES = {
+    "list_parameters": "rcl_interfaces/srv/ListParameters",
+    "get_parameters": "rcl_interfaces/srv/GetParameters",
+    "set_parameters": "rcl_interfaces/srv/SetParameters",
+}
+"""A ROS 2 node's parameter services: ``<node>/<part>`` of each type."""
+
+# rcl_interfaces/msg/ParameterType
+_NOT_SET, _BOOL, _INTEGER, _DOUBLE, _STRING = 0, 1, 2, 3, 4
+_BYTES, _BOOLS, _INTEGERS, _DOUBLES, _STRINGS = 5, 6, 7, 8, 9
+_FIELDS = {
+    _BOOL: "bool_value",
+    _INTEGER: "integer_value",
+    _DOUBLE: "double_value",
+    _STRING: "string_value",
+    _BYTES: "byte_array_value",
+    _BOOLS: "bool_array_value",
+    _INTEGERS: "integer_array_value",
+    _DOUBLES: "double_array_value",
+    _STRINGS: "string_array_value",
+}
+
+
+def type_code(value: object) -> int:
+    """The ``ParameterType`` code of a value of rwt's store.
+
+    Raises:
+        ParameterError: the value has no ROS 2 parameter type.
+    """
+    if isinstance(value, bool):
+        return _BOOL
+    if isinstance(value, int):
+        return _INTEGER
+    if isinstance(value, float):
+        return _DOUBLE
+    if isinstance(value, str):
+        return _STRING
+    if isinstance(value, bytes | bytearray):
+        return _BYTES
+    if isinstance(value, list):
+        kinds = {type_code(item) for item in value} or {_STRING}
+        if kinds == {_BOOL}:
+            return _BOOLS
+        if kinds == {_INTEGER}:
+            return _INTEGERS
+        if kinds <= {_INTEGER, _DOUBLE}:
+            return _DOUBLES
+        if kinds == {_STRING}:
+            return _STRINGS
+    raise ParameterError(f"a value of type {type(value).__name__} is no ROS 2 parameter")
+
+
+def to_wire(value_type: MessageType, value: ParamValue) -> dict[str, object]:
+    """``value`` as a ``ParameterValue`` (``value_type``) in the internal form.
+
+    Raises:
+        ParameterError: the value has no ROS 2 parameter type.
+    """
+    msg = value_type.default()
+    kind = type_code(value)
+    msg["type"] = kind
+    msg[_FIELDS[kind]] = bytes(value) if kind == _BYTES else value  # type: ignore[arg-type]
+    return msg
+
+
+def from_wire(msg: dict[str, object]) -> object:
+    """The value of a ``ParameterValue``; None when NOT_SET.
+
+    Raises:
+        ParameterError: an unknown type code.
+    """
+    kind = msg.get("type")
+    if kind == _NOT_SET:
+        return None
+    name = _FIELDS.get(kind) if isinstance(kind, int) else None
+    if name is None:
+        raise ParameterError(f"unknown parameter type {kind!r}")
+    value = msg[name]
+    return list(value) if isinstance(value, tuple) else value

@@ -1,0 +1,181 @@
+"""A snapshot of the ROS 2 graph as rclpy sees it, and the QoS a subscription needs.
+
+Taken on a worker thread (rcl's graph queries are thread safe) every sweep;
+the link compares it with what it mirrored. The link's own node is left out:
+its endpoints are the local graph's, shared outward.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from rwt_graph.link import DEFAULT_DEPTH
+
+if TYPE_CHECKING:
+    from .node import RosNode
+
+__all__ = [
+    "ACTION_PART",
+    "Endpoint",
+    "Qos",
+    "RosGraph",
+    "rclpy_profile",
+    "snapshot",
+    "subscription_qos",
+]
+
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+"""The node name rmw gives an endpoint discovered before its node: such an
+endpoint waits for the next sweep, so rosapi never lists a made-up node."""
+
+ACTION_PART = "/_action/"
+"""In the names of an action's own topics and services, which its action stands for."""
+
+
+@dataclass(frozen=True)
+class Qos:
+    """The QoS of an endpoint, as far as matching goes.
+
+    Attributes:
+        reliable: reliable, not best effort.
+        transient_local: transient local durability, not volatile.
+        depth: history depth (KEEP_LAST); 0 for KEEP_ALL or unknown.
+    """
+
+    reliable: bool = True
+    transient_local: bool = False
+    depth: int = DEFAULT_DEPTH
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A publisher or subscription of another node."""
+
+    kind: str  # "publisher" or "subscription"
+    topic: str
+    type_name: str
+    node: str  # fully qualified
+    gid: bytes
+    qos: Qos
+    type_hash: str = ""  # RIHS01_<hex> as the middleware reports it; "" when it does not
+
+
+@dataclass
+class RosGraph:
+    """The ROS 2 graph without the link's own node.
+
+    Attributes:
+        nodes: fully qualified names of the other nodes.
+        endpoints: publishers and subscriptions by gid.
+        services: (node, service) -> type, servers only (an action's own
+            services left out: the action stands for them).
+        actions: (node, action) -> type, servers only.
+        own_publishers: the publishers of the link's own node (its rcl ``/rosout``
+            one, and the link's), for the QoS of its subscriptions only.
+    """
+
+    nodes: set[str] = field(default_factory=set)
+    endpoints: dict[bytes, Endpoint] = field(default_factory=dict)
+    services: dict[tuple[str, str], str] = field(default_factory=dict)
+    actions: dict[tuple[str, str], str] = field(default_factory=dict)
+    own_publishers: list[Endpoint] = field(default_factory=list)
+
+
+def _fqn(node: str, namespace: str) -> str:
+    return f"{namespace.rstrip('/')}/{node}"
+
+
+def _qos(profile: Any, rclpy_qos: Any) -> Qos:
+    reliable = profile.reliability != rclpy_qos.ReliabilityPolicy.BEST_EFFORT
+    transient = profile.durability == rclpy_qos.DurabilityPolicy.TRANSIENT_LOCAL
+    keep_last = profile.history != rclpy_qos.HistoryPolicy.KEEP_ALL
+    return Qos(reliable, transient, int(profile.depth) if keep_last else 0)
+
+
+def snapshot(ros: RosNode) -> RosGraph:
+    """The graph now (blocking: run it on a worker thread)."""
+    graph = RosGraph()
+    _read_nodes(ros, graph)
+    _read_endpoints(ros, graph)
+    return graph
+
+
+def _read_nodes(ros: RosNode, graph: RosGraph) -> None:
+    """The other nodes, their service servers and action servers."""
+    from rclpy.action.graph import get_action_server_names_and_types_by_node  # noqa: PLC0415
+
+    node = ros.node
+    for name, namespace in node.get_node_names_and_namespaces():
+        fqn = _fqn(name, namespace)
+        if fqn == ros.fqn:
+            continue
+        graph.nodes.add(fqn)
+        for service, types in node.get_service_names_and_types_by_node(name, namespace):
+            if types and ACTION_PART not in service:
+                graph.services[(fqn, service)] = types[0]
+        for action, types in get_action_server_names_and_types_by_node(node, name, namespace):
+            if types:
+                graph.actions[(fqn, action)] = types[0]
+
+
+def _read_endpoints(ros: RosNode, graph: RosGraph) -> None:
+    """Every topic's publishers and subscriptions, with their QoS and type hash."""
+    import rclpy.qos as rclpy_qos  # noqa: PLC0415
+
+    node = ros.node
+    for topic, _types in node.get_topic_names_and_types():
+        if ACTION_PART in topic:
+            continue
+        infos = [("publisher", i) for i in node.get_publishers_info_by_topic(topic)]
+        infos += [("subscription", i) for i in node.get_subscriptions_info_by_topic(topic)]
+        for kind, info in infos:
+            if info.node_name == UNKNOWN_NODE:
+                continue  # its node is not discovered yet: the next sweep has it
+            gid = bytes(info.endpoint_gid)[:16]
+            fqn = _fqn(info.node_name, info.node_namespace)
+            qos = _qos(info.qos_profile, rclpy_qos)
+            if fqn == ros.fqn:
+                if kind == "publisher":
+                    graph.own_publishers.append(Endpoint(kind, topic, "", fqn, gid, qos))
+                continue
+            hashed = info.topic_type_hash
+            type_hash = f"RIHS01_{bytes(hashed.value).hex()}" if hashed.version == 1 else ""
+            graph.endpoints[gid] = Endpoint(kind, topic, info.topic_type, fqn, gid, qos, type_hash)
+
+
+def subscription_qos(publishers: list[Qos]) -> Qos:
+    """The QoS of a subscription that matches every one of ``publishers``.
+
+    Reliable only if every publisher is (a reliable reader refuses a best
+    effort writer); transient local only if every publisher is (a transient
+    local reader refuses a volatile writer), so a late subscriber gets what
+    ``/tf_static`` or ``/map`` kept; the deepest publisher's depth (at least
+    ``DEFAULT_DEPTH``). No publisher: reliable, volatile, ``DEFAULT_DEPTH``.
+    """
+    if not publishers:
+        return Qos()
+    return Qos(
+        reliable=all(q.reliable for q in publishers),
+        transient_local=all(q.transient_local for q in publishers),
+        depth=max([DEFAULT_DEPTH, *(q.depth for q in publishers)]),
+    )
+
+
+def rclpy_profile(qos: Qos) -> Any:
+    """The ``rclpy.qos.QoSProfile`` of ``qos``."""
+    from rclpy.qos import (  # noqa: PLC0415
+        DurabilityPolicy,
+        HistoryPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+    )
+
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=max(qos.depth, 1),
+        reliability=ReliabilityPolicy.RELIABLE if qos.reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=(
+            DurabilityPolicy.TRANSIENT_LOCAL if qos.transient_local else DurabilityPolicy.VOLATILE
+        ),
+    )

@@ -1,0 +1,123 @@
+"""Work handed from rclpy's executor thread to the event loop, bounded in bytes.
+
+rclpy calls back on its own thread; the graph may only be touched on the event
+loop's. ``Handoff.put`` (any thread) queues a callback with its size in bytes;
+the link's task runs queued callbacks in order (``drain``). Samples beyond
+``max_bytes`` queued are dropped, one log line per topic and episode
+(``rwt_graph.ratelog``), so a ROS 2 publisher faster than the bridge cannot
+exhaust memory; replies and graph events are never dropped (they are small and
+each answers something this process asked for).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import threading
+from collections import deque
+from typing import TYPE_CHECKING
+
+from rwt_graph.ratelog import EpisodeLog
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+__all__ = ["MAX_QUEUED_BYTES", "Handoff"]
+
+logger = logging.getLogger("rwt.ros2")
+
+MAX_QUEUED_BYTES = 64 * 1024 * 1024
+"""Bytes of ROS 2 samples waiting for the event loop beyond which new ones are dropped."""
+
+_BATCH = 1000
+
+
+class Handoff:
+    """A byte-bounded queue of callbacks from other threads to one event loop's task.
+
+    Args:
+        max_bytes: samples' bytes kept waiting at most (``MAX_QUEUED_BYTES``).
+    """
+
+    def __init__(self, max_bytes: int = MAX_QUEUED_BYTES) -> None:
+        self.max_bytes = max_bytes
+        self.queued_bytes = 0
+        self.dropped = 0
+        self._events: deque[tuple[Callable[..., None], tuple[object, ...], int]] = deque()
+        self._lock = threading.Lock()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake: asyncio.Event | None = None
+        self._signalled = False
+        self._closed = False
+        self._drops = EpisodeLog(logger)
+
+    def put(
+        self, callback: Callable[..., None], *args: object, size: int = 0, topic: str = ""
+    ) -> bool:
+        """Queue ``callback(*args)`` (any thread); a sample (``topic``) may be dropped.
+
+        Args:
+            callback: runs in the link's task.
+            *args: its arguments.
+            size: the sample's bytes, counted against ``max_bytes``.
+            topic: the sample's topic; empty for an event that is never dropped.
+
+        Returns:
+            False when the sample was dropped (or the handoff is closed).
+        """
+        with self._lock:
+            if self._closed:
+                return False
+            if topic and self.queued_bytes + size > self.max_bytes:
+                self.dropped += 1
+                self._drops.log(
+                    logging.WARNING,
+                    f"drop:{topic}",
+                    "event=ros2_samples_dropped topic=%s queued_bytes=%d limit=%d",
+                    topic,
+                    self.queued_bytes,
+                    self.max_bytes,
+                )
+                return False
+            self.queued_bytes += size
+            self._events.append((callback, args, size))
+            signal = not self._signalled
+            self._signalled = True
+        loop, wake = self._loop, self._wake
+        if signal and loop is not None and wake is not None:
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(wake.set)
+        return True
+
+    async def drain(self) -> None:
+        """Run queued callbacks in order, in this task, until cancelled.
+
+        Errors of a callback are logged; the others still run.
+        """
+        self._loop = asyncio.get_running_loop()
+        wake = self._wake = asyncio.Event()
+        wake.set()  # whatever was queued before the loop was known
+        while True:
+            await wake.wait()
+            wake.clear()
+            with self._lock:
+                self._signalled = False
+            while self._events:
+                for _ in range(min(len(self._events), _BATCH)):
+                    with self._lock:
+                        callback, args, size = self._events.popleft()
+                        self.queued_bytes -= size
+                    try:
+                        callback(*args)
+                    except Exception:
+                        logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
+                if self._events:
+                    await asyncio.sleep(0)  # a flood: let the servers send meanwhile
+
+    def close(self) -> None:
+        """Refuse new work and forget what is queued."""
+        with self._lock:
+            self._closed = True
+            self._events.clear()
+            self.queued_bytes = 0

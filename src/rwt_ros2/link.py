@@ -1,0 +1,674 @@
+"""The ROS 2 link: one graph's entities mirrored to and from a ROS 2 graph through rclpy.
+
+``Ros2Link`` follows the link contract of ``rwt_graph.link`` (as the Zenoh link
+does), with one rclpy node (``rwt`` by default) standing for the whole local
+graph:
+
+- inward, every other ROS 2 node, publisher, subscription, service server and
+  action server becomes a participant of the graph (``ros2:`` ids, in its ROS 2
+  node), so rosapi lists the ROS 2 graph; a topic local subscribers listen to
+  gets a raw rclpy subscription whose QoS matches its publishers'
+  (``subscription_qos``), and each sample is published in the graph by its
+  publisher's participant; a call to a ROS 2 service goes through an rclpy
+  client (``RosService``), a goal through an rclpy action client
+  (``RosAction``); ROS 2 nodes' parameters are copied into the store
+  (``rwt_graph.param_replicas``);
+- outward, a topic local publishers publish gets an rclpy publisher (transient
+  local when a local publisher latches), fed by a graph tap with the CDR rwt's
+  codec writes; a local service gets an rclpy service (``serve_to_ros``), a
+  local action an rclpy action server (``serve_action_to_ros``); rwt's log goes
+  to ``/rosout`` (``rosout``).
+
+The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread; samples and
+replies arrive on rclpy's executor thread and reach the event loop through a
+``Handoff`` bounded in bytes. The node's own publishers' samples are recognised
+by their publisher GID and never come back in.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field
+from functools import partial
+from typing import TYPE_CHECKING, Any
+
+import anyio
+
+from rwt_graph.link import DEFAULT_DEPTH, LATCHED_DEPTH, NULL_SINK, Kind, LinkRules
+from rwt_graph.param_replicas import ParamReplicas
+from rwt_graph.param_services import answer as answer_param_request
+from rwt_graph.param_services import param_nodes
+from rwt_graph.param_wire import PARAM_SERVICES
+from rwt_graph.ratelog import EpisodeLog
+from rwt_graph.types.hashes import message_type_hash
+from rwt_protocol.errors import GraphError, RwtError
+
+from .actions import GoalOutcome, RosAction, serve_action_to_ros
+from .codec import decode, encode
+from .graphview import Endpoint, Qos, RosGraph, rclpy_profile, snapshot
+from .graphview import subscription_qos as matching_qos
+from .handoff import MAX_QUEUED_BYTES, Handoff
+from .node import RosNode
+from .rosout import RosoutHandler
+from .runtime import interface_class
+from .services import RosService, serve_to_ros
+
+if TYPE_CHECKING:
+    import asyncio
+    from collections.abc import AsyncIterator
+
+    from anyio.abc import TaskStatus
+
+    from rwt_graph.graph import Graph
+    from rwt_graph.topics import Topic as GraphTopic
+    from rwt_protocol.ports import ClientId, MessageEvent
+
+    from .services import _Answer
+
+__all__ = ["PARTICIPANT_PREFIX", "Ros2Link", "Ros2Options", "open_ros2_link"]
+
+logger = logging.getLogger("rwt.ros2")
+
+PARTICIPANT_PREFIX = "ros2:"
+"""Participant ids of the link: ROS 2 entities, its relays and its caller."""
+
+SWEEP_S = 0.2
+"""How often both graphs are compared, seconds: a ROS 2 entity shows in rosapi
+within this (plus discovery), a new rosbridge subscription reaches ROS 2 within it."""
+
+CALL_TIMEOUT_S = 30.0
+"""How long a call across the link waits for its reply, seconds."""
+
+
+@dataclass(frozen=True)
+class Ros2Options:
+    """How the link joins ROS 2 (``ROS_DOMAIN_ID`` and the middleware come from the environment).
+
+    Attributes:
+        node_name: the rclpy node standing for the graph (``--ros2-node-name``).
+        namespace: its namespace (``--ros2-namespace``).
+        sweep_s: ``SWEEP_S``.
+        call_timeout_s: ``CALL_TIMEOUT_S``.
+        max_queued_bytes: ``handoff.MAX_QUEUED_BYTES``.
+    """
+
+    node_name: str = "rwt"
+    namespace: str = "/"
+    sweep_s: float = SWEEP_S
+    call_timeout_s: float = CALL_TIMEOUT_S
+    max_queued_bytes: int = MAX_QUEUED_BYTES
+
+
+@dataclass(eq=False)
+class _Sub:
+    type_name: str
+    qos: Qos
+    handle: Any
+
+
+@dataclass(eq=False)
+class _Pub:
+    type_name: str
+    latched: bool
+    handle: Any
+    latched_sent: object = None
+    gids: set[bytes] = field(default_factory=set)
+
+
+@dataclass(eq=False)
+class _Server:
+    type_name: str
+    handle: Any
+
+
+@dataclass(eq=False)
+class _Mirror:
+    """A ROS 2 entity and what stands for it in the graph."""
+
+    spec: object
+    provider: RosService | RosAction | None = None
+    mirrored: bool = False
+    refused: bool = False  # an unknown type: not tried again while the entity lives
+
+
+@dataclass
+class _Specs:
+    nodes: dict[ClientId, str] = field(default_factory=dict)
+    endpoints: dict[ClientId, Endpoint] = field(default_factory=dict)
+    services: dict[ClientId, tuple[str, str, str]] = field(default_factory=dict)
+    actions: dict[ClientId, tuple[str, str, str, str]] = field(default_factory=dict)
+
+
+class Ros2Link:
+    """Mirrors a graph to and from ROS 2 through one rclpy node (see the module text).
+
+    Args:
+        graph: the graph; touched only on the event loop running ``run``.
+        ros: the rclpy node (not yet spinning); the link closes it.
+        options: sweep period, call timeout, queue bound.
+    """
+
+    def __init__(self, graph: Graph, ros: RosNode, options: Ros2Options | None = None) -> None:
+        self.graph = graph
+        self.ros = ros
+        self.options = options or Ros2Options()
+        self.rules = LinkRules(PARTICIPANT_PREFIX)
+        self.handoff = Handoff(self.options.max_queued_bytes)
+        self.episodes = EpisodeLog(logger)
+        self.caller: ClientId = f"{PARTICIPANT_PREFIX}caller"
+        self.pending_answers: set[_Answer | GoalOutcome] = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._mirrors: dict[ClientId, _Mirror] = {}
+        self._by_gid: dict[bytes, ClientId] = {}
+        self._own_gids: set[bytes] = set()
+        self._publisher_qos: dict[str, list[Qos]] = {}  # the view's, by topic
+        self._subs: dict[str, _Sub] = {}
+        self._pubs: dict[str, _Pub] = {}
+        self._servers: dict[str, _Server] = {}
+        self._action_servers: dict[str, _Server] = {}
+        self._param_servers: dict[str, list[Any]] = {}  # node -> its 3 rclpy services
+        self._relays: dict[str, ClientId] = {}
+        self._params: ParamReplicas | None = None
+        self._missing_types: set[str] = set()
+        self._type_warnings: dict[str, str | None] = {}
+        self._hashes: dict[str, str] = {}  # type -> the registry's RIHS01
+        self._mismatched: set[bytes] = set()  # GIDs of endpoints of another definition
+        self._closed = False
+
+    @property
+    def loop(self) -> asyncio.AbstractEventLoop:
+        """The event loop the link runs on."""
+        assert self._loop is not None
+        return self._loop
+
+    # ---- running ----------------------------------------------------------------
+
+    async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
+        """Link until cancelled; then destroy every rclpy entity and release every mirror."""
+        import asyncio  # noqa: PLC0415
+
+        self._loop = asyncio.get_running_loop()
+        self.graph.nodes.bind(self.caller, self.ros.fqn)
+        self.graph.taps.append(self._tap)
+        self._params = ParamReplicas(self.graph, self.caller)
+        self.graph.type_checks.append(self.type_warning)
+        rosout = RosoutHandler(self.ros.node.get_logger())
+        logging.getLogger("rwt").addHandler(rosout)
+        try:
+            self.ros.start()
+            await self._sweep_once()
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self.handoff.drain)
+                task_status.started()
+                while True:
+                    await anyio.sleep(self.options.sweep_s)
+                    await self._sweep_once()
+        finally:
+            logging.getLogger("rwt").removeHandler(rosout)
+            with contextlib.suppress(ValueError):
+                self.graph.type_checks.remove(self.type_warning)
+            self._close()
+
+    async def _sweep_once(self) -> None:
+        view = await anyio.to_thread.run_sync(snapshot, self.ros)
+        if not self._closed:
+            self._apply(view)
+            self._sweep_local()
+            if self._params is not None:  # nodes whose parameter services are mirrored
+                listing = PARAM_SERVICES["list_parameters"]
+                self._params.sweep(
+                    {
+                        node
+                        for (node, name), type_name in view.services.items()
+                        if name == f"{node}/list_parameters" and type_name == listing
+                    }
+                )
+
+    def _close(self) -> None:
+        self._closed = True
+        self.handoff.close()
+        with contextlib.suppress(ValueError):
+            self.graph.taps.remove(self._tap)
+        if self._params is not None:
+            self._params.close()
+        for answer in list(self.pending_answers):
+            answer.set(False, "the ROS 2 link is stopping")
+        for client in list(self._mirrors):
+            self._unmirror(client)
+        for relay in self._relays.values():
+            self.graph.release(relay)
+        self._relays.clear()
+        self.graph.nodes.forget(self.caller)
+        node = self.ros.node
+        for sub in self._subs.values():
+            _destroy(node.destroy_subscription, sub.handle)
+        for pub in self._pubs.values():
+            _destroy(node.destroy_publisher, pub.handle)
+        for server in self._servers.values():
+            _destroy(node.destroy_service, server.handle)
+        for server in self._action_servers.values():
+            _destroy(lambda handle: handle.destroy(), server.handle)
+        self._action_servers.clear()
+        for handles in self._param_servers.values():
+            for handle in handles:
+                _destroy(node.destroy_service, handle)
+        self._param_servers.clear()
+        self._subs.clear()
+        self._pubs.clear()
+        self._servers.clear()
+        self.ros.close()
+
+    # ---- the ROS 2 graph, inward ---------------------------------------------------
+
+    def _specs(self, view: RosGraph) -> _Specs:
+        specs = _Specs()
+        for node in view.nodes:
+            specs.nodes[f"{PARTICIPANT_PREFIX}node:{node}"] = node
+        for gid, endpoint in view.endpoints.items():
+            if not self.rules.is_private(endpoint.topic):
+                specs.endpoints[f"{PARTICIPANT_PREFIX}{gid.hex()}"] = endpoint
+        for (node, name), type_name in view.services.items():
+            if not self.rules.is_private(name):
+                specs.services[f"{PARTICIPANT_PREFIX}srv:{node}:{name}"] = (node, name, type_name)
+        for (node, name), type_name in view.actions.items():
+            if not self.rules.is_private(name):
+                client = f"{PARTICIPANT_PREFIX}action:{node}:{name}"
+                specs.actions[client] = ("action", node, name, type_name)
+        return specs
+
+    def _apply(self, view: RosGraph) -> None:
+        """Bring the graph's ROS 2 participants in line with ``view``."""
+        self._publisher_qos = {}
+        # the node's own non-link publishers count (rcl's transient local /rosout one)
+        others = [e for e in view.own_publishers if e.gid not in self._own_gids]
+        for endpoint in [*view.endpoints.values(), *others]:
+            if endpoint.kind == "publisher":
+                self._publisher_qos.setdefault(endpoint.topic, []).append(endpoint.qos)
+        specs = self._specs(view)
+        wanted: dict[ClientId, object] = {
+            **specs.nodes,
+            **specs.endpoints,
+            **specs.services,
+            **specs.actions,
+        }
+        for client, old in list(self._mirrors.items()):
+            if wanted.get(client) != old.spec:
+                self._unmirror(client)
+        for client, spec in wanted.items():
+            mirror = self._mirrors.setdefault(client, _Mirror(spec))
+            if not mirror.mirrored and not mirror.refused:
+                self._mirror(client, mirror)
+        self._by_gid = {e.gid: c for c, e in specs.endpoints.items() if self._mirrors[c].mirrored}
+
+    def _mirror(self, client: ClientId, mirror: _Mirror) -> None:
+        graph, spec = self.graph, mirror.spec
+        try:
+            if isinstance(spec, str):  # a node
+                graph.nodes.bind(client, spec)
+            elif isinstance(spec, Endpoint):
+                self._check_hash(spec)
+                graph.nodes.bind(client, spec.node)
+                if spec.kind == "publisher":
+                    latch = spec.qos.transient_local
+                    graph.advertise(client, spec.topic, spec.type_name, latch=latch)
+                else:
+                    graph.subscribe(client, spec.topic, spec.type_name, NULL_SINK)
+            elif isinstance(spec, tuple) and len(spec) == 4:
+                _, node, name, type_name = spec
+                if name in graph.actions.entries:
+                    return  # a local provider answers: tried again each sweep
+                actiontype = graph.registry.action(type_name)
+                action = RosAction(self, client, name, actiontype)
+                graph.nodes.bind(client, node)
+                graph.advertise_action(client, name, type_name, action)
+                mirror.provider = action
+            else:
+                assert isinstance(spec, tuple)
+                node, name, type_name = spec
+                if name in graph.services.entries:
+                    return  # a local provider answers: tried again each sweep
+                srvtype = graph.registry.service(type_name)
+                provider = RosService(self, client, name, srvtype)
+                graph.nodes.bind(client, node)
+                graph.advertise_service(client, name, type_name, provider)
+                mirror.provider = provider
+        except RwtError as exc:
+            graph.nodes.forget(client)
+            mirror.refused = True
+            self.episodes.log(
+                logging.INFO,
+                f"skip:{client}",
+                "event=ros2_skip entity=%s reason=%r",
+                spec,
+                str(exc),
+            )
+            return
+        mirror.mirrored = True
+
+    def _check_hash(self, endpoint: Endpoint) -> None:
+        """Refuse an endpoint whose type's definition is not the graph's (another hash).
+
+        Its bytes would decode wrongly, so its samples are dropped too.
+
+        Raises:
+            GraphError: the hashes differ; the text says how to give rwt the
+                robot's definitions.
+        """
+        if not endpoint.type_hash:
+            return  # the middleware reports none (not Iron or later)
+        ours = self._hashes.get(endpoint.type_name)
+        if ours is None:  # bounded: type names the registry knows
+            try:
+                ours = message_type_hash(self.graph.registry, endpoint.type_name)
+            except KeyError:  # a definition the type store could not load: no hash
+                ours = endpoint.type_hash
+            self._hashes[endpoint.type_name] = ours
+        if ours != endpoint.type_hash:
+            self._mismatched.add(endpoint.gid)
+            raise GraphError(
+                f"{endpoint.topic}: {endpoint.node}'s {endpoint.type_name} is "
+                f"{endpoint.type_hash}, rwt's definition {ours}: give rwt the robot's "
+                "definitions (--interfaces, or source the robot's install)"
+            )
+
+    def _unmirror(self, client: ClientId) -> None:
+        mirror = self._mirrors.pop(client)
+        if isinstance(mirror.spec, Endpoint):
+            self._mismatched.discard(mirror.spec.gid)
+        if mirror.mirrored:
+            self.graph.release(client)  # its services fail their callers (D15)
+        if mirror.provider is not None:
+            mirror.provider.close()
+
+    def _on_sample(self, topic: str, type_name: str, data: bytes, gid: bytes) -> None:
+        """Publish a ROS 2 sample in the graph, by its publisher's participant."""
+        if gid in self._own_gids or gid in self._mismatched:
+            return  # the link's own publisher (it came from the graph), or a foreign definition
+        entry = self.graph.topics.get(topic)
+        if entry is None or entry.msgtype.name != type_name:
+            return
+        try:
+            msg = decode(self.graph.registry, entry.msgtype, data)
+        except RwtError as exc:
+            self.episodes.log(
+                logging.WARNING,
+                f"bad:{topic}",
+                "event=ros2_bad_sample topic=%s reason=%r",
+                topic,
+                str(exc),
+            )
+            return
+        client = self._by_gid.get(gid)
+        if client is not None and client in entry.publishers:
+            latched = entry.publishers[client]
+            self.graph.publish_local(client, topic, msg, latch=latched)
+            return
+        # The sample outran discovery of its publisher: a relay publishes it meanwhile.
+        relay = self._relays.get(topic)
+        if relay is None:
+            relay = self._relays[topic] = f"{PARTICIPANT_PREFIX}relay:{topic}"
+            self.graph.nodes.bind(relay, self.ros.fqn)
+            self.graph.advertise(relay, topic, type_name, latch=False)
+        self.graph.publish_local(relay, topic, msg, latch=False)
+
+    # ---- the local graph, outward ---------------------------------------------------
+
+    def _sweep_local(self) -> None:
+        wanted = self.rules.wanted(self.graph)
+        listening: dict[str, str] = {}
+        publishing: dict[str, tuple[str, bool]] = {}
+        serving: dict[str, str] = {}
+        for (kind, _, name), (type_name, latched) in wanted.items():
+            if kind is Kind.SUBSCRIPTION:
+                listening[name] = type_name
+            elif kind is Kind.PUBLISHER:
+                was = publishing.get(name, (type_name, False))[1]
+                publishing[name] = (type_name, was or latched)
+            else:
+                serving[name] = type_name
+        self._sweep_subscriptions(listening)
+        self._sweep_publishers(publishing)
+        self._sweep_servers(serving)
+        self._sweep_action_servers()
+        self._sweep_param_servers()
+        self._sweep_relays()
+
+    def _sweep_subscriptions(self, listening: dict[str, str]) -> None:
+        node = self.ros.node
+        for name, sub in list(self._subs.items()):
+            if listening.get(name) != sub.type_name or self._qos_for(name) != sub.qos:
+                _destroy(node.destroy_subscription, self._subs.pop(name).handle)
+        for name, type_name in listening.items():
+            if name not in self._subs:
+                self._subscribe(name, type_name)
+
+    def _qos_for(self, topic: str) -> Qos:
+        return matching_qos(self._publisher_qos.get(topic, []))
+
+    def _subscribe(self, name: str, type_name: str) -> None:
+        ros_type = self._ros_type(name, type_name)
+        if ros_type is None:
+            return
+        qos = self._qos_for(name)
+        handoff = self.handoff
+
+        def on_sample(data: bytes, info: dict[str, Any]) -> None:  # an executor thread
+            gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
+            handoff.put(self._on_sample, name, type_name, data, gid, size=len(data), topic=name)
+
+        handle = self.ros.node.create_subscription(
+            ros_type,
+            name,
+            on_sample,
+            rclpy_profile(qos),
+            raw=True,
+            callback_group=self.ros.group,
+        )
+        self._subs[name] = _Sub(type_name, qos, handle)
+
+    def type_warning(self, type_name: str) -> str | None:
+        """Why ROS 2 cannot carry ``type_name`` here (the package to install), or None.
+
+        The graph's sessions report it as a warning status (``Graph.type_checks``).
+        """
+        if type_name in self._type_warnings:
+            return self._type_warnings[type_name]
+        try:
+            interface_class(type_name)
+            warning = None
+        except RwtError as exc:
+            warning = f"{exc} (it does not cross to ROS 2)"
+        # type names reaching here are the registry's: the table stays bounded
+        self._type_warnings[type_name] = warning
+        return warning
+
+    def _ros_type(self, name: str, type_name: str) -> Any:
+        if type_name in self._missing_types:
+            return None
+        try:
+            return interface_class(type_name)
+        except RwtError as exc:
+            # one line per type: installing the package needs a restart anyway
+            self._missing_types.add(type_name)
+            self.episodes.log(
+                logging.WARNING,
+                f"type:{type_name}",
+                "event=ros2_type_missing topic=%s reason=%r",
+                name,
+                str(exc),
+            )
+            return None
+
+    def _sweep_publishers(self, publishing: dict[str, tuple[str, bool]]) -> None:
+        for name, pub in list(self._pubs.items()):
+            if publishing.get(name) != (pub.type_name, pub.latched):
+                self._drop_publisher(name)
+        for name, (type_name, latched) in publishing.items():
+            entry = self.graph.topics.get(name)
+            found = self._pubs.get(name) or self._publisher(name, type_name, latched)
+            if found is None or entry is None or entry.latched is None:
+                continue
+            owner = entry.latched_by
+            if latched and owner is not None and not self.rules.ours(owner):
+                self._put(entry, found, entry.latched)  # published before the link saw it
+
+    def _publisher(self, name: str, type_name: str, latched: bool) -> _Pub | None:
+        ros_type = self._ros_type(name, type_name)
+        if ros_type is None:
+            return None
+        qos = Qos(transient_local=latched, depth=LATCHED_DEPTH if latched else DEFAULT_DEPTH)
+        node = self.ros.node
+        before = self._own_publishers(name)
+        handle = node.create_publisher(ros_type, name, rclpy_profile(qos))
+        # its samples come back to the link's own subscription: know them by GID (the
+        # node's other publishers, such as rcl's /rosout one, are ROS 2's, not the graph's)
+        gids = self._own_publishers(name) - before
+        self._own_gids |= gids
+        pub = self._pubs[name] = _Pub(type_name, latched, handle, gids=gids)
+        return pub
+
+    def _own_publishers(self, name: str) -> set[bytes]:
+        return {
+            bytes(info.endpoint_gid)[:16]
+            for info in self.ros.node.get_publishers_info_by_topic(name)
+            if self.ros.owns(info.node_name, info.node_namespace)
+        }
+
+    def _drop_publisher(self, name: str) -> None:
+        pub = self._pubs.pop(name)
+        self._own_gids -= pub.gids
+        _destroy(self.ros.node.destroy_publisher, pub.handle)
+
+    def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
+        """Forward what a local publisher published (the graph calls this on the loop)."""
+        if self._closed or self.rules.ours(client) or self.rules.is_private(entry.name):
+            return
+        latched = latch or entry.publishers.get(client, False)
+        pub = self._pubs.get(entry.name)
+        if pub is None or pub.type_name != entry.msgtype.name or (latched and not pub.latched):
+            if pub is not None:
+                self._drop_publisher(entry.name)
+            pub = self._publisher(entry.name, entry.msgtype.name, latched)
+            if pub is None:
+                return
+        self._put(entry, pub, event)
+
+    def _put(self, entry: GraphTopic, pub: _Pub, event: MessageEvent) -> None:
+        if pub.latched_sent is event:
+            return
+        try:
+            data = encode(self.graph.registry, entry.msgtype, event.msg)
+        except KeyError as exc:
+            self.episodes.log(
+                logging.WARNING,
+                f"enc:{entry.name}",
+                "event=ros2_encode topic=%s %r",
+                entry.name,
+                exc,
+            )
+            return
+        pub.handle.publish(data)
+        if entry.latched is event:
+            pub.latched_sent = event
+
+    def _sweep_servers(self, serving: dict[str, str]) -> None:
+        node = self.ros.node
+        for name, server in list(self._servers.items()):
+            if serving.get(name) != server.type_name:
+                _destroy(node.destroy_service, self._servers.pop(name).handle)
+        for name, type_name in serving.items():
+            if name in self._servers:
+                continue
+            ros_type = self._ros_type(name, type_name)
+            if ros_type is None:
+                continue
+            callback = serve_to_ros(self, name, type_name, ros_type)
+            handle = node.create_service(ros_type, name, callback, callback_group=self.ros.group)
+            self._servers[name] = _Server(type_name, handle)
+
+    def _sweep_action_servers(self) -> None:
+        offered = {
+            name: entry.actiontype.name
+            for name, entry in self.rules.local_actions(self.graph).items()
+        }
+        for name, server in list(self._action_servers.items()):
+            if offered.get(name) != server.type_name:
+                _destroy(lambda handle: handle.destroy(), self._action_servers.pop(name).handle)
+        for name, type_name in offered.items():
+            if name in self._action_servers:
+                continue
+            ros_type = self._ros_type(name, type_name)
+            if ros_type is not None:
+                handle = serve_action_to_ros(self, name, type_name, ros_type)
+                self._action_servers[name] = _Server(type_name, handle)
+
+    def _sweep_param_servers(self) -> None:
+        """The parameter services of each local node with parameters, as a ROS 2 node's."""
+        copies = self._params.nodes if self._params is not None else frozenset()
+        local = {n for n in param_nodes(self.graph) if n not in copies and n != self.ros.fqn}
+        node = self.ros.node
+        for name in list(self._param_servers):
+            if name not in local:
+                for handle in self._param_servers.pop(name):
+                    _destroy(node.destroy_service, handle)
+        for name in local - self._param_servers.keys():
+            handles = []
+            for part, type_name in PARAM_SERVICES.items():
+                ros_type = self._ros_type(f"{name}/{part}", type_name)
+                if ros_type is None:
+                    continue
+                handler = partial(answer_param_request, self.graph, name, part)
+                callback = serve_to_ros(self, f"{name}/{part}", type_name, ros_type, handler)
+                handles.append(
+                    node.create_service(
+                        ros_type, f"{name}/{part}", callback, callback_group=self.ros.group
+                    )
+                )
+            self._param_servers[name] = handles
+
+    def _sweep_relays(self) -> None:
+        for topic, relay in list(self._relays.items()):
+            entry = self.graph.topics.get(topic)
+            known = entry is not None and any(
+                self.rules.ours(c) and c != relay for c in entry.publishers
+            )
+            if entry is None or known or topic not in self._subs:
+                del self._relays[topic]
+                self.graph.release(relay)
+
+
+def _destroy(destroy: Any, handle: Any) -> None:
+    try:
+        destroy(handle)
+    except Exception:  # the context is going: nothing left to destroy
+        logger.debug("ros2 link: destroying %r failed", handle, exc_info=True)
+
+
+@asynccontextmanager
+async def open_ros2_link(
+    graph: Graph, options: Ros2Options | None = None
+) -> AsyncIterator[Ros2Link]:
+    """Join ROS 2 with an rclpy node and link ``graph`` while the block runs.
+
+    This is the one call an embedding program needs (docs/ros2.md)::
+
+        async with open_ros2_link(graph, Ros2Options(node_name="robot_bridge")):
+            await server.serve()
+
+    Raises:
+        Ros2Unavailable: rclpy cannot be imported (the text says what to install).
+        RuntimeError: the event loop is not asyncio's.
+    """
+    options = options or Ros2Options()
+    # rosbags' type store takes a while to build: not on the event loop
+    await anyio.to_thread.run_sync(graph.registry.typestore)
+    ros = await anyio.to_thread.run_sync(RosNode, options.node_name, options.namespace)
+    async with anyio.create_task_group() as tg:
+        link = Ros2Link(graph, ros, options)
+        await tg.start(link.run)
+        try:
+            yield link
+        finally:
+            tg.cancel_scope.cancel()

@@ -1,0 +1,107 @@
+"""The rclpy node of the link, spinning in its own thread.
+
+rclpy runs its executor on a thread of its own so the event loop never waits
+for DDS; callbacks reach the loop through a ``Handoff``. Entities are created
+and messages published from the event loop's thread, which rclpy allows (each
+entity has its own lock; the executor is woken to wait on new ones).
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+from .runtime import load_rclpy
+
+__all__ = ["EXECUTOR_THREADS", "MAX_WAITING", "SPIN_TIMEOUT_S", "RosNode"]
+
+SPIN_TIMEOUT_S = 0.1
+"""How long one executor wait lasts, seconds: how soon the thread notices shutdown."""
+
+EXECUTOR_THREADS = 8
+"""rclpy's executor threads. Calls and goals from ROS 2 wait on one each for the
+graph's answer; at most ``MAX_WAITING`` of them do at once, so samples always
+have threads left."""
+
+MAX_WAITING = EXECUTOR_THREADS - 2
+"""Calls and goals from ROS 2 waiting for the graph at once; one more is answered
+at once with the default response (a goal: aborted), logged once per episode."""
+
+
+class RosNode:
+    """An rclpy context, node and executor, spinning on a daemon thread.
+
+    Args:
+        name: the node's name (``rwt``).
+        namespace: its namespace (``/`` or ``/robot``).
+
+    Attributes:
+        rclpy: the rclpy module.
+        node: the ``rclpy.node.Node``.
+        fqn: the node's fully qualified name (``/rwt``, ``/robot/rwt``).
+
+    Raises:
+        Ros2Unavailable: rclpy cannot be imported.
+        rclpy's RCLError: the middleware cannot start (a bad ``ROS_DOMAIN_ID``...).
+    """
+
+    def __init__(self, name: str, namespace: str = "/") -> None:
+        rclpy = self.rclpy = load_rclpy()
+        from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: PLC0415
+        from rclpy.executors import MultiThreadedExecutor  # noqa: PLC0415
+
+        self.context = rclpy.Context()
+        rclpy.init(
+            # rwt logs on its own; through /rosout (``rosout``), not rcl's console or files
+            args=["--ros-args", "--disable-stdout-logs", "--disable-external-lib-logs"],
+            context=self.context,
+            signal_handler_options=_no_signals(rclpy),
+        )
+        try:
+            self.node: Any = rclpy.create_node(
+                name, namespace=namespace or "/", context=self.context
+            )
+        except Exception:
+            self.context.try_shutdown()
+            raise
+        ns = self.node.get_namespace().rstrip("/")
+        self.fqn = f"{ns}/{self.node.get_name()}"
+        self.group = ReentrantCallbackGroup()
+        #: taken by each call or goal from ROS 2 while it waits for the graph
+        self.waiting = threading.BoundedSemaphore(MAX_WAITING)
+        self.executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name="rwt-ros2", daemon=True)
+
+    def start(self) -> None:
+        """Start spinning."""
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            except Exception:  # shutdown under the executor's feet
+                if self.context.ok():
+                    raise
+                return
+
+    def close(self) -> None:
+        """Stop spinning, then destroy the node and the context."""
+        self.context.try_shutdown()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+
+    def owns(self, node: str, namespace: str) -> bool:
+        """Whether the endpoint of ``node`` in ``namespace`` is this node's."""
+        return f"{namespace.rstrip('/')}/{node}" == self.fqn
+
+
+def _no_signals(rclpy: Any) -> Any:
+    """Rclpy must not take SIGINT and SIGTERM: the server's own handlers stop it."""
+    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+
+    del rclpy
+    return SignalHandlerOptions.NO

@@ -1,0 +1,95 @@
+"""Loading rclpy and the generated Python classes of ROS 2 types, with errors that say what to do.
+
+rclpy comes from a ROS 2 install (``source /opt/ros/<distro>/setup.bash``) or,
+on a machine without ROS, from PyPI's ROS 2 Kilted wheels (``rwt[ros2]``). It
+needs the generated Python package of every type it carries; a missing one is
+named with the package to install (docs/ros2.md).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from rwt_protocol.errors import GraphError
+
+__all__ = [
+    "ROS2_INSTALL",
+    "Ros2Unavailable",
+    "ament_interface_dirs",
+    "interface_class",
+    "load_rclpy",
+    "package_hint",
+]
+
+ROS2_INSTALL = (
+    'pip install "rwt[ros2]" (ROS 2 Kilted from PyPI), '
+    "or source your ROS 2 install first: source /opt/ros/<distro>/setup.bash"
+)
+"""What to do when rclpy cannot be imported."""
+
+
+class Ros2Unavailable(RuntimeError):
+    """rclpy cannot be imported; the text says what to install or source."""
+
+
+def load_rclpy() -> Any:
+    """Import rclpy (the wheels' bootstrapper has set the library path by then).
+
+    Returns:
+        The ``rclpy`` module.
+
+    Raises:
+        Ros2Unavailable: rclpy or its libraries are missing.
+    """
+    try:
+        return importlib.import_module("rclpy")
+    except ImportError as exc:  # the module, or one of its shared libraries
+        raise Ros2Unavailable(f"--ros2 needs rclpy ({exc}): {ROS2_INSTALL}") from None
+
+
+def package_hint(package: str) -> str:
+    """How to get the generated Python package of the ROS 2 package ``package``."""
+    wheel = "ros-kilted-" + package.replace("_", "-")
+    return f"pip install {wheel}, or apt install ros-<distro>-{package.replace('_', '-')}"
+
+
+def interface_class(type_name: str) -> Any:
+    """The generated rclpy class of ``pkg/msg/Name``, ``pkg/srv/Name`` or ``pkg/action/Name``.
+
+    Raises:
+        GraphError: the package or the type is not installed for rclpy; the text
+            names the package to install.
+    """
+    package, _, rest = type_name.partition("/")
+    kind, _, name = rest.partition("/")
+    if not package or kind not in {"msg", "srv", "action"} or not name:
+        raise GraphError(f"{type_name} is not a ROS 2 type name (pkg/msg/Name)")
+    try:
+        module = importlib.import_module(f"{package}.{kind}")
+    except ImportError:
+        raise GraphError(
+            f"ROS 2 has no Python package for {type_name}: {package_hint(package)}"
+        ) from None
+    cls = getattr(module, name, None)
+    if cls is None:
+        raise GraphError(
+            f"ROS 2 package {package} has no {kind} {name}: update it ({package_hint(package)})"
+        )
+    return cls
+
+
+def ament_interface_dirs() -> list[Path]:
+    """The ``share`` folders of the ROS 2 install, for the graph's type registry.
+
+    Each holds ``<pkg>/msg|srv|action/*`` as ``--interfaces`` folders do, so the
+    graph knows every type the robot has (``test_msgs``, the robot's own
+    packages). The prefixes are ``AMENT_PREFIX_PATH``'s (a sourced install), or
+    this Python's prefix, where PyPI's ROS 2 wheels put theirs.
+    """
+    prefixes = os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)
+    roots = [Path(p) for p in prefixes if p] or [Path(sys.prefix)]
+    return [root / "share" for root in roots if (root / "share").is_dir()]

@@ -1,0 +1,206 @@
+"""Services across the link: ROS 2 servers called from the graph, graph services served to ROS 2.
+
+``RosService`` is the graph's provider of a ROS 2 service: each call goes
+through an rclpy client; the reply, a timeout, a server that is not there, or
+bytes that do not decode all answer the caller. ``serve_to_ros`` is the
+callback of the rclpy service that offers a graph service (a rosbridge
+client's ``advertise_service``, an in-process one) to ROS 2 nodes: it hands
+the request to the event loop and waits for the graph's answer on its executor
+thread. rclpy services cannot answer with an error, so a failed call (the
+provider disconnected, D15; the call timed out) gets the default response at
+once, logged once per episode, rather than leaving the ROS 2 caller waiting.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import TYPE_CHECKING, Any
+
+from rwt_protocol.errors import RwtError
+
+from .codec import decode, encode
+from .node import MAX_WAITING
+from .runtime import interface_class
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rwt_graph.types import ServiceType
+
+    from .link import Ros2Link
+
+__all__ = ["RosService", "serve_to_ros"]
+
+logger = logging.getLogger("rwt.ros2")
+
+
+class RosService:
+    """The graph's provider of the ROS 2 service ``name`` (see the module text).
+
+    Args:
+        link: the link.
+        client: the participant standing for the ROS 2 server.
+        name: the service's name.
+        srvtype: its type in the graph's registry; its rclpy class is loaded at
+            the first call, whose caller learns the package to install if it is
+            missing (``runtime.interface_class``).
+    """
+
+    def __init__(self, link: Ros2Link, client: str, name: str, srvtype: ServiceType) -> None:
+        self._link = link
+        self._client = client
+        self._name = name
+        self._srvtype = srvtype
+        self._ros_type: Any = None
+        self._ros_client: Any = None
+
+    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
+        """Send a graph caller's request (``args`` in the internal form) to the ROS 2 server."""
+        link = self._link
+        from rclpy.serialization import deserialize_message  # noqa: PLC0415
+
+        if self._ros_client is None:
+            try:
+                self._ros_type = interface_class(self._srvtype.name)
+            except RwtError as exc:
+                self._respond(request_id, False, f"service {self._name}: {exc}")
+                return
+            self._ros_client = link.ros.node.create_client(
+                self._ros_type, self._name, callback_group=link.ros.group
+            )
+        ros_client = self._ros_client
+        if not ros_client.service_is_ready():
+            self._respond(request_id, False, f"service {self._name}: no ROS 2 server answers it")
+            return
+        try:
+            payload = encode(link.graph.registry, self._srvtype.request, args)
+            request = deserialize_message(payload, self._ros_type.Request)
+        except Exception as exc:  # rclpy refuses what rosbags wrote: a type mismatch
+            self._respond(request_id, False, f"service {self._name}: request refused: {exc}")
+            return
+        future = ros_client.call_async(request)
+        loop = link.loop
+        timer = loop.call_later(link.options.call_timeout_s, self._timeout, request_id, future)
+
+        def done(_: Any) -> None:  # an executor thread
+            link.handoff.put(self._finish, request_id, future, timer)
+
+        future.add_done_callback(done)
+
+    def _timeout(self, request_id: str, future: Any) -> None:
+        if self._ros_client is not None:
+            self._ros_client.remove_pending_request(future)
+        timeout = self._link.options.call_timeout_s
+        self._respond(request_id, False, f"service {self._name}: no reply within {timeout:g} s")
+
+    def _finish(self, request_id: str, future: Any, timer: Any) -> None:
+        from rclpy.serialization import serialize_message  # noqa: PLC0415
+
+        timer.cancel()
+        try:
+            response = future.result()
+            value = decode(
+                self._link.graph.registry, self._srvtype.response, serialize_message(response)
+            )
+        except Exception as exc:  # the call was cancelled, or the reply does not decode
+            self._respond(request_id, False, f"service {self._name} failed: {exc}")
+            return
+        self._respond(request_id, True, value)
+
+    def _respond(self, request_id: str, ok: bool, value: object) -> None:
+        graph = self._link.graph
+        entry = graph.services.entries.get(self._name)
+        if entry is None or entry.owner != self._client or request_id not in entry.pending:
+            return  # timed out already, or the server went (its callers were answered)
+        if ok:
+            entry.pending.pop(request_id).resolve(True, value)
+        else:
+            graph.service_response(self._client, self._name, request_id, False, value)
+
+    def on_service_lost(self, service: str, reason: str) -> None:
+        """A local provider replaced the ROS 2 one in the graph; the ROS 2 one lives on."""
+        logger.info("event=ros2_service_shadowed service=%s reason=%r", service, reason)
+
+    def close(self) -> None:
+        """Destroy the rclpy client."""
+        if self._ros_client is not None:
+            self._link.ros.node.destroy_client(self._ros_client)
+            self._ros_client = None
+
+
+class _Answer:
+    """The graph's answer to one ROS 2 call, waited for on an executor thread."""
+
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.ok = False
+        self.value: object = None
+
+    def set(self, ok: bool, value: object) -> None:
+        if not self.done.is_set():
+            self.ok, self.value = ok, value
+            self.done.set()
+
+
+def serve_to_ros(
+    link: Ros2Link,
+    name: str,
+    type_name: str,
+    ros_type: Any,
+    handler: Callable[[dict[str, object]], dict[str, object]] | None = None,
+) -> Any:
+    """The callback of the rclpy service offering the graph's service ``name`` to ROS 2.
+
+    Each request is called in the graph, or, with ``handler``, answered by it on
+    the event loop (``handler(request) -> response``, internal forms; a node's
+    parameter services, ``rwt_graph.param_services``).
+    """
+    from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
+
+    def call_in_graph(data: bytes, answer: _Answer) -> None:  # the event loop
+        registry = link.graph.registry
+        try:
+            srvtype = registry.service(type_name)
+            request = decode(registry, srvtype.request, data)
+
+            def reply(result: bool, values: object) -> None:
+                if not result:
+                    answer.set(False, values)
+                    return
+                assert isinstance(values, dict)
+                answer.set(True, encode(registry, srvtype.response, values))
+
+            if handler is not None:
+                reply(True, handler(request))
+            else:
+                link.graph.call_service(link.caller, name, request, reply)
+        except RwtError as exc:
+            answer.set(False, str(exc))
+
+    def callback(request: Any, response: Any) -> Any:  # an executor thread
+        answer = _Answer()
+        if not link.ros.waiting.acquire(blocking=False):
+            answer.set(False, f"{MAX_WAITING} calls and goals from ROS 2 wait already")
+        else:
+            link.pending_answers.add(answer)
+            try:
+                link.handoff.put(call_in_graph, serialize_message(request), answer)
+                if not answer.done.wait(link.options.call_timeout_s):
+                    answer.set(False, f"no answer within {link.options.call_timeout_s:g} s")
+            finally:
+                link.pending_answers.discard(answer)
+                link.ros.waiting.release()
+        if answer.ok:
+            assert isinstance(answer.value, bytes)
+            return deserialize_message(answer.value, ros_type.Response)
+        link.episodes.log(
+            logging.WARNING,
+            f"serve:{name}",
+            "event=ros2_call_failed service=%s reason=%r answered=default_response",
+            name,
+            str(answer.value),
+        )
+        return response
+
+    return callback

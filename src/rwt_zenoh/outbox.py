@@ -1,0 +1,87 @@
+"""Local samples for Zenoh's reliable publishers, put on a thread of their own.
+
+rwt's publishers on Zenoh are reliable with congestion control BLOCK (as
+rmw_zenoh declares a reliable KEEP_ALL publisher): a full transmission queue
+makes ``put`` wait rather than drop the sample. Waiting must never happen on the
+event loop, so the loop only hands samples here and one thread puts them, in
+order. What waits is bounded in bytes, as the link's inbox is (docs/zenoh.md,
+"Reliability"): a Zenoh peer slower than the local publishers costs the oldest
+samples of the busiest topic past that bound, never the loop's time.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from typing import TYPE_CHECKING, Any, cast
+
+from rwt_graph.ratelog import EpisodeLog
+
+from .inbox import Inbox, Sample
+from .limits import MAX_OUTBOX_BYTES
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+__all__ = ["Outbox"]
+
+logger = logging.getLogger("rwt.zenoh")
+
+
+class Outbox:
+    """Samples waiting for Zenoh's blocking ``put``, bounded in bytes (thread-safe).
+
+    Args:
+        max_bytes: bytes held at most (``limits.MAX_OUTBOX_BYTES`` by default);
+            past it the oldest samples of the topic holding the most are dropped,
+            logged once per episode.
+    """
+
+    def __init__(self, max_bytes: int = MAX_OUTBOX_BYTES) -> None:
+        self._held = Inbox(max_bytes, drop_log=EpisodeLog(logger))
+        self._tickets: queue.SimpleQueue[str | None] = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None
+        self._log = EpisodeLog(logger)
+
+    @property
+    def dropped(self) -> int:
+        """Samples dropped because the bound was reached."""
+        return self._held.dropped
+
+    def put(self, key: str, handle: Any, payload: bytes | bytearray, attachment: bytes) -> None:
+        """Hand ``payload`` for ``handle`` (a ``zenoh.Publisher`` of topic ``key``) over.
+
+        Never waits: runs on the event loop. The sender thread starts on first use.
+        """
+        send: Callable[[bytes, bytes | None], None] = lambda data, extra: handle.put(  # noqa: E731
+            data, attachment=extra
+        )
+        if self._held.put(key, Sample(send, cast("bytes", payload), attachment)):
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name="rwt-zenoh-out", daemon=True)
+                self._thread.start()
+            self._tickets.put(key)
+
+    def close(self, timeout_s: float = 1.0) -> None:
+        """Stop the sender thread after what it holds is put (waits ``timeout_s`` at most)."""
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            self._tickets.put(None)
+            thread.join(timeout_s)
+
+    def _run(self) -> None:
+        while (key := self._tickets.get()) is not None:
+            sample = self._held.take(key)
+            if sample is None:
+                continue  # dropped while it waited
+            try:
+                sample.deliver(sample.payload, sample.attachment)
+            except Exception as exc:
+                self._log.log(
+                    logging.WARNING,
+                    f"zenoh_put_failed:{key}",
+                    "event=zenoh_put_failed topic=%s reason=%r",
+                    key,
+                    str(exc),
+                )

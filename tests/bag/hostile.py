@@ -1,0 +1,206 @@
+"""Hostile bags, made small on purpose: decompression bombs, truncated files, bad names.
+
+Each builder writes a file that is tiny on disk and hostile when read: an MCAP
+whose zstd or lz4 chunk of zeros expands to gigabytes (with an honest or a
+lying declared size, one or many chunks, no summary so readers must scan), a
+ROS 1 bag whose bz2 chunk does the same, a truncated copy of a good bag, and
+bags with topic names a client's ``advertise`` is refused. Used by the bag
+tests and the fuzz grammar (tests/fuzz).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import struct
+from typing import TYPE_CHECKING
+
+import lz4.frame  # type: ignore[import-untyped]
+from rosbags.rosbag1 import Writer as Ros1Writer
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Ros2Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+from rosbags.rosbag2.storage_mcap import zstd  # type: ignore[attr-defined]
+from rosbags.typesys import Stores, get_typestore
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+MAGIC = b"\x89MCAP0\r\n"
+MIB = 1 << 20
+BAD_NAMES = ("/x y", "/../..", "/a\u202eb", "/" + "n" * 5000)
+
+
+def _record(op: int, body: bytes) -> bytes:
+    return bytes([op]) + struct.pack("<Q", len(body)) + body
+
+
+def _string(text: str) -> bytes:
+    data = text.encode()
+    return struct.pack("<I", len(data)) + data
+
+
+def zeros(size: int, compression: str = "zstd") -> bytes:
+    """``size`` zero bytes compressed (made a MiB at a time: no ``size`` bytes in memory)."""
+    block = bytes(MIB)
+    if compression == "lz4":
+        out = lz4.frame.LZ4FrameCompressor()
+        parts = [out.begin()]
+    elif compression == "bz2":
+        import bz2  # noqa: PLC0415
+
+        out = bz2.BZ2Compressor(9)
+        parts = []
+    else:
+        out = zstd.ZstdCompressor()
+        parts = []
+    left = size
+    while left:
+        step = min(left, MIB)
+        parts.append(out.compress(block[:step]))
+        left -= step
+    parts.append(out.flush())
+    return b"".join(parts)
+
+
+def mcap_bomb(
+    path: Path,
+    *,
+    size: int = 2048 * MIB,
+    declared: int | None = None,
+    chunks: int = 1,
+    compression: str = "zstd",
+) -> Path:
+    """A summary-less MCAP of ``chunks`` chunks of ``size`` zeros each (declaring ``declared``).
+
+    A reader finds no summary and scans, decompressing every chunk: zeros parse as
+    empty records, 9 bytes each. Returns ``path`` (a bare ``.mcap`` file).
+    """
+    payload = zeros(size, compression)
+    body = (
+        struct.pack("<QQQI", 0, 1, size if declared is None else declared, 0)
+        + _string(compression)
+        + struct.pack("<Q", len(payload))
+        + payload
+    )
+    chunk = _record(0x06, body)
+    data = MAGIC + _record(0x01, _string("ros2") + _string("hostile"))
+    data += chunk * chunks
+    data += _record(0x0F, b"")  # data end
+    data += _record(0x02, struct.pack("<QQI", 0, 0, 0)) + MAGIC
+    path.write_bytes(data)
+    return path
+
+
+_FRAME_MAGIC = {"bz2": b"BZh", "lz4": b"\x04\x22\x4d\x18"}
+
+
+def ros1_bomb(path: Path, *, size: int = 2048 * MIB, compression: str = "bz2") -> Path:
+    """A ROS 1 bag whose one chunk (a /chatter String) is replaced by ``size`` zeros (bz2, lz4).
+
+    Written by rosbags, then the chunk's payload is replaced by the bomb with its
+    record sizes kept consistent; the index still points into the chunk.
+    """
+    store = get_typestore(Stores.ROS1_NOETIC)
+    writer = Ros1Writer(path)
+    writer.set_compression(Ros1Writer.CompressionFormat[compression.upper()])
+    with writer:
+        conn = writer.add_connection("/chatter", "std_msgs/msg/String", typestore=store)
+        msg = store.types["std_msgs/msg/String"](data="hi")
+        writer.write(conn, 1, store.serialize_ros1(msg, "std_msgs/msg/String"))
+    data = bytearray(path.read_bytes())
+    # the chunk record: header (with compression=bz2), then uint32 length and data
+    at = data.index(b"compression=" + compression.encode())
+    start = data.index(_FRAME_MAGIC[compression], at)
+    length = struct.unpack_from("<I", data, start - 4)[0]
+    payload = zeros(size, compression)
+    data[start - 4 : start + length] = struct.pack("<I", len(payload)) + payload
+    shift = len(payload) - length
+    _shift_ros1_index(data, start, shift)
+    path.write_bytes(bytes(data))
+    return path
+
+
+def _shift_ros1_index(data: bytearray, after: int, shift: int) -> None:
+    """Move the bag header's ``index_pos`` (past ``after``) by ``shift`` bytes."""
+    key = b"index_pos="
+    at = data.index(key) + len(key)
+    (pos,) = struct.unpack_from("<Q", data, at)
+    if pos > after:
+        struct.pack_into("<Q", data, at, pos + shift)
+
+
+def sqlite3_bomb(path: Path, *, size: int = 2048 * MIB, mode: str = "message") -> Path:
+    """A zstd-compressed rosbag2 sqlite3 bag holding ``size`` zeros.
+
+    ``mode`` ``message``: its one row is the bomb; ``file``: the whole storage
+    file is (rosbag2 decompresses it to a temporary file before reading).
+    """
+    store = get_typestore(Stores.ROS2_JAZZY)
+    msgtype = "std_msgs/msg/String"
+    writer = Ros2Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3)
+    compression = CompressionMode.MESSAGE if mode == "message" else CompressionMode.FILE
+    writer.set_compression(compression, CompressionFormat.ZSTD)
+    with writer:
+        conn = writer.add_connection("/chatter", msgtype, typestore=store)
+        raw = store.serialize_cdr(store.types[msgtype](data="hi"), msgtype)
+        writer.write(conn, 10**9, raw)
+    if mode == "file":
+        (packed,) = path.glob("*.zstd")
+        packed.write_bytes(zeros(size))
+        return path
+    (db,) = path.glob("*.db3")
+    with sqlite3.connect(db) as con:
+        con.execute("UPDATE messages SET data = ?", (zeros(size),))
+    return path
+
+
+def truncated(source: Path, path: Path, keep: float = 0.5) -> Path:
+    """The first ``keep`` of a bag file's bytes."""
+    data = source.read_bytes()
+    path.write_bytes(data[: int(len(data) * keep)])
+    return path
+
+
+def bad_names(path: Path, fmt: str = "mcap", names: tuple[str, ...] = BAD_NAMES) -> Path:
+    """A bag with a good ``/chatter`` and a String topic (one message) per name in ``names``."""
+    ros1 = fmt == "ros1"
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_JAZZY)
+    msgtype = "std_msgs/msg/String"
+    msg = store.types[msgtype](data="hostile")
+    if ros1:
+        path = path.with_suffix(".bag")
+        with Ros1Writer(path) as writer:
+            for i, name in enumerate(("/chatter", *names)):
+                conn = writer.add_connection(name, msgtype, typestore=store)
+                writer.write(conn, 10**9 + i, store.serialize_ros1(msg, msgtype))
+        return path
+    plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
+    with Ros2Writer(path, version=9, storage_plugin=plugin) as writer:
+        for i, name in enumerate(("/chatter", *names)):
+            conn = writer.add_connection(name, msgtype, typestore=store)
+            writer.write(conn, 10**9 + i, store.serialize_cdr(msg, msgtype))
+    return path
+
+
+def many_topics(path: Path, count: int) -> Path:
+    """An MCAP bag with ``count`` String topics of one message each (huge counts)."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    msgtype = "std_msgs/msg/String"
+    raw = store.serialize_cdr(store.types[msgtype](data="x"), msgtype)
+    with Ros2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for i in range(count):
+            conn = writer.add_connection(f"/t{i}", msgtype, typestore=store)
+            writer.write(conn, 10**9 + i, raw)
+    return path
+
+
+__all__ = [
+    "BAD_NAMES",
+    "bad_names",
+    "many_topics",
+    "mcap_bomb",
+    "ros1_bomb",
+    "sqlite3_bomb",
+    "truncated",
+    "zeros",
+]

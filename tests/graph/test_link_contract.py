@@ -1,0 +1,201 @@
+"""The link contract (rwt_graph.link) and the parts links share: parameter copies, CDR reading."""
+
+from __future__ import annotations
+
+import pytest
+
+from rwt_graph.graph import Graph
+from rwt_graph.link import NULL_SINK, PRIVATE_NAMES, Kind, LinkRules, matches_private
+from rwt_graph.param_replicas import ParamReplicas
+from rwt_graph.param_services import answer, param_nodes
+from rwt_graph.param_wire import from_wire, to_wire, type_code
+from rwt_graph.params import ParameterError
+from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types.hashes import message_type_hash
+from rwt_graph.types.wire import CDR_TRAILING_SLACK, CdrError, read_cdr
+from rwt_protocol.ports import MessageEvent
+
+STRING = "std_msgs/msg/String"
+
+
+class _Sink:
+    def on_message(self, event: MessageEvent) -> None:
+        pass
+
+
+def test_private_names_match_exactly_or_by_prefix() -> None:
+    assert matches_private("/client_count", PRIVATE_NAMES)
+    assert matches_private("/rosapi/topics", PRIVATE_NAMES)
+    assert not matches_private("/client_count_2", PRIVATE_NAMES)
+    assert not matches_private("/chatter", PRIVATE_NAMES)
+
+
+def test_rules_share_only_local_entities_and_no_private_names() -> None:
+    graph = Graph()
+    rules = LinkRules("link:")
+    graph.advertise("ws:1", "/chatter", STRING, latch=True)
+    graph.subscribe("ws:2", "/chatter", STRING, _Sink())
+    graph.advertise("link:remote", "/chatter", STRING, latch=False)  # came from outside
+    graph.subscribe("link:remote2", "/heard", STRING, NULL_SINK)
+    graph.advertise("ws:1", "/client_count", "std_msgs/msg/Int32", latch=False)
+    graph.create_service("/add", "std_srvs/srv/SetBool", lambda request: {"success": True})
+    wanted = rules.wanted(graph)
+    assert wanted[(Kind.PUBLISHER, "ws:1", "/chatter")] == (STRING, True)
+    assert wanted[(Kind.SUBSCRIPTION, "ws:2", "/chatter")] == (STRING, False)
+    assert next(k for k in wanted if k[0] is Kind.SERVICE)[2] == "/add"
+    assert not any(rules.ours(client) for _, client, _ in wanted)
+    assert not any(name == "/client_count" for _, _, name in wanted)
+    assert rules.ours("link:remote") and not rules.ours("ws:1")
+    NULL_SINK.on_message(MessageEvent("/heard", STRING, {"data": ""}, 0.0))  # drops it
+
+
+def test_rules_remember_privacy_within_a_bound(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("rwt_graph.link.PRIVATE_CACHE", 3)
+    rules = LinkRules("link:")
+    for i in range(10):
+        assert not rules.is_private(f"/t{i}")
+    assert rules.is_private("/rosapi/nodes")
+    assert len(rules._private_names) <= 3
+
+
+def test_local_actions_leave_out_the_links_and_private_ones() -> None:
+    graph = Graph()
+    rules = LinkRules("link:")
+
+    async def fib(goal: dict, context: object) -> dict:
+        return {"sequence": []}
+
+    graph.create_action_server("/fib", "example_interfaces/action/Fibonacci", fib)
+    assert list(rules.local_actions(graph)) == ["/fib"]
+    assert LinkRules(graph.actions.entries["/fib"].owner[:3]).local_actions(graph) == {}
+
+
+def test_parameter_values_cross_as_rcl_interfaces_values() -> None:
+    value_type = TypeRegistry().message("rcl_interfaces/msg/ParameterValue")
+    for value in (True, 3, 2.5, "x", b"\x01", [True], [1, 2], [1, 2.5], ["a"]):
+        wire = to_wire(value_type, value)
+        assert from_wire(wire) == (list(value) if isinstance(value, bytes) else value) or (
+            from_wire(wire) == value
+        )
+    assert from_wire(value_type.default()) is None
+    assert type_code([]) == 9  # an empty list is a string array
+    with pytest.raises(ParameterError):
+        type_code({"a": 1})
+    with pytest.raises(ParameterError):
+        from_wire({"type": 99})
+
+
+def test_parameter_copies_follow_a_node_through_its_services() -> None:
+    graph = Graph()
+    held = {"speed": 1.5, "mode": "auto"}
+    value_type = graph.registry.message("rcl_interfaces/msg/ParameterValue")
+
+    def list_parameters(request: dict) -> dict:
+        return {"result": {"names": list(held), "prefixes": []}}
+
+    def get_parameters(request: dict) -> dict:
+        return {"values": [to_wire(value_type, held[n]) for n in request["names"]]}
+
+    def set_parameters(request: dict) -> dict:
+        for parameter in request["parameters"]:
+            held[parameter["name"]] = from_wire(parameter["value"])
+        return {"results": [{"successful": True, "reason": ""}]}
+
+    services = [
+        graph.create_service(f"/robot/{name}", f"rcl_interfaces/srv/{kind}", handler)
+        for name, kind, handler in (
+            ("list_parameters", "ListParameters", list_parameters),
+            ("get_parameters", "GetParameters", get_parameters),
+            ("set_parameters", "SetParameters", set_parameters),
+        )
+    ]
+    replicas = ParamReplicas(graph, "link:caller", refresh_sweeps=2)
+    replicas.sweep({"/robot", "/absent"})  # /absent has no services: nothing held
+    assert graph.params.get("/robot:speed") == 1.5
+    assert graph.params.get("/robot:mode") == "auto"
+    graph.params.set("/robot:speed", 2.5)  # a change here goes to the node
+    assert held["speed"] == 2.5
+    held["mode"] = 7  # the node changes a parameter's type
+    del held["speed"]
+    replicas.sweep({"/robot"})
+    replicas.sweep({"/robot"})  # the refresh
+    assert graph.params.get("/robot:mode") == 7
+    assert not graph.params.has("/robot:speed")
+    graph.params.set("/elsewhere:x", 1)  # not a copy: nothing is sent
+    replicas.sweep(set())  # the node went: its copy goes
+    assert not graph.params.has("/robot:mode")
+    replicas.sweep({"/robot"})
+    replicas.close()
+    assert not graph.params.has("/robot:mode")
+    for service in services:
+        service.close()
+
+
+def test_graph_type_warnings_come_from_its_links() -> None:
+    graph = Graph()
+    assert graph.type_warning(STRING) is None
+    graph.type_checks.append(lambda name: None)
+    graph.type_checks.append(lambda name: f"no package for {name}")
+    assert graph.type_warning(STRING) == f"no package for {STRING}"
+
+
+def test_read_cdr_takes_trailing_bytes_within_the_slack() -> None:
+    registry = TypeRegistry(Dialect.ROS2)
+    store = registry.typestore()
+    data = bytes(registry.codec(registry.message(STRING)).serialize({"data": "hi"}))
+    assert read_cdr(store, data + bytes(8), STRING).data == "hi"  # type: ignore[attr-defined]
+    used = len(data) - 4
+    with pytest.raises(CdrError, match="bytes after a payload"):
+        read_cdr(store, data + bytes(used + CDR_TRAILING_SLACK + 8), STRING)
+    with pytest.raises(CdrError, match="encapsulation"):
+        read_cdr(store, b"\x05\x05" + data[2:], STRING)
+    with pytest.raises(CdrError, match="cannot deserialize"):
+        read_cdr(store, data[:6], STRING)
+
+
+def test_a_node_whose_parameter_calls_fail_gets_no_copy() -> None:
+    graph = Graph()
+
+    def broken(request: dict) -> dict:
+        raise RuntimeError("the node is busy")
+
+    service = graph.create_service(
+        "/robot/list_parameters", "rcl_interfaces/srv/ListParameters", broken
+    )
+    replicas = ParamReplicas(graph, "link:caller")
+    replicas.sweep({"/robot"})
+    assert graph.params.names() == []
+    replicas.close()
+    replicas.close()  # twice is harmless
+    service.close()
+
+
+def test_a_message_hash_is_rosidls() -> None:
+    # what rclpy reports for std_msgs/msg/String's endpoints (ROS 2 Kilted)
+    expected = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+    assert message_type_hash(TypeRegistry(Dialect.ROS2), STRING) == expected
+
+
+def test_a_nodes_parameter_services_answer_from_the_store() -> None:
+    graph = Graph()
+    graph.params.set("/robot:speed", 1.5)
+    graph.params.set("/robot:gone", 1)
+    value_type = graph.registry.message("rcl_interfaces/msg/ParameterValue")
+    assert param_nodes(graph) == frozenset({"/robot"})
+    listed = answer(graph, "/robot", "list_parameters", {"prefixes": [], "depth": 0})
+    assert listed == {"result": {"names": ["gone", "speed"], "prefixes": []}}
+    got = answer(graph, "/robot", "get_parameters", {"names": ["speed", "absent"]})
+    assert [from_wire(v) for v in got["values"]] == [1.5, None]  # type: ignore[union-attr]
+    request = {
+        "parameters": [
+            {"name": "speed", "value": to_wire(value_type, 2.0)},
+            {"name": "speed", "value": {"type": 99}},
+            {"name": "gone", "value": value_type.default()},
+        ]
+    }
+    results = answer(graph, "/robot", "set_parameters", request)["results"]
+    assert [r["successful"] for r in results] == [True, False, True]  # type: ignore[index, union-attr]
+    assert graph.params.get("/robot:speed") == 2.0
+    assert not graph.params.has("/robot:gone")
+    with pytest.raises(KeyError):
+        answer(graph, "/robot", "describe_parameters", {})

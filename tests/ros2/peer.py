@@ -1,0 +1,214 @@
+"""A real rclpy node for the ROS 2 link's tests, in its own process.
+
+Usage: python peer.py MODE NAME [NODE]   (the environment carries ROS_DOMAIN_ID etc.)
+
+The node is NODE, else ``peer_MODE`` (``params`` names it NAME).
+
+Modes (each prints ``ready`` once its entities exist, then JSON lines):
+  talk TOPIC            std_msgs/String "n" every 50 ms, forever
+  listen TOPIC          prints {"heard": data} for each std_msgs/String
+  latched TOPIC         one transient-local std_msgs/String "latched", then idles
+  image TOPIC           sensor_msgs/Image 8x4 rgb8 (a red left half) every 50 ms
+  joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
+  garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
+  serve SERVICE         a std_srvs/SetBool server: message "ros2 got <data>"
+  call SERVICE          calls std_srvs/SetBool {data: true} once the server is there;
+                        prints {"response": {...}} or {"error": ...}
+  call_many SERVICE     10 std_srvs/SetBool calls at once; prints {"answered": n} each
+                        time one more is answered, then {"responses": [...]} when all are
+  fibonacci ACTION      a test_msgs/Fibonacci action server: feedback per step (50 ms
+                        each), honours cancels; prints {"goal": order} per goal
+  send_goal ACTION      a test_msgs/Fibonacci action client: order 4 once the server is
+                        there; prints {"feedback": seq} each, then {"result": seq, "status": n}
+  params NODE_NAME      a node named NODE_NAME declaring speed=1.5 and mode="auto";
+                        prints {"speed": value} whenever speed changes
+  param_client NODE     reads NODE's "gain" through its get_parameters service once it
+                        is there, prints {"gain": value}, then sets it to 7 and prints
+                        {"set": successful}
+  log MESSAGE           logs MESSAGE at info level every 100 ms (to /rosout)
+Bounded: every mode exits after 60 s.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import rclpy
+from rcl_interfaces.msg import Parameter, ParameterValue, SetParametersResult
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.action import ActionClient, ActionServer, CancelResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import String
+from std_srvs.srv import SetBool
+from test_msgs.action import Fibonacci
+
+LIFETIME_S = 60.0
+
+
+def say(**fields: object) -> None:
+    print(json.dumps(fields), flush=True)
+
+
+def main() -> None:
+    mode, name = sys.argv[1], sys.argv[2]
+    rclpy.init()
+    default = name if mode == "params" else f"peer_{mode}"
+    node = rclpy.create_node(sys.argv[3] if len(sys.argv) > 3 else default)
+    tick = None
+    if mode == "talk":
+        pub = node.create_publisher(String, name, 10)
+        count = iter(range(10**9))
+        tick = lambda: pub.publish(String(data=str(next(count))))  # noqa: E731
+    elif mode == "listen":
+        node.create_subscription(String, name, lambda m: say(heard=m.data), 10)
+    elif mode == "latched":
+        qos = QoSProfile(
+            depth=1,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            reliability=ReliabilityPolicy.RELIABLE,
+        )
+        node.create_publisher(String, name, qos).publish(String(data="latched"))
+    elif mode == "joints":
+        pub = node.create_publisher(JointState, name, 10)
+        tick = lambda: pub.publish(JointState(name=["a"], position=[1.5]))  # noqa: E731
+    elif mode == "image":
+        pub = node.create_publisher(Image, name, 10)
+        row = bytes([255, 0, 0] * 4 + [0, 0, 255] * 4)
+        frame = Image(height=4, width=8, encoding="rgb8", step=24, data=row * 4)
+        tick = lambda: pub.publish(frame)  # noqa: E731
+    elif mode == "garbage":
+        pub = node.create_publisher(String, name, 10)
+        tick = lambda: pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7fgarbage")  # noqa: E731
+    elif mode == "serve":
+
+        def answer(request, response):
+            response.success = True
+            response.message = f"ros2 got {request.data}"
+            return response
+
+        node.create_service(SetBool, name, answer)
+    elif mode == "call":
+        client = node.create_client(SetBool, name)
+        say(ready=True)
+        if not client.wait_for_service(timeout_sec=20):
+            say(error="no service")
+            return
+        future = client.call_async(SetBool.Request(data=True))
+        rclpy.spin_until_future_complete(node, future, timeout_sec=20)
+        if future.done():
+            r = future.result()
+            say(response={"success": r.success, "message": r.message})
+        else:
+            say(error="no response")
+        return
+    elif mode == "call_many":
+        client = node.create_client(SetBool, name)
+        say(ready=True)
+        if not client.wait_for_service(timeout_sec=20):
+            say(error="no service")
+            return
+        futures = [client.call_async(SetBool.Request(data=True)) for _ in range(10)]
+        end, answered = time.monotonic() + LIFETIME_S, 0
+        while time.monotonic() < end and answered < len(futures):
+            rclpy.spin_once(node, timeout_sec=0.05)
+            done = sum(f.done() for f in futures)
+            if done > answered:
+                answered = done
+                say(answered=answered)
+        say(responses=[[f.result().success, f.result().message] for f in futures if f.done()])
+        return
+    elif mode == "fibonacci":
+
+        def execute(handle):
+            say(goal=handle.request.order)
+            sequence = [0, 1]
+            for _ in range(1, handle.request.order):
+                if handle.is_cancel_requested:
+                    handle.canceled()
+                    return Fibonacci.Result(sequence=sequence)
+                sequence.append(sequence[-1] + sequence[-2])
+                handle.publish_feedback(Fibonacci.Feedback(sequence=sequence))
+                time.sleep(0.05)
+            handle.succeed()
+            return Fibonacci.Result(sequence=sequence)
+
+        ActionServer(
+            node,
+            Fibonacci,
+            name,
+            execute,
+            cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=ReentrantCallbackGroup(),
+        )
+        say(ready=True)
+        executor = MultiThreadedExecutor()
+        executor.add_node(node)
+        end = time.monotonic() + LIFETIME_S
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        return
+    elif mode == "send_goal":
+        client = ActionClient(node, Fibonacci, name)
+        say(ready=True)
+        if not client.wait_for_server(timeout_sec=20):
+            say(error="no action server")
+            return
+        feedback = lambda m: say(feedback=list(m.feedback.sequence))  # noqa: E731
+        sent = client.send_goal_async(Fibonacci.Goal(order=4), feedback_callback=feedback)
+        rclpy.spin_until_future_complete(node, sent, timeout_sec=20)
+        if not sent.done() or not sent.result().accepted:
+            say(error="goal not accepted")
+            return
+        result = sent.result().get_result_async()
+        rclpy.spin_until_future_complete(node, result, timeout_sec=20)
+        if not result.done():
+            say(error="no result")
+            return
+        say(result=list(result.result().result.sequence), status=result.result().status)
+        return
+    elif mode == "params":
+        node.declare_parameter("speed", 1.5)
+        node.declare_parameter("mode", "auto")
+
+        def changed(params):
+
+            for param in params:
+                if param.name == "speed":
+                    say(speed=param.value)
+            return SetParametersResult(successful=True)
+
+        node.add_on_set_parameters_callback(changed)
+    elif mode == "param_client":
+        get = node.create_client(GetParameters, f"{name}/get_parameters")
+        put = node.create_client(SetParameters, f"{name}/set_parameters")
+        say(ready=True)
+        if not get.wait_for_service(timeout_sec=20) or not put.wait_for_service(timeout_sec=20):
+            say(error="no parameter services")
+            return
+        future = get.call_async(GetParameters.Request(names=["gain"]))
+        rclpy.spin_until_future_complete(node, future, timeout_sec=20)
+        say(gain=future.result().values[0].double_value)
+        seven = Parameter(name="gain", value=ParameterValue(type=3, double_value=7.0))
+        future = put.call_async(SetParameters.Request(parameters=[seven]))
+        rclpy.spin_until_future_complete(node, future, timeout_sec=20)
+        say(set=future.result().results[0].successful)
+        return
+    elif mode == "log":
+        tick = lambda: node.get_logger().info(name)  # noqa: E731
+    else:
+        raise SystemExit(f"unknown mode {mode}")
+    say(ready=True)
+    end = time.monotonic() + LIFETIME_S
+    while time.monotonic() < end:
+        if tick is not None:
+            tick()
+        rclpy.spin_once(node, timeout_sec=0.05)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,164 @@
+"""Real ROS 2 beside `rwt serve --ros2`: a private domain per test module, loopback only.
+
+``ros_environment`` gives each module its own ``ROS_DOMAIN_ID`` (from its name),
+discovery limited to this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``)
+and Fast DDS on 127.0.0.1 and shared memory only (``fastdds_loopback.xml``).
+``Peer`` runs ``peer.py`` (a real rclpy node) in its own process and reads its
+JSON lines with a bound.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import anyio
+import pytest
+from anyio.streams.buffered import BufferedByteReceiveStream
+
+from tests.integration.client_harness import ServerProcess, _LineReader
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from anyio.abc import ByteReceiveStream
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent.parent
+PEER = HERE / "peer.py"
+WAIT_S = 20.0
+
+#: Domains from 150: clear of the default 0 and of what other tools here use.
+DOMAIN_BASE = 150
+
+
+def skip_without_rclpy() -> pytest.MarkDecorator:
+    """Skip a module when rclpy cannot be imported (no ROS sourced, no ``rwt[ros2]``)."""
+    missing = importlib.util.find_spec("rclpy") is None
+    return pytest.mark.skipif(missing, reason='rclpy is not importable: pip install "rwt[ros2]"')
+
+
+@contextlib.contextmanager
+def ros_environment(module: str, tmp: Path) -> Iterator[dict[str, str]]:
+    """Set the ROS 2 environment of ``module``'s processes in ``os.environ`` for the block.
+
+    Each test module of this directory gets a domain of its own (by its place in
+    the sorted list), so modules running at once on two workers never meet.
+    """
+    modules = sorted(path.stem for path in HERE.glob("test_*.py"))
+    domain = DOMAIN_BASE + modules.index(module.rpartition(".")[2])
+    values = {
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+        "ROS_DOMAIN_ID": str(domain),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "FASTDDS_DEFAULT_PROFILES_FILE": str(HERE / "fastdds_loopback.xml"),
+        "ROS_LOG_DIR": str(tmp / "ros_log"),
+        "PYTHONUNBUFFERED": "1",
+    }
+    with pytest.MonkeyPatch.context() as patch:
+        for key, value in values.items():
+            patch.setenv(key, value)
+        yield values
+
+
+class Peer:
+    """``peer.py MODE NAME [NODE]`` in its own process (see peer.py)."""
+
+    def __init__(self, mode: str, name: str, tmp: Path, node: str | None = None) -> None:
+        self.stderr_path = tmp / f"peer-{mode}-{name.strip('/').replace('/', '_')}.stderr"
+        self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
+        self.proc = subprocess.Popen(
+            [sys.executable, str(PEER), mode, name, *([node] if node else [])],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+        )
+        self._lines = _LineReader(self.proc.stdout, f"peer-{mode}")
+        assert self.next().get("ready"), self.stderr()
+
+    def next(self, within: float = WAIT_S) -> dict[str, Any]:
+        """The next JSON line (AssertionError with stderr if none in time)."""
+        try:
+            line = self._lines.get(time.monotonic() + within)
+        except TimeoutError:
+            line = None
+        assert line is not None, f"peer printed nothing\n{self.stderr()}"
+        return json.loads(line)
+
+    def stderr(self) -> str:
+        """Its stderr so far."""
+        return self.stderr_path.read_text("utf-8", "replace")[-3000:]
+
+    def stop(self) -> None:
+        """Stop it (SIGTERM, then SIGKILL)."""
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(10)
+        if self.proc.stdout is not None:
+            self.proc.stdout.close()
+        self._stderr.close()
+
+    def __enter__(self) -> Peer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def serve_ros2(tmp: Path, *args: str) -> ServerProcess:
+    """``rwt serve --ros2 --no-tf`` on a random port (the ROS 2 environment already set)."""
+    return ServerProcess(tmp, ("--ros2", "--no-tf", *args))
+
+
+def roslibpy_prelude(port: int) -> str:
+    """The start of a roslibpy script connected to ``port`` (``ros``, ``wait_for``)."""
+    return f"""
+import json, time
+import roslibpy
+ros = roslibpy.Ros("127.0.0.1", {port})
+ros.run(timeout=20)
+
+def wait_for(predicate, within=20.0):
+    end = time.monotonic() + within
+    while not predicate() and time.monotonic() < end:
+        time.sleep(0.05)
+    return predicate()
+"""
+
+
+def env_for_clients() -> dict[str, str]:
+    """What client scripts need beyond ``os.environ`` (nothing of ROS)."""
+    return {k: v for k, v in os.environ.items() if not k.startswith("ROS_")}
+
+
+class JsonLines:
+    """The JSON lines a child prints on stdout, one at a time.
+
+    One read of a pipe may hold several lines or part of one; this reads whole lines.
+    """
+
+    def __init__(self, stream: ByteReceiveStream) -> None:
+        self._stream = BufferedByteReceiveStream(stream)
+
+    async def next(self) -> Any:
+        """The next line, parsed (EndOfStream when the child is done)."""
+        return json.loads(await self._stream.receive_until(b"\n", 1 << 20))
+
+    async def last(self) -> Any:
+        """The last line before the child ends, parsed."""
+        last = None
+        with contextlib.suppress(anyio.EndOfStream, anyio.IncompleteRead):
+            while True:
+                last = await self.next()
+        return last

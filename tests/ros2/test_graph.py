@@ -1,0 +1,112 @@
+"""rosapi describes the ROS 2 graph through `rwt serve --ros2`; the access globs hold on it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import anyio
+import pytest
+
+from tests.integration.client_harness import ServerProcess
+from tests.transports.realclients import run_python
+
+from .support import JsonLines, Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
+
+pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
+
+DESCRIBE = """
+def rosapi(name, **args):
+    service = roslibpy.Service(ros, "/rosapi/" + name, "rosapi_msgs/srv/" + name.title())
+    return service.call(roslibpy.ServiceRequest(args), timeout=10)
+
+def seen():
+    return (
+        "/graph_talk" in ros.get_topics()
+        and "/graph_listen" in ros.get_topics()
+        and "/peer_serve" in ros.get_nodes()
+        and "/graph_srv" in ros.get_services()
+    )
+wait_for(seen)
+print(json.dumps({
+    "topic_type": ros.get_topic_type("/graph_talk"),
+    "publishers": rosapi("publishers", topic="/graph_talk")["publishers"],
+    "subscribers": rosapi("subscribers", topic="/graph_listen")["subscribers"],
+    "service_type": ros.get_service_type("/graph_srv"),
+    "nodes": ros.get_nodes(),
+}), flush=True)
+input()  # the talker stops meanwhile
+gone = wait_for(lambda: "/graph_talk" not in ros.get_topics())
+print(json.dumps({"gone": gone, "nodes": ros.get_nodes()}))
+ros.terminate()
+"""
+
+
+async def test_rosapi_lists_the_ros2_graph_as_it_changes(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    talker = Peer("talk", "/graph_talk", ros_env)
+    try:
+        with Peer("listen", "/graph_listen", ros_env), Peer("serve", "/graph_srv", ros_env):
+            async with await anyio.open_process(
+                ["python", "-c", roslibpy_prelude(server.port) + DESCRIBE]
+            ) as client:
+                assert client.stdout is not None and client.stdin is not None
+                lines = JsonLines(client.stdout)
+                with anyio.fail_after(40):
+                    described = await lines.next()
+                    talker.stop()
+                    await client.stdin.send(b"\n")
+                    after = await lines.last()
+    finally:
+        talker.stop()
+    assert described["topic_type"] == "std_msgs/msg/String"
+    assert described["publishers"] == ["/peer_talk"]
+    assert described["subscribers"] == ["/peer_listen"]
+    assert described["service_type"] == "std_srvs/srv/SetBool"
+    assert {"/peer_talk", "/peer_listen", "/peer_serve", "/rwt"} <= set(described["nodes"])
+    assert after["gone"] is True
+    assert "/peer_talk" not in after["nodes"]
+    assert "/peer_listen" in after["nodes"]
+
+
+GLOBBED = """
+got = {"open": [], "secret": []}
+roslibpy.Topic(ros, "/open/chatter", "std_msgs/msg/String").subscribe(got["open"].append)
+roslibpy.Topic(ros, "/secret", "std_msgs/msg/String").subscribe(got["secret"].append)
+wait_for(lambda: len(got["open"]) >= 3 and "/open/switch" in ros.get_services())
+# the ROS 2 graph is discovered by now (the two servers started together)
+secret = roslibpy.Service(ros, "/secret_switch", "std_srvs/srv/SetBool")
+try:
+    secret.call(roslibpy.ServiceRequest({"data": True}), timeout=10)
+    called = "answered"
+except Exception as exc:
+    called = str(exc)
+print(json.dumps({"open": len(got["open"]) >= 3, "secret": got["secret"],
+                  "topics": ros.get_topics(), "services": ros.get_services(), "called": called}))
+ros.terminate()
+"""
+
+
+async def test_the_topics_and_services_globs_hold_on_the_ros2_side(ros_env: Path) -> None:
+    server = serve_ros2(
+        ros_env, "--topics-glob", "[/open/*]", "--services-glob", "[/open/*, /rosapi/*]"
+    )
+    try:
+        with (
+            Peer("talk", "/open/chatter", ros_env, "open_talker"),
+            Peer("talk", "/secret", ros_env, "secret_talker"),
+            Peer("serve", "/secret_switch", ros_env, "secret_server"),
+            Peer("serve", "/open/switch", ros_env, "open_server"),
+        ):
+            out = await run_python(roslibpy_prelude(server.port) + GLOBBED)
+    finally:
+        server.stop()
+    got = json.loads(out.strip().splitlines()[-1])
+    assert got["open"] is True
+    assert got["secret"] == []
+    assert "/secret" not in got["topics"]
+    assert "/open/chatter" in got["topics"]
+    assert "/secret_switch" not in got["services"]
+    assert "/open/switch" in got["services"]
+    assert "/secret_switch" in got["called"] and got["called"] != "answered"

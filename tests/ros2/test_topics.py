@@ -1,0 +1,203 @@
+"""Topics both ways between real rclpy nodes and rosbridge clients through `rwt serve --ros2`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import anyio
+import pytest
+
+from tests.integration.client_harness import ServerProcess, node_missing_reason
+from tests.transports.realclients import run_node, run_python
+
+from .support import JsonLines, Peer, roslibpy_prelude, skip_without_rclpy
+
+pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
+
+
+def _last_json(out: str) -> object:
+    return json.loads(out.strip().splitlines()[-1])
+
+
+SUBSCRIBE = """
+got = []
+topic = roslibpy.Topic(ros, "{topic}", "{type}")
+topic.subscribe(lambda m: got.append(m))
+wait_for(lambda: len(got) >= {count})
+print(json.dumps(got[:{count}]))
+ros.terminate()
+"""
+
+
+async def test_a_ros2_talker_reaches_a_roslibpy_subscriber(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("talk", "/chatter", ros_env):
+        script = SUBSCRIBE.format(topic="/chatter", type="std_msgs/msg/String", count=5)
+        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    assert isinstance(got, list) and len(got) == 5, got
+    numbers = [int(m["data"]) for m in got]
+    assert numbers == list(range(numbers[0], numbers[0] + 5)), numbers  # in order, none lost
+
+
+async def test_a_roslibpy_publisher_reaches_a_ros2_listener(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    script = """
+topic = roslibpy.Topic(ros, "/from_web", "std_msgs/msg/String")
+topic.advertise()
+for i in range(100):  # until the listener has heard (the test stops reading then)
+    topic.publish(roslibpy.Message({"data": f"web {i}"}))
+    time.sleep(0.1)
+ros.terminate()
+"""
+    with Peer("listen", "/from_web", ros_env) as listener:
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(run_python, roslibpy_prelude(server.port) + script)
+            heard = await anyio.to_thread.run_sync(listener.next)
+            again = await anyio.to_thread.run_sync(listener.next)
+            tg.cancel_scope.cancel()
+    assert heard["heard"].startswith("web ")
+    assert int(again["heard"].split()[1]) == int(heard["heard"].split()[1]) + 1
+
+
+async def test_a_transient_local_publisher_reaches_a_late_subscriber(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("latched", "/map_like", ros_env):
+        # subscribed after the only message was published: only durability delivers it
+        script = SUBSCRIBE.format(topic="/map_like", type="std_msgs/msg/String", count=1)
+        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    assert got == [{"data": "latched"}]
+
+
+async def test_a_joint_state_arrives_whole(server: ServerProcess, ros_env: Path) -> None:
+    with Peer("joints", "/joint_states", ros_env):
+        script = SUBSCRIBE.format(topic="/joint_states", type="sensor_msgs/msg/JointState", count=2)
+        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    assert isinstance(got, list)
+    assert [(m["name"], m["position"]) for m in got] == [(["a"], [1.5])] * 2
+
+
+async def test_garbage_from_a_ros2_node_disturbs_no_other_topic(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    # Discovery of the two peers is independent: the script stays subscribed until the
+    # server has met the garbage (its log says so), however late the match comes.
+    script = f"""
+import pathlib
+log = pathlib.Path({str(server.stderr_path)!r})
+good, bad = [], []
+roslibpy.Topic(ros, "/garbled", "std_msgs/msg/String").subscribe(bad.append)
+roslibpy.Topic(ros, "/clean", "std_msgs/msg/String").subscribe(good.append)
+wait_for(lambda: len(good) >= 20)
+wait_for(lambda: "event=ros2_bad_sample topic=/garbled" in log.read_text("utf-8", "replace"), 30)
+print(json.dumps({{"good": len(good) >= 20, "bad": bad}}))
+ros.terminate()
+"""
+    with Peer("garbage", "/garbled", ros_env), Peer("talk", "/clean", ros_env):
+        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    assert got == {"good": True, "bad": []}
+    log = server.stderr_text()
+    # one line for the episode, not one per sample (docs/limits.md)
+    assert log.count("event=ros2_bad_sample topic=/garbled") == 1, log[-3000:]
+
+
+@pytest.mark.node
+@pytest.mark.skipif(node_missing_reason() is not None, reason=str(node_missing_reason()))
+async def test_a_ros2_talker_reaches_roslib_in_node(server: ServerProcess, ros_env: Path) -> None:
+    code = f"""
+import * as ROSLIB from "roslib";
+const ros = new ROSLIB.Ros({{ url: "ws://127.0.0.1:{server.port}" }});
+const got = [];
+const topic = new ROSLIB.Topic({{
+  ros, name: "/node_chatter", messageType: "std_msgs/msg/String",
+}});
+const timer = setTimeout(() => {{ console.log(JSON.stringify(got)); process.exit(1); }}, 20000);
+topic.subscribe((m) => {{
+  got.push(m.data);
+  if (got.length === 3) {{
+    clearTimeout(timer);
+    console.log(JSON.stringify(got));
+    ros.close();
+    process.exit(0);
+  }}
+}});
+"""
+    with Peer("talk", "/node_chatter", ros_env):
+        got = _last_json(await run_node(code))
+    assert isinstance(got, list) and len(got) == 3
+    numbers = [int(x) for x in got]
+    assert numbers == list(range(numbers[0], numbers[0] + 3))
+
+
+RESTART = """
+got = []
+roslibpy.Topic(ros, "/restarting", "std_msgs/msg/String").subscribe(lambda m: got.append(m["data"]))
+wait_for(lambda: len(got) >= 3)
+print(json.dumps({"before": len(got) >= 3}), flush=True)
+input()  # the talker restarts meanwhile
+mark = len(got)
+wait_for(lambda: len(got) >= mark + 3)
+print(json.dumps({"after": got[mark:][:3]}))
+ros.terminate()
+"""
+
+
+async def test_a_ros2_node_restarting_mid_stream_keeps_the_subscription(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    talker = Peer("talk", "/restarting", ros_env)
+    try:
+        async with await anyio.open_process(
+            ["python", "-c", roslibpy_prelude(server.port) + RESTART]
+        ) as client:
+            assert client.stdout is not None and client.stdin is not None
+            lines = JsonLines(client.stdout)
+            with anyio.fail_after(40):
+                assert await lines.next() == {"before": True}
+                talker.stop()
+                talker = Peer("talk", "/restarting", ros_env)
+                await client.stdin.send(b"\n")
+                last = await lines.last()
+    finally:
+        talker.stop()
+    # the new talker's messages (what it published before discovery matched it is
+    # lost, as with any volatile subscription), in order
+    numbers = [int(x) for x in last["after"]]
+    assert numbers == list(range(numbers[0], numbers[0] + 3)), numbers
+
+
+BAD_THEN_GOOD = """
+import json
+from websockets.sync.client import connect
+
+with connect("ws://127.0.0.1:{port}") as ws:
+    ws.send(json.dumps({{"op": "advertise", "topic": "/guarded", "type": "std_msgs/msg/String"}}))
+    ws.send(json.dumps({{"op": "publish", "id": "bad", "topic": "/guarded", "msg": {{"data": 5}}}}))
+    status = json.loads(ws.recv(timeout=20))
+    print(json.dumps(status), flush=True)
+    for i in range(200):  # until the listener has heard (the test stops reading then)
+        good = {{"op": "publish", "topic": "/guarded", "msg": {{"data": f"ok {{i}}"}}}}
+        ws.send(json.dumps(good))
+        time.sleep(0.1)
+"""
+
+
+async def test_bad_input_from_a_rosbridge_client_stays_on_its_side(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    code = "import time\n" + BAD_THEN_GOOD.format(port=server.port)
+    with Peer("listen", "/guarded", ros_env) as listener:
+        async with await anyio.open_process(["python", "-c", code]) as client:
+            try:
+                assert client.stdout is not None
+                with anyio.fail_after(20):
+                    status = await JsonLines(client.stdout).next()
+                heard = await anyio.to_thread.run_sync(listener.next)
+            finally:
+                client.kill()
+    assert status["op"] == "status" and status["level"] == "error"
+    assert status["id"] == "bad"
+    assert heard["heard"].startswith("ok ")

@@ -1,0 +1,80 @@
+"""Types ROS 2 cannot carry here get a clear warning naming the package to install."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import anyio
+import pytest
+
+from tests.integration.client_harness import ServerProcess
+from tests.transports.realclients import run_python
+
+from .support import HERE, Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
+
+pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
+
+DATA = HERE / "data"
+
+STATUSES = """
+import json
+from websockets.sync.client import connect
+
+with connect("ws://127.0.0.1:{port}") as ws:
+    ws.send(json.dumps({{"op": "set_level", "level": "warning"}}))
+    ws.send(json.dumps({{"op": "subscribe", "id": "s1", "topic": "/tf",
+                        "type": "tf2_msgs/msg/TFMessage"}}))
+    ws.send(json.dumps({{"op": "subscribe", "id": "s2", "topic": "/fine",
+                        "type": "std_msgs/msg/String"}}))
+    ws.send(json.dumps({{"op": "advertise", "id": "a1", "topic": "/fine_too",
+                        "type": "std_msgs/msg/String"}}))
+    ws.send(json.dumps({{"op": "call_service", "id": "c1", "service": "/rosapi/get_time"}}))
+    statuses = []
+    while True:
+        frame = json.loads(ws.recv(timeout=20))
+        if frame["op"] == "service_response":
+            break
+        if frame["op"] == "status":
+            statuses.append(frame)
+print(json.dumps(statuses))
+"""
+
+
+async def test_a_type_without_its_python_package_gets_a_warning_naming_it(
+    server: ServerProcess,
+) -> None:
+    out = await run_python(STATUSES.format(port=server.port))
+    statuses = json.loads(out.strip().splitlines()[-1])
+    assert [(s["level"], s.get("id")) for s in statuses] == [("warning", "s1")], statuses
+    text = statuses[0]["msg"]
+    assert text.startswith("subscribe: ROS 2 has no Python package for tf2_msgs/msg/TFMessage")
+    assert "pip install ros-kilted-tf2-msgs" in text
+
+
+HASHED = """
+chatter, joints = [], []
+roslibpy.Topic(ros, "/foreign_chatter", "std_msgs/msg/String").subscribe(chatter.append)
+roslibpy.Topic(ros, "/foreign_joints", "sensor_msgs/msg/JointState").subscribe(joints.append)
+wait_for(lambda: len(joints) >= 10)
+print(json.dumps({"joints": len(joints) >= 10, "chatter": chatter}))
+ros.terminate()
+"""
+
+
+async def test_a_ros2_type_of_another_definition_is_refused_and_disturbs_nothing(
+    ros_env: Path,
+) -> None:
+    # rwt's std_msgs/String has a field the robot's has not: another RIHS01 hash
+    server = serve_ros2(ros_env, "--interfaces", str(DATA))
+    try:
+        with Peer("talk", "/foreign_chatter", ros_env), Peer("joints", "/foreign_joints", ros_env):
+            refused = "/foreign_chatter: /peer_talk's std_msgs/msg/String is RIHS01_"
+            with anyio.fail_after(20):  # the talker is discovered (and refused)
+                while refused not in server.stderr_text():
+                    await anyio.sleep(0.1)
+            out = await run_python(roslibpy_prelude(server.port) + HASHED)
+    finally:
+        server.stop()
+    assert json.loads(out.strip().splitlines()[-1]) == {"joints": True, "chatter": []}
+    assert "give rwt the robot's definitions" in server.stderr_text()
