@@ -408,9 +408,7 @@ class Ros2ActionServer:
         info: Any = request["goal_info"]
         self.canceled.add(bytes(info["goal_id"]["uuid"]))
         response = {"return_code": 0, "goals_canceling": [info]}
-        self.reply(
-            "cancel_goal", query, encode_sample(REGISTRY, f"{CANCEL_GOAL}_Response", response)
-        )
+        self.reply(query, encode_sample(REGISTRY, f"{CANCEL_GOAL}_Response", response))
 
 
 async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> None:
@@ -450,9 +448,10 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
             server.close()
     assert outcome.status is GoalStatus.SUCCEEDED
     assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
-    # feedback in order (the first may come before the route to rwt's subscriber is up)
+    # feedback in order, each a step towards the result; the first may come before the
+    # route to rwt's subscriber is up, the last may trail the result (another route)
     assert feedback
-    assert feedback[-1] == {"sequence": [0, 1, 1, 2, 3, 5]}
+    assert all([0, 1, 1, 2, 3, 5][: len(f["sequence"])] == f["sequence"] for f in feedback)
     assert [len(f["sequence"]) for f in feedback] == sorted({len(f["sequence"]) for f in feedback})
     assert done[0][:2] == (GoalStatus.CANCELED, True)
     called = [name for name, _ in server.asked]
