@@ -12,12 +12,12 @@ graph, which aborts its goals, D15), a missing Python package.
 from __future__ import annotations
 
 import logging
-import threading
 from typing import TYPE_CHECKING, Any
 
 from rwt_protocol.errors import RwtError
 from rwt_protocol.ports import GoalStatus
 
+from .answer import Answer
 from .codec import decode, encode
 from .node import MAX_WAITING
 from .runtime import interface_class
@@ -27,13 +27,11 @@ if TYPE_CHECKING:
     from rwt_graph.types.message import ActionType
 
     from .link import Ros2Link
+    from .node import RosNode
 
-__all__ = ["CANCEL_POLL_S", "GoalOutcome", "RosAction", "serve_action_to_ros"]
+__all__ = ["GoalOutcome", "RosAction", "serve_action_to_ros"]
 
 logger = logging.getLogger("rwt.ros2")
-
-CANCEL_POLL_S = 0.05
-"""How often a goal from ROS 2 looks for its client's cancel request, seconds."""
 
 
 class RosAction:
@@ -179,27 +177,34 @@ class RosAction:
             self._action_client = None
 
 
-class GoalOutcome:
-    """How a graph goal started for a ROS 2 client ended, waited for on an executor thread."""
+class GoalOutcome(Answer):
+    """How a graph goal started for a ROS 2 client ended, awaited by its execute coroutine.
 
-    def __init__(self) -> None:
-        self.done = threading.Event()
+    Attributes:
+        status: the goal's final status (ABORTED until told otherwise).
+        result: the result's CDR when the graph answered with one.
+        reason: why it failed, otherwise.
+        handle: the graph's ``GoalHandle`` (set on the event loop).
+        cancel_sent: whether the ROS 2 client's cancel was forwarded.
+    """
+
+    def __init__(self, ros: RosNode) -> None:
+        super().__init__(ros)
         self.status = GoalStatus.ABORTED
         self.result: bytes | None = None
         self.reason = ""
-        self.handle: Any = None  # the graph's GoalHandle, on the event loop
+        self.handle: Any = None
         self.cancel_sent = False
 
-    def set(self, ok: bool, value: object, status: GoalStatus = GoalStatus.ABORTED) -> None:
-        """End it: ``value`` is the result's CDR when ``ok``, else the reason."""
-        if self.done.is_set():
-            return
-        self.status = status
+    def _settle(self, ok: bool, value: object, *detail: object) -> None:
+        """``value``: the result's CDR when ``ok``, else the reason; ``detail``: the status."""
+        super()._settle(ok, value)
+        status = detail[0] if detail else GoalStatus.ABORTED
+        self.status = status if isinstance(status, GoalStatus) else GoalStatus.ABORTED
         if ok and isinstance(value, bytes):
             self.result = value
         else:
             self.reason = str(value)
-        self.done.set()
 
 
 def _end(link: Ros2Link, name: str, ros_type: Any, goal_handle: Any, outcome: GoalOutcome) -> Any:
@@ -226,6 +231,40 @@ def _end(link: Ros2Link, name: str, ros_type: Any, goal_handle: Any, outcome: Go
     return result
 
 
+def _start_in_graph(
+    link: Ros2Link,
+    name: str,
+    type_name: str,
+    ros_type: Any,
+    data: bytes,
+    goal_handle: Any,
+    outcome: GoalOutcome,
+) -> None:
+    """Send a ROS 2 client's goal (``data``: its CDR) in the graph (the event loop)."""
+    from rclpy.serialization import deserialize_message  # noqa: PLC0415
+
+    registry = link.graph.registry
+    try:
+        actiontype = registry.action(type_name)
+        goal = decode(registry, actiontype.goal, data)
+
+        def feedback(msg: dict[str, object]) -> None:
+            payload = encode(registry, actiontype.feedback, msg)
+            goal_handle.publish_feedback(deserialize_message(payload, ros_type.Feedback))
+
+        def done(status: GoalStatus, result: bool, values: object) -> None:
+            if result and isinstance(values, dict):
+                outcome.set(True, encode(registry, actiontype.result, values), status)
+            else:
+                outcome.set(False, values, status)
+
+        outcome.handle = link.graph.send_action_goal(
+            link.caller, name, type_name, goal, done, feedback
+        )
+    except RwtError as exc:
+        outcome.set(False, exc)
+
+
 def serve_action_to_ros(link: Ros2Link, name: str, type_name: str, ros_type: Any) -> Any:
     """An rclpy action server offering the graph's action ``name`` to ROS 2 action clients.
 
@@ -236,57 +275,49 @@ def serve_action_to_ros(link: Ros2Link, name: str, type_name: str, ros_type: Any
     per episode); so do goals in flight when the link stops.
     """
     from rclpy.action.server import ActionServer, CancelResponse  # noqa: PLC0415
-    from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
-
-    registry = link.graph.registry
+    from rclpy.serialization import serialize_message  # noqa: PLC0415
 
     def start(data: bytes, goal_handle: Any, outcome: GoalOutcome) -> None:  # the event loop
-        try:
-            actiontype = registry.action(type_name)
-            goal = decode(registry, actiontype.goal, data)
-
-            def feedback(msg: dict[str, object]) -> None:
-                payload = encode(registry, actiontype.feedback, msg)
-                goal_handle.publish_feedback(deserialize_message(payload, ros_type.Feedback))
-
-            def done(status: GoalStatus, result: bool, values: object) -> None:
-                if result and isinstance(values, dict):
-                    outcome.set(True, encode(registry, actiontype.result, values), status)
-                else:
-                    outcome.set(False, values, status)
-
-            outcome.handle = link.graph.send_action_goal(
-                link.caller, name, type_name, goal, done, feedback
-            )
-        except RwtError as exc:
-            outcome.set(False, exc)
+        _start_in_graph(link, name, type_name, ros_type, data, goal_handle, outcome)
 
     def cancel(outcome: GoalOutcome) -> None:  # the event loop
         if outcome.handle is not None:
             outcome.handle.request_cancel()
 
-    def execute(goal_handle: Any) -> Any:  # an executor thread; blocks until the goal ends
-        outcome = GoalOutcome()
+    running: dict[bytes, GoalOutcome] = {}  # goal id -> its outcome, while it runs
+
+    async def execute(goal_handle: Any) -> Any:  # a task of the executor, until the goal ends
+        outcome = GoalOutcome(link.ros)
         if not link.ros.waiting.acquire(blocking=False):
             outcome.set(False, f"{MAX_WAITING} calls and goals from ROS 2 wait already")
             return _end(link, name, ros_type, goal_handle, outcome)
+        goal_id = bytes(goal_handle.goal_id.uuid)
         link.pending_answers.add(outcome)
+        running[goal_id] = outcome
         try:
-            link.handoff.put(start, serialize_message(goal_handle.request), goal_handle, outcome)
-            while not outcome.done.wait(CANCEL_POLL_S):
-                if goal_handle.is_cancel_requested and not outcome.cancel_sent:
-                    outcome.cancel_sent = True
-                    link.handoff.put(cancel, outcome)
+            request = serialize_message(goal_handle.request)
+            if link.handoff.put(start, request, goal_handle, outcome):
+                await outcome
+            else:
+                outcome.set(False, "the ROS 2 link is stopping")
         finally:
+            running.pop(goal_id, None)
             link.pending_answers.discard(outcome)
             link.ros.waiting.release()
         return _end(link, name, ros_type, goal_handle, outcome)
+
+    def on_cancel(goal_handle: Any) -> Any:  # the executor: forwarded, then accepted
+        outcome = running.get(bytes(goal_handle.goal_id.uuid))
+        if outcome is not None and not outcome.cancel_sent:
+            outcome.cancel_sent = True
+            link.handoff.put(cancel, outcome)
+        return CancelResponse.ACCEPT
 
     return ActionServer(
         link.ros.node,
         ros_type,
         name,
         execute,
-        cancel_callback=lambda _: CancelResponse.ACCEPT,
+        cancel_callback=on_cancel,
         callback_group=link.ros.group,
     )

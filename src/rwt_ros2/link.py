@@ -45,7 +45,7 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.types.hashes import message_type_hash
 from rwt_protocol.errors import GraphError, RwtError
 
-from .actions import GoalOutcome, RosAction, serve_action_to_ros
+from .actions import RosAction, serve_action_to_ros
 from .codec import decode, encode
 from .graphview import Endpoint, Qos, RosGraph, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
@@ -53,7 +53,7 @@ from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
 from .rosout import RosoutHandler
 from .runtime import interface_class
-from .services import RosService, serve_to_ros
+from .services import SERVICE_QOS, RosService, serve_to_ros
 
 if TYPE_CHECKING:
     import asyncio
@@ -65,7 +65,7 @@ if TYPE_CHECKING:
     from rwt_graph.topics import Topic as GraphTopic
     from rwt_protocol.ports import ClientId, MessageEvent
 
-    from .services import _Answer
+    from .answer import Answer
 
 __all__ = ["PARTICIPANT_PREFIX", "Ros2Link", "Ros2Options", "open_ros2_link"]
 
@@ -158,7 +158,7 @@ class Ros2Link:
         self.handoff = Handoff(self.options.max_queued_bytes)
         self.episodes = EpisodeLog(logger)
         self.caller: ClientId = f"{PARTICIPANT_PREFIX}caller"
-        self.pending_answers: set[_Answer | GoalOutcome] = set()
+        self.pending_answers: set[Answer] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._mirrors: dict[ClientId, _Mirror] = {}
         self._by_gid: dict[bytes, ClientId] = {}
@@ -585,7 +585,13 @@ class Ros2Link:
             if ros_type is None:
                 continue
             callback = serve_to_ros(self, name, type_name, ros_type)
-            handle = node.create_service(ros_type, name, callback, callback_group=self.ros.group)
+            handle = node.create_service(
+                ros_type,
+                name,
+                callback,
+                qos_profile=rclpy_profile(SERVICE_QOS),
+                callback_group=self.ros.group,
+            )
             self._servers[name] = _Server(type_name, handle)
 
     def _sweep_action_servers(self) -> None:
@@ -623,7 +629,11 @@ class Ros2Link:
                 callback = serve_to_ros(self, f"{name}/{part}", type_name, ros_type, handler)
                 handles.append(
                     node.create_service(
-                        ros_type, f"{name}/{part}", callback, callback_group=self.ros.group
+                        ros_type,
+                        f"{name}/{part}",
+                        callback,
+                        qos_profile=rclpy_profile(SERVICE_QOS),
+                        callback_group=self.ros.group,
                     )
                 )
             self._param_servers[name] = handles

@@ -4,6 +4,13 @@ rclpy runs its executor on a thread of its own so the event loop never waits
 for DDS; callbacks reach the loop through a ``Handoff``. Entities are created
 and messages published from the event loop's thread, which rclpy allows (each
 entity has its own lock; the executor is woken to wait on new ones).
+
+The executor is rclpy's single-threaded one. Its multi-threaded executor hands
+every ready callback to a thread pool and yields it again until a pool thread
+starts it: measured here, a 500 Hz ``String`` then cost 20-55 ms of CPU per
+delivery and lost 87-95 % of the messages (benchmarks/README.md, ROS 2 bridge).
+Calls and goals from ROS 2 therefore never block the executor: their callbacks
+are coroutines awaiting an ``answer.Answer`` the event loop completes.
 """
 
 from __future__ import annotations
@@ -13,19 +20,16 @@ from typing import Any
 
 from .runtime import load_rclpy
 
-__all__ = ["EXECUTOR_THREADS", "MAX_WAITING", "SPIN_TIMEOUT_S", "RosNode"]
+__all__ = ["MAX_WAITING", "SPIN_TIMEOUT_S", "RosNode"]
 
 SPIN_TIMEOUT_S = 0.1
 """How long one executor wait lasts, seconds: how soon the thread notices shutdown."""
 
-EXECUTOR_THREADS = 8
-"""rclpy's executor threads. Calls and goals from ROS 2 wait on one each for the
-graph's answer; at most ``MAX_WAITING`` of them do at once, so samples always
-have threads left."""
-
-MAX_WAITING = EXECUTOR_THREADS - 2
+MAX_WAITING = 64
 """Calls and goals from ROS 2 waiting for the graph at once; one more is answered
-at once with the default response (a goal: aborted), logged once per episode."""
+at once with the default response (a goal: aborted), logged once per episode.
+Each waits as a coroutine, not a thread; the bound keeps ROS 2 callers from
+piling up work behind a provider that never answers."""
 
 
 class RosNode:
@@ -48,7 +52,7 @@ class RosNode:
     def __init__(self, name: str, namespace: str = "/") -> None:
         rclpy = self.rclpy = load_rclpy()
         from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: PLC0415
-        from rclpy.executors import MultiThreadedExecutor  # noqa: PLC0415
+        from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
 
         self.context = rclpy.Context()
         rclpy.init(
@@ -66,10 +70,11 @@ class RosNode:
             raise
         ns = self.node.get_namespace().rstrip("/")
         self.fqn = f"{ns}/{self.node.get_name()}"
+        # reentrant: a call or goal awaiting the graph must not hold back the topics
         self.group = ReentrantCallbackGroup()
         #: taken by each call or goal from ROS 2 while it waits for the graph
         self.waiting = threading.BoundedSemaphore(MAX_WAITING)
-        self.executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="rwt-ros2", daemon=True)
 

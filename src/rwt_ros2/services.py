@@ -4,9 +4,10 @@
 through an rclpy client; the reply, a timeout, a server that is not there, or
 bytes that do not decode all answer the caller. ``serve_to_ros`` is the
 callback of the rclpy service that offers a graph service (a rosbridge
-client's ``advertise_service``, an in-process one) to ROS 2 nodes: it hands
-the request to the event loop and waits for the graph's answer on its executor
-thread. rclpy services cannot answer with an error, so a failed call (the
+client's ``advertise_service``, an in-process one) to ROS 2 nodes: a coroutine
+that hands the request to the event loop and awaits the graph's answer
+(``answer.Answer``), so the executor goes on meanwhile. rclpy services cannot
+answer with an error, so a failed call (the
 provider disconnected, D15; the call timed out) gets the default response at
 once, logged once per episode, rather than leaving the ROS 2 caller waiting.
 """
@@ -14,25 +15,32 @@ once, logged once per episode, rather than leaving the ROS 2 caller waiting.
 from __future__ import annotations
 
 import logging
-import threading
 from typing import TYPE_CHECKING, Any
 
 from rwt_protocol.errors import RwtError
 
+from .answer import Answer
 from .codec import decode, encode
+from .graphview import Qos
 from .node import MAX_WAITING
 from .runtime import interface_class
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Coroutine
 
     from rwt_graph.types import ServiceType
 
     from .link import Ros2Link
 
-__all__ = ["RosService", "serve_to_ros"]
+__all__ = ["SERVICE_QOS", "RosService", "serve_to_ros"]
 
 logger = logging.getLogger("rwt.ros2")
+
+SERVICE_QOS = Qos(depth=MAX_WAITING)
+"""The QoS of the services rwt offers ROS 2: reliable, volatile, as rmw's services
+default, but kept last ``MAX_WAITING`` rather than 10, so a burst of requests, or
+of the responses to calls failed at once (their provider went), is not cut to the
+last 10 by the middleware's history."""
 
 
 class RosService:
@@ -129,27 +137,13 @@ class RosService:
             self._ros_client = None
 
 
-class _Answer:
-    """The graph's answer to one ROS 2 call, waited for on an executor thread."""
-
-    def __init__(self) -> None:
-        self.done = threading.Event()
-        self.ok = False
-        self.value: object = None
-
-    def set(self, ok: bool, value: object) -> None:
-        if not self.done.is_set():
-            self.ok, self.value = ok, value
-            self.done.set()
-
-
 def serve_to_ros(
     link: Ros2Link,
     name: str,
     type_name: str,
     ros_type: Any,
     handler: Callable[[dict[str, object]], dict[str, object]] | None = None,
-) -> Any:
+) -> Callable[[Any, Any], Coroutine[Any, Any, Any]]:
     """The callback of the rclpy service offering the graph's service ``name`` to ROS 2.
 
     Each request is called in the graph, or, with ``handler``, answered by it on
@@ -158,13 +152,19 @@ def serve_to_ros(
     """
     from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
 
-    def call_in_graph(data: bytes, answer: _Answer) -> None:  # the event loop
+    timeout_s = link.options.call_timeout_s
+
+    def call_in_graph(data: bytes, answer: Answer) -> None:  # the event loop
         registry = link.graph.registry
+        timer = link.loop.call_later(
+            timeout_s, answer.set, False, f"no answer within {timeout_s:g} s"
+        )
         try:
             srvtype = registry.service(type_name)
             request = decode(registry, srvtype.request, data)
 
             def reply(result: bool, values: object) -> None:
+                timer.cancel()
                 if not result:
                     answer.set(False, values)
                     return
@@ -176,18 +176,20 @@ def serve_to_ros(
             else:
                 link.graph.call_service(link.caller, name, request, reply)
         except RwtError as exc:
+            timer.cancel()
             answer.set(False, str(exc))
 
-    def callback(request: Any, response: Any) -> Any:  # an executor thread
-        answer = _Answer()
+    async def callback(request: Any, response: Any) -> Any:  # a task of the executor
+        answer = Answer(link.ros)
         if not link.ros.waiting.acquire(blocking=False):
             answer.set(False, f"{MAX_WAITING} calls and goals from ROS 2 wait already")
         else:
             link.pending_answers.add(answer)
             try:
-                link.handoff.put(call_in_graph, serialize_message(request), answer)
-                if not answer.done.wait(link.options.call_timeout_s):
-                    answer.set(False, f"no answer within {link.options.call_timeout_s:g} s")
+                if link.handoff.put(call_in_graph, serialize_message(request), answer):
+                    await answer
+                else:
+                    answer.set(False, "the ROS 2 link is stopping")
             finally:
                 link.pending_answers.discard(answer)
                 link.ros.waiting.release()

@@ -14,7 +14,7 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   serve SERVICE         a std_srvs/SetBool server: message "ros2 got <data>"
   call SERVICE          calls std_srvs/SetBool {data: true} once the server is there;
                         prints {"response": {...}} or {"error": ...}
-  call_many SERVICE     10 std_srvs/SetBool calls at once; prints {"answered": n} each
+  call_many SERVICE [N] N (10) std_srvs/SetBool calls, 10 ms apart; prints {"answered": n} each
                         time one more is answered, then {"responses": [...]} when all are
   fibonacci ACTION      a test_msgs/Fibonacci action server: feedback per step (50 ms
                         each), honours cancels; prints {"goal": order} per goal
@@ -58,7 +58,8 @@ def main() -> None:
     mode, name = sys.argv[1], sys.argv[2]
     rclpy.init()
     default = name if mode == "params" else f"peer_{mode}"
-    node = rclpy.create_node(sys.argv[3] if len(sys.argv) > 3 else default)
+    named = len(sys.argv) > 3 and mode != "call_many"  # call_many's third is a count
+    node = rclpy.create_node(sys.argv[3] if named else default)
     tick = None
     if mode == "talk":
         pub = node.create_publisher(String, name, 10)
@@ -107,15 +108,21 @@ def main() -> None:
             say(error="no response")
         return
     elif mode == "call_many":
-        client = node.create_client(SetBool, name)
+        # kept last 100, not 10: the responses of calls failed at once come in a burst
+        client = node.create_client(SetBool, name, qos_profile=QoSProfile(depth=100))
         say(ready=True)
         if not client.wait_for_service(timeout_sec=20):
             say(error="no service")
             return
-        futures = [client.call_async(SetBool.Request(data=True)) for _ in range(10)]
+        count = int(sys.argv[3]) if len(sys.argv) > 3 else 10
+        futures = []
         end, answered = time.monotonic() + LIFETIME_S, 0
-        while time.monotonic() < end and answered < len(futures):
-            rclpy.spin_once(node, timeout_sec=0.05)
+        while time.monotonic() < end and answered < count:
+            if len(futures) < count:
+                # one every 10 ms: a service's requests are kept last 10 (rmw's default
+                # depth), so a burst of more than 10 would lose some in DDS
+                futures.append(client.call_async(SetBool.Request(data=True)))
+            rclpy.spin_once(node, timeout_sec=0.01 if len(futures) < count else 0.05)
             done = sum(f.done() for f in futures)
             if done > answered:
                 answered = done

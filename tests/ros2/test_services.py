@@ -184,10 +184,11 @@ async def test_calls_from_ros2_stuck_in_the_graph_leave_the_topics_flowing(
                     assert await JsonLines(provider.stdout).next() == {"advertised": True}
                     heard = JsonLines(listener.stdout)
                     assert await heard.next() == {"flowing": True}
-                with Peer("call_many", "/stuck", ros_env) as callers:
+                calls = MAX_WAITING + 4
+                with Peer("call_many", "/stuck", ros_env, str(calls)) as callers:
                     # the calls beyond the waiting ones are answered at once
                     first = {"answered": 0}
-                    while first["answered"] < 10 - MAX_WAITING:
+                    while first["answered"] < calls - MAX_WAITING:
                         first = await anyio.to_thread.run_sync(callers.next)
                     await listener.stdin.send(b"\n")
                     with anyio.fail_after(30):
@@ -201,4 +202,4 @@ async def test_calls_from_ros2_stuck_in_the_graph_leave_the_topics_flowing(
                     with contextlib.suppress(ProcessLookupError):
                         process.kill()
     assert during == {"during": True}
-    assert lines[-1]["responses"] == [[False, ""]] * 10
+    assert lines[-1]["responses"] == [[False, ""]] * calls
