@@ -48,8 +48,24 @@ from .servers import ROOT, Server, proc_stats, start_server
 
 __all__ = ["CASES", "Case", "Result", "main", "rclpy_available", "run_case", "table", "verdicts"]
 
-PEER_ENV = "RWT_ROSBRIDGE_ROS2_DIR"
-"""Directory of ``start_rosbridge_ros2.sh`` and ``stop.sh`` (the rosbridge_suite peer)."""
+
+@dataclass(frozen=True, slots=True)
+class PeerTools:
+    """How a peer bridge starts: ``env`` names its tools' directory, which holds
+    ``start`` (``start PORT DOMAIN``, printing ``<pid_key>=PID``) and ``stop.sh PORT``."""
+
+    env: str
+    start: str
+    pid_key: str
+
+
+PEERS = {
+    "rosbridge": PeerTools("RWT_ROSBRIDGE_ROS2_DIR", "start_rosbridge_ros2.sh", "ROSBRIDGE_PID"),
+    "rs": PeerTools("RWT_ROSBRIDGE_RS_DIR", "start.sh", "RS_PID"),
+}
+"""The peers: rosbridge_suite 2.1.0 on ROS 2 Kilted wheels, and rosbridge-server-rs
+0.1.6 (Rust, a ROS 2 node on Jazzy wheels; its DDS meets the Kilted publisher)."""
+PEER_ENV = PEERS["rosbridge"].env
 PROFILE = ROOT / "tests" / "ros2" / "fastdds_loopback.xml"
 PACED_HZ = 500
 """The paced String rate: below the ~600 msg/s rosbridge_suite 2.1.0 tops out at here."""
@@ -61,10 +77,11 @@ IDLE_S = 2.0
 """A subscriber that saw nothing for this long has seen all it will (a loss)."""
 SETTLE_S = 10.0
 """Bound on waiting for a new bridge to go idle (under 10 % of a core) before a case."""
-KINDS = ("rwt", "rosbridge", "rclpy")
+KINDS = ("rwt", "rosbridge", "rs", "rclpy")
 LABELS = {
     "rwt": "rwt serve --ros2",
     "rosbridge": "rosbridge_suite 2.1.0",
+    "rs": "rosbridge-server-rs 0.1.6",
     "rclpy": "bare rclpy subscriber",
 }
 TYPES = {"string": "std_msgs/msg/String", "image": "sensor_msgs/msg/Image"}
@@ -411,25 +428,26 @@ def _free_port() -> int:
         return port
 
 
-def _start_rosbridge(tools: Path, port: int, domain: int) -> int:
-    """Start a fresh rosbridge_suite on ``port``; its websocket process's pid."""
+def _start_peer(receiver: str, tools: Path, port: int, domain: int) -> int:
+    """Start a fresh peer bridge (``PEERS``) on ``port``; its WebSocket server's pid."""
+    peer = PEERS[receiver]
     out = subprocess.run(
-        [str(tools / "start_rosbridge_ros2.sh"), str(port), str(domain)],
+        [str(tools / peer.start), str(port), str(domain)],
         capture_output=True,
         text=True,
         check=True,
         timeout=180,
     ).stdout
-    found = re.search(r"ROSBRIDGE_PID=(\d+)", out)
+    found = re.search(rf"{peer.pid_key}=(\d+)", out)
     if found is None:
-        raise RuntimeError(f"rosbridge_suite did not start: {out!r}")
+        raise RuntimeError(f"{LABELS[receiver]} did not start: {out!r}")
     return int(found.group(1))
 
 
 async def run_case(
     receiver: str, case: Case, seconds: float, domain: int, tools: Path | None = None
 ) -> Result:
-    """One ``case`` on ``receiver`` (``rwt``, ``rosbridge`` with ``tools``, or ``rclpy``).
+    """One ``case`` on ``receiver`` (``rwt``, ``rclpy``, or a peer of ``PEERS`` with ``tools``).
 
     Starts (and stops) the bridge; the ROS 2 processes use ``domain``.
 
@@ -448,9 +466,9 @@ async def run_case(
     assert tools is not None
     port = _free_port()
     try:
-        pid = await asyncio.to_thread(_start_rosbridge, tools, port, domain)
+        pid = await asyncio.to_thread(_start_peer, receiver, tools, port, domain)
         url = f"ws://127.0.0.1:{port}"
-        return await _through_bridge("rosbridge", url, pid, case, seconds, env)
+        return await _through_bridge(receiver, url, pid, case, seconds, env)
     finally:
         stop = [str(tools / "stop.sh"), str(port)]  # only what this start recorded
         await asyncio.to_thread(subprocess.run, stop, capture_output=True, check=False)
@@ -490,6 +508,13 @@ def verdicts(results: list[Result]) -> list[str]:
             out.append(f"{name}: delivered {ratio:.1f}x rosbridge (>= 10x): {_met(ratio >= 10)}")
         if rwt and ref and case.hz and ref.loss == 0:
             out.append(f"{name}: rosbridge lossless, rwt loss {rwt.loss:.1%}: {_met(not rwt.loss)}")
+        rust = by.get(("rs", case.label, case.subscribers))
+        if rwt and rust:  # no target: the fastest peer users can pick, for comparison
+            ratio = rwt.msg_per_s / max(rust.msg_per_s, 1e-9)
+            out.append(
+                f"{name}: delivered {ratio:.1f}x rosbridge-server-rs (loss {rust.loss:.1%}, "
+                f"rwt {rwt.loss:.1%}; p99 {rust.p99_ms:.1f} ms, rwt {rwt.p99_ms:.1f} ms)"
+            )
         if rwt and bare and case.subscribers == 1:
             ratio = rwt.cpu_us_per_delivery / max(bare.cpu_us_per_delivery, 1e-9)
             out.append(f"{name}: CPU/delivery {ratio:.1f}x bare rclpy (<= 2x): {_met(ratio <= 2)}")
@@ -500,7 +525,11 @@ def verdicts(results: list[Result]) -> list[str]:
 
 
 async def run_all(
-    receivers: list[str], cases: list[Case], seconds: float, domain: int, tools: Path | None
+    receivers: list[str],
+    cases: list[Case],
+    seconds: float,
+    domain: int,
+    tools: dict[str, Path],
 ) -> list[Result]:
     """Every case on every receiver, in that order (rclpy: the 1-subscriber cases only)."""
     results = []
@@ -509,7 +538,8 @@ async def run_all(
             if receiver == "rclpy" and case.subscribers != 1:
                 continue
             print(f"{case.label} 1->{case.subscribers} {receiver}...", file=sys.stderr, flush=True)
-            results.append(await run_case(receiver, case, seconds, domain, tools))
+            where = tools.get(receiver)
+            results.append(await run_case(receiver, case, seconds, domain, where))
     return results
 
 
@@ -518,8 +548,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.ros2_bridge")
     parser.add_argument("--seconds", type=float, default=5.0, help="timed publishing per case")
     parser.add_argument(
-        "--receivers", default=",".join(KINDS), help="comma-separated: rwt,rosbridge,rclpy"
+        "--receivers", default=",".join(KINDS), help="comma-separated: rwt,rosbridge,rs,rclpy"
     )
+    parser.add_argument("--cases", help="only the cases whose label contains this (e.g. Image)")
     parser.add_argument("--domain", type=int, default=130 + os.getpid() % 10, help="ROS_DOMAIN_ID")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
@@ -527,11 +558,15 @@ def main(argv: list[str] | None = None) -> int:
         print('skipped: rclpy is not importable (pip install "rwt[ros2]")')
         return 0
     receivers = [r for r in args.receivers.split(",") if r]
-    tools = Path(os.environ[PEER_ENV]) if os.environ.get(PEER_ENV) else None
-    if "rosbridge" in receivers and tools is None:
-        print(f"rosbridge_suite skipped: {PEER_ENV} (start_rosbridge_ros2.sh's dir) is unset")
-        receivers.remove("rosbridge")
-    results = asyncio.run(run_all(receivers, CASES, args.seconds, args.domain, tools))
+    tools: dict[str, Path] = {}
+    for name, peer in PEERS.items():
+        if os.environ.get(peer.env):
+            tools[name] = Path(os.environ[peer.env])
+        elif name in receivers:
+            print(f"{LABELS[name]} skipped: {peer.env} ({peer.start}'s dir) is unset")
+            receivers.remove(name)
+    cases = [c for c in CASES if not args.cases or args.cases in f"{c.label} 1->{c.subscribers}"]
+    results = asyncio.run(run_all(receivers, cases, args.seconds, args.domain, tools))
     print(table(results))
     print()
     for line in verdicts(results):
