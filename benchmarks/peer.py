@@ -219,7 +219,17 @@ def table(scenarios: list[Scenario]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m benchmarks peer [--runs N] [--peer-url URL] [--smoke]``."""
+    """``python -m benchmarks peer [--runs N] [--peer-url URL] [--smoke]``.
+
+    ``--edition ros2`` runs the ROS 2 edition instead (benchmarks/peer_ros2.py, its options).
+    """
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:2] == ["--edition", "ros2"]:
+        from .peer_ros2 import main as ros2_main  # noqa: PLC0415
+
+        return ros2_main(argv[2:])
+    if argv[:2] == ["--edition", "ros1"]:
+        argv = argv[2:]
     parser = argparse.ArgumentParser(prog="python -m benchmarks peer", description=__doc__)
     parser.add_argument("--runs", type=int, default=3, help="runs per server and scenario")
     parser.add_argument("--peer-url", default=os.environ.get(PEER_ENV), help=f"default ${PEER_ENV}")

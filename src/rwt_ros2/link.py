@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import time
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from functools import partial
@@ -77,6 +78,12 @@ PARTICIPANT_PREFIX = "ros2:"
 SWEEP_S = 0.2
 """How often both graphs are compared, seconds: a ROS 2 entity shows in rosapi
 within this (plus discovery), a new rosbridge subscription reaches ROS 2 within it."""
+
+SWEEP_SHARE = 0.1
+"""At most this share of the time goes to sweeping: after a sweep that took t
+seconds the next waits at least t x (1 / SWEEP_SHARE - 1), so a robot with
+thousands of endpoints (rcl's graph queries cost per endpoint) slows the sweep
+rather than the samples."""
 
 CALL_TIMEOUT_S = 30.0
 """How long a call across the link waits for its reply, seconds."""
@@ -202,9 +209,12 @@ class Ros2Link:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self.handoff.drain)
                 task_status.started()
+                took = 0.0
                 while True:
-                    await anyio.sleep(self.options.sweep_s)
+                    await anyio.sleep(max(self.options.sweep_s, took * (1 / SWEEP_SHARE - 1)))
+                    started = time.perf_counter()
                     await self._sweep_once()
+                    took = time.perf_counter() - started
         finally:
             logging.getLogger("rwt").removeHandler(rosout)
             with contextlib.suppress(ValueError):
