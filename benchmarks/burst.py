@@ -254,13 +254,14 @@ def run_burst(count: int) -> dict[str, BurstResult]:
 
 
 def run_slow_reader(
-    count: int, stream_frames: int
+    count: int, stream_frames: int, kinds: tuple[str, ...] = ("bare", "rwt")
 ) -> tuple[dict[str, BurstResult], dict[str, StreamResult]]:
-    """B19's slow-reader variant on both servers: the burst and the image stream, by server."""
+    """B19's slow-reader variant on ``kinds`` (both servers): the burst and the image
+    stream, by server."""
     frames, images = _frames(count), _image_frames(stream_frames)
     bursts: dict[str, BurstResult] = {}
     streams: dict[str, StreamResult] = {}
-    for kind in ("bare", "rwt"):
+    for kind in kinds:
         with start_server(kind) as server:
             bursts[kind] = _burst(kind, server.port, frames, slow=True)
         with start_server(kind) as server:

@@ -19,7 +19,7 @@ def test_burst_smoke_delivers_every_message() -> None:
 def test_slow_reader_variant_smoke_costs_the_others_nothing() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
-        bursts, streams = run_slow_reader(SMOKE_COUNT, SMOKE_STREAM_FRAMES)
+        bursts, streams = run_slow_reader(SMOKE_COUNT, SMOKE_STREAM_FRAMES, ("rwt",))
     assert bursts["rwt"].delivered == SMOKE_COUNT  # the reading subscriber lost nothing
     assert streams["rwt"].bystander == SMOKE_STREAM_FRAMES  # nor did the bystander
     assert streams["rwt"].slow < SMOKE_STREAM_FRAMES  # the slow reader read at its pace

@@ -59,9 +59,9 @@ async def deep_json(ws: ServerConnection) -> None:
 
 def huge_frames(size: int) -> Behaviour:
     """Send frames of ``size`` bytes without end, as fast as the client takes them."""
+    frame = json.dumps({"op": "publish", "topic": "/big", "msg": {"data": "A" * size}})
 
     async def handler(ws: ServerConnection) -> None:
-        frame = json.dumps({"op": "publish", "topic": "/big", "msg": {"data": "A" * size}})
         while True:
             await ws.send(frame)
             await _drained(ws)

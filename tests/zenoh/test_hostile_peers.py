@@ -43,7 +43,7 @@ STRING = "std_msgs/msg/String"
 MiB = 1024 * 1024
 RSS_BOUND = 500 * MiB  # generous: the server starts near 80 MB and queues 64 MB at most
 FLOOD_SAMPLES = 2000  # 2 GB sent, far past any bound
-TOKENS = 20_000
+TOKENS = 5_000  # Zenoh's own declare_token grows with the count: 20,000 took minutes
 
 
 @pytest.fixture
@@ -154,9 +154,7 @@ def publisher_token(zid: str, n: int) -> str:
     return Entity(0, zid, 1, n + 2, EntityKind.PUBLISHER, "/", "crowd", topic=topic).token()
 
 
-async def test_twenty_thousand_tokens_withdrawn_at_once_leave_a_client_connected_and_served() -> (
-    None
-):
+async def test_five_thousand_tokens_withdrawn_at_once_leave_a_client_connected_and_served() -> None:
     ep = endpoint()
     async with serving("A", listen=ep) as (_, url), connect(url) as client:
         session = await anyio.to_thread.run_sync(zenoh.open, make_config(peer(connect=(ep,))))
