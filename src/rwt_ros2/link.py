@@ -45,6 +45,7 @@ from rwt_graph.param_wire import PARAM_SERVICES
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.types.hashes import message_type_hash
 from rwt_protocol.errors import GraphError, RwtError
+from rwt_protocol.shortcuts import enabled
 
 from .actions import RosAction, serve_action_to_ros
 from .codec import decode, encode
@@ -58,7 +59,7 @@ from .services import SERVICE_QOS, RosService, serve_to_ros
 
 if TYPE_CHECKING:
     import asyncio
-    from collections.abc import AsyncIterator
+    from collections.abc import AsyncIterator, Iterator
 
     from anyio.abc import TaskStatus
 
@@ -84,6 +85,11 @@ SWEEP_SHARE = 0.1
 seconds the next waits at least t x (1 / SWEEP_SHARE - 1), so a robot with
 thousands of endpoints (rcl's graph queries cost per endpoint) slows the sweep
 rather than the samples."""
+
+TAKE_BATCH = 256
+"""Samples of one subscription handed over per executor callback at most
+(``take_queued``, the ``ros2-batch-take`` shortcut): the rest wait for the next
+callback, so one busy topic cannot hold the executor from the others for long."""
 
 CALL_TIMEOUT_S = 30.0
 """How long a call across the link waits for its reply, seconds."""
@@ -183,6 +189,7 @@ class Ros2Link:
         self._hashes: dict[str, str] = {}  # type -> the registry's RIHS01
         self._mismatched: set[bytes] = set()  # GIDs of endpoints of another definition
         self._closed = False
+        self._batch_take = enabled("ros2-batch-take")
 
     @property
     def loop(self) -> asyncio.AbstractEventLoop:
@@ -463,10 +470,17 @@ class Ros2Link:
             return
         qos = self._qos_for(name)
         handoff = self.handoff
+        created: list[Any] = []  # the rclpy subscription, once made (batch take)
 
-        def on_sample(data: bytes, info: dict[str, Any]) -> None:  # an executor thread
+        def hand_over(data: bytes, info: dict[str, Any]) -> None:
             gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
             handoff.put(self._on_sample, name, type_name, data, gid, size=len(data), topic=name)
+
+        def on_sample(data: bytes, info: dict[str, Any]) -> None:  # the executor's thread
+            hand_over(data, info)
+            if created:
+                for taken in take_queued(created[0], TAKE_BATCH - 1):
+                    hand_over(*taken)
 
         handle = self.ros.node.create_subscription(
             ros_type,
@@ -476,6 +490,8 @@ class Ros2Link:
             raw=True,
             callback_group=self.ros.group,
         )
+        if self._batch_take:
+            created.append(handle)
         self._subs[name] = _Sub(type_name, qos, handle)
 
     def type_warning(self, type_name: str) -> str | None:
@@ -692,3 +708,24 @@ async def open_ros2_link(
             yield link
         finally:
             tg.cancel_scope.cancel()
+
+
+def take_queued(subscription: Any, most: int) -> Iterator[tuple[bytes, dict[str, Any]]]:
+    """The raw samples queued in ``subscription``, at most ``most`` (the executor's thread).
+
+    What rclpy's executor does per sample (``Executor._take_subscription``: the
+    handle's ``take_message`` under the handle's context), without a wait of the
+    executor for each. Stops at the first empty take, or if the subscription was
+    destroyed meanwhile.
+    """
+    from rclpy.exceptions import InvalidHandle  # noqa: PLC0415
+
+    try:
+        with subscription.handle:
+            for _ in range(most):
+                taken = subscription.handle.take_message(subscription.msg_type, True)
+                if taken is None:
+                    return
+                yield taken[0], taken[1]
+    except InvalidHandle:
+        return
