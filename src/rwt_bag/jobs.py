@@ -25,7 +25,7 @@ from .recorder import Recorder
 from .remote import RemoteRecorder
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Callable, Mapping, Sequence
     from pathlib import Path
 
     from anyio.abc import TaskStatus
@@ -66,6 +66,10 @@ class PlayOptions:
     clock: float | None = None
     check: bool = True
     paused: bool = False
+    remap: Mapping[str, str] = field(default_factory=dict)
+    delay: float = 0.0
+    duration: float | None = None
+    until_ns: int | None = None
 
 
 class BagJobs:
@@ -119,6 +123,10 @@ class BagJobs:
                 check=play.check,
                 linger=stop_at_end is None,
                 paused=play.paused,
+                remap=play.remap,
+                delay=play.delay,
+                duration=play.duration,
+                until_ns=play.until_ns,
             )
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:

@@ -27,13 +27,14 @@ import anyio.to_thread
 
 from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import GraphError
+from rwt_protocol.names import name_problem
 
 from .background import BackgroundJob
 from .errors import BagError
 from .reader import BagSource, BagTopic
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator, Sequence
+    from collections.abc import Iterator, Mapping, Sequence
 
     from anyio.abc import TaskStatus
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
@@ -106,6 +107,14 @@ class Player(BackgroundJob):
             bag time; None: neither.
         check: decode every message once before publishing anything, so a corrupt
             bag fails at start (set False to start large bags at once).
+        remap: bag topic -> the name it is published under (``ros2 bag play
+            --remap old:=new``); names are checked as the graph checks any topic.
+        delay: seconds to wait after advertising, before the first message
+            (``ros2 bag play --delay``), so subscribers can join.
+        duration: seconds of bag time to play from the start position
+            (``--playback-duration``); None: to the end.
+        until_ns: bag time (nanoseconds since the epoch) past which nothing is
+            played (``--playback-until-sec``); None: the end.
 
     Raises:
         BagError: as ``BagSource`` (the bag cannot be read, an unknown or
@@ -125,9 +134,16 @@ class Player(BackgroundJob):
         check: bool = True,
         linger: bool = False,
         paused: bool = False,
+        remap: Mapping[str, str] | None = None,
+        delay: float = 0.0,
+        duration: float | None = None,
+        until_ns: int | None = None,
     ) -> None:
         if not rate > 0:
             raise BagError(f"the rate must be above 0, not {rate}")
+        for name, value in (("delay", delay), ("duration", duration)):
+            if value is not None and not (math.isfinite(value) and value >= 0):
+                raise BagError(f"the {name} must be a finite number of seconds >= 0, not {value}")
         self.graph = graph
         self.paths = [Path(paths)] if isinstance(paths, str | Path) else [Path(p) for p in paths]
         self.rate = rate
@@ -147,6 +163,17 @@ class Player(BackgroundJob):
         self._anchor_ns = self.start_ns
         self._position_ns = self.start_ns
         self._real_clock: Clock | None = None
+        self.remap = dict(remap or {})
+        for old, new in self.remap.items():
+            problem = name_problem(new)
+            if problem is not None:
+                raise BagError(f"cannot play {old} as {new}: {problem}")
+        self.delay = delay
+        self._stop_ns = self.source.end_ns
+        if duration is not None:
+            self._stop_ns = min(self._stop_ns, self.start_ns + int(duration * 1e9))
+        if until_ns is not None:
+            self._stop_ns = min(self._stop_ns, until_ns)
 
     # ---- state ----------------------------------------------------------------
 
@@ -175,7 +202,7 @@ class Player(BackgroundJob):
         if self._paused:
             return self._position_ns
         elapsed = (time.monotonic() - self._anchor_mono) * self.rate
-        return min(self._anchor_ns + int(elapsed * 1e9), self.source.end_ns)
+        return min(self._anchor_ns + int(elapsed * 1e9), max(self._stop_ns, self._anchor_ns))
 
     def pause(self) -> None:
         """Stop publishing until ``resume``; ``/clock`` stands still."""
@@ -251,6 +278,8 @@ class Player(BackgroundJob):
                     self.graph.clock = BagClock(self._real_clock, self)
                     tg.start_soon(self._publish_clock, self.clock_hz)
                 task_status.started()
+                if self.delay:
+                    await anyio.sleep(self.delay)
                 await self._play()
                 tg.cancel_scope.cancel()
         finally:
@@ -267,13 +296,18 @@ class Player(BackgroundJob):
             for topic in self.source.topics.values():
                 if topic.topic not in self._publishers:
                     self._publishers[topic.topic] = self.graph.create_publisher(
-                        topic.topic, topic.mtype.name, latch=topic.latched, node="/rwt_player"
+                        self.remap.get(topic.topic, topic.topic),
+                        topic.mtype.name,
+                        latch=topic.latched,
+                        node="/rwt_player",
                     )
         except GraphError as exc:
             for publisher in self._publishers.values():
                 publisher.close()
             self._publishers.clear()
-            raise BagError(f"cannot play {topic.topic} (type {topic.msgtype}): {exc}") from exc
+            name = self.remap.get(topic.topic, topic.topic)
+            what = f"{topic.topic} as {name}" if name != topic.topic else topic.topic
+            raise BagError(f"cannot play {what} (type {topic.msgtype}): {exc}") from exc
 
     async def _play(self) -> None:
         position = self.start_ns
@@ -307,6 +341,7 @@ class Player(BackgroundJob):
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._produce, send, start_ns)
             await self._consume(receive)
+            tg.cancel_scope.cancel()  # stopped early (duration, until): the reader too
 
     async def _produce(self, send: MemoryObjectSendStream[list[_Item]], start_ns: int) -> None:
         messages = self.source.messages(start_ns)
@@ -331,6 +366,8 @@ class Player(BackgroundJob):
                         self._anchor(self._anchor_ns)
                 publishers, stats = self._publishers, self.stats
                 for topic, ns, msg, _ in batch:
+                    if ns > self._stop_ns:
+                        return
                     if self._paused or self._due(ns) > time.monotonic():
                         await self._wait_until(ns)  # not yet (or paused): wait
                     self._position_ns = ns

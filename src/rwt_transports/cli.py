@@ -40,13 +40,17 @@ from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_bag import (
     Check,
     Clock,
+    Delay,
     DialectOption,
     Format,
     Interfaces,
     Loop,
+    PlaybackDuration,
+    PlaybackUntil,
     Rate,
     RecordMaxSize,
     RecordSplit,
+    Remap,
     SplitDuration,
     SplitSize,
     StartOffset,
@@ -491,6 +495,10 @@ def serve(
     clock: Clock = None,
     play_check: Check = True,
     start_paused: StartPaused = False,
+    remap: Remap = None,
+    delay: Delay = 0.0,
+    playback_duration: PlaybackDuration = None,
+    playback_until_sec: PlaybackUntil = None,
     zenoh: Annotated[
         bool, typer.Option(help=f"Share the graph over a Zenoh network ({ZENOH_EXTRA}).")
     ] = False,
@@ -720,6 +728,10 @@ def serve(
             clock=clock,
             check=play_check,
             paused=start_paused,
+            remap=remap,
+            delay=delay,
+            duration=playback_duration,
+            until_sec=playback_until_sec,
         ),
         command="serve",
     )
@@ -785,6 +797,10 @@ def play(
     clock: Clock = None,
     check: Check = True,
     start_paused: StartPaused = False,
+    remap: Remap = None,
+    delay: Delay = 0.0,
+    playback_duration: PlaybackDuration = None,
+    playback_until_sec: PlaybackUntil = None,
     dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
@@ -807,6 +823,10 @@ def play(
         clock=clock,
         check=check,
         paused=start_paused,
+        remap=remap,
+        delay=delay,
+        duration=playback_duration,
+        until_sec=playback_until_sec,
     )
     jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
     try:

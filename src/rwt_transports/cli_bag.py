@@ -7,6 +7,7 @@ option types (``RecordTopics``, ``Rate``...) are also used by ``rwt serve``'s
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, NoReturn
@@ -122,6 +123,37 @@ Check = Annotated[
     bool,
     typer.Option(help="Decode the whole bag before publishing (--no-check: start at once)."),
 ]
+Remap = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--remap",
+        "-m",
+        metavar="OLD:=NEW",
+        help="Publish the bag's topic OLD as NEW (as ros2 bag play); repeatable.",
+    ),
+]
+Delay = Annotated[
+    float,
+    typer.Option(
+        "--delay",
+        "-d",
+        min=0.0,
+        metavar="SECONDS",
+        help="Wait this long after advertising before the first message.",
+    ),
+]
+PlaybackDuration = Annotated[
+    float | None,
+    typer.Option(min=0.0, metavar="SECONDS", help="Play only this much bag time."),
+]
+PlaybackUntil = Annotated[
+    float | None,
+    typer.Option(
+        "--playback-until-sec",
+        metavar="SECONDS",
+        help="Play nothing stamped after this bag time (seconds since the epoch).",
+    ),
+]
 
 
 def split_policy(size_mb: float | None, duration_s: float | None) -> SplitPolicy:
@@ -183,15 +215,56 @@ def play_options(
     clock: float | None,
     check: bool,
     paused: bool = False,
+    remap: list[str] | None = None,
+    delay: float = 0.0,
+    duration: float | None = None,
+    until_sec: float | None = None,
 ) -> PlayOptions | None:
-    """``PlayOptions`` of ``--play`` (None without it)."""
+    """``PlayOptions`` of ``--play`` (None without it).
+
+    Raises:
+        typer.BadParameter: a ``--remap`` that is not ``OLD:=NEW``, or
+            ``--playback-until-sec`` that is not a finite time.
+    """
     if not paths:
         return None
     from rwt_bag.jobs import PlayOptions  # noqa: PLC0415 - see record_options
 
+    until_ns = None
+    if until_sec is not None:
+        if not math.isfinite(until_sec):
+            hint = "--playback-until-sec"
+            raise typer.BadParameter(f"{until_sec} is not a time", param_hint=hint)
+        until_ns = int(until_sec * 1e9)
     return PlayOptions(
-        paths, rate, loop, start_offset, parse_glob_list(topics), clock, check, paused
+        paths,
+        rate,
+        loop,
+        start_offset,
+        parse_glob_list(topics),
+        clock,
+        check,
+        paused,
+        remap=parse_remaps(remap or []),
+        delay=delay,
+        duration=duration,
+        until_ns=until_ns,
     )
+
+
+def parse_remaps(rules: list[str]) -> dict[str, str]:
+    """``OLD:=NEW`` rules (``ros2 bag play --remap``) as a dict; the last rule for OLD wins.
+
+    Raises:
+        typer.BadParameter: a rule without ``:=``, or with an empty side.
+    """
+    remap = {}
+    for rule in rules:
+        old, sep, new = rule.partition(":=")
+        if not sep or not old.strip() or not new.strip():
+            raise typer.BadParameter(f"{rule!r} is not OLD:=NEW", param_hint="--remap")
+        remap[old.strip()] = new.strip()
+    return remap
 
 
 def bag_jobs(
