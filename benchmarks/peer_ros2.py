@@ -96,15 +96,19 @@ while not go.is_set() and time.time() < end:
 time.sleep(0.3)  # the last probes are through
 print(time.time(), flush=True)
 head = '{"op":"publish","topic":"' + topic + '","msg":{"data":"'
-sent, start = 0, time.monotonic()
-while (sent < count) if not hz else (time.monotonic() - start < seconds):
-    ws.send(head + f"{time.time():.6f}".ljust(100, "x") + '"}}')
-    sent += 1
-    if hz:
-        delay = start + sent / hz - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-print(sent, flush=True)
+sent, start, closed = 0, time.monotonic(), ""
+try:
+    while (sent < count) if not hz else (time.monotonic() - start < seconds):
+        ws.send(head + f"{time.time():.6f}".ljust(100, "x") + '"}}')
+        sent += 1
+        if hz:
+            delay = start + sent / hz - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+except Exception as exc:  # the server closed the publisher's connection
+    rcvd = getattr(exc, "rcvd", None)
+    closed = f"closed the publisher ({rcvd.code} {rcvd.reason})" if rcvd else repr(exc)
+print(json.dumps({"sent": sent, "closed": closed}), flush=True)
 sys.stdin.readline()
 """
 
@@ -127,7 +131,8 @@ async def _through(receiver: str, url: str, pid: int, case: WebCase, seconds: fl
             cpu0 = _cpu(pid)
             sent_task = asyncio.create_task(_line(pub, seconds + DISCOVERY_S))
             cpu1 = await _drain(counters, pid, sent_task)
-            sent = int(await sent_task)
+            ended = json.loads(await sent_task)
+            sent = ended["sent"]
     finally:
         for task in tasks:
             task.cancel()
@@ -146,6 +151,7 @@ async def _through(receiver: str, url: str, pid: int, case: WebCase, seconds: fl
         p50_ms=_percentile(latencies, 0.5) * 1e3,
         p99_ms=_percentile(latencies, 0.99) * 1e3,
         cpu_us_per_delivery=(cpu1 - cpu0) / max(delivered, 1) * 1e6,
+        note=ended["closed"],
     )
 
 
@@ -176,13 +182,15 @@ async def run_case(
 def table(results: list[Result]) -> str:
     """The Markdown table of ``results``."""
     lines = [
-        "| case | server | sent | delivered msg/s | loss | p50 ms | p99 ms | CPU us/delivery |",
-        "|---|---|---:|---:|---:|---:|---:|---:|",
+        "| case | server | sent | delivered msg/s | loss | p50 ms | p99 ms | CPU us/delivery "
+        "| note |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in results:
         lines.append(
             f"| {r.case} | {WEB_LABELS[r.receiver]} | {r.sent} | {r.msg_per_s:,.0f} "
-            f"| {r.loss:.1%} | {r.p50_ms:.1f} | {r.p99_ms:.1f} | {r.cpu_us_per_delivery:.0f} |"
+            f"| {r.loss:.1%} | {r.p50_ms:.1f} | {r.p99_ms:.1f} | {r.cpu_us_per_delivery:.0f} "
+            f"| {r.note} |"
         )
     return "\n".join(lines)
 

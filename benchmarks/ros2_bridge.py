@@ -3,7 +3,7 @@
 A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS on
 loopback) publishes on a private domain; a bridge carries each message to 1 or 10
 WebSocket subscribers (``websockets`` clients in this process that only count and
-read the stamp). Three receivers, in one run and on one machine state:
+read the stamp). Four receivers, in one run and on one machine state:
 
 - ``rwt``: ``rwt serve --ros2 --no-tf`` from this checkout (docs/ros2.md);
 - ``rosbridge``: the real rosbridge_suite 2.1.0 for ROS 2 (``rosbridge_websocket``
@@ -11,6 +11,9 @@ read the stamp). Three receivers, in one run and on one machine state:
   It is found through ``RWT_ROSBRIDGE_ROS2_DIR``: the directory holding its
   ``start_rosbridge_ros2.sh PORT DOMAIN`` and ``stop.sh PORT``; unset, those cases
   are skipped and the report says why;
+- ``rs``: rosbridge-server-rs 0.1.6 (Rust, a ROS 2 node on Jazzy wheels), found
+  through ``RWT_ROSBRIDGE_RS_DIR`` (``start.sh PORT DOMAIN``, ``stop.sh PORT``),
+  restarted before each case too;
 - ``rclpy``: the ceiling, a bare rclpy subscription in its own process (one
   subscriber: ROS 2 delivers to each subscribing process on its own).
 
@@ -125,6 +128,8 @@ class Result:
     cpu_us_per_delivery: float
     clients_cpu: float = 0.0
     """This process's CPU share while the WebSocket subscribers read (1.0 = one core)."""
+    note: str = ""
+    """What else happened (the server closed the publisher, peer_ros2)."""
 
 
 PUB = r"""
