@@ -67,7 +67,8 @@ class Node:
         )
         self.lines: list[dict[str, Any]] = []
         self._cond = threading.Condition()
-        threading.Thread(target=self._read, daemon=True).start()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
         self.wait(lambda line: bool(line.get("ready")))
 
     def _read(self) -> None:
@@ -93,13 +94,16 @@ class Node:
                 self._cond.wait(left)
 
     def stop(self) -> None:
-        """SIGTERM, then SIGKILL."""
+        """SIGTERM, then SIGKILL; its pipe closed once the reader has seen its end."""
         self.proc.terminate()
         try:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait(10)
+        self._reader.join(5)
+        if self.proc.stdout is not None:
+            self.proc.stdout.close()
 
 
 @contextlib.contextmanager
@@ -256,7 +260,13 @@ def action_goal(url: str, label: str) -> str:
     name = f"/d_{label}/fib"
     kind = "test_msgs/action/Fibonacci"
     with node("fibonacci", name, f"fib_{label}"):
-        time.sleep(1.0)  # let both bridges discover the server
+        with client(url) as ros:  # until each bridge's rosapi lists the action server
+
+            def listed() -> bool:
+                found = call(ros, "/rosapi/action_servers", "rosapi_msgs/srv/GetActionServers", {})
+                return not found.startswith("error") and name in json.loads(found)["action_servers"]
+
+            poll(listed)
         done = raw(
             url,
             [
@@ -541,6 +551,8 @@ def rwt_server() -> Iterator[str]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(10)
+        if proc.stdout is not None:
+            proc.stdout.close()
 
 
 def main(argv: list[str] | None = None) -> int:
