@@ -141,6 +141,10 @@ class Player(BackgroundJob):
     ) -> None:
         if not rate > 0:
             raise BagError(f"the rate must be above 0, not {rate}")
+        for old, new in (remap or {}).items():  # before the bag is opened
+            problem = name_problem(new)
+            if problem is not None:
+                raise BagError(f"cannot play {old} as {new}: {problem}")
         for name, value in (("delay", delay), ("duration", duration)):
             if value is not None and not (math.isfinite(value) and value >= 0):
                 raise BagError(f"the {name} must be a finite number of seconds >= 0, not {value}")
@@ -164,10 +168,6 @@ class Player(BackgroundJob):
         self._position_ns = self.start_ns
         self._real_clock: Clock | None = None
         self.remap = dict(remap or {})
-        for old, new in self.remap.items():
-            problem = name_problem(new)
-            if problem is not None:
-                raise BagError(f"cannot play {old} as {new}: {problem}")
         self.delay = delay
         self._stop_ns = self.source.end_ns
         if duration is not None:
