@@ -28,7 +28,6 @@ import argparse
 import asyncio
 import json
 import os
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -37,18 +36,17 @@ from pathlib import Path
 from .ros2_bridge import (
     DISCOVERY_S,
     LABELS,
-    PEERS,
     Counter,
     Result,
     _child,
     _cpu,
     _drain,
-    _free_port,
     _line,
     _percentile,
     _say,
     _settle,
-    _start_peer,
+    on_peer,
+    peer_tools,
 )
 from .servers import ROOT, start_server
 
@@ -170,13 +168,11 @@ async def run_case(
             url = f"ws://127.0.0.1:{server.port}"
             return await _through(receiver, url, server.process.pid, case, seconds)
     assert tools is not None
-    port = _free_port()
-    try:
-        pid = await asyncio.to_thread(_start_peer, receiver, tools, port, domain)
-        return await _through(receiver, f"ws://127.0.0.1:{port}", pid, case, seconds)
-    finally:
-        stop = [str(tools / "stop.sh"), str(port)]  # only what this start recorded
-        await asyncio.to_thread(subprocess.run, stop, capture_output=True, check=False)
+
+    async def measure(url: str, pid: int) -> Result:
+        return await _through(receiver, url, pid, case, seconds)
+
+    return await on_peer(receiver, tools, domain, measure)
 
 
 def table(results: list[Result]) -> str:
@@ -205,13 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     receivers = [r for r in args.receivers.split(",") if r]
-    tools: dict[str, Path] = {}
-    for name, peer in PEERS.items():
-        if os.environ.get(peer.env):
-            tools[name] = Path(os.environ[peer.env])
-        elif name in receivers:
-            print(f"{LABELS[name]} skipped: {peer.env} ({peer.start}'s dir) is unset")
-            receivers.remove(name)
+    tools = peer_tools(receivers)
     cases = [WebCase(c.hz, c.subscribers, args.burst) for c in CASES]
 
     async def run_all() -> list[Result]:

@@ -45,7 +45,10 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from collections.abc import Awaitable, Callable
 
 from .servers import ROOT, Server, proc_stats, start_server
 
@@ -470,14 +473,37 @@ async def run_case(
             url = f"ws://127.0.0.1:{server.port}"
             return await _through_bridge("rwt", url, server.process.pid, case, seconds, env)
     assert tools is not None
+
+    async def measure(url: str, pid: int) -> Result:
+        return await _through_bridge(receiver, url, pid, case, seconds, env)
+
+    return await on_peer(receiver, tools, domain, measure)
+
+
+async def on_peer(
+    receiver: str, tools: Path, domain: int, measure: Callable[[str, int], Awaitable[Result]]
+) -> Result:
+    """Start a fresh peer of ``PEERS`` on a free port, ``measure(url, pid)``, then stop it."""
     port = _free_port()
     try:
         pid = await asyncio.to_thread(_start_peer, receiver, tools, port, domain)
-        url = f"ws://127.0.0.1:{port}"
-        return await _through_bridge(receiver, url, pid, case, seconds, env)
+        return await measure(f"ws://127.0.0.1:{port}", pid)
     finally:
         stop = [str(tools / "stop.sh"), str(port)]  # only what this start recorded
         await asyncio.to_thread(subprocess.run, stop, capture_output=True, check=False)
+
+
+def peer_tools(receivers: list[str]) -> dict[str, Path]:
+    """The tools' directory of each peer whose variable is set; the others leave
+    ``receivers``, with a line saying why."""
+    tools: dict[str, Path] = {}
+    for name, peer in PEERS.items():
+        if os.environ.get(peer.env):
+            tools[name] = Path(os.environ[peer.env])
+        elif name in receivers:
+            print(f"{LABELS[name]} skipped: {peer.env} ({peer.start}'s dir) is unset")
+            receivers.remove(name)
+    return tools
 
 
 def table(results: list[Result]) -> str:
@@ -564,13 +590,7 @@ def main(argv: list[str] | None = None) -> int:
         print('skipped: rclpy is not importable (pip install "rwt[ros2]")')
         return 0
     receivers = [r for r in args.receivers.split(",") if r]
-    tools: dict[str, Path] = {}
-    for name, peer in PEERS.items():
-        if os.environ.get(peer.env):
-            tools[name] = Path(os.environ[peer.env])
-        elif name in receivers:
-            print(f"{LABELS[name]} skipped: {peer.env} ({peer.start}'s dir) is unset")
-            receivers.remove(name)
+    tools = peer_tools(receivers)
     cases = [c for c in CASES if not args.cases or args.cases in f"{c.label} 1->{c.subscribers}"]
     results = asyncio.run(run_all(receivers, cases, args.seconds, args.domain, tools))
     print(table(results))
