@@ -107,10 +107,18 @@ def call(peer: Peer, service: str, tag: str, arg: str = "") -> None:
 
 
 def responses(peer: Peer, count: int) -> dict[str, dict[str, Any]]:
-    """The next ``count`` ``service_response`` ops, by id; status texts under ``status:<n>``."""
+    """The next ``count`` ``service_response`` ops, by id; status texts under ``status:<n>``.
+
+    A refused call's error status follows its ``service_response``, so reading goes on
+    until every refusal has had its status.
+    """
     got: dict[str, dict[str, Any]] = {}
     statuses = 0
-    while len(got) - statuses < count:
+
+    def refused() -> int:
+        return sum(1 for k, m in got.items() if not k.startswith("status:") and not m["result"])
+
+    while len(got) - statuses < count or statuses < refused():
         message = peer.receive()
         if message.get("op") == "service_response":
             got[str(message["id"])] = message
