@@ -420,32 +420,26 @@ def missing_type(url: str, label: str) -> str:
     return statuses(got)
 
 
-def wrong_field_type(url: str, label: str) -> str:
-    topic = f"/d_{label}/typed"
+def publish_statuses(url: str, topic: str, type_name: str, msg: dict[str, Any]) -> str:
+    """The statuses a bridge sends for advertising ``topic`` and publishing ``msg`` on it."""
     got = raw(
         url,
         [
-            {"op": "advertise", "topic": topic, "type": "std_msgs/msg/String"},
-            {"op": "publish", "topic": topic, "msg": {"data": 5}},
+            {"op": "advertise", "topic": topic, "type": type_name},
+            {"op": "publish", "topic": topic, "msg": msg},
         ],
         lambda m: False,
         QUIET_S,
     )
     return statuses(got)
+
+
+def wrong_field_type(url: str, label: str) -> str:
+    return publish_statuses(url, f"/d_{label}/typed", "std_msgs/msg/String", {"data": 5})
 
 
 def int_out_of_range(url: str, label: str) -> str:
-    topic = f"/d_{label}/int8"
-    got = raw(
-        url,
-        [
-            {"op": "advertise", "topic": topic, "type": "std_msgs/msg/Int8"},
-            {"op": "publish", "topic": topic, "msg": {"data": 300}},
-        ],
-        lambda m: False,
-        QUIET_S,
-    )
-    return statuses(got)
+    return publish_statuses(url, f"/d_{label}/int8", "std_msgs/msg/Int8", {"data": 300})
 
 
 def service_bad_args(url: str, label: str) -> str:
