@@ -33,9 +33,10 @@ from .ratelog import EpisodeLog
 from .types import Dialect
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Mapping
+    from collections.abc import Callable, Mapping, Sequence
 
 __all__ = [
+    "ParamInfo",
     "ParamKind",
     "ParamValue",
     "ParamWatcher",
@@ -86,6 +87,20 @@ _ARRAY_OF = {
     ParamKind.DOUBLE: ParamKind.DOUBLE_ARRAY,
     ParamKind.STRING: ParamKind.STRING_ARRAY,
 }
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """What a ROS 2 parameter is (``Parameters.describe``): its kind and its rules.
+
+    ``read_only`` parameters refuse changes; a ``dynamic_typing`` one takes a value
+    of any kind (every parameter a plain ``set`` created), the others keep ``kind``
+    (declared by Python code, ``Parameters.declare``).
+    """
+
+    kind: ParamKind
+    read_only: bool
+    dynamic_typing: bool
 
 
 @dataclass
@@ -177,6 +192,40 @@ def _fit(param: _Param, value: ParamValue, kind: ParamKind, name: str) -> ParamV
     if kind is ParamKind.EMPTY_ARRAY and param.kind.endswith("array"):
         return []
     raise ParameterError(f"parameter {name} has type {param.kind}, not {kind}")
+
+
+def _changed(entry: _Param | None, value: object, full: str) -> _Param:
+    """The entry ``full`` has once set to ``value`` (``entry``: the one it has, if any).
+
+    Raises:
+        ParameterError: a bad value, a read-only parameter, or a type change of a
+            declared one.
+    """
+    stored, kind = ros2_value(value, full)
+    if entry is None:
+        return _Param(stored, kind)
+    if entry.read_only:
+        raise ParameterError(f"parameter {full} is read-only")
+    if entry.fixed_type:
+        return _Param(_fit(entry, stored, kind, full), entry.kind, fixed_type=True)
+    return _Param(stored, kind)
+
+
+def _planned(entry: _Param | None, name: str, value: object, full: str) -> _Param | None:
+    """The entry ``name`` (``full``, now ``entry``) has once set to ``value``; None deletes.
+
+    Raises:
+        ParameterNotSetError: a deletion of a parameter that is not set.
+        ParameterError: what ``set`` or ``delete`` would refuse.
+    """
+    if value is not None:
+        check_param_name(name, ros1=False)
+        return _changed(entry, value, full)
+    if entry is None:
+        raise ParameterNotSetError(f"parameter {full} is not set")
+    if entry.read_only:
+        raise ParameterError(f"parameter {full} is read-only")
+    return None
 
 
 def split_ros2_name(name: str) -> tuple[str, str]:
@@ -311,23 +360,72 @@ class Parameters:
             return
         node, param = split_ros2_name(name)
         full = f"{node}:{param}"
-        stored, kind = ros2_value(value, full)
         entry = self._nodes.get(node, {}).get(param)
+        new = _changed(entry, value, full)
         if entry is None:
             self._check_room(node, param)
-            self._grow(stored, None)
-            self._nodes.setdefault(node, {})[param] = _Param(stored, kind)
+        self._grow(new.value, None if entry is None else entry.value)
+        self._nodes.setdefault(node, {})[param] = new
+        if entry is None:
             self._count += 1
-        elif entry.read_only:
-            raise ParameterError(f"parameter {full} is read-only")
-        elif entry.fixed_type:
-            fitted = _fit(entry, stored, kind, full)
-            self._grow(fitted, entry.value)
-            entry.value = fitted
-        else:
-            self._grow(stored, entry.value)
-            entry.value, entry.kind = stored, kind
-        self._notify(full, stored)
+        self._notify(full, new.value)
+
+    def set_all(self, changes: Sequence[tuple[str, object]]) -> None:
+        """Set ROS 2 parameters all at once, or none: ``(name, value)`` pairs, None deletes.
+
+        Each change is judged as ``set`` (a value) or ``delete`` (None) would judge
+        it, in order (a later change of the same name sees the earlier one), and the
+        room left in the store counts them all; watchers hear of the changes only
+        once every one of them is made (``set_parameters_atomically``, docs/ros2.md).
+
+        Raises:
+            ParameterError: the first change refused (the message names it); nothing
+                was changed. ROS 1 stores have no atomic set.
+        """
+        if self.ros1:
+            raise ParameterError("ROS 1 parameters have no atomic set")
+        plan: dict[tuple[str, str], _Param | None] = {}
+        count, size = self._count, self._bytes
+        for name, value in changes:
+            node, param = split_ros2_name(name)
+            full = f"{node}:{param}"
+            key = (node, param)
+            old = plan[key] if key in plan else self._nodes.get(node, {}).get(param)
+            new = _planned(old, name, value, full)
+            count += (new is not None) - (old is not None)
+            size += (0 if new is None else value_size(new.value)) - (
+                0 if old is None else value_size(old.value)
+            )
+            if count > self.max_params and count > self._count:
+                raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
+            plan[key] = new
+        if size > self.max_bytes and size > self._bytes:
+            raise ParameterError(f"the parameter store is full ({self.max_bytes} bytes)")
+        for (node, param), new in plan.items():
+            params = self._nodes.setdefault(node, {})
+            if new is None:
+                params.pop(param, None)
+                if not params:
+                    del self._nodes[node]
+            else:
+                params[param] = new
+        self._count, self._bytes = count, size
+        for (node, param), new in plan.items():
+            self._notify(f"{node}:{param}", None if new is None else new.value)
+
+    def describe(self, name: str) -> ParamInfo | None:
+        """What kind of ROS 2 parameter ``name`` is; None if it is not set.
+
+        Raises:
+            ParameterError: a malformed name, or a ROS 1 store (no kinds there).
+        """
+        if self.ros1:
+            raise ParameterError("ROS 1 parameters have no descriptors")
+        node, param = split_ros2_name(name)
+        entry = self._nodes.get(node, {}).get(param)
+        if entry is None:
+            return None
+        return ParamInfo(entry.kind, read_only=entry.read_only, dynamic_typing=not entry.fixed_type)
 
     def get(self, name: str, default: object = _MISSING) -> ParamValue:
         """A copy of the parameter's value (ROS 1: a namespace gives a dict).

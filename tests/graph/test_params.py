@@ -135,6 +135,38 @@ def test_the_store_is_bounded() -> None:
         params.set("/n:c", 1)
 
 
+def test_set_all_makes_every_change_or_none() -> None:
+    params = Parameters(max_params=3, max_bytes=64)
+    params.declare("n", {"rate": 1.5})
+    params.declare("n", {"id": 7}, read_only=True)
+    seen: list[tuple[str, object]] = []
+    params.watch(lambda name, value: seen.append((name, value)))
+    refusals = [
+        ([("/n:mode", "x"), ("/n:rate", "fast")], "has type double, not string"),
+        ([("/n:mode", "x"), ("/n:id", 8)], "read-only"),
+        ([("/n:mode", "x"), ("/n:id", None)], "read-only"),
+        ([("/n:mode", "x"), ("/n:nope", None)], "/n:nope is not set"),
+        ([("/n:mode", "x"), ("/n:a:b", 1)], "expected <node>:<parameter>"),
+        ([("/n:mode", "x"), ("/n:more", 1)], r"full \(3 parameters\)"),
+        ([("/n:mode", "x" * 60)], r"full \(64 bytes\)"),
+    ]
+    for changes, problem in refusals:
+        with pytest.raises(ParameterError, match=problem):
+            params.set_all(changes)
+    assert params.names() == ["/n:id", "/n:rate"]
+    assert seen == []
+    # later changes see earlier ones; an int fits the declared double
+    params.set_all([("/n:mode", "x"), ("/n:mode", None), ("/n:rate", 2), ("/n:mode", "y")])
+    assert (params.get("/n:rate"), params.get("/n:mode")) == (2.0, "y")
+    assert seen == [("/n:mode", "y"), ("/n:rate", 2.0)]
+    info = params.describe("/n:rate")
+    assert info is not None
+    assert (info.kind, info.read_only, info.dynamic_typing) == ("double", False, False)
+    assert params.describe("/n:absent") is None
+    params.set_all([("/n:mode", None)])  # frees its room
+    params.set_all([("/n:a", 1)])
+
+
 # ---- ROS 1 ---------------------------------------------------------------------------
 
 
