@@ -1,23 +1,44 @@
 """The answers of a node's ROS 2 parameter services, from the graph's parameter store.
 
-A link offers each local node that has parameters in the store as a ROS 2 node
-would: ``<node>/list_parameters``, ``<node>/get_parameters`` and
-``<node>/set_parameters`` (``rcl_interfaces``). ``answer`` computes a response
-from a request, both in the internal form; the link carries them (Zenoh
-queries, rclpy services).
+A link offers each local node that has parameters in the store as an rclpy node
+would (``rclpy.parameter_service``): ``<node>/list_parameters``,
+``get_parameters``, ``set_parameters``, ``describe_parameters``,
+``get_parameter_types`` and ``set_parameters_atomically`` (``rcl_interfaces``).
+``answer`` computes a response from a request, both in the internal form; the
+link carries them (Zenoh queries, rclpy services).
+
+The store's parameters behave as those of an rclpy node that allows undeclared
+parameters: a name that is not set reads as ``NOT_SET``, and setting it creates
+it with dynamic typing; parameters declared by Python code keep their type and
+may be read-only (``Parameters.declare``).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .param_wire import from_wire, to_wire
-from .params import ParameterError
+from .param_wire import from_wire, to_wire, type_code
+from .params import ParameterError, value_size
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from .graph import Graph
 
-__all__ = ["answer", "param_nodes"]
+__all__ = ["MAX_ANSWER_BYTES", "MAX_REQUEST_ITEMS", "answer", "param_nodes"]
+
+MAX_REQUEST_ITEMS = 10_000
+"""Names or parameters one request may hold (the store's default ``max_params``).
+
+A request with more is refused whole (docs/ros2.md, "Limits"): an error reply on
+Zenoh, the default response for an rclpy caller; ``set_parameters_atomically``
+answers ``successful: false`` with the reason."""
+
+MAX_ANSWER_BYTES = 64 * 1024 * 1024
+"""Bytes of values one ``get_parameters`` answer may hold (``value_size``).
+
+The same large parameter named many times in one request would otherwise make
+an answer of gigabytes; past this the request is refused as above."""
 
 
 def param_nodes(graph: Graph) -> frozenset[str]:
@@ -30,31 +51,81 @@ def _names_of(graph: Graph, node: str) -> list[str]:
     return [name[len(prefix) :] for name in graph.params.names() if name.startswith(prefix)]
 
 
+def _items(request: dict[str, object], field: str) -> list[object]:
+    """The list ``field`` of ``request``, at most ``MAX_REQUEST_ITEMS`` long.
+
+    Raises:
+        ParameterError: a longer list.
+    """
+    items = request.get(field)
+    if not isinstance(items, list):
+        return []
+    if len(items) > MAX_REQUEST_ITEMS:
+        raise ParameterError(f"{len(items)} {field} in one request, more than {MAX_REQUEST_ITEMS}")
+    return items
+
+
 def answer(graph: Graph, node: str, part: str, request: dict[str, object]) -> dict[str, object]:
     """The response of ``<node>/<part>`` to ``request``.
 
-    ``part`` is ``list_parameters``, ``get_parameters`` or ``set_parameters``;
-    a parameter that cannot be set gets ``successful: false`` with the reason.
+    ``part`` is a key of ``param_wire.PARAM_SERVICES``. A parameter that cannot
+    be set gets ``successful: false`` with the reason; ``set_parameters_atomically``
+    sets all of its parameters or none (``Parameters.set_all``), with one result.
 
     Raises:
         KeyError: another ``part``.
+        ParameterError: a request over ``MAX_REQUEST_ITEMS`` (except the atomic
+            set, which answers it), a ``get_parameters`` answer over
+            ``MAX_ANSWER_BYTES``.
     """
+    if part == "set_parameters_atomically":
+        return {"result": _set_atomically(graph, node, request)}
+    return _ANSWERS[part](graph, node, request)
+
+
+def _list(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+    return {"result": {"names": _names_of(graph, node), "prefixes": []}}
+
+
+def _get(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
     value_type = graph.registry.message("rcl_interfaces/msg/ParameterValue")
+    values, size = [], 0
+    for name in _items(request, "names"):
+        value = graph.params.get(f"{node}:{name}", None)
+        size += 0 if value is None else value_size(value)
+        if size > MAX_ANSWER_BYTES:
+            raise ParameterError(f"the answer would hold more than {MAX_ANSWER_BYTES} bytes")
+        values.append(value_type.default() if value is None else to_wire(value_type, value))
+    return {"values": values}
+
+
+def _types(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+    types = []
+    for name in _items(request, "names"):
+        value = graph.params.get(f"{node}:{name}", None)
+        types.append(0 if value is None else type_code(value))  # 0: NOT_SET
+    return {"types": types}
+
+
+def _describe(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+    descriptor_type = graph.registry.message("rcl_interfaces/msg/ParameterDescriptor")
+    descriptors = []
+    for name in _items(request, "names"):
+        descriptor = descriptor_type.default()
+        descriptor["name"] = name  # as rclcpp: a name not set gets its name and NOT_SET
+        info = graph.params.describe(f"{node}:{name}")
+        if info is not None:
+            descriptor["type"] = type_code(graph.params.get(f"{node}:{name}"))
+            descriptor["read_only"] = info.read_only
+            descriptor["dynamic_typing"] = info.dynamic_typing
+        descriptors.append(descriptor)
+    return {"descriptors": descriptors}
+
+
+def _set(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
     params = graph.params
-    if part == "list_parameters":
-        return {"result": {"names": _names_of(graph, node), "prefixes": []}}
-    if part == "get_parameters":
-        values = []
-        names = request.get("names")
-        for name in names if isinstance(names, list) else []:
-            value = params.get(f"{node}:{name}", None)
-            values.append(value_type.default() if value is None else to_wire(value_type, value))
-        return {"values": values}
-    if part != "set_parameters":
-        raise KeyError(part)
     results = []
-    parameters = request.get("parameters")
-    for parameter in parameters if isinstance(parameters, list) else []:
+    for parameter in _items(request, "parameters"):
         assert isinstance(parameter, dict)
         name = f"{node}:{parameter['name']}"
         try:
@@ -67,3 +138,24 @@ def answer(graph: Graph, node: str, part: str, request: dict[str, object]) -> di
         except ParameterError as exc:
             results.append({"successful": False, "reason": exc.message})
     return {"results": results}
+
+
+def _set_atomically(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+    try:
+        changes = []
+        for parameter in _items(request, "parameters"):
+            assert isinstance(parameter, dict)
+            changes.append((f"{node}:{parameter['name']}", from_wire(parameter["value"])))
+        graph.params.set_all(changes)
+    except ParameterError as exc:
+        return {"successful": False, "reason": exc.message}
+    return {"successful": True, "reason": ""}
+
+
+_ANSWERS: dict[str, Callable[[Graph, str, dict[str, object]], dict[str, object]]] = {
+    "list_parameters": _list,
+    "get_parameters": _get,
+    "set_parameters": _set,
+    "describe_parameters": _describe,
+    "get_parameter_types": _types,
+}

@@ -21,8 +21,12 @@ PARAM_SERVICES = {
     "list_parameters": "rcl_interfaces/srv/ListParameters",
     "get_parameters": "rcl_interfaces/srv/GetParameters",
     "set_parameters": "rcl_interfaces/srv/SetParameters",
+    "describe_parameters": "rcl_interfaces/srv/DescribeParameters",
+    "get_parameter_types": "rcl_interfaces/srv/GetParameterTypes",
+    "set_parameters_atomically": "rcl_interfaces/srv/SetParametersAtomically",
 }
-"""A ROS 2 node's parameter services: ``<node>/<part>`` of each type."""
+"""A ROS 2 node's parameter services, as rclpy's ``ParameterService`` offers them:
+``<node>/<part>`` of each type."""
 
 # rcl_interfaces/msg/ParameterType
 _NOT_SET, _BOOL, _INTEGER, _DOUBLE, _STRING = 0, 1, 2, 3, 4

@@ -7,7 +7,7 @@ import pytest
 from rwt_graph.graph import Graph
 from rwt_graph.link import NULL_SINK, PRIVATE_NAMES, Kind, LinkRules, matches_private
 from rwt_graph.param_replicas import ParamReplicas
-from rwt_graph.param_services import answer, param_nodes
+from rwt_graph.param_services import MAX_REQUEST_ITEMS, answer, param_nodes
 from rwt_graph.param_wire import from_wire, to_wire, type_code
 from rwt_graph.params import ParameterError
 from rwt_graph.types import Dialect, TypeRegistry
@@ -198,4 +198,26 @@ def test_a_nodes_parameter_services_answer_from_the_store() -> None:
     assert graph.params.get("/robot:speed") == 2.0
     assert not graph.params.has("/robot:gone")
     with pytest.raises(KeyError):
-        answer(graph, "/robot", "describe_parameters", {})
+        answer(graph, "/robot", "get_logger_levels", {})
+
+
+def test_huge_parameter_requests_are_refused_whole() -> None:
+    graph = Graph()
+    graph.params.set("/robot:blob", "x" * (1 << 20))
+    many = {"names": ["blob"] * (MAX_REQUEST_ITEMS + 1)}
+    for part in ("get_parameters", "get_parameter_types", "describe_parameters"):
+        with pytest.raises(ParameterError, match="10001 names in one request"):
+            answer(graph, "/robot", part, many)
+    # a 1 MiB value named 65 times would answer 65 MiB
+    with pytest.raises(ParameterError, match="more than 67108864 bytes"):
+        answer(graph, "/robot", "get_parameters", {"names": ["blob"] * 65})
+    value = {"type": 1, "bool_value": True}
+    flood = {"parameters": [{"name": "b", "value": value}] * (MAX_REQUEST_ITEMS + 1)}
+    refused = answer(graph, "/robot", "set_parameters_atomically", flood)
+    assert refused == {
+        "result": {
+            "successful": False,
+            "reason": "10001 parameters in one request, more than 10000",
+        }
+    }
+    assert not graph.params.has("/robot:b")

@@ -25,6 +25,12 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   param_client NODE     reads NODE's "gain" through its get_parameters service once it
                         is there, prints {"gain": value}, then sets it to 7 and prints
                         {"set": successful}
+  param_suite NODE      calls NODE's describe_parameters and get_parameter_types on
+                        volume, style and nope, prints {"described": [[name, type,
+                        read_only, dynamic_typing], ...]} and {"types": [...]}; then
+                        two set_parameters_atomically: style "manual", volume 0.5 and
+                        the deletion of nope (not set), and volume 7.0 with the
+                        deletion of spare; prints {"atomic": [[successful, reason], ...]}
   log MESSAGE           logs MESSAGE at info level every 100 ms (to /rosout)
 Bounded: every mode exits after 60 s.
 """
@@ -37,7 +43,13 @@ import time
 
 import rclpy
 from rcl_interfaces.msg import Parameter, ParameterValue, SetParametersResult
-from rcl_interfaces.srv import GetParameters, SetParameters
+from rcl_interfaces.srv import (
+    DescribeParameters,
+    GetParameters,
+    GetParameterTypes,
+    SetParameters,
+    SetParametersAtomically,
+)
 from rclpy.action import ActionClient, ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
@@ -205,6 +217,9 @@ def main() -> None:
         rclpy.spin_until_future_complete(node, future, timeout_sec=20)
         say(set=future.result().results[0].successful)
         return
+    elif mode == "param_suite":
+        param_suite(node, name)
+        return
     elif mode == "log":
         tick = lambda: node.get_logger().info(name)  # noqa: E731
     else:
@@ -215,6 +230,41 @@ def main() -> None:
         if tick is not None:
             tick()
         rclpy.spin_once(node, timeout_sec=0.05)
+
+
+def param_suite(node, target):
+    describe = node.create_client(DescribeParameters, f"{target}/describe_parameters")
+    types = node.create_client(GetParameterTypes, f"{target}/get_parameter_types")
+    atomic = node.create_client(SetParametersAtomically, f"{target}/set_parameters_atomically")
+    say(ready=True)
+    if not all(c.wait_for_service(timeout_sec=20) for c in (describe, types, atomic)):
+        say(error="no parameter services")
+        return
+
+    def ask(client, request):
+        future = client.call_async(request)
+        rclpy.spin_until_future_complete(node, future, timeout_sec=20)
+        return future.result()
+
+    names = ["volume", "style", "nope"]
+    found = ask(describe, DescribeParameters.Request(names=names)).descriptors
+    say(described=[[d.name, d.type, d.read_only, d.dynamic_typing] for d in found])
+    say(types=list(ask(types, GetParameterTypes.Request(names=names)).types))
+
+    def param(name, **value):
+        return Parameter(name=name, value=ParameterValue(**value))
+
+    unset = {"type": 0}
+    refused = [
+        param("style", type=4, string_value="manual"),
+        param("volume", type=3, double_value=0.5),
+    ]
+    changes = [
+        [*refused, param("nope", **unset)],
+        [param("volume", type=3, double_value=7.0), param("spare", **unset)],
+    ]
+    results = [ask(atomic, SetParametersAtomically.Request(parameters=c)).result for c in changes]
+    say(atomic=[[r.successful, r.reason] for r in results])
 
 
 if __name__ == "__main__":

@@ -68,3 +68,55 @@ async def test_a_ros2_node_reads_and_sets_parameters_a_rosbridge_client_set(
     assert got == {"gain": 2.5}
     assert put == {"set": True}
     assert now == {"now": 7.0}
+
+
+TUNING = """
+params = {n: roslibpy.Param(ros, f"/rosbridge_websocket:{n}") for n in ("volume", "style", "spare")}
+for param, value in zip(params.values(), (2.5, "auto", 1)):
+    param.set(value, timeout=10)
+print(json.dumps({"set": True}), flush=True)
+input()  # the ROS 2 node describes them and sets them atomically meanwhile
+names = roslibpy.Service(ros, "/rosapi/get_param_names", "rosapi_msgs/srv/GetParamNames")
+ours = [f"/rosbridge_websocket:{n}" for n in params]
+listed = [n for n in names.call(roslibpy.ServiceRequest({}))["names"] if n in ours]
+now = [params["volume"].get(timeout=10), params["style"].get(timeout=10)]
+print(json.dumps({"now": now, "listed": listed}))
+ros.terminate()
+"""
+
+
+async def test_a_ros2_node_describes_and_sets_atomically_parameters_a_rosbridge_client_set(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    async with await anyio.open_process(
+        ["python", "-c", roslibpy_prelude(server.port) + TUNING]
+    ) as client:
+        assert client.stdout is not None and client.stdin is not None
+        lines = JsonLines(client.stdout)
+        with anyio.fail_after(20):
+            assert await lines.next() == {"set": True}
+        with Peer("param_suite", "/rosbridge_websocket", ros_env) as ros2:
+            described = await anyio.to_thread.run_sync(ros2.next)
+            types = await anyio.to_thread.run_sync(ros2.next)
+            atomic = await anyio.to_thread.run_sync(ros2.next)
+        await client.stdin.send(b"\n")
+        with anyio.fail_after(20):
+            now = await lines.last()
+    # name and type as rclcpp fills them (rclpy leaves them empty for parameters set
+    # without a declaration); a name not set: NOT_SET, as in get_parameter_types
+    assert described == {
+        "described": [
+            ["volume", 3, False, True],
+            ["style", 4, False, True],
+            ["nope", 0, False, False],
+        ]
+    }
+    assert types == {"types": [3, 4, 0]}  # DOUBLE, STRING, NOT_SET: what rclpy answers
+    assert atomic == {
+        "atomic": [[False, "parameter /rosbridge_websocket:nope is not set"], [True, ""]]
+    }
+    # the refused set changed nothing (style stays "auto"); the other made both changes
+    assert now == {
+        "now": [7.0, "auto"],
+        "listed": ["/rosbridge_websocket:style", "/rosbridge_websocket:volume"],
+    }

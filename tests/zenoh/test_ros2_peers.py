@@ -487,6 +487,107 @@ async def test_a_ros2_client_reads_a_node_parameter_and_gets_its_sequence_number
     assert (attachment.sequence_number, attachment.source_gid) == (sequence, CLIENT_GID)
 
 
+# rosidl's hashes of the other parameter services (share/rcl_interfaces/srv/*.json, Kilted)
+PARAM_HASHES = {
+    "describe_parameters": (
+        "DescribeParameters",
+        "RIHS01_845b484d71eb0673dae682f2e3ba3c4851a65a3dcfb97bddd82c5b57e91e4cff",
+    ),
+    "get_parameter_types": (
+        "GetParameterTypes",
+        "RIHS01_da199c878688b3e530bdfe3ca8f74cb9fa0c303101e980a9e8f260e25e1c80ca",
+    ),
+    "set_parameters_atomically": (
+        "SetParametersAtomically",
+        "RIHS01_0e192ef259c07fc3c07a13191d27002222e65e00ccec653ca05e856f79285fcd",
+    ),
+}
+
+
+async def test_a_ros2_client_describes_types_and_sets_atomically_a_nodes_parameters() -> None:
+    first = endpoint()
+    graph = Graph()
+    graph.params.declare("/camera", {"fps": 30})  # keeps its type
+    graph.params.declare("/camera", {"serial": "x1"}, read_only=True)
+    graph.params.set("/camera:label", "front")  # dynamic typing, as a client's set_param
+    registry = graph.registry
+
+    def key(part: str) -> str:
+        name, hash_text = PARAM_HASHES[part]
+        return f"0/camera/{part}/rcl_interfaces::srv::dds_::{name}_/{hash_text}"
+
+    async def call(part: str, request: dict[str, Any]) -> Any:
+        service = f"rcl_interfaces/srv/{PARAM_HASHES[part][0]}"
+        payload = encode_sample(registry, f"{service}_Request", request)
+        reply, _ = await ros2_call_until_answered(session, key(part), payload)
+        if reply.ok is None:
+            return reply.err.payload.to_string()
+        return decode_sample(registry, f"{service}_Response", reply.ok.payload.to_bytes())
+
+    def value(kind: int, **field: object) -> dict[str, object]:
+        return {
+            **REGISTRY.message("rcl_interfaces/msg/ParameterValue").default(),
+            "type": kind,
+            **field,
+        }
+
+    async with open_link(graph, peer(listen=first)):
+        with bare_session(first) as session:
+            described = await call(
+                "describe_parameters", {"names": ["fps", "label", "serial", "no"]}
+            )
+            types = await call("get_parameter_types", {"names": ["fps", "label", "serial", "no"]})
+            # the label's change comes first, the refused one last: nothing may change
+            refused = await call(
+                "set_parameters_atomically",
+                {
+                    "parameters": [
+                        {"name": "label", "value": value(4, string_value="rear")},
+                        {"name": "fps", "value": value(4, string_value="fast")},
+                    ]
+                },
+            )
+            after_refused = graph.params.get("/camera:label")
+            done = await call(
+                "set_parameters_atomically",
+                {
+                    "parameters": [
+                        {"name": "label", "value": value(4, string_value="rear")},
+                        {"name": "fps", "value": value(2, integer_value=25)},
+                    ]
+                },
+            )
+            huge = await call("get_parameter_types", {"names": ["fps"] * 10_001})
+            offered = {
+                (e.topic.name, e.topic.dds_type, e.topic.type_hash)
+                for e in await tokens_of(session)
+                if e.kind is EntityKind.SERVICE and e.topic is not None
+            }
+    for part, (name, hash_text) in PARAM_HASHES.items():
+        assert (f"/camera/{part}", f"rcl_interfaces::srv::dds_::{name}_", hash_text) in offered
+    rows = [
+        (d["name"], d["type"], d["read_only"], d["dynamic_typing"])
+        for d in described["descriptors"]
+    ]
+    assert rows == [
+        ("fps", 2, False, False),
+        ("label", 4, False, True),
+        ("serial", 4, True, False),
+        ("no", 0, False, False),
+    ]
+    assert list(types["types"]) == [2, 4, 4, 0]
+    assert refused == {
+        "result": {
+            "successful": False,
+            "reason": "parameter /camera:fps has type integer, not string",
+        }
+    }
+    assert after_refused == "front"
+    assert done == {"result": {"successful": True, "reason": ""}}
+    assert (graph.params.get("/camera:label"), graph.params.get("/camera:fps")) == ("rear", 25)
+    assert "10001 names in one request, more than 10000" in huge
+
+
 async def test_calls_to_a_ros2_service_carry_each_process_own_client_gid() -> None:
     """A ROS 2 service refuses a second request with the same GID and sequence number."""
     first = endpoint()
