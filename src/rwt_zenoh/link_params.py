@@ -1,9 +1,10 @@
 """Parameters across processes, through ROS 2's parameter services of each node.
 
-Provider side: every node with parameters in this graph answers
-``/<node>/list_parameters``, ``/<node>/get_parameters`` and
-``/<node>/set_parameters`` (``rcl_interfaces``) on Zenoh, from and into the
-graph's parameter store.
+Provider side: every node with parameters in this graph answers the six
+parameter services of an rclpy node on Zenoh (``/<node>/list_parameters``,
+``get_parameters``, ``set_parameters``, ``describe_parameters``,
+``get_parameter_types``, ``set_parameters_atomically``: ``PARAM_SERVICES``),
+from and into the graph's parameter store (``rwt_graph.param_services``).
 
 Caller side: a remote node's ``list_parameters`` token makes the link keep a
 copy of that node's parameters in this graph's store (``rwt_graph.param_replicas``,
