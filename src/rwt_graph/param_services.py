@@ -84,7 +84,33 @@ def answer(graph: Graph, node: str, part: str, request: dict[str, object]) -> di
 
 
 def _list(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
-    return {"result": {"names": _names_of(graph, node), "prefixes": []}}
+    prefixes = {prefix for prefix in _items(request, "prefixes") if isinstance(prefix, str)}
+    depth = request.get("depth")
+    depth = depth if isinstance(depth, int) else 0
+    names = [name for name in _names_of(graph, node) if _listed(name, prefixes, depth)]
+    # the namespaces of the names listed, each once ("a.b" of "a.b.c"), as rclpy lists them
+    spaces = dict.fromkeys(name.rpartition(".")[0] for name in names if "." in name)
+    return {"result": {"names": names, "prefixes": list(spaces)}}
+
+
+def _listed(name: str, prefixes: set[str], depth: int) -> bool:
+    """Whether ``list_parameters`` lists ``name`` (rclpy ``Node.list_parameters``).
+
+    No prefixes: every name with fewer than ``depth`` dots (0: every name). Else a
+    name equal to a prefix, or under one (``prefix.``) with fewer than ``depth``
+    dots after it (0: any). One set lookup per dot of the name, so a long list of
+    prefixes costs no walk per name.
+    """
+    if not prefixes:
+        return depth == 0 or name.count(".") < depth
+    if name in prefixes:
+        return True
+    dot = name.find(".")
+    while dot != -1:
+        if name[:dot] in prefixes and (depth == 0 or name[dot + 1 :].count(".") < depth):
+            return True
+        dot = name.find(".", dot + 1)
+    return False
 
 
 def _get(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:

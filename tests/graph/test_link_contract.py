@@ -201,6 +201,28 @@ def test_a_nodes_parameter_services_answer_from_the_store() -> None:
         answer(graph, "/robot", "get_logger_levels", {})
 
 
+@pytest.mark.parametrize(
+    ("prefixes", "depth", "names", "spaces"),
+    [
+        ([], 0, ["arm.joint.max", "arm.speed", "rate"], ["arm.joint", "arm"]),
+        ([], 1, ["rate"], []),
+        ([], 2, ["arm.speed", "rate"], ["arm"]),
+        (["arm"], 0, ["arm.joint.max", "arm.speed"], ["arm.joint", "arm"]),
+        (["arm"], 1, ["arm.speed"], ["arm"]),
+        (["arm.joint", "rate"], 0, ["arm.joint.max", "rate"], ["arm.joint"]),
+        (["ar"], 0, [], []),
+    ],
+)
+def test_list_parameters_filters_as_rclpy_does(
+    prefixes: list[str], depth: int, names: list[str], spaces: list[str]
+) -> None:
+    graph = Graph()
+    for name in ("arm.joint.max", "arm.speed", "rate"):
+        graph.params.set(f"/robot:{name}", 1)
+    listed = answer(graph, "/robot", "list_parameters", {"prefixes": prefixes, "depth": depth})
+    assert listed == {"result": {"names": names, "prefixes": spaces}}
+
+
 def test_huge_parameter_requests_are_refused_whole() -> None:
     graph = Graph()
     graph.params.set("/robot:blob", "x" * (1 << 20))
