@@ -4,6 +4,7 @@ import { ActionView, ServiceView } from './calls.js';
 import { GraphView } from './graph.js';
 import { ImagesView } from './images.js';
 import { LogView } from './log.js';
+import { ParamsView } from './params.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
@@ -218,6 +219,7 @@ async function main() {
       actions.show(name);
     },
   });
+  const params = new ParamsView(ros);
   const topics = new TopicView(ros, graph);
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
@@ -230,6 +232,7 @@ async function main() {
     images.setActive(name === 'images');
     if (name === 'tf') tf.start(types);
     if (name === 'log') log.start(types);
+    if (name === 'params') params.refresh();
   });
   let clientsWatched = false;
   let refreshing = false; // a slow graph must not pile up refreshes
