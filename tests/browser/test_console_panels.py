@@ -9,16 +9,21 @@ the legend, and the CSV file Chromium downloads.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from tests.integration.client_harness import ServerProcess
 
-from .cdp import Browser, Page
+from .cdp import Browser, Page, wait_until
 from .userinput import CTRL, click, press, type_into
 
 ROW = '#param-editor tr[data-name="{}"]'
@@ -165,6 +170,117 @@ def test_the_graph_filter_applies_to_the_parameters(page: Page) -> None:
     assert sorted(page.evaluate(shown)) == ["/robot:gains", "/robot:retries"]
     type_into(page, "#graph-filter", "")
     assert len(page.evaluate(shown)) == 6
+
+
+def legend(page: Page) -> list[str]:
+    return page.evaluate(
+        "[...document.querySelectorAll('#plot-legend li .plot-name')].map(n => n.textContent)"
+    )
+
+
+def test_plots_fields_of_two_topics_on_one_axis(page: Page) -> None:
+    click(page, '#tabs button[data-tab="plot"]')
+    type_into(page, '#plot-add input[name="topic"]', "/odom")
+    type_into(page, '#plot-add input[name="field"]', "pose.pose.position.x")
+    click(page, '#plot-add button[type="submit"]')
+    assert legend(page) == ["/odom pose.pose.position.x"]
+    # a second series from the echo view: its + beside the field
+    click(page, '#topics tbody tr[data-name="/temperature"]')
+    page.wait_for(  # the echo above the fields has stopped growing
+        "document.querySelectorAll('#echo-output .message').length"
+        " === Number(document.getElementById('echo-keep').value)",
+        what="the echo to fill",
+    )
+    add = "#plot-fields button[aria-label='plot /temperature data on the Plot tab']"
+    click(page, add)
+    assert page.text(add) == "✓"
+    click(page, '#tabs button[data-tab="plot"]')
+    assert legend(page) == ["/odom pose.pose.position.x", "/temperature data"]
+    values = page.wait_for(
+        "(v => v.every(t => t && !isNaN(Number(t))) && v)([...document.querySelectorAll("
+        "'#plot-legend .plot-value')].map(n => n.textContent))",
+        what="a value for each series",
+    )
+    assert -1 <= float(values[0]) <= 1 and float(values[1]) >= 20
+    colours = page.evaluate(
+        "[...document.querySelectorAll('#plot-legend .swatch')].map(s => s.style.backgroundColor)"
+    )
+    assert colours == ["rgb(43, 123, 214)", "rgb(214, 71, 43)"]
+
+    def both_lines_drawn() -> bool:
+        shot = Image.open(io.BytesIO(page.screenshot("#multi-plot"))).convert("RGB")
+        rgb = np.asarray(shot).astype(int)
+        r, b = rgb[..., 0], rgb[..., 2]
+        return int(((b > 150) & (r < 100)).sum()) > 20 and int(((r > 150) & (b < 100)).sum()) > 20
+
+    wait_until(both_lines_drawn, 10, "the /odom and /temperature lines")
+
+
+def test_a_bad_series_is_refused_beside_add(page: Page) -> None:
+    type_into(page, '#plot-add input[name="topic"]', "/nope")
+    type_into(page, '#plot-add input[name="field"]', "data")
+    press(page, "Enter", 13)  # submits the form
+    assert page.text("#plot-add-result") == "no topic /nope in the graph"
+    type_into(page, '#plot-add input[name="topic"]', "/temperature")
+    press(page, "Enter", 13)
+    assert page.text("#plot-add-result") == "/temperature data is plotted already"
+    assert page.evaluate("document.getElementById('plot-add-result').className") == "error"
+
+
+def download_csv(page: Page, downloads: Path) -> list[list[str]]:
+    """Click CSV and read the file Chromium saved; checks the link it followed."""
+    browser = page.browser
+    done_before = len(browser.events(None, "Browser.downloadProgress"))
+    click(page, "#plot-csv")
+
+    def completed() -> str | None:
+        events = browser.events(None, "Browser.downloadProgress")[done_before:]
+        done = [e["params"]["guid"] for e in events if e["params"]["state"] == "completed"]
+        return done[0] if done else None
+
+    guid = wait_until(completed, 10, "the CSV download")
+    begun = browser.events(None, "Browser.downloadWillBegin")
+    assert [e["params"]["suggestedFilename"] for e in begun if e["params"]["guid"] == guid] == [
+        "rwt-plot.csv"
+    ]
+    assert page.evaluate("document.getElementById('plot-download').href").startswith("blob:")
+    return list(csv.reader(io.StringIO((downloads / guid).read_text(), newline="")))
+
+
+def test_pause_and_csv_export(page: Page, downloads: Path) -> None:
+    click(page, "#plot-pause")
+    assert page.text("#plot-pause") == "Resume"
+    first = download_csv(page, downloads)
+    assert first[0] == ["time", "/odom pose.pose.position.x", "/temperature data"]
+    rows = first[1:]
+    assert len(rows) >= 2
+    times = [float(row[0]) for row in rows]
+    assert times == sorted(times) and times[-1] - times[0] <= 30  # the plot's window
+    assert abs(times[-1] - time.time()) < 60  # seconds since the epoch, as received
+    odom = [float(row[1]) for row in rows if row[1]]
+    temperature = [float(row[2]) for row in rows if row[2]]
+    assert odom and all(-1 <= x <= 1 for x in odom)
+    assert temperature and all(t >= 20 for t in temperature)
+    held = page.text("#plot-legend")
+    time.sleep(0.3)  # six more messages of each topic arrive meanwhile; none is kept
+    assert download_csv(page, downloads) == first
+    assert page.text("#plot-legend") == held
+    click(page, "#plot-pause")
+    assert page.text("#plot-pause") == "Pause"
+    page.wait_for(f"document.getElementById('plot-legend').textContent !== {json.dumps(held)}")
+    # removing a series removes its column
+    click(page, "#plot-legend button[aria-label='remove /odom pose.pose.position.x']")
+    assert legend(page) == ["/temperature data"]
+    assert download_csv(page, downloads)[0] == ["time", "/temperature data"]
+
+
+def test_csv_rows_join_series_by_time_and_quote_names(page: Page) -> None:
+    """The page's own csvText: one row per time, empty cells where a series has no point."""
+    text = page.evaluate(
+        "import('/console/plotpanel.js').then(m => m.csvText(["
+        "['/a x,y', [[1.5, 1], [2, 2]]], ['/b \"q\"', [[2, 3.25]]]]))"
+    )
+    assert text == 'time,"/a x,y","/b ""q"""\r\n1.500,1,\r\n2.000,2,3.25\r\n'
 
 
 def test_no_errors_in_the_page(page: Page) -> None:

@@ -5,6 +5,7 @@ import { GraphView } from './graph.js';
 import { ImagesView } from './images.js';
 import { LogView } from './log.js';
 import { ParamsView } from './params.js';
+import { PlotPanel } from './plotpanel.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
@@ -219,8 +220,9 @@ async function main() {
       actions.show(name);
     },
   });
+  const plots = new PlotPanel(ros, (topic) => types.get(topic));
   const params = new ParamsView(ros);
-  const topics = new TopicView(ros, graph);
+  const topics = new TopicView(ros, graph, (topic, field) => plots.add(topic, field));
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
   const images = new ImagesView(config);
@@ -233,6 +235,7 @@ async function main() {
     if (name === 'tf') tf.start(types);
     if (name === 'log') log.start(types);
     if (name === 'params') params.refresh();
+    if (name === 'plot') plots.showTopics(types.keys());
   });
   let clientsWatched = false;
   let refreshing = false; // a slow graph must not pile up refreshes
