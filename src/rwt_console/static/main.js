@@ -4,6 +4,8 @@ import { ActionView, ServiceView } from './calls.js';
 import { GraphView } from './graph.js';
 import { ImagesView } from './images.js';
 import { LogView } from './log.js';
+import { ParamsView } from './params.js';
+import { PlotPanel } from './plotpanel.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
@@ -218,7 +220,9 @@ async function main() {
       actions.show(name);
     },
   });
-  const topics = new TopicView(ros, graph);
+  const plots = new PlotPanel(ros, (topic) => types.get(topic));
+  const params = new ParamsView(ros);
+  const topics = new TopicView(ros, graph, (topic, field) => plots.add(topic, field));
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
   const images = new ImagesView(config);
@@ -230,6 +234,8 @@ async function main() {
     images.setActive(name === 'images');
     if (name === 'tf') tf.start(types);
     if (name === 'log') log.start(types);
+    if (name === 'params') params.refresh();
+    if (name === 'plot') plots.showTopics(types.keys());
   });
   let clientsWatched = false;
   let refreshing = false; // a slow graph must not pile up refreshes
