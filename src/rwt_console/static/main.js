@@ -7,6 +7,7 @@ import { LogView } from './log.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
+import { TfBuffer } from './tfbuffer.js';
 import { TopicView } from './topic.js';
 import { el } from './ui.js';
 
@@ -222,7 +223,8 @@ async function main() {
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
   const images = new ImagesView(config);
-  const tf = new TfView(ros);
+  const tfBuffer = new TfBuffer(ros);
+  const tf = new TfView(tfBuffer);
   const log = new LogView(ros);
   new TeleopView(ros, (topic) => types.get(topic)); // eslint-disable-line no-new
   let types = new Map();
