@@ -4,6 +4,8 @@ import { ActionView, ServiceView } from './calls.js';
 import { GraphView } from './graph.js';
 import { ImagesView } from './images.js';
 import { LogView } from './log.js';
+import { MapView } from './map.js';
+import { NodeGraphView } from './nodegraph.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
@@ -225,6 +227,8 @@ async function main() {
   const images = new ImagesView(config);
   const tfBuffer = new TfBuffer(ros);
   const tf = new TfView(tfBuffer);
+  const map = new MapView(ros, tfBuffer);
+  const nodeGraph = new NodeGraphView(ros, (name) => graph.handlers.topic(name, types.get(name)));
   const log = new LogView(ros);
   new TeleopView(ros, (topic) => types.get(topic)); // eslint-disable-line no-new
   let types = new Map();
@@ -232,6 +236,8 @@ async function main() {
     images.setActive(name === 'images');
     if (name === 'tf') tf.start(types);
     if (name === 'log') log.start(types);
+    nodeGraph.setActive(name === 'node-graph');
+    map.setActive(name === 'map', types);
   });
   let clientsWatched = false;
   let refreshing = false; // a slow graph must not pile up refreshes
@@ -240,6 +246,7 @@ async function main() {
     refreshing = true;
     try {
       await graph.refresh();
+      nodeGraph.refresh(); // its own calls, not awaited: one node per call
       const rows = [...document.querySelectorAll('#topics tbody tr')];
       types = new Map(rows.map((row) => [row.dataset.name, row.dataset.type]));
       images.update([...types]);
