@@ -248,16 +248,20 @@ export function layout(vertices, edges) {
     sweep(up.slice(1), into);
     sweep(up.slice(0, -1).reverse(), out);
   }
-  const tallest = Math.max(0, ...layers.map((layer) => layer.length));
+  // each item level with the mean of its neighbours placed in the columns before it,
+  // and below the item above it: a subscriber sits beside its topic
   const places = new Map();
   let x = PAD_PX;
   for (const layer of layers) {
     const width = Math.max(0, ...layer.map((id) => labelWidth(vertices.get(id).name)));
-    const top = PAD_PX + ((tallest - layer.length) * ROW_PX) / 2;
-    layer.forEach((id, i) => {
+    let next = PAD_PX;
+    for (const id of layer) {
+      const placed = into.get(id).filter((n) => places.has(n)).map((n) => places.get(n).y);
+      const y = Math.max(next, placed.length ? placed.reduce((a, b) => a + b, 0) / placed.length : next);
       const own = labelWidth(vertices.get(id).name);
-      places.set(id, { x: x + (width - own) / 2, y: top + i * ROW_PX, width: own });
-    });
+      places.set(id, { x: x + (width - own) / 2, y, width: own });
+      next = y + ROW_PX;
+    }
     x += width + LAYER_GAP_PX;
   }
   return places;
