@@ -8,7 +8,8 @@ then serves until SIGINT/SIGTERM. In-process nodes, named as a robot's would be:
 - /odometry publishes odom -> base_link on /tf at 10 Hz;
 - /amcl latches ``ROBOT_POSE`` (a PoseStamped in odom) on /robot_pose;
 - /talker publishes /chatter (and /rosout, a debug topic) to /listener;
-- 40 /sensor_NN nodes publish /sensors/sNN to /fusion, which publishes /cmd_vel to /base.
+- 40 /sensor_NN nodes publish /sensors/sNN to /fusion, which publishes /cmd_vel to /base,
+  which publishes /odom to /fusion (a cycle).
 """
 
 from __future__ import annotations
@@ -112,6 +113,8 @@ async def main() -> None:
         graph.create_subscription(topic, lambda msg: None, "std_msgs/msg/Float32", node="/fusion")
     graph.create_publisher("/cmd_vel", "geometry_msgs/msg/Twist", node="/fusion")
     graph.create_subscription("/cmd_vel", lambda msg: None, "geometry_msgs/msg/Twist", node="/base")
+    graph.create_publisher("/odom", "nav_msgs/msg/Odometry", node="/base")
+    graph.create_subscription("/odom", lambda msg: None, "nav_msgs/msg/Odometry", node="/fusion")
     console = ConsoleSite()
     config = ServerConfig(host="127.0.0.1", port=0, websocket=WebSocketOptions(console=console))
     server = RosbridgeServer(graph, config)
