@@ -82,16 +82,17 @@ export class MapView {
     this.stopPose = null;
     this.pose = null;
     const topic = this.poseName.value.trim();
-    if (this.poseKind.value !== 'topic' || !topic) return this.schedule();
-    try {
-      this.stopPose = this.ros.subscribe(topic, this.types.get(topic) ?? POSE_TYPE, (msg) => {
-        this.pose = msg;
-        this.schedule();
-      });
-    } catch (error) {
-      this.error.textContent = `cannot subscribe to ${topic}: ${error.message}`;
+    if (this.poseKind.value === 'topic' && topic) {
+      try {
+        this.stopPose = this.ros.subscribe(topic, this.types.get(topic) ?? POSE_TYPE, (msg) => {
+          this.pose = msg;
+          this.schedule();
+        });
+      } catch (error) {
+        this.error.textContent = `cannot subscribe to ${topic}: ${error.message}`;
+      }
     }
-    return this.schedule();
+    this.schedule();
   }
 
   receiveMap(msg) {
@@ -322,10 +323,14 @@ export function gridImage(msg) {
   image.height = height;
   const ctx = image.getContext('2d');
   const pixels = ctx.createImageData(width, height);
+  const rgba = pixels.data; // written in place: a 4000 x 4000 map is 16 million cells
   for (let i = 0; i < cells.length; i += 1) {
     const value = cells[i];
     const grey = value >= 0 && value <= 100 ? Math.round(255 * (1 - value / 100)) : UNKNOWN;
-    pixels.data.set([grey, grey, grey, 255], i * 4);
+    rgba[4 * i] = grey;
+    rgba[4 * i + 1] = grey;
+    rgba[4 * i + 2] = grey;
+    rgba[4 * i + 3] = 255;
   }
   ctx.putImageData(pixels, 0, 0);
   const position = info.origin?.position ?? {};

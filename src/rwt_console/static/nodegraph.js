@@ -35,6 +35,8 @@ export class NodeGraphView {
     const defs = svgEl('defs');
     defs.append(marker);
     this.svg.append(defs, this.edgeLayer, this.itemLayer);
+    this.items = new Map(); // vertex id -> its <g>
+    this.paths = new Map(); // 'from>to' -> its <path>
     this.hideDebug = document.getElementById('node-graph-hide-debug');
     this.hideDebug.addEventListener('change', () => this.draw());
     this.error = document.getElementById('node-graph-error');
@@ -102,9 +104,10 @@ export class NodeGraphView {
     for (const [id, vertex] of vertices) {
       seen.add(id);
       const place = places.get(id);
-      let item = this.itemLayer.querySelector(`:scope > [data-id="${CSS.escape(id)}"]`);
+      let item = this.items.get(id);
       if (!item) {
         item = this.makeItem(id, vertex);
+        this.items.set(id, item);
         this.itemLayer.append(item);
       }
       setAttr(item, 'transform', `translate(${place.x},${place.y})`);
@@ -113,20 +116,31 @@ export class NodeGraphView {
         setText(item.querySelector('title'), `node ${vertex.name}${services}`);
       }
     }
-    for (const item of [...this.itemLayer.children]) if (!seen.has(item.dataset.id)) item.remove();
+    for (const [id, item] of this.items) {
+      if (!seen.has(id)) {
+        item.remove();
+        this.items.delete(id);
+      }
+    }
     const keys = new Set();
     for (const [from, to] of edges) {
       const key = `${from}>${to}`;
       keys.add(key);
-      let path = this.edgeLayer.querySelector(`:scope > [data-key="${CSS.escape(key)}"]`);
+      let path = this.paths.get(key);
       if (!path) {
         path = svgEl('path', { class: 'ng-edge', 'marker-end': 'url(#ng-arrow)' });
         Object.assign(path.dataset, { key, from: vertices.get(from).name, to: vertices.get(to).name });
+        this.paths.set(key, path);
         this.edgeLayer.append(path);
       }
       setAttr(path, 'd', edgePath(places.get(from), places.get(to)));
     }
-    for (const path of [...this.edgeLayer.children]) if (!keys.has(path.dataset.key)) path.remove();
+    for (const [key, path] of this.paths) {
+      if (!keys.has(key)) {
+        path.remove();
+        this.paths.delete(key);
+      }
+    }
     let width = 0;
     let height = 0;
     for (const place of places.values()) {
