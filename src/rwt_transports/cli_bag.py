@@ -364,3 +364,27 @@ def info(
         typer.echo(bag_info(bag).format())
     except BagError as exc:
         _fail("bag info", str(exc))
+
+
+@bag_app.command("reindex", short_help="Rebuild the index of a bag cut short (a killed recorder).")
+def reindex(
+    bag: Annotated[Path, typer.Argument(help="The bag (a ROS 1 .bag file).")],
+) -> None:
+    """Rebuild the index of a ROS 1 bag whose recorder was killed, like rosbag reindex.
+
+    Keeps every complete chunk and drops a tail cut short. The original is kept
+    as NAME.orig.bag next to the bag.
+    """
+    from rwt_bag.reindex import backup_path  # noqa: PLC0415 - see record_options
+    from rwt_bag.reindex import reindex as rebuild  # noqa: PLC0415
+
+    try:
+        done = rebuild(bag)
+    except (BagError, OSError) as exc:
+        _fail("bag reindex", str(exc))
+    dropped = done.dropped_bytes
+    tail = f", {dropped} bytes of a cut-short tail dropped" if dropped else ""
+    typer.echo(
+        f"reindexed {bag}: {done.messages} messages in {done.chunks} chunks{tail}; "
+        f"the original is {backup_path(bag)}"
+    )
