@@ -42,7 +42,7 @@ class Reindexed:
 
     Attributes:
         messages: messages indexed in the new bag.
-        chunks: chunks kept.
+        chunks: chunks kept (ROS 1), or storage files read (ROS 2).
         dropped_bytes: bytes of the original after the last complete record
             (a record cut short, or corrupt), not carried over.
     """
