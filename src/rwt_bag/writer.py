@@ -2,8 +2,9 @@
 
 ``BagWriter`` takes already-serialized messages (CDR for ROS 2 bags, the ROS 1
 format for ROS 1 bags) with their receive time and writes them with rosbags'
-writers, which also write each type's definition (and its MD5 sum or RIHS01
-hash) from the registry's typestore. A split starts a new bag next to the first:
+writers (the ROS 1 one with real rosbag's header layout, ``ros1``), which also
+write each type's definition (and its MD5 sum or RIHS01 hash) from the
+registry's typestore. A split starts a new bag next to the first:
 ``run`` then ``run_1``, ``run_2``... (``run.bag``, ``run_1.bag``... for ROS 1).
 """
 
@@ -21,14 +22,16 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
-from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 
 from .errors import BagError
 from .formats import BagFormat, SplitPolicy
 from .mcap import CheckpointWriter
+from .ros1 import Ros1Writer
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rosbags.typesys.store import Typestore
 
 __all__ = ["BagFormat", "BagWriter", "SplitPolicy", "TopicInfo", "split_path"]
@@ -81,10 +84,17 @@ def split_path(path: Path, index: int) -> Path:
 class _File:
     """One open bag file."""
 
-    def __init__(self, path: Path, fmt: BagFormat, typestore: Typestore) -> None:
+    def __init__(
+        self,
+        path: Path,
+        fmt: BagFormat,
+        typestore: Typestore,
+        definitions: Callable[[str], str] | None,
+    ) -> None:
         self.path = path
         self.fmt = fmt
         self._typestore = typestore
+        self._definitions = definitions
         self.connections: dict[TopicInfo, Any] = {}
         self.bytes = 0
         self.first_ns: int | None = None
@@ -113,10 +123,14 @@ class _File:
 
     def _connect(self, info: TopicInfo) -> Any:
         if self.fmt is BagFormat.ROS1:
+            msgdef, md5sum = self._typestore.generate_msgdef(info.msgtype)
+            if self._definitions is not None:  # the text with comments, as ROS 1 sends it
+                msgdef = self._definitions(info.msgtype)
             return self.writer.add_connection(
                 info.topic,
                 info.msgtype,
-                typestore=self._typestore,
+                msgdef=msgdef,
+                md5sum=md5sum,
                 callerid="/rwt_recorder",
                 latching=1 if info.latched else 0,
             )
@@ -142,6 +156,8 @@ class _File:
     def checkpoint(self, *, full: bool = True) -> None:
         if isinstance(self.writer, CheckpointWriter):
             self.writer.checkpoint(full=full)
+        elif isinstance(self.writer, Ros1Writer):
+            self.writer.checkpoint()
 
     def close(self) -> None:
         self.writer.close()
@@ -158,6 +174,10 @@ class BagWriter:
         typestore: a rosbags typestore holding every recorded type
             (``TypeRegistry.typestore()``).
         split: when to start a new file.
+        definitions: the full definition text of a rosbags type name
+            (``std_msgs/msg/String``) for ROS 1 connection records, the text
+            ``rosbag check`` compares with the installed types
+            (``MessageType.full_text``); None: rosbags' text, without comments.
 
     Raises:
         BagError: the bag cannot be created (it exists, or its folder is missing).
@@ -169,13 +189,15 @@ class BagWriter:
         fmt: BagFormat,
         typestore: Typestore,
         split: SplitPolicy | None = None,
+        definitions: Callable[[str], str] | None = None,
     ) -> None:
         self.path = Path(path)
         self.fmt = fmt
         self._typestore = typestore
         self._split = split or SplitPolicy()
+        self._definitions = definitions
         self.paths: list[Path] = [self.path]
-        self._file: _File | None = _File(self.path, fmt, typestore)
+        self._file: _File | None = _File(self.path, fmt, typestore, definitions)
         # the last message of each latched topic, written again at the start of every
         # split part (as ros2 bag record --repeat-transient-local does): a part played
         # alone still has its /tf_static and maps
@@ -214,11 +236,15 @@ class BagWriter:
         file.close()
         path = split_path(self.path, len(self.paths))
         self.paths.append(path)
-        self._file = _File(path, self.fmt, self._typestore)
+        self._file = _File(path, self.fmt, self._typestore, self._definitions)
         return self._file
 
     def checkpoint(self) -> None:
-        """Make what was written so far readable if the process dies (ROS 2 bags)."""
+        """Make what was written so far readable if the process dies.
+
+        ROS 2 bags read as they are; a ROS 1 bag gets its chunk on disk, to be
+        indexed again (``rwt bag reindex``, ``rosbag reindex``).
+        """
         if self._file is not None:
             self._file.checkpoint()
 
