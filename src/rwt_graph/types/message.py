@@ -80,8 +80,7 @@ class MessageType:
         self.dialect = dialect
         self.rosbags_name = rosbags_name
         self._text = text.rstrip("\n")
-        # verbatim, as a file ends (ROS 1's full text keeps each file's last newline)
-        self._source = text if not text or text.endswith("\n") else f"{text}\n"
+        self._source = text  # verbatim: ROS 1's full text keeps each file's last newline
         self._resolve = resolve
         self._compiled: tuple[ConvertFn, DefaultFn] | None = None
         self._convert: ConvertFn | None = None
