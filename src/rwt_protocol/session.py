@@ -44,6 +44,7 @@ from .handlers.providers import ProviderLink
 from .idle import IdleWatch
 from .inflate import InflateJob, TokenBucket
 from .levels import StatusLevel
+from .lifecycle import State, advance
 from .ops import OpModel, PublishView, Status
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
@@ -59,7 +60,7 @@ if TYPE_CHECKING:
     from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
     from .subscriptions import TopicSubscription
 
-__all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"]
+__all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]
 
 logger = logging.getLogger("rwt.session")
 
@@ -225,15 +226,14 @@ class Session:
         self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
         self._on_closed = on_closed
-        self._closed = False
-        self._closing = False  # input is ignored (close requested, or shutting down)
-        self._close_request: CloseConnection | None = None  # once set, nothing more is sent
-        self._authenticated = self.config.authenticator is None
+        self._state = State.OPEN if self.config.authenticator is None else State.AUTHENTICATING
+        self._admitted = self._state is State.OPEN  # ops were served (``authenticated``)
+        self._close_request: CloseConnection | None = None  # set on entering CLOSING
         self._now = 0.0  # the latest monotonic time seen, for output without one
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
         self.auth_nonce: str | None = None
         """This connection's challenge (D31), sent before anything else; None without one."""
-        if self.config.auth_challenge and not self._authenticated:
+        if self.config.auth_challenge and self._state is State.AUTHENTICATING:
             self.auth_nonce = new_challenge()
             # before any op, whatever the status level: the client needs it to authenticate
             self.send_op(Status.frame(level="info", msg=self.auth_nonce, id=AUTH_CHALLENGE_ID))
@@ -252,7 +252,7 @@ class Session:
         Never raises for anything the peer sent; see the module docstring.
         Frames arriving after the session asked to close are ignored.
         """
-        if self._closed or self._closing:
+        if not self._state.takes_input:
             return
         self._now = now
         if self._idle is not None:
@@ -262,7 +262,7 @@ class Session:
         try:
             fast = (
                 None
-                if binary or not self._authenticated or not _PUBLISH_DECODE
+                if binary or self._state is not State.OPEN or not _PUBLISH_DECODE
                 else decode_publish(frame)
             )
             if fast is not None:  # the publish hot path: no pydantic
@@ -278,10 +278,11 @@ class Session:
             op_id = peek_id(obj)
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
-            if self._authenticated:
+            if self._state is State.OPEN:
                 self.dispatch(op, now)
-            else:
-                self._authenticated = gates.authenticate(self, op)
+            elif gates.authenticate(self, op):
+                self._move(State.OPEN)
+                self._admitted = True
         except RwtError as exc:
             self._refused(exc, op_name, op_id)
         except Exception:
@@ -328,7 +329,7 @@ class Session:
             result: what ``job.run()`` returned, or the exception it raised.
             now: monotonic seconds.
         """
-        if self._closed or self._closing:
+        if not self._state.takes_input:
             return
         if isinstance(result, RwtError):
             self._refused(result, "png", job.op_id)
@@ -360,10 +361,11 @@ class Session:
 
     def _refused(self, exc: RwtError, op_name: str | None, op_id: str | int | None) -> None:
         text = exc.message
-        if not self._authenticated and "authentication" not in text:
+        authenticating = self._state is State.AUTHENTICATING
+        if authenticating and "authentication" not in text:
             text = f"authentication required: {text}"
         self.report(exc.level, _prefixed(op_name, text), op_id)
-        if not self._authenticated:  # D23: a connection that does not authenticate goes
+        if authenticating:  # D23: a connection that does not authenticate goes
             self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
 
     def dispatch(self, op: OpModel | PublishView, now: float) -> None:
@@ -378,7 +380,7 @@ class Session:
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
-        if not self._closed:
+        if self._state is not State.CLOSED:
             self._now = max(self._now, now)
             self.timers.run_due(now)
 
@@ -393,9 +395,9 @@ class Session:
             reason: why, for the peer and the log.
             abort: the peer is not reading (slow consumer): cut without waiting.
         """
-        if self._closed or self._close_request is not None:
+        if self._state in (State.CLOSING, State.CLOSED):
             return
-        self._closing = True
+        self._move(State.CLOSING)
         self._close_request = CloseConnection(code, reason, abort)
         logger.log(
             logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
@@ -414,16 +416,17 @@ class Session:
         (D4) while their connections can still send; the server then calls
         ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
         """
-        if self._closed:
+        if self._state is State.CLOSED:
             return
-        self._closing = True
+        if self._state.takes_input:
+            self._move(State.DRAINING)
         self.graph.release(self.client_id)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
-        if self._closed:
+        if self._state is State.CLOSED:
             return
-        self._closed = True
+        self._move(State.CLOSED)
         try:
             self.timers.clear()
             for subscription in self.subscriptions.values():
@@ -460,7 +463,7 @@ class Session:
 
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
-        return None if self._closed else self.timers.next_deadline()
+        return None if self._state is State.CLOSED else self.timers.next_deadline()
 
     @property
     def close_request(self) -> CloseConnection | None:
@@ -473,19 +476,28 @@ class Session:
         return self._now
 
     @property
+    def state(self) -> State:
+        """Where the connection is in its life (``lifecycle.State``, its moves in one table)."""
+        return self._state
+
+    @property
     def closed(self) -> bool:
-        """Whether ``close`` was called."""
-        return self._closed
+        """Whether ``close`` was called (``state`` is CLOSED)."""
+        return self._state is State.CLOSED
 
     @property
     def closing(self) -> bool:
-        """Whether the session stopped taking input (close requested or shutting down)."""
-        return self._closing or self._closed
+        """Whether the session stopped taking input (close requested, shutting down, closed)."""
+        return not self._state.takes_input
 
     @property
     def authenticated(self) -> bool:
-        """Whether ops are served (always, without an authenticator)."""
-        return self._authenticated
+        """Whether ops were admitted (always, without an authenticator), even once closing."""
+        return self._admitted
+
+    def _move(self, target: State) -> None:
+        """Change ``state`` along ``lifecycle.TRANSITIONS``; LocalProtocolError otherwise."""
+        self._state = advance(self._state, target)
 
     @property
     def dropped_frames(self) -> int:
@@ -520,7 +532,7 @@ class Session:
         frames alone exceed the limit the peer is not reading at all, and the
         connection is closed rather than let memory grow.
         """
-        if self._closed or self._close_request is not None:
+        if not self._state.sends:
             return
         limit = self._outbox.limit_bytes
         if self._outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
@@ -611,7 +623,7 @@ class Session:
         Wakes the transport so that it sees the new deadline in ``get_timer``.
         """
         timer = self.timers.schedule(deadline, callback)
-        if not self._closed:
+        if self._state is not State.CLOSED:
             self._wake()
         return timer
 

@@ -11,8 +11,10 @@ from rwt_graph.graph import Graph
 from rwt_protocol import ops
 from rwt_protocol.access import AccessPolicy, Family, parse_glob_list
 from rwt_protocol.auth import RosauthVerifier, rosauth_mac
+from rwt_protocol.errors import LocalProtocolError
 from rwt_protocol.handlers import HANDLERS
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.lifecycle import TRANSITIONS, State, advance
 from rwt_protocol.ops import Auth, CallService, Subscribe
 from rwt_protocol.outbox import Outbox, OutFrame
 from rwt_protocol.replies import failure_reply
@@ -451,6 +453,31 @@ def test_the_transport_is_woken_for_output_and_closes_are_idempotent(graph: Grap
     session.close()
     session.handle_timer(1e9)
     assert session.closed and session.get_timer() is None
+
+
+def test_the_lifecycle_moves_along_its_table(graph: Graph) -> None:
+    peer = GatedPeer(graph, "a", rosauth([WALL]))
+    assert peer.session.state is State.AUTHENTICATING
+    peer.send(**auth_op())
+    assert peer.session.state is State.OPEN
+    peer.session.begin_shutdown()
+    peer.send(op="advertise", topic="/t", type="std_msgs/String")  # ignored: draining
+    assert peer.session.state is State.DRAINING and "/t" not in graph.topics
+    peer.session.request_close(CloseCode.GOING_AWAY, "stopping")
+    assert peer.session.state is State.CLOSING and peer.session.authenticated
+    peer.session.close()
+    assert peer.session.state is State.CLOSED
+
+
+def test_an_illegal_transition_is_an_error() -> None:
+    with pytest.raises(LocalProtocolError, match="no transition from CLOSED to OPEN"):
+        advance(State.CLOSED, State.OPEN)
+    assert all(
+        State.OPEN not in targets
+        for state, targets in TRANSITIONS.items()
+        if state is not State.AUTHENTICATING
+    )
+    assert advance(State.OPEN, State.CLOSING) is State.CLOSING
 
 
 def test_bounded_batches_keep_undroppable_frames_counted(graph: Graph) -> None:
