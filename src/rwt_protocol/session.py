@@ -41,6 +41,7 @@ from .errors import GraphError, LimitError, RwtError
 from .fragments import FragmentBudget, Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
+from .holdings import Holdings
 from .idle import IdleWatch
 from .inflate import InflateJob, TokenBucket
 from .levels import StatusLevel
@@ -57,7 +58,7 @@ if TYPE_CHECKING:
 
     from .auth import Authenticator
     from .png import PendingPng
-    from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
+    from .ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .subscriptions import TopicSubscription
 
 __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]
@@ -194,49 +195,43 @@ class Session:
         on_closed: Callable[[ClientId], None] | None = None,
         fragment_budget: FragmentBudget | None = None,
     ) -> None:
-        self.graph = graph
-        self.client_id = client_id
-        self.peer = peer
-        self.config = config or SessionConfig()
-        self.status_level = self.config.status_level
-        self.subscriptions: dict[str, TopicSubscription] = {}
-        self.advertisements: dict[str, set[str | int | None]] = {}
-        self.goals: dict[str | int | None, GoalHandle] = {}
-        self.offers: set[tuple[str, str]] = set()  # ("service" | "action", resolved name)
-        self.pending_calls = 0  # call_service ops waiting for their reply
-        self.pending_goals = 0  # send_action_goal ops waiting for their result
-        self.provider_link = ProviderLink(self)
-        self._outbox = Outbox(self.config.send_buffer_limit)
+        self._graph = graph
+        self._client_id = client_id
+        self._peer = peer
+        self._config = config or SessionConfig()
+        self._status_level = self._config.status_level
+        self._holdings = Holdings()
+        self._provider_link = ProviderLink(self)
+        self._outbox = Outbox(self._config.send_buffer_limit)
         self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
-        self.timers = TimerQueue()
-        self.fragments = Reassembler(
-            max_bytes=self.config.max_message_size,
-            max_pending=self.config.max_pending_fragments,
-            timeout_s=self.config.fragment_timeout_s,
+        self._timers = TimerQueue()
+        self._fragments = Reassembler(
+            max_bytes=self._config.max_message_size,
+            max_pending=self._config.max_pending_fragments,
+            timeout_s=self._config.fragment_timeout_s,
             shared=fragment_budget,
         )
         self._fragment_timer: Timer | None = None
         self._inflate_budget = TokenBucket(
-            self.config.png_inflate_rate, max(self.config.max_message_size, 1)
+            self._config.png_inflate_rate, max(self._config.max_message_size, 1)
         )
         self._jobs: list[InflateJob] = []
-        self.runs_jobs = False  # set by a transport that runs ``take_job``'s jobs
-        timeout = self.config.idle_timeout_s
+        self._runs_jobs = False  # set by a transport that runs ``take_job``'s jobs (``run_jobs``)
+        timeout = self._config.idle_timeout_s
         self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
         self._on_closed = on_closed
-        self._state = State.OPEN if self.config.authenticator is None else State.AUTHENTICATING
+        self._state = State.OPEN if self._config.authenticator is None else State.AUTHENTICATING
         self._admitted = self._state is State.OPEN  # ops were served (``authenticated``)
         self._close_request: CloseConnection | None = None  # set on entering CLOSING
         self._now = 0.0  # the latest monotonic time seen, for output without one
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
-        self.auth_nonce: str | None = None
-        """This connection's challenge (D31), sent before anything else; None without one."""
-        if self.config.auth_challenge and self._state is State.AUTHENTICATING:
-            self.auth_nonce = new_challenge()
+        self._auth_nonce: str | None = None
+        if self._config.auth_challenge and self._state is State.AUTHENTICATING:
+            self._auth_nonce = new_challenge()
             # before any op, whatever the status level: the client needs it to authenticate
-            self.send_op(Status.frame(level="info", msg=self.auth_nonce, id=AUTH_CHALLENGE_ID))
+            self.send_op(Status.frame(level="info", msg=self._auth_nonce, id=AUTH_CHALLENGE_ID))
 
     # ---- inputs -------------------------------------------------------------
 
@@ -302,7 +297,7 @@ class Session:
             RemoteProtocolError: the PNG is corrupt (inflated at once only).
         """
         wait = self._inflate_budget.charge(png.pixel_bytes, now)
-        if not self.runs_jobs:
+        if not self._runs_jobs:
             self.receive_frame(png.inflate(), now)
             return
         self._jobs.append(InflateJob(png, op_id, now + wait))
@@ -344,13 +339,13 @@ class Session:
     def _bug(self, op_name: str | None, op_id: str | int | None) -> None:
         """Report an exception that is not an ``RwtError``: a bug, logged once per connection."""
         if self._log_once("bug"):
-            logger.exception("bug while handling a frame from %s", self.client_id)
+            logger.exception("bug while handling a frame from %s", self._client_id)
         else:
-            logger.debug("bug while handling a frame from %s", self.client_id, exc_info=True)
+            logger.debug("bug while handling a frame from %s", self._client_id, exc_info=True)
         try:
             self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
         except Exception:  # the report is total; a bug there must still not reach the transport
-            logger.debug("cannot report a bug to %s", self.client_id, exc_info=True)
+            logger.debug("cannot report a bug to %s", self._client_id, exc_info=True)
 
     def _log_once(self, kind: str) -> bool:
         """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""
@@ -382,7 +377,7 @@ class Session:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
         if self._state is not State.CLOSED:
             self._now = max(self._now, now)
-            self.timers.run_due(now)
+            self._timers.run_due(now)
 
     def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
         """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
@@ -402,7 +397,7 @@ class Session:
         logger.log(
             logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
             "event=closing client=%s code=%d reason=%r",
-            self.client_id,
+            self._client_id,
             code,
             reason,
         )
@@ -420,7 +415,7 @@ class Session:
             return
         if self._state.takes_input:
             self._move(State.DRAINING)
-        self.graph.release(self.client_id)
+        self._graph.release(self._client_id)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
@@ -428,18 +423,13 @@ class Session:
             return
         self._move(State.CLOSED)
         try:
-            self.timers.clear()
-            for subscription in self.subscriptions.values():
-                subscription.close()
-            self.subscriptions.clear()
-            self.fragments.clear()
-            self.advertisements.clear()
-            self.offers.clear()
-            self.goals.clear()
-            self.graph.release(self.client_id)
+            self._timers.clear()
+            self._holdings.clear()
+            self._fragments.clear()
+            self._graph.release(self._client_id)
         finally:  # even if releasing raised, the owner forgets the connection
             if self._on_closed is not None:
-                self._on_closed(self.client_id)
+                self._on_closed(self._client_id)
 
     # ---- outputs ------------------------------------------------------------
 
@@ -463,7 +453,7 @@ class Session:
 
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
-        return None if self._state is State.CLOSED else self.timers.next_deadline()
+        return None if self._state is State.CLOSED else self._timers.next_deadline()
 
     @property
     def close_request(self) -> CloseConnection | None:
@@ -474,6 +464,64 @@ class Session:
     def now(self) -> float:
         """The latest monotonic time the session was given, in seconds (0 before any input)."""
         return self._now
+
+    @property
+    def graph(self) -> GraphPort:
+        """The graph this session operates on."""
+        return self._graph
+
+    @property
+    def client_id(self) -> ClientId:
+        """This connection's identity in the graph."""
+        return self._client_id
+
+    @property
+    def peer(self) -> str:
+        """The peer's address, ``host:port`` (empty when unknown)."""
+        return self._peer
+
+    @property
+    def config(self) -> SessionConfig:
+        """This connection's settings."""
+        return self._config
+
+    @property
+    def holdings(self) -> Holdings:
+        """What this connection holds in the graph (subscriptions, advertisements, ...)."""
+        return self._holdings
+
+    @property
+    def provider_link(self) -> ProviderLink:
+        """The graph's way to this peer's services and actions."""
+        return self._provider_link
+
+    @property
+    def fragments(self) -> Reassembler:
+        """This connection's incomplete ``fragment`` and ``png`` messages (D19)."""
+        return self._fragments
+
+    @property
+    def auth_nonce(self) -> str | None:
+        """This connection's challenge (D31), sent before anything else; None without one."""
+        return self._auth_nonce
+
+    @property
+    def status_level(self) -> StatusLevel:
+        """The least severe status this connection receives (D2; ``set_status_level``)."""
+        return self._status_level
+
+    def set_status_level(self, level: StatusLevel) -> None:
+        """Change which status frames this connection receives (``set_level``, D2)."""
+        self._status_level = level
+
+    @property
+    def runs_jobs(self) -> bool:
+        """Whether a transport runs ``take_job``'s jobs (else ``png`` is inflated at once)."""
+        return self._runs_jobs
+
+    def run_jobs(self) -> None:
+        """The transport runs ``take_job``'s jobs from now on, off its event loop."""
+        self._runs_jobs = True
 
     @property
     def state(self) -> State:
@@ -612,7 +660,7 @@ class Session:
         logger.log(
             level,
             "event=unencodable client=%s op=%s reason=%r",
-            self.client_id,
+            self._client_id,
             failure.op,
             failure.reason,
         )
@@ -622,31 +670,31 @@ class Session:
 
         Wakes the transport so that it sees the new deadline in ``get_timer``.
         """
-        timer = self.timers.schedule(deadline, callback)
+        timer = self._timers.schedule(deadline, callback)
         if self._state is not State.CLOSED:
             self._wake()
         return timer
 
     def watch_fragments(self) -> None:
         """Make sure the earliest fragment deadline has a timer (D19 expiry)."""
-        deadline = self.fragments.next_deadline()
+        deadline = self._fragments.next_deadline()
         if deadline is not None and self._fragment_timer is None:
             self._fragment_timer = self.call_at(deadline, self._expire_fragments)
 
     def _expire_fragments(self, now: float) -> None:
         self._fragment_timer = None
-        for kind, op_id, received, total in self.fragments.expire(now):
+        for kind, op_id, received, total in self._fragments.expire(now):
             self.report(
                 StatusLevel.ERROR,
                 f"{kind}: message {op_id!r} dropped incomplete after"
-                f" {self.config.fragment_timeout_s:g} s ({received} of {total} parts)",
+                f" {self._config.fragment_timeout_s:g} s ({received} of {total} parts)",
                 op_id,
             )
         self.watch_fragments()
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
-        if not self.status_level.admits(level):
+        if not self._status_level.admits(level):
             return
         self.send_op(Status.frame(level=level.wire, msg=text, id=op_id))
 

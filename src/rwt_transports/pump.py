@@ -440,7 +440,7 @@ class ConnectionPump:
         self._session = session
         self._high_water, self._low_water = session.water_marks
         self._hold_budget = session.config.hold_budget_s
-        session.runs_jobs = True  # ``_run_jobs`` inflates png ops off the loop
+        session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
         session.start(_clock()())
         try:
             async with anyio.create_task_group() as tg:
