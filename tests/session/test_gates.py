@@ -469,6 +469,22 @@ def test_the_lifecycle_moves_along_its_table(graph: Graph) -> None:
     assert peer.session.state is State.CLOSED
 
 
+def test_what_a_session_holds_changes_through_its_ops(graph: Graph) -> None:
+    peer = Peer(graph, "h")
+    peer.send(op="subscribe", topic="/a", type="std_msgs/String", id="s")
+    peer.send(op="advertise", topic="/b", type="std_msgs/String", id="p")
+    peer.send(op="advertise_service", service="/srv", type="std_srvs/Trigger")
+    holdings = peer.session.holdings
+    assert list(holdings.subscriptions) == ["/a"] and holdings.advertisements == {"/b": {"p"}}
+    assert holdings.offers == {("service", "/srv")} and holdings.offered() == 2
+    with pytest.raises(AttributeError):  # read-only: set_level (or set_status_level) changes it
+        peer.session.status_level = StatusLevel.INFO  # type: ignore[misc]
+    peer.send(op="unsubscribe", topic="/a", id="s")
+    peer.send(op="unadvertise", topic="/b")
+    peer.send(op="unadvertise_service", service="/srv")
+    assert not holdings.holds_anything() and peer.received() == []
+
+
 def test_an_illegal_transition_is_an_error() -> None:
     with pytest.raises(LocalProtocolError, match="no transition from CLOSED to OPEN"):
         advance(State.CLOSED, State.OPEN)
