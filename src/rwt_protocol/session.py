@@ -6,6 +6,12 @@ Outputs: ``frames_to_send()``, ``commands_to_run()``, ``get_timer()``.
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
 given by the caller (after aioquic).
 
+The connection's life is one ``lifecycle.State`` (``state``), moved only along
+the table ``lifecycle.TRANSITIONS``; what it holds in the graph is one
+``holdings.Holdings`` (``holdings``). Handlers see the session through
+``handlers.HandlerContext`` and change it only through methods: every public
+attribute is read-only.
+
 Errors follow D1: every rejected op produces a ``status``
 frame for this connection only (D29), filtered by the connection's level (D2),
 and the session keeps serving. An exception that is not an ``RwtError`` is a bug:
@@ -262,7 +268,7 @@ class Session:
             )
             if fast is not None:  # the publish hot path: no pydantic
                 op_name, op_id = "publish", fast.id
-                self.dispatch(fast, now)
+                self._dispatch(fast, now)
                 return
             if binary:
                 obj = decode_cbor(
@@ -274,7 +280,7 @@ class Session:
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
             if self._state is State.OPEN:
-                self.dispatch(op, now)
+                self._dispatch(op, now)
             elif gates.authenticate(self, op):
                 self._move(State.OPEN)
                 self._admitted = True
@@ -287,7 +293,7 @@ class Session:
         """Inflate a ``png`` op's image, then handle its text as a frame (D20).
 
         The inflated bytes are charged to this connection's budget
-        (``png_inflate_rate``). With a transport that ``runs_jobs``, the work
+        (``png_inflate_rate``). With a transport that called ``run_jobs``, the work
         becomes a job (``take_job``) that waits for the budget and runs off the
         event loop; the transport reads no further frame of this connection
         until it is done (``finish_job``), so ops keep their order. Without one
@@ -363,7 +369,7 @@ class Session:
         if authenticating:  # D23: a connection that does not authenticate goes
             self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
 
-    def dispatch(self, op: OpModel | PublishView, now: float) -> None:
+    def _dispatch(self, op: OpModel | PublishView, now: float) -> None:
         """Check a validated op against the access rules, then run its handler.
 
         Raises:
@@ -514,11 +520,6 @@ class Session:
         """Change which status frames this connection receives (``set_level``, D2)."""
         self._status_level = level
 
-    @property
-    def runs_jobs(self) -> bool:
-        """Whether a transport runs ``take_job``'s jobs (else ``png`` is inflated at once)."""
-        return self._runs_jobs
-
     def run_jobs(self) -> None:
         """The transport runs ``take_job``'s jobs from now on, off its event loop."""
         self._runs_jobs = True
@@ -568,10 +569,6 @@ class Session:
         return self._outbox.high_water_bytes, self._outbox.low_water_bytes
 
     # ---- helpers for handlers -------------------------------------------------
-
-    def send(self, frame: OutFrame) -> None:
-        """Queue a frame for the peer and wake the transport."""
-        self.send_frames((frame,))
 
     def send_frames(self, frames: Sequence[OutFrame]) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
