@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import threading
 from typing import Any
 
@@ -9,6 +10,7 @@ import anyio
 import pytest
 from anyio.abc import TaskStatus
 from anyio.from_thread import start_blocking_portal
+from websockets.asyncio.server import ServerConnection
 
 from rwt_client import (
     Action,
@@ -29,6 +31,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
 from rwt_protocol.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.conformance import hostile
 
 pytestmark = pytest.mark.anyio
 
@@ -154,6 +157,24 @@ async def test_refusals_raise_clear_errors() -> None:
             await Topic(ros, "/t", "std_msgs/msg/String").publish({"data": "right"})
             assert await inbox.wait() == [{"data": "right"}]
         tg.cancel_scope.cancel()
+
+
+async def _refuses_by_status_only(ws: ServerConnection) -> None:
+    """A foreign server that answers calls and advertisements with an error status only."""
+    async for frame in ws:
+        op = json.loads(frame)
+        if op.get("op") in ("call_service", "advertise"):
+            status = {"op": "status", "level": "error", "msg": "refused here", "id": op["id"]}
+            await ws.send(json.dumps(status))
+
+
+async def test_an_error_status_alone_refuses_a_call_or_an_advertise() -> None:
+    with hostile.serving(_refuses_by_status_only) as url:
+        async with Ros(url, reconnect=False) as ros:
+            with pytest.raises(ServiceCallError, match="/x failed: refused here"):
+                await ros.call_service("/x", timeout_s=10)  # at once, not after 10 s
+            with pytest.raises(OpRefusedError, match=r"refused advertise .*: refused here"):
+                await Topic(ros, "/t", "std_msgs/String").advertise()
 
 
 def test_reconnect_waits_are_jittered() -> None:
