@@ -26,6 +26,7 @@ catches them all. Any other exception escaping rwt is a bug::
     │       └── ExtrapolationError        the time is outside the buffered range
     ├── ServiceCallError                  a call or goal answered ``result: false``
     │   └── CallTimeoutError              ... or not answered in time (also a TimeoutError)
+    ├── OpRefusedError                    rwt_client: the server answered an op with an error status
     ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
     ├── TransportError                    a transport failed (mapped at the boundary)
     │   ├── ConnectionClosedError         rwt_client.connectors: the connection is gone
@@ -51,6 +52,7 @@ __all__ = [
     "GraphError",
     "LimitError",
     "LocalProtocolError",
+    "OpRefusedError",
     "ProtocolError",
     "RemoteProtocolError",
     "RwtError",
@@ -127,3 +129,23 @@ class ServiceCallError(RwtError):
 
 class CallTimeoutError(ServiceCallError, TimeoutError):
     """No answer came within the time allowed; the call or goal is forgotten."""
+
+
+class OpRefusedError(RwtError):
+    """The server refused an op this client sent: an ``error`` status for its id (spec 3.2.2).
+
+    Raised by the client (``rwt_client``) for ops the protocol does not answer
+    otherwise, such as ``advertise`` of a topic the server holds with another type.
+
+    Args:
+        op: the op refused, ``advertise``.
+        op_id: its id.
+        reason: the status text, ``advertise: /t is established with type ...``.
+    """
+
+    def __init__(self, op: str, op_id: str | int, reason: str) -> None:
+        text = reason.removeprefix(f"{op}: ")
+        super().__init__(f"the server refused {op} {op_id!r}: {text}")
+        self.op = op
+        self.op_id = op_id
+        self.reason = reason

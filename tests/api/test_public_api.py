@@ -97,7 +97,7 @@ def test_the_client_works_without_the_server_extra() -> None:
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
     )
     assert run.returncode == 0, run.stderr
-    assert "TopicMessage(topic='/chatter', msg={'data': 'hi'})" in run.stdout
+    assert "topic='/chatter'" in run.stdout and "msg={'data': 'hi'}" in run.stdout
     assert "server extra missing:" in run.stdout
 
 
