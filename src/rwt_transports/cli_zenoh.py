@@ -75,10 +75,10 @@ async def linked(graph: Graph, options: ZenohOptions | None) -> AsyncIterator[No
         yield
         return
     import zenoh  # noqa: PLC0415
-    from rwt_zenoh.link import open_link  # noqa: PLC0415
+    from rwt_zenoh.link import open_zenoh_link  # noqa: PLC0415
 
     try:
-        async with open_link(graph, options):
+        async with open_zenoh_link(graph, options):
             yield
     except zenoh.ZError as exc:  # opening or closing the session
         raise ValueError(f"zenoh: {exc}") from None
