@@ -94,6 +94,7 @@ if TYPE_CHECKING:
     from rwt_protocol.client import ActionResultReceived
     from rwt_protocol.errors import (
         CallTimeoutError,
+        ConfigError,
         FieldError,
         GraphError,
         LimitError,
@@ -140,6 +141,7 @@ __all__ = [
     "CameraIntrinsics",
     "CdrError",
     "Clock",
+    "ConfigError",
     "ConnectionClosedError",
     "ConsoleSite",
     "Constant",
@@ -331,6 +333,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "rwt_protocol.client": ("ActionResultReceived",),
     "rwt_protocol.errors": (
         "CallTimeoutError",
+        "ConfigError",
         "FieldError",
         "GraphError",
         "LimitError",

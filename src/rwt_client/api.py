@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any
 import anyio
 
 from rwt_protocol.client import ActionResultReceived
+from rwt_protocol.errors import ConfigError
 
 from .connectors import ConnectionClosedError
 from .ros import Callback, CallTimeoutError, Ros, ServiceCallError
@@ -98,12 +99,12 @@ class Topic:
         """Announce that this client publishes the topic (spec 3.3.1).
 
         Raises:
-            ValueError: no ``message_type`` was given.
+            ConfigError: no ``message_type`` was given.
         """
         if self._adv_id is not None:
             return
         if self.message_type is None:
-            raise ValueError(f"advertising {self.name} needs a message type")
+            raise ConfigError(f"advertising {self.name} needs a message type")
         self._adv_id = self.ros.session.advertise(
             self.name, self.message_type, latch=self.latch, queue_size=self.queue_size
         )
@@ -152,10 +153,10 @@ class Service:
         An exception in the handler answers ``result: false`` with its text.
 
         Raises:
-            ValueError: no ``service_type`` was given.
+            ConfigError: no ``service_type`` was given.
         """
         if self.service_type is None:
-            raise ValueError(f"advertising {self.name} needs a service type")
+            raise ConfigError(f"advertising {self.name} needs a service type")
         self.ros.set_service_handler(self.name, handler)
         self.ros.session.advertise_service(self.name, self.service_type)
         self.is_advertised = True

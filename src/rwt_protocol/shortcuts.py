@@ -87,6 +87,8 @@ import functools
 import os
 from dataclasses import dataclass
 
+from .errors import ConfigError
+
 __all__ = ["ENV_VAR", "SHORTCUTS", "Shortcut", "enabled", "report", "switched_off"]
 
 ENV_VAR = "RWT_NO_SHORTCUTS"
@@ -220,7 +222,7 @@ def switched_off(value: str | None = None) -> frozenset[str]:
         value: the variable's value; None reads the environment.
 
     Raises:
-        ValueError: the value names a shortcut that does not exist (a typo
+        ConfigError: the value names a shortcut that does not exist (a typo
             must not leave the shortcut on unnoticed).
     """
     return _parse(os.environ.get(ENV_VAR, "") if value is None else value)
@@ -238,7 +240,7 @@ def _parse(value: str) -> frozenset[str]:
         shortcut = _BY_NAME.get(name)
         if shortcut is None:
             known = ", ".join(_BY_NAME)
-            raise ValueError(f"{ENV_VAR}: no shortcut named {name!r} (known: {known})")
+            raise ConfigError(f"{ENV_VAR}: no shortcut named {name!r} (known: {known})")
     return names
 
 
@@ -249,7 +251,7 @@ def enabled(name: str) -> bool:
 
     Raises:
         KeyError: no shortcut has that name (a bug at the call site).
-        ValueError: ``RWT_NO_SHORTCUTS`` is invalid (see ``switched_off``).
+        ConfigError: ``RWT_NO_SHORTCUTS`` is invalid (see ``switched_off``).
     """
     if name not in _BY_NAME:
         raise KeyError(name)
