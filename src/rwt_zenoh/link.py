@@ -381,10 +381,6 @@ class ZenohLink:
         """The participant calling local services and actions for remote callers."""
         return self._caller
 
-    def is_ours(self, client: ClientId) -> bool:
-        """Whether ``client`` is one of the link's participants."""
-        return ours(client)
-
     def is_private(self, name: str) -> bool:
         """Whether ``name`` stays in this process (``private``)."""
         return self.rules.is_private(name)
