@@ -276,10 +276,13 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
 
     Returns:
         The op, or None when ``frame`` is not a valid publish op in standard
-        JSON (or breaks an edge rule: topic name, nesting); the caller then
-        takes the general path (``decode_json`` and ``parse_object``), which
-        explains what is wrong. Never raises.
+        JSON (or breaks an edge rule: topic name, nesting), or when the
+        ``publish-decode`` shortcut is switched off (shortcuts.py); the caller
+        then takes the general path (``decode_json`` and ``parse_object``),
+        which explains what is wrong. Never raises.
     """
+    if not _PUBLISH_DECODE:  # every caller (server and client sessions) honours the switch
+        return None
     # No look at the op first: the typed decode stops at the first field that
     # does not fit (``op`` comes first from roslib and roslibpy), which is
     # cheaper than any scan of the head (B14).
@@ -298,6 +301,10 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
         except RemoteProtocolError:
             return None
     return op
+
+
+#: The ``publish-decode`` shortcut (shortcuts.py), chosen once at import.
+_PUBLISH_DECODE = enabled("publish-decode")
 
 
 def encode_json(value: object) -> bytes:
