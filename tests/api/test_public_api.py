@@ -11,12 +11,12 @@ import sys
 import textwrap
 import traceback
 from collections.abc import Callable, Iterator
-from typing import Any
 
 import pytest
 
 import rwt
 from rwt_protocol.ports import GraphPort
+from tests.docs.api_reference import namespace_of, ours
 
 # Members that are plumbing between rwt's own packages, not API: the graph's side of
 # the port a session drives (embedding code uses create_* and call_service instead),
@@ -52,31 +52,9 @@ HANDED_OUT = {
 }
 
 
-def _ours(module: str) -> bool:
-    return module.split(".", maxsplit=1)[0].startswith("rwt")
-
-
-_NAMESPACES: dict[str, dict[str, Any]] = {}
-
-
-def _namespace(function: Callable[..., object]) -> dict[str, Any]:
-    """The names an annotation of ``function`` may use: its module's, with TYPE_CHECKING's."""
-    module_name = function.__globals__.get("__name__", "")
-    if module_name not in _NAMESPACES:
-        namespace = dict(function.__globals__)
-        module = sys.modules.get(module_name)
-        if _ours(module_name) and module is not None:
-            for node in ast.parse(inspect.getsource(module)).body:
-                if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-                    code = ast.Module(body=node.body, type_ignores=[])
-                    exec(compile(code, module_name, "exec"), namespace)
-        _NAMESPACES[module_name] = namespace
-    return _NAMESPACES[module_name]
-
-
 def _types_of(function: Callable[..., object]) -> Iterator[object]:
     """The classes ``function``'s annotations name and its docstring's ``Raises:`` lists."""
-    namespace = _namespace(function)
+    namespace = namespace_of(function.__globals__["__name__"])
     names: list[str] = []
     for parameter, annotation in function.__annotations__.items():
         if parameter == "self":
@@ -118,7 +96,7 @@ def _functions(value: object) -> Iterator[tuple[str, Callable[..., object]]]:
         where = f"{value.__name__}.{name}"
         if (
             inspect.isfunction(member)
-            and _ours(member.__globals__.get("__name__", ""))
+            and ours(member.__globals__.get("__name__", ""))
             and where not in PLUMBING
             and not (name == "__init__" and value.__name__ in HANDED_OUT)
         ):
@@ -141,7 +119,7 @@ def unreachable_types() -> dict[str, set[str]]:
                     missing.setdefault(kind, set()).add(where)
                 elif (
                     inspect.isclass(kind)
-                    and _ours(kind.__module__)
+                    and ours(kind.__module__)
                     and not kind.__name__.startswith("_")
                 ):
                     todo.append(kind)
