@@ -47,6 +47,7 @@ __all__ = [
     "decode_json",
     "decode_json_text",
     "decode_publish",
+    "decode_publish_one_pass",
     "encode_json",
     "encode_publish_json",
     "parse_object",
@@ -283,6 +284,14 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
     """
     if not _PUBLISH_DECODE:  # every caller (server and client sessions) honours the switch
         return None
+    return decode_publish_one_pass(frame)
+
+
+def decode_publish_one_pass(frame: str | bytes) -> PublishView | None:
+    """The ``publish-decode`` shortcut itself, whatever the switch: ``decode_publish``'s work.
+
+    Its tests compare it with the general path (tests/protocol/test_publish_fast_path.py).
+    """
     # No look at the op first: the typed decode stops at the first field that
     # does not fit (``op`` comes first from roslib and roslibpy), which is
     # cheaper than any scan of the head (B14).
