@@ -29,6 +29,7 @@ show each in use.
 from __future__ import annotations
 
 import importlib
+import sys
 from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING
 
@@ -396,11 +397,28 @@ def __getattr__(name: str) -> object:
     home = _HOME_OF.get(name)
     if home is None:
         raise AttributeError(f"module 'rwt' has no attribute {name!r}")
-    value = getattr(importlib.import_module(home), name)
-    if getattr(value, "__module__", "").startswith("rwt_"):
-        value.__module__ = __name__  # tracebacks and docs say rwt.<name>
-    globals()[name] = value
-    return value
+    importlib.import_module(home)
+    _claim_loaded()
+    return globals()[name]
+
+
+def _claim_loaded() -> None:
+    """Name ``rwt.<name>`` every public name whose home is loaded, used through rwt or not.
+
+    An error raised before its name was ever looked up in ``rwt`` (a ``FieldError``
+    from ``rwt.Graph``) then reads ``rwt.FieldError`` in its traceback too.
+    """
+    for home, names in _HOMES.items():
+        module = sys.modules.get(home)
+        if module is None:
+            continue
+        for name in names:
+            if name in globals():
+                continue
+            value = getattr(module, name)
+            if getattr(value, "__module__", "").startswith("rwt_"):
+                value.__module__ = __name__
+            globals()[name] = value
 
 
 def __dir__() -> list[str]:
