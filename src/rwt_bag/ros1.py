@@ -81,8 +81,11 @@ class Ros1Writer(Writer):
         assert self.bio is not None
         write_file_header(self.bio, 0, 0, 0)
 
-    def checkpoint(self) -> None:
+    def checkpoint(self, *, full: bool = True) -> None:
         """Write the open chunk (with its index records) and hand it to the kernel.
+
+        ``full`` is accepted for the rosbag2 writers' signature: a ROS 1 chunk is
+        always written whole.
 
         Raises:
             OSError: the disk refused the data.

@@ -23,10 +23,12 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Ros2Writer
+
+from rwt_protocol.shortcuts import enabled
 
 from .errors import BagError
 from .formats import BagFormat, SplitPolicy
-from .mcap import CheckpointWriter
 from .ros1 import Ros1Writer
 
 if TYPE_CHECKING:
@@ -81,6 +83,21 @@ def split_path(path: Path, index: int) -> Path:
     return path.with_name(f"{path.stem}_{index}{path.suffix}")
 
 
+def _ros2_writer(path: Path, plugin: StoragePlugin) -> Any:
+    """A rosbag2 writer: ``CheckpointWriter`` (readable while it grows), or rosbags' own.
+
+    ``CheckpointWriter`` reaches into rosbags' storage classes (rwt_bag/mcap.py):
+    the ``bag-checkpoints`` shortcut (docs/shortcuts.md). Switched off (say, on a
+    rosbags release that moved those internals), rosbags' ``Writer`` writes the
+    bag, which is readable once it is closed.
+    """
+    if enabled("bag-checkpoints"):
+        from .mcap import CheckpointWriter  # noqa: PLC0415 - rosbags' internals, only when on
+
+        return CheckpointWriter(path, storage_plugin=plugin)
+    return Ros2Writer(path, version=9, storage_plugin=plugin)
+
+
 class _File:
     """One open bag file."""
 
@@ -105,7 +122,7 @@ class _File:
                 self.writer = Ros1Writer(path)
             else:
                 plugin = StoragePlugin.MCAP if fmt is BagFormat.MCAP else StoragePlugin.SQLITE3
-                self.writer = CheckpointWriter(path, storage_plugin=plugin)
+                self.writer = _ros2_writer(path, plugin)
             self.writer.open()
         except Exception as exc:  # rosbags' WriterError, OSError: the path is taken or bad
             raise BagError(f"cannot create the bag {path}: {exc}") from exc
@@ -151,13 +168,11 @@ class _File:
         if self._unchecked < _CHECK_BYTES:
             return False
         self._unchecked = 0
-        return isinstance(self.writer, CheckpointWriter) and self.writer.checkpoint_due
+        return bool(getattr(self.writer, "checkpoint_due", False))
 
     def checkpoint(self, *, full: bool = True) -> None:
-        if isinstance(self.writer, CheckpointWriter):
+        if hasattr(self.writer, "checkpoint"):  # rosbags' own writers have none
             self.writer.checkpoint(full=full)
-        elif isinstance(self.writer, Ros1Writer):
-            self.writer.checkpoint()
 
     def close(self) -> None:
         self.writer.close()

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 
+from rwt_protocol.errors import ConfigError
 from rwt_protocol.ops import ActionResult
 
 from .connectors import ConnectionClosedError
@@ -100,14 +101,14 @@ class Topic:
         Waits one round trip (``Ros.advertise``).
 
         Raises:
-            ValueError: no ``message_type`` was given.
+            ConfigError: no ``message_type`` was given.
             OpRefusedError: the server refused it, for example because the topic
                 has another type there; the topic stays unadvertised.
         """
         if self._adv_id is not None:
             return
         if self.message_type is None:
-            raise ValueError(f"advertising {self.name} needs a message type")
+            raise ConfigError(f"advertising {self.name} needs a message type")
         self._adv_id = await self.ros.advertise(
             self.name, self.message_type, latch=self.latch, queue_size=self.queue_size
         )
@@ -155,10 +156,10 @@ class Service:
         An exception in the handler answers ``result: false`` with its text.
 
         Raises:
-            ValueError: no ``service_type`` was given.
+            ConfigError: no ``service_type`` was given.
         """
         if self.service_type is None:
-            raise ValueError(f"advertising {self.name} needs a service type")
+            raise ConfigError(f"advertising {self.name} needs a service type")
         self.ros.set_service_handler(self.name, handler)
         self.ros.session.advertise_service(self.name, self.service_type)
         self.is_advertised = True

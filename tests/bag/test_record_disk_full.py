@@ -21,6 +21,7 @@ from rwt_bag.reindex import reindex
 from tests.integration.client_harness import ServerProcess
 from tests.transports.realclients import run_python
 
+from .support import CHECKPOINTS
 from .test_record_limits import PUBLISH
 
 if TYPE_CHECKING:
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
 pytestmark = [
     pytest.mark.anyio,
     pytest.mark.skipif(shutil.which("prlimit") is None, reason="needs util-linux prlimit"),
+    CHECKPOINTS,
 ]
 
 LIMIT_BYTES = 120_000  # about 100 of the 200 1 KB messages
