@@ -221,7 +221,7 @@ async function main() {
   const topics = new TopicView(ros, graph);
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
-  const images = new ImagesView(config);
+  const images = new ImagesView(config, ros);
   const tf = new TfView(ros);
   const log = new LogView(ros);
   new TeleopView(ros, (topic) => types.get(topic)); // eslint-disable-line no-new
