@@ -708,6 +708,7 @@ def serve(
             video_max_connections,
             video_max_streams,
             site,
+            graph if secret is not None else None,
         )
     jobs = bag_jobs(
         graph,
@@ -939,11 +940,27 @@ def _limits(config: ServerConfig) -> dict[str, object]:
 
 
 def _video_config(
-    host: str, port: int, max_connections: int, max_streams: int, site: ConsoleSite | None
+    host: str,
+    port: int,
+    max_connections: int,
+    max_streams: int,
+    site: ConsoleSite | None,
+    tokens_on: Graph | None,
 ) -> VideoConfig:
-    # the video server (Pillow, numpy) loads only with --video (B11: base memory)
-    from rwt_video import VideoConfig  # noqa: PLC0415
+    """The video server's settings.
 
+    With ``tokens_on`` (--auth-secret-file) its streams need a token from that
+    graph's ``/rwt/video_token`` (docs/video.md, D32).
+    """
+    # the video server (Pillow, numpy) loads only with --video (B11: base memory)
+    from rwt_video import VideoConfig, VideoTokens, install_token_service  # noqa: PLC0415
+
+    tokens = None
+    if tokens_on is not None:
+        tokens = VideoTokens()
+        install_token_service(tokens_on, tokens)
+        if site is not None:
+            site.video_token = True
     console = None
     if site is not None:  # the same page under /console/; its WebSocket port is set in _run
         console = replace(site, root_is_console=False)
@@ -953,6 +970,7 @@ def _video_config(
         max_connections=max_connections,
         max_streams=max_streams,
         console=console,
+        tokens=tokens,
     )
 
 
@@ -1034,8 +1052,10 @@ async def _run(
             except OSError as exc:
                 raise ListenError("HTTP video", video.host, video.port, exc) from exc
             site = server.config.websocket.console
-            if site is not None:  # the console on the WebSocket port shows the streams
+            if site is not None:  # the console on either port shows the streams
                 site.video_port = urlsplit(video_url).port
+            if video.console is not None:
+                video.console.video_port = urlsplit(video_url).port
 
         async def serve(*, task_status: TaskStatus[str]) -> None:
             try:
