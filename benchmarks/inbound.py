@@ -19,6 +19,6 @@ def validator(graph: Graph) -> Callable[[bytes], object]:
         op = decode_publish(frame)
         if op is None:
             op = parse_object(decode_json(frame))  # type: ignore[assignment]
-        return graph.convert_publish(op.topic, op.msg, path="$.msg")  # type: ignore[union-attr]
+        return graph.port.convert_publish(op.topic, op.msg, path="$.msg")  # type: ignore[union-attr]
 
     return validate

@@ -52,7 +52,7 @@ def measure() -> dict[str, float]:
     from . import inbound  # noqa: PLC0415
 
     graph = Graph()
-    session = Session(graph, "bench")
+    session = Session(graph.port, "bench")
     session.receive_frame(b'{"op":"advertise","topic":"/b14","type":"std_msgs/msg/String"}', 0.0)
     validate = inbound.validator(graph)
     decoder = msgspec.json.Decoder()

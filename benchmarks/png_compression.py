@@ -106,11 +106,11 @@ def measure(name: str, type_name: str, msg: dict[str, object], runs: int) -> dic
     """Publish ``msg`` through rwt to a png subscriber and time the parts."""
     graph = Graph()
     publisher = graph.create_publisher("/bench", type_name)
-    subscriber = Session(graph, "sub")
+    subscriber = Session(graph.port, "sub")
     subscriber.receive_frame(
         json.dumps({"op": "subscribe", "topic": "/bench", "compression": "png"}), 0.0
     )
-    plain = Session(graph, "json")
+    plain = Session(graph.port, "json")
     plain.receive_frame(json.dumps({"op": "subscribe", "topic": "/bench"}), 0.0)
 
     def publish() -> bytes:

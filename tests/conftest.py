@@ -38,7 +38,7 @@ class Peer:
     """A client connection reduced to its session: send ops as dicts, read frames as dicts."""
 
     def __init__(self, graph: Graph, name: str, level: StatusLevel = StatusLevel.ERROR) -> None:
-        self.session = Session(graph, name, config=SessionConfig(status_level=level))
+        self.session = Session(graph.port, name, config=SessionConfig(status_level=level))
         self.clock = graph.clock
 
     def send(self, **op: object) -> None:

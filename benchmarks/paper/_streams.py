@@ -40,7 +40,7 @@ def rosbridge_bytes(type_name: str, msg: dict[str, object]) -> tuple[int, int]:
     """(JSON text bytes, CBOR bytes) of the publish op a subscriber gets for ``msg``."""
     graph = Graph()
     publisher = graph.create_publisher("/bench", type_name)
-    plain, cbor = Session(graph, "json"), Session(graph, "cbor")
+    plain, cbor = Session(graph.port, "json"), Session(graph.port, "cbor")
     plain.receive_frame(json.dumps({"op": "subscribe", "topic": "/bench"}), 0.0)
     subscribe_cbor = {"op": "subscribe", "topic": "/bench", "compression": "cbor"}
     cbor.receive_frame(json.dumps(subscribe_cbor), 0.0)

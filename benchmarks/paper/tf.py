@@ -29,7 +29,7 @@ import anyio
 from rwt_graph.graph import Graph
 from rwt_graph.tf import install_tf_republisher
 from rwt_protocol.session import Session
-from rwt_transports.server import spawner_for
+from rwt_transports.server import running_handlers
 
 __all__ = ["FRAMES", "run"]
 
@@ -206,7 +206,7 @@ async def capture(duration_s: float, clients: int = CLIENTS) -> Capture:
     install_tf_republisher(graph, ticks.sleep)
     trace = _Trace(duration_s)
     publisher = graph.create_publisher("/tf", "tf2_msgs/msg/TFMessage")
-    raw = Session(graph, "raw")
+    raw = Session(graph.port, "raw")
     raw.receive_frame(json.dumps({"op": "subscribe", "topic": "/tf"}), 0.0)
     goal = {
         "source_frames": [child for _, child, _ in FRAMES],
@@ -215,12 +215,11 @@ async def capture(duration_s: float, clients: int = CLIENTS) -> Capture:
         "trans_thres": 0.01,
         "rate": RATE_HZ,
     }
-    web = [Session(graph, f"web{i}") for i in range(clients)]
+    web = [Session(graph.port, f"web{i}") for i in range(clients)]
     seconds = math.ceil(duration_s)
     out = Capture([0] * seconds, [0] * seconds)
     dt = 1.0 / RATE_HZ
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         publisher.publish(trace.message(clock.wall()))
         for i, session in enumerate(web):
             op = {

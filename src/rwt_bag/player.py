@@ -15,6 +15,7 @@ stamps follow the bag, as with ``use_sim_time``). ``pause``, ``resume`` and
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -166,7 +167,6 @@ class Player(BackgroundJob):
         self._anchor_mono = 0.0
         self._anchor_ns = self.start_ns
         self._position_ns = self.start_ns
-        self._real_clock: Clock | None = None
         self.remap = dict(remap or {})
         self.delay = delay
         self._stop_ns = self.source.end_ns
@@ -272,19 +272,18 @@ class Player(BackgroundJob):
             self.source.close()
             raise
         try:
-            async with anyio.create_task_group() as tg:
-                if self.clock_hz:
-                    self._real_clock = self.graph.clock
-                    self.graph.clock = BagClock(self._real_clock, self)
-                    tg.start_soon(self._publish_clock, self.clock_hz)
-                task_status.started()
-                if self.delay:
-                    await anyio.sleep(self.delay)
-                await self._play()
-                tg.cancel_scope.cancel()
+            with contextlib.ExitStack() as bag_time:
+                async with anyio.create_task_group() as tg:
+                    if self.clock_hz:  # the graph's wall time is bag time while it plays
+                        clock = BagClock(self.graph.clock, self)
+                        bag_time.enter_context(self.graph.port.use_clock(clock))
+                        tg.start_soon(self._publish_clock, self.clock_hz)
+                    task_status.started()
+                    if self.delay:
+                        await anyio.sleep(self.delay)
+                    await self._play()
+                    tg.cancel_scope.cancel()
         finally:
-            if self._real_clock is not None:
-                self.graph.clock = self._real_clock
             for publisher in self._publishers.values():
                 publisher.close()
             self._publishers.clear()

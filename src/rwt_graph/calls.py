@@ -61,7 +61,8 @@ Spawner = Callable[[Callable[[], Awaitable[None]]], Callable[[], None]]
 """Runs an async job in the server's event loop; returns a function that cancels it.
 
 The graph does no I/O and knows no event loop, so whoever runs it (the
-server) installs a spawner for async in-process services and actions."""
+server) lends it a spawner for async in-process services and actions while it
+runs (``GraphCore.serving``)."""
 
 
 def convert_args(msgtype: MessageType, args: object, *, path: str, now: float) -> Converted:
@@ -130,7 +131,7 @@ class ProviderTable(Generic[E]):
         kind: ``"service"`` or ``"action"``, for error texts.
         registry: resolves types.
         clock: wall time for header stamps.
-        spawner: returns the graph's current spawner (installed by the server).
+        spawner: returns the graph's current spawner (``GraphCore.spawner``).
     """
 
     def __init__(

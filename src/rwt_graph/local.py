@@ -15,7 +15,7 @@ if TYPE_CHECKING:
 
     from rwt_protocol.ports import ClientId, MessageEvent
 
-    from .graph import Graph
+    from .core import GraphCore
     from .types import MessageType
 
 __all__ = ["LocalActionServer", "LocalPublisher", "LocalService", "LocalSubscription"]
@@ -28,9 +28,9 @@ class LocalPublisher:
     """Publishes on one topic from this process; made by ``Graph.create_publisher``."""
 
     def __init__(
-        self, graph: Graph, client: ClientId, topic: str, msgtype: MessageType, *, latch: bool
+        self, port: GraphCore, client: ClientId, topic: str, msgtype: MessageType, *, latch: bool
     ) -> None:
-        self._graph = graph
+        self._port = port
         self._client = client
         self.topic = topic
         self.msgtype = msgtype
@@ -57,15 +57,15 @@ class LocalPublisher:
         """
         if validated:
             assert isinstance(msg, dict)
-            self._graph.publish_local(self._client, self.topic, msg, latch=self.latch)
+            self._port.publish_local(self._client, self.topic, msg, latch=self.latch)
             return
-        converted = self.msgtype.from_python(msg, now=self._graph.clock.wall())
-        self._graph.publish_local(self._client, self.topic, converted, latch=self.latch)
+        converted = self.msgtype.from_python(msg, now=self._port.clock.wall())
+        self._port.publish_local(self._client, self.topic, converted, latch=self.latch)
 
     def close(self) -> None:
         """Stop publishing; the topic goes when nobody else uses it."""
-        self._graph.unadvertise(self._client, self.topic)
-        self._graph.nodes.forget(self._client)
+        self._port.unadvertise(self._client, self.topic)
+        self._port.nodes.forget(self._client)
 
 
 class LocalSubscription:
@@ -73,12 +73,12 @@ class LocalSubscription:
 
     def __init__(
         self,
-        graph: Graph,
+        port: GraphCore,
         client: ClientId,
         topic: str,
         callback: Callable[[dict[str, object]], None],
     ) -> None:
-        self._graph = graph
+        self._port = port
         self._client = client
         self.topic = topic
         self._callback = callback
@@ -98,35 +98,35 @@ class LocalSubscription:
 
     def close(self) -> None:
         """Stop receiving messages."""
-        self._graph.unsubscribe(self._client, self.topic)
-        self._graph.nodes.forget(self._client)
+        self._port.unsubscribe(self._client, self.topic)
+        self._port.nodes.forget(self._client)
 
 
 class LocalService:
     """An in-process service; made by ``Graph.create_service``."""
 
-    def __init__(self, graph: Graph, client: ClientId, service: str) -> None:
-        self._graph = graph
+    def __init__(self, port: GraphCore, client: ClientId, service: str) -> None:
+        self._port = port
         self._client = client
         self.service = service
 
     def close(self) -> None:
         """Withdraw the service; pending callers get ``result: false`` (D15)."""
         with contextlib.suppress(GraphError):  # already replaced by a newer advertiser
-            self._graph.services.unadvertise(self._client, self.service)
-        self._graph.nodes.forget(self._client)
+            self._port.services.unadvertise(self._client, self.service)
+        self._port.nodes.forget(self._client)
 
 
 class LocalActionServer:
     """An in-process action server; made by ``Graph.create_action_server``."""
 
-    def __init__(self, graph: Graph, client: ClientId, action: str) -> None:
-        self._graph = graph
+    def __init__(self, port: GraphCore, client: ClientId, action: str) -> None:
+        self._port = port
         self._client = client
         self.action = action
 
     def close(self) -> None:
         """Withdraw the action; goals in flight abort (D4)."""
         with contextlib.suppress(GraphError):
-            self._graph.unadvertise_action(self._client, self.action)
-        self._graph.nodes.forget(self._client)
+            self._port.unadvertise_action(self._client, self.action)
+        self._port.nodes.forget(self._client)

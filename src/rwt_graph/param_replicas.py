@@ -86,7 +86,7 @@ class ParamReplicas:
                 guarded(f"{node}/{part} reply", partial(then, values))
 
         try:
-            self.graph.call_service(self.caller, f"{node}/{part}", args, reply)
+            self.graph.port.call_service(self.caller, f"{node}/{part}", args, reply)
         except RwtError as exc:  # its services are not (yet) in the graph
             logger.debug("parameters of %s: %s", node, exc)
 

@@ -2,7 +2,8 @@
 
 ``rwt_protocol`` cannot import the graph (layering), so the session
 talks to a ``GraphPort`` and the graph calls back into a ``TopicSink``. Both are
-structural ``typing.Protocol`` types; ``rwt_graph.Graph`` implements the port.
+structural ``typing.Protocol`` types; ``rwt_graph.core.GraphCore`` implements the
+port (``Graph.port``; ``Graph`` itself is the embedding API, docs/embedding.md).
 All calls are synchronous and never block: the graph is in-memory.
 """
 

@@ -258,7 +258,7 @@ def _start_in_graph(
             else:
                 outcome.set(False, values, status)
 
-        outcome.handle = link.graph.send_action_goal(
+        outcome.handle = link.graph.port.send_action_goal(
             link.caller, name, type_name, goal, done, feedback
         )
     except RwtError as exc:

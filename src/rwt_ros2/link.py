@@ -255,7 +255,7 @@ class Ros2Link:
         for client in list(self._mirrors):
             self._unmirror(client)
         for relay in self._relays.values():
-            self.graph.release(relay)
+            self.graph.port.release(relay)
         self._relays.clear()
         self.graph.nodes.forget(self.caller)
         node = self.ros.node
@@ -329,9 +329,9 @@ class Ros2Link:
                 graph.nodes.bind(client, spec.node)
                 if spec.kind == "publisher":
                     latch = spec.qos.transient_local
-                    graph.advertise(client, spec.topic, spec.type_name, latch=latch)
+                    graph.port.advertise(client, spec.topic, spec.type_name, latch=latch)
                 else:
-                    graph.subscribe(client, spec.topic, spec.type_name, NULL_SINK)
+                    graph.port.subscribe(client, spec.topic, spec.type_name, NULL_SINK)
             elif isinstance(spec, tuple) and len(spec) == 4:
                 _, node, name, type_name = spec
                 if name in graph.actions.entries:
@@ -339,7 +339,7 @@ class Ros2Link:
                 actiontype = graph.registry.action(type_name)
                 action = RosAction(self, client, name, actiontype)
                 graph.nodes.bind(client, node)
-                graph.advertise_action(client, name, type_name, action)
+                graph.port.advertise_action(client, name, type_name, action)
                 mirror.provider = action
             else:
                 assert isinstance(spec, tuple)
@@ -349,7 +349,7 @@ class Ros2Link:
                 srvtype = graph.registry.service(type_name)
                 provider = RosService(self, client, name, srvtype)
                 graph.nodes.bind(client, node)
-                graph.advertise_service(client, name, type_name, provider)
+                graph.port.advertise_service(client, name, type_name, provider)
                 mirror.provider = provider
         except RwtError as exc:
             graph.nodes.forget(client)
@@ -395,7 +395,7 @@ class Ros2Link:
         if isinstance(mirror.spec, Endpoint):
             self._mismatched.discard(mirror.spec.gid)
         if mirror.mirrored:
-            self.graph.release(client)  # its services fail their callers (D15)
+            self.graph.port.release(client)  # its services fail their callers (D15)
         if mirror.provider is not None:
             mirror.provider.close()
 
@@ -420,15 +420,15 @@ class Ros2Link:
         client = self._by_gid.get(gid)
         if client is not None and client in entry.publishers:
             latched = entry.publishers[client]
-            self.graph.publish_local(client, topic, msg, latch=latched)
+            self.graph.port.publish_local(client, topic, msg, latch=latched)
             return
         # The sample outran discovery of its publisher: a relay publishes it meanwhile.
         relay = self._relays.get(topic)
         if relay is None:
             relay = self._relays[topic] = f"{PARTICIPANT_PREFIX}relay:{topic}"
             self.graph.nodes.bind(relay, self.ros.fqn)
-            self.graph.advertise(relay, topic, type_name, latch=False)
-        self.graph.publish_local(relay, topic, msg, latch=False)
+            self.graph.port.advertise(relay, topic, type_name, latch=False)
+        self.graph.port.publish_local(relay, topic, msg, latch=False)
 
     # ---- the local graph, outward ---------------------------------------------------
 
@@ -672,7 +672,7 @@ class Ros2Link:
             )
             if entry is None or known or topic not in self._subs:
                 del self._relays[topic]
-                self.graph.release(relay)
+                self.graph.port.release(relay)
 
 
 def _destroy(destroy: Any, handle: Any) -> None:

@@ -124,7 +124,7 @@ class RosService:
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            graph.service_response(self._client, self._name, request_id, False, value)
+            graph.port.service_response(self._client, self._name, request_id, False, value)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the ROS 2 one in the graph; the ROS 2 one lives on."""
@@ -174,7 +174,7 @@ def serve_to_ros(
             if handler is not None:
                 reply(True, handler(request))
             else:
-                link.graph.call_service(link.caller, name, request, reply)
+                link.graph.port.call_service(link.caller, name, request, reply)
         except RwtError as exc:
             timer.cancel()
             answer.set(False, str(exc))

@@ -58,7 +58,7 @@ async def call_service(
         outcome.append((result, values))
         done.set()
 
-    pending = graph.call_service(graph.local_client(), service, args, reply)
+    pending = graph.port.call_service(graph.port.local_client(), service, args, reply)
     with anyio.move_on_after(timeout_s):
         await done.wait()
     if not outcome:
@@ -93,7 +93,9 @@ async def send_action_goal(
         outcome.append((status, result, values))
         done.set()
 
-    handle = graph.send_action_goal(graph.local_client(), action, "", goal, finish, on_feedback)
+    handle = graph.port.send_action_goal(
+        graph.port.local_client(), action, "", goal, finish, on_feedback
+    )
     try:
         with anyio.move_on_after(timeout_s):
             await done.wait()

@@ -317,18 +317,18 @@ class RosbridgeServer:
                     on_listening(url)
             task_status.started(next(iter(self.urls.values()), ""))
             async with anyio.create_task_group() as connections:
-                self.graph.spawner = spawner_for(connections)  # async in-process handlers
-                self._clients_changed = anyio.Event()
-                connections.start_soon(self._publish_clients_loop)
                 try:
-                    async with anyio.create_task_group() as accepting:
-                        for runner in runners:
-                            accepting.start_soon(runner, connections)
-                        await self._stop.wait()
-                        accepting.cancel_scope.cancel()
-                    await self._shutdown(connections)
+                    # async in-process handlers run in the connections' task group
+                    with self.graph.port.serving(spawner_for(connections)):
+                        self._clients_changed = anyio.Event()
+                        connections.start_soon(self._publish_clients_loop)
+                        async with anyio.create_task_group() as accepting:
+                            for runner in runners:
+                                accepting.start_soon(runner, connections)
+                            await self._stop.wait()
+                            accepting.cancel_scope.cancel()
+                        await self._shutdown(connections)
                 finally:
-                    self.graph.spawner = None
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
 
@@ -342,7 +342,7 @@ class RosbridgeServer:
         self._stopping = True
         sessions = list(self.sessions.values())
         logger.info("event=shutdown sessions=%d", len(sessions))
-        self.graph.fail_pending("server shutting down")  # while callers can still read
+        self.graph.port.fail_pending("server shutting down")  # while callers can still read
         for session in sessions:
             session.begin_shutdown()
         for session in sessions:
@@ -607,7 +607,7 @@ class RosbridgeServer:
         client_id = f"{transport}:{peer}#{next(self._ids)}"
         stream = transport in ("ws", "tcp", "tls")
         session = self.session_class(
-            self.graph,
+            self.graph.port,
             client_id,
             config=self._stream_session_config if stream else self.session_config,
             on_output=on_output,
@@ -697,6 +697,19 @@ def spawner_for(tg: TaskGroup) -> Spawner:
         return scope.cancel
 
     return spawn
+
+
+@asynccontextmanager
+async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
+    """A task group in which ``graph``'s async in-process handlers run, without a server.
+
+    For code that drives a graph without serving it (tests, benchmarks): inside,
+    async services and actions run as under ``RosbridgeServer.serve``
+    (``GraphCore.serving``). Yields the task group; cancel its scope to stop.
+    """
+    async with anyio.create_task_group() as tg:
+        with graph.port.serving(spawner_for(tg)):
+            yield tg
 
 
 class _Pending:

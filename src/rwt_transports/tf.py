@@ -24,7 +24,7 @@ def install_tf_republisher(graph: Graph, *, node: str = TF_NODE) -> TFRepublishe
     """Give ``graph`` a TF buffer, the ``/tf2_web_republisher`` action and ``/republish_tfs``.
 
     The ticking runs in the event loop of the server that serves ``graph``
-    (``graph.spawner``); lookups from Python work at once:
+    (``GraphCore.serving``); lookups from Python work at once:
     ``install_tf_republisher(graph).buffer.lookup("map", "gripper")``.
 
     Raises:

@@ -348,7 +348,7 @@ class ZenohLink:
         self._remote.clear()
         self._by_gid.clear()
         for relay in self._relays.values():
-            self.graph.release(relay)
+            self.graph.port.release(relay)
         self._relays.clear()
 
     def _soon(self, callback: Callable[..., None], *args: object) -> None:
@@ -845,15 +845,15 @@ class ZenohLink:
                     return  # a local provider (or another remote one) answers: keep it
                 graph.nodes.bind(remote.client, remote.node)
                 provider = RemoteService(self, remote, graph.registry.service(type_name))
-                graph.advertise_service(remote.client, topic.name, type_name, provider)
+                graph.port.advertise_service(remote.client, topic.name, type_name, provider)
             elif entity.kind is EntityKind.PUBLISHER:
                 graph.nodes.bind(remote.client, remote.node)
                 latched = topic.qos.durability is Durability.TRANSIENT_LOCAL
-                graph.advertise(remote.client, topic.name, type_name, latch=latched)
+                graph.port.advertise(remote.client, topic.name, type_name, latch=latched)
                 self._adopt_relayed(topic.name, remote.client, latched=latched)
             elif entity.kind is EntityKind.SUBSCRIPTION:
                 graph.nodes.bind(remote.client, remote.node)
-                graph.subscribe(remote.client, topic.name, type_name, NULL_SINK)
+                graph.port.subscribe(remote.client, topic.name, type_name, NULL_SINK)
         except (RwtError, WireError) as exc:
             graph.nodes.forget(remote.client)
             self.peer_log.log(
@@ -876,7 +876,7 @@ class ZenohLink:
     def _unmirror(self, remote: _Remote) -> None:
         self._params.unmirror(remote)
         if remote.mirrored:
-            self.graph.release(remote.client)  # its services fail their callers (D15)
+            self.graph.port.release(remote.client)  # its services fail their callers (D15)
             remote.mirrored = False
 
     def _on_sample(
@@ -903,7 +903,7 @@ class ZenohLink:
             latched = remote.entity.topic is not None and (
                 remote.entity.topic.qos.durability is Durability.TRANSIENT_LOCAL
             )
-            self.graph.publish_local(remote.client, topic, msg, latch=latched)
+            self.graph.port.publish_local(remote.client, topic, msg, latch=latched)
             return
         # The sample outran its publisher's token: a relay publishes it meanwhile.
         relay = self._relays.get(topic)
@@ -911,7 +911,7 @@ class ZenohLink:
             relay = f"{PARTICIPANT_PREFIX}relay:{topic}"
             self.graph.nodes.bind(relay, LINK_NODE)
             try:
-                self.graph.advertise(relay, topic, type_name, latch=False)
+                self.graph.port.advertise(relay, topic, type_name, latch=False)
             except RwtError as exc:  # a topic reserved by the server: not the network's
                 self.graph.nodes.forget(relay)
                 self.peer_log.log(
@@ -923,7 +923,7 @@ class ZenohLink:
                 )
                 return
             self._relays[topic] = relay
-        self.graph.publish_local(relay, topic, msg, latch=False)
+        self.graph.port.publish_local(relay, topic, msg, latch=False)
 
     def _adopt_relayed(self, topic: str, client: ClientId, *, latched: bool) -> None:
         """A latched sample a relay delivered belongs to its publisher, now known."""
@@ -938,7 +938,7 @@ class ZenohLink:
             known = entry is not None and any(ours(c) and c != relay for c in entry.publishers)
             if entry is None or known or topic not in self._subs:
                 del self._relays[topic]
-                self.graph.release(relay)
+                self.graph.port.release(relay)
                 self.graph.nodes.forget(relay)
 
 

@@ -255,7 +255,7 @@ class ActionLink:
                 link.reply(query, wire.accepted(False, link.graph.clock.wall()))
                 return
             served = self._served[goal_id] = _Served(action, wire, link.graph.clock.wall())
-            served.handle = link.graph.send_action_goal(
+            served.handle = link.graph.port.send_action_goal(
                 link.caller,
                 action,
                 "",
@@ -390,7 +390,7 @@ class ActionLink:
             return False
         wire = self.wire(type_name)
         graph.nodes.bind(remote.client, remote.node)
-        graph.advertise_action(
+        graph.port.advertise_action(
             remote.client, action, type_name, _RemoteAction(self, remote, action, wire)
         )
         return True

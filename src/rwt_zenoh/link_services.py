@@ -62,7 +62,7 @@ def serve_query(link: ZenohLink, export: _Export, query: zenoh.Query) -> None:
         request = decode_message(
             registry, srvtype.request, b"" if payload is None else payload.to_bytes()
         )
-        link.graph.call_service(link.caller, topic.name, request, reply)
+        link.graph.port.call_service(link.caller, topic.name, request, reply)
     except (RwtError, WireError) as exc:
         reply(False, f"service {topic.name} failed: {exc}")
 
@@ -128,7 +128,7 @@ class RemoteService:
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            graph.service_response(remote.client, service, request_id, False, value)
+            graph.port.service_response(remote.client, service, request_id, False, value)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the remote one here; the remote one lives on."""

@@ -14,16 +14,14 @@ from collections.abc import Callable, Iterator
 import pytest
 
 import rwt
-from rwt_protocol.ports import GraphPort
 from tests.docs.api_reference import namespace_of, ours
 
-# Members that are plumbing between rwt's own packages, not API: the graph's side of
-# the port a session drives (embedding code uses create_* and call_service instead),
-# and the hooks the transports, the session and the Zenoh link's helpers call.
-PLUMBING = {f"Graph.{name}" for kind in GraphPort.__mro__ for name in vars(kind)} | {
+# Members that are plumbing between rwt's own packages, not API: the hooks the
+# transports, the session and the Zenoh link's helpers call. (The port a session
+# drives is not even a member: it is ``Graph.port``, an attribute.)
+PLUMBING = {
     "AccessPolicy.check",
     "ConsoleSite.answer",
-    "Graph.convert_publish",
     "LocalSubscription.on_message",
     "RosbridgeServer.open_session",
     "TFRepublisher.run_goal",

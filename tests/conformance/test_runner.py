@@ -51,14 +51,19 @@ class SilentServer(RosbridgeServer):
     session_class = SilentSession
 
 
-class ForgetfulGraph(Graph):
+def forgetful_graph() -> Graph:
     """D13 switched off: latched messages are never replayed to later subscribers."""
+    graph = Graph()
+    subscribe = graph.port.subscribe
 
-    def subscribe(self, client: str, topic: str, type_name: str | None, sink: TopicSink) -> str:
-        entry = self.topics.get(resolve_name(topic))
+    def forgetful(client: str, topic: str, type_name: str | None, sink: TopicSink) -> str:
+        entry = graph.topics.get(resolve_name(topic))
         if entry is not None:
             entry.latched = None
-        return super().subscribe(client, topic, type_name, sink)
+        return subscribe(client, topic, type_name, sink)
+
+    graph.port.subscribe = forgetful  # type: ignore[method-assign]
+    return graph
 
 
 async def _run(server: RosbridgeServer, **options: Any) -> SuiteResult:
@@ -119,7 +124,7 @@ async def test_the_same_broken_server_passes_the_reference_profile_of_those_rule
 
 
 async def test_a_server_without_latching_fails_d13() -> None:
-    server = RosbridgeServer(ForgetfulGraph(), LOCAL)
+    server = RosbridgeServer(forgetful_graph(), LOCAL)
     result = await _run(server, only=("D13",), expect_timeout_s=0.5)
     [d13] = [r for r in result.requirements if r.requirement.id == "D13"]
     assert d13.outcome is Outcome.FAILED

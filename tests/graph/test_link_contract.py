@@ -33,11 +33,11 @@ def test_private_names_match_exactly_or_by_prefix() -> None:
 def test_rules_share_only_local_entities_and_no_private_names() -> None:
     graph = Graph()
     rules = LinkRules("link:")
-    graph.advertise("ws:1", "/chatter", STRING, latch=True)
-    graph.subscribe("ws:2", "/chatter", STRING, _Sink())
-    graph.advertise("link:remote", "/chatter", STRING, latch=False)  # came from outside
-    graph.subscribe("link:remote2", "/heard", STRING, NULL_SINK)
-    graph.advertise("ws:1", "/client_count", "std_msgs/msg/Int32", latch=False)
+    graph.port.advertise("ws:1", "/chatter", STRING, latch=True)
+    graph.port.subscribe("ws:2", "/chatter", STRING, _Sink())
+    graph.port.advertise("link:remote", "/chatter", STRING, latch=False)  # came from outside
+    graph.port.subscribe("link:remote2", "/heard", STRING, NULL_SINK)
+    graph.port.advertise("ws:1", "/client_count", "std_msgs/msg/Int32", latch=False)
     graph.create_service("/add", "std_srvs/srv/SetBool", lambda request: {"success": True})
     wanted = rules.wanted(graph)
     assert wanted[(Kind.PUBLISHER, "ws:1", "/chatter")] == (STRING, True)
@@ -133,10 +133,10 @@ def test_parameter_copies_follow_a_node_through_its_services() -> None:
 
 def test_graph_type_warnings_come_from_its_links() -> None:
     graph = Graph()
-    assert graph.type_warning(STRING) is None
+    assert graph.port.type_warning(STRING) is None
     graph.type_checks.append(lambda name: None)
     graph.type_checks.append(lambda name: f"no package for {name}")
-    assert graph.type_warning(STRING) == f"no package for {STRING}"
+    assert graph.port.type_warning(STRING) == f"no package for {STRING}"
 
 
 def test_read_cdr_takes_trailing_bytes_within_the_slack() -> None:

@@ -81,7 +81,7 @@ class Provider:
 
 def counted(graph: Graph) -> None:
     """Make the graph's whole-table walks countable."""
-    graph.topics = CountingDict(graph.topics)
+    graph.port.topics = CountingDict(graph.port.topics)
     graph.services.entries = CountingDict(graph.services.entries)
     graph.actions.entries = CountingDict(graph.actions.entries)
 
@@ -93,14 +93,14 @@ def large_graph() -> tuple[Graph, list[tuple[object, ...]]]:
     provider = Provider()
     for n in range(OTHERS):
         client = f"other{n}"
-        graph.advertise(client, f"/pub{n}", STRING, latch=False)
-        graph.subscribe(client, f"/sub{n}", STRING, Sink())
-        graph.advertise_service(client, f"/srv{n}", ADD, provider)
-        graph.advertise_action(client, f"/act{n}", FIB, provider)
+        graph.port.advertise(client, f"/pub{n}", STRING, latch=False)
+        graph.port.subscribe(client, f"/sub{n}", STRING, Sink())
+        graph.port.advertise_service(client, f"/srv{n}", ADD, provider)
+        graph.port.advertise_action(client, f"/act{n}", FIB, provider)
     for n in range(OTHERS):  # each calls its neighbour's service and action
         peer = (n + 1) % OTHERS
-        graph.call_service(f"other{n}", f"/srv{peer}", {}, lambda *r: replies.append(r))
-        graph.send_action_goal(
+        graph.port.call_service(f"other{n}", f"/srv{peer}", {}, lambda *r: replies.append(r))
+        graph.port.send_action_goal(
             f"other{n}", f"/act{peer}", FIB, {}, lambda *r: replies.append(r), None
         )
     return graph, replies
@@ -112,24 +112,24 @@ def test_releasing_one_client_walks_no_table_and_drops_only_what_it_held() -> No
     other_provider = graph.actions.entries["/act6"].provider
     assert isinstance(other_provider, Provider)
     sink = Sink()
-    graph.advertise("holder", "/pub0", STRING, latch=True)
-    graph.subscribe("holder", "/sub1", STRING, sink)
-    graph.advertise_service("holder", "/mine", ADD, provider)
-    graph.advertise_action("holder", "/my_action", FIB, provider)
-    graph.call_service("holder", "/srv5", {}, lambda *r: replies.append(("holder", *r)))
-    graph.send_action_goal(
+    graph.port.advertise("holder", "/pub0", STRING, latch=True)
+    graph.port.subscribe("holder", "/sub1", STRING, sink)
+    graph.port.advertise_service("holder", "/mine", ADD, provider)
+    graph.port.advertise_action("holder", "/my_action", FIB, provider)
+    graph.port.call_service("holder", "/srv5", {}, lambda *r: replies.append(("holder", *r)))
+    graph.port.send_action_goal(
         "holder", "/act6", FIB, {}, lambda *r: replies.append(("holder", *r)), None
     )
     answers: list[tuple[object, ...]] = []
-    graph.call_service("other7", "/mine", {}, lambda *r: answers.append(r))
+    graph.port.call_service("other7", "/mine", {}, lambda *r: answers.append(r))
     counted(graph)
     CountingDict.walks = 0
 
-    graph.release("holder")
+    graph.port.release("holder")
 
     assert CountingDict.walks == 0
-    assert "holder" not in graph.topics["/pub0"].publishers
-    assert "holder" not in graph.topics["/sub1"].subscribers
+    assert "holder" not in graph.port.topics["/pub0"].publishers
+    assert "holder" not in graph.port.topics["/sub1"].subscribers
     assert "/mine" not in graph.services.entries
     assert "/my_action" not in graph.actions.entries
     assert answers == [(False, "service /mine is gone: its provider disconnected")]
@@ -141,7 +141,7 @@ def test_releasing_one_client_walks_no_table_and_drops_only_what_it_held() -> No
     assert not goals["other5"].finished
     assert all(reply[0] != "holder" for reply in replies)
     # everything else stays: every other client's topics, services and actions
-    assert len(graph.topics) == 2 * OTHERS
+    assert len(graph.port.topics) == 2 * OTHERS
     assert len(graph.services.entries) == 2 * OTHERS  # each action has its cancel service
     assert len(graph.actions.entries) == OTHERS
 
@@ -152,10 +152,10 @@ def test_releasing_every_client_one_by_one_leaves_an_empty_graph() -> None:
     CountingDict.walks = 0
 
     for n in range(OTHERS):
-        graph.release(f"other{n}")
+        graph.port.release(f"other{n}")
 
     assert CountingDict.walks == 0
-    assert not graph.topics
+    assert not graph.port.topics
     assert not graph.services.entries
     assert not graph.actions.entries
     assert not graph.nodes.names()
@@ -165,17 +165,17 @@ def test_releasing_every_client_one_by_one_leaves_an_empty_graph() -> None:
 
 def test_unadvertising_then_releasing_forgets_the_topic_once() -> None:
     graph = Graph()
-    graph.advertise("a", "/t", STRING, latch=False)
-    graph.unadvertise("a", "/t")
-    graph.subscribe("b", "/t", STRING, Sink())
-    graph.advertise("a", "/u", STRING, latch=False)
+    graph.port.advertise("a", "/t", STRING, latch=False)
+    graph.port.unadvertise("a", "/t")
+    graph.port.subscribe("b", "/t", STRING, Sink())
+    graph.port.advertise("a", "/u", STRING, latch=False)
     counted(graph)
 
-    graph.release("a")
+    graph.port.release("a")
 
     assert CountingDict.walks == 0
-    assert list(graph.topics) == ["/t"]
-    assert "a" not in graph.topics["/t"].publishers
+    assert list(graph.port.topics) == ["/t"]
+    assert "a" not in graph.port.topics["/t"].publishers
 
 
 def test_a_node_lists_its_participants_without_walking_every_participant() -> None:

@@ -40,7 +40,7 @@ class Client:
     """A session with small caps, driven without sockets."""
 
     def __init__(self, graph: Graph, name: str, config: SessionConfig = CAPS) -> None:
-        self.session = Session(graph, name, config=config)
+        self.session = Session(graph.port, name, config=config)
         self.now = 100.0
 
     def send(self, **op: object) -> None:

@@ -255,7 +255,7 @@ def test_a_provider_disconnect_leaves_no_zombie_even_if_a_step_fails(
     def broken_reply(result: bool, values: object) -> None:
         raise RuntimeError("a caller's reply failed")
 
-    graph.call_service("local:caller", "/svc", {}, broken_reply)
+    graph.port.call_service("local:caller", "/svc", {}, broken_reply)
     provider.received()
     provider.session.close()  # must not raise
     assert "/svc" not in graph.services.entries

@@ -266,7 +266,7 @@ def test_one_serialization_per_distinct_encoding(
     monkeypatch.setattr(codec, "serialize", counting("raw", codec.serialize))
     monkeypatch.setattr(codec, "typed", counting("typed", codec.typed))
 
-    graph.subscribe("probe", "/m", "std_msgs/Float64MultiArray", _Probe(events))
+    graph.port.subscribe("probe", "/m", "std_msgs/Float64MultiArray", _Probe(events))
     groups = {"none": 3, "cbor": 2, "cbor-raw": 2, "png": 3}
     peers = {c: [Peer(graph, f"{c}{i}") for i in range(n)] for c, n in groups.items()}
     for compression, members in peers.items():
@@ -293,7 +293,7 @@ class _Probe:
 
 def test_spellings_and_fragment_sizes_are_distinct_forms(graph: Graph, pub: Peer) -> None:
     events: list[MessageEvent] = []
-    graph.subscribe("probe", "/c", "std_msgs/String", _Probe(events))
+    graph.port.subscribe("probe", "/c", "std_msgs/String", _Probe(events))
     for i, (topic, size) in enumerate([("c", None), ("/c", None), ("/c", 10), ("/c", 10)]):
         Peer(graph, f"s{i}").send(op="subscribe", topic=topic, fragment_size=size)
     pub.send(op="publish", topic="/c", msg={"data": "spelled"})
@@ -346,7 +346,7 @@ def test_bad_fragments_get_an_error_status_with_their_id(pub: Peer) -> None:
 def test_incomplete_fragments_expire_on_the_session_timer(graph: Graph, clock: FakeClock) -> None:
     woken: list[int] = []
     session = Session(
-        graph,
+        graph.port,
         "c",
         config=SessionConfig(fragment_timeout_s=5.0),
         on_output=lambda: woken.append(1),
@@ -365,7 +365,7 @@ def test_incomplete_fragments_expire_on_the_session_timer(graph: Graph, clock: F
 
 def test_pending_fragments_are_bounded_and_freed_on_close(graph: Graph, clock: FakeClock) -> None:
     config = SessionConfig(max_pending_fragments=2, max_message_size=1000)
-    session = Session(graph, "c", config=config)
+    session = Session(graph.port, "c", config=config)
     for name in ("a", "b", "c"):
         frame = {"op": "fragment", "id": name, "data": "x", "num": 0, "total": 9}
         session.receive_frame(json.dumps(frame), clock.now)
@@ -567,7 +567,7 @@ def test_any_fragmenting_of_a_publish_delivers_it_once(
 
 def test_a_closed_session_sends_nothing_and_frees_its_parts(graph: Graph, clock: FakeClock) -> None:
     woken: list[int] = []
-    session = Session(graph, "c", on_output=lambda: woken.append(1))
+    session = Session(graph.port, "c", on_output=lambda: woken.append(1))
     part = {"op": "fragment", "id": "x", "data": "{", "num": 0, "total": 2}
     session.receive_frame(cbor2.dumps(part), clock.now, binary=True)
     assert len(session.fragments) == 1 and woken == [1]  # the expiry timer

@@ -44,7 +44,7 @@ class GatedPeer(Peer):
     """A peer whose session has a config of the test's choosing."""
 
     def __init__(self, graph: Graph, name: str, config: SessionConfig) -> None:
-        self.session = Session(graph, name, config=config, peer="10.0.0.1:5000")
+        self.session = Session(graph.port, name, config=config, peer="10.0.0.1:5000")
         self.clock = graph.clock
 
     def commands(self) -> list[CloseConnection]:
@@ -444,7 +444,7 @@ def test_parameter_services_without_a_name_are_left_to_rosapi(graph: Graph) -> N
 
 def test_the_transport_is_woken_for_output_and_closes_are_idempotent(graph: Graph) -> None:
     wakes: list[int] = []
-    session = Session(graph, "w", config=SessionConfig(), on_output=lambda: wakes.append(1))
+    session = Session(graph.port, "w", config=SessionConfig(), on_output=lambda: wakes.append(1))
     session.receive_frame(b"5", 1.0)  # an error status: output
     assert wakes and session.close_request is None
     session.request_close(CloseCode.NORMAL, "bye")

@@ -43,7 +43,7 @@ def test_a_stalled_subscriber_of_small_messages_keeps_fewer_than_payload_alone_a
 ) -> None:
     limit = 64 * 1024
     session = Session(
-        graph,
+        graph.port,
         "slow",
         config=SessionConfig(send_buffer_limit=limit, status_level=StatusLevel.WARNING),
     )

@@ -170,7 +170,7 @@ def test_call_times_out_by_its_own_timeout(peers: tuple[Peer, Peer], clock: Fake
 def test_call_times_out_by_the_server_default(graph: Graph, clock: FakeClock) -> None:
     provider = Peer(graph, "p")
     advertise_set_bool(provider)
-    caller = Session(graph, "c", config=SessionConfig(call_timeout_s=5.0))
+    caller = Session(graph.port, "c", config=SessionConfig(call_timeout_s=5.0))
     caller.receive_frame('{"op":"call_service","service":"/set_bool"}', clock.now)
     assert caller.get_timer() == clock.now + 5.0
 

@@ -246,7 +246,7 @@ def test_status_goes_only_to_the_connection_that_caused_it(peers: tuple[Peer, Pe
 
 def test_slow_peer_loses_oldest_topic_messages_never_statuses(graph: Graph) -> None:
     a = Peer(graph, "a")
-    slow = Session(graph, "slow", config=SessionConfig(send_buffer_limit=2000))
+    slow = Session(graph.port, "slow", config=SessionConfig(send_buffer_limit=2000))
     a.send(op="advertise", topic="/t", type="std_msgs/String")
     slow.receive_frame(json.dumps({"op": "subscribe", "topic": "/t"}), 0.0)
     slow.receive_frame('{"op": "bad"}', 0.0)

@@ -12,7 +12,7 @@ from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
-from rwt_transports.server import spawner_for
+from rwt_transports.server import running_handlers
 from tests.conftest import Peer
 
 pytestmark = pytest.mark.anyio
@@ -46,8 +46,7 @@ async def test_async_service_called_from_python_and_from_a_client() -> None:
         return {"sum": request["a"] + request["b"]}  # type: ignore[operator]
 
     graph.create_service("/add", "example_interfaces/srv/AddTwoInts", add)
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         with anyio.fail_after(5):
             assert await call_service(graph, "/add", {"a": 2, "b": 40}) == {"sum": 42}
             client = Peer(graph, "c")
@@ -92,8 +91,7 @@ async def test_in_process_action_server_with_feedback_for_python_and_clients() -
     graph = Graph()
     graph.create_action_server("/fib", FIB, fibonacci)
     feedback: list[dict[str, object]] = []
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         with anyio.fail_after(5):
             outcome = await send_action_goal(
                 graph, "/fib", {"order": 5}, on_feedback=feedback.append
@@ -133,8 +131,7 @@ async def test_feedback_marked_validated_reaches_the_client_as_checked_feedback_
         return {"sequence": []}
 
     graph.create_action_server("/twice", FIB, twice)
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         client = Peer(graph, "c")
         client.send(op="send_action_goal", action="/twice", action_type=FIB, feedback=True)
         frames: list[str | bytes] = []
@@ -160,8 +157,7 @@ async def test_in_process_goal_cancelled_by_a_client() -> None:
         raise GoalCanceledError
 
     graph.create_action_server("/slow", FIB, slow)
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         client = Peer(graph, "c")
         client.send(op="send_action_goal", action="/slow", action_type=FIB, id=7)
         with anyio.fail_after(5):
@@ -180,8 +176,7 @@ async def test_failing_action_handler_aborts_the_goal() -> None:
         raise RuntimeError("motor fault")
 
     graph.create_action_server("/broken", FIB, broken)
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         with anyio.fail_after(5):
             outcome = await send_action_goal(graph, "/broken", {"order": 1})
         assert outcome.status is GoalStatus.ABORTED

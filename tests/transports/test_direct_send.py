@@ -174,7 +174,7 @@ async def pumped() -> AsyncIterator[tuple[FakeChannel, Session, Graph]]:
     graph = Graph(clock=FakeClock())
     channel = FakeChannel()
     pump = ConnectionPump(channel)  # type: ignore[arg-type]
-    session = Session(graph, "sub", on_output=pump.wake)
+    session = Session(graph.port, "sub", on_output=pump.wake)
     session.receive_frame(b'{"op":"subscribe","topic":"/t","type":"std_msgs/String"}', 0.0)
     async with anyio.create_task_group() as tg:
         tg.start_soon(pump.run, session)

@@ -17,7 +17,7 @@ from rwt_graph.local import LocalPublisher
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.tf import TFRepublisher, install_tf_republisher
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_transports.server import RosbridgeServer, ServerConfig, spawner_for
+from rwt_transports.server import RosbridgeServer, ServerConfig, running_handlers
 from tests.conftest import FakeClock, Peer
 from tests.tf_support import Ticks, tf_message, transform
 
@@ -59,8 +59,7 @@ async def robot_in(dialect: Dialect) -> AsyncIterator[Robot]:
     static.publish(tf_message(transform("base_link", "camera", (0.0, 0.0, 1.0))))
     robot = Robot(graph, clock, ticks, tf, graph.create_publisher("/tf", "tf2_msgs/TFMessage"))
     robot.move_arm(0.0)
-    async with anyio.create_task_group() as tg:
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg:
         with anyio.fail_after(10):
             yield robot
         tg.cancel_scope.cancel()

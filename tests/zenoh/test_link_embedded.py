@@ -31,7 +31,7 @@ from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_protocol.errors import FieldError, RwtError
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
-from rwt_transports.server import spawner_for
+from rwt_transports.server import running_handlers
 from rwt_zenoh.link import ZenohLink, open_zenoh_link
 
 from .processes import REPO
@@ -176,8 +176,7 @@ async def test_callers_fail_at_once_when_the_providing_graph_leaves() -> None:
         await anyio.sleep_forever()
         raise AssertionError  # pragma: no cover
 
-    async with open_zenoh_link(a, peer(listen=first)), anyio.create_task_group() as tg:
-        b.spawner = spawner_for(tg)
+    async with open_zenoh_link(a, peer(listen=first)), running_handlers(b) as tg:
         b.create_service("/b/slow", "std_srvs/srv/Trigger", never, node="/slow")
         outcome: list[BaseException] = []
 
@@ -215,11 +214,10 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
         return {"sequence": sequence}
 
     async with (
-        anyio.create_task_group() as tg,
+        running_handlers(b) as tg,
         open_zenoh_link(a, peer(listen=first)),
         open_zenoh_link(b, peer(connect=(first,))),
     ):
-        b.spawner = spawner_for(tg)
         b.create_action_server("/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f")
         await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
         feedback: list[dict[str, Any]] = []
@@ -231,8 +229,8 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
         assert feedback == [{"sequence": [0, 1, 1, 2, 3, 5][: n + 3]} for n in range(4)]
         # a cancel from A reaches B's goal
         done: list[tuple[GoalStatus, bool, object]] = []
-        handle = a.send_action_goal(
-            a.local_client(),
+        handle = a.port.send_action_goal(
+            a.port.local_client(),
             "/fib",
             "",
             {"order": 100},

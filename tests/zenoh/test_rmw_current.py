@@ -233,9 +233,9 @@ async def test_a_callers_client_entity_is_withdrawn_when_its_node_leaves() -> No
         with bare_session(connect=listen) as session:
             await until(lambda: "/add" in caller.services.entries, "the remote service")
             answers: list[object] = []
-            participant = caller.local_client()
+            participant = caller.port.local_client()
             caller.nodes.bind(participant, "/web_page")
-            caller.call_service(
+            caller.port.call_service(
                 participant, "/add", {"a": 1, "b": 2}, lambda ok, value: answers.append(value)
             )
             await until(lambda: bool(answers), "the answer")

@@ -38,7 +38,7 @@ from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_graph.types.registry import TypeRegistry
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.async_calls import call_service, send_action_goal
-from rwt_transports.server import spawner_for
+from rwt_transports.server import running_handlers
 from rwt_zenoh.actions import ActionWire
 from rwt_zenoh.config import make_config
 from rwt_zenoh.link import open_zenoh_link
@@ -134,8 +134,7 @@ def adder_graph() -> Graph:
 @contextlib.asynccontextmanager
 async def serving_fib(graph: Graph, handler: Any, node: str, listen: str) -> AsyncIterator[None]:
     """``/fib`` served in ``graph`` by ``handler``, the graph linked, listening on ``listen``."""
-    async with anyio.create_task_group() as tg, open_zenoh_link(graph, peer(listen=listen)):
-        graph.spawner = spawner_for(tg)
+    async with running_handlers(graph) as tg, open_zenoh_link(graph, peer(listen=listen)):
         graph.create_action_server("/fib", FIBONACCI, handler, node=node)
         yield
         tg.cancel_scope.cancel()
@@ -428,8 +427,8 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
                     graph, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
                 )
                 done: list[tuple[GoalStatus, bool, object]] = []
-                handle = graph.send_action_goal(
-                    graph.local_client(),
+                handle = graph.port.send_action_goal(
+                    graph.port.local_client(),
                     "/fib",
                     "",
                     {"order": 1000},

@@ -103,7 +103,7 @@ class ActionlibServer:
         assert isinstance(goal_msg, dict)
         try:
             subscription = self.republisher.subscription(goal_msg)
-            spawn = self.republisher.graph.spawner
+            spawn = self.republisher.graph.port.spawner
             if spawn is None:
                 raise TFError("no event loop runs this graph")
             self.republisher.reserve()

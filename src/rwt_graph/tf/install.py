@@ -18,7 +18,8 @@ tf2_web_republisher node gives a ROS system (REF §7.3), on node
 
 The graph keeps no clock loop and imports no event loop, so the caller
 injects ``sleep(seconds)``, an awaitable such as ``anyio.sleep``; the ticking loops
-run through ``graph.spawner``, which a running server installs.
+run through the graph's spawner, which a running server lends it
+(``GraphCore.serving``).
 """
 
 from __future__ import annotations
@@ -200,7 +201,7 @@ class TFRepublisher:
         timeout = request.get("timeout")
         assert isinstance(timeout, dict)
         timeout_s = max(stamp_seconds(timeout), MIN_TOPIC_TIMEOUT_S)
-        spawn = require_spawner(self.graph.spawner, "service /republish_tfs")
+        spawn = require_spawner(self.graph.port.spawner, "service /republish_tfs")
         name = f"{REPUBLISH_TOPIC_PREFIX}{next(self._topic_ids)}"
         self.reserve()  # counted now and released by the job: a refusal fails this call
         try:
