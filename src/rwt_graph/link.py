@@ -1,8 +1,8 @@
 """The link contract: how a graph is mirrored to and from another middleware.
 
 A link (``rwt_zenoh``'s Zenoh link, ``rwt_ros2``'s rclpy link) attaches to a
-``Graph`` through its public API, as clients do, and follows the same rules,
-written here once:
+``Graph`` through its port (``Graph.port``), as sessions do, and follows the
+same rules, written here once:
 
 - **Local and remote.** Every participant the link adds to the graph (an entity
   of the other middleware) has a client id starting with the link's prefix
@@ -20,9 +20,9 @@ written here once:
   graph subscriber whose sink drops messages (``NULL_SINK``: the data travels
   on the other middleware), a remote service is a graph service provider. Each
   belongs to its remote node (``Nodes.bind``), so rosapi lists it there.
-- **Cleanup.** A remote entity that goes is ``Graph.release``-d: its services
-  fail their callers (D15), its latched message goes (D13). When the link
-  stops, it releases every remote entity it mirrored.
+- **Cleanup.** A remote entity that goes is released (``GraphCore.release``):
+  its services fail their callers (D15), its latched message goes (D13). When
+  the link stops, it releases every remote entity it mirrored.
 """
 
 from __future__ import annotations
