@@ -19,7 +19,7 @@ import contextlib
 import itertools
 import logging
 from functools import partial
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
@@ -60,6 +60,7 @@ logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
+_T = TypeVar("_T")
 
 
 class GraphCore:
@@ -124,7 +125,7 @@ class GraphCore:
         try:
             yield
         finally:
-            self._spawners.remove(spawner)
+            _drop_last(self._spawners, spawner)
 
     @contextlib.contextmanager
     def use_clock(self, clock: Clock) -> Iterator[None]:
@@ -142,7 +143,7 @@ class GraphCore:
         try:
             yield
         finally:
-            self._clocks.remove(clock)
+            _drop_last(self._clocks, clock)
             self._set_clock(self._clocks[-1])
 
     def _set_clock(self, clock: Clock) -> None:
@@ -533,3 +534,11 @@ class GraphCore:
     def local_client(self) -> ClientId:
         """A fresh participant id for in-process code (its services, calls and goals)."""
         return f"{LOCAL_PREFIX}{next(self._local_ids)}"
+
+
+def _drop_last(items: list[_T], item: _T) -> None:
+    """Remove the last entry of ``items`` that is ``item`` (identity, not equality)."""
+    for index in range(len(items) - 1, -1, -1):
+        if items[index] is item:
+            del items[index]
+            return
