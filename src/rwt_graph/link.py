@@ -19,7 +19,11 @@ same rules, written here once:
   (latched when its durability is transient local), a remote subscription is a
   graph subscriber whose sink drops messages (``NULL_SINK``: the data travels
   on the other middleware), a remote service is a graph service provider. Each
-  belongs to its remote node (``Nodes.bind``), so rosapi lists it there.
+  belongs to its remote node (``Nodes.bind``), so rosapi lists it there
+  (``mirror_endpoint``).
+- **Samples.** A sample from the other middleware is published in the graph by
+  its publisher's participant; one that outran the discovery of its publisher
+  by the topic's relay until the publisher is known (``Relays``).
 - **Cleanup.** A remote entity that goes is released (``GraphCore.release``):
   its services fail their callers (D15), its latched message goes (D13). When
   the link stops, it releases every remote entity it mirrored.
@@ -30,11 +34,16 @@ from __future__ import annotations
 import enum
 from typing import TYPE_CHECKING, Any, Protocol
 
+from rwt_protocol.errors import RwtError
+
 if TYPE_CHECKING:
+    from collections.abc import Container
+
     from rwt_protocol.ports import ClientId, MessageEvent
 
     from .actions import ActionEntry
     from .graph import Graph
+    from .topics import Topic
 
 __all__ = [
     "DEFAULT_DEPTH",
@@ -44,7 +53,9 @@ __all__ = [
     "GraphLink",
     "Kind",
     "LinkRules",
+    "Relays",
     "Wanted",
+    "mirror_endpoint",
 ]
 
 DEFAULT_DEPTH = 10
@@ -149,6 +160,108 @@ def matches_private(name: str, private: tuple[str, ...]) -> bool:
         elif name == pattern:
             return True
     return False
+
+
+def mirror_endpoint(
+    graph: Graph,
+    client: ClientId,
+    node: str,
+    kind: Kind,
+    topic: str,
+    type_name: str,
+    *,
+    latched: bool = False,
+) -> None:
+    """Make a remote publisher or subscription a participant of ``graph`` (module text).
+
+    ``client`` belongs to ``node``; a publisher advertises ``type_name``
+    (latched when its durability is transient local), a subscription subscribes
+    with ``NULL_SINK``. A refused entity leaves no node binding behind.
+
+    Raises:
+        RwtError: the graph refuses it (``GraphError``: another type, a reserved
+            topic; ``UnknownTypeError``...). ``kind`` is a service: ``ValueError``.
+    """
+    if kind is Kind.SERVICE:
+        raise ValueError("a service is mirrored with its provider (GraphCore.advertise_service)")
+    graph.nodes.bind(client, node)
+    try:
+        if kind is Kind.PUBLISHER:
+            graph.port.advertise(client, topic, type_name, latch=latched)
+        else:
+            graph.port.subscribe(client, topic, type_name, NULL_SINK)
+    except RwtError:
+        graph.nodes.forget(client)
+        raise
+
+
+class Relays:
+    """Stand-in publishers of samples that outran their publisher's discovery.
+
+    A sample can arrive before the link has seen its publisher (rmw_zenoh's
+    token, the ROS 2 graph's endpoint): the topic's relay, a participant of the
+    link (``<prefix>relay:<topic>``) in ``node``, publishes it meanwhile. A
+    relay goes once its topic's publishers are known, the topic is gone or the
+    link no longer subscribes to it (``sweep``), and when the link stops (``close``).
+
+    Args:
+        graph: the linked graph.
+        rules: the link's rules (its participant prefix).
+        node: the node rosapi lists the relays in (the link's own).
+    """
+
+    def __init__(self, graph: Graph, rules: LinkRules, node: str) -> None:
+        self._graph = graph
+        self._rules = rules
+        self._node = node
+        self._relays: dict[str, ClientId] = {}
+
+    def deliver(self, entry: Topic, publisher: ClientId | None, msg: dict[str, object]) -> None:
+        """Publish ``msg``, a decoded sample of ``entry``'s topic, in the graph.
+
+        By ``publisher``'s participant when the link mirrors it as a publisher of
+        the topic (latched as it advertised), otherwise by the topic's relay.
+
+        Raises:
+            RwtError: the topic is reserved by the server, so no relay may
+                publish there (``GraphError``); the sample is not the network's.
+        """
+        port = self._graph.port
+        if publisher is not None:
+            latched = entry.publishers.get(publisher)
+            if latched is not None:
+                port.publish_local(publisher, entry.name, msg, latch=latched)
+                return
+        relay = self._relays.get(entry.name)
+        if relay is None:
+            relay = f"{self._rules.prefix}relay:{entry.name}"
+            mirror_endpoint(
+                self._graph, relay, self._node, Kind.PUBLISHER, entry.name, entry.msgtype.name
+            )
+            self._relays[entry.name] = relay
+        port.publish_local(relay, entry.name, msg, latch=False)
+
+    def sweep(self, subscribed: Container[str]) -> None:
+        """Release each relay no longer needed.
+
+        A relay goes when its topic is gone, is not in ``subscribed`` (the topics
+        the link receives) or has a publisher of the link's that is known now.
+        """
+        graph = self._graph
+        for topic, relay in list(self._relays.items()):
+            entry = graph.topics.get(topic)
+            known = entry is not None and any(
+                self._rules.ours(client) and client != relay for client in entry.publishers
+            )
+            if entry is None or known or topic not in subscribed:
+                del self._relays[topic]
+                graph.port.release(relay)
+
+    def close(self) -> None:
+        """Release every relay (the link stops)."""
+        for relay in self._relays.values():
+            self._graph.port.release(relay)
+        self._relays.clear()
 
 
 class GraphLink(Protocol):

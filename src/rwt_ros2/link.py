@@ -37,7 +37,14 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 
-from rwt_graph.link import DEFAULT_DEPTH, LATCHED_DEPTH, NULL_SINK, Kind, LinkRules
+from rwt_graph.link import (
+    DEFAULT_DEPTH,
+    LATCHED_DEPTH,
+    Kind,
+    LinkRules,
+    Relays,
+    mirror_endpoint,
+)
 from rwt_graph.param_replicas import ParamReplicas
 from rwt_graph.param_services import answer as answer_param_request
 from rwt_graph.param_services import param_nodes
@@ -182,7 +189,7 @@ class Ros2Link:
         self._servers: dict[str, _Server] = {}
         self._action_servers: dict[str, _Server] = {}
         self._param_servers: dict[str, list[Any]] = {}  # node -> its 3 rclpy services
-        self._relays: dict[str, ClientId] = {}
+        self._relays = Relays(graph, self.rules, ros.fqn)
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
@@ -254,9 +261,7 @@ class Ros2Link:
             answer.set(False, "the ROS 2 link is stopping")
         for client in list(self._mirrors):
             self._unmirror(client)
-        for relay in self._relays.values():
-            self.graph.port.release(relay)
-        self._relays.clear()
+        self._relays.close()
         self.graph.nodes.forget(self.caller)
         node = self.ros.node
         for sub in self._subs.values():
@@ -326,12 +331,16 @@ class Ros2Link:
                 graph.nodes.bind(client, spec)
             elif isinstance(spec, Endpoint):
                 self._check_hash(spec)
-                graph.nodes.bind(client, spec.node)
-                if spec.kind == "publisher":
-                    latch = spec.qos.transient_local
-                    graph.port.advertise(client, spec.topic, spec.type_name, latch=latch)
-                else:
-                    graph.port.subscribe(client, spec.topic, spec.type_name, NULL_SINK)
+                publisher = spec.kind == "publisher"
+                mirror_endpoint(
+                    graph,
+                    client,
+                    spec.node,
+                    Kind.PUBLISHER if publisher else Kind.SUBSCRIPTION,
+                    spec.topic,
+                    spec.type_name,
+                    latched=publisher and spec.qos.transient_local,
+                )
             elif isinstance(spec, tuple) and len(spec) == 4:
                 _, node, name, type_name = spec
                 if name in graph.actions.entries:
@@ -417,18 +426,16 @@ class Ros2Link:
                 str(exc),
             )
             return
-        client = self._by_gid.get(gid)
-        if client is not None and client in entry.publishers:
-            latched = entry.publishers[client]
-            self.graph.port.publish_local(client, topic, msg, latch=latched)
-            return
-        # The sample outran discovery of its publisher: a relay publishes it meanwhile.
-        relay = self._relays.get(topic)
-        if relay is None:
-            relay = self._relays[topic] = f"{PARTICIPANT_PREFIX}relay:{topic}"
-            self.graph.nodes.bind(relay, self.ros.fqn)
-            self.graph.port.advertise(relay, topic, type_name, latch=False)
-        self.graph.port.publish_local(relay, topic, msg, latch=False)
+        try:  # by its publisher's participant, or a relay until discovery finds it
+            self._relays.deliver(entry, self._by_gid.get(gid), msg)
+        except RwtError as exc:  # a topic reserved by the server: not ROS 2's
+            self.episodes.log(
+                logging.WARNING,
+                f"refused:{topic}",
+                "event=ros2_sample_refused topic=%s reason=%r",
+                topic,
+                exc.message,
+            )
 
     # ---- the local graph, outward ---------------------------------------------------
 
@@ -450,7 +457,7 @@ class Ros2Link:
         self._sweep_servers(serving)
         self._sweep_action_servers()
         self._sweep_param_servers()
-        self._sweep_relays()
+        self._relays.sweep(self._subs)
 
     def _sweep_subscriptions(self, listening: dict[str, str]) -> None:
         node = self.ros.node
@@ -663,16 +670,6 @@ class Ros2Link:
                     )
                 )
             self._param_servers[name] = handles
-
-    def _sweep_relays(self) -> None:
-        for topic, relay in list(self._relays.items()):
-            entry = self.graph.topics.get(topic)
-            known = entry is not None and any(
-                self.rules.ours(c) and c != relay for c in entry.publishers
-            )
-            if entry is None or known or topic not in self._subs:
-                del self._relays[topic]
-                self.graph.port.release(relay)
 
 
 def _destroy(destroy: Any, handle: Any) -> None:

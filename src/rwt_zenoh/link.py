@@ -36,7 +36,7 @@ import zenoh.ext
 
 import zenoh
 from rwt_graph.calls import guarded
-from rwt_graph.link import NULL_SINK, PRIVATE_NAMES, Kind, LinkRules
+from rwt_graph.link import PRIVATE_NAMES, Kind, LinkRules, Relays, mirror_endpoint
 from rwt_graph.nodes import CLIENT_NODE_PREFIX
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
@@ -93,11 +93,6 @@ _KINDS = {
     Kind.SUBSCRIPTION: EntityKind.SUBSCRIPTION,
     Kind.SERVICE: EntityKind.SERVICE,
 }
-
-
-def ours(client: ClientId) -> bool:
-    """Whether ``client`` is one of the link's participants (it came from Zenoh)."""
-    return client.startswith(PARTICIPANT_PREFIX)
 
 
 @dataclass(eq=False)
@@ -239,7 +234,7 @@ class ZenohLink:
         # services shadowed by another provider, tried again each sweep (a set, not a
         # flag walked over every remote entity per sweep)
         self._waiting: set[_Remote] = set()
-        self._relays: dict[str, ClientId] = {}
+        self._relays = Relays(graph, self.rules, LINK_NODE)
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         # A ROS 2 service keeps requests by client GID and sequence number, and refuses
         # a second request with both equal (rmw_service_data.cpp ``take_request``):
@@ -347,9 +342,7 @@ class ZenohLink:
             self._unmirror(remote)
         self._remote.clear()
         self._by_gid.clear()
-        for relay in self._relays.values():
-            self.graph.port.release(relay)
-        self._relays.clear()
+        self._relays.close()
 
     def _soon(self, callback: Callable[..., None], *args: object) -> None:
         """Run ``callback(*args)`` in the link's task (called from Zenoh's threads).
@@ -546,7 +539,7 @@ class ZenohLink:
         self._sweep_nodes()
         self._sweep_subscribers()
         self._sweep_publishers()
-        self._sweep_relays()
+        self._relays.sweep(self._subs)
         self._actions.sweep()
         self._params.sweep()
         for remote in list(self._waiting):
@@ -656,7 +649,9 @@ class ZenohLink:
         for kind, _, name in self._exports:
             entry = self.graph.topics.get(name)
             if entry is not None and kind is EntityKind.PUBLISHER:
-                latched = any(flag for c, flag in entry.publishers.items() if not ours(c))
+                latched = any(
+                    flag for c, flag in entry.publishers.items() if not self.rules.ours(c)
+                )
                 publishing[name] = publishing.get(name, False) or latched
         for name, data in list(self._pubs.items()):
             entry = self.graph.topics.get(name)
@@ -670,7 +665,7 @@ class ZenohLink:
             if not latched or entry is None or entry.latched is None:
                 continue
             owner = entry.latched_by
-            if owner is not None and not ours(owner):  # published before the link saw it
+            if owner is not None and not self.rules.ours(owner):  # published before the link saw it
                 self._put_latched(entry, entry.latched, owner)
 
     def _drop_publisher(self, name: str) -> None:
@@ -734,7 +729,7 @@ class ZenohLink:
 
     def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         """Forward what a local publisher published (the graph calls this on the loop)."""
-        if ours(client) or self._closed or self.rules.is_private(entry.name):
+        if self.rules.ours(client) or self._closed or self.rules.is_private(entry.name):
             return
         if latch:
             self._put_latched(entry, event, client)
@@ -847,13 +842,20 @@ class ZenohLink:
                 provider = RemoteService(self, remote, graph.registry.service(type_name))
                 graph.port.advertise_service(remote.client, topic.name, type_name, provider)
             elif entity.kind is EntityKind.PUBLISHER:
-                graph.nodes.bind(remote.client, remote.node)
                 latched = topic.qos.durability is Durability.TRANSIENT_LOCAL
-                graph.port.advertise(remote.client, topic.name, type_name, latch=latched)
-                self._adopt_relayed(topic.name, remote.client, latched=latched)
+                mirror_endpoint(
+                    graph,
+                    remote.client,
+                    remote.node,
+                    Kind.PUBLISHER,
+                    topic.name,
+                    type_name,
+                    latched=latched,
+                )
             elif entity.kind is EntityKind.SUBSCRIPTION:
-                graph.nodes.bind(remote.client, remote.node)
-                graph.port.subscribe(remote.client, topic.name, type_name, NULL_SINK)
+                mirror_endpoint(
+                    graph, remote.client, remote.node, Kind.SUBSCRIPTION, topic.name, type_name
+                )
         except (RwtError, WireError) as exc:
             graph.nodes.forget(remote.client)
             self.peer_log.log(
@@ -899,47 +901,16 @@ class ZenohLink:
             )
             return
         remote = None if source is None else self._by_gid.get(source)
-        if remote is not None and remote.mirrored and remote.client in entry.publishers:
-            latched = remote.entity.topic is not None and (
-                remote.entity.topic.qos.durability is Durability.TRANSIENT_LOCAL
+        try:  # by its publisher's participant, or a relay until its token comes
+            self._relays.deliver(entry, remote.client if remote is not None else None, msg)
+        except RwtError as exc:  # a topic reserved by the server: not the network's
+            self.peer_log.log(
+                logging.WARNING,
+                f"zenoh_sample_refused:{topic}",
+                "event=zenoh_sample_refused topic=%s reason=%r",
+                topic,
+                exc.message,
             )
-            self.graph.port.publish_local(remote.client, topic, msg, latch=latched)
-            return
-        # The sample outran its publisher's token: a relay publishes it meanwhile.
-        relay = self._relays.get(topic)
-        if relay is None:
-            relay = f"{PARTICIPANT_PREFIX}relay:{topic}"
-            self.graph.nodes.bind(relay, LINK_NODE)
-            try:
-                self.graph.port.advertise(relay, topic, type_name, latch=False)
-            except RwtError as exc:  # a topic reserved by the server: not the network's
-                self.graph.nodes.forget(relay)
-                self.peer_log.log(
-                    logging.WARNING,
-                    f"zenoh_sample_refused:{topic}",
-                    "event=zenoh_sample_refused topic=%s reason=%r",
-                    topic,
-                    exc.message,
-                )
-                return
-            self._relays[topic] = relay
-        self.graph.port.publish_local(relay, topic, msg, latch=False)
-
-    def _adopt_relayed(self, topic: str, client: ClientId, *, latched: bool) -> None:
-        """A latched sample a relay delivered belongs to its publisher, now known."""
-        entry = self.graph.topics.get(topic)
-        relay = self._relays.get(topic)
-        if entry is not None and relay is not None and latched and entry.latched_by == relay:
-            entry.latched_by = client
-
-    def _sweep_relays(self) -> None:
-        for topic, relay in list(self._relays.items()):
-            entry = self.graph.topics.get(topic)
-            known = entry is not None and any(ours(c) and c != relay for c in entry.publishers)
-            if entry is None or known or topic not in self._subs:
-                del self._relays[topic]
-                self.graph.port.release(relay)
-                self.graph.nodes.forget(relay)
 
 
 @asynccontextmanager

@@ -5,7 +5,15 @@ from __future__ import annotations
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_graph.link import NULL_SINK, PRIVATE_NAMES, Kind, LinkRules, matches_private
+from rwt_graph.link import (
+    NULL_SINK,
+    PRIVATE_NAMES,
+    Kind,
+    LinkRules,
+    Relays,
+    matches_private,
+    mirror_endpoint,
+)
 from rwt_graph.param_replicas import ParamReplicas
 from rwt_graph.param_services import MAX_REQUEST_ITEMS, answer, param_nodes
 from rwt_graph.param_wire import from_wire, to_wire, type_code
@@ -13,6 +21,7 @@ from rwt_graph.params import ParameterError
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.hashes import message_type_hash
 from rwt_graph.types.wire import CDR_TRAILING_SLACK, CdrError, read_cdr
+from rwt_protocol.errors import GraphError, RwtError
 from rwt_protocol.ports import MessageEvent
 
 STRING = "std_msgs/msg/String"
@@ -243,3 +252,64 @@ def test_huge_parameter_requests_are_refused_whole() -> None:
         }
     }
     assert not graph.params.has("/robot:b")
+
+
+def _linked_graph() -> tuple[Graph, Relays, list[str]]:
+    """A graph with a local subscriber of /chatter and the relays of a link "link:"."""
+    graph = Graph()
+    heard: list[str] = []
+    graph.create_subscription("/chatter", lambda msg: heard.append(str(msg["data"])), STRING)
+    return graph, Relays(graph, LinkRules("link:"), "/the_link"), heard
+
+
+def test_remote_endpoints_join_the_graph_in_their_node() -> None:
+    graph = Graph()
+    mirror_endpoint(graph, "link:p", "/robot", Kind.PUBLISHER, "/odom", STRING, latched=True)
+    mirror_endpoint(graph, "link:s", "/robot", Kind.SUBSCRIPTION, "/cmd", STRING)
+    assert graph.topics["/odom"].publishers == {"link:p": True}
+    assert graph.topics["/cmd"].subscribers == {"link:s": NULL_SINK}
+    assert graph.nodes.clients_of("/robot") == {"link:p", "link:s"}
+    with pytest.raises(GraphError, match="type"):  # another type: refused, no node left
+        mirror_endpoint(graph, "link:q", "/other", Kind.PUBLISHER, "/odom", "std_msgs/msg/Int32")
+    with pytest.raises(RwtError):  # a type the registry does not know
+        mirror_endpoint(graph, "link:r", "/other", Kind.SUBSCRIPTION, "/x", "no_msgs/msg/None")
+    assert "/other" not in graph.nodes.names()
+    with pytest.raises(ValueError, match="service"):
+        mirror_endpoint(graph, "link:v", "/robot", Kind.SERVICE, "/srv", STRING)
+
+
+def test_a_sample_before_its_publisher_is_known_comes_through_a_relay() -> None:
+    graph, relays, heard = _linked_graph()
+    entry = graph.topics["/chatter"]
+    relays.deliver(entry, None, {"data": "early"})
+    relays.deliver(entry, "link:unknown", {"data": "unknown"})  # not a publisher here (yet)
+    assert heard == ["early", "unknown"]
+    assert graph.nodes.clients_of("/the_link") == {"link:relay:/chatter"}
+    mirror_endpoint(graph, "link:pub", "/talker", Kind.PUBLISHER, "/chatter", STRING)
+    relays.deliver(entry, "link:pub", {"data": "known"})
+    assert heard[-1] == "known"
+    relays.sweep({"/chatter"})  # its publisher is known: the relay goes
+    assert set(entry.publishers) == {"link:pub"}
+    assert "/the_link" not in graph.nodes.names()
+
+
+def test_relays_go_with_their_topic_or_subscription_and_when_the_link_stops() -> None:
+    graph, relays, _ = _linked_graph()
+    relays.deliver(graph.topics["/chatter"], None, {"data": "a"})
+    relays.sweep({"/chatter"})  # still needed: no publisher known, still received
+    assert "link:relay:/chatter" in graph.topics["/chatter"].publishers
+    relays.sweep(set())  # the link no longer receives /chatter
+    assert "link:relay:/chatter" not in graph.topics["/chatter"].publishers
+    relays.deliver(graph.topics["/chatter"], None, {"data": "b"})
+    relays.close()
+    assert "link:relay:/chatter" not in graph.topics["/chatter"].publishers
+    assert "/the_link" not in graph.nodes.names()
+
+
+def test_a_relay_may_not_publish_on_a_topic_the_server_keeps() -> None:
+    graph, relays, heard = _linked_graph()
+    graph.reserve_topic("/chatter")
+    with pytest.raises(GraphError, match="reserved"):
+        relays.deliver(graph.topics["/chatter"], None, {"data": "forged"})
+    assert heard == []
+    assert "/the_link" not in graph.nodes.names()

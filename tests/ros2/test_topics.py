@@ -104,6 +104,34 @@ ros.terminate()
     assert log.count("event=ros2_bad_sample topic=/garbled") == 1, log[-3000:]
 
 
+async def test_a_ros2_talker_on_a_topic_the_server_keeps_is_refused_once(
+    ros_env: Path, tmp_path: Path
+) -> None:
+    # The TF republisher keeps /tf_repub_* for itself (docs/limits.md): the ROS 2
+    # publisher is not mirrored, and its samples, which then come through the
+    # link's relay, are refused with one log line, never delivered.
+    server = ServerProcess(tmp_path, ("--ros2",))  # with the TF republisher
+    try:
+        script = f"""
+import pathlib
+log = pathlib.Path({str(server.stderr_path)!r})
+forged = []
+roslibpy.Topic(ros, "/tf_repub_forged", "std_msgs/msg/String").subscribe(forged.append)
+wait_for(lambda: "event=ros2_sample_refused topic=/tf_repub_forged" in log.read_text(), 30)
+time.sleep(0.5)  # more samples meet the refusal: still one line for the episode
+print(json.dumps(forged))
+ros.terminate()
+"""
+        with Peer("talk", "/tf_repub_forged", ros_env):
+            got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+        log = server.stderr_text()
+    finally:
+        server.stop()
+    assert got == []
+    assert log.count("event=ros2_sample_refused topic=/tf_repub_forged") == 1, log[-3000:]
+    assert "Traceback" not in log, log[-3000:]
+
+
 @pytest.mark.node
 @pytest.mark.skipif(node_missing_reason() is not None, reason=str(node_missing_reason()))
 async def test_a_ros2_talker_reaches_roslib_in_node(server: ServerProcess, ros_env: Path) -> None:
