@@ -18,11 +18,12 @@ import anyio
 
 from .controls import serve_controls
 from .errors import BagError
-from .formats import BagFormat, SplitPolicy
+from .formats import BagFormat, Compression, SplitPolicy
 from .player import Player
 from .progress import play_line, record_line, show_progress
 from .recorder import Recorder
 from .remote import RemoteRecorder
+from .selection import TopicSelection
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
@@ -45,13 +46,18 @@ class RecordOptions:
     Attributes:
         max_bytes: ``--record-max-size`` without ``--record-split``: stop recording
             there (bytes of serialized messages); None: no limit.
+        selection: the topics (globs, regular expressions, exclusions).
+        compression: the MCAP chunk compression.
+        repeat_latched: each split part starts with the latched topics' last messages.
     """
 
     path: Path
-    topics: Sequence[str] = ("*",)
+    selection: TopicSelection = field(default_factory=TopicSelection)
     fmt: BagFormat = BagFormat.MCAP
     split: SplitPolicy = field(default_factory=SplitPolicy)
     max_bytes: int | None = None
+    compression: Compression = field(default_factory=Compression)
+    repeat_latched: bool = True
 
 
 @dataclass(frozen=True)
@@ -106,10 +112,12 @@ class BagJobs:
             self.recorder = Recorder(
                 graph,
                 record.path,
-                topics=record.topics,
+                selection=record.selection,
                 fmt=record.fmt,
                 split=record.split,
                 max_bytes=record.max_bytes,
+                compression=record.compression,
+                repeat_latched=record.repeat_latched,
             )
         if play is not None:
             self.player = Player(
@@ -191,24 +199,33 @@ async def record_remote(
     path: Path,
     registry: TypeRegistry,
     *,
-    topics: Sequence[str] = ("*",),
-    fmt: BagFormat = BagFormat.MCAP,
-    split: SplitPolicy | None = None,
+    record: RecordOptions | None = None,
     compression: str = "cbor",
     duration: float | None = None,
     out: TextIO = sys.stdout,
 ) -> None:
     """``rwt record URL OUT``: record until SIGINT/SIGTERM, showing progress on ``out``.
 
-    With ``duration``, recording also stops that many seconds after it started
-    (connected and subscribed).
+    ``record`` gives the topics, format, split and chunk compression (its path
+    and ``max_bytes`` are not used: ``path`` is the bag). With ``duration``,
+    recording also stops that many seconds after it started (connected and
+    subscribed). ``compression`` is the subscriptions' (cbor or none).
 
     Raises:
         BagError: the bag cannot be created.
         OSError, TransportError: the server cannot be reached.
     """
+    record = record or RecordOptions(path)
     remote = RemoteRecorder(
-        url, path, registry, topics=topics, fmt=fmt, split=split, compression=compression
+        url,
+        path,
+        registry,
+        selection=record.selection,
+        fmt=record.fmt,
+        split=record.split,
+        compression=compression,
+        chunk_compression=record.compression,
+        repeat_latched=record.repeat_latched,
     )
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, remote.stop)

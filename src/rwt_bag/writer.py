@@ -25,13 +25,19 @@ from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 
 from .errors import BagError
-from .formats import BagFormat, SplitPolicy
+from .formats import BagFormat, Compression, SplitPolicy
 from .mcap import CheckpointWriter
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BagFormat", "BagWriter", "SplitPolicy", "TopicInfo", "split_path"]
+__all__ = [
+    "BagFormat",
+    "BagWriter",
+    "SplitPolicy",
+    "TopicInfo",
+    "split_path",
+]
 
 
 @dataclass(frozen=True)
@@ -81,7 +87,9 @@ def split_path(path: Path, index: int) -> Path:
 class _File:
     """One open bag file."""
 
-    def __init__(self, path: Path, fmt: BagFormat, typestore: Typestore) -> None:
+    def __init__(
+        self, path: Path, fmt: BagFormat, typestore: Typestore, compression: Compression
+    ) -> None:
         self.path = path
         self.fmt = fmt
         self._typestore = typestore
@@ -95,7 +103,7 @@ class _File:
                 self.writer = Ros1Writer(path)
             else:
                 plugin = StoragePlugin.MCAP if fmt is BagFormat.MCAP else StoragePlugin.SQLITE3
-                self.writer = CheckpointWriter(path, storage_plugin=plugin)
+                self.writer = CheckpointWriter(path, storage_plugin=plugin, compression=compression)
             self.writer.open()
         except Exception as exc:  # rosbags' WriterError, OSError: the path is taken or bad
             raise BagError(f"cannot create the bag {path}: {exc}") from exc
@@ -158,9 +166,13 @@ class BagWriter:
         typestore: a rosbags typestore holding every recorded type
             (``TypeRegistry.typestore()``).
         split: when to start a new file.
+        compression: how MCAP chunks are compressed; None: not.
+        repeat_latched: start each split part with the last message of every
+            latched topic (``rosbag record --repeat-latched``).
 
     Raises:
-        BagError: the bag cannot be created (it exists, or its folder is missing).
+        BagError: the bag cannot be created (it exists, or its folder is missing),
+            or a compression for a format other than MCAP.
     """
 
     def __init__(
@@ -169,16 +181,21 @@ class BagWriter:
         fmt: BagFormat,
         typestore: Typestore,
         split: SplitPolicy | None = None,
+        *,
+        compression: Compression | None = None,
+        repeat_latched: bool = True,
     ) -> None:
         self.path = Path(path)
         self.fmt = fmt
         self._typestore = typestore
         self._split = split or SplitPolicy()
+        self._compression = (compression or Compression()).check_format(fmt)
+        self._repeat_latched = repeat_latched
         self.paths: list[Path] = [self.path]
-        self._file: _File | None = _File(self.path, fmt, typestore)
+        self._file: _File | None = _File(self.path, fmt, typestore, self._compression)
         # the last message of each latched topic, written again at the start of every
-        # split part (as ros2 bag record --repeat-transient-local does): a part played
-        # alone still has its /tf_static and maps
+        # split part (``repeat_latched``): a part played alone still has its
+        # /tf_static and maps
         self._latched: dict[TopicInfo, bytes | memoryview] = {}
 
     def write(self, info: TopicInfo, ns: int, raw: bytes | memoryview) -> None:
@@ -197,7 +214,7 @@ class BagWriter:
                 if kept != info:  # stamped with the part's first time: its range holds them
                     file.write(kept, ns, data)
         file.write(info, ns, raw)
-        if info.latched:
+        if info.latched and self._repeat_latched:
             self._latched[info] = raw
         if file.checkpoint_due:
             file.checkpoint(full=False)
@@ -214,7 +231,7 @@ class BagWriter:
         file.close()
         path = split_path(self.path, len(self.paths))
         self.paths.append(path)
-        self._file = _File(path, self.fmt, self._typestore)
+        self._file = _File(path, self.fmt, self._typestore, self._compression)
         return self._file
 
     def checkpoint(self) -> None:

@@ -26,7 +26,7 @@ from anyio.abc import TaskStatus
 from typer.core import TyperGroup
 
 from rwt_bag.errors import BagError
-from rwt_bag.formats import BagFormat
+from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_conformance.cli import conformance
 from rwt_console import ConsoleSite
 from rwt_graph.graph import Graph
@@ -39,29 +39,39 @@ from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_bag import (
     Check,
+    ChunkCompressionLevel,
+    ChunkCompressionOption,
     Clock,
     Delay,
     DialectOption,
+    ExcludeRegex,
+    ExcludeTopics,
     Format,
     Interfaces,
     Loop,
+    MaxBagDuration,
+    MaxBagSize,
     PlaybackDuration,
     PlaybackUntil,
     Rate,
     RecordMaxSize,
     RecordSplit,
+    RegexOption,
     Remap,
+    RepeatLatched,
     SplitDuration,
     SplitSize,
     StartOffset,
     StartPaused,
     bag_app,
     bag_jobs,
+    chunk_compression,
     dialect_for,
     play_options,
     record,
     record_options,
     split_policy,
+    topic_selection,
 )
 from .cli_checks import (
     ClickException,
@@ -477,9 +487,17 @@ def serve(
         str,
         typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Topics --record records."),
     ] = "",
+    record_regex: RegexOption = None,
+    record_exclude_regex: ExcludeRegex = None,
+    record_exclude_topics: ExcludeTopics = None,
     record_format: Format = BagFormat.MCAP,
+    record_max_bag_size: MaxBagSize = None,
+    record_max_bag_duration: MaxBagDuration = None,
     record_split_size: SplitSize = None,
     record_split_duration: SplitDuration = None,
+    record_chunk_compression: ChunkCompressionOption = ChunkCompression.NONE,
+    record_chunk_compression_level: ChunkCompressionLevel = None,
+    record_repeat_latched: RepeatLatched = True,
     record_max_size: RecordMaxSize = None,
     record_split: RecordSplit = False,
     play: Annotated[
@@ -713,11 +731,21 @@ def serve(
         graph,
         record_options(
             record,
-            record_topics,
+            topic_selection(
+                record_topics, record_regex, record_exclude_regex, record_exclude_topics
+            ),
             record_format,
-            split_policy(record_split_size, record_split_duration),
+            split_policy(
+                record_max_bag_size,
+                record_max_bag_duration,
+                size_mb=record_split_size,
+                duration_s=record_split_duration,
+                prefix="record-",
+            ),
             max_size=record_max_size,
             split_at_max=record_split,
+            compression=chunk_compression(record_chunk_compression, record_chunk_compression_level),
+            repeat_latched=record_repeat_latched,
         ),
         play_options(
             play,

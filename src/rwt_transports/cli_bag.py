@@ -16,7 +16,8 @@ import anyio
 import typer
 
 from rwt_bag.errors import BagError
-from rwt_bag.formats import BagFormat, SplitPolicy
+from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy
+from rwt_bag.selection import TopicSelection
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import parse_glob_list
 
@@ -30,14 +31,24 @@ if TYPE_CHECKING:
     from rwt_graph.graph import Graph
 
 __all__ = [
+    "ChunkCompressionLevel",
+    "ChunkCompressionOption",
+    "ExcludeRegex",
+    "ExcludeTopics",
+    "MaxBagDuration",
+    "MaxBagSize",
     "RecordMaxSize",
     "RecordSplit",
+    "RegexOption",
+    "RepeatLatched",
     "bag_app",
     "bag_jobs",
+    "chunk_compression",
     "play_options",
     "record",
     "record_options",
     "split_policy",
+    "topic_selection",
 ]
 
 MB = 1_000_000
@@ -51,15 +62,56 @@ Patterns = Annotated[
         help="Topics, comma-separated glob patterns (/tf*,/scan); default: all.",
     ),
 ]
+REGEX_HELP = "Also take topics this regular expression finds in the name (re.search)."
+EXCLUDE_REGEX_HELP = "Leave out topics this regular expression finds in the name."
+EXCLUDE_TOPICS_HELP = "Leave out these topics: comma-separated exact names; repeatable."
+RegexOption = Annotated[str | None, typer.Option(metavar="REGEX", help=REGEX_HELP)]
+ExcludeRegex = Annotated[str | None, typer.Option(metavar="REGEX", help=EXCLUDE_REGEX_HELP)]
+ExcludeTopics = Annotated[
+    list[str] | None, typer.Option(metavar="TOPICS", help=EXCLUDE_TOPICS_HELP)
+]
+MaxBagSize = Annotated[
+    int | None,
+    typer.Option(
+        min=1, metavar="BYTES", help="Start a new file past this many bytes (as ros2 bag record)."
+    ),
+]
+MaxBagDuration = Annotated[
+    float | None,
+    typer.Option(
+        min=0.001,
+        metavar="SECONDS",
+        help="Start a new file past this many seconds (as ros2 bag record).",
+    ),
+]
+ChunkCompressionOption = Annotated[
+    ChunkCompression,
+    typer.Option(help="Compress MCAP chunks: none, zstd or lz4 (MCAP bags only)."),
+]
+ChunkCompressionLevel = Annotated[
+    int | None,
+    typer.Option(
+        metavar="LEVEL",
+        help="The chunk compression's level: zstd -7 to 22 (default 3), lz4 0 to 16 (default 0).",
+    ),
+]
+RepeatLatched = Annotated[
+    bool,
+    typer.Option(
+        help="Start each split part with the last message of every latched topic "
+        "(as rosbag record --repeat-latched)."
+    ),
+]
 FORMAT_HELP = "mcap, sqlite3 (ROS 2 bags) or ros1 (a ROS 1 graph)."
 Format = Annotated[BagFormat, typer.Option(help=FORMAT_HELP)]
+# the options of before --max-bag-size/--max-bag-duration, kept for old command lines
 SplitSize = Annotated[
     float | None,
-    typer.Option(min=0.001, metavar="MB", help="Start a new file after this many megabytes."),
+    typer.Option(min=0.001, metavar="MB", hidden=True, help="--max-bag-size in megabytes."),
 ]
 SplitDuration = Annotated[
     float | None,
-    typer.Option(min=0.001, metavar="SECONDS", help="Start a new file after this many seconds."),
+    typer.Option(min=0.001, metavar="SECONDS", hidden=True, help="--max-bag-duration."),
 ]
 DialectOption = Annotated[
     Dialect | None,
@@ -156,11 +208,68 @@ PlaybackUntil = Annotated[
 ]
 
 
-def split_policy(size_mb: float | None, duration_s: float | None) -> SplitPolicy:
-    """The split policy of ``--split-size``/``--split-duration``."""
-    return SplitPolicy(
-        max_bytes=None if size_mb is None else int(size_mb * MB), max_seconds=duration_s
-    )
+def split_policy(
+    max_bytes: int | None,
+    max_seconds: float | None,
+    *,
+    size_mb: float | None = None,
+    duration_s: float | None = None,
+    prefix: str = "",
+) -> SplitPolicy:
+    """The split policy of ``--max-bag-size``/``--max-bag-duration``.
+
+    ``size_mb`` and ``duration_s`` are the older ``--split-size`` (megabytes) and
+    ``--split-duration``, which say the same; ``prefix`` names the options
+    (``--record-`` on ``rwt serve``) in errors.
+
+    Raises:
+        typer.BadParameter: a limit given under both names.
+    """
+    for new, old, value, legacy in (
+        ("max-bag-size", "split-size", max_bytes, size_mb),
+        ("max-bag-duration", "split-duration", max_seconds, duration_s),
+    ):
+        if value is not None and legacy is not None:
+            hint = f"--{prefix}{new}"
+            raise typer.BadParameter(f"give --{prefix}{new} or --{prefix}{old}", param_hint=hint)
+    if size_mb is not None:
+        max_bytes = int(size_mb * MB)
+    return SplitPolicy(max_bytes=max_bytes, max_seconds=duration_s or max_seconds)
+
+
+def topic_selection(
+    topics: str,
+    regex: str | None = None,
+    exclude_regex: str | None = None,
+    exclude_topics: list[str] | None = None,
+) -> TopicSelection:
+    """The ``TopicSelection`` of ``--topics``, ``--regex`` and the two exclusions.
+
+    Raises:
+        typer.BadParameter: an expression that is not a regular expression.
+    """
+    excluded = [name.strip() for item in exclude_topics or () for name in item.split(",")]
+    try:
+        return TopicSelection.of(
+            parse_glob_list(topics),
+            regex=regex,
+            exclude_regex=exclude_regex,
+            exclude_topics=[name for name in excluded if name],
+        )
+    except BagError as exc:
+        raise typer.BadParameter(str(exc)) from None
+
+
+def chunk_compression(algorithm: ChunkCompression, level: int | None) -> Compression:
+    """The ``Compression`` of ``--chunk-compression`` and its level.
+
+    Raises:
+        typer.BadParameter: a level outside the algorithm's range, or without one.
+    """
+    try:
+        return Compression(algorithm, level)
+    except BagError as exc:
+        raise typer.BadParameter(str(exc)) from None
 
 
 RecordMaxSize = Annotated[
@@ -180,21 +289,31 @@ RecordSplit = Annotated[
 
 def record_options(
     path: Path | None,
-    topics: str,
+    selection: TopicSelection,
     fmt: BagFormat,
     split: SplitPolicy,
     *,
     max_size: int | None = None,
     split_at_max: bool = False,
+    compression: Compression | None = None,
+    repeat_latched: bool = True,
 ) -> RecordOptions | None:
     """``RecordOptions`` of ``--record`` (None without it).
 
     ``max_size`` (bytes) stops recording there, or with ``split_at_max`` starts a
     new part there (the smaller of it and ``split.max_bytes``), as ``ros2 bag
     record --max-bag-size`` splits.
+
+    Raises:
+        typer.BadParameter: a chunk compression for a format other than MCAP.
     """
     if path is None:
         return None
+    compression = compression or Compression()
+    try:
+        compression.check_format(fmt)
+    except BagError as exc:
+        raise typer.BadParameter(str(exc)) from None
     from rwt_bag.jobs import RecordOptions  # noqa: PLC0415 - rosbags' writers only when used
 
     stop_at = max_size
@@ -202,7 +321,7 @@ def record_options(
         part = max_size if split.max_bytes is None else min(split.max_bytes, max_size)
         split = SplitPolicy(max_bytes=part, max_seconds=split.max_seconds)
         stop_at = None
-    return RecordOptions(path, parse_glob_list(topics) or ("*",), fmt, split, stop_at)
+    return RecordOptions(path, selection, fmt, split, stop_at, compression, repeat_latched)
 
 
 def play_options(
@@ -301,9 +420,24 @@ def record(
     url: Annotated[str, typer.Argument(help="The rosbridge server: ws://, wss:// or tcp://.")],
     out: Annotated[Path, typer.Argument(help="The bag to create (a folder; a .bag file).")],
     topics: Patterns = "",
+    regex: Annotated[
+        str | None, typer.Option("--regex", "-e", metavar="REGEX", help=REGEX_HELP)
+    ] = None,
+    exclude_regex: ExcludeRegex = None,
+    exclude_topics: ExcludeTopics = None,
     fmt: Annotated[BagFormat, typer.Option("--format", help=FORMAT_HELP)] = BagFormat.MCAP,
+    max_bag_size: MaxBagSize = None,
+    max_bag_duration: MaxBagDuration = None,
     split_size: SplitSize = None,
     split_duration: SplitDuration = None,
+    chunk_compression_algorithm: Annotated[
+        ChunkCompression,
+        typer.Option(
+            "--chunk-compression", help="Compress MCAP chunks: none, zstd or lz4 (MCAP bags only)."
+        ),
+    ] = ChunkCompression.NONE,
+    chunk_compression_level: ChunkCompressionLevel = None,
+    repeat_latched: RepeatLatched = True,
     compression: Annotated[
         str, typer.Option(help="Subscription compression: cbor (binary) or none (JSON).")
     ] = "cbor",
@@ -317,13 +451,23 @@ def record(
     """Record topics of a rosbridge server into a bag until SIGINT, SIGTERM or --duration.
 
     Subscribes, as a client, to every topic the server lists (rosapi) that
-    matches --topics, also to topics that appear later, and writes each message
-    with its receive time and its type's definition. ROS 2 bags stay readable if
-    the recorder is killed (up to the last second or so).
+    matches --topics or --regex and no exclusion, also to topics that appear
+    later, and writes each message with its receive time and its type's
+    definition. ROS 2 bags stay readable if the recorder is killed (up to the
+    last second or so).
     """
     if compression not in ("cbor", "none"):
         _fail("record", f"--compression must be cbor or none, not {compression}")
     from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
+
+    options = record_options(
+        out,
+        topic_selection(topics, regex, exclude_regex, exclude_topics),
+        fmt,
+        split_policy(max_bag_size, max_bag_duration, size_mb=split_size, duration_s=split_duration),
+        compression=chunk_compression(chunk_compression_algorithm, chunk_compression_level),
+        repeat_latched=repeat_latched,
+    )
 
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     registry = TypeRegistry(dialect_for(dialect, (), fmt), interfaces or ())
@@ -333,9 +477,7 @@ def record(
                 url,
                 out,
                 registry,
-                topics=parse_glob_list(topics) or ("*",),
-                fmt=fmt,
-                split=split_policy(split_size, split_duration),
+                record=options,
                 compression=compression,
                 duration=duration,
             )
