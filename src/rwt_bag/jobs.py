@@ -76,6 +76,9 @@ class PlayOptions:
     delay: float = 0.0
     duration: float | None = None
     until_ns: int | None = None
+    prefix: str = ""
+    wait_for_subscribers: bool = False
+    wait_timeout: float | None = None
 
 
 class BagJobs:
@@ -135,6 +138,9 @@ class BagJobs:
                 delay=play.delay,
                 duration=play.duration,
                 until_ns=play.until_ns,
+                prefix=play.prefix,
+                wait_for_subscribers=play.wait_for_subscribers,
+                wait_timeout=play.wait_timeout,
             )
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:

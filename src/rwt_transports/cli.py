@@ -53,6 +53,7 @@ from .cli_bag import (
     MaxBagSize,
     PlaybackDuration,
     PlaybackUntil,
+    Prefix,
     Rate,
     RecordMaxSize,
     RecordSplit,
@@ -63,6 +64,8 @@ from .cli_bag import (
     SplitSize,
     StartOffset,
     StartPaused,
+    WaitForSubscribers,
+    WaitTimeout,
     bag_app,
     bag_jobs,
     chunk_compression,
@@ -517,6 +520,9 @@ def serve(
     delay: Delay = 0.0,
     playback_duration: PlaybackDuration = None,
     playback_until_sec: PlaybackUntil = None,
+    play_prefix: Prefix = "",
+    wait_for_subscribers: WaitForSubscribers = False,
+    wait_for_subscribers_timeout: WaitTimeout = None,
     zenoh: Annotated[
         bool, typer.Option(help=f"Share the graph over a Zenoh network ({ZENOH_EXTRA}).")
     ] = False,
@@ -760,6 +766,9 @@ def serve(
             delay=delay,
             duration=playback_duration,
             until_sec=playback_until_sec,
+            prefix=play_prefix,
+            wait_for_subscribers=wait_for_subscribers,
+            wait_timeout=wait_for_subscribers_timeout,
         ),
         command="serve",
     )
@@ -829,6 +838,9 @@ def play(
     delay: Delay = 0.0,
     playback_duration: PlaybackDuration = None,
     playback_until_sec: PlaybackUntil = None,
+    prefix: Prefix = "",
+    wait_for_subscribers: WaitForSubscribers = False,
+    wait_for_subscribers_timeout: WaitTimeout = None,
     dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
@@ -855,6 +867,9 @@ def play(
         delay=delay,
         duration=playback_duration,
         until_sec=playback_until_sec,
+        prefix=prefix,
+        wait_for_subscribers=wait_for_subscribers,
+        wait_timeout=wait_for_subscribers_timeout,
     )
     jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
     try:

@@ -37,10 +37,13 @@ __all__ = [
     "ExcludeTopics",
     "MaxBagDuration",
     "MaxBagSize",
+    "Prefix",
     "RecordMaxSize",
     "RecordSplit",
     "RegexOption",
     "RepeatLatched",
+    "WaitForSubscribers",
+    "WaitTimeout",
     "bag_app",
     "bag_jobs",
     "chunk_compression",
@@ -207,6 +210,26 @@ PlaybackUntil = Annotated[
     ),
 ]
 
+Prefix = Annotated[
+    str,
+    typer.Option(
+        metavar="NAMESPACE",
+        help="Publish every topic under this namespace (/sim: /tf as /sim/tf), as rosbag play.",
+    ),
+]
+WaitForSubscribers = Annotated[
+    bool,
+    typer.Option(help="Before the first message, wait until every played topic has a subscriber."),
+]
+WaitTimeout = Annotated[
+    float | None,
+    typer.Option(
+        min=0.0,
+        metavar="SECONDS",
+        help="Wait this long for them at most, then play anyway; default: until interrupted.",
+    ),
+]
+
 
 def split_policy(
     max_bytes: int | None,
@@ -338,6 +361,9 @@ def play_options(
     delay: float = 0.0,
     duration: float | None = None,
     until_sec: float | None = None,
+    prefix: str = "",
+    wait_for_subscribers: bool = False,
+    wait_timeout: float | None = None,
 ) -> PlayOptions | None:
     """``PlayOptions`` of ``--play`` (None without it).
 
@@ -368,6 +394,9 @@ def play_options(
         delay=delay,
         duration=duration,
         until_ns=until_ns,
+        prefix=prefix,
+        wait_for_subscribers=wait_for_subscribers,
+        wait_timeout=wait_timeout,
     )
 
 
