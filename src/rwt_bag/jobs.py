@@ -19,6 +19,7 @@ import anyio
 from .controls import serve_controls
 from .errors import BagError
 from .formats import BagFormat, Compression, SplitPolicy
+from .keys import HELP, keyboard_controls
 from .player import Player
 from .progress import play_line, record_line, show_progress
 from .recorder import Recorder
@@ -91,6 +92,8 @@ class BagJobs:
         progress: where to show progress (a terminal: live; else a final line).
         stop_at_end: called when the player reaches the bag's end (``rwt play``
             stops its server); None: the player lingers (``rwt serve --play``).
+        keyboard: a terminal's file descriptor whose keys drive the player
+            (``rwt_bag.keys``); None: no keyboard controls.
 
     Raises:
         BagError: the bag to play cannot be read, or has an unknown or
@@ -105,8 +108,10 @@ class BagJobs:
         play: PlayOptions | None = None,
         progress: TextIO | None = None,
         stop_at_end: Callable[[], None] | None = None,
+        keyboard: int | None = None,
     ) -> None:
         self.graph = graph
+        self.keyboard = keyboard
         self.progress = progress
         self.stop_at_end = stop_at_end
         self.recorder = None
@@ -156,6 +161,11 @@ class BagJobs:
                     await tg.start(self.recorder.run)
                 if self.player is not None:
                     await tg.start(self._play, tg.cancel_scope)
+                if self.player is not None and self.keyboard is not None:
+                    if self.progress is not None:
+                        self.progress.write(f"{HELP}\n")
+                        self.progress.flush()
+                    tg.start_soon(keyboard_controls, self.player, self.keyboard)
                 if self.progress is not None:
                     line = self._record_line if self.player is None else self._play_line
                     tg.start_soon(show_progress, line, self.progress)

@@ -173,6 +173,7 @@ class Player(BackgroundJob):
         self._paused = paused
         self._changed = anyio.Event()
         self._seek_to: int | None = None
+        self._step = False  # ``play_next``: publish one message while paused
         self._segment: anyio.CancelScope | None = None
         self._anchor_mono = 0.0
         self._anchor_ns = self.start_ns
@@ -228,8 +229,34 @@ class Player(BackgroundJob):
         """Go on from where ``pause`` stopped."""
         if self._paused:
             self._paused = False
+            self._step = False
             self._anchor(self._position_ns)
             self._notify()
+
+    def play_next(self) -> bool:
+        """While paused, publish the next message (``ros2 bag play``'s right arrow).
+
+        Returns:
+            Whether it applies: False while playing.
+        """
+        if not self._paused:
+            return False
+        self._step = True
+        self._notify()
+        return True
+
+    def set_rate(self, rate: float) -> None:
+        """Play on at ``rate`` from the current position.
+
+        Raises:
+            BagError: ``rate`` is not a finite number above 0.
+        """
+        if not (math.isfinite(rate) and rate > 0):
+            raise BagError(f"the rate must be above 0, not {rate}")
+        if not self._paused:
+            self._anchor(self.bag_time_ns())
+        self.rate = rate
+        self._notify()
 
     def seek(self, offset_s: float, *, clamp: bool = True) -> None:
         """Go to ``offset_s`` seconds from the bag's start.
@@ -431,6 +458,9 @@ class Player(BackgroundJob):
         while True:
             changed = self._changed
             if self._paused:
+                if self._step:  # play_next: this one message, then paused again
+                    self._step = False
+                    return
                 await changed.wait()
                 continue
             delay = self._due(ns) - time.monotonic()

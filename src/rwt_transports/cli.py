@@ -44,6 +44,7 @@ from .cli_bag import (
     Clock,
     Delay,
     DialectOption,
+    DisableKeyboardControls,
     ExcludeRegex,
     ExcludeTopics,
     Format,
@@ -74,6 +75,7 @@ from .cli_bag import (
     record,
     record_options,
     split_policy,
+    terminal_keys,
     topic_selection,
 )
 from .cli_checks import (
@@ -841,6 +843,7 @@ def play(
     prefix: Prefix = "",
     wait_for_subscribers: WaitForSubscribers = False,
     wait_for_subscribers_timeout: WaitTimeout = None,
+    disable_keyboard_controls: DisableKeyboardControls = False,
     dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
@@ -848,7 +851,8 @@ def play(
 
     Web clients see the bag as a live robot: TF through tf2_web_republisher,
     /tf_static and maps latched, rosapi. The /rwt/player/pause, resume, seek and
-    get_status services control playback. Use 'rwt serve --play' for every
+    get_status services control playback, and on a terminal the keys: space
+    pauses and resumes, right arrow plays the next message, up/down the rate. Use 'rwt serve --play' for every
     server option (TCP, video, TLS...) and to keep serving after the end.
     """
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
@@ -871,7 +875,8 @@ def play(
         wait_for_subscribers=wait_for_subscribers,
         wait_timeout=wait_for_subscribers_timeout,
     )
-    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
+    keys = terminal_keys(disable_keyboard_controls)
+    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop, keyboard=keys)
     try:
         anyio.run(_run, server, None, jobs)
     except (OSError, ValueError, ListenError, BaseExceptionGroup, BagError) as exc:

@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ChunkCompressionLevel",
     "ChunkCompressionOption",
+    "DisableKeyboardControls",
     "ExcludeRegex",
     "ExcludeTopics",
     "MaxBagDuration",
@@ -51,6 +52,7 @@ __all__ = [
     "record",
     "record_options",
     "split_policy",
+    "terminal_keys",
     "topic_selection",
 ]
 
@@ -229,6 +231,21 @@ WaitTimeout = Annotated[
         help="Wait this long for them at most, then play anyway; default: until interrupted.",
     ),
 ]
+
+DisableKeyboardControls = Annotated[
+    bool,
+    typer.Option(
+        help="Ignore the keys (on a terminal: space pauses and resumes, right arrow "
+        "publishes the next message while paused, up/down arrows change the rate)."
+    ),
+]
+
+
+def terminal_keys(disabled: bool) -> int | None:
+    """The descriptor of standard input if keys may drive playback: a terminal, not disabled."""
+    if disabled or sys.stdin is None or not sys.stdin.isatty():
+        return None
+    return sys.stdin.fileno()
 
 
 def split_policy(
@@ -422,8 +439,12 @@ def bag_jobs(
     *,
     command: str,
     stop_at_end: object = None,
+    keyboard: int | None = None,
 ) -> BagJobs | None:
-    """The ``BagJobs`` of the options, or None; a bad bag exits with one line (code 1)."""
+    """The ``BagJobs`` of the options, or None; a bad bag exits with one line (code 1).
+
+    ``keyboard``: the terminal whose keys drive the player (``rwt_bag.keys``).
+    """
     if record is None and play is None:
         return None
     from rwt_bag.jobs import BagJobs  # noqa: PLC0415 - see record_options
@@ -435,6 +456,7 @@ def bag_jobs(
             play=play,
             progress=sys.stdout if command != "serve" else None,
             stop_at_end=stop_at_end,  # type: ignore[arg-type]
+            keyboard=keyboard,
         )
     except BagError as exc:
         _fail(command, str(exc))
