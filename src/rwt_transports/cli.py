@@ -852,8 +852,9 @@ def play(
     Web clients see the bag as a live robot: TF through tf2_web_republisher,
     /tf_static and maps latched, rosapi. The /rwt/player/pause, resume, seek and
     get_status services control playback, and on a terminal the keys: space
-    pauses and resumes, right arrow plays the next message, up/down the rate. Use 'rwt serve --play' for every
-    server option (TCP, video, TLS...) and to keep serving after the end.
+    pauses and resumes, right arrow plays the next message, up/down the rate.
+    Use 'rwt serve --play' for every server option (TCP, video, TLS...) and to
+    keep serving after the end.
     """
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     graph = Graph(TypeRegistry(dialect_for(dialect, bag), interfaces or ()))
