@@ -153,7 +153,12 @@ def compressor(compression: Compression) -> tuple[str, Callable[[bytes], bytes]]
         return "zstd", lambda data: zstd.compress(data, level)
     if compression.algorithm is ChunkCompression.LZ4:
         return "lz4", lambda data: bytes(lz4.frame.compress(data, compression_level=level))
-    return "", bytes
+    return "", _uncompressed
+
+
+def _uncompressed(data: bytes) -> bytes:
+    """No compression: the chunk as it is (no copy of its megabytes)."""
+    return data
 
 
 class _Sqlite3Storage(Sqlite3Writer):
