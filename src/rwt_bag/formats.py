@@ -82,8 +82,7 @@ class Compression:
         """
         if self.algorithm is not ChunkCompression.NONE and fmt is not BagFormat.MCAP:
             raise BagError(
-                f"chunk compression ({self.algorithm.value}) is for MCAP bags, "
-                f"not {fmt.value} (--format mcap)"
+                f"chunk compression ({self.algorithm.value}) is for MCAP bags, not {fmt.value}"
             )
         return self
 

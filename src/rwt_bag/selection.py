@@ -59,16 +59,19 @@ class TopicSelection:
         regex: str | None = None,
         exclude_regex: str | None = None,
         exclude_topics: Iterable[str] = (),
+        option_prefix: str = "",
     ) -> TopicSelection:
         """A selection from option values (expressions as text).
+
+        ``option_prefix`` names the options in errors (``record-``: ``--record-regex``).
 
         Raises:
             BagError: an expression is not valid.
         """
         return cls(
             tuple(globs),
-            compile_regex(regex, "--regex"),
-            compile_regex(exclude_regex, "--exclude-regex"),
+            compile_regex(regex, f"--{option_prefix}regex"),
+            compile_regex(exclude_regex, f"--{option_prefix}exclude-regex"),
             frozenset(exclude_topics),
         )
 

@@ -740,7 +740,11 @@ def serve(
         record_options(
             record,
             topic_selection(
-                record_topics, record_regex, record_exclude_regex, record_exclude_topics
+                record_topics,
+                record_regex,
+                record_exclude_regex,
+                record_exclude_topics,
+                prefix="record-",
             ),
             record_format,
             split_policy(
@@ -752,8 +756,11 @@ def serve(
             ),
             max_size=record_max_size,
             split_at_max=record_split,
-            compression=chunk_compression(record_chunk_compression, record_chunk_compression_level),
+            compression=chunk_compression(
+                record_chunk_compression, record_chunk_compression_level, prefix="record-"
+            ),
             repeat_latched=record_repeat_latched,
+            prefix="record-",
         ),
         play_options(
             play,

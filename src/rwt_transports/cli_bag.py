@@ -282,6 +282,8 @@ def topic_selection(
     regex: str | None = None,
     exclude_regex: str | None = None,
     exclude_topics: list[str] | None = None,
+    *,
+    prefix: str = "",
 ) -> TopicSelection:
     """The ``TopicSelection`` of ``--topics``, ``--regex`` and the two exclusions.
 
@@ -295,12 +297,15 @@ def topic_selection(
             regex=regex,
             exclude_regex=exclude_regex,
             exclude_topics=[name for name in excluded if name],
+            option_prefix=prefix,
         )
     except BagError as exc:
         raise typer.BadParameter(str(exc)) from None
 
 
-def chunk_compression(algorithm: ChunkCompression, level: int | None) -> Compression:
+def chunk_compression(
+    algorithm: ChunkCompression, level: int | None, *, prefix: str = ""
+) -> Compression:
     """The ``Compression`` of ``--chunk-compression`` and its level.
 
     Raises:
@@ -309,7 +314,8 @@ def chunk_compression(algorithm: ChunkCompression, level: int | None) -> Compres
     try:
         return Compression(algorithm, level)
     except BagError as exc:
-        raise typer.BadParameter(str(exc)) from None
+        hint = f"--{prefix}chunk-compression-level"
+        raise typer.BadParameter(str(exc), param_hint=hint) from None
 
 
 RecordMaxSize = Annotated[
@@ -337,12 +343,15 @@ def record_options(
     split_at_max: bool = False,
     compression: Compression | None = None,
     repeat_latched: bool = True,
+    prefix: str = "",
 ) -> RecordOptions | None:
     """``RecordOptions`` of ``--record`` (None without it).
 
     ``max_size`` (bytes) stops recording there, or with ``split_at_max`` starts a
     new part there (the smaller of it and ``split.max_bytes``), as ``ros2 bag
     record --max-bag-size`` splits.
+
+    ``prefix`` names the options in errors (``record-`` on ``rwt serve``).
 
     Raises:
         typer.BadParameter: a chunk compression for a format other than MCAP.
@@ -353,7 +362,8 @@ def record_options(
     try:
         compression.check_format(fmt)
     except BagError as exc:
-        raise typer.BadParameter(str(exc)) from None
+        hint = f"--{prefix}chunk-compression"
+        raise typer.BadParameter(f"{exc} (--{prefix}format mcap)", param_hint=hint) from None
     from rwt_bag.jobs import RecordOptions  # noqa: PLC0415 - rosbags' writers only when used
 
     stop_at = max_size

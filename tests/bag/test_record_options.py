@@ -201,3 +201,22 @@ def test_bad_recording_options_are_refused(
     assert code == 2, output
     assert says in output
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (("--record-regex", "("), "--record-regex '(' is not a regular expression"),
+        (
+            ("--record-format", "sqlite3", "--record-chunk-compression", "zstd"),
+            "--record-chunk-compression: chunk compression (zstd) is for MCAP bags, not sqlite3",
+        ),
+    ],
+)
+def test_serve_names_its_own_record_options_in_errors(
+    tmp_path: Path, args: tuple[str, ...], says: str
+) -> None:
+    code, output = invoke("serve", "--port", "0", "--record", str(tmp_path / "x"), *args)
+    assert code == 2, output
+    assert says in output
+    assert not (tmp_path / "x").exists()
