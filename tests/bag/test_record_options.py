@@ -8,7 +8,7 @@
   reader finds every chunk zstd-compressed and decodes every message.
 - ``rwt record URL``: ``-e``, ``--exclude-topics``, ``--chunk-compression lz4``,
   ``--max-bag-duration`` and ``--no-repeat-latched`` (``/tf_static``, published
-  in the first 1.5 s only, is not in the last part).
+  in the first 2 s only, is not in the last part).
 - Bad values (a broken expression, a level out of range, chunk compression for a
   sqlite3 bag, a limit under both names) are refused with one line.
 """
@@ -131,7 +131,7 @@ PUBLISH_UNTIL = """
     i = 0
     while not stop.exists() and time.monotonic() - start < 60:
         if static_until is None and bag.exists():  # the recorder has started
-            static_until = time.monotonic() + 1.5  # it subscribes within a second
+            static_until = time.monotonic() + 2.0  # it subscribes within a second
         if static_until is None or time.monotonic() < static_until:
             static.publish(roslibpy.Message({{"transforms": []}}))
         for t in topics:
@@ -149,7 +149,7 @@ async def test_rwt_record_regex_exclusions_lz4_and_duration_parts(tmp_path: Path
     command = [sys.executable, "-m", "rwt_transports", "record", server.url, str(bag)]
     command += ["--topics", "/tf_static", "-e", "^/sel", "--exclude-topics", "/sel/no"]
     command += ["--chunk-compression", "lz4", "--chunk-compression-level", "9"]
-    command += ["--max-bag-duration", "0.5", "--no-repeat-latched", "--duration", "4"]
+    command += ["--max-bag-duration", "0.5", "--no-repeat-latched", "--duration", "4.5"]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     try:
         async with anyio.create_task_group() as tg:
@@ -169,7 +169,7 @@ async def test_rwt_record_regex_exclusions_lz4_and_duration_parts(tmp_path: Path
     assert len(parts) >= 3  # 4 s of messages in parts of 0.5 s
     messages = topics_by_part(parts)
     assert {topic for part in messages for topic, _ in part} == {"/tf_static", "/sel/a"}
-    # /tf_static stopped 1.5 s after the start, and --no-repeat-latched does not
+    # /tf_static stopped 2 s after the start, and --no-repeat-latched does not
     # carry it into the later parts
     assert {topic for topic, _ in messages[-1]} == {"/sel/a"}
     for part in parts:
