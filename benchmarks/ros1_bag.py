@@ -1,8 +1,9 @@
 """B22: record and play next to the real ROS 1 ``rosbag``, on Debian's ROS 1.
 
-``python -m benchmarks.ros1_bag [--runs 3] [--smoke]``. Needs ``roscore``,
-``rosbag`` and rospy (Debian: ``ros-core``, ``python3-rospy``, ``python3-rosbag``,
-``ros-std-msgs``, ``ros-sensor-msgs``); without them it says so and exits 0.
+``python -m benchmarks rosbag [--runs 3] [--smoke]`` (or ``python -m
+benchmarks.ros1_bag``). Needs ``roscore``, ``rosbag`` and rospy (Debian:
+``ros-core``, ``python3-rospy``, ``python3-std-msgs``, ``python3-sensor-msgs``);
+without them it says so and exits 0.
 
 Record, one live stream at a time, into a ROS 1 bag:
 
@@ -586,13 +587,13 @@ def table(result: dict[str, object]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run, print the table, save ``results/ros1_bag.json`` (not with --smoke)."""
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.ros1_bag", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m benchmarks rosbag", description=__doc__)
     parser.add_argument("--runs", type=int, default=3, help="interleaved rounds per case")
     parser.add_argument("--smoke", action="store_true", help="one tiny round (tests)")
     args = parser.parse_args(argv)
     reason = missing()
     if reason:
-        print(f"benchmarks ros1_bag: skipped: {reason}", file=sys.stderr)
+        print(f"benchmarks rosbag: skipped: {reason}", file=sys.stderr)
         return 0
 
     def log(text: str) -> None:
