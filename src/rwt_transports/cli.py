@@ -26,7 +26,7 @@ from anyio.abc import TaskStatus
 from typer.core import TyperGroup
 
 from rwt_bag.errors import BagError
-from rwt_bag.formats import BagFormat
+from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_conformance.cli import conformance
 from rwt_console import ConsoleSite
 from rwt_graph.graph import Graph
@@ -39,29 +39,44 @@ from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 from .allocator import HEAP_KEEP_MIB, tune_allocator
 from .cli_bag import (
     Check,
+    ChunkCompressionLevel,
+    ChunkCompressionOption,
     Clock,
     Delay,
     DialectOption,
+    DisableKeyboardControls,
+    ExcludeRegex,
+    ExcludeTopics,
     Format,
     Interfaces,
     Loop,
+    MaxBagDuration,
+    MaxBagSize,
     PlaybackDuration,
     PlaybackUntil,
+    Prefix,
     Rate,
     RecordMaxSize,
     RecordSplit,
+    RegexOption,
     Remap,
+    RepeatLatched,
     SplitDuration,
     SplitSize,
     StartOffset,
     StartPaused,
+    WaitForSubscribers,
+    WaitTimeout,
     bag_app,
     bag_jobs,
+    chunk_compression,
     dialect_for,
     play_options,
     record,
     record_options,
     split_policy,
+    terminal_keys,
+    topic_selection,
 )
 from .cli_checks import (
     ClickException,
@@ -477,9 +492,17 @@ def serve(
         str,
         typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Topics --record records."),
     ] = "",
+    record_regex: RegexOption = None,
+    record_exclude_regex: ExcludeRegex = None,
+    record_exclude_topics: ExcludeTopics = None,
     record_format: Format = BagFormat.MCAP,
+    record_max_bag_size: MaxBagSize = None,
+    record_max_bag_duration: MaxBagDuration = None,
     record_split_size: SplitSize = None,
     record_split_duration: SplitDuration = None,
+    record_chunk_compression: ChunkCompressionOption = ChunkCompression.NONE,
+    record_chunk_compression_level: ChunkCompressionLevel = None,
+    record_repeat_latched: RepeatLatched = True,
     record_max_size: RecordMaxSize = None,
     record_split: RecordSplit = False,
     play: Annotated[
@@ -499,6 +522,9 @@ def serve(
     delay: Delay = 0.0,
     playback_duration: PlaybackDuration = None,
     playback_until_sec: PlaybackUntil = None,
+    play_prefix: Prefix = "",
+    wait_for_subscribers: WaitForSubscribers = False,
+    wait_for_subscribers_timeout: WaitTimeout = None,
     zenoh: Annotated[
         bool, typer.Option(help=f"Share the graph over a Zenoh network ({ZENOH_EXTRA}).")
     ] = False,
@@ -714,11 +740,28 @@ def serve(
         graph,
         record_options(
             record,
-            record_topics,
+            topic_selection(
+                record_topics,
+                record_regex,
+                record_exclude_regex,
+                record_exclude_topics,
+                prefix="record-",
+            ),
             record_format,
-            split_policy(record_split_size, record_split_duration),
+            split_policy(
+                record_max_bag_size,
+                record_max_bag_duration,
+                size_mb=record_split_size,
+                duration_s=record_split_duration,
+                prefix="record-",
+            ),
             max_size=record_max_size,
             split_at_max=record_split,
+            compression=chunk_compression(
+                record_chunk_compression, record_chunk_compression_level, prefix="record-"
+            ),
+            repeat_latched=record_repeat_latched,
+            prefix="record-",
         ),
         play_options(
             play,
@@ -733,6 +776,9 @@ def serve(
             delay=delay,
             duration=playback_duration,
             until_sec=playback_until_sec,
+            prefix=play_prefix,
+            wait_for_subscribers=wait_for_subscribers,
+            wait_timeout=wait_for_subscribers_timeout,
         ),
         command="serve",
     )
@@ -802,6 +848,10 @@ def play(
     delay: Delay = 0.0,
     playback_duration: PlaybackDuration = None,
     playback_until_sec: PlaybackUntil = None,
+    prefix: Prefix = "",
+    wait_for_subscribers: WaitForSubscribers = False,
+    wait_for_subscribers_timeout: WaitTimeout = None,
+    disable_keyboard_controls: DisableKeyboardControls = False,
     dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
@@ -809,8 +859,10 @@ def play(
 
     Web clients see the bag as a live robot: TF through tf2_web_republisher,
     /tf_static and maps latched, rosapi. The /rwt/player/pause, resume, seek and
-    get_status services control playback. Use 'rwt serve --play' for every
-    server option (TCP, video, TLS...) and to keep serving after the end.
+    get_status services control playback, and on a terminal the keys: space
+    pauses and resumes, right arrow plays the next message, up/down the rate.
+    Use 'rwt serve --play' for every server option (TCP, video, TLS...) and to
+    keep serving after the end.
     """
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     graph = Graph(TypeRegistry(dialect_for(dialect, bag), interfaces or ()))
@@ -828,8 +880,12 @@ def play(
         delay=delay,
         duration=playback_duration,
         until_sec=playback_until_sec,
+        prefix=prefix,
+        wait_for_subscribers=wait_for_subscribers,
+        wait_timeout=wait_for_subscribers_timeout,
     )
-    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
+    keys = terminal_keys(disable_keyboard_controls)
+    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop, keyboard=keys)
     try:
         anyio.run(_run, server, None, jobs)
     except (OSError, ValueError, ListenError, BaseExceptionGroup, BagError) as exc:
