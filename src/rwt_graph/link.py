@@ -8,8 +8,8 @@ same rules, written here once:
   of the other middleware) has a client id starting with the link's prefix
   (``LinkRules.ours``); everything else is local. Only local entities are shared
   outward (``LinkRules.wanted``), and only local publishers' messages are
-  forwarded (the link's graph tap skips its own participants), so nothing that
-  came in goes back out.
+  forwarded (``LinkRules.forwards``, which the link's graph tap asks), so
+  nothing that came in goes back out.
 - **Private names.** Each server keeps its client counts and its rosapi to
   itself (``PRIVATE_NAMES``): rosapi already answers for the whole graph.
 - **QoS.** A local publisher goes out reliable, volatile, keep last
@@ -114,6 +114,14 @@ class LinkRules:
     def ours(self, client: ClientId) -> bool:
         """Whether ``client`` is one of the link's participants (it came from outside)."""
         return client.startswith(self.prefix)
+
+    def forwards(self, client: ClientId, topic: str) -> bool:
+        """Whether a message ``client`` published on ``topic`` goes out (the links' taps).
+
+        Only local publishers' messages on names that are not private do, so
+        nothing that came in goes back out (no echo, no loops).
+        """
+        return not client.startswith(self.prefix) and not self.is_private(topic)
 
     def is_private(self, name: str) -> bool:
         """Whether ``name`` stays in this process; remembered, as taps ask per message."""

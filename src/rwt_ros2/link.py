@@ -576,7 +576,7 @@ class Ros2Link:
 
     def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         """Forward what a local publisher published (the graph calls this on the loop)."""
-        if self._closed or self.rules.ours(client) or self.rules.is_private(entry.name):
+        if self._closed or not self.rules.forwards(client, entry.name):
             return
         latched = latch or entry.publishers.get(client, False)
         pub = self._pubs.get(entry.name)

@@ -729,7 +729,7 @@ class ZenohLink:
 
     def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         """Forward what a local publisher published (the graph calls this on the loop)."""
-        if self.rules.ours(client) or self._closed or self.rules.is_private(entry.name):
+        if self._closed or not self.rules.forwards(client, entry.name):
             return
         if latch:
             self._put_latched(entry, event, client)

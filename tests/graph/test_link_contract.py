@@ -55,6 +55,9 @@ def test_rules_share_only_local_entities_and_no_private_names() -> None:
     assert not any(rules.ours(client) for _, client, _ in wanted)
     assert not any(name == "/client_count" for _, _, name in wanted)
     assert rules.ours("link:remote") and not rules.ours("ws:1")
+    assert rules.forwards("ws:1", "/chatter")
+    assert not rules.forwards("link:remote", "/chatter")  # came in: never back out
+    assert not rules.forwards("ws:1", "/rosapi/topics")
     NULL_SINK.on_message(MessageEvent("/heard", STRING, {"data": ""}, 0.0))  # drops it
 
 
