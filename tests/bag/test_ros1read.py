@@ -29,6 +29,12 @@ REPO = Path(__file__).resolve().parents[2]
 COMPRESSIONS = [None, Ros1Writer.CompressionFormat.BZ2, Ros1Writer.CompressionFormat.LZ4]
 
 
+@pytest.fixture(autouse=True)
+def _shortcut_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shortcut on, whatever ``RWT_NO_SHORTCUTS`` says (each test compares both ways)."""
+    monkeypatch.setattr(ros1read, "_ENABLED", True)
+
+
 def _busy_bag(path: Path, compression: Ros1Writer.CompressionFormat | None) -> Path:
     """Three topics, 600 strings in small chunks, some at the same time, one topic late."""
     store = typestore(ros1=True)
