@@ -1,9 +1,9 @@
 """``python -m benchmarks.ros2_bridge``: real ROS 2 to WebSocket clients through a bridge.
 
-A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS on
-loopback) publishes on a private domain; a bridge carries each message to 1 or 10
-WebSocket subscribers (``websockets`` clients in this process that only count and
-read the stamp). Four receivers, in one run and on one machine state:
+A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS set
+up as ``FASTDDS`` says) publishes on a private domain; a bridge carries each message
+to 1 or 10 WebSocket subscribers (``websockets`` clients in this process that only
+count and read the stamp). Four receivers, in one run and on one machine state:
 
 - ``rwt``: ``rwt serve --ros2 --no-tf`` from this checkout (docs/ros2.md);
 - ``rosbridge``: the real rosbridge_suite 2.1.0 for ROS 2 (``rosbridge_websocket``
@@ -484,8 +484,9 @@ async def run_case(
         TimeoutError: discovery took longer than ``DISCOVERY_S``.
     """
     env = {**os.environ, **ros_env(domain, fastdds)}
-    if FASTDDS[fastdds] is None:
+    if FASTDDS[fastdds] is None:  # none inherited either, under either name
         env.pop("FASTDDS_DEFAULT_PROFILES_FILE", None)
+        env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
     if receiver == "rclpy":
         return await _bare(case, seconds, env)
