@@ -27,9 +27,9 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from rwt_bag import Player, Recorder
     from rwt_client import Action, Ros, Service, SyncRos, Topic
+    from rwt_graph.async_calls import GoalOutcome, call_service, send_action_goal
     from rwt_graph.graph import Graph
     from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
-    from rwt_transports.async_calls import GoalOutcome, call_service, send_action_goal
     from rwt_transports.server import RosbridgeServer, ServerConfig
 
 __all__ = [
@@ -56,7 +56,7 @@ _HOMES = {
     "Action": "rwt_client",
     "CallTimeoutError": "rwt_protocol.errors",
     "Graph": "rwt_graph.graph",
-    "GoalOutcome": "rwt_transports.async_calls",
+    "GoalOutcome": "rwt_graph.async_calls",
     "Player": "rwt_bag",
     "Recorder": "rwt_bag",
     "Ros": "rwt_client",
@@ -67,8 +67,8 @@ _HOMES = {
     "ServiceCallError": "rwt_protocol.errors",
     "SyncRos": "rwt_client",
     "Topic": "rwt_client",
-    "call_service": "rwt_transports.async_calls",
-    "send_action_goal": "rwt_transports.async_calls",
+    "call_service": "rwt_graph.async_calls",
+    "send_action_goal": "rwt_graph.async_calls",
 }
 
 try:

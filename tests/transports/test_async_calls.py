@@ -9,9 +9,9 @@ import anyio.lowlevel
 import pytest
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
+from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import GoalStatus
-from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_transports.server import spawner_for
 from tests.conftest import Peer
 
