@@ -26,10 +26,11 @@ PACKAGES = [
     "rwt_video",
     "rwt_zenoh",
     "rwt_transports",
+    "rwt_cli",
 ]
 # Exceptions that never leave the module raising them: a checker's internal signal
 # (turned into a FieldError) and typer's own parameter error (a usage message).
-INTERNAL = {"rwt_graph.types.problem.Problem", "rwt_transports.cli_checks.OptionError"}
+INTERNAL = {"rwt_graph.types.problem.Problem", "rwt_cli.checks.OptionError"}
 
 
 def public_exceptions() -> list[type[BaseException]]:

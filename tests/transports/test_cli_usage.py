@@ -24,12 +24,12 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from rwt_transports.cli import app
-from rwt_transports.cli_checks import check_glob_list
+from rwt_cli.app import app
+from rwt_cli.checks import check_glob_list
 from tests.transports.realclients import REPO
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
-RWT = [sys.executable, "-m", "rwt_transports.cli"]
+RWT = [sys.executable, "-m", "rwt"]
 SERVE = [*RWT, "serve", "--host", "127.0.0.1", "--log-level", "warning"]
 TIMEOUT_S = 60  # a bound on a hung process, not a speed requirement
 
@@ -323,7 +323,7 @@ def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
     code = (
         "import runpy, sys;"
         "sys.modules['uvloop'] = None;"
-        "runpy.run_module('rwt_transports.cli', run_name='__main__')"
+        "runpy.run_module('rwt', run_name='__main__')"
     )
     run = rwt("serve", "--port", "0", "--uvloop", command=[sys.executable, "-c", code])
     assert run.returncode == 1

@@ -19,9 +19,9 @@ from rwt_bag.errors import BagError
 from rwt_bag.formats import BagFormat, SplitPolicy
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import parse_glob_list
+from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
 
-from .allocator import HEAP_KEEP_MIB, tune_allocator
-from .cli_checks import check_directories, check_glob_list
+from .checks import check_directories, check_glob_list
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
