@@ -140,8 +140,9 @@ class Browser:
             raise CdpError(f"{method}: {reply['error']}")
         return reply.get("result", {})
 
-    def events(self, session: str, method: str | None = None) -> list[Message]:
-        """The events of one page so far (of one ``method`` when given)."""
+    def events(self, session: str | None, method: str | None = None) -> list[Message]:
+        """The events of one page so far (of one ``method`` when given); with ``session``
+        None, the browser's own (``Browser.downloadProgress``...)."""
         with self._changed:
             return [
                 e

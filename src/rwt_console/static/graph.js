@@ -1,6 +1,6 @@
 // The graph on the left: topics (with publisher/subscriber counts and the rates
 // measured in this page), services, action servers, nodes and parameters.
-import { choosable, el, formatBytes, rosName, syncChildren } from './ui.js';
+import { choosable, el, formatBytes, nameMatcher, rosName, syncChildren } from './ui.js';
 
 const MAX_COUNTED_TOPICS = 200; // publisher/subscriber counts cost two calls per topic
 const MAX_PARAM_VALUES = 100;
@@ -20,18 +20,9 @@ export class GraphView {
     this.filter.addEventListener('input', () => this.applyFilter());
   }
 
-  // Hide the rows and items whose name does not match the filter: a part of the name,
-  // or a glob with * (any characters) and ? (one), as ros2 topic list | grep does.
+  // Hide the rows and items whose name does not match the filter (nameMatcher).
   applyFilter() {
-    const text = this.filter.value.trim();
-    let matches = () => true;
-    if (text.includes('*') || text.includes('?')) {
-      const escaped = text.replace(/[.+^${}()|[\]\\]/g, '\\$&');
-      const pattern = new RegExp(`^${escaped.replace(/\*/g, '.*').replace(/\?/g, '.')}$`);
-      matches = (name) => pattern.test(name);
-    } else if (text) {
-      matches = (name) => name.includes(text);
-    }
+    const matches = nameMatcher(this.filter.value);
     for (const node of document.querySelectorAll('#graph [data-name]')) node.hidden = !matches(node.dataset.name);
   }
 

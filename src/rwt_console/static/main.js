@@ -4,9 +4,14 @@ import { ActionView, ServiceView } from './calls.js';
 import { GraphView } from './graph.js';
 import { ImagesView } from './images.js';
 import { LogView } from './log.js';
+import { ParamsView } from './params.js';
+import { PlotPanel } from './plotpanel.js';
+import { MapView } from './map.js';
+import { NodeGraphView } from './nodegraph.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
 import { TfView } from './tf.js';
+import { TfBuffer } from './tfbuffer.js';
 import { TopicView } from './topic.js';
 import { el } from './ui.js';
 
@@ -218,11 +223,16 @@ async function main() {
       actions.show(name);
     },
   });
-  const topics = new TopicView(ros, graph);
+  const plots = new PlotPanel(ros, (topic) => types.get(topic));
+  const params = new ParamsView(ros);
+  const topics = new TopicView(ros, graph, (topic, field) => plots.add(topic, field));
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
   const images = new ImagesView(config);
-  const tf = new TfView(ros);
+  const tfBuffer = new TfBuffer(ros);
+  const tf = new TfView(tfBuffer);
+  const map = new MapView(ros, tfBuffer);
+  const nodeGraph = new NodeGraphView(ros, (name) => graph.handlers.topic(name, types.get(name)));
   const log = new LogView(ros);
   new TeleopView(ros, (topic) => types.get(topic)); // eslint-disable-line no-new
   let types = new Map();
@@ -230,6 +240,10 @@ async function main() {
     images.setActive(name === 'images');
     if (name === 'tf') tf.start(types);
     if (name === 'log') log.start(types);
+    if (name === 'params') params.refresh();
+    if (name === 'plot') plots.showTopics(types.keys());
+    nodeGraph.setActive(name === 'node-graph');
+    map.setActive(name === 'map', types);
   });
   let clientsWatched = false;
   let refreshing = false; // a slow graph must not pile up refreshes
@@ -238,6 +252,7 @@ async function main() {
     refreshing = true;
     try {
       await graph.refresh();
+      nodeGraph.refresh(); // its own calls, not awaited: one node per call
       const rows = [...document.querySelectorAll('#topics tbody tr')];
       types = new Map(rows.map((row) => [row.dataset.name, row.dataset.type]));
       images.update([...types]);

@@ -1,13 +1,17 @@
-// A small canvas plot of numeric fields over time: the last WINDOW_S seconds.
+// A small canvas plot of numeric series over time: the last WINDOW_S seconds, at
+// most MAX_POINTS points a series (older ones are dropped as new ones come).
 
-const WINDOW_S = 30;
-const MAX_POINTS = 2000;
-const COLOURS = ['#2b7bd6', '#d6472b', '#2ba84a', '#a02bd6', '#d6a02b', '#2bc4d6'];
+export const WINDOW_S = 30;
+export const MAX_POINTS = 2000;
+export const COLOURS = ['#2b7bd6', '#d6472b', '#2ba84a', '#a02bd6', '#d6a02b', '#2bc4d6'];
 
 export class Plot {
-  constructor(canvas) {
+  // legend: whether the canvas names its series (false when the page lists them)
+  constructor(canvas, { legend = true } = {}) {
     this.canvas = canvas;
+    this.legend = legend;
     this.series = new Map(); // name -> [[t, value], ...]
+    this.colours = new Map(); // name -> its colour, when set (else by its place)
     this.frame = 0;
   }
 
@@ -25,6 +29,12 @@ export class Plot {
 
   clear() {
     this.series.clear();
+    this.draw();
+  }
+
+  remove(name) {
+    this.series.delete(name);
+    this.colours.delete(name);
     this.draw();
   }
 
@@ -61,14 +71,15 @@ export class Plot {
     ctx.font = '11px sans-serif';
     ctx.fillText(hi.toPrecision(4), 2, 12);
     ctx.fillText(lo.toPrecision(4), 2, height - 4);
+    ctx.fillText(`${span.toFixed(1)} s`, width - 45, height - 4);
     let index = 0;
     for (const [name, points] of this.series) {
-      ctx.strokeStyle = COLOURS[index % COLOURS.length];
+      ctx.strokeStyle = this.colours.get(name) ?? COLOURS[index % COLOURS.length];
       ctx.beginPath();
       points.forEach(([t, v], i) => (i ? ctx.lineTo(x(t), y(v)) : ctx.moveTo(x(t), y(v))));
       ctx.stroke();
       ctx.fillStyle = ctx.strokeStyle;
-      ctx.fillText(name, 50 + index * 110, 12);
+      if (this.legend) ctx.fillText(name, 50 + index * 110, 12);
       index += 1;
     }
   }

@@ -9,9 +9,12 @@ const REFUSAL_WAIT_MS = 3000;
 const ECHO_INTERVAL_MS = 100; // the echo redraws at most 10 times a second
 
 export class TopicView {
-  constructor(ros, graph) {
+  // onPlot(topic, field): puts a field on the Plot tab, beside other topics' fields;
+  // true when it did
+  constructor(ros, graph, onPlot) {
     this.ros = ros;
     this.graph = graph;
+    this.onPlot = onPlot;
     this.topic = null;
     this.unsubscribe = null;
     this.paused = false;
@@ -102,7 +105,13 @@ export class TopicView {
         if (input.checked) this.plotted.add(name);
         else this.plotted.delete(name);
       });
-      box.append(el('label', {}, input, ` ${name}`));
+      const topic = this.topic;
+      const add = el('button', { type: 'button', class: 'plot-add', text: '+', title: 'add to the Plot tab',
+        'aria-label': `plot ${topic} ${name} on the Plot tab` });
+      add.addEventListener('click', () => {
+        if (this.onPlot(topic, name)) add.textContent = '✓';
+      });
+      box.append(el('span', { class: 'plot-field' }, el('label', {}, input, ` ${name}`), add));
     }
     if (numbers.length > 0 && numbers.length <= 3) {
       for (const input of box.querySelectorAll('input')) {

@@ -70,6 +70,18 @@ export function rosName(name) {
   return node;
 }
 
+// The graph filter's test of a name: a part of the name, or a glob with * (any
+// characters) and ? (one), as ros2 topic list | grep does; '' matches every name.
+export function nameMatcher(filter) {
+  const text = filter.trim();
+  if (text.includes('*') || text.includes('?')) {
+    const escaped = text.replace(/[.+^${}()|[\]\\]/g, '\\$&');
+    const pattern = new RegExp(`^${escaped.replace(/\*/g, '.*').replace(/\?/g, '.')}$`);
+    return (name) => pattern.test(name);
+  }
+  return text ? (name) => name.includes(text) : () => true;
+}
+
 // A list item or table row a keyboard can reach and choose (Enter or Space).
 export function choosable(node, onChoose) {
   node.tabIndex = 0;

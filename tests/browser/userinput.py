@@ -1,0 +1,69 @@
+"""A user's mouse and keyboard through Chromium's input pipeline (CDP ``Input.*``).
+
+``Page.click`` and ``Page.fill`` call the DOM (``element.click()``, ``value =``);
+these go the way a person's input goes: a mouse press and release at the element's
+centre (focus, ``mousedown``, ``click``, a checkbox toggling), text inserted where
+the caret is, keys with their modifiers. An element covered by another one, or
+outside the window, does not get the click, as it would not for a user.
+"""
+
+from __future__ import annotations
+
+import json
+
+from .cdp import Page
+
+CTRL = 2  # Input.dispatchKeyEvent's modifiers bit for Control
+
+
+def click(page: Page, selector: str) -> None:
+    """Press and release the left button at the centre of ``selector`` (scrolled into view).
+
+    Waits until the element stays put over two animation frames: a page still laying
+    out (an echo growing above a button) would move it from under the pointer.
+    """
+    x, y = page.wait_for(
+        f"(async () => {{ const e = document.querySelector({json.dumps(selector)});"
+        " if (!e) return null; e.scrollIntoView({block: 'center'});"
+        " const box = () => JSON.stringify(e.getBoundingClientRect());"
+        " const before = box();"
+        " for (let i = 0; i < 2; i++) await new Promise(requestAnimationFrame);"
+        " if (box() !== before) return null; const r = e.getBoundingClientRect();"
+        " return [r.x + r.width / 2, r.y + r.height / 2]; })()",
+        what=f"{selector} to be still",
+    )
+    page.send("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y)
+    for kind in ("mousePressed", "mouseReleased"):
+        page.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
+
+
+def type_into(page: Page, selector: str, text: str) -> None:
+    """Click ``selector``, select what it holds (Ctrl+A) and type ``text`` over it."""
+    click(page, selector)
+    for kind in ("keyDown", "keyUp"):
+        page.send(
+            "Input.dispatchKeyEvent",
+            type=kind,
+            key="a",
+            code="KeyA",
+            windowsVirtualKeyCode=65,
+            modifiers=CTRL,
+            commands=["selectAll"] if kind == "keyDown" else [],
+        )
+    page.send("Input.insertText", text=text)
+
+
+def press(page: Page, key: str, code: int, modifiers: int = 0) -> None:
+    """Press and release ``key`` (``Enter``, ``Tab``...) on the focused element."""
+    text = {"Enter": "\r"}.get(key)
+    for kind in ("keyDown", "keyUp"):
+        params: dict[str, object] = {
+            "type": kind,
+            "key": key,
+            "code": key,
+            "windowsVirtualKeyCode": code,
+            "modifiers": modifiers,
+        }
+        if kind == "keyDown" and text and not modifiers:
+            params["text"] = text
+        page.send("Input.dispatchKeyEvent", **params)
