@@ -305,6 +305,32 @@ def test_video_port_implies_video() -> None:
     assert process.returncode == 0, stderr
 
 
+#: rwt serve's help sections and an option of each, in the order --help shows them.
+SERVE_SECTIONS = {
+    "Listeners": "--tcp-port",
+    "Security": "--certfile",
+    "Limits": "--max-message-size",
+    "Graph": "--dialect",
+    "Console and media": "--video-port",
+    "Record and replay": "--record-topics",
+    "Scale-out (Zenoh)": "--zenoh-connect",
+    "ROS 2": "--ros2-node-name",
+    "Process": "--log-level",
+    "Options": "--help",
+}
+
+
+def test_serve_help_lists_its_options_in_sections() -> None:
+    text = rwt("serve", "--help", COLUMNS="80").stdout
+    headings = re.findall(r"^(\S[^:\n]*):$", text, re.MULTILINE)
+    assert headings == list(SERVE_SECTIONS)
+    bodies = re.split(r"^\S[^:\n]*:$", text, flags=re.MULTILINE)[1:]
+    sections = dict(zip(headings, bodies, strict=True))
+    for heading, option in SERVE_SECTIONS.items():
+        assert re.search(rf"^  {option}\b", sections[heading], re.MULTILINE), heading
+    assert "--reuse-port" not in text  # hidden: the workers' own option
+
+
 def test_the_help_of_video_port_says_it_implies_video() -> None:
     text = " ".join(rwt("serve", "--help").stdout.split())
     assert "implies --video" in text
