@@ -1,4 +1,4 @@
-"""The ``rwt record``, ``rwt play`` and ``rwt bag info`` commands (record and replay).
+"""The ``rwt record`` and ``rwt bag`` commands, and the options ``rwt play`` shares.
 
 The work is in ``rwt_bag``; this module turns options into its objects. Shared
 option types (``RecordTopics``, ``Rate``...) are also used by ``rwt serve``'s
