@@ -2,7 +2,7 @@
 
 The end-to-end Z3 of ``scaleout`` goes through two rosbridge servers (JSON and
 WebSocket in Python at both edges); this one measures the link alone, as an
-embedding program uses it (``open_link``, docs/zenoh.md):
+embedding program uses it (``open_zenoh_link``, docs/zenoh.md):
 
 - process A: a graph, its link, a publisher; after discovery it publishes
   ``count`` messages into its graph as fast as it can (the link's tap encodes
@@ -99,7 +99,7 @@ def _probe(msg: dict[str, object]) -> bool:
 async def _receiver(endpoint: str, size: int, count: int) -> None:
     """B: count the timed messages reaching a graph subscription; print last time and count."""
     from rwt_graph.graph import Graph  # noqa: PLC0415
-    from rwt_zenoh.link import open_link  # noqa: PLC0415
+    from rwt_zenoh.link import open_zenoh_link  # noqa: PLC0415
 
     graph = Graph()
     got: list[float] = [0, 0.0, 0.0, 0.0]  # count, last wall time, CPU at first and last
@@ -116,7 +116,7 @@ async def _receiver(endpoint: str, size: int, count: int) -> None:
         got[1] = time.time()
         got[3] = time.process_time()
 
-    async with open_link(graph, _options(endpoint, None)):
+    async with open_zenoh_link(graph, _options(endpoint, None)):
         graph.create_subscription("/tp", on_message, SIZES[size][0], node="/counter")
         print("ready", flush=True)
         await asyncio.wait_for(probed.wait(), TIMEOUT_S)
@@ -134,7 +134,7 @@ async def _receiver(endpoint: str, size: int, count: int) -> None:
 async def _sender(endpoint: str, size: int, count: int) -> None:
     """A: publish probes until told to go on stdin, then ``count`` messages; print the start."""
     from rwt_graph.graph import Graph  # noqa: PLC0415
-    from rwt_zenoh.link import open_link  # noqa: PLC0415
+    from rwt_zenoh.link import open_zenoh_link  # noqa: PLC0415
 
     graph = Graph()
     go = threading.Event()
@@ -144,7 +144,7 @@ async def _sender(endpoint: str, size: int, count: int) -> None:
         go.set()
 
     threading.Thread(target=wait_for_go, daemon=True).start()
-    async with open_link(graph, _options(None, endpoint)):
+    async with open_zenoh_link(graph, _options(None, endpoint)):
         pub = graph.create_publisher("/tp", SIZES[size][0], node="/talker")
         probe = message(size, "probe")
         deadline = time.monotonic() + TIMEOUT_S

@@ -14,8 +14,7 @@ from contextlib import suppress
 
 import anyio
 
-from rwt_graph.graph import Graph
-from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt import Graph, RosbridgeServer, ServerConfig
 
 
 def on_cmd_vel(msg: dict[str, object]) -> None:

@@ -16,9 +16,7 @@ from contextlib import suppress
 
 import anyio
 
-from rwt_graph.graph import Graph
-from rwt_graph.types import Dialect, TypeRegistry
-from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt import Dialect, Graph, RosbridgeServer, ServerConfig, TypeRegistry
 
 port = int(sys.argv[1]) if sys.argv[1:] else 9090
 graph = Graph(TypeRegistry(Dialect(sys.argv[2] if sys.argv[2:] else "ros2")))

@@ -11,7 +11,9 @@ counted (``stats.dropped``), as a slow disk must not exhaust memory.
 
 ROS 2 bags are checkpointed every ``checkpoint_s`` and at each full MCAP chunk
 (``rwt_bag.mcap``): a killed recorder leaves a bag that reads up to the last
-checkpoint. Closing (the context's end, or cancelling ``run``) writes the rest.
+checkpoint. A ROS 1 bag's checkpoint writes its open chunk, which ``rwt bag
+reindex`` (or ``rosbag reindex``) indexes again after a kill. Closing (the
+context's end, or cancelling ``run``) writes the rest.
 """
 
 from __future__ import annotations
@@ -96,7 +98,7 @@ class Recorder(BackgroundJob):
         topics: glob patterns of the topic names to record (``/tf*``); all by default.
         fmt: MCAP (default), sqlite3, or ROS 1; ROS 1 bags need a ROS 1 graph.
         split: when to start a new file (``BagWriter``).
-        checkpoint_s: seconds between checkpoints of a ROS 2 bag.
+        checkpoint_s: seconds between checkpoints.
         discover_s: seconds between looks for new matching topics.
         max_queue_bytes: bytes of messages waiting for the disk before dropping.
         max_bytes: stop recording (the bag is closed, the graph goes on) before
@@ -175,8 +177,15 @@ class Recorder(BackgroundJob):
             BagError: the bag cannot be created.
         """
         self.stats = RecordStats()
+        registry = self.graph.registry
         self._writer = await anyio.to_thread.run_sync(
-            BagWriter, self.path, self.fmt, self.graph.registry.typestore(), self._split
+            lambda: BagWriter(
+                self.path,
+                self.fmt,
+                registry.typestore(),
+                self._split,
+                definitions=lambda name: registry.message(name).full_text(),
+            )
         )
         try:
             self.discover()

@@ -2,8 +2,9 @@
 
 ``BagWriter`` takes already-serialized messages (CDR for ROS 2 bags, the ROS 1
 format for ROS 1 bags) with their receive time and writes them with rosbags'
-writers, which also write each type's definition (and its MD5 sum or RIHS01
-hash) from the registry's typestore. A split starts a new bag next to the first:
+writers (the ROS 1 one with real rosbag's header layout, ``ros1``), which also
+write each type's definition (and its MD5 sum or RIHS01 hash) from the
+registry's typestore. A split starts a new bag next to the first:
 ``run`` then ``run_1``, ``run_2``... (``run.bag``, ``run_1.bag``... for ROS 1).
 """
 
@@ -21,14 +22,18 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
-from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Ros2Writer
+
+from rwt_protocol.shortcuts import enabled
 
 from .errors import BagError
 from .formats import BagFormat, SplitPolicy
-from .mcap import CheckpointWriter
+from .ros1 import Ros1Writer
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rosbags.typesys.store import Typestore
 
 __all__ = ["BagFormat", "BagWriter", "SplitPolicy", "TopicInfo", "split_path"]
@@ -78,13 +83,35 @@ def split_path(path: Path, index: int) -> Path:
     return path.with_name(f"{path.stem}_{index}{path.suffix}")
 
 
+def _ros2_writer(path: Path, plugin: StoragePlugin) -> Any:
+    """A rosbag2 writer: ``CheckpointWriter`` (readable while it grows), or rosbags' own.
+
+    ``CheckpointWriter`` reaches into rosbags' storage classes (rwt_bag/mcap.py):
+    the ``bag-checkpoints`` shortcut (docs/shortcuts.md). Switched off (say, on a
+    rosbags release that moved those internals), rosbags' ``Writer`` writes the
+    bag, which is readable once it is closed.
+    """
+    if enabled("bag-checkpoints"):
+        from .mcap import CheckpointWriter  # noqa: PLC0415 - rosbags' internals, only when on
+
+        return CheckpointWriter(path, storage_plugin=plugin)
+    return Ros2Writer(path, version=9, storage_plugin=plugin)
+
+
 class _File:
     """One open bag file."""
 
-    def __init__(self, path: Path, fmt: BagFormat, typestore: Typestore) -> None:
+    def __init__(
+        self,
+        path: Path,
+        fmt: BagFormat,
+        typestore: Typestore,
+        definitions: Callable[[str], str] | None,
+    ) -> None:
         self.path = path
         self.fmt = fmt
         self._typestore = typestore
+        self._definitions = definitions
         self.connections: dict[TopicInfo, Any] = {}
         self.bytes = 0
         self.first_ns: int | None = None
@@ -95,7 +122,7 @@ class _File:
                 self.writer = Ros1Writer(path)
             else:
                 plugin = StoragePlugin.MCAP if fmt is BagFormat.MCAP else StoragePlugin.SQLITE3
-                self.writer = CheckpointWriter(path, storage_plugin=plugin)
+                self.writer = _ros2_writer(path, plugin)
             self.writer.open()
         except Exception as exc:  # rosbags' WriterError, OSError: the path is taken or bad
             raise BagError(f"cannot create the bag {path}: {exc}") from exc
@@ -113,10 +140,14 @@ class _File:
 
     def _connect(self, info: TopicInfo) -> Any:
         if self.fmt is BagFormat.ROS1:
+            msgdef, md5sum = self._typestore.generate_msgdef(info.msgtype)
+            if self._definitions is not None:  # the text with comments, as ROS 1 sends it
+                msgdef = self._definitions(info.msgtype)
             return self.writer.add_connection(
                 info.topic,
                 info.msgtype,
-                typestore=self._typestore,
+                msgdef=msgdef,
+                md5sum=md5sum,
                 callerid="/rwt_recorder",
                 latching=1 if info.latched else 0,
             )
@@ -137,10 +168,10 @@ class _File:
         if self._unchecked < _CHECK_BYTES:
             return False
         self._unchecked = 0
-        return isinstance(self.writer, CheckpointWriter) and self.writer.checkpoint_due
+        return bool(getattr(self.writer, "checkpoint_due", False))
 
     def checkpoint(self, *, full: bool = True) -> None:
-        if isinstance(self.writer, CheckpointWriter):
+        if hasattr(self.writer, "checkpoint"):  # rosbags' own writers have none
             self.writer.checkpoint(full=full)
 
     def close(self) -> None:
@@ -158,6 +189,10 @@ class BagWriter:
         typestore: a rosbags typestore holding every recorded type
             (``TypeRegistry.typestore()``).
         split: when to start a new file.
+        definitions: the full definition text of a rosbags type name
+            (``std_msgs/msg/String``) for ROS 1 connection records, the text
+            ``rosbag check`` compares with the installed types
+            (``MessageType.full_text``); None: rosbags' text, without comments.
 
     Raises:
         BagError: the bag cannot be created (it exists, or its folder is missing).
@@ -169,13 +204,15 @@ class BagWriter:
         fmt: BagFormat,
         typestore: Typestore,
         split: SplitPolicy | None = None,
+        definitions: Callable[[str], str] | None = None,
     ) -> None:
         self.path = Path(path)
         self.fmt = fmt
         self._typestore = typestore
         self._split = split or SplitPolicy()
+        self._definitions = definitions
         self.paths: list[Path] = [self.path]
-        self._file: _File | None = _File(self.path, fmt, typestore)
+        self._file: _File | None = _File(self.path, fmt, typestore, definitions)
         # the last message of each latched topic, written again at the start of every
         # split part (as ros2 bag record --repeat-transient-local does): a part played
         # alone still has its /tf_static and maps
@@ -214,11 +251,15 @@ class BagWriter:
         file.close()
         path = split_path(self.path, len(self.paths))
         self.paths.append(path)
-        self._file = _File(path, self.fmt, self._typestore)
+        self._file = _File(path, self.fmt, self._typestore, self._definitions)
         return self._file
 
     def checkpoint(self) -> None:
-        """Make what was written so far readable if the process dies (ROS 2 bags)."""
+        """Make what was written so far readable if the process dies.
+
+        ROS 2 bags read as they are; a ROS 1 bag gets its chunk on disk, to be
+        indexed again (``rwt bag reindex``, ``rosbag reindex``).
+        """
         if self._file is not None:
             self._file.checkpoint()
 

@@ -364,3 +364,28 @@ def info(
         typer.echo(bag_info(bag).format())
     except BagError as exc:
         _fail("bag info", str(exc))
+
+
+@bag_app.command("reindex", short_help="Rebuild the index of a bag cut short (a killed recorder).")
+def reindex(
+    bag: Annotated[Path, typer.Argument(help="The bag (a ROS 1 .bag file, a ROS 2 bag folder).")],
+) -> None:
+    """Rebuild the index of a bag whose recorder was killed, like rosbag reindex.
+
+    A ROS 1 bag gets a new index; a ROS 2 bag (MCAP or sqlite3) a complete MCAP
+    summary and footer and a new metadata.yaml, as ros2 bag reindex. Every
+    complete record is kept and a tail cut short dropped. The original is kept
+    next to the bag as NAME.orig.bag (ROS 1) or the folder NAME.orig (ROS 2).
+    """
+    from rwt_bag.reindex import backup_path  # noqa: PLC0415 - see record_options
+    from rwt_bag.reindex import reindex as rebuild  # noqa: PLC0415
+
+    try:
+        done = rebuild(bag)
+    except (BagError, OSError) as exc:
+        _fail("bag reindex", str(exc))
+    dropped = done.dropped_bytes
+    tail = f", {dropped} bytes of a cut-short tail dropped" if dropped else ""
+    typer.echo(
+        f"reindexed {bag}: {done.messages} messages{tail}; the original is {backup_path(bag)}"
+    )

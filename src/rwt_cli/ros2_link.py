@@ -9,6 +9,8 @@ from __future__ import annotations
 import contextlib
 from typing import TYPE_CHECKING
 
+from rwt_protocol.errors import ConfigError
+
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
     from pathlib import Path
@@ -23,7 +25,7 @@ def ros2_options(node_name: str, namespace: str) -> Ros2Options:
     """The link's options from the command line, rclpy checked importable.
 
     Raises:
-        ValueError: rclpy cannot be imported; the text says what to install or source.
+        ConfigError: rclpy cannot be imported; the text says what to install or source.
     """
     from rwt_ros2 import Ros2Options, Ros2Unavailable  # noqa: PLC0415
     from rwt_ros2.runtime import load_rclpy  # noqa: PLC0415
@@ -31,7 +33,7 @@ def ros2_options(node_name: str, namespace: str) -> Ros2Options:
     try:
         load_rclpy()
     except Ros2Unavailable as exc:
-        raise ValueError(str(exc)) from None
+        raise ConfigError(str(exc)) from None
     return Ros2Options(node_name=node_name, namespace=namespace)
 
 
@@ -47,7 +49,7 @@ async def linked_ros2(graph: Graph, options: Ros2Options | None) -> AsyncIterato
     """Link ``graph`` to ROS 2 while the block runs (nothing when ``options`` is None).
 
     Raises:
-        ValueError: rclpy cannot start its node (a bad name, the middleware fails): one line.
+        ConfigError: rclpy cannot start its node (a bad name, the middleware fails): one line.
     """
     if options is None:
         yield
@@ -58,4 +60,4 @@ async def linked_ros2(graph: Graph, options: Ros2Options | None) -> AsyncIterato
         async with open_ros2_link(graph, options):
             yield
     except (RuntimeError, ValueError) as exc:  # rclpy's RCLError is a RuntimeError
-        raise ValueError(f"ros2: {exc}") from None
+        raise ConfigError(f"ros2: {exc}") from None

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 import anyio
 import typer
 
+from rwt_protocol.errors import ConfigError
+
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
     from pathlib import Path
@@ -30,10 +32,10 @@ def require_zenoh(option: str) -> None:
     """Check the extra is installed.
 
     Raises:
-        ValueError: it is not; the text says how to install it.
+        ConfigError: it is not; the text says how to install it.
     """
     if importlib.util.find_spec("zenoh") is None or importlib.util.find_spec("xxhash") is None:
-        raise ValueError(f"{option} needs Eclipse Zenoh: {ZENOH_EXTRA}")
+        raise ConfigError(f"{option} needs Eclipse Zenoh: {ZENOH_EXTRA}")
 
 
 def zenoh_options(
@@ -48,7 +50,7 @@ def zenoh_options(
     """The link's options from the command line (``domain_id`` None: ``ROS_DOMAIN_ID`` or 0).
 
     Raises:
-        ValueError: the extra is missing.
+        ConfigError: the extra is missing.
     """
     require_zenoh("--zenoh")
     from rwt_zenoh.config import ZenohOptions, default_domain_id  # noqa: PLC0415
@@ -69,19 +71,19 @@ async def linked(graph: Graph, options: ZenohOptions | None) -> AsyncIterator[No
     """Link ``graph`` to Zenoh while the block runs (nothing when ``options`` is None).
 
     Raises:
-        ValueError: Zenoh cannot start (a bad config, an endpoint in use...): one line.
+        ConfigError: Zenoh cannot start (a bad config, an endpoint in use...): one line.
     """
     if options is None:
         yield
         return
     import zenoh  # noqa: PLC0415
-    from rwt_zenoh.link import open_link  # noqa: PLC0415
+    from rwt_zenoh.link import open_zenoh_link  # noqa: PLC0415
 
     try:
-        async with open_link(graph, options):
+        async with open_zenoh_link(graph, options):
             yield
     except zenoh.ZError as exc:  # opening or closing the session
-        raise ValueError(f"zenoh: {exc}") from None
+        raise ConfigError(f"zenoh: {exc}") from None
 
 
 def run_router(listen: list[str], config_file: Path | None) -> None:
@@ -90,7 +92,7 @@ def run_router(listen: list[str], config_file: Path | None) -> None:
     Prints ``router listening on ENDPOINT`` per endpoint and ``router <zid>``.
 
     Raises:
-        ValueError: the extra is missing, or Zenoh cannot start.
+        ConfigError: the extra is missing, or Zenoh cannot start.
     """
     require_zenoh("rwt router")
     import zenoh  # noqa: PLC0415
@@ -100,7 +102,7 @@ def run_router(listen: list[str], config_file: Path | None) -> None:
     try:
         session = zenoh.open(make_config(options))
     except zenoh.ZError as exc:
-        raise ValueError(f"zenoh: {exc}") from None
+        raise ConfigError(f"zenoh: {exc}") from None
     try:
         for endpoint in listen:
             typer.echo(f"router listening on {endpoint}")

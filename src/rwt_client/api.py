@@ -6,7 +6,8 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 
-from rwt_protocol.client import ActionResultReceived
+from rwt_protocol.errors import ConfigError
+from rwt_protocol.ops import ActionResult
 
 from .connectors import ConnectionClosedError
 from .ros import Callback, CallTimeoutError, Ros, ServiceCallError
@@ -95,19 +96,22 @@ class Topic:
         await self.ros.flush()
 
     async def advertise(self) -> None:
-        """Announce that this client publishes the topic (spec 3.3.1).
+        """Announce that this client publishes the topic, once the server took it (spec 3.3.1).
+
+        Waits one round trip (``Ros.advertise``).
 
         Raises:
-            ValueError: no ``message_type`` was given.
+            ConfigError: no ``message_type`` was given.
+            OpRefusedError: the server refused it, for example because the topic
+                has another type there; the topic stays unadvertised.
         """
         if self._adv_id is not None:
             return
         if self.message_type is None:
-            raise ValueError(f"advertising {self.name} needs a message type")
-        self._adv_id = self.ros.session.advertise(
+            raise ConfigError(f"advertising {self.name} needs a message type")
+        self._adv_id = await self.ros.advertise(
             self.name, self.message_type, latch=self.latch, queue_size=self.queue_size
         )
-        await self.ros.flush()
 
     async def unadvertise(self) -> None:
         """Stop publishing (spec 3.3.2)."""
@@ -152,10 +156,10 @@ class Service:
         An exception in the handler answers ``result: false`` with its text.
 
         Raises:
-            ValueError: no ``service_type`` was given.
+            ConfigError: no ``service_type`` was given.
         """
         if self.service_type is None:
-            raise ValueError(f"advertising {self.name} needs a service type")
+            raise ConfigError(f"advertising {self.name} needs a service type")
         self.ros.set_service_handler(self.name, handler)
         self.ros.session.advertise_service(self.name, self.service_type)
         self.is_advertised = True
@@ -177,7 +181,7 @@ class GoalHandle:
         self.id = goal_id
         self._waiter = waiter
 
-    async def result(self, *, timeout_s: float | None = None) -> ActionResultReceived:
+    async def result(self, *, timeout_s: float | None = None) -> ActionResult:
         """Wait for the ``action_result``; ``status`` says how it ended (D18).
 
         Raises:
@@ -197,7 +201,7 @@ class GoalHandle:
         if self._waiter.error is not None:
             raise self._waiter.error
         reply = self._waiter.reply
-        assert isinstance(reply, ActionResultReceived)
+        assert isinstance(reply, ActionResult)
         return reply
 
     async def cancel(self) -> None:

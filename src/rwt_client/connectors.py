@@ -38,7 +38,7 @@ from websockets.http11 import Response
 from websockets.protocol import State
 from websockets.uri import parse_uri
 
-from rwt_protocol.errors import TransportError
+from rwt_protocol.errors import ConfigError, TransportError
 from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
 from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
 
@@ -111,7 +111,7 @@ async def connect(
 
     Raises:
         ConnectionClosedError: the server cannot be reached or refused the handshake.
-        ValueError: the URL's scheme is not one of the above.
+        ConfigError: the URL's scheme is not one of the above.
     """
     scheme = urlsplit(url).scheme
     with anyio.fail_after(timeout_s):
@@ -124,7 +124,7 @@ async def connect(
             raise
         except (OSError, anyio.BrokenResourceError, anyio.EndOfStream) as exc:
             raise ConnectionClosedError(f"cannot connect to {url}: {exc}") from None
-    raise ValueError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss, tcp or tcp+tls)")
+    raise ConfigError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss, tcp or tcp+tls)")
 
 
 async def close_quietly(stream: ByteStream) -> None:
@@ -168,7 +168,7 @@ class WebSocketConnection:
         try:
             uri = parse_uri(url)
         except InvalidURI as exc:
-            raise ValueError(str(exc)) from None
+            raise ConfigError(str(exc)) from None
         stream: ByteStream
         if uri.secure:
             context = ssl_context or ssl.create_default_context()
@@ -374,12 +374,12 @@ class TcpConnection(_LineStreamConnection):
         """Connect to ``tcp://HOST:PORT``, or ``tcp+tls://HOST:PORT`` (TLS, as ``rwt serve``).
 
         Raises:
-            ValueError: no port in the URL.
+            ConfigError: no port in the URL.
             OSError: the connection failed (``ssl.SSLError``: the TLS handshake).
         """
         parts = urlsplit(url)
         if parts.hostname is None or parts.port is None:
-            raise ValueError(f"expected tcp://HOST:PORT, got {url!r}")
+            raise ConfigError(f"expected tcp://HOST:PORT, got {url!r}")
         stream: ByteStream
         if parts.scheme == "tcp+tls":
             context = ssl_context or ssl.create_default_context()

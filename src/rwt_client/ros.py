@@ -7,36 +7,46 @@ calls and goals waiting for them, requests to the services and actions this
 client offers. Callbacks may be plain functions or coroutine functions; their
 exceptions are logged, never propagated into the connection.
 
+Events are the server's ops as their models (``rwt_protocol.ops``). An op the
+protocol does not answer, such as ``advertise``, is confirmed by one round trip,
+and an ``error`` status the server sends for its id raises ``OpRefusedError``;
+an ``error`` status for a call's id fails the call (``ServiceCallError``), even
+from a server that sends no ``service_response`` then.
+
 When the connection drops and ``reconnect`` is on, ``Ros`` reconnects with
-back-off and replays the status level, advertisements, subscriptions and
-offered services and actions; calls and goals in flight fail with
-``ConnectionClosedError``. Nothing relies on rwt's extensions: a foreign server
-that never answers makes a call time out with a clear error.
+back-off (doubling from 0.1 s to 5 s, each wait times a random 0.5-1.5 so that
+many clients of one restarted server do not come back in step) and replays the
+status level, advertisements, subscriptions and offered services and actions;
+calls and goals in flight fail with ``ConnectionClosedError``. Nothing relies on
+rwt's extensions: a foreign server that never answers makes a call time out
+with a clear error.
 """
 
 from __future__ import annotations
 
 import inspect
 import logging
+import random
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Self
 
 import anyio
 
-from rwt_protocol.client import (
-    ActionFeedbackReceived,
-    ActionResultReceived,
-    ClientEvent,
-    ClientSession,
-    GoalCancelRequested,
-    GoalRequested,
-    ServiceRequested,
-    ServiceResponded,
-    StatusReceived,
-    TopicMessage,
+from rwt_protocol.client import ClientEvent, ClientSession
+from rwt_protocol.errors import CallTimeoutError, OpRefusedError, RwtError, ServiceCallError
+from rwt_protocol.ops import (
+    ActionFeedback,
+    ActionResult,
+    CallService,
+    CancelActionGoal,
+    Publish,
+    PublishFrame,
+    PublishView,
+    SendActionGoal,
+    ServiceResponse,
+    Status,
 )
-from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError
 
 from .connectors import Connection, ConnectionClosedError, connect
 from .rosapi import RosapiMixin
@@ -61,9 +71,11 @@ class _Waiter:
     """A call or goal waiting for its reply."""
 
     done: anyio.Event = field(default_factory=anyio.Event)
-    reply: ServiceResponded | ActionResultReceived | None = None
+    reply: ServiceResponse | ActionResult | None = None
     error: RwtError | None = None
     on_feedback: Callback | None = None
+    refused: Callable[[str], RwtError] | None = None
+    """The error an ``error`` status for this id becomes; None: such statuses are not its end."""
 
 
 class Ros(RosapiMixin):
@@ -207,7 +219,9 @@ class Ros(RosapiMixin):
         """
         seconds = timeout_s or self.timeout_s
         call_id = self.session.call_service(service, args, type=type_name, timeout=seconds)
-        waiter = self._waiters[call_id] = _Waiter()
+        waiter = self._waiters[call_id] = _Waiter(
+            refused=lambda text: ServiceCallError(f"{service} failed: {text}", text)
+        )
         try:
             await self.flush()
             with anyio.fail_after(seconds):
@@ -220,6 +234,40 @@ class Ros(RosapiMixin):
         finally:
             self._waiters.pop(call_id, None)
         return _values(waiter, service)
+
+    async def advertise(
+        self, topic: str, type_name: str, *, latch: bool = False, queue_size: int = 100
+    ) -> str:
+        """Advertise ``topic`` and wait until the server took it (spec 3.3.1).
+
+        The protocol does not acknowledge ``advertise``: one round trip after it
+        (a ``/rosapi/topic_type`` call, answered or refused, by any rosbridge
+        server) shows whether the server sent an ``error`` status for its id
+        (D1). A server that never answers makes this wait ``timeout_s``; with
+        the status level ``none`` no refusal can be seen.
+
+        Returns:
+            The advertisement id, for ``unadvertise``.
+
+        Raises:
+            OpRefusedError: the server refused it (a type conflict, an access
+                rule, a limit); it is not replayed after a reconnect.
+            ConnectionClosedError: the connection dropped first.
+        """
+        adv_id = self.session.advertise(topic, type_name, latch=latch, queue_size=queue_size)
+        waiter = self._waiters[adv_id] = _Waiter(
+            refused=lambda text: OpRefusedError("advertise", adv_id, text)
+        )
+        try:
+            await self.call_service("/rosapi/topic_type", {"topic": topic})
+        except (ServiceCallError, CallTimeoutError):
+            pass  # only a round trip: its own answer does not matter
+        finally:
+            self._waiters.pop(adv_id, None)
+        if waiter.error is not None:
+            self.session.forget_advertisement(adv_id)
+            raise waiter.error
+        return adv_id
 
     def goal_waiter(self, goal_id: str, on_feedback: Callback | None) -> _Waiter:
         """Register a waiter for a goal's feedback and result (used by ``Action``)."""
@@ -304,7 +352,7 @@ class Ros(RosapiMixin):
                     self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
                 )
             except ConnectionClosedError:
-                await anyio.sleep(delay_s)  # back-off between attempts, not synchronisation
+                await anyio.sleep(jittered(delay_s))  # back-off, not synchronisation
                 delay_s = min(delay_s * 2, 5.0)
                 continue
             self.reconnects += 1
@@ -329,50 +377,56 @@ class Ros(RosapiMixin):
         else:
             logger.debug("ignored from %s: %s", self.url, event)
 
-    def _on_message(self, event: TopicMessage) -> None:
+    def _on_message(self, event: PublishView) -> None:
         for callback in list(self._topics.get(event.topic, {}).values()):
             self.spawn(callback, event.msg)
 
-    def _on_reply(self, event: ServiceResponded | ActionResultReceived) -> None:
-        waiter = self._waiters.get(event.id)
+    def _on_reply(self, event: ServiceResponse | ActionResult) -> None:
+        waiter = None if event.id is None else self._waiters.get(event.id)
         if waiter is not None:
             waiter.reply = event
             waiter.done.set()
 
-    def _on_feedback(self, event: ActionFeedbackReceived) -> None:
+    def _on_feedback(self, event: ActionFeedback) -> None:
         waiter = self._waiters.get(event.id)
         if waiter is not None and waiter.on_feedback is not None:
             self.spawn(waiter.on_feedback, event.values)
 
-    def _on_request(self, event: ServiceRequested) -> None:
+    def _on_request(self, event: CallService) -> None:
         handler = self._services.get(event.service)
         if handler is not None and self._tasks is not None:
             self._tasks.start_soon(self._serve_request, handler, event)
 
-    async def _serve_request(self, handler: Callback, event: ServiceRequested) -> None:
+    async def _serve_request(self, handler: Callback, event: CallService) -> None:
+        request_id = event.id if event.id is not None else ""
         try:
             values = await _maybe_await(handler(event.args))
             self.session.service_response(
-                event.service, event.id, {} if values is None else values, True
+                event.service, request_id, {} if values is None else values, True
             )
         except Exception as exc:  # the caller gets result false with the text (D4)
             self.session.service_response(
-                event.service, event.id, f"{type(exc).__name__}: {exc}", False
+                event.service, request_id, f"{type(exc).__name__}: {exc}", False
             )
         await self.flush()
 
-    def _on_goal(self, event: GoalRequested) -> None:
+    def _on_goal(self, event: SendActionGoal) -> None:
         handler = self._actions.get(event.action)
         if handler is not None and self._tasks is not None:
-            goal = self._server_goals[event.id] = ServerGoal(self, event)
+            goal = ServerGoal(self, event)
+            self._server_goals[goal.id] = goal
             self._tasks.start_soon(goal.run, handler)
 
-    def _on_cancel(self, event: GoalCancelRequested) -> None:
+    def _on_cancel(self, event: CancelActionGoal) -> None:
         goal = self._server_goals.get(event.id)
         if goal is not None:
             goal.cancel_requested.set()
 
-    def _on_status(self, event: StatusReceived) -> None:
+    def _on_status(self, event: Status) -> None:
+        waiter = None if event.id is None else self._waiters.get(event.id)
+        if waiter is not None and waiter.refused is not None and event.level == "error":
+            waiter.error = waiter.refused(event.msg)
+            waiter.done.set()
         for callback in self._status_callbacks:
             self.spawn(callback, event)
 
@@ -386,9 +440,9 @@ class ServerGoal:
     ``canceled()`` was called; raising ends it with status 6 (ABORTED).
     """
 
-    def __init__(self, ros: Ros, event: GoalRequested) -> None:
+    def __init__(self, ros: Ros, event: SendActionGoal) -> None:
         self.ros = ros
-        self.id = event.id
+        self.id: str | int = event.id if event.id is not None else ""
         self.action = event.action
         self.args = event.args
         self.cancel_requested = anyio.Event()
@@ -418,11 +472,20 @@ class ServerGoal:
         await self.ros.flush()
 
 
+def jittered(delay_s: float) -> float:
+    """One wait between reconnection attempts: ``delay_s`` times a random 0.5-1.5.
+
+    The jitter keeps the clients of a restarted server from all coming back in
+    the same instant (and again at each doubling of the back-off).
+    """
+    return delay_s * random.uniform(0.5, 1.5)
+
+
 def _values(waiter: _Waiter, name: str) -> object:
     if waiter.error is not None:
         raise waiter.error
     reply = waiter.reply
-    assert isinstance(reply, ServiceResponded)
+    assert isinstance(reply, ServiceResponse)
     if not reply.result:
         raise ServiceCallError(f"{name} failed: {reply.values}", reply.values)
     return reply.values
@@ -442,12 +505,13 @@ async def _logged(function: Callable[..., Awaitable[object]], *args: object) -> 
 
 
 _ROUTES: dict[type, Callable[[Ros, ClientEvent], None]] = {
-    TopicMessage: Ros._on_message,  # type: ignore[dict-item]
-    ServiceResponded: Ros._on_reply,  # type: ignore[dict-item]
-    ActionResultReceived: Ros._on_reply,  # type: ignore[dict-item]
-    ActionFeedbackReceived: Ros._on_feedback,  # type: ignore[dict-item]
-    ServiceRequested: Ros._on_request,  # type: ignore[dict-item]
-    GoalRequested: Ros._on_goal,  # type: ignore[dict-item]
-    GoalCancelRequested: Ros._on_cancel,  # type: ignore[dict-item]
-    StatusReceived: Ros._on_status,  # type: ignore[dict-item]
+    Publish: Ros._on_message,  # type: ignore[dict-item]
+    PublishFrame: Ros._on_message,  # type: ignore[dict-item]
+    ServiceResponse: Ros._on_reply,  # type: ignore[dict-item]
+    ActionResult: Ros._on_reply,  # type: ignore[dict-item]
+    ActionFeedback: Ros._on_feedback,  # type: ignore[dict-item]
+    CallService: Ros._on_request,  # type: ignore[dict-item]
+    SendActionGoal: Ros._on_goal,  # type: ignore[dict-item]
+    CancelActionGoal: Ros._on_cancel,  # type: ignore[dict-item]
+    Status: Ros._on_status,  # type: ignore[dict-item]
 }

@@ -251,10 +251,6 @@ class Graph:
         entry.subscribers.pop(client, None)
         self._collect(entry)
 
-    def held_topics(self, client: ClientId) -> frozenset[str]:
-        """The topics ``client`` publishes or subscribes to (resolved names)."""
-        return frozenset(self._held.get(client, ()))
-
     def _hold(self, client: ClientId, name: str) -> None:
         held = self._held.get(client)
         if held is None:

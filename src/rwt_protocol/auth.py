@@ -27,6 +27,7 @@ import secrets
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from .errors import ConfigError
 from .ops import Auth
 
 __all__ = [
@@ -107,11 +108,11 @@ def bound_mac(
         no two field lists sign the same text.
 
     Raises:
-        ValueError: a field holds a line break (it could not be told apart).
+        ConfigError: a field holds a line break (it could not be told apart).
     """
     fields = [BOUND_MAC_LABEL, client, dest, rand, _seconds(t), level, _seconds(end)]
     if any("\n" in field or "\r" in field for field in fields):
-        raise ValueError("auth fields cannot hold line breaks")
+        raise ConfigError("auth fields cannot hold line breaks")
     text = "\n".join(fields)
     return hmac.new(secret.encode("utf-8"), text.encode("utf-8"), hashlib.sha512).hexdigest()
 
@@ -190,9 +191,9 @@ class RosauthVerifier:
         """Make a verifier from a secret file's contents (its first line, as rosauth reads it).
 
         Raises:
-            ValueError: the first line is empty.
+            ConfigError: the first line is empty.
         """
         secret = text.splitlines()[0].strip() if text.strip() else ""
         if not secret:
-            raise ValueError("the secret file's first line is empty")
+            raise ConfigError("the secret file's first line is empty")
         return cls(secret, max_skew_s)

@@ -2,7 +2,8 @@
 
 ``ClientSession`` builds the frames a rosbridge client sends (``subscribe``,
 ``call_service``, ``send_action_goal``, ...) and turns the frames a server sends
-into events (``TopicMessage``, ``ServiceResponded``, ``ServiceRequested``, ...).
+into events: the op models themselves (``ops.Publish``, ``ops.ServiceResponse``,
+``ops.CallService``, ...), validated as the server validates what it receives.
 It keeps the state a client needs to route replies (ids of its calls and goals,
 its subscriptions, advertisements and offered services, so a transport can
 replay them after reconnecting) and undoes the encodings on the way in:
@@ -41,6 +42,7 @@ from .ops import (
     OpModel,
     Png,
     Publish,
+    PublishView,
     SendActionGoal,
     ServiceResponse,
     SetLevel,
@@ -61,99 +63,11 @@ if TYPE_CHECKING:
 
     from .levels import StatusLevel
 
-__all__ = [
-    "ActionFeedbackReceived",
-    "ActionResultReceived",
-    "ClientEvent",
-    "ClientSession",
-    "GoalCancelRequested",
-    "GoalRequested",
-    "Role",
-    "ServiceRequested",
-    "ServiceResponded",
-    "StatusReceived",
-    "TopicMessage",
-    "UnknownOp",
-]
+__all__ = ["ClientEvent", "ClientSession", "Role", "UnknownOp"]
 
 MiB = 1024 * 1024
 Message = dict[str, object]
 OpId = str | int
-
-
-@dataclass(frozen=True, slots=True)
-class TopicMessage:
-    """A ``publish`` from the server: ``msg`` on ``topic`` (spec 3.3.3)."""
-
-    topic: str
-    msg: object
-
-
-@dataclass(frozen=True, slots=True)
-class ServiceResponded:
-    """The reply to one of our ``call_service`` ops (spec 3.3.9, D28)."""
-
-    id: OpId
-    service: str
-    result: bool
-    values: object
-
-
-@dataclass(frozen=True, slots=True)
-class ServiceRequested:
-    """A call of a service we advertised; answer with ``service_response`` (spec 3.3.8)."""
-
-    id: OpId
-    service: str
-    args: object
-
-
-@dataclass(frozen=True, slots=True)
-class GoalRequested:
-    """A goal for an action we advertised (spec 3.3.12)."""
-
-    id: OpId
-    action: str
-    action_type: str
-    args: object
-    feedback: bool
-
-
-@dataclass(frozen=True, slots=True)
-class GoalCancelRequested:
-    """A request to cancel a goal of an action we advertised (spec 3.3.13)."""
-
-    id: OpId
-    action: str
-
-
-@dataclass(frozen=True, slots=True)
-class ActionFeedbackReceived:
-    """Feedback for one of our goals (spec 3.3.14)."""
-
-    id: OpId
-    action: str
-    values: object
-
-
-@dataclass(frozen=True, slots=True)
-class ActionResultReceived:
-    """The result of one of our goals (spec 3.3.15, D18): ``status`` is a GoalStatus code."""
-
-    id: OpId
-    action: str
-    result: bool
-    status: int
-    values: object
-
-
-@dataclass(frozen=True, slots=True)
-class StatusReceived:
-    """A ``status`` message (spec 3.2.2); ``id`` is the op it is about, if any."""
-
-    level: str
-    msg: str
-    id: OpId | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,17 +79,23 @@ class UnknownOp:
 
 
 ClientEvent = (
-    TopicMessage
-    | ServiceResponded
-    | ServiceRequested
-    | GoalRequested
-    | GoalCancelRequested
-    | ActionFeedbackReceived
-    | ActionResultReceived
-    | StatusReceived
+    PublishView
+    | ServiceResponse
+    | CallService
+    | SendActionGoal
+    | CancelActionGoal
+    | ActionFeedback
+    | ActionResult
+    | Status
     | UnknownOp
 )
-"""Everything ``ClientSession.receive_frame`` can report."""
+"""Everything ``ClientSession.receive_frame`` can report: the server's ops, as their models.
+
+A ``publish`` is a ``PublishView`` (``ops.Publish``, or its msgspec twin
+``ops.PublishFrame`` from the hot path); every other op is its model
+(``ops.ServiceResponse``, ``ops.Status``, ...), an ``ActionResult`` with its
+``status`` filled in when the advertiser left it out (D18).
+"""
 
 
 class ClientSession:
@@ -274,6 +194,10 @@ class ClientSession:
         self.advertisements[adv_id] = op
         self.send_op(op)
         return adv_id
+
+    def forget_advertisement(self, adv_id: OpId) -> None:
+        """Drop an advertisement the server refused: nothing is sent, nothing replayed."""
+        self.advertisements.pop(adv_id, None)
 
     def unadvertise(self, topic: str, adv_id: OpId) -> None:
         """Queue ``unadvertise`` of one advertisement (spec 3.3.2)."""
@@ -394,7 +318,7 @@ class ClientSession:
         if isinstance(frame, str):
             fast = decode_publish(frame)
             if fast is not None:
-                return [TopicMessage(fast.topic, fast.msg)]
+                return [fast]
         try:
             value = decode_cbor(frame) if isinstance(frame, bytes) else decode_json(frame)
         except RemoteProtocolError as exc:
@@ -454,57 +378,26 @@ _PART_MODELS: dict[PartKind, type[Fragment | Png]] = {
 }
 
 
-def _goal_status(op: ActionResult) -> int:
+def _with_status(op: ActionResult) -> ActionResult:
+    """``op`` with its ``status``: an advertiser may leave it out (D18)."""
     if op.status is not None:
-        return op.status
-    # an advertiser may leave ``status`` out (D18)
-    return GoalStatus.SUCCEEDED if op.result else GoalStatus.ABORTED
+        return op
+    status = GoalStatus.SUCCEEDED if op.result else GoalStatus.ABORTED
+    return op.model_copy(update={"status": int(status)})
 
 
-def _id(op_id: OpId | None) -> OpId:
-    return op_id if op_id is not None else ""
-
-
-def _topic_message(op: Publish) -> ClientEvent:
-    return TopicMessage(op.topic, op.msg)
-
-
-def _service_responded(op: ServiceResponse) -> ClientEvent:
-    return ServiceResponded(_id(op.id), op.service, op.result, op.values)
-
-
-def _service_requested(op: CallService) -> ClientEvent:
-    return ServiceRequested(_id(op.id), op.service, op.args)
-
-
-def _goal_requested(op: SendActionGoal) -> ClientEvent:
-    return GoalRequested(_id(op.id), op.action, op.action_type, op.args, op.feedback)
-
-
-def _cancel_requested(op: CancelActionGoal) -> ClientEvent:
-    return GoalCancelRequested(op.id, op.action)
-
-
-def _feedback(op: ActionFeedback) -> ClientEvent:
-    return ActionFeedbackReceived(op.id, op.action, op.values)
-
-
-def _result(op: ActionResult) -> ClientEvent:
-    return ActionResultReceived(op.id, op.action, op.result, _goal_status(op), op.values)
-
-
-def _status(op: Status) -> ClientEvent:
-    return StatusReceived(op.level, op.msg, op.id)
+def _as_is(op: ClientEvent) -> ClientEvent:
+    return op
 
 
 _EVENTS: dict[type[OpModel], Callable[[Any], ClientEvent]] = {
-    Publish: _topic_message,
-    ServiceResponse: _service_responded,
-    CallService: _service_requested,
-    SendActionGoal: _goal_requested,
-    CancelActionGoal: _cancel_requested,
-    ActionFeedback: _feedback,
-    ActionResult: _result,
-    Status: _status,
+    Publish: _as_is,
+    ServiceResponse: _as_is,
+    CallService: _as_is,
+    SendActionGoal: _as_is,
+    CancelActionGoal: _as_is,
+    ActionFeedback: _as_is,
+    ActionResult: _with_status,
+    Status: _as_is,
 }
-"""The ops a server sends a client, each with the event it becomes."""
+"""The ops a server sends a client, each with the event it becomes (itself, mostly)."""

@@ -47,6 +47,7 @@ __all__ = [
     "decode_json",
     "decode_json_text",
     "decode_publish",
+    "decode_publish_one_pass",
     "encode_json",
     "encode_publish_json",
     "parse_object",
@@ -276,9 +277,20 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
 
     Returns:
         The op, or None when ``frame`` is not a valid publish op in standard
-        JSON (or breaks an edge rule: topic name, nesting); the caller then
-        takes the general path (``decode_json`` and ``parse_object``), which
-        explains what is wrong. Never raises.
+        JSON (or breaks an edge rule: topic name, nesting), or when the
+        ``publish-decode`` shortcut is switched off (shortcuts.py); the caller
+        then takes the general path (``decode_json`` and ``parse_object``),
+        which explains what is wrong. Never raises.
+    """
+    if not _PUBLISH_DECODE:  # every caller (server and client sessions) honours the switch
+        return None
+    return decode_publish_one_pass(frame)
+
+
+def decode_publish_one_pass(frame: str | bytes) -> PublishView | None:
+    """The ``publish-decode`` shortcut itself, whatever the switch: ``decode_publish``'s work.
+
+    Its tests compare it with the general path (tests/protocol/test_publish_fast_path.py).
     """
     # No look at the op first: the typed decode stops at the first field that
     # does not fit (``op`` comes first from roslib and roslibpy), which is
@@ -298,6 +310,10 @@ def decode_publish(frame: str | bytes) -> PublishView | None:
         except RemoteProtocolError:
             return None
     return op
+
+
+#: The ``publish-decode`` shortcut (shortcuts.py), chosen once at import.
+_PUBLISH_DECODE = enabled("publish-decode")
 
 
 def encode_json(value: object) -> bytes:

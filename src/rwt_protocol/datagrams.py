@@ -9,6 +9,7 @@ size. Clients reassemble them as they do for ``fragment_size``.
 from __future__ import annotations
 
 from .codec import encode_json
+from .errors import ConfigError
 from .ops import Fragment
 
 __all__ = ["fragment_datagrams"]
@@ -28,17 +29,17 @@ def fragment_datagrams(data: bytes, max_bytes: int, message_id: str) -> list[byt
         ``[data]`` when it fits already; else the encoded fragment ops, in order.
 
     Raises:
-        ValueError: ``max_bytes`` is too small to carry any fragment.
+        ConfigError: ``max_bytes`` is too small to carry any fragment.
     """
     if len(data) <= max_bytes:
         return [data]
     if max_bytes < _MIN_DATAGRAM:
-        raise ValueError(f"a datagram of {max_bytes} bytes cannot carry fragments")
+        raise ConfigError(f"a datagram of {max_bytes} bytes cannot carry fragments")
     text = data.decode("utf-8", "replace")
     envelope = Fragment.frame(id=message_id, data="", num=len(text), total=len(text))
     budget = max_bytes - len(encode_json(envelope))
     if budget < 8:
-        raise ValueError(f"a datagram of {max_bytes} bytes cannot carry fragment {message_id!r}")
+        raise ConfigError(f"a datagram of {max_bytes} bytes cannot carry fragment {message_id!r}")
     pieces: list[str] = []
     start = 0
     while start < len(text):

@@ -37,7 +37,7 @@ from typing import NamedTuple
 from .codec import encode_json, encode_publish_json
 from .codec_cbor import encode_cbor
 from .fragments import fragment_frames, fresh_id
-from .ops import Png, Publish
+from .ops import ActionResult, Png, Publish, ServiceResponse, Status
 from .ops.base import Compression
 from .outbox import OutFrame
 from .png import encode_png
@@ -218,9 +218,6 @@ class EncodeFailure(NamedTuple):
 
 
 #: The ops a caller waits for: an unencodable one is replaced by a failure reply (D4).
-_REPLY_NAMES = {"service_response": "service", "action_result": "action"}
-
-
 def safe_op_frames(
     message: Mapping[str, object],
     *,
@@ -260,25 +257,30 @@ def safe_publish_frames(
 
 
 def _replacement(message: Mapping[str, object], failure: EncodeFailure) -> dict[str, object]:
-    """The op sent instead of an unencodable one: only clean strings, bools and small ints."""
+    """The op sent instead of an unencodable one, built by its op model.
+
+    Only clean strings, bools and small ints go in: a failure reply for a
+    ``service_response`` or ``action_result`` (a waiting caller still hears
+    back, D4), else an error status.
+    """
     text = f"cannot encode the {failure.op}: {failure.reason}"
-    name_key = _REPLY_NAMES.get(failure.op)
-    out: dict[str, object]
-    if name_key is not None:
-        out = {"op": failure.op, name_key: _clean(str(message.get(name_key, ""))), "values": text}
-        if failure.op == "action_result":
-            out["status"] = int(GoalStatus.ABORTED)
-        out["result"] = False
-    elif failure.op == "status":
-        level = message.get("level")
-        out = {"op": "status", "level": level if level in _LEVELS else "error"}
-        out["msg"] = _clean(str(message.get("msg", "")))
-    else:
-        out = {"op": "status", "level": "error", "msg": f"{failure.op}: {text}"}
     op_id = _clean_id(message.get("id"))
-    if op_id is not None:
-        out["id"] = op_id
-    return out
+    if failure.op == "service_response":
+        service = _clean(str(message.get("service", "")))
+        return ServiceResponse.frame(service=service, values=text, result=False, id=op_id)
+    if failure.op == "action_result":
+        return ActionResult.frame(
+            action=_clean(str(message.get("action", ""))),
+            values=text,
+            status=int(GoalStatus.ABORTED),
+            result=False,
+            id="" if op_id is None else op_id,  # the model requires one; ids are clean in practice
+        )
+    if failure.op == "status":
+        level = message.get("level")
+        level = level if level in _LEVELS else "error"
+        return Status.frame(level=level, msg=_clean(str(message.get("msg", ""))), id=op_id)
+    return Status.frame(level="error", msg=f"{failure.op}: {text}", id=op_id)
 
 
 _LEVELS = ("info", "warning", "error")

@@ -1,7 +1,9 @@
 """The error tree of rwt.
 
 ``RwtError`` is the root of every error rwt raises on purpose; catching it
-catches them all. Any other exception escaping rwt is a bug::
+catches them all. Any other exception escaping rwt is a bug. Every class of the
+tree is in ``rwt`` too (``rwt.FieldError``), and tests/api/test_error_tree.py checks
+that every exception class of every rwt package is drawn here::
 
     RwtError
     ├── ProtocolError                     the rosbridge protocol was not followed
@@ -19,13 +21,18 @@ catches them all. Any other exception escaping rwt is a bug::
     │   ├── UnknownTypeError              rwt_graph.types: no such type
     │   ├── ParameterError                rwt_graph.params
     │   │   └── ParameterNotSetError
-    │   ├── ImageError                    rwt_graph.media: an image that cannot be read
+    │   ├── ImageError                    rwt_graph.media: an image or depth cloud that cannot
+    │   │                                 be read or encoded (also a ValueError)
     │   └── TFError                       rwt_graph.tf
     │       ├── UnknownFrameError         no such frame in the buffer
     │       ├── DisconnectedFramesError   the two frames are in different trees
     │       └── ExtrapolationError        the time is outside the buffered range
+    ├── ConfigError                       an argument, option or setting that cannot be used
+    │                                     (also a ValueError): a bad URL, a bad --zenoh-*
+    │                                     option, a malformed secret file, RWT_NO_SHORTCUTS
     ├── ServiceCallError                  a call or goal answered ``result: false``
     │   └── CallTimeoutError              ... or not answered in time (also a TimeoutError)
+    ├── OpRefusedError                    rwt_client: the server answered an op with an error status
     ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
     ├── TransportError                    a transport failed (mapped at the boundary)
     │   ├── ConnectionClosedError         rwt_client.connectors: the connection is gone
@@ -34,6 +41,9 @@ catches them all. Any other exception escaping rwt is a bug::
     ├── VideoError                        rwt_video
     │   ├── StreamParamError              a query parameter that cannot be used (HTTP 4xx)
     │   └── EncodeError                   a frame that cannot be encoded (skipped)
+    ├── BagError                          rwt_bag: a bag that cannot be read, written or played
+    │   └── InflateError                  past a decompression bound (docs/limits.md)
+    ├── Ros2Unavailable                   rwt_ros2: rclpy cannot be imported (also a RuntimeError)
     ├── SuiteError                        rwt_conformance: malformed suite data
     └── StepFailedError                   rwt_conformance: a step's expectation failed
 
@@ -47,10 +57,12 @@ from .levels import StatusLevel
 
 __all__ = [
     "CallTimeoutError",
+    "ConfigError",
     "FieldError",
     "GraphError",
     "LimitError",
     "LocalProtocolError",
+    "OpRefusedError",
     "ProtocolError",
     "RemoteProtocolError",
     "RwtError",
@@ -108,6 +120,13 @@ class FieldError(GraphError):
         self.problem = problem
 
 
+class ConfigError(RwtError, ValueError):
+    """An argument, option or setting that cannot be used; the text names it.
+
+    Also a ``ValueError``, as the plain ``ValueError`` it replaces was.
+    """
+
+
 class TransportError(RwtError):
     """A transport failed; mapped from anyio/websockets errors at the boundary."""
 
@@ -127,3 +146,23 @@ class ServiceCallError(RwtError):
 
 class CallTimeoutError(ServiceCallError, TimeoutError):
     """No answer came within the time allowed; the call or goal is forgotten."""
+
+
+class OpRefusedError(RwtError):
+    """The server refused an op this client sent: an ``error`` status for its id (spec 3.2.2).
+
+    Raised by the client (``rwt_client``) for ops the protocol does not answer
+    otherwise, such as ``advertise`` of a topic the server holds with another type.
+
+    Args:
+        op: the op refused, ``advertise``.
+        op_id: its id.
+        reason: the status text, ``advertise: /t is established with type ...``.
+    """
+
+    def __init__(self, op: str, op_id: str | int, reason: str) -> None:
+        text = reason.removeprefix(f"{op}: ")
+        super().__init__(f"the server refused {op} {op_id!r}: {text}")
+        self.op = op
+        self.op_id = op_id
+        self.reason = reason

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 from .codec import encode_json
-from .errors import RemoteProtocolError
+from .errors import ConfigError, RemoteProtocolError
 from .ops import Fragment, Png
 
 __all__ = [
@@ -75,10 +75,10 @@ def split_text(text: str, size: int) -> list[str]:
         size: characters per chunk, at least 1.
 
     Raises:
-        ValueError: ``size`` is below 1.
+        ConfigError: ``size`` is below 1.
     """
     if size < 1:
-        raise ValueError(f"fragment size must be at least 1, got {size}")
+        raise ConfigError(f"fragment size must be at least 1, got {size}")
     if not text:
         return [""]
     return [text[start : start + size] for start in range(0, len(text), size)]

@@ -29,15 +29,7 @@ __all__ = ["IdleWatch", "holds_anything"]
 
 def holds_anything(session: Session) -> bool:
     """Whether ``session`` holds something in the graph that its peer waits on or serves."""
-    return bool(
-        session.subscriptions
-        or session.advertisements
-        or session.offers
-        or session.goals
-        or session.pending_calls
-        or session.pending_goals
-        or len(session.fragments)
-    )
+    return session.holdings.holds_anything() or len(session.fragments) > 0
 
 
 class IdleWatch:

@@ -34,12 +34,14 @@ class StatusLevel(IntEnum):
         """Parse a wire spelling.
 
         Raises:
-            ValueError: ``text`` is not one of ``none``, ``error``, ``warning``, ``info``.
+            ConfigError: ``text`` is not one of ``none``, ``error``, ``warning``, ``info``.
         """
         try:
             return cls[text.upper()]
         except KeyError:
-            raise ValueError(f"unknown status level {text!r}") from None
+            from .errors import ConfigError  # noqa: PLC0415 - errors.py imports this module
+
+            raise ConfigError(f"unknown status level {text!r}") from None
 
     def admits(self, level: StatusLevel) -> bool:
         """Whether a connection at this level receives a status of ``level``."""

@@ -6,6 +6,12 @@ Outputs: ``frames_to_send()``, ``commands_to_run()``, ``get_timer()``.
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
 given by the caller (after aioquic).
 
+The connection's life is one ``lifecycle.State`` (``state``), moved only along
+the table ``lifecycle.TRANSITIONS``; what it holds in the graph is one
+``holdings.Holdings`` (``holdings``). Handlers see the session through
+``handlers.HandlerContext`` and change it only through methods: every public
+attribute is read-only.
+
 Errors follow D1: every rejected op produces a ``status``
 frame for this connection only (D29), filtered by the connection's level (D2),
 and the session keeps serving. An exception that is not an ``RwtError`` is a bug:
@@ -41,9 +47,11 @@ from .errors import GraphError, LimitError, RwtError
 from .fragments import FragmentBudget, Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
+from .holdings import Holdings
 from .idle import IdleWatch
 from .inflate import InflateJob, TokenBucket
 from .levels import StatusLevel
+from .lifecycle import State, advance
 from .ops import OpModel, PublishView, Status
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
@@ -56,10 +64,10 @@ if TYPE_CHECKING:
 
     from .auth import Authenticator
     from .png import PendingPng
-    from .ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
+    from .ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .subscriptions import TopicSubscription
 
-__all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"]
+__all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]
 
 logger = logging.getLogger("rwt.session")
 
@@ -193,50 +201,43 @@ class Session:
         on_closed: Callable[[ClientId], None] | None = None,
         fragment_budget: FragmentBudget | None = None,
     ) -> None:
-        self.graph = graph
-        self.client_id = client_id
-        self.peer = peer
-        self.config = config or SessionConfig()
-        self.status_level = self.config.status_level
-        self.subscriptions: dict[str, TopicSubscription] = {}
-        self.advertisements: dict[str, set[str | int | None]] = {}
-        self.goals: dict[str | int | None, GoalHandle] = {}
-        self.offers: set[tuple[str, str]] = set()  # ("service" | "action", resolved name)
-        self.pending_calls = 0  # call_service ops waiting for their reply
-        self.pending_goals = 0  # send_action_goal ops waiting for their result
-        self.provider_link = ProviderLink(self)
-        self._outbox = Outbox(self.config.send_buffer_limit)
+        self._graph = graph
+        self._client_id = client_id
+        self._peer = peer
+        self._config = config or SessionConfig()
+        self._status_level = self._config.status_level
+        self._holdings = Holdings()
+        self._provider_link = ProviderLink(self)
+        self._outbox = Outbox(self._config.send_buffer_limit)
         self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
-        self.timers = TimerQueue()
-        self.fragments = Reassembler(
-            max_bytes=self.config.max_message_size,
-            max_pending=self.config.max_pending_fragments,
-            timeout_s=self.config.fragment_timeout_s,
+        self._timers = TimerQueue()
+        self._fragments = Reassembler(
+            max_bytes=self._config.max_message_size,
+            max_pending=self._config.max_pending_fragments,
+            timeout_s=self._config.fragment_timeout_s,
             shared=fragment_budget,
         )
         self._fragment_timer: Timer | None = None
         self._inflate_budget = TokenBucket(
-            self.config.png_inflate_rate, max(self.config.max_message_size, 1)
+            self._config.png_inflate_rate, max(self._config.max_message_size, 1)
         )
         self._jobs: list[InflateJob] = []
-        self.runs_jobs = False  # set by a transport that runs ``take_job``'s jobs
-        timeout = self.config.idle_timeout_s
+        self._runs_jobs = False  # set by a transport that runs ``take_job``'s jobs (``run_jobs``)
+        timeout = self._config.idle_timeout_s
         self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
         self._on_closed = on_closed
-        self._closed = False
-        self._closing = False  # input is ignored (close requested, or shutting down)
-        self._close_request: CloseConnection | None = None  # once set, nothing more is sent
-        self._authenticated = self.config.authenticator is None
+        self._state = State.OPEN if self._config.authenticator is None else State.AUTHENTICATING
+        self._admitted = self._state is State.OPEN  # ops were served (``authenticated``)
+        self._close_request: CloseConnection | None = None  # set on entering CLOSING
         self._now = 0.0  # the latest monotonic time seen, for output without one
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
-        self.auth_nonce: str | None = None
-        """This connection's challenge (D31), sent before anything else; None without one."""
-        if self.config.auth_challenge and not self._authenticated:
-            self.auth_nonce = new_challenge()
+        self._auth_nonce: str | None = None
+        if self._config.auth_challenge and self._state is State.AUTHENTICATING:
+            self._auth_nonce = new_challenge()
             # before any op, whatever the status level: the client needs it to authenticate
-            self.send_op(Status.frame(level="info", msg=self.auth_nonce, id=AUTH_CHALLENGE_ID))
+            self.send_op(Status.frame(level="info", msg=self._auth_nonce, id=AUTH_CHALLENGE_ID))
 
     # ---- inputs -------------------------------------------------------------
 
@@ -252,7 +253,7 @@ class Session:
         Never raises for anything the peer sent; see the module docstring.
         Frames arriving after the session asked to close are ignored.
         """
-        if self._closed or self._closing:
+        if not self._state.takes_input:
             return
         self._now = now
         if self._idle is not None:
@@ -262,12 +263,12 @@ class Session:
         try:
             fast = (
                 None
-                if binary or not self._authenticated or not _PUBLISH_DECODE
+                if binary or self._state is not State.OPEN or not _PUBLISH_DECODE
                 else decode_publish(frame)
             )
             if fast is not None:  # the publish hot path: no pydantic
                 op_name, op_id = "publish", fast.id
-                self.dispatch(fast, now)
+                self._dispatch(fast, now)
                 return
             if binary:
                 obj = decode_cbor(
@@ -278,10 +279,11 @@ class Session:
             op_id = peek_id(obj)
             op = parse_object(obj)
             op_name = op.op  # type: ignore[attr-defined]
-            if self._authenticated:
-                self.dispatch(op, now)
-            else:
-                self._authenticated = gates.authenticate(self, op)
+            if self._state is State.OPEN:
+                self._dispatch(op, now)
+            elif gates.authenticate(self, op):
+                self._move(State.OPEN)
+                self._admitted = True
         except RwtError as exc:
             self._refused(exc, op_name, op_id)
         except Exception:
@@ -291,7 +293,7 @@ class Session:
         """Inflate a ``png`` op's image, then handle its text as a frame (D20).
 
         The inflated bytes are charged to this connection's budget
-        (``png_inflate_rate``). With a transport that ``runs_jobs``, the work
+        (``png_inflate_rate``). With a transport that called ``run_jobs``, the work
         becomes a job (``take_job``) that waits for the budget and runs off the
         event loop; the transport reads no further frame of this connection
         until it is done (``finish_job``), so ops keep their order. Without one
@@ -301,7 +303,7 @@ class Session:
             RemoteProtocolError: the PNG is corrupt (inflated at once only).
         """
         wait = self._inflate_budget.charge(png.pixel_bytes, now)
-        if not self.runs_jobs:
+        if not self._runs_jobs:
             self.receive_frame(png.inflate(), now)
             return
         self._jobs.append(InflateJob(png, op_id, now + wait))
@@ -328,7 +330,7 @@ class Session:
             result: what ``job.run()`` returned, or the exception it raised.
             now: monotonic seconds.
         """
-        if self._closed or self._closing:
+        if not self._state.takes_input:
             return
         if isinstance(result, RwtError):
             self._refused(result, "png", job.op_id)
@@ -343,13 +345,13 @@ class Session:
     def _bug(self, op_name: str | None, op_id: str | int | None) -> None:
         """Report an exception that is not an ``RwtError``: a bug, logged once per connection."""
         if self._log_once("bug"):
-            logger.exception("bug while handling a frame from %s", self.client_id)
+            logger.exception("bug while handling a frame from %s", self._client_id)
         else:
-            logger.debug("bug while handling a frame from %s", self.client_id, exc_info=True)
+            logger.debug("bug while handling a frame from %s", self._client_id, exc_info=True)
         try:
             self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
         except Exception:  # the report is total; a bug there must still not reach the transport
-            logger.debug("cannot report a bug to %s", self.client_id, exc_info=True)
+            logger.debug("cannot report a bug to %s", self._client_id, exc_info=True)
 
     def _log_once(self, kind: str) -> bool:
         """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""
@@ -360,13 +362,14 @@ class Session:
 
     def _refused(self, exc: RwtError, op_name: str | None, op_id: str | int | None) -> None:
         text = exc.message
-        if not self._authenticated and "authentication" not in text:
+        authenticating = self._state is State.AUTHENTICATING
+        if authenticating and "authentication" not in text:
             text = f"authentication required: {text}"
         self.report(exc.level, _prefixed(op_name, text), op_id)
-        if not self._authenticated:  # D23: a connection that does not authenticate goes
+        if authenticating:  # D23: a connection that does not authenticate goes
             self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
 
-    def dispatch(self, op: OpModel | PublishView, now: float) -> None:
+    def _dispatch(self, op: OpModel | PublishView, now: float) -> None:
         """Check a validated op against the access rules, then run its handler.
 
         Raises:
@@ -378,9 +381,9 @@ class Session:
 
     def handle_timer(self, now: float) -> None:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
-        if not self._closed:
+        if self._state is not State.CLOSED:
             self._now = max(self._now, now)
-            self.timers.run_due(now)
+            self._timers.run_due(now)
 
     def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
         """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
@@ -393,14 +396,14 @@ class Session:
             reason: why, for the peer and the log.
             abort: the peer is not reading (slow consumer): cut without waiting.
         """
-        if self._closed or self._close_request is not None:
+        if self._state in (State.CLOSING, State.CLOSED):
             return
-        self._closing = True
+        self._move(State.CLOSING)
         self._close_request = CloseConnection(code, reason, abort)
         logger.log(
             logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
             "event=closing client=%s code=%d reason=%r",
-            self.client_id,
+            self._client_id,
             code,
             reason,
         )
@@ -414,29 +417,25 @@ class Session:
         (D4) while their connections can still send; the server then calls
         ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
         """
-        if self._closed:
+        if self._state is State.CLOSED:
             return
-        self._closing = True
-        self.graph.release(self.client_id)
+        if self._state.takes_input:
+            self._move(State.DRAINING)
+        self._graph.release(self._client_id)
 
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
-        if self._closed:
+        if self._state is State.CLOSED:
             return
-        self._closed = True
+        self._move(State.CLOSED)
         try:
-            self.timers.clear()
-            for subscription in self.subscriptions.values():
-                subscription.close()
-            self.subscriptions.clear()
-            self.fragments.clear()
-            self.advertisements.clear()
-            self.offers.clear()
-            self.goals.clear()
-            self.graph.release(self.client_id)
+            self._timers.clear()
+            self._holdings.clear()
+            self._fragments.clear()
+            self._graph.release(self._client_id)
         finally:  # even if releasing raised, the owner forgets the connection
             if self._on_closed is not None:
-                self._on_closed(self.client_id)
+                self._on_closed(self._client_id)
 
     # ---- outputs ------------------------------------------------------------
 
@@ -460,7 +459,7 @@ class Session:
 
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
-        return None if self._closed else self.timers.next_deadline()
+        return None if self._state is State.CLOSED else self._timers.next_deadline()
 
     @property
     def close_request(self) -> CloseConnection | None:
@@ -473,19 +472,81 @@ class Session:
         return self._now
 
     @property
+    def graph(self) -> GraphPort:
+        """The graph this session operates on."""
+        return self._graph
+
+    @property
+    def client_id(self) -> ClientId:
+        """This connection's identity in the graph."""
+        return self._client_id
+
+    @property
+    def peer(self) -> str:
+        """The peer's address, ``host:port`` (empty when unknown)."""
+        return self._peer
+
+    @property
+    def config(self) -> SessionConfig:
+        """This connection's settings."""
+        return self._config
+
+    @property
+    def holdings(self) -> Holdings:
+        """What this connection holds in the graph (subscriptions, advertisements, ...)."""
+        return self._holdings
+
+    @property
+    def provider_link(self) -> ProviderLink:
+        """The graph's way to this peer's services and actions."""
+        return self._provider_link
+
+    @property
+    def fragments(self) -> Reassembler:
+        """This connection's incomplete ``fragment`` and ``png`` messages (D19)."""
+        return self._fragments
+
+    @property
+    def auth_nonce(self) -> str | None:
+        """This connection's challenge (D31), sent before anything else; None without one."""
+        return self._auth_nonce
+
+    @property
+    def status_level(self) -> StatusLevel:
+        """The least severe status this connection receives (D2; ``set_status_level``)."""
+        return self._status_level
+
+    def set_status_level(self, level: StatusLevel) -> None:
+        """Change which status frames this connection receives (``set_level``, D2)."""
+        self._status_level = level
+
+    def run_jobs(self) -> None:
+        """The transport runs ``take_job``'s jobs from now on, off its event loop."""
+        self._runs_jobs = True
+
+    @property
+    def state(self) -> State:
+        """Where the connection is in its life (``lifecycle.State``, its moves in one table)."""
+        return self._state
+
+    @property
     def closed(self) -> bool:
-        """Whether ``close`` was called."""
-        return self._closed
+        """Whether ``close`` was called (``state`` is CLOSED)."""
+        return self._state is State.CLOSED
 
     @property
     def closing(self) -> bool:
-        """Whether the session stopped taking input (close requested or shutting down)."""
-        return self._closing or self._closed
+        """Whether the session stopped taking input (close requested, shutting down, closed)."""
+        return not self._state.takes_input
 
     @property
     def authenticated(self) -> bool:
-        """Whether ops are served (always, without an authenticator)."""
-        return self._authenticated
+        """Whether ops were admitted (always, without an authenticator), even once closing."""
+        return self._admitted
+
+    def _move(self, target: State) -> None:
+        """Change ``state`` along ``lifecycle.TRANSITIONS``; LocalProtocolError otherwise."""
+        self._state = advance(self._state, target)
 
     @property
     def dropped_frames(self) -> int:
@@ -509,10 +570,6 @@ class Session:
 
     # ---- helpers for handlers -------------------------------------------------
 
-    def send(self, frame: OutFrame) -> None:
-        """Queue a frame for the peer and wake the transport."""
-        self.send_frames((frame,))
-
     def send_frames(self, frames: Sequence[OutFrame]) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
@@ -520,7 +577,7 @@ class Session:
         frames alone exceed the limit the peer is not reading at all, and the
         connection is closed rather than let memory grow.
         """
-        if self._closed or self._close_request is not None:
+        if not self._state.sends:
             return
         limit = self._outbox.limit_bytes
         if self._outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
@@ -600,7 +657,7 @@ class Session:
         logger.log(
             level,
             "event=unencodable client=%s op=%s reason=%r",
-            self.client_id,
+            self._client_id,
             failure.op,
             failure.reason,
         )
@@ -610,31 +667,31 @@ class Session:
 
         Wakes the transport so that it sees the new deadline in ``get_timer``.
         """
-        timer = self.timers.schedule(deadline, callback)
-        if not self._closed:
+        timer = self._timers.schedule(deadline, callback)
+        if self._state is not State.CLOSED:
             self._wake()
         return timer
 
     def watch_fragments(self) -> None:
         """Make sure the earliest fragment deadline has a timer (D19 expiry)."""
-        deadline = self.fragments.next_deadline()
+        deadline = self._fragments.next_deadline()
         if deadline is not None and self._fragment_timer is None:
             self._fragment_timer = self.call_at(deadline, self._expire_fragments)
 
     def _expire_fragments(self, now: float) -> None:
         self._fragment_timer = None
-        for kind, op_id, received, total in self.fragments.expire(now):
+        for kind, op_id, received, total in self._fragments.expire(now):
             self.report(
                 StatusLevel.ERROR,
                 f"{kind}: message {op_id!r} dropped incomplete after"
-                f" {self.config.fragment_timeout_s:g} s ({received} of {total} parts)",
+                f" {self._config.fragment_timeout_s:g} s ({received} of {total} parts)",
                 op_id,
             )
         self.watch_fragments()
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
-        if not self.status_level.admits(level):
+        if not self._status_level.admits(level):
             return
         self.send_op(Status.frame(level=level.wire, msg=text, id=op_id))
 

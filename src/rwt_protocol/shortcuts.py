@@ -32,8 +32,14 @@ The shortcuts (name: what; module; benchmark; general path):
   cbor-raw); ``rwt_graph.types.rosbagsfast``; B20; the field walk of
   ``rwt_graph.types.interop.to_rosbags`` / ``from_rosbags``.
 - ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
-  pass (``ops.wire.PublishFrame``); ``rwt_protocol.codec.decode_publish``; B14, B1
-  (pydantic was 8 % of B1); ``decode_json`` then ``parse_object`` (pydantic).
+  pass (``ops.wire.PublishFrame``), by the server's and the client's sessions;
+  ``rwt_protocol.codec.decode_publish``; B14, B1 (pydantic was 8 % of B1);
+  ``decode_json`` then ``parse_object`` (pydantic).
+- ``cdr-input-view``: a serialized message of 64 KiB or more handed to
+  rosbags' deserializers as a ``memoryview``, so that cutting off its CDR header
+  does not copy it (the Zenoh and ROS 2 links, bag replay);
+  ``rwt_graph.types.wire.wire_input``; B20, B21 and the Zenoh link benchmark (a
+  1 MB image: the copy was half of its 120 us decode); the ``bytes`` as they came.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
   by pybase64 and spliced in as ``msgspec.Raw``;
   ``rwt_protocol.codec.encode_publish_json``; B6 JSON, B5 JSON;
@@ -76,6 +82,11 @@ The shortcuts (name: what; module; benchmark; general path):
   ``TAKE_BATCH``; ``rwt_ros2.link``; B21 (String at full rate: 2.9 k -> 8.2 k
   msg/s; one executor wait costs more than the sample); one executor callback
   per sample.
+- ``bag-checkpoints``: a rosbag2 writer that keeps an MCAP bag readable while
+  it grows (a summary and ``metadata.yaml`` at each checkpoint, the new tail in
+  one ``pwritev`` of rosbags' own buffers), by overriding rosbags' storage
+  classes (private internals); ``rwt_bag.mcap.CheckpointWriter``; B20; rosbags'
+  ``Writer``, whose bag is readable once closed.
 
 Reading the environment is not I/O in the sense of this package's rule (no
 sockets, files, clocks or threads): it is the process's configuration.
@@ -86,6 +97,8 @@ from __future__ import annotations
 import functools
 import os
 from dataclasses import dataclass
+
+from .errors import ConfigError
 
 __all__ = ["ENV_VAR", "SHORTCUTS", "Shortcut", "enabled", "report", "switched_off"]
 
@@ -136,6 +149,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "a publish op decoded and checked by msgspec in one pass (ops.wire.PublishFrame)",
         "B14, B1",
         "rwt_protocol.codec.decode_json then parse_object (pydantic)",
+    ),
+    Shortcut(
+        "cdr-input-view",
+        "rwt_graph.types.wire.wire_input",
+        "a serialized message of 64 KiB or more handed to rosbags as a view (no header copy)",
+        "B20, B21, Zenoh link",
+        "the bytes as they came (rosbags copies them to cut the CDR header)",
     ),
     Shortcut(
         "json-base64-splice",
@@ -207,6 +227,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "B21 (String at full rate)",
         "one rclpy executor callback per sample",
     ),
+    Shortcut(
+        "bag-checkpoints",
+        "rwt_bag.mcap.CheckpointWriter",
+        "an MCAP bag kept readable while it grows, by overriding rosbags' storage internals",
+        "B20",
+        "rosbags.rosbag2.Writer (the bag is readable once closed)",
+    ),
 )
 """Every shortcut, in the order of a message's way from decoding to the socket."""
 
@@ -220,7 +247,7 @@ def switched_off(value: str | None = None) -> frozenset[str]:
         value: the variable's value; None reads the environment.
 
     Raises:
-        ValueError: the value names a shortcut that does not exist (a typo
+        ConfigError: the value names a shortcut that does not exist (a typo
             must not leave the shortcut on unnoticed).
     """
     return _parse(os.environ.get(ENV_VAR, "") if value is None else value)
@@ -238,7 +265,7 @@ def _parse(value: str) -> frozenset[str]:
         shortcut = _BY_NAME.get(name)
         if shortcut is None:
             known = ", ".join(_BY_NAME)
-            raise ValueError(f"{ENV_VAR}: no shortcut named {name!r} (known: {known})")
+            raise ConfigError(f"{ENV_VAR}: no shortcut named {name!r} (known: {known})")
     return names
 
 
@@ -249,7 +276,7 @@ def enabled(name: str) -> bool:
 
     Raises:
         KeyError: no shortcut has that name (a bug at the call site).
-        ValueError: ``RWT_NO_SHORTCUTS`` is invalid (see ``switched_off``).
+        ConfigError: ``RWT_NO_SHORTCUTS`` is invalid (see ``switched_off``).
     """
     if name not in _BY_NAME:
         raise KeyError(name)

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rwt_protocol.errors import GraphError
+from rwt_protocol.errors import GraphError, RwtError
 
 __all__ = [
     "ROS2_INSTALL",
@@ -32,8 +32,8 @@ ROS2_INSTALL = (
 """What to do when rclpy cannot be imported."""
 
 
-class Ros2Unavailable(RuntimeError):
-    """rclpy cannot be imported; the text says what to install or source."""
+class Ros2Unavailable(RwtError, RuntimeError):
+    """rclpy cannot be imported; the text says what to install or source (also a RuntimeError)."""
 
 
 def load_rclpy() -> Any:

@@ -63,8 +63,10 @@ import anyio.lowlevel
 import anyio.to_thread
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.codec import encode_json
 from rwt_protocol.framing import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.ops import Status
 from rwt_protocol.outbox import OutFrame
 from rwt_protocol.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
@@ -228,7 +230,7 @@ async def run_connection(pump: ConnectionPump, session: Session, detail: str = "
         )
 
 
-INTERNAL_ERROR_STATUS = b'{"op":"status","level":"error","msg":"internal error"}'
+INTERNAL_ERROR_STATUS = encode_json(Status.frame(level="error", msg="internal error"))
 """What a peer is told before its connection is closed for a bug in the server."""
 
 _BROKEN = (
@@ -440,7 +442,7 @@ class ConnectionPump:
         self._session = session
         self._high_water, self._low_water = session.water_marks
         self._hold_budget = session.config.hold_budget_s
-        session.runs_jobs = True  # ``_run_jobs`` inflates png ops off the loop
+        session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
         session.start(_clock()())
         try:
             async with anyio.create_task_group() as tg:

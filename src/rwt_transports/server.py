@@ -50,7 +50,7 @@ from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
-from rwt_protocol.errors import RwtError
+from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.fragments import FragmentBudget
 from rwt_protocol.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
@@ -733,7 +733,7 @@ def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext 
     if certfile is None and keyfile is None:
         return None
     if certfile is None:
-        raise ValueError("--keyfile needs --certfile")
+        raise ConfigError("--keyfile needs --certfile")
     context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
     context.load_cert_chain(certfile, keyfile)
     return context

@@ -14,7 +14,9 @@ from typing import TYPE_CHECKING
 
 import anyio
 
+from rwt_protocol.codec import encode_json
 from rwt_protocol.framing import FramerEvent, JsonStreamFramer
+from rwt_protocol.ops import Status
 
 from . import admission
 from .direct import DirectReader, DirectWriter
@@ -34,7 +36,7 @@ logger = logging.getLogger("rwt.tcp")
 
 _READ_SIZE = 65536
 _CLOSE_LIMIT_S = 1.0
-_TOO_MANY = b'{"op":"status","level":"error","msg":"too many connections"}\n'
+_TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections")) + b"\n"
 
 
 def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:

@@ -21,8 +21,10 @@ from typing import TYPE_CHECKING
 import anyio
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.codec import encode_json
 from rwt_protocol.datagrams import fragment_datagrams
 from rwt_protocol.framing import FramerEvent, FramingError, InFrame
+from rwt_protocol.ops import Status
 
 from .pump import ConnectionPump, SessionHost, run_connection
 from .shares import HostShares, host_key
@@ -46,7 +48,7 @@ MAX_UDP_PAYLOAD = 65507
 """The largest IPv4 UDP payload, bytes."""
 
 _QUEUED_DATAGRAMS = 256  # per peer; more arriving before the session reads them are dropped
-_TOO_MANY = b'{"op":"status","level":"error","msg":"too many connections"}'
+_TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections"))
 
 Address = tuple[str, int]
 

@@ -34,11 +34,13 @@ from __future__ import annotations
 import base64
 import hashlib
 import hmac
-import json
 import re
 import secrets
 import time
 from typing import TYPE_CHECKING
+
+from rwt_protocol.codec import encode_json
+from rwt_protocol.ops import Status
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -128,13 +130,8 @@ class AddressValidator:
             or would take ``address`` past ``CHALLENGE_BUDGET_BYTES`` this epoch,
             or ``MAX_CHALLENGED`` other addresses were answered this epoch.
         """
-        status = {
-            "op": "status",
-            "level": "warning",
-            "msg": SESSION_CHALLENGE_TEXT if has_session else CHALLENGE_TEXT,
-            "id": self.token(address),
-        }
-        reply = json.dumps(status, separators=(",", ":")).encode()
+        text = SESSION_CHALLENGE_TEXT if has_session else CHALLENGE_TEXT
+        reply = encode_json(Status.frame(level="warning", msg=text, id=self.token(address)))
         if len(reply) > AMPLIFICATION * received:
             return None
         epoch = self._epoch()

@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING
 import anyio
 from anyio.streams.buffered import BufferedByteReceiveStream
 
+from rwt_protocol.errors import ConfigError
+
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
 
@@ -133,11 +135,11 @@ def run_workers(
     becomes one free port all workers share, held by the parent until they run.
 
     Raises:
-        ValueError: SO_REUSEPORT is not available (not Linux).
+        ConfigError: SO_REUSEPORT is not available (not Linux).
         OSError: a port cannot be bound.
     """
     if not reuse_port_supported():
-        raise ValueError("--workers needs SO_REUSEPORT to share ports: Linux only")
+        raise ConfigError("--workers needs SO_REUSEPORT to share ports: Linux only")
     argv = sys.argv[1:]
     args = argv[argv.index("serve") + 1 :] if "serve" in argv else argv
     with contextlib.ExitStack() as holds:

@@ -4,7 +4,7 @@
   liveliness tokens, QoS strings, type names and hashes, attachments, CDR).
 - ``config``: the Zenoh session of ``rwt serve --zenoh`` (loopback and no
   multicast unless told otherwise).
-- ``link``: ``ZenohLink``/``open_link``, a graph's topics and services mirrored
+- ``link``: ``ZenohLink``/``open_zenoh_link``, a graph's topics and services mirrored
   both ways; ``link_actions`` and ``link_params`` add actions and parameters.
 
 docs/scaling.md is the user's page; docs/zenoh.md names the rmw_zenoh version followed.

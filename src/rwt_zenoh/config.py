@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from ipaddress import ip_address
 from typing import TYPE_CHECKING
 
+from rwt_protocol.errors import ConfigError
+
 from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 from .wire import RmwCompat
 
@@ -88,18 +90,18 @@ def make_config(options: ZenohOptions) -> zenoh.Config:
     """The Zenoh config of ``options``.
 
     Raises:
-        ValueError: an unknown mode, or a config file Zenoh cannot read (the text
+        ConfigError: an unknown mode, or a config file Zenoh cannot read (the text
             names the file).
     """
     import zenoh  # noqa: PLC0415 - the zenoh extra loads only with --zenoh
 
     if options.mode not in MODES:
-        raise ValueError(f"zenoh mode {options.mode!r}: expected one of {', '.join(MODES)}")
+        raise ConfigError(f"zenoh mode {options.mode!r}: expected one of {', '.join(MODES)}")
     if options.config_file is not None:
         try:
             config = zenoh.Config.from_file(str(options.config_file))
         except Exception as exc:  # zenoh raises ZError with the parser's text
-            raise ValueError(f"cannot read zenoh config {options.config_file}: {exc}") from None
+            raise ConfigError(f"cannot read zenoh config {options.config_file}: {exc}") from None
     else:
         config = zenoh.Config()
     config.insert_json5("mode", json.dumps(options.mode))
@@ -124,12 +126,12 @@ def endpoint_host(endpoint: str) -> str:
     """The host of a Zenoh endpoint: ``tcp/127.0.0.1:7447`` -> ``127.0.0.1``.
 
     Raises:
-        ValueError: not ``<protocol>/<host>:<port>``.
+        ConfigError: not ``<protocol>/<host>:<port>``.
     """
     _, slash, address = endpoint.partition("/")
     host, colon, _ = address.split("#")[0].rpartition(":")
     if not slash or not colon or not host:
-        raise ValueError(f"zenoh endpoint {endpoint!r}: expected <protocol>/<host>:<port>")
+        raise ConfigError(f"zenoh endpoint {endpoint!r}: expected <protocol>/<host>:<port>")
     return host.strip("[]")
 
 

@@ -77,7 +77,7 @@ if TYPE_CHECKING:
     from rwt_graph.topics import Topic as GraphTopic
     from rwt_protocol.ports import ClientId, MessageEvent
 
-__all__ = ["PARTICIPANT_PREFIX", "PRIVATE_NAMES", "ZenohLink", "open_link"]
+__all__ = ["PARTICIPANT_PREFIX", "PRIVATE_NAMES", "ZenohLink", "open_zenoh_link"]
 
 logger = logging.getLogger("rwt.zenoh")
 
@@ -381,21 +381,9 @@ class ZenohLink:
         """The participant calling local services and actions for remote callers."""
         return self._caller
 
-    def is_ours(self, client: ClientId) -> bool:
-        """Whether ``client`` is one of the link's participants."""
-        return ours(client)
-
     def is_private(self, name: str) -> bool:
         """Whether ``name`` stays in this process (``private``)."""
         return self.rules.is_private(name)
-
-    def node_entity(self, node: str) -> Entity:
-        """The node entity of ``node`` as the network sees it."""
-        return self._node_entity(node)
-
-    def next_id(self) -> int:
-        """A new entity id in this session."""
-        return next(self._ids)
 
     def entity_of(self, node: str, kind: EntityKind, topic: Topic) -> Entity:
         """A new entity of ``node`` (a fresh id in this session) on ``topic``."""
@@ -955,7 +943,7 @@ class ZenohLink:
 
 
 @asynccontextmanager
-async def open_link(graph: Graph, options: ZenohOptions) -> AsyncIterator[ZenohLink]:
+async def open_zenoh_link(graph: Graph, options: ZenohOptions) -> AsyncIterator[ZenohLink]:
     """Open a Zenoh session for ``options`` and link ``graph`` while the block runs.
 
     Raises:

@@ -27,7 +27,7 @@ writes and reads (docs/zenoh.md, "Which rmw_zenoh").
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from enum import IntEnum, StrEnum
 
 from rwt_graph.link import DEFAULT_DEPTH, LATCHED_DEPTH
@@ -407,10 +407,6 @@ class Entity:
             compat=compat,
             received=token,
         )
-
-    def with_topic(self, topic: Topic) -> Entity:
-        """This entity with another topic (a node's publisher from its node)."""
-        return replace(self, topic=topic)
 
 
 def gid_of(text: str) -> bytes:

@@ -12,6 +12,8 @@ import inspect
 import pkgutil
 import re
 
+import anyio
+import numpy as np
 import pytest
 
 import rwt_protocol.errors
@@ -26,11 +28,14 @@ PACKAGES = [
     "rwt_video",
     "rwt_zenoh",
     "rwt_transports",
+    "rwt_bag",
+    "rwt_console",
+    "rwt_ros2",
     "rwt_cli",
 ]
 # Exceptions that never leave the module raising them: a checker's internal signal
 # (turned into a FieldError) and typer's own parameter error (a usage message).
-INTERNAL = {"rwt_graph.types.problem.Problem", "rwt_cli.checks.OptionError"}
+INTERNAL = {"Problem", "OptionError"}
 
 
 def public_exceptions() -> list[type[BaseException]]:
@@ -50,11 +55,12 @@ def public_exceptions() -> list[type[BaseException]]:
                 if (
                     inspect.isclass(value)
                     and issubclass(value, BaseException)
-                    and value.__module__ == module.__name__
+                    and value.__module__.split(".")[0].startswith("rwt")  # "rwt" once exported
                     and not name.startswith("_")
                 ):
                     found[f"{value.__module__}.{name}"] = value
-    return [cls for key, cls in sorted(found.items()) if key not in INTERNAL]
+    unique = {id(cls): cls for cls in found.values() if cls.__name__ not in INTERNAL}
+    return sorted(unique.values(), key=lambda cls: cls.__name__)
 
 
 def test_every_public_error_is_under_rwt_error_and_drawn_in_the_tree() -> None:
@@ -66,3 +72,28 @@ def test_every_public_error_is_under_rwt_error_and_drawn_in_the_tree() -> None:
             continue
         assert issubclass(error, RwtError), f"{error.__module__}.{error.__name__}"
         assert re.search(rf"── {error.__name__}\b", drawing), f"{error.__name__} is not drawn"
+
+
+def test_every_error_of_the_tree_is_in_rwt() -> None:
+    import rwt  # noqa: PLC0415
+
+    drawn = set(re.findall(r"── (\w+)", rwt_protocol.errors.__doc__ or ""))
+    home_only = {"InflateError", "SendTimeoutError", "StepFailedError", "SuiteError"}
+    home_only |= {"StreamParamError", "EncodeError", "VideoError"}
+    assert sorted(name for name in drawn - home_only if not hasattr(rwt, name)) == []
+
+
+def test_user_input_gets_a_tree_error() -> None:
+    import rwt  # noqa: PLC0415
+
+    async def connect() -> None:
+        async with rwt.Ros("http://127.0.0.1:9090"):
+            pass
+
+    with pytest.raises(rwt.ConfigError, match="unsupported URL scheme 'http'"):
+        anyio.run(connect)
+    with pytest.raises(rwt.ImageError, match="must be positive"):
+        rwt.encode_depthcloud(np.zeros((4, 4), np.float32), max_depth_per_tile=0)
+    with pytest.raises(rwt.ConfigError, match="unknown status level 'loud'"):
+        rwt.StatusLevel.from_wire("loud")
+    assert issubclass(rwt.ConfigError, ValueError)  # what these raised before

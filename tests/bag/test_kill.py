@@ -23,9 +23,9 @@ import pytest
 from tests.integration.client_harness import REPO, ServerProcess
 from tests.transports.realclients import run_python
 
-from .support import read_bag
+from .support import CHECKPOINTS, read_bag
 
-pytestmark = pytest.mark.anyio
+pytestmark = [pytest.mark.anyio, CHECKPOINTS]
 
 PAD = "x" * 20_000
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import threading
 from typing import Any
 
@@ -9,6 +10,7 @@ import anyio
 import pytest
 from anyio.abc import TaskStatus
 from anyio.from_thread import start_blocking_portal
+from websockets.asyncio.server import ServerConnection
 
 from rwt_client import (
     Action,
@@ -22,9 +24,14 @@ from rwt_client import (
     Topic,
     message_class,
 )
-from rwt_protocol.client import StatusReceived
+from rwt_client.ros import jittered
+from rwt_protocol.access import AccessPolicy
+from rwt_protocol.errors import OpRefusedError
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.ops import Status
+from rwt_protocol.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.conformance import hostile
 
 pytestmark = pytest.mark.anyio
 
@@ -126,6 +133,56 @@ async def test_service_failures_are_clear_errors(url: str) -> None:
             await Service(caller, "/silent").call(timeout_s=0.3)
 
 
+async def test_refusals_raise_clear_errors() -> None:
+    """A parameter outside ``--params-glob`` and an advertise of another type raise."""
+    access = AccessPolicy(params=("/open_*",))
+    server = RosbridgeServer(config=ServerConfig(port=0, session=SessionConfig(access=access)))
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        url = server.urls["websocket"]
+        async with Ros(url) as ros, Ros(url) as other:
+            await Param(ros, "/open_door").set(1)
+            with pytest.raises(ServiceCallError, match="parameter /secret is not allowed"):
+                await Param(ros, "/secret").set(1)
+            await Topic(other, "/t", "std_msgs/String").advertise()
+            wrong = Topic(ros, "/t", "std_msgs/Int32")
+            with pytest.raises(OpRefusedError, match="established with type std_msgs/msg/String"):
+                await wrong.advertise()
+            assert not wrong.is_advertised and ros.session.advertisements == {}
+            with pytest.raises(OpRefusedError):  # publishing advertises first
+                await wrong.publish({"data": 1})
+            inbox = Inbox()
+            await Topic(other, "/t").subscribe(inbox)
+            await _sync(other)
+            await Topic(ros, "/t", "std_msgs/msg/String").publish({"data": "right"})
+            assert await inbox.wait() == [{"data": "right"}]
+        tg.cancel_scope.cancel()
+
+
+async def _refuses_by_status_only(ws: ServerConnection) -> None:
+    """A foreign server that answers calls and advertisements with an error status only."""
+    async for frame in ws:
+        op = json.loads(frame)
+        if op.get("op") in ("call_service", "advertise"):
+            status = {"op": "status", "level": "error", "msg": "refused here", "id": op["id"]}
+            await ws.send(json.dumps(status))
+
+
+async def test_an_error_status_alone_refuses_a_call_or_an_advertise() -> None:
+    with hostile.serving(_refuses_by_status_only) as url:
+        async with Ros(url, reconnect=False) as ros:
+            with pytest.raises(ServiceCallError, match="/x failed: refused here"):
+                await ros.call_service("/x", timeout_s=10)  # at once, not after 10 s
+            with pytest.raises(OpRefusedError, match=r"refused advertise .*: refused here"):
+                await Topic(ros, "/t", "std_msgs/String").advertise()
+
+
+def test_reconnect_waits_are_jittered() -> None:
+    waits = [jittered(2.0) for _ in range(200)]
+    assert all(1.0 <= wait <= 3.0 for wait in waits)
+    assert max(waits) - min(waits) > 0.5  # spread, not one fixed back-off
+
+
 async def test_actions_with_feedback_and_cancel(url: str) -> None:
     async with Ros(url) as server, Ros(url) as client:
 
@@ -167,7 +224,7 @@ async def test_status_level_and_callbacks(url: str) -> None:
         await ros.set_level(StatusLevel.INFO)
         await Topic(ros, "/s", "std_msgs/String").advertise()
         [*_, last] = await statuses.wait(2)
-        assert isinstance(last, StatusReceived) and last.level == "info"
+        assert isinstance(last, Status) and last.level == "info"
         assert last.msg.startswith("advertise: ")
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shlex
 import signal
 import subprocess
@@ -27,6 +28,14 @@ def test_every_block_has_a_known_language() -> None:
     unknown = [f"{b.name} ({b.language or 'no language'})" for b in BLOCKS]
     unknown = [name for name, b in zip(unknown, BLOCKS, strict=True) if b.language not in LANGUAGES]
     assert not unknown, f"fences must be one of {LANGUAGES}: {unknown}"
+
+
+def test_python_blocks_and_examples_import_only_rwt() -> None:
+    """The packages behind ``rwt`` are its implementation: docs show the public API."""
+    texts = {b.name: b.text for b in BLOCKS if b.language in ("python", "text")}
+    texts |= {str(p.relative_to(REPO)): p.read_text("utf-8") for p in REPO.glob("examples/*.py")}
+    private = re.compile(r"^\s*(from|import)\s+rwt_\w+", re.M)
+    assert [name for name, text in texts.items() if private.search(text)] == []
 
 
 def test_the_readme_has_the_two_quick_start_commands_and_ci_runs_the_second() -> None:

@@ -28,7 +28,7 @@ from hypothesis import given
 import zenoh
 from rwt_graph.graph import Graph
 from rwt_zenoh.config import make_config
-from rwt_zenoh.link import open_link
+from rwt_zenoh.link import open_zenoh_link
 from rwt_zenoh.payload import encode_message, type_hash
 from rwt_zenoh.wire import topic_keyexpr
 from tests.fuzz import driver, grammar
@@ -73,7 +73,7 @@ class LinkedServer:
             stop = anyio.Event()
             async with (
                 running_server() as harness,
-                open_link(harness.server.graph, peer(listen=ep)),
+                open_zenoh_link(harness.server.graph, peer(listen=ep)),
             ):
                 bystander = await harness.connect("ws", "bystander")
                 with anyio.fail_after(TIMEOUT_S):

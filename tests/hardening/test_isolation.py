@@ -177,7 +177,7 @@ async def test_a_bug_in_a_subscriber_s_output_spares_the_publisher(
         await victim.send({"op": "subscribe", "topic": "/chatter", "type": "std_msgs/String"})
         await served(victim, "subscribed")
         sessions = harness.server.sessions.items()
-        victims = {cid for cid, session in sessions if "/chatter" in session.subscriptions}
+        victims = {cid for cid, session in sessions if "/chatter" in session.holdings.subscriptions}
         assert len(victims) == 1
         real = Session.frames_to_send
 

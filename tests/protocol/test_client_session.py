@@ -12,21 +12,26 @@ import cbor2
 import pytest
 from PIL import Image
 
-from rwt_protocol.client import (
-    ActionFeedbackReceived,
-    ActionResultReceived,
-    ClientSession,
-    GoalCancelRequested,
-    GoalRequested,
-    ServiceRequested,
-    ServiceResponded,
-    StatusReceived,
-    TopicMessage,
-    UnknownOp,
-)
+from rwt_protocol.client import ClientEvent, ClientSession, UnknownOp
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.ops import (
+    ActionFeedback,
+    ActionResult,
+    CallService,
+    CancelActionGoal,
+    Publish,
+    PublishFrame,
+    SendActionGoal,
+    ServiceResponse,
+    Status,
+)
 
 PUBLISH = '{"op":"publish","topic":"/t","msg":{"data":"hello"}}'
+
+
+def published(events: list[ClientEvent]) -> list[tuple[str, object]]:
+    """The topic messages among ``events``, as (topic, msg), whichever decoder made them."""
+    return [(e.topic, e.msg) for e in events if getattr(e, "op", None) == "publish"]  # type: ignore[union-attr]
 
 
 def sent(session: ClientSession) -> list[dict[str, object]]:
@@ -90,37 +95,52 @@ def test_set_level_sends_the_wire_spelling() -> None:
 @pytest.mark.parametrize(
     ("frame", "event"),
     [
-        (PUBLISH, TopicMessage("/t", {"data": "hello"})),
         (
             '{"op":"service_response","service":"/s","id":"c:1","values":{"x":1},"result":true}',
-            ServiceResponded("c:1", "/s", True, {"x": 1}),
+            ServiceResponse(id="c:1", service="/s", result=True, values={"x": 1}),
         ),
         (
             '{"op":"call_service","service":"/s","id":"r:1","args":{}}',
-            ServiceRequested("r:1", "/s", {}),
+            CallService(id="r:1", service="/s", args={}),
         ),
         (
             '{"op":"send_action_goal","action":"/f","id":"g","action_type":"T","args":{"order":1}}',
-            GoalRequested("g", "/f", "T", {"order": 1}, False),
+            SendActionGoal(id="g", action="/f", action_type="T", args={"order": 1}),
         ),
-        ('{"op":"cancel_action_goal","action":"/f","id":"g"}', GoalCancelRequested("g", "/f")),
+        (
+            '{"op":"cancel_action_goal","action":"/f","id":"g"}',
+            CancelActionGoal(id="g", action="/f"),
+        ),
         (
             '{"op":"action_feedback","action":"/f","id":"g","values":[1]}',
-            ActionFeedbackReceived("g", "/f", [1]),
+            ActionFeedback(id="g", action="/f", values=[1]),
         ),
         (
             '{"op":"action_result","action":"/f","id":"g","values":{},"result":true}',
-            ActionResultReceived("g", "/f", True, 4, {}),
+            ActionResult(id="g", action="/f", result=True, status=4, values={}),
         ),
         (
             '{"op":"action_result","action":"/f","id":"g","result":false}',
-            ActionResultReceived("g", "/f", False, 6, None),
+            ActionResult(id="g", action="/f", result=False, status=6),
         ),
-        ('{"op":"status","level":"error","msg":"x","id":3}', StatusReceived("error", "x", 3)),
+        ('{"op":"status","level":"error","msg":"x","id":3}', Status(level="error", msg="x", id=3)),
     ],
 )
-def test_incoming_ops_become_events(frame: str, event: object) -> None:
+def test_incoming_ops_become_their_op_models(frame: str, event: object) -> None:
     assert ClientSession().receive_frame(frame) == [event]
+
+
+def test_a_publish_is_its_model_or_its_twin_from_either_decoder() -> None:
+    fast = ClientSession().receive_frame(PUBLISH)
+    general = ClientSession().receive_frame(cbor2.dumps(json.loads(PUBLISH)))
+    for [event] in (fast, general):
+        assert isinstance(event, (Publish, PublishFrame))
+        assert (event.op, event.topic, event.msg, event.id) == (
+            "publish",
+            "/t",
+            {"data": "hello"},
+            None,
+        )
 
 
 @pytest.mark.parametrize("frame", ["nope", "5", '{"op":"weird"}', '{"op":"publish"}', b"\xff\x00"])
@@ -141,13 +161,13 @@ def test_fragments_are_reassembled_by_num_with_a_float_total() -> None:
     events = []
     for frame in reversed(frames):
         events += session.receive_frame(frame)
-    assert events == [TopicMessage("/t", {"data": "hello"})]
+    assert published(events) == [("/t", {"data": "hello"})]
 
 
 def test_pending_fragments_are_bounded_and_forgotten() -> None:
     session = ClientSession(max_pending_fragment_bytes=400, fragment_timeout_s=10)
 
-    def part(n: int, num: int, now: float) -> list[object]:
+    def part(n: int, num: int, now: float) -> list[ClientEvent]:
         frame = {"op": "fragment", "id": n, "data": PUBLISH[num * 27 : num * 27 + 27]}
         return list(session.receive_frame(json.dumps({**frame, "num": num, "total": 2}), now))
 
@@ -157,7 +177,7 @@ def test_pending_fragments_are_bounded_and_forgotten() -> None:
     assert all(isinstance(e, UnknownOp) and "dropped" in e.reason for [e] in refused)
     # once the held ones are forgotten (10 s after their last part) there is room again
     assert part(99, 0, now=20.0) == []
-    assert part(99, 1, now=20.0) == [TopicMessage("/t", {"data": "hello"})]
+    assert published(part(99, 1, now=20.0)) == [("/t", {"data": "hello"})]
 
 
 def _png(text: str) -> str:
@@ -173,14 +193,13 @@ def _png(text: str) -> str:
 def test_png_is_decoded_whole_or_in_parts() -> None:
     session = ClientSession()
     data = _png(PUBLISH)
-    assert session.receive_frame(json.dumps({"op": "png", "data": data})) == [
-        TopicMessage("/t", {"data": "hello"})
-    ]
+    whole = session.receive_frame(json.dumps({"op": "png", "data": data}))
+    assert published(whole) == [("/t", {"data": "hello"})]
     half = len(data) // 2
     first = {"op": "png", "id": "p", "data": data[:half], "num": 0, "total": 2}
     second = {"op": "png", "id": "p", "data": data[half:], "num": 1, "total": 2}
     assert session.receive_frame(json.dumps(second)) == []
-    assert session.receive_frame(json.dumps(first)) == [TopicMessage("/t", {"data": "hello"})]
+    assert published(session.receive_frame(json.dumps(first))) == [("/t", {"data": "hello"})]
     [bad] = session.receive_frame(json.dumps({"op": "png", "data": "bm90IGEgcG5n"}))
     assert isinstance(bad, UnknownOp)
 
@@ -198,10 +217,10 @@ def test_cbor_frames_with_typed_arrays() -> None:
             },
         }
     )
-    [event] = ClientSession().receive_frame(frame)
-    assert event == TopicMessage(
-        "/c", {"f": [1.5, -2.0], "i": [-1, 0, 7], "u": [4000000000], "raw": b"\x01\x02"}
-    )
+    events = ClientSession().receive_frame(frame)
+    assert published(events) == [
+        ("/c", {"f": [1.5, -2.0], "i": [-1, 0, 7], "u": [4000000000], "raw": b"\x01\x02"})
+    ]
 
 
 def test_replies_are_validated_by_the_op_models() -> None:
@@ -213,4 +232,4 @@ def test_replies_are_validated_by_the_op_models() -> None:
     assert isinstance(event, UnknownOp)
     assert "expected bool, got str at $.result" in event.reason
     [event] = session.receive_frame('{"op":"action_result","action":"/a","id":"g","result":true}')
-    assert event == ActionResultReceived("g", "/a", True, 4, None)  # status omitted (D18)
+    assert event == ActionResult(id="g", action="/a", result=True, status=4)  # omitted (D18)

@@ -13,6 +13,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_protocol import handlers, ops
+from rwt_protocol.codec import parse_object
 from rwt_protocol.encoding import safe_op_frames
 from rwt_protocol.levels import StatusLevel
 from tests.session.test_robustness import pair, still_served
@@ -60,6 +61,21 @@ def test_any_other_unencodable_op_becomes_an_error_status_without_a_bad_id() -> 
     status = replaced({"op": "call_service", "service": "/s", "args": {"a": LONE}, "id": 2**70})
     assert status["op"] == "status" and status["level"] == "error" and "id" not in status
     assert status["msg"].startswith("call_service: cannot encode the call_service: ")
+
+
+@pytest.mark.parametrize(
+    "message",
+    [
+        {"op": "service_response", "service": "/s", "values": {"m": LONE}, "result": True},
+        {"op": "action_result", "action": "/a", "id": "g", "values": [LONE], "result": True},
+        {"op": "status", "level": "loud", "msg": LONE},
+        {"op": "publish", "topic": "/t", "msg": {"n": 10**5000}},
+    ],
+    ids=["service_response", "action_result", "status", "other"],
+)
+def test_every_replacement_is_a_valid_op_of_its_model(message: dict[str, Any]) -> None:
+    op = parse_object(replaced(message))
+    assert op.op in (message["op"], "status")  # type: ignore[attr-defined]
 
 
 def test_an_encodable_op_is_untouched() -> None:

@@ -10,6 +10,7 @@ server.
 from __future__ import annotations
 
 import importlib
+import json
 import os
 import re
 import subprocess
@@ -143,6 +144,79 @@ def test_the_codecs_choose_at_import() -> None:
         check=False,
     )
     assert bad.returncode != 0 and b"no shortcut named 'cbor-splice'" in bad.stderr
+
+
+def test_every_shortcut_in_the_registry_has_a_switch() -> None:
+    """Each registered shortcut is chosen by ``enabled("<name>")`` somewhere in src/."""
+    sources = "\n".join(
+        path.read_text("utf-8")
+        for path in (REPO / "src").rglob("*.py")
+        if path.name != "shortcuts.py"
+    )
+    asked = set(re.findall(r"enabled\(\s*\"([a-z0-9-]+)\"\s*\)", sources))
+    assert asked == set(NAMES)  # no switch without a shortcut, no shortcut without a switch
+
+
+_OUTSIDE_THE_PROBE = """
+import json, sys
+from pathlib import Path
+
+from rwt_graph.types import wire
+from rwt_protocol import codec
+from rwt_protocol.client import ClientSession
+
+class Counting:  # counts the one-pass decoder's uses
+    calls = 0
+    def decode(self, frame):
+        Counting.calls += 1
+        return real.decode(frame)
+
+real, codec._publish_decoder = codec._publish_decoder, Counting()
+events = ClientSession().receive_frame('{"op":"publish","topic":"/a","msg":{"data":"hi"}}')
+
+import rwt
+graph = rwt.Graph()
+chatter = graph.create_publisher("/chatter", "std_msgs/msg/String", latch=True)
+chatter.publish({"data": "latched"})  # recorded as the recorder subscribes
+path = Path(sys.argv[1]) / "bag"
+async def record():
+    async with rwt.Recorder(graph, path, topics=["/chatter"]):
+        pass
+import anyio
+anyio.run(record)
+print(json.dumps({
+    "events": repr(events),
+    "decoder_calls": Counting.calls,
+    "view": type(wire.wire_input(bytes(64 * 1024))).__name__,
+    "checkpoints": "rwt_bag.mcap" in sys.modules,  # imported only for CheckpointWriter
+    "bag": [(t.topic, t.msgtype, t.count) for t in rwt.bag_info(path).topics],
+}))
+"""
+
+
+def _outside_the_probe(value: str, tmp_path: Path) -> dict[str, object]:
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), ENV_VAR: value}
+    result = subprocess.run(
+        [sys.executable, "-c", _OUTSIDE_THE_PROBE, str(tmp_path / value)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    return json.loads(result.stdout)  # type: ignore[no-any-return]
+
+
+def test_the_shortcuts_outside_the_server_probe_follow_the_switch(tmp_path: Path) -> None:
+    """The client's publish decoding, the CDR input view and the bag checkpoints."""
+    on = _outside_the_probe("0", tmp_path)
+    off = _outside_the_probe("publish-decode,cdr-input-view,bag-checkpoints", tmp_path)
+    assert on["events"] == off["events"] == "[TopicMessage(topic='/a', msg={'data': 'hi'})]"
+    assert (on["decoder_calls"], off["decoder_calls"]) == (1, 0)
+    assert (on["view"], off["view"]) == ("memoryview", "bytes")
+    assert (on["checkpoints"], off["checkpoints"]) == (True, False)
+    assert on["bag"] == off["bag"] == [["/chatter", "std_msgs/msg/String", 1]]
 
 
 # The encoders and the decoder, with each shortcut on and off in turn.

@@ -571,11 +571,11 @@ def test_a_closed_session_sends_nothing_and_frees_its_parts(graph: Graph, clock:
     part = {"op": "fragment", "id": "x", "data": "{", "num": 0, "total": 2}
     session.receive_frame(cbor2.dumps(part), clock.now, binary=True)
     assert len(session.fragments) == 1 and woken == [1]  # the expiry timer
-    session.send(OutFrame(b"{}"))
+    session.send_frames([OutFrame(b"{}")])
     assert [f.data for f in session.frames_to_send()] == [b"{}"]
     session.close()
     session.receive_frame(json.dumps({**part, "id": "y"}), clock.now)
-    session.send(OutFrame(b"{}"))
+    session.send_frames([OutFrame(b"{}")])
     session.call_at(clock.now + 1, lambda now: None)
     assert session.frames_to_send() == [] and len(session.fragments) == 0
     assert woken == [1, 1] and session.get_timer() is None

@@ -11,8 +11,10 @@ from rwt_graph.graph import Graph
 from rwt_protocol import ops
 from rwt_protocol.access import AccessPolicy, Family, parse_glob_list
 from rwt_protocol.auth import RosauthVerifier, rosauth_mac
+from rwt_protocol.errors import LocalProtocolError
 from rwt_protocol.handlers import HANDLERS
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.lifecycle import TRANSITIONS, State, advance
 from rwt_protocol.ops import Auth, CallService, Subscribe
 from rwt_protocol.outbox import Outbox, OutFrame
 from rwt_protocol.replies import failure_reply
@@ -451,6 +453,47 @@ def test_the_transport_is_woken_for_output_and_closes_are_idempotent(graph: Grap
     session.close()
     session.handle_timer(1e9)
     assert session.closed and session.get_timer() is None
+
+
+def test_the_lifecycle_moves_along_its_table(graph: Graph) -> None:
+    peer = GatedPeer(graph, "a", rosauth([WALL]))
+    assert peer.session.state is State.AUTHENTICATING
+    peer.send(**auth_op())
+    assert peer.session.state is State.OPEN
+    peer.session.begin_shutdown()
+    peer.send(op="advertise", topic="/t", type="std_msgs/String")  # ignored: draining
+    assert peer.session.state is State.DRAINING and "/t" not in graph.topics
+    peer.session.request_close(CloseCode.GOING_AWAY, "stopping")
+    assert peer.session.state is State.CLOSING and peer.session.authenticated
+    peer.session.close()
+    assert peer.session.state is State.CLOSED
+
+
+def test_what_a_session_holds_changes_through_its_ops(graph: Graph) -> None:
+    peer = Peer(graph, "h")
+    peer.send(op="subscribe", topic="/a", type="std_msgs/String", id="s")
+    peer.send(op="advertise", topic="/b", type="std_msgs/String", id="p")
+    peer.send(op="advertise_service", service="/srv", type="std_srvs/Trigger")
+    holdings = peer.session.holdings
+    assert list(holdings.subscriptions) == ["/a"] and holdings.advertisements == {"/b": {"p"}}
+    assert holdings.offers == {("service", "/srv")} and holdings.offered() == 2
+    with pytest.raises(AttributeError):  # read-only: set_level (or set_status_level) changes it
+        peer.session.status_level = StatusLevel.INFO  # type: ignore[misc]
+    peer.send(op="unsubscribe", topic="/a", id="s")
+    peer.send(op="unadvertise", topic="/b")
+    peer.send(op="unadvertise_service", service="/srv")
+    assert not holdings.holds_anything() and peer.received() == []
+
+
+def test_an_illegal_transition_is_an_error() -> None:
+    with pytest.raises(LocalProtocolError, match="no transition from CLOSED to OPEN"):
+        advance(State.CLOSED, State.OPEN)
+    assert all(
+        State.OPEN not in targets
+        for state, targets in TRANSITIONS.items()
+        if state is not State.AUTHENTICATING
+    )
+    assert advance(State.OPEN, State.CLOSING) is State.CLOSING
 
 
 def test_bounded_batches_keep_undroppable_frames_counted(graph: Graph) -> None:

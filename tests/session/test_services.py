@@ -257,7 +257,7 @@ def test_caller_disconnect_drops_its_pending_calls(graph: Graph) -> None:
     caller.send(op="call_service", service="/set_bool")
     caller.session.close()
     [request] = provider.received()
-    provider.session.status_level = StatusLevel.WARNING
+    provider.session.set_status_level(StatusLevel.WARNING)
     provider.send(
         op="service_response", service="/set_bool", id=request["id"], result=True, values={}
     )

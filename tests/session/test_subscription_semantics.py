@@ -206,6 +206,6 @@ def test_queue_length_is_capped_with_a_warning(graph: Graph, clock: FakeClock) -
     for i in range(300):
         publish_at(clock, pub, 100.0 + i * 0.001, str(i))
     assert [m for m in sub.statuses()] == []
-    subscription = sub.session.subscriptions["/t"]
+    subscription = sub.session.holdings.subscriptions["/t"]
     assert len(subscription.queue) == 100
     assert subscription.queue[0].msg == {"data": "200"}

@@ -93,7 +93,7 @@ async def test_nine_readers_get_everything_while_a_stalled_one_is_cut(
             for i, ws in enumerate(readers):
                 tg.start_soon(reader, ws, counts, i)
             with anyio.fail_after(30):
-                while len([s for s in server.sessions.values() if s.subscriptions]) < 10:
+                while len([s for s in server.sessions.values() if s.holdings.subscriptions]) < 10:
                     await anyio.sleep(0.01)  # every subscription has been processed
                 slow = list(server.sessions.values())[-1]  # the stalled one connected last
                 tracemalloc.start()

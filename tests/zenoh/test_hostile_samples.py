@@ -21,7 +21,7 @@ from rwt_graph.graph import Graph
 from rwt_zenoh.config import make_config
 from rwt_zenoh.inbox import Inbox, Sample
 from rwt_zenoh.limits import MAX_REMOTE_ENTITIES, SAMPLE_OVERHEAD
-from rwt_zenoh.link import open_link
+from rwt_zenoh.link import open_zenoh_link
 from rwt_zenoh.payload import encode_message, type_hash
 from rwt_zenoh.wire import (
     VOLATILE_QOS,
@@ -64,7 +64,7 @@ async def linked_with_bare_peer(
     """A graph linked on a loopback endpoint, and a bare Zenoh session connected to it."""
     ep = endpoint()
     graph = Graph()
-    async with open_link(graph, replace(peer(listen=ep), max_entities=max_entities)):
+    async with open_zenoh_link(graph, replace(peer(listen=ep), max_entities=max_entities)):
         session = await anyio.to_thread.run_sync(zenoh.open, make_config(peer(connect=(ep,))))
         try:
             yield graph, session

@@ -32,7 +32,7 @@ from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_protocol.errors import FieldError, RwtError
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import spawner_for
-from rwt_zenoh.link import ZenohLink, open_link
+from rwt_zenoh.link import ZenohLink, open_zenoh_link
 
 from .processes import REPO
 from .support import endpoint, peer
@@ -59,7 +59,7 @@ async def linked(count: int) -> AsyncIterator[list[tuple[Graph, ZenohLink]]]:
         for index in range(count):
             graph = Graph()
             options = peer(listen=first) if index == 0 else peer(connect=(first,))
-            link = await stack.enter_async_context(open_link(graph, options))
+            link = await stack.enter_async_context(open_zenoh_link(graph, options))
             pairs.append((graph, link))
         yield pairs
 
@@ -176,7 +176,7 @@ async def test_callers_fail_at_once_when_the_providing_graph_leaves() -> None:
         await anyio.sleep_forever()
         raise AssertionError  # pragma: no cover
 
-    async with open_link(a, peer(listen=first)), anyio.create_task_group() as tg:
+    async with open_zenoh_link(a, peer(listen=first)), anyio.create_task_group() as tg:
         b.spawner = spawner_for(tg)
         b.create_service("/b/slow", "std_srvs/srv/Trigger", never, node="/slow")
         outcome: list[BaseException] = []
@@ -187,7 +187,7 @@ async def test_callers_fail_at_once_when_the_providing_graph_leaves() -> None:
             except ServiceCallError as exc:
                 outcome.append(exc)
 
-        async with open_link(b, peer(connect=(first,))):
+        async with open_zenoh_link(b, peer(connect=(first,))):
             await until(lambda: "/b/slow" in a.services.entries, "service")
             await caller(0.3)  # a timeout on the caller's side
             assert "timed out" in str(outcome.pop())
@@ -216,8 +216,8 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
 
     async with (
         anyio.create_task_group() as tg,
-        open_link(a, peer(listen=first)),
-        open_link(b, peer(connect=(first,))),
+        open_zenoh_link(a, peer(listen=first)),
+        open_zenoh_link(b, peer(connect=(first,))),
     ):
         b.spawner = spawner_for(tg)
         b.create_action_server("/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f")
@@ -269,9 +269,9 @@ async def test_graphs_of_another_domain_stay_apart() -> None:
     a, same, other = Graph(), Graph(), Graph()
     other_domain = replace(peer(connect=(first,)), domain_id=7)
     async with (
-        open_link(a, peer(listen=first)),
-        open_link(same, peer(connect=(first,))),
-        open_link(other, other_domain),
+        open_zenoh_link(a, peer(listen=first)),
+        open_zenoh_link(same, peer(connect=(first,))),
+        open_zenoh_link(other, other_domain),
     ):
         a.create_publisher("/in_domain_0", "std_msgs/msg/Empty", node="/talker")
         other.create_publisher("/in_domain_7", "std_msgs/msg/Empty", node="/other")
@@ -330,7 +330,7 @@ async def test_a_burst_of_200_images_from_another_process_arrives_whole() -> Non
     options = replace(peer(listen=listen), queue_bytes=8 * 1024 * 1024)
     graph = Graph()
     sender = [sys.executable, "-m", "benchmarks.zenoh_link", "send", listen, "1000000", str(count)]
-    async with open_link(graph, options) as link:
+    async with open_zenoh_link(graph, options) as link:
         graph.create_subscription("/tp", on_image, "sensor_msgs/msg/Image", node="/viewer")
         async with await anyio.open_process(sender, cwd=REPO) as process:
             assert process.stdin is not None

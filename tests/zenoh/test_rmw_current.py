@@ -19,7 +19,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_zenoh.config import ZenohOptions
-from rwt_zenoh.link import open_link
+from rwt_zenoh.link import open_zenoh_link
 from rwt_zenoh.payload import decode_sample, encode_sample, type_hash
 from rwt_zenoh.wire import (
     Attachment,
@@ -91,7 +91,7 @@ async def linked_graph(
 ) -> AsyncIterator[tuple[Graph, Any, CurrentNode]]:
     graph = Graph()
     listen = endpoint()
-    async with open_link(graph, options(listen, compat)):
+    async with open_zenoh_link(graph, options(listen, compat)):
         with bare_session(connect=listen) as session:
             node = CurrentNode(session, graph)
             try:
@@ -229,7 +229,7 @@ async def test_a_callers_client_entity_is_withdrawn_when_its_node_leaves() -> No
     )
     listen = endpoint()
     connect = checked(ZenohOptions(listen=(), connect=(listen,), domain_id=0))
-    async with open_link(server, options(listen)), open_link(caller, connect):
+    async with open_zenoh_link(server, options(listen)), open_zenoh_link(caller, connect):
         with bare_session(connect=listen) as session:
             await until(lambda: "/add" in caller.services.entries, "the remote service")
             answers: list[object] = []

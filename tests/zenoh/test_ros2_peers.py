@@ -41,7 +41,7 @@ from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import spawner_for
 from rwt_zenoh.actions import ActionWire
 from rwt_zenoh.config import make_config
-from rwt_zenoh.link import open_link
+from rwt_zenoh.link import open_zenoh_link
 from rwt_zenoh.payload import decode_sample, encode_sample, named_service_hash
 from rwt_zenoh.wire import Attachment, Durability, Entity, EntityKind, Topic, pack_attachment
 
@@ -134,7 +134,7 @@ def adder_graph() -> Graph:
 @contextlib.asynccontextmanager
 async def serving_fib(graph: Graph, handler: Any, node: str, listen: str) -> AsyncIterator[None]:
     """``/fib`` served in ``graph`` by ``handler``, the graph linked, listening on ``listen``."""
-    async with anyio.create_task_group() as tg, open_link(graph, peer(listen=listen)):
+    async with anyio.create_task_group() as tg, open_zenoh_link(graph, peer(listen=listen)):
         graph.spawner = spawner_for(tg)
         graph.create_action_server("/fib", FIBONACCI, handler, node=node)
         yield
@@ -146,7 +146,7 @@ async def test_a_ros2_client_calls_a_service_and_gets_its_sequence_number_back()
     graph = adder_graph()
     registry = REGISTRY
     request = encode_sample(registry, f"{ADD_TYPE}_Request", {"a": 2, "b": 40})
-    async with open_link(graph, peer(listen=first)):
+    async with open_zenoh_link(graph, peer(listen=first)):
         with bare_session(first) as session:
             reply, sequence = await ros2_call_until_answered(session, ADD_KEY, request)
     assert reply.ok is not None, reply.err.payload.to_string()
@@ -422,7 +422,7 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
     with bare_session(listen=first) as session:
         server = Ros2ActionServer(session, wire)
         try:
-            async with open_link(graph, peer(connect=(first,))):
+            async with open_zenoh_link(graph, peer(connect=(first,))):
                 await until(lambda: "/fib" in action_servers(graph, EVERYTHING), "the action")
                 outcome = await send_action_goal(
                     graph, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
@@ -476,7 +476,7 @@ async def test_a_ros2_client_reads_a_node_parameter_and_gets_its_sequence_number
         registry, service
     )
     request = encode_sample(registry, f"{service}_Request", {"names": ["fps"]})
-    async with open_link(graph, peer(listen=first)):
+    async with open_zenoh_link(graph, peer(listen=first)):
         with bare_session(first) as session:
             reply, sequence = await ros2_call_until_answered(session, key, request)
     assert reply.ok is not None, reply.err.payload.to_string()
@@ -611,8 +611,8 @@ async def test_calls_to_a_ros2_service_carry_each_process_own_client_gid() -> No
         queryable = session.declare_queryable(ADD_KEY, serve, complete=True)
         token = session.liveliness().declare_token(entity.token())
         async with (
-            open_link(a, peer(connect=(first,))),
-            open_link(b, peer(connect=(first,))),
+            open_zenoh_link(a, peer(connect=(first,))),
+            open_zenoh_link(b, peer(connect=(first,))),
         ):
             await until(lambda: "/add" in services(a, EVERYTHING), "A sees the service")
             await until(lambda: "/add" in services(b, EVERYTHING), "B sees the service")
@@ -666,7 +666,7 @@ async def test_zenoh_ros2_sdk_nodes_and_a_linked_graph_share_topics_and_services
         "/rwt/add", ADD_TYPE, lambda req: {"sum": 100 * req["a"] + req["b"]}, node="/adder"
     )
     mapper = graph.create_publisher("/map", "std_msgs/msg/String", latch=True, node="/mapper")
-    async with open_link(graph, peer(listen=first)), sdk_peer(first) as sdk:
+    async with open_zenoh_link(graph, peer(listen=first)), sdk_peer(first) as sdk:
         mapper.publish({"data": "map v1"})
         mapper.publish({"data": "map v2"})
         # the SDK's nodes, from their liveliness tokens, in the graph's rosapi
@@ -710,7 +710,7 @@ async def test_queries_with_forged_attachments_are_answered_and_the_service_carr
     def call(session: Any, attachment: bytes, payload: bytes) -> list[Any]:
         return list(session.get(ADD_KEY, payload=payload, attachment=attachment, timeout=3.0))
 
-    async with open_link(graph, peer(listen=first)):
+    async with open_zenoh_link(graph, peer(listen=first)):
         with bare_session(first) as session:
             await ros2_call_until_answered(session, ADD_KEY, request)  # the route is up
             for attachment in forged:

@@ -34,6 +34,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from .images import ImageError
+
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
@@ -75,11 +77,11 @@ class CameraIntrinsics:
         """From a ``sensor_msgs/CameraInfo`` (``k`` in ROS 2, ``K`` in ROS 1).
 
         Raises:
-            ValueError: the message has no 9-element camera matrix.
+            ImageError: the message has no 9-element camera matrix.
         """
         k = msg.get("k", msg.get("K"))
         if not isinstance(k, list | tuple) or len(k) != 9:
-            raise ValueError("CameraInfo has no 3x3 camera matrix k")
+            raise ImageError("CameraInfo has no 3x3 camera matrix k")
         return cls(float(k[0]), float(k[4]), float(k[2]), float(k[5]))
 
     @classmethod
@@ -187,12 +189,12 @@ def encode_depthcloud(
         Image (see the module docstring).
 
     Raises:
-        ValueError: ``colour`` does not match ``depth``, or a bad d or tile size.
+        ImageError: ``colour`` does not match ``depth``, or a bad d or tile size.
     """
     if max_depth_per_tile <= 0 or tile_size <= 0:
-        raise ValueError("max_depth_per_tile and tile_size must be positive")
+        raise ImageError("max_depth_per_tile and tile_size must be positive")
     if colour is not None and colour.shape != (*depth.shape, 3):
-        raise ValueError(f"colour {colour.shape} does not match depth {depth.shape}")
+        raise ImageError(f"colour {colour.shape} does not match depth {depth.shape}")
     filled, valid = fill_depth_holes(depth)
     near = _quantise(filled, max_depth_per_tile)
     far = _quantise(filled - np.float32(max_depth_per_tile), max_depth_per_tile)
@@ -242,10 +244,10 @@ def decode_depthcloud(
         The depth (NaN where invalid), colour and validity in the source grid.
 
     Raises:
-        ValueError: ``image`` is not a (2T, 2T, 3) array.
+        ImageError: ``image`` is not a (2T, 2T, 3) array.
     """
     if image.ndim != 3 or image.shape[2] != 3 or image.shape[0] != image.shape[1]:
-        raise ValueError(f"a depth-cloud image is (2T, 2T, 3), not {image.shape}")
+        raise ImageError(f"a depth-cloud image is (2T, 2T, 3), not {image.shape}")
     tile = image.shape[0] // 2
     win = tile_window(width, height, tile)
 

@@ -55,7 +55,7 @@ class DepthCloudEncoder:
 
     Raises:
         GraphError: a topic exists with another type.
-        ValueError: a bad d or tile size.
+        ImageError: a bad d or tile size.
     """
 
     def __init__(
@@ -70,7 +70,7 @@ class DepthCloudEncoder:
         node: str = "/depthcloud_encoder",
     ) -> None:
         if max_depth_per_tile <= 0 or tile_size <= 0:
-            raise ValueError("max_depth_per_tile and tile_size must be positive")
+            raise ImageError("max_depth_per_tile and tile_size must be positive")
         self.max_depth_per_tile = max_depth_per_tile
         self.tile_size = tile_size
         self._colours: deque[Message] = deque(maxlen=_KEPT_COLOUR_FRAMES)

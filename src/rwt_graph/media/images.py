@@ -35,8 +35,11 @@ U8Array = npt.NDArray[np.uint8]
 F32Array = npt.NDArray[np.float32]
 
 
-class ImageError(GraphError):
-    """An image message that cannot be converted (unknown encoding, short data)."""
+class ImageError(GraphError, ValueError):
+    """An image that cannot be converted (unknown encoding, short data, bad shape).
+
+    Also a ``ValueError``, as the depth-cloud codec's errors were.
+    """
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from rwt_protocol.shortcuts import enabled
 from .convert import Context, ConvertFn, DefaultFn, compile_message, is_header, is_time_type
 from .fastpath import FastFn, compile_fast
 from .interop import from_rosbags, to_rosbags
+from .names import Dialect
 from .rosbagsfast import FromFn, ToFn, compile_from_rosbags, compile_to_rosbags
 
 if TYPE_CHECKING:
@@ -18,7 +19,6 @@ if TYPE_CHECKING:
 
     from rosbags.typesys.store import Typestore
 
-    from .names import Dialect
     from .spec import Constant, FieldSpec
 
 __all__ = ["ActionType", "Converted", "MessageType", "ServiceType"]
@@ -80,6 +80,7 @@ class MessageType:
         self.dialect = dialect
         self.rosbags_name = rosbags_name
         self._text = text.rstrip("\n")
+        self._source = text  # verbatim: ROS 1's full text keeps each file's last newline
         self._resolve = resolve
         self._compiled: tuple[ConvertFn, DefaultFn] | None = None
         self._convert: ConvertFn | None = None
@@ -272,6 +273,8 @@ class MessageType:
         This type's text, then for each dependency a line of 80 ``=``, a line
         ``MSG: pkg/Type`` and that type's text (REF §3.5, §7.1 L59).
         """
+        if self.dialect is Dialect.ROS1:
+            return self._genmsg_full_text()
         parts = [self.definition_text()]
         for name in self.dependency_names():
             dep = self._resolve(name)
@@ -279,6 +282,20 @@ class MessageType:
             short = short.rpartition("/")[2]
             parts.append(f"{_RULE}\nMSG: {package}/{short}\n{dep.definition_text()}")
         return "".join(parts)
+
+    def _genmsg_full_text(self) -> str:
+        """ROS 1's full text byte for byte as genmsg's ``compute_full_text`` joins it.
+
+        Each file's text as written, a newline after each, the last one cut: what
+        a ROS 1 publisher sends as ``message_definition`` and what ``rosbag
+        check`` compares with the installed types (``migration.py``, ``find_path``).
+        """
+        parts = [self._source, "\n"]
+        for name in self.dependency_names():
+            package, _, short = name.partition("/")
+            short = short.rpartition("/")[2]
+            parts += [f"{_RULE}\nMSG: {package}/{short}\n", self._resolve(name)._source, "\n"]
+        return "".join(parts)[:-1]
 
 
 @dataclass(frozen=True, slots=True)

@@ -184,4 +184,5 @@ def store_message(
         if name != IDL_PLACEHOLDER
     )
     constants = tuple(Constant(name, ctype, value) for name, ctype, value in consts)
-    return fields, constants, render_text(fields, constants, dialect)
+    # ends with a newline, as a .msg file does (ROS 1's full text keeps each file's last one)
+    return fields, constants, render_text(fields, constants, dialect) + "\n"

@@ -39,15 +39,20 @@ _KEEP_VIEW = enabled("cbor-splice-encode")
 Typer = Callable[[Msg], Msg]
 
 
+#: The ``cdr-input-view`` shortcut (shortcuts.py); off, rosbags gets ``bytes`` always.
+_VIEW_INPUT = enabled("cdr-input-view")
+
+
 def wire_input(data: bytes) -> bytes | memoryview:
     """``data`` (a serialized message) as rosbags' deserializers read it fastest.
 
     rosbags' ``Typestore.deserialize_cdr`` cuts off the 4-byte encapsulation
     header with a slice, which copies a ``bytes`` object but not a view: for a
     1 MB image that copy was half of its 120 us decode. A small message decodes a
-    little faster from ``bytes``, so only one of at least 64 KiB becomes a view.
+    little faster from ``bytes``, so only one of at least 64 KiB becomes a view
+    (the ``cdr-input-view`` shortcut, docs/shortcuts.md).
     """
-    return memoryview(data) if len(data) >= _LARGE_VIEW else data
+    return memoryview(data) if _VIEW_INPUT and len(data) >= _LARGE_VIEW else data
 
 
 class CdrError(RemoteProtocolError, ValueError):

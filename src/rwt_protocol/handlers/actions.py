@@ -16,7 +16,7 @@ from ..ops import (
     UnadvertiseAction,
 )
 from ..ports import GoalStatus
-from .topics import offered, report_type_warning
+from .topics import report_type_warning
 
 if TYPE_CHECKING:
     from .context import HandlerContext
@@ -37,13 +37,14 @@ def advertise_action(session: HandlerContext, op: AdvertiseAction, now: float) -
     Raises:
         GraphError: bad or unknown action type.
     """
-    key = ("action", resolve_name(op.action))
-    if key not in session.offers:
-        session.check_cap(offered(session), session.config.max_advertisements, "advertisements")
+    name = resolve_name(op.action)
+    holdings = session.holdings
+    if ("action", name) not in holdings.offers:
+        session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
     type_name = session.graph.advertise_action(
         session.client_id, op.action, op.type, session.provider_link
     )
-    session.offers.add(key)
+    holdings.add_offer("action", name)
     report_type_warning(session, "advertise_action", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_action: {op.action} advertised as {type_name}")
 
@@ -55,7 +56,7 @@ def unadvertise_action(session: HandlerContext, op: UnadvertiseAction, now: floa
         GraphError: this client does not provide the action.
     """
     session.graph.unadvertise_action(session.client_id, op.action)
-    session.offers.discard(("action", resolve_name(op.action)))
+    session.holdings.drop_offer("action", resolve_name(op.action))
     session.report(StatusLevel.INFO, f"unadvertise_action: {op.action} unadvertised")
 
 
@@ -76,11 +77,9 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
         nonlocal finished
         if finished:
             return
-        if handle is not None:  # counted in session.pending_goals
-            session.pending_goals -= 1
         finished = True
-        if handle is not None and session.goals.get(key) is handle:
-            del session.goals[key]
+        if handle is not None:  # counted in the holdings' pending goals
+            session.holdings.goal_finished(key, handle)
         reply = ActionResult.frame(
             action=op.action, id=op.id, result=result, values=values, status=int(status)
         )
@@ -92,7 +91,8 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
 
     handle = None
     try:
-        session.check_cap(session.pending_goals, session.config.max_pending_goals, "pending goals")
+        pending = session.holdings.pending_goals
+        session.check_cap(pending, session.config.max_pending_goals, "pending goals")
         handle = session.graph.send_action_goal(
             session.client_id,
             op.action,
@@ -106,8 +106,7 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
         done(GoalStatus.ABORTED, False, exc.message)
         raise
     if not finished:
-        session.goals[key] = handle
-        session.pending_goals += 1
+        session.holdings.goal_started(key, handle)
 
 
 def cancel_action_goal(session: HandlerContext, op: CancelActionGoal, now: float) -> None:
@@ -116,7 +115,7 @@ def cancel_action_goal(session: HandlerContext, op: CancelActionGoal, now: float
     Raises:
         GraphError: warning when no goal with that id is in progress.
     """
-    handle = session.goals.get(op.id)
+    handle = session.holdings.goals.get(op.id)
     if handle is None:
         raise GraphError(f"no goal {op.id!r} in progress", level=StatusLevel.WARNING)
     handle.request_cancel()

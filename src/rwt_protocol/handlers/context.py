@@ -1,9 +1,11 @@
 """What a handler may use of its connection: the session's surface for handlers.
 
 Handlers see a ``HandlerContext``, not the whole ``Session``: the graph, this
-connection's state (its subscriptions, advertisements, offers, goals and
-counters), and the few actions a handler takes (send an op, report a status,
-set a timer, check a cap, feed a reassembled frame back). The transport-facing
+connection's holdings (``holdings.Holdings``: its subscriptions, advertisements,
+offers, goals and counters), and the few actions a handler takes (send an op,
+report a status, set a timer, check a cap, feed a reassembled frame back).
+Every member is read-only: a handler changes its connection only through
+methods (of the context, or of its holdings). The transport-facing
 half of the session (``frames_to_send``, ``close``, ``request_close``, the
 outbox) is out of a handler's reach. ``Session`` satisfies this protocol.
 """
@@ -18,9 +20,10 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from ..fragments import Reassembler
+    from ..holdings import Holdings
     from ..levels import StatusLevel
     from ..png import PendingPng
-    from ..ports import ClientId, GoalHandle, GraphPort, MessageCodec, MessageEvent
+    from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from ..subscriptions import TopicSubscription
     from ..timers import Timer
     from .providers import ProviderLink
@@ -31,18 +34,32 @@ __all__ = ["HandlerContext"]
 class HandlerContext(Protocol):
     """One connection as its handlers see it (implemented by ``Session``)."""
 
-    graph: GraphPort
-    client_id: ClientId
-    peer: str
-    status_level: StatusLevel
-    subscriptions: dict[str, TopicSubscription]
-    advertisements: dict[str, set[str | int | None]]
-    goals: dict[str | int | None, GoalHandle]
-    offers: set[tuple[str, str]]
-    pending_calls: int
-    pending_goals: int
-    provider_link: ProviderLink
-    fragments: Reassembler
+    @property
+    def graph(self) -> GraphPort:
+        """The graph the connection operates on."""
+
+    @property
+    def client_id(self) -> ClientId:
+        """The connection's identity in the graph."""
+
+    @property
+    def peer(self) -> str:
+        """The peer's address, ``host:port``."""
+
+    @property
+    def holdings(self) -> Holdings:
+        """What the connection holds: subscriptions, advertisements, offers, goals, counts."""
+
+    @property
+    def provider_link(self) -> ProviderLink:
+        """The graph's way to the peer's services and actions."""
+
+    @property
+    def fragments(self) -> Reassembler:
+        """The connection's incomplete ``fragment`` and ``png`` messages (D19)."""
+
+    def set_status_level(self, level: StatusLevel) -> None:
+        """Change which status frames the connection receives (D2)."""
 
     @property
     def config(self) -> SessionSettings:

@@ -19,7 +19,7 @@ def set_level(session: HandlerContext, op: SetLevel, now: float) -> None:
 
     A level outside the four is rejected by the op model, leaving the level as it was.
     """
-    session.status_level = StatusLevel.from_wire(op.level)
+    session.set_status_level(StatusLevel.from_wire(op.level))
     session.report(StatusLevel.INFO, f"set_level: status level is {op.level}", op.id)
 
 

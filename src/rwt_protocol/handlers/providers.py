@@ -39,7 +39,7 @@ class ProviderLink:
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """Warn the peer that its service was taken away (D15)."""
-        self._session.offers.discard(("service", resolve_name(service)))
+        self._session.holdings.drop_offer("service", resolve_name(service))
         self._session.report(StatusLevel.WARNING, f"advertise_service: {reason}")
 
     def on_action_goal(
@@ -64,5 +64,5 @@ class ProviderLink:
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """Warn the peer that its action was taken away (D15)."""
-        self._session.offers.discard(("action", resolve_name(action)))
+        self._session.holdings.drop_offer("action", resolve_name(action))
         self._session.report(StatusLevel.WARNING, f"advertise_action: {reason}")

@@ -8,7 +8,7 @@ from ..errors import RemoteProtocolError, RwtError
 from ..levels import StatusLevel
 from ..names import resolve_name
 from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
-from .topics import offered, report_type_warning
+from .topics import report_type_warning
 
 if TYPE_CHECKING:
     from ..timers import Timer
@@ -23,13 +23,14 @@ def advertise_service(session: HandlerContext, op: AdvertiseService, now: float)
     Raises:
         GraphError: bad or unknown service type.
     """
-    key = ("service", resolve_name(op.service))
-    if key not in session.offers:
-        session.check_cap(offered(session), session.config.max_advertisements, "advertisements")
+    name = resolve_name(op.service)
+    holdings = session.holdings
+    if ("service", name) not in holdings.offers:
+        session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
     type_name = session.graph.advertise_service(
         session.client_id, op.service, op.type, session.provider_link
     )
-    session.offers.add(key)
+    holdings.add_offer("service", name)
     report_type_warning(session, "advertise_service", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
 
@@ -41,7 +42,7 @@ def unadvertise_service(session: HandlerContext, op: UnadvertiseService, now: fl
         GraphError: this client does not provide the service.
     """
     session.graph.unadvertise_service(session.client_id, op.service)
-    session.offers.discard(("service", resolve_name(op.service)))
+    session.holdings.drop_offer("service", resolve_name(op.service))
     session.report(StatusLevel.INFO, f"unadvertise_service: {op.service} unadvertised")
 
 
@@ -53,7 +54,7 @@ class _Call:
         self.op = op
         self.op_id = op_id
         self.done = False
-        self.counted = False  # in ``session.pending_calls`` until answered
+        self.counted = False  # in the holdings' pending calls until answered
         self.timer: Timer | None = None
 
     def reply(self, result: bool, values: object) -> None:
@@ -61,7 +62,7 @@ class _Call:
             return
         self.done = True
         if self.counted:
-            self.session.pending_calls -= 1
+            self.session.holdings.call_finished()
         if self.timer is not None:
             self.timer.cancel()
         message = ServiceResponse.frame(
@@ -91,7 +92,8 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
         service, op_id = service.split("#", 1)
     call = _Call(session, op, op_id)
     try:
-        session.check_cap(session.pending_calls, session.config.max_pending_calls, "pending calls")
+        pending_calls = session.holdings.pending_calls
+        session.check_cap(pending_calls, session.config.max_pending_calls, "pending calls")
         pending = session.graph.call_service(
             session.client_id, service, op.args, call.reply, type_name=None, path="$.args"
         )
@@ -101,7 +103,7 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
     if call.done:
         return
     call.counted = True
-    session.pending_calls += 1
+    session.holdings.call_started()
     timeout_s = op.timeout or session.config.call_timeout_s
     if timeout_s is None:
         return

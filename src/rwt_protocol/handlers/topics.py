@@ -15,7 +15,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "advertise",
-    "offered",
     "publish",
     "report_type_warning",
     "subscribe",
@@ -33,13 +32,14 @@ def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
         GraphError: bad or unknown type, or the topic has another type.
     """
     topic = resolve_name(op.topic)
-    ids = session.advertisements.get(topic)
+    holdings = session.holdings
+    ids = holdings.advertisements.get(topic)
     if ids is None:
-        session.check_cap(offered(session), session.config.max_advertisements, "advertisements")
+        session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
     elif op.id not in ids:
         session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {op.topic}")
     type_name = session.graph.advertise(session.client_id, topic, op.type, latch=op.latch)
-    session.advertisements.setdefault(topic, set()).add(op.id)
+    holdings.add_advertisement(topic, op.id)
     report_type_warning(session, "advertise", type_name, op.id)
     session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
 
@@ -53,11 +53,6 @@ def report_type_warning(
         session.report(StatusLevel.WARNING, f"{op}: {warning}", op_id)
 
 
-def offered(session: HandlerContext) -> int:
-    """Topics, services and actions this connection advertises (one cap for all)."""
-    return len(session.advertisements) + len(session.offers)
-
-
 def unadvertise(session: HandlerContext, op: Unadvertise, now: float) -> None:
     """Drop one advertise id, or all of them, for ``op.topic`` (spec 3.3.2).
 
@@ -66,19 +61,14 @@ def unadvertise(session: HandlerContext, op: Unadvertise, now: float) -> None:
             or has no advertisement with ``op.id`` (spec 3.3.2, D3).
     """
     topic = resolve_name(op.topic)
-    ids = session.advertisements.get(topic)
+    ids = session.holdings.advertisements.get(topic)
     if ids is None:
         raise GraphError(f"{op.topic} is not advertised by this client", level=StatusLevel.WARNING)
-    if op.id is not None:
-        if op.id not in ids:
-            raise GraphError(
-                f"no advertisement with id {op.id!r} on {op.topic}", level=StatusLevel.WARNING
-            )
-        ids.discard(op.id)
-    else:
-        ids.clear()
-    if not ids:
-        del session.advertisements[topic]
+    if op.id is not None and op.id not in ids:
+        raise GraphError(
+            f"no advertisement with id {op.id!r} on {op.topic}", level=StatusLevel.WARNING
+        )
+    if session.holdings.drop_advertisement(topic, op.id):
         session.graph.unadvertise(session.client_id, topic)
     session.report(StatusLevel.INFO, f"unadvertise: {op.topic} unadvertised", op.id)
 
@@ -107,10 +97,11 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
         GraphError: the type is unknown, cannot be inferred, or conflicts.
     """
     topic = resolve_name(op.topic)
-    subscription = session.subscriptions.get(topic)
+    subscriptions = session.holdings.subscriptions
+    subscription = subscriptions.get(topic)
     if subscription is None:
         cap = session.config.max_subscriptions
-        session.check_cap(len(session.subscriptions), cap, "subscriptions")
+        session.check_cap(len(subscriptions), cap, "subscriptions")
     elif op.id not in subscription.requests:
         cap = session.config.max_ids_per_topic
         session.check_cap(len(subscription.requests), cap, f"ids on {op.topic}")
@@ -126,7 +117,7 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
         subscription.type_name = session.graph.subscribe(
             session.client_id, topic, op.type, subscription
         )
-        session.subscriptions[topic] = subscription
+        session.holdings.add_subscription(topic, subscription)
         report_type_warning(session, "subscribe", subscription.type_name, op.id)
     else:
         if op.type is not None:
@@ -147,7 +138,7 @@ def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
         GraphError: warning level when not subscribed or the id is unknown (D11).
     """
     topic = resolve_name(op.topic)
-    subscription = session.subscriptions.get(topic)
+    subscription = session.holdings.subscriptions.get(topic)
     if subscription is None:
         raise GraphError(f"not subscribed to {op.topic}", level=StatusLevel.WARNING)
     if op.id is None:
@@ -158,6 +149,6 @@ def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
         )
     if not subscription.requests:
         subscription.close()
-        del session.subscriptions[topic]
+        session.holdings.drop_subscription(topic)
         session.graph.unsubscribe(session.client_id, topic)
     session.report(StatusLevel.INFO, f"unsubscribe: unsubscribed from {op.topic}", op.id)

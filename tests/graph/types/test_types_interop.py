@@ -59,8 +59,14 @@ def test_full_text_follows_the_gendeps_layout(ros2: TypeRegistry, ros1: TypeRegi
     ]
     assert chunks[2] == "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
     assert "float64 w 1" in chunks[5]
+    # ROS 1: Noetic's texts, comments included, joined as genmsg joins them (each
+    # file's own last newline, then one more): what `rosbag check` compares
     ros1_text = ros1.message("std_msgs/Header").full_text()
-    assert ros1_text == "uint32 seq\ntime stamp\nstring frame_id\n"
+    assert ros1_text.startswith("# Standard metadata for higher-level stamped data types.\n")
+    assert ros1_text.endswith("#Frame this data is associated with\nstring frame_id\n")
+    pose = ros1.message("geometry_msgs/PoseStamped").full_text()
+    assert pose.startswith("# A Pose with reference coordinate frame and timestamp\nHeader")
+    assert f"Pose pose\n\n{RULE}\nMSG: std_msgs/Header\n# Standard metadata" in pose
 
 
 def test_typestore_serializes_shipped_file_and_service_types(ros2: TypeRegistry) -> None:
