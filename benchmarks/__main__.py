@@ -8,7 +8,8 @@ load generator's CPU to show its headroom), writes
 ``benchmarks/README.md``. ``--soak`` runs B15 for 30 minutes. ``--smoke`` runs
 every variant once on tiny counts without touching the README (CI).
 ``peer`` compares with a running rosbridge_suite (benchmarks/peer.py); ``ros2``
-measures the ROS 2 bridge (benchmarks/ros2_bridge.py).
+measures the ROS 2 bridge (benchmarks/ros2_bridge.py); ``console`` the web
+console in Chromium (benchmarks/console.py).
 """
 
 from __future__ import annotations
@@ -76,6 +77,10 @@ def main(argv: list[str] | None = None) -> int:
         from .peer import main as peer_main  # noqa: PLC0415
 
         return peer_main(argv[1:])
+    if argv[:1] == ["console"]:  # its own options (benchmarks/console.py)
+        from .console import main as console_main  # noqa: PLC0415
+
+        return console_main(argv[1:])
     if argv[:1] == ["ros2"]:  # its own options (benchmarks/ros2_bridge.py)
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 
@@ -83,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("peer", help="B1, B2, B7 against rosbridge_suite (ROS 1), rwt and the relay")
+    sub.add_parser("console", help="the web console in Chromium: input latency, CPU, streams")
     sub.add_parser("ros2", help="real ROS 2 to WebSocket: rwt --ros2, rosbridge_suite 2.1.0, rclpy")
     p_run = sub.add_parser("run", help="run scenarios and print the table")
     p_run.add_argument("scenarios", nargs="*", help="B1 ... B18 (default: all but B18)")

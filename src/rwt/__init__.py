@@ -95,7 +95,6 @@ if TYPE_CHECKING:
     )
     from rwt_graph.types.wire import CdrError
     from rwt_protocol.access import AccessDeniedError, AccessPolicy, Family
-    from rwt_protocol.client import ActionResultReceived
     from rwt_protocol.errors import (
         CallTimeoutError,
         ConfigError,
@@ -103,6 +102,7 @@ if TYPE_CHECKING:
         GraphError,
         LimitError,
         LocalProtocolError,
+        OpRefusedError,
         ProtocolError,
         RemoteProtocolError,
         RwtError,
@@ -111,7 +111,7 @@ if TYPE_CHECKING:
     )
     from rwt_protocol.levels import StatusLevel
     from rwt_protocol.messages import MessageTooBigError
-    from rwt_protocol.ops import Auth
+    from rwt_protocol.ops import ActionResult, Auth
     from rwt_protocol.outbox import OutFrame
     from rwt_protocol.ports import GoalStatus
     from rwt_protocol.session import SessionConfig
@@ -131,7 +131,7 @@ __all__ = [
     "AccessDeniedError",
     "AccessPolicy",
     "Action",
-    "ActionResultReceived",
+    "ActionResult",
     "ActionType",
     "ArrayKind",
     "Auth",
@@ -177,6 +177,7 @@ __all__ = [
     "MessageClass",
     "MessageTooBigError",
     "MessageType",
+    "OpRefusedError",
     "OutFrame",
     "Param",
     "ParameterError",
@@ -331,7 +332,6 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "AccessPolicy",
         "Family",
     ),
-    "rwt_protocol.client": ("ActionResultReceived",),
     "rwt_protocol.errors": (
         "CallTimeoutError",
         "ConfigError",
@@ -339,6 +339,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "GraphError",
         "LimitError",
         "LocalProtocolError",
+        "OpRefusedError",
         "ProtocolError",
         "RemoteProtocolError",
         "RwtError",
@@ -347,7 +348,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
     ),
     "rwt_protocol.levels": ("StatusLevel",),
     "rwt_protocol.messages": ("MessageTooBigError",),
-    "rwt_protocol.ops": ("Auth",),
+    "rwt_protocol.ops": ("ActionResult", "Auth"),
     "rwt_protocol.ports": ("GoalStatus",),
     "rwt_protocol.session": ("SessionConfig",),
     "rwt_ros2": (

@@ -77,8 +77,10 @@ async def _start_video(tg: TaskGroup, server: RosbridgeServer, video: VideoConfi
     except OSError as exc:
         raise ListenError("HTTP video", video.host, video.port, exc) from exc
     site = server.config.websocket.console
-    if site is not None:  # the console on the WebSocket port shows the streams
+    if site is not None:  # the console on either port shows the streams
         site.video_port = _port(video_url)
+    if video.console is not None:
+        video.console.video_port = _port(video_url)
     return video_url
 
 

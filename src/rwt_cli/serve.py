@@ -115,7 +115,7 @@ def serve(options: ServeOptions) -> None:
     media = options.media
     if media.depthcloud:
         _depthcloud_encoder(graph, media)
-    video = _video_config(options, server.config.websocket.console)
+    video = _video_config(options, server.config.websocket.console, graph, secret is not None)
     jobs = _bag_jobs(graph, options.record, options.play)
     freeze_startup_objects()
     _run(server, video, jobs, zenoh_link, ros2_link, uvloop=options.process.uvloop)
@@ -404,14 +404,26 @@ def _limits(config: ServerConfig) -> dict[str, object]:
     }
 
 
-def _video_config(options: ServeOptions, site: ConsoleSite | None) -> VideoConfig | None:
-    """The video server of ``--video``/``--video-port``, or None without them."""
+def _video_config(
+    options: ServeOptions, site: ConsoleSite | None, graph: Graph, tokens: bool
+) -> VideoConfig | None:
+    """The video server of ``--video``/``--video-port``, or None without them.
+
+    With ``tokens`` (--auth-secret-file) its streams need a token from the
+    graph's ``/rwt/video_token`` (docs/video.md, D32).
+    """
     media = options.media
     if not media.video and media.video_port is None:  # a video port asks for the video server
         return None
     # the video server (Pillow, numpy) loads only with --video (B11: base memory)
-    from rwt_video import VideoConfig  # noqa: PLC0415
+    from rwt_video import VideoConfig, VideoTokens, install_token_service  # noqa: PLC0415
 
+    video_tokens = None
+    if tokens:
+        video_tokens = VideoTokens()
+        install_token_service(graph, video_tokens)
+        if site is not None:
+            site.video_token = True
     console = None
     if site is not None:  # the same page under /console/; its WebSocket port is set later
         console = replace(site, root_is_console=False)
@@ -421,6 +433,7 @@ def _video_config(options: ServeOptions, site: ConsoleSite | None) -> VideoConfi
         max_connections=media.video_max_connections,
         max_streams=media.video_max_streams,
         console=console,
+        tokens=video_tokens,
     )
 
 

@@ -84,6 +84,8 @@ class ConsoleSite:
             port (the video server's); None: the page's own port.
         websocket_tls: the WebSocket is wss (``--certfile``).
         video_port: the video server's port (``--video``), or None.
+        video_token: the video server wants a token from ``/rwt/video_token`` in
+            each stream URL (``--auth-secret-file`` with ``--video``; docs/video.md).
         auth: the server asks for the rosauth ``auth`` op first (``--auth-secret-file``).
         root_is_console: ``/`` serves the page (the WebSocket port); the video
             server keeps ``/`` for web_video_server's topic list.
@@ -95,6 +97,7 @@ class ConsoleSite:
     websocket_port: int | None = None
     websocket_tls: bool = False
     video_port: int | None = None
+    video_token: bool = False
     auth: bool = False
     root_is_console: bool = True
     limits: dict[str, object] = field(default_factory=dict)
@@ -107,7 +110,11 @@ class ConsoleSite:
                 "path": self.websocket_path,
                 "tls": self.websocket_tls,
             },
-            "video": None if self.video_port is None else {"port": self.video_port},
+            "video": (
+                None
+                if self.video_port is None
+                else {"port": self.video_port, "token": self.video_token}
+            ),
             "auth": self.auth,
             "limits": self.limits,
         }

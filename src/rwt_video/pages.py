@@ -22,8 +22,8 @@ from .params import StreamParams, StreamType
 __all__ = ["stream_viewer_page", "topic_list_page"]
 
 
-def topic_list_page(topics: list[tuple[str, str]]) -> str:
-    """The ``/`` page for the graph's ``(topic, type)`` pairs."""
+def topic_list_page(topics: list[tuple[str, str]], token: str | None = None) -> str:
+    """The ``/`` page for the graph's ``(topic, type)`` pairs; links carry ``token`` if given."""
     images = [name for name, kind in topics if kind.replace("/msg/", "/") == "sensor_msgs/Image"]
     cameras = [
         name.removesuffix("camera_info")
@@ -38,17 +38,20 @@ def topic_list_page(topics: list[tuple[str, str]]) -> str:
     for base in cameras:
         mine = [name for name in images if name.startswith(base)]
         images = [name for name in images if name not in mine]
-        items = "".join(_topic_item(name, name[len(base) :]) for name in mine)
+        items = "".join(_topic_item(name, name[len(base) :], token) for name in mine)
         lines.append(f"<li>{escape(base)}<ul>{items}</ul></li>")
     lines.append("</ul><ul>")
-    lines.extend(_topic_item(name, name) for name in images)
+    lines.extend(_topic_item(name, name, token) for name in images)
     lines.append("</ul></body></html>")
     return "\n".join(lines)
 
 
-def stream_viewer_page(params: StreamParams) -> str:
-    """The ``/stream_viewer`` page: the stream in an element a browser plays."""
-    source = escape(f"/stream?{_query(params)}")
+def stream_viewer_page(params: StreamParams, token: str | None = None) -> str:
+    """The ``/stream_viewer`` page: the stream in an element a browser plays.
+
+    ``token``: the video token the stream URL carries (docs/video.md), if any.
+    """
+    source = escape(f"/stream?{_query(params, token)}")
     if params.type.is_video:
         element = (
             f'<video src="{source}" id="stream" autoplay muted playsinline></video>'
@@ -73,8 +76,8 @@ _START_VIDEO = (
 )
 
 
-def _topic_item(topic: str, label: str) -> str:
-    query = urlencode({"topic": topic})
+def _topic_item(topic: str, label: str, token: str | None) -> str:
+    query = urlencode({"topic": topic} | ({} if token is None else {"token": token}))
     return (
         f'<li><a href="/stream_viewer?{escape(query)}">{escape(label)}</a> '
         f'(<a href="/stream?{escape(query)}">Stream</a>) '
@@ -82,8 +85,8 @@ def _topic_item(topic: str, label: str) -> str:
     )
 
 
-def _query(params: StreamParams) -> str:
-    """The query that asks for ``params`` again (defaults left out)."""
+def _query(params: StreamParams, token: str | None = None) -> str:
+    """The query that asks for ``params`` again (defaults left out), with ``token`` if given."""
     default = StreamParams(topic=params.topic, type=params.type)
     pairs: list[tuple[str, str]] = [("topic", params.topic), ("type", params.type.value)]
     for field in fields(StreamParams):
@@ -94,4 +97,6 @@ def _query(params: StreamParams) -> str:
             pairs.append(("invert", ""))
         elif field.name != "quality" or params.type in (StreamType.MJPEG, StreamType.PNG):
             pairs.append((field.name, str(value)))
+    if token is not None:
+        pairs.append(("token", token))
     return urlencode(pairs)

@@ -9,6 +9,9 @@ closes its connection and allows any origin (ros3djs loads the stream into a
 WebGL texture). HTTP/1.1 is parsed by h11 (sans-IO) over anyio streams, the
 same shape as the WebSocket transport.
 
+With ``VideoConfig.tokens`` (``rwt serve --auth-secret-file``) every path but the
+console's needs a live video token (``tokens``): 401 without one, 403 with a bad one.
+
 Differences, all answering with a status where web_video_server would hang or
 stream nothing: a topic that does not exist is 404, a topic of another type
 400, vp8/vp9/h264 without PyAV installed 501, and a snapshot without a frame
@@ -41,6 +44,8 @@ if TYPE_CHECKING:
     from rwt_console import ConsoleSite
     from rwt_graph.graph import Graph
 
+    from .tokens import VideoTokens
+
 __all__ = ["VideoConfig", "serve_video"]
 
 logger = logging.getLogger("rwt.video")
@@ -65,6 +70,9 @@ class VideoConfig:
         max_streams: the most distinct streams (topic, type and parameters; one
             encoder each) at once; a request for another one is answered 503.
         console: the web console under ``/console/`` (docs/console.md); None: not served.
+        tokens: when set, every path but the console's needs a live token of these
+            (``?token=`` or ``Authorization: Bearer``): 401 without one, 403 with a
+            wrong or expired one (``rwt serve --auth-secret-file``; docs/video.md).
     """
 
     host: str = "127.0.0.1"
@@ -74,6 +82,7 @@ class VideoConfig:
     max_connections: int = 64
     max_streams: int = 16
     console: ConsoleSite | None = None
+    tokens: VideoTokens | None = None
 
 
 async def serve_video(
@@ -244,9 +253,13 @@ async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.
         return
     url = urlsplit(request.target.decode("latin-1"))
     query = dict(parse_qsl(url.query, keep_blank_values=True))
+    token = query.pop("token", None) or _bearer(request)
+    if config.tokens is not None and not await _admitted(config.tokens, http, token):
+        return
     if url.path in ("/", ""):
         topics = hub.graph.topic_names_and_types()
-        await http.reply(200, "text/html; charset=utf-8", topic_list_page(topics).encode())
+        page = topic_list_page(topics, token if config.tokens else None)
+        await http.reply(200, "text/html; charset=utf-8", page.encode())
         return
     handler = _HANDLERS.get(url.path)
     if handler is None:
@@ -254,9 +267,36 @@ async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.
         return
     try:
         params = _checked(hub.graph, parse_stream_params(query, config.default_stream_type))
-        await handler(hub, config, http, params)
+        await handler(hub, config, http, params, token if config.tokens else None)
     except StreamParamError as exc:
         await http.error(exc.status, str(exc))
+
+
+def _bearer(request: h11.Request) -> str | None:
+    """The token of an ``Authorization: Bearer TOKEN`` header, if there is one."""
+    for name, value in request.headers:
+        if name == b"authorization":
+            scheme, _, token = value.decode("latin-1").partition(" ")
+            if scheme.lower() == "bearer" and token.strip():
+                return token.strip()
+    return None
+
+
+async def _admitted(tokens: VideoTokens, http: _Http, token: str | None) -> bool:
+    """Whether ``token`` opens the server; if not, the 401 or 403 is sent."""
+    if token is None:
+        await http.reply(
+            401,
+            "text/plain; charset=utf-8",
+            b"401 a video token is needed: call /rwt/video_token and add ?token=\n",
+            WWW_Authenticate='Bearer realm="rwt video"',
+        )
+        return False
+    if not tokens.valid(token):
+        _episodes.log(logging.WARNING, "bad_token", "event=refused reason='bad video token'")
+        await http.error(403, "the video token is wrong or expired")
+        return False
+    return True
 
 
 def _checked(graph: Graph, params: StreamParams) -> StreamParams:
@@ -295,7 +335,9 @@ def _type_of(params: StreamParams) -> str:
     return "sensor_msgs/msg/Image"
 
 
-async def _stream(hub: StreamHub, config: VideoConfig, http: _Http, params: StreamParams) -> None:
+async def _stream(
+    hub: StreamHub, config: VideoConfig, http: _Http, params: StreamParams, token: str | None
+) -> None:
     try:
         if params.type.is_video:
             with hub.watching(params, _type_of(params), VideoViewer) as video:
@@ -334,7 +376,9 @@ async def _send_video(http: _Http, params: StreamParams, viewer: VideoViewer) ->
         await http.send(chunk)
 
 
-async def _snapshot(hub: StreamHub, config: VideoConfig, http: _Http, params: StreamParams) -> None:
+async def _snapshot(
+    hub: StreamHub, config: VideoConfig, http: _Http, params: StreamParams, token: str | None
+) -> None:
     """One JPEG (quality from the query, 95 by default) from the shared mjpeg stream."""
     params = params.with_type(StreamType.MJPEG) if params.type is not StreamType.MJPEG else params
     part = None
@@ -348,9 +392,9 @@ async def _snapshot(hub: StreamHub, config: VideoConfig, http: _Http, params: St
 
 
 async def _stream_viewer(
-    hub: StreamHub, config: VideoConfig, http: _Http, params: StreamParams
+    hub: StreamHub, config: VideoConfig, http: _Http, params: StreamParams, token: str | None
 ) -> None:
-    page = stream_viewer_page(params)
+    page = stream_viewer_page(params, token)
     await http.reply(200, "text/html; charset=utf-8", page.encode())
 
 
@@ -358,7 +402,8 @@ def _part_viewer(stream: SharedStream) -> PartViewer:
     return PartViewer(stream.last_parts)
 
 
-_Handler = Callable[[StreamHub, VideoConfig, _Http, StreamParams], Awaitable[None]]
+# the last argument: the request's token, for the pages' own links (None without tokens)
+_Handler = Callable[[StreamHub, VideoConfig, _Http, StreamParams, str | None], Awaitable[None]]
 
 _HANDLERS: dict[str, _Handler] = {
     "/stream": _stream,

@@ -286,6 +286,10 @@ class Page:
         )["data"]
         return base64.b64decode(data)
 
+    def viewport_png(self) -> bytes:
+        """A PNG of what the window shows, at its size (the emulated one, if any)."""
+        return base64.b64decode(self.send("Page.captureScreenshot", format="png")["data"])
+
     def errors(self) -> list[str]:
         """Uncaught exceptions, console.error calls and error log entries of this page."""
         found: list[str] = []

@@ -2,23 +2,27 @@
 
 The page asks for the signed ``auth`` op; a wrong one is refused, the right one
 connects; then the parameters are listed and a Fibonacci goal shows its feedback
-and its result.
+and its result; the Images panel shows a camera through a video token.
 """
 
 from __future__ import annotations
 
+import io
 import json
+import re
 import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from PIL import Image
 
 from rwt_protocol.auth import rosauth_op
 from tests.integration.client_harness import ServerProcess
 
 from .cdp import Browser, Page
+from .served_robot import BLUE, RED
 
 SECRET = "console-secret-0123456789"
 
@@ -115,4 +119,23 @@ def test_sends_an_action_goal_and_shows_feedback_and_result(page: Page) -> None:
     )
     assert result == ["0", "1", "1", "2", "3", "5", "8"]
     assert "status 4" in page.text("#action-result")  # SUCCEEDED
+    assert page.errors() == []
+
+
+def test_the_images_panel_shows_frames_through_a_video_token(page: Page) -> None:
+    """With auth on the video port wants a token: the page gets one over its connection."""
+    page.click('#tabs button[data-tab="images"]')
+    selector = '#images figure[data-topic="/camera/image"] img'
+    page.wait_for(
+        f"(i => i && i.naturalWidth > 0)(document.querySelector('{selector}'))",
+        what="the MJPEG image",
+    )
+    src = page.evaluate(f"document.querySelector('{selector}').src")
+    assert re.search(r"[?&]token=[\w-]{43}(&|$)", src), src
+    shot = Image.open(io.BytesIO(page.screenshot(selector))).convert("RGB")
+    width, height = shot.size
+    left = shot.getpixel((width // 4, height // 2))
+    right = shot.getpixel((3 * width // 4, height // 2))
+    assert all(abs(a - b) < 40 for a, b in zip(left, RED, strict=True)), left
+    assert all(abs(a - b) < 40 for a, b in zip(right, BLUE, strict=True)), right
     assert page.errors() == []

@@ -122,9 +122,11 @@ def test_the_video_port_serves_the_console_too(serve) -> None:
     ws_port = int(server.url.rsplit(":", 1)[1])
     video_port = int(video_url.rsplit(":", 1)[1])
     assert json.loads(http_get(server.url, "/console/config.json")[2])["video"] == {
-        "port": video_port
+        "port": video_port,
+        "token": False,  # no --auth-secret-file: the streams are open
     }
     config = json.loads(http_get(video_url, "/console/config.json")[2])
+    assert config["video"] == {"port": video_port, "token": False}  # its images show too
     assert config["websocket"] == {"port": ws_port, "path": "/", "tls": False}
     status, _, body = http_get(video_url, "/console/")
     assert status == 200 and b"rwt console" in body

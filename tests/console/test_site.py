@@ -81,11 +81,12 @@ def test_only_get_and_head() -> None:
 def test_config_tells_the_page_where_the_rest_is() -> None:
     site = ConsoleSite(websocket_path="/ws", websocket_tls=True, auth=True)
     site.video_port = 8081  # rwt serve sets it once the video server listens
+    site.video_token = True  # and this with --auth-secret-file
     reply = site.answer("GET", "/console/config.json")
     assert headers(reply)["Content-Type"] == "application/json"
     assert json.loads(reply.body) == {
         "websocket": {"port": None, "path": "/ws", "tls": True},
-        "video": {"port": 8081},
+        "video": {"port": 8081, "token": True},
         "auth": True,
         "limits": {},
     }

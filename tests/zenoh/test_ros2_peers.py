@@ -531,7 +531,7 @@ async def test_a_ros2_client_describes_types_and_sets_atomically_a_nodes_paramet
             **field,
         }
 
-    async with open_link(graph, peer(listen=first)):
+    async with open_zenoh_link(graph, peer(listen=first)):
         with bare_session(first) as session:
             described = await call(
                 "describe_parameters", {"names": ["fps", "label", "serial", "no"]}

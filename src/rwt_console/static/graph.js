@@ -73,7 +73,7 @@ export class GraphView {
     for (const row of body.children) {
       const i = index.get(row.dataset.name);
       const [pubs, subs] = counts[i] ?? ['?', '?'];
-      row.dataset.type = types[i];
+      if (row.dataset.type !== types[i]) row.dataset.type = types[i]; // a write is a mutation
       setText(row.cells[1], types[i]);
       setText(row.cells[2], pubs);
       setText(row.cells[3], subs);

@@ -1,6 +1,7 @@
 // Image topics through the video server (docs/video.md): MJPEG in an <img>, VP8 in
 // a muted <video> started with play() (Chromium's autoplay policy), with a play
-// button when the browser refuses anyway.
+// button when the browser refuses anyway. When the server asks for auth, each
+// stream URL carries a short-lived token from /rwt/video_token (docs/video.md).
 import { el } from './ui.js';
 
 const IMAGE_TYPES = new Set(['sensor_msgs/msg/Image', 'sensor_msgs/Image']);
@@ -11,8 +12,10 @@ export function videoBase(config) {
 }
 
 export class ImagesView {
-  constructor(config) {
+  constructor(config, ros) {
     this.base = videoBase(config);
+    this.ros = ros;
+    this.needsToken = Boolean(config.video && config.video.token);
     this.shown = new Map(); // topic -> element, so a refresh keeps the streams open
     this.kind = document.getElementById('image-kind');
     this.kind.addEventListener('change', () => this.restart());
@@ -46,13 +49,29 @@ export class ImagesView {
 
   start(topic) {
     const kind = this.kind.value;
-    const src = `${this.base}/stream?${new URLSearchParams({ topic, type: kind })}`;
-    let media;
     const box = el('figure', { class: 'image', dataset: { topic } });
+    box.append(el('figcaption', { text: `${topic} (${kind})` }));
+    document.getElementById('images').append(box);
+    this.shown.set(topic, box);
+    this.streamUrl(topic, kind).then((src) => {
+      if (box.isConnected) this.play(box, topic, kind, src);
+    }, (error) => {
+      box.append(el('p', { class: 'error', text: `no video token: ${error.message}` }));
+    });
+  }
+
+  async streamUrl(topic, kind) {
+    const query = { topic, type: kind };
+    if (this.needsToken) query.token = (await this.ros.callService('/rwt/video_token')).message;
+    return `${this.base}/stream?${new URLSearchParams(query)}`;
+  }
+
+  play(box, topic, kind, src) {
+    let media;
     if (kind === 'mjpeg') {
       media = el('img', { src, alt: topic });
     } else {
-      media = el('video', { src, muted: true, autoplay: true, playsinline: true });
+      media = el('video', { src, muted: true, autoplay: true, playsinline: true, 'aria-label': topic });
       media.muted = true; // the property, not only the attribute, decides autoplay
       const button = el('button', { type: 'button', hidden: true, text: '▶ Play' });
       button.addEventListener('click', () => media.play().then(() => (button.hidden = true)));
@@ -60,9 +79,6 @@ export class ImagesView {
       box.append(button);
     }
     box.prepend(media);
-    box.append(el('figcaption', { text: `${topic} (${kind})` }));
-    document.getElementById('images').append(box);
-    this.shown.set(topic, box);
   }
 
   stop(box) {

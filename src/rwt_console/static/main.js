@@ -228,7 +228,7 @@ async function main() {
   const topics = new TopicView(ros, graph, (topic, field) => plots.add(topic, field));
   const services = new ServiceView(ros);
   const actions = new ActionView(ros);
-  const images = new ImagesView(config);
+  const images = new ImagesView(config, ros);
   const tfBuffer = new TfBuffer(ros);
   const tf = new TfView(tfBuffer);
   const map = new MapView(ros, tfBuffer);

@@ -7,6 +7,12 @@ import { el, formatBytes, jsonTree, showError } from './ui.js';
 
 const REFUSAL_WAIT_MS = 3000;
 const ECHO_INTERVAL_MS = 100; // the echo redraws at most 10 times a second
+// Camera-sized types: 30 frames a second of 640x480 are 37 MB/s of JSON, more than a
+// page reads and parses while staying responsive (benchmarks/README.md, console), so
+// the server sends these at most as often as the echo draws (throttle_rate, D12).
+const THROTTLED_TYPES = new Set(['sensor_msgs/Image', 'sensor_msgs/CompressedImage',
+  'sensor_msgs/PointCloud2', 'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage',
+  'sensor_msgs/msg/PointCloud2']);
 
 export class TopicView {
   // onPlot(topic, field): puts a field on the Plot tab, beside other topics' fields;
@@ -51,10 +57,12 @@ export class TopicView {
     this.graph.meters.set(topic, meter);
     const fields = document.getElementById('publish-fields');
     try {
+      this.throttled = THROTTLED_TYPES.has(type);
+      const options = this.throttled ? { throttle_rate: ECHO_INTERVAL_MS } : {};
       this.unsubscribe = this.ros.subscribe(topic, type, (msg, bytes, replayed) => {
         if (!replayed) meter.record(bytes); // the rate counts what arrives, not a replay
         this.receive(msg);
-      });
+      }, options);
     } catch (error) {
       this.unsubscribe = null;
       showError(document.getElementById('echo-output'), error);
@@ -130,7 +138,8 @@ export class TopicView {
     if (!this.meter) return;
     const reading = this.meter.read();
     const { hz, bytesPerSecond } = reading;
-    document.getElementById('echo-stats').textContent = `${hz.toFixed(1)} Hz, ${formatBytes(bytesPerSecond)}`;
+    document.getElementById('echo-stats').textContent = `${hz.toFixed(1)} Hz, ${formatBytes(bytesPerSecond)}`
+      + (this.throttled ? ' (sent at most 10 a second)' : '');
     // as ros2 topic hz and ros2 topic bw print them
     document.getElementById('echo-details').textContent =
       `average rate ${hz.toFixed(3)}; min ${reading.minGap.toFixed(3)}s max ${reading.maxGap.toFixed(3)}s`
