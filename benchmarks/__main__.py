@@ -9,7 +9,8 @@ load generator's CPU to show its headroom), writes
 every variant once on tiny counts without touching the README (CI).
 ``peer`` compares with a running rosbridge_suite (benchmarks/peer.py); ``ros2``
 measures the ROS 2 bridge (benchmarks/ros2_bridge.py); ``console`` the web
-console in Chromium (benchmarks/console.py).
+console in Chromium (benchmarks/console.py); ``rosbag`` records and plays against
+the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py).
 """
 
 from __future__ import annotations
@@ -85,11 +86,16 @@ def main(argv: list[str] | None = None) -> int:
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 
         return ros2_main(argv[1:])
+    if argv[:1] == ["rosbag"]:  # its own options (benchmarks/ros1_bag.py)
+        from .ros1_bag import main as rosbag_main  # noqa: PLC0415
+
+        return rosbag_main(argv[1:])
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("peer", help="B1, B2, B7 against rosbridge_suite (ROS 1), rwt and the relay")
     sub.add_parser("console", help="the web console in Chromium: input latency, CPU, streams")
     sub.add_parser("ros2", help="real ROS 2 to WebSocket: rwt --ros2, rosbridge_suite 2.1.0, rclpy")
+    sub.add_parser("rosbag", help="B22: rwt record and play against the real ROS 1 rosbag")
     p_run = sub.add_parser("run", help="run scenarios and print the table")
     p_run.add_argument("scenarios", nargs="*", help="B1 ... B18 (default: all but B18)")
     p_run.add_argument("--runs", type=int, default=5, help="runs per server and variant")

@@ -13,7 +13,8 @@ import importlib
 from typing import TYPE_CHECKING
 
 from .errors import BagError
-from .formats import BagFormat, SplitPolicy
+from .formats import BagFormat, ChunkCompression, Compression, SplitPolicy
+from .selection import TopicSelection
 
 if TYPE_CHECKING:
     from .controls import serve_controls
@@ -25,11 +26,14 @@ __all__ = [
     "BagError",
     "BagFormat",
     "BagInfo",
+    "ChunkCompression",
+    "Compression",
     "PlayStats",
     "Player",
     "RecordStats",
     "Recorder",
     "SplitPolicy",
+    "TopicSelection",
     "bag_info",
     "serve_controls",
 ]

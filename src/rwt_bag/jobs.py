@@ -18,11 +18,13 @@ import anyio
 
 from .controls import serve_controls
 from .errors import BagError
-from .formats import BagFormat, SplitPolicy
+from .formats import BagFormat, Compression, SplitPolicy
+from .keys import HELP, keyboard_controls
 from .player import Player
 from .progress import play_line, record_line, show_progress
 from .recorder import Recorder
 from .remote import RemoteRecorder
+from .selection import TopicSelection
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
@@ -45,13 +47,18 @@ class RecordOptions:
     Attributes:
         max_bytes: ``--record-max-size`` without ``--record-split``: stop recording
             there (bytes of serialized messages); None: no limit.
+        selection: the topics (globs, regular expressions, exclusions).
+        compression: the MCAP chunk compression.
+        repeat_latched: each split part starts with the latched topics' last messages.
     """
 
     path: Path
-    topics: Sequence[str] = ("*",)
+    selection: TopicSelection = field(default_factory=TopicSelection)
     fmt: BagFormat = BagFormat.MCAP
     split: SplitPolicy = field(default_factory=SplitPolicy)
     max_bytes: int | None = None
+    compression: Compression = field(default_factory=Compression)
+    repeat_latched: bool = True
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,9 @@ class PlayOptions:
     delay: float = 0.0
     duration: float | None = None
     until_ns: int | None = None
+    prefix: str = ""
+    wait_for_subscribers: bool = False
+    wait_timeout: float | None = None
 
 
 class BagJobs:
@@ -82,6 +92,8 @@ class BagJobs:
         progress: where to show progress (a terminal: live; else a final line).
         stop_at_end: called when the player reaches the bag's end (``rwt play``
             stops its server); None: the player lingers (``rwt serve --play``).
+        keyboard: a terminal's file descriptor whose keys drive the player
+            (``rwt_bag.keys``); None: no keyboard controls.
 
     Raises:
         BagError: the bag to play cannot be read, or has an unknown or
@@ -96,8 +108,10 @@ class BagJobs:
         play: PlayOptions | None = None,
         progress: TextIO | None = None,
         stop_at_end: Callable[[], None] | None = None,
+        keyboard: int | None = None,
     ) -> None:
         self.graph = graph
+        self.keyboard = keyboard
         self.progress = progress
         self.stop_at_end = stop_at_end
         self.recorder = None
@@ -106,10 +120,12 @@ class BagJobs:
             self.recorder = Recorder(
                 graph,
                 record.path,
-                topics=record.topics,
+                selection=record.selection,
                 fmt=record.fmt,
                 split=record.split,
                 max_bytes=record.max_bytes,
+                compression=record.compression,
+                repeat_latched=record.repeat_latched,
             )
         if play is not None:
             self.player = Player(
@@ -127,6 +143,9 @@ class BagJobs:
                 delay=play.delay,
                 duration=play.duration,
                 until_ns=play.until_ns,
+                prefix=play.prefix,
+                wait_for_subscribers=play.wait_for_subscribers,
+                wait_timeout=play.wait_timeout,
             )
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
@@ -142,6 +161,11 @@ class BagJobs:
                     await tg.start(self.recorder.run)
                 if self.player is not None:
                     await tg.start(self._play, tg.cancel_scope)
+                if self.player is not None and self.keyboard is not None:
+                    if self.progress is not None:
+                        self.progress.write(f"{HELP}\n")
+                        self.progress.flush()
+                    tg.start_soon(keyboard_controls, self.player, self.keyboard)
                 if self.progress is not None:
                     line = self._record_line if self.player is None else self._play_line
                     tg.start_soon(show_progress, line, self.progress)
@@ -191,24 +215,33 @@ async def record_remote(
     path: Path,
     registry: TypeRegistry,
     *,
-    topics: Sequence[str] = ("*",),
-    fmt: BagFormat = BagFormat.MCAP,
-    split: SplitPolicy | None = None,
+    record: RecordOptions | None = None,
     compression: str = "cbor",
     duration: float | None = None,
     out: TextIO = sys.stdout,
 ) -> None:
     """``rwt record URL OUT``: record until SIGINT/SIGTERM, showing progress on ``out``.
 
-    With ``duration``, recording also stops that many seconds after it started
-    (connected and subscribed).
+    ``record`` gives the topics, format, split and chunk compression (its path
+    and ``max_bytes`` are not used: ``path`` is the bag). With ``duration``,
+    recording also stops that many seconds after it started (connected and
+    subscribed). ``compression`` is the subscriptions' (cbor or none).
 
     Raises:
         BagError: the bag cannot be created.
         OSError, TransportError: the server cannot be reached.
     """
+    record = record or RecordOptions(path)
     remote = RemoteRecorder(
-        url, path, registry, topics=topics, fmt=fmt, split=split, compression=compression
+        url,
+        path,
+        registry,
+        selection=record.selection,
+        fmt=record.fmt,
+        split=record.split,
+        compression=compression,
+        chunk_compression=record.compression,
+        repeat_latched=record.repeat_latched,
     )
     async with anyio.create_task_group() as tg:
         tg.start_soon(_stop_on_signal, remote.stop)

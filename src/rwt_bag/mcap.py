@@ -22,11 +22,20 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING, Any, BinaryIO
 
+import lz4.frame  # type: ignore[import-untyped]  # a rosbags dependency
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
+from .formats import ChunkCompression, Compression
+
+try:  # Python 3.14's, else the backport rosbags depends on (as rosbags imports it)
+    from compression import zstd  # type: ignore[import-not-found,unused-ignore]
+except ImportError:
+    from backports import zstd  # type: ignore[no-redef,unused-ignore]
+
 if TYPE_CHECKING:
+    from collections.abc import Callable
     from pathlib import Path
 
     from rosbags.rosbag2.enums import CompressionMode
@@ -133,6 +142,25 @@ class _McapStorage(McapWriter):
         return int(self.chunk.bio.tell())
 
 
+def compressor(compression: Compression) -> tuple[str, Callable[[bytes], bytes]]:
+    """The MCAP ``compression`` name and function of ``compression`` (``""``: none).
+
+    zstd writes a zstd frame and lz4 an LZ4 frame, as the MCAP spec defines its
+    two chunk compressions (what rosbags, the ``mcap`` readers and Foxglove read).
+    """
+    level = compression.effective_level
+    if compression.algorithm is ChunkCompression.ZSTD:
+        return "zstd", lambda data: zstd.compress(data, level)
+    if compression.algorithm is ChunkCompression.LZ4:
+        return "lz4", lambda data: bytes(lz4.frame.compress(data, compression_level=level))
+    return "", _uncompressed
+
+
+def _uncompressed(data: bytes) -> bytes:
+    """No compression: the chunk as it is (no copy of its megabytes)."""
+    return data
+
+
 class _Sqlite3Storage(Sqlite3Writer):
     """rosbags' sqlite3 storage that can commit before it closes."""
 
@@ -147,15 +175,35 @@ class CheckpointWriter(Writer):
     Args:
         path: the bag directory to create.
         storage_plugin: MCAP or sqlite3.
+        compression: how MCAP chunks are compressed (sqlite3: ignored); None: not.
     """
 
     STORAGE_PLUGINS = {StoragePlugin.MCAP: _McapStorage, StoragePlugin.SQLITE3: _Sqlite3Storage}
 
-    def __init__(self, path: Path, *, storage_plugin: StoragePlugin) -> None:
+    def __init__(
+        self,
+        path: Path,
+        *,
+        storage_plugin: StoragePlugin,
+        compression: Compression | None = None,
+    ) -> None:
         super().__init__(path, version=9, storage_plugin=storage_plugin)
+        self._compression = compression or Compression()
         self._metadata: str | None = None  # the MCAP metadata record of the last full checkpoint
         self._summary = b""  # the file's tail after the last checkpoint's data (summary, footer)
         self._metadata_connections = -1
+
+    def open(self) -> None:
+        """Create the bag; MCAP chunks get the chosen compression.
+
+        Raises:
+            rosbags.rosbag2.WriterError: the bag exists.
+        """
+        super().open()
+        storage: Any = self.storage
+        if isinstance(storage, _McapStorage):
+            # rosbags compresses with zstd (its own level) or not at all: ours replaces it
+            storage.compression, storage.compressor = compressor(self._compression)
 
     @property
     def checkpoint_due(self) -> bool:

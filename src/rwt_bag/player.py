@@ -115,6 +115,12 @@ class Player(BackgroundJob):
             (``--playback-duration``); None: to the end.
         until_ns: bag time (nanoseconds since the epoch) past which nothing is
             played (``--playback-until-sec``); None: the end.
+        prefix: put in front of every published name (``/sim``: ``/tf`` is played
+            as ``/sim/tf``; after ``remap``), as ``rosbag play --prefix``; "": none.
+        wait_for_subscribers: after advertising, wait until every played topic
+            has a subscriber before the first message (and before ``delay``).
+        wait_timeout: seconds to wait for them; then play anyway, logging the
+            topics still without one. None: wait until cancelled.
 
     Raises:
         BagError: as ``BagSource`` (the bag cannot be read, an unknown or
@@ -138,14 +144,19 @@ class Player(BackgroundJob):
         delay: float = 0.0,
         duration: float | None = None,
         until_ns: int | None = None,
+        prefix: str = "",
+        wait_for_subscribers: bool = False,
+        wait_timeout: float | None = None,
     ) -> None:
         if not rate > 0:
             raise BagError(f"the rate must be above 0, not {rate}")
+        self.prefix = _prefix(prefix)
         for old, new in (remap or {}).items():  # before the bag is opened
-            problem = name_problem(new)
+            problem = name_problem(self.prefix + new)
             if problem is not None:
-                raise BagError(f"cannot play {old} as {new}: {problem}")
-        for name, value in (("delay", delay), ("duration", duration)):
+                raise BagError(f"cannot play {old} as {self.prefix + new}: {problem}")
+        checked = (("delay", delay), ("duration", duration), ("wait timeout", wait_timeout))
+        for name, value in checked:
             if value is not None and not (math.isfinite(value) and value >= 0):
                 raise BagError(f"the {name} must be a finite number of seconds >= 0, not {value}")
         self.graph = graph
@@ -162,6 +173,7 @@ class Player(BackgroundJob):
         self._paused = paused
         self._changed = anyio.Event()
         self._seek_to: int | None = None
+        self._step = False  # ``play_next``: publish one message while paused
         self._segment: anyio.CancelScope | None = None
         self._anchor_mono = 0.0
         self._anchor_ns = self.start_ns
@@ -169,6 +181,8 @@ class Player(BackgroundJob):
         self._real_clock: Clock | None = None
         self.remap = dict(remap or {})
         self.delay = delay
+        self.wait_for_subscribers = wait_for_subscribers
+        self.wait_timeout = wait_timeout
         self._stop_ns = self.source.end_ns
         if duration is not None:
             self._stop_ns = min(self._stop_ns, self.start_ns + int(duration * 1e9))
@@ -215,8 +229,34 @@ class Player(BackgroundJob):
         """Go on from where ``pause`` stopped."""
         if self._paused:
             self._paused = False
+            self._step = False
             self._anchor(self._position_ns)
             self._notify()
+
+    def play_next(self) -> bool:
+        """While paused, publish the next message (``ros2 bag play``'s right arrow).
+
+        Returns:
+            Whether it applies: False while playing.
+        """
+        if not self._paused:
+            return False
+        self._step = True
+        self._notify()
+        return True
+
+    def set_rate(self, rate: float) -> None:
+        """Play on at ``rate`` from the current position.
+
+        Raises:
+            BagError: ``rate`` is not a finite number above 0.
+        """
+        if not (math.isfinite(rate) and rate > 0):
+            raise BagError(f"the rate must be above 0, not {rate}")
+        if not self._paused:
+            self._anchor(self.bag_time_ns())
+        self.rate = rate
+        self._notify()
 
     def seek(self, offset_s: float, *, clamp: bool = True) -> None:
         """Go to ``offset_s`` seconds from the bag's start.
@@ -278,6 +318,8 @@ class Player(BackgroundJob):
                     self.graph.clock = BagClock(self._real_clock, self)
                     tg.start_soon(self._publish_clock, self.clock_hz)
                 task_status.started()
+                if self.wait_for_subscribers:
+                    await self._await_subscribers()
                 if self.delay:
                     await anyio.sleep(self.delay)
                 await self._play()
@@ -290,13 +332,47 @@ class Player(BackgroundJob):
             self._publishers.clear()
             self.source.close()
 
+    def published_name(self, topic: str) -> str:
+        """The name the bag's ``topic`` is published under (``remap``, then ``prefix``)."""
+        return self.prefix + self.remap.get(topic, topic)
+
+    def unsubscribed(self) -> list[str]:
+        """The published names that no subscriber of the graph takes yet, sorted."""
+        topics = self.graph.topics
+        missing = set()
+        for publisher in self._publishers.values():
+            entry = topics.get(publisher.topic)
+            if entry is None or not entry.subscribers:
+                missing.add(publisher.topic)
+        return sorted(missing)
+
+    async def _await_subscribers(self) -> None:
+        """Wait until every played topic has a subscriber, or ``wait_timeout`` passes.
+
+        The graph tells no one when a subscriber comes, so this looks every 50 ms.
+        """
+        missing = self.unsubscribed()
+        if not missing:
+            return
+        logger.info("event=play_waiting topics=%s (for a subscriber each)", ",".join(missing))
+        with anyio.move_on_after(self.wait_timeout if self.wait_timeout is not None else math.inf):
+            while missing:
+                await anyio.sleep(0.05)
+                missing = self.unsubscribed()
+        if missing:
+            logger.warning(
+                "event=play_wait_timeout seconds=%g topics=%s (playing without their subscribers)",
+                self.wait_timeout,
+                ",".join(missing),
+            )
+
     def _advertise(self) -> None:
         """A publisher per topic, all or none (a conflicting topic publishes nothing)."""
         try:
             for topic in self.source.topics.values():
                 if topic.topic not in self._publishers:
                     self._publishers[topic.topic] = self.graph.create_publisher(
-                        self.remap.get(topic.topic, topic.topic),
+                        self.published_name(topic.topic),
                         topic.mtype.name,
                         latch=topic.latched,
                         node="/rwt_player",
@@ -305,7 +381,7 @@ class Player(BackgroundJob):
             for publisher in self._publishers.values():
                 publisher.close()
             self._publishers.clear()
-            name = self.remap.get(topic.topic, topic.topic)
+            name = self.published_name(topic.topic)
             what = f"{topic.topic} as {name}" if name != topic.topic else topic.topic
             raise BagError(f"cannot play {what} (type {topic.msgtype}): {exc}") from exc
 
@@ -382,6 +458,9 @@ class Player(BackgroundJob):
         while True:
             changed = self._changed
             if self._paused:
+                if self._step:  # play_next: this one message, then paused again
+                    self._step = False
+                    return
                 await changed.wait()
                 continue
             delay = self._due(ns) - time.monotonic()
@@ -400,6 +479,22 @@ class Player(BackgroundJob):
                 await anyio.sleep(1 / hz)
         finally:
             publisher.close()
+
+
+def _prefix(prefix: str) -> str:
+    """``prefix`` as a namespace: a leading ``/``, no trailing one ("" stays "").
+
+    Raises:
+        BagError: not a name (``rosbag play --prefix`` takes a namespace).
+    """
+    prefix = prefix.strip().rstrip("/")
+    if not prefix:
+        return ""
+    prefix = prefix if prefix.startswith("/") else f"/{prefix}"
+    problem = name_problem(prefix)
+    if problem is not None:
+        raise BagError(f"the prefix {prefix!r} is not a namespace: {problem}")
+    return prefix
 
 
 def _take(messages: Iterator[_Item]) -> list[_Item]:

@@ -18,7 +18,6 @@ context's end, or cancelling ``run``) writes the rest.
 
 from __future__ import annotations
 
-import fnmatch
 import logging
 import sqlite3
 import time
@@ -34,7 +33,8 @@ from rwt_graph.types import Dialect
 
 from .background import BackgroundJob
 from .errors import BagError
-from .formats import BagFormat, SplitPolicy
+from .formats import BagFormat, Compression, SplitPolicy
+from .selection import TopicSelection
 from .writer import BagWriter, TopicInfo
 
 if TYPE_CHECKING:
@@ -96,6 +96,8 @@ class Recorder(BackgroundJob):
         graph: the graph to record from.
         path: the bag to create: a directory for ROS 2 bags, a file for ROS 1.
         topics: glob patterns of the topic names to record (``/tf*``); all by default.
+        selection: the topics to record with regular expressions and exclusions
+            (``TopicSelection``); replaces ``topics`` when given.
         fmt: MCAP (default), sqlite3, or ROS 1; ROS 1 bags need a ROS 1 graph.
         split: when to start a new file (``BagWriter``).
         checkpoint_s: seconds between checkpoints.
@@ -104,13 +106,17 @@ class Recorder(BackgroundJob):
         max_bytes: stop recording (the bag is closed, the graph goes on) before
             the serialized messages pass this many bytes; None: no limit. To start
             a new part instead, give ``split`` a ``max_bytes``.
+        compression: how MCAP chunks are compressed; None: not.
+        repeat_latched: start each split part with the last message of every
+            latched topic, so a part played alone has its /tf_static and maps.
 
     Attributes:
         stats: what was recorded so far (``RecordStats``).
         full: ``max_bytes`` was reached and recording has stopped.
 
     Raises:
-        BagError: the format does not fit the graph's dialect.
+        BagError: the format does not fit the graph's dialect, or a chunk
+            compression is given for a format other than MCAP.
     """
 
     def __init__(
@@ -125,6 +131,9 @@ class Recorder(BackgroundJob):
         discover_s: float = 0.2,
         max_queue_bytes: int = 256 * 1024 * 1024,
         max_bytes: int | None = None,
+        selection: TopicSelection | None = None,
+        compression: Compression | None = None,
+        repeat_latched: bool = True,
     ) -> None:
         self.graph = graph
         self.path = Path(path)
@@ -133,7 +142,9 @@ class Recorder(BackgroundJob):
         if (self.fmt is BagFormat.ROS1) != ros1_graph:
             wanted = "a ROS 1" if self.fmt is BagFormat.ROS1 else "a ROS 2"
             raise BagError(f"a {self.fmt.value} bag needs {wanted} graph (--dialect)")
-        self.patterns = tuple(topics) or ("*",)
+        self.selection = selection or TopicSelection(tuple(topics))
+        self._compression = (compression or Compression()).check_format(self.fmt)
+        self._repeat_latched = repeat_latched
         self.stats = RecordStats()
         self._split = split
         self._checkpoint_s = checkpoint_s
@@ -162,8 +173,8 @@ class Recorder(BackgroundJob):
         return list(self._writer.paths) if self._writer else [self.path]
 
     def matches(self, topic: str) -> bool:
-        """Whether ``topic`` is recorded (a pattern matches its resolved name)."""
-        return any(fnmatch.fnmatchcase(topic, pattern) for pattern in self.patterns)
+        """Whether ``topic`` is recorded (the selection takes its resolved name)."""
+        return self.selection.matches(topic)
 
     async def run(self, *, task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED) -> None:
         """Record until cancelled; the bag is complete when this returns.
@@ -185,6 +196,8 @@ class Recorder(BackgroundJob):
                 registry.typestore(),
                 self._split,
                 definitions=lambda name: registry.message(name).full_text(),
+                compression=self._compression,
+                repeat_latched=self._repeat_latched,
             )
         )
         try:

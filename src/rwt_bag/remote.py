@@ -11,7 +11,6 @@ a warning, not recorded with a guessed definition.
 
 from __future__ import annotations
 
-import fnmatch
 import logging
 from typing import TYPE_CHECKING
 
@@ -23,6 +22,7 @@ from rwt_protocol.errors import GraphError, RwtError
 
 from .reader import is_latched
 from .recorder import Recorder
+from .selection import TopicSelection
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.types import TypeRegistry
 
-    from .formats import BagFormat, SplitPolicy
+    from .formats import BagFormat, Compression, SplitPolicy
 
 __all__ = ["RemoteRecorder"]
 
@@ -48,7 +48,10 @@ class RemoteRecorder:
         path: the bag to create.
         registry: the local types (its dialect must fit the server's messages).
         topics: glob patterns of the topics to record; all by default.
-        fmt, split: as ``Recorder``.
+        selection: the topics with regular expressions and exclusions; replaces
+            ``topics`` when given.
+        fmt, split, repeat_latched: as ``Recorder``.
+        chunk_compression: as ``Recorder``'s ``compression`` (MCAP chunks).
         compression: the subscriptions' compression (``cbor`` or ``none``).
         discover_s: seconds between rosapi lookups of new topics.
 
@@ -68,11 +71,22 @@ class RemoteRecorder:
         split: SplitPolicy | None = None,
         compression: str = "cbor",
         discover_s: float = 1.0,
+        selection: TopicSelection | None = None,
+        chunk_compression: Compression | None = None,
+        repeat_latched: bool = True,
     ) -> None:
         self.url = url
         self.graph = Graph(registry)
-        self.patterns = tuple(topics) or ("*",)
-        self.recorder = Recorder(self.graph, path, topics=self.patterns, fmt=fmt, split=split)
+        self.selection = selection or TopicSelection(tuple(topics))
+        self.recorder = Recorder(
+            self.graph,
+            path,
+            fmt=fmt,
+            split=split,
+            selection=self.selection,
+            compression=chunk_compression,
+            repeat_latched=repeat_latched,
+        )
         self._compression = compression
         self._discover_s = discover_s
         self._bridged: dict[str, Topic] = {}
@@ -116,7 +130,7 @@ class RemoteRecorder:
         for name, type_name in found.items():
             if name in self._bridged or name in self._skipped:
                 continue
-            if not any(fnmatch.fnmatchcase(name, p) for p in self.patterns):
+            if not self.selection.matches(name):
                 continue
             await self._bridge(ros, name, type_name)
         self.recorder.discover()

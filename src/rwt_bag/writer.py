@@ -28,7 +28,7 @@ from rosbags.rosbag2 import Writer as Ros2Writer
 from rwt_protocol.shortcuts import enabled
 
 from .errors import BagError
-from .formats import BagFormat, SplitPolicy
+from .formats import BagFormat, ChunkCompression, Compression, SplitPolicy
 from .ros1 import Ros1Writer
 
 if TYPE_CHECKING:
@@ -36,7 +36,13 @@ if TYPE_CHECKING:
 
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BagFormat", "BagWriter", "SplitPolicy", "TopicInfo", "split_path"]
+__all__ = [
+    "BagFormat",
+    "BagWriter",
+    "SplitPolicy",
+    "TopicInfo",
+    "split_path",
+]
 
 
 @dataclass(frozen=True)
@@ -83,18 +89,23 @@ def split_path(path: Path, index: int) -> Path:
     return path.with_name(f"{path.stem}_{index}{path.suffix}")
 
 
-def _ros2_writer(path: Path, plugin: StoragePlugin) -> Any:
+def _ros2_writer(path: Path, plugin: StoragePlugin, compression: Compression) -> Any:
     """A rosbag2 writer: ``CheckpointWriter`` (readable while it grows), or rosbags' own.
 
     ``CheckpointWriter`` reaches into rosbags' storage classes (rwt_bag/mcap.py):
     the ``bag-checkpoints`` shortcut (docs/shortcuts.md). Switched off (say, on a
     rosbags release that moved those internals), rosbags' ``Writer`` writes the
-    bag, which is readable once it is closed.
+    bag, which is readable once it is closed, and MCAP chunks are not compressed.
+
+    Raises:
+        BagError: a chunk compression with the shortcut off.
     """
     if enabled("bag-checkpoints"):
         from .mcap import CheckpointWriter  # noqa: PLC0415 - rosbags' internals, only when on
 
-        return CheckpointWriter(path, storage_plugin=plugin)
+        return CheckpointWriter(path, storage_plugin=plugin, compression=compression)
+    if compression.algorithm is not ChunkCompression.NONE:
+        raise BagError("MCAP chunk compression needs the bag-checkpoints shortcut (it is off)")
     return Ros2Writer(path, version=9, storage_plugin=plugin)
 
 
@@ -107,6 +118,7 @@ class _File:
         fmt: BagFormat,
         typestore: Typestore,
         definitions: Callable[[str], str] | None,
+        compression: Compression,
     ) -> None:
         self.path = path
         self.fmt = fmt
@@ -122,7 +134,7 @@ class _File:
                 self.writer = Ros1Writer(path)
             else:
                 plugin = StoragePlugin.MCAP if fmt is BagFormat.MCAP else StoragePlugin.SQLITE3
-                self.writer = _ros2_writer(path, plugin)
+                self.writer = _ros2_writer(path, plugin, compression)
             self.writer.open()
         except Exception as exc:  # rosbags' WriterError, OSError: the path is taken or bad
             raise BagError(f"cannot create the bag {path}: {exc}") from exc
@@ -193,9 +205,13 @@ class BagWriter:
             (``std_msgs/msg/String``) for ROS 1 connection records, the text
             ``rosbag check`` compares with the installed types
             (``MessageType.full_text``); None: rosbags' text, without comments.
+        compression: how MCAP chunks are compressed; None: not.
+        repeat_latched: start each split part with the last message of every
+            latched topic (``rosbag record --repeat-latched``).
 
     Raises:
-        BagError: the bag cannot be created (it exists, or its folder is missing).
+        BagError: the bag cannot be created (it exists, or its folder is missing),
+            or a compression for a format other than MCAP.
     """
 
     def __init__(
@@ -205,17 +221,22 @@ class BagWriter:
         typestore: Typestore,
         split: SplitPolicy | None = None,
         definitions: Callable[[str], str] | None = None,
+        *,
+        compression: Compression | None = None,
+        repeat_latched: bool = True,
     ) -> None:
         self.path = Path(path)
         self.fmt = fmt
         self._typestore = typestore
         self._split = split or SplitPolicy()
         self._definitions = definitions
+        self._compression = (compression or Compression()).check_format(fmt)
+        self._repeat_latched = repeat_latched
         self.paths: list[Path] = [self.path]
-        self._file: _File | None = _File(self.path, fmt, typestore, definitions)
+        self._file: _File | None = _File(self.path, fmt, typestore, definitions, self._compression)
         # the last message of each latched topic, written again at the start of every
-        # split part (as ros2 bag record --repeat-transient-local does): a part played
-        # alone still has its /tf_static and maps
+        # split part (``repeat_latched``): a part played alone still has its
+        # /tf_static and maps
         self._latched: dict[TopicInfo, bytes | memoryview] = {}
 
     def write(self, info: TopicInfo, ns: int, raw: bytes | memoryview) -> None:
@@ -234,7 +255,7 @@ class BagWriter:
                 if kept != info:  # stamped with the part's first time: its range holds them
                     file.write(kept, ns, data)
         file.write(info, ns, raw)
-        if info.latched:
+        if info.latched and self._repeat_latched:
             self._latched[info] = raw
         if file.checkpoint_due:
             file.checkpoint(full=False)
@@ -251,7 +272,7 @@ class BagWriter:
         file.close()
         path = split_path(self.path, len(self.paths))
         self.paths.append(path)
-        self._file = _File(path, self.fmt, self._typestore, self._definitions)
+        self._file = _File(path, self.fmt, self._typestore, self._definitions, self._compression)
         return self._file
 
     def checkpoint(self) -> None:

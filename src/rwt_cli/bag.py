@@ -16,7 +16,8 @@ import anyio
 import typer
 
 from rwt_bag.errors import BagError
-from rwt_bag.formats import BagFormat, SplitPolicy
+from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy
+from rwt_bag.selection import TopicSelection
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.access import parse_glob_list
 from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
@@ -30,14 +31,29 @@ if TYPE_CHECKING:
     from rwt_graph.graph import Graph
 
 __all__ = [
+    "ChunkCompressionLevel",
+    "ChunkCompressionOption",
+    "DisableKeyboardControls",
+    "ExcludeRegex",
+    "ExcludeTopics",
+    "MaxBagDuration",
+    "MaxBagSize",
+    "Prefix",
     "RecordMaxSize",
     "RecordSplit",
+    "RegexOption",
+    "RepeatLatched",
+    "WaitForSubscribers",
+    "WaitTimeout",
     "bag_app",
     "bag_jobs",
+    "chunk_compression",
     "play_options",
     "record",
     "record_options",
     "split_policy",
+    "terminal_keys",
+    "topic_selection",
 ]
 
 MB = 1_000_000
@@ -51,15 +67,56 @@ Patterns = Annotated[
         help="Topics, comma-separated glob patterns (/tf*,/scan); default: all.",
     ),
 ]
+REGEX_HELP = "Also take topics this regular expression finds in the name (re.search)."
+EXCLUDE_REGEX_HELP = "Leave out topics this regular expression finds in the name."
+EXCLUDE_TOPICS_HELP = "Leave out these topics: comma-separated exact names; repeatable."
+RegexOption = Annotated[str | None, typer.Option(metavar="REGEX", help=REGEX_HELP)]
+ExcludeRegex = Annotated[str | None, typer.Option(metavar="REGEX", help=EXCLUDE_REGEX_HELP)]
+ExcludeTopics = Annotated[
+    list[str] | None, typer.Option(metavar="TOPICS", help=EXCLUDE_TOPICS_HELP)
+]
+MaxBagSize = Annotated[
+    int | None,
+    typer.Option(
+        min=1, metavar="BYTES", help="Start a new file past this many bytes (as ros2 bag record)."
+    ),
+]
+MaxBagDuration = Annotated[
+    float | None,
+    typer.Option(
+        min=0.001,
+        metavar="SECONDS",
+        help="Start a new file past this many seconds (as ros2 bag record).",
+    ),
+]
+ChunkCompressionOption = Annotated[
+    ChunkCompression,
+    typer.Option(help="Compress MCAP chunks: none, zstd or lz4 (MCAP bags only)."),
+]
+ChunkCompressionLevel = Annotated[
+    int | None,
+    typer.Option(
+        metavar="LEVEL",
+        help="The chunk compression's level: zstd -7 to 22 (default 3), lz4 0 to 16 (default 0).",
+    ),
+]
+RepeatLatched = Annotated[
+    bool,
+    typer.Option(
+        help="Start each split part with the last message of every latched topic "
+        "(as rosbag record --repeat-latched)."
+    ),
+]
 FORMAT_HELP = "mcap, sqlite3 (ROS 2 bags) or ros1 (a ROS 1 graph)."
 Format = Annotated[BagFormat, typer.Option(help=FORMAT_HELP)]
+# the options of before --max-bag-size/--max-bag-duration, kept for old command lines
 SplitSize = Annotated[
     float | None,
-    typer.Option(min=0.001, metavar="MB", help="Start a new file after this many megabytes."),
+    typer.Option(min=0.001, metavar="MB", hidden=True, help="--max-bag-size in megabytes."),
 ]
 SplitDuration = Annotated[
     float | None,
-    typer.Option(min=0.001, metavar="SECONDS", help="Start a new file after this many seconds."),
+    typer.Option(min=0.001, metavar="SECONDS", hidden=True, help="--max-bag-duration."),
 ]
 DialectOption = Annotated[
     Dialect | None,
@@ -155,12 +212,110 @@ PlaybackUntil = Annotated[
     ),
 ]
 
+Prefix = Annotated[
+    str,
+    typer.Option(
+        metavar="NAMESPACE",
+        help="Publish every topic under this namespace (/sim: /tf as /sim/tf), as rosbag play.",
+    ),
+]
+WaitForSubscribers = Annotated[
+    bool,
+    typer.Option(help="Before the first message, wait until every played topic has a subscriber."),
+]
+WaitTimeout = Annotated[
+    float | None,
+    typer.Option(
+        min=0.0,
+        metavar="SECONDS",
+        help="Wait this long for them at most, then play anyway; default: until interrupted.",
+    ),
+]
 
-def split_policy(size_mb: float | None, duration_s: float | None) -> SplitPolicy:
-    """The split policy of ``--split-size``/``--split-duration``."""
-    return SplitPolicy(
-        max_bytes=None if size_mb is None else int(size_mb * MB), max_seconds=duration_s
-    )
+DisableKeyboardControls = Annotated[
+    bool,
+    typer.Option(
+        help="Ignore the keys (on a terminal: space pauses and resumes, right arrow "
+        "publishes the next message while paused, up/down arrows change the rate)."
+    ),
+]
+
+
+def terminal_keys(disabled: bool) -> int | None:
+    """The descriptor of standard input if keys may drive playback: a terminal, not disabled."""
+    if disabled or sys.stdin is None or not sys.stdin.isatty():
+        return None
+    return sys.stdin.fileno()
+
+
+def split_policy(
+    max_bytes: int | None,
+    max_seconds: float | None,
+    *,
+    size_mb: float | None = None,
+    duration_s: float | None = None,
+    prefix: str = "",
+) -> SplitPolicy:
+    """The split policy of ``--max-bag-size``/``--max-bag-duration``.
+
+    ``size_mb`` and ``duration_s`` are the older ``--split-size`` (megabytes) and
+    ``--split-duration``, which say the same; ``prefix`` names the options
+    (``--record-`` on ``rwt serve``) in errors.
+
+    Raises:
+        typer.BadParameter: a limit given under both names.
+    """
+    for new, old, value, legacy in (
+        ("max-bag-size", "split-size", max_bytes, size_mb),
+        ("max-bag-duration", "split-duration", max_seconds, duration_s),
+    ):
+        if value is not None and legacy is not None:
+            hint = f"--{prefix}{new}"
+            raise typer.BadParameter(f"give --{prefix}{new} or --{prefix}{old}", param_hint=hint)
+    if size_mb is not None:
+        max_bytes = int(size_mb * MB)
+    return SplitPolicy(max_bytes=max_bytes, max_seconds=duration_s or max_seconds)
+
+
+def topic_selection(
+    topics: str,
+    regex: str | None = None,
+    exclude_regex: str | None = None,
+    exclude_topics: list[str] | None = None,
+    *,
+    prefix: str = "",
+) -> TopicSelection:
+    """The ``TopicSelection`` of ``--topics``, ``--regex`` and the two exclusions.
+
+    Raises:
+        typer.BadParameter: an expression that is not a regular expression.
+    """
+    excluded = [name.strip() for item in exclude_topics or () for name in item.split(",")]
+    try:
+        return TopicSelection.of(
+            parse_glob_list(topics),
+            regex=regex,
+            exclude_regex=exclude_regex,
+            exclude_topics=[name for name in excluded if name],
+            option_prefix=prefix,
+        )
+    except BagError as exc:
+        raise typer.BadParameter(str(exc)) from None
+
+
+def chunk_compression(
+    algorithm: ChunkCompression, level: int | None, *, prefix: str = ""
+) -> Compression:
+    """The ``Compression`` of ``--chunk-compression`` and its level.
+
+    Raises:
+        typer.BadParameter: a level outside the algorithm's range, or without one.
+    """
+    try:
+        return Compression(algorithm, level)
+    except BagError as exc:
+        hint = f"--{prefix}chunk-compression-level"
+        raise typer.BadParameter(str(exc), param_hint=hint) from None
 
 
 RecordMaxSize = Annotated[
@@ -180,21 +335,35 @@ RecordSplit = Annotated[
 
 def record_options(
     path: Path | None,
-    topics: str,
+    selection: TopicSelection,
     fmt: BagFormat,
     split: SplitPolicy,
     *,
     max_size: int | None = None,
     split_at_max: bool = False,
+    compression: Compression | None = None,
+    repeat_latched: bool = True,
+    prefix: str = "",
 ) -> RecordOptions | None:
     """``RecordOptions`` of ``--record`` (None without it).
 
     ``max_size`` (bytes) stops recording there, or with ``split_at_max`` starts a
     new part there (the smaller of it and ``split.max_bytes``), as ``ros2 bag
     record --max-bag-size`` splits.
+
+    ``prefix`` names the options in errors (``record-`` on ``rwt serve``).
+
+    Raises:
+        typer.BadParameter: a chunk compression for a format other than MCAP.
     """
     if path is None:
         return None
+    compression = compression or Compression()
+    try:
+        compression.check_format(fmt)
+    except BagError as exc:
+        hint = f"--{prefix}chunk-compression"
+        raise typer.BadParameter(f"{exc} (--{prefix}format mcap)", param_hint=hint) from None
     from rwt_bag.jobs import RecordOptions  # noqa: PLC0415 - rosbags' writers only when used
 
     stop_at = max_size
@@ -202,7 +371,7 @@ def record_options(
         part = max_size if split.max_bytes is None else min(split.max_bytes, max_size)
         split = SplitPolicy(max_bytes=part, max_seconds=split.max_seconds)
         stop_at = None
-    return RecordOptions(path, parse_glob_list(topics) or ("*",), fmt, split, stop_at)
+    return RecordOptions(path, selection, fmt, split, stop_at, compression, repeat_latched)
 
 
 def play_options(
@@ -219,6 +388,9 @@ def play_options(
     delay: float = 0.0,
     duration: float | None = None,
     until_sec: float | None = None,
+    prefix: str = "",
+    wait_for_subscribers: bool = False,
+    wait_timeout: float | None = None,
 ) -> PlayOptions | None:
     """``PlayOptions`` of ``--play`` (None without it).
 
@@ -249,6 +421,9 @@ def play_options(
         delay=delay,
         duration=duration,
         until_ns=until_ns,
+        prefix=prefix,
+        wait_for_subscribers=wait_for_subscribers,
+        wait_timeout=wait_timeout,
     )
 
 
@@ -274,8 +449,12 @@ def bag_jobs(
     *,
     command: str,
     stop_at_end: object = None,
+    keyboard: int | None = None,
 ) -> BagJobs | None:
-    """The ``BagJobs`` of the options, or None; a bad bag exits with one line (code 1)."""
+    """The ``BagJobs`` of the options, or None; a bad bag exits with one line (code 1).
+
+    ``keyboard``: the terminal whose keys drive the player (``rwt_bag.keys``).
+    """
     if record is None and play is None:
         return None
     from rwt_bag.jobs import BagJobs  # noqa: PLC0415 - see record_options
@@ -287,6 +466,7 @@ def bag_jobs(
             play=play,
             progress=sys.stdout if command != "serve" else None,
             stop_at_end=stop_at_end,  # type: ignore[arg-type]
+            keyboard=keyboard,
         )
     except BagError as exc:
         _fail(command, str(exc))
@@ -301,9 +481,24 @@ def record(
     url: Annotated[str, typer.Argument(help="The rosbridge server: ws://, wss:// or tcp://.")],
     out: Annotated[Path, typer.Argument(help="The bag to create (a folder; a .bag file).")],
     topics: Patterns = "",
+    regex: Annotated[
+        str | None, typer.Option("--regex", "-e", metavar="REGEX", help=REGEX_HELP)
+    ] = None,
+    exclude_regex: ExcludeRegex = None,
+    exclude_topics: ExcludeTopics = None,
     fmt: Annotated[BagFormat, typer.Option("--format", help=FORMAT_HELP)] = BagFormat.MCAP,
+    max_bag_size: MaxBagSize = None,
+    max_bag_duration: MaxBagDuration = None,
     split_size: SplitSize = None,
     split_duration: SplitDuration = None,
+    chunk_compression_algorithm: Annotated[
+        ChunkCompression,
+        typer.Option(
+            "--chunk-compression", help="Compress MCAP chunks: none, zstd or lz4 (MCAP bags only)."
+        ),
+    ] = ChunkCompression.NONE,
+    chunk_compression_level: ChunkCompressionLevel = None,
+    repeat_latched: RepeatLatched = True,
     compression: Annotated[
         str, typer.Option(help="Subscription compression: cbor (binary) or none (JSON).")
     ] = "cbor",
@@ -317,13 +512,23 @@ def record(
     """Record topics of a rosbridge server into a bag until SIGINT, SIGTERM or --duration.
 
     Subscribes, as a client, to every topic the server lists (rosapi) that
-    matches --topics, also to topics that appear later, and writes each message
-    with its receive time and its type's definition. ROS 2 bags stay readable if
-    the recorder is killed (up to the last second or so).
+    matches --topics or --regex and no exclusion, also to topics that appear
+    later, and writes each message with its receive time and its type's
+    definition. ROS 2 bags stay readable if the recorder is killed (up to the
+    last second or so).
     """
     if compression not in ("cbor", "none"):
         _fail("record", f"--compression must be cbor or none, not {compression}")
     from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
+
+    options = record_options(
+        out,
+        topic_selection(topics, regex, exclude_regex, exclude_topics),
+        fmt,
+        split_policy(max_bag_size, max_bag_duration, size_mb=split_size, duration_s=split_duration),
+        compression=chunk_compression(chunk_compression_algorithm, chunk_compression_level),
+        repeat_latched=repeat_latched,
+    )
 
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     registry = TypeRegistry(dialect_for(dialect, (), fmt), interfaces or ())
@@ -333,9 +538,7 @@ def record(
                 url,
                 out,
                 registry,
-                topics=parse_glob_list(topics) or ("*",),
-                fmt=fmt,
-                split=split_policy(split_size, split_duration),
+                record=options,
                 compression=compression,
                 duration=duration,
             )
@@ -389,3 +592,86 @@ def reindex(
     typer.echo(
         f"reindexed {bag}: {done.messages} messages{tail}; the original is {backup_path(bag)}"
     )
+
+
+BagIn = Annotated[Path, typer.Argument(help="The bag to read (a ROS 1 .bag file, a ROS 2 folder).")]
+BagOut = Annotated[Path, typer.Argument(help="The bag to create (*.bag for ros1, else a folder).")]
+OutFormat = Annotated[
+    BagFormat | None,
+    typer.Option(
+        "--format",
+        help="mcap, sqlite3 or ros1; default: ros1 for an OUT named *.bag, else mcap "
+        "(filter: the input's format).",
+    ),
+]
+
+
+def _copy(
+    command: str,
+    src: Path,
+    dst: Path,
+    fmt: BagFormat | None,
+    selection: TopicSelection | None = None,
+    start: float | None = None,
+    end: float | None = None,
+) -> None:
+    """Copy ``src`` to ``dst`` (``rwt_bag.convert``) and print one line; errors exit 1."""
+    from rwt_bag.convert import bag_format, copy_bag  # noqa: PLC0415 - see record_options
+
+    try:
+        if fmt is None:
+            default = BagFormat.ROS1 if dst.suffix == ".bag" else BagFormat.MCAP
+            fmt = bag_format(src) if command == "filter" else default
+        stats = copy_bag([src], dst, fmt, selection=selection, start_s=start, end_s=end)
+    except BagError as exc:
+        _fail(f"bag {command}", str(exc))
+    topics = f"{len(stats.topics)} topic{'' if len(stats.topics) == 1 else 's'}"
+    typer.echo(f"wrote {stats.messages} messages on {topics} -> {dst}")
+
+
+@bag_app.command("convert", short_help="Copy a bag into another format (MCAP, sqlite3, ROS 1).")
+def convert(src: BagIn, dst: BagOut, fmt: OutFormat = None) -> None:
+    """Copy a bag into another format: MCAP, sqlite3 (ROS 2) or ROS 1.
+
+    Between ROS 1 and ROS 2 each message is converted with rosbags (a header's
+    seq is dropped or set to 0; latching becomes transient-local QoS and back).
+    OUT must not exist.
+    """
+    _copy("convert", src, dst, fmt)
+
+
+@bag_app.command("filter", short_help="Copy some topics or a time range of a bag.")
+def filter_bag(
+    src: BagIn,
+    dst: BagOut,
+    topics: Patterns = "",
+    regex: Annotated[
+        str | None, typer.Option("--regex", "-e", metavar="REGEX", help=REGEX_HELP)
+    ] = None,
+    exclude_regex: Annotated[
+        str | None,
+        typer.Option("--exclude", "--exclude-regex", metavar="REGEX", help=EXCLUDE_REGEX_HELP),
+    ] = None,
+    exclude_topics: ExcludeTopics = None,
+    start: Annotated[
+        float | None,
+        typer.Option(
+            min=0.0, metavar="SECONDS", help="Copy from this many seconds after the first message."
+        ),
+    ] = None,
+    end: Annotated[
+        float | None,
+        typer.Option(
+            min=0.0, metavar="SECONDS", help="Copy up to this many seconds after the first message."
+        ),
+    ] = None,
+    fmt: OutFormat = None,
+) -> None:
+    """Copy the chosen topics of a bag, from --start to --end, into a new bag.
+
+    Topics are chosen as rwt record chooses them (--topics globs, --regex, then
+    --exclude and --exclude-topics); times count in seconds from the bag's first
+    message. OUT must not exist.
+    """
+    selection = topic_selection(topics, regex, exclude_regex, exclude_topics)
+    _copy("filter", src, dst, fmt, selection, start, end)

@@ -19,17 +19,22 @@ from .bag import (
     Clock,
     Delay,
     DialectOption,
+    DisableKeyboardControls,
     Interfaces,
     Loop,
     PlaybackDuration,
     PlaybackUntil,
+    Prefix,
     Rate,
     Remap,
     StartOffset,
     StartPaused,
+    WaitForSubscribers,
+    WaitTimeout,
     bag_jobs,
     dialect_for,
     play_options,
+    terminal_keys,
 )
 from .checks import ListenError, check_glob_list
 from .options import PORT_RANGE
@@ -60,6 +65,10 @@ def play(
     delay: Delay = 0.0,
     playback_duration: PlaybackDuration = None,
     playback_until_sec: PlaybackUntil = None,
+    prefix: Prefix = "",
+    wait_for_subscribers: WaitForSubscribers = False,
+    wait_for_subscribers_timeout: WaitTimeout = None,
+    disable_keyboard_controls: DisableKeyboardControls = False,
     dialect: DialectOption = None,
     interfaces: Interfaces = None,
 ) -> None:
@@ -67,8 +76,10 @@ def play(
 
     Web clients see the bag as a live robot: TF through tf2_web_republisher,
     /tf_static and maps latched, rosapi. The /rwt/player/pause, resume, seek and
-    get_status services control playback. Use 'rwt serve --play' for every
-    server option (TCP, video, TLS...) and to keep serving after the end.
+    get_status services control playback, and on a terminal the keys: space
+    pauses and resumes, right arrow plays the next message, up/down the rate.
+    Use 'rwt serve --play' for every server option (TCP, video, TLS...) and to
+    keep serving after the end.
     """
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     graph = Graph(TypeRegistry(dialect_for(dialect, bag), interfaces or ()))
@@ -86,8 +97,12 @@ def play(
         delay=delay,
         duration=playback_duration,
         until_sec=playback_until_sec,
+        prefix=prefix,
+        wait_for_subscribers=wait_for_subscribers,
+        wait_timeout=wait_for_subscribers_timeout,
     )
-    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop)
+    keys = terminal_keys(disable_keyboard_controls)
+    jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop, keyboard=keys)
     try:
         anyio.run(run_server, server, None, jobs)
     except (OSError, ValueError, ListenError, BaseExceptionGroup, BagError) as exc:

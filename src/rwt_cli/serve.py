@@ -33,7 +33,15 @@ from rwt_transports.udp import UdpOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.workers import run_workers
 
-from .bag import bag_jobs, dialect_for, play_options, record_options, split_policy
+from .bag import (
+    bag_jobs,
+    chunk_compression,
+    dialect_for,
+    play_options,
+    record_options,
+    split_policy,
+    topic_selection,
+)
 from .checks import ListenError, OptionError, check_tls, usage_error
 from .groups import grouped_command
 from .options import UVLOOP_EXTRA, VIDEO_PORT
@@ -246,11 +254,30 @@ def _bag_jobs(graph: Graph, record: RecordOptions, play: PlayOptions) -> BagJobs
         graph,
         record_options(
             record.record,
-            record.record_topics,
+            topic_selection(
+                record.record_topics,
+                record.record_regex,
+                record.record_exclude_regex,
+                record.record_exclude_topics,
+                prefix="record-",
+            ),
             record.record_format,
-            split_policy(record.record_split_size, record.record_split_duration),
+            split_policy(
+                record.record_max_bag_size,
+                record.record_max_bag_duration,
+                size_mb=record.record_split_size,
+                duration_s=record.record_split_duration,
+                prefix="record-",
+            ),
             max_size=record.record_max_size,
             split_at_max=record.record_split,
+            compression=chunk_compression(
+                record.record_chunk_compression,
+                record.record_chunk_compression_level,
+                prefix="record-",
+            ),
+            repeat_latched=record.record_repeat_latched,
+            prefix="record-",
         ),
         play_options(
             play.play,
@@ -265,6 +292,9 @@ def _bag_jobs(graph: Graph, record: RecordOptions, play: PlayOptions) -> BagJobs
             delay=play.delay,
             duration=play.playback_duration,
             until_sec=play.playback_until_sec,
+            prefix=play.play_prefix,
+            wait_for_subscribers=play.wait_for_subscribers,
+            wait_timeout=play.wait_for_subscribers_timeout,
         ),
         command="serve",
     )

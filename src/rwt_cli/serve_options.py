@@ -14,7 +14,7 @@ from typing import Annotated, ClassVar
 
 import typer
 
-from rwt_bag.formats import BagFormat
+from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
@@ -22,21 +22,32 @@ from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
 from .bag import (
     Check,
+    ChunkCompressionLevel,
+    ChunkCompressionOption,
     Clock,
     Delay,
     DialectOption,
+    ExcludeRegex,
+    ExcludeTopics,
     Format,
     Loop,
+    MaxBagDuration,
+    MaxBagSize,
     PlaybackDuration,
     PlaybackUntil,
+    Prefix,
     Rate,
     RecordMaxSize,
     RecordSplit,
+    RegexOption,
     Remap,
+    RepeatLatched,
     SplitDuration,
     SplitSize,
     StartOffset,
     StartPaused,
+    WaitForSubscribers,
+    WaitTimeout,
 )
 from .checks import check_directories, check_glob_list, check_readable_file
 from .options import MIB, PORT_RANGE, UVLOOP_EXTRA, VIDEO_PORT, LevelName, LogLevel
@@ -385,9 +396,17 @@ class RecordOptions:
         str,
         typer.Option(callback=check_glob_list, metavar="PATTERNS", help="Topics --record records."),
     ] = ""
+    record_regex: RegexOption = None
+    record_exclude_regex: ExcludeRegex = None
+    record_exclude_topics: ExcludeTopics = None
     record_format: Format = BagFormat.MCAP
+    record_max_bag_size: MaxBagSize = None
+    record_max_bag_duration: MaxBagDuration = None
     record_split_size: SplitSize = None
     record_split_duration: SplitDuration = None
+    record_chunk_compression: ChunkCompressionOption = ChunkCompression.NONE
+    record_chunk_compression_level: ChunkCompressionLevel = None
+    record_repeat_latched: RepeatLatched = True
     record_max_size: RecordMaxSize = None
     record_split: RecordSplit = False
 
@@ -415,6 +434,9 @@ class PlayOptions:
     delay: Delay = 0.0
     playback_duration: PlaybackDuration = None
     playback_until_sec: PlaybackUntil = None
+    play_prefix: Prefix = ""
+    wait_for_subscribers: WaitForSubscribers = False
+    wait_for_subscribers_timeout: WaitTimeout = None
 
 
 @dataclass(frozen=True)

@@ -56,14 +56,13 @@ from .ops import (
 from .ops import Advertise as AdvertiseOp
 from .png import decode_png
 from .ports import GoalStatus
-from .roles import Role
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
     from .levels import StatusLevel
 
-__all__ = ["ClientEvent", "ClientSession", "Role", "UnknownOp"]
+__all__ = ["ClientEvent", "ClientSession", "UnknownOp"]
 
 MiB = 1024 * 1024
 Message = dict[str, object]
@@ -109,8 +108,6 @@ class ClientSession:
         fragment_timeout_s: seconds after its latest part at which an
             incomplete message is forgotten (``now`` comes with each frame).
     """
-
-    our_role = Role.CLIENT
 
     def __init__(
         self,

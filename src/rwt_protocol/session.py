@@ -55,7 +55,6 @@ from .lifecycle import State, advance
 from .ops import OpModel, PublishView, Status
 from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .roles import Role
 from .shortcuts import enabled
 from .timers import Timer, TimerQueue
 
@@ -185,10 +184,8 @@ class Session:
             parts that every connection's parts are also charged to
             (``--max-fragment-memory``); None: only this connection's bound.
 
-    The client end is ``client.ClientSession``: the same ops, the other ``our_role``.
+    The client end is ``client.ClientSession``: the same ops, from the other end.
     """
-
-    our_role = Role.SERVER
 
     def __init__(
         self,

@@ -185,7 +185,7 @@ async def test_recorder_splits_by_duration(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("fmt", ["mcap", "ros1"])
 async def test_each_split_part_repeats_the_latched_topics(tmp_path: Path, fmt: str) -> None:
-    """As ros2 bag record --repeat-transient-local: a part played alone has its /tf_static."""
+    """--repeat-latched (the default): a part played alone has its /tf_static."""
     ros1 = fmt == "ros1"
     graph = rwt.Graph(TypeRegistry(Dialect.ROS1)) if ros1 else rwt.Graph()
     static = graph.create_publisher("/static", "std_msgs/String", latch=True)

@@ -160,3 +160,66 @@ def wait_for(predicate, within=20.0):
         got = json.loads((await run_python(prelude + LISTEN)).strip().splitlines()[-1])
         assert rwt_play.wait(timeout=30) == 0
     assert got == [f"m{i}" for i in range(101)]
+
+
+@pytest.mark.anyio
+async def test_prefix_puts_every_topic_under_a_namespace_after_the_remap(tmp_path: Path) -> None:
+    bag = write_chatter(tmp_path / "bag")
+    got, _ = await play(bag, "/sim/chatter", prefix="sim/")
+    assert got == [f"m{i}" for i in range(COUNT)]
+    got, _ = await play(bag, "/sim/talk", prefix="/sim", remap={"/chatter": "/talk"})
+    assert len(got) == COUNT
+    with pytest.raises(BagError, match="the prefix '/a b' is not a namespace"):
+        rwt.Player(rwt.Graph(), bag, prefix="/a b")
+
+
+@pytest.mark.anyio
+async def test_waiting_for_subscribers_gives_up_at_its_timeout(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    bag = write_chatter(tmp_path / "bag")
+    player = rwt.Player(
+        rwt.Graph(), bag, rate=4.0, check=False, wait_for_subscribers=True, wait_timeout=0.2
+    )
+    with anyio.fail_after(60):
+        await player.run()
+    assert player.stats.messages == COUNT  # played anyway, into no subscriber
+    (line,) = [r.getMessage() for r in caplog.records if "play_wait_timeout" in r.getMessage()]
+    assert "topics=/chatter" in line
+
+
+LATE = """
+import json, time
+import roslibpy
+ros = roslibpy.Ros("127.0.0.1", {port})
+ros.run(timeout=20)
+time.sleep(1.0)  # the bag (0.6 s) would have played by now without the wait
+got = []
+roslibpy.Topic(ros, "/sim/chatter", "std_msgs/msg/String").subscribe(
+    lambda m: got.append(m["data"])
+)
+end = time.monotonic() + 30
+while len(got) < {count} and time.monotonic() < end:
+    time.sleep(0.05)
+print(json.dumps(got))
+ros.terminate()
+"""
+
+
+@pytest.mark.anyio
+async def test_rwt_play_waits_for_a_late_roslibpy_subscriber(tmp_path: Path) -> None:
+    bag = write_chatter(tmp_path / "bag")
+    args = ["--prefix", "/sim", "--wait-for-subscribers"]
+    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", *args]
+    env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
+    rwt_play = subprocess.Popen(  # noqa: ASYNC220 - its output is read in the test's thread
+        command, stdout=subprocess.PIPE, text=True, cwd=tmp_path, env=env
+    )
+    with rwt_play:
+        assert rwt_play.stdout is not None
+        line = rwt_play.stdout.readline()
+        assert line.startswith("listening on ws://127.0.0.1:"), line
+        port = int(line.rsplit(":", 1)[1])
+        out = await run_python(LATE.format(port=port, count=COUNT))
+        assert rwt_play.wait(timeout=30) == 0
+    assert json.loads(out.strip().splitlines()[-1]) == [f"m{i}" for i in range(COUNT)]

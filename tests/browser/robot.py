@@ -60,6 +60,19 @@ def transform(parent: str, child: str, x: float) -> dict[str, Any]:
     }
 
 
+def room(width: int = 80, height: int = 60) -> dict[str, Any]:
+    """A nav_msgs/OccupancyGrid of a walled room at 5 cm a cell, its origin at (-1, -1.5) m."""
+    data = []
+    for row in range(height):
+        for col in range(width):
+            wall = row in (0, height - 1) or col in (0, width - 1)
+            table = 50 <= col < 62 and 20 <= row < 32
+            data.append(100 if wall else -1 if table else 0)
+    origin = {"position": {"x": -1.0, "y": -1.5, "z": 0.0}, "orientation": {"w": 1.0}}
+    info = {"resolution": 0.05, "width": width, "height": height, "origin": origin}
+    return {"header": {"frame_id": "map"}, "info": info, "data": data}
+
+
 class Robot:
     """A roslibpy client that publishes a chatter, images and TF, and serves /console_test/add.
 
@@ -93,6 +106,11 @@ class Robot:
         # the page publishes here; an out-of-range value is refused by the server
         self.level = roslibpy.Topic(self.ros, "/console_test/level", "std_msgs/msg/Int8")
         self.level.advertise()
+        # a latched 4 m x 3 m room for the Map tab (its screenshot): walls occupied,
+        # a table unknown, the floor free
+        self.map = roslibpy.Topic(self.ros, "/map", "nav_msgs/msg/OccupancyGrid", latch=True)
+        self.map.advertise()
+        self.map.publish(roslibpy.Message(room()))
         self.rosout = roslibpy.Topic(self.ros, "/rosout", "rcl_interfaces/msg/Log")
         self.rosout.advertise()
         self._thread = threading.Thread(target=self._publish, daemon=True)
