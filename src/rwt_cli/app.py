@@ -12,10 +12,11 @@ from typer.core import TyperGroup
 
 from rwt_conformance.cli import conformance
 
-from .bag import bag_app, record
+from .bag import bag_app
 from .checks import ClickException, NoArgsIsHelpError, error_line
 from .groups import GroupedCommand
 from .play import play
+from .record import record
 from .router import router
 from .serve import serve
 

@@ -14,7 +14,7 @@ from rwt_graph.types import TypeRegistry
 from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
-from .bag import (
+from .bag_options import (
     Check,
     Clock,
     Delay,

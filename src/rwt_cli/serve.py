@@ -33,7 +33,7 @@ from rwt_transports.udp import UdpOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.workers import run_workers
 
-from .bag import (
+from .bag_options import (
     bag_jobs,
     chunk_compression,
     dialect_for,

@@ -20,7 +20,7 @@ from rwt_protocol.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
 from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
-from .bag import (
+from .bag_options import (
     Check,
     ChunkCompressionLevel,
     ChunkCompressionOption,

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rwt_bag.formats import BagFormat
-from rwt_cli.bag import dialect_for
+from rwt_cli.bag_options import dialect_for
 from rwt_graph.types import Dialect
 
 from .bags import write_bag
