@@ -46,7 +46,9 @@ if TYPE_CHECKING:
         bag_info,
         serve_controls,
     )
+    from rwt_bag.formats import ChunkCompression, Compression
     from rwt_bag.info import TopicSummary
+    from rwt_bag.selection import TopicSelection
     from rwt_cli.checks import ListenError
     from rwt_client import Action, GoalHandle, Param, Ros, ServerGoal, Service, SyncRos, Topic
     from rwt_client.connectors import ConnectionClosedError
@@ -122,7 +124,7 @@ if TYPE_CHECKING:
     from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
     from rwt_transports.udp import UdpOptions
     from rwt_transports.websocket import WebSocketOptions
-    from rwt_video import StreamType, VideoConfig, serve_video
+    from rwt_video import StreamType, VideoConfig, VideoTokens, install_token_service, serve_video
     from rwt_zenoh.config import ZenohOptions
     from rwt_zenoh.link import ZenohLink, open_zenoh_link
     from rwt_zenoh.wire import RmwCompat, WireError
@@ -141,7 +143,9 @@ __all__ = [
     "CallTimeoutError",
     "CameraIntrinsics",
     "CdrError",
+    "ChunkCompression",
     "Clock",
+    "Compression",
     "ConfigError",
     "ConnectionClosedError",
     "ConsoleSite",
@@ -210,6 +214,7 @@ __all__ = [
     "TFError",
     "TFRepublisher",
     "Topic",
+    "TopicSelection",
     "TopicSummary",
     "TransportError",
     "TypeRegistry",
@@ -217,6 +222,7 @@ __all__ = [
     "UnknownFrameError",
     "UnknownTypeError",
     "VideoConfig",
+    "VideoTokens",
     "WebSocketOptions",
     "WireCodec",
     "WireError",
@@ -229,6 +235,7 @@ __all__ = [
     "decode_depthcloud",
     "encode_depthcloud",
     "install_tf_republisher",
+    "install_token_service",
     "message_class",
     "open_ros2_link",
     "open_zenoh_link",
@@ -247,6 +254,8 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "rwt_video": (
         "StreamType",
         "VideoConfig",
+        "VideoTokens",
+        "install_token_service",
         "serve_video",
     ),
     "rwt_bag": (
@@ -279,6 +288,8 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "rwt_console.site": ("ConsoleSite",),
     "rwt_graph.actions": ("GoalCanceledError", "GoalContext"),
     "rwt_bag.info": ("TopicSummary",),
+    "rwt_bag.formats": ("ChunkCompression", "Compression"),
+    "rwt_bag.selection": ("TopicSelection",),
     "rwt_protocol.outbox": ("OutFrame",),
     "rwt_graph.clock": ("Clock",),
     "rwt_graph.graph": ("Graph",),
