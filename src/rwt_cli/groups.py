@@ -128,12 +128,8 @@ class GroupedCommand(TyperCommand):
 
     def format_options(self, ctx: Any, formatter: Any) -> None:
         """Write the arguments, then each section of options (click's plain layout)."""
-        args = [p.get_help_record(ctx) for p in self.get_params(ctx)]
-        arguments = [
-            record
-            for p, record in zip(self.get_params(ctx), args, strict=True)
-            if record is not None and p.param_type_name == "argument"
-        ]
+        records = (p.get_help_record(ctx) for p in self.params if p.param_type_name == "argument")
+        arguments = [record for record in records if record is not None]
         if arguments:
             with formatter.section("Arguments"):
                 formatter.write_dl(arguments)
@@ -142,7 +138,7 @@ class GroupedCommand(TyperCommand):
         if help_option is not None:
             panels.setdefault(OPTIONS_PANEL, []).append(help_option)
         for panel, params in panels.items():
-            records = [r for r in (p.get_help_record(ctx) for p in params) if r is not None]
-            if records:
+            rows = [row for row in (p.get_help_record(ctx) for p in params) if row is not None]
+            if rows:
                 with formatter.section(panel):
-                    formatter.write_dl(records)
+                    formatter.write_dl(rows)
