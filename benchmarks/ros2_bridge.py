@@ -1,9 +1,9 @@
 """``python -m benchmarks.ros2_bridge``: real ROS 2 to WebSocket clients through a bridge.
 
-A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS on
-loopback) publishes on a private domain; a bridge carries each message to 1 or 10
-WebSocket subscribers (``websockets`` clients in this process that only count and
-read the stamp). Four receivers, in one run and on one machine state:
+A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS set
+up as ``FASTDDS`` says) publishes on a private domain; a bridge carries each message
+to 1 or 10 WebSocket subscribers (``websockets`` clients in this process that only
+count and read the stamp). Four receivers, in one run and on one machine state:
 
 - ``rwt``: ``rwt serve --ros2 --no-tf`` from this checkout (docs/ros2.md);
 - ``rosbridge``: the real rosbridge_suite 2.1.0 for ROS 2 (``rosbridge_websocket``
@@ -73,6 +73,13 @@ PEERS = {
 0.1.6 (Rust, a ROS 2 node on Jazzy wheels; its DDS meets the Kilted publisher)."""
 PEER_ENV = PEERS["rosbridge"].env
 PROFILE = ROOT / "tests" / "ros2" / "fastdds_loopback.xml"
+LARGE_SHM_PROFILE = ROOT / "benchmarks" / "fastdds_large_shm.xml"
+FASTDDS = {"loopback": PROFILE, "default": None, "large-shm": LARGE_SHM_PROFILE}
+"""Fast DDS setups (``--fastdds``), the same for every process of a run: ``loopback``
+loads ``PROFILE`` (UDP on 127.0.0.1 and shared memory, the tests' profile);
+``default`` loads no XML: Fast DDS's builtin transports (shared memory and UDPv4),
+what a robot gets out of the box; ``large-shm`` is ``loopback`` with a 4 MB
+shared-memory segment instead of the default 512 KB, which a 921 KB image outgrows."""
 PACED_HZ = 500
 """The paced String rate: below the ~600 msg/s rosbridge_suite 2.1.0 tops out at here."""
 IMAGE_HZ = 30
@@ -224,15 +231,19 @@ def rclpy_available() -> bool:
     return importlib.util.find_spec("rclpy") is not None
 
 
-def ros_env(domain: int) -> dict[str, str]:
-    """The ROS 2 environment of every process of a run: private domain, loopback only."""
-    return {
+def ros_env(domain: int, fastdds: str = "loopback") -> dict[str, str]:
+    """The ROS 2 environment of every process of a run: private domain, discovery on
+    this host only, Fast DDS set up as ``fastdds`` (one of ``FASTDDS``) says."""
+    env = {
         "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
         "ROS_DOMAIN_ID": str(domain),
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        "FASTDDS_DEFAULT_PROFILES_FILE": str(PROFILE),
         "PYTHONUNBUFFERED": "1",
     }
+    profile = FASTDDS[fastdds]
+    if profile is not None:
+        env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+    return env
 
 
 def _stamp(kind: str, frame: bytes) -> float | None:
@@ -418,10 +429,12 @@ async def _bare(case: Case, seconds: float, env: dict[str, str]) -> Result:
     return _result("rclpy", case, sent, start, report["lat"], report["last"], cpu1 - cpu0, 1)
 
 
-def _start_rwt(domain: int) -> Server:
-    """``rwt serve --ros2 --no-tf`` (``start_server`` passes on ``os.environ``) on ``domain``."""
+def _start_rwt(domain: int, env: dict[str, str]) -> Server:
+    """``rwt serve --ros2 --no-tf`` (``start_server`` passes on ``os.environ``) on ``domain``
+    in ``env`` (the run's: ``os.environ`` plus ``ros_env``)."""
     saved = dict(os.environ)
-    os.environ.update(ros_env(domain))
+    os.environ.clear()
+    os.environ.update(env)
     try:
         return start_server("rwt", extra=["--ros2", "--no-tf"])
     finally:
@@ -454,22 +467,31 @@ def _start_peer(receiver: str, tools: Path, port: int, domain: int) -> int:
 
 
 async def run_case(
-    receiver: str, case: Case, seconds: float, domain: int, tools: Path | None = None
+    receiver: str,
+    case: Case,
+    seconds: float,
+    domain: int,
+    tools: Path | None = None,
+    fastdds: str = "loopback",
 ) -> Result:
     """One ``case`` on ``receiver`` (``rwt``, ``rclpy``, or a peer of ``PEERS`` with ``tools``).
 
-    Starts (and stops) the bridge; the ROS 2 processes use ``domain``.
+    Starts (and stops) the bridge; the ROS 2 processes use ``domain`` and the Fast DDS
+    setup ``fastdds`` (``FASTDDS``; the peers' scripts set up their own environment).
 
     Raises:
         RuntimeError: a process did not start or ended early.
         TimeoutError: discovery took longer than ``DISCOVERY_S``.
     """
-    env = {**os.environ, **ros_env(domain)}
+    env = {**os.environ, **ros_env(domain, fastdds)}
+    if FASTDDS[fastdds] is None:  # none inherited either, under either name
+        env.pop("FASTDDS_DEFAULT_PROFILES_FILE", None)
+        env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
     if receiver == "rclpy":
         return await _bare(case, seconds, env)
     if receiver == "rwt":
-        with await asyncio.to_thread(_start_rwt, domain) as server:
+        with await asyncio.to_thread(_start_rwt, domain, env) as server:
             url = f"ws://127.0.0.1:{server.port}"
             return await _through_bridge("rwt", url, server.process.pid, case, seconds, env)
     assert tools is not None
@@ -562,6 +584,7 @@ async def run_all(
     seconds: float,
     domain: int,
     tools: dict[str, Path],
+    fastdds: str = "loopback",
 ) -> list[Result]:
     """Every case on every receiver, in that order (rclpy: the 1-subscriber cases only)."""
     results = []
@@ -571,7 +594,7 @@ async def run_all(
                 continue
             print(f"{case.label} 1->{case.subscribers} {receiver}...", file=sys.stderr, flush=True)
             where = tools.get(receiver)
-            results.append(await run_case(receiver, case, seconds, domain, where))
+            results.append(await run_case(receiver, case, seconds, domain, where, fastdds))
     return results
 
 
@@ -584,6 +607,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--cases", help="only the cases whose label contains this (e.g. Image)")
     parser.add_argument("--domain", type=int, default=130 + os.getpid() % 10, help="ROS_DOMAIN_ID")
+    parser.add_argument(
+        "--fastdds",
+        choices=list(FASTDDS),
+        default="loopback",
+        help="Fast DDS setup of every process: loopback (the tests' XML), default (no XML), "
+        "large-shm (loopback with a 4 MB shared-memory segment)",
+    )
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     if not rclpy_available():
@@ -592,7 +622,7 @@ def main(argv: list[str] | None = None) -> int:
     receivers = [r for r in args.receivers.split(",") if r]
     tools = peer_tools(receivers)
     cases = [c for c in CASES if not args.cases or args.cases in f"{c.label} 1->{c.subscribers}"]
-    results = asyncio.run(run_all(receivers, cases, args.seconds, args.domain, tools))
+    results = asyncio.run(run_all(receivers, cases, args.seconds, args.domain, tools, args.fastdds))
     print(table(results))
     print()
     for line in verdicts(results):

@@ -34,7 +34,7 @@ from .errors import BagError
 from .reader import BagSource, BagTopic
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator, Mapping, Sequence
+    from collections.abc import Mapping, Sequence
 
     from anyio.abc import TaskStatus
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
@@ -420,10 +420,12 @@ class Player(BackgroundJob):
             tg.cancel_scope.cancel()  # stopped early (duration, until): the reader too
 
     async def _produce(self, send: MemoryObjectSendStream[list[_Item]], start_ns: int) -> None:
-        messages = self.source.messages(start_ns)
+        batches = self.source.batches(
+            start_ns, max_messages=_BATCH_MESSAGES, max_bytes=_BATCH_BYTES
+        )
         async with send:
             while True:
-                batch = await anyio.to_thread.run_sync(_take, messages)
+                batch: list[_Item] = await anyio.to_thread.run_sync(next, batches, [])
                 if not batch:
                     return
                 await send.send(batch)
@@ -495,15 +497,3 @@ def _prefix(prefix: str) -> str:
     if problem is not None:
         raise BagError(f"the prefix {prefix!r} is not a namespace: {problem}")
     return prefix
-
-
-def _take(messages: Iterator[_Item]) -> list[_Item]:
-    """The next decoded messages, up to a batch's count or bytes (in the reader thread)."""
-    batch: list[_Item] = []
-    size = 0
-    for item in messages:
-        batch.append(item)
-        size += item[3]
-        if len(batch) >= _BATCH_MESSAGES or size >= _BATCH_BYTES:
-            break
-    return batch

@@ -27,6 +27,7 @@ from rwt_protocol.names import name_problem
 
 from .errors import BagError
 from .inflate import ReadBudget
+from .ros1read import chunk_messages
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
@@ -202,35 +203,72 @@ class BagSource:
         """Each message from ``start_ns`` on, as ``(topic, bag time ns, message, bytes)``.
 
         Raises:
+            BagError: as ``batches``.
+        """
+        for batch in self.batches(start_ns):
+            yield from batch
+
+    def batches(
+        self,
+        start_ns: int | None = None,
+        *,
+        max_messages: int = 512,
+        max_bytes: int = 1024 * 1024,
+    ) -> Iterator[list[tuple[BagTopic, int, dict[str, object], int]]]:
+        """The messages of ``messages`` in lists of up to ``max_messages`` or ``max_bytes``.
+
+        A list ends at the first message that reaches either bound; the last may
+        be shorter, and none is empty. The decompression budget is set once per
+        list, not per message (a context variable set and reset each time).
+
+        Raises:
             BagError: a message cannot be read or decoded (names topic and type), or
                 the pass decompresses past the limits of ``rwt_bag.inflate``.
         """
-        reader = self._reader
         budget = ReadBudget.for_paths(self.paths)  # one per pass: bounded work per read
-        iterator = budget.iterate(reader.messages(connections=self.connections, start=start_ns))
+        items = chunk_messages(self._reader, self.connections, start_ns)
+        if items is None:
+            items = self._reader.messages(connections=self.connections, start=start_ns)
         while True:
-            try:
-                conn, ns, raw = next(iterator)
-            except StopIteration:
+            with budget.active():
+                batch = self._take(items, max_messages, max_bytes)
+            if not batch:
                 return
+            yield batch
+
+    def _take(
+        self, items: Iterator[tuple[Any, int, bytes]], max_messages: int, max_bytes: int
+    ) -> list[tuple[BagTopic, int, dict[str, object], int]]:
+        """Read and decode the next messages of ``items`` up to the bounds of ``batches``."""
+        reader = self._reader
+        deserialize = (
+            (lambda raw, msgtype: read_cdr(reader.typestore, raw, msgtype))  # trailing bytes
+            if reader.is2
+            else reader.typestore.deserialize_ros1
+        )
+        topics, convert = self.topics, self._convert
+        batch: list[tuple[BagTopic, int, dict[str, object], int]] = []
+        size = 0
+        while len(batch) < max_messages and size < max_bytes:
+            try:
+                conn, ns, raw = next(items)
+            except StopIteration:
+                break
             except BagError:
                 raise
             except Exception as exc:
                 raise BagError(f"cannot read {_names(self.paths)}: {_reason(exc)}") from exc
-            topic = self.topics[conn.id]
+            topic = topics[conn.id]
             try:
-                obj = (
-                    read_cdr(reader.typestore, wire_input(raw), conn.msgtype)  # trailing bytes
-                    if reader.is2
-                    else reader.deserialize(wire_input(raw), conn.msgtype)  # type: ignore[arg-type]
-                )
-                msg = self._convert(topic.mtype, obj)
+                msg = convert(topic.mtype, deserialize(wire_input(raw), conn.msgtype))
             except Exception as exc:  # a corrupt payload: rosbags raises struct/index errors
                 raise BagError(
                     f"{_names(self.paths)}: a message of {topic.topic} (type {topic.msgtype}) "
                     f"at {ns} ns cannot be decoded: {_reason(exc)}"
                 ) from exc
-            yield topic, ns, msg, len(raw)
+            batch.append((topic, ns, msg, len(raw)))
+            size += len(raw)
+        return batch
 
     def _convert(self, mtype: MessageType, obj: object) -> dict[str, object]:
         """A rosbags message in the graph's internal form, checked (D7-D10).

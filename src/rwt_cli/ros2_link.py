@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import ConfigError
 
+from .gcfreeze import freeze_startup_objects
+
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
     from pathlib import Path
@@ -58,6 +60,8 @@ async def linked_ros2(graph: Graph, options: Ros2Options | None) -> AsyncIterato
 
     try:
         async with open_ros2_link(graph, options):
+            # rclpy, its node and the ROS 2 type store came after the start-up freeze
+            freeze_startup_objects()
             yield
     except (RuntimeError, ValueError) as exc:  # rclpy's RCLError is a RuntimeError
         raise ConfigError(f"ros2: {exc}") from None

@@ -32,7 +32,7 @@ from pydantic import ValidationError
 
 from .errors import RemoteProtocolError
 from .names import name_problem
-from .ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
+from .ops import OP_MODELS, OpModel, PublishFrame, PublishView
 from .ops.base import INT64_MAX, INT64_MIN, json_type_name
 from .shortcuts import enabled
 
@@ -351,7 +351,9 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
             data: bytes = msg[key]  # type: ignore[assignment]
             ready[key] = msgspec.Raw(b"".join((b'"', pybase64.b64encode(data), b'"')))
         msg = ready
-    text = _encoder.encode(Publish.frame(topic=topic, msg=msg))
+    # the frame ``Publish.frame(topic=topic, msg=msg)`` builds, written out: that
+    # call checks its fields each time, 1.3 us of a 100 B message's 2.3 (B22 play)
+    text = _encoder.encode({"op": "publish", "topic": topic, "msg": msg})
     # msgspec's output keeps its buffer's spare capacity (up to ~2 KB); a copy of a
     # small frame is exact, so a queue of them holds what the send-buffer limit
     # counts (D24, B8). A large frame's slack is negligible.

@@ -87,6 +87,10 @@ The shortcuts (name: what; module; benchmark; general path):
   one ``pwritev`` of rosbags' own buffers), by overriding rosbags' storage
   classes (private internals); ``rwt_bag.mcap.CheckpointWriter``; B20; rosbags'
   ``Writer``, whose bag is readable once closed.
+- ``ros1-chunk-read``: a ROS 1 bag's message records read in place in each
+  decompressed chunk, by rosbags' own index (private attributes of its
+  ``rosbag1.Reader``); ``rwt_bag.ros1read.chunk_messages``; B22 play (about
+  3 -> 1 us a message); rosbags' ``Reader.messages``.
 
 Reading the environment is not I/O in the sense of this package's rule (no
 sockets, files, clocks or threads): it is the process's configuration.
@@ -233,6 +237,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "an MCAP bag kept readable while it grows, by overriding rosbags' storage internals",
         "B20",
         "rosbags.rosbag2.Writer (the bag is readable once closed)",
+    ),
+    Shortcut(
+        "ros1-chunk-read",
+        "rwt_bag.ros1read.chunk_messages",
+        "a ROS 1 bag's message records read in place in each chunk (rosbags' private index)",
+        "B22 (play)",
+        "rosbags.rosbag1.Reader.messages (a header dict per record)",
     ),
 )
 """Every shortcut, in the order of a message's way from decoding to the socket."""

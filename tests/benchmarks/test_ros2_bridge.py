@@ -6,7 +6,7 @@ import asyncio
 import os
 
 import pytest
-from benchmarks.ros2_bridge import Case, rclpy_available, run_case, table
+from benchmarks.ros2_bridge import FASTDDS, Case, rclpy_available, ros_env, run_case, table
 
 pytestmark = pytest.mark.skipif(
     not rclpy_available(), reason='rclpy is not importable: pip install "rwt[ros2]"'
@@ -24,3 +24,17 @@ def test_rclpy_publisher_reaches_every_websocket_subscriber_through_rwt() -> Non
     assert 0 <= result.p50_ms <= result.p99_ms
     assert result.cpu_us_per_delivery >= 0
     assert "| String 100 B 20 Hz | 2 | rwt serve --ros2 |" in table([result])
+
+
+def test_each_fastdds_setup_loads_its_own_profile_or_none() -> None:
+    """``--fastdds default`` is Fast DDS out of the box: no XML profile at all."""
+    assert "FASTDDS_DEFAULT_PROFILES_FILE" not in ros_env(DOMAIN, "default")
+    texts = {}
+    for name in ("loopback", "large-shm"):
+        profile = FASTDDS[name]
+        assert profile is not None
+        assert ros_env(DOMAIN, name)["FASTDDS_DEFAULT_PROFILES_FILE"] == str(profile)
+        texts[name] = profile.read_text()
+    assert all("<type>SHM</type>" in text for text in texts.values())
+    assert "<segment_size>4194304</segment_size>" in texts["large-shm"]
+    assert "<segment_size>" not in texts["loopback"]

@@ -72,12 +72,19 @@ def udp_sessions(harness: Harness) -> int:
     return sum(1 for client_id in harness.server.sessions if client_id.startswith("udp:"))
 
 
-async def datagrams_within(sock: socket.socket, seconds: float) -> list[bytes]:
+async def datagrams_within(sock: socket.socket, seconds: float, server_port: int) -> list[bytes]:
+    """What the server (127.0.0.1:``server_port``) sent to ``sock`` within ``seconds``.
+
+    Datagrams from elsewhere are not counted: the port is ephemeral, and other
+    processes on the machine (DDS discovery of ROS 2 nodes) may reach it.
+    """
     received = []
     with anyio.move_on_after(seconds):
         while True:
             await anyio.wait_readable(sock)
-            received.append(sock.recv(65536))
+            data, (_host, port) = sock.recvfrom(65536)
+            if port == server_port:
+                received.append(data)
     return received
 
 
@@ -98,7 +105,7 @@ async def forging_works(server_port: int) -> None:
     witness.bind(("127.0.0.1", 0))
     try:
         forge(witness.getsockname()[1], server_port, SUBSCRIBE)
-        [challenge] = await datagrams_within(witness, 0.5)
+        [challenge] = await datagrams_within(witness, 0.5, server_port)
         assert json.loads(challenge)["msg"] == CHALLENGE_TEXT
     finally:
         witness.close()
@@ -112,7 +119,7 @@ async def test_an_unvalidated_subscribe_draws_one_small_answer_and_no_stream(
     victim.bind(("127.0.0.1", 0))
     try:
         victim.sendto(SUBSCRIBE, ("127.0.0.1", harness.port("udp")))
-        received = await datagrams_within(victim, 1.0)
+        received = await datagrams_within(victim, 1.0, harness.port("udp"))
     finally:
         victim.close()
     assert len(received) == 1
@@ -126,7 +133,7 @@ async def test_a_datagram_too_short_to_answer_gets_nothing(harness: Harness) -> 
     probe.setblocking(False)
     try:
         probe.sendto(b"{}", ("127.0.0.1", harness.port("udp")))
-        assert await datagrams_within(probe, 0.5) == []
+        assert await datagrams_within(probe, 0.5, harness.port("udp")) == []
     finally:
         probe.close()
 
@@ -211,7 +218,7 @@ async def test_challenges_to_one_address_are_capped_in_bytes(harness: Harness) -
     try:
         for _ in range(100):
             victim.sendto(SUBSCRIBE, ("127.0.0.1", harness.port("udp")))
-        received = await datagrams_within(victim, 1.0)
+        received = await datagrams_within(victim, 1.0, harness.port("udp"))
     finally:
         victim.close()
     assert len(received) >= 1 and sum(map(len, received)) <= CHALLENGE_BUDGET_BYTES

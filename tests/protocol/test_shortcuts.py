@@ -25,6 +25,7 @@ from rwt_protocol import codec, codec_cbor, shortcuts
 from rwt_protocol.codec import encode_publish_json
 from rwt_protocol.codec_cbor import decode_cbor, encode_cbor
 from rwt_protocol.errors import RemoteProtocolError
+from rwt_protocol.ops import Publish
 from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS, enabled, report, switched_off
 
 REPO = Path(__file__).resolve().parents[2]
@@ -249,7 +250,7 @@ def test_json_base64_splice_gives_the_general_bytes(
         monkeypatch.setattr(codec, "_SPLICE_BASE64", on)
         frames.append(encode_publish_json("/t", msg))
     assert frames[0] == frames[1]
-    assert frames[1] == codec.encode_json({"op": "publish", "topic": "/t", "msg": msg})
+    assert frames[1] == codec.encode_json(Publish.frame(topic="/t", msg=msg))
 
 
 def _cbor_ops() -> list[dict[str, object]]:
