@@ -25,7 +25,7 @@ from .errors import BagError
 from .formats import BagFormat
 from .inflate import ReadBudget
 from .reader import last_ns
-from .ros1 import Ros1Writer  # real rosbag's header layout (rosbag reindex, append)
+from .ros1 import MAGIC, Ros1Writer  # real rosbag's header layout (rosbag reindex, append)
 from .selection import TopicSelection
 
 if TYPE_CHECKING:
@@ -33,8 +33,6 @@ if TYPE_CHECKING:
     from pathlib import Path
 
 __all__ = ["CopyStats", "bag_format", "copy_bag"]
-
-ROS1_MAGIC = b"#ROSBAG V2.0\n"
 
 
 @dataclass
@@ -58,7 +56,7 @@ def bag_format(path: Path) -> BagFormat:
     """
     if path.is_file():
         with path.open("rb") as file:
-            if file.read(len(ROS1_MAGIC)) == ROS1_MAGIC:
+            if file.read(len(MAGIC)) == MAGIC:
                 return BagFormat.ROS1
         raise BagError(f"{path} is not a bag (no ROS 1 header, not a ROS 2 bag folder)")
     if path.is_dir():
