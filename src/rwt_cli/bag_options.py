@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Annotated, NoReturn
 import typer
 
 from rwt_bag.errors import BagError
-from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy
+from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy, is_ros1_bag
 from rwt_bag.selection import TopicSelection
 from rwt_graph.types import Dialect
 from rwt_protocol.access import parse_glob_list
@@ -122,31 +122,20 @@ DialectOption = Annotated[
     ),
 ]
 
-ROS1_BAG_MAGIC = b"#ROSBAG V2.0\n"
-"""The first line of every ROS 1 bag file."""
-
 
 def dialect_for(
     dialect: Dialect | None, bags: Sequence[Path] = (), fmt: BagFormat | None = None
 ) -> Dialect:
     """The dialect: ``--dialect`` as given, else what the bag says.
 
-    ROS 1 for a ROS 1 bag to play (its file starts with ``ROS1_BAG_MAGIC``) or a
+    ROS 1 for a ROS 1 bag to play (its file starts with ``rwt_bag.formats.ROS1_MAGIC``) or a
     ``ros1`` recording, ROS 2 otherwise.
     """
     if dialect is not None:
         return dialect
-    if fmt is BagFormat.ROS1 or any(_is_ros1_bag(path) for path in bags):
+    if fmt is BagFormat.ROS1 or any(is_ros1_bag(path) for path in bags):
         return Dialect.ROS1
     return Dialect.ROS2
-
-
-def _is_ros1_bag(path: Path) -> bool:
-    try:
-        with path.open("rb") as file:
-            return file.read(len(ROS1_BAG_MAGIC)) == ROS1_BAG_MAGIC
-    except OSError:  # a folder (a ROS 2 bag) or missing: the reader says so later
-        return False
 
 
 Interfaces = Annotated[
