@@ -239,11 +239,11 @@ def _measure(sent: int, first: float, last: float, cpu_s: float, bag: Path) -> M
 
 
 def _start_rwt(command: list[str]) -> tuple[subprocess.Popen[bytes], int]:
-    """Start ``python -m rwt_transports COMMAND...`` and read its ``listening on`` line."""
+    """Start ``python -m rwt COMMAND...`` and read its ``listening on`` line."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
     process = subprocess.Popen(
-        [sys.executable, "-m", "rwt_transports", *command, "--port", "0"],
+        [sys.executable, "-m", "rwt", *command, "--port", "0"],
         cwd=ROOT,
         env=env,
         stdout=subprocess.PIPE,

@@ -66,7 +66,7 @@ async def server(*args: str) -> Any:
 
     The server's process id is ``SERVER_PIDS[url]`` while it runs.
     """
-    cmd = [sys.executable, "-m", "rwt_transports.cli", "serve", "--port", "0", "--no-tf"]
+    cmd = [sys.executable, "-m", "rwt", "serve", "--port", "0", "--no-tf"]
     cmd += ["--log-level", "warning", *args]
     proc = await asyncio.create_subprocess_exec(
         *cmd, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, env=_env()

@@ -83,7 +83,7 @@ def _command(kind: str, uvloop: bool, extra: list[str]) -> list[str]:
     if kind == "bare":
         command = [sys.executable, "-m", "benchmarks.relay", "--port", "0"]
     else:
-        command = [sys.executable, "-m", "rwt_transports", "serve", "--port", "0"]
+        command = [sys.executable, "-m", "rwt", "serve", "--port", "0"]
         command += ["--log-level", os.environ.get("RWT_BENCH_LOG_LEVEL", "warning")]
     if uvloop:
         command.append("--uvloop")

@@ -518,7 +518,7 @@ def rwt_server() -> Iterator[str]:
         [
             sys.executable,
             "-m",
-            "rwt_transports",
+            "rwt",
             "serve",
             "--host",
             "127.0.0.1",

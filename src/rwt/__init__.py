@@ -49,11 +49,13 @@ if TYPE_CHECKING:
     from rwt_bag.formats import ChunkCompression, Compression
     from rwt_bag.info import TopicSummary
     from rwt_bag.selection import TopicSelection
+    from rwt_cli.checks import ListenError
     from rwt_client import Action, GoalHandle, Param, Ros, ServerGoal, Service, SyncRos, Topic
     from rwt_client.connectors import ConnectionClosedError
     from rwt_client.typed import MessageClass, message_class
     from rwt_console.site import ConsoleSite
     from rwt_graph.actions import GoalCanceledError, GoalContext
+    from rwt_graph.async_calls import GoalOutcome, call_service, send_action_goal
     from rwt_graph.clock import Clock
     from rwt_graph.graph import Graph
     from rwt_graph.local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
@@ -76,6 +78,7 @@ if TYPE_CHECKING:
         TFRepublisher,
         UnknownFrameError,
     )
+    from rwt_graph.tf.loop import install_tf_republisher
     from rwt_graph.types import (
         ActionType,
         ArrayKind,
@@ -117,11 +120,8 @@ if TYPE_CHECKING:
     from rwt_ros2 import Ros2Link, Ros2Options, Ros2Unavailable, open_ros2_link
     from rwt_ros2.runtime import ament_interface_dirs
     from rwt_transports.allocator import tune_allocator
-    from rwt_transports.async_calls import GoalOutcome, call_service, send_action_goal
-    from rwt_transports.cli_checks import ListenError
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
-    from rwt_transports.tf import install_tf_republisher
     from rwt_transports.udp import UdpOptions
     from rwt_transports.websocket import WebSocketOptions
     from rwt_video import StreamType, VideoConfig, VideoTokens, install_token_service, serve_video
@@ -368,19 +368,19 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "Ros2Unavailable",
         "open_ros2_link",
     ),
-    "rwt_transports.async_calls": (
+    "rwt_graph.async_calls": (
         "GoalOutcome",
         "call_service",
         "send_action_goal",
     ),
-    "rwt_transports.cli_checks": ("ListenError",),
+    "rwt_cli.checks": ("ListenError",),
     "rwt_transports.memory": ("MemoryConnection",),
     "rwt_transports.server": (
         "RosbridgeServer",
         "ServerConfig",
         "rosauth_authenticator",
     ),
-    "rwt_transports.tf": ("install_tf_republisher",),
+    "rwt_graph.tf.loop": ("install_tf_republisher",),
     "rwt_transports.udp": ("UdpOptions",),
     "rwt_transports.websocket": ("WebSocketOptions",),
     "rwt_zenoh.config": ("ZenohOptions",),

@@ -6,14 +6,14 @@ import sys
 
 
 def main() -> None:
-    """Run the ``rwt`` command (``rwt_transports.cli``).
+    """Run the ``rwt`` command (``rwt_cli``).
 
     The CLI needs the server extra (typer, rich, the graph's rosbags and numpy);
     an install of the client alone gets one line saying how to add it, not a
     traceback.
     """
     try:
-        from rwt_transports.cli import app  # noqa: PLC0415 - only the command loads the CLI
+        from rwt_cli.app import app  # noqa: PLC0415 - only the command loads the CLI
     except ModuleNotFoundError as exc:
         sys.stderr.write(
             f"rwt: the command line needs the server extra ({exc.name} is missing): "

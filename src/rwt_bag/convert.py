@@ -22,7 +22,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
 
 from .errors import BagError
-from .formats import BagFormat
+from .formats import BagFormat, is_ros1_bag
 from .inflate import ReadBudget
 from .reader import last_ns
 from .ros1 import Ros1Writer  # real rosbag's header layout (rosbag reindex, append)
@@ -33,8 +33,6 @@ if TYPE_CHECKING:
     from pathlib import Path
 
 __all__ = ["CopyStats", "bag_format", "copy_bag"]
-
-ROS1_MAGIC = b"#ROSBAG V2.0\n"
 
 
 @dataclass
@@ -57,9 +55,8 @@ def bag_format(path: Path) -> BagFormat:
         BagError: ``path`` is neither a ROS 1 bag file nor a ROS 2 bag folder.
     """
     if path.is_file():
-        with path.open("rb") as file:
-            if file.read(len(ROS1_MAGIC)) == ROS1_MAGIC:
-                return BagFormat.ROS1
+        if is_ros1_bag(path):
+            return BagFormat.ROS1
         raise BagError(f"{path} is not a bag (no ROS 1 header, not a ROS 2 bag folder)")
     if path.is_dir():
         if any(path.glob("*.mcap")):

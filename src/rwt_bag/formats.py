@@ -4,8 +4,28 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 from .errors import BagError
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+"""The first line of every ROS 1 bag file (the ROS 1 bag format 2.0)."""
+
+
+def is_ros1_bag(path: Path) -> bool:
+    """Whether ``path`` is a file that starts as a ROS 1 bag does (``ROS1_MAGIC``).
+
+    False for a folder (a ROS 2 bag), a missing path or an unreadable file.
+    """
+    try:
+        with path.open("rb") as file:
+            return file.read(len(ROS1_MAGIC)) == ROS1_MAGIC
+    except OSError:
+        return False
+
 
 __all__ = ["BagFormat", "ChunkCompression", "Compression", "SplitPolicy"]
 

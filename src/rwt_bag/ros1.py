@@ -29,6 +29,8 @@ from rosbags.rosbag1 import Writer
 from rosbags.rosbag1.reader import RecordType
 from rosbags.rosbag1.writer import Header
 
+from .formats import ROS1_MAGIC as MAGIC
+
 __all__ = [
     "FIRST_RECORD",
     "HEADER_POS",
@@ -38,8 +40,6 @@ __all__ = [
     "write_file_header",
 ]
 
-MAGIC = b"#ROSBAG V2.0\n"
-"""The first line of every ROS 1 bag file."""
 HEADER_POS = len(MAGIC)
 """Where the bag header record starts."""
 _PADDED = 4096  # rosbag's _FILE_HEADER_LENGTH: header fields plus padding

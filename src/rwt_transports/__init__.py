@@ -1,1 +1,4 @@
-"""Transports (WebSocket, TCP, UDP, stdio), the server entry point and the CLI."""
+"""The server runtime: transports (WebSocket, TCP, UDP, stdio, memory) and ``RosbridgeServer``.
+
+The ``rwt`` command line that starts it lives in ``rwt_cli``, above this package.
+"""

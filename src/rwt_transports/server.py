@@ -46,6 +46,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
+from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
@@ -61,7 +62,6 @@ from .pump import ConnectionPump, run_connection
 from .shares import HostShares, host_key
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
-from .tf import install_tf_republisher
 from .udp import UdpOptions, serve_udp
 from .websocket import WebSocketOptions, serve_websocket_connection
 

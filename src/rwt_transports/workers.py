@@ -105,7 +105,7 @@ class WorkerPlan:
 
     def command(self, index: int) -> list[str]:
         """The command line of worker ``index``."""
-        return [sys.executable, "-m", "rwt_transports.cli", "serve", *child_args(self, index)]
+        return [sys.executable, "-m", "rwt", "serve", *child_args(self, index)]
 
 
 def child_args(plan: WorkerPlan, index: int) -> list[str]:

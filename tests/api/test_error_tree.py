@@ -31,6 +31,7 @@ PACKAGES = [
     "rwt_bag",
     "rwt_console",
     "rwt_ros2",
+    "rwt_cli",
 ]
 # Exceptions that never leave the module raising them: a checker's internal signal
 # (turned into a FieldError) and typer's own parameter error (a usage message).

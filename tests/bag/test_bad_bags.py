@@ -138,7 +138,7 @@ def test_definition_conflicting_with_a_shipped_one(tmp_path: Path) -> None:
 def _rwt(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     return subprocess.run(
-        [sys.executable, "-m", "rwt_transports", *args],
+        [sys.executable, "-m", "rwt", *args],
         capture_output=True,
         text=True,
         timeout=60,

@@ -68,7 +68,7 @@ async def test_bad_topic_names_are_not_published(tmp_path: Path, fmt: str) -> No
 def test_bag_info_escapes_and_marks_bad_names(tmp_path: Path) -> None:
     bag = bad_names(tmp_path / "names", "mcap")
     result = subprocess.run(
-        [sys.executable, "-m", "rwt_transports", "bag", "info", str(bag)],
+        [sys.executable, "-m", "rwt", "bag", "info", str(bag)],
         capture_output=True,
         text=True,
         timeout=60,

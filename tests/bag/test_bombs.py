@@ -41,7 +41,7 @@ def peak():
             sys.stderr.write("peak_rss_kib=" + line.split()[1] + "\\n")
 atexit.register(peak)
 sys.argv = ["rwt", *sys.argv[1:]]
-runpy.run_module("rwt_transports", run_name="__main__")
+runpy.run_module("rwt", run_name="__main__")
 """
 
 BOMBS: dict[str, tuple[Callable[[Path], Path], bool]] = {  # name: (builder, ROS 1)

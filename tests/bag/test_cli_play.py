@@ -14,7 +14,7 @@ from .bags import write_bag
 def test_rwt_play_plays_once_and_prints_a_summary(tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "robot", "mcap")
     result = subprocess.run(
-        [sys.executable, "-m", "rwt_transports", "play", str(bag), "--port", "0", "--rate", "4"],
+        [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", "--rate", "4"],
         capture_output=True,
         text=True,
         timeout=60,

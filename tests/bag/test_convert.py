@@ -25,7 +25,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from typer.testing import CliRunner
 
-from rwt_transports.cli import app
+from rwt_cli.app import app
 from tests.integration.client_harness import REPO
 
 START_NS = 1_000_000_000
@@ -115,7 +115,7 @@ def test_convert_mcap_sqlite3_ros1_and_back(tmp_path: Path) -> None:
     ros1 = tmp_path / "run.bag"
     # as a user runs it: the module's command line, this checkout's code
     done = subprocess.run(
-        [sys.executable, "-m", "rwt_transports", "bag", "convert", str(tmp_path / "sq"), str(ros1)],
+        [sys.executable, "-m", "rwt", "bag", "convert", str(tmp_path / "sq"), str(ros1)],
         capture_output=True,
         text=True,
         timeout=60,

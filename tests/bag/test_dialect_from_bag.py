@@ -5,8 +5,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rwt_bag.formats import BagFormat
+from rwt_cli.bag_options import dialect_for
 from rwt_graph.types import Dialect
-from rwt_transports.cli_bag import dialect_for
 
 from .bags import write_bag
 

@@ -54,7 +54,7 @@ def publisher(port: int, stop_file: Path) -> str:
 def start_recorder(url: str, bag: Path, cwd: Path) -> subprocess.Popen[str]:
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     return subprocess.Popen(
-        [sys.executable, "-m", "rwt_transports", "record", url, str(bag), "--topics", "/count"],
+        [sys.executable, "-m", "rwt", "record", url, str(bag), "--topics", "/count"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -75,7 +75,7 @@ async def test_keys_step_change_the_rate_and_resume(tmp_path: Path) -> None:
     bag = write_chatter(tmp_path / "bag")
     master, slave = pty.openpty()
     before = termios.tcgetattr(slave)
-    command = [sys.executable, "-m", "rwt_transports", "play", str(bag), "--port", "0"]
+    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0"]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     rwt_play = None
     try:

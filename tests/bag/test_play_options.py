@@ -97,7 +97,7 @@ def test_bad_values_are_refused_with_one_line(tmp_path: Path) -> None:
 
 def _rwt(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "rwt_transports", *args],
+        [sys.executable, "-m", "rwt", *args],
         capture_output=True,
         text=True,
         timeout=60,
@@ -136,7 +136,7 @@ async def test_rwt_play_remaps_and_ends_for_a_roslibpy_subscriber(tmp_path: Path
     # started paused, so a slow client misses nothing; it resumes once subscribed
     args = ["--remap", "/chatter:=/talk", "--delay", "0.5", "--playback-duration", "0.2"]
     args.append("--start-paused")
-    command = [sys.executable, "-m", "rwt_transports", "play", str(bag), "--port", "0", *args]
+    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", *args]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     rwt_play = subprocess.Popen(  # noqa: ASYNC220 - its output is read in the test's thread
         command, stdout=subprocess.PIPE, text=True, cwd=tmp_path, env=env
@@ -210,7 +210,7 @@ ros.terminate()
 async def test_rwt_play_waits_for_a_late_roslibpy_subscriber(tmp_path: Path) -> None:
     bag = write_chatter(tmp_path / "bag")
     args = ["--prefix", "/sim", "--wait-for-subscribers"]
-    command = [sys.executable, "-m", "rwt_transports", "play", str(bag), "--port", "0", *args]
+    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", *args]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     rwt_play = subprocess.Popen(  # noqa: ASYNC220 - its output is read in the test's thread
         command, stdout=subprocess.PIPE, text=True, cwd=tmp_path, env=env

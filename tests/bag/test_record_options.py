@@ -26,7 +26,7 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from typer.testing import CliRunner
 
-from rwt_transports.cli import app
+from rwt_cli.app import app
 from tests.integration.client_harness import REPO, ServerProcess
 from tests.transports.realclients import run_python
 
@@ -146,7 +146,7 @@ async def test_rwt_record_regex_exclusions_lz4_and_duration_parts(tmp_path: Path
     server = ServerProcess(tmp_path)
     bag = tmp_path / "run"
     stop = tmp_path / "stop"
-    command = [sys.executable, "-m", "rwt_transports", "record", server.url, str(bag)]
+    command = [sys.executable, "-m", "rwt", "record", server.url, str(bag)]
     command += ["--topics", "/tf_static", "-e", "^/sel", "--exclude-topics", "/sel/no"]
     command += ["--chunk-compression", "lz4", "--chunk-compression-level", "9"]
     command += ["--max-bag-duration", "0.5", "--no-repeat-latched", "--duration", "4.5"]

@@ -179,7 +179,7 @@ def test_rosbag_reindex_recovers_the_killed_bag(killed_bag: Path, tmp_path: Path
 def test_rwt_bag_reindex_recovers_the_killed_bag(killed_bag: Path, tmp_path: Path) -> None:
     bag = tmp_path / "killed.bag"
     shutil.copy(killed_bag, bag)
-    result = run(sys.executable, "-m", "rwt_transports", "bag", "reindex", str(bag))
+    result = run(sys.executable, "-m", "rwt", "bag", "reindex", str(bag))
     assert result.returncode == 0, result.stderr
     total = sum(WANT.values())
     backup = tmp_path / "killed.orig.bag"

@@ -18,12 +18,12 @@ SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
 
 
-_SERVE = [sys.executable, "-m", "rwt_transports", "serve"]
+_SERVE = [sys.executable, "-m", "rwt", "serve"]
 
 
 def _rwt(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "rwt_transports", *args],
+        [sys.executable, "-m", "rwt", *args],
         env=ENV,
         capture_output=True,
         text=True,

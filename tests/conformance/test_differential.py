@@ -104,7 +104,7 @@ async def test_rosbridge_suite_2_1_0_passes_the_reference_profile() -> None:
 def test_rwt_conformance_against_2_1_0_passes_and_says_why_it_skips() -> None:
     assert PEER2 is not None
     done = subprocess.run(
-        [sys.executable, "-m", "rwt_transports", "conformance", PEER2, "--profile", "reference"],
+        [sys.executable, "-m", "rwt", "conformance", PEER2, "--profile", "reference"],
         env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")},
         capture_output=True,
         text=True,

@@ -28,7 +28,7 @@ SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
 SUITE = load_suite()
 TWO_CASES = ("topics.publish-example", "topics.advertise-then-infer")
-RWT_CONFORMANCE = [sys.executable, "-m", "rwt_transports", "conformance"]
+RWT_CONFORMANCE = [sys.executable, "-m", "rwt", "conformance"]
 RUN_LIMIT_S = 120  # far above what a bounded run takes: only a hang reaches it
 
 

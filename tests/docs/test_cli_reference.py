@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-from rwt_transports.cli_reference import render
+from rwt_cli.reference import render
 
 from .blocks import REPO
 
 
 def test_the_cli_reference_is_up_to_date() -> None:
     committed = (REPO / "docs" / "cli.md").read_text("utf-8")
-    assert committed == render(), (
-        "docs/cli.md is stale: python -m rwt_transports.cli_reference > docs/cli.md"
-    )
+    assert committed == render(), "docs/cli.md is stale: python -m rwt_cli.reference > docs/cli.md"
 
 
 def test_the_reference_lists_every_serve_option() -> None:

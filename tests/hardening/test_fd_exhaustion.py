@@ -38,12 +38,12 @@ WAIT_S = 60.0  # a bound on waiting for the server, not a speed requirement
 
 
 def limited_rwt(soft: int, hard: int) -> list[str]:
-    """``python -m rwt_transports serve ...`` after lowering the child's own limits."""
+    """``python -m rwt serve ...`` after lowering the child's own limits."""
     code = (
         "import resource, runpy, sys;"
         f"resource.setrlimit(resource.RLIMIT_NOFILE, ({soft}, {hard}));"
         "sys.argv[0] = 'rwt';"
-        "runpy.run_module('rwt_transports', run_name='__main__')"
+        "runpy.run_module('rwt', run_name='__main__')"
     )
     return [sys.executable, "-c", code, "serve", "--host", "127.0.0.1", "--port", "0"]
 

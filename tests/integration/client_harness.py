@@ -96,7 +96,7 @@ def _close_pipes(proc: subprocess.Popen) -> None:
 
 # --------------------------------------------------------------------------- server
 class ServerProcess:
-    """`python -m rwt_transports serve --host 127.0.0.1 --port 0` in a subprocess.
+    """`python -m rwt serve --host 127.0.0.1 --port 0` in a subprocess.
 
     With `control=True` (for serve_fixture.py) the server's stdin is a pipe:
     `command()` writes one JSON line, `replies()` reads the JSON lines it prints.
@@ -114,7 +114,7 @@ class ServerProcess:
         self.cmd = cmd or [
             sys.executable,
             "-m",
-            "rwt_transports",
+            "rwt",
             "serve",
             "--host",
             "127.0.0.1",
@@ -646,12 +646,12 @@ def inproc_wait(server: ServerProcess, *names: str) -> HarnessStep:
 
 
 def inproc_call(name: str, service: str, args: Any = None) -> dict:
-    """An in-process call (`rwt_transports.async_calls.call_service`) for `inproc`."""
+    """An in-process call (`rwt_graph.async_calls.call_service`) for `inproc`."""
     return {"op": "call", "as": name, "service": service, "args": args}
 
 
 def inproc_goal(name: str, action: str, args: Any) -> dict:
-    """An in-process goal (`rwt_transports.async_calls.send_action_goal`) for `inproc`."""
+    """An in-process goal (`rwt_graph.async_calls.send_action_goal`) for `inproc`."""
     return {"op": "goal", "as": name, "action": action, "args": args}
 
 

@@ -27,7 +27,7 @@ concurrently, answers come in the order they end):
         -> {"as": NAME, "ok": {"status": n, "values": result}, "feedback": [...]}
            or {"as": NAME, "error": text, "feedback": [...]}
 
-They go through `rwt_transports.async_calls.call_service` and `send_action_goal`,
+They go through `rwt_graph.async_calls.call_service` and `send_action_goal`,
 the API embedding code uses. Stops on SIGINT/SIGTERM or when stdin closes.
 """
 
@@ -44,10 +44,10 @@ import anyio.lowlevel
 from anyio.abc import TaskGroup
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
+from rwt_graph.async_calls import call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.errors import RwtError
-from rwt_transports.async_calls import call_service, send_action_goal
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 #: Requests /inproc/gather holds before it answers them, newest first.

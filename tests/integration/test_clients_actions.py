@@ -6,7 +6,7 @@ serve_fixture.py; both follow the drivers' Fibonacci rules (roslibpy_driver.py):
 order 5 succeeds after four feedback messages, order 100 waits for a cancel,
 order -1 aborts. Clients: roslib (`Action.sendGoal`, `cancelGoal`), roslibpy 2.x
 (`ActionClient.send_goal`, `cancel_goal`) and in-process code
-(`rwt_transports.async_calls.send_action_goal`, which has no cancel of its own: a
+(`rwt_graph.async_calls.send_action_goal`, which has no cancel of its own: a
 cancelled wait forgets the goal). roslibpy has no action server. A roslib
 action server killed mid-goal aborts every waiting goal with the reason.
 """

@@ -4,7 +4,7 @@ Providers: roslibpy (`Service.advertise`), roslib (`Service.advertise`, and
 `advertiseAsync` where the answer comes later) and Python code in the server
 process (`Graph.create_service`, in serve_fixture.py). Callers: roslibpy
 (`Service.call` with callbacks), roslib (`Service.callService`) and in-process
-code (`rwt_transports.async_calls.call_service`, driven through serve_fixture.py's
+code (`rwt_graph.async_calls.call_service`, driven through serve_fixture.py's
 stdin). Every provider follows the same reply rules (roslibpy_driver.py), so
 one table of expectations fits all nine pairs. The service types are SetBool,
 Trigger, Empty, AddTwoInts and `rwt_test_interfaces/srv/Scale`, a custom

@@ -36,7 +36,7 @@ def interfaces(tmp_path: Path) -> Path:
 @pytest.fixture
 def ros1_server(interfaces: Path) -> Iterator[int]:
     """`rwt serve --dialect ros1 --interfaces DIR` on a free port; yields the port."""
-    command = [sys.executable, "-m", "rwt_transports", "serve", "--host", "127.0.0.1"]
+    command = [sys.executable, "-m", "rwt", "serve", "--host", "127.0.0.1"]
     command += ["--port", "0", "--dialect", "ros1", "--interfaces", str(interfaces)]
     process = subprocess.Popen(
         command,

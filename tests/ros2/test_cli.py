@@ -19,7 +19,7 @@ def test_without_rclpy_it_says_what_to_install_or_source(tmp_path: Path) -> None
     )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO / "src")])}
     result = subprocess.run(
-        [sys.executable, "-m", "rwt_transports", "serve", "--ros2", "--port", "0"],
+        [sys.executable, "-m", "rwt", "serve", "--ros2", "--port", "0"],
         env=env,
         capture_output=True,
         text=True,
@@ -37,7 +37,7 @@ def test_without_rclpy_it_says_what_to_install_or_source(tmp_path: Path) -> None
 def test_ros2_with_the_ros1_dialect_is_a_usage_error() -> None:
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
     result = subprocess.run(
-        [sys.executable, "-m", "rwt_transports", "serve", "--ros2", "--dialect", "ros1"],
+        [sys.executable, "-m", "rwt", "serve", "--ros2", "--dialect", "ros1"],
         env=env,
         capture_output=True,
         text=True,

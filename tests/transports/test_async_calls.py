@@ -9,9 +9,9 @@ import anyio.lowlevel
 import pytest
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
+from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import GoalStatus
-from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_transports.server import running_handlers
 from tests.conftest import Peer
 
@@ -181,3 +181,30 @@ async def test_failing_action_handler_aborts_the_goal() -> None:
             outcome = await send_action_goal(graph, "/broken", {"order": 1})
         assert outcome.status is GoalStatus.ABORTED
         tg.cancel_scope.cancel()
+
+
+async def test_python_caller_gets_a_provider_failure_as_service_call_error() -> None:
+    graph = Graph()
+    provider = Peer(graph, "p")
+    provider.send(op="advertise_service", service="/fail", type="std_srvs/Trigger")
+
+    async def refuse() -> None:
+        while not (calls := provider.received()):
+            await anyio.sleep(0.01)
+        provider.send(
+            op="service_response", service="/fail", id=calls[0]["id"], result=False, values="off"
+        )
+
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(refuse)
+        with anyio.fail_after(5), pytest.raises(ServiceCallError, match="off"):
+            await call_service(graph, "/fail")
+
+
+async def test_python_goal_times_out_on_a_silent_action_server() -> None:
+    graph = Graph()
+    provider = Peer(graph, "p")
+    provider.send(op="advertise_action", action="/quiet", type=FIB)
+    with anyio.fail_after(5), pytest.raises(ServiceCallError, match="timed out"):
+        await send_action_goal(graph, "/quiet", {"order": 1}, timeout_s=0.05)
+    assert provider.received()[0]["op"] == "send_action_goal"

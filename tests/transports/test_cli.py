@@ -23,7 +23,7 @@ from tests.transports.realclients import REPO, run_python
 pytestmark = pytest.mark.anyio
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
-SERVE = [sys.executable, "-m", "rwt_transports", "serve", "--host", "127.0.0.1"]
+SERVE = [sys.executable, "-m", "rwt", "serve", "--host", "127.0.0.1"]
 
 
 @pytest.fixture

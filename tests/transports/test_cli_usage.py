@@ -24,12 +24,12 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from rwt_transports.cli import app
-from rwt_transports.cli_checks import check_glob_list
+from rwt_cli.app import app
+from rwt_cli.checks import check_glob_list
 from tests.transports.realclients import REPO
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
-RWT = [sys.executable, "-m", "rwt_transports.cli"]
+RWT = [sys.executable, "-m", "rwt"]
 SERVE = [*RWT, "serve", "--host", "127.0.0.1", "--log-level", "warning"]
 TIMEOUT_S = 60  # a bound on a hung process, not a speed requirement
 
@@ -305,6 +305,32 @@ def test_video_port_implies_video() -> None:
     assert process.returncode == 0, stderr
 
 
+#: rwt serve's help sections and an option of each, in the order --help shows them.
+SERVE_SECTIONS = {
+    "Listeners": "--tcp-port",
+    "Security": "--certfile",
+    "Limits": "--max-message-size",
+    "Graph": "--dialect",
+    "Console and media": "--video-port",
+    "Record and replay": "--record-topics",
+    "Scale-out (Zenoh)": "--zenoh-connect",
+    "ROS 2": "--ros2-node-name",
+    "Process": "--log-level",
+    "Options": "--help",
+}
+
+
+def test_serve_help_lists_its_options_in_sections() -> None:
+    text = rwt("serve", "--help", COLUMNS="80").stdout
+    headings = re.findall(r"^(\S[^:\n]*):$", text, re.MULTILINE)
+    assert headings == list(SERVE_SECTIONS)
+    bodies = re.split(r"^\S[^:\n]*:$", text, flags=re.MULTILINE)[1:]
+    sections = dict(zip(headings, bodies, strict=True))
+    for heading, option in SERVE_SECTIONS.items():
+        assert re.search(rf"^  {option}\b", sections[heading], re.MULTILINE), heading
+    assert "--reuse-port" not in text  # hidden: the workers' own option
+
+
 def test_the_help_of_video_port_says_it_implies_video() -> None:
     text = " ".join(rwt("serve", "--help").stdout.split())
     assert "implies --video" in text
@@ -323,7 +349,7 @@ def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
     code = (
         "import runpy, sys;"
         "sys.modules['uvloop'] = None;"
-        "runpy.run_module('rwt_transports.cli', run_name='__main__')"
+        "runpy.run_module('rwt', run_name='__main__')"
     )
     run = rwt("serve", "--port", "0", "--uvloop", command=[sys.executable, "-c", code])
     assert run.returncode == 1

@@ -36,7 +36,7 @@ import sys
 
 import anyio
 
-import rwt_transports.cli  # everything `rwt serve` imports
+import rwt_cli.app  # everything `rwt serve` imports
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
 from rwt_protocol.codec import parse_object

@@ -93,7 +93,7 @@ async def started(cmd: list[str], name: str, cwd: Path = REPO) -> AsyncIterator[
 
 def rwt(*args: str) -> list[str]:
     """The command line of ``rwt ARGS`` from this interpreter."""
-    return [sys.executable, "-m", "rwt_transports.cli", *args]
+    return [sys.executable, "-m", "rwt", *args]
 
 
 @contextlib.asynccontextmanager

@@ -10,9 +10,9 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
+from rwt_cli import zenoh_link
+from rwt_cli.app import app
 from rwt_graph.graph import Graph
-from rwt_transports import cli_zenoh
-from rwt_transports.cli import app
 from rwt_zenoh.config import (
     ZenohOptions,
     default_domain_id,
@@ -93,7 +93,7 @@ def test_without_the_extra_zenoh_options_say_how_to_install_it(
     with pytest.raises(
         ValueError, match=r'--zenoh needs Eclipse Zenoh: pip install "rwt\[zenoh\]"'
     ):
-        cli_zenoh.zenoh_options(
+        zenoh_link.zenoh_options(
             mode="peer", connect=None, listen=None, config_file=None, domain_id=None
         )
 

@@ -17,6 +17,7 @@ import anyio
 import pytest
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
+from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi.listing import (
     action_servers,
@@ -30,7 +31,6 @@ from rwt_graph.rosapi.listing import (
 from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_protocol.errors import FieldError, RwtError
 from rwt_protocol.ports import GoalStatus
-from rwt_transports.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_transports.server import running_handlers
 from rwt_zenoh.link import ZenohLink, open_zenoh_link
 

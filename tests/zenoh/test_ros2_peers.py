@@ -32,12 +32,12 @@ import zenoh.ext
 
 import zenoh
 from rwt_graph.actions import GoalCanceledError
+from rwt_graph.async_calls import call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi.listing import action_servers, publishers, services, subscribers
 from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_graph.types.registry import TypeRegistry
 from rwt_protocol.ports import GoalStatus
-from rwt_transports.async_calls import call_service, send_action_goal
 from rwt_transports.server import running_handlers
 from rwt_zenoh.actions import ActionWire
 from rwt_zenoh.config import make_config

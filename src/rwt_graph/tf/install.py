@@ -266,7 +266,7 @@ def install_tf_republisher(
     Args:
         graph: the graph to serve.
         sleep: ``await sleep(seconds)`` of the event loop that runs the graph
-            (``anyio.sleep``; ``rwt_transports.tf.install_tf_republisher`` passes it).
+            (``anyio.sleep``; ``rwt_graph.tf.loop.install_tf_republisher`` passes it).
         node: the node rosapi lists for the republisher's topics, action and service.
         max_active: requests ticking at most (bounds what clients can start).
 

@@ -1,8 +1,8 @@
 """The TF republisher with the event loop's sleep: ``install_tf_republisher(graph)``.
 
-``rwt_graph.tf`` holds the buffer and the republishing logic and knows no event
-loop; this module passes it ``anyio.sleep``. ``RosbridgeServer`` calls it unless
-``ServerConfig.tf`` is false (``rwt serve --no-tf``).
+The rest of ``rwt_graph.tf`` holds the buffer and the republishing logic and knows
+no event loop; this module passes it ``anyio.sleep`` (a timer, no I/O).
+``RosbridgeServer`` calls it unless ``ServerConfig.tf`` is false (``rwt serve --no-tf``).
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_graph.tf import TF_NODE, TFRepublisher
-from rwt_graph.tf import install_tf_republisher as _install
+from .install import TF_NODE, TFRepublisher
+from .install import install_tf_republisher as _install
 
 if TYPE_CHECKING:
     from rwt_graph.graph import Graph

@@ -1,8 +1,8 @@
-"""The ``rwt record``, ``rwt play`` and ``rwt bag info`` commands (record and replay).
+"""The options of recording and playback, shared by ``rwt record``, ``play`` and ``serve``.
 
-The work is in ``rwt_bag``; this module turns options into its objects. Shared
-option types (``RecordTopics``, ``Rate``...) are also used by ``rwt serve``'s
-``--record`` and ``--play`` options.
+The work is in ``rwt_bag``; this module turns options into its objects. The
+option types (``Rate``, ``MaxBagSize``...) are those of ``rwt record`` and ``rwt
+play``, and of ``rwt serve``'s ``--record-...`` and ``--play...`` options.
 """
 
 from __future__ import annotations
@@ -12,17 +12,15 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, NoReturn
 
-import anyio
 import typer
 
 from rwt_bag.errors import BagError
-from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy
+from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy, is_ros1_bag
 from rwt_bag.selection import TopicSelection
-from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types import Dialect
 from rwt_protocol.access import parse_glob_list
 
-from .allocator import HEAP_KEEP_MIB, tune_allocator
-from .cli_checks import check_directories, check_glob_list
+from .checks import check_directories, check_glob_list
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -45,11 +43,10 @@ __all__ = [
     "RepeatLatched",
     "WaitForSubscribers",
     "WaitTimeout",
-    "bag_app",
     "bag_jobs",
     "chunk_compression",
+    "fail",
     "play_options",
-    "record",
     "record_options",
     "split_policy",
     "terminal_keys",
@@ -125,31 +122,20 @@ DialectOption = Annotated[
     ),
 ]
 
-ROS1_BAG_MAGIC = b"#ROSBAG V2.0\n"
-"""The first line of every ROS 1 bag file."""
-
 
 def dialect_for(
     dialect: Dialect | None, bags: Sequence[Path] = (), fmt: BagFormat | None = None
 ) -> Dialect:
     """The dialect: ``--dialect`` as given, else what the bag says.
 
-    ROS 1 for a ROS 1 bag to play (its file starts with ``ROS1_BAG_MAGIC``) or a
+    ROS 1 for a ROS 1 bag to play (its file starts with ``rwt_bag.formats.ROS1_MAGIC``) or a
     ``ros1`` recording, ROS 2 otherwise.
     """
     if dialect is not None:
         return dialect
-    if fmt is BagFormat.ROS1 or any(_is_ros1_bag(path) for path in bags):
+    if fmt is BagFormat.ROS1 or any(is_ros1_bag(path) for path in bags):
         return Dialect.ROS1
     return Dialect.ROS2
-
-
-def _is_ros1_bag(path: Path) -> bool:
-    try:
-        with path.open("rb") as file:
-            return file.read(len(ROS1_BAG_MAGIC)) == ROS1_BAG_MAGIC
-    except OSError:  # a folder (a ROS 2 bag) or missing: the reader says so later
-        return False
 
 
 Interfaces = Annotated[
@@ -469,209 +455,10 @@ def bag_jobs(
             keyboard=keyboard,
         )
     except BagError as exc:
-        _fail(command, str(exc))
+        fail(command, str(exc))
 
 
-def _fail(command: str, message: str) -> NoReturn:
+def fail(command: str, message: str) -> NoReturn:
+    """Exit 1 with ``rwt COMMAND: MESSAGE`` on stderr."""
     typer.echo(f"rwt {command}: {message}", err=True)
     raise typer.Exit(1)
-
-
-def record(
-    url: Annotated[str, typer.Argument(help="The rosbridge server: ws://, wss:// or tcp://.")],
-    out: Annotated[Path, typer.Argument(help="The bag to create (a folder; a .bag file).")],
-    topics: Patterns = "",
-    regex: Annotated[
-        str | None, typer.Option("--regex", "-e", metavar="REGEX", help=REGEX_HELP)
-    ] = None,
-    exclude_regex: ExcludeRegex = None,
-    exclude_topics: ExcludeTopics = None,
-    fmt: Annotated[BagFormat, typer.Option("--format", help=FORMAT_HELP)] = BagFormat.MCAP,
-    max_bag_size: MaxBagSize = None,
-    max_bag_duration: MaxBagDuration = None,
-    split_size: SplitSize = None,
-    split_duration: SplitDuration = None,
-    chunk_compression_algorithm: Annotated[
-        ChunkCompression,
-        typer.Option(
-            "--chunk-compression", help="Compress MCAP chunks: none, zstd or lz4 (MCAP bags only)."
-        ),
-    ] = ChunkCompression.NONE,
-    chunk_compression_level: ChunkCompressionLevel = None,
-    repeat_latched: RepeatLatched = True,
-    compression: Annotated[
-        str, typer.Option(help="Subscription compression: cbor (binary) or none (JSON).")
-    ] = "cbor",
-    duration: Annotated[
-        float | None,
-        typer.Option(min=0.001, metavar="SECONDS", help="Stop after recording this long."),
-    ] = None,
-    dialect: DialectOption = None,
-    interfaces: Interfaces = None,
-) -> None:
-    """Record topics of a rosbridge server into a bag until SIGINT, SIGTERM or --duration.
-
-    Subscribes, as a client, to every topic the server lists (rosapi) that
-    matches --topics or --regex and no exclusion, also to topics that appear
-    later, and writes each message with its receive time and its type's
-    definition. ROS 2 bags stay readable if the recorder is killed (up to the
-    last second or so).
-    """
-    if compression not in ("cbor", "none"):
-        _fail("record", f"--compression must be cbor or none, not {compression}")
-    from rwt_bag.jobs import record_remote  # noqa: PLC0415 - see record_options
-
-    options = record_options(
-        out,
-        topic_selection(topics, regex, exclude_regex, exclude_topics),
-        fmt,
-        split_policy(max_bag_size, max_bag_duration, size_mb=split_size, duration_s=split_duration),
-        compression=chunk_compression(chunk_compression_algorithm, chunk_compression_level),
-        repeat_latched=repeat_latched,
-    )
-
-    tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
-    registry = TypeRegistry(dialect_for(dialect, (), fmt), interfaces or ())
-    try:
-        anyio.run(
-            lambda: record_remote(
-                url,
-                out,
-                registry,
-                record=options,
-                compression=compression,
-                duration=duration,
-            )
-        )
-    except (BagError, OSError) as exc:
-        _fail("record", str(exc))
-    except BaseExceptionGroup as group:
-        _fail("record", "; ".join(str(e) for e in group.exceptions))
-
-
-bag_app = typer.Typer(
-    no_args_is_help=True,
-    rich_markup_mode=None,
-    help="Inspect bags (ROS 1, ROS 2 sqlite3 and MCAP).",
-)
-
-
-@bag_app.command("info", short_help="Print a bag's topics, types, counts and duration.")
-def info(
-    bag: Annotated[list[Path], typer.Argument(help="The bag (several: split parts, as one).")],
-) -> None:
-    """Print a bag's topics, types, message counts and duration, like ros2 bag info."""
-    from rwt_bag.info import bag_info  # noqa: PLC0415 - see record_options
-
-    try:
-        typer.echo(bag_info(bag).format())
-    except BagError as exc:
-        _fail("bag info", str(exc))
-
-
-@bag_app.command("reindex", short_help="Rebuild the index of a bag cut short (a killed recorder).")
-def reindex(
-    bag: Annotated[Path, typer.Argument(help="The bag (a ROS 1 .bag file, a ROS 2 bag folder).")],
-) -> None:
-    """Rebuild the index of a bag whose recorder was killed, like rosbag reindex.
-
-    A ROS 1 bag gets a new index; a ROS 2 bag (MCAP or sqlite3) a complete MCAP
-    summary and footer and a new metadata.yaml, as ros2 bag reindex. Every
-    complete record is kept and a tail cut short dropped. The original is kept
-    next to the bag as NAME.orig.bag (ROS 1) or the folder NAME.orig (ROS 2).
-    """
-    from rwt_bag.reindex import backup_path  # noqa: PLC0415 - see record_options
-    from rwt_bag.reindex import reindex as rebuild  # noqa: PLC0415
-
-    try:
-        done = rebuild(bag)
-    except (BagError, OSError) as exc:
-        _fail("bag reindex", str(exc))
-    dropped = done.dropped_bytes
-    tail = f", {dropped} bytes of a cut-short tail dropped" if dropped else ""
-    typer.echo(
-        f"reindexed {bag}: {done.messages} messages{tail}; the original is {backup_path(bag)}"
-    )
-
-
-BagIn = Annotated[Path, typer.Argument(help="The bag to read (a ROS 1 .bag file, a ROS 2 folder).")]
-BagOut = Annotated[Path, typer.Argument(help="The bag to create (*.bag for ros1, else a folder).")]
-OutFormat = Annotated[
-    BagFormat | None,
-    typer.Option(
-        "--format",
-        help="mcap, sqlite3 or ros1; default: ros1 for an OUT named *.bag, else mcap "
-        "(filter: the input's format).",
-    ),
-]
-
-
-def _copy(
-    command: str,
-    src: Path,
-    dst: Path,
-    fmt: BagFormat | None,
-    selection: TopicSelection | None = None,
-    start: float | None = None,
-    end: float | None = None,
-) -> None:
-    """Copy ``src`` to ``dst`` (``rwt_bag.convert``) and print one line; errors exit 1."""
-    from rwt_bag.convert import bag_format, copy_bag  # noqa: PLC0415 - see record_options
-
-    try:
-        if fmt is None:
-            default = BagFormat.ROS1 if dst.suffix == ".bag" else BagFormat.MCAP
-            fmt = bag_format(src) if command == "filter" else default
-        stats = copy_bag([src], dst, fmt, selection=selection, start_s=start, end_s=end)
-    except BagError as exc:
-        _fail(f"bag {command}", str(exc))
-    topics = f"{len(stats.topics)} topic{'' if len(stats.topics) == 1 else 's'}"
-    typer.echo(f"wrote {stats.messages} messages on {topics} -> {dst}")
-
-
-@bag_app.command("convert", short_help="Copy a bag into another format (MCAP, sqlite3, ROS 1).")
-def convert(src: BagIn, dst: BagOut, fmt: OutFormat = None) -> None:
-    """Copy a bag into another format: MCAP, sqlite3 (ROS 2) or ROS 1.
-
-    Between ROS 1 and ROS 2 each message is converted with rosbags (a header's
-    seq is dropped or set to 0; latching becomes transient-local QoS and back).
-    OUT must not exist.
-    """
-    _copy("convert", src, dst, fmt)
-
-
-@bag_app.command("filter", short_help="Copy some topics or a time range of a bag.")
-def filter_bag(
-    src: BagIn,
-    dst: BagOut,
-    topics: Patterns = "",
-    regex: Annotated[
-        str | None, typer.Option("--regex", "-e", metavar="REGEX", help=REGEX_HELP)
-    ] = None,
-    exclude_regex: Annotated[
-        str | None,
-        typer.Option("--exclude", "--exclude-regex", metavar="REGEX", help=EXCLUDE_REGEX_HELP),
-    ] = None,
-    exclude_topics: ExcludeTopics = None,
-    start: Annotated[
-        float | None,
-        typer.Option(
-            min=0.0, metavar="SECONDS", help="Copy from this many seconds after the first message."
-        ),
-    ] = None,
-    end: Annotated[
-        float | None,
-        typer.Option(
-            min=0.0, metavar="SECONDS", help="Copy up to this many seconds after the first message."
-        ),
-    ] = None,
-    fmt: OutFormat = None,
-) -> None:
-    """Copy the chosen topics of a bag, from --start to --end, into a new bag.
-
-    Topics are chosen as rwt record chooses them (--topics globs, --regex, then
-    --exclude and --exclude-topics); times count in seconds from the bag's first
-    message. OUT must not exist.
-    """
-    selection = topic_selection(topics, regex, exclude_regex, exclude_topics)
-    _copy("filter", src, dst, fmt, selection, start, end)

@@ -1,6 +1,6 @@
 """The CLI reference page (docs/cli.md), generated from the ``rwt`` command itself.
 
-``python -m rwt_transports.cli_reference > docs/cli.md`` writes it; a test
+``python -m rwt_cli.reference > docs/cli.md`` writes it; a test
 regenerates it and compares, so the page cannot go stale.
 """
 
@@ -11,14 +11,15 @@ from typing import Any
 
 import typer.main
 
-from .cli import app
+from .app import app
+from .groups import option_panels
 
 __all__ = ["render"]
 
 _HEADER = """\
 # CLI reference
 
-Generated from the `rwt` command (`python -m rwt_transports.cli_reference >
+Generated from the `rwt` command (`python -m rwt_cli.reference >
 docs/cli.md`); `rwt COMMAND --help` prints the same. [server.md](server.md) explains
 the server's behaviour and [limits.md](limits.md) every cap.
 """
@@ -49,8 +50,10 @@ def _command(name: str, command: Any) -> str:
     lines = [f"## `{name}`", "", "```text", f"{name} {usage}".rstrip(), "```", ""]
     if command.help:
         lines += [inspect.cleandoc(command.help), ""]
-    options = [p for p in command.params if p.param_type_name == "option" and not p.hidden]
-    if options:
+    panels = option_panels(command)
+    for panel, options in panels.items():
+        if len(panels) > 1:  # rwt serve: a table a group of options, as --help shows them
+            lines += [f"### {panel}", ""]
         lines += ["| option | default | meaning |", "|---|---|---|"]
         lines += [_row(option) for option in options]
         lines.append("")

@@ -1,0 +1,152 @@
+"""Running a server from the command line (``rwt serve``, ``rwt play``).
+
+``run_server`` serves until a signal: the bag jobs first, then the video server,
+then the listeners, each announced on stdout. Errors that stop a start-up
+(a port in use, a bad bag) become one line through ``startup_error``.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+from typing import TYPE_CHECKING, TextIO
+from urllib.parse import urlsplit
+
+import anyio
+
+from rwt_bag.errors import BagError
+
+from .checks import ListenError
+from .ros2_link import linked_ros2
+from .zenoh_link import linked
+
+if TYPE_CHECKING:
+    from anyio.abc import TaskGroup, TaskStatus
+
+    from rwt_bag.jobs import BagJobs
+    from rwt_ros2 import Ros2Options
+    from rwt_transports.server import RosbridgeServer
+    from rwt_video import VideoConfig
+    from rwt_zenoh.config import ZenohOptions
+
+__all__ = ["run_server", "startup_error"]
+
+
+async def run_server(
+    server: RosbridgeServer,
+    video: VideoConfig | None,
+    jobs: BagJobs | None = None,
+    zenoh: ZenohOptions | None = None,
+    ros2: Ros2Options | None = None,
+) -> None:
+    """Serve ``server`` (and ``video``, ``jobs``, the links) until a signal or its end.
+
+    stdout (stderr with ``--stdio``) gets a ``listening on URL`` line a listener,
+    then ``video on URL``.
+
+    Raises:
+        ListenError: a listener, or the video server, could not bind its address.
+        BagError: the bag to play cannot be read.
+    """
+    out = sys.stderr if server.config.stdio else sys.stdout  # stdout is the stdio session
+    async with (
+        linked(server.graph, zenoh),
+        linked_ros2(server.graph, ros2),
+        anyio.create_task_group() as tg,
+    ):
+        tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
+        if jobs is not None:  # a bag to play is checked before anything is served
+            await tg.start(jobs.run)
+        video_url = None if video is None else await _start_video(tg, server, video)
+        await tg.start(_serve, server, tg, out)
+        ws_url = server.urls.get("websocket")
+        if video is not None and video.console is not None and ws_url:
+            video.console.websocket_port = _port(ws_url)
+        if video_url:
+            print(f"video on {video_url}", file=out, flush=True)
+
+
+async def _start_video(tg: TaskGroup, server: RosbridgeServer, video: VideoConfig) -> str:
+    """Start the HTTP video server; the console on the WebSocket port links to it."""
+    # the video server (Pillow, numpy) loads only with --video (B11: base memory)
+    from rwt_video import serve_video  # noqa: PLC0415
+
+    try:
+        video_url: str = await tg.start(serve_video, server.graph, video)
+    except OSError as exc:
+        raise ListenError("HTTP video", video.host, video.port, exc) from exc
+    site = server.config.websocket.console
+    if site is not None:  # the console on either port shows the streams
+        site.video_port = _port(video_url)
+    if video.console is not None:
+        video.console.video_port = _port(video_url)
+    return video_url
+
+
+async def _serve(
+    server: RosbridgeServer, tg: TaskGroup, out: TextIO, *, task_status: TaskStatus[str]
+) -> None:
+    """Run the listeners; a graceful stop ends the video server and the links too."""
+
+    def announce(url: str) -> None:
+        print(f"listening on {url}", file=out, flush=True)
+
+    try:
+        await server.serve(on_listening=announce, task_status=task_status)
+    except OSError as exc:
+        failed = _unbound_listener(server)
+        if failed is None:
+            raise
+        raise ListenError(*failed, exc) from exc
+    tg.cancel_scope.cancel()
+
+
+def _port(url: str) -> int | None:
+    return urlsplit(url).port
+
+
+def _unbound_listener(server: RosbridgeServer) -> tuple[str, str, int] | None:
+    """The listener that failed to open: the first configured one without a URL.
+
+    The server opens its listeners in this order and records each one's URL as it
+    binds, so after an OSError the first one missing is the one that failed.
+    """
+    config = server.config
+    listeners = (
+        ("websocket", "WebSocket", config.port),
+        ("tcp", "TCP", config.tcp_port),
+        ("udp", "UDP", config.udp_port),
+    )
+    for key, name, port in listeners:
+        if port is not None and key not in server.urls:
+            return name, config.host, port
+    return None
+
+
+async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> None:
+    """First SIGINT/SIGTERM: stop gracefully; a second one: stop at once."""
+    with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+        async for signum in signals:
+            logging.getLogger("rwt.server").info(
+                "event=signal name=%s", signal.Signals(signum).name
+            )
+            if server._stop_requested:
+                scope.cancel()
+                return
+            server.stop()
+
+
+def startup_error(exc: BaseException) -> str | None:
+    """The one-line message of an error that stops a server at start; None for a bug."""
+    if isinstance(exc, BaseExceptionGroup):  # raised inside a task group
+        messages = []
+        for each in exc.exceptions:
+            message = startup_error(each)
+            if message is None:
+                return None
+            messages.append(message)
+        return "; ".join(messages)
+    if isinstance(exc, ListenError | OSError | ValueError | BagError):  # SSLError: an OSError
+        return str(exc)
+    return None

@@ -1,0 +1,485 @@
+"""``rwt serve``: every transport asked for, on one in-memory graph (D22).
+
+The options are in ``serve_options`` (a group a help section); this module checks
+their combinations, builds the graph, the ``ServerConfig``, the links and the bag
+jobs, and runs them. Its help text, the docstring of ``serve``, is what users
+read: it names no internal documents. Bad option values are refused at start
+with a one-line usage error (exit code 2, see ``checks``); an address that
+cannot be bound names its listener (exit 1).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+import sys
+from dataclasses import replace
+from typing import TYPE_CHECKING, NoReturn
+
+import anyio
+import typer
+
+from rwt_console import ConsoleSite
+from rwt_graph.graph import Graph
+from rwt_graph.types import Dialect, TypeRegistry
+from rwt_protocol.access import AccessPolicy, parse_glob_list
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.session import SessionConfig
+from rwt_transports.allocator import tune_allocator
+from rwt_transports.fdlimit import raise_nofile_limit
+from rwt_transports.gcfreeze import freeze_startup_objects
+from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
+from rwt_transports.udp import UdpOptions
+from rwt_transports.websocket import WebSocketOptions
+from rwt_transports.workers import run_workers
+
+from .bag_options import (
+    bag_jobs,
+    chunk_compression,
+    dialect_for,
+    play_options,
+    record_options,
+    split_policy,
+    topic_selection,
+)
+from .checks import ListenError, OptionError, check_tls, usage_error
+from .groups import grouped_command
+from .options import UVLOOP_EXTRA, VIDEO_PORT
+from .ros2_link import ros2_interface_dirs, ros2_options
+from .running import run_server, startup_error
+from .serve_options import ServeOptions
+from .zenoh_link import require_zenoh, zenoh_options
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from rwt_bag.jobs import BagJobs
+    from rwt_ros2 import Ros2Options
+    from rwt_video import VideoConfig
+    from rwt_zenoh.config import ZenohOptions
+
+    from .serve_options import Media, PlayOptions, Process, RecordOptions, ScaleOut
+
+__all__ = ["serve"]
+
+
+@grouped_command(ServeOptions)
+def serve(options: ServeOptions) -> None:
+    """Run a rosbridge server on an in-memory graph until SIGINT or SIGTERM.
+
+    Every transport asked for runs at once on one graph: WebSocket (--port), raw
+    TCP (--tcp-port), UDP (--udp-port) and one session on stdin/stdout (--stdio).
+    Options are named after rosbridge_server's parameters where one exists: port,
+    address (--host here), max_message_size, use_compression
+    (--websocket-compression), certfile, keyfile, topics_glob and the other globs.
+
+    Logs go to stderr as key=value lines. stdout gets one "listening on URL" line
+    per listener, the WebSocket one first, so scripts can use --port 0 (with
+    --stdio, stdout carries the session and these lines go to stderr). With
+    --video, a "video on http://HOST:PORT" line follows: image topics over HTTP
+    on web_video_server's paths. --depthcloud DEPTH[,RGB] encodes a depth (and
+    colour) topic for ros3djs, as depthcloud_encoder does. --record BAG records
+    topics into a bag while serving; --play BAG publishes a bag's topics with
+    their timing, pausable through the /rwt/player/* services.
+
+    With --zenoh, several servers (and ROS 2 nodes on rmw_zenoh) share one graph:
+    peers find each other through --zenoh-connect/--zenoh-listen endpoints or a
+    router ('rwt router'); multicast scouting stays off. --workers N runs N such
+    servers on the same ports, one graph, supervised by this process.
+
+    With --ros2, an rclpy node (--ros2-node-name, default rwt) joins the ROS 2
+    graph: its topics, services and nodes appear to rosbridge clients, and theirs
+    to ROS 2 nodes (docs/ros2.md).
+
+    A browser opening http://HOST:PORT/ (the WebSocket port) gets the web console:
+    the live graph, echo, publish, calls, actions, images and TF.
+    """
+    record = options.record
+    dialect = dialect_for(
+        options.graph.dialect,
+        options.play.play or (),
+        record.record_format if record.record else None,
+    )
+    _check_listeners(options)
+    check_tls(options.security.certfile, options.security.keyfile)
+    secret = _secret_checked(
+        options.security.auth_secret_file, options.security.auth_bind_connection
+    )
+    if options.process.uvloop and importlib.util.find_spec("uvloop") is None:
+        fail(f"--uvloop needs uvloop: {UVLOOP_EXTRA}")
+    _set_up_process(options.process)
+    scale_out = options.scale_out
+    if (scale_out.zenoh or scale_out.workers > 1) and dialect is not Dialect.ROS2:
+        raise usage_error("--zenoh and --workers speak rmw_zenoh's ROS 2 types: not --dialect ros1")
+    if scale_out.workers > 1:
+        _serve_workers(options)
+    zenoh_link = _zenoh_options(scale_out) if scale_out.zenoh else None
+    ros2_link = _ros2_options(options, dialect) if options.ros2.ros2 else None
+    interface_dirs = list(options.graph.interfaces or ())
+    if ros2_link is not None:  # the robot's own definitions, after the user's
+        interface_dirs += ros2_interface_dirs()
+    graph = Graph(TypeRegistry(dialect, interface_dirs))
+    server = _server(options, graph, secret)
+    media = options.media
+    if media.depthcloud:
+        _depthcloud_encoder(graph, media)
+    video = _video_config(options, server.config.websocket.console, graph, secret is not None)
+    jobs = _bag_jobs(graph, options.record, options.play)
+    freeze_startup_objects()
+    _run(server, video, jobs, zenoh_link, ros2_link, uvloop=options.process.uvloop)
+
+
+def _check_listeners(options: ServeOptions) -> None:
+    """Refuse a server with no listener at all (usage error)."""
+    listeners = options.listeners
+    if not (
+        listeners.websocket
+        or listeners.tcp_port is not None
+        or listeners.udp_port is not None
+        or listeners.stdio
+    ):
+        raise usage_error(
+            "nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio"
+        )
+
+
+def _set_up_process(process: Process) -> None:
+    """The server process's logging, allocator (``--heap-keep``) and descriptor limit."""
+    logging.basicConfig(
+        stream=sys.stderr,
+        level=process.log_level.value.upper(),
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
+    logging.getLogger("websockets").setLevel(logging.WARNING)  # we log connections ourselves
+    if process.heap_keep:
+        tune_allocator(process.heap_keep * 1024 * 1024)
+    if process.raise_fd_limit:
+        raise_nofile_limit()
+
+
+def _server(options: ServeOptions, graph: Graph, secret: str | None) -> RosbridgeServer:
+    """The server of the options on ``graph``, its console listing its limits."""
+    security = options.security
+    origins = tuple(o.strip() for o in security.allowed_origins.split(",") if o.strip())
+    site = _console_site(
+        options.media.console,
+        origins,
+        options.listeners.url_path,
+        tls=security.certfile is not None,
+        auth=secret is not None,
+    )
+    config = _server_config(options, origins, site)
+    if site is not None:
+        site.limits = _limits(config)
+    authenticator = (
+        None
+        if secret is None
+        else rosauth_authenticator(
+            secret, graph.clock, bind_connection=security.auth_bind_connection
+        )
+    )
+    return RosbridgeServer(graph, config, authenticator=authenticator)
+
+
+def _server_config(
+    options: ServeOptions, origins: tuple[str, ...], site: ConsoleSite | None
+) -> ServerConfig:
+    """``ServerConfig`` of the listener, security and limit options."""
+    listeners, security, limits = options.listeners, options.security, options.limits
+    return ServerConfig(
+        host=listeners.host,
+        port=listeners.port if listeners.websocket else None,
+        tcp_port=listeners.tcp_port,
+        udp_port=listeners.udp_port,
+        stdio=listeners.stdio,
+        max_message_size=limits.max_message_size,
+        max_fragment_memory=limits.max_fragment_memory,
+        max_connections=limits.max_connections,
+        max_connections_per_host=limits.max_connections_per_host,
+        idle_timeout_s=limits.idle_timeout or None,
+        certfile=security.certfile,
+        keyfile=security.keyfile,
+        session=_session_config(options),
+        websocket=WebSocketOptions(
+            compression=listeners.websocket_compression,
+            url_path=listeners.url_path,
+            allowed_origins=origins,
+            ping_interval_s=listeners.websocket_ping_interval,
+            ping_timeout_s=listeners.websocket_ping_timeout,
+            console=site,
+        ),
+        udp=UdpOptions(
+            datagram_bytes=listeners.udp_datagram_size,
+            idle_timeout_s=limits.udp_idle_timeout,
+            max_sessions=limits.udp_max_sessions,
+            max_sessions_per_host=limits.udp_max_sessions_per_host,
+            trust_source_address=security.udp_trust_source_address,
+        ),
+        tf=options.graph.tf,
+        handshake_timeout_s=limits.handshake_timeout,
+        reuse_port=options.scale_out.reuse_port,
+    )
+
+
+def _session_config(options: ServeOptions) -> SessionConfig:
+    """``SessionConfig`` of a connection: its status level, access and limits."""
+    security, limits = options.security, options.limits
+    return SessionConfig(
+        status_level=StatusLevel.from_wire(options.graph.status_level.value),
+        send_buffer_limit=limits.send_buffer_limit,
+        send_timeout_s=limits.send_timeout,
+        hold_budget_s=limits.hold_budget,
+        access=AccessPolicy(
+            topics=parse_glob_list(security.topics_glob),
+            services=parse_glob_list(security.services_glob),
+            params=parse_glob_list(security.params_glob),
+            actions=parse_glob_list(security.actions_glob),
+        ),
+        max_pending_fragments=limits.max_pending_fragments,
+        fragment_timeout_s=limits.fragment_timeout,
+        max_queue_length=limits.max_queue_length,
+        call_timeout_s=limits.call_timeout if limits.call_timeout > 0 else None,
+        max_subscriptions=limits.max_subscriptions,
+        max_advertisements=limits.max_advertisements,
+        max_pending_calls=limits.max_pending_calls,
+        max_pending_goals=limits.max_pending_goals,
+        auth_challenge=security.auth_bind_connection,
+        png_inflate_rate=limits.png_inflate_rate,
+    )
+
+
+def _bag_jobs(graph: Graph, record: RecordOptions, play: PlayOptions) -> BagJobs | None:
+    """The ``--record`` and ``--play`` jobs, or None without either."""
+    return bag_jobs(
+        graph,
+        record_options(
+            record.record,
+            topic_selection(
+                record.record_topics,
+                record.record_regex,
+                record.record_exclude_regex,
+                record.record_exclude_topics,
+                prefix="record-",
+            ),
+            record.record_format,
+            split_policy(
+                record.record_max_bag_size,
+                record.record_max_bag_duration,
+                size_mb=record.record_split_size,
+                duration_s=record.record_split_duration,
+                prefix="record-",
+            ),
+            max_size=record.record_max_size,
+            split_at_max=record.record_split,
+            compression=chunk_compression(
+                record.record_chunk_compression,
+                record.record_chunk_compression_level,
+                prefix="record-",
+            ),
+            repeat_latched=record.record_repeat_latched,
+            prefix="record-",
+        ),
+        play_options(
+            play.play,
+            rate=play.rate,
+            loop=play.loop,
+            start_offset=play.start_offset,
+            topics=play.play_topics,
+            clock=play.clock,
+            check=play.play_check,
+            paused=play.start_paused,
+            remap=play.remap,
+            delay=play.delay,
+            duration=play.playback_duration,
+            until_sec=play.playback_until_sec,
+            prefix=play.play_prefix,
+            wait_for_subscribers=play.wait_for_subscribers,
+            wait_timeout=play.wait_for_subscribers_timeout,
+        ),
+        command="serve",
+    )
+
+
+def _run(
+    server: RosbridgeServer,
+    video: VideoConfig | None,
+    jobs: BagJobs | None,
+    zenoh: ZenohOptions | None,
+    ros2: Ros2Options | None,
+    *,
+    uvloop: bool,
+) -> None:
+    """Serve until a signal; a start-up error is one line (exit 1)."""
+    try:
+        anyio.run(
+            run_server, server, video, jobs, zenoh, ros2, backend_options={"use_uvloop": uvloop}
+        )
+    except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
+        message = startup_error(exc)
+        if message is None:
+            raise
+        fail(message)
+
+
+def _depthcloud_encoder(graph: Graph, media: Media) -> None:
+    """``--depthcloud DEPTH[,RGB]``: encode those topics for ros3djs on the graph."""
+    # numpy and Pillow load only when asked for (benchmarks B11 base memory)
+    from rwt_graph.media.depthcloud_node import DepthCloudEncoder  # noqa: PLC0415
+
+    depth_topic, _, rgb_topic = (media.depthcloud or "").partition(",")
+    DepthCloudEncoder(
+        graph,
+        depth_topic,
+        rgb_topic or None,
+        max_depth_per_tile=media.depthcloud_max_depth,
+        tile_size=media.depthcloud_tile_size,
+    )
+
+
+def _serve_workers(options: ServeOptions) -> NoReturn:
+    """``--workers N``: supervise N servers, then exit with their status."""
+    listeners, media, scale_out = options.listeners, options.media, options.scale_out
+    if (
+        listeners.stdio
+        or listeners.udp_port is not None
+        or media.video
+        or media.video_port is not None
+    ):
+        raise usage_error("--workers shares TCP ports: not with --stdio, --udp-port or --video")
+    try:
+        require_zenoh("--workers")
+        status = run_workers(
+            scale_out.workers,
+            host=listeners.host,
+            port=listeners.port if listeners.websocket else None,
+            tcp_port=listeners.tcp_port,
+            zenoh_mode=scale_out.zenoh_mode.value,
+        )
+    except (ValueError, OSError) as exc:
+        fail(str(exc))
+    raise typer.Exit(status)
+
+
+def _zenoh_options(scale_out: ScaleOut) -> ZenohOptions:
+    """The ``--zenoh`` link's options; a bad endpoint or config exits with one line."""
+    try:
+        link = zenoh_options(
+            mode=scale_out.zenoh_mode.value,
+            connect=scale_out.zenoh_connect,
+            listen=scale_out.zenoh_listen,
+            config_file=scale_out.zenoh_config,
+            domain_id=scale_out.domain_id,
+            rmw_compat=scale_out.zenoh_rmw_compat.value,
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    return replace(
+        link, queue_bytes=scale_out.zenoh_queue_bytes, max_entities=scale_out.zenoh_max_entities
+    )
+
+
+def _secret_checked(path: Path | None, bind_connection: bool) -> str | None:
+    """The rosauth secret of ``--auth-secret-file``, if given; usage error on a bad pair."""
+    secret = None if path is None else _read_secret(path)
+    if bind_connection and secret is None:
+        raise usage_error("--auth-bind-connection needs --auth-secret-file")
+    return secret
+
+
+def _read_secret(path: Path) -> str:
+    """The rosauth secret: the first line of ``path``, refused (exit 2) when empty."""
+    try:
+        lines = path.read_text("utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.reason if isinstance(exc, UnicodeDecodeError) else exc.strerror
+        raise OptionError(
+            f"cannot read {path}: {reason}", param_hint="--auth-secret-file"
+        ) from None
+    secret = lines[0].strip() if lines else ""
+    if not secret:
+        raise OptionError(f"the first line of {path} is empty", param_hint="--auth-secret-file")
+    return secret
+
+
+def _console_site(
+    wanted: bool | None, origins: tuple[str, ...], url_path: str | None, *, tls: bool, auth: bool
+) -> ConsoleSite | None:
+    """The console of the WebSocket port, or None when it is off (docs/console.md).
+
+    By default it is on, except with --allowed-origins: the operator chose which
+    web pages may reach the robot, and the robot's own page is not one of them
+    unless --console says so (its origin must then be allowed too). With
+    --auth-secret-file it stays on: the page asks for the ``auth`` op first.
+    """
+    if wanted is None:
+        wanted = not origins
+    if not wanted:
+        return None
+    return ConsoleSite(websocket_path=url_path or "/", websocket_tls=tls, auth=auth)
+
+
+def _limits(config: ServerConfig) -> dict[str, object]:
+    """The limits the console lists, by option name (docs/limits.md)."""
+    session = config.session
+    return {
+        "--max-message-size": config.max_message_size,
+        "--max-connections": config.max_connections or "from the open-files limit",
+        "--send-buffer-limit": session.send_buffer_limit,
+        "--max-queue-length": session.max_queue_length,
+        "--max-subscriptions": session.max_subscriptions,
+        "--max-advertisements": session.max_advertisements,
+        "--max-pending-calls": session.max_pending_calls,
+        "--max-pending-goals": session.max_pending_goals,
+        "--call-timeout": session.call_timeout_s or 0,
+    }
+
+
+def _video_config(
+    options: ServeOptions, site: ConsoleSite | None, graph: Graph, tokens: bool
+) -> VideoConfig | None:
+    """The video server of ``--video``/``--video-port``, or None without them.
+
+    With ``tokens`` (--auth-secret-file) its streams need a token from the
+    graph's ``/rwt/video_token`` (docs/video.md, D32).
+    """
+    media = options.media
+    if not media.video and media.video_port is None:  # a video port asks for the video server
+        return None
+    # the video server (Pillow, numpy) loads only with --video (B11: base memory)
+    from rwt_video import VideoConfig, VideoTokens, install_token_service  # noqa: PLC0415
+
+    video_tokens = None
+    if tokens:
+        video_tokens = VideoTokens()
+        install_token_service(graph, video_tokens)
+        if site is not None:
+            site.video_token = True
+    console = None
+    if site is not None:  # the same page under /console/; its WebSocket port is set later
+        console = replace(site, root_is_console=False)
+    return VideoConfig(
+        host=options.listeners.host,
+        port=VIDEO_PORT if media.video_port is None else media.video_port,
+        max_connections=media.video_max_connections,
+        max_streams=media.video_max_streams,
+        console=console,
+        tokens=video_tokens,
+    )
+
+
+def _ros2_options(options: ServeOptions, dialect: Dialect) -> Ros2Options:
+    """The ``--ros2`` link's options; usage error with ROS 1 types or ``--workers``."""
+    if dialect is not Dialect.ROS2:
+        raise usage_error("--ros2 carries ROS 2 types: not --dialect ros1")
+    if options.scale_out.workers > 1:
+        raise usage_error("--ros2 links one process's graph: not with --workers")
+    try:
+        return ros2_options(options.ros2.ros2_node_name, options.ros2.ros2_namespace)
+    except ValueError as exc:
+        fail(str(exc))
+
+
+def fail(message: str) -> NoReturn:
+    """Exit 1 with ``rwt serve: MESSAGE`` on stderr."""
+    typer.echo(f"rwt serve: {message}", err=True)
+    raise typer.Exit(1)
