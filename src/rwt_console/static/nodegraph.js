@@ -66,11 +66,14 @@ export class NodeGraphView {
     }
   }
 
-  // This page's own connection: a client node subscribing to exactly what the page does.
+  // This page's own connection: a client node that subscribes only to topics the page
+  // subscribes to (not necessarily all of them: the page may have subscribed since the
+  // server answered node_details) and publishes only what the page advertised.
   isThisPage(node, details) {
     if (!node.startsWith('/rwt_client_') || details.services.length) return false;
-    const mine = new Set(this.ros.subscribed.keys());
-    return details.subscribing.length === mine.size && details.subscribing.every((t) => mine.has(t))
+    if (!details.subscribing.length) return false;
+    const mine = this.ros.subscribed;
+    return details.subscribing.every((t) => mine.has(t))
       && details.publishing.every((t) => this.ros.advertised.has(t));
   }
 
