@@ -316,3 +316,39 @@ def test_a_relay_may_not_publish_on_a_topic_the_server_keeps() -> None:
         relays.deliver(graph.topics["/chatter"], None, {"data": "forged"})
     assert heard == []
     assert "/the_link" not in graph.nodes.names()
+
+
+def test_a_nodes_parameters_are_described_typed_and_set_all_or_nothing() -> None:
+    graph = Graph()
+    graph.params.set("/robot:speed", 1.5)  # set by a client: dynamically typed
+    graph.params.declare("/robot", {"name": "r2"}, read_only=True)
+    value_type = graph.registry.message("rcl_interfaces/msg/ParameterValue")
+    types = answer(graph, "/robot", "get_parameter_types", {"names": ["speed", "name", "absent"]})
+    assert types == {"types": [3, 4, 0]}  # DOUBLE, STRING, NOT_SET (rcl_interfaces)
+    described = answer(graph, "/robot", "describe_parameters", {"names": ["speed", "name", "x"]})
+    rows = [
+        (d["name"], d["type"], d["read_only"], d["dynamic_typing"])
+        for d in described["descriptors"]  # type: ignore[union-attr]
+    ]
+    assert rows == [("speed", 3, False, True), ("name", 4, True, False), ("x", 0, False, False)]
+    refused = answer(
+        graph,
+        "/robot",
+        "set_parameters_atomically",
+        {
+            "parameters": [
+                {"name": "speed", "value": to_wire(value_type, 9.0)},
+                {"name": "name", "value": to_wire(value_type, "c3po")},  # read-only
+            ]
+        },
+    )["result"]
+    assert refused["successful"] is False and "name" in refused["reason"]  # type: ignore[index]
+    assert graph.params.get("/robot:speed") == 1.5  # nothing of the refused set applied
+    done = answer(
+        graph,
+        "/robot",
+        "set_parameters_atomically",
+        {"parameters": [{"name": "speed", "value": to_wire(value_type, 9.0)}]},
+    )["result"]
+    assert done == {"successful": True, "reason": ""}
+    assert graph.params.get("/robot:speed") == 9.0
