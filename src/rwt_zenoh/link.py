@@ -877,6 +877,7 @@ class ZenohLink:
 
     def _unmirror(self, remote: _Remote) -> None:
         self._params.unmirror(remote)
+        self._actions.unmirror(remote)
         if remote.mirrored:
             self.graph.port.release(remote.client)  # its services fail their callers (D15)
             remote.mirrored = False

@@ -135,7 +135,8 @@ class ActionLink:
         self._offers: dict[str, _Offer] = {}
         self._served: dict[bytes, _Served] = {}
         self._status_due: set[str] = set()  # actions whose status is to be published
-        self._feedback_subs: dict[str, Any] = {}
+        self._feedback_subs: dict[str, Any] = {}  # by key expression
+        self._feedback_of: dict[ClientId, str] = {}  # a mirrored action's remote -> its key
         self._calling: dict[bytes, tuple[_RemoteAction, str]] = {}
 
     def wire(self, type_name: str) -> ActionWire:
@@ -390,10 +391,21 @@ class ActionLink:
             return False
         wire = self.wire(type_name)
         graph.nodes.bind(remote.client, remote.node)
-        graph.port.advertise_action(
-            remote.client, action, type_name, _RemoteAction(self, remote, action, wire)
-        )
+        provider = _RemoteAction(self, remote, action, wire)
+        graph.port.advertise_action(remote.client, action, type_name, provider)
+        # Subscribed now, as an rclpy ActionClient is from its creation: declared with the
+        # first goal, the subscription could reach the server after the goal and miss its
+        # first feedback.
+        self._feedback_of[remote.client] = self._listen_feedback(provider)
         return True
+
+    def unmirror(self, remote: _Remote) -> None:
+        """Drop the feedback subscription of ``remote``'s action, if it was one mirrored here."""
+        key = self._feedback_of.pop(remote.client, None)
+        if key is not None and key not in self._feedback_of.values():
+            handle = self._feedback_subs.pop(key, None)
+            if handle is not None:
+                guarded("undeclaring an action's entity", handle.undeclare)
 
     def send_remote_goal(
         self, provider: _RemoteAction, goal_id: str, args: dict[str, object]
@@ -407,7 +419,6 @@ class ActionLink:
             self._finish(provider, goal_id, GoalStatus.ABORTED, False, str(exc))
             return
         self._calling[uuid] = (provider, goal_id)
-        self._listen_feedback(provider)
 
         def accepted(ok: bool, value: object) -> None:
             if not ok:
@@ -460,11 +471,16 @@ class ActionLink:
         if goal is not None:
             goal.finish(status, result, values)
 
-    def _listen_feedback(self, provider: _RemoteAction) -> None:
+    def _listen_feedback(self, provider: _RemoteAction) -> str:
+        """Subscribe to the feedback of ``provider``'s action, once per key (name and type).
+
+        Returns:
+            The subscription's key expression.
+        """
         action = provider.action
-        if action in self._feedback_subs:
-            return
         key = self._key(action + FEEDBACK_SUFFIX, provider.wire, "FeedbackMessage")
+        if key in self._feedback_subs:
+            return key
         wire = provider.wire
 
         def deliver(payload: bytes, _attachment: bytes | None) -> None:
@@ -473,9 +489,10 @@ class ActionLink:
         def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
             self.link.soon_sample(action + FEEDBACK_SUFFIX, deliver, sample.payload.to_bytes())
 
-        self._feedback_subs[action] = self.link.session.declare_subscriber(
+        self._feedback_subs[key] = self.link.session.declare_subscriber(
             key, on_sample, allowed_origin=zenoh.Locality.REMOTE
         )
+        return key
 
     def _on_feedback(self, wire: ActionWire, payload: bytes) -> None:
         try:
@@ -525,6 +542,7 @@ class ActionLink:
         for handle in self._feedback_subs.values():
             guarded("undeclaring an action's entity", handle.undeclare)
         self._feedback_subs.clear()
+        self._feedback_of.clear()
         self._calling.clear()
         self._served.clear()
 

@@ -244,6 +244,39 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
         tg.cancel_scope.cancel()
 
 
+async def test_the_first_goal_gets_feedback_sent_at_once_and_a_gone_action_is_unsubscribed() -> None:
+    """Feedback published the moment a goal starts still reaches the first caller.
+
+    The caller's link subscribes to an action's feedback when the action appears
+    (as an rclpy ActionClient does from its creation), not with the first goal: a
+    subscription declared with the goal can reach the server after it. When the
+    action goes, so does the subscription.
+    """
+
+    async def at_once(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        sequence = [0, 1]
+        for _ in range(goal["order"] - 1):
+            sequence.append(sequence[-1] + sequence[-2])
+            context.publish_feedback({"sequence": list(sequence)})
+        return {"sequence": sequence}
+
+    async with linked(2) as [(a, a_link), (b, _)], running_handlers(b) as tg:
+        server = b.create_action_server(
+            "/fib", "example_interfaces/action/Fibonacci", at_once, node="/f"
+        )
+        await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
+        feedback: list[dict[str, Any]] = []
+        outcome = await send_action_goal(
+            a, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
+        )
+        assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
+        assert feedback == [{"sequence": [0, 1, 1, 2, 3, 5][: n + 3]} for n in range(4)]
+        server.close()
+        await until(lambda: "/fib" not in action_servers(a, EVERYTHING), "the action gone")
+        await until(lambda: not a_link._actions._feedback_subs, "the subscription withdrawn")
+        tg.cancel_scope.cancel()
+
+
 async def test_parameters_of_a_node_of_one_graph_are_read_and_set_from_the_other() -> None:
     async with linked(2) as [(a, _), (b, _)]:
         b.params.declare("/camera", {"fps": 30, "name": "front", "gains": [1.5, 2.0]})
