@@ -244,7 +244,7 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
         tg.cancel_scope.cancel()
 
 
-async def test_the_first_goal_gets_feedback_sent_at_once_and_a_gone_action_is_unsubscribed() -> None:
+async def test_the_first_goal_gets_instant_feedback_and_a_gone_action_is_unsubscribed() -> None:
     """Feedback published the moment a goal starts still reaches the first caller.
 
     The caller's link subscribes to an action's feedback when the action appears
