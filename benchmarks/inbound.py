@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rwt_graph.graph import Graph
-from rwt_protocol.codec import decode_json, decode_publish, parse_object
+from rwt_protocol.codecs.json import decode_json, decode_publish, parse_object
 
 
 def validator(graph: Graph) -> Callable[[bytes], object]:

@@ -47,7 +47,7 @@ def _per_call_us(fns: dict[str, Callable[[], object]], seconds: float = 0.3) -> 
 def measure() -> dict[str, float]:
     """The three figures, in microseconds per frame."""
     from rwt_graph.graph import Graph  # noqa: PLC0415
-    from rwt_protocol.session import Session  # noqa: PLC0415
+    from rwt_protocol.server.session import Session  # noqa: PLC0415
 
     from . import inbound  # noqa: PLC0415
 

@@ -34,8 +34,8 @@ import numpy as np
 from PIL import Image
 
 from rwt_graph.graph import Graph
-from rwt_protocol.png import encode_png, png_dimensions
-from rwt_protocol.session import Session
+from rwt_protocol.codecs.png import encode_png, png_dimensions
+from rwt_protocol.server.session import Session
 
 RESULTS = Path(__file__).parent / "results" / "png_compression.json"
 

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, settings
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import Session, SessionConfig
+from rwt_protocol.server.session import Session, SessionConfig
 
 # Property tests check behaviour, never speed: no per-example deadline, and no health
 # check that fails a test because a shared, loaded machine generated examples slowly.

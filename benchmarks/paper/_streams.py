@@ -20,7 +20,7 @@ import numpy as np
 from PIL import Image
 
 from rwt_graph.graph import Graph
-from rwt_protocol.session import Session
+from rwt_protocol.server.session import Session
 from rwt_video.encoders import StillEncoder, multipart_part
 from rwt_video.libav import VideoEncoder
 from rwt_video.params import StreamParams, StreamType

@@ -28,7 +28,7 @@ import anyio
 
 from rwt_graph.graph import Graph
 from rwt_graph.tf import install_tf_republisher
-from rwt_protocol.session import Session
+from rwt_protocol.server.session import Session
 from rwt_transports.server import running_handlers
 
 __all__ = ["FRAMES", "run"]

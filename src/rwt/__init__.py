@@ -96,7 +96,6 @@ if TYPE_CHECKING:
         WireCodec,
     )
     from rwt_graph.types.wire import CdrError
-    from rwt_protocol.access import AccessDeniedError, AccessPolicy, Family
     from rwt_protocol.errors import (
         CallTimeoutError,
         ConfigError,
@@ -111,12 +110,13 @@ if TYPE_CHECKING:
         ServiceCallError,
         TransportError,
     )
+    from rwt_protocol.framing.messages import MessageTooBigError
     from rwt_protocol.levels import StatusLevel
-    from rwt_protocol.messages import MessageTooBigError
     from rwt_protocol.ops import ActionResult, Auth
-    from rwt_protocol.outbox import OutFrame
     from rwt_protocol.ports import GoalStatus
-    from rwt_protocol.session import SessionConfig
+    from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
+    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.server.session import SessionConfig
     from rwt_ros2 import Ros2Link, Ros2Options, Ros2Unavailable, open_ros2_link
     from rwt_ros2.runtime import ament_interface_dirs
     from rwt_transports.allocator import tune_allocator
@@ -290,7 +290,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "rwt_bag.info": ("TopicSummary",),
     "rwt_bag.formats": ("ChunkCompression", "Compression"),
     "rwt_bag.selection": ("TopicSelection",),
-    "rwt_protocol.outbox": ("OutFrame",),
+    "rwt_protocol.server.outbox": ("OutFrame",),
     "rwt_graph.clock": ("Clock",),
     "rwt_graph.graph": ("Graph",),
     "rwt_graph.local": (
@@ -338,7 +338,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "WireCodec",
     ),
     "rwt_graph.types.wire": ("CdrError",),
-    "rwt_protocol.access": (
+    "rwt_protocol.server.access": (
         "AccessDeniedError",
         "AccessPolicy",
         "Family",
@@ -358,10 +358,10 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "TransportError",
     ),
     "rwt_protocol.levels": ("StatusLevel",),
-    "rwt_protocol.messages": ("MessageTooBigError",),
+    "rwt_protocol.framing.messages": ("MessageTooBigError",),
     "rwt_protocol.ops": ("ActionResult", "Auth"),
     "rwt_protocol.ports": ("GoalStatus",),
-    "rwt_protocol.session": ("SessionConfig",),
+    "rwt_protocol.server.session": ("SessionConfig",),
     "rwt_ros2": (
         "Ros2Link",
         "Ros2Options",

@@ -18,7 +18,7 @@ from rwt_bag.errors import BagError
 from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy, is_ros1_bag
 from rwt_bag.selection import TopicSelection
 from rwt_graph.types import Dialect
-from rwt_protocol.access import parse_glob_list
+from rwt_protocol.server.access import parse_glob_list
 
 from .checks import check_directories, check_glob_list
 

@@ -15,8 +15,8 @@ from typing import Any, Protocol, cast
 
 import typer
 
-from rwt_protocol.access import parse_glob_list
 from rwt_protocol.errors import TransportError
+from rwt_protocol.server.access import parse_glob_list
 
 __all__ = [
     "ClickException",

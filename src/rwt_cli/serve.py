@@ -22,9 +22,9 @@ import typer
 from rwt_console import ConsoleSite
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.access import AccessPolicy, parse_glob_list
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.access import AccessPolicy, parse_glob_list
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.gcfreeze import freeze_startup_objects

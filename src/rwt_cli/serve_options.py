@@ -16,7 +16,7 @@ import typer
 
 from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import HOLD_BUDGET_S
+from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
 from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 

@@ -39,8 +39,8 @@ from websockets.protocol import State
 from websockets.uri import parse_uri
 
 from rwt_protocol.errors import ConfigError, TransportError
-from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
-from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
+from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
+from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, Protocol
 
-from rwt_protocol.codec import decode_json_text
+from rwt_protocol.codecs.json import decode_json_text
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -95,7 +95,7 @@ class RosapiMixin:
 
         Raises:
             RemoteProtocolError: the server's text breaks the rules of JSON text
-                in values (``rwt_protocol.codec.decode_json_text``).
+                in values (``rwt_protocol.codecs.json.decode_json_text``).
         """
         args = {"name": name, "default_value": "" if default is None else json.dumps(default)}
         text = (await _rosapi(self, "get_param", args)).get("value", "")

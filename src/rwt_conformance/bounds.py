@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.codec import MAX_NESTING
+from rwt_protocol.codecs.json import MAX_NESTING
 from rwt_protocol.errors import TransportError
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ CLOSE_TIMEOUT_S = 2.0
 cuts the connection: a server that never reads must not hold a close forever."""
 
 # Nesting: the runner refuses frames nested deeper than the server core does
-# (rwt_protocol.codec.MAX_NESTING): ROS messages nest a few levels, and matching
+# (rwt_protocol.codecs.json.MAX_NESTING): ROS messages nest a few levels, and matching
 # and reporting walk values recursively.
 
 

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import cbor2
 
 from rwt_protocol.auth import rosauth_op
-from rwt_protocol.codec import check_nesting
+from rwt_protocol.codecs.json import check_nesting
 from rwt_protocol.errors import RemoteProtocolError
 
 from .bounds import MAX_NESTING
@@ -101,7 +101,7 @@ def _decode_cbor(frame: bytes) -> JsonValue:
     except RecursionError:
         raise
     except Exception as exc:  # anything else cbor2 refuses is shown as bytes
-        if "nesting depth" in str(exc):  # cbor2's max_depth, as rwt_protocol.codec_cbor reads it
+        if "nesting depth" in str(exc):  # cbor2's max_depth, as rwt_protocol.codecs.cbor reads it
             raise RecursionError(str(exc)) from None
         return frame
 

@@ -39,7 +39,7 @@ import anyio
 import cbor2
 
 from rwt_client.connectors import Connection, ConnectionClosedError, connect
-from rwt_protocol.codec import decode_json_text
+from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError, RwtError
 
 from .bounds import (

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import TYPE_CHECKING, TypeAlias
 
-from rwt_protocol.codec import valid_unicode
+from rwt_protocol.codecs.json import valid_unicode
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 

@@ -26,10 +26,11 @@ from typing import TYPE_CHECKING, Any, TypeGuard
 
 from pydantic import ValidationError
 
-from .codec import decode_json, decode_publish, encode_json, parse_object
-from .codec_cbor import decode_cbor
+from .codecs.cbor import decode_cbor
+from .codecs.json import decode_json, decode_publish, encode_json, parse_object
+from .codecs.png import decode_png
 from .errors import RemoteProtocolError
-from .fragments import PartKind, Reassembler
+from .framing.fragments import PartKind, Reassembler
 from .ops import (
     ActionFeedback,
     ActionResult,
@@ -54,7 +55,6 @@ from .ops import (
     Unsubscribe,
 )
 from .ops import Advertise as AdvertiseOp
-from .png import decode_png
 from .ports import GoalStatus
 
 if TYPE_CHECKING:

@@ -9,8 +9,8 @@ that every exception class of every rwt package is drawn here::
     ├── ProtocolError                     the rosbridge protocol was not followed
     │   ├── RemoteProtocolError           the peer's fault: becomes a status frame (D1)
     │   │   ├── LimitError                a per-connection cap (docs/limits.md)
-    │   │   ├── MessageTooBigError        rwt_protocol.messages: over --max-message-size
-    │   │   ├── AccessDeniedError         rwt_protocol.access: a --*-glob rule
+    │   │   ├── MessageTooBigError        rwt_protocol.framing.messages: over --max-message-size
+    │   │   ├── AccessDeniedError         rwt_protocol.server.access: a --*-glob rule
     │   │   ├── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
     │   │   └── CdrError                  rwt_graph.types.wire: bytes that are not the type's CDR
     │   └── LocalProtocolError            embedding code misused the API

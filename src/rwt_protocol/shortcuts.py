@@ -33,7 +33,7 @@ The shortcuts (name: what; module; benchmark; general path):
   ``rwt_graph.types.interop.to_rosbags`` / ``from_rosbags``.
 - ``publish-decode``: a ``publish`` op decoded and checked by msgspec in one
   pass (``ops.wire.PublishFrame``), by the server's and the client's sessions;
-  ``rwt_protocol.codec.decode_publish``; B14, B1 (pydantic was 8 % of B1);
+  ``rwt_protocol.codecs.json.decode_publish``; B14, B1 (pydantic was 8 % of B1);
   ``decode_json`` then ``parse_object`` (pydantic).
 - ``cdr-input-view``: a serialized message of 64 KiB or more handed to
   rosbags' deserializers as a ``memoryview``, so that cutting off its CDR header
@@ -42,16 +42,16 @@ The shortcuts (name: what; module; benchmark; general path):
   1 MB image: the copy was half of its 120 us decode); the ``bytes`` as they came.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
   by pybase64 and spliced in as ``msgspec.Raw``;
-  ``rwt_protocol.codec.encode_publish_json``; B6 JSON, B5 JSON;
+  ``rwt_protocol.codecs.json.encode_publish_json``; B6 JSON, B5 JSON;
   ``encode_json`` of the whole op.
 - ``cbor-splice-encode``: large byte strings and typed arrays written between
   cbor2-encoded heads with one copy (and cbor-raw's serialization kept as
   rosbags' view for it, ``rwt_graph.types.wire``);
-  ``rwt_protocol.codec_cbor.encode_cbor``; B4, B6 (4-7 ms for 4 MiB through
+  ``rwt_protocol.codecs.cbor.encode_cbor``; B4, B6 (4-7 ms for 4 MiB through
   cbor2); ``cbor2.dumps`` of the whole op.
 - ``cbor-splice-decode``: the first map levels of a large frame parsed here,
   large payloads taken as one slice or a numpy view
-  (``rwt_protocol.codec_cbor._Splicer``); B4, B6 (2 ms for 4 MiB through
+  (``rwt_protocol.codecs.cbor._Splicer``); B4, B6 (2 ms for 4 MiB through
   cbor2); cbor2's decoder on the whole frame.
 - ``ws-frame-reader``: whole client data frames cut and unmasked before
   websockets' parser; ``rwt_transports.wsread.FrameReader``; B6 (CBOR 7.05 ->
@@ -149,10 +149,10 @@ SHORTCUTS: tuple[Shortcut, ...] = (
     ),
     Shortcut(
         "publish-decode",
-        "rwt_protocol.codec.decode_publish",
+        "rwt_protocol.codecs.json.decode_publish",
         "a publish op decoded and checked by msgspec in one pass (ops.wire.PublishFrame)",
         "B14, B1",
-        "rwt_protocol.codec.decode_json then parse_object (pydantic)",
+        "rwt_protocol.codecs.json.decode_json then parse_object (pydantic)",
     ),
     Shortcut(
         "cdr-input-view",
@@ -163,21 +163,21 @@ SHORTCUTS: tuple[Shortcut, ...] = (
     ),
     Shortcut(
         "json-base64-splice",
-        "rwt_protocol.codec.encode_publish_json",
+        "rwt_protocol.codecs.json.encode_publish_json",
         "large byte strings base64-encoded by pybase64, spliced in as msgspec.Raw",
         "B6, B5 (JSON)",
-        "rwt_protocol.codec.encode_json of the whole op",
+        "rwt_protocol.codecs.json.encode_json of the whole op",
     ),
     Shortcut(
         "cbor-splice-encode",
-        "rwt_protocol.codec_cbor.encode_cbor",
+        "rwt_protocol.codecs.cbor.encode_cbor",
         "large byte strings and typed arrays written between cbor2 heads, one copy",
         "B4, B6 (CBOR)",
         "cbor2.dumps of the whole op",
     ),
     Shortcut(
         "cbor-splice-decode",
-        "rwt_protocol.codec_cbor._Splicer",
+        "rwt_protocol.codecs.cbor._Splicer",
         "a large frame's first map levels parsed here, payloads as one slice or a numpy view",
         "B4, B6 (CBOR)",
         "cbor2.CBORDecoder on the whole frame",

@@ -13,15 +13,15 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.framing import FramerEvent, InFrame
-from rwt_protocol.outbox import OutFrame
+from rwt_protocol.framing.streams import FramerEvent, InFrame
+from rwt_protocol.server.outbox import OutFrame
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
-    from rwt_protocol.session import CloseCode, Session
+    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["MemoryChannel", "MemoryConnection", "memory_pair"]
 

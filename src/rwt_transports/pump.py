@@ -63,12 +63,12 @@ import anyio.lowlevel
 import anyio.to_thread
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.codec import encode_json
-from rwt_protocol.framing import FramerEvent, FramingError
+from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
-from rwt_protocol.outbox import OutFrame
-from rwt_protocol.session import CloseCode, CloseConnection, Session
+from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.server.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
 
 from . import admission

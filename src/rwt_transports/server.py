@@ -3,7 +3,7 @@
 ``RosbridgeServer`` owns the graph and runs the listeners configured in
 ``ServerConfig`` side by side: WebSocket (``ws``/``wss``), TCP (plain or TLS),
 UDP and stdio. Every connection, whatever its transport, gets a
-``rwt_protocol.session.Session`` on the same graph through the same pump
+``rwt_protocol.server.session.Session`` on the same graph through the same pump
 (D22), so a TCP client and a WebSocket client see each
 other's topics and services. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
@@ -48,11 +48,11 @@ from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
-from rwt_protocol.access import AccessPolicy, Family
 from rwt_protocol.auth import Authenticator, RosauthVerifier
 from rwt_protocol.errors import ConfigError, RwtError
-from rwt_protocol.fragments import FragmentBudget
-from rwt_protocol.session import CloseCode, Session, SessionConfig
+from rwt_protocol.framing.fragments import FragmentBudget
+from rwt_protocol.server.access import AccessPolicy, Family
+from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
 from . import admission
@@ -119,7 +119,7 @@ class ServerConfig:
         max_fragment_memory: bytes of incomplete ``fragment``/``png`` messages all
             connections may hold together (``--max-fragment-memory``); a part past
             it is refused with an error status and its message dropped
-            (``rwt_protocol.fragments.FragmentBudget``, docs/limits.md).
+            (``rwt_protocol.framing.fragments.FragmentBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake. None: derived from the soft
@@ -131,7 +131,7 @@ class ServerConfig:
             UDP count; stdio and in-process connections do not.
         idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
             sent nothing and that holds nothing is closed (``--idle-timeout``;
-            ``rwt_protocol.idle``); None: never. UDP has ``udp.idle_timeout_s``.
+            ``rwt_protocol.server.idle``); None: never. UDP has ``udp.idle_timeout_s``.
         certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
         keyfile: PEM private key for it (``--keyfile``).
         shutdown_grace_s: seconds a stopping server waits for connections to

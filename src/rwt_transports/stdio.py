@@ -18,15 +18,15 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.framing import FramerEvent, LineFramer
+from rwt_protocol.framing.streams import FramerEvent, LineFramer
 
 from .tcp import encode_stream_frames
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from rwt_protocol.outbox import OutFrame
-    from rwt_protocol.session import CloseCode, Session
+    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["StdioChannel"]
 

@@ -1,7 +1,7 @@
 """TCP transport (D22), plain or TLS.
 
 In: concatenated JSON values (any whitespace between them, or none) and CBOR
-items, split by ``rwt_protocol.framing.JsonStreamFramer`` (linear, bounded by
+items, split by ``rwt_protocol.framing.streams.JsonStreamFramer`` (linear, bounded by
 ``--max-message-size``). Out: one JSON object per line; CBOR items as they are
 (self-delimiting, and their first byte is never ``{``), so rosbridge_tcp
 readers that split on newlines or scan braces both work.
@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.codec import encode_json
-from rwt_protocol.framing import FramerEvent, JsonStreamFramer
+from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.framing.streams import FramerEvent, JsonStreamFramer
 from rwt_protocol.ops import Status
 
 from . import admission
@@ -27,8 +27,8 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream
 
-    from rwt_protocol.outbox import OutFrame
-    from rwt_protocol.session import CloseCode, Session
+    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 

@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING
 import anyio
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.codec import encode_json
-from rwt_protocol.datagrams import fragment_datagrams
-from rwt_protocol.framing import FramerEvent, FramingError, InFrame
+from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.framing.datagrams import fragment_datagrams
+from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
 from rwt_protocol.ops import Status
 
 from .pump import ConnectionPump, SessionHost, run_connection
@@ -36,8 +36,8 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup, UDPSocket
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
-    from rwt_protocol.outbox import OutFrame
-    from rwt_protocol.session import CloseCode, Session
+    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["UdpOptions", "serve_udp"]
 

@@ -39,7 +39,7 @@ import secrets
 import time
 from typing import TYPE_CHECKING
 
-from rwt_protocol.codec import encode_json
+from rwt_protocol.codecs.json import encode_json
 from rwt_protocol.ops import Status
 
 if TYPE_CHECKING:

@@ -40,9 +40,9 @@ from websockets.protocol import State
 from websockets.server import ServerProtocol
 
 from rwt_console.site import http_response_bytes
-from rwt_protocol.framing import FramerEvent, InFrame
-from rwt_protocol.messages import FrameKind, MessageAssembler, MessageTooBigError
-from rwt_protocol.session import CloseCode, Session
+from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
+from rwt_protocol.framing.streams import FramerEvent, InFrame
+from rwt_protocol.server.session import CloseCode, Session
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
@@ -58,7 +58,7 @@ if TYPE_CHECKING:
     from websockets.extensions.base import ServerExtensionFactory
 
     from rwt_console import ConsoleSite
-    from rwt_protocol.outbox import OutFrame
+    from rwt_protocol.server.outbox import OutFrame
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 

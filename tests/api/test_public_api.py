@@ -140,7 +140,7 @@ def test_every_public_name_says_it_is_rwts() -> None:
 def test_the_names_are_the_homes_own() -> None:
     from rwt_graph.graph import Graph  # noqa: PLC0415
     from rwt_protocol.errors import CallTimeoutError, RwtError, ServiceCallError  # noqa: PLC0415
-    from rwt_protocol.session import SessionConfig  # noqa: PLC0415
+    from rwt_protocol.server.session import SessionConfig  # noqa: PLC0415
 
     assert (rwt.Graph, rwt.RwtError, rwt.SessionConfig) == (Graph, RwtError, SessionConfig)
     assert (

@@ -25,11 +25,11 @@ from rwt_client import (
     message_class,
 )
 from rwt_client.ros import jittered
-from rwt_protocol.access import AccessPolicy
 from rwt_protocol.errors import OpRefusedError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.conformance import hostile
 

@@ -26,7 +26,7 @@ from rwt_protocol.auth import Authenticator
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import TopicSink
-from rwt_protocol.session import Session
+from rwt_protocol.server.session import Session
 from rwt_transports.server import (
     RosbridgeServer,
     ServerConfig,

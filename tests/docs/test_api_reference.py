@@ -39,4 +39,4 @@ def test_the_reference_builds_clean_and_names_everything_rwt(tmp_path: Path) -> 
         assert f'id="{name}"' in page, name  # every public name has its section
     # a signature's types link to their sections on the same page, as rwt.X
     assert '<a href="#SessionConfig">SessionConfig</a>' in page
-    assert "rwt_protocol.session.SessionConfig" not in page
+    assert "rwt_protocol.server.session.SessionConfig" not in page

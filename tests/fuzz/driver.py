@@ -22,7 +22,7 @@ from anyio.abc import ByteStream
 from websockets.asyncio.client import ClientConnection
 from websockets.exceptions import ConnectionClosed
 
-from rwt_protocol.framing import FramingError, InFrame, JsonStreamFramer
+from rwt_protocol.framing.streams import FramingError, InFrame, JsonStreamFramer
 from rwt_transports.memory import MemoryConnection
 from tests.transports.clients import validate_udp
 

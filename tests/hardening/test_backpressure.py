@@ -22,7 +22,7 @@ import anyio
 import anyio.to_thread
 import pytest
 
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import Peer, TcpPeer, open_peer, settle
 from tests.transports.clients import Harness, running_server

@@ -16,7 +16,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import Session, SessionConfig
+from rwt_protocol.server.session import Session, SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.conftest import FakeClock
 from tests.transports.clients import Harness, running_server

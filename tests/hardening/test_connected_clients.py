@@ -15,7 +15,7 @@ import anyio
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
 
-from rwt_protocol.framing import InFrame, JsonStreamFramer
+from rwt_protocol.framing.streams import InFrame, JsonStreamFramer
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 pytestmark = pytest.mark.anyio

@@ -17,7 +17,7 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
 from rwt_graph.graph import Graph
-from rwt_protocol.session import Session
+from rwt_protocol.server.session import Session
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.transports.clients import (
     Client,

@@ -19,8 +19,8 @@ import httpx
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_protocol.access import AccessPolicy
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_video import VideoConfig, serve_video
 from tests.transports.clients import TRANSPORTS, Client, running_server

@@ -15,7 +15,7 @@ import cbor2
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_protocol.codec import MAX_NESTING
+from rwt_protocol.codecs.json import MAX_NESTING
 from tests.conftest import Peer
 from tests.hardening.test_unencodable import send_binary
 from tests.session.test_robustness import pair, still_served

@@ -16,8 +16,8 @@ import anyio
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_protocol.png import encode_png
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.codecs.png import encode_png
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.transports.clients import TRANSPORTS, running_server
 from tests.transports.test_contract import is_op

@@ -16,8 +16,8 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.access import AccessPolicy
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.transports.clients import TRANSPORTS, Client, Harness, running_server
 from tests.transports.test_contract import is_op

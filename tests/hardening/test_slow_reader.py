@@ -38,7 +38,7 @@ import anyio
 import anyio.to_thread
 import pytest
 
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import Peer, TcpPeer, open_peer, settle
 from tests.transports.clients import Client, Harness, running_server

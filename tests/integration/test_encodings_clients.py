@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_protocol import encoding
+from rwt_protocol.server import encoding
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 pytestmark = pytest.mark.anyio
@@ -65,7 +65,7 @@ async def served() -> AsyncIterator[tuple[Graph, str]]:
 
 
 def count_calls(monkeypatch: pytest.MonkeyPatch, name: str) -> list[object]:
-    """Record the first argument of each call of ``rwt_protocol.encoding.<name>``."""
+    """Record the first argument of each call of ``rwt_protocol.server.encoding.<name>``."""
     real = getattr(encoding, name)
     calls: list[object] = []
 

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rwt_protocol import codec_cbor
-from rwt_protocol.codec_cbor import TYPED_ARRAY_TAGS, decode_cbor, encode_cbor
+from rwt_protocol.codecs import cbor as codec_cbor
+from rwt_protocol.codecs.cbor import TYPED_ARRAY_TAGS, decode_cbor, encode_cbor
 from rwt_protocol.errors import RemoteProtocolError
 
 INTS = {
@@ -112,7 +112,7 @@ def splicing(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def _plain(value: object) -> bytes:
     """What cbor2 makes of an op on its own (the reference for spliced frames)."""
-    from rwt_protocol.codec_cbor import _encode_array  # noqa: PLC0415
+    from rwt_protocol.codecs.cbor import _encode_array  # noqa: PLC0415
 
     return cbor2.dumps(value, default=_encode_array)
 

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rwt_protocol.errors import RemoteProtocolError
-from rwt_protocol.fragments import (
+from rwt_protocol.framing.fragments import (
     FRAGMENT_OVERHEAD,
     MAX_PARTS,
     PartKind,

@@ -11,9 +11,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rwt_protocol import framing
-from rwt_protocol.datagrams import fragment_datagrams
-from rwt_protocol.framing import FramerEvent, FramingError, InFrame, JsonStreamFramer, LineFramer
+from rwt_protocol.framing import streams as framing
+from rwt_protocol.framing.datagrams import fragment_datagrams
+from rwt_protocol.framing.streams import (
+    FramerEvent,
+    FramingError,
+    InFrame,
+    JsonStreamFramer,
+    LineFramer,
+)
 
 LIMIT = 1 << 20
 

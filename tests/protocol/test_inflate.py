@@ -1,10 +1,10 @@
-"""The token bucket that paces png inflating (docs/limits.md, rwt_protocol.inflate)."""
+"""The token bucket that paces png inflating (docs/limits.md, rwt_protocol.server.inflate)."""
 
 from __future__ import annotations
 
 import pytest
 
-from rwt_protocol.inflate import TokenBucket
+from rwt_protocol.server.inflate import TokenBucket
 
 
 def test_a_burst_goes_at_once_then_the_rate_paces() -> None:

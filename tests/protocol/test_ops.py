@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rwt_protocol.codec import decode_json, parse_object
+from rwt_protocol.codecs.json import decode_json, parse_object
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.ops import OP_MODELS, OpModel
 

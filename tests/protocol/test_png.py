@@ -13,8 +13,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from PIL import Image
 
+from rwt_protocol.codecs.png import decode_png, encode_png, png_dimensions
 from rwt_protocol.errors import RemoteProtocolError
-from rwt_protocol.png import decode_png, encode_png, png_dimensions
 
 MiB = 1024 * 1024
 

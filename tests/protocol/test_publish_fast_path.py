@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rwt_protocol.codec import decode_json, decode_publish_one_pass, parse_object
+from rwt_protocol.codecs.json import decode_json, decode_publish_one_pass, parse_object
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.ops import Publish
 

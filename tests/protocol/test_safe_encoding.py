@@ -12,10 +12,11 @@ import cbor2
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_protocol import handlers, ops
-from rwt_protocol.codec import parse_object
-from rwt_protocol.encoding import safe_op_frames
+from rwt_protocol import ops
+from rwt_protocol.codecs.json import parse_object
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.server import handlers
+from rwt_protocol.server.encoding import safe_op_frames
 from tests.session.test_robustness import pair, still_served
 
 LONE = "\ud800"

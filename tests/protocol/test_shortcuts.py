@@ -21,9 +21,11 @@ import cbor2
 import numpy as np
 import pytest
 
-from rwt_protocol import codec, codec_cbor, shortcuts
-from rwt_protocol.codec import encode_publish_json
-from rwt_protocol.codec_cbor import decode_cbor, encode_cbor
+from rwt_protocol import shortcuts
+from rwt_protocol.codecs import cbor as codec_cbor
+from rwt_protocol.codecs import json as codec
+from rwt_protocol.codecs.cbor import decode_cbor, encode_cbor
+from rwt_protocol.codecs.json import encode_publish_json
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.ops import Publish
 from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS, enabled, report, switched_off
@@ -125,7 +127,7 @@ def test_the_report_shows_each_state() -> None:
 def test_the_codecs_choose_at_import() -> None:
     """The protocol's shortcuts are chosen when their module is imported."""
     code = (
-        "from rwt_protocol import codec, codec_cbor;"
+        "from rwt_protocol.codecs import cbor as codec_cbor, json as codec;"
         "print(codec._SPLICE_BASE64, codec_cbor._SPLICE_ENCODE, codec_cbor._SPLICE_DECODE)"
     )
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
@@ -163,7 +165,7 @@ import json, sys
 from pathlib import Path
 
 from rwt_graph.types import wire
-from rwt_protocol import codec
+from rwt_protocol.codecs import json as codec
 from rwt_protocol.client import ClientSession
 
 class Counting:  # counts the one-pass decoder's uses

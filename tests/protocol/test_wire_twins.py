@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rwt_protocol.codec import parse_object
+from rwt_protocol.codecs.json import parse_object
 from rwt_protocol.errors import LocalProtocolError
 from rwt_protocol.ops import OP_MODELS, Publish, PublishFrame, PublishView, ServiceResponse
 from rwt_protocol.ops.wire import wire_struct

@@ -18,7 +18,8 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import install_rosapi
-from rwt_protocol import handlers, ops
+from rwt_protocol import ops
+from rwt_protocol.server import handlers
 from tests.conftest import FakeClock, Peer
 from tests.session.rosapi_support import call, connect
 from tests.session.test_robustness import pair, still_served

@@ -18,13 +18,13 @@ from hypothesis import strategies as st
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol import encoding
-from rwt_protocol.fragments import fragment_frames
+from rwt_protocol.codecs.png import decode_png, encode_png
+from rwt_protocol.framing.fragments import fragment_frames
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.outbox import Outbox, OutFrame
-from rwt_protocol.png import decode_png, encode_png
 from rwt_protocol.ports import MessageEvent
-from rwt_protocol.session import Session, SessionConfig
+from rwt_protocol.server import encoding
+from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.server.session import Session, SessionConfig
 from tests.conftest import FakeClock, Peer
 
 DATA = Path(__file__).parents[1] / "graph" / "data" / "interfaces"

@@ -9,16 +9,16 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_protocol import ops
-from rwt_protocol.access import AccessPolicy, Family, parse_glob_list
 from rwt_protocol.auth import RosauthVerifier, rosauth_mac
 from rwt_protocol.errors import LocalProtocolError
-from rwt_protocol.handlers import HANDLERS
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.lifecycle import TRANSITIONS, State, advance
 from rwt_protocol.ops import Auth, CallService, Subscribe
-from rwt_protocol.outbox import Outbox, OutFrame
-from rwt_protocol.replies import failure_reply
-from rwt_protocol.session import CloseCode, CloseConnection, Session, SessionConfig
+from rwt_protocol.server.access import AccessPolicy, Family, parse_glob_list
+from rwt_protocol.server.handlers import HANDLERS
+from rwt_protocol.server.lifecycle import TRANSITIONS, State, advance
+from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.server.replies import failure_reply
+from rwt_protocol.server.session import CloseCode, CloseConnection, Session, SessionConfig
 from tests.conftest import FakeClock, Peer
 
 SECRET = "relaxthisisatest"

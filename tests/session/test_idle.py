@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 
 from rwt_graph.graph import Graph
-from rwt_protocol.session import CloseCode, Session, SessionConfig
+from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 
 
 def _session(graph: Graph) -> Session:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import Session, SessionConfig
+from rwt_protocol.server.session import Session, SessionConfig
 from tests.conftest import FakeClock, Peer
 
 

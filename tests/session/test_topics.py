@@ -6,7 +6,7 @@ import json
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.session import Session, SessionConfig
+from rwt_protocol.server.session import Session, SessionConfig
 from tests.conftest import Peer
 
 

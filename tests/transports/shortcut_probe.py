@@ -29,8 +29,9 @@ from anyio.abc import ByteStream
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import message as message_module
-from rwt_protocol import codec, codec_cbor
-from rwt_protocol import session as session_module
+from rwt_protocol.codecs import cbor as codec_cbor
+from rwt_protocol.codecs import json as codec
+from rwt_protocol.server import session as session_module
 from rwt_transports import direct, pump, websocket, wsread
 from rwt_transports.server import ServerConfig
 from tests.conftest import FakeClock

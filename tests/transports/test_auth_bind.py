@@ -21,7 +21,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_protocol.auth import AUTH_CHALLENGE_ID, bound_mac, rosauth_mac
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from tests.transports.clients import Client, Harness, running_server
 from tests.transports.realclients import node_missing, run_node

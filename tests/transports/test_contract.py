@@ -16,9 +16,9 @@ import cbor2
 import pytest
 from websockets.exceptions import ConnectionClosed
 
-from rwt_protocol.access import AccessPolicy
-from rwt_protocol.framing import FramerEvent, InFrame, JsonStreamFramer
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
+from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.transports.clients import (
     TRANSPORTS,

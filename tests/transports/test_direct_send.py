@@ -22,8 +22,8 @@ import pytest
 import trustme
 
 from rwt_graph.graph import Graph
-from rwt_protocol.outbox import OutFrame
-from rwt_protocol.session import CloseCode, Session, SessionConfig
+from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.pump import ConnectionPump, flush_deferred
 from rwt_transports.server import ServerConfig

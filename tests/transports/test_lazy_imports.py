@@ -39,7 +39,7 @@ import anyio
 import rwt_cli.app  # everything `rwt serve` imports
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
-from rwt_protocol.codec import parse_object
+from rwt_protocol.codecs.json import parse_object
 from rwt_protocol.ops import OP_MODELS
 from rwt_transports.server import RosbridgeServer, ServerConfig
 

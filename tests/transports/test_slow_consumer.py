@@ -23,7 +23,7 @@ from websockets.client import ClientProtocol
 from websockets.frames import Frame, Opcode
 from websockets.uri import parse_uri
 
-from rwt_protocol.session import SessionConfig
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.transports.clients import Harness, running_server
 

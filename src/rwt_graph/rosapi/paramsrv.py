@@ -2,7 +2,7 @@
 
 Values travel as JSON text both ways (roslibjs and roslibpy send
 ``JSON.stringify(value)`` and parse the reply's ``value``). A client's text is
-decoded by ``rwt_protocol.codec.decode_json_text``, under the rules of frames
+decoded by ``rwt_protocol.codecs.json.decode_json_text``, under the rules of frames
 (no lone surrogate, at most 100 levels, 64-bit integers; docs/limits.md), so a
 value every other client reads back, and the Zenoh link shares, can always be
 encoded again.
@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING
 
-from rwt_protocol.codec import decode_json_text
+from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
 from ..params import ParameterError, ParamValue, to_json_safe

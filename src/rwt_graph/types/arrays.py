@@ -1,7 +1,7 @@
 """Checks of numeric arrays that arrive as numpy arrays (CBOR typed arrays, D21, D27).
 
 A CBOR typed array (RFC 8746) reaches the graph as a read-only 1-D numpy array
-(``rwt_protocol.codec_cbor``). Such an array is checked as a whole, by its
+(``rwt_protocol.codecs.cbor``). Such an array is checked as a whole, by its
 element type and, when that type is wider than the field's, by its minimum
 and maximum, and stays a numpy array in the internal form, so a large map or
 point cloud never becomes a Python list (B9). Arrays whose

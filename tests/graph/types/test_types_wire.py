@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rwt_graph.types import Dialect, MessageType, TypeRegistry
-from rwt_protocol.codec_cbor import decode_cbor, encode_cbor
+from rwt_protocol.codecs.cbor import decode_cbor, encode_cbor
 
 ARRAYS = """\
 bool[] b

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..levels import StatusLevel
-from ..names import resolve_name
-from ..ops import CallService, CancelActionGoal, SendActionGoal
+from ...levels import StatusLevel
+from ...names import resolve_name
+from ...ops import CallService, CancelActionGoal, SendActionGoal
 
 if TYPE_CHECKING:
     from .context import HandlerContext

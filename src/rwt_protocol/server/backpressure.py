@@ -14,8 +14,8 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING
 
+from ..levels import StatusLevel
 from .commands import CloseCode
-from .levels import StatusLevel
 
 if TYPE_CHECKING:
     from collections.abc import Callable

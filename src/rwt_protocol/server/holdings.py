@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Literal
 if TYPE_CHECKING:
     from collections.abc import Mapping, Set
 
-    from .ports import GoalHandle
+    from ..ports import GoalHandle
     from .subscriptions import TopicSubscription
 
 __all__ = ["Holdings", "OfferKind"]

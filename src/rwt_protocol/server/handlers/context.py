@@ -14,16 +14,16 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Protocol
 
-from ..ops.base import Compression
+from ...ops.base import Compression
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from ..fragments import Reassembler
+    from ...codecs.png import PendingPng
+    from ...framing.fragments import Reassembler
+    from ...levels import StatusLevel
+    from ...ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from ..holdings import Holdings
-    from ..levels import StatusLevel
-    from ..png import PendingPng
-    from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from ..subscriptions import TopicSubscription
     from ..timers import Timer
     from .providers import ProviderLink

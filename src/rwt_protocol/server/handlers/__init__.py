@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from .. import ops
+from ... import ops
 from . import actions, control, encodings, services, topics
 from .context import HandlerContext
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..errors import RemoteProtocolError, RwtError
-from ..levels import StatusLevel
-from ..names import resolve_name
-from ..ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
+from ...errors import RemoteProtocolError, RwtError
+from ...levels import StatusLevel
+from ...names import resolve_name
+from ...ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
 from .topics import report_type_warning
 
 if TYPE_CHECKING:

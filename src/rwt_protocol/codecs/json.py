@@ -30,11 +30,11 @@ import msgspec
 import pybase64
 from pydantic import ValidationError
 
-from .errors import RemoteProtocolError
-from .names import name_problem
-from .ops import OP_MODELS, OpModel, PublishFrame, PublishView
-from .ops.base import INT64_MAX, INT64_MIN, json_type_name
-from .shortcuts import enabled
+from ..errors import RemoteProtocolError
+from ..names import name_problem
+from ..ops import OP_MODELS, OpModel, PublishFrame, PublishView
+from ..ops.base import INT64_MAX, INT64_MIN, json_type_name
+from ..shortcuts import enabled
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Mapping

@@ -8,8 +8,8 @@ service, a closed connection).
 
 from __future__ import annotations
 
-from .ops import ActionResult, CallService, OpModel, SendActionGoal, ServiceResponse
-from .ports import GoalStatus
+from ..ops import ActionResult, CallService, OpModel, SendActionGoal, ServiceResponse
+from ..ports import GoalStatus
 
 __all__ = ["failure_reply"]
 

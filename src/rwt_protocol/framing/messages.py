@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
-from .errors import RemoteProtocolError
-from .framing import InFrame
+from ..errors import RemoteProtocolError
+from .streams import InFrame
 
 __all__ = ["FrameKind", "MessageAssembler", "MessageTooBigError"]
 

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import TYPE_CHECKING
 
-from .errors import RemoteProtocolError
-from .names import resolve_name
-from .ops import (
+from ..errors import RemoteProtocolError
+from ..names import resolve_name
+from ..ops import (
     Advertise,
     AdvertiseAction,
     AdvertiseService,

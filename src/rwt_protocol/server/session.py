@@ -35,35 +35,35 @@ import logging
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from ..auth import AUTH_CHALLENGE_ID, new_challenge
+from ..codecs.cbor import decode_cbor
+from ..codecs.json import decode_json, decode_publish, parse_object, peek_id
+from ..errors import GraphError, LimitError, RwtError
+from ..framing.fragments import FragmentBudget, Reassembler
+from ..levels import StatusLevel
+from ..ops import OpModel, PublishView, Status
+from ..ops.base import Compression
+from ..shortcuts import enabled
 from . import gates
 from .access import AccessPolicy
-from .auth import AUTH_CHALLENGE_ID, new_challenge
 from .backpressure import SlowConsumerWatch
-from .codec import decode_json, decode_publish, parse_object, peek_id
-from .codec_cbor import decode_cbor
 from .commands import CloseCode, CloseConnection, Command
 from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
-from .errors import GraphError, LimitError, RwtError
-from .fragments import FragmentBudget, Reassembler
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .holdings import Holdings
 from .idle import IdleWatch
 from .inflate import InflateJob, TokenBucket
-from .levels import StatusLevel
 from .lifecycle import State, advance
-from .ops import OpModel, PublishView, Status
-from .ops.base import Compression
 from .outbox import Outbox, OutFrame
-from .shortcuts import enabled
 from .timers import Timer, TimerQueue
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from .auth import Authenticator
-    from .png import PendingPng
-    from .ports import ClientId, GraphPort, MessageCodec, MessageEvent
+    from ..auth import Authenticator
+    from ..codecs.png import PendingPng
+    from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .subscriptions import TopicSubscription
 
 __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]

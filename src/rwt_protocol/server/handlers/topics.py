@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..errors import GraphError
-from ..levels import StatusLevel
-from ..names import resolve_name
+from ...errors import GraphError
+from ...levels import StatusLevel
+from ...names import resolve_name
 from ..subscriptions import TopicSubscription
 
 if TYPE_CHECKING:
-    from ..ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
+    from ...ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
     from .context import HandlerContext
 
 __all__ = [

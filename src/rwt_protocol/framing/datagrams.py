@@ -8,9 +8,9 @@ size. Clients reassemble them as they do for ``fragment_size``.
 
 from __future__ import annotations
 
-from .codec import encode_json
-from .errors import ConfigError
-from .ops import Fragment
+from ..codecs.json import encode_json
+from ..errors import ConfigError
+from ..ops import Fragment
 
 __all__ = ["fragment_datagrams"]
 

@@ -34,14 +34,14 @@ import math
 from collections.abc import Mapping
 from typing import NamedTuple
 
-from .codec import encode_json, encode_publish_json
-from .codec_cbor import encode_cbor
-from .fragments import fragment_frames, fresh_id
-from .ops import ActionResult, Png, Publish, ServiceResponse, Status
-from .ops.base import Compression
+from ..codecs.cbor import encode_cbor
+from ..codecs.json import encode_json, encode_publish_json
+from ..codecs.png import encode_png
+from ..framing.fragments import fragment_frames, fresh_id
+from ..ops import ActionResult, Png, Publish, ServiceResponse, Status
+from ..ops.base import Compression
+from ..ports import GoalStatus, MessageCodec, MessageEvent
 from .outbox import OutFrame
-from .png import encode_png
-from .ports import GoalStatus, MessageCodec, MessageEvent
 
 __all__ = [
     "EncodeFailure",

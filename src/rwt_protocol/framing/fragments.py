@@ -18,9 +18,9 @@ import itertools
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from .codec import encode_json
-from .errors import ConfigError, RemoteProtocolError
-from .ops import Fragment, Png
+from ..codecs.json import encode_json
+from ..errors import ConfigError, RemoteProtocolError
+from ..ops import Fragment, Png
 
 __all__ = [
     "FRAGMENT_OVERHEAD",

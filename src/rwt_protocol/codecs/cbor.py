@@ -23,10 +23,10 @@ import io
 import sys
 from typing import TYPE_CHECKING
 
-from .codec import MAX_NESTING, check_nesting, nesting_error
-from .errors import RemoteProtocolError
-from .ops.base import json_type_name
-from .shortcuts import enabled
+from ..errors import RemoteProtocolError
+from ..ops.base import json_type_name
+from ..shortcuts import enabled
+from .json import MAX_NESTING, check_nesting, nesting_error
 
 if TYPE_CHECKING:
     import cbor2

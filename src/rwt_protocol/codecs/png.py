@@ -22,7 +22,7 @@ import math
 import warnings
 from typing import TYPE_CHECKING
 
-from .errors import RemoteProtocolError
+from ..errors import RemoteProtocolError
 
 if TYPE_CHECKING:
     from PIL.ImageFile import ImageFile

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..errors import RemoteProtocolError
-from ..levels import StatusLevel
+from ...errors import RemoteProtocolError
+from ...levels import StatusLevel
 
 if TYPE_CHECKING:
-    from ..ops import Auth, OpModel, SetLevel, Status
+    from ...ops import Auth, OpModel, SetLevel, Status
     from .context import HandlerContext
 
 __all__ = ["auth", "not_supported", "set_level", "status"]

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .png import PendingPng
+    from ..codecs.png import PendingPng
 
 __all__ = ["InflateJob", "TokenBucket"]
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from enum import Enum
 
-from .errors import LocalProtocolError
+from ..errors import LocalProtocolError
 
 __all__ = ["TRANSITIONS", "State", "advance"]
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..errors import GraphError, RwtError
-from ..levels import StatusLevel
-from ..names import resolve_name
-from ..ops import (
+from ...errors import GraphError, RwtError
+from ...levels import StatusLevel
+from ...names import resolve_name
+from ...ops import (
     ActionFeedback,
     ActionResult,
     AdvertiseAction,
@@ -15,7 +15,7 @@ from ..ops import (
     SendActionGoal,
     UnadvertiseAction,
 )
-from ..ports import GoalStatus
+from ...ports import GoalStatus
 from .topics import report_type_warning
 
 if TYPE_CHECKING:

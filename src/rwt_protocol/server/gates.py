@@ -18,11 +18,11 @@ import hmac
 import logging
 from typing import TYPE_CHECKING
 
+from ..errors import RemoteProtocolError
+from ..levels import StatusLevel
+from ..ops import Auth, OpModel, PublishView
+from ..ratelog import EpisodeLog
 from .access import AccessDeniedError
-from .errors import RemoteProtocolError
-from .levels import StatusLevel
-from .ops import Auth, OpModel, PublishView
-from .ratelog import EpisodeLog
 from .replies import failure_reply
 
 if TYPE_CHECKING:

@@ -29,12 +29,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from .ops.base import Compression
+from ..ops.base import Compression
 from .timers import Timer
 
 if TYPE_CHECKING:
-    from .ops import Subscribe
-    from .ports import MessageEvent
+    from ..ops import Subscribe
+    from ..ports import MessageEvent
 
 __all__ = ["MergedParams", "TopicSubscription", "merge"]
 

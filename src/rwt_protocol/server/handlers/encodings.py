@@ -12,12 +12,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..errors import RemoteProtocolError
-from ..fragments import PartKind
-from ..png import read_png
+from ...codecs.png import read_png
+from ...errors import RemoteProtocolError
+from ...framing.fragments import PartKind
 
 if TYPE_CHECKING:
-    from ..ops import Fragment, Png
+    from ...ops import Fragment, Png
     from .context import HandlerContext
 
 __all__ = ["fragment", "png"]
