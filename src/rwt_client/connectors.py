@@ -343,7 +343,7 @@ class _LineStreamConnection:
         return self._frames.popleft()
 
     def _take(self, events: list[FramerEvent]) -> None:
-        # The server's own framer (rwt_protocol.framing) also reads CBOR items,
+        # The server's own framer (rwt_protocol.framing.streams) also reads CBOR items,
         # which a TCP server sends for CBOR subscriptions (D22).
         for event in events:
             if isinstance(event, InFrame):

@@ -1,4 +1,20 @@
-"""Sans-IO core of the rosbridge v2 protocol: op models, codecs and the session.
+"""Sans-IO core of the rosbridge v2 protocol: op models, codecs, framing and both roles.
 
-Imports nothing from ``rwt_graph`` or ``rwt_transports`` and does no I/O.
+Imports nothing from ``rwt_graph`` or ``rwt_transports`` and does no I/O. Its parts,
+each a layer that imports only the layers below it (import-linter checks it,
+pyproject.toml); each subpackage's docstring lists its modules:
+
+- ``server``: the server role: one connection's session (``server.session.Session``),
+  its op handlers, and everything the session holds and decides.
+- ``client``: the client role, ``client.ClientSession`` (rwt_client runs it). The
+  two roles never import each other.
+- ``framing``: cutting and joining: byte streams into frames, WebSocket frames into
+  messages, large messages into ``fragment`` ops and back, messages into datagrams.
+- ``codecs``: one op as JSON, CBOR or PNG. Beside them, ``auth``: the rosauth MAC,
+  which the client computes and the server checks.
+- ``ops``: one pydantic model per op.
+- The vocabulary every part shares: ``errors`` (the error tree), ``levels``
+  (status levels), ``names`` (ROS names), ``ports`` (the session's interface to a
+  graph, which ``rwt_graph`` implements), ``shortcuts`` (the fast paths' switch),
+  ``ratelog`` (log lines a peer can trigger).
 """

@@ -226,7 +226,7 @@ def decode_cbor(frame: bytes, *, typed_arrays: bool = False) -> object:
 
     Raises:
         RemoteProtocolError: not CBOR, trailing bytes, nested deeper than
-            ``codec.MAX_NESTING`` (``nesting deeper than N``), a bignum wider
+            ``codecs.json.MAX_NESTING`` (``nesting deeper than N``), a bignum wider
             than 64 bits, or an unsupported tag. Text strings are strict UTF-8
             (cbor2), so a lone surrogate is refused too.
     """

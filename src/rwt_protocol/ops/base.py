@@ -125,7 +125,7 @@ class OpModel(BaseModel):
     """Base of every op model: strict, frozen, unknown fields ignored.
 
     The model is the op's one definition, for both directions and both roles:
-    what a peer sends is validated by it (``codec.parse_object``), what rwt
+    what a peer sends is validated by it (``codecs.json.parse_object``), what rwt
     sends is built by ``frame`` from its field list, and the msgspec decoder of
     the publish hot path is generated from it (``ops.wire``).
 

@@ -8,7 +8,7 @@ so the two cannot drift; tests/protocol/test_wire_twins.py checks they agree
 on every field of every op, and that both accept and refuse the same frames.
 
 What the twin does not check (ROS name rules, the 64-bit range of integers,
-nesting depth) is checked by its caller (``codec.decode_publish``); a frame the
+nesting depth) is checked by its caller (``codecs.json.decode_publish``); a frame the
 twin refuses takes the general path, which explains what is wrong.
 """
 

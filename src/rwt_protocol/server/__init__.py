@@ -1,1 +1,17 @@
-"""server."""
+"""The server role of the protocol: one connection's session and everything it holds.
+
+``session.Session`` is the state machine a transport drives (frames and timer
+ticks in, frames and commands out). Around it, one module a job:
+
+- ``handlers``: one handler per op, over ``handlers.HandlerContext`` (the session
+  as handlers see it);
+- ``lifecycle`` (its states), ``holdings`` (what it holds in the graph),
+  ``subscriptions`` (one topic's merged subscriptions);
+- ``gates`` (authentication, then ``access`` rules, before each handler) and
+  ``replies`` (what a refused request gets besides its status);
+- ``encoding`` (topic messages and replies in each subscriber's encoding),
+  ``outbox`` (the bounded queue of outgoing frames), ``backpressure`` (slow
+  consumers), ``inflate`` (the png inflation budget);
+- ``timers``, ``idle`` (closing silent connections), ``commands`` (what the
+  session asks its transport to do).
+"""
