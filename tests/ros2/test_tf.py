@@ -2,10 +2,11 @@
 
 Real rclpy nodes, each in its own process, broadcast as tf2 does: ``/tf_static``
 transient local (published before ``rwt serve --ros2`` even starts) and ``/tf``
-volatile. roslibpy's ``TFClient`` (``/republish_tfs``) asks for frames in two fixed
-frames. rclpy carries ``tf2_msgs/msg/TFMessage`` only with its generated package,
-which PyPI lacks for Kilted: the module builds it first (tf2_msgs_build, once, then
-cached) and skips where it cannot (no C compiler).
+volatile. The TF clients of roslibpy (``/republish_tfs``) and roslib in Node
+(``ROS2TFClient``: the action; ``TFClient``: actionlib topics, as ros3djs) ask for
+frames in two fixed frames. rclpy carries ``tf2_msgs/msg/TFMessage`` only with its
+generated package, which PyPI lacks for Kilted: the module builds it first
+(tf2_msgs_build, once, then cached) and skips where it cannot (no C compiler).
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.integration.client_harness import ServerProcess, node_missing_reason
+from tests.transports.realclients import run_node, run_python
 
 from . import tf2_msgs_build
 from .support import Peer, roslibpy_prelude, skip_without_rclpy
@@ -66,7 +67,41 @@ def tf_env(ros_env: Path) -> Iterator[Path]:
         yield ros_env
 
 
-TF_CLIENTS = """
+@pytest.fixture(scope="module")
+def robot(tf_env: Path) -> Iterator[ServerProcess]:
+    """A static broadcaster, then `rwt serve --ros2` (TF republisher on), then /tf's."""
+    # /tf_static's one message is older than the server: only durability brings it
+    with Peer("tf_static", "/tf_static", tf_env, "static_broadcaster"):
+        server = ServerProcess(tf_env, ("--ros2",))
+        try:
+            with Peer("tf", "/tf", tf_env, "broadcaster"):
+                yield server
+        finally:
+            server.stop()
+
+
+def _close(got: dict[str, float], want: dict[str, float]) -> bool:
+    return all(math.isclose(got[k], want[k], abs_tol=1e-9) for k in want)
+
+
+def check_static(sent: list[dict]) -> None:
+    """camera in base_link: the static link alone, sent once (it never moves)."""
+    [camera] = sent
+    assert _close(camera["translation"], {"x": 0.1, "y": 0.0, "z": 0.3}), camera
+    assert _close(camera["rotation"], STILL), camera
+
+
+def check_composed(sent: list[dict]) -> None:
+    """camera in odom: both links composed, sent only past the 1.5 cm threshold."""
+    # the camera's 0.1 m along base_link's x is odom's y after base_link's quarter turn
+    assert all(_close(t["translation"], {"y": 0.1, "z": 0.3}) for t in sent), sent
+    assert all(_close(t["rotation"], QUARTER) for t in sent), sent
+    xs = [t["translation"]["x"] for t in sent]
+    # 1 cm steps: each value sent is at least two steps past the last
+    assert len(xs) >= 3 and all(b - a > 0.015 for a, b in itertools.pairwise(xs)), xs
+
+
+ROSLIBPY_CLIENTS = """
 from roslibpy.tf import TFClient
 
 got = {"camera in base_link": [], "camera in odom": [], "base_link in odom": []}
@@ -81,35 +116,48 @@ ros.terminate()
 """
 
 
-def _close(got: dict[str, float], want: dict[str, float]) -> bool:
-    return all(math.isclose(got[k], want[k], abs_tol=1e-9) for k in want)
-
-
-async def test_ros2_tf_and_tf_static_reach_a_roslibpy_tf_client(tf_env: Path) -> None:
-    # /tf_static's one message is older than the server: only durability brings it
-    with Peer("tf_static", "/tf_static", tf_env, "static_broadcaster"):
-        server = ServerProcess(tf_env, ("--ros2",))  # the TF republisher on
-        try:
-            with Peer("tf", "/tf", tf_env, "broadcaster"):
-                out = await run_python(roslibpy_prelude(server.port) + TF_CLIENTS)
-        finally:
-            server.stop()
+async def test_roslibpy_tf_client_on_ros2_tf(robot: ServerProcess) -> None:
+    out = await run_python(roslibpy_prelude(robot.port) + ROSLIBPY_CLIENTS)
     got = json.loads(out.strip().splitlines()[-1])
-
-    # the static link alone, sent once: it never moves
-    [camera] = got["camera in base_link"]
-    assert _close(camera["translation"], {"x": 0.1, "y": 0.0, "z": 0.3}), camera
-    assert _close(camera["rotation"], STILL), camera
-
-    # the moving link: base_link slides along x, turned a quarter about z
-    base = got["base_link in odom"]
+    check_static(got["camera in base_link"])
+    check_composed(got["camera in odom"])
+    base = got["base_link in odom"]  # the moving link alone
     assert all(_close(t["rotation"], QUARTER) for t in base), base
     assert all(_close(t["translation"], {"y": 0.0, "z": 0.0}) for t in base), base
 
-    # both links composed: the camera's 0.1 m along base_link's x is odom's y after the turn
-    seen = got["camera in odom"]
-    assert all(_close(t["translation"], {"y": 0.1, "z": 0.3}) for t in seen), seen
-    assert all(_close(t["rotation"], QUARTER) for t in seen), seen
-    xs = [t["translation"]["x"] for t in seen]
-    # 1 cm steps: each value sent is at least two steps past the last (threshold 1.5 cm)
-    assert all(b - a > 0.015 for a, b in itertools.pairwise(xs)), xs
+
+ROSLIB_CLIENTS = """
+import * as ROSLIB from "roslib";
+const ros = new ROSLIB.Ros({ url: "ws://127.0.0.1:PORT" });
+const got = {};
+const options = { ros, angularThres: 0.01, rate: 10 };
+function watch(name, Client, fixedFrame, transThres) {
+  got[name] = [];
+  new Client({ ...options, fixedFrame, transThres }).subscribe("camera", (t) => {
+    got[name].push({ translation: { ...t.translation }, rotation: { ...t.rotation } });
+  });
+}
+watch("action, in base_link", ROSLIB.ROS2TFClient, "base_link", 0.01);
+watch("action, in odom", ROSLIB.ROS2TFClient, "odom", 0.015);
+watch("topics, in base_link", ROSLIB.TFClient, "base_link", 0.01);
+watch("topics, in odom", ROSLIB.TFClient, "odom", 0.015);
+const report = (code) => { console.log(JSON.stringify(got)); process.exit(code); };
+const timer = setTimeout(() => report(1), 20000);
+setInterval(() => {
+  if (Object.values(got).every((sent) => sent.length >= 3 || sent.length === 1)
+      && got["action, in odom"].length >= 3 && got["topics, in odom"].length >= 3) {
+    clearTimeout(timer);
+    report(0);
+  }
+}, 50);
+"""
+
+
+@pytest.mark.node
+@pytest.mark.skipif(node_missing_reason() is not None, reason=str(node_missing_reason()))
+async def test_roslib_tf_clients_on_ros2_tf(robot: ServerProcess) -> None:
+    out = await run_node(ROSLIB_CLIENTS.replace("PORT", str(robot.port)))
+    got = json.loads(out.strip().splitlines()[-1])
+    for way in ("action", "topics"):
+        check_static(got[f"{way}, in base_link"])
+        check_composed(got[f"{way}, in odom"])
