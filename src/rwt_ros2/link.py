@@ -488,8 +488,7 @@ class Ros2Link:
         qos = self._qos_for(name)
         handoff = self.handoff
         created: list[Any] = []  # the rclpy subscription, once made (batch take)
-
-        latched = qos.transient_local
+        latched = qos.transient_local  # only transient-local publishers match it
 
         def hand_over(data: bytes, info: dict[str, Any]) -> None:
             gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
