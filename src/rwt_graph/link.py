@@ -54,6 +54,7 @@ __all__ = [
     "LATCHED_DEPTH",
     "NULL_SINK",
     "PRIVATE_NAMES",
+    "RELAY_WAIT_SWEEPS",
     "GraphLink",
     "Kind",
     "LinkRules",
@@ -211,17 +212,23 @@ def mirror_endpoint(
 #: (``Relays``); past it the oldest is forgotten (GIDs come from the network).
 HELD_SOURCES = 8
 
+RELAY_WAIT_SWEEPS = 10
+"""Sweeps a relay stays, once a publisher of its topic is known, for the publisher
+of a sample it holds that is not known yet (counted from its last sample): the
+publishers of a topic need not all be discovered at the same sweep."""
+
 
 @dataclass(eq=False)
 class _Relay:
     """A topic's relay and what it relayed from publishers not yet known.
 
     ``held``: source GID -> (the last sample relayed from it, the topic's
-    latched message right after that sample).
+    latched message right after that sample); ``idle``: sweeps since its last sample.
     """
 
     client: ClientId
     held: dict[bytes, tuple[MessageEvent, MessageEvent | None]] = field(default_factory=dict)
+    idle: int = 0
 
 
 class Relays:
@@ -297,6 +304,7 @@ class Relays:
             )
             relay = self._relays[entry.name] = _Relay(client)
         event = port.publish_local(relay.client, entry.name, msg, latch=latched)
+        relay.idle = 0
         if source is not None:
             held = relay.held
             held.pop(source, None)
@@ -308,19 +316,33 @@ class Relays:
         """Release each relay no longer needed, handing its latched sample over.
 
         A relay goes when its topic is gone, is not in ``subscribed`` (the topics
-        the link receives) or has a publisher of the link's that is known now.
+        the link receives) or has a publisher of the link's that is known now;
+        in the last case not while the publisher of a sample that could still
+        be latched is unknown, for up to ``RELAY_WAIT_SWEEPS`` sweeps.
         """
         graph = self._graph
         for topic, relay in list(self._relays.items()):
             entry = graph.topics.get(topic)
-            known = entry is not None and any(
-                self._rules.ours(client) and client != relay.client for client in entry.publishers
-            )
-            if entry is None or known or topic not in subscribed:
-                del self._relays[topic]
-                if entry is not None:
-                    self._hand_over(entry, relay)
-                graph.port.release(relay.client)
+            if entry is not None and topic in subscribed:
+                if not any(
+                    self._rules.ours(client) and client != relay.client
+                    for client in entry.publishers
+                ):
+                    continue  # no publisher known yet
+                relay.idle += 1
+                if relay.idle <= RELAY_WAIT_SWEEPS and self._awaits(entry, relay):
+                    continue
+            del self._relays[topic]
+            if entry is not None:
+                self._hand_over(entry, relay)
+            graph.port.release(relay.client)
+
+    def _awaits(self, entry: Topic, relay: _Relay) -> bool:
+        """Whether ``relay`` holds a sample that could still be latched, of an unknown publisher."""
+        return any(
+            entry.latched is after and self._publisher_of(source) is None
+            for source, (_, after) in relay.held.items()
+        )
 
     def _hand_over(self, entry: Topic, relay: _Relay) -> None:
         """Make the newest sample ``relay`` relayed from a known latching publisher its latched one.

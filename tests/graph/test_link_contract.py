@@ -8,6 +8,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.link import (
     NULL_SINK,
     PRIVATE_NAMES,
+    RELAY_WAIT_SWEEPS,
     Kind,
     LinkRules,
     Relays,
@@ -312,7 +313,7 @@ def test_a_sample_before_its_publisher_is_known_comes_through_a_relay() -> None:
     linked = _Linked()
     graph, relays, entry = linked.graph, linked.relays, linked.entry
     relays.deliver(entry, None, {"data": "early"})
-    relays.deliver(entry, b"unknown", {"data": "unknown"})  # not a publisher here (yet)
+    relays.deliver(entry, b"pub", {"data": "unknown"})  # not a publisher here (yet)
     assert linked.heard == ["early", "unknown"]
     assert graph.nodes.clients_of("/the_link") == {"link:relay:/chatter"}
     linked.discover(b"pub", "link:pub", latched=False)
@@ -392,6 +393,31 @@ def test_the_last_latched_sample_wins_the_hand_over() -> None:
     assert linked.heard == ["first", "passing", "early", "newer"]
 
 
+def test_a_relay_waits_a_while_for_the_publishers_it_relayed_for() -> None:
+    # /tf_static: one broadcaster known, a second one's sample came first
+    linked = _Linked()
+    relays, entry = linked.relays, linked.entry
+    linked.discover(b"first", "link:first", latched=True)
+    relays.deliver(entry, b"first", {"data": "first"})
+    relays.deliver(entry, b"second", {"data": "second"}, latched=True)
+    relays.sweep({"/chatter"})  # the second is not known yet: the relay stays
+    assert linked.late_subscriber() == ["second"]
+    linked.discover(b"second", "link:second", latched=True)
+    relays.sweep({"/chatter"})
+    assert set(entry.publishers) == {"link:first", "link:second"}
+    assert linked.late_subscriber() == ["second"]
+    linked.graph.port.release("link:second")
+    assert linked.late_subscriber() == []
+    # a publisher never known: the relay and its sample go after RELAY_WAIT_SWEEPS
+    relays.deliver(entry, b"ghost", {"data": "ghost"}, latched=True)
+    for _ in range(RELAY_WAIT_SWEEPS):
+        relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == ["ghost"]
+    relays.sweep({"/chatter"})
+    assert set(entry.publishers) == {"link:first"}
+    assert linked.late_subscriber() == []
+
+
 def test_a_relay_holds_a_bounded_number_of_unknown_publishers(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -400,11 +426,14 @@ def test_a_relay_holds_a_bounded_number_of_unknown_publishers(
     for name in (b"a", b"b", b"c"):
         linked.relays.deliver(linked.entry, name, {"data": name.decode()})
     linked.discover(b"a", "link:a", latched=True)  # forgotten: the oldest past 2
+    linked.discover(b"b", "link:b", latched=False)
+    linked.discover(b"c", "link:c", latched=False)
     linked.relays.sweep({"/chatter"})
     assert linked.late_subscriber() == []
     linked.relays.deliver(linked.entry, b"d", {"data": "d"})
     linked.relays.deliver(linked.entry, b"e", {"data": "e"})
     linked.discover(b"d", "link:d", latched=True)  # held: handed over
+    linked.discover(b"e", "link:e", latched=False)
     linked.relays.sweep({"/chatter"})
     assert linked.late_subscriber() == ["d"]
 
