@@ -208,9 +208,9 @@ def mirror_endpoint(
         raise
 
 
-#: Unknown publishers of a topic whose last sample its relay keeps for the hand-over
-#: (``Relays``); past it the oldest is forgotten (GIDs come from the network).
 HELD_SOURCES = 8
+"""Unknown publishers of a topic whose last sample its relay keeps for the hand-over
+(``Relays``); past it the oldest is forgotten (GIDs come from the network)."""
 
 RELAY_WAIT_SWEEPS = 10
 """Sweeps a relay stays, once a publisher of its topic is known, for the publisher
