@@ -7,7 +7,8 @@ The node is NODE, else ``peer_MODE`` (``params`` names it NAME).
 Modes (each prints ``ready`` once its entities exist, then JSON lines):
   talk TOPIC            std_msgs/String "n" every 50 ms, forever
   listen TOPIC          prints {"heard": data} for each std_msgs/String
-  latched TOPIC         one transient-local std_msgs/String "latched", then idles
+  latched TOPIC [NODE]  one transient-local std_msgs/String "latched" ("latched by NODE"
+                        when named), then idles
   image TOPIC           sensor_msgs/Image 8x4 rgb8 (a red left half) every 50 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
@@ -91,7 +92,8 @@ def main() -> None:
             durability=DurabilityPolicy.TRANSIENT_LOCAL,
             reliability=ReliabilityPolicy.RELIABLE,
         )
-        node.create_publisher(String, name, qos).publish(String(data="latched"))
+        data = f"latched by {sys.argv[3]}" if named else "latched"
+        node.create_publisher(String, name, qos).publish(String(data=data))
     elif mode == "joints":
         pub = node.create_publisher(JointState, name, 10)
         tick = lambda: pub.publish(JointState(name=["a"], position=[1.5]))  # noqa: E731
