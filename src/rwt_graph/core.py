@@ -471,14 +471,23 @@ class GraphCore:
 
     # ---- in-process participants and internals ----------------------------------
 
-    def publish_local(self, client: ClientId, topic: str, msg: Message, *, latch: bool) -> None:
-        """Deliver an already-converted message from an in-process publisher."""
+    def publish_local(
+        self, client: ClientId, topic: str, msg: Message, *, latch: bool
+    ) -> MessageEvent:
+        """Deliver an already-converted message from an in-process publisher.
+
+        Returns:
+            the event its subscribers got.
+
+        Raises:
+            GraphError: ``client`` does not publish ``topic`` (any more).
+        """
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        self._send(entry, msg, latch=latch, client=client)
+        return self._send(entry, msg, latch=latch, client=client)
 
-    def _send(self, entry: Topic, msg: Message, *, latch: bool, client: ClientId) -> None:
+    def _send(self, entry: Topic, msg: Message, *, latch: bool, client: ClientId) -> MessageEvent:
         event = MessageEvent(
             entry.name,
             entry.msgtype.name,
@@ -499,6 +508,7 @@ class GraphCore:
                     entry.name,
                     exc_info=True,
                 )
+        return event
 
     def _topic(self, topic: str, msgtype: MessageType) -> Topic:
         name = resolve_name(topic)

@@ -23,7 +23,9 @@ same rules, written here once:
   (``mirror_endpoint``).
 - **Samples.** A sample from the other middleware is published in the graph by
   its publisher's participant; one that outran the discovery of its publisher
-  by the topic's relay until the publisher is known (``Relays``).
+  by the topic's relay until the publisher is known (``Relays``), latched as
+  the link knows its durability, and handed over to its publisher once known,
+  so a late subscriber gets a latched sample whichever came first.
 - **Cleanup.** A remote entity that goes is released (``GraphCore.release``):
   its services fail their callers (D15), its latched message goes (D13). When
   the link stops, it releases every remote entity it mirrored.
@@ -32,12 +34,13 @@ same rules, written here once:
 from __future__ import annotations
 
 import enum
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
 from rwt_protocol.errors import RwtError
 
 if TYPE_CHECKING:
-    from collections.abc import Container
+    from collections.abc import Callable, Container
 
     from rwt_protocol.ports import ClientId, MessageEvent
 
@@ -47,9 +50,11 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_DEPTH",
+    "HELD_SOURCES",
     "LATCHED_DEPTH",
     "NULL_SINK",
     "PRIVATE_NAMES",
+    "RELAY_WAIT_SWEEPS",
     "GraphLink",
     "Kind",
     "LinkRules",
@@ -203,6 +208,29 @@ def mirror_endpoint(
         raise
 
 
+HELD_SOURCES = 8
+"""Unknown publishers of a topic whose last sample its relay keeps for the hand-over
+(``Relays``); past it the oldest is forgotten (GIDs come from the network)."""
+
+RELAY_WAIT_SWEEPS = 10
+"""Sweeps a relay stays, once a publisher of its topic is known, for the publisher
+of a sample it holds that is not known yet (counted from its last sample): the
+publishers of a topic need not all be discovered at the same sweep."""
+
+
+@dataclass(eq=False)
+class _Relay:
+    """A topic's relay and what it relayed from publishers not yet known.
+
+    ``held``: source GID -> (the last sample relayed from it, the topic's
+    latched message right after that sample); ``idle``: sweeps since its last sample.
+    """
+
+    client: ClientId
+    held: dict[bytes, tuple[MessageEvent, MessageEvent | None]] = field(default_factory=dict)
+    idle: int = 0
+
+
 class Relays:
     """Stand-in publishers of samples that outran their publisher's discovery.
 
@@ -212,63 +240,128 @@ class Relays:
     relay goes once its topic's publishers are known, the topic is gone or the
     link no longer subscribes to it (``sweep``), and when the link stops (``close``).
 
+    Durability (D13): a sample the link knows to be transient local (it came on
+    a transient-local subscription, which only transient-local publishers
+    match) is latched by the relay at once, so a subscriber that comes before
+    the publisher is known gets it. When the relay goes because its publisher
+    is known, the last sample it relayed from a publisher that latches becomes
+    that publisher's latched message (``Topic.keep``, not delivered again),
+    unless a later latched message took its place; so a latched sample that
+    came early is not lost to late subscribers, whatever the link knew of it.
+
     Args:
         graph: the linked graph.
         rules: the link's rules (its participant prefix).
         node: the node rosapi lists the relays in (the link's own).
+        publisher_of: the participant the link mirrors for the publisher with
+            this GID, or None while the link does not know it.
     """
 
-    def __init__(self, graph: Graph, rules: LinkRules, node: str) -> None:
+    def __init__(
+        self,
+        graph: Graph,
+        rules: LinkRules,
+        node: str,
+        publisher_of: Callable[[bytes], ClientId | None],
+    ) -> None:
         self._graph = graph
         self._rules = rules
         self._node = node
-        self._relays: dict[str, ClientId] = {}
+        self._publisher_of = publisher_of
+        self._relays: dict[str, _Relay] = {}
 
-    def deliver(self, entry: Topic, publisher: ClientId | None, msg: dict[str, object]) -> None:
+    def deliver(
+        self,
+        entry: Topic,
+        source: bytes | None,
+        msg: dict[str, object],
+        *,
+        latched: bool = False,
+    ) -> None:
         """Publish ``msg``, a decoded sample of ``entry``'s topic, in the graph.
 
-        By ``publisher``'s participant when the link mirrors it as a publisher of
-        the topic (latched as it advertised), otherwise by the topic's relay.
+        By the participant of ``source`` (its publisher's GID) when the link
+        mirrors it as a publisher of the topic (latched as it advertised),
+        otherwise by the topic's relay, latched when ``latched`` (the link knows
+        the sample is transient local).
 
         Raises:
             RwtError: the topic is reserved by the server, so no relay may
                 publish there (``GraphError``); the sample is not the network's.
         """
         port = self._graph.port
+        publisher = None if source is None else self._publisher_of(source)
         if publisher is not None:
-            latched = entry.publishers.get(publisher)
-            if latched is not None:
-                port.publish_local(publisher, entry.name, msg, latch=latched)
+            latches = entry.publishers.get(publisher)
+            if latches is not None:
+                port.publish_local(publisher, entry.name, msg, latch=latches)
                 return
         relay = self._relays.get(entry.name)
         if relay is None:
-            relay = f"{self._rules.prefix}relay:{entry.name}"
+            client = f"{self._rules.prefix}relay:{entry.name}"
             mirror_endpoint(
-                self._graph, relay, self._node, Kind.PUBLISHER, entry.name, entry.msgtype.name
+                self._graph, client, self._node, Kind.PUBLISHER, entry.name, entry.msgtype.name
             )
-            self._relays[entry.name] = relay
-        port.publish_local(relay, entry.name, msg, latch=False)
+            relay = self._relays[entry.name] = _Relay(client)
+        event = port.publish_local(relay.client, entry.name, msg, latch=latched)
+        relay.idle = 0
+        if source is not None:
+            held = relay.held
+            held.pop(source, None)
+            if len(held) >= HELD_SOURCES:
+                del held[next(iter(held))]
+            held[source] = (event, entry.latched)
 
     def sweep(self, subscribed: Container[str]) -> None:
-        """Release each relay no longer needed.
+        """Release each relay no longer needed, handing its latched sample over.
 
         A relay goes when its topic is gone, is not in ``subscribed`` (the topics
-        the link receives) or has a publisher of the link's that is known now.
+        the link receives) or has a publisher of the link's that is known now;
+        in the last case not while the publisher of a sample that could still
+        be latched is unknown, for up to ``RELAY_WAIT_SWEEPS`` sweeps.
         """
         graph = self._graph
         for topic, relay in list(self._relays.items()):
             entry = graph.topics.get(topic)
-            known = entry is not None and any(
-                self._rules.ours(client) and client != relay for client in entry.publishers
-            )
-            if entry is None or known or topic not in subscribed:
-                del self._relays[topic]
-                graph.port.release(relay)
+            if entry is not None and topic in subscribed:
+                if not any(
+                    self._rules.ours(client) and client != relay.client
+                    for client in entry.publishers
+                ):
+                    continue  # no publisher known yet
+                relay.idle += 1
+                if relay.idle <= RELAY_WAIT_SWEEPS and self._awaits(entry, relay):
+                    continue
+            del self._relays[topic]
+            if entry is not None:
+                self._hand_over(entry, relay)
+            graph.port.release(relay.client)
+
+    def _awaits(self, entry: Topic, relay: _Relay) -> bool:
+        """Whether ``relay`` holds a sample that could still be latched, of an unknown publisher."""
+        return any(
+            entry.latched is after and self._publisher_of(source) is None
+            for source, (_, after) in relay.held.items()
+        )
+
+    def _hand_over(self, entry: Topic, relay: _Relay) -> None:
+        """Make the newest sample ``relay`` relayed from a known latching publisher its latched one.
+
+        Only while no later latched message has taken its place (the topic's
+        latched message is still the one that followed the sample).
+        """
+        for source, (event, after) in reversed(relay.held.items()):
+            if entry.latched is not after:
+                continue  # another latched message came after it
+            publisher = self._publisher_of(source)
+            if publisher is not None and entry.publishers.get(publisher):
+                entry.keep(event, publisher)
+                return
 
     def close(self) -> None:
         """Release every relay (the link stops)."""
         for relay in self._relays.values():
-            self._graph.port.release(relay)
+            self._graph.port.release(relay.client)
         self._relays.clear()
 
 

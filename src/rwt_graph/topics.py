@@ -69,6 +69,15 @@ class Topic:
             self.latched = None
             self.latched_by = None
 
+    def keep(self, event: MessageEvent, client: ClientId | None) -> None:
+        """Keep ``event`` as the latched message, ``client``'s, without delivering it (D13).
+
+        A link hands a relayed sample over this way once its publisher is known
+        (``rwt_graph.link.Relays``): the subscribers had it already.
+        """
+        self.latched = event
+        self.latched_by = client
+
     def check_type(self, msgtype: MessageType) -> None:
         """Refuse a participant that names another type (spec 3.3.1).
 
@@ -83,8 +92,7 @@ class Topic:
     def fan_out(self, event: MessageEvent, *, latch: bool, client: ClientId | None = None) -> None:
         """Deliver ``event`` to every subscriber; keep it if latched (from ``client``)."""
         if latch:
-            self.latched = event
-            self.latched_by = client
+            self.keep(event, client)
         for subscriber, sink in list(self.subscribers.items()):
             try:
                 sink.on_message(event)

@@ -189,7 +189,7 @@ class Ros2Link:
         self._servers: dict[str, _Server] = {}
         self._action_servers: dict[str, _Server] = {}
         self._param_servers: dict[str, list[Any]] = {}  # node -> its 3 rclpy services
-        self._relays = Relays(graph, self.rules, ros.fqn)
+        self._relays = Relays(graph, self.rules, ros.fqn, self._publisher_of)
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
@@ -408,8 +408,18 @@ class Ros2Link:
         if mirror.provider is not None:
             mirror.provider.close()
 
-    def _on_sample(self, topic: str, type_name: str, data: bytes, gid: bytes) -> None:
-        """Publish a ROS 2 sample in the graph, by its publisher's participant."""
+    def _publisher_of(self, gid: bytes) -> ClientId | None:
+        """The participant of the ROS 2 publisher with ``gid``, once mirrored (``Relays``)."""
+        return self._by_gid.get(gid)
+
+    def _on_sample(
+        self, topic: str, type_name: str, data: bytes, gid: bytes, transient_local: bool
+    ) -> None:
+        """Publish a ROS 2 sample in the graph, by its publisher's participant.
+
+        ``transient_local``: the subscription it came on is, so its publisher is
+        too (a transient-local reader matches no volatile writer): a relay latches it.
+        """
         if gid in self._own_gids or gid in self._mismatched:
             return  # the link's own publisher (it came from the graph), or a foreign definition
         entry = self.graph.topics.get(topic)
@@ -427,7 +437,7 @@ class Ros2Link:
             )
             return
         try:  # by its publisher's participant, or a relay until discovery finds it
-            self._relays.deliver(entry, self._by_gid.get(gid), msg)
+            self._relays.deliver(entry, gid or None, msg, latched=transient_local)
         except RwtError as exc:  # a topic reserved by the server: not ROS 2's
             self.episodes.log(
                 logging.WARNING,
@@ -478,10 +488,13 @@ class Ros2Link:
         qos = self._qos_for(name)
         handoff = self.handoff
         created: list[Any] = []  # the rclpy subscription, once made (batch take)
+        latched = qos.transient_local  # only transient-local publishers match it
 
         def hand_over(data: bytes, info: dict[str, Any]) -> None:
             gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
-            handoff.put(self._on_sample, name, type_name, data, gid, size=len(data), topic=name)
+            handoff.put(
+                self._on_sample, name, type_name, data, gid, latched, size=len(data), topic=name
+            )
 
         def on_sample(data: bytes, info: dict[str, Any]) -> None:  # the executor's thread
             hand_over(data, info)

@@ -234,7 +234,7 @@ class ZenohLink:
         # services shadowed by another provider, tried again each sweep (a set, not a
         # flag walked over every remote entity per sweep)
         self._waiting: set[_Remote] = set()
-        self._relays = Relays(graph, self.rules, LINK_NODE)
+        self._relays = Relays(graph, self.rules, LINK_NODE, self._publisher_of)
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         # A ROS 2 service keeps requests by client GID and sequence number, and refuses
         # a second request with both equal (rmw_service_data.cpp ``take_request``):
@@ -882,6 +882,11 @@ class ZenohLink:
             self.graph.port.release(remote.client)  # its services fail their callers (D15)
             remote.mirrored = False
 
+    def _publisher_of(self, gid: bytes) -> ClientId | None:
+        """The participant of the remote publisher with ``gid``, once its token came."""
+        remote = self._by_gid.get(gid)
+        return None if remote is None else remote.client
+
     def _on_sample(
         self, topic: str, type_name: str, payload: bytes, attachment: bytes | None
     ) -> None:
@@ -901,9 +906,10 @@ class ZenohLink:
                 str(exc),
             )
             return
-        remote = None if source is None else self._by_gid.get(source)
         try:  # by its publisher's participant, or a relay until its token comes
-            self._relays.deliver(entry, remote.client if remote is not None else None, msg)
+            # a sample tells nothing of its publisher's durability: the relay hands
+            # it over as latched once the token says the publisher is transient local
+            self._relays.deliver(entry, source, msg)
         except RwtError as exc:  # a topic reserved by the server: not the network's
             self.peer_log.log(
                 logging.WARNING,

@@ -8,6 +8,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.link import (
     NULL_SINK,
     PRIVATE_NAMES,
+    RELAY_WAIT_SWEEPS,
     Kind,
     LinkRules,
     Relays,
@@ -257,12 +258,39 @@ def test_huge_parameter_requests_are_refused_whole() -> None:
     assert not graph.params.has("/robot:b")
 
 
+class _Linked:
+    """A graph with a local subscriber of /chatter and the relays of a link "link:".
+
+    ``known`` is what the link knows of remote publishers: GID -> participant.
+    """
+
+    def __init__(self) -> None:
+        self.graph = Graph()
+        self.heard: list[str] = []
+        self.graph.create_subscription(
+            "/chatter", lambda msg: self.heard.append(str(msg["data"])), STRING
+        )
+        self.known: dict[bytes, str] = {}
+        self.relays = Relays(self.graph, LinkRules("link:"), "/the_link", self.known.get)
+        self.entry = self.graph.topics["/chatter"]
+
+    def discover(self, gid: bytes, client: str, *, latched: bool) -> None:
+        """The link learns of the remote publisher ``gid`` and mirrors it."""
+        mirror_endpoint(
+            self.graph, client, "/talker", Kind.PUBLISHER, "/chatter", STRING, latched=latched
+        )
+        self.known[gid] = client
+
+    def late_subscriber(self) -> list[str]:
+        """What a subscriber that comes now gets at once (the latched message, if any)."""
+        got: list[str] = []
+        self.graph.create_subscription("/chatter", lambda msg: got.append(str(msg["data"])), STRING)
+        return got
+
+
 def _linked_graph() -> tuple[Graph, Relays, list[str]]:
-    """A graph with a local subscriber of /chatter and the relays of a link "link:"."""
-    graph = Graph()
-    heard: list[str] = []
-    graph.create_subscription("/chatter", lambda msg: heard.append(str(msg["data"])), STRING)
-    return graph, Relays(graph, LinkRules("link:"), "/the_link"), heard
+    linked = _Linked()
+    return linked.graph, linked.relays, linked.heard
 
 
 def test_remote_endpoints_join_the_graph_in_their_node() -> None:
@@ -282,18 +310,19 @@ def test_remote_endpoints_join_the_graph_in_their_node() -> None:
 
 
 def test_a_sample_before_its_publisher_is_known_comes_through_a_relay() -> None:
-    graph, relays, heard = _linked_graph()
-    entry = graph.topics["/chatter"]
+    linked = _Linked()
+    graph, relays, entry = linked.graph, linked.relays, linked.entry
     relays.deliver(entry, None, {"data": "early"})
-    relays.deliver(entry, "link:unknown", {"data": "unknown"})  # not a publisher here (yet)
-    assert heard == ["early", "unknown"]
+    relays.deliver(entry, b"pub", {"data": "unknown"})  # not a publisher here (yet)
+    assert linked.heard == ["early", "unknown"]
     assert graph.nodes.clients_of("/the_link") == {"link:relay:/chatter"}
-    mirror_endpoint(graph, "link:pub", "/talker", Kind.PUBLISHER, "/chatter", STRING)
-    relays.deliver(entry, "link:pub", {"data": "known"})
-    assert heard[-1] == "known"
+    linked.discover(b"pub", "link:pub", latched=False)
+    relays.deliver(entry, b"pub", {"data": "known"})
+    assert linked.heard[-1] == "known"
     relays.sweep({"/chatter"})  # its publisher is known: the relay goes
     assert set(entry.publishers) == {"link:pub"}
     assert "/the_link" not in graph.nodes.names()
+    assert linked.late_subscriber() == []  # nothing was latched
 
 
 def test_relays_go_with_their_topic_or_subscription_and_when_the_link_stops() -> None:
@@ -307,6 +336,106 @@ def test_relays_go_with_their_topic_or_subscription_and_when_the_link_stops() ->
     relays.close()
     assert "link:relay:/chatter" not in graph.topics["/chatter"].publishers
     assert "/the_link" not in graph.nodes.names()
+
+
+def test_a_sample_known_transient_local_reaches_a_subscriber_before_and_after_discovery() -> None:
+    # the link knows the sample is transient local (it came on a transient-local
+    # subscription), though not yet its publisher: /map, /tf_static
+    linked = _Linked()
+    linked.relays.deliver(linked.entry, b"map_server", {"data": "map"}, latched=True)
+    assert linked.late_subscriber() == ["map"]  # before its publisher is known
+    linked.discover(b"map_server", "link:map_server", latched=True)
+    linked.relays.sweep({"/chatter"})  # the relay goes, the sample stays
+    assert set(linked.entry.publishers) == {"link:map_server"}
+    assert linked.late_subscriber() == ["map"]
+    assert linked.heard == ["map"]  # once: the hand-over delivers nothing again
+    linked.graph.port.release("link:map_server")  # the latched sample goes with it (D13)
+    assert linked.late_subscriber() == []
+
+
+def test_a_sample_of_unknown_durability_is_latched_once_its_publisher_latches() -> None:
+    # the link could not tell (a Zenoh sample says nothing of its publisher's QoS)
+    linked = _Linked()
+    linked.relays.deliver(linked.entry, b"map_server", {"data": "map"})
+    assert linked.late_subscriber() == []  # nothing known to latch yet
+    linked.discover(b"map_server", "link:map_server", latched=True)
+    linked.relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == ["map"]
+    assert linked.heard == ["map"]
+
+
+def test_a_volatile_publishers_early_sample_is_not_latched() -> None:
+    linked = _Linked()
+    linked.relays.deliver(linked.entry, b"talker", {"data": "hello"})
+    linked.discover(b"talker", "link:talker", latched=False)
+    linked.relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == []
+    linked.relays.deliver(linked.entry, b"other", {"data": "x"}, latched=True)
+    linked.relays.sweep(set())  # the link stops receiving: the relay and its sample go
+    assert linked.late_subscriber() == []
+
+
+def test_the_last_latched_sample_wins_the_hand_over() -> None:
+    linked = _Linked()
+    relays, entry = linked.relays, linked.entry
+    relays.deliver(entry, b"first", {"data": "first"})  # latching, as discovery will tell
+    relays.deliver(entry, b"volatile", {"data": "passing"})  # a volatile one's: not kept
+    linked.discover(b"first", "link:first", latched=True)
+    linked.discover(b"volatile", "link:volatile", latched=False)
+    relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == ["first"]
+    # a latched message after the early sample takes its place
+    relays.deliver(entry, b"early", {"data": "early"})
+    linked.graph.port.publish_local("link:first", "/chatter", {"data": "newer"}, latch=True)
+    linked.discover(b"early", "link:early", latched=True)
+    relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == ["newer"]
+    assert linked.heard == ["first", "passing", "early", "newer"]
+
+
+def test_a_relay_waits_a_while_for_the_publishers_it_relayed_for() -> None:
+    # /tf_static: one broadcaster known, a second one's sample came first
+    linked = _Linked()
+    relays, entry = linked.relays, linked.entry
+    linked.discover(b"first", "link:first", latched=True)
+    relays.deliver(entry, b"first", {"data": "first"})
+    relays.deliver(entry, b"second", {"data": "second"}, latched=True)
+    relays.sweep({"/chatter"})  # the second is not known yet: the relay stays
+    assert linked.late_subscriber() == ["second"]
+    linked.discover(b"second", "link:second", latched=True)
+    relays.sweep({"/chatter"})
+    assert set(entry.publishers) == {"link:first", "link:second"}
+    assert linked.late_subscriber() == ["second"]
+    linked.graph.port.release("link:second")
+    assert linked.late_subscriber() == []
+    # a publisher never known: the relay and its sample go after RELAY_WAIT_SWEEPS
+    relays.deliver(entry, b"ghost", {"data": "ghost"}, latched=True)
+    for _ in range(RELAY_WAIT_SWEEPS):
+        relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == ["ghost"]
+    relays.sweep({"/chatter"})
+    assert set(entry.publishers) == {"link:first"}
+    assert linked.late_subscriber() == []
+
+
+def test_a_relay_holds_a_bounded_number_of_unknown_publishers(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr("rwt_graph.link.HELD_SOURCES", 2)
+    linked = _Linked()
+    for name in (b"a", b"b", b"c"):
+        linked.relays.deliver(linked.entry, name, {"data": name.decode()})
+    linked.discover(b"a", "link:a", latched=True)  # forgotten: the oldest past 2
+    linked.discover(b"b", "link:b", latched=False)
+    linked.discover(b"c", "link:c", latched=False)
+    linked.relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == []
+    linked.relays.deliver(linked.entry, b"d", {"data": "d"})
+    linked.relays.deliver(linked.entry, b"e", {"data": "e"})
+    linked.discover(b"d", "link:d", latched=True)  # held: handed over
+    linked.discover(b"e", "link:e", latched=False)
+    linked.relays.sweep({"/chatter"})
+    assert linked.late_subscriber() == ["d"]
 
 
 def test_a_relay_may_not_publish_on_a_topic_the_server_keeps() -> None:

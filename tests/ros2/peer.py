@@ -7,7 +7,8 @@ The node is NODE, else ``peer_MODE`` (``params`` names it NAME).
 Modes (each prints ``ready`` once its entities exist, then JSON lines):
   talk TOPIC            std_msgs/String "n" every 50 ms, forever
   listen TOPIC          prints {"heard": data} for each std_msgs/String
-  latched TOPIC         one transient-local std_msgs/String "latched", then idles
+  latched TOPIC [NODE]  one transient-local std_msgs/String "latched" ("latched by NODE"
+                        when named), then idles
   image TOPIC           sensor_msgs/Image 8x4 rgb8 (a red left half) every 50 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
@@ -32,6 +33,12 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         the deletion of nope (not set), and volume 7.0 with the
                         deletion of spare; prints {"atomic": [[successful, reason], ...]}
   log MESSAGE           logs MESSAGE at info level every 100 ms (to /rosout)
+  tf_static TOPIC       one tf2_msgs/TFMessage as tf2's static broadcaster sends it
+                        (transient local, depth 1): base_link -> camera at (0.1, 0, 0.3)
+  tf TOPIC              tf2_msgs/TFMessage as tf2's broadcaster (volatile, depth 100)
+                        every 50 ms: odom -> base_link at (0.01 n, 0, 0), turned 90 deg
+                        about z, stamped now
+  (the tf modes need tf2_msgs for rclpy: tests/ros2/tf2_msgs_build.py)
 Bounded: every mode exits after 60 s.
 """
 
@@ -85,7 +92,8 @@ def main() -> None:
             durability=DurabilityPolicy.TRANSIENT_LOCAL,
             reliability=ReliabilityPolicy.RELIABLE,
         )
-        node.create_publisher(String, name, qos).publish(String(data="latched"))
+        data = f"latched by {sys.argv[3]}" if named else "latched"
+        node.create_publisher(String, name, qos).publish(String(data=data))
     elif mode == "joints":
         pub = node.create_publisher(JointState, name, 10)
         tick = lambda: pub.publish(JointState(name=["a"], position=[1.5]))  # noqa: E731
@@ -222,6 +230,8 @@ def main() -> None:
         return
     elif mode == "log":
         tick = lambda: node.get_logger().info(name)  # noqa: E731
+    elif mode in ("tf", "tf_static"):
+        tick = tf_broadcaster(node, name, static=mode == "tf_static")
     else:
         raise SystemExit(f"unknown mode {mode}")
     say(ready=True)
@@ -230,6 +240,41 @@ def main() -> None:
         if tick is not None:
             tick()
         rclpy.spin_once(node, timeout_sec=0.05)
+
+
+def tf_broadcaster(node, topic, *, static):
+    """Publish as tf2's (static) transform broadcaster does; the tick for /tf, else None."""
+    # here, not at the top: only these modes need tf2_msgs (not on PyPI: tf2_msgs_build.py)
+    from geometry_msgs.msg import TransformStamped  # noqa: PLC0415
+    from tf2_msgs.msg import TFMessage  # noqa: PLC0415
+
+    def link(parent, child, x, y, z, turn_z):
+        t = TransformStamped(child_frame_id=child)
+        t.header.frame_id = parent
+        t.header.stamp = node.get_clock().now().to_msg()
+        t.transform.translation.x, t.transform.translation.y = x, y
+        t.transform.translation.z = z
+        t.transform.rotation.z, t.transform.rotation.w = turn_z, (1 - turn_z**2) ** 0.5
+        return t
+
+    if static:
+        kept = QoSProfile(
+            depth=1,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            reliability=ReliabilityPolicy.RELIABLE,
+        )
+        pub = node.create_publisher(TFMessage, topic, kept)
+        pub.publish(TFMessage(transforms=[link("base_link", "camera", 0.1, 0.0, 0.3, 0.0)]))
+        return None
+    pub = node.create_publisher(TFMessage, topic, QoSProfile(depth=100))
+    count = iter(range(10**9))
+    quarter = 0.5**0.5  # sin(45 deg): a 90 deg turn about z
+
+    def tick():
+        moved = link("odom", "base_link", 0.01 * next(count), 0.0, 0.0, quarter)
+        pub.publish(TFMessage(transforms=[moved]))
+
+    return tick
 
 
 def param_suite(node, target):

@@ -72,7 +72,8 @@ class Peer:
     """``peer.py MODE NAME [NODE]`` in its own process (see peer.py)."""
 
     def __init__(self, mode: str, name: str, tmp: Path, node: str | None = None) -> None:
-        self.stderr_path = tmp / f"peer-{mode}-{name.strip('/').replace('/', '_')}.stderr"
+        label = "-".join([mode, name.strip("/").replace("/", "_"), *([node] if node else [])])
+        self.stderr_path = tmp / f"peer-{label}.stderr"
         self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
         self.proc = subprocess.Popen(
             [sys.executable, str(PEER), mode, name, *([node] if node else [])],

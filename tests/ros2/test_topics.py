@@ -72,6 +72,51 @@ async def test_a_transient_local_publisher_reaches_a_late_subscriber(
     assert got == [{"data": "latched"}]
 
 
+LATE_AFTER_SECOND = """
+import json, sys
+from websockets.sync.client import connect
+
+def subscriber():
+    ws = connect("ws://127.0.0.1:{port}")
+    op = {{"op": "subscribe", "topic": "/static_like", "type": "std_msgs/msg/String"}}
+    ws.send(json.dumps(op))
+    return ws
+
+def heard(ws):
+    return json.loads(ws.recv(timeout=20))["msg"]["data"]
+
+early = subscriber()  # stays subscribed, so the link keeps its subscription
+print(json.dumps({{"early": heard(early)}}), flush=True)
+sys.stdin.readline()  # the test started a second latched publisher
+print(json.dumps({{"early": heard(early)}}), flush=True)
+late = subscriber()
+print(json.dumps({{"late": heard(late)}}), flush=True)
+"""
+
+
+async def test_a_second_latched_publishers_sample_reaches_a_late_subscriber(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    # /tf_static with a second static broadcaster: its sample arrives on the link's
+    # transient-local subscription, often before the link's sweep has seen its
+    # publisher; whichever comes first, a later subscriber gets the latest sample
+    code = LATE_AFTER_SECOND.format(port=server.port)
+    with Peer("latched", "/static_like", ros_env, "peer_a"):
+        async with await anyio.open_process(["python", "-c", code]) as client:
+            assert client.stdout is not None and client.stdin is not None
+            lines = JsonLines(client.stdout)
+            try:
+                with anyio.fail_after(40):
+                    assert await lines.next() == {"early": "latched by peer_a"}
+                    with Peer("latched", "/static_like", ros_env, "peer_b"):
+                        await client.stdin.send(b"\n")
+                        assert await lines.next() == {"early": "latched by peer_b"}
+                        late = await lines.next()
+            finally:
+                client.kill()
+    assert late == {"late": "latched by peer_b"}
+
+
 async def test_a_joint_state_arrives_whole(server: ServerProcess, ros_env: Path) -> None:
     with Peer("joints", "/joint_states", ros_env):
         script = SUBSCRIBE.format(topic="/joint_states", type="sensor_msgs/msg/JointState", count=2)

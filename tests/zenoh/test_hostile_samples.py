@@ -1,5 +1,8 @@
 """A graph linked over Zenoh against a bare session sending bad samples and too many tokens.
 
+(And a latched sample sent before its publisher's token, which a well-behaved
+peer may also do: its token can reach the link after the sample.)
+
 What a hostile (or broken) peer sends is skipped with one log line per episode, not
 one per sample; the entities it declares past ``--zenoh-max-entities`` are
 ignored until room frees; the samples waiting are bounded in bytes and dropped
@@ -18,17 +21,21 @@ import pytest
 
 import zenoh
 from rwt_graph.graph import Graph
+from rwt_graph.rosapi.listing import publishers
+from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_zenoh.config import make_config
 from rwt_zenoh.inbox import Inbox, Sample
 from rwt_zenoh.limits import MAX_REMOTE_ENTITIES, SAMPLE_OVERHEAD
 from rwt_zenoh.link import open_zenoh_link
 from rwt_zenoh.payload import encode_message, type_hash
 from rwt_zenoh.wire import (
+    LATCHED_QOS,
     VOLATILE_QOS,
     Entity,
     EntityKind,
     Topic,
     dds_type_name,
+    pack_attachment,
     topic_keyexpr,
     zid_text,
 )
@@ -97,6 +104,34 @@ async def test_bad_samples_log_one_line_per_episode_and_good_ones_still_arrive(
         await until(lambda: {"data": "last"} in got)
     assert got == [{"data": "last"}]
     assert len(events(caplog, "zenoh_bad_sample")) == 1
+
+
+async def test_a_latched_sample_before_its_publishers_token_reaches_a_late_subscriber() -> None:
+    async with linked_with_bare_peer() as (graph, session):
+        zid = zid_text(bytes(cast("Any", session.info.zid())))
+        topic = Topic("/map", dds_type_name(STRING), STRING_HASH, LATCHED_QOS)
+        entity = Entity(0, zid, 1, 2, EntityKind.PUBLISHER, "/", "mapper", topic=topic)
+        early: list[dict[str, Any]] = []
+        graph.create_subscription("/map", early.append, STRING, node="/early")
+        publisher: Any = session.declare_publisher(
+            topic_keyexpr(0, "/map", topic.dds_type, STRING_HASH)
+        )
+        await until(lambda: bool(publisher.matching_status.matching))
+        publisher.put(encoded("map"), attachment=pack_attachment(1, 0, entity.gid()))
+        await until(lambda: len(early) == 1)  # through the link's relay: no token yet
+        liveliness: Any = session.liveliness()
+        node = liveliness.declare_token(
+            Entity(0, zid, 1, 1, EntityKind.NODE, "/", "mapper").token()
+        )
+        token = liveliness.declare_token(entity.token())
+        # the token says transient local: the relay goes, the sample stays latched
+        await until(lambda: publishers(graph, EVERYTHING, "/map") == ["/mapper"])
+        late: list[dict[str, Any]] = []
+        graph.create_subscription("/map", late.append, STRING, node="/late")
+        token.undeclare()
+        node.undeclare()
+    assert late == [{"data": "map"}]
+    assert early == [{"data": "map"}]
 
 
 def publisher_token(zid: str, n: int) -> str:
