@@ -159,7 +159,6 @@ async def _sender(endpoint: str, size: int, count: int) -> None:
             pub.publish(msg)
             if number % 64 == 63:
                 await asyncio.sleep(0)  # the link's other work (tokens, sweeps) runs
-        await asyncio.sleep(0)  # the link hands this turn's samples to its sender thread
         print((time.process_time() - cpu) / count * 1e6, flush=True)  # all threads of A
         sys.stdin.readline()  # until the parent has B's figures
 

@@ -21,7 +21,7 @@ from rwt_graph.ratelog import EpisodeLog
 from .limits import MAX_QUEUED_BYTES, MAX_QUEUED_SAMPLES, SAMPLE_OVERHEAD
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterable
+    from collections.abc import Callable
 
 __all__ = ["Inbox", "Sample"]
 
@@ -102,39 +102,26 @@ class Inbox:
         Returns:
             Whether the event loop needs a new ticket for ``topic`` (one ``take``).
         """
-        with self._lock:
-            if wait_s > 0 and sample.size <= self.max_bytes:
-                self._room.wait_for(lambda: self._closed or self._fits(sample.size), wait_s)
-            return self._hold(topic, sample)
-
-    def put_all(self, samples: Iterable[tuple[str, Sample]]) -> list[str]:
-        """``put`` each ``(topic, sample)`` in order, never waiting, under one lock.
-
-        Returns:
-            The topics needing a new ticket, one entry per ticket.
-        """
-        with self._lock:
-            return [topic for topic, sample in samples if self._hold(topic, sample)]
-
-    def _hold(self, topic: str, sample: Sample) -> bool:
-        """``put`` once waited (the lock held)."""
         size = sample.size
-        if size > self.max_bytes:
-            self._dropped(topic, "larger than the queue")
-            return False
-        queue = self._queues.get(topic)
-        if queue is None:
-            queue = self._queues[topic] = _Queue()
-        while not self._fits(size):
-            self._drop_oldest(self._victim(topic, queue))
-        queue.samples.append(sample)
-        queue.bytes += size
-        self._bytes += size
-        self._count += 1
-        if queue.tickets >= len(queue.samples):
-            return False
-        queue.tickets += 1
-        return True
+        with self._lock:
+            if size > self.max_bytes:
+                self._dropped(topic, "larger than the queue")
+                return False
+            if wait_s > 0:
+                self._room.wait_for(lambda: self._closed or self._fits(size), wait_s)
+            queue = self._queues.get(topic)
+            if queue is None:
+                queue = self._queues[topic] = _Queue()
+            while not self._fits(size):
+                self._drop_oldest(self._victim(topic, queue))
+            queue.samples.append(sample)
+            queue.bytes += size
+            self._bytes += size
+            self._count += 1
+            if queue.tickets >= len(queue.samples):
+                return False
+            queue.tickets += 1
+            return True
 
     def close(self) -> None:
         """Stop every wait for room: what comes after is dropped as when full."""
