@@ -107,7 +107,8 @@ class Topic:
         subscription, ``rwt_graph.link.NULL_SINK``: its copy travels on the other
         middleware) is not called: with ``--workers`` each process holds one per
         subscriber of the others, half the calls of a fan-out (benchmarks/README.md,
-        "Scaling out"). The sinks are those subscribed when the fan-out starts.
+        "Workers' CPU per delivery"). The sinks called are those subscribed when
+        the fan-out starts.
         """
         if latch:
             self.latched = event

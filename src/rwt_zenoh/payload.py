@@ -44,10 +44,10 @@ def prepare_codecs(registry: TypeRegistry) -> None:
 
     That is the registry's type store (rosbags builds it in about 0.2 s of CPU)
     and numpy, which rosbags' messages hold and rwt's converters import on their
-    first use (about 0.1 s more). Left to the first sample, both stopped the
-    event loop once in every process of ``--workers``, inside the first
-    second of traffic (benchmarks/README.md, "Scaling out"). A type's own
-    converters are still compiled on its first sample (a few ms).
+    first use (about 0.1 s more). Left to the first sample, the import stopped
+    the event loop once in every process of ``--workers``, inside the first
+    second of traffic (benchmarks/README.md, "Workers' CPU per delivery"). A
+    type's own converters are still compiled on its first sample (a few ms).
     """
     registry.typestore()
     import numpy  # noqa: F401, PLC0415 - what the converters import on first use
