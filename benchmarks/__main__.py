@@ -106,6 +106,12 @@ def main(argv: list[str] | None = None) -> int:
     p_run.add_argument("--frames", type=int, default=1_000_000, help="B18: fuzzed frames to send")
     p_scale = sub.add_parser("scaleout", help="rwt over Zenoh: latency, --workers, vs bare Zenoh")
     p_scale.add_argument("--quick", action="store_true", help="a tenth of the counts (smoke)")
+    p_scale.add_argument(
+        "--workers-cpu",
+        type=int,
+        metavar="ROUNDS",
+        help="only the Z2 servers' CPU per delivery, ROUNDS interleaved rounds (nothing saved)",
+    )
     p_sweep = sub.add_parser("sweep", help="scaling sweep and its plots")
     p_sweep.add_argument("--runs", type=int, default=3)
     p_sweep.add_argument("--out", type=Path, default=RESULTS)
@@ -115,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "scaleout":
         from .scaleout import main as scaleout  # noqa: PLC0415
 
-        return scaleout(["--quick"] if args.quick else [])
+        rounds = ["--workers-cpu", str(args.workers_cpu)] if args.workers_cpu else []
+        return scaleout([*(["--quick"] if args.quick else []), *rounds])
     from .sweep import sweep  # noqa: PLC0415  (matplotlib only when plotting)
 
     return sweep(args)

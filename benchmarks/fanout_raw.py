@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import selectors
 import time
+from collections.abc import Callable
 
 from . import msgs
 from .loadgen.engine import (
@@ -92,9 +93,17 @@ def _probe(pub: WindowPublisher, subs: list[CountingSubscriber]) -> None:
 
 
 def fan_out_raw(
-    port: int, subscribers: int, duration_s: float, *, window: int = 512
+    port: int,
+    subscribers: int,
+    duration_s: float,
+    *,
+    window: int = 512,
+    on_timed: Callable[[], None] | None = None,
 ) -> dict[str, float]:
     """Deliveries/s of a window-paced 100 B stream to ``subscribers`` clients on ``port``.
+
+    ``on_timed`` is called once, right before the timed burst (after the
+    connections, subscriptions and probes of steps 1 and 2).
 
     Returns:
         ``deliveries_per_s``, ``delivered``, ``sent`` (messages), ``expected``
@@ -122,6 +131,8 @@ def fan_out_raw(
         for sub in subs:
             sub.first_s = sub.last_s = None
             sub.received = 0
+        if on_timed is not None:
+            on_timed()
         loop = run_loop(
             [pub],
             list(subs),

@@ -31,6 +31,7 @@ import asyncio
 import contextlib
 import json
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -116,21 +117,76 @@ async def workers_cpu(workers: int, duration_s: float) -> dict[str, float]:
     (the parent and each worker, read from /proc), the generator's are not.
 
     Returns:
-        ``server_cpu_us_per_delivery``, ``deliveries_per_s``, ``delivered``, ``expected``.
+        ``server_cpu_us_per_delivery`` (from the first connection to the last
+        delivery), ``burst_cpu_us_per_delivery`` (the timed burst alone, without
+        the connections, subscriptions and probes), ``setup_cpu_s`` (the servers'
+        CPU seconds before the burst), ``deliveries_per_s``, ``delivered``,
+        ``expected``.
     """
     args = ("--workers", str(workers)) if workers > 1 else ()
     async with server(*args) as url:
         await asyncio.sleep(2)  # every worker listening
         port = int(url.rsplit(":", 1)[1].split("/")[0])
-        before = tree_cpu_s(SERVER_PIDS[url])
-        raw = await asyncio.to_thread(fan_out_raw, port, 100, duration_s)
-        used = tree_cpu_s(SERVER_PIDS[url]) - before
+        pid = SERVER_PIDS[url]
+        before = tree_cpu_s(pid)
+        timed: list[float] = []
+        raw = await asyncio.to_thread(
+            fan_out_raw, port, 100, duration_s, on_timed=lambda: timed.append(tree_cpu_s(pid))
+        )
+        after = tree_cpu_s(pid)
+    delivered = max(raw["delivered"], 1)
     return {
-        "server_cpu_us_per_delivery": used / max(raw["delivered"], 1) * 1e6,
+        "server_cpu_us_per_delivery": (after - before) / delivered * 1e6,
+        "burst_cpu_us_per_delivery": (after - timed[0]) / delivered * 1e6,
+        "setup_cpu_s": timed[0] - before,
         "deliveries_per_s": raw["deliveries_per_s"],
         "delivered": raw["delivered"],
         "expected": raw["expected"],
     }
+
+
+async def workers_cpu_rounds(rounds: int, duration_s: float) -> dict[str, Any]:
+    """``rounds`` interleaved rounds of ``workers_cpu``, 1 worker then 2; medians.
+
+    Returns:
+        ``rounds`` (each round's two results) and the medians of both figures per
+        worker count and of their per-round ratios (``median_ratio``,
+        ``median_burst_ratio``).
+    """
+    done: list[dict[str, dict[str, float]]] = []
+    for _ in range(rounds):
+        one = await workers_cpu(1, duration_s)
+        done.append({"1": one, "2": await workers_cpu(2, duration_s)})
+    out: dict[str, Any] = {"rounds": done}
+    for key, label in (("server_cpu_us_per_delivery", ""), ("burst_cpu_us_per_delivery", "burst_")):
+        for count in ("1", "2"):
+            out[f"median_{label}{count}"] = statistics.median(r[count][key] for r in done)
+        out[f"median_{label}ratio"] = statistics.median(r["2"][key] / r["1"][key] for r in done)
+    return out
+
+
+def workers_cpu_table(found: dict[str, Any]) -> str:
+    """The rounds of ``workers_cpu_rounds`` and their medians, as Markdown lines."""
+    lines = [
+        "| round | 1 worker: all; burst (us/delivery) | 2 workers: all; burst | ratio all; burst |",
+        "|---|---|---|---|",
+    ]
+    for number, pair in enumerate(found["rounds"], 1):
+        one, two = pair["1"], pair["2"]
+        lines.append(
+            f"| {number} | {one['server_cpu_us_per_delivery']:.2f}; "
+            f"{one['burst_cpu_us_per_delivery']:.2f} ({one['delivered']}/{one['expected']}) | "
+            f"{two['server_cpu_us_per_delivery']:.2f}; {two['burst_cpu_us_per_delivery']:.2f} "
+            f"({two['delivered']}/{two['expected']}) | "
+            f"{two['server_cpu_us_per_delivery'] / one['server_cpu_us_per_delivery']:.2f}; "
+            f"{two['burst_cpu_us_per_delivery'] / one['burst_cpu_us_per_delivery']:.2f} |"
+        )
+    lines.append(
+        f"| median | {found['median_1']:.2f}; {found['median_burst_1']:.2f} | "
+        f"{found['median_2']:.2f}; {found['median_burst_2']:.2f} | "
+        f"{found['median_ratio']:.2f}; {found['median_burst_ratio']:.2f} (medians of the ratios) |"
+    )
+    return "\n".join(lines)
 
 
 async def connect(url: str) -> Any:
@@ -425,7 +481,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks scaleout", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="a tenth of the counts (smoke)")
     parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument(
+        "--workers-cpu",
+        type=int,
+        metavar="ROUNDS",
+        help="only the Z2 servers' CPU per delivery: ROUNDS interleaved rounds (nothing saved)",
+    )
     args = parser.parse_args(argv)
+    if args.workers_cpu:
+        duration = 0.5 if args.quick else 3.0
+        print(workers_cpu_table(asyncio.run(workers_cpu_rounds(args.workers_cpu, duration))))
+        return 0
     started = time.perf_counter()
     results = asyncio.run(measure(args.quick))
     print(table(results))

@@ -15,6 +15,7 @@ import anyio
 import typer
 
 from rwt_protocol.errors import ConfigError
+from rwt_transports.gcfreeze import freeze_startup_objects
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
@@ -81,6 +82,9 @@ async def linked(graph: Graph, options: ZenohOptions | None) -> AsyncIterator[No
 
     try:
         async with open_zenoh_link(graph, options):
+            # the type store, numpy and Zenoh came after the start-up freeze: every full
+            # collection walked them again (benchmarks/README.md, "Workers' CPU per delivery")
+            freeze_startup_objects()
             yield
     except zenoh.ZError as exc:  # opening or closing the session
         raise ConfigError(f"zenoh: {exc}") from None

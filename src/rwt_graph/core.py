@@ -255,8 +255,7 @@ class GraphCore:
                 raise GraphError(f"cannot infer the type of {topic}: give a type")
         else:
             entry = self._topic(name, self.registry.message(type_name))
-        is_new = client not in entry.subscribers
-        entry.subscribers[client] = sink
+        is_new = entry.add_subscriber(client, sink)
         self._hold(client, entry.name)
         self.nodes.name_of(client)
         if is_new and entry.latched is not None:
@@ -267,7 +266,7 @@ class GraphCore:
         """Detach ``client`` from ``topic``."""
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
-            entry.subscribers.pop(client, None)
+            entry.remove_subscriber(client)
             self._unhold(client, entry)
             self._collect(entry)
 
@@ -302,7 +301,7 @@ class GraphCore:
 
     def _drop(self, entry: Topic, client: ClientId) -> None:
         entry.remove_publisher(client)
-        entry.subscribers.pop(client, None)
+        entry.remove_subscriber(client)
         self._collect(entry)
 
     def _hold(self, client: ClientId, name: str) -> None:

@@ -93,7 +93,12 @@ Wanted = dict[tuple[Kind, "ClientId", str], tuple[str, bool]]
 
 
 class _NullSink:
-    """The sink of a remote subscription: its messages travel on the other middleware."""
+    """The sink of a remote subscription: its messages travel on the other middleware.
+
+    ``drops_messages`` tells ``Topic.fan_out`` not to call it at all.
+    """
+
+    drops_messages = True
 
     def on_message(self, event: MessageEvent) -> None:
         """Drop the message."""

@@ -43,7 +43,9 @@ class Topic:
         name: resolved name (``/chatter``).
         msgtype: the established message type.
         publishers: client -> whether it publishes latched (transient local).
-        subscribers: client -> the sink receiving its messages.
+        subscribers: client -> the sink receiving its messages; read it freely,
+            change it only through ``add_subscriber`` and ``remove_subscriber``
+            (``fan_out`` keeps a copy of the sinks it calls).
         latched: the last message of a latched publisher, replayed to each new
             subscriber once (D13).
         latched_by: the publisher of ``latched``; the message goes when it does
@@ -56,11 +58,29 @@ class Topic:
     subscribers: dict[ClientId, TopicSink] = field(default_factory=dict)
     latched: MessageEvent | None = None
     latched_by: ClientId | None = None
+    # (client, sink) of the subscribers ``fan_out`` calls; None: to be made again
+    _calls: tuple[tuple[ClientId, TopicSink], ...] | None = field(default=None, repr=False)
 
     @property
     def in_use(self) -> bool:
         """Whether anyone still publishes or subscribes."""
         return bool(self.publishers or self.subscribers)
+
+    def add_subscriber(self, client: ClientId, sink: TopicSink) -> bool:
+        """Make ``sink`` the subscriber of ``client`` (replacing its earlier one).
+
+        Returns:
+            Whether ``client`` was not a subscriber before.
+        """
+        is_new = client not in self.subscribers
+        self.subscribers[client] = sink
+        self._calls = None
+        return is_new
+
+    def remove_subscriber(self, client: ClientId) -> None:
+        """Forget ``client`` as a subscriber (nothing if it was none)."""
+        if self.subscribers.pop(client, None) is not None:
+            self._calls = None
 
     def remove_publisher(self, client: ClientId) -> None:
         """Forget ``client`` as a publisher, and its latched message (D13)."""
@@ -90,10 +110,25 @@ class Topic:
             )
 
     def fan_out(self, event: MessageEvent, *, latch: bool, client: ClientId | None = None) -> None:
-        """Deliver ``event`` to every subscriber; keep it if latched (from ``client``)."""
+        """Deliver ``event`` to every subscriber; keep it if latched (from ``client``).
+
+        A sink whose ``drops_messages`` attribute is true (a link's remote
+        subscription, ``rwt_graph.link.NULL_SINK``: its copy travels on the other
+        middleware) is not called: with ``--workers`` each process holds one per
+        subscriber of the others, half the calls of a fan-out (benchmarks/README.md,
+        "Workers' CPU per delivery"). The sinks called are those subscribed when
+        the fan-out starts.
+        """
         if latch:
             self.keep(event, client)
-        for subscriber, sink in list(self.subscribers.items()):
+        calls = self._calls
+        if calls is None:
+            calls = self._calls = tuple(
+                (subscriber, sink)
+                for subscriber, sink in self.subscribers.items()
+                if not getattr(sink, "drops_messages", False)
+            )
+        for subscriber, sink in calls:
             try:
                 sink.on_message(event)
             except Exception:  # a broken subscriber must not hurt the others

@@ -49,7 +49,7 @@ from .link_clients import LINK_NODE, ClientEntities
 from .link_params import ParamLink
 from .link_services import RemoteService, serve_query
 from .outbox import Outbox
-from .payload import decode_message, encode_message, service_hash, type_hash
+from .payload import decode_message, encode_message, prepare_codecs, service_hash, type_hash
 from .wire import (
     LATCHED_QOS,
     VOLATILE_QOS,
@@ -929,8 +929,8 @@ async def open_zenoh_link(graph: Graph, options: ZenohOptions) -> AsyncIterator[
         zenoh.ZError: Zenoh cannot start (an endpoint cannot be bound...).
     """
     config = make_config(options)
-    # rosbags' type store takes a while to build: not on the event loop
-    await anyio.to_thread.run_sync(graph.registry.typestore)
+    # rosbags' type store and numpy take a while to load: not on the event loop
+    await anyio.to_thread.run_sync(prepare_codecs, graph.registry)
     session = await anyio.to_thread.run_sync(zenoh.open, config)
     try:
         async with anyio.create_task_group() as tg:

@@ -28,6 +28,7 @@ __all__ = [
     "encode_sample",
     "message_hash",
     "named_service_hash",
+    "prepare_codecs",
     "service_hash",
     "type_hash",
 ]
@@ -36,6 +37,20 @@ __all__ = [
 def _ros2(registry: TypeRegistry) -> None:
     if registry.dialect is not Dialect.ROS2:
         raise WireError("rmw_zenoh speaks ROS 2 types: use a ROS 2 registry")
+
+
+def prepare_codecs(registry: TypeRegistry) -> None:
+    """Load what every sample's CDR needs, once, before the first sample (blocking).
+
+    That is the registry's type store (rosbags builds it in about 0.2 s of CPU)
+    and numpy, which rosbags' messages hold and rwt's converters import on their
+    first use (about 0.1 s more). Left to the first sample, the import stopped
+    the event loop once in every process of ``--workers``, inside the first
+    second of traffic (benchmarks/README.md, "Workers' CPU per delivery"). A
+    type's own converters are still compiled on its first sample (a few ms).
+    """
+    registry.typestore()
+    import numpy  # noqa: F401, PLC0415 - what the converters import on first use
 
 
 def type_hash(registry: TypeRegistry, type_name: str) -> str:

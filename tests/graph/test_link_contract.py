@@ -481,3 +481,34 @@ def test_a_nodes_parameters_are_described_typed_and_set_all_or_nothing() -> None
     )["result"]
     assert done == {"successful": True, "reason": ""}
     assert graph.params.get("/robot:speed") == 9.0
+
+
+class _Counting:
+    """A sink that keeps what it got."""
+
+    def __init__(self) -> None:
+        self.got: list[object] = []
+
+    def on_message(self, event: MessageEvent) -> None:
+        self.got.append(event.msg["data"])
+
+
+class _Dropping(_Counting):
+    drops_messages = True
+
+
+def test_a_fan_out_reaches_the_current_subscribers_and_skips_dropping_sinks() -> None:
+    """A replaced or removed subscriber gets nothing more; a sink that drops is never called."""
+    graph = Graph()
+    first, second, remote = _Counting(), _Counting(), _Dropping()
+    graph.port.subscribe("ws:1", "/chatter", STRING, first)
+    graph.port.subscribe("link:remote", "/chatter", STRING, remote)
+    graph.port.publish("ws:2", "/chatter", {"data": "one"}, latch=False)
+    graph.port.subscribe("ws:1", "/chatter", STRING, second)  # the same client again
+    graph.port.publish("ws:2", "/chatter", {"data": "two"}, latch=False)
+    graph.port.unsubscribe("ws:1", "/chatter")
+    graph.port.publish("ws:2", "/chatter", {"data": "three"}, latch=False)
+    assert first.got == ["one"]
+    assert second.got == ["two"]
+    assert remote.got == []
+    assert set(graph.topics["/chatter"].subscribers) == {"link:remote"}
