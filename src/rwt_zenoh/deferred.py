@@ -93,7 +93,7 @@ class Deferred:
         return self.nbytes
 
     def make(self) -> bytes | bytearray:
-        """The CDR bytes (little endian, with the encapsulation header)."""
+        """The CDR bytes with their encapsulation header, as ``encode_message`` makes them."""
         return self._make()
 
 

@@ -42,7 +42,7 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
-from .deferred import DeferredEncoder, held_payload, payload_bytes
+from .deferred import Deferred, DeferredEncoder, held_payload, payload_bytes
 from .inbox import Inbox, Sample
 from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, RELIABLE_WAIT_S
 from .link_actions import ActionLink
@@ -739,7 +739,10 @@ class ZenohLink:
         export = self._publisher_export(entry, client)
         if export is not None:
             data = self._publisher(entry)
-            payload = self._deferred.defer(entry.msgtype, event.msg) or self._encode(entry, event)
+            payload: bytes | bytearray | Deferred | None
+            payload = self._deferred.defer(entry.msgtype, event.msg)  # large: the outbox's thread
+            if payload is None:
+                payload = self._encode(entry, event)
             self._outbox.put(data.key, data.handle, payload, self._attachment(export))
 
     def _publisher_export(self, entry: GraphTopic, client: ClientId) -> _Export | None:
