@@ -327,6 +327,32 @@ async def _line(proc: asyncio.subprocess.Process) -> str:
     return line.decode().strip()
 
 
+def _cpu_ns(pid: int) -> int:
+    """CPU time of every thread of process ``pid`` so far, ns (``/proc/<pid>/task/*/schedstat``)."""
+    total = 0
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            total += int((task / "schedstat").read_text().split()[0])
+    return total
+
+
+async def _watch_cpu(pid: int, into: list[tuple[float, int]]) -> None:
+    """Append (wall time, ``_cpu_ns``) of ``pid`` every 5 ms until cancelled."""
+    while True:
+        with contextlib.suppress(OSError):
+            into.append((time.time(), _cpu_ns(pid)))
+        await asyncio.sleep(0.005)
+
+
+def _cpu_between(samples: list[tuple[float, int]], start: float, end: float) -> float:
+    """CPU ns spent between the wall times ``start`` and ``end`` (nearest samples after each)."""
+
+    def at(moment: float) -> int:
+        return next((ns for wall, ns in samples if wall >= moment), samples[-1][1])
+
+    return float(at(end) - at(start)) if samples else 0.0
+
+
 async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str, float]:
     """One transfer of ``count`` messages A->B.
 
@@ -336,7 +362,9 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
     Returns:
         ``msg_per_s``, ``mb_per_s`` (of the CDR payload), ``got``, ``sent``,
         ``sender_cpu_us`` and ``receiver_cpu_us``: each process's CPU time (all
-        its threads) per message while it sent or received.
+        its threads) per message while it sent or received. A's is read by this
+        process from /proc, from A's first publish to B's last delivery: the
+        link's outbox thread still puts after A's publish calls have returned.
     """
     payload = cdr_size(size)
     env = _env()
@@ -360,11 +388,15 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
         procs.append(pub)
         await _line(sub)  # flowing: a probe came through
         assert pub.stdin is not None
+        samples: list[tuple[float, int]] = []
+        watch = asyncio.create_task(_watch_cpu(pub.pid, samples))
         pub.stdin.write(b"go\n")
         await pub.stdin.drain()
         start = float(await _line(pub))
-        sender_cpu = float(await _line(pub))
+        await _line(pub)  # A's own figure: its publish calls only
         end, got, receiver_cpu = (await _line(sub)).split()
+        watch.cancel()
+        sender_cpu = _cpu_between(samples, start, float(end)) / 1e3 / count
         elapsed = max(float(end) - start, 1e-9)
         rate = int(got) / elapsed
         return {

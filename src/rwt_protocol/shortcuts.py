@@ -40,6 +40,15 @@ The shortcuts (name: what; module; benchmark; general path):
   does not copy it (the Zenoh and ROS 2 links, bag replay);
   ``rwt_graph.types.wire.wire_input``; B20, B21 and the Zenoh link benchmark (a
   1 MB image: the copy was half of its 120 us decode); the ``bytes`` as they came.
+- ``zenoh-deferred-encode``: a message whose top-level ``uint8[]`` values
+  hold 64 KiB or more queued for the Zenoh link's outbox as it is and
+  serialized by the outbox's thread before its put; ``rwt_zenoh.deferred``;
+  Z3, the Zenoh link benchmark (1 MB: process A's page faults);
+  ``payload.encode_message`` on the event loop, the CDR queued.
+- ``zenoh-late-copy``: a remote sample of 64 KiB or more queued as Zenoh's
+  ``ZBytes`` and copied to ``bytes`` on the event loop before its decode;
+  ``rwt_zenoh.deferred``; Z3, the Zenoh link benchmark (1 MB: process B's page
+  faults); ``ZBytes.to_bytes`` on Zenoh's callback thread.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
   by pybase64 and spliced in as ``msgspec.Raw``;
   ``rwt_protocol.codecs.json.encode_publish_json``; B6 JSON, B5 JSON;
@@ -160,6 +169,20 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "a serialized message of 64 KiB or more handed to rosbags as a view (no header copy)",
         "B20, B21, Zenoh link",
         "the bytes as they came (rosbags copies them to cut the CDR header)",
+    ),
+    Shortcut(
+        "zenoh-deferred-encode",
+        "rwt_zenoh.deferred.DeferredEncoder",
+        "a message with 64 KiB or more of uint8[] serialized by the outbox thread before its put",
+        "Z3 (Zenoh link, 1 MB)",
+        "rwt_zenoh.payload.encode_message on the event loop, the CDR queued for the outbox",
+    ),
+    Shortcut(
+        "zenoh-late-copy",
+        "rwt_zenoh.deferred.held_payload",
+        "a remote sample of 64 KiB or more queued as Zenoh's ZBytes, copied on the event loop",
+        "Z3 (Zenoh link, 1 MB)",
+        "ZBytes.to_bytes on Zenoh's callback thread, the bytes queued for the event loop",
     ),
     Shortcut(
         "json-base64-splice",

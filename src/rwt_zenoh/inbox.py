@@ -14,14 +14,14 @@ import logging
 import threading
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rwt_graph.ratelog import EpisodeLog
 
 from .limits import MAX_QUEUED_BYTES, MAX_QUEUED_SAMPLES, SAMPLE_OVERHEAD
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Sized
 
 __all__ = ["Inbox", "Sample"]
 
@@ -33,10 +33,13 @@ class Sample:
     """One remote sample: its CDR payload, rmw_zenoh attachment and its handler.
 
     ``deliver(payload, attachment)`` runs on the event loop when it is taken.
+    ``payload`` is the CDR ``bytes``, or what stands for them and has their
+    length: a large remote sample's ``zenoh.ZBytes``, the outbox's
+    ``deferred.Deferred`` (see ``deferred``).
     """
 
-    deliver: Callable[[bytes, bytes | None], None]
-    payload: bytes
+    deliver: Callable[[Any, bytes | None], None]
+    payload: Sized
     attachment: bytes | None
 
     @property

@@ -42,6 +42,7 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
+from .deferred import Deferred, DeferredEncoder, held_payload, payload_bytes
 from .inbox import Inbox, Sample
 from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, RELIABLE_WAIT_S
 from .link_actions import ActionLink
@@ -69,7 +70,7 @@ from .wire import (
 )
 
 if TYPE_CHECKING:
-    from collections.abc import AsyncIterator, Callable
+    from collections.abc import AsyncIterator, Callable, Sized
 
     from anyio.abc import TaskStatus
 
@@ -247,6 +248,7 @@ class ZenohLink:
         self.peer_log = EpisodeLog(logger)
         self._inbox = Inbox(queue_bytes, drop_log=EpisodeLog(logger))  # on Zenoh's threads
         self._outbox = Outbox()  # Zenoh's blocking puts, off the loop
+        self._deferred = DeferredEncoder(graph.registry)  # large ones serialized there
         self._drained_bytes = 0
         self.max_entities = max_entities
         self._closed = False
@@ -454,8 +456,8 @@ class ZenohLink:
     def soon_sample(
         self,
         key: str,
-        deliver: Callable[[bytes, bytes | None], None],
-        payload: bytes,
+        deliver: Callable[[Any, bytes | None], None],
+        payload: Sized,
         attachment: bytes | None = None,
         *,
         reliable: bool = False,
@@ -691,7 +693,7 @@ class ZenohLink:
             self.soon_sample(
                 name,
                 deliver,
-                sample.payload.to_bytes(),
+                held_payload(sample.payload),  # large ones copied on the loop (``deferred``)
                 None if attachment is None else attachment.to_bytes(),
                 reliable=sample.congestion_control == zenoh.CongestionControl.BLOCK,
             )
@@ -737,7 +739,10 @@ class ZenohLink:
         export = self._publisher_export(entry, client)
         if export is not None:
             data = self._publisher(entry)
-            payload = self._encode(entry, event)
+            payload: bytes | bytearray | Deferred | None
+            payload = self._deferred.defer(entry.msgtype, event.msg)  # large: the outbox's thread
+            if payload is None:
+                payload = self._encode(entry, event)
             self._outbox.put(data.key, data.handle, payload, self._attachment(export))
 
     def _publisher_export(self, entry: GraphTopic, client: ClientId) -> _Export | None:
@@ -888,14 +893,18 @@ class ZenohLink:
         return None if remote is None else remote.client
 
     def _on_sample(
-        self, topic: str, type_name: str, payload: bytes, attachment: bytes | None
+        self, topic: str, type_name: str, payload: Any, attachment: bytes | None
     ) -> None:
-        """Publish a remote sample in the graph, by its publisher's participant."""
+        """Publish a remote sample in the graph, by its publisher's participant.
+
+        ``payload`` is what ``deferred.held_payload`` kept: ``bytes``, or a large
+        sample's ``zenoh.ZBytes``.
+        """
         entry = self.graph.topics.get(topic)
         if entry is None or entry.msgtype.name != type_name:
             return
         try:
-            msg = decode_message(self.graph.registry, entry.msgtype, payload)
+            msg = decode_message(self.graph.registry, entry.msgtype, payload_bytes(payload))
             source = None if attachment is None else attachment_gid(attachment)
         except (WireError, RwtError) as exc:
             self.peer_log.log(

@@ -14,15 +14,13 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any
 
 from rwt_graph.ratelog import EpisodeLog
 
+from .deferred import Deferred
 from .inbox import Inbox, Sample
 from .limits import MAX_OUTBOX_BYTES
-
-if TYPE_CHECKING:
-    from collections.abc import Callable
 
 __all__ = ["Outbox"]
 
@@ -49,15 +47,21 @@ class Outbox:
         """Samples dropped because the bound was reached."""
         return self._held.dropped
 
-    def put(self, key: str, handle: Any, payload: bytes | bytearray, attachment: bytes) -> None:
+    def put(
+        self, key: str, handle: Any, payload: bytes | bytearray | Deferred, attachment: bytes
+    ) -> None:
         """Hand ``payload`` for ``handle`` (a ``zenoh.Publisher`` of topic ``key``) over.
+
+        A ``Deferred`` payload is made on the sender thread, right before its put,
+        and counts its exact length against the bound (``deferred``).
 
         Never waits: runs on the event loop. The sender thread starts on first use.
         """
-        send: Callable[[bytes, bytes | None], None] = lambda data, extra: handle.put(  # noqa: E731
-            data, attachment=extra
-        )
-        if self._held.put(key, Sample(send, cast("bytes", payload), attachment)):
+
+        def send(data: object, extra: bytes | None) -> None:
+            handle.put(data.make() if isinstance(data, Deferred) else data, attachment=extra)
+
+        if self._held.put(key, Sample(send, payload, attachment)):
             if self._thread is None:
                 self._thread = threading.Thread(target=self._run, name="rwt-zenoh-out", daemon=True)
                 self._thread.start()

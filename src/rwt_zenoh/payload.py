@@ -29,6 +29,7 @@ __all__ = [
     "message_hash",
     "named_service_hash",
     "prepare_codecs",
+    "owned_cdr",
     "service_hash",
     "type_hash",
 ]
@@ -106,7 +107,16 @@ def encode_message(
         WireError: ``registry`` is not ROS 2.
     """
     _ros2(registry)
-    raw = registry.codec(mtype).serialize(msg)
+    return owned_cdr(registry.codec(mtype).serialize(msg))
+
+
+def owned_cdr(raw: bytes | memoryview) -> bytes | bytearray:
+    """Serialized CDR as Zenoh takes it: rosbags' fresh buffer under a view, else ``bytes``.
+
+    rosbags returns a read-only view of a ``bytearray`` nobody else holds; that
+    buffer is handed over as it is (copying 1 MB into ``bytes`` cost as much as
+    serializing it).
+    """
     owner = raw.obj if isinstance(raw, memoryview) else None
     if isinstance(owner, bytearray) and len(owner) == raw.nbytes:  # type: ignore[union-attr]
         return owner
