@@ -28,8 +28,8 @@ __all__ = [
     "encode_sample",
     "message_hash",
     "named_service_hash",
-    "prepare_codecs",
     "owned_cdr",
+    "prepare_codecs",
     "service_hash",
     "type_hash",
 ]
