@@ -8,8 +8,31 @@ from __future__ import annotations
 
 import json
 import socket
+from typing import TYPE_CHECKING
+
+import anyio
 
 from rwt_zenoh.config import ZenohOptions, is_loopback_endpoint, make_config
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+WAIT_S = 10.0
+"""Every wait of a test for the network is bounded by this (seconds)."""
+
+
+async def until(condition: Callable[[], bool], what: str = "the condition") -> None:
+    """Poll ``condition`` every 20 ms until it holds.
+
+    Raises:
+        TimeoutError: it did not hold within ``WAIT_S`` (the message names ``what``).
+    """
+    try:
+        with anyio.fail_after(WAIT_S):
+            while not condition():
+                await anyio.sleep(0.02)
+    except TimeoutError:
+        raise TimeoutError(f"no {what} within {WAIT_S} s") from None
 
 
 def free_port() -> int:

@@ -39,16 +39,15 @@ from rwt_zenoh.payload import decode_message, encode_message, type_hash
 from rwt_zenoh.wire import dds_type_name, topic_keyexpr
 
 from .processes import REPO
-from .support import endpoint, peer
+from .support import WAIT_S, endpoint, peer, until
 
 if TYPE_CHECKING:
-    from collections.abc import AsyncIterator, Callable
+    from collections.abc import AsyncIterator
 
     from rwt_graph.types import MessageType
 
 REGISTRY = Graph().registry
 IMAGE = "sensor_msgs/msg/Image"
-WAIT_S = 10.0
 
 
 def image(size: int, frame_id: str = "cam", encoding: str = "mono8") -> dict[str, object]:
@@ -122,12 +121,6 @@ def test_a_large_payload_stays_zenohs_until_the_loop_copies_it() -> None:
 @pytest.fixture
 def anyio_backend() -> str:
     return "asyncio"
-
-
-async def until(condition: Callable[[], bool]) -> None:
-    with anyio.fail_after(WAIT_S):
-        while not condition():
-            await anyio.sleep(0.02)
 
 
 @contextlib.asynccontextmanager

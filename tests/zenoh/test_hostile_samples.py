@@ -40,28 +40,21 @@ from rwt_zenoh.wire import (
     zid_text,
 )
 
-from .support import endpoint, peer
+from .support import endpoint, peer, until
 
 if TYPE_CHECKING:
-    from collections.abc import AsyncIterator, Callable
+    from collections.abc import AsyncIterator
 
 pytestmark = [pytest.mark.anyio, pytest.mark.timeout(60)]
 
 STRING = "std_msgs/msg/String"
 REGISTRY = Graph().registry
 STRING_HASH = type_hash(REGISTRY, STRING)
-WAIT_S = 10.0
 
 
 @pytest.fixture
 def anyio_backend() -> str:
     return "asyncio"
-
-
-async def until(condition: Callable[[], bool]) -> None:
-    with anyio.fail_after(WAIT_S):
-        while not condition():
-            await anyio.sleep(0.02)
 
 
 @contextlib.asynccontextmanager

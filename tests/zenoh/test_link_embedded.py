@@ -35,14 +35,12 @@ from rwt_transports.server import running_handlers
 from rwt_zenoh.link import ZenohLink, open_zenoh_link
 
 from .processes import REPO
-from .support import endpoint, peer
+from .support import WAIT_S, endpoint, peer, until
 
 if TYPE_CHECKING:
-    from collections.abc import AsyncIterator, Callable
+    from collections.abc import AsyncIterator
 
 pytestmark = pytest.mark.anyio
-
-WAIT_S = 10.0  # every wait for the network is bounded by this
 
 
 @pytest.fixture
@@ -62,12 +60,6 @@ async def linked(count: int) -> AsyncIterator[list[tuple[Graph, ZenohLink]]]:
             link = await stack.enter_async_context(open_zenoh_link(graph, options))
             pairs.append((graph, link))
         yield pairs
-
-
-async def until(condition: Callable[[], bool], what: str) -> None:
-    with anyio.fail_after(WAIT_S):
-        while not condition():
-            await anyio.sleep(0.02)
 
 
 async def test_a_message_published_on_one_graph_reaches_the_other_once() -> None:

@@ -46,16 +46,15 @@ from rwt_zenoh.payload import decode_sample, encode_sample, named_service_hash
 from rwt_zenoh.wire import Attachment, Durability, Entity, EntityKind, Topic, pack_attachment
 
 from .processes import Process, started
-from .support import endpoint, peer
+from .support import WAIT_S, endpoint, peer, until
 
 if TYPE_CHECKING:
-    from collections.abc import AsyncIterator, Callable
+    from collections.abc import AsyncIterator
 
     from rwt_graph.actions import GoalContext
 
 pytestmark = pytest.mark.anyio
 
-WAIT_S = 10.0
 ADD_TYPE = "example_interfaces/srv/AddTwoInts"
 # the keys a ROS 2 node derives (hashes pinned in test_payload.py from rosidl's output)
 ADD_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
@@ -92,12 +91,6 @@ def bare_session(connect: str | None = None, listen: str | None = None) -> Any:
         yield session
     finally:
         session.close()
-
-
-async def until(condition: Callable[[], bool], what: str) -> None:
-    with anyio.fail_after(WAIT_S, shield=False):
-        while not condition():
-            await anyio.sleep(0.02)
 
 
 def ros2_call(session: Any, key: str, payload: bytes, sequence: int) -> list[Any]:
