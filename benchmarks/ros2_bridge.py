@@ -2,8 +2,10 @@
 
 A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS set
 up as ``FASTDDS`` says) publishes on a private domain; a bridge carries each message
-to 1 or 10 WebSocket subscribers (``websockets`` clients in this process that only
-count and read the stamp). Four receivers, in one run and on one machine state:
+to 1 or 10 WebSocket subscribers in this process (``CLIENTS``: by default
+``ros2_client.LeanCounter``, which reads the stamp and checks each image in place;
+``--client websockets``: the library, stamp only). Four receivers, in one run and on
+one machine state:
 
 - ``rwt``: ``rwt serve --ros2 --no-tf`` from this checkout (docs/ros2.md);
 - ``rosbridge``: the real rosbridge_suite 2.1.0 for ROS 2 (``rosbridge_websocket``

@@ -91,6 +91,8 @@ class FrameWalk:
     def __init__(self, kind: str) -> None:
         self.kind = kind
         self.latencies: list[float] = []
+        self.stamps: list[float] = []
+        """The publish time (s) of each timed delivery, in the order of ``latencies``."""
         self.probes = 0
         self.last = 0.0
         self.pongs: list[bytes] = []
@@ -188,6 +190,7 @@ class FrameWalk:
         if self.kind == "image" and len(head) < HEAD:  # a small frame that is no image
             raise ClientError(f"a {len(head)} B frame in an image stream")
         self.latencies.append(now - sent)
+        self.stamps.append(sent)
         self.last = now
 
     def _learn(self, probe: bytes) -> None:

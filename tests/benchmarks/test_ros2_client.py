@@ -33,6 +33,7 @@ def test_each_image_is_timed_by_its_stamp_whatever_the_chunking(chunk: int) -> N
     feed(walk, stream, chunk, now=102.0)
     assert walk.probes == 1
     assert walk.latencies == [1.5, 1.0]
+    assert walk.stamps == [100.5, 101.0]
     assert walk.last == 102.0
 
 
