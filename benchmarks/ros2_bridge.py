@@ -2,8 +2,10 @@
 
 A real rclpy publisher (its own process, PyPI's ROS 2 Kilted wheels, Fast DDS set
 up as ``FASTDDS`` says) publishes on a private domain; a bridge carries each message
-to 1 or 10 WebSocket subscribers (``websockets`` clients in this process that only
-count and read the stamp). Four receivers, in one run and on one machine state:
+to 1 or 10 WebSocket subscribers in this process (``CLIENTS``: by default
+``ros2_client.LeanCounter``, which reads the stamp and checks each image in place;
+``--client websockets``: the library, stamp only). Four receivers, in one run and on
+one machine state:
 
 - ``rwt``: ``rwt serve --ros2 --no-tf`` from this checkout (docs/ros2.md);
 - ``rosbridge``: the real rosbridge_suite 2.1.0 for ROS 2 (``rosbridge_websocket``
@@ -48,8 +50,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from collections.abc import Awaitable, Callable
+    from collections.abc import Awaitable, Callable, Sequence
 
+from .ros2_client import TYPES, LeanCounter, stamp
 from .servers import ROOT, Server, proc_stats, start_server
 
 __all__ = ["CASES", "Case", "Result", "main", "rclpy_available", "run_case", "table", "verdicts"]
@@ -97,7 +100,6 @@ LABELS = {
     "rs": "rosbridge-server-rs 0.1.6",
     "rclpy": "bare rclpy subscriber",
 }
-TYPES = {"string": "std_msgs/msg/String", "image": "sensor_msgs/msg/Image"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,9 +222,6 @@ print(json.dumps({"lat": lat, "last": state[0]}), flush=True)
 ex.shutdown(); rclpy.shutdown()
 """
 
-_STRING_STAMP = re.compile(rb'"data"\s*:\s*"([0-9]+\.[0-9]+)')
-_IMAGE_STAMP = re.compile(rb'"sec"\s*:\s*([0-9]+)\s*,\s*"nanosec"\s*:\s*([0-9]+)')
-
 
 def rclpy_available() -> bool:
     """Whether rclpy (the ``ros2`` extra's ROS 2 wheels, or a sourced ROS 2) imports."""
@@ -246,19 +245,10 @@ def ros_env(domain: int, fastdds: str = "loopback") -> dict[str, str]:
     return env
 
 
-def _stamp(kind: str, frame: bytes) -> float | None:
-    """The publish time in a delivered frame (seconds), None for a probe."""
-    if kind == "string":
-        found = _STRING_STAMP.search(frame, 0, 400)
-        return float(found.group(1)) if found else None
-    found = _IMAGE_STAMP.search(frame, 0, 600) or _IMAGE_STAMP.search(frame)
-    if found is None or b'"probe"' in frame[:600]:
-        return None
-    return int(found.group(1)) + int(found.group(2)) / 1e9
-
-
 class Counter:
-    """One WebSocket subscriber: counts timed messages and their latencies (s)."""
+    """One ``websockets`` subscriber (``--client websockets``): counts timed messages and
+    their latencies (s); each frame is assembled by the library, its stamp read as in
+    ``ros2_client.stamp``, its content not checked."""
 
     def __init__(self) -> None:
         self.probed = asyncio.Event()
@@ -266,7 +256,7 @@ class Counter:
         self.last = 0.0
 
     async def run(self, url: str, topic: str, kind: str) -> None:
-        """Subscribe to ``topic`` and read until cancelled."""
+        """Subscribe to ``topic`` (of ``TYPES[kind]``) and read until cancelled."""
         import websockets  # noqa: PLC0415
 
         async with websockets.connect(url, max_size=None, compression=None) as ws:
@@ -275,12 +265,16 @@ class Counter:
             while True:
                 data = await ws.recv(decode=False)  # bytes: no UTF-8 decoding of 1 MB frames
                 now = time.time()
-                stamp = _stamp(kind, data)
-                if stamp is None:
+                sent = stamp(kind, data)
+                if sent is None:
                     self.probed.set()
                     continue
-                self.latencies.append(now - stamp)
+                self.latencies.append(now - sent)
                 self.last = now
+
+
+CLIENTS: dict[str, type[Counter | LeanCounter]] = {"lean": LeanCounter, "websockets": Counter}
+"""The WebSocket subscribers ``--client`` picks from (module docstring)."""
 
 
 def _percentile(values: list[float], q: float) -> float:
@@ -339,7 +333,9 @@ async def _settle(pid: int) -> None:
             return
 
 
-async def _drain(counters: list[Counter], pid: int, sent_task: asyncio.Task[str]) -> float:
+async def _drain(
+    counters: Sequence[Counter | LeanCounter], pid: int, sent_task: asyncio.Task[str]
+) -> float:
     """Wait for the publisher to finish and the subscribers to go idle; CPU at the last delivery."""
     cpu = _cpu(pid)
     total = -1
@@ -380,10 +376,16 @@ def _result(
 
 
 async def _through_bridge(
-    receiver: str, url: str, pid: int, case: Case, seconds: float, env: dict[str, str]
+    receiver: str,
+    url: str,
+    pid: int,
+    case: Case,
+    seconds: float,
+    env: dict[str, str],
+    client: str = "lean",
 ) -> Result:
     topic = f"/bench_{receiver}_{case.kind}_{case.hz}_{case.subscribers}"
-    counters = [Counter() for _ in range(case.subscribers)]
+    counters = [CLIENTS[client]() for _ in range(case.subscribers)]
     tasks = [asyncio.create_task(c.run(url, topic, case.kind)) for c in counters]
     try:
         async with _child(PUB, case.kind, str(case.hz), str(seconds), topic, env=env) as pub:
@@ -401,7 +403,10 @@ async def _through_bridge(
     finally:
         for task in tasks:
             task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        ended = await asyncio.gather(*tasks, return_exceptions=True)
+    for error in ended:  # a wrong delivery, or a subscriber the bridge dropped
+        if isinstance(error, Exception):
+            raise RuntimeError(f"a WebSocket subscriber failed: {error!r}") from error
     latencies = [x for c in counters for x in c.latencies]
     last = max(c.last for c in counters)
     result = _result(receiver, case, sent, start, latencies, last, cpu1 - cpu0, case.subscribers)
@@ -473,11 +478,13 @@ async def run_case(
     domain: int,
     tools: Path | None = None,
     fastdds: str = "loopback",
+    client: str = "lean",
 ) -> Result:
     """One ``case`` on ``receiver`` (``rwt``, ``rclpy``, or a peer of ``PEERS`` with ``tools``).
 
     Starts (and stops) the bridge; the ROS 2 processes use ``domain`` and the Fast DDS
-    setup ``fastdds`` (``FASTDDS``; the peers' scripts set up their own environment).
+    setup ``fastdds`` (``FASTDDS``; the peers' scripts set up their own environment);
+    the WebSocket subscribers are ``CLIENTS[client]``.
 
     Raises:
         RuntimeError: a process did not start or ended early.
@@ -493,11 +500,12 @@ async def run_case(
     if receiver == "rwt":
         with await asyncio.to_thread(_start_rwt, domain, env) as server:
             url = f"ws://127.0.0.1:{server.port}"
-            return await _through_bridge("rwt", url, server.process.pid, case, seconds, env)
+            pid = server.process.pid
+            return await _through_bridge("rwt", url, pid, case, seconds, env, client)
     assert tools is not None
 
     async def measure(url: str, pid: int) -> Result:
-        return await _through_bridge(receiver, url, pid, case, seconds, env)
+        return await _through_bridge(receiver, url, pid, case, seconds, env, client)
 
     return await on_peer(receiver, tools, domain, measure)
 
@@ -585,6 +593,7 @@ async def run_all(
     domain: int,
     tools: dict[str, Path],
     fastdds: str = "loopback",
+    client: str = "lean",
 ) -> list[Result]:
     """Every case on every receiver, in that order (rclpy: the 1-subscriber cases only)."""
     results = []
@@ -594,7 +603,8 @@ async def run_all(
                 continue
             print(f"{case.label} 1->{case.subscribers} {receiver}...", file=sys.stderr, flush=True)
             where = tools.get(receiver)
-            results.append(await run_case(receiver, case, seconds, domain, where, fastdds))
+            result = await run_case(receiver, case, seconds, domain, where, fastdds, client)
+            results.append(result)
     return results
 
 
@@ -614,6 +624,13 @@ def main(argv: list[str] | None = None) -> int:
         help="Fast DDS setup of every process: loopback (the tests' XML), default (no XML), "
         "large-shm (loopback with a 4 MB shared-memory segment)",
     )
+    parser.add_argument(
+        "--client",
+        choices=list(CLIENTS),
+        default="lean",
+        help="the WebSocket subscribers: lean (frames walked as they arrive, each image "
+        "checked in place; benchmarks/ros2_client.py) or websockets (the library, unchecked)",
+    )
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     if not rclpy_available():
@@ -622,7 +639,9 @@ def main(argv: list[str] | None = None) -> int:
     receivers = [r for r in args.receivers.split(",") if r]
     tools = peer_tools(receivers)
     cases = [c for c in CASES if not args.cases or args.cases in f"{c.label} 1->{c.subscribers}"]
-    results = asyncio.run(run_all(receivers, cases, args.seconds, args.domain, tools, args.fastdds))
+    results = asyncio.run(
+        run_all(receivers, cases, args.seconds, args.domain, tools, args.fastdds, args.client)
+    )
     print(table(results))
     print()
     for line in verdicts(results):

@@ -26,6 +26,15 @@ def test_rclpy_publisher_reaches_every_websocket_subscriber_through_rwt() -> Non
     assert "| String 100 B 20 Hz | 2 | rwt serve --ros2 |" in table([result])
 
 
+def test_every_image_reaches_the_lean_subscribers_whole() -> None:
+    """The lean client checks each image's base64 in place (benchmarks/ros2_client.py):
+    a wrong delivery would fail the case."""
+    result = asyncio.run(run_case("rwt", Case("image", 30, 2), 1.0, DOMAIN, fastdds="large-shm"))
+    assert result.sent >= 20
+    assert result.delivered == 2 * result.sent
+    assert "| Image 640x480 30 Hz | 2 | rwt serve --ros2 |" in table([result])
+
+
 def test_each_fastdds_setup_loads_its_own_profile_or_none() -> None:
     """``--fastdds default`` is Fast DDS out of the box: no XML profile at all."""
     assert "FASTDDS_DEFAULT_PROFILES_FILE" not in ros_env(DOMAIN, "default")
