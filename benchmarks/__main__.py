@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         "--workers-cpu",
         type=int,
         metavar="ROUNDS",
-        help="only the Z2 servers' CPU per delivery, ROUNDS interleaved rounds (nothing saved)",
+        help="only the Z2 servers' CPU per delivery: ROUNDS rounds of paired bursts",
     )
     p_sweep = sub.add_parser("sweep", help="scaling sweep and its plots")
     p_sweep.add_argument("--runs", type=int, default=3)

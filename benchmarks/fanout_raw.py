@@ -39,7 +39,7 @@ from .loadgen.engine import (
 )
 from .loadgen.wire import FrameReader, client_frame
 
-__all__ = ["fan_out_raw"]
+__all__ = ["FanOut", "fan_out_raw"]
 
 TOPIC = "/fan"
 STRING = "std_msgs/msg/String"
@@ -151,3 +151,51 @@ def fan_out_raw(
         "generator_cpu_share": loop.generator_cpu_s / loop.wall_s,
         "generator_cpu_us_per_delivery": loop.generator_cpu_s / max(delivered, 1) * 1e6,
     }
+
+
+class FanOut:
+    """One publisher and ``subscribers`` subscribers of ``/fan`` on ``port``, kept connected.
+
+    Raises:
+        GeneratorError: a subscriber is never reached by a probe.
+    """
+
+    def __init__(self, port: int, subscribers: int = 100) -> None:
+        self.subs = [CountingSubscriber(port) for _ in range(subscribers)]
+        frames = [client_frame(msgs.string_publish(TOPIC, i)) for i in range(256)]
+        self.pub = WindowPublisher(
+            port,
+            "rwt",
+            [msgs.advertise(TOPIC, STRING)],
+            FrameBlock(b"".join(frames), len(frames[0])),
+            window=512,
+            duration_s=0.0,
+        )
+        self.pub.watch = list(self.subs)
+        _probe(self.pub, self.subs)
+        time.sleep(0.5)  # probes in flight land first
+
+    def burst(self, duration_s: float, pid: int, cpu_ns: Callable[[int], int]) -> tuple[int, int]:
+        """Publish for ``duration_s`` and wait for every delivery (none may be dropped).
+
+        Returns:
+            (deliveries, ``cpu_ns(pid)`` after less before: the server's CPU meanwhile).
+        """
+        pub = self.pub
+        pub.duration_s = duration_s
+        pub.first_s = pub.stop_s = None
+        pub.sent = 0
+        for sub in self.subs:
+            sub.first_s = sub.last_s = None
+            sub.received = 0
+        before = cpu_ns(pid)
+        run_loop(
+            [pub],
+            list(self.subs),
+            done=lambda: pub.finished and all(s.received >= pub.sent for s in self.subs),
+            limit_s=duration_s + 60.0,
+        )
+        return sum(s.received for s in self.subs), cpu_ns(pid) - before
+
+    def close(self) -> None:
+        close_all([self.pub, *self.subs])

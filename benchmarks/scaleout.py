@@ -40,7 +40,7 @@ from typing import Any
 
 import websockets
 
-from .fanout_raw import fan_out_raw
+from .fanout_raw import FanOut, fan_out_raw
 from .zenoh_link import rclpy_available, run_pair
 
 REPO = Path(__file__).resolve().parents[1]
@@ -91,100 +91,81 @@ async def server(*args: str) -> Any:
 SERVER_PIDS: dict[str, int] = {}
 
 
-def tree_cpu_s(pid: int) -> float:
-    """CPU seconds (user + system, all threads) of ``pid`` and its live descendants.
-
-    Read from /proc (``stat`` fields 14 and 15, in clock ticks; ``task/*/children``).
-    """
-    total = 0.0
+def tree_cpu_ns(pid: int) -> int:
+    """CPU ns of every thread of ``pid`` and its live descendants (``/proc/*/task/*/schedstat``)."""
+    total = 0
     pending = [pid]
     while pending:
         current = pending.pop()
-        try:
-            fields = Path(f"/proc/{current}/stat").read_text().rsplit(")", 1)[1].split()
-            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        with contextlib.suppress(OSError, ValueError, IndexError):
             for task in Path(f"/proc/{current}/task").iterdir():
+                total += int((task / "schedstat").read_text().split()[0])
                 pending += [int(c) for c in (task / "children").read_text().split()]
-        except (FileNotFoundError, ProcessLookupError):
-            continue
     return total
 
 
-async def workers_cpu(workers: int, duration_s: float) -> dict[str, float]:
-    """Servers' CPU per delivery of the raw-socket fan-out (1 -> 100) on ``rwt serve``.
+async def paired_bursts(rounds: int, burst_s: float = 1.0) -> dict[str, Any]:
+    """Z2 servers' CPU per delivery, ``--workers 2`` against one worker, in paired bursts.
 
-    ``workers`` > 1 runs ``--workers N``; every process of the server is counted
-    (the parent and each worker, read from /proc), the generator's are not.
+    The CPU time of the same Python work drifts on a shared virtual machine by up
+    to a factor of two from one minute to the next (benchmarks/README.md, "Workers'
+    CPU per delivery"), so two figures taken a minute apart say little about a 15 %
+    difference. Both servers run side by side for the whole measurement instead,
+    each with 100 subscribers of ``/fan`` and a publisher connected once and probed
+    until every subscriber is reached (``fanout_raw.FanOut``). Bursts of
+    ``burst_s`` then alternate between them in the order 1, 2, 2, 1 worker(s) per
+    round, so a drift within a round weighs on both alike; the server not under
+    test is idle meanwhile. A burst's figure is the CPU time of every thread of
+    every process of the server under test (``tree_cpu_ns``) from its first send to
+    its last delivery, over the deliveries (none may be dropped). A round's ratio
+    is the mean of its two 2-worker bursts over the mean of its two 1-worker ones.
 
     Returns:
-        ``server_cpu_us_per_delivery`` (from the first connection to the last
-        delivery), ``burst_cpu_us_per_delivery`` (the timed burst alone, without
-        the connections, subscriptions and probes), ``setup_cpu_s`` (the servers'
-        CPU seconds before the burst), ``deliveries_per_s``, ``delivered``,
-        ``expected``.
+        ``rounds``: per round the us per delivery of each burst (``one``, ``two``,
+        lists of two) and ``ratio``; ``median_one``, ``median_two`` (us per
+        delivery over all bursts) and ``median_ratio`` (of the rounds' ratios).
     """
-    args = ("--workers", str(workers)) if workers > 1 else ()
-    async with server(*args) as url:
+    async with server() as one_url, server("--workers", "2") as two_url:
         await asyncio.sleep(2)  # every worker listening
-        port = int(url.rsplit(":", 1)[1].split("/")[0])
-        pid = SERVER_PIDS[url]
-        before = tree_cpu_s(pid)
-        timed: list[float] = []
-        raw = await asyncio.to_thread(
-            fan_out_raw, port, 100, duration_s, on_timed=lambda: timed.append(tree_cpu_s(pid))
-        )
-        after = tree_cpu_s(pid)
-    delivered = max(raw["delivered"], 1)
+        setups: dict[str, tuple[FanOut, int]] = {}
+        for name, url in (("one", one_url), ("two", two_url)):
+            port = int(url.rsplit(":", 1)[1].split("/")[0])
+            setups[name] = (await asyncio.to_thread(FanOut, port), SERVER_PIDS[url])
+        done: list[dict[str, Any]] = []
+        try:
+            for _ in range(rounds):
+                found: dict[str, list[float]] = {"one": [], "two": []}
+                for name in ("one", "two", "two", "one"):
+                    fan, pid = setups[name]
+                    got = await asyncio.to_thread(fan.burst, burst_s, pid, tree_cpu_ns)
+                    found[name].append(got[1] / 1e3 / max(got[0], 1))
+                ratio = statistics.mean(found["two"]) / statistics.mean(found["one"])
+                done.append({**found, "ratio": ratio})
+        finally:
+            for fan, _ in setups.values():
+                fan.close()
     return {
-        "server_cpu_us_per_delivery": (after - before) / delivered * 1e6,
-        "burst_cpu_us_per_delivery": (after - timed[0]) / delivered * 1e6,
-        "setup_cpu_s": timed[0] - before,
-        "deliveries_per_s": raw["deliveries_per_s"],
-        "delivered": raw["delivered"],
-        "expected": raw["expected"],
+        "rounds": done,
+        "median_one": statistics.median(x for r in done for x in r["one"]),
+        "median_two": statistics.median(x for r in done for x in r["two"]),
+        "median_ratio": statistics.median(r["ratio"] for r in done),
     }
 
 
-async def workers_cpu_rounds(rounds: int, duration_s: float) -> dict[str, Any]:
-    """``rounds`` interleaved rounds of ``workers_cpu``, 1 worker then 2; medians.
-
-    Returns:
-        ``rounds`` (each round's two results) and the medians of both figures per
-        worker count and of their per-round ratios (``median_ratio``,
-        ``median_burst_ratio``).
-    """
-    done: list[dict[str, dict[str, float]]] = []
-    for _ in range(rounds):
-        one = await workers_cpu(1, duration_s)
-        done.append({"1": one, "2": await workers_cpu(2, duration_s)})
-    out: dict[str, Any] = {"rounds": done}
-    for key, label in (("server_cpu_us_per_delivery", ""), ("burst_cpu_us_per_delivery", "burst_")):
-        for count in ("1", "2"):
-            out[f"median_{label}{count}"] = statistics.median(r[count][key] for r in done)
-        out[f"median_{label}ratio"] = statistics.median(r["2"][key] / r["1"][key] for r in done)
-    return out
-
-
-def workers_cpu_table(found: dict[str, Any]) -> str:
-    """The rounds of ``workers_cpu_rounds`` and their medians, as Markdown lines."""
+def paired_table(found: dict[str, Any]) -> str:
+    """The rounds of ``paired_bursts`` and their medians, as Markdown lines."""
     lines = [
-        "| round | 1 worker: all; burst (us/delivery) | 2 workers: all; burst | ratio all; burst |",
+        "| round | 1 worker, us/delivery (bursts 1 and 4) | 2 workers (bursts 2 and 3) | ratio |",
         "|---|---|---|---|",
     ]
     for number, pair in enumerate(found["rounds"], 1):
-        one, two = pair["1"], pair["2"]
-        lines.append(
-            f"| {number} | {one['server_cpu_us_per_delivery']:.2f}; "
-            f"{one['burst_cpu_us_per_delivery']:.2f} ({one['delivered']}/{one['expected']}) | "
-            f"{two['server_cpu_us_per_delivery']:.2f}; {two['burst_cpu_us_per_delivery']:.2f} "
-            f"({two['delivered']}/{two['expected']}) | "
-            f"{two['server_cpu_us_per_delivery'] / one['server_cpu_us_per_delivery']:.2f}; "
-            f"{two['burst_cpu_us_per_delivery'] / one['burst_cpu_us_per_delivery']:.2f} |"
-        )
+        one = "; ".join(f"{x:.2f}" for x in pair["one"])
+        two = "; ".join(f"{x:.2f}" for x in pair["two"])
+        lines.append(f"| {number} | {one} | {two} | {pair['ratio']:.2f} |")
+    ratios = sorted(r["ratio"] for r in found["rounds"])
     lines.append(
-        f"| median | {found['median_1']:.2f}; {found['median_burst_1']:.2f} | "
-        f"{found['median_2']:.2f}; {found['median_burst_2']:.2f} | "
-        f"{found['median_ratio']:.2f}; {found['median_burst_ratio']:.2f} (medians of the ratios) |"
+        f"| median | {found['median_one']:.2f} | {found['median_two']:.2f} | "
+        f"{found['median_ratio']:.2f} (rounds {ratios[0]:.2f}-{ratios[-1]:.2f}) |"
     )
     return "\n".join(lines)
 
@@ -385,8 +366,7 @@ async def measure(quick: bool) -> dict[str, Any]:
             await asyncio.sleep(2)
             port = int(url.rsplit(":", 1)[1].split("/")[0])
             results[f"Z2 raw {label}"] = await asyncio.to_thread(fan_out_raw, port, 100, duration)
-    for workers in (1, 2):
-        results[f"Z2 server CPU {workers}"] = await workers_cpu(workers, duration)
+    results["Z2 server CPU"] = await paired_bursts(2 if quick else 8, 0.5 if quick else 1.0)
     return results
 
 
@@ -420,13 +400,12 @@ def table(results: dict[str, Any]) -> str:
         f"{raw_one['generator_cpu_share']:.2f}; {raw_one['generator_cpu_us_per_delivery']:.1f} "
         f"| - | - |",
     ]
-    cpu_one, cpu_two = results["Z2 server CPU 1"], results["Z2 server CPU 2"]
+    cpu = results["Z2 server CPU"]
+    ratios = sorted(r["ratio"] for r in cpu["rounds"])
     rows.append(
         f"| Z2 servers' CPU us/delivery, all processes (--workers 2 vs 1, raw-socket "
-        f"generator) | {cpu_two['server_cpu_us_per_delivery']:.2f} | "
-        f"{cpu_one['server_cpu_us_per_delivery']:.2f} | "
-        f"{cpu_two['server_cpu_us_per_delivery'] / cpu_one['server_cpu_us_per_delivery']:.2f}"
-        f" | <= 1.15 |"
+        f"generator, paired bursts) | {cpu['median_two']:.2f} | {cpu['median_one']:.2f} | "
+        f"{cpu['median_ratio']:.2f} ({ratios[0]:.2f}-{ratios[-1]:.2f}) | <= 1.15 |"
     )
     for size in (100, 1_000_000):
         label = "100 B" if size == 100 else "1 MB"
@@ -485,12 +464,12 @@ def main(argv: list[str] | None = None) -> int:
         "--workers-cpu",
         type=int,
         metavar="ROUNDS",
-        help="only the Z2 servers' CPU per delivery: ROUNDS interleaved rounds (nothing saved)",
+        help="only the Z2 servers' CPU per delivery: ROUNDS rounds of paired bursts",
     )
     args = parser.parse_args(argv)
     if args.workers_cpu:
-        duration = 0.5 if args.quick else 3.0
-        print(workers_cpu_table(asyncio.run(workers_cpu_rounds(args.workers_cpu, duration))))
+        burst = 0.5 if args.quick else 1.0
+        print(paired_table(asyncio.run(paired_bursts(args.workers_cpu, burst))))
         return 0
     started = time.perf_counter()
     results = asyncio.run(measure(args.quick))

@@ -45,6 +45,7 @@ from .actions import (
 )
 from .calls import LOCAL_PREFIX, Spawner, guarded, is_local
 from .clock import Clock, SystemClock
+from .link import OPEN_GATE, InflowGate
 from .nodes import Nodes
 from .ratelog import EpisodeLog
 from .services import ServiceEntry, Services
@@ -78,6 +79,8 @@ class GraphCore:
         taps: functions that see every published message (``topics.Tap``).
         type_checks: functions of links telling why they cannot carry a type
             (``type_warning``); a link adds one while it runs.
+        inflow: the backpressure links' deliveries follow (``link.InflowGate``);
+            the server serving the graph installs its own, else ``OPEN_GATE``.
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -94,6 +97,7 @@ class GraphCore:
         self._reserved_prefixes: tuple[str, ...] = ()
         self.taps: list[Tap] = []
         self.type_checks: list[Callable[[str], str | None]] = []
+        self.inflow: InflowGate = OPEN_GATE
         # client -> the topics it publishes or subscribes to, so that its release
         # costs what it holds, not the size of the graph (a peer's thousands of
         # entities leave one by one: docs/limits.md, "Zenoh peers")

@@ -26,6 +26,12 @@ same rules, written here once:
   by the topic's relay until the publisher is known (``Relays``), latched as
   the link knows its durability, and handed over to its publisher once known,
   so a late subscriber gets a latched sample whichever came first.
+- **Backpressure.** A link hands its samples to the graph in batches, each
+  between ``Graph.port.inflow.begin()`` and ``end()``, and awaits its
+  ``hold()`` after each: while a local subscriber's outbox is
+  congested, within its hold budget, the link takes no more (its own queue then
+  holds the other middleware back), as a publishing connection's reader waits
+  (docs/limits.md). Without a server the gate is open (``OPEN_GATE``).
 - **Cleanup.** A remote entity that goes is released (``GraphCore.release``):
   its services fail their callers (D15), its latched message goes (D13). When
   the link stops, it releases every remote entity it mirrored.
@@ -53,9 +59,11 @@ __all__ = [
     "HELD_SOURCES",
     "LATCHED_DEPTH",
     "NULL_SINK",
+    "OPEN_GATE",
     "PRIVATE_NAMES",
     "RELAY_WAIT_SWEEPS",
     "GraphLink",
+    "InflowGate",
     "Kind",
     "LinkRules",
     "Relays",
@@ -368,6 +376,47 @@ class Relays:
         for relay in self._relays.values():
             self._graph.port.release(relay.client)
         self._relays.clear()
+
+
+class InflowGate(Protocol):
+    """Backpressure for messages a link delivers from outside (no connection's reader).
+
+    The transports install theirs on the graph they serve (``GraphCore.inflow``):
+    deliveries between ``begin`` and ``end`` note every subscriber whose outbox
+    they pushed over its high watermark, ``end`` writes out what they queued, and
+    ``hold`` waits until those outboxes are back under their low watermark, each
+    within its hold budget (docs/limits.md, "Backpressure"), as a publishing
+    connection's reader does.
+    """
+
+    def begin(self) -> None:
+        """A batch of deliveries starts (on the event loop, no await until ``end``)."""
+        ...
+
+    def end(self) -> None:
+        """The batch ended: write out what it queued."""
+        ...
+
+    async def hold(self) -> None:
+        """Wait for the subscribers the batch congested, within their hold budgets."""
+        ...
+
+
+class _OpenGate:
+    """No transport serves the graph: nothing to write out or wait for."""
+
+    def begin(self) -> None:
+        pass
+
+    def end(self) -> None:
+        pass
+
+    async def hold(self) -> None:
+        pass
+
+
+OPEN_GATE: InflowGate = _OpenGate()
+"""The gate of a graph no server serves (an embedded graph): holds nothing."""
 
 
 class GraphLink(Protocol):

@@ -18,10 +18,13 @@ import threading
 from collections import deque
 from typing import TYPE_CHECKING
 
+from rwt_graph.link import OPEN_GATE
 from rwt_graph.ratelog import EpisodeLog
 
 if TYPE_CHECKING:
     from collections.abc import Callable
+
+    from rwt_graph.link import InflowGate
 
 __all__ = ["MAX_QUEUED_BYTES", "Handoff"]
 
@@ -90,10 +93,13 @@ class Handoff:
                 loop.call_soon_threadsafe(wake.set)
         return True
 
-    async def drain(self) -> None:
+    async def drain(self, gate: Callable[[], InflowGate] = lambda: OPEN_GATE) -> None:
         """Run queued callbacks in order, in this task, until cancelled.
 
-        Errors of a callback are logged; the others still run.
+        Each batch runs inside ``gate()`` (the graph's ``InflowGate``), and the
+        subscribers it congested are waited for before the next, within their
+        hold budgets (``rwt_graph.link``, "Backpressure"). Errors of a callback
+        are logged; the others still run.
         """
         self._loop = asyncio.get_running_loop()
         wake = self._wake = asyncio.Event()
@@ -104,16 +110,25 @@ class Handoff:
             with self._lock:
                 self._signalled = False
             while self._events:
-                for _ in range(min(len(self._events), _BATCH)):
-                    with self._lock:
-                        callback, args, size = self._events.popleft()
-                        self.queued_bytes -= size
-                    try:
-                        callback(*args)
-                    except Exception:
-                        logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
+                inflow = gate()
+                inflow.begin()
+                try:
+                    self._run_batch()
+                finally:
+                    inflow.end()
+                await inflow.hold()
                 if self._events:
                     await asyncio.sleep(0)  # a flood: let the servers send meanwhile
+
+    def _run_batch(self) -> None:
+        for _ in range(min(len(self._events), _BATCH)):
+            with self._lock:
+                callback, args, size = self._events.popleft()
+                self.queued_bytes -= size
+            try:
+                callback(*args)
+            except Exception:
+                logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
 
     def close(self) -> None:
         """Refuse new work and forget what is queued."""

@@ -221,7 +221,7 @@ class Ros2Link:
             self.ros.start()
             await self._sweep_once()
             async with anyio.create_task_group() as tg:
-                tg.start_soon(self.handoff.drain)
+                tg.start_soon(self.handoff.drain, lambda: self.graph.port.inflow)
                 task_status.started()
                 took = 0.0
                 while True:

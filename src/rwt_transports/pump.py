@@ -81,6 +81,7 @@ __all__ = [
     "Channel",
     "ConnectionPump",
     "DirectChannel",
+    "InboundBatch",
     "SessionHost",
     "flush_deferred",
     "run_connection",
@@ -287,6 +288,88 @@ def flush_deferred() -> None:
         pumps.clear()
         for pump in batch:
             pump._flush_deferred()
+
+
+async def _hold_backlogged(reader: ConnectionPump | None) -> None:
+    """Wait for the outboxes the last batch pushed over their high watermark.
+
+    ``reader`` is the connection whose frames made the batch (its socket is
+    paused meanwhile), or None for a link's deliveries (``InboundBatch``).
+    """
+    deferred = _deferred
+    backlogged = deferred.backlogged
+    if not backlogged:
+        return
+    deferred.backlogged = []
+    for pump in backlogged:
+        pump._backlogged = False
+    for pump in backlogged:
+        own = pump is reader
+        if pump._over_water(own=own, mark=pump._high_water):
+            if reader is not None and reader._pausable is not None:
+                reader._pausable.pause_reading()
+            await _wait_for(pump, own=own)
+
+
+async def _wait_for(pump: ConnectionPump, *, own: bool) -> None:
+    """Wait until ``pump``'s outbox is under its low watermark, within its hold budget.
+
+    Another connection is waited for only while it is not slow: the time
+    waited is charged to its budget (``--hold-budget``), and once that is
+    spent, or it took nothing for ``INPUT_STALL_S``, it is slow and left to
+    the drop and close rules (D24) until it catches up. A reader's own
+    outbox (replies only) is waited for while its peer takes frames.
+    """
+    while pump._over_water(own=own, mark=pump._low_water):
+        wait_s = INPUT_STALL_S
+        if not own:
+            if pump._slow:
+                return
+            left = pump._hold_budget - pump._held_s
+            if left <= 0:
+                pump._slow = True
+                return
+            wait_s = min(wait_s, left)
+        takes = pump._takes
+        progress = pump._progress
+        if progress is None:
+            progress = pump._progress = anyio.Event()
+        start = anyio.current_time()
+        with anyio.move_on_after(wait_s):
+            await progress.wait()
+        if not own:
+            pump._charge_hold(start, anyio.current_time())
+        if pump._takes == takes:  # not reading: left to the drop and close rules (D24)
+            if not own:
+                pump._slow = True
+            return
+
+
+class InboundBatch:
+    """The transports' ``InflowGate`` (``rwt_graph.link``): a link's deliveries as a reader's.
+
+    A link's samples come from no connection, yet fill subscribers' outboxes as
+    a publisher's frames do. Between ``begin`` and ``end`` the subscribers they
+    push over their high watermark are noted and their frames held for one
+    write each (as in a reader's batch); ``hold`` then waits for those outboxes
+    to drain to their low watermark, each within its hold budget, so a burst
+    from another process reaches a subscriber that keeps up on average whole,
+    and a slow one is left to the drop and close rules (D24) once its budget is
+    spent, as with a local publisher.
+    """
+
+    def begin(self) -> None:
+        """Deliveries start: note congestion, defer the writes (no await until ``end``)."""
+        _deferred.in_batch = True
+
+    def end(self) -> None:
+        """Deliveries ended: write out what they queued."""
+        _deferred.in_batch = False
+        flush_deferred()
+
+    async def hold(self) -> None:
+        """Wait for the subscribers the batch congested, within their hold budgets."""
+        await _hold_backlogged(None)
 
 
 class ConnectionPump:
@@ -594,18 +677,7 @@ class ConnectionPump:
 
         Reading is paused meanwhile, so the peer's sends back up in TCP.
         """
-        deferred = _deferred
-        backlogged = deferred.backlogged
-        if not backlogged:
-            return
-        deferred.backlogged = []
-        for pump in backlogged:
-            pump._backlogged = False
-        for pump in backlogged:
-            if pump._over_water(own=pump is self, mark=pump._high_water):
-                if self._pausable is not None:
-                    self._pausable.pause_reading()
-                await self._wait_for(pump)
+        await _hold_backlogged(self)
 
     def _over_water(self, *, own: bool, mark: int) -> bool:
         """Whether this connection's outbox is above ``mark`` for a reader to wait on.
@@ -617,40 +689,6 @@ class ConnectionPump:
         if session is None or session.closing:
             return False
         return (session.queued_reply_bytes if own else session.queued_bytes) > mark
-
-    async def _wait_for(self, pump: ConnectionPump) -> None:
-        """Wait until ``pump``'s outbox is under its low watermark, within its hold budget.
-
-        Another connection is waited for only while it is not slow: the time
-        waited is charged to its budget (``--hold-budget``), and once that is
-        spent, or it took nothing for ``INPUT_STALL_S``, it is slow and left to
-        the drop and close rules (D24) until it catches up. A reader's own
-        outbox (replies only) is waited for while its peer takes frames.
-        """
-        own = pump is self
-        while pump._over_water(own=own, mark=pump._low_water):
-            wait_s = INPUT_STALL_S
-            if not own:
-                if pump._slow:
-                    return
-                left = pump._hold_budget - pump._held_s
-                if left <= 0:
-                    pump._slow = True
-                    return
-                wait_s = min(wait_s, left)
-            takes = pump._takes
-            progress = pump._progress
-            if progress is None:
-                progress = pump._progress = anyio.Event()
-            start = anyio.current_time()
-            with anyio.move_on_after(wait_s):
-                await progress.wait()
-            if not own:
-                pump._charge_hold(start, anyio.current_time())
-            if pump._takes == takes:  # not reading: left to the drop and close rules (D24)
-                if not own:
-                    pump._slow = True
-                return
 
     def _charge_hold(self, start: float, end: float) -> None:
         """Charge the time from ``start`` to ``end`` (s) that a reader waited to the budget.

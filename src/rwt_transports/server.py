@@ -58,7 +58,7 @@ from rwt_protocol.shortcuts import switched_off
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .memory import MemoryConnection, memory_pair
-from .pump import ConnectionPump, run_connection
+from .pump import ConnectionPump, InboundBatch, run_connection
 from .shares import HostShares, host_key
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
@@ -239,6 +239,7 @@ class RosbridgeServer:
         authenticator: Authenticator | None = None,
     ) -> None:
         self.graph = graph or Graph()
+        self.graph.port.inflow = InboundBatch()  # links' deliveries are held back as readers are
         self.config = config or ServerConfig()
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)

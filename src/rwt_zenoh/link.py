@@ -308,13 +308,21 @@ class ZenohLink:
                 # batch, not per event: a checkpoint per sample was a quarter of B's
                 # time in Z3 (benchmarks/README.md, "Scaling out"). A batch ends early
                 # after _DRAIN_BYTES of samples, so large ones (images) do not hold
-                # the loop for long.
+                # the loop for long. Subscribers it congested are waited for, within
+                # their hold budgets, before the next (``InflowGate``): the inbox then
+                # fills and holds the peer back, so a burst arrives whole.
                 self._drained_bytes = 0
-                for _ in range(min(len(events), _DRAIN_BATCH)):
-                    callback, args = events.popleft()
-                    self._guarded(callback, *args)
-                    if self._drained_bytes >= _DRAIN_BYTES:
-                        break
+                gate = self.graph.port.inflow
+                gate.begin()
+                try:
+                    for _ in range(min(len(events), _DRAIN_BATCH)):
+                        callback, args = events.popleft()
+                        self._guarded(callback, *args)
+                        if self._drained_bytes >= _DRAIN_BYTES:
+                            break
+                finally:
+                    gate.end()
+                await gate.hold()
                 if events:
                     await asyncio.sleep(0)
 

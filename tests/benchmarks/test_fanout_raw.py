@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from benchmarks.fanout_raw import fan_out_raw
+from benchmarks.fanout_raw import FanOut, fan_out_raw
 
 from tests.integration.client_harness import ServerProcess
 
@@ -18,3 +18,28 @@ def test_every_subscriber_gets_every_timed_message(tmp_path: Path) -> None:
     assert result["sent"] > 0
     assert result["delivered"] == result["expected"] == result["sent"] * 5
     assert result["deliveries_per_s"] > 0
+
+
+def test_kept_peers_count_each_burst_and_the_server_cpu_it_took(tmp_path: Path) -> None:
+    server = ServerProcess(tmp_path, ("--no-tf",))
+    readings = iter([1_000, 5_000, 7_000, 7_500])
+    asked: list[int] = []
+
+    def cpu_ns(pid: int) -> int:
+        asked.append(pid)
+        return next(readings)
+
+    try:
+        fan = FanOut(server.port, 4)
+        try:
+            first = fan.burst(0.2, server.proc.pid, cpu_ns)
+            second = fan.burst(0.2, server.proc.pid, cpu_ns)
+            sent = fan.pub.sent
+        finally:
+            fan.close()
+    finally:
+        server.stop()
+    assert first[0] > 0
+    assert second[0] == sent * 4  # the counts start again with each burst
+    assert (first[1], second[1]) == (4_000, 500)
+    assert asked == [server.proc.pid] * 4

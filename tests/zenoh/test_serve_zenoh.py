@@ -453,3 +453,60 @@ done.wait(20)
         ) as caller:
             line = (await caller.line()).strip()
             assert line == 'result {"sequence": [0, 1, 1, 2, 3, 5]} feedback 4', line
+
+
+async def test_a_burst_from_a_reaches_a_slow_subscriber_on_b_whole() -> None:
+    # 24 messages of 1 MB at once, more than B's outbox for its subscriber holds
+    # (16 MiB): B takes no more from the link while that outbox is congested, within
+    # the subscriber's hold budget, as it would hold a publisher connected to it.
+    # The subscriber reads slower than the burst comes, faster than the budget.
+    a_ep = endpoint()
+    async with (
+        serving("A", listen=a_ep) as (_, a_url),
+        serving("B", connect=(a_ep,)) as (_, b_url),
+        python_client(
+            roslibpy(
+                """
+ros = connect(URL)
+got = []
+def on_message(msg):
+    got.append(msg["data"][:8])
+    time.sleep(0.03)  # a slow reader: the socket is not read meanwhile
+listener = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String", queue_length=0)
+listener.subscribe(on_message)
+say("subscribed")
+until("the burst", lambda: len(got) >= 24, timeout=60)
+time.sleep(0.5)
+say("got", json.dumps(got))
+stay()
+""",
+                b_url,
+            ),
+            "roslibpy-B",
+        ) as listener,
+    ):
+        assert (await listener.line()).strip() == "subscribed"
+        async with python_client(
+            roslibpy(
+                """
+ros = connect(URL)
+def ros_subscribers(topic):
+    service = roslibpy.Service(ros, "/rosapi/subscribers", "rosapi_msgs/srv/Subscribers")
+    return service.call(roslibpy.ServiceRequest({"topic": topic}), timeout=5)["subscribers"]
+talker = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String")
+talker.advertise()
+until("B's subscriber", lambda: len(ros_subscribers("/burst")) >= 1)
+time.sleep(0.5)  # the link's route to B is up (discovery is eventual)
+for n in range(24):
+    talker.publish(roslibpy.Message({"data": f"{n:08d}" + "x" * 1_000_000}))
+say("published")
+stay()
+""",
+                a_url,
+            ),
+            "roslibpy-A",
+        ) as talker:
+            assert (await talker.line()).strip() == "published"
+            line = (await listener.line()).strip()
+            assert line.startswith("got "), line
+            assert json.loads(line.removeprefix("got ")) == [f"{n:08d}" for n in range(24)]
