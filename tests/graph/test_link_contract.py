@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import anyio
 import pytest
 
 from rwt_graph.graph import Graph
 from rwt_graph.link import (
     NULL_SINK,
+    OPEN_GATE,
     PRIVATE_NAMES,
     RELAY_WAIT_SWEEPS,
     Kind,
@@ -512,3 +514,19 @@ def test_a_fan_out_reaches_the_current_subscribers_and_skips_dropping_sinks() ->
     assert second.got == ["two"]
     assert remote.got == []
     assert set(graph.topics["/chatter"].subscribers) == {"link:remote"}
+
+
+@pytest.mark.anyio
+async def test_a_graph_no_server_serves_holds_no_link_back() -> None:
+    graph = Graph()
+    delivered: list[object] = []
+    graph.create_subscription("/t", delivered.append, STRING)
+    publisher = graph.create_publisher("/t", STRING)
+    gate = graph.port.inflow
+    assert gate is OPEN_GATE
+    gate.begin()
+    publisher.publish({"data": "x" * 100_000})
+    gate.end()
+    with anyio.fail_after(1):
+        await gate.hold()  # nothing congested to wait for: returns at once
+    assert len(delivered) == 1
