@@ -319,7 +319,7 @@ class _Link:
     tokens: set[str] = field(default_factory=set)
     sync_ready: bool = False
     closed_reason: str | None = None
-    fragments: dict[str, list[Received]] = field(default_factory=dict)
+    fragments: dict[str | int, list[Received]] = field(default_factory=dict)
     kept_bytes: int = 0
     """Bytes of ``frames`` (``Received.size``), counted against the case's budget."""
 
@@ -520,7 +520,11 @@ class _CaseRun:
         value = received.value
         if not isinstance(value, dict) or value.get("op") != "fragment":
             return
-        key, num, data = str(value.get("id")), value.get("num"), value.get("data")
+        key, num, data = value.get("id"), value.get("num"), value.get("data")
+        # the id is the server's: kept as it came (``str`` of an int of 5,000 digits
+        # raises), and only a string or an integer can name a message's parts
+        if not isinstance(key, str | int) or isinstance(key, bool):
+            return
         if not isinstance(num, int) or not isinstance(data, str):
             return
         parts = link.fragments.setdefault(key, [])

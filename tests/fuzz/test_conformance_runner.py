@@ -13,6 +13,7 @@ import random
 from collections.abc import Iterator
 
 import anyio
+import cbor2
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -79,3 +80,21 @@ def test_a_run_against_fuzzed_servers_judges_every_case(scripted: tuple[str, Scr
         anyio.run(run, backend="asyncio")
 
     one_run()
+
+
+def test_a_fragment_named_by_an_integer_too_long_to_print_is_judged(
+    scripted: tuple[str, Script],
+) -> None:
+    # CBOR carries integers of any size; Python refuses to print one of 5,000 digits
+    url, script = scripted
+    part = {"op": "fragment", "id": 10**5000, "num": 0, "total": 2, "data": '{"op":'}
+    script.burst = [(cbor2.dumps(part), True)]
+    options = RunOptions(url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10)
+
+    async def run() -> None:
+        result = await run_suite(SUITE, options)
+        (case,) = result.cases
+        assert case.outcome is Outcome.FAILED
+        assert "runner error" not in case.detail, case.detail
+
+    anyio.run(run, backend="asyncio")
