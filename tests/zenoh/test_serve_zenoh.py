@@ -56,6 +56,10 @@ def until(what, check, timeout=20):
 def say(*parts):
     print(*parts, flush=True)
 
+def ros_subscribers(ros, topic):
+    service = roslibpy.Service(ros, "/rosapi/subscribers", "rosapi_msgs/srv/Subscribers")
+    return service.call(roslibpy.ServiceRequest({"topic": topic}), timeout=5)["subscribers"]
+
 def stay():
     sys.stdin.read()  # until the test closes stdin or kills us
 """
@@ -124,15 +128,12 @@ async def test_topics_latched_and_rosapi_across_two_processes() -> None:
             roslibpy(
                 """
 ros = connect(URL)
-def ros_subscribers(topic):
-    service = roslibpy.Service(ros, "/rosapi/subscribers", "rosapi_msgs/srv/Subscribers")
-    return service.call(roslibpy.ServiceRequest({"topic": topic}), timeout=5)["subscribers"]
 talker = roslibpy.Topic(ros, "/chatter", "std_msgs/msg/String")
 talker.advertise()
 latched = roslibpy.Topic(ros, "/map", "std_msgs/msg/String", latch=True)
 latched.advertise()
 # rosapi on A lists B's subscriber once the link has seen it
-until("B's subscriber", lambda: len(ros_subscribers("/chatter")) >= 1)
+until("B's subscriber", lambda: len(ros_subscribers(ros, "/chatter")) >= 1)
 for text in ("one", "two", "three"):
     talker.publish(roslibpy.Message({"data": text}))
 latched.publish(roslibpy.Message({"data": "map v1"}))
@@ -490,12 +491,9 @@ stay()
             roslibpy(
                 """
 ros = connect(URL)
-def ros_subscribers(topic):
-    service = roslibpy.Service(ros, "/rosapi/subscribers", "rosapi_msgs/srv/Subscribers")
-    return service.call(roslibpy.ServiceRequest({"topic": topic}), timeout=5)["subscribers"]
 talker = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String")
 talker.advertise()
-until("B's subscriber", lambda: len(ros_subscribers("/burst")) >= 1)
+until("B's subscriber", lambda: len(ros_subscribers(ros, "/burst")) >= 1)
 time.sleep(0.5)  # the link's route to B is up (discovery is eventual)
 for n in range(24):
     talker.publish(roslibpy.Message({"data": f"{n:08d}" + "x" * 1_000_000}))
