@@ -374,7 +374,10 @@ def _zenoh_options(scale_out: ScaleOut) -> ZenohOptions:
     except ValueError as exc:
         fail(str(exc))
     return replace(
-        link, queue_bytes=scale_out.zenoh_queue_bytes, max_entities=scale_out.zenoh_max_entities
+        link,
+        queue_bytes=scale_out.zenoh_queue_bytes,
+        outbox_bytes=scale_out.zenoh_outbox_bytes,
+        max_entities=scale_out.zenoh_max_entities,
     )
 
 

@@ -18,7 +18,7 @@ from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
-from rwt_zenoh.limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
+from rwt_zenoh.limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
 from .bag_options import (
     Check,
@@ -484,6 +484,15 @@ class ScaleOut:
             "busiest topic are dropped. Also the largest Zenoh message accepted.",
         ),
     ] = MAX_QUEUED_BYTES
+    zenoh_outbox_bytes: Annotated[
+        int,
+        typer.Option(
+            min=64 * 1024,
+            metavar="BYTES",
+            help="Bytes of local messages waiting to go out on Zenoh; past half of it the "
+            "publishing connection is held back, past all of it the oldest are dropped.",
+        ),
+    ] = MAX_OUTBOX_BYTES
     zenoh_max_entities: Annotated[
         int,
         typer.Option(

@@ -45,7 +45,7 @@ from .actions import (
 )
 from .calls import LOCAL_PREFIX, Spawner, guarded, is_local
 from .clock import Clock, SystemClock
-from .link import OPEN_GATE, InflowGate
+from .link import OPEN_GATE, OPEN_OUTFLOW, InflowGate, OutflowGate
 from .nodes import Nodes
 from .ratelog import EpisodeLog
 from .services import ServiceEntry, Services
@@ -81,6 +81,9 @@ class GraphCore:
             (``type_warning``); a link adds one while it runs.
         inflow: the backpressure links' deliveries follow (``link.InflowGate``);
             the server serving the graph installs its own, else ``OPEN_GATE``.
+        outflow: the backpressure local publishers follow when a link's queue
+            for the other middleware is congested (``link.OutflowGate``); the
+            server installs its own, else ``OPEN_OUTFLOW``.
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -98,6 +101,7 @@ class GraphCore:
         self.taps: list[Tap] = []
         self.type_checks: list[Callable[[str], str | None]] = []
         self.inflow: InflowGate = OPEN_GATE
+        self.outflow: OutflowGate = OPEN_OUTFLOW
         # client -> the topics it publishes or subscribes to, so that its release
         # costs what it holds, not the size of the graph (a peer's thousands of
         # entities leave one by one: docs/limits.md, "Zenoh peers")

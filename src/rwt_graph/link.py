@@ -32,6 +32,13 @@ same rules, written here once:
   congested, within its hold budget, the link takes no more (its own queue then
   holds the other middleware back), as a publishing connection's reader waits
   (docs/limits.md). Without a server the gate is open (``OPEN_GATE``).
+  Outward, a link whose own queue for the other middleware (a ``Backlog``)
+  passes its high watermark during a publish says so to
+  ``Graph.port.outflow.congested``; the publishing connection's reader then
+  waits, within the link's hold budget, until the queue is under its low
+  watermark, so a burst faster than the other middleware takes it is held back
+  at its source, not dropped. An in-process publisher is not held
+  (``OPEN_OUTFLOW`` without a server).
 - **Cleanup.** A remote entity that goes is released (``GraphCore.release``):
   its services fail their callers (D15), its latched message goes (D13). When
   the link stops, it releases every remote entity it mirrored.
@@ -60,12 +67,15 @@ __all__ = [
     "LATCHED_DEPTH",
     "NULL_SINK",
     "OPEN_GATE",
+    "OPEN_OUTFLOW",
     "PRIVATE_NAMES",
     "RELAY_WAIT_SWEEPS",
+    "Backlog",
     "GraphLink",
     "InflowGate",
     "Kind",
     "LinkRules",
+    "OutflowGate",
     "Relays",
     "Wanted",
     "mirror_endpoint",
@@ -397,6 +407,15 @@ class InflowGate(Protocol):
         """The batch ended: write out what it queued."""
         ...
 
+    def congested(self) -> bool:
+        """Whether a delivery of this batch congested a subscriber: end the batch there.
+
+        A link checks it after each delivery, so a batch overshoots a subscriber's
+        high watermark by one message, not by a batch (a reader's slice is small
+        anyway), and stays under its send buffer limit.
+        """
+        ...
+
     async def hold(self) -> None:
         """Wait for the subscribers the batch congested, within their hold budgets."""
         ...
@@ -411,12 +430,67 @@ class _OpenGate:
     def end(self) -> None:
         pass
 
+    def congested(self) -> bool:
+        return False
+
     async def hold(self) -> None:
         pass
 
 
 OPEN_GATE: InflowGate = _OpenGate()
 """The gate of a graph no server serves (an embedded graph): holds nothing."""
+
+
+class Backlog(Protocol):
+    """A link's queue of local samples waiting for the other middleware (thread-safe).
+
+    Local publishers fill it on the event loop; the link's own thread empties it
+    as the other middleware takes the samples (a Zenoh ``put`` with congestion
+    control BLOCK waits while the network does not).
+    """
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes waiting now."""
+        ...
+
+    @property
+    def water_marks(self) -> tuple[int, int]:
+        """(high, low) watermarks in bytes: readers wait from high until under low."""
+        ...
+
+    def watch(self, on_take: Callable[[bool], None] | None) -> None:
+        """Run ``on_take(caught_up)`` on the event loop after each sample goes out.
+
+        ``caught_up`` says the queue was empty then. ``None`` stops the calls: they
+        cost a loop wake-up each, so they run only while a reader may wait.
+        """
+        ...
+
+
+class OutflowGate(Protocol):
+    """Backpressure for the local publishers whose messages fill a link's ``Backlog``.
+
+    The transports install theirs on the graph they serve (``GraphCore.outflow``):
+    a backlog reported congested while a reader handles its batch of frames is
+    waited for after the batch, as a congested subscriber is (docs/limits.md,
+    "Backpressure"), within a hold budget of its own.
+    """
+
+    def congested(self, backlog: Backlog) -> None:
+        """A local publish just took ``backlog`` over its high watermark (on the event loop)."""
+        ...
+
+
+class _OpenOutflow:
+    """No transport serves the graph: its publishers are never held."""
+
+    def congested(self, backlog: Backlog) -> None:
+        pass
+
+
+OPEN_OUTFLOW: OutflowGate = _OpenOutflow()
+"""The outflow gate of a graph no server serves: holds no publisher."""
 
 
 class GraphLink(Protocol):

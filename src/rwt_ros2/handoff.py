@@ -113,14 +113,14 @@ class Handoff:
                 inflow = gate()
                 inflow.begin()
                 try:
-                    self._run_batch()
+                    self._run_batch(inflow)
                 finally:
                     inflow.end()
                 await inflow.hold()
                 if self._events:
                     await asyncio.sleep(0)  # a flood: let the servers send meanwhile
 
-    def _run_batch(self) -> None:
+    def _run_batch(self, inflow: InflowGate) -> None:
         for _ in range(min(len(self._events), _BATCH)):
             with self._lock:
                 callback, args, size = self._events.popleft()
@@ -129,6 +129,8 @@ class Handoff:
                 callback(*args)
             except Exception:
                 logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
+            if inflow.congested():  # hold before the next delivery overshoots its limit
+                return
 
     def close(self) -> None:
         """Refuse new work and forget what is queued."""

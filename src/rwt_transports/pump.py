@@ -38,7 +38,10 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   hold is slow at once. The drop and close rules (D24) deal with a slow peer.
   A reader waits for its own outbox only for the replies and statuses in it
   (they are never dropped), so a peer sending garbage faster than it reads the
-  answers is slowed, not buffered without bound;
+  answers is slowed, not buffered without bound. A link's queue for the other
+  middleware is waited for in the same way (``OutboundHold``), and a link's
+  deliveries are held as a reader's (``InboundBatch``); the accounting is
+  ``holding``'s;
 - fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
   ``READ_SLICE_BYTES`` bytes, then pauses its socket and yields to the loop,
   so a flood of tiny frames on one connection does not hold the others up;
@@ -72,9 +75,12 @@ from rwt_protocol.server.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
+from .holding import Held, LinkHold, wait_for
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
+
+    from rwt_graph.link import Backlog
 
 __all__ = [
     "CLOSE_WAIT_S",
@@ -82,6 +88,7 @@ __all__ = [
     "ConnectionPump",
     "DirectChannel",
     "InboundBatch",
+    "OutboundHold",
     "SessionHost",
     "flush_deferred",
     "run_connection",
@@ -118,13 +125,6 @@ def _inflate_limiter() -> anyio.CapacityLimiter:
     if limiter is None:
         limiter = _inflate_limiters[loop] = anyio.CapacityLimiter(INFLATE_THREADS)
     return limiter
-
-
-INPUT_STALL_S = 1.0
-"""Seconds without taking a frame, during a hold, after which a peer counts as
-slow at once for input backpressure: readers stop waiting for it before its
-hold budget is spent (docs/limits.md). Its queue then drops and it is closed
-after ``--send-timeout`` (D24)."""
 
 
 class Channel(Protocol):
@@ -251,7 +251,7 @@ class _Deferred(threading.local):
     def __init__(self) -> None:
         self.pumps: list[ConnectionPump] = []
         self.in_batch = False  # a reader is handling a batch and flushes at its end
-        self.backlogged: list[ConnectionPump] = []  # over the high watermark in this batch
+        self.backlogged: list[Held] = []  # over the high watermark in this batch
 
 
 _deferred = _Deferred()
@@ -301,48 +301,14 @@ async def _hold_backlogged(reader: ConnectionPump | None) -> None:
     if not backlogged:
         return
     deferred.backlogged = []
-    for pump in backlogged:
-        pump._backlogged = False
-    for pump in backlogged:
-        own = pump is reader
-        if pump._over_water(own=own, mark=pump._high_water):
+    for held in backlogged:
+        held._backlogged = False
+    for held in backlogged:
+        own = held is reader
+        if held._over_water(own=own, mark=held._high_water):
             if reader is not None and reader._pausable is not None:
                 reader._pausable.pause_reading()
-            await _wait_for(pump, own=own)
-
-
-async def _wait_for(pump: ConnectionPump, *, own: bool) -> None:
-    """Wait until ``pump``'s outbox is under its low watermark, within its hold budget.
-
-    Another connection is waited for only while it is not slow: the time
-    waited is charged to its budget (``--hold-budget``), and once that is
-    spent, or it took nothing for ``INPUT_STALL_S``, it is slow and left to
-    the drop and close rules (D24) until it catches up. A reader's own
-    outbox (replies only) is waited for while its peer takes frames.
-    """
-    while pump._over_water(own=own, mark=pump._low_water):
-        wait_s = INPUT_STALL_S
-        if not own:
-            if pump._slow:
-                return
-            left = pump._hold_budget - pump._held_s
-            if left <= 0:
-                pump._slow = True
-                return
-            wait_s = min(wait_s, left)
-        takes = pump._takes
-        progress = pump._progress
-        if progress is None:
-            progress = pump._progress = anyio.Event()
-        start = anyio.current_time()
-        with anyio.move_on_after(wait_s):
-            await progress.wait()
-        if not own:
-            pump._charge_hold(start, anyio.current_time())
-        if pump._takes == takes:  # not reading: left to the drop and close rules (D24)
-            if not own:
-                pump._slow = True
-            return
+            await wait_for(held, own=own)
 
 
 class InboundBatch:
@@ -367,12 +333,48 @@ class InboundBatch:
         _deferred.in_batch = False
         flush_deferred()
 
+    def congested(self) -> bool:
+        """Whether a delivery since ``begin`` pushed a subscriber over its high watermark."""
+        return bool(_deferred.backlogged)
+
     async def hold(self) -> None:
         """Wait for the subscribers the batch congested, within their hold budgets."""
         await _hold_backlogged(None)
 
 
-class ConnectionPump:
+class OutboundHold:
+    """The transports' ``OutflowGate`` (``rwt_graph.link``): a link's queue held as an outbox.
+
+    A link whose queue for the other middleware passed its high watermark
+    during a reader's batch is waited for after the batch, as a congested
+    subscriber is (``_hold_backlogged``), until it is under its low watermark,
+    within ``hold_budget_s`` per episode; a congestion outside a batch (an
+    in-process publisher) holds nobody.
+
+    Args:
+        hold_budget_s: seconds the link may hold readers back per episode
+            (``--hold-budget``, docs/limits.md).
+    """
+
+    def __init__(self, hold_budget_s: float) -> None:
+        self.hold_budget_s = hold_budget_s
+        self._holds: dict[int, LinkHold] = {}  # by the backlog's id: one per link
+
+    def congested(self, backlog: Backlog) -> None:
+        """Note ``backlog`` for the current batch's reader to wait for (on the event loop)."""
+        hold = self._holds.get(id(backlog))
+        if hold is None or hold.backlog is not backlog:
+            # links come and go (a restarted one is a new backlog): keep only live episodes
+            self._holds = {k: h for k, h in self._holds.items() if h.watching}
+            hold = self._holds[id(backlog)] = LinkHold(backlog, self.hold_budget_s)
+        hold.watch()
+        deferred = _deferred
+        if deferred.in_batch and not hold._backlogged and not hold._slow:
+            hold._backlogged = True
+            deferred.backlogged.append(hold)
+
+
+class ConnectionPump(Held):
     """Runs one session over one channel until either side ends it.
 
     Args:
@@ -382,6 +384,7 @@ class ConnectionPump:
     """
 
     def __init__(self, channel: Channel) -> None:
+        super().__init__()  # the hold budget and progress readers wait on (``holding``)
         self.channel = channel
         self.close_reason = "peer closed the connection"
         self._writer_wake = anyio.Event()
@@ -397,16 +400,6 @@ class ConnectionPump:
         self._writer_idle = False  # waiting for a wake-up, holding no frames
         self._deferred = False  # in the list of ``flush_deferred``
         self._pausable = channel if isinstance(channel, PausableChannel) else None
-        self._high_water = self._low_water = 0  # the session's outbox watermarks
-        self._backlogged = False  # in ``_deferred.backlogged``
-        self._takes = 0  # batches the transport took: the peer's progress
-        # The hold budget (docs/limits.md): seconds this peer held readers back in
-        # its current episode, charged once however many readers waited together.
-        self._hold_budget = 0.0
-        self._held_s = 0.0
-        self._held_to = 0.0  # the time up to which holding is charged
-        self._slow = False  # budget spent or stalled: not waited for until caught up
-        self._progress: anyio.Event | None = None  # set at the next take, for waiting readers
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
@@ -443,15 +436,8 @@ class ConnectionPump:
         Having taken everything queued, the peer caught up: its hold episode
         ends, and it may hold readers back again for a whole budget.
         """
-        self._takes += 1
         session = self._session
-        if session is None or session.queued_bytes == 0:
-            self._held_s = 0.0
-            self._slow = False
-        event = self._progress
-        if event is not None:
-            self._progress = None
-            event.set()
+        self._note_take(session is None or session.queued_bytes == 0)
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer."""
@@ -689,17 +675,6 @@ class ConnectionPump:
         if session is None or session.closing:
             return False
         return (session.queued_reply_bytes if own else session.queued_bytes) > mark
-
-    def _charge_hold(self, start: float, end: float) -> None:
-        """Charge the time from ``start`` to ``end`` (s) that a reader waited to the budget.
-
-        Readers waiting together are charged once: only time after what was
-        already charged counts.
-        """
-        start = max(start, self._held_to)
-        if end > start:
-            self._held_s += end - start
-            self._held_to = end
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:

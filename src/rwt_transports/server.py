@@ -58,7 +58,7 @@ from rwt_protocol.shortcuts import switched_off
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .memory import MemoryConnection, memory_pair
-from .pump import ConnectionPump, InboundBatch, run_connection
+from .pump import ConnectionPump, InboundBatch, OutboundHold, run_connection
 from .shares import HostShares, host_key
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
@@ -246,6 +246,8 @@ class RosbridgeServer:
         if authenticator is not None:
             session_config = replace(session_config, authenticator=authenticator)
         self.session_config = session_config
+        # a link's queue for the other middleware holds publishers back as a subscriber does
+        self.graph.port.outflow = OutboundHold(session_config.hold_budget_s)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(

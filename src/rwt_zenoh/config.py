@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import ConfigError
 
-from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
+from .limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 from .wire import RmwCompat
 
 if TYPE_CHECKING:
@@ -71,6 +71,9 @@ class ZenohOptions:
             docs/zenoh.md, "Which rmw_zenoh").
         queue_bytes: bytes of remote samples waiting for the event loop at most
             (``--zenoh-queue-bytes``); also the largest message Zenoh accepts.
+        outbox_bytes: bytes of local samples waiting for their put at most
+            (``--zenoh-outbox-bytes``); past half of it the publishing connection
+            is held back (``outbox.Outbox``).
         max_entities: remote entities (liveliness tokens) mirrored at once
             (``--zenoh-max-entities``).
     """
@@ -83,6 +86,7 @@ class ZenohOptions:
     multicast: bool = False
     rmw_compat: RmwCompat = RmwCompat.CURRENT
     queue_bytes: int = MAX_QUEUED_BYTES
+    outbox_bytes: int = MAX_OUTBOX_BYTES
     max_entities: int = MAX_REMOTE_ENTITIES
 
 

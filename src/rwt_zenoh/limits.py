@@ -25,11 +25,12 @@ keep-last depth would; a sample larger than this is dropped on arrival, and Zeno
 itself refuses messages larger than it (``transport/link/rx/max_message_size``)."""
 
 MAX_OUTBOX_BYTES = 256 * 1024 * 1024
-"""Bytes of local samples waiting for Zenoh's blocking ``put`` on the outbox thread.
-
-Local publishers are not held back by the link, so this is what a burst faster
-than the network may queue (200 images of 1 MB fit); past it the oldest samples
-of the topic holding the most are dropped, logged once per episode."""
+"""Bytes of local samples waiting for Zenoh's blocking ``put`` on the outbox thread
+(``--zenoh-outbox-bytes``). Past half of it the publishing connection's reader
+waits until a quarter, within its hold budget (``rwt_graph.link.Backlog``); past
+all of it (an in-process publisher, which is never held; a Zenoh peer stalled
+past the budget) the oldest samples of the topic holding the most are dropped,
+logged once per episode."""
 
 RELIABLE_WAIT_S = 10.0
 """Seconds a Zenoh thread waits for room in a full inbox with a reliable sample

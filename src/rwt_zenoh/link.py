@@ -44,7 +44,7 @@ from rwt_protocol.errors import RwtError
 from .config import ZenohOptions, make_config
 from .deferred import Deferred, DeferredEncoder, held_payload, payload_bytes
 from .inbox import Inbox, Sample
-from .limits import MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, RELIABLE_WAIT_S
+from .limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, RELIABLE_WAIT_S
 from .link_actions import ActionLink
 from .link_clients import LINK_NODE, ClientEntities
 from .link_params import ParamLink
@@ -193,6 +193,8 @@ class ZenohLink:
         compat: whose token defaults to write and read (``RmwCompat``).
         queue_bytes: bytes of remote samples waiting for the event loop at most
             (``limits.MAX_QUEUED_BYTES``; past it the oldest of a topic go).
+        outbox_bytes: bytes of local samples waiting for their put at most
+            (``limits.MAX_OUTBOX_BYTES``; ``outbox.Outbox``).
         max_entities: remote entities (tokens) mirrored at once
             (``limits.MAX_REMOTE_ENTITIES``; tokens past it are ignored).
 
@@ -213,6 +215,7 @@ class ZenohLink:
         call_timeout_s: float = 60.0,
         compat: RmwCompat = RmwCompat.CURRENT,
         queue_bytes: int = MAX_QUEUED_BYTES,
+        outbox_bytes: int = MAX_OUTBOX_BYTES,
         max_entities: int = MAX_REMOTE_ENTITIES,
     ) -> None:
         self.graph = graph
@@ -247,7 +250,7 @@ class ZenohLink:
         self._signalled = False
         self.peer_log = EpisodeLog(logger)
         self._inbox = Inbox(queue_bytes, drop_log=EpisodeLog(logger))  # on Zenoh's threads
-        self._outbox = Outbox()  # Zenoh's blocking puts, off the loop
+        self._outbox = Outbox(outbox_bytes)  # Zenoh's blocking puts, off the loop
         self._deferred = DeferredEncoder(graph.registry)  # large ones serialized there
         self._drained_bytes = 0
         self.max_entities = max_entities
@@ -318,7 +321,7 @@ class ZenohLink:
                     for _ in range(min(len(events), _DRAIN_BATCH)):
                         callback, args = events.popleft()
                         self._guarded(callback, *args)
-                        if self._drained_bytes >= _DRAIN_BYTES:
+                        if self._drained_bytes >= _DRAIN_BYTES or gate.congested():
                             break
                 finally:
                     gate.end()
@@ -751,7 +754,10 @@ class ZenohLink:
             payload = self._deferred.defer(entry.msgtype, event.msg)  # large: the outbox's thread
             if payload is None:
                 payload = self._encode(entry, event)
-            self._outbox.put(data.key, data.handle, payload, self._attachment(export))
+            outbox = self._outbox
+            outbox.put(data.key, data.handle, payload, self._attachment(export))
+            if outbox.congested:  # the publisher's reader waits for it (``Backlog``)
+                self.graph.port.outflow.congested(outbox)
 
     def _publisher_export(self, entry: GraphTopic, client: ClientId) -> _Export | None:
         key = (EntityKind.PUBLISHER, client, entry.name)
@@ -957,6 +963,7 @@ async def open_zenoh_link(graph: Graph, options: ZenohOptions) -> AsyncIterator[
                 domain_id=options.domain_id,
                 compat=options.rmw_compat,
                 queue_bytes=options.queue_bytes,
+                outbox_bytes=options.outbox_bytes,
                 max_entities=options.max_entities,
             )
             await tg.start(link.run)

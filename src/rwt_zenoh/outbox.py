@@ -5,22 +5,31 @@ rmw_zenoh declares a reliable KEEP_ALL publisher): a full transmission queue
 makes ``put`` wait rather than drop the sample. Waiting must never happen on the
 event loop, so the loop only hands samples here and one thread puts them, in
 order. What waits is bounded in bytes, as the link's inbox is (docs/zenoh.md,
-"Reliability"): a Zenoh peer slower than the local publishers costs the oldest
-samples of the busiest topic past that bound, never the loop's time.
+"Reliability"). Past half the bound the outbox is congested: the connection
+whose publish took it there is held back until it is under a quarter
+(``rwt_graph.link.Backlog``, as a congested subscriber holds publishers back),
+within the hold budget; what still comes past the bound (an in-process
+publisher, a peer stalled past the budget) costs the oldest samples of the
+busiest topic, never the loop's time.
 """
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 import queue
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rwt_graph.ratelog import EpisodeLog
 
 from .deferred import Deferred
 from .inbox import Inbox, Sample
 from .limits import MAX_OUTBOX_BYTES
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = ["Outbox"]
 
@@ -29,6 +38,9 @@ logger = logging.getLogger("rwt.zenoh")
 
 class Outbox:
     """Samples waiting for Zenoh's blocking ``put``, bounded in bytes (thread-safe).
+
+    A ``rwt_graph.link.Backlog``: congested above half of ``max_bytes``, and
+    readers held back by it wait until it is under a quarter.
 
     Args:
         max_bytes: bytes held at most (``limits.MAX_OUTBOX_BYTES`` by default);
@@ -41,6 +53,33 @@ class Outbox:
         self._tickets: queue.SimpleQueue[str | None] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
         self._log = EpisodeLog(logger)
+        self._marks = (max_bytes // 2, max_bytes // 4)
+        self._on_take: Callable[[bool], None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes waiting for their put now."""
+        return self._held.bytes
+
+    @property
+    def water_marks(self) -> tuple[int, int]:
+        """(high, low) watermarks in bytes: half and a quarter of the bound."""
+        return self._marks
+
+    @property
+    def congested(self) -> bool:
+        """Whether more than the high watermark waits."""
+        return self._held.bytes > self._marks[0]
+
+    def watch(self, on_take: Callable[[bool], None] | None) -> None:
+        """Call ``on_take(caught_up)`` on this event loop after each put (None: stop).
+
+        Called on the event loop; ``caught_up`` says nothing waited after the put.
+        """
+        if on_take is not None:
+            self._loop = asyncio.get_running_loop()
+        self._on_take = on_take
 
     @property
     def dropped(self) -> int:
@@ -89,3 +128,7 @@ class Outbox:
                     key,
                     str(exc),
                 )
+            on_take, loop = self._on_take, self._loop
+            if on_take is not None and loop is not None:
+                with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                    loop.call_soon_threadsafe(on_take, self._held.bytes == 0)

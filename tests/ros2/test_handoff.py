@@ -17,12 +17,16 @@ class RecordingGate:
     def __init__(self) -> None:
         self.calls: list[str] = []
         self.release = asyncio.Event()
+        self.congest = False  # what ``congested`` answers: a subscriber over its watermark
 
     def begin(self) -> None:
         self.calls.append("begin")
 
     def end(self) -> None:
         self.calls.append("end")
+
+    def congested(self) -> bool:
+        return self.congest
 
     async def hold(self) -> None:
         self.calls.append("hold")
@@ -48,5 +52,25 @@ async def test_a_batch_runs_inside_the_gate_and_the_next_waits_for_its_hold() ->
         await asyncio.sleep(0)
     assert gate.calls[4:] == ["released", "begin", "second", "end", "hold", "released"]
     assert handoff.queued_bytes == 0
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_batch_ends_at_the_delivery_that_congested_a_subscriber() -> None:
+    handoff = Handoff()
+    gate = RecordingGate()
+    gate.congest = True
+    for name in ("first", "second"):
+        handoff.put(gate.calls.append, name, size=10, topic="/t")
+    task = asyncio.create_task(handoff.drain(lambda: gate))
+    for _ in range(20):
+        await asyncio.sleep(0)
+    assert gate.calls == ["begin", "first", "end", "hold"]  # the second waits for the hold
+    assert handoff.queued_bytes == 10
+    gate.congest = False
+    gate.release.set()
+    for _ in range(20):
+        await asyncio.sleep(0)
+    assert gate.calls[4:] == ["released", "begin", "second", "end", "hold", "released"]
     task.cancel()
     handoff.close()

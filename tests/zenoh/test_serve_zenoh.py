@@ -23,6 +23,8 @@ from .support import endpoint
 
 pytestmark = [pytest.mark.anyio, pytest.mark.node]
 
+MiB = 1024 * 1024
+
 
 @pytest.fixture
 def anyio_backend() -> str:
@@ -508,3 +510,70 @@ stay()
             line = (await listener.line()).strip()
             assert line.startswith("got "), line
             assert json.loads(line.removeprefix("got ")) == [f"{n:08d}" for n in range(24)]
+
+
+async def test_a_publisher_faster_than_the_link_is_held_back_not_dropped() -> None:
+    # Small buffers all the way: A's queue for Zenoh holds 1 MiB, B's inbox 1 MiB
+    # and B's outbox for its subscriber 1 MiB. B's subscriber reads slower than
+    # the burst (30 MB) comes, so it backs up into A's queue. Past half of it, A
+    # stops reading its publisher's socket until the queue is under a quarter
+    # (within the hold budget), as it would for a congested local subscriber; B
+    # ends each batch from its inbox at the sample that congested the
+    # subscriber, so its outbox never passes its limit. Every message arrives, in
+    # order. Checked: with ``--hold-budget 0`` on A, A dropped 16 and 29 of the 120; with
+    # B's batches ending only at 4 MiB, B dropped 15 of 80.
+    a_ep = endpoint()
+    count = 120
+    async with (
+        serving("A", listen=a_ep, extra=("--zenoh-outbox-bytes", str(MiB))) as (
+            _,
+            a_url,
+        ),
+        serving(
+            "B",
+            connect=(a_ep,),
+            extra=("--zenoh-queue-bytes", str(MiB), "--send-buffer-limit", str(MiB)),
+        ) as (_, b_url),
+        python_client(
+            roslibpy(
+                f"""
+ros = connect(URL)
+got = []
+def on_message(msg):
+    got.append(msg["data"][:8])
+    time.sleep(0.02)  # a slow reader: the socket is not read meanwhile
+listener = roslibpy.Topic(ros, "/flood", "std_msgs/msg/String", queue_length=0)
+listener.subscribe(on_message)
+say("subscribed")
+until("the burst", lambda: len(got) >= {count}, timeout=60)
+time.sleep(0.5)
+say("got", json.dumps(got))
+stay()
+""",
+                b_url,
+            ),
+            "roslibpy-B",
+        ) as listener,
+    ):
+        assert (await listener.line()).strip() == "subscribed"
+        async with python_client(
+            roslibpy(
+                f"""
+ros = connect(URL)
+talker = roslibpy.Topic(ros, "/flood", "std_msgs/msg/String")
+talker.advertise()
+until("B's subscriber", lambda: len(ros_subscribers(ros, "/flood")) >= 1)
+time.sleep(0.5)  # the link's route to B is up (discovery is eventual)
+for n in range({count}):
+    talker.publish(roslibpy.Message({{"data": f"{{n:08d}}" + "x" * 250_000}}))
+say("published")
+stay()
+""",
+                a_url,
+            ),
+            "roslibpy-A",
+        ) as talker:
+            assert (await talker.line()).strip() == "published"
+            line = (await listener.line()).strip()
+            assert line.startswith("got "), line
+            assert json.loads(line.removeprefix("got ")) == [f"{n:08d}" for n in range(count)]
