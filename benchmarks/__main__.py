@@ -112,6 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         metavar="ROUNDS",
         help="only the Z2 servers' CPU per delivery: ROUNDS rounds of paired bursts",
     )
+    p_scale.add_argument(
+        "--rate", type=float, metavar="HZ", help="with --workers-cpu: bursts paced at HZ msg/s"
+    )
     p_sweep = sub.add_parser("sweep", help="scaling sweep and its plots")
     p_sweep.add_argument("--runs", type=int, default=3)
     p_sweep.add_argument("--out", type=Path, default=RESULTS)
@@ -122,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         from .scaleout import main as scaleout  # noqa: PLC0415
 
         rounds = ["--workers-cpu", str(args.workers_cpu)] if args.workers_cpu else []
+        rounds += ["--rate", str(args.rate)] if args.rate else []
         return scaleout([*(["--quick"] if args.quick else []), *rounds])
     from .sweep import sweep  # noqa: PLC0415  (matplotlib only when plotting)
 

@@ -175,14 +175,23 @@ class FanOut:
         _probe(self.pub, self.subs)
         time.sleep(0.5)  # probes in flight land first
 
-    def burst(self, duration_s: float, pid: int, cpu_ns: Callable[[int], int]) -> tuple[int, int]:
+    def burst(
+        self,
+        duration_s: float,
+        pid: int,
+        cpu_ns: Callable[[int], int],
+        rate_hz: float | None = None,
+    ) -> tuple[int, int]:
         """Publish for ``duration_s`` and wait for every delivery (none may be dropped).
+
+        ``rate_hz``: at most that many messages a second (else as the window allows).
 
         Returns:
             (deliveries, ``cpu_ns(pid)`` after less before: the server's CPU meanwhile).
         """
         pub = self.pub
         pub.duration_s = duration_s
+        pub.rate_hz = rate_hz
         pub.first_s = pub.stop_s = None
         pub.sent = 0
         for sub in self.subs:

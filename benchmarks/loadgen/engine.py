@@ -299,7 +299,8 @@ class WindowPublisher(Publisher):
 
     The window is measured against the slowest of ``watch`` (the subscribers
     whose rate is measured), so neither server's buffers grow without bound
-    and nothing is dropped in a throughput run.
+    and nothing is dropped in a throughput run. With ``rate_hz`` set it also
+    sends no faster than that many messages a second (a paced load).
     """
 
     def __init__(
@@ -318,6 +319,7 @@ class WindowPublisher(Publisher):
         self.duration_s = duration_s
         self.watch: list[Subscriber] = []
         self.stop_s: float | None = None
+        self.rate_hz: float | None = None
         self.delivered: Callable[[], int] = lambda: min(
             (s.received for s in self.watch), default=self.sent
         )
@@ -335,6 +337,8 @@ class WindowPublisher(Publisher):
         room = self.window - (self.sent - self.delivered())
         limit = max(1, _BATCH_BYTES // self.block.frame_len)
         count = min(room, limit)
+        if self.rate_hz is not None:  # the messages due by now, the first at once
+            count = min(count, int((now - self.first_s) * self.rate_hz) + 1 - self.sent)
         if count <= 0:
             return
         start = self.sent % self.block.count
@@ -343,6 +347,13 @@ class WindowPublisher(Publisher):
         self.pending = memoryview(self.block.data)[start * flen : (start + count) * flen]
         self.sent += count
         self._write()
+
+    def next_due(self, now: float) -> float | None:
+        if self.rate_hz is None or self.first_s is None or self.stop_s is None:
+            return None
+        if now >= self.stop_s:
+            return None
+        return max(0.0, self.first_s + self.sent / self.rate_hz - now)
 
     @property
     def finished(self) -> bool:

@@ -43,3 +43,18 @@ def test_kept_peers_count_each_burst_and_the_server_cpu_it_took(tmp_path: Path) 
     assert second[0] == sent * 4  # the counts start again with each burst
     assert (first[1], second[1]) == (4_000, 500)
     assert asked == [server.proc.pid] * 4
+
+
+def test_a_paced_burst_sends_no_faster_than_its_rate(tmp_path: Path) -> None:
+    server = ServerProcess(tmp_path, ("--no-tf",))
+    try:
+        fan = FanOut(server.port, 3)
+        try:
+            delivered, _ = fan.burst(0.5, server.proc.pid, lambda pid: 0, rate_hz=40)
+            sent = fan.pub.sent
+        finally:
+            fan.close()
+    finally:
+        server.stop()
+    assert 1 <= sent <= 21  # 40 a second for 0.5 s, the first at once
+    assert delivered == sent * 3
