@@ -458,82 +458,18 @@ done.wait(20)
             assert line == 'result {"sequence": [0, 1, 1, 2, 3, 5]} feedback 4', line
 
 
-async def test_a_burst_from_a_reaches_a_slow_subscriber_on_b_whole() -> None:
-    # 24 messages of 1 MB at once, more than B's outbox for its subscriber holds
-    # (16 MiB): B takes no more from the link while that outbox is congested, within
-    # the subscriber's hold budget, as it would hold a publisher connected to it.
-    # The subscriber reads slower than the burst comes, faster than the budget.
+async def burst_to_a_slow_subscriber(
+    count: int, size: int, pause_s: float, a_extra: tuple[str, ...], b_extra: tuple[str, ...]
+) -> list[str]:
+    """``count`` String messages of ``size`` characters from roslibpy on A to B.
+
+    B's roslibpy subscriber sleeps ``pause_s`` a message in its callback (its
+    socket is not read meanwhile). Returns the sequence numbers B got, in order.
+    """
     a_ep = endpoint()
     async with (
-        serving("A", listen=a_ep) as (_, a_url),
-        serving("B", connect=(a_ep,)) as (_, b_url),
-        python_client(
-            roslibpy(
-                """
-ros = connect(URL)
-got = []
-def on_message(msg):
-    got.append(msg["data"][:8])
-    time.sleep(0.03)  # a slow reader: the socket is not read meanwhile
-listener = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String", queue_length=0)
-listener.subscribe(on_message)
-say("subscribed")
-until("the burst", lambda: len(got) >= 24, timeout=60)
-time.sleep(0.5)
-say("got", json.dumps(got))
-stay()
-""",
-                b_url,
-            ),
-            "roslibpy-B",
-        ) as listener,
-    ):
-        assert (await listener.line()).strip() == "subscribed"
-        async with python_client(
-            roslibpy(
-                """
-ros = connect(URL)
-talker = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String")
-talker.advertise()
-until("B's subscriber", lambda: len(ros_subscribers(ros, "/burst")) >= 1)
-time.sleep(0.5)  # the link's route to B is up (discovery is eventual)
-for n in range(24):
-    talker.publish(roslibpy.Message({"data": f"{n:08d}" + "x" * 1_000_000}))
-say("published")
-stay()
-""",
-                a_url,
-            ),
-            "roslibpy-A",
-        ) as talker:
-            assert (await talker.line()).strip() == "published"
-            line = (await listener.line()).strip()
-            assert line.startswith("got "), line
-            assert json.loads(line.removeprefix("got ")) == [f"{n:08d}" for n in range(24)]
-
-
-async def test_a_publisher_faster_than_the_link_is_held_back_not_dropped() -> None:
-    # Small buffers all the way: A's queue for Zenoh holds 1 MiB, B's inbox 1 MiB
-    # and B's outbox for its subscriber 1 MiB. B's subscriber reads slower than
-    # the burst (30 MB) comes, so it backs up into A's queue. Past half of it, A
-    # stops reading its publisher's socket until the queue is under a quarter
-    # (within the hold budget), as it would for a congested local subscriber; B
-    # ends each batch from its inbox at the sample that congested the
-    # subscriber, so its outbox never passes its limit. Every message arrives, in
-    # order. Checked: with ``--hold-budget 0`` on A, A dropped 16 and 29 of the 120; with
-    # B's batches ending only at 4 MiB, B dropped 15 of 80.
-    a_ep = endpoint()
-    count = 120
-    async with (
-        serving("A", listen=a_ep, extra=("--zenoh-outbox-bytes", str(MiB))) as (
-            _,
-            a_url,
-        ),
-        serving(
-            "B",
-            connect=(a_ep,),
-            extra=("--zenoh-queue-bytes", str(MiB), "--send-buffer-limit", str(MiB)),
-        ) as (_, b_url),
+        serving("A", listen=a_ep, extra=a_extra) as (_, a_url),
+        serving("B", connect=(a_ep,), extra=b_extra) as (_, b_url),
         python_client(
             roslibpy(
                 f"""
@@ -541,8 +477,8 @@ ros = connect(URL)
 got = []
 def on_message(msg):
     got.append(msg["data"][:8])
-    time.sleep(0.02)  # a slow reader: the socket is not read meanwhile
-listener = roslibpy.Topic(ros, "/flood", "std_msgs/msg/String", queue_length=0)
+    time.sleep({pause_s})
+listener = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String", queue_length=0)
 listener.subscribe(on_message)
 say("subscribed")
 until("the burst", lambda: len(got) >= {count}, timeout=60)
@@ -560,12 +496,12 @@ stay()
             roslibpy(
                 f"""
 ros = connect(URL)
-talker = roslibpy.Topic(ros, "/flood", "std_msgs/msg/String")
+talker = roslibpy.Topic(ros, "/burst", "std_msgs/msg/String")
 talker.advertise()
-until("B's subscriber", lambda: len(ros_subscribers(ros, "/flood")) >= 1)
+until("B's subscriber", lambda: len(ros_subscribers(ros, "/burst")) >= 1)
 time.sleep(0.5)  # the link's route to B is up (discovery is eventual)
 for n in range({count}):
-    talker.publish(roslibpy.Message({{"data": f"{{n:08d}}" + "x" * 250_000}}))
+    talker.publish(roslibpy.Message({{"data": f"{{n:08d}}" + "x" * {size}}}))
 say("published")
 stay()
 """,
@@ -576,4 +512,30 @@ stay()
             assert (await talker.line()).strip() == "published"
             line = (await listener.line()).strip()
             assert line.startswith("got "), line
-            assert json.loads(line.removeprefix("got ")) == [f"{n:08d}" for n in range(count)]
+            got: list[str] = json.loads(line.removeprefix("got "))
+            return got
+
+
+async def test_a_burst_from_a_reaches_a_slow_subscriber_on_b_whole() -> None:
+    # 24 messages of 1 MB at once, more than B's outbox for its subscriber holds
+    # (16 MiB): B takes no more from the link while that outbox is congested, within
+    # the subscriber's hold budget, as it would hold a publisher connected to it.
+    # The subscriber reads slower than the burst comes, faster than the budget.
+    got = await burst_to_a_slow_subscriber(24, 1_000_000, 0.03, (), ())
+    assert got == [f"{n:08d}" for n in range(24)]
+
+
+async def test_a_publisher_faster_than_the_link_is_held_back_not_dropped() -> None:
+    # Small buffers all the way: A's queue for Zenoh holds 1 MiB, B's inbox 1 MiB
+    # and B's outbox for its subscriber 1 MiB. B's subscriber reads slower than
+    # the burst (30 MB) comes, so it backs up into A's queue. Past half of it, A
+    # stops reading its publisher's socket until the queue is under a quarter
+    # (within the hold budget), as it would for a congested local subscriber; B
+    # ends each batch from its inbox at the sample that congested the
+    # subscriber, so its outbox never passes its limit. Every message arrives, in
+    # order. Checked: with ``--hold-budget 0`` on A, A dropped 16 and 29 of the
+    # 120; with B's batches ending only at 4 MiB, B dropped 15 of 80.
+    a_extra = ("--zenoh-outbox-bytes", str(MiB))
+    b_extra = ("--zenoh-queue-bytes", str(MiB), "--send-buffer-limit", str(MiB))
+    got = await burst_to_a_slow_subscriber(120, 250_000, 0.02, a_extra, b_extra)
+    assert got == [f"{n:08d}" for n in range(120)]
