@@ -27,6 +27,7 @@ pytestmark = pytest.mark.anyio
 def anyio_backend() -> str:
     return "asyncio"  # the server's transports run on asyncio
 
+
 SAMPLE = 400
 HIGH, LOW = 1000, 500  # three samples congest it; two fit under the low watermark
 
