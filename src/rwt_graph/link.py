@@ -460,10 +460,12 @@ class Backlog(Protocol):
         ...
 
     def watch(self, on_take: Callable[[bool], None] | None) -> None:
-        """Run ``on_take(caught_up)`` on the event loop after each sample goes out.
+        """Run ``on_take(caught_up)`` on the event loop as samples go out.
 
-        ``caught_up`` says the queue was empty then. ``None`` stops the calls: they
-        cost a loop wake-up each, so they run only while a reader may wait.
+        ``caught_up`` says the queue was empty then; that call always comes, the
+        others may be spaced out (the Zenoh outbox: at most one per 10 ms), as
+        each wakes the loop. ``None`` stops the calls: they run only from a
+        congestion until the queue empties.
         """
         ...
 

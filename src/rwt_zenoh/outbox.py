@@ -20,6 +20,7 @@ import contextlib
 import logging
 import queue
 import threading
+import time
 from typing import TYPE_CHECKING, Any
 
 from rwt_graph.ratelog import EpisodeLog
@@ -31,9 +32,15 @@ from .limits import MAX_OUTBOX_BYTES
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-__all__ = ["Outbox"]
+__all__ = ["NOTIFY_EVERY_S", "Outbox"]
 
 logger = logging.getLogger("rwt.zenoh")
+
+NOTIFY_EVERY_S = 0.01
+"""Seconds between two progress calls to a watcher, at most (``Outbox.watch``): each
+wakes the event loop, and a peer slow enough to congest the outbox may still take
+thousands of small samples a second. The call saying the outbox emptied is never
+held back."""
 
 
 class Outbox:
@@ -56,6 +63,7 @@ class Outbox:
         self._marks = (max_bytes // 2, max_bytes // 4)
         self._on_take: Callable[[bool], None] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._notified = 0.0  # time.monotonic() of the last call to the watcher
 
     @property
     def queued_bytes(self) -> int:
@@ -73,9 +81,10 @@ class Outbox:
         return self._held.bytes > self._marks[0]
 
     def watch(self, on_take: Callable[[bool], None] | None) -> None:
-        """Call ``on_take(caught_up)`` on this event loop after each put (None: stop).
+        """Call ``on_take(caught_up)`` on this event loop as puts go out (None: stop).
 
-        Called on the event loop; ``caught_up`` says nothing waited after the put.
+        Called on the event loop. ``caught_up`` says nothing waited after the put;
+        that call always comes, the others at most every ``NOTIFY_EVERY_S``.
         """
         if on_take is not None:
             self._loop = asyncio.get_running_loop()
@@ -116,19 +125,30 @@ class Outbox:
     def _run(self) -> None:
         while (key := self._tickets.get()) is not None:
             sample = self._held.take(key)
-            if sample is None:
-                continue  # dropped while it waited
-            try:
-                sample.deliver(sample.payload, sample.attachment)
-            except Exception as exc:
-                self._log.log(
-                    logging.WARNING,
-                    f"zenoh_put_failed:{key}",
-                    "event=zenoh_put_failed topic=%s reason=%r",
-                    key,
-                    str(exc),
-                )
-            on_take, loop = self._on_take, self._loop
-            if on_take is not None and loop is not None:
-                with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
-                    loop.call_soon_threadsafe(on_take, self._held.bytes == 0)
+            if sample is not None:  # else dropped while it waited
+                self._put(key, sample)
+            self._notify()
+
+    def _put(self, key: str, sample: Sample) -> None:
+        try:
+            sample.deliver(sample.payload, sample.attachment)
+        except Exception as exc:
+            self._log.log(
+                logging.WARNING,
+                f"zenoh_put_failed:{key}",
+                "event=zenoh_put_failed topic=%s reason=%r",
+                key,
+                str(exc),
+            )
+
+    def _notify(self) -> None:
+        """Tell the watcher of a put (the sender thread): see ``watch``."""
+        on_take, loop = self._on_take, self._loop
+        if on_take is None or loop is None:
+            return
+        caught_up = self._held.bytes == 0
+        now = time.monotonic()
+        if caught_up or now - self._notified >= NOTIFY_EVERY_S:
+            self._notified = now
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(on_take, caught_up)

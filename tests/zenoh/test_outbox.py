@@ -1,0 +1,96 @@
+"""The link's outbox as a ``Backlog``: its watermarks, and how it reports progress.
+
+Its puts go to a real Zenoh publisher, and a real subscriber in a second session
+on loopback counts them. How the outbox holds a publishing connection back is
+tested end to end in test_serve_zenoh.py; the reader's side of it in
+tests/transports/test_outflow_hold.py.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import anyio
+import pytest
+
+import zenoh
+from rwt_zenoh.config import make_config
+from rwt_zenoh.outbox import NOTIFY_EVERY_S, Outbox
+
+from .support import endpoint, peer
+
+pytestmark = pytest.mark.anyio
+
+KEY = "rwt/test/outbox"
+COUNT = 3000
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"  # the outbox calls its watcher with call_soon_threadsafe
+
+
+@pytest.fixture
+def sessions() -> Iterator[tuple[Any, Any]]:
+    listen = endpoint()
+    first = zenoh.open(make_config(peer(listen=listen)))
+    second = zenoh.open(make_config(peer(connect=(listen,))))
+    try:
+        yield first, second
+    finally:
+        second.close()
+        first.close()
+
+
+def test_the_watermarks_are_half_and_a_quarter_of_the_bound() -> None:
+    outbox = Outbox(4 * 1024 * 1024)
+    assert outbox.water_marks == (2 * 1024 * 1024, 1024 * 1024)
+    assert outbox.queued_bytes == 0
+    assert not outbox.congested
+
+
+async def test_a_watcher_hears_of_progress_at_a_bounded_rate_and_always_of_the_end(
+    sessions: tuple[Any, Any],
+) -> None:
+    sender, receiver = sessions
+    got = threading.Event()
+    received = [0]
+
+    def on_sample(_sample: Any) -> None:
+        received[0] += 1
+        if received[0] >= COUNT:
+            got.set()
+
+    subscriber = receiver.declare_subscriber(KEY, on_sample)
+    publisher = sender.declare_publisher(KEY)
+    outbox = Outbox()
+    calls: list[bool] = []
+
+    def on_take(caught_up: bool) -> None:  # on this event loop
+        calls.append(caught_up)
+
+    deadline = time.monotonic() + 10
+    while not received[0] and time.monotonic() < deadline:  # the route is up
+        publisher.put(b"probe")
+        await asyncio.sleep(0.05)
+    received[0] = 0
+    outbox.watch(on_take)
+    started = time.monotonic()
+    for number in range(COUNT):
+        outbox.put(KEY, publisher, b"%08d" % number + b"x" * 92, b"")
+    assert await asyncio.to_thread(got.wait, 10), received
+    with anyio.fail_after(10):  # the call saying it emptied comes after the last put
+        while not (calls and calls[-1] and outbox.queued_bytes == 0):
+            await asyncio.sleep(0.01)
+    elapsed = time.monotonic() - started
+    outbox.close()
+    subscriber.undeclare()
+    # The sender thread may empty the queue while the loop is still filling it (each
+    # time is said); progress in between is told at most once per NOTIFY_EVERY_S.
+    progress = [c for c in calls if not c]
+    assert len(progress) <= elapsed / NOTIFY_EVERY_S + 1, (len(progress), elapsed)
+    assert len(calls) < COUNT / 2, len(calls)
