@@ -35,12 +35,14 @@ import statistics
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
 import websockets
 
 from .fanout_raw import FanOut, fan_out_raw
+from .proctree import by_role, tree_cpu_ns, tree_threads
 from .zenoh_link import rclpy_available, run_pair
 
 REPO = Path(__file__).resolve().parents[1]
@@ -90,23 +92,12 @@ async def server(*args: str) -> Any:
 
 PACED_HZ = 1000
 """Messages a second of Z2's paced CPU bursts: 100,000 deliveries a second, about
-a third of what one worker delivers saturated here."""
+a third of what one worker delivers saturated here, yet the whole of its core:
+unbatched, a delivery costs it about 3.7x as much (benchmarks/README.md, "Where a
+message crossing workers spends its CPU, by load")."""
 
 
 SERVER_PIDS: dict[str, int] = {}
-
-
-def tree_cpu_ns(pid: int) -> int:
-    """CPU ns of every thread of ``pid`` and its live descendants (``/proc/*/task/*/schedstat``)."""
-    total = 0
-    pending = [pid]
-    while pending:
-        current = pending.pop()
-        with contextlib.suppress(OSError, ValueError, IndexError):
-            for task in Path(f"/proc/{current}/task").iterdir():
-                total += int((task / "schedstat").read_text().split()[0])
-                pending += [int(c) for c in (task / "children").read_text().split()]
-    return total
 
 
 async def paired_bursts(
@@ -124,7 +115,8 @@ async def paired_bursts(
     round, so a drift within a round weighs on both alike; the server not under
     test is idle meanwhile. Bursts go as fast as the window allows (a saturated
     server: its batches are large), or at ``rate_hz`` messages a second (a paced
-    load: each message is handled nearly alone, so a delivery costs more). A
+    load: messages arrive one at a time, so a delivery costs more, and a worker
+    that sleeps between them is woken for each). A
     burst's figure is the CPU time of every thread of every process of the
     server under test (``tree_cpu_ns``) from its first send to
     its last delivery, over the deliveries (none may be dropped). A round's ratio
@@ -133,7 +125,9 @@ async def paired_bursts(
     Returns:
         ``rounds``: per round the us per delivery of each burst (``one``, ``two``,
         lists of two) and ``ratio``; ``median_one``, ``median_two`` (us per
-        delivery over all bursts) and ``median_ratio`` (of the rounds' ratios).
+        delivery over all bursts) and ``median_ratio`` (of the rounds' ratios);
+        ``threads``: per server, its threads' CPU ns and runs per message by role
+        (``proctree.by_role``, from just before each burst to just after it).
     """
     async with server() as one_url, server("--workers", "2") as two_url:
         await asyncio.sleep(2)  # every worker listening
@@ -142,12 +136,17 @@ async def paired_bursts(
             port = int(url.rsplit(":", 1)[1].split("/")[0])
             setups[name] = (await asyncio.to_thread(FanOut, port), SERVER_PIDS[url])
         done: list[dict[str, Any]] = []
+        threads: dict[str, Counter[str]] = {"one": Counter(), "two": Counter()}
+        messages = {"one": 0.0, "two": 0.0}
         try:
             for _ in range(rounds):
                 found: dict[str, list[float]] = {"one": [], "two": []}
                 for name in ("one", "two", "two", "one"):
                     fan, pid = setups[name]
+                    before = tree_threads(pid)
                     got = await asyncio.to_thread(fan.burst, burst_s, pid, tree_cpu_ns, rate_hz)
+                    threads[name] += by_role(before, tree_threads(pid), pid)
+                    messages[name] += got[0] / len(fan.subs)
                     found[name].append(got[1] / 1e3 / max(got[0], 1))
                 ratio = statistics.mean(found["two"]) / statistics.mean(found["one"])
                 done.append({**found, "ratio": ratio})
@@ -159,6 +158,10 @@ async def paired_bursts(
         "median_one": statistics.median(x for r in done for x in r["one"]),
         "median_two": statistics.median(x for r in done for x in r["two"]),
         "median_ratio": statistics.median(r["ratio"] for r in done),
+        "threads": {
+            name: {key: value / max(messages[name], 1) for key, value in sorted(counts.items())}
+            for name, counts in threads.items()
+        },
     }
 
 
@@ -177,7 +180,26 @@ def paired_table(found: dict[str, Any]) -> str:
         f"| median | {found['median_one']:.2f} | {found['median_two']:.2f} | "
         f"{found['median_ratio']:.2f} (rounds {ratios[0]:.2f}-{ratios[-1]:.2f}) |"
     )
-    return "\n".join(lines)
+    return "\n".join([*lines, "", *threads_table(found["threads"])])
+
+
+def threads_table(threads: dict[str, dict[str, float]]) -> list[str]:
+    """Per message, each role's CPU (us) and runs in each server, as Markdown lines."""
+    lines = [
+        "| threads (every worker's) | 1 worker: us/msg; runs/msg | 2 workers: us/msg; runs/msg |",
+        "|---|---|---|",
+    ]
+    roles = sorted({key.rsplit(" ", 1)[0] for found in threads.values() for key in found})
+    for role in [*roles, "all"]:
+        cells = []
+        for name in ("one", "two"):
+            found = threads.get(name, {})
+            pick = roles if role == "all" else [role]
+            ns = sum(found.get(f"{r} ns", 0.0) for r in pick)
+            runs = sum(found.get(f"{r} runs", 0.0) for r in pick)
+            cells.append(f"{ns / 1e3:.1f}; {runs:.2f}")
+        lines.append(f"| {role} | {cells[0]} | {cells[1]} |")
+    return lines
 
 
 async def connect(url: str) -> Any:
@@ -499,6 +521,8 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     results = asyncio.run(measure(args.quick))
     print(table(results))
+    for key in ("Z2 server CPU", "Z2 server CPU paced"):
+        print(f"\n{key}, per message:\n" + "\n".join(threads_table(results[key]["threads"])))
     results["elapsed_s"] = time.perf_counter() - started
     if not args.quick:
         args.out.write_text(json.dumps(results, indent=2) + "\n", "utf-8")
