@@ -30,6 +30,10 @@ pytestmark = pytest.mark.anyio
 
 FLOOD = 1000
 MAX_LINES = 5  # the first line of an episode, and a summary if the clock passes 10 s
+BROKEN = "/broken_in_log_floods"
+"""A name no other test's service has: episodes are per server process and keyed by
+the service, so another test's failing ``/broken`` within 10 s would have opened
+this one's episode already, and its first line would not come."""
 TIMEOUT_S = 120
 
 
@@ -52,7 +56,7 @@ def broken_robot() -> Graph:
     def broken(request: dict[str, object]) -> dict[str, object]:
         raise ValueError("a bug in the robot's handler")
 
-    graph.create_service("/broken", "std_srvs/srv/Trigger", broken)
+    graph.create_service(BROKEN, "std_srvs/srv/Trigger", broken)
     return graph
 
 
@@ -66,7 +70,7 @@ async def test_a_service_that_raises_logs_one_traceback_per_episode(
             caplog.clear()
             with caplog.at_level(logging.INFO):
                 for i in range(FLOOD):
-                    await client.send({"op": "call_service", "service": "/broken", "id": i})
+                    await client.send({"op": "call_service", "service": BROKEN, "id": i})
                 for i in range(FLOOD):
                     reply = await client.expect(is_op("service_response", id=i))
                     assert reply["result"] is False
