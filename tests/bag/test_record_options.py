@@ -30,6 +30,8 @@ from rwt_cli.app import app
 from tests.integration.client_harness import REPO, ServerProcess
 from tests.transports.realclients import run_python
 
+from .support import CHECKPOINTS
+
 pytestmark = pytest.mark.anyio
 
 PUBLISH = """
@@ -88,6 +90,7 @@ def mcap_chunks(part: Path) -> tuple[set[str], int]:
         return compressions, sum(1 for _ in reader.iter_messages())
 
 
+@CHECKPOINTS  # chunk compression is the checkpoint writer's
 async def test_serve_record_selects_splits_compresses_and_repeats_latched(tmp_path: Path) -> None:
     bag = tmp_path / "sel"
     args = (
@@ -142,6 +145,7 @@ PUBLISH_UNTIL = """
 """
 
 
+@CHECKPOINTS
 async def test_rwt_record_regex_exclusions_lz4_and_duration_parts(tmp_path: Path) -> None:
     server = ServerProcess(tmp_path)
     bag = tmp_path / "run"
@@ -220,3 +224,19 @@ def test_serve_names_its_own_record_options_in_errors(
     assert code == 2, output
     assert says in output
     assert not (tmp_path / "x").exists()
+
+
+def test_chunk_compression_with_the_checkpoints_shortcut_off_is_refused_clearly(
+    tmp_path: Path,
+) -> None:
+    """Off, rosbags' own writer writes the bag, and it compresses no chunks
+    (docs/shortcuts.md): a compression asked for is an error, not silently dropped."""
+    bag = tmp_path / "x"
+    command = [sys.executable, "-m", "rwt", "serve", "--port", "0", "--no-tf"]
+    command += ["--record", str(bag), "--record-chunk-compression", "zstd"]
+    env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
+    env["RWT_NO_SHORTCUTS"] = "bag-checkpoints"
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=60, check=False)
+    assert done.returncode == 1, done.stderr
+    assert "MCAP chunk compression needs the bag-checkpoints shortcut (it is off)" in done.stderr
+    assert "listening on" not in done.stdout
