@@ -29,7 +29,7 @@ from rwt_bag import BagError
 from rwt_bag.reindex import reindex
 from tests.integration.client_harness import REPO, ServerProcess
 
-from .support import read_bag, sample_messages
+from .support import CHECKPOINTS, read_bag, sample_messages
 from .test_record_roundtrip import roslibpy_publisher
 
 if TYPE_CHECKING:
@@ -89,6 +89,7 @@ def refused_by_rosbags(bag: Path) -> bool:
 TORN_CHUNK = b"\x06" + (4096).to_bytes(8, "little") + bytes(20)  # a chunk record cut short
 
 
+@CHECKPOINTS  # a killed recording: readable up to its last checkpoint
 def test_mcap_cut_short_in_a_chunk(tmp_path: Path) -> None:
     bag = killed_recording(tmp_path, "mcap")
     (file,) = bag.glob("*.mcap")
@@ -119,6 +120,7 @@ def test_mcap_cut_short_in_a_chunk(tmp_path: Path) -> None:
     assert {t: topics.count(t) for t in set(topics)} == WANT
 
 
+@CHECKPOINTS  # a killed recording: readable up to its last checkpoint
 def test_sqlite3_without_metadata(tmp_path: Path) -> None:
     bag = killed_recording(tmp_path, "sqlite3")
     (bag / "metadata.yaml").unlink()

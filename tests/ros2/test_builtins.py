@@ -15,6 +15,7 @@ from rwt_bag.errors import BagError
 from rwt_bag.reader import BagSource
 from rwt_graph.types import Dialect, TypeRegistry
 from tests.bag.bags import write_bag
+from tests.bag.support import CHECKPOINTS
 
 from .support import Peer, serve_ros2, skip_without_rclpy
 
@@ -57,6 +58,7 @@ async def test_a_bag_played_by_rwt_reaches_a_ros2_listener(ros_env: Path, tmp_pa
     assert heard["heard"].startswith("chatter ") and heard["heard"].endswith(" ✓")
 
 
+@CHECKPOINTS  # read while it records: the checkpoint writer's
 async def test_record_records_a_ros2_topic(ros_env: Path, tmp_path: Path) -> None:
     out = tmp_path / "recorded"
     server = serve_ros2(ros_env, "--record", str(out), "--record-topics", "[/recorded_chatter]")
