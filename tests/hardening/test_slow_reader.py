@@ -72,6 +72,17 @@ async def harness() -> AsyncIterator[Harness]:
         yield h
 
 
+@pytest.fixture
+async def opened(harness: Harness) -> AsyncIterator[list[Peer]]:
+    """Peers a test opens, closed after it whether it passed or not (before the server
+    stops, off the loop: a WebSocket close awaits the server). A failed test must not
+    leave its sockets to be collected during another one."""
+    peers: list[Peer] = []
+    yield peers
+    for peer in peers:
+        await anyio.to_thread.run_sync(peer.close)
+
+
 def ports(harness: Harness) -> dict[str, int]:
     return {kind: harness.port(kind) for kind in ("websocket", "tcp")}
 
@@ -170,18 +181,18 @@ def assert_slow_reader_lost_its_oldest(slow: Reader, taken_meanwhile: int) -> No
 
 @pytest.mark.parametrize("transport", ["ws", "tcp"])
 async def test_a_slow_reader_does_not_hold_the_publisher_or_a_bystander(
-    harness: Harness, transport: str
+    harness: Harness, opened: list[Peer], transport: str
 ) -> None:
     addresses = ports(harness)
     frames = image_frames(FRAMES)
-    peers = [
-        await anyio.to_thread.run_sync(open_peer, transport, addresses, rcvbuf)
-        for rcvbuf in (None, RCVBUF)
-    ]
+    for rcvbuf in (None, RCVBUF):
+        opened.append(await anyio.to_thread.run_sync(open_peer, transport, addresses, rcvbuf))
+    peers = opened[:2]
     for peer, tag in zip(peers, "bs", strict=True):
         await anyio.to_thread.run_sync(subscribe, peer, tag)
     bystander, slow = Reader(peers[0]), Reader(peers[1], SLOW_PERIOD_S)
     publisher = await anyio.to_thread.run_sync(open_peer, transport, addresses)
+    opened.append(publisher)
     taken_meanwhile: list[int] = []
 
     async def publish() -> None:
@@ -198,8 +209,6 @@ async def test_a_slow_reader_does_not_hold_the_publisher_or_a_bystander(
     assert bystander.seen == list(range(FRAMES))
     assert not [s for s in bystander.statuses if "dropping" in s]
     assert_slow_reader_lost_its_oldest(slow, taken_meanwhile[0])
-    for peer in (*peers, publisher):  # off the loop: a WebSocket close awaits the server
-        await anyio.to_thread.run_sync(peer.close)
 
 
 ROSLIBPY_BYSTANDER = """
@@ -223,7 +232,7 @@ ros.terminate()
 
 
 async def test_a_roslibpy_bystander_gets_every_frame_beside_a_slow_reader(
-    harness: Harness, tmp_path: Path
+    harness: Harness, opened: list[Peer], tmp_path: Path
 ) -> None:
     """roslibpy, the real client, as the bystander over WebSocket."""
     addresses = ports(harness)
@@ -233,9 +242,11 @@ async def test_a_roslibpy_bystander_gets_every_frame_beside_a_slow_reader(
         port=addresses["websocket"], last=FRAMES - 1, topic=TOPIC, type=TYPE, ready=ready
     )
     slow_peer = await anyio.to_thread.run_sync(open_peer, "tcp", addresses, RCVBUF)
+    opened.append(slow_peer)
     await anyio.to_thread.run_sync(subscribe, slow_peer, "s")
     slow = Reader(slow_peer, SLOW_PERIOD_S)
     publisher = await anyio.to_thread.run_sync(open_peer, "tcp", addresses)
+    opened.append(publisher)
     output: list[str] = []
     taken_meanwhile: list[int] = []
 
@@ -256,8 +267,6 @@ async def test_a_roslibpy_bystander_gets_every_frame_beside_a_slow_reader(
     count, whole = output[0].split()[-2:]
     assert int(count) == FRAMES and whole == "True", output[0]
     assert_slow_reader_lost_its_oldest(slow, taken_meanwhile[0])
-    for peer in (slow_peer, publisher):
-        await anyio.to_thread.run_sync(peer.close)
 
 
 async def test_a_slow_in_process_reader_does_not_hold_the_others(harness: Harness) -> None:
