@@ -32,7 +32,8 @@ INPUT_STALL_S = 1.0
 """Seconds without taking a frame, during a hold, after which a peer counts as
 slow at once for input backpressure: readers stop waiting for it before its
 hold budget is spent (docs/limits.md). Its queue then drops and it is closed
-after ``--send-timeout`` (D24)."""
+after ``--send-timeout`` (D24). A peer whose socket's send queue shrank
+meanwhile took bytes and is not stalled (sendqueue.py)."""
 
 
 class Held:
@@ -55,6 +56,14 @@ class Held:
     def _over_water(self, *, own: bool, mark: int) -> bool:
         """Whether more than ``mark`` bytes wait (``own``: the reader's own outbox)."""
         raise NotImplementedError
+
+    def _unsent_bytes(self) -> int | None:
+        """Bytes past the outbox that its consumer has not taken yet, or None.
+
+        A socket's send queue: progress that no take shows (sendqueue.py). None
+        where that cannot be told.
+        """
+        return None
 
     def _note_take(self, caught_up: bool) -> None:
         """The consumer took something; ``caught_up``: nothing is left, the episode ends."""
@@ -86,7 +95,8 @@ async def wait_for(held: Held, *, own: bool) -> None:
     charged to its budget (``--hold-budget``), and once that is spent, or it
     took nothing for ``INPUT_STALL_S``, it is slow and left to its drop rules
     until it catches up. A reader's own outbox (replies only) is waited for
-    while its peer takes frames.
+    while its peer takes frames. A peer whose socket's send queue shrank during
+    a wait took bytes, though no send completed (sendqueue.py): it is waited for on.
     """
     while held._over_water(own=own, mark=held._low_water):
         wait_s = INPUT_STALL_S
@@ -99,6 +109,7 @@ async def wait_for(held: Held, *, own: bool) -> None:
                 return
             wait_s = min(wait_s, left)
         takes = held._takes
+        unsent = held._unsent_bytes()
         progress = held._progress
         if progress is None:
             progress = held._progress = anyio.Event()
@@ -107,10 +118,15 @@ async def wait_for(held: Held, *, own: bool) -> None:
             await progress.wait()
         if not own:
             held._charge_hold(start, anyio.current_time())
-        if held._takes == takes:  # not taking: left to its drop rules
-            if not own:
+        if held._takes == takes and not _reads_meanwhile(unsent, held._unsent_bytes()):
+            if not own:  # not taking: left to its drop rules
                 held._slow = True
             return
+
+
+def _reads_meanwhile(before: int | None, after: int | None) -> bool:
+    """Whether a socket's send queue shrank: its peer read, though no send completed."""
+    return before is not None and after is not None and after < before
 
 
 class LinkHold(Held):

@@ -175,6 +175,14 @@ class ProbingChannel(Protocol):
 
 
 @runtime_checkable
+class QueueingChannel(Protocol):
+    """A channel over a socket whose kernel send queue can be read (sendqueue.py)."""
+
+    def unsent_bytes(self) -> int | None:
+        """Bytes the kernel holds for the peer, not yet acknowledged; None when it cannot tell."""
+
+
+@runtime_checkable
 class DirectChannel(Protocol):
     """A channel that can also write without awaiting.
 
@@ -675,6 +683,11 @@ class ConnectionPump(Held):
         if session is None or session.closing:
             return False
         return (session.queued_reply_bytes if own else session.queued_bytes) > mark
+
+    def _unsent_bytes(self) -> int | None:
+        """The socket's send queue, where the channel can read it (``holding.wait_for``)."""
+        channel = self.channel
+        return channel.unsent_bytes() if isinstance(channel, QueueingChannel) else None
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:

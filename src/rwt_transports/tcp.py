@@ -21,6 +21,7 @@ from rwt_protocol.ops import Status
 from . import admission
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
+from .sendqueue import stream_unsent_bytes
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -88,6 +89,10 @@ class StreamChannel:
         """
         if self._reader is not None:
             self._reader.pause()
+
+    def unsent_bytes(self) -> int | None:
+        """Bytes the socket's kernel still holds for the peer (sendqueue.py)."""
+        return stream_unsent_bytes(self.stream)
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Write the frames in one go."""

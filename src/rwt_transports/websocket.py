@@ -48,6 +48,7 @@ from rwt_protocol.shortcuts import enabled
 from . import admission
 from .direct import DirectReader, DirectWriter
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
+from .sendqueue import stream_unsent_bytes
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
@@ -280,6 +281,10 @@ class WebSocketChannel:
                 return
             await self._flush_locked()  # control frames queued by the protocol go first
             await self._write_framed(frames)
+
+    def unsent_bytes(self) -> int | None:
+        """Bytes the socket's kernel still holds for the peer (sendqueue.py)."""
+        return stream_unsent_bytes(self.stream)
 
     def can_send_now(self) -> bool:
         """Whether ``send_now`` may write at once.

@@ -305,3 +305,42 @@ async def test_a_slow_in_process_reader_does_not_hold_the_others(harness: Harnes
     assert views["b"].seen == list(range(FRAMES))
     assert not [s for s in views["b"].statuses if "dropping" in s]
     assert_slow_reader_lost_its_oldest(views["s"], taken_meanwhile[0])
+
+
+STEADY_FRAMES = 60
+STEADY_PERIOD_S = 0.3  # 1 MB/s: half of a 4 MiB kernel send buffer drains in 2 s
+STEADY_BUDGET_S = 60.0
+
+
+async def test_a_steady_tcp_reader_is_waited_for_within_its_budget() -> None:
+    """A viewer taking a 300 KB frame every 0.3 s, with a budget to wait for it, loses none.
+
+    Its writer learns that it reads only when a send completes, and the kernel
+    wakes a blocked writer once about half the socket's send buffer is free:
+    Linux grows that buffer to 4 MiB here, so no send completed for over a
+    second at a time, and the reader counted as stalled (``INPUT_STALL_S``) and
+    lost its oldest frames whatever the budget. Its socket's send queue shrank
+    all the while (rwt_transports/sendqueue.py), and now says it reads.
+    """
+    config = ServerConfig(
+        session=SessionConfig(send_buffer_limit=LIMIT, hold_budget_s=STEADY_BUDGET_S)
+    )
+    frames = image_frames(STEADY_FRAMES)
+    async with running_server(config) as harness:
+        addresses = ports(harness)
+        peers: list[Peer] = []
+        try:
+            peers.append(await anyio.to_thread.run_sync(open_peer, "tcp", addresses, RCVBUF))
+            await anyio.to_thread.run_sync(subscribe, peers[0], "s")
+            steady = Reader(peers[0], STEADY_PERIOD_S)
+            peers.append(await anyio.to_thread.run_sync(open_peer, "tcp", addresses))
+            with anyio.fail_after(120):
+                async with anyio.create_task_group() as tg:
+                    tg.start_soon(anyio.to_thread.run_sync, steady.read_until, STEADY_FRAMES - 1)
+                    await anyio.to_thread.run_sync(publish_all, peers[1], frames)
+                    steady.stream_handled()
+        finally:
+            for peer in peers:
+                await anyio.to_thread.run_sync(peer.close)
+    assert steady.seen == list(range(STEADY_FRAMES))
+    assert not [s for s in steady.statuses if "dropping" in s], steady.statuses
