@@ -40,7 +40,8 @@ class Held:
     """An outbox readers may wait for: its watermarks, hold budget and progress.
 
     Subclasses say what is queued (``_over_water``) and call ``_note_take``
-    each time their consumer takes something.
+    each time their consumer takes something; one over a socket also says what
+    the kernel still holds for its peer (``_unsent_bytes``).
     """
 
     def __init__(self) -> None:
