@@ -196,6 +196,8 @@ def _server_config(
         max_fragment_memory=limits.max_fragment_memory,
         max_connections=limits.max_connections,
         max_connections_per_host=limits.max_connections_per_host,
+        host_prefix_v4=limits.host_prefix_v4,
+        host_prefix_v6=limits.host_prefix_v6,
         idle_timeout_s=limits.idle_timeout or None,
         certfile=security.certfile,
         keyfile=security.keyfile,

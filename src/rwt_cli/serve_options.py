@@ -7,6 +7,7 @@ holds one of each. The option names are the fields' names (``tcp_port`` is
 
 from __future__ import annotations
 
+import ipaddress
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
@@ -18,6 +19,7 @@ from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
+from rwt_transports.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
 from rwt_zenoh.limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
 from .bag_options import (
@@ -276,10 +278,30 @@ class Limits:
         int,
         typer.Option(
             min=1,
-            help="Connections one host (source IP) may hold once 3/4 of --max-connections"
-            " are taken.",
+            help="Connections one host (see --host-prefix-v4/-v6) may hold once 3/4 of"
+            " --max-connections are taken.",
         ),
     ] = 64
+    host_prefix_v4: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=ipaddress.IPV4LENGTH,
+            metavar="BITS",
+            help="IPv4 clients (and IPv4-mapped IPv6 ones) whose addresses share this"
+            " many leading bits count as one host for the per-host shares (24: a /24).",
+        ),
+    ] = DEFAULT_PREFIX_V4
+    host_prefix_v6: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=ipaddress.IPV6LENGTH,
+            metavar="BITS",
+            help="IPv6 clients whose addresses share this many leading bits count as one"
+            " host for the per-host shares (64: the /64 one machine gets).",
+        ),
+    ] = DEFAULT_PREFIX_V6
     idle_timeout: Annotated[
         float,
         typer.Option(

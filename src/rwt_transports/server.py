@@ -59,7 +59,7 @@ from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, InboundBatch, OutboundHold, run_connection
-from .shares import HostShares, host_key
+from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
@@ -124,11 +124,17 @@ class ServerConfig:
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake. None: derived from the soft
             RLIMIT_NOFILE when serving starts (``fdlimit.default_max_connections``).
-        max_connections_per_host: connections one host (source IP; IPv6 by /64)
-            may hold once ``shares.SHARES_FROM`` of ``max_connections`` are taken
-            (``--max-connections-per-host``); before that anyone gets one, so local
-            use, where every client is 127.0.0.1, is not limited. WebSocket, TCP and
-            UDP count; stdio and in-process connections do not.
+        max_connections_per_host: connections one host (``host_prefix_v4``,
+            ``host_prefix_v6``) may hold once ``shares.SHARES_FROM`` of
+            ``max_connections`` are taken (``--max-connections-per-host``); before
+            that anyone gets one, so local use, where every client is 127.0.0.1, is
+            not limited. WebSocket, TCP and UDP count; stdio and in-process
+            connections do not.
+        host_prefix_v4: leading bits of an IPv4 source address (or IPv4-mapped
+            IPv6 one) that name its host for the per-host shares, 0 to 32
+            (``--host-prefix-v4``; 24: a /24 is one host).
+        host_prefix_v6: the same for IPv6, 0 to 128 (``--host-prefix-v6``; by
+            default the /64 one machine gets).
         idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
             sent nothing and that holds nothing is closed (``--idle-timeout``;
             ``rwt_protocol.server.idle``); None: never. UDP has ``udp.idle_timeout_s``.
@@ -167,6 +173,8 @@ class ServerConfig:
     max_fragment_memory: int = 256 * MiB
     max_connections: int | None = None
     max_connections_per_host: int = 64
+    host_prefix_v4: int = DEFAULT_PREFIX_V4
+    host_prefix_v6: int = DEFAULT_PREFIX_V6
     idle_timeout_s: float | None = 600.0
     certfile: Path | None = None
     keyfile: Path | None = None
@@ -226,6 +234,10 @@ class RosbridgeServer:
             it receives the op and the peer address and returns True to admit.
             It overrides ``config.session.authenticator``. See
             ``rosauth_authenticator`` for rosauth's MAC check.
+
+    Raises:
+        ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
+            its address's width (``shares.HostPrefixes``).
     """
 
     session_class: type[Session] = Session
@@ -238,9 +250,11 @@ class RosbridgeServer:
         *,
         authenticator: Authenticator | None = None,
     ) -> None:
+        self.config = config or ServerConfig()
+        # a bad prefix is refused (ConfigError) before the graph is touched
+        self._host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
         self.graph = graph or Graph()
         self.graph.port.inflow = InboundBatch()  # links' deliveries are held back as readers are
-        self.config = config or ServerConfig()
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
         if authenticator is not None:
@@ -372,7 +386,9 @@ class RosbridgeServer:
             self.urls["udp"] = f"udp://{_url_host(config.host)}:{port}"
 
             async def run_udp(connections: TaskGroup) -> None:
-                work = serve_udp(sock, self, config.udp, config.max_message_size)
+                work = serve_udp(
+                    sock, self, config.udp, config.max_message_size, self._host_prefixes
+                )
                 await _contained("udp endpoint", work)
 
             runners.append(run_udp)
@@ -592,13 +608,14 @@ class RosbridgeServer:
         if self._stopping or (limit is not None and taken >= limit):
             return None
         address = _address(peer)
-        host = host_key(address) if transport in _NETWORK else None
+        host = self._host_prefixes.host(address) if transport in _NETWORK else None
         if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
             self._refusals.log(
                 logging.WARNING,
                 f"share:{host}",
-                "event=refused peer=%s reason='host share' held=%d share=%d",
+                "event=refused peer=%s host=%s reason='host share' held=%d share=%d",
                 peer,
+                host,
                 self._shares.held(host),
                 self._shares.share,
             )

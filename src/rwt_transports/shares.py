@@ -9,32 +9,79 @@ that, a host that holds its share (``--max-connections-per-host``,
 most ``SHARES_FROM`` of the slots, and the rest stays for hosts holding less
 than their share.
 
-A host is the source IP address; IPv6 addresses count by their /64 prefix (one
-machine gets a whole /64), IPv4-mapped IPv6 addresses as the IPv4 address.
+A host is a network prefix of the source address (``HostPrefixes``): an IPv6
+machine gets a whole /64, so IPv6 addresses count by their /64 by default, and a
+LAN attacker may hold several IPv4 addresses, so IPv4 ones can count by a
+shorter prefix than the default /32 (``--host-prefix-v4``, ``--host-prefix-v6``).
+IPv4-mapped IPv6 addresses (``::ffff:a.b.c.d``) count as their IPv4 address.
 """
 
 from __future__ import annotations
 
 import ipaddress
 from collections import Counter
+from dataclasses import dataclass
 
-__all__ = ["SHARES_FROM", "HostShares", "host_key"]
+from rwt_protocol.errors import ConfigError
+
+__all__ = [
+    "DEFAULT_PREFIX_V4",
+    "DEFAULT_PREFIX_V6",
+    "SHARES_FROM",
+    "HostPrefixes",
+    "HostShares",
+]
 
 SHARES_FROM = 0.75
 """The fraction of the slots taken past which per-host shares apply."""
 
+DEFAULT_PREFIX_V4 = 32
+"""Bits of an IPv4 source address that name its host: the address itself."""
+DEFAULT_PREFIX_V6 = 64
+"""Bits of an IPv6 source address that name its host: its /64, what one machine gets (RFC 4291)."""
 
-def host_key(address: str) -> str:
-    """The host that ``address`` (an IP address without port) counts as."""
-    try:
-        ip = ipaddress.ip_address(address.strip("[]"))
-    except ValueError:
-        return address  # not an IP (a Unix socket, "unknown"): itself
-    if isinstance(ip, ipaddress.IPv6Address):
-        if ip.ipv4_mapped is not None:
-            return str(ip.ipv4_mapped)
-        return str(ipaddress.IPv6Network((ip, 64), strict=False))
-    return str(ip)
+
+@dataclass(frozen=True, slots=True)
+class HostPrefixes:
+    """How source addresses group into hosts: by their leading bits.
+
+    Attributes:
+        v4: prefix length of an IPv4 host, 0 to 32 bits (``--host-prefix-v4``).
+        v6: prefix length of an IPv6 host, 0 to 128 bits (``--host-prefix-v6``).
+
+    Raises:
+        ConfigError: a prefix length outside its address's width.
+    """
+
+    v4: int = DEFAULT_PREFIX_V4
+    v6: int = DEFAULT_PREFIX_V6
+
+    def __post_init__(self) -> None:
+        for option, bits, width in (
+            ("--host-prefix-v4", self.v4, ipaddress.IPV4LENGTH),
+            ("--host-prefix-v6", self.v6, ipaddress.IPV6LENGTH),
+        ):
+            if not 0 <= bits <= width:
+                raise ConfigError(f"{option} must be 0 to {width} bits, not {bits}")
+
+    def host(self, address: str) -> str:
+        """The host that ``address`` (an IP address without port) counts as.
+
+        Returns:
+            The address itself at a full-length prefix (``192.0.2.7``), else its
+            network (``192.0.2.0/24``, ``2001:db8:1:2::/64``); anything that is
+            not an IP address (a Unix socket, ``unknown``) as it is.
+        """
+        try:
+            ip = ipaddress.ip_address(address.strip("[]").partition("%")[0])
+        except ValueError:
+            return address
+        if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+            ip = ip.ipv4_mapped  # a dual-stack socket's IPv4 client: its IPv4 host
+        bits = self.v4 if ip.version == 4 else self.v6
+        if bits == ip.max_prefixlen:
+            return str(ip)
+        return str(ipaddress.ip_network((ip, bits), strict=False))
 
 
 class HostShares:

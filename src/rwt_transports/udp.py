@@ -27,7 +27,7 @@ from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
 from rwt_protocol.ops import Status
 
 from .pump import ConnectionPump, SessionHost, run_connection
-from .shares import HostShares, host_key
+from .shares import HostPrefixes, HostShares
 from .udp_validation import AddressValidator, split_token
 
 if TYPE_CHECKING:
@@ -64,7 +64,8 @@ class UdpOptions:
             is closed (``--udp-idle-timeout``).
         max_sessions: most UDP sessions at once (``--udp-max-sessions``), within
             the server's ``max_connections``.
-        max_sessions_per_host: UDP sessions one host (source IP) may hold once
+        max_sessions_per_host: UDP sessions one host (source address by
+            ``shares.HostPrefixes``, as for ``--max-connections-per-host``) may hold once
             ``shares.SHARES_FROM`` of ``max_sessions`` are taken
             (``--udp-max-sessions-per-host``); before that anyone gets one.
         trust_source_address: serve any source address without validation, as
@@ -161,7 +162,11 @@ class UdpChannel:
 
 
 async def serve_udp(
-    sock: UDPSocket, host: SessionHost, options: UdpOptions, max_message_size: int
+    sock: UDPSocket,
+    host: SessionHost,
+    options: UdpOptions,
+    max_message_size: int,
+    hosts: HostPrefixes | None = None,
 ) -> None:
     """Serve every peer of ``sock`` until cancelled.
 
@@ -171,9 +176,12 @@ async def serve_udp(
         options: UDP settings.
         max_message_size: the largest incoming datagram handled, bytes
             (``--max-message-size``); a larger one gets an error status.
+        hosts: how source addresses group into hosts for
+            ``options.max_sessions_per_host`` (the server's ``--host-prefix-v4``,
+            ``--host-prefix-v6``); the defaults when None.
     """
     async with anyio.create_task_group() as tg:
-        endpoint = _Endpoint(sock, host, options, max_message_size, tg)
+        endpoint = _Endpoint(sock, host, options, max_message_size, tg, hosts or HostPrefixes())
         async for data, address in sock:
             try:
                 await endpoint.dispatch(data, address)
@@ -197,8 +205,10 @@ class _Endpoint:
         options: UdpOptions,
         max_message_size: int,
         tg: TaskGroup,
+        hosts: HostPrefixes,
     ) -> None:
         self.sock = SharedSocket(sock)
+        self.hosts = hosts
         self.host = host
         self.options = options
         self.max_message_size = max_message_size
@@ -258,7 +268,7 @@ class _Endpoint:
         channel = UdpChannel(self.sock, address, receive, self.options, self.max_message_size)
         pump = ConnectionPump(channel)
         session = None
-        host = host_key(address[0])
+        host = self.hosts.host(address[0])
         taken, limit = len(self.peers), self.options.max_sessions
         if taken < limit and self.shares.admits(host, taken, limit):
             session = self.host.open_session("udp", f"{address[0]}:{address[1]}", pump.wake)
@@ -277,7 +287,7 @@ class _Endpoint:
         """End ``peer``'s session (its inbox ends) and free its address at once."""
         if self.peers.get(address) is peer:
             del self.peers[address]
-            self.shares.remove(host_key(address[0]))
+            self.shares.remove(self.hosts.host(address[0]))
         peer.inbox.close()
 
     async def _run(

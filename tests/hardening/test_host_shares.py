@@ -5,20 +5,30 @@ Before, one source address could open ``--max-connections`` connections (or
 3/4 of the slots are taken, a host holding its share gets no more, and the
 remaining slots go to hosts that hold less. Every test client is on loopback:
 127.0.0.1 is the hog, 127.0.0.2 the other host (Linux routes all of 127/8 locally).
+
+A host is a prefix of the source address (``--host-prefix-v4``, ``-v6``): three
+addresses of one /24 took every slot while each counted alone; with
+``--host-prefix-v4 24`` they share one host's slots.
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import socket
+from contextlib import AsyncExitStack
 
 import anyio
 import pytest
+from typer.testing import CliRunner
 from websockets.asyncio.client import connect
 from websockets.exceptions import InvalidStatus
 
+from rwt_cli.app import app
 from rwt_transports.server import ServerConfig
 from rwt_transports.udp import UdpOptions
 from tests.transports.clients import Harness, running_server, validate_udp
+from tests.transports.test_cli import port, rwt_serve
 
 pytestmark = pytest.mark.anyio
 
@@ -39,8 +49,13 @@ async def open_stream(harness: Harness, transport: str, source: str) -> bool:
         harness.stack.push_async_callback(ws.close)
         await ws.send(SET_LEVEL.decode())
         return bool(json.loads(await ws.recv())["id"] == "in")
-    stream = await anyio.connect_tcp("127.0.0.1", harness.port("tcp"), local_host=source)
-    harness.stack.push_async_callback(anyio.aclose_forcefully, stream)
+    return await open_tcp(harness.stack, harness.port("tcp"), source)
+
+
+async def open_tcp(stack: AsyncExitStack, port: int, source: str) -> bool:
+    """Open a TCP connection from ``source``; whether the server admitted it (kept open)."""
+    stream = await anyio.connect_tcp("127.0.0.1", port, local_host=source)
+    stack.push_async_callback(anyio.aclose_forcefully, stream)
     await stream.send(SET_LEVEL)
     reply = json.loads((await stream.receive()).split(b"\n")[0])
     if reply.get("msg") == "too many connections":
@@ -93,3 +108,110 @@ async def test_a_host_alone_is_not_limited_below_the_share_threshold() -> None:
     async with running_server(config) as harness:
         with anyio.fail_after(TIMEOUT_S):
             assert all([await open_stream(harness, "tcp", "127.0.0.1") for _ in range(20)])
+
+
+HOG = ("127.0.0.1", "127.0.0.2", "127.0.0.3")  # one attacker's addresses, all in 127.0.0.0/24
+OTHER = "127.0.1.1"  # another /24: another host even with --host-prefix-v4 24
+
+
+@pytest.mark.parametrize("transport", ["ws", "tcp", "udp"])
+@pytest.mark.parametrize(
+    ("prefix_v4", "hog_gets", "other_gets"),
+    [
+        # 8 slots, shares from 6 taken, 4 a host (the stream servers' stdio session
+        # holds one slot). Each address alone holds less than 4, so the three take
+        # every slot; as one /24 they stop at 6 taken and the other host gets the rest.
+        (32, {"ws": 7, "tcp": 7, "udp": 8}, [False]),
+        (24, {"ws": 5, "tcp": 5, "udp": 6}, [True, True, False]),
+    ],
+)
+async def test_addresses_of_one_prefix_share_one_hosts_slots(
+    transport: str, prefix_v4: int, hog_gets: dict[str, int], other_gets: list[bool]
+) -> None:
+    if transport == "udp":
+        config = ServerConfig(
+            host_prefix_v4=prefix_v4, udp=UdpOptions(max_sessions=8, max_sessions_per_host=4)
+        )
+    else:
+        config = ServerConfig(
+            max_connections=8, max_connections_per_host=4, host_prefix_v4=prefix_v4
+        )
+
+    async def attempt(source: str) -> bool:
+        if transport == "udp":
+            return await open_udp(harness, source)
+        return await open_stream(harness, transport, source)
+
+    async with running_server(config) as harness:
+        with anyio.fail_after(TIMEOUT_S):
+            hog = 0
+            while await attempt(HOG[hog % len(HOG)]):  # the three addresses in turn
+                hog += 1
+            assert hog == hog_gets[transport]
+            assert [await attempt(OTHER) for _ in other_gets] == other_gets
+
+
+async def test_rwt_serve_groups_ipv4_clients_by_host_prefix_v4() -> None:
+    # The same over the command line: no stdio session, so the /24 stops at 6 of 8.
+    args = ["--port", "0", "--tcp-port", "0", "--max-connections", "8"]
+    args += ["--max-connections-per-host", "4", "--host-prefix-v4", "24"]
+    async with rwt_serve(*args, listeners=2) as (_, urls), AsyncExitStack() as stack:
+        with anyio.fail_after(TIMEOUT_S):
+            tcp = port(urls["tcp"])
+            hog = 0
+            while await open_tcp(stack, tcp, HOG[hog % len(HOG)]):
+                hog += 1
+            assert hog == 6
+            assert [await open_tcp(stack, tcp, OTHER) for _ in range(3)] == [True, True, False]
+
+
+def ipv6_loopback() -> bool:
+    try:
+        with socket.socket(socket.AF_INET6) as sock:
+            sock.bind(("::1", 0))
+    except OSError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not ipv6_loopback(), reason="no IPv6 loopback")
+@pytest.mark.parametrize(("prefix_v6", "host"), [(64, "::/64"), (128, "::1")])
+async def test_an_ipv6_client_counts_by_its_prefix(
+    prefix_v6: int, host: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.WARNING, logger="rwt.server")
+    config = ServerConfig(
+        host="::1", max_connections=8, max_connections_per_host=2, host_prefix_v6=prefix_v6
+    )
+    async with running_server(config) as harness:
+        with anyio.fail_after(TIMEOUT_S):
+            admitted = 0
+            while True:
+                stream = await anyio.connect_tcp("::1", harness.port("tcp"))
+                harness.stack.push_async_callback(anyio.aclose_forcefully, stream)
+                await stream.send(SET_LEVEL)
+                reply = json.loads((await stream.receive()).split(b"\n")[0])
+                if reply.get("msg") == "too many connections":
+                    break
+                admitted += 1
+    assert admitted == 5  # shares from 6 of 8 taken (the stdio session holds one)
+    refusals = [r.getMessage() for r in caplog.records if "host share" in r.getMessage()]
+    assert refusals and all(f" host={host} " in line for line in refusals), refusals
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "problem"),
+    [
+        ("--host-prefix-v4", "33", "input should be less than or equal to 32"),
+        ("--host-prefix-v4", "-1", "input should be greater than or equal to 0"),
+        ("--host-prefix-v6", "129", "input should be less than or equal to 128"),
+        ("--host-prefix-v6", "-1", "input should be greater than or equal to 0"),
+    ],
+)
+def test_a_prefix_longer_than_the_address_is_refused_by_the_cli(
+    option: str, value: str, problem: str
+) -> None:
+    result = CliRunner().invoke(app, ["serve", option, value], prog_name="rwt")
+    assert result.exit_code == 2
+    assert "Traceback" not in result.stderr
+    assert result.stderr.strip() == f"rwt serve: {option}: {problem}"
