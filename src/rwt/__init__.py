@@ -68,7 +68,7 @@ if TYPE_CHECKING:
         points_from_depth,
     )
     from rwt_graph.media.depthcloud_node import DepthCloudEncoder
-    from rwt_graph.params import ParameterError, ParameterNotSetError
+    from rwt_graph.params import ParameterError, ParameterNotSetError, ParameterStoreFullError
     from rwt_graph.tf import (
         DisconnectedFramesError,
         ExtrapolationError,
@@ -186,6 +186,7 @@ __all__ = [
     "Param",
     "ParameterError",
     "ParameterNotSetError",
+    "ParameterStoreFullError",
     "PlayStats",
     "Player",
     "ProtocolError",
@@ -311,6 +312,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "rwt_graph.params": (
         "ParameterError",
         "ParameterNotSetError",
+        "ParameterStoreFullError",
     ),
     "rwt_graph.tf": (
         "DisconnectedFramesError",

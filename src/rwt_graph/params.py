@@ -36,12 +36,14 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
 
 __all__ = [
+    "NODE_SHARE",
     "ParamInfo",
     "ParamKind",
     "ParamValue",
     "ParamWatcher",
     "ParameterError",
     "ParameterNotSetError",
+    "ParameterStoreFullError",
     "Parameters",
     "check_param_name",
     "value_size",
@@ -58,6 +60,13 @@ _INT64 = (-(2**63), 2**63 - 1)
 _INT32 = (-(2**31), 2**31 - 1)  # XML-RPC integers of the ROS 1 parameter server
 _MISSING = object()
 
+NODE_SHARE = 0.25
+"""The fraction of the store's parameters and of its bytes one ROS 2 node may hold.
+
+A node copied from ROS 2 or Zenoh (``param_replicas``) lists whatever it
+declares; without a share one node could fill the store, and every other
+client's ``set_param`` would fail (docs/limits.md)."""
+
 
 class ParameterError(GraphError):
     """A parameter operation was refused: bad name, bad value, type change, read-only."""
@@ -65,6 +74,10 @@ class ParameterError(GraphError):
 
 class ParameterNotSetError(ParameterError):
     """The parameter does not exist."""
+
+
+class ParameterStoreFullError(ParameterError):
+    """No room for it: the store is full, or the node holds its share (``NODE_SHARE``)."""
 
 
 class ParamKind(StrEnum):
@@ -285,6 +298,10 @@ class Parameters:
         max_bytes: most bytes all values may hold together (strings count their
             UTF-8 bytes, numbers and bools 8); a ``set`` that would go over is
             refused (docs/limits.md).
+        node_share: the fraction of ``max_params`` and of ``max_bytes`` one ROS 2
+            node may hold (``max_node_params``, ``max_node_bytes``; at least one
+            parameter and byte), so one node cannot fill the store; 1 lets a node
+            hold all of it. ROS 1 names have no nodes and no share.
     """
 
     def __init__(
@@ -293,12 +310,16 @@ class Parameters:
         *,
         max_params: int = 10_000,
         max_bytes: int = 64 * 1024 * 1024,
+        node_share: float = NODE_SHARE,
     ) -> None:
         self.dialect = dialect
         self.max_params = max_params
         self.max_bytes = max_bytes
+        self.max_node_params = max(1, int(max_params * node_share))
+        self.max_node_bytes = max(1, int(max_bytes * node_share))
         self._bytes = 0  # the values' sizes (``value_size``), kept up to date
         self._nodes: dict[str, dict[str, _Param]] = {}  # ROS 2
+        self._node_bytes: dict[str, int] = {}  # ROS 2: each node's part of ``_bytes``
         self._count = 0  # ROS 2 parameters held: a new one checks room without a walk
         self._tree: dict[str, ParamValue] = {}  # ROS 1
         self._watchers: list[ParamWatcher] = []
@@ -325,6 +346,8 @@ class Parameters:
         this sets ``<node>/<name>`` for each entry (types and read-only do not apply).
 
         Raises:
+            ParameterStoreFullError: no room (``set``); the parameters before it
+                are declared.
             ParameterError: a bad node or parameter name, or a bad value.
         """
         if self.ros1:
@@ -337,7 +360,7 @@ class Parameters:
             stored, kind = ros2_value(value, full)
             self._check_room(node_key, param)
             old = self._nodes.get(node_key, {}).get(param)
-            self._grow(stored, None if old is None else old.value)
+            self._grow(stored, None if old is None else old.value, node_key)
             entry = _Param(stored, kind, read_only=read_only, fixed_type=not dynamic_typing)
             self._nodes.setdefault(node_key, {})[param] = entry
             if old is None:
@@ -348,8 +371,10 @@ class Parameters:
         """Set a parameter, creating it (and, in ROS 2, its node's entry) if needed.
 
         Raises:
+            ParameterStoreFullError: the store is full, or the ROS 2 node holds
+                its share of it (``max_node_params``, ``max_node_bytes``).
             ParameterError: bad name or value, a type change of a declared ROS 2
-                parameter, a read-only parameter, or the store is full.
+                parameter, a read-only parameter.
         """
         check_param_name(name, ros1=self.ros1)
         if self.ros1:
@@ -364,7 +389,7 @@ class Parameters:
         new = _changed(entry, value, full)
         if entry is None:
             self._check_room(node, param)
-        self._grow(new.value, None if entry is None else entry.value)
+        self._grow(new.value, None if entry is None else entry.value, node)
         self._nodes.setdefault(node, {})[param] = new
         if entry is None:
             self._count += 1
@@ -375,8 +400,9 @@ class Parameters:
 
         Each change is judged as ``set`` (a value) or ``delete`` (None) would judge
         it, in order (a later change of the same name sees the earlier one), and the
-        room left in the store counts them all; watchers hear of the changes only
-        once every one of them is made (``set_parameters_atomically``, docs/ros2.md).
+        room left in the store and in each node's share counts them all; watchers
+        hear of the changes only once every one of them is made
+        (``set_parameters_atomically``, docs/ros2.md).
 
         Raises:
             ParameterError: the first change refused (the message names it); nothing
@@ -386,21 +412,24 @@ class Parameters:
             raise ParameterError("ROS 1 parameters have no atomic set")
         plan: dict[tuple[str, str], _Param | None] = {}
         count, size = self._count, self._bytes
+        counts: dict[str, int] = {}  # node -> parameters it will hold
+        sizes: dict[str, int] = {}  # node -> bytes it will hold
         for name, value in changes:
             node, param = split_ros2_name(name)
-            full = f"{node}:{param}"
             key = (node, param)
             old = plan[key] if key in plan else self._nodes.get(node, {}).get(param)
-            new = _planned(old, name, value, full)
-            count += (new is not None) - (old is not None)
-            size += (0 if new is None else value_size(new.value)) - (
+            new = _planned(old, name, value, f"{node}:{param}")
+            added = (new is not None) - (old is not None)
+            grown = (0 if new is None else value_size(new.value)) - (
                 0 if old is None else value_size(old.value)
             )
-            if count > self.max_params and count > self._count:
-                raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
+            count += added
+            size += grown
+            counts[node] = counts.get(node, len(self._nodes.get(node, ()))) + added
+            sizes[node] = sizes.get(node, self._node_bytes.get(node, 0)) + grown
+            self._check_counts(count, node, counts[node])
             plan[key] = new
-        if size > self.max_bytes and size > self._bytes:
-            raise ParameterError(f"the parameter store is full ({self.max_bytes} bytes)")
+        self._check_sizes(size, sizes)
         for (node, param), new in plan.items():
             params = self._nodes.setdefault(node, {})
             if new is None:
@@ -409,9 +438,43 @@ class Parameters:
                     del self._nodes[node]
             else:
                 params[param] = new
+        for node, node_size in sizes.items():
+            if node in self._nodes:
+                self._node_bytes[node] = node_size
+            else:
+                self._node_bytes.pop(node, None)
         self._count, self._bytes = count, size
         for (node, param), new in plan.items():
             self._notify(f"{node}:{param}", None if new is None else new.value)
+
+    def _check_counts(self, count: int, node: str, held: int) -> None:
+        """Refuse a plan past which the store holds ``count``, ``node`` ``held`` parameters.
+
+        Raises:
+            ParameterStoreFullError: either is over its bound and more than now.
+        """
+        if count > self.max_params and count > self._count:
+            raise ParameterStoreFullError(
+                f"the parameter store is full ({self.max_params} parameters)"
+            )
+        if held > self.max_node_params and held > len(self._nodes.get(node, ())):
+            raise ParameterStoreFullError(
+                self._share_full(node, f"{self.max_node_params} parameters")
+            )
+
+    def _check_sizes(self, size: int, sizes: Mapping[str, int]) -> None:
+        """Refuse a plan past which the values hold ``size`` bytes, each node its ``sizes``.
+
+        Raises:
+            ParameterStoreFullError: one is over its bound and more than now.
+        """
+        if size > self.max_bytes and size > self._bytes:
+            raise ParameterStoreFullError(f"the parameter store is full ({self.max_bytes} bytes)")
+        for node, held in sizes.items():
+            if held > self.max_node_bytes and held > self._node_bytes.get(node, 0):
+                raise ParameterStoreFullError(
+                    self._share_full(node, f"{self.max_node_bytes} bytes")
+                )
 
     def describe(self, name: str) -> ParamInfo | None:
         """What kind of ROS 2 parameter ``name`` is; None if it is not set.
@@ -467,11 +530,14 @@ class Parameters:
             raise ParameterNotSetError(f"parameter {node}:{param} is not set")
         if entry.read_only:
             raise ParameterError(f"parameter {node}:{param} is read-only")
-        self._bytes -= value_size(entry.value)
+        size = value_size(entry.value)
+        self._bytes -= size
+        self._node_bytes[node] -= size
         del params[param]
         self._count -= 1
         if not params:
             del self._nodes[node]
+            del self._node_bytes[node]
         self._notify(f"{node}:{param}", None)
 
     def key(self, name: str) -> str:
@@ -494,6 +560,24 @@ class Parameters:
     def nodes(self) -> frozenset[str]:
         """The ROS 2 nodes that have parameters (none in ROS 1)."""
         return frozenset(self._nodes)
+
+    def room(self, node: str) -> int:
+        """How many more parameters ROS 2 ``node`` may have now: the store's room, within its share.
+
+        Raises:
+            ParameterError: a bad node name, or a ROS 1 store (no nodes there).
+        """
+        key = self._node_key(node)
+        held = len(self._nodes.get(key, ()))
+        return max(0, min(self.max_params - self._count, self.max_node_params - held))
+
+    def room_problem(self, node: str) -> str | None:
+        """Why a new parameter of ROS 2 ``node`` would be refused for room now; None if it fits.
+
+        Raises:
+            ParameterError: a bad node name, or a ROS 1 store (no nodes there).
+        """
+        return self._room_problem(self._node_key(node))
 
     def search(self, name: str) -> str:
         """ROS 1 ``search_param`` from the root namespace: the global name if set, else ``""``."""
@@ -525,22 +609,51 @@ class Parameters:
                     exc_info=True,
                 )
 
-    def _grow(self, new: ParamValue, old: ParamValue | None) -> None:
-        """Account for ``old`` becoming ``new``; refuse it if the store would be over ``max_bytes``.
+    def _grow(self, new: ParamValue, old: ParamValue | None, node: str | None = None) -> None:
+        """Account for ``old`` becoming ``new`` (a parameter of ROS 2 ``node``, if given).
 
         Raises:
-            ParameterError: the values would hold more than ``max_bytes``.
+            ParameterStoreFullError: the values would hold more than ``max_bytes``,
+                or ``node``'s more than ``max_node_bytes``; nothing is counted.
         """
-        total = self._bytes + value_size(new) - (0 if old is None else value_size(old))
-        if total > self.max_bytes and total > self._bytes:
-            raise ParameterError(f"the parameter store is full ({self.max_bytes} bytes)")
+        grown = value_size(new) - (0 if old is None else value_size(old))
+        total = self._bytes + grown
+        if total > self.max_bytes and grown > 0:
+            raise ParameterStoreFullError(f"the parameter store is full ({self.max_bytes} bytes)")
+        if node is not None:
+            mine = self._node_bytes.get(node, 0) + grown
+            if mine > self.max_node_bytes and grown > 0:
+                raise ParameterStoreFullError(
+                    self._share_full(node, f"{self.max_node_bytes} bytes")
+                )
+            self._node_bytes[node] = mine
         self._bytes = total
 
     def _check_room(self, node: str, param: str) -> None:
         if param in self._nodes.get(node, {}):
             return
+        problem = self._room_problem(node)
+        if problem is not None:
+            raise ParameterStoreFullError(problem)
+
+    def _room_problem(self, node: str) -> str | None:
         if self._count >= self.max_params:
-            raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
+            return f"the parameter store is full ({self.max_params} parameters)"
+        if len(self._nodes.get(node, ())) >= self.max_node_params:
+            return self._share_full(node, f"{self.max_node_params} parameters")
+        return None
+
+    @staticmethod
+    def _share_full(node: str, share: str) -> str:
+        return f"node {node} holds its share of the parameter store ({share})"
+
+    def _node_key(self, node: str) -> str:
+        if self.ros1:
+            raise ParameterError("ROS 1 parameters have no nodes")
+        try:
+            return node_name(node)
+        except GraphError as exc:
+            raise ParameterError(f"node name {node!r}: {exc.message}") from None
 
     def _lookup(self, name: str) -> object:
         if self.ros1:
@@ -576,7 +689,9 @@ class Parameters:
 
     def _check_leaves(self, added: int) -> None:
         if added > 0 and _count(self._tree) + added > self.max_params:
-            raise ParameterError(f"the parameter store is full ({self.max_params} parameters)")
+            raise ParameterStoreFullError(
+                f"the parameter store is full ({self.max_params} parameters)"
+            )
 
     def _tree_delete(self, key: str) -> None:
         tokens = _tokens(key)

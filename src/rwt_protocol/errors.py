@@ -20,7 +20,8 @@ that every exception class of every rwt package is drawn here::
     │   ├── InvalidTypeNameError          rwt_graph.types: not a ROS type name
     │   ├── UnknownTypeError              rwt_graph.types: no such type
     │   ├── ParameterError                rwt_graph.params
-    │   │   └── ParameterNotSetError
+    │   │   ├── ParameterNotSetError
+    │   │   └── ParameterStoreFullError   no room: the store is full, or the node holds its share
     │   ├── ImageError                    rwt_graph.media: an image or depth cloud that cannot
     │   │                                 be read or encoded (also a ValueError)
     │   └── TFError                       rwt_graph.tf

@@ -7,7 +7,12 @@ import math
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_graph.params import ParameterError, ParameterNotSetError, Parameters
+from rwt_graph.params import (
+    ParameterError,
+    ParameterNotSetError,
+    Parameters,
+    ParameterStoreFullError,
+)
 from rwt_graph.types import Dialect, TypeRegistry
 
 # ---- ROS 2 ---------------------------------------------------------------------------
@@ -127,7 +132,7 @@ def test_watchers_hear_sets_and_deletes_until_stopped() -> None:
 
 
 def test_the_store_is_bounded() -> None:
-    params = Parameters(max_params=2)
+    params = Parameters(max_params=2, node_share=1)  # the share is tested below
     params.set("/n:a", 1)
     params.set("/n:b", 1)
     params.set("/n:a", 2)  # replacing is fine
@@ -135,8 +140,49 @@ def test_the_store_is_bounded() -> None:
         params.set("/n:c", 1)
 
 
+def test_one_node_holds_at_most_its_share_and_the_others_keep_their_room() -> None:
+    params = Parameters(max_params=8, max_bytes=800, node_share=0.5)
+    assert (params.max_node_params, params.max_node_bytes) == (4, 400)
+    for n in range(4):
+        params.set(f"/big:p{n}", n)
+    assert params.room("/big") == 0
+    assert params.room_problem("big") == (
+        "node /big holds its share of the parameter store (4 parameters)"
+    )
+    with pytest.raises(ParameterStoreFullError, match=r"node /big holds its share .*4 param"):
+        params.set("/big:p4", 4)
+    with pytest.raises(ParameterStoreFullError, match="node /big holds its share"):
+        params.declare("big", {"p5": 5})
+    with pytest.raises(ParameterStoreFullError, match="node /big holds its share"):
+        params.set_all([("/big:p0", None), ("/big:p4", 4), ("/big:p5", 5)])
+    params.set("/big:p0", "changed")  # a change of a held parameter is no new one
+    params.set_all([("/big:p0", None), ("/big:p4", 4)])  # one goes, one comes
+    assert params.names()[:4] == ["/big:p1", "/big:p2", "/big:p3", "/big:p4"]
+    params.set("/other:a", 1)  # the rest of the store is the other nodes'
+    assert params.room("/other") == 3
+    assert params.room_problem("/other") is None
+    params.delete("/big:p1")
+    assert params.room("/big") == 1
+
+
+def test_one_nodes_values_hold_at_most_its_share_of_the_bytes() -> None:
+    params = Parameters(max_bytes=800, node_share=0.5)
+    params.set("/big:a", "x" * 300)
+    with pytest.raises(ParameterStoreFullError, match=r"node /big holds its share .*400 bytes"):
+        params.set("/big:b", "y" * 200)
+    with pytest.raises(ParameterStoreFullError, match=r"400 bytes"):
+        params.set("/big:a", "x" * 401)
+    with pytest.raises(ParameterStoreFullError, match=r"400 bytes"):
+        params.set_all([("/big:b", "y" * 200)])
+    assert params.names() == ["/big:a"]
+    params.set("/other:a", "z" * 400)  # another node's room is untouched
+    params.delete("/big:a")
+    params.set("/big:b", "y" * 400)  # deleting freed the node's room
+    assert params.get("/big:b") == "y" * 400
+
+
 def test_set_all_makes_every_change_or_none() -> None:
-    params = Parameters(max_params=3, max_bytes=64)
+    params = Parameters(max_params=3, max_bytes=64, node_share=1)
     params.declare("n", {"rate": 1.5})
     params.declare("n", {"id": 7}, read_only=True)
     seen: list[tuple[str, object]] = []
@@ -242,7 +288,7 @@ def test_nan_is_kept_in_python() -> None:
 @pytest.mark.parametrize("dialect", [Dialect.ROS2, Dialect.ROS1])
 def test_the_values_bytes_are_bounded_and_freed(dialect: Dialect) -> None:
     # A client could otherwise fill max_params parameters with max-size strings.
-    params = Parameters(dialect, max_bytes=1000)
+    params = Parameters(dialect, max_bytes=1000, node_share=1)
     name = "/n:p{}" if dialect is Dialect.ROS2 else "/n/p{}"
     params.set(name.format(1), "x" * 600)
     with pytest.raises(ParameterError, match="full \\(1000 bytes\\)"):

@@ -2,7 +2,7 @@
 
 Usage: python peer.py MODE NAME [NODE]   (the environment carries ROS_DOMAIN_ID etc.)
 
-The node is NODE, else ``peer_MODE`` (``params`` names it NAME).
+The node is NODE, else ``peer_MODE`` (``params`` and ``many_params`` name it NAME).
 
 Modes (each prints ``ready`` once its entities exist, then JSON lines):
   talk TOPIC            std_msgs/String "n" every 50 ms, forever
@@ -23,6 +23,9 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         there; prints {"feedback": seq} each, then {"result": seq, "status": n}
   params NODE_NAME      a node named NODE_NAME declaring speed=1.5 and mode="auto";
                         prints {"speed": value} whenever speed changes
+  many_params NODE_NAME N  a node named NODE_NAME declaring N integer parameters
+                        p00000, p00001, ... (value n); sets p00000 to a count going
+                        up every 50 ms, so each refresh of a copy sees a new value
   param_client NODE     reads NODE's "gain" through its get_parameters service once it
                         is there, prints {"gain": value}, then sets it to 7 and prints
                         {"set": successful}
@@ -60,6 +63,7 @@ from rcl_interfaces.srv import (
 from rclpy.action import ActionClient, ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.parameter import Parameter as RclpyParameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
@@ -76,8 +80,8 @@ def say(**fields: object) -> None:
 def main() -> None:
     mode, name = sys.argv[1], sys.argv[2]
     rclpy.init()
-    default = name if mode == "params" else f"peer_{mode}"
-    named = len(sys.argv) > 3 and mode != "call_many"  # call_many's third is a count
+    default = name if mode in ("params", "many_params") else f"peer_{mode}"
+    named = len(sys.argv) > 3 and mode not in ("call_many", "many_params")  # a count
     node = rclpy.create_node(sys.argv[3] if named else default)
     tick = None
     if mode == "talk":
@@ -210,6 +214,11 @@ def main() -> None:
             return SetParametersResult(successful=True)
 
         node.add_on_set_parameters_callback(changed)
+    elif mode == "many_params":
+        count = int(sys.argv[3])
+        node.declare_parameters("", [(f"p{n:05}", n) for n in range(count)])
+        ticks = iter(range(count, 10**9))
+        tick = lambda: node.set_parameters([RclpyParameter("p00000", value=next(ticks))])  # noqa: E731
     elif mode == "param_client":
         get = node.create_client(GetParameters, f"{name}/get_parameters")
         put = node.create_client(SetParameters, f"{name}/set_parameters")
