@@ -208,11 +208,18 @@ class SessionHost(Protocol):
     """What a transport needs from the server: sessions on its one graph (D22)."""
 
     def open_session(
-        self, transport: str, peer: str, on_output: Callable[[], None]
+        self,
+        transport: str,
+        peer: str,
+        on_output: Callable[[], None],
+        *,
+        auth_nonce: str | None = None,
     ) -> Session | None:
         """Make the session of a new connection.
 
-        None when the server is full (``--max-connections``) or stopping.
+        ``auth_nonce``: its auth challenge, when the transport sent it
+        (``Session``). None when the server is full (``--max-connections``) or
+        stopping.
         """
 
 

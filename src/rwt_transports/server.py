@@ -63,6 +63,7 @@ from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShar
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
+from .udp_auth import UdpAuth
 from .websocket import WebSocketOptions, serve_websocket_connection
 
 if TYPE_CHECKING:
@@ -386,8 +387,15 @@ class RosbridgeServer:
             self.urls["udp"] = f"udp://{_url_host(config.host)}:{port}"
 
             async def run_udp(connections: TaskGroup) -> None:
+                required = self.session_config.authenticator is not None
+                auth = UdpAuth(required, required and self.session_config.auth_challenge)
                 work = serve_udp(
-                    sock, self, config.udp, config.max_message_size, self._host_prefixes
+                    sock,
+                    self,
+                    config.udp,
+                    config.max_message_size,
+                    self._host_prefixes,
+                    auth=auth,
                 )
                 await _contained("udp endpoint", work)
 
@@ -585,7 +593,12 @@ class RosbridgeServer:
                 await client.aclose()
 
     def open_session(
-        self, transport: str, peer: str, on_output: Callable[[], None]
+        self,
+        transport: str,
+        peer: str,
+        on_output: Callable[[], None],
+        *,
+        auth_nonce: str | None = None,
     ) -> Session | None:
         """Make the session of a new connection on this server's graph.
 
@@ -594,6 +607,9 @@ class RosbridgeServer:
                 the client id is ``<transport>:<peer>#<n>``.
             peer: the peer's address.
             on_output: the pump's wake-up.
+            auth_nonce: the connection's auth challenge, when the transport sent
+                it (UDP, with ``--auth-bind-connection``); None: the session
+                makes and sends one if it needs one.
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
@@ -634,6 +650,7 @@ class RosbridgeServer:
             peer=peer,
             on_closed=self._session_closed,
             fragment_budget=self.fragment_budget,
+            auth_nonce=auth_nonce,
         )
         self.sessions[client_id] = session
         if host is not None:

@@ -8,7 +8,9 @@ for trusted links, REF §3.6). A datagram is one frame: JSON text, or CBOR when
 its first byte says so (D21). Outgoing messages larger than ``datagram_bytes`` go out as
 ``fragment`` ops (spec 3.1.1, D19), each within the size, so no message is
 silently lost to the datagram limit. UDP has no connection close: a peer that
-sends nothing for ``idle_timeout_s`` is forgotten (its session closed).
+sends nothing for ``idle_timeout_s`` is forgotten (its session closed). With an
+authenticator a session begins with the peer's ``auth`` op (``udp_auth``): other
+datagrams from a peer without a session are refused and open nothing.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from rwt_protocol.ops import Status
 
 from .pump import ConnectionPump, SessionHost, run_connection
 from .shares import HostPrefixes, HostShares
+from .udp_auth import Refusal, UdpAuth, read_first
 from .udp_validation import AddressValidator, split_token
 
 if TYPE_CHECKING:
@@ -49,6 +52,7 @@ MAX_UDP_PAYLOAD = 65507
 
 _QUEUED_DATAGRAMS = 256  # per peer; more arriving before the session reads them are dropped
 _TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections"))
+_NO_AUTH = UdpAuth()
 
 Address = tuple[str, int]
 
@@ -167,6 +171,7 @@ async def serve_udp(
     options: UdpOptions,
     max_message_size: int,
     hosts: HostPrefixes | None = None,
+    auth: UdpAuth = _NO_AUTH,
 ) -> None:
     """Serve every peer of ``sock`` until cancelled.
 
@@ -179,9 +184,13 @@ async def serve_udp(
         hosts: how source addresses group into hosts for
             ``options.max_sessions_per_host`` (the server's ``--host-prefix-v4``,
             ``--host-prefix-v6``); the defaults when None.
+        auth: what the sessions' authentication asks of a peer before its
+            session (the server's ``--auth-secret-file``, ``--auth-bind-connection``).
     """
     async with anyio.create_task_group() as tg:
-        endpoint = _Endpoint(sock, host, options, max_message_size, tg, hosts or HostPrefixes())
+        endpoint = _Endpoint(
+            sock, host, options, max_message_size, tg, hosts or HostPrefixes(), auth
+        )
         async for data, address in sock:
             try:
                 await endpoint.dispatch(data, address)
@@ -206,6 +215,7 @@ class _Endpoint:
         max_message_size: int,
         tg: TaskGroup,
         hosts: HostPrefixes,
+        auth: UdpAuth,
     ) -> None:
         self.sock = SharedSocket(sock)
         self.hosts = hosts
@@ -213,6 +223,7 @@ class _Endpoint:
         self.options = options
         self.max_message_size = max_message_size
         self.tg = tg
+        self.auth = auth
         self.peers: dict[Address, _Peer] = {}
         self.validator = AddressValidator()
         self.shares = HostShares(options.max_sessions_per_host)
@@ -242,7 +253,15 @@ class _Endpoint:
             assert split is not None
             token, data = split
         if peer is None:
-            peer = await self._open(address, token)
+            auth_nonce: str | None = None
+            if self.auth.required:
+                first = read_first(_classify(data, self.max_message_size))
+                if isinstance(first, Refusal):  # no session: a peer must authenticate first
+                    await self._refuse(first, address)
+                    return
+                if self.auth.bound:
+                    auth_nonce = self.validator.auth_nonce(address, first.rand)
+            peer = await self._open(address, token, auth_nonce)
             if peer is None:
                 return
         self._dropping = False
@@ -252,18 +271,36 @@ class _Endpoint:
             _episodes.log(logging.WARNING, "udp_overrun", "event=udp_overrun peer=%s:%d", *address)
 
     async def _challenge(self, data: bytes, address: Address, *, has_session: bool = False) -> None:
-        reply = self.validator.challenge(address, len(data), has_session=has_session)
-        if reply is None:
+        replies = self.validator.challenge(
+            address, len(data), has_session=has_session, auth=self.auth.bound
+        )
+        if not replies:
             self._drop("too short to answer", address)
-            return
-        await self.sock.sendto(reply, *address)
+        for reply in replies:
+            await self.sock.sendto(reply, *address)
+
+    async def _refuse(self, refusal: Refusal, address: Address) -> None:
+        """Answer a datagram that is not ``auth`` from a peer without a session."""
+        _episodes.log(
+            logging.WARNING,
+            "auth_failed",
+            "event=auth_failed peer=%s:%d reason=%r",
+            *address,
+            refusal.reason,
+        )
+        for frame in refusal.frames:
+            await self.sock.sendto(frame, *address)
+        if self.auth.bound:  # a peer whose session idled out signs the challenge again
+            await self.sock.sendto(self.validator.auth_status(address), *address)
 
     def _drop(self, why: str, address: Address) -> None:
         if not self._dropping:
             logger.info("event=udp_dropped peer=%s:%d reason=%r", *address, why)
             self._dropping = True
 
-    async def _open(self, address: Address, token: str | None) -> _Peer | None:
+    async def _open(
+        self, address: Address, token: str | None, auth_nonce: str | None
+    ) -> _Peer | None:
         send, receive = anyio.create_memory_object_stream[bytes](_QUEUED_DATAGRAMS)
         channel = UdpChannel(self.sock, address, receive, self.options, self.max_message_size)
         pump = ConnectionPump(channel)
@@ -271,7 +308,8 @@ class _Endpoint:
         host = self.hosts.host(address[0])
         taken, limit = len(self.peers), self.options.max_sessions
         if taken < limit and self.shares.admits(host, taken, limit):
-            session = self.host.open_session("udp", f"{address[0]}:{address[1]}", pump.wake)
+            peer_name = f"{address[0]}:{address[1]}"
+            session = self.host.open_session("udp", peer_name, pump.wake, auth_nonce=auth_nonce)
         if session is None:
             logger.info("event=refused peer=%s:%d reason='too many connections'", *address)
             await self.sock.sendto(_TOO_MANY, *address)

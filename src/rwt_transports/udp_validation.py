@@ -27,6 +27,13 @@ What a UDP client does (docs/limits.md, "UDP"):
 
 Tokens are an HMAC of the peer's address and a 30 s epoch under a key made at
 start-up; one is accepted for a new session during its epoch and the next one.
+
+With ``--auth-bind-connection`` (D31) the answer is two datagrams, the challenge
+and the address's ``auth_challenge`` status (``auth_challenge``, another HMAC of
+the address and the epoch): the client can sign it before its first op, so that
+op can be its ``auth`` (``udp_auth``). Both count towards ``AMPLIFICATION`` and
+``CHALLENGE_BUDGET_BYTES``. Nothing is kept per unvalidated address but the bytes
+sent to it this epoch.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ import secrets
 import time
 from typing import TYPE_CHECKING
 
+from rwt_protocol.auth import AUTH_CHALLENGE_ID
 from rwt_protocol.codecs.json import encode_json
 from rwt_protocol.ops import Status
 
@@ -57,8 +65,9 @@ __all__ = [
 AMPLIFICATION = 3
 """The most bytes sent to an unvalidated address per byte received from it (QUIC's rule)."""
 
-MIN_PROBE_BYTES = 64
-"""A first datagram at least this long is always answered with a challenge."""
+MIN_PROBE_BYTES = 72
+"""A first datagram at least this long is always answered with a challenge: the longest
+answer, a session challenge and the auth challenge, is 216 bytes, ``AMPLIFICATION`` times 72."""
 
 CHALLENGE_TEXT = "udp: address validation"
 """The ``msg`` of the challenge status."""
@@ -87,7 +96,7 @@ Address = tuple[str, int]
 
 
 class AddressValidator:
-    """Issues and checks the tokens of one UDP socket.
+    """Issues and checks the tokens of one UDP socket, and its addresses' auth challenges.
 
     Args:
         key: the HMAC key; a fresh random one by default (tokens die with the server).
@@ -113,37 +122,76 @@ class AddressValidator:
         epoch = self._epoch()
         return any(hmac.compare_digest(token, self.token(address, e)) for e in (epoch, epoch - 1))
 
+    def auth_challenge(self, address: Address, epoch: int | None = None) -> str:
+        """The ``auth_challenge`` of ``address`` for ``epoch`` (the current one by default).
+
+        Returns:
+            32 lowercase hex digits (128 bits, as ``rwt_protocol.auth.new_challenge``):
+            an HMAC of the address and the epoch, so none is stored, and none can be
+            told without the key.
+        """
+        if epoch is None:
+            epoch = self._epoch()
+        message = f"auth|{address[0]}|{address[1]}|{epoch}".encode()
+        return hmac.new(self._key, message, hashlib.sha256).hexdigest()[:32]
+
+    def auth_nonce(self, address: Address, rand: str) -> str:
+        """The challenge a new session of ``address`` holds its ``auth`` op's ``rand`` to.
+
+        Returns:
+            ``rand`` when it is the address's challenge of this epoch or the one
+            before (the token's lifetime); otherwise this epoch's, which ``rand``
+            then fails.
+        """
+        epoch = self._epoch()
+        for e in (epoch, epoch - 1):
+            nonce = self.auth_challenge(address, e)
+            if hmac.compare_digest(rand.encode("utf-8"), nonce.encode()):
+                return nonce
+        return self.auth_challenge(address, epoch)
+
+    def auth_status(self, address: Address) -> bytes:
+        """The ``auth_challenge`` status of ``address``, as the other transports send it (D31)."""
+        nonce = self.auth_challenge(address)
+        return encode_json(Status.frame(level="info", msg=nonce, id=AUTH_CHALLENGE_ID))
+
     def challenge(
-        self, address: Address, received: int, *, has_session: bool = False
-    ) -> bytes | None:
-        """The datagram answering ``received`` bytes from an unvalidated ``address``.
+        self, address: Address, received: int, *, has_session: bool = False, auth: bool = False
+    ) -> list[bytes]:
+        """The datagrams answering ``received`` bytes from an unvalidated ``address``.
 
         Args:
             address: where the datagram claims to come from.
             received: its length, bytes.
             has_session: the address holds a validated session: the challenge says
                 so (``SESSION_CHALLENGE_TEXT``), so that its client keeps its token.
+            auth: the auth challenge of the address goes with it
+                (``--auth-bind-connection``).
 
         Returns:
-            The challenge status, or None when it would be more than
-            ``AMPLIFICATION`` times ``received`` (a datagram too short to answer),
-            or would take ``address`` past ``CHALLENGE_BUDGET_BYTES`` this epoch,
-            or ``MAX_CHALLENGED`` other addresses were answered this epoch.
+            The challenge status, then the ``auth_challenge`` status when ``auth``;
+            nothing when they would be more than ``AMPLIFICATION`` times
+            ``received`` (a datagram too short to answer), or would take
+            ``address`` past ``CHALLENGE_BUDGET_BYTES`` this epoch, or
+            ``MAX_CHALLENGED`` other addresses were answered this epoch.
         """
         text = SESSION_CHALLENGE_TEXT if has_session else CHALLENGE_TEXT
-        reply = encode_json(Status.frame(level="warning", msg=text, id=self.token(address)))
-        if len(reply) > AMPLIFICATION * received:
-            return None
+        replies = [encode_json(Status.frame(level="warning", msg=text, id=self.token(address)))]
+        if auth:
+            replies.append(self.auth_status(address))
+        size = sum(map(len, replies))
+        if size > AMPLIFICATION * received:
+            return []
         epoch = self._epoch()
         if epoch != self._sent_epoch:
             self._sent, self._sent_epoch = {}, epoch
         sent = self._sent.get(address)
         if sent is None and len(self._sent) >= MAX_CHALLENGED:
-            return None
-        if (sent or 0) + len(reply) > CHALLENGE_BUDGET_BYTES:
-            return None
-        self._sent[address] = (sent or 0) + len(reply)
-        return reply
+            return []
+        if (sent or 0) + size > CHALLENGE_BUDGET_BYTES:
+            return []
+        self._sent[address] = (sent or 0) + size
+        return replies
 
     def _epoch(self) -> int:
         return int(self._clock() // EPOCH_S)

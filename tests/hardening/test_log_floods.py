@@ -18,9 +18,13 @@ import anyio
 import httpx
 import pytest
 
+from rwt_graph import ratelog
 from rwt_graph.graph import Graph
+from rwt_protocol import ratelog as core_ratelog
+from rwt_protocol.server import gates
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
+from rwt_transports import server
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_video import VideoConfig, serve_video
 from tests.transports.clients import TRANSPORTS, Client, running_server
@@ -103,8 +107,12 @@ async def test_denied_ops_log_once_per_episode(
 
 
 async def test_refused_auth_on_many_connections_logs_once_per_episode(
-    caplog: pytest.LogCaptureFixture,
+    caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    # Episodes are per process and keyed by kind: another test's refused auth within
+    # 10 s would have opened this one, and its first line would not come.
+    monkeypatch.setattr(gates, "_episodes", core_ratelog.EpisodeLog(gates.logger))
+    monkeypatch.setattr(server, "_episodes", ratelog.EpisodeLog(server.logger))
     graph = Graph()
     authenticator = rosauth_authenticator("secret", graph.clock)
     bad = {

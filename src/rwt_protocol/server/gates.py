@@ -28,10 +28,16 @@ from .replies import failure_reply
 if TYPE_CHECKING:
     from .session import Session
 
-__all__ = ["authenticate", "check_access"]
+__all__ = ["AUTH_REQUIRED", "FIRST_OP_NOT_AUTH", "authenticate", "check_access"]
 
 logger = logging.getLogger("rwt.session")
 _episodes = EpisodeLog(logger)  # no clock here: each line passes the session's time
+
+AUTH_REQUIRED = "authentication required"
+"""What an op refused for want of authentication is told (a call's failure reply, D4)."""
+
+FIRST_OP_NOT_AUTH = f"{AUTH_REQUIRED}: the first op must be auth"
+"""The error status of a first op that is not ``auth`` (D23)."""
 
 
 def authenticate(session: Session, op: OpModel) -> bool:
@@ -46,11 +52,11 @@ def authenticate(session: Session, op: OpModel) -> bool:
             answered with its failure reply first (D4).
     """
     if not isinstance(op, Auth):
-        reply = failure_reply(op, "authentication required")
+        reply = failure_reply(op, AUTH_REQUIRED)
         if reply is not None:
             session.send_op(reply)
         _failed(session, f"first op was {op.op}")  # type: ignore[attr-defined]
-        raise RemoteProtocolError("authentication required: the first op must be auth")
+        raise RemoteProtocolError(FIRST_OP_NOT_AUTH)
     authenticator = session.config.authenticator
     if authenticator is None:  # pragma: no cover - the session only asks when there is one
         return True

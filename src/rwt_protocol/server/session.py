@@ -183,6 +183,10 @@ class Session:
         fragment_budget: the server-wide bound on incomplete ``fragment``/``png``
             parts that every connection's parts are also charged to
             (``--max-fragment-memory``); None: only this connection's bound.
+        auth_nonce: with ``config.auth_challenge``, the connection's challenge when
+            the transport already gave it to the client (UDP sends it with the
+            address validation, before the first op); the session then sends
+            none. None: the session makes one and sends it first.
 
     The client end is ``client.ClientSession``: the same ops, from the other end.
     """
@@ -197,6 +201,7 @@ class Session:
         peer: str = "",
         on_closed: Callable[[ClientId], None] | None = None,
         fragment_budget: FragmentBudget | None = None,
+        auth_nonce: str | None = None,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
@@ -232,9 +237,12 @@ class Session:
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
         self._auth_nonce: str | None = None
         if self._config.auth_challenge and self._state is State.AUTHENTICATING:
-            self._auth_nonce = new_challenge()
-            # before any op, whatever the status level: the client needs it to authenticate
-            self.send_op(Status.frame(level="info", msg=self._auth_nonce, id=AUTH_CHALLENGE_ID))
+            self._auth_nonce = auth_nonce
+            if auth_nonce is None:
+                self._auth_nonce = new_challenge()
+                # before any op, whatever the status level: the client needs it to authenticate
+                msg = self._auth_nonce
+                self.send_op(Status.frame(level="info", msg=msg, id=AUTH_CHALLENGE_ID))
 
     # ---- inputs -------------------------------------------------------------
 
@@ -361,10 +369,10 @@ class Session:
         text = exc.message
         authenticating = self._state is State.AUTHENTICATING
         if authenticating and "authentication" not in text:
-            text = f"authentication required: {text}"
+            text = f"{gates.AUTH_REQUIRED}: {text}"
         self.report(exc.level, _prefixed(op_name, text), op_id)
         if authenticating:  # D23: a connection that does not authenticate goes
-            self.request_close(CloseCode.POLICY_VIOLATION, "authentication required")
+            self.request_close(CloseCode.POLICY_VIOLATION, gates.AUTH_REQUIRED)
 
     def _dispatch(self, op: OpModel | PublishView, now: float) -> None:
         """Check a validated op against the access rules, then run its handler.
