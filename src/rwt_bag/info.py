@@ -13,7 +13,7 @@ from rwt_protocol.names import name_problem
 
 from .errors import BagError
 from .inflate import ReadBudget, bag_bytes
-from .reader import is_latched, last_ns
+from .reader import is_latched, last_ns, shown_name, shown_text
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -86,11 +86,11 @@ def _shown(text: str, *, topic: bool = False) -> str:
     written as they are. A topic name a client could not use is marked: it is
     not played (docs/limits.md).
     """
-    bad = name_problem(text) is not None if topic else not text.isprintable() or len(text) > 200
-    if not bad:
+    if not topic:
+        return shown_text(text)
+    if name_problem(text) is None:
         return text
-    cut = text if len(text) <= 60 else text[:57] + "..."
-    return ascii(cut) + (" (invalid name, not played)" if topic else "")
+    return shown_name(text) + " (invalid name, not played)"
 
 
 def _size(size: int) -> str:

@@ -153,9 +153,9 @@ class Player(BackgroundJob):
             raise BagError(f"the rate must be above 0, not {rate}")
         self.prefix = _prefix(prefix)
         for old, new in (remap or {}).items():  # before the bag is opened
-            problem = name_problem(self.prefix + new)
+            problem = name_problem(_under(self.prefix, new))
             if problem is not None:
-                raise BagError(f"cannot play {old} as {self.prefix + new}: {problem}")
+                raise BagError(f"cannot play {old} as {_under(self.prefix, new)}: {problem}")
         checked = (("delay", delay), ("duration", duration), ("wait timeout", wait_timeout))
         for name, value in checked:
             if value is not None and not (math.isfinite(value) and value >= 0):
@@ -333,7 +333,7 @@ class Player(BackgroundJob):
 
     def published_name(self, topic: str) -> str:
         """The name the bag's ``topic`` is published under (``remap``, then ``prefix``)."""
-        return self.prefix + self.remap.get(topic, topic)
+        return _under(self.prefix, self.remap.get(topic, topic))
 
     def unsubscribed(self) -> list[str]:
         """The published names that no subscriber of the graph takes yet, sorted."""
@@ -496,3 +496,15 @@ def _prefix(prefix: str) -> str:
     if problem is not None:
         raise BagError(f"the prefix {prefix!r} is not a namespace: {problem}")
     return prefix
+
+
+def _under(prefix: str, name: str) -> str:
+    """``name`` in the namespace ``prefix``: ``/tf`` or ``tf`` in ``/sim`` is ``/sim/tf``.
+
+    A relative name (a bag may hold one, a remap may give one) resolves against
+    the root namespace, so under a prefix it is the prefix's child, not its
+    name run on (``/simtf``).
+    """
+    if not prefix or name.startswith("/"):
+        return prefix + name
+    return f"{prefix}/{name}"

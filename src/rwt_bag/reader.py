@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
     from rwt_graph.types import MessageType, TypeRegistry
 
-__all__ = ["BagSource", "BagTopic", "is_latched"]
+__all__ = ["BagSource", "BagTopic", "is_latched", "shown_name", "shown_text"]
 
 logger = logging.getLogger("rwt.bag")
 
@@ -44,6 +44,12 @@ logger = logging.getLogger("rwt.bag")
 #: none by default): static transforms, and maps by their type.
 LATCHED_TOPICS = frozenset({"/tf_static"})
 LATCHED_TYPES = frozenset({"nav_msgs/msg/OccupancyGrid"})
+#: Skipped topics named in a log line or an error, and the characters shown of
+#: each: a bag of thousands of 5000-character names still logs one short line.
+_NAMED = 5
+_SHOWN_LENGTH = 60
+#: The longest printable text of a bag (a type name) shown as it is.
+_PLAIN_LENGTH = 200
 
 
 @dataclass(frozen=True)
@@ -125,15 +131,9 @@ class BagSource:
             raise
         except Exception as exc:  # rosbags raises its own errors, OSError, struct/zstd errors
             raise BagError(f"cannot read {_names(self.paths)}: {_reason(exc)}") from exc
-        patterns = tuple(topics) or ("*",)
-        chosen = [
-            c
-            for c in self._reader.connections
-            if any(fnmatch.fnmatchcase(c.topic, p) for p in patterns)
-        ]
-        chosen = self._valid_names(chosen)
-        self.connections = chosen
         try:
+            chosen = self._valid_names(self._chosen(topics))
+            self.connections = chosen
             #: times of the first and last message, ns since the epoch (kept after close)
             self.start_ns = int(self._reader.start_time)
             self.end_ns = last_ns(self._reader)
@@ -142,28 +142,56 @@ class BagSource:
             self._reader.close()
             raise
 
+    def _chosen(self, topics: Sequence[str]) -> list[Any]:
+        """The connections whose topic matches one of the glob patterns ``topics`` (all: ``*``).
+
+        Raises:
+            BagError: the bag has topics but the patterns match none of them.
+        """
+        patterns = tuple(topics) or ("*",)
+        every = self._reader.connections
+        chosen = [c for c in every if any(fnmatch.fnmatchcase(c.topic, p) for p in patterns)]
+        if every and not chosen:
+            raise BagError(
+                f"cannot play {_names(self.paths)}: none of its {_topic_count(every)} "
+                f"matches the topics to play ({_listed(patterns)})"
+            )
+        return chosen
+
     def _valid_names(self, connections: list[Any]) -> list[Any]:
         """The connections whose topic is a name a client's ``advertise`` would accept.
 
         A bag is input like any client's (docs/limits.md): ``/x y``, ``/../..``,
         control characters or a 5000-character name are skipped, with one log
-        line naming the bag, how many were skipped and the first reason.
+        line naming the bag, how many were skipped, the first ``_NAMED`` of
+        them (escaped and cut: ``shown_name``) and the first reason.
+
+        Raises:
+            BagError: every connection is skipped, so nothing could be played.
         """
         kept: list[Any] = []
-        problems: list[str] = []
+        skipped: dict[str, str] = {}  # name -> problem, in the bag's order, once each
         for conn in connections:
             problem = name_problem(conn.topic)
             if problem is None:
                 kept.append(conn)
-            else:
-                problems.append(problem)
-        if problems:
-            logger.warning(
-                "event=bag_topics_skipped bag=%s count=%d reason=%s",
-                _names(self.paths),
-                len(problems),
-                problems[0],
+            else:  # split parts (and ROS 1 bags) may hold a topic in several connections
+                skipped.setdefault(conn.topic, problem)
+        if not skipped:
+            return kept
+        first = next(iter(skipped.values()))
+        if not kept:
+            raise BagError(
+                f"cannot play {_names(self.paths)}: no topic to play has a valid name "
+                f"({len(skipped)} skipped: {_listed(list(skipped))}): {first}"
             )
+        logger.warning(
+            "event=bag_topics_skipped bag=%s count=%d topics=%s reason=%s",
+            _names(self.paths),
+            len(skipped),
+            _listed(list(skipped)),
+            first,
+        )
         return kept
 
     def _check(self, connections: list[Any]) -> dict[int, BagTopic]:
@@ -171,7 +199,7 @@ class BagSource:
         found: dict[int, BagTopic] = {}
         graph_store = self._registry.typestore()
         for conn in connections:
-            where = f"{_names(self.paths)}: topic {conn.topic} (type {conn.msgtype})"
+            where = f"{_names(self.paths)}: topic {conn.topic} (type {shown_text(conn.msgtype)})"
             try:
                 mtype = self._registry.message(conn.msgtype)
             except GraphError as exc:
@@ -225,6 +253,8 @@ class BagSource:
             BagError: a message cannot be read or decoded (names topic and type), or
                 the pass decompresses past the limits of ``rwt_bag.inflate``.
         """
+        if not self.connections:  # rosbags reads every connection when given none
+            return
         budget = ReadBudget.for_paths(self.paths)  # one per pass: bounded work per read
         items = chunk_messages(self._reader, self.connections, start_ns)
         if items is None:
@@ -296,6 +326,36 @@ class BagSource:
 
 def _names(paths: Sequence[Path]) -> str:
     return ", ".join(str(p) for p in paths)
+
+
+def shown_name(name: str) -> str:
+    """A name from a bag as a log line or an error shows it: quoted, escaped, cut.
+
+    Control, bidirectional and non-ASCII characters (a lone surrogate too) are
+    escaped as Python's ``ascii`` does, so a hostile bag cannot write them to a
+    terminal or break a log line's encoding; past 60 characters it is cut.
+    """
+    return ascii(name if len(name) <= _SHOWN_LENGTH else name[: _SHOWN_LENGTH - 3] + "...")
+
+
+def shown_text(text: str) -> str:
+    """A text from a bag (a type name, a format) as it is when printable and short, else escaped.
+
+    Up to 200 printable characters are shown as they are; others as ``shown_name``.
+    """
+    return text if text.isprintable() and len(text) <= _PLAIN_LENGTH else shown_name(text)
+
+
+def _listed(names: Sequence[str]) -> str:
+    """The first ``_NAMED`` of ``names`` shown, comma-separated, with a count of the rest."""
+    shown = ",".join(shown_name(n) for n in names[:_NAMED])
+    more = len(names) - _NAMED
+    return shown if more <= 0 else f"{shown},... ({more} more)"
+
+
+def _topic_count(connections: Sequence[Any]) -> str:
+    count = len({c.topic for c in connections})
+    return f"{count} topic" if count == 1 else f"{count} topics"
 
 
 def _reason(exc: BaseException) -> str:

@@ -161,25 +161,63 @@ def truncated(source: Path, path: Path, keep: float = 0.5) -> Path:
     return path
 
 
-def bad_names(path: Path, fmt: str = "mcap", names: tuple[str, ...] = BAD_NAMES) -> Path:
-    """A bag with a good ``/chatter`` and a String topic (one message) per name in ``names``."""
+def bad_names(
+    path: Path, fmt: str = "mcap", names: tuple[str, ...] = BAD_NAMES, *, chatter: bool = True
+) -> Path:
+    """A bag with a good ``/chatter`` (unless not ``chatter``) and a String topic per name.
+
+    Each topic has one message ("hostile"); ``fmt`` is mcap, sqlite3 or ros1
+    (then ``path`` gets .bag).
+    """
     ros1 = fmt == "ros1"
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_JAZZY)
     msgtype = "std_msgs/msg/String"
     msg = store.types[msgtype](data="hostile")
+    topics = ("/chatter", *names) if chatter else names
     if ros1:
         path = path.with_suffix(".bag")
         with Ros1Writer(path) as writer:
-            for i, name in enumerate(("/chatter", *names)):
+            for i, name in enumerate(topics):
                 conn = writer.add_connection(name, msgtype, typestore=store)
                 writer.write(conn, 10**9 + i, store.serialize_ros1(msg, msgtype))
         return path
     plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
     with Ros2Writer(path, version=9, storage_plugin=plugin) as writer:
-        for i, name in enumerate(("/chatter", *names)):
+        for i, name in enumerate(topics):
             conn = writer.add_connection(name, msgtype, typestore=store)
             writer.write(conn, 10**9 + i, store.serialize_cdr(msg, msgtype))
     return path
+
+
+def escaped_names(path: Path, fmt: str, escapes: tuple[str, ...], *, chatter: bool = True) -> Path:
+    """A ROS 2 bag whose ``metadata.yaml`` names its topics with YAML escapes.
+
+    rosbags takes a ROS 2 bag's topic names from ``metadata.yaml``, and YAML's
+    double-quoted ``"\\ud800"`` is a lone surrogate: a name no UTF-8 writer
+    could put in the storage file. ``escapes`` are the names as written in the
+    YAML (``/\\ud800x``); ``fmt`` is mcap or sqlite3.
+    """
+    placeholders = tuple(f"/escaped{i}" for i in range(len(escapes)))
+    bag = bad_names(path, fmt, placeholders, chatter=chatter)
+    meta = bag / "metadata.yaml"
+    text = meta.read_text()
+    for placeholder, escape in zip(placeholders, escapes, strict=True):
+        text = text.replace(f"name: {placeholder}\n", f'name: "{escape}"\n')
+    meta.write_text(text)
+    return bag
+
+
+def undecodable_name(path: Path, fmt: str) -> Path:
+    """A bag (mcap, sqlite3 or ros1) with ``/chatter`` and a topic whose name is not UTF-8.
+
+    The name's bytes are an encoded surrogate (``ED A0 80``), written over a
+    placeholder of the same length in every file of the bag.
+    """
+    placeholder, hostile = b"/utf8x", b"/\xed\xa0\x80xy"
+    bag = bad_names(path, fmt, (placeholder.decode(),))
+    for file in [bag] if bag.is_file() else sorted(bag.iterdir()):
+        file.write_bytes(file.read_bytes().replace(placeholder, hostile))
+    return bag
 
 
 def many_topics(path: Path, count: int) -> Path:
@@ -197,10 +235,12 @@ def many_topics(path: Path, count: int) -> Path:
 __all__ = [
     "BAD_NAMES",
     "bad_names",
+    "escaped_names",
     "many_topics",
     "mcap_bomb",
     "ros1_bomb",
     "sqlite3_bomb",
     "truncated",
+    "undecodable_name",
     "zeros",
 ]

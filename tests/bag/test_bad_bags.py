@@ -1,10 +1,11 @@
 """Bad bags: a clear error naming the file, topic and type, and nothing published.
 
 Truncated and corrupt bags (ROS 1, ROS 2 sqlite3 and MCAP, written by rosbags),
-a bag with a type the graph does not know, and a bag whose definition of a
-shipped type differs: the in-process ``Player`` raises ``BagError`` before any
-message reaches a subscriber and leaves no publisher behind; ``rwt serve
---play`` and ``rwt bag info`` exit 1 with one line.
+a bag with a type the graph does not know, a bag whose definition of a
+shipped type differs, and a bag with no topic to play (every name invalid, or
+none matching ``topics``): the in-process ``Player`` raises ``BagError`` before
+any message reaches a subscriber and leaves no publisher behind; ``rwt serve
+--play``, ``rwt play`` and ``rwt bag info`` exit 1 with one line.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from rwt_graph.types import Dialect, TypeRegistry
 from tests.integration.client_harness import REPO
 
 from .bags import write_bag
+from .hostile import bad_names
 
 FORMATS = ["mcap", "sqlite3", "ros1"]
 
@@ -168,3 +170,27 @@ def test_play_and_info_refuse_a_truncated_bag(tmp_path: Path) -> None:
         assert line.startswith(
             f"rwt {args[0] if args[0] == 'play' else 'bag info'}: cannot read {bag}"
         )
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_bag_with_no_valid_name_to_play_is_refused(tmp_path: Path, fmt: str) -> None:
+    graph, received = graph_for(fmt)
+    only_bad = bad_names(tmp_path / "bad", fmt, ("a b", "1x"), chatter=False)
+    with pytest.raises(BagError, match=f"cannot play {only_bad}: no topic to play has a valid"):
+        Player(graph, only_bad)
+    mixed = bad_names(tmp_path / "mixed", fmt, ("/x y", "/x.z"))
+    with pytest.raises(BagError, match=r"\(2 skipped: '/x y','/x.z'\)"):
+        Player(graph, mixed, topics=["/x*"])  # the only topics chosen are invalid
+    assert_nothing_published(graph, received)
+
+
+def test_topics_matching_nothing_are_refused(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "robot", "mcap")
+    result = _rwt("play", "--port", "0", "--topics", "/nothing,/x*", str(bag), cwd=tmp_path)
+    assert result.returncode == 1, result
+    assert "listening" not in result.stdout
+    (line,) = result.stderr.strip().splitlines()
+    assert line == (
+        f"rwt play: cannot play {bag}: none of its 6 topics matches the topics to play "
+        "('/nothing','/x*')"
+    )

@@ -20,6 +20,8 @@ from rwt_bag.errors import BagError
 from tests.integration.client_harness import REPO
 from tests.transports.realclients import run_python
 
+from .hostile import bad_names
+
 START_NS = 1_000_000_000
 SPACING_NS = 2_000_000  # a message every 2 ms of bag time
 COUNT = 300
@@ -169,6 +171,11 @@ async def test_prefix_puts_every_topic_under_a_namespace_after_the_remap(tmp_pat
     assert got == [f"m{i}" for i in range(COUNT)]
     got, _ = await play(bag, "/sim/talk", prefix="/sim", remap={"/chatter": "/talk"})
     assert len(got) == COUNT
+    got, _ = await play(bag, "/sim/talk", prefix="/sim", remap={"/chatter": "talk"})
+    assert len(got) == COUNT
+    relative = bad_names(tmp_path / "relative", "mcap", ("relative",), chatter=False)
+    got, _ = await play(relative, "/sim/relative", prefix="/sim")  # not /simrelative
+    assert got == ["hostile"]
     with pytest.raises(BagError, match="the prefix '/a b' is not a namespace"):
         rwt.Player(rwt.Graph(), bag, prefix="/a b")
 
