@@ -126,9 +126,10 @@ def render(results: list[Differential]) -> str:
 
 def _totals(result: SuiteResult) -> str:
     cases = {o: sum(1 for c in result.cases if c.outcome is o) for o in Outcome}
+    stopped = "" if result.verdict is None else f"; stopped: {result.verdict}"
     return (
         f"{result.summary()} requirements; cases {cases[Outcome.PASSED]} passed,"
-        f" {cases[Outcome.FAILED]} failed, {cases[Outcome.SKIPPED]} skipped"
+        f" {cases[Outcome.FAILED]} failed, {cases[Outcome.SKIPPED]} skipped{stopped}"
     )
 
 

@@ -123,7 +123,10 @@ async def connect(
         except TimeoutError:
             raise
         except (OSError, anyio.BrokenResourceError, anyio.EndOfStream) as exc:
-            raise ConnectionClosedError(f"cannot connect to {url}: {exc}") from None
+            # anyio's EndOfStream and BrokenResourceError carry no text: the server
+            # closed, or reset, the connection during the handshake
+            reason = str(exc) or str(exc.__cause__ or "") or "the server closed the connection"
+            raise ConnectionClosedError(f"cannot connect to {url}: {reason}") from None
     raise ConfigError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss, tcp or tcp+tls)")
 
 

@@ -5,10 +5,12 @@ hostile server"): a server may never read, send frames of any size or nesting,
 or keep sending. Every wait of the runner is therefore bounded in time, every
 frame in size and nesting, and what a case keeps of its frames in bytes; a
 server that breaks a bound fails the case at hand with a reason, and the run
-goes on to the next case.
+goes on to the next case, unless the server does not answer at all
+(``liveness``). The whole run is bounded too.
 
 The defaults are named here once; ``RunOptions`` and the command line
-(``--case-timeout``, ``--max-frame-bytes``, ``--case-budget-bytes``) take them.
+(``--case-timeout``, ``--run-timeout``, ``--max-frame-bytes``,
+``--case-budget-bytes``) take them.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ __all__ = [
     "CLOSE_TIMEOUT_S",
     "MAX_FRAME_BYTES",
     "MAX_NESTING",
+    "RUN_TIMEOUT_S",
     "SendTimeoutError",
     "close_within",
     "send_within",
@@ -49,6 +52,12 @@ connections together (``--case-budget-bytes``); more fails the case."""
 
 CASE_TIMEOUT_S = 20.0
 """Seconds one whole case may take, closing its connections aside (``--case-timeout``)."""
+
+RUN_TIMEOUT_S = 600.0
+"""Seconds the whole run may take (``--run-timeout``): checking the server, asking
+its dialect and every case. The suite takes about a second against a local
+server; 600 s leaves a slow server room, while a run of cases that each wait out
+``CASE_TIMEOUT_S`` (over half an hour for the suite's 101) is cut, saying where."""
 
 CLOSE_TIMEOUT_S = 2.0
 """Seconds the runner waits for a clean close (its close frame sent) before it

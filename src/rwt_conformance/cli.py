@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import ssl
 import sys
-from dataclasses import replace
 from enum import StrEnum
+from functools import partial
 from pathlib import Path
 from typing import Annotated
 from urllib.parse import urlsplit
@@ -13,15 +13,9 @@ from urllib.parse import urlsplit
 import anyio
 import typer
 
-from rwt_client.connectors import ConnectionClosedError, connect
 from rwt_protocol.auth import RosauthVerifier
 
-from .bounds import (
-    CASE_BUDGET_BYTES,
-    CASE_TIMEOUT_S,
-    MAX_FRAME_BYTES,
-    close_within,
-)
+from .bounds import CASE_BUDGET_BYTES, CASE_TIMEOUT_S, MAX_FRAME_BYTES, RUN_TIMEOUT_S
 from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
 
 __all__ = ["conformance", "server_url"]
@@ -77,21 +71,6 @@ def _tls_context(cafile: Path | None, insecure: bool) -> ssl.SSLContext | None:
         raise typer.Exit(2) from None
 
 
-async def _reachable(url: str, context: ssl.SSLContext | None, timeout_s: float) -> str | None:
-    """Connect once before the suite: why the server cannot be used, or None."""
-    try:
-        conn = await connect(url, timeout_s=timeout_s, ssl_context=context)
-    except ConnectionClosedError as exc:
-        text = exc.message
-        if "CERTIFICATE_VERIFY_FAILED" in text:
-            text += " (trust its authority with --cafile FILE, or skip the check with --insecure)"
-        return text
-    except TimeoutError:
-        return f"cannot connect to {url}: no answer within {timeout_s:g} s"
-    await close_within(conn)
-    return None
-
-
 def conformance(
     url: Annotated[
         str,
@@ -130,6 +109,13 @@ def conformance(
     case_timeout: Annotated[
         float, typer.Option(min=0.001, help="Seconds one whole case may take.")
     ] = CASE_TIMEOUT_S,
+    run_timeout: Annotated[
+        float,
+        typer.Option(
+            min=0.001,
+            help="Seconds the whole run may take; a longer run stops, saying where (exit 2).",
+        ),
+    ] = RUN_TIMEOUT_S,
     max_frame_bytes: Annotated[
         int,
         typer.Option(
@@ -161,12 +147,15 @@ def conformance(
         bool, typer.Option("--insecure", help="Do not check the server's TLS certificate.")
     ] = False,
 ) -> None:
-    """Check a rosbridge server against the conformance suite; exit 1 on any failure."""
+    """Check a rosbridge server against the conformance suite; exit 1 on any failure.
+
+    Exit 2 when the server cannot be judged: unreachable, not reading or not
+    answering at all (one line on stderr), or the run over --run-timeout.
+    """
     # Imported here: `rwt serve` registers this command, and must not pay for the
     # runner, its clients and rich at start (benchmarks B11 base memory).
     from rich.console import Console  # noqa: PLC0415
 
-    from .detect import detect_dialect  # noqa: PLC0415
     from .report import print_table, write_json, write_junit  # noqa: PLC0415
     from .runner import RunOptions, run_suite  # noqa: PLC0415
 
@@ -184,29 +173,28 @@ def conformance(
         patterns,
         expect_timeout_s=timeout,
         case_timeout_s=case_timeout,
+        run_timeout_s=run_timeout,
         max_frame_bytes=max_frame_bytes,
         case_budget_bytes=case_budget_bytes,
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
         ssl_context=context,
         dialect=dialect,
     )
-    problem = anyio.run(_reachable, options.url, context, 2 * timeout)
-    if problem is not None:
-        typer.echo(f"rwt conformance: {problem}", err=True)
-        raise typer.Exit(2)
-    if dialect is None:
-        found, how = anyio.run(
-            detect_dialect, options.url, context, timeout, options.auth_secret, max_frame_bytes
-        )
-        options = replace(options, dialect=found)
-        console.print(f"dialect: {found.value} ({how})")
-    else:
-        console.print(f"dialect: {dialect.value} (--dialect)")
-    result = anyio.run(run_suite, loaded, options)
-    print_table(result, console)
+
+    def found(spoken: Dialect, how: str) -> None:
+        console.print(f"dialect: {spoken.value} ({how})")
+
+    result = anyio.run(partial(run_suite, loaded, options, on_dialect=found))
+    if result.cases or result.verdict is None:  # a server never judged gets no table
+        if dialect is not None:
+            found(dialect, "--dialect")
+        print_table(result, console)
     if junit is not None:
         write_junit(result, junit)
     if json_file is not None:
         write_json(result, json_file)
+    if result.verdict is not None:  # one line, not a table of failures
+        typer.echo(f"rwt conformance: {result.verdict}", err=True)
+        raise typer.Exit(2)
     if not result.ok:
         raise typer.Exit(1)

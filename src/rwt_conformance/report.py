@@ -20,7 +20,11 @@ _STYLE = {Outcome.PASSED: "green", Outcome.FAILED: "bold red", Outcome.SKIPPED: 
 
 
 def print_table(result: SuiteResult, console: Console | None = None) -> None:
-    """Print one row per requirement (id, section, result, detail), then the summary line."""
+    """Print one row per requirement (id, section, result, detail), then the summary line.
+
+    A run that stopped early (``SuiteResult.verdict``) shows the requirements of
+    the cases that ran; the command line prints the verdict itself.
+    """
     console = console or Console()
     table = Table(
         title=f"rosbridge conformance: {result.options.url} ({result.options.profile.value})"
@@ -39,15 +43,23 @@ def print_table(result: SuiteResult, console: Console | None = None) -> None:
 
 
 def write_junit(result: SuiteResult, path: Path) -> None:
-    """Write JUnit XML: one test case per requirement, its cases in the system output."""
+    """Write JUnit XML: one test case per requirement, its cases in the system output.
+
+    A run that stopped early (``SuiteResult.verdict``) adds a test case ``run``
+    whose ``error`` is the verdict.
+    """
     suite = ET.Element(
         "testsuite",
         name="rwt-conformance",
-        tests=str(len(result.requirements)),
+        tests=str(len(result.requirements) + (result.verdict is not None)),
         failures=str(result.count(Outcome.FAILED)),
+        errors=str(int(result.verdict is not None)),
         skipped=str(result.count(Outcome.SKIPPED)),
         time=f"{result.duration_s:.3f}",
     )
+    if result.verdict is not None:
+        element = ET.SubElement(suite, "testcase", classname="rwt-conformance", name="run")
+        ET.SubElement(element, "error", message=result.verdict)
     for row in result.requirements:
         seconds = sum(c.duration_s for c in row.cases)
         element = ET.SubElement(
@@ -69,11 +81,15 @@ def write_junit(result: SuiteResult, path: Path) -> None:
 
 
 def write_json(result: SuiteResult, path: Path) -> None:
-    """Write the run as JSON: options, summary, requirements with their cases."""
+    """Write the run as JSON: options, summary, the verdict, requirements with their cases.
+
+    ``verdict`` is null, or why the run stopped early (``SuiteResult.verdict``).
+    """
     document = {
         "url": result.options.url,
         "profile": result.options.profile.value,
         "summary": {o.value: result.count(o) for o in Outcome},
+        "verdict": result.verdict,
         "duration_s": round(result.duration_s, 3),
         "requirements": [
             {

@@ -17,6 +17,13 @@ every frame the server sent the connection before has arrived. Absence checks
 (``expect_none``) run after one; that works with any server that keeps the
 order of one connection's frames, and needs no sleeping.
 
+A server that does not read or does not answer at all gets one verdict, not a
+table of failures (``liveness``): the runner asks before the first case, and
+again after a case that failed without a word from the server
+(``CaseResult.unanswered``); when the server does not answer, the run stops
+there (``SuiteResult.verdict``). The whole run, this included, is bounded by
+``run_timeout_s``.
+
 With the server's rosauth secret (``RunOptions.auth_secret``, D23) every
 connection sends a valid ``auth`` first, so the whole suite runs against a
 secured server; cases marked ``authenticates`` send theirs themselves
@@ -46,12 +53,14 @@ from .bounds import (
     CASE_BUDGET_BYTES,
     CASE_TIMEOUT_S,
     MAX_FRAME_BYTES,
+    RUN_TIMEOUT_S,
     SendTimeoutError,
     close_within,
     send_within,
 )
 from .detect import detect_dialect
 from .frames import Received, auth_op, decode_frame
+from .liveness import check_answers
 from .match import JsonValue, describe, match, substitute
 from .model import Case, Dialect, Profile, Requirement, Step, StepKind, Suite
 
@@ -94,6 +103,7 @@ class RunOptions:
             one of these (shell-style patterns: ``D1*``).
         expect_timeout_s: default bound of one wait, seconds.
         case_timeout_s: bound of a whole case, seconds (``bounds.CASE_TIMEOUT_S``).
+        run_timeout_s: bound of the whole run, seconds (``bounds.RUN_TIMEOUT_S``).
         max_frame_bytes: largest frame taken from the server, bytes; a bigger
             one closes its connection (``bounds.MAX_FRAME_BYTES``).
         case_budget_bytes: bytes of received frames a case may hold unconsumed,
@@ -112,6 +122,7 @@ class RunOptions:
     only: tuple[str, ...] = ()
     expect_timeout_s: float = 3.0
     case_timeout_s: float = CASE_TIMEOUT_S
+    run_timeout_s: float = RUN_TIMEOUT_S
     max_frame_bytes: int = MAX_FRAME_BYTES
     case_budget_bytes: int = CASE_BUDGET_BYTES
     auth_secret: str | None = field(default=None, repr=False)
@@ -126,12 +137,18 @@ class RunOptions:
 
 @dataclass(frozen=True, slots=True)
 class CaseResult:
-    """What one case did: outcome, a one-line detail, seconds taken."""
+    """What one case did: outcome, a one-line detail, seconds taken.
+
+    ``unanswered``: the case failed without a word from the server (no frame on
+    any of its connections, or a send the server did not take); the runner then
+    asks whether the server answers at all (``liveness``).
+    """
 
     case: Case
     outcome: Outcome
     detail: str = ""
     duration_s: float = 0.0
+    unanswered: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,12 +163,19 @@ class RequirementResult:
 
 @dataclass(frozen=True, slots=True)
 class SuiteResult:
-    """Everything a run found; ``options.dialect`` is the dialect the cases spoke."""
+    """Everything a run found; ``options.dialect`` is the dialect the cases spoke.
+
+    ``verdict``: why the run stopped before its end (the server does not read or
+    answer, or the run went over ``run_timeout_s``), one line; None when every
+    selected case ran. A stopped run grades only the requirements of the cases
+    that ran.
+    """
 
     options: RunOptions
     requirements: tuple[RequirementResult, ...]
     cases: tuple[CaseResult, ...]
     duration_s: float = 0.0
+    verdict: str | None = None
 
     def count(self, outcome: Outcome) -> int:
         """How many requirements ended with ``outcome``."""
@@ -159,8 +183,8 @@ class SuiteResult:
 
     @property
     def ok(self) -> bool:
-        """True when no requirement failed."""
-        return self.count(Outcome.FAILED) == 0
+        """True when the run ended and no requirement failed."""
+        return self.verdict is None and self.count(Outcome.FAILED) == 0
 
     def summary(self) -> str:
         """``N passed, M failed, K skipped`` (requirements)."""
@@ -188,40 +212,114 @@ def select(suite: Suite, only: tuple[str, ...]) -> tuple[list[Requirement], list
 
 
 async def run_suite(
-    suite: Suite, options: RunOptions, *, on_case: Callable[[CaseResult], None] | None = None
+    suite: Suite,
+    options: RunOptions,
+    *,
+    on_case: Callable[[CaseResult], None] | None = None,
+    on_dialect: Callable[[Dialect, str], None] | None = None,
 ) -> SuiteResult:
-    """Run the selected cases one after another and grade the requirements.
+    """Check the server answers, then run the selected cases one after another and grade them.
 
     Args:
         suite: the loaded suite.
         options: server URL, profile, selection, time bounds.
         on_case: called after each case, for progress output.
+        on_dialect: called with the dialect the server was found to speak and
+            how (when ``options.dialect`` is None and the server answers).
 
     Returns:
-        The results; never raises for what the server does.
+        The results; never raises for what the server does. A server that
+        cannot be reached, does not read or does not answer, and a run over
+        ``options.run_timeout_s``, end the run with ``SuiteResult.verdict``.
     """
     started = time.monotonic()
-    if options.dialect is None:
-        dialect, _how = await detect_dialect(
+    requirements, cases = select(suite, options.only)
+    run = _SuiteRun(options, cases, on_case, on_dialect)
+    with anyio.move_on_after(options.run_timeout_s) as scope:
+        await run.execute()
+    if scope.cancelled_caught:
+        run.verdict = run.timed_out()
+    if run.verdict is not None:  # graded: what ran
+        ran = {r for c in run.results for r in c.case.requirements}
+        requirements = [r for r in requirements if r.id in ran]
+    graded = tuple(
+        _grade(r, [c for c in run.results if r.id in c.case.requirements]) for r in requirements
+    )
+    return SuiteResult(
+        run.options, graded, tuple(run.results), time.monotonic() - started, run.verdict
+    )
+
+
+class _SuiteRun:
+    """One run's progress: the cases done, the one under way, a verdict once stopped."""
+
+    def __init__(
+        self,
+        options: RunOptions,
+        cases: list[Case],
+        on_case: Callable[[CaseResult], None] | None,
+        on_dialect: Callable[[Dialect, str], None] | None,
+    ) -> None:
+        self.options = options
+        self.cases = cases
+        self.on_case = on_case
+        self.on_dialect = on_dialect
+        self.results: list[CaseResult] = []
+        self.current: Case | None = None
+        self.verdict: str | None = None
+
+    async def execute(self) -> None:
+        self.verdict = await self._check_answers()
+        if self.verdict is not None:
+            return
+        options = self.options
+        if options.dialect is None:
+            dialect, how = await detect_dialect(
+                options.url,
+                options.ssl_context,
+                options.expect_timeout_s,
+                options.auth_secret,
+                options.max_frame_bytes,
+            )
+            self.options = options = replace(options, dialect=dialect)
+            if self.on_dialect is not None:
+                self.on_dialect(dialect, how)
+        run_id = secrets.token_hex(3)
+        for index, case in enumerate(self.cases):
+            self.current = case
+            variables: dict[str, JsonValue] = {"ns": f"rwtc_{run_id}/c{index}", "run": run_id}
+            result = await run_case(case, options, variables)
+            self.results.append(result)
+            if self.on_case is not None:
+                self.on_case(result)
+            if result.unanswered:
+                problem = await self._check_answers()
+                if problem is not None:
+                    self.verdict = f"the run stopped after case {case.id}: {problem}"
+                    return
+        self.current = None
+
+    async def _check_answers(self) -> str | None:
+        options = self.options
+        return await check_answers(
             options.url,
             options.ssl_context,
             options.expect_timeout_s,
             options.auth_secret,
             options.max_frame_bytes,
         )
-        options = replace(options, dialect=dialect)
-    requirements, cases = select(suite, options.only)
-    run_id = secrets.token_hex(3)
-    results: list[CaseResult] = []
-    for index, case in enumerate(cases):
-        result = await run_case(case, options, {"ns": f"rwtc_{run_id}/c{index}", "run": run_id})
-        results.append(result)
-        if on_case is not None:
-            on_case(result)
-    graded = tuple(
-        _grade(r, [c for c in results if r.id in c.case.requirements]) for r in requirements
-    )
-    return SuiteResult(options, graded, tuple(results), time.monotonic() - started)
+
+    def timed_out(self) -> str:
+        """The verdict of a run cut by ``run_timeout_s``."""
+        where = (
+            f"in case {self.current.id}, {len(self.results)} of {len(self.cases)} cases done"
+            if self.current is not None
+            else "before the first case (checking the server and asking its dialect)"
+        )
+        return (
+            f"the run took longer than {self.options.run_timeout_s:g} s (--run-timeout):"
+            f" stopped {where}"
+        )
 
 
 AS_THE_REFERENCE = "as the reference does"
@@ -252,7 +350,8 @@ async def run_case(case: Case, options: RunOptions, variables: dict[str, JsonVal
         detail = f"{AS_THE_REFERENCE} ({cited}); the spec's way: {spec.detail}"
         return CaseResult(case, Outcome.PASSED, detail, seconds)
     detail = f"the spec's way: {spec.detail}; the reference's way ({cited}): {ref.detail}"
-    return CaseResult(case, Outcome.FAILED, detail, seconds)
+    unanswered = spec.unanswered and ref.unanswered
+    return CaseResult(case, Outcome.FAILED, detail, seconds, unanswered)
 
 
 async def _run_way(
@@ -268,16 +367,18 @@ async def _run_way(
         with anyio.fail_after(options.case_timeout_s):
             await run.execute()
     except StepFailedError as exc:
-        return CaseResult(case, Outcome.FAILED, str(exc), time.monotonic() - started)
+        detail = str(exc)
     except TimeoutError:
         detail = f"case timed out after {options.case_timeout_s:g} s at step {run.step_number}"
-        return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started)
     except Exception as exc:  # a runner bug must not stop the suite
         detail = f"step {run.step_number}: runner error {type(exc).__name__}: {exc}"
         return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started)
+    else:
+        return CaseResult(case, Outcome.PASSED, "", time.monotonic() - started)
     finally:
         await run.close_all()
-    return CaseResult(case, Outcome.PASSED, "", time.monotonic() - started)
+    unanswered = run.send_blocked or not run.received
+    return CaseResult(case, Outcome.FAILED, detail, time.monotonic() - started, unanswered)
 
 
 def _skip_reason(case: Case, options: RunOptions) -> str | None:
@@ -350,6 +451,10 @@ class _CaseRun:
         self._tokens = itertools.count(1)
         self._tasks: anyio.abc.TaskGroup | None = None
         self._violation: str | None = None
+        self.received = False
+        """Whether any frame came from the server, on any connection."""
+        self.send_blocked = False
+        """Whether a send timed out (``bounds.SendTimeoutError``)."""
 
     async def execute(self) -> None:
         failure: StepFailedError | None = None
@@ -393,6 +498,7 @@ class _CaseRun:
             except ConnectionClosedError as exc:
                 raise StepFailedError(f"{where}: {exc.message}") from None
             except SendTimeoutError as exc:
+                self.send_blocked = True
                 raise StepFailedError(f"{where}: {exc}") from None
 
     async def close_all(self) -> None:
@@ -469,6 +575,7 @@ class _CaseRun:
         try:
             while True:
                 frame = await link.conn.receive()
+                self.received = True
                 received = decode_frame(frame)
                 if received.problem is not None:
                     self._violated(link, received.problem)

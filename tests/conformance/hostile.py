@@ -1,8 +1,12 @@
-"""Small hostile WebSocket servers (the ``websockets`` library, 127.0.0.1) for the runner.
+"""Small hostile servers (127.0.0.1) for the runner.
 
-Each ``Behaviour`` is a connection handler playing one way a server can attack
-its clients; ``serving`` runs one in a thread of its own (its own event loop),
-so the runner can be driven in-process or as an ``rwt conformance`` subprocess.
+Each ``Behaviour`` is a WebSocket connection handler (the ``websockets`` library)
+playing one way a server can attack its clients; ``serving`` runs one in a
+thread of its own (its own event loop), so the runner can be driven in-process
+or as an ``rwt conformance`` subprocess. ``SocketBehaviour``s play a server
+below any protocol on plain sockets (``serving_sockets``): one that never reads,
+reads a byte a second, or closes at once; the same port serves ``ws://`` and
+``tcp://`` URLs.
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 import json
+import select
 import socket
 import threading
 from collections.abc import Awaitable, Callable, Iterator
@@ -70,12 +75,37 @@ def huge_frames(size: int) -> Behaviour:
 
 
 def closes_after(frames: int, code: int = 1011, reason: str = "bye") -> Behaviour:
-    """Answer nothing, and close (``code``, ``reason``) after ``frames`` received frames."""
+    """Echo ``frames`` received frames, then close (``code``, ``reason``)."""
 
     async def handler(ws: ServerConnection) -> None:
         for _ in range(frames):
-            await ws.recv()
+            await ws.send(await ws.recv())
         await ws.close(code, reason)
+
+    return handler
+
+
+async def silent(ws: ServerConnection) -> None:
+    """Answer the handshake, read every frame, answer none."""
+    async for _ in ws:
+        pass
+
+
+async def echo(ws: ServerConnection) -> None:
+    """Send every frame back: the server answers, but not as rosbridge does."""
+    async for message in ws:
+        await ws.send(message)
+
+
+def answers_first(connections: int) -> Behaviour:
+    """Echo every frame on the first ``connections`` connections; be ``silent`` on later ones."""
+    opened = itertools.count()
+
+    async def handler(ws: ServerConnection) -> None:
+        if next(opened) < connections:
+            await echo(ws)
+        else:
+            await silent(ws)
 
     return handler
 
@@ -249,3 +279,77 @@ def serving(behaviour: Behaviour, *, max_size: int | None = MiB) -> Iterator[str
         loop.call_soon_threadsafe(stop.set)
         thread.join(30)
         loop.close()
+
+
+SocketBehaviour = Callable[[socket.socket, threading.Event], None]
+"""Plays one accepted connection on a plain blocking socket, until the event is set."""
+
+SMALL_RCVBUF = 4096
+"""The listening socket's receive buffer, bytes (its connections inherit it): a
+server that never reads holds little of what a client sends, so a client's sends
+block soon (the kernel doubles the value and keeps a floor)."""
+
+
+def never_reads(conn: socket.socket, stop: threading.Event) -> None:
+    """Accept and never ``recv()``: the bytes a client sends pile up, then its sends block."""
+    stop.wait()
+
+
+def reads_a_byte_a_second(conn: socket.socket, stop: threading.Event) -> None:
+    """Read one byte a second, answer nothing."""
+    conn.settimeout(0.5)  # a recv waiting for the client still sees ``stop``
+    while not stop.wait(1.0):
+        try:
+            if not conn.recv(1):
+                return
+        except TimeoutError:
+            continue
+
+
+def closes_at_once(conn: socket.socket, stop: threading.Event) -> None:
+    """Close the connection as soon as it is accepted (``serving_sockets`` closes it)."""
+
+
+@contextmanager
+def serving_sockets(behaviour: SocketBehaviour) -> Iterator[str]:
+    """Run ``behaviour`` on each connection to a plain TCP socket on 127.0.0.1; yields
+    ``127.0.0.1:PORT``.
+
+    The listening socket has ``SMALL_RCVBUF``; each connection gets a thread,
+    which closes it when its behaviour returns. At the end every thread is told
+    to stop and joined.
+    """
+    listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, SMALL_RCVBUF)
+    listener.bind(("127.0.0.1", 0))
+    listener.listen()
+    stop = threading.Event()
+    threads: list[threading.Thread] = []
+
+    def play(conn: socket.socket) -> None:
+        try:
+            behaviour(conn, stop)
+        except OSError:
+            pass  # the client cut the connection
+        finally:
+            conn.close()
+
+    def accept() -> None:
+        while not stop.is_set():
+            ready, _, _ = select.select([listener], [], [], 0.1)
+            if ready:
+                conn, _ = listener.accept()
+                thread = threading.Thread(target=play, args=(conn,), daemon=True)
+                threads.append(thread)
+                thread.start()
+
+    acceptor = threading.Thread(target=accept, daemon=True)
+    acceptor.start()
+    try:
+        yield f"127.0.0.1:{listener.getsockname()[1]}"
+    finally:
+        stop.set()
+        acceptor.join(30)
+        for thread in threads:
+            thread.join(30)
+        listener.close()

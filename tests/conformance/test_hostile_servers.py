@@ -1,9 +1,12 @@
 """The runner against hostile servers: every run ends, with a report and an exit code.
 
 Each server (``hostile``) attacks the runner's bounds (docs/conformance.md, "Against
-a hostile server"): it never reads, answers too deeply nested JSON, sends frames
-too big or too many, closes mid-case, or sends garbage. The run must fail the
-cases it spoils with a clear reason, go on to the next case and end as usual.
+a hostile server"): it answers too deeply nested JSON, sends frames too big or too
+many, closes mid-case, or sends garbage. The run must fail the cases it spoils with
+a clear reason, go on to the next case and end as usual. A server that does not
+read or answer at all (never reads, reads a byte a second, answers nothing, closes
+at once) gets one verdict instead, soon, and exit code 2; so does a run over
+``--run-timeout``.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from rwt_client.connectors import connect
 from rwt_conformance import Outcome, RunOptions, SuiteResult, load_suite, run_suite
 from rwt_conformance.bounds import CASE_BUDGET_BYTES
 from rwt_conformance.frames import NESTING_PROBLEM
+from rwt_conformance.model import Dialect
 from tests.conformance import hostile
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -66,13 +70,114 @@ def _assert_reported(done: subprocess.CompletedProcess[str], report: Path) -> di
     return {case: detail for case, (_, detail) in details.items()}
 
 
-def test_a_server_that_never_reads_and_pings_cannot_hang_the_run(tmp_path: Path) -> None:
+def _one_verdict(done: subprocess.CompletedProcess[str], report: Path) -> str:
+    """The run ended with exit code 2 and one line on stderr, no table, no traceback;
+    its JSON report holds the verdict and no case."""
+    assert done.returncode == 2, done.stdout[-3000:] + done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
+    [line] = done.stderr.strip().splitlines()
+    assert line.startswith("rwt conformance: "), line
+    verdict = line.removeprefix("rwt conformance: ")
+    document = json.loads(report.read_text("utf-8"))
+    assert document["verdict"] == verdict
+    assert document["requirements"] == []
+    assert done.stdout == ""
+    return verdict
+
+
+DOES_NOT_ANSWER = "the server does not answer: nothing received within 3 s of sending"
+NO_HANDSHAKE = "the server does not answer (connecting and its WebSocket handshake took over 6 s)"
+
+
+@pytest.mark.parametrize(
+    ("behaviour", "scheme", "expected"),
+    [
+        (hostile.never_reads, "tcp://", DOES_NOT_ANSWER),
+        (hostile.never_reads, "ws://", NO_HANDSHAKE),
+        (hostile.reads_a_byte_a_second, "tcp://", DOES_NOT_ANSWER),
+        (hostile.reads_a_byte_a_second, "ws://", NO_HANDSHAKE),
+        (hostile.closes_at_once, "tcp://", "the server closed the connection before answering"),
+        # the close comes during the handshake: a FIN, or a reset when the request was unread
+        (hostile.closes_at_once, "ws://", (": the server closed the connection", "reset by peer")),
+    ],
+    ids=lambda value: getattr(value, "__name__", str(value)[:12]),
+)
+def test_a_server_below_the_protocol_gets_one_verdict_for_the_whole_suite(
+    tmp_path: Path, behaviour: hostile.SocketBehaviour, scheme: str, expected: str | tuple[str, ...]
+) -> None:
+    """The whole suite at the default bounds (it took about 500 s, 188 failures, before)."""
     report = tmp_path / "run.json"
-    with hostile.serving(hostile.never_reads_and_pings) as url:
-        done = _rwt_conformance(url, report=report)
-    details = _assert_reported(done, report)
-    assert "assumed" in done.stdout  # dialect detection gave up in time
-    assert all("timed out" in d or "within 1 s" in d for d in details.values()), details
+    with hostile.serving_sockets(behaviour) as address:
+        done = subprocess.run(
+            [*RWT_CONFORMANCE, scheme + address, "--json", str(report)],
+            env=ENV,
+            capture_output=True,
+            text=True,
+            timeout=RUN_LIMIT_S,
+            check=False,
+        )
+    verdict = _one_verdict(done, report)
+    assert any(
+        text in verdict for text in (expected if isinstance(expected, tuple) else (expected,))
+    )
+
+
+@pytest.mark.parametrize(
+    "behaviour", [hostile.silent, hostile.never_reads_and_pings], ids=lambda b: b.__name__
+)
+def test_a_websocket_server_answering_nothing_gets_one_verdict(
+    tmp_path: Path, behaviour: hostile.Behaviour
+) -> None:
+    report = tmp_path / "run.json"
+    with hostile.serving(behaviour) as url:
+        done = subprocess.run(
+            [*RWT_CONFORMANCE, url, "--json", str(report)],
+            env=ENV,
+            capture_output=True,
+            text=True,
+            timeout=RUN_LIMIT_S,
+            check=False,
+        )
+    verdict = _one_verdict(done, report)
+    assert verdict.startswith(DOES_NOT_ANSWER), verdict
+    assert "--auth-secret-file" in verdict  # what a rosauth server without the secret looks like
+
+
+def test_a_run_over_its_run_timeout_stops_saying_where(tmp_path: Path) -> None:
+    report, junit = tmp_path / "run.json", tmp_path / "run.xml"
+    reports = ["--json", str(report), "--junit", str(junit)]
+    with hostile.serving(hostile.echo) as url:  # answers, so every case waits out its expects
+        done = subprocess.run(
+            [*RWT_CONFORMANCE, url, "--timeout", "0.5", "--run-timeout", "5", *reports],
+            env=ENV,
+            capture_output=True,
+            text=True,
+            timeout=RUN_LIMIT_S,
+            check=False,
+        )
+    assert done.returncode == 2, done.stdout[-3000:] + done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
+    [line] = done.stderr.strip().splitlines()
+    assert "the run took longer than 5 s (--run-timeout): stopped " in line, line
+    document = json.loads(report.read_text("utf-8"))
+    assert line == f"rwt conformance: {document['verdict']}"
+    ran = {case["id"] for r in document["requirements"] for case in r["cases"]}
+    assert len(ran) < len(SUITE.cases)
+    assert 'errors="1"' in junit.read_text("utf-8")
+
+
+@pytest.mark.anyio
+async def test_a_server_that_stops_answering_mid_run_stops_the_run() -> None:
+    # its first connection (the runner's check before the cases) is answered, no later one
+    with hostile.serving(hostile.answers_first(1)) as url:
+        result = await _run(url, dialect=Dialect.ROS2)
+    assert [c.case.id for c in result.cases] == [TWO_CASES[0]]  # the second never ran
+    assert result.cases[0].unanswered
+    assert result.verdict is not None
+    assert result.verdict.startswith(
+        f"the run stopped after case {TWO_CASES[0]}: the server does not answer"
+    ), result.verdict
+    assert not result.ok
 
 
 def test_deep_json_fails_the_case_without_a_crash(tmp_path: Path) -> None:
