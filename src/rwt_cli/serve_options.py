@@ -217,7 +217,9 @@ class Limits:
     max_fragment_memory: Annotated[
         int,
         typer.Option(
-            min=1, help="Bytes of incomplete fragmented messages all connections hold together."
+            min=1,
+            help="Bytes of incomplete messages (fragments, frames still arriving)"
+            " all connections hold together.",
         ),
     ] = 256 * MIB
     fragment_timeout: Annotated[

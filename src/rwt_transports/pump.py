@@ -607,6 +607,8 @@ class ConnectionPump(Held):
                     break
                 await self._yield_slice()
                 now = clock()
+            # Handled: a large frame must not stay alive while the next read waits.
+            del events
             if self._slice_frames >= READ_SLICE_FRAMES or self._slice_bytes >= READ_SLICE_BYTES:
                 await self._yield_slice()
 

@@ -117,9 +117,11 @@ class ServerConfig:
         stdio_fds: the (read, write) file descriptors of that session when not
             stdin/stdout (a pipe pair or a socket, for embedding and tests).
         max_message_size: largest incoming message on every transport, bytes.
-        max_fragment_memory: bytes of incomplete ``fragment``/``png`` messages all
-            connections may hold together (``--max-fragment-memory``); a part past
-            it is refused with an error status and its message dropped
+        max_fragment_memory: bytes of incomplete ``fragment``/``png`` messages, and
+            of TCP and WebSocket frames still arriving, all connections may hold
+            together (``--max-fragment-memory``); a part past it is refused with an
+            error status and its message dropped, a frame skipped (TCP) or its
+            connection closed (WebSocket, 1013)
             (``rwt_protocol.framing.fragments.FragmentBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
@@ -545,13 +547,20 @@ class RosbridgeServer:
     async def _handle_websocket(self, stream: ByteStream) -> None:
         peer = _peer(stream)
         await serve_websocket_connection(
-            stream, peer, self, self.config.websocket, self.config.max_message_size
+            stream,
+            peer,
+            self,
+            self.config.websocket,
+            self.config.max_message_size,
+            self.fragment_budget,
         )
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)
         transport = "tls" if self.config.certfile is not None else "tcp"
-        await serve_tcp_connection(stream, peer, self, self.config.max_message_size, transport)
+        await serve_tcp_connection(
+            stream, peer, self, self.config.max_message_size, transport, self.fragment_budget
+        )
 
     async def _run_stdio(self, connections: TaskGroup) -> None:
         read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())

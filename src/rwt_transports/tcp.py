@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream
 
+    from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.server.outbox import OutFrame
     from rwt_protocol.server.session import CloseCode, Session
 
@@ -46,14 +47,28 @@ def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:
 
 
 class StreamChannel:
-    """A byte stream carrying rosbridge frames (TCP or TLS) as a pump ``Channel``."""
+    """A byte stream carrying rosbridge frames (TCP or TLS) as a pump ``Channel``.
+
+    Args:
+        stream: the connected stream.
+        max_message_size: the largest incoming frame, in bytes.
+        transport: ``tcp`` or ``tls``.
+        budget: the server-wide budget a frame still arriving is charged to
+            (``--max-fragment-memory``); call ``release`` when the connection ends.
+    """
 
     awaits_peer_close = False
 
-    def __init__(self, stream: ByteStream, max_message_size: int, transport: str = "tcp"):
+    def __init__(
+        self,
+        stream: ByteStream,
+        max_message_size: int,
+        transport: str = "tcp",
+        budget: FragmentBudget | None = None,
+    ):
         self.stream = stream
         self.transport = transport
-        self._framer = JsonStreamFramer(max_message_size)
+        self._framer = JsonStreamFramer(max_message_size, budget)
         self._ended = False
         self._direct = DirectWriter.for_stream(stream)
         self._reader = DirectReader.for_stream(stream)
@@ -74,6 +89,10 @@ class StreamChannel:
                 return events
             raise anyio.EndOfStream from None
         return self._framer.receive_data(data)
+
+    def release(self) -> None:
+        """Free the frame still arriving and give its bytes back to the budget."""
+        self._framer.release()
 
     def input_pending(self) -> bool:
         """Whether input is here already (a new connection's first read, admission.py).
@@ -123,7 +142,12 @@ class StreamChannel:
 
 
 async def serve_tcp_connection(
-    stream: ByteStream, peer: str, host: SessionHost, max_message_size: int, transport: str
+    stream: ByteStream,
+    peer: str,
+    host: SessionHost,
+    max_message_size: int,
+    transport: str,
+    budget: FragmentBudget | None = None,
 ) -> None:
     """Run one TCP (or TLS) connection to its end; never raises for what the peer does.
 
@@ -133,17 +157,29 @@ async def serve_tcp_connection(
         host: makes the session.
         max_message_size: the largest incoming frame, in bytes.
         transport: ``tcp`` or ``tls``, for logs and client ids.
+        budget: the server-wide budget of incomplete messages that a frame still
+            arriving is charged to (``--max-fragment-memory``).
     """
     async with stream:
-        channel = StreamChannel(stream, max_message_size, transport)
-        pump = ConnectionPump(channel)
-        session = host.open_session(transport, peer, pump.wake)
-        if session is None:
-            ticket = admission.current_ticket()
-            if ticket is not None:  # its input is not read: nothing to put first
-                ticket.release()
-            logger.info("event=refused peer=%s reason='too many connections'", peer)
-            with anyio.move_on_after(_CLOSE_LIMIT_S):
-                await stream.send(_TOO_MANY)
-            return
-        await run_connection(pump, session)
+        channel = StreamChannel(stream, max_message_size, transport, budget)
+        try:
+            await _serve_channel(channel, stream, peer, host)
+        finally:
+            channel.release()
+
+
+async def _serve_channel(
+    channel: StreamChannel, stream: ByteStream, peer: str, host: SessionHost
+) -> None:
+    """Open the session of ``channel`` and run it, or refuse the connection."""
+    pump = ConnectionPump(channel)
+    session = host.open_session(channel.transport, peer, pump.wake)
+    if session is None:
+        ticket = admission.current_ticket()
+        if ticket is not None:  # its input is not read: nothing to put first
+            ticket.release()
+        logger.info("event=refused peer=%s reason='too many connections'", peer)
+        with anyio.move_on_after(_CLOSE_LIMIT_S):
+            await stream.send(_TOO_MANY)
+        return
+    await run_connection(pump, session)

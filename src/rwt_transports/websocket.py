@@ -40,6 +40,7 @@ from websockets.protocol import State
 from websockets.server import ServerProtocol
 
 from rwt_console.site import http_response_bytes
+from rwt_protocol.framing.fragments import BudgetCharge
 from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.framing.streams import FramerEvent, InFrame
 from rwt_protocol.server.session import CloseCode, Session
@@ -59,6 +60,7 @@ if TYPE_CHECKING:
     from websockets.extensions.base import ServerExtensionFactory
 
     from rwt_console import ConsoleSite
+    from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.server.outbox import OutFrame
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
@@ -73,6 +75,13 @@ _WRITE_BATCH = 65536
 """Small frames are joined into writes of about this many bytes; larger frames go alone."""
 _HANDSHAKE_LIMIT_S = 10.0
 _DATA_OPCODES = (Opcode.TEXT, Opcode.BINARY, Opcode.CONT)
+_MAX_REASON = 123  # bytes of a close reason (RFC 6455 5.5: a control frame's 125, less the code)
+
+
+def _parser_held(protocol: ServerProtocol) -> int:
+    """Bytes websockets' parser keeps of a frame begun (its reader's buffer; 0 if unseen)."""
+    buffer = getattr(getattr(protocol, "reader", None), "buffer", None)
+    return len(buffer) if isinstance(buffer, bytearray) else 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,6 +118,12 @@ class WebSocketChannel:
     one lock, always through ``protocol.data_to_send()``: bytes go out in the
     order the protocol made them. On a plain socket, the pump may also write
     from the publish path (``send_now``) while nobody holds the lock.
+
+    A message still arriving (its frame begun, or the first frames of a
+    fragmented one) is charged to ``budget`` (``--max-fragment-memory``) after
+    every chunk read; past it the connection is closed with 1013 (try again
+    later), since websockets cannot skip a frame. ``release`` gives the
+    charge back when the connection ends.
     """
 
     transport = "ws"
@@ -120,6 +135,7 @@ class WebSocketChannel:
         protocol: ServerProtocol,
         options: WebSocketOptions,
         max_message_size: int,
+        budget: FragmentBudget | None = None,
     ):
         self.stream = stream
         self.protocol = protocol
@@ -135,6 +151,7 @@ class WebSocketChannel:
         """Reads whole messages ahead of websockets; set once the handshake allows it."""
         self.max_message_size = max_message_size
         self._messages = MessageAssembler(max_message_size)
+        self._charge = BudgetCharge(budget)
         self._eof = False  # the peer's end (or the wait for it) is over: read no more
         self._eof_sent = False
         self._pong = anyio.Event()
@@ -240,7 +257,33 @@ class WebSocketChannel:
             # in a later frame of the same chunk comes first either way.
             self.protocol.fail(int(CloseCode.INVALID_DATA), self._failed)
             control = True
-        return messages, control
+        return messages, self._charge_held() or control
+
+    def _charge_held(self) -> bool:
+        """Charge what waits to become a message; whether that failed the connection (1013)."""
+        charge = self._charge
+        if charge.budget is None:
+            return False
+        if self.protocol.state is not State.OPEN:  # what is still read is dropped
+            self._messages.clear()
+            self.release()
+            return False
+        frames = self.frames
+        held = self._messages.held + (frames.held if frames is not None else 0)
+        if charge.hold(held + _parser_held(self.protocol)):
+            return False
+        self._messages.clear()
+        self.release()
+        reason = charge.budget.refusal("message")
+        # Failed, websockets drops its buffer and every byte it is given from now on.
+        self.protocol.fail(int(CloseCode.TRY_AGAIN_LATER), reason[:_MAX_REASON])
+        if frames is not None:
+            frames.discard()
+        return True
+
+    def release(self) -> None:
+        """Give back what this connection's incomplete message holds of the budget."""
+        self._charge.release()
 
     def _accept_text(self, message: InFrame) -> bool:
         """Tell whether ``message`` may be handled.
@@ -463,6 +506,7 @@ async def serve_websocket_connection(
     host: SessionHost,
     options: WebSocketOptions,
     max_message_size: int,
+    budget: FragmentBudget | None = None,
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -473,6 +517,9 @@ async def serve_websocket_connection(
         options: WebSocket settings.
         max_message_size: the largest incoming message, bytes (``--max-message-size``);
             a larger one closes the connection with 1009 (D24).
+        budget: the server-wide budget of incomplete messages that a message still
+            arriving is charged to (``--max-fragment-memory``); past it the
+            connection is closed with 1013.
 
     Never raises for what the peer does; the stream is closed on return.
     """
@@ -485,7 +532,7 @@ async def serve_websocket_connection(
         if options.console is not None and not _is_upgrade(request):
             await _serve_console(stream, request, options.console, peer)
             return
-        channel = WebSocketChannel(stream, protocol, options, max_message_size)
+        channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)
         pump = ConnectionPump(channel)
         refusal = _refusal(request, options)
         session = None
@@ -511,6 +558,7 @@ async def serve_websocket_connection(
             await _open(channel, pump, session, request)
         finally:
             ticket.release()
+            channel.release()
 
 
 async def _open(

@@ -105,9 +105,23 @@ class FrameReader:
         self._have = 0
         self._pending: _Header | None = None  # its header, once whole
 
+    @property
+    def held(self) -> int:
+        """Bytes of the frame begun in earlier chunks and kept until it is whole."""
+        return self._have
+
     def stop(self) -> None:
         """Hand every byte to websockets from now on (a frame begun here included)."""
         self.passthrough = True
+
+    def discard(self) -> None:
+        """Forget the frame begun here, and hand every later byte to websockets.
+
+        Only once websockets was made to fail the connection: it then drops
+        what it is given, so the rest of that frame is never read as a frame.
+        """
+        self.passthrough = True
+        self._pieces, self._have, self._pending = [], 0, None
 
     def feed(self, data: bytes) -> Iterator[InFrame | bytes]:
         """Read one received chunk; see the class docstring for what comes out."""

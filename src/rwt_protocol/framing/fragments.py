@@ -25,6 +25,7 @@ from ..ops import Fragment, Png
 __all__ = [
     "FRAGMENT_OVERHEAD",
     "MAX_PARTS",
+    "BudgetCharge",
     "FragmentBudget",
     "PartKind",
     "Reassembler",
@@ -119,7 +120,8 @@ class FragmentBudget:
     Each connection's ``Reassembler`` is bounded by ``--max-message-size`` alone, so
     thousands of connections could hold thousands of times that; they all draw
     from this one budget (``--max-fragment-memory``, docs/limits.md), and a part
-    that would take it past ``limit`` is refused.
+    that would take it past ``limit`` is refused. Frames still arriving on TCP and
+    WebSocket connections draw from it too (``BudgetCharge``).
 
     Args:
         limit: bytes (``held_size`` plus ``FRAGMENT_OVERHEAD`` a part) held at once,
@@ -142,6 +144,54 @@ class FragmentBudget:
     def give(self, cost: int) -> None:
         """Return ``cost`` bytes charged before."""
         self.used -= cost
+
+    def refusal(self, what: str) -> str:
+        """The status text for ``what`` (``message 'ID'``, ``frame``) refused by this budget."""
+        return (
+            f"{what} dropped: the server holds {self.limit} bytes of"
+            " incomplete messages from all connections already (the server's limit)"
+        )
+
+
+class BudgetCharge:
+    """What one reader's buffered partial frame holds of a ``FragmentBudget``.
+
+    A frame still arriving (a TCP value without its end, a WebSocket frame or
+    fragmented message) is kept until whole, up to ``--max-message-size`` per
+    connection; as with incomplete ``fragment`` ops, every connection together
+    may keep only the server-wide budget (docs/limits.md, per server).
+
+    Args:
+        budget: the server's budget; None charges nothing and refuses nothing.
+    """
+
+    __slots__ = ("budget", "held")
+
+    def __init__(self, budget: FragmentBudget | None) -> None:
+        self.budget = budget
+        self.held = 0
+        """Bytes charged now."""
+
+    def hold(self, size: int) -> bool:
+        """Charge ``size`` bytes in all (less than before gives the rest back).
+
+        Returns:
+            False when the growth does not fit in the budget; the charge is then
+            unchanged and the caller drops what it buffered.
+        """
+        budget = self.budget
+        if budget is None or size == self.held:
+            return True
+        if size < self.held:
+            budget.give(self.held - size)
+        elif not budget.take(size - self.held):
+            return False
+        self.held = size
+        return True
+
+    def release(self) -> None:
+        """Give everything back (the frame completed or was dropped, the connection ended)."""
+        self.hold(0)
 
 
 @dataclass(slots=True)
@@ -235,10 +285,7 @@ class Reassembler:
         self._check_size(key, cost)
         if self.shared is not None and not self.shared.take(cost):
             self._drop(key)
-            raise RemoteProtocolError(
-                f"message {op_id!r} dropped: the server holds {self.shared.limit} bytes of"
-                " incomplete messages from all connections already (the server's limit)"
-            )
+            raise RemoteProtocolError(self.shared.refusal(f"message {op_id!r}"))
         entry.parts[num] = data
         entry.size += cost
         self._bytes += cost

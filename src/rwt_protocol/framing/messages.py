@@ -48,6 +48,15 @@ class MessageAssembler:
         self._size = 0
         self._binary = False
 
+    @property
+    def held(self) -> int:
+        """Bytes of the message begun and not yet whole."""
+        return self._size
+
+    def clear(self) -> None:
+        """Forget the message begun (the connection is closing)."""
+        self._parts, self._size = [], 0
+
     def add(
         self, kind: FrameKind, data: bytes | bytearray | memoryview, *, fin: bool
     ) -> InFrame | None:

@@ -15,6 +15,8 @@ being kept, and reported once as a ``FramingError``; the stream stays in step.
 A larger CBOR item ends the stream (a fatal ``FramingError``): its declared
 length cannot be trusted, and binary data offers no point to resynchronise (so
 a broken CBOR header holds the stream until ``max_frame_bytes`` or its end).
+The same holds for a frame whose bytes, while it arrives, do not fit in the
+server-wide budget of incomplete messages (``--max-fragment-memory``).
 
 A framer never raises for what the peer sent. Anything that is not JSON (a bare
 ``}``, a stray word) is passed on as a frame of its own, so the session reports
@@ -31,6 +33,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from enum import Enum, auto
+
+from .fragments import BudgetCharge, FragmentBudget
 
 __all__ = ["FramerEvent", "FramingError", "InFrame", "JsonStreamFramer", "LineFramer"]
 
@@ -90,13 +94,21 @@ class JsonStreamFramer:
 
     Args:
         max_frame_bytes: the largest frame kept, in bytes (``--max-message-size``).
+        budget: the server-wide budget of incomplete messages
+            (``--max-fragment-memory``) that the bytes of a frame still arriving
+            are charged to; a frame that does not fit is skipped to its end
+            and reported once, as a frame over ``max_frame_bytes`` is. None:
+            ``max_frame_bytes`` alone bounds it.
 
-    Feed bytes with ``receive_data``; call ``receive_eof`` when the stream ends.
-    Total work is linear in the bytes received, whatever the chunking.
+    Feed bytes with ``receive_data``; call ``receive_eof`` when the stream ends,
+    or ``release`` when it is dropped. Total work is linear in the bytes
+    received, whatever the chunking. Between calls the buffer holds only the
+    frame still arriving: a large frame's bytes are freed once it is whole.
     """
 
-    def __init__(self, max_frame_bytes: int) -> None:
+    def __init__(self, max_frame_bytes: int, budget: FragmentBudget | None = None) -> None:
         self.max_frame_bytes = max_frame_bytes
+        self._charge = BudgetCharge(budget)
         self._buf = bytearray()
         self._pos = 0  # next byte to scan in _buf
         self._start = 0  # start of the current frame in _buf
@@ -116,7 +128,31 @@ class JsonStreamFramer:
         while self._step(events):
             pass
         self._compact()
+        self._charge_held(events)
         return events
+
+    def release(self) -> None:
+        """Give back what the buffered frame holds of the budget (the stream is dropped)."""
+        self._buf.clear()
+        self._charge.release()
+
+    def _charge_held(self, events: list[FramerEvent]) -> None:
+        """Charge the buffered bytes; skip the frame in progress if they do not fit."""
+        charge = self._charge
+        if charge.budget is None or charge.hold(len(self._buf)):
+            return
+        if self._mode is _Mode.CBOR:  # as for an oversized item: no resynchronising
+            self._dead = True
+            self._buf.clear()
+            charge.release()
+            events.append(FramingError(charge.budget.refusal("CBOR item"), fatal=True))
+            return
+        if self._mode is not _Mode.IDLE and not self._skipping:
+            self._skipping = True
+            events.append(FramingError(charge.budget.refusal("frame")))
+        del self._buf[: self._pos]
+        self._pos = self._start = 0
+        charge.hold(len(self._buf))  # the few unscanned bytes: at most a header's
 
     def receive_eof(self) -> list[FramerEvent]:
         """The stream ended: return what the last, unterminated value gives.
@@ -132,6 +168,7 @@ class JsonStreamFramer:
         elif self._mode is not _Mode.IDLE:
             events.append(FramingError("incomplete frame at the end of the stream"))
         self._buf.clear()
+        self._charge.release()
         self._pos = self._start = 0
         self._mode = _Mode.IDLE
         return events
