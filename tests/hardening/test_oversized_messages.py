@@ -32,8 +32,10 @@ from websockets.frames import Opcode
 from websockets.http11 import Response
 from websockets.uri import parse_uri
 
+from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 from rwt_transports.server import ServerConfig
+from rwt_transports.tcp import stream_writes
 from tests.hardening.peers import TIMEOUT_S, Peer, TcpPeer, WsPeer, settle
 from tests.transports.clients import Harness, running_server
 from tests.transports.realclients import run_python
@@ -339,3 +341,11 @@ async def test_roslibpy_gets_two_clouds_over_the_limit(harness: Harness, tmp_pat
         for i, (_, data) in enumerate(clouds)
     ]
     assert output[0].splitlines() == expected, output[0]
+
+
+def test_tcp_writes_a_large_frame_as_it_is_shared() -> None:
+    """Every subscriber's TCP writer sends the shared payload itself, then its newline."""
+    big, small = OutFrame(b"{" + b" " * (2 * MiB) + b"}"), OutFrame(b"{}")
+    writes = stream_writes([small, big, small])
+    assert writes[1] is big.data
+    assert b"".join(writes) == b"{}\n" + big.data + b"\n{}\n"
