@@ -41,9 +41,42 @@ _CLOSE_LIMIT_S = 1.0
 _TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections")) + b"\n"
 
 
+_WRITE_BATCH = 65536
+"""Bytes of small frames joined into one write; a larger frame is written as it is."""
+
+
 def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:
     """Join outgoing frames for a byte stream: JSON text plus a newline, CBOR as is."""
     return b"".join(frame.data if frame.binary else frame.data + b"\n" for frame in frames)
+
+
+def stream_writes(frames: Sequence[OutFrame]) -> list[bytes]:
+    """The writes that send ``frames`` on a byte stream, in order (``encode_stream_frames``).
+
+    Small frames are joined into writes of about ``_WRITE_BATCH`` bytes; a
+    large frame's payload, which every subscriber of its form shares, is
+    written as it is and its newline after it, so no connection copies it.
+    """
+    writes: list[bytes] = []
+    batch: list[bytes] = []
+    size = 0
+    for frame in frames:
+        if len(frame.data) >= _WRITE_BATCH:
+            if batch:
+                writes.append(b"".join(batch))
+            writes.append(frame.data)
+            batch, size = ([], 0) if frame.binary else ([b"\n"], 1)
+            continue
+        batch.append(frame.data)
+        if not frame.binary:
+            batch.append(b"\n")
+        size += len(frame.data) + 1
+        if size >= _WRITE_BATCH:
+            writes.append(b"".join(batch))
+            batch, size = [], 0
+    if batch:
+        writes.append(b"".join(batch))
+    return writes
 
 
 class StreamChannel:
@@ -114,8 +147,9 @@ class StreamChannel:
         return stream_unsent_bytes(self.stream)
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
-        """Write the frames in one go."""
-        await self.stream.send(encode_stream_frames(frames))
+        """Write the frames: small ones joined, a large one as it is (``stream_writes``)."""
+        for data in stream_writes(frames):
+            await self.stream.send(data)
 
     def can_send_now(self) -> bool:
         """Whether ``send_now`` may write at once: a plain socket, nothing buffered."""
@@ -129,7 +163,8 @@ class StreamChannel:
         """
         if self._direct is None:
             raise RuntimeError("not a plain socket: send through the writer")
-        self._direct.write(encode_stream_frames(frames))
+        for data in stream_writes(frames):
+            self._direct.write(data)
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Close the stream (TCP has no close frame; the reason is in the server log)."""

@@ -7,6 +7,15 @@ checks every ``send_timeout_s`` whether the transport took any frame since; if
 it did not, the peer has stopped reading and the connection is closed (abort:
 nothing more can be delivered). The episode ends when the transport catches up
 to half the limit.
+
+A message larger than the whole limit goes out when no other topic message
+waits (the outbox holds it alone); one that came while others waited was
+dropped (``Outbox.dropped_oversized``). The peer is told once, with a
+``warning`` naming ``--send-buffer-limit`` (raising it is the only way to get
+every such message to a peer that falls behind), and told again only after a
+message over the limit went out to it since; the server logs
+``event=oversized_dropped`` once per connection (then at debug level). Such a
+drop also starts an episode, so a peer that reads nothing is still closed.
 """
 
 from __future__ import annotations
@@ -18,15 +27,18 @@ from ..levels import StatusLevel
 from .commands import CloseCode
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Sequence
 
-    from .outbox import Outbox
+    from .outbox import Outbox, OutFrame
     from .session import Session
     from .timers import Timer
 
-__all__ = ["SlowConsumerWatch"]
+__all__ = ["SEND_BUFFER_OPTION", "SlowConsumerWatch"]
 
 logger = logging.getLogger("rwt.session")
+
+SEND_BUFFER_OPTION = "--send-buffer-limit"
+"""The option that sets ``SessionConfig.send_buffer_limit``, named to a peer that needs it."""
 
 
 class SlowConsumerWatch:
@@ -42,32 +54,94 @@ class SlowConsumerWatch:
         self.outbox = outbox
         self.takes = 0  # how many times the transport took frames: progress
         self._timer: Timer | None = None
+        self._told_slow = False  # this episode's warning went out
+        self._told_oversized = False  # until a message over the limit goes out again
+        self._logged_oversized = False
+        self._held = False  # a message over the limit was held when last seen
 
-    def after_push(self, dropped_before: int, now: float) -> None:
-        """Frames were queued: start an episode if that dropped frames or went over."""
-        full = self.outbox.dropped > dropped_before or self.outbox.over_limit
-        if not full or self._timer is not None:
+    def after_push(
+        self,
+        dropped_before: int,
+        oversized_before: int,
+        now: float,
+        frames: Sequence[OutFrame],
+        topic: str | None,
+    ) -> None:
+        """The frames of one message were pushed: start an episode if that dropped or went over.
+
+        Args:
+            dropped_before: ``Outbox.dropped`` before they were pushed.
+            oversized_before: ``Outbox.dropped_oversized`` before they were pushed.
+            now: the session's time, monotonic seconds.
+            frames: the message's frames.
+            topic: the topic of a message, as the peer spells it; None for an op.
+        """
+        outbox = self.outbox
+        oversized = outbox.dropped_oversized > oversized_before
+        others = outbox.dropped - dropped_before > outbox.dropped_oversized - oversized_before
+        if outbox.held_bytes:
+            self._held = True
+        if oversized:
+            self._oversized_dropped(topic, sum(len(frame.data) for frame in frames))
+        slow = others or outbox.over_limit
+        if not (slow or oversized):
             return
         session = self.session
-        self._timer = session.call_at(now + session.config.send_timeout_s, self._check(self.takes))
+        if self._timer is None:
+            self._timer = session.call_at(
+                now + session.config.send_timeout_s, self._check(self.takes)
+            )
+        if not slow or self._told_slow:
+            return
+        self._told_slow = True
         logger.warning(
             "event=slow_consumer client=%s limit_bytes=%d dropped_total=%d",
             session.client_id,
-            self.outbox.limit_bytes,
+            outbox.limit_bytes,
             dropped_before,
         )
         session.report(
             StatusLevel.WARNING,
             f"dropping the oldest topic messages: this connection reads slower than they "
-            f"arrive (send buffer limit {self.outbox.limit_bytes} bytes)",
+            f"arrive (send buffer limit {outbox.limit_bytes} bytes)",
         )
 
     def after_take(self) -> None:
         """The transport took frames: progress; the episode ends once it caught up."""
         self.takes += 1
-        if self._timer is not None and self.outbox.queued_bytes <= self.outbox.limit_bytes // 2:
+        outbox = self.outbox
+        if self._held and not outbox.held_bytes:  # a message over the limit went out
+            self._held = self._told_oversized = False
+        if self._timer is not None and outbox.queued_bytes <= outbox.limit_bytes // 2:
             self._timer.cancel()
             self._timer = None
+            self._told_slow = False
+
+    def _oversized_dropped(self, topic: str | None, size: int) -> None:
+        """Log the drop of a message over the limit; tell the peer unless told already."""
+        session = self.session
+        limit = self.outbox.limit_bytes
+        level = logging.WARNING if not self._logged_oversized else logging.DEBUG
+        self._logged_oversized = True
+        logger.log(
+            level,
+            "event=oversized_dropped client=%s topic=%s bytes=%d limit_bytes=%d dropped_total=%d",
+            session.client_id,
+            topic,
+            size,
+            limit,
+            self.outbox.dropped,
+        )
+        if self._told_oversized:
+            return
+        self._told_oversized = True
+        where = f" of {topic}" if topic is not None else ""
+        session.report(
+            StatusLevel.WARNING,
+            f"dropped a {size}-byte message{where}: larger than the send buffer limit "
+            f"({SEND_BUFFER_OPTION} {limit} bytes), such a message goes out only when no "
+            f"other topic message waits for this connection, and this connection was behind",
+        )
 
     def _check(self, takes: int) -> Callable[[float], None]:
         def check(now: float) -> None:

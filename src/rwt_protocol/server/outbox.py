@@ -14,6 +14,15 @@ payload plus ``FRAME_OVERHEAD_BYTES`` (benchmarks B8), so a peer that reads
 nothing holds at most about ``limit_bytes`` of server memory whatever the frame
 size (at 100 B a frame, counting payload alone let the queue take twice the
 limit).
+
+One topic message larger than the whole limit (a 20 MB point cloud under the
+16 MiB default) would be dropped by that rule however fast the peer reads. It
+is *held* instead when no other topic message is queued: it waits alone, and
+while it does the queue counts as full, so every other topic message is dropped
+(D24) rather than queued behind it. What the queue holds so stays within the
+limit plus one message. Where other topic messages wait, such a message cannot
+go: it is dropped and counted apart (``dropped_oversized``), so that the
+session can tell the peer which option it needs (docs/limits.md).
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Iterable, Sequence
 
 __all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox"]
 
@@ -71,6 +80,11 @@ class Outbox:
             payload plus ``frame_overhead_bytes``; frames that may not be
             dropped are always queued, even beyond it.
         frame_overhead_bytes: the memory charged per frame beyond its payload.
+
+    Attributes:
+        dropped: topic messages dropped so far (a fragmented one counts once).
+        dropped_oversized: of those, messages larger than ``limit_bytes`` that
+            came while other topic messages were queued.
     """
 
     def __init__(self, limit_bytes: int, frame_overhead_bytes: int = FRAME_OVERHEAD_BYTES) -> None:
@@ -78,9 +92,14 @@ class Outbox:
         self._bytes = 0
         self._kept_bytes = 0
         self._sending_group: object = None  # partly taken: the rest must go too
+        # The oversized message held alone: its frames still queued and their charge.
+        # It is always the oldest droppable message, so ``take`` meets its frames first.
+        self._held_frames = 0
+        self._held_bytes = 0
         self.limit_bytes = limit_bytes
         self.frame_overhead_bytes = frame_overhead_bytes
         self.dropped = 0
+        self.dropped_oversized = 0
 
     def __len__(self) -> int:
         return len(self._frames)
@@ -94,6 +113,11 @@ class Outbox:
     def undroppable_bytes(self) -> int:
         """Bytes charged for the queued frames that may not be dropped."""
         return self._kept_bytes
+
+    @property
+    def held_bytes(self) -> int:
+        """Bytes charged for the frames of a held message over ``limit_bytes`` still queued."""
+        return self._held_bytes
 
     @property
     def high_water_bytes(self) -> int:
@@ -115,8 +139,12 @@ class Outbox:
 
     @property
     def over_limit(self) -> bool:
-        """Whether more than ``limit_bytes`` are queued (only undroppable frames remain over it)."""
-        return self._bytes > self.limit_bytes
+        """Whether more than ``limit_bytes`` are queued besides a held message.
+
+        Only undroppable frames remain over it: a held message is the one topic
+        message allowed past the limit, and is not a sign of a slow peer.
+        """
+        return self._bytes - self._held_bytes > self.limit_bytes
 
     def fits_kept(self, frames: Iterable[OutFrame]) -> bool:
         """Whether ``frames``, never to be dropped, fit under ``limit_bytes`` with those kept.
@@ -134,20 +162,47 @@ class Outbox:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""
         self.extend((frame,))
 
-    def extend(self, frames: Iterable[OutFrame]) -> None:
-        """Queue several frames (the parts of one message), then drop if over the bound.
+    def extend(self, frames: Sequence[OutFrame]) -> None:
+        """Queue the frames of one message (all its parts), then drop if over the bound.
 
         Queueing every part before dropping lets a message's parts go together.
+        A topic message larger than ``limit_bytes`` is held when no other topic
+        message is queued, and dropped (``dropped_oversized``) otherwise; while
+        one is held, every other topic message is dropped on arrival. The
+        frames of one message are all droppable or none.
         """
+        if self._held_frames and frames and frames[0].droppable:
+            self.dropped += 1  # the queue is full with the held message
+            return
         overhead = self.frame_overhead_bytes
+        message = 0
         for frame in frames:
             self._frames.append(frame)
             cost = len(frame.data) + overhead
             self._bytes += cost
+            message += cost
             if not frame.droppable:
                 self._kept_bytes += cost
         if self._bytes > self.limit_bytes:
-            self._shed()
+            if message > self.limit_bytes and frames[0].droppable:
+                self._hold(len(frames), message)
+            elif not self._held_frames:  # a held message is the only droppable one
+                self._shed()
+
+    def _hold(self, count: int, cost: int) -> None:
+        """Hold the message just queued (``count`` frames, ``cost`` bytes) over the limit.
+
+        It may wait only alone: where other topic messages wait, it is dropped.
+        """
+        if self._bytes - cost > self._kept_bytes:  # other topic messages wait: it cannot go
+            for _ in range(count):
+                self._frames.pop()
+            self._bytes -= cost
+            self.dropped += 1
+            self.dropped_oversized += 1
+            return
+        self._held_frames = count
+        self._held_bytes = cost
 
     def take(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Remove and return the oldest frames, oldest first.
@@ -167,6 +222,9 @@ class Outbox:
             taken += len(frame.data)
             if not frame.droppable:
                 self._kept_bytes -= len(frame.data) + overhead
+            elif self._held_frames:  # the first droppable frames are the held message's
+                self._held_frames -= 1
+                self._held_bytes -= len(frame.data) + overhead
         self._bytes -= taken + len(frames) * overhead
         last = frames[-1].group if frames else None
         following = self._frames[0].group if self._frames else None

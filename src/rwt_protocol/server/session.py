@@ -575,12 +575,18 @@ class Session:
 
     # ---- helpers for handlers -------------------------------------------------
 
-    def send_frames(self, frames: Sequence[OutFrame]) -> None:
+    def send_frames(self, frames: Sequence[OutFrame], topic: str | None = None) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
         Past the limit, the oldest topic messages go (D24); when undroppable
         frames alone exceed the limit the peer is not reading at all, and the
-        connection is closed rather than let memory grow.
+        connection is closed rather than let memory grow. A topic message
+        larger than the limit goes out alone or is dropped with a status naming
+        ``--send-buffer-limit`` (``outbox``, ``backpressure``).
+
+        Args:
+            frames: the frames of one message, shared with other connections (never copied).
+            topic: the topic of a message, as the peer spells it, for the status of a drop.
         """
         if not self._state.sends:
             return
@@ -592,11 +598,12 @@ class Session:
                 abort=True,
             )
             return
-        was_empty = len(self._outbox) == 0
-        dropped = self._outbox.dropped
-        self._outbox.extend(frames)
-        self._watch.after_push(dropped, self._now)
-        if was_empty or self._outbox.queued_bytes > self._outbox.high_water_bytes:
+        outbox = self._outbox
+        was_empty = len(outbox) == 0
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        outbox.extend(frames)
+        self._watch.after_push(dropped, oversized, self._now, frames, topic)
+        if was_empty or outbox.queued_bytes > outbox.high_water_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure
 
     def send_op(
@@ -722,7 +729,7 @@ class Session:
                 f" as {params.compression}",
             )
             return
-        self.send_frames(frames)
+        self.send_frames(frames, subscription.spelling)
 
     def check_cap(self, count: int, cap: int, what: str) -> None:
         """Refuse an op that would hold more than ``cap`` of ``what`` (docs/limits.md).
