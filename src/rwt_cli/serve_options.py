@@ -263,9 +263,9 @@ class Limits:
         float,
         typer.Option(
             min=0.0,
-            help="Seconds a connection that reads slower than its topics come may hold"
-            " their publishers back (in all, until it catches up); then it loses its"
-            " oldest messages instead.",
+            help="Seconds a publisher may be held back by subscribers reading slower than"
+            " it publishes (in all, regaining a tenth of a second a second); then they"
+            " lose their oldest messages instead.",
         ),
     ] = HOLD_BUDGET_S
     max_connections: Annotated[

@@ -27,15 +27,16 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
 - backpressure with a hold budget: when the frames a reader handled pushed
   another connection's outbox over its high watermark (half
   ``--send-buffer-limit``), the reader stops reading (``PausableChannel``)
-  until that outbox is back under the low watermark (a quarter). A congested
-  peer may hold its publishers (and callers) back for at most
-  ``--hold-budget`` seconds in all, counted from its first hold until it has
-  caught up (taken everything queued): a burst it keeps up with on average
-  arrives whole, while a peer that reads slower than its topics come, for
-  longer than that, is *slow*: it is no longer waited for and loses its own
-  oldest topic messages (D24), so it never slows the publisher or anyone
-  else for good. A peer that takes nothing for ``INPUT_STALL_S`` during a
-  hold is slow at once. The drop and close rules (D24) deal with a slow peer.
+  until that outbox is back under the low watermark (a quarter). The reader
+  may be held for at most ``--hold-budget`` seconds, whatever it waits for,
+  regaining it slowly (``holding.HoldAccount``): a burst its subscribers keep
+  up with on average arrives whole, while a peer that reads slower than its
+  topics come, for longer than that, is *slow*: it is no longer waited for and
+  loses its own oldest topic messages (D24), so it never slows the publisher
+  or anyone else for good. A peer that does not take a useful share of its
+  backlog in each ``INPUT_STALL_S`` of a hold is slow at once. A slow peer's
+  host is not waited for during a cool-down, across reconnections
+  (``holding.HostCoolDowns``). The drop and close rules (D24) deal with a slow peer.
   A reader waits for its own outbox only for the replies and statuses in it
   (they are never dropped), so a peer sending garbage faster than it reads the
   answers is slowed, not buffered without bound. A link's queue for the other
@@ -57,6 +58,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import threading
 import weakref
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
@@ -75,7 +77,7 @@ from rwt_protocol.server.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
-from .holding import Held, LinkHold, wait_for
+from .holding import COOL_DOWN_BUDGETS, Held, HoldAccount, HostCoolDowns, LinkHold, wait_for
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -305,11 +307,12 @@ def flush_deferred() -> None:
             pump._flush_deferred()
 
 
-async def _hold_backlogged(reader: ConnectionPump | None) -> None:
+async def _hold_backlogged(reader: ConnectionPump | None, account: HoldAccount) -> None:
     """Wait for the outboxes the last batch pushed over their high watermark.
 
     ``reader`` is the connection whose frames made the batch (its socket is
-    paused meanwhile), or None for a link's deliveries (``InboundBatch``).
+    paused meanwhile), or None for a link's deliveries (``InboundBatch``);
+    ``account`` is its hold budget, charged for every outbox it waits for.
     """
     deferred = _deferred
     backlogged = deferred.backlogged
@@ -323,7 +326,7 @@ async def _hold_backlogged(reader: ConnectionPump | None) -> None:
         if held._over_water(own=own, mark=held._high_water):
             if reader is not None and reader._pausable is not None:
                 reader._pausable.pause_reading()
-            await wait_for(held, own=own)
+            await wait_for(held, own=own, account=account)
 
 
 class InboundBatch:
@@ -333,11 +336,24 @@ class InboundBatch:
     a publisher's frames do. Between ``begin`` and ``end`` the subscribers they
     push over their high watermark are noted and their frames held for one
     write each (as in a reader's batch); ``hold`` then waits for those outboxes
-    to drain to their low watermark, each within its hold budget, so a burst
-    from another process reaches a subscriber that keeps up on average whole,
-    and a slow one is left to the drop and close rules (D24) once its budget is
-    spent, as with a local publisher.
+    to drain to their low watermark, within one hold budget for all the
+    links' deliveries, so a burst from another process reaches a subscriber
+    that keeps up on average whole, and a slow one is left to the drop and
+    close rules (D24), as with a local publisher.
+
+    One per served graph, it also keeps the hosts' hold cool-downs that the
+    graph's connections share (``holding.HostCoolDowns``).
+
+    Args:
+        hold_budget_s: seconds the links' deliveries may be held
+            (``--hold-budget``, ``holding.HoldAccount``).
+        cool_downs: the server's per-host cool-downs; None: a connection's
+            cool-down ends with it.
     """
+
+    def __init__(self, hold_budget_s: float, cool_downs: HostCoolDowns | None = None) -> None:
+        self.account = HoldAccount(hold_budget_s)
+        self.cool_downs = cool_downs
 
     def begin(self) -> None:
         """Deliveries start: note congestion, defer the writes (no await until ``end``)."""
@@ -354,7 +370,7 @@ class InboundBatch:
 
     async def hold(self) -> None:
         """Wait for the subscribers the batch congested, within their hold budgets."""
-        await _hold_backlogged(None)
+        await _hold_backlogged(None, self.account)
 
 
 class OutboundHold:
@@ -364,15 +380,11 @@ class OutboundHold:
     during a reader's batch is waited for after the batch, as a congested
     subscriber is (``_hold_backlogged``), until it is under its low watermark,
     within ``hold_budget_s`` per episode; a congestion outside a batch (an
-    in-process publisher) holds nobody.
-
-    Args:
-        hold_budget_s: seconds the link may hold readers back per episode
-            (``--hold-budget``, docs/limits.md).
+    in-process publisher) holds nobody. The wait is charged to the reader's
+    hold budget, as a subscriber's is.
     """
 
-    def __init__(self, hold_budget_s: float) -> None:
-        self.hold_budget_s = hold_budget_s
+    def __init__(self) -> None:
         self._holds: dict[int, LinkHold] = {}  # by the backlog's id: one per link
 
     def congested(self, backlog: Backlog) -> None:
@@ -381,10 +393,10 @@ class OutboundHold:
         if hold is None or hold.backlog is not backlog:
             # links come and go (a restarted one is a new backlog): keep only live episodes
             self._holds = {k: h for k, h in self._holds.items() if h.watching}
-            hold = self._holds[id(backlog)] = LinkHold(backlog, self.hold_budget_s)
+            hold = self._holds[id(backlog)] = LinkHold(backlog)
         hold.watch()
         deferred = _deferred
-        if deferred.in_batch and not hold._backlogged and not hold._slow:
+        if deferred.in_batch and not hold._backlogged and not hold._slow:  # slow till caught up
             hold._backlogged = True
             deferred.backlogged.append(hold)
 
@@ -399,7 +411,12 @@ class ConnectionPump(Held):
     """
 
     def __init__(self, channel: Channel) -> None:
-        super().__init__()  # the hold budget and progress readers wait on (``holding``)
+        super().__init__()  # the progress readers wait on (``holding``)
+        self._account = HoldAccount(0.0)  # its own hold budget, as a reader (set in ``run``)
+        self._cool_downs: HostCoolDowns | None = None  # its server's, by host
+        self._host = ""
+        self._cool_down_s = 0.0
+        self._slow_until = -math.inf  # found slow: not waited for until then (its host's too)
         self.channel = channel
         self.close_reason = "peer closed the connection"
         self._writer_wake = anyio.Event()
@@ -440,7 +457,7 @@ class ConnectionPump(Held):
             and not self._backlogged
             and session.queued_bytes > self._high_water
             and _deferred.in_batch
-            and not self._slow
+            and not self._is_slow(anyio.current_time())
         ):
             self._backlogged = True
             _deferred.backlogged.append(self)
@@ -448,8 +465,8 @@ class ConnectionPump(Held):
     def _took(self) -> None:
         """The transport took frames: the peer makes progress; wake readers waiting on it.
 
-        Having taken everything queued, the peer caught up: its hold episode
-        ends, and it may hold readers back again for a whole budget.
+        Having taken everything queued, the peer caught up (a slow one stays
+        slow until its cool-down ends: ``_is_slow``).
         """
         session = self._session
         self._note_take(session is None or session.queued_bytes == 0)
@@ -525,7 +542,14 @@ class ConnectionPump(Held):
         """
         self._session = session
         self._high_water, self._low_water = session.water_marks
-        self._hold_budget = session.config.hold_budget_s
+        budget = session.config.hold_budget_s
+        self._account = HoldAccount(budget)
+        self._cool_down_s = COOL_DOWN_BUDGETS * budget
+        inflow = getattr(session.graph, "inflow", None)  # the server's, on its graph
+        if isinstance(inflow, InboundBatch) and inflow.cool_downs is not None:
+            self._cool_downs = inflow.cool_downs
+            self._host = self._cool_downs.host(session.peer)
+            self._slow_until = self._cool_downs.until(self._host)  # a reconnection: its host's
         session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
         session.start(_clock()())
         try:
@@ -680,7 +704,7 @@ class ConnectionPump(Held):
 
         Reading is paused meanwhile, so the peer's sends back up in TCP.
         """
-        await _hold_backlogged(self)
+        await _hold_backlogged(self, self._account)
 
     def _over_water(self, *, own: bool, mark: int) -> bool:
         """Whether this connection's outbox is above ``mark`` for a reader to wait on.
@@ -697,6 +721,22 @@ class ConnectionPump(Held):
         """The socket's send queue, where the channel can read it (``holding.wait_for``)."""
         channel = self.channel
         return channel.unsent_bytes() if isinstance(channel, QueueingChannel) else None
+
+    def _backlog_bytes(self) -> int:
+        """What the peer has yet to read: its outbox and the socket's send queue."""
+        session = self._session
+        queued = 0 if session is None else session.queued_bytes
+        return queued + (self._unsent_bytes() or 0)
+
+    def _is_slow(self, now: float) -> bool:
+        """Found slow (or its host, before it connected) less than a cool-down ago."""
+        return now < self._slow_until
+
+    def _found_slow(self, now: float) -> None:
+        """Not waited for during the cool-down, nor its host's connections opened meanwhile."""
+        self._slow_until = now + self._cool_down_s
+        if self._cool_downs is not None:
+            self._cool_downs.cool(self._host, self._slow_until, now)
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:

@@ -57,9 +57,10 @@ from rwt_protocol.shortcuts import switched_off
 
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
+from .holding import HostCoolDowns
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, InboundBatch, OutboundHold, run_connection
-from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares
+from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares, address_of
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
@@ -257,14 +258,17 @@ class RosbridgeServer:
         # a bad prefix is refused (ConfigError) before the graph is touched
         self._host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
         self.graph = graph or Graph()
-        self.graph.port.inflow = InboundBatch()  # links' deliveries are held back as readers are
+        # links' deliveries are held back as readers are; it keeps the hosts' hold cool-downs
+        self.graph.port.inflow = InboundBatch(
+            self.config.session.hold_budget_s, HostCoolDowns(self._host_prefixes)
+        )
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
         if authenticator is not None:
             session_config = replace(session_config, authenticator=authenticator)
         self.session_config = session_config
         # a link's queue for the other middleware holds publishers back as a subscriber does
-        self.graph.port.outflow = OutboundHold(session_config.hold_budget_s)
+        self.graph.port.outflow = OutboundHold()
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
@@ -632,7 +636,7 @@ class RosbridgeServer:
         taken = len(self.sessions) + others
         if self._stopping or (limit is not None and taken >= limit):
             return None
-        address = _address(peer)
+        address = address_of(peer)
         host = self._host_prefixes.host(address) if transport in _NETWORK else None
         if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
             self._refusals.log(
@@ -834,12 +838,6 @@ def _peer(stream: ByteStream | SocketStream) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
-
-
-def _address(peer: str) -> str:
-    """The address part of ``HOST:PORT`` (IPv6 addresses keep their colons)."""
-    host, sep, _ = peer.rpartition(":")
-    return host if sep else peer
 
 
 def visibility_of(policy: AccessPolicy) -> VisibilityFor:

@@ -30,6 +30,7 @@ __all__ = [
     "SHARES_FROM",
     "HostPrefixes",
     "HostShares",
+    "address_of",
 ]
 
 SHARES_FROM = 0.75
@@ -39,6 +40,15 @@ DEFAULT_PREFIX_V4 = 32
 """Bits of an IPv4 source address that name its host: the address itself."""
 DEFAULT_PREFIX_V6 = 64
 """Bits of an IPv6 source address that name its host: its /64, what one machine gets (RFC 4291)."""
+
+
+def address_of(peer: str) -> str:
+    """The address part of a peer's ``HOST:PORT`` (IPv6 addresses keep their colons).
+
+    A peer without a port (``stdio``, ``memory``) is returned as it is.
+    """
+    host, sep, _ = peer.rpartition(":")
+    return host if sep else peer
 
 
 @dataclass(frozen=True, slots=True)

@@ -73,8 +73,9 @@ logger = logging.getLogger("rwt.session")
 MiB = 1024 * 1024
 
 HOLD_BUDGET_S = 5.0
-"""Default ``SessionConfig.hold_budget_s``: seconds a congested connection may hold
-back its publishers and callers per episode (docs/limits.md, input backpressure).
+"""Default ``SessionConfig.hold_budget_s``: seconds a publisher (or caller) may be held
+back by the congested connections it fills, in all, regaining a tenth of a second a
+second (docs/limits.md, input backpressure).
 
 Long enough for a subscriber that reads to take a burst whole (B19: 200,000
 messages, the publisher held about half of the time), short against a stream
@@ -98,11 +99,11 @@ class SessionConfig:
             limit bounds the memory a stalled peer holds.
         send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
             without taking any frame before it is closed (D24, ``--send-timeout``).
-        hold_budget_s: seconds a connection whose outbox is congested may hold
-            back the readers that fill it (input backpressure, ``--hold-budget``),
-            in all, from its first hold until it has taken everything queued;
-            past it the connection is slow and loses its own oldest topic
-            messages (D24) instead (docs/limits.md).
+        hold_budget_s: seconds this connection, as a reader, may be held back
+            by the congested outboxes it fills (input backpressure,
+            ``--hold-budget``), in all, whoever it waits for, regaining it
+            slowly; a connection it was waiting for when it ran out is slow and
+            loses its own oldest topic messages (D24) instead (docs/limits.md).
         access: the access rules (``--topics-glob`` and friends).
         authenticator: when set, the first op must be an ``auth`` it admits (D23).
         auth_challenge: with an authenticator, send each connection a challenge

@@ -1,0 +1,110 @@
+"""Input backpressure's accounting, with numbers and a made-up clock (holding.py).
+
+The hold budget is charged to the reader being held, whatever it waits for, and
+regained at ``HOLD_REFILL`` a second; a peer reads when it takes
+``READING_SHARE`` of its backlog per ``INPUT_STALL_S``; a host found slow is not
+waited for until its cool-down ends (docs/limits.md, input backpressure).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rwt_transports.holding import (
+    HOLD_REFILL,
+    INPUT_STALL_S,
+    READING_SHARE,
+    HoldAccount,
+    HostCoolDowns,
+    ReadingWindow,
+)
+from rwt_transports.shares import HostPrefixes
+
+MiB = 1024 * 1024
+
+
+@pytest.mark.parametrize(
+    ("charges", "now", "left"),
+    [
+        ([], 0.0, 5.0),  # a whole budget to start with
+        ([(0.0, 2.0)], 2.0, 3.0),
+        ([(0.0, 5.0)], 5.0, 0.0),  # spent
+        ([(0.0, 5.0)], 15.0, 10 * HOLD_REFILL),  # regained slowly ...
+        ([(0.0, 5.0)], 5.0 + 5 / HOLD_REFILL, 5.0),  # ... up to the whole budget
+        ([(0.0, 5.0)], 1000.0, 5.0),
+        # four slow readers waited for one after another share one budget
+        ([(0.0, 2.0), (2.0, 4.0), (4.0, 5.0), (5.0, 6.0)], 6.0, 0.0),
+        # waits that overlap (two links' deliveries) are charged once
+        ([(0.0, 2.0), (1.0, 3.0)], 3.0, 2.0 + HOLD_REFILL * 1.0),
+        ([(0.0, 2.0), (0.5, 1.5)], 2.0, 3.0),
+    ],
+)
+def test_a_hold_account_is_charged_once_per_second_and_regained_slowly(
+    charges: list[tuple[float, float]], now: float, left: float
+) -> None:
+    account = HoldAccount(5.0)
+    for start, end in charges:
+        account.charge(start, end)
+    assert account.left(now) == pytest.approx(left)
+
+
+def test_a_reader_held_whenever_it_can_be_is_held_a_tenth_of_the_time_past_its_budget() -> None:
+    account, now, held = HoldAccount(5.0), 0.0, 0.0
+    while now < 1000.0:  # hold it for all that is left, every second
+        wait = min(account.left(now), 1.0)
+        account.charge(now, now + wait)
+        held += wait
+        now += 1.0
+    assert held == pytest.approx(5.0 + HOLD_REFILL * 1000.0, rel=0.01)
+
+
+def test_a_zero_budget_never_holds() -> None:
+    assert HoldAccount(0.0).left(123.0) == 0.0
+
+
+@pytest.mark.parametrize(
+    ("backlog", "after", "reading"),
+    [
+        (12 * MiB, 12 * MiB, False),  # took nothing
+        (12 * MiB, 12 * MiB - 128 * 1024, False),  # 64 KB every 0.5 s: 1 % of 10 MB/s
+        (12 * MiB, 12 * MiB - 900 * 1000, True),  # a viewer at three 300 KB frames a second
+        (12 * MiB, int(12 * MiB * (1 - READING_SHARE)), True),
+        (12 * MiB, 0, True),  # caught up
+        (1 * MiB, 1 * MiB - 64 * 1024, True),  # a small backlog: a small share
+    ],
+)
+def test_reading_is_a_useful_share_of_the_backlog(backlog: int, after: int, reading: bool) -> None:
+    window = ReadingWindow(backlog, 10.0)
+    assert window.ends == 10.0 + INPUT_STALL_S
+    assert window.reading(after) is reading
+
+
+@pytest.mark.parametrize(
+    ("prefixes", "slow", "peer", "until"),
+    [
+        (HostPrefixes(), "192.0.2.7:4000", "192.0.2.7:4001", 30.0),  # reconnected
+        (HostPrefixes(), "192.0.2.7:4000", "192.0.2.8:4001", -math.inf),
+        (HostPrefixes(v4=24), "192.0.2.7:4000", "192.0.2.8:4001", 30.0),  # its /24
+        (HostPrefixes(), "[2001:db8::1]:4000", "[2001:db8::2]:9", 30.0),  # its /64
+        (HostPrefixes(), "[2001:db8::1]:4000", "[2001:db8:0:1::1]:9", -math.inf),
+        (HostPrefixes(), "memory", "memory", 30.0),
+    ],
+)
+def test_a_slow_host_cools_down_across_its_connections(
+    prefixes: HostPrefixes, slow: str, peer: str, until: float
+) -> None:
+    cool_downs = HostCoolDowns(prefixes)
+    cool_downs.cool(cool_downs.host(slow), 30.0, now=10.0)
+    assert cool_downs.until(cool_downs.host(peer)) == until
+
+
+def test_cool_downs_keep_the_latest_end_and_forget_expired_hosts() -> None:
+    cool_downs = HostCoolDowns(HostPrefixes())
+    cool_downs.cool("192.0.2.1", 30.0, now=10.0)
+    cool_downs.cool("192.0.2.1", 20.0, now=11.0)  # found slow again: the later end stays
+    assert cool_downs.until("192.0.2.1") == 30.0
+    cool_downs.cool("192.0.2.2", 60.0, now=40.0)  # the first one's is over: it goes
+    assert cool_downs.until("192.0.2.1") == -math.inf
+    assert len(cool_downs._until) == 1
