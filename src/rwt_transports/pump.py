@@ -40,8 +40,8 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   (they are never dropped), so a peer sending garbage faster than it reads the
   answers is slowed, not buffered without bound. A link's queue for the other
   middleware is waited for in the same way (``OutboundHold``), and a link's
-  deliveries are held as a reader's (``InboundBatch``); the accounting is
-  ``holding``'s;
+  deliveries are held as a reader's, per topic (``InboundBatch``); the
+  accounting is ``holding``'s;
 - fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
   ``READ_SLICE_BYTES`` bytes, then pauses its socket and yields to the loop,
   so a flood of tiny frames on one connection does not hold the others up;
@@ -88,6 +88,7 @@ __all__ = [
     "ConnectionPump",
     "DirectChannel",
     "InboundBatch",
+    "InboundHold",
     "OutboundHold",
     "SessionHost",
     "flush_deferred",
@@ -305,25 +306,41 @@ def flush_deferred() -> None:
             pump._flush_deferred()
 
 
-async def _hold_backlogged(reader: ConnectionPump | None) -> None:
-    """Wait for the outboxes the last batch pushed over their high watermark.
-
-    ``reader`` is the connection whose frames made the batch (its socket is
-    paused meanwhile), or None for a link's deliveries (``InboundBatch``).
-    """
+def _take_backlogged() -> list[Held]:
+    """The outboxes the deliveries since the last take pushed over their high watermark."""
     deferred = _deferred
     backlogged = deferred.backlogged
-    if not backlogged:
-        return
-    deferred.backlogged = []
-    for held in backlogged:
-        held._backlogged = False
-    for held in backlogged:
+    if backlogged:
+        deferred.backlogged = []
+        for held in backlogged:
+            held._backlogged = False
+    return backlogged
+
+
+async def _hold_backlogged(reader: ConnectionPump) -> None:
+    """Wait for the outboxes the reader's last batch pushed over their high watermark.
+
+    Its socket is paused meanwhile.
+    """
+    for held in _take_backlogged():
         own = held is reader
         if held._over_water(own=own, mark=held._high_water):
-            if reader is not None and reader._pausable is not None:
+            if reader._pausable is not None:
                 reader._pausable.pause_reading()
             await wait_for(held, own=own)
+
+
+class InboundHold:
+    """The subscribers some of a link's deliveries congested (``InboundBatch.take_hold``)."""
+
+    def __init__(self, backlogged: list[Held]) -> None:
+        self._backlogged = backlogged
+
+    async def wait(self) -> None:
+        """Wait until each is under its low watermark, within its hold budget (``holding``)."""
+        for held in self._backlogged:
+            if held._over_water(own=False, mark=held._high_water):
+                await wait_for(held, own=False)
 
 
 class InboundBatch:
@@ -332,11 +349,13 @@ class InboundBatch:
     A link's samples come from no connection, yet fill subscribers' outboxes as
     a publisher's frames do. Between ``begin`` and ``end`` the subscribers they
     push over their high watermark are noted and their frames held for one
-    write each (as in a reader's batch); ``hold`` then waits for those outboxes
-    to drain to their low watermark, each within its hold budget, so a burst
-    from another process reaches a subscriber that keeps up on average whole,
-    and a slow one is left to the drop and close rules (D24) once its budget is
-    spent, as with a local publisher.
+    write each (as in a reader's batch). ``take_hold`` hands the link what the
+    deliveries since its last call congested, for the link to hold back the
+    topic they were of (``rwt_graph.topic_holds``) until those outboxes drain
+    to their low watermark, each within its hold budget: a burst from another
+    process reaches a subscriber that keeps up on average whole, a slow one is
+    left to the drop and close rules (D24) once its budget is spent, as with a
+    local publisher, and the link's other topics go on meanwhile.
     """
 
     def begin(self) -> None:
@@ -349,12 +368,13 @@ class InboundBatch:
         flush_deferred()
 
     def congested(self) -> bool:
-        """Whether a delivery since ``begin`` pushed a subscriber over its high watermark."""
+        """Whether a delivery since the last ``take_hold`` pushed an outbox over its high mark."""
         return bool(_deferred.backlogged)
 
-    async def hold(self) -> None:
-        """Wait for the subscribers the batch congested, within their hold budgets."""
-        await _hold_backlogged(None)
+    def take_hold(self) -> InboundHold | None:
+        """What the deliveries since the last call congested, to wait for; None if nothing."""
+        backlogged = _take_backlogged()
+        return InboundHold(backlogged) if backlogged else None
 
 
 class OutboundHold:
