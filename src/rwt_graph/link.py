@@ -27,11 +27,14 @@ same rules, written here once:
   the link knows its durability, and handed over to its publisher once known,
   so a late subscriber gets a latched sample whichever came first.
 - **Backpressure.** A link hands its samples to the graph in batches, each
-  between ``Graph.port.inflow.begin()`` and ``end()``, and awaits its
-  ``hold()`` after each: while a local subscriber's outbox is
-  congested, within its hold budget, the link takes no more (its own queue then
-  holds the other middleware back), as a publishing connection's reader waits
-  (docs/limits.md). Without a server the gate is open (``OPEN_GATE``).
+  between ``Graph.port.inflow.begin()`` and ``end()``. A delivery that pushed a
+  local subscriber's outbox over its high watermark holds back its topic
+  (``topic_holds.TopicHolds``): that topic's later samples wait in the link,
+  in order, until the outbox is under its low watermark, within its hold
+  budget, as a publishing connection's reader waits (docs/limits.md); the
+  link's queue then holds the other middleware back. Every other topic, and
+  every event that is no sample, goes on meanwhile: a slow reader of one topic
+  holds no other. Without a server the gate is open (``OPEN_GATE``).
   Outward, a link whose own queue for the other middleware (a ``Backlog``)
   passes its high watermark during a publish says so to
   ``Graph.port.outflow.congested``; the publishing connection's reader then
@@ -73,6 +76,7 @@ __all__ = [
     "Backlog",
     "GraphLink",
     "InflowGate",
+    "InflowHold",
     "Kind",
     "LinkRules",
     "OutflowGate",
@@ -388,15 +392,24 @@ class Relays:
         self._relays.clear()
 
 
+class InflowHold(Protocol):
+    """The subscribers some deliveries congested, for a link to wait for."""
+
+    async def wait(self) -> None:
+        """Wait until they are under their low watermarks, each within its hold budget."""
+        ...
+
+
 class InflowGate(Protocol):
     """Backpressure for messages a link delivers from outside (no connection's reader).
 
     The transports install theirs on the graph they serve (``GraphCore.inflow``):
     deliveries between ``begin`` and ``end`` note every subscriber whose outbox
     they pushed over its high watermark, ``end`` writes out what they queued, and
-    ``hold`` waits until those outboxes are back under their low watermark, each
-    within its hold budget (docs/limits.md, "Backpressure"), as a publishing
-    connection's reader does.
+    ``take_hold`` hands over what was noted, for the link to hold the topic back
+    until those outboxes are under their low watermark, each within its hold
+    budget (docs/limits.md, "Backpressure"), as a publishing connection's
+    reader is held.
     """
 
     def begin(self) -> None:
@@ -408,16 +421,16 @@ class InflowGate(Protocol):
         ...
 
     def congested(self) -> bool:
-        """Whether a delivery of this batch congested a subscriber: end the batch there.
+        """Whether a delivery since the last ``take_hold`` congested a subscriber.
 
-        A link checks it after each delivery, so a batch overshoots a subscriber's
-        high watermark by one message, not by a batch (a reader's slice is small
-        anyway), and stays under its send buffer limit.
+        A link asks after each delivery, so a held topic overshoots a
+        subscriber's high watermark by one message, not by a batch, and stays
+        under its send buffer limit.
         """
         ...
 
-    async def hold(self) -> None:
-        """Wait for the subscribers the batch congested, within their hold budgets."""
+    def take_hold(self) -> InflowHold | None:
+        """What the deliveries since the last call congested, to wait for; None if nothing."""
         ...
 
 
@@ -433,8 +446,8 @@ class _OpenGate:
     def congested(self) -> bool:
         return False
 
-    async def hold(self) -> None:
-        pass
+    def take_hold(self) -> InflowHold | None:
+        return None
 
 
 OPEN_GATE: InflowGate = _OpenGate()

@@ -7,6 +7,10 @@ the link's task runs queued callbacks in order (``drain``). Samples beyond
 (``rwt_graph.ratelog``), so a ROS 2 publisher faster than the bridge cannot
 exhaust memory; replies and graph events are never dropped (they are small and
 each answers something this process asked for).
+
+A topic whose delivery congested a subscriber is held back alone
+(``rwt_graph.topic_holds``): its samples wait, still counted here, while every
+other topic's go on.
 """
 
 from __future__ import annotations
@@ -18,8 +22,11 @@ import threading
 from collections import deque
 from typing import TYPE_CHECKING
 
+import anyio
+
 from rwt_graph.link import OPEN_GATE
 from rwt_graph.ratelog import EpisodeLog
+from rwt_graph.topic_holds import TopicHolds
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -35,6 +42,9 @@ MAX_QUEUED_BYTES = 64 * 1024 * 1024
 
 _BATCH = 1000
 
+_Event = tuple["Callable[..., None]", tuple[object, ...], int, str]
+"""A queued callback, its arguments, its bytes and its topic ("" if no sample)."""
+
 
 class Handoff:
     """A byte-bounded queue of callbacks from other threads to one event loop's task.
@@ -47,7 +57,7 @@ class Handoff:
         self.max_bytes = max_bytes
         self.queued_bytes = 0
         self.dropped = 0
-        self._events: deque[tuple[Callable[..., None], tuple[object, ...], int]] = deque()
+        self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: asyncio.Event | None = None
@@ -84,7 +94,7 @@ class Handoff:
                 )
                 return False
             self.queued_bytes += size
-            self._events.append((callback, args, size))
+            self._events.append((callback, args, size, topic))
             signal = not self._signalled
             self._signalled = True
         loop, wake = self._loop, self._wake
@@ -96,41 +106,55 @@ class Handoff:
     async def drain(self, gate: Callable[[], InflowGate] = lambda: OPEN_GATE) -> None:
         """Run queued callbacks in order, in this task, until cancelled.
 
-        Each batch runs inside ``gate()`` (the graph's ``InflowGate``), and the
-        subscribers it congested are waited for before the next, within their
-        hold budgets (``rwt_graph.link``, "Backpressure"). Errors of a callback
+        Each batch runs inside ``gate()`` (the graph's ``InflowGate``); a sample
+        that congested a subscriber holds its topic back (``TopicHolds``) until
+        that subscriber drains, within its hold budget (``rwt_graph.link``,
+        "Backpressure"), while the other topics go on. Errors of a callback
         are logged; the others still run.
         """
         self._loop = asyncio.get_running_loop()
         wake = self._wake = asyncio.Event()
         wake.set()  # whatever was queued before the loop was known
-        while True:
-            await wake.wait()
-            wake.clear()
-            with self._lock:
-                self._signalled = False
-            while self._events:
-                inflow = gate()
-                inflow.begin()
-                try:
-                    self._run_batch(inflow)
-                finally:
-                    inflow.end()
-                await inflow.hold()
-                if self._events:
-                    await asyncio.sleep(0)  # a flood: let the servers send meanwhile
+        async with anyio.create_task_group() as tg:
+            holds: TopicHolds[_Event] = TopicHolds(tg.start_soon, self._resume)
+            while True:
+                await wake.wait()
+                wake.clear()
+                with self._lock:
+                    self._signalled = False
+                while self._events:
+                    inflow = gate()
+                    inflow.begin()
+                    try:
+                        self._run_batch(inflow, holds)
+                    finally:
+                        inflow.end()
+                    if self._events:
+                        await asyncio.sleep(0)  # a flood: let the servers send meanwhile
 
-    def _run_batch(self, inflow: InflowGate) -> None:
+    def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
         for _ in range(min(len(self._events), _BATCH)):
             with self._lock:
-                callback, args, size = self._events.popleft()
+                event = self._events.popleft()
+            callback, args, size, topic = event
+            if topic and holds.park(topic, event):
+                continue  # still counted in ``queued_bytes``: it waits here
+            with self._lock:
                 self.queued_bytes -= size
             try:
                 callback(*args)
             except Exception:
                 logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
-            if inflow.congested():  # hold before the next delivery overshoots its limit
+            holds.delivered(topic or None, inflow)
+
+    def _resume(self, events: list[_Event]) -> None:
+        """Put a held topic's samples back at the front, oldest first (on the loop)."""
+        with self._lock:
+            if self._closed:
                 return
+            self._events.extendleft(reversed(events))
+        if self._wake is not None:
+            self._wake.set()
 
     def close(self) -> None:
         """Refuse new work and forget what is queued."""

@@ -41,8 +41,8 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   (they are never dropped), so a peer sending garbage faster than it reads the
   answers is slowed, not buffered without bound. A link's queue for the other
   middleware is waited for in the same way (``OutboundHold``), and a link's
-  deliveries are held as a reader's (``InboundBatch``); the accounting is
-  ``holding``'s;
+  deliveries are held as a reader's, per topic (``InboundBatch``); the
+  accounting is ``holding``'s;
 - fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
   ``READ_SLICE_BYTES`` bytes, then pauses its socket and yields to the loop,
   so a flood of tiny frames on one connection does not hold the others up;
@@ -90,6 +90,7 @@ __all__ = [
     "ConnectionPump",
     "DirectChannel",
     "InboundBatch",
+    "InboundHold",
     "OutboundHold",
     "SessionHost",
     "flush_deferred",
@@ -307,26 +308,43 @@ def flush_deferred() -> None:
             pump._flush_deferred()
 
 
-async def _hold_backlogged(reader: ConnectionPump | None, account: HoldAccount) -> None:
-    """Wait for the outboxes the last batch pushed over their high watermark.
-
-    ``reader`` is the connection whose frames made the batch (its socket is
-    paused meanwhile), or None for a link's deliveries (``InboundBatch``);
-    ``account`` is its hold budget, charged for every outbox it waits for.
-    """
+def _take_backlogged() -> list[Held]:
+    """The outboxes the deliveries since the last take pushed over their high watermark."""
     deferred = _deferred
     backlogged = deferred.backlogged
-    if not backlogged:
-        return
-    deferred.backlogged = []
-    for held in backlogged:
-        held._backlogged = False
-    for held in backlogged:
+    if backlogged:
+        deferred.backlogged = []
+        for held in backlogged:
+            held._backlogged = False
+    return backlogged
+
+
+async def _hold_backlogged(reader: ConnectionPump, account: HoldAccount) -> None:
+    """Wait for the outboxes the reader's last batch pushed over their high watermark.
+
+    Its socket is paused meanwhile; ``account`` is its hold budget, charged for
+    every outbox it waits for.
+    """
+    for held in _take_backlogged():
         own = held is reader
         if held._over_water(own=own, mark=held._high_water):
-            if reader is not None and reader._pausable is not None:
+            if reader._pausable is not None:
                 reader._pausable.pause_reading()
             await wait_for(held, own=own, account=account)
+
+
+class InboundHold:
+    """The subscribers some of a link's deliveries congested (``InboundBatch.take_hold``)."""
+
+    def __init__(self, backlogged: list[Held], account: HoldAccount) -> None:
+        self._backlogged = backlogged
+        self._account = account
+
+    async def wait(self) -> None:
+        """Wait until each is under its low watermark, within the links' hold budget."""
+        for held in self._backlogged:
+            if held._over_water(own=False, mark=held._high_water):
+                await wait_for(held, own=False, account=self._account)
 
 
 class InboundBatch:
@@ -335,11 +353,14 @@ class InboundBatch:
     A link's samples come from no connection, yet fill subscribers' outboxes as
     a publisher's frames do. Between ``begin`` and ``end`` the subscribers they
     push over their high watermark are noted and their frames held for one
-    write each (as in a reader's batch); ``hold`` then waits for those outboxes
-    to drain to their low watermark, within one hold budget for all the
-    links' deliveries, so a burst from another process reaches a subscriber
-    that keeps up on average whole, and a slow one is left to the drop and
-    close rules (D24), as with a local publisher.
+    write each (as in a reader's batch). ``take_hold`` hands the link what the
+    deliveries since its last call congested, for the link to hold back the
+    topic they were of (``rwt_graph.topic_holds``) until those outboxes drain
+    to their low watermark, within one hold budget for all the links'
+    deliveries: a burst from another process reaches a subscriber that keeps
+    up on average whole, a slow one is left to the drop and close rules (D24)
+    once the budget is spent, as with a local publisher, and the link's other
+    topics go on meanwhile.
 
     One per served graph, it also keeps the hosts' hold cool-downs that the
     graph's connections share (``holding.HostCoolDowns``).
@@ -365,12 +386,13 @@ class InboundBatch:
         flush_deferred()
 
     def congested(self) -> bool:
-        """Whether a delivery since ``begin`` pushed a subscriber over its high watermark."""
+        """Whether a delivery since the last ``take_hold`` pushed an outbox over its high mark."""
         return bool(_deferred.backlogged)
 
-    async def hold(self) -> None:
-        """Wait for the subscribers the batch congested, within their hold budgets."""
-        await _hold_backlogged(None, self.account)
+    def take_hold(self) -> InboundHold | None:
+        """What the deliveries since the last call congested, to wait for; None if nothing."""
+        backlogged = _take_backlogged()
+        return InboundHold(backlogged, self.account) if backlogged else None
 
 
 class OutboundHold:

@@ -39,6 +39,7 @@ from rwt_graph.calls import guarded
 from rwt_graph.link import PRIVATE_NAMES, Kind, LinkRules, Relays, mirror_endpoint
 from rwt_graph.nodes import CLIENT_NODE_PREFIX
 from rwt_graph.ratelog import EpisodeLog
+from rwt_graph.topic_holds import TopicHolds
 from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
@@ -84,6 +85,9 @@ logger = logging.getLogger("rwt.zenoh")
 
 PARTICIPANT_PREFIX = "zenoh:"
 """Participant ids of the link: remote entities, its relays and its caller."""
+
+_Event = tuple["Callable[..., None]", tuple[object, ...], str]
+"""A callback for the link's task, its arguments and its sample's topic ("" if none)."""
 
 _DRAIN_BATCH = 1000
 _SWEEP_DUTY = 10  # a sweep that took t seconds is followed by a pause of at least 10 t
@@ -246,7 +250,7 @@ class ZenohLink:
         self.clients = ClientEntities(self)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: asyncio.Event | None = None
-        self._events: deque[tuple[Callable[..., None], tuple[object, ...]]] = deque()
+        self._events: deque[_Event] = deque()
         self._signalled = False
         self.peer_log = EpisodeLog(logger)
         self._inbox = Inbox(queue_bytes, drop_log=EpisodeLog(logger))  # on Zenoh's threads
@@ -301,33 +305,46 @@ class ZenohLink:
         (an async in-process service), which needs a task's context.
         """
         assert self._wake is not None
+        wake = self._wake
         events = self._events
-        while True:
-            await self._wake.wait()
-            self._signalled = False
-            self._wake.clear()
-            while events:
-                # A batch at a time, then others run (during a flood); one yield per
-                # batch, not per event: a checkpoint per sample was a quarter of B's
-                # time in Z3 (benchmarks/README.md, "Scaling out"). A batch ends early
-                # after _DRAIN_BYTES of samples, so large ones (images) do not hold
-                # the loop for long. Subscribers it congested are waited for, within
-                # their hold budgets, before the next (``InflowGate``): the inbox then
-                # fills and holds the peer back, so a burst arrives whole.
-                self._drained_bytes = 0
-                gate = self.graph.port.inflow
-                gate.begin()
-                try:
-                    for _ in range(min(len(events), _DRAIN_BATCH)):
-                        callback, args = events.popleft()
-                        self._guarded(callback, *args)
-                        if self._drained_bytes >= _DRAIN_BYTES or gate.congested():
-                            break
-                finally:
-                    gate.end()
-                await gate.hold()
-                if events:
-                    await asyncio.sleep(0)
+
+        def resume(held: list[_Event]) -> None:  # a held topic's samples, oldest first
+            events.extendleft(reversed(held))
+            wake.set()
+
+        async with anyio.create_task_group() as tg:
+            holds: TopicHolds[_Event] = TopicHolds(tg.start_soon, resume)
+            while True:
+                await wake.wait()
+                self._signalled = False
+                wake.clear()
+                while events:
+                    # A batch at a time, then others run (during a flood); one yield per
+                    # batch, not per event: a checkpoint per sample was a quarter of B's
+                    # time in Z3 (benchmarks/README.md, "Scaling out"). A batch ends early
+                    # after _DRAIN_BYTES of samples, so large ones (images) do not hold
+                    # the loop for long. A sample that congested a subscriber holds its
+                    # topic back until that subscriber drains, within its hold budget
+                    # (``TopicHolds``): the topic's samples wait in the inbox, which
+                    # fills and holds the peer back, so a burst arrives whole; the other
+                    # topics go on meanwhile.
+                    self._drained_bytes = 0
+                    gate = self.graph.port.inflow
+                    gate.begin()
+                    try:
+                        for _ in range(min(len(events), _DRAIN_BATCH)):
+                            event = events.popleft()
+                            callback, args, topic = event
+                            if topic and holds.park(topic, event):
+                                continue
+                            self._guarded(callback, *args)
+                            holds.delivered(topic or None, gate)
+                            if self._drained_bytes >= _DRAIN_BYTES:
+                                break
+                    finally:
+                        gate.end()
+                    if events:
+                        await asyncio.sleep(0)
 
     def _close(self) -> None:
         self._closed = True
@@ -357,16 +374,17 @@ class ZenohLink:
         self._by_gid.clear()
         self._relays.close()
 
-    def _soon(self, callback: Callable[..., None], *args: object) -> None:
+    def _soon(self, callback: Callable[..., None], *args: object, topic: str = "") -> None:
         """Run ``callback(*args)`` in the link's task (called from Zenoh's threads).
 
         For tokens, replies and queries, which are never dropped; samples go
-        through ``soon_sample``, bounded in bytes.
+        through ``soon_sample``, bounded in bytes, which names their ``topic``
+        (``TopicHolds`` holds it back while it congests a subscriber).
         """
         loop, wake = self._loop, self._wake
         if loop is None or wake is None or self._closed:
             return
-        self._events.append((callback, args))
+        self._events.append((callback, args, topic))
         if not self._signalled:
             self._signalled = True
             with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
@@ -488,7 +506,7 @@ class ZenohLink:
             return
         wait_s = RELIABLE_WAIT_S if reliable else 0.0
         if self._inbox.put(key, Sample(deliver, payload, attachment), wait_s=wait_s):
-            self._soon(self._take_sample, key)
+            self._soon(self._take_sample, key, topic=key)
 
     def _take_sample(self, key: str) -> None:
         sample = self._inbox.take(key)

@@ -10,6 +10,8 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   latched TOPIC [NODE]  one transient-local std_msgs/String "latched" ("latched by NODE"
                         when named), then idles
   image TOPIC           sensor_msgs/Image 8x4 rgb8 (a red left half) every 50 ms
+  camodom TOPIC         sensor_msgs/Image of 100 KB (mono8 320x320) on TOPIC every 10 ms
+                        and std_msgs/String "n" (a count) on /odom every 20 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
   serve SERVICE         a std_srvs/SetBool server: message "ros2 got <data>"
@@ -106,6 +108,13 @@ def main() -> None:
         row = bytes([255, 0, 0] * 4 + [0, 0, 255] * 4)
         frame = Image(height=4, width=8, encoding="rgb8", step=24, data=row * 4)
         tick = lambda: pub.publish(frame)  # noqa: E731
+    elif mode == "camodom":
+        cam = node.create_publisher(Image, name, 10)
+        odom = node.create_publisher(String, "/odom", 10)
+        image = Image(height=320, width=320, encoding="mono8", step=320, data=bytes(320 * 320))
+        count = iter(range(10**9))
+        node.create_timer(0.01, lambda: cam.publish(image))
+        node.create_timer(0.02, lambda: odom.publish(String(data=str(next(count)))))
     elif mode == "garbage":
         pub = node.create_publisher(String, name, 10)
         tick = lambda: pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7fgarbage")  # noqa: E731
