@@ -9,17 +9,26 @@ their bytes came; meanwhile the older connection's later publish is handled and
 the new subscriber misses it.
 
 So a starting connection holds a ``Ticket`` from the moment the server may read
-it without waiting on the peer (plain TCP: accept; WebSocket: the upgrade
-response) until its reader has handled its first input. A reader of any other
-connection that got input asks, before handling it, whether a starting
-connection has input waiting (queued, or readable in the kernel: one ``poll``
-each) or is still being set up, and if so waits for it (``wait_for_new``).
-Whatever the older connection got after the new one's first frames arrived is
-then handled after them. A ticket counts for ``START_WAIT_S`` at most, and a
-reader waits at most as long (docs/limits.md): a ticket is never waited on while
-its connection waits for its peer, so the bound is a safety net, and a client
-that connects and says nothing costs the others one ``poll`` per batch for that
-time.
+it without waiting on the peer (plain TCP: accept; TLS: the end of its
+handshake; WebSocket, plain or over TLS: the upgrade response) until its reader
+has handled its first input. A reader of any other connection that got input
+asks, before handling it, whether a starting connection has input waiting or is
+still being set up, and if so waits for it (``wait_for_new``). Whatever the
+older connection got after the new one's first frames arrived is then handled
+after them. Starting connections wait so for the tickets taken before theirs
+(two clients that connect and then talk to each other, as roslibjs test suites
+do). A ticket counts for ``START_WAIT_S`` at most, and a reader waits at most as
+long (docs/limits.md): a ticket is never waited on while its connection waits
+for its peer, so the bound is a safety net, and a client that connects and says
+nothing costs the others one ``poll`` per batch for that time.
+
+Whether input waits is told by the channel's probe (``stream_probe``): bytes in
+the kernel (one ``poll``), decrypted TLS bytes not read yet, and the direct
+reader's queue. Without the ``direct-read`` shortcut, anyio may hold a chunk it
+read for a reader that was waiting and is woken but has not run yet; a probe
+that cannot see such buffers says so (None), and the asking reader lets the loop
+turn once before it looks again: the woken reader then runs first, as it was
+scheduled first. So the order does not depend on a shortcut or on TLS.
 
 Per thread, as an event loop is (``anyio.Event`` belongs to one loop).
 """
@@ -27,15 +36,32 @@ Per thread, as an event loop is (``anyio.Event`` belongs to one loop).
 from __future__ import annotations
 
 import contextvars
+import itertools
+import select
 import threading
 from typing import TYPE_CHECKING
 
 import anyio
+import anyio.lowlevel
+from anyio.abc import SocketAttribute
+from anyio.streams.tls import TLSAttribute
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-__all__ = ["START_WAIT_S", "Ticket", "current_ticket", "hold", "starting", "wait_for_new"]
+    from anyio.abc import ByteStream
+
+    from .direct import DirectReader
+
+__all__ = [
+    "START_WAIT_S",
+    "Ticket",
+    "current_ticket",
+    "hold",
+    "starting",
+    "stream_probe",
+    "wait_for_new",
+]
 
 START_WAIT_S = 0.5
 """Seconds a starting connection's ticket counts, and most a reader waits for tickets."""
@@ -48,20 +74,23 @@ class _Starting(threading.local):
 
 
 _state = _Starting()
+_order = itertools.count()  # tickets in the order taken (any thread: count is atomic)
 
 
 class Ticket:
     """A starting connection whose first input is not handled yet.
 
     Until ``watch`` gives it a probe, the connection is being set up and counts
-    as having input. ``release`` is idempotent.
+    as having input. ``release`` is idempotent. Tickets are ordered by when they
+    were taken (``hold``).
     """
 
-    __slots__ = ("_probe", "_since")
+    __slots__ = ("_probe", "_seq", "_since")
 
     def __init__(self) -> None:
-        self._probe: Callable[[], bool] | None = None
+        self._probe: Callable[[], bool | None] | None = None
         self._since = anyio.current_time()
+        self._seq = next(_order)
         _state.tickets.add(self)
 
     @property
@@ -76,8 +105,11 @@ class Ticket:
         """
         _CURRENT.set(self)
 
-    def watch(self, probe: Callable[[], bool]) -> None:
-        """The reader is ready: ``probe()`` tells whether input is waiting for it."""
+    def watch(self, probe: Callable[[], bool | None]) -> None:
+        """The reader is ready: ``probe()`` tells whether input is waiting for it.
+
+        The probe answers None when input may wait where it cannot see (``stream_probe``).
+        """
         self._probe = probe
 
     def release(self) -> None:
@@ -90,13 +122,16 @@ class Ticket:
             state.released.set()
             state.released = None
 
-    def _ahead(self, now: float) -> bool:
-        """Whether input of this connection may have come before a reader's: wait for it."""
+    def _ahead(self, now: float) -> bool | None:
+        """Whether input of this connection may have come before a reader's: wait for it.
+
+        None: the probe cannot see every buffer (``stream_probe``).
+        """
         if now - self._since > START_WAIT_S:
             self.release()  # a client that says nothing is not probed for ever
             return False
         probe = self._probe
-        return probe is None or probe()
+        return True if probe is None else probe()
 
 
 _CURRENT: contextvars.ContextVar[Ticket | None] = contextvars.ContextVar(
@@ -120,15 +155,71 @@ def starting() -> bool:
     return bool(_state.tickets)
 
 
-async def wait_for_new() -> None:
-    """Wait while a starting connection has input to handle first, at most ``START_WAIT_S``."""
+async def wait_for_new(own: Ticket | None = None) -> None:
+    """Wait while a starting connection has input to handle first, at most ``START_WAIT_S``.
+
+    ``own``: the ticket of the reader's own connection if it is starting too;
+    it then waits only for the tickets taken before it, so two starting
+    connections never wait for each other.
+    """
     state = _state
     deadline = anyio.current_time() + START_WAIT_S
+    turned = False  # the loop turned once for probes that cannot see every buffer
     while True:
         now = anyio.current_time()
-        if now >= deadline or not any(ticket._ahead(now) for ticket in list(state.tickets)):
+        if now >= deadline:
             return
+        blind = False
+        ahead = False
+        for ticket in list(state.tickets):
+            if ticket is own or (own is not None and ticket._seq > own._seq):
+                continue
+            answer = ticket._ahead(now)
+            if answer:
+                ahead = True
+                break
+            blind = blind or answer is None
+        if not ahead:
+            if not blind or turned:
+                return
+            turned = True  # a woken reader runs before this one's next step
+            await anyio.lowlevel.checkpoint()
+            continue
         if state.released is None:
             state.released = anyio.Event()
         with anyio.move_on_after(deadline - now):
             await state.released.wait()
+
+
+def stream_probe(stream: ByteStream, reader: DirectReader | None) -> Callable[[], bool | None]:
+    """The probe of a socket stream's input (``Ticket.watch``), plain or TLS.
+
+    Args:
+        stream: the connection's anyio stream (a socket stream, or TLS over one).
+        reader: its direct reader, when the ``direct-read`` shortcut serves it.
+
+    Returns:
+        a function answering True when input waits (in the kernel: one ``poll``;
+        in the TLS object; in the direct reader's queue), False when none does,
+        and None when none is seen but anyio may hold some for a woken reader
+        (its own stream, without the direct reader).
+    """
+    sock = stream.extra(SocketAttribute.raw_socket, None)
+    ssl_object = stream.extra(TLSAttribute.ssl_object, None)
+    # The direct reader sees anyio's queue, and only a plain socket has one.
+    seen = reader is not None and ssl_object is None
+
+    def probe() -> bool | None:
+        if reader is not None and reader.input_pending():
+            return True
+        if ssl_object is not None and ssl_object.pending():
+            return True
+        if sock is None or sock.fileno() < 0:
+            return True  # closed: its reader learns so at once
+        poller = select.poll()
+        poller.register(sock.fileno(), select.POLLIN)
+        if poller.poll(0):
+            return True
+        return False if seen else None
+
+    return probe

@@ -44,8 +44,8 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   deliveries are held as a reader's, per topic (``InboundBatch``); the
   accounting is ``holding``'s;
 - fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
-  ``READ_SLICE_BYTES`` bytes, then pauses its socket and yields to the loop,
-  so a flood of tiny frames on one connection does not hold the others up;
+  ``READ_SLICE_BYTES`` bytes, then yields to the loop for a turn, so a flood
+  of tiny frames on one connection does not hold the others up;
 - jobs: a frame that left the session a job (a ``png`` op to inflate,
   ``Session.take_job``) stops the slice; the reader waits until the job's
   ``ready_at`` (the connection's own budget), runs it in a worker thread (at
@@ -173,8 +173,8 @@ class PausableChannel(Protocol):
 class ProbingChannel(Protocol):
     """A channel that can tell whether input is already here, without reading it."""
 
-    def input_pending(self) -> bool:
-        """Whether ``receive`` would return at once; False when it cannot tell."""
+    def input_pending(self) -> bool | None:
+        """Whether ``receive`` would return at once; None when it cannot tell."""
 
 
 @runtime_checkable
@@ -619,7 +619,7 @@ class ConnectionPump(Held):
         if ticket is not None:
             if isinstance(channel, ProbingChannel):
                 ticket.watch(channel.input_pending)
-            else:  # it cannot tell (TLS): it goes in turn
+            else:  # no probe (no ticket is taken for such channels): it goes in turn
                 ticket.release()
                 ticket = None
         try:
@@ -635,8 +635,8 @@ class ConnectionPump(Held):
                 events = await self.channel.receive()
             except _BROKEN:
                 return
-            if ticket is None and admission.starting():
-                await admission.wait_for_new()  # what new connections sent earlier goes first
+            if admission.starting():  # what new connections sent earlier goes first
+                await admission.wait_for_new(ticket)
             now = clock()  # the batch arrived at once: one clock read for all
             start, count = 0, len(events)
             while True:
@@ -715,10 +715,14 @@ class ConnectionPump(Held):
             await self._apply_backpressure()
 
     async def _yield_slice(self) -> None:
-        """Let the other connections run (fairness); the socket is not read meanwhile."""
+        """Let the other connections run (fairness) for one turn of the loop.
+
+        The socket stays read: a turn reads at most one more chunk, and a socket
+        paused here would be read again after the others that got input
+        meanwhile, so its frames would lose their place (arrival order,
+        admission.py).
+        """
         self._slice_frames = self._slice_bytes = 0
-        if self._pausable is not None:
-            self._pausable.pause_reading()
         await anyio.lowlevel.checkpoint()
 
     async def _apply_backpressure(self) -> None:

@@ -562,9 +562,18 @@ class RosbridgeServer:
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)
         transport = "tls" if self.config.certfile is not None else "tcp"
-        await serve_tcp_connection(
-            stream, peer, self, self.config.max_message_size, transport, self.fragment_budget
-        )
+        # TLS: from the end of its handshake the client may send; that goes first
+        # (admission.py). Plain TCP holds its ticket from accept.
+        ticket = admission.hold() if transport == "tls" else None
+        if ticket is not None:
+            ticket.serve()
+        try:
+            await serve_tcp_connection(
+                stream, peer, self, self.config.max_message_size, transport, self.fragment_budget
+            )
+        finally:
+            if ticket is not None:
+                ticket.release()
 
     async def _run_stdio(self, connections: TaskGroup) -> None:
         read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())

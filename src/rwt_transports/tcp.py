@@ -105,6 +105,7 @@ class StreamChannel:
         self._ended = False
         self._direct = DirectWriter.for_stream(stream)
         self._reader = DirectReader.for_stream(stream)
+        self._probe = admission.stream_probe(stream, self._reader)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read the next chunk and return the frames it completes."""
@@ -127,12 +128,12 @@ class StreamChannel:
         """Free the frame still arriving and give its bytes back to the budget."""
         self._framer.release()
 
-    def input_pending(self) -> bool:
+    def input_pending(self) -> bool | None:
         """Whether input is here already (a new connection's first read, admission.py).
 
-        False when that cannot be told without reading (TLS, anyio's own stream).
+        None when none is seen but anyio may hold some (``admission.stream_probe``).
         """
-        return self._reader is not None and self._reader.input_pending()
+        return self._probe()
 
     def pause_reading(self) -> None:
         """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).

@@ -145,6 +145,7 @@ class WebSocketChannel:
         self._lock = anyio.Lock(fast_acquire=True)
         self._direct = DirectWriter.for_stream(stream)
         self._reader = DirectReader.for_stream(stream)
+        self._probe = admission.stream_probe(stream, self._reader)
         # ``ws-frame-writer``: off, websockets frames every data message.
         self._frame_here = enabled("ws-frame-writer")
         self.frames: FrameReader | None = None
@@ -206,12 +207,12 @@ class WebSocketChannel:
             return await self._read()
         raise anyio.EndOfStream
 
-    def input_pending(self) -> bool:
+    def input_pending(self) -> bool | None:
         """Whether input is here already (a new connection's first read, admission.py).
 
-        False when that cannot be told without reading (TLS, anyio's own stream).
+        None when none is seen but anyio may hold some (``admission.stream_probe``).
         """
-        return self._reader is not None and self._reader.input_pending()
+        return self._probe()
 
     def pause_reading(self) -> None:
         """Stop reading the socket until ``receive`` must wait (input backpressure, pump.py).
@@ -424,9 +425,14 @@ class WebSocketChannel:
             elif not self._eof_sent:  # websockets asks for the TCP connection to end
                 # Our side only: the reader goes on until the peer's end (``receive``).
                 self._eof_sent = True
-                # TLS cannot half-close; the pump closes the stream anyway.
-                with contextlib.suppress(NotImplementedError, OSError, anyio.BrokenResourceError):
+                try:
                     await self.stream.send_eof()
+                except NotImplementedError:
+                    # TLS cannot half-close: end the connection now, as RFC 6455 7.1.1
+                    # asks of the server (a client waits for it; 5 s otherwise).
+                    self._eof = True
+                except (OSError, anyio.BrokenResourceError):
+                    pass
 
     def _assemble(self, frame: Frame) -> InFrame | None:
         """Collect fragmented data frames; return a whole message when complete."""

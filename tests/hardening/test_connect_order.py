@@ -5,9 +5,9 @@ to publish (here: the same thread sends the publish right after the subscribe
 went out). The server must read the new connection before the older one's later
 publish, so the new subscriber gets the message every time, over WebSocket and
 TCP, without a pause between subscribing and publishing. Repeated, since a
-missed read order shows only now and then. The server sees a starting connection's
-input before reading it through the ``direct-read`` shortcut; with it off (and over
-TLS) the order is not guaranteed, and 15 of 100 trials missed (docs/limits.md).
+missed read order shows only now and then. With the ``direct-read`` shortcut off
+the server cannot see input anyio already read, and lets the loop turn instead
+(admission.py); the order holds either way (docs/limits.md).
 """
 
 from __future__ import annotations
@@ -15,16 +15,10 @@ from __future__ import annotations
 import anyio.to_thread
 import pytest
 
-from rwt_protocol.shortcuts import enabled
 from tests.hardening.peers import Peer, open_peer, settle
 from tests.transports.clients import Harness
 
-pytestmark = [
-    pytest.mark.anyio,
-    # Seeing a starting connection's input before reading it takes the direct reader
-    # (docs/limits.md): with anyio's own stream the order is not guaranteed.
-    pytest.mark.skipif(not enabled("direct-read"), reason="the direct-read shortcut is off"),
-]
+pytestmark = pytest.mark.anyio
 
 TRIALS = 100
 TOPIC = "/order"
