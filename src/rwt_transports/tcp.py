@@ -22,6 +22,7 @@ from . import admission
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
+from .writes import coalesce
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -41,10 +42,6 @@ _CLOSE_LIMIT_S = 1.0
 _TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections")) + b"\n"
 
 
-_WRITE_BATCH = 65536
-"""Bytes of small frames joined into one write; a larger frame is written as it is."""
-
-
 def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:
     """Join outgoing frames for a byte stream: JSON text plus a newline, CBOR as is."""
     return b"".join(frame.data if frame.binary else frame.data + b"\n" for frame in frames)
@@ -53,30 +50,10 @@ def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:
 def stream_writes(frames: Sequence[OutFrame]) -> list[bytes]:
     """The writes that send ``frames`` on a byte stream, in order (``encode_stream_frames``).
 
-    Small frames are joined into writes of about ``_WRITE_BATCH`` bytes; a
-    large frame's payload, which every subscriber of its form shares, is
-    written as it is and its newline after it, so no connection copies it.
+    JSON text gets its newline, CBOR goes as is; small frames are joined and a
+    large frame's shared payload is written without a copy (``writes.coalesce``).
     """
-    writes: list[bytes] = []
-    batch: list[bytes] = []
-    size = 0
-    for frame in frames:
-        if len(frame.data) >= _WRITE_BATCH:
-            if batch:
-                writes.append(b"".join(batch))
-            writes.append(frame.data)
-            batch, size = ([], 0) if frame.binary else ([b"\n"], 1)
-            continue
-        batch.append(frame.data)
-        if not frame.binary:
-            batch.append(b"\n")
-        size += len(frame.data) + 1
-        if size >= _WRITE_BATCH:
-            writes.append(b"".join(batch))
-            batch, size = [], 0
-    if batch:
-        writes.append(b"".join(batch))
-    return writes
+    return coalesce((b"", f.data, b"" if f.binary else b"\n") for f in frames)
 
 
 class StreamChannel:

@@ -50,6 +50,7 @@ from . import admission
 from .direct import DirectReader, DirectWriter
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
+from .writes import coalesce
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
@@ -71,8 +72,6 @@ MiB = 1024 * 1024
 _READ_SIZE = 1024 * 1024
 """Most bytes taken from the stream at once: whatever the event loop has read (asyncio
 reads 256 KiB at a time), so a large message is parsed in few steps (benchmarks B4)."""
-_WRITE_BATCH = 65536
-"""Small frames are joined into writes of about this many bytes; larger frames go alone."""
 _HANDSHAKE_LIMIT_S = 10.0
 _DATA_OPCODES = (Opcode.TEXT, Opcode.BINARY, Opcode.CONT)
 _MAX_REASON = 123  # bytes of a close reason (RFC 6455 5.5: a control frame's 125, less the code)
@@ -605,32 +604,18 @@ def _framed(frames: Sequence[OutFrame]) -> list[bytes]:
     """The writes that send ``frames`` as whole WebSocket frames, in order.
 
     The header is made once and kept on the ``OutFrame``, which every
-    subscriber of the same form shares (frame once). Small frames are
-    joined into writes of about ``_WRITE_BATCH`` bytes; a large frame goes as
-    its header and its payload, without a copy of the payload.
+    subscriber of the same form shares (frame once); small frames are joined
+    and a large payload is written without a copy (``writes.coalesce``).
     """
-    writes: list[bytes] = []
-    batch: list[bytes] = []
-    size = 0
-    for frame in frames:
+
+    def parts(frame: OutFrame) -> tuple[bytes, bytes, bytes]:
         header = frame.header
         if header is None:
             header = _header(len(frame.data), frame.binary)
             object.__setattr__(frame, "header", header)  # shared: framed once for all
-        if len(frame.data) >= _WRITE_BATCH:
-            if batch:
-                writes.append(b"".join(batch))
-                batch, size = [], 0
-            writes += (header, frame.data)
-            continue
-        batch += (header, frame.data)
-        size += len(header) + len(frame.data)
-        if size >= _WRITE_BATCH:
-            writes.append(b"".join(batch))
-            batch, size = [], 0
-    if batch:
-        writes.append(b"".join(batch))
-    return writes
+        return header, frame.data, b""
+
+    return coalesce(parts(frame) for frame in frames)
 
 
 def _header(length: int, binary: bool) -> bytes:

@@ -53,8 +53,8 @@ async def harness() -> AsyncIterator[Harness]:
             yield h
 
 
-def signed(nonce: str) -> dict[str, object]:
-    """What the trusted web server hands the browser for the connection's challenge."""
+def signed(nonce: str, secret: str = SECRET) -> dict[str, object]:
+    """What the trusted web server hands the client for the connection's challenge."""
     now = time.time()
     fields = {
         "client": "127.0.0.1",
@@ -64,7 +64,7 @@ def signed(nonce: str) -> dict[str, object]:
         "level": "user",
         "end": int(now + 60),
     }
-    return {"op": "auth", "mac": bound_mac(SECRET, **fields), **fields}  # type: ignore[arg-type]
+    return {"op": "auth", "mac": bound_mac(secret, **fields), **fields}  # type: ignore[arg-type]
 
 
 async def challenge(client: Client) -> str:

@@ -23,7 +23,7 @@ import pytest
 from anyio.abc import ConnectedUDPSocket, SocketAttribute
 
 from rwt_graph.graph import Graph
-from rwt_protocol.auth import AUTH_CHALLENGE_ID, bound_mac, rosauth_op
+from rwt_protocol.auth import AUTH_CHALLENGE_ID, rosauth_op
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
@@ -35,11 +35,11 @@ from rwt_transports.udp_validation import (
     SESSION_CHALLENGE_TEXT,
 )
 from tests.transports.clients import Harness, Message, UdpClient, running_server
+from tests.transports.test_auth_bind import SECRET, signed
 from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
 
-SECRET = "1234567890abcdef"
 TIMEOUT_S = 20
 FIRST_OP_NOT_AUTH = "authentication required: the first op must be auth"
 
@@ -64,20 +64,6 @@ async def harness(graph: Graph) -> AsyncIterator[Harness]:
     with anyio.fail_after(TIMEOUT_S):
         async with running_server(bound_config(), graph=graph, authenticator=authenticator) as h:
             yield h
-
-
-def signed(nonce: str, secret: str = SECRET) -> dict[str, object]:
-    """What the trusted web server hands the client for its challenge."""
-    now = time.time()
-    fields = {
-        "client": "127.0.0.1",
-        "dest": "127.0.0.1",
-        "rand": nonce,
-        "t": int(now),
-        "level": "user",
-        "end": int(now + 60),
-    }
-    return {"op": "auth", "mac": bound_mac(secret, **fields), **fields}  # type: ignore[arg-type]
 
 
 async def validate(sock: ConnectedUDPSocket) -> tuple[bytes, str]:
