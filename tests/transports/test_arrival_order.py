@@ -19,18 +19,15 @@ import json
 import socket
 import ssl
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import Callable
 from contextlib import ExitStack
-from pathlib import Path
 from typing import Any
 
 import anyio.to_thread
 import pytest
-import trustme
 from websockets.exceptions import InvalidHandshake
 from websockets.sync.client import connect
 
-from rwt_transports.server import ServerConfig
 from tests.transports.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio
@@ -200,26 +197,6 @@ async def test_subscribers_get_a_publish_sent_after_their_subscribe(
 ) -> None:
     async with running_server() as harness:
         await _check(harness, transport, mode)
-
-
-@pytest.fixture
-def tls_files(tmp_path: Path) -> Iterator[tuple[Path, Path, trustme.CA]]:
-    ca = trustme.CA()
-    cert = ca.issue_cert("127.0.0.1", "localhost")
-    certfile, keyfile = tmp_path / "cert.pem", tmp_path / "key.pem"
-    cert.cert_chain_pems[0].write_to_path(certfile)
-    cert.private_key_pem.write_to_path(keyfile)
-    yield certfile, keyfile, ca
-
-
-@pytest.fixture
-async def tls_harness(tls_files: tuple[Path, Path, trustme.CA]) -> AsyncIterator[Harness]:
-    certfile, keyfile, ca = tls_files
-    async with running_server(ServerConfig(certfile=certfile, keyfile=keyfile)) as harness:
-        context = ssl.create_default_context()
-        ca.configure_trust(context)
-        harness.ssl_context = context
-        yield harness
 
 
 @pytest.mark.parametrize("mode", ["kept", "new"])
