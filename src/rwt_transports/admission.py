@@ -204,8 +204,9 @@ def stream_probe(stream: ByteStream, reader: DirectReader | None) -> Callable[[]
         and None when none is seen but anyio may hold some for a woken reader
         (its own stream, without the direct reader).
     """
-    sock = stream.extra(SocketAttribute.raw_socket, None)
-    ssl_object = stream.extra(TLSAttribute.ssl_object, None)
+    extra = getattr(stream, "extra", None)  # anyio's typed attributes; None on a stand-in
+    sock = extra(SocketAttribute.raw_socket, None) if extra is not None else None
+    ssl_object = extra(TLSAttribute.ssl_object, None) if extra is not None else None
     # The direct reader sees anyio's queue, and only a plain socket has one.
     seen = reader is not None and ssl_object is None
 
@@ -214,7 +215,9 @@ def stream_probe(stream: ByteStream, reader: DirectReader | None) -> Callable[[]
             return True
         if ssl_object is not None and ssl_object.pending():
             return True
-        if sock is None or sock.fileno() < 0:
+        if sock is None:  # no socket to ask
+            return False if seen else None
+        if sock.fileno() < 0:
             return True  # closed: its reader learns so at once
         poller = select.poll()
         poller.register(sock.fileno(), select.POLLIN)
