@@ -801,13 +801,30 @@ async def _contained(what: str, work: Awaitable[None]) -> None:
 
 
 def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:
-    """A server TLS context from PEM files (rosbridge's ``certfile``/``keyfile``), or None."""
+    """A server TLS context from PEM files (rosbridge's ``certfile``/``keyfile``), or None.
+
+    It issues no TLS 1.3 session tickets (``num_tickets = 0``), so a TLS 1.3
+    client cannot resume a session and makes a full handshake each time (TLS 1.2
+    resumes as before). OpenSSL sends the tickets just after the handshake, when a
+    client that reads its socket in one thread while it writes in another
+    (websockets' sync client, any client with a receive thread) has its reader
+    take them in while it writes its upgrade request or first op.
+    OpenSSL does not allow ``SSL_read`` and ``SSL_write`` on one connection at
+    the same time (https://github.com/openssl/openssl/issues/20446) and Python's
+    ``ssl`` does not serialise them: now and then (one connection in a few
+    hundred) the client's bytes were lost without an error. A wss client waited
+    for the upgrade answer until the handshake timeout closed the socket; a TLS
+    client on TCP never had its first op answered. The same race in a
+    client library: https://github.com/miguelgrinberg/python-engineio/issues/461.
+    Without tickets the reader has nothing to read until the server answers.
+    """
     if certfile is None and keyfile is None:
         return None
     if certfile is None:
         raise ConfigError("--keyfile needs --certfile")
     context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
     context.load_cert_chain(certfile, keyfile)
+    context.num_tickets = 0
     return context
 
 

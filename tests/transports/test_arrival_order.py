@@ -25,7 +25,6 @@ from typing import Any
 
 import anyio.to_thread
 import pytest
-from websockets.exceptions import InvalidHandshake
 from websockets.sync.client import connect
 
 from tests.transports.clients import Harness, running_server
@@ -39,7 +38,6 @@ TIMEOUT_S = 30.0
 MESSAGE_WAIT_S = 2.0
 """How long a subscriber waits for its round's message: a missed one never comes."""
 STRING = "std_msgs/msg/String"
-TLS_ATTEMPTS, TLS_OPEN_S = 3, 5.0
 
 Message = dict[str, Any]
 Accepted = Callable[[int], None]
@@ -84,22 +82,9 @@ class _Ws:
     def __init__(self, port: int, context: ssl.SSLContext | None) -> None:
         self._stack = ExitStack()
         scheme = "wss" if context else "ws"
-        url = f"{scheme}://127.0.0.1:{port}"
-        if context is None:
-            self.ws = self._stack.enter_context(connect(url, open_timeout=TIMEOUT_S))
-            return
-        # A wss handshake stalls now and then when connections come and go this fast
-        # (about one in several hundred, with or without this server's changes; it
-        # is not what this test checks): try again, as a browser would.
-        for attempt in range(TLS_ATTEMPTS):
-            try:
-                self.ws = self._stack.enter_context(
-                    connect(url, ssl=context, open_timeout=TLS_OPEN_S)
-                )
-                return
-            except (TimeoutError, EOFError, OSError, InvalidHandshake):
-                if attempt == TLS_ATTEMPTS - 1:
-                    raise
+        self.ws = self._stack.enter_context(
+            connect(f"{scheme}://127.0.0.1:{port}", ssl=context, open_timeout=TIMEOUT_S)
+        )
 
     def send(self, op: Message) -> None:
         self.ws.send(json.dumps(op))

@@ -2,17 +2,30 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
+import socket
 import ssl
+import threading
 from pathlib import Path
 
 import anyio
+import anyio.to_thread
 import pytest
+from websockets.sync.client import connect
 
 from tests.transports.clients import Harness
 from tests.transports.realclients import run_python
 from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
+
+CHURN_CONNECTIONS = 600
+"""wss connections opened one after another (a lost upgrade request: one in a few hundred)."""
+TCP_CHURN_CONNECTIONS = 1000
+"""TLS over TCP exchanges of the threaded client below (a lost first op: about one in 200)."""
+OPEN_S = 30.0
+"""Far past the handshake timeout (10 s), which ends a stalled wss connection with an error."""
 
 
 @pytest.fixture
@@ -75,3 +88,83 @@ async def test_roslibpy_connects_over_wss(
         env={"SSL_CERT_FILE": str(cafile)},
     )
     assert out.split() == ["5"]
+
+
+async def test_threaded_wss_clients_always_get_their_upgrade_answered(
+    tls_harness: Harness,
+) -> None:
+    """websockets' sync client reads in a thread of its own while it writes its request.
+
+    TLS 1.3 session tickets arriving then made it lose its upgrade request now and
+    then: the connection waited for the handshake timeout, which closed it, and
+    ``connect`` failed (server.py, ``_tls_context``). Every connection must open,
+    each closed before the next.
+    """
+    url = f"wss://127.0.0.1:{tls_harness.port('websocket')}"
+    context = tls_harness.ssl_context
+
+    def churn() -> int:
+        opened = 0
+        for _ in range(CHURN_CONNECTIONS):
+            with connect(url, ssl=context, open_timeout=OPEN_S) as ws:
+                opened += ws.protocol.state.name == "OPEN"
+        return opened
+
+    assert await anyio.to_thread.run_sync(churn) == CHURN_CONNECTIONS
+
+
+def _threaded_tls_exchange(port: int, context: ssl.SSLContext, op: bytes) -> bytes:
+    """One rosbridge TCP+TLS exchange by a client that reads in a thread of its own.
+
+    From the end of the TLS handshake a reader thread waits for the reply, on a
+    blocking socket as a client's receive thread does, while this thread writes
+    ``op``. (With a socket timeout, Python's ``ssl`` retries non-blocking reads,
+    and a write at the same time can make such a read report an end that never
+    came: the client's own race, not the server's.) Returns the reply (one JSON
+    line); raises ``TimeoutError`` if none comes within ``OPEN_S``.
+    """
+    raw = socket.create_connection(("127.0.0.1", port), timeout=OPEN_S)
+    raw.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # no 40 ms wait for an ack
+    with context.wrap_socket(raw, server_hostname="127.0.0.1") as sock:
+        sock.settimeout(None)
+        replies: list[bytes] = []
+
+        def read() -> None:
+            reply = b""
+            with contextlib.suppress(OSError):
+                while not reply.endswith(b"\n"):  # one JSON a line
+                    chunk = sock.recv(1 << 16)
+                    if not chunk:
+                        return
+                    reply += chunk
+                replies.append(reply)
+
+        reader = threading.Thread(target=read)
+        reader.start()
+        sock.sendall(op)
+        reader.join(OPEN_S)
+        if reader.is_alive():  # no reply: wake the reader (the kernel socket, not TLS)
+            with socket.fromfd(sock.fileno(), sock.family, sock.type) as same:
+                same.shutdown(socket.SHUT_RDWR)
+            reader.join()
+    if not replies:
+        raise TimeoutError(f"no reply to the first op within {OPEN_S} s")
+    return replies[0]
+
+
+async def test_threaded_tls_tcp_clients_always_get_their_first_op_read(
+    tls_harness: Harness,
+) -> None:
+    """The same over TLS on TCP: the reply to a client's first op always comes."""
+    port = tls_harness.port("tcp")
+    context = tls_harness.ssl_context
+    assert context is not None
+    op = json.dumps({"op": "set_level", "level": "info", "id": "first"}).encode()
+
+    def churn() -> int:
+        return sum(
+            json.loads(_threaded_tls_exchange(port, context, op))["id"] == "first"
+            for _ in range(TCP_CHURN_CONNECTIONS)
+        )
+
+    assert await anyio.to_thread.run_sync(churn) == TCP_CHURN_CONNECTIONS
