@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -76,17 +77,22 @@ class Process:
 
 @contextlib.asynccontextmanager
 async def started(cmd: list[str], name: str, cwd: Path = REPO) -> AsyncIterator[Process]:
-    """Run ``cmd``; stderr goes to a temporary file; killed when the block ends."""
+    """Run ``cmd``; stderr goes to a temporary file; killed when the block ends.
+
+    The process leads a session of its own, and the whole group is killed: the
+    workers of ``rwt serve --workers`` outlived their killed supervisor before,
+    and every run of the suite left two servers behind.
+    """
     env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
     with tempfile.NamedTemporaryFile(prefix="rwt-zenoh-", suffix=".log") as log:
         process = await anyio.open_process(
-            cmd, cwd=cwd, env=env, stdin=subprocess.PIPE, stderr=log.file
+            cmd, cwd=cwd, env=env, stdin=subprocess.PIPE, stderr=log.file, start_new_session=True
         )
         try:
             yield Process(process, name, Path(log.name))
         finally:
             with contextlib.suppress(ProcessLookupError):
-                process.kill()
+                os.killpg(process.pid, signal.SIGKILL)
             with anyio.move_on_after(10):
                 await process.wait()
 
