@@ -34,6 +34,7 @@ from rwt_transports.udp_validation import (
     MIN_PROBE_BYTES,
     SESSION_CHALLENGE_TEXT,
 )
+from tests.hardening.test_udp_spoofing import datagrams_within
 from tests.transports.clients import Harness, Message, UdpClient, running_server
 from tests.transports.test_auth_bind import SECRET, signed
 from tests.transports.test_contract import is_op
@@ -229,18 +230,6 @@ async def test_an_unvalidated_auth_op_draws_only_the_bounded_challenge(harness: 
     assert sum(map(len, first)) <= AMPLIFICATION * len(probe)
     assert sum(map(len, first + later)) <= CHALLENGE_BUDGET_BYTES
     assert udp_sessions(harness) == 0
-
-
-async def datagrams_within(sock: socket.socket, seconds: float, server_port: int) -> list[bytes]:
-    """What the server sent to ``sock`` within ``seconds`` (other senders not counted)."""
-    received = []
-    with anyio.move_on_after(seconds):
-        while True:
-            await anyio.wait_readable(sock)
-            data, (_host, port) = sock.recvfrom(65536)
-            if port == server_port:
-                received.append(data)
-    return received
 
 
 async def test_with_trusted_addresses_a_refusal_carries_the_challenge(graph: Graph) -> None:
