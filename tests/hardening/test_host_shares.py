@@ -76,6 +76,13 @@ async def open_udp(harness: Harness, source: str) -> bool:
     return bool(reply["id"] == "in")
 
 
+async def attempt(harness: Harness, transport: str, source: str) -> bool:
+    """Whether a client from ``source`` gets a connection (or UDP session) on ``transport``."""
+    if transport == "udp":
+        return await open_udp(harness, source)
+    return await open_stream(harness, transport, source)
+
+
 @pytest.mark.parametrize("transport", ["ws", "tcp", "udp"])
 async def test_one_host_cannot_take_every_slot(transport: str) -> None:
     # 8 slots, shares from 6 taken, 2 a host: the hog gets 6 (UDP) or 5 (the
@@ -88,18 +95,17 @@ async def test_one_host_cannot_take_every_slot(transport: str) -> None:
     if transport == "udp":
         config = ServerConfig(udp=UdpOptions(max_sessions=8, max_sessions_per_host=2))
 
-    async def attempt(source: str) -> bool:
-        if transport == "udp":
-            return await open_udp(harness, source)
-        return await open_stream(harness, transport, source)
-
     async with running_server(config) as harness:
         with anyio.fail_after(TIMEOUT_S):
             hog = 0
-            while await attempt("127.0.0.1"):
+            while await attempt(harness, transport, "127.0.0.1"):
                 hog += 1
             assert hog == (6 if transport == "udp" else 5)
-            assert [await attempt("127.0.0.2") for _ in range(3)] == [True, True, False]
+            assert [await attempt(harness, transport, "127.0.0.2") for _ in range(3)] == [
+                True,
+                True,
+                False,
+            ]
 
 
 async def test_a_host_alone_is_not_limited_below_the_share_threshold() -> None:
@@ -137,18 +143,15 @@ async def test_addresses_of_one_prefix_share_one_hosts_slots(
             max_connections=8, max_connections_per_host=4, host_prefix_v4=prefix_v4
         )
 
-    async def attempt(source: str) -> bool:
-        if transport == "udp":
-            return await open_udp(harness, source)
-        return await open_stream(harness, transport, source)
-
     async with running_server(config) as harness:
         with anyio.fail_after(TIMEOUT_S):
             hog = 0
-            while await attempt(HOG[hog % len(HOG)]):  # the three addresses in turn
+            while await attempt(
+                harness, transport, HOG[hog % len(HOG)]
+            ):  # the three addresses in turn
                 hog += 1
             assert hog == hog_gets[transport]
-            assert [await attempt(OTHER) for _ in other_gets] == other_gets
+            assert [await attempt(harness, transport, OTHER) for _ in other_gets] == other_gets
 
 
 async def test_rwt_serve_groups_ipv4_clients_by_host_prefix_v4() -> None:
