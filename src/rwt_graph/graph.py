@@ -36,6 +36,11 @@ __all__ = ["Graph"]
 Message = dict[str, object]
 
 
+DEFAULT_ROS_DISTRO = "jazzy"
+"""The ROS 2 distribution a graph reports with no running ROS: the one whose
+definitions rwt bundles (``rwt_graph/interfaces``)."""
+
+
 class Graph:
     """Topics, services, actions, parameters and nodes of one server.
 
@@ -54,6 +59,9 @@ class Graph:
         taps: functions that see every published message (``topics.Tap``).
         type_checks: functions of links telling why they cannot carry a type
             (``GraphCore.type_warning``); a link adds one while it runs.
+        ros_distro: the ROS distribution rosapi's ``get_ros_version`` reports:
+            ``jazzy`` (what the bundled ROS 2 definitions match) until a link to a
+            running ROS sets that ROS's own (docs/ros2.md).
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -67,6 +75,7 @@ class Graph:
         self.taps = core.taps
         self.type_checks = core.type_checks
         self.params = Parameters(self.registry.dialect)
+        self.ros_distro = DEFAULT_ROS_DISTRO
 
     @property
     def clock(self) -> Clock:

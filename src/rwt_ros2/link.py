@@ -61,7 +61,7 @@ from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
 from .rosout import RosoutHandler
-from .runtime import interface_class
+from .runtime import interface_class, ros_distro
 from .services import SERVICE_QOS, RosService, serve_to_ros
 
 if TYPE_CHECKING:
@@ -711,6 +711,8 @@ async def open_ros2_link(
     # rosbags' type store takes a while to build: not on the event loop
     await anyio.to_thread.run_sync(graph.registry.typestore)
     ros = await anyio.to_thread.run_sync(RosNode, options.node_name, options.namespace)
+    # rosapi reports the running ROS, not the bundled definitions' distribution
+    bundled, graph.ros_distro = graph.ros_distro, ros_distro() or graph.ros_distro
     async with anyio.create_task_group() as tg:
         link = Ros2Link(graph, ros, options)
         await tg.start(link.run)
@@ -718,6 +720,7 @@ async def open_ros2_link(
             yield link
         finally:
             tg.cancel_scope.cancel()
+            graph.ros_distro = bundled
 
 
 def take_queued(subscription: Any, most: int) -> Iterator[tuple[bytes, dict[str, Any]]]:

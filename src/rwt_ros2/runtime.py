@@ -9,7 +9,10 @@ named with the package to install (docs/ros2.md).
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
+import importlib.util
 import os
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -23,6 +26,7 @@ __all__ = [
     "interface_class",
     "load_rclpy",
     "package_hint",
+    "ros_distro",
 ]
 
 ROS2_INSTALL = (
@@ -49,6 +53,25 @@ def load_rclpy() -> Any:
         return importlib.import_module("rclpy")
     except ImportError as exc:  # the module, or one of its shared libraries
         raise Ros2Unavailable(f"--ros2 needs rclpy ({exc}): {ROS2_INSTALL}") from None
+
+
+def ros_distro() -> str | None:
+    """The ROS 2 distribution rclpy comes from, or None when nothing says.
+
+    In this order: ``ROS_DISTRO`` (set by a sourced install's ``setup.bash``), the
+    name of PyPI's ``ros-<distro>-rclpy`` wheel, the ``/opt/ros/<distro>`` directory
+    rclpy lies in. rosapi's ``get_ros_version`` reports it (docs/ros2.md).
+    """
+    named = os.environ.get("ROS_DISTRO", "").strip()
+    if named:
+        return named
+    for dist in importlib.metadata.distributions():
+        wheel = re.fullmatch(r"ros-([a-z]+)-rclpy", dist.name or "")
+        if wheel:
+            return wheel[1]
+    spec = importlib.util.find_spec("rclpy")
+    installed = re.search(r"/opt/ros/([a-z]+)/", (spec.origin or "") if spec else "")
+    return installed[1] if installed else None
 
 
 def package_hint(package: str) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import anyio
@@ -110,3 +111,29 @@ async def test_the_topics_and_services_globs_hold_on_the_ros2_side(ros_env: Path
     assert "/secret_switch" not in got["services"]
     assert "/open/switch" in got["services"]
     assert "/secret_switch" in got["called"] and got["called"] != "answered"
+
+
+VERSION = """
+service = roslibpy.Service(ros, "/rosapi/get_ros_version", "rosapi_msgs/srv/GetROSVersion")
+print(json.dumps(dict(service.call(roslibpy.ServiceRequest({}), timeout=10))))
+ros.terminate()
+"""
+
+
+async def test_rosapi_reports_the_distribution_of_the_running_ros(server: ServerProcess) -> None:
+    # the test extra's rclpy is PyPI's Kilted wheels; a sourced ROS says its own
+    out = await run_python(roslibpy_prelude(server.port) + VERSION)
+    expected = os.environ.get("ROS_DISTRO") or "kilted"
+    assert json.loads(out.strip().splitlines()[-1]) == {"version": 2, "distro": expected}
+
+
+async def test_ros_distro_in_the_environment_names_the_distribution(
+    ros_env: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("ROS_DISTRO", "rolling")
+    server = serve_ros2(ros_env)
+    try:
+        out = await run_python(roslibpy_prelude(server.port) + VERSION)
+    finally:
+        server.stop()
+    assert json.loads(out.strip().splitlines()[-1]) == {"version": 2, "distro": "rolling"}

@@ -167,6 +167,12 @@ def test_time_version_and_interfaces(web: Peer, clock: FakeClock) -> None:
     assert {"std_msgs/msg/String", "std_srvs/srv/SetBool", FIB} <= set(interfaces)
 
 
+def test_get_ros_version_says_the_graphs_distribution_at_each_call(graph: Graph, web: Peer) -> None:
+    # a link to a running ROS sets its distribution while it is open (docs/ros2.md)
+    graph.ros_distro = "kilted"
+    assert call(web, "/rosapi/get_ros_version") == {"version": 2, "distro": "kilted"}
+
+
 def test_visibility_hides_names_per_calling_client(graph: Graph) -> None:
     def visibility(client: str) -> Visibility:
         if client != "guest":

@@ -110,11 +110,11 @@ def _common() -> dict[str, Handler]:
     }
 
 
-def _ros2(distro: str) -> dict[str, Handler]:
+def _ros2(distro: str | None) -> dict[str, Handler]:
     return {
         **_common(),
         **ROS2_HANDLERS,
-        "get_ros_version": lambda g, v, r: {"version": 2, "distro": distro},
+        "get_ros_version": lambda g, v, r: {"version": 2, "distro": distro or g.ros_distro},
         "interfaces": _interfaces,
         "action_type": lambda g, v, r: {"type": listing.action_type(g, v, str(r["action"]))},
         "action_goal_details": _details(lambda g, t: g.registry.action(t).goal),
@@ -170,7 +170,7 @@ class Rosapi:
 
 
 def install_rosapi(
-    graph: Graph, *, visibility: VisibilityFor | None = None, distro: str = "jazzy"
+    graph: Graph, *, visibility: VisibilityFor | None = None, distro: str | None = None
 ) -> Rosapi:
     """Offer the rosapi services of ``graph``'s dialect, provided by node ``/rosapi``.
 
@@ -178,8 +178,9 @@ def install_rosapi(
         graph: the graph to describe and whose parameters to serve.
         visibility: gives each calling client the names it may see (access rules);
             None shows everything to everyone.
-        distro: the ROS 2 distribution ``get_ros_version`` reports; ``jazzy``
-            matches the bundled message definitions.
+        distro: the ROS 2 distribution ``get_ros_version`` reports; None reports
+            the graph's at the time of each call (``Graph.ros_distro``: the running
+            ROS's once a link to it is open, ``jazzy`` before).
 
     Returns:
         A handle whose ``close()`` withdraws the services.
