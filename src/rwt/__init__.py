@@ -49,7 +49,6 @@ if TYPE_CHECKING:
     from rwt_bag.formats import ChunkCompression, Compression
     from rwt_bag.info import TopicSummary
     from rwt_bag.selection import TopicSelection
-    from rwt_cli.checks import ListenError
     from rwt_client import Action, GoalHandle, Param, Ros, ServerGoal, Service, SyncRos, Topic
     from rwt_client.connectors import ConnectionClosedError
     from rwt_client.typed import MessageClass, message_class
@@ -120,6 +119,7 @@ if TYPE_CHECKING:
     from rwt_ros2 import Ros2Link, Ros2Options, Ros2Unavailable, open_ros2_link
     from rwt_ros2.runtime import ament_interface_dirs
     from rwt_transports.allocator import tune_allocator
+    from rwt_transports.listen import ListenError
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
     from rwt_transports.udp import UdpOptions
@@ -375,7 +375,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "call_service",
         "send_action_goal",
     ),
-    "rwt_cli.checks": ("ListenError",),
+    "rwt_transports.listen": ("ListenError",),
     "rwt_transports.memory": ("MemoryConnection",),
     "rwt_transports.server": (
         "RosbridgeServer",

@@ -37,7 +37,7 @@ that every exception class of every rwt package is drawn here::
     ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
     ├── TransportError                    a transport failed (mapped at the boundary)
     │   ├── ConnectionClosedError         rwt_client.connectors: the connection is gone
-    │   ├── ListenError                   rwt_transports: a listener cannot bind its address
+    │   ├── ListenError                   rwt_transports: a listener cannot bind (also an OSError)
     │   └── SendTimeoutError              rwt_conformance: a server that does not read
     ├── VideoError                        rwt_video
     │   ├── StreamParamError              a query parameter that cannot be used (HTTP 4xx)
