@@ -2,8 +2,10 @@
 
 ``RwtError`` is the root of every error rwt raises on purpose; catching it
 catches them all. Any other exception escaping rwt is a bug. Every class of the
-tree is in ``rwt`` too (``rwt.FieldError``), and tests/api/test_error_tree.py checks
-that every exception class of every rwt package is drawn here::
+tree is public, in ``rwt`` (``rwt.FieldError``) or in the namespace of its feature
+(``rwt.tf.TFError``; docs/api.md says where each is), and
+tests/api/test_error_tree.py checks that every exception class of every rwt
+package is drawn here::
 
     RwtError
     ├── ProtocolError                     the rosbridge protocol was not followed
