@@ -6,7 +6,7 @@ its first branches and the errors most programs catch (``rwt.FieldError``,
 in its namespace (``rwt.tf.TFError``, ``rwt.bag.BagError``,
 ``rwt.types.UnknownTypeError``); the rest of the tree is here: a peer's protocol
 errors and caps, the misuse of an op model, and the parameter store's errors.
-docs/api.md draws the whole tree with each error's place.
+docs/api.md lists each error's place; the tree is drawn in rwt_protocol/errors.py.
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """
