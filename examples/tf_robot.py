@@ -16,7 +16,8 @@ from contextlib import suppress
 
 import anyio
 
-from rwt import Dialect, Graph, RosbridgeServer, ServerConfig, TypeRegistry
+from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt.types import Dialect, TypeRegistry
 
 port = int(sys.argv[1]) if sys.argv[1:] else 9090
 graph = Graph(TypeRegistry(Dialect(sys.argv[2] if sys.argv[2:] else "ros2")))

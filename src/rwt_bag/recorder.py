@@ -29,7 +29,7 @@ import anyio
 import anyio.to_thread
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_graph.types import Dialect
+from rwt_graph.types import Dialect, codec_for
 
 from .background import BackgroundJob
 from .errors import BagError
@@ -274,7 +274,7 @@ class Recorder(BackgroundJob):
             subscription.close()
 
     def _sink(self, info: TopicInfo, mtype: MessageType) -> _Callback:
-        serialize = self.graph.registry.codec(mtype).serializer()
+        serialize = codec_for(self.graph.registry, mtype).serializer()
         clock = self.graph.clock
 
         def on_message(msg: dict[str, object]) -> None:

@@ -15,12 +15,10 @@ from typing import Any, Protocol, cast
 
 import typer
 
-from rwt_protocol.errors import TransportError
 from rwt_protocol.server.access import parse_glob_list
 
 __all__ = [
     "ClickException",
-    "ListenError",
     "NoArgsIsHelpError",
     "OptionError",
     "check_directories",
@@ -28,8 +26,6 @@ __all__ = [
     "check_readable_file",
     "check_tls",
     "error_line",
-    "host_port",
-    "os_reason",
     "usage_error",
 ]
 
@@ -61,31 +57,6 @@ class OptionError(typer.BadParameter):
 def usage_error(message: str) -> Exception:
     """A usage error (exit code 2) of the running command, for a combination of options."""
     return _UsageError(message)
-
-
-class ListenError(TransportError):
-    """A listener could not bind its address: the message names it, the address and why."""
-
-    def __init__(self, listener: str, host: str, port: int, cause: OSError) -> None:
-        super().__init__(
-            f"cannot listen for {listener} on {host_port(host, port)}: {os_reason(cause)}"
-        )
-
-
-def host_port(host: str, port: int) -> str:
-    """``HOST:PORT``, with an IPv6 address in brackets."""
-    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
-
-
-def os_reason(exc: OSError) -> str:
-    """Why ``exc`` happened, as ``address already in use``, without errno or call details."""
-    # asyncio words a failed bind as "error while attempting to bind on address ...":
-    # the errno's own text is the part a user needs.
-    if exc.errno is not None and exc.errno > 0:
-        text = os.strerror(exc.errno)
-    else:  # getaddrinfo errors have negative codes and their own text
-        text = exc.strerror or str(exc) or type(exc).__name__
-    return text[:1].lower() + text[1:]
 
 
 def check_readable_file(path: Path | None) -> Path | None:

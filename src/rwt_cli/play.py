@@ -36,7 +36,7 @@ from .bag_options import (
     play_options,
     terminal_keys,
 )
-from .checks import ListenError, check_glob_list
+from .checks import check_glob_list
 from .options import PORT_RANGE
 from .running import run_server, startup_error
 
@@ -105,7 +105,7 @@ def play(
     jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop, keyboard=keys)
     try:
         anyio.run(run_server, server, None, jobs)
-    except (OSError, ValueError, ListenError, BaseExceptionGroup, BagError) as exc:
+    except (OSError, ValueError, BaseExceptionGroup, BagError) as exc:  # ListenError: an OSError
         message = startup_error(exc)
         if message is None:
             raise

@@ -16,8 +16,8 @@ from urllib.parse import urlsplit
 import anyio
 
 from rwt_bag.errors import BagError
+from rwt_transports.listen import ListenError
 
-from .checks import ListenError
 from .ros2_link import linked_ros2
 from .zenoh_link import linked
 
@@ -92,36 +92,12 @@ async def _serve(
     def announce(url: str) -> None:
         print(f"listening on {url}", file=out, flush=True)
 
-    try:
-        await server.serve(on_listening=announce, task_status=task_status)
-    except OSError as exc:
-        failed = _unbound_listener(server)
-        if failed is None:
-            raise
-        raise ListenError(*failed, exc) from exc
+    await server.serve(on_listening=announce, task_status=task_status)
     tg.cancel_scope.cancel()
 
 
 def _port(url: str) -> int | None:
     return urlsplit(url).port
-
-
-def _unbound_listener(server: RosbridgeServer) -> tuple[str, str, int] | None:
-    """The listener that failed to open: the first configured one without a URL.
-
-    The server opens its listeners in this order and records each one's URL as it
-    binds, so after an OSError the first one missing is the one that failed.
-    """
-    config = server.config
-    listeners = (
-        ("websocket", "WebSocket", config.port),
-        ("tcp", "TCP", config.tcp_port),
-        ("udp", "UDP", config.udp_port),
-    )
-    for key, name, port in listeners:
-        if port is not None and key not in server.urls:
-            return name, config.host, port
-    return None
 
 
 async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> None:
@@ -147,6 +123,6 @@ def startup_error(exc: BaseException) -> str | None:
                 return None
             messages.append(message)
         return "; ".join(messages)
-    if isinstance(exc, ListenError | OSError | ValueError | BagError):  # SSLError: an OSError
+    if isinstance(exc, OSError | ValueError | BagError):  # ListenError, SSLError: OSErrors
         return str(exc)
     return None

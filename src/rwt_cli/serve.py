@@ -42,7 +42,7 @@ from .bag_options import (
     split_policy,
     topic_selection,
 )
-from .checks import ListenError, OptionError, check_tls, usage_error
+from .checks import OptionError, check_tls, usage_error
 from .groups import grouped_command
 from .options import UVLOOP_EXTRA, VIDEO_PORT
 from .ros2_link import ros2_interface_dirs, ros2_options
@@ -316,7 +316,7 @@ def _run(
         anyio.run(
             run_server, server, video, jobs, zenoh, ros2, backend_options={"use_uvloop": uvloop}
         )
-    except (OSError, ValueError, ListenError, BaseExceptionGroup) as exc:
+    except (OSError, ValueError, BaseExceptionGroup) as exc:  # ListenError: an OSError
         message = startup_error(exc)
         if message is None:
             raise

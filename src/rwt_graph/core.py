@@ -50,7 +50,7 @@ from .nodes import Nodes
 from .ratelog import EpisodeLog
 from .services import ServiceEntry, Services
 from .topics import Tap, Topic
-from .types import Dialect, MessageType, TypeRegistry
+from .types import Dialect, MessageType, TypeRegistry, codec_for
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -501,7 +501,7 @@ class GraphCore:
             msg,
             self._clock.monotonic(),
             stamp=self._clock.wall(),
-            codec=self.registry.codec(entry.msgtype),
+            codec=codec_for(self.registry, entry.msgtype),
         )
         entry.fan_out(event, latch=latch, client=client)
         for tap in self.taps:

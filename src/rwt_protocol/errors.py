@@ -2,8 +2,10 @@
 
 ``RwtError`` is the root of every error rwt raises on purpose; catching it
 catches them all. Any other exception escaping rwt is a bug. Every class of the
-tree is in ``rwt`` too (``rwt.FieldError``), and tests/api/test_error_tree.py checks
-that every exception class of every rwt package is drawn here::
+tree is public, in ``rwt`` (``rwt.FieldError``) or in the namespace of its feature
+(``rwt.tf.TFError``; docs/api.md says where each is), and
+tests/api/test_error_tree.py checks that every exception class of every rwt
+package is drawn here::
 
     RwtError
     ├── ProtocolError                     the rosbridge protocol was not followed
@@ -37,7 +39,7 @@ that every exception class of every rwt package is drawn here::
     ├── GoalCanceledError                 rwt_graph.actions: an action handler honours a cancel
     ├── TransportError                    a transport failed (mapped at the boundary)
     │   ├── ConnectionClosedError         rwt_client.connectors: the connection is gone
-    │   ├── ListenError                   rwt_transports: a listener cannot bind its address
+    │   ├── ListenError                   rwt_transports: a listener cannot bind (also an OSError)
     │   └── SendTimeoutError              rwt_conformance: a server that does not read
     ├── VideoError                        rwt_video
     │   ├── StreamParamError              a query parameter that cannot be used (HTTP 4xx)

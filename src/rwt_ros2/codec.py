@@ -38,4 +38,4 @@ def encode(registry: TypeRegistry, mtype: MessageType, msg: dict[str, object]) -
     Raises:
         KeyError: the typestore lacks the type.
     """
-    return bytes(registry.codec(mtype).serialize(msg))
+    return registry.serialize(mtype, msg)

@@ -87,13 +87,14 @@ class MemoryConnection:
         """Send an op given as a dict."""
         await self.send_frame(json.dumps(op))
 
-    async def receive_frame(self) -> OutFrame:
-        """The next frame from the server.
+    async def receive_frame(self) -> str | bytes:
+        """The next frame from the server: text (JSON) as ``str``, binary (CBOR) as ``bytes``.
 
         Raises:
             anyio.EndOfStream: the server closed the connection.
         """
-        return await self._receive.receive()
+        frame = await self._receive.receive()
+        return frame.data if frame.binary else frame.data.decode()
 
     async def aclose(self) -> None:
         """Close the client's end; the server sees the end of input."""

@@ -58,6 +58,7 @@ from rwt_protocol.shortcuts import switched_off
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .holding import HostCoolDowns
+from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, InboundBatch, OutboundHold, run_connection
 from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares, address_of
@@ -89,6 +90,8 @@ logger = logging.getLogger("rwt.server")
 _episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 MiB = 1024 * 1024
+# the listeners as a ListenError names them
+_LISTENER_NAMES = {"websocket": "WebSocket", "tcp": "TCP"}
 
 _TLS_FAILURES = (ssl.SSLError, OSError, anyio.BrokenResourceError, anyio.EndOfStream)
 
@@ -321,7 +324,9 @@ class RosbridgeServer:
             on_listening: called with each listener's URL, in order.
 
         Raises:
-            OSError: an address cannot be bound.
+            ListenError: a listener cannot bind its address (also an ``OSError``);
+                the text names the listener, the address and why:
+                ``cannot listen for TCP on 127.0.0.1:9091: address already in use``.
             ssl.SSLError: the certificate or key cannot be loaded.
         """
         self._stop = anyio.Event()
@@ -387,7 +392,12 @@ class RosbridgeServer:
         if config.tcp_port is not None:
             runners.append(await self._stream_listener(stack, config.tcp_port, tls, "tcp"))
         if config.udp_port is not None:
-            sock = await anyio.create_udp_socket(local_host=config.host, local_port=config.udp_port)
+            try:
+                sock = await anyio.create_udp_socket(
+                    local_host=config.host, local_port=config.udp_port
+                )
+            except OSError as exc:
+                raise ListenError("UDP", config.host, config.udp_port, exc) from exc
             await stack.enter_async_context(sock)
             port = sock.extra(SocketAttribute.local_port)
             self.urls["udp"] = f"udp://{_url_host(config.host)}:{port}"
@@ -414,9 +424,12 @@ class RosbridgeServer:
     async def _stream_listener(
         self, stack: AsyncExitStack, port: int, tls: ssl.SSLContext | None, kind: str
     ) -> Runner:
-        listener = await anyio.create_tcp_listener(
-            local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
-        )
+        try:
+            listener = await anyio.create_tcp_listener(
+                local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
+            )
+        except OSError as exc:
+            raise ListenError(_LISTENER_NAMES[kind], self.config.host, port, exc) from exc
         await stack.enter_async_context(listener)
         bound = listener.extra(SocketAttribute.local_port)
         scheme = {"websocket": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[kind][tls is not None]

@@ -24,6 +24,8 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_protocol.errors import ConfigError
 
+from .listen import ListenError
+
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
 
@@ -136,7 +138,7 @@ def run_workers(
 
     Raises:
         ConfigError: SO_REUSEPORT is not available (not Linux).
-        OSError: a port cannot be bound.
+        ListenError: a port cannot be bound (also an ``OSError``).
     """
     if not reuse_port_supported():
         raise ConfigError("--workers needs SO_REUSEPORT to share ports: Linux only")
@@ -144,11 +146,14 @@ def run_workers(
     args = argv[argv.index("serve") + 1 :] if "serve" in argv else argv
     with contextlib.ExitStack() as holds:
         ports: list[int | None] = []
-        for wanted in (port, tcp_port):
+        for listener, wanted in (("WebSocket", port), ("TCP", tcp_port)):
             if wanted is None:
                 ports.append(None)
                 continue
-            sock = holds.enter_context(reserve_port(host, wanted))
+            try:
+                sock = holds.enter_context(reserve_port(host, wanted))
+            except OSError as exc:
+                raise ListenError(listener, host, wanted, exc) from exc
             ports.append(sock.getsockname()[1])
         hub = None
         if zenoh_mode == "peer":

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import Nodetype
 
-from rwt_graph.types import Dialect
+from rwt_graph.types import Dialect, codec_for
 from rwt_graph.types.hashes import rihs01
 from rwt_graph.types.wire import read_cdr, wire_input
 
@@ -78,7 +78,7 @@ def encode_sample(registry: TypeRegistry, type_name: str, msg: dict[str, object]
     """
     _ros2(registry)
     mtype = registry.message(type_name)
-    return bytes(registry.codec(mtype).serialize(msg))
+    return registry.serialize(mtype, msg)
 
 
 def decode_sample(registry: TypeRegistry, type_name: str, data: bytes) -> dict[str, object]:
@@ -107,7 +107,7 @@ def encode_message(
         WireError: ``registry`` is not ROS 2.
     """
     _ros2(registry)
-    return owned_cdr(registry.codec(mtype).serialize(msg))
+    return owned_cdr(codec_for(registry, mtype).serialize(msg))
 
 
 def owned_cdr(raw: bytes | memoryview) -> bytes | bytearray:

@@ -1,19 +1,30 @@
-"""``import rwt`` is closed: every type its API takes, returns or raises is in ``rwt``."""
+"""The public API is small and closed: ``rwt`` and its namespaces hold every type it uses.
+
+``rwt`` keeps what most programs need (at most 40 names); the rest is in
+namespaces that follow the docs pages (``rwt.tf``, ``rwt.bag``...). Each
+namespace is closed over its own types: every type its functions and methods
+take, return or raise is in it, in ``rwt``, or in a namespace it builds on
+(``BUILDS_ON``), never only in an implementation package.
+"""
 
 from __future__ import annotations
 
 import ast
 import builtins
+import importlib
 import inspect
 import re
 import subprocess
 import sys
 import textwrap
 from collections.abc import Callable, Iterator
+from pathlib import Path
+from types import ModuleType
 
 import pytest
 
 import rwt
+from rwt._names import NAMESPACES, PUBLIC
 from tests.docs.api_reference import namespace_of, ours
 
 # Members that are plumbing between rwt's own packages, not API: the hooks the
@@ -49,6 +60,30 @@ HANDED_OUT = {
 }
 
 
+# The namespaces a namespace's API may name types of, besides its own, ``rwt``'s
+# and ``rwt.errors``' (every feature raises protocol or parameter errors).
+BUILDS_ON = {
+    "rwt.client": {"rwt.types"},  # message_class(registry)
+    "rwt.tf": {"rwt.types"},  # StampedTransform.message(dialect)
+    "rwt.video": {"rwt.server"},  # VideoConfig.console: the console's site
+}
+
+
+def spaces() -> dict[str, ModuleType]:
+    """``rwt`` and its namespaces, by name."""
+    return {space: importlib.import_module(space) for space in PUBLIC}
+
+
+def public_place() -> dict[int, str]:
+    """``id`` of every public value -> its place, ``rwt.tf.TFBuffer``."""
+    return {
+        id(getattr(module, name)): f"{space}.{name}"
+        for space, module in spaces().items()
+        for name in module.__all__
+        if name != "__version__"
+    }
+
+
 def _types_of(function: Callable[..., object]) -> Iterator[object]:
     """The classes ``function``'s annotations name and its docstring's ``Raises:`` lists."""
     namespace = namespace_of(function.__globals__["__name__"])
@@ -72,11 +107,18 @@ def _types_of(function: Callable[..., object]) -> Iterator[object]:
         try:
             value = eval(name, namespace, vars(builtins))
         except (NameError, AttributeError):
-            # a docstring may name an error its module does not import: rwt must have it
-            yield getattr(rwt, name, f"unknown name {name}")
+            # a docstring may name an error its module does not import: the API must have it
+            yield _by_name(name)
         else:
             if not isinstance(value, str):  # a string is a type alias of a third party's types
                 yield value
+
+
+def _by_name(name: str) -> object:
+    for module in spaces().values():
+        if name in module.__all__:
+            return getattr(module, name)
+    return f"unknown name {name}"
 
 
 def _functions(value: object) -> Iterator[tuple[str, Callable[..., object]]]:
@@ -100,10 +142,19 @@ def _functions(value: object) -> Iterator[tuple[str, Callable[..., object]]]:
             yield where, member
 
 
-def unreachable_types() -> dict[str, set[str]]:
-    """Types the API uses that ``rwt`` does not export, and where each is used."""
+def unreachable_types(space: str) -> dict[str, set[str]]:
+    """Types the API of ``space`` uses that it may not name, and where each is used.
+
+    Each is either in no public place (``rwt_graph.x.Thing``) or in a namespace
+    ``space`` does not build on (``rwt.bag.BagError (not for rwt.tf)``).
+    """
+    module = importlib.import_module(space)
+    places = public_place()
+    allowed = {space, "rwt", "rwt.errors", *BUILDS_ON.get(space, ())}
+    if space == "rwt":
+        allowed = set(PUBLIC)  # the core may name a type of any namespace
     missing: dict[str, set[str]] = {}
-    todo = [getattr(rwt, name) for name in rwt.__all__ if name != "__version__"]
+    todo = [getattr(module, name) for name in module.__all__ if name != "__version__"]
     done: list[object] = []
     while todo:
         value = todo.pop()
@@ -114,27 +165,78 @@ def unreachable_types() -> dict[str, set[str]]:
             for kind in _types_of(function):
                 if isinstance(kind, str):
                     missing.setdefault(kind, set()).add(where)
-                elif (
+                    continue
+                if not (
                     inspect.isclass(kind)
                     and ours(kind.__module__)
                     and not kind.__name__.startswith("_")
                 ):
-                    todo.append(kind)
-                    if getattr(rwt, kind.__name__, None) is not kind:
-                        missing.setdefault(f"{kind.__module__}.{kind.__name__}", set()).add(where)
+                    continue
+                place = places.get(id(kind))
+                if place is None:
+                    todo.append(kind)  # walked here, so every unplaced type is found
+                    missing.setdefault(f"{kind.__module__}.{kind.__name__}", set()).add(where)
+                elif place.rpartition(".")[0] not in allowed:
+                    missing.setdefault(f"{place} (not for {space})", set()).add(where)
     return missing
 
 
-def test_every_type_the_api_takes_returns_or_raises_is_in_rwt() -> None:
-    assert unreachable_types() == {}
+@pytest.mark.parametrize("space", PUBLIC)
+def test_every_type_the_api_takes_returns_or_raises_is_in_its_namespace(space: str) -> None:
+    assert unreachable_types(space) == {}
 
 
-def test_every_public_name_says_it_is_rwts() -> None:
-    assert sorted(dir(rwt)) == sorted(rwt.__all__)
-    for name in rwt.__all__:
-        value = getattr(rwt, name)
+@pytest.mark.parametrize("space", PUBLIC)
+def test_every_public_name_says_where_it_is(space: str) -> None:
+    module = importlib.import_module(space)
+    listed = sorted(name for names in PUBLIC[space].values() for name in names)
+    assert sorted(set(module.__all__) - {"__version__"}) == listed
+    assert sorted(dir(module)) == sorted([*module.__all__, *(NAMESPACES if space == "rwt" else ())])
+    for name in module.__all__:
+        value = getattr(module, name)
         if name != "__version__":
-            assert value.__module__ == "rwt", name
+            assert value.__module__ == space, name
+
+
+def test_rwt_is_small_and_each_name_has_one_place() -> None:
+    assert len(rwt.__all__) <= 40
+    everywhere = [name for module in spaces().values() for name in module.__all__]
+    assert len(everywhere) == len(set(everywhere))
+    for name in NAMESPACES:
+        assert getattr(rwt, name) is sys.modules[f"rwt.{name}"]
+
+
+def test_docs_say_where_every_name_that_left_rwt_went() -> None:
+    text = (Path(__file__).parents[2] / "docs" / "api.md").read_text("utf-8")
+    rows = dict(re.findall(r"^\| `rwt\.(\w+)` \| `(rwt\.[\w.]+)` \|", text, re.M))
+    places = {
+        name: f"{space}.{name}"
+        for space, homes in PUBLIC.items()
+        if space != "rwt"
+        for names in homes.values()
+        for name in names
+    }
+    assert rows == places
+
+
+def test_a_namespace_loads_its_homes_with_its_names_only() -> None:
+    """``import rwt.bag`` loads no bag code; ``rwt.bag.Recorder`` does (lazy_imports)."""
+    script = textwrap.dedent(
+        """
+        import sys
+        import rwt.bag, rwt.media, rwt.zenoh, rwt.ros2, rwt.video
+
+        print(sorted(m for m in sys.modules if m.split(".")[0] in
+              {"rwt_bag", "rosbags", "numpy", "PIL", "zenoh", "rclpy", "rwt_video"}))
+        rwt.bag.Recorder
+        print("rwt_bag" in sys.modules, rwt.bag.Recorder.__module__)
+        """
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines() == ["[]", "True rwt.bag"]
 
 
 def test_the_names_are_the_homes_own() -> None:

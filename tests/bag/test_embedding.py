@@ -1,4 +1,4 @@
-"""The embedding API: ``rwt.Recorder`` and ``rwt.Player`` on an in-process graph, with anyio."""
+"""The embedding API: ``rwt.bag.Recorder`` and ``rwt.bag.Player`` on an in-process graph."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ async def test_recorder_patterns_late_topics_and_latching(tmp_path: Path) -> Non
     other = graph.create_publisher("/other", "std_msgs/String")
     static = graph.create_publisher("/robot/static", "std_msgs/String", latch=True)
     static.publish({"data": "latched before the recorder started"})
-    async with rwt.Recorder(graph, tmp_path / "bag", topics=["/robot/*"], discover_s=0.05):
+    async with rwt.bag.Recorder(graph, tmp_path / "bag", topics=["/robot/*"], discover_s=0.05):
         await _publish(chatter, 3)
         await _publish(other, 3)
         late = graph.create_publisher("/robot/late", "std_msgs/String")
@@ -53,7 +53,7 @@ async def test_recorder_ros1_bag_keeps_latching(tmp_path: Path) -> None:
     graph = rwt.Graph(TypeRegistry(Dialect.ROS1))
     static = graph.create_publisher("/static", "std_msgs/String", latch=True)
     chatter = graph.create_publisher("/chatter", "std_msgs/String")
-    async with rwt.Recorder(graph, tmp_path / "run.bag", fmt="ros1"):
+    async with rwt.bag.Recorder(graph, tmp_path / "run.bag", fmt="ros1"):
         static.publish({"data": "s"})
         await _publish(chatter, 2)
     with AnyReader([tmp_path / "run.bag"]) as reader:
@@ -67,7 +67,7 @@ async def test_recorder_splits_by_size(tmp_path: Path) -> None:
     graph = rwt.Graph()
     pub = graph.create_publisher("/big", "std_msgs/String")
     split = SplitPolicy(max_bytes=3000)
-    recorder = rwt.Recorder(graph, tmp_path / "part", split=split)
+    recorder = rwt.bag.Recorder(graph, tmp_path / "part", split=split)
     async with recorder:
         for i in range(10):
             pub.publish({"data": f"{i:04d}" + "x" * 996})
@@ -83,13 +83,13 @@ async def test_recorder_splits_by_size(tmp_path: Path) -> None:
 
 async def test_recorder_refuses_a_format_of_the_other_dialect(tmp_path: Path) -> None:
     with pytest.raises(BagError, match="ros1 bag needs a ROS 1 graph"):
-        rwt.Recorder(rwt.Graph(), tmp_path / "x.bag", fmt=BagFormat.ROS1)
+        rwt.bag.Recorder(rwt.Graph(), tmp_path / "x.bag", fmt=BagFormat.ROS1)
 
 
 async def test_recorder_refuses_an_existing_bag(tmp_path: Path) -> None:
     (tmp_path / "taken").mkdir()
     with pytest.raises(BagError, match="cannot create the bag"):
-        async with rwt.Recorder(rwt.Graph(), tmp_path / "taken"):
+        async with rwt.bag.Recorder(rwt.Graph(), tmp_path / "taken"):
             pass
 
 
@@ -107,7 +107,7 @@ async def test_player_loop_offset_topics_and_rate(tmp_path: Path) -> None:
     got = _listen(graph)
     tf: list[object] = []
     graph.create_subscription("/tf", tf.append, "tf2_msgs/TFMessage")
-    player = rwt.Player(graph, bag, rate=4.0, start_offset=0.5, topics=["/chatter"], loop=True)
+    player = rwt.bag.Player(graph, bag, rate=4.0, start_offset=0.5, topics=["/chatter"], loop=True)
     async with player:
         with anyio.fail_after(10):
             while player.stats.loops < 2:
@@ -118,14 +118,14 @@ async def test_player_loop_offset_topics_and_rate(tmp_path: Path) -> None:
     assert tf == []  # not among --topics
     assert graph.topics["/chatter"].publishers == {}  # the player's publishers are gone
     with pytest.raises(BagError, match="rate"):
-        rwt.Player(graph, bag, rate=0)
+        rwt.bag.Player(graph, bag, rate=0)
 
 
 async def test_player_pause_resume_seek(tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "robot", "sqlite3")
     graph = rwt.Graph()
     got = _listen(graph)
-    async with rwt.Player(graph, bag, paused=True, linger=True) as player:
+    async with rwt.bag.Player(graph, bag, paused=True, linger=True) as player:
         await anyio.sleep(0.2)
         assert got == [] and player.paused and player.position_s == 0.0
         player.seek(0.9)  # chatter 16 is at 0.9 s
@@ -152,7 +152,7 @@ async def test_player_refuses_a_topic_of_another_type_publishing_nothing(tmp_pat
     got = _listen(graph)
     graph.create_subscription("/camera", got.append, "std_msgs/String")  # not an Image
     with pytest.raises(BagError, match="cannot play /camera"):
-        await rwt.Player(graph, bag).run()
+        await rwt.bag.Player(graph, bag).run()
     assert got == []
     assert all(not entry.publishers for entry in graph.topics.values())
 
@@ -160,19 +160,19 @@ async def test_player_refuses_a_topic_of_another_type_publishing_nothing(tmp_pat
 async def test_recorded_then_played_in_process(tmp_path: Path) -> None:
     graph = rwt.Graph(TypeRegistry(Dialect.ROS1))
     pub = graph.create_publisher("/chatter", "std_msgs/String")
-    async with rwt.Recorder(graph, tmp_path / "r.bag", fmt="ros1"):
+    async with rwt.bag.Recorder(graph, tmp_path / "r.bag", fmt="ros1"):
         await _publish(pub, 5, gap_s=0.02)
     pub.close()
     replay = rwt.Graph(TypeRegistry(Dialect.ROS1))
     got = _listen(replay)
-    await rwt.Player(replay, tmp_path / "r.bag").run()
+    await rwt.bag.Player(replay, tmp_path / "r.bag").run()
     assert [w for _, w in got] == [f"m{i}" for i in range(5)]
 
 
 async def test_recorder_splits_by_duration(tmp_path: Path) -> None:
     graph = rwt.Graph()
     pub = graph.create_publisher("/tick", "std_msgs/String")
-    recorder = rwt.Recorder(graph, tmp_path / "t", split=SplitPolicy(max_seconds=0.2))
+    recorder = rwt.bag.Recorder(graph, tmp_path / "t", split=SplitPolicy(max_seconds=0.2))
     async with recorder:
         await _publish(pub, 12, gap_s=0.05)  # about 0.6 s of messages
     assert len(recorder.paths) >= 3
@@ -191,7 +191,7 @@ async def test_each_split_part_repeats_the_latched_topics(tmp_path: Path, fmt: s
     static = graph.create_publisher("/static", "std_msgs/String", latch=True)
     pub = graph.create_publisher("/big", "std_msgs/String")
     path = tmp_path / ("part.bag" if ros1 else "part")
-    recorder = rwt.Recorder(
+    recorder = rwt.bag.Recorder(
         graph, path, fmt="ros1" if ros1 else "mcap", split=SplitPolicy(max_bytes=3000)
     )
     async with recorder:

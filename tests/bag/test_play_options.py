@@ -51,7 +51,7 @@ async def play(bag: Path, topic: str, **options: object) -> tuple[list[str], flo
             first.append(time.monotonic())
 
     graph.create_subscription(topic, on, "std_msgs/String")
-    player = rwt.Player(graph, bag, rate=4.0, check=False, **options)  # type: ignore[arg-type]
+    player = rwt.bag.Player(graph, bag, rate=4.0, check=False, **options)  # type: ignore[arg-type]
     started = time.monotonic()
     with anyio.fail_after(60):
         await player.run()
@@ -90,11 +90,11 @@ async def test_delay_holds_the_first_message(tmp_path: Path) -> None:
 def test_bad_values_are_refused_with_one_line(tmp_path: Path) -> None:
     bag = write_chatter(tmp_path / "bag")
     with pytest.raises(BagError, match="the delay must be a finite number of seconds"):
-        rwt.Player(rwt.Graph(), bag, delay=float("nan"))
+        rwt.bag.Player(rwt.Graph(), bag, delay=float("nan"))
     with pytest.raises(BagError, match="the duration must be a finite number of seconds"):
-        rwt.Player(rwt.Graph(), bag, duration=-1.0)
+        rwt.bag.Player(rwt.Graph(), bag, duration=-1.0)
     with pytest.raises(BagError, match="cannot play /chatter as bad name: invalid name"):
-        rwt.Player(rwt.Graph(), bag, remap={"/chatter": "bad name"})
+        rwt.bag.Player(rwt.Graph(), bag, remap={"/chatter": "bad name"})
 
 
 def _rwt(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -177,7 +177,7 @@ async def test_prefix_puts_every_topic_under_a_namespace_after_the_remap(tmp_pat
     got, _ = await play(relative, "/sim/relative", prefix="/sim")  # not /simrelative
     assert got == ["hostile"]
     with pytest.raises(BagError, match="the prefix '/a b' is not a namespace"):
-        rwt.Player(rwt.Graph(), bag, prefix="/a b")
+        rwt.bag.Player(rwt.Graph(), bag, prefix="/a b")
 
 
 @pytest.mark.anyio
@@ -185,7 +185,7 @@ async def test_waiting_for_subscribers_gives_up_at_its_timeout(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     bag = write_chatter(tmp_path / "bag")
-    player = rwt.Player(
+    player = rwt.bag.Player(
         rwt.Graph(), bag, rate=4.0, check=False, wait_for_subscribers=True, wait_timeout=0.2
     )
     with anyio.fail_after(60):

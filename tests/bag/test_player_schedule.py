@@ -39,7 +39,7 @@ def write_chatter(path: Path) -> Path:
     return path
 
 
-async def watch(player: rwt.Player, got: list[str], positions: list[float]) -> None:
+async def watch(player: rwt.bag.Player, got: list[str], positions: list[float]) -> None:
     while len(got) < COUNT:
         positions.append(player.position_s)
         await anyio.sleep(0.01)
@@ -53,7 +53,7 @@ async def test_a_playback_started_paused_keeps_its_schedule_after_resume(
     graph = rwt.Graph()
     got: list[str] = []
     graph.create_subscription("/chatter", lambda msg: got.append(msg["data"]), "std_msgs/String")
-    player = rwt.Player(graph, bag, rate=rate, paused=True, check=False)
+    player = rwt.bag.Player(graph, bag, rate=rate, paused=True, check=False)
     positions: list[float] = []
     with anyio.fail_after(60):
         async with anyio.create_task_group() as tg:
@@ -74,7 +74,7 @@ async def test_pause_seek_and_resume_go_on_from_the_new_position(
     graph = rwt.Graph()
     got: list[str] = []
     graph.create_subscription("/chatter", lambda msg: got.append(msg["data"]), "std_msgs/String")
-    player = rwt.Player(graph, bag, rate=rate, check=False)
+    player = rwt.bag.Player(graph, bag, rate=rate, check=False)
     positions: list[float] = []
     seek_s = 0.5  # message 250
     with anyio.fail_after(60):

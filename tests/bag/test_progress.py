@@ -16,10 +16,10 @@ from rwt_bag.progress import record_line, show_progress
 pytestmark = pytest.mark.anyio
 
 
-async def _record(tmp_path: Path, out: io.TextIOBase | object) -> rwt.Recorder:
+async def _record(tmp_path: Path, out: io.TextIOBase | object) -> rwt.bag.Recorder:
     graph = rwt.Graph()
     pub = graph.create_publisher("/p", "std_msgs/String")
-    recorder = rwt.Recorder(graph, tmp_path / "bag")
+    recorder = rwt.bag.Recorder(graph, tmp_path / "bag")
     async with recorder, anyio.create_task_group() as tg:
         tg.start_soon(partial(show_progress, interval_s=0.05), partial(record_line, recorder), out)
         for i in range(5):

@@ -168,7 +168,7 @@ async def test_topics_per_recording_are_capped(
     monkeypatch.setattr(recorder_module, "MAX_RECORD_TOPICS", 5)
     graph = rwt.Graph()
     publishers = [graph.create_publisher(f"/many{i}", "std_msgs/msg/String") for i in range(8)]
-    async with rwt.Recorder(graph, tmp_path / "capped", discover_s=0.05) as recorder:
+    async with rwt.bag.Recorder(graph, tmp_path / "capped", discover_s=0.05) as recorder:
         recorder.discover()
         assert recorder.live_topics == 5
         for publisher in publishers:

@@ -1,16 +1,17 @@
 """Build the API reference of ``import rwt`` from its docstrings, with pdoc.
 
 ``python -m tests.docs.api_reference OUT`` (repository root, ``src`` on
-``PYTHONPATH``, pdoc from the ``test`` extra) writes ``OUT/rwt.html`` and
-``OUT/index.html``, and exits 1 on any pdoc warning (an annotation it cannot
-resolve, a member it cannot place). docs/README.md says how to read it;
-tests/docs/test_api_reference.py builds it in CI.
+``PYTHONPATH``, pdoc from the ``test`` extra) writes ``OUT/rwt.html``, a page
+per namespace (``OUT/rwt/tf.html``...) and ``OUT/index.html``, and exits 1 on
+any pdoc warning (an annotation it cannot resolve, a member it cannot place).
+docs/README.md says how to read it; tests/docs/test_api_reference.py builds it
+in CI.
 
 Two things rwt does on purpose would mislead pdoc, and are undone here, in
 this process only:
 
-- ``rwt`` sets each name's ``__module__`` to ``rwt`` (so the reference reads
-  ``rwt.Graph``), and pdoc resolves string annotations (``from __future__
+- ``rwt`` sets each name's ``__module__`` to its namespace (so the reference
+  reads ``rwt.Graph``, ``rwt.tf.TFBuffer``), and pdoc resolves string annotations (``from __future__
   import annotations``) in the module ``__module__`` names: here they are
   resolved first in the module that defines them, TYPE_CHECKING imports
   included, so ``Topic`` in a Zenoh method stays the Zenoh link's, not
@@ -24,6 +25,7 @@ from __future__ import annotations
 import ast
 import builtins
 import contextlib
+import importlib
 import inspect
 import re
 import sys
@@ -31,7 +33,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-import rwt
+from rwt._names import PUBLIC
 
 
 def ours(module: str) -> bool:
@@ -89,13 +91,13 @@ def _resolve_methods(cls: type) -> None:
 
 
 def _defining_module(cls: type) -> str:
-    """The module whose source has ``class <name>`` for ``cls`` (its ``__module__`` is rwt)."""
+    """The module whose source has ``class <name>`` for ``cls`` (its ``__module__`` is public)."""
     pattern = re.compile(rf"^class {cls.__name__}\b", re.M)
     for module in list(sys.modules.values()):
         name, file = getattr(module, "__name__", ""), getattr(module, "__file__", None)
         if (
             ours(name)
-            and name != "rwt"
+            and name not in PUBLIC
             and vars(module).get(cls.__name__) is cls
             and file
             and pattern.search(Path(file).read_text("utf-8"))
@@ -110,8 +112,8 @@ def build(out: Path) -> list[str]:
     import pdoc.doc  # noqa: PLC0415
     import pdoc.doc_ast  # noqa: PLC0415
 
-    for name in rwt.__all__:
-        value = getattr(rwt, name)
+    spaces = [importlib.import_module(space) for space in PUBLIC]
+    for value in [getattr(space, name) for space in spaces for name in space.__all__]:
         if inspect.isclass(value):
             _resolve_methods(value)
             value.__rwt_source_module__ = _defining_module(value)  # type: ignore[attr-defined]
@@ -123,11 +125,12 @@ def build(out: Path) -> list[str]:
     def source_of(obj: Any) -> str:
         module = getattr(obj, "__rwt_source_module__", None)
         if inspect.isclass(obj) and module is not None:
+            public = obj.__module__
             try:
                 obj.__module__ = module
                 return plain_source(obj)
             finally:
-                obj.__module__ = "rwt"
+                obj.__module__ = public
         return plain_source(obj)
 
     plain_resolve = pdoc.doc.resolve_annotations
@@ -135,19 +138,21 @@ def build(out: Path) -> list[str]:
     def resolve_in_home(
         annotations: dict[str, Any], module: Any, localns: Any, fullname: str
     ) -> dict[str, Any]:
-        cls = getattr(rwt, fullname.removeprefix("rwt."), None)
+        space = getattr(module, "__name__", "")
+        cls = getattr(module, fullname.removeprefix(f"{space}."), None)
         home = getattr(cls, "__rwt_source_module__", None)
-        if module is rwt and home is not None:  # a class's attributes, in its own module
+        if space in PUBLIC and home is not None:  # a class's attributes, in its own module
             module = sys.modules[home]
             namespace_of(home)  # its TYPE_CHECKING names, as pdoc would find them
         return plain_resolve(annotations, module, localns, fullname)
 
     pdoc.doc_ast.get_source = source_of
     pdoc.doc.resolve_annotations = resolve_in_home
-    pdoc.render.configure(docformat="google", footer_text="rwt " + rwt.__version__)
+    pdoc.render.configure(docformat="google", footer_text="rwt " + spaces[0].__version__)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        pdoc.pdoc("rwt", output_directory=out)
+        # the namespaces by name: pdoc finds only the submodules __all__ lists
+        pdoc.pdoc(*PUBLIC, output_directory=out)
     return [str(warning.message) for warning in caught]
 
 

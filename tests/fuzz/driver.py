@@ -166,7 +166,7 @@ def memory_wire(connection: MemoryConnection) -> Wire:
             frame = await connection.receive_frame()
         except (anyio.EndOfStream, anyio.ClosedResourceError) as exc:
             raise Closed from exc
-        return frame.data, frame.binary
+        return (frame.encode(), False) if isinstance(frame, str) else (frame, True)
 
     async def send(data: bytes, binary: bool) -> None:
         try:

@@ -156,7 +156,7 @@ def test_graph_type_warnings_come_from_its_links() -> None:
 def test_read_cdr_takes_trailing_bytes_within_the_slack() -> None:
     registry = TypeRegistry(Dialect.ROS2)
     store = registry.typestore()
-    data = bytes(registry.codec(registry.message(STRING)).serialize({"data": "hi"}))
+    data = registry.serialize(registry.message(STRING), {"data": "hi"})
     assert read_cdr(store, data + bytes(8), STRING).data == "hi"  # type: ignore[attr-defined]
     used = len(data) - 4
     with pytest.raises(CdrError, match="bytes after a payload"):

@@ -97,10 +97,10 @@ async def test_a_bug_in_an_async_in_process_service_is_contained() -> None:
         async with server.connect_memory() as connection:
             with anyio.fail_after(TIMEOUT_S):
                 await connection.send({"op": "call_service", "service": "/broken", "id": "1"})
-                reply = json.loads((await connection.receive_frame()).data)
+                reply = json.loads(await connection.receive_frame())
                 assert reply["op"] == "service_response" and reply["result"] is False
                 await connection.send({"op": "call_service", "service": "/rosapi/topics"})
-                assert json.loads((await connection.receive_frame()).data)["result"] is True
+                assert json.loads(await connection.receive_frame())["result"] is True
         server.stop()
 
 

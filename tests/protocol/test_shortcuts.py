@@ -184,7 +184,7 @@ chatter = graph.create_publisher("/chatter", "std_msgs/msg/String", latch=True)
 chatter.publish({"data": "latched"})  # recorded as the recorder subscribes
 path = Path(sys.argv[1]) / "bag"
 async def record():
-    async with rwt.Recorder(graph, path, topics=["/chatter"]):
+    async with rwt.bag.Recorder(graph, path, topics=["/chatter"]):
         pass
 import anyio
 anyio.run(record)
@@ -194,7 +194,7 @@ print(json.dumps({
     "decoder_calls": Counting.calls,
     "view": type(wire.wire_input(bytes(64 * 1024))).__name__,
     "checkpoints": "rwt_bag.mcap" in sys.modules,  # imported only for CheckpointWriter
-    "bag": [(t.topic, t.msgtype, t.count) for t in rwt.bag_info(path).topics],
+    "bag": [(t.topic, t.msgtype, t.count) for t in rwt.bag.bag_info(path).topics],
 }))
 """
 

@@ -36,14 +36,15 @@ def joint_state_cdr() -> bytes:
         warnings.simplefilter("ignore", DeprecationWarning)
         data = serialize_message(JointState(name=["elbow"], position=[0.25], effort=[2.0]))
     registry = TypeRegistry(Dialect.ROS2)
-    written = registry.codec(registry.message("sensor_msgs/msg/JointState")).serialize(
+    written = registry.serialize(
+        registry.message("sensor_msgs/msg/JointState"),
         {
             "header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
             "name": ["elbow"],
             "position": [0.25],
             "velocity": [],
             "effort": [2.0],
-        }
+        },
     )
     assert len(data) - len(written) > 3  # more than rosbags' padding allowance
     return bytes(data)

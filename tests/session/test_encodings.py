@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rwt_graph.graph import Graph
-from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types import Dialect, TypeRegistry, codec_for
 from rwt_protocol.codecs.png import decode_png, encode_png
 from rwt_protocol.framing.fragments import fragment_frames
 from rwt_protocol.levels import StatusLevel
@@ -262,7 +262,7 @@ def test_one_serialization_per_distinct_encoding(
     monkeypatch.setattr(
         encoding, "encode_publish_json", counting("json", encoding.encode_publish_json)
     )
-    codec = graph.registry.codec(graph.registry.message("std_msgs/Float64MultiArray"))
+    codec = codec_for(graph.registry, graph.registry.message("std_msgs/Float64MultiArray"))
     monkeypatch.setattr(codec, "serialize", counting("raw", codec.serialize))
     monkeypatch.setattr(codec, "typed", counting("typed", codec.typed))
 
@@ -448,7 +448,7 @@ def test_bad_binary_frames_get_an_error_status(pub: Peer, frame: bytes, text: st
 
 
 def test_replies_take_their_requested_encoding(graph: Graph, pub: Peer) -> None:
-    codec = graph.registry.codec(graph.registry.message("std_msgs/Int16MultiArray"))
+    codec = codec_for(graph.registry, graph.registry.message("std_msgs/Int16MultiArray"))
     reply: dict[str, object] = {
         "op": "service_response",
         "service": "/s",
@@ -514,7 +514,7 @@ def test_cbor_types_arrays_inside_nested_messages_and_message_arrays(
 
 
 def test_a_failure_reply_stays_plain_with_a_codec(graph: Graph, pub: Peer) -> None:
-    codec = graph.registry.codec(graph.registry.message("std_msgs/Int16MultiArray"))
+    codec = codec_for(graph.registry, graph.registry.message("std_msgs/Int16MultiArray"))
     failure = {"op": "service_response", "service": "/s", "values": "no", "result": False}
     pub.session.send_op(failure, compression="cbor", codec=codec)
     assert decoded(pub) == [failure]
@@ -523,7 +523,7 @@ def test_a_failure_reply_stays_plain_with_a_codec(graph: Graph, pub: Peer) -> No
 def test_a_message_that_cannot_be_encoded_is_reported_to_its_subscriber_only(
     graph: Graph, pub: Peer, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    codec = graph.registry.codec(graph.registry.message("std_msgs/String"))
+    codec = codec_for(graph.registry, graph.registry.message("std_msgs/String"))
 
     def broken(msg: object) -> bytes:
         raise KeyError("std_msgs/msg/String")

@@ -86,7 +86,8 @@ class MemoryClient(Client):
 
     async def _receive_raw(self) -> bytes:
         assert self.connection is not None
-        return (await self.connection.receive_frame()).data
+        frame = await self.connection.receive_frame()
+        return frame.encode() if isinstance(frame, str) else frame
 
     async def aclose(self) -> None:
         pass  # the server's context manager closes it

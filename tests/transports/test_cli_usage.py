@@ -101,6 +101,16 @@ def test_an_address_in_use_names_the_listener_and_the_port(
     assert "listening on" not in run.stdout
 
 
+def test_workers_name_the_port_in_use_as_one_server_does(taken_tcp_port: int) -> None:
+    pytest.importorskip("zenoh", reason="--workers shares the graph over Zenoh")
+    run = rwt("--workers", "2", "--port", str(taken_tcp_port), command=SERVE)
+    assert run.returncode == 1
+    assert only_line(run.stderr) == (
+        f"rwt serve: cannot listen for WebSocket on 127.0.0.1:{taken_tcp_port}: "
+        "address already in use"
+    )
+
+
 # ---- option values refused at start ----------------------------------------------
 
 

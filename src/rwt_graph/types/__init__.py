@@ -13,7 +13,7 @@ from __future__ import annotations
 from .message import ActionType, Converted, MessageType, ServiceType
 from .msgparse import DefinitionError, parse_message
 from .names import Dialect, InvalidTypeNameError, UnknownTypeError
-from .registry import TypeRegistry
+from .registry import TypeRegistry, codec_for
 from .spec import ArrayKind, Constant, FieldSpec, FieldType
 from .wire import WireCodec
 
@@ -32,5 +32,6 @@ __all__ = [
     "TypeRegistry",
     "UnknownTypeError",
     "WireCodec",
+    "codec_for",
     "parse_message",
 ]

@@ -13,7 +13,7 @@ from rwt_protocol.errors import GraphError
 from .interop import fielddefs
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Callable, Mapping, Sequence
 
     from rosbags.interfaces.typing import Typesdict
     from rosbags.typesys.store import Typestore
@@ -24,7 +24,7 @@ from .names import Dialect, Kind, TypeName, UnknownTypeError, parse_type_name
 from .sources import FileIndex, packaged_dirs, store_message, stores_for
 from .wire import WireCodec
 
-__all__ = ["TypeRegistry"]
+__all__ = ["TypeRegistry", "codec_for"]
 
 _PARTS: dict[str, tuple[str, ...]] = {
     "srv": ("Request", "Response"),
@@ -284,16 +284,16 @@ class TypeRegistry:
             TypeName(p, "action", t).spelled(self.dialect) for p, t in self._files.names("action")
         )
 
-    def codec(self, mtype: MessageType) -> WireCodec:
-        """The encoder support (typed arrays, wire serialization) of ``mtype`` (cached).
+    def serialize(self, mtype: MessageType, msg: Mapping[str, object]) -> bytes:
+        """``msg`` (the internal form, as ``MessageType.from_json`` gives) in its wire form.
 
-        It implements ``rwt_protocol.ports.MessageCodec`` for CBOR and cbor-raw
-        (D21).
+        The dialect's serialization: CDR for ROS 2, the ROS 1 format for ROS 1,
+        as rosbags writes it (what a bag stores and rmw_zenoh carries).
+
+        Raises:
+            KeyError: the typestore lacks the type (a definition that failed to load).
         """
-        found = self._codecs.get(mtype.name)
-        if found is None or found.mtype is not mtype:
-            found = self._codecs[mtype.name] = WireCodec(mtype, self.message, self.typestore)
-        return found
+        return bytes(codec_for(self, mtype).serialize(msg))
 
     def typestore(self) -> Typestore:
         """A rosbags typestore with every known message type, for serialization.
@@ -332,3 +332,17 @@ class TypeRegistry:
                 action = self.action(name)
                 found += [action.goal, action.result, action.feedback]
         return found
+
+
+def codec_for(registry: TypeRegistry, mtype: MessageType) -> WireCodec:
+    """The encoder support (typed arrays, wire serialization) of ``mtype`` (cached).
+
+    It implements ``rwt_protocol.ports.MessageCodec`` for CBOR and cbor-raw
+    (D21). rwt's own packages use it; the public ``TypeRegistry.serialize``
+    gives the bytes without it.
+    """
+    codecs = registry._codecs
+    found = codecs.get(mtype.name)
+    if found is None or found.mtype is not mtype:
+        found = codecs[mtype.name] = WireCodec(mtype, registry.message, registry.typestore)
+    return found

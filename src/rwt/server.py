@@ -1,0 +1,48 @@
+"""The parts of ``rwt.ServerConfig`` and an embedded server's hooks (docs/server.md).
+
+Listener options (``WebSocketOptions``, ``UdpOptions``, the web console's
+``ConsoleSite``), access rules (``AccessPolicy`` over a ``Family`` of names, and
+the ``AccessDeniedError`` a client gets), authentication (the ``Auth`` op an
+authenticator gets, ``rosauth_authenticator``), the in-process client connection
+(``MemoryConnection``) and the allocator tuning ``rwt serve`` does.
+
+Each name loads from its home on first use, as ``rwt``'s do.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rwt._names import load
+
+if TYPE_CHECKING:
+    from rwt_console.site import ConsoleSite
+    from rwt_protocol.ops import Auth
+    from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
+    from rwt_transports.allocator import tune_allocator
+    from rwt_transports.memory import MemoryConnection
+    from rwt_transports.server import rosauth_authenticator
+    from rwt_transports.udp import UdpOptions
+    from rwt_transports.websocket import WebSocketOptions
+
+__all__ = [
+    "AccessDeniedError",
+    "AccessPolicy",
+    "Auth",
+    "ConsoleSite",
+    "Family",
+    "MemoryConnection",
+    "UdpOptions",
+    "WebSocketOptions",
+    "rosauth_authenticator",
+    "tune_allocator",
+]
+
+
+def __getattr__(name: str) -> object:
+    value = globals()[name] = load(__name__, name)
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
