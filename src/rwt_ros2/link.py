@@ -364,7 +364,7 @@ class Ros2Link:
             graph.nodes.forget(client)
             mirror.refused = True
             self.episodes.log(
-                logging.INFO,
+                logging.WARNING,
                 f"skip:{client}",
                 "event=ros2_skip entity=%s reason=%r",
                 spec,

@@ -896,7 +896,7 @@ class ZenohLink:
         except (RwtError, WireError) as exc:
             graph.nodes.forget(remote.client)
             self.peer_log.log(
-                logging.INFO,
+                logging.WARNING,
                 f"zenoh_skip:{entity.kind.name}",
                 "event=zenoh_skip kind=%s name=%s reason=%r",
                 entity.kind.name.lower(),

@@ -78,3 +78,24 @@ async def test_a_ros2_type_of_another_definition_is_refused_and_disturbs_nothing
         server.stop()
     assert json.loads(out.strip().splitlines()[-1]) == {"joints": True, "chatter": []}
     assert "give rwt the robot's definitions" in server.stderr_text()
+
+
+async def test_a_type_clash_on_a_topic_keeps_the_first_type_and_warns_once(
+    ros_env: Path,
+) -> None:
+    server = serve_ros2(ros_env)
+    try:
+        with Peer("talk", "/clash", ros_env), Peer("joints", "/clash", ros_env):
+            with anyio.fail_after(20):  # both are discovered; one of them is skipped
+                while "/clash" not in server.stderr_text().partition("event=ros2_skip")[2]:
+                    await anyio.sleep(0.1)
+            await anyio.sleep(3)  # a few more sweeps: the same episode, no new line
+    finally:
+        server.stop()
+    skips = [
+        line
+        for line in server.stderr_text().splitlines()
+        if "event=ros2_skip" in line and "/clash" in line
+    ]
+    assert len(skips) == 1, skips
+    assert " WARNING rwt." in skips[0]
