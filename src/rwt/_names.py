@@ -59,7 +59,12 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_protocol.levels": ("StatusLevel",),
     },
     "rwt.errors": {
-        "rwt_protocol.errors": ("LimitError", "LocalProtocolError", "RemoteProtocolError"),
+        "rwt_protocol.errors": (
+            "LimitError",
+            "LocalProtocolError",
+            "RemoteProtocolError",
+            "UnknownNameError",
+        ),
         "rwt_protocol.framing.messages": ("MessageTooBigError",),
         "rwt_graph.params": ("ParameterError", "ParameterNotSetError", "ParameterStoreFullError"),
     },
@@ -93,6 +98,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.server.access": ("AccessDeniedError", "AccessPolicy", "Family"),
         "rwt_protocol.ops": ("Auth",),
+        "rwt_protocol.server.compat": ("Compat",),
         "rwt_console.site": ("ConsoleSite",),
     },
     "rwt.tf": {

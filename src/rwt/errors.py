@@ -5,7 +5,8 @@ its first branches and the errors most programs catch (``rwt.FieldError``,
 ``rwt.ServiceCallError``, ``rwt.ListenError``...). The errors of one feature live
 in its namespace (``rwt.tf.TFError``, ``rwt.bag.BagError``,
 ``rwt.types.UnknownTypeError``); the rest of the tree is here: a peer's protocol
-errors and caps, the misuse of an op model, and the parameter store's errors.
+errors and caps, the misuse of an op model, a service or action that does not
+exist, and the parameter store's errors.
 docs/api.md lists each error's place; the tree is drawn in rwt_protocol/errors.py.
 
 Each name loads from its home on first use, as ``rwt``'s do.
@@ -19,7 +20,12 @@ from rwt._names import load
 
 if TYPE_CHECKING:
     from rwt_graph.params import ParameterError, ParameterNotSetError, ParameterStoreFullError
-    from rwt_protocol.errors import LimitError, LocalProtocolError, RemoteProtocolError
+    from rwt_protocol.errors import (
+        LimitError,
+        LocalProtocolError,
+        RemoteProtocolError,
+        UnknownNameError,
+    )
     from rwt_protocol.framing.messages import MessageTooBigError
 
 __all__ = [
@@ -30,6 +36,7 @@ __all__ = [
     "ParameterNotSetError",
     "ParameterStoreFullError",
     "RemoteProtocolError",
+    "UnknownNameError",
 ]
 
 

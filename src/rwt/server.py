@@ -4,7 +4,8 @@ Listener options (``WebSocketOptions``, ``UdpOptions``, the web console's
 ``ConsoleSite``), access rules (``AccessPolicy`` over a ``Family`` of names, and
 the ``AccessDeniedError`` a client gets), authentication (the ``Auth`` op an
 authenticator gets, ``rosauth_authenticator``), the in-process client connection
-(``MemoryConnection``) and the allocator tuning ``rwt serve`` does.
+(``MemoryConnection``), the allocator tuning ``rwt serve`` does, and ``Compat``, the
+drop-in mode for clients written against rosbridge_suite (docs/differences.md).
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """
@@ -19,6 +20,7 @@ if TYPE_CHECKING:
     from rwt_console.site import ConsoleSite
     from rwt_protocol.ops import Auth
     from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
+    from rwt_protocol.server.compat import Compat
     from rwt_transports.allocator import tune_allocator
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import rosauth_authenticator
@@ -29,6 +31,7 @@ __all__ = [
     "AccessDeniedError",
     "AccessPolicy",
     "Auth",
+    "Compat",
     "ConsoleSite",
     "Family",
     "MemoryConnection",

@@ -228,6 +228,7 @@ def _session_config(options: ServeOptions) -> SessionConfig:
     security, limits = options.security, options.limits
     return SessionConfig(
         status_level=StatusLevel.from_wire(options.graph.status_level.value),
+        compat=options.graph.compat,
         send_buffer_limit=limits.send_buffer_limit,
         send_timeout_s=limits.send_timeout,
         hold_budget_s=limits.hold_budget,

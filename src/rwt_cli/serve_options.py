@@ -17,6 +17,7 @@ import typer
 
 from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
 from rwt_transports.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
@@ -353,6 +354,13 @@ class GraphOptions:
     status_level: Annotated[LevelName, typer.Option(help="Status level of new connections.")] = (
         LevelName[StatusLevel.ERROR.name]
     )
+    compat: Annotated[
+        Compat,
+        typer.Option(
+            help="rosbridge: behave as rosbridge_suite where clients notice (no status op"
+            " until a client sends set_level, its reply texts; docs/differences.md)."
+        ),
+    ] = Compat.RWT
     tf: Annotated[
         bool,
         typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),

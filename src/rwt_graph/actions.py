@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING
 
-from rwt_protocol.errors import FieldError, GraphError, RwtError
+from rwt_protocol.errors import FieldError, GraphError, RwtError, UnknownNameError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
@@ -221,13 +221,14 @@ class Actions(ProviderTable[ActionEntry]):
         packages (``tf2_web_republisher_msgs`` or ``..._interfaces``, REF §7.3).
 
         Raises:
-            GraphError: no such action, or its client provider is busy
+            UnknownNameError: no such action.
+            GraphError: its client provider is busy
                 (docs/limits.md).
             FieldError: ``args`` does not fit the goal type.
         """
         entry = self.entries.get(resolve_name(action))
         if entry is None:
-            raise GraphError(f"action {action} does not exist")
+            raise UnknownNameError("action", action)
         goal_msg = convert_args(entry.actiontype.goal, args, path=path, now=self.clock.wall())
         goal_id = f"action_goal:{entry.spelling}:{next(entry.counter)}"
         goal = Goal(entry, goal_id, client, done, on_feedback, self.clock)

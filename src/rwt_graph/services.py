@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING
 
-from rwt_protocol.errors import FieldError, GraphError, RwtError
+from rwt_protocol.errors import FieldError, GraphError, RwtError, UnknownNameError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
@@ -147,13 +147,14 @@ class Services(ProviderTable[ServiceEntry]):
         """Start a call to ``service`` (spec 3.3.8).
 
         Raises:
-            GraphError: the service does not exist or has another type, or its
+            UnknownNameError: the service does not exist.
+            GraphError: the service has another type, or its
                 client provider is busy (docs/limits.md).
             FieldError: ``args`` does not fit the request type.
         """
         entry = self.entries.get(resolve_name(service))
         if entry is None:
-            raise GraphError(f"service {service} does not exist")
+            raise UnknownNameError("service", service)
         if type_name is not None and self.registry.service(type_name).name != entry.srvtype.name:
             raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
         request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())

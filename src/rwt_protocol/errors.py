@@ -18,6 +18,7 @@ package is drawn here::
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation
     │   ├── FieldError                    a value does not fit its type (D9)
+    │   ├── UnknownNameError              no such service or action
     │   ├── DefinitionError               rwt_graph.types: a bad .msg/.srv/.action text
     │   ├── InvalidTypeNameError          rwt_graph.types: not a ROS type name
     │   ├── UnknownTypeError              rwt_graph.types: no such type
@@ -71,6 +72,7 @@ __all__ = [
     "RwtError",
     "ServiceCallError",
     "TransportError",
+    "UnknownNameError",
 ]
 
 
@@ -121,6 +123,20 @@ class FieldError(GraphError):
         super().__init__(f"{problem} at {path}")
         self.path = path
         self.problem = problem
+
+
+class UnknownNameError(GraphError):
+    """No service or action of that name in the graph.
+
+    Args:
+        kind: what was looked up, ``service`` or ``action``.
+        name: the name as the caller gave it.
+    """
+
+    def __init__(self, kind: str, name: str) -> None:
+        super().__init__(f"{kind} {name} does not exist")
+        self.kind = kind
+        self.name = name
 
 
 class ConfigError(RwtError, ValueError):

@@ -206,6 +206,10 @@ def test_rwt_is_small_and_each_name_has_one_place() -> None:
         assert getattr(rwt, name) is sys.modules[f"rwt.{name}"]
 
 
+# public since the split, in a namespace from the start: never an ``rwt.X``
+NEVER_IN_RWT = {"Compat", "UnknownNameError"}
+
+
 def test_docs_say_where_every_name_that_left_rwt_went() -> None:
     text = (Path(__file__).parents[2] / "docs" / "api.md").read_text("utf-8")
     rows = dict(re.findall(r"^\| `rwt\.(\w+)` \| `(rwt\.[\w.]+)` \|", text, re.M))
@@ -215,6 +219,7 @@ def test_docs_say_where_every_name_that_left_rwt_went() -> None:
         if space != "rwt"
         for names in homes.values()
         for name in names
+        if name not in NEVER_IN_RWT
     }
     assert rows == places
 

@@ -48,6 +48,7 @@ from . import gates
 from .access import AccessPolicy
 from .backpressure import SlowConsumerWatch
 from .commands import CloseCode, CloseConnection, Command
+from .compat import Compat, initial_status_level
 from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
@@ -93,6 +94,8 @@ class SessionConfig:
 
     Attributes:
         status_level: the level a new connection starts at (D2, ``--status-level``).
+        compat: whose behaviour the connection follows where rwt and rosbridge_suite
+            differ (``compat.Compat``, ``--compat``; docs/differences.md).
         send_buffer_limit: bytes of outgoing frames kept queued before the oldest
             topic messages are dropped (D24, ``--send-buffer-limit``); each frame
             counts its payload plus ``outbox.FRAME_OVERHEAD_BYTES``, so the
@@ -147,6 +150,7 @@ class SessionConfig:
     """
 
     status_level: StatusLevel = StatusLevel.ERROR
+    compat: Compat = Compat.RWT
     send_buffer_limit: int = 16 * MiB
     send_timeout_s: float = 30.0
     hold_budget_s: float = HOLD_BUDGET_S
@@ -208,7 +212,7 @@ class Session:
         self._client_id = client_id
         self._peer = peer
         self._config = config or SessionConfig()
-        self._status_level = self._config.status_level
+        self._status_level = initial_status_level(self._config.compat, self._config.status_level)
         self._holdings = Holdings()
         self._provider_link = ProviderLink(self)
         self._outbox = Outbox(self._config.send_buffer_limit)

@@ -16,6 +16,7 @@ from ...ops import (
     UnadvertiseAction,
 )
 from ...ports import GoalStatus
+from ..compat import reply_text
 from .topics import report_type_warning
 
 if TYPE_CHECKING:
@@ -103,7 +104,7 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
             path="$.args",
         )
     except RwtError as exc:
-        done(GoalStatus.ABORTED, False, exc.message)
+        done(GoalStatus.ABORTED, False, reply_text(session.config.compat, exc))
         raise
     if not finished:
         session.holdings.goal_started(key, handle)

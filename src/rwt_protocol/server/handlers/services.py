@@ -8,6 +8,7 @@ from ...errors import RemoteProtocolError, RwtError
 from ...levels import StatusLevel
 from ...names import resolve_name
 from ...ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
+from ..compat import reply_text
 from .topics import report_type_warning
 
 if TYPE_CHECKING:
@@ -98,7 +99,7 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
             session.client_id, service, op.args, call.reply, type_name=None, path="$.args"
         )
     except RwtError as exc:
-        call.reply(False, exc.message)
+        call.reply(False, reply_text(session.config.compat, exc))
         raise
     if call.done:
         return

@@ -1,0 +1,64 @@
+"""Drop-in behaviour for clients written against rosbridge_suite (docs/differences.md).
+
+rwt's own texts and statuses are the default (docs/decisions.md, D1-D4). With
+``Compat.ROSBRIDGE`` (``--compat rosbridge``) a connection behaves as rosbridge_suite
+2.1.0 does where a client can tell:
+
+- it gets no ``status`` op until it asks for one with ``set_level``: rosbridge_suite
+  sends none, and roslibpy 2.1.0, which has no handler for ``status``, logs a
+  traceback for each (docs/reference-behaviour.md, ``set_level`` / ``status``);
+- a failure reply (``service_response`` or ``action_result`` with ``result: false``)
+  carries rosbridge_suite's text where it has one of its own
+  (``Service /x does not exist``, docs/reference-behaviour.md, ``call_service``).
+
+The reply is sent in both modes (D4): rosbridge_suite answers a missing service too.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+from ..errors import RwtError, UnknownNameError
+from ..levels import StatusLevel
+
+__all__ = ["Compat", "initial_status_level", "reply_text"]
+
+
+class Compat(StrEnum):
+    """Whose behaviour a connection follows where rwt and rosbridge_suite differ."""
+
+    RWT = "rwt"
+    """rwt's own texts and statuses (docs/decisions.md)."""
+    ROSBRIDGE = "rosbridge"
+    """rosbridge_suite 2.1.0's, for clients that match its texts or choke on ``status``."""
+
+
+def initial_status_level(compat: Compat, configured: StatusLevel) -> StatusLevel:
+    """The status level a new connection starts at.
+
+    Args:
+        compat: the server's mode.
+        configured: ``SessionConfig.status_level`` (``--status-level``).
+
+    Returns:
+        ``configured``; ``StatusLevel.NONE`` with ``Compat.ROSBRIDGE``, so that only a
+        client that sent ``set_level`` ever receives a ``status``.
+    """
+    return StatusLevel.NONE if compat is Compat.ROSBRIDGE else configured
+
+
+def reply_text(compat: Compat, error: RwtError) -> str:
+    """The ``values`` text of a failure reply to a call or goal refused with ``error``.
+
+    Args:
+        compat: the server's mode.
+        error: why the call or goal was refused.
+
+    Returns:
+        ``error.message``, or with ``Compat.ROSBRIDGE`` rosbridge_suite's text for
+        the same refusal where it has one.
+    """
+    rosbridge = compat is Compat.ROSBRIDGE
+    if rosbridge and isinstance(error, UnknownNameError) and error.kind == "service":
+        return f"Service {error.name} does not exist"
+    return error.message
