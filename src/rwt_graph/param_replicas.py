@@ -7,7 +7,9 @@ graph, like any caller, so rosapi's ``get_param_names``, ``get_param`` and
 ``set_param`` reach that node: its parameters are refreshed every
 ``refresh_sweeps`` sweeps into the store, a change made here to a replica
 (rosapi ``set_param``) is sent to the node's ``set_parameters``, and the copy
-goes with the node.
+goes with the node. The copies are the node's (``Parameters.own``): rosapi's
+``set_param`` on one asks the node's ``set_parameters`` and answers what the node
+answered (a refusal with the node's reason), and the store takes the node's value.
 
 A node may list more than the store lets it hold (its share,
 ``params.NODE_SHARE``): the copy then holds the first names of its listing that
@@ -28,6 +30,7 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
 
+from .async_calls import call_service
 from .calls import guarded
 from .param_wire import from_wire, to_wire
 from .params import ParameterError, ParameterStoreFullError
@@ -41,7 +44,7 @@ if TYPE_CHECKING:
     from .graph import Graph
     from .params import Parameters, ParamValue
 
-__all__ = ["MAX_RETRY_REFRESHES", "REFRESH_SWEEPS", "ParamReplicas"]
+__all__ = ["MAX_RETRY_REFRESHES", "NODE_SET_TIMEOUT_S", "REFRESH_SWEEPS", "ParamReplicas"]
 
 logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)  # a node decides what it lists, and how often
@@ -51,6 +54,9 @@ REFRESH_SWEEPS = 5
 
 MAX_RETRY_REFRESHES = 32
 """Refreshes a refused value waits at most before it is tried again (the back-off's cap)."""
+
+NODE_SET_TIMEOUT_S = 5.0
+"""Seconds rosapi's ``set_param`` waits for a node's ``set_parameters`` answer."""
 
 
 @dataclass
@@ -94,12 +100,12 @@ class ParamReplicas:
         """Hold copies of exactly ``nodes``' parameters; refresh them now and then."""
         for node in list(self._copies):
             if node not in nodes:
-                self._apply(node, {})
-                del self._copies[node]
+                self._forget(node)
         self._ticks += 1
         for node in nodes:
             if node not in self._copies:
                 self._copies[node] = _Copy()
+                self.graph.params.own(node, partial(self._set_on_node, node))
                 self._refresh(node)
             elif self._ticks % self.refresh_sweeps == 0:
                 self._refresh(node)
@@ -115,6 +121,34 @@ class ParamReplicas:
             self.graph.port.call_service(self.caller, f"{node}/{part}", args, reply)
         except RwtError as exc:  # its services are not (yet) in the graph
             logger.debug("parameters of %s: %s", node, exc)
+
+    def _forget(self, node: str) -> None:
+        self.graph.params.own(node, None)
+        self._apply(node, {})
+        del self._copies[node]
+
+    async def _set_on_node(self, node: str, param: str, value: ParamValue) -> tuple[bool, str]:
+        """Set ``param`` on ``node`` itself; ``(successful, reason)`` as the node answered.
+
+        The store takes the node's value at the refresh this starts, whatever the
+        answer (``NodeSetter``).
+        """
+        wire = to_wire(self._value_type, value)
+        request = {"parameters": [{"name": param, "value": wire}]}
+        try:
+            response = await call_service(
+                self.graph, f"{node}/set_parameters", request, timeout_s=NODE_SET_TIMEOUT_S
+            )
+        except RwtError as exc:
+            return False, f"node {node} did not set {param}: {exc.message}"
+        finally:
+            if node in self._copies:
+                self._refresh(node)
+        results = response.get("results")
+        result = results[0] if isinstance(results, list) and results else None
+        if not isinstance(result, dict):
+            return False, f"node {node} answered no result for {param}"
+        return result.get("successful") is True, str(result.get("reason", ""))
 
     def _refresh(self, node: str) -> None:
         def listed(values: dict[str, object]) -> None:
@@ -235,8 +269,7 @@ class ParamReplicas:
             self._stop()
             self._stop = None
         for node in list(self._copies):
-            self._apply(node, {})
-        self._copies.clear()
+            self._forget(node)
 
 
 def _put(params: Parameters, name: str, value: object) -> None:

@@ -33,10 +33,11 @@ from .ratelog import EpisodeLog
 from .types import Dialect
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Mapping, Sequence
+    from collections.abc import Awaitable, Callable, Mapping, Sequence
 
 __all__ = [
     "NODE_SHARE",
+    "NodeSetter",
     "ParamInfo",
     "ParamKind",
     "ParamValue",
@@ -55,6 +56,9 @@ _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 ParamValue: TypeAlias = "bool | int | float | str | list[ParamValue] | dict[str, ParamValue]"
 ParamWatcher: TypeAlias = "Callable[[str, ParamValue | None], None]"
 """Called with ``(name, value)`` after each change; ``value`` is None for a deletion."""
+NodeSetter: TypeAlias = "Callable[[str, ParamValue], Awaitable[tuple[bool, str]]]"
+"""Sets ``(param, value)`` on the node that owns the parameters, not in the store; answers
+``(successful, reason)`` as the node did (``Parameters.owned_by``)."""
 
 _INT64 = (-(2**63), 2**63 - 1)
 _INT32 = (-(2**31), 2**31 - 1)  # XML-RPC integers of the ROS 1 parameter server
@@ -323,6 +327,7 @@ class Parameters:
         self._count = 0  # ROS 2 parameters held: a new one checks room without a walk
         self._tree: dict[str, ParamValue] = {}  # ROS 1
         self._watchers: list[ParamWatcher] = []
+        self._owners: dict[str, NodeSetter] = {}  # ROS 2 nodes whose values are copies
 
     @property
     def ros1(self) -> bool:
@@ -593,6 +598,22 @@ class Parameters:
                 self._watchers.remove(watcher)
 
         return stop
+
+    def own(self, node: str, setter: NodeSetter | None) -> None:
+        """Say that ``node``'s parameters here are copies that ``setter`` changes on the node.
+
+        A link that copies another node's parameters (``param_replicas``) owns them:
+        rosapi's ``set_param`` then asks the node and answers what it answered. None
+        gives the node's parameters back to the store.
+        """
+        if setter is None:
+            self._owners.pop(node, None)
+        else:
+            self._owners[node] = setter
+
+    def owned_by(self, node: str) -> NodeSetter | None:
+        """The setter of the node that owns ``node``'s parameters, or None (``own``)."""
+        return self._owners.get(node)
 
     # ---- internals ---------------------------------------------------------------
 

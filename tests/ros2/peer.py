@@ -25,6 +25,11 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         there; prints {"feedback": seq} each, then {"result": seq, "status": n}
   params NODE_NAME      a node named NODE_NAME declaring speed=1.5 and mode="auto";
                         prints {"speed": value} whenever speed changes
+  guarded_params NODE_NAME  a node named NODE_NAME declaring speed=2.5, a read-only
+                        model="x1" and limit=1.0, whose set-parameters callback
+                        refuses a negative limit ("limit must not be negative")
+  read_params NODE      prints {"values": {name: value}} of NODE's speed, model and limit,
+                        read once through its get_parameters service
   many_params NODE_NAME N  a node named NODE_NAME declaring N integer parameters
                         p00000, p00001, ... (value n); sets p00000 to a count going
                         up every 50 ms, so each refresh of a copy sees a new value
@@ -54,7 +59,12 @@ import sys
 import time
 
 import rclpy
-from rcl_interfaces.msg import Parameter, ParameterValue, SetParametersResult
+from rcl_interfaces.msg import (
+    Parameter,
+    ParameterDescriptor,
+    ParameterValue,
+    SetParametersResult,
+)
 from rcl_interfaces.srv import (
     DescribeParameters,
     GetParameters,
@@ -82,7 +92,7 @@ def say(**fields: object) -> None:
 def main() -> None:
     mode, name = sys.argv[1], sys.argv[2]
     rclpy.init()
-    default = name if mode in ("params", "many_params") else f"peer_{mode}"
+    default = name if mode in ("params", "guarded_params", "many_params") else f"peer_{mode}"
     named = len(sys.argv) > 3 and mode not in ("call_many", "many_params")  # a count
     node = rclpy.create_node(sys.argv[3] if named else default)
     tick = None
@@ -223,6 +233,20 @@ def main() -> None:
             return SetParametersResult(successful=True)
 
         node.add_on_set_parameters_callback(changed)
+    elif mode == "guarded_params":
+        node.declare_parameter("speed", 2.5)
+        node.declare_parameter("model", "x1", ParameterDescriptor(read_only=True))
+        node.declare_parameter("limit", 1.0)
+
+        def guard(params):
+            if any(p.name == "limit" and p.value < 0 for p in params):
+                return SetParametersResult(successful=False, reason="limit must not be negative")
+            return SetParametersResult(successful=True)
+
+        node.add_on_set_parameters_callback(guard)
+    elif mode == "read_params":
+        read_params(node, name)
+        return
     elif mode == "many_params":
         count = int(sys.argv[3])
         node.declare_parameters("", [(f"p{n:05}", n) for n in range(count)])
@@ -258,6 +282,20 @@ def main() -> None:
         if tick is not None:
             tick()
         rclpy.spin_once(node, timeout_sec=0.05)
+
+
+def read_params(node, target):
+    get = node.create_client(GetParameters, f"{target}/get_parameters")
+    if not get.wait_for_service(timeout_sec=20):
+        say(error="no get_parameters")
+        return
+    say(ready=True)
+    names = ["speed", "model", "limit"]
+    future = get.call_async(GetParameters.Request(names=names))
+    rclpy.spin_until_future_complete(node, future, timeout_sec=20)
+    values = future.result().values
+    read = [v.double_value if v.type == 3 else v.string_value for v in values]
+    say(values=dict(zip(names, read, strict=True)))
 
 
 def tf_broadcaster(node, topic, *, static):

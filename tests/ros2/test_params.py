@@ -120,3 +120,39 @@ async def test_a_ros2_node_describes_and_sets_atomically_parameters_a_rosbridge_
         "now": [7.0, "auto"],
         "listed": ["/rosbridge_websocket:style", "/rosbridge_websocket:volume"],
     }
+
+
+REFUSALS = """
+set_param = roslibpy.Service(ros, "/rosapi/set_param", "rosapi_msgs/srv/SetParam")
+names = roslibpy.Service(ros, "/rosapi/get_param_names", "rosapi_msgs/srv/GetParamNames")
+
+def put(name, value):
+    request = roslibpy.ServiceRequest({"name": "/guarded:" + name, "value": json.dumps(value)})
+    return dict(set_param.call(request, timeout=10))
+
+wait_for(lambda: "/guarded:limit" in names.call(roslibpy.ServiceRequest({}))["names"])
+print(json.dumps({
+    "type change": put("speed", "fast"),
+    "read-only": put("model", "x2"),
+    "validation": put("limit", -1.0),
+    "accepted": put("limit", 3.0),
+}), flush=True)
+ros.terminate()
+"""
+
+
+async def test_set_param_answers_what_the_node_answered(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("guarded_params", "guarded", ros_env):
+        out = await run_python(roslibpy_prelude(server.port) + REFUSALS)
+        with Peer("read_params", "/guarded", ros_env) as reader:
+            on_node = await anyio.to_thread.run_sync(reader.next)
+    answers = json.loads(out.splitlines()[-1])
+    assert answers["accepted"] == {"successful": True, "reason": ""}
+    for refusal in ("type change", "read-only", "validation"):
+        assert answers[refusal]["successful"] is False, refusal
+    assert "limit must not be negative" in answers["validation"]["reason"]
+    assert "read-only" in answers["read-only"]["reason"]
+    assert "type" in answers["type change"]["reason"]
+    assert on_node == {"values": {"speed": 2.5, "model": "x1", "limit": 3.0}}

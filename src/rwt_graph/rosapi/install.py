@@ -12,7 +12,7 @@ offer, say, a forged ``/rosapi/get_ros_version`` on a ROS 1 server
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -35,7 +35,8 @@ __all__ = ["ROSAPI_NODE", "Rosapi", "install_rosapi", "rosapi_service_names"]
 ROSAPI_NODE = "/rosapi"
 
 Message = dict[str, object]
-Handler = Callable[["Graph", Visibility, Message], Message]
+Handler = Callable[["Graph", Visibility, Message], "Message | Awaitable[Message]"]
+"""A rosapi service: its answer, or an awaitable of it (``set_param`` on another node)."""
 
 
 def _topics(graph: Graph, vis: Visibility, request: Message) -> Message:
@@ -206,8 +207,8 @@ def install_rosapi(
 
 def _bound(
     graph: Graph, handler: Handler, visibility: VisibilityFor | None
-) -> Callable[[ClientId, Message], Message]:
-    def serve(caller: ClientId, request: Message) -> Message:
+) -> Callable[[ClientId, Message], Message | Awaitable[Message]]:
+    def serve(caller: ClientId, request: Message) -> Message | Awaitable[Message]:
         vis = EVERYTHING if visibility is None else visibility(caller)
         return handler(graph, vis, request)
 

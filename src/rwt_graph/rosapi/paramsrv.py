@@ -32,6 +32,8 @@ from ..params import ParameterError, ParamValue, to_json_safe
 from .listing import encodable, node_names
 
 if TYPE_CHECKING:
+    from collections.abc import Awaitable
+
     from ..graph import Graph
     from .visibility import Visibility
 
@@ -85,18 +87,32 @@ _OK: Message = {"successful": True, "reason": ""}
 # ---- ROS 2 ------------------------------------------------------------------------
 
 
-def ros2_set_param(graph: Graph, vis: Visibility, request: Message) -> Message:
-    """``SetParam``: set ``name`` to the JSON ``value``."""
+def ros2_set_param(graph: Graph, vis: Visibility, request: Message) -> Message | Awaitable[Message]:
+    """``SetParam``: set ``name`` to the JSON ``value``.
+
+    A parameter of a node that owns its parameters (another ROS 2 node, whose
+    values here are copies: ``Parameters.own``) is set by that node: the answer
+    waits for it and says what it said (a type change, a read-only parameter or
+    its own validation refused).
+    """
     try:
         name = _visible(vis, graph.params.key(str(request["name"])))
         value = _loads(request["value"], "set_param value")
-        node = name.partition(":")[0]
+        node, _, param = name.partition(":")
         if node not in node_names(graph):
             raise ParameterError(f"node {node} does not exist")
+        owner = graph.params.owned_by(node)
+        if owner is not None:
+            return _set_by_node(owner(param, value))
         graph.params.set(name, value)
     except ParameterError as exc:
         return _refused(exc)
     return dict(_OK)
+
+
+async def _set_by_node(answer: Awaitable[tuple[bool, str]]) -> Message:
+    successful, reason = await answer
+    return {"successful": successful, "reason": reason}
 
 
 def ros2_get_param(graph: Graph, vis: Visibility, request: Message) -> Message:
