@@ -17,9 +17,11 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ACTION_PART",
+    "MAX_PUBLISHER_DEPTH",
     "Endpoint",
     "Qos",
     "RosGraph",
+    "publisher_depth",
     "rclpy_profile",
     "snapshot",
     "subscription_qos",
@@ -160,6 +162,27 @@ def subscription_qos(publishers: list[Qos]) -> Qos:
         transient_local=all(q.transient_local for q in publishers),
         depth=max([DEFAULT_DEPTH, *(q.depth for q in publishers)]),
     )
+
+
+MAX_PUBLISHER_DEPTH = 1000
+"""The deepest history the link gives a publisher toward ROS 2 (``publisher_depth``)."""
+
+
+def publisher_depth(subscriptions: list[Qos]) -> int:
+    """The history depth of the link's publisher of a topic with ``subscriptions``.
+
+    The deepest reliable subscription's (KEEP_ALL: ``MAX_PUBLISHER_DEPTH``), at least
+    ``DEFAULT_DEPTH`` and at most ``MAX_PUBLISHER_DEPTH``: a burst a web client
+    publishes at once stays in the writer's history until that subscription has
+    taken it, as it would from an rclpy publisher of the subscription's QoS (as
+    rosbridge's ``queue_size``; docs/ros2.md). Best-effort subscriptions take what
+    comes and ask for nothing.
+    """
+    deepest = max(
+        (q.depth or MAX_PUBLISHER_DEPTH for q in subscriptions if q.reliable),
+        default=DEFAULT_DEPTH,
+    )
+    return min(max(deepest, DEFAULT_DEPTH), MAX_PUBLISHER_DEPTH)
 
 
 def rclpy_profile(qos: Qos) -> Any:

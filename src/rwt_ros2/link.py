@@ -38,7 +38,6 @@ from typing import TYPE_CHECKING, Any
 import anyio
 
 from rwt_graph.link import (
-    DEFAULT_DEPTH,
     LATCHED_DEPTH,
     Kind,
     LinkRules,
@@ -56,7 +55,7 @@ from rwt_protocol.shortcuts import enabled
 
 from .actions import RosAction, serve_action_to_ros
 from .codec import decode, encode
-from .graphview import Endpoint, Qos, RosGraph, rclpy_profile, snapshot
+from .graphview import Endpoint, Qos, RosGraph, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
@@ -133,6 +132,7 @@ class _Pub:
     type_name: str
     latched: bool
     handle: Any
+    depth: int  # of its history (``_depth``)
     latched_sent: object = None
     gids: set[bytes] = field(default_factory=set)
 
@@ -184,6 +184,7 @@ class Ros2Link:
         self._by_gid: dict[bytes, ClientId] = {}
         self._own_gids: set[bytes] = set()
         self._publisher_qos: dict[str, list[Qos]] = {}  # the view's, by topic
+        self._subscription_qos: dict[str, list[Qos]] = {}  # the view's, by topic
         self._subs: dict[str, _Sub] = {}
         self._pubs: dict[str, _Pub] = {}
         self._servers: dict[str, _Server] = {}
@@ -303,11 +304,14 @@ class Ros2Link:
     def _apply(self, view: RosGraph) -> None:
         """Bring the graph's ROS 2 participants in line with ``view``."""
         self._publisher_qos = {}
+        self._subscription_qos = {}
         # the node's own non-link publishers count (rcl's transient local /rosout one)
         others = [e for e in view.own_publishers if e.gid not in self._own_gids]
         for endpoint in [*view.endpoints.values(), *others]:
             if endpoint.kind == "publisher":
                 self._publisher_qos.setdefault(endpoint.topic, []).append(endpoint.qos)
+            else:
+                self._subscription_qos.setdefault(endpoint.topic, []).append(endpoint.qos)
         specs = self._specs(view)
         wanted: dict[ClientId, object] = {
             **specs.nodes,
@@ -549,7 +553,9 @@ class Ros2Link:
 
     def _sweep_publishers(self, publishing: dict[str, tuple[str, bool]]) -> None:
         for name, pub in list(self._pubs.items()):
-            if publishing.get(name) != (pub.type_name, pub.latched):
+            if publishing.get(name) != (pub.type_name, pub.latched) or pub.depth < self._depth(
+                name, pub.latched
+            ):  # a deeper subscription came: a history that holds its bursts
                 self._drop_publisher(name)
         for name, (type_name, latched) in publishing.items():
             entry = self.graph.topics.get(name)
@@ -564,7 +570,7 @@ class Ros2Link:
         ros_type = self._ros_type(name, type_name)
         if ros_type is None:
             return None
-        qos = Qos(transient_local=latched, depth=LATCHED_DEPTH if latched else DEFAULT_DEPTH)
+        qos = Qos(transient_local=latched, depth=self._depth(name, latched))
         node = self.ros.node
         before = self._own_publishers(name)
         handle = node.create_publisher(ros_type, name, rclpy_profile(qos))
@@ -572,8 +578,14 @@ class Ros2Link:
         # node's other publishers, such as rcl's /rosout one, are ROS 2's, not the graph's)
         gids = self._own_publishers(name) - before
         self._own_gids |= gids
-        pub = self._pubs[name] = _Pub(type_name, latched, handle, gids=gids)
+        pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, gids=gids)
         return pub
+
+    def _depth(self, topic: str, latched: bool) -> int:
+        """The history depth of the link's publisher of ``topic`` (``publisher_depth``)."""
+        if latched:  # the last message for each late subscriber (D13)
+            return LATCHED_DEPTH
+        return publisher_depth(self._subscription_qos.get(topic, []))
 
     def _own_publishers(self, name: str) -> set[bytes]:
         return {

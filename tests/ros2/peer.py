@@ -14,6 +14,9 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         and std_msgs/String "n" (a count) on /odom every 20 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
+  count TOPIC           a reliable std_msgs/String subscription of depth 1000; prints
+                        {"count": n, "warm": w} every 100 ms while they change: n
+                        messages, and w whose data is "warm"
   serve SERVICE         a std_srvs/SetBool server: message "ros2 got <data>"
   call SERVICE          calls std_srvs/SetBool {data: true} once the server is there;
                         prints {"response": {...}} or {"error": ...}
@@ -102,6 +105,22 @@ def main() -> None:
         tick = lambda: pub.publish(String(data=str(next(count))))  # noqa: E731
     elif mode == "listen":
         node.create_subscription(String, name, lambda m: say(heard=m.data), 10)
+    elif mode == "count":
+        heard = {"count": 0, "warm": 0}
+        deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+
+        def count(message):
+            heard["warm" if message.data == "warm" else "count"] += 1
+
+        node.create_subscription(String, name, count, deep)
+        told = dict(heard)
+
+        def report():
+            if heard != told:
+                told.update(heard)
+                say(**heard)
+
+        node.create_timer(0.1, report)
     elif mode == "latched":
         qos = QoSProfile(
             depth=1,

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
 from pathlib import Path
 
 import anyio
@@ -274,3 +276,71 @@ async def test_bad_input_from_a_rosbridge_client_stays_on_its_side(
     assert status["op"] == "status" and status["level"] == "error"
     assert status["id"] == "bad"
     assert heard["heard"].startswith("ok ")
+
+
+BURST = """
+import json, sys, time
+from websockets.sync.client import connect
+
+with connect("ws://127.0.0.1:{port}") as ws:
+    def publish(data):
+        ws.send(json.dumps({{"op": "publish", "topic": "/burst", "msg": {{"data": data}}}}))
+
+    ws.send(json.dumps({{"op": "advertise", "topic": "/burst", "type": "std_msgs/msg/String"}}))
+    print(json.dumps({{"advertised": True}}), flush=True)
+    while not sys.stdin.readline().startswith("go"):  # "warm" until the listener hears
+        publish("warm")
+    start = time.monotonic()
+    for i in range({count}):
+        publish(str(i))
+        if {rate}:
+            time.sleep(max(0.0, start + (i + 1) / {rate} - time.monotonic()))
+    print(json.dumps({{"sent": {count}}}), flush=True)
+    sys.stdin.readline()
+"""
+
+
+def heard_next(listener: Peer, within: float, before: dict) -> dict:
+    """The listener's next count line, or ``before`` when none comes ``within`` seconds."""
+    try:
+        return listener.next(within)
+    except AssertionError:
+        return before
+
+
+@pytest.mark.parametrize(("count", "rate"), [(3000, 1000), (1000, 0)], ids=["1kHz", "unpaced"])
+async def test_a_burst_from_the_web_reaches_a_deep_ros2_listener_whole(
+    server: ServerProcess, ros_env: Path, count: int, rate: int
+) -> None:
+    # The listener stops for a while during the burst, as a busy machine's process
+    # does: what it has not acknowledged waits in the link publisher's history, which
+    # holds as much as the listener's (1000), as an rclpy publisher of its QoS would.
+    script = BURST.format(port=server.port, count=count, rate=rate)
+    with Peer("count", "/burst", ros_env) as listener:
+        async with await anyio.open_process(["python", "-c", script]) as client:
+            assert client.stdin is not None and client.stdout is not None
+            lines = JsonLines(client.stdout)
+            await lines.next()
+            heard = {"count": 0, "warm": 0}
+            with anyio.fail_after(30):  # the link's publisher has matched the listener
+                while heard["warm"] == 0:
+                    await client.stdin.send(b"warm\n")
+                    heard = await anyio.to_thread.run_sync(heard_next, listener, 0.3, heard)
+            os.kill(listener.proc.pid, signal.SIGSTOP)
+            try:
+                await client.stdin.send(b"go\n")
+                if rate:  # stopped for 300 of the messages
+                    await anyio.sleep(0.3)
+                else:  # stopped for all of them
+                    assert await lines.next() == {"sent": count}
+            finally:
+                os.kill(listener.proc.pid, signal.SIGCONT)
+            if rate:
+                assert await lines.next() == {"sent": count}
+            while heard["count"] < count:
+                now = await anyio.to_thread.run_sync(heard_next, listener, 5.0, heard)
+                if now == heard:  # nothing more for 5 s: what came is all
+                    break
+                heard = now
+            await client.stdin.send(b"done\n")
+    assert heard["count"] == count
