@@ -68,7 +68,11 @@ if TYPE_CHECKING:
         points_from_depth,
     )
     from rwt_graph.media.depthcloud_node import DepthCloudEncoder
-    from rwt_graph.params import ParameterError, ParameterNotSetError, ParameterStoreFullError
+    from rwt_graph.parameters.store import (
+        ParameterError,
+        ParameterNotSetError,
+        ParameterStoreFullError,
+    )
     from rwt_graph.tf import (
         DisconnectedFramesError,
         ExtrapolationError,
@@ -309,7 +313,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "points_from_depth",
     ),
     "rwt_graph.media.depthcloud_node": ("DepthCloudEncoder",),
-    "rwt_graph.params": (
+    "rwt_graph.parameters.store": (
         "ParameterError",
         "ParameterNotSetError",
         "ParameterStoreFullError",

@@ -28,18 +28,18 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
 
-from .calls import guarded
-from .param_wire import from_wire, to_wire
-from .params import ParameterError, ParameterStoreFullError
-from .ratelog import EpisodeLog
+from ..calls import guarded
+from ..ratelog import EpisodeLog
+from .store import ParameterError, ParameterStoreFullError
+from .wire import from_wire, to_wire
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rwt_protocol.ports import ClientId
 
-    from .graph import Graph
-    from .params import Parameters, ParamValue
+    from ..graph import Graph
+    from .store import Parameters, ParamValue
 
 __all__ = ["MAX_RETRY_REFRESHES", "REFRESH_SWEEPS", "ParamReplicas"]
 
