@@ -26,11 +26,6 @@ TIMEOUT_S = 20.0
 Frame = Callable[[int], np.ndarray]
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def video_server(graph: Graph, **config: object) -> AsyncIterator[httpx.AsyncClient]:
     async with anyio.create_task_group() as tg:
