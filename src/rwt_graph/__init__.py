@@ -2,8 +2,8 @@
 
 Sessions (``rwt_protocol``), links to other middleware (``rwt_zenoh``,
 ``rwt_ros2``) and Python code in the same process all attach to one graph.
-The graph does no network I/O; its few waits (async calls, the TF
-republisher's ticks, a link's held topics) run on anyio in the caller's loop.
+The graph does no network I/O; its two waits (``async_calls``, the TF
+republisher's ticks) use anyio's events and sleep in the caller's loop.
 docs/architecture.md shows where it sits.
 
 Modules:
