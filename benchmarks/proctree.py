@@ -5,7 +5,7 @@ how many times it was scheduled in to run. The second is the figure that says
 what a message crossing ``--workers`` costs beyond its own work: every hand-over
 between threads (the event loop to the Zenoh sender, Zenoh's receive thread to
 the event loop) wakes a sleeping thread, and a wake-up on a virtual machine costs
-tens of microseconds of CPU (benchmarks/README.md, "Where a message crossing
+tens of microseconds of CPU (benchmarks/JOURNAL.md, "Where a message crossing
 workers spends its CPU").
 """
 

@@ -93,7 +93,7 @@ async def server(*args: str) -> Any:
 PACED_HZ = 1000
 """Messages a second of Z2's paced CPU bursts: 100,000 deliveries a second, about
 a third of what one worker delivers saturated here, yet the whole of its core:
-unbatched, a delivery costs it about 3.7x as much (benchmarks/README.md, "Where a
+unbatched, a delivery costs it about 3.7x as much (benchmarks/JOURNAL.md, "Where a
 message crossing workers spends its CPU, by load")."""
 
 
@@ -106,7 +106,7 @@ async def paired_bursts(
     """Z2 servers' CPU per delivery, ``--workers 2`` against one worker, in paired bursts.
 
     The CPU time of the same Python work drifts on a shared virtual machine by up
-    to a factor of two from one minute to the next (benchmarks/README.md, "Workers'
+    to a factor of two from one minute to the next (benchmarks/JOURNAL.md, "Workers'
     CPU per delivery"), so two figures taken a minute apart say little about a 15 %
     difference. Both servers run side by side for the whole measurement instead,
     each with 100 subscribers of ``/fan`` and a publisher connected once and probed

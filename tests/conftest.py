@@ -1,11 +1,17 @@
-"""Shared test helpers: sessions paired on one graph, with no sockets and no loop."""
+"""Shared test fixtures: the async backend, TLS files, sessions paired on one graph.
+
+Helpers that tests import (clients of each transport, real clients in their own
+processes, the ``rwt`` command line) are in tests/support/.
+"""
 
 from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+import trustme
 from hypothesis import HealthCheck, settings
 
 from rwt_graph.graph import Graph
@@ -70,3 +76,30 @@ def peers(graph: Graph) -> Iterator[tuple[Peer, Peer]]:
     yield a, b
     a.session.close()
     b.session.close()
+
+
+@pytest.fixture(scope="module")
+def anyio_backend() -> str:
+    """Every async test runs on asyncio: the server's transports use asyncio's own.
+
+    Module scope, as anyio's default, so module-scoped async fixtures may use it.
+    A file that runs on more than one loop (uvloop too) defines its own.
+    """
+    return "asyncio"
+
+
+@pytest.fixture
+def ca() -> trustme.CA:
+    """A certificate authority made for the test."""
+    return trustme.CA()
+
+
+@pytest.fixture
+def tls_files(ca: trustme.CA, tmp_path: Path) -> Iterator[tuple[Path, Path, Path]]:
+    """``cert.pem``, ``key.pem`` for 127.0.0.1 and localhost, and the CA's ``ca.pem``."""
+    cert = ca.issue_cert("127.0.0.1", "localhost")
+    certfile, keyfile, cafile = tmp_path / "cert.pem", tmp_path / "key.pem", tmp_path / "ca.pem"
+    cert.cert_chain_pems[0].write_to_path(certfile)
+    cert.private_key_pem.write_to_path(keyfile)
+    ca.cert_pem.write_to_path(cafile)
+    yield certfile, keyfile, cafile

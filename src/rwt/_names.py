@@ -66,7 +66,11 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
             "UnknownNameError",
         ),
         "rwt_protocol.framing.messages": ("MessageTooBigError",),
-        "rwt_graph.params": ("ParameterError", "ParameterNotSetError", "ParameterStoreFullError"),
+        "rwt_graph.parameters.store": (
+            "ParameterError",
+            "ParameterNotSetError",
+            "ParameterStoreFullError",
+        ),
     },
     "rwt.types": {
         "rwt_graph.types": (

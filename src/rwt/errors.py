@@ -19,7 +19,11 @@ from typing import TYPE_CHECKING
 from rwt._names import load
 
 if TYPE_CHECKING:
-    from rwt_graph.params import ParameterError, ParameterNotSetError, ParameterStoreFullError
+    from rwt_graph.parameters.store import (
+        ParameterError,
+        ParameterNotSetError,
+        ParameterStoreFullError,
+    )
     from rwt_protocol.errors import (
         LimitError,
         LocalProtocolError,

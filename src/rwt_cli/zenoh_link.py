@@ -83,7 +83,7 @@ async def linked(graph: Graph, options: ZenohOptions | None) -> AsyncIterator[No
     try:
         async with open_zenoh_link(graph, options):
             # the type store, numpy and Zenoh came after the start-up freeze: every full
-            # collection walked them again (benchmarks/README.md, "Workers' CPU per delivery")
+            # collection walked them again (benchmarks/JOURNAL.md, "Workers' CPU per delivery")
             freeze_startup_objects()
             yield
     except zenoh.ZError as exc:  # opening or closing the session

@@ -71,81 +71,90 @@ def _tls_context(cafile: Path | None, insecure: bool) -> ssl.SSLContext | None:
         raise typer.Exit(2) from None
 
 
+# The options of `rwt conformance`, one alias each, so the command reads as its steps.
+_Url = Annotated[
+    str,
+    typer.Argument(help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT."),
+]
+_Transport = Annotated[
+    TransportName | None, typer.Option(help="Transport (default: from the URL's scheme).")
+]
+_Profile = Annotated[
+    Profile,
+    typer.Option(help="strict: rwt's decisions; reference: rosbridge_suite's behaviour."),
+]
+_Dialect = Annotated[
+    Dialect | None,
+    typer.Option(
+        help="The server's ROS edition (times, type names, rosapi fields);"
+        " default: ask the server (/rosapi/get_ros_version, std_msgs/Header)."
+    ),
+]
+_Only = Annotated[
+    list[str] | None,
+    typer.Option(help="Run only these requirement or case ids (patterns like 'D1*'); repeatable."),
+]
+_Junit = Annotated[Path | None, typer.Option(help="Write JUnit XML here.")]
+_JsonFile = Annotated[Path | None, typer.Option("--json", help="Write a JSON report here.")]
+_Suite = Annotated[Path | None, typer.Option(help="Suite folder (default: the shipped suite).")]
+_Timeout = Annotated[float, typer.Option(help="Seconds one expected frame, or one send, may take.")]
+_CaseTimeout = Annotated[float, typer.Option(min=0.001, help="Seconds one whole case may take.")]
+_RunTimeout = Annotated[
+    float,
+    typer.Option(
+        min=0.001,
+        help="Seconds the whole run may take; a longer run stops, saying where (exit 2).",
+    ),
+]
+_MaxFrameBytes = Annotated[
+    int,
+    typer.Option(
+        min=1, help="Largest frame taken from the server, bytes; a bigger one fails the case."
+    ),
+]
+_CaseBudgetBytes = Annotated[
+    int,
+    typer.Option(
+        min=1,
+        help="Bytes of received frames one case may hold unconsumed; more fails the case.",
+    ),
+]
+_AuthSecretFile = Annotated[
+    Path | None,
+    typer.Option(
+        help="The server's rosauth secret (first line, as `rwt serve --auth-secret-file`):"
+        " every connection authenticates first, and the auth cases run."
+    ),
+]
+_Cafile = Annotated[
+    Path | None,
+    typer.Option(
+        metavar="FILE",
+        help="Trust the certificate authorities in this PEM file (wss://, tcp+tls://).",
+    ),
+]
+_Insecure = Annotated[
+    bool, typer.Option("--insecure", help="Do not check the server's TLS certificate.")
+]
+
+
 def conformance(
-    url: Annotated[
-        str,
-        typer.Argument(help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT."),
-    ],
-    transport: Annotated[
-        TransportName | None, typer.Option(help="Transport (default: from the URL's scheme).")
-    ] = None,
-    profile: Annotated[
-        Profile,
-        typer.Option(help="strict: rwt's decisions; reference: rosbridge_suite's behaviour."),
-    ] = Profile.STRICT,
-    dialect: Annotated[
-        Dialect | None,
-        typer.Option(
-            help="The server's ROS edition (times, type names, rosapi fields);"
-            " default: ask the server (/rosapi/get_ros_version, std_msgs/Header)."
-        ),
-    ] = None,
-    only: Annotated[
-        list[str] | None,
-        typer.Option(
-            help="Run only these requirement or case ids (patterns like 'D1*'); repeatable."
-        ),
-    ] = None,
-    junit: Annotated[Path | None, typer.Option(help="Write JUnit XML here.")] = None,
-    json_file: Annotated[
-        Path | None, typer.Option("--json", help="Write a JSON report here.")
-    ] = None,
-    suite: Annotated[
-        Path | None, typer.Option(help="Suite folder (default: the shipped suite).")
-    ] = None,
-    timeout: Annotated[
-        float, typer.Option(help="Seconds one expected frame, or one send, may take.")
-    ] = 3.0,
-    case_timeout: Annotated[
-        float, typer.Option(min=0.001, help="Seconds one whole case may take.")
-    ] = CASE_TIMEOUT_S,
-    run_timeout: Annotated[
-        float,
-        typer.Option(
-            min=0.001,
-            help="Seconds the whole run may take; a longer run stops, saying where (exit 2).",
-        ),
-    ] = RUN_TIMEOUT_S,
-    max_frame_bytes: Annotated[
-        int,
-        typer.Option(
-            min=1, help="Largest frame taken from the server, bytes; a bigger one fails the case."
-        ),
-    ] = MAX_FRAME_BYTES,
-    case_budget_bytes: Annotated[
-        int,
-        typer.Option(
-            min=1,
-            help="Bytes of received frames one case may hold unconsumed; more fails the case.",
-        ),
-    ] = CASE_BUDGET_BYTES,
-    auth_secret_file: Annotated[
-        Path | None,
-        typer.Option(
-            help="The server's rosauth secret (first line, as `rwt serve --auth-secret-file`):"
-            " every connection authenticates first, and the auth cases run."
-        ),
-    ] = None,
-    cafile: Annotated[
-        Path | None,
-        typer.Option(
-            metavar="FILE",
-            help="Trust the certificate authorities in this PEM file (wss://, tcp+tls://).",
-        ),
-    ] = None,
-    insecure: Annotated[
-        bool, typer.Option("--insecure", help="Do not check the server's TLS certificate.")
-    ] = False,
+    url: _Url,
+    transport: _Transport = None,
+    profile: _Profile = Profile.STRICT,
+    dialect: _Dialect = None,
+    only: _Only = None,
+    junit: _Junit = None,
+    json_file: _JsonFile = None,
+    suite: _Suite = None,
+    timeout: _Timeout = 3.0,
+    case_timeout: _CaseTimeout = CASE_TIMEOUT_S,
+    run_timeout: _RunTimeout = RUN_TIMEOUT_S,
+    max_frame_bytes: _MaxFrameBytes = MAX_FRAME_BYTES,
+    case_budget_bytes: _CaseBudgetBytes = CASE_BUDGET_BYTES,
+    auth_secret_file: _AuthSecretFile = None,
+    cafile: _Cafile = None,
+    insecure: _Insecure = False,
 ) -> None:
     """Check a rosbridge server against the conformance suite; exit 1 on any failure.
 

@@ -1,1 +1,38 @@
-"""The in-memory robot graph: topics, services, actions, parameters and types."""
+"""The in-memory robot graph: topics, services, actions, parameters and types.
+
+Sessions (``rwt_protocol``), links to other middleware (``rwt_zenoh``,
+``rwt_ros2``) and Python code in the same process all attach to one graph.
+The graph does no network I/O; its two waits (``async_calls``, the TF
+republisher's ticks) use anyio's events and sleep in the caller's loop.
+docs/architecture.md shows where it sits.
+
+Modules:
+
+- ``graph``: ``Graph``, the graph as Python code in the same process sees it
+  (the embedding API).
+- ``core``: the graph's state and the port (``rwt_protocol.ports``) that
+  sessions and links drive.
+- ``topics``: topics: advertisers, subscribers, latching, delivery (spec 3.3.1-3.3.5).
+- ``services``: services: providers, calls and their replies (spec 3.3.6-3.3.9).
+- ``actions``: actions: goals, feedback, results, cancels (spec 3.3.10-3.3.15).
+- ``calls``: what service calls and action goals share: arguments, pending records.
+- ``async_calls``: ``call_service`` and ``send_action_goal`` for Python callers.
+- ``local``: handles of in-process publishers, subscribers and providers.
+- ``nodes``: node names of the graph's participants, for rosapi.
+- ``clock``: the clocks the graph reads (monotonic for order, wall for stamps).
+- ``ratelog``: peer-triggered log lines once per episode, on the process's clock.
+- ``link``: the link contract: how a graph is mirrored to and from another middleware.
+- ``topic_holds``: a link's topics held back while the subscribers they congested
+  catch up.
+
+Subpackages:
+
+- ``types``: the message type registry, ``.msg``/``.srv``/``.action`` parsing, and
+  conversion between JSON, messages, CDR and rosbags.
+- ``parameters``: the parameter store and its bridge to ROS 2 nodes' parameter
+  services (``store``, ``wire``, ``services``, ``replicas``).
+- ``rosapi``: the built-in ``/rosapi/*`` services (introspection, parameters).
+- ``tf``: a transform buffer and the built-in tf2_web_republisher.
+- ``media``: images as numpy arrays and the depth-cloud codec.
+- ``interfaces``, ``interfaces_ros1``: the shipped message definitions (data, no code).
+"""

@@ -20,7 +20,7 @@ from .actions import ActionEntry, LocalActionHandler
 from .core import GraphCore
 from .local import LocalActionServer, LocalPublisher, LocalService, LocalSubscription
 from .nodes import DEFAULT_NODE, node_name
-from .params import Parameters
+from .parameters.store import Parameters
 from .services import Amend, CallerServiceHandler, LocalServiceHandler, ServiceEntry
 
 if TYPE_CHECKING:

@@ -22,7 +22,7 @@ package is drawn here::
     │   ├── DefinitionError               rwt_graph.types: a bad .msg/.srv/.action text
     │   ├── InvalidTypeNameError          rwt_graph.types: not a ROS type name
     │   ├── UnknownTypeError              rwt_graph.types: no such type
-    │   ├── ParameterError                rwt_graph.params
+    │   ├── ParameterError                rwt_graph.parameters.store
     │   │   ├── ParameterNotSetError
     │   │   └── ParameterStoreFullError   no room: the store is full, or the node holds its share
     │   ├── ImageError                    rwt_graph.media: an image or depth cloud that cannot

@@ -12,7 +12,7 @@ graph:
   publisher's participant; a call to a ROS 2 service goes through an rclpy
   client (``RosService``), a goal through an rclpy action client
   (``RosAction``); ROS 2 nodes' parameters are copied into the store
-  (``rwt_graph.param_replicas``);
+  (``rwt_graph.parameters.replicas``);
 - outward, a topic local publishers publish gets an rclpy publisher (transient
   local when a local publisher latches), fed by a graph tap with the CDR rwt's
   codec writes; a local service gets an rclpy service (``serve_to_ros``), a
@@ -44,10 +44,10 @@ from rwt_graph.link import (
     Relays,
     mirror_endpoint,
 )
-from rwt_graph.param_replicas import ParamReplicas
-from rwt_graph.param_services import answer as answer_param_request
-from rwt_graph.param_services import param_nodes
-from rwt_graph.param_wire import PARAM_SERVICES
+from rwt_graph.parameters.replicas import ParamReplicas
+from rwt_graph.parameters.services import answer as answer_param_request
+from rwt_graph.parameters.services import param_nodes
+from rwt_graph.parameters.wire import PARAM_SERVICES
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.types.hashes import message_type_hash
 from rwt_protocol.errors import GraphError, RwtError

@@ -148,7 +148,7 @@ def serve_to_ros(
 
     Each request is called in the graph, or, with ``handler``, answered by it on
     the event loop (``handler(request) -> response``, internal forms; a node's
-    parameter services, ``rwt_graph.param_services``).
+    parameter services, ``rwt_graph.parameters.services``).
     """
     from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
 

@@ -4,10 +4,10 @@ Provider side: every node with parameters in this graph answers the six
 parameter services of an rclpy node on Zenoh (``/<node>/list_parameters``,
 ``get_parameters``, ``set_parameters``, ``describe_parameters``,
 ``get_parameter_types``, ``set_parameters_atomically``: ``PARAM_SERVICES``),
-from and into the graph's parameter store (``rwt_graph.param_services``).
+from and into the graph's parameter store (``rwt_graph.parameters.services``).
 
 Caller side: a remote node's ``list_parameters`` token makes the link keep a
-copy of that node's parameters in this graph's store (``rwt_graph.param_replicas``,
+copy of that node's parameters in this graph's store (``rwt_graph.parameters.replicas``,
 shared with the ROS 2 link), read through the node's parameter services, which
 the link mirrors into the graph, so rosapi here lists and reads them; a change
 made here to a copy (rosapi ``set_param``) is sent to the node's
@@ -21,9 +21,9 @@ import logging
 from typing import TYPE_CHECKING, Any
 
 from rwt_graph.calls import guarded
-from rwt_graph.param_replicas import ParamReplicas
-from rwt_graph.param_services import answer
-from rwt_graph.param_wire import PARAM_SERVICES, from_wire, to_wire
+from rwt_graph.parameters.replicas import ParamReplicas
+from rwt_graph.parameters.services import answer
+from rwt_graph.parameters.wire import PARAM_SERVICES, from_wire, to_wire
 from rwt_protocol.errors import RwtError
 
 from .payload import decode_message, encode_message, service_hash
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     import zenoh
-    from rwt_graph.params import ParamValue
+    from rwt_graph.parameters.store import ParamValue
 
     from .link import ZenohLink, _Remote
 

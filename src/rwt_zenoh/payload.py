@@ -47,7 +47,7 @@ def prepare_codecs(registry: TypeRegistry) -> None:
     and numpy, which rosbags' messages hold and rwt's converters import on their
     first use (about 0.1 s more). Left to the first sample, the import stopped
     the event loop once in every process of ``--workers``, inside the first
-    second of traffic (benchmarks/README.md, "Workers' CPU per delivery"). A
+    second of traffic (benchmarks/JOURNAL.md, "Workers' CPU per delivery"). A
     type's own converters are still compiled on its first sample (a few ms).
     """
     registry.typestore()

@@ -1,10 +1,3 @@
 """The record-and-replay tests run their async parts on asyncio (the server's loop)."""
 
 from __future__ import annotations
-
-import pytest
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"

@@ -10,8 +10,6 @@ any message reaches a subscriber and leaves no publisher behind; ``rwt serve
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import anyio
@@ -22,7 +20,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rwt_bag import BagError, Player
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from tests.integration.client_harness import REPO
+from tests.support.cli import run_rwt
 
 from .bags import write_bag
 from .hostile import bad_names
@@ -137,22 +135,9 @@ def test_definition_conflicting_with_a_shipped_one(tmp_path: Path) -> None:
     assert graph.topics == {}
 
 
-def _rwt(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
-    return subprocess.run(
-        [sys.executable, "-m", "rwt", *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=cwd,
-        env=env,
-        check=False,
-    )
-
-
 def test_serve_play_refuses_a_corrupt_bag_before_listening(tmp_path: Path) -> None:
     bag = corrupt(tmp_path, "mcap")
-    result = _rwt("serve", "--port", "0", "--play", str(bag), cwd=tmp_path)
+    result = run_rwt("serve", "--port", "0", "--play", str(bag), cwd=tmp_path)
     assert result.returncode == 1
     assert "listening" not in result.stdout
     # stderr also has the server's log lines; the error is one line of its own
@@ -163,7 +148,7 @@ def test_serve_play_refuses_a_corrupt_bag_before_listening(tmp_path: Path) -> No
 def test_play_and_info_refuse_a_truncated_bag(tmp_path: Path) -> None:
     bag = truncated(tmp_path, "ros1")
     for args in (("play", "--port", "0", "--dialect", "ros1", str(bag)), ("bag", "info", str(bag))):
-        result = _rwt(*args, cwd=tmp_path)
+        result = run_rwt(*args, cwd=tmp_path)
         assert result.returncode == 1, result
         assert "listening" not in result.stdout
         (line,) = result.stderr.strip().splitlines()
@@ -186,7 +171,7 @@ def test_a_bag_with_no_valid_name_to_play_is_refused(tmp_path: Path, fmt: str) -
 
 def test_topics_matching_nothing_are_refused(tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "robot", "mcap")
-    result = _rwt("play", "--port", "0", "--topics", "/nothing,/x*", str(bag), cwd=tmp_path)
+    result = run_rwt("play", "--port", "0", "--topics", "/nothing,/x*", str(bag), cwd=tmp_path)
     assert result.returncode == 1, result
     assert "listening" not in result.stdout
     (line,) = result.stderr.strip().splitlines()

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from typing import TYPE_CHECKING
 
 import pytest
 
 from tests.integration.client_harness import REPO, ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.cli import RWT, run_rwt
+from tests.support.realclients import run_python
 
 from .hostile import BAD_NAMES, bad_names, escaped_names, undecodable_name
 
@@ -81,7 +81,7 @@ async def test_bad_topic_names_are_not_published(tmp_path: Path, fmt: str) -> No
 def test_bag_info_escapes_and_marks_bad_names(tmp_path: Path) -> None:
     bag = bad_names(tmp_path / "names", "mcap")
     result = subprocess.run(
-        [sys.executable, "-m", "rwt", "bag", "info", str(bag)],
+        [*RWT, "bag", "info", str(bag)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -98,23 +98,12 @@ def test_bag_info_escapes_and_marks_bad_names(tmp_path: Path) -> None:
     assert "  Topic: '/a\\u202eb' (invalid name, not played) |" in result.stdout
 
 
-def _rwt(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "rwt", *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"},
-        check=False,
-    )
-
-
 def _play(command: str, bag: Path, fmt: str) -> subprocess.CompletedProcess[str]:
     """``rwt play BAG`` or ``rwt serve --play BAG`` on a free port, in the bag's dialect."""
     dialect = ("--dialect", "ros1") if fmt == "ros1" else ()
     if command == "serve":
-        return _rwt("serve", "--port", "0", "--play", str(bag), *dialect)
-    return _rwt("play", "--port", "0", str(bag), *dialect)
+        return run_rwt("serve", "--port", "0", "--play", str(bag), *dialect)
+    return run_rwt("play", "--port", "0", str(bag), *dialect)
 
 
 def _refused(result: subprocess.CompletedProcess[str], command: str) -> str:

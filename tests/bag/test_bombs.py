@@ -18,8 +18,9 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from tests.integration.client_harness import REPO, ServerProcess
-from tests.transports.realclients import run_python
+from tests.integration.client_harness import ServerProcess
+from tests.support.cli import run_rwt
+from tests.support.realclients import run_python
 
 from .hostile import MIB, mcap_bomb, ros1_bomb, sqlite3_bomb
 
@@ -68,15 +69,8 @@ BOMBS: dict[str, tuple[Callable[[Path], Path], bool]] = {  # name: (builder, ROS
 
 def _rwt(*args: str, cwd: Path) -> tuple[subprocess.CompletedProcess[str], int]:
     """Run ``rwt ARGS``; the result and the peak RSS in KiB."""
-    result = subprocess.run(
-        [sys.executable, "-c", _WITH_RSS, *args],
-        capture_output=True,
-        text=True,
-        timeout=120,  # a hang guard only: the bombs made today's reader run for minutes
-        cwd=cwd,
-        env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"},
-        check=False,
-    )
+    # a hang guard only: the bombs made today's reader run for minutes
+    result = run_rwt(*args, cwd=cwd, timeout=120, command=[sys.executable, "-c", _WITH_RSS])
     (peak,) = [ln for ln in result.stderr.splitlines() if ln.startswith("peak_rss_kib=")]
     return result, int(peak.split("=")[1])
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 from tests.integration.client_harness import REPO
+from tests.support.cli import RWT
 
 from .bags import write_bag
 
@@ -14,7 +14,7 @@ from .bags import write_bag
 def test_rwt_play_plays_once_and_prints_a_summary(tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "robot", "mcap")
     result = subprocess.run(
-        [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", "--rate", "4"],
+        [*RWT, "play", str(bag), "--port", "0", "--rate", "4"],
         capture_output=True,
         text=True,
         timeout=60,

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +26,7 @@ from typer.testing import CliRunner
 
 from rwt_cli.app import app
 from tests.integration.client_harness import REPO
+from tests.support.cli import RWT
 
 START_NS = 1_000_000_000
 STEP_NS = 100_000_000
@@ -115,7 +115,7 @@ def test_convert_mcap_sqlite3_ros1_and_back(tmp_path: Path) -> None:
     ros1 = tmp_path / "run.bag"
     # as a user runs it: the module's command line, this checkout's code
     done = subprocess.run(
-        [sys.executable, "-m", "rwt", "bag", "convert", str(tmp_path / "sq"), str(ros1)],
+        [*RWT, "bag", "convert", str(tmp_path / "sq"), str(ros1)],
         capture_output=True,
         text=True,
         timeout=60,

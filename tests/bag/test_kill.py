@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,7 +20,8 @@ import anyio.to_thread
 import pytest
 
 from tests.integration.client_harness import REPO, ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.cli import RWT
+from tests.support.realclients import run_python
 
 from .support import CHECKPOINTS, read_bag
 
@@ -54,7 +54,7 @@ def publisher(port: int, stop_file: Path) -> str:
 def start_recorder(url: str, bag: Path, cwd: Path) -> subprocess.Popen[str]:
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     return subprocess.Popen(
-        [sys.executable, "-m", "rwt", "record", url, str(bag), "--topics", "/count"],
+        [*RWT, "record", url, str(bag), "--topics", "/count"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -18,7 +18,7 @@ import pytest
 from PIL import Image
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .bags import IMAGE, write_bag
 

@@ -30,7 +30,7 @@ from typing import Any
 import pytest
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import node_missing, run_node, run_python
+from tests.support.realclients import node_missing, run_node, run_python
 
 from .bags import CHATTER, CHATTER_GAP_S, IMAGE, MAP, POINTS, write_bag
 

@@ -22,6 +22,7 @@ import anyio
 import pytest
 
 from tests.integration.client_harness import REPO
+from tests.support.cli import RWT
 
 from .test_play_options import COUNT, write_chatter
 
@@ -75,7 +76,7 @@ async def test_keys_step_change_the_rate_and_resume(tmp_path: Path) -> None:
     bag = write_chatter(tmp_path / "bag")
     master, slave = pty.openpty()
     before = termios.tcgetattr(slave)
-    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0"]
+    command = [*RWT, "play", str(bag), "--port", "0"]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     rwt_play = None
     try:

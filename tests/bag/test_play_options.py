@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -18,7 +17,8 @@ from rosbags.typesys import Stores, get_typestore
 import rwt
 from rwt_bag.errors import BagError
 from tests.integration.client_harness import REPO
-from tests.transports.realclients import run_python
+from tests.support.cli import RWT, run_rwt
+from tests.support.realclients import run_python
 
 from .hostile import bad_names
 
@@ -97,24 +97,12 @@ def test_bad_values_are_refused_with_one_line(tmp_path: Path) -> None:
         rwt.bag.Player(rwt.Graph(), bag, remap={"/chatter": "bad name"})
 
 
-def _rwt(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "rwt", *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=cwd,
-        env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"},
-        check=False,
-    )
-
-
 def test_rwt_play_refuses_a_remap_that_is_no_rule_or_no_name(tmp_path: Path) -> None:
     bag = write_chatter(tmp_path / "bag")
-    result = _rwt("play", str(bag), "--port", "0", "--remap", "/chatter", cwd=tmp_path)
+    result = run_rwt("play", str(bag), "--port", "0", "--remap", "/chatter", cwd=tmp_path)
     assert result.returncode == 2
     assert "'/chatter' is not OLD:=NEW" in result.stderr
-    result = _rwt("play", str(bag), "--port", "0", "--remap", "/chatter:=bad name", cwd=tmp_path)
+    result = run_rwt("play", str(bag), "--port", "0", "--remap", "/chatter:=bad name", cwd=tmp_path)
     assert result.returncode == 1
     assert "cannot play /chatter as bad name" in result.stderr
 
@@ -138,7 +126,7 @@ async def test_rwt_play_remaps_and_ends_for_a_roslibpy_subscriber(tmp_path: Path
     # started paused, so a slow client misses nothing; it resumes once subscribed
     args = ["--remap", "/chatter:=/talk", "--delay", "0.5", "--playback-duration", "0.2"]
     args.append("--start-paused")
-    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", *args]
+    command = [*RWT, "play", str(bag), "--port", "0", *args]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     rwt_play = subprocess.Popen(  # noqa: ASYNC220 - its output is read in the test's thread
         command, stdout=subprocess.PIPE, text=True, cwd=tmp_path, env=env
@@ -217,7 +205,7 @@ ros.terminate()
 async def test_rwt_play_waits_for_a_late_roslibpy_subscriber(tmp_path: Path) -> None:
     bag = write_chatter(tmp_path / "bag")
     args = ["--prefix", "/sim", "--wait-for-subscribers"]
-    command = [sys.executable, "-m", "rwt", "play", str(bag), "--port", "0", *args]
+    command = [*RWT, "play", str(bag), "--port", "0", *args]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     rwt_play = subprocess.Popen(  # noqa: ASYNC220 - its output is read in the test's thread
         command, stdout=subprocess.PIPE, text=True, cwd=tmp_path, env=env

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .bags import T0, write_bag
 

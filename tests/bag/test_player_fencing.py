@@ -17,7 +17,7 @@ import pytest
 
 from rwt_protocol.auth import rosauth_mac
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .bags import write_bag
 

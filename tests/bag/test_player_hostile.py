@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import pytest
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .bags import write_bag
 

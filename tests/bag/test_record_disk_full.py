@@ -19,7 +19,7 @@ from rwt_bag import BagError
 from rwt_bag.info import bag_info
 from rwt_bag.reindex import reindex
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import CHECKPOINTS
 from .test_record_limits import PUBLISH

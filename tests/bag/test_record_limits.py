@@ -23,7 +23,7 @@ from rosbags.highlevel import AnyReader
 import rwt
 from rwt_bag import recorder as recorder_module
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 if TYPE_CHECKING:
     from pathlib import Path

@@ -16,7 +16,6 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import anyio
@@ -28,7 +27,8 @@ from typer.testing import CliRunner
 
 from rwt_cli.app import app
 from tests.integration.client_harness import REPO, ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.cli import RWT
+from tests.support.realclients import run_python
 
 from .support import CHECKPOINTS
 
@@ -150,7 +150,7 @@ async def test_rwt_record_regex_exclusions_lz4_and_duration_parts(tmp_path: Path
     server = ServerProcess(tmp_path)
     bag = tmp_path / "run"
     stop = tmp_path / "stop"
-    command = [sys.executable, "-m", "rwt", "record", server.url, str(bag)]
+    command = [*RWT, "record", server.url, str(bag)]
     command += ["--topics", "/tf_static", "-e", "^/sel", "--exclude-topics", "/sel/no"]
     command += ["--chunk-compression", "lz4", "--chunk-compression-level", "9"]
     command += ["--max-bag-duration", "0.5", "--no-repeat-latched", "--duration", "4.5"]
@@ -232,7 +232,7 @@ def test_chunk_compression_with_the_checkpoints_shortcut_off_is_refused_clearly(
     """Off, rosbags' own writer writes the bag, and it compresses no chunks
     (docs/shortcuts.md): a compression asked for is an error, not silently dropped."""
     bag = tmp_path / "x"
-    command = [sys.executable, "-m", "rwt", "serve", "--port", "0", "--no-tf"]
+    command = [*RWT, "serve", "--port", "0", "--no-tf"]
     command += ["--record", str(bag), "--record-chunk-compression", "zstd"]
     env = {"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"}
     env["RWT_NO_SHORTCUTS"] = "bag-checkpoints"

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import expected, read_bag, sample_messages
 

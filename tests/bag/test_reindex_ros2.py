@@ -28,6 +28,7 @@ from ruamel.yaml import YAML, YAMLError
 from rwt_bag import BagError
 from rwt_bag.reindex import reindex
 from tests.integration.client_harness import REPO, ServerProcess
+from tests.support.cli import RWT
 
 from .support import CHECKPOINTS, read_bag, sample_messages
 from .test_record_roundtrip import roslibpy_publisher
@@ -101,7 +102,7 @@ def test_mcap_cut_short_in_a_chunk(tmp_path: Path) -> None:
     file.write_bytes(torn)
     (bag / "metadata.yaml").unlink()
     assert refused_by_rosbags(bag)
-    result = run(sys.executable, "-m", "rwt", "bag", "reindex", str(bag))
+    result = run(*RWT, "bag", "reindex", str(bag))
     assert result.returncode == 0, result.stderr
     total = sum(WANT.values())
     want = f"reindexed {bag}: {total} messages, {len(TORN_CHUNK)} bytes of a cut-short tail"
@@ -137,7 +138,7 @@ def test_what_is_not_a_bag_is_refused_with_one_line(tmp_path: Path) -> None:
     text = tmp_path / "notes.bag"
     text.write_text("not a bag\n")
     (tmp_path / "empty").mkdir()
-    result = run(sys.executable, "-m", "rwt", "bag", "reindex", str(text))
+    result = run(*RWT, "bag", "reindex", str(text))
     assert result.returncode == 1
     (line,) = result.stderr.strip().splitlines()
     why = "is not a bag (a ROS 1 .bag file, or a ROS 2 bag folder)"

@@ -27,6 +27,7 @@ from rwt_bag import BagError
 from rwt_bag.reindex import reindex
 from rwt_bag.reindex_ros1 import reindex_ros1
 from tests.integration.client_harness import REPO, ServerProcess
+from tests.support.cli import RWT
 
 from .support import sample_messages, stamp
 from .test_record_roundtrip import roslibpy_publisher
@@ -179,7 +180,7 @@ def test_rosbag_reindex_recovers_the_killed_bag(killed_bag: Path, tmp_path: Path
 def test_rwt_bag_reindex_recovers_the_killed_bag(killed_bag: Path, tmp_path: Path) -> None:
     bag = tmp_path / "killed.bag"
     shutil.copy(killed_bag, bag)
-    result = run(sys.executable, "-m", "rwt", "bag", "reindex", str(bag))
+    result = run(*RWT, "bag", "reindex", str(bag))
     assert result.returncode == 0, result.stderr
     total = sum(WANT.values())
     backup = tmp_path / "killed.orig.bag"

@@ -10,11 +10,6 @@ import pytest
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @pytest.fixture(params=["ws", "tcp"])
 def transport(request: pytest.FixtureRequest) -> str:
     return str(request.param)

@@ -1,10 +1,3 @@
 """Conformance tests run on asyncio (the runner's connectors are anyio, trio would work too)."""
 
 from __future__ import annotations
-
-import pytest
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -13,23 +12,14 @@ import pytest
 
 from rwt_conformance.cli import TransportName, server_url
 from rwt_conformance.runner import NEEDS_SECRET
+from tests.support.cli import RWT, run_rwt
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
 
 
-_SERVE = [sys.executable, "-m", "rwt", "serve"]
-
-
-def _rwt(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "rwt", *args],
-        env=ENV,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        check=False,
-    )
+_SERVE = [*RWT, "serve"]
+RUN_LIMIT_S = 120  # a whole suite on a loaded machine: only a hang reaches it
 
 
 APPLIES = 'profiles = "strict"\ndialects = ["ros1", "ros2"]\n'
@@ -102,7 +92,9 @@ def test_strict_profile_passes_completely(
     junit = tmp_path / "junit.xml"
     auth = ["--auth-secret-file", str(secret_file)] if server == "secured" else []
     url = servers[server][transport]
-    run = _rwt("conformance", url, *auth, "--json", str(report), "--junit", str(junit))
+    run = run_rwt(
+        "conformance", url, *auth, "--json", str(report), "--junit", str(junit), timeout=RUN_LIMIT_S
+    )
     assert run.returncode == 0, run.stdout[-3000:]
     document = json.loads(report.read_text())
     summary = document["summary"]
@@ -122,7 +114,9 @@ def test_strict_profile_passes_completely(
 def test_an_unusable_secret_file_is_refused(tmp_path: Path) -> None:
     empty = tmp_path / "empty"
     empty.write_text("\n")
-    run = _rwt("conformance", "ws://127.0.0.1:1", "--auth-secret-file", str(empty))
+    run = run_rwt(
+        "conformance", "ws://127.0.0.1:1", "--auth-secret-file", str(empty), timeout=RUN_LIMIT_S
+    )
     assert run.returncode == 2
     assert "first line is empty" in run.stderr
 
@@ -140,14 +134,16 @@ def test_a_failing_requirement_makes_the_exit_code_non_zero(
         ' { send = { op = "subscribe", topic = "/client_count", type = "std_msgs/Int32" } },\n'
         ' { expect = { op = "publish", msg = { data = -1 } }, timeout_s = 0.3 },\n]\n'
     )
-    run = _rwt("conformance", served_url, "--suite", str(suite))
+    run = run_rwt("conformance", served_url, "--suite", str(suite), timeout=RUN_LIMIT_S)
     assert run.returncode == 1
     assert "0 passed, 1 failed, 0 skipped" in run.stdout
     assert "$.msg.data: expected -1" in run.stdout
 
 
 def test_only_selects_requirements(served_url: str) -> None:
-    run = _rwt("conformance", served_url, "--only", "D26", "--only", "spec.publish.*")
+    run = run_rwt(
+        "conformance", served_url, "--only", "D26", "--only", "spec.publish.*", timeout=RUN_LIMIT_S
+    )
     assert run.returncode == 0
     assert "D26" in run.stdout and "D13" not in run.stdout
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,7 @@ from conformance import differential
 from rwt_conformance import Outcome, Profile, load_suite
 from rwt_conformance.model import Dialect
 from rwt_conformance.runner import AS_THE_REFERENCE
+from tests.support.cli import RWT
 
 SUITE = load_suite()
 
@@ -104,7 +104,7 @@ async def test_rosbridge_suite_2_1_0_passes_the_reference_profile() -> None:
 def test_rwt_conformance_against_2_1_0_passes_and_says_why_it_skips() -> None:
     assert PEER2 is not None
     done = subprocess.run(
-        [sys.executable, "-m", "rwt", "conformance", PEER2, "--profile", "reference"],
+        [*RWT, "conformance", PEER2, "--profile", "reference"],
         env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")},
         capture_output=True,
         text=True,

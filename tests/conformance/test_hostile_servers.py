@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -27,12 +26,13 @@ from rwt_conformance.bounds import CASE_BUDGET_BYTES
 from rwt_conformance.frames import NESTING_PROBLEM
 from rwt_conformance.model import Dialect
 from tests.conformance import hostile
+from tests.support.cli import RWT
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
 SUITE = load_suite()
 TWO_CASES = ("topics.publish-example", "topics.advertise-then-infer")
-RWT_CONFORMANCE = [sys.executable, "-m", "rwt", "conformance"]
+RWT_CONFORMANCE = [*RWT, "conformance"]
 RUN_LIMIT_S = 120  # far above what a bounded run takes: only a hang reaches it
 
 

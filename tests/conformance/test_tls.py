@@ -9,8 +9,9 @@ import pytest
 import trustme
 
 from rwt_conformance.cli import TransportName, server_url
+from tests.support.cli import run_rwt
 
-from .test_cli import _rwt, _serve, _stop
+from .test_cli import RUN_LIMIT_S, _serve, _stop
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +42,15 @@ def urls(authority: tuple[Path, Path, Path]) -> Iterator[dict[str, str]]:
 def test_a_trusted_authority_passes(
     urls: dict[str, str], authority: tuple[Path, Path, Path], scheme: str
 ) -> None:
-    run = _rwt("conformance", urls[scheme], "--cafile", str(authority[0]), "--only", "spec.*")
+    run = run_rwt(
+        "conformance",
+        urls[scheme],
+        "--cafile",
+        str(authority[0]),
+        "--only",
+        "spec.*",
+        timeout=RUN_LIMIT_S,
+    )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr
     assert " 0 failed" in run.stdout
     assert "SSLError" not in run.stdout + run.stderr
@@ -51,14 +60,14 @@ def test_the_whole_strict_suite_over_wss_closes_cleanly(
     urls: dict[str, str], authority: tuple[Path, Path, Path]
 ) -> None:
     """Hundreds of TLS connections opened and closed: none may end in an SSL error."""
-    run = _rwt("conformance", urls["wss"], "--cafile", str(authority[0]))
+    run = run_rwt("conformance", urls["wss"], "--cafile", str(authority[0]), timeout=RUN_LIMIT_S)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr
     assert "Traceback" not in run.stderr and "SSLError" not in run.stdout + run.stderr
 
 
 @pytest.mark.parametrize("scheme", ["wss", "tcp+tls"])
 def test_an_untrusted_certificate_is_one_clear_line(urls: dict[str, str], scheme: str) -> None:
-    run = _rwt("conformance", urls[scheme])
+    run = run_rwt("conformance", urls[scheme], timeout=RUN_LIMIT_S)
     assert run.returncode == 2
     [line] = run.stderr.strip().splitlines()
     assert "CERTIFICATE_VERIFY_FAILED" in line and "--cafile" in line and "--insecure" in line
@@ -66,7 +75,9 @@ def test_an_untrusted_certificate_is_one_clear_line(urls: dict[str, str], scheme
 
 
 def test_insecure_skips_the_check_and_says_so(urls: dict[str, str]) -> None:
-    run = _rwt("conformance", urls["tcp+tls"], "--insecure", "--only", "spec.publish*")
+    run = run_rwt(
+        "conformance", urls["tcp+tls"], "--insecure", "--only", "spec.publish*", timeout=RUN_LIMIT_S
+    )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr
     assert "not checked" in run.stderr
 
@@ -75,13 +86,13 @@ def test_a_bad_cafile_is_a_usage_error(urls: dict[str, str], tmp_path: Path) -> 
     bogus = tmp_path / "bogus.pem"
     bogus.write_text("not a certificate\n")
     for cafile in (bogus, tmp_path / "missing.pem"):
-        run = _rwt("conformance", urls["wss"], "--cafile", str(cafile))
+        run = run_rwt("conformance", urls["wss"], "--cafile", str(cafile), timeout=RUN_LIMIT_S)
         assert run.returncode == 2
         assert "--cafile" in run.stderr and "Traceback" not in run.stderr
 
 
 def test_an_unreachable_server_is_one_line_not_every_case_failing() -> None:
-    run = _rwt("conformance", "ws://127.0.0.1:9", "--timeout", "1")
+    run = run_rwt("conformance", "ws://127.0.0.1:9", "--timeout", "1", timeout=RUN_LIMIT_S)
     assert run.returncode == 2
     assert "cannot connect" in run.stderr and run.stdout == ""
 

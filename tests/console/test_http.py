@@ -6,7 +6,6 @@ import json
 import socket
 import ssl
 import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import trustme
 from websockets.asyncio.client import connect
 
 from tests.integration.client_harness import ServerProcess
+from tests.support.cli import RWT
 
 TIMEOUT_S = 10.0
 
@@ -145,7 +145,7 @@ def test_over_tls_the_page_is_https_and_connects_with_wss(tmp_path: Path) -> Non
     cert.cert_chain_pems[0].write_to_path(certfile)
     cert.private_key_pem.write_to_path(keyfile)
     args = ("--port", "0", "--certfile", str(certfile), "--keyfile", str(keyfile))
-    command = [sys.executable, "-m", "rwt", "serve", "--host", "127.0.0.1", *args]
+    command = [*RWT, "serve", "--host", "127.0.0.1", *args]
     server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
         assert server.stdout is not None

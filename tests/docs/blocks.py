@@ -39,12 +39,12 @@ class Block:
 
 
 def markdown_files() -> list[Path]:
-    """Every Markdown file a user reads: READMEs and docs/.
+    """Every Markdown file a user reads: READMEs, docs/ and the benchmarks' journal.
 
     Not other projects' READMEs: installed packages (node_modules, a virtualenv
     such as ``.venv`` in the clone) and hidden directories are skipped.
     """
-    files = [*REPO.glob("*.md"), *REPO.glob("docs/**/*.md")]
+    files = [*REPO.glob("*.md"), *REPO.glob("docs/**/*.md"), *REPO.glob("benchmarks/*.md")]
     files += [p for p in REPO.glob("*/**/README.md") if _ours(p.relative_to(REPO))]
     return sorted(set(files))
 

@@ -1,6 +1,6 @@
 """Fixtures of the fuzz suite: an in-process server per test module, driven from a portal.
 
-Hypothesis drives plain functions, so the server (``tests/transports/clients.py``'s
+Hypothesis drives plain functions, so the server (``tests/support/clients.py``'s
 ``running_server``) runs in a blocking portal's event loop and every example is a
 ``portal.call``. A server that died (a violation) is reported, then started anew
 so the next example, and hypothesis's shrinking, run against a live one. The
@@ -22,7 +22,7 @@ from anyio.abc import TaskStatus
 from anyio.from_thread import BlockingPortal, start_blocking_portal
 from hypothesis import HealthCheck, Phase, settings
 
-from tests.transports.clients import Client, Harness, running_server
+from tests.support.clients import Client, Harness, running_server
 
 settings.register_profile(
     "fuzz",

@@ -24,7 +24,7 @@ from websockets.exceptions import ConnectionClosed
 
 from rwt_protocol.framing.streams import FramingError, InFrame, JsonStreamFramer
 from rwt_transports.memory import MemoryConnection
-from tests.transports.clients import validate_udp
+from tests.support.clients import validate_udp
 
 Message = dict[str, Any]
 REPLY_OPS = frozenset(
@@ -155,7 +155,7 @@ async def _resend_every_second(wire: Wire, frame: bytes) -> None:
         await wire.send(frame, False)
 
 
-# -- wires over the test clients (tests/transports/clients.py) and plain sockets --
+# -- wires over the test clients (tests/support/clients.py) and plain sockets --
 
 
 def memory_wire(connection: MemoryConnection) -> Wire:

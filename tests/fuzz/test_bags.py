@@ -37,8 +37,8 @@ from tests.bag.bags import write_bag
 from tests.fuzz import driver
 from tests.fuzz.conftest import FUZZ
 from tests.fuzz.strategies import player_calls
-from tests.fuzz.test_transports import TIMEOUT_S, check_bystanders, connect_bystanders, is_op
-from tests.transports.clients import Client, Harness, running_server
+from tests.fuzz.test_transports import TIMEOUT_S, check_bystanders, connect_bystanders
+from tests.support.clients import Client, Harness, is_op, running_server
 
 _tags = itertools.count()
 _WORK = Path(tempfile.mkdtemp(prefix="rwt-fuzz-bags-"))

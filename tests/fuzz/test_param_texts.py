@@ -19,18 +19,12 @@ import pytest
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from tests.fuzz import grammar
-from tests.transports.clients import Client, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import Client, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 
 TIMEOUT_S = 60
 NAME = {Dialect.ROS1: "/fuzz/p", Dialect.ROS2: "/rosapi:fuzz"}
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 async def call(client: Client, service: str, args: dict[str, Any], tag: str) -> Any:

@@ -21,16 +21,12 @@ from websockets.asyncio.client import connect
 from tests.fuzz import driver
 from tests.fuzz.conftest import FUZZ, Live
 from tests.fuzz.strategies import sequences
-from tests.transports.clients import TRANSPORTS, Client, Harness
+from tests.support.clients import TRANSPORTS, Client, Harness, is_op
 
 TIMEOUT_S = 5.0
 UDP_FRAME_BYTES = 60_000  # under the 65,507-byte datagram limit
 _tags = itertools.count()
 _stdio: dict[int, driver.Wire | None] = {}
-
-
-def is_op(name: str, **fields: object):  # type: ignore[no-untyped-def]
-    return lambda m: m.get("op") == name and all(m.get(k) == v for k, v in fields.items())
 
 
 async def connect_bystanders(harness: Harness) -> list[Client]:

@@ -34,15 +34,14 @@ from rwt_zenoh.wire import topic_keyexpr
 from tests.fuzz import driver, grammar
 from tests.fuzz.conftest import FUZZ
 from tests.fuzz.strategies import zenoh_peer_actions
-from tests.fuzz.test_transports import is_op
-from tests.transports.clients import running_server
+from tests.support.clients import is_op, running_server
 from tests.zenoh.support import endpoint, peer
 
 if TYPE_CHECKING:
     from anyio.abc import TaskStatus
     from anyio.from_thread import BlockingPortal
 
-    from tests.transports.clients import Client
+    from tests.support.clients import Client
 
 STRING = "std_msgs/msg/String"
 REGISTRY = Graph().registry

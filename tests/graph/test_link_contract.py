@@ -16,10 +16,10 @@ from rwt_graph.link import (
     matches_private,
     mirror_endpoint,
 )
-from rwt_graph.param_replicas import ParamReplicas
-from rwt_graph.param_services import MAX_REQUEST_ITEMS, answer, param_nodes
-from rwt_graph.param_wire import from_wire, to_wire, type_code
-from rwt_graph.params import ParameterError
+from rwt_graph.parameters.replicas import ParamReplicas
+from rwt_graph.parameters.services import MAX_REQUEST_ITEMS, answer, param_nodes
+from rwt_graph.parameters.store import ParameterError
+from rwt_graph.parameters.wire import from_wire, to_wire, type_code
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.hashes import message_type_hash
 from rwt_graph.types.wire import CDR_TRAILING_SLACK, CdrError, read_cdr

@@ -10,8 +10,8 @@ import logging
 from typing import TYPE_CHECKING
 
 from rwt_graph.graph import Graph
-from rwt_graph.param_replicas import MAX_RETRY_REFRESHES, ParamReplicas
-from rwt_graph.param_wire import to_wire
+from rwt_graph.parameters.replicas import MAX_RETRY_REFRESHES, ParamReplicas
+from rwt_graph.parameters.wire import to_wire
 
 if TYPE_CHECKING:
     import pytest

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_graph.params import (
+from rwt_graph.parameters.store import (
     ParameterError,
     ParameterNotSetError,
     Parameters,

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from rwt_graph.graph import Graph
-from rwt_graph.params import Parameters
+from rwt_graph.parameters.store import Parameters
 from rwt_protocol.ports import MessageEvent
 
 STRING = "std_msgs/msg/String"

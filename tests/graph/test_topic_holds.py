@@ -16,11 +16,6 @@ from rwt_graph.topic_holds import TopicHolds
 pytestmark = pytest.mark.anyio
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 class _Hold:
     """An ``InflowHold`` that ends when ``end`` is called."""
 

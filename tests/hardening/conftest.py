@@ -6,12 +6,7 @@ from collections.abc import AsyncIterator
 
 import pytest
 
-from tests.transports.clients import Harness, running_server
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
+from tests.support.clients import Harness, running_server
 
 
 @pytest.fixture

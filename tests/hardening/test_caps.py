@@ -19,8 +19,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import Session, SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.conftest import FakeClock
-from tests.transports.clients import Harness, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import Harness, is_op, running_server
 
 CAPS = SessionConfig(
     status_level=StatusLevel.ERROR,

@@ -19,7 +19,7 @@ import anyio.to_thread
 import pytest
 
 from tests.hardening.peers import TcpPeer, settle
-from tests.transports.clients import Harness
+from tests.support.clients import Harness
 
 pytestmark = pytest.mark.anyio
 

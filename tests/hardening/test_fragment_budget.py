@@ -11,8 +11,7 @@ import anyio
 import pytest
 
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import TRANSPORTS, Client, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import TRANSPORTS, Client, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 

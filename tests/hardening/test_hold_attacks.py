@@ -39,7 +39,7 @@ import pytest
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import TcpPeer, settle
-from tests.transports.clients import Harness, running_server
+from tests.support.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio
 

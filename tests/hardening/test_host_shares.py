@@ -27,8 +27,8 @@ from websockets.exceptions import InvalidStatus
 from rwt_cli.app import app
 from rwt_transports.server import ServerConfig
 from rwt_transports.udp import UdpOptions
-from tests.transports.clients import Harness, running_server, validate_udp
-from tests.transports.test_cli import port, rwt_serve
+from tests.support.cli import port, rwt_serve
+from tests.support.clients import Harness, running_server, validate_udp
 
 pytestmark = pytest.mark.anyio
 

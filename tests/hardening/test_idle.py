@@ -14,9 +14,8 @@ from websockets.exceptions import ConnectionClosed
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import Client, running_server
-from tests.transports.realclients import node_missing, run_node, run_python
-from tests.transports.test_contract import is_op
+from tests.support.clients import Client, is_op, running_server
+from tests.support.realclients import node_missing, run_node, run_python
 
 pytestmark = pytest.mark.anyio
 

@@ -19,14 +19,14 @@ from websockets.exceptions import ConnectionClosed
 from rwt_graph.graph import Graph
 from rwt_protocol.server.session import Session
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from tests.transports.clients import (
+from tests.support.clients import (
     Client,
     Harness,
     PipeStream,
     StreamClient,
     WsClient,
+    is_op,
 )
-from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
 

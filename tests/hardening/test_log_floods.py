@@ -27,8 +27,7 @@ from rwt_protocol.server.session import SessionConfig
 from rwt_transports import server
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_video import VideoConfig, serve_video
-from tests.transports.clients import TRANSPORTS, Client, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import TRANSPORTS, Client, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 
@@ -137,11 +136,6 @@ async def test_refused_auth_on_many_connections_logs_once_per_episode(
                         assert b"authentication failed" in reply, (i, reply)
             lines = rwt_lines(caplog)
             assert 1 <= len(lines) <= 2 * MAX_LINES, lines
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @asynccontextmanager

@@ -19,8 +19,7 @@ from rwt_protocol.codecs.json import MAX_NESTING
 from tests.conftest import Peer
 from tests.hardening.test_unencodable import send_binary
 from tests.session.test_robustness import pair, still_served
-from tests.transports.clients import TRANSPORTS, Harness
-from tests.transports.test_contract import is_op
+from tests.support.clients import TRANSPORTS, Harness, is_op
 
 TOO_DEEP = f"nesting deeper than {MAX_NESTING}"
 

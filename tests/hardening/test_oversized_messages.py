@@ -37,8 +37,8 @@ from rwt_protocol.server.session import Session, SessionConfig
 from rwt_transports.server import ServerConfig
 from rwt_transports.tcp import stream_writes
 from tests.hardening.peers import TIMEOUT_S, Peer, TcpPeer, WsPeer, settle
-from tests.transports.clients import Harness, running_server
-from tests.transports.realclients import run_python
+from tests.support.clients import Harness, running_server
+from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
 

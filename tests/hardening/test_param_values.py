@@ -23,8 +23,8 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from tests.transports.clients import TRANSPORTS, Client, Harness, running_server
-from tests.transports.realclients import run_python
+from tests.support.clients import TRANSPORTS, Client, Harness, running_server
+from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
 

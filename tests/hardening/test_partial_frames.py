@@ -22,8 +22,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed
 
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import Harness, StreamClient, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import Harness, StreamClient, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 

@@ -19,8 +19,7 @@ from rwt_graph.graph import Graph
 from rwt_protocol.codecs.png import encode_png
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import TRANSPORTS, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import TRANSPORTS, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 

@@ -24,7 +24,7 @@ import anyio.to_thread
 import pytest
 
 from tests.hardening.peers import Peer, TcpPeer, open_peer, settle
-from tests.transports.clients import Harness
+from tests.support.clients import Harness
 
 pytestmark = pytest.mark.anyio
 

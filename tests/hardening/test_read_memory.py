@@ -21,7 +21,8 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from tests.transports.realclients import REPO
+from tests.support.cli import RWT
+from tests.support.realclients import REPO
 
 MiB = 1024 * 1024
 CONNECTIONS = 120  # of each transport
@@ -48,7 +49,7 @@ def rwt_serve() -> Iterator[tuple[int, dict[str, int]]]:
     args = ["--host", "127.0.0.1", "--port", "0", "--tcp-port", "0", "--log-level", "error"]
     args += ["--fragment-timeout", str(FRAGMENT_TIMEOUT_S)]
     process = subprocess.Popen(
-        [sys.executable, "-m", "rwt", "serve", *args],
+        [*RWT, "serve", *args],
         env=ENV,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,

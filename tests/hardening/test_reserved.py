@@ -19,8 +19,7 @@ from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import TRANSPORTS, Client, Harness, running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import TRANSPORTS, Client, Harness, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 

@@ -44,8 +44,8 @@ import pytest
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import Peer, TcpPeer, open_peer, settle
-from tests.transports.clients import Client, Harness, running_server
-from tests.transports.realclients import run_python
+from tests.support.clients import Client, Harness, running_server
+from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
 

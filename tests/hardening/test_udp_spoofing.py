@@ -31,8 +31,7 @@ from rwt_transports.udp_validation import (
     SESSION_CHALLENGE_TEXT,
     AddressValidator,
 )
-from tests.transports.clients import Harness, Message, UdpClient, running_server, validate_udp
-from tests.transports.test_contract import is_op
+from tests.support.clients import Harness, Message, UdpClient, is_op, running_server, validate_udp
 
 pytestmark = pytest.mark.anyio
 

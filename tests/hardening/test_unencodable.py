@@ -16,14 +16,14 @@ import anyio
 import cbor2
 import pytest
 
-from tests.transports.clients import (
+from tests.support.clients import (
     TRANSPORTS,
     Client,
     Harness,
     MemoryClient,
     WsClient,
+    is_op,
 )
-from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
 

@@ -19,7 +19,7 @@ from websockets.frames import Close
 from websockets.uri import parse_uri
 
 from tests.hardening.peers import TIMEOUT_S, WsPeer, settle
-from tests.transports.clients import Harness
+from tests.support.clients import Harness
 
 pytestmark = pytest.mark.anyio
 

@@ -17,7 +17,7 @@ import pytest
 from rwt_graph.graph import Graph
 from rwt_video import encoders
 from rwt_video.params import MAX_BITRATE, MAX_PIXELS, MAX_SIDE
-from tests.transports.test_video_server import TIMEOUT_S, camera, solid, video_server
+from tests.video.support import TIMEOUT_S, camera, solid, video_server
 
 pytestmark = pytest.mark.anyio
 

@@ -24,7 +24,7 @@ from websockets.uri import parse_uri
 
 from rwt_transports import websocket
 from tests.hardening.peers import TIMEOUT_S
-from tests.transports.clients import Harness
+from tests.support.clients import Harness
 
 pytestmark = pytest.mark.anyio
 

@@ -50,11 +50,6 @@ MULTI_ARRAYS = {
 
 
 @pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
 async def served() -> AsyncIterator[tuple[Graph, str]]:
     graph = Graph()
     server = RosbridgeServer(graph, ServerConfig(port=0))

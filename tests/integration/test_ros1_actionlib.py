@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -19,6 +18,8 @@ from pathlib import Path
 import pytest
 import roslibpy
 from roslibpy.ros1.actionlib import ActionClient, Goal, SimpleActionServer
+
+from tests.support.cli import RWT
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 TIMEOUT_S = 15
@@ -36,7 +37,7 @@ def interfaces(tmp_path: Path) -> Path:
 @pytest.fixture
 def ros1_server(interfaces: Path) -> Iterator[int]:
     """`rwt serve --dialect ros1 --interfaces DIR` on a free port; yields the port."""
-    command = [sys.executable, "-m", "rwt", "serve", "--host", "127.0.0.1"]
+    command = [*RWT, "serve", "--host", "127.0.0.1"]
     command += ["--port", "0", "--dialect", "ros1", "--interfaces", str(interfaces)]
     process = subprocess.Popen(
         command,

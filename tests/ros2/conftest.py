@@ -16,12 +16,6 @@ if TYPE_CHECKING:
 
 
 @pytest.fixture(scope="module")
-def anyio_backend() -> str:
-    """The clients run in their own processes: one backend is enough."""
-    return "asyncio"
-
-
-@pytest.fixture(scope="module")
 def ros_env(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[Path]:

@@ -12,7 +12,7 @@ import anyio
 import pytest
 
 from tests.integration.client_harness import JS_DIR, ServerProcess, node_missing_reason
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import Peer, roslibpy_prelude, skip_without_rclpy
 

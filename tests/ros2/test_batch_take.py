@@ -16,7 +16,7 @@ import pytest
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_ros2.link import take_queued
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
 

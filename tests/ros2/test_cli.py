@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
+
+from tests.support.cli import RWT
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -19,7 +20,7 @@ def test_without_rclpy_it_says_what_to_install_or_source(tmp_path: Path) -> None
     )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO / "src")])}
     result = subprocess.run(
-        [sys.executable, "-m", "rwt", "serve", "--ros2", "--port", "0"],
+        [*RWT, "serve", "--ros2", "--port", "0"],
         env=env,
         capture_output=True,
         text=True,
@@ -37,7 +38,7 @@ def test_without_rclpy_it_says_what_to_install_or_source(tmp_path: Path) -> None
 def test_ros2_with_the_ros1_dialect_is_a_usage_error() -> None:
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
     result = subprocess.run(
-        [sys.executable, "-m", "rwt", "serve", "--ros2", "--dialect", "ros1"],
+        [*RWT, "serve", "--ros2", "--dialect", "ros1"],
         env=env,
         capture_output=True,
         text=True,

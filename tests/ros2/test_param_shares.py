@@ -7,8 +7,8 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from rwt_graph.params import Parameters
-from tests.transports.realclients import run_python
+from rwt_graph.parameters.store import Parameters
+from tests.support.realclients import run_python
 
 from .support import Peer, roslibpy_prelude, skip_without_rclpy
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import Peer, roslibpy_prelude, skip_without_rclpy
 

@@ -11,7 +11,7 @@ import pytest
 
 from rwt_ros2.node import MAX_WAITING
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import JsonLines, Peer, roslibpy_prelude, skip_without_rclpy
 

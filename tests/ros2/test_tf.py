@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import pytest
 
 from tests.integration.client_harness import ServerProcess, node_missing_reason
-from tests.transports.realclients import run_node, run_python
+from tests.support.realclients import run_node, run_python
 
 from . import tf2_msgs_build
 from .support import Peer, roslibpy_prelude, skip_without_rclpy

@@ -11,7 +11,7 @@ import anyio
 import pytest
 
 from tests.integration.client_harness import ServerProcess, node_missing_reason
-from tests.transports.realclients import run_node, run_python
+from tests.support.realclients import run_node, run_python
 
 from .support import JsonLines, Peer, roslibpy_prelude, skip_without_rclpy
 

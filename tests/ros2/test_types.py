@@ -9,7 +9,7 @@ import anyio
 import pytest
 
 from tests.integration.client_harness import ServerProcess
-from tests.transports.realclients import run_python
+from tests.support.realclients import run_python
 
 from .support import HERE, Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
 

@@ -1,31 +1,16 @@
-"""Fixtures of the transport tests: a TLS server with a certificate made in the test."""
+"""Fixtures of the transport tests: a TLS server (tests/conftest.py makes its certificate)."""
 
 from __future__ import annotations
 
 import ssl
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
 import trustme
 
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import Harness, running_server
-
-
-@pytest.fixture
-def ca() -> trustme.CA:
-    return trustme.CA()
-
-
-@pytest.fixture
-def tls_files(ca: trustme.CA, tmp_path: Path) -> Iterator[tuple[Path, Path, Path]]:
-    cert = ca.issue_cert("127.0.0.1", "localhost")
-    certfile, keyfile, cafile = tmp_path / "cert.pem", tmp_path / "key.pem", tmp_path / "ca.pem"
-    cert.cert_chain_pems[0].write_to_path(certfile)
-    cert.private_key_pem.write_to_path(keyfile)
-    ca.cert_pem.write_to_path(cafile)
-    yield certfile, keyfile, cafile
+from tests.support.clients import Harness, running_server
 
 
 @pytest.fixture

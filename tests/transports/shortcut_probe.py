@@ -35,7 +35,7 @@ from rwt_protocol.server import session as session_module
 from rwt_transports import direct, pump, websocket, wsread
 from rwt_transports.server import ServerConfig
 from tests.conftest import FakeClock
-from tests.transports.clients import running_server
+from tests.support.clients import running_server
 
 IMAGE_BYTES = 100_000  # over the 64 KiB from which payloads are spliced
 

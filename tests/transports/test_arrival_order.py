@@ -27,7 +27,7 @@ import anyio.to_thread
 import pytest
 from websockets.sync.client import connect
 
-from tests.transports.clients import Harness, running_server
+from tests.support.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio
 
@@ -41,11 +41,6 @@ STRING = "std_msgs/msg/String"
 
 Message = dict[str, Any]
 Accepted = Callable[[int], None]
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 class _Tcp:

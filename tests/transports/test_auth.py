@@ -20,18 +20,12 @@ from rwt_graph.graph import Graph
 from rwt_protocol.auth import rosauth_mac
 from rwt_protocol.ops import Auth
 from rwt_transports.server import rosauth_authenticator
-from tests.transports.clients import Harness, running_server
-from tests.transports.realclients import node_missing, run_node, run_python
-from tests.transports.test_contract import is_op
+from tests.support.clients import Harness, is_op, running_server
+from tests.support.realclients import node_missing, run_node, run_python
 
 pytestmark = pytest.mark.anyio
 
 SECRET = "1234567890abcdef"
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @pytest.fixture

@@ -23,19 +23,13 @@ from rwt_graph.graph import Graph
 from rwt_protocol.auth import AUTH_CHALLENGE_ID, bound_mac, rosauth_mac
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
-from tests.transports.clients import Client, Harness, running_server
-from tests.transports.realclients import node_missing, run_node
-from tests.transports.test_contract import is_op
+from tests.support.clients import Client, Harness, is_op, running_server
+from tests.support.realclients import node_missing, run_node
 
 pytestmark = pytest.mark.anyio
 
 SECRET = "1234567890abcdef"
 TIMEOUT_S = 20
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @pytest.fixture

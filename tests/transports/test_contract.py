@@ -20,22 +20,18 @@ from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import (
+from tests.support.clients import (
     TRANSPORTS,
     Client,
     Harness,
     StreamClient,
+    is_op,
     running_server,
 )
 
 pytestmark = pytest.mark.anyio
 
 TIMEOUT_S = 10
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @pytest.fixture
@@ -49,10 +45,6 @@ async def pair(request: pytest.FixtureRequest, harness: Harness) -> tuple[Client
     client = await harness.connect(request.param)
     other = await harness.connect("memory", "other")
     return client, other
-
-
-def is_op(name: str, **fields: object):  # type: ignore[no-untyped-def]
-    return lambda m: m.get("op") == name and all(m.get(k) == v for k, v in fields.items())
 
 
 async def test_subscriber_receives_what_another_transport_publishes(

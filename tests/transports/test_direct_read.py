@@ -23,7 +23,7 @@ from anyio.abc import SocketAttribute
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.direct import DirectReader
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import running_server
+from tests.support.clients import running_server
 
 pytestmark = pytest.mark.anyio
 
@@ -38,6 +38,7 @@ LIMIT = 256 * MiB  # far beyond the kernel buffers of both ends (32 + 4 MiB here
     ]
 )
 def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
+    # not tests/conftest.py's: the direct paths differ under uvloop, so both loops run
     return "asyncio", request.param
 
 

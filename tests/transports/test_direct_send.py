@@ -30,7 +30,7 @@ from rwt_transports.server import ServerConfig
 from rwt_transports.tcp import StreamChannel
 from rwt_transports.websocket import WebSocketChannel
 from tests.conftest import FakeClock
-from tests.transports.clients import Client, running_server
+from tests.support.clients import Client, running_server
 
 pytestmark = pytest.mark.anyio
 
@@ -43,6 +43,7 @@ BURST = 128  # 32 MiB: more than the kernel takes without the peer reading
     params=[pytest.param({}, id="asyncio"), pytest.param({"use_uvloop": True}, id="uvloop")]
 )
 def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
+    # not tests/conftest.py's: the direct paths differ under uvloop, so both loops run
     return "asyncio", request.param
 
 

@@ -17,15 +17,9 @@ from websockets.uri import parse_uri
 
 from rwt_transports.server import ServerConfig
 from rwt_transports.websocket import WebSocketOptions
-from tests.transports.clients import running_server
-from tests.transports.test_contract import is_op
+from tests.support.clients import is_op, running_server
 
 pytestmark = pytest.mark.anyio
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 async def test_max_connections_counts_every_transport() -> None:

@@ -18,14 +18,9 @@ from rwt_graph.graph import Graph
 from rwt_graph.link import OPEN_OUTFLOW
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import Client, Harness, running_server
+from tests.support.clients import Client, Harness, running_server
 
 pytestmark = pytest.mark.anyio
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"  # the server's transports run on asyncio
 
 
 SAMPLE = 400

@@ -63,11 +63,6 @@ def test_sockets_it_cannot_read_give_none() -> None:
     assert unsent_bytes(closed) is None
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"  # the server's loop
-
-
 @pytest.mark.anyio
 async def test_an_anyio_stream_gives_its_socket_s_queue() -> None:
     async with await anyio.create_tcp_listener(local_host="127.0.0.1") as listener:

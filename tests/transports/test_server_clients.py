@@ -17,11 +17,6 @@ pytestmark = pytest.mark.anyio
 
 
 @pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture
 async def served(clock: FakeClock) -> AsyncIterator[tuple[str, Graph]]:
     graph = Graph(clock=clock)
     server = RosbridgeServer(graph, ServerConfig(port=0))
@@ -100,7 +95,7 @@ async def test_rosapi_names_the_server_rosapi_and_each_connection(
             "/client_count": "std_msgs/msg/Int32",
             "/connected_clients": "rosbridge_msgs/msg/ConnectedClients",
         }
-        # the rest is the built-in tf2_web_republisher's (tests/transports/test_tf_republisher.py)
+        # the rest is the built-in tf2_web_republisher's (tests/graph/tf/)
         assert all(
             name.startswith("/tf")
             for name in set(listed) - {"/battery", "/client_count", "/connected_clients"}

@@ -95,11 +95,6 @@ def test_named_shortcuts_are_switched_off_alone(with_shortcuts: dict[str, Any]) 
     _same_frames(without, with_shortcuts)
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"  # the direct paths exist on asyncio only
-
-
 def _channel() -> WebSocketChannel:
     protocol = ServerProtocol(max_size=1 << 20, state=State.OPEN)
     return WebSocketChannel(object(), protocol, WebSocketOptions(), 10 * 2**20)  # type: ignore[arg-type]

@@ -25,7 +25,7 @@ from websockets.uri import parse_uri
 
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from tests.transports.clients import Harness, running_server
+from tests.support.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio
 
@@ -34,11 +34,6 @@ LIMIT = 1 * MiB
 MESSAGES = 1200
 PAYLOAD = 10_000  # bytes per message: 12 MB published in all, twelve times the limit
 BATCH = 100
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @pytest.fixture

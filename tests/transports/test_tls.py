@@ -14,9 +14,8 @@ import anyio.to_thread
 import pytest
 from websockets.sync.client import connect
 
-from tests.transports.clients import Harness
-from tests.transports.realclients import run_python
-from tests.transports.test_contract import is_op
+from tests.support.clients import Harness, is_op
+from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
 
@@ -26,11 +25,6 @@ TCP_CHURN_CONNECTIONS = 1000
 """TLS over TCP exchanges of the threaded client below (a lost first op: about one in 200)."""
 OPEN_S = 30.0
 """Far past the handshake timeout (10 s), which ends a stalled wss connection with an error."""
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 async def test_urls_say_tls(tls_harness: Harness) -> None:

@@ -35,19 +35,13 @@ from rwt_transports.udp_validation import (
     SESSION_CHALLENGE_TEXT,
 )
 from tests.hardening.test_udp_spoofing import datagrams_within
-from tests.transports.clients import Harness, Message, UdpClient, running_server
+from tests.support.clients import Harness, Message, UdpClient, is_op, running_server
 from tests.transports.test_auth_bind import SECRET, signed
-from tests.transports.test_contract import is_op
 
 pytestmark = pytest.mark.anyio
 
 TIMEOUT_S = 20
 FIRST_OP_NOT_AUTH = "authentication required: the first op must be auth"
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 def bound_config(**udp: Any) -> ServerConfig:

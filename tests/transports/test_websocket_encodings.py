@@ -15,11 +15,6 @@ from rwt_transports.server import RosbridgeServer, ServerConfig
 pytestmark = pytest.mark.anyio
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 async def test_binary_ops_in_and_cbor_frames_out() -> None:
     server = RosbridgeServer(Graph(), ServerConfig(port=0))
     async with anyio.create_task_group() as tg:

@@ -27,14 +27,9 @@ from rwt_protocol.framing.streams import InFrame
 from rwt_transports.server import ServerConfig
 from rwt_transports.websocket import WebSocketChannel, WebSocketOptions
 from rwt_transports.wsread import FrameReader
-from tests.transports.clients import running_server
+from tests.support.clients import running_server
 
 MiB = 1024 * 1024
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"  # the server runs on asyncio (uvloop optional)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from anyio.abc import Process as AnyioProcess
 from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_zenoh.config import ZenohOptions
+from tests.support.cli import RWT
 
 from .support import checked
 
@@ -99,7 +100,7 @@ async def started(cmd: list[str], name: str, cwd: Path = REPO) -> AsyncIterator[
 
 def rwt(*args: str) -> list[str]:
     """The command line of ``rwt ARGS`` from this interpreter."""
-    return [sys.executable, "-m", "rwt", *args]
+    return [*RWT, *args]
 
 
 @contextlib.asynccontextmanager

@@ -118,11 +118,6 @@ def test_a_large_payload_stays_zenohs_until_the_loop_copies_it() -> None:
 # ---- through the link: two graphs, and a bare peer sending bad large samples ------------
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @contextlib.asynccontextmanager
 async def two_graphs() -> AsyncIterator[tuple[Graph, Graph]]:
     first = endpoint()

@@ -46,11 +46,6 @@ FLOOD_SAMPLES = 2000  # 2 GB sent, far past any bound
 TOKENS = 5_000  # Zenoh's own declare_token grows with the count: 20,000 took minutes
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 def rss(pid: int) -> int:
     """The resident set of process ``pid``, bytes (VmRSS in /proc)."""
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():

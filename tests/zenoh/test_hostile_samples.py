@@ -52,11 +52,6 @@ REGISTRY = Graph().registry
 STRING_HASH = type_hash(REGISTRY, STRING)
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @contextlib.asynccontextmanager
 async def linked_with_bare_peer(
     max_entities: int = MAX_REMOTE_ENTITIES,

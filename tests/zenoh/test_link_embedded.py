@@ -43,11 +43,6 @@ if TYPE_CHECKING:
 pytestmark = pytest.mark.anyio
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @contextlib.asynccontextmanager
 async def linked(count: int) -> AsyncIterator[list[tuple[Graph, ZenohLink]]]:
     """``count`` graphs, each linked by its own session; all connect to the first."""

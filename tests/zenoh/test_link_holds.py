@@ -33,11 +33,6 @@ LONGEST_GAP_S = 1.0
 FROZEN_SHARE = 0.10
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 def watch(url: str) -> tuple[Bystander, float, float, int]:
     """Read ``/cam`` slowly and ``/odom`` at once; the bystander and its window."""
     odom = Bystander(url, "/odom", "std_msgs/String")

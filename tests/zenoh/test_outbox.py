@@ -30,11 +30,6 @@ COUNT = 3000
 
 
 @pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"  # the outbox calls its watcher with call_soon_threadsafe
-
-
-@pytest.fixture
 def sessions() -> Iterator[tuple[Any, Any]]:
     listen = endpoint()
     first = zenoh.open(make_config(peer(listen=listen)))

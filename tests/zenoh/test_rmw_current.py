@@ -47,11 +47,6 @@ VOLATILE_TEXT = "::,10:,:,:,,"  # rclcpp's default profile: reliable, volatile, 
 LATCHED_TEXT = "1:1:1,1:,:,:,,"  # transient local, keep last 1; reliability and history spelled out
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 def options(listen: str, compat: RmwCompat = RmwCompat.CURRENT) -> ZenohOptions:
     return checked(ZenohOptions(listen=(listen,), connect=(), domain_id=0, rmw_compat=compat))
 

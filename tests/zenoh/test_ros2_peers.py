@@ -78,11 +78,6 @@ FIBONACCI = "example_interfaces/action/Fibonacci"
 REGISTRY = TypeRegistry()
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @contextlib.contextmanager
 def bare_session(connect: str | None = None, listen: str | None = None) -> Any:
     """A plain Zenoh session on loopback, multicast off."""

@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from tests.transports.realclients import node_missing
+from tests.support.realclients import node_missing
 
 from .processes import Process, node_client, python_client, rwt, serving, started
 from .support import endpoint
@@ -24,11 +24,6 @@ from .support import endpoint
 pytestmark = [pytest.mark.anyio, pytest.mark.node]
 
 MiB = 1024 * 1024
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @pytest.fixture(autouse=True)

@@ -19,12 +19,6 @@ from rwt_transports.workers import reserve_port
 
 from .processes import Process, python_client, rwt, started
 
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 FAN_OUT = """
 import sys, time, threading
 import roslibpy

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
-from ..params import ParameterError, ParamValue, to_json_safe
+from ..parameters.store import ParameterError, ParamValue, to_json_safe
 from .listing import encodable, node_names
 
 if TYPE_CHECKING:

@@ -28,9 +28,9 @@ from rwt_protocol.codecs.json import valid_unicode
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
-from .nodes import node_name
-from .ratelog import EpisodeLog
-from .types import Dialect
+from ..nodes import node_name
+from ..ratelog import EpisodeLog
+from ..types import Dialect
 
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Mapping, Sequence
@@ -67,7 +67,7 @@ _MISSING = object()
 NODE_SHARE = 0.25
 """The fraction of the store's parameters and of its bytes one ROS 2 node may hold.
 
-A node copied from ROS 2 or Zenoh (``param_replicas``) lists whatever it
+A node copied from ROS 2 or Zenoh (``replicas``) lists whatever it
 declares; without a share one node could fill the store, and every other
 client's ``set_param`` would fail (docs/limits.md)."""
 
@@ -602,7 +602,7 @@ class Parameters:
     def own(self, node: str, setter: NodeSetter | None) -> None:
         """Say that ``node``'s parameters here are copies that ``setter`` changes on the node.
 
-        A link that copies another node's parameters (``param_replicas``) owns them:
+        A link that copies another node's parameters (``replicas``) owns them:
         rosapi's ``set_param`` then asks the node and answers what it answered. None
         gives the node's parameters back to the store.
         """

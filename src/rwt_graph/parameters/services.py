@@ -17,13 +17,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .param_wire import from_wire, to_wire, type_code
-from .params import ParameterError, value_size
+from .store import ParameterError, value_size
+from .wire import from_wire, to_wire, type_code
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from .graph import Graph
+    from ..graph import Graph
 
 __all__ = ["MAX_ANSWER_BYTES", "MAX_REQUEST_ITEMS", "answer", "param_nodes"]
 
@@ -68,7 +68,7 @@ def _items(request: dict[str, object], field: str) -> list[object]:
 def answer(graph: Graph, node: str, part: str, request: dict[str, object]) -> dict[str, object]:
     """The response of ``<node>/<part>`` to ``request``.
 
-    ``part`` is a key of ``param_wire.PARAM_SERVICES``. A parameter that cannot
+    ``part`` is a key of ``wire.PARAM_SERVICES``. A parameter that cannot
     be set gets ``successful: false`` with the reason; ``set_parameters_atomically``
     sets all of its parameters or none (``Parameters.set_all``), with one result.
 

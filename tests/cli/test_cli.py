@@ -3,61 +3,18 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
-import subprocess
-import sys
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
 
 import anyio
 import pytest
-from anyio.abc import Process
-from anyio.streams.buffered import BufferedByteReceiveStream
 from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
-from tests.transports.clients import validate_udp
-from tests.transports.realclients import REPO, run_python
+from tests.support.cli import ENV, SERVE, port, rwt_serve
+from tests.support.clients import validate_udp
+from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
-
-ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
-SERVE = [sys.executable, "-m", "rwt", "serve", "--host", "127.0.0.1"]
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@asynccontextmanager
-async def rwt_serve(
-    *args: str, listeners: int = 1
-) -> AsyncIterator[tuple[Process, dict[str, str]]]:
-    """Start `rwt serve ARGS`; yield the process and its URLs by scheme once all are listening."""
-    process = await anyio.open_process(
-        [*SERVE, *args], env=ENV, stdin=subprocess.DEVNULL, stderr=subprocess.PIPE
-    )
-    urls: dict[str, str] = {}
-    try:
-        assert process.stdout is not None
-        stdout = BufferedByteReceiveStream(process.stdout)
-        with anyio.fail_after(20):
-            while len(urls) < listeners:
-                line = (await stdout.receive_until(b"\n", 1000)).decode()
-                url = line.removeprefix("listening on ")
-                urls[url.split("://")[0]] = url
-        yield process, urls
-    finally:
-        if process.returncode is None:
-            process.kill()
-        with anyio.fail_after(10):
-            await process.wait()
-
-
-def port(url: str) -> int:
-    return int(url.rsplit(":", 1)[1])
 
 
 async def test_help_documents_every_option() -> None:
@@ -196,5 +153,5 @@ async def test_bad_tls_files_fail_at_start_with_a_message(tmp_path: object) -> N
     result = await anyio.run_process(
         [*SERVE, "--port", "0", "--certfile", "/nonexistent.pem"], env=ENV, check=False
     )
-    assert result.returncode == 2  # a usage error (tests/transports/test_cli_usage.py)
+    assert result.returncode == 2  # a usage error (tests/cli/test_cli_usage.py)
     assert result.stderr.decode() == "rwt serve: --certfile: no such file: /nonexistent.pem\n"

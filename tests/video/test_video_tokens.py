@@ -25,11 +25,6 @@ class Clock:
         return self.now
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 def test_tokens_are_unguessable_and_expire() -> None:
     clock = Clock()
     tokens = VideoTokens(lifetime_s=30, clock=clock)
@@ -64,7 +59,7 @@ async def test_the_server_admits_a_live_token_and_refuses_an_expired_one() -> No
     graph.create_publisher("/camera/image", "sensor_msgs/msg/Image")
     clock = Clock()
     tokens = VideoTokens(lifetime_s=10, clock=clock)
-    token = tokens.issue()  # what /rwt/video_token answers (tests/integration/test_video_tokens.py)
+    token = tokens.issue()  # what /rwt/video_token answers (tests/video/test_video_tokens_cli.py)
     async with anyio.create_task_group() as tg:
         url = await tg.start(serve_video, graph, VideoConfig(port=0, tokens=tokens))
         async with httpx.AsyncClient(base_url=url, timeout=20) as client:

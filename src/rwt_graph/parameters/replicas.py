@@ -30,19 +30,19 @@ from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
 
-from .async_calls import call_service
-from .calls import guarded
-from .param_wire import from_wire, to_wire
-from .params import ParameterError, ParameterStoreFullError
-from .ratelog import EpisodeLog
+from ..async_calls import call_service
+from ..calls import guarded
+from ..ratelog import EpisodeLog
+from .store import ParameterError, ParameterStoreFullError
+from .wire import from_wire, to_wire
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rwt_protocol.ports import ClientId
 
-    from .graph import Graph
-    from .params import Parameters, ParamValue
+    from ..graph import Graph
+    from .store import Parameters, ParamValue
 
 __all__ = ["MAX_RETRY_REFRESHES", "NODE_SET_TIMEOUT_S", "REFRESH_SWEEPS", "ParamReplicas"]
 

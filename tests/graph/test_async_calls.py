@@ -7,22 +7,17 @@ import json
 import anyio
 import anyio.lowlevel
 import pytest
+from tests.conftest import Peer
 
 from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import running_handlers
-from tests.conftest import Peer
 
 pytestmark = pytest.mark.anyio
 
 FIB = "example_interfaces/action/Fibonacci"
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 async def fibonacci(goal: dict[str, object], context: GoalContext) -> dict[str, object]:

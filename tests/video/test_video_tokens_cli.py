@@ -16,9 +16,8 @@ import httpx
 import pytest
 
 from rwt_protocol.auth import rosauth_mac
-from tests.transports.realclients import run_python
-
-from .client_harness import ServerProcess
+from tests.integration.client_harness import ServerProcess
+from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
 
@@ -75,11 +74,6 @@ def _auth() -> str:
     }
     mac = rosauth_mac(SECRET, **fields)  # type: ignore[arg-type]
     return f"ros.authenticate({', '.join(repr(v) for v in (mac, *fields.values()))})"
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @pytest.fixture(scope="module")

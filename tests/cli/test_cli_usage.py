@@ -10,7 +10,6 @@ many small usage cases use typer's CliRunner, which drives the same group.
 from __future__ import annotations
 
 import importlib.metadata
-import os
 import re
 import signal
 import socket
@@ -26,25 +25,11 @@ from typer.testing import CliRunner
 
 from rwt_cli.app import app
 from rwt_cli.checks import check_glob_list
-from tests.transports.realclients import REPO
+from tests.support import cli
+from tests.support.cli import ENV, TIMEOUT_S, run_rwt
+from tests.support.realclients import REPO
 
-ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
-RWT = [sys.executable, "-m", "rwt"]
-SERVE = [*RWT, "serve", "--host", "127.0.0.1", "--log-level", "warning"]
-TIMEOUT_S = 60  # a bound on a hung process, not a speed requirement
-
-
-def rwt(*args: str, command: list[str] = RWT, **env: str) -> subprocess.CompletedProcess[str]:
-    """Run the real command line to its end."""
-    return subprocess.run(
-        [*command, *args],
-        env={**ENV, **env},
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_S,
-        check=False,
-    )
+SERVE = [*cli.SERVE, "--log-level", "warning"]
 
 
 def invoke(*args: str) -> tuple[int, str]:
@@ -93,7 +78,7 @@ def test_an_address_in_use_names_the_listener_and_the_port(
 ) -> None:
     port = request.getfixturevalue(f"taken_{kind}_port")
     args = [option, str(port)] if option == "--port" else ["--port", "0", option, str(port)]
-    run = rwt(*args, command=SERVE)
+    run = run_rwt(*args, command=SERVE)
     assert run.returncode == 1
     assert only_line(run.stderr) == (
         f"rwt serve: cannot listen for {listener} on 127.0.0.1:{port}: address already in use"
@@ -103,7 +88,7 @@ def test_an_address_in_use_names_the_listener_and_the_port(
 
 def test_workers_name_the_port_in_use_as_one_server_does(taken_tcp_port: int) -> None:
     pytest.importorskip("zenoh", reason="--workers shares the graph over Zenoh")
-    run = rwt("--workers", "2", "--port", str(taken_tcp_port), command=SERVE)
+    run = run_rwt("--workers", "2", "--port", str(taken_tcp_port), command=SERVE)
     assert run.returncode == 1
     assert only_line(run.stderr) == (
         f"rwt serve: cannot listen for WebSocket on 127.0.0.1:{taken_tcp_port}: "
@@ -115,7 +100,7 @@ def test_workers_name_the_port_in_use_as_one_server_does(taken_tcp_port: int) ->
 
 
 def test_a_usage_error_is_one_line_from_the_real_command() -> None:
-    run = rwt("serve", "--port", "99999")
+    run = run_rwt("serve", "--port", "99999")
     assert run.returncode == 2
     assert only_line(run.stderr).startswith("rwt serve: --port: ")
     assert run.stderr.count("\n") == 1 and run.stdout == ""
@@ -248,7 +233,7 @@ def test_other_usage_errors_are_one_line(args: list[str], expected: str) -> None
 
 
 def test_version() -> None:
-    run = rwt("--version")
+    run = run_rwt("--version")
     assert run.returncode == 0, run.stderr
     assert run.stdout == f"rwt {importlib.metadata.version('rwt')}\n"
 
@@ -274,7 +259,7 @@ def commands() -> list[list[str]]:
 
 @pytest.mark.parametrize("command", commands(), ids=lambda c: " ".join(["rwt", *c]))
 def test_help_is_for_users_and_fits_80_columns(command: list[str]) -> None:
-    run = rwt(*command, "--help", COLUMNS="80")
+    run = run_rwt(*command, "--help", env={"COLUMNS": "80"})
     assert run.returncode == 0, run.stderr
     text = run.stdout
     assert text.startswith("Usage: rwt")
@@ -286,7 +271,7 @@ def test_help_is_for_users_and_fits_80_columns(command: list[str]) -> None:
 
 
 def test_the_commands_are_listed() -> None:
-    text = rwt("--help", COLUMNS="80").stdout
+    text = run_rwt("--help", env={"COLUMNS": "80"}).stdout
     assert re.search(r"^  conformance +\S", text, re.MULTILINE)
     assert re.search(r"^  serve +\S", text, re.MULTILINE)
 
@@ -331,7 +316,7 @@ SERVE_SECTIONS = {
 
 
 def test_serve_help_lists_its_options_in_sections() -> None:
-    text = rwt("serve", "--help", COLUMNS="80").stdout
+    text = run_rwt("serve", "--help", env={"COLUMNS": "80"}).stdout
     headings = re.findall(r"^(\S[^:\n]*):$", text, re.MULTILINE)
     assert headings == list(SERVE_SECTIONS)
     bodies = re.split(r"^\S[^:\n]*:$", text, flags=re.MULTILINE)[1:]
@@ -342,7 +327,7 @@ def test_serve_help_lists_its_options_in_sections() -> None:
 
 
 def test_the_help_of_video_port_says_it_implies_video() -> None:
-    text = " ".join(rwt("serve", "--help").stdout.split())
+    text = " ".join(run_rwt("serve", "--help").stdout.split())
     assert "implies --video" in text
 
 
@@ -351,7 +336,7 @@ def test_uvloop_names_its_extra() -> None:
         "optional-dependencies"
     ]
     assert any(dep.startswith("uvloop") for dep in extras["uvloop"])
-    assert 'pip install "rwt[uvloop]"' in " ".join(rwt("serve", "--help").stdout.split())
+    assert 'pip install "rwt[uvloop]"' in " ".join(run_rwt("serve", "--help").stdout.split())
 
 
 def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
@@ -361,6 +346,6 @@ def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
         "sys.modules['uvloop'] = None;"
         "runpy.run_module('rwt', run_name='__main__')"
     )
-    run = rwt("serve", "--port", "0", "--uvloop", command=[sys.executable, "-c", code])
+    run = run_rwt("serve", "--port", "0", "--uvloop", command=[sys.executable, "-c", code])
     assert run.returncode == 1
     assert only_line(run.stderr) == 'rwt serve: --uvloop needs uvloop: pip install "rwt[uvloop]"'

@@ -24,6 +24,13 @@ from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.udp_validation import CHALLENGE_TEXT, MIN_PROBE_BYTES, SESSION_CHALLENGE_TEXT
 
 Message = dict[str, Any]
+
+
+def is_op(name: str, **fields: object) -> Callable[[Message], bool]:
+    """A predicate for ``Client.expect``: an op named ``name`` with these field values."""
+    return lambda m: m.get("op") == name and all(m.get(k) == v for k, v in fields.items())
+
+
 TRANSPORTS = ("memory", "ws", "tcp", "udp", "stdio")
 
 

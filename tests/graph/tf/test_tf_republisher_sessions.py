@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import anyio
 import pytest
+from tests.conftest import FakeClock, Peer
+from tests.tf_support import Ticks, tf_message, transform
 
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
@@ -18,8 +20,6 @@ from rwt_graph.rosapi import install_rosapi
 from rwt_graph.tf import TFRepublisher, install_tf_republisher
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_transports.server import RosbridgeServer, ServerConfig, running_handlers
-from tests.conftest import FakeClock, Peer
-from tests.tf_support import Ticks, tf_message, transform
 
 pytestmark = pytest.mark.anyio
 
@@ -31,11 +31,6 @@ GOAL = {
     "trans_thres": 0.05,
     "rate": 20.0,
 }
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
 
 
 @dataclass

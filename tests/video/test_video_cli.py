@@ -17,8 +17,7 @@ import pytest
 from PIL import Image
 
 from rwt_graph.media import decode_depthcloud
-
-from .client_harness import HERE, ServerProcess
+from tests.integration.client_harness import HERE, ServerProcess
 
 TIMEOUT_S = 20.0
 WIDTH, HEIGHT, TILE = 320, 240, 256

@@ -12,7 +12,7 @@ import os
 import subprocess
 import sys
 
-from tests.transports.realclients import REPO
+from tests.support.realclients import REPO
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src")}
 

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .params import ParameterError
+from .store import ParameterError
 
 if TYPE_CHECKING:
-    from .params import ParamValue
-    from .types import MessageType
+    from ..types import MessageType
+    from .store import ParamValue
 
 __all__ = ["PARAM_SERVICES", "from_wire", "to_wire", "type_code"]
 
