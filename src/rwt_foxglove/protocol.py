@@ -19,12 +19,15 @@ from __future__ import annotations
 
 import struct
 from enum import IntEnum
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 import msgspec
 
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
 __all__ = [
     "CLIENT_OPS",
@@ -66,7 +69,7 @@ _CLIENT_DATA_HEADER = struct.Struct("<BI")  # opcode, client channel id
 _TIME_FRAME = struct.Struct("<BQ")
 
 
-def select_subprotocol(offered: list[str] | tuple[str, ...]) -> str | None:
+def select_subprotocol(offered: Iterable[str]) -> str | None:
     """The first Foxglove subprotocol the client offers, in its order, or None."""
     return next((name for name in offered if name in SUBPROTOCOLS), None)
 
