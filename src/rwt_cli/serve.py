@@ -27,6 +27,7 @@ from rwt_protocol.server.access import AccessPolicy, parse_glob_list
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit
+from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
@@ -209,6 +210,9 @@ def _server_config(
             ping_interval_s=listeners.websocket_ping_interval,
             ping_timeout_s=listeners.websocket_ping_timeout,
             console=site,
+        ),
+        foxglove=FoxgloveOptions(
+            on_rosbridge_port=listeners.foxglove, port=listeners.foxglove_port
         ),
         udp=UdpOptions(
             datagram_bytes=listeners.udp_datagram_size,

@@ -124,6 +124,19 @@ class Listeners:
     udp_datagram_size: Annotated[
         int, typer.Option(help="Outgoing UDP messages above this many bytes are fragmented.")
     ] = 8192
+    foxglove: Annotated[
+        bool,
+        typer.Option(
+            help="Answer Foxglove clients (subprotocol foxglove.sdk.v1 or foxglove.websocket.v1) "
+            "on --port (--no-foxglove: rosbridge only)."
+        ),
+    ] = True
+    foxglove_port: Annotated[
+        int | None,
+        typer.Option(
+            **PORT_RANGE, help="Also serve a Foxglove-only WebSocket on this port (0: a free one)."
+        ),
+    ] = None
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,7 @@ from rwt_protocol.shortcuts import switched_off
 
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
+from .foxglove import FoxgloveOptions, foxglove_server
 from .holding import HostCoolDowns
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
@@ -151,6 +152,9 @@ class ServerConfig:
             close before cutting them.
         session: per-connection protocol settings (limits, access, auth).
         websocket: WebSocket settings.
+        foxglove: where Foxglove clients are answered (docs/foxglove.md): on the
+            WebSocket port by default, and on ``foxglove.port`` if set. Off while
+            an authenticator is required (Foxglove has no ``auth`` op).
         udp: UDP settings.
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi; by default
@@ -188,6 +192,7 @@ class ServerConfig:
     shutdown_grace_s: float = 5.0
     session: SessionConfig = field(default_factory=SessionConfig)
     websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
+    foxglove: FoxgloveOptions = field(default_factory=FoxgloveOptions)
     udp: UdpOptions = field(default_factory=UdpOptions)
     rosapi: bool = True
     rosapi_visibility: VisibilityFor | None = None
@@ -273,6 +278,13 @@ class RosbridgeServer:
         # a link's queue for the other middleware holds publishers back as a subscriber does
         self.graph.port.outflow = OutboundHold()
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
+        self._foxglove = (
+            None
+            if session_config.authenticator is not None
+            else foxglove_server(
+                self.graph.port, session_config.access, self.config.foxglove.limits
+            )
+        )
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
             session_config, idle_timeout_s=self.config.idle_timeout_s or None
@@ -389,6 +401,9 @@ class RosbridgeServer:
         runners: list[Runner] = []
         if config.port is not None:
             runners.append(await self._stream_listener(stack, config.port, tls, "websocket"))
+        if config.foxglove.port is not None and self._foxglove is not None:
+            port = config.foxglove.port
+            runners.append(await self._stream_listener(stack, port, tls, "foxglove"))
         if config.tcp_port is not None:
             runners.append(await self._stream_listener(stack, config.tcp_port, tls, "tcp"))
         if config.udp_port is not None:
@@ -432,9 +447,15 @@ class RosbridgeServer:
             raise ListenError(_LISTENER_NAMES[kind], self.config.host, port, exc) from exc
         await stack.enter_async_context(listener)
         bound = listener.extra(SocketAttribute.local_port)
-        scheme = {"websocket": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[kind][tls is not None]
+        scheme = {"websocket": ("ws", "wss"), "foxglove": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[
+            kind
+        ][tls is not None]
         self.urls[kind] = f"{scheme}://{_url_host(self.config.host)}:{bound}"
-        handler = self._handle_websocket if kind == "websocket" else self._handle_tcp
+        handler = {
+            "websocket": self._handle_websocket,
+            "foxglove": self._handle_foxglove,
+            "tcp": self._handle_tcp,
+        }[kind]
 
         async def run(connections: TaskGroup) -> None:
             async with anyio.create_task_group() as sockets:  # one per address family
@@ -570,6 +591,20 @@ class RosbridgeServer:
             self.config.websocket,
             self.config.max_message_size,
             self.fragment_budget,
+            foxglove=self._foxglove if self.config.foxglove.on_rosbridge_port else None,
+        )
+
+    async def _handle_foxglove(self, stream: ByteStream) -> None:
+        """A connection to the Foxglove-only port (``--foxglove-port``)."""
+        await serve_websocket_connection(
+            stream,
+            _peer(stream),
+            self,
+            self.config.websocket,
+            self.config.max_message_size,
+            self.fragment_budget,
+            foxglove=self._foxglove,
+            foxglove_only=True,
         )
 
     async def _handle_tcp(self, stream: ByteStream) -> None:

@@ -19,6 +19,7 @@ limited to ``max_message_size`` bytes (10 MiB default, D24/D30); a larger one
 closes the connection with code 1009 (as rosbridge's tornado does, REF §1.1).
 Origins and the URL path are checked at the handshake (``--allowed-origins``,
 ``--url-path``); keepalive pings are optional (``--websocket-ping-interval``).
+A client offering a Foxglove subprotocol is handed to ``foxglove`` (foxglove.py).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ import logging
 import os
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 import anyio
 from websockets.exceptions import InvalidState
@@ -38,8 +39,10 @@ from websockets.frames import Frame, Opcode
 from websockets.http11 import Request, Response
 from websockets.protocol import State
 from websockets.server import ServerProtocol
+from websockets.typing import Subprotocol
 
 from rwt_console.site import http_response_bytes
+from rwt_foxglove import select_subprotocol
 from rwt_protocol.framing.fragments import BudgetCharge
 from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.framing.streams import FramerEvent, InFrame
@@ -54,7 +57,7 @@ from .writes import coalesce
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Awaitable, Callable, Sequence
 
     from anyio.abc import ByteStream
     from websockets.datastructures import Headers
@@ -64,7 +67,7 @@ if TYPE_CHECKING:
     from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.server.outbox import OutFrame
 
-__all__ = ["WebSocketOptions", "serve_websocket_connection"]
+__all__ = ["FoxgloveServe", "WebSocketOptions", "serve_websocket_connection"]
 
 logger = logging.getLogger("rwt.websocket")
 
@@ -75,6 +78,10 @@ reads 256 KiB at a time), so a large message is parsed in few steps (benchmarks 
 _HANDSHAKE_LIMIT_S = 10.0
 _DATA_OPCODES = (Opcode.TEXT, Opcode.BINARY, Opcode.CONT)
 _MAX_REASON = 123  # bytes of a close reason (RFC 6455 5.5: a control frame's 125, less the code)
+
+
+FoxgloveServe: TypeAlias = "Callable[[WebSocketChannel, Session, str], Awaitable[None]]"
+"""Runs a connection that chose a Foxglove subprotocol (named last) to its end (foxglove.py)."""
 
 
 def _parser_held(protocol: ServerProtocol) -> int:
@@ -445,11 +452,25 @@ class WebSocketChannel:
             return None
 
 
-def _make_protocol(options: WebSocketOptions, max_message_size: int) -> ServerProtocol:
+def _make_protocol(
+    options: WebSocketOptions, max_message_size: int, *, foxglove: bool = False
+) -> ServerProtocol:
     extensions: list[ServerExtensionFactory] | None = None
     if options.compression:
         extensions = [ServerPerMessageDeflateFactory()]
-    return ServerProtocol(max_size=max_message_size, extensions=extensions)
+    return ServerProtocol(
+        max_size=max_message_size,
+        extensions=extensions,
+        select_subprotocol=_select_foxglove if foxglove else None,
+    )
+
+
+def _select_foxglove(
+    protocol: ServerProtocol, offered: Sequence[Subprotocol]
+) -> Subprotocol | None:
+    """The first Foxglove name the client offers; others (or none): no subprotocol."""
+    chosen = select_subprotocol(offered)
+    return None if chosen is None else Subprotocol(chosen)
 
 
 async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> tuple[Request, bool] | None:
@@ -512,6 +533,9 @@ async def serve_websocket_connection(
     options: WebSocketOptions,
     max_message_size: int,
     budget: FragmentBudget | None = None,
+    *,
+    foxglove: FoxgloveServe | None = None,
+    foxglove_only: bool = False,
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -525,10 +549,13 @@ async def serve_websocket_connection(
         budget: the server-wide budget of incomplete messages that a message still
             arriving is charged to (``--max-fragment-memory``); past it the
             connection is closed with 1013.
+        foxglove: runs a connection whose client offered a Foxglove subprotocol;
+            None: every client gets rosbridge (docs/foxglove.md).
+        foxglove_only: refuse (HTTP 400) a client that offers no Foxglove subprotocol.
 
     Never raises for what the peer does; the stream is closed on return.
     """
-    protocol = _make_protocol(options, max_message_size)
+    protocol = _make_protocol(options, max_message_size, foxglove=foxglove is not None)
     async with stream:
         handshake = await _handshake(stream, protocol)
         if handshake is None:
@@ -540,6 +567,9 @@ async def serve_websocket_connection(
         channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)
         pump = ConnectionPump(channel)
         refusal = _refusal(request, options)
+        subprotocol = None if foxglove is None else _foxglove_offered(request)
+        if refusal is None and foxglove_only and subprotocol is None:
+            refusal = 400, "this port speaks Foxglove only: offer foxglove.sdk.v1"
         session = None
         if refusal is None:
             session = host.open_session(channel.transport, peer, pump.wake)
@@ -560,7 +590,10 @@ async def serve_websocket_connection(
         ticket = admission.hold()
         ticket.serve()
         try:
-            await _open(channel, pump, session, request)
+            if foxglove is not None and subprotocol is not None:
+                await _open_foxglove(channel, session, foxglove, subprotocol)
+            else:
+                await _open(channel, pump, session, request)
         finally:
             ticket.release()
             channel.release()
@@ -582,6 +615,31 @@ async def _open(
         session.close()
         return
     await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
+
+
+def _foxglove_offered(request: Request) -> str | None:
+    """The Foxglove subprotocol the handshake will select, or None."""
+    offered = [
+        name.strip()
+        for value in request.headers.get_all("Sec-WebSocket-Protocol")
+        for name in value.split(",")
+    ]
+    return select_subprotocol(offered)
+
+
+async def _open_foxglove(
+    channel: WebSocketChannel, session: Session | None, foxglove: FoxgloveServe, subprotocol: str
+) -> None:
+    """Send the handshake response; run the Foxglove protocol if the connection was accepted."""
+    try:
+        await channel.flush()
+        if session is not None and channel.protocol.state is State.OPEN:
+            await foxglove(channel, session, subprotocol)
+    except (anyio.BrokenResourceError, OSError):
+        pass
+    finally:
+        if session is not None:
+            session.close()
 
 
 def _is_upgrade(request: Request) -> bool:

@@ -1,0 +1,119 @@
+"""The thin async driver of a ``FoxgloveSession`` over a WebSocket connection.
+
+Three tasks per connection: the reader hands each received frame to the
+session; the writer sends what the session queued, a batch at a time, whenever
+it is woken (a reply, a graph message); the watcher calls ``sync`` every
+``sync_interval_s`` so that topics that appeared or went are (un)advertised
+(the graph announces no changes, so it is looked at: one pass over its topics).
+The session never awaits, so a slow client only fills its own queue.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Protocol
+
+import anyio
+
+from rwt_protocol.framing.streams import InFrame
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from rwt_protocol.framing.streams import FramerEvent
+    from rwt_protocol.server.commands import CloseCode
+    from rwt_protocol.server.outbox import OutFrame
+
+    from .session import FoxgloveSession
+
+__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "Wakeup", "run_foxglove"]
+
+logger = logging.getLogger("rwt.foxglove")
+
+SYNC_INTERVAL_S = 0.25
+"""Seconds between two looks at the graph's topics (how late an advertise may come)."""
+
+
+class FoxgloveChannel(Protocol):
+    """A connection the driver reads and writes (``rwt_transports.websocket.WebSocketChannel``)."""
+
+    async def receive(self) -> Sequence[FramerEvent]:
+        """The whole messages received next; raises ``anyio.EndOfStream`` at the end."""
+
+    async def send(self, frames: Sequence[OutFrame]) -> None:
+        """Send data frames (text or binary), in order."""
+
+    async def close(self, code: CloseCode, reason: str) -> None:
+        """Send a close frame."""
+
+
+class Wakeup:
+    """Wakes the writer: ``set`` from the session's callbacks, ``wait`` in the writer."""
+
+    def __init__(self) -> None:
+        self._event = anyio.Event()
+
+    def set(self) -> None:
+        """Something was queued."""
+        self._event.set()
+
+    async def wait(self) -> None:
+        """Wait until something was queued since the last wait."""
+        await self._event.wait()
+        self._event = anyio.Event()
+
+
+async def run_foxglove(
+    channel: FoxgloveChannel,
+    session: FoxgloveSession,
+    wakeup: Wakeup,
+    *,
+    sync_interval_s: float = SYNC_INTERVAL_S,
+) -> None:
+    """Run ``session`` on ``channel`` until the peer's end; the session is closed on return.
+
+    Args:
+        channel: the accepted connection.
+        session: made with ``on_output=wakeup.set``.
+        wakeup: the writer's wake-up.
+        sync_interval_s: seconds between topic syncs.
+    """
+    try:
+        async with anyio.create_task_group() as tasks:
+            tasks.start_soon(_write, channel, session, wakeup)
+            tasks.start_soon(_watch, session, sync_interval_s)
+            wakeup.set()  # serverInfo and the first advertise
+            try:
+                await _read(channel, session, wakeup)
+            finally:
+                tasks.cancel_scope.cancel()
+    finally:
+        session.close()
+
+
+async def _read(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup) -> None:
+    while True:
+        try:
+            messages = await channel.receive()
+        except (anyio.EndOfStream, anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+            return
+        for message in messages:
+            if isinstance(message, InFrame):
+                session.receive(message.data, binary=message.binary)
+        wakeup.set()
+
+
+async def _write(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup) -> None:
+    while True:
+        await wakeup.wait()
+        while frames := session.take():
+            try:
+                await channel.send(frames)
+            except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+                return
+
+
+async def _watch(session: FoxgloveSession, interval_s: float) -> None:
+    while True:
+        await anyio.sleep(interval_s)
+        session.sync()

@@ -1,0 +1,132 @@
+"""Foxglove and rosbridge on one server: the subprotocol in the handshake picks the protocol."""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+import anyio
+import pytest
+from websockets.asyncio.client import ClientConnection, connect
+from websockets.exceptions import InvalidStatus
+
+from rwt_graph.graph import Graph
+from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
+from rwt_transports.foxglove import FoxgloveOptions
+from rwt_transports.server import RosbridgeServer, ServerConfig
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@asynccontextmanager
+async def serving(graph: Graph, **config: object) -> AsyncIterator[RosbridgeServer]:
+    server = RosbridgeServer(graph, ServerConfig(port=0, **config))
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        try:
+            with anyio.fail_after(20):
+                yield server
+        finally:
+            tg.cancel_scope.cancel()
+
+
+async def _op(ws: ClientConnection, name: str) -> dict[str, object]:
+    while True:
+        frame = await ws.recv()
+        if isinstance(frame, str) and json.loads(frame)["op"] == name:
+            return json.loads(frame)
+
+
+@pytest.mark.parametrize(
+    ("offered", "selected"),
+    [
+        (["foxglove.sdk.v1"], "foxglove.sdk.v1"),
+        (["foxglove.websocket.v1"], "foxglove.websocket.v1"),
+        (["foxglove.websocket.v1", "foxglove.sdk.v1"], "foxglove.websocket.v1"),
+    ],
+)
+async def test_each_subprotocol_name_gets_foxglove(offered: list[str], selected: str) -> None:
+    graph = Graph()
+    publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
+    async with (
+        serving(graph) as server,
+        connect(server.urls["websocket"], subprotocols=offered) as ws,
+    ):
+        assert ws.subprotocol == selected
+        info = json.loads(await ws.recv())
+        assert info["op"] == "serverInfo"
+        channel = next(
+            c for c in (await _op(ws, "advertise"))["channels"] if c["topic"] == "/chatter"
+        )
+        await ws.send(
+            json.dumps(
+                {"op": "subscribe", "subscriptions": [{"id": 4, "channelId": channel["id"]}]}
+            )
+        )
+        await ws.send(json.dumps({"op": "nope"}))
+        assert "unknown op" in str((await _op(ws, "status"))["message"])
+        publisher.publish({"data": "hello"})
+        frame = await ws.recv()
+        assert isinstance(frame, bytes) and frame[0] == 1
+        assert struct.unpack_from("<I", frame, 1) == (4,)
+        assert frame[13:].endswith(b"hello\x00")
+
+
+async def test_rosbridge_clients_are_unaffected() -> None:
+    graph = Graph()
+    async with serving(graph) as server:
+        for subprotocols in (None, ["chat"]):
+            async with connect(server.urls["websocket"], subprotocols=subprotocols) as ws:
+                assert ws.subprotocol is None
+                await ws.send(json.dumps({"op": "nope"}))
+                reply = json.loads(await ws.recv())
+                assert reply["op"] == "status" and reply["level"] == "error"
+
+
+async def test_no_foxglove_gives_rosbridge_to_everyone() -> None:
+    off = FoxgloveOptions(on_rosbridge_port=False)
+    async with (
+        serving(Graph(), foxglove=off) as server,
+        connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"]) as ws,
+    ):
+        assert ws.subprotocol is None
+        await ws.send(json.dumps({"op": "nope"}))
+        assert json.loads(await ws.recv())["op"] == "status"
+
+
+async def test_the_foxglove_port_speaks_foxglove_only() -> None:
+    async with serving(Graph(), foxglove=FoxgloveOptions(port=0)) as server:
+        url = server.urls["foxglove"]
+        async with connect(url, subprotocols=["foxglove.websocket.v1"]) as ws:
+            assert json.loads(await ws.recv())["op"] == "serverInfo"
+        with pytest.raises(InvalidStatus) as refused:
+            async with connect(url):
+                pass
+        assert refused.value.response.status_code == 400
+
+
+async def test_access_globs_and_auth() -> None:
+    graph = Graph()
+    graph.create_publisher("/ok/a", "std_msgs/msg/String")
+    graph.create_publisher("/hidden", "std_msgs/msg/String")
+    session = SessionConfig(access=AccessPolicy(topics=("/ok/*",)))
+    async with (
+        serving(graph, session=session) as server,
+        connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"]) as ws,
+    ):
+        topics = {c["topic"] for c in (await _op(ws, "advertise"))["channels"]}
+        assert "/ok/a" in topics and "/hidden" not in topics
+    required = SessionConfig(authenticator=lambda op, peer: True)
+    async with (
+        serving(Graph(), session=required) as server,
+        connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"]) as ws,
+    ):
+        assert ws.subprotocol is None  # rosbridge, which asks for auth

@@ -1,0 +1,353 @@
+"""The Foxglove session without I/O: what a client sees for what it sends and the graph does."""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import pytest
+
+from rwt_foxglove import FoxgloveLimits, FoxgloveSession
+from rwt_foxglove.protocol import select_subprotocol
+from rwt_graph.graph import Graph
+from rwt_graph.types import Dialect, TypeRegistry
+from rwt_protocol.server.access import AccessPolicy
+
+
+class Client:
+    """Drives a session and keeps what it sent back, split into text ops and binary frames."""
+
+    def __init__(self, graph: Graph, **kwargs: object) -> None:
+        self.session = FoxgloveSession(
+            graph.port,
+            "foxglove:test#1",
+            session_id="s1",
+            **kwargs,  # type: ignore[arg-type]
+        )
+        self.ops: list[dict[str, object]] = []
+        self.binary: list[bytes] = []
+        self.drain()
+
+    def drain(self) -> None:
+        while frames := self.session.take():
+            for frame in frames:
+                if frame.binary:
+                    self.binary.append(frame.data)
+                else:
+                    self.ops.append(json.loads(frame.data))
+
+    def send(self, op: dict[str, object]) -> None:
+        self.session.receive(json.dumps(op).encode(), binary=False)
+        self.drain()
+
+    def send_raw(self, data: bytes, *, binary: bool) -> None:
+        self.session.receive(data, binary=binary)
+        self.drain()
+
+    def sync(self) -> None:
+        self.session.sync()
+        self.drain()
+
+    def take_ops(self, op: str) -> list[dict[str, object]]:
+        found = [each for each in self.ops if each["op"] == op]
+        self.ops = [each for each in self.ops if each["op"] != op]
+        return found
+
+    def channel(self, topic: str) -> dict[str, object]:
+        for op in self.ops:
+            if op["op"] == "advertise":
+                for channel in op["channels"]:  # type: ignore[attr-defined]
+                    if channel["topic"] == topic:
+                        return channel  # type: ignore[no-any-return]
+        raise AssertionError(f"{topic} not advertised: {self.ops}")
+
+    def data(self) -> list[tuple[int, int, bytes]]:
+        out = []
+        for frame in self.binary:
+            assert frame[0] == 1
+            sid, log_time = struct.unpack_from("<IQ", frame, 1)
+            out.append((sid, log_time, frame[13:]))
+        self.binary = []
+        return out
+
+
+def _cdr(graph: Graph, type_name: str, msg: dict[str, object]) -> bytes:
+    mtype = graph.registry.message(type_name)
+    return bytes(graph.registry.codec(mtype).serialize(mtype.from_python(msg)))
+
+
+def test_subprotocol_is_the_first_foxglove_name_offered() -> None:
+    assert select_subprotocol(["foxglove.websocket.v1", "foxglove.sdk.v1"]) == (
+        "foxglove.websocket.v1"
+    )
+    assert select_subprotocol(["chat", "foxglove.sdk.v1"]) == "foxglove.sdk.v1"
+    assert select_subprotocol(["chat"]) is None
+    assert select_subprotocol([]) is None
+
+
+def test_server_info_comes_first_then_the_published_topics() -> None:
+    graph = Graph()
+    graph.create_publisher("/chatter", "std_msgs/msg/String")
+    graph.create_subscription("/only_subscribed", lambda msg: None, "std_msgs/msg/String")
+    client = Client(graph)
+    info = client.ops[0]
+    assert info["op"] == "serverInfo"
+    assert info["capabilities"] == ["clientPublish"]
+    assert info["supportedEncodings"] == ["cdr", "json"]
+    assert info["sessionId"] == "s1"
+    channel = client.channel("/chatter")
+    assert channel["encoding"] == "cdr"
+    assert channel["schemaName"] == "std_msgs/msg/String"
+    assert channel["schemaEncoding"] == "ros2msg"
+    assert channel["schema"] == "string data\n"
+    with pytest.raises(AssertionError):
+        client.channel("/only_subscribed")  # no publisher: nothing to show
+
+
+def test_image_schema_carries_header_and_time_after_rules() -> None:
+    graph = Graph()
+    graph.create_publisher("/image", "sensor_msgs/msg/Image")
+    schema = str(Client(graph).channel("/image")["schema"])
+    rule = "=" * 80
+    assert f"{rule}\nMSG: std_msgs/Header\n" in schema
+    assert f"{rule}\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n" in schema
+
+
+def test_ros1_graph_speaks_ros1() -> None:
+    graph = Graph(TypeRegistry(Dialect.ROS1))
+    publisher = graph.create_publisher("/chatter", "std_msgs/String")
+    client = Client(graph)
+    assert client.ops[0]["supportedEncodings"] == ["ros1", "json"]
+    channel = client.channel("/chatter")
+    assert (channel["encoding"], channel["schemaEncoding"]) == ("ros1", "ros1msg")
+    assert channel["schemaName"] == "std_msgs/String"
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel["id"]}]})
+    publisher.publish({"data": "hi"})
+    client.drain()
+    assert client.data()[0][2] == struct.pack("<I", 2) + b"hi"
+
+
+def test_subscribe_delivers_in_order_and_unsubscribe_stops() -> None:
+    graph = Graph()
+    publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
+    client = Client(graph)
+    cid = client.channel("/chatter")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": cid}]})
+    for i in range(3):
+        publisher.publish({"data": f"m{i}"})
+    client.drain()
+    got = client.data()
+    assert [sid for sid, _, _ in got] == [7, 7, 7]
+    assert [payload for _, _, payload in got] == [
+        _cdr(graph, "std_msgs/msg/String", {"data": f"m{i}"}) for i in range(3)
+    ]
+    assert all(log_time > 1_600_000_000 * 10**9 for _, log_time, _ in got)
+    client.send({"op": "unsubscribe", "subscriptionIds": [7]})
+    publisher.publish({"data": "after"})
+    client.drain()
+    assert client.data() == []
+    assert client.take_ops("status") == []
+
+
+def test_latched_message_goes_to_each_new_subscription() -> None:
+    graph = Graph()
+    publisher = graph.create_publisher("/map", "std_msgs/msg/String", latch=True)
+    publisher.publish({"data": "kept"})
+    client = Client(graph)
+    cid = client.channel("/map")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
+    expected = _cdr(graph, "std_msgs/msg/String", {"data": "kept"})
+    assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
+
+
+def test_topics_that_appear_and_go_are_advertised_and_unadvertised() -> None:
+    graph = Graph()
+    client = Client(graph)
+    publisher = graph.create_publisher("/late", "std_msgs/msg/String")
+    client.sync()
+    cid = client.channel("/late")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": cid}]})
+    publisher.close()
+    client.sync()
+    assert client.take_ops("unadvertise") == [{"op": "unadvertise", "channelIds": [cid]}]
+    assert "/late" not in graph.topics  # the subscription went with the channel
+    again = graph.create_publisher("/late", "std_msgs/msg/String")
+    client.sync()
+    client.ops = client.ops[-1:]
+    assert client.channel("/late")["id"] != cid
+    again.publish({"data": "x"})
+    client.drain()
+    assert client.data() == []  # the old subscription is gone
+
+
+def test_access_globs_hide_topics() -> None:
+    graph = Graph()
+    graph.create_publisher("/public/a", "std_msgs/msg/String")
+    graph.create_publisher("/secret", "std_msgs/msg/String")
+    client = Client(graph, access=AccessPolicy(topics=("/public/*",)))
+    client.channel("/public/a")
+    with pytest.raises(AssertionError):
+        client.channel("/secret")
+    client.send(
+        {
+            "op": "advertise",
+            "channels": [{"id": 1, "topic": "/secret", "encoding": "json", "schemaName": "x/X"}],
+        }
+    )
+    assert "not allowed" in str(client.take_ops("status")[0]["message"])
+
+
+@pytest.mark.parametrize(
+    ("frame", "binary", "expected"),
+    [
+        (b'{"op": "nope"}', False, "unknown op 'nope'"),
+        (b'{"op": "getParameters", "parameterNames": []}', False, "not supported"),
+        (b"{not json", False, "invalid JSON"),
+        (b"[1, 2]", False, "expected a JSON object"),
+        (b'{"op": "subscribe"}', False, "subscriptions"),
+        (b'{"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 999}]}', False, "999"),
+        (b'{"op": "subscribe", "subscriptions": [{"id": -1, "channelId": 1}]}', False, "32-bit"),
+        (b'{"op": "unsubscribe", "subscriptionIds": [42]}', False, "unknown subscription 42"),
+        (b'{"op": "unadvertise", "channelIds": [5]}', False, "unknown client channel 5"),
+        (b'{"op": "subscribe", "x": "\\ud800"}', False, "surrogate"),
+        (b'{"op": "unsubscribe", "subscriptionIds": [1' + b"0" * 40 + b"]}", False, "64 bits"),
+        (b"[" * 500 + b"]" * 500, False, "nesting"),
+        (b"\x09abc", True, "unknown binary opcode 0x09"),
+        (b"\x01\x00", True, "shorter than its 5-byte header"),
+        (b"", True, "empty binary frame"),
+        (b"\x01\x07\x00\x00\x00payload", True, "unknown client channel 7"),
+        (b"\x02\x00\x00\x00\x00", True, "service calls are not supported"),
+    ],
+)
+def test_bad_input_gets_an_error_status_and_the_session_goes_on(
+    frame: bytes, binary: bool, expected: str
+) -> None:
+    graph = Graph()
+    publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
+    client = Client(graph)
+    client.send_raw(frame, binary=binary)
+    statuses = client.take_ops("status")
+    assert len(statuses) == 1, statuses
+    assert statuses[0]["level"] == 2
+    assert expected in str(statuses[0]["message"]), statuses
+    cid = client.channel("/chatter")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    publisher.publish({"data": "still here"})
+    client.drain()
+    assert len(client.data()) == 1
+
+
+def test_client_publish_cdr_and_json_reach_graph_subscribers() -> None:
+    graph = Graph()
+    got: list[dict[str, object]] = []
+    graph.create_subscription("/cmd", got.append, "geometry_msgs/msg/Twist")
+    client = Client(graph)
+    client.send(
+        {
+            "op": "advertise",
+            "channels": [
+                {
+                    "id": 1,
+                    "topic": "/cmd",
+                    "encoding": "cdr",
+                    "schemaName": "geometry_msgs/msg/Twist",
+                },
+                {"id": 2, "topic": "/cmd", "encoding": "json", "schemaName": "geometry_msgs/Twist"},
+            ],
+        }
+    )
+    assert client.take_ops("status") == []
+    twist = {"linear": {"x": 1.5, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": -2.0}}
+    client.send_raw(
+        b"\x01" + struct.pack("<I", 1) + _cdr(graph, "geometry_msgs/msg/Twist", twist), binary=True
+    )
+    client.send_raw(
+        b"\x01" + struct.pack("<I", 2) + json.dumps({"linear": {"x": 3}}).encode(), binary=True
+    )
+    assert client.take_ops("status") == []
+    assert got[0] == twist
+    assert got[1]["linear"] == {"x": 3.0, "y": 0.0, "z": 0.0}
+    client.send_raw(b"\x01" + struct.pack("<I", 1) + b"\x00\x01\x00\x00\x01", binary=True)
+    assert "not a cdr message" in str(client.take_ops("status")[0]["message"])
+    client.send({"op": "unadvertise", "channelIds": [1]})
+    client.send_raw(b"\x01" + struct.pack("<I", 1) + b"\x00\x01\x00\x00", binary=True)
+    assert "unknown client channel 1" in str(client.take_ops("status")[0]["message"])
+    assert len(got) == 2  # withdrawn: the data reached nobody
+    client.send_raw(b"\x01" + struct.pack("<I", 2) + b'{"linear": {"x": "fast"}}', binary=True)
+    assert client.take_ops("status")[0]["level"] == 2
+    assert len(got) == 2
+
+
+def test_client_advertise_refusals() -> None:
+    graph = Graph()
+    graph.create_publisher("/chatter", "std_msgs/msg/String")
+    client = Client(graph, limits=FoxgloveLimits(max_client_channels=1))
+    channel = {"id": 1, "topic": "/chatter", "encoding": "protobuf", "schemaName": "a/B"}
+    cases = [
+        (channel, "encoding 'protobuf' is not supported"),
+        ({**channel, "encoding": "json", "topic": "bad topic"}, "topic:"),
+        ({**channel, "encoding": "json", "schemaName": "std_msgs/Int32"}, "std_msgs/msg/String"),
+        ({**channel, "encoding": "json", "schemaName": "no_such/msg/Type"}, "no_such"),
+    ]
+    for spec, expected in cases:
+        client.send({"op": "advertise", "channels": [spec]})
+        status = client.take_ops("status")
+        assert len(status) == 1 and expected in str(status[0]["message"]), (spec, status)
+    ok = {**channel, "encoding": "json", "schemaName": "std_msgs/msg/String"}
+    client.send({"op": "advertise", "channels": [ok, {**ok, "id": 2}]})
+    assert "more than 1 channels" in str(client.take_ops("status")[0]["message"])
+    client.send({"op": "advertise", "channels": [ok]})
+    assert "id 1 is in use" in str(client.take_ops("status")[0]["message"])
+
+
+def test_subscription_limits_and_reused_ids() -> None:
+    graph = Graph()
+    graph.create_publisher("/a", "std_msgs/msg/String")
+    client = Client(graph, limits=FoxgloveLimits(max_subscriptions=1))
+    cid = client.channel("/a")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    assert "in use" in str(client.take_ops("status")[0]["message"])
+    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
+    assert "more than 1 subscriptions" in str(client.take_ops("status")[0]["message"])
+
+
+def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode() -> None:
+    graph = Graph()
+    publisher = graph.create_publisher("/fast", "std_msgs/msg/String")
+    client = Client(graph, limits=FoxgloveLimits(max_queue_messages=5))
+    cid = client.channel("/fast")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    for i in range(20):  # nobody takes: the client reads nothing meanwhile
+        publisher.publish({"data": str(i)})
+    client.drain()
+    statuses = client.take_ops("status")
+    assert len(statuses) == 1 and statuses[0]["level"] == 1
+    assert "dropped" in str(statuses[0]["message"])
+    payloads = [payload for _, _, payload in client.data()]
+    assert payloads == [_cdr(graph, "std_msgs/msg/String", {"data": str(i)}) for i in range(15, 20)]
+    assert client.session.dropped == 15
+    for i in range(20):  # a new episode after the queue was empty
+        publisher.publish({"data": str(i)})
+    client.drain()
+    assert len(client.take_ops("status")) == 1
+
+
+def test_close_releases_the_graph() -> None:
+    graph = Graph()
+    graph.create_publisher("/a", "std_msgs/msg/String")
+    client = Client(graph)
+    cid = client.channel("/a")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    client.send(
+        {
+            "op": "advertise",
+            "channels": [
+                {"id": 1, "topic": "/b", "encoding": "json", "schemaName": "std_msgs/String"}
+            ],
+        }
+    )
+    assert "/b" in graph.topics and graph.topics["/a"].subscribers
+    client.session.close()
+    assert "/b" not in graph.topics and not graph.topics["/a"].subscribers

@@ -1,0 +1,295 @@
+#!/usr/bin/env node
+// The real Foxglove WebSocket client (@foxglove/ws-protocol's FoxgloveClient) against rwt.
+// Schemas are parsed by @foxglove/rosmsg (ros2: true) and payloads decoded by
+// @foxglove/rosmsg2-serialization, as Foxglove and Lichtblick do; the rosbridge
+// side of each scenario is roslib on the same server.
+//
+// Usage: node foxglove.mjs SCENARIO WS_URL [ARGS...]
+//   handshake URL PROTOCOLS   offer PROTOCOLS (comma-separated); report the selected one,
+//                             serverInfo and the parsed schemas of /fg_string and /fg_image
+//   stream URL                subscribe, messages in order, a 2 MB image, unsubscribe,
+//                             a topic that appears and goes
+//   bad URL                   bad inputs, each answered with a status; the connection goes on
+//   publish URL               advertise /fg_from_fox in cdr and in json, send one message each
+// Stdout's last line: {"result": {...}}. Every wait is bounded.
+import rosmsg from "@foxglove/rosmsg";
+import serialization from "@foxglove/rosmsg2-serialization";
+import wsProtocol from "@foxglove/ws-protocol";
+import * as ROSLIB from "roslib";
+import WebSocket from "ws";
+
+const { FoxgloveClient } = wsProtocol;
+const { MessageReader, MessageWriter } = serialization;
+const [scenario, url, ...args] = process.argv.slice(2);
+const WAIT_MS = 15000;
+const IMAGE_BYTES = 2 * 1024 * 1024;
+
+function bounded(promise, what) {
+  let timer;
+  const timeout = new Promise((_, reject) => {
+    timer = setTimeout(() => reject(new Error(`timed out waiting for ${what}`)), WAIT_MS);
+  });
+  return Promise.race([promise, timeout]).finally(() => clearTimeout(timer));
+}
+
+// A Foxglove connection whose events are queued, so that a scenario awaits them in order.
+function foxglove(protocols) {
+  const ws = new WebSocket(url, protocols);
+  const client = new FoxgloveClient({ ws });
+  const state = { ws, client, channels: new Map(), statuses: [], events: [], waiters: [] };
+  const push = (event) => {
+    state.events.push(event);
+    for (const waiter of state.waiters.splice(0)) waiter();
+  };
+  client.on("serverInfo", (info) => push({ kind: "serverInfo", info }));
+  client.on("advertise", (channels) => {
+    for (const channel of channels) state.channels.set(channel.topic, channel);
+    push({ kind: "advertise", channels });
+  });
+  client.on("unadvertise", (ids) => push({ kind: "unadvertise", ids }));
+  client.on("status", (status) => {
+    state.statuses.push(status);
+    push({ kind: "status", status });
+  });
+  client.on("message", (message) => push({ kind: "message", message }));
+  client.on("error", (error) => push({ kind: "error", error: String(error) }));
+  client.on("close", () => push({ kind: "close" }));
+  // The next event that matches, waiting for it (and dropping the ones before it).
+  state.next = (match, what) =>
+    bounded(
+      new Promise((resolve) => {
+        const look = () => {
+          while (state.events.length) {
+            const event = state.events.shift();
+            if (match(event)) return resolve(event);
+          }
+          state.waiters.push(look);
+        };
+        look();
+      }),
+      what,
+    );
+  state.channel = async (topic) => {
+    if (!state.channels.has(topic)) {
+      await state.next(
+        (e) => e.kind === "advertise" && e.channels.some((c) => c.topic === topic),
+        `advertise ${topic}`,
+      );
+    }
+    return state.channels.get(topic);
+  };
+  return state;
+}
+
+function rosbridge() {
+  return bounded(
+    new Promise((resolve, reject) => {
+      const ros = new ROSLIB.Ros({ url });
+      ros.on("connection", () => resolve(ros));
+      ros.on("error", (error) => reject(new Error(`roslib: ${error}`)));
+    }),
+    "roslib connection",
+  );
+}
+
+function reader(channel) {
+  return new MessageReader(rosmsg.parse(channel.schema, { ros2: true }));
+}
+
+function summary(channel) {
+  const definitions = rosmsg.parse(channel.schema, { ros2: true });
+  return {
+    encoding: channel.encoding,
+    schemaName: channel.schemaName,
+    schemaEncoding: channel.schemaEncoding,
+    types: definitions.map((d) => ({
+      name: d.name ?? null,
+      fields: d.definitions.filter((f) => !f.isConstant).map((f) => `${f.type} ${f.name}`),
+    })),
+  };
+}
+
+function imageData(size) {
+  const data = Buffer.alloc(size);
+  for (let i = 0; i < size; i += 1) data[i] = i % 251;
+  return data;
+}
+
+async function handshake() {
+  const ros = await rosbridge();
+  const str = new ROSLIB.Topic({ ros, name: "/fg_string", messageType: "std_msgs/msg/String" });
+  const img = new ROSLIB.Topic({ ros, name: "/fg_image", messageType: "sensor_msgs/msg/Image" });
+  str.advertise();
+  img.advertise();
+  const fox = foxglove(args[0].split(","));
+  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const result = {
+    protocol: fox.ws.protocol,
+    serverInfo: info,
+    string: summary(await fox.channel("/fg_string")),
+    image: summary(await fox.channel("/fg_image")),
+  };
+  fox.client.close();
+  ros.close();
+  return result;
+}
+
+async function stream() {
+  const ros = await rosbridge();
+  const str = new ROSLIB.Topic({ ros, name: "/fg_chatter", messageType: "std_msgs/msg/String" });
+  const img = new ROSLIB.Topic({ ros, name: "/fg_camera", messageType: "sensor_msgs/msg/Image" });
+  str.advertise();
+  img.advertise();
+  const fox = foxglove(["foxglove.sdk.v1"]);
+  const chatter = await fox.channel("/fg_chatter");
+  const camera = await fox.channel("/fg_camera");
+  const chatterSub = fox.client.subscribe(chatter.id);
+  const cameraSub = fox.client.subscribe(camera.id);
+  // roslib sends each op when called: the subscriptions are in before the first publish
+  // only once the server has handled them; a status answers a probe sent after them.
+  fox.ws.send(JSON.stringify({ op: "unsubscribe", subscriptionIds: [999999] }));
+  await fox.next((e) => e.kind === "status", "the probe's status");
+  const texts = ["one", "two", "three", "four", "five"];
+  for (const data of texts) str.publish({ data });
+  const big = imageData(IMAGE_BYTES);
+  img.publish({
+    header: { stamp: { sec: 1700000000, nanosec: 5 }, frame_id: "cam" },
+    height: 1024,
+    width: 1024,
+    encoding: "rgb8",
+    is_bigendian: 0,
+    step: 2048,
+    data: big.toString("base64"),
+  });
+  const chatterReader = reader(chatter);
+  const cameraReader = reader(camera);
+  const got = [];
+  let image = null;
+  while (got.length < texts.length || image === null) {
+    const { message } = await fox.next((e) => e.kind === "message", "message data");
+    if (message.subscriptionId === chatterSub) {
+      got.push(chatterReader.readMessage(message.data).data);
+    } else if (message.subscriptionId === cameraSub) {
+      const decoded = cameraReader.readMessage(message.data);
+      image = {
+        stamp: [decoded.header.stamp.sec, decoded.header.stamp.nanosec],
+        frame_id: decoded.header.frame_id,
+        size: [decoded.height, decoded.width, decoded.step],
+        length: decoded.data.length,
+        intact: Buffer.from(decoded.data).equals(big),
+        logTimeOk: message.timestamp > 1600000000n * 1000000000n,
+      };
+    }
+  }
+  // Unsubscribed, /fg_chatter's next message must not come; the marker on /fg_camera,
+  // published after it, arrives after where it would have been (one queue, in order).
+  fox.client.unsubscribe(chatterSub);
+  fox.ws.send(JSON.stringify({ op: "unsubscribe", subscriptionIds: [999998] }));
+  await fox.next((e) => e.kind === "status", "the second probe's status");
+  str.publish({ data: "after unsubscribe" });
+  img.publish({ header: { frame_id: "marker" }, encoding: "mono8", data: "" });
+  const after = [];
+  for (;;) {
+    const { message } = await fox.next((e) => e.kind === "message", "the marker");
+    if (message.subscriptionId === cameraSub) break;
+    after.push(message.subscriptionId);
+  }
+  // A topic that appears and goes.
+  const late = new ROSLIB.Topic({ ros, name: "/fg_late", messageType: "std_msgs/msg/Int32" });
+  late.advertise();
+  const lateChannel = await fox.channel("/fg_late");
+  late.unadvertise();
+  const gone = await fox.next(
+    (e) => e.kind === "unadvertise" && e.ids.includes(lateChannel.id),
+    "unadvertise /fg_late",
+  );
+  fox.client.close();
+  ros.close();
+  return {
+    got,
+    image,
+    afterUnsubscribe: after,
+    late: { advertised: lateChannel.schemaName, unadvertised: gone.ids },
+    errors: fox.statuses.filter((s) => !String(s.message).includes("99999")),
+  };
+}
+
+async function bad() {
+  const ros = await rosbridge();
+  const latched = new ROSLIB.Topic({
+    ros,
+    name: "/fg_latched",
+    messageType: "std_msgs/msg/String",
+    latch: true,
+  });
+  latched.publish({ data: "still here" });
+  const fox = foxglove(["foxglove.websocket.v1"]);
+  const channel = await fox.channel("/fg_latched");
+  const inputs = {
+    unknownOp: JSON.stringify({ op: "frobnicate" }),
+    malformedJson: '{"op": "subscribe", ',
+    unknownOpcode: Buffer.from([0x7f, 1, 2, 3]),
+    unknownChannel: JSON.stringify({ op: "subscribe", subscriptions: [{ id: 1, channelId: 424242 }] }),
+    unknownSubscription: JSON.stringify({ op: "unsubscribe", subscriptionIds: [31337] }),
+    unknownClientChannel: Buffer.from([0x01, 0x39, 0x05, 0x00, 0x00, 0x68, 0x69]),
+    truncatedBinary: Buffer.from([0x01, 0x00]),
+    hugeLength: JSON.stringify({
+      op: "advertise",
+      channels: [{ id: 1, topic: `/${"a".repeat(1 << 20)}`, encoding: "json", schemaName: "std_msgs/msg/String" }],
+    }),
+    hugeId: '{"op": "subscribe", "subscriptions": [{"id": 4294967296, "channelId": 1}]}',
+    loneSurrogate: '{"op": "unsubscribe", "subscriptionIds": [], "note": "\\ud800"}',
+    hugeInt: '{"op": "unsubscribe", "subscriptionIds": [123456789012345678901234567890]}',
+  };
+  const answers = {};
+  for (const [name, frame] of Object.entries(inputs)) {
+    fox.ws.send(frame);
+    const { status } = await fox.next((e) => e.kind === "status", `the status for ${name}`);
+    answers[name] = status;
+  }
+  const sid = fox.client.subscribe(channel.id);
+  const { message } = await fox.next((e) => e.kind === "message", "the latched message");
+  const result = {
+    answers,
+    latched: message.subscriptionId === sid ? reader(channel).readMessage(message.data).data : null,
+    open: fox.ws.readyState === WebSocket.OPEN,
+  };
+  fox.client.close();
+  ros.close();
+  return result;
+}
+
+async function publish() {
+  const fox = foxglove(["foxglove.sdk.v1"]);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const string = rosmsg.parse("string data\n", { ros2: true });
+  const cdr = fox.client.advertise({
+    topic: "/fg_from_fox",
+    encoding: "cdr",
+    schemaName: "std_msgs/msg/String",
+    schema: "string data\n",
+    schemaEncoding: "ros2msg",
+  });
+  const json = fox.client.advertise({
+    topic: "/fg_from_fox",
+    encoding: "json",
+    schemaName: "std_msgs/msg/String",
+  });
+  fox.client.sendMessage(cdr, new MessageWriter(string).writeMessage({ data: "from cdr" }));
+  fox.client.sendMessage(json, new TextEncoder().encode(JSON.stringify({ data: "from json" })));
+  fox.client.unadvertise(cdr);
+  fox.client.sendMessage(cdr, new MessageWriter(string).writeMessage({ data: "withdrawn" }));
+  const { status } = await fox.next((e) => e.kind === "status", "the withdrawn channel's status");
+  fox.client.close();
+  return { status };
+}
+
+const scenarios = { handshake, stream, bad, publish };
+try {
+  const result = await scenarios[scenario]();
+  process.stdout.write(`${JSON.stringify({ result }, (_, v) => (typeof v === "bigint" ? String(v) : v))}\n`);
+  process.exit(0);
+} catch (error) {
+  process.stderr.write(`${error.stack ?? error}\n`);
+  process.exit(1);
+}
