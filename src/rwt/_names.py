@@ -103,6 +103,8 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_protocol.server.access": ("AccessDeniedError", "AccessPolicy", "Family"),
         "rwt_protocol.ops": ("Auth",),
         "rwt_protocol.server.compat": ("Compat",),
+        "rwt_transports.foxglove": ("FoxgloveOptions",),
+        "rwt_foxglove.session": ("FoxgloveLimits",),
         "rwt_console.site": ("ConsoleSite",),
     },
     "rwt.tf": {

@@ -5,7 +5,9 @@ Listener options (``WebSocketOptions``, ``UdpOptions``, the web console's
 the ``AccessDeniedError`` a client gets), authentication (the ``Auth`` op an
 authenticator gets, ``rosauth_authenticator``), the in-process client connection
 (``MemoryConnection``), the allocator tuning ``rwt serve`` does, and ``Compat``, the
-drop-in mode for clients written against rosbridge_suite (docs/differences.md).
+drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
+the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
+docs/foxglove.md).
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """
@@ -18,10 +20,12 @@ from rwt._names import load
 
 if TYPE_CHECKING:
     from rwt_console.site import ConsoleSite
+    from rwt_foxglove.session import FoxgloveLimits
     from rwt_protocol.ops import Auth
     from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
     from rwt_protocol.server.compat import Compat
     from rwt_transports.allocator import tune_allocator
+    from rwt_transports.foxglove import FoxgloveOptions
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import rosauth_authenticator
     from rwt_transports.udp import UdpOptions
@@ -34,6 +38,8 @@ __all__ = [
     "Compat",
     "ConsoleSite",
     "Family",
+    "FoxgloveLimits",
+    "FoxgloveOptions",
     "MemoryConnection",
     "UdpOptions",
     "WebSocketOptions",

@@ -20,6 +20,7 @@ import logging
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Final
 
+from rwt_graph.types.registry import codec_for
 from rwt_graph.types.wire import CdrError, read_cdr, wire_input
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
@@ -417,7 +418,7 @@ class FoxgloveSession:
             self._on_output()
 
     def _serialize(self, mtype: MessageType, event: MessageEvent) -> bytes:
-        codec = event.codec or self._graph.registry.codec(mtype)
+        codec = event.codec or codec_for(self._graph.registry, mtype)
         return bytes(codec.serialize(event.msg))
 
     def close(self) -> None:

@@ -73,7 +73,7 @@ class Client:
 
 def _cdr(graph: Graph, type_name: str, msg: dict[str, object]) -> bytes:
     mtype = graph.registry.message(type_name)
-    return bytes(graph.registry.codec(mtype).serialize(mtype.from_python(msg)))
+    return graph.registry.serialize(mtype, mtype.from_python(msg))
 
 
 def test_subprotocol_is_the_first_foxglove_name_offered() -> None:
