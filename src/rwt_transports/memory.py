@@ -13,7 +13,9 @@ from typing import TYPE_CHECKING
 
 import anyio
 
+from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import FramerEvent, InFrame
+from rwt_protocol.ops import OpModel
 from rwt_protocol.server.outbox import OutFrame
 
 if TYPE_CHECKING:
@@ -83,9 +85,9 @@ class MemoryConnection:
         payload = data.encode() if isinstance(data, str) else data
         await self._send.send(InFrame(payload, binary=binary))
 
-    async def send(self, op: dict[str, object]) -> None:
-        """Send an op given as a dict."""
-        await self.send_frame(json.dumps(op))
+    async def send(self, op: OpModel | dict[str, object]) -> None:
+        """Send an op: built by its model (``Auth(...)``), or any dict (a test's bad op)."""
+        await self.send_frame(encode_op(op) if isinstance(op, OpModel) else json.dumps(op))
 
     async def receive_frame(self) -> OutFrame:
         """The next frame from the server.
