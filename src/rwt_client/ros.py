@@ -388,7 +388,7 @@ class Ros(RosapiMixin):
             waiter.done.set()
 
     def _on_feedback(self, event: ActionFeedback) -> None:
-        waiter = self._waiters.get(event.id)
+        waiter = None if event.id is None else self._waiters.get(event.id)
         if waiter is not None and waiter.on_feedback is not None:
             self.spawn(waiter.on_feedback, event.values)
 

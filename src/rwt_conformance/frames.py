@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import cbor2
 
 from rwt_protocol.auth import rosauth_op
-from rwt_protocol.codecs.json import check_nesting
+from rwt_protocol.codecs.json import check_nesting, op_object
 from rwt_protocol.errors import RemoteProtocolError
 
 from .bounds import MAX_NESTING
@@ -156,8 +156,8 @@ def auth_op(secret: str, given: Mapping[str, object], dest: str) -> dict[str, Js
     end = now + _whole(given.get("end_offset_s", AUTH_VALIDITY_S))
     op = rosauth_op(secret, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
     if "mac" in given:
-        op["mac"] = str(given["mac"])
-    return op
+        op = op.model_copy(update={"mac": str(given["mac"])})
+    return op_object(op)
 
 
 def _whole(value: object) -> int:

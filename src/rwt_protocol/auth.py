@@ -119,7 +119,7 @@ def bound_mac(
 
 def rosauth_op(
     secret: str, *, client: str, dest: str, rand: str, t: float, level: str, end: float
-) -> dict[str, object]:
+) -> Auth:
     """Build a signed ``auth`` op (ROS 1 spec 3.3.1, D23): the fields and their ``mac``.
 
     Args:
@@ -132,10 +132,10 @@ def rosauth_op(
         end: expiry time, seconds since the epoch.
 
     Returns:
-        ``{"op": "auth", "mac": ..., "client": ..., ...}``, ready to send.
+        The ``auth`` op, ready to send (``codecs.json.encode_op``).
     """
     mac = rosauth_mac(secret, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
-    return Auth.frame(mac=mac, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
+    return Auth(mac=mac, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, TypeGuard
 from pydantic import ValidationError
 
 from .codecs.cbor import decode_cbor
-from .codecs.json import decode_json, decode_publish, encode_json, parse_object
+from .codecs.json import decode_json, decode_publish, encode_op, parse_object
 from .codecs.png import decode_png
 from .errors import RemoteProtocolError
 from .framing.fragments import PartKind, Reassembler
@@ -60,7 +60,7 @@ from .ports import GoalStatus
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
-    from .levels import StatusLevel
+    from .levels import StatusLevel, WireLevel
 
 __all__ = ["ClientEvent", "ClientSession", "UnknownOp"]
 
@@ -124,15 +124,15 @@ class ClientSession:
             timeout_s=fragment_timeout_s,
         )
         self._fragment_limit = max_pending_fragment_bytes
-        self.subscriptions: dict[OpId, Message] = {}
+        self.subscriptions: dict[OpId, Subscribe] = {}
         """Subscribe ops by id, replayed after a reconnect."""
-        self.advertisements: dict[OpId, Message] = {}
+        self.advertisements: dict[OpId, AdvertiseOp] = {}
         """Advertise ops by id, replayed after a reconnect."""
-        self.services: dict[str, Message] = {}
+        self.services: dict[str, AdvertiseService] = {}
         """advertise_service ops by service name, replayed after a reconnect."""
-        self.actions: dict[str, Message] = {}
+        self.actions: dict[str, AdvertiseAction] = {}
         """advertise_action ops by action name, replayed after a reconnect."""
-        self.level: str | None = None
+        self.level: WireLevel | None = None
 
     # ---- output ---------------------------------------------------------------
 
@@ -141,9 +141,9 @@ class ClientSession:
         frames, self._out = self._out, []
         return frames
 
-    def send_op(self, op: Mapping[str, object]) -> None:
-        """Queue any op as given (for ops this class has no method for)."""
-        self._out.append(encode_json(op).decode())
+    def send(self, op: OpModel) -> None:
+        """Queue any op as built (for ops this class has no method for)."""
+        self._out.append(encode_op(op).decode())
 
     def new_id(self, prefix: str) -> str:
         """A fresh id like roslibjs makes: ``<prefix>:<n>``."""
@@ -152,29 +152,35 @@ class ClientSession:
     def replay(self) -> None:
         """Queue again every standing op (level, advertisements, subscriptions, services)."""
         if self.level is not None:
-            self.send_op(SetLevel.frame(level=self.level))
-        for group in (self.advertisements, self.subscriptions, self.services, self.actions):
+            self.send(SetLevel(level=self.level))
+        groups: tuple[Mapping[Any, OpModel], ...] = (
+            self.advertisements,
+            self.subscriptions,
+            self.services,
+            self.actions,
+        )
+        for group in groups:
             for op in group.values():
-                self.send_op(op)
+                self.send(op)
 
     # ---- topics -----------------------------------------------------------------
 
-    def subscribe(self, topic: str, type_name: str | None = None, **options: object) -> str:
+    def subscribe(self, topic: str, type_name: str | None = None, **options: Any) -> str:
         """Queue ``subscribe`` (spec 3.3.4); ``options`` are its optional fields.
 
         Returns:
             The subscription id, for ``unsubscribe``.
         """
         sub_id = self.new_id(f"subscribe:{topic}")
-        op = Subscribe.frame(topic=topic, type=type_name, id=sub_id, **options)
+        op = Subscribe(topic=topic, type=type_name, id=sub_id, **options)
         self.subscriptions[sub_id] = op
-        self.send_op(op)
+        self.send(op)
         return sub_id
 
     def unsubscribe(self, topic: str, sub_id: OpId) -> None:
         """Queue ``unsubscribe`` of one subscription (spec 3.3.5)."""
         self.subscriptions.pop(sub_id, None)
-        self.send_op(Unsubscribe.frame(topic=topic, id=sub_id))
+        self.send(Unsubscribe(topic=topic, id=sub_id))
 
     def advertise(
         self, topic: str, type_name: str, *, latch: bool = False, queue_size: int = 100
@@ -185,11 +191,9 @@ class ClientSession:
             The advertisement id, for ``unadvertise``.
         """
         adv_id = self.new_id(f"advertise:{topic}")
-        op = AdvertiseOp.frame(
-            topic=topic, type=type_name, id=adv_id, latch=latch, queue_size=queue_size
-        )
+        op = AdvertiseOp(topic=topic, type=type_name, id=adv_id, latch=latch, queue_size=queue_size)
         self.advertisements[adv_id] = op
-        self.send_op(op)
+        self.send(op)
         return adv_id
 
     def forget_advertisement(self, adv_id: OpId) -> None:
@@ -199,15 +203,18 @@ class ClientSession:
     def unadvertise(self, topic: str, adv_id: OpId) -> None:
         """Queue ``unadvertise`` of one advertisement (spec 3.3.2)."""
         self.advertisements.pop(adv_id, None)
-        self.send_op(Unadvertise.frame(topic=topic, id=adv_id))
+        self.send(Unadvertise(topic=topic, id=adv_id))
 
     def publish(self, topic: str, msg: object, *, latch: bool = False) -> None:
         """Queue ``publish`` (spec 3.3.3)."""
-        self.send_op(Publish.frame(topic=topic, msg=msg, latch=True if latch else None))
+        # ``latch`` is sent only when true, as roslibpy does
+        self.send(
+            Publish(topic=topic, msg=msg, latch=True) if latch else Publish(topic=topic, msg=msg)
+        )
 
     # ---- services and actions ------------------------------------------------
 
-    def call_service(self, service: str, args: object = None, **options: object) -> str:
+    def call_service(self, service: str, args: object = None, **options: Any) -> str:
         """Queue ``call_service`` (spec 3.3.8); ``options``: type, timeout, fragment_size...
 
         Returns:
@@ -215,30 +222,28 @@ class ClientSession:
         """
         call_id = self.new_id(f"call_service:{service}")
         args = {} if args is None else args
-        self.send_op(CallService.frame(service=service, args=args, id=call_id, **options))
+        self.send(CallService(service=service, args=args, id=call_id, **options))
         return call_id
 
     def advertise_service(self, service: str, type_name: str) -> None:
         """Queue ``advertise_service`` (spec 3.3.6)."""
-        op = AdvertiseService.frame(service=service, type=type_name)
+        op = AdvertiseService(service=service, type=type_name)
         self.services[service] = op
-        self.send_op(op)
+        self.send(op)
 
     def unadvertise_service(self, service: str) -> None:
         """Queue ``unadvertise_service`` (spec 3.3.7)."""
         self.services.pop(service, None)
-        self.send_op(UnadvertiseService.frame(service=service))
+        self.send(UnadvertiseService(service=service))
 
     def service_response(
         self, service: str, request_id: OpId, values: object, result: bool
     ) -> None:
         """Queue the answer to a ``ServiceRequested`` (spec 3.3.9; ``values`` always set, D28)."""
-        self.send_op(
-            ServiceResponse.frame(service=service, result=result, values=values, id=request_id)
-        )
+        self.send(ServiceResponse(service=service, result=result, values=values, id=request_id))
 
     def send_action_goal(
-        self, action: str, action_type: str, args: object = None, **options: object
+        self, action: str, action_type: str, args: object = None, **options: Any
     ) -> str:
         """Queue ``send_action_goal`` (spec 3.3.12); ``options``: feedback, fragment_size...
 
@@ -247,38 +252,36 @@ class ClientSession:
         """
         goal_id = self.new_id(f"send_action_goal:{action}")
         args = {} if args is None else args
-        self.send_op(
-            SendActionGoal.frame(
-                action=action, action_type=action_type, args=args, id=goal_id, **options
-            )
+        self.send(
+            SendActionGoal(action=action, action_type=action_type, args=args, id=goal_id, **options)
         )
         return goal_id
 
     def cancel_action_goal(self, action: str, goal_id: OpId) -> None:
         """Queue ``cancel_action_goal`` (spec 3.3.13)."""
-        self.send_op(CancelActionGoal.frame(action=action, id=goal_id))
+        self.send(CancelActionGoal(action=action, id=goal_id))
 
     def advertise_action(self, action: str, type_name: str) -> None:
         """Queue ``advertise_action`` (spec 3.3.10)."""
-        op = AdvertiseAction.frame(action=action, type=type_name)
+        op = AdvertiseAction(action=action, type=type_name)
         self.actions[action] = op
-        self.send_op(op)
+        self.send(op)
 
     def unadvertise_action(self, action: str) -> None:
         """Queue ``unadvertise_action`` (spec 3.3.11)."""
         self.actions.pop(action, None)
-        self.send_op(UnadvertiseAction.frame(action=action))
+        self.send(UnadvertiseAction(action=action))
 
     def action_feedback(self, action: str, goal_id: OpId, values: object) -> None:
         """Queue feedback for a ``GoalRequested`` (spec 3.3.14)."""
-        self.send_op(ActionFeedback.frame(action=action, id=goal_id, values=values))
+        self.send(ActionFeedback(action=action, id=goal_id, values=values))
 
     def action_result(
         self, action: str, goal_id: OpId, values: object, *, status: int, result: bool
     ) -> None:
         """Queue the result of a ``GoalRequested`` (spec 3.3.15; status per GoalStatus, D18)."""
-        self.send_op(
-            ActionResult.frame(
+        self.send(
+            ActionResult(
                 action=action, id=goal_id, result=result, values=values, status=int(status)
             )
         )
@@ -288,15 +291,13 @@ class ClientSession:
     def set_level(self, level: StatusLevel) -> None:
         """Queue ``set_level`` (spec 3.2.1); remembered for reconnects."""
         self.level = level.wire
-        self.send_op(SetLevel.frame(level=level.wire))
+        self.send(SetLevel(level=level.wire))
 
     def auth(
         self, mac: str, client: str, dest: str, rand: str, t: float, level: str, end: float
     ) -> None:
         """Queue ``auth`` (ROS 1 spec 3.3.1, D23); times in seconds since the epoch."""
-        self.send_op(
-            Auth.frame(mac=mac, client=client, dest=dest, rand=rand, t=t, level=level, end=end)
-        )
+        self.send(Auth(mac=mac, client=client, dest=dest, rand=rand, t=t, level=level, end=end))
 
     # ---- input ------------------------------------------------------------------
 
@@ -329,6 +330,8 @@ class ClientSession:
             op = parse_object(value)
         except RemoteProtocolError as exc:
             return [UnknownOp(value, exc.message)]
+        if isinstance(op, ActionFeedback | ActionResult) and op.id is None:
+            return [UnknownOp(value, f"{op.op}: missing field at $.id")]  # only rwt sends one
         event = _EVENTS.get(type(op))
         if event is None:
             return [UnknownOp(value, f"unexpected op {type(op).__name__} from a server")]

@@ -8,8 +8,12 @@ D2 makes ``error`` the default.
 from __future__ import annotations
 
 from enum import IntEnum
+from typing import Literal
 
-__all__ = ["StatusLevel"]
+__all__ = ["StatusLevel", "WireLevel"]
+
+WireLevel = Literal["none", "error", "warning", "info"]
+"""A level as the spec spells it (``set_level``'s ``level``; a ``status`` has all but ``none``)."""
 
 
 class StatusLevel(IntEnum):
@@ -25,9 +29,9 @@ class StatusLevel(IntEnum):
     INFO = 3
 
     @property
-    def wire(self) -> str:
+    def wire(self) -> WireLevel:
         """The level as the spec spells it (``"warning"``)."""
-        return self.name.lower()
+        return _WIRE[self]
 
     @classmethod
     def from_wire(cls, text: str) -> StatusLevel:
@@ -46,3 +50,11 @@ class StatusLevel(IntEnum):
     def admits(self, level: StatusLevel) -> bool:
         """Whether a connection at this level receives a status of ``level``."""
         return StatusLevel.NONE < level <= self
+
+
+_WIRE: dict[StatusLevel, WireLevel] = {
+    StatusLevel.NONE: "none",
+    StatusLevel.ERROR: "error",
+    StatusLevel.WARNING: "warning",
+    StatusLevel.INFO: "info",
+}

@@ -49,6 +49,10 @@ The shortcuts (name: what; module; benchmark; general path):
   ``ZBytes`` and copied to ``bytes`` on the event loop before its decode;
   ``rwt_zenoh.deferred``; Z3, the Zenoh link benchmark (1 MB: process B's page
   faults); ``ZBytes.to_bytes`` on Zenoh's callback thread.
+- ``publish-encode``: a ``publish`` op to a subscriber encoded from its
+  object written out, not built by the ``Publish`` model;
+  ``rwt_protocol.codecs.json.encode_publish_json``; B1, B2 (the model cost
+  1-2 us of a 100 B message's encoding); ``encode_op`` of ``Publish``.
 - ``json-base64-splice``: large byte strings of a JSON publish base64-encoded
   by pybase64 and spliced in as ``msgspec.Raw``;
   ``rwt_protocol.codecs.json.encode_publish_json``; B6 JSON, B5 JSON;
@@ -183,6 +187,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "a remote sample of 64 KiB or more queued as Zenoh's ZBytes, copied on the event loop",
         "Z3 (Zenoh link, 1 MB)",
         "ZBytes.to_bytes on Zenoh's callback thread, the bytes queued for the event loop",
+    ),
+    Shortcut(
+        "publish-encode",
+        "rwt_protocol.codecs.json.encode_publish_json",
+        "a publish op's JSON object written out, not built by the Publish model",
+        "B1, B2",
+        "rwt_protocol.codecs.json.encode_op of Publish(topic=..., msg=...)",
     ),
     Shortcut(
         "json-base64-splice",

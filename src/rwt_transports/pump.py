@@ -68,7 +68,7 @@ import anyio.lowlevel
 import anyio.to_thread
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
@@ -249,7 +249,7 @@ async def run_connection(pump: ConnectionPump, session: Session, detail: str = "
         )
 
 
-INTERNAL_ERROR_STATUS = encode_json(Status.frame(level="error", msg="internal error"))
+INTERNAL_ERROR_STATUS = encode_op(Status(level="error", msg="internal error"))
 """What a peer is told before its connection is closed for a bug in the server."""
 
 _BROKEN = (

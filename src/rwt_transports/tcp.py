@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import FramerEvent, JsonStreamFramer
 from rwt_protocol.ops import Status
 
@@ -39,7 +39,7 @@ logger = logging.getLogger("rwt.tcp")
 
 _READ_SIZE = 65536
 _CLOSE_LIMIT_S = 1.0
-_TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections")) + b"\n"
+_TOO_MANY = encode_op(Status(level="error", msg="too many connections")) + b"\n"
 
 
 def encode_stream_frames(frames: Sequence[OutFrame]) -> bytes:

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import anyio
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.datagrams import fragment_datagrams
 from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
 from rwt_protocol.ops import Status
@@ -51,7 +51,7 @@ MAX_UDP_PAYLOAD = 65507
 """The largest IPv4 UDP payload, bytes."""
 
 _QUEUED_DATAGRAMS = 256  # per peer; more arriving before the session reads them are dropped
-_TOO_MANY = encode_json(Status.frame(level="error", msg="too many connections"))
+_TOO_MANY = encode_op(Status(level="error", msg="too many connections"))
 _NO_AUTH = UdpAuth()
 
 Address = tuple[str, int]

@@ -30,7 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rwt_protocol.codecs.cbor import decode_cbor
-from rwt_protocol.codecs.json import decode_json, encode_json, parse_object, peek_id
+from rwt_protocol.codecs.json import decode_json, encode_op, parse_object, peek_id
 from rwt_protocol.errors import RwtError
 from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.ops import Auth, OpModel, Status
@@ -93,7 +93,7 @@ def read_first(event: FramerEvent) -> Auth | Refusal:
         return _refusal(text, None, op_id, "an invalid op")
     if isinstance(op, Auth):
         return op
-    name: str = op.op  # type: ignore[attr-defined]
+    name: str = op.op
     return _refusal(f"{name}: {FIRST_OP_NOT_AUTH}", op, op_id, f"first op was {name}")
 
 
@@ -101,6 +101,6 @@ def _refusal(text: str, op: OpModel | None, op_id: str | int | None, reason: str
     frames = []
     reply = failure_reply(op, AUTH_REQUIRED) if op is not None else None
     if reply is not None:
-        frames.append(encode_json(reply))
-    frames.append(encode_json(Status.frame(level="error", msg=text, id=op_id)))
+        frames.append(encode_op(reply))
+    frames.append(encode_op(Status(level="error", msg=text, id=op_id)))
     return Refusal(frames, reason)

@@ -47,7 +47,7 @@ import time
 from typing import TYPE_CHECKING
 
 from rwt_protocol.auth import AUTH_CHALLENGE_ID
-from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.ops import Status
 
 if TYPE_CHECKING:
@@ -153,7 +153,7 @@ class AddressValidator:
     def auth_status(self, address: Address) -> bytes:
         """The ``auth_challenge`` status of ``address``, as the other transports send it (D31)."""
         nonce = self.auth_challenge(address)
-        return encode_json(Status.frame(level="info", msg=nonce, id=AUTH_CHALLENGE_ID))
+        return encode_op(Status(level="info", msg=nonce, id=AUTH_CHALLENGE_ID))
 
     def challenge(
         self, address: Address, received: int, *, has_session: bool = False, auth: bool = False
@@ -176,7 +176,7 @@ class AddressValidator:
             ``MAX_CHALLENGED`` other addresses were answered this epoch.
         """
         text = SESSION_CHALLENGE_TEXT if has_session else CHALLENGE_TEXT
-        replies = [encode_json(Status.frame(level="warning", msg=text, id=self.token(address)))]
+        replies = [encode_op(Status(level="warning", msg=text, id=self.token(address)))]
         if auth:
             replies.append(self.auth_status(address))
         size = sum(map(len, replies))

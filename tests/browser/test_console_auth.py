@@ -19,6 +19,7 @@ import pytest
 from PIL import Image
 
 from rwt_protocol.auth import rosauth_op
+from rwt_protocol.codecs.json import op_object
 from tests.integration.client_harness import ServerProcess
 
 from .cdp import Browser, Page
@@ -49,7 +50,7 @@ def auth_op(secret: str) -> str:
         level="admin",
         end=now + 60,
     )
-    return json.dumps(op)
+    return json.dumps(op_object(op))
 
 
 def authenticate(page: Page, secret: str) -> None:

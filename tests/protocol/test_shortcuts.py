@@ -129,10 +129,11 @@ def test_the_codecs_choose_at_import() -> None:
     """The protocol's shortcuts are chosen when their module is imported."""
     code = (
         "from rwt_protocol.codecs import cbor as codec_cbor, json as codec;"
-        "print(codec._SPLICE_BASE64, codec_cbor._SPLICE_ENCODE, codec_cbor._SPLICE_DECODE)"
+        "print(codec._SPLICE_BASE64, codec._PUBLISH_ENCODE,"
+        " codec_cbor._SPLICE_ENCODE, codec_cbor._SPLICE_DECODE)"
     )
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
-    for value, expected in [("1", "False False False"), ("0", "True True True")]:
+    for value, expected in [("1", "False False False False"), ("0", "True True True True")]:
         result = subprocess.run(
             [sys.executable, "-c", code],
             env={**env, ENV_VAR: value},
@@ -253,7 +254,22 @@ def test_json_base64_splice_gives_the_general_bytes(
         monkeypatch.setattr(codec, "_SPLICE_BASE64", on)
         frames.append(encode_publish_json("/t", msg))
     assert frames[0] == frames[1]
-    assert frames[1] == codec.encode_json(Publish.frame(topic="/t", msg=msg))
+    assert frames[1] == codec.encode_op(Publish(topic="/t", msg=msg))
+
+
+@pytest.mark.parametrize("msg", JSON_MESSAGES, ids=range(len(JSON_MESSAGES)))
+@pytest.mark.parametrize("topic", ["/t", "chatter", "/a/b\u00e9"])
+def test_publish_encode_gives_the_model_bytes(
+    msg: dict[str, object], topic: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The publish op written out is the op its model gives (with the splice on and off)."""
+    for splice in (True, False):
+        monkeypatch.setattr(codec, "_SPLICE_BASE64", splice)
+        frames = []
+        for on in (True, False):
+            monkeypatch.setattr(codec, "_PUBLISH_ENCODE", on)
+            frames.append(encode_publish_json(topic, msg))
+        assert frames[0] == frames[1]
 
 
 def _cbor_ops() -> list[dict[str, object]]:

@@ -21,6 +21,8 @@ from rwt_graph.types import Dialect, TypeRegistry, codec_for
 from rwt_protocol.codecs.png import decode_png, encode_png
 from rwt_protocol.framing.fragments import fragment_frames
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.ops import ServiceResponse
+from rwt_protocol.ops.base import Compression
 from rwt_protocol.ports import MessageEvent
 from rwt_protocol.server import encoding
 from rwt_protocol.server.outbox import Outbox, OutFrame
@@ -456,12 +458,13 @@ def test_replies_take_their_requested_encoding(graph: Graph, pub: Peer) -> None:
         "result": True,
         "id": "call:1",
     }
+    op = ServiceResponse(service="/s", values=reply["values"], result=True, id="call:1")
     session = pub.session
-    session.send_op(reply, compression="cbor", codec=codec)
-    session.send_op(reply, compression="cbor")
-    session.send_op(reply, compression="png")
-    session.send_op(reply, fragment_size=25)
-    session.send_op({**reply, "id": None}, compression="png", fragment_size=50)
+    session.send(op, compression=Compression.CBOR, codec=codec)
+    session.send(op, compression=Compression.CBOR)
+    session.send(op, compression=Compression.PNG)
+    session.send(op, fragment_size=25)
+    session.send(op.model_copy(update={"id": None}), compression=Compression.PNG, fragment_size=50)
     frames = session.frames_to_send()
     assert not any(f.droppable for f in frames)
     typed, plain = cbor2.loads(frames[0].data), cbor2.loads(frames[1].data)
@@ -473,7 +476,8 @@ def test_replies_take_their_requested_encoding(graph: Graph, pub: Peer) -> None:
     assert {f["id"] for f in fragments} == {"call:1"}
     parts = [t for t in text[1:] if t["op"] == "png"]
     assert len({p["id"] for p in parts}) == 1 and str(parts[0]["id"]).startswith("rwt:")
-    assert reassemble(text) == [reply, reply, {**reply, "id": None}]
+    no_id = {key: value for key, value in reply.items() if key != "id"}
+    assert reassemble(text) == [reply, reply, no_id]
 
 
 def test_fragments_of_a_message_are_dropped_together() -> None:
@@ -515,9 +519,11 @@ def test_cbor_types_arrays_inside_nested_messages_and_message_arrays(
 
 def test_a_failure_reply_stays_plain_with_a_codec(graph: Graph, pub: Peer) -> None:
     codec = codec_for(graph.registry, graph.registry.message("std_msgs/Int16MultiArray"))
-    failure = {"op": "service_response", "service": "/s", "values": "no", "result": False}
-    pub.session.send_op(failure, compression="cbor", codec=codec)
-    assert decoded(pub) == [failure]
+    failure = ServiceResponse(service="/s", values="no", result=False)
+    pub.session.send(failure, compression=Compression.CBOR, codec=codec)
+    assert decoded(pub) == [
+        {"op": "service_response", "service": "/s", "result": False, "values": "no"}
+    ]
 
 
 def test_a_message_that_cannot_be_encoded_is_reported_to_its_subscriber_only(

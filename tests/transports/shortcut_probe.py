@@ -58,6 +58,7 @@ def install_counters() -> Counter[str]:
     message_module.compile_to_rosbags = _count(  # type: ignore[assignment]
         counts, "rosbags-converters", message_module.compile_to_rosbags
     )
+    codec._publish_object = _count(counts, "publish-encode", codec._publish_object)  # type: ignore[assignment]
     codec.pybase64 = SimpleNamespace(  # type: ignore[assignment]
         b64encode=_count(counts, "json-base64-splice", pybase64.b64encode)
     )

@@ -24,6 +24,7 @@ from anyio.abc import ConnectedUDPSocket, SocketAttribute
 
 from rwt_graph.graph import Graph
 from rwt_protocol.auth import AUTH_CHALLENGE_ID, rosauth_op
+from rwt_protocol.codecs.json import op_object
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
@@ -256,7 +257,7 @@ async def test_rosauth_over_udp_opens_a_session_with_the_auth_op_only(graph: Gra
             now = int(time.time())
             fields = {"client": "c", "dest": "d", "rand": "r", "t": now, "level": "user"}
             op = rosauth_op(SECRET, **fields, end=now + 60)  # type: ignore[arg-type]
-            await client.send(op)
+            await client.send(op_object(op))
             await client.send({"op": "set_level", "level": "info", "id": "in"})
             assert (await client.expect(is_op("status", id="in")))["level"] == "info"
 

@@ -32,7 +32,7 @@ from pydantic import ValidationError
 
 from ..errors import RemoteProtocolError
 from ..names import name_problem
-from ..ops import OP_MODELS, OpModel, PublishFrame, PublishView
+from ..ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
 from ..ops.base import INT64_MAX, INT64_MIN, json_type_name
 from ..shortcuts import enabled
 
@@ -49,7 +49,9 @@ __all__ = [
     "decode_publish",
     "decode_publish_one_pass",
     "encode_json",
+    "encode_op",
     "encode_publish_json",
+    "op_object",
     "parse_object",
     "peek_id",
     "valid_unicode",
@@ -325,20 +327,54 @@ def encode_json(value: object) -> bytes:
     return _encoder.encode(value)
 
 
+def op_object(op: OpModel) -> dict[str, object]:
+    """The JSON object (or CBOR map) of an op: what every encoder of an op sends.
+
+    ``op`` first, then the fields the op was built (or received) with, in the
+    model's field order, those that are None left out: the spec's optional
+    fields are absent rather than null (``ops.base.OpModel``).
+    """
+    given = op.model_fields_set
+    return {
+        name: value
+        for name, value in op.__dict__.items()
+        if value is not None and (name in given or name == "op")
+    }
+
+
+def encode_op(op: OpModel) -> bytes:
+    """Encode an op as compact UTF-8 JSON (``encode_json`` of its ``op_object``)."""
+    return _encoder.encode(op_object(op))
+
+
 #: bytes at least this long are base64-encoded by pybase64 instead of msgspec.
 _LARGE_BYTES = 64 * 1024
 #: The ``json-base64-splice`` shortcut (shortcuts.py); off, msgspec encodes them too.
 _SPLICE_BASE64 = enabled("json-base64-splice")
 
 
+#: The ``publish-encode`` shortcut (shortcuts.py); off, the op is built by its model.
+_PUBLISH_ENCODE = enabled("publish-encode")
+
+
+def _publish_object(topic: str, msg: object) -> dict[str, object]:
+    """``op_object(Publish(topic=topic, msg=msg))`` written out: the ``publish-encode`` shortcut.
+
+    Building the model costs 1-2 us, most of a 100 B message's encoding (B1,
+    B22 play); tests/protocol/test_shortcuts.py checks both give the same bytes.
+    """
+    return {"op": "publish", "topic": topic, "msg": msg}
+
+
 def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
     """Encode a ``publish`` op (spec 3.3.3) carrying ``msg`` (internal form) as JSON.
 
-    The text is what ``encode_json`` gives for ``{"op", "topic", "msg"}``, made
-    with fewer copies of a large message: byte strings among the message's own
-    fields (an image's or a point cloud's ``data``) of 64 KiB or more are
-    base64-encoded by pybase64 (several times faster than msgspec's encoder,
-    B6) and spliced in as they are (shortcut ``json-base64-splice``).
+    The text is ``encode_op(Publish(topic=topic, msg=msg))``, made faster: the
+    op's object written out (shortcut ``publish-encode``), and with fewer copies
+    of a large message: byte strings among the message's own fields (an
+    image's or a point cloud's ``data``) of 64 KiB or more are base64-encoded
+    by pybase64 (several times faster than msgspec's encoder, B6) and spliced
+    in as they are (shortcut ``json-base64-splice``).
     """
     large = (
         [k for k, v in msg.items() if type(v) is bytes and len(v) >= _LARGE_BYTES]
@@ -351,9 +387,10 @@ def encode_publish_json(topic: str, msg: Mapping[str, object]) -> bytes:
             data: bytes = msg[key]  # type: ignore[assignment]
             ready[key] = msgspec.Raw(b"".join((b'"', pybase64.b64encode(data), b'"')))
         msg = ready
-    # the frame ``Publish.frame(topic=topic, msg=msg)`` builds, written out: that
-    # call checks its fields each time, 1.3 us of a 100 B message's 2.3 (B22 play)
-    text = _encoder.encode({"op": "publish", "topic": topic, "msg": msg})
+    if _PUBLISH_ENCODE:
+        text = _encoder.encode(_publish_object(topic, msg))
+    else:
+        text = _encoder.encode(op_object(Publish(topic=topic, msg=msg)))
     # msgspec's output keeps its buffer's spare capacity (up to ~2 KB); a copy of a
     # small frame is exact, so a queue of them holds what the send-buffer limit
     # counts (D24, B8). A large frame's slack is negligible.

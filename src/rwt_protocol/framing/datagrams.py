@@ -8,7 +8,7 @@ size. Clients reassemble them as they do for ``fragment_size``.
 
 from __future__ import annotations
 
-from ..codecs.json import encode_json
+from ..codecs.json import encode_json, encode_op
 from ..errors import ConfigError
 from ..ops import Fragment
 
@@ -36,8 +36,8 @@ def fragment_datagrams(data: bytes, max_bytes: int, message_id: str) -> list[byt
     if max_bytes < _MIN_DATAGRAM:
         raise ConfigError(f"a datagram of {max_bytes} bytes cannot carry fragments")
     text = data.decode("utf-8", "replace")
-    envelope = Fragment.frame(id=message_id, data="", num=len(text), total=len(text))
-    budget = max_bytes - len(encode_json(envelope))
+    envelope = Fragment(id=message_id, data="", num=len(text), total=len(text))
+    budget = max_bytes - len(encode_op(envelope))
     if budget < 8:
         raise ConfigError(f"a datagram of {max_bytes} bytes cannot carry fragment {message_id!r}")
     pieces: list[str] = []
@@ -54,6 +54,5 @@ def fragment_datagrams(data: bytes, max_bytes: int, message_id: str) -> list[byt
         start += len(piece)
     total = len(pieces)
     return [
-        encode_json(Fragment.frame(id=message_id, data=p, num=i, total=total))
-        for i, p in enumerate(pieces)
+        encode_op(Fragment(id=message_id, data=p, num=i, total=total)) for i, p in enumerate(pieces)
     ]

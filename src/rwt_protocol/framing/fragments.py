@@ -18,7 +18,7 @@ import itertools
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from ..codecs.json import encode_json
+from ..codecs.json import encode_op
 from ..errors import ConfigError, RemoteProtocolError
 from ..ops import Fragment, Png
 
@@ -102,7 +102,7 @@ def fragment_frames(text: str, op_id: str | int, size: int, *, op: str = "fragme
     total = len(chunks)
     model = Png if op == "png" else Fragment
     return [
-        encode_json(model.frame(id=op_id, data=chunk, num=num, total=total))
+        encode_op(model(id=op_id, data=chunk, num=num, total=total))
         for num, chunk in enumerate(chunks)
     ]
 

@@ -1,9 +1,10 @@
 """One pydantic model per rosbridge op: each op's one definition.
 
 ``OP_MODELS`` maps each wire name to its model (both spec editions). The
-models validate what a peer sends (``codecs.json.parse_object``), build what rwt
-sends (``OpModel.frame``), in the server and the client alike; ``ops.wire``
-generates the msgspec decoder of the publish hot path from them.
+models validate what a peer sends (``codecs.json.parse_object``) and are what rwt
+sends (``ServiceResponse(...)``, encoded by ``codecs.json.op_object``), in the
+server and the client alike; ``ops.wire`` generates the msgspec decoder of the
+publish hot path from them.
 """
 
 from __future__ import annotations

@@ -58,11 +58,15 @@ class CancelActionGoal(OpModel):
 
 
 class ActionFeedback(OpModel):
-    """Feedback for the goal ``id`` (spec 3.3.14)."""
+    """Feedback for the goal ``id`` (spec 3.3.14).
+
+    ``id`` is absent only in what rwt sends for a goal sent without one; an
+    advertiser's feedback must name its goal (its handler refuses it otherwise).
+    """
 
     op: Literal["action_feedback"] = "action_feedback"
     action: GraphName
-    id: MessageId
+    id: MessageId | None = None
     values: Any = None
 
 
@@ -70,12 +74,13 @@ class ActionResult(OpModel):
     """The result of the goal ``id`` (spec 3.3.15).
 
     ``status`` is an ``action_msgs/GoalStatus`` code; an advertiser may omit it
-    (4 when ``result`` is true, 6 otherwise; D18).
+    (4 when ``result`` is true, 6 otherwise; D18). ``id`` is absent only as
+    in ``ActionFeedback``.
     """
 
     op: Literal["action_result"] = "action_result"
     action: GraphName
-    id: MessageId
+    id: MessageId | None = None
     result: bool
     values: Any = None
     status: Int64 | None = None

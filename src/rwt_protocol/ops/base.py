@@ -10,13 +10,16 @@ from __future__ import annotations
 
 from enum import StrEnum
 from functools import cache
-from typing import Annotated, NamedTuple
+from typing import TYPE_CHECKING, Annotated, Any, NamedTuple
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainValidator
 from pydantic_core import PydanticCustomError
 
 from ..errors import LocalProtocolError
 from ..names import name_problem
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     "INT64_MAX",
@@ -125,9 +128,19 @@ class OpModel(BaseModel):
     """Base of every op model: strict, frozen, unknown fields ignored.
 
     The model is the op's one definition, for both directions and both roles:
-    what a peer sends is validated by it (``codecs.json.parse_object``), what rwt
-    sends is built by ``frame`` from its field list, and the msgspec decoder of
-    the publish hot path is generated from it (``ops.wire``).
+    what a peer sends is validated by it (``model_validate``, in
+    ``codecs.json.parse_object``), what rwt sends is built by calling it
+    (``ServiceResponse(service=..., result=True, values=...)``) and encoded by
+    ``codecs.json.op_object``, and the msgspec decoder of the publish hot path
+    is generated from it (``ops.wire``).
+
+    Calling a model builds an outgoing op without validating it again: rwt
+    builds it from values it holds already (names and ids a peer sent were
+    validated on the way in), mypy checks each call's fields and types, and a
+    call's cost stays that of a dict (the ops of every reply and status). The
+    fields given are the ones sent (``model_fields_set``), ``op`` first, in the
+    model's field order, those given as None left out (the spec's optional
+    fields are absent rather than null).
 
     Each model's validator is built when first used, not at import: a server
     pays only for the ops its clients send (benchmarks B11 base memory).
@@ -135,55 +148,63 @@ class OpModel(BaseModel):
 
     model_config = ConfigDict(strict=True, frozen=True, extra="ignore", defer_build=True)
 
-    @classmethod
-    def frame(cls, **fields: object) -> dict[str, object]:
-        """Build this op as an outgoing frame: a dict, ``op`` first, in field order.
+    op: str
+    """The op's wire name: each model's own, a ``Literal`` with it as the default."""
 
-        A field given as None is left out (the spec's optional fields are
-        absent rather than null); values are not validated (rwt builds them).
-
-        Args:
-            **fields: the op's fields by wire name, ``op`` excepted.
-
-        Returns:
-            ``{"op": ..., field: value, ...}``, ready for the encoders.
+    def __init__(self, /, **fields: Any) -> None:
+        """Build an outgoing op from its fields by wire name, ``op`` excepted (not validated).
 
         Raises:
             LocalProtocolError: a field the op does not have, or a required
-                field missing (a bug in the caller, not the peer's fault).
+                field missing (a bug in the caller, not the peer's fault; mypy
+                finds it first).
         """
-        shape = _shape(cls)
-        unknown = fields.keys() - shape.names
-        missing = shape.required - fields.keys()
-        if unknown or missing:
+        shape = _shape(type(self))
+        given = fields.keys()
+        values = shape.template.copy()  # op first, then every field in order
+        values.update(fields)
+        if len(values) != len(shape.template) or not shape.required <= given:
             raise LocalProtocolError(
-                f"{shape.op}: unknown fields {sorted(unknown)}, missing {sorted(missing)}"
+                f"{shape.op}: unknown fields {sorted(given - shape.template.keys())},"
+                f" missing {sorted(shape.required - given)}"
             )
-        out: dict[str, object] = {"op": shape.op}
-        for name in shape.order:
-            value = fields.get(name)
-            if value is not None:
-                out[name] = value
-        return out
+        for name, factory in shape.factories:
+            if name not in fields:
+                values[name] = factory()
+        _set = object.__setattr__
+        _set(self, "__dict__", values)
+        _set(self, "__pydantic_fields_set__", set(given))
+        _set(self, "__pydantic_extra__", None)
+        _set(self, "__pydantic_private__", None)
 
-    def to_frame(self) -> dict[str, object]:
-        """This op as an outgoing frame (``frame`` of its fields that are not None)."""
-        return type(self).frame(**{name: getattr(self, name) for name in _shape(type(self)).order})
+    # pydantic calls a model's own ``__init__`` when it validates, unless marked as
+    # its base one (as pydantic's ``RootModel`` marks its own): validation stays pydantic's.
+    __init__.__pydantic_base_init__ = True  # type: ignore[attr-defined]
 
 
 class _Shape(NamedTuple):
     op: str
-    order: tuple[str, ...]
-    names: frozenset[str]
+    template: dict[str, Any]
+    """``op``, then each field in order with its default (None for a required one)."""
     required: frozenset[str]
+    factories: tuple[tuple[str, Callable[[], Any]], ...]
+    """The fields whose default is made per op (``Publish.msg``'s empty dict)."""
 
 
 @cache
 def _shape(model: type[OpModel]) -> _Shape:
+    op = model.model_fields["op"].default
     fields = {name: info for name, info in model.model_fields.items() if name != "op"}
+    template: dict[str, Any] = {"op": op}
+    for name, info in fields.items():
+        template[name] = None if info.is_required() or info.default_factory else info.default
     return _Shape(
-        op=model.model_fields["op"].default,
-        order=tuple(fields),
-        names=frozenset(fields),
+        op=op,
+        template=template,
         required=frozenset(name for name, info in fields.items() if info.is_required()),
+        factories=tuple(
+            (name, info.default_factory)  # type: ignore[misc]
+            for name, info in fields.items()
+            if info.default_factory is not None
+        ),
     )

@@ -70,7 +70,10 @@ def wire_struct(model: type[OpModel]) -> type[msgspec.Struct]:
     # frame without its tag, and a frame without ``op`` is not an op (D1).
     fields: list[tuple[str, Any] | tuple[str, Any, Any]] = [("op", Literal[op])]
     fields += [_field(name, info) for name, info in model.model_fields.items() if name != "op"]
-    return msgspec.defstruct(model.__name__ + "Frame", fields, frozen=True, module=__name__)
+    # keyword-only: an optional field may come before a required one, as in the models
+    return msgspec.defstruct(
+        model.__name__ + "Frame", fields, frozen=True, kw_only=True, module=__name__
+    )
 
 
 PublishFrame: type[msgspec.Struct] = wire_struct(Publish)

@@ -35,10 +35,10 @@ from collections.abc import Mapping
 from typing import NamedTuple
 
 from ..codecs.cbor import encode_cbor
-from ..codecs.json import encode_json, encode_publish_json
+from ..codecs.json import encode_json, encode_op, encode_publish_json, op_object
 from ..codecs.png import encode_png
 from ..framing.fragments import fragment_frames, fresh_id
-from ..ops import ActionResult, Png, Publish, ServiceResponse, Status
+from ..ops import ActionResult, OpModel, Png, Publish, ServiceResponse, Status
 from ..ops.base import Compression
 from ..ports import GoalStatus, MessageCodec, MessageEvent
 from .outbox import OutFrame
@@ -95,7 +95,7 @@ def png_frames(
     """
     data = encode_png(text)
     if size is None or len(data) <= size:
-        return (OutFrame(encode_json(Png.frame(data=data)), droppable=droppable),)
+        return (OutFrame(encode_op(Png(data=data)), droppable=droppable),)
     parts = fragment_frames(data, _part_id(op, op_id), size, op="png")
     return _grouped(parts, droppable)
 
@@ -138,7 +138,7 @@ def _make_publish(
         return (OutFrame(_raw_frame(event, spelling), binary=True, droppable=True),)
     if compression in ("cbor", "cbor-raw"):
         msg = event.memo(("memo", "typed"), lambda: _typed(event.msg, event.codec))
-        frame = encode_cbor(Publish.frame(topic=spelling, msg=msg))
+        frame = encode_cbor(op_object(Publish(topic=spelling, msg=msg)))
         return (OutFrame(frame, binary=True, droppable=True),)
     text = event.memo(("memo", "json", spelling), lambda: _publish_json(event, spelling))
     if compression == "png":
@@ -157,7 +157,7 @@ def _raw_frame(event: MessageEvent, spelling: str) -> bytes:
     secs = math.floor(event.stamp)
     nsecs = min(round((event.stamp - secs) * 1e9), 999_999_999)
     msg = {"secs": secs, "nsecs": nsecs, "bytes": data}
-    return encode_cbor(Publish.frame(topic=spelling, msg=msg))
+    return encode_cbor(op_object(Publish(topic=spelling, msg=msg)))
 
 
 def _typed(msg: Mapping[str, object], codec: MessageCodec | None) -> Mapping[str, object]:
@@ -165,7 +165,7 @@ def _typed(msg: Mapping[str, object], codec: MessageCodec | None) -> Mapping[str
 
 
 def encode_op_frames(
-    message: Mapping[str, object],
+    op: OpModel,
     *,
     compression: Compression = Compression.NONE,
     fragment_size: int | None = None,
@@ -174,7 +174,8 @@ def encode_op_frames(
     """Encode one op (a reply, a request, a status) in the form its request asked for.
 
     Args:
-        message: the op as a dict, ``op`` first, values in the internal form.
+        op: the op, its values in the internal form (``codecs.json.op_object``
+            makes its JSON object or CBOR map).
         compression: ``none`` (JSON), ``png``, or ``cbor``/``cbor-raw`` (a binary
             CBOR frame; spec 3.3.8 and 3.3.12 let replies ask for compression).
         fragment_size: fragment JSON and PNG above this many characters (D19).
@@ -184,13 +185,14 @@ def encode_op_frames(
     Returns:
         The frames, none of them droppable (D24).
     """
-    op = str(message.get("op", "op"))
+    message = op_object(op)
     if compression in ("cbor", "cbor-raw"):
         return (OutFrame(encode_cbor(_typed_payload(message, codec)), binary=True),)
     text = encode_json(message)
+    op_id = message.get("id")
     if compression == "png":
-        return png_frames(text, op, message.get("id"), fragment_size)
-    return json_frames(text, op, message.get("id"), fragment_size)
+        return png_frames(text, op.op, op_id, fragment_size)
+    return json_frames(text, op.op, op_id, fragment_size)
 
 
 def _typed_payload(
@@ -219,7 +221,7 @@ class EncodeFailure(NamedTuple):
 
 #: The ops a caller waits for: an unencodable one is replaced by a failure reply (D4).
 def safe_op_frames(
-    message: Mapping[str, object],
+    op: OpModel,
     *,
     compression: Compression = Compression.NONE,
     fragment_size: int | None = None,
@@ -228,17 +230,17 @@ def safe_op_frames(
     """``encode_op_frames``, made total: never raises.
 
     Returns:
-        The frames, and None; or, when ``message`` cannot be encoded, frames
+        The frames, and None; or, when ``op`` cannot be encoded, frames
         that replace it (a failure reply for ``service_response`` and
         ``action_result``, else an error status, both plain JSON) and the failure.
     """
     try:
         frames = encode_op_frames(
-            message, compression=compression, fragment_size=fragment_size, codec=codec
+            op, compression=compression, fragment_size=fragment_size, codec=codec
         )
     except Exception as exc:  # any encoder error: TypeError, ValueError, UnicodeError, cbor2's
-        failure = EncodeFailure(_clean(str(message.get("op", "op"))), _reason(exc))
-        return (OutFrame(encode_json(_replacement(message, failure))),), failure
+        failure = EncodeFailure(op.op, _reason(exc))
+        return (OutFrame(encode_op(_replacement(op, failure))),), failure
     return frames, None
 
 
@@ -256,31 +258,30 @@ def safe_publish_frames(
         return EncodeFailure("publish", _reason(exc))
 
 
-def _replacement(message: Mapping[str, object], failure: EncodeFailure) -> dict[str, object]:
-    """The op sent instead of an unencodable one, built by its op model.
+def _replacement(op: OpModel, failure: EncodeFailure) -> OpModel:
+    """The op sent instead of an unencodable one.
 
     Only clean strings, bools and small ints go in: a failure reply for a
     ``service_response`` or ``action_result`` (a waiting caller still hears
     back, D4), else an error status.
     """
     text = f"cannot encode the {failure.op}: {failure.reason}"
-    op_id = _clean_id(message.get("id"))
-    if failure.op == "service_response":
-        service = _clean(str(message.get("service", "")))
-        return ServiceResponse.frame(service=service, values=text, result=False, id=op_id)
-    if failure.op == "action_result":
-        return ActionResult.frame(
-            action=_clean(str(message.get("action", ""))),
+    op_id = _clean_id(getattr(op, "id", None))
+    if isinstance(op, ServiceResponse):
+        service = _clean(str(op.service))
+        return ServiceResponse(service=service, values=text, result=False, id=op_id)
+    if isinstance(op, ActionResult):
+        return ActionResult(
+            action=_clean(str(op.action)),
             values=text,
             status=int(GoalStatus.ABORTED),
             result=False,
-            id="" if op_id is None else op_id,  # the model requires one; ids are clean in practice
+            id="" if op_id is None else op_id,  # ids are clean in practice
         )
-    if failure.op == "status":
-        level = message.get("level")
-        level = level if level in _LEVELS else "error"
-        return Status.frame(level=level, msg=_clean(str(message.get("msg", ""))), id=op_id)
-    return Status.frame(level="error", msg=f"{failure.op}: {text}", id=op_id)
+    if isinstance(op, Status):
+        level = op.level if op.level in _LEVELS else "error"
+        return Status(level=level, msg=_clean(str(op.msg)), id=op_id)
+    return Status(level="error", msg=f"{failure.op}: {text}", id=op_id)
 
 
 _LEVELS = ("info", "warning", "error")

@@ -54,8 +54,8 @@ def authenticate(session: Session, op: OpModel) -> bool:
     if not isinstance(op, Auth):
         reply = failure_reply(op, AUTH_REQUIRED)
         if reply is not None:
-            session.send_op(reply)
-        _failed(session, f"first op was {op.op}")  # type: ignore[attr-defined]
+            session.send(reply)
+        _failed(session, f"first op was {op.op}")
         raise RemoteProtocolError(FIRST_OP_NOT_AUTH)
     authenticator = session.config.authenticator
     if authenticator is None:  # pragma: no cover - the session only asks when there is one
@@ -97,7 +97,7 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
     try:
         session.config.access.check(op)
     except AccessDeniedError as exc:
-        name: str = op.op  # type: ignore[union-attr]
+        name: str = op.op
         _episodes.log(
             logging.WARNING,
             "access_denied",
@@ -109,7 +109,7 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
         )
         reply = failure_reply(op, f"{name}: {exc.message}") if isinstance(op, OpModel) else None
         if reply is not None:
-            session.send_op(reply)
+            session.send(reply)
         raise
 
 

@@ -14,7 +14,7 @@ from ..ports import GoalStatus
 __all__ = ["failure_reply"]
 
 
-def failure_reply(op: OpModel, text: str) -> dict[str, object] | None:
+def failure_reply(op: OpModel, text: str) -> ServiceResponse | ActionResult | None:
     """Build the failure reply of ``op``, or None for ops that have none.
 
     Args:
@@ -28,10 +28,8 @@ def failure_reply(op: OpModel, text: str) -> dict[str, object] | None:
         (D26, D28); None otherwise.
     """
     if isinstance(op, CallService):
-        return ServiceResponse.frame(service=op.service, result=False, values=text, id=op.id)
+        return ServiceResponse(service=op.service, result=False, values=text, id=op.id)
     if isinstance(op, SendActionGoal):
         aborted = int(GoalStatus.ABORTED)
-        return ActionResult.frame(
-            action=op.action, id=op.id, result=False, values=text, status=aborted
-        )
+        return ActionResult(action=op.action, id=op.id, result=False, values=text, status=aborted)
     return None

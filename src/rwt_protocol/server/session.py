@@ -247,7 +247,7 @@ class Session:
                 self._auth_nonce = new_challenge()
                 # before any op, whatever the status level: the client needs it to authenticate
                 msg = self._auth_nonce
-                self.send_op(Status.frame(level="info", msg=msg, id=AUTH_CHALLENGE_ID))
+                self.send(Status(level="info", msg=msg, id=AUTH_CHALLENGE_ID))
 
     # ---- inputs -------------------------------------------------------------
 
@@ -288,7 +288,7 @@ class Session:
                 obj = decode_json(frame)
             op_id = peek_id(obj)
             op = parse_object(obj)
-            op_name = op.op  # type: ignore[attr-defined]
+            op_name = op.op
             if self._state is State.OPEN:
                 self._dispatch(op, now)
             elif gates.authenticate(self, op):
@@ -611,9 +611,9 @@ class Session:
         if was_empty or outbox.queued_bytes > outbox.high_water_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure
 
-    def send_op(
+    def send(
         self,
-        message: dict[str, object],
+        op: OpModel,
         *,
         compression: Compression = Compression.NONE,
         fragment_size: int | None = None,
@@ -622,7 +622,7 @@ class Session:
         """Queue an op that must not be dropped (responses, results, status, requests).
 
         Args:
-            message: the op as a dict, ``op`` first; values in the internal form.
+            op: the op (``ServiceResponse(...)``), its values in the internal form.
             compression: the encoding the request asked for (``call_service`` and
                 ``send_action_goal`` replies, spec 3.3.8/3.3.12): ``none`` (JSON),
                 ``png`` (a ``png`` op, D20) or ``cbor``/``cbor-raw`` (one binary
@@ -637,16 +637,16 @@ class Session:
         (``encoding.safe_op_frames``), and one line is logged per connection.
         """
         frames, failure = safe_op_frames(
-            message, compression=compression, fragment_size=fragment_size, codec=codec
+            op, compression=compression, fragment_size=fragment_size, codec=codec
         )
         if failure is not None:
             self._unencodable(failure)
         self.send_frames(frames)
 
-    def send_request(self, message: dict[str, object], what: str) -> None:
+    def send_request(self, op: OpModel, what: str) -> None:
         """Queue a request to this connection's peer as a provider, if it has room.
 
-        ``message`` is a ``call_service`` (or goal) the graph forwards to the
+        ``op`` is a ``call_service`` (or goal) the graph forwards to the
         service this peer advertised; ``what`` names it for the error
         (``service /add``). Requests are never dropped (D24), so a request
         that would take the replies and requests waiting for this peer over
@@ -656,7 +656,7 @@ class Session:
         Raises:
             GraphError: ``<what>: provider busy ...``; nothing was queued.
         """
-        frames, failure = safe_op_frames(message)
+        frames, failure = safe_op_frames(op)
         if failure is not None:
             self._unencodable(failure)
         outbox = self._outbox
@@ -708,9 +708,10 @@ class Session:
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Send a ``status`` frame if this connection's level admits it (spec 3.2, D1-D3)."""
-        if not self._status_level.admits(level):
-            return
-        self.send_op(Status.frame(level=level.wire, msg=text, id=op_id))
+        wire = level.wire
+        if wire == "none" or not self._status_level.admits(level):
+            return  # no status is sent at level none (``admits`` never lets it through)
+        self.send(Status(level=wire, msg=text, id=op_id))
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, in the subscription's merged encoding.

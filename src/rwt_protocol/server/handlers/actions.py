@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ...errors import GraphError, RwtError
+from ...errors import GraphError, RemoteProtocolError, RwtError
 from ...levels import StatusLevel
 from ...names import resolve_name
 from ...ops import (
@@ -81,14 +81,14 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
         finished = True
         if handle is not None:  # counted in the holdings' pending goals
             session.holdings.goal_finished(key, handle)
-        reply = ActionResult.frame(
+        reply = ActionResult(
             action=op.action, id=op.id, result=result, values=values, status=int(status)
         )
-        session.send_op(reply, compression=op.compression, fragment_size=op.fragment_size)
+        session.send(reply, compression=op.compression, fragment_size=op.fragment_size)
 
     def feedback(values: dict[str, object]) -> None:
-        message = ActionFeedback.frame(action=op.action, id=op.id, values=values)
-        session.send_op(message, compression=op.compression, fragment_size=op.fragment_size)
+        message = ActionFeedback(action=op.action, id=op.id, values=values)
+        session.send(message, compression=op.compression, fragment_size=op.fragment_size)
 
     handle = None
     try:
@@ -126,9 +126,12 @@ def action_feedback(session: HandlerContext, op: ActionFeedback, now: float) -> 
     """Feedback for a goal this client's action received (spec 3.3.14).
 
     Raises:
+        RemoteProtocolError: no ``id``.
         GraphError: not this client's action, or no such goal (warning).
         FieldError: ``values`` does not fit the feedback type.
     """
+    if op.id is None:
+        raise RemoteProtocolError("missing field at $.id")
     session.graph.action_feedback(
         session.client_id, op.action, str(op.id), op.values, path="$.values"
     )
@@ -138,9 +141,12 @@ def action_result(session: HandlerContext, op: ActionResult, now: float) -> None
     """The result of a goal this client's action received (spec 3.3.15, D18).
 
     Raises:
+        RemoteProtocolError: no ``id``.
         GraphError: not this client's action, no such goal, or a bad status.
         FieldError: ``values`` does not fit the result type.
     """
+    if op.id is None:
+        raise RemoteProtocolError("missing field at $.id")
     session.graph.action_result(
         session.client_id, op.action, str(op.id), op.status, op.result, op.values, path="$.values"
     )

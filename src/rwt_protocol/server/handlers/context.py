@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from ...codecs.png import PendingPng
     from ...framing.fragments import Reassembler
     from ...levels import StatusLevel
+    from ...ops import OpModel
     from ...ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from ..holdings import Holdings
     from ..subscriptions import TopicSubscription
@@ -65,17 +66,17 @@ class HandlerContext(Protocol):
     def config(self) -> SessionSettings:
         """The connection's settings (limits, access rules, authenticator)."""
 
-    def send_op(
+    def send(
         self,
-        message: dict[str, object],
+        op: OpModel,
         *,
         compression: Compression = Compression.NONE,
         fragment_size: int | None = None,
         codec: MessageCodec | None = None,
     ) -> None:
-        """Queue an op that must not be dropped (``Session.send_op``)."""
+        """Queue an op that must not be dropped (``Session.send``)."""
 
-    def send_request(self, message: dict[str, object], what: str) -> None:
+    def send_request(self, op: OpModel, what: str) -> None:
         """Queue a request to this peer as a provider if it has room (``Session.send_request``).
 
         Raises:

@@ -34,7 +34,7 @@ class ProviderLink:
                 caller fails, the provider stays connected.
         """
         self._session.send_request(
-            CallService.frame(service=service, args=args, id=request_id), f"service {service}"
+            CallService(service=service, args=args, id=request_id), f"service {service}"
         )
 
     def on_service_lost(self, service: str, reason: str) -> None:
@@ -52,7 +52,7 @@ class ProviderLink:
                 request (docs/limits.md); the caller's goal is aborted.
         """
         self._session.send_request(
-            SendActionGoal.frame(
+            SendActionGoal(
                 action=action, action_type=action_type, args=args, id=goal_id, feedback=True
             ),
             f"action {action}",
@@ -60,7 +60,7 @@ class ProviderLink:
 
     def on_action_cancel(self, goal_id: str, action: str) -> None:
         """Send ``cancel_action_goal`` (REF §2.16)."""
-        self._session.send_op(CancelActionGoal.frame(action=action, id=goal_id))
+        self._session.send(CancelActionGoal(action=action, id=goal_id))
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """Warn the peer that its action was taken away (D15)."""

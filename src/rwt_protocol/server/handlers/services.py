@@ -66,13 +66,13 @@ class _Call:
             self.session.holdings.call_finished()
         if self.timer is not None:
             self.timer.cancel()
-        message = ServiceResponse.frame(
+        message = ServiceResponse(
             service=self.op.service,
             result=result,
             values=values if values is not None else {},
             id=self.op_id,
         )
-        self.session.send_op(
+        self.session.send(
             message, compression=self.op.compression, fragment_size=self.op.fragment_size
         )
 
