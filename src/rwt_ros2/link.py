@@ -42,26 +42,26 @@ from rwt_graph.link import (
     Kind,
     LinkRules,
     Relays,
-    mirror_endpoint,
 )
+from rwt_graph.mirror import Mirror
 from rwt_graph.parameters.replicas import ParamReplicas
 from rwt_graph.parameters.services import answer as answer_param_request
 from rwt_graph.parameters.services import param_nodes
 from rwt_graph.parameters.wire import PARAM_SERVICES
 from rwt_graph.ratelog import EpisodeLog
-from rwt_graph.types.hashes import message_type_hash
-from rwt_protocol.errors import GraphError, RwtError
+from rwt_protocol.errors import RwtError
 from rwt_protocol.shortcuts import enabled
 
-from .actions import RosAction, serve_action_to_ros
+from .actions import serve_action_to_ros
 from .codec import decode, encode
-from .graphview import Endpoint, Qos, RosGraph, publisher_depth, rclpy_profile, snapshot
+from .graphview import Qos, RosGraph, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
+from .remotes import RosRemotes, entities
 from .rosout import RosoutHandler
 from .runtime import interface_class, ros_distro
-from .services import SERVICE_QOS, RosService, serve_to_ros
+from .services import SERVICE_QOS, serve_to_ros
 
 if TYPE_CHECKING:
     import asyncio
@@ -143,24 +143,6 @@ class _Server:
     handle: Any
 
 
-@dataclass(eq=False)
-class _Mirror:
-    """A ROS 2 entity and what stands for it in the graph."""
-
-    spec: object
-    provider: RosService | RosAction | None = None
-    mirrored: bool = False
-    refused: bool = False  # an unknown type: not tried again while the entity lives
-
-
-@dataclass
-class _Specs:
-    nodes: dict[ClientId, str] = field(default_factory=dict)
-    endpoints: dict[ClientId, Endpoint] = field(default_factory=dict)
-    services: dict[ClientId, tuple[str, str, str]] = field(default_factory=dict)
-    actions: dict[ClientId, tuple[str, str, str, str]] = field(default_factory=dict)
-
-
 class Ros2Link:
     """Mirrors a graph to and from ROS 2 through one rclpy node (see the module text).
 
@@ -180,8 +162,10 @@ class Ros2Link:
         self.caller: ClientId = f"{PARTICIPANT_PREFIX}caller"
         self.pending_answers: set[Answer] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._mirrors: dict[ClientId, _Mirror] = {}
-        self._by_gid: dict[bytes, ClientId] = {}
+        self._remotes = RosRemotes(self)
+        self._mirror = Mirror(
+            graph, self.rules, self._remotes, self.episodes, event="ros2", episode_per_entity=True
+        )
         self._own_gids: set[bytes] = set()
         self._publisher_qos: dict[str, list[Qos]] = {}  # the view's, by topic
         self._subscription_qos: dict[str, list[Qos]] = {}  # the view's, by topic
@@ -190,12 +174,10 @@ class Ros2Link:
         self._servers: dict[str, _Server] = {}
         self._action_servers: dict[str, _Server] = {}
         self._param_servers: dict[str, list[Any]] = {}  # node -> its 3 rclpy services
-        self._relays = Relays(graph, self.rules, ros.fqn, self._publisher_of)
+        self._relays = Relays(graph, self.rules, ros.fqn, self._mirror.publisher_of)
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
-        self._hashes: dict[str, str] = {}  # type -> the registry's RIHS01
-        self._mismatched: set[bytes] = set()  # GIDs of endpoints of another definition
         self._closed = False
         self._batch_take = enabled("ros2-batch-take")
 
@@ -260,8 +242,7 @@ class Ros2Link:
             self._params.close()
         for answer in list(self.pending_answers):
             answer.set(False, "the ROS 2 link is stopping")
-        for client in list(self._mirrors):
-            self._unmirror(client)
+        self._mirror.close()
         self._relays.close()
         self.graph.nodes.forget(self.caller)
         node = self.ros.node
@@ -285,24 +266,8 @@ class Ros2Link:
 
     # ---- the ROS 2 graph, inward ---------------------------------------------------
 
-    def _specs(self, view: RosGraph) -> _Specs:
-        specs = _Specs()
-        for node in view.nodes:
-            specs.nodes[f"{PARTICIPANT_PREFIX}node:{node}"] = node
-        for gid, endpoint in view.endpoints.items():
-            if not self.rules.is_private(endpoint.topic):
-                specs.endpoints[f"{PARTICIPANT_PREFIX}{gid.hex()}"] = endpoint
-        for (node, name), type_name in view.services.items():
-            if not self.rules.is_private(name):
-                specs.services[f"{PARTICIPANT_PREFIX}srv:{node}:{name}"] = (node, name, type_name)
-        for (node, name), type_name in view.actions.items():
-            if not self.rules.is_private(name):
-                client = f"{PARTICIPANT_PREFIX}action:{node}:{name}"
-                specs.actions[client] = ("action", node, name, type_name)
-        return specs
-
     def _apply(self, view: RosGraph) -> None:
-        """Bring the graph's ROS 2 participants in line with ``view``."""
+        """Bring the graph's ROS 2 participants in line with ``view`` (``rwt_graph.mirror``)."""
         self._publisher_qos = {}
         self._subscription_qos = {}
         # the node's own non-link publishers count (rcl's transient local /rosout one)
@@ -312,109 +277,7 @@ class Ros2Link:
                 self._publisher_qos.setdefault(endpoint.topic, []).append(endpoint.qos)
             else:
                 self._subscription_qos.setdefault(endpoint.topic, []).append(endpoint.qos)
-        specs = self._specs(view)
-        wanted: dict[ClientId, object] = {
-            **specs.nodes,
-            **specs.endpoints,
-            **specs.services,
-            **specs.actions,
-        }
-        for client, old in list(self._mirrors.items()):
-            if wanted.get(client) != old.spec:
-                self._unmirror(client)
-        for client, spec in wanted.items():
-            mirror = self._mirrors.setdefault(client, _Mirror(spec))
-            if not mirror.mirrored and not mirror.refused:
-                self._mirror(client, mirror)
-        self._by_gid = {e.gid: c for c, e in specs.endpoints.items() if self._mirrors[c].mirrored}
-
-    def _mirror(self, client: ClientId, mirror: _Mirror) -> None:
-        graph, spec = self.graph, mirror.spec
-        try:
-            if isinstance(spec, str):  # a node
-                graph.nodes.bind(client, spec)
-            elif isinstance(spec, Endpoint):
-                self._check_hash(spec)
-                publisher = spec.kind == "publisher"
-                mirror_endpoint(
-                    graph,
-                    client,
-                    spec.node,
-                    Kind.PUBLISHER if publisher else Kind.SUBSCRIPTION,
-                    spec.topic,
-                    spec.type_name,
-                    latched=publisher and spec.qos.transient_local,
-                )
-            elif isinstance(spec, tuple) and len(spec) == 4:
-                _, node, name, type_name = spec
-                if name in graph.actions.entries:
-                    return  # a local provider answers: tried again each sweep
-                actiontype = graph.registry.action(type_name)
-                action = RosAction(self, client, name, actiontype)
-                graph.nodes.bind(client, node)
-                graph.port.advertise_action(client, name, type_name, action)
-                mirror.provider = action
-            else:
-                assert isinstance(spec, tuple)
-                node, name, type_name = spec
-                if name in graph.services.entries:
-                    return  # a local provider answers: tried again each sweep
-                srvtype = graph.registry.service(type_name)
-                provider = RosService(self, client, name, srvtype)
-                graph.nodes.bind(client, node)
-                graph.port.advertise_service(client, name, type_name, provider)
-                mirror.provider = provider
-        except RwtError as exc:
-            graph.nodes.forget(client)
-            mirror.refused = True
-            self.episodes.log(
-                logging.WARNING,
-                f"skip:{client}",
-                "event=ros2_skip entity=%s reason=%r",
-                spec,
-                str(exc),
-            )
-            return
-        mirror.mirrored = True
-
-    def _check_hash(self, endpoint: Endpoint) -> None:
-        """Refuse an endpoint whose type's definition is not the graph's (another hash).
-
-        Its bytes would decode wrongly, so its samples are dropped too.
-
-        Raises:
-            GraphError: the hashes differ; the text says how to give rwt the
-                robot's definitions.
-        """
-        if not endpoint.type_hash:
-            return  # the middleware reports none (not Iron or later)
-        ours = self._hashes.get(endpoint.type_name)
-        if ours is None:  # bounded: type names the registry knows
-            try:
-                ours = message_type_hash(self.graph.registry, endpoint.type_name)
-            except KeyError:  # a definition the type store could not load: no hash
-                ours = endpoint.type_hash
-            self._hashes[endpoint.type_name] = ours
-        if ours != endpoint.type_hash:
-            self._mismatched.add(endpoint.gid)
-            raise GraphError(
-                f"{endpoint.topic}: {endpoint.node}'s {endpoint.type_name} is "
-                f"{endpoint.type_hash}, rwt's definition {ours}: give rwt the robot's "
-                "definitions (--interfaces, or source the robot's install)"
-            )
-
-    def _unmirror(self, client: ClientId) -> None:
-        mirror = self._mirrors.pop(client)
-        if isinstance(mirror.spec, Endpoint):
-            self._mismatched.discard(mirror.spec.gid)
-        if mirror.mirrored:
-            self.graph.port.release(client)  # its services fail their callers (D15)
-        if mirror.provider is not None:
-            mirror.provider.close()
-
-    def _publisher_of(self, gid: bytes) -> ClientId | None:
-        """The participant of the ROS 2 publisher with ``gid``, once mirrored (``Relays``)."""
-        return self._by_gid.get(gid)
+        self._mirror.apply(entities(view, PARTICIPANT_PREFIX))
 
     def _on_sample(
         self, topic: str, type_name: str, data: bytes, gid: bytes, transient_local: bool
@@ -424,7 +287,7 @@ class Ros2Link:
         ``transient_local``: the subscription it came on is, so its publisher is
         too (a transient-local reader matches no volatile writer): a relay latches it.
         """
-        if gid in self._own_gids or gid in self._mismatched:
+        if gid in self._own_gids or self._remotes.mismatched(gid):
             return  # the link's own publisher (it came from the graph), or a foreign definition
         entry = self.graph.topics.get(topic)
         if entry is None or entry.msgtype.name != type_name:

@@ -36,7 +36,8 @@ import zenoh.ext
 
 import zenoh
 from rwt_graph.calls import guarded
-from rwt_graph.link import PRIVATE_NAMES, Kind, LinkRules, Relays, mirror_endpoint
+from rwt_graph.link import PRIVATE_NAMES, Kind, LinkRules, Relays
+from rwt_graph.mirror import Mirror, RemoteKind
 from rwt_graph.nodes import CLIENT_NODE_PREFIX
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.topic_holds import TopicHolds
@@ -49,7 +50,8 @@ from .limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, REL
 from .link_actions import ActionLink
 from .link_clients import LINK_NODE, ClientEntities
 from .link_params import ParamLink
-from .link_services import RemoteService, serve_query
+from .link_remotes import REMOTE_KINDS, ZenohRemotes, remote_entity
+from .link_services import serve_query
 from .outbox import Outbox
 from .payload import decode_message, encode_message, prepare_codecs, service_hash, type_hash
 from .wire import (
@@ -65,7 +67,6 @@ from .wire import (
     dds_type_name,
     pack_attachment,
     reply_attachment,
-    ros_type_name,
     topic_keyexpr,
     zid_text,
 )
@@ -140,17 +141,6 @@ class OwnPublisher:
 
 
 @dataclass(eq=False)
-class _Remote:
-    """A remote entity, from its token, and the participant that stands for it here."""
-
-    entity: Entity
-    client: ClientId
-    node: str
-    gid: bytes = b""  # of a publisher, kept: computing it hashes the whole token
-    mirrored: bool = False
-
-
-@dataclass(eq=False)
 class _Data:
     """The Zenoh publishers or subscriber of one topic and its type."""
 
@@ -174,11 +164,6 @@ def _caching_publisher(session: zenoh.Session, keyexpr: str, depth: int) -> Any:
         cache=zenoh.ext.CacheConfig(max_samples=depth),
         publisher_detection=True,
     )
-
-
-def _full_node(entity: Entity) -> str:
-    namespace = entity.namespace.rstrip("/")
-    return f"{namespace}/{entity.node}"
 
 
 class ZenohLink:
@@ -237,11 +222,7 @@ class ZenohLink:
         self._node_tokens: dict[str, Any] = {}
         self._pubs: dict[str, _Data] = {}
         self._subs: dict[str, _Data] = {}
-        self._remote: dict[str, _Remote] = {}
-        self._by_gid: dict[bytes, _Remote] = {}
-        # services shadowed by another provider, tried again each sweep (a set, not a
-        # flag walked over every remote entity per sweep)
-        self._waiting: set[_Remote] = set()
+        self._remote: dict[str, ClientId] = {}  # token -> its participant
         self._relays = Relays(graph, self.rules, LINK_NODE, self._publisher_of)
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         # A ROS 2 service keeps requests by client GID and sequence number, and refuses
@@ -262,6 +243,8 @@ class ZenohLink:
         self._liveliness: Any = None
         self._actions = ActionLink(self)
         self._params = ParamLink(self)
+        remotes = ZenohRemotes(self, self._actions)
+        self._mirror = Mirror(graph, self.rules, remotes, self.peer_log, event="zenoh")
 
     # ---- running ----------------------------------------------------------------
 
@@ -368,10 +351,8 @@ class ZenohLink:
         self._node_tokens.clear()
         self._pubs.clear()
         self._subs.clear()
-        for remote in list(self._remote.values()):
-            self._unmirror(remote)
+        self._mirror.close()
         self._remote.clear()
-        self._by_gid.clear()
         self._relays.close()
 
     def _soon(self, callback: Callable[..., None], *args: object, topic: str = "") -> None:
@@ -573,8 +554,7 @@ class ZenohLink:
         self._relays.sweep(self._subs)
         self._actions.sweep()
         self._params.sweep()
-        for remote in list(self._waiting):
-            self._mirror(remote)  # the local provider that shadowed it may have gone
+        self._mirror.retry()  # the local provider that shadowed one may have gone
 
     def _wanted(self) -> dict[tuple[EntityKind, ClientId, str], tuple[str, bool]]:
         """The local entities to share: (kind, participant, name) -> (type, latched)."""
@@ -639,7 +619,7 @@ class ZenohLink:
         if kind is EntityKind.SERVICE:
             keyexpr = topic_keyexpr(self.domain_id, name, topic.dds_type, topic.type_hash)
             export.queryable = self.declare_queryable(
-                keyexpr, lambda query: self._soon(serve_query, self, export, query)
+                keyexpr, lambda query: self._soon(serve_query, self, name, type_name, query)
             )
         self._exports[key] = export
         return export
@@ -816,12 +796,12 @@ class ZenohLink:
         self._soon(self._on_token, str(sample.key_expr), alive)
 
     def _on_token(self, token: str, alive: bool) -> None:
+        """Mirror a remote entity whose token came, release one whose token went."""
         if not alive:
-            remote = self._remote.pop(token, None)
-            if remote is not None:
-                self._by_gid.pop(remote.gid, None)
-                self._waiting.discard(remote)
-                self._unmirror(remote)
+            client = self._remote.pop(token, None)
+            if client is not None:
+                self._params.unmirror(client)
+                self._mirror.remove(client)
             return
         if token in self._remote:
             return
@@ -832,8 +812,8 @@ class ZenohLink:
                 logging.DEBUG, "zenoh_bad_token", "zenoh link: ignored token: %s", exc
             )
             return
-        if entity.zid == self.zid or entity.kind is EntityKind.CLIENT:
-            return
+        if entity.zid == self.zid or entity.kind not in REMOTE_KINDS:
+            return  # this session's, or a client's (which stands for nothing here)
         if len(self._remote) >= self.max_entities:
             self.peer_log.log(
                 logging.WARNING,
@@ -844,85 +824,23 @@ class ZenohLink:
             )
             return
         suffix = "node" if entity.kind is EntityKind.NODE else str(entity.eid)
-        client = f"{PARTICIPANT_PREFIX}{entity.zid}:{suffix}"
-        remote = self._remote[token] = _Remote(entity, client, _full_node(entity))
-        if entity.kind is EntityKind.PUBLISHER:
-            remote.gid = entity.gid()
-            self._by_gid[remote.gid] = remote
-        self._mirror(remote)
-
-    def _mirror(self, remote: _Remote) -> None:
-        """Make ``remote`` a participant of the graph (once it fits there)."""
-        entity, graph = remote.entity, self.graph
-        if entity.kind is EntityKind.NODE:
-            graph.nodes.bind(remote.client, remote.node)
-            remote.mirrored = True
-            return
+        client = self._remote[token] = f"{PARTICIPANT_PREFIX}{entity.zid}:{suffix}"
         topic = entity.topic
-        assert topic is not None  # Entity.parse guarantees it for every other kind
-        if self.rules.is_private(topic.name):
+        if topic is not None and self.rules.is_private(topic.name):
             return
         try:
-            type_name = ros_type_name(topic.dds_type)
-            if entity.kind is EntityKind.SERVICE:
-                self._params.mirror(remote)
-                as_action = self._actions.mirror(remote)
-                if as_action is not None:
-                    self._wait(remote, waiting=not as_action)
-                    remote.mirrored = as_action
-                    return
-                existing = graph.services.entries.get(topic.name)
-                self._wait(remote, waiting=existing is not None)
-                if existing is not None:
-                    return  # a local provider (or another remote one) answers: keep it
-                graph.nodes.bind(remote.client, remote.node)
-                provider = RemoteService(self, remote, graph.registry.service(type_name))
-                graph.port.advertise_service(remote.client, topic.name, type_name, provider)
-            elif entity.kind is EntityKind.PUBLISHER:
-                latched = topic.qos.durability is Durability.TRANSIENT_LOCAL
-                mirror_endpoint(
-                    graph,
-                    remote.client,
-                    remote.node,
-                    Kind.PUBLISHER,
-                    topic.name,
-                    type_name,
-                    latched=latched,
-                )
-            elif entity.kind is EntityKind.SUBSCRIPTION:
-                mirror_endpoint(
-                    graph, remote.client, remote.node, Kind.SUBSCRIPTION, topic.name, type_name
-                )
-        except (RwtError, WireError) as exc:
-            graph.nodes.forget(remote.client)
-            self.peer_log.log(
-                logging.WARNING,
-                f"zenoh_skip:{entity.kind.name}",
-                "event=zenoh_skip kind=%s name=%s reason=%r",
-                entity.kind.name.lower(),
-                topic.name,
-                str(exc),
-            )
+            remote = remote_entity(entity)
+        except WireError as exc:
+            assert topic is not None  # a node's token has no type to read
+            self._mirror.skip(REMOTE_KINDS[entity.kind], topic.name, str(exc))
             return
-        remote.mirrored = True
-
-    def _wait(self, remote: _Remote, *, waiting: bool) -> None:
-        if waiting:
-            self._waiting.add(remote)
-        else:
-            self._waiting.discard(remote)
-
-    def _unmirror(self, remote: _Remote) -> None:
-        self._params.unmirror(remote)
-        self._actions.unmirror(remote)
-        if remote.mirrored:
-            self.graph.port.release(remote.client)  # its services fail their callers (D15)
-            remote.mirrored = False
+        if remote.kind is RemoteKind.SERVICE:
+            self._params.mirror(client, remote)
+        self._mirror.add(client, remote)
 
     def _publisher_of(self, gid: bytes) -> ClientId | None:
-        """The participant of the remote publisher with ``gid``, once its token came."""
-        remote = self._by_gid.get(gid)
-        return None if remote is None else remote.client
+        """The participant of the remote publisher with ``gid``, once mirrored (``Relays``)."""
+        return self._mirror.publisher_of(gid)
 
     def _on_sample(
         self, topic: str, type_name: str, payload: Any, attachment: bytes | None

@@ -40,7 +40,6 @@ from .actions import (
     GET_RESULT_SUFFIX,
     SEND_GOAL_SUFFIX,
     ActionWire,
-    action_of,
     stamp_of,
 )
 from .payload import (
@@ -63,9 +62,10 @@ from .wire import (
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rwt_graph.mirror import RemoteEntity
     from rwt_protocol.ports import ClientId
 
-    from .link import OwnPublisher, ZenohLink, _Remote
+    from .link import OwnPublisher, ZenohLink
 
 __all__ = ["ActionLink"]
 
@@ -105,9 +105,9 @@ class _Offer:
 class _RemoteAction:
     """The provider of a remote action in the graph: forwards each goal as queries."""
 
-    def __init__(self, link: ActionLink, remote: _Remote, action: str, wire: ActionWire) -> None:
+    def __init__(self, link: ActionLink, client: ClientId, action: str, wire: ActionWire) -> None:
         self.link = link
-        self.remote = remote
+        self.client = client
         self.action = action
         self.wire = wire
 
@@ -371,37 +371,23 @@ class ActionLink:
 
     # ---- caller side ----------------------------------------------------------------
 
-    def mirror(self, remote: _Remote) -> bool | None:
-        """Mirror a remote ``send_goal`` service as a graph action.
-
-        Returns:
-            None: not an action's; False: not now (a local one answers); True: done.
+    def mirror(self, client: ClientId, entity: RemoteEntity) -> _RemoteAction:
+        """The provider of a remote action server (``entity``), listening to its feedback.
 
         Raises:
-            RwtError, WireError: the action type is unknown here.
+            RwtError: the action type is unknown here.
         """
-        topic = remote.entity.topic
-        assert topic is not None
-        found = action_of(topic.name, topic.dds_type)
-        if found is None:
-            return None
-        action, type_name = found
-        graph = self.link.graph
-        if action in graph.actions.entries:
-            return False
-        wire = self.wire(type_name)
-        graph.nodes.bind(remote.client, remote.node)
-        provider = _RemoteAction(self, remote, action, wire)
-        graph.port.advertise_action(remote.client, action, type_name, provider)
+        wire = self.wire(entity.type_name)
+        provider = _RemoteAction(self, client, entity.name, wire)
         # Subscribed now, as an rclpy ActionClient is from its creation: declared with the
         # first goal, the subscription could reach the server after the goal and miss its
         # first feedback.
-        self._feedback_of[remote.client] = self._listen_feedback(provider)
-        return True
+        self._feedback_of[client] = self._listen_feedback(provider)
+        return provider
 
-    def unmirror(self, remote: _Remote) -> None:
-        """Drop the feedback subscription of ``remote``'s action, if it was one mirrored here."""
-        key = self._feedback_of.pop(remote.client, None)
+    def unmirror(self, client: ClientId) -> None:
+        """Drop the feedback subscription of ``client``'s action, if it was one mirrored here."""
+        key = self._feedback_of.pop(client, None)
         if key is not None and key not in self._feedback_of.values():
             handle = self._feedback_subs.pop(key, None)
             if handle is not None:
@@ -465,7 +451,7 @@ class ActionLink:
         values: object,
     ) -> None:
         entry = self.link.graph.actions.entries.get(provider.action)
-        if entry is None or entry.owner != provider.remote.client:
+        if entry is None or entry.owner != provider.client:
             return  # the server went: its goals were aborted already (D15)
         goal = entry.goals.get(goal_id)
         if goal is not None:

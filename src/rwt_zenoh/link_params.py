@@ -33,9 +33,11 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     import zenoh
+    from rwt_graph.mirror import RemoteEntity
     from rwt_graph.parameters.store import ParamValue
+    from rwt_protocol.ports import ClientId
 
-    from .link import ZenohLink, _Remote
+    from .link import ZenohLink
 
 __all__ = ["ParamLink"]
 
@@ -55,9 +57,9 @@ class ParamLink:
         self._types = {part: registry.service(name) for part, name in SERVICES.items()}
         self._value_type = registry.message("rcl_interfaces/msg/ParameterValue")
         self._offers: dict[str, list[Any]] = {}
-        self._remote_nodes: dict[str, _Remote] = {}  # node -> its list_parameters service
+        self._remote_nodes: dict[str, ClientId] = {}  # node -> its list_parameters service
         self._replicas = ParamReplicas(link.graph, link.caller, REFRESH_SWEEPS)
-        self._node_of: dict[_Remote, str] = {}  # the node of each remote: no walk per token
+        self._node_of: dict[ClientId, str] = {}  # the node of each remote: no walk per token
 
     # ---- values ------------------------------------------------------------------
 
@@ -123,25 +125,21 @@ class ParamLink:
 
     # ---- caller side --------------------------------------------------------------
 
-    def mirror(self, remote: _Remote) -> None:
-        """Keep a copy of the node's parameters if ``remote`` is its ``list_parameters``."""
-        topic = remote.entity.topic
-        assert topic is not None
+    def mirror(self, client: ClientId, entity: RemoteEntity) -> None:
+        """Keep a copy of the node's parameters if ``entity`` is its ``list_parameters``."""
         suffix = "/list_parameters"
-        if not topic.name.endswith(suffix) or topic.dds_type != dds_type_name(
-            SERVICES["list_parameters"]
-        ):
+        if not entity.name.endswith(suffix) or entity.type_name != SERVICES["list_parameters"]:
             return
-        node = topic.name[: -len(suffix)]
+        node = entity.name[: -len(suffix)]
         if node in self._offers or node in self._remote_nodes:
             return  # this process's own node, or already held
-        self._remote_nodes[node] = remote
-        self._node_of[remote] = node
+        self._remote_nodes[node] = client
+        self._node_of[client] = node
 
-    def unmirror(self, remote: _Remote) -> None:
-        """Drop the copy of ``remote``'s node (its token went)."""
-        node = self._node_of.pop(remote, None)
-        if node is not None and self._remote_nodes.get(node) is remote:
+    def unmirror(self, client: ClientId) -> None:
+        """Drop the copy of ``client``'s node (its token went)."""
+        node = self._node_of.pop(client, None)
+        if node is not None and self._remote_nodes.get(node) == client:
             del self._remote_nodes[node]
             self._replicas.sweep(set(self._remote_nodes))
 

@@ -20,21 +20,21 @@ from .wire import WireError, topic_keyexpr
 if TYPE_CHECKING:
     import zenoh
     from rwt_graph.types import ServiceType
+    from rwt_protocol.ports import ClientId
 
-    from .link import ZenohLink, _Export, _Remote
+    from .link import ZenohLink
+    from .wire import Topic
 
 __all__ = ["RemoteService", "serve_query"]
 
 logger = logging.getLogger("rwt.zenoh")
 
 
-def serve_query(link: ZenohLink, export: _Export, query: zenoh.Query) -> None:
-    """A remote caller's request for a local service: call it in the graph.
+def serve_query(link: ZenohLink, service: str, type_name: str, query: zenoh.Query) -> None:
+    """A remote caller's request for the local ``service`` of ``type_name``: call it in the graph.
 
     The reply is the response's CDR, or an error reply with the failure's text.
     """
-    topic = export.entity.topic
-    assert topic is not None
     registry = link.graph.registry
     answered = False
 
@@ -46,7 +46,7 @@ def serve_query(link: ZenohLink, export: _Export, query: zenoh.Query) -> None:
         try:
             if result:
                 assert isinstance(values, dict)
-                srvtype = registry.service(export.type_name)
+                srvtype = registry.service(type_name)
                 response = encode_message(registry, srvtype.response, values)
                 link.reply(query, response)
             else:
@@ -54,17 +54,17 @@ def serve_query(link: ZenohLink, export: _Export, query: zenoh.Query) -> None:
         finally:
             query.drop()  # type: ignore[no-untyped-call]  # answered: free it now
 
-    if link.cancels_goal(topic.name, query):
+    if link.cancels_goal(service, query):
         return
     try:
-        srvtype = registry.service(export.type_name)
+        srvtype = registry.service(type_name)
         payload = query.payload
         request = decode_message(
             registry, srvtype.request, b"" if payload is None else payload.to_bytes()
         )
-        link.graph.port.call_service(link.caller, topic.name, request, reply)
+        link.graph.port.call_service(link.caller, service, request, reply)
     except (RwtError, WireError) as exc:
-        reply(False, f"service {topic.name} failed: {exc}")
+        reply(False, f"service {service} failed: {exc}")
 
 
 class RemoteService:
@@ -73,24 +73,31 @@ class RemoteService:
     The reply, an error, or no reply within the link's ``call_timeout_s`` comes
     back as the provider's response; if the provider goes first, its release has
     already answered the caller (D15).
+
+    Args:
+        link: the link the queries go through.
+        client: the participant standing for the remote server.
+        topic: the service as the server's token names it (its key's parts).
+        srvtype: its type in the graph's registry.
     """
 
-    def __init__(self, link: ZenohLink, remote: _Remote, srvtype: ServiceType) -> None:
+    def __init__(
+        self, link: ZenohLink, client: ClientId, topic: Topic, srvtype: ServiceType
+    ) -> None:
         self._link = link
-        self._remote = remote
+        self._client = client
+        self._topic = topic
         self._srvtype = srvtype
 
     def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
         """Send a local caller's request (``args`` in the internal form) as a query."""
-        remote, srvtype = self._remote, self._srvtype
-        topic = remote.entity.topic
-        assert topic is not None
+        topic, srvtype = self._topic, self._srvtype
         service = topic.name
         registry = self._link.graph.registry
         try:
             payload = encode_message(registry, srvtype.request, args)
         except (RwtError, WireError) as exc:
-            self._respond(remote, service, request_id, False, str(exc))
+            self._respond(request_id, False, str(exc))
             return
         # the hash is matched by a wildcard: see the module text
         key = topic_keyexpr(self._link.domain_id, service, topic.dds_type, "*")
@@ -114,21 +121,17 @@ class RemoteService:
                 value = decode_message(self._link.graph.registry, self._srvtype.response, value)
             except WireError as exc:
                 ok, value = False, str(exc)
-        topic = self._remote.entity.topic
-        assert topic is not None
-        self._respond(self._remote, topic.name, request_id, ok, value)
+        self._respond(request_id, ok, value)
 
-    def _respond(
-        self, remote: _Remote, service: str, request_id: str, ok: bool, value: object
-    ) -> None:
-        graph = self._link.graph
+    def _respond(self, request_id: str, ok: bool, value: object) -> None:
+        graph, service = self._link.graph, self._topic.name
         entry = graph.services.entries.get(service)
-        if entry is None or entry.owner != remote.client or request_id not in entry.pending:
+        if entry is None or entry.owner != self._client or request_id not in entry.pending:
             return  # timed out, or the provider is gone (its callers were answered)
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            graph.port.service_response(remote.client, service, request_id, False, value)
+            graph.port.service_response(self._client, service, request_id, False, value)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the remote one here; the remote one lives on."""
