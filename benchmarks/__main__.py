@@ -10,7 +10,8 @@ every variant once on tiny counts without touching the README (CI).
 ``peer`` compares with a running rosbridge_suite (benchmarks/peer.py); ``ros2``
 measures the ROS 2 bridge (benchmarks/ros2_bridge.py); ``console`` the web
 console in Chromium (benchmarks/console.py); ``rosbag`` records and plays against
-the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py).
+the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py); ``compare REF`` this checkout
+against an older commit (benchmarks/compare.py).
 """
 
 from __future__ import annotations
@@ -86,6 +87,10 @@ def main(argv: list[str] | None = None) -> int:
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 
         return ros2_main(argv[1:])
+    if argv[:1] == ["compare"]:  # its own options (benchmarks/compare.py)
+        from .compare import main as compare_main  # noqa: PLC0415
+
+        return compare_main(argv[1:])
     if argv[:1] == ["rosbag"]:  # its own options (benchmarks/ros1_bag.py)
         from .ros1_bag import main as rosbag_main  # noqa: PLC0415
 
@@ -96,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("console", help="the web console in Chromium: input latency, CPU, streams")
     sub.add_parser("ros2", help="real ROS 2 to WebSocket: rwt --ros2, rosbridge_suite 2.1.0, rclpy")
     sub.add_parser("rosbag", help="B22: rwt record and play against the real ROS 1 rosbag")
+    sub.add_parser("compare", help="this checkout against REF (a commit), e.g. B1 B2, one run")
     p_run = sub.add_parser("run", help="run scenarios and print the table")
     p_run.add_argument("scenarios", nargs="*", help="B1 ... B18 (default: all but B18)")
     p_run.add_argument("--runs", type=int, default=5, help="runs per server and variant")

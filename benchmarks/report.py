@@ -14,13 +14,14 @@ from pathlib import Path
 from .runner import VariantResult
 from .servers import ROOT
 
-__all__ = ["markdown_table", "save_json", "update_readme"]
+__all__ = ["fmt_value", "markdown_table", "save_json", "update_readme"]
 
 BEGIN = "<!-- suite:begin -->"
 END = "<!-- suite:end -->"
 
 
-def _fmt(value: float) -> str:
+def fmt_value(value: float) -> str:
+    """A table cell: thousands separated, else three significant digits, NaN as '-'."""
     if math.isnan(value):
         return "-"
     if abs(value) >= 1000:
@@ -32,7 +33,7 @@ def _cell(result: VariantResult, kind: str) -> str:
     stats = result.medians().get(kind, {}).get(result.variant.primary)
     if stats is None:
         return "-"
-    return f"{_fmt(stats['median'])} [{_fmt(stats['min'])}-{_fmt(stats['max'])}]"
+    return f"{fmt_value(stats['median'])} [{fmt_value(stats['min'])}-{fmt_value(stats['max'])}]"
 
 
 def _ratio(result: VariantResult) -> str:

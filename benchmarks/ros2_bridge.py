@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Sequence
 
 from .ros2_client import TYPES, LeanCounter, stamp
-from .servers import ROOT, Server, proc_stats, start_server
+from .servers import ROOT, Server, proc_stats, rwt_pythonpath, start_server
 
 __all__ = ["CASES", "Case", "Result", "main", "rclpy_available", "run_case", "table", "verdicts"]
 
@@ -494,7 +494,7 @@ async def run_case(
     if FASTDDS[fastdds] is None:  # none inherited either, under either name
         env.pop("FASTDDS_DEFAULT_PROFILES_FILE", None)
         env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
+    env["PYTHONPATH"] = rwt_pythonpath()
     if receiver == "rclpy":
         return await _bare(case, seconds, env)
     if receiver == "rwt":

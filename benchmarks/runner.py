@@ -10,8 +10,9 @@ is never silently dropped.
 from __future__ import annotations
 
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from .scenarios.common import Context, Metrics, Run, Variant, summary
 from .servers import Server, start_server
@@ -35,12 +36,18 @@ class VariantResult:
         return {kind: summary(runs) for kind, runs in self.runs.items() if runs}
 
 
-def _servers(variant: Variant, uvloop: bool) -> dict[str, Server]:
+def _servers(variant: Variant, uvloop: bool, sources: Mapping[str, Path]) -> dict[str, Server]:
+    """One server per kind; a kind named in ``sources`` is ``rwt`` run from that ``src``
+    (its ``Server.kind`` stays ``rwt``: the load generator speaks rosbridge to it)."""
     servers: dict[str, Server] = {}
     try:
         for kind in variant.kinds:
-            extra = list(variant.server_args) if kind == "rwt" else []
-            servers[kind] = start_server(kind, uvloop=uvloop, extra=extra)
+            src = sources.get(kind)
+            is_rwt = kind == "rwt" or src is not None
+            extra = list(variant.server_args) if is_rwt else []
+            servers[kind] = start_server(
+                "rwt" if is_rwt else kind, uvloop=uvloop, extra=extra, src=src
+            )
     except Exception:
         for server in servers.values():
             server.stop()
@@ -56,8 +63,12 @@ def run_variant(
     uvloop: bool,
     log: Callable[[str], None],
     context: Context | None = None,
+    sources: Mapping[str, Path] | None = None,
 ) -> VariantResult:
-    """Run ``variant`` ``runs`` times against each of its servers, interleaved."""
+    """Run ``variant`` ``runs`` times against each of its servers, interleaved.
+
+    ``sources`` maps an extra kind (``base``) to the ``src`` of another checkout of rwt.
+    """
     result = VariantResult(variant, {kind: [] for kind in variant.kinds})
     count = variant.runs or runs
     servers: dict[str, Server] = {}
@@ -65,7 +76,7 @@ def run_variant(
         for index in range(count):
             if variant.fresh_server or not servers:
                 _stop(servers)
-                servers = _servers(variant, uvloop)
+                servers = _servers(variant, uvloop, sources or {})
             order: Sequence[str] = variant.kinds if index % 2 == 0 else variant.kinds[::-1]
             for kind in order:
                 server = servers[kind]

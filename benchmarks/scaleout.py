@@ -43,6 +43,7 @@ import websockets
 
 from .fanout_raw import FanOut, fan_out_raw
 from .proctree import by_role, tree_cpu_ns, tree_threads
+from .servers import rwt_pythonpath
 from .zenoh_link import rclpy_available, run_pair
 
 REPO = Path(__file__).resolve().parents[1]
@@ -60,7 +61,7 @@ def _free_port() -> int:
 
 
 def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
+    return {**os.environ, "PYTHONPATH": rwt_pythonpath(), "PYTHONUNBUFFERED": "1"}
 
 
 @contextlib.asynccontextmanager

@@ -1,8 +1,10 @@
 """Start the two servers under test and read their CPU and memory from /proc.
 
 Both servers run as subprocesses bound to 127.0.0.1 on a free port; ``rwt
-serve`` runs from this checkout's ``src`` (PYTHONPATH), the bare relay is
-``benchmarks/relay.py``. Each prints ``listening on ws://HOST:PORT`` first.
+serve`` runs from this checkout's ``src`` (PYTHONPATH), or from the ``src`` that
+``RWT_BENCH_SRC`` names (another checkout: ``python -m benchmarks compare`` uses it
+for the baseline), the bare relay is ``benchmarks/relay.py``. Each prints
+``listening on ws://HOST:PORT`` first.
 """
 
 from __future__ import annotations
@@ -15,11 +17,18 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["ROOT", "ProcStats", "Server", "proc_stats", "start_server"]
+__all__ = ["ROOT", "ProcStats", "Server", "proc_stats", "rwt_pythonpath", "start_server"]
 
 ROOT = Path(__file__).resolve().parent.parent
 _TICK_S = 1.0 / os.sysconf("SC_CLK_TCK")
 _START_LIMIT_S = 20.0
+
+
+def rwt_pythonpath(src: Path | None = None) -> str:
+    """PYTHONPATH for an ``rwt`` process: ``src`` (default ``$RWT_BENCH_SRC``, else this
+    checkout's ``src``), then this checkout's root (the ``benchmarks`` package)."""
+    chosen = src or Path(os.environ.get("RWT_BENCH_SRC") or ROOT / "src")
+    return os.pathsep.join([str(chosen), str(ROOT)])
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,14 +99,17 @@ def _command(kind: str, uvloop: bool, extra: list[str]) -> list[str]:
     return command + extra
 
 
-def start_server(kind: str, *, uvloop: bool = False, extra: list[str] | None = None) -> Server:
-    """Start ``bare`` (the relay) or ``rwt`` and wait for its listening line.
+def start_server(
+    kind: str, *, uvloop: bool = False, extra: list[str] | None = None, src: Path | None = None
+) -> Server:
+    """Start ``bare`` (the relay) or ``rwt`` (from ``src``, see ``rwt_pythonpath``) and
+    wait for its listening line.
 
     Raises:
         RuntimeError: the process exited or said nothing within 20 s.
     """
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), str(ROOT)])
+    env["PYTHONPATH"] = rwt_pythonpath(src)
     process = subprocess.Popen(
         _command(kind, uvloop, extra or []),
         cwd=ROOT,

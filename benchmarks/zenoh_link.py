@@ -41,6 +41,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from .servers import rwt_pythonpath
+
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 120.0
 HEAP_KEEP = 64 * 1024 * 1024
@@ -322,7 +324,7 @@ def rclpy_available() -> bool:
 
 
 def _env() -> dict[str, str]:
-    env = {**os.environ, "PYTHONPATH": str(REPO / "src") + os.pathsep + str(REPO)}
+    env = {**os.environ, "PYTHONPATH": rwt_pythonpath()}
     # rclpy pairs: a private domain, discovery on this machine only
     env.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

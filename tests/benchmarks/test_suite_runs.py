@@ -73,6 +73,31 @@ def test_runner_smoke() -> None:
     assert [row.split("|")[1].strip() for row in rows] == ["B1", "B1", "B7", "B7", "B7", "B7"]
 
 
+def test_compare_runs_both_checkouts_side_by_side() -> None:
+    """``compare HEAD`` starts rwt from a worktree of HEAD beside this checkout's rwt and
+    reports a median for each, so a change can be measured against its parent in one run."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(ROOT)]))
+    out = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "compare", "HEAD", "B1", "--smoke"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=180,
+        check=False,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    rows = [line.split("|") for line in out.stdout.splitlines() if line.startswith("| B1")]
+    assert len(rows) == 2, out.stdout
+    for row in rows:
+        base, now = row[4].strip(), row[5].strip()
+        assert float(base.replace(",", "")) > 0 and float(now.replace(",", "")) > 0, row
+    listed = subprocess.run(
+        ["git", "-C", str(ROOT), "worktree", "list"], capture_output=True, text=True, check=True
+    )
+    assert "rwt-base-" not in listed.stdout  # the baseline's worktree is removed
+
+
 def test_fuzz_benchmark_smoke_runs_and_reports() -> None:
     """B18's smoke form sends its fuzzed frames and finds no violation.
 
