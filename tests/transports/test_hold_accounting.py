@@ -1,4 +1,4 @@
-"""Input backpressure's accounting, with numbers and a made-up clock (holding.py).
+"""Input backpressure's accounting, with numbers and a made-up clock (flow.py).
 
 The hold budget is charged to the reader being held, whatever it waits for, and
 regained at ``HOLD_REFILL`` a second; a peer reads when it takes
@@ -12,7 +12,7 @@ import math
 
 import pytest
 
-from rwt_transports.holding import (
+from rwt_transports.flow import (
     HOLD_REFILL,
     INPUT_STALL_S,
     READING_SHARE,
