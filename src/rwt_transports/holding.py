@@ -109,7 +109,7 @@ async def _wait_for_own(held: Held) -> None:
 
 
 class LinkHold(Held):
-    """A link's ``Backlog`` as readers wait for it (``pump.OutboundHold`` makes one per link).
+    """A link's ``Backlog`` as readers wait for it (``gates.OutboundHold`` makes one per link).
 
     The backlog reports each sample that goes out only while this watches it:
     from the first congestion of an episode until the backlog empties. Found
