@@ -107,4 +107,4 @@ def test_cool_downs_keep_the_latest_end_and_forget_expired_hosts() -> None:
     assert cool_downs.until("192.0.2.1") == 30.0
     cool_downs.cool("192.0.2.2", 60.0, now=40.0)  # the first one's is over: it goes
     assert cool_downs.until("192.0.2.1") == -math.inf
-    assert len(cool_downs._until) == 1
+    assert len(cool_downs) == 1
