@@ -16,9 +16,9 @@ deferred to its end (the ``deferred-send`` shortcut), each outlet's watermarks
 and progress, the hold budgets (``HoldAccount``), the stall rule
 (``ReadingWindow``: is this consumer reading) and the slow verdicts with their
 cool-downs (``HostCoolDowns``). Its methods take the time (``now``, seconds of
-the event loop's clock) and byte counts and return decisions; the pump and the
-link gates (``rwt_transports.pump``, ``rwt_transports.holding``) carry them
-out: pause a socket, wait for a consumer's next take, write deferred output.
+the event loop's clock) and byte counts and return decisions; the pump
+(pump.py, holding.py) and the links' gates (gates.py) carry them out: pause a
+socket, wait for a consumer's next take, write deferred output.
 
 The time waited is charged to the reader being held (a publishing connection,
 or a graph's link deliveries as one), however many outlets it waits for:
