@@ -83,8 +83,8 @@ The shortcuts (name: what; module; benchmark; general path):
   ``rwt_transports.direct.DirectWriter``; B7, B2; anyio's
   ``SocketStream.send`` from the connection's writer task.
 - ``deferred-send``: an idle connection's frames written at the end of the
-  reader's batch, one write per connection, from a thread-local list
-  (``flush_deferred``); ``rwt_transports.pump``; B7 (latency), B2 (fan-out);
+  reader's batch, one write per connection, from the server's flow control's
+  list (``flush_deferred``); ``rwt_transports.pump``; B7 (latency), B2 (fan-out);
   waking the connection's writer task for each output.
 - ``loop-clock``: the pump reads ``loop.time`` itself, the value
   ``anyio.current_time`` returns on asyncio; ``rwt_transports.pump``; B6
@@ -247,7 +247,7 @@ SHORTCUTS: tuple[Shortcut, ...] = (
     Shortcut(
         "deferred-send",
         "rwt_transports.pump.flush_deferred",
-        "an idle connection written at the end of the reader's batch (thread-local list)",
+        "an idle connection written at the end of the reader's batch (flow control's list)",
         "B7, B2",
         "waking the connection's writer task (ConnectionPump._writer)",
     ),

@@ -16,6 +16,8 @@ import anyio
 from rwt_protocol.framing.streams import FramerEvent, InFrame
 from rwt_protocol.server.outbox import OutFrame
 
+from .channel import PlainChannel
+
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
@@ -28,7 +30,7 @@ __all__ = ["MemoryChannel", "MemoryConnection", "memory_pair"]
 _BUFFERED_FRAMES = 64
 
 
-class MemoryChannel:
+class MemoryChannel(PlainChannel):
     """The server's end of an in-process connection, as a pump ``Channel``."""
 
     transport = "memory"

@@ -1,7 +1,7 @@
 """The connection pump: one sans-IO session driven over any transport.
 
 Every transport (WebSocket, TCP, UDP, stdio, in-memory) reduces a connection to a
-``Channel``: receive a batch of frames, send a batch of frames, close. The pump
+``Channel`` (channel.py): receive a batch of frames, send a batch of frames, close. The pump
 runs the rest the same way everywhere (D22, one dispatcher behind all
 transports), in three tasks per connection:
 
@@ -9,8 +9,8 @@ transports), in three tasks per connection:
 - the writer takes bounded batches from the session's outbox and sends them,
   then carries out commands (``CloseConnection``); a publish never awaits a
   socket. While the writer is idle, a channel that can write
-  without blocking (``DirectChannel``: a plain socket with nothing buffered)
-  is written without it: at the end of the reader's batch that published
+  without blocking (``ChannelAbilities.send_now``: a plain socket with nothing
+  buffered) is written without it: at the end of the reader's batch that published
   (``flush_deferred``), one write per connection, so a message to ten idle
   subscribers costs no task switch. Whatever the socket cannot take
   at once is left to the writer, so frames keep their order either way.
@@ -26,23 +26,16 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
 
 - backpressure with a hold budget: when the frames a reader handled pushed
   another connection's outbox over its high watermark (half
-  ``--send-buffer-limit``), the reader stops reading (``PausableChannel``)
-  until that outbox is back under the low watermark (a quarter). The reader
-  may be held for at most ``--hold-budget`` seconds, whatever it waits for,
-  regaining it slowly (``holding.HoldAccount``): a burst its subscribers keep
-  up with on average arrives whole, while a peer that reads slower than its
-  topics come, for longer than that, is *slow*: it is no longer waited for and
-  loses its own oldest topic messages (D24), so it never slows the publisher
-  or anyone else for good. A peer that does not take a useful share of its
-  backlog in each ``INPUT_STALL_S`` of a hold is slow at once. A slow peer's
-  host is not waited for during a cool-down, across reconnections
-  (``holding.HostCoolDowns``). The drop and close rules (D24) deal with a slow peer.
-  A reader waits for its own outbox only for the replies and statuses in it
-  (they are never dropped), so a peer sending garbage faster than it reads the
-  answers is slowed, not buffered without bound. A link's queue for the other
-  middleware is waited for in the same way (``OutboundHold``), and a link's
-  deliveries are held as a reader's, per topic (``InboundBatch``); the
-  accounting is ``holding``'s;
+  ``--send-buffer-limit``), the reader stops reading
+  (``ChannelAbilities.pause_reading``) until that outbox is back under the low
+  watermark (a quarter), within its hold budget, while its peer reads. Who
+  congested a batch, how long to wait and who is slow is decided by the
+  server's ``flow.FlowControl`` (sans-IO, one per event loop); the pump carries
+  it out (``holding.wait_for``). A reader waits for its own outbox only for the
+  replies and statuses in it (they are never dropped), so a peer sending
+  garbage faster than it reads the answers is slowed, not buffered without
+  bound. A link's queue for the other middleware is waited for in the same way,
+  and a link's deliveries are held as a reader's, per topic (gates.py);
 - fairness: a reader handles at most ``READ_SLICE_FRAMES`` frames or
   ``READ_SLICE_BYTES`` bytes, then yields to the loop for a turn, so a flood
   of tiny frames on one connection does not hold the others up;
@@ -58,10 +51,8 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
-import threading
 import weakref
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol
 
 import anyio
 import anyio.lowlevel
@@ -77,21 +68,17 @@ from rwt_protocol.server.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
-from .holding import COOL_DOWN_BUDGETS, Held, HoldAccount, HostCoolDowns, LinkHold, wait_for
+from .flow import FlowControl, HoldAccount
+from .holding import Held, wait_for
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from rwt_graph.link import Backlog
+    from .channel import Channel
 
 __all__ = [
     "CLOSE_WAIT_S",
-    "Channel",
     "ConnectionPump",
-    "DirectChannel",
-    "InboundBatch",
-    "InboundHold",
-    "OutboundHold",
     "SessionHost",
     "flush_deferred",
     "run_connection",
@@ -130,85 +117,11 @@ def _inflate_limiter() -> anyio.CapacityLimiter:
     return limiter
 
 
-class Channel(Protocol):
-    """One connection's frame I/O, as the pump needs it."""
-
-    transport: str
-    """Short transport name for logs and client ids (``ws``, ``tcp``, ``udp``, ``stdio``)."""
-
-    awaits_peer_close: bool
-    """Whether, after ``close``, the peer answers (a WebSocket close frame) and the
-    reader should be given ``CLOSE_WAIT_S`` to see it."""
-
-    async def receive(self) -> Sequence[FramerEvent]:
-        """Wait for the next incoming frames (possibly none, e.g. control frames only).
-
-        Raises:
-            anyio.EndOfStream: the peer is gone or the connection is closed.
-        """
-
-    async def send(self, frames: Sequence[OutFrame]) -> None:
-        """Send frames in order; returns when the transport took them.
-
-        Raises:
-            anyio.BrokenResourceError: the connection broke.
-        """
-
-    async def close(self, code: CloseCode, reason: str) -> None:
-        """Start closing: tell the peer where the transport can (WebSocket close frame)."""
-
-    async def background(self, session: Session) -> None:
-        """Run transport chores (WebSocket keepalive) until cancelled; may return at once."""
-
-
-@runtime_checkable
-class PausableChannel(Protocol):
-    """A channel whose socket can stop being read between ``receive`` calls."""
-
-    def pause_reading(self) -> None:
-        """Stop reading from the socket; the next ``receive`` that must wait resumes it."""
-
-
-@runtime_checkable
-class ProbingChannel(Protocol):
-    """A channel that can tell whether input is already here, without reading it."""
-
-    def input_pending(self) -> bool | None:
-        """Whether ``receive`` would return at once; None when it cannot tell."""
-
-
-@runtime_checkable
-class QueueingChannel(Protocol):
-    """A channel over a socket whose kernel send queue can be read (sendqueue.py)."""
-
-    def unsent_bytes(self) -> int | None:
-        """Bytes the kernel holds for the peer, not yet acknowledged; None when it cannot tell."""
-
-
-@runtime_checkable
-class DirectChannel(Protocol):
-    """A channel that can also write without awaiting.
-
-    The pump calls ``send_now`` only while its writer is idle and only after
-    ``can_send_now`` said yes, so nothing else is writing and order is kept.
-    """
-
-    def can_send_now(self) -> bool:
-        """Whether ``send_now`` would write at once, nothing else being written."""
-
-    def send_now(self, frames: Sequence[OutFrame]) -> None:
-        """Write ``frames`` now, without blocking.
-
-        What the socket cannot take at once stays in the transport, ahead of
-        anything sent later.
-
-        Raises:
-            RuntimeError: the transport refused (it is closing).
-        """
-
-
 class SessionHost(Protocol):
     """What a transport needs from the server: sessions on its one graph (D22)."""
+
+    flow: FlowControl[Held]
+    """The server's flow control, shared by its connections' pumps and its links' gates."""
 
     def open_session(
         self,
@@ -260,21 +173,6 @@ _BROKEN = (
 )
 
 
-class _Deferred(threading.local):
-    """Idle connections with frames to write at the end of the current batch.
-
-    Per thread, as an event loop is: a pump is only ever flushed by its own loop.
-    """
-
-    def __init__(self) -> None:
-        self.pumps: list[ConnectionPump] = []
-        self.in_batch = False  # a reader is handling a batch and flushes at its end
-        self.backlogged: list[Held] = []  # over the high watermark in this batch
-
-
-_deferred = _Deferred()
-
-
 def _clock() -> Callable[[], float]:
     """The event loop's clock, as ``anyio.current_time`` reads it, without its lookups.
 
@@ -289,7 +187,7 @@ def _clock() -> Callable[[], float]:
         return anyio.current_time
 
 
-def flush_deferred() -> None:
+def flush_deferred(flow: FlowControl[Held]) -> None:
     """Write what the idle connections woken since the last flush have queued.
 
     A reader calls it after each batch of incoming frames, so a publish fanned
@@ -300,127 +198,9 @@ def flush_deferred() -> None:
     callback scheduled at the first deferral. A connection whose socket cannot
     take the frames at once gets its writer woken instead.
     """
-    pumps = _deferred.pumps
-    while pumps:
-        batch = pumps[:]
-        pumps.clear()
+    while batch := flow.take_deferred():
         for pump in batch:
-            pump._flush_deferred()
-
-
-def _take_backlogged() -> list[Held]:
-    """The outboxes the deliveries since the last take pushed over their high watermark."""
-    deferred = _deferred
-    backlogged = deferred.backlogged
-    if backlogged:
-        deferred.backlogged = []
-        for held in backlogged:
-            held._backlogged = False
-    return backlogged
-
-
-async def _hold_backlogged(reader: ConnectionPump, account: HoldAccount) -> None:
-    """Wait for the outboxes the reader's last batch pushed over their high watermark.
-
-    Its socket is paused meanwhile; ``account`` is its hold budget, charged for
-    every outbox it waits for.
-    """
-    for held in _take_backlogged():
-        own = held is reader
-        if held._over_water(own=own, mark=held._high_water):
-            if reader._pausable is not None:
-                reader._pausable.pause_reading()
-            await wait_for(held, own=own, account=account)
-
-
-class InboundHold:
-    """The subscribers some of a link's deliveries congested (``InboundBatch.take_hold``)."""
-
-    def __init__(self, backlogged: list[Held], account: HoldAccount) -> None:
-        self._backlogged = backlogged
-        self._account = account
-
-    async def wait(self) -> None:
-        """Wait until each is under its low watermark, within the links' hold budget."""
-        for held in self._backlogged:
-            if held._over_water(own=False, mark=held._high_water):
-                await wait_for(held, own=False, account=self._account)
-
-
-class InboundBatch:
-    """The transports' ``InflowGate`` (``rwt_graph.link``): a link's deliveries as a reader's.
-
-    A link's samples come from no connection, yet fill subscribers' outboxes as
-    a publisher's frames do. Between ``begin`` and ``end`` the subscribers they
-    push over their high watermark are noted and their frames held for one
-    write each (as in a reader's batch). ``take_hold`` hands the link what the
-    deliveries since its last call congested, for the link to hold back the
-    topic they were of (``rwt_graph.topic_holds``) until those outboxes drain
-    to their low watermark, within one hold budget for all the links'
-    deliveries: a burst from another process reaches a subscriber that keeps
-    up on average whole, a slow one is left to the drop and close rules (D24)
-    once the budget is spent, as with a local publisher, and the link's other
-    topics go on meanwhile.
-
-    One per served graph, it also keeps the hosts' hold cool-downs that the
-    graph's connections share (``holding.HostCoolDowns``).
-
-    Args:
-        hold_budget_s: seconds the links' deliveries may be held
-            (``--hold-budget``, ``holding.HoldAccount``).
-        cool_downs: the server's per-host cool-downs; None: a connection's
-            cool-down ends with it.
-    """
-
-    def __init__(self, hold_budget_s: float, cool_downs: HostCoolDowns | None = None) -> None:
-        self.account = HoldAccount(hold_budget_s)
-        self.cool_downs = cool_downs
-
-    def begin(self) -> None:
-        """Deliveries start: note congestion, defer the writes (no await until ``end``)."""
-        _deferred.in_batch = True
-
-    def end(self) -> None:
-        """Deliveries ended: write out what they queued."""
-        _deferred.in_batch = False
-        flush_deferred()
-
-    def congested(self) -> bool:
-        """Whether a delivery since the last ``take_hold`` pushed an outbox over its high mark."""
-        return bool(_deferred.backlogged)
-
-    def take_hold(self) -> InboundHold | None:
-        """What the deliveries since the last call congested, to wait for; None if nothing."""
-        backlogged = _take_backlogged()
-        return InboundHold(backlogged, self.account) if backlogged else None
-
-
-class OutboundHold:
-    """The transports' ``OutflowGate`` (``rwt_graph.link``): a link's queue held as an outbox.
-
-    A link whose queue for the other middleware passed its high watermark
-    during a reader's batch is waited for after the batch, as a congested
-    subscriber is (``_hold_backlogged``), until it is under its low watermark,
-    within ``hold_budget_s`` per episode; a congestion outside a batch (an
-    in-process publisher) holds nobody. The wait is charged to the reader's
-    hold budget, as a subscriber's is.
-    """
-
-    def __init__(self) -> None:
-        self._holds: dict[int, LinkHold] = {}  # by the backlog's id: one per link
-
-    def congested(self, backlog: Backlog) -> None:
-        """Note ``backlog`` for the current batch's reader to wait for (on the event loop)."""
-        hold = self._holds.get(id(backlog))
-        if hold is None or hold.backlog is not backlog:
-            # links come and go (a restarted one is a new backlog): keep only live episodes
-            self._holds = {k: h for k, h in self._holds.items() if h.watching}
-            hold = self._holds[id(backlog)] = LinkHold(backlog)
-        hold.watch()
-        deferred = _deferred
-        if deferred.in_batch and not hold._backlogged and not hold._slow:  # slow till caught up
-            hold._backlogged = True
-            deferred.backlogged.append(hold)
+            pump.flush_deferred()
 
 
 class ConnectionPump(Held):
@@ -428,18 +208,18 @@ class ConnectionPump(Held):
 
     Args:
         channel: the connection.
+        flow: the server's flow control (``SessionHost.flow``); None: one of its
+            own (a pump that no server runs).
 
     Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
     """
 
-    def __init__(self, channel: Channel) -> None:
-        super().__init__()  # the progress readers wait on (``holding``)
+    def __init__(self, channel: Channel, flow: FlowControl[Held] | None = None) -> None:
+        super().__init__()  # the outlet readers wait on (``holding``)
+        self.flow: FlowControl[Held] = FlowControl() if flow is None else flow
         self._account = HoldAccount(0.0)  # its own hold budget, as a reader (set in ``run``)
-        self._cool_downs: HostCoolDowns | None = None  # its server's, by host
-        self._host = ""
-        self._cool_down_s = 0.0
-        self._slow_until = -math.inf  # found slow: not waited for until then (its host's too)
         self.channel = channel
+        abilities = channel.abilities
         self.close_reason = "peer closed the connection"
         self._writer_wake = anyio.Event()
         self._timer_wake = anyio.Event()
@@ -448,12 +228,11 @@ class ConnectionPump(Held):
         self._session: Session | None = None
         self._timer_deadline: float | None = None
         # The ``deferred-send`` shortcut: off, the pump never writes from the publish path.
-        self._direct = (
-            channel if isinstance(channel, DirectChannel) and enabled("deferred-send") else None
-        )
+        self._direct = channel if abilities.send_now and enabled("deferred-send") else None
         self._writer_idle = False  # waiting for a wake-up, holding no frames
         self._deferred = False  # in the list of ``flush_deferred``
-        self._pausable = channel if isinstance(channel, PausableChannel) else None
+        self._pausable = abilities.pause_reading
+        self._queueing = abilities.unsent_bytes
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
@@ -474,39 +253,32 @@ class ConnectionPump(Held):
         self._wake_timers()
         if self._job_wait is not None and session is not None and session.closing:
             self._job_wait.set()  # a reader waiting for its budget stops waiting
-        if (
-            session is not None
-            and not self._backlogged
-            and session.queued_bytes > self._high_water
-            and _deferred.in_batch
-            and not self._is_slow(anyio.current_time())
-        ):
-            self._backlogged = True
-            _deferred.backlogged.append(self)
+        if session is not None and self.flow.congests(self, session.queued_bytes):
+            self.flow.note_congested(self, anyio.current_time())
 
     def _took(self) -> None:
         """The transport took frames: the peer makes progress; wake readers waiting on it.
 
         Having taken everything queued, the peer caught up (a slow one stays
-        slow until its cool-down ends: ``_is_slow``).
+        slow until its cool-down ends: ``flow.FlowControl.found_slow``).
         """
         session = self._session
-        self._note_take(session is None or session.queued_bytes == 0)
+        self.note_take(session is None or session.queued_bytes == 0)
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer."""
-        deferred = _deferred
-        pumps = deferred.pumps
-        if not pumps and not deferred.in_batch:
+        flow = self.flow
+        if flow.needs_flush_callback():
             try:  # for output made outside a reader; a reader flushes sooner
-                asyncio.get_running_loop().call_soon(flush_deferred)
+                asyncio.get_running_loop().call_soon(flush_deferred, flow)
             except RuntimeError:  # no asyncio loop (the direct path needs one)
                 self._writer_wake.set()
                 return
-        pumps.append(self)
+        flow.defer(self)
         self._deferred = True
 
-    def _flush_deferred(self) -> None:
+    def flush_deferred(self) -> None:
+        """Write what was deferred now, or wake the writer (``flow.PendingOutput``)."""
         self._deferred = False
         try:
             sent = self._writer_idle and self._send_now()
@@ -563,15 +335,10 @@ class ConnectionPump(Held):
         and every other connection goes on (docs/limits.md, containment).
         """
         self._session = session
-        self._high_water, self._low_water = session.water_marks
-        budget = session.config.hold_budget_s
-        self._account = HoldAccount(budget)
-        self._cool_down_s = COOL_DOWN_BUDGETS * budget
-        inflow = getattr(session.graph, "inflow", None)  # the server's, on its graph
-        if isinstance(inflow, InboundBatch) and inflow.cool_downs is not None:
-            self._cool_downs = inflow.cool_downs
-            self._host = self._cool_downs.host(session.peer)
-            self._slow_until = self._cool_downs.until(self._host)  # a reconnection: its host's
+        # its marks, budget and cool-down (a reconnection: its host's)
+        self._account = self.flow.open_connection(
+            self, session.peer, session.config.hold_budget_s, session.water_marks
+        )
         session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
         session.start(_clock()())
         try:
@@ -617,7 +384,7 @@ class ConnectionPump(Held):
         ticket = admission.current_ticket()
         channel = self.channel
         if ticket is not None:
-            if isinstance(channel, ProbingChannel):
+            if channel.abilities.probe_input:
                 ticket.watch(channel.input_pending)
             else:  # no probe (no ticket is taken for such channels): it goes in turn
                 ticket.release()
@@ -641,7 +408,8 @@ class ConnectionPump(Held):
             start, count = 0, len(events)
             while True:
                 start = self._handle(session, events, start, now)
-                flush_deferred()  # what this slice published goes out now, in one write each
+                # what this slice published goes out now, in one write each
+                flush_deferred(self.flow)
                 if ticket is not None:
                     ticket.release()
                     ticket = None
@@ -662,8 +430,8 @@ class ConnectionPump(Held):
         self, session: Session, events: Sequence[FramerEvent], start: int, now: float
     ) -> int:
         """Handle ``events`` from ``start`` until the slice is full; return where it stopped."""
-        deferred = _deferred
-        deferred.in_batch = True
+        flow = self.flow
+        flow.begin()
         frames, size = self._slice_frames, self._slice_bytes
         index, count = start, len(events)
         try:
@@ -681,7 +449,7 @@ class ConnectionPump(Held):
                     if session.has_jobs:  # run it before the next frame (order)
                         break
         finally:
-            deferred.in_batch = False
+            flow.end()
             self._slice_frames, self._slice_bytes = frames, size
         return index
 
@@ -692,8 +460,8 @@ class ConnectionPump(Held):
         """
         while (job := session.take_job()) is not None:
             self._slice_frames = self._slice_bytes = 0  # this waits: the others run
-            if self._pausable is not None:
-                self._pausable.pause_reading()
+            if self._pausable:
+                self.channel.pause_reading()
             delay = job.ready_at - clock()
             if delay > 0 and not session.closing:
                 self._job_wait = anyio.Event()
@@ -710,7 +478,7 @@ class ConnectionPump(Held):
             except Exception as exc:  # the session reports it (an RwtError) or logs a bug
                 result = exc
             session.finish_job(job, result, clock())
-            flush_deferred()
+            flush_deferred(self.flow)
             self._wake_timers()
             await self._apply_backpressure()
 
@@ -728,11 +496,18 @@ class ConnectionPump(Held):
     async def _apply_backpressure(self) -> None:
         """Wait while the outboxes this reader's last slice filled are over their high watermark.
 
-        Reading is paused meanwhile, so the peer's sends back up in TCP.
+        Reading is paused meanwhile, so the peer's sends back up in TCP; the
+        time is charged to this reader's hold budget, whatever it waits for.
         """
-        await _hold_backlogged(self, self._account)
+        flow = self.flow
+        for held in flow.take_congested():
+            own = held is self
+            if held.over_water(own=own, mark=held.high_water):
+                if self._pausable:
+                    self.channel.pause_reading()
+                await wait_for(flow, held, own=own, account=self._account)
 
-    def _over_water(self, *, own: bool, mark: int) -> bool:
+    def over_water(self, *, own: bool, mark: int) -> bool:
         """Whether this connection's outbox is above ``mark`` for a reader to wait on.
 
         A reader waits on its own outbox only for what is never dropped (replies,
@@ -743,26 +518,15 @@ class ConnectionPump(Held):
             return False
         return (session.queued_reply_bytes if own else session.queued_bytes) > mark
 
-    def _unsent_bytes(self) -> int | None:
+    def unsent_bytes(self) -> int | None:
         """The socket's send queue, where the channel can read it (``holding.wait_for``)."""
-        channel = self.channel
-        return channel.unsent_bytes() if isinstance(channel, QueueingChannel) else None
+        return self.channel.unsent_bytes() if self._queueing else None
 
-    def _backlog_bytes(self) -> int:
+    def backlog_bytes(self) -> int:
         """What the peer has yet to read: its outbox and the socket's send queue."""
         session = self._session
         queued = 0 if session is None else session.queued_bytes
-        return queued + (self._unsent_bytes() or 0)
-
-    def _is_slow(self, now: float) -> bool:
-        """Found slow (or its host, before it connected) less than a cool-down ago."""
-        return now < self._slow_until
-
-    def _found_slow(self, now: float) -> None:
-        """Not waited for during the cool-down, nor its host's connections opened meanwhile."""
-        self._slow_until = now + self._cool_down_s
-        if self._cool_downs is not None:
-            self._cool_downs.cool(self._host, self._slow_until, now)
+        return queued + (self.unsent_bytes() or 0)
 
     async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
         try:

@@ -57,11 +57,12 @@ from rwt_protocol.shortcuts import switched_off
 
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
+from .flow import FlowControl, HostCoolDowns
 from .foxglove import FoxgloveOptions, foxglove_server
-from .holding import HostCoolDowns
+from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
-from .pump import ConnectionPump, InboundBatch, OutboundHold, run_connection
+from .pump import ConnectionPump, run_connection
 from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares, address_of
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
@@ -77,6 +78,8 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
     from rwt_protocol.ops import Auth
+
+    from .holding import Held
 
 __all__ = [
     "SERVER_NODE",
@@ -266,17 +269,19 @@ class RosbridgeServer:
         # a bad prefix is refused (ConfigError) before the graph is touched
         self._host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
         self.graph = graph or Graph()
-        # links' deliveries are held back as readers are; it keeps the hosts' hold cool-downs
-        self.graph.port.inflow = InboundBatch(
+        # one flow control for the connections and the links (it keeps the hosts' cool-downs);
+        # links' deliveries are held back as readers are
+        self.flow: FlowControl[Held] = FlowControl(
             self.config.session.hold_budget_s, HostCoolDowns(self._host_prefixes)
         )
+        self.graph.port.inflow = InboundBatch(self.flow)
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
         if authenticator is not None:
             session_config = replace(session_config, authenticator=authenticator)
         self.session_config = session_config
         # a link's queue for the other middleware holds publishers back as a subscriber does
-        self.graph.port.outflow = OutboundHold()
+        self.graph.port.outflow = OutboundHold(self.flow)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
         self._foxglove = (
             None
@@ -626,7 +631,7 @@ class RosbridgeServer:
     async def _run_stdio(self, connections: TaskGroup) -> None:
         read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())
         channel = StdioChannel(read_fd, write_fd, self.config.max_message_size)
-        pump = ConnectionPump(channel)
+        pump = ConnectionPump(channel, self.flow)
         session = self.open_session("stdio", "stdio", pump.wake)
         if session is None:
             return
@@ -651,7 +656,7 @@ class RosbridgeServer:
             RwtError: the server is full or stopping.
         """
         channel, client = memory_pair()
-        pump = ConnectionPump(channel)
+        pump = ConnectionPump(channel, self.flow)
         session = self.open_session("memory", "memory", pump.wake)
         if session is None:
             raise RwtError("too many connections")

@@ -20,6 +20,7 @@ import anyio
 
 from rwt_protocol.framing.streams import FramerEvent, LineFramer
 
+from .channel import PlainChannel
 from .tcp import encode_stream_frames
 
 if TYPE_CHECKING:
@@ -39,7 +40,7 @@ def _pollable(fd: int) -> bool:
     return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode) or (stat.S_ISCHR(mode) and os.isatty(fd))
 
 
-class StdioChannel:
+class StdioChannel(PlainChannel):
     """A session's frames over two file descriptors (stdin and stdout by default).
 
     Args:

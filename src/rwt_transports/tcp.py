@@ -20,6 +20,7 @@ from rwt_protocol.ops import Status
 
 from . import admission
 from .direct import DirectReader, DirectWriter
+from .flow import ChannelAbilities
 from .pump import ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import coalesce
@@ -68,6 +69,10 @@ class StreamChannel:
     """
 
     awaits_peer_close = False
+    abilities = ChannelAbilities(
+        pause_reading=True, probe_input=True, unsent_bytes=True, send_now=True
+    )
+    """A socket: paused while its reader is held, probed, its send queue read, written at once."""
 
     def __init__(
         self,
@@ -185,7 +190,7 @@ async def _serve_channel(
     channel: StreamChannel, stream: ByteStream, peer: str, host: SessionHost
 ) -> None:
     """Open the session of ``channel`` and run it, or refuse the connection."""
-    pump = ConnectionPump(channel)
+    pump = ConnectionPump(channel, host.flow)
     session = host.open_session(channel.transport, peer, pump.wake)
     if session is None:
         ticket = admission.current_ticket()

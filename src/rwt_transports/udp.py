@@ -28,6 +28,7 @@ from rwt_protocol.framing.datagrams import fragment_datagrams
 from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
 from rwt_protocol.ops import Status
 
+from .channel import PlainChannel
 from .pump import ConnectionPump, SessionHost, run_connection
 from .shares import HostPrefixes, HostShares
 from .udp_auth import Refusal, UdpAuth, read_first
@@ -108,7 +109,7 @@ class SharedSocket:
             await self._sock.sendto(data, host, port)
 
 
-class UdpChannel:
+class UdpChannel(PlainChannel):
     """One UDP peer of a shared socket as a pump ``Channel``."""
 
     transport = "udp"
@@ -303,7 +304,7 @@ class _Endpoint:
     ) -> _Peer | None:
         send, receive = anyio.create_memory_object_stream[bytes](_QUEUED_DATAGRAMS)
         channel = UdpChannel(self.sock, address, receive, self.options, self.max_message_size)
-        pump = ConnectionPump(channel)
+        pump = ConnectionPump(channel, self.host.flow)
         session = None
         host = self.hosts.host(address[0])
         taken, limit = len(self.peers), self.options.max_sessions

@@ -51,6 +51,7 @@ from rwt_protocol.shortcuts import enabled
 
 from . import admission
 from .direct import DirectReader, DirectWriter
+from .flow import ChannelAbilities
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import coalesce
@@ -134,6 +135,10 @@ class WebSocketChannel:
 
     transport = "ws"
     awaits_peer_close = True
+    abilities = ChannelAbilities(
+        pause_reading=True, probe_input=True, unsent_bytes=True, send_now=True
+    )
+    """A socket: paused while its reader is held, probed, its send queue read, written at once."""
 
     def __init__(
         self,
@@ -565,7 +570,7 @@ async def serve_websocket_connection(
             await _serve_console(stream, request, options.console, peer)
             return
         channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)
-        pump = ConnectionPump(channel)
+        pump = ConnectionPump(channel, host.flow)
         refusal = _refusal(request, options)
         subprotocol = None if foxglove is None else _foxglove_offered(request)
         if refusal is None and foxglove_only and subprotocol is None:

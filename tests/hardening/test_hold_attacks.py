@@ -15,7 +15,7 @@ again:
 
 With the hold budget charged to the publisher, a host found slow cooled down
 across reconnections and catching up, and "reading" meaning a useful share of
-the backlog (``holding.READING_SHARE``), the topic is frozen for the bystander
+the backlog (``flow.READING_SHARE``), the topic is frozen for the bystander
 for about one budget (1 s here) in all: under 10 % of the run, and no later
 gap is longer than a budget. The rule is about time, so time is asserted (a
 share of the run, a gap), with margins for a loaded machine: these attacks froze

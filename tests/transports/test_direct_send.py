@@ -25,6 +25,8 @@ from rwt_graph.graph import Graph
 from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import ENV_VAR
+from rwt_transports.flow import ChannelAbilities, FlowControl
+from rwt_transports.holding import Held
 from rwt_transports.pump import ConnectionPump, flush_deferred
 from rwt_transports.server import ServerConfig
 from rwt_transports.tcp import StreamChannel
@@ -139,6 +141,7 @@ class FakeChannel:
 
     transport = "fake"
     awaits_peer_close = False
+    abilities = ChannelAbilities(send_now=True)
 
     def __init__(self) -> None:
         self.wire: list[tuple[str, bytes]] = []
@@ -171,24 +174,25 @@ class FakeChannel:
 
 
 @pytest.fixture
-async def pumped() -> AsyncIterator[tuple[FakeChannel, Session, Graph]]:
+async def pumped() -> AsyncIterator[tuple[FakeChannel, Session, Graph, FlowControl[Held]]]:
     graph = Graph(clock=FakeClock())
     channel = FakeChannel()
-    pump = ConnectionPump(channel)  # type: ignore[arg-type]
+    flow: FlowControl[Held] = FlowControl()
+    pump = ConnectionPump(channel, flow)  # type: ignore[arg-type]
     session = Session(graph.port, "sub", on_output=pump.wake)
     session.receive_frame(b'{"op":"subscribe","topic":"/t","type":"std_msgs/String"}', 0.0)
     async with anyio.create_task_group() as tg:
         tg.start_soon(pump.run, session)
         await anyio.wait_all_tasks_blocked()
-        yield channel, session, graph
+        yield channel, session, graph, flow
         channel.stop.set()
 
 
 @pytest.mark.parametrize("anyio_backend", ["asyncio"])
 async def test_the_pump_mixes_both_paths_without_reordering(
-    pumped: tuple[FakeChannel, Session, Graph],
+    pumped: tuple[FakeChannel, Session, Graph, FlowControl[Held]],
 ) -> None:
-    channel, _, graph = pumped
+    channel, _, graph, flow = pumped
     publisher = graph.create_publisher("/t", "std_msgs/msg/String")
 
     def publish(*numbers: int) -> None:
@@ -196,10 +200,10 @@ async def test_the_pump_mixes_both_paths_without_reordering(
             publisher.publish({"data": str(i)})
 
     publish(0, 1, 2)  # the writer is idle: written together at the end of the batch
-    flush_deferred()
+    flush_deferred(flow)
     channel.ready = False
     publish(3)  # the socket is busy: the writer is woken
-    flush_deferred()
+    flush_deferred(flow)
     channel.ready = True
     publish(4)  # behind 3 in the queue: the writer sends both
     await anyio.wait_all_tasks_blocked()
@@ -213,9 +217,9 @@ async def test_the_pump_mixes_both_paths_without_reordering(
 
 @pytest.mark.parametrize("anyio_backend", ["asyncio"])
 async def test_a_pending_close_is_left_to_the_writer(
-    pumped: tuple[FakeChannel, Session, Graph],
+    pumped: tuple[FakeChannel, Session, Graph, FlowControl[Held]],
 ) -> None:
-    channel, session, graph = pumped
+    channel, session, graph, _ = pumped
     publisher = graph.create_publisher("/t", "std_msgs/msg/String")
     channel.ready = False
     publisher.publish({"data": "queued"})

@@ -1,4 +1,4 @@
-"""Input backpressure's accounting, with numbers and a made-up clock (holding.py).
+"""Input backpressure's accounting, with numbers and a made-up clock (flow.py).
 
 The hold budget is charged to the reader being held, whatever it waits for, and
 regained at ``HOLD_REFILL`` a second; a peer reads when it takes
@@ -12,7 +12,7 @@ import math
 
 import pytest
 
-from rwt_transports.holding import (
+from rwt_transports.flow import (
     HOLD_REFILL,
     INPUT_STALL_S,
     READING_SHARE,
@@ -107,4 +107,4 @@ def test_cool_downs_keep_the_latest_end_and_forget_expired_hosts() -> None:
     assert cool_downs.until("192.0.2.1") == 30.0
     cool_downs.cool("192.0.2.2", 60.0, now=40.0)  # the first one's is over: it goes
     assert cool_downs.until("192.0.2.1") == -math.inf
-    assert len(cool_downs._until) == 1
+    assert len(cool_downs) == 1

@@ -1,0 +1,433 @@
+"""Flow control as one sans-IO object: who waits for whom, and for how long.
+
+Input is flow-controlled (docs/limits.md, "Backpressure"): a reader whose
+batch of frames pushed an outbox over its high watermark waits until that
+outbox is back under its low watermark. Two kinds of outbox (``Outlet``) are
+waited for alike:
+
+- a connection's (its pump's): a subscriber reading slower than the
+  publishers write;
+- a link's queue for the other middleware (``rwt_graph.link.Backlog``): a
+  Zenoh network taking samples slower than the local publishers make them.
+
+``FlowControl`` holds every rule of it, for one event loop (the server owns
+one): the batch being handled and the outlets it congested, the outputs
+deferred to its end (the ``deferred-send`` shortcut), each outlet's watermarks
+and progress, the hold budgets (``HoldAccount``), the stall rule
+(``ReadingWindow``: is this consumer reading) and the slow verdicts with their
+cool-downs (``HostCoolDowns``). Its methods take the time (``now``, seconds of
+the event loop's clock) and byte counts and return decisions; the pump
+(pump.py, holding.py) and the links' gates (gates.py) carry them out: pause a
+socket, wait for a consumer's next take, write deferred output.
+
+The time waited is charged to the reader being held (a publishing connection,
+or a graph's link deliveries as one), however many outlets it waits for:
+several slow subscribers share one budget instead of adding theirs. An outlet
+is waited for only while its consumer reads; one found slow (it did not read,
+or the budget ran out while it was waited for) is left to its own drop rules
+(D24 for a connection, the link's byte bound for a link): a connection for
+``COOL_DOWN_BUDGETS`` budgets, and so is every connection its host opens
+meanwhile, whether it catches up or reconnects; a link until it catches up.
+
+What a channel can do beyond receive, send and close comes as one value,
+``ChannelAbilities``, that the channel reports.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Generic, Protocol, TypeVar
+
+from .shares import HostPrefixes, address_of
+
+__all__ = [
+    "COOL_DOWN_BUDGETS",
+    "HOLD_REFILL",
+    "INPUT_STALL_S",
+    "READING_SHARE",
+    "ChannelAbilities",
+    "FlowControl",
+    "Hold",
+    "HoldAccount",
+    "HostCoolDowns",
+    "Outlet",
+    "PendingOutput",
+    "ReadingWindow",
+    "send_queue_shrank",
+]
+
+INPUT_STALL_S = 1.0
+"""Seconds of a hold over which a peer must show that it reads (``READING_SHARE``),
+else it counts as slow at once: readers stop waiting for it before the hold
+budget is spent (docs/limits.md). Its queue then drops and it is closed after
+``--send-timeout`` (D24)."""
+
+READING_SHARE = 1 / 16
+"""Share of its backlog (outbox plus the socket's send queue, sendqueue.py) a peer
+must take in each ``INPUT_STALL_S`` of a hold to count as reading. A viewer
+drawing three 300 KB frames a second from a full 16 MiB connection (8 MiB queued,
+4 MiB in the kernel) takes 7 %; one reading 64 KB every 0.5 s of a 10 MB/s topic,
+1 %: it only looks alive."""
+
+HOLD_REFILL = 0.1
+"""Seconds of hold budget a reader regains per second, up to the whole budget: over
+any ``t`` seconds it is held at most ``--hold-budget`` + ``HOLD_REFILL`` x ``t``, a
+tenth of the time in the long run, whoever it waits for."""
+
+COOL_DOWN_BUDGETS = 20.0
+"""Hold budgets' worth of seconds a connection found slow, and every connection its
+host opens meanwhile, is not waited for (100 s at the default 5 s budget): one
+host can hold a publisher back for at most one budget in 21."""
+
+
+@dataclass(frozen=True, slots=True)
+class ChannelAbilities:
+    """What a connection's channel can do beyond receive, send and close.
+
+    Attributes:
+        pause_reading: its socket can stop being read between ``receive`` calls
+            (``pause_reading``), so a held reader's peer is pushed back by TCP.
+        probe_input: it can tell whether input is already here without reading
+            it (``input_pending``): a starting connection's first input goes
+            first (admission.py).
+        unsent_bytes: it can read its kernel's send queue (``unsent_bytes``,
+            sendqueue.py): progress no completed send shows.
+        send_now: it can write without awaiting when ``can_send_now`` says so
+            (``send_now``): the ``deferred-send`` path.
+    """
+
+    pause_reading: bool = False
+    probe_input: bool = False
+    unsent_bytes: bool = False
+    send_now: bool = False
+
+
+class HoldAccount:
+    """The hold budget of one reader being held: what it has left, charged once per second.
+
+    A token bucket: ``budget_s`` seconds, spent by each second the reader waits
+    (whatever it waits for), regained at ``HOLD_REFILL`` a second.
+
+    Args:
+        budget_s: the whole budget, seconds (``--hold-budget``); 0: never held.
+    """
+
+    def __init__(self, budget_s: float) -> None:
+        self.budget_s = budget_s
+        self._spent = 0.0  # seconds, as of ``_at``
+        self._at = -math.inf  # the time ``_spent`` was last settled
+        self._charged_to = -math.inf  # the time up to which waiting is charged
+
+    def _settle(self, now: float) -> None:
+        if now > self._at:
+            if self._spent > 0:
+                self._spent = max(0.0, self._spent - (now - self._at) * HOLD_REFILL)
+            self._at = now
+
+    def left(self, now: float) -> float:
+        """Seconds the reader may still be held at ``now`` (0 or more)."""
+        self._settle(now)
+        return max(0.0, self.budget_s - self._spent)
+
+    def charge(self, start: float, end: float) -> None:
+        """Charge the wait from ``start`` to ``end`` (s).
+
+        Waits that overlap (link deliveries waiting in several tasks) are
+        charged once: only time after what was already charged counts.
+        """
+        start = max(start, self._charged_to)
+        if end > start:
+            self._settle(end)
+            self._spent += end - start
+            self._charged_to = end
+
+
+class ReadingWindow:
+    """Whether a peer reads, judged over ``INPUT_STALL_S`` of a hold.
+
+    Args:
+        backlog: bytes waiting for the peer at ``now`` (outbox and send queue).
+        now: the window's start, seconds.
+    """
+
+    def __init__(self, backlog: int, now: float) -> None:
+        self.backlog = backlog
+        self.ends = now + INPUT_STALL_S
+
+    def reading(self, backlog: int) -> bool:
+        """Whether the peer took ``READING_SHARE`` of the window's backlog, now ``backlog``."""
+        return self.backlog - backlog >= self.backlog * READING_SHARE
+
+
+def send_queue_shrank(before: int | None, after: int | None) -> bool:
+    """Whether a socket's send queue shrank: its peer read, though no send completed.
+
+    ``before``, ``after``: the queue's bytes (None where it cannot be read).
+    """
+    return before is not None and after is not None and after < before
+
+
+class HostCoolDowns:
+    """Until when each host's connections are not waited for, after one was found slow.
+
+    Hosts are grouped as for the connection shares (``shares.HostPrefixes``).
+    Memory: one entry per host found slow within its cool-down; expired ones go
+    at the next verdict.
+
+    Args:
+        hosts: the server's host grouping.
+    """
+
+    def __init__(self, hosts: HostPrefixes) -> None:
+        self._hosts = hosts
+        self._until: dict[str, float] = {}
+
+    def host(self, peer: str) -> str:
+        """The host a peer address (``host:port``, ``stdio``, ``memory``) counts as."""
+        return self._hosts.host(address_of(peer))
+
+    def until(self, host: str) -> float:
+        """The time until which ``host``'s new connections are not waited for (-inf: none)."""
+        return self._until.get(host, -math.inf)
+
+    def cool(self, host: str, until: float, now: float) -> None:
+        """``host`` is not waited for until ``until`` (s); drop the entries expired at ``now``."""
+        self._until = {h: t for h, t in self._until.items() if t > now}
+        self._until[host] = max(until, self.until(host))
+
+    def __len__(self) -> int:
+        """Hosts remembered (within their cool-down, or expired since the last verdict)."""
+        return len(self._until)
+
+
+class Outlet:
+    """An outbox readers may wait for, as flow control sees it: marks, progress, verdict.
+
+    A connection's (its pump) or a link's queue (``holding.LinkHold``). A
+    connection found slow is not waited for during a cool-down
+    (``cool_down_s``), nor is its host; a link (``cool_down_s`` None) until it
+    catches up.
+
+    Attributes:
+        high_water: bytes past which it congests a reader's batch.
+        low_water: bytes under which a reader held for it goes on.
+        congested: in the current batch's list of outlets to wait for.
+        takes: its consumer's takes so far: its progress.
+    """
+
+    def __init__(self, high_water: int = 0, low_water: int = 0) -> None:
+        self.high_water = high_water
+        self.low_water = low_water
+        self.congested = False
+        self.takes = 0
+        self.cool_down_s: float | None = None  # None: slow until caught up (a link)
+        self.host: str | None = None  # its host, for the cool-downs (a connection of a server)
+        self._slow = False  # a link found slow, until caught up
+        self._slow_until = -math.inf  # a connection found slow (or its host): until then
+
+    def is_slow(self, now: float) -> bool:
+        """Whether readers leave it to its drop rules at ``now`` instead of waiting."""
+        return self._slow or now < self._slow_until
+
+    def took(self, caught_up: bool) -> None:
+        """Its consumer took something (``caught_up``: nothing is left)."""
+        self.takes += 1
+        if caught_up:
+            self._slow = False  # a link; a connection stays slow until its cool-down ends
+
+
+class PendingOutput(Protocol):
+    """A connection whose output waits for the end of the batch (the ``deferred-send`` path)."""
+
+    def flush_deferred(self) -> None:
+        """Write what it queued (or wake its writer)."""
+
+
+OutletT = TypeVar("OutletT", bound=Outlet)
+
+
+class Hold(Generic[OutletT]):
+    """One held reader waiting for one congested outlet: the stall rule and the budget.
+
+    ``FlowControl.hold`` makes it. The caller waits while the outlet is over
+    its low watermark: before each wait it asks ``next_wait`` how long to wait
+    for the consumer's next take, and after it reports the time it waited
+    (``waited``). The outlet is found slow when its consumer did not take
+    ``READING_SHARE`` of its backlog in an ``INPUT_STALL_S`` window, or when
+    the reader's budget ran out while it was waited for.
+    """
+
+    def __init__(self, flow: FlowControl[OutletT], outlet: OutletT, account: HoldAccount) -> None:
+        self._flow = flow
+        self._outlet = outlet
+        self._account = account
+        self._window: ReadingWindow | None = None
+        self._waited = False
+
+    def needs_backlog(self, now: float) -> bool:
+        """Whether ``next_wait`` at ``now`` needs the outlet's backlog (a window starts)."""
+        window = self._window
+        return window is None or now >= window.ends
+
+    def next_wait(self, now: float, backlog: int) -> float | None:
+        """Seconds to wait for the consumer's next take at ``now``, or None: stop waiting.
+
+        Args:
+            now: the time, seconds.
+            backlog: bytes its consumer has yet to take (outbox and send queue);
+                read only when ``needs_backlog`` said so.
+        """
+        window = self._window
+        if window is None:
+            window = self._window = ReadingWindow(backlog, now)
+        elif now >= window.ends:
+            if not window.reading(backlog):
+                self._flow.found_slow(self._outlet, now)
+                return None
+            window = self._window = ReadingWindow(backlog, now)
+        left = self._account.left(now)
+        if left <= 0:
+            if self._waited:  # it kept the reader until the budget ran out
+                self._flow.found_slow(self._outlet, now)
+            return None
+        return min(window.ends - now, left)
+
+    def waited(self, start: float, end: float) -> None:
+        """The reader waited from ``start`` to ``end`` (s): charge its budget."""
+        self._account.charge(start, end)
+        self._waited = True
+
+
+class FlowControl(Generic[OutletT]):
+    """The flow control of one event loop's connections and links (see the module text).
+
+    Used on that loop only; sans-IO: every method takes the time and returns.
+
+    Args:
+        hold_budget_s: seconds the links' deliveries may be held, all links as
+            one reader (``--hold-budget``, ``links``).
+        cool_downs: the server's per-host cool-downs; None: a connection's
+            cool-down ends with it.
+    """
+
+    def __init__(self, hold_budget_s: float = 0.0, cool_downs: HostCoolDowns | None = None) -> None:
+        self.links = HoldAccount(hold_budget_s)
+        """The hold budget of the links' deliveries (``InflowGate``), one for all."""
+        self.cool_downs = cool_downs
+        self.in_batch = False
+        """A reader (or a link's deliveries) is handling a batch, and flushes at its end."""
+        self._congested: list[OutletT] = []  # over the high watermark in this batch
+        self._deferred: list[PendingOutput] = []  # output to write at the batch's end
+
+    # -- a batch and who congested it
+
+    def begin(self) -> None:
+        """A batch starts: congestion is noted and output deferred until ``end``."""
+        self.in_batch = True
+
+    def end(self) -> None:
+        """The batch ended (the caller writes out what was deferred: ``take_deferred``)."""
+        self.in_batch = False
+
+    def congests(self, outlet: OutletT, queued: int) -> bool:
+        """Whether ``queued`` bytes in ``outlet`` congest the current batch (not noted yet).
+
+        Cheap, asked for every output; ``note_congested`` then decides.
+        """
+        return self.in_batch and not outlet.congested and queued > outlet.high_water
+
+    def note_congested(self, outlet: OutletT, now: float) -> None:
+        """``outlet`` went over its high watermark in this batch: the reader is to wait for it.
+
+        An outlet found slow is not waited for.
+        """
+        if self.in_batch and not outlet.congested and not outlet.is_slow(now):
+            outlet.congested = True
+            self._congested.append(outlet)
+
+    def has_congested(self) -> bool:
+        """Whether an outlet went over its high watermark since the last ``take_congested``."""
+        return bool(self._congested)
+
+    def take_congested(self) -> list[OutletT]:
+        """The outlets pushed over their high watermark since the last take, for the reader."""
+        congested = self._congested
+        if congested:
+            self._congested = []
+            for outlet in congested:
+                outlet.congested = False
+        return congested
+
+    # -- output deferred to the end of the batch (the ``deferred-send`` shortcut)
+
+    def defer(self, output: PendingOutput) -> None:
+        """Leave ``output`` for the end of the batch (``take_deferred``)."""
+        self._deferred.append(output)
+
+    def needs_flush_callback(self) -> bool:
+        """Whether a deferral now needs a flush of its own: no batch ends to flush it.
+
+        True for the first deferral outside a batch (in-process publishers,
+        timers, service tasks): the caller schedules one flush on its loop.
+        """
+        return not self._deferred and not self.in_batch
+
+    def take_deferred(self) -> list[PendingOutput]:
+        """The outputs deferred since the last take, in order; the caller writes them."""
+        deferred = self._deferred
+        if deferred:
+            self._deferred = []
+        return deferred
+
+    # -- outlets and verdicts
+
+    def open_connection(
+        self, outlet: OutletT, peer: str, budget_s: float, water_marks: tuple[int, int]
+    ) -> HoldAccount:
+        """A connection starts: its outlet's marks and cool-down; returns its hold budget.
+
+        Args:
+            outlet: the connection's outlet.
+            peer: its peer address (``host:port``, ``stdio``, ``memory``).
+            budget_s: its hold budget as a reader (``--hold-budget``), seconds.
+            water_marks: its outbox's (high, low) watermarks, bytes.
+
+        Returns:
+            the account its reader is charged for every outlet it waits for. A
+            reconnection of a host found slow within its cool-down starts slow.
+        """
+        outlet.high_water, outlet.low_water = water_marks
+        outlet.cool_down_s = COOL_DOWN_BUDGETS * budget_s
+        cool_downs = self.cool_downs
+        if cool_downs is not None:
+            outlet.host = cool_downs.host(peer)
+            outlet._slow_until = cool_downs.until(outlet.host)
+        return HoldAccount(budget_s)
+
+    def found_slow(self, outlet: OutletT, now: float) -> None:
+        """``outlet`` did not read, or a reader's budget ran out waiting for it, at ``now``.
+
+        A connection is not waited for during its cool-down, nor its host's
+        connections opened meanwhile; a link until it catches up.
+        """
+        cool_down_s = outlet.cool_down_s
+        if cool_down_s is None:
+            outlet._slow = True
+            return
+        outlet._slow_until = now + cool_down_s
+        if self.cool_downs is not None and outlet.host is not None:
+            self.cool_downs.cool(outlet.host, outlet._slow_until, now)
+
+    def hold(
+        self, outlet: OutletT, account: HoldAccount | None, now: float
+    ) -> Hold[OutletT] | None:
+        """A reader charged to ``account`` is to wait for ``outlet`` (another's) at ``now``.
+
+        Returns:
+            the hold that says how long to wait, or None: ``outlet`` is not
+            waited for (found slow, or no account to charge).
+        """
+        if account is None or outlet.is_slow(now):
+            return None
+        return Hold(self, outlet, account)
