@@ -92,7 +92,7 @@ def test_server_info_comes_first_then_the_published_topics() -> None:
     client = Client(graph)
     info = client.ops[0]
     assert info["op"] == "serverInfo"
-    assert info["capabilities"] == ["clientPublish"]
+    assert info["capabilities"] == ["clientPublish", "services", "connectionGraph"]
     assert info["supportedEncodings"] == ["cdr", "json"]
     assert info["sessionId"] == "s1"
     channel = client.channel("/chatter")
@@ -217,7 +217,10 @@ def test_access_globs_hide_topics() -> None:
         (b"\x01\x00", True, "shorter than its 5-byte header"),
         (b"", True, "empty binary frame"),
         (b"\x01\x07\x00\x00\x00payload", True, "unknown client channel 7"),
-        (b"\x02\x00\x00\x00\x00", True, "service calls are not supported"),
+        (b"\x02\x00\x00\x00\x00", True, "shorter than its 13-byte header"),
+        (b"\x02" + struct.pack("<III", 1, 1, 99) + b"cdr", True, "past the frame's end"),
+        (b"\x02" + struct.pack("<III", 1, 1, 2) + b"\xff\xfe", True, "not UTF-8"),
+        (b'{"op": "fetchAsset", "uri": "x", "requestId": 1}', False, "not supported"),
     ],
 )
 def test_bad_input_gets_an_error_status_and_the_session_goes_on(
