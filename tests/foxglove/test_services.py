@@ -10,6 +10,7 @@ from rwt_foxglove import FoxgloveLimits
 from rwt_foxglove.wire import decode_wire
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import install_rosapi
+from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
 from tests.conftest import Peer
 from tests.foxglove.sansio import Client, cdr
@@ -203,4 +204,19 @@ def test_a_closed_session_forgets_its_calls(graph: Graph) -> None:
         op="service_response", service="/rb_add", id=request["id"], result=True, values={"sum": 3}
     )
     assert client.session.take() == []
-    assert struct.calcsize("<III") == 12  # the call header's size (protocol.py)
+
+
+def test_a_ros1_graph_calls_in_the_ros1_serialization() -> None:
+    ros1 = Graph(TypeRegistry(Dialect.ROS1))
+    ros1.create_service(
+        "/switch", "std_srvs/SetBool", lambda req: {"success": req["data"], "message": "on"}
+    )
+    client = Client(ros1)
+    service = client.service("/switch")
+    assert service["request"]["encoding"] == "ros1"  # type: ignore[index]
+    assert service["request"]["schemaName"] == "std_srvs/SetBoolRequest"  # type: ignore[index]
+    assert service["request"]["schemaEncoding"] == "ros1msg"  # type: ignore[index]
+    client.call(int(service["id"]), 1, b"\x01", encoding="ros1")  # type: ignore[call-overload]
+    [(_, call_id, encoding, payload)] = client.responses()
+    assert (call_id, encoding) == (1, "ros1")
+    assert payload == b"\x01" + struct.pack("<I", 2) + b"on"
