@@ -1,7 +1,7 @@
 """The connection graph for one Foxglove client, without I/O (docs/foxglove.md).
 
 After ``subscribeConnectionGraph`` the client gets the whole graph in one
-``connectionGraphUpdate``, then, at each sync, what changed: topics and
+``connectionGraphUpdate`` (even an empty one), then, at each sync, what changed: topics and
 services new or whose nodes changed (with all their nodes), and the names gone
 (``removedTopics``: neither published nor subscribed any more;
 ``removedServices``), as the Foxglove SDK's server computes them. The ids are
@@ -101,6 +101,15 @@ def diff(old: GraphView, new: GraphView) -> ConnectionGraphUpdate | None:
     )
 
 
+_EMPTY = ConnectionGraphUpdate(
+    publishedTopics=[],
+    subscribedTopics=[],
+    advertisedServices=[],
+    removedTopics=[],
+    removedServices=[],
+)
+
+
 class ConnectionGraph:
     """One client's subscription to the connection graph.
 
@@ -127,9 +136,10 @@ class ConnectionGraph:
         if self._sent is not None:
             self._out.error("subscribeConnectionGraph: already subscribed")
             return
-        self._sent = GraphView()
-        self._update = None
-        self.sync()
+        view = view_of(self._graph, self._access)
+        self._sent = view
+        # the whole graph, even empty: the first update is always sent, as the SDK does
+        self._update = self._out.tracked(diff(GraphView(), view) or _EMPTY)
 
     def unsubscribe(self) -> None:
         """Stop the updates."""
