@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Final
 
 from rwt_graph.parameters.store import ParameterError, Parameters, ParamValue, ros2_value
 from rwt_protocol.errors import RwtError
+from rwt_protocol.names import MAX_NAME_LENGTH
 from rwt_protocol.server.access import AccessPolicy, Family
 
 from .protocol import (
@@ -100,6 +101,8 @@ class ParameterBridge:
         Raises:
             ParameterError: a malformed name, or one the client may not use.
         """
+        if len(name) > MAX_NAME_LENGTH:  # refused before any text echoes it whole
+            raise ParameterError(f"parameter name longer than {MAX_NAME_LENGTH} characters")
         if not self._params.ros1:
             node, sep, param = name.partition(_SEP)
             if not sep:

@@ -81,6 +81,9 @@ def test_bad_names_get_a_status_and_the_rest_an_answer(graph: Graph) -> None:
     assert _values(client)[0]["parameters"] == [{"name": "/robot.name", "value": "r2"}]
     client.send({"op": "getParameters", "parameterNames": "not a list"})
     assert "getParameters" in _errors(client)[0]
+    client.send({"op": "getParameters", "parameterNames": ["/" + "n" * 100_000 + ".p"]})
+    [error] = _errors(client)
+    assert "longer than" in error and len(error) < 200
 
 
 def test_set_answers_with_the_values_and_refusals_are_statuses(graph: Graph) -> None:
