@@ -133,6 +133,20 @@ class ParameterBridge:
 
     # ---- ops -----------------------------------------------------------------------
 
+    def handle(
+        self,
+        op: GetParameters | SetParameters | SubscribeParameterUpdates | UnsubscribeParameterUpdates,
+    ) -> None:
+        """Answer one parameter op of the client; problems are error statuses."""
+        if isinstance(op, GetParameters):
+            self.get(op)
+        elif isinstance(op, SetParameters):
+            self.set(op)
+        elif isinstance(op, SubscribeParameterUpdates):
+            self.subscribe(op)
+        else:
+            self.unsubscribe(op)
+
     def get(self, op: GetParameters) -> None:
         """Answer ``getParameters``: the values of the names that are set, with ``op.id``."""
         if op.parameterNames:

@@ -293,17 +293,9 @@ class FoxgloveSession:
         self,
         op: GetParameters | SetParameters | SubscribeParameterUpdates | UnsubscribeParameterUpdates,
     ) -> None:
-        bridge = self.params
-        if bridge is None:
+        if self.params is None:
             raise FoxgloveInputError("parameters are not supported by this server")
-        if isinstance(op, GetParameters):
-            bridge.get(op)
-        elif isinstance(op, SetParameters):
-            bridge.set(op)
-        elif isinstance(op, SubscribeParameterUpdates):
-            bridge.subscribe(op)
-        else:
-            bridge.unsubscribe(op)
+        self.params.handle(op)
 
     def _subscribe(self, op: Subscribe) -> None:
         for each in op.subscriptions:
