@@ -3,8 +3,10 @@
 Three tasks per connection: the reader hands each received frame to the
 session; the writer sends what the session queued, a batch at a time, whenever
 it is woken (a reply, a graph message); the watcher calls ``sync`` every
-``sync_interval_s`` so that topics that appeared or went are (un)advertised
-(the graph announces no changes, so it is looked at: one pass over its topics).
+``sync_interval_s`` so that topics and services that appeared or went are
+(un)advertised, the connection graph's changes sent and old service calls
+timed out (the graph announces no changes, so it is looked at: one pass over
+its topics and services).
 The session never awaits, so a slow client only fills its own queue.
 """
 
@@ -116,4 +118,4 @@ async def _write(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wak
 async def _watch(session: FoxgloveSession, interval_s: float) -> None:
     while True:
         await anyio.sleep(interval_s)
-        session.sync()
+        session.sync(anyio.current_time())

@@ -4,10 +4,17 @@ Facts from the Foxglove SDK's server (``rust/foxglove/src/protocol/v1``) and the
 ``@foxglove/ws-protocol`` client's types (docs/foxglove.md): JSON text ops carry
 an ``op`` field; binary frames start with a one-byte opcode and are little-endian.
 Server to client: ``serverInfo``, ``status``, ``removeStatus``, ``advertise``,
-``unadvertise`` (text), message data (``0x01``: u32 subscription id, u64 log
-time in ns, payload) and time (``0x02``: u64 ns). Client to server:
-``subscribe``, ``unsubscribe``, ``advertise``, ``unadvertise`` (text) and
-client message data (``0x01``: u32 client channel id, payload).
+``unadvertise``, ``advertiseServices``, ``unadvertiseServices``,
+``serviceCallFailure``, ``parameterValues``, ``connectionGraphUpdate`` (text),
+message data (``0x01``: u32 subscription id, u64 log time in ns, payload), time
+(``0x02``: u64 ns) and service call response (``0x03``: u32 service id, u32
+call id, u32 encoding length, encoding, payload). Client to server:
+``subscribe``, ``unsubscribe``, ``advertise``, ``unadvertise``,
+``getParameters``, ``setParameters``, ``subscribeParameterUpdates``,
+``unsubscribeParameterUpdates``, ``subscribeConnectionGraph``,
+``unsubscribeConnectionGraph`` (text), client message data (``0x01``: u32
+client channel id, payload) and service call request (``0x02``: as the
+response).
 
 Every bad input becomes a ``FoxgloveInputError`` whose text goes to the peer as
 an error ``status``; the connection goes on (docs/foxglove.md, limits). JSON
@@ -19,7 +26,7 @@ from __future__ import annotations
 
 import struct
 from enum import IntEnum
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import msgspec
 
@@ -34,23 +41,43 @@ __all__ = [
     "SUBPROTOCOLS",
     "UNSUPPORTED_OPS",
     "Advertise",
+    "AdvertiseServices",
+    "AdvertisedService",
     "Channel",
     "ClientAdvertise",
     "ClientChannel",
     "ClientMessageData",
     "ClientOp",
     "ClientUnadvertise",
+    "ConnectionGraphUpdate",
     "FoxgloveInputError",
+    "GetParameters",
+    "ParameterIn",
+    "ParameterOut",
+    "ParameterValues",
+    "PublishedTopic",
     "RemoveStatus",
     "ServerInfo",
+    "Service",
+    "ServiceCallFailure",
+    "ServiceCallRequest",
+    "ServiceSchema",
+    "SetParameters",
     "Status",
     "StatusLevel",
     "Subscribe",
+    "SubscribeConnectionGraph",
+    "SubscribeParameterUpdates",
+    "SubscribedTopic",
     "Subscription",
     "Unadvertise",
+    "UnadvertiseServices",
     "Unsubscribe",
+    "UnsubscribeConnectionGraph",
+    "UnsubscribeParameterUpdates",
     "encode_message_data",
     "encode_op",
+    "encode_service_call_response",
     "encode_time",
     "parse_binary",
     "parse_text",
@@ -64,9 +91,11 @@ U32_MAX: Final = 2**32 - 1
 _MESSAGE_DATA: Final = 0x01
 _TIME: Final = 0x02
 _SERVICE_CALL_REQUEST: Final = 0x02
+_SERVICE_CALL_RESPONSE: Final = 0x03
 _DATA_HEADER = struct.Struct("<BIQ")  # opcode, subscription id, log time (ns)
 _CLIENT_DATA_HEADER = struct.Struct("<BI")  # opcode, client channel id
 _TIME_FRAME = struct.Struct("<BQ")
+_CALL_HEADER = struct.Struct("<III")  # service id, call id, encoding length (after the opcode)
 
 
 def select_subprotocol(offered: Iterable[str]) -> str | None:
@@ -144,29 +173,98 @@ class ClientMessageData(msgspec.Struct, frozen=True):
     payload: bytes | memoryview
 
 
-ClientOp = Subscribe | Unsubscribe | ClientAdvertise | ClientUnadvertise | ClientMessageData
+class ServiceCallRequest(msgspec.Struct, frozen=True):
+    """Binary service call request (opcode 0x02): a call of a server service by the client's id."""
 
-TextOp = Subscribe | Unsubscribe | ClientAdvertise | ClientUnadvertise
+    service_id: int
+    call_id: int
+    encoding: str
+    payload: bytes | memoryview
+
+
+class GetParameters(msgspec.Struct, frozen=True):
+    """``getParameters``: the values of these parameters (none named: all); ``id`` is echoed."""
+
+    parameterNames: list[str]
+    id: str | None = None
+
+
+class ParameterIn(msgspec.Struct, frozen=True):
+    """One parameter of ``setParameters``: no ``value`` (or null) deletes it.
+
+    ``type`` is ``float64``, ``float64_array`` or ``byte_array`` when JSON alone
+    cannot tell (a float written without a fraction).
+    """
+
+    name: str
+    value: Any = None
+    type: str | None = None
+
+
+class SetParameters(msgspec.Struct, frozen=True):
+    """``setParameters``: set or delete parameters; with ``id``, ``parameterValues`` answers."""
+
+    parameters: list[ParameterIn]
+    id: str | None = None
+
+
+class SubscribeParameterUpdates(msgspec.Struct, frozen=True):
+    """``subscribeParameterUpdates``: push changes of these parameters."""
+
+    parameterNames: list[str]
+
+
+class UnsubscribeParameterUpdates(msgspec.Struct, frozen=True):
+    """``unsubscribeParameterUpdates``: stop pushing changes of these parameters."""
+
+    parameterNames: list[str]
+
+
+class SubscribeConnectionGraph(msgspec.Struct, frozen=True):
+    """``subscribeConnectionGraph``: send the graph, then its changes."""
+
+
+class UnsubscribeConnectionGraph(msgspec.Struct, frozen=True):
+    """``unsubscribeConnectionGraph``: stop sending the graph's changes."""
+
+
+ClientOp = (
+    Subscribe
+    | Unsubscribe
+    | ClientAdvertise
+    | ClientUnadvertise
+    | ClientMessageData
+    | ServiceCallRequest
+)
+
+TextOp = (
+    Subscribe
+    | Unsubscribe
+    | ClientAdvertise
+    | ClientUnadvertise
+    | GetParameters
+    | SetParameters
+    | SubscribeParameterUpdates
+    | UnsubscribeParameterUpdates
+    | SubscribeConnectionGraph
+    | UnsubscribeConnectionGraph
+)
 
 CLIENT_OPS: Final[dict[str, type[TextOp]]] = {
     "subscribe": Subscribe,
     "unsubscribe": Unsubscribe,
     "advertise": ClientAdvertise,
     "unadvertise": ClientUnadvertise,
+    "getParameters": GetParameters,
+    "setParameters": SetParameters,
+    "subscribeParameterUpdates": SubscribeParameterUpdates,
+    "unsubscribeParameterUpdates": UnsubscribeParameterUpdates,
+    "subscribeConnectionGraph": SubscribeConnectionGraph,
+    "unsubscribeConnectionGraph": UnsubscribeConnectionGraph,
 }
 """The text ops this server handles, by ``op``."""
 
-UNSUPPORTED_OPS: Final = frozenset(
-    {
-        "getParameters",
-        "setParameters",
-        "subscribeParameterUpdates",
-        "unsubscribeParameterUpdates",
-        "subscribeConnectionGraph",
-        "unsubscribeConnectionGraph",
-        "fetchAsset",
-    }
-)
+UNSUPPORTED_OPS: Final = frozenset({"fetchAsset"})
 """Ops of capabilities this server does not announce (docs/foxglove.md, not done yet)."""
 
 
@@ -210,19 +308,19 @@ def _check_ids(op: TextOp) -> None:
     elif isinstance(op, ClientAdvertise):
         for channel in op.channels:
             _u32(channel.id, "client channel id")
-    else:
+    elif isinstance(op, ClientUnadvertise):
         for cid in op.channelIds:
             _u32(cid, "client channel id")
 
 
-def parse_binary(data: bytes) -> ClientMessageData:
+def parse_binary(data: bytes) -> ClientMessageData | ServiceCallRequest:
     """Parse one binary frame of the client.
 
     The payload is a view of ``data`` (no copy of a large message).
 
     Raises:
-        FoxgloveInputError: an empty frame, an opcode not handled, or a frame
-            shorter than its header.
+        FoxgloveInputError: an empty frame, an opcode not handled, a frame
+            shorter than its header, an encoding name that is not UTF-8.
     """
     if not data:
         raise FoxgloveInputError("empty binary frame")
@@ -236,8 +334,26 @@ def parse_binary(data: bytes) -> ClientMessageData:
         _, channel_id = _CLIENT_DATA_HEADER.unpack_from(data)
         return ClientMessageData(channel_id, memoryview(data)[_CLIENT_DATA_HEADER.size :])
     if opcode == _SERVICE_CALL_REQUEST:
-        raise FoxgloveInputError("service calls are not supported by this server")
+        return _service_call_request(data)
     raise FoxgloveInputError(f"unknown binary opcode 0x{opcode:02x}")
+
+
+def _service_call_request(data: bytes) -> ServiceCallRequest:
+    header = 1 + _CALL_HEADER.size
+    if len(data) < header:
+        raise FoxgloveInputError(
+            f"service call request of {len(data)} bytes: shorter than its {header}-byte header"
+        )
+    service_id, call_id, length = _CALL_HEADER.unpack_from(data, 1)
+    if len(data) - header < length:
+        raise FoxgloveInputError(
+            f"service call request: encoding of {length} bytes past the frame's end"
+        )
+    try:
+        encoding = bytes(data[header : header + length]).decode("utf-8")
+    except UnicodeDecodeError:
+        raise FoxgloveInputError("service call request: the encoding is not UTF-8") from None
+    return ServiceCallRequest(service_id, call_id, encoding, memoryview(data)[header + length :])
 
 
 # ---- server ops -------------------------------------------------------------------
@@ -290,7 +406,112 @@ class Unadvertise(msgspec.Struct, frozen=True, tag_field="op", tag="unadvertise"
     channelIds: list[int]
 
 
-ServerOp = ServerInfo | Status | RemoveStatus | Advertise | Unadvertise
+class ServiceSchema(msgspec.Struct, frozen=True):
+    """A service's request or response: how it is encoded and its schema (as a channel's)."""
+
+    encoding: str
+    schemaName: str
+    schemaEncoding: str
+    schema: str
+
+
+class Service(msgspec.Struct, frozen=True):
+    """A server service; ``requestSchema``/``responseSchema`` repeat the schemas (older clients)."""
+
+    id: int
+    name: str
+    type: str
+    request: ServiceSchema
+    response: ServiceSchema
+    requestSchema: str
+    responseSchema: str
+
+
+class AdvertiseServices(msgspec.Struct, frozen=True, tag_field="op", tag="advertiseServices"):
+    """``advertiseServices``: services the client may call."""
+
+    services: list[Service]
+
+
+class UnadvertiseServices(msgspec.Struct, frozen=True, tag_field="op", tag="unadvertiseServices"):
+    """``unadvertiseServices``: services gone."""
+
+    serviceIds: list[int]
+
+
+class ServiceCallFailure(msgspec.Struct, frozen=True, tag_field="op", tag="serviceCallFailure"):
+    """``serviceCallFailure``: the call ``callId`` of ``serviceId`` got no response, and why."""
+
+    serviceId: int
+    callId: int
+    message: str
+
+
+class ParameterOut(msgspec.Struct, frozen=True, omit_defaults=True):
+    """One parameter of ``parameterValues``; no ``value``: it was deleted.
+
+    ``type`` is ``float64`` or ``float64_array`` for floats (JSON writes ``1.0`` as ``1``).
+    """
+
+    name: str
+    value: Any | msgspec.UnsetType = msgspec.UNSET
+    type: str | None = None
+
+
+class ParameterValues(
+    msgspec.Struct, frozen=True, omit_defaults=True, tag_field="op", tag="parameterValues"
+):
+    """``parameterValues``: an answer to ``getParameters``/``setParameters``, or an update."""
+
+    parameters: list[ParameterOut]
+    id: str | None = None
+
+
+class PublishedTopic(msgspec.Struct, frozen=True):
+    """A topic of the connection graph and the nodes that publish it."""
+
+    name: str
+    publisherIds: list[str]
+
+
+class SubscribedTopic(msgspec.Struct, frozen=True):
+    """A topic of the connection graph and the nodes that subscribe to it."""
+
+    name: str
+    subscriberIds: list[str]
+
+
+class AdvertisedService(msgspec.Struct, frozen=True):
+    """A service of the connection graph and the node that provides it."""
+
+    name: str
+    providerIds: list[str]
+
+
+class ConnectionGraphUpdate(
+    msgspec.Struct, frozen=True, tag_field="op", tag="connectionGraphUpdate"
+):
+    """``connectionGraphUpdate``: entries new or changed since the last one, and names gone."""
+
+    publishedTopics: list[PublishedTopic]
+    subscribedTopics: list[SubscribedTopic]
+    advertisedServices: list[AdvertisedService]
+    removedTopics: list[str]
+    removedServices: list[str]
+
+
+ServerOp = (
+    ServerInfo
+    | Status
+    | RemoveStatus
+    | Advertise
+    | Unadvertise
+    | AdvertiseServices
+    | UnadvertiseServices
+    | ServiceCallFailure
+    | ParameterValues
+    | ConnectionGraphUpdate
+)
 
 _encoder = msgspec.json.Encoder()
 
@@ -303,6 +524,15 @@ def encode_op(op: ServerOp) -> bytes:
 def encode_message_data(subscription_id: int, log_time_ns: int, payload: bytes) -> bytes:
     """A binary message data frame (opcode 0x01): header, then the payload as is."""
     return _DATA_HEADER.pack(_MESSAGE_DATA, subscription_id, log_time_ns) + payload
+
+
+def encode_service_call_response(
+    service_id: int, call_id: int, encoding: str, payload: bytes
+) -> bytes:
+    """A binary service call response frame (opcode 0x03): header, encoding, then the payload."""
+    name = encoding.encode()
+    header = struct.pack("<BIII", _SERVICE_CALL_RESPONSE, service_id, call_id, len(name))
+    return header + name + payload
 
 
 def encode_time(time_ns: int) -> bytes:

@@ -9,8 +9,10 @@ a publisher or another client: the queue drops its oldest data, ``outqueue.py``)
 What maps to what: a server channel is a topic of the graph that has a
 publisher (and that the access globs let this client see); a subscription is a
 graph subscription of this client id; a client channel is a graph publisher of
-this client id. Every bad input is answered with an error ``status`` and the
-session goes on.
+this client id. Services, parameters and the connection graph are parts of
+their own (``services``, ``params``, ``conngraph``), which send through the
+session (``output.SessionOutput``). Every bad input is answered with an error
+``status`` and the session goes on.
 """
 
 from __future__ import annotations
@@ -18,17 +20,19 @@ from __future__ import annotations
 import itertools
 import logging
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.types.registry import codec_for
-from rwt_graph.types.wire import CdrError, read_cdr, wire_input
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.outbox import OutFrame
 
-from .outqueue import DEFAULT_MAX_BYTES, DEFAULT_MAX_MESSAGES, OutQueue
+from .conngraph import ConnectionGraph
+from .limits import FoxgloveLimits
+from .outqueue import OutQueue
+from .params import ParameterBridge
 from .protocol import (
     Advertise,
     Channel,
@@ -37,53 +41,46 @@ from .protocol import (
     ClientMessageData,
     ClientUnadvertise,
     FoxgloveInputError,
+    GetParameters,
     ServerInfo,
+    ServerOp,
+    ServiceCallRequest,
+    SetParameters,
     Status,
     StatusLevel,
     Subscribe,
+    SubscribeConnectionGraph,
+    SubscribeParameterUpdates,
     Unadvertise,
     Unsubscribe,
+    UnsubscribeConnectionGraph,
+    UnsubscribeParameterUpdates,
     encode_message_data,
     encode_op,
     parse_binary,
     parse_text,
 )
 from .schemas import JSON, metadata_for, schema_of, supported_encodings, wire_encoding
+from .services import ServiceCalls
+from .wire import decode_wire
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rwt_graph.core import GraphCore
+    from rwt_graph.parameters.store import Parameters
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
 
-__all__ = ["CAPABILITIES", "FoxgloveLimits", "FoxgloveSession"]
+__all__ = ["CAPABILITIES", "PARAMETER_CAPABILITIES", "FoxgloveLimits", "FoxgloveSession"]
 
 logger = logging.getLogger("rwt.foxglove")
 
-CAPABILITIES: Final = ("clientPublish",)
-"""What ``serverInfo`` announces (services, parameters, time... are not done yet)."""
+CAPABILITIES: Final = ("clientPublish", "services", "connectionGraph")
+"""What ``serverInfo`` always announces (time and assets are not done yet)."""
+PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
+"""Announced too when the session is given the graph's parameters."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
-
-
-@dataclass(frozen=True, slots=True)
-class FoxgloveLimits:
-    """Bounds of one Foxglove client (docs/limits.md, Foxglove).
-
-    Attributes:
-        max_subscriptions: subscriptions a client may hold at once.
-        max_client_channels: channels a client may advertise at once.
-        max_queue_bytes: bytes of message data queued for the client before
-            the oldest is dropped.
-        max_queue_messages: messages queued before the oldest is dropped.
-        batch_bytes: about how many bytes the driver sends per write.
-    """
-
-    max_subscriptions: int = 4096
-    max_client_channels: int = 1024
-    max_queue_bytes: int = DEFAULT_MAX_BYTES
-    max_queue_messages: int = DEFAULT_MAX_MESSAGES
-    batch_bytes: int = 1024 * 1024
 
 
 @dataclass(eq=False, slots=True)
@@ -123,8 +120,11 @@ class FoxgloveSession:
             client publishers go through on behalf of ``client_id``.
         client_id: this connection's identity in the graph.
         session_id: sent in ``serverInfo`` (clients tell a restarted server by it).
-        access: which topics this client may see and publish on (``--topics-glob``).
+        access: which topics, services and parameters this client may use
+            (``--topics-glob``, ``--services-glob``, ``--params-glob``).
         limits: this client's bounds.
+        params: the graph's parameters (``Graph.params``); None: the
+            ``parameters`` capabilities are not announced.
         on_output: called when frames were queued while nobody asked (a graph
             message); the driver wakes its writer.
         name: the server's name in ``serverInfo``.
@@ -140,6 +140,7 @@ class FoxgloveSession:
         limits: FoxgloveLimits | None = None,
         on_output: Callable[[], None] | None = None,
         name: str = "rwt",
+        params: Parameters | None = None,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
@@ -153,33 +154,98 @@ class FoxgloveSession:
         self._subscriptions: dict[int, _ServerChannel] = {}
         self._client_channels: dict[int, _ClientChannel] = {}
         self._failed_topics: set[str] = set()  # told once that their data cannot be encoded
+        self._tracked: dict[int, OutFrame] = {}  # id -> frame of ``tracked`` not yet taken
         self._closed = False
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
+        self.services = ServiceCalls(graph, client_id, self, self._access, self.limits)
+        self.graph_updates = ConnectionGraph(graph, self, self._access)
+        self.params = (
+            None
+            if params is None
+            else ParameterBridge(graph, params, self, self._access, self.limits)
+        )
+        capabilities = list(CAPABILITIES)
+        if params is not None:
+            capabilities += PARAMETER_CAPABILITIES
         self._control(
             ServerInfo(
                 name=name,
-                capabilities=list(CAPABILITIES),
+                capabilities=capabilities,
                 supportedEncodings=supported_encodings(dialect),
                 metadata=metadata_for(dialect),
                 sessionId=session_id,
             )
         )
+        self._handlers: dict[type, Callable[[Any], None]] = {
+            Subscribe: self._subscribe,
+            Unsubscribe: self._unsubscribe,
+            ClientAdvertise: self._client_advertise,
+            ClientUnadvertise: self._client_unadvertise,
+            SubscribeConnectionGraph: lambda op: self.graph_updates.subscribe(),
+            UnsubscribeConnectionGraph: lambda op: self.graph_updates.unsubscribe(),
+            GetParameters: self._parameters,
+            SetParameters: self._parameters,
+            SubscribeParameterUpdates: self._parameters,
+            UnsubscribeParameterUpdates: self._parameters,
+        }
         self.sync()
 
     # ---- outputs ------------------------------------------------------------------
 
     def take(self, max_bytes: int | None = None) -> list[OutFrame]:
-        """Take the frames to send, oldest first (about ``max_bytes``; the limits' batch)."""
-        return self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
+        """Take the frames to send, oldest first (about ``max_bytes``; the limits' batch).
+
+        Updates merged while an earlier one waited are queued once it is taken.
+        """
+        frames = self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
+        if self._tracked:
+            for frame in frames:
+                self._tracked.pop(id(frame), None)
+            if self.params is not None:
+                self.params.flush()
+        return frames
 
     @property
     def dropped(self) -> int:
         """Message data frames dropped for this client so far (it read too slowly)."""
         return self._queue.dropped
 
-    def _control(self, op: Advertise | Unadvertise | ServerInfo | Status) -> None:
+    def _control(self, op: ServerOp) -> None:
         self._queue.push(OutFrame(encode_op(op)))
+
+    # ---- SessionOutput: what the services, parameters and graph parts send --------
+
+    def control(self, op: ServerOp) -> None:
+        """Queue a server op that is never dropped."""
+        self._control(op)
+        self._wake()
+
+    def answer(self, data: bytes, *, binary: bool) -> None:
+        """Queue an answer to the client's input (dropped like data if it reads too slowly)."""
+        self._push_data(OutFrame(data, binary, True))
+        self._wake()
+
+    def error(self, message: str) -> None:
+        """Queue an error ``status``."""
+        self._status(StatusLevel.ERROR, message)
+        self._wake()
+
+    def tracked(self, op: ServerOp) -> OutFrame:
+        """Queue ``op`` (never dropped); ``unsent`` tells when it left the queue."""
+        frame = OutFrame(encode_op(op))
+        self._tracked[id(frame)] = frame
+        self._queue.push(frame)
+        self._wake()
+        return frame
+
+    def unsent(self, frame: OutFrame) -> bool:
+        """Whether ``frame`` (from ``tracked``) still waits in the queue."""
+        return self._tracked.get(id(frame)) is frame
+
+    def _wake(self) -> None:
+        if self._on_output is not None:
+            self._on_output()
 
     def _status(self, level: StatusLevel, message: str) -> None:
         # An answer to the client's input may be dropped like data: a client that
@@ -212,19 +278,24 @@ class FoxgloveSession:
             return
         try:
             if binary:
-                self._message_data(parse_binary(data))
+                frame = parse_binary(data)
+                if isinstance(frame, ServiceCallRequest):
+                    self.services.call(frame)
+                else:
+                    self._message_data(frame)
                 return
             op = parse_text(data)
-            if isinstance(op, Subscribe):
-                self._subscribe(op)
-            elif isinstance(op, Unsubscribe):
-                self._unsubscribe(op)
-            elif isinstance(op, ClientAdvertise):
-                self._client_advertise(op)
-            else:
-                self._client_unadvertise(op)
+            self._handlers[type(op)](op)
         except RwtError as exc:
             self._status(StatusLevel.ERROR, exc.message)
+
+    def _parameters(
+        self,
+        op: GetParameters | SetParameters | SubscribeParameterUpdates | UnsubscribeParameterUpdates,
+    ) -> None:
+        if self.params is None:
+            raise FoxgloveInputError("parameters are not supported by this server")
+        self.params.handle(op)
 
     def _subscribe(self, op: Subscribe) -> None:
         for each in op.subscriptions:
@@ -312,38 +383,30 @@ class FoxgloveSession:
             value = decode_json_text(bytes(op.payload), "message")
             self._graph.publish(self._client_id, channel.topic, value, latch=False, path="$")
             return
-        msg = self._decode_wire(channel.mtype, bytes(op.payload))
+        msg = decode_wire(self._graph.registry, self._wire, channel.mtype, bytes(op.payload))
         self._graph.publish_local(self._client_id, channel.topic, msg, latch=False)
-
-    def _decode_wire(self, mtype: MessageType, data: bytes) -> dict[str, object]:
-        """A message in the dialect's wire encoding as the graph's internal form.
-
-        Raises:
-            FoxgloveInputError: ``data`` is not a message of ``mtype``.
-        """
-        store = self._graph.registry.typestore()
-        try:
-            if self._wire == "cdr":
-                obj = read_cdr(store, wire_input(data), mtype.rosbags_name)
-            else:
-                obj = store.deserialize_ros1(data, mtype.rosbags_name)
-            return mtype.from_python(obj)
-        except (CdrError, RwtError, KeyError, ValueError, TypeError, IndexError) as exc:
-            text = exc.message if isinstance(exc, RwtError) else str(exc)
-            raise FoxgloveInputError(
-                f"{mtype.name}: not a {self._wire} message of this type ({text[:200]})"
-            ) from None
 
     # ---- the graph ----------------------------------------------------------------
 
-    def sync(self) -> None:
-        """Advertise the topics that appeared, unadvertise those gone (or retyped).
+    def sync(self, now: float = 0.0) -> None:
+        """Bring the client up to date with the graph.
 
-        A channel is a topic with a publisher that this client may see. Costs
-        one pass over the graph's topics.
+        Advertise the topics and services that appeared, unadvertise those gone
+        (or retyped), send the connection graph's changes to a client that
+        follows it, and fail service calls older than ``call_timeout_s``. A
+        channel is a topic with a publisher that this client may see. Costs one
+        pass over the graph's topics and services.
+
+        Args:
+            now: seconds on the driver's monotonic clock (service call timeouts).
         """
         if self._closed:
             return
+        self._sync_channels()
+        self.services.sync(now)
+        self.graph_updates.sync()
+
+    def _sync_channels(self) -> None:
         current = {
             name: entry.msgtype
             for name, entry in self._graph.topics.items()
@@ -426,6 +489,9 @@ class FoxgloveSession:
         if self._closed:
             return
         self._closed = True
+        self.services.close()
+        if self.params is not None:
+            self.params.close()
         self._graph.release(self._client_id)
         self._subscriptions.clear()
         self._client_channels.clear()

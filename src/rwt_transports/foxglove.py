@@ -21,6 +21,7 @@ from rwt_foxglove import FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
 
 if TYPE_CHECKING:
     from rwt_graph.core import GraphCore
+    from rwt_graph.parameters.store import Parameters
     from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.session import Session
 
@@ -50,7 +51,10 @@ class FoxgloveOptions:
 
 
 def foxglove_server(
-    graph: GraphCore, access: AccessPolicy, limits: FoxgloveLimits
+    graph: GraphCore,
+    access: AccessPolicy,
+    limits: FoxgloveLimits,
+    params: Parameters | None = None,
 ) -> FoxgloveServe:
     """The function that runs each accepted Foxglove connection of one server.
 
@@ -58,6 +62,7 @@ def foxglove_server(
         graph: the served graph's core.
         access: the server's access globs (a topic a client may not see is not advertised).
         limits: each client's bounds.
+        params: the graph's parameters (``Graph.params``); None: no parameters capability.
     """
     session_id = uuid.uuid4().hex  # one per server run: clients tell a restart by it
 
@@ -70,6 +75,7 @@ def foxglove_server(
             access=access,
             limits=limits,
             on_output=wakeup.set,
+            params=params,
         )
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
         await run_foxglove(channel, foxglove, wakeup)

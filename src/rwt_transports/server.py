@@ -287,7 +287,10 @@ class RosbridgeServer:
             None
             if session_config.authenticator is not None
             else foxglove_server(
-                self.graph.port, session_config.access, self.config.foxglove.limits
+                self.graph.port,
+                session_config.access,
+                self.config.foxglove.limits,
+                self.graph.params,
             )
         )
         # stream connections (not stdio, not in-process) close when idle

@@ -21,6 +21,7 @@ from tests.integration.client_harness import (
     JS_DIR,
     Driver,
     ServerProcess,
+    _LineReader,
     node_missing_reason,
 )
 
@@ -63,6 +64,45 @@ def run(scenario: str, url: str, *args: str) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])["result"]  # type: ignore[no-any-return]
 
 
+class Scenario:
+    """A foxglove.mjs scenario running beside the test: its events, then its result."""
+
+    def __init__(self, scenario: str, url: str) -> None:
+        node = shutil.which("node")
+        assert node is not None
+        self.proc = subprocess.Popen(
+            [node, str(SCRIPT), scenario, url],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            cwd=JS_DIR,
+        )
+        self._lines = _LineReader(self.proc.stdout, f"foxglove-{scenario}")
+
+    def _next(self, deadline: float) -> dict:
+        line = self._lines.get(deadline)
+        if line is None:
+            self.proc.wait(5)
+            assert self.proc.stderr is not None
+            raise AssertionError(f"node exited: {self.proc.stderr.read().decode()}")
+        return json.loads(line)  # type: ignore[no-any-return]
+
+    def wait_event(self, name: str, deadline: float) -> None:
+        assert self._next(deadline) == {"event": name}
+
+    def result(self, deadline: float) -> dict:
+        frame = self._next(deadline)
+        assert self.proc.wait(max(0.1, deadline - time.monotonic())) == 0
+        return frame["result"]  # type: ignore[no-any-return]
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(5)
+        for pipe in (self.proc.stdout, self.proc.stderr):
+            if pipe is not None:
+                pipe.close()
+
+
 @pytest.mark.parametrize(
     "offered",
     ["foxglove.sdk.v1", "foxglove.websocket.v1", "foxglove.websocket.v1,foxglove.sdk.v1"],
@@ -71,7 +111,14 @@ def test_handshake_server_info_and_parseable_schemas(server: ServerProcess, offe
     result = run("handshake", server.url, offered)
     assert result["protocol"] == offered.split(",", maxsplit=1)[0]
     info = result["serverInfo"]
-    assert info["name"] == "rwt" and info["capabilities"] == ["clientPublish"]
+    assert info["name"] == "rwt"
+    assert info["capabilities"] == [
+        "clientPublish",
+        "services",
+        "connectionGraph",
+        "parameters",
+        "parametersSubscribe",
+    ]
     assert info["supportedEncodings"] == ["cdr", "json"] and info["sessionId"]
     assert result["string"] == {
         "encoding": "cdr",
@@ -153,3 +200,168 @@ def test_client_publish_in_cdr_and_json_reaches_roslibpy(
         driver.kill()
     assert received == [{"data": "from cdr"}, {"data": "from json"}]
     assert "unknown client channel" in result["status"]["message"]
+
+
+ADD = "example_interfaces/srv/AddTwoInts"
+BIG = 2**62 + 1
+
+
+def test_service_calls_answered_by_roslibpy_providers_by_call_id(
+    server: ServerProcess, tmp_path: Path
+) -> None:
+    providers = [
+        {"op": "connect", "conn": "p"},
+        {"op": "advertise_service", "conn": "p", "service": "/fg_add", "type": ADD, "reply": "add"},
+        {
+            "op": "advertise_service",
+            "conn": "p",
+            "service": "/fg_refuse",
+            "type": "std_srvs/srv/SetBool",
+            "reply": "refuse",
+        },
+        {"op": "sync", "conn": "p"},
+        {"op": "signal", "name": "ready"},
+        {"op": "await"},
+    ]
+    holder = [
+        {"op": "connect", "conn": "h"},
+        {
+            "op": "advertise_service",
+            "conn": "h",
+            "service": "/fg_hold",
+            "type": ADD,
+            "reply": "hold",
+        },
+        {"op": "sync", "conn": "h"},
+        {"op": "signal", "name": "ready"},
+        {"op": "wait_served", "conn": "h", "service": "/fg_hold", "count": 1},
+        {"op": "signal", "name": "held"},
+        {"op": "await"},
+    ]
+    deadline = time.monotonic() + DRIVER_TIMEOUT
+    drivers = [
+        Driver("roslibpy", server.url, providers, tmp_path, "providers"),
+        Driver("roslibpy", server.url, holder, tmp_path, "holder"),
+    ]
+    scenario = None
+    try:
+        for driver in drivers:
+            driver.wait_event("ready", deadline)
+        scenario = Scenario("services", server.url)
+        scenario.wait_event("answered", deadline)
+        drivers[1].wait_event("held", deadline)
+        drivers[1].kill()  # the provider of /fg_hold goes with call 1 in flight
+        result = scenario.result(deadline)
+        drivers[0].go()
+        served = drivers[0].wait_result(deadline)["served"]["p"]
+    except AssertionError:
+        for driver in drivers:
+            print(driver.describe())
+        raise
+    finally:
+        if scenario is not None:
+            scenario.kill()
+        for driver in drivers:
+            driver.kill()
+    assert result["add"] == {
+        "type": ADD,
+        "request": ["cdr", f"{ADD}_Request", "ros2msg"],
+        "response": ["cdr", f"{ADD}_Response", "ros2msg"],
+    }
+    assert result["refuse"]["type"] == "std_srvs/srv/SetBool"
+    answers = result["answers"]
+    assert answers["2"] == {"sum": str(BIG + 1), "encoding": "cdr"}
+    assert answers["3"] == {"sum": "-2", "encoding": "cdr"}
+    assert answers["4"] == {"failure": "service call failed", "serviceId": result["ids"][1]}
+    assert answers["5"]["failure"] == "unknown service 999999"
+    assert answers["6"]["failure"] == "unsupported encoding 'json' (expected cdr)"
+    assert "bad request" in answers["7"]["failure"]
+    assert "provider disconnected" in answers["1"]["failure"]
+    assert answers["1"]["serviceId"] == result["ids"][2]
+    assert result["order"][-1] == 1  # the others were answered while it waited
+    assert served["/fg_add"] == [{"a": BIG, "b": 1}, {"a": -5, "b": 3}]
+
+
+def test_parameters_set_get_and_updates_from_rosapi_and_another_client(
+    server: ServerProcess, tmp_path: Path
+) -> None:
+    steps = [
+        {"op": "connect", "conn": "c"},
+        {"op": "signal", "name": "ready"},
+        {"op": "await"},
+        {
+            "op": "api",
+            "conn": "c",
+            "call": "set_param",
+            "args": ["/rosapi:fg_gain", 2.75],
+            "as": "set",
+        },
+    ]
+    driver = Driver("roslibpy", server.url, steps, tmp_path, "roslibpy-params")
+    scenario = None
+    try:
+        deadline = time.monotonic() + DRIVER_TIMEOUT
+        driver.wait_event("ready", deadline)
+        scenario = Scenario("params", server.url)
+        scenario.wait_event("subscribed", deadline)
+        driver.go()
+        assert driver.wait_result(deadline)["calls"]["set"]["ok"]["successful"] is True
+        result = scenario.result(deadline)
+    except AssertionError:
+        print(driver.describe())
+        raise
+    finally:
+        if scenario is not None:
+            scenario.kill()
+        driver.kill()
+    assert (
+        "parameters" in result["capabilities"] and "parametersSubscribe" in result["capabilities"]
+    )
+    assert (
+        result["status"]["level"] == 2
+        and "node /fg_ghost does not exist" in result["status"]["message"]
+    )
+    gain = {"name": "/rosapi.fg_gain", "value": 1, "type": "float64"}  # 1.0: JSON writes it 1
+    assert result["set"] == [gain, {"name": "/rosapi.fg_mode", "value": "auto"}]
+    assert result["got"] == result["set"]
+    assert result["fromRosapi"] == [{"name": "/rosapi.fg_gain", "value": 2.75, "type": "float64"}]
+    assert result["fromOther"] == [{"name": "/rosapi.fg_mode", "value": "manual"}]
+
+
+def test_connection_graph_shows_a_roslibpy_publisher_come_and_go(
+    server: ServerProcess, tmp_path: Path
+) -> None:
+    steps = [
+        {"op": "connect", "conn": "p"},
+        {"op": "signal", "name": "ready"},
+        {"op": "await"},
+        {"op": "advertise", "conn": "p", "topic": "/fg_graph_topic", "type": "std_msgs/String"},
+        {"op": "sync", "conn": "p"},
+        {"op": "await"},
+        {"op": "close", "conn": "p"},
+    ]
+    driver = Driver("roslibpy", server.url, steps, tmp_path, "roslibpy-graph")
+    scenario = None
+    try:
+        deadline = time.monotonic() + DRIVER_TIMEOUT
+        driver.wait_event("ready", deadline)
+        scenario = Scenario("graph", server.url)
+        scenario.wait_event("following", deadline)
+        driver.go()
+        scenario.wait_event("seen", deadline)
+        driver.go()
+        result = scenario.result(deadline)
+        driver.wait_result(deadline)
+    except AssertionError:
+        print(driver.describe())
+        raise
+    finally:
+        if scenario is not None:
+            scenario.kill()
+        driver.kill()
+    first = result["first"]
+    assert "/rosapi/topics" in first["services"] and first["removedTopics"] == []
+    assert "/client_count" in first["published"] and "/fg_graph_topic" not in first["published"]
+    [publisher] = result["publishers"]
+    assert publisher.startswith("/rwt_client_")
+    assert "/fg_graph_topic" in result["removedTopics"]  # with the sync topic of roslibpy's driver

@@ -7,73 +7,12 @@ import struct
 
 import pytest
 
-from rwt_foxglove import FoxgloveLimits, FoxgloveSession
+from rwt_foxglove import FoxgloveLimits
 from rwt_foxglove.protocol import select_subprotocol
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
-
-
-class Client:
-    """Drives a session and keeps what it sent back, split into text ops and binary frames."""
-
-    def __init__(self, graph: Graph, **kwargs: object) -> None:
-        self.session = FoxgloveSession(
-            graph.port,
-            "foxglove:test#1",
-            session_id="s1",
-            **kwargs,  # type: ignore[arg-type]
-        )
-        self.ops: list[dict[str, object]] = []
-        self.binary: list[bytes] = []
-        self.drain()
-
-    def drain(self) -> None:
-        while frames := self.session.take():
-            for frame in frames:
-                if frame.binary:
-                    self.binary.append(frame.data)
-                else:
-                    self.ops.append(json.loads(frame.data))
-
-    def send(self, op: dict[str, object]) -> None:
-        self.session.receive(json.dumps(op).encode(), binary=False)
-        self.drain()
-
-    def send_raw(self, data: bytes, *, binary: bool) -> None:
-        self.session.receive(data, binary=binary)
-        self.drain()
-
-    def sync(self) -> None:
-        self.session.sync()
-        self.drain()
-
-    def take_ops(self, op: str) -> list[dict[str, object]]:
-        found = [each for each in self.ops if each["op"] == op]
-        self.ops = [each for each in self.ops if each["op"] != op]
-        return found
-
-    def channel(self, topic: str) -> dict[str, object]:
-        for op in self.ops:
-            if op["op"] == "advertise":
-                for channel in op["channels"]:  # type: ignore[attr-defined]
-                    if channel["topic"] == topic:
-                        return channel  # type: ignore[no-any-return]
-        raise AssertionError(f"{topic} not advertised: {self.ops}")
-
-    def data(self) -> list[tuple[int, int, bytes]]:
-        out = []
-        for frame in self.binary:
-            assert frame[0] == 1
-            sid, log_time = struct.unpack_from("<IQ", frame, 1)
-            out.append((sid, log_time, frame[13:]))
-        self.binary = []
-        return out
-
-
-def _cdr(graph: Graph, type_name: str, msg: dict[str, object]) -> bytes:
-    mtype = graph.registry.message(type_name)
-    return graph.registry.serialize(mtype, mtype.from_python(msg))
+from tests.foxglove.sansio import Client, cdr
 
 
 def test_subprotocol_is_the_first_foxglove_name_offered() -> None:
@@ -92,7 +31,7 @@ def test_server_info_comes_first_then_the_published_topics() -> None:
     client = Client(graph)
     info = client.ops[0]
     assert info["op"] == "serverInfo"
-    assert info["capabilities"] == ["clientPublish"]
+    assert info["capabilities"] == ["clientPublish", "services", "connectionGraph"]
     assert info["supportedEncodings"] == ["cdr", "json"]
     assert info["sessionId"] == "s1"
     channel = client.channel("/chatter")
@@ -139,7 +78,7 @@ def test_subscribe_delivers_in_order_and_unsubscribe_stops() -> None:
     got = client.data()
     assert [sid for sid, _, _ in got] == [7, 7, 7]
     assert [payload for _, _, payload in got] == [
-        _cdr(graph, "std_msgs/msg/String", {"data": f"m{i}"}) for i in range(3)
+        cdr(graph, "std_msgs/msg/String", {"data": f"m{i}"}) for i in range(3)
     ]
     assert all(log_time > 1_600_000_000 * 10**9 for _, log_time, _ in got)
     client.send({"op": "unsubscribe", "subscriptionIds": [7]})
@@ -157,7 +96,7 @@ def test_latched_message_goes_to_each_new_subscription() -> None:
     cid = client.channel("/map")["id"]
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
     client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
-    expected = _cdr(graph, "std_msgs/msg/String", {"data": "kept"})
+    expected = cdr(graph, "std_msgs/msg/String", {"data": "kept"})
     assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
 
 
@@ -217,7 +156,10 @@ def test_access_globs_hide_topics() -> None:
         (b"\x01\x00", True, "shorter than its 5-byte header"),
         (b"", True, "empty binary frame"),
         (b"\x01\x07\x00\x00\x00payload", True, "unknown client channel 7"),
-        (b"\x02\x00\x00\x00\x00", True, "service calls are not supported"),
+        (b"\x02\x00\x00\x00\x00", True, "shorter than its 13-byte header"),
+        (b"\x02" + struct.pack("<III", 1, 1, 99) + b"cdr", True, "past the frame's end"),
+        (b"\x02" + struct.pack("<III", 1, 1, 2) + b"\xff\xfe", True, "not UTF-8"),
+        (b'{"op": "fetchAsset", "uri": "x", "requestId": 1}', False, "not supported"),
     ],
 )
 def test_bad_input_gets_an_error_status_and_the_session_goes_on(
@@ -260,7 +202,7 @@ def test_client_publish_cdr_and_json_reach_graph_subscribers() -> None:
     assert client.take_ops("status") == []
     twist = {"linear": {"x": 1.5, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": -2.0}}
     client.send_raw(
-        b"\x01" + struct.pack("<I", 1) + _cdr(graph, "geometry_msgs/msg/Twist", twist), binary=True
+        b"\x01" + struct.pack("<I", 1) + cdr(graph, "geometry_msgs/msg/Twist", twist), binary=True
     )
     client.send_raw(
         b"\x01" + struct.pack("<I", 2) + json.dumps({"linear": {"x": 3}}).encode(), binary=True
@@ -326,7 +268,7 @@ def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode() -> Non
     assert len(statuses) == 1 and statuses[0]["level"] == 1
     assert "dropped" in str(statuses[0]["message"])
     payloads = [payload for _, _, payload in client.data()]
-    assert payloads == [_cdr(graph, "std_msgs/msg/String", {"data": str(i)}) for i in range(15, 20)]
+    assert payloads == [cdr(graph, "std_msgs/msg/String", {"data": str(i)}) for i in range(15, 20)]
     assert client.session.dropped == 15
     for i in range(20):  # a new episode after the queue was empty
         publisher.publish({"data": str(i)})

@@ -11,7 +11,15 @@
 //                             a topic that appears and goes
 //   bad URL                   bad inputs, each answered with a status; the connection goes on
 //   publish URL               advertise /fg_from_fox in cdr and in json, send one message each
-// Stdout's last line: {"result": {...}}. Every wait is bounded.
+//   services URL              call /fg_add, /fg_refuse and /fg_hold (roslibpy providers) and
+//                             a few bad calls at once; signal "answered" when all but the
+//                             /fg_hold call are; report each answer by call id, in order
+//   params URL                set and get parameters of /rosapi, subscribe to them, signal
+//                             "subscribed", then report the updates from rosapi and another client
+//   graph URL                 follow the connection graph; signal "following", report
+//                             /fg_graph_topic's publishers, signal "seen", report it removed
+// Stdout's last line: {"result": {...}}; lines {"event": NAME} before it tell the test
+// where the scenario is. Every wait is bounded.
 import rosmsg from "@foxglove/rosmsg";
 import serialization from "@foxglove/rosmsg2-serialization";
 import wsProtocol from "@foxglove/ws-protocol";
@@ -36,7 +44,15 @@ function bounded(promise, what) {
 function foxglove(protocols) {
   const ws = new WebSocket(url, protocols);
   const client = new FoxgloveClient({ ws });
-  const state = { ws, client, channels: new Map(), statuses: [], events: [], waiters: [] };
+  const state = {
+    ws,
+    client,
+    channels: new Map(),
+    services: new Map(),
+    statuses: [],
+    events: [],
+    waiters: [],
+  };
   const push = (event) => {
     state.events.push(event);
     for (const waiter of state.waiters.splice(0)) waiter();
@@ -52,6 +68,15 @@ function foxglove(protocols) {
     push({ kind: "status", status });
   });
   client.on("message", (message) => push({ kind: "message", message }));
+  client.on("advertiseServices", (services) => {
+    for (const service of services) state.services.set(service.name, service);
+    push({ kind: "advertiseServices", services });
+  });
+  client.on("unadvertiseServices", (ids) => push({ kind: "unadvertiseServices", ids }));
+  client.on("serviceCallResponse", (response) => push({ kind: "answer", response }));
+  client.on("serviceCallFailure", (failure) => push({ kind: "answer", failure }));
+  client.on("parameterValues", (values) => push({ kind: "parameterValues", values }));
+  client.on("connectionGraphUpdate", (update) => push({ kind: "graph", update }));
   client.on("error", (error) => push({ kind: "error", error: String(error) }));
   client.on("close", () => push({ kind: "close" }));
   // The next event that matches, waiting for it (and dropping the ones before it).
@@ -78,7 +103,21 @@ function foxglove(protocols) {
     }
     return state.channels.get(topic);
   };
+  state.service = async (name) => {
+    if (!state.services.has(name)) {
+      await state.next(
+        (e) => e.kind === "advertiseServices" && e.services.some((s) => s.name === name),
+        `advertiseServices ${name}`,
+      );
+    }
+    return state.services.get(name);
+  };
   return state;
+}
+
+// Tell the test something happened ({"event": NAME} on stdout).
+function signal(name) {
+  process.stdout.write(`${JSON.stringify({ event: name })}\n`);
 }
 
 function rosbridge() {
@@ -284,7 +323,114 @@ async function publish() {
   return { status };
 }
 
-const scenarios = { handshake, stream, bad, publish };
+const BIG = 2n ** 62n + 1n; // past 2^53: exact only as int64 end to end
+
+function writer(definition) {
+  return new MessageWriter(rosmsg.parse(definition.schema, { ros2: true }));
+}
+
+async function services() {
+  const fox = foxglove(["foxglove.sdk.v1"]);
+  const add = await fox.service("/fg_add");
+  const refuse = await fox.service("/fg_refuse");
+  const hold = await fox.service("/fg_hold");
+  const call = (service, callId, data, encoding = "cdr") =>
+    fox.client.sendServiceCallRequest({ serviceId: service.id, callId, encoding, data });
+  const addRequest = (a, b) => writer(add.request).writeMessage({ a, b });
+  call(hold, 1, writer(hold.request).writeMessage({ a: 1n, b: 1n })); // answered by nobody
+  call(add, 2, addRequest(BIG, 1n));
+  call(add, 3, addRequest(-5n, 3n));
+  call(refuse, 4, writer(refuse.request).writeMessage({ data: true }));
+  call({ id: 999999 }, 5, addRequest(1n, 1n));
+  call(add, 6, new TextEncoder().encode('{"a": 1, "b": 2}'), "json");
+  call(add, 7, new Uint8Array([0, 1, 0, 0, 1])); // a CDR header, then too few bytes
+  const responseReader = new MessageReader(rosmsg.parse(add.response.schema, { ros2: true }));
+  const answers = {};
+  const order = [];
+  const take = async () => {
+    const { response, failure } = await fox.next((e) => e.kind === "answer", "the answers");
+    const answer = response ?? failure;
+    order.push(answer.callId);
+    answers[answer.callId] = response
+      ? { sum: String(responseReader.readMessage(response.data).sum), encoding: response.encoding }
+      : { failure: failure.message, serviceId: failure.serviceId };
+  };
+  while (order.length < 6) await take(); // every call but the held one
+  signal("answered"); // the test takes /fg_hold's provider away
+  await take();
+  fox.client.close();
+  const describe = (s) => ({
+    type: s.type,
+    request: [s.request.encoding, s.request.schemaName, s.request.schemaEncoding],
+    response: [s.response.encoding, s.response.schemaName, s.response.schemaEncoding],
+  });
+  return { add: describe(add), refuse: describe(refuse), ids: [add.id, refuse.id, hold.id], answers, order };
+}
+
+async function params() {
+  const fox = foxglove(["foxglove.sdk.v1"]);
+  const other = foxglove(["foxglove.sdk.v1"]);
+  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const values = (id) =>
+    fox.next((e) => e.kind === "parameterValues" && e.values.id === id, `parameterValues ${id}`);
+  fox.client.setParameters(
+    [
+      { name: "/rosapi.fg_gain", value: 1, type: "float64" },
+      { name: "/rosapi.fg_mode", value: "auto" },
+      { name: "/fg_ghost.x", value: 1 },
+    ],
+    "set1",
+  );
+  const { status } = await fox.next((e) => e.kind === "status", "the ghost node's status");
+  const set = (await values("set1")).values.parameters;
+  fox.client.getParameters(["/rosapi.fg_gain", "/rosapi.fg_mode", "/rosapi.fg_none"], "get1");
+  const got = (await values("get1")).values.parameters;
+  fox.client.subscribeParameterUpdates(["/rosapi.fg_gain", "/rosapi.fg_mode"]);
+  fox.client.getParameters([], "probe"); // answered after the subscription is in
+  await values("probe");
+  signal("subscribed");
+  const update = (name) =>
+    fox.next(
+      (e) => e.kind === "parameterValues" && e.values.id === undefined && e.values.parameters.some((p) => p.name === name),
+      `the update of ${name}`,
+    );
+  const fromRosapi = (await update("/rosapi.fg_gain")).values.parameters;
+  await other.next((e) => e.kind === "serverInfo", "the other's serverInfo");
+  other.client.setParameters([{ name: "/rosapi.fg_mode", value: "manual" }]);
+  const fromOther = (await update("/rosapi.fg_mode")).values.parameters;
+  fox.client.close();
+  other.client.close();
+  return { capabilities: info.capabilities, status, set, got, fromRosapi, fromOther };
+}
+
+async function graph() {
+  const fox = foxglove(["foxglove.sdk.v1"]);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  fox.client.subscribeConnectionGraph();
+  const { update: first } = await fox.next((e) => e.kind === "graph", "the whole graph");
+  signal("following");
+  const published = await fox.next(
+    (e) => e.kind === "graph" && e.update.publishedTopics.some((t) => t.name === "/fg_graph_topic"),
+    "/fg_graph_topic published",
+  );
+  signal("seen");
+  const removed = await fox.next(
+    (e) => e.kind === "graph" && e.update.removedTopics.includes("/fg_graph_topic"),
+    "/fg_graph_topic removed",
+  );
+  fox.client.close();
+  return {
+    first: {
+      services: first.advertisedServices.map((s) => s.name),
+      published: first.publishedTopics.map((t) => t.name),
+      removedTopics: first.removedTopics,
+    },
+    publishers: published.update.publishedTopics.find((t) => t.name === "/fg_graph_topic").publisherIds,
+    removedTopics: removed.update.removedTopics,
+  };
+}
+
+const scenarios = { handshake, stream, bad, publish, services, params, graph };
 try {
   const result = await scenarios[scenario]();
   process.stdout.write(`${JSON.stringify({ result }, (_, v) => (typeof v === "bigint" ? String(v) : v))}\n`);

@@ -1,0 +1,38 @@
+"""What the session's parts (services, parameters, connection graph) send through.
+
+The session implements it; the parts never touch its queue. A frame sent with
+``tracked`` stays "unsent" until the driver took it (``FoxgloveSession.take``):
+a part that sends updates (parameter changes, the connection graph) sends the
+next one only then, merged, so a client that does not read holds at most one
+of each (docs/limits.md).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from rwt_protocol.server.outbox import OutFrame
+
+    from .protocol import ServerOp
+
+__all__ = ["SessionOutput"]
+
+
+class SessionOutput(Protocol):
+    """Where a part of the session queues what it sends to the client."""
+
+    def control(self, op: ServerOp) -> None:
+        """Queue a server op that is never dropped (``advertiseServices``...)."""
+
+    def answer(self, data: bytes, *, binary: bool) -> None:
+        """Queue an answer to the client's input; dropped like data if the client reads slowly."""
+
+    def error(self, message: str) -> None:
+        """Queue an error ``status`` (an answer to the client's input)."""
+
+    def tracked(self, op: ServerOp) -> OutFrame:
+        """Queue ``op`` (never dropped) and return its frame, for ``unsent``."""
+
+    def unsent(self, frame: OutFrame) -> bool:
+        """Whether ``frame`` (from ``tracked``) is still waiting in the queue."""

@@ -1,0 +1,230 @@
+"""The graph's services as Foxglove server services, and one client's calls, without I/O.
+
+Every service of the graph is advertised (``advertiseServices``) whoever
+provides it: a rosbridge client's ``advertise_service``, a ROS 2 node through
+the link, the server's own (rosapi); ``unadvertiseServices`` follows when it
+goes or changes type. Its request and response are described as channels are
+(``schemas.schema_of``: ``ros2msg`` text with its dependencies).
+
+A call (binary ``serviceCallRequest``) carries the request in the dialect's
+wire encoding (CDR for ROS 2); it becomes a graph call of this client, and its
+answer a binary ``serviceCallResponse`` with the same call id, or a
+``serviceCallFailure`` (unknown service, an encoding other than the wire one,
+a request that does not decode, too many calls in flight, the provider gone or
+refusing, no answer within ``FoxgloveLimits.call_timeout_s``). Calls in flight
+are independent: each is answered by its call id when its answer comes.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from rwt_protocol.errors import RwtError
+from rwt_protocol.server.access import AccessPolicy, Family
+
+from .protocol import (
+    AdvertiseServices,
+    FoxgloveInputError,
+    Service,
+    ServiceCallFailure,
+    ServiceCallRequest,
+    ServiceSchema,
+    UnadvertiseServices,
+    encode_op,
+    encode_service_call_response,
+)
+from .schemas import schema_of, wire_encoding
+from .wire import decode_wire, encode_wire
+
+if TYPE_CHECKING:
+    from rwt_graph.core import GraphCore
+    from rwt_graph.types import MessageType, ServiceType
+    from rwt_protocol.ports import Pending
+
+    from .limits import FoxgloveLimits
+    from .output import SessionOutput
+
+__all__ = ["ServiceCalls"]
+
+
+@dataclass(eq=False, slots=True)
+class _Service:
+    id: int
+    name: str
+    srvtype: ServiceType
+
+
+@dataclass(eq=False, slots=True)
+class _Call:
+    service: _Service
+    pending: Pending | None = None
+    deadline: float | None = None  # set at the first sync after the call
+
+
+def _schema(mtype: MessageType) -> ServiceSchema:
+    schema = schema_of(mtype)
+    return ServiceSchema(schema.encoding, schema.schema_name, schema.schema_encoding, schema.schema)
+
+
+class ServiceCalls:
+    """The server services one client sees, and its calls in flight.
+
+    Args:
+        graph: the graph's core; calls go through it as ``client_id``.
+        client_id: this connection's identity in the graph.
+        out: where advertisements and answers go.
+        access: which services the client may see and call (``--services-glob``).
+        limits: ``max_pending_calls`` and ``call_timeout_s``.
+    """
+
+    def __init__(
+        self,
+        graph: GraphCore,
+        client_id: str,
+        out: SessionOutput,
+        access: AccessPolicy,
+        limits: FoxgloveLimits,
+    ) -> None:
+        self._graph = graph
+        self._client_id = client_id
+        self._out = out
+        self._access = access
+        self._limits = limits
+        self._wire = wire_encoding(graph.registry.dialect)
+        self._ids = itertools.count(1)
+        self._by_name: dict[str, _Service] = {}
+        self._by_id: dict[int, _Service] = {}
+        self._calls: dict[int, _Call] = {}  # call id -> the call in flight
+
+    def sync(self, now: float) -> bool:
+        """Advertise the services that appeared, unadvertise those gone; time out old calls.
+
+        Args:
+            now: seconds on the driver's monotonic clock.
+
+        Returns:
+            Whether anything was queued.
+        """
+        current = {
+            name: entry.srvtype
+            for name, entry in self._graph.services.entries.items()
+            if self._access.allows(Family.SERVICES, name)
+        }
+        gone = [
+            service
+            for name, service in self._by_name.items()
+            if (srvtype := current.get(name)) is None or srvtype.name != service.srvtype.name
+        ]
+        for service in gone:
+            del self._by_name[service.name]
+            del self._by_id[service.id]
+        if gone:
+            self._out.control(UnadvertiseServices(serviceIds=[service.id for service in gone]))
+        added = [
+            self._add(name, srvtype)
+            for name, srvtype in sorted(current.items())
+            if name not in self._by_name
+        ]
+        if added:
+            self._out.control(AdvertiseServices(services=added))
+        return bool(gone or added) | self._expire(now)
+
+    def _add(self, name: str, srvtype: ServiceType) -> Service:
+        service = _Service(next(self._ids), name, srvtype)
+        self._by_name[name] = service
+        self._by_id[service.id] = service
+        request, response = _schema(srvtype.request), _schema(srvtype.response)
+        return Service(
+            id=service.id,
+            name=name,
+            type=srvtype.name,
+            request=request,
+            response=response,
+            requestSchema=request.schema,
+            responseSchema=response.schema,
+        )
+
+    def call(self, op: ServiceCallRequest) -> None:
+        """Start the client's call; its answer or failure is queued when it comes; never raises."""
+        service = self._by_id.get(op.service_id)
+        problem = self._refusal(op, service)
+        if problem is not None or service is None:
+            self._fail(op.service_id, op.call_id, problem or "unknown service")
+            return
+        try:
+            request = decode_wire(
+                self._graph.registry, self._wire, service.srvtype.request, bytes(op.payload)
+            )
+        except FoxgloveInputError as exc:
+            self._fail(op.service_id, op.call_id, f"bad request: {exc.message}")
+            return
+        call = self._calls[op.call_id] = _Call(service)
+
+        def reply(result: bool, values: object) -> None:
+            self._answer(op.call_id, call, result, values)
+
+        try:
+            call.pending = self._graph.call_service(self._client_id, service.name, request, reply)
+        except RwtError as exc:
+            if self._calls.get(op.call_id) is call:
+                del self._calls[op.call_id]
+                self._fail(service.id, op.call_id, exc.message)
+
+    def _refusal(self, op: ServiceCallRequest, service: _Service | None) -> str | None:
+        if service is None:
+            return f"unknown service {op.service_id}"
+        if op.encoding != self._wire:
+            return f"unsupported encoding {op.encoding[:40]!r} (expected {self._wire})"
+        if op.call_id in self._calls:
+            return f"call id {op.call_id} is already in flight"
+        if len(self._calls) >= self._limits.max_pending_calls:
+            return f"too many calls in flight (at most {self._limits.max_pending_calls})"
+        return None
+
+    def _answer(self, call_id: int, call: _Call, result: bool, values: object) -> None:
+        if self._calls.get(call_id) is not call:
+            return  # timed out or closed: the client heard already
+        del self._calls[call_id]
+        service = call.service
+        if not result or not isinstance(values, dict):
+            self._fail(service.id, call_id, str(values))
+            return
+        try:
+            payload = encode_wire(self._graph.registry, service.srvtype.response, values)
+        except Exception as exc:  # a type rosbags cannot write
+            self._fail(service.id, call_id, f"cannot encode the response: {exc}")
+            return
+        frame = encode_service_call_response(service.id, call_id, self._wire, payload)
+        self._out.answer(frame, binary=True)
+
+    def _fail(self, service_id: int, call_id: int, message: str) -> None:
+        failure = ServiceCallFailure(serviceId=service_id, callId=call_id, message=message)
+        self._out.answer(encode_op(failure), binary=False)
+
+    def _expire(self, now: float) -> bool:
+        expired = False
+        for call_id, call in list(self._calls.items()):
+            if call.deadline is None:
+                call.deadline = now + self._limits.call_timeout_s
+            elif now >= call.deadline:
+                del self._calls[call_id]
+                if call.pending is not None:
+                    call.pending.forget()
+                timeout = self._limits.call_timeout_s
+                self._fail(call.service.id, call_id, f"no response within {timeout:g} s")
+                expired = True
+        return expired
+
+    @property
+    def in_flight(self) -> int:
+        """Calls waiting for their answer."""
+        return len(self._calls)
+
+    def close(self) -> None:
+        """The connection is gone: its calls are forgotten (their answers go nowhere)."""
+        calls, self._calls = list(self._calls.values()), {}
+        for call in calls:
+            if call.pending is not None:
+                call.pending.forget()

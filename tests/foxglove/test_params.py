@@ -1,0 +1,224 @@
+"""Foxglove parameters without I/O: get, set, and updates pushed from every side."""
+
+from __future__ import annotations
+
+from rwt_foxglove import FoxgloveLimits
+from rwt_graph.graph import Graph
+from rwt_graph.rosapi import install_rosapi
+from rwt_graph.types import Dialect, TypeRegistry
+from rwt_protocol.server.access import AccessPolicy
+from tests.conftest import Peer
+from tests.foxglove.sansio import Client
+
+BIG = 2**62 + 1
+
+
+def _robot(graph: Graph) -> None:
+    graph.params.declare("/robot", {"speed": 1.5, "name": "r2", "count": BIG, "gains": [1.0, 2.5]})
+    graph.params.declare("/robot", {"serial": "x1"}, read_only=True)
+
+
+def _values(client: Client) -> list[dict[str, object]]:
+    return client.take_ops("parameterValues")
+
+
+def _errors(client: Client) -> list[str]:
+    return [str(op["message"]) for op in client.take_ops("status") if op["level"] == 2]
+
+
+def test_capabilities_announce_parameters_only_with_the_store(graph: Graph) -> None:
+    with_params = Client(graph, with_params=True).ops[0]["capabilities"]
+    assert with_params == [
+        "clientPublish",
+        "services",
+        "connectionGraph",
+        "parameters",
+        "parametersSubscribe",
+    ]
+    without = Client(graph)
+    assert "parameters" not in without.ops[0]["capabilities"]  # type: ignore[operator]
+    without.send({"op": "getParameters", "parameterNames": []})
+    assert _errors(without) == ["parameters are not supported by this server"]
+
+
+def test_get_by_name_and_all_with_types_for_floats(graph: Graph) -> None:
+    _robot(graph)
+    client = Client(graph, with_params=True)
+    client.send(
+        {
+            "op": "getParameters",
+            "parameterNames": ["/robot.speed", "/robot.count", "/robot.nope"],
+            "id": "q1",
+        }
+    )
+    assert _values(client) == [
+        {
+            "op": "parameterValues",
+            "id": "q1",
+            "parameters": [
+                {"name": "/robot.speed", "value": 1.5, "type": "float64"},
+                {"name": "/robot.count", "value": BIG},
+            ],
+        }
+    ]
+    client.send({"op": "getParameters", "parameterNames": []})
+    [answer] = _values(client)
+    assert "id" not in answer
+    assert answer["parameters"] == [
+        {"name": "/robot.count", "value": BIG},
+        {"name": "/robot.gains", "value": [1.0, 2.5], "type": "float64_array"},
+        {"name": "/robot.name", "value": "r2"},
+        {"name": "/robot.serial", "value": "x1"},
+        {"name": "/robot.speed", "value": 1.5, "type": "float64"},
+    ]
+
+
+def test_bad_names_get_a_status_and_the_rest_an_answer(graph: Graph) -> None:
+    _robot(graph)
+    client = Client(graph, with_params=True)
+    client.send({"op": "getParameters", "parameterNames": ["no_separator", "/robot.name"]})
+    assert "expected <node>.<parameter>" in _errors(client)[0]
+    assert _values(client)[0]["parameters"] == [{"name": "/robot.name", "value": "r2"}]
+    client.send({"op": "getParameters", "parameterNames": "not a list"})
+    assert "getParameters" in _errors(client)[0]
+    client.send({"op": "getParameters", "parameterNames": ["/" + "n" * 100_000 + ".p"]})
+    [error] = _errors(client)
+    assert "longer than" in error and len(error) < 200
+
+
+def test_set_answers_with_the_values_and_refusals_are_statuses(graph: Graph) -> None:
+    _robot(graph)
+    client = Client(graph, with_params=True)
+    client.send(
+        {
+            "op": "setParameters",
+            "id": "s1",
+            "parameters": [
+                {"name": "/robot.speed", "value": 3},  # a declared double takes an int
+                {"name": "/robot.fresh", "value": 2, "type": "float64"},
+                {"name": "/robot.count", "value": BIG + 1},
+                {"name": "/robot.serial", "value": "changed"},
+                {"name": "/robot.name", "value": 7},
+                {"name": "/ghost.p", "value": 1},
+                {"name": "/robot.bytes", "value": "AAE=", "type": "byte_array"},
+                {"name": "/robot.gains"},  # no value: deleted
+            ],
+        }
+    )
+    errors = _errors(client)
+    assert len(errors) == 4, errors
+    assert "read-only" in errors[0]
+    assert "has type string" in errors[1]
+    assert "node /ghost does not exist" in errors[2]
+    assert "byte_array parameters are not supported" in errors[3]
+    assert _values(client) == [
+        {
+            "op": "parameterValues",
+            "id": "s1",
+            "parameters": [
+                {"name": "/robot.speed", "value": 3.0, "type": "float64"},
+                {"name": "/robot.fresh", "value": 2.0, "type": "float64"},
+                {"name": "/robot.count", "value": BIG + 1},
+            ],
+        }
+    ]
+    assert graph.params.get("/robot:speed") == 3.0
+    assert graph.params.get("/robot:count") == BIG + 1
+    assert not graph.params.has("/robot:gains")
+    client.send({"op": "setParameters", "parameters": [{"name": "/robot.name", "value": "r3"}]})
+    assert _values(client) == []  # no id: no answer
+    assert graph.params.get("/robot:name") == "r3"
+
+
+def test_changes_from_every_side_are_pushed_to_subscribers(graph: Graph) -> None:
+    _robot(graph)
+    install_rosapi(graph)
+    client = Client(graph, with_params=True)
+    other = Client(graph, with_params=True)
+    client.send(
+        {"op": "subscribeParameterUpdates", "parameterNames": ["/robot.speed", "/robot.name"]}
+    )
+    peer = Peer(graph, "rb")
+    peer.send(
+        op="call_service",
+        service="/rosapi/set_param",
+        args={"name": "/robot:speed", "value": "2.25"},
+    )
+    client.drain()
+    assert _values(client) == [
+        {
+            "op": "parameterValues",
+            "parameters": [{"name": "/robot.speed", "value": 2.25, "type": "float64"}],
+        }
+    ]
+    other.send(
+        {"op": "setParameters", "parameters": [{"name": "/robot.name", "value": "from fox"}]}
+    )
+    graph.params.set("/robot:count", 5)  # not watched
+    client.drain()
+    assert _values(client) == [
+        {"op": "parameterValues", "parameters": [{"name": "/robot.name", "value": "from fox"}]}
+    ]
+    graph.params.delete("/robot:name")
+    client.drain()
+    assert _values(client) == [{"op": "parameterValues", "parameters": [{"name": "/robot.name"}]}]
+    client.send(
+        {"op": "unsubscribeParameterUpdates", "parameterNames": ["/robot.speed", "/not.watched"]}
+    )
+    graph.params.set("/robot:speed", 9.0)
+    client.drain()
+    assert _values(client) == [] and _errors(client) == []
+
+
+def test_changes_while_an_update_waits_are_merged_into_the_next(graph: Graph) -> None:
+    _robot(graph)
+    client = Client(graph, with_params=True)
+    client.send(
+        {"op": "subscribeParameterUpdates", "parameterNames": ["/robot.speed", "/robot.name"]}
+    )
+    for speed in (2.0, 3.0, 4.0):  # the client reads nothing meanwhile
+        graph.params.set("/robot:speed", speed)
+    graph.params.set("/robot:name", "late")
+    client.drain()
+    assert [op["parameters"] for op in _values(client)] == [
+        [{"name": "/robot.speed", "value": 2.0, "type": "float64"}],
+        [
+            {"name": "/robot.speed", "value": 4.0, "type": "float64"},
+            {"name": "/robot.name", "value": "late"},
+        ],
+    ]
+
+
+def test_subscriptions_are_bounded_and_hidden_names_refused(graph: Graph) -> None:
+    _robot(graph)
+    client = Client(
+        graph,
+        with_params=True,
+        limits=FoxgloveLimits(max_parameter_subscriptions=2),
+        access=AccessPolicy(params=("/robot:*",)),
+    )
+    client.send(
+        {"op": "subscribeParameterUpdates", "parameterNames": ["/robot.a", "/robot.b", "/robot.c"]}
+    )
+    assert _errors(client) == ["subscribeParameterUpdates: more than 2 parameters"]
+    graph.params.declare("/arm", {"x": 1})
+    client.send({"op": "getParameters", "parameterNames": ["/arm.x"]})
+    assert _errors(client) == ["getParameters: parameter /arm:x is not allowed"]
+    client.send({"op": "getParameters", "parameterNames": []})
+    names = [each["name"] for each in _values(client)[-1]["parameters"]]  # type: ignore[attr-defined]
+    assert names and all(name.startswith("/robot.") for name in names)
+
+
+def test_ros1_names_are_global(graph: Graph) -> None:
+    ros1 = Graph(TypeRegistry(Dialect.ROS1))
+    ros1.params.set("/robot/speed", 1.5)
+    client = Client(ros1, with_params=True)
+    client.send(
+        {"op": "setParameters", "id": "a", "parameters": [{"name": "/robot/size", "value": 3}]}
+    )
+    assert _values(client)[0]["parameters"] == [{"name": "/robot/size", "value": 3}]
+    client.send({"op": "getParameters", "parameterNames": []})
+    assert _values(client)[0]["parameters"] == [
+        {"name": "/robot/size", "value": 3},
+        {"name": "/robot/speed", "value": 1.5, "type": "float64"},
+    ]
