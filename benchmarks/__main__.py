@@ -10,7 +10,8 @@ every variant once on tiny counts without touching the README (CI).
 ``peer`` compares with a running rosbridge_suite (benchmarks/peer.py); ``ros2``
 measures the ROS 2 bridge (benchmarks/ros2_bridge.py); ``console`` the web
 console in Chromium (benchmarks/console.py); ``rosbag`` records and plays against
-the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py).
+the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py); ``foxglove`` rwt's Foxglove
+server beside the Foxglove SDK's (benchmarks/foxglove.py).
 """
 
 from __future__ import annotations
@@ -86,6 +87,10 @@ def main(argv: list[str] | None = None) -> int:
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 
         return ros2_main(argv[1:])
+    if argv[:1] == ["foxglove"]:  # its own options (benchmarks/foxglove.py)
+        from .foxglove import main as foxglove_main  # noqa: PLC0415
+
+        return foxglove_main(argv[1:])
     if argv[:1] == ["rosbag"]:  # its own options (benchmarks/ros1_bag.py)
         from .ros1_bag import main as rosbag_main  # noqa: PLC0415
 
@@ -95,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("peer", help="B1, B2, B7 against rosbridge_suite (ROS 1), rwt and the relay")
     sub.add_parser("console", help="the web console in Chromium: input latency, CPU, streams")
     sub.add_parser("ros2", help="real ROS 2 to WebSocket: rwt --ros2, rosbridge_suite 2.1.0, rclpy")
+    sub.add_parser("foxglove", help="rwt's Foxglove server beside the Foxglove SDK's (PyPI)")
     sub.add_parser("rosbag", help="B22: rwt record and play against the real ROS 1 rosbag")
     p_run = sub.add_parser("run", help="run scenarios and print the table")
     p_run.add_argument("scenarios", nargs="*", help="B1 ... B18 (default: all but B18)")
