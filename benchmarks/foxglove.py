@@ -47,6 +47,7 @@ import statistics
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -119,9 +120,15 @@ def _reply(value: dict[str, Any]) -> None:
 
 
 def _rwt_robot() -> None:
+    import logging  # noqa: PLC0415
+
     import anyio  # noqa: PLC0415
 
     import rwt  # noqa: PLC0415
+
+    # the stalled reader's queue figures come from ``event=foxglove_closed`` (stderr)
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    logging.getLogger("rwt.foxglove").setLevel(logging.INFO)
 
     graph = rwt.Graph()
     burst = graph.create_publisher(BURST, "std_msgs/msg/String")
@@ -446,10 +453,14 @@ class Robot:
 
     def __init__(self, kind: str) -> None:
         self.kind = kind
+        # its log (the SDK's line per failed send to the stalled reader, rwt's
+        # slow_consumer) is shown only if it fails
+        self.log = tempfile.TemporaryFile("w+")  # noqa: SIM115 (kept while the robot runs)
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "benchmarks.foxglove", "robot", kind],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
+            stderr=self.log,
             text=True,
         )
         self.port = int(self._line()["port"])
@@ -458,7 +469,10 @@ class Robot:
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline()
         if not line:
-            raise RuntimeError(f"the {self.kind} robot ended (exit {self.proc.wait()})")
+            code = self.proc.wait()
+            self.log.seek(0)
+            tail = self.log.read()[-3000:]
+            raise RuntimeError(f"the {self.kind} robot ended (exit {code}):\n{tail}")
         return json.loads(line)  # type: ignore[no-any-return]
 
     def send(self, scenario: Scenario, subs: int) -> dict[str, Any]:
@@ -484,6 +498,27 @@ class Robot:
         )
         return int(fields["VmRSS"].split()[0]), int(fields["VmHWM"].split()[0])
 
+    def stalled_queue(self, local_port: int, wait_s: float = 10.0) -> tuple[int, int]:
+        """(dropped, queue peak bytes) of the rwt client from ``local_port``, from its log.
+
+        rwt logs ``event=foxglove_closed client=ws:127.0.0.1:<port>#<n> dropped=N
+        queue_peak_bytes=B`` when a Foxglove connection ends; (-1, -1) if no such
+        line came in ``wait_s``.
+        """
+        client = f"client=ws:127.0.0.1:{local_port}#"
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline:
+            self.log.seek(0)
+            lines = [
+                line for line in self.log if "event=foxglove_closed" in line and client in line
+            ]
+            self.log.seek(0, 2)
+            if lines:
+                fields = dict(part.split("=", 1) for part in lines[-1].split() if "=" in part)
+                return int(fields["dropped"]), int(fields["queue_peak_bytes"])
+            time.sleep(0.05)
+        return -1, -1
+
     def reset_peak(self) -> None:
         """Start ``VmHWM`` again from the current RSS (``clear_refs`` 5; Linux 4.0)."""
         # not allowed: the peak is the process's lifetime peak
@@ -500,6 +535,7 @@ class Robot:
             except (OSError, subprocess.TimeoutExpired):
                 self.proc.kill()
                 self.proc.wait()
+        self.log.close()
 
 
 def run_once(robot: Robot, scenario: Scenario, idle_s: float) -> dict[str, Any]:
@@ -519,12 +555,14 @@ def run_once(robot: Robot, scenario: Scenario, idle_s: float) -> dict[str, Any]:
         cmd.append("--latency")
     reader = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
     stalled: Reader | None = None
+    stalled_port = 0
     try:
         assert reader.stdout is not None
         if not json.loads(reader.stdout.readline() or "{}").get("ready"):
             raise RuntimeError("the reader did not start")
         if scenario.stalled:  # subscribes, then never reads
             stalled = Reader.open(robot.port, scenario.topic, rcvbuf=16384)
+            stalled_port = stalled.sock.getsockname()[1]
         robot.reset_peak()
         memory0 = robot.memory_kb()
         cpu0 = tree_cpu_ns(robot.proc.pid)
@@ -539,6 +577,9 @@ def run_once(robot: Robot, scenario: Scenario, idle_s: float) -> dict[str, Any]:
             reader.wait()
         if stalled is not None:
             stalled.sock.close()  # unread data: the server sees a reset
+    if stalled is not None and robot.kind == "rwt":
+        dropped, peak = robot.stalled_queue(stalled_port)
+        result["stalled_dropped"], result["queue_peak_mb"] = dropped, peak / 1e6
     delivered = sum(result["counts"])
     expected = scenario.count * scenario.readers
     span_s = max(result["last_ns"] - sent["started"], 1) / 1e9
@@ -558,6 +599,9 @@ def run_once(robot: Robot, scenario: Scenario, idle_s: float) -> dict[str, Any]:
         out["p50_ms"] = lat[len(lat) // 2] / 1e6
         out["p99_ms"] = lat[min(len(lat) - 1, int(len(lat) * 0.99))] / 1e6
     if scenario.stalled:
+        for key in ("stalled_dropped", "queue_peak_mb"):
+            if key in result:
+                out[key] = result[key]
         out["rss_growth_mb"] = (memory1[0] - memory0[0]) / 1024
         out["peak_growth_mb"] = (memory1[1] - memory0[0]) / 1024
     return out
@@ -587,6 +631,8 @@ ROWS: list[tuple[str, str, str]] = [
     ("image5", "delivered_pct", "delivered %"),
     ("image5", "cpu_us_per_msg", "server CPU us/delivered msg"),
     ("stalled", "delivered_pct", "the fast reader's delivered %"),
+    ("stalled", "stalled_dropped", "messages dropped for the stalled reader (rwt's log)"),
+    ("stalled", "queue_peak_mb", "the stalled reader's queue at its peak, MB (rwt's log)"),
     ("stalled", "rss_growth_mb", "server RSS growth MB"),
     ("stalled", "peak_growth_mb", "server peak RSS growth MB"),
 ]

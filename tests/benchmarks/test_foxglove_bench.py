@@ -45,3 +45,6 @@ def test_quick_run_delivers_everything_on_both_servers(tmp_path: Path) -> None:
                 assert 0 < figures["p50_ms"] <= figures["p99_ms"]
             if name == "stalled":
                 assert "peak_growth_mb" in figures
+                if kind == "rwt":  # its queue's figures, from rwt's log of that connection
+                    assert figures["stalled_dropped"] >= 0
+                    assert figures["queue_peak_mb"] > 0
