@@ -25,6 +25,7 @@ and reported as medians:
 - ``image1``, ``image5``: a 2 MB ``sensor_msgs/Image`` at 30 Hz to 1 and 5
   readers: p50 and p99 latency, from the log time in the message data header to
   the frame's last byte at the reader (one machine, one wall clock).
+- ``alone``: 5,000 x 10 kB to one reader, the reference for ``stalled``.
 - ``stalled``: 5,000 x 10 kB beside a reader that subscribed and never reads
   (a 16 kB receive buffer): the fast reader's delivered %, and the server
   process's resident memory growth (its peak, ``VmHWM``, over the start).
@@ -85,6 +86,7 @@ def scenarios(quick: bool) -> list[Scenario]:
         Scenario("large", BURST, 20 if q else 2_000, 100_000, 1),
         Scenario("image1", IMAGE, 5 if q else 150, IMAGE_W * IMAGE_H * 3, 1, hz=30.0),
         Scenario("image5", IMAGE, 5 if q else 150, IMAGE_W * IMAGE_H * 3, 5, hz=30.0),
+        Scenario("alone", BURST, 200 if q else 5_000, 10_000, 1),  # ``stalled`` without it
         Scenario("stalled", BURST, 200 if q else 5_000, 10_000, 1, stalled=True),
     ]
 
@@ -630,6 +632,7 @@ ROWS: list[tuple[str, str, str]] = [
     ("image5", "p99_ms", "p99 latency ms"),
     ("image5", "delivered_pct", "delivered %"),
     ("image5", "cpu_us_per_msg", "server CPU us/delivered msg"),
+    ("alone", "delivered_pct", "delivered %"),
     ("stalled", "delivered_pct", "the fast reader's delivered %"),
     ("stalled", "stalled_dropped", "messages dropped for the stalled reader (rwt's log)"),
     ("stalled", "queue_peak_mb", "the stalled reader's queue at its peak, MB (rwt's log)"),
