@@ -12,6 +12,8 @@ measures the ROS 2 bridge (benchmarks/ros2_bridge.py); ``console`` the web
 console in Chromium (benchmarks/console.py); ``rosbag`` records and plays against
 the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py); ``compare REF`` this checkout
 against an older commit (benchmarks/compare.py).
+the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py); ``foxglove`` rwt's Foxglove
+server beside the Foxglove SDK's (benchmarks/foxglove.py).
 """
 
 from __future__ import annotations
@@ -91,6 +93,10 @@ def main(argv: list[str] | None = None) -> int:
         from .compare import main as compare_main  # noqa: PLC0415
 
         return compare_main(argv[1:])
+    if argv[:1] == ["foxglove"]:  # its own options (benchmarks/foxglove.py)
+        from .foxglove import main as foxglove_main  # noqa: PLC0415
+
+        return foxglove_main(argv[1:])
     if argv[:1] == ["rosbag"]:  # its own options (benchmarks/ros1_bag.py)
         from .ros1_bag import main as rosbag_main  # noqa: PLC0415
 
@@ -100,6 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("peer", help="B1, B2, B7 against rosbridge_suite (ROS 1), rwt and the relay")
     sub.add_parser("console", help="the web console in Chromium: input latency, CPU, streams")
     sub.add_parser("ros2", help="real ROS 2 to WebSocket: rwt --ros2, rosbridge_suite 2.1.0, rclpy")
+    sub.add_parser("foxglove", help="rwt's Foxglove server beside the Foxglove SDK's (PyPI)")
     sub.add_parser("rosbag", help="B22: rwt record and play against the real ROS 1 rosbag")
     sub.add_parser("compare", help="this checkout against REF (a commit), e.g. B1 B2, one run")
     p_run = sub.add_parser("run", help="run scenarios and print the table")

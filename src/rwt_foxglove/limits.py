@@ -14,6 +14,8 @@ class FoxgloveLimits:
     """Bounds of one Foxglove client (docs/limits.md, Foxglove).
 
     Attributes:
+        max_channels: server channels (topics) a client is advertised at once;
+            further topics are not advertised until some go.
         max_subscriptions: subscriptions a client may hold at once.
         max_client_channels: channels a client may advertise at once.
         max_queue_bytes: bytes of message data queued for the client before
@@ -27,6 +29,7 @@ class FoxgloveLimits:
         max_parameter_subscriptions: parameters a client may watch at once.
     """
 
+    max_channels: int = 10_000
     max_subscriptions: int = 4096
     max_client_channels: int = 1024
     max_queue_bytes: int = DEFAULT_MAX_BYTES

@@ -34,6 +34,7 @@ class OutQueue:
 
     Attributes:
         dropped: data frames dropped so far.
+        peak_bytes: the most bytes of message data it held at once (after drops).
     """
 
     def __init__(
@@ -45,6 +46,7 @@ class OutQueue:
         self._data_bytes = 0
         self._data_count = 0
         self.dropped = 0
+        self.peak_bytes = 0
         self._episode_drops = 0  # drops since the queue was last empty
         self._told = False  # the client heard of this episode
 
@@ -68,10 +70,12 @@ class OutQueue:
             return False
         self._data_bytes += len(frame.data)
         self._data_count += 1
-        if self._data_count <= self.max_messages and self._data_bytes <= self.max_bytes:
+        if self._data_count > self.max_messages or self._data_bytes > self.max_bytes:
+            self._drop_oldest()
+        self.peak_bytes = max(self.peak_bytes, self._data_bytes)
+        if not self._episode_drops:
             return False
-        self._drop_oldest()
-        if self._episode_drops and not self._told:
+        if not self._told:
             self._told = True
             return True
         return False

@@ -155,6 +155,7 @@ class FoxgloveSession:
         self._client_channels: dict[int, _ClientChannel] = {}
         self._failed_topics: set[str] = set()  # told once that their data cannot be encoded
         self._tracked: dict[int, OutFrame] = {}  # id -> frame of ``tracked`` not yet taken
+        self._unadvertised = 0  # topics left out by ``max_channels`` at the last sync
         self._closed = False
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
@@ -255,6 +256,11 @@ class FoxgloveSession:
 
     def _push_data(self, frame: OutFrame) -> None:
         if self._queue.push(frame):
+            logger.warning(
+                "event=slow_consumer client=%s protocol=foxglove dropped_total=%d",
+                self._client_id,
+                self._queue.dropped,
+            )
             self._queue.push(
                 OutFrame(
                     encode_op(
@@ -422,8 +428,13 @@ class FoxgloveSession:
                 self._drop_channel(channel)
             self._control(Unadvertise(channelIds=[channel.id for channel in gone]))
         added: list[Channel] = []
+        room = self.limits.max_channels - len(self._channels)
+        left_out = 0
         for topic, mtype in current.items():
             if topic in self._channels:
+                continue
+            if len(added) >= room:
+                left_out += 1
                 continue
             channel = _ServerChannel(next(self._ids), topic, mtype)
             schema = schema_of(mtype)
@@ -441,8 +452,21 @@ class FoxgloveSession:
             )
         if added:
             self._control(Advertise(channels=added))
-        if (gone or added) and self._on_output is not None:
+        told = self._tell_left_out(left_out)
+        if (gone or added or told) and self._on_output is not None:
             self._on_output()
+
+    def _tell_left_out(self, left_out: int) -> bool:
+        """A warning when topics begin to be left out (``max_channels``); once per episode."""
+        before, self._unadvertised = self._unadvertised, left_out
+        if not left_out or before:
+            return False
+        self._status(
+            StatusLevel.WARNING,
+            f"{left_out} topics are not advertised: this server advertises at most "
+            f"{self.limits.max_channels} channels to a client",
+        )
+        return True
 
     def _drop_channel(self, channel: _ServerChannel) -> None:
         del self._channels[channel.topic]
@@ -492,6 +516,12 @@ class FoxgloveSession:
         self.services.close()
         if self.params is not None:
             self.params.close()
+        logger.info(
+            "event=foxglove_closed client=%s dropped=%d queue_peak_bytes=%d",
+            self._client_id,
+            self._queue.dropped,
+            self._queue.peak_bytes,
+        )
         self._graph.release(self._client_id)
         self._subscriptions.clear()
         self._client_channels.clear()
