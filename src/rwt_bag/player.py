@@ -32,7 +32,7 @@ from rwt_protocol.names import name_problem
 
 from .background import BackgroundJob
 from .errors import BagError
-from .reader import BagSource, BagTopic
+from .reader import BagItem, BagSource
 
 if TYPE_CHECKING:
     from collections.abc import Mapping, Sequence
@@ -48,7 +48,6 @@ __all__ = ["PlayStats", "Player"]
 
 logger = logging.getLogger("rwt.bag")
 
-_Item = tuple[BagTopic, int, dict[str, object], int]  # topic, bag time ns, message, bytes
 #: One trip to the reader thread decodes up to this many messages or bytes, so
 #: the thread hop is paid once per batch, not per message.
 _BATCH_MESSAGES = 512
@@ -412,24 +411,24 @@ class Player(BackgroundJob):
         return self._seek_to
 
     async def _play_from(self, start_ns: int) -> None:
-        send, receive = anyio.create_memory_object_stream[list[_Item]](_QUEUE)
+        send, receive = anyio.create_memory_object_stream[list[BagItem]](_QUEUE)
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._produce, send, start_ns)
             await self._consume(receive)
             tg.cancel_scope.cancel()  # stopped early (duration, until): the reader too
 
-    async def _produce(self, send: MemoryObjectSendStream[list[_Item]], start_ns: int) -> None:
+    async def _produce(self, send: MemoryObjectSendStream[list[BagItem]], start_ns: int) -> None:
         batches = self.source.batches(
             start_ns, max_messages=_BATCH_MESSAGES, max_bytes=_BATCH_BYTES
         )
         async with send:
             while True:
-                batch: list[_Item] = await anyio.to_thread.run_sync(next, batches, [])
+                batch: list[BagItem] = await anyio.to_thread.run_sync(next, batches, [])
                 if not batch:
                     return
                 await send.send(batch)
 
-    async def _consume(self, receive: MemoryObjectReceiveStream[list[_Item]]) -> None:
+    async def _consume(self, receive: MemoryObjectReceiveStream[list[BagItem]]) -> None:
         first = True
         async with receive:
             async for batch in receive:
@@ -442,13 +441,13 @@ class Player(BackgroundJob):
                     if not self._paused:
                         self._anchor(self._anchor_ns)
                 publishers, stats = self._publishers, self.stats
-                for topic, ns, msg, _ in batch:
+                for topic, ns, msg, record in batch:
                     if ns > self._stop_ns:
                         return
                     if self._paused or self._due(ns) > time.monotonic():
                         await self._wait_until(ns)  # not yet (or paused): wait
                     self._position_ns = ns
-                    publishers[topic.topic].publish(msg, validated=True)
+                    publishers[topic.topic].publish(msg, validated=True, wire=record)
                     stats.messages += 1
 
     def _due(self, ns: int) -> float:

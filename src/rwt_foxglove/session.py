@@ -398,13 +398,17 @@ class FoxgloveSession:
     ) -> None:
         """Queue ``event`` as message data for each of ``subscriptions``; never raises.
 
-        The payload is serialized once per message for every Foxglove client
-        (``MessageEvent.encoded``); the log time is when the graph received it.
+        The payload is the message as it arrived where the graph has that
+        (``MessageEvent.wire``: a link's CDR, a bag's record), else serialized
+        once per message for every Foxglove client (``MessageEvent.encoded``);
+        the log time is when the graph received it.
         """
         if self._closed or not subscriptions:
             return
         try:
-            payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
+            payload = event.wire
+            if payload is None:
+                payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
         except Exception as exc:  # a type rosbags cannot write: say so once per topic
             if channel.topic not in self._failed_topics:
                 self._failed_topics.add(channel.topic)

@@ -479,9 +479,13 @@ class GraphCore:
     # ---- in-process participants and internals ----------------------------------
 
     def publish_local(
-        self, client: ClientId, topic: str, msg: Message, *, latch: bool
+        self, client: ClientId, topic: str, msg: Message, *, latch: bool, wire: bytes | None = None
     ) -> MessageEvent:
         """Deliver an already-converted message from an in-process publisher.
+
+        ``wire``: ``msg`` in the dialect's wire serialization as it arrived (a
+        link's sample, a bag's record), which subscribers sending that form pass
+        on as it is (``MessageEvent.wire``); the caller vouches that it is ``msg``.
 
         Returns:
             the event its subscribers got.
@@ -492,9 +496,17 @@ class GraphCore:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        return self._send(entry, msg, latch=latch, client=client)
+        return self._send(entry, msg, latch=latch, client=client, wire=wire)
 
-    def _send(self, entry: Topic, msg: Message, *, latch: bool, client: ClientId) -> MessageEvent:
+    def _send(
+        self,
+        entry: Topic,
+        msg: Message,
+        *,
+        latch: bool,
+        client: ClientId,
+        wire: bytes | None = None,
+    ) -> MessageEvent:
         event = MessageEvent(
             entry.name,
             entry.msgtype.name,
@@ -502,6 +514,7 @@ class GraphCore:
             self._clock.monotonic(),
             stamp=self._clock.wall(),
             codec=codec_for(self.registry, entry.msgtype),
+            wire=wire,
         )
         entry.fan_out(event, latch=latch, client=client)
         for tap in self.taps:
