@@ -4,7 +4,8 @@ Three tasks per connection: the reader hands each received frame to the
 session; the writer sends what the session queued, a batch at a time, whenever
 it is woken (a reply, a graph message); the watcher calls ``sync`` every
 ``sync_interval_s`` so that topics that appeared or went are (un)advertised
-(the graph announces no changes, so it is looked at: one pass over its topics).
+(the graph announces no changes, so it is looked at: one pass over its topics);
+while a bag plays, the ticker calls ``tick`` every ``TIME_INTERVAL_S`` (server time).
 The session never awaits, so a slow client only fills its own queue.
 """
 
@@ -16,6 +17,8 @@ from typing import TYPE_CHECKING, Protocol
 import anyio
 
 from rwt_protocol.framing.streams import InFrame
+
+from .servertime import TIME_INTERVAL_S
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -82,6 +85,8 @@ async def run_foxglove(
         async with anyio.create_task_group() as tasks:
             tasks.start_soon(_write, channel, session, wakeup)
             tasks.start_soon(_watch, session, sync_interval_s)
+            if session.announces_time:
+                tasks.start_soon(_tick, session, TIME_INTERVAL_S)
             wakeup.set()  # serverInfo and the first advertise
             try:
                 await _read(channel, session, wakeup)
@@ -111,6 +116,12 @@ async def _write(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wak
                 await channel.send(frames)
             except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
                 return
+
+
+async def _tick(session: FoxgloveSession, interval_s: float) -> None:
+    while True:
+        await anyio.sleep(interval_s)
+        session.tick()
 
 
 async def _watch(session: FoxgloveSession, interval_s: float) -> None:

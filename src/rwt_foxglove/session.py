@@ -49,6 +49,7 @@ from .protocol import (
     parse_text,
 )
 from .schemas import JSON, metadata_for, schema_of, supported_encodings, wire_encoding
+from .servertime import TIME_CAPABILITY, ServerTime
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -62,7 +63,7 @@ __all__ = ["CAPABILITIES", "FoxgloveLimits", "FoxgloveSession"]
 logger = logging.getLogger("rwt.foxglove")
 
 CAPABILITIES: Final = ("clientPublish",)
-"""What ``serverInfo`` announces (services, parameters, time... are not done yet)."""
+"""What ``serverInfo`` always announces (``time`` too while a bag plays, ``servertime``)."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
 
 
@@ -156,15 +157,19 @@ class FoxgloveSession:
         self._closed = False
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
+        # a bag playing when the client connects: its clock is server time
+        self._time = None if graph.timeline is None else ServerTime(graph)
+        capabilities = [*CAPABILITIES, *([TIME_CAPABILITY] if self._time else [])]
         self._control(
             ServerInfo(
                 name=name,
-                capabilities=list(CAPABILITIES),
+                capabilities=capabilities,
                 supportedEncodings=supported_encodings(dialect),
                 metadata=metadata_for(dialect),
                 sessionId=session_id,
             )
         )
+        self.tick()
         self.sync()
 
     # ---- outputs ------------------------------------------------------------------
@@ -186,6 +191,25 @@ class FoxgloveSession:
         # sends bad frames and reads nothing cannot grow the queue without bound.
         frame = OutFrame(encode_op(Status(level=int(level), message=message)), droppable=True)
         self._push_data(frame)
+
+    @property
+    def announces_time(self) -> bool:
+        """Whether this client was told of server time (``tick`` then sends it)."""
+        return self._time is not None
+
+    def tick(self) -> None:
+        """Send the server time if it moved since last told (``servertime``); never raises."""
+        if self._time is None or self._closed:
+            return
+        now = self._time.now()
+        if now is not None and self._told_time(now) and self._on_output is not None:
+            self._on_output()
+
+    def _told_time(self, now: int) -> bool:
+        frame = None if self._time is None else self._time.frame(now)
+        if frame is not None:  # droppable: a client that reads nothing cannot grow the queue
+            self._push_data(OutFrame(frame, True, True))
+        return frame is not None
 
     def _push_data(self, frame: OutFrame) -> None:
         if self._queue.push(frame):
@@ -401,7 +425,8 @@ class FoxgloveSession:
         The payload is the message as it arrived where the graph has that
         (``MessageEvent.wire``: a link's CDR, a bag's record), else serialized
         once per message for every Foxglove client (``MessageEvent.encoded``);
-        the log time is when the graph received it.
+        the log time is when the graph received it, on the bag's clock while a
+        bag plays (``servertime``).
         """
         if self._closed or not subscriptions:
             return
@@ -415,7 +440,12 @@ class FoxgloveSession:
                 logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
                 self._status(StatusLevel.ERROR, f"{channel.topic}: cannot encode its messages")
             return
-        log_time = int(event.stamp * 1e9)
+        now = None if self._time is None else self._time.now()
+        if now is None:
+            log_time = int(event.stamp * 1e9)
+        else:  # on the bag's clock, told first (a client reads receive time from it)
+            log_time = now
+            self._told_time(now)
         for sid in subscriptions:
             self._push_data(OutFrame(encode_message_data(sid, log_time, payload), True, True))
         if self._on_output is not None:
