@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import logging
+import os
 import sys
 from dataclasses import replace
 from typing import TYPE_CHECKING, NoReturn
@@ -20,6 +21,7 @@ import anyio
 import typer
 
 from rwt_console import ConsoleSite
+from rwt_foxglove import AssetRoots
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
@@ -212,7 +214,13 @@ def _server_config(
             console=site,
         ),
         foxglove=FoxgloveOptions(
-            on_rosbridge_port=listeners.foxglove, port=listeners.foxglove_port
+            on_rosbridge_port=listeners.foxglove,
+            port=listeners.foxglove_port,
+            assets=(
+                AssetRoots.from_environment(listeners.package_path or (), os.environ)
+                if listeners.assets
+                else None
+            ),
         ),
         udp=UdpOptions(
             datagram_bytes=listeners.udp_datagram_size,

@@ -5,9 +5,11 @@ Facts from the Foxglove SDK's server (``rust/foxglove/src/protocol/v1``) and the
 an ``op`` field; binary frames start with a one-byte opcode and are little-endian.
 Server to client: ``serverInfo``, ``status``, ``removeStatus``, ``advertise``,
 ``unadvertise`` (text), message data (``0x01``: u32 subscription id, u64 log
-time in ns, payload) and time (``0x02``: u64 ns). Client to server:
-``subscribe``, ``unsubscribe``, ``advertise``, ``unadvertise`` (text) and
-client message data (``0x01``: u32 client channel id, payload).
+time in ns, payload), time (``0x02``: u64 ns) and fetch asset response
+(``0x04``: u32 request id, u8 status, u32 error length, error text, data).
+Client to server: ``subscribe``, ``unsubscribe``, ``advertise``,
+``unadvertise``, ``fetchAsset`` (text) and client message data (``0x01``: u32
+client channel id, payload).
 
 Every bad input becomes a ``FoxgloveInputError`` whose text goes to the peer as
 an error ``status``; the connection goes on (docs/foxglove.md, limits). JSON
@@ -40,6 +42,8 @@ __all__ = [
     "ClientMessageData",
     "ClientOp",
     "ClientUnadvertise",
+    "FetchAsset",
+    "FetchAssetStatus",
     "FoxgloveInputError",
     "RemoveStatus",
     "ServerInfo",
@@ -49,6 +53,7 @@ __all__ = [
     "Subscription",
     "Unadvertise",
     "Unsubscribe",
+    "encode_fetch_asset_response",
     "encode_message_data",
     "encode_op",
     "encode_time",
@@ -63,10 +68,12 @@ SUBPROTOCOLS: Final = ("foxglove.sdk.v1", "foxglove.websocket.v1")
 U32_MAX: Final = 2**32 - 1
 _MESSAGE_DATA: Final = 0x01
 _TIME: Final = 0x02
+_FETCH_ASSET_RESPONSE: Final = 0x04
 _SERVICE_CALL_REQUEST: Final = 0x02
 _DATA_HEADER = struct.Struct("<BIQ")  # opcode, subscription id, log time (ns)
 _CLIENT_DATA_HEADER = struct.Struct("<BI")  # opcode, client channel id
 _TIME_FRAME = struct.Struct("<BQ")
+_ASSET_HEADER = struct.Struct("<BIBI")  # opcode, request id, status, error length
 
 
 def select_subprotocol(offered: Iterable[str]) -> str | None:
@@ -144,15 +151,25 @@ class ClientMessageData(msgspec.Struct, frozen=True):
     payload: bytes | memoryview
 
 
-ClientOp = Subscribe | Unsubscribe | ClientAdvertise | ClientUnadvertise | ClientMessageData
+class FetchAsset(msgspec.Struct, frozen=True):
+    """``fetchAsset``: the client asks for the file at ``uri``; answered under ``requestId``."""
 
-TextOp = Subscribe | Unsubscribe | ClientAdvertise | ClientUnadvertise
+    uri: str
+    requestId: int
+
+
+ClientOp = (
+    Subscribe | Unsubscribe | ClientAdvertise | ClientUnadvertise | FetchAsset | ClientMessageData
+)
+
+TextOp = Subscribe | Unsubscribe | ClientAdvertise | ClientUnadvertise | FetchAsset
 
 CLIENT_OPS: Final[dict[str, type[TextOp]]] = {
     "subscribe": Subscribe,
     "unsubscribe": Unsubscribe,
     "advertise": ClientAdvertise,
     "unadvertise": ClientUnadvertise,
+    "fetchAsset": FetchAsset,
 }
 """The text ops this server handles, by ``op``."""
 
@@ -164,7 +181,6 @@ UNSUPPORTED_OPS: Final = frozenset(
         "unsubscribeParameterUpdates",
         "subscribeConnectionGraph",
         "unsubscribeConnectionGraph",
-        "fetchAsset",
     }
 )
 """Ops of capabilities this server does not announce (docs/foxglove.md, not done yet)."""
@@ -210,6 +226,8 @@ def _check_ids(op: TextOp) -> None:
     elif isinstance(op, ClientAdvertise):
         for channel in op.channels:
             _u32(channel.id, "client channel id")
+    elif isinstance(op, FetchAsset):
+        _u32(op.requestId, "request id")
     else:
         for cid in op.channelIds:
             _u32(cid, "client channel id")
@@ -303,6 +321,24 @@ def encode_op(op: ServerOp) -> bytes:
 def encode_message_data(subscription_id: int, log_time_ns: int, payload: bytes) -> bytes:
     """A binary message data frame (opcode 0x01): header, then the payload as is."""
     return _DATA_HEADER.pack(_MESSAGE_DATA, subscription_id, log_time_ns) + payload
+
+
+class FetchAssetStatus(IntEnum):
+    """A ``fetchAssetResponse``'s status."""
+
+    SUCCESS = 0
+    ERROR = 1
+
+
+def encode_fetch_asset_response(request_id: int, data: bytes | None, error: str = "") -> bytes:
+    """A binary fetch asset response (opcode 0x04): ``data``, or with None the ``error``."""
+    if data is None:
+        text = error.encode("utf-8", "replace")
+        return (
+            _ASSET_HEADER.pack(_FETCH_ASSET_RESPONSE, request_id, FetchAssetStatus.ERROR, len(text))
+            + text
+        )
+    return _ASSET_HEADER.pack(_FETCH_ASSET_RESPONSE, request_id, FetchAssetStatus.SUCCESS, 0) + data
 
 
 def encode_time(time_ns: int) -> bytes:

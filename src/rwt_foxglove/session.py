@@ -28,6 +28,7 @@ from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.outbox import OutFrame
 
+from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetRequests
 from .outqueue import DEFAULT_MAX_BYTES, DEFAULT_MAX_MESSAGES, OutQueue
 from .protocol import (
     Advertise,
@@ -36,6 +37,7 @@ from .protocol import (
     ClientChannel,
     ClientMessageData,
     ClientUnadvertise,
+    FetchAsset,
     FoxgloveInputError,
     ServerInfo,
     Status,
@@ -43,6 +45,7 @@ from .protocol import (
     Subscribe,
     Unadvertise,
     Unsubscribe,
+    encode_fetch_asset_response,
     encode_message_data,
     encode_op,
     parse_binary,
@@ -65,6 +68,7 @@ logger = logging.getLogger("rwt.foxglove")
 CAPABILITIES: Final = ("clientPublish",)
 """What ``serverInfo`` always announces (``time`` too while a bag plays, ``servertime``)."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
+_ASSET: Final = object()  # the group of a fetch asset response with a file's outcome
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,6 +133,8 @@ class FoxgloveSession:
         on_output: called when frames were queued while nobody asked (a graph
             message); the driver wakes its writer.
         name: the server's name in ``serverInfo``.
+        assets: answer ``fetchAsset`` (the driver reads the files,
+            ``assetrequests``); False: the op is refused and not announced.
     """
 
     def __init__(
@@ -141,6 +147,7 @@ class FoxgloveSession:
         limits: FoxgloveLimits | None = None,
         on_output: Callable[[], None] | None = None,
         name: str = "rwt",
+        assets: bool = False,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
@@ -159,7 +166,9 @@ class FoxgloveSession:
         self._wire = wire_encoding(dialect)
         # a bag playing when the client connects: its clock is server time
         self._time = None if graph.timeline is None else ServerTime(graph)
+        self._assets = AssetRequests() if assets else None
         capabilities = [*CAPABILITIES, *([TIME_CAPABILITY] if self._time else [])]
+        capabilities += [ASSETS_CAPABILITY] if assets else []
         self._control(
             ServerInfo(
                 name=name,
@@ -176,7 +185,10 @@ class FoxgloveSession:
 
     def take(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Take the frames to send, oldest first (about ``max_bytes``; the limits' batch)."""
-        return self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
+        frames = self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
+        if self._assets is not None and self._assets.queued:
+            self._assets.queued -= sum(frame.group is _ASSET for frame in frames)
+        return frames
 
     @property
     def dropped(self) -> int:
@@ -245,6 +257,8 @@ class FoxgloveSession:
                 self._unsubscribe(op)
             elif isinstance(op, ClientAdvertise):
                 self._client_advertise(op)
+            elif isinstance(op, FetchAsset):
+                self._fetch_asset(op)
             else:
                 self._client_unadvertise(op)
         except RwtError as exc:
@@ -327,6 +341,36 @@ class FoxgloveSession:
                 continue
             if all(other.topic != channel.topic for other in self._client_channels.values()):
                 self._graph.unadvertise(self._client_id, channel.topic)
+
+    # ---- assets (assetrequests) ----------------------------------------------------
+
+    def _fetch_asset(self, op: FetchAsset) -> None:
+        if self._assets is None:
+            raise FoxgloveInputError("op 'fetchAsset' is not supported by this server")
+        if not self._assets.add(op):  # droppable: a client that reads nothing stays bounded
+            error = f"more than {MAX_PENDING_ASSETS} asset requests wait: ask again later"
+            self._push_data(
+                OutFrame(encode_fetch_asset_response(op.requestId, None, error), True, True)
+            )
+
+    def next_asset_request(self) -> FetchAsset | None:
+        """The oldest ``fetchAsset`` to read, once the client took the last response."""
+        if self._assets is None or self._assets.queued or self._closed:
+            return None
+        return self._assets.next()
+
+    def asset_fetched(self, request_id: int, data: bytes | None, error: str = "") -> None:
+        """Queue the response to ``request_id``: ``data``, or with None the ``error`` text."""
+        if self._assets is None or self._closed:
+            return
+        frame = encode_fetch_asset_response(request_id, data, error)
+        self._assets.queued += 1
+        self._queue.push(OutFrame(frame, binary=True, group=_ASSET))
+
+    @property
+    def assets_queued(self) -> bool:
+        """Whether a response with a file's outcome waits in the queue (the driver waits)."""
+        return self._assets is not None and self._assets.queued > 0
 
     def _message_data(self, op: ClientMessageData) -> None:
         channel = self._client_channels.get(op.channel_id)

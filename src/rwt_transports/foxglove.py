@@ -17,7 +17,7 @@ import uuid
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from rwt_foxglove import FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
+from rwt_foxglove import AssetRoots, FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
 
 if TYPE_CHECKING:
     from rwt_graph.core import GraphCore
@@ -42,15 +42,21 @@ class FoxgloveOptions:
             0 picks a free one; None: no such listener). A client there that
             offers no Foxglove subprotocol is refused with HTTP 400.
         limits: each Foxglove client's bounds (docs/limits.md).
+        assets: where ``package://`` URIs of ``fetchAsset`` are looked up
+            (``rwt serve --package-path``); None: the ``assets`` capability is off.
     """
 
     on_rosbridge_port: bool = True
     port: int | None = None
     limits: FoxgloveLimits = field(default_factory=FoxgloveLimits)
+    assets: AssetRoots | None = None
 
 
 def foxglove_server(
-    graph: GraphCore, access: AccessPolicy, limits: FoxgloveLimits
+    graph: GraphCore,
+    access: AccessPolicy,
+    limits: FoxgloveLimits,
+    assets: AssetRoots | None = None,
 ) -> FoxgloveServe:
     """The function that runs each accepted Foxglove connection of one server.
 
@@ -58,6 +64,7 @@ def foxglove_server(
         graph: the served graph's core.
         access: the server's access globs (a topic a client may not see is not advertised).
         limits: each client's bounds.
+        assets: where fetched ``package://`` files are found; None: no assets.
     """
     session_id = uuid.uuid4().hex  # one per server run: clients tell a restart by it
 
@@ -70,8 +77,9 @@ def foxglove_server(
             access=access,
             limits=limits,
             on_output=wakeup.set,
+            assets=assets is not None,
         )
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
-        await run_foxglove(channel, foxglove, wakeup)
+        await run_foxglove(channel, foxglove, wakeup, assets=assets)
 
     return serve

@@ -282,7 +282,10 @@ class RosbridgeServer:
             None
             if session_config.authenticator is not None
             else foxglove_server(
-                self.graph.port, session_config.access, self.config.foxglove.limits
+                self.graph.port,
+                session_config.access,
+                self.config.foxglove.limits,
+                self.config.foxglove.assets,
             )
         )
         # stream connections (not stdio, not in-process) close when idle
