@@ -87,9 +87,12 @@ async def test_a_ros2_bag_is_replayed_as_its_records(tmp_path: Path) -> None:
         await tasks.start(player.run)
         client = subscribed(graph, "/point")
         player.resume()
+        payloads: list[bytes] = []
         with anyio.fail_after(10):
-            while len(client.binary) < len(records):
+            while len(payloads) < len(records):
                 await anyio.sleep(0.01)
                 client.drain()
+                payloads += [frame[13:] for frame in client.binary if frame[0] == 1]  # not time
+                client.binary = []
         tasks.cancel_scope.cancel()
-    assert [payload for _, _, payload in client.data()] == records
+    assert payloads == records
