@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import importlib.util
 import logging
-import os
 import sys
 from dataclasses import replace
 from typing import TYPE_CHECKING, NoReturn
@@ -21,7 +20,6 @@ import anyio
 import typer
 
 from rwt_console import ConsoleSite
-from rwt_foxglove import AssetRoots
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
@@ -216,11 +214,8 @@ def _server_config(
         foxglove=FoxgloveOptions(
             on_rosbridge_port=listeners.foxglove,
             port=listeners.foxglove_port,
-            assets=(
-                AssetRoots.from_environment(listeners.package_path or (), os.environ)
-                if listeners.assets
-                else None
-            ),
+            assets=listeners.assets,
+            package_paths=tuple(listeners.package_path or ()),
         ),
         udp=UdpOptions(
             datagram_bytes=listeners.udp_datagram_size,

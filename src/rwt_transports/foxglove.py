@@ -13,6 +13,7 @@ and uses that session's client id in the graph; its rosbridge ops are never read
 from __future__ import annotations
 
 import logging
+import os
 import uuid
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -20,6 +21,9 @@ from typing import TYPE_CHECKING
 from rwt_foxglove import AssetRoots, FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from pathlib import Path
+
     from rwt_graph.core import GraphCore
     from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.session import Session
@@ -42,30 +46,34 @@ class FoxgloveOptions:
             0 picks a free one; None: no such listener). A client there that
             offers no Foxglove subprotocol is refused with HTTP 400.
         limits: each Foxglove client's bounds (docs/limits.md).
-        assets: where ``package://`` URIs of ``fetchAsset`` are looked up
-            (``rwt serve --package-path``); None: the ``assets`` capability is off.
+        assets: answer ``fetchAsset`` (the ``assets`` capability) from
+            ``package_paths``, then ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH``'s
+            share folders (``rwt serve --assets``; off where none of them exists).
+        package_paths: directories holding ROS packages (``--package-path``).
     """
 
     on_rosbridge_port: bool = True
     port: int | None = None
     limits: FoxgloveLimits = field(default_factory=FoxgloveLimits)
-    assets: AssetRoots | None = None
+    assets: bool = False
+    package_paths: Sequence[Path] = ()
 
 
 def foxglove_server(
-    graph: GraphCore,
-    access: AccessPolicy,
-    limits: FoxgloveLimits,
-    assets: AssetRoots | None = None,
+    graph: GraphCore, access: AccessPolicy, options: FoxgloveOptions
 ) -> FoxgloveServe:
     """The function that runs each accepted Foxglove connection of one server.
 
     Args:
         graph: the served graph's core.
         access: the server's access globs (a topic a client may not see is not advertised).
-        limits: each client's bounds.
-        assets: where fetched ``package://`` files are found; None: no assets.
+        options: each client's bounds (``limits``) and where assets are found
+            (read once, with the environment's ROS paths, here).
     """
+    limits = options.limits
+    assets = (
+        AssetRoots.from_environment(options.package_paths, os.environ) if options.assets else None
+    )
     session_id = uuid.uuid4().hex  # one per server run: clients tell a restart by it
 
     async def serve(channel: WebSocketChannel, session: Session, subprotocol: str) -> None:

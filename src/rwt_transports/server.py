@@ -281,12 +281,7 @@ class RosbridgeServer:
         self._foxglove = (
             None
             if session_config.authenticator is not None
-            else foxglove_server(
-                self.graph.port,
-                session_config.access,
-                self.config.foxglove.limits,
-                self.config.foxglove.assets,
-            )
+            else foxglove_server(self.graph.port, session_config.access, self.config.foxglove)
         )
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
