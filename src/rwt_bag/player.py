@@ -8,7 +8,9 @@ into a bounded queue so the event loop only waits and publishes.
 
 With ``clock`` the player publishes ``/clock`` (rosgraph_msgs/Clock) and the
 graph's wall clock reads bag time (so rosapi ``get_time`` and default header
-stamps follow the bag, as with ``use_sim_time``). ``pause``, ``resume`` and
+stamps follow the bag, as with ``use_sim_time``). Always, while it runs, the graph's
+``timeline`` is the bag's clock (``clock_ns``), which Foxglove clients get as
+server time. ``pause``, ``resume`` and
 ``seek`` drive it from Python; ``serve_controls`` offers them as services under
 ``/rwt/player/`` (``controls``).
 """
@@ -32,7 +34,7 @@ from rwt_protocol.names import name_problem
 
 from .background import BackgroundJob
 from .errors import BagError
-from .reader import BagSource, BagTopic
+from .reader import BagItem, BagSource
 
 if TYPE_CHECKING:
     from collections.abc import Mapping, Sequence
@@ -48,7 +50,6 @@ __all__ = ["PlayStats", "Player"]
 
 logger = logging.getLogger("rwt.bag")
 
-_Item = tuple[BagTopic, int, dict[str, object], int]  # topic, bag time ns, message, bytes
 #: One trip to the reader thread decodes up to this many messages or bytes, so
 #: the thread hop is paid once per batch, not per message.
 _BATCH_MESSAGES = 512
@@ -179,6 +180,7 @@ class Player(BackgroundJob):
         self._anchor_mono = 0.0
         self._anchor_ns = self.start_ns
         self._position_ns = self.start_ns
+        self._publishing_ns: int | None = None  # the record time of the message being published
         self.remap = dict(remap or {})
         self.delay = delay
         self.wait_for_subscribers = wait_for_subscribers
@@ -217,6 +219,16 @@ class Player(BackgroundJob):
             return self._position_ns
         elapsed = (time.monotonic() - self._anchor_mono) * self.rate
         return min(self._anchor_ns + int(elapsed * 1e9), max(self._stop_ns, self._anchor_ns))
+
+    def clock_ns(self) -> int:
+        """Bag time (ns since the epoch) for what happens now.
+
+        The record time of the message being published while one is (exact,
+        for its subscribers), else ``bag_time_ns``. The graph's ``timeline``
+        while the player runs (Foxglove's server time).
+        """
+        publishing = self._publishing_ns
+        return self.bag_time_ns() if publishing is None else publishing
 
     def pause(self) -> None:
         """Stop publishing until ``resume``; ``/clock`` stands still."""
@@ -313,6 +325,7 @@ class Player(BackgroundJob):
             raise
         try:
             with contextlib.ExitStack() as bag_time:
+                bag_time.enter_context(self.graph.port.use_timeline(self.clock_ns))
                 async with anyio.create_task_group() as tg:
                     if self.clock_hz:  # the graph's wall time is bag time while it plays
                         clock = BagClock(self.graph.clock, self)
@@ -412,24 +425,24 @@ class Player(BackgroundJob):
         return self._seek_to
 
     async def _play_from(self, start_ns: int) -> None:
-        send, receive = anyio.create_memory_object_stream[list[_Item]](_QUEUE)
+        send, receive = anyio.create_memory_object_stream[list[BagItem]](_QUEUE)
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._produce, send, start_ns)
             await self._consume(receive)
             tg.cancel_scope.cancel()  # stopped early (duration, until): the reader too
 
-    async def _produce(self, send: MemoryObjectSendStream[list[_Item]], start_ns: int) -> None:
+    async def _produce(self, send: MemoryObjectSendStream[list[BagItem]], start_ns: int) -> None:
         batches = self.source.batches(
             start_ns, max_messages=_BATCH_MESSAGES, max_bytes=_BATCH_BYTES
         )
         async with send:
             while True:
-                batch: list[_Item] = await anyio.to_thread.run_sync(next, batches, [])
+                batch: list[BagItem] = await anyio.to_thread.run_sync(next, batches, [])
                 if not batch:
                     return
                 await send.send(batch)
 
-    async def _consume(self, receive: MemoryObjectReceiveStream[list[_Item]]) -> None:
+    async def _consume(self, receive: MemoryObjectReceiveStream[list[BagItem]]) -> None:
         first = True
         async with receive:
             async for batch in receive:
@@ -442,13 +455,16 @@ class Player(BackgroundJob):
                     if not self._paused:
                         self._anchor(self._anchor_ns)
                 publishers, stats = self._publishers, self.stats
-                for topic, ns, msg, _ in batch:
+                for topic, ns, msg, record in batch:
                     if ns > self._stop_ns:
                         return
                     if self._paused or self._due(ns) > time.monotonic():
                         await self._wait_until(ns)  # not yet (or paused): wait
-                    self._position_ns = ns
-                    publishers[topic.topic].publish(msg, validated=True)
+                    self._position_ns = self._publishing_ns = ns
+                    try:
+                        publishers[topic.topic].publish(msg, validated=True, wire=record)
+                    finally:
+                        self._publishing_ns = None
                     stats.messages += 1
 
     def _due(self, ns: int) -> float:

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
     from rwt_graph.types import MessageType, TypeRegistry
 
-__all__ = ["BagSource", "BagTopic", "is_latched", "shown_name", "shown_text"]
+__all__ = ["BagItem", "BagSource", "BagTopic", "is_latched", "shown_name", "shown_text"]
 
 logger = logging.getLogger("rwt.bag")
 
@@ -69,6 +69,10 @@ class BagTopic:
     mtype: MessageType
     latched: bool
     count: int
+
+
+BagItem = tuple[BagTopic, int, dict[str, object], bytes]
+"""One message of a bag: its topic, bag time (ns), internal form and serialized record."""
 
 
 def is_latched(topic: str, msgtype: str, ext: object) -> bool:
@@ -225,10 +229,11 @@ class BagSource:
         wanted = "ros1" if bag_ros1 else "ros2"
         return f"; a ROS {1 if bag_ros1 else 2} bag plays on a {wanted} graph (--dialect {wanted})"
 
-    def messages(
-        self, start_ns: int | None = None
-    ) -> Iterator[tuple[BagTopic, int, dict[str, object], int]]:
-        """Each message from ``start_ns`` on, as ``(topic, bag time ns, message, bytes)``.
+    def messages(self, start_ns: int | None = None) -> Iterator[BagItem]:
+        """Each message from ``start_ns`` on, as ``(topic, bag time ns, message, record)``.
+
+        ``record`` is the message's serialization as the bag holds it (CDR, or
+        ROS 1's), which replay passes on to subscribers that send that form.
 
         Raises:
             BagError: as ``batches``.
@@ -242,7 +247,7 @@ class BagSource:
         *,
         max_messages: int = 512,
         max_bytes: int = 1024 * 1024,
-    ) -> Iterator[list[tuple[BagTopic, int, dict[str, object], int]]]:
+    ) -> Iterator[list[BagItem]]:
         """The messages of ``messages`` in lists of up to ``max_messages`` or ``max_bytes``.
 
         A list ends at the first message that reaches either bound; the last may
@@ -268,7 +273,7 @@ class BagSource:
 
     def _take(
         self, items: Iterator[tuple[Any, int, bytes]], max_messages: int, max_bytes: int
-    ) -> list[tuple[BagTopic, int, dict[str, object], int]]:
+    ) -> list[BagItem]:
         """Read and decode the next messages of ``items`` up to the bounds of ``batches``."""
         reader = self._reader
         deserialize = (
@@ -277,7 +282,7 @@ class BagSource:
             else reader.typestore.deserialize_ros1
         )
         topics, convert = self.topics, self._convert
-        batch: list[tuple[BagTopic, int, dict[str, object], int]] = []
+        batch: list[BagItem] = []
         size = 0
         while len(batch) < max_messages and size < max_bytes:
             try:
@@ -296,7 +301,7 @@ class BagSource:
                     f"{_names(self.paths)}: a message of {topic.topic} (type {topic.msgtype}) "
                     f"at {ns} ns cannot be decoded: {_reason(exc)}"
                 ) from exc
-            batch.append((topic, ns, msg, len(raw)))
+            batch.append((topic, ns, msg, raw if type(raw) is bytes else bytes(raw)))
             size += len(raw)
         return batch
 

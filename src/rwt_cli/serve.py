@@ -212,7 +212,10 @@ def _server_config(
             console=site,
         ),
         foxglove=FoxgloveOptions(
-            on_rosbridge_port=listeners.foxglove, port=listeners.foxglove_port
+            on_rosbridge_port=listeners.foxglove,
+            port=listeners.foxglove_port,
+            assets=listeners.assets,
+            package_paths=tuple(listeners.package_path or ()),
         ),
         udp=UdpOptions(
             datagram_bytes=listeners.udp_datagram_size,

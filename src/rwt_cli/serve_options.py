@@ -137,6 +137,22 @@ class Listeners:
             **PORT_RANGE, help="Also serve a Foxglove-only WebSocket on this port (0: a free one)."
         ),
     ] = None
+    package_path: Annotated[
+        list[Path] | None,
+        typer.Option(
+            callback=check_directories,
+            metavar="DIR",
+            help="Serve package:// assets (meshes, textures, URDF) to Foxglove clients from the "
+            "packages in DIR, as ROS_PACKAGE_PATH does; repeatable.",
+        ),
+    ] = None
+    assets: Annotated[
+        bool,
+        typer.Option(
+            help="Answer Foxglove's fetchAsset from --package-path, ROS_PACKAGE_PATH and the "
+            "share folders of AMENT_PREFIX_PATH (--no-assets: never)."
+        ),
+    ] = True
 
 
 @dataclass(frozen=True)

@@ -4,14 +4,16 @@ Foxglove and Lichtblick speak it (``foxglove.sdk.v1``, ``foxglove.websocket.v1``
 not rosbridge. ``protocol`` parses and encodes its ops, ``schemas`` describes the
 graph's types as channels, ``wire`` reads and writes CDR payloads, ``session`` is
 one client's protocol on the graph, with its parts ``services`` (service calls),
-``params`` (parameters) and ``conngraph`` (the connection graph), which send
-through ``output``; ``outqueue`` is its bounded queue and ``limits`` its bounds
-(all without I/O). ``driver`` runs a session over a WebSocket connection;
-``rwt_transports`` picks it in the handshake.
+``params`` (parameters), ``conngraph`` (the connection graph), ``servertime`` (server
+time while a bag plays) and ``assetrequests`` (asset requests), which send through
+``output``; ``outqueue`` is its bounded queue and ``limits`` its bounds (all without
+I/O). ``assets`` finds and reads the files clients fetch, ``driver`` runs a session
+over a WebSocket connection; ``rwt_transports`` picks it in the handshake.
 """
 
 from __future__ import annotations
 
+from .assets import AssetRoots
 from .driver import FoxgloveChannel, Wakeup, run_foxglove
 from .limits import FoxgloveLimits
 from .protocol import SUBPROTOCOLS, select_subprotocol
@@ -19,6 +21,7 @@ from .session import FoxgloveSession
 
 __all__ = [
     "SUBPROTOCOLS",
+    "AssetRoots",
     "FoxgloveChannel",
     "FoxgloveLimits",
     "FoxgloveSession",

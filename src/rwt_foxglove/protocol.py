@@ -7,14 +7,15 @@ Server to client: ``serverInfo``, ``status``, ``removeStatus``, ``advertise``,
 ``unadvertise``, ``advertiseServices``, ``unadvertiseServices``,
 ``serviceCallFailure``, ``parameterValues``, ``connectionGraphUpdate`` (text),
 message data (``0x01``: u32 subscription id, u64 log time in ns, payload), time
-(``0x02``: u64 ns) and service call response (``0x03``: u32 service id, u32
-call id, u32 encoding length, encoding, payload). Client to server:
-``subscribe``, ``unsubscribe``, ``advertise``, ``unadvertise``,
+(``0x02``: u64 ns), service call response (``0x03``: u32 service id, u32 call
+id, u32 encoding length, encoding, payload) and fetch asset response (``0x04``:
+u32 request id, u8 status, u32 error length, error text, data). Client to
+server: ``subscribe``, ``unsubscribe``, ``advertise``, ``unadvertise``,
 ``getParameters``, ``setParameters``, ``subscribeParameterUpdates``,
 ``unsubscribeParameterUpdates``, ``subscribeConnectionGraph``,
-``unsubscribeConnectionGraph`` (text), client message data (``0x01``: u32
-client channel id, payload) and service call request (``0x02``: as the
-response).
+``unsubscribeConnectionGraph``, ``fetchAsset`` (text), client message data
+(``0x01``: u32 client channel id, payload) and service call request (``0x02``:
+as the response).
 
 Every bad input becomes a ``FoxgloveInputError`` whose text goes to the peer as
 an error ``status``; the connection goes on (docs/foxglove.md, limits). JSON
@@ -50,6 +51,8 @@ __all__ = [
     "ClientOp",
     "ClientUnadvertise",
     "ConnectionGraphUpdate",
+    "FetchAsset",
+    "FetchAssetStatus",
     "FoxgloveInputError",
     "GetParameters",
     "ParameterIn",
@@ -75,6 +78,7 @@ __all__ = [
     "Unsubscribe",
     "UnsubscribeConnectionGraph",
     "UnsubscribeParameterUpdates",
+    "encode_fetch_asset_response",
     "encode_message_data",
     "encode_op",
     "encode_service_call_response",
@@ -90,12 +94,14 @@ SUBPROTOCOLS: Final = ("foxglove.sdk.v1", "foxglove.websocket.v1")
 U32_MAX: Final = 2**32 - 1
 _MESSAGE_DATA: Final = 0x01
 _TIME: Final = 0x02
+_FETCH_ASSET_RESPONSE: Final = 0x04
 _SERVICE_CALL_REQUEST: Final = 0x02
 _SERVICE_CALL_RESPONSE: Final = 0x03
 _DATA_HEADER = struct.Struct("<BIQ")  # opcode, subscription id, log time (ns)
 _CLIENT_DATA_HEADER = struct.Struct("<BI")  # opcode, client channel id
 _TIME_FRAME = struct.Struct("<BQ")
 _CALL_HEADER = struct.Struct("<III")  # service id, call id, encoding length (after the opcode)
+_ASSET_HEADER = struct.Struct("<BIBI")  # opcode, request id, status, error length
 
 
 def select_subprotocol(offered: Iterable[str]) -> str | None:
@@ -220,6 +226,13 @@ class UnsubscribeParameterUpdates(msgspec.Struct, frozen=True):
     parameterNames: list[str]
 
 
+class FetchAsset(msgspec.Struct, frozen=True):
+    """``fetchAsset``: the client asks for the file at ``uri``; answered under ``requestId``."""
+
+    uri: str
+    requestId: int
+
+
 class SubscribeConnectionGraph(msgspec.Struct, frozen=True):
     """``subscribeConnectionGraph``: send the graph, then its changes."""
 
@@ -233,6 +246,7 @@ ClientOp = (
     | Unsubscribe
     | ClientAdvertise
     | ClientUnadvertise
+    | FetchAsset
     | ClientMessageData
     | ServiceCallRequest
 )
@@ -248,6 +262,7 @@ TextOp = (
     | UnsubscribeParameterUpdates
     | SubscribeConnectionGraph
     | UnsubscribeConnectionGraph
+    | FetchAsset
 )
 
 CLIENT_OPS: Final[dict[str, type[TextOp]]] = {
@@ -261,10 +276,11 @@ CLIENT_OPS: Final[dict[str, type[TextOp]]] = {
     "unsubscribeParameterUpdates": UnsubscribeParameterUpdates,
     "subscribeConnectionGraph": SubscribeConnectionGraph,
     "unsubscribeConnectionGraph": UnsubscribeConnectionGraph,
+    "fetchAsset": FetchAsset,
 }
 """The text ops this server handles, by ``op``."""
 
-UNSUPPORTED_OPS: Final = frozenset({"fetchAsset"})
+UNSUPPORTED_OPS: Final[frozenset[str]] = frozenset()
 """Ops of capabilities this server does not announce (docs/foxglove.md, not done yet)."""
 
 
@@ -308,6 +324,8 @@ def _check_ids(op: TextOp) -> None:
     elif isinstance(op, ClientAdvertise):
         for channel in op.channels:
             _u32(channel.id, "client channel id")
+    elif isinstance(op, FetchAsset):
+        _u32(op.requestId, "request id")
     elif isinstance(op, ClientUnadvertise):
         for cid in op.channelIds:
             _u32(cid, "client channel id")
@@ -533,6 +551,24 @@ def encode_service_call_response(
     name = encoding.encode()
     header = struct.pack("<BIII", _SERVICE_CALL_RESPONSE, service_id, call_id, len(name))
     return header + name + payload
+
+
+class FetchAssetStatus(IntEnum):
+    """A ``fetchAssetResponse``'s status."""
+
+    SUCCESS = 0
+    ERROR = 1
+
+
+def encode_fetch_asset_response(request_id: int, data: bytes | None, error: str = "") -> bytes:
+    """A binary fetch asset response (opcode 0x04): ``data``, or with None the ``error``."""
+    if data is None:
+        text = error.encode("utf-8", "replace")
+        return (
+            _ASSET_HEADER.pack(_FETCH_ASSET_RESPONSE, request_id, FetchAssetStatus.ERROR, len(text))
+            + text
+        )
+    return _ASSET_HEADER.pack(_FETCH_ASSET_RESPONSE, request_id, FetchAssetStatus.SUCCESS, 0) + data
 
 
 def encode_time(time_ns: int) -> bytes:

@@ -29,6 +29,7 @@ from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.outbox import OutFrame
 
+from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetRequests
 from .conngraph import ConnectionGraph
 from .limits import FoxgloveLimits
 from .outqueue import OutQueue
@@ -40,6 +41,7 @@ from .protocol import (
     ClientChannel,
     ClientMessageData,
     ClientUnadvertise,
+    FetchAsset,
     FoxgloveInputError,
     GetParameters,
     ServerInfo,
@@ -55,12 +57,14 @@ from .protocol import (
     Unsubscribe,
     UnsubscribeConnectionGraph,
     UnsubscribeParameterUpdates,
+    encode_fetch_asset_response,
     encode_message_data,
     encode_op,
     parse_binary,
     parse_text,
 )
 from .schemas import JSON, metadata_for, schema_of, supported_encodings, wire_encoding
+from .servertime import TIME_CAPABILITY, ServerTime
 from .services import ServiceCalls
 from .wire import decode_wire
 
@@ -77,10 +81,12 @@ __all__ = ["CAPABILITIES", "PARAMETER_CAPABILITIES", "FoxgloveLimits", "Foxglove
 logger = logging.getLogger("rwt.foxglove")
 
 CAPABILITIES: Final = ("clientPublish", "services", "connectionGraph")
-"""What ``serverInfo`` always announces (time and assets are not done yet)."""
+"""What ``serverInfo`` always announces (``time`` too while a bag plays, ``servertime``;
+``assets`` when the server serves them)."""
 PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
 """Announced too when the session is given the graph's parameters."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
+_ASSET: Final = object()  # the group of a fetch asset response with a file's outcome
 
 
 @dataclass(eq=False, slots=True)
@@ -128,6 +134,8 @@ class FoxgloveSession:
         on_output: called when frames were queued while nobody asked (a graph
             message); the driver wakes its writer.
         name: the server's name in ``serverInfo``.
+        assets: answer ``fetchAsset`` (the driver reads the files,
+            ``assetrequests``); False: the op is refused and not announced.
     """
 
     def __init__(
@@ -141,6 +149,7 @@ class FoxgloveSession:
         on_output: Callable[[], None] | None = None,
         name: str = "rwt",
         params: Parameters | None = None,
+        assets: bool = False,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
@@ -169,6 +178,11 @@ class FoxgloveSession:
         capabilities = list(CAPABILITIES)
         if params is not None:
             capabilities += PARAMETER_CAPABILITIES
+        # a bag playing when the client connects: its clock is server time
+        self._time = None if graph.timeline is None else ServerTime(graph)
+        self._assets = AssetRequests() if assets else None
+        capabilities += [TIME_CAPABILITY] if self._time else []
+        capabilities += [ASSETS_CAPABILITY] if assets else []
         self._control(
             ServerInfo(
                 name=name,
@@ -189,7 +203,9 @@ class FoxgloveSession:
             SetParameters: self._parameters,
             SubscribeParameterUpdates: self._parameters,
             UnsubscribeParameterUpdates: self._parameters,
+            FetchAsset: self._fetch_asset,
         }
+        self.tick()
         self.sync()
 
     # ---- outputs ------------------------------------------------------------------
@@ -200,6 +216,8 @@ class FoxgloveSession:
         Updates merged while an earlier one waited are queued once it is taken.
         """
         frames = self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
+        if self._assets is not None and self._assets.queued:
+            self._assets.queued -= sum(frame.group is _ASSET for frame in frames)
         if self._tracked:
             for frame in frames:
                 self._tracked.pop(id(frame), None)
@@ -253,6 +271,25 @@ class FoxgloveSession:
         # sends bad frames and reads nothing cannot grow the queue without bound.
         frame = OutFrame(encode_op(Status(level=int(level), message=message)), droppable=True)
         self._push_data(frame)
+
+    @property
+    def announces_time(self) -> bool:
+        """Whether this client was told of server time (``tick`` then sends it)."""
+        return self._time is not None
+
+    def tick(self) -> None:
+        """Send the server time if it moved since last told (``servertime``); never raises."""
+        if self._time is None or self._closed:
+            return
+        now = self._time.now()
+        if now is not None and self._told_time(now) and self._on_output is not None:
+            self._on_output()
+
+    def _told_time(self, now: int) -> bool:
+        frame = None if self._time is None else self._time.frame(now)
+        if frame is not None:  # droppable: a client that reads nothing cannot grow the queue
+            self._push_data(OutFrame(frame, True, True))
+        return frame is not None
 
     def _push_data(self, frame: OutFrame) -> None:
         if self._queue.push(frame):
@@ -381,6 +418,36 @@ class FoxgloveSession:
             if all(other.topic != channel.topic for other in self._client_channels.values()):
                 self._graph.unadvertise(self._client_id, channel.topic)
 
+    # ---- assets (assetrequests) ----------------------------------------------------
+
+    def _fetch_asset(self, op: FetchAsset) -> None:
+        if self._assets is None:
+            raise FoxgloveInputError("op 'fetchAsset' is not supported by this server")
+        if not self._assets.add(op):  # droppable: a client that reads nothing stays bounded
+            error = f"more than {MAX_PENDING_ASSETS} asset requests wait: ask again later"
+            self._push_data(
+                OutFrame(encode_fetch_asset_response(op.requestId, None, error), True, True)
+            )
+
+    def next_asset_request(self) -> FetchAsset | None:
+        """The oldest ``fetchAsset`` to read, once the client took the last response."""
+        if self._assets is None or self._assets.queued or self._closed:
+            return None
+        return self._assets.next()
+
+    def asset_fetched(self, request_id: int, data: bytes | None, error: str = "") -> None:
+        """Queue the response to ``request_id``: ``data``, or with None the ``error`` text."""
+        if self._assets is None or self._closed:
+            return
+        frame = encode_fetch_asset_response(request_id, data, error)
+        self._assets.queued += 1
+        self._queue.push(OutFrame(frame, binary=True, group=_ASSET))
+
+    @property
+    def assets_queued(self) -> bool:
+        """Whether a response with a file's outcome waits in the queue (the driver waits)."""
+        return self._assets is not None and self._assets.queued > 0
+
     def _message_data(self, op: ClientMessageData) -> None:
         channel = self._client_channels.get(op.channel_id)
         if channel is None:
@@ -485,20 +552,30 @@ class FoxgloveSession:
     ) -> None:
         """Queue ``event`` as message data for each of ``subscriptions``; never raises.
 
-        The payload is serialized once per message for every Foxglove client
-        (``MessageEvent.encoded``); the log time is when the graph received it.
+        The payload is the message as it arrived where the graph has that
+        (``MessageEvent.wire``: a link's CDR, a bag's record), else serialized
+        once per message for every Foxglove client (``MessageEvent.encoded``);
+        the log time is when the graph received it, on the bag's clock while a
+        bag plays (``servertime``).
         """
         if self._closed or not subscriptions:
             return
         try:
-            payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
+            payload = event.wire
+            if payload is None:
+                payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
         except Exception as exc:  # a type rosbags cannot write: say so once per topic
             if channel.topic not in self._failed_topics:
                 self._failed_topics.add(channel.topic)
                 logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
                 self._status(StatusLevel.ERROR, f"{channel.topic}: cannot encode its messages")
             return
-        log_time = int(event.stamp * 1e9)
+        now = None if self._time is None else self._time.now()
+        if now is None:
+            log_time = int(event.stamp * 1e9)
+        else:  # on the bag's clock, told first (a client reads receive time from it)
+            log_time = now
+            self._told_time(now)
         for sid in subscriptions:
             self._push_data(OutFrame(encode_message_data(sid, log_time, payload), True, True))
         if self._on_output is not None:

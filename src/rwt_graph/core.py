@@ -90,6 +90,7 @@ class GraphCore:
         self.registry = registry or TypeRegistry(Dialect.ROS2)
         self._clock: Clock = clock or SystemClock()
         self._clocks: list[Clock] = [self._clock]  # the given clock, then each use_clock's
+        self._timelines: list[Callable[[], int]] = []  # each use_timeline's, latest last
         self._spawners: list[Spawner] = []  # one per server serving this graph
         self.topics: dict[str, Topic] = {}
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
@@ -153,6 +154,30 @@ class GraphCore:
         finally:
             _drop_last(self._clocks, clock)
             self._set_clock(self._clocks[-1])
+
+    @property
+    def timeline(self) -> Callable[[], int] | None:
+        """The playback's time while a bag plays into the graph, else None.
+
+        A call returns nanoseconds since the epoch on the bag's clock: the
+        record time of the message being published while one is, else the
+        playback position (it stands still while paused and steps on a seek).
+        Foxglove clients get it as server time (docs/foxglove.md).
+        """
+        return self._timelines[-1] if self._timelines else None
+
+    @contextlib.contextmanager
+    def use_timeline(self, timeline: Callable[[], int]) -> Iterator[None]:
+        """Make ``timeline`` the graph's ``timeline`` inside the ``with`` block.
+
+        Blocks may overlap; the latest still open wins and leaving one in any
+        order restores the others'.
+        """
+        self._timelines.append(timeline)
+        try:
+            yield
+        finally:
+            _drop_last(self._timelines, timeline)
 
     def _set_clock(self, clock: Clock) -> None:
         self._clock = self.services.clock = self.actions.clock = clock
@@ -479,9 +504,13 @@ class GraphCore:
     # ---- in-process participants and internals ----------------------------------
 
     def publish_local(
-        self, client: ClientId, topic: str, msg: Message, *, latch: bool
+        self, client: ClientId, topic: str, msg: Message, *, latch: bool, wire: bytes | None = None
     ) -> MessageEvent:
         """Deliver an already-converted message from an in-process publisher.
+
+        ``wire``: ``msg`` in the dialect's wire serialization as it arrived (a
+        link's sample, a bag's record), which subscribers sending that form pass
+        on as it is (``MessageEvent.wire``); the caller vouches that it is ``msg``.
 
         Returns:
             the event its subscribers got.
@@ -492,9 +521,17 @@ class GraphCore:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        return self._send(entry, msg, latch=latch, client=client)
+        return self._send(entry, msg, latch=latch, client=client, wire=wire)
 
-    def _send(self, entry: Topic, msg: Message, *, latch: bool, client: ClientId) -> MessageEvent:
+    def _send(
+        self,
+        entry: Topic,
+        msg: Message,
+        *,
+        latch: bool,
+        client: ClientId,
+        wire: bytes | None = None,
+    ) -> MessageEvent:
         event = MessageEvent(
             entry.name,
             entry.msgtype.name,
@@ -502,6 +539,7 @@ class GraphCore:
             self._clock.monotonic(),
             stamp=self._clock.wall(),
             codec=codec_for(self.registry, entry.msgtype),
+            wire=wire,
         )
         entry.fan_out(event, latch=latch, client=client)
         for tap in self.taps:

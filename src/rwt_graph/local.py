@@ -36,7 +36,7 @@ class LocalPublisher:
         self.msgtype = msgtype
         self.latch = latch
 
-    def publish(self, msg: object, *, validated: bool = False) -> None:
+    def publish(self, msg: object, *, validated: bool = False, wire: bytes | None = None) -> None:
         """Publish a message given as a dict or a rosbags message object.
 
         Missing fields get their defaults (D7) and a missing header stamp is now
@@ -50,6 +50,9 @@ class LocalPublisher:
                 so it is sent unchecked. Only for producers in this process that
                 build their messages themselves (the TF republisher); the caller
                 keeps ``msg`` unchanged afterwards, as subscribers share it.
+            wire: with ``validated``, ``msg`` in the dialect's wire serialization
+                as it was read (a bag's record), passed on to subscribers that
+                send that form (``MessageEvent.wire``); ignored otherwise.
 
         Raises:
             FieldError: ``msg`` does not fit the topic's type (``validated`` false).
@@ -57,7 +60,7 @@ class LocalPublisher:
         """
         if validated:
             assert isinstance(msg, dict)
-            self._port.publish_local(self._client, self.topic, msg, latch=self.latch)
+            self._port.publish_local(self._client, self.topic, msg, latch=self.latch, wire=wire)
             return
         converted = self.msgtype.from_python(msg, now=self._port.clock.wall())
         self._port.publish_local(self._client, self.topic, converted, latch=self.latch)

@@ -75,9 +75,24 @@ class MessageEvent:
             ``secs``/``nsecs`` of cbor-raw, REF §3.5).
         codec: the message type's encoder support, or None when the publisher
             gave none (CBOR then sends plain arrays and cbor-raw is refused).
+        wire: the message in the graph dialect's wire serialization (CDR with
+            its header, or ROS 1's) exactly as it arrived, when it arrived
+            serialized (a link's sample, a bag's record); None when it came as
+            values. Subscribers that send this form pass it on unchanged
+            instead of serializing ``msg`` (Foxglove message data, cbor-raw).
     """
 
-    __slots__ = ("_cache", "codec", "encodings_made", "msg", "now", "stamp", "topic", "type_name")
+    __slots__ = (
+        "_cache",
+        "codec",
+        "encodings_made",
+        "msg",
+        "now",
+        "stamp",
+        "topic",
+        "type_name",
+        "wire",
+    )
 
     def __init__(
         self,
@@ -88,6 +103,7 @@ class MessageEvent:
         *,
         stamp: float = 0.0,
         codec: MessageCodec | None = None,
+        wire: bytes | None = None,
     ) -> None:
         self.topic = topic
         self.type_name = type_name
@@ -95,6 +111,7 @@ class MessageEvent:
         self.now = now
         self.stamp = stamp
         self.codec = codec
+        self.wire = wire
         self.encodings_made = 0
         self._cache: dict[Hashable, object] = {}
 

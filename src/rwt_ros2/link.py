@@ -304,7 +304,7 @@ class Ros2Link:
             )
             return
         try:  # by its publisher's participant, or a relay until discovery finds it
-            self._relays.deliver(entry, gid or None, msg, latched=transient_local)
+            self._relays.deliver(entry, gid or None, msg, latched=transient_local, wire=data)
         except RwtError as exc:  # a topic reserved by the server: not ROS 2's
             self.episodes.log(
                 logging.WARNING,

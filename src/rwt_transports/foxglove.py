@@ -13,13 +13,17 @@ and uses that session's client id in the graph; its rosbridge ops are never read
 from __future__ import annotations
 
 import logging
+import os
 import uuid
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from rwt_foxglove import FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
+from rwt_foxglove import AssetRoots, FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from pathlib import Path
+
     from rwt_graph.core import GraphCore
     from rwt_graph.parameters.store import Parameters
     from rwt_protocol.server.access import AccessPolicy
@@ -43,17 +47,23 @@ class FoxgloveOptions:
             0 picks a free one; None: no such listener). A client there that
             offers no Foxglove subprotocol is refused with HTTP 400.
         limits: each Foxglove client's bounds (docs/limits.md).
+        assets: answer ``fetchAsset`` (the ``assets`` capability) from
+            ``package_paths``, then ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH``'s
+            share folders (``rwt serve --assets``; off where none of them exists).
+        package_paths: directories holding ROS packages (``--package-path``).
     """
 
     on_rosbridge_port: bool = True
     port: int | None = None
     limits: FoxgloveLimits = field(default_factory=FoxgloveLimits)
+    assets: bool = False
+    package_paths: Sequence[Path] = ()
 
 
 def foxglove_server(
     graph: GraphCore,
     access: AccessPolicy,
-    limits: FoxgloveLimits,
+    options: FoxgloveOptions,
     params: Parameters | None = None,
 ) -> FoxgloveServe:
     """The function that runs each accepted Foxglove connection of one server.
@@ -61,9 +71,14 @@ def foxglove_server(
     Args:
         graph: the served graph's core.
         access: the server's access globs (a topic a client may not see is not advertised).
-        limits: each client's bounds.
+        options: each client's bounds (``limits``) and where assets are found
+            (read once, with the environment's ROS paths, here).
         params: the graph's parameters (``Graph.params``); None: no parameters capability.
     """
+    limits = options.limits
+    assets = (
+        AssetRoots.from_environment(options.package_paths, os.environ) if options.assets else None
+    )
     session_id = uuid.uuid4().hex  # one per server run: clients tell a restart by it
 
     async def serve(channel: WebSocketChannel, session: Session, subprotocol: str) -> None:
@@ -76,8 +91,9 @@ def foxglove_server(
             limits=limits,
             on_output=wakeup.set,
             params=params,
+            assets=assets is not None,
         )
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
-        await run_foxglove(channel, foxglove, wakeup)
+        await run_foxglove(channel, foxglove, wakeup, assets=assets)
 
     return serve

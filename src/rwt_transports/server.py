@@ -289,7 +289,7 @@ class RosbridgeServer:
             else foxglove_server(
                 self.graph.port,
                 session_config.access,
-                self.config.foxglove.limits,
+                self.config.foxglove,
                 self.graph.params,
             )
         )

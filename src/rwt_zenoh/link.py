@@ -854,7 +854,8 @@ class ZenohLink:
         if entry is None or entry.msgtype.name != type_name:
             return
         try:
-            msg = decode_message(self.graph.registry, entry.msgtype, payload_bytes(payload))
+            data = payload_bytes(payload)
+            msg = decode_message(self.graph.registry, entry.msgtype, data)
             source = None if attachment is None else attachment_gid(attachment)
         except (WireError, RwtError) as exc:
             self.peer_log.log(
@@ -868,7 +869,7 @@ class ZenohLink:
         try:  # by its publisher's participant, or a relay until its token comes
             # a sample tells nothing of its publisher's durability: the relay hands
             # it over as latched once the token says the publisher is transient local
-            self._relays.deliver(entry, source, msg)
+            self._relays.deliver(entry, source, msg, wire=data)
         except RwtError as exc:  # a topic reserved by the server: not the network's
             self.peer_log.log(
                 logging.WARNING,

@@ -118,7 +118,7 @@ def test_the_player_reads_the_same_messages_with_the_shortcut_off(
         monkeypatch.setattr(ros1read, "_ENABLED", on)
         source = BagSource([bag], registry)
         try:
-            seen.append([(t.topic, ns, msg, size) for t, ns, msg, size in source.messages()])
+            seen.append([(t.topic, ns, msg, record) for t, ns, msg, record in source.messages()])
         finally:
             source.close()
     assert seen[0] == seen[1]

@@ -42,7 +42,8 @@ def _missing() -> str | None:
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
     if (reason := _missing()) is not None:
         pytest.skip(reason)
-    process = ServerProcess(tmp_path_factory.mktemp("foxglove"))
+    # no assets: a sourced ROS environment (AMENT_PREFIX_PATH) would announce them
+    process = ServerProcess(tmp_path_factory.mktemp("foxglove"), ("--no-assets",))
     try:
         yield process
     finally:

@@ -14,6 +14,9 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         and std_msgs/String "n" (a count) on /odom every 20 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
+  point_raw TOPIC       geometry_msgs/PointStamped published as serialized CDR every 50 ms,
+                        its one alignment padding byte set to 0xAB (rclpy's own serializer
+                        leaves it uninitialised): header stamp 7 s, frame "ab", (1, -2, 0.5)
   count TOPIC           a reliable std_msgs/String subscription of depth 1000; prints
                         {"count": n, "warm": w} every 100 ms while they change: n
                         messages, and w whose data is "warm"
@@ -147,6 +150,17 @@ def main() -> None:
     elif mode == "garbage":
         pub = node.create_publisher(String, name, 10)
         tick = lambda: pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7fgarbage")  # noqa: E731
+    elif mode == "point_raw":
+        from geometry_msgs.msg import PointStamped  # noqa: PLC0415
+        from rclpy.serialization import serialize_message  # noqa: PLC0415
+
+        point = PointStamped()
+        point.header.stamp.sec, point.header.frame_id = 7, "ab"
+        point.point.x, point.point.y, point.point.z = 1.0, -2.0, 0.5
+        cdr = bytearray(serialize_message(point))
+        cdr[4 + 15] = 0xAB  # after sec, nanosec, the frame id's length and "ab\0"
+        pub = node.create_publisher(PointStamped, name, 10)
+        tick = lambda: pub.publish(bytes(cdr))  # noqa: E731
     elif mode == "serve":
 
         def answer(request, response):

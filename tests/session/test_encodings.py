@@ -162,6 +162,18 @@ def test_cbor_raw_is_the_cdr_serialization(graph: Graph, pub: Peer, clock: FakeC
     assert (point.x, point.y, point.z) == (1.0, 2.0, 3.0)
 
 
+def test_cbor_raw_sends_what_arrived_serialized_as_it_came(graph: Graph) -> None:
+    """A link's sample or a bag's record (``MessageEvent.wire``) is not serialized again."""
+    sub = Peer(graph, "sub")
+    sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="cbor-raw")
+    graph.port.advertise("link:relay", "/c", "std_msgs/msg/String", latch=False)
+    wire = b"\x00\x01\x00\x00\x03\x00\x00\x00hi\x00\xee"  # a trailing byte kept as it came
+    msg = {"data": "hi"}
+    graph.port.publish_local("link:relay", "/c", msg, latch=False, wire=wire)
+    [message] = decoded(sub)
+    assert message["msg"]["bytes"] == wire  # a serialization would end at the NUL
+
+
 def test_cbor_raw_in_ros1_is_the_ros1_serialization(clock: FakeClock) -> None:
     graph = Graph(TypeRegistry(Dialect.ROS1), clock=clock)
     pub, sub = Peer(graph, "pub"), Peer(graph, "sub")

@@ -18,7 +18,9 @@ Decisions made here (the spec is silent):
   for a message whose publisher gave no ``MessageCodec``, is sent as ``cbor``;
 - a message is cut into at most ``fragments.MAX_PARTS`` parts (D24);
 - cbor-raw's ``secs``/``nsecs`` are the wall-clock time of publication, the same
-  for every subscriber, so the frame can be shared (REF §3.5 stamps at forwarding).
+  for every subscriber, so the frame can be shared (REF §3.5 stamps at forwarding);
+  its ``bytes`` are the message as it arrived when it arrived serialized
+  (``MessageEvent.wire``), else its serialization.
 
 Encoding is total (docs/limits.md): ``safe_op_frames`` never raises. An op that
 has no JSON/CBOR form (a string with a lone surrogate, an integer too long to
@@ -153,7 +155,11 @@ def _publish_json(event: MessageEvent, spelling: str) -> bytes:
 def _raw_frame(event: MessageEvent, spelling: str) -> bytes:
     codec = event.codec
     assert codec is not None
-    data = event.memo(("memo", "raw"), lambda: codec.serialize(event.msg))
+    # what arrived serialized (a link's sample, a bag's record) goes on as it came,
+    # as rosbridge_suite forwards its raw subscription's bytes (REF §3.5)
+    data: bytes | memoryview | None = event.wire
+    if data is None:
+        data = event.memo(("memo", "raw"), lambda: codec.serialize(event.msg))
     secs = math.floor(event.stamp)
     nsecs = min(round((event.stamp - secs) * 1e9), 999_999_999)
     msg = {"secs": secs, "nsecs": nsecs, "bytes": data}

@@ -1,0 +1,156 @@
+#!/usr/bin/env node
+// The real Foxglove client against rwt: pass-through payloads, a Foxglove publisher, server
+// time during a bag's replay, assets. Payloads are decoded by @foxglove/rosmsg2-serialization.
+//
+// Usage: node foxglove_extras.mjs SCENARIO WS_URL [ARGS...]
+//   receive URL TOPIC COUNT  subscribe TOPIC; its first COUNT payloads (hex) and log times
+//   publish URL TOPIC TEXT   advertise TOPIC (std_msgs/msg/String, cdr); send TEXT every
+//                            100 ms for 15 s, or until the server closes
+//   play URL TOPIC COUNT     (rwt serve --play --start-paused) subscribe TOPIC, resume with
+//                            /rwt/player/resume; COUNT messages and the time frames among
+//                            them; then seek to 0 (/rwt/player/seek) and report the first time
+//                            frame and message after the step back
+//   assets URL URI...        fetchAsset each URI (request ids 1, 2, ...); each response
+// Stdout's last line: {"result": {...}}.
+import { createHash } from "node:crypto";
+import rosmsg from "@foxglove/rosmsg";
+import serialization from "@foxglove/rosmsg2-serialization";
+import * as ROSLIB from "roslib";
+import { bounded, foxglove, main } from "./foxglove_client.mjs";
+
+const { MessageReader, MessageWriter } = serialization;
+const [scenario, url, ...args] = process.argv.slice(2);
+
+function reader(channel) {
+  return new MessageReader(rosmsg.parse(channel.schema, { ros2: true }));
+}
+
+function hex(view) {
+  return Buffer.from(view.buffer, view.byteOffset, view.byteLength).toString("hex");
+}
+
+async function receive() {
+  const [topic, count] = [args[0], Number(args[1])];
+  const fox = foxglove(url);
+  const channel = await fox.channel(topic);
+  const sid = fox.client.subscribe(channel.id);
+  const payloads = [];
+  while (payloads.length < count) {
+    const { message } = await fox.next(
+      (e) => e.kind === "message" && e.message.subscriptionId === sid,
+      `a message on ${topic}`,
+    );
+    payloads.push({ hex: hex(message.data), logTime: message.timestamp });
+  }
+  const decoded = reader(channel).readMessage(new Uint8Array(Buffer.from(payloads[0].hex, "hex")));
+  fox.client.close();
+  return { encoding: channel.encoding, schemaName: channel.schemaName, payloads, decoded };
+}
+
+async function publish() {
+  const [topic, text] = args;
+  const fox = foxglove(url);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const channel = fox.client.advertise({
+    topic,
+    encoding: "cdr",
+    schemaName: "std_msgs/msg/String",
+    schema: "string data\n",
+    schemaEncoding: "ros2msg",
+  });
+  const data = new MessageWriter(rosmsg.parse("string data\n", { ros2: true })).writeMessage({
+    data: text,
+  });
+  let sent = 0;
+  const end = Date.now() + 15000;
+  while (Date.now() < end && fox.ws.readyState === fox.ws.OPEN) {
+    fox.client.sendMessage(channel, data);
+    sent += 1;
+    await new Promise((resolve) => setTimeout(resolve, 100));
+  }
+  fox.client.close();
+  return { sent };
+}
+
+function rosbridge() {
+  return bounded(
+    new Promise((resolve, reject) => {
+      const ros = new ROSLIB.Ros({ url });
+      ros.on("connection", () => resolve(ros));
+      ros.on("error", (error) => reject(new Error(`roslib: ${error}`)));
+    }),
+    "roslib connection",
+  );
+}
+
+function call(ros, name, type, request) {
+  const service = new ROSLIB.Service({ ros, name, serviceType: type });
+  return bounded(
+    new Promise((resolve, reject) => service.callService(request, resolve, reject)),
+    `the ${name} call`,
+  );
+}
+
+async function play() {
+  const [topic, count] = [args[0], Number(args[1])];
+  const fox = foxglove(url);
+  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const channel = await fox.channel(topic);
+  const decode = reader(channel);
+  const sid = fox.client.subscribe(channel.id);
+  const ros = await rosbridge();
+  // roslib sends each op when called: the subscription is in once a status answers a probe
+  fox.ws.send(JSON.stringify({ op: "unsubscribe", subscriptionIds: [999999] }));
+  await fox.next((e) => e.kind === "status", "the probe's status");
+  await call(ros, "/rwt/player/resume", "std_srvs/srv/Trigger", {});
+  const times = [];
+  const messages = [];
+  while (messages.length < count) {
+    const event = await fox.next((e) => e.kind === "time" || e.kind === "message", "playback");
+    if (event.kind === "time") times.push(event.timestamp);
+    else if (event.message.subscriptionId === sid) {
+      messages.push({ logTime: event.message.timestamp, data: decode.readMessage(event.message.data).data });
+    }
+  }
+  const latest = times.reduce((a, b) => (b > a ? b : a), 0n);
+  await call(ros, "/rwt/player/seek", "rwt_msgs/srv/Seek", { offset: 0.0 });
+  const step = await fox.next((e) => e.kind === "time" && e.timestamp < latest, "the step back");
+  const { message } = await fox.next(
+    (e) => e.kind === "message" && e.message.subscriptionId === sid,
+    "a message after the seek",
+  );
+  fox.client.close();
+  ros.close();
+  return {
+    capabilities: info.capabilities,
+    times,
+    messages,
+    stepBack: step.timestamp,
+    afterSeek: { logTime: message.timestamp, data: decode.readMessage(message.data).data },
+  };
+}
+
+async function assets() {
+  const fox = foxglove(url);
+  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  args.forEach((uri, index) => fox.client.fetchAsset(uri, index + 1));
+  const responses = [];
+  while (responses.length < args.length) {
+    const { response } = await fox.next((e) => e.kind === "asset", "a fetchAssetResponse");
+    const entry = { requestId: response.requestId, status: response.status };
+    if (response.status === 0) {
+      const bytes = Buffer.from(response.data.buffer, response.data.byteOffset, response.data.byteLength);
+      entry.length = bytes.length;
+      entry.sha256 = createHash("sha256").update(bytes).digest("hex");
+    } else {
+      entry.error = response.error;
+    }
+    responses.push(entry);
+  }
+  responses.sort((a, b) => a.requestId - b.requestId);
+  const open = fox.ws.readyState === fox.ws.OPEN;
+  fox.client.close();
+  return { capabilities: info.capabilities, responses, open };
+}
+
+await main({ receive, publish, play, assets }, scenario);
