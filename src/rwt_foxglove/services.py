@@ -21,6 +21,7 @@ import itertools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
 from rwt_protocol.errors import RwtError
 from rwt_protocol.server.access import AccessPolicy, Family
 
@@ -166,7 +167,9 @@ class ServiceCalls:
             self._answer(op.call_id, call, result, values)
 
         try:
-            call.pending = self._graph.call_service(self._client_id, service.name, request, reply)
+            call.pending = self._graph.call_service(
+                self._client_id, rosbridge.CallService(service=service.name, args=request), reply
+            )
         except RwtError as exc:
             if self._calls.get(op.call_id) is call:
                 del self._calls[op.call_id]

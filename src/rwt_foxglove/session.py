@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.types.registry import codec_for
+from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import name_problem, resolve_name
@@ -365,9 +366,8 @@ class FoxgloveSession:
                 self.deliver(channel, entry.latched, (sid,))
             return
         try:  # the graph hands the latched message to the new sink at once (D13)
-            self._graph.subscribe(
-                self._client_id, channel.topic, channel.mtype.name, _TopicSink(self, channel)
-            )
+            request = rosbridge.Subscribe(topic=channel.topic, type=channel.mtype.name)
+            self._graph.subscribe(self._client_id, request, _TopicSink(self, channel))
         except RwtError:
             channel.subscriptions.remove(sid)
             del self._subscriptions[sid]
@@ -405,7 +405,8 @@ class FoxgloveSession:
         topic = resolve_name(spec.topic)
         if not self._access.allows(Family.TOPICS, topic):
             raise FoxgloveInputError(f"{topic} is not allowed")
-        type_name = self._graph.advertise(self._client_id, topic, spec.schemaName, latch=False)
+        request = rosbridge.Advertise(topic=topic, type=spec.schemaName)
+        type_name = self._graph.advertise(self._client_id, request)
         mtype = self._graph.registry.message(type_name)
         self._client_channels[spec.id] = _ClientChannel(spec.id, topic, mtype, spec.encoding)
 
@@ -454,7 +455,7 @@ class FoxgloveSession:
             raise FoxgloveInputError(f"message data on unknown client channel {op.channel_id}")
         if channel.encoding == JSON:
             value = decode_json_text(bytes(op.payload), "message")
-            self._graph.publish(self._client_id, channel.topic, value, latch=False, path="$")
+            self._graph.publish(self._client_id, rosbridge.Publish(topic=channel.topic, msg=value))
             return
         msg = decode_wire(self._graph.registry, self._wire, channel.mtype, bytes(op.payload))
         self._graph.publish_local(self._client_id, channel.topic, msg, latch=False)

@@ -19,12 +19,15 @@ from typing import TYPE_CHECKING
 from rwt_protocol.errors import FieldError, GraphError, RwtError, UnknownNameError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
+from rwt_protocol.ops import CancelActionGoal, SendActionGoal
 from rwt_protocol.ports import ActionProvider, ClientId, GoalDone, GoalFeedback, GoalStatus
 
 from .calls import ProviderTable, Spawner, convert_args, guarded, require_spawner
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
+    from rwt_protocol.ops import ActionFeedback, ActionResult
+
     from .clock import Clock
     from .types import ActionType, TypeRegistry
 
@@ -152,7 +155,8 @@ class Goal:
         if self.finished:
             return
         if self.entry.provider is not None:
-            self.entry.provider.on_action_cancel(self.goal_id, self.entry.spelling)
+            cancel = CancelActionGoal(action=self.entry.spelling, id=self.goal_id)
+            self.entry.provider.on_action_cancel(cancel)
         elif self.context is not None:
             self.context.cancel_requested = True
 
@@ -207,18 +211,20 @@ class Actions(ProviderTable[ActionEntry]):
     def send_goal(
         self,
         client: ClientId,
-        action: str,
-        action_type: str,
-        args: object,
+        op: SendActionGoal,
         done: GoalDone,
         on_feedback: GoalFeedback | None,
         *,
         path: str,
     ) -> Goal:
-        """Start a goal (spec 3.3.12).
+        """Start the goal ``op.args`` on ``op.action`` (spec 3.3.12).
 
-        ``action_type`` is not checked: clients name one action in different
+        ``op.action_type`` is not checked: clients name one action in different
         packages (``tf2_web_republisher_msgs`` or ``..._interfaces``, REF §7.3).
+        ``on_feedback`` gets each feedback message (None: nobody asked). A
+        client provider gets the goal as a ``SendActionGoal`` op of its own: its
+        spellings, the goal in the internal form, the id
+        ``action_goal:<name>:<n>`` and ``feedback: true``.
 
         Raises:
             UnknownNameError: no such action.
@@ -226,10 +232,10 @@ class Actions(ProviderTable[ActionEntry]):
                 (docs/limits.md).
             FieldError: ``args`` does not fit the goal type.
         """
-        entry = self.entries.get(resolve_name(action))
+        entry = self.entries.get(resolve_name(op.action))
         if entry is None:
-            raise UnknownNameError("action", action)
-        goal_msg = convert_args(entry.actiontype.goal, args, path=path, now=self.clock.wall())
+            raise UnknownNameError("action", op.action)
+        goal_msg = convert_args(entry.actiontype.goal, op.args, path=path, now=self.clock.wall())
         goal_id = f"action_goal:{entry.spelling}:{next(entry.counter)}"
         goal = Goal(entry, goal_id, client, done, on_feedback, self.clock)
         entry.goals[goal_id] = goal
@@ -241,7 +247,13 @@ class Actions(ProviderTable[ActionEntry]):
             assert entry.provider is not None
             try:
                 entry.provider.on_action_goal(
-                    goal_id, entry.spelling, entry.type_spelling, goal_msg.msg
+                    SendActionGoal(
+                        action=entry.spelling,
+                        action_type=entry.type_spelling,
+                        args=goal_msg.msg,
+                        id=goal_id,
+                        feedback=True,
+                    )
                 )
             except RwtError as exc:  # refused (provider busy): the caller's goal fails
                 del entry.goals[goal_id]
@@ -249,39 +261,29 @@ class Actions(ProviderTable[ActionEntry]):
                 raise
         return goal
 
-    def feedback(
-        self, client: ClientId, action: str, goal_id: str, values: object, *, path: str
-    ) -> None:
-        """Route the provider's feedback (spec 3.3.14).
+    def feedback(self, client: ClientId, op: ActionFeedback, *, path: str) -> None:
+        """Route the provider's feedback ``op.values`` for the goal ``op.id`` (spec 3.3.14).
 
         Raises:
-            GraphError: not the provider; unknown goal (warning).
+            GraphError: not the provider; no or an unknown goal id (warning).
             FieldError: ``values`` does not fit the feedback type.
         """
-        self._goal(client, action, goal_id).feedback(values, path=path)
+        self._goal(client, op.action, op.id).feedback(op.values, path=path)
 
-    def result(
-        self,
-        client: ClientId,
-        action: str,
-        goal_id: str,
-        status: int | None,
-        result: bool,
-        values: object,
-        *,
-        path: str,
-    ) -> None:
-        """Route the provider's result (spec 3.3.15, D18).
+    def result(self, client: ClientId, op: ActionResult, *, path: str) -> None:
+        """Route the provider's result for the goal ``op.id`` (spec 3.3.15, D18).
 
-        ``status`` defaults to SUCCEEDED when ``result`` is true, ABORTED otherwise;
-        the caller's ``result`` is true for every terminal status (D18).
+        ``op.status`` defaults to SUCCEEDED when ``op.result`` is true, ABORTED
+        otherwise; the caller's ``result`` is true for every terminal status (D18).
 
         Raises:
-            GraphError: not the provider; unknown goal (warning); status not terminal.
+            GraphError: not the provider; no or an unknown goal id (warning);
+                status not terminal.
             FieldError: ``values`` does not fit the result type (the goal aborts).
         """
-        goal = self._goal(client, action, goal_id)
-        final = _terminal(status, result)
+        goal = self._goal(client, op.action, op.id)
+        result, values = op.result, op.values
+        final = _terminal(op.status, result)
         if not result:
             goal.finish(final, True, goal.entry.actiontype.result.default())
             return
@@ -314,13 +316,12 @@ class Actions(ProviderTable[ActionEntry]):
             if not goals:
                 del self._goals_of[goal.caller]
 
-    def _goal(self, client: ClientId, action: str, goal_id: str) -> Goal:
+    def _goal(self, client: ClientId, action: str, goal_id: str | int | None) -> Goal:
         entry = self.owned(client, action)
-        goal = entry.goals.get(goal_id)
+        key = None if goal_id is None else str(goal_id)  # the graph's goal ids are strings
+        goal = None if key is None else entry.goals.get(key)
         if goal is None:
-            raise GraphError(
-                f"no goal {goal_id!r} in progress on {action}", level=StatusLevel.WARNING
-            )
+            raise GraphError(f"no goal {key!r} in progress on {action}", level=StatusLevel.WARNING)
         return goal
 
     def _run_local(

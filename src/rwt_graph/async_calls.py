@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import anyio
 
 from rwt_protocol.errors import ServiceCallError
+from rwt_protocol.ops import CallService, SendActionGoal
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -58,7 +59,8 @@ async def call_service(
         outcome.append((result, values))
         done.set()
 
-    pending = graph.port.call_service(graph.port.local_client(), service, args, reply)
+    request = CallService(service=service, args=args)
+    pending = graph.port.call_service(graph.port.local_client(), request, reply)
     with anyio.move_on_after(timeout_s):
         await done.wait()
     if not outcome:
@@ -93,9 +95,8 @@ async def send_action_goal(
         outcome.append((status, result, values))
         done.set()
 
-    handle = graph.port.send_action_goal(
-        graph.port.local_client(), action, "", goal, finish, on_feedback
-    )
+    op = SendActionGoal(action=action, action_type="", args=goal, feedback=on_feedback is not None)
+    handle = graph.port.send_action_goal(graph.port.local_client(), op, finish, on_feedback)
     try:
         with anyio.move_on_after(timeout_s):
             await done.wait()

@@ -55,6 +55,20 @@ from .types import Dialect, MessageType, TypeRegistry, codec_for
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
+    from rwt_protocol.ops import (
+        ActionFeedback,
+        ActionResult,
+        Advertise,
+        AdvertiseAction,
+        AdvertiseService,
+        CallService,
+        PublishView,
+        SendActionGoal,
+        ServiceResponse,
+        Subscribe,
+    )
+
+
 __all__ = ["GraphCore"]
 
 logger = logging.getLogger("rwt.graph")
@@ -184,20 +198,21 @@ class GraphCore:
 
     # ---- GraphPort ------------------------------------------------------------
 
-    def advertise(self, client: ClientId, topic: str, type_name: str, *, latch: bool) -> str:
-        """Register ``client`` as a publisher of ``topic`` (spec 3.3.1).
+    def advertise(self, client: ClientId, op: Advertise) -> str:
+        """Register ``client`` as a publisher of ``op.topic`` (spec 3.3.1); ``op.latch`` latches.
 
         Returns:
             The canonical type name.
 
         Raises:
-            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
-            GraphError: the topic exists with another type.
+            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
+            GraphError: the topic exists with another type, or is reserved.
         """
-        msgtype = self.registry.message(type_name)
+        msgtype = self.registry.message(op.type)
+        topic = resolve_name(op.topic)
         self._check_reserved(client, topic)
         entry = self._topic(topic, msgtype)
-        entry.publishers[client] = latch or entry.publishers.get(client, False)
+        entry.publishers[client] = op.latch or entry.publishers.get(client, False)
         self._hold(client, entry.name)
         self.nodes.name_of(client)
         return entry.msgtype.name
@@ -210,19 +225,17 @@ class GraphCore:
             self._unhold(client, entry)
             self._collect(entry)
 
-    def publish(
-        self, client: ClientId, topic: str, msg: object, *, latch: bool = False, path: str = "$"
-    ) -> tuple[str, ...]:
-        """Validate ``msg`` against the topic's type and deliver it (spec 3.3.3).
+    def publish(self, client: ClientId, op: PublishView, *, path: str = "$") -> tuple[str, ...]:
+        """Validate ``op.msg`` against the type of ``op.topic`` and deliver it (spec 3.3.3).
 
         Publishing without advertising is allowed once the topic's type is known
         (REF §2.3); the client then counts as a publisher until it leaves.
 
         Args:
             client: the publishing participant.
-            topic: topic name (any spelling).
-            msg: the message as decoded JSON (a dict).
-            latch: keep the message for later subscribers (D13).
+            op: the op as either decoder gives it (``Publish`` or its msgspec
+                twin): ``topic`` in any spelling, ``msg`` as decoded JSON (a
+                dict), ``latch`` keeps the message for later subscribers (D13).
             path: JSON path of ``msg``, for error texts.
 
         Returns:
@@ -232,12 +245,12 @@ class GraphCore:
             GraphError: the topic's type is unknown.
             FieldError: ``msg`` does not fit the type (D9).
         """
-        entry, converted, missing = self.convert_publish(topic, msg, path=path)
+        entry, converted, missing = self.convert_publish(op.topic, op.msg, path=path)
         if client not in entry.publishers:  # the first publish of this client: check it once
             self._check_reserved(client, entry.name)
             self._hold(client, entry.name)
             self.nodes.name_of(client)
-        latched = entry.publishers.setdefault(client, False) or latch
+        latched = entry.publishers.setdefault(client, False) or op.latch
         self._send(entry, converted, latch=latched, client=client)
         return missing
 
@@ -267,27 +280,26 @@ class GraphCore:
         result = msgtype.from_json(msg, path=path, now=self._clock.wall())
         return entry, result.msg, result.missing
 
-    def subscribe(
-        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
-    ) -> str:
-        """Attach ``sink`` as ``client``'s subscriber of ``topic`` (spec 3.3.4).
+    def subscribe(self, client: ClientId, op: Subscribe, sink: TopicSink) -> str:
+        """Attach ``sink`` as ``client``'s subscriber of ``op.topic`` (spec 3.3.4).
 
         A new subscriber receives the latched message, if any, at once (D13).
+        Only ``op.topic`` and ``op.type`` matter here; the rest is the session's.
 
         Returns:
             The canonical type name.
 
         Raises:
             GraphError: no type given and the topic is unknown, or a conflicting type.
-            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
         """
-        name = resolve_name(topic)
-        if type_name is None:
+        name = resolve_name(op.topic)
+        if op.type is None:
             entry = self.topics.get(name)
             if entry is None:
-                raise GraphError(f"cannot infer the type of {topic}: give a type")
+                raise GraphError(f"cannot infer the type of {op.topic}: give a type")
         else:
-            entry = self._topic(name, self.registry.message(type_name))
+            entry = self._topic(name, self.registry.message(op.type))
         is_new = entry.add_subscriber(client, sink)
         self._hold(client, entry.name)
         self.nodes.name_of(client)
@@ -363,14 +375,15 @@ class GraphCore:
     # ---- ServicePort: services and actions of clients ---------------------------
 
     def advertise_service(
-        self, client: ClientId, service: str, type_name: str, provider: ServiceProvider
+        self, client: ClientId, op: AdvertiseService, provider: ServiceProvider
     ) -> str:
-        """Offer ``service`` provided by a client session (spec 3.3.6, D15).
+        """Offer ``op.service`` of ``op.type``, provided by a client session (spec 3.3.6, D15).
 
         Raises:
-            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
         """
-        srvtype = self.registry.service(type_name)
+        srvtype = self.registry.service(op.type)
+        service = op.service
         entry = ServiceEntry(resolve_name(service), service, srvtype, client, provider=provider)
         self.services.advertise(entry)
         self.nodes.name_of(client)
@@ -385,51 +398,38 @@ class GraphCore:
         self.services.unadvertise(client, service)
 
     def call_service(
-        self,
-        client: ClientId,
-        service: str,
-        args: object,
-        reply: ServiceReply,
-        *,
-        type_name: str | None = None,
-        path: str = "$",
+        self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str = "$"
     ) -> Pending:
-        """Call ``service``; ``reply(result, values)`` runs once (spec 3.3.8, D4).
+        """Call ``op.service`` with ``op.args``; ``reply(result, values)`` runs once (spec 3.3.8).
 
-        ``args`` is an object, a list (positional, D25) or None. For an in-process
-        service with a sync handler, ``reply`` runs before this returns.
+        A call that cannot run is answered too (``result: false``, D4).
+
+        ``op.args`` is an object, a list (positional, D25) or None; ``op.type``,
+        when given, must name the service's type. For an in-process service
+        with a sync handler, ``reply`` runs before this returns.
 
         Raises:
             GraphError: the service does not exist or has another type.
             FieldError: ``args`` does not fit the request.
         """
-        return self.services.call(client, service, args, reply, type_name=type_name, path=path)
+        return self.services.call(client, op, reply, path=path)
 
-    def service_response(
-        self,
-        client: ClientId,
-        service: str,
-        request_id: str,
-        result: bool,
-        values: object,
-        *,
-        path: str = "$",
-    ) -> None:
+    def service_response(self, client: ClientId, op: ServiceResponse, *, path: str = "$") -> None:
         """Answer a forwarded request (spec 3.3.9); see ``Services.respond`` for errors."""
-        self.services.respond(client, service, request_id, result, values, path=path)
+        self.services.respond(client, op, path=path)
 
     def advertise_action(
-        self, client: ClientId, action: str, type_name: str, provider: ActionProvider
+        self, client: ClientId, op: AdvertiseAction, provider: ActionProvider
     ) -> str:
-        """Offer ``action`` provided by a client session (spec 3.3.10, D15).
+        """Offer ``op.action`` of ``op.type``, provided by a client session (spec 3.3.10, D15).
 
         Raises:
-            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
         """
-        actiontype = self.registry.action(type_name)
-        name = resolve_name(action)
+        actiontype = self.registry.action(op.type)
+        name = resolve_name(op.action)
         self.offer_action(
-            ActionEntry(name, action, type_name, actiontype, client, provider=provider)
+            ActionEntry(name, op.action, op.type, actiontype, client, provider=provider)
         )
         self.nodes.name_of(client)
         return actiontype.name
@@ -448,41 +448,31 @@ class GraphCore:
     def send_action_goal(
         self,
         client: ClientId,
-        action: str,
-        action_type: str,
-        args: object,
+        op: SendActionGoal,
         done: GoalDone,
-        feedback: GoalFeedback | None,
+        feedback: GoalFeedback | None = None,
         *,
         path: str = "$",
     ) -> GoalHandle:
-        """Send a goal; ``done(status, result, values)`` runs once (spec 3.3.12, D4, D18).
+        """Send the goal ``op.args`` to ``op.action`` (spec 3.3.12, D4, D18).
+
+        ``done(status, result, values)`` runs once; ``feedback`` gets each
+        feedback message when ``op.feedback`` is true.
 
         Raises:
             GraphError: the action does not exist.
             FieldError: ``args`` does not fit the goal.
         """
-        return self.actions.send_goal(client, action, action_type, args, done, feedback, path=path)
+        on_feedback = feedback if op.feedback else None
+        return self.actions.send_goal(client, op, done, on_feedback, path=path)
 
-    def action_feedback(
-        self, client: ClientId, action: str, goal_id: str, values: object, *, path: str = "$"
-    ) -> None:
+    def action_feedback(self, client: ClientId, op: ActionFeedback, *, path: str = "$") -> None:
         """Feedback from the provider (spec 3.3.14); see ``Actions.feedback``."""
-        self.actions.feedback(client, action, goal_id, values, path=path)
+        self.actions.feedback(client, op, path=path)
 
-    def action_result(
-        self,
-        client: ClientId,
-        action: str,
-        goal_id: str,
-        status: int | None,
-        result: bool,
-        values: object,
-        *,
-        path: str = "$",
-    ) -> None:
+    def action_result(self, client: ClientId, op: ActionResult, *, path: str = "$") -> None:
         """The provider's result (spec 3.3.15, D18); see ``Actions.result``."""
-        self.actions.result(client, action, goal_id, status, result, values, path=path)
+        self.actions.result(client, op, path=path)
 
     def offer_action(self, entry: ActionEntry) -> None:
         """Advertise ``entry`` with its cancel service (a client's or in-process provider's).

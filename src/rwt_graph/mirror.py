@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 from rwt_protocol.errors import RwtError
+from rwt_protocol.ops import AdvertiseAction, AdvertiseService
 
 from .link import Kind, mirror_endpoint
 
@@ -268,13 +269,15 @@ class Mirror:
                     return
                 held.provider = service = self.side.service_provider(client, entity)
                 graph.nodes.bind(client, entity.node)
-                graph.port.advertise_service(client, entity.name, entity.type_name, service)
+                offer = AdvertiseService(service=entity.name, type=entity.type_name)
+                graph.port.advertise_service(client, offer, service)
             elif entity.kind is RemoteKind.ACTION:
                 if self._shadowed(client, entity.name in graph.actions.entries):
                     return
                 held.provider = action = self.side.action_provider(client, entity)
                 graph.nodes.bind(client, entity.node)
-                graph.port.advertise_action(client, entity.name, entity.type_name, action)
+                offered = AdvertiseAction(action=entity.name, type=entity.type_name)
+                graph.port.advertise_action(client, offered, action)
             else:
                 self.side.check_endpoint(entity)
                 publisher = entity.kind is RemoteKind.PUBLISHER

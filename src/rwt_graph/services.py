@@ -21,12 +21,15 @@ from typing import TYPE_CHECKING
 from rwt_protocol.errors import FieldError, GraphError, RwtError, UnknownNameError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
+from rwt_protocol.ops import CallService
 from rwt_protocol.ports import ClientId, ServiceProvider, ServiceReply
 
 from .calls import ProviderTable, Spawner, convert_args, guarded
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
+    from rwt_protocol.ops import ServiceResponse
+
     from .clock import Clock
     from .types import ServiceType, TypeRegistry
 
@@ -135,16 +138,13 @@ class Services(ProviderTable[ServiceEntry]):
         self._calls_of: dict[ClientId, set[tuple[ServiceEntry, str]]] = {}
 
     def call(
-        self,
-        client: ClientId,
-        service: str,
-        args: object,
-        reply: ServiceReply,
-        *,
-        type_name: str | None,
-        path: str,
+        self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str
     ) -> PendingCall:
-        """Start a call to ``service`` (spec 3.3.8).
+        """Start a call to ``op.service`` with ``op.args``, of ``op.type`` when given (spec 3.3.8).
+
+        A client provider gets the request as a ``CallService`` op of its own:
+        the service as it spelled it, the request in the internal form, and the
+        id ``service_request:<name>:<n>``.
 
         Raises:
             UnknownNameError: the service does not exist.
@@ -152,12 +152,13 @@ class Services(ProviderTable[ServiceEntry]):
                 client provider is busy (docs/limits.md).
             FieldError: ``args`` does not fit the request type.
         """
+        service, type_name = op.service, op.type
         entry = self.entries.get(resolve_name(service))
         if entry is None:
             raise UnknownNameError("service", service)
         if type_name is not None and self.registry.service(type_name).name != entry.srvtype.name:
             raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
-        request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())
+        request = convert_args(entry.srvtype.request, op.args, path=path, now=self.clock.wall())
         call = PendingCall(client, reply)
         if entry.caller_handler is not None:
             self._run_local(entry, _with_caller(entry.caller_handler, client), request.msg, call)
@@ -169,7 +170,9 @@ class Services(ProviderTable[ServiceEntry]):
             entry.pending[request_id] = call
             self._track(call, entry, request_id)
             try:
-                entry.provider.on_service_request(request_id, entry.spelling, request.msg)
+                entry.provider.on_service_request(
+                    CallService(service=entry.spelling, args=request.msg, id=request_id)
+                )
             except RwtError as exc:  # refused (provider busy): the caller fails, nothing waits
                 del entry.pending[request_id]
                 self._untrack(call.caller, (entry, request_id))
@@ -177,25 +180,24 @@ class Services(ProviderTable[ServiceEntry]):
                 raise
         return call
 
-    def respond(
-        self,
-        client: ClientId,
-        service: str,
-        request_id: str,
-        result: bool,
-        values: object,
-        *,
-        path: str,
-    ) -> None:
+    def respond(self, client: ClientId, op: ServiceResponse, *, path: str) -> None:
         """Route a provider's ``service_response`` to its caller (spec 3.3.9, D15, D28).
 
+        ``op.id`` names the request (the id of the ``CallService`` the provider
+        got); ``op.values`` is the response when ``op.result`` is true, else
+        the reason its caller gets when it is a text.
+
         Raises:
-            GraphError: ``client`` does not provide ``service``; unknown request id
-                (warning: it may have timed out).
+            GraphError: ``client`` does not provide ``op.service``; no or an
+                unknown request id (warning: it may have timed out).
             FieldError: ``values`` does not fit the response type (the caller gets
                 ``result: false`` too).
         """
+        service, result, values = op.service, op.result, op.values
         entry = self.owned(client, service)
+        if op.id is None:
+            raise GraphError(f"service_response for {service} names no request id")
+        request_id = str(op.id)
         call = entry.pending.pop(request_id, None)
         if call is None:
             raise GraphError(

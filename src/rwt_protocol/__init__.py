@@ -12,9 +12,10 @@ pyproject.toml); each subpackage's docstring lists its modules:
   messages, large messages into ``fragment`` ops and back, messages into datagrams.
 - ``codecs``: one op as JSON, CBOR or PNG. Beside them, ``auth``: the rosauth MAC,
   which the client computes and the server checks.
+- ``ports``: the session's interface to a graph, which ``rwt_graph`` implements;
+  its calls take the op models.
 - ``ops``: one pydantic model per op.
 - The vocabulary every part shares: ``errors`` (the error tree), ``levels``
-  (status levels), ``names`` (ROS names), ``ports`` (the session's interface to a
-  graph, which ``rwt_graph`` implements), ``shortcuts`` (the fast paths' switch),
+  (status levels), ``names`` (ROS names), ``shortcuts`` (the fast paths' switch),
   ``ratelog`` (log lines a peer can trigger).
 """

@@ -5,13 +5,35 @@ talks to a ``GraphPort`` and the graph calls back into a ``TopicSink``. Both are
 structural ``typing.Protocol`` types; ``rwt_graph.core.GraphCore`` implements the
 port (``Graph.port``; ``Graph`` itself is the embedding API, docs/embedding.md).
 All calls are synchronous and never block: the graph is in-memory.
+
+A call that carries an op takes the op's model (``rwt_protocol.ops``), the one
+definition of its fields, and not a list of them: the session hands on what it
+decoded (``publish`` takes either decoder's ``PublishView``), and the graph
+builds the ops it forwards to a provider (``CallService``, ``SendActionGoal``,
+``CancelActionGoal``), which a session sends as they are. Names and the id of
+an op passed here are as their sender spelled them (D26); the graph resolves them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Mapping
 from enum import IntEnum
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
+
+if TYPE_CHECKING:
+    from .ops import (
+        ActionFeedback,
+        ActionResult,
+        Advertise,
+        AdvertiseAction,
+        AdvertiseService,
+        CallService,
+        CancelActionGoal,
+        PublishView,
+        SendActionGoal,
+        ServiceResponse,
+        Subscribe,
+    )
 
 __all__ = [
     "ActionProvider",
@@ -182,8 +204,13 @@ class GoalHandle(Pending, Protocol):
 class ServiceProvider(Protocol):
     """The session side of a client-advertised service (spec 3.3.6, REF §2.7)."""
 
-    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
-        """Forward a request; ``service`` is spelled as the provider advertised it (D26).
+    def on_service_request(self, request: CallService) -> None:
+        """Forward a request as the provider gets it.
+
+        ``request.id`` is the graph's request id (a str,
+        ``service_request:<name>:<n>``), ``request.service`` is spelled as the
+        provider advertised it (D26) and ``request.args`` is the request in the
+        internal form (a dict).
 
         Raises:
             RwtError: the provider cannot take it now (busy, docs/limits.md);
@@ -197,62 +224,65 @@ class ServiceProvider(Protocol):
 class ActionProvider(Protocol):
     """The session side of a client-advertised action (spec 3.3.10, REF §2.15-2.16)."""
 
-    def on_action_goal(
-        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
-    ) -> None:
-        """Forward a goal; names spelled as the provider advertised them (D26).
+    def on_action_goal(self, goal: SendActionGoal) -> None:
+        """Forward a goal as the provider gets it.
+
+        ``goal.id`` is the graph's goal id (a str, ``action_goal:<name>:<n>``),
+        ``goal.action`` and ``goal.action_type`` are spelled as the provider
+        advertised them (D26), ``goal.args`` is the goal in the internal form
+        and ``goal.feedback`` is true (the graph forwards feedback to callers
+        that asked for it).
 
         Raises:
             RwtError: the provider cannot take it now (busy, docs/limits.md);
                 the caller's goal is aborted with the reason.
         """
 
-    def on_action_cancel(self, goal_id: str, action: str) -> None:
-        """Forward a cancel request for ``goal_id``."""
+    def on_action_cancel(self, cancel: CancelActionGoal) -> None:
+        """Forward a cancel request for the goal ``cancel.id`` (a str, as ``on_action_goal``'s)."""
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """The action was taken away from this provider (replaced, D15)."""
 
 
 class ServicePort(Protocol):
-    """What a server session needs from the graph for services and actions."""
+    """What a server session needs from the graph for services and actions.
+
+    ``path`` is the JSON path of the op's payload (``args`` or ``values``) in
+    the frame it came in, for error texts (``$.args``); ``$`` by default.
+    """
 
     def advertise_service(
-        self, client: ClientId, service: str, type_name: str, provider: ServiceProvider
+        self, client: ClientId, op: AdvertiseService, provider: ServiceProvider
     ) -> str:
-        """Offer a service (newest advertiser wins, D15); return its canonical type."""
+        """Offer ``op.service`` of ``op.type`` (newest advertiser wins, D15); return its type.
+
+        The type returned is the canonical name (``std_srvs/srv/Trigger``).
+        """
 
     def unadvertise_service(self, client: ClientId, service: str) -> None:
         """Withdraw a service ``client`` advertised; its pending calls fail (D15)."""
 
     def call_service(
-        self,
-        client: ClientId,
-        service: str,
-        args: object,
-        reply: ServiceReply,
-        *,
-        type_name: str | None,
-        path: str,
+        self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str = "$"
     ) -> Pending:
-        """Start a call; ``reply`` may run before this returns (in-process services)."""
+        """Call ``op.service`` with ``op.args``; ``reply`` may run before this returns.
 
-    def service_response(
-        self,
-        client: ClientId,
-        service: str,
-        request_id: str,
-        result: bool,
-        values: object,
-        *,
-        path: str,
-    ) -> None:
-        """Answer a request forwarded to ``client`` (only the advertiser may, D15)."""
+        ``op.service`` is a name without a ``#id`` suffix (the session splits it
+        off, D25); ``op.type``, when given, must be the service's type. The
+        other fields (``id``, ``timeout``, encodings) are the caller's business.
+        """
+
+    def service_response(self, client: ClientId, op: ServiceResponse, *, path: str = "$") -> None:
+        """Answer the request ``op.id`` forwarded to ``client`` (only the advertiser may, D15)."""
 
     def advertise_action(
-        self, client: ClientId, action: str, type_name: str, provider: ActionProvider
+        self, client: ClientId, op: AdvertiseAction, provider: ActionProvider
     ) -> str:
-        """Offer an action (newest advertiser wins); return its canonical type."""
+        """Offer ``op.action`` of ``op.type`` (newest advertiser wins); return its canonical type.
+
+        ``op.type`` stays as spelled for the goals the provider gets.
+        """
 
     def unadvertise_action(self, client: ClientId, action: str) -> None:
         """Withdraw an action ``client`` advertised; its goals abort."""
@@ -260,33 +290,24 @@ class ServicePort(Protocol):
     def send_action_goal(
         self,
         client: ClientId,
-        action: str,
-        action_type: str,
-        args: object,
+        op: SendActionGoal,
         done: GoalDone,
-        feedback: GoalFeedback | None,
+        feedback: GoalFeedback | None = None,
         *,
-        path: str,
+        path: str = "$",
     ) -> GoalHandle:
-        """Start a goal; ``done`` may run before this returns."""
+        """Send the goal ``op.args`` to ``op.action``; ``done`` may run before this returns.
 
-    def action_feedback(
-        self, client: ClientId, action: str, goal_id: str, values: object, *, path: str
-    ) -> None:
-        """Feedback from the advertiser of ``action`` for ``goal_id``."""
+        ``feedback`` gets the goal's feedback when ``op.feedback`` is true.
+        ``op.action_type`` is not checked (clients name one action in
+        different packages, REF §7.3).
+        """
 
-    def action_result(
-        self,
-        client: ClientId,
-        action: str,
-        goal_id: str,
-        status: int | None,
-        result: bool,
-        values: object,
-        *,
-        path: str,
-    ) -> None:
-        """The end of ``goal_id`` from the advertiser of ``action`` (D18)."""
+    def action_feedback(self, client: ClientId, op: ActionFeedback, *, path: str = "$") -> None:
+        """Feedback from the advertiser of ``op.action`` for the goal ``op.id``."""
+
+    def action_result(self, client: ClientId, op: ActionResult, *, path: str = "$") -> None:
+        """The end of the goal ``op.id`` from the advertiser of ``op.action`` (D18)."""
 
 
 class GraphPort(ServicePort, Protocol):
@@ -296,24 +317,29 @@ class GraphPort(ServicePort, Protocol):
     request the graph refuses; the session reports it as a ``status``.
     """
 
-    def advertise(self, client: ClientId, topic: str, type_name: str, *, latch: bool) -> str:
-        """Register ``client`` as a publisher; return the topic's canonical type."""
+    def advertise(self, client: ClientId, op: Advertise) -> str:
+        """Register ``client`` as a publisher of ``op.topic`` (latched when ``op.latch``).
+
+        Returns the topic's canonical type; ``op.id`` and ``op.queue_size`` are
+        the session's business.
+        """
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
         """Remove ``client`` as a publisher of ``topic``."""
 
-    def publish(
-        self, client: ClientId, topic: str, msg: object, *, latch: bool, path: str
-    ) -> tuple[str, ...]:
-        """Validate and publish ``msg``; return the paths of fields filled with defaults.
+    def publish(self, client: ClientId, op: PublishView, *, path: str = "$") -> tuple[str, ...]:
+        """Validate and publish ``op.msg`` on ``op.topic``; return the paths filled with defaults.
 
+        ``op`` is either decoder's (the ``Publish`` model or its msgspec twin);
         ``path`` is the JSON path of ``msg`` in the op, for error texts (``$.msg``).
         """
 
-    def subscribe(
-        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
-    ) -> str:
-        """Attach ``sink`` for ``client`` (replacing an earlier one); return the canonical type."""
+    def subscribe(self, client: ClientId, op: Subscribe, sink: TopicSink) -> str:
+        """Attach ``sink`` for ``client`` to ``op.topic`` (replacing an earlier one).
+
+        ``op.type``, when given, must be the topic's type (or makes the topic);
+        returns the canonical type. The other fields are the session's business.
+        """
 
     def unsubscribe(self, client: ClientId, topic: str) -> None:
         """Detach ``client``'s sink from ``topic``."""

@@ -15,6 +15,7 @@ import logging
 from typing import TYPE_CHECKING, Any
 
 from rwt_protocol.errors import RwtError
+from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 
 from .answer import Answer
@@ -25,6 +26,7 @@ from .runtime import interface_class
 if TYPE_CHECKING:
     from rwt_graph.actions import Goal
     from rwt_graph.types.message import ActionType
+    from rwt_protocol.ops import CancelActionGoal
 
     from .link import Ros2Link
     from .node import RosNode
@@ -66,14 +68,13 @@ class RosAction:
         if goal is not None:
             goal.finish(GoalStatus.ABORTED, False, f"action {self._name}: {reason}")
 
-    def on_action_goal(
-        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
-    ) -> None:
+    def on_action_goal(self, goal: SendActionGoal) -> None:
         """Send a graph caller's goal (``args`` in the internal form) to the ROS 2 server."""
         from rclpy.action.client import ActionClient  # noqa: PLC0415
         from rclpy.serialization import deserialize_message  # noqa: PLC0415
 
         link = self._link
+        goal_id, args = str(goal.id), goal.args
         if self._action_client is None:
             try:
                 self._ros_type = interface_class(self._actiontype.name)
@@ -158,8 +159,9 @@ class RosAction:
             return
         goal.finish(status, True, values)
 
-    def on_action_cancel(self, goal_id: str, action: str) -> None:
+    def on_action_cancel(self, cancel: CancelActionGoal) -> None:
         """Ask the ROS 2 server to cancel the goal (once it has accepted it)."""
+        goal_id = str(cancel.id)
         handle = self._handles.get(goal_id)
         if handle is None:
             self._cancelled.add(goal_id)
@@ -258,9 +260,8 @@ def _start_in_graph(
             else:
                 outcome.set(False, values, status)
 
-        outcome.handle = link.graph.port.send_action_goal(
-            link.caller, name, type_name, goal, done, feedback
-        )
+        op = SendActionGoal(action=name, action_type=type_name, args=goal, feedback=True)
+        outcome.handle = link.graph.port.send_action_goal(link.caller, op, done, feedback)
     except RwtError as exc:
         outcome.set(False, exc)
 

@@ -18,6 +18,7 @@ import logging
 from typing import TYPE_CHECKING, Any
 
 from rwt_protocol.errors import RwtError
+from rwt_protocol.ops import CallService, ServiceResponse
 
 from .answer import Answer
 from .codec import decode, encode
@@ -63,9 +64,10 @@ class RosService:
         self._ros_type: Any = None
         self._ros_client: Any = None
 
-    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
+    def on_service_request(self, request: CallService) -> None:
         """Send a graph caller's request (``args`` in the internal form) to the ROS 2 server."""
         link = self._link
+        request_id, args = str(request.id), request.args
         from rclpy.serialization import deserialize_message  # noqa: PLC0415
 
         if self._ros_client is None:
@@ -83,11 +85,11 @@ class RosService:
             return
         try:
             payload = encode(link.graph.registry, self._srvtype.request, args)
-            request = deserialize_message(payload, self._ros_type.Request)
+            ros_request = deserialize_message(payload, self._ros_type.Request)
         except Exception as exc:  # rclpy refuses what rosbags wrote: a type mismatch
             self._respond(request_id, False, f"service {self._name}: request refused: {exc}")
             return
-        future = ros_client.call_async(request)
+        future = ros_client.call_async(ros_request)
         loop = link.loop
         timer = loop.call_later(link.options.call_timeout_s, self._timeout, request_id, future)
 
@@ -124,7 +126,8 @@ class RosService:
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            graph.port.service_response(self._client, self._name, request_id, False, value)
+            failure = ServiceResponse(service=self._name, result=False, values=value, id=request_id)
+            graph.port.service_response(self._client, failure)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the ROS 2 one in the graph; the ROS 2 one lives on."""
@@ -174,7 +177,9 @@ def serve_to_ros(
             if handler is not None:
                 reply(True, handler(request))
             else:
-                link.graph.port.call_service(link.caller, name, request, reply)
+                link.graph.port.call_service(
+                    link.caller, CallService(service=name, args=request), reply
+                )
         except RwtError as exc:
             timer.cancel()
             answer.set(False, str(exc))

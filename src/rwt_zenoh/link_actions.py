@@ -32,6 +32,7 @@ import zenoh
 from rwt_graph.actions import CANCEL_GOAL_TYPE
 from rwt_graph.calls import guarded
 from rwt_protocol.errors import RwtError
+from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 
 from .actions import (
@@ -63,6 +64,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rwt_graph.mirror import RemoteEntity
+    from rwt_protocol.ops import CancelActionGoal
     from rwt_protocol.ports import ClientId
 
     from .link import OwnPublisher, ZenohLink
@@ -111,15 +113,13 @@ class _RemoteAction:
         self.action = action
         self.wire = wire
 
-    def on_action_goal(
-        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
-    ) -> None:
+    def on_action_goal(self, goal: SendActionGoal) -> None:
         """Send the goal (``args`` in the graph's internal form)."""
-        self.link.send_remote_goal(self, goal_id, args)
+        self.link.send_remote_goal(self, str(goal.id), goal.args)
 
-    def on_action_cancel(self, goal_id: str, action: str) -> None:
+    def on_action_cancel(self, cancel: CancelActionGoal) -> None:
         """Ask the remote server to cancel."""
-        self.link.cancel_remote_goal(self, goal_id)
+        self.link.cancel_remote_goal(self, str(cancel.id))
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """A local server replaced the remote one here."""
@@ -258,9 +258,7 @@ class ActionLink:
             served = self._served[goal_id] = _Served(action, wire, link.graph.clock.wall())
             served.handle = link.graph.port.send_action_goal(
                 link.caller,
-                action,
-                "",
-                goal,
+                SendActionGoal(action=action, action_type="", args=goal, feedback=True),
                 partial(self._goal_done, goal_id),
                 partial(self._goal_feedback, action, wire, goal_id),
             )

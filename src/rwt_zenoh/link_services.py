@@ -13,6 +13,7 @@ import logging
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
+from rwt_protocol.ops import CallService, ServiceResponse
 
 from .payload import decode_message, encode_message
 from .wire import WireError, topic_keyexpr
@@ -62,7 +63,7 @@ def serve_query(link: ZenohLink, service: str, type_name: str, query: zenoh.Quer
         request = decode_message(
             registry, srvtype.request, b"" if payload is None else payload.to_bytes()
         )
-        link.graph.port.call_service(link.caller, service, request, reply)
+        link.graph.port.call_service(link.caller, CallService(service=service, args=request), reply)
     except (RwtError, WireError) as exc:
         reply(False, f"service {service} failed: {exc}")
 
@@ -89,8 +90,9 @@ class RemoteService:
         self._topic = topic
         self._srvtype = srvtype
 
-    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
+    def on_service_request(self, request: CallService) -> None:
         """Send a local caller's request (``args`` in the internal form) as a query."""
+        request_id, args = str(request.id), request.args
         topic, srvtype = self._topic, self._srvtype
         service = topic.name
         registry = self._link.graph.registry
@@ -131,7 +133,8 @@ class RemoteService:
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            graph.port.service_response(self._client, service, request_id, False, value)
+            failure = ServiceResponse(service=service, result=False, values=value, id=request_id)
+            graph.port.service_response(self._client, failure)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the remote one here; the remote one lives on."""

@@ -25,6 +25,7 @@ from rwt_graph.graph import Graph
 from rwt_protocol.auth import Authenticator
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
+from rwt_protocol.ops import Subscribe
 from rwt_protocol.ports import TopicSink
 from rwt_protocol.server.session import Session
 from rwt_transports.server import (
@@ -56,11 +57,11 @@ def forgetful_graph() -> Graph:
     graph = Graph()
     subscribe = graph.port.subscribe
 
-    def forgetful(client: str, topic: str, type_name: str | None, sink: TopicSink) -> str:
-        entry = graph.topics.get(resolve_name(topic))
+    def forgetful(client: str, op: Subscribe, sink: TopicSink) -> str:
+        entry = graph.topics.get(resolve_name(op.topic))
         if entry is not None:
             entry.latched = None
-        return subscribe(client, topic, type_name, sink)
+        return subscribe(client, op, sink)
 
     graph.port.subscribe = forgetful  # type: ignore[method-assign]
     return graph

@@ -12,6 +12,7 @@ from tests.conftest import Peer
 from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
+from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import running_handlers
 
@@ -113,6 +114,29 @@ async def test_in_process_action_server_with_feedback_for_python_and_clients() -
         assert [f["op"] for f in frames] == ["action_feedback", "action_feedback", "action_result"]
         assert frames[-1]["values"] == {"sequence": [0, 1, 1, 2]} and frames[-1]["status"] == 4
         tg.cancel_scope.cancel()
+
+
+async def test_the_goal_op_alone_says_whether_its_caller_gets_feedback() -> None:
+    """``SendActionGoal.feedback`` decides; a callback given beside ``feedback: false`` is idle."""
+    graph = Graph()
+    graph.create_action_server("/fib", FIB, fibonacci)
+    heard: dict[bool, list[dict[str, object]]] = {True: [], False: []}
+    ended: list[GoalStatus] = []
+    async with running_handlers(graph) as tg:
+        for wanted in (False, True):
+            graph.port.send_action_goal(
+                graph.port.local_client(),
+                SendActionGoal(action="/fib", action_type=FIB, args={"order": 3}, feedback=wanted),
+                lambda status, result, values: ended.append(status),
+                heard[wanted].append,
+            )
+        with anyio.fail_after(5):
+            while len(ended) < 2:
+                await anyio.sleep(0.01)
+        tg.cancel_scope.cancel()
+    assert ended == [GoalStatus.SUCCEEDED, GoalStatus.SUCCEEDED]
+    assert heard[False] == []
+    assert heard[True] == [{"sequence": [0, 1, 1]}, {"sequence": [0, 1, 1, 2]}]
 
 
 async def test_feedback_marked_validated_reaches_the_client_as_checked_feedback_does() -> None:

@@ -17,6 +17,7 @@ from rwt_graph.link import LinkRules
 from rwt_graph.mirror import Mirror, RemoteEntity, RemoteKind
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import GraphError
+from rwt_protocol.ops import Advertise, CallService, CancelActionGoal, SendActionGoal
 
 STRING = "std_msgs/msg/String"
 SET_BOOL = "std_srvs/srv/SetBool"
@@ -34,18 +35,16 @@ class _Provider:
     def __init__(self) -> None:
         self.requests: list[str] = []
 
-    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
-        self.requests.append(request_id)
+    def on_service_request(self, request: CallService) -> None:
+        self.requests.append(str(request.id))
 
     def on_service_lost(self, service: str, reason: str) -> None:
         pass
 
-    def on_action_goal(
-        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
-    ) -> None:
+    def on_action_goal(self, goal: SendActionGoal) -> None:
         pass
 
-    def on_action_cancel(self, goal_id: str, action: str) -> None:
+    def on_action_cancel(self, cancel: CancelActionGoal) -> None:
         pass
 
     def on_action_lost(self, action: str, reason: str) -> None:
@@ -159,7 +158,9 @@ def test_a_gone_services_callers_fail() -> None:
     linked.mirror.add("link:s", SERVICE)
     replies: list[tuple[bool, object]] = []
     linked.graph.port.call_service(
-        "ws:1", "/enable", {"data": True}, lambda ok, value: replies.append((ok, value))
+        "ws:1",
+        CallService(service="/enable", args={"data": True}),
+        lambda ok, value: replies.append((ok, value)),
     )
     assert linked.side.providers["link:s"].requests  # the call went across
     linked.mirror.remove("link:s")
@@ -210,7 +211,7 @@ def test_a_refused_entity_is_skipped_once_and_leaves_nothing(
     caplog.set_level(logging.INFO, "rwt.test_mirror")
     linked = _Linked()
     linked.side.refuse.add("/refused")
-    linked.graph.port.advertise("ws:1", "/odom", "std_msgs/msg/Int32", latch=False)
+    linked.graph.port.advertise("ws:1", Advertise(topic="/odom", type="std_msgs/msg/Int32"))
     linked.mirror.apply({"link:e": entity})
     linked.mirror.apply({"link:e": entity})  # not tried again while it lives
     [line] = _skips(caplog)

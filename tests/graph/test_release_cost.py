@@ -16,6 +16,15 @@ from typing import Any
 
 from rwt_graph.graph import Graph
 from rwt_graph.parameters.store import Parameters
+from rwt_protocol.ops import (
+    Advertise,
+    AdvertiseAction,
+    AdvertiseService,
+    CallService,
+    CancelActionGoal,
+    SendActionGoal,
+    Subscribe,
+)
 from rwt_protocol.ports import MessageEvent
 
 STRING = "std_msgs/msg/String"
@@ -61,19 +70,17 @@ class Provider:
         self.requests: list[str] = []
         self.cancels: list[str] = []
 
-    def on_service_request(self, request_id: str, service: str, args: dict[str, object]) -> None:
-        self.requests.append(request_id)
+    def on_service_request(self, request: CallService) -> None:
+        self.requests.append(str(request.id))
 
     def on_service_lost(self, service: str, reason: str) -> None:
         pass
 
-    def on_action_goal(
-        self, goal_id: str, action: str, action_type: str, args: dict[str, object]
-    ) -> None:
-        self.requests.append(goal_id)
+    def on_action_goal(self, goal: SendActionGoal) -> None:
+        self.requests.append(str(goal.id))
 
-    def on_action_cancel(self, goal_id: str, action: str) -> None:
-        self.cancels.append(goal_id)
+    def on_action_cancel(self, cancel: CancelActionGoal) -> None:
+        self.cancels.append(str(cancel.id))
 
     def on_action_lost(self, action: str, reason: str) -> None:
         pass
@@ -93,15 +100,21 @@ def large_graph() -> tuple[Graph, list[tuple[object, ...]]]:
     provider = Provider()
     for n in range(OTHERS):
         client = f"other{n}"
-        graph.port.advertise(client, f"/pub{n}", STRING, latch=False)
-        graph.port.subscribe(client, f"/sub{n}", STRING, Sink())
-        graph.port.advertise_service(client, f"/srv{n}", ADD, provider)
-        graph.port.advertise_action(client, f"/act{n}", FIB, provider)
+        graph.port.advertise(client, Advertise(topic=f"/pub{n}", type=STRING))
+        graph.port.subscribe(client, Subscribe(topic=f"/sub{n}", type=STRING), Sink())
+        graph.port.advertise_service(
+            client, AdvertiseService(service=f"/srv{n}", type=ADD), provider
+        )
+        graph.port.advertise_action(client, AdvertiseAction(action=f"/act{n}", type=FIB), provider)
     for n in range(OTHERS):  # each calls its neighbour's service and action
         peer = (n + 1) % OTHERS
-        graph.port.call_service(f"other{n}", f"/srv{peer}", {}, lambda *r: replies.append(r))
+        graph.port.call_service(
+            f"other{n}", CallService(service=f"/srv{peer}", args={}), lambda *r: replies.append(r)
+        )
         graph.port.send_action_goal(
-            f"other{n}", f"/act{peer}", FIB, {}, lambda *r: replies.append(r), None
+            f"other{n}",
+            SendActionGoal(action=f"/act{peer}", action_type=FIB, args={}),
+            lambda *r: replies.append(r),
         )
     return graph, replies
 
@@ -112,16 +125,22 @@ def test_releasing_one_client_walks_no_table_and_drops_only_what_it_held() -> No
     other_provider = graph.actions.entries["/act6"].provider
     assert isinstance(other_provider, Provider)
     sink = Sink()
-    graph.port.advertise("holder", "/pub0", STRING, latch=True)
-    graph.port.subscribe("holder", "/sub1", STRING, sink)
-    graph.port.advertise_service("holder", "/mine", ADD, provider)
-    graph.port.advertise_action("holder", "/my_action", FIB, provider)
-    graph.port.call_service("holder", "/srv5", {}, lambda *r: replies.append(("holder", *r)))
+    graph.port.advertise("holder", Advertise(topic="/pub0", type=STRING, latch=True))
+    graph.port.subscribe("holder", Subscribe(topic="/sub1", type=STRING), sink)
+    graph.port.advertise_service("holder", AdvertiseService(service="/mine", type=ADD), provider)
+    graph.port.advertise_action("holder", AdvertiseAction(action="/my_action", type=FIB), provider)
+    graph.port.call_service(
+        "holder", CallService(service="/srv5", args={}), lambda *r: replies.append(("holder", *r))
+    )
     graph.port.send_action_goal(
-        "holder", "/act6", FIB, {}, lambda *r: replies.append(("holder", *r)), None
+        "holder",
+        SendActionGoal(action="/act6", action_type=FIB, args={}),
+        lambda *r: replies.append(("holder", *r)),
     )
     answers: list[tuple[object, ...]] = []
-    graph.port.call_service("other7", "/mine", {}, lambda *r: answers.append(r))
+    graph.port.call_service(
+        "other7", CallService(service="/mine", args={}), lambda *r: answers.append(r)
+    )
     counted(graph)
     CountingDict.walks = 0
 
@@ -165,10 +184,10 @@ def test_releasing_every_client_one_by_one_leaves_an_empty_graph() -> None:
 
 def test_unadvertising_then_releasing_forgets_the_topic_once() -> None:
     graph = Graph()
-    graph.port.advertise("a", "/t", STRING, latch=False)
+    graph.port.advertise("a", Advertise(topic="/t", type=STRING))
     graph.port.unadvertise("a", "/t")
-    graph.port.subscribe("b", "/t", STRING, Sink())
-    graph.port.advertise("a", "/u", STRING, latch=False)
+    graph.port.subscribe("b", Subscribe(topic="/t", type=STRING), Sink())
+    graph.port.advertise("a", Advertise(topic="/u", type=STRING))
     counted(graph)
 
     graph.port.release("a")

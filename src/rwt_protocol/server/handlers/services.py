@@ -28,9 +28,7 @@ def advertise_service(session: HandlerContext, op: AdvertiseService, now: float)
     holdings = session.holdings
     if ("service", name) not in holdings.offers:
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
-    type_name = session.graph.advertise_service(
-        session.client_id, op.service, op.type, session.provider_link
-    )
+    type_name = session.graph.advertise_service(session.client_id, op, session.provider_link)
     holdings.add_offer("service", name)
     report_type_warning(session, "advertise_service", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
@@ -95,9 +93,9 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
     try:
         pending_calls = session.holdings.pending_calls
         session.check_cap(pending_calls, session.config.max_pending_calls, "pending calls")
-        pending = session.graph.call_service(
-            session.client_id, service, op.args, call.reply, type_name=None, path="$.args"
-        )
+        # the graph gets the name without ``#id``, and no ``type`` to check
+        request = CallService(service=service, args=op.args)
+        pending = session.graph.call_service(session.client_id, request, call.reply, path="$.args")
     except RwtError as exc:
         call.reply(False, reply_text(session.config.compat, exc))
         raise
@@ -126,6 +124,4 @@ def service_response(session: HandlerContext, op: ServiceResponse, now: float) -
     """
     if op.id is None:
         raise RemoteProtocolError("missing field at $.id")
-    session.graph.service_response(
-        session.client_id, op.service, str(op.id), op.result, op.values, path="$.values"
-    )
+    session.graph.service_response(session.client_id, op, path="$.values")
