@@ -21,7 +21,7 @@ from rwt_graph.types import Dialect, TypeRegistry, codec_for
 from rwt_protocol.codecs.png import decode_png, encode_png
 from rwt_protocol.framing.fragments import fragment_frames
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ops import ServiceResponse, Subscribe
+from rwt_protocol.ops import Advertise, ServiceResponse, Subscribe
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.ports import MessageEvent
 from rwt_protocol.server import encoding
@@ -166,7 +166,7 @@ def test_cbor_raw_sends_what_arrived_serialized_as_it_came(graph: Graph) -> None
     """A link's sample or a bag's record (``MessageEvent.wire``) is not serialized again."""
     sub = Peer(graph, "sub")
     sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="cbor-raw")
-    graph.port.advertise("link:relay", "/c", "std_msgs/msg/String", latch=False)
+    graph.port.advertise("link:relay", Advertise(topic="/c", type="std_msgs/msg/String"))
     wire = b"\x00\x01\x00\x00\x03\x00\x00\x00hi\x00\xee"  # a trailing byte kept as it came
     msg = {"data": "hi"}
     graph.port.publish_local("link:relay", "/c", msg, latch=False, wire=wire)
