@@ -58,6 +58,7 @@ from .graphview import Qos, RosGraph, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
+from .outflow import Lane, Outflow
 from .remotes import RosRemotes, entities
 from .rosout import RosoutHandler
 from .runtime import interface_class, ros_distro
@@ -133,6 +134,7 @@ class _Pub:
     latched: bool
     handle: Any
     depth: int  # of its history (``_depth``)
+    lane: Lane  # its samples on their way (``outflow``)
     latched_sent: object = None
     gids: set[bytes] = field(default_factory=set)
 
@@ -178,6 +180,7 @@ class Ros2Link:
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
+        self._outflow: Outflow | None = None  # made in ``run``, with its task group
         self._closed = False
         self._batch_take = enabled("ros2-batch-take")
 
@@ -202,8 +205,9 @@ class Ros2Link:
         logging.getLogger("rwt").addHandler(rosout)
         try:
             self.ros.start()
-            await self._sweep_once()
             async with anyio.create_task_group() as tg:
+                self._outflow = Outflow(tg)
+                await self._sweep_once()
                 tg.start_soon(self.handoff.drain, lambda: self.graph.port.inflow)
                 task_status.started()
                 took = 0.0
@@ -249,6 +253,7 @@ class Ros2Link:
         for sub in self._subs.values():
             _destroy(node.destroy_subscription, sub.handle)
         for pub in self._pubs.values():
+            pub.lane.take_held()
             _destroy(node.destroy_publisher, pub.handle)
         for server in self._servers.values():
             _destroy(node.destroy_service, server.handle)
@@ -415,14 +420,19 @@ class Ros2Link:
             return None
 
     def _sweep_publishers(self, publishing: dict[str, tuple[str, bool]]) -> None:
+        carried: dict[str, tuple[str, list[bytes]]] = {}  # what waited in a replaced lane
         for name, pub in list(self._pubs.items()):
             if publishing.get(name) != (pub.type_name, pub.latched) or pub.depth < self._depth(
                 name, pub.latched
             ):  # a deeper subscription came: a history that holds its bursts
-                self._drop_publisher(name)
+                carried[name] = (pub.type_name, self._drop_publisher(name))
         for name, (type_name, latched) in publishing.items():
             entry = self.graph.topics.get(name)
             found = self._pubs.get(name) or self._publisher(name, type_name, latched)
+            if found is not None and name in carried:
+                was, held = carried.pop(name)
+                for data in held if was == type_name else ():
+                    found.lane.put(data)
             if found is None or entry is None or entry.latched is None:
                 continue
             owner = entry.latched_by
@@ -441,8 +451,21 @@ class Ros2Link:
         # node's other publishers, such as rcl's /rosout one, are ROS 2's, not the graph's)
         gids = self._own_publishers(name) - before
         self._own_gids |= gids
-        pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, gids=gids)
+        assert self._outflow is not None
+        expected = 0 if latched else self._expected_subscriptions(name)
+        lane = self._outflow.lane(name, handle, expected=expected)
+        pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, lane, gids=gids)
         return pub
+
+    def _expected_subscriptions(self, topic: str) -> int:
+        """The subscriptions of ``topic`` a new volatile publisher should match (``outflow``).
+
+        Those the last sweep saw, the link's own included, but no transient-local
+        one (it matches no volatile publisher).
+        """
+        known = [q for q in self._subscription_qos.get(topic, []) if not q.transient_local]
+        own = self._subs.get(topic)
+        return len(known) + (own is not None and not own.qos.transient_local)
 
     def _depth(self, topic: str, latched: bool) -> int:
         """The history depth of the link's publisher of ``topic`` (``publisher_depth``)."""
@@ -457,10 +480,13 @@ class Ros2Link:
             if self.ros.owns(info.node_name, info.node_namespace)
         }
 
-    def _drop_publisher(self, name: str) -> None:
+    def _drop_publisher(self, name: str) -> list[bytes]:
+        """Destroy the link's publisher of ``name``; what still waited in its lane."""
         pub = self._pubs.pop(name)
         self._own_gids -= pub.gids
+        held = pub.lane.take_held()
         _destroy(self.ros.node.destroy_publisher, pub.handle)
+        return held
 
     def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         """Forward what a local publisher published (the graph calls this on the loop)."""
@@ -469,11 +495,15 @@ class Ros2Link:
         latched = latch or entry.publishers.get(client, False)
         pub = self._pubs.get(entry.name)
         if pub is None or pub.type_name != entry.msgtype.name or (latched and not pub.latched):
-            if pub is not None:
-                self._drop_publisher(entry.name)
+            held: list[bytes] = []
+            if pub is not None:  # what waited goes on in the new lane if its type is the same
+                dropped = self._drop_publisher(entry.name)
+                held = dropped if pub.type_name == entry.msgtype.name else []
             pub = self._publisher(entry.name, entry.msgtype.name, latched)
             if pub is None:
                 return
+            for data in held:
+                pub.lane.put(data)
         self._put(entry, pub, event)
 
     def _put(self, entry: GraphTopic, pub: _Pub, event: MessageEvent) -> None:
@@ -490,7 +520,10 @@ class Ros2Link:
                 exc,
             )
             return
-        pub.handle.publish(data)
+        pub.lane.put(data)
+        outflow = self._outflow
+        if outflow is not None and outflow.congested:  # the publisher's reader waits for it
+            self.graph.port.outflow.congested(outflow)
         if entry.latched is event:
             pub.latched_sent = event
 

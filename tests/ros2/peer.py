@@ -15,8 +15,9 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
   count TOPIC           a reliable std_msgs/String subscription of depth 1000; prints
-                        {"count": n, "warm": w} every 100 ms while they change: n
-                        messages, and w whose data is "warm"
+                        {"count": n, "warm": w, "ordered": o} every 100 ms while they
+                        change: n messages, w whose data is "warm", and o: every other
+                        message's data started with its number, 0, 1, 2... in turn
   serve SERVICE         a std_srvs/SetBool server: message "ros2 got <data>"
   call SERVICE          calls std_srvs/SetBool {data: true} once the server is there;
                         prints {"response": {...}} or {"error": ...}
@@ -106,11 +107,16 @@ def main() -> None:
     elif mode == "listen":
         node.create_subscription(String, name, lambda m: say(heard=m.data), 10)
     elif mode == "count":
-        heard = {"count": 0, "warm": 0}
+        heard = {"count": 0, "warm": 0, "ordered": True}
         deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
         def count(message):
-            heard["warm" if message.data == "warm" else "count"] += 1
+            if message.data == "warm":
+                heard["warm"] += 1
+                return
+            if message.data.split(" ", 1)[0] != str(heard["count"]):
+                heard["ordered"] = False
+            heard["count"] += 1
 
         node.create_subscription(String, name, count, deep)
         told = dict(heard)
