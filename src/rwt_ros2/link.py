@@ -54,7 +54,7 @@ from rwt_protocol.shortcuts import enabled
 
 from .actions import serve_action_to_ros
 from .codec import decode, encode
-from .graphview import Qos, RosGraph, publisher_depth, rclpy_profile, snapshot
+from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
@@ -66,7 +66,7 @@ from .services import SERVICE_QOS, serve_to_ros
 
 if TYPE_CHECKING:
     import asyncio
-    from collections.abc import AsyncIterator, Iterator
+    from collections.abc import AsyncIterator, Callable, Iterator
 
     from anyio.abc import TaskStatus
 
@@ -100,6 +100,16 @@ callback, so one busy topic cannot hold the executor from the others for long.""
 
 CALL_TIMEOUT_S = 30.0
 """How long a call across the link waits for its reply, seconds."""
+
+DISCOVERY_WAIT_S = 2.0
+"""Seconds a call to a service nobody offers waits for the link to discover it (a
+node starting as the call comes); the call's own timeout still ends it sooner."""
+
+GRAPH_POLL_S = 0.05
+"""How often the link reads the ROS 2 graph's names between sweeps, seconds
+(``graphview.digest``: its nodes, topics and services with their types, a
+fraction of a sweep's cost); a change starts a sweep at once. rclpy offers no
+graph event to wait on (its node's graph guard condition is not exposed)."""
 
 
 @dataclass(frozen=True)
@@ -181,6 +191,7 @@ class Ros2Link:
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
         self._outflow: Outflow | None = None  # made in ``run``, with its task group
+        self._digest: object = None  # the graph's names at the last look (``graphview.digest``)
         self._closed = False
         self._batch_take = enabled("ros2-batch-take")
 
@@ -201,6 +212,7 @@ class Ros2Link:
         self.graph.taps.append(self._tap)
         self._params = ParamReplicas(self.graph, self.caller)
         self.graph.type_checks.append(self.type_warning)
+        self.graph.services.discoveries.append(self._discovery_wait)
         rosout = RosoutHandler(self.ros.node.get_logger())
         logging.getLogger("rwt").addHandler(rosout)
         try:
@@ -212,7 +224,7 @@ class Ros2Link:
                 task_status.started()
                 took = 0.0
                 while True:
-                    await anyio.sleep(max(self.options.sweep_s, took * (1 / SWEEP_SHARE - 1)))
+                    await self._next_sweep(took)
                     started = time.perf_counter()
                     await self._sweep_once()
                     took = time.perf_counter() - started
@@ -220,7 +232,30 @@ class Ros2Link:
             logging.getLogger("rwt").removeHandler(rosout)
             with contextlib.suppress(ValueError):
                 self.graph.type_checks.remove(self.type_warning)
+            with contextlib.suppress(ValueError):
+                self.graph.services.discoveries.remove(self._discovery_wait)
             self._close()
+
+    async def _next_sweep(self, took: float) -> None:
+        """Wait for the next sweep: ``sweep_s``, or sooner when the graph's names change.
+
+        Either way at least ``took x (1 / SWEEP_SHARE - 1)`` after the last one, so
+        sweeping never takes more than ``SWEEP_SHARE`` of the time.
+        """
+        start = anyio.current_time()
+        await anyio.sleep(max(GRAPH_POLL_S, took * (1 / SWEEP_SHARE - 1)))
+        while anyio.current_time() - start < self.options.sweep_s:
+            names = await anyio.to_thread.run_sync(digest, self.ros)
+            if names != self._digest:
+                self._digest = names
+                return
+            await anyio.sleep(GRAPH_POLL_S)
+
+    def _discovery_wait(self, expire: Callable[[], None]) -> Callable[[], None] | None:
+        """Hold a call to a service nobody offers for ``DISCOVERY_WAIT_S`` (``DiscoveryWait``)."""
+        if self._closed:
+            return None
+        return self.loop.call_later(DISCOVERY_WAIT_S, expire).cancel
 
     async def _sweep_once(self) -> None:
         view = await anyio.to_thread.run_sync(snapshot, self.ros)

@@ -46,6 +46,7 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         two set_parameters_atomically: style "manual", volume 0.5 and
                         the deletion of nope (not set), and volume 7.0 with the
                         deletion of spare; prints {"atomic": [[successful, reason], ...]}
+  many_topics N         std_msgs/String publishers on /many/t000 ... (N of them), then idles
   log MESSAGE           logs MESSAGE at info level every 100 ms (to /rosout)
   tf_static TOPIC       one tf2_msgs/TFMessage as tf2's static broadcaster sends it
                         (transient local, depth 1): base_link -> camera at (0.1, 0, 0.3)
@@ -295,6 +296,9 @@ def main() -> None:
     elif mode == "param_suite":
         param_suite(node, name)
         return
+    elif mode == "many_topics":
+        for n in range(int(name)):
+            node.create_publisher(String, f"/many/t{n:03}", 10)
     elif mode == "log":
         tick = lambda: node.get_logger().info(name)  # noqa: E731
     elif mode in ("tf", "tf_static"):
