@@ -15,11 +15,14 @@ graph:
   (``rwt_graph.parameters.replicas``);
 - outward, a topic local publishers publish gets an rclpy publisher (transient
   local when a local publisher latches), fed by a graph tap with the CDR rwt's
-  codec writes; a local service gets an rclpy service (``serve_to_ros``), a
+  codec writes, through its lane (``outflow``: its first samples wait until it
+  has matched the known subscriptions); a local service gets an rclpy service (``serve_to_ros``), a
   local action an rclpy action server (``serve_action_to_ros``); rwt's log goes
   to ``/rosout`` (``rosout``).
 
-The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread; samples and
+The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread, and at once
+when its names change (read every ``GRAPH_POLL_S``); a call to a service nobody
+offers waits ``DISCOVERY_WAIT_S`` for it to be discovered; samples and
 replies arrive on rclpy's executor thread and reach the event loop through a
 ``Handoff`` bounded in bytes. The node's own publishers' samples are recognised
 by their publisher GID and never come back in.
