@@ -91,10 +91,11 @@ SWEEP_S = 0.2
 within this (plus discovery), a new rosbridge subscription reaches ROS 2 within it."""
 
 SWEEP_SHARE = 0.1
-"""At most this share of the time goes to sweeping: after a sweep that took t
-seconds the next waits at least t x (1 / SWEEP_SHARE - 1), so a robot with
-thousands of endpoints (rcl's graph queries cost per endpoint) slows the sweep
-rather than the samples."""
+"""At most this share of the time goes to sweeping: after two sweeps that took t
+seconds or more each, the next waits at least t x (1 / SWEEP_SHARE - 1), so a
+robot with thousands of endpoints (rcl's graph queries cost per endpoint) slows
+the sweep rather than the samples. One costly sweep alone (it mirrored a node's
+hundreds of new endpoints) does not hold back the next."""
 
 TAKE_BATCH = 256
 """Samples of one subscription handed over per executor callback at most
@@ -225,12 +226,12 @@ class Ros2Link:
                 await self._sweep_once()
                 tg.start_soon(self.handoff.drain, lambda: self.graph.port.inflow)
                 task_status.started()
-                took = 0.0
+                took = last = 0.0
                 while True:
-                    await self._next_sweep(took)
+                    await self._next_sweep(min(took, last))
                     started = time.perf_counter()
                     await self._sweep_once()
-                    took = time.perf_counter() - started
+                    took, last = time.perf_counter() - started, took
         finally:
             logging.getLogger("rwt").removeHandler(rosout)
             with contextlib.suppress(ValueError):
@@ -242,8 +243,9 @@ class Ros2Link:
     async def _next_sweep(self, took: float) -> None:
         """Wait for the next sweep: ``sweep_s``, or sooner when the graph's names change.
 
-        Either way at least ``took x (1 / SWEEP_SHARE - 1)`` after the last one, so
-        sweeping never takes more than ``SWEEP_SHARE`` of the time.
+        Either way at least ``took x (1 / SWEEP_SHARE - 1)`` after the last one
+        (``took``: the cheaper of the last two sweeps), so sweeping takes no more
+        than ``SWEEP_SHARE`` of the time while it stays costly.
         """
         start = anyio.current_time()
         await anyio.sleep(max(GRAPH_POLL_S, took * (1 / SWEEP_SHARE - 1)))
