@@ -223,14 +223,14 @@ class Ros2Link:
             self.ros.start()
             async with anyio.create_task_group() as tg:
                 self._outflow = Outflow(tg)
-                await self._sweep_once()
+                await self._sweep_once(periodic=True)
                 tg.start_soon(self.handoff.drain, lambda: self.graph.port.inflow)
                 task_status.started()
                 took = last = 0.0
                 while True:
-                    await self._next_sweep(min(took, last))
+                    periodic = await self._next_sweep(min(took, last))
                     started = time.perf_counter()
-                    await self._sweep_once()
+                    await self._sweep_once(periodic=periodic)
                     took, last = time.perf_counter() - started, took
         finally:
             logging.getLogger("rwt").removeHandler(rosout)
@@ -240,8 +240,11 @@ class Ros2Link:
                 self.graph.services.discoveries.remove(self._discovery_wait)
             self._close()
 
-    async def _next_sweep(self, took: float) -> None:
+    async def _next_sweep(self, took: float) -> bool:
         """Wait for the next sweep: ``sweep_s``, or sooner when the graph's names change.
+
+        Returns False when the names changed: a sweep in between the periodic
+        ones, which counts for no period (parameter refreshes, relay waits).
 
         Either way at least ``took x (1 / SWEEP_SHARE - 1)`` after the last one
         (``took``: the cheaper of the last two sweeps), so sweeping takes no more
@@ -253,8 +256,9 @@ class Ros2Link:
             names = await anyio.to_thread.run_sync(digest, self.ros)
             if names != self._digest:
                 self._digest = names
-                return
+                return False
             await anyio.sleep(GRAPH_POLL_S)
+        return True
 
     def _discovery_wait(self, expire: Callable[[], None]) -> Callable[[], None] | None:
         """Hold a call to a service nobody offers for ``DISCOVERY_WAIT_S`` (``DiscoveryWait``)."""
@@ -262,11 +266,11 @@ class Ros2Link:
             return None
         return self.loop.call_later(DISCOVERY_WAIT_S, expire).cancel
 
-    async def _sweep_once(self) -> None:
+    async def _sweep_once(self, *, periodic: bool) -> None:
         view = await anyio.to_thread.run_sync(snapshot, self.ros)
         if not self._closed:
             self._apply(view)
-            self._sweep_local()
+            self._sweep_local(periodic=periodic)
             if self._params is not None:  # nodes whose parameter services are mirrored
                 listing = PARAM_SERVICES["list_parameters"]
                 self._params.sweep(
@@ -274,7 +278,8 @@ class Ros2Link:
                         node
                         for (node, name), type_name in view.services.items()
                         if name == f"{node}/list_parameters" and type_name == listing
-                    }
+                    },
+                    tick=periodic,
                 )
 
     def _close(self) -> None:
@@ -361,7 +366,7 @@ class Ros2Link:
 
     # ---- the local graph, outward ---------------------------------------------------
 
-    def _sweep_local(self) -> None:
+    def _sweep_local(self, *, periodic: bool) -> None:
         wanted = self.rules.wanted(self.graph)
         listening: dict[str, str] = {}
         publishing: dict[str, tuple[str, bool]] = {}
@@ -379,7 +384,7 @@ class Ros2Link:
         self._sweep_servers(serving)
         self._sweep_action_servers()
         self._sweep_param_servers()
-        self._relays.sweep(self._subs)
+        self._relays.sweep(self._subs, tick=periodic)
 
     def _sweep_subscriptions(self, listening: dict[str, str]) -> None:
         node = self.ros.node
