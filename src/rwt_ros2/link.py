@@ -486,7 +486,7 @@ class Ros2Link:
 
     def _publisher(self, name: str, type_name: str, latched: bool) -> _Pub | None:
         ros_type = self._ros_type(name, type_name)
-        if ros_type is None:
+        if ros_type is None or self._outflow is None:  # not running yet
             return None
         qos = Qos(transient_local=latched, depth=self._depth(name, latched))
         node = self.ros.node
@@ -496,7 +496,6 @@ class Ros2Link:
         # node's other publishers, such as rcl's /rosout one, are ROS 2's, not the graph's)
         gids = self._own_publishers(name) - before
         self._own_gids |= gids
-        assert self._outflow is not None
         expected = 0 if latched else self._expected_subscriptions(name)
         lane = self._outflow.lane(name, handle, expected=expected)
         pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, lane, gids=gids)
