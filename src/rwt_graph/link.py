@@ -344,13 +344,14 @@ class Relays:
                 del held[next(iter(held))]
             held[source] = (event, entry.latched)
 
-    def sweep(self, subscribed: Container[str]) -> None:
+    def sweep(self, subscribed: Container[str], *, tick: bool = True) -> None:
         """Release each relay no longer needed, handing its latched sample over.
 
         A relay goes when its topic is gone, is not in ``subscribed`` (the topics
         the link receives) or has a publisher of the link's that is known now;
         in the last case not while the publisher of a sample that could still
-        be latched is unknown, for up to ``RELAY_WAIT_SWEEPS`` sweeps.
+        be latched is unknown, for up to ``RELAY_WAIT_SWEEPS`` sweeps that
+        ``tick`` (a link's periodic ones; not those a graph change asked for).
         """
         graph = self._graph
         for topic, relay in list(self._relays.items()):
@@ -361,7 +362,7 @@ class Relays:
                     for client in entry.publishers
                 ):
                     continue  # no publisher known yet
-                relay.idle += 1
+                relay.idle += tick
                 if relay.idle <= RELAY_WAIT_SWEEPS and self._awaits(entry, relay):
                     continue
             del self._relays[topic]

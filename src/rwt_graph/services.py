@@ -36,6 +36,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Amend",
     "CallerServiceHandler",
+    "DiscoveryWait",
     "LocalServiceHandler",
     "PendingCall",
     "ServiceEntry",
@@ -52,6 +53,24 @@ CallerServiceHandler = Callable[[ClientId, Message], Message | Awaitable[Message
 """An in-process service that is also told who calls (rosapi filters names per client)."""
 Amend = Callable[[Message], Message]
 """Rewrites a checked response of an in-process service before it is sent."""
+DiscoveryWait = Callable[[Callable[[], None]], "Callable[[], None] | None"]
+"""A link's offer to wait for a service its discovery may not have found yet.
+
+Called with ``expire`` when a call names a service nobody offers: returns None
+when the link has nothing to wait for, else a function cancelling the wait; the
+link calls ``expire`` (on the event loop) when its wait is over. ``Services``
+holds the call meanwhile and starts it if the service comes (docs/ros2.md)."""
+
+
+@dataclass(eq=False)
+class _Parked:
+    """A call waiting for its service to be discovered."""
+
+    call: PendingCall
+    op: CallService
+    path: str
+    cancels: list[Callable[[], None]]
+    waits: int = 0  # links still waiting for the service
 
 
 class PendingCall:
@@ -136,6 +155,9 @@ class Services(ProviderTable[ServiceEntry]):
         # caller -> its calls waiting on client providers, so that a caller's
         # release costs its own calls, not every pending call of the graph
         self._calls_of: dict[ClientId, set[tuple[ServiceEntry, str]]] = {}
+        #: links that may still discover a service nobody offers (``DiscoveryWait``)
+        self.discoveries: list[DiscoveryWait] = []
+        self._parked: dict[str, list[_Parked]] = {}  # resolved name -> calls waiting for it
 
     def call(
         self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str
@@ -146,20 +168,32 @@ class Services(ProviderTable[ServiceEntry]):
         the service as it spelled it, the request in the internal form, and the
         id ``service_request:<name>:<n>``.
 
+        A service nobody offers while a link may still discover it
+        (``discoveries``) is waited for as long as the link says; the call starts
+        if it comes, else fails as unknown (``result: false``).
+
         Raises:
-            UnknownNameError: the service does not exist.
+            UnknownNameError: the service does not exist (and no link waits for it).
             GraphError: the service has another type, or its
                 client provider is busy (docs/limits.md).
             FieldError: ``args`` does not fit the request type.
         """
-        service, type_name = op.service, op.type
-        entry = self.entries.get(resolve_name(service))
+        entry = self.entries.get(resolve_name(op.service))
         if entry is None:
-            raise UnknownNameError("service", service)
+            parked = self._park(client, op, reply, path)
+            if parked is None:
+                raise UnknownNameError("service", op.service)
+            return parked
+        return self._start(entry, PendingCall(client, reply), op, path)
+
+    def _start(
+        self, entry: ServiceEntry, call: PendingCall, op: CallService, path: str
+    ) -> PendingCall:
+        client = call.caller
+        service, type_name = op.service, op.type
         if type_name is not None and self.registry.service(type_name).name != entry.srvtype.name:
             raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
         request = convert_args(entry.srvtype.request, op.args, path=path, now=self.clock.wall())
-        call = PendingCall(client, reply)
         if entry.caller_handler is not None:
             self._run_local(entry, _with_caller(entry.caller_handler, client), request.msg, call)
         elif entry.handler is not None:
@@ -179,6 +213,63 @@ class Services(ProviderTable[ServiceEntry]):
                 self.log_refusal(entry.spelling, client, exc.message)
                 raise
         return call
+
+    def _park(
+        self, client: ClientId, op: CallService, reply: ServiceReply, path: str
+    ) -> PendingCall | None:
+        """Hold a call to a service a link may still discover; None if no link waits."""
+        if not self.discoveries:
+            return None
+        call = PendingCall(client, reply)
+        name = resolve_name(op.service)
+        parked = _Parked(call, op, path, [])
+        expire = partial(self._expire, name, parked)
+        for wait in self.discoveries:
+            cancel = wait(expire)
+            if cancel is not None:
+                parked.cancels.append(cancel)
+        if not parked.cancels:
+            return None
+        parked.waits = len(parked.cancels)
+        self._parked.setdefault(name, []).append(parked)
+
+        def forget() -> None:  # the caller stopped waiting (its timeout, its disconnect)
+            self._unpark(name, parked)
+
+        call.cancel_job = forget
+        return call
+
+    def _unpark(self, name: str, parked: _Parked) -> bool:
+        """Stop holding ``parked`` (started, expired or forgotten); False if it was not held."""
+        waiting = self._parked.get(name, [])
+        if parked not in waiting:
+            return False
+        waiting.remove(parked)
+        if not waiting:
+            del self._parked[name]
+        for cancel in parked.cancels:
+            cancel()
+        parked.call.cancel_job = None
+        return True
+
+    def _expire(self, name: str, parked: _Parked) -> None:
+        """A link's wait is over: the call fails as unknown unless another link still waits."""
+        parked.waits -= 1
+        if parked.waits > 0:
+            return  # another link's wait is still on: its expiry decides
+        if self._unpark(name, parked):
+            parked.call.resolve(False, UnknownNameError("service", parked.op.service).message)
+
+    def advertise(self, entry: ServiceEntry) -> None:
+        """Add ``entry`` (``ProviderTable.advertise``), then start the calls that waited for it."""
+        super().advertise(entry)
+        for parked in list(self._parked.get(entry.name, ())):
+            self._unpark(entry.name, parked)
+            call = parked.call
+            try:
+                self._start(entry, call, parked.op, parked.path)
+            except RwtError as exc:  # another type, arguments that do not fit, a busy provider
+                call.resolve(False, exc.message)
 
     def respond(self, client: ClientId, op: ServiceResponse, *, path: str) -> None:
         """Route a provider's ``service_response`` to its caller (spec 3.3.9, D15, D28).
@@ -222,6 +313,9 @@ class Services(ProviderTable[ServiceEntry]):
         """
         for entry in self.take_owned(client):
             entry.end_all(f"service {entry.spelling} is gone: its provider disconnected")
+        for name, waiting in list(self._parked.items()):
+            for parked in [p for p in waiting if p.call.caller == client]:
+                self._unpark(name, parked)
         for entry, request_id in list(self._calls_of.pop(client, ())):
             call = entry.pending.get(request_id)
             if call is not None and call.caller == client:

@@ -15,11 +15,14 @@ graph:
   (``rwt_graph.parameters.replicas``);
 - outward, a topic local publishers publish gets an rclpy publisher (transient
   local when a local publisher latches), fed by a graph tap with the CDR rwt's
-  codec writes; a local service gets an rclpy service (``serve_to_ros``), a
+  codec writes, through its lane (``outflow``: its first samples wait until it
+  has matched the known subscriptions); a local service gets an rclpy service (``serve_to_ros``), a
   local action an rclpy action server (``serve_action_to_ros``); rwt's log goes
   to ``/rosout`` (``rosout``).
 
-The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread; samples and
+The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread, and at once
+when its names change (read every ``GRAPH_POLL_S``); a call to a service nobody
+offers waits ``DISCOVERY_WAIT_S`` for it to be discovered; samples and
 replies arrive on rclpy's executor thread and reach the event loop through a
 ``Handoff`` bounded in bytes. The node's own publishers' samples are recognised
 by their publisher GID and never come back in.
@@ -54,10 +57,11 @@ from rwt_protocol.shortcuts import enabled
 
 from .actions import serve_action_to_ros
 from .codec import decode, encode
-from .graphview import Qos, RosGraph, publisher_depth, rclpy_profile, snapshot
+from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
 from .node import RosNode
+from .outflow import Lane, Outflow
 from .remotes import RosRemotes, entities
 from .rosout import RosoutHandler
 from .runtime import interface_class, ros_distro
@@ -65,7 +69,7 @@ from .services import SERVICE_QOS, serve_to_ros
 
 if TYPE_CHECKING:
     import asyncio
-    from collections.abc import AsyncIterator, Iterator
+    from collections.abc import AsyncIterator, Callable, Iterator
 
     from anyio.abc import TaskStatus
 
@@ -87,10 +91,11 @@ SWEEP_S = 0.2
 within this (plus discovery), a new rosbridge subscription reaches ROS 2 within it."""
 
 SWEEP_SHARE = 0.1
-"""At most this share of the time goes to sweeping: after a sweep that took t
-seconds the next waits at least t x (1 / SWEEP_SHARE - 1), so a robot with
-thousands of endpoints (rcl's graph queries cost per endpoint) slows the sweep
-rather than the samples."""
+"""At most this share of the time goes to sweeping: after two sweeps that took t
+seconds or more each, the next waits at least t x (1 / SWEEP_SHARE - 1), so a
+robot with thousands of endpoints (rcl's graph queries cost per endpoint) slows
+the sweep rather than the samples. One costly sweep alone (it mirrored a node's
+hundreds of new endpoints) does not hold back the next."""
 
 TAKE_BATCH = 256
 """Samples of one subscription handed over per executor callback at most
@@ -99,6 +104,16 @@ callback, so one busy topic cannot hold the executor from the others for long.""
 
 CALL_TIMEOUT_S = 30.0
 """How long a call across the link waits for its reply, seconds."""
+
+DISCOVERY_WAIT_S = 2.0
+"""Seconds a call to a service nobody offers waits for the link to discover it (a
+node starting as the call comes); the call's own timeout still ends it sooner."""
+
+GRAPH_POLL_S = 0.05
+"""How often the link reads the ROS 2 graph's names between sweeps, seconds
+(``graphview.digest``: its nodes, topics and services with their types, a
+fraction of a sweep's cost); a change starts a sweep at once. rclpy offers no
+graph event to wait on (its node's graph guard condition is not exposed)."""
 
 
 @dataclass(frozen=True)
@@ -133,6 +148,7 @@ class _Pub:
     latched: bool
     handle: Any
     depth: int  # of its history (``_depth``)
+    lane: Lane  # its samples on their way (``outflow``)
     latched_sent: object = None
     gids: set[bytes] = field(default_factory=set)
 
@@ -178,6 +194,8 @@ class Ros2Link:
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
+        self._outflow: Outflow | None = None  # made in ``run``, with its task group
+        self._digest: object = None  # the graph's names at the last look (``graphview.digest``)
         self._closed = False
         self._batch_take = enabled("ros2-batch-take")
 
@@ -198,31 +216,61 @@ class Ros2Link:
         self.graph.taps.append(self._tap)
         self._params = ParamReplicas(self.graph, self.caller)
         self.graph.type_checks.append(self.type_warning)
+        self.graph.services.discoveries.append(self._discovery_wait)
         rosout = RosoutHandler(self.ros.node.get_logger())
         logging.getLogger("rwt").addHandler(rosout)
         try:
             self.ros.start()
-            await self._sweep_once()
             async with anyio.create_task_group() as tg:
+                self._outflow = Outflow(tg)
+                await self._sweep_once(periodic=True)
                 tg.start_soon(self.handoff.drain, lambda: self.graph.port.inflow)
                 task_status.started()
-                took = 0.0
+                took = last = 0.0
                 while True:
-                    await anyio.sleep(max(self.options.sweep_s, took * (1 / SWEEP_SHARE - 1)))
+                    periodic = await self._next_sweep(min(took, last))
                     started = time.perf_counter()
-                    await self._sweep_once()
-                    took = time.perf_counter() - started
+                    await self._sweep_once(periodic=periodic)
+                    took, last = time.perf_counter() - started, took
         finally:
             logging.getLogger("rwt").removeHandler(rosout)
             with contextlib.suppress(ValueError):
                 self.graph.type_checks.remove(self.type_warning)
+            with contextlib.suppress(ValueError):
+                self.graph.services.discoveries.remove(self._discovery_wait)
             self._close()
 
-    async def _sweep_once(self) -> None:
+    async def _next_sweep(self, took: float) -> bool:
+        """Wait for the next sweep: ``sweep_s``, or sooner when the graph's names change.
+
+        Returns False when the names changed: a sweep in between the periodic
+        ones, which counts for no period (parameter refreshes, relay waits).
+
+        Either way at least ``took x (1 / SWEEP_SHARE - 1)`` after the last one
+        (``took``: the cheaper of the last two sweeps), so sweeping takes no more
+        than ``SWEEP_SHARE`` of the time while it stays costly.
+        """
+        start = anyio.current_time()
+        await anyio.sleep(max(GRAPH_POLL_S, took * (1 / SWEEP_SHARE - 1)))
+        while anyio.current_time() - start < self.options.sweep_s:
+            names = await anyio.to_thread.run_sync(digest, self.ros)
+            if names != self._digest:
+                self._digest = names
+                return False
+            await anyio.sleep(GRAPH_POLL_S)
+        return True
+
+    def _discovery_wait(self, expire: Callable[[], None]) -> Callable[[], None] | None:
+        """Hold a call to a service nobody offers for ``DISCOVERY_WAIT_S`` (``DiscoveryWait``)."""
+        if self._closed:
+            return None
+        return self.loop.call_later(DISCOVERY_WAIT_S, expire).cancel
+
+    async def _sweep_once(self, *, periodic: bool) -> None:
         view = await anyio.to_thread.run_sync(snapshot, self.ros)
         if not self._closed:
             self._apply(view)
-            self._sweep_local()
+            self._sweep_local(periodic=periodic)
             if self._params is not None:  # nodes whose parameter services are mirrored
                 listing = PARAM_SERVICES["list_parameters"]
                 self._params.sweep(
@@ -230,7 +278,8 @@ class Ros2Link:
                         node
                         for (node, name), type_name in view.services.items()
                         if name == f"{node}/list_parameters" and type_name == listing
-                    }
+                    },
+                    tick=periodic,
                 )
 
     def _close(self) -> None:
@@ -249,6 +298,7 @@ class Ros2Link:
         for sub in self._subs.values():
             _destroy(node.destroy_subscription, sub.handle)
         for pub in self._pubs.values():
+            pub.lane.take_held()
             _destroy(node.destroy_publisher, pub.handle)
         for server in self._servers.values():
             _destroy(node.destroy_service, server.handle)
@@ -316,7 +366,7 @@ class Ros2Link:
 
     # ---- the local graph, outward ---------------------------------------------------
 
-    def _sweep_local(self) -> None:
+    def _sweep_local(self, *, periodic: bool) -> None:
         wanted = self.rules.wanted(self.graph)
         listening: dict[str, str] = {}
         publishing: dict[str, tuple[str, bool]] = {}
@@ -334,7 +384,7 @@ class Ros2Link:
         self._sweep_servers(serving)
         self._sweep_action_servers()
         self._sweep_param_servers()
-        self._relays.sweep(self._subs)
+        self._relays.sweep(self._subs, tick=periodic)
 
     def _sweep_subscriptions(self, listening: dict[str, str]) -> None:
         node = self.ros.node
@@ -415,14 +465,19 @@ class Ros2Link:
             return None
 
     def _sweep_publishers(self, publishing: dict[str, tuple[str, bool]]) -> None:
+        carried: dict[str, tuple[str, list[bytes]]] = {}  # what waited in a replaced lane
         for name, pub in list(self._pubs.items()):
             if publishing.get(name) != (pub.type_name, pub.latched) or pub.depth < self._depth(
                 name, pub.latched
             ):  # a deeper subscription came: a history that holds its bursts
-                self._drop_publisher(name)
+                carried[name] = (pub.type_name, self._drop_publisher(name))
         for name, (type_name, latched) in publishing.items():
             entry = self.graph.topics.get(name)
             found = self._pubs.get(name) or self._publisher(name, type_name, latched)
+            if found is not None and name in carried:
+                was, held = carried.pop(name)
+                for data in held if was == type_name else ():
+                    found.lane.put(data)
             if found is None or entry is None or entry.latched is None:
                 continue
             owner = entry.latched_by
@@ -431,7 +486,7 @@ class Ros2Link:
 
     def _publisher(self, name: str, type_name: str, latched: bool) -> _Pub | None:
         ros_type = self._ros_type(name, type_name)
-        if ros_type is None:
+        if ros_type is None or self._outflow is None:  # not running yet
             return None
         qos = Qos(transient_local=latched, depth=self._depth(name, latched))
         node = self.ros.node
@@ -441,8 +496,20 @@ class Ros2Link:
         # node's other publishers, such as rcl's /rosout one, are ROS 2's, not the graph's)
         gids = self._own_publishers(name) - before
         self._own_gids |= gids
-        pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, gids=gids)
+        expected = 0 if latched else self._expected_subscriptions(name)
+        lane = self._outflow.lane(name, handle, expected=expected)
+        pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, lane, gids=gids)
         return pub
+
+    def _expected_subscriptions(self, topic: str) -> int:
+        """The subscriptions of ``topic`` a new volatile publisher should match (``outflow``).
+
+        Those the last sweep saw, the link's own included, but no transient-local
+        one (it matches no volatile publisher).
+        """
+        known = [q for q in self._subscription_qos.get(topic, []) if not q.transient_local]
+        own = self._subs.get(topic)
+        return len(known) + (own is not None and not own.qos.transient_local)
 
     def _depth(self, topic: str, latched: bool) -> int:
         """The history depth of the link's publisher of ``topic`` (``publisher_depth``)."""
@@ -457,10 +524,13 @@ class Ros2Link:
             if self.ros.owns(info.node_name, info.node_namespace)
         }
 
-    def _drop_publisher(self, name: str) -> None:
+    def _drop_publisher(self, name: str) -> list[bytes]:
+        """Destroy the link's publisher of ``name``; what still waited in its lane."""
         pub = self._pubs.pop(name)
         self._own_gids -= pub.gids
+        held = pub.lane.take_held()
         _destroy(self.ros.node.destroy_publisher, pub.handle)
+        return held
 
     def _tap(self, entry: GraphTopic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         """Forward what a local publisher published (the graph calls this on the loop)."""
@@ -469,11 +539,15 @@ class Ros2Link:
         latched = latch or entry.publishers.get(client, False)
         pub = self._pubs.get(entry.name)
         if pub is None or pub.type_name != entry.msgtype.name or (latched and not pub.latched):
-            if pub is not None:
-                self._drop_publisher(entry.name)
+            held: list[bytes] = []
+            if pub is not None:  # what waited goes on in the new lane if its type is the same
+                dropped = self._drop_publisher(entry.name)
+                held = dropped if pub.type_name == entry.msgtype.name else []
             pub = self._publisher(entry.name, entry.msgtype.name, latched)
             if pub is None:
                 return
+            for data in held:
+                pub.lane.put(data)
         self._put(entry, pub, event)
 
     def _put(self, entry: GraphTopic, pub: _Pub, event: MessageEvent) -> None:
@@ -490,7 +564,10 @@ class Ros2Link:
                 exc,
             )
             return
-        pub.handle.publish(data)
+        pub.lane.put(data)
+        outflow = self._outflow
+        if outflow is not None and outflow.congested:  # the publisher's reader waits for it
+            self.graph.port.outflow.congested(outflow)
         if entry.latched is event:
             pub.latched_sent = event
 

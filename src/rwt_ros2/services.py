@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
     from .link import Ros2Link
 
-__all__ = ["SERVICE_QOS", "RosService", "serve_to_ros"]
+__all__ = ["SERVER_MATCH_S", "SERVICE_QOS", "RosService", "serve_to_ros"]
 
 logger = logging.getLogger("rwt.ros2")
 
@@ -42,6 +42,13 @@ SERVICE_QOS = Qos(depth=MAX_WAITING)
 default, but kept last ``MAX_WAITING`` rather than 10, so a burst of requests, or
 of the responses to calls failed at once (their provider went), is not cut to the
 last 10 by the middleware's history."""
+
+
+SERVER_MATCH_S = 2.0
+"""Seconds a call waits for the link's new rclpy client to match the server (the
+client is made at the first call, and the middleware matches it a moment later)."""
+
+_MATCH_POLL_S = 0.01
 
 
 class RosService:
@@ -68,8 +75,6 @@ class RosService:
         """Send a graph caller's request (``args`` in the internal form) to the ROS 2 server."""
         link = self._link
         request_id, args = str(request.id), request.args
-        from rclpy.serialization import deserialize_message  # noqa: PLC0415
-
         if self._ros_client is None:
             try:
                 self._ros_type = interface_class(self._srvtype.name)
@@ -79,9 +84,24 @@ class RosService:
             self._ros_client = link.ros.node.create_client(
                 self._ros_type, self._name, callback_group=link.ros.group
             )
-        ros_client = self._ros_client
+        self._send_when_ready(request_id, args, link.loop.time() + SERVER_MATCH_S)
+
+    def _send_when_ready(self, request_id: str, args: dict[str, object], deadline: float) -> None:
+        """Send the request once the rclpy client has matched the server (``SERVER_MATCH_S``)."""
+        from rclpy.serialization import deserialize_message  # noqa: PLC0415
+
+        link, ros_client = self._link, self._ros_client
+        if ros_client is None or not self._waits(request_id):
+            return  # closed, or the caller was answered meanwhile
         if not ros_client.service_is_ready():
-            self._respond(request_id, False, f"service {self._name}: no ROS 2 server answers it")
+            if link.loop.time() < deadline:
+                link.loop.call_later(
+                    _MATCH_POLL_S, self._send_when_ready, request_id, args, deadline
+                )
+            else:
+                self._respond(
+                    request_id, False, f"service {self._name}: no ROS 2 server answers it"
+                )
             return
         try:
             payload = encode(link.graph.registry, self._srvtype.request, args)
@@ -117,6 +137,10 @@ class RosService:
             self._respond(request_id, False, f"service {self._name} failed: {exc}")
             return
         self._respond(request_id, True, value)
+
+    def _waits(self, request_id: str) -> bool:
+        entry = self._link.graph.services.entries.get(self._name)
+        return entry is not None and entry.owner == self._client and request_id in entry.pending
 
     def _respond(self, request_id: str, ok: bool, value: object) -> None:
         graph = self._link.graph

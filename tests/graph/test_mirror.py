@@ -269,3 +269,69 @@ def test_incremental_changes_and_closing() -> None:
     assert linked.listed() == {}
     assert len(mirror) == 0 and "link:s" not in mirror
     assert {client for client, _ in linked.side.gone} == {"link:n", "link:s", "link:a"}
+
+
+class _Discovery:
+    """A link's discovery wait (``services.DiscoveryWait``): expires when the test says."""
+
+    def __init__(self) -> None:
+        self.expiries: list[object] = []
+        self.cancelled = 0
+
+    def __call__(self, expire):  # type: ignore[no-untyped-def]
+        self.expiries.append(expire)
+        return self._cancel
+
+    def _cancel(self) -> None:
+        self.cancelled += 1
+
+
+_ENABLE = CallService(service="/enable", args={"data": True})
+
+
+def test_a_call_to_a_service_being_discovered_waits_for_it() -> None:
+    linked = _Linked()
+    discovery = _Discovery()
+    linked.graph.services.discoveries.append(discovery)
+    replies: list[tuple[bool, object]] = []
+    linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    assert replies == [] and len(discovery.expiries) == 1  # held, not refused
+    linked.mirror.add("link:s", SERVICE)  # discovered: the call goes across
+    assert len(linked.side.providers["link:s"].requests) == 1
+    assert discovery.cancelled == 1
+    assert replies == []
+
+
+def test_a_call_whose_service_is_not_discovered_fails_as_unknown() -> None:
+    linked = _Linked()
+    discovery = _Discovery()
+    linked.graph.services.discoveries.append(discovery)
+    replies: list[tuple[bool, object]] = []
+    linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    discovery.expiries[0]()  # type: ignore[operator]
+    assert replies == [(False, "service /enable does not exist")]
+    linked.mirror.add("link:s", SERVICE)  # too late: nothing left to send
+    assert linked.side.providers["link:s"].requests == []
+
+
+def test_a_held_call_goes_with_its_caller_or_its_timeout() -> None:
+    linked = _Linked()
+    discovery = _Discovery()
+    linked.graph.services.discoveries.append(discovery)
+    replies: list[tuple[bool, object]] = []
+    pending = linked.graph.port.call_service(
+        "ws:1", _ENABLE, lambda ok, value: replies.append((ok, value))
+    )
+    linked.graph.port.call_service("ws:2", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    pending.forget()  # the caller's timeout
+    linked.graph.port.release("ws:2")  # the other caller left
+    assert discovery.cancelled == 2
+    linked.mirror.add("link:s", SERVICE)
+    assert linked.side.providers["link:s"].requests == []
+    assert replies == []
+
+
+def test_without_a_discovering_link_an_unknown_service_fails_at_once() -> None:
+    linked = _Linked()
+    with pytest.raises(GraphError, match="service /enable does not exist"):
+        linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, v: None)

@@ -18,8 +18,9 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         its one alignment padding byte set to 0xAB (rclpy's own serializer
                         leaves it uninitialised): header stamp 7 s, frame "ab", (1, -2, 0.5)
   count TOPIC           a reliable std_msgs/String subscription of depth 1000; prints
-                        {"count": n, "warm": w} every 100 ms while they change: n
-                        messages, and w whose data is "warm"
+                        {"count": n, "warm": w, "ordered": o} every 100 ms while they
+                        change: n messages, w whose data is "warm", and o: every other
+                        message's data started with its number, 0, 1, 2... in turn
   serve SERVICE         a std_srvs/SetBool server: message "ros2 got <data>"
   call SERVICE          calls std_srvs/SetBool {data: true} once the server is there;
                         prints {"response": {...}} or {"error": ...}
@@ -48,6 +49,7 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         two set_parameters_atomically: style "manual", volume 0.5 and
                         the deletion of nope (not set), and volume 7.0 with the
                         deletion of spare; prints {"atomic": [[successful, reason], ...]}
+  many_topics N         std_msgs/String publishers on /many/t000 ... (N of them), then idles
   log MESSAGE           logs MESSAGE at info level every 100 ms (to /rosout)
   tf_static TOPIC       one tf2_msgs/TFMessage as tf2's static broadcaster sends it
                         (transient local, depth 1): base_link -> camera at (0.1, 0, 0.3)
@@ -109,11 +111,16 @@ def main() -> None:
     elif mode == "listen":
         node.create_subscription(String, name, lambda m: say(heard=m.data), 10)
     elif mode == "count":
-        heard = {"count": 0, "warm": 0}
+        heard = {"count": 0, "warm": 0, "ordered": True}
         deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
         def count(message):
-            heard["warm" if message.data == "warm" else "count"] += 1
+            if message.data == "warm":
+                heard["warm"] += 1
+                return
+            if message.data.split(" ", 1)[0] != str(heard["count"]):
+                heard["ordered"] = False
+            heard["count"] += 1
 
         node.create_subscription(String, name, count, deep)
         told = dict(heard)
@@ -303,6 +310,9 @@ def main() -> None:
     elif mode == "param_suite":
         param_suite(node, name)
         return
+    elif mode == "many_topics":
+        for n in range(int(name)):
+            node.create_publisher(String, f"/many/t{n:03}", 10)
     elif mode == "log":
         tick = lambda: node.get_logger().info(name)  # noqa: E731
     elif mode in ("tf", "tf_static"):

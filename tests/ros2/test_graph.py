@@ -137,3 +137,42 @@ async def test_ros_distro_in_the_environment_names_the_distribution(
     finally:
         server.stop()
     assert json.loads(out.strip().splitlines()[-1]) == {"version": 2, "distro": "rolling"}
+
+
+MANY = """
+import sys
+def topics():
+    service = roslibpy.Service(ros, "/rosapi/topics", "rosapi_msgs/srv/Topics")
+    return set(service.call(roslibpy.ServiceRequest({}), timeout=10)["topics"])
+
+print(json.dumps({"before": sorted(t for t in topics() if t.startswith("/many/"))}), flush=True)
+sys.stdin.readline()  # the node with 200 publishers starts meanwhile
+wanted = {f"/many/t{n:03}" for n in range(200)}
+wait_for(lambda: wanted <= topics(), 20)
+nodes = roslibpy.Service(ros, "/rosapi/nodes", "rosapi_msgs/srv/Nodes")
+found = topics()
+print(json.dumps({
+    "missing": sorted(wanted - found),
+    "nodes": nodes.call(roslibpy.ServiceRequest({}), timeout=10)["nodes"],
+}))
+ros.terminate()
+"""
+
+
+async def test_a_node_starting_after_the_client_shows_with_its_200_topics(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    # The node comes after the client connected: the link sees the graph change
+    # (its names, read every 50 ms) and sweeps, so rosapi lists every topic.
+    async with await anyio.open_process(
+        ["python", "-c", roslibpy_prelude(server.port) + MANY]
+    ) as client:
+        assert client.stdout is not None and client.stdin is not None
+        lines = JsonLines(client.stdout)
+        with anyio.fail_after(40):
+            assert await lines.next() == {"before": []}
+            with Peer("many_topics", "200", ros_env):
+                await client.stdin.send(b"\n")
+                after = await lines.last()
+    assert after["missing"] == []
+    assert "/peer_many_topics" in after["nodes"]

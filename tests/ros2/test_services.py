@@ -203,3 +203,55 @@ async def test_calls_from_ros2_stuck_in_the_graph_leave_the_topics_flowing(
                         process.kill()
     assert during == {"during": True}
     assert lines[-1]["responses"] == [[False, ""]] * calls
+
+
+CALL_AT_START = """
+import json, sys
+from websockets.sync.client import connect
+
+with connect("ws://127.0.0.1:{port}") as ws:
+    print(json.dumps({{"connected": True}}), flush=True)
+    sys.stdin.readline()  # the ROS 2 server has just started
+    call = {{"op": "call_service", "id": "c1", "service": "{name}", "args": {{"data": True}}}}
+    ws.send(json.dumps({{**call, "timeout": 20}}))
+    while True:
+        reply = json.loads(ws.recv(timeout=30))
+        if reply["op"] == "service_response":
+            print(json.dumps(reply), flush=True)
+            break
+"""
+
+
+async def test_a_call_issued_as_the_ros2_server_starts_waits_for_it(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    # The call comes as soon as the node has made its service, before the link has
+    # discovered it: it waits for the discovery (at most DISCOVERY_WAIT_S) and is
+    # answered by the node, not refused as a service that does not exist.
+    code = CALL_AT_START.format(port=server.port, name="/starting_switch")
+    async with await anyio.open_process(["python", "-c", code]) as client:
+        assert client.stdout is not None and client.stdin is not None
+        lines = JsonLines(client.stdout)
+        with anyio.fail_after(40):
+            assert await lines.next() == {"connected": True}
+            with Peer("serve", "/starting_switch", ros_env):
+                await client.stdin.send(b"\n")
+                reply = await lines.next()
+    assert reply["id"] == "c1"
+    assert reply["result"] is True, reply
+    assert reply["values"] == {"success": True, "message": "ros2 got True"}
+
+
+async def test_a_call_to_a_service_nobody_offers_fails_after_the_discovery_wait(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    code = CALL_AT_START.format(port=server.port, name="/nobody_offers")
+    async with await anyio.open_process(["python", "-c", code]) as client:
+        assert client.stdout is not None and client.stdin is not None
+        lines = JsonLines(client.stdout)
+        with anyio.fail_after(40):
+            assert await lines.next() == {"connected": True}
+            await client.stdin.send(b"\n")
+            reply = await lines.next()
+    assert reply["result"] is False
+    assert reply["values"] == "service /nobody_offers does not exist"

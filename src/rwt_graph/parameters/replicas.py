@@ -97,12 +97,16 @@ class ParamReplicas:
         """The nodes whose parameters are copies here."""
         return frozenset(self._copies)
 
-    def sweep(self, nodes: set[str]) -> None:
-        """Hold copies of exactly ``nodes``' parameters; refresh them now and then."""
+    def sweep(self, nodes: set[str], *, tick: bool = True) -> None:
+        """Hold copies of exactly ``nodes``' parameters; refresh them now and then.
+
+        ``tick``: this sweep counts toward ``refresh_sweeps`` (a link's periodic
+        sweep does; one a graph change asked for in between does not).
+        """
         for node in list(self._copies):
             if node not in nodes:
                 self._forget(node)
-        self._ticks += 1
+        self._ticks += tick
         for node in nodes:
             if node not in self._copies:
                 self._copies[node] = _Copy()
