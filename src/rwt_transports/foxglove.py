@@ -13,7 +13,7 @@ With an authenticator (``--auth-secret-file``) a Foxglove client, which has no
 ``auth`` op and whose user can only type a URL, carries the ``auth`` op's fields
 in its URL's query string (``rwt_protocol.auth.auth_query``); ``url_token_gate``
 checks them with the same authenticator during the handshake and refuses the
-connection (HTTP 401 without a token, 403 with a bad one) before any session.
+connection (HTTP 401 without a token, 403 with a bad one) before any session (D33).
 """
 
 from __future__ import annotations
