@@ -226,6 +226,7 @@ def _server_config(
             trust_source_address=security.udp_trust_source_address,
         ),
         tf=options.graph.tf,
+        use_sim_time=options.graph.use_sim_time,
         handshake_timeout_s=limits.handshake_timeout,
         reuse_port=options.scale_out.reuse_port,
     )

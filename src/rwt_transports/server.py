@@ -46,6 +46,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
+from rwt_graph.simtime import follow_clock
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.auth import Authenticator, RosauthVerifier
@@ -176,6 +177,9 @@ class ServerConfig:
             with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
+        use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
+            is the graph's timeline, which Foxglove clients get as server time
+            (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
     """
 
     host: str = "127.0.0.1"
@@ -205,6 +209,7 @@ class ServerConfig:
     clients_interval_s: float = 0.5
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
+    use_sim_time: bool = False
 
 
 def rosauth_authenticator(
@@ -355,6 +360,8 @@ class RosbridgeServer:
         if off:  # a slower server than the benchmarks measured: say so once
             logger.info("event=shortcuts_off names=%s", ",".join(sorted(off)))
         async with AsyncExitStack() as stack:
+            if self.config.use_sim_time:  # before any client: each is told of server time
+                stack.enter_context(follow_clock(self.graph))
             runners = await self._open_listeners(stack)
             for url in self.urls.values():
                 logger.info("event=listening url=%s", url)
