@@ -96,6 +96,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
     },
     "rwt.server": {
         "rwt_transports.server": ("rosauth_authenticator",),
+        "rwt_protocol.auth": ("auth_query", "rosauth_op"),
         "rwt_transports.websocket": ("WebSocketOptions",),
         "rwt_transports.udp": ("UdpOptions",),
         "rwt_transports.memory": ("MemoryConnection",),

@@ -3,7 +3,8 @@
 Listener options (``WebSocketOptions``, ``UdpOptions``, the web console's
 ``ConsoleSite``), access rules (``AccessPolicy`` over a ``Family`` of names, and
 the ``AccessDeniedError`` a client gets), authentication (the ``Auth`` op an
-authenticator gets, ``rosauth_authenticator``), the in-process client connection
+authenticator gets, ``rosauth_authenticator``; ``rosauth_op`` signs one and
+``auth_query`` puts it in a Foxglove client's URL), the in-process client connection
 (``MemoryConnection``), the allocator tuning ``rwt serve`` does, and ``Compat``, the
 drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
@@ -21,6 +22,7 @@ from rwt._names import load
 if TYPE_CHECKING:
     from rwt_console.site import ConsoleSite
     from rwt_foxglove.session import FoxgloveLimits
+    from rwt_protocol.auth import auth_query, rosauth_op
     from rwt_protocol.ops import Auth
     from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
     from rwt_protocol.server.compat import Compat
@@ -43,7 +45,9 @@ __all__ = [
     "MemoryConnection",
     "UdpOptions",
     "WebSocketOptions",
+    "auth_query",
     "rosauth_authenticator",
+    "rosauth_op",
     "tune_allocator",
 ]
 

@@ -168,6 +168,7 @@ def _server(options: ServeOptions, graph: Graph, secret: str | None) -> Rosbridg
         options.listeners.url_path,
         tls=security.certfile is not None,
         auth=secret is not None,
+        foxglove=options.listeners.foxglove,
     )
     config = _server_config(options, origins, site)
     if site is not None:
@@ -225,6 +226,7 @@ def _server_config(
             trust_source_address=security.udp_trust_source_address,
         ),
         tf=options.graph.tf,
+        use_sim_time=options.graph.use_sim_time,
         handshake_timeout_s=limits.handshake_timeout,
         reuse_port=options.scale_out.reuse_port,
     )
@@ -415,7 +417,13 @@ def _read_secret(path: Path) -> str:
 
 
 def _console_site(
-    wanted: bool | None, origins: tuple[str, ...], url_path: str | None, *, tls: bool, auth: bool
+    wanted: bool | None,
+    origins: tuple[str, ...],
+    url_path: str | None,
+    *,
+    tls: bool,
+    auth: bool,
+    foxglove: bool,
 ) -> ConsoleSite | None:
     """The console of the WebSocket port, or None when it is off (docs/console.md).
 
@@ -428,7 +436,8 @@ def _console_site(
         wanted = not origins
     if not wanted:
         return None
-    return ConsoleSite(websocket_path=url_path or "/", websocket_tls=tls, auth=auth)
+    path = url_path or "/"
+    return ConsoleSite(websocket_path=path, websocket_tls=tls, auth=auth, foxglove=foxglove)
 
 
 def _limits(config: ServerConfig) -> dict[str, object]:

@@ -394,6 +394,13 @@ class GraphOptions:
         bool,
         typer.Option(help="Offer tf2_web_republisher (/tf2_web_republisher, /republish_tfs)."),
     ] = True
+    use_sim_time: Annotated[
+        bool,
+        typer.Option(
+            help="Give Foxglove clients the latest /clock (rosgraph_msgs/msg/Clock) as server "
+            "time, as use_sim_time does."
+        ),
+    ] = False
 
 
 @dataclass(frozen=True)

@@ -87,6 +87,9 @@ class ConsoleSite:
         video_token: the video server wants a token from ``/rwt/video_token`` in
             each stream URL (``--auth-secret-file`` with ``--video``; docs/video.md).
         auth: the server asks for the rosauth ``auth`` op first (``--auth-secret-file``).
+        foxglove: Foxglove clients are answered on the WebSocket port (``rwt serve``'s
+            default; ``--no-foxglove``: off): the page shows the URL they open
+            (docs/foxglove.md).
         root_is_console: ``/`` serves the page (the WebSocket port); the video
             server keeps ``/`` for web_video_server's topic list.
         limits: the server's limits the page lists, by command-line option name
@@ -99,6 +102,7 @@ class ConsoleSite:
     video_port: int | None = None
     video_token: bool = False
     auth: bool = False
+    foxglove: bool = False
     root_is_console: bool = True
     limits: dict[str, object] = field(default_factory=dict)
 
@@ -116,6 +120,7 @@ class ConsoleSite:
                 else {"port": self.video_port, "token": self.video_token}
             ),
             "auth": self.auth,
+            "foxglove": self.foxglove,
             "limits": self.limits,
         }
 

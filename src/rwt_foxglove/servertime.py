@@ -5,8 +5,10 @@ graph has a ``timeline``: nanoseconds since the epoch on the bag's clock. A
 Foxglove client then gets ``time`` frames (opcode 0x02) whenever that time
 moved (the driver looks every ``TIME_INTERVAL_S``, and before each message
 data), and message data log times on the same clock, so its timeline shows
-the bag's time; a seek shows as a step. Without a timeline nothing is sent
-and log times are the graph's wall clock.
+the bag's time; a seek shows as a step. With sim time (``rwt serve
+--use-sim-time``) the timeline is the latest ``/clock``: nothing is sent before
+the first. Without a timeline (or a time) nothing is sent and log times are the
+graph's wall clock.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ class ServerTime:
         self._sent: int | None = None
 
     def now(self) -> int | None:
-        """The timeline's time in ns, or None when no bag plays now."""
+        """The timeline's time in ns, or None when it has none now (no bag, no ``/clock``)."""
         timeline = self._graph.timeline
         return None if timeline is None else timeline()
 

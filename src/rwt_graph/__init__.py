@@ -20,6 +20,7 @@ Modules:
 - ``local``: handles of in-process publishers, subscribers and providers.
 - ``nodes``: node names of the graph's participants, for rosapi.
 - ``clock``: the clocks the graph reads (monotonic for order, wall for stamps).
+- ``simtime``: the latest ``/clock`` as the graph's timeline (``use_sim_time``).
 - ``ratelog``: peer-triggered log lines once per episode, on the process's clock.
 - ``link``: the link contract: how a graph is mirrored to and from another middleware.
 - ``topic_holds``: a link's topics held back while the subscribers they congested

@@ -104,7 +104,7 @@ class GraphCore:
         self.registry = registry or TypeRegistry(Dialect.ROS2)
         self._clock: Clock = clock or SystemClock()
         self._clocks: list[Clock] = [self._clock]  # the given clock, then each use_clock's
-        self._timelines: list[Callable[[], int]] = []  # each use_timeline's, latest last
+        self._timelines: list[Callable[[], int | None]] = []  # each use_timeline's, latest last
         self._spawners: list[Spawner] = []  # one per server serving this graph
         self.topics: dict[str, Topic] = {}
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
@@ -170,18 +170,20 @@ class GraphCore:
             self._set_clock(self._clocks[-1])
 
     @property
-    def timeline(self) -> Callable[[], int] | None:
+    def timeline(self) -> Callable[[], int | None] | None:
         """The playback's time while a bag plays into the graph, else None.
 
         A call returns nanoseconds since the epoch on the bag's clock: the
         record time of the message being published while one is, else the
         playback position (it stands still while paused and steps on a seek).
-        Foxglove clients get it as server time (docs/foxglove.md).
+        With sim time (``simtime.follow_clock``) it is the latest ``/clock``,
+        None before the first. Foxglove clients get it as server time
+        (docs/foxglove.md).
         """
         return self._timelines[-1] if self._timelines else None
 
     @contextlib.contextmanager
-    def use_timeline(self, timeline: Callable[[], int]) -> Iterator[None]:
+    def use_timeline(self, timeline: Callable[[], int | None]) -> Iterator[None]:
         """Make ``timeline`` the graph's ``timeline`` inside the ``with`` block.
 
         Blocks may overlap; the latest still open wins and leaving one in any

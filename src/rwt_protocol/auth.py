@@ -16,6 +16,11 @@ PROTOCOL-DECISIONS D31) closes both: the server sends each connection a
 challenge first (a ``status`` op with ``id`` ``auth_challenge`` whose ``msg`` is
 a fresh nonce), the client's ``rand`` must be that nonce, and the MAC is
 ``bound_mac``: an HMAC-SHA512 over the fields one per line.
+
+A client that cannot send an ``auth`` op (a Foxglove client: its protocol has
+none, and its user can only type a URL) carries the same fields in its
+WebSocket URL's query string (``auth_query``, ``auth_from_query``); the server
+checks them with the same authenticator before it accepts the handshake.
 """
 
 from __future__ import annotations
@@ -24,16 +29,20 @@ import hashlib
 import hmac
 import math
 import secrets
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from urllib.parse import parse_qsl, urlencode
 
-from .errors import ConfigError
+from .errors import ConfigError, RemoteProtocolError
 from .ops import Auth
 
 __all__ = [
     "AUTH_CHALLENGE_ID",
+    "QUERY_FIELDS",
     "Authenticator",
     "RosauthVerifier",
+    "auth_from_query",
+    "auth_query",
     "bound_mac",
     "new_challenge",
     "rosauth_mac",
@@ -42,6 +51,9 @@ __all__ = [
 
 AUTH_CHALLENGE_ID = "auth_challenge"
 """The ``id`` of the ``status`` op carrying a connection's challenge (D31)."""
+
+QUERY_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
+"""The query parameters of a URL token: the ``auth`` op's fields, named as there."""
 
 #: The first line of the text ``bound_mac`` signs: names the scheme and its version.
 BOUND_MAC_LABEL = "rwt-auth-bound-1"
@@ -197,3 +209,70 @@ class RosauthVerifier:
         if not secret:
             raise ConfigError("the secret file's first line is empty")
         return cls(secret, max_skew_s)
+
+
+def auth_query(op: Auth) -> str:
+    """The URL query string that carries ``op``'s fields (a Foxglove client's token).
+
+    Args:
+        op: a signed ``auth`` op (``rosauth_op``, or with ``bound_mac``'s MAC).
+
+    Returns:
+        ``mac=...&client=...&dest=...&rand=...&t=...&level=...&end=...``, percent-encoded,
+        ``t`` and ``end`` as whole seconds; append it to the URL after ``?``.
+    """
+    values = op.model_dump()
+    values["t"], values["end"] = _seconds(op.t), _seconds(op.end)
+    return urlencode([(name, values[name]) for name in QUERY_FIELDS])
+
+
+def auth_from_query(query: str) -> Auth | None:
+    """Read a URL token: the ``auth`` op whose fields a URL's query string carries.
+
+    Args:
+        query: the part of the URL after ``?`` (may be empty; other parameters
+            are allowed and ignored).
+
+    Returns:
+        The op, for the authenticator to decide; None when the query has no ``mac``
+        (no token at all).
+
+    Raises:
+        RemoteProtocolError: a token that cannot be read: a field missing or given
+            twice, ``t`` or ``end`` not a finite number, more than 32 parameters.
+    """
+    try:
+        pairs = parse_qsl(query, keep_blank_values=True, max_num_fields=32)
+    except ValueError as exc:  # more fields than that, or bad percent-encoding
+        raise RemoteProtocolError(f"unreadable auth query: {exc}") from None
+    fields: dict[str, str] = {}
+    for name, value in pairs:
+        if name in QUERY_FIELDS:
+            if name in fields:
+                raise RemoteProtocolError(f"auth query: {name} is given twice")
+            fields[name] = value
+    if "mac" not in fields:
+        return None
+    missing = [name for name in QUERY_FIELDS if name not in fields]
+    if missing:
+        raise RemoteProtocolError(f"auth query: {', '.join(missing)} missing")
+    return Auth(
+        mac=fields["mac"],
+        client=fields["client"],
+        dest=fields["dest"],
+        rand=fields["rand"],
+        t=_number(fields, "t"),
+        level=fields["level"],
+        end=_number(fields, "end"),
+    )
+
+
+def _number(fields: Mapping[str, str], name: str) -> float:
+    """The field ``name`` as a finite number (RemoteProtocolError otherwise)."""
+    try:
+        value = float(fields[name])
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise RemoteProtocolError(f"auth query: {name} is not a number")
+    return value

@@ -8,6 +8,12 @@ listener that speaks only Foxglove (foxglove_bridge's default port is 8765).
 A Foxglove connection is admitted as any WebSocket connection (the server's
 ``open_session``: ``--max-connections``, the host shares, ``/connected_clients``)
 and uses that session's client id in the graph; its rosbridge ops are never read.
+
+With an authenticator (``--auth-secret-file``) a Foxglove client, which has no
+``auth`` op and whose user can only type a URL, carries the ``auth`` op's fields
+in its URL's query string (``rwt_protocol.auth.auth_query``); ``url_token_gate``
+checks them with the same authenticator during the handshake and refuses the
+connection (HTTP 401 without a token, 403 with a bad one) before any session (D33).
 """
 
 from __future__ import annotations
@@ -17,8 +23,11 @@ import os
 import uuid
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
+from urllib.parse import urlsplit
 
 from rwt_foxglove import AssetRoots, FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
+from rwt_protocol.auth import auth_from_query
+from rwt_protocol.errors import RemoteProtocolError
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -26,12 +35,13 @@ if TYPE_CHECKING:
 
     from rwt_graph.core import GraphCore
     from rwt_graph.parameters.store import Parameters
+    from rwt_protocol.auth import Authenticator
     from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.session import Session
 
-    from .websocket import FoxgloveServe, WebSocketChannel
+    from .websocket import FoxgloveGate, FoxgloveServe, WebSocketChannel
 
-__all__ = ["FoxgloveOptions", "foxglove_server"]
+__all__ = ["FoxgloveOptions", "foxglove_server", "url_token_gate"]
 
 logger = logging.getLogger("rwt.foxglove")
 
@@ -82,6 +92,11 @@ def foxglove_server(
     session_id = uuid.uuid4().hex  # one per server run: clients tell a restart by it
 
     async def serve(channel: WebSocketChannel, session: Session, subprotocol: str) -> None:
+        if not session.authenticated:  # an authenticator, and no gate admitted the client
+            logger.warning(
+                "event=foxglove_refused client=%s reason='not authenticated'", session.client_id
+            )
+            return
         wakeup = Wakeup()
         foxglove = FoxgloveSession(
             graph,
@@ -97,3 +112,47 @@ def foxglove_server(
         await run_foxglove(channel, foxglove, wakeup, assets=assets)
 
     return serve
+
+
+NO_TOKEN = "authentication required: add the token to the URL (docs/foxglove.md)"
+"""The reason of a Foxglove handshake refused for want of a URL token (HTTP 401)."""
+
+BAD_TOKEN = "authentication failed"
+"""The reason of a Foxglove handshake whose URL token was refused (HTTP 403)."""
+
+
+def url_token_gate(authenticator: Authenticator) -> FoxgloveGate:
+    """Admit Foxglove handshakes whose URL carries a token ``authenticator`` admits.
+
+    The token is the ``auth`` op's fields as query parameters (``mac``, ``client``,
+    ``dest``, ``rand``, ``t``, ``level``, ``end``; ``rwt_protocol.auth.auth_query``),
+    checked as an ``auth`` op is: the same MAC, the same time window.
+
+    Args:
+        authenticator: the server's (``rosauth_authenticator``, or embedding code's).
+
+    Returns:
+        The gate: given the request path and the peer, (401, ``NO_TOKEN``) for a
+        URL without ``mac``, (403, reason) for an unreadable or refused token (the
+        reason says only what the client sent wrong; the authenticator logs its
+        own), None to accept.
+    """
+
+    def refusal(path: str, peer: str) -> tuple[int, str] | None:
+        try:
+            op = auth_from_query(urlsplit(path).query)
+        except (RemoteProtocolError, ValueError) as exc:
+            return 403, f"{BAD_TOKEN}: {exc}"
+        if op is None:
+            return 401, NO_TOKEN
+        try:
+            admitted = authenticator(op, peer)
+        except Exception:  # embedding code's check failed: a refusal, logged
+            logger.exception("event=authenticator_failed peer=%s", peer)
+            admitted = False
+        if not admitted:
+            return 403, BAD_TOKEN
+        logger.info("event=auth_ok peer=%s level=%s via=foxglove_url", peer, op.level)
+        return None
+
+    return refusal

@@ -130,11 +130,13 @@ class SessionHost(Protocol):
         on_output: Callable[[], None],
         *,
         auth_nonce: str | None = None,
+        authenticated: bool = False,
     ) -> Session | None:
         """Make the session of a new connection.
 
         ``auth_nonce``: its auth challenge, when the transport sent it
-        (``Session``). None when the server is full (``--max-connections``) or
+        (``Session``); ``authenticated``: the transport already admitted it
+        (a Foxglove URL token). None when the server is full (``--max-connections``) or
         stopping.
         """
 

@@ -46,6 +46,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.rosapi.visibility import Visibility
+from rwt_graph.simtime import follow_clock
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_protocol.auth import Authenticator, RosauthVerifier
@@ -58,7 +59,7 @@ from rwt_protocol.shortcuts import switched_off
 from . import admission
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
-from .foxglove import FoxgloveOptions, foxglove_server
+from .foxglove import FoxgloveOptions, foxglove_server, url_token_gate
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
@@ -156,8 +157,9 @@ class ServerConfig:
         session: per-connection protocol settings (limits, access, auth).
         websocket: WebSocket settings.
         foxglove: where Foxglove clients are answered (docs/foxglove.md): on the
-            WebSocket port by default, and on ``foxglove.port`` if set. Off while
-            an authenticator is required (Foxglove has no ``auth`` op).
+            WebSocket port by default, and on ``foxglove.port`` if set. With an
+            authenticator, a Foxglove client is admitted by the token in its URL
+            (``foxglove.url_token_gate``; Foxglove has no ``auth`` op).
         udp: UDP settings.
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi; by default
@@ -175,6 +177,9 @@ class ServerConfig:
             with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
+        use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
+            is the graph's timeline, which Foxglove clients get as server time
+            (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
     """
 
     host: str = "127.0.0.1"
@@ -204,6 +209,7 @@ class ServerConfig:
     clients_interval_s: float = 0.5
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
+    use_sim_time: bool = False
 
 
 def rosauth_authenticator(
@@ -283,16 +289,11 @@ class RosbridgeServer:
         # a link's queue for the other middleware holds publishers back as a subscriber does
         self.graph.port.outflow = OutboundHold(self.flow)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
-        self._foxglove = (
-            None
-            if session_config.authenticator is not None
-            else foxglove_server(
-                self.graph.port,
-                session_config.access,
-                self.config.foxglove,
-                self.graph.params,
-            )
+        self._foxglove = foxglove_server(
+            self.graph.port, session_config.access, self.config.foxglove, self.graph.params
         )
+        authenticator = session_config.authenticator
+        self._foxglove_gate = None if authenticator is None else url_token_gate(authenticator)
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
             session_config, idle_timeout_s=self.config.idle_timeout_s or None
@@ -359,6 +360,8 @@ class RosbridgeServer:
         if off:  # a slower server than the benchmarks measured: say so once
             logger.info("event=shortcuts_off names=%s", ",".join(sorted(off)))
         async with AsyncExitStack() as stack:
+            if self.config.use_sim_time:  # before any client: each is told of server time
+                stack.enter_context(follow_clock(self.graph))
             runners = await self._open_listeners(stack)
             for url in self.urls.values():
                 logger.info("event=listening url=%s", url)
@@ -409,7 +412,7 @@ class RosbridgeServer:
         runners: list[Runner] = []
         if config.port is not None:
             runners.append(await self._stream_listener(stack, config.port, tls, "websocket"))
-        if config.foxglove.port is not None and self._foxglove is not None:
+        if config.foxglove.port is not None:
             port = config.foxglove.port
             runners.append(await self._stream_listener(stack, port, tls, "foxglove"))
         if config.tcp_port is not None:
@@ -600,6 +603,7 @@ class RosbridgeServer:
             self.config.max_message_size,
             self.fragment_budget,
             foxglove=self._foxglove if self.config.foxglove.on_rosbridge_port else None,
+            foxglove_gate=self._foxglove_gate,
         )
 
     async def _handle_foxglove(self, stream: ByteStream) -> None:
@@ -613,6 +617,7 @@ class RosbridgeServer:
             self.fragment_budget,
             foxglove=self._foxglove,
             foxglove_only=True,
+            foxglove_gate=self._foxglove_gate,
         )
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
@@ -677,6 +682,7 @@ class RosbridgeServer:
         on_output: Callable[[], None],
         *,
         auth_nonce: str | None = None,
+        authenticated: bool = False,
     ) -> Session | None:
         """Make the session of a new connection on this server's graph.
 
@@ -688,6 +694,8 @@ class RosbridgeServer:
             auth_nonce: the connection's auth challenge, when the transport sent
                 it (UDP, with ``--auth-bind-connection``); None: the session
                 makes and sends one if it needs one.
+            authenticated: the transport already admitted the connection with
+                the authenticator (a Foxglove client's URL token).
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
@@ -729,6 +737,7 @@ class RosbridgeServer:
             on_closed=self._session_closed,
             fragment_budget=self.fragment_budget,
             auth_nonce=auth_nonce,
+            authenticated=authenticated,
         )
         self.sessions[client_id] = session
         if host is not None:

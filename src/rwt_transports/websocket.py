@@ -68,7 +68,7 @@ if TYPE_CHECKING:
     from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.server.outbox import OutFrame
 
-__all__ = ["FoxgloveServe", "WebSocketOptions", "serve_websocket_connection"]
+__all__ = ["FoxgloveGate", "FoxgloveServe", "WebSocketOptions", "serve_websocket_connection"]
 
 logger = logging.getLogger("rwt.websocket")
 
@@ -83,6 +83,11 @@ _MAX_REASON = 123  # bytes of a close reason (RFC 6455 5.5: a control frame's 12
 
 FoxgloveServe: TypeAlias = "Callable[[WebSocketChannel, Session, str], Awaitable[None]]"
 """Runs a connection that chose a Foxglove subprotocol (named last) to its end (foxglove.py)."""
+
+FoxgloveGate: TypeAlias = "Callable[[str, str], tuple[int, str] | None]"
+"""Decides a Foxglove handshake before it is accepted (foxglove.py, ``url_token_gate``):
+called with the request's path (with its query) and the peer address; returns the
+HTTP status and reason to refuse it with, or None to accept it as authenticated."""
 
 
 def _parser_held(protocol: ServerProtocol) -> int:
@@ -541,6 +546,7 @@ async def serve_websocket_connection(
     *,
     foxglove: FoxgloveServe | None = None,
     foxglove_only: bool = False,
+    foxglove_gate: FoxgloveGate | None = None,
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -557,6 +563,9 @@ async def serve_websocket_connection(
         foxglove: runs a connection whose client offered a Foxglove subprotocol;
             None: every client gets rosbridge (docs/foxglove.md).
         foxglove_only: refuse (HTTP 400) a client that offers no Foxglove subprotocol.
+        foxglove_gate: with an authenticator (``--auth-secret-file``), decides a
+            Foxglove client's handshake from its URL token; an admitted one's
+            session starts authenticated. None: no authentication.
 
     Never raises for what the peer does; the stream is closed on return.
     """
@@ -575,9 +584,12 @@ async def serve_websocket_connection(
         subprotocol = None if foxglove is None else _foxglove_offered(request)
         if refusal is None and foxglove_only and subprotocol is None:
             refusal = 400, "this port speaks Foxglove only: offer foxglove.sdk.v1"
+        gated = foxglove_gate is not None and subprotocol is not None
+        if refusal is None and gated and foxglove_gate is not None:
+            refusal = foxglove_gate(request.path, peer)
         session = None
         if refusal is None:
-            session = host.open_session(channel.transport, peer, pump.wake)
+            session = host.open_session(channel.transport, peer, pump.wake, authenticated=gated)
             if session is None:
                 refusal = 503, "too many connections"
         response: Response

@@ -417,6 +417,10 @@ def test_server_tab_shows_connections(page: Page) -> None:
     assert all(address.startswith("127.0.0.1") for address in addresses), addresses
     limit = page.text('#limits tr[data-name="--max-message-size"] td:last-child')
     assert limit == str(10 * 1024 * 1024)
+    # how Foxglove and Lichtblick connect: the same URL, no token without --auth-secret-file
+    assert page.evaluate("document.getElementById('foxglove-help').hidden") is False
+    assert page.text("#foxglove-url") == page.text("#server-url")
+    assert page.evaluate("document.getElementById('foxglove-token').hidden") is True
     assert page.errors() == []
 
 

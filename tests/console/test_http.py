@@ -73,6 +73,7 @@ def test_the_console_and_the_websocket_share_the_port(serve) -> None:
     assert config["websocket"] == {"port": None, "path": "/", "tls": False}
     assert config["video"] is None
     assert config["auth"] is False
+    assert config["foxglove"] is True  # the page shows Foxglove's URL (docs/foxglove.md)
     assert config["limits"]["--max-message-size"] == 10 * 1024 * 1024  # rwt serve's default
     for target in ("/console/../../../etc/passwd", "/console/%2e%2e/site.py", "/nothing"):
         status, _, body = http_get(server.url, target)
@@ -112,6 +113,11 @@ def test_auth_is_announced_to_the_page(serve, tmp_path: Path) -> None:
     secret.write_text("1234567890abcdef\n")
     server = serve("--auth-secret-file", str(secret))
     assert json.loads(http_get(server.url, "/console/config.json")[2])["auth"] is True
+
+
+def test_without_foxglove_the_page_offers_no_foxglove_url(serve) -> None:
+    server = serve("--no-foxglove")
+    assert json.loads(http_get(server.url, "/console/config.json")[2])["foxglove"] is False
 
 
 def test_the_video_port_serves_the_console_too(serve) -> None:

@@ -88,6 +88,7 @@ def test_config_tells_the_page_where_the_rest_is() -> None:
         "websocket": {"port": None, "path": "/ws", "tls": True},
         "video": {"port": 8081, "token": True},
         "auth": True,
+        "foxglove": False,
         "limits": {},
     }
 

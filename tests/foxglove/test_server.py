@@ -124,9 +124,16 @@ async def test_access_globs_and_auth() -> None:
     ):
         topics = {c["topic"] for c in (await _op(ws, "advertise"))["channels"]}
         assert "/ok/a" in topics and "/hidden" not in topics
-    required = SessionConfig(authenticator=lambda op, peer: True)
-    async with (
-        serving(Graph(), session=required) as server,
-        connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"]) as ws,
-    ):
-        assert ws.subprotocol is None  # rosbridge, which asks for auth
+    # an authenticator asks a Foxglove client for the token in its URL (tests/foxglove/test_auth.py)
+    seen: list[str] = []
+    required = SessionConfig(authenticator=lambda op, peer: seen.append(op.level) or True)
+    async with serving(Graph(), session=required) as server:
+        url = server.urls["websocket"]
+        with pytest.raises(InvalidStatus) as refused:
+            async with connect(url, subprotocols=["foxglove.sdk.v1"]):
+                pass
+        assert refused.value.response.status_code == 401
+        token = "mac=ab&client=c&dest=d&rand=r&t=1&level=viewer&end=2"
+        async with connect(f"{url}/?{token}", subprotocols=["foxglove.sdk.v1"]) as ws:
+            assert (await _op(ws, "serverInfo"))["op"] == "serverInfo"
+        assert seen == ["viewer"]  # the authenticator decided, with the URL's fields

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import json
 import struct
 from pathlib import Path
 
 import anyio
 import pytest
+from websockets.asyncio.client import connect
 
 from rwt_bag.player import Player
 from rwt_graph.graph import Graph
+from rwt_graph.simtime import follow_clock
 from rwt_graph.types import Dialect, TypeRegistry
+from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.bag.bags import CHATTER, CHATTER_GAP_S, T0, write_bag
 
 from .test_session import Client
@@ -109,3 +113,48 @@ async def test_a_played_bag_stamps_its_record_times_and_a_seek_steps_back(
     assert set(chatter) <= set(times)  # each told as time before its message
     ((kind, step, _),) = stepped  # the seek back to the start: one step back in time
     assert kind == "time" and T0 <= step < chatter[0]
+
+
+def test_sim_time_is_the_latest_clock_from_its_first_message() -> None:
+    graph = Graph()
+    chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
+    clock = graph.create_publisher("/clock", "rosgraph_msgs/msg/Clock", node="/sim")
+    with follow_clock(graph):
+        client = Client(graph)
+        assert "time" in client.ops[0]["capabilities"]  # type: ignore[operator]
+        subscribe(client, "/chatter")
+        client.session.tick()
+        assert frames(client) == []  # no /clock yet: no time
+        clock.publish({"clock": {"sec": 100, "nanosec": 5}})
+        client.session.tick()
+        assert frames(client) == [("time", 100_000_000_005, b"")]
+        clock.publish({"clock": {"sec": -1, "nanosec": 0}})  # not a time Foxglove carries
+        chatter.publish({"data": "x"})  # stamped with the latest /clock
+        assert [(kind, ns) for kind, ns, _ in frames(client)] == [("data", 100_000_000_005)]
+        clock.publish({"clock": {"sec": 90, "nanosec": 0}})  # a simulator reset: a step back
+        client.session.tick()
+        assert frames(client) == [("time", 90 * 10**9, b"")]
+    client.session.tick()  # sim time is over: nothing more, log times on the wall clock
+    chatter.publish({"data": "y"})
+    ((kind, log_time, _),) = frames(client)
+    assert kind == "data" and log_time > 1_600_000_000 * 10**9
+    assert not graph.port.topics["/clock"].subscribers  # follow_clock unsubscribed
+
+
+@pytest.mark.anyio
+async def test_use_sim_time_serves_clock_as_server_time_over_the_wire() -> None:
+    graph = Graph()
+    clock = graph.create_publisher("/clock", "rosgraph_msgs/msg/Clock", node="/sim")
+    server = RosbridgeServer(graph, ServerConfig(port=0, use_sim_time=True))
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        async with connect(url, subprotocols=["foxglove.sdk.v1"]) as ws:
+            info = json.loads(await ws.recv())
+            assert "time" in info["capabilities"]
+            clock.publish({"clock": {"sec": 1_234, "nanosec": 500}})
+            with anyio.fail_after(10):
+                frame = await ws.recv()
+                while not isinstance(frame, bytes):  # advertise and the like first
+                    frame = await ws.recv()
+            assert frame[0] == 2 and struct.unpack_from("<Q", frame, 1)[0] == 1_234_000_000_500
+        tg.cancel_scope.cancel()

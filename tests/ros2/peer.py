@@ -12,6 +12,8 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   image TOPIC           sensor_msgs/Image 8x4 rgb8 (a red left half) every 50 ms
   camodom TOPIC         sensor_msgs/Image of 100 KB (mono8 320x320) on TOPIC every 10 ms
                         and std_msgs/String "n" (a count) on /odom every 20 ms
+  clock TOPIC           rosgraph_msgs/Clock as a simulator publishes /clock: from 1000 s,
+                        0.05 s more every 50 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
   point_raw TOPIC       geometry_msgs/PointStamped published as serialized CDR every 50 ms,
@@ -67,6 +69,7 @@ import sys
 import time
 
 import rclpy
+from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import (
     Parameter,
     ParameterDescriptor,
@@ -85,6 +88,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter as RclpyParameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 from std_srvs.srv import SetBool
@@ -313,6 +317,15 @@ def main() -> None:
     elif mode == "many_topics":
         for n in range(int(name)):
             node.create_publisher(String, f"/many/t{n:03}", 10)
+    elif mode == "clock":
+        clock_pub = node.create_publisher(Clock, name, 10)
+        steps = iter(range(10**9))
+
+        def tick_clock():
+            ns = 1000 * 10**9 + next(steps) * 50_000_000
+            clock_pub.publish(Clock(clock=Time(sec=ns // 10**9, nanosec=ns % 10**9)))
+
+        tick = tick_clock
     elif mode == "log":
         tick = lambda: node.get_logger().info(name)  # noqa: E731
     elif mode in ("tf", "tf_static"):

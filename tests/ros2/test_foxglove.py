@@ -8,16 +8,19 @@ the link received it. A FoxgloveClient's publish reaches an rclpy subscriber.
 
 from __future__ import annotations
 
+import json
+import struct
 import subprocess
 from pathlib import Path
 
 import pytest
+from websockets.sync.client import connect
 
 from rwt_graph.types import Dialect, TypeRegistry
 from tests.foxglove import extras
 from tests.integration.client_harness import JS_DIR, ServerProcess
 
-from .support import Peer, skip_without_rclpy
+from .support import Peer, serve_ros2, skip_without_rclpy
 
 pytestmark = [skip_without_rclpy(), pytest.mark.node]
 
@@ -71,3 +74,23 @@ def test_a_foxglove_clients_publish_reaches_an_rclpy_subscriber(
             publisher.kill()
             publisher.communicate(timeout=10)
     assert heard == {"heard": "from foxglove"}
+
+
+def test_with_use_sim_time_a_simulators_clock_is_foxglove_server_time(ros_env: Path) -> None:
+    server = serve_ros2(ros_env, "--use-sim-time")
+    try:
+        with (
+            Peer("clock", "/clock", ros_env),
+            connect(server.url, subprotocols=["foxglove.sdk.v1"]) as ws,
+        ):
+            assert "time" in json.loads(ws.recv(timeout=20))["capabilities"]
+            times: list[int] = []
+            while len(times) < 3:
+                frame = ws.recv(timeout=20)
+                if isinstance(frame, bytes) and frame[0] == 2:  # a time frame
+                    times.append(struct.unpack_from("<Q", frame, 1)[0])
+    finally:
+        server.stop()
+    # the rclpy node's sim time (from 1000 s), not the wall clock, in order
+    assert all(1000 * 10**9 <= t < 2000 * 10**9 for t in times), times
+    assert times == sorted(times) and len(set(times)) == 3

@@ -150,6 +150,11 @@ async function connectOnce(url, auth) {
 async function connect(config) {
   const url = websocketUrl(config);
   document.getElementById('server-url').textContent = url;
+  if (config.foxglove) {
+    document.getElementById('foxglove-url').textContent = url;
+    document.getElementById('foxglove-token').hidden = !config.auth;
+    document.getElementById('foxglove-help').hidden = false;
+  }
   let ros;
   if (!config.auth) {
     ros = await connectOnce(url, null);

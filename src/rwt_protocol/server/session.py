@@ -192,6 +192,9 @@ class Session:
             the transport already gave it to the client (UDP sends it with the
             address validation, before the first op); the session then sends
             none. None: the session makes one and sends it first.
+        authenticated: the transport already admitted the connection with the
+            authenticator (a Foxglove client's URL token, ``auth.auth_from_query``):
+            the session starts open and sends no challenge.
 
     The client end is ``client.ClientSession``: the same ops, from the other end.
     """
@@ -207,6 +210,7 @@ class Session:
         on_closed: Callable[[ClientId], None] | None = None,
         fragment_budget: FragmentBudget | None = None,
         auth_nonce: str | None = None,
+        authenticated: bool = False,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
@@ -235,7 +239,8 @@ class Session:
         self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
         self._on_closed = on_closed
-        self._state = State.OPEN if self._config.authenticator is None else State.AUTHENTICATING
+        open_ = authenticated or self._config.authenticator is None
+        self._state = State.OPEN if open_ else State.AUTHENTICATING
         self._admitted = self._state is State.OPEN  # ops were served (``authenticated``)
         self._close_request: CloseConnection | None = None  # set on entering CLOSING
         self._now = 0.0  # the latest monotonic time seen, for output without one
