@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import ssl
 import struct
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from pathlib import Path
 
 import anyio
 import pytest
+import trustme
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import InvalidStatus
 
@@ -137,3 +140,29 @@ async def test_access_globs_and_auth() -> None:
         async with connect(f"{url}/?{token}", subprotocols=["foxglove.sdk.v1"]) as ws:
             assert (await _op(ws, "serverInfo"))["op"] == "serverInfo"
         assert seen == ["viewer"]  # the authenticator decided, with the URL's fields
+
+
+async def test_foxglove_over_tls_on_the_same_port(
+    tls_files: tuple[Path, Path, Path], ca: trustme.CA
+) -> None:
+    """With ``--certfile``, a Foxglove client on ``wss://`` gets Foxglove, and its data."""
+    certfile, keyfile, _ = tls_files
+    graph = Graph()
+    publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
+    context = ssl.create_default_context()
+    ca.configure_trust(context)
+    async with serving(graph, certfile=certfile, keyfile=keyfile) as server:
+        url = server.urls["websocket"]
+        assert url.startswith("wss://")
+        async with connect(url, subprotocols=["foxglove.sdk.v1"], ssl=context) as ws:
+            assert ws.subprotocol == "foxglove.sdk.v1"
+            assert json.loads(await ws.recv())["op"] == "serverInfo"
+            channels = (await _op(ws, "advertise"))["channels"]
+            channel = next(c for c in channels if c["topic"] == "/chatter")  # type: ignore[union-attr]
+            subscription = {"id": 1, "channelId": channel["id"]}
+            await ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscription]}))
+            await ws.send(json.dumps({"op": "nope"}))  # answered after the subscribe is done
+            await _op(ws, "status")
+            publisher.publish({"data": "over tls"})
+            frame = await ws.recv()
+            assert isinstance(frame, bytes) and frame[13:].endswith(b"over tls\x00")
