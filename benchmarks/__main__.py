@@ -85,6 +85,10 @@ def main(argv: list[str] | None = None) -> int:
         from .console import main as console_main  # noqa: PLC0415
 
         return console_main(argv[1:])
+    if argv[:1] == ["ros2"] and "--foxglove" in argv:  # benchmarks/ros2_foxglove.py
+        from .ros2_foxglove import main as ros2_foxglove_main  # noqa: PLC0415
+
+        return ros2_foxglove_main([a for a in argv[1:] if a != "--foxglove"])
     if argv[:1] == ["ros2"]:  # its own options (benchmarks/ros2_bridge.py)
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 
