@@ -181,7 +181,12 @@ print(time.time(), flush=True)
 sent, start = 0, time.monotonic()
 while time.monotonic() - start < seconds:
     stamp(msg)
-    pub.publish(msg)
+    while True:  # Fast DDS refuses a sample while its history is full of unsent ones
+        try:
+            pub.publish(msg)
+            break
+        except Exception:
+            time.sleep(0.001)
     sent += 1
     if hz:
         delay = start + sent / hz - time.monotonic()

@@ -159,10 +159,11 @@ class CborRawStamped(_Stamped):
 
 
 class _Group:
-    """``READERS`` readers of one kind on one topic."""
+    """``count`` readers of one kind on one topic."""
 
-    def __init__(self, kind: str) -> None:
+    def __init__(self, kind: str, count: int) -> None:
         self.kind = kind
+        self.count = count
         self.readers: list[_Stamped] = []
         self.counters: list[LeanCounter] = []
         self.tasks: list[asyncio.Task[None]] = []
@@ -173,11 +174,11 @@ class _Group:
     async def open(self, port: int, topic: str) -> None:
         """Connect and subscribe every reader (a Foxglove one waits for the channel)."""
         if self.kind == "json":
-            self.counters = [LeanCounter(WIDTH * HEIGHT * 3) for _ in range(READERS)]
+            self.counters = [LeanCounter(WIDTH * HEIGHT * 3) for _ in range(self.count)]
             url = f"ws://127.0.0.1:{port}"
             self.tasks = [asyncio.create_task(c.run(url, topic, "image")) for c in self.counters]
             return
-        for _ in range(READERS):
+        for _ in range(self.count):
             if self.kind == "foxglove":
                 reader: _Stamped = await asyncio.to_thread(FoxgloveStamped.open, port, topic)
             else:
@@ -256,6 +257,7 @@ class Round:
 
     kind: str
     hz: int
+    readers: int
     sent: int
     delivered: int
     delivered_pct: float
@@ -277,16 +279,24 @@ async def _wait(group: _Group, within: float) -> None:
 
 
 async def measure(
-    kind: str, hz: int, seconds: float, port: int, pid: int, env: dict[str, str], tag: str
+    kind: str,
+    hz: int,
+    seconds: float,
+    port: int,
+    pid: int,
+    env: dict[str, str],
+    tag: str,
+    readers: int = READERS,
 ) -> Round:
-    """One round of ``kind`` at ``hz`` (0: as fast as it goes) on the server ``port``/``pid``.
+    """One round of ``readers`` readers of ``kind`` at ``hz`` (0: as fast as it goes) on
+    the server ``port``/``pid``; ``tag`` makes the round's topic name unique.
 
     Raises:
         RuntimeError: a reader failed or a process ended early.
         TimeoutError: a reader got no probe within ``DISCOVERY_S``.
     """
     topic = f"/fox_{kind.replace('-', '_')}_{hz}_{tag}"
-    group = _Group(kind)
+    group = _Group(kind, readers)
     size = (str(WIDTH), str(HEIGHT))
     async with _child(PUB, "image", str(hz), str(seconds), topic, *size, env=env) as pub:
         await _line(pub)  # ready
@@ -315,9 +325,10 @@ async def measure(
     return Round(
         kind=kind,
         hz=hz,
+        readers=readers,
         sent=sent,
         delivered=delivered,
-        delivered_pct=100.0 * delivered / max(sent * READERS, 1),
+        delivered_pct=100.0 * delivered / max(sent * readers, 1),
         msg_per_s=delivered / span if delivered else 0.0,
         p50_ms=_percentile(latencies, 0.5) * 1e3,
         p99_ms=_percentile(latencies, 0.99) * 1e3,
@@ -327,9 +338,21 @@ async def measure(
 
 
 async def run(
-    rounds: int, seconds: float, rates: list[int], kinds: list[str], domain: int, fastdds: str
+    rounds: int,
+    seconds: float,
+    rates: list[int],
+    kinds: list[str],
+    domain: int,
+    fastdds: str = "large-shm",
+    readers: int = READERS,
 ) -> list[Round]:
-    """Every rate, ``rounds`` rounds of every kind (the order rotating), on one rwt server."""
+    """Every rate, ``rounds`` rounds of every kind (the order rotating) with ``readers``
+    readers each, on one rwt server (ROS 2 ``domain``, Fast DDS setup ``fastdds``).
+
+    Raises:
+        RuntimeError: a reader failed or a process ended early.
+        TimeoutError: a reader got no probe within ``DISCOVERY_S``.
+    """
     env = {**os.environ, **ros_env(domain, fastdds)}
     env["PYTHONPATH"] = rwt_pythonpath()
     results = []
@@ -339,9 +362,8 @@ async def run(
                 shift = index % len(kinds)
                 for kind in kinds[shift:] + kinds[:shift]:
                     tag = f"{index}_{os.getpid()}"
-                    figures = await measure(
-                        kind, hz, seconds, server.port, server.process.pid, env, tag
-                    )
+                    pid = server.process.pid
+                    figures = await measure(kind, hz, seconds, server.port, pid, env, tag, readers)
                     print(f"{kind} {hz or 'max'} Hz round {index + 1}: {figures}", file=sys.stderr)
                     results.append(figures)
     return results
@@ -354,7 +376,7 @@ def _median(rounds: list[Round], key: str) -> float:
 def table(results: list[Round]) -> str:
     """The Markdown table: the medians of each rate and kind, and CPU ratios to Foxglove's."""
     lines = [
-        f"| 1 MB Image to {READERS} readers | receiver | delivered % | delivered msg/s "
+        "| 1 MB Image | receiver | delivered % | delivered msg/s "
         "| p50 ms | p99 ms | server CPU us/delivery | vs Foxglove | readers' CPU |",
         "|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
@@ -367,7 +389,8 @@ def table(results: list[Round]) -> str:
             cpu = _median(rounds, "cpu_us_per_delivery")
             ratio = f"{cpu / base:.2f}x" if base else "-"
             lines.append(
-                f"| {f'{hz} Hz' if hz else 'max rate'} ({len(rounds)} rounds) | {LABELS[kind]} "
+                f"| {f'{hz} Hz' if hz else 'max rate'}, {rounds[0].readers} readers "
+                f"({len(rounds)} rounds) | {LABELS[kind]} "
                 f"| {_median(rounds, 'delivered_pct'):.1f} | {_median(rounds, 'msg_per_s'):,.0f} "
                 f"| {_median(rounds, 'p50_ms'):.1f} | {_median(rounds, 'p99_ms'):.1f} "
                 f"| {cpu:,.0f} | {ratio} | {_median(rounds, 'readers_cpu'):.0%} |"
@@ -382,6 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks ros2 --foxglove")
     parser.add_argument("--seconds", type=float, default=5.0, help="timed publishing per round")
     parser.add_argument("--rounds", type=int, default=3, help="rounds of each kind per rate")
+    parser.add_argument("--readers", type=int, default=READERS, help="readers of each kind")
     parser.add_argument("--rates", default="30,0", help="comma-separated Hz; 0: as fast as it goes")
     parser.add_argument("--kinds", default=",".join(KINDS), help="comma-separated: " + ",".join(KINDS))
     parser.add_argument("--domain", type=int, default=130 + os.getpid() % 10, help="ROS_DOMAIN_ID")
@@ -401,7 +425,9 @@ def main(argv: list[str] | None = None) -> int:
     kinds = [k for k in args.kinds.split(",") if k]
     if unknown := set(kinds) - set(KINDS):
         parser.error(f"unknown kinds: {sorted(unknown)}")
-    results = asyncio.run(run(args.rounds, args.seconds, rates, kinds, args.domain, args.fastdds))
+    results = asyncio.run(
+        run(args.rounds, args.seconds, rates, kinds, args.domain, args.fastdds, args.readers)
+    )
     print(table(results))
     if args.json:
         args.json.write_text(json.dumps([asdict(r) for r in results], indent=1) + "\n")
