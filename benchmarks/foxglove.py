@@ -286,7 +286,7 @@ class Reader:
         return reader
 
     def feed(self, data: bytes, now_ns: int) -> None:
-        """Cut ``data`` into frames: keep text ops whole, the first ``head`` bytes of binary ones."""
+        """Cut ``data`` into frames: text ops whole, the first ``head`` bytes of binary ones."""
         if self._pending:
             data = self._pending + data
             self._pending = b""

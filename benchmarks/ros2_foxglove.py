@@ -1,4 +1,4 @@
-"""``python -m benchmarks ros2 --foxglove``: ROS 2 images to Foxglove readers through ``rwt serve --ros2``.
+"""``python -m benchmarks ros2 --foxglove``: ROS 2 images to Foxglove readers via rwt.
 
 One ``rwt serve --ros2 --no-tf`` (this checkout) runs for the whole run. Each
 round, a real rclpy publisher (ros2_bridge.py's, its own process) sends a 1 MB
@@ -42,7 +42,6 @@ import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 from .foxglove import Reader, _client_text, connect
 from .ros2_bridge import (
@@ -199,7 +198,7 @@ class _Group:
                         if not chunk:
                             raise ConnectionError("the server closed a reader")
                         key.data.feed(chunk, time.monotonic_ns())
-        except Exception as error:  # noqa: BLE001 (reported by ``close``)
+        except Exception as error:  # reported by ``close``
             self.error = error
         finally:
             sel.close()
@@ -407,7 +406,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=3, help="rounds of each kind per rate")
     parser.add_argument("--readers", type=int, default=READERS, help="readers of each kind")
     parser.add_argument("--rates", default="30,0", help="comma-separated Hz; 0: as fast as it goes")
-    parser.add_argument("--kinds", default=",".join(KINDS), help="comma-separated: " + ",".join(KINDS))
+    parser.add_argument(
+        "--kinds", default=",".join(KINDS), help="comma-separated: " + ",".join(KINDS)
+    )
     parser.add_argument("--domain", type=int, default=130 + os.getpid() % 10, help="ROS_DOMAIN_ID")
     parser.add_argument(
         "--fastdds",

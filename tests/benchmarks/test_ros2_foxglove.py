@@ -1,4 +1,4 @@
-"""The ROS 2 to Foxglove benchmark (benchmarks/ros2_foxglove.py) runs tiny against ``rwt serve --ros2``."""
+"""The ROS 2 to Foxglove benchmark (benchmarks/ros2_foxglove.py) runs tiny against rwt."""
 
 from __future__ import annotations
 
@@ -37,7 +37,9 @@ def test_the_stamp_comes_from_the_cdr_header_and_a_probe_has_none() -> None:
         cdr_stamp(b"\x00\x01\x00\x00")
 
 
-@pytest.mark.skipif(not rclpy_available(), reason='rclpy is not importable: pip install "rwt[ros2]"')
+@pytest.mark.skipif(
+    not rclpy_available(), reason='rclpy is not importable: pip install "rwt[ros2]"'
+)
 def test_every_image_reaches_the_foxglove_cbor_raw_and_json_readers() -> None:
     """Lightly paced: every kind of reader gets every image (the JSON ones check each
     image's base64 in place, a wrong delivery fails the round)."""
