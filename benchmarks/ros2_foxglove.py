@@ -373,11 +373,12 @@ def _median(rounds: list[Round], key: str) -> float:
 
 
 def table(results: list[Round]) -> str:
-    """The Markdown table: the medians of each rate and kind, and CPU ratios to Foxglove's."""
+    """The Markdown table: the medians of each rate and kind (``sent``: images published
+    in a round), and the server CPU per delivery over the Foxglove readers'."""
     lines = [
-        "| 1 MB Image | receiver | delivered % | delivered msg/s "
+        "| 1 MB Image | receiver | sent | delivered % | delivered msg/s "
         "| p50 ms | p99 ms | server CPU us/delivery | vs Foxglove | readers' CPU |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for hz in dict.fromkeys(r.hz for r in results):
         by = {k: [r for r in results if r.hz == hz and r.kind == k] for k in KINDS}
@@ -389,7 +390,7 @@ def table(results: list[Round]) -> str:
             ratio = f"{cpu / base:.2f}x" if base else "-"
             lines.append(
                 f"| {f'{hz} Hz' if hz else 'max rate'}, {rounds[0].readers} readers "
-                f"({len(rounds)} rounds) | {LABELS[kind]} "
+                f"({len(rounds)} rounds) | {LABELS[kind]} | {_median(rounds, 'sent'):,.0f} "
                 f"| {_median(rounds, 'delivered_pct'):.1f} | {_median(rounds, 'msg_per_s'):,.0f} "
                 f"| {_median(rounds, 'p50_ms'):.1f} | {_median(rounds, 'p99_ms'):.1f} "
                 f"| {cpu:,.0f} | {ratio} | {_median(rounds, 'readers_cpu'):.0%} |"
