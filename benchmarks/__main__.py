@@ -8,7 +8,8 @@ load generator's CPU to show its headroom), writes
 ``benchmarks/README.md``. ``--soak`` runs B15 for 30 minutes. ``--smoke`` runs
 every variant once on tiny counts without touching the README (CI).
 ``peer`` compares with a running rosbridge_suite (benchmarks/peer.py); ``ros2``
-measures the ROS 2 bridge (benchmarks/ros2_bridge.py); ``console`` the web
+measures the ROS 2 bridge (benchmarks/ros2_bridge.py; ``ros2 --foxglove``: ROS 2
+images to Foxglove readers, benchmarks/ros2_foxglove.py); ``console`` the web
 console in Chromium (benchmarks/console.py); ``rosbag`` records and plays against
 the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py); ``compare REF`` this checkout
 against an older commit (benchmarks/compare.py).
@@ -85,6 +86,10 @@ def main(argv: list[str] | None = None) -> int:
         from .console import main as console_main  # noqa: PLC0415
 
         return console_main(argv[1:])
+    if argv[:1] == ["ros2"] and "--foxglove" in argv:  # benchmarks/ros2_foxglove.py
+        from .ros2_foxglove import main as ros2_foxglove_main  # noqa: PLC0415
+
+        return ros2_foxglove_main([a for a in argv[1:] if a != "--foxglove"])
     if argv[:1] == ["ros2"]:  # its own options (benchmarks/ros2_bridge.py)
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 

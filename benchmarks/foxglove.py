@@ -259,6 +259,8 @@ class Reader:
     channel: int | None = None
     statuses: list[str] = field(default_factory=list)
     closed: bool = False
+    head: int = 13
+    """Bytes kept of each binary frame (a message data header is 13)."""
     _pending: bytes = b""
     _left: int = 0
     _opcode: int = 0
@@ -270,29 +272,7 @@ class Reader:
         cls, port: int, topic: str, *, latency: bool = False, rcvbuf: int | None = None
     ) -> Reader:
         """Connect, offer ``foxglove.sdk.v1``, wait for ``topic``'s channel and subscribe to it."""
-        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        if rcvbuf is not None:  # before connect: the window stays small
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-        sock.settimeout(30)
-        sock.connect(("127.0.0.1", port))
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        key = base64.b64encode(os.urandom(16)).decode()
-        sock.sendall(
-            (
-                f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
-                f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
-                "Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
-            ).encode()
-        )
-        data = b""
-        while b"\r\n\r\n" not in data:
-            chunk = sock.recv(65536)
-            if not chunk:
-                raise ConnectionError("closed during the handshake")
-            data += chunk
-        head, _, rest = data.partition(b"\r\n\r\n")
-        if not head.startswith(b"HTTP/1.1 101"):
-            raise ConnectionError(f"handshake refused: {head[:80]!r}")
+        sock, rest = connect(port, rcvbuf=rcvbuf, protocol="foxglove.sdk.v1")
         reader = cls(sock, topic, latency)
         reader.feed(rest, 0)
         while reader.channel is None:
@@ -306,7 +286,7 @@ class Reader:
         return reader
 
     def feed(self, data: bytes, now_ns: int) -> None:
-        """Cut ``data`` into frames: keep text ops whole, the first 13 bytes of binary ones."""
+        """Cut ``data`` into frames: text ops whole, the first ``head`` bytes of binary ones."""
         if self._pending:
             data = self._pending + data
             self._pending = b""
@@ -329,7 +309,7 @@ class Reader:
             opcode, length, size = header
             pos += size
             self._opcode, self._left = opcode, length
-            self._want = 13 if opcode == 2 else length
+            self._want = self.head if opcode == 2 else length
             self._collect = bytearray()
             if not length:
                 self._done(now_ns)
@@ -364,6 +344,42 @@ class Reader:
         except OSError:
             pass  # the peer is gone already
         self.sock.close()
+
+
+def connect(
+    port: int, *, rcvbuf: int | None = None, protocol: str | None = None
+) -> tuple[socket.socket, bytes]:
+    """A WebSocket client connection to 127.0.0.1:``port`` (offering ``protocol`` if
+    given) on a blocking socket; the bytes that came after the handshake's response.
+
+    Raises:
+        ConnectionError: the server closed the connection or refused the handshake.
+    """
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    if rcvbuf is not None:  # before connect: the window stays small
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+    sock.settimeout(30)
+    sock.connect(("127.0.0.1", port))
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    key = base64.b64encode(os.urandom(16)).decode()
+    offer = f"Sec-WebSocket-Protocol: {protocol}\r\n" if protocol else ""
+    sock.sendall(
+        (
+            f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+            f"{offer}\r\n"
+        ).encode()
+    )
+    data = b""
+    while b"\r\n\r\n" not in data:
+        chunk = sock.recv(65536)
+        if not chunk:
+            raise ConnectionError("closed during the handshake")
+        data += chunk
+    head, _, rest = data.partition(b"\r\n\r\n")
+    if not head.startswith(b"HTTP/1.1 101"):
+        raise ConnectionError(f"handshake refused: {head[:80]!r}")
+    return sock, rest
 
 
 def _frame_header(data: bytes, pos: int, end: int) -> tuple[int, int, int] | None:

@@ -148,6 +148,7 @@ PUB = r"""
 import sys, time, threading, rclpy
 from rclpy.qos import QoSProfile
 kind, hz, seconds, topic = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+width, height = (int(x) for x in sys.argv[5:7]) if len(sys.argv) > 6 else (640, 480)
 rclpy.init()
 node = rclpy.create_node("bench_talker")
 if kind == "string":
@@ -159,8 +160,8 @@ if kind == "string":
         m.data = f"{time.time():.6f}".ljust(100, "x")
 else:
     from sensor_msgs.msg import Image as Msg
-    msg = Msg(); msg.height, msg.width, msg.encoding = 480, 640, "rgb8"
-    msg.step = 640 * 3; msg.data = bytes(640 * 480 * 3)
+    msg = Msg(); msg.height, msg.width, msg.encoding = height, width, "rgb8"
+    msg.step = width * 3; msg.data = bytes(width * height * 3)
     def probe():
         m = Msg(); m.header.frame_id = "probe"; return m
     def stamp(m):
@@ -180,7 +181,12 @@ print(time.time(), flush=True)
 sent, start = 0, time.monotonic()
 while time.monotonic() - start < seconds:
     stamp(msg)
-    pub.publish(msg)
+    while True:  # Fast DDS refuses a sample while its history is full of unsent ones
+        try:
+            pub.publish(msg)
+            break
+        except Exception:
+            time.sleep(0.001)
     sent += 1
     if hz:
         delay = start + sent / hz - time.monotonic()

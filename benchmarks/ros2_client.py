@@ -50,7 +50,7 @@ RECV_BUFFER = 1 << 20
 TYPES = {"string": "std_msgs/msg/String", "image": "sensor_msgs/msg/Image"}
 """The ROS 2 type of each kind of message B21 publishes."""
 IMAGE_BYTES = 640 * 480 * 3
-"""The image the publisher sends: 640x480 ``rgb8``, all zero bytes."""
+"""The image the publisher sends by default: 640x480 ``rgb8``, all zero bytes."""
 
 _STRING_STAMP = re.compile(rb'"data"\s*:\s*"([0-9]+\.[0-9]+)')
 _IMAGE_STAMP = re.compile(rb'"sec"\s*:\s*([0-9]+)\s*,\s*"nanosec"\s*:\s*([0-9]+)')
@@ -86,9 +86,10 @@ class FrameWalk:
 
     Args:
         kind: ``string`` or ``image`` (what the publisher sends).
+        image_bytes: the size of the image's data (all zero bytes).
     """
 
-    def __init__(self, kind: str) -> None:
+    def __init__(self, kind: str, image_bytes: int = IMAGE_BYTES) -> None:
         self.kind = kind
         self.latencies: list[float] = []
         self.stamps: list[float] = []
@@ -98,7 +99,7 @@ class FrameWalk:
         self.pongs: list[bytes] = []
         """Payloads of the pings received, for the reader to answer."""
         self._opcode = OP_TEXT
-        self._expected = b'"' + base64.b64encode(bytes(IMAGE_BYTES)) + b'"'
+        self._expected = b'"' + base64.b64encode(bytes(image_bytes)) + b'"'
         self._tail: memoryview | None = None  # what a large frame ends with
         self._header = bytearray()
         self._length = -1  # payload length of the frame being read; -1 between frames
@@ -269,9 +270,11 @@ class _Reader(asyncio.BufferedProtocol):
 
 
 class LeanCounter:
-    """One WebSocket subscriber read by ``FrameWalk`` (same face as the ``websockets`` one)."""
+    """One WebSocket subscriber read by ``FrameWalk`` (same face as the ``websockets`` one);
+    ``image_bytes``: the size of the images' data."""
 
-    def __init__(self) -> None:
+    def __init__(self, image_bytes: int = IMAGE_BYTES) -> None:
+        self.image_bytes = image_bytes
         self.probed = asyncio.Event()
         self.walk: FrameWalk | None = None
 
@@ -299,7 +302,7 @@ class LeanCounter:
             f"GET {parts.path or '/'} HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
             f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n"
         ).encode()
-        self.walk = FrameWalk(kind)
+        self.walk = FrameWalk(kind, self.image_bytes)
         op = {"op": "subscribe", "topic": topic, "type": TYPES[kind]}
         reader = _Reader(self.walk, request, client_frame(json.dumps(op).encode()), self.probed)
         loop = asyncio.get_running_loop()
