@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .report import fmt_value
+from .report import fmt_value, median_ratio
 from .runner import VariantResult, run_variant
 from .scenarios import all_variants
 from .scenarios.common import Context
@@ -56,14 +56,7 @@ def _worktree(ref: str, where: Path) -> str:
 
 
 def _ratio(result: VariantResult) -> float:
-    medians = result.medians()
-    primary = result.variant.primary
-    try:
-        base = medians["base"][primary]["median"]
-        now = medians["rwt"][primary]["median"]
-    except KeyError:
-        return float("nan")
-    return now / base if base else float("nan")
+    return median_ratio(result, "rwt", over="base")
 
 
 def _table(results: list[VariantResult]) -> str:

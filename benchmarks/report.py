@@ -14,7 +14,7 @@ from pathlib import Path
 from .runner import VariantResult
 from .servers import ROOT
 
-__all__ = ["fmt_value", "markdown_table", "save_json", "update_readme"]
+__all__ = ["fmt_value", "markdown_table", "median_ratio", "save_json", "update_readme"]
 
 BEGIN = "<!-- suite:begin -->"
 END = "<!-- suite:end -->"
@@ -36,15 +36,21 @@ def _cell(result: VariantResult, kind: str) -> str:
     return f"{fmt_value(stats['median'])} [{fmt_value(stats['min'])}-{fmt_value(stats['max'])}]"
 
 
-def _ratio(result: VariantResult) -> str:
+def median_ratio(result: VariantResult, kind: str = "rwt", over: str = "bare") -> float:
+    """The primary metric's median of ``kind`` over ``over``'s; NaN when either is missing."""
     medians = result.medians()
     primary = result.variant.primary
     try:
-        bare = medians["bare"][primary]["median"]
-        rwt = medians["rwt"][primary]["median"]
+        top = medians[kind][primary]["median"]
+        bottom = medians[over][primary]["median"]
     except KeyError:
-        return "-"
-    return f"{rwt / bare:.2f}" if bare else "-"
+        return float("nan")
+    return top / bottom if bottom else float("nan")
+
+
+def _ratio(result: VariantResult) -> str:
+    ratio = median_ratio(result)
+    return "-" if math.isnan(ratio) else f"{ratio:.2f}"
 
 
 def _generator(result: VariantResult) -> str:

@@ -16,13 +16,13 @@ from pathlib import Path
 
 import pytest
 
+from tests.foxglove.extras import missing
 from tests.integration.client_harness import (
     DRIVER_TIMEOUT,
     JS_DIR,
     Driver,
     ServerProcess,
     _LineReader,
-    node_missing_reason,
 )
 
 pytestmark = pytest.mark.node
@@ -30,17 +30,9 @@ pytestmark = pytest.mark.node
 SCRIPT = JS_DIR / "foxglove.mjs"
 
 
-def _missing() -> str | None:
-    if (reason := node_missing_reason()) is not None:
-        return reason
-    if not (JS_DIR / "node_modules" / "@foxglove" / "ws-protocol").is_dir():
-        return "tests/js/node_modules lacks @foxglove/ws-protocol: run `npm ci --prefix tests/js`"
-    return None
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
-    if (reason := _missing()) is not None:
+    if (reason := missing()) is not None:
         pytest.skip(reason)
     # no assets: a sourced ROS environment (AMENT_PREFIX_PATH) would announce them
     process = ServerProcess(tmp_path_factory.mktemp("foxglove"), ("--no-assets",))

@@ -22,97 +22,17 @@
 // where the scenario is. Every wait is bounded.
 import rosmsg from "@foxglove/rosmsg";
 import serialization from "@foxglove/rosmsg2-serialization";
-import wsProtocol from "@foxglove/ws-protocol";
 import * as ROSLIB from "roslib";
 import WebSocket from "ws";
+import { bounded, foxglove as connect } from "./foxglove_client.mjs";
 
-const { FoxgloveClient } = wsProtocol;
 const { MessageReader, MessageWriter } = serialization;
 const [scenario, url, ...args] = process.argv.slice(2);
-const WAIT_MS = 15000;
 const IMAGE_BYTES = 2 * 1024 * 1024;
 
-function bounded(promise, what) {
-  let timer;
-  const timeout = new Promise((_, reject) => {
-    timer = setTimeout(() => reject(new Error(`timed out waiting for ${what}`)), WAIT_MS);
-  });
-  return Promise.race([promise, timeout]).finally(() => clearTimeout(timer));
-}
-
-// A Foxglove connection whose events are queued, so that a scenario awaits them in order.
+// A Foxglove connection to this scenario's URL (the shared client: foxglove_client.mjs).
 function foxglove(protocols) {
-  const ws = new WebSocket(url, protocols);
-  const client = new FoxgloveClient({ ws });
-  const state = {
-    ws,
-    client,
-    channels: new Map(),
-    services: new Map(),
-    statuses: [],
-    events: [],
-    waiters: [],
-  };
-  const push = (event) => {
-    state.events.push(event);
-    for (const waiter of state.waiters.splice(0)) waiter();
-  };
-  client.on("serverInfo", (info) => push({ kind: "serverInfo", info }));
-  client.on("advertise", (channels) => {
-    for (const channel of channels) state.channels.set(channel.topic, channel);
-    push({ kind: "advertise", channels });
-  });
-  client.on("unadvertise", (ids) => push({ kind: "unadvertise", ids }));
-  client.on("status", (status) => {
-    state.statuses.push(status);
-    push({ kind: "status", status });
-  });
-  client.on("message", (message) => push({ kind: "message", message }));
-  client.on("advertiseServices", (services) => {
-    for (const service of services) state.services.set(service.name, service);
-    push({ kind: "advertiseServices", services });
-  });
-  client.on("unadvertiseServices", (ids) => push({ kind: "unadvertiseServices", ids }));
-  client.on("serviceCallResponse", (response) => push({ kind: "answer", response }));
-  client.on("serviceCallFailure", (failure) => push({ kind: "answer", failure }));
-  client.on("parameterValues", (values) => push({ kind: "parameterValues", values }));
-  client.on("connectionGraphUpdate", (update) => push({ kind: "graph", update }));
-  client.on("error", (error) => push({ kind: "error", error: String(error) }));
-  client.on("close", () => push({ kind: "close" }));
-  // The next event that matches, waiting for it (and dropping the ones before it).
-  state.next = (match, what) =>
-    bounded(
-      new Promise((resolve) => {
-        const look = () => {
-          while (state.events.length) {
-            const event = state.events.shift();
-            if (match(event)) return resolve(event);
-          }
-          state.waiters.push(look);
-        };
-        look();
-      }),
-      what,
-    );
-  state.channel = async (topic) => {
-    if (!state.channels.has(topic)) {
-      await state.next(
-        (e) => e.kind === "advertise" && e.channels.some((c) => c.topic === topic),
-        `advertise ${topic}`,
-      );
-    }
-    return state.channels.get(topic);
-  };
-  state.service = async (name) => {
-    if (!state.services.has(name)) {
-      await state.next(
-        (e) => e.kind === "advertiseServices" && e.services.some((s) => s.name === name),
-        `advertiseServices ${name}`,
-      );
-    }
-    return state.services.get(name);
-  };
-  return state;
+  return connect(url, protocols);
 }
 
 // Tell the test something happened ({"event": NAME} on stdout).

@@ -15,11 +15,21 @@ export function bounded(promise, what, ms = WAIT_MS) {
 }
 
 // Connect to URL offering PROTOCOLS; events: serverInfo, advertise, unadvertise, status,
-// message, time, fetchAssetResponse, error, close.
+// message, time, asset (fetchAssetResponse), advertiseServices, unadvertiseServices, answer
+// (serviceCallResponse or serviceCallFailure), parameterValues, graph
+// (connectionGraphUpdate), error, close.
 export function foxglove(url, protocols = ["foxglove.sdk.v1"]) {
   const ws = new WebSocket(url, protocols);
   const client = new FoxgloveClient({ ws });
-  const state = { ws, client, channels: new Map(), statuses: [], events: [], waiters: [] };
+  const state = {
+    ws,
+    client,
+    channels: new Map(),
+    services: new Map(),
+    statuses: [],
+    events: [],
+    waiters: [],
+  };
   const push = (event) => {
     state.events.push(event);
     for (const waiter of state.waiters.splice(0)) waiter();
@@ -37,6 +47,15 @@ export function foxglove(url, protocols = ["foxglove.sdk.v1"]) {
   client.on("message", (message) => push({ kind: "message", message }));
   client.on("time", (time) => push({ kind: "time", timestamp: time.timestamp }));
   client.on("fetchAssetResponse", (response) => push({ kind: "asset", response }));
+  client.on("advertiseServices", (services) => {
+    for (const service of services) state.services.set(service.name, service);
+    push({ kind: "advertiseServices", services });
+  });
+  client.on("unadvertiseServices", (ids) => push({ kind: "unadvertiseServices", ids }));
+  client.on("serviceCallResponse", (response) => push({ kind: "answer", response }));
+  client.on("serviceCallFailure", (failure) => push({ kind: "answer", failure }));
+  client.on("parameterValues", (values) => push({ kind: "parameterValues", values }));
+  client.on("connectionGraphUpdate", (update) => push({ kind: "graph", update }));
   client.on("error", (error) => push({ kind: "error", error: String(error) }));
   client.on("close", () => push({ kind: "close" }));
   // The next event that matches, waiting for it (and dropping the ones before it).
@@ -62,6 +81,15 @@ export function foxglove(url, protocols = ["foxglove.sdk.v1"]) {
       );
     }
     return state.channels.get(topic);
+  };
+  state.service = async (name) => {
+    if (!state.services.has(name)) {
+      await state.next(
+        (e) => e.kind === "advertiseServices" && e.services.some((s) => s.name === name),
+        `advertiseServices ${name}`,
+      );
+    }
+    return state.services.get(name);
   };
   return state;
 }
