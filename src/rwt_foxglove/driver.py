@@ -8,10 +8,23 @@ it is woken (a reply, a graph message); the watcher calls ``sync`` every
 timed out (the graph announces no changes, so it is looked at: one pass over
 its topics and services).
 The session never awaits, so a slow client only fills its own queue.
+
+Direct sends (``run_foxglove(direct=True)``, the ``deferred-send`` shortcut:
+a plain socket): while the writer is idle, output is written from the event
+loop's callbacks instead of waking the writer task. A burst's frames are
+gathered first: a look at the queue is scheduled for the next turn of the loop
+and put off, turn after turn, while more output keeps coming, until
+``GATHER_BYTES`` are queued or ``GATHER_TURNS`` turns have passed. A publisher
+that yields to the loop after each message (one message a turn) so gets its
+burst written a few dozen messages at a time, one system call each, instead
+of one each; a lone message waits one turn, as the rosbridge side's deferred
+write. What the socket cannot take at once is left to the writer task, so
+frames keep their order and a slow reader only fills its own queue.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from typing import TYPE_CHECKING, Protocol
 
@@ -28,12 +41,26 @@ if TYPE_CHECKING:
 
     from .session import FoxgloveSession
 
-__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "Wakeup", "run_foxglove"]
+__all__ = [
+    "GATHER_BYTES",
+    "GATHER_TURNS",
+    "SYNC_INTERVAL_S",
+    "FoxgloveChannel",
+    "Wakeup",
+    "run_foxglove",
+]
 
 logger = logging.getLogger("rwt.foxglove")
 
 SYNC_INTERVAL_S = 0.25
 """Seconds between two looks at the graph's topics (how late an advertise may come)."""
+
+GATHER_BYTES = 64 * 1024
+"""Bytes of queued message data that end a burst's gathering: written at once (direct sends)."""
+
+GATHER_TURNS = 32
+"""Turns of the event loop a burst's frames are gathered for at most (direct sends): at
+most that many loop turns of latency added to a message, only while output keeps coming."""
 
 
 class FoxgloveChannel(Protocol):
@@ -48,20 +75,95 @@ class FoxgloveChannel(Protocol):
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame."""
 
+    def can_send_now(self) -> bool:
+        """Whether ``send_now`` would write at once (used only with ``direct``)."""
+
+    def send_now(self, frames: Sequence[OutFrame]) -> None:
+        """Write ``frames`` without awaiting (used only with ``direct``, after ``can_send_now``).
+
+        Raises:
+            RuntimeError: the transport refused (it is closing).
+            anyio.ClosedResourceError: the connection is closing.
+        """
+
 
 class Wakeup:
-    """Wakes the writer: ``set`` from the session's callbacks, ``wait`` in the writer."""
+    """Wakes the writer: ``set`` from the session's callbacks, ``wait`` in the writer.
+
+    Attached to a connection that can be written directly (``attach``), ``set``
+    gathers a burst over loop turns and writes it from a loop callback while
+    the writer is idle (the module's text); the writer is woken only for what
+    the socket cannot take at once.
+    """
 
     def __init__(self) -> None:
         self._event = anyio.Event()
+        self._channel: FoxgloveChannel | None = None
+        self._session: FoxgloveSession | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._idle = False  # the writer waits, holding no frames
+        self._looking = False  # a look at the queue is scheduled
+        self._more = False  # output came since the last look
+        self._turns = 0  # looks put off in this gathering
+
+    def attach(self, channel: FoxgloveChannel, session: FoxgloveSession) -> None:
+        """Write ``session``'s output to ``channel`` directly while the writer is idle.
+
+        Needs a running asyncio loop; without one the writer does every write.
+        """
+        try:
+            self._loop = asyncio.get_running_loop()
+        except RuntimeError:
+            return
+        self._channel = channel
+        self._session = session
+
+    def detach(self) -> None:
+        """No more direct writes (the connection ends)."""
+        self._channel = self._session = None
 
     def set(self) -> None:
         """Something was queued."""
+        if not self._idle or self._channel is None or self._event.is_set():
+            self._event.set()
+            return
+        self._more = True
+        if not self._looking:
+            self._looking = True
+            self._turns = 0
+            assert self._loop is not None
+            self._loop.call_soon(self._look)
+
+    def _look(self) -> None:
+        """Put the write off while the burst goes on; then write it, or wake the writer."""
+        session, channel = self._session, self._channel
+        if session is None or channel is None or not self._idle or self._event.is_set():
+            self._looking = False
+            return
+        if self._more and self._turns < GATHER_TURNS and session.queued_bytes < GATHER_BYTES:
+            self._more = False
+            self._turns += 1
+            assert self._loop is not None
+            self._loop.call_soon(self._look)
+            return
+        self._looking = self._more = False
+        try:
+            while channel.can_send_now():
+                frames = session.take()
+                if not frames:
+                    return
+                channel.send_now(frames)
+        except Exception:  # a broken or closing connection: its writer finds out and ends
+            logger.debug("event=direct_send_failed", exc_info=True)
         self._event.set()
 
     async def wait(self) -> None:
         """Wait until something was queued since the last wait."""
-        await self._event.wait()
+        self._idle = True
+        try:
+            await self._event.wait()
+        finally:
+            self._idle = False
         self._event = anyio.Event()
 
 
@@ -71,6 +173,7 @@ async def run_foxglove(
     wakeup: Wakeup,
     *,
     sync_interval_s: float = SYNC_INTERVAL_S,
+    direct: bool = False,
 ) -> None:
     """Run ``session`` on ``channel`` until the peer's end; the session is closed on return.
 
@@ -79,7 +182,12 @@ async def run_foxglove(
         session: made with ``on_output=wakeup.set``.
         wakeup: the writer's wake-up.
         sync_interval_s: seconds between topic syncs.
+        direct: ``channel`` can write without awaiting (``can_send_now``,
+            ``send_now``): output is gathered and written from the loop while
+            the writer is idle (the module's text).
     """
+    if direct:
+        wakeup.attach(channel, session)
     try:
         async with anyio.create_task_group() as tasks:
             tasks.start_soon(_write, channel, session, wakeup)
@@ -90,6 +198,7 @@ async def run_foxglove(
             finally:
                 tasks.cancel_scope.cancel()
     finally:
+        wakeup.detach()
         session.close()
 
 

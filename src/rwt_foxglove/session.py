@@ -208,6 +208,11 @@ class FoxgloveSession:
         return frames
 
     @property
+    def queued_bytes(self) -> int:
+        """Bytes of message data waiting to be taken."""
+        return self._queue.data_bytes
+
+    @property
     def dropped(self) -> int:
         """Message data frames dropped for this client so far (it read too slowly)."""
         return self._queue.dropped

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from rwt_foxglove import FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
+from rwt_protocol.shortcuts import enabled
 
 if TYPE_CHECKING:
     from rwt_graph.core import GraphCore
@@ -78,6 +79,8 @@ def foxglove_server(
             params=params,
         )
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
-        await run_foxglove(channel, foxglove, wakeup)
+        # ``deferred-send`` (rwt_protocol/shortcuts.py): off, the writer task writes everything
+        direct = channel.abilities.send_now and enabled("deferred-send")
+        await run_foxglove(channel, foxglove, wakeup, direct=direct)
 
     return serve
