@@ -10,16 +10,12 @@ its topics and services).
 The session never awaits, so a slow client only fills its own queue.
 
 Direct sends (``run_foxglove(direct=True)``, the ``deferred-send`` shortcut:
-a plain socket): while the writer is idle, output is written from the event
-loop's callbacks instead of waking the writer task. A burst's frames are
-gathered first: a look at the queue is scheduled for the next turn of the loop
-and put off, turn after turn, while more output keeps coming, until
-``GATHER_BYTES`` are queued or ``GATHER_TURNS`` turns have passed. A publisher
-that yields to the loop after each message (one message a turn) so gets its
-burst written a few dozen messages at a time, one system call each, instead
-of one each; a lone message waits one turn, as the rosbridge side's deferred
-write. What the socket cannot take at once is left to the writer task, so
-frames keep their order and a slow reader only fills its own queue.
+a plain socket): while the writer is idle, output is written from an event
+loop callback instead of waking the writer task, after the burst it belongs to
+was gathered over loop turns (gather.py): one system call for many messages
+instead of one each. What the socket cannot take at once is left to the
+writer task, so frames keep their order and a slow reader only fills its own
+queue.
 """
 
 from __future__ import annotations
@@ -32,6 +28,8 @@ import anyio
 
 from rwt_protocol.framing.streams import InFrame
 
+from .gather import Gatherer
+
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
@@ -41,26 +39,12 @@ if TYPE_CHECKING:
 
     from .session import FoxgloveSession
 
-__all__ = [
-    "GATHER_BYTES",
-    "GATHER_TURNS",
-    "SYNC_INTERVAL_S",
-    "FoxgloveChannel",
-    "Wakeup",
-    "run_foxglove",
-]
+__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "Wakeup", "run_foxglove"]
 
 logger = logging.getLogger("rwt.foxglove")
 
 SYNC_INTERVAL_S = 0.25
 """Seconds between two looks at the graph's topics (how late an advertise may come)."""
-
-GATHER_BYTES = 64 * 1024
-"""Bytes of queued message data that end a burst's gathering: written at once (direct sends)."""
-
-GATHER_TURNS = 32
-"""Turns of the event loop a burst's frames are gathered for at most (direct sends): at
-most that many loop turns of latency added to a message, only while output keeps coming."""
 
 
 class FoxgloveChannel(Protocol):
@@ -91,20 +75,19 @@ class Wakeup:
     """Wakes the writer: ``set`` from the session's callbacks, ``wait`` in the writer.
 
     Attached to a connection that can be written directly (``attach``), ``set``
-    gathers a burst over loop turns and writes it from a loop callback while
-    the writer is idle (the module's text); the writer is woken only for what
-    the socket cannot take at once.
+    joins the loop's gathering while the writer is idle and the frames are
+    written from there (gather.py); the writer is woken only for what the
+    socket cannot take at once.
     """
 
     def __init__(self) -> None:
         self._event = anyio.Event()
+        self._woken = False  # ``_event`` is set
         self._channel: FoxgloveChannel | None = None
         self._session: FoxgloveSession | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
+        self._gatherer: Gatherer | None = None
         self._idle = False  # the writer waits, holding no frames
-        self._looking = False  # a look at the queue is scheduled
-        self._more = False  # output came since the last look
-        self._turns = 0  # looks put off in this gathering
+        self._gathering = False  # in the gatherer's list
 
     def attach(self, channel: FoxgloveChannel, session: FoxgloveSession) -> None:
         """Write ``session``'s output to ``channel`` directly while the writer is idle.
@@ -112,7 +95,7 @@ class Wakeup:
         Needs a running asyncio loop; without one the writer does every write.
         """
         try:
-            self._loop = asyncio.get_running_loop()
+            self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
         except RuntimeError:
             return
         self._channel = channel
@@ -120,33 +103,35 @@ class Wakeup:
 
     def detach(self) -> None:
         """No more direct writes (the connection ends)."""
-        self._channel = self._session = None
+        self._channel = self._session = self._gatherer = None
 
     def set(self) -> None:
         """Something was queued."""
-        if not self._idle or self._channel is None or self._event.is_set():
-            self._event.set()
-            return
-        self._more = True
-        if not self._looking:
-            self._looking = True
-            self._turns = 0
-            assert self._loop is not None
-            self._loop.call_soon(self._look)
+        gatherer = self._gatherer
+        if gatherer is None or not self._idle or self._woken:
+            self._wake()
+        elif self._gathering:
+            gatherer.more = True
+        else:
+            self._gathering = True
+            gatherer.join(self)
 
-    def _look(self) -> None:
-        """Put the write off while the burst goes on; then write it, or wake the writer."""
+    def _wake(self) -> None:
+        if not self._woken:
+            self._woken = True
+            self._event.set()
+
+    def queued_bytes(self) -> int:
+        """Bytes of message data the session holds (``gather.Member``)."""
+        session = self._session
+        return 0 if session is None else session.queued_bytes
+
+    def flush(self) -> None:
+        """Write what the session queued now, or wake the writer (``gather.Member``)."""
+        self._gathering = False
         session, channel = self._session, self._channel
-        if session is None or channel is None or not self._idle or self._event.is_set():
-            self._looking = False
+        if session is None or channel is None or not self._idle or self._woken:
             return
-        if self._more and self._turns < GATHER_TURNS and session.queued_bytes < GATHER_BYTES:
-            self._more = False
-            self._turns += 1
-            assert self._loop is not None
-            self._loop.call_soon(self._look)
-            return
-        self._looking = self._more = False
         try:
             while channel.can_send_now():
                 frames = session.take()
@@ -155,7 +140,7 @@ class Wakeup:
                 channel.send_now(frames)
         except Exception:  # a broken or closing connection: its writer finds out and ends
             logger.debug("event=direct_send_failed", exc_info=True)
-        self._event.set()
+        self._wake()
 
     async def wait(self) -> None:
         """Wait until something was queued since the last wait."""
@@ -165,6 +150,7 @@ class Wakeup:
         finally:
             self._idle = False
         self._event = anyio.Event()
+        self._woken = False
 
 
 async def run_foxglove(
