@@ -28,7 +28,7 @@ import anyio
 
 from rwt_protocol.framing.streams import InFrame
 
-from .gather import Gatherer
+from .gather import GATHER_BYTES, Gatherer
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -133,8 +133,8 @@ class Wakeup:
         if session is None or channel is None or not self._idle or self._woken:
             return
         try:
-            while channel.can_send_now():
-                frames = session.take()
+            while channel.can_send_now():  # at most a gathering's bytes held by the transport
+                frames = session.take(GATHER_BYTES)
                 if not frames:
                     return
                 channel.send_now(frames)
