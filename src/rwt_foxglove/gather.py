@@ -13,9 +13,11 @@ waits one turn; a message of a burst at most ``GATHER_S``.
 
 from __future__ import annotations
 
-import asyncio
 import weakref
-from typing import Final, Protocol
+from typing import TYPE_CHECKING, Final, Protocol
+
+if TYPE_CHECKING:
+    import asyncio
 
 __all__ = ["GATHER_BYTES", "GATHER_S", "Gatherer", "Member"]
 
