@@ -55,7 +55,7 @@ from .protocol import (
     Unsubscribe,
     UnsubscribeConnectionGraph,
     UnsubscribeParameterUpdates,
-    encode_message_data,
+    encode_message_header,
     encode_op,
     parse_binary,
     parse_text,
@@ -505,7 +505,8 @@ class FoxgloveSession:
             return
         log_time = int(event.stamp * 1e9)
         for sid in subscriptions:
-            self._push_data(OutFrame(encode_message_data(sid, log_time, payload), True, True))
+            header = encode_message_header(sid, log_time)  # the payload is shared, not copied
+            self._push_data(OutFrame(payload, True, True, prefix=header))
         if self._on_output is not None:
             self._on_output()
 

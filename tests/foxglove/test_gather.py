@@ -1,8 +1,10 @@
 """A burst's frames gathered over loop turns and written from the loop (rwt_foxglove.gather).
 
 A Foxglove client must get the same messages, in the same order, whether its
-frames were gathered and written from the event loop (``deferred-send`` on) or
-each woke the writer task (off): bursts of small messages published one per
+frames were gathered and written from the event loop (``deferred-send`` on),
+each woke the writer task (off), or websockets framed them (every shortcut
+off; message data is a header of the client's own before a shared payload,
+``OutFrame.prefix``): bursts of small messages published one per
 turn, large ones past the gathering's byte bound, and many in one turn. The
 gatherer itself writes a connection once a turn brings no more output, once it
 holds ``GATHER_BYTES``, or once a burst outlasts ``GATHER_S``.
@@ -183,6 +185,7 @@ async def test_a_client_gets_the_same_messages_gathered_or_not(
 ) -> None:
     gathered, direct_writes = await _run_burst(monkeypatch, None)
     general, general_direct = await _run_burst(monkeypatch, "deferred-send")
+    framed_by_websockets, _ = await _run_burst(monkeypatch, "1")
     graph = Graph()
     mtype = graph.registry.message("std_msgs/msg/String")
     codec = codec_for(graph.registry, mtype)
@@ -193,6 +196,7 @@ async def test_a_client_gets_the_same_messages_gathered_or_not(
     ]
     assert gathered == expected
     assert general == expected
+    assert framed_by_websockets == expected
     assert general_direct == 0  # switched off: the writer task sends every frame
     # on: written from the loop, a burst's small messages many to a write
     assert 0 < direct_writes < len(expected) // 4
