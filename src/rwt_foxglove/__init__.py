@@ -6,8 +6,9 @@ graph's types as channels, ``wire`` reads and writes CDR payloads, ``session`` i
 one client's protocol on the graph, with its parts ``services`` (service calls),
 ``params`` (parameters) and ``conngraph`` (the connection graph), which send
 through ``output``; ``outqueue`` is its bounded queue and ``limits`` its bounds
-(all without I/O). ``driver`` runs a session over a WebSocket connection;
-``rwt_transports`` picks it in the handshake.
+(all without I/O). ``driver`` runs a session over a WebSocket connection,
+``gather`` gathering a burst's frames into few writes; ``rwt_transports`` picks
+it in the handshake.
 """
 
 from __future__ import annotations
