@@ -79,7 +79,8 @@ The shortcuts (name: what; module; benchmark; general path):
   ``rwt_transports.direct.DirectReader``; B6 (100 Hz Twist: -15 % CPU);
   anyio's ``SocketStream.receive``.
 - ``direct-write``: bytes handed to the asyncio transport under anyio's stream
-  without awaiting (private anyio attributes);
+  without awaiting (private anyio attributes), a header and a large payload
+  in one ``writev`` on the socket while the transport holds nothing;
   ``rwt_transports.direct.DirectWriter``; B7, B2; anyio's
   ``SocketStream.send`` from the connection's writer task.
 - ``deferred-send``: an idle connection's frames written at the end of the

@@ -375,8 +375,7 @@ class WebSocketChannel:
         else:  # queued behind the control frames, as ``send`` does
             self._send_through_protocol(frames)
             chunks = [data for data in self.protocol.data_to_send() if data]
-        for chunk in chunks:
-            direct.write(chunk)
+        direct.writev(chunks)
 
     def _send_through_protocol(self, frames: Sequence[OutFrame]) -> None:
         try:
@@ -390,8 +389,16 @@ class WebSocketChannel:
             raise anyio.ClosedResourceError from None
 
     async def _write_framed(self, frames: Sequence[OutFrame]) -> None:
-        for chunk in _framed(frames):
-            await self.stream.send(chunk)
+        direct = self._direct
+        if direct is None:
+            for chunk in _framed(frames):
+                await self.stream.send(chunk)
+            return
+        # a plain socket: the batch in one gathered write, then anyio waits while the
+        # transport holds more than its high-water mark (and raises if it broke)
+        await self.stream.send(b"")
+        direct.writev(_framed(frames))
+        await self.stream.send(b"")
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame with ``code`` and ``reason``."""
