@@ -7,8 +7,11 @@ of the cost of a burst of small messages. The ``Gatherer`` of a loop (one for
 all its Foxglove connections) puts the writes off while output keeps coming:
 it looks once a turn, and writes each gathering connection's frames when a
 turn brought no new output, when ``GATHER_S`` have passed since the gathering
-began, or when that connection has ``GATHER_BYTES`` queued. A lone message
-waits one turn; a message of a burst at most ``GATHER_S``.
+began, or when that connection has ``GATHER_BYTES`` queued. The first look of
+a gathering always waits one turn more: it runs before the publisher that
+caused it has had its next turn (its resumption was scheduled after the
+look), so it could not tell a burst from a lone message. A lone message so
+waits two turns of the loop; a message of a burst at most ``GATHER_S``.
 """
 
 from __future__ import annotations
@@ -66,7 +69,7 @@ class Gatherer:
 
     def join(self, member: Member) -> None:
         """``member`` has output: it is written at the end of the gathering (``Member.flush``)."""
-        self.more = True
+        self.more = True  # also for the first: its look must wait for the publisher's turn
         if not self._members:
             self._since = self._loop.time()
             self._loop.call_soon(self._look)
