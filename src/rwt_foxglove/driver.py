@@ -31,7 +31,7 @@ from rwt_protocol.framing.streams import InFrame
 from .gather import GATHER_BYTES, Gatherer
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
     from rwt_protocol.framing.streams import FramerEvent
     from rwt_protocol.server.commands import CloseCode
@@ -80,7 +80,9 @@ class Wakeup:
     socket cannot take at once.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, on_sent: Callable[[], None] | None = None) -> None:
+        self.on_sent = on_sent
+        """Called after each batch handed to the channel (the peer's progress, flow control)."""
         self._event = anyio.Event()
         self._woken = False  # ``_event`` is set
         self._channel: FoxgloveChannel | None = None
@@ -138,6 +140,8 @@ class Wakeup:
                 if not frames:
                     return
                 channel.send_now(frames)
+                if self.on_sent is not None:
+                    self.on_sent()
         except Exception:  # a broken or closing connection: its writer finds out and ends
             logger.debug("event=direct_send_failed", exc_info=True)
         self._wake()
@@ -208,6 +212,8 @@ async def _write(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wak
                 await channel.send(frames)
             except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
                 return
+            if wakeup.on_sent is not None:
+                wakeup.on_sent()
 
 
 async def _watch(session: FoxgloveSession, interval_s: float) -> None:

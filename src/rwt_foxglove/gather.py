@@ -49,12 +49,17 @@ _gatherers: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, Gatherer] = (
 class Gatherer:
     """The gathering of one event loop's connections (``for_loop``).
 
+    Args:
+        loop: the event loop.
+        max_s: seconds a gathering lasts at most (None: ``GATHER_S``).
+
     Attributes:
         more: output came since the last look (set by the members' wake-ups).
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop, max_s: float | None = None) -> None:
         self._loop = loop
+        self._max_s = GATHER_S if max_s is None else max_s
         self._members: list[Member] = []
         self._since = 0.0  # when this gathering began (the loop's clock)
         self.more = False
@@ -77,7 +82,7 @@ class Gatherer:
 
     def _look(self) -> None:
         members = self._members
-        if self.more and self._loop.time() - self._since < GATHER_S:
+        if self.more and self._loop.time() - self._since < self._max_s:
             self.more = False
             full = [member for member in members if member.queued_bytes() >= GATHER_BYTES]
             if full:

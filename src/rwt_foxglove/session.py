@@ -213,6 +213,11 @@ class FoxgloveSession:
         return self._queue.data_bytes
 
     @property
+    def queued_messages(self) -> int:
+        """Messages of data waiting to be taken."""
+        return self._queue.data_count
+
+    @property
     def dropped(self) -> int:
         """Message data frames dropped for this client so far (it read too slowly)."""
         return self._queue.dropped

@@ -291,6 +291,7 @@ class RosbridgeServer:
                 session_config.access,
                 self.config.foxglove.limits,
                 self.graph.params,
+                self.flow,
             )
         )
         # stream connections (not stdio, not in-process) close when idle

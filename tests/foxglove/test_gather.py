@@ -24,6 +24,7 @@ import anyio.lowlevel
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
 
+from rwt_foxglove import gather
 from rwt_foxglove.gather import GATHER_BYTES, Gatherer
 from rwt_graph.graph import Graph
 from rwt_graph.types.registry import codec_for
@@ -72,7 +73,7 @@ async def _turns(members: Sequence[Member], count: int, gatherer: Gatherer | Non
 
 
 async def test_a_lone_output_is_written_after_one_quiet_turn() -> None:
-    gatherer = Gatherer(asyncio.get_running_loop())
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)
     member = Member()
     gatherer.join(member)
     await _turns([member], 5)
@@ -81,7 +82,7 @@ async def test_a_lone_output_is_written_after_one_quiet_turn() -> None:
 
 
 async def test_output_that_keeps_coming_is_gathered_then_written() -> None:
-    gatherer = Gatherer(asyncio.get_running_loop())
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)  # no time bound here
     member = Member()
     gatherer.join(member)
     await _turns([member], 5, gatherer)  # a message each turn: still gathering
@@ -100,7 +101,7 @@ async def test_a_burst_that_never_ends_is_still_written() -> None:
 
 
 async def test_a_connection_that_holds_enough_is_written_alone_at_once() -> None:
-    gatherer = Gatherer(asyncio.get_running_loop())
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)
     small, full = Member(), Member(GATHER_BYTES)
     gatherer.join(small)
     gatherer.join(full)
@@ -160,6 +161,9 @@ async def _run_burst(monkeypatch: pytest.MonkeyPatch, off: str | None) -> tuple[
         real(self, frames)
 
     monkeypatch.setattr(WebSocketChannel, "send_now", spy)
+    # the gathering ends with the burst, not with the time bound: a slow machine
+    # (turns of a millisecond) would write every message alone within it
+    monkeypatch.setattr(gather, "GATHER_S", 3600.0)
     graph = Graph()
     publisher = graph.create_publisher("/burst", "std_msgs/msg/String")
     turns = _texts()
