@@ -7,7 +7,8 @@ port), the other the Foxglove SDK from PyPI (``foxglove.start_server`` and
 ``Channel.log``, its Rust server). Both send the same bytes: CDR of
 ``std_msgs/msg/String`` and ``sensor_msgs/msg/Image`` with a ROS 2 schema. rwt's
 robot publishes dicts (the graph validates and serializes them) and yields to
-its event loop after each message, as an asyncio program does; the SDK's robot
+its event loop after each message, as an asyncio program does
+(``--rwt-yield-every N``: after every N); the SDK's robot
 packs the CDR itself (a template and a counter: one copy per message) and calls
 ``Channel.log`` with ``log_time`` set to the wall clock.
 
@@ -20,7 +21,8 @@ and reported as medians:
 
 - ``burst1``, ``burst10``: 20,000 x 100 B as fast as the robot sends, to 1 and
   10 readers: delivered %, delivered msg/s (all readers, from the first send to
-  the last delivery), server CPU us per delivered message.
+  the last delivery), server CPU us per delivered message, and the robot's own
+  rate of publish (``log``) calls, from its first to its last.
 - ``large``: 2,000 x 100 kB to one reader: MB/s and loss.
 - ``image1``, ``image5``: a 2 MB ``sensor_msgs/Image`` at 30 Hz to 1 and 5
   readers: p50 and p99 latency, from the log time in the message data header to
@@ -148,6 +150,7 @@ def _rwt_robot() -> None:
         while subscribers(cmd["topic"]) < cmd["subs"] and time.monotonic() < deadline:  # noqa: ASYNC110
             await anyio.sleep(0.01)
         period = 1 / cmd["hz"] if cmd["hz"] else 0.0
+        every = cmd.get("yield_every", 1)
         started = time.monotonic_ns()
         for index in range(cmd["count"]):
             if period:
@@ -156,7 +159,8 @@ def _rwt_robot() -> None:
                 image.publish(_image_msg(time.time_ns(), pixels))
             else:
                 burst.publish({"data": _text(index, cmd["size"]).decode()})
-            await anyio.lowlevel.checkpoint()
+            if (index + 1) % every == 0:
+                await anyio.lowlevel.checkpoint()
         _reply({"started": started, "ended": time.monotonic_ns()})
 
     async def main() -> None:
@@ -469,8 +473,9 @@ def reader_main(argv: list[str]) -> int:
 class Robot:
     """A robot process (``rwt`` or ``sdk``) and its server's port."""
 
-    def __init__(self, kind: str) -> None:
+    def __init__(self, kind: str, yield_every: int = 1) -> None:
         self.kind = kind
+        self.yield_every = yield_every  # rwt's robot: messages between yields to its loop
         # its log (the SDK's line per failed send to the stalled reader, rwt's
         # slow_consumer) is shown only if it fails
         self.log = tempfile.TemporaryFile("w+")  # noqa: SIM115 (kept while the robot runs)
@@ -503,6 +508,7 @@ class Robot:
             "size": scenario.size,
             "hz": scenario.hz,
             "subs": subs,
+            "yield_every": self.yield_every,
         }
         self.proc.stdin.write(json.dumps(cmd) + "\n")
         self.proc.stdin.flush()
@@ -606,6 +612,7 @@ def run_once(robot: Robot, scenario: Scenario, idle_s: float) -> dict[str, Any]:
         "expected": expected,
         "delivered_pct": 100.0 * delivered / expected,
         "msg_per_s": delivered / span_s,
+        "sent_per_s": scenario.count / (max(sent["ended"] - sent["started"], 1) / 1e9),
         "mb_per_s": delivered * scenario.size / span_s / 1e6,
         "cpu_us_per_msg": cpu / 1e3 / max(delivered, 1),
         "reader_cpu_pct": 100.0 * result["cpu_ns"] / max(result["last_ns"] - sent["started"], 1),
@@ -635,12 +642,15 @@ ROWS: list[tuple[str, str, str]] = [
     ("burst1", "delivered_pct", "delivered %"),
     ("burst1", "msg_per_s", "delivered msg/s"),
     ("burst1", "cpu_us_per_msg", "server CPU us/delivered msg"),
+    ("burst1", "sent_per_s", "the robot's publish calls/s"),
     ("burst10", "delivered_pct", "delivered %"),
     ("burst10", "msg_per_s", "delivered msg/s"),
     ("burst10", "cpu_us_per_msg", "server CPU us/delivered msg"),
+    ("burst10", "sent_per_s", "the robot's publish calls/s"),
     ("large", "mb_per_s", "MB/s"),
     ("large", "delivered_pct", "delivered %"),
     ("large", "cpu_us_per_msg", "server CPU us/delivered msg"),
+    ("large", "sent_per_s", "the robot's publish calls/s"),
     ("image1", "p50_ms", "p50 latency ms"),
     ("image1", "p99_ms", "p99 latency ms"),
     ("image1", "delivered_pct", "delivered %"),
@@ -705,10 +715,13 @@ def _fmt(value: float | None) -> str:
     return f"{value:.3g}" if abs(value) < 10 else f"{value:.1f}"
 
 
-def run(quick: bool, rounds: int, only: list[str]) -> dict[str, Any]:
-    """Start both robots, run every scenario in interleaved rounds; the results by scenario."""
+def run(quick: bool, rounds: int, only: list[str], yield_every: int = 1) -> dict[str, Any]:
+    """Start both robots, run every scenario in interleaved rounds; the results by scenario.
+
+    ``yield_every``: messages rwt's robot publishes between two yields to its event loop.
+    """
     idle_s = 1.5 if quick else 3.0
-    robots = {kind: Robot(kind) for kind in SERVERS}
+    robots = {kind: Robot(kind, yield_every if kind == "rwt" else 1) for kind in SERVERS}
     results: dict[str, dict[str, list[dict[str, Any]]]] = {}
     try:
         warmup = Scenario("warmup", BURST, 1000, 100, 1)
@@ -745,12 +758,18 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--rounds", type=int, default=None, help="rounds per server (default 3)")
     parser.add_argument("--only", nargs="*", default=[], help="scenario names to run")
     parser.add_argument(
+        "--rwt-yield-every",
+        type=int,
+        default=1,
+        help="messages rwt's robot publishes between yields to its loop (default 1)",
+    )
+    parser.add_argument(
         "--out", type=Path, default=None, help="the JSON results (default: results/foxglove.json)"
     )
     args = parser.parse_args(argv)
     rounds = args.rounds or (1 if args.quick else 3)
     started = time.perf_counter()
-    results = run(args.quick, rounds, args.only)
+    results = run(args.quick, rounds, args.only, max(1, args.rwt_yield_every))
     text = table(results, rounds, args.quick)
     print(text)
     out = args.out or (None if args.quick else RESULTS / "foxglove.json")

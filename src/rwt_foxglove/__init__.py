@@ -8,7 +8,8 @@ one client's protocol on the graph, with its parts ``services`` (service calls),
 time while a bag plays) and ``assetrequests`` (asset requests), which send through
 ``output``; ``outqueue`` is its bounded queue and ``limits`` its bounds (all without
 I/O). ``assets`` finds and reads the files clients fetch, ``driver`` runs a session
-over a WebSocket connection; ``rwt_transports`` picks it in the handshake.
+over a WebSocket connection, ``gather`` gathering a burst's frames into few writes;
+``rwt_transports`` picks it in the handshake.
 """
 
 from __future__ import annotations

@@ -10,10 +10,19 @@ its topics and services); while a bag plays, the ticker calls ``tick`` every
 ``TIME_INTERVAL_S`` (server time); with assets, the fetcher reads the files clients
 ask for in a worker thread.
 The session never awaits, so a slow client only fills its own queue.
+
+Direct sends (``run_foxglove(direct=True)``, the ``deferred-send`` shortcut:
+a plain socket): while the writer is idle, output is written from an event
+loop callback instead of waking the writer task, after the burst it belongs to
+was gathered over loop turns (gather.py): one system call for many messages
+instead of one each. What the socket cannot take at once is left to the
+writer task, so frames keep their order and a slow reader only fills its own
+queue.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from typing import TYPE_CHECKING, Protocol
 
@@ -23,10 +32,11 @@ import anyio.to_thread
 from rwt_protocol.framing.streams import InFrame
 
 from .assets import AssetError
+from .gather import GATHER_BYTES, Gatherer
 from .servertime import TIME_INTERVAL_S
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
     from rwt_protocol.framing.streams import FramerEvent
     from rwt_protocol.server.commands import CloseCode
@@ -55,21 +65,102 @@ class FoxgloveChannel(Protocol):
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame."""
 
+    def can_send_now(self) -> bool:
+        """Whether ``send_now`` would write at once (used only with ``direct``)."""
+
+    def send_now(self, frames: Sequence[OutFrame]) -> None:
+        """Write ``frames`` without awaiting (used only with ``direct``, after ``can_send_now``).
+
+        Raises:
+            RuntimeError: the transport refused (it is closing).
+            anyio.ClosedResourceError: the connection is closing.
+        """
+
 
 class Wakeup:
-    """Wakes the writer: ``set`` from the session's callbacks, ``wait`` in the writer."""
+    """Wakes the writer: ``set`` from the session's callbacks, ``wait`` in the writer.
 
-    def __init__(self) -> None:
+    Attached to a connection that can be written directly (``attach``), ``set``
+    joins the loop's gathering while the writer is idle and the frames are
+    written from there (gather.py); the writer is woken only for what the
+    socket cannot take at once.
+    """
+
+    def __init__(self, on_sent: Callable[[], None] | None = None) -> None:
+        self.on_sent = on_sent
+        """Called after each batch handed to the channel (the peer's progress, flow control)."""
         self._event = anyio.Event()
+        self._woken = False  # ``_event`` is set
+        self._channel: FoxgloveChannel | None = None
+        self._session: FoxgloveSession | None = None
+        self._gatherer: Gatherer | None = None
+        self._idle = False  # the writer waits, holding no frames
+        self._gathering = False  # in the gatherer's list
+
+    def attach(self, channel: FoxgloveChannel, session: FoxgloveSession) -> None:
+        """Write ``session``'s output to ``channel`` directly while the writer is idle.
+
+        Needs a running asyncio loop; without one the writer does every write.
+        """
+        try:
+            self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
+        except RuntimeError:
+            return
+        self._channel = channel
+        self._session = session
+
+    def detach(self) -> None:
+        """No more direct writes (the connection ends)."""
+        self._channel = self._session = self._gatherer = None
 
     def set(self) -> None:
         """Something was queued."""
-        self._event.set()
+        gatherer = self._gatherer
+        if gatherer is None or not self._idle or self._woken:
+            self._wake()
+        elif self._gathering:
+            gatherer.more = True
+        else:
+            self._gathering = True
+            gatherer.join(self)
+
+    def _wake(self) -> None:
+        if not self._woken:
+            self._woken = True
+            self._event.set()
+
+    def queued_bytes(self) -> int:
+        """Bytes of message data the session holds (``gather.Member``)."""
+        session = self._session
+        return 0 if session is None else session.queued_bytes
+
+    def flush(self) -> None:
+        """Write what the session queued now, or wake the writer (``gather.Member``)."""
+        self._gathering = False
+        session, channel = self._session, self._channel
+        if session is None or channel is None or not self._idle or self._woken:
+            return
+        try:
+            while channel.can_send_now():  # at most a gathering's bytes held by the transport
+                frames = session.take(GATHER_BYTES)
+                if not frames:
+                    return
+                channel.send_now(frames)
+                if self.on_sent is not None:
+                    self.on_sent()
+        except Exception:  # a broken or closing connection: its writer finds out and ends
+            logger.debug("event=direct_send_failed", exc_info=True)
+        self._wake()
 
     async def wait(self) -> None:
         """Wait until something was queued since the last wait."""
-        await self._event.wait()
+        self._idle = True
+        try:
+            await self._event.wait()
+        finally:
+            self._idle = False
         self._event = anyio.Event()
+        self._woken = False
 
 
 async def run_foxglove(
@@ -79,6 +170,7 @@ async def run_foxglove(
     *,
     sync_interval_s: float = SYNC_INTERVAL_S,
     assets: AssetRoots | None = None,
+    direct: bool = False,
 ) -> None:
     """Run ``session`` on ``channel`` until the peer's end; the session is closed on return.
 
@@ -88,12 +180,18 @@ async def run_foxglove(
         wakeup: the writer's wake-up.
         sync_interval_s: seconds between topic syncs.
         assets: where the fetcher reads the files clients ask for; None: no fetcher.
+        direct: ``channel`` can write without awaiting (``can_send_now``,
+            ``send_now``): output is gathered and written from the loop while
+            the writer is idle (the module's text).
     """
-    sent = Wakeup()  # the writer sent something: a queued asset response may be gone
+    sent = Wakeup()  # something was sent: a queued asset response may be gone
     asked = Wakeup()  # the reader handed frames over: a fetchAsset may wait
+    _also_on_sent(wakeup, sent.set)
+    if direct:
+        wakeup.attach(channel, session)
     try:
         async with anyio.create_task_group() as tasks:
-            tasks.start_soon(_write, channel, session, wakeup, sent)
+            tasks.start_soon(_write, channel, session, wakeup)
             tasks.start_soon(_watch, session, sync_interval_s)
             if session.announces_time:
                 tasks.start_soon(_tick, session, TIME_INTERVAL_S)
@@ -105,6 +203,7 @@ async def run_foxglove(
             finally:
                 tasks.cancel_scope.cancel()
     finally:
+        wakeup.detach()
         session.close()
 
 
@@ -123,9 +222,7 @@ async def _read(
         asked.set()
 
 
-async def _write(
-    channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup, sent: Wakeup
-) -> None:
+async def _write(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup) -> None:
     while True:
         await wakeup.wait()
         while frames := session.take():
@@ -133,7 +230,8 @@ async def _write(
                 await channel.send(frames)
             except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
                 return
-            sent.set()
+            if wakeup.on_sent is not None:
+                wakeup.on_sent()
 
 
 async def _fetch(
@@ -162,6 +260,18 @@ async def _tick(session: FoxgloveSession, interval_s: float) -> None:
     while True:
         await anyio.sleep(interval_s)
         session.tick()
+
+
+def _also_on_sent(wakeup: Wakeup, call: Callable[[], None]) -> None:
+    """Make ``call`` run after each batch sent too (by the writer or a gathered write)."""
+    before = wakeup.on_sent
+
+    def on_sent() -> None:
+        call()
+        if before is not None:
+            before()
+
+    wakeup.on_sent = on_sent
 
 
 async def _watch(session: FoxgloveSession, interval_s: float) -> None:

@@ -58,6 +58,11 @@ class OutQueue:
         """Bytes of message data queued."""
         return self._data_bytes
 
+    @property
+    def data_count(self) -> int:
+        """Messages of data queued."""
+        return self._data_count
+
     def push(self, frame: OutFrame) -> bool:
         """Queue ``frame``; drop the oldest data while over a bound.
 

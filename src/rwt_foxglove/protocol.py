@@ -80,6 +80,7 @@ __all__ = [
     "UnsubscribeParameterUpdates",
     "encode_fetch_asset_response",
     "encode_message_data",
+    "encode_message_header",
     "encode_op",
     "encode_service_call_response",
     "encode_time",
@@ -541,7 +542,12 @@ def encode_op(op: ServerOp) -> bytes:
 
 def encode_message_data(subscription_id: int, log_time_ns: int, payload: bytes) -> bytes:
     """A binary message data frame (opcode 0x01): header, then the payload as is."""
-    return _DATA_HEADER.pack(_MESSAGE_DATA, subscription_id, log_time_ns) + payload
+    return encode_message_header(subscription_id, log_time_ns) + payload
+
+
+def encode_message_header(subscription_id: int, log_time_ns: int) -> bytes:
+    """The 13 bytes of a message data frame before its payload (opcode, id, log time)."""
+    return _DATA_HEADER.pack(_MESSAGE_DATA, subscription_id, log_time_ns)
 
 
 def encode_service_call_response(

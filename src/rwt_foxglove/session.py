@@ -59,7 +59,7 @@ from .protocol import (
     UnsubscribeConnectionGraph,
     UnsubscribeParameterUpdates,
     encode_fetch_asset_response,
-    encode_message_data,
+    encode_message_header,
     encode_op,
     parse_binary,
     parse_text,
@@ -225,6 +225,16 @@ class FoxgloveSession:
             if self.params is not None:
                 self.params.flush()
         return frames
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes of message data waiting to be taken."""
+        return self._queue.data_bytes
+
+    @property
+    def queued_messages(self) -> int:
+        """Messages of data waiting to be taken."""
+        return self._queue.data_count
 
     @property
     def dropped(self) -> int:
@@ -578,7 +588,8 @@ class FoxgloveSession:
             log_time = now
             self._told_time(now)
         for sid in subscriptions:
-            self._push_data(OutFrame(encode_message_data(sid, log_time, payload), True, True))
+            header = encode_message_header(sid, log_time)  # the payload is shared, not copied
+            self._push_data(OutFrame(payload, True, True, prefix=header))
         if self._on_output is not None:
             self._on_output()
 

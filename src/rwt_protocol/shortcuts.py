@@ -79,13 +79,17 @@ The shortcuts (name: what; module; benchmark; general path):
   ``rwt_transports.direct.DirectReader``; B6 (100 Hz Twist: -15 % CPU);
   anyio's ``SocketStream.receive``.
 - ``direct-write``: bytes handed to the asyncio transport under anyio's stream
-  without awaiting (private anyio attributes);
+  without awaiting (private anyio attributes), a header and a large payload
+  in one ``writev`` on the socket while the transport holds nothing;
   ``rwt_transports.direct.DirectWriter``; B7, B2; anyio's
   ``SocketStream.send`` from the connection's writer task.
 - ``deferred-send``: an idle connection's frames written at the end of the
   reader's batch, one write per connection, from the server's flow control's
-  list (``flush_deferred``); ``rwt_transports.pump``; B7 (latency), B2 (fan-out);
-  waking the connection's writer task for each output.
+  list (``flush_deferred``); a Foxglove connection's gathered over the loop's
+  turns while a burst goes on and written from the loop
+  (``rwt_foxglove.gather``); ``rwt_transports.pump``; B7 (latency), B2
+  (fan-out), the Foxglove comparison's bursts; waking the connection's writer
+  task for each output.
 - ``loop-clock``: the pump reads ``loop.time`` itself, the value
   ``anyio.current_time`` returns on asyncio; ``rwt_transports.pump``; B6
   (5 % of the 100 Hz Twist's samples); ``anyio.current_time``.
@@ -247,8 +251,9 @@ SHORTCUTS: tuple[Shortcut, ...] = (
     Shortcut(
         "deferred-send",
         "rwt_transports.pump.flush_deferred",
-        "an idle connection written at the end of the reader's batch (flow control's list)",
-        "B7, B2",
+        "an idle connection written at the end of the reader's batch (flow control's list);"
+        " a Foxglove connection's burst gathered over loop turns (rwt_foxglove.gather)",
+        "B7, B2, Foxglove bursts",
         "waking the connection's writer task (ConnectionPump._writer)",
     ),
     Shortcut(

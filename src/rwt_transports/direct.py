@@ -1,6 +1,10 @@
 """Direct use of the asyncio transport under an anyio socket stream (benchmarks/README.md).
 
 Writing: a connection's writer task (pump.py) sends every frame by default.
+A frame's small header and its large payload are written together
+(``DirectWriter.writev``: one ``writev`` system call, the payload not copied)
+where Python 3.11's transport would make two sends, the header a TCP segment
+of its own.
 For a small message fanned out to many subscribers that costs several task
 switches per subscriber (wake the writer, take the lock, await the stream's
 send). When a connection's writer is idle and its socket has nothing buffered,
@@ -22,12 +26,14 @@ one switched off, ``for_stream`` gives None and anyio's stream is used.
 
 from __future__ import annotations
 
+import os
 import select
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
 if TYPE_CHECKING:
     import asyncio
     from collections import deque
+    from collections.abc import Sequence
 
     from anyio.abc import ByteReceiveStream
 
@@ -35,11 +41,13 @@ from rwt_protocol.shortcuts import enabled
 
 __all__ = ["DirectReader", "DirectWriter"]
 
+_IOV_MAX = 1024  # buffers one ``writev`` takes at most (Linux's IOV_MAX)
+
 
 class _Transport(Protocol):
     """The part of ``asyncio.Transport`` used here (uvloop's transports have it too)."""
 
-    def write(self, data: bytes) -> None: ...
+    def write(self, data: bytes | memoryview) -> None: ...
 
     def get_write_buffer_size(self) -> int: ...
 
@@ -108,11 +116,16 @@ class DirectWriter:
     the session's outbox, as with the writer task.
     """
 
-    __slots__ = ("_protocol", "_transport")
+    __slots__ = ("_fd", "_protocol", "_transport")
 
     def __init__(self, transport: _Transport, protocol: _StreamProtocol) -> None:
         self._transport = transport
         self._protocol = protocol
+        # Gathered writes (``writev``) only under asyncio's own socket transport, whose
+        # buffer is all that stands between its writes and the socket; -1: none.
+        sock = transport.get_extra_info("socket")
+        asyncio_own = type(transport).__module__.startswith("asyncio.")
+        self._fd: int = sock.fileno() if asyncio_own and sock is not None else -1
 
     @classmethod
     def for_stream(cls, stream: object) -> DirectWriter | None:
@@ -141,6 +154,38 @@ class DirectWriter:
             RuntimeError: the transport refused (it is closing).
         """
         self._transport.write(data)
+
+    def writev(self, parts: Sequence[bytes]) -> None:
+        """Write ``parts`` in order, in one system call where the socket takes them.
+
+        A large payload and the small header before it go out together without
+        being joined (``os.writev``), which the transport cannot do (Python
+        3.11's ``write`` sends one buffer). That is done only while the
+        transport holds nothing, so nothing it holds is overtaken; what the
+        socket does not take at once, and every part otherwise, goes to the
+        transport as ``write`` would. Never blocks.
+
+        Raises:
+            RuntimeError: the transport refused (it is closing).
+        """
+        transport = self._transport
+        sent = 0
+        if (
+            self._fd >= 0
+            and len(parts) > 1
+            and not transport.is_closing()
+            and transport.get_write_buffer_size() == 0
+        ):
+            try:
+                sent = os.writev(self._fd, parts[:_IOV_MAX])
+            except OSError:  # full (EAGAIN), or broken: the transport's write meets it again
+                sent = 0
+        for part in parts:
+            if sent >= len(part):
+                sent -= len(part)
+                continue
+            transport.write(memoryview(part)[sent:] if sent else part)
+            sent = 0
 
 
 class DirectReader:

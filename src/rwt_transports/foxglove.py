@@ -14,6 +14,13 @@ With an authenticator (``--auth-secret-file``) a Foxglove client, which has no
 in its URL's query string (``rwt_protocol.auth.auth_query``); ``url_token_gate``
 checks them with the same authenticator during the handshake and refuses the
 connection (HTTP 401 without a token, 403 with a bad one) before any session (D33).
+
+Its queue takes part in the server's flow control as a rosbridge connection's
+outbox does (``FoxgloveOutlet``, docs/limits.md "Backpressure"): a publishing
+connection's reader, or a link's deliveries, whose batch filled the queue of a
+Foxglove client past half its bounds waits while that client reads, within its
+hold budget; a client that does not read is found slow and left to drop its
+own oldest data. A publisher in the server's process is never held.
 """
 
 from __future__ import annotations
@@ -25,9 +32,14 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
+import anyio
+
 from rwt_foxglove import AssetRoots, FoxgloveLimits, FoxgloveSession, Wakeup, run_foxglove
 from rwt_protocol.auth import auth_from_query
 from rwt_protocol.errors import RemoteProtocolError
+from rwt_protocol.shortcuts import enabled
+
+from .holding import Held
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -39,9 +51,10 @@ if TYPE_CHECKING:
     from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.session import Session
 
+    from .flow import FlowControl
     from .websocket import FoxgloveGate, FoxgloveServe, WebSocketChannel
 
-__all__ = ["FoxgloveOptions", "foxglove_server", "url_token_gate"]
+__all__ = ["FoxgloveOptions", "FoxgloveOutlet", "foxglove_server", "url_token_gate"]
 
 logger = logging.getLogger("rwt.foxglove")
 
@@ -75,6 +88,7 @@ def foxglove_server(
     access: AccessPolicy,
     options: FoxgloveOptions,
     params: Parameters | None = None,
+    flow: FlowControl[Held] | None = None,
 ) -> FoxgloveServe:
     """The function that runs each accepted Foxglove connection of one server.
 
@@ -84,6 +98,8 @@ def foxglove_server(
         options: each client's bounds (``limits``) and where assets are found
             (read once, with the environment's ROS paths, here).
         params: the graph's parameters (``Graph.params``); None: no parameters capability.
+        flow: the server's flow control, which each client's queue takes part in;
+            None: publishers never wait for a Foxglove client.
     """
     limits = options.limits
     assets = (
@@ -98,18 +114,37 @@ def foxglove_server(
             )
             return
         wakeup = Wakeup()
+        outlet: FoxgloveOutlet | None = None
+
+        def on_output() -> None:
+            wakeup.set()
+            if flow is not None and outlet is not None and flow.in_batch:
+                outlet.note_output(flow)
+
         foxglove = FoxgloveSession(
             graph,
             session.client_id,
             session_id=session_id,
             access=access,
             limits=limits,
-            on_output=wakeup.set,
+            on_output=on_output,
             params=params,
             assets=assets is not None,
         )
+        if flow is not None:
+            outlet = FoxgloveOutlet(foxglove, channel, limits)
+            flow.open_connection(
+                outlet, session.peer, session.config.hold_budget_s, outlet.water_marks
+            )
+            wakeup.on_sent = outlet.sent
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
-        await run_foxglove(channel, foxglove, wakeup, assets=assets)
+        # ``deferred-send`` (rwt_protocol/shortcuts.py): off, the writer task writes everything
+        direct = channel.abilities.send_now and enabled("deferred-send")
+        try:
+            await run_foxglove(channel, foxglove, wakeup, assets=assets, direct=direct)
+        finally:
+            if outlet is not None:
+                outlet.close()  # readers waiting for it go on
 
     return serve
 
@@ -156,3 +191,58 @@ def url_token_gate(authenticator: Authenticator) -> FoxgloveGate:
         return None
 
     return refusal
+
+
+class FoxgloveOutlet(Held):
+    """A Foxglove client's queue as the server's flow control sees it (the module's text).
+
+    Its fill is counted in bytes, a message counting at least its share of the
+    byte bound (``max_queue_bytes / max_queue_messages``), so that either bound
+    congests: the watermarks are half and a quarter of ``max_queue_bytes``.
+
+    Args:
+        session: the client's session.
+        channel: its connection (the socket's send queue tells progress).
+        limits: its bounds.
+    """
+
+    def __init__(
+        self, session: FoxgloveSession, channel: WebSocketChannel, limits: FoxgloveLimits
+    ) -> None:
+        super().__init__()
+        self._session = session
+        self._channel = channel
+        self._per_message = max(1, limits.max_queue_bytes // max(1, limits.max_queue_messages))
+        self.water_marks = (limits.max_queue_bytes // 2, limits.max_queue_bytes // 4)
+        self._closed = False
+
+    def fill(self) -> int:
+        """The queue's fill in bytes (each message at least its share of the byte bound)."""
+        session = self._session
+        return max(session.queued_bytes, session.queued_messages * self._per_message)
+
+    def note_output(self, flow: FlowControl[Held]) -> None:
+        """Output was queued during a batch: the batch congested it if it is past its mark."""
+        if not self._closed and flow.congests(self, self.fill()):
+            flow.note_congested(self, anyio.current_time())
+
+    def sent(self) -> None:
+        """A batch went to the socket: the client makes progress (wakes held readers)."""
+        self.note_take(self._session.queued_bytes == 0)
+
+    def close(self) -> None:
+        """The connection ended: nobody waits for it any more."""
+        self._closed = True
+        self.note_take(True)
+
+    def over_water(self, *, own: bool, mark: int) -> bool:
+        """Whether its fill is over ``mark`` (never for its own reader, which is no pump)."""
+        return not own and not self._closed and self.fill() > mark
+
+    def backlog_bytes(self) -> int:
+        """What the client has yet to read: its queue and the socket's send queue."""
+        return self._session.queued_bytes + (self.unsent_bytes() or 0)
+
+    def unsent_bytes(self) -> int | None:
+        """Bytes the socket's kernel still holds for the client (sendqueue.py)."""
+        return self._channel.unsent_bytes()

@@ -290,7 +290,11 @@ class RosbridgeServer:
         self.graph.port.outflow = OutboundHold(self.flow)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
         self._foxglove = foxglove_server(
-            self.graph.port, session_config.access, self.config.foxglove, self.graph.params
+            self.graph.port,
+            session_config.access,
+            self.config.foxglove,
+            self.graph.params,
+            self.flow,
         )
         authenticator = session_config.authenticator
         self._foxglove_gate = None if authenticator is None else url_token_gate(authenticator)

@@ -380,22 +380,30 @@ class WebSocketChannel:
         else:  # queued behind the control frames, as ``send`` does
             self._send_through_protocol(frames)
             chunks = [data for data in self.protocol.data_to_send() if data]
-        for chunk in chunks:
-            direct.write(chunk)
+        direct.writev(chunks)
 
     def _send_through_protocol(self, frames: Sequence[OutFrame]) -> None:
         try:
             for frame in frames:
+                data = frame.prefix + frame.data if frame.prefix else frame.data
                 if frame.binary:
-                    self.protocol.send_binary(frame.data)
+                    self.protocol.send_binary(data)
                 else:
-                    self.protocol.send_text(frame.data)
+                    self.protocol.send_text(data)
         except InvalidState:
             raise anyio.ClosedResourceError from None
 
     async def _write_framed(self, frames: Sequence[OutFrame]) -> None:
-        for chunk in _framed(frames):
-            await self.stream.send(chunk)
+        direct = self._direct
+        if direct is None:
+            for chunk in _framed(frames):
+                await self.stream.send(chunk)
+            return
+        # a plain socket: the batch in one gathered write, then anyio waits while the
+        # transport holds more than its high-water mark (and raises if it broke)
+        await self.stream.send(b"")
+        direct.writev(_framed(frames))
+        await self.stream.send(b"")
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """Send a close frame with ``code`` and ``reason``."""
@@ -680,12 +688,20 @@ def _framed(frames: Sequence[OutFrame]) -> list[bytes]:
 
     The header is made once and kept on the ``OutFrame``, which every
     subscriber of the same form shares (frame once); small frames are joined
-    and a large payload is written without a copy (``writes.coalesce``).
+    and a large payload is written without a copy (``writes.coalesce``), also
+    behind a frame's own ``prefix``.
     """
 
     def parts(frame: OutFrame) -> tuple[bytes, bytes, bytes]:
         header = frame.header
         if header is None:
+            prefix = frame.prefix
+            if prefix:  # one connection's frame: its header and prefix go as one piece
+                return (
+                    _header(len(prefix) + len(frame.data), frame.binary) + prefix,
+                    frame.data,
+                    b"",
+                )
             header = _header(len(frame.data), frame.binary)
             object.__setattr__(frame, "header", header)  # shared: framed once for all
         return header, frame.data, b""

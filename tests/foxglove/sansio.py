@@ -29,7 +29,7 @@ class Client:
         while frames := self.session.take():
             for frame in frames:
                 if frame.binary:
-                    self.binary.append(frame.data)
+                    self.binary.append(frame.prefix + frame.data)
                 else:
                     self.ops.append(json.loads(frame.data))
 

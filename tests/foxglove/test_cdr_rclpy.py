@@ -155,8 +155,9 @@ def test_message_data_is_rclpy_cdr(type_name: str) -> None:
     )
     publisher.publish(graph.registry.message(type_name).from_python(as_dict))
     (frame,) = [frame for frame in session.take() if frame.binary]
-    assert frame.data[0] == 1 and struct.unpack_from("<I", frame.data, 1) == (1,)
-    payload = frame.data[13:]
+    message = frame.prefix + frame.data  # what the client gets in one message
+    assert message[0] == 1 and struct.unpack_from("<I", message, 1) == (1,)
+    payload = message[13:]
     # rclpy leaves alignment padding uninitialised (it differs from run to run); rosbags
     # writes zeros there: every other byte is the same, and rclpy reads ours back
     assert len(payload) == len(expected)

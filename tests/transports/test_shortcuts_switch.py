@@ -156,3 +156,29 @@ async def test_framing_here_writes_the_bytes_websockets_would(
         await channel.send([OutFrame(data, binary=binary) for data, binary in payloads])
         wires[value] = b"".join(wire.sent)
     assert wires[""] == wires["ws-frame-writer"]
+
+
+@pytest.mark.anyio
+async def test_a_frame_with_a_prefix_is_one_message_either_way(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Foxglove message data: the client's own header before a payload others share
+    sizes = [0, 112, 113, 65522, 65523, 70000, 200_000]
+    frames = [
+        OutFrame(bytes(i % 251 for i in range(n)), True, True, prefix=b"\x01" + bytes(12))
+        for n in sizes
+    ]
+    wires = {}
+    for value in ("", "ws-frame-writer"):
+        monkeypatch.setenv(ENV_VAR, value)
+        wire = _Wire()
+        protocol = ServerProtocol(max_size=1 << 20, state=State.OPEN)
+        channel = WebSocketChannel(wire, protocol, WebSocketOptions(), 10 * 2**20)  # type: ignore[arg-type]
+        await channel.send(frames)
+        wires[value] = b"".join(wire.sent)
+    assert wires[""] == wires["ws-frame-writer"]
+    whole = _Wire()  # the same messages made whole first, as websockets frames them
+    protocol = ServerProtocol(max_size=1 << 20, state=State.OPEN)
+    channel = WebSocketChannel(whole, protocol, WebSocketOptions(), 10 * 2**20)  # type: ignore[arg-type]
+    await channel.send([OutFrame(frame.prefix + frame.data, True) for frame in frames])
+    assert wires[""] == b"".join(whole.sent)

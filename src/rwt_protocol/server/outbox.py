@@ -63,6 +63,11 @@ class OutFrame:
             every other: one frame object goes to all subscribers of a form
             (``encoding.publish_frames``), so it is framed once (benchmarks/README.md). Only
             the header is kept, so a queued frame costs its payload once.
+        prefix: bytes sent before ``data`` in the same message: a header of one
+            connection's own (a Foxglove message data header) in front of a
+            payload that many connections share, which so is not copied for
+            each. Empty for every rosbridge frame; only the WebSocket transport
+            is given frames with one, and sends ``prefix + data`` as one message.
     """
 
     data: bytes
@@ -70,6 +75,7 @@ class OutFrame:
     droppable: bool = False
     group: object = None
     header: bytes | None = field(default=None, compare=False, repr=False)
+    prefix: bytes = b""
 
 
 class Outbox:

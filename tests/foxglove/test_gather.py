@@ -1,0 +1,210 @@
+"""A burst's frames gathered over loop turns and written from the loop (rwt_foxglove.gather).
+
+A Foxglove client must get the same messages, in the same order, whether its
+frames were gathered and written from the event loop (``deferred-send`` on),
+each woke the writer task (off), or websockets framed them (every shortcut
+off; message data is a header of the client's own before a shared payload,
+``OutFrame.prefix``): bursts of small messages published one per
+turn, large ones past the gathering's byte bound, and many in one turn. The
+gatherer itself writes a connection once a turn brings no more output, once it
+holds ``GATHER_BYTES``, or once a burst outlasts ``GATHER_S``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import struct
+from collections import Counter
+from collections.abc import AsyncIterator, Sequence
+from contextlib import asynccontextmanager
+
+import anyio
+import anyio.lowlevel
+import pytest
+from websockets.asyncio.client import ClientConnection, connect
+
+from rwt_foxglove import gather
+from rwt_foxglove.gather import GATHER_BYTES, Gatherer
+from rwt_graph.graph import Graph
+from rwt_graph.types.registry import codec_for
+from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.shortcuts import ENV_VAR
+from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt_transports.websocket import WebSocketChannel
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture(
+    params=[pytest.param({}, id="asyncio"), pytest.param({"use_uvloop": True}, id="uvloop")]
+)
+def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
+    # the direct writes differ under uvloop (its transport takes every part), so both run
+    return "asyncio", request.param
+
+
+# ---- the gatherer alone --------------------------------------------------------------
+
+
+class Member:
+    """A connection as the gatherer sees it: bytes queued, and when it was flushed."""
+
+    def __init__(self, queued: int = 0) -> None:
+        self.queued = queued
+        self.flushed_at: int | None = None  # the turn
+        self.turn = 0
+
+    def queued_bytes(self) -> int:
+        return self.queued
+
+    def flush(self) -> None:
+        self.flushed_at = self.turn
+
+
+async def _turns(members: Sequence[Member], count: int, gatherer: Gatherer | None = None) -> None:
+    """Let the loop turn ``count`` times; with ``gatherer``, output comes each turn."""
+    for _ in range(count):
+        if gatherer is not None:
+            gatherer.more = True
+        await asyncio.sleep(0)
+        for member in members:
+            member.turn += 1
+
+
+async def test_a_lone_output_is_written_after_one_quiet_turn() -> None:
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)
+    member = Member()
+    gatherer.join(member)
+    await _turns([member], 5)
+    # the first look waits for the publisher's next turn, the second finds it quiet
+    assert member.flushed_at == 1
+
+
+async def test_output_that_keeps_coming_is_gathered_then_written() -> None:
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)  # no time bound here
+    member = Member()
+    gatherer.join(member)
+    await _turns([member], 5, gatherer)  # a message each turn: still gathering
+    assert member.flushed_at is None
+    await _turns([member], 3)  # the burst ended
+    assert member.flushed_at is not None
+
+
+async def test_a_burst_that_never_ends_is_still_written() -> None:
+    gatherer = Gatherer(asyncio.get_running_loop())
+    member = Member()
+    gatherer.join(member)
+    with anyio.fail_after(10):
+        while member.flushed_at is None:  # the time bound (GATHER_S) ends the gathering
+            await _turns([member], 1, gatherer)
+
+
+async def test_a_connection_that_holds_enough_is_written_alone_at_once() -> None:
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)
+    small, full = Member(), Member(GATHER_BYTES)
+    gatherer.join(small)
+    gatherer.join(full)
+    await _turns([small, full], 3, gatherer)
+    assert full.flushed_at is not None and full.flushed_at <= 1
+    assert small.flushed_at is None  # still gathering while output comes
+    await _turns([small, full], 3)
+    assert small.flushed_at is not None
+
+
+# ---- over a real server ---------------------------------------------------------------
+
+
+@asynccontextmanager
+async def serving(graph: Graph) -> AsyncIterator[RosbridgeServer]:
+    server = RosbridgeServer(graph, ServerConfig(port=0))
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        try:
+            with anyio.fail_after(60):
+                yield server
+        finally:
+            tg.cancel_scope.cancel()
+
+
+async def _subscribe(ws: ClientConnection, topic: str) -> None:
+    while True:
+        frame = await ws.recv()
+        if isinstance(frame, str) and json.loads(frame)["op"] == "advertise":
+            for channel in json.loads(frame)["channels"]:
+                if channel["topic"] == topic:
+                    subscription = {"id": 7, "channelId": channel["id"]}
+                    await ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscription]}))
+                    return
+
+
+def _texts() -> list[list[str]]:
+    """The burst, by loop turn: small ones one a turn, large ones, then many in one turn."""
+    small = [[f"small {i}"] for i in range(300)]
+    large = [[f"large {i} ".ljust(100_000 + i, "x")] for i in range(12)]
+    together = [[f"together {i}" for i in range(200)]]
+    tail = [[f"tail {i}"] for i in range(5)]
+    return small + large + together + tail
+
+
+async def _run_burst(monkeypatch: pytest.MonkeyPatch, off: str | None) -> tuple[list[bytes], int]:
+    """The payloads a Foxglove client got for ``_texts``, and the direct writes made."""
+    if off is None:
+        monkeypatch.delenv(ENV_VAR, raising=False)
+    else:
+        monkeypatch.setenv(ENV_VAR, off)
+    direct = Counter[str]()
+    real = WebSocketChannel.send_now
+
+    def spy(self: WebSocketChannel, frames: Sequence[OutFrame]) -> None:
+        direct["writes"] += 1
+        real(self, frames)
+
+    monkeypatch.setattr(WebSocketChannel, "send_now", spy)
+    # the gathering ends with the burst, not with the time bound: a slow machine
+    # (turns of a millisecond) would write every message alone within it
+    monkeypatch.setattr(gather, "GATHER_S", 3600.0)
+    graph = Graph()
+    publisher = graph.create_publisher("/burst", "std_msgs/msg/String")
+    turns = _texts()
+    count = sum(len(turn) for turn in turns)
+    async with (
+        serving(graph) as server,
+        connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"], max_size=None) as ws,  # type: ignore[list-item]
+    ):
+        await _subscribe(ws, "/burst")
+        while not graph.port.topics["/burst"].subscribers:  # the graph announces none: looked at
+            await anyio.sleep(0.01)
+        for turn in turns:
+            for text in turn:
+                publisher.publish({"data": text})
+            await anyio.lowlevel.checkpoint()
+        payloads = []
+        while len(payloads) < count:
+            frame = await ws.recv()
+            if isinstance(frame, bytes):
+                assert frame[0] == 1 and struct.unpack_from("<I", frame, 1) == (7,)
+                payloads.append(frame[13:])
+    return payloads, direct["writes"]
+
+
+async def test_a_client_gets_the_same_messages_gathered_or_not(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    gathered, direct_writes = await _run_burst(monkeypatch, None)
+    general, general_direct = await _run_burst(monkeypatch, "deferred-send")
+    framed_by_websockets, _ = await _run_burst(monkeypatch, "1")
+    graph = Graph()
+    mtype = graph.registry.message("std_msgs/msg/String")
+    codec = codec_for(graph.registry, mtype)
+    expected = [
+        bytes(codec.serialize(mtype.from_python({"data": text})))
+        for turn in _texts()
+        for text in turn
+    ]
+    assert gathered == expected
+    assert general == expected
+    assert framed_by_websockets == expected
+    assert general_direct == 0  # switched off: the writer task sends every frame
+    # on: written from the loop, a burst's small messages many to a write
+    assert 0 < direct_writes < len(expected) // 4
