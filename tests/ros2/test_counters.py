@@ -65,8 +65,8 @@ def _publish_n() -> None:
         assert pub.get_subscription_count() == 1, "the link never subscribed"
         for i in range(N):
             pub.publish(String(data=f"m{i}"))
-            if i % 50 == 49:
-                time.sleep(0.05)  # within the histories: nothing lost, counts comparable
+            if i % 25 == 24:  # bursts of 25: more than ROS 2's default depth (10), within
+                time.sleep(0.1)  # the link's (INWARD_DEPTH): nothing lost, counts comparable
         time.sleep(2)  # the publisher stays until the subscriber has had everything
         node.destroy_node()
     finally:
