@@ -23,8 +23,11 @@ At the link's end one ``event=ros2_counters`` line per topic, at INFO.
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import logging
 
 __all__ = ["BATCH_BOUNDS", "LinkCounters", "TopicCounters"]
 

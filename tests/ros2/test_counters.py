@@ -42,7 +42,7 @@ def _publish(done: threading.Event, failure: list[BaseException]) -> None:
         with warnings.catch_warnings():  # rosidl's type support imports lark (sre_parse)
             warnings.simplefilter("ignore", DeprecationWarning)
             _publish_n()
-    except BaseException as exc:  # noqa: BLE001 - reported by the test
+    except BaseException as exc:  # reported by the test
         failure.append(exc)
     finally:
         done.set()
