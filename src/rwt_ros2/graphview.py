@@ -171,9 +171,10 @@ The link's samples wait in its subscription's history until rclpy's executor
 thread takes them, and that thread waits for the GIL while the event loop's
 thread runs: up to the interpreter's switch interval (5 ms) each time, longer
 under load. With ROS 2's default depth of 10 a 5 kHz topic overflowed the
-history within 2 ms, and the link's counters put 20-50 % of it there
-(benchmarks/README.md, "ROS 2 bridge"); a deeper history holds the same samples
-a moment longer at no cost while the link keeps up. Fast DDS reports no depth for
+history within 2 ms: the link's counters put all of the 5-21 % it lost there
+(benchmarks/README.md, "ROS 2 bridge"). A deeper history holds the same samples
+a moment longer and costs nothing while the link keeps up; a 1 MB image topic the
+link cannot keep up with holds up to 100 MB in it. Fast DDS reports no depth for
 other nodes' endpoints, so a publisher's own depth rarely raises it further."""
 
 
