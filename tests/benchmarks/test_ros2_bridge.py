@@ -35,12 +35,14 @@ def test_rclpy_publisher_reaches_every_websocket_subscriber_through_rwt() -> Non
     assert 0 <= result.p50_ms <= result.p99_ms
     assert result.cpu_us_per_delivery >= 0
     assert "| String 100 B 20 Hz | 2 | rwt serve --ros2 |" in table([result])
-    # rwt's per-stage counts (its log): every sample, probes included, at every stage
+    # rwt's per-stage counts (its log): every timed sample at every stage; the first
+    # probes may go before the link's subscription has matched (discovery)
     stages = result.stages
     assert stages is not None
     assert result.probes >= 1
     assert stages["sent"] == result.sent + result.probes
-    assert stages["taken"] == stages["handed"] == stages["published"] == stages["sent"]
+    assert result.sent < stages["taken"] <= stages["sent"]
+    assert stages["taken"] == stages["handed"] == stages["published"]
     assert stages["refused"] == 0
     assert sum(v for k, v in stages.items() if k.startswith("batch_")) == stages["wakes"]
     assert stages["queued"] == 2 * stages["published"]  # each subscriber's queue
