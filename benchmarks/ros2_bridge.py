@@ -42,12 +42,14 @@ import json
 import os
 import re
 import socket
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Sequence
@@ -55,7 +57,19 @@ if TYPE_CHECKING:
 from .ros2_client import TYPES, LeanCounter, stamp
 from .servers import ROOT, Server, proc_stats, rwt_pythonpath, start_server
 
-__all__ = ["CASES", "Case", "Result", "main", "rclpy_available", "run_case", "table", "verdicts"]
+__all__ = [
+    "CASES",
+    "Case",
+    "Result",
+    "main",
+    "rclpy_available",
+    "run_case",
+    "stage_counts",
+    "stage_table",
+    "summary",
+    "table",
+    "verdicts",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +99,8 @@ what a robot gets out of the box; ``large-shm`` is ``loopback`` with a 4 MB
 shared-memory segment instead of the default 512 KB, which a 921 KB image outgrows."""
 PACED_HZ = 500
 """The paced String rate: below the ~600 msg/s rosbridge_suite 2.1.0 tops out at here."""
+FAST_HZ = 5000
+"""The fast paced String rate: what a bare rclpy subscriber still takes here, nearly whole."""
 IMAGE_HZ = 30
 PROBE_EVERY_S = 0.05
 DISCOVERY_S = 60.0
@@ -119,7 +135,7 @@ class Case:
 
 CASES = [
     Case(kind, hz, subs)
-    for kind, hz in (("string", 0), ("string", PACED_HZ), ("image", IMAGE_HZ))
+    for kind, hz in (("string", 0), ("string", FAST_HZ), ("string", PACED_HZ), ("image", IMAGE_HZ))
     for subs in (1, 10)
 ]
 
@@ -142,6 +158,10 @@ class Result:
     """This process's CPU share while the WebSocket subscribers read (1.0 = one core)."""
     note: str = ""
     """What else happened (the server closed the publisher, peer_ros2)."""
+    probes: int = 0
+    """Probes the publisher sent before the timed messages (discovery)."""
+    stages: dict[str, int] | None = None
+    """rwt only: its per-stage counters of the case's topic (``stage_counts``)."""
 
 
 PUB = r"""
@@ -173,11 +193,13 @@ threading.Thread(target=lambda: (sys.stdin.readline(), go.set()), daemon=True).s
 print("ready", flush=True)
 p = probe()
 end = time.time() + 120
+probes = 0
 while not go.is_set() and time.time() < end:
     pub.publish(p)
+    probes += 1
     time.sleep(0.05)
 time.sleep(0.3)  # the last probes are through
-print(time.time(), flush=True)
+print(time.time(), probes, flush=True)
 sent, start = 0, time.monotonic()
 while time.monotonic() - start < seconds:
     stamp(msg)
@@ -400,7 +422,8 @@ async def _through_bridge(
             await asyncio.wait_for(probed, DISCOVERY_S)
             await _settle(pid)
             await _say(pub)
-            start = float(await _line(pub))
+            start_text, probes = (await _line(pub)).split()
+            start = float(start_text)
             cpu0, own0 = _cpu(pid), time.process_time()
             sent_task = asyncio.create_task(_line(pub, seconds + DISCOVERY_S))
             cpu1 = await _drain(counters, pid, sent_task)
@@ -417,6 +440,7 @@ async def _through_bridge(
     last = max(c.last for c in counters)
     result = _result(receiver, case, sent, start, latencies, last, cpu1 - cpu0, case.subscribers)
     result.clients_cpu = own
+    result.probes = int(probes)
     return result
 
 
@@ -430,7 +454,7 @@ async def _bare(case: Case, seconds: float, env: dict[str, str]) -> Result:
         await _line(pub)  # ready
         await _line(sub)  # probed
         await _say(pub)
-        start = float(await _line(pub))
+        start = float((await _line(pub)).split()[0])
         cpu0 = _cpu(sub.pid)
         sent = int(await _line(pub, seconds + DISCOVERY_S))
         await asyncio.sleep(IDLE_S)
@@ -440,17 +464,78 @@ async def _bare(case: Case, seconds: float, env: dict[str, str]) -> Result:
     return _result("rclpy", case, sent, start, report["lat"], report["last"], cpu1 - cpu0, 1)
 
 
-def _start_rwt(domain: int, env: dict[str, str]) -> Server:
+def _start_rwt(domain: int, env: dict[str, str], log: IO[bytes]) -> Server:
     """``rwt serve --ros2 --no-tf`` (``start_server`` passes on ``os.environ``) on ``domain``
-    in ``env`` (the run's: ``os.environ`` plus ``ros_env``)."""
+    in ``env`` (the run's: ``os.environ`` plus ``ros_env``), logging at INFO to ``log``."""
     saved = dict(os.environ)
     os.environ.clear()
     os.environ.update(env)
     try:
-        return start_server("rwt", extra=["--ros2", "--no-tf"])
+        extra = ["--ros2", "--no-tf", "--log-level", "info"]
+        return start_server("rwt", extra=extra, stderr=log)
     finally:
         os.environ.clear()
         os.environ.update(saved)
+
+
+STAGES = (
+    "sent",
+    "taken",
+    "wakes",
+    "max_batch",
+    "handed",
+    "refused",
+    "published",
+    "queued",
+    "dropped",
+    "written",
+)
+"""The per-stage counts of an rwt case, in order (``stage_counts``)."""
+
+
+def stage_counts(log: str, result: Result) -> dict[str, int]:
+    """rwt's per-stage counts of a case, from its log (docs/ros2.md, "Counters").
+
+    ``sent``: what the publisher sent (probes included); ``taken`` ... ``published``:
+    the link's ``event=ros2_counters`` line of the case's topic, plus ``batch_<bucket>``
+    (wake-ups by samples taken); ``queued``, ``dropped``, ``written``: the subscribers'
+    ``event=disconnect`` lines (topic messages queued, dropped, frames handed to the
+    socket), summed over the subscribers. Absent lines count 0.
+    """
+    counts = dict.fromkeys(STAGES, 0)
+    counts["sent"] = result.sent + result.probes
+    for line in log.splitlines():
+        fields = dict(re.findall(r"(\w+)=(\S+)", line))
+        if fields.get("event") == "ros2_counters" and fields.get("topic", "").startswith("/bench_"):
+            for key in ("taken", "wakes", "max_batch", "handed", "refused", "published"):
+                counts[key] = int(fields[key])
+            for bucket in fields["batches"].split(","):
+                name, _, n = bucket.partition(":")
+                counts[f"batch_{name}"] = int(n)
+        elif fields.get("event") == "disconnect":
+            counts["queued"] += int(fields.get("topic_messages", 0))
+            counts["dropped"] += int(fields.get("dropped", 0))
+            counts["written"] += int(fields.get("frames_sent", 0))
+    return counts
+
+
+def stage_table(results: list[Result]) -> str:
+    """The Markdown table of rwt's per-stage counts (``stage_counts``) of ``results``."""
+    rows = [r for r in results if r.stages]
+    buckets = sorted(
+        {k for r in rows for k in r.stages or {} if k.startswith("batch_")},
+        key=lambda k: int(k[6:].split("-")[0].rstrip("+")),
+    )
+    head = [*STAGES, *buckets]
+    lines = [
+        "| case | subs | " + " | ".join(head) + " |",
+        "|---|---:|" + "---:|" * len(head),
+    ]
+    for r in rows:
+        stages = r.stages or {}
+        cells = " | ".join(str(stages.get(k, 0)) for k in head)
+        lines.append(f"| {r.case} | {r.subscribers} | {cells} |")
+    return "\n".join(lines)
 
 
 def _free_port() -> int:
@@ -504,10 +589,15 @@ async def run_case(
     if receiver == "rclpy":
         return await _bare(case, seconds, env)
     if receiver == "rwt":
-        with await asyncio.to_thread(_start_rwt, domain, env) as server:
-            url = f"ws://127.0.0.1:{server.port}"
-            pid = server.process.pid
-            return await _through_bridge("rwt", url, pid, case, seconds, env, client)
+        with tempfile.TemporaryFile() as log:
+            with await asyncio.to_thread(_start_rwt, domain, env, log) as server:
+                url = f"ws://127.0.0.1:{server.port}"
+                pid = server.process.pid
+                result = await _through_bridge("rwt", url, pid, case, seconds, env, client)
+                await asyncio.sleep(0.5)  # the subscribers' disconnect lines
+            log.seek(0)  # the server has stopped: its link logged its counters
+            result.stages = stage_counts(log.read().decode("utf-8", "replace"), result)
+        return result
     assert tools is not None
 
     async def measure(url: str, pid: int) -> Result:
@@ -600,18 +690,52 @@ async def run_all(
     tools: dict[str, Path],
     fastdds: str = "loopback",
     client: str = "lean",
+    rounds: int = 1,
 ) -> list[Result]:
-    """Every case on every receiver, in that order (rclpy: the 1-subscriber cases only)."""
+    """Every case on every receiver, in that order (rclpy: the 1-subscriber cases only),
+    ``rounds`` times over: interleaved, so a change of the machine's load spreads over all."""
     results = []
-    for case in cases:
-        for receiver in receivers:
-            if receiver == "rclpy" and case.subscribers != 1:
-                continue
-            print(f"{case.label} 1->{case.subscribers} {receiver}...", file=sys.stderr, flush=True)
-            where = tools.get(receiver)
-            result = await run_case(receiver, case, seconds, domain, where, fastdds, client)
-            results.append(result)
+    for turn in range(rounds):
+        for case in cases:
+            for receiver in receivers:
+                if receiver == "rclpy" and case.subscribers != 1:
+                    continue
+                label = f"{case.label} 1->{case.subscribers} {receiver}"
+                print(f"round {turn + 1}/{rounds}: {label}...", file=sys.stderr, flush=True)
+                where = tools.get(receiver)
+                result = await run_case(receiver, case, seconds, domain, where, fastdds, client)
+                results.append(result)
     return results
+
+
+def _spread(values: list[float], fmt: str) -> str:
+    """``median (min-max)`` of ``values`` with ``fmt``; the value alone for one."""
+    middle = format(statistics.median(values), fmt)
+    if len(values) == 1:
+        return middle
+    return f"{middle} ({format(min(values), fmt)}-{format(max(values), fmt)})"
+
+
+def summary(results: list[Result]) -> str:
+    """The Markdown table of ``results`` over rounds: medians, with (min-max) of the rounds."""
+    groups: dict[tuple[str, int, str], list[Result]] = {}
+    for r in results:
+        groups.setdefault((r.case, r.subscribers, r.receiver), []).append(r)
+    lines = [
+        "| case | subs | receiver | rounds | delivered msg/s | loss | p50 ms | p99 ms "
+        "| CPU us/delivery |",
+        "|---|---:|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for (case, subs, receiver), rs in groups.items():
+        lines.append(
+            f"| {case} | {subs} | {LABELS[receiver]} | {len(rs)} "
+            f"| {_spread([r.msg_per_s for r in rs], ',.0f')} "
+            f"| {_spread([r.loss * 100 for r in rs], '.1f')} % "
+            f"| {_spread([r.p50_ms for r in rs], '.1f')} "
+            f"| {_spread([r.p99_ms for r in rs], '.1f')} "
+            f"| {_spread([r.cpu_us_per_delivery for r in rs], '.0f')} |"
+        )
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -621,7 +745,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--receivers", default=",".join(KINDS), help="comma-separated: rwt,rosbridge,rs,rclpy"
     )
-    parser.add_argument("--cases", help="only the cases whose label contains this (e.g. Image)")
+    parser.add_argument(
+        "--cases",
+        help="only the cases whose label contains one of these, comma-separated "
+        "(Image; 'String 100 B 5000 Hz,String 100 B max')",
+    )
     parser.add_argument("--domain", type=int, default=130 + os.getpid() % 10, help="ROS_DOMAIN_ID")
     parser.add_argument(
         "--fastdds",
@@ -637,6 +765,9 @@ def main(argv: list[str] | None = None) -> int:
         help="the WebSocket subscribers: lean (frames walked as they arrive, each image "
         "checked in place; benchmarks/ros2_client.py) or websockets (the library, unchecked)",
     )
+    parser.add_argument(
+        "--rounds", type=int, default=1, help="run every case this often, interleaved"
+    )
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     if not rclpy_available():
@@ -644,12 +775,30 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     receivers = [r for r in args.receivers.split(",") if r]
     tools = peer_tools(receivers)
-    cases = [c for c in CASES if not args.cases or args.cases in f"{c.label} 1->{c.subscribers}"]
+    wanted = [w for w in (args.cases or "").split(",") if w]
+    cases = [
+        c for c in CASES if not wanted or any(w in f"{c.label} 1->{c.subscribers}" for w in wanted)
+    ]
     results = asyncio.run(
-        run_all(receivers, cases, args.seconds, args.domain, tools, args.fastdds, args.client)
+        run_all(
+            receivers,
+            cases,
+            args.seconds,
+            args.domain,
+            tools,
+            args.fastdds,
+            args.client,
+            max(args.rounds, 1),
+        )
     )
     print(table(results))
     print()
+    if args.rounds > 1:
+        print(summary(results))
+        print()
+    if any(r.stages for r in results):
+        print(stage_table(results))
+        print()
     for line in verdicts(results):
         print(f"- {line}")
     if args.json:

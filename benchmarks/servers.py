@@ -16,6 +16,7 @@ import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 __all__ = ["ROOT", "ProcStats", "Server", "proc_stats", "rwt_pythonpath", "start_server"]
 
@@ -100,10 +101,15 @@ def _command(kind: str, uvloop: bool, extra: list[str]) -> list[str]:
 
 
 def start_server(
-    kind: str, *, uvloop: bool = False, extra: list[str] | None = None, src: Path | None = None
+    kind: str,
+    *,
+    uvloop: bool = False,
+    extra: list[str] | None = None,
+    src: Path | None = None,
+    stderr: IO[bytes] | None = None,
 ) -> Server:
     """Start ``bare`` (the relay) or ``rwt`` (from ``src``, see ``rwt_pythonpath``) and
-    wait for its listening line.
+    wait for its listening line; its log goes to ``stderr`` (None: this process's).
 
     Raises:
         RuntimeError: the process exited or said nothing within 20 s.
@@ -116,6 +122,7 @@ def start_server(
         env=env,
         stdout=subprocess.PIPE,
         stdin=subprocess.DEVNULL,
+        stderr=stderr,
     )
     line: list[bytes] = []
     reader = threading.Thread(target=lambda: line.append(process.stdout.readline()), daemon=True)  # type: ignore[union-attr]

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ACTION_PART",
+    "INWARD_DEPTH",
     "MAX_PUBLISHER_DEPTH",
     "Endpoint",
     "Qos",
@@ -163,21 +164,35 @@ def _read_endpoints(ros: RosNode, graph: RosGraph) -> None:
             graph.endpoints[gid] = Endpoint(kind, topic, info.topic_type, fqn, gid, qos, type_hash)
 
 
+INWARD_DEPTH = 100
+"""The least history depth of the link's subscriptions: 20 ms of a 5 kHz topic.
+
+The link's samples wait in its subscription's history until rclpy's executor
+thread takes them, and that thread waits for the GIL while the event loop's
+thread runs: up to the interpreter's switch interval (5 ms) each time, longer
+under load. With ROS 2's default depth of 10 a 5 kHz topic overflowed the
+history within 2 ms: the link's counters put all of the 5-21 % it lost there
+(benchmarks/README.md, "ROS 2 bridge"). A deeper history holds the same samples
+a moment longer and costs nothing while the link keeps up; a 1 MB image topic the
+link cannot keep up with holds up to 100 MB in it. Fast DDS reports no depth for
+other nodes' endpoints, so a publisher's own depth rarely raises it further."""
+
+
 def subscription_qos(publishers: list[Qos]) -> Qos:
-    """The QoS of a subscription that matches every one of ``publishers``.
+    """The QoS of the link's subscription that matches every one of ``publishers``.
 
     Reliable only if every publisher is (a reliable reader refuses a best
     effort writer); transient local only if every publisher is (a transient
     local reader refuses a volatile writer), so a late subscriber gets what
-    ``/tf_static`` or ``/map`` kept; the deepest publisher's depth (at least
-    ``DEFAULT_DEPTH``). No publisher: reliable, volatile, ``DEFAULT_DEPTH``.
+    ``/tf_static`` or ``/map`` kept; the deepest publisher's depth, at least
+    ``INWARD_DEPTH``. No publisher: reliable, volatile, ``INWARD_DEPTH``.
     """
     if not publishers:
-        return Qos()
+        return Qos(depth=INWARD_DEPTH)
     return Qos(
         reliable=all(q.reliable for q in publishers),
         transient_local=all(q.transient_local for q in publishers),
-        depth=max([DEFAULT_DEPTH, *(q.depth for q in publishers)]),
+        depth=max([INWARD_DEPTH, *(q.depth for q in publishers)]),
     )
 
 

@@ -57,6 +57,7 @@ from rwt_protocol.shortcuts import enabled
 
 from .actions import serve_action_to_ros
 from .codec import decode, encode
+from .counters import LinkCounters, TopicCounters
 from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff
@@ -198,6 +199,8 @@ class Ros2Link:
         self._digest: object = None  # the graph's names at the last look (``graphview.digest``)
         self._closed = False
         self._batch_take = enabled("ros2-batch-take")
+        #: what each topic's samples did at each stage, logged when the link stops
+        self.counters = LinkCounters()
 
     @property
     def loop(self) -> asyncio.AbstractEventLoop:
@@ -285,6 +288,7 @@ class Ros2Link:
     def _close(self) -> None:
         self._closed = True
         self.handoff.close()
+        self.counters.log(logger)
         with contextlib.suppress(ValueError):
             self.graph.taps.remove(self._tap)
         if self._params is not None:
@@ -330,13 +334,21 @@ class Ros2Link:
         self._mirror.apply(entities(view, PARTICIPANT_PREFIX))
 
     def _on_sample(
-        self, topic: str, type_name: str, data: bytes, gid: bytes, transient_local: bool
+        self,
+        topic: str,
+        type_name: str,
+        data: bytes,
+        gid: bytes,
+        transient_local: bool,
+        counters: TopicCounters,
     ) -> None:
         """Publish a ROS 2 sample in the graph, by its publisher's participant.
 
         ``transient_local``: the subscription it came on is, so its publisher is
         too (a transient-local reader matches no volatile writer): a relay latches it.
+        ``counters``: the topic's, counting it published or skipped.
         """
+        counters.skipped += 1  # until it is published
         if gid in self._own_gids or self._remotes.mismatched(gid):
             return  # the link's own publisher (it came from the graph), or a foreign definition
         entry = self.graph.topics.get(topic)
@@ -355,6 +367,8 @@ class Ros2Link:
             return
         try:  # by its publisher's participant, or a relay until discovery finds it
             self._relays.deliver(entry, gid or None, msg, latched=transient_local, wire=data)
+            counters.skipped -= 1
+            counters.published += 1
         except RwtError as exc:  # a topic reserved by the server: not ROS 2's
             self.episodes.log(
                 logging.WARNING,
@@ -406,18 +420,25 @@ class Ros2Link:
         handoff = self.handoff
         created: list[Any] = []  # the rclpy subscription, once made (batch take)
         latched = qos.transient_local  # only transient-local publishers match it
+        counters = self.counters.of(name)
+        on_loop = self._on_sample
 
         def hand_over(data: bytes, info: dict[str, Any]) -> None:
             gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
-            handoff.put(
-                self._on_sample, name, type_name, data, gid, latched, size=len(data), topic=name
-            )
+            args = (name, type_name, data, gid, latched, counters)
+            if handoff.put(on_loop, *args, size=len(data), topic=name):
+                counters.handed += 1
+            else:
+                counters.refused += 1
 
         def on_sample(data: bytes, info: dict[str, Any]) -> None:  # the executor's thread
             hand_over(data, info)
+            count = 1
             if created:
                 for taken in take_queued(created[0], TAKE_BATCH - 1):
                     hand_over(*taken)
+                    count += 1
+            counters.woke(count)
 
         handle = self.ros.node.create_subscription(
             ros_type,

@@ -156,10 +156,13 @@ async def run_connection(pump: ConnectionPump, session: Session, detail: str = "
         await pump.run(session)
     finally:
         logger.info(
-            "event=disconnect client=%s reason=%r dropped=%d duration_s=%.1f",
+            "event=disconnect client=%s reason=%r topic_messages=%d dropped=%d "
+            "frames_sent=%d duration_s=%.1f",
             session.client_id,
             pump.close_reason,
+            session.topic_messages,
             session.dropped_frames,
+            session.taken_frames,
             anyio.current_time() - started,
         )
 

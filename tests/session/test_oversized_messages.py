@@ -164,3 +164,16 @@ def test_fragmented_parts_over_the_limit_are_held_together() -> None:
     assert box.held_bytes == 0 and box.queued_bytes == 0 and box.dropped == 1
     box.push(OutFrame(b"bbbbbbbbbbbb", droppable=True))  # empty again: held
     assert box.held_bytes == 12
+
+
+def test_the_outbox_counts_topic_messages_queued_dropped_and_frames_taken() -> None:
+    """The counts behind a connection's ``event=disconnect`` line add up (docs/server.md)."""
+    box = Outbox(limit_bytes=1000, frame_overhead_bytes=0)
+    for _ in range(30):
+        box.push(OutFrame(b"x" * 100, droppable=True))
+    box.push(OutFrame(b"reply"))  # never dropped, never a topic message
+    taken = box.take()
+    assert box.topic_messages == 30
+    assert 0 < box.dropped < 30
+    assert box.taken_frames == len(taken)
+    assert box.topic_messages - box.dropped == sum(frame.droppable for frame in taken)

@@ -91,6 +91,10 @@ class Outbox:
         dropped: topic messages dropped so far (a fragmented one counts once).
         dropped_oversized: of those, messages larger than ``limit_bytes`` that
             came while other topic messages were queued.
+        topic_messages: topic messages queued so far (a fragmented one counts once),
+            dropped ones included: the ones sent are ``topic_messages - dropped``
+            once the queue is empty.
+        taken_frames: frames the transport took so far (replies included).
     """
 
     def __init__(self, limit_bytes: int, frame_overhead_bytes: int = FRAME_OVERHEAD_BYTES) -> None:
@@ -106,6 +110,8 @@ class Outbox:
         self.frame_overhead_bytes = frame_overhead_bytes
         self.dropped = 0
         self.dropped_oversized = 0
+        self.topic_messages = 0
+        self.taken_frames = 0
 
     def __len__(self) -> int:
         return len(self._frames)
@@ -177,6 +183,8 @@ class Outbox:
         one is held, every other topic message is dropped on arrival. The
         frames of one message are all droppable or none.
         """
+        if frames and frames[0].droppable:
+            self.topic_messages += 1
         if self._held_frames and frames and frames[0].droppable:
             self.dropped += 1  # the queue is full with the held message
             return
@@ -232,6 +240,7 @@ class Outbox:
                 self._held_frames -= 1
                 self._held_bytes -= len(frame.data) + overhead
         self._bytes -= taken + len(frames) * overhead
+        self.taken_frames += len(frames)
         last = frames[-1].group if frames else None
         following = self._frames[0].group if self._frames else None
         self._sending_group = last if last is not None and last == following else None

@@ -569,6 +569,16 @@ class Session:
         return self._outbox.dropped
 
     @property
+    def topic_messages(self) -> int:
+        """Topic messages queued for the peer so far, those dropped since included."""
+        return self._outbox.topic_messages
+
+    @property
+    def taken_frames(self) -> int:
+        """Frames the transport took from the queue so far (topic messages and replies)."""
+        return self._outbox.taken_frames
+
+    @property
     def queued_bytes(self) -> int:
         """Payload bytes waiting to be taken by the transport."""
         return self._outbox.queued_bytes
