@@ -38,6 +38,7 @@ import selectors
 import statistics
 import struct
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import asdict, dataclass, field
@@ -304,7 +305,7 @@ async def measure(
             await _wait(group, DISCOVERY_S)
             await _settle(pid)
             await _say(pub)
-            start = float(await _line(pub))
+            start = float((await _line(pub)).split()[0])  # the publish start, then its probes
             cpu0, own0 = _cpu(pid), time.process_time()
             sent_task = asyncio.create_task(_line(pub, seconds + DISCOVERY_S))
             cpu1, total, idle_since = cpu0, -1, time.monotonic()
@@ -355,7 +356,11 @@ async def run(
     env = {**os.environ, **ros_env(domain, fastdds)}
     env["PYTHONPATH"] = rwt_pythonpath()
     results = []
-    with await asyncio.to_thread(_start_rwt, domain, env) as server:
+    # the server logs at INFO (its per-stage counts); kept aside, not read here
+    with (
+        tempfile.TemporaryFile() as log,
+        await asyncio.to_thread(_start_rwt, domain, env, log) as server,
+    ):
         for hz in rates:
             for index in range(rounds):
                 shift = index % len(kinds)
