@@ -335,3 +335,34 @@ def test_without_a_discovering_link_an_unknown_service_fails_at_once() -> None:
     linked = _Linked()
     with pytest.raises(GraphError, match="service /enable does not exist"):
         linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, v: None)
+
+
+def test_a_link_with_nothing_to_discover_lets_the_call_fail_at_once() -> None:
+    linked = _Linked()
+    linked.graph.services.discoveries.append(lambda expire: None)  # the link is not discovering
+    with pytest.raises(GraphError, match="service /enable does not exist"):
+        linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, v: None)
+
+
+def test_a_held_call_fails_only_when_every_links_wait_is_over() -> None:
+    linked = _Linked()
+    first, second = _Discovery(), _Discovery()
+    linked.graph.services.discoveries += [first, second]
+    replies: list[tuple[bool, object]] = []
+    linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    first.expiries[0]()  # type: ignore[operator]
+    assert replies == []  # the other link may still find it
+    second.expiries[0]()  # type: ignore[operator]
+    assert replies == [(False, "service /enable does not exist")]
+
+
+def test_a_held_call_to_a_service_that_comes_with_another_type_fails_with_the_reason() -> None:
+    linked = _Linked()
+    linked.graph.services.discoveries.append(_Discovery())
+    replies: list[tuple[bool, object]] = []
+    typed = CallService(service="/enable", args={"data": True}, type="std_srvs/srv/Trigger")
+    linked.graph.port.call_service("ws:1", typed, lambda ok, value: replies.append((ok, value)))
+    linked.mirror.add("link:s", SERVICE)  # discovered as a SetBool
+    assert linked.side.providers["link:s"].requests == []
+    reason = "service /enable has type std_srvs/srv/SetBool, not std_srvs/srv/Trigger"
+    assert replies == [(False, reason)]
