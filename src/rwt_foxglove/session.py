@@ -45,6 +45,7 @@ from .protocol import (
     FetchAsset,
     FoxgloveInputError,
     GetParameters,
+    RemoveStatus,
     ServerInfo,
     ServerOp,
     ServiceCallRequest,
@@ -87,6 +88,12 @@ CAPABILITIES: Final = ("clientPublish", "services", "connectionGraph")
 PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
 """Announced too when the session is given the graph's parameters."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
+DROPPING_STATUS: Final = "rwt.dropping"
+"""The id of the warning that this client's oldest message data is being dropped,
+withdrawn (``removeStatus``) once its queue is empty again."""
+LEFT_OUT_STATUS: Final = "rwt.channels-left-out"
+"""The id of the warning that topics are left out (``max_channels``), withdrawn once
+every topic is advertised again."""
 _ASSET: Final = object()  # the group of a fetch asset response with a file's outcome
 
 
@@ -166,6 +173,7 @@ class FoxgloveSession:
         self._failed_topics: set[str] = set()  # told once that their data cannot be encoded
         self._tracked: dict[int, OutFrame] = {}  # id -> frame of ``tracked`` not yet taken
         self._unadvertised = 0  # topics left out by ``max_channels`` at the last sync
+        self._dropping = False  # the client was told its data is being dropped
         self._closed = False
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
@@ -217,6 +225,9 @@ class FoxgloveSession:
         Updates merged while an earlier one waited are queued once it is taken.
         """
         frames = self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
+        if self._dropping and not self._queue.episode_drops:  # the episode is over
+            self._dropping = False
+            self._control(RemoveStatus(statusIds=[DROPPING_STATUS]))
         if self._assets is not None and self._assets.queued:
             self._assets.queued -= sum(frame.group is _ASSET for frame in frames)
         if self._tracked:
@@ -277,10 +288,11 @@ class FoxgloveSession:
         if self._on_output is not None:
             self._on_output()
 
-    def _status(self, level: StatusLevel, message: str) -> None:
+    def _status(self, level: StatusLevel, message: str, status_id: str | None = None) -> None:
         # An answer to the client's input may be dropped like data: a client that
         # sends bad frames and reads nothing cannot grow the queue without bound.
-        frame = OutFrame(encode_op(Status(level=int(level), message=message)), droppable=True)
+        status = Status(level=int(level), message=message, id=status_id)
+        frame = OutFrame(encode_op(status), droppable=True)
         self._push_data(frame)
 
     @property
@@ -304,6 +316,7 @@ class FoxgloveSession:
 
     def _push_data(self, frame: OutFrame) -> None:
         if self._queue.push(frame):
+            self._dropping = True
             logger.warning(
                 "event=slow_consumer client=%s protocol=foxglove dropped_total=%d",
                 self._client_id,
@@ -316,6 +329,7 @@ class FoxgloveSession:
                             level=int(StatusLevel.WARNING),
                             message="messages dropped: this client reads slower than they "
                             "arrive (the oldest go first)",
+                            id=DROPPING_STATUS,
                         )
                     )
                 )
@@ -537,12 +551,16 @@ class FoxgloveSession:
     def _tell_left_out(self, left_out: int) -> bool:
         """A warning when topics begin to be left out (``max_channels``); once per episode."""
         before, self._unadvertised = self._unadvertised, left_out
+        if before and not left_out:  # every topic advertised again
+            self._control(RemoveStatus(statusIds=[LEFT_OUT_STATUS]))
+            return True
         if not left_out or before:
             return False
         self._status(
             StatusLevel.WARNING,
             f"{left_out} topics are not advertised: this server advertises at most "
             f"{self.limits.max_channels} channels to a client",
+            status_id=LEFT_OUT_STATUS,
         )
         return True
 

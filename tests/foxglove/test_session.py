@@ -267,6 +267,10 @@ def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode() -> Non
     statuses = client.take_ops("status")
     assert len(statuses) == 1 and statuses[0]["level"] == 1
     assert "dropped" in str(statuses[0]["message"])
+    # a lasting condition: its status has an id, withdrawn once the queue is empty again
+    assert client.take_ops("removeStatus") == [
+        {"op": "removeStatus", "statusIds": [statuses[0]["id"]]}
+    ]
     payloads = [payload for _, _, payload in client.data()]
     assert payloads == [cdr(graph, "std_msgs/msg/String", {"data": str(i)}) for i in range(15, 20)]
     assert client.session.dropped == 15
@@ -293,3 +297,19 @@ def test_close_releases_the_graph() -> None:
     assert "/b" in graph.topics and graph.topics["/a"].subscribers
     client.session.close()
     assert "/b" not in graph.topics and not graph.topics["/a"].subscribers
+
+
+def test_topics_left_out_are_told_once_and_withdrawn_when_all_fit_again() -> None:
+    graph = Graph()
+    client = Client(graph, limits=FoxgloveLimits(max_channels=1))
+    extra = [graph.create_publisher(f"/extra{n}", "std_msgs/msg/String") for n in range(3)]
+    client.sync()
+    assert len(client.take_ops("advertise")[0]["channels"]) == 1  # type: ignore[arg-type]
+    (warning,) = client.take_ops("status")
+    assert "2 topics are not advertised" in str(warning["message"]) and warning["id"]
+    assert client.take_ops("removeStatus") == []
+    for publisher in extra[1:]:
+        publisher.close()
+    client.sync()
+    assert client.take_ops("removeStatus") == [{"op": "removeStatus", "statusIds": [warning["id"]]}]
+    assert client.take_ops("status") == []  # told once, withdrawn once
