@@ -264,16 +264,27 @@ def _client(port: int, setup: bytes) -> socket.socket:
         ConnectionError: the server closed the connection first.
     """
     sock, rest = connect(port)
-    sock.sendall(client_frame(setup) + client_frame(BARRIER))
-    frames = FrameReader().feed(rest)
-    while not frames:
+    sock.sendall(client_frame(setup))
+    _barrier(sock, rest)
+    return sock
+
+
+def _barrier(sock: socket.socket, rest: bytes = b"") -> None:
+    """Send the barrier call and read until its answer: the server has handled every
+    frame sent before it (one connection's frames are handled in order).
+
+    Raises:
+        ConnectionError: the server closed the connection first.
+    """
+    sock.sendall(client_frame(BARRIER))
+    reader = FrameReader()
+    frames = reader.feed(rest)
+    while not any(b'"barrier"' in payload for _, payload in frames):
         chunk = sock.recv(65536)
         if not chunk:
             sock.close()
             raise ConnectionError("the server closed the connection before the barrier")
-        frames = FrameReader().feed(rest + chunk)
-        rest += chunk
-    return sock
+        frames = reader.feed(chunk)
 
 
 def _string_frames() -> list[bytes]:
@@ -339,6 +350,9 @@ def record_rwt(tmp: Path, kind: str, seconds: float) -> Measure:
             time.sleep(0.5)  # the recorder looks for new topics every 0.2 s
             cpu0 = tree_cpu_s(process.pid)
             sent, first, last = _publish_rwt(sock, kind, seconds)
+            # every publish handled before the recorder is stopped: on a loaded
+            # machine an idle-looking second is no proof that the socket was drained
+            _barrier(sock)
             cpu1 = _until_idle(process.pid)
     finally:
         _stop(process, signal.SIGTERM)

@@ -181,6 +181,9 @@ class Player(BackgroundJob):
         self._anchor_ns = self.start_ns
         self._position_ns = self.start_ns
         self._publishing_ns: int | None = None  # the record time of the message being published
+        # the record time of the next message to publish (the last published while the
+        # next is read): the bag's clock does not pass a message before it is published
+        self._next_ns: int | None = None
         self.remap = dict(remap or {})
         self.delay = delay
         self.wait_for_subscribers = wait_for_subscribers
@@ -218,7 +221,11 @@ class Player(BackgroundJob):
         if self._paused:
             return self._position_ns
         elapsed = (time.monotonic() - self._anchor_mono) * self.rate
-        return min(self._anchor_ns + int(elapsed * 1e9), max(self._stop_ns, self._anchor_ns))
+        now = min(self._anchor_ns + int(elapsed * 1e9), max(self._stop_ns, self._anchor_ns))
+        held = self._next_ns
+        # a message published late (a busy loop) must not find the clock past it:
+        # the clock runs monotonic through every message's record time
+        return now if held is None else min(now, max(held, self._anchor_ns))
 
     def clock_ns(self) -> int:
         """Bag time (ns since the epoch) for what happens now.
@@ -292,6 +299,7 @@ class Player(BackgroundJob):
             raise BagError(f"offset {offset_s:.6g} s is outside the bag (0 to {span / 1e9:.3f} s)")
         target = self.source.start_ns + min(int(max(offset_s, 0.0) * 1e9), span)
         self._seek_to = target
+        self._next_ns = None  # the old segment's next message is not the clock's bound
         self._position_ns = target
         self._anchor(target)
         if self._segment is not None:
@@ -428,7 +436,10 @@ class Player(BackgroundJob):
         send, receive = anyio.create_memory_object_stream[list[BagItem]](_QUEUE)
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._produce, send, start_ns)
-            await self._consume(receive)
+            try:
+                await self._consume(receive)
+            finally:
+                self._next_ns = None  # no message pending: the clock runs on to the end
             tg.cancel_scope.cancel()  # stopped early (duration, until): the reader too
 
     async def _produce(self, send: MemoryObjectSendStream[list[BagItem]], start_ns: int) -> None:
@@ -458,6 +469,7 @@ class Player(BackgroundJob):
                 for topic, ns, msg, record in batch:
                     if ns > self._stop_ns:
                         return
+                    self._next_ns = ns
                     if self._paused or self._due(ns) > time.monotonic():
                         await self._wait_until(ns)  # not yet (or paused): wait
                     self._position_ns = self._publishing_ns = ns
