@@ -217,7 +217,12 @@ class Player(BackgroundJob):
         return (self.bag_time_ns() - self.source.start_ns) / 1e9
 
     def bag_time_ns(self) -> int:
-        """The bag time of the playback position, nanoseconds since the epoch."""
+        """The bag time of the playback position, nanoseconds since the epoch.
+
+        It runs with the wall clock (times ``rate``) but waits at the next
+        message's record time until that message is published, so it only
+        goes forward between seeks, also on a busy event loop.
+        """
         if self._paused:
             return self._position_ns
         elapsed = (time.monotonic() - self._anchor_mono) * self.rate
@@ -299,7 +304,7 @@ class Player(BackgroundJob):
             raise BagError(f"offset {offset_s:.6g} s is outside the bag (0 to {span / 1e9:.3f} s)")
         target = self.source.start_ns + min(int(max(offset_s, 0.0) * 1e9), span)
         self._seek_to = target
-        self._next_ns = None  # the old segment's next message is not the clock's bound
+        self._next_ns = target  # the clock waits there for the new segment's first message
         self._position_ns = target
         self._anchor(target)
         if self._segment is not None:
@@ -436,10 +441,12 @@ class Player(BackgroundJob):
         send, receive = anyio.create_memory_object_stream[list[BagItem]](_QUEUE)
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._produce, send, start_ns)
+            self._next_ns = start_ns  # the clock starts with the first message read
             try:
                 await self._consume(receive)
             finally:
-                self._next_ns = None  # no message pending: the clock runs on to the end
+                if self._seek_to is None:  # no message pending: the clock runs on to the end
+                    self._next_ns = None
             tg.cancel_scope.cancel()  # stopped early (duration, until): the reader too
 
     async def _produce(self, send: MemoryObjectSendStream[list[BagItem]], start_ns: int) -> None:

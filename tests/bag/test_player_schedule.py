@@ -11,9 +11,11 @@ every message arrive, once, in order.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import anyio
+import anyio.lowlevel
 import pytest
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
@@ -94,3 +96,31 @@ async def test_pause_seek_and_resume_go_on_from_the_new_position(
     resumed = got[before:]
     assert resumed == [f"m{i}" for i in range(first, COUNT)]
     assert positions == sorted(positions), "the position went back"
+
+
+async def test_the_clock_never_passes_a_message_published_late(tmp_path: Path) -> None:
+    # A busy event loop publishes a message after its due time. The bag's clock
+    # (the graph's timeline: Foxglove server time, /clock) must not have been read
+    # past that message's record time meanwhile, or time steps back when it goes out.
+    bag = write_chatter(tmp_path / "bag")
+    graph = rwt.Graph()
+    player = rwt.bag.Player(graph, bag, rate=4.0, check=False)
+    readings: list[int] = []  # the clock as read by anyone, in the order read
+    stamps: list[int] = []  # the clock when each message was published
+    graph.create_subscription(
+        "/chatter", lambda _msg: stamps.append(player.clock_ns()), "std_msgs/String"
+    )
+    graph.create_subscription(
+        "/chatter", lambda _msg: readings.append(player.clock_ns()), "std_msgs/String"
+    )
+    with anyio.fail_after(60):
+        async with anyio.create_task_group() as tg:
+            await tg.start(player.run)
+            while len(stamps) < COUNT:
+                readings.append(player.bag_time_ns())
+                time.sleep(0.01)  # noqa: ASYNC251 (the loop is busy: 5 messages' bag time)
+                readings.append(player.bag_time_ns())
+                await anyio.lowlevel.checkpoint()
+            tg.cancel_scope.cancel()
+    assert stamps == [1_000_000_000 + i * SPACING_NS for i in range(COUNT)]
+    assert readings == sorted(readings), "the clock stepped back at a late message"
