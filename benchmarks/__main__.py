@@ -9,7 +9,8 @@ load generator's CPU to show its headroom), writes
 every variant once on tiny counts without touching the README (CI).
 ``peer`` compares with a running rosbridge_suite (benchmarks/peer.py); ``ros2``
 measures the ROS 2 bridge (benchmarks/ros2_bridge.py; ``ros2 --foxglove``: ROS 2
-images to Foxglove readers, benchmarks/ros2_foxglove.py); ``console`` the web
+images to Foxglove readers, benchmarks/ros2_foxglove.py; ``ros2 --graph``: how soon
+rosapi lists a new node's topics, benchmarks/ros2_graph.py); ``console`` the web
 console in Chromium (benchmarks/console.py); ``rosbag`` records and plays against
 the real ROS 1 rosbag (B22, benchmarks/ros1_bag.py); ``compare REF`` this checkout
 against an older commit (benchmarks/compare.py).
@@ -90,6 +91,10 @@ def main(argv: list[str] | None = None) -> int:
         from .ros2_foxglove import main as ros2_foxglove_main  # noqa: PLC0415
 
         return ros2_foxglove_main([a for a in argv[1:] if a != "--foxglove"])
+    if argv[:1] == ["ros2"] and "--graph" in argv:  # benchmarks/ros2_graph.py
+        from .ros2_graph import main as ros2_graph_main  # noqa: PLC0415
+
+        return ros2_graph_main([a for a in argv[1:] if a != "--graph"])
     if argv[:1] == ["ros2"]:  # its own options (benchmarks/ros2_bridge.py)
         from .ros2_bridge import main as ros2_main  # noqa: PLC0415
 

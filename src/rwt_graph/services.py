@@ -59,7 +59,13 @@ DiscoveryWait = Callable[[Callable[[], None]], "Callable[[], None] | None"]
 Called with ``expire`` when a call names a service nobody offers: returns None
 when the link has nothing to wait for, else a function cancelling the wait; the
 link calls ``expire`` (on the event loop) when its wait is over. ``Services``
-holds the call meanwhile and starts it if the service comes (docs/ros2.md)."""
+holds the call meanwhile and starts it if the service comes; a call with a
+``timeout`` of its own is held until that timeout instead, whatever the link's
+wait (docs/ros2.md)."""
+
+
+def _kept() -> None:
+    """A link's wait ended for a call held until its own timeout: it waits on."""
 
 
 @dataclass(eq=False)
@@ -169,8 +175,10 @@ class Services(ProviderTable[ServiceEntry]):
         id ``service_request:<name>:<n>``.
 
         A service nobody offers while a link may still discover it
-        (``discoveries``) is waited for as long as the link says; the call starts
-        if it comes, else fails as unknown (``result: false``).
+        (``discoveries``) is waited for: up to ``op.timeout`` when the caller gave
+        one (its timeout then ends the call, ``Pending.forget``), else as long as
+        the link says; the call starts if the service comes, else fails as unknown
+        (``result: false``).
 
         Raises:
             UnknownNameError: the service does not exist (and no link waits for it).
@@ -223,7 +231,9 @@ class Services(ProviderTable[ServiceEntry]):
         call = PendingCall(client, reply)
         name = resolve_name(op.service)
         parked = _Parked(call, op, path, [])
-        expire = partial(self._expire, name, parked)
+        # a caller that said how long it waits is held that long: a node starting
+        # on a loaded machine may take longer to discover than a link's own wait
+        expire = _kept if op.timeout is not None else partial(self._expire, name, parked)
         for wait in self.discoveries:
             cancel = wait(expire)
             if cancel is not None:

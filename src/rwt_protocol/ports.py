@@ -270,7 +270,9 @@ class ServicePort(Protocol):
 
         ``op.service`` is a name without a ``#id`` suffix (the session splits it
         off, D25); ``op.type``, when given, must be the service's type. The
-        other fields (``id``, ``timeout``, encodings) are the caller's business.
+        other fields (``id``, encodings) are the caller's business, but for
+        ``timeout``: how long the caller waits for a service a link is still
+        discovering (it also ends the call then, with ``Pending.forget``).
         """
 
     def service_response(self, client: ClientId, op: ServiceResponse, *, path: str = "$") -> None:

@@ -22,7 +22,8 @@ graph:
 
 The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread, and at once
 when its names change (read every ``GRAPH_POLL_S``); a call to a service nobody
-offers waits ``DISCOVERY_WAIT_S`` for it to be discovered; samples and
+offers waits for it to be discovered (its own timeout, else
+``DISCOVERY_WAIT_S``); samples and
 replies arrive on rclpy's executor thread and reach the event loop through a
 ``Handoff`` bounded in bytes. The node's own publishers' samples are recognised
 by their publisher GID and never come back in.
@@ -108,7 +109,8 @@ CALL_TIMEOUT_S = 30.0
 
 DISCOVERY_WAIT_S = 2.0
 """Seconds a call to a service nobody offers waits for the link to discover it (a
-node starting as the call comes); the call's own timeout still ends it sooner."""
+node starting as the call comes), when the call gave no timeout of its own; one
+that did waits up to that timeout (``rwt_graph.services.DiscoveryWait``)."""
 
 GRAPH_POLL_S = 0.05
 """How often the link reads the ROS 2 graph's names between sweeps, seconds

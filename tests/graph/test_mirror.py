@@ -331,6 +331,34 @@ def test_a_held_call_goes_with_its_caller_or_its_timeout() -> None:
     assert replies == []
 
 
+def test_a_call_with_its_own_timeout_is_held_past_the_links_wait() -> None:
+    linked = _Linked()
+    discovery = _Discovery()
+    linked.graph.services.discoveries.append(discovery)
+    replies: list[tuple[bool, object]] = []
+    patient = CallService(service="/enable", args={"data": True}, timeout=20.0)
+    pending = linked.graph.port.call_service(
+        "ws:1", patient, lambda ok, value: replies.append((ok, value))
+    )
+    discovery.expiries[0]()  # type: ignore[operator]
+    assert replies == []  # it waits up to its own timeout, not the link's
+    linked.mirror.add("link:s", SERVICE)  # discovered late: the call still goes
+    assert len(linked.side.providers["link:s"].requests) == 1
+    pending.forget()
+
+
+def test_a_call_with_its_own_timeout_goes_at_that_timeout() -> None:
+    linked = _Linked()
+    discovery = _Discovery()
+    linked.graph.services.discoveries.append(discovery)
+    patient = CallService(service="/enable", args={"data": True}, timeout=20.0)
+    pending = linked.graph.port.call_service("ws:1", patient, lambda ok, value: None)
+    pending.forget()  # the caller's timeout (the session's timer) ends the wait
+    assert discovery.cancelled == 1
+    linked.mirror.add("link:s", SERVICE)
+    assert linked.side.providers["link:s"].requests == []
+
+
 def test_without_a_discovering_link_an_unknown_service_fails_at_once() -> None:
     linked = _Linked()
     with pytest.raises(GraphError, match="service /enable does not exist"):

@@ -1,4 +1,4 @@
-"""The link's lanes to ROS 2 (rwt_ros2.outflow) with a real rclpy publisher and listener."""
+"""The link's lanes to ROS 2 (rwt_ros2.outflow) and its publishers' depth, with real rclpy."""
 
 from __future__ import annotations
 
@@ -8,7 +8,11 @@ from typing import TYPE_CHECKING, Any
 import anyio
 import pytest
 
+from rwt_graph.graph import Graph
+from rwt_graph.link import DEFAULT_DEPTH
+from rwt_ros2 import Ros2Options, open_ros2_link
 from rwt_ros2 import outflow as outflow_module
+from rwt_ros2.graphview import MAX_PUBLISHER_DEPTH
 from rwt_ros2.node import RosNode
 from rwt_ros2.outflow import SAMPLE_OVERHEAD, Outflow
 
@@ -107,3 +111,48 @@ async def test_lanes_past_their_bound_drop_their_oldest_once_per_episode(
     assert held == [_cdr(f"{n:02}") for n in range(6, 10)]  # the newest, in order
     lines = [r.getMessage() for r in caplog.records if "ros2_outflow_dropped" in r.getMessage()]
     assert len(lines) == 1 and "topic=/lane" in lines[0]
+
+
+def _link_publisher_depth(link: Any, topic: str) -> int | None:
+    """The history depth of the link's rclpy publisher of ``topic``, None if it has none."""
+    for pub in link.ros.node.publishers:
+        if pub.topic_name == topic:
+            return int(pub.qos_profile.depth)
+    return None
+
+
+async def _depth_becomes(link: Any, topic: str, depth: int) -> int | None:
+    with anyio.move_on_after(20):
+        while _link_publisher_depth(link, topic) != depth:
+            await anyio.sleep(0.05)
+    return _link_publisher_depth(link, topic)
+
+
+async def test_the_links_publisher_keeps_what_the_deepest_reliable_subscription_asks(
+    ros_env: Path,
+) -> None:
+    # A web client's burst must wait in the link's publisher for the subscriptions
+    # (as rosbridge's queue_size): a best-effort one asks for nothing, a reliable one
+    # for its depth, unknown from Fast DDS for another node's, so the most
+    # (MAX_PUBLISHER_DEPTH); the publisher is made again when a deeper one comes.
+    from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: PLC0415
+
+    graph = Graph()
+    others = RosNode("depth_subscriber")
+    others.start()
+    try:
+        best_effort = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
+        others.node.create_subscription(_string(), "/deep", lambda m: None, best_effort)
+        async with open_ros2_link(graph, Ros2Options(node_name="depth_test")) as link:
+            with anyio.fail_after(20):  # the link knows the subscription
+                while "/deep" not in dict(graph.topic_names_and_types()):
+                    await anyio.sleep(0.05)
+            graph.create_publisher("/deep", "std_msgs/msg/String").publish({"data": "0"})
+            shallow = await _depth_becomes(link, "/deep", DEFAULT_DEPTH)
+            reliable = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+            others.node.create_subscription(_string(), "/deep", lambda m: None, reliable)
+            deep = await _depth_becomes(link, "/deep", MAX_PUBLISHER_DEPTH)
+    finally:
+        others.close()
+    assert shallow == DEFAULT_DEPTH
+    assert deep == MAX_PUBLISHER_DEPTH

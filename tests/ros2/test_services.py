@@ -213,7 +213,7 @@ with connect("ws://127.0.0.1:{port}") as ws:
     print(json.dumps({{"connected": True}}), flush=True)
     sys.stdin.readline()  # the ROS 2 server has just started
     call = {{"op": "call_service", "id": "c1", "service": "{name}", "args": {{"data": True}}}}
-    ws.send(json.dumps({{**call, "timeout": 20}}))
+    ws.send(json.dumps({{**call, **{timeout}}}))
     while True:
         reply = json.loads(ws.recv(timeout=30))
         if reply["op"] == "service_response":
@@ -226,9 +226,9 @@ async def test_a_call_issued_as_the_ros2_server_starts_waits_for_it(
     server: ServerProcess, ros_env: Path
 ) -> None:
     # The call comes as soon as the node has made its service, before the link has
-    # discovered it: it waits for the discovery (at most DISCOVERY_WAIT_S) and is
+    # discovered it: it waits for the discovery (up to its own timeout, 20 s) and is
     # answered by the node, not refused as a service that does not exist.
-    code = CALL_AT_START.format(port=server.port, name="/starting_switch")
+    code = CALL_AT_START.format(port=server.port, name="/starting_switch", timeout={"timeout": 20})
     async with await anyio.open_process(["python", "-c", code]) as client:
         assert client.stdout is not None and client.stdin is not None
         lines = JsonLines(client.stdout)
@@ -245,7 +245,8 @@ async def test_a_call_issued_as_the_ros2_server_starts_waits_for_it(
 async def test_a_call_to_a_service_nobody_offers_fails_after_the_discovery_wait(
     server: ServerProcess, ros_env: Path
 ) -> None:
-    code = CALL_AT_START.format(port=server.port, name="/nobody_offers")
+    # no timeout of its own: it waits DISCOVERY_WAIT_S for the service, then fails
+    code = CALL_AT_START.format(port=server.port, name="/nobody_offers", timeout={})
     async with await anyio.open_process(["python", "-c", code]) as client:
         assert client.stdout is not None and client.stdin is not None
         lines = JsonLines(client.stdout)

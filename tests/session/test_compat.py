@@ -71,3 +71,32 @@ def test_other_failure_texts_stay_rwts(graph: Graph) -> None:
     [reply] = exchange(session(graph, Compat.ROSBRIDGE), bad)
     assert reply["result"] is False
     assert "$.args.data" in str(reply["values"])
+
+
+@pytest.mark.parametrize(
+    ("compat", "text"),
+    [
+        (Compat.ROSBRIDGE, "Service /later does not exist"),
+        (Compat.RWT, "service /later does not exist"),
+    ],
+)
+def test_a_call_that_waited_for_discovery_in_vain_gets_the_modes_text(
+    graph: Graph, compat: Compat, text: str
+) -> None:
+    # a link (the ROS 2 one) may still discover the service: the call waits, and
+    # when the link's wait ends without it the reply comes later, from the graph
+    waits: list = []
+    graph.services.discoveries.append(lambda expire: waits.append(expire) or (lambda: None))
+    client = session(graph, compat)
+    call = {"op": "call_service", "service": "/later#c3"}
+    assert exchange(client, call) == []  # held, not refused
+    [expire] = waits
+    expire()
+    [reply] = exchange(client)
+    assert reply == {
+        "op": "service_response",
+        "service": "/later#c3",
+        "values": text,
+        "result": False,
+        "id": "c3",
+    }

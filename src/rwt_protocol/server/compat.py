@@ -9,7 +9,8 @@ rwt's own texts and statuses are the default (docs/decisions.md, D1-D4). With
   traceback for each (docs/reference-behaviour.md, ``set_level`` / ``status``);
 - a failure reply (``service_response`` or ``action_result`` with ``result: false``)
   carries rosbridge_suite's text where it has one of its own
-  (``Service /x does not exist``, docs/reference-behaviour.md, ``call_service``).
+  (``Service /x does not exist``, docs/reference-behaviour.md, ``call_service``),
+  also when the call first waited for a link to discover the service (``late_reply_text``).
 
 The reply is sent in both modes (D4): rosbridge_suite answers a missing service too.
 """
@@ -21,7 +22,7 @@ from enum import StrEnum
 from ..errors import RwtError, UnknownNameError
 from ..levels import StatusLevel
 
-__all__ = ["Compat", "initial_status_level", "reply_text"]
+__all__ = ["Compat", "initial_status_level", "late_reply_text", "reply_text"]
 
 
 class Compat(StrEnum):
@@ -62,3 +63,25 @@ def reply_text(compat: Compat, error: RwtError) -> str:
     if rosbridge and isinstance(error, UnknownNameError) and error.kind == "service":
         return f"Service {error.name} does not exist"
     return error.message
+
+
+def late_reply_text(compat: Compat, service: str, values: object) -> object:
+    """The ``values`` of a failure reply the graph gave a call to ``service`` later.
+
+    A call to a service nobody offers waits while a link may still discover it
+    (``rwt_graph.services``); when the wait ends without it, the graph answers
+    ``UnknownNameError``'s text, which it has no mode to choose by.
+
+    Args:
+        compat: the server's mode.
+        service: the service as the call named it (without ``#id``).
+        values: what the graph answered.
+
+    Returns:
+        ``values``, or with ``Compat.ROSBRIDGE`` rosbridge_suite's text when
+        ``values`` is the missing service's text.
+    """
+    missing = UnknownNameError("service", service)
+    if compat is Compat.ROSBRIDGE and values == missing.message:
+        return reply_text(compat, missing)
+    return values

@@ -8,7 +8,7 @@ from ...errors import RemoteProtocolError, RwtError
 from ...levels import StatusLevel
 from ...names import resolve_name
 from ...ops import AdvertiseService, CallService, ServiceResponse, UnadvertiseService
-from ..compat import reply_text
+from ..compat import late_reply_text, reply_text
 from .topics import report_type_warning
 
 if TYPE_CHECKING:
@@ -48,9 +48,12 @@ def unadvertise_service(session: HandlerContext, op: UnadvertiseService, now: fl
 class _Call:
     """A call this client made: answers it once, with its id and spelling (D26, D28)."""
 
-    def __init__(self, session: HandlerContext, op: CallService, op_id: str | int | None) -> None:
+    def __init__(
+        self, session: HandlerContext, op: CallService, service: str, op_id: str | int | None
+    ) -> None:
         self.session = session
         self.op = op
+        self.service = service  # as the graph got it: without ``#id``
         self.op_id = op_id
         self.done = False
         self.counted = False  # in the holdings' pending calls until answered
@@ -64,6 +67,8 @@ class _Call:
             self.session.holdings.call_finished()
         if self.timer is not None:
             self.timer.cancel()
+        if not result:  # a call that waited for discovery in vain: the mode's text
+            values = late_reply_text(self.session.config.compat, self.service, values)
         message = ServiceResponse(
             service=self.op.service,
             result=result,
@@ -89,12 +94,13 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
     service, op_id = op.service, op.id
     if op_id is None and "#" in service:
         service, op_id = service.split("#", 1)
-    call = _Call(session, op, op_id)
+    call = _Call(session, op, service, op_id)
     try:
         pending_calls = session.holdings.pending_calls
         session.check_cap(pending_calls, session.config.max_pending_calls, "pending calls")
-        # the graph gets the name without ``#id``, and no ``type`` to check
-        request = CallService(service=service, args=op.args)
+        # the graph gets the name without ``#id``, no ``type`` to check, and the
+        # client's own timeout: how long it waits for a service being discovered
+        request = CallService(service=service, args=op.args, timeout=op.timeout)
         pending = session.graph.call_service(session.client_id, request, call.reply, path="$.args")
     except RwtError as exc:
         call.reply(False, reply_text(session.config.compat, exc))
