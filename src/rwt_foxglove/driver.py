@@ -1,8 +1,10 @@
 """The thin async driver of a ``FoxgloveSession`` over a WebSocket connection.
 
 The tasks of a connection: the reader hands each received frame to the
-session; the writer sends what the session queued, a batch at a time, whenever
-it is woken (a reply, a graph message); the watcher calls ``sync`` every
+session, and yields to the event loop after each slice of them (``read_slice``:
+a flood of tiny frames on one connection does not hold the others up); the
+writer sends what the session queued, a batch at a time, whenever it is woken
+(a reply, a graph message); the watcher calls ``sync`` every
 ``sync_interval_s`` so that topics and services that appeared or went are
 (un)advertised, the connection graph's changes sent and old service calls
 timed out (the graph announces no changes, so it is looked at: one pass over
@@ -27,6 +29,7 @@ import logging
 from typing import TYPE_CHECKING, Protocol
 
 import anyio
+import anyio.lowlevel
 import anyio.to_thread
 
 from rwt_protocol.framing.streams import InFrame
@@ -171,6 +174,7 @@ async def run_foxglove(
     sync_interval_s: float = SYNC_INTERVAL_S,
     assets: AssetRoots | None = None,
     direct: bool = False,
+    read_slice: tuple[int, int] | None = None,
 ) -> None:
     """Run ``session`` on ``channel`` until the peer's end; the session is closed on return.
 
@@ -183,6 +187,9 @@ async def run_foxglove(
         direct: ``channel`` can write without awaiting (``can_send_now``,
             ``send_now``): output is gathered and written from the loop while
             the writer is idle (the module's text).
+        read_slice: the frames and bytes of frames the reader hands over before it
+            yields to the loop for a turn (the server's fairness bounds,
+            docs/limits.md); None: it yields only when it waits for input.
     """
     sent = Wakeup()  # something was sent: a queued asset response may be gone
     asked = Wakeup()  # the reader handed frames over: a fetchAsset may wait
@@ -199,7 +206,7 @@ async def run_foxglove(
                 tasks.start_soon(_fetch, session, assets, wakeup, asked, sent)
             wakeup.set()  # serverInfo and the first advertise
             try:
-                await _read(channel, session, wakeup, asked)
+                await _read(channel, session, wakeup, asked, read_slice)
             finally:
                 tasks.cancel_scope.cancel()
     finally:
@@ -208,16 +215,30 @@ async def run_foxglove(
 
 
 async def _read(
-    channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup, asked: Wakeup
+    channel: FoxgloveChannel,
+    session: FoxgloveSession,
+    wakeup: Wakeup,
+    asked: Wakeup,
+    read_slice: tuple[int, int] | None,
 ) -> None:
+    max_frames, max_bytes = read_slice or (0, 0)
+    frames = size = 0  # of the current slice
     while True:
         try:
             messages = await channel.receive()
         except (anyio.EndOfStream, anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
             return
         for message in messages:
-            if isinstance(message, InFrame):
-                session.receive(message.data, binary=message.binary)
+            if not isinstance(message, InFrame):
+                continue
+            session.receive(message.data, binary=message.binary)
+            frames, size = frames + 1, size + len(message.data)
+            if read_slice is not None and (frames >= max_frames or size >= max_bytes):
+                # the others' turn; the socket stays read, so its frames keep their place
+                wakeup.set()
+                asked.set()
+                await anyio.lowlevel.checkpoint()
+                frames = size = 0
         wakeup.set()
         asked.set()
 

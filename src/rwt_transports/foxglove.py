@@ -40,6 +40,7 @@ from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.shortcuts import enabled
 
 from .holding import Held
+from .pump import READ_SLICE_BYTES, READ_SLICE_FRAMES
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -141,7 +142,14 @@ def foxglove_server(
         # ``deferred-send`` (rwt_protocol/shortcuts.py): off, the writer task writes everything
         direct = channel.abilities.send_now and enabled("deferred-send")
         try:
-            await run_foxglove(channel, foxglove, wakeup, assets=assets, direct=direct)
+            await run_foxglove(
+                channel,
+                foxglove,
+                wakeup,
+                assets=assets,
+                direct=direct,
+                read_slice=(READ_SLICE_FRAMES, READ_SLICE_BYTES),
+            )
         finally:
             if outlet is not None:
                 outlet.close()  # readers waiting for it go on
