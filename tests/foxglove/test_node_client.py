@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.foxglove import extras
 from tests.foxglove.extras import missing
 from tests.integration.client_harness import (
     DRIVER_TIMEOUT,
@@ -287,6 +288,13 @@ def test_service_calls_answered_by_roslibpy_providers_by_call_id(
     assert answers["1"]["serviceId"] == result["ids"][2]
     assert result["order"][-1] == 1  # the others were answered while it waited
     assert served["/fg_add"] == [{"a": BIG, "b": 1}, {"a": -5, "b": 3}]
+
+
+def test_the_servers_own_service_answers_a_foxglove_call(server: ServerProcess) -> None:
+    got = extras.run("call", server.url, "/rosapi/topics", "{}")
+    assert got["type"] == "rosapi_msgs/srv/Topics" and got["failure"] is None
+    listed = dict(zip(got["response"]["topics"], got["response"]["types"], strict=True))
+    assert listed["/client_count"] == "std_msgs/msg/Int32"
 
 
 def test_parameters_set_get_and_updates_from_rosapi_and_another_client(
