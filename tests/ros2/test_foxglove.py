@@ -6,7 +6,8 @@ a fresh serialization writes as 0, so a payload that keeps it was passed on as
 the link received it. An rclpy node's service answers a FoxgloveClient's call in
 CDR; an rclpy node's parameters are read and set from it by foxglove_bridge's
 names (``/node.param``), and changes the node makes itself are pushed to it. A
-FoxgloveClient's publish reaches an rclpy subscriber.
+FoxgloveClient's publish reaches an rclpy subscriber. A transient-local
+topic's message, published before the client came, reaches it on subscribing.
 """
 
 from __future__ import annotations
@@ -59,6 +60,15 @@ def test_a_talkers_cdr_reaches_a_foxglove_client_as_it_was_sent(
     assert [bytes.fromhex(p["hex"]) for p in got["payloads"]] == [expected_cdr()] * 3
     assert got["decoded"]["header"]["frame_id"] == "ab"
     assert got["decoded"]["point"] == {"x": 1.0, "y": -2.0, "z": 0.5}
+
+
+def test_a_latched_rclpy_topic_gives_a_new_foxglove_subscriber_its_message(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("latched", "/fg_ros_latched", ros_env):  # published once, before anyone asks
+        got = extras.run("receive", server.url, "/fg_ros_latched", "1")
+    assert got["schemaName"] == "std_msgs/msg/String"
+    assert got["decoded"] == {"data": "latched"}
 
 
 def test_a_foxglove_clients_publish_reaches_an_rclpy_subscriber(
