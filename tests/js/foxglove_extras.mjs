@@ -19,6 +19,8 @@
 //                            read, the set's answer and the update pushed for it
 //   watch URL NAME COUNT     read the parameter NAME (asked again until it is there), watch
 //                            it; its value read and the next COUNT values pushed
+//   graph URL TOPIC          follow the connection graph until TOPIC is published and
+//                            subscribed to; its publisher and subscriber ids
 // Stdout's last line: {"result": {...}}.
 import { createHash } from "node:crypto";
 import rosmsg from "@foxglove/rosmsg";
@@ -243,4 +245,20 @@ async function watch() {
   return { first, pushed, statuses: fox.statuses };
 }
 
-await main({ receive, publish, play, assets, call: callService, params, watch }, scenario);
+async function graph() {
+  const [topic] = args;
+  const fox = foxglove(url);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  fox.client.subscribeConnectionGraph();
+  const published = new Map();
+  const subscribed = new Map();
+  while (!published.has(topic) || !subscribed.has(topic)) {
+    const { update } = await fox.next((e) => e.kind === "graph", `the graph with ${topic}`);
+    for (const t of update.publishedTopics) published.set(t.name, t.publisherIds);
+    for (const t of update.subscribedTopics) subscribed.set(t.name, t.subscriberIds);
+  }
+  fox.client.close();
+  return { publisherIds: published.get(topic), subscriberIds: subscribed.get(topic) };
+}
+
+await main({ receive, publish, play, assets, call: callService, params, watch, graph }, scenario);

@@ -8,6 +8,7 @@ CDR; an rclpy node's parameters are read and set from it by foxglove_bridge's
 names (``/node.param``), and changes the node makes itself are pushed to it. A
 FoxgloveClient's publish reaches an rclpy subscriber. A transient-local
 topic's message, published before the client came, reaches it on subscribing.
+The connection graph names rclpy nodes by their own names.
 """
 
 from __future__ import annotations
@@ -129,6 +130,12 @@ def test_parameter_changes_an_rclpy_node_makes_are_pushed_to_a_foxglove_client(
     values = [each["value"] for each in got["pushed"]]
     assert all(isinstance(value, int) for value in values), got["pushed"]
     assert values == sorted(set(values)) and values[0] > first["value"], values
+
+
+def test_the_connection_graph_names_rclpy_nodes(server: ServerProcess, ros_env: Path) -> None:
+    with Peer("talk", "/fg_ros_graph", ros_env), Peer("listen", "/fg_ros_graph", ros_env):
+        got = extras.run("graph", server.url, "/fg_ros_graph")
+    assert got == {"publisherIds": ["/peer_talk"], "subscriberIds": ["/peer_listen"]}
 
 
 def test_with_use_sim_time_a_simulators_clock_is_foxglove_server_time(ros_env: Path) -> None:
