@@ -1,8 +1,10 @@
 """The thin async driver of a ``FoxgloveSession`` over a WebSocket connection.
 
 The tasks of a connection: the reader hands each received frame to the
-session; the writer sends what the session queued, a batch at a time, whenever
-it is woken (a reply, a graph message); the watcher calls ``sync`` every
+session, and yields to the event loop after each slice of them (``read_slice``:
+a flood of tiny frames on one connection does not hold the others up); the
+writer sends what the session queued, a batch at a time, whenever it is woken
+(a reply, a graph message); the watcher calls ``sync`` every
 ``sync_interval_s`` so that topics and services that appeared or went are
 (un)advertised, the connection graph's changes sent and old service calls
 timed out (the graph announces no changes, so it is looked at: one pass over
@@ -27,6 +29,7 @@ import logging
 from typing import TYPE_CHECKING, Protocol
 
 import anyio
+import anyio.lowlevel
 import anyio.to_thread
 
 from rwt_protocol.framing.streams import InFrame
@@ -45,12 +48,29 @@ if TYPE_CHECKING:
     from .assets import AssetRoots
     from .session import FoxgloveSession
 
-__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "Wakeup", "run_foxglove"]
+__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "ReadGate", "Wakeup", "run_foxglove"]
 
 logger = logging.getLogger("rwt.foxglove")
 
 SYNC_INTERVAL_S = 0.25
 """Seconds between two looks at the graph's topics (how late an advertise may come)."""
+
+
+class ReadGate(Protocol):
+    """What the server does around each slice of frames the reader hands over (flow control).
+
+    ``begin`` comes before the slice's first frame and ``end`` after its last,
+    with nothing else run on the loop between them; ``hold`` then.
+    """
+
+    def begin(self) -> None:
+        """The slice's frames are about to be handed to the session."""
+
+    def end(self) -> None:
+        """The slice was handled: what it queued for others is written."""
+
+    async def hold(self) -> None:
+        """Wait while the queues the slice filled past their high watermark drain."""
 
 
 class FoxgloveChannel(Protocol):
@@ -171,6 +191,8 @@ async def run_foxglove(
     sync_interval_s: float = SYNC_INTERVAL_S,
     assets: AssetRoots | None = None,
     direct: bool = False,
+    read_slice: tuple[int, int] | None = None,
+    gate: ReadGate | None = None,
 ) -> None:
     """Run ``session`` on ``channel`` until the peer's end; the session is closed on return.
 
@@ -183,6 +205,12 @@ async def run_foxglove(
         direct: ``channel`` can write without awaiting (``can_send_now``,
             ``send_now``): output is gathered and written from the loop while
             the writer is idle (the module's text).
+        read_slice: the frames and bytes of frames the reader hands over before it
+            yields to the loop for a turn (the server's fairness bounds,
+            docs/limits.md); None: it yields only when it waits for input.
+        gate: called around each slice (the server's input backpressure: a
+            client whose publishing filled another's queue waits while that
+            one reads, docs/limits.md); None: the reader never waits for others.
     """
     sent = Wakeup()  # something was sent: a queued asset response may be gone
     asked = Wakeup()  # the reader handed frames over: a fetchAsset may wait
@@ -199,7 +227,7 @@ async def run_foxglove(
                 tasks.start_soon(_fetch, session, assets, wakeup, asked, sent)
             wakeup.set()  # serverInfo and the first advertise
             try:
-                await _read(channel, session, wakeup, asked)
+                await _read(channel, session, (wakeup, asked), read_slice, gate)
             finally:
                 tasks.cancel_scope.cancel()
     finally:
@@ -208,18 +236,44 @@ async def run_foxglove(
 
 
 async def _read(
-    channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup, asked: Wakeup
+    channel: FoxgloveChannel,
+    session: FoxgloveSession,
+    wakeups: tuple[Wakeup, Wakeup],
+    read_slice: tuple[int, int] | None,
+    gate: ReadGate | None,
 ) -> None:
+    max_frames, max_bytes = read_slice or (0, 0)
+    frames = size = 0  # of the current slice
     while True:
         try:
             messages = await channel.receive()
         except (anyio.EndOfStream, anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
             return
+        begun = False
         for message in messages:
-            if isinstance(message, InFrame):
-                session.receive(message.data, binary=message.binary)
+            if not isinstance(message, InFrame):
+                continue
+            if gate is not None and not begun:
+                gate.begin()
+                begun = True
+            session.receive(message.data, binary=message.binary)
+            frames, size = frames + 1, size + len(message.data)
+            if read_slice is not None and (frames >= max_frames or size >= max_bytes):
+                await _end_slice(wakeups, gate if begun else None)
+                # the others' turn; the socket stays read, so its frames keep their place
+                await anyio.lowlevel.checkpoint()
+                frames = size = 0
+                begun = False
+        await _end_slice(wakeups, gate if begun else None)
+
+
+async def _end_slice(wakeups: tuple[Wakeup, Wakeup], gate: ReadGate | None) -> None:
+    if gate is not None:
+        gate.end()
+    for wakeup in wakeups:
         wakeup.set()
-        asked.set()
+    if gate is not None:
+        await gate.hold()
 
 
 async def _write(channel: FoxgloveChannel, session: FoxgloveSession, wakeup: Wakeup) -> None:

@@ -20,7 +20,10 @@ outbox does (``FoxgloveOutlet``, docs/limits.md "Backpressure"): a publishing
 connection's reader, or a link's deliveries, whose batch filled the queue of a
 Foxglove client past half its bounds waits while that client reads, within its
 hold budget; a client that does not read is found slow and left to drop its
-own oldest data. A publisher in the server's process is never held.
+own oldest data. A publisher in the server's process is never held. Its reader
+is a publishing connection's reader too (``FoxgloveReadGate``): a slice of its
+frames at a time (``pump.READ_SLICE_FRAMES``, ``READ_SLICE_BYTES``), each a batch
+of the flow control, after which it waits for the queues it filled.
 """
 
 from __future__ import annotations
@@ -39,7 +42,8 @@ from rwt_protocol.auth import auth_from_query
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.shortcuts import enabled
 
-from .holding import Held
+from .holding import Held, wait_for
+from .pump import READ_SLICE_BYTES, READ_SLICE_FRAMES, flush_deferred
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -51,10 +55,16 @@ if TYPE_CHECKING:
     from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.session import Session
 
-    from .flow import FlowControl
+    from .flow import FlowControl, HoldAccount
     from .websocket import FoxgloveGate, FoxgloveServe, WebSocketChannel
 
-__all__ = ["FoxgloveOptions", "FoxgloveOutlet", "foxglove_server", "url_token_gate"]
+__all__ = [
+    "FoxgloveOptions",
+    "FoxgloveOutlet",
+    "FoxgloveReadGate",
+    "foxglove_server",
+    "url_token_gate",
+]
 
 logger = logging.getLogger("rwt.foxglove")
 
@@ -131,17 +141,27 @@ def foxglove_server(
             params=params,
             assets=assets is not None,
         )
+        gate: FoxgloveReadGate | None = None
         if flow is not None:
             outlet = FoxgloveOutlet(foxglove, channel, limits)
-            flow.open_connection(
+            account = flow.open_connection(
                 outlet, session.peer, session.config.hold_budget_s, outlet.water_marks
             )
+            gate = FoxgloveReadGate(flow, account, channel, outlet)
             wakeup.on_sent = outlet.sent
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
         # ``deferred-send`` (rwt_protocol/shortcuts.py): off, the writer task writes everything
         direct = channel.abilities.send_now and enabled("deferred-send")
         try:
-            await run_foxglove(channel, foxglove, wakeup, assets=assets, direct=direct)
+            await run_foxglove(
+                channel,
+                foxglove,
+                wakeup,
+                assets=assets,
+                direct=direct,
+                read_slice=(READ_SLICE_FRAMES, READ_SLICE_BYTES),
+                gate=gate,
+            )
         finally:
             if outlet is not None:
                 outlet.close()  # readers waiting for it go on
@@ -246,3 +266,51 @@ class FoxgloveOutlet(Held):
     def unsent_bytes(self) -> int | None:
         """Bytes the socket's kernel still holds for the client (sendqueue.py)."""
         return self._channel.unsent_bytes()
+
+
+class FoxgloveReadGate:
+    """A Foxglove client's reader in the server's flow control, as a rosbridge reader is.
+
+    Each slice of its frames is a batch (``FlowControl.begin``/``end``): what it
+    published is written at the batch's end, and a queue of another client
+    (either protocol) or a link it filled past the high watermark is waited for
+    while that one reads, within this client's hold budget (docs/limits.md,
+    "Backpressure"); its socket is not read meanwhile, so TCP pushes back.
+
+    Args:
+        flow: the server's flow control.
+        account: this client's hold budget (``FlowControl.open_connection``).
+        channel: its connection (paused while it waits).
+        own: its own queue, never waited for by its own reader.
+    """
+
+    def __init__(
+        self,
+        flow: FlowControl[Held],
+        account: HoldAccount,
+        channel: WebSocketChannel,
+        own: FoxgloveOutlet,
+    ) -> None:
+        self._flow = flow
+        self._account = account
+        self._channel = channel
+        self._own = own
+
+    def begin(self) -> None:
+        """A slice starts: output queued from here on belongs to this reader's batch."""
+        self._flow.begin()
+
+    def end(self) -> None:
+        """The slice ends: what it queued for idle connections is written now."""
+        self._flow.end()
+        flush_deferred(self._flow)
+
+    async def hold(self) -> None:
+        """Wait for each queue the slice pushed over its high watermark, as the flow says."""
+        flow = self._flow
+        for held in flow.take_congested():
+            if held is self._own or not held.over_water(own=False, mark=held.high_water):
+                continue
+            if self._channel.abilities.pause_reading:
+                self._channel.pause_reading()
+            await wait_for(flow, held, own=False, account=self._account)

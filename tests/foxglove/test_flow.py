@@ -1,8 +1,9 @@
 """A Foxglove client's queue in the server's flow control (rwt_transports.foxglove).
 
-A rosbridge client publishing a burst larger than a Foxglove client's queue
-waits while that client reads, as it would for a rosbridge subscriber: the
-Foxglove client gets the whole burst, in order, and hears of no drop. A
+A rosbridge or Foxglove client publishing a burst larger than a Foxglove
+client's queue waits while that client reads, as it would for a rosbridge
+subscriber: the Foxglove client gets the whole burst, in order, and hears of no
+drop. A
 Foxglove client that does not read is left to drop its own oldest data, and
 the publisher's burst still reaches a rosbridge subscriber beside it whole
 (docs/limits.md, "Backpressure").
@@ -91,15 +92,24 @@ async def _publish_burst(ws: ClientConnection) -> None:
         await ws.send(json.dumps(msg))
 
 
-async def test_a_burst_from_a_rosbridge_client_reaches_a_reading_foxglove_client_whole() -> None:
+async def _publish_burst_from_foxglove(ws: ClientConnection) -> None:
+    channel = {"id": 1, "topic": "/burst", "encoding": "json", "schemaName": "std_msgs/String"}
+    await ws.send(json.dumps({"op": "advertise", "channels": [channel]}))
+    for index in range(BURST):
+        await ws.send(struct.pack("<BI", 1, 1) + json.dumps({"data": _text(index)}).encode())
+
+
+@pytest.mark.parametrize("protocol", ["rosbridge", "foxglove"])
+async def test_a_burst_from_a_client_reaches_a_reading_foxglove_client_whole(protocol: str) -> None:
     graph = Graph()
     publisher = graph.create_publisher("/burst", "std_msgs/msg/String")  # advertises the topic
     mtype = graph.registry.message("std_msgs/msg/String")
     codec = codec_for(graph.registry, mtype)
+    foxglove_publisher = ["foxglove.sdk.v1"] if protocol == "foxglove" else None
     async with (
         serving(graph) as server,
         foxglove(server, "/burst") as fox,
-        connect(server.urls["websocket"]) as rosbridge,
+        connect(server.urls["websocket"], subprotocols=foxglove_publisher) as sender,  # type: ignore[arg-type]
     ):
         await _subscribed(graph, "/burst", 1)
         got: list[bytes] = []
@@ -120,7 +130,10 @@ async def test_a_burst_from_a_rosbridge_client_reaches_a_reading_foxglove_client
 
         async with anyio.create_task_group() as tg:
             tg.start_soon(read)
-            await _publish_burst(rosbridge)
+            if protocol == "foxglove":
+                await _publish_burst_from_foxglove(sender)
+            else:
+                await _publish_burst(sender)
     expected = [
         bytes(codec.serialize(mtype.from_python({"data": _text(index)}))) for index in range(BURST)
     ]

@@ -34,6 +34,7 @@ pytestmark = pytest.mark.anyio
 
 FOXGLOVE = ["foxglove.sdk.v1"]
 MAX_MESSAGE_SIZE = 256 * 1024
+DROPPED = "messages dropped: this client reads slower than they arrive (the oldest go first)"
 
 
 @pytest.fixture
@@ -566,9 +567,7 @@ async def test_a_stalled_reader_drops_its_own_data_and_slows_nobody(
         # the stalled client catches up: it was told once, and got the newest
         big.publish({"data": "end"})
         statuses, data = await anyio.to_thread.run_sync(_read_until_end, stalled)
-        assert statuses == [
-            "messages dropped: this client reads slower than they arrive (the oldest go first)"
-        ]
+        assert statuses == [DROPPED]
         assert data[-1].endswith(b"end\x00") and len(data) < total
         stalled.sock.close()
         while "event=foxglove_closed" not in caplog.text:
@@ -595,3 +594,83 @@ def _read_until_end(client: RawFoxglove) -> tuple[list[str], list[bytes]]:
             data.append(payload)
             if payload.endswith(b"end\x00"):
                 return statuses, data
+
+
+# ---- a flood of tiny frames -----------------------------------------------------------
+
+FLOOD = 100_000
+FAIR = "/fair"
+
+
+def _masked_binary(payload: bytes) -> bytes:
+    """A client's binary frame (masked with a zero key: the payload as it is)."""
+    assert len(payload) < 126
+    return bytes([0x82, 0x80 | len(payload)]) + b"\0\0\0\0" + payload
+
+
+def _statuses_until(client: RawFoxglove, last: str) -> list[dict[str, object]]:
+    """Every status the client gets until one whose message holds ``last``."""
+    statuses: list[dict[str, object]] = []
+    while True:
+        opcode, payload = client.frame()
+        if opcode == 1 and (op := json.loads(payload))["op"] == "status":
+            statuses.append(op)
+            if last in str(op["message"]):
+                return statuses
+
+
+async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_bystander() -> None:
+    """As tests/hardening/test_fairness.py, the flooder a Foxglove client: 100,000 frames of
+    an unknown opcode in one write, then a message on /fair; right after, a rosbridge
+    bystander publishes on /fair too, and its own message comes back first. The flood's
+    error statuses are answers, dropped as message data are when they pile up (one
+    warning); the flooder's connection goes on."""
+    from tests.hardening.peers import WsPeer, settle  # noqa: PLC0415
+
+    graph = Graph()
+    async with serving(graph) as server:
+        port = int(server.urls["websocket"].rsplit(":", 1)[1])
+        bystander = await anyio.to_thread.run_sync(WsPeer, port)
+        bystander.send({"op": "subscribe", "topic": FAIR, "type": "std_msgs/String"})
+        bystander.send({"op": "advertise", "topic": FAIR, "type": "std_msgs/String"})
+        await anyio.to_thread.run_sync(settle, bystander, "b")
+        flooder = await anyio.to_thread.run_sync(RawFoxglove, port)
+        channel = {"id": 1, "topic": FAIR, "encoding": "json", "schemaName": "std_msgs/String"}
+        flooder.send_text(json.dumps({"op": "advertise", "channels": [channel]}))
+        flooder.send_text(json.dumps({"op": "unsubscribe", "subscriptionIds": [99]}))
+        await anyio.to_thread.run_sync(_statuses_until, flooder, "subscription 99")
+        end = _masked_binary(_client_data(1, b'{"data": "flood end"}'))
+        statuses: list[dict[str, object]] = []
+        order: list[str] = []
+
+        def flood_then_bystander() -> list[str]:
+            """The flood, the bystander's publish, then what the bystander got on /fair."""
+            flooder.sock.sendall(_masked_binary(b"\x09") * FLOOD + end)
+            bystander.send({"op": "publish", "topic": FAIR, "msg": {"data": "bystander"}})
+            data: list[str] = []
+            while len(data) < 2:
+                message = bystander.receive()
+                if message.get("op") == "publish" and message.get("topic") == FAIR:
+                    data.append(message["msg"]["data"])
+            return data
+
+        async def drain_flooder() -> None:
+            got = await anyio.to_thread.run_sync(_statuses_until, flooder, "subscription 77")
+            statuses.extend(got)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(drain_flooder)
+            order.extend(await anyio.to_thread.run_sync(flood_then_bystander))
+            # every flood frame was read: the flooder's connection goes on
+            flooder.send_text(json.dumps({"op": "unsubscribe", "subscriptionIds": [77]}))
+        # the bystander was served while the flood was still being read
+        assert order == ["bystander", "flood end"]
+        errors = [s for s in statuses if s["level"] == 2]
+        assert "unknown binary opcode 0x09" in str(errors[0]["message"])
+        assert str(errors[-1]["message"]) == "unsubscribe: unknown subscription 77"
+        assert len(errors) <= FLOOD + 1
+        # answers the flooder did not read in time were dropped, and it was told so
+        warnings = {str(s["message"]) for s in statuses if s["level"] == 1}
+        assert warnings <= {DROPPED}, warnings
+        flooder.sock.close()
+        bystander.close()

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.foxglove import extras
 from tests.foxglove.extras import missing
 from tests.integration.client_harness import (
     DRIVER_TIMEOUT,
@@ -156,6 +157,8 @@ def test_bad_inputs_each_get_a_status_and_the_connection_goes_on(server: ServerP
         "unknownClientChannel": "unknown client channel 1337",
         "truncatedBinary": "shorter than its 5-byte header",
         "hugeLength": "name longer than",
+        "hugeLengthInBinary": "past the frame's end",
+        "hugeCdrLength": "not a cdr message",
         "hugeId": "not a 32-bit unsigned integer",
         "loneSurrogate": "lone surrogate",
         "hugeInt": "does not fit in 64 bits",
@@ -165,6 +168,18 @@ def test_bad_inputs_each_get_a_status_and_the_connection_goes_on(server: ServerP
         assert status["level"] == 2 and text in status["message"], (name, status)
     assert result["latched"] == "still here"
     assert result["open"] is True
+
+
+def test_two_clients_are_independent(server: ServerProcess) -> None:
+    result = run("two", server.url)
+    # each got its own subscriptions' messages, in order; the other's take nothing from it
+    assert result["oneGot"] == ["a:a1", "a:a2"]
+    assert result["otherGot"] == ["a:a1", "b:b1", "a:a2"]
+    # one unsubscribed, then left: nothing more for it, and the other goes on
+    assert result["oneAfter"] == []
+    assert result["otherAfter"] == ["a:a3", "b:b2"]
+    assert result["otherLast"] == ["a:a4"]
+    assert result["statuses"] == 4  # the probes' only (3 and 1)
 
 
 def test_client_publish_in_cdr_and_json_reaches_roslibpy(
@@ -273,6 +288,13 @@ def test_service_calls_answered_by_roslibpy_providers_by_call_id(
     assert answers["1"]["serviceId"] == result["ids"][2]
     assert result["order"][-1] == 1  # the others were answered while it waited
     assert served["/fg_add"] == [{"a": BIG, "b": 1}, {"a": -5, "b": 3}]
+
+
+def test_the_servers_own_service_answers_a_foxglove_call(server: ServerProcess) -> None:
+    got = extras.run("call", server.url, "/rosapi/topics", "{}")
+    assert got["type"] == "rosapi_msgs/srv/Topics" and got["failure"] is None
+    listed = dict(zip(got["response"]["topics"], got["response"]["types"], strict=True))
+    assert listed["/client_count"] == "std_msgs/msg/Int32"
 
 
 def test_parameters_set_get_and_updates_from_rosapi_and_another_client(

@@ -1,20 +1,27 @@
-"""The real Foxglove client in Node (tests/js/foxglove_extras.mjs): server time, assets.
+"""The real Foxglove client in Node (tests/js/foxglove_extras.mjs): server time, assets, bags.
 
 With `rwt serve --play`, the bag (tests/bag/bags.py, written by rosbags) plays
 from a paused start; the client resumes it and seeks through the /rwt/player
 services over rosbridge. With `--package-path`, it fetches package:// assets.
+With `--record`, what it publishes is in the bag, as rosbags reads it back.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
+import subprocess
+import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+from websockets.sync.client import ClientConnection, connect
 
 from rwt_foxglove.assets import MAX_ASSET_BYTES
 from tests.bag.bags import CHATTER_GAP_S, T0, write_bag
-from tests.integration.client_harness import ServerProcess
+from tests.bag.support import read_bag
+from tests.integration.client_harness import JS_DIR, ServerProcess
 
 from . import extras
 
@@ -99,3 +106,53 @@ def test_fetch_asset_serves_package_files_and_refuses_the_rest(
         if reason is not None:
             assert answers[uri]["error"].startswith(uri[:60])
             assert reason in answers[uri]["error"], (uri, answers[uri])
+
+
+def _rosbridge_op(ws: ClientConnection, name: str) -> dict[str, object]:
+    while True:
+        op = json.loads(ws.recv(timeout=20))
+        if op["op"] == name:
+            return op  # type: ignore[no-any-return]
+
+
+def _subscribers(ws: ClientConnection, topic: str) -> list[str]:
+    call = {"op": "call_service", "service": "/rosapi/subscribers", "args": {"topic": topic}}
+    ws.send(json.dumps(call))
+    return _rosbridge_op(ws, "service_response")["values"]["subscribers"]  # type: ignore[index, no-any-return]
+
+
+def test_a_foxglove_clients_publish_is_recorded(tmp_path: Path) -> None:
+    if (reason := extras.missing()) is not None:
+        pytest.skip(reason)
+    bag = tmp_path / "fromfox"
+    server = ServerProcess(tmp_path, ("--record", str(bag), "--record-topics", "/fg_rec"))
+    publisher = None
+    try:
+        publisher = subprocess.Popen(
+            extras.command("publish", server.url, "/fg_rec", "from foxglove"),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            cwd=JS_DIR,
+        )
+        with connect(server.url) as ws:
+            for _ in range(400):  # until the recorder subscribed (it looks every 0.2 s)
+                if "/rwt_recorder" in _subscribers(ws, "/fg_rec"):
+                    break
+                time.sleep(0.05)  # the Node client has not advertised /fg_rec yet
+            else:
+                raise AssertionError("the recorder never subscribed to /fg_rec")
+            ws.send(json.dumps({"op": "subscribe", "topic": "/fg_rec"}))
+            heard = [_rosbridge_op(ws, "publish")["msg"] for _ in range(3)]
+    finally:
+        if publisher is not None:
+            publisher.kill()
+            publisher.wait(10)
+        code = server.stop()
+    assert code == 0, server.stderr_text()
+    assert heard == [{"data": "from foxglove"}] * 3
+    recorded = read_bag(bag)
+    assert list(recorded) == ["/fg_rec"]
+    # each message after the recorder subscribed, at least those the rosbridge client heard
+    assert len(recorded["/fg_rec"]) >= 3
+    want = {"data": "from foxglove", "__msgtype__": "std_msgs/msg/String"}
+    assert all(message == want for message in recorded["/fg_rec"]), recorded

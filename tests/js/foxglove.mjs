@@ -10,6 +10,9 @@
 //   stream URL                subscribe, messages in order, a 2 MB image, unsubscribe,
 //                             a topic that appears and goes
 //   bad URL                   bad inputs, each answered with a status; the connection goes on
+//   two URL                   two clients on /fg_two_a and /fg_two_b (roslib publishers):
+//                             each gets its own subscriptions' messages; one unsubscribes
+//                             and leaves, the other still gets them
 //   publish URL               advertise /fg_from_fox in cdr and in json, send one message each
 //   services URL              call /fg_add, /fg_refuse and /fg_hold (roslibpy providers) and
 //                             a few bad calls at once; signal "answered" when all but the
@@ -184,6 +187,12 @@ async function bad() {
   latched.publish({ data: "still here" });
   const fox = foxglove(["foxglove.websocket.v1"]);
   const channel = await fox.channel("/fg_latched");
+  const mine = fox.client.advertise({ topic: "/fg_bad_in", encoding: "cdr", schemaName: "std_msgs/msg/String" });
+  const le32 = (n) => {
+    const b = Buffer.alloc(4);
+    b.writeUInt32LE(n);
+    return b;
+  };
   const inputs = {
     unknownOp: JSON.stringify({ op: "frobnicate" }),
     malformedJson: '{"op": "subscribe", ',
@@ -194,8 +203,11 @@ async function bad() {
     truncatedBinary: Buffer.from([0x01, 0x00]),
     hugeLength: JSON.stringify({
       op: "advertise",
-      channels: [{ id: 1, topic: `/${"a".repeat(1 << 20)}`, encoding: "json", schemaName: "std_msgs/msg/String" }],
+      channels: [{ id: 77, topic: `/${"a".repeat(1 << 20)}`, encoding: "json", schemaName: "std_msgs/msg/String" }],
     }),
+    // a service call whose encoding name is 4 GiB long; a CDR string of length 0xfffffff0
+    hugeLengthInBinary: Buffer.concat([Buffer.from([0x02]), le32(1), le32(1), le32(0xffffffff), Buffer.from("cdr")]),
+    hugeCdrLength: Buffer.concat([Buffer.from([0x01]), le32(mine), Buffer.from([0, 1, 0, 0]), le32(0xfffffff0), Buffer.from("hi\0")]),
     hugeId: '{"op": "subscribe", "subscriptions": [{"id": 4294967296, "channelId": 1}]}',
     loneSurrogate: '{"op": "unsubscribe", "subscriptionIds": [], "note": "\\ud800"}',
     hugeInt: '{"op": "unsubscribe", "subscriptionIds": [123456789012345678901234567890]}',
@@ -216,6 +228,67 @@ async function bad() {
   fox.client.close();
   ros.close();
   return result;
+}
+
+async function two() {
+  const ros = await rosbridge();
+  const topics = ["/fg_two_a", "/fg_two_b"].map((name) => {
+    const topic = new ROSLIB.Topic({ ros, name, messageType: "std_msgs/msg/String" });
+    topic.advertise();
+    return topic;
+  });
+  const one = foxglove(["foxglove.sdk.v1"]);
+  const other = foxglove(["foxglove.websocket.v1"]);
+  const oneA = await one.channel("/fg_two_a");
+  const otherA = await other.channel("/fg_two_a");
+  const otherB = await other.channel("/fg_two_b");
+  const subs = {
+    [one.client.subscribe(oneA.id)]: "a",
+  };
+  const otherSubs = {
+    [other.client.subscribe(otherA.id)]: "a",
+    [other.client.subscribe(otherB.id)]: "b",
+  };
+  // each is subscribed once a status answers a probe sent after its subscriptions
+  for (const fox of [one, other]) {
+    fox.ws.send(JSON.stringify({ op: "unsubscribe", subscriptionIds: [999999] }));
+    await fox.next((e) => e.kind === "status", "the probe's status");
+  }
+  const decode = reader(oneA);
+  const take = async (fox, ids, until) => {
+    const got = [];
+    while (got.at(-1) !== until) {
+      const { message } = await fox.next((e) => e.kind === "message", `messages until ${until}`);
+      got.push(`${ids[message.subscriptionId] ?? message.subscriptionId}:${decode.readMessage(message.data).data}`);
+    }
+    return got;
+  };
+  topics[0].publish({ data: "a1" });
+  topics[1].publish({ data: "b1" });
+  topics[0].publish({ data: "a2" });
+  const oneGot = await take(one, subs, "a:a2");
+  const otherGot = await take(other, otherSubs, "a:a2");
+  // one unsubscribes and leaves; the other goes on
+  one.client.unsubscribe(Number(Object.keys(subs)[0]));
+  one.ws.send(JSON.stringify({ op: "unsubscribe", subscriptionIds: [999998] }));
+  await one.next((e) => e.kind === "status", "the second probe's status");
+  topics[0].publish({ data: "a3" });
+  topics[1].publish({ data: "b2" });
+  // the other got them: the server handled both publishes before the third probe
+  const otherAfter = await take(other, otherSubs, "b:b2");
+  const oneAfter = [];
+  one.ws.send(JSON.stringify({ op: "unsubscribe", subscriptionIds: [999997] }));
+  for (;;) {
+    const event = await one.next((e) => e.kind === "status" || e.kind === "message", "the third probe");
+    if (event.kind === "status") break;
+    oneAfter.push(event.message.subscriptionId);
+  }
+  one.client.close();
+  topics[0].publish({ data: "a4" });
+  const otherLast = await take(other, otherSubs, "a:a4");
+  other.client.close();
+  ros.close();
+  return { oneGot, otherGot, oneAfter, otherAfter, otherLast, statuses: [...one.statuses, ...other.statuses].length };
 }
 
 async function publish() {
@@ -350,7 +423,7 @@ async function graph() {
   };
 }
 
-const scenarios = { handshake, stream, bad, publish, services, params, graph };
+const scenarios = { handshake, stream, bad, two, publish, services, params, graph };
 try {
   const result = await scenarios[scenario]();
   process.stdout.write(`${JSON.stringify({ result }, (_, v) => (typeof v === "bigint" ? String(v) : v))}\n`);

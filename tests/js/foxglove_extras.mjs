@@ -11,6 +11,16 @@
 //                            them; then seek to 0 (/rwt/player/seek) and report the first time
 //                            frame and message after the step back
 //   assets URL URI...        fetchAsset each URI (request ids 1, 2, ...); each response
+//   call URL SERVICE JSON    call SERVICE once it is advertised, with the request JSON
+//                            written in CDR by the advertised request schema; the service's
+//                            description and the decoded response (or the failure)
+//   params URL NODE VALUE    read NODE's speed and mode (asked again every 200 ms until both
+//                            are there), watch speed, set it to VALUE (float64); the values
+//                            read, the set's answer and the update pushed for it
+//   watch URL NAME COUNT     read the parameter NAME (asked again until it is there), watch
+//                            it; its value read and the next COUNT values pushed
+//   graph URL TOPIC          follow the connection graph until TOPIC is published and
+//                            subscribed to; its publisher and subscriber ids
 // Stdout's last line: {"result": {...}}.
 import { createHash } from "node:crypto";
 import rosmsg from "@foxglove/rosmsg";
@@ -153,4 +163,102 @@ async function assets() {
   return { capabilities: info.capabilities, responses, open };
 }
 
-await main({ receive, publish, play, assets }, scenario);
+function sleep(ms) {
+  return new Promise((resolve) => setTimeout(resolve, ms));
+}
+
+async function callService() {
+  const [service, request] = [args[0], JSON.parse(args[1])];
+  const fox = foxglove(url);
+  const described = await fox.service(service);
+  const write = new MessageWriter(rosmsg.parse(described.request.schema, { ros2: true }));
+  const read = new MessageReader(rosmsg.parse(described.response.schema, { ros2: true }));
+  fox.client.sendServiceCallRequest({
+    serviceId: described.id,
+    callId: 1,
+    encoding: "cdr",
+    data: write.writeMessage(request),
+  });
+  const { response, failure } = await fox.next((e) => e.kind === "answer", `the answer of ${service}`);
+  fox.client.close();
+  return {
+    type: described.type,
+    schemas: [described.request.schemaName, described.response.schemaName],
+    callId: (response ?? failure).callId,
+    encoding: response?.encoding ?? null,
+    response: response ? read.readMessage(response.data) : null,
+    failure: failure?.message ?? null,
+  };
+}
+
+// Ask for NAMES until every one has a value (a node's parameters are copied a while after it
+// appears); at most 100 rounds, 200 ms apart.
+async function readAll(fox, names) {
+  for (let round = 0; round < 100; round += 1) {
+    const id = `get${round}`;
+    fox.client.getParameters(names, id);
+    const { values } = await fox.next((e) => e.kind === "parameterValues" && e.values.id === id, id);
+    if (values.parameters.length === names.length) return values.parameters;
+    await sleep(200);
+  }
+  throw new Error(`never got ${names}`);
+}
+
+async function params() {
+  const [node, value] = [args[0], Number(args[1])];
+  const [speed, mode] = [`${node}.speed`, `${node}.mode`];
+  const fox = foxglove(url);
+  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const read = await readAll(fox, [speed, mode]);
+  fox.client.subscribeParameterUpdates([speed]);
+  fox.client.setParameters([{ name: speed, value, type: "float64" }], "set");
+  // the answer and the update come in either order
+  let set = null;
+  let pushed = null;
+  while (set === null || pushed === null) {
+    const { values } = await fox.next(
+      (e) => e.kind === "parameterValues" && (e.values.id === "set" || e.values.id === undefined),
+      "the set's answer and its update",
+    );
+    if (values.id === "set") set = values.parameters;
+    else if (values.parameters.some((p) => p.name === speed)) pushed = values.parameters;
+  }
+  fox.client.close();
+  return { capabilities: info.capabilities, read, set, pushed, statuses: fox.statuses };
+}
+
+async function watch() {
+  const [name, count] = [args[0], Number(args[1])];
+  const fox = foxglove(url);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const [first] = await readAll(fox, [name]);
+  fox.client.subscribeParameterUpdates([name]);
+  const pushed = [];
+  while (pushed.length < count) {
+    const { values } = await fox.next(
+      (e) => e.kind === "parameterValues" && e.values.id === undefined,
+      `an update of ${name}`,
+    );
+    pushed.push(...values.parameters.filter((p) => p.name === name));
+  }
+  fox.client.close();
+  return { first, pushed, statuses: fox.statuses };
+}
+
+async function graph() {
+  const [topic] = args;
+  const fox = foxglove(url);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  fox.client.subscribeConnectionGraph();
+  const published = new Map();
+  const subscribed = new Map();
+  while (!published.has(topic) || !subscribed.has(topic)) {
+    const { update } = await fox.next((e) => e.kind === "graph", `the graph with ${topic}`);
+    for (const t of update.publishedTopics) published.set(t.name, t.publisherIds);
+    for (const t of update.subscribedTopics) subscribed.set(t.name, t.subscriberIds);
+  }
+  fox.client.close();
+  return { publisherIds: published.get(topic), subscriberIds: subscribed.get(topic) };
+}
+
+await main({ receive, publish, play, assets, call: callService, params, watch, graph }, scenario);

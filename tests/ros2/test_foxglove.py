@@ -3,7 +3,12 @@
 A talker's topic reaches a FoxgloveClient (@foxglove/ws-protocol in Node) with
 the talker's own CDR, byte for byte: its alignment padding byte is 0xAB, which
 a fresh serialization writes as 0, so a payload that keeps it was passed on as
-the link received it. A FoxgloveClient's publish reaches an rclpy subscriber.
+the link received it. An rclpy node's service answers a FoxgloveClient's call in
+CDR; an rclpy node's parameters are read and set from it by foxglove_bridge's
+names (``/node.param``), and changes the node makes itself are pushed to it. A
+FoxgloveClient's publish reaches an rclpy subscriber. A transient-local
+topic's message, published before the client came, reaches it on subscribing.
+The connection graph names rclpy nodes by their own names.
 """
 
 from __future__ import annotations
@@ -58,6 +63,15 @@ def test_a_talkers_cdr_reaches_a_foxglove_client_as_it_was_sent(
     assert got["decoded"]["point"] == {"x": 1.0, "y": -2.0, "z": 0.5}
 
 
+def test_a_latched_rclpy_topic_gives_a_new_foxglove_subscriber_its_message(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("latched", "/fg_ros_latched", ros_env):  # published once, before anyone asks
+        got = extras.run("receive", server.url, "/fg_ros_latched", "1")
+    assert got["schemaName"] == "std_msgs/msg/String"
+    assert got["decoded"] == {"data": "latched"}
+
+
 def test_a_foxglove_clients_publish_reaches_an_rclpy_subscriber(
     server: ServerProcess, ros_env: Path
 ) -> None:
@@ -74,6 +88,54 @@ def test_a_foxglove_clients_publish_reaches_an_rclpy_subscriber(
             publisher.kill()
             publisher.communicate(timeout=10)
     assert heard == {"heard": "from foxglove"}
+
+
+def test_an_rclpy_service_answers_a_foxglove_clients_call(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("serve", "/fg_ros_switch", ros_env):
+        got = extras.run("call", server.url, "/fg_ros_switch", json.dumps({"data": True}))
+    assert got["type"] == "std_srvs/srv/SetBool"
+    assert got["schemas"] == ["std_srvs/srv/SetBool_Request", "std_srvs/srv/SetBool_Response"]
+    assert (got["callId"], got["encoding"], got["failure"]) == (1, "cdr", None)
+    assert got["response"] == {"success": True, "message": "ros2 got True"}
+
+
+def test_an_rclpy_nodes_parameters_are_read_and_set_from_a_foxglove_client(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("params", "fg_robot", ros_env) as node:
+        got = extras.run("params", server.url, "/fg_robot", "3.25")
+        changed = node.next()
+    assert {"parameters", "parametersSubscribe"} <= set(got["capabilities"])
+    assert got["read"] == [
+        {"name": "/fg_robot.speed", "value": 1.5, "type": "float64"},
+        {"name": "/fg_robot.mode", "value": "auto"},
+    ]
+    speed = {"name": "/fg_robot.speed", "value": 3.25, "type": "float64"}
+    assert got["set"] == [speed] and got["pushed"] == [speed]
+    assert got["statuses"] == []
+    assert changed == {"speed": 3.25}  # the node's own set-parameters callback saw it
+
+
+def test_parameter_changes_an_rclpy_node_makes_are_pushed_to_a_foxglove_client(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    # the node sets its p00000 to 3, 4, 5... every 50 ms
+    with Peer("many_params", "fg_counter", ros_env, "3"):
+        got = extras.run("watch", server.url, "/fg_counter.p00000", "3")
+    assert got["statuses"] == []
+    first = got["first"]
+    assert first["name"] == "/fg_counter.p00000" and first["value"] >= 3
+    values = [each["value"] for each in got["pushed"]]
+    assert all(isinstance(value, int) for value in values), got["pushed"]
+    assert values == sorted(set(values)) and values[0] > first["value"], values
+
+
+def test_the_connection_graph_names_rclpy_nodes(server: ServerProcess, ros_env: Path) -> None:
+    with Peer("talk", "/fg_ros_graph", ros_env), Peer("listen", "/fg_ros_graph", ros_env):
+        got = extras.run("graph", server.url, "/fg_ros_graph")
+    assert got == {"publisherIds": ["/peer_talk"], "subscriberIds": ["/peer_listen"]}
 
 
 def test_with_use_sim_time_a_simulators_clock_is_foxglove_server_time(ros_env: Path) -> None:

@@ -22,7 +22,8 @@ speed = roslibpy.Param(ros, "/robot_params:speed")
 mode = roslibpy.Param(ros, "/robot_params:mode")
 before = [speed.get(timeout=10), mode.get(timeout=10)]
 speed.set(2.5, timeout=10)
-print(json.dumps({"listed": listed, "before": before}), flush=True)
+after = speed.get(timeout=10)  # read back at once, not at the copy's next refresh
+print(json.dumps({"listed": listed, "before": before, "after": after}), flush=True)
 ros.terminate()
 """
 
@@ -35,7 +36,7 @@ async def test_rosapi_reads_and_sets_a_ros2_nodes_parameters(
             (await run_python(roslibpy_prelude(server.port) + PARAMS)).splitlines()[-1]
         )
         changed = await anyio.to_thread.run_sync(node.next)
-    assert out == {"listed": True, "before": [1.5, "auto"]}
+    assert out == {"listed": True, "before": [1.5, "auto"], "after": 2.5}
     assert changed == {"speed": 2.5}  # the node's own set-parameters callback saw it
 
 

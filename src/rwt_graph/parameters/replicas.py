@@ -136,8 +136,10 @@ class ParamReplicas:
     async def _set_on_node(self, node: str, param: str, value: ParamValue) -> tuple[bool, str]:
         """Set ``param`` on ``node`` itself; ``(successful, reason)`` as the node answered.
 
-        The store takes the node's value at the refresh this starts, whatever the
-        answer (``NodeSetter``).
+        A value the node accepted is held at once, so that whoever asked reads it
+        back right after the answer (rosapi's ``get_param``, a Foxglove client's
+        ``setParameters`` answer); the refresh this starts then takes the node's
+        own values, whatever the answer (``NodeSetter``).
         """
         wire = to_wire(self._value_type, value)
         request = {"parameters": [{"name": param, "value": wire}]}
@@ -154,7 +156,24 @@ class ParamReplicas:
         result = results[0] if isinstance(results, list) and results else None
         if not isinstance(result, dict):
             return False, f"node {node} answered no result for {param}"
-        return result.get("successful") is True, str(result.get("reason", ""))
+        successful = result.get("successful") is True
+        if successful:
+            self._hold(node, param, value)
+        return successful, str(result.get("reason", ""))
+
+    def _hold(self, node: str, param: str, value: ParamValue) -> None:
+        """Make the copy of ``node`` hold ``value`` for ``param`` (no echo to the node)."""
+        copy = self._copies.get(node)
+        if copy is None:  # the node went meanwhile
+            return
+        self._applying = True
+        try:
+            _put(self.graph.params, f"{node}:{param}", value)
+            copy.held.add(param)
+        except ParameterError:  # no room: the refresh decides, as for any value
+            pass
+        finally:
+            self._applying = False
 
     def _refresh(self, node: str) -> None:
         def listed(values: dict[str, object]) -> None:
