@@ -388,6 +388,11 @@ class RosbridgeServer:
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
 
+    @property
+    def stop_requested(self) -> bool:
+        """Whether ``stop`` was called: ``rwt serve`` stops at once on a second signal."""
+        return self._stop_requested
+
     def stop(self) -> None:
         """Stop serving gracefully (SIGTERM/SIGINT in ``rwt serve``); ``serve`` then returns."""
         self._stop_requested = True
