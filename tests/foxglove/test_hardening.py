@@ -36,11 +36,6 @@ FOXGLOVE = ["foxglove.sdk.v1"]
 MAX_MESSAGE_SIZE = 256 * 1024
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def serving(
     graph: Graph, limits: FoxgloveLimits | None = None
