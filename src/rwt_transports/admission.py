@@ -13,7 +13,7 @@ it without waiting on the peer (plain TCP: accept; TLS: the end of its
 handshake; WebSocket, plain or over TLS: the upgrade response) until its reader
 has handled its first input. A reader of any other connection that got input
 asks, before handling it, whether a starting connection has input waiting or is
-still being set up, and if so waits for it (``wait_for_new``). Whatever the
+still being set up, and if so waits for it (``Admission.wait_for_new``). Whatever the
 older connection got after the new one's first frames arrived is then handled
 after them. Starting connections wait so for the tickets taken before theirs
 (two clients that connect and then talk to each other, as roslibjs test suites
