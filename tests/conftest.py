@@ -1,4 +1,4 @@
-"""Shared test fixtures: the async backend, TLS files, sessions paired on one graph.
+"""Shared test fixtures: the async backend, TLS files, sessions paired on one graph, ports in use.
 
 Helpers that tests import (clients of each transport, real clients in their own
 processes, the ``rwt`` command line) are in tests/support/.
@@ -7,6 +7,7 @@ processes, the ``rwt`` command line) are in tests/support/.
 from __future__ import annotations
 
 import json
+import socket
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -78,14 +79,43 @@ def peers(graph: Graph) -> Iterator[tuple[Peer, Peer]]:
     b.session.close()
 
 
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    test = metafunc.definition
+    if "anyio_backend" not in metafunc.fixturenames or not test.get_closest_marker("uvloop_too"):
+        return
+    # a test that names its own loops (``parametrize("anyio_backend", ...)``) keeps them
+    if not any(mark.args[:1] == ("anyio_backend",) for mark in test.iter_markers("parametrize")):
+        loops = [pytest.param({}, id="asyncio"), pytest.param({"use_uvloop": True}, id="uvloop")]
+        metafunc.parametrize("anyio_backend", loops, indirect=True, scope="module")
+
+
 @pytest.fixture(scope="module")
-def anyio_backend() -> str:
+def anyio_backend(request: pytest.FixtureRequest) -> str | tuple[str, dict[str, bool]]:
     """Every async test runs on asyncio: the server's transports use asyncio's own.
 
     Module scope, as anyio's default, so module-scoped async fixtures may use it.
-    A file that runs on more than one loop (uvloop too) defines its own.
+    A module marked ``uvloop_too`` (``pytestmark``) runs on uvloop's loop as well:
+    where a path differs under uvloop (direct reads and writes, gathered writes).
     """
-    return "asyncio"
+    options = getattr(request, "param", None)
+    return "asyncio" if options is None else ("asyncio", options)
+
+
+@pytest.fixture
+def taken_tcp_port() -> Iterator[int]:
+    """A TCP port on 127.0.0.1 that another socket listens on for the test's length."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen()
+        yield sock.getsockname()[1]
+
+
+@pytest.fixture
+def taken_udp_port() -> Iterator[int]:
+    """A UDP port on 127.0.0.1 that another socket holds for the test's length."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        yield sock.getsockname()[1]
 
 
 @pytest.fixture

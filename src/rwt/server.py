@@ -5,7 +5,8 @@ Listener options (``WebSocketOptions``, ``UdpOptions``, the web console's
 the ``AccessDeniedError`` a client gets), authentication (the ``Auth`` op an
 authenticator gets, ``rosauth_authenticator``; ``rosauth_op`` signs one and
 ``auth_query`` puts it in a Foxglove client's URL), the in-process client connection
-(``MemoryConnection``), the allocator tuning ``rwt serve`` does, and ``Compat``, the
+(``MemoryConnection``), the allocator tuning ``rwt serve`` does, the shortcuts on
+and off in this process (``shortcut_report``, docs/shortcuts.md), and ``Compat``, the
 drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
 docs/foxglove.md).
@@ -26,6 +27,7 @@ if TYPE_CHECKING:
     from rwt_protocol.ops import Auth
     from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
     from rwt_protocol.server.compat import Compat
+    from rwt_protocol.shortcuts import shortcut_report
     from rwt_transports.allocator import tune_allocator
     from rwt_transports.foxglove import FoxgloveOptions
     from rwt_transports.memory import MemoryConnection
@@ -48,6 +50,7 @@ __all__ = [
     "auth_query",
     "rosauth_authenticator",
     "rosauth_op",
+    "shortcut_report",
     "tune_allocator",
 ]
 

@@ -107,7 +107,7 @@ async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> 
             logging.getLogger("rwt.server").info(
                 "event=signal name=%s", signal.Signals(signum).name
             )
-            if server._stop_requested:
+            if server.stop_requested:
                 scope.cancel()
                 return
             server.stop()

@@ -23,6 +23,8 @@ Modules:
 - ``simtime``: the latest ``/clock`` as the graph's timeline (``use_sim_time``).
 - ``ratelog``: peer-triggered log lines once per episode, on the process's clock.
 - ``link``: the link contract: how a graph is mirrored to and from another middleware.
+- ``mirror``: the other middleware's entities as participants of the graph, one
+  mirror for both links (they supply discovery, transport and codecs).
 - ``topic_holds``: a link's topics held back while the subscribers they congested
   catch up.
 

@@ -121,7 +121,7 @@ from dataclasses import dataclass
 
 from .errors import ConfigError
 
-__all__ = ["ENV_VAR", "SHORTCUTS", "Shortcut", "enabled", "report", "switched_off"]
+__all__ = ["ENV_VAR", "SHORTCUTS", "Shortcut", "enabled", "shortcut_report", "switched_off"]
 
 ENV_VAR = "RWT_NO_SHORTCUTS"
 """The environment variable that switches shortcuts off (see the module docstring)."""
@@ -333,11 +333,18 @@ def enabled(name: str) -> bool:
     return name not in switched_off()
 
 
-def report(value: str | None = None) -> str:
+def shortcut_report(value: str | None = None) -> str:
     """A text table of every shortcut, whether it is on, and its benchmark and fallback.
 
     Args:
         value: a ``RWT_NO_SHORTCUTS`` value; None reads the environment.
+
+    Returns:
+        one line per shortcut (docs/shortcuts.md): its name, ``on`` or ``off``,
+        the benchmark that shows its gain and the general path it falls back to.
+
+    Raises:
+        ConfigError: ``value`` names a shortcut that does not exist.
     """
     off = switched_off(value)
     width = max(len(s.name) for s in SHORTCUTS)

@@ -13,7 +13,7 @@ it without waiting on the peer (plain TCP: accept; TLS: the end of its
 handshake; WebSocket, plain or over TLS: the upgrade response) until its reader
 has handled its first input. A reader of any other connection that got input
 asks, before handling it, whether a starting connection has input waiting or is
-still being set up, and if so waits for it (``wait_for_new``). Whatever the
+still being set up, and if so waits for it (``Admission.wait_for_new``). Whatever the
 older connection got after the new one's first frames arrived is then handled
 after them. Starting connections wait so for the tickets taken before theirs
 (two clients that connect and then talk to each other, as roslibjs test suites
@@ -30,7 +30,9 @@ that cannot see such buffers says so (None), and the asking reader lets the loop
 turn once before it looks again: the woken reader then runs first, as it was
 scheduled first. So the order does not depend on a shortcut or on TLS.
 
-Per thread, as an event loop is (``anyio.Event`` belongs to one loop).
+The tickets are the server's (``Admission``, one per server and so per event
+loop: ``anyio.Event`` belongs to one loop); a connection's reader finds its own
+ticket through its task's context (``current_ticket``).
 """
 
 from __future__ import annotations
@@ -38,7 +40,6 @@ from __future__ import annotations
 import contextvars
 import itertools
 import select
-import threading
 from typing import TYPE_CHECKING
 
 import anyio
@@ -53,27 +54,12 @@ if TYPE_CHECKING:
 
     from .direct import DirectReader
 
-__all__ = [
-    "START_WAIT_S",
-    "Ticket",
-    "current_ticket",
-    "hold",
-    "starting",
-    "stream_probe",
-    "wait_for_new",
-]
+__all__ = ["START_WAIT_S", "Admission", "Ticket", "current_ticket", "stream_probe"]
 
 START_WAIT_S = 0.5
 """Seconds a starting connection's ticket counts, and most a reader waits for tickets."""
 
 
-class _Starting(threading.local):
-    def __init__(self) -> None:
-        self.tickets: set[Ticket] = set()  # held
-        self.released: anyio.Event | None = None  # set at the next release
-
-
-_state = _Starting()
 _order = itertools.count()  # tickets in the order taken (any thread: count is atomic)
 
 
@@ -82,21 +68,22 @@ class Ticket:
 
     Until ``watch`` gives it a probe, the connection is being set up and counts
     as having input. ``release`` is idempotent. Tickets are ordered by when they
-    were taken (``hold``).
+    were taken (``Admission.hold``).
     """
 
-    __slots__ = ("_probe", "_seq", "_since")
+    __slots__ = ("_admission", "_probe", "_seq", "_since")
 
-    def __init__(self) -> None:
+    def __init__(self, admission: Admission) -> None:
+        self._admission = admission
         self._probe: Callable[[], bool | None] | None = None
         self._since = anyio.current_time()
         self._seq = next(_order)
-        _state.tickets.add(self)
+        admission.tickets.add(self)
 
     @property
     def held(self) -> bool:
         """Whether the connection still has first input to handle."""
-        return self in _state.tickets
+        return self in self._admission.tickets
 
     def serve(self) -> None:
         """Make this the current task's ticket (call it in the task serving the connection).
@@ -114,7 +101,7 @@ class Ticket:
 
     def release(self) -> None:
         """The first input is handled (or the connection ended): readers of others go on."""
-        state = _state
+        state = self._admission
         if self not in state.tickets:
             return
         state.tickets.discard(self)
@@ -139,56 +126,64 @@ _CURRENT: contextvars.ContextVar[Ticket | None] = contextvars.ContextVar(
 )
 
 
-def hold() -> Ticket:
-    """Take a ticket for a connection the server starts to read (``Ticket.serve`` next)."""
-    return Ticket()
-
-
 def current_ticket() -> Ticket | None:
     """The held ticket of the connection the current task serves, if any."""
     ticket = _CURRENT.get()
     return ticket if ticket is not None and ticket.held else None
 
 
-def starting() -> bool:
-    """Whether some connection is starting (cheap: readers ask it for every batch)."""
-    return bool(_state.tickets)
+class Admission:
+    """One server's starting connections: the tickets its readers wait for.
 
-
-async def wait_for_new(own: Ticket | None = None) -> None:
-    """Wait while a starting connection has input to handle first, at most ``START_WAIT_S``.
-
-    ``own``: the ticket of the reader's own connection if it is starting too;
-    it then waits only for the tickets taken before it, so two starting
-    connections never wait for each other.
+    Used on the server's event loop only. Memory: one entry per connection
+    between its start and its first input handled (``START_WAIT_S`` at most).
     """
-    state = _state
-    deadline = anyio.current_time() + START_WAIT_S
-    turned = False  # the loop turned once for probes that cannot see every buffer
-    while True:
-        now = anyio.current_time()
-        if now >= deadline:
-            return
-        blind = False
-        ahead = False
-        for ticket in list(state.tickets):
-            if ticket is own or (own is not None and ticket._seq > own._seq):
-                continue
-            answer = ticket._ahead(now)
-            if answer:
-                ahead = True
-                break
-            blind = blind or answer is None
-        if not ahead:
-            if not blind or turned:
+
+    def __init__(self) -> None:
+        self.tickets: set[Ticket] = set()  # held
+        self.released: anyio.Event | None = None  # set at the next release
+
+    def hold(self) -> Ticket:
+        """Take a ticket for a connection the server starts to read (``Ticket.serve`` next)."""
+        return Ticket(self)
+
+    def starting(self) -> bool:
+        """Whether some connection is starting (cheap: readers ask it for every batch)."""
+        return bool(self.tickets)
+
+    async def wait_for_new(self, own: Ticket | None = None) -> None:
+        """Wait while a starting connection has input to handle first, at most ``START_WAIT_S``.
+
+        ``own``: the ticket of the reader's own connection if it is starting too;
+        it then waits only for the tickets taken before it, so two starting
+        connections never wait for each other.
+        """
+        deadline = anyio.current_time() + START_WAIT_S
+        turned = False  # the loop turned once for probes that cannot see every buffer
+        while True:
+            now = anyio.current_time()
+            if now >= deadline:
                 return
-            turned = True  # a woken reader runs before this one's next step
-            await anyio.lowlevel.checkpoint()
-            continue
-        if state.released is None:
-            state.released = anyio.Event()
-        with anyio.move_on_after(deadline - now):
-            await state.released.wait()
+            blind = False
+            ahead = False
+            for ticket in list(self.tickets):
+                if ticket is own or (own is not None and ticket._seq > own._seq):
+                    continue
+                answer = ticket._ahead(now)
+                if answer:
+                    ahead = True
+                    break
+                blind = blind or answer is None
+            if not ahead:
+                if not blind or turned:
+                    return
+                turned = True  # a woken reader runs before this one's next step
+                await anyio.lowlevel.checkpoint()
+                continue
+            if self.released is None:
+                self.released = anyio.Event()
+            with anyio.move_on_after(deadline - now):
+                await self.released.wait()
 
 
 def stream_probe(stream: ByteStream, reader: DirectReader | None) -> Callable[[], bool | None]:

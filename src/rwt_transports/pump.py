@@ -67,7 +67,7 @@ from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.server.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
 
-from . import admission
+from .admission import Admission, Ticket, current_ticket
 from .flow import FlowControl, HoldAccount
 from .holding import Held, wait_for
 
@@ -122,6 +122,9 @@ class SessionHost(Protocol):
 
     flow: FlowControl[Held]
     """The server's flow control, shared by its connections' pumps and its links' gates."""
+
+    admission: Admission
+    """The server's starting connections, whose first input goes first (admission.py)."""
 
     def open_session(
         self,
@@ -215,13 +218,21 @@ class ConnectionPump(Held):
         channel: the connection.
         flow: the server's flow control (``SessionHost.flow``); None: one of its
             own (a pump that no server runs).
+        admission: the server's starting connections (``SessionHost.admission``);
+            None: its own (none but this one's).
 
     Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
     """
 
-    def __init__(self, channel: Channel, flow: FlowControl[Held] | None = None) -> None:
+    def __init__(
+        self,
+        channel: Channel,
+        flow: FlowControl[Held] | None = None,
+        admission: Admission | None = None,
+    ) -> None:
         super().__init__()  # the outlet readers wait on (``holding``)
         self.flow: FlowControl[Held] = FlowControl() if flow is None else flow
+        self.admission = Admission() if admission is None else admission
         self._account = HoldAccount(0.0)  # its own hold budget, as a reader (set in ``run``)
         self.channel = channel
         abilities = channel.abilities
@@ -386,7 +397,7 @@ class ConnectionPump(Held):
     async def _reader(self, session: Session) -> None:
         # A starting connection's first input goes before what the others got
         # after it (admission.py): their readers ask this probe.
-        ticket = admission.current_ticket()
+        ticket = current_ticket()
         channel = self.channel
         if ticket is not None:
             if channel.abilities.probe_input:
@@ -400,15 +411,15 @@ class ConnectionPump(Held):
             if ticket is not None:
                 ticket.release()
 
-    async def _read(self, session: Session, ticket: admission.Ticket | None) -> None:
+    async def _read(self, session: Session, ticket: Ticket | None) -> None:
         clock = _clock()
         while True:
             try:
                 events = await self.channel.receive()
             except _BROKEN:
                 return
-            if admission.starting():  # what new connections sent earlier goes first
-                await admission.wait_for_new(ticket)
+            if self.admission.starting():  # what new connections sent earlier goes first
+                await self.admission.wait_for_new(ticket)
             now = clock()  # the batch arrived at once: one clock read for all
             start, count = 0, len(events)
             while True:

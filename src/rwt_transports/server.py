@@ -56,7 +56,7 @@ from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
-from . import admission
+from .admission import Admission, Ticket
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
 from .foxglove import FoxgloveOptions, foxglove_server, url_token_gate
@@ -281,6 +281,8 @@ class RosbridgeServer:
             self.config.session.hold_budget_s, HostCoolDowns(self._host_prefixes)
         )
         self.graph.port.inflow = InboundBatch(self.flow)
+        # one order of first input for its connections, on its loop (admission.py)
+        self.admission = Admission()
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
         if authenticator is not None:
@@ -387,6 +389,11 @@ class RosbridgeServer:
                 finally:
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
+
+    @property
+    def stop_requested(self) -> bool:
+        """Whether ``stop`` was called: ``rwt serve`` stops at once on a second signal."""
+        return self._stop_requested
 
     def stop(self) -> None:
         """Stop serving gracefully (SIGTERM/SIGINT in ``rwt serve``); ``serve`` then returns."""
@@ -520,7 +527,7 @@ class RosbridgeServer:
             self._handshaking += 1
             # Plain TCP: the client may have sent already; handle that first (admission.py).
             # TLS waits for the peer's handshake first, WebSocket for its request.
-            ticket = admission.hold() if handler == self._handle_tcp and tls is None else None
+            ticket = self.admission.hold() if handler == self._handle_tcp and tls is None else None
             connections.start_soon(self._serve_socket, sock, handler, tls, ticket)
 
     async def _accept_slot(self) -> None:
@@ -541,7 +548,7 @@ class RosbridgeServer:
         sock: socket.socket,
         handler: Callable[[ByteStream], Awaitable[None]],
         tls: ssl.SSLContext | None,
-        ticket: admission.Ticket | None = None,
+        ticket: Ticket | None = None,
     ) -> None:
         """Run one accepted socket: handshakes within the timeout, then its session.
 
@@ -629,7 +636,7 @@ class RosbridgeServer:
         transport = "tls" if self.config.certfile is not None else "tcp"
         # TLS: from the end of its handshake the client may send; that goes first
         # (admission.py). Plain TCP holds its ticket from accept.
-        ticket = admission.hold() if transport == "tls" else None
+        ticket = self.admission.hold() if transport == "tls" else None
         if ticket is not None:
             ticket.serve()
         try:
@@ -643,7 +650,7 @@ class RosbridgeServer:
     async def _run_stdio(self, connections: TaskGroup) -> None:
         read_fd, write_fd = self.config.stdio_fds or (sys.stdin.fileno(), sys.stdout.fileno())
         channel = StdioChannel(read_fd, write_fd, self.config.max_message_size)
-        pump = ConnectionPump(channel, self.flow)
+        pump = ConnectionPump(channel, self.flow, self.admission)
         session = self.open_session("stdio", "stdio", pump.wake)
         if session is None:
             return
@@ -668,7 +675,7 @@ class RosbridgeServer:
             RwtError: the server is full or stopping.
         """
         channel, client = memory_pair()
-        pump = ConnectionPump(channel, self.flow)
+        pump = ConnectionPump(channel, self.flow, self.admission)
         session = self.open_session("memory", "memory", pump.wake)
         if session is None:
             raise RwtError("too many connections")

@@ -190,7 +190,7 @@ async def _serve_channel(
     channel: StreamChannel, stream: ByteStream, peer: str, host: SessionHost
 ) -> None:
     """Open the session of ``channel`` and run it, or refuse the connection."""
-    pump = ConnectionPump(channel, host.flow)
+    pump = ConnectionPump(channel, host.flow, host.admission)
     session = host.open_session(channel.transport, peer, pump.wake)
     if session is None:
         ticket = admission.current_ticket()

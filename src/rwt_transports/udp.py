@@ -304,7 +304,7 @@ class _Endpoint:
     ) -> _Peer | None:
         send, receive = anyio.create_memory_object_stream[bytes](_QUEUED_DATAGRAMS)
         channel = UdpChannel(self.sock, address, receive, self.options, self.max_message_size)
-        pump = ConnectionPump(channel, self.host.flow)
+        pump = ConnectionPump(channel, self.host.flow, self.host.admission)
         session = None
         host = self.hosts.host(address[0])
         taken, limit = len(self.peers), self.options.max_sessions

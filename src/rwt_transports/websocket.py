@@ -587,7 +587,7 @@ async def serve_websocket_connection(
             await _serve_console(stream, request, options.console, peer)
             return
         channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)
-        pump = ConnectionPump(channel, host.flow)
+        pump = ConnectionPump(channel, host.flow, host.admission)
         refusal = _refusal(request, options)
         subprotocol = None if foxglove is None else _foxglove_offered(request)
         if refusal is None and foxglove_only and subprotocol is None:
@@ -612,7 +612,7 @@ async def serve_websocket_connection(
             channel.frames = FrameReader(max_message_size)
         # From the response on, the client may send: what it sends first is handled
         # before what others send after it (admission.py).
-        ticket = admission.hold()
+        ticket = host.admission.hold()
         ticket.serve()
         try:
             if foxglove is not None and subprotocol is not None:

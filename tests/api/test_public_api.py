@@ -186,6 +186,31 @@ def test_every_type_the_api_takes_returns_or_raises_is_in_its_namespace(space: s
     assert unreachable_types(space) == {}
 
 
+def type_checking_imports(module: ModuleType) -> set[tuple[str, str]]:
+    """The (home, name) pairs a namespace module imports for type checkers only."""
+    assert module.__file__ is not None
+    tree = ast.parse(Path(module.__file__).read_text(encoding="utf-8"))
+    blocks = [
+        node
+        for node in tree.body
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING"
+    ]
+    return {
+        (stmt.module or "", alias.name)
+        for block in blocks
+        for stmt in block.body
+        if isinstance(stmt, ast.ImportFrom) and not stmt.level  # not ``from . import tf``
+        for alias in stmt.names
+    }
+
+
+@pytest.mark.parametrize("space", PUBLIC)
+def test_type_checkers_see_each_name_from_its_home_in_the_table(space: str) -> None:
+    # the table serves the names at run time, these imports serve them to type checkers
+    listed = {(home, name) for home, names in PUBLIC[space].items() for name in names}
+    assert type_checking_imports(importlib.import_module(space)) == listed
+
+
 @pytest.mark.parametrize("space", PUBLIC)
 def test_every_public_name_says_where_it_is(space: str) -> None:
     module = importlib.import_module(space)
@@ -214,6 +239,7 @@ NEVER_IN_RWT = {
     "UnknownNameError",
     "auth_query",
     "rosauth_op",
+    "shortcut_report",
 }
 
 

@@ -22,11 +22,9 @@ from rosbags.convert.converter import LATCH
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
-from typer.testing import CliRunner
 
-from rwt_cli.app import app
 from tests.integration.client_harness import REPO
-from tests.support.cli import RWT
+from tests.support.cli import RWT, invoke_rwt
 
 START_NS = 1_000_000_000
 STEP_NS = 100_000_000
@@ -82,7 +80,7 @@ def contents(bag: Path) -> list[tuple[str, int, Any]]:
 
 def rwt(*args: str) -> tuple[int, str]:
     """``rwt ARGS`` in-process: its exit code and output."""
-    result = CliRunner().invoke(app, list(args), prog_name="rwt")
+    result = invoke_rwt(*args)
     return result.exit_code, result.output
 
 

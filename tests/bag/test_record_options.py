@@ -23,11 +23,9 @@ import anyio.to_thread
 import pytest
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
-from typer.testing import CliRunner
 
-from rwt_cli.app import app
 from tests.integration.client_harness import REPO, ServerProcess
-from tests.support.cli import RWT
+from tests.support.cli import RWT, invoke_rwt
 from tests.support.realclients import run_python
 
 from .support import CHECKPOINTS
@@ -183,7 +181,7 @@ async def test_rwt_record_regex_exclusions_lz4_and_duration_parts(tmp_path: Path
 
 def invoke(*args: str) -> tuple[int, str]:
     """``rwt ARGS`` in-process: its exit code and output."""
-    result = CliRunner().invoke(app, list(args), prog_name="rwt")
+    result = invoke_rwt(*args)
     return result.exit_code, result.output
 
 

@@ -12,21 +12,18 @@ from __future__ import annotations
 import importlib.metadata
 import re
 import signal
-import socket
 import subprocess
 import sys
 import tomllib
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 import typer
-from typer.testing import CliRunner
 
 from rwt_cli.app import app
 from rwt_cli.checks import check_glob_list
 from tests.support import cli
-from tests.support.cli import ENV, TIMEOUT_S, run_rwt
+from tests.support.cli import ENV, TIMEOUT_S, invoke_rwt, run_rwt
 from tests.support.realclients import REPO
 
 SERVE = [*cli.SERVE, "--log-level", "warning"]
@@ -34,7 +31,7 @@ SERVE = [*cli.SERVE, "--log-level", "warning"]
 
 def invoke(*args: str) -> tuple[int, str]:
     """Run ``rwt ARGS`` in-process; its exit code and stderr."""
-    result = CliRunner().invoke(app, list(args), prog_name="rwt")
+    result = invoke_rwt(*args)
     return result.exit_code, result.stderr
 
 
@@ -46,22 +43,7 @@ def only_line(stderr: str) -> str:
     return lines[0]
 
 
-# ---- addresses in use -------------------------------------------------------------
-
-
-@pytest.fixture
-def taken_tcp_port() -> Iterator[int]:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        sock.listen()
-        yield sock.getsockname()[1]
-
-
-@pytest.fixture
-def taken_udp_port() -> Iterator[int]:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        yield sock.getsockname()[1]
+# ---- addresses in use (tests/conftest.py's taken ports) ---------------------------
 
 
 @pytest.mark.parametrize(

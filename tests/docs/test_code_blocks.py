@@ -35,7 +35,11 @@ def test_python_blocks_and_examples_import_only_rwt() -> None:
     texts = {b.name: b.text for b in BLOCKS if b.language in ("python", "text")}
     texts |= {str(p.relative_to(REPO)): p.read_text("utf-8") for p in REPO.glob("examples/*.py")}
     private = re.compile(r"^\s*(from|import)\s+rwt_\w+", re.M)
+    # a command's inline Python too: python -c "from rwt_... import ..."
+    inline = re.compile(r"python3? -c [\"'][^\"']*\b(from|import)\s+rwt_\w+")
+    commands = {b.name: b.text for b in BLOCKS if b.language == "bash"}
     assert [name for name, text in texts.items() if private.search(text)] == []
+    assert [name for name, text in commands.items() if inline.search(text)] == []
 
 
 def test_the_readme_has_the_two_quick_start_commands_and_ci_runs_the_second() -> None:

@@ -35,11 +35,6 @@ SECRET = "foxglove-secret-0123456789"
 FOXGLOVE = ["foxglove.sdk.v1"]
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @dataclass
 class Served:
     graph: Graph

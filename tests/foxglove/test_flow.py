@@ -34,11 +34,6 @@ SIZE = 10_000  # 20 MB in all: far more than the sockets' buffers hold
 LIMITS = FoxgloveLimits(max_queue_messages=128)
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def serving(graph: Graph) -> AsyncIterator[RosbridgeServer]:
     config = ServerConfig(port=0, foxglove=FoxgloveOptions(limits=LIMITS))

@@ -33,15 +33,7 @@ from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.websocket import WebSocketChannel
 
-pytestmark = pytest.mark.anyio
-
-
-@pytest.fixture(
-    params=[pytest.param({}, id="asyncio"), pytest.param({"use_uvloop": True}, id="uvloop")]
-)
-def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
-    # the direct writes differ under uvloop (its transport takes every part), so both run
-    return "asyncio", request.param
+pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]  # the paths differ under uvloop
 
 
 # ---- the gatherer alone --------------------------------------------------------------

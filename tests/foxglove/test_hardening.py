@@ -37,11 +37,6 @@ MAX_MESSAGE_SIZE = 256 * 1024
 DROPPED = "messages dropped: this client reads slower than they arrive (the oldest go first)"
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def serving(
     graph: Graph, limits: FoxgloveLimits | None = None

@@ -24,11 +24,6 @@ from rwt_transports.server import RosbridgeServer, ServerConfig
 pytestmark = pytest.mark.anyio
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def serving(graph: Graph, **config: object) -> AsyncIterator[RosbridgeServer]:
     server = RosbridgeServer(graph, ServerConfig(port=0, **config))

@@ -20,14 +20,12 @@ from contextlib import AsyncExitStack
 
 import anyio
 import pytest
-from typer.testing import CliRunner
 from websockets.asyncio.client import connect
 from websockets.exceptions import InvalidStatus
 
-from rwt_cli.app import app
 from rwt_transports.server import ServerConfig
 from rwt_transports.udp import UdpOptions
-from tests.support.cli import port, rwt_serve
+from tests.support.cli import invoke_rwt, port, rwt_serve
 from tests.support.clients import Harness, running_server, validate_udp
 
 pytestmark = pytest.mark.anyio
@@ -214,7 +212,7 @@ async def test_an_ipv6_client_counts_by_its_prefix(
 def test_a_prefix_longer_than_the_address_is_refused_by_the_cli(
     option: str, value: str, problem: str
 ) -> None:
-    result = CliRunner().invoke(app, ["serve", option, value], prog_name="rwt")
+    result = invoke_rwt("serve", option, value)
     assert result.exit_code == 2
     assert "Traceback" not in result.stderr
     assert result.stderr.strip() == f"rwt serve: {option}: {problem}"

@@ -28,7 +28,7 @@ from rwt_protocol.codecs.cbor import decode_cbor, encode_cbor
 from rwt_protocol.codecs.json import encode_publish_json
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.ops import Publish
-from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS, enabled, report, switched_off
+from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS, enabled, shortcut_report, switched_off
 
 REPO = Path(__file__).resolve().parents[2]
 NAMES = [s.name for s in SHORTCUTS]
@@ -117,7 +117,7 @@ def test_enabled_reads_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_the_report_shows_each_state() -> None:
-    lines = report("loop-clock").splitlines()
+    lines = shortcut_report("loop-clock").splitlines()
     assert len(lines) == len(SHORTCUTS)
     states = {line.split()[0]: line.split()[1] for line in lines}
     assert states["loop-clock"] == "off"

@@ -2,6 +2,8 @@
 
 ``run_rwt`` runs a command to its end; ``rwt_serve`` starts ``rwt serve`` and
 yields once it listens. Both run this checkout's ``src`` whatever is installed.
+``invoke_rwt`` runs a command in this process (typer's runner), for the many
+small cases of options refused before anything starts.
 """
 
 from __future__ import annotations
@@ -15,13 +17,16 @@ from typing import TYPE_CHECKING
 
 import anyio
 from anyio.streams.buffered import BufferedByteReceiveStream
+from typer.testing import CliRunner
 
+from rwt_cli.app import app
 from tests.support.realclients import REPO
 
 if TYPE_CHECKING:
     from pathlib import Path
 
     from anyio.abc import Process
+    from click.testing import Result
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
 RWT = [sys.executable, "-m", "rwt"]
@@ -55,6 +60,11 @@ def run_rwt(
         timeout=timeout,
         check=False,
     )
+
+
+def invoke_rwt(*args: str) -> Result:
+    """Run ``rwt ARGS`` in this process: its ``exit_code``, ``output`` and ``stderr``."""
+    return CliRunner().invoke(app, list(args), prog_name="rwt")
 
 
 @asynccontextmanager

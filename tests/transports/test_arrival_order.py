@@ -23,10 +23,12 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from typing import Any
 
+import anyio
 import anyio.to_thread
 import pytest
 from websockets.sync.client import connect
 
+from rwt_transports.admission import Admission
 from tests.support.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio
@@ -183,3 +185,23 @@ async def test_subscribers_get_a_publish_sent_after_their_subscribe(
 @pytest.mark.parametrize("transport", ["ws", "tcp"])
 async def test_the_order_holds_over_tls(tls_harness: Harness, transport: str, mode: str) -> None:
     await _check(tls_harness, transport, mode)
+
+
+async def test_readers_wait_for_their_own_servers_starting_connections_only() -> None:
+    """Each server keeps its own tickets: another server's new connection holds no reader."""
+    mine, other = Admission(), Admission()
+    ticket = mine.hold()  # a connection of ``mine`` being set up: it counts as having input
+    order: list[str] = []
+
+    async def reader(admission: Admission, name: str) -> None:
+        await admission.wait_for_new()
+        order.append(name)
+
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(reader, mine, "mine")
+        tg.start_soon(reader, other, "other")
+        await anyio.wait_all_tasks_blocked()
+        order.append("released")
+        ticket.release()
+    assert order == ["other", "released", "mine"]
+    assert not mine.starting()

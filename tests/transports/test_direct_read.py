@@ -25,21 +25,10 @@ from rwt_transports.direct import DirectReader
 from rwt_transports.server import ServerConfig
 from tests.support.clients import running_server
 
-pytestmark = pytest.mark.anyio
+pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]  # the paths differ under uvloop
 
 MiB = 1024 * 1024
 LIMIT = 256 * MiB  # far beyond the kernel buffers of both ends (32 + 4 MiB here)
-
-
-@pytest.fixture(
-    params=[
-        pytest.param({}, id="asyncio"),
-        pytest.param({"use_uvloop": True}, id="uvloop"),
-    ]
-)
-def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
-    # not tests/conftest.py's: the direct paths differ under uvloop, so both loops run
-    return "asyncio", request.param
 
 
 def _ping() -> bytes:

@@ -34,19 +34,11 @@ from rwt_transports.websocket import WebSocketChannel
 from tests.conftest import FakeClock
 from tests.support.clients import Client, running_server
 
-pytestmark = pytest.mark.anyio
+pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]  # the paths differ under uvloop
 
 MiB = 1024 * 1024
 BIG = 256 * 1024  # a burst of these fills the loopback socket's buffers
 BURST = 128  # 32 MiB: more than the kernel takes without the peer reading
-
-
-@pytest.fixture(
-    params=[pytest.param({}, id="asyncio"), pytest.param({"use_uvloop": True}, id="uvloop")]
-)
-def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
-    # not tests/conftest.py's: the direct paths differ under uvloop, so both loops run
-    return "asyncio", request.param
 
 
 @pytest.fixture(autouse=True)

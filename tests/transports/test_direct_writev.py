@@ -20,14 +20,7 @@ from anyio.abc import SocketStream
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.direct import DirectWriter
 
-pytestmark = pytest.mark.anyio
-
-
-@pytest.fixture(
-    params=[pytest.param({}, id="asyncio"), pytest.param({"use_uvloop": True}, id="uvloop")]
-)
-def anyio_backend(request: pytest.FixtureRequest) -> tuple[str, dict[str, bool]]:
-    return "asyncio", request.param
+pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]  # the paths differ under uvloop
 
 
 @pytest.fixture(autouse=True)

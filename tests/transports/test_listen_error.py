@@ -1,14 +1,13 @@
 """A server embedded in a program gets ``rwt.ListenError`` for an address in use.
 
 The library raises it (not only the command line, which prints its text as one
-line: tests/transports/test_cli_usage.py); it is an ``RwtError`` and, as a failed
+line: tests/cli/test_cli_usage.py); it is an ``RwtError`` and, as a failed
 bind is, an ``OSError``, so code that caught ``OSError`` keeps working.
 """
 
 from __future__ import annotations
 
 import errno
-import socket
 from typing import TYPE_CHECKING
 
 import anyio
@@ -17,22 +16,7 @@ import pytest
 import rwt
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator
-
-
-@pytest.fixture
-def taken_tcp_port() -> Iterator[int]:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        sock.listen()
-        yield sock.getsockname()[1]
-
-
-@pytest.fixture
-def taken_udp_port() -> Iterator[int]:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        yield sock.getsockname()[1]
+    pass
 
 
 def _serve(config: rwt.ServerConfig) -> rwt.ListenError:

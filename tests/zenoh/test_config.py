@@ -8,10 +8,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from typer.testing import CliRunner
 
 from rwt_cli import zenoh_link
-from rwt_cli.app import app
 from rwt_graph.graph import Graph
 from rwt_zenoh.config import (
     ZenohOptions,
@@ -20,6 +18,7 @@ from rwt_zenoh.config import (
     is_loopback_endpoint,
     make_config,
 )
+from tests.support.cli import invoke_rwt
 
 
 @pytest.mark.parametrize(
@@ -99,16 +98,14 @@ def test_without_the_extra_zenoh_options_say_how_to_install_it(
 
 
 def test_workers_refuse_transports_they_cannot_share() -> None:
-    result = CliRunner().invoke(app, ["serve", "--workers", "2", "--stdio"], prog_name="rwt")
+    result = invoke_rwt("serve", "--workers", "2", "--stdio")
     assert result.exit_code == 2
     assert "--workers shares TCP ports" in result.stderr
 
 
 def test_a_missing_zenoh_config_file_is_a_usage_error(tmp_path: Path) -> None:
     missing = tmp_path / "nope.json5"
-    result = CliRunner().invoke(
-        app, ["serve", "--zenoh", "--zenoh-config", str(missing)], prog_name="rwt"
-    )
+    result = invoke_rwt("serve", "--zenoh", "--zenoh-config", str(missing))
     assert result.exit_code == 2
     assert f"no such file: {missing}" in result.stderr
 
@@ -136,6 +133,6 @@ def test_graph_taps_see_each_publish_and_a_broken_tap_hurts_nobody() -> None:
 
 
 def test_zenoh_refuses_the_ros1_dialect() -> None:
-    result = CliRunner().invoke(app, ["serve", "--zenoh", "--dialect", "ros1"], prog_name="rwt")
+    result = invoke_rwt("serve", "--zenoh", "--dialect", "ros1")
     assert result.exit_code == 2
     assert "not --dialect ros1" in result.stderr

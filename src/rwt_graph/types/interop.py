@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
     from .message import MessageType
 
-__all__ = ["fielddefs", "from_rosbags", "to_rosbags"]
+__all__ = ["fielddefs", "from_rosbags", "plain_value", "rosbags_value", "to_rosbags"]
 
 Resolve = Callable[[str], "MessageType"]
 
@@ -33,7 +33,8 @@ Resolve = Callable[[str], "MessageType"]
 _DTYPES: dict[str, str] = {**NUMPY_DTYPES, "bool": "bool", "char": "uint8", "byte": "int8"}
 
 
-def _plain_value(value: object, ftype: FieldType, dialect: Dialect, resolve: Resolve) -> object:
+def plain_value(value: object, ftype: FieldType, dialect: Dialect, resolve: Resolve) -> object:
+    """One field's value of a rosbags object as a JSON-like value (unchecked)."""
     import numpy as np  # noqa: PLC0415 - loaded already: rosbags objects hold numpy arrays
 
     if ftype.array is not ArrayKind.NONE:
@@ -46,7 +47,7 @@ def _plain_value(value: object, ftype: FieldType, dialect: Dialect, resolve: Res
         if isinstance(value, bytes | bytearray):
             return bytes(value)
         element = ftype.element
-        return [_plain_value(item, element, dialect, resolve) for item in value]  # type: ignore[attr-defined]
+        return [plain_value(item, element, dialect, resolve) for item in value]  # type: ignore[attr-defined]
     if is_time_type(ftype):
         return {"sec": value.sec, "nanosec": value.nanosec}  # type: ignore[attr-defined]
     if ftype.is_message:
@@ -61,14 +62,15 @@ def _plain_value(value: object, ftype: FieldType, dialect: Dialect, resolve: Res
 def from_rosbags(obj: object, mtype: MessageType, resolve: Resolve) -> dict[str, object]:
     """Turn a rosbags message object of ``mtype`` into JSON-like values (unchecked)."""
     return {
-        spec.name: _plain_value(getattr(obj, spec.name), spec.type, mtype.dialect, resolve)
+        spec.name: plain_value(getattr(obj, spec.name), spec.type, mtype.dialect, resolve)
         for spec in mtype.fields
     }
 
 
-def _rosbags_value(
+def rosbags_value(
     value: object, ftype: FieldType, mtype: MessageType, store: Typestore, resolve: Resolve
 ) -> object:
+    """One field's value of ``mtype`` (internal form) as its rosbags object takes it."""
     import numpy as np  # noqa: PLC0415 - only cbor-raw and embedding callers need it
 
     if ftype.array is not ArrayKind.NONE:
@@ -79,7 +81,7 @@ def _rosbags_value(
                 return np.asarray(value, dtype=np.uint8).view(np.int8)
             return np.asarray(value, dtype=_DTYPES[ftype.base])
         element = ftype.element
-        return [_rosbags_value(v, element, mtype, store, resolve) for v in value]  # type: ignore[attr-defined]
+        return [rosbags_value(v, element, mtype, store, resolve) for v in value]  # type: ignore[attr-defined]
     if is_time_type(ftype):
         sec_key, nsec_key = time_keys(mtype.dialect)
         kind = "Time" if ftype.base in ("time", "builtin_interfaces/msg/Time") else "Duration"
@@ -102,7 +104,7 @@ def to_rosbags(
     """
     cls: Any = store.types[mtype.rosbags_name]
     kwargs = {
-        spec.name: _rosbags_value(msg[spec.name], spec.type, mtype, store, resolve)
+        spec.name: rosbags_value(msg[spec.name], spec.type, mtype, store, resolve)
         for spec in mtype.fields
     }
     if not mtype.fields and IDL_PLACEHOLDER in cls.__dataclass_fields__:

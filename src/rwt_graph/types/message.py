@@ -218,7 +218,10 @@ class MessageType:
             return cached[1]
         if self._rosbags_fast:
             found = compile_to_rosbags(
-                self, typestore, lambda name: self._resolve(name).to_rosbags_converter(typestore)
+                self,
+                typestore,
+                lambda name: self._resolve(name).to_rosbags_converter(typestore),
+                self._resolve,
             )
         else:
 
@@ -241,7 +244,7 @@ class MessageType:
         if self._from_rosbags is None:
             if self._rosbags_fast:
                 self._from_rosbags = compile_from_rosbags(
-                    self, lambda name: self._resolve(name).from_rosbags_converter()
+                    self, lambda name: self._resolve(name).from_rosbags_converter(), self._resolve
                 )
             else:
                 self._from_rosbags = lambda obj: from_rosbags(obj, self, self._resolve)

@@ -29,7 +29,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .convert import is_time_type, time_keys
-from .interop import _plain_value, _rosbags_value
+from .interop import plain_value, rosbags_value
 from .names import Dialect
 from .sources import IDL_PLACEHOLDER
 from .spec import ArrayKind, FieldSpec, FieldType, is_bytes_base
@@ -71,13 +71,17 @@ def _is_byte_ros2(ftype: FieldType, dialect: Dialect) -> bool:
     return ftype.base == "byte" and dialect is Dialect.ROS2
 
 
-def compile_to_rosbags(mtype: MessageType, store: Typestore, nested: Callable[[str], ToFn]) -> ToFn:
+def compile_to_rosbags(
+    mtype: MessageType, store: Typestore, nested: Callable[[str], ToFn], resolve: Resolve
+) -> ToFn:
     """Generate ``msg (internal form) -> rosbags object`` for ``mtype`` and ``store``.
 
     Args:
         mtype: the message type.
         store: the typestore whose classes are built (``TypeRegistry.typestore()``).
         nested: gives the generated function of a nested type by canonical name.
+        resolve: gives a nested type by canonical name (``TypeRegistry.message``),
+            for the fields the general path converts.
 
     Returns:
         A function equal to ``interop.to_rosbags(msg, mtype, store, resolve)``.
@@ -91,7 +95,8 @@ def compile_to_rosbags(mtype: MessageType, store: Typestore, nested: Callable[[s
     args: list[str] = []
     for spec in mtype.fields:
         value = f"msg[{spec.name!r}]"
-        args.append(f"{spec.name}={_to_expr(spec, value, mtype, store, nested, names, np)}")
+        expr = _to_expr(spec, value, mtype, store, nested, resolve, names, np)
+        args.append(f"{spec.name}={expr}")
     cls: Any = store.types[mtype.rosbags_name]
     if not mtype.fields and IDL_PLACEHOLDER in cls.__dataclass_fields__:
         args.append(f"{IDL_PLACEHOLDER}=0")
@@ -105,14 +110,14 @@ def _to_expr(
     mtype: MessageType,
     store: Typestore,
     nested: Callable[[str], ToFn],
+    resolve: Resolve,
     names: _Names,
     np: Any,
 ) -> str:
     ftype = spec.type
-    resolve = mtype._resolve  # the type's own resolver, as interop's functions take
 
     def general(v: object, ftype: FieldType = ftype) -> object:
-        return _rosbags_value(v, ftype, mtype, store, resolve)
+        return rosbags_value(v, ftype, mtype, store, resolve)
 
     if ftype.array is not ArrayKind.NONE:
         if is_bytes_base(ftype.base):
@@ -139,12 +144,16 @@ def _to_expr(
     return value
 
 
-def compile_from_rosbags(mtype: MessageType, nested: Callable[[str], FromFn]) -> FromFn:
+def compile_from_rosbags(
+    mtype: MessageType, nested: Callable[[str], FromFn], resolve: Resolve
+) -> FromFn:
     """Generate ``rosbags object -> JSON-like dict`` (unchecked) for ``mtype``.
 
     Args:
         mtype: the message type.
         nested: gives the generated function of a nested type by canonical name.
+        resolve: gives a nested type by canonical name (``TypeRegistry.message``),
+            for the fields the general path converts.
 
     Returns:
         A function equal to ``interop.from_rosbags(obj, mtype, resolve)``.
@@ -152,14 +161,13 @@ def compile_from_rosbags(mtype: MessageType, nested: Callable[[str], FromFn]) ->
     import numpy as np  # noqa: PLC0415 - rosbags objects hold numpy arrays
 
     names = _Names()
-    resolve = mtype._resolve  # the type's own resolver, as interop's functions take
     items: list[str] = []
     for spec in mtype.fields:
         ftype = spec.type
         value = f"obj.{spec.name}"
 
         def general(v: object, ftype: FieldType = ftype) -> object:
-            return _plain_value(v, ftype, mtype.dialect, resolve)
+            return plain_value(v, ftype, mtype.dialect, resolve)
 
         if ftype.array is not ArrayKind.NONE:
             if is_bytes_base(ftype.base):

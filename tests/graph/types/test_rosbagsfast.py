@@ -66,8 +66,8 @@ def test_every_known_type_converts_alike_both_ways(dialect: Dialect) -> None:
         mtype = registry.message(name)
         if mtype.rosbags_name not in store.types:
             continue  # a type the store could not load is not serializable either way
-        to_fast = compile_to_rosbags(mtype, store, lambda n: _to(registry, n))
-        from_fast = compile_from_rosbags(mtype, lambda n: _from(registry, n))
+        to_fast = compile_to_rosbags(mtype, store, lambda n: _to(registry, n), resolve)
+        from_fast = compile_from_rosbags(mtype, lambda n: _from(registry, n), resolve)
         for value in (mtype.default(now=NOW), _message_sample(mtype, registry)):
             msg = mtype.from_json(value, now=NOW).msg
             general_obj = to_rosbags(msg, mtype, store, resolve)
@@ -89,11 +89,15 @@ def test_every_known_type_converts_alike_both_ways(dialect: Dialect) -> None:
 
 def _to(registry: TypeRegistry, name: str):  # type: ignore[no-untyped-def]
     mtype = registry.message(name)
-    return compile_to_rosbags(mtype, registry.typestore(), lambda n: _to(registry, n))
+    return compile_to_rosbags(
+        mtype, registry.typestore(), lambda n: _to(registry, n), registry.message
+    )
 
 
 def _from(registry: TypeRegistry, name: str):  # type: ignore[no-untyped-def]
-    return compile_from_rosbags(registry.message(name), lambda n: _from(registry, n))
+    return compile_from_rosbags(
+        registry.message(name), lambda n: _from(registry, n), registry.message
+    )
 
 
 def test_bytes_become_views_and_views_become_bytes(ros2: TypeRegistry) -> None:

@@ -1,0 +1,74 @@
+"""The contributor's map is true of the code: docs/architecture.md and the module maps.
+
+docs/architecture.md draws every package and names modules, attributes and test
+files; each must exist. ``rwt_graph`` and ``rwt_foxglove`` map their modules in
+their docstrings; each module and subpackage must be on the map.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+SRC = REPO / "src"
+MAP_PAGES = [REPO / "docs" / "architecture.md", REPO / "CONTRIBUTING.md"]
+
+# ``rwt_graph.mirror``, ``rwt_transports.flow.FlowControl``, ``rwt_protocol/ops/``
+DOTTED = re.compile(r"`(rwt_[a-z0-9_]+(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`")
+SLASHED = re.compile(r"`((?:rwt_[a-z0-9_]+|tests)(?:/[A-Za-z0-9_.]+)+/?)`")
+
+
+def packages() -> list[str]:
+    return sorted(p.name for p in SRC.iterdir() if (p / "__init__.py").is_file())
+
+
+def resolves(dotted: str) -> bool:
+    """Whether ``dotted`` is a module, or an attribute of one (``module.Class.attr``)."""
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            value: object = importlib.import_module(".".join(parts[:cut]))
+        except ModuleNotFoundError:
+            continue
+        for name in parts[cut:]:
+            if not hasattr(value, name):
+                return False
+            value = getattr(value, name)
+        return True
+    return False
+
+
+def test_the_layer_drawing_names_every_package() -> None:
+    text = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
+    drawing = text.split("## Layers", 1)[1].split("```text", 1)[1].split("```", 1)[0]
+    assert [name for name in packages() if name not in drawing.split()] == []
+
+
+@pytest.mark.parametrize("page", MAP_PAGES, ids=lambda page: page.name)
+def test_every_module_and_file_the_map_names_exists(page: Path) -> None:
+    text = page.read_text(encoding="utf-8")
+    dotted = sorted(set(DOTTED.findall(text)))
+    slashed = sorted(set(SLASHED.findall(text)))
+    assert dotted, "the page names no module: the pattern is stale"
+    missing = [name for name in dotted if not resolves(name)]
+    missing += [
+        path for path in slashed if not (SRC / path).exists() and not (REPO / path).exists()
+    ]
+    assert missing == []
+
+
+@pytest.mark.parametrize("package", ["rwt_graph", "rwt_foxglove"])
+def test_a_package_docstring_maps_every_module(package: str) -> None:
+    doc = importlib.import_module(package).__doc__ or ""
+    root = SRC / package
+    parts = sorted(
+        p.stem if p.is_file() else p.name
+        for p in root.iterdir()
+        if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").is_file()
+    )
+    # a subpackage of shipped data has no __init__.py: named too, but not required here
+    assert [name for name in parts if f"``{name}``" not in doc] == []
