@@ -23,11 +23,6 @@ from tests.support.cli import ENV, SERVE
 pytestmark = pytest.mark.anyio
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def serving(*args: str, listeners: int = 1) -> AsyncIterator[list[str]]:
     """`rwt serve --port 0 --no-tf ARGS`; its listeners' URLs, in the order it prints them."""

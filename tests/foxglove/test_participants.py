@@ -30,11 +30,6 @@ FOXGLOVE = ["foxglove.sdk.v1"]
 ADD = "example_interfaces/srv/AddTwoInts"
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 @asynccontextmanager
 async def serving(graph: Graph, **config: object) -> AsyncIterator[str]:
     """The server's WebSocket URL while it serves ``graph``."""
