@@ -73,17 +73,17 @@ class OutQueue:
         self._frames.append(frame)
         if not frame.droppable:
             return False
-        self._data_bytes += len(frame.data)
+        data_bytes = self._data_bytes = self._data_bytes + len(frame.data)
         self._data_count += 1
-        if self._data_count > self.max_messages or self._data_bytes > self.max_bytes:
+        if self._data_count > self.max_messages or data_bytes > self.max_bytes:
             self._drop_oldest()
-        self.peak_bytes = max(self.peak_bytes, self._data_bytes)
-        if not self._episode_drops:
+            data_bytes = self._data_bytes
+        if data_bytes > self.peak_bytes:  # noqa: PLR1730 (per message and client: no call)
+            self.peak_bytes = data_bytes
+        if not self._episode_drops or self._told:
             return False
-        if not self._told:
-            self._told = True
-            return True
-        return False
+        self._told = True
+        return True
 
     def _drop_oldest(self) -> None:
         kept: deque[OutFrame] = deque()
@@ -118,13 +118,17 @@ class OutQueue:
         taken: list[OutFrame] = []
         size = 0
         frames = self._frames
+        data_bytes = data_count = 0  # of the data frames taken
         while frames and (not taken or size < max_bytes):
             frame = frames.popleft()
             taken.append(frame)
-            size += len(frame.data)
+            length = len(frame.data)
+            size += length
             if frame.droppable:
-                self._data_bytes -= len(frame.data)
-                self._data_count -= 1
+                data_bytes += length
+                data_count += 1
+        self._data_bytes -= data_bytes
+        self._data_count -= data_count
         if not frames:
             self._episode_drops = 0
             self._told = False
