@@ -693,7 +693,28 @@ def _framed(frames: Sequence[OutFrame]) -> list[bytes]:
     joined into writes of about ``WRITE_BATCH`` bytes and a large payload is
     written as it is, as ``writes.coalesce`` does; this is its loop written out
     for frames, a burst's per-frame cost.
+
+    The last batch that made one write is kept with it: clients that share
+    their frames (a fan-out of Foxglove message data) take the same batch one
+    after the other, which is then joined once for all of them.
     """
+    global _last_batch  # noqa: PLW0603 (one entry, replaced whole: safe across threads)
+    batch_frames = frames if isinstance(frames, list) else list(frames)
+    last = _last_batch
+    if last is not None and batch_frames == last[0]:  # the same frames (or equal: same bytes)
+        return last[1]
+    writes = _framed_anew(batch_frames)
+    if len(writes) == 1 and len(batch_frames) > 1:  # small frames only: little kept alive
+        _last_batch = (list(batch_frames), writes)  # a copy: the caller's list may be reused
+    return writes
+
+
+_last_batch: tuple[list[OutFrame], list[bytes]] | None = None
+"""``_framed``'s last batch of small frames and its one write (frames compare by value)."""
+
+
+def _framed_anew(frames: Sequence[OutFrame]) -> list[bytes]:
+    """``_framed``'s writes, made."""
     writes: list[bytes] = []
     batch: list[bytes] = []
     size = 0
