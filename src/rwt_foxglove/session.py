@@ -602,19 +602,19 @@ class FoxgloveSession:
             return
         now = None if self._time is None else self._time.now()
         log_time = int(event.stamp * 1e9) if now is None else now
-        # ``foxglove-shared-frames``: this message's frames at this log time, by subscription id
-        shared: dict[int, OutFrame] | None = (
-            event.memo((_FRAME_KEY, log_time), dict) if self._share else None
-        )
-        frames: list[OutFrame] = []
         try:  # every frame made before any is queued: the payload is the same for all
-            for sid in subscriptions:
-                frame = None if shared is None else shared.get(sid)
-                if frame is None:
-                    frame = self._frame(channel, event, sid, log_time)
-                    if shared is not None:
-                        shared[sid] = frame
-                frames.append(frame)
+            if self._share:  # ``foxglove-shared-frames``: this message's frames by subscription id
+                # (at its log time: while a bag plays, the timeline's, which could move)
+                shared: dict[int, OutFrame] = event.memo(
+                    _FRAME_KEY if now is None else (_FRAME_KEY, now), dict
+                )
+                frames = [
+                    shared.get(sid)
+                    or shared.setdefault(sid, self._frame(channel, event, sid, log_time))
+                    for sid in subscriptions
+                ]
+            else:
+                frames = [self._frame(channel, event, sid, log_time) for sid in subscriptions]
         except Exception as exc:  # a type rosbags cannot write: say so once per topic
             if channel.topic not in self._failed_topics:
                 self._failed_topics.add(channel.topic)
