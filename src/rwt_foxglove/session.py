@@ -602,19 +602,22 @@ class FoxgloveSession:
             return
         now = None if self._time is None else self._time.now()
         log_time = int(event.stamp * 1e9) if now is None else now
+        frames: list[OutFrame] = []
         try:  # every frame made before any is queued: the payload is the same for all
             if self._share:  # ``foxglove-shared-frames``: this message's frames by subscription id
                 # (at its log time: while a bag plays, the timeline's, which could move)
                 shared: dict[int, OutFrame] = event.memo(
                     _FRAME_KEY if now is None else (_FRAME_KEY, now), dict
                 )
-                frames = [
-                    shared.get(sid)
-                    or shared.setdefault(sid, self._frame(channel, event, sid, log_time))
-                    for sid in subscriptions
-                ]
+                for sid in subscriptions:
+                    frame = shared.get(sid)
+                    if frame is None:
+                        frame = shared[sid] = _frame(self._payload(channel, event), sid, log_time)
+                    frames.append(frame)
             else:
-                frames = [self._frame(channel, event, sid, log_time) for sid in subscriptions]
+                payload = self._payload(channel, event)
+                for sid in subscriptions:
+                    frames.append(_frame(payload, sid, log_time))
         except Exception as exc:  # a type rosbags cannot write: say so once per topic
             if channel.topic not in self._failed_topics:
                 self._failed_topics.add(channel.topic)
@@ -630,10 +633,8 @@ class FoxgloveSession:
         if self._on_output is not None:
             self._on_output()
 
-    def _frame(
-        self, channel: _ServerChannel, event: MessageEvent, sid: int, log_time: int
-    ) -> OutFrame:
-        """``event``'s message data frame for subscription ``sid`` (``deliver``).
+    def _payload(self, channel: _ServerChannel, event: MessageEvent) -> bytes:
+        """``event``'s message data payload, shared by every client (``deliver``).
 
         Raises:
             Exception: the message cannot be serialized (any error of rosbags).
@@ -641,8 +642,7 @@ class FoxgloveSession:
         payload = event.wire
         if payload is None:
             payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
-        header = encode_message_header(sid, log_time)  # the payload is shared, not copied
-        return OutFrame(payload, True, True, prefix=header)
+        return payload
 
     def _serialize(self, mtype: MessageType, event: MessageEvent) -> bytes:
         codec = event.codec or codec_for(self._graph.registry, mtype)
@@ -665,3 +665,8 @@ class FoxgloveSession:
         self._graph.release(self._client_id)
         self._subscriptions.clear()
         self._client_channels.clear()
+
+
+def _frame(payload: bytes, sid: int, log_time: int) -> OutFrame:
+    """The message data frame of ``payload`` for subscription ``sid`` (the payload shared)."""
+    return OutFrame(payload, True, True, prefix=encode_message_header(sid, log_time))

@@ -23,9 +23,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from rwt_foxglove import session as session_module
 from rwt_foxglove.limits import FoxgloveLimits
-from rwt_foxglove.session import FoxgloveSession
 from rwt_graph.graph import Graph
-from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.foxglove.sansio import Client
@@ -36,17 +34,15 @@ _IDS = itertools.count(1)  # each client its own identity in the graph
 
 @pytest.fixture
 def made(monkeypatch: pytest.MonkeyPatch) -> Iterator[Counter[int]]:
-    """Counts the frames made (``FoxgloveSession._frame``), by subscription id."""
+    """Counts the message data frames made (their headers), by subscription id."""
     counts = Counter[int]()
-    real = FoxgloveSession._frame
+    real = session_module.encode_message_header
 
-    def counted(
-        self: FoxgloveSession, channel: object, event: object, sid: int, t: int
-    ) -> OutFrame:
+    def counted(sid: int, log_time: int) -> bytes:
         counts[sid] += 1
-        return real(self, channel, event, sid, t)  # type: ignore[arg-type]
+        return real(sid, log_time)
 
-    monkeypatch.setattr(session_module.FoxgloveSession, "_frame", counted)
+    monkeypatch.setattr(session_module, "encode_message_header", counted)
     yield counts
 
 
