@@ -473,14 +473,24 @@ def reader_main(argv: list[str]) -> int:
 class Robot:
     """A robot process (``rwt`` or ``sdk``) and its server's port."""
 
-    def __init__(self, kind: str, yield_every: int = 1) -> None:
-        self.kind = kind
+    def __init__(self, kind: str, yield_every: int = 1, src: str | None = None) -> None:
+        self.kind = kind  # ``base``: rwt's robot on the rwt source at ``src``
         self.yield_every = yield_every  # rwt's robot: messages between yields to its loop
+        env = None
+        if src is not None:
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join((src, str(Path.cwd()))))
         # its log (the SDK's line per failed send to the stalled reader, rwt's
         # slow_consumer) is shown only if it fails
         self.log = tempfile.TemporaryFile("w+")  # noqa: SIM115 (kept while the robot runs)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "benchmarks.foxglove", "robot", kind],
+            [
+                sys.executable,
+                "-m",
+                "benchmarks.foxglove",
+                "robot",
+                "sdk" if kind == "sdk" else "rwt",
+            ],
+            env=env,
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=self.log,
@@ -601,7 +611,7 @@ def run_once(robot: Robot, scenario: Scenario, idle_s: float) -> dict[str, Any]:
             reader.wait()
         if stalled is not None:
             stalled.sock.close()  # unread data: the server sees a reset
-    if stalled is not None and robot.kind == "rwt":
+    if stalled is not None and robot.kind != "sdk":
         dropped, peak = robot.stalled_queue(stalled_port)
         result["stalled_dropped"], result["queue_peak_mb"] = dropped, peak / 1e6
     delivered = sum(result["counts"])
@@ -685,11 +695,16 @@ def title(scenario: Scenario) -> str:
 
 
 def table(results: dict[str, dict[str, list[dict[str, Any]]]], rounds: int, quick: bool) -> str:
-    """The markdown table: medians of the rounds, rwt, SDK, rwt/SDK, and the readers' CPU."""
+    """The markdown table: medians of the rounds, rwt, SDK, rwt/SDK, and the readers' CPU.
+
+    With a ``base`` robot (``--base-src``): its column and rwt/base too.
+    """
     titles = {scenario.name: title(scenario) for scenario in scenarios(quick)}
+    base = any("base" in runs for runs in results.values())
+    extra = (" rwt base | rwt/base |", "---|---|") if base else ("", "")
     lines = [
-        f"| measure (median of {rounds} rounds) | rwt | Foxglove SDK | rwt/SDK |",
-        "|---|---|---|---|",
+        f"| measure (median of {rounds} rounds) | rwt | Foxglove SDK | rwt/SDK |{extra[0]}",
+        f"|---|---|---|---|{extra[1]}",
     ]
     for name, key, label in ROWS:
         if name not in results:
@@ -697,12 +712,18 @@ def table(results: dict[str, dict[str, list[dict[str, Any]]]], rounds: int, quic
         rwt = _median(results[name]["rwt"], key)
         sdk = _median(results[name]["sdk"], key)
         ratio = f"{rwt / sdk:.2f}" if rwt is not None and sdk else "-"
-        lines.append(f"| {titles[name]}: {label} | {_fmt(rwt)} | {_fmt(sdk)} | {ratio} |")
-    for name in results:
-        cpu = [_median(results[name][kind], "reader_cpu_pct") for kind in SERVERS]
+        line = f"| {titles[name]}: {label} | {_fmt(rwt)} | {_fmt(sdk)} | {ratio} |"
+        if base:
+            before = _median(results[name]["base"], key)
+            change = f"{rwt / before:.2f}" if rwt is not None and before else "-"
+            line += f" {_fmt(before)} | {change} |"
+        lines.append(line)
+    for name, runs in results.items():
+        cpu = [_median(runs[kind], "reader_cpu_pct") for kind in (*SERVERS, "base") if kind in runs]
+        shown = " | ".join(_fmt(value) for value in cpu[:2])
+        more = f" {_fmt(cpu[2])} | - |" if base and len(cpu) > 2 else ""
         lines.append(
-            f"| {titles[name]}: the reader process's CPU, % of one core "
-            f"| {_fmt(cpu[0])} | {_fmt(cpu[1])} | - |"
+            f"| {titles[name]}: the reader process's CPU, % of one core | {shown} | - |{more}"
         )
     return "\n".join(lines)
 
@@ -715,13 +736,21 @@ def _fmt(value: float | None) -> str:
     return f"{value:.3g}" if abs(value) < 10 else f"{value:.1f}"
 
 
-def run(quick: bool, rounds: int, only: list[str], yield_every: int = 1) -> dict[str, Any]:
+def run(
+    quick: bool, rounds: int, only: list[str], yield_every: int = 1, base_src: str | None = None
+) -> dict[str, Any]:
     """Start both robots, run every scenario in interleaved rounds; the results by scenario.
 
     ``yield_every``: messages rwt's robot publishes between two yields to its event loop.
+    ``base_src``: a third robot, ``base``, runs rwt from this ``src`` directory (another
+    commit's) in the same rounds: before and after a change in one run.
     """
     idle_s = 1.5 if quick else 3.0
-    robots = {kind: Robot(kind, yield_every if kind == "rwt" else 1) for kind in SERVERS}
+    kinds = SERVERS if base_src is None else (*SERVERS, "base")
+    robots = {
+        kind: Robot(kind, 1 if kind == "sdk" else yield_every, base_src if kind == "base" else None)
+        for kind in kinds
+    }
     results: dict[str, dict[str, list[dict[str, Any]]]] = {}
     try:
         warmup = Scenario("warmup", BURST, 1000, 100, 1)
@@ -730,9 +759,9 @@ def run(quick: bool, rounds: int, only: list[str], yield_every: int = 1) -> dict
         for scenario in scenarios(quick):
             if only and scenario.name not in only:
                 continue
-            runs: dict[str, list[dict[str, Any]]] = {kind: [] for kind in SERVERS}
+            runs: dict[str, list[dict[str, Any]]] = {kind: [] for kind in kinds}
             for index in range(rounds):
-                order = SERVERS if index % 2 == 0 else SERVERS[::-1]
+                order = kinds if index % 2 == 0 else kinds[::-1]
                 for kind in order:
                     figures = run_once(robots[kind], scenario, idle_s)
                     runs[kind].append(figures)
@@ -764,12 +793,18 @@ def main(argv: list[str]) -> int:
         help="messages rwt's robot publishes between yields to its loop (default 1)",
     )
     parser.add_argument(
+        "--base-src",
+        default=None,
+        help="also run rwt from this src directory (another commit's, e.g. a `git archive` of it)"
+        " in the same rounds: column `rwt base`",
+    )
+    parser.add_argument(
         "--out", type=Path, default=None, help="the JSON results (default: results/foxglove.json)"
     )
     args = parser.parse_args(argv)
     rounds = args.rounds or (1 if args.quick else 3)
     started = time.perf_counter()
-    results = run(args.quick, rounds, args.only, max(1, args.rwt_yield_every))
+    results = run(args.quick, rounds, args.only, max(1, args.rwt_yield_every), args.base_src)
     text = table(results, rounds, args.quick)
     print(text)
     out = args.out or (None if args.quick else RESULTS / "foxglove.json")

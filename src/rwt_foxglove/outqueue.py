@@ -43,6 +43,7 @@ class OutQueue:
         self.max_bytes = max_bytes
         self.max_messages = max(1, max_messages)
         self._frames: deque[OutFrame] = deque()
+        self._bytes = 0  # of every frame queued, data or not (``take``)
         self._data_bytes = 0
         self._data_count = 0
         self.dropped = 0
@@ -71,19 +72,21 @@ class OutQueue:
             been told of (the caller queues the warning then).
         """
         self._frames.append(frame)
+        length = len(frame.data)
+        self._bytes += length
         if not frame.droppable:
             return False
-        self._data_bytes += len(frame.data)
+        data_bytes = self._data_bytes = self._data_bytes + length
         self._data_count += 1
-        if self._data_count > self.max_messages or self._data_bytes > self.max_bytes:
+        if self._data_count > self.max_messages or data_bytes > self.max_bytes:
             self._drop_oldest()
-        self.peak_bytes = max(self.peak_bytes, self._data_bytes)
-        if not self._episode_drops:
+            data_bytes = self._data_bytes
+        if data_bytes > self.peak_bytes:  # noqa: PLR1730 (per message and client: no call)
+            self.peak_bytes = data_bytes
+        if not self._episode_drops or self._told:
             return False
-        if not self._told:
-            self._told = True
-            return True
-        return False
+        self._told = True
+        return True
 
     def _drop_oldest(self) -> None:
         kept: deque[OutFrame] = deque()
@@ -97,6 +100,7 @@ class OutQueue:
             frame = frames.popleft()
             if frame.droppable:
                 self._data_bytes -= len(frame.data)
+                self._bytes -= len(frame.data)
                 self._data_count -= 1
                 self.dropped += 1
                 self._episode_drops += 1
@@ -115,16 +119,28 @@ class OutQueue:
 
         An empty queue ends the episode of drops.
         """
-        taken: list[OutFrame] = []
-        size = 0
         frames = self._frames
+        if self._bytes < max_bytes:  # all of them: the loop below would take every one
+            taken = list(frames)
+            frames.clear()
+            self._bytes = self._data_bytes = self._data_count = 0
+            self._episode_drops = 0
+            self._told = False
+            return taken
+        taken = []
+        size = 0
+        data_bytes = data_count = 0  # of the data frames taken
         while frames and (not taken or size < max_bytes):
             frame = frames.popleft()
             taken.append(frame)
-            size += len(frame.data)
+            length = len(frame.data)
+            size += length
             if frame.droppable:
-                self._data_bytes -= len(frame.data)
-                self._data_count -= 1
+                data_bytes += length
+                data_count += 1
+        self._bytes -= size
+        self._data_bytes -= data_bytes
+        self._data_count -= data_count
         if not frames:
             self._episode_drops = 0
             self._told = False

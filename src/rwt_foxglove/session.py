@@ -29,6 +29,7 @@ from rwt_protocol.errors import RwtError
 from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.shortcuts import enabled
 
 from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetRequests
 from .conngraph import ConnectionGraph
@@ -88,6 +89,7 @@ CAPABILITIES: Final = ("clientPublish", "services", "connectionGraph")
 PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
 """Announced too when the session is given the graph's parameters."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
+_FRAME_KEY: Final = "foxglove-frame"  # ``MessageEvent.memo`` key of a shared message data frame
 DROPPING_STATUS: Final = "rwt.dropping"
 """The id of the warning that this client's oldest message data is being dropped,
 withdrawn (``removeStatus``) once its queue is empty again."""
@@ -175,6 +177,8 @@ class FoxgloveSession:
         self._unadvertised = 0  # topics left out by ``max_channels`` at the last sync
         self._dropping = False  # the client was told its data is being dropped
         self._closed = False
+        # ``foxglove-shared-frames`` (rwt_protocol/shortcuts.py): off, each client makes its own
+        self._share = enabled("foxglove-shared-frames")
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
         self.services = ServiceCalls(graph, client_id, self, self._access, self.limits)
@@ -316,24 +320,28 @@ class FoxgloveSession:
 
     def _push_data(self, frame: OutFrame) -> None:
         if self._queue.push(frame):
-            self._dropping = True
-            logger.warning(
-                "event=slow_consumer client=%s protocol=foxglove dropped_total=%d",
-                self._client_id,
-                self._queue.dropped,
-            )
-            self._queue.push(
-                OutFrame(
-                    encode_op(
-                        Status(
-                            level=int(StatusLevel.WARNING),
-                            message="messages dropped: this client reads slower than they "
-                            "arrive (the oldest go first)",
-                            id=DROPPING_STATUS,
-                        )
+            self._tell_dropping()
+
+    def _tell_dropping(self) -> None:
+        """A push began an episode of drops (``OutQueue.push``): warn the client once."""
+        self._dropping = True
+        logger.warning(
+            "event=slow_consumer client=%s protocol=foxglove dropped_total=%d",
+            self._client_id,
+            self._queue.dropped,
+        )
+        self._queue.push(
+            OutFrame(
+                encode_op(
+                    Status(
+                        level=int(StatusLevel.WARNING),
+                        message="messages dropped: this client reads slower than they "
+                        "arrive (the oldest go first)",
+                        id=DROPPING_STATUS,
                     )
                 )
             )
+        )
 
     # ---- input --------------------------------------------------------------------
 
@@ -585,31 +593,56 @@ class FoxgloveSession:
         (``MessageEvent.wire``: a link's CDR, a bag's record), else serialized
         once per message for every Foxglove client (``MessageEvent.encoded``);
         the log time is when the graph received it, on the bag's clock while a
-        bag plays (``servertime``).
+        bag plays (``servertime``). With the ``foxglove-shared-frames`` shortcut
+        the whole frame (header and payload) is made once per message,
+        subscription id and log time, and every client subscribed with that id
+        queues the same one (``MessageEvent.memo``).
         """
         if self._closed or not subscriptions:
             return
-        try:
-            payload = event.wire
-            if payload is None:
-                payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
+        now = None if self._time is None else self._time.now()
+        log_time = int(event.stamp * 1e9) if now is None else now
+        frames: list[OutFrame] = []
+        try:  # every frame made before any is queued: the payload is the same for all
+            if self._share:  # ``foxglove-shared-frames``: this message's frames by subscription id
+                # (at its log time: while a bag plays, the timeline's, which could move)
+                shared: dict[int, OutFrame] = event.memo(
+                    _FRAME_KEY if now is None else (_FRAME_KEY, now), dict
+                )
+                for sid in subscriptions:
+                    frame = shared.get(sid)
+                    if frame is None:
+                        frame = shared[sid] = _frame(self._payload(channel, event), sid, log_time)
+                    frames.append(frame)
+            else:
+                payload = self._payload(channel, event)
+                for sid in subscriptions:
+                    frames.append(_frame(payload, sid, log_time))
         except Exception as exc:  # a type rosbags cannot write: say so once per topic
             if channel.topic not in self._failed_topics:
                 self._failed_topics.add(channel.topic)
                 logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
                 self._status(StatusLevel.ERROR, f"{channel.topic}: cannot encode its messages")
             return
-        now = None if self._time is None else self._time.now()
-        if now is None:
-            log_time = int(event.stamp * 1e9)
-        else:  # on the bag's clock, told first (a client reads receive time from it)
-            log_time = now
+        if now is not None:  # on the bag's clock, told first (a client reads receive time from it)
             self._told_time(now)
-        for sid in subscriptions:
-            header = encode_message_header(sid, log_time)  # the payload is shared, not copied
-            self._push_data(OutFrame(payload, True, True, prefix=header))
+        push = self._queue.push
+        for frame in frames:
+            if push(frame):
+                self._tell_dropping()
         if self._on_output is not None:
             self._on_output()
+
+    def _payload(self, channel: _ServerChannel, event: MessageEvent) -> bytes:
+        """``event``'s message data payload, shared by every client (``deliver``).
+
+        Raises:
+            Exception: the message cannot be serialized (any error of rosbags).
+        """
+        payload = event.wire
+        if payload is None:
+            payload = event.encoded(_WIRE_KEY, lambda: self._serialize(channel.mtype, event))
+        return payload
 
     def _serialize(self, mtype: MessageType, event: MessageEvent) -> bytes:
         codec = event.codec or codec_for(self._graph.registry, mtype)
@@ -632,3 +665,8 @@ class FoxgloveSession:
         self._graph.release(self._client_id)
         self._subscriptions.clear()
         self._client_channels.clear()
+
+
+def _frame(payload: bytes, sid: int, log_time: int) -> OutFrame:
+    """The message data frame of ``payload`` for subscription ``sid`` (the payload shared)."""
+    return OutFrame(payload, True, True, prefix=encode_message_header(sid, log_time))

@@ -90,6 +90,11 @@ The shortcuts (name: what; module; benchmark; general path):
   (``rwt_foxglove.gather``); ``rwt_transports.pump``; B7 (latency), B2
   (fan-out), the Foxglove comparison's bursts; waking the connection's writer
   task for each output.
+- ``foxglove-shared-frames``: a Foxglove message data frame (its 13-byte
+  header and the payload) made once per message, subscription id and log
+  time, and queued by every client subscribed with that id, so it is also
+  framed once; ``rwt_foxglove.session.FoxgloveSession.deliver``; B2 (fan-out),
+  the Foxglove comparison's bursts to ten readers; a frame made by each client.
 - ``loop-clock``: the pump reads ``loop.time`` itself, the value
   ``anyio.current_time`` returns on asyncio; ``rwt_transports.pump``; B6
   (5 % of the 100 Hz Twist's samples); ``anyio.current_time``.
@@ -255,6 +260,14 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         " a Foxglove connection's burst gathered over loop turns (rwt_foxglove.gather)",
         "B7, B2, Foxglove bursts",
         "waking the connection's writer task (ConnectionPump._writer)",
+    ),
+    Shortcut(
+        "foxglove-shared-frames",
+        "rwt_foxglove.session.FoxgloveSession.deliver",
+        "a Foxglove message data frame made once per message and subscription id,"
+        " shared by the clients subscribed with that id",
+        "B2 (fan-out), Foxglove bursts to 10 readers",
+        "a frame made by each client (its header before the shared payload)",
     ),
     Shortcut(
         "loop-clock",

@@ -54,7 +54,7 @@ from .direct import DirectReader, DirectWriter
 from .flow import ChannelAbilities
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
-from .writes import coalesce
+from .writes import WRITE_BATCH
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
@@ -687,26 +687,60 @@ def _framed(frames: Sequence[OutFrame]) -> list[bytes]:
     """The writes that send ``frames`` as whole WebSocket frames, in order.
 
     The header is made once and kept on the ``OutFrame``, which every
-    subscriber of the same form shares (frame once); small frames are joined
-    and a large payload is written without a copy (``writes.coalesce``), also
-    behind a frame's own ``prefix``.
-    """
+    subscriber of the same form shares (frame once); with a ``prefix`` it
+    frames the prefix and the payload together (a Foxglove frame that clients
+    share, ``foxglove-shared-frames``, is so framed once too). Small frames are
+    joined into writes of about ``WRITE_BATCH`` bytes and a large payload is
+    written as it is, as ``writes.coalesce`` does; this is its loop written out
+    for frames, a burst's per-frame cost.
 
-    def parts(frame: OutFrame) -> tuple[bytes, bytes, bytes]:
+    The last batch that made one write is kept with it: clients that share
+    their frames (a fan-out of Foxglove message data) take the same batch one
+    after the other, which is then joined once for all of them.
+    """
+    global _last_batch  # noqa: PLW0603 (one entry, replaced whole: safe across threads)
+    batch_frames = frames if isinstance(frames, list) else list(frames)
+    last = _last_batch
+    if last is not None and batch_frames == last[0]:  # the same frames (or equal: same bytes)
+        return last[1]
+    writes = _framed_anew(batch_frames)
+    if len(writes) == 1 and len(batch_frames) > 1:  # small frames only: little kept alive
+        _last_batch = (list(batch_frames), writes)  # a copy: the caller's list may be reused
+    return writes
+
+
+_last_batch: tuple[list[OutFrame], list[bytes]] | None = None
+"""``_framed``'s last batch of small frames and its one write (frames compare by value)."""
+
+
+def _framed_anew(frames: Sequence[OutFrame]) -> list[bytes]:
+    """``_framed``'s writes, made."""
+    writes: list[bytes] = []
+    batch: list[bytes] = []
+    size = 0
+    for frame in frames:
+        data = frame.data
+        prefix = frame.prefix
         header = frame.header
         if header is None:
-            prefix = frame.prefix
-            if prefix:  # one connection's frame: its header and prefix go as one piece
-                return (
-                    _header(len(prefix) + len(frame.data), frame.binary) + prefix,
-                    frame.data,
-                    b"",
-                )
-            header = _header(len(frame.data), frame.binary)
+            header = _header(len(prefix) + len(data), frame.binary)
             object.__setattr__(frame, "header", header)  # shared: framed once for all
-        return header, frame.data, b""
-
-    return coalesce(parts(frame) for frame in frames)
+        if len(data) >= WRITE_BATCH:  # its payload goes alone, not copied
+            batch.append(header)
+            if prefix:
+                batch.append(prefix)
+            writes.append(b"".join(batch))
+            writes.append(data)
+            batch, size = [], 0
+            continue
+        batch += (header, prefix, data)
+        size += len(header) + len(prefix) + len(data)
+        if size >= WRITE_BATCH:
+            writes.append(b"".join(batch))
+            batch, size = [], 0
+    if batch:
+        writes.append(b"".join(batch))
+    return writes
 
 
 def _header(length: int, binary: bool) -> bytes:

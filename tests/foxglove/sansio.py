@@ -12,12 +12,19 @@ from rwt_graph.graph import Graph
 class Client:
     """Drives a session and keeps what it sent back, split into text ops and binary frames."""
 
-    def __init__(self, graph: Graph, *, with_params: bool = False, **kwargs: object) -> None:
+    def __init__(
+        self,
+        graph: Graph,
+        *,
+        with_params: bool = False,
+        client_id: str = "foxglove:test#1",
+        **kwargs: object,
+    ) -> None:
         if with_params:
             kwargs["params"] = graph.params
         self.session = FoxgloveSession(
             graph.port,
-            "foxglove:test#1",
+            client_id,
             session_id="s1",
             **kwargs,  # type: ignore[arg-type]
         )

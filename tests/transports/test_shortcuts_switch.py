@@ -33,7 +33,8 @@ REPO = Path(__file__).resolve().parents[2]
 #: The probe runs no ROS 2 link (tests/ros2/test_batch_take.py covers its shortcut),
 #: reads no CDR and records no bag (tests/protocol/test_shortcuts.py covers those), and
 #: plays no bag (tests/bag/test_ros1read.py covers ``ros1-chunk-read``), and runs no
-#: Zenoh link (tests/zenoh/test_deferred.py covers its two).
+#: Zenoh link (tests/zenoh/test_deferred.py covers its two), and has no Foxglove
+#: client (tests/foxglove/test_shared_frames.py covers ``foxglove-shared-frames``).
 OUTSIDE_THE_PROBE = {
     "ros2-batch-take",
     "cdr-input-view",
@@ -41,6 +42,7 @@ OUTSIDE_THE_PROBE = {
     "ros1-chunk-read",
     "zenoh-deferred-encode",
     "zenoh-late-copy",
+    "foxglove-shared-frames",
 }
 SWITCHABLE = {s.name for s in SHORTCUTS} - OUTSIDE_THE_PROBE
 

@@ -62,7 +62,8 @@ class OutFrame:
             header), made by the first connection that sends it and reused by
             every other: one frame object goes to all subscribers of a form
             (``encoding.publish_frames``), so it is framed once (benchmarks/README.md). Only
-            the header is kept, so a queued frame costs its payload once.
+            the header is kept, so a queued frame costs its payload once. With a
+            ``prefix``, it frames the prefix and ``data`` together.
         prefix: bytes sent before ``data`` in the same message: a header of one
             connection's own (a Foxglove message data header) in front of a
             payload that many connections share, which so is not copied for
