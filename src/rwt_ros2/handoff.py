@@ -1,7 +1,8 @@
-"""Work handed from rclpy's executor thread to the event loop, bounded in bytes.
+"""Work handed from rclpy's threads to the event loop, bounded in bytes.
 
-rclpy calls back on its own thread; the graph may only be touched on the event
-loop's. ``Handoff.put`` (any thread) queues a callback with its size in bytes;
+rclpy calls back on its own threads; the graph may only be touched on the event
+loop's. ``Handoff.put`` (any thread) queues a callback with its size in bytes
+(``put_many``: a batch of samples of one topic);
 the link's task runs queued callbacks in order (``drain``). Samples beyond
 ``max_bytes`` queued are dropped, one log line per topic and episode
 (``rwt_graph.ratelog``), so a ROS 2 publisher faster than the bridge cannot
@@ -83,25 +84,69 @@ class Handoff:
             if self._closed:
                 return False
             if topic and self.queued_bytes + size > self.max_bytes:
-                self.dropped += 1
-                self._drops.log(
-                    logging.WARNING,
-                    f"drop:{topic}",
-                    "event=ros2_samples_dropped topic=%s queued_bytes=%d limit=%d",
-                    topic,
-                    self.queued_bytes,
-                    self.max_bytes,
-                )
+                self._refuse(topic)
                 return False
             self.queued_bytes += size
             self._events.append((callback, args, size, topic))
-            signal = not self._signalled
-            self._signalled = True
+            signal = self._signal()
+        if signal:
+            self._wake_loop()
+        return True
+
+    def put_many(
+        self,
+        callback: Callable[..., None],
+        samples: list[tuple[tuple[object, ...], int]],
+        topic: str,
+    ) -> int:
+        """Queue ``callback(*args)`` for each ``(args, size)`` of ``samples``, in order.
+
+        ``samples``: one batch taken from ``topic``'s subscription; one lock and
+        at most one wake-up of the loop for all of them, where ``put`` takes both
+        per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it.
+
+        Returns:
+            How many were queued (the rest were dropped, or the handoff is closed).
+        """
+        queued = 0
+        with self._lock:
+            if self._closed:
+                return 0
+            for args, size in samples:
+                if self.queued_bytes + size > self.max_bytes:
+                    self._refuse(topic)
+                    continue
+                self.queued_bytes += size
+                self._events.append((callback, args, size, topic))
+                queued += 1
+            signal = queued > 0 and self._signal()
+        if signal:
+            self._wake_loop()
+        return queued
+
+    def _refuse(self, topic: str) -> None:
+        """Count and log a dropped sample of ``topic`` (under the lock)."""
+        self.dropped += 1
+        self._drops.log(
+            logging.WARNING,
+            f"drop:{topic}",
+            "event=ros2_samples_dropped topic=%s queued_bytes=%d limit=%d",
+            topic,
+            self.queued_bytes,
+            self.max_bytes,
+        )
+
+    def _signal(self) -> bool:
+        """Whether the loop must be woken: no wake-up is pending yet (under the lock)."""
+        signal = not self._signalled
+        self._signalled = True
+        return signal
+
+    def _wake_loop(self) -> None:
         loop, wake = self._loop, self._wake
-        if signal and loop is not None and wake is not None:
+        if loop is not None and wake is not None:
             with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
                 loop.call_soon_threadsafe(wake.set)
-        return True
 
     async def drain(self, gate: Callable[[], InflowGate] = lambda: OPEN_GATE) -> None:
         """Run queued callbacks in order, in this task, until cancelled.
