@@ -17,12 +17,15 @@ one machine state:
   through ``RWT_ROSBRIDGE_RS_DIR`` (``start.sh PORT DOMAIN``, ``stop.sh PORT``),
   restarted before each case too;
 - ``rclpy``: the ceiling, a bare rclpy subscription in its own process (one
-  subscriber: ROS 2 delivers to each subscribing process on its own).
+  subscriber: ROS 2 delivers to each subscribing process on its own);
+- ``before``: ``rwt`` again, from the ``src`` folder ``RWT_BEFORE_SRC`` names (a
+  checkout of the code before a change), so a change is measured against the code
+  before it in one run, round by round.
 
 Messages: a 100 B ``std_msgs/msg/String`` (its data starts with the publish time,
 ``time.time()`` in seconds) published as fast as rclpy can and paced at
-``PACED_HZ``; a 640x480 rgb8 ``sensor_msgs/msg/Image`` at 30 Hz (the header stamp
-is the publish time). Each case: the publisher sends probes until every
+``FAST_HZ``, ``MID_HZ`` and ``PACED_HZ``; a 640x480 rgb8 ``sensor_msgs/msg/Image``
+at 30 Hz (the header stamp is the publish time). Each case: the publisher sends probes until every
 subscriber got one (discovery is eventual), then the timed messages for
 ``seconds``; a subscriber idle for ``IDLE_S`` has seen all it will.
 
@@ -101,6 +104,8 @@ PACED_HZ = 500
 """The paced String rate: below the ~600 msg/s rosbridge_suite 2.1.0 tops out at here."""
 FAST_HZ = 5000
 """The fast paced String rate: what a bare rclpy subscriber still takes here, nearly whole."""
+MID_HZ = 1000
+"""The middle paced String rate, where CPU per delivery is compared with bare rclpy's."""
 IMAGE_HZ = 30
 PROBE_EVERY_S = 0.05
 DISCOVERY_S = 60.0
@@ -110,11 +115,14 @@ IDLE_S = 2.0
 SETTLE_S = 10.0
 """Bound on waiting for a new bridge to go idle (under 10 % of a core) before a case."""
 KINDS = ("rwt", "rosbridge", "rs", "rclpy")
+BEFORE_ENV = "RWT_BEFORE_SRC"
+"""The ``src`` folder of the ``before`` receiver's rwt (not one of ``KINDS``: named only)."""
 LABELS = {
     "rwt": "rwt serve --ros2",
     "rosbridge": "rosbridge_suite 2.1.0",
     "rs": "rosbridge-server-rs 0.1.6",
     "rclpy": "bare rclpy subscriber",
+    "before": "rwt serve --ros2, before",
 }
 
 
@@ -135,7 +143,13 @@ class Case:
 
 CASES = [
     Case(kind, hz, subs)
-    for kind, hz in (("string", 0), ("string", FAST_HZ), ("string", PACED_HZ), ("image", IMAGE_HZ))
+    for kind, hz in (
+        ("string", 0),
+        ("string", FAST_HZ),
+        ("string", MID_HZ),
+        ("string", PACED_HZ),
+        ("image", IMAGE_HZ),
+    )
     for subs in (1, 10)
 ]
 
@@ -464,15 +478,16 @@ async def _bare(case: Case, seconds: float, env: dict[str, str]) -> Result:
     return _result("rclpy", case, sent, start, report["lat"], report["last"], cpu1 - cpu0, 1)
 
 
-def _start_rwt(domain: int, env: dict[str, str], log: IO[bytes]) -> Server:
+def _start_rwt(domain: int, env: dict[str, str], log: IO[bytes], src: Path | None = None) -> Server:
     """``rwt serve --ros2 --no-tf`` (``start_server`` passes on ``os.environ``) on ``domain``
-    in ``env`` (the run's: ``os.environ`` plus ``ros_env``), logging at INFO to ``log``."""
+    in ``env`` (the run's: ``os.environ`` plus ``ros_env``), logging at INFO to ``log``;
+    from the ``src`` folder ``src`` (None: this checkout's)."""
     saved = dict(os.environ)
     os.environ.clear()
     os.environ.update(env)
     try:
         extra = ["--ros2", "--no-tf", "--log-level", "info"]
-        return start_server("rwt", extra=extra, stderr=log)
+        return start_server("rwt", extra=extra, src=src, stderr=log)
     finally:
         os.environ.clear()
         os.environ.update(saved)
@@ -588,12 +603,13 @@ async def run_case(
     env["PYTHONPATH"] = rwt_pythonpath()
     if receiver == "rclpy":
         return await _bare(case, seconds, env)
-    if receiver == "rwt":
+    if receiver in ("rwt", "before"):
+        src = Path(os.environ[BEFORE_ENV]) if receiver == "before" else None
         with tempfile.TemporaryFile() as log:
-            with await asyncio.to_thread(_start_rwt, domain, env, log) as server:
+            with await asyncio.to_thread(_start_rwt, domain, env, log, src) as server:
                 url = f"ws://127.0.0.1:{server.port}"
                 pid = server.process.pid
-                result = await _through_bridge("rwt", url, pid, case, seconds, env, client)
+                result = await _through_bridge(receiver, url, pid, case, seconds, env, client)
                 await asyncio.sleep(0.5)  # the subscribers' disconnect lines
             log.seek(0)  # the server has stopped: its link logged its counters
             result.stages = stage_counts(log.read().decode("utf-8", "replace"), result)
@@ -743,7 +759,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.ros2_bridge")
     parser.add_argument("--seconds", type=float, default=5.0, help="timed publishing per case")
     parser.add_argument(
-        "--receivers", default=",".join(KINDS), help="comma-separated: rwt,rosbridge,rs,rclpy"
+        "--receivers",
+        default=",".join(KINDS),
+        help=f"comma-separated: rwt,rosbridge,rs,rclpy, and before (rwt from ${BEFORE_ENV})",
+    )
+    parser.add_argument(
+        "--subscribers", type=int, help="only the cases with this many subscribers (1 or 10)"
     )
     parser.add_argument(
         "--cases",
@@ -777,8 +798,13 @@ def main(argv: list[str] | None = None) -> int:
     tools = peer_tools(receivers)
     wanted = [w for w in (args.cases or "").split(",") if w]
     cases = [
-        c for c in CASES if not wanted or any(w in f"{c.label} 1->{c.subscribers}" for w in wanted)
+        c
+        for c in CASES
+        if (not wanted or any(w in f"{c.label} 1->{c.subscribers}" for w in wanted))
+        and args.subscribers in (None, c.subscribers)
     ]
+    if "before" in receivers and not os.environ.get(BEFORE_ENV):
+        parser.error(f"--receivers before needs {BEFORE_ENV} (the src folder of the code before)")
     results = asyncio.run(
         run_all(
             receivers,

@@ -104,6 +104,12 @@ The shortcuts (name: what; module; benchmark; general path):
   ``TAKE_BATCH``; ``rwt_ros2.link``; B21 (String at full rate: 2.9 k -> 8.2 k
   msg/s; one executor wait costs more than the sample); one executor callback
   per sample.
+- ``ros2-take-loop``: the ROS 2 link's topic subscriptions waited on and taken
+  on a thread of their own, from an rcl wait set of those subscriptions alone
+  (rclpy's private ``Subscription``, ``WaitSet`` and ``GuardCondition``), each
+  wake-up's samples handed over as one batch; ``rwt_ros2.takeloop.TakeLoop``;
+  B21 (String at 1 and 5 kHz); subscriptions of the node, called back by
+  rclpy's single-threaded executor (with ``ros2-batch-take``).
 - ``bag-checkpoints``: a rosbag2 writer that keeps an MCAP bag readable while
   it grows (a summary and ``metadata.yaml`` at each checkpoint, the new tail in
   one ``pwritev`` of rosbags' own buffers), by overriding rosbags' storage
@@ -282,6 +288,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "the samples queued behind the one rclpy's executor handed over, taken from the handle",
         "B21 (String at full rate)",
         "one rclpy executor callback per sample",
+    ),
+    Shortcut(
+        "ros2-take-loop",
+        "rwt_ros2.takeloop.TakeLoop",
+        "the link's subscriptions taken on a thread of their own, from a wait set of them alone",
+        "B21 (String at 1 and 5 kHz)",
+        "node subscriptions called back by rclpy's single-threaded executor",
     ),
     Shortcut(
         "bag-checkpoints",

@@ -3,8 +3,9 @@
 A sample from ROS 2 crosses four stages, each counted here per topic so that a
 loss can be put on one of them (benchmarks/README.md, "ROS 2 bridge"):
 
-1. taken: rclpy's executor wakes the link's subscription callback (``wakes``) and
-   the link takes what waits in the subscription (``taken``; each wake-up's count
+1. taken: the link's take loop wakes with the topic's subscription ready (or
+   rclpy's executor calls it back, ``ros2-take-loop`` off: ``wakes``) and the
+   link takes what waits in the subscription (``taken``; each wake-up's count
    goes into ``batches``, a histogram by ``BATCH_BOUNDS``). A sample the
    middleware dropped from the subscription's history before it was taken is in
    none of these: it shows as the publisher's count minus ``taken``.
@@ -16,7 +17,7 @@ loss can be put on one of them (benchmarks/README.md, "ROS 2 bridge"):
 4. per subscriber, the session's queue: the ``event=disconnect`` line of each
    connection says what its outbox queued, dropped and sent (``rwt_transports.pump``).
 
-Stage 1 is written by the executor's thread only, stages 2-3 under the
+Stage 1 is written by the taking thread only, stages 2-3 under the
 handoff's lock or on the event loop: plain integer increments, no lock of their own.
 At the link's end one ``event=ros2_counters`` line per topic, at INFO.
 """
@@ -32,7 +33,7 @@ if TYPE_CHECKING:
 __all__ = ["BATCH_BOUNDS", "LinkCounters", "TopicCounters"]
 
 BATCH_BOUNDS = (1, 2, 4, 16, 64, 256)
-"""Lower bounds of the histogram's buckets of samples per executor wake-up: 1, 2-3,
+"""Lower bounds of the histogram's buckets of samples per wake-up: 1, 2-3,
 4-15, 16-63, 64-255, 256 and more (``TAKE_BATCH`` is 256)."""
 
 
@@ -50,7 +51,7 @@ class TopicCounters:
     skipped: int = 0
 
     def woke(self, count: int) -> None:
-        """One executor wake-up took ``count`` samples (the executor's thread)."""
+        """One wake-up took ``count`` samples (the taking thread)."""
         self.wakes += 1
         self.taken += count
         self.max_batch = max(self.max_batch, count)

@@ -1,8 +1,9 @@
-"""Work handed from rclpy's executor thread to the event loop, bounded in bytes.
+"""Work handed from rclpy's threads to the event loop, bounded in bytes.
 
-rclpy calls back on its own thread; the graph may only be touched on the event
-loop's. ``Handoff.put`` (any thread) queues a callback with its size in bytes;
-the link's task runs queued callbacks in order (``drain``). Samples beyond
+rclpy calls back on its own threads; the graph may only be touched on the event
+loop's. ``Handoff.put`` (any thread) queues a callback with its size in bytes
+(``put_many``: a batch of samples of one topic) and, unless a wake-up is pending
+already, asks the loop to run what is queued, in order (``drain``). Samples beyond
 ``max_bytes`` queued are dropped, one log line per topic and episode
 (``rwt_graph.ratelog``), so a ROS 2 publisher faster than the bridge cannot
 exhaust memory; replies and graph events are never dropped (they are small and
@@ -59,8 +60,9 @@ class Handoff:
         self.dropped = 0
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._wake: asyncio.Event | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
+        self._holds: TopicHolds[_Event] | None = None
+        self._gate: Callable[[], InflowGate] = lambda: OPEN_GATE
         self._signalled = False
         self._closed = False
         self._drops = EpisodeLog(logger)
@@ -83,54 +85,109 @@ class Handoff:
             if self._closed:
                 return False
             if topic and self.queued_bytes + size > self.max_bytes:
-                self.dropped += 1
-                self._drops.log(
-                    logging.WARNING,
-                    f"drop:{topic}",
-                    "event=ros2_samples_dropped topic=%s queued_bytes=%d limit=%d",
-                    topic,
-                    self.queued_bytes,
-                    self.max_bytes,
-                )
+                self._refuse(topic)
                 return False
             self.queued_bytes += size
             self._events.append((callback, args, size, topic))
-            signal = not self._signalled
-            self._signalled = True
-        loop, wake = self._loop, self._wake
-        if signal and loop is not None and wake is not None:
-            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
-                loop.call_soon_threadsafe(wake.set)
+            signal = self._signal()
+        if signal:
+            self._wake_loop()
         return True
 
-    async def drain(self, gate: Callable[[], InflowGate] = lambda: OPEN_GATE) -> None:
-        """Run queued callbacks in order, in this task, until cancelled.
+    def put_many(
+        self,
+        callback: Callable[..., None],
+        samples: list[tuple[tuple[object, ...], int]],
+        topic: str,
+    ) -> int:
+        """Queue ``callback(*args)`` for each ``(args, size)`` of ``samples``, in order.
 
-        Each batch runs inside ``gate()`` (the graph's ``InflowGate``); a sample
+        ``samples``: one batch taken from ``topic``'s subscription; one lock and
+        at most one wake-up of the loop for all of them, where ``put`` takes both
+        per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it.
+
+        Returns:
+            How many were queued (the rest were dropped, or the handoff is closed).
+        """
+        queued = 0
+        with self._lock:
+            if self._closed:
+                return 0
+            for args, size in samples:
+                if self.queued_bytes + size > self.max_bytes:
+                    self._refuse(topic)
+                    continue
+                self.queued_bytes += size
+                self._events.append((callback, args, size, topic))
+                queued += 1
+            signal = queued > 0 and self._signal()
+        if signal:
+            self._wake_loop()
+        return queued
+
+    def _refuse(self, topic: str) -> None:
+        """Count and log a dropped sample of ``topic`` (under the lock)."""
+        self.dropped += 1
+        self._drops.log(
+            logging.WARNING,
+            f"drop:{topic}",
+            "event=ros2_samples_dropped topic=%s queued_bytes=%d limit=%d",
+            topic,
+            self.queued_bytes,
+            self.max_bytes,
+        )
+
+    def _signal(self) -> bool:
+        """Whether the loop must be woken: no wake-up is pending yet (under the lock)."""
+        signal = not self._signalled
+        self._signalled = True
+        return signal
+
+    def _wake_loop(self) -> None:
+        loop = self._loop
+        if loop is not None:
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(self._turn)
+
+    async def drain(self, gate: Callable[[], InflowGate] = lambda: OPEN_GATE) -> None:
+        """Run queued callbacks in order on this task's loop, until cancelled.
+
+        A put wakes the loop with a call of ``_turn``, which runs what is queued
+        right there, without a task switch: one callback per hand-over, where
+        an event set for a waiting task cost a second turn of the loop. Each
+        batch runs inside ``gate()`` (the graph's ``InflowGate``); a sample
         that congested a subscriber holds its topic back (``TopicHolds``) until
         that subscriber drains, within its hold budget (``rwt_graph.link``,
-        "Backpressure"), while the other topics go on. Errors of a callback
-        are logged; the others still run.
+        "Backpressure"), while the other topics go on; each hold waits in this
+        task's task group. Errors of a callback are logged; the others still run.
         """
-        self._loop = asyncio.get_running_loop()
-        wake = self._wake = asyncio.Event()
-        wake.set()  # whatever was queued before the loop was known
+        loop = asyncio.get_running_loop()
         async with anyio.create_task_group() as tg:
-            holds: TopicHolds[_Event] = TopicHolds(tg.start_soon, self._resume)
-            while True:
-                await wake.wait()
-                wake.clear()
-                with self._lock:
-                    self._signalled = False
-                while self._events:
-                    inflow = gate()
-                    inflow.begin()
-                    try:
-                        self._run_batch(inflow, holds)
-                    finally:
-                        inflow.end()
-                    if self._events:
-                        await asyncio.sleep(0)  # a flood: let the servers send meanwhile
+            self._holds = TopicHolds(tg.start_soon, self._resume)
+            self._gate = gate
+            self._loop = loop
+            try:
+                loop.call_soon(self._turn)  # whatever was queued before the loop was known
+                await anyio.sleep_forever()
+            finally:
+                self._loop = None
+                self._holds = None
+
+    def _turn(self) -> None:
+        """Run up to ``_BATCH`` queued callbacks (on the loop); a flood goes on next turn."""
+        with self._lock:
+            self._signalled = False
+        holds = self._holds
+        if holds is None or not self._events:
+            return
+        inflow = self._gate()
+        inflow.begin()
+        try:
+            self._run_batch(inflow, holds)
+        finally:
+            inflow.end()
+        if self._events and self._loop is not None:
+            self._loop.call_soon(self._turn)  # a flood: let the servers send meanwhile
 
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
         for _ in range(min(len(self._events), _BATCH)):
@@ -153,8 +210,8 @@ class Handoff:
             if self._closed:
                 return
             self._events.extendleft(reversed(events))
-        if self._wake is not None:
-            self._wake.set()
+        if self._loop is not None:
+            self._loop.call_soon(self._turn)
 
     def close(self) -> None:
         """Refuse new work and forget what is queued."""

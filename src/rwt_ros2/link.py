@@ -23,9 +23,9 @@ graph:
 The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread, and at once
 when its names change (read every ``GRAPH_POLL_S``); a call to a service nobody
 offers waits for it to be discovered (its own timeout, else
-``DISCOVERY_WAIT_S``); samples and
-replies arrive on rclpy's executor thread and reach the event loop through a
-``Handoff`` bounded in bytes. The node's own publishers' samples are recognised
+``DISCOVERY_WAIT_S``); samples (on the take loop's thread, ``takeloop``) and
+replies (on rclpy's executor's) reach the event loop through a ``Handoff``
+bounded in bytes. The node's own publishers' samples are recognised
 by their publisher GID and never come back in.
 """
 
@@ -68,10 +68,11 @@ from .remotes import RosRemotes, entities
 from .rosout import RosoutHandler
 from .runtime import interface_class, ros_distro
 from .services import SERVICE_QOS, serve_to_ros
+from .takeloop import TAKE_BATCH, Taken, take_queued
 
 if TYPE_CHECKING:
     import asyncio
-    from collections.abc import AsyncIterator, Callable, Iterator
+    from collections.abc import AsyncIterator, Callable
 
     from anyio.abc import TaskStatus
 
@@ -98,11 +99,6 @@ seconds or more each, the next waits at least t x (1 / SWEEP_SHARE - 1), so a
 robot with thousands of endpoints (rcl's graph queries cost per endpoint) slows
 the sweep rather than the samples. One costly sweep alone (it mirrored a node's
 hundreds of new endpoints) does not hold back the next."""
-
-TAKE_BATCH = 256
-"""Samples of one subscription handed over per executor callback at most
-(``take_queued``, the ``ros2-batch-take`` shortcut): the rest wait for the next
-callback, so one busy topic cannot hold the executor from the others for long."""
 
 CALL_TIMEOUT_S = 30.0
 """How long a call across the link waits for its reply, seconds."""
@@ -143,6 +139,7 @@ class _Sub:
     type_name: str
     qos: Qos
     handle: Any
+    destroy: Callable[[Any], object]  # of the node, or of the take loop
 
 
 @dataclass(eq=False)
@@ -302,7 +299,7 @@ class Ros2Link:
         self.graph.nodes.forget(self.caller)
         node = self.ros.node
         for sub in self._subs.values():
-            _destroy(node.destroy_subscription, sub.handle)
+            _destroy(sub.destroy, sub.handle)
         for pub in self._pubs.values():
             pub.lane.take_held()
             _destroy(node.destroy_publisher, pub.handle)
@@ -403,10 +400,10 @@ class Ros2Link:
         self._relays.sweep(self._subs, tick=periodic)
 
     def _sweep_subscriptions(self, listening: dict[str, str]) -> None:
-        node = self.ros.node
         for name, sub in list(self._subs.items()):
             if listening.get(name) != sub.type_name or self._qos_for(name) != sub.qos:
-                _destroy(node.destroy_subscription, self._subs.pop(name).handle)
+                del self._subs[name]
+                _destroy(sub.destroy, sub.handle)
         for name, type_name in listening.items():
             if name not in self._subs:
                 self._subscribe(name, type_name)
@@ -419,30 +416,22 @@ class Ros2Link:
         if ros_type is None:
             return
         qos = self._qos_for(name)
-        handoff = self.handoff
+        on_batch = self._hand_over(name, type_name, qos.transient_local)
+        takes = self.ros.takes
+        if takes is not None:  # ``ros2-take-loop``: its own thread, one batch per wake-up
+            handle = takes.subscribe(ros_type, name, rclpy_profile(qos), on_batch)
+            self._subs[name] = _Sub(type_name, qos, handle, takes.unsubscribe)
+            return
         created: list[Any] = []  # the rclpy subscription, once made (batch take)
-        latched = qos.transient_local  # only transient-local publishers match it
-        counters = self.counters.of(name)
-        on_loop = self._on_sample
-
-        def hand_over(data: bytes, info: dict[str, Any]) -> None:
-            gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
-            args = (name, type_name, data, gid, latched, counters)
-            if handoff.put(on_loop, *args, size=len(data), topic=name):
-                counters.handed += 1
-            else:
-                counters.refused += 1
 
         def on_sample(data: bytes, info: dict[str, Any]) -> None:  # the executor's thread
-            hand_over(data, info)
-            count = 1
+            batch: list[Taken] = [(data, info)]
             if created:
-                for taken in take_queued(created[0], TAKE_BATCH - 1):
-                    hand_over(*taken)
-                    count += 1
-            counters.woke(count)
+                batch += take_queued(created[0].handle, ros_type, TAKE_BATCH - 1)
+            on_batch(batch)
 
-        handle = self.ros.node.create_subscription(
+        node = self.ros.node
+        handle = node.create_subscription(
             ros_type,
             name,
             on_sample,
@@ -452,7 +441,29 @@ class Ros2Link:
         )
         if self._batch_take:
             created.append(handle)
-        self._subs[name] = _Sub(type_name, qos, handle)
+        self._subs[name] = _Sub(type_name, qos, handle, node.destroy_subscription)
+
+    def _hand_over(self, name: str, type_name: str, latched: bool) -> Callable[[list[Taken]], None]:
+        """What queues one wake-up's samples of ``name`` for the event loop (rclpy's thread).
+
+        ``latched``: the subscription is transient local, so only transient-local
+        publishers match it (``_on_sample``).
+        """
+        handoff = self.handoff
+        counters = self.counters.of(name)
+        on_loop = self._on_sample
+
+        def on_batch(batch: list[Taken]) -> None:
+            samples: list[tuple[tuple[object, ...], int]] = []
+            for data, info in batch:
+                gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
+                samples.append(((name, type_name, data, gid, latched, counters), len(data)))
+            queued = handoff.put_many(on_loop, samples, name)
+            counters.handed += queued
+            counters.refused += len(batch) - queued
+            counters.woke(len(batch))
+
+        return on_batch
 
     def type_warning(self, type_name: str) -> str | None:
         """Why ROS 2 cannot carry ``type_name`` here (the package to install), or None.
@@ -696,24 +707,3 @@ async def open_ros2_link(
         finally:
             tg.cancel_scope.cancel()
             graph.ros_distro = bundled
-
-
-def take_queued(subscription: Any, most: int) -> Iterator[tuple[bytes, dict[str, Any]]]:
-    """The raw samples queued in ``subscription``, at most ``most`` (the executor's thread).
-
-    What rclpy's executor does per sample (``Executor._take_subscription``: the
-    handle's ``take_message`` under the handle's context), without a wait of the
-    executor for each. Stops at the first empty take, or if the subscription was
-    destroyed meanwhile.
-    """
-    from rclpy.exceptions import InvalidHandle  # noqa: PLC0415
-
-    try:
-        with subscription.handle:
-            for _ in range(most):
-                taken = subscription.handle.take_message(subscription.msg_type, True)
-                if taken is None:
-                    return
-                yield taken[0], taken[1]
-    except InvalidHandle:
-        return

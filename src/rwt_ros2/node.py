@@ -1,7 +1,9 @@
 """The rclpy node of the link, spinning in its own thread.
 
 rclpy runs its executor on a thread of its own so the event loop never waits
-for DDS; callbacks reach the loop through a ``Handoff``. Entities are created
+for DDS; callbacks reach the loop through a ``Handoff``. The link's topic
+subscriptions have a thread of their own too (``takeloop``, the
+``ros2-take-loop`` shortcut), which waits on them alone. Entities are created
 and messages published from the event loop's thread, which rclpy allows (each
 entity has its own lock; the executor is woken to wait on new ones).
 
@@ -18,7 +20,10 @@ from __future__ import annotations
 import threading
 from typing import Any
 
+from rwt_protocol.shortcuts import enabled
+
 from .runtime import load_rclpy
+from .takeloop import TakeLoop
 
 __all__ = ["MAX_WAITING", "SPIN_TIMEOUT_S", "RosNode"]
 
@@ -77,10 +82,14 @@ class RosNode:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="rwt-ros2", daemon=True)
+        #: the link's subscriptions' own thread (``ros2-take-loop``); None: the executor's
+        self.takes = TakeLoop(self.node) if enabled("ros2-take-loop") else None
 
     def start(self) -> None:
-        """Start spinning."""
+        """Start spinning (and taking)."""
         self._thread.start()
+        if self.takes is not None:
+            self.takes.start()
 
     def _spin(self) -> None:
         while self.context.ok():
@@ -93,6 +102,8 @@ class RosNode:
 
     def close(self) -> None:
         """Stop spinning, then destroy the node and the context."""
+        if self.takes is not None:  # its subscriptions go before the node
+            self.takes.close()
         self.context.try_shutdown()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from rwt_protocol.shortcuts import ENV_VAR
-from rwt_ros2.link import take_queued
+from rwt_ros2.takeloop import take_queued
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
@@ -25,9 +25,10 @@ pytestmark = skip_without_rclpy()
 
 @pytest.fixture(scope="module")
 def server(ros_env: Path) -> Iterator[ServerProcess]:
-    """`rwt serve --ros2` with the shortcut off: one executor callback per sample."""
+    """`rwt serve --ros2` with the shortcut off (and the take loop, which takes in
+    batches of its own): one executor callback per sample."""
     with pytest.MonkeyPatch.context() as patch:
-        patch.setenv(ENV_VAR, "ros2-batch-take")
+        patch.setenv(ENV_VAR, "ros2-batch-take,ros2-take-loop")
         process = serve_ros2(ros_env)
     try:
         yield process
@@ -60,13 +61,13 @@ def _take_queued_in_order() -> None:
             pub.publish(String(data=f"m{i}"))
         got: list[tuple[bytes, dict[str, object]]] = []
         while len(got) < 5 and time.monotonic() < end:
-            got += take_queued(sub, 3)  # at most 3 a call: the bound holds
+            got += take_queued(sub.handle, String, 3)  # at most 3 a call: the bound holds
             time.sleep(0.05)
         assert [data[8:].rstrip(b"\x00") for data, _ in got] == [b"m0", b"m1", b"m2", b"m3", b"m4"]
         assert all(info.get("publisher_gid") for _, info in got)
-        assert list(take_queued(sub, 3)) == []  # nothing waits: an empty take ends it
+        assert take_queued(sub.handle, String, 3) == []  # nothing waits: an empty take ends it
         node.destroy_subscription(sub)
-        assert list(take_queued(sub, 3)) == []  # destroyed meanwhile: nothing, no error
+        assert take_queued(sub.handle, String, 3) == []  # destroyed meanwhile: nothing, no error
         node.destroy_node()
     finally:
         context.try_shutdown()

@@ -30,13 +30,15 @@ from rwt_transports.pump import ConnectionPump
 from rwt_transports.websocket import WebSocketChannel, WebSocketOptions
 
 REPO = Path(__file__).resolve().parents[2]
-#: The probe runs no ROS 2 link (tests/ros2/test_batch_take.py covers its shortcut),
+#: The probe runs no ROS 2 link (tests/ros2/test_batch_take.py and test_take_loop.py
+#: cover its two shortcuts),
 #: reads no CDR and records no bag (tests/protocol/test_shortcuts.py covers those), and
 #: plays no bag (tests/bag/test_ros1read.py covers ``ros1-chunk-read``), and runs no
 #: Zenoh link (tests/zenoh/test_deferred.py covers its two), and has no Foxglove
 #: client (tests/foxglove/test_shared_frames.py covers ``foxglove-shared-frames``).
 OUTSIDE_THE_PROBE = {
     "ros2-batch-take",
+    "ros2-take-loop",
     "cdr-input-view",
     "bag-checkpoints",
     "ros1-chunk-read",
