@@ -121,7 +121,7 @@ class RemoteService:
             assert isinstance(value, bytes)
             try:
                 value = decode_message(self._link.graph.registry, self._srvtype.response, value)
-            except WireError as exc:
+            except RwtError as exc:  # not CDR of the type, or a value that does not fit it
                 ok, value = False, str(exc)
         self._respond(request_id, ok, value)
 

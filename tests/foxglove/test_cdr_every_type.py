@@ -71,7 +71,8 @@ def _value(slot: Any, index: int) -> object:
     if kind in ("UnboundedString", "BoundedString"):
         return f"s{index}é"[: getattr(slot, "maximum_size", 8)]
     if kind in ("UnboundedWString", "BoundedWString"):
-        return f"w{index}ö"[: getattr(slot, "maximum_size", 8)]
+        # beyond Latin-1, and a character outside the BMP (a UTF-16 surrogate pair)
+        return f"w{index}ö€😀"[: getattr(slot, "maximum_size", 8)]
     if kind == "NamespacedType":
         return _filled(_message_class("/".join([*slot.namespaces, slot.name])))
     if kind == "Array":
@@ -89,6 +90,30 @@ def _filled(cls: Any) -> Any:
     return cls(**{f: _value(s, n) for n, (f, s) in enumerate(pairs)})
 
 
+def _wstrings(message: Any) -> int:
+    """How many wstrings ``message`` holds, at any depth."""
+
+    def count(value: object) -> int:
+        if isinstance(value, str):
+            return 0
+        if isinstance(value, list | tuple):
+            return sum(count(item) for item in value)
+        if hasattr(value, "SLOT_TYPES"):
+            return _wstrings(value)
+        return 0
+
+    total = 0
+    for field, slot in zip(message.get_fields_and_field_types(), message.SLOT_TYPES, strict=True):
+        value = getattr(message, field)
+        kinds = ("UnboundedWString", "BoundedWString")
+        inner = getattr(slot, "value_type", slot)
+        if type(inner).__name__ in kinds:
+            total += len(value) if inner is not slot else 1
+        else:
+            total += count(value)
+    return total
+
+
 def _cases() -> list[str]:
     registry = TypeRegistry(Dialect.ROS2, [SHARE])
     names = []
@@ -104,11 +129,6 @@ def _cases() -> list[str]:
 
 CASES = _cases() if CHECKED else []
 
-# rclpy writes a wstring as its length in characters, then 4 bytes a character (UTF-32,
-# no terminator); rwt reads and writes it as a string (UTF-8). docs/foxglove.md, "Not done".
-WSTRING = pytest.mark.xfail(strict=True, reason="wstring: rwt's CDR is not rclpy's")
-PARAMS = [pytest.param(n, marks=WSTRING) if n == "test_msgs/msg/WStrings" else n for n in CASES]
-
 
 def test_the_compared_types_are_most_of_the_checked_ones() -> None:
     assert len(CASES) > 100 and len(CASES) >= 0.9 * len(CHECKED), (len(CASES), len(CHECKED))
@@ -119,7 +139,7 @@ def registry() -> TypeRegistry:
     return TypeRegistry(Dialect.ROS2, [SHARE])
 
 
-@pytest.mark.parametrize("type_name", PARAMS)
+@pytest.mark.parametrize("type_name", CASES)
 def test_rwt_reads_and_writes_rclpy_cdr(registry: TypeRegistry, type_name: str) -> None:
     from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
 
@@ -130,11 +150,39 @@ def test_rwt_reads_and_writes_rclpy_cdr(registry: TypeRegistry, type_name: str) 
         theirs = bytes(serialize_message(message))
     mtype = registry.message(type_name)
     ours = encode_wire(registry, mtype, decode_wire(registry, "cdr", mtype, theirs))
-    # rclpy may pad the end up to a multiple of 4 bytes (uninitialised too); rwt stops at the
-    # last field
-    assert len(ours) <= len(theirs) <= len(ours) + (-len(ours) % 4)
+    # rclpy may pad the end up to a multiple of 4 bytes (uninitialised too), and its length
+    # counts 4 bytes a wstring that it never writes (a terminator); rwt stops at the last field
+    end = len(ours) + (-len(ours) % 4) + 4 * _wstrings(message)
+    assert len(ours) <= len(theirs) <= end
     differ = [n for n, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a not in (b, 0)]
     assert differ == [], (ours.hex(), theirs.hex())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         assert deserialize_message(ours, cls) == message
+
+
+@pytest.mark.skipif("test_msgs/msg/WStrings" not in CASES, reason="test_msgs is not installed")
+def test_wstrings_read_and_written_as_rclpy_does(registry: TypeRegistry) -> None:
+    """Empty, non-ASCII and surrogate-pair text in every kind of wstring field, both ways."""
+    from rclpy.serialization import serialize_message  # noqa: PLC0415
+
+    texts = ["", "hé€😀", "😀😀"]
+    message = _message_class("test_msgs/msg/WStrings")(
+        wstring_value="hé€😀",
+        wstring_value_default1="",
+        array_of_wstrings=texts,
+        bounded_sequence_of_wstrings=texts[1:],
+        unbounded_sequence_of_wstrings=texts,
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        theirs = bytes(serialize_message(message))
+    mtype = registry.message("test_msgs/msg/WStrings")
+    # the first wstring: 5 UTF-16 code units, each in 4 bytes, the emoji as two of them
+    assert theirs[4:28].hex() == "0500000068000000e9000000ac2000003dd8000000de0000"
+    decoded = decode_wire(registry, "cdr", mtype, theirs)
+    assert decoded["wstring_value"] == "hé€😀" and decoded["wstring_value_default1"] == ""
+    assert decoded["array_of_wstrings"] == texts
+    assert decoded["unbounded_sequence_of_wstrings"] == texts
+    ours = encode_wire(registry, mtype, decoded)
+    assert theirs[: len(ours)] == ours

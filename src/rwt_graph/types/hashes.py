@@ -18,6 +18,8 @@ from rosbags.interfaces import Nodetype
 
 from rwt_protocol.errors import RwtError
 
+from .interop import WSTRING_TYPE
+
 if TYPE_CHECKING:
     from .registry import TypeRegistry
 
@@ -38,7 +40,7 @@ def rihs01(registry: TypeRegistry, name: str, made_up: dict[str, Any]) -> str:
 
     A ``char`` field counts as ``uint8``, as rosidl reads it from a ``.msg``
     file, and a ``wstring`` as ``wstring``; rosbags alone would hash the first as
-    ``char`` and the second as ``string``.
+    ``char`` and the second as the struct that carries it in CDR.
 
     Raises:
         KeyError: the store lacks a structure ``name`` refers to.
@@ -136,8 +138,8 @@ class _RosidlDefinitions(Mapping[str, Any]):
     """rosbags' field definitions as rosidl reads them.
 
     ``made_up`` ones come first, a ``char`` field is ``uint8``, and a ``wstring``
-    field is ``wstring`` (rosbags reads it as ``string``: the registry's own
-    definition tells them apart).
+    field is ``wstring`` with its bound from the registry's own definition (the
+    store holds it as the struct ``interop.WSTRING_TYPE``).
     """
 
     def __init__(
@@ -150,16 +152,21 @@ class _RosidlDefinitions(Mapping[str, Any]):
         consts, fields = self._defs[name]
         wide = self._wide_fields(name)
         return consts, [
-            (field, _wide(_uint8_chars(desc)) if field in wide else _uint8_chars(desc))
+            (field, _wide(desc, wide[field]) if field in wide else _uint8_chars(desc))
             for field, desc in fields
         ]
 
-    def _wide_fields(self, name: str) -> set[str]:
+    def _wide_fields(self, name: str) -> dict[str, int]:
+        """The ``wstring`` fields of ``name`` and their bounds (0: none)."""
         try:
             mtype = self._registry.message(name)
         except RwtError:  # a made-up structure (a service's event): no wstring there
-            return set()
-        return {spec.name for spec in mtype.fields if spec.type.base == "wstring"}
+            return {}
+        return {
+            spec.name: spec.type.string_bound or 0
+            for spec in mtype.fields
+            if spec.type.base == "wstring"
+        }
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._defs)
@@ -168,12 +175,13 @@ class _RosidlDefinitions(Mapping[str, Any]):
         return len(self._defs)
 
 
-def _wide(desc: Any) -> Any:
+def _wide(desc: Any, bound: int) -> Any:
+    """A ``wstring`` field's node, whose struct of code units (interop) rosidl calls ``wstring``."""
     kind, rest = desc
     if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-        return kind, (_wide(rest[0]), rest[1])
-    if kind == Nodetype.BASE and rest[0] == "string":
-        return kind, ("wstring", rest[1])
+        return kind, (_wide(rest[0], bound), rest[1])
+    if kind == Nodetype.NAME and rest == WSTRING_TYPE:
+        return Nodetype.BASE, ("wstring", bound)
     return desc
 
 

@@ -10,7 +10,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from rwt_protocol.errors import GraphError
 
-from .interop import fielddefs
+from .interop import WSTRING_DEFINITION, WSTRING_TYPE, fielddefs
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
@@ -309,6 +309,8 @@ class TypeRegistry:
             merged: dict[str, object] = {}
             for fallback in reversed(stores_for(self.dialect)):
                 merged.update(fallback.fielddefs)
+            if self.dialect is Dialect.ROS2:
+                merged[WSTRING_TYPE] = WSTRING_DEFINITION
             for mtype in self._file_types():
                 merged[mtype.rosbags_name] = fielddefs(mtype, self.message)
             store = get_typestore(Stores.EMPTY)

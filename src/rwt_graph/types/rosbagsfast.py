@@ -16,7 +16,7 @@ that type's fields with no such questions (as ``fastpath`` does for checks):
   arrays become ``bytes`` (one copy), nested messages go through their own
   function.
 
-Every other value (other arrays, ROS 2 ``byte``, numpy scalars) is handed to
+Every other value (other arrays, ROS 2 ``byte`` and ``wstring``, numpy scalars) is handed to
 the general function of ``interop`` for that field, so both paths give the same
 result by construction; ``tests/graph/types/test_rosbagsfast.py`` checks it for
 every shipped type. The shortcut ``rosbags-converters`` (``RWT_NO_SHORTCUTS``)
@@ -29,7 +29,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .convert import is_time_type, time_keys
-from .interop import plain_value, rosbags_value
+from .interop import is_wstring, plain_value, rosbags_value
 from .names import Dialect
 from .sources import IDL_PLACEHOLDER
 from .spec import ArrayKind, FieldSpec, FieldType, is_bytes_base
@@ -139,7 +139,7 @@ def _to_expr(
         return f"{cls}(sec=(_t := {value})[{sec_key!r}], nanosec=_t[{nsec_key!r}])"
     if ftype.is_message:
         return f"{names.bind(nested(ftype.base))}({value})"
-    if _is_byte_ros2(ftype, mtype.dialect):
+    if _is_byte_ros2(ftype, mtype.dialect) or is_wstring(ftype, mtype.dialect):
         return f"{names.bind(general)}({value})"
     return value
 
@@ -183,7 +183,7 @@ def compile_from_rosbags(
             expr = f"{{'sec': (_v := {value}).sec, 'nanosec': _v.nanosec}}"
         elif ftype.is_message:
             expr = f"{names.bind(nested(ftype.base))}({value})"
-        elif _is_byte_ros2(ftype, mtype.dialect):
+        elif _is_byte_ros2(ftype, mtype.dialect) or is_wstring(ftype, mtype.dialect):
             expr = f"{names.bind(general)}({value})"
         else:
             expr = f"(_v if type(_v := {value}) in _PLAIN else {names.bind(general)}(_v))"
