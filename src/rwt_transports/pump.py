@@ -438,9 +438,12 @@ class ConnectionPump(Held):
                 await self._yield_slice()
                 now = clock()
             # Handled: a large frame must not stay alive while the next read waits.
+            # A full slice yields when the next batch is in hand (``_handle`` stops
+            # at once), never here: a reader resuming from a yield with nothing read
+            # would read input that came after another connection's and handle it
+            # first (arrival order, admission.py); one holding its input resumes
+            # before the input the loop finds meanwhile.
             del events
-            if self._slice_frames >= READ_SLICE_FRAMES or self._slice_bytes >= READ_SLICE_BYTES:
-                await self._yield_slice()
 
     def _handle(
         self, session: Session, events: Sequence[FramerEvent], start: int, now: float
