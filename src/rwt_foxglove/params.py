@@ -5,6 +5,8 @@ the store's ``/robot:max_speed``; a node name holds no ``.``, so the first one
 splits), ROS 1 the global name (``/robot/max_speed``). Values are JSON; a float
 goes out with ``type: float64`` (``float64_array`` for a list of them), since
 JSON writes ``1.0`` as ``1``, and comes in as a float when the client says so.
+A byte array goes both ways as foxglove_bridge sends it: ``type: byte_array``
+and its bytes in base64 (standard alphabet, padded).
 
 ``getParameters`` answers ``parameterValues`` with its ``id`` (none named: every
 parameter the client may see); ``setParameters`` sets each parameter (no value
@@ -20,6 +22,8 @@ next one (the newest value of each), so a client that does not read holds one.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import math
 from typing import TYPE_CHECKING, Final
 
@@ -125,6 +129,10 @@ class ParameterBridge:
             return ParameterOut(name=name)
         if isinstance(value, float):
             return ParameterOut(name=name, value=_finite(value), type="float64")
+        if isinstance(value, bytes):
+            return ParameterOut(
+                name=name, value=base64.b64encode(value).decode("ascii"), type="byte_array"
+            )
         if isinstance(value, list) and any(isinstance(item, float) for item in value):
             return ParameterOut(
                 name=name, value=[_finite(float(item)) for item in value], type="float64_array"
@@ -315,5 +323,10 @@ def _value_in(parameter: ParameterIn) -> object:
             raise ParameterError(f"{parameter.name}: a float64_array parameter needs numbers")
         return [float(item) for item in value]
     if kind == "byte_array":
-        raise ParameterError(f"{parameter.name}: byte_array parameters are not supported")
+        try:
+            if isinstance(value, str):
+                return base64.b64decode(value, validate=True)  # the standard alphabet, padded
+        except (binascii.Error, ValueError):
+            pass
+        raise ParameterError(f"{parameter.name}: a byte_array parameter needs base64 text")
     raise ParameterError(f"{parameter.name}: unknown parameter type {kind[:40]!r}")

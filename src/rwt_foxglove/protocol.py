@@ -200,7 +200,7 @@ class ParameterIn(msgspec.Struct, frozen=True):
     """One parameter of ``setParameters``: no ``value`` (or null) deletes it.
 
     ``type`` is ``float64``, ``float64_array`` or ``byte_array`` when JSON alone
-    cannot tell (a float written without a fraction).
+    cannot tell (a float written without a fraction; bytes as base64 text).
     """
 
     name: str
@@ -469,7 +469,8 @@ class ServiceCallFailure(msgspec.Struct, frozen=True, tag_field="op", tag="servi
 class ParameterOut(msgspec.Struct, frozen=True, omit_defaults=True):
     """One parameter of ``parameterValues``; no ``value``: it was deleted.
 
-    ``type`` is ``float64`` or ``float64_array`` for floats (JSON writes ``1.0`` as ``1``).
+    ``type`` is ``float64`` or ``float64_array`` for floats (JSON writes ``1.0`` as ``1``),
+    ``byte_array`` for bytes (``value``: their base64 text).
     """
 
     name: str

@@ -100,7 +100,7 @@ def test_set_answers_with_the_values_and_refusals_are_statuses(graph: Graph) -> 
                 {"name": "/robot.serial", "value": "changed"},
                 {"name": "/robot.name", "value": 7},
                 {"name": "/ghost.p", "value": 1},
-                {"name": "/robot.bytes", "value": "AAE=", "type": "byte_array"},
+                {"name": "/robot.bytes", "value": "AAE", "type": "byte_array"},  # unpadded
                 {"name": "/robot.gains"},  # no value: deleted
             ],
         }
@@ -110,7 +110,7 @@ def test_set_answers_with_the_values_and_refusals_are_statuses(graph: Graph) -> 
     assert "read-only" in errors[0]
     assert "has type string" in errors[1]
     assert "node /ghost does not exist" in errors[2]
-    assert "byte_array parameters are not supported" in errors[3]
+    assert errors[3] == "setParameters: /robot.bytes: a byte_array parameter needs base64 text"
     assert _values(client) == [
         {
             "op": "parameterValues",
@@ -128,6 +128,85 @@ def test_set_answers_with_the_values_and_refusals_are_statuses(graph: Graph) -> 
     client.send({"op": "setParameters", "parameters": [{"name": "/robot.name", "value": "r3"}]})
     assert _values(client) == []  # no id: no answer
     assert graph.params.get("/robot:name") == "r3"
+
+
+def test_byte_arrays_go_out_and_come_in_as_base64(graph: Graph) -> None:
+    graph.params.declare("/robot", {"key": b"\x00\x01\xfb\xff", "empty": b"", "name": "r2"})
+    client = Client(graph, with_params=True)
+    client.send({"op": "subscribeParameterUpdates", "parameterNames": ["/robot.key"]})
+    client.send(
+        {"op": "getParameters", "parameterNames": ["/robot.key", "/robot.empty"], "id": "g"}
+    )
+    assert _values(client)[0]["parameters"] == [
+        {"name": "/robot.key", "value": "AAH7/w==", "type": "byte_array"},
+        {"name": "/robot.empty", "value": "", "type": "byte_array"},
+    ]
+    client.send(
+        {
+            "op": "setParameters",
+            "id": "s",
+            "parameters": [
+                {"name": "/robot.key", "value": "3q2+7w==", "type": "byte_array"},
+                {"name": "/robot.fresh", "value": "", "type": "byte_array"},
+                {"name": "/robot.name", "value": "AA==", "type": "byte_array"},
+            ],
+        }
+    )
+    assert _errors(client) == [
+        "setParameters: parameter /robot:name has type string, not byte_array"
+    ]
+    assert _values(client) == [  # the update pushed as it was made, then the answer
+        {
+            "op": "parameterValues",
+            "parameters": [{"name": "/robot.key", "value": "3q2+7w==", "type": "byte_array"}],
+        },
+        {
+            "op": "parameterValues",
+            "id": "s",
+            "parameters": [
+                {"name": "/robot.key", "value": "3q2+7w==", "type": "byte_array"},
+                {"name": "/robot.fresh", "value": "", "type": "byte_array"},
+            ],
+        },
+    ]
+    assert graph.params.get("/robot:key") == b"\xde\xad\xbe\xef"
+    assert graph.params.get("/robot:fresh") == b""
+
+
+def test_bad_base64_is_a_status_naming_the_parameter_and_the_rest_is_set(graph: Graph) -> None:
+    graph.params.declare("/robot", {"key": b"\x01", "speed": 1.5})
+    client = Client(graph, with_params=True)
+    bad = ["AAE", "AA=E", "A-_=", "not base64!", "é===", 5, [0, 1], {"a": 1}, True]
+    client.send(
+        {
+            "op": "setParameters",
+            "id": "s",
+            "parameters": [
+                *({"name": "/robot.key", "value": value, "type": "byte_array"} for value in bad),
+                {"name": "/robot.speed", "value": 2, "type": "float64"},
+            ],
+        }
+    )
+    assert _errors(client) == [
+        "setParameters: /robot.key: a byte_array parameter needs base64 text"
+    ] * len(bad)
+    assert _values(client)[0]["parameters"] == [
+        {"name": "/robot.speed", "value": 2.0, "type": "float64"}
+    ]
+    assert graph.params.get("/robot:key") == b"\x01"
+
+
+def test_ros1_refuses_a_byte_array_with_a_status(graph: Graph) -> None:
+    ros1 = Graph(TypeRegistry(Dialect.ROS1))
+    client = Client(ros1, with_params=True)
+    client.send(
+        {
+            "op": "setParameters",
+            "parameters": [{"name": "/k", "value": "AA==", "type": "byte_array"}],
+        }
+    )
+    assert "a ROS 1 parameter cannot be bytes" in _errors(client)[0]
+    assert not ros1.params.has("/k")
 
 
 def test_changes_from_every_side_are_pushed_to_subscribers(graph: Graph) -> None:

@@ -12,6 +12,8 @@ from rwt_graph.parameters.store import (
     ParameterNotSetError,
     Parameters,
     ParameterStoreFullError,
+    to_json_safe,
+    value_size,
 )
 from rwt_graph.types import Dialect, TypeRegistry
 
@@ -213,6 +215,44 @@ def test_set_all_makes_every_change_or_none() -> None:
     params.set_all([("/n:a", 1)])
 
 
+def test_byte_arrays_are_bytes_of_their_own_kind() -> None:
+    params = Parameters(max_bytes=1000, node_share=1)
+    params.declare("/n", {"blob": b"\x00\xff", "ids": [1, 2]})
+    params.set("/n:free", bytearray(b"ab"))
+    assert params.get("/n:blob") == b"\x00\xff" and params.get("/n:free") == b"ab"
+    info = params.describe("/n:blob")
+    assert info is not None and info.kind == "byte_array"
+    # a list of octets is that byte array (what rosapi's JSON carries); [] is empty
+    params.set("/n:blob", [1, 2, 3])
+    assert params.get("/n:blob") == b"\x01\x02\x03"
+    params.set("/n:blob", [])
+    assert params.get("/n:blob") == b""
+    for other, kind in ([1, 256], "integer_array"), ("x", "string"), ([True], "bool_array"):
+        with pytest.raises(ParameterError, match=f"has type byte_array, not {kind}"):
+            params.set("/n:blob", other)
+    with pytest.raises(ParameterError, match="has type integer_array, not byte_array"):
+        params.set("/n:ids", b"\x01")
+    params.set("/n:free", [1, 2])  # dynamic typing: now an integer array
+    assert params.get("/n:free") == [1, 2]
+    with pytest.raises(ParameterError, match="not bytes"):
+        params.set("/n:p", [b"\x01"])  # rclpy's list of single bytes is no value here
+
+
+def test_a_byte_array_counts_its_length() -> None:
+    params = Parameters(max_bytes=100, node_share=1)
+    params.set("/n:blob", bytes(100))
+    with pytest.raises(ParameterStoreFullError, match=r"full \(100 bytes\)"):
+        params.set("/n:more", b"\x01")
+    params.set("/n:blob", bytes(10))
+    params.set("/n:more", bytes(90))
+    assert value_size(b"abc") == 3
+
+
+def test_a_byte_array_is_json_octets() -> None:
+    assert to_json_safe([1.0, math.inf]) == [1.0, None]
+    assert to_json_safe(b"\x00\x01\xff") == [0, 1, 255]
+
+
 # ---- ROS 1 ---------------------------------------------------------------------------
 
 
@@ -260,6 +300,7 @@ def test_ros1_setting_under_a_value_makes_it_a_namespace() -> None:
     [
         (None, "cannot be NoneType"),
         (2**31, "int32"),
+        (b"\x01", "cannot be bytes"),
         ({"a/b": 1}, "namespace keys"),
         ({"a": ["\ud800"]}, "not valid Unicode"),
         ({"\ud800": 1}, "not valid Unicode"),

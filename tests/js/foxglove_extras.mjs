@@ -17,6 +17,9 @@
 //   params URL NODE VALUE    read NODE's speed and mode (asked again every 200 ms until both
 //                            are there), watch speed, set it to VALUE (float64); the values
 //                            read, the set's answer and the update pushed for it
+//   param URL NAME TYPE JSON read the parameter NAME (asked again until it is there), watch
+//                            it, set it to the value JSON with type TYPE; the value read, the
+//                            set's answer and the update pushed for it
 //   watch URL NAME COUNT     read the parameter NAME (asked again until it is there), watch
 //                            it; its value read and the next COUNT values pushed
 //   graph URL TOPIC          follow the connection graph until TOPIC is published and
@@ -204,14 +207,10 @@ async function readAll(fox, names) {
   throw new Error(`never got ${names}`);
 }
 
-async function params() {
-  const [node, value] = [args[0], Number(args[1])];
-  const [speed, mode] = [`${node}.speed`, `${node}.mode`];
-  const fox = foxglove(url);
-  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
-  const read = await readAll(fox, [speed, mode]);
-  fox.client.subscribeParameterUpdates([speed]);
-  fox.client.setParameters([{ name: speed, value, type: "float64" }], "set");
+// Watch NAME, set it to VALUE (TYPE); the set's answer and the update pushed for it.
+async function setWatched(fox, name, value, type) {
+  fox.client.subscribeParameterUpdates([name]);
+  fox.client.setParameters([{ name, value, type }], "set");
   // the answer and the update come in either order
   let set = null;
   let pushed = null;
@@ -221,10 +220,30 @@ async function params() {
       "the set's answer and its update",
     );
     if (values.id === "set") set = values.parameters;
-    else if (values.parameters.some((p) => p.name === speed)) pushed = values.parameters;
+    else if (values.parameters.some((p) => p.name === name)) pushed = values.parameters;
   }
+  return { set, pushed };
+}
+
+async function params() {
+  const [node, value] = [args[0], Number(args[1])];
+  const [speed, mode] = [`${node}.speed`, `${node}.mode`];
+  const fox = foxglove(url);
+  const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const read = await readAll(fox, [speed, mode]);
+  const { set, pushed } = await setWatched(fox, speed, value, "float64");
   fox.client.close();
   return { capabilities: info.capabilities, read, set, pushed, statuses: fox.statuses };
+}
+
+async function param() {
+  const [name, type, value] = [args[0], args[1], JSON.parse(args[2])];
+  const fox = foxglove(url);
+  await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  const [read] = await readAll(fox, [name]);
+  const { set, pushed } = await setWatched(fox, name, value, type);
+  fox.client.close();
+  return { read, set, pushed, statuses: fox.statuses };
 }
 
 async function watch() {
@@ -261,4 +280,4 @@ async function graph() {
   return { publisherIds: published.get(topic), subscriberIds: subscribed.get(topic) };
 }
 
-await main({ receive, publish, play, assets, call: callService, params, watch, graph }, scenario);
+await main({ receive, publish, play, assets, call: callService, params, param, watch, graph }, scenario);

@@ -37,6 +37,9 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   guarded_params NODE_NAME  a node named NODE_NAME declaring speed=2.5, a read-only
                         model="x1" and limit=1.0, whose set-parameters callback
                         refuses a negative limit ("limit must not be negative")
+  byte_params NODE_NAME  a node named NODE_NAME declaring the byte array key=00 01 ff;
+                        prints {"key": hex} of its value as the node reads it
+                        (get_parameter), at the start and whenever it changes
   read_params NODE      prints {"values": {name: value}} of NODE's speed, model and limit,
                         read once through its get_parameters service
   many_params NODE_NAME N  a node named NODE_NAME declaring N integer parameters
@@ -104,7 +107,11 @@ def say(**fields: object) -> None:
 def main() -> None:
     mode, name = sys.argv[1], sys.argv[2]
     rclpy.init()
-    default = name if mode in ("params", "guarded_params", "many_params") else f"peer_{mode}"
+    default = (
+        name
+        if mode in ("params", "guarded_params", "many_params", "byte_params")
+        else f"peer_{mode}"
+    )
     named = len(sys.argv) > 3 and mode not in ("call_many", "many_params")  # a count
     node = rclpy.create_node(sys.argv[3] if named else default)
     tick = None
@@ -288,6 +295,17 @@ def main() -> None:
             return SetParametersResult(successful=True)
 
         node.add_on_set_parameters_callback(guard)
+    elif mode == "byte_params":
+        node.declare_parameter("key", [b"\x00", b"\x01", b"\xff"])  # rclpy's form: single bytes
+        shown = [None]
+
+        def show_key():
+            key = b"".join(node.get_parameter("key").value).hex()
+            if key != shown[0]:
+                shown[0] = key
+                say(key=key)
+
+        tick = show_key
     elif mode == "read_params":
         read_params(node, name)
         return

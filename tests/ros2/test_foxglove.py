@@ -5,9 +5,10 @@ the talker's own CDR, byte for byte: its alignment padding byte is 0xAB, which
 a fresh serialization writes as 0, so a payload that keeps it was passed on as
 the link received it. An rclpy node's service answers a FoxgloveClient's call in
 CDR; an rclpy node's parameters are read and set from it by foxglove_bridge's
-names (``/node.param``), and changes the node makes itself are pushed to it. A
-FoxgloveClient's publish reaches an rclpy subscriber. A transient-local
-topic's message, published before the client came, reaches it on subscribing.
+names (``/node.param``), a byte array in base64 both ways, and changes the node
+makes itself are pushed to it. A FoxgloveClient's publish reaches an rclpy
+subscriber. A transient-local topic's message, published before the client
+came, reaches it on subscribing.
 The connection graph names rclpy nodes by their own names.
 """
 
@@ -99,6 +100,20 @@ def test_an_rclpy_service_answers_a_foxglove_clients_call(
     assert got["schemas"] == ["std_srvs/srv/SetBool_Request", "std_srvs/srv/SetBool_Response"]
     assert (got["callId"], got["encoding"], got["failure"]) == (1, "cdr", None)
     assert got["response"] == {"success": True, "message": "ros2 got True"}
+
+
+def test_an_rclpy_nodes_byte_array_is_read_and_set_from_a_foxglove_client_in_base64(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("byte_params", "fg_keys", ros_env) as node:
+        assert node.next() == {"key": "0001ff"}
+        got = extras.run("param", server.url, "/fg_keys.key", "byte_array", '"3q2+7w=="')
+        read_back = node.next()  # the node's own get_parameter
+    assert got["read"] == {"name": "/fg_keys.key", "value": "AAH/", "type": "byte_array"}
+    key = {"name": "/fg_keys.key", "value": "3q2+7w==", "type": "byte_array"}
+    assert got["set"] == [key] and got["pushed"] == [key]
+    assert got["statuses"] == []
+    assert read_back == {"key": "deadbeef"}
 
 
 def test_an_rclpy_nodes_parameters_are_read_and_set_from_a_foxglove_client(

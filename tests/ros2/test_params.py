@@ -157,3 +157,25 @@ async def test_set_param_answers_what_the_node_answered(
     assert "read-only" in answers["read-only"]["reason"]
     assert "type" in answers["type change"]["reason"]
     assert on_node == {"values": {"speed": 2.5, "model": "x1", "limit": 3.0}}
+
+
+BYTES = """
+names = roslibpy.Service(ros, "/rosapi/get_param_names", "rosapi_msgs/srv/GetParamNames")
+wait_for(lambda: "/byte_keys:key" in names.call(roslibpy.ServiceRequest({}))["names"])
+key = roslibpy.Param(ros, "/byte_keys:key")
+before = key.get(timeout=10)
+key.set([7, 8], timeout=10)  # what it read, changed: a list of octets
+print(json.dumps({"before": before, "after": key.get(timeout=10)}), flush=True)
+ros.terminate()
+"""
+
+
+async def test_rosapi_reads_and_sets_a_ros2_byte_array_as_a_list_of_octets(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    with Peer("byte_params", "byte_keys", ros_env) as node:
+        assert await anyio.to_thread.run_sync(node.next) == {"key": "0001ff"}
+        out = json.loads((await run_python(roslibpy_prelude(server.port) + BYTES)).splitlines()[-1])
+        read_back = await anyio.to_thread.run_sync(node.next)  # the node's own get_parameter
+    assert out == {"before": [0, 1, 255], "after": [7, 8]}
+    assert read_back == {"key": "0708"}  # still a byte array on the node

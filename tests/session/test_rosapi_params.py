@@ -92,6 +92,18 @@ def test_int_for_a_double_parameter_is_widened(robot: Graph, web: Peer) -> None:
     assert call(web, "/rosapi/get_param", name="/robot:max_speed")["value"] == "3.0"
 
 
+def test_a_byte_array_reads_and_writes_as_a_list_of_octets(robot: Graph, web: Peer) -> None:
+    robot.params.declare("/robot", {"key": b"\x00\x7f\xff"})
+    assert call(web, "/rosapi/get_param", name="/robot:key") == {"value": "[0, 127, 255]", **OK}
+    assert call(web, "/rosapi/set_param", name="/robot:key", value="[1, 2]") == OK
+    assert robot.params.get("/robot:key") == b"\x01\x02"  # still a byte array
+    reply = call(web, "/rosapi/set_param", name="/robot:key", value="[1, 300]")
+    assert reply == {
+        "successful": False,
+        "reason": "parameter /robot:key has type byte_array, not integer_array",
+    }
+
+
 def test_get_param_of_a_missing_parameter(web: Peer) -> None:
     missing = call(web, "/rosapi/get_param", name="/robot:missing")
     assert missing == {

@@ -34,7 +34,7 @@ from rwt_protocol.ops import CallService
 from ..async_calls import call_service
 from ..calls import guarded
 from ..ratelog import EpisodeLog
-from .store import ParameterError, ParameterStoreFullError
+from .store import ParameterError, ParameterStoreFullError, as_held
 from .wire import from_wire, to_wire
 
 if TYPE_CHECKING:
@@ -139,8 +139,10 @@ class ParamReplicas:
         A value the node accepted is held at once, so that whoever asked reads it
         back right after the answer (rosapi's ``get_param``, a Foxglove client's
         ``setParameters`` answer); the refresh this starts then takes the node's
-        own values, whatever the answer (``NodeSetter``).
+        own values, whatever the answer (``NodeSetter``). A list of octets for a
+        byte array the copy holds goes as that byte array (``store.as_held``).
         """
+        value = as_held(self.graph.params.get(f"{node}:{param}", None), value)
         wire = to_wire(self._value_type, value)
         request = {"parameters": [{"name": param, "value": wire}]}
         try:

@@ -2,10 +2,11 @@
 
 ROS 2 parameters belong to nodes and are named ``"<node>:<param>"`` on rosapi
 (``/robot:max_speed``). Their values are ``bool``, ``int`` (int64), ``float``,
-``str`` or a list of one of those. A parameter declared by Python code keeps its
-type (an ``int`` is accepted for a ``float`` parameter and converted, as D9 does
-for messages) and may be read-only; a parameter created by a plain ``set`` takes
-any type.
+``str``, ``bytes`` (a byte array) or a list of one of the others. A parameter
+declared by Python code keeps its type (an ``int`` is accepted for a ``float``
+parameter and a list of octets for a byte array, converted, as D9 does for
+messages) and may be read-only; a parameter created by a plain ``set`` takes any
+type.
 
 ROS 1 parameters are one tree of global names (``/robot/max_speed``): a value
 may also be a dict (a namespace) or a list of mixed values; ``get`` of a
@@ -46,6 +47,7 @@ __all__ = [
     "ParameterNotSetError",
     "ParameterStoreFullError",
     "Parameters",
+    "as_held",
     "check_param_name",
     "value_size",
 ]
@@ -53,7 +55,9 @@ __all__ = [
 logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
-ParamValue: TypeAlias = "bool | int | float | str | list[ParamValue] | dict[str, ParamValue]"
+ParamValue: TypeAlias = (
+    "bool | int | float | str | bytes | list[ParamValue] | dict[str, ParamValue]"
+)
 ParamWatcher: TypeAlias = "Callable[[str, ParamValue | None], None]"
 """Called with ``(name, value)`` after each change; ``value`` is None for a deletion."""
 NodeSetter: TypeAlias = "Callable[[str, ParamValue], Awaitable[tuple[bool, str]]]"
@@ -91,6 +95,7 @@ class ParamKind(StrEnum):
     INTEGER = "integer"
     DOUBLE = "double"
     STRING = "string"
+    BYTE_ARRAY = "byte_array"
     BOOL_ARRAY = "bool_array"
     INTEGER_ARRAY = "integer_array"
     DOUBLE_ARRAY = "double_array"
@@ -141,8 +146,8 @@ def _scalar_kind(value: object, what: str) -> ParamKind:
         _check_text(value, what)
         return ParamKind.STRING
     raise ParameterError(
-        f"{what}: a ROS 2 parameter is a bool, int, float, str or a list of one of them, "
-        f"not {type(value).__name__}"
+        f"{what}: a ROS 2 parameter is a bool, int, float, str, bytes or a list of bool, "
+        f"int, float or str, not {type(value).__name__}"
     )
 
 
@@ -155,9 +160,14 @@ def _check_text(value: str, what: str) -> None:
 def ros2_value(value: object, what: str = "value") -> tuple[ParamValue, ParamKind]:
     """Check a ROS 2 parameter value; return it (copied, ints widened in float lists) and its kind.
 
+    ``bytes`` (or ``bytearray``) is a byte array (``ParameterType`` 5), held as ``bytes``.
+
     Raises:
-        ParameterError: not a ROS 2 parameter value (dicts, None, nested or mixed lists).
+        ParameterError: not a ROS 2 parameter value (dicts, None, nested or mixed lists,
+            a list of bytes).
     """
+    if isinstance(value, bytes | bytearray):
+        return bytes(value), ParamKind.BYTE_ARRAY
     if not isinstance(value, list | tuple):
         return value, _scalar_kind(value, what)  # type: ignore[return-value]
     if not value:
@@ -198,8 +208,24 @@ def ros1_value(value: object, what: str = "value") -> ParamValue:
     raise ParameterError(f"{what}: a ROS 1 parameter cannot be {type(value).__name__}")
 
 
+def as_held(held: object, value: ParamValue) -> ParamValue:
+    """``value`` as bytes when ``held`` is a byte array and ``value`` a list of octets.
+
+    JSON has no bytes: rosapi's ``get_param`` answers a byte array as its octets
+    (``to_json_safe``), so a client writing back what it read sends a list of ints
+    0-255; for a byte-array parameter that is the same byte array (D9 reads a
+    ``byte[]`` field from JSON the same way). Any other value is returned as it is.
+    """
+    if not isinstance(held, bytes) or not isinstance(value, list):
+        return value
+    octets = [item for item in value if type(item) is int and 0 <= item <= 255]
+    return bytes(octets) if len(octets) == len(value) else value
+
+
 def _fit(param: _Param, value: ParamValue, kind: ParamKind, name: str) -> ParamValue:
     """The value to store in a parameter whose type is fixed (declared)."""
+    if param.kind is ParamKind.BYTE_ARRAY and isinstance(octets := as_held(b"", value), bytes):
+        return octets  # the byte array itself, or a list of octets (or an empty list)
     if kind is param.kind or (param.kind is ParamKind.EMPTY_ARRAY and kind.endswith("array")):
         return value
     if param.kind is ParamKind.DOUBLE and kind is ParamKind.INTEGER:
@@ -282,9 +308,15 @@ def check_param_name(name: str, *, ros1: bool) -> None:
 
 
 def to_json_safe(value: ParamValue) -> object:
-    """``value`` with non-finite floats as None, for JSON text (D10)."""
+    """``value`` with non-finite floats as None and bytes as a list of octets, for JSON text (D10).
+
+    A byte array becomes its octets (ints 0-255), as a ``byte[]`` field of a
+    message goes out in JSON (docs/ros2.md, "Parameters").
+    """
     if isinstance(value, float) and not math.isfinite(value):
         return None
+    if isinstance(value, bytes):
+        return list(value)
     if isinstance(value, list):
         return [to_json_safe(item) for item in value]
     if isinstance(value, dict):
@@ -300,8 +332,8 @@ class Parameters:
         max_params: most parameters (ROS 1: leaves) the store holds; a ``set`` that
             would go over is refused, so a client cannot grow it without bound.
         max_bytes: most bytes all values may hold together (strings count their
-            UTF-8 bytes, numbers and bools 8); a ``set`` that would go over is
-            refused (docs/limits.md).
+            UTF-8 bytes, byte arrays their length, numbers and bools 8); a ``set``
+            that would go over is refused (docs/limits.md).
         node_share: the fraction of ``max_params`` and of ``max_bytes`` one ROS 2
             node may hold (``max_node_params``, ``max_node_bytes``; at least one
             parameter and byte), so one node cannot fill the store; 1 lets a node
@@ -745,10 +777,13 @@ def _leaves(tree: Mapping[str, ParamValue], prefix: str) -> list[str]:
 def value_size(value: object) -> int:
     """Count the bytes a parameter value holds against ``Parameters.max_bytes``.
 
-    UTF-8 bytes of strings and keys, 8 per number or bool, summed over lists and dicts.
+    UTF-8 bytes of strings and keys, the length of a byte array, 8 per number or
+    bool, summed over lists and dicts.
     """
     if isinstance(value, str):
         return len(value) if value.isascii() else len(value.encode("utf-8", "surrogatepass"))
+    if isinstance(value, bytes):
+        return len(value)
     if isinstance(value, dict):
         return sum(value_size(key) + value_size(item) for key, item in value.items())
     if isinstance(value, list):

@@ -87,10 +87,14 @@ def to_wire(value_type: MessageType, value: ParamValue) -> dict[str, object]:
 
 
 def from_wire(msg: dict[str, object]) -> object:
-    """The value of a ``ParameterValue``; None when NOT_SET.
+    """The value of a ``ParameterValue``; None when NOT_SET; a byte array as ``bytes``.
+
+    The internal form holds ``byte[]`` as a list of octets (ints); the store tells
+    a byte array from an integer array by its type, so it gets ``bytes``.
 
     Raises:
-        ParameterError: an unknown type code.
+        ParameterError: an unknown type code, or a byte array with an item
+            that is no octet.
     """
     kind = msg.get("type")
     if kind == _NOT_SET:
@@ -99,4 +103,20 @@ def from_wire(msg: dict[str, object]) -> object:
     if name is None:
         raise ParameterError(f"unknown parameter type {kind!r}")
     value = msg[name]
+    if kind == _BYTES:
+        return _octets(value)
     return list(value) if isinstance(value, tuple) else value
+
+
+def _octets(value: object) -> bytes:
+    """The bytes of a ``byte_array_value`` (a list of octets in the internal form).
+
+    Raises:
+        ParameterError: not a sequence of ints 0-255.
+    """
+    if isinstance(value, list | tuple | bytes | bytearray):  # never bytes(n): n zero bytes
+        try:
+            return bytes(value)
+        except (TypeError, ValueError):
+            pass
+    raise ParameterError("a byte array parameter holds an item that is no octet")
