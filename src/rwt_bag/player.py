@@ -10,7 +10,8 @@ With ``clock`` the player publishes ``/clock`` (rosgraph_msgs/Clock) and the
 graph's wall clock reads bag time (so rosapi ``get_time`` and default header
 stamps follow the bag, as with ``use_sim_time``). Always, while it runs, the graph's
 ``timeline`` is the bag's clock (``clock_ns``), which Foxglove clients get as
-server time. ``pause``, ``resume`` and
+server time, and the graph's ``playback`` is the player (``rwt_graph.playback``),
+which Foxglove's playback bar drives. ``pause``, ``resume`` and
 ``seek`` drive it from Python; ``serve_controls`` offers them as services under
 ``/rwt/player/`` (``controls``).
 """
@@ -28,6 +29,7 @@ from typing import TYPE_CHECKING
 import anyio
 import anyio.to_thread
 
+from rwt_graph.playback import PlaybackStatus
 from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import name_problem
@@ -177,6 +179,9 @@ class Player(BackgroundJob):
         self._seek_to: int | None = None
         self._step = False  # ``play_next``: publish one message while paused
         self._segment: anyio.CancelScope | None = None
+        self._ended = False  # the end was reached (no loop); a seek plays again (``linger``)
+        self._done = False  # ``run`` returned: nothing plays any more
+        self._jumps = 0  # seeks and loop restarts so far (``jumps``)
         self._anchor_mono = 0.0
         self._anchor_ns = self.start_ns
         self._position_ns = self.start_ns
@@ -210,6 +215,23 @@ class Player(BackgroundJob):
     def paused(self) -> bool:
         """Whether playback is paused."""
         return self._paused
+
+    @property
+    def status(self) -> PlaybackStatus:
+        """Playing, paused, or ended (the end reached without ``loop``, or ``run`` over)."""
+        if self._ended or self._done:
+            return PlaybackStatus.ENDED
+        return PlaybackStatus.PAUSED if self._paused else PlaybackStatus.PLAYING
+
+    @property
+    def time_range_ns(self) -> tuple[int, int]:
+        """The bag's first and last record times (ns since the epoch): what ``seek`` reaches."""
+        return self.source.start_ns, self.source.end_ns
+
+    @property
+    def jumps(self) -> int:
+        """How many times the position jumped: each seek and each loop's restart."""
+        return self._jumps
 
     @property
     def position_s(self) -> float:
@@ -302,7 +324,20 @@ class Player(BackgroundJob):
             raise BagError(f"offset {offset_s} is not a finite number of seconds")
         if not clamp and not 0 <= offset_s <= span / 1e9:
             raise BagError(f"offset {offset_s:.6g} s is outside the bag (0 to {span / 1e9:.3f} s)")
-        target = self.source.start_ns + min(int(max(offset_s, 0.0) * 1e9), span)
+        self._go_to(self.source.start_ns + min(int(max(offset_s, 0.0) * 1e9), span))
+
+    def seek_ns(self, time_ns: int) -> None:
+        """Go to the bag time ``time_ns`` (ns since the epoch), clamped to ``time_range_ns``.
+
+        As ``seek``, by absolute time (Foxglove's playback bar seeks so).
+        """
+        first, last = self.time_range_ns
+        self._go_to(min(max(time_ns, first), last))
+
+    def _go_to(self, target: int) -> None:
+        self._jumps += 1
+        if not self._done:  # a lingering player plays on from there
+            self._ended = False
         self._seek_to = target
         self._next_ns = target  # the clock waits there for the new segment's first message
         self._position_ns = target
@@ -338,7 +373,8 @@ class Player(BackgroundJob):
             raise
         try:
             with contextlib.ExitStack() as bag_time:
-                bag_time.enter_context(self.graph.port.use_timeline(self.clock_ns))
+                timeline = self.graph.port.use_timeline(self.clock_ns, playback=self)
+                bag_time.enter_context(timeline)
                 async with anyio.create_task_group() as tg:
                     if self.clock_hz:  # the graph's wall time is bag time while it plays
                         clock = BagClock(self.graph.clock, self)
@@ -352,6 +388,7 @@ class Player(BackgroundJob):
                     await self._play()
                     tg.cancel_scope.cancel()
         finally:
+            self._done = True
             for publisher in self._publishers.values():
                 publisher.close()
             self._publishers.clear()
@@ -425,9 +462,12 @@ class Player(BackgroundJob):
             self.stats.loops += 1
             if self.loop:
                 position = self.start_ns
+                self._jumps += 1
             elif self.linger:
+                self._ended = True
                 position = await self._next_seek()
             else:
+                self._ended = True
                 return
 
     async def _next_seek(self) -> int:

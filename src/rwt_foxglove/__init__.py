@@ -5,7 +5,8 @@ not rosbridge. ``protocol`` parses and encodes its ops, ``schemas`` describes th
 graph's types as channels, ``wire`` reads and writes CDR payloads, ``session`` is
 one client's protocol on the graph, with its parts ``services`` (service calls),
 ``params`` (parameters), ``conngraph`` (the connection graph), ``servertime`` (server
-time while a bag plays) and ``assetrequests`` (asset requests), which send through
+time while a bag plays), ``playback`` (the playback bar driving that bag) and
+``assetrequests`` (asset requests), which send through
 ``output``; ``outqueue`` is its bounded queue and ``limits`` its bounds (all without
 I/O). ``assets`` finds and reads the files clients fetch, ``driver`` runs a session
 over a WebSocket connection, ``gather`` gathering a burst's frames into few writes;

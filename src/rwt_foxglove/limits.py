@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 from .outqueue import DEFAULT_MAX_BYTES, DEFAULT_MAX_MESSAGES
 
-__all__ = ["FoxgloveLimits"]
+__all__ = ["MAX_PLAYBACK_REQUEST_ID_BYTES", "FoxgloveLimits"]
+
+MAX_PLAYBACK_REQUEST_ID_BYTES: Final = 256
+"""The longest request id of a playback control request (UTF-8 bytes). The Foxglove
+app sends a short generated id; a longer one is refused, so an answer, which carries
+it back to every client with ``playbackControl``, stays small."""
 
 
 @dataclass(frozen=True, slots=True)

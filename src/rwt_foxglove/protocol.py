@@ -8,14 +8,17 @@ Server to client: ``serverInfo``, ``status``, ``removeStatus``, ``advertise``,
 ``serviceCallFailure``, ``parameterValues``, ``connectionGraphUpdate`` (text),
 message data (``0x01``: u32 subscription id, u64 log time in ns, payload), time
 (``0x02``: u64 ns), service call response (``0x03``: u32 service id, u32 call
-id, u32 encoding length, encoding, payload) and fetch asset response (``0x04``:
-u32 request id, u8 status, u32 error length, error text, data). Client to
+id, u32 encoding length, encoding, payload), fetch asset response (``0x04``:
+u32 request id, u8 status, u32 error length, error text, data) and playback
+state (``0x05``: u8 status, u64 time in ns, f32 speed, u8 did seek, u32 request
+id length, request id). Client to
 server: ``subscribe``, ``unsubscribe``, ``advertise``, ``unadvertise``,
 ``getParameters``, ``setParameters``, ``subscribeParameterUpdates``,
 ``unsubscribeParameterUpdates``, ``subscribeConnectionGraph``,
 ``unsubscribeConnectionGraph``, ``fetchAsset`` (text), client message data
-(``0x01``: u32 client channel id, payload) and service call request (``0x02``:
-as the response).
+(``0x01``: u32 client channel id, payload), service call request (``0x02``:
+as the response) and playback control request (``0x03``: u8 command, f32
+speed, u8 had seek, u64 seek time in ns, u32 request id length, request id).
 
 Every bad input becomes a ``FoxgloveInputError`` whose text goes to the peer as
 an error ``status``; the connection goes on (docs/foxglove.md, limits). JSON
@@ -25,6 +28,7 @@ most 100 levels, no lone surrogate, integers within 64 bits).
 
 from __future__ import annotations
 
+import math
 import struct
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any, Final
@@ -58,6 +62,9 @@ __all__ = [
     "ParameterIn",
     "ParameterOut",
     "ParameterValues",
+    "PlaybackCommand",
+    "PlaybackControlRequest",
+    "PlaybackStatusCode",
     "PublishedTopic",
     "RemoveStatus",
     "ServerInfo",
@@ -73,6 +80,7 @@ __all__ = [
     "SubscribeParameterUpdates",
     "SubscribedTopic",
     "Subscription",
+    "Timestamp",
     "Unadvertise",
     "UnadvertiseServices",
     "Unsubscribe",
@@ -82,6 +90,7 @@ __all__ = [
     "encode_message_data",
     "encode_message_header",
     "encode_op",
+    "encode_playback_state",
     "encode_service_call_response",
     "encode_time",
     "parse_binary",
@@ -98,6 +107,10 @@ _TIME: Final = 0x02
 _FETCH_ASSET_RESPONSE: Final = 0x04
 _SERVICE_CALL_REQUEST: Final = 0x02
 _SERVICE_CALL_RESPONSE: Final = 0x03
+_PLAYBACK_CONTROL_REQUEST: Final = 0x03
+_PLAYBACK_STATE: Final = 0x05
+_PLAYBACK_REQUEST = struct.Struct("<BfBQI")  # command, speed, had seek, seek time, id length
+_PLAYBACK_STATE_HEADER = struct.Struct("<BBQfBI")  # opcode, status, time, speed, did seek, id len
 _DATA_HEADER = struct.Struct("<BIQ")  # opcode, subscription id, log time (ns)
 _CLIENT_DATA_HEADER = struct.Struct("<BI")  # opcode, client channel id
 _TIME_FRAME = struct.Struct("<BQ")
@@ -234,6 +247,34 @@ class FetchAsset(msgspec.Struct, frozen=True):
     requestId: int
 
 
+class PlaybackCommand(IntEnum):
+    """What a playback control request asks for after its seek and speed."""
+
+    PLAY = 0
+    PAUSE = 1
+
+
+class PlaybackControlRequest(msgspec.Struct, frozen=True):
+    """A playback control request (binary ``0x03``): the client's playback bar.
+
+    ``seek_ns`` is the absolute time to go to (ns since the epoch), None without a seek.
+    """
+
+    command: PlaybackCommand
+    speed: float
+    seek_ns: int | None
+    request_id: str
+
+
+class PlaybackStatusCode(IntEnum):
+    """A playback state's status byte."""
+
+    PLAYING = 0
+    PAUSED = 1
+    BUFFERING = 2
+    ENDED = 3
+
+
 class SubscribeConnectionGraph(msgspec.Struct, frozen=True):
     """``subscribeConnectionGraph``: send the graph, then its changes."""
 
@@ -332,14 +373,15 @@ def _check_ids(op: TextOp) -> None:
             _u32(cid, "client channel id")
 
 
-def parse_binary(data: bytes) -> ClientMessageData | ServiceCallRequest:
+def parse_binary(data: bytes) -> ClientMessageData | ServiceCallRequest | PlaybackControlRequest:
     """Parse one binary frame of the client.
 
     The payload is a view of ``data`` (no copy of a large message).
 
     Raises:
         FoxgloveInputError: an empty frame, an opcode not handled, a frame
-            shorter than its header, an encoding name that is not UTF-8.
+            shorter than its header, an encoding name that is not UTF-8, a bad
+            playback control request (``_playback_control_request``).
     """
     if not data:
         raise FoxgloveInputError("empty binary frame")
@@ -354,6 +396,8 @@ def parse_binary(data: bytes) -> ClientMessageData | ServiceCallRequest:
         return ClientMessageData(channel_id, memoryview(data)[_CLIENT_DATA_HEADER.size :])
     if opcode == _SERVICE_CALL_REQUEST:
         return _service_call_request(data)
+    if opcode == _PLAYBACK_CONTROL_REQUEST:
+        return _playback_control_request(data)
     raise FoxgloveInputError(f"unknown binary opcode 0x{opcode:02x}")
 
 
@@ -375,17 +419,70 @@ def _service_call_request(data: bytes) -> ServiceCallRequest:
     return ServiceCallRequest(service_id, call_id, encoding, memoryview(data)[header + length :])
 
 
+def _playback_control_request(data: bytes) -> PlaybackControlRequest:
+    """Parse a playback control request, stricter than the SDK's server.
+
+    Raises:
+        FoxgloveInputError: shorter than its 19-byte header or than its request
+            id, longer than both (the SDK ignores trailing bytes; rwt refuses
+            them), a command other than play (0) or pause (1), a speed that is
+            not a finite number above 0, a request id that is not UTF-8 (its
+            length is bounded by the session: ``limits.MAX_PLAYBACK_REQUEST_ID_BYTES``).
+    """
+    what = "playback control request"
+    header = 1 + _PLAYBACK_REQUEST.size
+    if len(data) < header:
+        raise FoxgloveInputError(
+            f"{what} of {len(data)} bytes: shorter than its {header}-byte header"
+        )
+    command, speed, had_seek, seek_ns, length = _PLAYBACK_REQUEST.unpack_from(data, 1)
+    if len(data) != header + length:
+        raise FoxgloveInputError(
+            f"{what} of {len(data)} bytes: its {length}-byte request id needs {header + length}"
+        )
+    if command not in (PlaybackCommand.PLAY, PlaybackCommand.PAUSE):
+        raise FoxgloveInputError(f"{what}: unknown command {command} (0 play, 1 pause)")
+    if not (math.isfinite(speed) and speed > 0):
+        raise FoxgloveInputError(f"{what}: speed {speed} is not a finite number above 0")
+    try:
+        request_id = bytes(data[header:]).decode("utf-8")
+    except UnicodeDecodeError:
+        raise FoxgloveInputError(f"{what}: the request id is not UTF-8") from None
+    return PlaybackControlRequest(
+        PlaybackCommand(command), speed, seek_ns if had_seek else None, request_id
+    )
+
+
 # ---- server ops -------------------------------------------------------------------
 
 
-class ServerInfo(msgspec.Struct, frozen=True, tag_field="op", tag="serverInfo"):
-    """``serverInfo``: sent first on every connection."""
+class Timestamp(msgspec.Struct, frozen=True):
+    """A time in ``serverInfo``: whole seconds and nanoseconds since the epoch (each u32)."""
+
+    sec: int
+    nsec: int
+
+    @classmethod
+    def of(cls, time_ns: int) -> Timestamp:
+        """``time_ns`` (ns since the epoch) split; seconds clamped to u32 as the SDK does."""
+        sec, nsec = divmod(max(0, time_ns), 1_000_000_000)
+        return cls(min(sec, 0xFFFF_FFFF), nsec)
+
+
+class ServerInfo(msgspec.Struct, frozen=True, tag_field="op", tag="serverInfo", omit_defaults=True):
+    """``serverInfo``: sent first on every connection.
+
+    ``dataStartTime`` and ``dataEndTime`` (the range a playback bar seeks in) come
+    with the ``playbackControl`` capability only.
+    """
 
     name: str
     capabilities: list[str]
     supportedEncodings: list[str]
     metadata: dict[str, str]
     sessionId: str
+    dataStartTime: Timestamp | None = None
+    dataEndTime: Timestamp | None = None
 
 
 class Status(msgspec.Struct, frozen=True, tag_field="op", tag="status", omit_defaults=True):
@@ -581,3 +678,17 @@ def encode_fetch_asset_response(request_id: int, data: bytes | None, error: str 
 def encode_time(time_ns: int) -> bytes:
     """A binary time frame (opcode 0x02)."""
     return _TIME_FRAME.pack(_TIME, time_ns)
+
+
+def encode_playback_state(
+    status: PlaybackStatusCode, time_ns: int, speed: float, *, did_seek: bool, request_id: str
+) -> bytes:
+    """A binary playback state frame (opcode 0x05); ``request_id`` "": not an answer.
+
+    ``speed`` is written as a 32-bit float, ``time_ns`` as u64 (clamped at 0).
+    """
+    name = request_id.encode()
+    header = _PLAYBACK_STATE_HEADER.pack(
+        _PLAYBACK_STATE, status, max(0, time_ns), speed, did_seek, len(name)
+    )
+    return header + name

@@ -36,6 +36,7 @@ from .conngraph import ConnectionGraph
 from .limits import FoxgloveLimits
 from .outqueue import OutQueue
 from .params import ParameterBridge
+from .playback import PLAYBACK_CAPABILITY, PlaybackControl
 from .protocol import (
     Advertise,
     Channel,
@@ -46,6 +47,7 @@ from .protocol import (
     FetchAsset,
     FoxgloveInputError,
     GetParameters,
+    PlaybackControlRequest,
     RemoveStatus,
     ServerInfo,
     ServerOp,
@@ -84,8 +86,9 @@ __all__ = ["CAPABILITIES", "PARAMETER_CAPABILITIES", "FoxgloveLimits", "Foxglove
 logger = logging.getLogger("rwt.foxglove")
 
 CAPABILITIES: Final = ("clientPublish", "services", "connectionGraph")
-"""What ``serverInfo`` always announces (``time`` too while a bag plays, ``servertime``;
-``assets`` when the server serves them)."""
+"""What ``serverInfo`` always announces (``time`` too while a bag plays, ``servertime``,
+and ``playbackControl`` while it is a player's, ``playback``; ``assets`` when the server
+serves them)."""
 PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
 """Announced too when the session is given the graph's parameters."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
@@ -193,9 +196,14 @@ class FoxgloveSession:
             capabilities += PARAMETER_CAPABILITIES
         # a bag playing when the client connects: its clock is server time
         self._time = None if graph.timeline is None else ServerTime(graph)
+        # that clock a player's (not sim time): the client's playback bar drives it
+        playback = graph.playback
+        self._playback = None if playback is None else PlaybackControl(playback)
         self._assets = AssetRequests() if assets else None
         capabilities += [TIME_CAPABILITY] if self._time else []
+        capabilities += [PLAYBACK_CAPABILITY] if self._playback else []
         capabilities += [ASSETS_CAPABILITY] if assets else []
+        first, last = (None, None) if self._playback is None else self._playback.time_range()
         self._control(
             ServerInfo(
                 name=name,
@@ -203,6 +211,8 @@ class FoxgloveSession:
                 supportedEncodings=supported_encodings(dialect),
                 metadata=metadata_for(dialect),
                 sessionId=session_id,
+                dataStartTime=first,
+                dataEndTime=last,
             )
         )
         self._handlers: dict[type, Callable[[Any], None]] = {
@@ -301,15 +311,26 @@ class FoxgloveSession:
 
     @property
     def announces_time(self) -> bool:
-        """Whether this client was told of server time (``tick`` then sends it)."""
+        """Whether this client was told of server time (``tick`` then sends it).
+
+        Always so with ``playbackControl``: a player's clock is the graph's timeline.
+        """
         return self._time is not None
 
     def tick(self) -> None:
-        """Send the server time if it moved since last told (``servertime``); never raises."""
+        """Tell the client what changed since last told; never raises.
+
+        The server time if it moved (``servertime``), then the playback state if
+        it changed (``playback``).
+        """
         if self._time is None or self._closed:
             return
         now = self._time.now()
-        if now is not None and self._told_time(now) and self._on_output is not None:
+        told = now is not None and self._told_time(now)
+        state = None if self._playback is None else self._playback.frame()
+        if state is not None:  # droppable as time frames are
+            self._push_data(OutFrame(state, True, True))
+        if (told or state is not None) and self._on_output is not None:
             self._on_output()
 
     def _told_time(self, now: int) -> bool:
@@ -357,6 +378,8 @@ class FoxgloveSession:
                 frame = parse_binary(data)
                 if isinstance(frame, ServiceCallRequest):
                     self.services.call(frame)
+                elif isinstance(frame, PlaybackControlRequest):
+                    self._playback_request(frame)
                 else:
                     self._message_data(frame)
                 return
@@ -364,6 +387,12 @@ class FoxgloveSession:
             self._handlers[type(op)](op)
         except RwtError as exc:
             self._status(StatusLevel.ERROR, exc.message)
+
+    def _playback_request(self, request: PlaybackControlRequest) -> None:
+        if self._playback is None:  # as the SDK's server: an error status
+            raise FoxgloveInputError("playback control is not supported by this server")
+        # an answer to input: droppable, so a client that floods and reads nothing stays bounded
+        self._push_data(OutFrame(self._playback.apply(request), True, True))
 
     def _parameters(
         self,

@@ -21,6 +21,7 @@ Modules:
 - ``nodes``: node names of the graph's participants, for rosapi.
 - ``clock``: the clocks the graph reads (monotonic for order, wall for stamps).
 - ``simtime``: the latest ``/clock`` as the graph's timeline (``use_sim_time``).
+- ``playback``: what a running player offers (status, rate, seek) beside the timeline.
 - ``ratelog``: peer-triggered log lines once per episode, on the process's clock.
 - ``link``: the link contract: how a graph is mirrored to and from another middleware.
 - ``mirror``: the other middleware's entities as participants of the graph, one

@@ -68,6 +68,8 @@ if TYPE_CHECKING:
         Subscribe,
     )
 
+    from .playback import Playback
+
 
 __all__ = ["GraphCore"]
 
@@ -104,7 +106,8 @@ class GraphCore:
         self.registry = registry or TypeRegistry(Dialect.ROS2)
         self._clock: Clock = clock or SystemClock()
         self._clocks: list[Clock] = [self._clock]  # the given clock, then each use_clock's
-        self._timelines: list[Callable[[], int | None]] = []  # each use_timeline's, latest last
+        # each use_timeline's timeline and playback, latest last
+        self._timelines: list[tuple[Callable[[], int | None], Playback | None]] = []
         self._spawners: list[Spawner] = []  # one per server serving this graph
         self.topics: dict[str, Topic] = {}
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
@@ -180,20 +183,36 @@ class GraphCore:
         None before the first. Foxglove clients get it as server time
         (docs/foxglove.md).
         """
-        return self._timelines[-1] if self._timelines else None
+        return self._timelines[-1][0] if self._timelines else None
+
+    @property
+    def playback(self) -> Playback | None:
+        """The player whose clock is the ``timeline`` now, else None (``playback.Playback``).
+
+        Foxglove clients drive it from their playback bar (docs/foxglove.md).
+        """
+        return self._timelines[-1][1] if self._timelines else None
 
     @contextlib.contextmanager
-    def use_timeline(self, timeline: Callable[[], int | None]) -> Iterator[None]:
+    def use_timeline(
+        self, timeline: Callable[[], int | None], *, playback: Playback | None = None
+    ) -> Iterator[None]:
         """Make ``timeline`` the graph's ``timeline`` inside the ``with`` block.
+
+        Args:
+            timeline: the time source (ns since the epoch, or None when it has none).
+            playback: the player that moves ``timeline``, offered as ``playback``
+                for as long; None: the timeline cannot be driven (sim time).
 
         Blocks may overlap; the latest still open wins and leaving one in any
         order restores the others'.
         """
-        self._timelines.append(timeline)
+        entry = (timeline, playback)
+        self._timelines.append(entry)
         try:
             yield
         finally:
-            _drop_last(self._timelines, timeline)
+            _drop_last(self._timelines, entry)
 
     def _set_clock(self, clock: Clock) -> None:
         self._clock = self.services.clock = self.actions.clock = clock
