@@ -461,3 +461,37 @@ def test_the_byte_layout_is_the_foxglove_sdks(
     assert info["dataStartTime"] == sdk_info["dataStartTime"]
     assert info["dataEndTime"] == sdk_info["dataEndTime"]
     assert "playbackControl" in sdk_info["capabilities"]
+
+
+def test_rwt_serve_play_offers_the_playback_bar(tmp_path: Path) -> None:
+    """The command line's player (``rwt serve --play``): paused at start, a seek, the end."""
+    from websockets.sync.client import connect as connect_sync  # noqa: PLC0415
+
+    from tests.integration.client_harness import ServerProcess  # noqa: PLC0415
+
+    bag = write_bag(tmp_path / "bag", "mcap")
+    server = ServerProcess(tmp_path, ("--play", str(bag), "--start-paused", "--no-tf"))
+    try:
+        with connect_sync(server.url, subprotocols=["foxglove.sdk.v1"]) as ws:
+            info = json.loads(ws.recv(timeout=20))
+            assert "playbackControl" in info["capabilities"]
+            assert info["dataEndTime"] == {"sec": END // 10**9, "nsec": END % 10**9}
+
+            def state() -> dict[str, Any]:
+                while True:
+                    frame = ws.recv(timeout=20)
+                    if isinstance(frame, bytes) and frame[0] == 5:
+                        return parse_state(frame)
+
+            assert state()["status"] == 1  # --start-paused
+            near_end = END - 100_000_000
+            ws.send(request(PLAY, speed=2.0, seek=near_end, rid="to-the-end"))
+            answer = state()
+            assert (answer["status"], answer["time"], answer["did_seek"]) == (0, near_end, True)
+            ended = state()  # the bag played out: told without a request id
+            assert (ended["status"], ended["time"], ended["id"]) == (3, END, "")
+            ws.send(request(PAUSE, speed=2.0, seek=T0, rid="again"))  # it lingers: seekable
+            again = state()
+            assert (again["status"], again["time"], again["did_seek"]) == (1, T0, True)
+    finally:
+        server.stop()
