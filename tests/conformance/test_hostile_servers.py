@@ -11,9 +11,11 @@ at once) gets one verdict instead, soon, and exit code 2; so does a run over
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -89,56 +91,92 @@ DOES_NOT_ANSWER = "the server does not answer: nothing received within 3 s of se
 NO_HANDSHAKE = "the server does not answer (connecting and its WebSocket handshake took over 6 s)"
 
 
+BELOW_THE_PROTOCOL: list[tuple[hostile.SocketBehaviour, str, str | tuple[str, ...]]] = [
+    (hostile.never_reads, "tcp://", DOES_NOT_ANSWER),
+    (hostile.never_reads, "ws://", NO_HANDSHAKE),
+    (hostile.reads_a_byte_a_second, "tcp://", DOES_NOT_ANSWER),
+    (hostile.reads_a_byte_a_second, "ws://", NO_HANDSHAKE),
+    (hostile.closes_at_once, "tcp://", "the server closed the connection before answering"),
+    # the close comes during the handshake: a FIN, or a reset when the request was unread
+    (hostile.closes_at_once, "ws://", (": the server closed the connection", "reset by peer")),
+]
+ANSWERING_NOTHING: list[hostile.Behaviour] = [hostile.silent, hostile.never_reads_and_pings]
+
+
+class _Launched:
+    """One ``rwt conformance`` subprocess started early; ``done()`` waits for its end."""
+
+    def __init__(self, args: list[str], report: Path) -> None:
+        self.report = report
+        self.process = subprocess.Popen(
+            [*RWT_CONFORMANCE, *args, "--json", str(report)],
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+
+    def done(self) -> subprocess.CompletedProcess[str]:
+        try:
+            stdout, stderr = self.process.communicate(timeout=RUN_LIMIT_S)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.communicate()
+            raise
+        return subprocess.CompletedProcess(
+            self.process.args, self.process.returncode, stdout, stderr
+        )
+
+
+@pytest.fixture(scope="module")
+def whole_suite_runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, _Launched]]:
+    """The whole-suite runs of the two tests below, all started at once, each against its
+    own hostile server, by test id: each waits out the runner's default bounds (3 s, 6 s),
+    and the waits overlap instead of adding up. Each run is judged by its own test."""
+    folder = tmp_path_factory.mktemp("whole_suite")
+    with contextlib.ExitStack() as servers:
+        runs: dict[str, _Launched] = {}
+        for behaviour, scheme, _ in BELOW_THE_PROTOCOL:
+            address = servers.enter_context(hostile.serving_sockets(behaviour))
+            key = f"{behaviour.__name__}-{scheme}"
+            runs[key] = _Launched([scheme + address], folder / f"{len(runs)}.json")
+        for answering in ANSWERING_NOTHING:
+            url = servers.enter_context(hostile.serving(answering))
+            runs[answering.__name__] = _Launched([url], folder / f"{len(runs)}.json")
+        try:
+            yield runs
+        finally:
+            for run in runs.values():  # a test that failed early leaves its run going
+                if run.process.poll() is None:
+                    run.process.kill()
+                run.process.communicate()
+
+
 @pytest.mark.parametrize(
     ("behaviour", "scheme", "expected"),
-    [
-        (hostile.never_reads, "tcp://", DOES_NOT_ANSWER),
-        (hostile.never_reads, "ws://", NO_HANDSHAKE),
-        (hostile.reads_a_byte_a_second, "tcp://", DOES_NOT_ANSWER),
-        (hostile.reads_a_byte_a_second, "ws://", NO_HANDSHAKE),
-        (hostile.closes_at_once, "tcp://", "the server closed the connection before answering"),
-        # the close comes during the handshake: a FIN, or a reset when the request was unread
-        (hostile.closes_at_once, "ws://", (": the server closed the connection", "reset by peer")),
-    ],
+    BELOW_THE_PROTOCOL,
     ids=lambda value: getattr(value, "__name__", str(value)[:12]),
 )
 def test_a_server_below_the_protocol_gets_one_verdict_for_the_whole_suite(
-    tmp_path: Path, behaviour: hostile.SocketBehaviour, scheme: str, expected: str | tuple[str, ...]
+    whole_suite_runs: dict[str, _Launched],
+    behaviour: hostile.SocketBehaviour,
+    scheme: str,
+    expected: str | tuple[str, ...],
 ) -> None:
     """The whole suite at the default bounds (it took about 500 s, 188 failures, before)."""
-    report = tmp_path / "run.json"
-    with hostile.serving_sockets(behaviour) as address:
-        done = subprocess.run(
-            [*RWT_CONFORMANCE, scheme + address, "--json", str(report)],
-            env=ENV,
-            capture_output=True,
-            text=True,
-            timeout=RUN_LIMIT_S,
-            check=False,
-        )
-    verdict = _one_verdict(done, report)
+    run = whole_suite_runs[f"{behaviour.__name__}-{scheme}"]
+    verdict = _one_verdict(run.done(), run.report)
     assert any(
         text in verdict for text in (expected if isinstance(expected, tuple) else (expected,))
     )
 
 
-@pytest.mark.parametrize(
-    "behaviour", [hostile.silent, hostile.never_reads_and_pings], ids=lambda b: b.__name__
-)
+@pytest.mark.parametrize("behaviour", ANSWERING_NOTHING, ids=lambda b: b.__name__)
 def test_a_websocket_server_answering_nothing_gets_one_verdict(
-    tmp_path: Path, behaviour: hostile.Behaviour
+    whole_suite_runs: dict[str, _Launched], behaviour: hostile.Behaviour
 ) -> None:
-    report = tmp_path / "run.json"
-    with hostile.serving(behaviour) as url:
-        done = subprocess.run(
-            [*RWT_CONFORMANCE, url, "--json", str(report)],
-            env=ENV,
-            capture_output=True,
-            text=True,
-            timeout=RUN_LIMIT_S,
-            check=False,
-        )
-    verdict = _one_verdict(done, report)
+    run = whole_suite_runs[behaviour.__name__]
+    verdict = _one_verdict(run.done(), run.report)
     assert verdict.startswith(DOES_NOT_ANSWER), verdict
     assert "--auth-secret-file" in verdict  # what a rosauth server without the secret looks like
 

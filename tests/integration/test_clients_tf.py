@@ -38,15 +38,26 @@ FRAMES = ["arm", "wrist", "camera"]
 TRANS, ANGLE = 0.045, 0.09
 
 
-@pytest.fixture(params=["ros2", "ros1"])
-def tf_robot(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+@pytest.fixture(scope="module", params=["ros2", "ros1"])
+def shared_tf_robot(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[ServerProcess]:
+    """One robot of each dialect for the module: each test's TF clients are its own
+    (their own connection, subscriptions and thresholds) and disposed at its end."""
     script = str(REPO / "examples" / "tf_robot.py")
-    server = ServerProcess(tmp_path, cmd=[sys.executable, script, "0", request.param])
-    request.node._rwt_server = server
+    workdir = tmp_path_factory.mktemp(f"tf_robot_{request.param}")
+    server = ServerProcess(workdir, cmd=[sys.executable, script, "0", request.param])
     try:
         yield server
     finally:
         server.stop()
+
+
+@pytest.fixture
+def tf_robot(request: pytest.FixtureRequest, shared_tf_robot: ServerProcess) -> ServerProcess:
+    """The shared robot, its stderr attached to a failing test's report (conftest.py)."""
+    request.node._rwt_server = shared_tf_robot
+    return shared_tf_robot
 
 
 def distance(a: dict, b: dict) -> float:

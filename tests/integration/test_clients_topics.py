@@ -11,6 +11,7 @@ roslib on the other. Assertions are on what the client's subscribe callback got
 from __future__ import annotations
 
 import base64
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,24 @@ from .client_harness import (
 )
 
 PY, JS = "roslibpy", "roslibjs"
+
+
+@pytest.fixture(scope="module")
+def shared_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
+    """One `rwt serve` for the whole module: each scenario opens its own connections
+    and closes them, and no two tests give one topic different types."""
+    server = ServerProcess(tmp_path_factory.mktemp("rwt_serve"))
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def rwt_server(request: pytest.FixtureRequest, shared_server: ServerProcess) -> ServerProcess:
+    """The shared server, its stderr attached to a failing test's report (conftest.py)."""
+    request.node._rwt_server = shared_server
+    return shared_server
 
 
 def pairs(*combos: tuple[str, str]) -> list:
