@@ -37,6 +37,9 @@ WAIT_S = 20.0
 
 #: Domains from 150: clear of the default 0 and of what other tools here use.
 DOMAIN_BASE = 150
+#: Set to another base (0-205) so that two checkouts running the same module at once
+#: (e.g. a full run and a single file elsewhere) stay on different domains.
+DOMAIN_BASE_ENV = "RWT_TEST_ROS_DOMAIN_BASE"
 
 
 def skip_without_rclpy() -> pytest.MarkDecorator:
@@ -50,10 +53,12 @@ def ros_environment(module: str, tmp: Path) -> Iterator[dict[str, str]]:
     """Set the ROS 2 environment of ``module``'s processes in ``os.environ`` for the block.
 
     Each test module of this directory gets a domain of its own (by its place in
-    the sorted list), so modules running at once on two workers never meet.
+    the sorted list), so modules running at once on two workers never meet; the base is
+    ``DOMAIN_BASE`` unless ``RWT_TEST_ROS_DOMAIN_BASE`` names another.
     """
     modules = sorted(path.stem for path in HERE.glob("test_*.py"))
-    domain = DOMAIN_BASE + modules.index(module.rpartition(".")[2])
+    base = int(os.environ.get(DOMAIN_BASE_ENV, DOMAIN_BASE))
+    domain = base + modules.index(module.rpartition(".")[2])
     values = {
         "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
         "ROS_DOMAIN_ID": str(domain),
