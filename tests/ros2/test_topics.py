@@ -12,7 +12,7 @@ import pytest
 from tests.integration.client_harness import ServerProcess, node_missing_reason
 from tests.support.realclients import run_node, run_python
 
-from .support import JsonLines, Peer, roslibpy_prelude, skip_without_rclpy
+from .support import JsonLines, Peer, peers, roslibpy_prelude, skip_without_rclpy
 
 pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
 
@@ -153,7 +153,7 @@ wait_for(lambda: "event=ros2_bad_sample topic=/garbled" in log.read_text("utf-8"
 print(json.dumps({{"good": len(good) >= 20, "bad": bad}}))
 ros.terminate()
 """
-    with Peer("garbage", "/garbled", ros_env), Peer("talk", "/clean", ros_env):
+    with peers(ros_env, ("garbage", "/garbled"), ("talk", "/clean")):
         got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
     assert got == {"good": True, "bad": []}
     log = server.stderr_text()

@@ -11,7 +11,7 @@ import pytest
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
-from .support import HERE, Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
+from .support import HERE, peers, roslibpy_prelude, serve_ros2, skip_without_rclpy
 
 pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
 
@@ -68,7 +68,7 @@ async def test_a_ros2_type_of_another_definition_is_refused_and_disturbs_nothing
     # rwt's std_msgs/String has a field the robot's has not: another RIHS01 hash
     server = serve_ros2(ros_env, "--interfaces", str(DATA))
     try:
-        with Peer("talk", "/foreign_chatter", ros_env), Peer("joints", "/foreign_joints", ros_env):
+        with peers(ros_env, ("talk", "/foreign_chatter"), ("joints", "/foreign_joints")):
             refused = "/foreign_chatter: /peer_talk's std_msgs/msg/String is RIHS01_"
             with anyio.fail_after(20):  # the talker is discovered (and refused)
                 while refused not in server.stderr_text():
@@ -88,7 +88,7 @@ async def test_a_type_clash_on_a_topic_keeps_the_first_type_and_warns_once(
         lines = server.stderr_text().splitlines()
         return [x for x in lines if "event=ros2_skip" in x and "/clash" in x]
 
-    with Peer("talk", "/clash", ros_env), Peer("joints", "/clash", ros_env):
+    with peers(ros_env, ("talk", "/clash"), ("joints", "/clash")):
         with anyio.fail_after(20):  # both are discovered; one of them is skipped
             while not skips():
                 await anyio.sleep(0.1)
