@@ -22,6 +22,27 @@ from .robot import BLUE, RED
 
 TOPIC_ROW = '#topics tbody tr[data-name="{}"]'
 
+# Two whole refreshes of the graph, by its Refresh button (the same refresh the 2 s
+# timer runs). A refresh starts only once the one before has ended, and each starts
+# with its /rosapi/topics call: the third start seen means two whole refreshes.
+TWO_REFRESHES = """(async () => {
+  let starts = 0;
+  const send = WebSocket.prototype.send;
+  WebSocket.prototype.send = function (data) {
+    if (String(data).includes('"/rosapi/topics"')) starts += 1;
+    return send.call(this, data);
+  };
+  try {
+    for (let i = 0; starts < 3 && i < 300; i++) {
+      document.getElementById('refresh').click();
+      await new Promise((resolve) => setTimeout(resolve, 50));
+    }
+  } finally {
+    WebSocket.prototype.send = send;
+  }
+  return starts;
+})()"""
+
 
 @pytest.fixture(scope="module")
 def page(browser: Browser, video_server: tuple[str, str], robot: RobotProcess) -> Iterator[Page]:
@@ -223,7 +244,7 @@ def test_rows_are_updated_in_place_not_rebuilt(page: Page) -> None:
     row = TOPIC_ROW.format("/console_test/chatter")
     page.evaluate(f"window.keptRow = document.querySelector('{row}')")
     page.evaluate("window.keptItem = document.querySelector('#services li')")
-    time.sleep(4.5)  # two refreshes of the graph (every 2 s)
+    assert page.evaluate(TWO_REFRESHES) >= 3
     assert page.evaluate(f"window.keptRow === document.querySelector('{row}')")
     assert page.evaluate("window.keptRow.isConnected && window.keptItem.isConnected")
 
@@ -277,10 +298,10 @@ def test_counts_are_not_asked_for_every_topic_at_every_refresh(page: Page) -> No
         " if (String(data).includes('/rosapi/publishers')) window.countCalls += 1;"
         " return send.call(this, data); }"
     )
-    time.sleep(5)  # two refreshes or more
+    assert page.evaluate(TWO_REFRESHES) >= 3
     calls = page.evaluate("window.countCalls")
     page.evaluate("delete window.countCalls")
-    # two refreshes or more asking for every topic would be 2 * topics; now at most one
+    # two refreshes asking for every topic would be 2 * topics; now at most one
     # round of all (every 20 s) and the selected topic's at each refresh
     assert calls < 2 * topics
 

@@ -37,6 +37,9 @@ WAIT_S = 20.0
 
 #: Domains from 150: clear of the default 0 and of what other tools here use.
 DOMAIN_BASE = 150
+#: Set to another base (0-205) so that two checkouts running the same module at once
+#: (e.g. a full run and a single file elsewhere) stay on different domains.
+DOMAIN_BASE_ENV = "RWT_TEST_ROS_DOMAIN_BASE"
 
 
 def skip_without_rclpy() -> pytest.MarkDecorator:
@@ -50,10 +53,12 @@ def ros_environment(module: str, tmp: Path) -> Iterator[dict[str, str]]:
     """Set the ROS 2 environment of ``module``'s processes in ``os.environ`` for the block.
 
     Each test module of this directory gets a domain of its own (by its place in
-    the sorted list), so modules running at once on two workers never meet.
+    the sorted list), so modules running at once on two workers never meet; the base is
+    ``DOMAIN_BASE`` unless ``RWT_TEST_ROS_DOMAIN_BASE`` names another.
     """
     modules = sorted(path.stem for path in HERE.glob("test_*.py"))
-    domain = DOMAIN_BASE + modules.index(module.rpartition(".")[2])
+    base = int(os.environ.get(DOMAIN_BASE_ENV, DOMAIN_BASE))
+    domain = base + modules.index(module.rpartition(".")[2])
     values = {
         "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
         "ROS_DOMAIN_ID": str(domain),
@@ -69,9 +74,12 @@ def ros_environment(module: str, tmp: Path) -> Iterator[dict[str, str]]:
 
 
 class Peer:
-    """``peer.py MODE NAME [NODE]`` in its own process (see peer.py)."""
+    """``peer.py MODE NAME [NODE]`` in its own process (see peer.py); ready once made,
+    unless ``wait`` is False (then ``wait_ready`` before using it)."""
 
-    def __init__(self, mode: str, name: str, tmp: Path, node: str | None = None) -> None:
+    def __init__(
+        self, mode: str, name: str, tmp: Path, node: str | None = None, *, wait: bool = True
+    ) -> None:
         label = "-".join([mode, name.strip("/").replace("/", "_"), *([node] if node else [])])
         self.stderr_path = tmp / f"peer-{label}.stderr"
         self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
@@ -82,6 +90,11 @@ class Peer:
             stderr=self._stderr,
         )
         self._lines = _LineReader(self.proc.stdout, f"peer-{mode}")
+        if wait:
+            self.wait_ready()
+
+    def wait_ready(self) -> None:
+        """Until the node says it is ready (AssertionError with stderr if not in time)."""
         assert self.next().get("ready"), self.stderr()
 
     def next(self, within: float = WAIT_S) -> dict[str, Any]:
@@ -96,6 +109,11 @@ class Peer:
     def stderr(self) -> str:
         """Its stderr so far."""
         return self.stderr_path.read_text("utf-8", "replace")[-3000:]
+
+    def terminate(self) -> None:
+        """Ask it to end (SIGTERM) without waiting; ``stop`` waits."""
+        if self.proc.poll() is None:
+            self.proc.terminate()
 
     def stop(self) -> None:
         """Stop it (SIGTERM, then SIGKILL)."""
@@ -115,6 +133,24 @@ class Peer:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+@contextlib.contextmanager
+def peers(tmp: Path, *specs: tuple[str, ...]) -> Iterator[list[Peer]]:
+    """``Peer(MODE, NAME[, NODE])`` for each spec, started at once rather than each
+    after the one before is ready; all ready in the block, all stopped (at once) after."""
+    started: list[Peer] = []
+    try:
+        for mode, name, *node in specs:
+            started.append(Peer(mode, name, tmp, *node, wait=False))
+        for peer in started:
+            peer.wait_ready()
+        yield started
+    finally:
+        for peer in started:
+            peer.terminate()
+        for peer in started:
+            peer.stop()
 
 
 def serve_ros2(tmp: Path, *args: str) -> ServerProcess:

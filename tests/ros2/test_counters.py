@@ -36,20 +36,21 @@ ros.terminate()
 """
 
 
-def _publish(done: threading.Event, failure: list[BaseException]) -> None:
+def _publish(done: threading.Event, heard: threading.Event, failure: list[BaseException]) -> None:
     """``_publish_n`` on this thread; its error goes to ``failure``."""
     try:
         with warnings.catch_warnings():  # rosidl's type support imports lark (sre_parse)
             warnings.simplefilter("ignore", DeprecationWarning)
-            _publish_n()
+            _publish_n(heard)
     except BaseException as exc:  # reported by the test
         failure.append(exc)
     finally:
         done.set()
 
 
-def _publish_n() -> None:
-    """Wait for the link's subscription, then publish ``N`` strings (reliable, depth ``N``)."""
+def _publish_n(heard: threading.Event) -> None:
+    """Wait for the link's subscription, publish ``N`` strings (reliable, depth ``N``), and
+    stay until ``heard`` (the subscriber is done) or 30 s."""
     import rclpy  # noqa: PLC0415
     from rclpy.qos import QoSProfile  # noqa: PLC0415
     from std_msgs.msg import String  # noqa: PLC0415
@@ -67,7 +68,7 @@ def _publish_n() -> None:
             pub.publish(String(data=f"m{i}"))
             if i % 25 == 24:  # bursts of 25: more than ROS 2's default depth (10), within
                 time.sleep(0.1)  # the link's (INWARD_DEPTH): nothing lost, counts comparable
-        time.sleep(2)  # the publisher stays until the subscriber has had everything
+        heard.wait(30)  # the publisher stays until the subscriber has had everything
         node.destroy_node()
     finally:
         context.try_shutdown()
@@ -81,16 +82,19 @@ def _fields(line: str) -> dict[str, str]:
 async def test_each_stage_counts_every_message_of_a_real_publisher(ros_env: Path) -> None:
     server = serve_ros2(ros_env)
     try:
-        done, failure = threading.Event(), []
+        done, heard, failure = threading.Event(), threading.Event(), []
         async with anyio.create_task_group() as tg:
             got: list[str] = []
 
             async def subscribe() -> None:
-                out = await run_python(roslibpy_prelude(server.port) + SUBSCRIBE)
+                try:
+                    out = await run_python(roslibpy_prelude(server.port) + SUBSCRIBE)
+                finally:
+                    heard.set()
                 got.extend(json.loads(out.strip().splitlines()[-1]))
 
             tg.start_soon(subscribe)
-            await anyio.to_thread.run_sync(_publish, done, failure)
+            await anyio.to_thread.run_sync(_publish, done, heard, failure)
         assert not failure, failure
     finally:
         server.stop()

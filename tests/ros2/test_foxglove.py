@@ -26,7 +26,7 @@ from rwt_graph.types import Dialect, TypeRegistry
 from tests.foxglove import extras
 from tests.integration.client_harness import JS_DIR, ServerProcess
 
-from .support import Peer, serve_ros2, skip_without_rclpy
+from .support import Peer, peers, serve_ros2, skip_without_rclpy
 
 pytestmark = [skip_without_rclpy(), pytest.mark.node]
 
@@ -148,7 +148,7 @@ def test_parameter_changes_an_rclpy_node_makes_are_pushed_to_a_foxglove_client(
 
 
 def test_the_connection_graph_names_rclpy_nodes(server: ServerProcess, ros_env: Path) -> None:
-    with Peer("talk", "/fg_ros_graph", ros_env), Peer("listen", "/fg_ros_graph", ros_env):
+    with peers(ros_env, ("talk", "/fg_ros_graph"), ("listen", "/fg_ros_graph")):
         got = extras.run("graph", server.url, "/fg_ros_graph")
     assert got == {"publisherIds": ["/peer_talk"], "subscriberIds": ["/peer_listen"]}
 

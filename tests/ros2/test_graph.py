@@ -12,7 +12,7 @@ import pytest
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
-from .support import JsonLines, Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
+from .support import JsonLines, Peer, peers, roslibpy_prelude, serve_ros2, skip_without_rclpy
 
 pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
 
@@ -46,21 +46,18 @@ ros.terminate()
 async def test_rosapi_lists_the_ros2_graph_as_it_changes(
     server: ServerProcess, ros_env: Path
 ) -> None:
-    talker = Peer("talk", "/graph_talk", ros_env)
-    try:
-        with Peer("listen", "/graph_listen", ros_env), Peer("serve", "/graph_srv", ros_env):
-            async with await anyio.open_process(
-                ["python", "-c", roslibpy_prelude(server.port) + DESCRIBE]
-            ) as client:
-                assert client.stdout is not None and client.stdin is not None
-                lines = JsonLines(client.stdout)
-                with anyio.fail_after(40):
-                    described = await lines.next()
-                    talker.stop()
-                    await client.stdin.send(b"\n")
-                    after = await lines.last()
-    finally:
-        talker.stop()
+    specs = [("talk", "/graph_talk"), ("listen", "/graph_listen"), ("serve", "/graph_srv")]
+    with peers(ros_env, *specs) as (talker, _, _):
+        async with await anyio.open_process(
+            ["python", "-c", roslibpy_prelude(server.port) + DESCRIBE]
+        ) as client:
+            assert client.stdout is not None and client.stdin is not None
+            lines = JsonLines(client.stdout)
+            with anyio.fail_after(40):
+                described = await lines.next()
+                talker.stop()
+                await client.stdin.send(b"\n")
+                after = await lines.last()
     assert described["topic_type"] == "std_msgs/msg/String"
     assert described["publishers"] == ["/peer_talk"]
     assert described["subscribers"] == ["/peer_listen"]
@@ -94,11 +91,12 @@ async def test_the_topics_and_services_globs_hold_on_the_ros2_side(ros_env: Path
         ros_env, "--topics-glob", "[/open/*]", "--services-glob", "[/open/*, /rosapi/*]"
     )
     try:
-        with (
-            Peer("talk", "/open/chatter", ros_env, "open_talker"),
-            Peer("talk", "/secret", ros_env, "secret_talker"),
-            Peer("serve", "/secret_switch", ros_env, "secret_server"),
-            Peer("serve", "/open/switch", ros_env, "open_server"),
+        with peers(
+            ros_env,
+            ("talk", "/open/chatter", "open_talker"),
+            ("talk", "/secret", "secret_talker"),
+            ("serve", "/secret_switch", "secret_server"),
+            ("serve", "/open/switch", "open_server"),
         ):
             out = await run_python(roslibpy_prelude(server.port) + GLOBBED)
     finally:

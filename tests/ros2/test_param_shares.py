@@ -10,7 +10,7 @@ import pytest
 from rwt_graph.parameters.store import Parameters
 from tests.support.realclients import run_python
 
-from .support import Peer, roslibpy_prelude, skip_without_rclpy
+from .support import peers, roslibpy_prelude, skip_without_rclpy
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -59,10 +59,7 @@ async def test_a_node_past_its_share_leaves_the_store_to_others_and_logs_once(
     server: ServerProcess, ros_env: Path
 ) -> None:
     script = roslibpy_prelude(server.port) + BYSTANDER.format(share=SHARE)
-    with (
-        Peer("many_params", "crowded", ros_env, str(CROWD)),
-        Peer("params", "robot_params", ros_env),
-    ):
+    with peers(ros_env, ("many_params", "crowded", str(CROWD)), ("params", "robot_params")):
         out = json.loads((await run_python(script)).splitlines()[-1])
     # its first SHARE parameters by its listing's order (rclpy's own, use_sim_time
     # and the like, then p00000, p00001, ...), while a client's set and another

@@ -95,17 +95,18 @@ ros.terminate()
 """
 
 
-def _publish(failure: list[BaseException]) -> None:
-    """Wait for both links' subscriptions, then publish ``N`` strings in bursts."""
+def _publish(heard: threading.Semaphore, failure: list[BaseException]) -> None:
+    """Wait for both links' subscriptions, publish ``N`` strings in bursts, and stay until
+    both subscribers are done (``heard`` released twice) or 30 s."""
     try:
         with warnings.catch_warnings():  # rosidl's type support imports lark (sre_parse)
             warnings.simplefilter("ignore", DeprecationWarning)
-            _publish_n()
+            _publish_n(heard)
     except BaseException as exc:  # reported by the test
         failure.append(exc)
 
 
-def _publish_n() -> None:
+def _publish_n(heard: threading.Semaphore) -> None:
     import rclpy  # noqa: PLC0415
     from rclpy.qos import QoSProfile  # noqa: PLC0415
     from std_msgs.msg import String  # noqa: PLC0415
@@ -120,7 +121,9 @@ def _publish_n() -> None:
             pub.publish(String(data=f"m{i}"))
             if i % 50 == 49:  # bursts: wake-ups that take several samples
                 time.sleep(0.05)
-        time.sleep(2)  # the publisher stays until both subscribers have everything
+        end = time.monotonic() + 30  # the publisher stays until both subscribers are done
+        for _ in range(2):
+            heard.acquire(timeout=max(0.0, end - time.monotonic()))
         node.destroy_node()
     finally:
         context.try_shutdown()
@@ -134,16 +137,20 @@ async def test_both_paths_deliver_the_same_samples_in_the_same_order(ros_env: Pa
         general = serve_ros2(ros_env)
     got: dict[str, list[str]] = {}
     failure: list[BaseException] = []
+    heard = threading.Semaphore(0)
     try:
         async with anyio.create_task_group() as tg:
             for name, server in (("loop", looped), ("executor", general)):
 
                 async def subscribe(name: str = name, port: int = server.port) -> None:
-                    out = await run_python(roslibpy_prelude(port) + SUBSCRIBE.format(n=N))
+                    try:
+                        out = await run_python(roslibpy_prelude(port) + SUBSCRIBE.format(n=N))
+                    finally:
+                        heard.release()
                     got[name] = json.loads(out.strip().splitlines()[-1])
 
                 tg.start_soon(subscribe)
-            await anyio.to_thread.run_sync(_publish, failure)
+            await anyio.to_thread.run_sync(_publish, heard, failure)
     finally:
         looped.stop()
         general.stop()

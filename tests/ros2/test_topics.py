@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 import anyio
@@ -11,9 +12,20 @@ import pytest
 from tests.integration.client_harness import ServerProcess, node_missing_reason
 from tests.support.realclients import run_node, run_python
 
-from .support import JsonLines, Peer, roslibpy_prelude, skip_without_rclpy
+from .support import JsonLines, Peer, peers, roslibpy_prelude, skip_without_rclpy
 
 pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
+
+
+@pytest.fixture(scope="module")
+def server(ros_env: Path) -> Iterator[ServerProcess]:
+    """One `rwt serve --ros2` for the module, with its TF republisher (which keeps
+    ``/tf_repub_*`` for itself); the other tests' topics are clear of that prefix."""
+    process = ServerProcess(ros_env, ("--ros2",))
+    try:
+        yield process
+    finally:
+        process.stop()
 
 
 def _last_json(out: str) -> object:
@@ -141,7 +153,7 @@ wait_for(lambda: "event=ros2_bad_sample topic=/garbled" in log.read_text("utf-8"
 print(json.dumps({{"good": len(good) >= 20, "bad": bad}}))
 ros.terminate()
 """
-    with Peer("garbage", "/garbled", ros_env), Peer("talk", "/clean", ros_env):
+    with peers(ros_env, ("garbage", "/garbled"), ("talk", "/clean")):
         got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
     assert got == {"good": True, "bad": []}
     log = server.stderr_text()
@@ -151,14 +163,12 @@ ros.terminate()
 
 
 async def test_a_ros2_talker_on_a_topic_the_server_keeps_is_refused_once(
-    ros_env: Path, tmp_path: Path
+    server: ServerProcess, ros_env: Path
 ) -> None:
     # The TF republisher keeps /tf_repub_* for itself (docs/limits.md): the ROS 2
     # publisher is not mirrored, and its samples, which then come through the
     # link's relay, are refused with one log line, never delivered.
-    server = ServerProcess(tmp_path, ("--ros2",))  # with the TF republisher
-    try:
-        script = f"""
+    script = f"""
 import pathlib
 log = pathlib.Path({str(server.stderr_path)!r})
 forged = []
@@ -168,11 +178,9 @@ time.sleep(0.5)  # more samples meet the refusal: still one line for the episode
 print(json.dumps(forged))
 ros.terminate()
 """
-        with Peer("talk", "/tf_repub_forged", ros_env):
-            got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
-        log = server.stderr_text()
-    finally:
-        server.stop()
+    with Peer("talk", "/tf_repub_forged", ros_env):
+        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    log = server.stderr_text()
     assert got == []
     lines = [x for x in log.splitlines() if "event=ros2_sample_refused topic=/tf_repub_forged" in x]
     assert len(lines) == 1 and " WARNING rwt." in lines[0], log[-3000:]
@@ -324,14 +332,15 @@ async def heard_all(listener: Peer, count: int, heard: dict) -> dict:
     return heard
 
 
-@pytest.mark.parametrize(("count", "rate"), [(3000, 1000), (1000, 0)], ids=["1kHz", "unpaced"])
+@pytest.mark.parametrize(("count", "rate"), [(2000, 1000), (1000, 0)], ids=["1kHz", "unpaced"])
 async def test_a_stream_right_after_advertise_reaches_a_ros2_listener_whole(
     server: ServerProcess, ros_env: Path, count: int, rate: int
 ) -> None:
     # The client publishes at once after its advertisement, so the link's publisher
     # is new: its first samples wait until it has matched the listener the server
-    # knows, and none is lost to discovery. 1 kHz for 3 s, and a burst as deep as
-    # the listener's history (1000), which a listener slower than the burst keeps.
+    # knows, and none is lost to discovery. 1 kHz for 2 s (twice the listener's
+    # history), and a burst as deep as the listener's history (1000), which a
+    # listener slower than the burst keeps.
     script = BURST.format(port=server.port, count=count, rate=rate)
     with Peer("count", "/burst", ros_env) as listener:
         async with await anyio.open_process(["python", "-c", script]) as client:

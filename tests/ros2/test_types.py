@@ -11,7 +11,7 @@ import pytest
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
-from .support import HERE, Peer, roslibpy_prelude, serve_ros2, skip_without_rclpy
+from .support import HERE, peers, roslibpy_prelude, serve_ros2, skip_without_rclpy
 
 pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
 
@@ -68,7 +68,7 @@ async def test_a_ros2_type_of_another_definition_is_refused_and_disturbs_nothing
     # rwt's std_msgs/String has a field the robot's has not: another RIHS01 hash
     server = serve_ros2(ros_env, "--interfaces", str(DATA))
     try:
-        with Peer("talk", "/foreign_chatter", ros_env), Peer("joints", "/foreign_joints", ros_env):
+        with peers(ros_env, ("talk", "/foreign_chatter"), ("joints", "/foreign_joints")):
             refused = "/foreign_chatter: /peer_talk's std_msgs/msg/String is RIHS01_"
             with anyio.fail_after(20):  # the talker is discovered (and refused)
                 while refused not in server.stderr_text():
@@ -81,23 +81,20 @@ async def test_a_ros2_type_of_another_definition_is_refused_and_disturbs_nothing
 
 
 async def test_a_type_clash_on_a_topic_keeps_the_first_type_and_warns_once(
-    ros_env: Path,
+    server: ServerProcess, ros_env: Path
 ) -> None:
-    server = serve_ros2(ros_env)
-    try:
-        with Peer("talk", "/clash", ros_env), Peer("joints", "/clash", ros_env):
-            with anyio.fail_after(20):  # both are discovered; one of them is skipped
-                while "/clash" not in server.stderr_text().partition("event=ros2_skip")[2]:
-                    await anyio.sleep(0.1)
-            await anyio.sleep(3)  # a few more sweeps: the same episode, no new line
-    finally:
-        server.stop()
-    skips = [
-        line
-        for line in server.stderr_text().splitlines()
-        if "event=ros2_skip" in line and "/clash" in line
-    ]
+    # the module's server: its log is read for /clash's skip lines only
+    def skips() -> list[str]:
+        lines = server.stderr_text().splitlines()
+        return [x for x in lines if "event=ros2_skip" in x and "/clash" in x]
+
+    with peers(ros_env, ("talk", "/clash"), ("joints", "/clash")):
+        with anyio.fail_after(20):  # both are discovered; one of them is skipped
+            while not skips():
+                await anyio.sleep(0.1)
+        await anyio.sleep(1)  # five more sweeps (SWEEP_S 0.2): the same episode, no new line
+    skipped = skips()
     # one line per skipped endpoint and episode (which of the two is kept depends on
     # discovery order), each a warning
-    assert 1 <= len(skips) <= 2, skips
-    assert all(" WARNING rwt." in line for line in skips), skips
+    assert 1 <= len(skipped) <= 2, skipped
+    assert all(" WARNING rwt." in line for line in skipped), skipped

@@ -1,7 +1,9 @@
 """`rwt serve --zenoh` processes on 127.0.0.1 with real clients: roslibpy on A, roslib (Node) on B.
 
-Each test starts its servers as subprocesses on random ports, joined by explicit
-loopback Zenoh endpoints (multicast off), and asserts what the clients see: a
+The servers are subprocesses on random ports, joined by explicit loopback Zenoh
+endpoints (multicast off): one pair A-B for the module (``pair``) where the
+tests' names keep them apart, servers of a test's own where it kills one or
+needs other options. Each test asserts what the clients see: a
 message published on A reaches B's subscriber exactly once, a late subscriber on
 B gets A's latched message, a service of B answers A's calls (concurrent ones
 each their own), a caller on A is answered ``result: false`` when B dies mid-call,
@@ -13,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import json
 import time
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -20,6 +23,9 @@ from tests.support.realclients import node_missing
 
 from .processes import Process, node_client, python_client, rwt, serving, started
 from .support import endpoint
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator
 
 pytestmark = [pytest.mark.anyio, pytest.mark.node]
 
@@ -85,6 +91,15 @@ setTimeout(() => process.exit(3), 60000).unref();
 """
 
 
+@pytest.fixture(scope="module")
+async def pair() -> AsyncIterator[tuple[str, str]]:
+    """A, and B connected to it: their ws:// URLs, shared by the tests whose topics,
+    services and actions have names of their own (none kills or reconfigures a server)."""
+    a_ep = endpoint()
+    async with serving("A", listen=a_ep) as (_, a_url), serving("B", connect=(a_ep,)) as (_, b_url):
+        yield a_url, b_url
+
+
 def roslibpy(body: str, url: str) -> str:
     return ROSLIBPY_PRELUDE + f"\nURL = {url!r}\n" + body
 
@@ -100,11 +115,9 @@ async def no_line(process: Process, seconds: float) -> None:
         raise AssertionError(f"unexpected: {extra}")  # pragma: no cover - the failure text
 
 
-async def test_topics_latched_and_rosapi_across_two_processes() -> None:
-    a_ep = endpoint()
+async def test_topics_latched_and_rosapi_across_two_processes(pair: tuple[str, str]) -> None:
+    a_url, b_url = pair
     async with (
-        serving("A", listen=a_ep) as (_, a_url),
-        serving("B", connect=(a_ep,)) as (_, b_url),
         node_client(
             roslib(
                 """
@@ -171,11 +184,11 @@ stay()
                 assert {"/chatter", "/map"} <= set(json.loads(topics_line.removeprefix("topics ")))
 
 
-async def test_services_across_processes_concurrent_calls_each_get_their_own_reply() -> None:
-    a_ep = endpoint()
+async def test_services_across_processes_concurrent_calls_each_get_their_own_reply(
+    pair: tuple[str, str],
+) -> None:
+    a_url, b_url = pair
     async with (
-        serving("A", listen=a_ep) as (_, a_url),
-        serving("B", connect=(a_ep,)) as (_, b_url),
         node_client(
             roslib(
                 """
@@ -400,11 +413,11 @@ for line in sys.stdin:
             assert got is not None, "B never got A's messages through the router"
 
 
-async def test_an_action_served_by_roslib_on_b_runs_goals_of_roslibpy_on_a() -> None:
-    a_ep = endpoint()
+async def test_an_action_served_by_roslib_on_b_runs_goals_of_roslibpy_on_a(
+    pair: tuple[str, str],
+) -> None:
+    a_url, b_url = pair
     async with (
-        serving("A", listen=a_ep) as (_, a_url),
-        serving("B", connect=(a_ep,)) as (_, b_url),
         node_client(
             roslib(
                 """
