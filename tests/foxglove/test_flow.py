@@ -57,6 +57,9 @@ async def foxglove(
         subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
         max_size=None,
         max_queue=4 if rcvbuf else 16,
+        # one that stopped reading never reads the server's answer to its close
+        # (it is behind the data it left): it drops the connection at once
+        close_timeout=0 if rcvbuf else 10,
     ) as ws:
         if rcvbuf is not None:
             sock: socket.socket = ws.transport.get_extra_info("socket")
