@@ -23,6 +23,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from rwt_foxglove import FoxgloveLimits
 from rwt_graph.graph import Graph
+from rwt_graph.types import TypeRegistry
 from rwt_graph.types.registry import codec_for
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig
@@ -98,8 +99,10 @@ async def _publish_burst_from_foxglove(ws: ClientConnection) -> None:
 
 
 @pytest.mark.parametrize("protocol", ["rosbridge", "foxglove"])
-async def test_a_burst_from_a_client_reaches_a_reading_foxglove_client_whole(protocol: str) -> None:
-    graph = Graph()
+async def test_a_burst_from_a_client_reaches_a_reading_foxglove_client_whole(
+    ros2_types: TypeRegistry, protocol: str
+) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/burst", "std_msgs/msg/String")  # advertises the topic
     mtype = graph.registry.message("std_msgs/msg/String")
     codec = codec_for(graph.registry, mtype)
@@ -140,8 +143,10 @@ async def test_a_burst_from_a_client_reaches_a_reading_foxglove_client_whole(pro
     publisher.close()
 
 
-async def test_a_foxglove_client_that_does_not_read_holds_no_publisher_for_long() -> None:
-    graph = Graph()
+async def test_a_foxglove_client_that_does_not_read_holds_no_publisher_for_long(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/burst", "std_msgs/msg/String")
     async with (
         serving(graph) as server,

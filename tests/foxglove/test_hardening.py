@@ -27,7 +27,7 @@ from websockets.exceptions import ConnectionClosed
 
 from rwt_foxglove import FoxgloveLimits
 from rwt_graph.graph import Graph
-from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types import TypeRegistry
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
@@ -36,16 +36,6 @@ pytestmark = pytest.mark.anyio
 FOXGLOVE = ["foxglove.sdk.v1"]
 MAX_MESSAGE_SIZE = 256 * 1024
 DROPPED = "messages dropped: this client reads slower than they arrive (the oldest go first)"
-
-
-@pytest.fixture(scope="module")
-def registry() -> TypeRegistry:
-    """The message types of every test's graph (each test has its own graph and server).
-
-    A registry builds its rosbags typestore at its first CDR message (about 0.6 s);
-    the types are the same for every test, so the module builds it once.
-    """
-    return TypeRegistry(Dialect.ROS2)
 
 
 @asynccontextmanager
@@ -358,9 +348,9 @@ BAD_INPUTS: list[tuple[str, list[str | bytes], str | bytes, str]] = [
     ids=[case[0] for case in BAD_INPUTS],
 )
 async def test_bad_input_gets_a_status_and_every_connection_goes_on(
-    registry: TypeRegistry, before: list[str | bytes], frame: str | bytes, expected: str
+    ros2_types: TypeRegistry, before: list[str | bytes], frame: str | bytes, expected: str
 ) -> None:
-    graph = Graph(registry)
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     async with (
         serving(graph) as server,
@@ -393,8 +383,8 @@ async def _wait_subscribed(graph: Graph, topic: str, count: int) -> None:
         await anyio.sleep(0.01)
 
 
-async def test_an_oversize_frame_closes_only_its_connection(registry: TypeRegistry) -> None:
-    graph = Graph(registry)
+async def test_an_oversize_frame_closes_only_its_connection(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     async with (
         serving(graph) as server,
@@ -416,9 +406,9 @@ async def test_an_oversize_frame_closes_only_its_connection(registry: TypeRegist
 
 
 async def test_too_many_subscriptions_and_client_channels_get_a_status(
-    registry: TypeRegistry,
+    ros2_types: TypeRegistry,
 ) -> None:
-    graph = Graph(registry)
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     limits = FoxgloveLimits(max_subscriptions=3, max_client_channels=2)
     async with serving(graph, limits) as server, fox(server) as client:
@@ -446,8 +436,8 @@ async def test_too_many_subscriptions_and_client_channels_get_a_status(
         assert statuses[3:] == ["unsubscribe: unknown subscription 99"]  # no other refusal
 
 
-async def test_too_many_topics_are_not_all_advertised(registry: TypeRegistry) -> None:
-    graph = Graph(registry)
+async def test_too_many_topics_are_not_all_advertised(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     for index in range(6):
         graph.create_publisher(f"/t{index}", "std_msgs/msg/String")
     async with serving(graph, FoxgloveLimits(max_channels=4)) as server, fox(server) as client:
@@ -527,11 +517,11 @@ class RawFoxglove:
 
 
 async def test_a_stalled_reader_drops_its_own_data_and_slows_nobody(
-    registry: TypeRegistry,
+    ros2_types: TypeRegistry,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     caplog.set_level(logging.INFO, logger="rwt.foxglove")
-    graph = Graph(registry)
+    graph = Graph(ros2_types)
     big = graph.create_publisher("/big", "std_msgs/msg/String")
     limits = FoxgloveLimits(max_queue_messages=40, max_queue_bytes=200_000)
     total, window, size = 1500, 10, 10_000
@@ -629,7 +619,7 @@ def _statuses_until(client: RawFoxglove, last: str) -> list[dict[str, object]]:
 
 
 async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_bystander(
-    registry: TypeRegistry,
+    ros2_types: TypeRegistry,
 ) -> None:
     """As tests/hardening/test_fairness.py, the flooder a Foxglove client: 100,000 frames of
     an unknown opcode in one write, then a message on /fair; right after, a rosbridge
@@ -638,7 +628,7 @@ async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_b
     warning); the flooder's connection goes on."""
     from tests.hardening.peers import WsPeer, settle  # noqa: PLC0415
 
-    graph = Graph(registry)
+    graph = Graph(ros2_types)
     async with serving(graph) as server:
         port = int(server.urls["websocket"].rsplit(":", 1)[1])
         bystander = await anyio.to_thread.run_sync(WsPeer, port)
