@@ -27,6 +27,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from rwt_foxglove import gather
 from rwt_foxglove.gather import GATHER_BYTES, Gatherer
 from rwt_graph.graph import Graph
+from rwt_graph.types import TypeRegistry
 from rwt_graph.types.registry import codec_for
 from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.shortcuts import ENV_VAR
@@ -181,12 +182,13 @@ async def _run_burst(monkeypatch: pytest.MonkeyPatch, off: str | None) -> tuple[
 
 
 async def test_a_client_gets_the_same_messages_gathered_or_not(
+    ros2_types: TypeRegistry,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     gathered, direct_writes = await _run_burst(monkeypatch, None)
     general, general_direct = await _run_burst(monkeypatch, "deferred-send")
     framed_by_websockets, _ = await _run_burst(monkeypatch, "1")
-    graph = Graph()
+    graph = Graph(ros2_types)
     mtype = graph.registry.message("std_msgs/msg/String")
     codec = codec_for(graph.registry, mtype)
     expected = [

@@ -27,6 +27,7 @@ from websockets.exceptions import ConnectionClosed
 
 from rwt_foxglove import FoxgloveLimits
 from rwt_graph.graph import Graph
+from rwt_graph.types import TypeRegistry
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
@@ -347,9 +348,9 @@ BAD_INPUTS: list[tuple[str, list[str | bytes], str | bytes, str]] = [
     ids=[case[0] for case in BAD_INPUTS],
 )
 async def test_bad_input_gets_a_status_and_every_connection_goes_on(
-    before: list[str | bytes], frame: str | bytes, expected: str
+    ros2_types: TypeRegistry, before: list[str | bytes], frame: str | bytes, expected: str
 ) -> None:
-    graph = Graph()
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     async with (
         serving(graph) as server,
@@ -382,8 +383,8 @@ async def _wait_subscribed(graph: Graph, topic: str, count: int) -> None:
         await anyio.sleep(0.01)
 
 
-async def test_an_oversize_frame_closes_only_its_connection() -> None:
-    graph = Graph()
+async def test_an_oversize_frame_closes_only_its_connection(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     async with (
         serving(graph) as server,
@@ -404,8 +405,10 @@ async def test_an_oversize_frame_closes_only_its_connection() -> None:
         assert await rosbridge_messages(rosbridge, 1) == ["others go on"]
 
 
-async def test_too_many_subscriptions_and_client_channels_get_a_status() -> None:
-    graph = Graph()
+async def test_too_many_subscriptions_and_client_channels_get_a_status(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     limits = FoxgloveLimits(max_subscriptions=3, max_client_channels=2)
     async with serving(graph, limits) as server, fox(server) as client:
@@ -433,8 +436,8 @@ async def test_too_many_subscriptions_and_client_channels_get_a_status() -> None
         assert statuses[3:] == ["unsubscribe: unknown subscription 99"]  # no other refusal
 
 
-async def test_too_many_topics_are_not_all_advertised() -> None:
-    graph = Graph()
+async def test_too_many_topics_are_not_all_advertised(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     for index in range(6):
         graph.create_publisher(f"/t{index}", "std_msgs/msg/String")
     async with serving(graph, FoxgloveLimits(max_channels=4)) as server, fox(server) as client:
@@ -514,10 +517,11 @@ class RawFoxglove:
 
 
 async def test_a_stalled_reader_drops_its_own_data_and_slows_nobody(
+    ros2_types: TypeRegistry,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     caplog.set_level(logging.INFO, logger="rwt.foxglove")
-    graph = Graph()
+    graph = Graph(ros2_types)
     big = graph.create_publisher("/big", "std_msgs/msg/String")
     limits = FoxgloveLimits(max_queue_messages=40, max_queue_bytes=200_000)
     total, window, size = 1500, 10, 10_000
@@ -614,7 +618,9 @@ def _statuses_until(client: RawFoxglove, last: str) -> list[dict[str, object]]:
                 return statuses
 
 
-async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_bystander() -> None:
+async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_bystander(
+    ros2_types: TypeRegistry,
+) -> None:
     """As tests/hardening/test_fairness.py, the flooder a Foxglove client: 100,000 frames of
     an unknown opcode in one write, then a message on /fair; right after, a rosbridge
     bystander publishes on /fair too, and its own message comes back first. The flood's
@@ -622,7 +628,7 @@ async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_b
     warning); the flooder's connection goes on."""
     from tests.hardening.peers import WsPeer, settle  # noqa: PLC0415
 
-    graph = Graph()
+    graph = Graph(ros2_types)
     async with serving(graph) as server:
         port = int(server.urls["websocket"].rsplit(":", 1)[1])
         bystander = await anyio.to_thread.run_sync(WsPeer, port)
@@ -668,4 +674,5 @@ async def test_a_flood_of_tiny_frames_from_a_foxglove_client_does_not_starve_a_b
         warnings = {str(s["message"]) for s in statuses if s["level"] == 1}
         assert warnings <= {DROPPED}, warnings
         flooder.sock.close()
-        bystander.close()
+        # off the loop: a WebSocket close waits for the server's answer
+        await anyio.to_thread.run_sync(bystander.close)

@@ -16,6 +16,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import InvalidStatus
 
 from rwt_graph.graph import Graph
+from rwt_graph.types import TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.foxglove import FoxgloveOptions
@@ -51,8 +52,10 @@ async def _op(ws: ClientConnection, name: str) -> dict[str, object]:
         (["foxglove.websocket.v1", "foxglove.sdk.v1"], "foxglove.websocket.v1"),
     ],
 )
-async def test_each_subprotocol_name_gets_foxglove(offered: list[str], selected: str) -> None:
-    graph = Graph()
+async def test_each_subprotocol_name_gets_foxglove(
+    ros2_types: TypeRegistry, offered: list[str], selected: str
+) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
     async with (
         serving(graph) as server,
@@ -78,8 +81,8 @@ async def test_each_subprotocol_name_gets_foxglove(offered: list[str], selected:
         assert frame[13:].endswith(b"hello\x00")
 
 
-async def test_rosbridge_clients_are_unaffected() -> None:
-    graph = Graph()
+async def test_rosbridge_clients_are_unaffected(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     async with serving(graph) as server:
         for subprotocols in (None, ["chat"]):
             async with connect(server.urls["websocket"], subprotocols=subprotocols) as ws:
@@ -89,10 +92,10 @@ async def test_rosbridge_clients_are_unaffected() -> None:
                 assert reply["op"] == "status" and reply["level"] == "error"
 
 
-async def test_no_foxglove_gives_rosbridge_to_everyone() -> None:
+async def test_no_foxglove_gives_rosbridge_to_everyone(ros2_types: TypeRegistry) -> None:
     off = FoxgloveOptions(on_rosbridge_port=False)
     async with (
-        serving(Graph(), foxglove=off) as server,
+        serving(Graph(ros2_types), foxglove=off) as server,
         connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"]) as ws,
     ):
         assert ws.subprotocol is None
@@ -100,8 +103,8 @@ async def test_no_foxglove_gives_rosbridge_to_everyone() -> None:
         assert json.loads(await ws.recv())["op"] == "status"
 
 
-async def test_the_foxglove_port_speaks_foxglove_only() -> None:
-    async with serving(Graph(), foxglove=FoxgloveOptions(port=0)) as server:
+async def test_the_foxglove_port_speaks_foxglove_only(ros2_types: TypeRegistry) -> None:
+    async with serving(Graph(ros2_types), foxglove=FoxgloveOptions(port=0)) as server:
         url = server.urls["foxglove"]
         async with connect(url, subprotocols=["foxglove.websocket.v1"]) as ws:
             assert json.loads(await ws.recv())["op"] == "serverInfo"
@@ -111,8 +114,8 @@ async def test_the_foxglove_port_speaks_foxglove_only() -> None:
         assert refused.value.response.status_code == 400
 
 
-async def test_access_globs_and_auth() -> None:
-    graph = Graph()
+async def test_access_globs_and_auth(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/ok/a", "std_msgs/msg/String")
     graph.create_publisher("/hidden", "std_msgs/msg/String")
     session = SessionConfig(access=AccessPolicy(topics=("/ok/*",)))
@@ -125,7 +128,7 @@ async def test_access_globs_and_auth() -> None:
     # an authenticator asks a Foxglove client for the token in its URL (tests/foxglove/test_auth.py)
     seen: list[str] = []
     required = SessionConfig(authenticator=lambda op, peer: seen.append(op.level) or True)
-    async with serving(Graph(), session=required) as server:
+    async with serving(Graph(ros2_types), session=required) as server:
         url = server.urls["websocket"]
         with pytest.raises(InvalidStatus) as refused:
             async with connect(url, subprotocols=["foxglove.sdk.v1"]):
@@ -138,11 +141,11 @@ async def test_access_globs_and_auth() -> None:
 
 
 async def test_foxglove_over_tls_on_the_same_port(
-    tls_files: tuple[Path, Path, Path], ca: trustme.CA
+    ros2_types: TypeRegistry, tls_files: tuple[Path, Path, Path], ca: trustme.CA
 ) -> None:
     """With ``--certfile``, a Foxglove client on ``wss://`` gets Foxglove, and its data."""
     certfile, keyfile, _ = tls_files
-    graph = Graph()
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
     context = ssl.create_default_context()
     ca.configure_trust(context)

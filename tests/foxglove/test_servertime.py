@@ -45,8 +45,8 @@ def subscribe(client: Client, topic: str) -> None:
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel["id"]}]})
 
 
-def test_no_bag_no_time() -> None:
-    graph = Graph()
+def test_no_bag_no_time(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
     client = Client(graph)
     assert "time" not in client.ops[0]["capabilities"]  # type: ignore[operator]
@@ -57,8 +57,10 @@ def test_no_bag_no_time() -> None:
     assert kind == "data" and log_time > 1_600_000_000 * 10**9  # the wall clock
 
 
-def test_the_timeline_is_announced_sent_when_it_moves_and_stamps_message_data() -> None:
-    graph = Graph()
+def test_the_timeline_is_announced_sent_when_it_moves_and_stamps_message_data(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
     now = [5_000]
     with graph.port.use_timeline(lambda: now[0]):
@@ -120,8 +122,8 @@ async def test_a_played_bag_stamps_its_record_times_and_a_seek_steps_back(
     assert kind == "time" and T0 <= step < chatter[0]
 
 
-def test_sim_time_is_the_latest_clock_from_its_first_message() -> None:
-    graph = Graph()
+def test_sim_time_is_the_latest_clock_from_its_first_message(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     chatter = graph.create_publisher("/chatter", "std_msgs/msg/String")
     clock = graph.create_publisher("/clock", "rosgraph_msgs/msg/Clock", node="/sim")
     with follow_clock(graph):
@@ -147,8 +149,10 @@ def test_sim_time_is_the_latest_clock_from_its_first_message() -> None:
 
 
 @pytest.mark.anyio
-async def test_use_sim_time_serves_clock_as_server_time_over_the_wire() -> None:
-    graph = Graph()
+async def test_use_sim_time_serves_clock_as_server_time_over_the_wire(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     clock = graph.create_publisher("/clock", "rosgraph_msgs/msg/Clock", node="/sim")
     server = RosbridgeServer(graph, ServerConfig(port=0, use_sim_time=True))
     async with anyio.create_task_group() as tg:

@@ -24,8 +24,8 @@ def test_subprotocol_is_the_first_foxglove_name_offered() -> None:
     assert select_subprotocol([]) is None
 
 
-def test_server_info_comes_first_then_the_published_topics() -> None:
-    graph = Graph()
+def test_server_info_comes_first_then_the_published_topics(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/chatter", "std_msgs/msg/String")
     graph.create_subscription("/only_subscribed", lambda msg: None, "std_msgs/msg/String")
     client = Client(graph)
@@ -43,8 +43,8 @@ def test_server_info_comes_first_then_the_published_topics() -> None:
         client.channel("/only_subscribed")  # no publisher: nothing to show
 
 
-def test_image_schema_carries_header_and_time_after_rules() -> None:
-    graph = Graph()
+def test_image_schema_carries_header_and_time_after_rules(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/image", "sensor_msgs/msg/Image")
     schema = str(Client(graph).channel("/image")["schema"])
     rule = "=" * 80
@@ -66,8 +66,8 @@ def test_ros1_graph_speaks_ros1() -> None:
     assert client.data()[0][2] == struct.pack("<I", 2) + b"hi"
 
 
-def test_subscribe_delivers_in_order_and_unsubscribe_stops() -> None:
-    graph = Graph()
+def test_subscribe_delivers_in_order_and_unsubscribe_stops(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
     client = Client(graph)
     cid = client.channel("/chatter")["id"]
@@ -88,8 +88,8 @@ def test_subscribe_delivers_in_order_and_unsubscribe_stops() -> None:
     assert client.take_ops("status") == []
 
 
-def test_latched_message_goes_to_each_new_subscription() -> None:
-    graph = Graph()
+def test_latched_message_goes_to_each_new_subscription(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/map", "std_msgs/msg/String", latch=True)
     publisher.publish({"data": "kept"})
     client = Client(graph)
@@ -100,8 +100,10 @@ def test_latched_message_goes_to_each_new_subscription() -> None:
     assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
 
 
-def test_topics_that_appear_and_go_are_advertised_and_unadvertised() -> None:
-    graph = Graph()
+def test_topics_that_appear_and_go_are_advertised_and_unadvertised(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     client = Client(graph)
     publisher = graph.create_publisher("/late", "std_msgs/msg/String")
     client.sync()
@@ -120,8 +122,8 @@ def test_topics_that_appear_and_go_are_advertised_and_unadvertised() -> None:
     assert client.data() == []  # the old subscription is gone
 
 
-def test_access_globs_hide_topics() -> None:
-    graph = Graph()
+def test_access_globs_hide_topics(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/public/a", "std_msgs/msg/String")
     graph.create_publisher("/secret", "std_msgs/msg/String")
     client = Client(graph, access=AccessPolicy(topics=("/public/*",)))
@@ -163,9 +165,9 @@ def test_access_globs_hide_topics() -> None:
     ],
 )
 def test_bad_input_gets_an_error_status_and_the_session_goes_on(
-    frame: bytes, binary: bool, expected: str
+    ros2_types: TypeRegistry, frame: bytes, binary: bool, expected: str
 ) -> None:
-    graph = Graph()
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
     client = Client(graph)
     client.send_raw(frame, binary=binary)
@@ -180,8 +182,8 @@ def test_bad_input_gets_an_error_status_and_the_session_goes_on(
     assert len(client.data()) == 1
 
 
-def test_client_publish_cdr_and_json_reach_graph_subscribers() -> None:
-    graph = Graph()
+def test_client_publish_cdr_and_json_reach_graph_subscribers(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     got: list[dict[str, object]] = []
     graph.create_subscription("/cmd", got.append, "geometry_msgs/msg/Twist")
     client = Client(graph)
@@ -221,8 +223,8 @@ def test_client_publish_cdr_and_json_reach_graph_subscribers() -> None:
     assert len(got) == 2
 
 
-def test_client_advertise_refusals() -> None:
-    graph = Graph()
+def test_client_advertise_refusals(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/chatter", "std_msgs/msg/String")
     client = Client(graph, limits=FoxgloveLimits(max_client_channels=1))
     channel = {"id": 1, "topic": "/chatter", "encoding": "protobuf", "schemaName": "a/B"}
@@ -243,8 +245,8 @@ def test_client_advertise_refusals() -> None:
     assert "id 1 is in use" in str(client.take_ops("status")[0]["message"])
 
 
-def test_subscription_limits_and_reused_ids() -> None:
-    graph = Graph()
+def test_subscription_limits_and_reused_ids(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/a", "std_msgs/msg/String")
     client = Client(graph, limits=FoxgloveLimits(max_subscriptions=1))
     cid = client.channel("/a")["id"]
@@ -255,8 +257,10 @@ def test_subscription_limits_and_reused_ids() -> None:
     assert "more than 1 subscriptions" in str(client.take_ops("status")[0]["message"])
 
 
-def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode() -> None:
-    graph = Graph()
+def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/fast", "std_msgs/msg/String")
     client = Client(graph, limits=FoxgloveLimits(max_queue_messages=5))
     cid = client.channel("/fast")["id"]
@@ -280,8 +284,8 @@ def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode() -> Non
     assert len(client.take_ops("status")) == 1
 
 
-def test_close_releases_the_graph() -> None:
-    graph = Graph()
+def test_close_releases_the_graph(ros2_types: TypeRegistry) -> None:
+    graph = Graph(ros2_types)
     graph.create_publisher("/a", "std_msgs/msg/String")
     client = Client(graph)
     cid = client.channel("/a")["id"]
@@ -299,8 +303,10 @@ def test_close_releases_the_graph() -> None:
     assert "/b" not in graph.topics and not graph.topics["/a"].subscribers
 
 
-def test_topics_left_out_are_told_once_and_withdrawn_when_all_fit_again() -> None:
-    graph = Graph()
+def test_topics_left_out_are_told_once_and_withdrawn_when_all_fit_again(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
     client = Client(graph, limits=FoxgloveLimits(max_channels=1))
     extra = [graph.create_publisher(f"/extra{n}", "std_msgs/msg/String") for n in range(3)]
     client.sync()

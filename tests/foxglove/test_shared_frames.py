@@ -24,6 +24,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from rwt_foxglove import session as session_module
 from rwt_foxglove.limits import FoxgloveLimits
 from rwt_graph.graph import Graph
+from rwt_graph.types import TypeRegistry
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.foxglove.sansio import Client
@@ -61,13 +62,13 @@ def _subscribed(graph: Graph, sid: int, **kwargs: object) -> Client:
 
 @pytest.mark.parametrize("off", [None, "foxglove-shared-frames", "1"])
 def test_each_client_gets_its_frames_whether_shared_or_not(
-    monkeypatch: pytest.MonkeyPatch, made: Counter[int], off: str | None
+    ros2_types: TypeRegistry, monkeypatch: pytest.MonkeyPatch, made: Counter[int], off: str | None
 ) -> None:
     if off is None:
         monkeypatch.delenv(ENV_VAR, raising=False)
     else:
         monkeypatch.setenv(ENV_VAR, off)
-    graph = Graph()
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/shared", "std_msgs/msg/String")
     clients = [_subscribed(graph, sid) for sid in SIDS]
     texts = _texts()
@@ -90,13 +91,13 @@ def test_each_client_gets_its_frames_whether_shared_or_not(
 
 @pytest.mark.parametrize("off", [None, "foxglove-shared-frames"])
 def test_a_client_that_reads_nothing_drops_only_its_own_oldest(
-    monkeypatch: pytest.MonkeyPatch, off: str | None
+    ros2_types: TypeRegistry, monkeypatch: pytest.MonkeyPatch, off: str | None
 ) -> None:
     if off is None:
         monkeypatch.delenv(ENV_VAR, raising=False)
     else:
         monkeypatch.setenv(ENV_VAR, off)
-    graph = Graph()
+    graph = Graph(ros2_types)
     publisher = graph.create_publisher("/shared", "std_msgs/msg/String")
     reader = _subscribed(graph, 7)
     stalled = _subscribed(graph, 7, limits=FoxgloveLimits(max_queue_messages=5))

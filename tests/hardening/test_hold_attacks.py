@@ -16,11 +16,15 @@ again:
 With the hold budget charged to the publisher, a host found slow cooled down
 across reconnections and catching up, and "reading" meaning a useful share of
 the backlog (``flow.READING_SHARE``), the topic is frozen for the bystander
-for about one budget (1 s here) in all: under 10 % of the run, and no later
-gap is longer than a budget. The rule is about time, so time is asserted (a
-share of the run, a gap), with margins for a loaded machine: these attacks froze
-27 % to 44 % of the run before (one gap of 4 s with four readers). A burst
-publisher still loses nothing to a subscriber that reads (test_backpressure.py).
+for about one budget (1 s here) in all: under 1.5 budgets over the run, and no
+later gap is longer than a budget. ``RUN_S`` lets every attack come back after
+the first hold (the reconnecting one three times, the catching-up one twice):
+the bound is on the frozen seconds, not a share of the run, so a longer run
+asserts nothing more. The rule is about time, so time is asserted (frozen
+seconds, a gap), with margins for a loaded machine: these attacks froze 27 % to
+44 % of a 15 s run before (4 to 6.6 s; one gap of 4 s with four readers). A
+burst publisher still loses nothing to a subscriber that reads
+(test_backpressure.py).
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ from tests.support.clients import Harness, running_server
 pytestmark = pytest.mark.anyio
 
 HOLD_BUDGET_S = 1.0
-RUN_S = 15.0  # the publisher's stream: RATE x RUN_S messages
+RUN_S = 8.0  # the publisher's stream: RATE x RUN_S messages
 RATE = 100  # messages a second
 PAYLOAD = 100_000  # bytes of a message's data
 TOPIC = "/stream"
@@ -52,7 +56,7 @@ TRICKLE_BYTES = 64 * 1024  # what an attacker reads at a time ...
 TRICKLE_EVERY_S = 0.5  # ... this often
 RCVBUF = 64 * 1024  # an attacker's kernel buffer: the kernel does not read for it
 FROZEN_GAP_S = 0.25  # a gap between two messages this long counts as frozen (25 periods)
-MAX_FROZEN_SHARE = 0.10
+MAX_FROZEN_S = 1.5 * HOLD_BUDGET_S  # the first hold, with margin for a loaded machine
 MAX_LATER_GAP_S = HOLD_BUDGET_S
 
 
@@ -85,9 +89,12 @@ def publish(peer: TcpPeer) -> None:
 
 
 def read_arrivals(peer: TcpPeer, done: threading.Event) -> list[float]:
-    """Read as fast as possible until ``done`` and a quiet second; the time of each message."""
+    """Read as fast as possible until ``done`` and a quiet ``FROZEN_GAP_S``; each message's time.
+
+    ``done`` comes once the server handled every publish: nothing is held then, so
+    the rest of the stream follows without a frozen gap."""
     sock = peer.sock
-    sock.settimeout(1.0)
+    sock.settimeout(FROZEN_GAP_S)
     arrivals: list[float] = []
     while True:
         try:
@@ -193,6 +200,6 @@ async def test_a_reader_that_only_looks_alive_freezes_the_topic_for_one_budget_a
             await anyio.to_thread.run_sync(peer.close)
     run_s, frozen_s, gaps = frozen(arrivals)
     assert len(arrivals) >= 0.9 * RATE * RUN_S, len(arrivals)  # the bystander was served
-    assert frozen_s < MAX_FROZEN_SHARE * run_s, (frozen_s, run_s, gaps)
+    assert frozen_s < MAX_FROZEN_S, (frozen_s, run_s, gaps)
     first = next((n for n, gap in enumerate(gaps) if gap >= HOLD_BUDGET_S / 2), len(gaps))
     assert all(gap <= MAX_LATER_GAP_S for gap in gaps[first + 1 :]), gaps  # after the first hold

@@ -307,7 +307,7 @@ async def test_a_slow_in_process_reader_does_not_hold_the_others(harness: Harnes
     assert_slow_reader_lost_its_oldest(views["s"], taken_meanwhile[0])
 
 
-STEADY_FRAMES = 60
+STEADY_FRAMES = 40
 STEADY_PERIOD_S = 0.3  # 1 MB/s: half of a 4 MiB kernel send buffer drains in 2 s
 STEADY_BUDGET_S = 60.0
 
