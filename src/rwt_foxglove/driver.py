@@ -193,6 +193,7 @@ async def run_foxglove(
     direct: bool = False,
     read_slice: tuple[int, int] | None = None,
     gate: ReadGate | None = None,
+    first_input: Callable[[], None] | None = None,
 ) -> None:
     """Run ``session`` on ``channel`` until the peer's end; the session is closed on return.
 
@@ -211,6 +212,9 @@ async def run_foxglove(
         gate: called around each slice (the server's input backpressure: a
             client whose publishing filled another's queue waits while that
             one reads, docs/limits.md); None: the reader never waits for others.
+        first_input: called once, when the client's first input was handled (the
+            server's "first input first" ticket, docs/limits.md: until then the
+            readers of other connections may wait for this one's input).
     """
     sent = Wakeup()  # something was sent: a queued asset response may be gone
     asked = Wakeup()  # the reader handed frames over: a fetchAsset may wait
@@ -227,7 +231,7 @@ async def run_foxglove(
                 tasks.start_soon(_fetch, session, assets, wakeup, asked, sent)
             wakeup.set()  # serverInfo and the first advertise
             try:
-                await _read(channel, session, (wakeup, asked), read_slice, gate)
+                await _read(channel, session, (wakeup, asked), read_slice, gate, first_input)
             finally:
                 tasks.cancel_scope.cancel()
     finally:
@@ -241,6 +245,7 @@ async def _read(
     wakeups: tuple[Wakeup, Wakeup],
     read_slice: tuple[int, int] | None,
     gate: ReadGate | None,
+    first_input: Callable[[], None] | None,
 ) -> None:
     max_frames, max_bytes = read_slice or (0, 0)
     frames = size = 0  # of the current slice
@@ -265,6 +270,9 @@ async def _read(
                 frames = size = 0
                 begun = False
         await _end_slice(wakeups, gate if begun else None)
+        if first_input is not None:
+            first_input()
+            first_input = None
 
 
 async def _end_slice(wakeups: tuple[Wakeup, Wakeup], gate: ReadGate | None) -> None:

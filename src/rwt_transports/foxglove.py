@@ -42,6 +42,7 @@ from rwt_protocol.auth import auth_from_query
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.shortcuts import enabled
 
+from .admission import current_ticket
 from .holding import Held, wait_for
 from .pump import READ_SLICE_BYTES, READ_SLICE_FRAMES, flush_deferred
 
@@ -152,6 +153,14 @@ def foxglove_server(
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
         # ``deferred-send`` (rwt_protocol/shortcuts.py): off, the writer task writes everything
         direct = channel.abilities.send_now and enabled("deferred-send")
+        # First input first (admission.py): this connection's first frames go before
+        # what the others get later; once they are handled, the others go on.
+        ticket = current_ticket()
+        if ticket is not None:
+            if channel.abilities.probe_input:
+                ticket.watch(channel.input_pending)
+            else:
+                ticket.release()
         try:
             await run_foxglove(
                 channel,
@@ -161,8 +170,11 @@ def foxglove_server(
                 direct=direct,
                 read_slice=(READ_SLICE_FRAMES, READ_SLICE_BYTES),
                 gate=gate,
+                first_input=None if ticket is None else ticket.release,
             )
         finally:
+            if ticket is not None:
+                ticket.release()
             if outlet is not None:
                 outlet.close()  # readers waiting for it go on
 

@@ -81,6 +81,34 @@ async def test_each_subprotocol_name_gets_foxglove(
         assert frame[13:].endswith(b"hello\x00")
 
 
+async def test_a_foxglove_clients_first_input_lets_the_others_go_on(
+    ros2_types: TypeRegistry,
+) -> None:
+    """A new connection's first input goes before what the others get later (docs/limits.md);
+    once a Foxglove client's first input is handled, no reader waits for it any more.
+
+    It held its "starting" ticket, unwatched, until it closed, so every other
+    connection's input waited up to half a second after each Foxglove client came.
+    """
+    graph = Graph(ros2_types)
+    graph.create_publisher("/chatter", "std_msgs/msg/String")
+    async with (
+        serving(graph) as server,
+        connect(server.urls["websocket"], subprotocols=["foxglove.sdk.v1"]) as ws,
+    ):
+        channel = next(
+            c for c in (await _op(ws, "advertise"))["channels"] if c["topic"] == "/chatter"
+        )
+        await ws.send(
+            json.dumps(
+                {"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel["id"]}]}
+            )
+        )
+        await ws.send(json.dumps({"op": "nope"}))  # answered once the subscribe was handled
+        assert "unknown op" in str((await _op(ws, "status"))["message"])
+        assert not server.admission.starting()
+
+
 async def test_rosbridge_clients_are_unaffected(ros2_types: TypeRegistry) -> None:
     graph = Graph(ros2_types)
     async with serving(graph) as server:
