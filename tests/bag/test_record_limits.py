@@ -30,24 +30,44 @@ if TYPE_CHECKING:
 
 pytestmark = pytest.mark.anyio
 
-PUBLISH = """
+#: Client code (format braces doubled): wait, by asking rosapi, until the recorder's
+#: node is (``on``) or is no longer (not ``on``) a subscriber of ``topic``: the recorder
+#: subscribes to new topics at its next look (every 0.2 s), and lets go of all when it stops.
+RECORDER = """
+    def recorder(ros, topic, on):
+        subscribers = roslibpy.Service(ros, "/rosapi/subscribers", "rosapi/Subscribers")
+        for _ in range(400):
+            request = roslibpy.ServiceRequest({{"topic": topic}})
+            if ("/rwt_recorder" in subscribers.call(request, timeout=10)["subscribers"]) == on:
+                return
+            time.sleep(0.05)
+        raise SystemExit("the recorder %s %s" % ("never took" if on else "kept", topic))
+"""
+
+#: With ``stops``, the client waits for the recorder to stop (it lets go of /big)
+#: before checking that the server still serves it.
+PUBLISH = (
+    """
     import json, time
     import roslibpy
+"""
+    + RECORDER
+    + """
     ros = roslibpy.Ros("127.0.0.1", {port})
     ros.run(timeout=20)
     big = roslibpy.Topic(ros, "/big", "std_msgs/String")
     big.advertise()
-    time.sleep(1.0)  # the recorder looks for new topics every 0.2 s
+    recorder(ros, "/big", on=True)
     for i in range(200):
         big.publish(roslibpy.Message({{"data": "%04d" % i + "x" * 996}}))
         time.sleep(0.005)
-    time.sleep(0.5)
+    if {stops}:
+        recorder(ros, "/big", on=False)
     # a bystander: the server still serves after the recorder stopped
     echo = []
     chat = roslibpy.Topic(ros, "/chatter", "std_msgs/String")
     chat.subscribe(lambda m: echo.append(m["data"]))
-    time.sleep(0.3)
-    for _ in range(50):
+    for _ in range(100):  # the first ones may come before the subscription is set up
         chat.publish(roslibpy.Message({{"data": "still here"}}))
         time.sleep(0.05)
         if echo:
@@ -55,6 +75,7 @@ PUBLISH = """
     print(json.dumps({{"echo": echo[:1]}}))
     ros.terminate()
 """
+)
 
 
 def _bag_messages(paths: list[Path]) -> list[tuple[str, str, int]]:
@@ -68,7 +89,7 @@ async def test_max_size_stops_recording_and_the_server_goes_on(tmp_path: Path) -
     args = ("--record", str(bag), "--record-topics", "/big", "--record-max-size", "20000")
     server = ServerProcess(tmp_path, args)
     try:
-        out = await run_python(PUBLISH.format(port=server.port))
+        out = await run_python(PUBLISH.format(port=server.port, stops=True))
     finally:
         assert server.stop() == 0, server.stderr_text()
     assert json.loads(out.strip().splitlines()[-1]) == {"echo": ["still here"]}
@@ -86,7 +107,7 @@ async def test_max_size_with_split_starts_new_parts(tmp_path: Path) -> None:
     args = ("--record", str(bag), "--record-topics", "/big")
     server = ServerProcess(tmp_path, (*args, "--record-max-size", "20000", "--record-split"))
     try:
-        await run_python(PUBLISH.format(port=server.port))
+        await run_python(PUBLISH.format(port=server.port, stops=False))
     finally:
         assert server.stop() == 0, server.stderr_text()
     parts = [bag, *(bag.with_name(f"parts_{i}") for i in range(1, 100))]
@@ -96,9 +117,13 @@ async def test_max_size_with_split_starts_new_parts(tmp_path: Path) -> None:
     assert "record_stopped" not in server.stderr_text()
 
 
-CHURN = """
+CHURN = (
+    """
     import json, time
     import roslibpy
+"""
+    + RECORDER
+    + """
     def client():
         ros = roslibpy.Ros("127.0.0.1", {port})
         ros.run(timeout=20)
@@ -110,18 +135,18 @@ CHURN = """
                   for i in range(30)]
         for t in topics:
             t.advertise()
-        time.sleep(0.4)  # the recorder subscribes to them
+        recorder(ros, topics[-1].name, on=True)  # one look takes all 30
         for t in topics:
             t.publish(roslibpy.Message({{"data": "x"}}))
-        time.sleep(0.2)
+        ros.get_topics()  # answered after the publishes before it were taken
         ros.close()
     # /claim as a String from a client that leaves...
     ros = client()
     claim = roslibpy.Topic(ros, "/claim", "std_msgs/String")
     claim.advertise()
-    time.sleep(0.5)
+    recorder(ros, "/claim", on=True)
     claim.publish(roslibpy.Message({{"data": "first"}}))
-    time.sleep(0.3)
+    ros.get_topics()
     ros.close()
     # ...then as an Int32 from another
     ros = client()
@@ -132,13 +157,14 @@ CHURN = """
         time.sleep(0.1)
     claim = roslibpy.Topic(ros, "/claim", "std_msgs/Int32")
     claim.advertise()
-    time.sleep(0.5)
+    recorder(ros, "/claim", on=True)
     claim.publish(roslibpy.Message({{"data": 42}}))
-    time.sleep(0.5)
+    ros.get_topics()
     print(json.dumps({{"listed": listed}}))
     ros.close()
     anchor.terminate()
 """
+)
 
 
 async def test_abandoned_topics_and_types_are_let_go(tmp_path: Path) -> None:
