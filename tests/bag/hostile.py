@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import sqlite3
 import struct
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
+from unittest import mock
 
 import lz4.frame  # type: ignore[import-untyped]
+import yaml
 from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
+from rosbags.rosbag2 import writer as rosbag2_writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.rosbag2.storage_mcap import zstd  # type: ignore[attr-defined]
 from rosbags.typesys import Stores, get_typestore
@@ -266,11 +269,31 @@ def many_topics(path: Path, count: int) -> Path:
     store = get_typestore(Stores.ROS2_JAZZY)
     msgtype = "std_msgs/msg/String"
     raw = store.serialize_cdr(store.types[msgtype](data="x"), msgtype)
-    with Ros2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
+    digest = store.hash_rihs01(msgtype)
+    with (
+        mock.patch.object(rosbag2_writer, "YAML", _LibYaml),
+        Ros2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer,
+    ):
         for i in range(count):
-            conn = writer.add_connection(f"/t{i}", msgtype, typestore=store)
+            conn = writer.add_connection(f"/t{i}", msgtype, msgdef=msgdef, rihs01=digest)
             writer.write(conn, 10**9 + i, raw)
     return path
+
+
+class _LibYaml:
+    """What rosbags' writer asks of ruamel's ``YAML(typ="safe")``, done by libyaml.
+
+    The same document (``metadata.yaml`` and the MCAP's copy of it), written in
+    milliseconds: ruamel's pure-Python emitter takes seconds per thousand topics.
+    """
+
+    def __init__(self, typ: str = "safe") -> None:
+        assert typ == "safe"
+        self.default_flow_style = False
+
+    def dump(self, data: object, stream: IO[str]) -> None:
+        yaml.dump(data, stream, Dumper=yaml.CSafeDumper, default_flow_style=False)
 
 
 __all__ = [
