@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import sqlite3
 import struct
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
+from unittest import mock
 
 import lz4.frame  # type: ignore[import-untyped]
+import yaml
 from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
+from rosbags.rosbag2 import writer as rosbag2_writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.rosbag2.storage_mcap import zstd  # type: ignore[attr-defined]
 from rosbags.typesys import Stores, get_typestore
@@ -41,15 +44,12 @@ def _string(text: str) -> bytes:
 
 def zeros(size: int, compression: str = "zstd") -> bytes:
     """``size`` zero bytes compressed (made a MiB at a time: no ``size`` bytes in memory)."""
+    if compression == "bz2":
+        return _bz2_zeros(size)
     block = bytes(MIB)
     if compression == "lz4":
         out = lz4.frame.LZ4FrameCompressor()
         parts = [out.begin()]
-    elif compression == "bz2":
-        import bz2  # noqa: PLC0415
-
-        out = bz2.BZ2Compressor(9)
-        parts = []
     else:
         out = zstd.ZstdCompressor()
         parts = []
@@ -60,6 +60,50 @@ def zeros(size: int, compression: str = "zstd") -> bytes:
         left -= step
     parts.append(out.flush())
     return b"".join(parts)
+
+
+_BZ2_UNIT = 16 * MIB
+_BZ2_END = 0x177245385090  # the 48-bit magic of a bz2 stream's end (bzip2's format)
+
+
+def _bz2_zeros(size: int) -> bytes:
+    """``size`` zeros as one bz2 stream, its blocks copied rather than compressed.
+
+    bzip2 takes about 1 s per 100 MiB even of zeros; a stream is a header, blocks
+    (each with its own CRC, bit-aligned) and an end mark with a CRC combined from
+    the blocks'. So one block of ``_BZ2_UNIT`` zeros is compressed once and
+    repeated, and the rest is a last block: any bz2 decompressor reads the whole.
+    """
+    import bz2  # noqa: PLC0415
+
+    if size == 0:
+        return bz2.compress(b"", 9)  # a stream without blocks
+    whole, rest = divmod(size, _BZ2_UNIT)
+    blocks = [_bz2_block(bz2.compress(bytes(_BZ2_UNIT), 9))] * whole
+    if rest or not blocks:
+        blocks.append(_bz2_block(bz2.compress(bytes(rest), 9)))
+    bits, count, combined = 0, 0, 0
+    for block, length, crc in blocks:
+        bits, count = (bits << length) | block, count + length
+        combined = (((combined << 1) | (combined >> 31)) & 0xFFFFFFFF) ^ crc
+    bits, count = (bits << 80) | (_BZ2_END << 32) | combined, count + 80
+    pad = -count % 8
+    return b"BZh9" + ((bits << pad).to_bytes((count + pad) // 8, "big"))
+
+
+def _bz2_block(stream: bytes) -> tuple[int, int, int]:
+    """The one block of a bz2 ``stream`` (``BZh9``): its bits, their count, its CRC."""
+    assert stream.startswith(b"BZh9")
+    body = int.from_bytes(stream[4:], "big")
+    total = (len(stream) - 4) * 8
+    for pad in range(8):  # the stream ends with the end mark, its CRC and 0-7 zero bits
+        end = total - pad - 80
+        if (body >> (pad + 32)) & ((1 << 48) - 1) == _BZ2_END:
+            crc = (body >> pad) & 0xFFFFFFFF
+            block_crc = (body >> (total - 48 - 32)) & 0xFFFFFFFF
+            if crc == block_crc:  # one block: the combined CRC is its own
+                return body >> (total - end), end, crc
+    raise AssertionError("not a one-block bz2 stream")
 
 
 def mcap_bomb(
@@ -225,11 +269,31 @@ def many_topics(path: Path, count: int) -> Path:
     store = get_typestore(Stores.ROS2_JAZZY)
     msgtype = "std_msgs/msg/String"
     raw = store.serialize_cdr(store.types[msgtype](data="x"), msgtype)
-    with Ros2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
+    digest = store.hash_rihs01(msgtype)
+    with (
+        mock.patch.object(rosbag2_writer, "YAML", _LibYaml),
+        Ros2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer,
+    ):
         for i in range(count):
-            conn = writer.add_connection(f"/t{i}", msgtype, typestore=store)
+            conn = writer.add_connection(f"/t{i}", msgtype, msgdef=msgdef, rihs01=digest)
             writer.write(conn, 10**9 + i, raw)
     return path
+
+
+class _LibYaml:
+    """What rosbags' writer asks of ruamel's ``YAML(typ="safe")``, done by libyaml.
+
+    The same document (``metadata.yaml`` and the MCAP's copy of it), written in
+    milliseconds: ruamel's pure-Python emitter takes seconds per thousand topics.
+    """
+
+    def __init__(self, typ: str = "safe") -> None:
+        assert typ == "safe"
+        self.default_flow_style = False
+
+    def dump(self, data: object, stream: IO[str]) -> None:
+        yaml.dump(data, stream, Dumper=yaml.CSafeDumper, default_flow_style=False)
 
 
 __all__ = [

@@ -20,6 +20,20 @@ CHECKPOINTS = pytest.mark.skipif(
     not enabled("bag-checkpoints"), reason="the bag-checkpoints shortcut is switched off"
 )
 
+#: Client code (format braces doubled): wait, by asking rosapi, until the recorder's
+#: node is (``on``) or is no longer (not ``on``) a subscriber of ``topic``: the recorder
+#: subscribes to new topics at its next look (every 0.2 s), and lets go of all when it stops.
+RECORDER = """
+    def recorder(ros, topic, on):
+        subscribers = roslibpy.Service(ros, "/rosapi/subscribers", "rosapi/Subscribers")
+        for _ in range(400):
+            request = roslibpy.ServiceRequest({{"topic": topic}})
+            if ("/rwt_recorder" in subscribers.call(request, timeout=10)["subscribers"]) == on:
+                return
+            time.sleep(0.05)
+        raise SystemExit("the recorder %s %s" % ("never took" if on else "kept", topic))
+"""
+
 
 def plain(value: Any) -> Any:
     """A rosbags message as dicts, lists and bytes (uint8 arrays), for comparison."""

@@ -43,8 +43,8 @@ CLIENT = """
     ros = roslibpy.Ros("127.0.0.1", {port})
     ros.run(timeout=20)
     got = []
+    # the server takes a connection's ops in order: the subscription is in before the seek
     roslibpy.Topic(ros, "/chatter", "std_msgs/String").subscribe(lambda m: got.append(m["data"]))
-    time.sleep(0.5)
     seek = roslibpy.Service(ros, "/rwt/player/seek", "rwt_msgs/Seek")
     seek.call(roslibpy.ServiceRequest({{"offset": 0.0}}), timeout=10)
     for _ in range(100):

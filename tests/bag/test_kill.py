@@ -18,6 +18,7 @@ from pathlib import Path
 import anyio
 import anyio.to_thread
 import pytest
+import yaml
 
 from tests.integration.client_harness import REPO, ServerProcess
 from tests.support.cli import RWT
@@ -70,7 +71,19 @@ def numbers(bag: Path) -> list[int]:
     return [int(msg["data"][:6]) for msg in msgs]
 
 
-async def _record_and_stop(tmp_path: Path, how: signal.Signals) -> tuple[list[int], str, int]:
+def checkpointed(bag: Path) -> int:
+    """Messages the bag's last full checkpoint counted (its ``metadata.yaml``), 0 before one."""
+    try:
+        info = yaml.safe_load((bag / "metadata.yaml").read_text("utf-8"))
+        return int(info["rosbag2_bagfile_information"]["message_count"])
+    except (OSError, yaml.YAMLError, TypeError, KeyError, ValueError):  # none yet, or mid-write
+        return 0
+
+
+async def _record_and_stop(
+    tmp_path: Path, how: signal.Signals, least: int
+) -> tuple[list[int], str, int]:
+    """Record until a checkpoint holds ``least`` messages (mid-run), then send ``how``."""
     server = ServerProcess(tmp_path)
     bag = tmp_path / "run"
     stop_file = tmp_path / "stop"
@@ -78,10 +91,11 @@ async def _record_and_stop(tmp_path: Path, how: signal.Signals) -> tuple[list[in
     try:
         async with anyio.create_task_group() as tg:
             tg.start_soon(run_python, publisher(server.port, stop_file))
-            with anyio.fail_after(30):  # the first checkpoint: the recorder records
-                while not (bag / "metadata.yaml").exists():
+            # checkpoints run every second: a bound on a recorder that stopped making them
+            with anyio.fail_after(30):
+                while checkpointed(bag) < least:
                     await anyio.sleep(0.05)
-            await anyio.sleep(2.5)  # mid-run: the publisher goes on until stop_file
+            # mid-run: the publisher goes on until stop_file
             recorder.send_signal(how)
             out, err = await anyio.to_thread.run_sync(lambda: recorder.communicate(timeout=20))
             stop_file.touch()
@@ -94,11 +108,11 @@ async def _record_and_stop(tmp_path: Path, how: signal.Signals) -> tuple[list[in
 
 
 async def test_sigkill_leaves_a_readable_bag(tmp_path: Path) -> None:
-    got, _, code = await _record_and_stop(tmp_path, signal.SIGKILL)
+    got, _, code = await _record_and_stop(tmp_path, signal.SIGKILL, least=50)
     assert code == -signal.SIGKILL
     assert (tmp_path / "run" / "metadata.yaml").exists()
-    # 2.5 s of messages were published after the first checkpoint and before the
-    # kill; checkpoints run every second, so over a second's worth is in the bag
+    # killed after a checkpoint counted 50 messages (half a second's): the bag,
+    # unrepaired, reads at least those
     assert len(got) >= 50, got
     assert got == list(range(got[0], got[0] + len(got))), "a gap or a reordering"
 
@@ -107,7 +121,7 @@ async def test_sigterm_closes_the_bag(tmp_path: Path) -> None:
     """SIGINT takes the same path (one signal receiver for both); the serve --record
     round trips stop their server with SIGINT."""
     start = time.monotonic()
-    got, output, code = await _record_and_stop(tmp_path, signal.SIGTERM)
+    got, output, code = await _record_and_stop(tmp_path, signal.SIGTERM, least=100)
     assert code == 0, output
     assert time.monotonic() - start < 60
     assert len(got) >= 100, got

@@ -110,7 +110,7 @@ def test_rwt_play_refuses_a_remap_that_is_no_rule_or_no_name(tmp_path: Path) -> 
 LISTEN = """
 got = []
 roslibpy.Topic(ros, "/talk", "std_msgs/msg/String").subscribe(lambda m: got.append(m["data"]))
-time.sleep(0.5)  # the subscription is in before playback starts
+# the server takes a connection's ops in order: the subscription is in before resume
 resume = roslibpy.Service(ros, "/rwt/player/resume", "std_srvs/srv/Trigger")
 resume.call(roslibpy.ServiceRequest({}), timeout=20)
 wait_for(lambda: len(got) >= 101)

@@ -60,7 +60,7 @@ async def test_a_refused_write_ends_the_recording_not_the_server(tmp_path: Path,
     try:
         # paced, so that checkpoints (every second) fall between the messages
         paced = PUBLISH.replace("time.sleep(0.005)", "time.sleep(0.015)")
-        out = await run_python(paced.format(port=server.port))
+        out = await run_python(paced.format(port=server.port, stops=True))
     finally:
         code = server.stop()
     log = server.stderr_text()

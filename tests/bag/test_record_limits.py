@@ -13,7 +13,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import signal
+import subprocess
 from typing import TYPE_CHECKING
 
 import anyio
@@ -25,29 +28,37 @@ from rwt_bag import recorder as recorder_module
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
+from .support import RECORDER
+
 if TYPE_CHECKING:
     from pathlib import Path
 
 pytestmark = pytest.mark.anyio
 
-PUBLISH = """
+#: With ``stops``, the client waits for the recorder to stop (it lets go of /big)
+#: before checking that the server still serves it.
+PUBLISH = (
+    """
     import json, time
     import roslibpy
+"""
+    + RECORDER
+    + """
     ros = roslibpy.Ros("127.0.0.1", {port})
     ros.run(timeout=20)
     big = roslibpy.Topic(ros, "/big", "std_msgs/String")
     big.advertise()
-    time.sleep(1.0)  # the recorder looks for new topics every 0.2 s
+    recorder(ros, "/big", on=True)
     for i in range(200):
         big.publish(roslibpy.Message({{"data": "%04d" % i + "x" * 996}}))
         time.sleep(0.005)
-    time.sleep(0.5)
+    if {stops}:
+        recorder(ros, "/big", on=False)
     # a bystander: the server still serves after the recorder stopped
     echo = []
     chat = roslibpy.Topic(ros, "/chatter", "std_msgs/String")
     chat.subscribe(lambda m: echo.append(m["data"]))
-    time.sleep(0.3)
-    for _ in range(50):
+    for _ in range(100):  # the first ones may come before the subscription is set up
         chat.publish(roslibpy.Message({{"data": "still here"}}))
         time.sleep(0.05)
         if echo:
@@ -55,6 +66,7 @@ PUBLISH = """
     print(json.dumps({{"echo": echo[:1]}}))
     ros.terminate()
 """
+)
 
 
 def _bag_messages(paths: list[Path]) -> list[tuple[str, str, int]]:
@@ -68,7 +80,7 @@ async def test_max_size_stops_recording_and_the_server_goes_on(tmp_path: Path) -
     args = ("--record", str(bag), "--record-topics", "/big", "--record-max-size", "20000")
     server = ServerProcess(tmp_path, args)
     try:
-        out = await run_python(PUBLISH.format(port=server.port))
+        out = await run_python(PUBLISH.format(port=server.port, stops=True))
     finally:
         assert server.stop() == 0, server.stderr_text()
     assert json.loads(out.strip().splitlines()[-1]) == {"echo": ["still here"]}
@@ -86,7 +98,7 @@ async def test_max_size_with_split_starts_new_parts(tmp_path: Path) -> None:
     args = ("--record", str(bag), "--record-topics", "/big")
     server = ServerProcess(tmp_path, (*args, "--record-max-size", "20000", "--record-split"))
     try:
-        await run_python(PUBLISH.format(port=server.port))
+        await run_python(PUBLISH.format(port=server.port, stops=False))
     finally:
         assert server.stop() == 0, server.stderr_text()
     parts = [bag, *(bag.with_name(f"parts_{i}") for i in range(1, 100))]
@@ -96,9 +108,13 @@ async def test_max_size_with_split_starts_new_parts(tmp_path: Path) -> None:
     assert "record_stopped" not in server.stderr_text()
 
 
-CHURN = """
+CHURN = (
+    """
     import json, time
     import roslibpy
+"""
+    + RECORDER
+    + """
     def client():
         ros = roslibpy.Ros("127.0.0.1", {port})
         ros.run(timeout=20)
@@ -110,18 +126,18 @@ CHURN = """
                   for i in range(30)]
         for t in topics:
             t.advertise()
-        time.sleep(0.4)  # the recorder subscribes to them
+        recorder(ros, topics[-1].name, on=True)  # one look takes all 30
         for t in topics:
             t.publish(roslibpy.Message({{"data": "x"}}))
-        time.sleep(0.2)
+        ros.get_topics()  # answered after the publishes before it were taken
         ros.close()
     # /claim as a String from a client that leaves...
     ros = client()
     claim = roslibpy.Topic(ros, "/claim", "std_msgs/String")
     claim.advertise()
-    time.sleep(0.5)
+    recorder(ros, "/claim", on=True)
     claim.publish(roslibpy.Message({{"data": "first"}}))
-    time.sleep(0.3)
+    ros.get_topics()
     ros.close()
     # ...then as an Int32 from another
     ros = client()
@@ -132,13 +148,14 @@ CHURN = """
         time.sleep(0.1)
     claim = roslibpy.Topic(ros, "/claim", "std_msgs/Int32")
     claim.advertise()
-    time.sleep(0.5)
+    recorder(ros, "/claim", on=True)
     claim.publish(roslibpy.Message({{"data": 42}}))
-    time.sleep(0.5)
+    ros.get_topics()
     print(json.dumps({{"listed": listed}}))
     ros.close()
     anchor.terminate()
 """
+)
 
 
 async def test_abandoned_topics_and_types_are_let_go(tmp_path: Path) -> None:
@@ -147,6 +164,11 @@ async def test_abandoned_topics_and_types_are_let_go(tmp_path: Path) -> None:
     try:
         out = await run_python(CHURN.format(port=server.port))
     finally:
+        # closing a bag of 300 topics renders its metadata as YAML, seconds on a loaded
+        # machine: more than ServerProcess.stop waits (a bound on a hang, not a speed)
+        server.proc.send_signal(signal.SIGINT)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            server.proc.wait(60)
         assert server.stop() == 0, server.stderr_text()
     listed = json.loads(out.strip().splitlines()[-1])["listed"]
     assert [t for t in listed if t.startswith("/churn")] == []

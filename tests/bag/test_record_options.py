@@ -28,13 +28,17 @@ from tests.integration.client_harness import REPO, ServerProcess
 from tests.support.cli import RWT, invoke_rwt
 from tests.support.realclients import run_python
 
-from .support import CHECKPOINTS
+from .support import CHECKPOINTS, RECORDER
 
 pytestmark = pytest.mark.anyio
 
-PUBLISH = """
+PUBLISH = (
+    """
     import time
     import roslibpy
+"""
+    + RECORDER
+    + """
     ros = roslibpy.Ros("127.0.0.1", {port})
     ros.run(timeout=20)
     keep = roslibpy.Topic(ros, "/keep", "std_msgs/String", latch=True)
@@ -43,16 +47,17 @@ PUBLISH = """
     topics = [roslibpy.Topic(ros, n, "std_msgs/String") for n in names]
     for t in topics:
         t.advertise()
-    time.sleep(1.0)  # the recorder looks for new topics every 0.2 s
+    recorder(ros, "/sel/a", on=True)  # the look that takes it saw all the others
     keep.publish(roslibpy.Message({{"data": "kept"}}))
     for i in range(40):
         for t in topics:
             t.publish(roslibpy.Message({{"data": "%04d" % i + "x" * 200}}))
         time.sleep(0.005)
-    time.sleep(0.5)
+    ros.get_topics()  # answered once the publishes before it were taken
     ros.terminate()
     print("done")
 """
+)
 
 
 def parts_of(bag: Path) -> list[Path]:

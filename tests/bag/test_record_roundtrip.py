@@ -13,7 +13,7 @@ import pytest
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
-from .support import expected, read_bag, sample_messages
+from .support import RECORDER, expected, read_bag, sample_messages
 
 pytestmark = pytest.mark.anyio
 
@@ -26,25 +26,27 @@ CASES = [
 
 def roslibpy_publisher(port: int, messages: list, repeat: int) -> str:
     """A roslibpy script: advertise, wait for the recorder to subscribe, publish each message."""
-    return f"""
-        import time
-        import roslibpy
-        ros = roslibpy.Ros("127.0.0.1", {port})
-        ros.run(timeout=20)
-        messages = {messages!r}
-        topics = {{}}
-        for name, type_name, _ in messages:
-            topics[name] = roslibpy.Topic(ros, name, type_name)
-            topics[name].advertise()
-        time.sleep(1.0)  # the recorder looks for new topics every 0.2 s
-        for _ in range({repeat}):
-            for name, _, msg in messages:
-                topics[name].publish(roslibpy.Message(msg))
-                time.sleep(0.005)
-        time.sleep(0.5)
-        ros.terminate()
-        print("done")
-    """
+    return (
+        "\n    import time\n    import roslibpy\n"
+        + RECORDER.format()
+        + f"""
+    ros = roslibpy.Ros("127.0.0.1", {port})
+    ros.run(timeout=20)
+    messages = {messages!r}
+    topics = {{}}
+    for name, type_name, _ in messages:
+        topics[name] = roslibpy.Topic(ros, name, type_name)
+        topics[name].advertise()
+    recorder(ros, name, on=True)  # the last one: the look that took it took all
+    for _ in range({repeat}):
+        for name, _, msg in messages:
+            topics[name].publish(roslibpy.Message(msg))
+            time.sleep(0.005)
+    ros.get_topics()  # answered once the publishes before it were taken
+    ros.terminate()
+    print("done")
+"""
+    )
 
 
 @pytest.mark.parametrize(("fmt", "ros1", "name"), CASES)
