@@ -157,6 +157,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_bag.formats": ("ChunkCompression", "Compression"),
         "rwt_bag.info": ("TopicSummary",),
         "rwt_bag.selection": ("TopicSelection",),
+        "rwt_graph.playback": ("PlaybackStatus",),
     },
     "rwt.zenoh": {
         "rwt_zenoh.config": ("ZenohOptions",),

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from rwt_bag.formats import ChunkCompression, Compression
     from rwt_bag.info import TopicSummary
     from rwt_bag.selection import TopicSelection
+    from rwt_graph.playback import PlaybackStatus
 
 __all__ = [
     "BagError",
@@ -36,6 +37,7 @@ __all__ = [
     "ChunkCompression",
     "Compression",
     "PlayStats",
+    "PlaybackStatus",
     "Player",
     "RecordStats",
     "Recorder",

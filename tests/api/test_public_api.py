@@ -236,6 +236,7 @@ NEVER_IN_RWT = {
     "Compat",
     "FoxgloveLimits",
     "FoxgloveOptions",
+    "PlaybackStatus",
     "UnknownNameError",
     "auth_query",
     "rosauth_op",
