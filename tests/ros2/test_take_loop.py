@@ -119,8 +119,9 @@ def _publish_n(heard: threading.Semaphore) -> None:
         _wait_matched(pub, 2)
         for i in range(N):
             pub.publish(String(data=f"m{i}"))
-            if i % 50 == 49:  # bursts: wake-ups that take several samples
-                time.sleep(0.05)
+            if i % 50 == 49:  # bursts: wake-ups that take several samples; two bursts fit
+                time.sleep(0.2)  # the link's history (INWARD_DEPTH), so a server a loaded
+                # machine stalls for a moment loses none (0.05 s pauses lost 97 in CI once)
         end = time.monotonic() + 30  # the publisher stays until both subscribers are done
         for _ in range(2):
             heard.acquire(timeout=max(0.0, end - time.monotonic()))
