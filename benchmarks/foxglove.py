@@ -54,9 +54,12 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .proctree import tree_cpu_ns
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 RESULTS = Path(__file__).resolve().parent / "results"
 BURST = "/burst"
@@ -138,6 +141,7 @@ def _rwt_robot() -> None:
     burst = graph.create_publisher(BURST, "std_msgs/msg/String")
     image = graph.create_publisher(IMAGE, "sensor_msgs/msg/Image")
     pixels = bytes(IMAGE_W * IMAGE_H * 3)
+    template = _image_template()
     server = rwt.RosbridgeServer(graph, rwt.ServerConfig(port=0))
 
     def subscribers(topic: str) -> int:
@@ -151,14 +155,15 @@ def _rwt_robot() -> None:
             await anyio.sleep(0.01)
         period = 1 / cmd["hz"] if cmd["hz"] else 0.0
         every = cmd.get("yield_every", 1)
+        make_image, make_text = _rwt_messages(cmd.get("dicts", False), pixels, template)
         started = time.monotonic_ns()
         for index in range(cmd["count"]):
             if period:
                 await anyio.sleep(max(0.0, started / 1e9 + index * period - time.monotonic()))
             if cmd["topic"] == IMAGE:
-                image.publish(_image_msg(time.time_ns(), pixels))
+                image.publish(make_image(time.time_ns()))
             else:
-                burst.publish({"data": _text(index, cmd["size"]).decode()})
+                burst.publish(make_text(_text(index, cmd["size"])))
             if (index + 1) % every == 0:
                 await anyio.lowlevel.checkpoint()
         _reply({"started": started, "ended": time.monotonic_ns()})
@@ -175,6 +180,24 @@ def _rwt_robot() -> None:
             server.stop()
 
     anyio.run(main)
+
+
+def _rwt_messages(
+    dicts: bool, pixels: bytes, template: bytes
+) -> tuple[Callable[[int], object], Callable[[bytes], object]]:
+    """What rwt's robot publishes: an image from its stamp, a String from its text.
+
+    CDR, as the SDK's robot logs it, or (``dicts``) dicts the graph validates and serializes.
+    """
+    if dicts:
+        return (lambda stamp: _image_msg(stamp, pixels)), (lambda text: {"data": text.decode()})
+    return (lambda stamp: _stamped(template, stamp)), _cdr_string
+
+
+def _stamped(template: bytes, stamp_ns: int) -> bytes:
+    """The Image CDR ``template`` with its header stamp set to ``stamp_ns``."""
+    stamp = struct.pack("<iI", stamp_ns // 10**9, stamp_ns % 10**9)
+    return template[:4] + stamp + template[12:]
 
 
 def _image_template() -> bytes:
@@ -232,8 +255,7 @@ def _sdk_robot() -> None:
                 time.sleep(max(0.0, started / 1e9 + index * period - time.monotonic()))
             now = time.time_ns()
             if cmd["topic"] == IMAGE:
-                stamp = struct.pack("<iI", now // 10**9, now % 10**9)
-                image.log(template[:4] + stamp + template[12:], log_time=now)
+                image.log(_stamped(template, now), log_time=now)
             else:
                 burst.log(_cdr_string(_text(index, cmd["size"])), log_time=now)
         _reply({"started": started, "ended": time.monotonic_ns()})
@@ -473,9 +495,12 @@ def reader_main(argv: list[str]) -> int:
 class Robot:
     """A robot process (``rwt`` or ``sdk``) and its server's port."""
 
-    def __init__(self, kind: str, yield_every: int = 1, src: str | None = None) -> None:
+    def __init__(
+        self, kind: str, yield_every: int = 1, src: str | None = None, *, dicts: bool = False
+    ) -> None:
         self.kind = kind  # ``base``: rwt's robot on the rwt source at ``src``
         self.yield_every = yield_every  # rwt's robot: messages between yields to its loop
+        self.dicts = dicts  # rwt's robot: publishes dicts, not CDR
         env = None
         if src is not None:
             env = dict(os.environ, PYTHONPATH=os.pathsep.join((src, str(Path.cwd()))))
@@ -519,6 +544,7 @@ class Robot:
             "hz": scenario.hz,
             "subs": subs,
             "yield_every": self.yield_every,
+            "dicts": self.dicts,
         }
         self.proc.stdin.write(json.dumps(cmd) + "\n")
         self.proc.stdin.flush()
@@ -697,11 +723,13 @@ def title(scenario: Scenario) -> str:
 def table(results: dict[str, dict[str, list[dict[str, Any]]]], rounds: int, quick: bool) -> str:
     """The markdown table: medians of the rounds, rwt, SDK, rwt/SDK, and the readers' CPU.
 
-    With a ``base`` robot (``--base-src``): its column and rwt/base too.
+    With a third robot (``base``: ``--base-src``; ``dicts``: ``--with-dicts``): its
+    column and rwt over it too.
     """
     titles = {scenario.name: title(scenario) for scenario in scenarios(quick)}
-    base = any("base" in runs for runs in results.values())
-    extra = (" rwt base | rwt/base |", "---|---|") if base else ("", "")
+    third = next((k for runs in results.values() for k in runs if k not in SERVERS), None)
+    base = third is not None
+    extra = (f" rwt {third} | rwt/{third} |", "---|---|") if base else ("", "")
     lines = [
         f"| measure (median of {rounds} rounds) | rwt | Foxglove SDK | rwt/SDK |{extra[0]}",
         f"|---|---|---|---|{extra[1]}",
@@ -714,12 +742,12 @@ def table(results: dict[str, dict[str, list[dict[str, Any]]]], rounds: int, quic
         ratio = f"{rwt / sdk:.2f}" if rwt is not None and sdk else "-"
         line = f"| {titles[name]}: {label} | {_fmt(rwt)} | {_fmt(sdk)} | {ratio} |"
         if base:
-            before = _median(results[name]["base"], key)
+            before = _median(results[name][str(third)], key)
             change = f"{rwt / before:.2f}" if rwt is not None and before else "-"
             line += f" {_fmt(before)} | {change} |"
         lines.append(line)
     for name, runs in results.items():
-        cpu = [_median(runs[kind], "reader_cpu_pct") for kind in (*SERVERS, "base") if kind in runs]
+        cpu = [_median(runs[kind], "reader_cpu_pct") for kind in (*SERVERS, third) if kind in runs]
         shown = " | ".join(_fmt(value) for value in cpu[:2])
         more = f" {_fmt(cpu[2])} | - |" if base and len(cpu) > 2 else ""
         lines.append(
@@ -737,18 +765,31 @@ def _fmt(value: float | None) -> str:
 
 
 def run(
-    quick: bool, rounds: int, only: list[str], yield_every: int = 1, base_src: str | None = None
+    quick: bool,
+    rounds: int,
+    only: list[str],
+    yield_every: int = 1,
+    base_src: str | None = None,
+    *,
+    dicts: bool = False,
 ) -> dict[str, Any]:
     """Start both robots, run every scenario in interleaved rounds; the results by scenario.
 
     ``yield_every``: messages rwt's robot publishes between two yields to its event loop.
     ``base_src``: a third robot, ``base``, runs rwt from this ``src`` directory (another
     commit's) in the same rounds: before and after a change in one run.
+    ``dicts``: instead, the third robot, ``dicts``, is rwt's publishing dicts, not CDR.
     """
     idle_s = 1.5 if quick else 3.0
-    kinds = SERVERS if base_src is None else (*SERVERS, "base")
+    third = "base" if base_src is not None else "dicts" if dicts else None
+    kinds = SERVERS if third is None else (*SERVERS, third)
     robots = {
-        kind: Robot(kind, 1 if kind == "sdk" else yield_every, base_src if kind == "base" else None)
+        kind: Robot(
+            kind,
+            1 if kind == "sdk" else yield_every,
+            base_src if kind == "base" else None,
+            dicts=kind == "dicts",
+        )
         for kind in kinds
     }
     results: dict[str, dict[str, list[dict[str, Any]]]] = {}
@@ -799,12 +840,25 @@ def main(argv: list[str]) -> int:
         " in the same rounds: column `rwt base`",
     )
     parser.add_argument(
+        "--with-dicts",
+        action="store_true",
+        help="also run rwt's robot publishing dicts (the graph serializes them) in the same"
+        " rounds: column `rwt dicts`",
+    )
+    parser.add_argument(
         "--out", type=Path, default=None, help="the JSON results (default: results/foxglove.json)"
     )
     args = parser.parse_args(argv)
     rounds = args.rounds or (1 if args.quick else 3)
     started = time.perf_counter()
-    results = run(args.quick, rounds, args.only, max(1, args.rwt_yield_every), args.base_src)
+    results = run(
+        args.quick,
+        rounds,
+        args.only,
+        max(1, args.rwt_yield_every),
+        args.base_src,
+        dicts=args.with_dicts,
+    )
     text = table(results, rounds, args.quick)
     print(text)
     out = args.out or (None if args.quick else RESULTS / "foxglove.json")

@@ -515,13 +515,21 @@ class GraphCore:
     # ---- in-process participants and internals ----------------------------------
 
     def publish_local(
-        self, client: ClientId, topic: str, msg: Message, *, latch: bool, wire: bytes | None = None
+        self,
+        client: ClientId,
+        topic: str,
+        msg: Message | None,
+        *,
+        latch: bool,
+        wire: bytes | None = None,
     ) -> MessageEvent:
         """Deliver an already-converted message from an in-process publisher.
 
         ``wire``: ``msg`` in the dialect's wire serialization as it arrived (a
         link's sample, a bag's record), which subscribers sending that form pass
         on as it is (``MessageEvent.wire``); the caller vouches that it is ``msg``.
+        ``msg`` None: the message is ``wire`` alone, decoded on first use
+        (``MessageEvent.msg``).
 
         Returns:
             the event its subscribers got.
@@ -537,7 +545,7 @@ class GraphCore:
     def _send(
         self,
         entry: Topic,
-        msg: Message,
+        msg: Message | None,
         *,
         latch: bool,
         client: ClientId,

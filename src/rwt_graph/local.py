@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from rwt_protocol.errors import GraphError
 
 from .ratelog import EpisodeLog
+from .types.wire import check_wire_header
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -37,10 +38,24 @@ class LocalPublisher:
         self.latch = latch
 
     def publish(self, msg: object, *, validated: bool = False, wire: bytes | None = None) -> None:
-        """Publish a message given as a dict or a rosbags message object.
+        """Publish a message given as a dict, a rosbags message object or serialized.
 
         Missing fields get their defaults (D7) and a missing header stamp is now
         (D8), as for a client's publish.
+
+        A serialized message (``bytes``, ``bytearray`` or ``memoryview``, as
+        rclpy's ``Publisher.publish`` takes one) is the dialect's wire form:
+        CDR with its 4-byte encapsulation header for ROS 2 (what rclpy's
+        ``serialize_message`` gives), the ROS 1 format for ROS 1. It goes to
+        the subscribers that send that form as it is (Foxglove clients,
+        cbor-raw, the ROS 2 and Zenoh links), and is decoded once, on first
+        use, for the others (rosbridge JSON and CBOR subscribers, Python
+        callbacks): a robot that has the bytes already (a driver's CDR, a
+        recording) so skips the conversion and serialization of a dict, the
+        fast path of ``docs/embedding.md``. Only the header is checked here:
+        bytes that do not decode as the topic's type reach those subscribers
+        as an error (a rosbridge subscriber's error ``status``, a logged
+        callback failure), and the others unchanged.
 
         Args:
             msg: the message.
@@ -56,8 +71,15 @@ class LocalPublisher:
 
         Raises:
             FieldError: ``msg`` does not fit the topic's type (``validated`` false).
+            CdrError: a serialized ``msg`` of a ROS 2 topic has no CDR
+                encapsulation header (a ``ValueError``).
             GraphError: the publisher was closed.
         """
+        if isinstance(msg, (bytes, bytearray, memoryview)):
+            data = bytes(msg)
+            check_wire_header(self.msgtype.dialect, data)
+            self._port.publish_local(self._client, self.topic, None, latch=self.latch, wire=data)
+            return
         if validated:
             assert isinstance(msg, dict)
             self._port.publish_local(self._client, self.topic, msg, latch=self.latch, wire=wire)

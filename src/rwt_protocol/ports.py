@@ -77,6 +77,13 @@ class MessageCodec(Protocol):
         A large result may be a read-only byte view (no copy into ``bytes``).
         """
 
+    def deserialize(self, data: bytes) -> dict[str, object]:
+        """The message in the internal form from its wire form (the inverse of ``serialize``).
+
+        Raises:
+            ValueError: ``data`` is not a message of this type in that form.
+        """
+
 
 _T = TypeVar("_T")
 
@@ -91,7 +98,12 @@ class MessageEvent:
         topic: resolved topic name (``/chatter``).
         type_name: canonical message type (``std_msgs/msg/String``).
         msg: the message in the graph's internal form (a dict; ``bytes`` for
-            ``uint8[]``), never mutated after publication.
+            ``uint8[]``), never mutated after publication. An event made
+            without it (a publisher that gave only ``wire``) reads it from
+            ``wire`` with ``codec.deserialize`` on first use, once for every
+            subscriber; if ``wire`` does not decode, every read raises that
+            ``ValueError`` (each subscriber's delivery catches it: the
+            subscriber skips the message and is told, ``encoding.safe_publish_frames``).
         now: monotonic seconds when it was published.
         stamp: wall-clock seconds since the epoch when it was published (the
             ``secs``/``nsecs`` of cbor-raw, REF §3.5).
@@ -102,13 +114,15 @@ class MessageEvent:
             serialized (a link's sample, a bag's record); None when it came as
             values. Subscribers that send this form pass it on unchanged
             instead of serializing ``msg`` (Foxglove message data, cbor-raw).
+            Subscribers that send it so never decode a message given only as ``wire``.
     """
 
     __slots__ = (
         "_cache",
+        "_error",
+        "_msg",
         "codec",
         "encodings_made",
-        "msg",
         "now",
         "stamp",
         "topic",
@@ -120,22 +134,48 @@ class MessageEvent:
         self,
         topic: str,
         type_name: str,
-        msg: dict[str, object],
+        msg: dict[str, object] | None,
         now: float,
         *,
         stamp: float = 0.0,
         codec: MessageCodec | None = None,
         wire: bytes | None = None,
     ) -> None:
+        """Raises ``ValueError`` for an event with no ``msg`` and no ``wire`` and ``codec``."""
+        if msg is None and (wire is None or codec is None):
+            raise ValueError("a message event needs msg, or wire and the codec that reads it")
         self.topic = topic
         self.type_name = type_name
-        self.msg = msg
+        self._msg = msg
+        self._error: str | None = None  # why ``wire`` does not decode
         self.now = now
         self.stamp = stamp
         self.codec = codec
         self.wire = wire
         self.encodings_made = 0
         self._cache: dict[Hashable, object] = {}
+
+    @property
+    def msg(self) -> dict[str, object]:
+        """The message in the internal form, decoded from ``wire`` on first use if need be.
+
+        Raises:
+            ValueError: ``wire`` is not a message of the type (the same error each time).
+        """
+        msg = self._msg
+        if msg is None:
+            msg = self._msg = self._decode()
+        return msg
+
+    def _decode(self) -> dict[str, object]:
+        if self._error is None:
+            assert self.codec is not None and self.wire is not None  # (``__init__``)
+            try:
+                return self.codec.deserialize(self.wire)
+            except ValueError as exc:
+                self._error = str(exc)
+        # a fresh error each time: one raised again would grow its traceback
+        raise ValueError(self._error)
 
     def encoded(self, key: Hashable, make: Callable[[], _T]) -> _T:
         """Return the delivery form for ``key``, making it on first use.

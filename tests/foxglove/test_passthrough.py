@@ -20,6 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 from rwt_bag.player import Player
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
+from rwt_graph.types.wire import WireCodec
 from rwt_protocol.ops import Advertise
 
 from .test_session import Client
@@ -59,6 +60,22 @@ def test_a_sample_received_as_cdr_is_sent_as_it_came() -> None:
     ((sid, _, payload),) = client.data()
     assert sid == 3 and payload == wire
     assert event.encodings_made == 0  # nobody serialized it
+
+
+def test_a_message_published_serialized_is_sent_as_published_and_not_decoded(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    graph = Graph()
+    publisher = graph.create_publisher("/point", POINT)
+    client = subscribed(graph, "/point")
+    decodes: list[bytes] = []
+    monkeypatch.setattr(WireCodec, "deserialize", lambda self, data: decodes.append(data))
+    wire = odd_cdr(graph)
+    publisher.publish(wire)  # as the Foxglove SDK's ``Channel.log`` takes CDR
+    client.drain()
+    ((sid, _, payload),) = client.data()
+    assert sid == 3 and payload == wire
+    assert decodes == []  # a Foxglove client alone never costs a decode
 
 
 def test_a_message_published_as_values_is_serialized() -> None:

@@ -21,6 +21,8 @@
 //                             "subscribed", then report the updates from rosapi and another client
 //   graph URL                 follow the connection graph; signal "following", report
 //                             /fg_graph_topic's publishers, signal "seen", report it removed
+//   latched URL TOPIC         subscribe to TOPIC (a latched topic already published); report
+//                             its schema name and the first message, decoded
 // Stdout's last line: {"result": {...}}; lines {"event": NAME} before it tell the test
 // where the scenario is. Every wait is bounded.
 import rosmsg from "@foxglove/rosmsg";
@@ -423,7 +425,26 @@ async function graph() {
   };
 }
 
-const scenarios = { handshake, stream, bad, two, publish, services, params, graph };
+async function latched() {
+  const fox = foxglove(["foxglove.sdk.v1"]);
+  const channel = await fox.channel(args[0]);
+  const sub = fox.client.subscribe(channel.id);
+  const { message } = await fox.next(
+    (e) => e.kind === "message" && e.message.subscriptionId === sub,
+    "the latched message",
+  );
+  const decoded = reader(channel).readMessage(message.data);
+  fox.client.close();
+  const plain = (value) =>
+    value instanceof Uint8Array ? { bytes: value.length, sum: value.reduce((a, b) => a + b, 0) } : value;
+  return {
+    schemaName: channel.schemaName,
+    message: Object.fromEntries(Object.entries(decoded).map(([k, v]) => [k, plain(v)])),
+    payload: Buffer.from(message.data.buffer, message.data.byteOffset, message.data.byteLength).toString("hex"),
+  };
+}
+
+const scenarios = { handshake, stream, bad, two, publish, services, params, graph, latched };
 try {
   const result = await scenarios[scenario]();
   process.stdout.write(`${JSON.stringify({ result }, (_, v) => (typeof v === "bigint" ? String(v) : v))}\n`);

@@ -14,7 +14,7 @@ has no plan, and ``typed`` returns the message itself.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.shortcuts import enabled
@@ -29,7 +29,15 @@ if TYPE_CHECKING:
 
     from .message import MessageType
 
-__all__ = ["CDR_TRAILING_SLACK", "CdrError", "WireCodec", "compile_typed", "read_cdr", "wire_input"]
+__all__ = [
+    "CDR_TRAILING_SLACK",
+    "CdrError",
+    "WireCodec",
+    "check_wire_header",
+    "compile_typed",
+    "read_cdr",
+    "wire_input",
+]
 
 Msg = Mapping[str, object]
 _LARGE_VIEW = 64 * 1024
@@ -56,11 +64,29 @@ def wire_input(data: bytes) -> bytes | memoryview:
 
 
 class CdrError(RemoteProtocolError, ValueError):
-    """Bytes that are not a CDR message of the expected type (a peer sent them).
+    """Bytes that are not a message of the expected type in the dialect's wire form.
 
-    Also a ``ValueError``, which rosbags' own errors are.
+    CDR for ROS 2 (the name), the ROS 1 format for ROS 1 (``WireCodec.deserialize``);
+    a peer or a publisher of serialized messages sent them. Also a ``ValueError``,
+    which rosbags' own errors are.
     """
 
+
+def check_wire_header(dialect: Dialect, data: bytes | memoryview) -> None:
+    """Refuse ``data`` as a serialized message of ``dialect`` by its header alone.
+
+    ROS 2's CDR starts with a 4-byte encapsulation header (little or big
+    endian plain CDR, as rmw writes it); the ROS 1 format has none, so any
+    bytes pass. The fields are not read: ``read_cdr`` checks them.
+
+    Raises:
+        CdrError: a ROS 2 ``data`` shorter than the header, or with another one.
+    """
+    if dialect is not Dialect.ROS1 and (len(data) < 4 or bytes(data[:2]) not in _CDR_HEADERS):
+        raise CdrError("not CDR: no little or big endian CDR encapsulation header")
+
+
+_CDR_HEADERS: Final = frozenset({b"\x00\x00", b"\x00\x01"})
 
 #: Bytes after a CDR payload accepted whatever its size (see ``read_cdr``).
 CDR_TRAILING_SLACK = 64
@@ -82,8 +108,7 @@ def read_cdr(store: Typestore, data: bytes | memoryview, name: str) -> object:
             malformed for the type, or has more bytes after it than allowed.
         KeyError: the typestore lacks ``name``.
     """
-    if len(data) < 4 or bytes(data[:2]) not in {b"\x00\x00", b"\x00\x01"}:
-        raise CdrError("not CDR: no little or big endian CDR encapsulation header")
+    check_wire_header(Dialect.ROS2, data)
     msgdef = store.get_msgdef(name)
     func = msgdef.deserialize_cdr_le if data[1] else msgdef.deserialize_cdr_be
     try:
@@ -188,6 +213,31 @@ class WireCodec:
         """
         raw = self.serializer()(msg)
         return raw if _KEEP_VIEW and len(raw) >= _LARGE_VIEW else bytes(raw)
+
+    def deserialize(self, data: bytes) -> dict[str, object]:
+        """The message in the internal form from the dialect's wire serialization.
+
+        CDR (ROS 2) is read by ``read_cdr`` (trailing bytes allowed), the ROS 1
+        format by rosbags; either way the values are checked as a client's are
+        (``MessageType.from_python``).
+
+        Raises:
+            CdrError: ``data`` is not a message of this type in that form.
+        """
+        store = self._typestore()
+        name = self.mtype.rosbags_name
+        try:
+            if self.mtype.dialect is Dialect.ROS1:
+                obj = store.deserialize_ros1(data, name)
+            else:
+                obj = read_cdr(store, wire_input(data), name)
+            return self.mtype.from_python(obj)
+        except CdrError:
+            raise
+        except Exception as exc:  # rosbags' and the conversion's assorted errors
+            text = getattr(exc, "message", None) or str(exc)
+            reason = f"{self.mtype.name}: not a message of this type ({text[:200]})"
+            raise CdrError(reason) from None
 
     def serializer(self) -> Callable[[Msg], memoryview]:
         """The function giving rosbags' serialization of a message, as its read-only view.
