@@ -587,8 +587,10 @@ class Ros2Link:
     def _put(self, entry: GraphTopic, pub: _Pub, event: MessageEvent) -> None:
         if pub.latched_sent is event:
             return
-        try:
-            data = encode(self.graph.registry, entry.msgtype, event.msg)
+        try:  # what came serialized (a sample, a record, a robot's CDR) goes on as it came
+            data = event.wire
+            if data is None:
+                data = encode(self.graph.registry, entry.msgtype, event.msg)
         except KeyError as exc:
             self.episodes.log(
                 logging.WARNING,

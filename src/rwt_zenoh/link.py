@@ -749,7 +749,9 @@ class ZenohLink:
         if export is not None:
             data = self._publisher(entry)
             payload: bytes | bytearray | Deferred | None
-            payload = self._deferred.defer(entry.msgtype, event.msg)  # large: the outbox's thread
+            payload = event.wire  # what came serialized goes on as it came
+            if payload is None:  # large: serialized on the outbox's thread
+                payload = self._deferred.defer(entry.msgtype, event.msg)
             if payload is None:
                 payload = self._encode(entry, event)
             outbox = self._outbox
@@ -780,6 +782,8 @@ class ZenohLink:
         data.latched_sent = event
 
     def _encode(self, entry: GraphTopic, event: MessageEvent) -> bytes | bytearray:
+        if event.wire is not None:  # CDR already (a ROS 2 graph's wire form)
+            return event.wire
         return encode_message(self.graph.registry, entry.msgtype, event.msg)
 
     def cancels_goal(self, service: str, query: zenoh.Query) -> bool:

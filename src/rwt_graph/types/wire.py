@@ -82,11 +82,12 @@ def check_wire_header(dialect: Dialect, data: bytes | memoryview) -> None:
     Raises:
         CdrError: a ROS 2 ``data`` shorter than the header, or with another one.
     """
-    if dialect is not Dialect.ROS1 and (len(data) < 4 or bytes(data[:2]) not in _CDR_HEADERS):
+    # per message of a serialized publisher: indexing, not slices (00 00 or 00 01)
+    if dialect is not _ROS1 and (len(data) < 4 or data[0] or data[1] > 1):
         raise CdrError("not CDR: no little or big endian CDR encapsulation header")
 
 
-_CDR_HEADERS: Final = frozenset({b"\x00\x00", b"\x00\x01"})
+_ROS1: Final = Dialect.ROS1
 
 #: Bytes after a CDR payload accepted whatever its size (see ``read_cdr``).
 CDR_TRAILING_SLACK = 64
