@@ -140,6 +140,8 @@ class Wakeup:
             self._wake()
         elif self._gathering:
             gatherer.more = True
+            if self.queued_bytes() >= GATHER_BYTES:  # enough for a write of its own
+                gatherer.release(self)
         else:
             self._gathering = True
             gatherer.join(self)

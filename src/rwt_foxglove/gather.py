@@ -4,13 +4,15 @@ A publisher in the server's process that yields to the event loop after each
 message (as an asyncio program does) hands each connection one message a turn.
 Written as it comes, that is one system call per message and connection: most
 of the cost of a burst of small messages. The ``Gatherer`` of a loop (one for
-all its Foxglove connections) puts the writes off while output keeps coming:
-it looks once a turn, and writes each gathering connection's frames when a
-turn brought no new output, when ``GATHER_S`` have passed since the gathering
-began, or when that connection has ``GATHER_BYTES`` queued. The first look of
-a gathering always waits one turn more: it runs before the publisher that
-caused it has had its next turn (its resumption was scheduled after the
-look), so it could not tell a burst from a lone message. A lone message so
+all its Foxglove connections) puts the writes off while output keeps coming.
+It looks twice, on the next two turns: if the second turn brought no new
+output it writes each gathering connection's frames then (the first look runs
+before the publisher that caused the gathering has had its next turn, so it
+cannot tell a burst from a lone message); if it did, the output is a burst,
+written when ``GATHER_S`` have passed since the gathering began, with no look
+in between (a look a turn was a third of the loop's work per message of a
+burst: benchmarks/README.md, Foxglove). A connection that has ``GATHER_BYTES``
+queued is written at once (``release``, from its wake-up). A lone message so
 waits two turns of the loop; a message of a burst at most ``GATHER_S``.
 """
 
@@ -62,6 +64,7 @@ class Gatherer:
         self._max_s = GATHER_S if max_s is None else max_s
         self._members: list[Member] = []
         self._since = 0.0  # when this gathering began (the loop's clock)
+        self._gathering = 0  # counts gatherings: a look scheduled for an earlier one is void
         self.more = False
 
     @classmethod
@@ -77,22 +80,37 @@ class Gatherer:
         self.more = True  # also for the first: its look must wait for the publisher's turn
         if not self._members:
             self._since = self._loop.time()
-            self._loop.call_soon(self._look)
+            self._gathering += 1
+            self._loop.call_soon(self._look, self._gathering, True)
         self._members.append(member)
 
-    def _look(self) -> None:
-        members = self._members
-        if self.more and self._loop.time() - self._since < self._max_s:
+    def release(self, member: Member) -> None:
+        """``member`` has ``GATHER_BYTES`` queued: it leaves the gathering and is written now."""
+        if member in self._members:
+            self._members.remove(member)
+        member.flush()
+
+    def _look(self, gathering: int, first: bool) -> None:
+        if gathering != self._gathering or not self._members:
+            return  # an earlier gathering's, or every member was released
+        if first:
             self.more = False
-            full = [member for member in members if member.queued_bytes() >= GATHER_BYTES]
-            if full:
-                self._members = members = [member for member in members if member not in full]
-                for member in full:
-                    member.flush()
-            if members:
-                self._loop.call_soon(self._look)
+            full = [member for member in self._members if member.queued_bytes() >= GATHER_BYTES]
+            for member in full:
+                self.release(member)
+            if self._members:  # the publisher's next turn tells a burst from a lone message
+                self._loop.call_soon(self._look, gathering, False)
             return
-        self._members = []
+        if self.more and self._loop.time() - self._since < self._max_s:  # a burst
+            self.more = False
+            self._loop.call_at(self._since + self._max_s, self._end, gathering)
+            return
+        self._end(gathering)
+
+    def _end(self, gathering: int) -> None:
+        if gathering != self._gathering:
+            return
+        members, self._members = self._members, []
         self.more = False
         for member in members:
             member.flush()

@@ -724,7 +724,7 @@ def _framed_anew(frames: Sequence[OutFrame]) -> list[bytes]:
         header = frame.header
         if header is None:
             header = _header(len(prefix) + len(data), frame.binary)
-            object.__setattr__(frame, "header", header)  # shared: framed once for all
+            frame.header = header  # shared: framed once for all
         if len(data) >= WRITE_BATCH:  # its payload goes alone, not copied
             batch.append(header)
             if prefix:

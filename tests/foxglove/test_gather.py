@@ -6,8 +6,9 @@ each woke the writer task (off), or websockets framed them (every shortcut
 off; message data is a header of the client's own before a shared payload,
 ``OutFrame.prefix``): bursts of small messages published one per
 turn, large ones past the gathering's byte bound, and many in one turn. The
-gatherer itself writes a connection once a turn brings no more output, once it
-holds ``GATHER_BYTES``, or once a burst outlasts ``GATHER_S``.
+gatherer itself writes a connection once the turn after its first output brings
+no more, once it holds ``GATHER_BYTES``, or else (a burst) once ``GATHER_S`` have
+passed since the gathering began.
 """
 
 from __future__ import annotations
@@ -74,14 +75,16 @@ async def test_a_lone_output_is_written_after_one_quiet_turn() -> None:
     assert member.flushed_at == 1
 
 
-async def test_output_that_keeps_coming_is_gathered_then_written() -> None:
-    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)  # no time bound here
+async def test_output_that_keeps_coming_is_gathered_until_the_time_bound() -> None:
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=0.2)
     member = Member()
     gatherer.join(member)
-    await _turns([member], 5, gatherer)  # a message each turn: still gathering
+    await _turns([member], 5, gatherer)  # a message each turn: a burst, gathered
+    await _turns([member], 3)  # the burst ended: its tail waits for the bound, no longer
     assert member.flushed_at is None
-    await _turns([member], 3)  # the burst ended
-    assert member.flushed_at is not None
+    with anyio.fail_after(10):
+        while member.flushed_at is None:
+            await anyio.sleep(0.01)
 
 
 async def test_a_burst_that_never_ends_is_still_written() -> None:
@@ -94,15 +97,29 @@ async def test_a_burst_that_never_ends_is_still_written() -> None:
 
 
 async def test_a_connection_that_holds_enough_is_written_alone_at_once() -> None:
-    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=0.2)
     small, full = Member(), Member(GATHER_BYTES)
     gatherer.join(small)
     gatherer.join(full)
     await _turns([small, full], 3, gatherer)
     assert full.flushed_at is not None and full.flushed_at <= 1
     assert small.flushed_at is None  # still gathering while output comes
-    await _turns([small, full], 3)
-    assert small.flushed_at is not None
+    with anyio.fail_after(10):
+        while small.flushed_at is None:  # written at the bound
+            await anyio.sleep(0.01)
+
+
+async def test_a_connection_that_fills_up_during_a_burst_is_released_at_once() -> None:
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=3600)
+    small, filling = Member(), Member()
+    gatherer.join(small)
+    gatherer.join(filling)
+    await _turns([small, filling], 3, gatherer)  # a burst: gathered until the bound
+    filling.queued = GATHER_BYTES
+    gatherer.release(filling)  # what its wake-up does (driver.Wakeup.set)
+    assert filling.flushed_at == 3
+    await _turns([small, filling], 3, gatherer)
+    assert small.flushed_at is None
 
 
 # ---- over a real server ---------------------------------------------------------------
@@ -154,9 +171,9 @@ async def _run_burst(monkeypatch: pytest.MonkeyPatch, off: str | None) -> tuple[
         real(self, frames)
 
     monkeypatch.setattr(WebSocketChannel, "send_now", spy)
-    # the gathering ends with the burst, not with the time bound: a slow machine
-    # (turns of a millisecond) would write every message alone within it
-    monkeypatch.setattr(gather, "GATHER_S", 3600.0)
+    # a longer time bound than GATHER_S: a slow machine (turns of a millisecond)
+    # would write every message alone within 1 ms
+    monkeypatch.setattr(gather, "GATHER_S", 0.5)
     graph = Graph()
     publisher = graph.create_publisher("/burst", "std_msgs/msg/String")
     turns = _texts()
