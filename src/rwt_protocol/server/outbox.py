@@ -53,7 +53,7 @@ class OutFrame:
     """One frame to send; shared by the subscribers of a form, so never changed once queued.
 
     Not a frozen dataclass only for speed: a frozen one's ``__init__`` sets each
-    field through ``object.__setattr__``, 1.4 us a frame against 0.5 us, paid per
+    field through ``object.__setattr__``, 1.4 us a frame against 0.7 us, paid per
     message and subscription id of a burst (benchmarks/README.md, Foxglove). Only
     the transport writes ``header``, once.
 
