@@ -5,12 +5,15 @@ with its server in process: one embeds rwt (``rwt.Graph`` publishers served by
 ``rwt.RosbridgeServer``, which answers ``foxglove.sdk.v1`` on its WebSocket
 port), the other the Foxglove SDK from PyPI (``foxglove.start_server`` and
 ``Channel.log``, its Rust server). Both send the same bytes: CDR of
-``std_msgs/msg/String`` and ``sensor_msgs/msg/Image`` with a ROS 2 schema. rwt's
-robot publishes dicts (the graph validates and serializes them) and yields to
-its event loop after each message, as an asyncio program does
-(``--rwt-yield-every N``: after every N); the SDK's robot
-packs the CDR itself (a template and a counter: one copy per message) and calls
-``Channel.log`` with ``log_time`` set to the wall clock.
+``std_msgs/msg/String`` and ``sensor_msgs/msg/Image`` with a ROS 2 schema. Both
+robots pack the CDR themselves (a template and a counter: one copy per
+message): the SDK's calls ``Channel.log`` with ``log_time`` set to the wall
+clock, in a plain loop (its server runs on threads of its own); rwt's publishes
+the bytes (``LocalPublisher.publish(bytes)``, docs/embedding.md) and yields to
+its event loop, where its server runs, after each message (``--rwt-yield-every
+N``: after every N), or after every ``BATCH`` in the ``batch`` scenarios.
+``--with-dicts`` adds a third robot, rwt's publishing dicts (the graph
+validates and serializes them).
 
 The readers are one separate process per scenario (``python -m
 benchmarks.foxglove reader``): bare sockets in a ``selectors`` loop that cut
@@ -23,6 +26,7 @@ and reported as medians:
   10 readers: delivered %, delivered msg/s (all readers, from the first send to
   the last delivery), server CPU us per delivered message, and the robot's own
   rate of publish (``log``) calls, from its first to its last.
+- ``batch1``, ``batch10``: the same, rwt's robot yielding every ``BATCH`` messages.
 - ``large``: 2,000 x 100 kB to one reader: MB/s and loss.
 - ``image1``, ``image5``: a 2 MB ``sensor_msgs/Image`` at 30 Hz to 1 and 5
   readers: p50 and p99 latency, from the log time in the message data header to
@@ -67,6 +71,8 @@ IMAGE = "/image"
 STRING_SCHEMA = b"string data\n"
 SERVERS = ("rwt", "sdk")
 IMAGE_W, IMAGE_H = 1000, 666  # rgb8: 1,998,000 bytes of pixels
+BATCH = 100
+"""Messages rwt's robot publishes between yields in ``batch1``/``batch10`` (docs/embedding.md)."""
 
 
 @dataclass(frozen=True)
@@ -80,6 +86,7 @@ class Scenario:
     readers: int
     hz: float = 0.0  # 0: as fast as the robot sends
     stalled: bool = False
+    batch: int = 0  # rwt's robot yields after this many messages (0: its --rwt-yield-every)
 
 
 def scenarios(quick: bool) -> list[Scenario]:
@@ -88,6 +95,8 @@ def scenarios(quick: bool) -> list[Scenario]:
     return [
         Scenario("burst1", BURST, 300 if q else 20_000, 100, 1),
         Scenario("burst10", BURST, 300 if q else 20_000, 100, 10),
+        Scenario("batch1", BURST, 300 if q else 20_000, 100, 1, batch=BATCH),
+        Scenario("batch10", BURST, 300 if q else 20_000, 100, 10, batch=BATCH),
         Scenario("large", BURST, 20 if q else 2_000, 100_000, 1),
         Scenario("image1", IMAGE, 5 if q else 150, IMAGE_W * IMAGE_H * 3, 1, hz=30.0),
         Scenario("image5", IMAGE, 5 if q else 150, IMAGE_W * IMAGE_H * 3, 5, hz=30.0),
@@ -543,7 +552,7 @@ class Robot:
             "size": scenario.size,
             "hz": scenario.hz,
             "subs": subs,
-            "yield_every": self.yield_every,
+            "yield_every": scenario.batch or self.yield_every,
             "dicts": self.dicts,
         }
         self.proc.stdin.write(json.dumps(cmd) + "\n")
@@ -683,6 +692,12 @@ ROWS: list[tuple[str, str, str]] = [
     ("burst10", "msg_per_s", "delivered msg/s"),
     ("burst10", "cpu_us_per_msg", "server CPU us/delivered msg"),
     ("burst10", "sent_per_s", "the robot's publish calls/s"),
+    ("batch1", "delivered_pct", "delivered %"),
+    ("batch1", "msg_per_s", "delivered msg/s"),
+    ("batch1", "cpu_us_per_msg", "server CPU us/delivered msg"),
+    ("batch10", "delivered_pct", "delivered %"),
+    ("batch10", "msg_per_s", "delivered msg/s"),
+    ("batch10", "cpu_us_per_msg", "server CPU us/delivered msg"),
     ("large", "mb_per_s", "MB/s"),
     ("large", "delivered_pct", "delivered %"),
     ("large", "cpu_us_per_msg", "server CPU us/delivered msg"),
@@ -717,7 +732,8 @@ def title(scenario: Scenario) -> str:
         f"{shown} Image at {scenario.hz:.0f} Hz" if scenario.hz else f"{scenario.count:,} x {shown}"
     )
     readers = f"to {scenario.readers} reader{'s' if scenario.readers > 1 else ''}"
-    return f"{what} {readers}" + (" beside a stalled one" if scenario.stalled else "")
+    batch = f", rwt's robot yielding every {scenario.batch}" if scenario.batch else ""
+    return f"{what} {readers}{batch}" + (" beside a stalled one" if scenario.stalled else "")
 
 
 def table(results: dict[str, dict[str, list[dict[str, Any]]]], rounds: int, quick: bool) -> str:

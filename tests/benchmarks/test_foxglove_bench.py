@@ -34,7 +34,17 @@ def test_quick_run_delivers_everything_on_both_servers(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "| 300 x 100 B to 10 readers: delivered % | 100.0 | 100.0 | 1.00 |" in proc.stdout
     results = json.loads(out.read_text())["results"]
-    assert set(results) == {"burst1", "burst10", "large", "image1", "image5", "alone", "stalled"}
+    assert set(results) == {
+        "burst1",
+        "burst10",
+        "batch1",
+        "batch10",
+        "large",
+        "image1",
+        "image5",
+        "alone",
+        "stalled",
+    }
     for name, runs in results.items():
         for kind in ("rwt", "sdk"):
             (figures,) = runs[kind]
