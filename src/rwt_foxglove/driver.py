@@ -140,8 +140,9 @@ class Wakeup:
             self._wake()
         elif self._gathering:
             gatherer.more = True
-            if self.queued_bytes() >= GATHER_BYTES:  # enough for a write of its own
-                gatherer.release(self)
+            session = self._session  # (per delivery: no call of ``queued_bytes``)
+            if session is not None and session.queued_bytes >= GATHER_BYTES:
+                gatherer.release(self)  # enough for a write of its own
         else:
             self._gathering = True
             gatherer.join(self)
