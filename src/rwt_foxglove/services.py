@@ -155,9 +155,7 @@ class ServiceCalls:
             self._fail(op.service_id, op.call_id, problem or "unknown service")
             return
         try:
-            request = decode_wire(
-                self._graph.registry, self._wire, service.srvtype.request, bytes(op.payload)
-            )
+            request = decode_wire(self._graph.registry, service.srvtype.request, bytes(op.payload))
         except FoxgloveInputError as exc:
             self._fail(op.service_id, op.call_id, f"bad request: {exc.message}")
             return

@@ -518,7 +518,7 @@ class FoxgloveSession:
             value = decode_json_text(bytes(op.payload), "message")
             self._graph.publish(self._client_id, rosbridge.Publish(topic=channel.topic, msg=value))
             return
-        msg = decode_wire(self._graph.registry, self._wire, channel.mtype, bytes(op.payload))
+        msg = decode_wire(self._graph.registry, channel.mtype, bytes(op.payload))
         self._graph.publish_local(self._client_id, channel.topic, msg, latch=False)
 
     # ---- the graph ----------------------------------------------------------------

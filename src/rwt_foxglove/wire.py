@@ -10,8 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rwt_graph.types.registry import codec_for
-from rwt_graph.types.wire import CdrError, read_cdr, wire_input
-from rwt_protocol.errors import RwtError
+from rwt_graph.types.wire import CdrError
 
 from .protocol import FoxgloveInputError
 
@@ -23,26 +22,19 @@ if TYPE_CHECKING:
 __all__ = ["decode_wire", "encode_wire"]
 
 
-def decode_wire(
-    registry: TypeRegistry, wire: str, mtype: MessageType, data: bytes
-) -> dict[str, object]:
-    """``data``, a message of ``mtype`` in ``wire`` (``cdr`` or ``ros1``), in the internal form.
+def decode_wire(registry: TypeRegistry, mtype: MessageType, data: bytes) -> dict[str, object]:
+    """``data``, a message of ``mtype`` in the dialect's wire encoding, in the internal form.
+
+    The encoding is the graph's (``cdr`` for ROS 2, ``ros1``: ``schemas.wire_encoding``),
+    read by ``WireCodec.deserialize``.
 
     Raises:
         FoxgloveInputError: ``data`` is not a message of ``mtype``.
     """
-    store = registry.typestore()
     try:
-        if wire == "cdr":
-            obj = read_cdr(store, wire_input(data), mtype.rosbags_name)
-        else:
-            obj = store.deserialize_ros1(data, mtype.rosbags_name)
-        return mtype.from_python(obj)
-    except (CdrError, RwtError, KeyError, ValueError, TypeError, IndexError) as exc:
-        text = exc.message if isinstance(exc, RwtError) else str(exc)
-        raise FoxgloveInputError(
-            f"{mtype.name}: not a {wire} message of this type ({text[:200]})"
-        ) from None
+        return codec_for(registry, mtype).deserialize(data)
+    except CdrError as exc:
+        raise FoxgloveInputError(exc.message) from None
 
 
 def encode_wire(registry: TypeRegistry, mtype: MessageType, msg: Mapping[str, object]) -> bytes:

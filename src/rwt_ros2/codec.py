@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from rwt_graph.types.wire import CdrError, read_cdr, wire_input
+from rwt_graph.types.registry import codec_for
+from rwt_graph.types.wire import CdrError
 from rwt_protocol.errors import GraphError
 
 if TYPE_CHECKING:
@@ -26,10 +27,9 @@ def decode(registry: TypeRegistry, mtype: MessageType, data: bytes) -> dict[str,
         GraphError: ``data`` is not a CDR message of ``mtype`` (a peer's bytes).
     """
     try:
-        obj = read_cdr(registry.typestore(), wire_input(data), mtype.rosbags_name)
-        return mtype.from_python(obj)
-    except (CdrError, KeyError, ValueError, TypeError) as exc:
-        raise GraphError(f"{mtype.name}: not a CDR message of this type ({exc})") from None
+        return codec_for(registry, mtype).deserialize(data)
+    except CdrError as exc:
+        raise GraphError(exc.message) from None
 
 
 def encode(registry: TypeRegistry, mtype: MessageType, msg: dict[str, object]) -> bytes:

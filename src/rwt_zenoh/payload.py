@@ -14,7 +14,7 @@ from rosbags.interfaces import Nodetype
 
 from rwt_graph.types import Dialect, codec_for
 from rwt_graph.types.hashes import rihs01
-from rwt_graph.types.wire import read_cdr, wire_input
+from rwt_graph.types.wire import CdrError
 
 from .wire import WireError
 
@@ -131,10 +131,9 @@ def decode_message(registry: TypeRegistry, mtype: MessageType, data: bytes) -> d
     """
     _ros2(registry)
     try:
-        obj = read_cdr(registry.typestore(), wire_input(data), mtype.rosbags_name)
-    except Exception as exc:  # rosbags raises assorted errors for malformed bytes
-        raise WireError(f"{mtype.name}: not a CDR message of this type ({exc})") from None
-    return mtype.from_python(obj)
+        return codec_for(registry, mtype).deserialize(data)
+    except CdrError as exc:
+        raise WireError(exc.message) from None
 
 
 def service_hash(registry: TypeRegistry, srvtype: ServiceType) -> str:

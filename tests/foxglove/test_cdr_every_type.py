@@ -149,7 +149,7 @@ def test_rwt_reads_and_writes_rclpy_cdr(registry: TypeRegistry, type_name: str) 
         warnings.simplefilter("ignore", DeprecationWarning)
         theirs = bytes(serialize_message(message))
     mtype = registry.message(type_name)
-    ours = encode_wire(registry, mtype, decode_wire(registry, "cdr", mtype, theirs))
+    ours = encode_wire(registry, mtype, decode_wire(registry, mtype, theirs))
     # rclpy may pad the end up to a multiple of 4 bytes (uninitialised too), and its length
     # counts 4 bytes a wstring that it never writes (a terminator); rwt stops at the last field
     end = len(ours) + (-len(ours) % 4) + 4 * _wstrings(message)
@@ -180,7 +180,7 @@ def test_wstrings_read_and_written_as_rclpy_does(registry: TypeRegistry) -> None
     mtype = registry.message("test_msgs/msg/WStrings")
     # the first wstring: 5 UTF-16 code units, each in 4 bytes, the emoji as two of them
     assert theirs[4:28].hex() == "0500000068000000e9000000ac2000003dd8000000de0000"
-    decoded = decode_wire(registry, "cdr", mtype, theirs)
+    decoded = decode_wire(registry, mtype, theirs)
     assert decoded["wstring_value"] == "hé€😀" and decoded["wstring_value_default1"] == ""
     assert decoded["array_of_wstrings"] == texts
     assert decoded["unbounded_sequence_of_wstrings"] == texts

@@ -21,7 +21,7 @@ BIG = 2**62 + 1  # past 2^53: a float would round it
 
 def _sum(graph: Graph, payload: bytes) -> object:
     mtype = graph.registry.message(f"{ADD}_Response")
-    return decode_wire(graph.registry, "cdr", mtype, payload)["sum"]
+    return decode_wire(graph.registry, mtype, payload)["sum"]
 
 
 def _request(graph: Graph, a: int, b: int) -> bytes:

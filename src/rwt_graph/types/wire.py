@@ -227,17 +227,17 @@ class WireCodec:
         """
         store = self._typestore()
         name = self.mtype.rosbags_name
+        ros1 = self.mtype.dialect is Dialect.ROS1
         try:
-            if self.mtype.dialect is Dialect.ROS1:
+            if ros1:
                 obj = store.deserialize_ros1(data, name)
             else:
                 obj = read_cdr(store, wire_input(data), name)
             return self.mtype.from_python(obj)
-        except CdrError:
-            raise
         except Exception as exc:  # rosbags' and the conversion's assorted errors
             text = getattr(exc, "message", None) or str(exc)
-            reason = f"{self.mtype.name}: not a message of this type ({text[:200]})"
+            form = "ros1" if ros1 else "cdr"
+            reason = f"{self.mtype.name}: not a {form} message of this type ({text[:200]})"
             raise CdrError(reason) from None
 
     def serializer(self) -> Callable[[Msg], memoryview]:
