@@ -794,7 +794,8 @@ def run(
     ``yield_every``: messages rwt's robot publishes between two yields to its event loop.
     ``base_src``: a third robot, ``base``, runs rwt from this ``src`` directory (another
     commit's) in the same rounds: before and after a change in one run.
-    ``dicts``: instead, the third robot, ``dicts``, is rwt's publishing dicts, not CDR.
+    ``dicts``: the third robot publishes dicts, not CDR: ``base`` (an rwt from before
+    ``publish(bytes)``), or without ``base_src`` one of its own, ``dicts``, on this rwt.
     """
     idle_s = 1.5 if quick else 3.0
     third = "base" if base_src is not None else "dicts" if dicts else None
@@ -804,7 +805,7 @@ def run(
             kind,
             1 if kind == "sdk" else yield_every,
             base_src if kind == "base" else None,
-            dicts=kind == "dicts",
+            dicts=kind == "dicts" or (kind == "base" and dicts),
         )
         for kind in kinds
     }
@@ -859,7 +860,7 @@ def main(argv: list[str]) -> int:
         "--with-dicts",
         action="store_true",
         help="also run rwt's robot publishing dicts (the graph serializes them) in the same"
-        " rounds: column `rwt dicts`",
+        " rounds: column `rwt dicts`; with --base-src, the base robot publishes dicts",
     )
     parser.add_argument(
         "--out", type=Path, default=None, help="the JSON results (default: results/foxglove.json)"
