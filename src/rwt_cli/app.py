@@ -2,29 +2,82 @@
 
 from __future__ import annotations
 
+import importlib
 import importlib.metadata
 import sys
 from collections.abc import Sequence
 from typing import Annotated, Any
 
 import typer
-from typer.core import TyperGroup
+import typer.main
+from typer.core import TyperCommand, TyperGroup
 
-from rwt_conformance.cli import conformance
-
-from .bag import bag_app
 from .checks import ClickException, NoArgsIsHelpError, error_line
 from .groups import GroupedCommand
-from .play import play
-from .record import record
-from .router import router
-from .serve import serve
 
 __all__ = ["app", "main"]
 
+#: Each command: the module and name of its function (or typer group), its short help
+#: and its click class. A command's module is imported when the command runs or its
+#: help is shown, not with the CLI: ``rwt bag info`` does not load the server, nor
+#: ``rwt serve`` the conformance runner (a few tenths of a second a run).
+_COMMANDS: dict[str, tuple[str, str, str, type[TyperCommand] | None]] = {
+    "conformance": (
+        "rwt_conformance.cli",
+        "conformance",
+        "Check a rosbridge server against the conformance suite.",
+        None,
+    ),
+    "record": ("rwt_cli.record", "record", "Record topics of a rosbridge server into a bag.", None),
+    "serve": ("rwt_cli.serve", "serve", "Run a rosbridge server.", GroupedCommand),
+    "play": ("rwt_cli.play", "play", "Serve a bag's topics as a live robot.", None),
+    "router": (
+        "rwt_cli.router",
+        "router",
+        "Run a Zenoh router for rwt servers and ROS 2 nodes.",
+        None,
+    ),
+    "bag": ("rwt_cli.bag", "bag_app", "Inspect bags.", None),
+}
+
+
+def _load(name: str) -> Any:
+    """The click command ``name`` of ``_COMMANDS``, its module imported now."""
+    module, attribute, short_help, cls = _COMMANDS[name]
+    try:
+        target = getattr(importlib.import_module(module), attribute)
+    except ModuleNotFoundError as exc:  # as rwt._cli says when the CLI itself cannot load
+        typer.echo(
+            f"rwt: the command line needs the server extra ({exc.name} is missing): "
+            'python -m pip install "rwt[server]"',
+            err=True,
+        )
+        sys.exit(2)
+    holder = typer.Typer(rich_markup_mode=None, add_completion=False)  # as ``app``'s
+    if isinstance(target, typer.Typer):
+        holder.add_typer(target, name=name, short_help=short_help)
+    else:
+        holder.command(name, short_help=short_help, cls=cls)(target)
+    return typer.main.get_group(holder).commands[name]
+
 
 class _RwtGroup(TyperGroup):
-    """The ``rwt`` group: an error is one line on stderr, not a usage box or a traceback."""
+    """The ``rwt`` group: an error is one line on stderr, not a usage box or a traceback.
+
+    Its commands (``_COMMANDS``) load when asked for.
+    """
+
+    def list_commands(self, ctx: Any) -> list[str]:
+        """The names of ``rwt``'s commands, in the order ``rwt --help`` lists them."""
+        return list(_COMMANDS)
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        """The command ``cmd_name``, its module imported on first use; None if unknown."""
+        command = super().get_command(ctx, cmd_name)
+        if command is None and cmd_name in _COMMANDS:
+            command = _load(cmd_name)
+            self.add_command(command, cmd_name)
+        return command
 
     def main(
         self,
@@ -89,13 +142,6 @@ def main(
     Run a server with 'rwt serve'; check one with 'rwt conformance URL'.
     """
 
-
-app.command(short_help="Check a rosbridge server against the conformance suite.")(conformance)
-app.command(short_help="Record topics of a rosbridge server into a bag.")(record)
-app.add_typer(bag_app, name="bag", short_help="Inspect bags.")
-app.command(short_help="Run a rosbridge server.", cls=GroupedCommand)(serve)
-app.command(short_help="Serve a bag's topics as a live robot.")(play)
-app.command(short_help="Run a Zenoh router for rwt servers and ROS 2 nodes.")(router)
 
 if __name__ == "__main__":  # python -m rwt_cli.app
     app(prog_name="rwt")

@@ -18,7 +18,6 @@ from rwt_bag.errors import BagError
 from rwt_bag.formats import BagFormat, ChunkCompression, Compression, SplitPolicy, is_ros1_bag
 from rwt_bag.selection import TopicSelection
 from rwt_graph.types import Dialect
-from rwt_protocol.server.access import parse_glob_list
 
 from .checks import check_directories, check_glob_list
 
@@ -276,6 +275,8 @@ def topic_selection(
     Raises:
         typer.BadParameter: an expression that is not a regular expression.
     """
+    from rwt_protocol.server.access import parse_glob_list  # noqa: PLC0415 - see checks
+
     excluded = [name.strip() for item in exclude_topics or () for name in item.split(",")]
     try:
         return TopicSelection.of(
@@ -387,6 +388,7 @@ def play_options(
     if not paths:
         return None
     from rwt_bag.jobs import PlayOptions  # noqa: PLC0415 - see record_options
+    from rwt_protocol.server.access import parse_glob_list  # noqa: PLC0415 - see checks
 
     until_ns = None
     if until_sec is not None:

@@ -15,8 +15,6 @@ from typing import Any, Protocol, cast
 
 import typer
 
-from rwt_protocol.server.access import parse_glob_list
-
 __all__ = [
     "ClickException",
     "NoArgsIsHelpError",
@@ -102,6 +100,9 @@ def check_glob_list(text: str) -> str:
     Raises:
         OptionError: naming the pattern and its problem.
     """
+    # the server's access module loads its ops: rwt bag and rwt record need neither
+    from rwt_protocol.server.access import parse_glob_list  # noqa: PLC0415
+
     for pattern in parse_glob_list(text):
         problem = _pattern_problem(pattern)
         if problem is not None:

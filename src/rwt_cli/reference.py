@@ -39,10 +39,13 @@ def render() -> str:
 
 def _subcommands(prefix: str, group: Any, parts: list[str]) -> None:
     """Each command of ``group``, sorted, and those of its groups (``rwt bag info``)."""
-    commands: dict[str, Any] = getattr(group, "commands", {})
-    for name in sorted(commands):
-        parts.append(_command(f"{prefix} {name}", commands[name]))
-        _subcommands(f"{prefix} {name}", commands[name], parts)
+    if not hasattr(group, "list_commands"):
+        return
+    context = _context(group)
+    for name in sorted(group.list_commands(context)):
+        command = group.get_command(context, name)  # rwt's commands load when asked for
+        parts.append(_command(f"{prefix} {name}", command))
+        _subcommands(f"{prefix} {name}", command, parts)
 
 
 def _command(name: str, command: Any) -> str:

@@ -1,13 +1,15 @@
 """Which ROS edition a server speaks, asked of the server itself.
 
-Two questions, over one connection, each bounded:
+Two questions, asked at once over one connection and bounded together (a
+server that answers neither costs one timeout, not two):
 
 1. ``/rosapi/get_ros_version`` (rosapi of rosbridge_suite 2.x and rwt): its
    ``version`` is 1 or 2.
 2. When that service is absent (rosbridge_suite 0.11.x has none,
    docs/reference-behaviour.md REF §7.1), ``/rosapi/message_details`` of
    ``std_msgs/Header``: ROS 1's header starts with ``seq`` and its stamp is a
-   ``time``; ROS 2's has neither.
+   ``time``; ROS 2's has neither. Its answer is used only when the first
+   question's is not.
 
 A server that answers neither is taken to be ROS 2, the default of rwt and of
 rosbridge_suite's current branch, and the answer says so. So is a server that
@@ -66,13 +68,10 @@ async def detect_dialect(
         if auth_secret is not None:
             host = urlsplit(url).hostname or ""
             await send_within(conn, json.dumps(auth_op(auth_secret, {}, host)), timeout_s)
-        version = await _call(conn, "/rosapi/get_ros_version", {}, timeout_s)
-        if isinstance(version, dict) and version.get("version") in (1, 2):
+        version, details = await _ask(conn, timeout_s)
+        if isinstance(version, dict) and _tells_version(version):
             dialect = Dialect.ROS1 if version["version"] == 1 else Dialect.ROS2
             return dialect, f"/rosapi/get_ros_version says {version['version']}"
-        details = await _call(
-            conn, "/rosapi/message_details", {"type": "std_msgs/Header"}, timeout_s
-        )
         names = _header_fields(details)
         if names is not None:
             dialect = Dialect.ROS1 if "seq" in names else Dialect.ROS2
@@ -86,23 +85,39 @@ async def detect_dialect(
         await close_within(conn)
 
 
-async def _call(
-    conn: Connection, service: str, args: dict[str, object], timeout_s: float
-) -> object:
-    """The ``values`` of a successful call, or None (failed, or no answer in time)."""
-    call_id = f"rwt_conformance_detect:{service}"
-    call = {"op": "call_service", "service": service, "args": args, "id": call_id}
-    await send_within(conn, json.dumps(call), timeout_s)
+_VERSION = "/rosapi/get_ros_version"
+_DETAILS = "/rosapi/message_details"
+
+
+async def _ask(conn: Connection, timeout_s: float) -> tuple[object, object]:
+    """Both questions' ``values`` (None: failed, or no answer in ``timeout_s``).
+
+    Both calls go out at once; the wait ends when ``get_ros_version`` has told the
+    dialect, when both are answered, or after ``timeout_s``.
+    """
+    questions: dict[str, tuple[str, dict[str, object]]] = {
+        f"rwt_conformance_detect:{_VERSION}": (_VERSION, {}),
+        f"rwt_conformance_detect:{_DETAILS}": (_DETAILS, {"type": "std_msgs/Header"}),
+    }
+    for call_id, (service, args) in questions.items():
+        call = {"op": "call_service", "service": service, "args": args, "id": call_id}
+        await send_within(conn, json.dumps(call), timeout_s)
+    answers: dict[str, object] = {}
     with anyio.move_on_after(timeout_s):
-        while True:
+        while len(answers) < len(questions) and not _tells_version(answers.get(_VERSION)):
             value = decode_frame(await conn.receive()).value
-            if (
-                isinstance(value, dict)
-                and value.get("op") == "service_response"
-                and value.get("id") == call_id
-            ):
-                return value.get("values") if value.get("result") is True else None
-    return None
+            if not isinstance(value, dict) or value.get("op") != "service_response":
+                continue
+            answer_id = value.get("id")
+            if isinstance(answer_id, str) and answer_id in questions:
+                service = questions[answer_id][0]
+                answers[service] = value.get("values") if value.get("result") is True else None
+    return answers.get(_VERSION), answers.get(_DETAILS)
+
+
+def _tells_version(values: object) -> bool:
+    """Whether a ``get_ros_version`` answer says 1 or 2."""
+    return isinstance(values, dict) and values.get("version") in (1, 2)
 
 
 def _header_fields(details: object) -> list[str] | None:

@@ -236,7 +236,8 @@ def commands() -> list[list[str]]:
     """`rwt` and each of its commands, as argument lists for --help."""
     group = typer.main.get_command(app)
     assert isinstance(group, typer.core.TyperGroup)
-    return [[], *([name] for name in sorted(group.commands))]
+    names = group.list_commands(group.context_class(group, info_name="rwt"))
+    return [[], *([name] for name in sorted(names))]
 
 
 @pytest.mark.parametrize("command", commands(), ids=lambda c: " ".join(["rwt", *c]))

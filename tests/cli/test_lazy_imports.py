@@ -36,7 +36,8 @@ import sys
 
 import anyio
 
-import rwt_cli.app  # everything `rwt serve` imports
+import rwt_cli.app
+import rwt_cli.serve  # everything `rwt serve` imports (the CLI loads a command when it runs)
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
 from rwt_protocol.codecs.json import parse_object
