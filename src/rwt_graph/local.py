@@ -76,7 +76,7 @@ class LocalPublisher:
             GraphError: the publisher was closed.
         """
         if isinstance(msg, (bytes, bytearray, memoryview)):
-            data = bytes(msg)
+            data = msg if type(msg) is bytes else bytes(msg)  # (per message: no call for bytes)
             check_wire_header(self.msgtype.dialect, data)
             self._port.publish_local(self._client, self.topic, None, latch=self.latch, wire=data)
             return

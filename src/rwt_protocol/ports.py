@@ -115,14 +115,16 @@ class MessageEvent:
             values. Subscribers that send this form pass it on unchanged
             instead of serializing ``msg`` (Foxglove message data, cbor-raw).
             Subscribers that send it so never decode a message given only as ``wire``.
+        memos: the forms ``encoded`` and ``memo`` made, by key; a hot path may
+            read and fill it directly with the same care for keys (no call).
     """
 
     __slots__ = (
-        "_cache",
         "_error",
         "_msg",
         "codec",
         "encodings_made",
+        "memos",
         "now",
         "stamp",
         "topic",
@@ -136,7 +138,6 @@ class MessageEvent:
         type_name: str,
         msg: dict[str, object] | None,
         now: float,
-        *,
         stamp: float = 0.0,
         codec: MessageCodec | None = None,
         wire: bytes | None = None,
@@ -153,7 +154,7 @@ class MessageEvent:
         self.codec = codec
         self.wire = wire
         self.encodings_made = 0
-        self._cache: dict[Hashable, object] = {}
+        self.memos: dict[Hashable, object] = {}
 
     @property
     def msg(self) -> dict[str, object]:
@@ -183,17 +184,17 @@ class MessageEvent:
         ``key`` names everything the form depends on (encoding, topic spelling,
         fragment size); each call of ``make`` counts in ``encodings_made``.
         """
-        if key in self._cache:
-            return self._cache[key]  # type: ignore[return-value]
-        value = self._cache[key] = make()
+        if key in self.memos:
+            return self.memos[key]  # type: ignore[return-value]
+        value = self.memos[key] = make()
         self.encodings_made += 1
         return value
 
     def memo(self, key: Hashable, make: Callable[[], _T]) -> _T:
         """Like ``encoded`` for an intermediate form (not counted in ``encodings_made``)."""
-        if key in self._cache:
-            return self._cache[key]  # type: ignore[return-value]
-        value = self._cache[key] = make()
+        if key in self.memos:
+            return self.memos[key]  # type: ignore[return-value]
+        value = self.memos[key] = make()
         return value
 
 

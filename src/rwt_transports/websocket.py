@@ -30,7 +30,7 @@ import logging
 import os
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING, Final, TypeAlias
 
 import anyio
 from websockets.exceptions import InvalidState
@@ -745,12 +745,16 @@ def _framed_anew(frames: Sequence[OutFrame]) -> list[bytes]:
 
 def _header(length: int, binary: bool) -> bytes:
     """The header of a whole unmasked server frame (RFC 6455 5.2): FIN, opcode, length."""
+    if length < 126:  # a small message of a burst: the header made once (per frame)
+        return (_SMALL_BINARY if binary else _SMALL_TEXT)[length]
     first = 0x82 if binary else 0x81
-    if length < 126:
-        return bytes((first, length))
     if length < 65536:
         return struct.pack("!BBH", first, 126, length)
     return struct.pack("!BBQ", first, 127, length)
+
+
+_SMALL_TEXT: Final = tuple(bytes((0x81, length)) for length in range(126))
+_SMALL_BINARY: Final = tuple(bytes((0x82, length)) for length in range(126))
 
 
 def _agent(headers: Headers) -> str:
