@@ -13,7 +13,9 @@ the bytes (``LocalPublisher.publish(bytes)``, docs/embedding.md) and yields to
 its event loop, where its server runs, after each message (``--rwt-yield-every
 N``: after every N), or after every ``BATCH`` in the ``batch`` scenarios.
 ``--with-dicts`` adds a third robot, rwt's publishing dicts (the graph
-validates and serializes them).
+validates and serializes them). ``--uvloop`` runs rwt's robots on uvloop
+(``rwt serve --uvloop``, the ``uvloop`` extra), where a turn of the event loop
+costs about half of asyncio's.
 
 The readers are one separate process per scenario (``python -m
 benchmarks.foxglove reader``): bare sockets in a ``selectors`` loop that cut
@@ -188,7 +190,7 @@ def _rwt_robot() -> None:
                 await send(cmd)
             server.stop()
 
-    anyio.run(main)
+    anyio.run(main, backend_options={"use_uvloop": "uvloop" in sys.argv[3:]})
 
 
 def _rwt_messages(
@@ -505,7 +507,13 @@ class Robot:
     """A robot process (``rwt`` or ``sdk``) and its server's port."""
 
     def __init__(
-        self, kind: str, yield_every: int = 1, src: str | None = None, *, dicts: bool = False
+        self,
+        kind: str,
+        yield_every: int = 1,
+        src: str | None = None,
+        *,
+        dicts: bool = False,
+        uvloop: bool = False,
     ) -> None:
         self.kind = kind  # ``base``: rwt's robot on the rwt source at ``src``
         self.yield_every = yield_every  # rwt's robot: messages between yields to its loop
@@ -523,6 +531,7 @@ class Robot:
                 "benchmarks.foxglove",
                 "robot",
                 "sdk" if kind == "sdk" else "rwt",
+                *(["uvloop"] if uvloop and kind != "sdk" else []),
             ],
             env=env,
             stdin=subprocess.PIPE,
@@ -788,6 +797,7 @@ def run(
     base_src: str | None = None,
     *,
     dicts: bool = False,
+    uvloop: bool = False,
 ) -> dict[str, Any]:
     """Start both robots, run every scenario in interleaved rounds; the results by scenario.
 
@@ -796,6 +806,7 @@ def run(
     commit's) in the same rounds: before and after a change in one run.
     ``dicts``: the third robot publishes dicts, not CDR: ``base`` (an rwt from before
     ``publish(bytes)``), or without ``base_src`` one of its own, ``dicts``, on this rwt.
+    ``uvloop``: rwt's robots run on uvloop.
     """
     idle_s = 1.5 if quick else 3.0
     third = "base" if base_src is not None else "dicts" if dicts else None
@@ -806,6 +817,7 @@ def run(
             1 if kind == "sdk" else yield_every,
             base_src if kind == "base" else None,
             dicts=kind == "dicts" or (kind == "base" and dicts),
+            uvloop=uvloop,
         )
         for kind in kinds
     }
@@ -863,6 +875,9 @@ def main(argv: list[str]) -> int:
         " rounds: column `rwt dicts`; with --base-src, the base robot publishes dicts",
     )
     parser.add_argument(
+        "--uvloop", action="store_true", help="rwt's robots run on uvloop (rwt serve --uvloop)"
+    )
+    parser.add_argument(
         "--out", type=Path, default=None, help="the JSON results (default: results/foxglove.json)"
     )
     args = parser.parse_args(argv)
@@ -875,6 +890,7 @@ def main(argv: list[str]) -> int:
         max(1, args.rwt_yield_every),
         args.base_src,
         dicts=args.with_dicts,
+        uvloop=args.uvloop,
     )
     text = table(results, rounds, args.quick)
     print(text)
@@ -884,6 +900,7 @@ def main(argv: list[str]) -> int:
         payload = {
             "rounds": rounds,
             "quick": args.quick,
+            "uvloop": args.uvloop,
             "minutes": (time.perf_counter() - started) / 60,
         }
         out.write_text(json.dumps(payload | {"results": results}, indent=1) + "\n")

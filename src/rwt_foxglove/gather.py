@@ -13,16 +13,22 @@ written when ``GATHER_S`` have passed since the gathering began, with no look
 in between (a look a turn was a third of the loop's work per message of a
 burst: benchmarks/README.md, Foxglove). A connection that has ``GATHER_BYTES``
 queued is written at once (``release``, from its wake-up). A lone message so
-waits two turns of the loop; a message of a burst at most ``GATHER_S``.
+waits two turns of the loop; a message of a burst at most ``GATHER_S`` (on
+uvloop, whose timers count whole milliseconds, up to half a millisecond more).
+A gathering's age is read on ``time.monotonic``, not the loop's clock: uvloop's
+``loop.time`` moves in whole milliseconds, so a 1 ms gathering seemed over at
+its second look and a burst went out a few messages a write.
 """
 
 from __future__ import annotations
 
+import time
 import weakref
 from typing import TYPE_CHECKING, Final, Protocol
 
 if TYPE_CHECKING:
     import asyncio
+    from collections.abc import Callable
 
 __all__ = ["GATHER_BYTES", "GATHER_S", "Gatherer", "Member"]
 
@@ -54,16 +60,23 @@ class Gatherer:
     Args:
         loop: the event loop.
         max_s: seconds a gathering lasts at most (None: ``GATHER_S``).
+        clock: seconds for a gathering's age (``time.monotonic``; tests pass their own).
 
     Attributes:
         more: output came since the last look (set by the members' wake-ups).
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, max_s: float | None = None) -> None:
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        max_s: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self._loop = loop
+        self._clock = clock
         self._max_s = GATHER_S if max_s is None else max_s
         self._members: list[Member] = []
-        self._since = 0.0  # when this gathering began (the loop's clock)
+        self._since = 0.0  # when this gathering began (``clock``)
         self._gathering = 0  # counts gatherings: a look scheduled for an earlier one is void
         self.more = False
 
@@ -79,7 +92,7 @@ class Gatherer:
         """``member`` has output: it is written at the end of the gathering (``Member.flush``)."""
         self.more = True  # also for the first: its look must wait for the publisher's turn
         if not self._members:
-            self._since = self._loop.time()
+            self._since = self._clock()
             self._gathering += 1
             self._loop.call_soon(self._look, self._gathering, True)
         self._members.append(member)
@@ -101,9 +114,10 @@ class Gatherer:
             if self._members:  # the publisher's next turn tells a burst from a lone message
                 self._loop.call_soon(self._look, gathering, False)
             return
-        if self.more and self._loop.time() - self._since < self._max_s:  # a burst
+        age = self._clock() - self._since
+        if self.more and age < self._max_s:  # a burst
             self.more = False
-            self._loop.call_at(self._since + self._max_s, self._end, gathering)
+            self._loop.call_later(self._max_s - age, self._end, gathering)
             return
         self._end(gathering)
 

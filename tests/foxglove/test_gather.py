@@ -96,6 +96,21 @@ async def test_a_burst_that_never_ends_is_still_written() -> None:
             await _turns([member], 1, gatherer)
 
 
+async def test_a_burst_is_gathered_for_its_bound_on_a_clock_finer_than_the_loops() -> None:
+    # uvloop's loop.time moves in whole milliseconds: read there, a 1 ms gathering
+    # that began just before a tick seemed over at its second look
+    now = [0.0]
+    gatherer = Gatherer(asyncio.get_running_loop(), max_s=0.001, clock=lambda: now[0])
+    member = Member()
+    gatherer.join(member)
+    now[0] = 0.0004  # the second look: 0.4 ms into the gathering
+    await _turns([member], 2, gatherer)  # both looks (the end is on a later turn's timer)
+    assert member.flushed_at is None  # a burst: gathered until the bound
+    with anyio.fail_after(10):
+        while member.flushed_at is None:  # the rest of the bound, on the loop's timer
+            await anyio.sleep(0.001)
+
+
 async def test_a_connection_that_holds_enough_is_written_alone_at_once() -> None:
     gatherer = Gatherer(asyncio.get_running_loop(), max_s=0.2)
     small, full = Member(), Member(GATHER_BYTES)
