@@ -10,8 +10,9 @@ robots pack the CDR themselves (a template and a counter: one copy per
 message): the SDK's calls ``Channel.log`` with ``log_time`` set to the wall
 clock, in a plain loop (its server runs on threads of its own); rwt's publishes
 the bytes (``LocalPublisher.publish(bytes)``, docs/embedding.md) and yields to
-its event loop, where its server runs, after each message (``--rwt-yield-every
-N``: after every N), or after every ``BATCH`` in the ``batch`` scenarios.
+its event loop (``asyncio.sleep(0)``), where its server runs, after each
+message (``--rwt-yield-every N``: after every N), or after every ``BATCH`` in
+the ``batch`` scenarios.
 ``--with-dicts`` adds a third robot, rwt's publishing dicts (the graph
 validates and serializes them). ``--uvloop`` runs rwt's robots on uvloop
 (``rwt serve --uvloop``, the ``uvloop`` extra), where a turn of the event loop
@@ -138,6 +139,7 @@ def _reply(value: dict[str, Any]) -> None:
 
 
 def _rwt_robot() -> None:
+    import asyncio  # noqa: PLC0415
     import logging  # noqa: PLC0415
 
     import anyio  # noqa: PLC0415
@@ -176,7 +178,9 @@ def _rwt_robot() -> None:
             else:
                 burst.publish(make_text(_text(index, cmd["size"])))
             if (index + 1) % every == 0:
-                await anyio.lowlevel.checkpoint()
+                # asyncio's own yield: anyio's checkpoint asks sniffio for the
+                # backend first, 1-2 us more a turn (docs/embedding.md)
+                await asyncio.sleep(0)
         _reply({"started": started, "ended": time.monotonic_ns()})
 
     async def main() -> None:
