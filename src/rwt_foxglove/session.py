@@ -663,7 +663,7 @@ class FoxgloveSession:
 
         With ``foxglove-shared-frames``, made once per message, subscription id
         and log time (while a bag plays, the timeline's, which could move), in
-        ``event``'s memo, for every client.
+        ``event.memos``, for every client.
 
         Raises:
             Exception: the message cannot be serialized (``_payload``).
