@@ -6,6 +6,8 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+from pathlib import Path
 
 import pytest
 
@@ -27,6 +29,15 @@ def test_every_example_is_covered() -> None:
     assert set(SERVING) == {path.name for path in (REPO / "examples").glob("*.py")}
 
 
+def _signals() -> str:
+    """This process's ignored and blocked signals (a child inherits both), as /proc has them."""
+    try:
+        status = Path(f"/proc/self/task/{threading.get_native_id()}/status").read_text()
+    except OSError:
+        return "no /proc"
+    return " ".join(line for line in status.splitlines() if line.startswith(("SigIgn", "SigBlk")))
+
+
 @pytest.mark.parametrize("example", sorted(SERVING))
 def test_ctrl_c_stops_the_example_quietly(example: str) -> None:
     process = subprocess.Popen(
@@ -41,7 +52,12 @@ def test_ctrl_c_stops_the_example_quietly(example: str) -> None:
         assert process.stdout is not None
         ready = process.stdout.readline()  # blocks until it serves (or ends)
         process.send_signal(signal.SIGINT)
-        _, stderr = process.communicate(timeout=TIMEOUT_S)
+        try:
+            _, stderr = process.communicate(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            _, stderr = process.communicate()
+            pytest.fail(f"{example} still ran {TIMEOUT_S} s after SIGINT ({_signals()}): {stderr}")
     finally:
         if process.poll() is None:
             process.kill()
