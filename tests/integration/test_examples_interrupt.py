@@ -6,6 +6,8 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+from pathlib import Path
 
 import pytest
 
@@ -13,6 +15,17 @@ from .client_harness import REPO
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
 TIMEOUT_S = 60  # a bound on a hung example, not a speed requirement
+
+#: Python with SIGINT at its default, as a shell starts it. A child inherits ignored
+#: signals, and an xdist worker was seen ignoring SIGINT and SIGQUIT (SigIgn ...006, as
+#: while libc's system() runs) after other files' tests: the example then never saw
+#: the Ctrl-C this test sends.
+AS_A_SHELL_STARTS_IT = [
+    sys.executable,
+    "-c",
+    "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+    "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])",
+]
 
 #: Each example that runs until interrupted, with the arguments that pick a free port.
 SERVING = {
@@ -27,10 +40,19 @@ def test_every_example_is_covered() -> None:
     assert set(SERVING) == {path.name for path in (REPO / "examples").glob("*.py")}
 
 
+def _signals() -> str:
+    """This process's ignored and blocked signals (a child inherits both), as /proc has them."""
+    try:
+        status = Path(f"/proc/self/task/{threading.get_native_id()}/status").read_text()
+    except OSError:
+        return "no /proc"
+    return " ".join(line for line in status.splitlines() if line.startswith(("SigIgn", "SigBlk")))
+
+
 @pytest.mark.parametrize("example", sorted(SERVING))
 def test_ctrl_c_stops_the_example_quietly(example: str) -> None:
     process = subprocess.Popen(
-        [sys.executable, str(REPO / "examples" / example), *SERVING[example]],
+        [*AS_A_SHELL_STARTS_IT, str(REPO / "examples" / example), *SERVING[example]],
         env=ENV,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
@@ -41,7 +63,12 @@ def test_ctrl_c_stops_the_example_quietly(example: str) -> None:
         assert process.stdout is not None
         ready = process.stdout.readline()  # blocks until it serves (or ends)
         process.send_signal(signal.SIGINT)
-        _, stderr = process.communicate(timeout=TIMEOUT_S)
+        try:
+            _, stderr = process.communicate(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            _, stderr = process.communicate()
+            pytest.fail(f"{example} still ran {TIMEOUT_S} s after SIGINT ({_signals()}): {stderr}")
     finally:
         if process.poll() is None:
             process.kill()
