@@ -135,14 +135,13 @@ class Wakeup:
 
     def set(self) -> None:
         """Something was queued."""
-        gatherer = self._gatherer
-        if gatherer is None or not self._idle or self._woken:
+        gatherer, session = self._gatherer, self._session
+        if self._gathering and gatherer is not None and session is not None:  # a burst: first
+            gatherer.more = True  # (gathering: idle and not woken, ``flush`` ends it)
+            if session.queued_bytes >= GATHER_BYTES:  # enough for a write of its own
+                gatherer.release(self)
+        elif gatherer is None or not self._idle or self._woken:
             self._wake()
-        elif self._gathering:
-            gatherer.more = True
-            session = self._session  # (per delivery: no call of ``queued_bytes``)
-            if session is not None and session.queued_bytes >= GATHER_BYTES:
-                gatherer.release(self)  # enough for a write of its own
         else:
             self._gathering = True
             gatherer.join(self)

@@ -33,8 +33,9 @@ class OutQueue:
         max_messages: messages of data kept.
 
     Attributes:
+        data_bytes: bytes of message data queued (read only: an attribute, not a
+            property, as it is read per message).
         dropped: data frames dropped so far.
-        peak_bytes: the most bytes of message data it held at once (after drops).
     """
 
     def __init__(
@@ -43,11 +44,11 @@ class OutQueue:
         self.max_bytes = max_bytes
         self.max_messages = max(1, max_messages)
         self._frames: deque[OutFrame] = deque()
-        self._bytes = 0  # of every frame queued, data or not (``take``)
-        self._data_bytes = 0
+        self._control_bytes = 0  # of the frames that are not data (``take``)
+        self.data_bytes = 0
         self._data_count = 0
         self.dropped = 0
-        self.peak_bytes = 0
+        self._peak = 0  # ``peak_bytes`` before the bytes queued now
         self._episode_drops = 0  # drops since the queue was last empty
         self._told = False  # the client heard of this episode
 
@@ -55,9 +56,11 @@ class OutQueue:
         return len(self._frames)
 
     @property
-    def data_bytes(self) -> int:
-        """Bytes of message data queued."""
-        return self._data_bytes
+    def peak_bytes(self) -> int:
+        """The most bytes of message data held at once (after drops)."""
+        # kept when data leaves (``take``, drops), not per push: between two of those the
+        # queue only grows, so its peak is where it stood before one of them, or now
+        return max(self._peak, self.data_bytes)
 
     @property
     def data_count(self) -> int:
@@ -72,18 +75,18 @@ class OutQueue:
             been told of (the caller queues the warning then).
         """
         self._frames.append(frame)
-        length = len(frame.data)
-        self._bytes += length
         if not frame.droppable:
+            self._control_bytes += len(frame.data)
             return False
-        data_bytes = self._data_bytes = self._data_bytes + length
+        # per message and client: the fewest steps while within the bounds
         self._data_count += 1
-        if self._data_count > self.max_messages or data_bytes > self.max_bytes:
-            self._drop_oldest()
-            data_bytes = self._data_bytes
-        if data_bytes > self.peak_bytes:  # noqa: PLR1730 (per message and client: no call)
-            self.peak_bytes = data_bytes
-        if not self._episode_drops or self._told:
+        data_bytes = self.data_bytes = self.data_bytes + len(frame.data)
+        if self._data_count <= self.max_messages and data_bytes <= self.max_bytes:
+            return False
+        self._peak = max(self._peak, data_bytes - len(frame.data))  # what it held before
+        self._drop_oldest()
+        self._peak = max(self._peak, self.data_bytes)
+        if not self._episode_drops or self._told:  # (one message alone over the bytes: kept)
             return False
         self._told = True
         return True
@@ -95,12 +98,11 @@ class OutQueue:
         while (
             frames
             and self._data_count > 1
-            and (self._data_count > self.max_messages or self._data_bytes > self.max_bytes)
+            and (self._data_count > self.max_messages or self.data_bytes > self.max_bytes)
         ):
             frame = frames.popleft()
             if frame.droppable:
-                self._data_bytes -= len(frame.data)
-                self._bytes -= len(frame.data)
+                self.data_bytes -= len(frame.data)
                 self._data_count -= 1
                 self.dropped += 1
                 self._episode_drops += 1
@@ -120,10 +122,11 @@ class OutQueue:
         An empty queue ends the episode of drops.
         """
         frames = self._frames
-        if self._bytes < max_bytes:  # all of them: the loop below would take every one
+        self._peak = max(self._peak, self.data_bytes)
+        if self._control_bytes + self.data_bytes < max_bytes:  # all of them: as the loop would
             taken = list(frames)
             frames.clear()
-            self._bytes = self._data_bytes = self._data_count = 0
+            self._control_bytes = self.data_bytes = self._data_count = 0
             self._episode_drops = 0
             self._told = False
             return taken
@@ -138,8 +141,8 @@ class OutQueue:
             if frame.droppable:
                 data_bytes += length
                 data_count += 1
-        self._bytes -= size
-        self._data_bytes -= data_bytes
+        self._control_bytes -= size - data_bytes
+        self.data_bytes -= data_bytes
         self._data_count -= data_count
         if not frames:
             self._episode_drops = 0

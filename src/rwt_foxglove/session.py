@@ -634,27 +634,33 @@ class FoxgloveSession:
         now = None if clock is None else clock.now()
         try:  # every frame made before any is queued: the payload is the same for all
             if len(subscriptions) == 1:  # the usual case, without a list (per message)
-                frames: tuple[OutFrame, ...] | list[OutFrame] = (
-                    self._frame(channel, event, subscriptions[0], now),
-                )
+                frame = self._frame(channel, event, subscriptions[0], now)
             else:
                 frames = []
-                for sid in subscriptions:
+                for sid in subscriptions:  # (not a comprehension: its closure costs every call)
                     frames.append(self._frame(channel, event, sid, now))
-        except Exception as exc:  # a type rosbags cannot write: say so once per topic
-            if channel.topic not in self._failed_topics:
-                self._failed_topics.add(channel.topic)
-                logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
-                self._status(StatusLevel.ERROR, f"{channel.topic}: cannot encode its messages")
+        except Exception as exc:  # a type rosbags cannot write
+            self._encode_failed(channel, exc)
             return
         if now is not None:  # on the bag's clock, told first (a client reads receive time from it)
             self._told_time(now)
         push = self._queue.push
-        for frame in frames:
+        if len(subscriptions) == 1:
             if push(frame):
                 self._tell_dropping()
+        else:
+            for frame in frames:
+                if push(frame):
+                    self._tell_dropping()
         if self._on_output is not None:
             self._on_output()
+
+    def _encode_failed(self, channel: _ServerChannel, exc: Exception) -> None:
+        """Say once per topic that its messages cannot be encoded (``deliver``)."""
+        if channel.topic not in self._failed_topics:
+            self._failed_topics.add(channel.topic)
+            logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
+            self._status(StatusLevel.ERROR, f"{channel.topic}: cannot encode its messages")
 
     def _frame(
         self, channel: _ServerChannel, event: MessageEvent, sid: int, now: int | None
@@ -663,19 +669,22 @@ class FoxgloveSession:
 
         With ``foxglove-shared-frames``, made once per message, subscription id
         and log time (while a bag plays, the timeline's, which could move), in
-        ``event.memos``, for every client.
+        ``event.memos``, for every client. The log time is when the graph got
+        ``event`` (``MessageEvent.stamp``), or ``now`` while a bag plays.
 
         Raises:
             Exception: the message cannot be serialized (``_payload``).
         """
-        if not self._share:
-            return _frame(event.wire or self._payload(channel, event), sid, _log_time(event, now))
         key = (_FRAME_KEY, sid) if now is None else (_FRAME_KEY, sid, now)
-        cache = event.memos
-        frame = cache.get(key)
+        memos = event.memos if self._share else {}  # the shortcut off: one for each client
+        frame = memos.get(key)
         if frame is None:
             payload = event.wire or self._payload(channel, event)  # (as it came: no call)
-            frame = cache[key] = _frame(payload, sid, _log_time(event, now))
+            log_time = int(event.stamp * 1e9) if now is None else now
+            # positional: keywords to a class cost a dict per call (0.35 us a frame)
+            frame = memos[key] = OutFrame(
+                payload, True, True, None, None, encode_message_header(sid, log_time)
+            )
         return frame  # type: ignore[return-value]
 
     def _payload(self, channel: _ServerChannel, event: MessageEvent) -> bytes:
@@ -710,14 +719,3 @@ class FoxgloveSession:
         self._graph.release(self._client_id)
         self._subscriptions.clear()
         self._client_channels.clear()
-
-
-def _log_time(event: MessageEvent, now: int | None) -> int:
-    """A message data frame's log time, ns: when the graph got ``event``, or ``now`` (a bag's)."""
-    return int(event.stamp * 1e9) if now is None else now
-
-
-def _frame(payload: bytes, sid: int, log_time: int) -> OutFrame:
-    """The message data frame of ``payload`` for subscription ``sid`` (the payload shared)."""
-    # positional: keywords to a class cost a dict per call (0.35 us a frame)
-    return OutFrame(payload, True, True, None, None, encode_message_header(sid, log_time))

@@ -75,7 +75,7 @@ class LocalPublisher:
                 encapsulation header (a ``ValueError``).
             GraphError: the publisher was closed.
         """
-        if isinstance(msg, (bytes, bytearray, memoryview)):
+        if type(msg) is bytes or isinstance(msg, (bytearray, memoryview)):  # bytes: one step
             data = msg if type(msg) is bytes else bytes(msg)  # (per message: no call for bytes)
             check_wire_header(self.msgtype.dialect, data)
             self._port.publish_local(self._client, self.topic, None, latch=self.latch, wire=data)

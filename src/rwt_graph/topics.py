@@ -18,7 +18,7 @@ from rwt_protocol.errors import GraphError
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
-    from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
+    from rwt_protocol.ports import ClientId, MessageCodec, MessageEvent, TopicSink
 
     from .types import MessageType
 
@@ -60,6 +60,8 @@ class Topic:
     latched_by: ClientId | None = None
     # (client, sink) of the subscribers ``fan_out`` calls; None: to be made again
     _calls: tuple[tuple[ClientId, TopicSink], ...] | None = field(default=None, repr=False)
+    codec: MessageCodec | None = field(default=None, repr=False, compare=False)
+    """``msgtype``'s codec, which the graph gives each event (kept here on first use)."""
 
     @property
     def in_use(self) -> bool:
