@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from contextlib import suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar, cast
@@ -303,19 +304,22 @@ class TypeRegistry:
         by files, the request, response, goal, result and feedback parts of
         every service and action, all under their ``rosbags_name``. A file type that fails to load
         (unknown dependency, bad text) is left out; asking for it
-        by name raises. Built once; treat it as read-only.
+        by name raises. Built once for a set of definitions, and shared by the
+        registries with the same ones (the last few sets); treat it as read-only.
         """
         if self._typestore is None:
-            merged: dict[str, object] = {}
-            for fallback in reversed(stores_for(self.dialect)):
-                merged.update(fallback.fielddefs)
-            if self.dialect is Dialect.ROS2:
-                merged[WSTRING_TYPE] = WSTRING_DEFINITION
-            for mtype in self._file_types():
-                merged[mtype.rosbags_name] = fielddefs(mtype, self.message)
-            store = get_typestore(Stores.EMPTY)
-            fresh = {k: v for k, v in merged.items() if k not in store.fielddefs}
-            store.register(cast("Typesdict", fresh))
+            own = {t.rosbags_name: fielddefs(t, self.message) for t in self._file_types()}
+            # registries with the same definitions share one store: building it (rosbags
+            # makes each type's serializer) costs 0.2-0.5 s, and tests make hundreds
+            key = (self.dialect, repr(sorted(own.items())))
+            with _shared_lock:
+                store = _shared_stores.pop(key, None)
+            if store is None:
+                store = _build_store(self.dialect, own)
+            with _shared_lock:
+                _shared_stores[key] = store  # the newest last: the oldest goes first
+                while len(_shared_stores) > _SHARED_STORES:
+                    del _shared_stores[next(iter(_shared_stores))]
             self._typestore = store
         return self._typestore
 
@@ -348,3 +352,23 @@ def codec_for(registry: TypeRegistry, mtype: MessageType) -> WireCodec:
     if found is None or found.mtype is not mtype:
         found = codecs[mtype.name] = WireCodec(mtype, registry.message, registry.typestore)
     return found
+
+
+_SHARED_STORES = 4
+"""Typestores kept for registries to share (``TypeRegistry.typestore``), the newest."""
+_shared_stores: dict[tuple[Dialect, str], Typestore] = {}
+_shared_lock = threading.Lock()
+
+
+def _build_store(dialect: Dialect, own: Mapping[str, object]) -> Typestore:
+    """A rosbags typestore: the dialect's stores (``stores_for``), then ``own`` types over them."""
+    merged: dict[str, object] = {}
+    for fallback in reversed(stores_for(dialect)):
+        merged.update(fallback.fielddefs)
+    if dialect is Dialect.ROS2:
+        merged[WSTRING_TYPE] = WSTRING_DEFINITION
+    merged.update(own)
+    store = get_typestore(Stores.EMPTY)
+    fresh = {k: v for k, v in merged.items() if k not in store.fielddefs}
+    store.register(cast("Typesdict", fresh))
+    return store
