@@ -7,11 +7,27 @@ processes, the ``rwt`` command line) are in tests/support/.
 from __future__ import annotations
 
 import json
+import os
 import socket
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+# With PYTHONDONTWRITEBYTECODE set (as in many containers), every xdist worker would
+# rewrite and compile all ~400 test modules anew on every run (about 15 s of CPU a
+# worker before the first test), and every Python process a test starts (a server, a
+# peer: hundreds in a run) would compile the rwt modules it imports (0.35 s of CPU
+# each). Keep that bytecode under .pytest_cache instead, for this process (before it
+# imports rwt) and the processes it starts: the source tree stays free of __pycache__
+# as the setting asks, and the next run reads them back.
+if sys.dont_write_bytecode:
+    _PYCACHE = str(Path(__file__).resolve().parent.parent / ".pytest_cache" / "pycache")
+    sys.pycache_prefix = _PYCACHE
+    sys.dont_write_bytecode = False
+    os.environ["PYTHONPYCACHEPREFIX"] = _PYCACHE
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+
+# (imported after the setting, so that rwt's modules are cached too)
 import pytest
 import trustme
 from hypothesis import HealthCheck, settings
@@ -19,16 +35,6 @@ from hypothesis import HealthCheck, settings
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import Session, SessionConfig
-
-# With PYTHONDONTWRITEBYTECODE set (as in many containers), every xdist worker would
-# rewrite and compile all ~400 test modules anew on every run: about 15 s of CPU a
-# worker before the first test. Keep pytest's rewritten modules, and the bytecode of
-# what they import, under .pytest_cache instead: the source tree stays free of
-# __pycache__ as the setting asks, and the next run reads them back. Only this pytest
-# process is affected; the subprocesses tests start keep the environment as it is.
-if sys.dont_write_bytecode:
-    sys.pycache_prefix = str(Path(__file__).resolve().parent.parent / ".pytest_cache" / "pycache")
-    sys.dont_write_bytecode = False
 
 # Property tests check behaviour, never speed: no per-example deadline, and no health
 # check that fails a test because a shared, loaded machine generated examples slowly.
