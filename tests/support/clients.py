@@ -231,8 +231,14 @@ class Harness:
             return MemoryClient(name, connection=connection)
         if transport == "ws":
             scheme = "wss" if self.ssl_context else "ws"
+            # No client keepalive: websockets draws its ping payloads from the global
+            # ``random``, and a ping sent from a server's thread while hypothesis draws
+            # an example in the main thread (tests/fuzz) fails that test as a strategy
+            # using ``random``. The server's own pings are unaffected and still answered.
             ws = await connect(
-                f"{scheme}://127.0.0.1:{self.port('websocket')}", ssl=self.ssl_context
+                f"{scheme}://127.0.0.1:{self.port('websocket')}",
+                ssl=self.ssl_context,
+                ping_interval=None,
             )
             self.stack.push_async_callback(ws.close)
             return WsClient(name, ws=ws)
