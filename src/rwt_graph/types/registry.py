@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import threading
 from contextlib import suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar, cast
@@ -312,14 +311,13 @@ class TypeRegistry:
             # registries with the same definitions share one store: building it (rosbags
             # makes each type's serializer) costs 0.2-0.5 s, and tests make hundreds
             key = (self.dialect, repr(sorted(own.items())))
-            with _shared_lock:
-                store = _shared_stores.pop(key, None)
+            # (each step one call under the GIL: a registry of another thread cannot break it)
+            store = _shared_stores.pop(key, None)
             if store is None:
                 store = _build_store(self.dialect, own)
-            with _shared_lock:
-                _shared_stores[key] = store  # the newest last: the oldest goes first
-                while len(_shared_stores) > _SHARED_STORES:
-                    del _shared_stores[next(iter(_shared_stores))]
+            _shared_stores[key] = store  # the newest last: the oldest go first
+            for old in list(_shared_stores)[:-_SHARED_STORES]:
+                _shared_stores.pop(old, None)
             self._typestore = store
         return self._typestore
 
@@ -357,7 +355,6 @@ def codec_for(registry: TypeRegistry, mtype: MessageType) -> WireCodec:
 _SHARED_STORES = 4
 """Typestores kept for registries to share (``TypeRegistry.typestore``), the newest."""
 _shared_stores: dict[tuple[Dialect, str], Typestore] = {}
-_shared_lock = threading.Lock()
 
 
 def _build_store(dialect: Dialect, own: Mapping[str, object]) -> Typestore:
