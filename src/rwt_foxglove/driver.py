@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     from rwt_protocol.server.outbox import OutFrame
 
     from .assets import AssetRoots
+    from .outqueue import OutQueue
     from .session import FoxgloveSession
 
 __all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "ReadGate", "Wakeup", "run_foxglove"]
@@ -113,6 +114,7 @@ class Wakeup:
         self._woken = False  # ``_event`` is set
         self._channel: FoxgloveChannel | None = None
         self._session: FoxgloveSession | None = None
+        self._queue: OutQueue | None = None  # the session's (``set``: no property call)
         self._gatherer: Gatherer | None = None
         self._idle = False  # the writer waits, holding no frames
         self._gathering = False  # in the gatherer's list
@@ -128,17 +130,18 @@ class Wakeup:
             return
         self._channel = channel
         self._session = session
+        self._queue = session.queue
 
     def detach(self) -> None:
         """No more direct writes (the connection ends)."""
-        self._channel = self._session = self._gatherer = None
+        self._channel = self._session = self._gatherer = self._queue = None
 
     def set(self) -> None:
         """Something was queued."""
-        gatherer, session = self._gatherer, self._session
-        if self._gathering and gatherer is not None and session is not None:  # a burst: first
+        gatherer, queue = self._gatherer, self._queue
+        if self._gathering and gatherer is not None and queue is not None:  # a burst: first
             gatherer.more = True  # (gathering: idle and not woken, ``flush`` ends it)
-            if session.queued_bytes >= GATHER_BYTES:  # enough for a write of its own
+            if queue.data_bytes >= GATHER_BYTES:  # enough for a write of its own
                 gatherer.release(self)
         elif gatherer is None or not self._idle or self._woken:
             self._wake()

@@ -28,6 +28,7 @@ most 100 levels, no lone surrogate, integers within 64 bits).
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 from enum import IntEnum
@@ -39,7 +40,7 @@ from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Callable, Iterable
 
 __all__ = [
     "CLIENT_OPS",
@@ -643,9 +644,12 @@ def encode_message_data(subscription_id: int, log_time_ns: int, payload: bytes) 
     return encode_message_header(subscription_id, log_time_ns) + payload
 
 
-def encode_message_header(subscription_id: int, log_time_ns: int) -> bytes:
-    """The 13 bytes of a message data frame before its payload (opcode, id, log time)."""
-    return _DATA_HEADER.pack(_MESSAGE_DATA, subscription_id, log_time_ns)
+encode_message_header: Final[Callable[[int, int], bytes]] = functools.partial(
+    _DATA_HEADER.pack, _MESSAGE_DATA
+)
+"""``encode_message_header(subscription_id, log_time_ns)``: the 13 bytes of a message
+data frame before its payload (opcode, id, log time). A partial of ``struct.pack``, not a
+function: it is called per message and subscription of a burst, and so runs no Python frame."""
 
 
 def encode_service_call_response(

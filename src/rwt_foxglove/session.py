@@ -128,8 +128,52 @@ class _TopicSink:
         self._session = session
         self._channel = channel
 
-    def on_message(self, event: MessageEvent) -> None:
-        self._session.deliver(self._channel, event, self._channel.subscriptions)
+    def on_message(  # noqa: PLR0912 (one body, not calls: it runs per message of a burst)
+        self, event: MessageEvent, subscriptions: list[int] | tuple[int, ...] | None = None
+    ) -> None:
+        """Queue ``event`` as message data for each of ``subscriptions``; never raises.
+
+        ``subscriptions``: the channel's (None, the graph's call) or the one a
+        latched message is replayed to. The payload is the message as it
+        arrived where the graph has that (``MessageEvent.wire``: a link's CDR, a
+        bag's record), else serialized once per message for every Foxglove
+        client (``MessageEvent.encoded``); the log time is when the graph
+        received it, on the bag's clock while a bag plays (``servertime``). With
+        the ``foxglove-shared-frames`` shortcut the whole frame (header and
+        payload) is made once per message, subscription id and log time, and
+        every client subscribed with that id queues the same one
+        (``FoxgloveSession._frame``). Here, not in the session: one Python call
+        less per message of a burst.
+        """
+        session, channel = self._session, self._channel
+        if subscriptions is None:
+            subscriptions = channel.subscriptions
+        if session._closed or not subscriptions:
+            return
+        clock = session._time
+        now = None if clock is None else clock.now()
+        try:  # every frame made before any is queued: the payload is the same for all
+            if len(subscriptions) == 1:  # the usual case, without a list (per message)
+                frame = session._frame(channel, event, subscriptions[0], now)
+            else:
+                frames = []
+                for sid in subscriptions:  # (not a comprehension: its closure costs every call)
+                    frames.append(session._frame(channel, event, sid, now))
+        except Exception as exc:  # a type rosbags cannot write
+            session._encode_failed(channel, exc)
+            return
+        if now is not None:  # on the bag's clock, told first (a client reads receive time from it)
+            session._told_time(now)
+        push = session._queue.push
+        if len(subscriptions) == 1:
+            if push(frame):
+                session._tell_dropping()
+        else:
+            for frame in frames:
+                if push(frame):
+                    session._tell_dropping()
+        if session._on_output is not None:
+            session._on_output()
 
 
 class FoxgloveSession:
@@ -256,6 +300,11 @@ class FoxgloveSession:
     def queued_bytes(self) -> int:
         """Bytes of message data waiting to be taken."""
         return self._queue.data_bytes
+
+    @property
+    def queue(self) -> OutQueue:
+        """The frames waiting to be taken (``data_bytes`` read per message: no property call)."""
+        return self._queue
 
     @property
     def queued_messages(self) -> int:
@@ -425,7 +474,7 @@ class FoxgloveSession:
         if len(channel.subscriptions) > 1:  # the topic's sink is there: replay its latched
             entry = self._graph.topics.get(channel.topic)
             if entry is not None and entry.latched is not None:
-                self.deliver(channel, entry.latched, (sid,))
+                _TopicSink(self, channel).on_message(entry.latched, (sid,))
             return
         try:  # the graph hands the latched message to the new sink at once (D13)
             request = rosbridge.Subscribe(topic=channel.topic, type=channel.mtype.name)
@@ -611,52 +660,8 @@ class FoxgloveSession:
             channel.subscriptions.clear()
             self._graph.unsubscribe(self._client_id, channel.topic)
 
-    def deliver(
-        self,
-        channel: _ServerChannel,
-        event: MessageEvent,
-        subscriptions: list[int] | tuple[int, ...],
-    ) -> None:
-        """Queue ``event`` as message data for each of ``subscriptions``; never raises.
-
-        The payload is the message as it arrived where the graph has that
-        (``MessageEvent.wire``: a link's CDR, a bag's record), else serialized
-        once per message for every Foxglove client (``MessageEvent.encoded``);
-        the log time is when the graph received it, on the bag's clock while a
-        bag plays (``servertime``). With the ``foxglove-shared-frames`` shortcut
-        the whole frame (header and payload) is made once per message,
-        subscription id and log time, and every client subscribed with that id
-        queues the same one (``_frame``).
-        """
-        if self._closed or not subscriptions:
-            return
-        clock = self._time
-        now = None if clock is None else clock.now()
-        try:  # every frame made before any is queued: the payload is the same for all
-            if len(subscriptions) == 1:  # the usual case, without a list (per message)
-                frame = self._frame(channel, event, subscriptions[0], now)
-            else:
-                frames = []
-                for sid in subscriptions:  # (not a comprehension: its closure costs every call)
-                    frames.append(self._frame(channel, event, sid, now))
-        except Exception as exc:  # a type rosbags cannot write
-            self._encode_failed(channel, exc)
-            return
-        if now is not None:  # on the bag's clock, told first (a client reads receive time from it)
-            self._told_time(now)
-        push = self._queue.push
-        if len(subscriptions) == 1:
-            if push(frame):
-                self._tell_dropping()
-        else:
-            for frame in frames:
-                if push(frame):
-                    self._tell_dropping()
-        if self._on_output is not None:
-            self._on_output()
-
     def _encode_failed(self, channel: _ServerChannel, exc: Exception) -> None:
-        """Say once per topic that its messages cannot be encoded (``deliver``)."""
+        """Say once per topic that its messages cannot be encoded (``_TopicSink.on_message``)."""
         if channel.topic not in self._failed_topics:
             self._failed_topics.add(channel.topic)
             logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
@@ -665,7 +670,7 @@ class FoxgloveSession:
     def _frame(
         self, channel: _ServerChannel, event: MessageEvent, sid: int, now: int | None
     ) -> OutFrame:
-        """The message data frame of ``event`` for subscription ``sid`` (``deliver``).
+        """The message data frame of ``event`` for subscription ``sid`` (``_TopicSink.on_message``).
 
         With ``foxglove-shared-frames``, made once per message, subscription id
         and log time (while a bag plays, the timeline's, which could move), in
@@ -688,7 +693,7 @@ class FoxgloveSession:
         return frame  # type: ignore[return-value]
 
     def _payload(self, channel: _ServerChannel, event: MessageEvent) -> bytes:
-        """``event``'s message data payload, shared by every client (``deliver``).
+        """``event``'s message data payload, shared by every client (``_TopicSink.on_message``).
 
         Raises:
             Exception: the message cannot be serialized (any error of rosbags).

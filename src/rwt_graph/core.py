@@ -519,7 +519,6 @@ class GraphCore:
         client: ClientId,
         topic: str,
         msg: Message | None,
-        *,
         latch: bool,
         wire: bytes | None = None,
     ) -> MessageEvent:
@@ -540,13 +539,12 @@ class GraphCore:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        return self._send(entry, msg, latch=latch, client=client, wire=wire)
+        return self._send(entry, msg, latch, client, wire)  # positional: per message
 
     def _send(
         self,
         entry: Topic,
         msg: Message | None,
-        *,
         latch: bool,
         client: ClientId,
         wire: bytes | None = None,
@@ -559,7 +557,7 @@ class GraphCore:
         event = MessageEvent(
             entry.name, entry.msgtype.name, msg, clock.monotonic(), clock.wall(), codec, wire
         )
-        entry.fan_out(event, latch=latch, client=client)
+        entry.fan_out(event, latch, client)
         for tap in self.taps:
             try:
                 tap(entry, event, client, latch)

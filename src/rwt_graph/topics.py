@@ -111,7 +111,7 @@ class Topic:
                 f"{self.name} is established with type {self.msgtype.name}, not {msgtype.name}"
             )
 
-    def fan_out(self, event: MessageEvent, *, latch: bool, client: ClientId | None = None) -> None:
+    def fan_out(self, event: MessageEvent, latch: bool, client: ClientId | None = None) -> None:
         """Deliver ``event`` to every subscriber; keep it if latched (from ``client``).
 
         A sink whose ``drops_messages`` attribute is true (a link's remote

@@ -723,8 +723,11 @@ def _framed_anew(frames: Sequence[OutFrame]) -> list[bytes]:
         prefix = frame.prefix
         length = len(data)
         header = frame.header
-        if header is None:
-            header = frame.header = _header(len(prefix) + length, frame.binary)  # shared
+        if header is None:  # made once, shared; a small binary one without a call (per frame)
+            size_, binary = len(prefix) + length, frame.binary
+            header = frame.header = (
+                _SMALL_BINARY[size_] if size_ < 126 and binary else _header(size_, binary)
+            )
         if length >= WRITE_BATCH:  # its payload goes alone, not copied
             batch += (header, prefix)
             writes.append(b"".join(batch))
