@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from .outqueue import OutQueue
     from .session import FoxgloveSession
 
-__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "ReadGate", "Wakeup", "run_foxglove"]
+__all__ = ["SYNC_INTERVAL_S", "FoxgloveChannel", "InBatch", "ReadGate", "Wakeup", "run_foxglove"]
 
 logger = logging.getLogger("rwt.foxglove")
 
@@ -72,6 +72,12 @@ class ReadGate(Protocol):
 
     async def hold(self) -> None:
         """Wait while the queues the slice filled past their high watermark drain."""
+
+
+class InBatch(Protocol):
+    """Whether a batch is being handled (``rwt_transports.flow.FlowControl``)."""
+
+    in_batch: bool
 
 
 class FoxgloveChannel(Protocol):
@@ -118,6 +124,10 @@ class Wakeup:
         self._gatherer: Gatherer | None = None
         self._idle = False  # the writer waits, holding no frames
         self._gathering = False  # in the gatherer's list
+        self.batch: InBatch | None = None
+        """The server's flow control: output queued while it handles a batch (a reader's
+        frames) calls ``on_batch_output`` too (``set``), which notes this client's queue."""
+        self.on_batch_output: Callable[[], None] | None = None
 
     def attach(self, channel: FoxgloveChannel, session: FoxgloveSession) -> None:
         """Write ``session``'s output to ``channel`` directly while the writer is idle.
@@ -148,6 +158,9 @@ class Wakeup:
         else:
             self._gathering = True
             gatherer.join(self)
+        batch = self.batch  # (here, not in a callback around ``set``: a call less per message)
+        if batch is not None and batch.in_batch and self.on_batch_output is not None:
+            self.on_batch_output()
 
     def _wake(self) -> None:
         if not self._woken:

@@ -28,6 +28,7 @@ of the flow control, after which it waits for the queues it filled.
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import uuid
@@ -127,18 +128,13 @@ def foxglove_server(
         wakeup = Wakeup()
         outlet: FoxgloveOutlet | None = None
 
-        def on_output() -> None:
-            wakeup.set()
-            if flow is not None and outlet is not None and flow.in_batch:
-                outlet.note_output(flow)
-
         foxglove = FoxgloveSession(
             graph,
             session.client_id,
             session_id=session_id,
             access=access,
             limits=limits,
-            on_output=on_output,
+            on_output=wakeup.set,
             params=params,
             assets=assets is not None,
         )
@@ -150,6 +146,8 @@ def foxglove_server(
             )
             gate = FoxgloveReadGate(flow, account, channel, outlet)
             wakeup.on_sent = outlet.sent
+            wakeup.batch = flow
+            wakeup.on_batch_output = functools.partial(outlet.note_output, flow)
         logger.info("event=foxglove client=%s subprotocol=%s", session.client_id, subprotocol)
         # ``deferred-send`` (rwt_protocol/shortcuts.py): off, the writer task writes everything
         direct = channel.abilities.send_now and enabled("deferred-send")

@@ -100,6 +100,27 @@ def test_latched_message_goes_to_each_new_subscription(ros2_types: TypeRegistry)
     assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
 
 
+def test_a_message_that_cannot_be_encoded_is_skipped_and_said_once(
+    ros2_types: TypeRegistry,
+) -> None:
+    graph = Graph(ros2_types)
+    publisher = graph.create_publisher("/chatter", "std_msgs/msg/String")
+    client = Client(graph)
+    cid = client.channel("/chatter")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
+    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
+    for _ in range(2):  # vouched for, but not a String: it cannot be serialized
+        publisher.publish({"wrong": 1}, validated=True)
+    publisher.publish({"data": "after"})
+    client.drain()
+    statuses = client.take_ops("status")
+    assert [(s["level"], s["message"]) for s in statuses] == [
+        (2, "/chatter: cannot encode its messages")
+    ]
+    expected = cdr(graph, "std_msgs/msg/String", {"data": "after"})
+    assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
+
+
 def test_topics_that_appear_and_go_are_advertised_and_unadvertised(
     ros2_types: TypeRegistry,
 ) -> None:
