@@ -92,8 +92,6 @@ serves them)."""
 PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
 """Announced too when the session is given the graph's parameters."""
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
-# ``MessageEvent.memos`` keys (with the subscription id) of shared message data frames
-_FRAME_KEY: Final = "foxglove-frame"
 DROPPING_STATUS: Final = "rwt.dropping"
 """The id of the warning that this client's oldest message data is being dropped,
 withdrawn (``removeStatus``) once its queue is empty again."""
@@ -162,8 +160,10 @@ class _TopicSink:
             log_time = int(event.stamp * 1e9) if now is None else now
             memos = event.memos if session._share else {}  # the shortcut off: one for each
             for sid in subscriptions:  # (not a comprehension: its closure costs every call)
-                # made once per message, subscription id and log time (which a bag's could move)
-                key = (_FRAME_KEY, sid) if now is None else (_FRAME_KEY, sid, now)
+                # made once per message, subscription id and log time (which a bag's could
+                # move); keyed by the id itself: the keys of ``MessageEvent.memos`` that are
+                # not these frames' are strings or start with one
+                key = sid if now is None else (sid, now)
                 frame = memos.get(key)
                 if frame is None:  # positional: keywords to a class cost a dict per call
                     frame = memos[key] = OutFrame(

@@ -272,7 +272,7 @@ class GraphCore:
             self._hold(client, entry.name)
             self.nodes.name_of(client)
         latched = entry.publishers.setdefault(client, False) or op.latch
-        self._send(entry, converted, latch=latched, client=client)
+        self.deliver(entry, converted, latch=latched, client=client)
         return missing
 
     def convert_publish(
@@ -539,9 +539,9 @@ class GraphCore:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        return self._send(entry, msg, latch, client, wire)  # positional: per message
+        return self.deliver(entry, msg, latch, client, wire)  # positional: per message
 
-    def _send(
+    def deliver(
         self,
         entry: Topic,
         msg: Message | None,
@@ -549,6 +549,16 @@ class GraphCore:
         client: ClientId,
         wire: bytes | None = None,
     ) -> MessageEvent:
+        """Deliver a message on ``entry`` from ``client``, one of its publishers.
+
+        ``publish_local`` without finding the topic by name: for a caller that
+        holds the ``Topic`` and has checked that ``client`` publishes on it
+        (``LocalPublisher``, a call less per message of a burst). ``msg`` and
+        ``wire`` as for ``publish_local``.
+
+        Returns:
+            the event its subscribers got.
+        """
         clock = self._clock
         codec = entry.codec  # (per message: no call)
         if codec is None:

@@ -109,7 +109,7 @@ class Graph:
             self.reserve_topic(name)
         with self._participant(node) as client:
             self.port.advertise(client, Advertise(topic=name, type=type_name, latch=latch))
-        return LocalPublisher(self.port, client, name, self.topics[name].msgtype, latch=latch)
+        return LocalPublisher(self.port, client, self.topics[name], latch=latch)
 
     def create_subscription(
         self,

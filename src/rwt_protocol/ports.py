@@ -117,6 +117,9 @@ class MessageEvent:
             Subscribers that send it so never decode a message given only as ``wire``.
         memos: the forms ``encoded`` and ``memo`` made, by key; a hot path may
             read and fill it directly with the same care for keys (no call).
+            Those keys are strings or tuples that start with one; an ``int``
+            (or an ``(int, int)`` tuple) is a Foxglove subscription id's message
+            data frame (``rwt_foxglove.session``).
     """
 
     __slots__ = (
