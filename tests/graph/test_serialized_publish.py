@@ -161,3 +161,20 @@ def test_a_closed_publisher_refuses_serialized_messages(graph: Graph) -> None:
     publisher.close()
     with pytest.raises(Exception, match="was closed"):
         publisher.publish(serialized(graph))
+
+
+@pytest.mark.parametrize("form", ["serialized", "values"])
+def test_a_closed_publisher_refuses_while_another_keeps_the_topic(graph: Graph, form: str) -> None:
+    """Closed, a publisher sends nothing, though its topic lives on for another one."""
+    heard: list[dict[str, object]] = []
+    graph.create_subscription("/point", heard.append, POINT)
+    keeper = graph.create_publisher("/point", POINT)
+    publisher = graph.create_publisher("/point", POINT)
+    message = serialized(graph) if form == "serialized" else VALUES
+    publisher.publish(message)
+    publisher.close()
+    with pytest.raises(Exception, match="was closed"):
+        publisher.publish(message)
+    keeper.publish(message)
+    assert len(heard) == 2
+    assert heard[0]["point"] == heard[1]["point"] == VALUES["point"]
