@@ -56,13 +56,14 @@ CLIENTS = ("roslibpy", "roslibjs")
 #: workers: an example, which stops on Ctrl-C by the KeyboardInterrupt Python raises
 #: only when SIGINT was not ignored at its start, would never see the SIGINT
 #: ``ServerProcess.stop`` sends, and be killed after ``SERVER_STOP_TIMEOUT`` (each such
-#: server's test 10 s longer). ``exec`` keeps the process (pid, pipes) the command's.
+#: server's test 10 s longer). ``execvp`` (a PATH lookup, as Popen does) keeps the
+#: process (pid, pipes) the command's.
 AS_A_SHELL_STARTS_IT = [
     sys.executable,
     "-S",
     "-c",
     "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
-    "os.execv(sys.argv[1], sys.argv[1:])",
+    "os.execvp(sys.argv[1], sys.argv[1:])",
 ]
 
 
