@@ -49,6 +49,23 @@ STEP_TIMEOUT_MS = 10000
 
 CLIENTS = ("roslibpy", "roslibjs")
 
+#: Runs a command (its argv after these) with SIGINT at its default, as a shell starts
+#: it (``-S``: this wrapper itself needs no site-packages). A child inherits ignored
+#: signals, and pytest started in the background by a non-interactive shell
+#: (``python -m pytest &``) ignores SIGINT and SIGQUIT (SigIgn ...006), as do its xdist
+#: workers: an example, which stops on Ctrl-C by the KeyboardInterrupt Python raises
+#: only when SIGINT was not ignored at its start, would never see the SIGINT
+#: ``ServerProcess.stop`` sends, and be killed after ``SERVER_STOP_TIMEOUT`` (each such
+#: server's test 10 s longer). ``execvp`` (a PATH lookup, as Popen does) keeps the
+#: process (pid, pipes) the command's.
+AS_A_SHELL_STARTS_IT = [
+    sys.executable,
+    "-S",
+    "-c",
+    "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+    "os.execvp(sys.argv[1], sys.argv[1:])",
+]
+
 
 def node_missing_reason() -> str | None:
     """Why the Node client tests cannot run here, or None when they can."""
@@ -127,7 +144,7 @@ class ServerProcess:
         path = os.pathsep.join(filter(None, [str(REPO / "src"), os.environ.get("PYTHONPATH")]))
         env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=path)
         self.proc = subprocess.Popen(
-            self.cmd,
+            [*AS_A_SHELL_STARTS_IT, *self.cmd],
             stdin=subprocess.PIPE if control else subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,

@@ -11,21 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from .client_harness import REPO
+from .client_harness import AS_A_SHELL_STARTS_IT, REPO
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
 TIMEOUT_S = 60  # a bound on a hung example, not a speed requirement
-
-#: Python with SIGINT at its default, as a shell starts it. A child inherits ignored
-#: signals, and an xdist worker was seen ignoring SIGINT and SIGQUIT (SigIgn ...006, as
-#: while libc's system() runs) after other files' tests: the example then never saw
-#: the Ctrl-C this test sends.
-AS_A_SHELL_STARTS_IT = [
-    sys.executable,
-    "-c",
-    "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
-    "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])",
-]
 
 #: Each example that runs until interrupted, with the arguments that pick a free port.
 SERVING = {
@@ -52,7 +41,12 @@ def _signals() -> str:
 @pytest.mark.parametrize("example", sorted(SERVING))
 def test_ctrl_c_stops_the_example_quietly(example: str) -> None:
     process = subprocess.Popen(
-        [*AS_A_SHELL_STARTS_IT, str(REPO / "examples" / example), *SERVING[example]],
+        [
+            *AS_A_SHELL_STARTS_IT,
+            sys.executable,
+            str(REPO / "examples" / example),
+            *SERVING[example],
+        ],
         env=ENV,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,

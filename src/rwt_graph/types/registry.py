@@ -55,7 +55,7 @@ class TypeRegistry:
         roots = [Path(folder) for folder in interface_dirs] + packaged_dirs(self.dialect)
         self._files = FileIndex(roots)
         self._stores = stores_for(self.dialect)
-        self._store_keys = [key for store in self._stores for key in store.fielddefs]
+        self._store_keys = [key for store in self._stores for key in store]
         self._packages = self._files.packages() | {k.split("/")[0] for k in self._store_keys}
         self._messages: dict[str, MessageType] = {}
         self._aliases: dict[str, MessageType] = {}
@@ -361,7 +361,7 @@ def _build_store(dialect: Dialect, own: Mapping[str, object]) -> Typestore:
     """A rosbags typestore: the dialect's stores (``stores_for``), then ``own`` types over them."""
     merged: dict[str, object] = {}
     for fallback in reversed(stores_for(dialect)):
-        merged.update(fallback.fielddefs)
+        merged.update(fallback)
     if dialect is Dialect.ROS2:
         merged[WSTRING_TYPE] = WSTRING_DEFINITION
     merged.update(own)

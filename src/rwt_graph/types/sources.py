@@ -9,11 +9,13 @@ puts back the ones ROS 2 writes, for when no packaged text overrides them.
 
 from __future__ import annotations
 
+import json
+from functools import cache
+from importlib.metadata import version
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, get_typestore
 
 from .msgparse import resolve_base
 from .names import Dialect
@@ -22,11 +24,12 @@ from .spec import ArrayKind, Constant, FieldSpec, FieldType
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
 
-    from rosbags.typesys.store import Typestore
+    from rosbags.interfaces.typing import FieldDesc, Typesdict
 
 __all__ = [
     "IDL_PLACEHOLDER",
     "KINDS",
+    "PACKAGED_STORES",
     "STORE_DEFAULTS",
     "FileIndex",
     "packaged_dirs",
@@ -48,6 +51,10 @@ IDL_PLACEHOLDER = "structure_needs_at_least_one_member"
 
 _PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 
+#: rosbags' ROS 2 Jazzy and ROS 1 Noetic field definitions as JSON, with the rosbags
+#: version they were taken from (see :func:`store_for`).
+PACKAGED_STORES = Path(__file__).resolve().parent / "rosbags_stores.json"
+
 
 def packaged_dirs(dialect: Dialect) -> list[Path]:
     """The packaged interface folders for ``dialect``, highest precedence first."""
@@ -55,18 +62,30 @@ def packaged_dirs(dialect: Dialect) -> list[Path]:
     return [_PACKAGE_ROOT / name for name in names]
 
 
-def store_for(dialect: Dialect) -> Typestore:
-    """A fresh rosbags typestore of the dialect.
+def store_for(dialect: Dialect) -> Typesdict:
+    """The field definitions of the dialect's rosbags store (a fresh mapping).
 
     ROS 2 uses Jazzy: it is the current long-term release and a superset of
     Humble's types (a few gain fields, such as ``sensor_msgs/Range.variance``;
     an older client simply omits them and gets defaults). ROS 1 uses Noetic.
+
+    They are rosbags' own ``get_typestore(...).fielddefs``. Under the rosbags
+    release :data:`PACKAGED_STORES` was taken from they are read from it:
+    rosbags makes every store back to Dashing, with a dataclass per type, to
+    give one, a fifth of a server's start (tests/graph/types/test_storedefs.py
+    checks the copy equals rosbags' own).
     """
-    return get_typestore(Stores.ROS1_NOETIC if dialect is Dialect.ROS1 else Stores.ROS2_JAZZY)
+    name = "ROS1_NOETIC" if dialect is Dialect.ROS1 else "ROS2_JAZZY"
+    packaged = _packaged_stores()
+    if packaged is not None:
+        return dict(packaged[name])
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415 - another rosbags only
+
+    return get_typestore(Stores[name]).fielddefs
 
 
-def stores_for(dialect: Dialect) -> list[Typestore]:
-    """The stores consulted for messages, first match wins.
+def stores_for(dialect: Dialect) -> list[Typesdict]:
+    """The stores' field definitions consulted for messages, first match wins.
 
     ROS 1 falls back to the ROS 2 store: the packaged ROS 2 interfaces (for
     example ``rcl_interfaces`` services) use ROS 2-only messages, which then
@@ -75,6 +94,34 @@ def stores_for(dialect: Dialect) -> list[Typestore]:
     if dialect is Dialect.ROS1:
         return [store_for(Dialect.ROS1), store_for(Dialect.ROS2)]
     return [store_for(Dialect.ROS2)]
+
+
+@cache
+def _packaged_stores() -> dict[str, Typesdict] | None:
+    """:data:`PACKAGED_STORES` as rosbags gives it, or None under another rosbags release."""
+    data = json.loads(PACKAGED_STORES.read_text(encoding="utf-8"))
+    if data["rosbags"] != version("rosbags"):
+        return None
+    return {
+        name: {
+            key: (
+                [tuple(constant) for constant in consts],
+                [(field, _node(node)) for field, node in fields],
+            )
+            for key, (consts, fields) in store.items()
+        }
+        for name, store in data["stores"].items()
+    }
+
+
+def _node(node: list[Any]) -> FieldDesc:
+    """A field's type node from JSON as rosbags has it: ``(Nodetype, detail)`` tuples."""
+    kind, detail = Nodetype(node[0]), node[1]
+    if kind is Nodetype.BASE:
+        detail = tuple(detail)
+    elif kind is not Nodetype.NAME:  # an array or sequence: (element node, size)
+        detail = (_node(detail[0]), detail[1])
+    return cast("FieldDesc", (kind, detail))
 
 
 class FileIndex:
@@ -165,15 +212,15 @@ def _literal(value: object) -> str:
 
 
 def store_message(
-    store: Typestore, key: str, dialect: Dialect
+    store: Typesdict, key: str, dialect: Dialect
 ) -> tuple[tuple[FieldSpec, ...], tuple[Constant, ...], str] | None:
-    """Read a message from a rosbags store by its store key (``pkg/msg/Type``).
+    """Read a message from a store's field definitions by its key (``pkg/msg/Type``).
 
     Returns:
         ``(fields, constants, text)``, with :data:`STORE_DEFAULTS` applied, or
         None when the store lacks the type.
     """
-    definition = store.fielddefs.get(key)
+    definition = store.get(key)
     if definition is None:
         return None
     consts, fielddefs = definition
