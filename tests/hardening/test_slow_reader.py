@@ -15,8 +15,8 @@ slow reader's pace, so by the time the server had read the last publish the
 slow reader had taken nearly every frame. Now the slow reader holds the
 publisher for at most its budget, then loses its oldest frames (D24, with the
 warning status): the server reads the whole stream while the slow reader has
-taken only a fraction of it, the bystander gets every frame, and the slow reader
-still ends with the newest one.
+taken only a fraction of it, the bystander keeps up (every frame, unless the
+machine stalls it too), and the slow reader still ends with the newest one.
 
 Over WebSocket, TCP and in-process connections, and with roslibpy as the
 bystander. Counts, not times, are asserted. Held, the slow reader must have taken all
@@ -168,6 +168,20 @@ def publish_all(peer: Peer, frames: list[bytes]) -> None:
     settle(peer, "published")  # ops are handled in order: every publish went through
 
 
+def assert_bystander_kept_up(bystander: Reader) -> None:
+    """The bystander got at least 90 % of the stream (the requirement), in order, the newest too.
+
+    It reads as fast as it can, so on a quiet machine it gets every frame. On a
+    loaded one its thread can stall for longer than the hold budget; then it is
+    a slow reader too and loses its own oldest frames, and is told so (D24).
+    """
+    seen = bystander.seen
+    assert len(seen) >= 0.9 * FRAMES, len(seen)
+    assert seen == sorted(set(seen)) and seen[-1] == FRAMES - 1
+    told = [s for s in bystander.statuses if "dropping the oldest" in s]
+    assert len(seen) == FRAMES or told, (len(seen), bystander.statuses)
+
+
 def assert_slow_reader_lost_its_oldest(slow: Reader, taken_meanwhile: int) -> None:
     """The slow reader did not hold the stream, lost frames, was told, and has the newest."""
     # The server read the whole stream while the slow reader took a fraction of it
@@ -204,10 +218,7 @@ async def test_a_slow_reader_does_not_hold_the_publisher_or_a_bystander(
             tg.start_soon(anyio.to_thread.run_sync, bystander.read_until, FRAMES - 1)
             tg.start_soon(anyio.to_thread.run_sync, slow.read_until, FRAMES - 1)
             await publish()
-    # The bystander got every frame (at least 90 % is the requirement), in order.
-    assert len(bystander.seen) >= 0.9 * FRAMES
-    assert bystander.seen == list(range(FRAMES))
-    assert not [s for s in bystander.statuses if "dropping" in s]
+    assert_bystander_kept_up(bystander)
     assert_slow_reader_lost_its_oldest(slow, taken_meanwhile[0])
 
 
@@ -226,12 +237,12 @@ roslibpy.Service(ros, "/rosapi/topics", "rosapi/Topics").call(roslibpy.ServiceRe
 print("subscribed", flush=True)
 open("{ready}", "w").close()
 done.wait(90)
-print(len(seen), seen == list(range({last} + 1)), flush=True)
+print(len(seen), seen == sorted(set(seen)) and seen[-1] == {last}, flush=True)
 ros.terminate()
 """
 
 
-async def test_a_roslibpy_bystander_gets_every_frame_beside_a_slow_reader(
+async def test_a_roslibpy_bystander_keeps_up_beside_a_slow_reader(
     harness: Harness, opened: list[Peer], tmp_path: Path
 ) -> None:
     """roslibpy, the real client, as the bystander over WebSocket."""
@@ -264,8 +275,9 @@ async def test_a_roslibpy_bystander_gets_every_frame_beside_a_slow_reader(
             tg.start_soon(bystander)
             tg.start_soon(anyio.to_thread.run_sync, slow.read_until, FRAMES - 1)
             await publish()
-    count, whole = output[0].split()[-2:]
-    assert int(count) == FRAMES and whole == "True", output[0]
+    count, in_order = output[0].split()[-2:]
+    # at least 90 % (all of them on a quiet machine: see ``assert_bystander_kept_up``)
+    assert int(count) >= 0.9 * FRAMES and in_order == "True", output[0]
     assert_slow_reader_lost_its_oldest(slow, taken_meanwhile[0])
 
 
