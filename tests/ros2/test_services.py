@@ -195,8 +195,11 @@ async def test_calls_from_ros2_stuck_in_the_graph_leave_the_topics_flowing(
                         during = await heard.next()
                     provider.kill()  # the provider goes: the waiting calls fail (D15)
                     lines = [first]
-                    while "responses" not in lines[-1]:
-                        lines.append(await anyio.to_thread.run_sync(callers.next))
+                    try:
+                        while "responses" not in lines[-1]:
+                            lines.append(await anyio.to_thread.run_sync(callers.next))
+                    except AssertionError as exc:  # what the server saw, to tell why
+                        raise AssertionError(f"{exc}\n{server.stderr_text()[-4000:]}") from exc
             finally:
                 for process in (provider, listener):
                     with contextlib.suppress(ProcessLookupError):
