@@ -459,8 +459,10 @@ client.send_goal(roslibpy.Goal({"order": 5}), result, feedback.append,
 done.wait(20)
 # feedback (a topic) and the result (a service's answer) take separate ways through
 # Zenoh, as through ROS 2, which orders neither against the other: the last feedback
-# may come after the result, but none may be lost
-until("every feedback", lambda: len(feedback) >= 4, timeout=5)
+# may come after the result, but none may be lost (the line says how many came)
+deadline = time.monotonic() + 5
+while len(feedback) < 4 and time.monotonic() < deadline:
+    time.sleep(0.05)
 say("result", json.dumps(results[0] if results else None), "feedback", len(feedback))
 """,
                 a_url,
