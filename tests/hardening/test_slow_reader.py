@@ -237,7 +237,7 @@ roslibpy.Service(ros, "/rosapi/topics", "rosapi/Topics").call(roslibpy.ServiceRe
 print("subscribed", flush=True)
 open("{ready}", "w").close()
 done.wait(90)
-print(len(seen), seen == sorted(set(seen)) and seen[-1] == {last}, flush=True)
+print(len(seen), seen == sorted(set(seen)) and seen[-1:] == [{last}], flush=True)
 ros.terminate()
 """
 
