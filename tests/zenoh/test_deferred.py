@@ -179,7 +179,11 @@ async def test_bad_large_samples_of_a_peer_are_refused_and_good_ones_arrive(
         got: list[dict[str, object]] = []
         graph.create_subscription("/cam", got.append, IMAGE)
         key = topic_keyexpr(0, "/cam", dds_type_name(IMAGE), type_hash(REGISTRY, IMAGE))
-        publisher: Any = session.declare_publisher(key)
+        # BLOCK, as a reliable ROS 2 publisher: with Zenoh's default (DROP) a loaded machine
+        # may drop some of these 200 kB samples before they leave, and the good ones with them
+        publisher: Any = session.declare_publisher(
+            key, congestion_control=zenoh.CongestionControl.BLOCK
+        )
         await until(lambda: bool(publisher.matching_status.matching))
         publisher.put(b"\x00\x01\x00\x00" + b"\xff" * 200_000)  # data longer than the sample
         publisher.put(b"\x07\x07" + bytes(200_000))  # no CDR header
