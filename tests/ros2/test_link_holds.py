@@ -24,8 +24,8 @@ pytestmark = skip_without_rclpy()
 
 ODOM_MESSAGES = 200  # the window: 4 s at 50 msg/s, twice the hold budget
 STILL_S = 0.2  # a gap longer than ten periods counts as standing still
-LONGEST_GAP_S = 1.0
-FROZEN_SHARE = 0.10
+LONGEST_GAP_S = 1.0  # half the hold budget: the held link stood still a whole budget at a time
+FROZEN_SHARE = 0.25  # of the window: a loaded machine's own stalls add up to 10-15 % of it
 
 
 def test_a_slow_camera_reader_holds_up_no_other_topic(ros_env: Path) -> None:
