@@ -120,8 +120,9 @@ def _publish_n(heard: threading.Semaphore) -> None:
         for i in range(N):
             pub.publish(String(data=f"m{i}"))
             if i % 50 == 49:  # bursts: wake-ups that take several samples; two bursts fit
-                time.sleep(0.2)  # the link's history (INWARD_DEPTH), so a server a loaded
-                # machine stalls for a moment loses none (0.05 s pauses lost 97 in CI once)
+                time.sleep(0.5)  # the link's history (INWARD_DEPTH), so a server a loaded
+                # machine stalls for a moment loses none (0.05 s pauses lost 97 in CI once,
+                # 0.2 s lost 49 with three test workers beside two busy cores)
         end = time.monotonic() + 30  # the publisher stays until both subscribers are done
         for _ in range(2):
             heard.acquire(timeout=max(0.0, end - time.monotonic()))
