@@ -3,15 +3,16 @@
 Timings on a shared host move by half from one second to the next; instruction
 counts do not. This runs rwt's robot of ``benchmarks.foxglove`` (``rwt.Graph``
 publishers served by ``rwt.RosbridgeServer``, packing and publishing 100 B
-``String`` CDR, a yield every ``BATCH``) under valgrind's callgrind twice, with a
-short and a long burst to ``--readers`` Foxglove readers in another process (not
-counted), and prints the difference over the extra messages: what one message
-costs the robot's process, start-up and set-up left out. Instructions are not
-time (cache misses and system calls are not in them), but a change that removes
-instructions from this path removes them from every burst
+``String`` CDR, a yield every ``--yield-every`` messages, ``BATCH`` by default)
+under valgrind's callgrind twice, with a short and a long burst to ``--readers``
+Foxglove readers in another process (not counted), and prints the difference
+over the extra messages: what one message costs the robot's process, start-up
+and set-up left out. Instructions are not time (cache misses and system calls
+are not in them), but a change that removes instructions from this path removes
+them from every burst
 (benchmarks/JOURNAL.md, "Foxglove bursts, round 4").
 
-    python -m benchmarks.instructions [--readers 1] [--base-src /tmp/base/src]
+    python -m benchmarks.instructions [--readers 1] [--yield-every 100] [--base-src /tmp/base/src]
 
 Needs valgrind (``apt-get install valgrind``). The robot runs as ``python -S``
 with this interpreter's ``sys.path``: a ``.pth`` file that registers an exit
@@ -29,6 +30,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from .foxglove import BATCH
+
 ROOT = Path(__file__).resolve().parent.parent
 SHORT, LONG = 2_000, 6_000
 
@@ -41,9 +44,10 @@ def _robot() -> None:
 
     import rwt  # noqa: PLC0415
 
-    from .foxglove import BATCH, BURST, _cdr_string, _text  # noqa: PLC0415
+    from .foxglove import BURST, _cdr_string, _text  # noqa: PLC0415
 
     count, readers = int(os.environ["N"]), int(os.environ["READERS"])
+    batch = int(os.environ["YIELD_EVERY"])
 
     async def main() -> None:
         graph = rwt.Graph()
@@ -68,7 +72,7 @@ def _robot() -> None:
                 await anyio.sleep(0.01)
             for index in range(count):
                 publisher.publish(_cdr_string(_text(index, 100)))
-                if (index + 1) % BATCH == 0:
+                if (index + 1) % batch == 0:
                     await asyncio.sleep(0)
             done = json.loads(await anyio.to_thread.run_sync(reader.stdout.readline))
             if sum(done["counts"]) != count * readers:
@@ -79,10 +83,11 @@ def _robot() -> None:
     anyio.run(main)
 
 
-def _count(messages: int, readers: int, src: str | None) -> int:
+def _count(messages: int, readers: int, src: str | None, batch: int) -> int:
     """Instructions of one robot process (callgrind's total)."""
     path = ([src] if src else []) + [p for p in sys.path if p] + [str(ROOT)]
     env = dict(os.environ, N=str(messages), READERS=str(readers), PYTHONHASHSEED="0")
+    env["YIELD_EVERY"] = str(batch)
     env["READER_PYTHON"] = sys.executable
     env["PYTHONPATH"] = os.pathsep.join(path)
     cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null"]
@@ -94,24 +99,28 @@ def _count(messages: int, readers: int, src: str | None) -> int:
     return int(found.group(1).replace(",", ""))
 
 
-def per_message(readers: int, src: str | None = None) -> int:
+def per_message(readers: int, src: str | None = None, batch: int = BATCH) -> int:
     """Instructions one message of a burst costs (``LONG`` less ``SHORT`` runs)."""
-    return (_count(LONG, readers, src) - _count(SHORT, readers, src)) // (LONG - SHORT)
+    long, short = _count(LONG, readers, src, batch), _count(SHORT, readers, src, batch)
+    return (long - short) // (LONG - SHORT)
 
 
 def main(argv: list[str]) -> int:
     """Print the instructions per message of this checkout (and of ``--base-src``)."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.instructions")
     parser.add_argument("--readers", type=int, default=1)
+    parser.add_argument(
+        "--yield-every", type=int, default=BATCH, help="messages between the robot's yields"
+    )
     parser.add_argument("--base-src", help="another commit's src directory, counted too")
     args = parser.parse_args(argv)
     if shutil.which("valgrind") is None:
         print("valgrind is not installed (apt-get install valgrind)", file=sys.stderr)
         return 2
-    here = per_message(args.readers, str(ROOT / "src"))
+    here = per_message(args.readers, str(ROOT / "src"), args.yield_every)
     print(f"this checkout: {here:,} instructions a message to {args.readers} reader(s)")
     if args.base_src:
-        base = per_message(args.readers, str(Path(args.base_src).resolve()))
+        base = per_message(args.readers, str(Path(args.base_src).resolve()), args.yield_every)
         print(f"base: {base:,}; this/base {here / base:.3f}")
     return 0
 

@@ -132,16 +132,28 @@ class _TopicSink:
         """Queue ``event`` as message data for each of ``subscriptions``; never raises.
 
         ``subscriptions``: the channel's (None, the graph's call) or the one a
-        latched message is replayed to. The payload is the message as it
-        arrived where the graph has that (``MessageEvent.wire``: a link's CDR, a
-        bag's record), else serialized once per message for every Foxglove
-        client (``MessageEvent.encoded``); the log time is when the graph
-        received it, on the bag's clock while a bag plays (``servertime``). With
-        the ``foxglove-shared-frames`` shortcut the whole frame (header and
-        payload) is made once per message, subscription id and log time, and
-        every client subscribed with that id queues the same one (in
-        ``event.memos``). Here, not in the session, and in one body: two Python
-        calls less per message of a burst.
+        latched message is replayed to. ``on_messages`` of one message.
+        """
+        self.on_messages((event,), subscriptions)
+
+    def on_messages(
+        self,
+        events: list[MessageEvent] | tuple[MessageEvent, ...],
+        subscriptions: list[int] | tuple[int, ...] | None = None,
+    ) -> None:
+        """Queue each of ``events``, in order, as message data for ``subscriptions``; never raises.
+
+        The graph's batched delivery gives a turn's run of a topic's messages
+        in one call (``rwt_protocol.ports.BatchSink``). The payload is the
+        message as it arrived where the graph has that (``MessageEvent.wire``:
+        a link's CDR, a bag's record), else serialized once per message for
+        every Foxglove client (``MessageEvent.encoded``); the log time is when
+        the graph received it, on the bag's clock while a bag plays
+        (``servertime``). With the ``foxglove-shared-frames`` shortcut the whole
+        frame (header and payload) is made once per message, subscription id
+        and log time, and every client subscribed with that id queues the same
+        one (in ``event.memos``). Here, not in the session, and in one body:
+        two Python calls less per message of a burst.
         """
         session, channel = self._session, self._channel
         if subscriptions is None:
@@ -151,29 +163,30 @@ class _TopicSink:
         clock = session._time
         now = None if clock is None else clock.now()
         push = session._queue.push
-        try:  # fails for the first frame or none: every frame has the same payload and log time
-            payload = event.wire  # as it came (a link's CDR, a bag's record): no call
-            if payload is None:
-                payload = session._payload(channel, event)
-            if now is not None:  # on the bag's clock, told first (a client reads time from it)
-                session._told_time(now)
-            log_time = int(event.stamp * 1e9) if now is None else now
-            memos = event.memos if session._share else {}  # the shortcut off: one for each
-            for sid in subscriptions:  # (not a comprehension: its closure costs every call)
-                # made once per message, subscription id and log time (which a bag's could
-                # move); keyed by the id itself: the keys of ``MessageEvent.memos`` that are
-                # not these frames' are strings or start with one
-                key = sid if now is None else (sid, now)
-                frame = memos.get(key)
-                if frame is None:  # positional: keywords to a class cost a dict per call
-                    frame = memos[key] = OutFrame(
-                        payload, True, True, None, None, encode_message_header(sid, log_time)
-                    )
-                if push(frame):  # type: ignore[arg-type]
-                    session._tell_dropping()
+        share = session._share
+        if now is not None:  # on the bag's clock, told first (a client reads time from it)
+            session._told_time(now)
+        try:  # fails for the first frame or none: a message's frames share payload and time
+            for event in events:
+                payload = event.wire  # as it came (a link's CDR, a bag's record): no call
+                if payload is None:
+                    payload = session._payload(channel, event)
+                log_time = int(event.stamp * 1e9) if now is None else now
+                memos = event.memos if share else {}  # the shortcut off: one for each
+                for sid in subscriptions:  # (not a comprehension: its closure costs a call)
+                    # made once per message, subscription id and log time (which a bag's
+                    # could move); keyed by the id itself: the keys of ``MessageEvent.memos``
+                    # that are not these frames' are strings or start with one
+                    key = sid if now is None else (sid, now)
+                    frame = memos.get(key)
+                    if frame is None:  # positional: keywords to a class cost a dict per call
+                        frame = memos[key] = OutFrame(
+                            payload, True, True, None, None, encode_message_header(sid, log_time)
+                        )
+                    if push(frame):  # type: ignore[arg-type]
+                        session._tell_dropping()
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-            return
         if session._on_output is not None:
             session._on_output()
 

@@ -22,6 +22,7 @@ __all__ = [
     "LOCAL_PREFIX",
     "Offer",
     "ProviderTable",
+    "Soon",
     "Spawner",
     "convert_args",
     "guarded",
@@ -63,6 +64,11 @@ Spawner = Callable[[Callable[[], Awaitable[None]]], Callable[[], None]]
 The graph does no I/O and knows no event loop, so whoever runs it (the
 server) lends it a spawner for async in-process services and actions while it
 runs (``GraphCore.serving``)."""
+
+Soon = Callable[[Callable[[], None]], object]
+"""Calls a function once the event loop has finished its current turn (asyncio's
+``loop.call_soon``): lent by the server with its spawner, for the graph's batched
+delivery (docs/embedding.md, "Batched delivery")."""
 
 
 def convert_args(msgtype: MessageType, args: object, *, path: str, now: float) -> Converted:

@@ -9,8 +9,16 @@ call it directly, so a message takes the same path whichever face published it.
 
 Its two collaborators are given, never assigned from outside: the clock at
 construction (``use_clock`` swaps it for a while, e.g. a bag's time during
-playback) and the spawner of async in-process handlers while a server runs
-(``serving``).
+playback) and, while a server runs (``serving``), the spawner of async
+in-process handlers and the loop's ``call_soon`` that batched delivery uses.
+
+Batched delivery (``deliver_wire``, docs/embedding.md): while a server serves
+the graph, serialized messages published on topics whose every subscriber
+only queues output for a connection (``BatchSink``, a Foxglove client) are
+gathered during the loop's turn and delivered at its end, each topic's run in
+one call per sink, so a burst costs a call per run, not per message and sink.
+Every other delivery, and every change of subscribers or publishers, delivers
+the batch first, so every sink sees the graph's messages in publish order.
 """
 
 from __future__ import annotations
@@ -35,6 +43,7 @@ from rwt_protocol.ports import (
     ServiceReply,
     TopicSink,
 )
+from rwt_protocol.shortcuts import enabled
 
 from .actions import (
     CANCEL_GOAL_TYPE,
@@ -43,7 +52,7 @@ from .actions import (
     cancel_goals_handler,
     cancel_service_name,
 )
-from .calls import LOCAL_PREFIX, Spawner, guarded, is_local
+from .calls import LOCAL_PREFIX, Soon, Spawner, guarded, is_local
 from .clock import Clock, SystemClock
 from .link import OPEN_GATE, OPEN_OUTFLOW, InflowGate, OutflowGate
 from .nodes import Nodes
@@ -79,6 +88,21 @@ _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 Message = dict[str, object]
 _T = TypeVar("_T")
 
+BATCH_MAX_MESSAGES = 1024
+"""Messages of a turn's batch (``deliver_wire``) beyond which it is delivered at once
+(docs/limits.md): a publisher that never yields holds no more than this in the graph,
+and each client's queue keeps its own bounds as before."""
+
+BATCH_MAX_BYTES = 1024 * 1024
+"""Bytes of serialized messages in a turn's batch beyond which it is delivered at once."""
+
+SOLO_AFTER_ONE = 16
+"""Serialized publishes delivered at once after a turn's batch held only one message.
+
+A publisher that yields after every message would otherwise pay a loop callback
+per message for batches of one; it so pays one per ``SOLO_AFTER_ONE + 1`` messages,
+and a burst is batched again from its next turn on."""
+
 
 class GraphCore:
     """Topics, services, actions and nodes of one server; the ``GraphPort`` of its sessions.
@@ -108,7 +132,13 @@ class GraphCore:
         self._clocks: list[Clock] = [self._clock]  # the given clock, then each use_clock's
         # each use_timeline's timeline and playback, latest last
         self._timelines: list[tuple[Callable[[], int | None], Playback | None]] = []
-        self._spawners: list[Spawner] = []  # one per server serving this graph
+        # (spawner, soon) of each server serving this graph, latest last
+        self._serving: list[tuple[Spawner, Soon | None]] = []
+        self._soon: Soon | None = None  # the latest server's: None, no batched delivery
+        self._batching = enabled("batched-delivery")
+        self._batch: list[tuple[Topic, ClientId, bytes]] | None = None  # this turn's
+        self._batch_bytes = 0  # of ``_batch``'s messages
+        self._solo = 0  # serialized publishes still delivered at once (``SOLO_AFTER_ONE``)
         self.topics: dict[str, Topic] = {}
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
         self.actions = Actions(self.registry, self._clock, lambda: self.spawner)
@@ -135,10 +165,10 @@ class GraphCore:
     @property
     def spawner(self) -> Spawner | None:
         """The spawner of the server serving this graph (the latest one), or None."""
-        return self._spawners[-1] if self._spawners else None
+        return self._serving[-1][0] if self._serving else None
 
     @contextlib.contextmanager
-    def serving(self, spawner: Spawner) -> Iterator[None]:
+    def serving(self, spawner: Spawner, soon: Soon | None = None) -> Iterator[None]:
         """Run async in-process handlers through ``spawner`` inside the ``with`` block.
 
         The server enters it while it serves (``calls.Spawner``: it runs jobs in
@@ -146,12 +176,21 @@ class GraphCore:
         latest still open is used, and leaving one in any order restores the
         others'. Outside every block an async handler fails its caller
         (``calls.require_spawner``).
+
+        ``soon``: the loop's ``call_soon`` (``calls.Soon``), which turns batched
+        delivery on inside the block (``deliver_wire``; not with the
+        ``batched-delivery`` shortcut off). A batch still open when a block is
+        left is delivered then.
         """
-        self._spawners.append(spawner)
+        lent = (spawner, soon if self._batching else None)
+        self._serving.append(lent)
+        self._soon = lent[1]
         try:
             yield
         finally:
-            _drop_last(self._spawners, spawner)
+            self.flush()
+            _drop_last(self._serving, lent)
+            self._soon = self._serving[-1][1] if self._serving else None
 
     @contextlib.contextmanager
     def use_clock(self, clock: Clock) -> Iterator[None]:
@@ -240,6 +279,7 @@ class GraphCore:
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
         """Remove ``client`` as a publisher; the topic goes when nobody uses it."""
+        self.flush()
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
             entry.remove_publisher(client)
@@ -321,6 +361,7 @@ class GraphCore:
                 raise GraphError(f"cannot infer the type of {op.topic}: give a type")
         else:
             entry = self._topic(name, self.registry.message(op.type))
+        self.flush()  # the batch goes to the subscribers it was published to
         is_new = entry.add_subscriber(client, sink)
         self._hold(client, entry.name)
         self.nodes.name_of(client)
@@ -330,6 +371,7 @@ class GraphCore:
 
     def unsubscribe(self, client: ClientId, topic: str) -> None:
         """Detach ``client`` from ``topic``."""
+        self.flush()
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
             entry.remove_subscriber(client)
@@ -344,6 +386,7 @@ class GraphCore:
         failed (logged as a bug), so nothing of the client stays registered.
         Its cost is proportional to what ``client`` holds, not to the graph's size.
         """
+        self.flush()
         for name in sorted(self._held.pop(client, ())):
             entry = self.topics.get(name)
             if entry is not None:
@@ -559,6 +602,8 @@ class GraphCore:
         Returns:
             the event its subscribers got.
         """
+        if self._batch is not None:  # this turn's batch was published first
+            self.flush()
         clock = self._clock
         codec = entry.codec  # (per message: no call)
         if codec is None:
@@ -568,6 +613,81 @@ class GraphCore:
             entry.name, entry.msgtype.name, msg, clock.monotonic(), clock.wall(), codec, wire
         )
         entry.fan_out(event, latch, client)
+        if self.taps:
+            self._tap(entry, event, client, latch)
+        return event
+
+    def deliver_wire(self, entry: Topic, latch: bool, client: ClientId, wire: bytes) -> None:
+        """``deliver`` a serialized message, or add it to this turn's batch.
+
+        Batched (docs/embedding.md, "Batched delivery") while a server lends the
+        loop (``serving``), the topic is ``batchable`` and the message not
+        latched, with no taps (a link or a recorder sees each message as it
+        comes); the batch is delivered when the loop's turn ends (``flush``),
+        before anything else is delivered or subscribed, or once it holds
+        ``BATCH_MAX_MESSAGES`` or ``BATCH_MAX_BYTES``. After a batch of one
+        message, the next ``SOLO_AFTER_ONE`` go at once.
+        """
+        batchable = entry.batchable
+        if not batchable and entry._calls is None:  # subscribers changed since the last one
+            entry.sinks()
+            batchable = entry.batchable
+        batch = self._batch
+        if batch is not None:
+            if batchable and not latch:
+                batch.append((entry, client, wire))
+                self._batch_bytes += len(wire)
+                if len(batch) >= BATCH_MAX_MESSAGES or self._batch_bytes >= BATCH_MAX_BYTES:
+                    self.flush()
+                return
+        elif batchable and not latch and self._soon is not None and not self.taps:
+            if self._solo <= 0:
+                self._batch = [(entry, client, wire)]
+                self._batch_bytes = len(wire)
+                self._soon(self.flush)
+                return
+            self._solo -= 1
+        self.deliver(entry, None, latch, client, wire)
+
+    def flush(self) -> None:
+        """Deliver this turn's batch now (``deliver_wire``); nothing if there is none.
+
+        Each run of messages of one topic is given to each sink in one call
+        (``Topic.fan_out_batch``), in publish order; its events carry the time
+        of this delivery (``MessageEvent.now`` and ``stamp``).
+        """
+        batch = self._batch
+        if batch is None:
+            return
+        self._batch = None
+        if len(batch) == 1:
+            self._solo = SOLO_AFTER_ONE
+            entry, client, wire = batch[0]
+            self.deliver(entry, None, False, client, wire)
+            return
+        clock = self._clock
+        now, stamp = clock.monotonic(), clock.wall()
+        start, count = 0, len(batch)
+        while start < count:
+            entry = batch[start][0]
+            end = start + 1
+            while end < count and batch[end][0] is entry:
+                end += 1
+            codec = entry.codec
+            if codec is None:
+                codec = entry.codec = codec_for(self.registry, entry.msgtype)
+            name, type_name = entry.name, entry.msgtype.name
+            events = [
+                MessageEvent(name, type_name, None, now, stamp, codec, wire)
+                for _, _, wire in batch[start:end]
+            ]
+            entry.fan_out_batch(events)  # still ``batchable``: subscribing delivers the batch first
+            if self.taps:  # (one appeared during the turn)
+                for (_, client, _), event in zip(batch[start:end], events, strict=True):
+                    self._tap(entry, event, client, False)
+            start = end
+
+    def _tap(self, entry: Topic, event: MessageEvent, client: ClientId, latch: bool) -> None:
         for tap in self.taps:
             try:
                 tap(entry, event, client, latch)
@@ -579,7 +699,6 @@ class GraphCore:
                     entry.name,
                     exc_info=True,
                 )
-        return event
 
     def _topic(self, topic: str, msgtype: MessageType) -> Topic:
         name = resolve_name(topic)

@@ -81,12 +81,12 @@ class LocalPublisher:
         # positional: a keyword costs 20-40 ns a call, paid per message of a burst
         if type(msg) is bytes:  # serialized: the fewest steps (per message of a burst)
             check_wire_header(self.msgtype.dialect, msg)
-            self._port.deliver(entry, None, self.latch, client, msg)
+            self._port.deliver_wire(entry, self.latch, client, msg)
             return
         if isinstance(msg, (bytearray, memoryview)):
             data = bytes(msg)
             check_wire_header(self.msgtype.dialect, data)
-            self._port.deliver(entry, None, self.latch, client, data)
+            self._port.deliver_wire(entry, self.latch, client, data)
             return
         if validated:
             assert isinstance(msg, dict)

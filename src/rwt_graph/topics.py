@@ -62,6 +62,9 @@ class Topic:
     _calls: tuple[tuple[ClientId, TopicSink], ...] | None = field(default=None, repr=False)
     codec: MessageCodec | None = field(default=None, repr=False, compare=False)
     """``msgtype``'s codec, which the graph gives each event (kept here on first use)."""
+    batchable: bool = field(default=False, repr=False, compare=False)
+    """Every sink ``fan_out`` calls takes a batch (``BatchSink``), and there is one; known
+    once ``sinks`` (or a fan-out) ran since the subscribers last changed (False until then)."""
 
     @property
     def in_use(self) -> bool:
@@ -77,12 +80,14 @@ class Topic:
         is_new = client not in self.subscribers
         self.subscribers[client] = sink
         self._calls = None
+        self.batchable = False
         return is_new
 
     def remove_subscriber(self, client: ClientId) -> None:
         """Forget ``client`` as a subscriber (nothing if it was none)."""
         if self.subscribers.pop(client, None) is not None:
             self._calls = None
+            self.batchable = False
 
     def remove_publisher(self, client: ClientId) -> None:
         """Forget ``client`` as a publisher, and its latched message (D13)."""
@@ -125,20 +130,52 @@ class Topic:
             self.keep(event, client)
         calls = self._calls
         if calls is None:
-            calls = self._calls = tuple(
-                (subscriber, sink)
-                for subscriber, sink in self.subscribers.items()
-                if not getattr(sink, "drops_messages", False)
-            )
+            calls = self.sinks()
+        if self.batchable:  # a batch of one: the call ``on_message`` would make, saved per sink
+            self.fan_out_batch([event])
+            return
         for subscriber, sink in calls:
             try:
                 sink.on_message(event)
             except Exception:  # a broken subscriber must not hurt the others
-                _episodes.log(
-                    logging.ERROR,
-                    f"subscriber_failed {self.name}",
-                    "subscriber %s of %s failed",
-                    subscriber,
-                    self.name,
-                    exc_info=True,
-                )
+                self._failed(subscriber)
+
+    def fan_out_batch(self, events: list[MessageEvent]) -> None:
+        """Deliver ``events``, in order, to every subscriber, one call per sink.
+
+        Only while ``batchable``: the graph's batched delivery (``GraphCore.flush``),
+        and ``fan_out`` of one message, which so makes one call per sink too. Each
+        sink's ``on_messages`` gets the whole list. Nothing is latched here.
+        """
+        calls = self._calls
+        if calls is None:
+            calls = self.sinks()
+        for subscriber, sink in calls:
+            try:
+                sink.on_messages(events)  # type: ignore[attr-defined]
+            except Exception:  # a broken subscriber must not hurt the others
+                self._failed(subscriber)
+
+    def sinks(self) -> tuple[tuple[ClientId, TopicSink], ...]:
+        """The (client, sink) pairs a fan-out calls; sets ``batchable``."""
+        if self._calls is not None:
+            return self._calls
+        calls = self._calls = tuple(
+            (subscriber, sink)
+            for subscriber, sink in self.subscribers.items()
+            if not getattr(sink, "drops_messages", False)
+        )
+        self.batchable = bool(calls) and all(
+            callable(getattr(sink, "on_messages", None)) for _, sink in calls
+        )
+        return calls
+
+    def _failed(self, subscriber: ClientId) -> None:
+        _episodes.log(
+            logging.ERROR,
+            f"subscriber_failed {self.name}",
+            "subscriber %s of %s failed",
+            subscriber,
+            self.name,
+            exc_info=True,
+        )

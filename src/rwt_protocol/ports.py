@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ActionProvider",
+    "BatchSink",
     "ClientId",
     "GoalDone",
     "GoalFeedback",
@@ -206,6 +207,19 @@ class TopicSink(Protocol):
 
     def on_message(self, event: MessageEvent) -> None:
         """Take one message; must not block or raise."""
+
+
+class BatchSink(TopicSink, Protocol):
+    """A ``TopicSink`` that also takes the messages of one turn of the loop in one call.
+
+    A sink that only queues output for a connection (a Foxglove client) has
+    it: while a server serves the graph, serialized messages published on a
+    topic whose every subscriber is such a sink are handed over as a batch at
+    the end of the event loop's turn (docs/embedding.md, "Batched delivery").
+    """
+
+    def on_messages(self, events: list[MessageEvent]) -> None:
+        """Take ``events`` in order, as ``on_message`` would one by one; never blocks or raises."""
 
 
 class GoalStatus(IntEnum):

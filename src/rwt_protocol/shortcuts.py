@@ -95,6 +95,12 @@ The shortcuts (name: what; module; benchmark; general path):
   time, and queued by every client subscribed with that id, so it is also
   framed once; ``rwt_foxglove.session._TopicSink.on_message``; B2 (fan-out),
   the Foxglove comparison's bursts to ten readers; a frame made by each client.
+- ``batched-delivery``: while a server serves the graph, serialized messages
+  published in one turn of the event loop on topics whose every subscriber
+  only queues output (a Foxglove client) are delivered at the turn's end, a
+  topic's run of them in one call per subscriber (``BatchSink``);
+  ``rwt_graph.core.GraphCore.deliver_wire``; B2, the Foxglove comparison's bursts;
+  each message delivered to each subscriber as it is published.
 - ``loop-clock``: the pump reads ``loop.time`` itself, the value
   ``anyio.current_time`` returns on asyncio; ``rwt_transports.pump``; B6
   (5 % of the 100 Hz Twist's samples); ``anyio.current_time``.
@@ -244,6 +250,13 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "server data frames framed once for all subscribers, small ones joined in one write",
         "B1, B2",
         "websockets' ServerProtocol.send_text / send_binary per frame",
+    ),
+    Shortcut(
+        "batched-delivery",
+        "rwt_graph.core.GraphCore.deliver_wire",
+        "a turn's serialized publishes to queueing subscribers delivered at its end, in runs",
+        "B2 (fan-out), Foxglove bursts to 1 and 10 readers",
+        "rwt_graph.core.GraphCore.deliver, each message to each subscriber as it is published",
     ),
     Shortcut(
         "direct-read",

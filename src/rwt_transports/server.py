@@ -18,6 +18,7 @@ cut.
 
 from __future__ import annotations
 
+import asyncio
 import contextvars
 import errno
 import itertools
@@ -74,7 +75,7 @@ from .websocket import WebSocketOptions, serve_websocket_connection
 if TYPE_CHECKING:
     from pathlib import Path
 
-    from rwt_graph.calls import Spawner
+    from rwt_graph.calls import Soon, Spawner
     from rwt_graph.clock import Clock
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
@@ -377,7 +378,7 @@ class RosbridgeServer:
             async with anyio.create_task_group() as connections:
                 try:
                     # async in-process handlers run in the connections' task group
-                    with self.graph.port.serving(spawner_for(connections)):
+                    with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
                         async with anyio.create_task_group() as accepting:
@@ -834,6 +835,18 @@ def spawner_for(tg: TaskGroup) -> Spawner:
     return spawn
 
 
+def loop_soon() -> Soon | None:
+    """The running event loop's ``call_soon``, which the graph's batched delivery uses.
+
+    None off asyncio (and uvloop): the graph then delivers every message as it
+    is published (docs/embedding.md, "Batched delivery").
+    """
+    try:
+        return asyncio.get_running_loop().call_soon
+    except RuntimeError:
+        return None
+
+
 @asynccontextmanager
 async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
     """A task group in which ``graph``'s async in-process handlers run, without a server.
@@ -843,7 +856,7 @@ async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
     (``GraphCore.serving``). Yields the task group; cancel its scope to stop.
     """
     async with anyio.create_task_group() as tg:
-        with graph.port.serving(spawner_for(tg)):
+        with graph.port.serving(spawner_for(tg), loop_soon()):
             yield tg
 
 

@@ -35,7 +35,8 @@ REPO = Path(__file__).resolve().parents[2]
 #: reads no CDR and records no bag (tests/protocol/test_shortcuts.py covers those), and
 #: plays no bag (tests/bag/test_ros1read.py covers ``ros1-chunk-read``), and runs no
 #: Zenoh link (tests/zenoh/test_deferred.py covers its two), and has no Foxglove
-#: client (tests/foxglove/test_shared_frames.py covers ``foxglove-shared-frames``).
+#: client (tests/foxglove/test_shared_frames.py covers ``foxglove-shared-frames``,
+#: tests/graph/ and tests/foxglove/test_batched_delivery.py ``batched-delivery``).
 OUTSIDE_THE_PROBE = {
     "ros2-batch-take",
     "ros2-take-loop",
@@ -45,6 +46,7 @@ OUTSIDE_THE_PROBE = {
     "zenoh-deferred-encode",
     "zenoh-late-copy",
     "foxglove-shared-frames",
+    "batched-delivery",
 }
 SWITCHABLE = {s.name for s in SHORTCUTS} - OUTSIDE_THE_PROBE
 
