@@ -676,14 +676,14 @@ class FoxgloveSession:
             self._graph.unsubscribe(self._client_id, channel.topic)
 
     def _encode_failed(self, channel: _ServerChannel, exc: Exception) -> None:
-        """Say once per topic that its messages cannot be encoded (``_TopicSink.on_message``)."""
+        """Say once per topic that its messages cannot be encoded (``_TopicSink.on_messages``)."""
         if channel.topic not in self._failed_topics:
             self._failed_topics.add(channel.topic)
             logger.warning("event=encode_failed topic=%s reason=%r", channel.topic, str(exc))
             self._status(StatusLevel.ERROR, f"{channel.topic}: cannot encode its messages")
 
     def _payload(self, channel: _ServerChannel, event: MessageEvent) -> bytes:
-        """``event``'s message data payload, shared by every client (``_TopicSink.on_message``).
+        """``event``'s message data payload, shared by every client (``_TopicSink.on_messages``).
 
         Raises:
             Exception: the message cannot be serialized (any error of rosbags).

@@ -93,7 +93,7 @@ The shortcuts (name: what; module; benchmark; general path):
 - ``foxglove-shared-frames``: a Foxglove message data frame (its 13-byte
   header and the payload) made once per message, subscription id and log
   time, and queued by every client subscribed with that id, so it is also
-  framed once; ``rwt_foxglove.session._TopicSink.on_message``; B2 (fan-out),
+  framed once; ``rwt_foxglove.session._TopicSink.on_messages``; B2 (fan-out),
   the Foxglove comparison's bursts to ten readers; a frame made by each client.
 - ``batched-delivery``: while a server serves the graph, serialized messages
   published in one turn of the event loop on topics whose every subscriber
@@ -282,7 +282,7 @@ SHORTCUTS: tuple[Shortcut, ...] = (
     ),
     Shortcut(
         "foxglove-shared-frames",
-        "rwt_foxglove.session._TopicSink.on_message",
+        "rwt_foxglove.session._TopicSink.on_messages",
         "a Foxglove message data frame made once per message and subscription id,"
         " shared by the clients subscribed with that id",
         "B2 (fan-out), Foxglove bursts to 10 readers",
