@@ -23,9 +23,9 @@ from websockets.asyncio.client import connect
 from rwt_foxglove.session import _TopicSink
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import MessageEvent
-from rwt_protocol.shortcuts import ENV_VAR
 from tests.foxglove.test_gather import serving
 from tests.graph.test_batched_delivery import cdr
+from tests.support.shortcuts import switch_off
 
 pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]
 
@@ -44,10 +44,7 @@ async def _burst(
     monkeypatch: pytest.MonkeyPatch, off: str | None
 ) -> tuple[list[str], Counter[int]]:
     """(topic and text) of each message the client got, and the sizes of the sink's batches."""
-    if off is None:
-        monkeypatch.delenv(ENV_VAR, raising=False)
-    else:
-        monkeypatch.setenv(ENV_VAR, off)
+    switch_off(monkeypatch, off)
     batches = Counter[int]()
     real = _TopicSink.on_messages
 

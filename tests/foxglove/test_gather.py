@@ -31,9 +31,9 @@ from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
 from rwt_graph.types.registry import codec_for
 from rwt_protocol.server.outbox import OutFrame
-from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.websocket import WebSocketChannel
+from tests.support.shortcuts import switch_off
 
 pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]  # the paths differ under uvloop
 
@@ -174,10 +174,7 @@ def _texts() -> list[list[str]]:
 
 async def _run_burst(monkeypatch: pytest.MonkeyPatch, off: str | None) -> tuple[list[bytes], int]:
     """The payloads a Foxglove client got for ``_texts``, and the direct writes made."""
-    if off is None:
-        monkeypatch.delenv(ENV_VAR, raising=False)
-    else:
-        monkeypatch.setenv(ENV_VAR, off)
+    switch_off(monkeypatch, off)
     direct = Counter[str]()
     real = WebSocketChannel.send_now
 

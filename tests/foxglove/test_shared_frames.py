@@ -25,9 +25,9 @@ from rwt_foxglove import session as session_module
 from rwt_foxglove.limits import FoxgloveLimits
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
-from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.foxglove.sansio import Client
+from tests.support.shortcuts import switch_off
 
 SIDS = (7, 7, 3)  # two clients share an id, the third has its own
 _IDS = itertools.count(1)  # each client its own identity in the graph
@@ -64,10 +64,7 @@ def _subscribed(graph: Graph, sid: int, **kwargs: object) -> Client:
 def test_each_client_gets_its_frames_whether_shared_or_not(
     ros2_types: TypeRegistry, monkeypatch: pytest.MonkeyPatch, made: Counter[int], off: str | None
 ) -> None:
-    if off is None:
-        monkeypatch.delenv(ENV_VAR, raising=False)
-    else:
-        monkeypatch.setenv(ENV_VAR, off)
+    switch_off(monkeypatch, off)
     graph = Graph(ros2_types)
     publisher = graph.create_publisher("/shared", "std_msgs/msg/String")
     clients = [_subscribed(graph, sid) for sid in SIDS]
@@ -93,10 +90,7 @@ def test_each_client_gets_its_frames_whether_shared_or_not(
 def test_a_client_that_reads_nothing_drops_only_its_own_oldest(
     ros2_types: TypeRegistry, monkeypatch: pytest.MonkeyPatch, off: str | None
 ) -> None:
-    if off is None:
-        monkeypatch.delenv(ENV_VAR, raising=False)
-    else:
-        monkeypatch.setenv(ENV_VAR, off)
+    switch_off(monkeypatch, off)
     graph = Graph(ros2_types)
     publisher = graph.create_publisher("/shared", "std_msgs/msg/String")
     reader = _subscribed(graph, 7)
@@ -115,10 +109,7 @@ def test_a_client_that_reads_nothing_drops_only_its_own_oldest(
 
 async def _over_the_wire(monkeypatch: pytest.MonkeyPatch, off: str | None) -> list[list[bytes]]:
     """The binary frames each client (``SIDS``) got for ``_texts``, through the server."""
-    if off is None:
-        monkeypatch.delenv(ENV_VAR, raising=False)
-    else:
-        monkeypatch.setenv(ENV_VAR, off)
+    switch_off(monkeypatch, off)
     graph = Graph()
     publisher = graph.create_publisher("/shared", "std_msgs/msg/String")
     texts = _texts()

@@ -28,6 +28,7 @@ import pytest
 
 from rwt_graph.core import BATCH_MAX_BYTES, BATCH_MAX_MESSAGES, SOLO_AFTER_ONE
 from rwt_graph.graph import Graph
+from rwt_graph.local import LocalPublisher
 from rwt_protocol.ops import Subscribe
 from rwt_protocol.ports import MessageEvent
 from rwt_protocol.shortcuts import ENV_VAR
@@ -89,6 +90,13 @@ def subscribe(graph: Graph, client: str, topic: str, sink: object) -> None:
     graph.port.subscribe(client, Subscribe(topic=topic, type=STRING), sink)  # type: ignore[arg-type]
 
 
+def one_topic() -> tuple[Graph, Log, LocalPublisher]:
+    """A graph whose ``/a`` has a publisher and one queueing subscriber, ``fox``."""
+    graph, log = Graph(), Log()
+    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
+    return graph, log, graph.create_publisher("/a", STRING)
+
+
 @contextmanager
 def served(graph: Graph) -> Iterator[None]:
     """The graph as a server serves it: async jobs unused, the loop's ``call_soon`` lent."""
@@ -101,9 +109,7 @@ def served(graph: Graph) -> Iterator[None]:
 
 
 async def test_a_turns_burst_reaches_a_queueing_sink_at_its_end_in_one_call() -> None:
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    graph, log, publisher = one_topic()
     with served(graph):
         for i in range(5):
             publisher.publish(cdr(f"a{i}"))
@@ -175,9 +181,7 @@ async def test_subscribing_in_the_turn_delivers_the_batch_to_the_earlier_subscri
 
 
 async def test_after_a_batch_of_one_the_next_messages_go_at_once_then_batch_again() -> None:
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    graph, log, publisher = one_topic()
     with served(graph):
         publisher.publish(cdr("first"))
         await anyio.lowlevel.checkpoint()  # a batch of one
@@ -194,9 +198,7 @@ async def test_after_a_batch_of_one_the_next_messages_go_at_once_then_batch_agai
 
 
 async def test_a_turn_that_never_ends_holds_a_bounded_batch_in_the_graph() -> None:
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    graph, log, publisher = one_topic()
     with served(graph):
         for i in range(BATCH_MAX_MESSAGES * 2 + 5):
             publisher.publish(cdr(f"m{i}"))
@@ -230,9 +232,7 @@ async def test_latched_messages_and_graphs_with_taps_are_delivered_at_once() -> 
 
 
 async def test_a_tap_that_appears_in_the_turn_sees_the_batch() -> None:
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    graph, log, publisher = one_topic()
     tapped: list[str] = []
     with served(graph):
         publisher.publish(cdr("a0"))
@@ -244,9 +244,7 @@ async def test_a_tap_that_appears_in_the_turn_sees_the_batch() -> None:
 
 
 async def test_a_batch_open_when_serving_ends_is_delivered_then() -> None:
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    graph, log, publisher = one_topic()
     with served(graph):
         publisher.publish(cdr("a0"))
         publisher.publish(cdr("a1"))
@@ -259,9 +257,7 @@ async def test_switched_off_every_message_is_delivered_as_published(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setenv(ENV_VAR, "batched-delivery")
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    graph, log, publisher = one_topic()
     with served(graph):
         for i in range(3):
             publisher.publish(cdr(f"a{i}"))
@@ -270,9 +266,7 @@ async def test_switched_off_every_message_is_delivered_as_published(
 
 
 def test_without_a_loop_every_message_is_delivered_as_published() -> None:
-    graph, log = Graph(), Log()
-    subscribe(graph, "fox", "/a", Queueing(log, "fox"))
-    publisher = graph.create_publisher("/a", STRING)
+    _, log, publisher = one_topic()
     publisher.publish(cdr("a0"))
     publisher.publish(cdr("a1"))
     assert log.texts() == ["a0", "a1"]

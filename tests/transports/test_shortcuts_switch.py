@@ -28,6 +28,7 @@ from rwt_transports import pump
 from rwt_transports.direct import DirectReader, DirectWriter
 from rwt_transports.pump import ConnectionPump
 from rwt_transports.websocket import WebSocketChannel, WebSocketOptions
+from tests.support.shortcuts import switch_off
 
 REPO = Path(__file__).resolve().parents[2]
 #: The probe runs no ROS 2 link (tests/ros2/test_batch_take.py and test_take_loop.py
@@ -125,10 +126,7 @@ def test_each_call_site_takes_the_general_path_when_switched_off(
 async def test_the_direct_reader_and_writer_follow_the_switch(
     value: str | None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    if value is None:
-        monkeypatch.delenv(ENV_VAR, raising=False)
-    else:
-        monkeypatch.setenv(ENV_VAR, value)
+    switch_off(monkeypatch, value)
     async with await anyio.create_tcp_listener(local_host="127.0.0.1") as listener:
         port = listener.extra(SocketAttribute.local_port)
         async with await anyio.connect_tcp("127.0.0.1", port) as stream:
