@@ -20,16 +20,23 @@ def click(page: Page, selector: str) -> None:
     """Press and release the left button at the centre of ``selector`` (scrolled into view).
 
     Waits until the element stays put over two animation frames: a page still laying
-    out (an echo growing above a button) would move it from under the pointer.
+    out (an echo growing above a button) would move it from under the pointer. It must
+    also still be the one the selector finds, in the page, and the topmost element at its
+    centre: a view that renders again as messages come (a table of fields beside an
+    echo) replaces its buttons, and a replaced one has no box at all.
     """
     x, y = page.wait_for(
-        f"(async () => {{ const e = document.querySelector({json.dumps(selector)});"
+        f"(async () => {{ const sel = {json.dumps(selector)};"
+        " const e = document.querySelector(sel);"
         " if (!e) return null; e.scrollIntoView({block: 'center'});"
         " const box = () => JSON.stringify(e.getBoundingClientRect());"
         " const before = box();"
         " for (let i = 0; i < 2; i++) await new Promise(requestAnimationFrame);"
-        " if (box() !== before) return null; const r = e.getBoundingClientRect();"
-        " return [r.x + r.width / 2, r.y + r.height / 2]; })()",
+        " if (box() !== before || !e.isConnected || document.querySelector(sel) !== e)"
+        " return null;"
+        " const r = e.getBoundingClientRect(), x = r.x + r.width / 2, y = r.y + r.height / 2;"
+        " const hit = document.elementFromPoint(x, y);"
+        " return r.width && r.height && hit && e.contains(hit) ? [x, y] : null; })()",
         what=f"{selector} to be still",
     )
     page.send("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y)
