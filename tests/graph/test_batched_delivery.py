@@ -25,15 +25,22 @@ from contextlib import contextmanager
 import anyio
 import anyio.lowlevel
 import pytest
+from tests.support.shortcuts import switch_off
 
 from rwt_graph.core import BATCH_MAX_BYTES, BATCH_MAX_MESSAGES, SOLO_AFTER_ONE
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
 from rwt_protocol.ops import Subscribe
 from rwt_protocol.ports import MessageEvent
-from rwt_protocol.shortcuts import ENV_VAR
 
 pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]
+
+
+@pytest.fixture(autouse=True)
+def batching_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shortcut on, whatever ``RWT_NO_SHORTCUTS`` says (one test switches it off)."""
+    switch_off(monkeypatch, None)
+
 
 STRING = "std_msgs/msg/String"
 
@@ -256,7 +263,7 @@ async def test_a_batch_open_when_serving_ends_is_delivered_then() -> None:
 async def test_switched_off_every_message_is_delivered_as_published(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setenv(ENV_VAR, "batched-delivery")
+    switch_off(monkeypatch, "batched-delivery")
     graph, log, publisher = one_topic()
     with served(graph):
         for i in range(3):
