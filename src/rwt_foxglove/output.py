@@ -12,7 +12,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.server.timers import Timer
 
     from .protocol import ServerOp
 
@@ -26,10 +29,22 @@ class SessionOutput(Protocol):
         """Queue a server op that is never dropped (``advertiseServices``...)."""
 
     def answer(self, data: bytes, *, binary: bool) -> None:
-        """Queue an answer to the client's input; dropped like data if the client reads slowly."""
+        """Queue an answer to the client's input (never dropped: the client pays for it).
+
+        A client that sends requests and reads nothing fills its own queue with
+        their answers; its reader then waits for it, as a rosbridge client's does
+        (docs/limits.md, input backpressure).
+        """
 
     def error(self, message: str) -> None:
-        """Queue an error ``status`` (an answer to the client's input)."""
+        """Queue an error ``status`` (an answer to the client's input, never dropped)."""
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` once ``now >= deadline`` (monotonic seconds)."""
+
+    @property
+    def now(self) -> float:
+        """The session's latest monotonic time, seconds."""
 
     def tracked(self, op: ServerOp) -> OutFrame:
         """Queue ``op`` (never dropped) and return its frame, for ``unsent``."""

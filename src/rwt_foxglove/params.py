@@ -276,6 +276,11 @@ class ParameterBridge:
             self._watched.pop(key, None)
             self._changes.pop(key, None)
 
+    @property
+    def watching(self) -> bool:
+        """Whether the client watches any parameter (it holds something: the idle rule)."""
+        return bool(self._watched)
+
     # ---- updates -------------------------------------------------------------------
 
     def _changed(self, key: str, value: ParamValue | None) -> None:

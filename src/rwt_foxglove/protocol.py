@@ -32,7 +32,7 @@ import functools
 import math
 import struct
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Annotated, Any, Final
 
 import msgspec
 
@@ -44,6 +44,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CLIENT_OPS",
+    "MAX_LIST_ENTRIES",
     "SUBPROTOCOLS",
     "UNSUPPORTED_OPS",
     "Advertise",
@@ -103,6 +104,13 @@ SUBPROTOCOLS: Final = ("foxglove.sdk.v1", "foxglove.websocket.v1")
 """The WebSocket subprotocols answered: the SDK's name and the older clients' one."""
 
 U32_MAX: Final = 2**32 - 1
+MAX_LIST_ENTRIES: Final = 10_000
+"""Entries one list op may carry (``subscribe``'s subscriptions, ``unsubscribe``'s ids,
+``advertise``'s channels, parameter names...): a longer list is refused whole with one
+error status before any entry is handled, so one frame costs a bounded amount of work
+(docs/limits.md). As many as the channels a client may be advertised."""
+
+_Bounded = msgspec.Meta(max_length=MAX_LIST_ENTRIES)
 _MESSAGE_DATA: Final = 0x01
 _TIME: Final = 0x02
 _FETCH_ASSET_RESPONSE: Final = 0x04
@@ -155,13 +163,13 @@ class Subscription(msgspec.Struct, frozen=True):
 class Subscribe(msgspec.Struct, frozen=True):
     """``subscribe``: start message data of channels under the client's ids."""
 
-    subscriptions: list[Subscription]
+    subscriptions: Annotated[list[Subscription], _Bounded]
 
 
 class Unsubscribe(msgspec.Struct, frozen=True):
     """``unsubscribe``: stop the subscriptions with these ids."""
 
-    subscriptionIds: list[int]
+    subscriptionIds: Annotated[list[int], _Bounded]
 
 
 class ClientChannel(msgspec.Struct, frozen=True):
@@ -178,13 +186,13 @@ class ClientChannel(msgspec.Struct, frozen=True):
 class ClientAdvertise(msgspec.Struct, frozen=True):
     """``advertise`` from the client: channels it will publish on."""
 
-    channels: list[ClientChannel]
+    channels: Annotated[list[ClientChannel], _Bounded]
 
 
 class ClientUnadvertise(msgspec.Struct, frozen=True):
     """``unadvertise`` from the client: channels it stops publishing on."""
 
-    channelIds: list[int]
+    channelIds: Annotated[list[int], _Bounded]
 
 
 class ClientMessageData(msgspec.Struct, frozen=True):
@@ -206,7 +214,7 @@ class ServiceCallRequest(msgspec.Struct, frozen=True):
 class GetParameters(msgspec.Struct, frozen=True):
     """``getParameters``: the values of these parameters (none named: all); ``id`` is echoed."""
 
-    parameterNames: list[str]
+    parameterNames: Annotated[list[str], _Bounded]
     id: str | None = None
 
 
@@ -225,20 +233,20 @@ class ParameterIn(msgspec.Struct, frozen=True):
 class SetParameters(msgspec.Struct, frozen=True):
     """``setParameters``: set or delete parameters; with ``id``, ``parameterValues`` answers."""
 
-    parameters: list[ParameterIn]
+    parameters: Annotated[list[ParameterIn], _Bounded]
     id: str | None = None
 
 
 class SubscribeParameterUpdates(msgspec.Struct, frozen=True):
     """``subscribeParameterUpdates``: push changes of these parameters."""
 
-    parameterNames: list[str]
+    parameterNames: Annotated[list[str], _Bounded]
 
 
 class UnsubscribeParameterUpdates(msgspec.Struct, frozen=True):
     """``unsubscribeParameterUpdates``: stop pushing changes of these parameters."""
 
-    parameterNames: list[str]
+    parameterNames: Annotated[list[str], _Bounded]
 
 
 class FetchAsset(msgspec.Struct, frozen=True):

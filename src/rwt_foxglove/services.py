@@ -11,8 +11,11 @@ wire encoding (CDR for ROS 2); it becomes a graph call of this client, and its
 answer a binary ``serviceCallResponse`` with the same call id, or a
 ``serviceCallFailure`` (unknown service, an encoding other than the wire one,
 a request that does not decode, too many calls in flight, the provider gone or
-refusing, no answer within ``FoxgloveLimits.call_timeout_s``). Calls in flight
-are independent: each is answered by its call id when its answer comes.
+refusing, no answer within ``--call-timeout``, ``SessionConfig.call_timeout_s``,
+a deadline timer of the session). Calls in flight are independent: each is
+answered by its call id when its answer comes, once. The number in flight is
+``--max-pending-calls`` (``SessionConfig.max_pending_calls``), as for a rosbridge
+client: one set of per-client rules (docs/limits.md).
 """
 
 from __future__ import annotations
@@ -43,8 +46,8 @@ if TYPE_CHECKING:
     from rwt_graph.core import GraphCore
     from rwt_graph.types import MessageType, ServiceType
     from rwt_protocol.ports import Pending
+    from rwt_protocol.server.timers import Timer
 
-    from .limits import FoxgloveLimits
     from .output import SessionOutput
 
 __all__ = ["ServiceCalls"]
@@ -61,7 +64,7 @@ class _Service:
 class _Call:
     service: _Service
     pending: Pending | None = None
-    deadline: float | None = None  # set at the first sync after the call
+    timer: Timer | None = None  # its deadline (``call_timeout_s``)
 
 
 def _schema(mtype: MessageType) -> ServiceSchema:
@@ -77,7 +80,9 @@ class ServiceCalls:
         client_id: this connection's identity in the graph.
         out: where advertisements and answers go.
         access: which services the client may see and call (``--services-glob``).
-        limits: ``max_pending_calls`` and ``call_timeout_s``.
+        max_pending_calls: calls in flight at once (``--max-pending-calls``).
+        call_timeout_s: seconds a call waits for its answer (``--call-timeout``);
+            None: for ever.
     """
 
     def __init__(
@@ -86,24 +91,23 @@ class ServiceCalls:
         client_id: str,
         out: SessionOutput,
         access: AccessPolicy,
-        limits: FoxgloveLimits,
+        max_pending_calls: int,
+        call_timeout_s: float | None,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
         self._out = out
         self._access = access
-        self._limits = limits
+        self._max_pending = max_pending_calls
+        self._timeout_s = call_timeout_s
         self._wire = wire_encoding(graph.registry.dialect)
         self._ids = itertools.count(1)
         self._by_name: dict[str, _Service] = {}
         self._by_id: dict[int, _Service] = {}
         self._calls: dict[int, _Call] = {}  # call id -> the call in flight
 
-    def sync(self, now: float) -> bool:
-        """Advertise the services that appeared, unadvertise those gone; time out old calls.
-
-        Args:
-            now: seconds on the driver's monotonic clock.
+    def sync(self) -> bool:
+        """Advertise the services that appeared, unadvertise those gone.
 
         Returns:
             Whether anything was queued.
@@ -130,7 +134,7 @@ class ServiceCalls:
         ]
         if added:
             self._out.control(AdvertiseServices(services=added))
-        return bool(gone or added) | self._expire(now)
+        return bool(gone or added)
 
     def _add(self, name: str, srvtype: ServiceType) -> Service:
         service = _Service(next(self._ids), name, srvtype)
@@ -172,6 +176,19 @@ class ServiceCalls:
             if self._calls.get(op.call_id) is call:
                 del self._calls[op.call_id]
                 self._fail(service.id, op.call_id, exc.message)
+            return
+        if self._calls.get(op.call_id) is call and self._timeout_s is not None:
+            timeout = self._timeout_s
+
+            def expire(now: float) -> None:
+                if self._calls.get(op.call_id) is not call:
+                    return
+                del self._calls[op.call_id]
+                if call.pending is not None:
+                    call.pending.forget()
+                self._fail(service.id, op.call_id, f"no response within {timeout:g} s")
+
+            call.timer = self._out.call_at(self._out.now + timeout, expire)
 
     def _refusal(self, op: ServiceCallRequest, service: _Service | None) -> str | None:
         if service is None:
@@ -180,14 +197,16 @@ class ServiceCalls:
             return f"unsupported encoding {op.encoding[:40]!r} (expected {self._wire})"
         if op.call_id in self._calls:
             return f"call id {op.call_id} is already in flight"
-        if len(self._calls) >= self._limits.max_pending_calls:
-            return f"too many calls in flight (at most {self._limits.max_pending_calls})"
+        if len(self._calls) >= self._max_pending:
+            return f"too many calls in flight (at most {self._max_pending})"
         return None
 
     def _answer(self, call_id: int, call: _Call, result: bool, values: object) -> None:
         if self._calls.get(call_id) is not call:
             return  # timed out or closed: the client heard already
         del self._calls[call_id]
+        if call.timer is not None:
+            call.timer.cancel()
         service = call.service
         if not result or not isinstance(values, dict):
             self._fail(service.id, call_id, str(values))
@@ -204,20 +223,6 @@ class ServiceCalls:
         failure = ServiceCallFailure(serviceId=service_id, callId=call_id, message=message)
         self._out.answer(encode_op(failure), binary=False)
 
-    def _expire(self, now: float) -> bool:
-        expired = False
-        for call_id, call in list(self._calls.items()):
-            if call.deadline is None:
-                call.deadline = now + self._limits.call_timeout_s
-            elif now >= call.deadline:
-                del self._calls[call_id]
-                if call.pending is not None:
-                    call.pending.forget()
-                timeout = self._limits.call_timeout_s
-                self._fail(call.service.id, call_id, f"no response within {timeout:g} s")
-                expired = True
-        return expired
-
     @property
     def in_flight(self) -> int:
         """Calls waiting for their answer."""
@@ -227,5 +232,7 @@ class ServiceCalls:
         """The connection is gone: its calls are forgotten (their answers go nowhere)."""
         calls, self._calls = list(self._calls.values()), {}
         for call in calls:
+            if call.timer is not None:
+                call.timer.cancel()
             if call.pending is not None:
                 call.pending.forget()

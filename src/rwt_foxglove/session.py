@@ -1,10 +1,15 @@
 """One Foxglove client's session on the graph, without I/O (docs/foxglove.md).
 
-The driver (``driver.py``) hands it each received frame (``receive``), calls
-``sync`` now and then so that topics that appeared or went are advertised or
-unadvertised, and sends what ``take`` gives. Graph messages reach it through one
-``TopicSink`` per subscribed topic, which only queues (a slow client never slows
-a publisher or another client: the queue drops its oldest data, ``outqueue.py``).
+A ``SessionBase`` like rosbridge's ``Session``: the server's one connection
+runtime (``rwt_transports.pump``) hands it each received frame
+(``receive_frame``), runs its timers (the look at the graph's topics every
+``SYNC_INTERVAL_S``, server time, service call deadlines) and its background
+jobs (asset files read off the event loop), and sends what ``frames_to_send``
+gives; it is bound by the same per-client rules (``SessionConfig``: the send
+buffer and its slow-consumer rule, subscriptions, calls in flight, the idle
+timeout), plus the Foxglove section (``FoxgloveLimits``). Graph messages reach it
+through one ``TopicSink`` per subscribed topic, which only queues (a slow client
+never slows a publisher or another client: its outbox drops its oldest data).
 
 What maps to what: a server channel is a topic of the graph that has a
 publisher (and that the access globs let this client see); a subscription is a
@@ -26,15 +31,17 @@ from rwt_graph.types.registry import codec_for
 from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
+from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
-from rwt_protocol.server.access import AccessPolicy, Family
+from rwt_protocol.server.access import Family
+from rwt_protocol.server.connection import SessionBase
 from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.server.session import SessionConfig
 from rwt_protocol.shortcuts import enabled
 
-from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetRequests
+from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetJob, AssetRequests
 from .conngraph import ConnectionGraph
 from .limits import FoxgloveLimits
-from .outqueue import OutQueue
 from .params import ParameterBridge
 from .playback import PLAYBACK_CAPABILITY, PlaybackControl
 from .protocol import (
@@ -69,7 +76,7 @@ from .protocol import (
     parse_text,
 )
 from .schemas import JSON, metadata_for, schema_of, supported_encodings, wire_encoding
-from .servertime import TIME_CAPABILITY, ServerTime
+from .servertime import TIME_CAPABILITY, TIME_INTERVAL_S, ServerTime
 from .services import ServiceCalls
 from .wire import decode_wire
 
@@ -80,8 +87,18 @@ if TYPE_CHECKING:
     from rwt_graph.parameters.store import Parameters
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
+    from rwt_protocol.server.contract import Job
+    from rwt_protocol.server.timers import Timer
 
-__all__ = ["CAPABILITIES", "PARAMETER_CAPABILITIES", "FoxgloveLimits", "FoxgloveSession"]
+    from .assetrequests import AssetReader
+
+__all__ = [
+    "CAPABILITIES",
+    "PARAMETER_CAPABILITIES",
+    "SYNC_INTERVAL_S",
+    "FoxgloveLimits",
+    "FoxgloveSession",
+]
 
 logger = logging.getLogger("rwt.foxglove")
 
@@ -94,7 +111,10 @@ PARAMETER_CAPABILITIES: Final = ("parameters", "parametersSubscribe")
 _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serialization per message
 DROPPING_STATUS: Final = "rwt.dropping"
 """The id of the warning that this client's oldest message data is being dropped,
-withdrawn (``removeStatus``) once its queue is empty again."""
+withdrawn (``removeStatus``) once it caught up (the slow-consumer rule's episode ends)."""
+SYNC_INTERVAL_S: Final = 0.25
+"""Seconds between two looks at the graph's topics (how late an advertise may come)."""
+_LEVELS: Final = {Level.ERROR: StatusLevel.ERROR, Level.WARNING: StatusLevel.WARNING}
 LEFT_OUT_STATUS: Final = "rwt.channels-left-out"
 """The id of the warning that topics are left out (``max_channels``), withdrawn once
 every topic is advertised again."""
@@ -158,14 +178,17 @@ class _TopicSink:
         session, channel = self._session, self._channel
         if subscriptions is None:
             subscriptions = channel.subscriptions
-        if session._closed or not subscriptions:
+        if not session._state.sends or not subscriptions:
             return
         clock = session._time
         now = None if clock is None else clock.now()
-        push = session._queue.push
+        outbox = session._outbox
+        push = outbox.push_droppable
         share = session._share
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
         if now is not None:  # on the bag's clock, told first (a client reads time from it)
             session._told_time(now)
+        frame: OutFrame | None = None
         try:  # fails for the first frame or none: a message's frames share payload and time
             for event in events:
                 payload = event.wire  # as it came (a link's CDR, a bag's record): no call
@@ -178,20 +201,22 @@ class _TopicSink:
                     # could move); keyed by the id itself: the keys of ``MessageEvent.memos``
                     # that are not these frames' are strings or start with one
                     key = sid if now is None else (sid, now)
-                    frame = memos.get(key)
+                    frame = memos.get(key)  # type: ignore[assignment]
                     if frame is None:  # positional: keywords to a class cost a dict per call
                         frame = memos[key] = OutFrame(
                             payload, True, True, None, None, encode_message_header(sid, log_time)
                         )
-                    if push(frame):  # type: ignore[arg-type]
-                        session._tell_dropping()
+                    push(frame)
+            session._now = max(session._now, events[-1].now)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-        if session._on_output is not None:
-            session._on_output()
+        if outbox.dropped != dropped or outbox.held_bytes:  # the slow-consumer rule
+            sent = () if frame is None else (frame,)
+            session._watch.after_push(dropped, oversized, session._now, sent, channel.topic)
+        session._wake()
 
 
-class FoxgloveSession:
+class FoxgloveSession(SessionBase):
     """The Foxglove protocol for one client on the graph.
 
     Args:
@@ -199,17 +224,23 @@ class FoxgloveSession:
             client publishers go through on behalf of ``client_id``.
         client_id: this connection's identity in the graph.
         session_id: sent in ``serverInfo`` (clients tell a restarted server by it).
-        access: which topics, services and parameters this client may use
-            (``--topics-glob``, ``--services-glob``, ``--params-glob``).
-        limits: this client's bounds.
+        config: the per-client rules every protocol shares (``SessionConfig``: the
+            access globs, ``--send-buffer-limit``, ``--send-timeout``,
+            ``--max-subscriptions``, ``--max-pending-calls``, ``--call-timeout``,
+            ``--idle-timeout``, ``--hold-budget``).
+        limits: the Foxglove section of its bounds.
+        on_output: called when frames, commands or a timer were queued; the
+            transport wakes its writer.
+        peer: the client's address, for logs.
+        on_closed: called once with ``client_id`` when the session closes.
+        name: the server's name in ``serverInfo``.
         params: the graph's parameters (``Graph.params``); None: the
             ``parameters`` capabilities are not announced.
-        on_output: called when frames were queued while nobody asked (a graph
-            message); the driver wakes its writer.
-        name: the server's name in ``serverInfo``.
-        assets: answer ``fetchAsset`` (the driver reads the files,
-            ``assetrequests``); False: the op is refused and not announced.
+        assets: reads the files clients ask for (``assets.AssetRoots``), in
+            background jobs; None: ``fetchAsset`` is refused and not announced.
     """
+
+    protocol = "foxglove"
 
     def __init__(
         self,
@@ -217,19 +248,28 @@ class FoxgloveSession:
         client_id: str,
         *,
         session_id: str,
-        access: AccessPolicy | None = None,
+        config: SessionConfig | None = None,
         limits: FoxgloveLimits | None = None,
         on_output: Callable[[], None] | None = None,
+        peer: str = "",
+        on_closed: Callable[[str], None] | None = None,
         name: str = "rwt",
         params: Parameters | None = None,
-        assets: bool = False,
+        assets: AssetReader | None = None,
     ) -> None:
-        self._graph = graph
-        self._client_id = client_id
-        self._access = access or AccessPolicy()
+        config = config or SessionConfig()
         self.limits = limits or FoxgloveLimits()
-        self._queue = OutQueue(self.limits.max_queue_bytes, self.limits.max_queue_messages)
-        self._on_output = on_output
+        super().__init__(
+            graph,
+            client_id,
+            config=config,
+            on_output=on_output,
+            peer=peer,
+            on_closed=on_closed,
+            max_messages=self.limits.max_queue_messages,
+        )
+        self._graph: GraphCore = graph
+        self._access = config.access
         self._ids = itertools.count(1)
         self._channels: dict[str, _ServerChannel] = {}  # topic -> channel
         self._by_id: dict[int, _ServerChannel] = {}
@@ -238,43 +278,29 @@ class FoxgloveSession:
         self._failed_topics: set[str] = set()  # told once that their data cannot be encoded
         self._tracked: dict[int, OutFrame] = {}  # id -> frame of ``tracked`` not yet taken
         self._unadvertised = 0  # topics left out by ``max_channels`` at the last sync
-        self._dropping = False  # the client was told its data is being dropped
-        self._closed = False
+        self._sync_timer: Timer | None = None
+        self._tick_timer: Timer | None = None
         # ``foxglove-shared-frames`` (rwt_protocol/shortcuts.py): off, each client makes its own
         self._share = enabled("foxglove-shared-frames")
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
-        self.services = ServiceCalls(graph, client_id, self, self._access, self.limits)
+        self.services = ServiceCalls(
+            graph, client_id, self, self._access, config.max_pending_calls, config.call_timeout_s
+        )
         self.graph_updates = ConnectionGraph(graph, self, self._access)
         self.params = (
             None
             if params is None
             else ParameterBridge(graph, params, self, self._access, self.limits)
         )
-        capabilities = list(CAPABILITIES)
-        if params is not None:
-            capabilities += PARAMETER_CAPABILITIES
         # a bag playing when the client connects: its clock is server time
         self._time = None if graph.timeline is None else ServerTime(graph)
         # that clock a player's (not sim time): the client's playback bar drives it
         playback = graph.playback
         self._playback = None if playback is None else PlaybackControl(playback)
-        self._assets = AssetRequests() if assets else None
-        capabilities += [TIME_CAPABILITY] if self._time else []
-        capabilities += [PLAYBACK_CAPABILITY] if self._playback else []
-        capabilities += [ASSETS_CAPABILITY] if assets else []
-        first, last = (None, None) if self._playback is None else self._playback.time_range()
-        self._control(
-            ServerInfo(
-                name=name,
-                capabilities=capabilities,
-                supportedEncodings=supported_encodings(dialect),
-                metadata=metadata_for(dialect),
-                sessionId=session_id,
-                dataStartTime=first,
-                dataEndTime=last,
-            )
-        )
+        self._reader = assets
+        self._assets = AssetRequests() if assets is not None else None
+        self._hello(name, session_id)
         self._handlers: dict[type, Callable[[Any], None]] = {
             Subscribe: self._subscribe,
             Unsubscribe: self._unsubscribe,
@@ -291,88 +317,127 @@ class FoxgloveSession:
         self.tick()
         self.sync()
 
-    # ---- outputs ------------------------------------------------------------------
+    def _hello(self, name: str, session_id: str) -> None:
+        """Queue ``serverInfo``: the capabilities this client gets."""
+        dialect = self._graph.registry.dialect
+        capabilities = list(CAPABILITIES)
+        capabilities += PARAMETER_CAPABILITIES if self.params is not None else []
+        capabilities += [TIME_CAPABILITY] if self._time else []
+        capabilities += [PLAYBACK_CAPABILITY] if self._playback else []
+        capabilities += [ASSETS_CAPABILITY] if self._assets is not None else []
+        first, last = (None, None) if self._playback is None else self._playback.time_range()
+        self.control(
+            ServerInfo(
+                name=name,
+                capabilities=capabilities,
+                supportedEncodings=supported_encodings(dialect),
+                metadata=metadata_for(dialect),
+                sessionId=session_id,
+                dataStartTime=first,
+                dataEndTime=last,
+            )
+        )
 
-    def take(self, max_bytes: int | None = None) -> list[OutFrame]:
-        """Take the frames to send, oldest first (about ``max_bytes``; the limits' batch).
+    # ---- the connection runtime's side ---------------------------------------------
 
-        Updates merged while an earlier one waited are queued once it is taken.
-        """
-        frames = self._queue.take(self.limits.batch_bytes if max_bytes is None else max_bytes)
-        if self._dropping and not self._queue.episode_drops:  # the episode is over
-            self._dropping = False
-            self._control(RemoveStatus(statusIds=[DROPPING_STATUS]))
-        if self._assets is not None and self._assets.queued:
-            self._assets.queued -= sum(frame.group is _ASSET for frame in frames)
+    def start(self, now: float) -> None:
+        """The transport serves the client from ``now``: the graph and the clock are watched."""
+        super().start(now)
+        self._sync_timer = self.call_at(now + SYNC_INTERVAL_S, self._on_sync)
+        if self._time is not None:
+            self._tick_timer = self.call_at(now + TIME_INTERVAL_S, self._on_tick)
+
+    def _on_sync(self, now: float) -> None:
+        self.sync()
+        self._sync_timer = self.call_at(now + SYNC_INTERVAL_S, self._on_sync)
+
+    def _on_tick(self, now: float) -> None:
+        self.tick()
+        self._tick_timer = self.call_at(now + TIME_INTERVAL_S, self._on_tick)
+
+    def report(self, level: Level, text: str, op_id: str | int | None = None) -> None:
+        """An error or warning ``status`` for the client (info and debug are not sent)."""
+        foxglove_level = _LEVELS.get(level)
+        if foxglove_level is not None:
+            self._status(foxglove_level, text)
+
+    def holds_anything(self) -> bool:
+        """Whether the client subscribes, publishes, waits for calls or follows updates."""
+        return bool(
+            self._subscriptions
+            or self._client_channels
+            or self.services.in_flight
+            or self.graph_updates.subscribed
+            or (self.params is not None and self.params.watching)
+            or (self._assets is not None and (self._assets.reading or self._assets.queued))
+        )
+
+    def warn_dropping(self, text: str) -> None:
+        """The slow-consumer rule dropped data: one warning ``status``, with its id."""
+        self.control(
+            Status(
+                level=int(StatusLevel.WARNING),
+                message="messages dropped: this client reads slower than they arrive "
+                "(the oldest go first)",
+                id=DROPPING_STATUS,
+            )
+        )
+
+    def dropping_over(self) -> None:
+        """The client caught up: its warning is withdrawn."""
+        self.control(RemoveStatus(statusIds=[DROPPING_STATUS]))
+
+    def taken(self, frames: list[OutFrame]) -> None:
+        """Frames left the queue: tracked updates may be followed, the next file read."""
+        assets = self._assets
+        if assets is not None and assets.queued:
+            assets.queued -= sum(frame.group is _ASSET for frame in frames)
+            if not assets.queued:
+                self._read_next_asset()
         if self._tracked:
             for frame in frames:
                 self._tracked.pop(id(frame), None)
             if self.params is not None:
                 self.params.flush()
-        return frames
-
-    @property
-    def queued_bytes(self) -> int:
-        """Bytes of message data waiting to be taken."""
-        return self._queue.data_bytes
-
-    @property
-    def queue(self) -> OutQueue:
-        """The frames waiting to be taken (``data_bytes`` read per message: no property call)."""
-        return self._queue
 
     @property
     def queued_messages(self) -> int:
-        """Messages of data waiting to be taken."""
-        return self._queue.data_count
+        """Topic messages (and time frames) waiting to be taken."""
+        return self._outbox.topic_frames
 
     @property
     def dropped(self) -> int:
         """Message data frames dropped for this client so far (it read too slowly)."""
-        return self._queue.dropped
-
-    def _control(self, op: ServerOp) -> None:
-        self._queue.push(OutFrame(encode_op(op)))
+        return self._outbox.dropped
 
     # ---- SessionOutput: what the services, parameters and graph parts send --------
 
     def control(self, op: ServerOp) -> None:
         """Queue a server op that is never dropped."""
-        self._control(op)
-        self._wake()
+        self.send_frames((OutFrame(encode_op(op)),))
 
     def answer(self, data: bytes, *, binary: bool) -> None:
-        """Queue an answer to the client's input (dropped like data if it reads too slowly)."""
-        self._push_data(OutFrame(data, binary, True))
-        self._wake()
+        """Queue an answer to the client's input, never dropped (the client pays for it)."""
+        self.send_frames((OutFrame(data, binary),))
 
     def error(self, message: str) -> None:
         """Queue an error ``status``."""
         self._status(StatusLevel.ERROR, message)
-        self._wake()
 
     def tracked(self, op: ServerOp) -> OutFrame:
         """Queue ``op`` (never dropped); ``unsent`` tells when it left the queue."""
         frame = OutFrame(encode_op(op))
         self._tracked[id(frame)] = frame
-        self._queue.push(frame)
-        self._wake()
+        self.send_frames((frame,))
         return frame
 
     def unsent(self, frame: OutFrame) -> bool:
         """Whether ``frame`` (from ``tracked``) still waits in the queue."""
         return self._tracked.get(id(frame)) is frame
 
-    def _wake(self) -> None:
-        if self._on_output is not None:
-            self._on_output()
-
     def _status(self, level: StatusLevel, message: str, status_id: str | None = None) -> None:
-        # An answer to the client's input may be dropped like data: a client that
-        # sends bad frames and reads nothing cannot grow the queue without bound.
         status = Status(level=int(level), message=message, id=status_id)
-        frame = OutFrame(encode_op(status), droppable=True)
-        self._push_data(frame)
+        self.send_frames((OutFrame(encode_op(status)),))
 
     @property
     def announces_time(self) -> bool:
@@ -388,76 +453,56 @@ class FoxgloveSession:
         The server time if it moved (``servertime``), then the playback state if
         it changed (``playback``).
         """
-        if self._time is None or self._closed:
+        if self._time is None or not self._state.sends:
             return
         now = self._time.now()
         told = now is not None and self._told_time(now)
         state = None if self._playback is None else self._playback.frame()
         if state is not None:  # droppable as time frames are
-            self._push_data(OutFrame(state, True, True))
-        if (told or state is not None) and self._on_output is not None:
-            self._on_output()
+            self.push_topic_frame(OutFrame(state, True, True))
+        if told or state is not None:
+            self._wake()
 
     def _told_time(self, now: int) -> bool:
         frame = None if self._time is None else self._time.frame(now)
         if frame is not None:  # droppable: a client that reads nothing cannot grow the queue
-            self._push_data(OutFrame(frame, True, True))
+            self.push_topic_frame(OutFrame(frame, True, True))
         return frame is not None
-
-    def _push_data(self, frame: OutFrame) -> None:
-        if self._queue.push(frame):
-            self._tell_dropping()
-
-    def _tell_dropping(self) -> None:
-        """A push began an episode of drops (``OutQueue.push``): warn the client once."""
-        self._dropping = True
-        logger.warning(
-            "event=slow_consumer client=%s protocol=foxglove dropped_total=%d",
-            self._client_id,
-            self._queue.dropped,
-        )
-        self._queue.push(
-            OutFrame(
-                encode_op(
-                    Status(
-                        level=int(StatusLevel.WARNING),
-                        message="messages dropped: this client reads slower than they "
-                        "arrive (the oldest go first)",
-                        id=DROPPING_STATUS,
-                    )
-                )
-            )
-        )
 
     # ---- input --------------------------------------------------------------------
 
-    def receive(self, data: bytes, *, binary: bool) -> None:
-        """Handle one frame of the client; its answers are queued (``take``).
+    def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
+        """Handle one frame of the client; its answers are queued (``frames_to_send``).
 
-        Never raises for what the client sent: each problem is an error ``status``.
+        Never raises for what the client sent: each problem is an error ``status``;
+        a bug in a handler is reported as ``internal error`` and the session goes
+        on, as rosbridge's does.
         """
-        if self._closed:
+        if not self._state.takes_input:
             return
+        self.received(now)
+        data = frame.encode() if isinstance(frame, str) else frame
         try:
             if binary:
-                frame = parse_binary(data)
-                if isinstance(frame, ServiceCallRequest):
-                    self.services.call(frame)
-                elif isinstance(frame, PlaybackControlRequest):
-                    self._playback_request(frame)
+                request = parse_binary(data)
+                if isinstance(request, ServiceCallRequest):
+                    self.services.call(request)
+                elif isinstance(request, PlaybackControlRequest):
+                    self._playback_request(request)
                 else:
-                    self._message_data(frame)
+                    self._message_data(request)
                 return
             op = parse_text(data)
             self._handlers[type(op)](op)
         except RwtError as exc:
             self._status(StatusLevel.ERROR, exc.message)
+        except Exception:
+            self._bug(None)
 
     def _playback_request(self, request: PlaybackControlRequest) -> None:
         if self._playback is None:  # as the SDK's server: an error status
             raise FoxgloveInputError("playback control is not supported by this server")
-        # an answer to input: droppable, so a client that floods and reads nothing stays bounded
-        self._push_data(OutFrame(self._playback.apply(request), True, True))
+        self.answer(self._playback.apply(request), binary=True)
 
     def _parameters(
         self,
@@ -468,29 +513,30 @@ class FoxgloveSession:
         self.params.handle(op)
 
     def _subscribe(self, op: Subscribe) -> None:
+        problems = _Problems("subscribe")
         for each in op.subscriptions:
             try:
                 self._subscribe_one(each.id, each.channelId)
             except RwtError as exc:
-                self._status(StatusLevel.ERROR, exc.message)
+                problems.add(exc.message)
+        problems.report(self)
 
     def _subscribe_one(self, sid: int, channel_id: int) -> None:
         if sid in self._subscriptions:
             raise FoxgloveInputError(f"subscription id {sid} is in use")
         channel = self._by_id.get(channel_id)
         if channel is None:
-            raise FoxgloveInputError(f"subscribe: unknown channel {channel_id}")
-        if len(self._subscriptions) >= self.limits.max_subscriptions:
+            raise FoxgloveInputError(f"unknown channel {channel_id}")
+        if channel.subscriptions:  # one subscription per channel, as the SDK's server
+            first = channel.subscriptions[0]
             raise FoxgloveInputError(
-                f"subscribe: more than {self.limits.max_subscriptions} subscriptions"
+                f"channel {channel_id} is subscribed already (subscription {first})"
             )
+        cap = self._config.max_subscriptions
+        if len(self._subscriptions) >= cap:
+            raise FoxgloveInputError(f"more than {cap} subscriptions (--max-subscriptions)")
         self._subscriptions[sid] = channel
         channel.subscriptions.append(sid)
-        if len(channel.subscriptions) > 1:  # the topic's sink is there: replay its latched
-            entry = self._graph.topics.get(channel.topic)
-            if entry is not None and entry.latched is not None:
-                _TopicSink(self, channel).on_message(entry.latched, (sid,))
-            return
         try:  # the graph hands the latched message to the new sink at once (D13)
             request = rosbridge.Subscribe(topic=channel.topic, type=channel.mtype.name)
             self._graph.subscribe(self._client_id, request, _TopicSink(self, channel))
@@ -500,21 +546,26 @@ class FoxgloveSession:
             raise
 
     def _unsubscribe(self, op: Unsubscribe) -> None:
+        unknown: list[int] = []
         for sid in op.subscriptionIds:
             channel = self._subscriptions.pop(sid, None)
             if channel is None:
-                self._status(StatusLevel.ERROR, f"unsubscribe: unknown subscription {sid}")
+                unknown.append(sid)
                 continue
             channel.subscriptions.remove(sid)
             if not channel.subscriptions:
                 self._graph.unsubscribe(self._client_id, channel.topic)
+        if unknown:
+            self._status(StatusLevel.ERROR, f"unsubscribe: {_ids('unknown subscription', unknown)}")
 
     def _client_advertise(self, op: ClientAdvertise) -> None:
+        problems = _Problems("advertise")
         for channel in op.channels:
             try:
                 self._advertise_one(channel)
             except RwtError as exc:
-                self._status(StatusLevel.ERROR, f"advertise: {exc.message}")
+                problems.add(exc.message)
+        problems.report(self)
 
     def _advertise_one(self, spec: ClientChannel) -> None:
         if spec.id in self._client_channels:
@@ -529,51 +580,72 @@ class FoxgloveSession:
         if problem is not None:
             raise FoxgloveInputError(f"topic: {problem}")
         topic = resolve_name(spec.topic)
-        if not self._access.allows(Family.TOPICS, topic):
-            raise FoxgloveInputError(f"{topic} is not allowed")
+        self.require_access(Family.TOPICS, topic, "advertise")
         request = rosbridge.Advertise(topic=topic, type=spec.schemaName)
         type_name = self._graph.advertise(self._client_id, request)
         mtype = self._graph.registry.message(type_name)
         self._client_channels[spec.id] = _ClientChannel(spec.id, topic, mtype, spec.encoding)
 
     def _client_unadvertise(self, op: ClientUnadvertise) -> None:
+        unknown: list[int] = []
         for cid in op.channelIds:
             channel = self._client_channels.pop(cid, None)
             if channel is None:
-                self._status(StatusLevel.ERROR, f"unadvertise: unknown client channel {cid}")
+                unknown.append(cid)
                 continue
             if all(other.topic != channel.topic for other in self._client_channels.values()):
                 self._graph.unadvertise(self._client_id, channel.topic)
+        if unknown:
+            self._status(
+                StatusLevel.ERROR, f"unadvertise: {_ids('unknown client channel', unknown)}"
+            )
 
     # ---- assets (assetrequests) ----------------------------------------------------
 
     def _fetch_asset(self, op: FetchAsset) -> None:
         if self._assets is None:
             raise FoxgloveInputError("op 'fetchAsset' is not supported by this server")
-        if not self._assets.add(op):  # droppable: a client that reads nothing stays bounded
+        if not self._assets.add(op):
             error = f"more than {MAX_PENDING_ASSETS} asset requests wait: ask again later"
-            self._push_data(
-                OutFrame(encode_fetch_asset_response(op.requestId, None, error), True, True)
-            )
-
-    def next_asset_request(self) -> FetchAsset | None:
-        """The oldest ``fetchAsset`` to read, once the client took the last response."""
-        if self._assets is None or self._assets.queued or self._closed:
-            return None
-        return self._assets.next()
-
-    def asset_fetched(self, request_id: int, data: bytes | None, error: str = "") -> None:
-        """Queue the response to ``request_id``: ``data``, or with None the ``error`` text."""
-        if self._assets is None or self._closed:
+            self.answer(encode_fetch_asset_response(op.requestId, None, error), binary=True)
             return
-        frame = encode_fetch_asset_response(request_id, data, error)
-        self._assets.queued += 1
-        self._queue.push(OutFrame(frame, binary=True, group=_ASSET))
+        self._read_next_asset()
 
-    @property
-    def assets_queued(self) -> bool:
-        """Whether a response with a file's outcome waits in the queue (the driver waits)."""
-        return self._assets is not None and self._assets.queued > 0
+    def _read_next_asset(self) -> None:
+        """Leave the oldest waiting request to a background job, one file at a time."""
+        if self._assets is None or self._reader is None or not self._state.sends:
+            return
+        request = self._assets.next()
+        if request is not None:
+            self._assets.reading = True
+            self.add_job(AssetJob(self._reader, request), background=True)
+
+    def finish_job(self, job: Job, result: object, now: float) -> None:
+        """Queue the response to an asset job: its file, or the reason it has none."""
+        if not isinstance(job, AssetJob) or self._assets is None:
+            return
+        self._assets.reading = False
+        if not self._state.sends:
+            return
+        request_id = job.request.requestId
+        if isinstance(result, bytes):  # the header apart: the file's bytes are not copied
+            header = encode_fetch_asset_response(request_id, b"")
+            frame = OutFrame(result, True, False, _ASSET, None, header)
+        else:
+            if isinstance(result, RwtError):
+                error = result.message
+            else:
+                logger.error(
+                    "event=bug client=%s asset read failed",
+                    self._client_id,
+                    exc_info=result if isinstance(result, BaseException) else None,
+                )
+                error = "internal error"
+            frame = OutFrame(
+                encode_fetch_asset_response(request_id, None, error), True, False, _ASSET
+            )
+        self._assets.queued += 1
+        self.send_frames((frame,))
 
     def _message_data(self, op: ClientMessageData) -> None:
         channel = self._client_channels.get(op.channel_id)
@@ -583,8 +655,10 @@ class FoxgloveSession:
             value = decode_json_text(bytes(op.payload), "message")
             self._graph.publish(self._client_id, rosbridge.Publish(topic=channel.topic, msg=value))
             return
-        msg = decode_wire(self._graph.registry, channel.mtype, bytes(op.payload))
-        self._graph.publish_local(self._client_id, channel.topic, msg, latch=False)
+        wire = bytes(op.payload)
+        msg = decode_wire(self._graph.registry, channel.mtype, wire)
+        # the client's bytes go on as they are to every subscriber that sends CDR
+        self._graph.publish_local(self._client_id, channel.topic, msg, latch=False, wire=wire)
 
     # ---- the graph ----------------------------------------------------------------
 
@@ -592,18 +666,17 @@ class FoxgloveSession:
         """Bring the client up to date with the graph.
 
         Advertise the topics and services that appeared, unadvertise those gone
-        (or retyped), send the connection graph's changes to a client that
-        follows it, and fail service calls older than ``call_timeout_s``. A
-        channel is a topic with a publisher that this client may see. Costs one
-        pass over the graph's topics and services.
+        (or retyped) and send the connection graph's changes to a client that
+        follows it. A channel is a topic with a publisher that this client may
+        see. Costs one pass over the graph's topics and services.
 
         Args:
-            now: seconds on the driver's monotonic clock (service call timeouts).
+            now: unused; kept for callers that pass the time.
         """
-        if self._closed:
+        if not self._state.sends:
             return
         self._sync_channels()
-        self.services.sync(now)
+        self.services.sync()
         self.graph_updates.sync()
 
     def _sync_channels(self) -> None:
@@ -620,7 +693,7 @@ class FoxgloveSession:
         if gone:
             for channel in gone:
                 self._drop_channel(channel)
-            self._control(Unadvertise(channelIds=[channel.id for channel in gone]))
+            self.control(Unadvertise(channelIds=[channel.id for channel in gone]))
         added: list[Channel] = []
         room = self.limits.max_channels - len(self._channels)
         left_out = 0
@@ -645,16 +718,14 @@ class FoxgloveSession:
                 )
             )
         if added:
-            self._control(Advertise(channels=added))
-        told = self._tell_left_out(left_out)
-        if (gone or added or told) and self._on_output is not None:
-            self._on_output()
+            self.control(Advertise(channels=added))
+        self._tell_left_out(left_out)
 
     def _tell_left_out(self, left_out: int) -> bool:
         """A warning when topics begin to be left out (``max_channels``); once per episode."""
         before, self._unadvertised = self._unadvertised, left_out
         if before and not left_out:  # every topic advertised again
-            self._control(RemoveStatus(statusIds=[LEFT_OUT_STATUS]))
+            self.control(RemoveStatus(statusIds=[LEFT_OUT_STATUS]))
             return True
         if not left_out or before:
             return False
@@ -699,18 +770,53 @@ class FoxgloveSession:
 
     def close(self) -> None:
         """The connection is gone: release its subscriptions and publishers. Idempotent."""
-        if self._closed:
+        if not self.closed:
+            self.services.close()
+            if self.params is not None:
+                self.params.close()
+            if self._assets is not None:
+                self._assets.clear()
+            logger.info(
+                "event=foxglove_closed client=%s dropped=%d queue_peak_bytes=%d",
+                self._client_id,
+                self._outbox.dropped,
+                self._outbox.peak_bytes,
+            )
+            self._subscriptions.clear()
+            self._client_channels.clear()
+        super().close()
+
+
+class _Problems:
+    """The refused entries of one list op, told in one ``status`` (not one each)."""
+
+    __slots__ = ("_count", "_first", "_op")
+
+    _SHOWN: Final = 3
+
+    def __init__(self, op: str) -> None:
+        self._op = op
+        self._first: list[str] = []
+        self._count = 0
+
+    def add(self, message: str) -> None:
+        self._count += 1
+        if len(self._first) < self._SHOWN:
+            self._first.append(message)
+
+    def report(self, session: FoxgloveSession) -> None:
+        if not self._count:
             return
-        self._closed = True
-        self.services.close()
-        if self.params is not None:
-            self.params.close()
-        logger.info(
-            "event=foxglove_closed client=%s dropped=%d queue_peak_bytes=%d",
-            self._client_id,
-            self._queue.dropped,
-            self._queue.peak_bytes,
-        )
-        self._graph.release(self._client_id)
-        self._subscriptions.clear()
-        self._client_channels.clear()
+        text = "; ".join(self._first)
+        if self._count > len(self._first):
+            text += f" (and {self._count - len(self._first)} more refused)"
+        session.error(f"{self._op}: {text}")
+
+
+def _ids(what: str, ids: list[int]) -> str:
+    """``unknown subscription 7``, or ``3 unknown subscriptions: 7, 8, 9`` (five at most)."""
+    if len(ids) == 1:
+        return f"{what} {ids[0]}"
+    shown = ", ".join(str(each) for each in ids[:5])
+    more = f" and {len(ids) - 5} more" if len(ids) > 5 else ""
+    return f"{len(ids)} {what}s: {shown}{more}"

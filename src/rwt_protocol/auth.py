@@ -25,6 +25,7 @@ checks them with the same authenticator before it accepts the handshake.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import hmac
 import math
@@ -39,6 +40,7 @@ from .ops import Auth
 __all__ = [
     "AUTH_CHALLENGE_ID",
     "QUERY_FIELDS",
+    "URL_MAC_LABEL",
     "Authenticator",
     "RosauthVerifier",
     "auth_from_query",
@@ -57,6 +59,11 @@ QUERY_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
 
 #: The first line of the text ``bound_mac`` signs: names the scheme and its version.
 BOUND_MAC_LABEL = "rwt-auth-bound-1"
+
+#: The first line of a bound URL token's MAC (``bound_mac(..., label=URL_MAC_LABEL)``):
+#: a token for a URL (a Foxglove client's, D33) is signed apart from an ``auth`` op, so
+#: an op signed for one connection's challenge opens no URL, and a URL token no connection.
+URL_MAC_LABEL = "rwt-auth-url-1"
 
 Authenticator = Callable[[Auth, str], bool]
 """Decides an ``auth`` op: called with the op and the peer address (``"host:port"``).
@@ -99,7 +106,15 @@ def new_challenge() -> str:
 
 
 def bound_mac(
-    secret: str, *, client: str, dest: str, rand: str, t: float, level: str, end: float
+    secret: str,
+    *,
+    client: str,
+    dest: str,
+    rand: str,
+    t: float,
+    level: str,
+    end: float,
+    label: str = BOUND_MAC_LABEL,
 ) -> str:
     r"""Compute the connection-bound MAC of ``--auth-bind-connection`` (D31).
 
@@ -112,17 +127,19 @@ def bound_mac(
         t: issue time, seconds since the epoch; only whole seconds count.
         level: the user level string.
         end: expiry time, seconds since the epoch; only whole seconds count.
+        label: the first line: ``BOUND_MAC_LABEL`` for an ``auth`` op,
+            ``URL_MAC_LABEL`` for a URL token (D33).
 
     Returns:
         128 lowercase hex digits: HMAC-SHA512 keyed with ``secret`` (UTF-8) of
-        ``"rwt-auth-bound-1\nCLIENT\nDEST\nRAND\nT\nLEVEL\nEND"`` (UTF-8), ``T``
+        ``"LABEL\nCLIENT\nDEST\nRAND\nT\nLEVEL\nEND"`` (UTF-8), ``T``
         and ``END`` as whole seconds in decimal: each field on its own line, so
         no two field lists sign the same text.
 
     Raises:
         ConfigError: a field holds a line break (it could not be told apart).
     """
-    fields = [BOUND_MAC_LABEL, client, dest, rand, _seconds(t), level, _seconds(end)]
+    fields = [label, client, dest, rand, _seconds(t), level, _seconds(end)]
     if any("\n" in field or "\r" in field for field in fields):
         raise ConfigError("auth fields cannot hold line breaks")
     text = "\n".join(fields)
@@ -161,11 +178,14 @@ class RosauthVerifier:
         bound: expect ``bound_mac`` instead of rosauth's MAC
             (``--auth-bind-connection``, D31); the session checks that ``rand``
             is the connection's challenge.
+        label: the bound MAC's label: ``BOUND_MAC_LABEL`` for ``auth`` ops,
+            ``URL_MAC_LABEL`` for URL tokens (D33).
     """
 
     secret: str = field(repr=False)
     max_skew_s: float = 5.0
     bound: bool = False
+    label: str = BOUND_MAC_LABEL
 
     def problem(self, op: Auth, wall_now: float) -> str | None:
         """Say what is wrong with ``op`` at ``wall_now``; None when it is valid.
@@ -181,7 +201,7 @@ class RosauthVerifier:
             return f"expired (end {op.end:.0f} is before now {wall_now:.0f})"
         if op.t - self.max_skew_s > wall_now:
             return f"not yet valid (t {op.t:.0f} is after now {wall_now:.0f})"
-        mac = bound_mac if self.bound else rosauth_mac
+        mac = functools.partial(bound_mac, label=self.label) if self.bound else rosauth_mac
         try:
             expected = mac(
                 self.secret,

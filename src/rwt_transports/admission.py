@@ -10,17 +10,30 @@ the new subscriber misses it.
 
 So a starting connection holds a ``Ticket`` from the moment the server may read
 it without waiting on the peer (plain TCP: accept; TLS: the end of its
-handshake; WebSocket, plain or over TLS: the upgrade response) until its reader
-has handled its first input. A reader of any other connection that got input
-asks, before handling it, whether a starting connection has input waiting or is
-still being set up, and if so waits for it (``Admission.wait_for_new``). Whatever the
-older connection got after the new one's first frames arrived is then handled
-after them. Starting connections wait so for the tickets taken before theirs
-(two clients that connect and then talk to each other, as roslibjs test suites
-do). A ticket counts for ``START_WAIT_S`` at most, and a reader waits at most as
-long (docs/limits.md): a ticket is never waited on while its connection waits
-for its peer, so the bound is a safety net, and a client that connects and says
-nothing costs the others one ``poll`` per batch for that time.
+handshake) until its reader has handled its first input; its probe
+(``Ticket.watch``) is given as soon as the connection's channel exists where
+the probe sees every byte waiting (``stream_sees_all``: a plain socket read by
+the direct reader), else by its reader. A reader of any other connection that
+got input asks, before handling it, whether a starting connection has input
+waiting or is still being set up, and if so waits for it
+(``Admission.wait_for_new``). Whatever the older connection got after the new
+one's first frames arrived is then handled after them. Starting connections
+wait so for the tickets taken before theirs (two clients that connect and then
+talk to each other, as roslibjs test suites do). A ticket counts for
+``START_WAIT_S`` at most, and a reader waits at most as long (docs/limits.md): a
+ticket is never waited on while its connection waits for its peer, so the bound
+is a safety net, and a client that connects and says nothing costs the others
+one ``poll`` per batch for that time.
+
+A WebSocket connection needs no ticket: its reader listens before the upgrade
+response goes (``pump.ConnectionPump``'s ``hello``), so the peer's first frame,
+sent after it, reaches a reader that waits, and the event loop reports it in
+the order it arrived among every connection's input, whichever connection is
+older (a page that opens its publisher first, then its subscribers, and
+publishes once they subscribed, gets the message to them). It holds one only
+for frames sent with the upgrade request, which wait in the parser. A TCP
+client may send before the server accepted its connection, so there two new
+connections' first frames go in the connections' order (docs/limits.md).
 
 Whether input waits is told by the channel's probe (``stream_probe``): bytes in
 the kernel (one ``poll``), decrypted TLS bytes not read yet, and the direct
@@ -54,7 +67,14 @@ if TYPE_CHECKING:
 
     from .direct import DirectReader
 
-__all__ = ["START_WAIT_S", "Admission", "Ticket", "current_ticket", "stream_probe"]
+__all__ = [
+    "START_WAIT_S",
+    "Admission",
+    "Ticket",
+    "current_ticket",
+    "stream_probe",
+    "stream_sees_all",
+]
 
 START_WAIT_S = 0.5
 """Seconds a starting connection's ticket counts, and most a reader waits for tickets."""
@@ -67,8 +87,9 @@ class Ticket:
     """A starting connection whose first input is not handled yet.
 
     Until ``watch`` gives it a probe, the connection is being set up and counts
-    as having input. ``release`` is idempotent. Tickets are ordered by when they
-    were taken (``Admission.hold``).
+    as having input (the transports give one when they take the ticket, so this
+    lasts no loop turn). ``release`` is idempotent. Tickets are ordered by when
+    they were taken (``Admission.hold``).
     """
 
     __slots__ = ("_admission", "_probe", "_seq", "_since")
@@ -184,6 +205,17 @@ class Admission:
                 self.released = anyio.Event()
             with anyio.move_on_after(deadline - now):
                 await self.released.wait()
+
+
+def stream_sees_all(stream: ByteStream, reader: DirectReader | None) -> bool:
+    """Whether ``stream_probe`` sees every byte waiting for the connection (never None).
+
+    So with the direct reader on a plain socket: it reads anyio's queue too. A TLS
+    stream, or one read through anyio's own ``receive``, may hold bytes it cannot see.
+    """
+    extra = getattr(stream, "extra", None)
+    ssl_object = extra(TLSAttribute.ssl_object, None) if extra is not None else None
+    return reader is not None and ssl_object is None
 
 
 def stream_probe(stream: ByteStream, reader: DirectReader | None) -> Callable[[], bool | None]:

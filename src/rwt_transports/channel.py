@@ -18,8 +18,9 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from rwt_protocol.framing.streams import FramerEvent
+    from rwt_protocol.server.commands import CloseCode
+    from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.outbox import OutFrame
-    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["NO_ABILITIES", "Channel", "PlainChannel"]
 
@@ -57,7 +58,7 @@ class Channel(Protocol):
     async def close(self, code: CloseCode, reason: str) -> None:
         """Start closing: tell the peer where the transport can (WebSocket close frame)."""
 
-    async def background(self, session: Session) -> None:
+    async def background(self, session: ServerSession) -> None:
         """Run transport chores (WebSocket keepalive) until cancelled; may return at once."""
 
     def pause_reading(self) -> None:

@@ -23,7 +23,8 @@ if TYPE_CHECKING:
 
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
-    from rwt_protocol.server.session import CloseCode, Session
+    from rwt_protocol.server.commands import CloseCode
+    from rwt_protocol.server.contract import ServerSession
 
 __all__ = ["MemoryChannel", "MemoryConnection", "memory_pair"]
 
@@ -64,7 +65,7 @@ class MemoryChannel(PlainChannel):
         self.outbound.close()
         self.inbound.close()
 
-    async def background(self, session: Session) -> None:
+    async def background(self, session: ServerSession) -> None:
         """Nothing to do."""
 
 

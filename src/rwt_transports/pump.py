@@ -1,9 +1,11 @@
-"""The connection pump: one sans-IO session driven over any transport.
+"""The connection pump: one sans-IO session driven over any transport, in any protocol.
 
 Every transport (WebSocket, TCP, UDP, stdio, in-memory) reduces a connection to a
-``Channel`` (channel.py): receive a batch of frames, send a batch of frames, close. The pump
-runs the rest the same way everywhere (D22, one dispatcher behind all
-transports), in three tasks per connection:
+``Channel`` (channel.py): receive a batch of frames, send a batch of frames, close;
+every protocol's session (rosbridge's, Foxglove's, a third's) implements
+``rwt_protocol.server.contract.ServerSession``. The pump runs the rest the same way
+for all of them (D22, one dispatcher behind all transports; docs/architecture.md,
+"One connection runtime"), in four tasks per connection:
 
 - the reader feeds incoming frames to ``Session.receive_frame``;
 - the writer takes bounded batches from the session's outbox and sends them,
@@ -19,7 +21,10 @@ transports), in three tasks per connection:
 - the timer task calls ``Session.handle_timer`` when ``get_timer`` says, even
   while the writer is stuck on a peer that does not read: that is how the send
   timeout (D24) can close a stalled connection. If the writer cannot even get
-  the close out within ``CLOSE_WAIT_S``, the connection is aborted.
+  the close out within ``CLOSE_WAIT_S``, the connection is aborted;
+- the job task runs the session's background jobs (a Foxglove client's asset
+  files) in a worker thread, ``BACKGROUND_THREADS`` at once over the server, while
+  the reader goes on, and hands each outcome back (``finish_job``).
 
 Input is flow-controlled (docs/limits.md), so that a burst reaches a peer that
 reads instead of being dropped, and one connection cannot monopolise the loop:
@@ -63,8 +68,8 @@ from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
+from rwt_protocol.server.commands import CloseCode, CloseConnection
 from rwt_protocol.server.outbox import OutFrame
-from rwt_protocol.server.session import CloseCode, CloseConnection, Session
 from rwt_protocol.shortcuts import enabled
 
 from .admission import Admission, Ticket, current_ticket
@@ -72,9 +77,12 @@ from .flow import FlowControl, HoldAccount
 from .holding import Held, wait_for
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Awaitable, Callable, Sequence
+
+    from rwt_protocol.server.contract import ServerSession
 
     from .channel import Channel
+    from .frontends import FrontEnd
 
 __all__ = [
     "CLOSE_WAIT_S",
@@ -103,17 +111,21 @@ INFLATE_THREADS = 1
 """Worker threads inflating ``png`` ops at once, over all connections of an event loop:
 what a flood of them can take from the loop (Pillow holds the GIL in parts of it)."""
 
-_inflate_limiters: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, anyio.CapacityLimiter] = (
-    weakref.WeakKeyDictionary()
-)
+BACKGROUND_THREADS = 2
+"""Worker threads running background jobs (asset files read) at once, over all
+connections of an event loop."""
+
+_Limiters = weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, anyio.CapacityLimiter]
+_inflate_limiters: _Limiters = weakref.WeakKeyDictionary()
+_background_limiters: _Limiters = weakref.WeakKeyDictionary()
 
 
-def _inflate_limiter() -> anyio.CapacityLimiter:
-    """The ``INFLATE_THREADS`` limiter of the running event loop."""
+def _limiter(limiters: _Limiters, threads: int) -> anyio.CapacityLimiter:
+    """The running event loop's limiter of ``limiters`` (made with ``threads`` at first use)."""
     loop = asyncio.get_running_loop()
-    limiter = _inflate_limiters.get(loop)
+    limiter = limiters.get(loop)
     if limiter is None:
-        limiter = _inflate_limiters[loop] = anyio.CapacityLimiter(INFLATE_THREADS)
+        limiter = limiters[loop] = anyio.CapacityLimiter(threads)
     return limiter
 
 
@@ -132,25 +144,28 @@ class SessionHost(Protocol):
         peer: str,
         on_output: Callable[[], None],
         *,
+        frontend: FrontEnd | None = None,
         auth_nonce: str | None = None,
         authenticated: bool = False,
-    ) -> Session | None:
-        """Make the session of a new connection.
+    ) -> ServerSession | None:
+        """Admit a new connection and make its session.
 
-        ``auth_nonce``: its auth challenge, when the transport sent it
-        (``Session``); ``authenticated``: the transport already admitted it
-        (a Foxglove URL token). None when the server is full (``--max-connections``) or
+        ``frontend``: the protocol it speaks (``frontends.FrontEnd``; None:
+        rosbridge); ``auth_nonce``: its auth challenge, when the transport sent
+        it (``Session``); ``authenticated``: the transport already admitted it
+        (a URL token). None when the server is full (``--max-connections``) or
         stopping.
         """
 
 
-async def run_connection(pump: ConnectionPump, session: Session, detail: str = "") -> None:
+async def run_connection(pump: ConnectionPump, session: ServerSession, detail: str = "") -> None:
     """Run ``pump`` for ``session``, logging the connection's start and end (structured)."""
     channel = pump.channel
     logger.info(
-        "event=connect client=%s transport=%s peer=%s%s",
+        "event=connect client=%s transport=%s protocol=%s peer=%s%s",
         session.client_id,
         channel.transport,
+        getattr(session, "protocol", "rosbridge"),
         session.peer,
         f" {detail}" if detail else "",
     )
@@ -220,6 +235,10 @@ class ConnectionPump(Held):
             own (a pump that no server runs).
         admission: the server's starting connections (``SessionHost.admission``);
             None: its own (none but this one's).
+        hello: the connection's first write, made once its reader listens (a
+            WebSocket upgrade response): the peer may send only after it, so its
+            first input reaches a reader that waits, and the event loop reports
+            it in the order it arrived among every connection's (admission.py).
 
     Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
     """
@@ -229,8 +248,11 @@ class ConnectionPump(Held):
         channel: Channel,
         flow: FlowControl[Held] | None = None,
         admission: Admission | None = None,
+        hello: Callable[[], Awaitable[None]] | None = None,
     ) -> None:
         super().__init__()  # the outlet readers wait on (``holding``)
+        self._hello = hello
+        self._listening = anyio.Event()  # the reader is about to wait for input
         self.flow: FlowControl[Held] = FlowControl() if flow is None else flow
         self.admission = Admission() if admission is None else admission
         self._account = HoldAccount(0.0)  # its own hold budget, as a reader (set in ``run``)
@@ -241,7 +263,8 @@ class ConnectionPump(Held):
         self._timer_wake = anyio.Event()
         self._reader_done = anyio.Event()
         self._writer_closed = anyio.Event()
-        self._session: Session | None = None
+        self._session: ServerSession | None = None
+        self._jobs_wake = anyio.Event()
         self._timer_deadline: float | None = None
         # The ``deferred-send`` shortcut: off, the pump never writes from the publish path.
         self._direct = channel if abilities.send_now and enabled("deferred-send") else None
@@ -269,7 +292,7 @@ class ConnectionPump(Held):
         self._wake_timers()
         if self._job_wait is not None and session is not None and session.closing:
             self._job_wait.set()  # a reader waiting for its budget stops waiting
-        if session is not None and self.flow.congests(self, session.queued_bytes):
+        if session is not None and self.flow.congests(self, session.fill_bytes):
             self.flow.note_congested(self, anyio.current_time())
 
     def _took(self) -> None:
@@ -342,7 +365,7 @@ class ConnectionPump(Held):
         if session is None or session.closing or session.get_timer() != self._timer_deadline:
             self._timer_wake.set()
 
-    async def run(self, session: Session) -> None:
+    async def run(self, session: ServerSession) -> None:
         """Serve ``session`` until the peer leaves or the session closes, then close it.
 
         Never raises for a bug in this connection's tasks (reader, writer, timers,
@@ -353,14 +376,16 @@ class ConnectionPump(Held):
         self._session = session
         # its marks, budget and cool-down (a reconnection: its host's)
         self._account = self.flow.open_connection(
-            self, session.peer, session.config.hold_budget_s, session.water_marks
+            self, session.peer, session.hold_budget_s, session.water_marks
         )
         session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
+        session.on_job = self._jobs_wake.set
         session.start(_clock()())
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
                 tg.start_soon(self._timers, session, tg.cancel_scope)
+                tg.start_soon(self._background_jobs, session)
                 tg.start_soon(self.channel.background, session)
                 await self._reader(session)
                 self._reader_done.set()
@@ -394,24 +419,28 @@ class ConnectionPump(Held):
             except Exception:  # the channel may be what broke
                 logger.debug("close after a bug failed", exc_info=True)
 
-    async def _reader(self, session: Session) -> None:
+    async def _reader(self, session: ServerSession) -> None:
         # A starting connection's first input goes before what the others got
         # after it (admission.py): their readers ask this probe.
         ticket = current_ticket()
         channel = self.channel
         if ticket is not None:
-            if channel.abilities.probe_input:
-                ticket.watch(channel.input_pending)
-            else:  # no probe (no ticket is taken for such channels): it goes in turn
+            # With a hello (a WebSocket's upgrade response, sent once this reader
+            # listens) the peer cannot have sent yet, but with the request (parser).
+            early = self._hello is not None and channel.input_pending() is not True
+            if channel.abilities.probe_input and not early:
+                ticket.watch(channel.input_pending)  # its first input goes first
+            else:  # from here the loop sees its input in arrival order
                 ticket.release()
                 ticket = None
+        self._listening.set()  # (no checkpoint before ``receive`` waits: the hello may go)
         try:
             await self._read(session, ticket)
         finally:
             if ticket is not None:
                 ticket.release()
 
-    async def _read(self, session: Session, ticket: Ticket | None) -> None:
+    async def _read(self, session: ServerSession, ticket: Ticket | None) -> None:
         clock = _clock()
         while True:
             try:
@@ -446,7 +475,7 @@ class ConnectionPump(Held):
             del events
 
     def _handle(
-        self, session: Session, events: Sequence[FramerEvent], start: int, now: float
+        self, session: ServerSession, events: Sequence[FramerEvent], start: int, now: float
     ) -> int:
         """Handle ``events`` from ``start`` until the slice is full; return where it stopped."""
         flow = self.flow
@@ -472,7 +501,7 @@ class ConnectionPump(Held):
             self._slice_frames, self._slice_bytes = frames, size
         return index
 
-    async def _run_jobs(self, session: Session, clock: Callable[[], float]) -> None:
+    async def _run_jobs(self, session: ServerSession, clock: Callable[[], float]) -> None:
         """Run the session's jobs in turn: each after its ``ready_at``, in a worker thread.
 
         The socket is not read meanwhile: the sender waits for its own budget.
@@ -491,15 +520,39 @@ class ConnectionPump(Held):
                 while session.take_job() is not None:
                     pass
                 return
-            result: bytes | BaseException
+            result: object
             try:
-                result = await anyio.to_thread.run_sync(job.run, limiter=_inflate_limiter())
+                limiter = _limiter(_inflate_limiters, INFLATE_THREADS)
+                result = await anyio.to_thread.run_sync(job.run, limiter=limiter)
             except Exception as exc:  # the session reports it (an RwtError) or logs a bug
                 result = exc
             session.finish_job(job, result, clock())
             flush_deferred(self.flow)
             self._wake_timers()
             await self._apply_backpressure()
+
+    async def _background_jobs(self, session: ServerSession) -> None:
+        """Run the session's background jobs in worker threads while the reader goes on.
+
+        One at a time per connection, ``BACKGROUND_THREADS`` over the server; each
+        outcome goes back to the session (``finish_job``), whose output is written.
+        """
+        while not session.closing:
+            job = session.take_background_job()
+            if job is None:
+                self._jobs_wake = anyio.Event()
+                session.on_job = self._jobs_wake.set
+                await self._jobs_wake.wait()
+                continue
+            result: object
+            try:
+                limiter = _limiter(_background_limiters, BACKGROUND_THREADS)
+                result = await anyio.to_thread.run_sync(job.run, limiter=limiter)
+            except Exception as exc:  # the session reports it (an RwtError) or logs a bug
+                result = exc
+            session.finish_job(job, result, anyio.current_time())
+            del result  # (a file's bytes: the session holds them in its outbox now)
+            flush_deferred(self.flow)
 
     async def _yield_slice(self) -> None:
         """Let the other connections run (fairness) for one turn of the loop.
@@ -535,7 +588,7 @@ class ConnectionPump(Held):
         session = self._session
         if session is None or session.closing:
             return False
-        return (session.queued_reply_bytes if own else session.queued_bytes) > mark
+        return (session.queued_reply_bytes if own else session.fill_bytes) > mark
 
     def unsent_bytes(self) -> int | None:
         """The socket's send queue, where the channel can read it (``holding.wait_for``)."""
@@ -547,8 +600,11 @@ class ConnectionPump(Held):
         queued = 0 if session is None else session.queued_bytes
         return queued + (self.unsent_bytes() or 0)
 
-    async def _writer(self, session: Session, scope: anyio.CancelScope) -> None:
+    async def _writer(self, session: ServerSession, scope: anyio.CancelScope) -> None:
         try:
+            if self._hello is not None:
+                await self._listening.wait()
+                await self._hello()
             while True:
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
@@ -580,7 +636,7 @@ class ConnectionPump(Held):
                 await self._reader_done.wait()
         scope.cancel()
 
-    async def _timers(self, session: Session, scope: anyio.CancelScope) -> None:
+    async def _timers(self, session: ServerSession, scope: anyio.CancelScope) -> None:
         while not session.closing:
             self._timer_wake = anyio.Event()
             deadline = self._timer_deadline = session.get_timer()

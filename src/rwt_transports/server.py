@@ -2,9 +2,11 @@
 
 ``RosbridgeServer`` owns the graph and runs the listeners configured in
 ``ServerConfig`` side by side: WebSocket (``ws``/``wss``), TCP (plain or TLS),
-UDP and stdio. Every connection, whatever its transport, gets a
-``rwt_protocol.server.session.Session`` on the same graph through the same pump
-(D22), so a TCP client and a WebSocket client see each
+UDP and stdio. Every connection, whatever its transport and its protocol
+(rosbridge, or a front end such as Foxglove's, ``frontends``), is admitted in one
+step (``open_session``: ``--max-connections``, the host shares,
+``/connected_clients``) and gets a session on the same graph through the same
+pump (D22), so a TCP client, a WebSocket client and a Foxglove client see each
 other's topics and services. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
 (D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
@@ -50,7 +52,7 @@ from rwt_graph.rosapi.visibility import Visibility
 from rwt_graph.simtime import follow_clock
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
-from rwt_protocol.auth import Authenticator, RosauthVerifier
+from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.server.access import AccessPolicy, Family
@@ -60,7 +62,8 @@ from rwt_protocol.shortcuts import switched_off
 from .admission import Admission, Ticket
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
-from .foxglove import FoxgloveOptions, foxglove_server, url_token_gate
+from .foxglove import FoxgloveOptions, foxglove_frontend
+from .frontends import AuthMode, FrontEnd, FrontEnds, SessionRequest
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
@@ -70,6 +73,7 @@ from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
 from .udp_auth import UdpAuth
+from .urltoken import url_token_gate
 from .websocket import WebSocketOptions, serve_websocket_connection
 
 if TYPE_CHECKING:
@@ -80,6 +84,7 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
     from rwt_protocol.ops import Auth
+    from rwt_protocol.server.contract import ServerSession
 
     from .holding import Held
 
@@ -160,7 +165,7 @@ class ServerConfig:
         foxglove: where Foxglove clients are answered (docs/foxglove.md): on the
             WebSocket port by default, and on ``foxglove.port`` if set. With an
             authenticator, a Foxglove client is admitted by the token in its URL
-            (``foxglove.url_token_gate``; Foxglove has no ``auth`` op).
+            (``urltoken.url_token_gate``; Foxglove has no ``auth`` op).
         udp: UDP settings.
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi; by default
@@ -214,7 +219,12 @@ class ServerConfig:
 
 
 def rosauth_authenticator(
-    secret: str, clock: Clock, max_skew_s: float = 5.0, *, bind_connection: bool = False
+    secret: str,
+    clock: Clock,
+    max_skew_s: float = 5.0,
+    *,
+    bind_connection: bool = False,
+    url_token: bool = False,
 ) -> Authenticator:
     """The rosauth MAC check (D23) as an authenticator, reading wall time from ``clock``.
 
@@ -225,11 +235,30 @@ def rosauth_authenticator(
         bind_connection: check ``bound_mac`` instead of rosauth's MAC
             (``--auth-bind-connection``, D31); the sessions must then send a
             challenge (``SessionConfig(auth_challenge=True)``).
+        url_token: check URL tokens (D33) rather than ``auth`` ops: with
+            ``bind_connection``, the bound MAC under ``URL_MAC_LABEL``. A
+            server makes the URL tokens' check from the ``auth`` ops' one itself.
     """
-    verifier = RosauthVerifier(secret, max_skew_s, bound=bind_connection)
+    label = URL_MAC_LABEL if url_token else BOUND_MAC_LABEL
+    verifier = RosauthVerifier(secret, max_skew_s, bound=bind_connection, label=label)
+    return _Rosauth(verifier, clock)
 
-    def authenticate(op: Auth, peer: str) -> bool:
-        problem = verifier.problem(op, clock.wall())
+
+@dataclass(frozen=True)
+class _Rosauth:
+    """rosauth's check as an ``Authenticator``: ``(op, peer) -> admitted`` (D23, D31, D33).
+
+    Attributes:
+        verifier: the MAC and time window check.
+        clock: the wall time's source.
+    """
+
+    verifier: RosauthVerifier
+    clock: Clock
+
+    def __call__(self, op: Auth, peer: str) -> bool:
+        """Whether ``op`` is valid now; a refusal is logged (rate-limited) with its reason."""
+        problem = self.verifier.problem(op, self.clock.wall())
         if problem is not None:
             _episodes.log(
                 logging.WARNING,
@@ -240,7 +269,22 @@ def rosauth_authenticator(
             )
         return problem is None
 
-    return authenticate
+    def for_url_tokens(self) -> _Rosauth:
+        """The same check for URL tokens: with a bound MAC, the URL token's (D33)."""
+        return replace(self, verifier=replace(self.verifier, label=URL_MAC_LABEL))
+
+
+def _url_authenticator(authenticator: Authenticator) -> Authenticator:
+    """The authenticator of URL tokens for a server whose ``auth`` ops ``authenticator`` checks.
+
+    rosauth's (``rosauth_authenticator``) checks URL tokens under their own MAC
+    with ``--auth-bind-connection`` (``for_url_tokens``), so a token opens only
+    what it was issued for; an embedding program's own callable decides both
+    (it gets the op and the peer, docs/embedding.md).
+    """
+    if isinstance(authenticator, _Rosauth):
+        return authenticator.for_url_tokens()
+    return authenticator
 
 
 Runner = Callable[[TaskGroup], Coroutine[object, object, None]]
@@ -292,15 +336,17 @@ class RosbridgeServer:
         # a link's queue for the other middleware holds publishers back as a subscriber does
         self.graph.port.outflow = OutboundHold(self.flow)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
-        self._foxglove = foxglove_server(
-            self.graph.port,
-            session_config.access,
-            self.config.foxglove,
-            self.graph.params,
-            self.flow,
-        )
+        # the protocols of the WebSocket listeners: rosbridge by default, Foxglove by
+        # subprotocol (on the rosbridge port unless --no-foxglove, and on its own port)
+        rosbridge = FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
+        foxglove = foxglove_frontend(self.graph.port, self.config.foxglove, self.graph.params)
+        on_port = [foxglove] if self.config.foxglove.on_rosbridge_port else []
+        self.frontends = FrontEnds(rosbridge, on_port)
+        self._foxglove_only = FrontEnds(None, [foxglove])
         authenticator = session_config.authenticator
-        self._foxglove_gate = None if authenticator is None else url_token_gate(authenticator)
+        self._token_gate = (
+            None if authenticator is None else url_token_gate(_url_authenticator(authenticator))
+        )
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
             session_config, idle_timeout_s=self.config.idle_timeout_s or None
@@ -308,7 +354,7 @@ class RosbridgeServer:
         self._shares = HostShares(self.config.max_connections_per_host)
         self._hosts: dict[str, str] = {}  # client id -> its host, for the shares
         self._refusals = EpisodeLog(logger)
-        self.sessions: dict[str, Session] = {}
+        self.sessions: dict[str, ServerSession] = {}
         self.urls: dict[str, str] = {}
         self._ids = itertools.count(1)
         self._connected: dict[str, dict[str, object]] = {}
@@ -334,6 +380,15 @@ class RosbridgeServer:
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def add_frontend(self, frontend: FrontEnd) -> None:
+        """Speak one more protocol on the WebSocket port, chosen by its subprotocols.
+
+        It gets the server's admission, per-client rules and flow control as
+        rosbridge and Foxglove do (docs/architecture.md, "How to add a protocol").
+        Call it before ``serve``.
+        """
+        self.frontends = FrontEnds(self.frontends.default, [*self.frontends.others, frontend])
 
     # ---- running --------------------------------------------------------------
 
@@ -614,8 +669,8 @@ class RosbridgeServer:
             self.config.websocket,
             self.config.max_message_size,
             self.fragment_budget,
-            foxglove=self._foxglove if self.config.foxglove.on_rosbridge_port else None,
-            foxglove_gate=self._foxglove_gate,
+            frontends=self.frontends,
+            token_gate=self._token_gate,
         )
 
     async def _handle_foxglove(self, stream: ByteStream) -> None:
@@ -627,9 +682,8 @@ class RosbridgeServer:
             self.config.websocket,
             self.config.max_message_size,
             self.fragment_budget,
-            foxglove=self._foxglove,
-            foxglove_only=True,
-            foxglove_gate=self._foxglove_gate,
+            frontends=self._foxglove_only,
+            token_gate=self._token_gate,
         )
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
@@ -693,25 +747,68 @@ class RosbridgeServer:
         peer: str,
         on_output: Callable[[], None],
         *,
+        frontend: FrontEnd | None = None,
         auth_nonce: str | None = None,
         authenticated: bool = False,
-    ) -> Session | None:
-        """Make the session of a new connection on this server's graph.
+    ) -> ServerSession | None:
+        """Admit a new connection and make its session on this server's graph.
+
+        Admission (``_admit``) is the same for every protocol; the front end only
+        makes the session, under the per-client rules of its transport.
 
         Args:
             transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``stdio`` or ``memory``;
                 the client id is ``<transport>:<peer>#<n>``.
             peer: the peer's address.
             on_output: the pump's wake-up.
+            frontend: the protocol the connection speaks; None: rosbridge.
             auth_nonce: the connection's auth challenge, when the transport sent
                 it (UDP, with ``--auth-bind-connection``); None: the session
                 makes and sends one if it needs one.
             authenticated: the transport already admitted the connection with
-                the authenticator (a Foxglove client's URL token).
+                the authenticator (a URL token).
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
-            still in their handshake count) or the server is stopping.
+            still in their handshake count), the peer's host holds its share, or
+            the server is stopping.
+        """
+        admitted = self._admit(transport, peer)
+        if admitted is None:
+            return None
+        client_id, host, address = admitted
+        stream = transport in ("ws", "tcp", "tls")
+        request = SessionRequest(
+            self.graph.port,
+            client_id,
+            transport,
+            peer,
+            self._stream_session_config if stream else self.session_config,
+            on_output,
+            self._session_closed,
+            self.fragment_budget,
+            auth_nonce,
+            authenticated,
+        )
+        session = (frontend or self.frontends.default or self._rosbridge).make_session(request)
+        self.sessions[client_id] = session
+        if host is not None:
+            self._shares.add(host)
+            self._hosts[client_id] = host
+        self.graph.nodes.attach(client_id, host=address)
+        self._connected[client_id] = {
+            "ip_address": address,
+            "connection_time": time_value(self.graph.clock.wall(), self.graph.registry.dialect),
+        }
+        self._clients_churned()
+        return session
+
+    def _admit(self, transport: str, peer: str) -> tuple[str, str | None, str] | None:
+        """Admission: a slot (``--max-connections``) and the host's share, or None.
+
+        Returns the new client id, the peer's host for the shares (None for stdio
+        and in-process connections) and its address. An admitted socket's
+        handshake deadline is lifted.
         """
         pending = _PENDING.get(None)
         if pending is not None and pending.admitted:
@@ -738,30 +835,25 @@ class RosbridgeServer:
             pending.admitted = True
             pending.scope.deadline = math.inf
             self._handshaking -= 1
-        client_id = f"{transport}:{peer}#{next(self._ids)}"
-        stream = transport in ("ws", "tcp", "tls")
-        session = self.session_class(
-            self.graph.port,
-            client_id,
-            config=self._stream_session_config if stream else self.session_config,
-            on_output=on_output,
-            peer=peer,
-            on_closed=self._session_closed,
-            fragment_budget=self.fragment_budget,
-            auth_nonce=auth_nonce,
-            authenticated=authenticated,
+        return f"{transport}:{peer}#{next(self._ids)}", host, address
+
+    @property
+    def _rosbridge(self) -> FrontEnd:
+        return FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
+
+    def _rosbridge_session(self, request: SessionRequest) -> Session:
+        """A rosbridge session (``session_class``) for an admitted connection."""
+        return self.session_class(
+            request.graph,
+            request.client_id,
+            config=request.config,
+            on_output=request.on_output,
+            peer=request.peer,
+            on_closed=request.on_closed,
+            fragment_budget=request.fragment_budget,
+            auth_nonce=request.auth_nonce,
+            authenticated=request.authenticated,
         )
-        self.sessions[client_id] = session
-        if host is not None:
-            self._shares.add(host)
-            self._hosts[client_id] = host
-        self.graph.nodes.attach(client_id, host=address)
-        self._connected[client_id] = {
-            "ip_address": address,
-            "connection_time": time_value(self.graph.clock.wall(), self.graph.registry.dialect),
-        }
-        self._clients_churned()
-        return session
 
     def _session_closed(self, client_id: str) -> None:
         self.sessions.pop(client_id, None)

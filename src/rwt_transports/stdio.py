@@ -26,8 +26,9 @@ from .tcp import encode_stream_frames
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from rwt_protocol.server.commands import CloseCode
+    from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.outbox import OutFrame
-    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["StdioChannel"]
 
@@ -126,5 +127,5 @@ class StdioChannel(PlainChannel):
         """Stop: the parent sees the end when the process exits."""
         self._ended = True
 
-    async def background(self, session: Session) -> None:
+    async def background(self, session: ServerSession) -> None:
         """Nothing to do."""

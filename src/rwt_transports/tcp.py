@@ -31,8 +31,9 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream
 
     from rwt_protocol.framing.fragments import FragmentBudget
+    from rwt_protocol.server.commands import CloseCode
+    from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.outbox import OutFrame
-    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 
@@ -88,6 +89,8 @@ class StreamChannel:
         self._direct = DirectWriter.for_stream(stream)
         self._reader = DirectReader.for_stream(stream)
         self._probe = admission.stream_probe(stream, self._reader)
+        self.sees_input = admission.stream_sees_all(stream, self._reader)
+        """Whether ``input_pending`` sees every byte waiting (never None)."""
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read the next chunk and return the frames it completes."""
@@ -155,7 +158,7 @@ class StreamChannel:
             await self.stream.aclose()
         await anyio.aclose_forcefully(self.stream)
 
-    async def background(self, session: Session) -> None:
+    async def background(self, session: ServerSession) -> None:
         """Nothing to do: TCP keepalive is the kernel's."""
 
 
@@ -191,9 +194,11 @@ async def _serve_channel(
 ) -> None:
     """Open the session of ``channel`` and run it, or refuse the connection."""
     pump = ConnectionPump(channel, host.flow, host.admission)
+    ticket = admission.current_ticket()
+    if ticket is not None and channel.sees_input:  # else it counts as having input
+        ticket.watch(channel.input_pending)
     session = host.open_session(channel.transport, peer, pump.wake)
     if session is None:
-        ticket = admission.current_ticket()
         if ticket is not None:  # its input is not read: nothing to put first
             ticket.release()
         logger.info("event=refused peer=%s reason='too many connections'", peer)

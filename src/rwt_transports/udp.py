@@ -40,8 +40,9 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup, UDPSocket
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
+    from rwt_protocol.server.commands import CloseCode
+    from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.outbox import OutFrame
-    from rwt_protocol.server.session import CloseCode, Session
 
 __all__ = ["UdpOptions", "serve_udp"]
 
@@ -162,7 +163,7 @@ class UdpChannel(PlainChannel):
     async def close(self, code: CloseCode, reason: str) -> None:
         """Nothing to tell the peer: UDP has no close."""
 
-    async def background(self, session: Session) -> None:
+    async def background(self, session: ServerSession) -> None:
         """Nothing to do."""
 
 
@@ -332,7 +333,7 @@ class _Endpoint:
     async def _run(
         self,
         pump: ConnectionPump,
-        session: Session,
+        session: ServerSession,
         address: Address,
         peer: _Peer,
         receive: MemoryObjectReceiveStream[bytes],

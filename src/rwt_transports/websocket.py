@@ -19,7 +19,9 @@ limited to ``max_message_size`` bytes (10 MiB default, D24/D30); a larger one
 closes the connection with code 1009 (as rosbridge's tornado does, REF §1.1).
 Origins and the URL path are checked at the handshake (``--allowed-origins``,
 ``--url-path``); keepalive pings are optional (``--websocket-ping-interval``).
-A client offering a Foxglove subprotocol is handed to ``foxglove`` (foxglove.py).
+The protocol is the listener's front end that claims a subprotocol the client
+offers (``frontends.FrontEnds``: Foxglove's), else its default (rosbridge); every
+one runs on the same pump.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ import logging
 import os
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final, TypeAlias
+from typing import TYPE_CHECKING, Final
 
 import anyio
 from websockets.exceptions import InvalidState
@@ -42,23 +44,23 @@ from websockets.server import ServerProtocol
 from websockets.typing import Subprotocol
 
 from rwt_console.site import http_response_bytes
-from rwt_foxglove import select_subprotocol
 from rwt_protocol.framing.fragments import BudgetCharge
 from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.framing.streams import FramerEvent, InFrame
-from rwt_protocol.server.session import CloseCode, Session
+from rwt_protocol.server.commands import CloseCode
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
 from .direct import DirectReader, DirectWriter
 from .flow import ChannelAbilities
+from .frontends import AuthMode
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import WRITE_BATCH
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
-    from collections.abc import Awaitable, Callable, Sequence
+    from collections.abc import Sequence
 
     from anyio.abc import ByteStream
     from websockets.datastructures import Headers
@@ -66,9 +68,13 @@ if TYPE_CHECKING:
 
     from rwt_console import ConsoleSite
     from rwt_protocol.framing.fragments import FragmentBudget
+    from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.outbox import OutFrame
 
-__all__ = ["FoxgloveGate", "FoxgloveServe", "WebSocketOptions", "serve_websocket_connection"]
+    from .frontends import FrontEnds
+    from .urltoken import TokenGate
+
+__all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
 logger = logging.getLogger("rwt.websocket")
 
@@ -79,15 +85,6 @@ reads 256 KiB at a time), so a large message is parsed in few steps (benchmarks 
 _HANDSHAKE_LIMIT_S = 10.0
 _DATA_OPCODES = (Opcode.TEXT, Opcode.BINARY, Opcode.CONT)
 _MAX_REASON = 123  # bytes of a close reason (RFC 6455 5.5: a control frame's 125, less the code)
-
-
-FoxgloveServe: TypeAlias = "Callable[[WebSocketChannel, Session, str], Awaitable[None]]"
-"""Runs a connection that chose a Foxglove subprotocol (named last) to its end (foxglove.py)."""
-
-FoxgloveGate: TypeAlias = "Callable[[str, str], tuple[int, str] | None]"
-"""Decides a Foxglove handshake before it is accepted (foxglove.py, ``url_token_gate``):
-called with the request's path (with its query) and the peer address; returns the
-HTTP status and reason to refuse it with, or None to accept it as authenticated."""
 
 
 def _parser_held(protocol: ServerProtocol) -> int:
@@ -162,6 +159,8 @@ class WebSocketChannel:
         self._direct = DirectWriter.for_stream(stream)
         self._reader = DirectReader.for_stream(stream)
         self._probe = admission.stream_probe(stream, self._reader)
+        self.sees_input = admission.stream_sees_all(stream, self._reader)
+        """Whether ``input_pending`` sees every byte waiting (never None)."""
         # ``ws-frame-writer``: off, websockets frames every data message.
         self._frame_here = enabled("ws-frame-writer")
         self.frames: FrameReader | None = None
@@ -226,8 +225,13 @@ class WebSocketChannel:
     def input_pending(self) -> bool | None:
         """Whether input is here already (a new connection's first read, admission.py).
 
-        None when none is seen but anyio may hold some (``admission.stream_probe``).
+        Bytes websockets' parser or the frame reader hold count (a client that sent
+        frames with its upgrade request). None when none is seen but anyio may hold
+        some (``admission.stream_probe``).
         """
+        frames = self.frames
+        if _parser_held(self.protocol) or (frames is not None and frames.held):
+            return True
         return self._probe()
 
     def pause_reading(self) -> None:
@@ -414,7 +418,7 @@ class WebSocketChannel:
                 return  # already closing
             await self._flush_locked()
 
-    async def background(self, session: Session) -> None:
+    async def background(self, session: ServerSession) -> None:
         """Keepalive: ping every interval; no pong in time closes the connection (1011)."""
         interval = self.options.ping_interval_s
         if interval <= 0:
@@ -471,24 +475,22 @@ class WebSocketChannel:
 
 
 def _make_protocol(
-    options: WebSocketOptions, max_message_size: int, *, foxglove: bool = False
+    options: WebSocketOptions, max_message_size: int, frontends: FrontEnds
 ) -> ServerProtocol:
     extensions: list[ServerExtensionFactory] | None = None
     if options.compression:
         extensions = [ServerPerMessageDeflateFactory()]
+
+    def select(protocol: ServerProtocol, offered: Sequence[Subprotocol]) -> Subprotocol | None:
+        """The subprotocol of the front end the client chose (``FrontEnds.select``), or none."""
+        chosen = frontends.select(offered)[1]
+        return None if chosen is None else Subprotocol(chosen)
+
     return ServerProtocol(
         max_size=max_message_size,
         extensions=extensions,
-        select_subprotocol=_select_foxglove if foxglove else None,
+        select_subprotocol=select if frontends.others else None,
     )
-
-
-def _select_foxglove(
-    protocol: ServerProtocol, offered: Sequence[Subprotocol]
-) -> Subprotocol | None:
-    """The first Foxglove name the client offers; others (or none): no subprotocol."""
-    chosen = select_subprotocol(offered)
-    return None if chosen is None else Subprotocol(chosen)
 
 
 async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> tuple[Request, bool] | None:
@@ -552,32 +554,33 @@ async def serve_websocket_connection(
     max_message_size: int,
     budget: FragmentBudget | None = None,
     *,
-    foxglove: FoxgloveServe | None = None,
-    foxglove_only: bool = False,
-    foxglove_gate: FoxgloveGate | None = None,
+    frontends: FrontEnds,
+    token_gate: TokenGate | None = None,
 ) -> None:
     """Run one WebSocket connection to its end.
 
     Args:
         stream: the connected byte stream (TCP, or TLS over TCP).
         peer: the peer's address, for logs and the client id.
-        host: makes the protocol session once the handshake is acceptable.
+        host: admits the connection and makes its session once the handshake is
+            acceptable.
         options: WebSocket settings.
         max_message_size: the largest incoming message, bytes (``--max-message-size``);
             a larger one closes the connection with 1009 (D24).
         budget: the server-wide budget of incomplete messages that a message still
             arriving is charged to (``--max-fragment-memory``); past it the
             connection is closed with 1013.
-        foxglove: runs a connection whose client offered a Foxglove subprotocol;
-            None: every client gets rosbridge (docs/foxglove.md).
-        foxglove_only: refuse (HTTP 400) a client that offers no Foxglove subprotocol.
-        foxglove_gate: with an authenticator (``--auth-secret-file``), decides a
-            Foxglove client's handshake from its URL token; an admitted one's
-            session starts authenticated. None: no authentication.
+        frontends: the protocols this listener speaks: the one a client's offered
+            subprotocol selects, else the default (rosbridge); without a default a
+            client that offers none is refused with HTTP 400.
+        token_gate: with an authenticator (``--auth-secret-file``), decides the
+            handshake of a front end whose clients authenticate with a URL token
+            (``AuthMode.URL_TOKEN``, a Foxglove client); an admitted one's session
+            starts authenticated. None: no authentication.
 
     Never raises for what the peer does; the stream is closed on return.
     """
-    protocol = _make_protocol(options, max_message_size, foxglove=foxglove is not None)
+    protocol = _make_protocol(options, max_message_size, frontends)
     async with stream:
         handshake = await _handshake(stream, protocol)
         if handshake is None:
@@ -587,17 +590,22 @@ async def serve_websocket_connection(
             await _serve_console(stream, request, options.console, peer)
             return
         channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)
-        pump = ConnectionPump(channel, host.flow, host.admission)
+        # the upgrade response goes once the reader listens (``hello``: arrival order)
+        pump = ConnectionPump(channel, host.flow, host.admission, hello=channel.flush)
         refusal = _refusal(request, options)
-        subprotocol = None if foxglove is None else _foxglove_offered(request)
-        if refusal is None and foxglove_only and subprotocol is None:
-            refusal = 400, "this port speaks Foxglove only: offer foxglove.sdk.v1"
-        gated = foxglove_gate is not None and subprotocol is not None
-        if refusal is None and gated and foxglove_gate is not None:
-            refusal = foxglove_gate(request.path, peer)
+        frontend, _ = frontends.select(_offered(request))
+        if refusal is None and frontend is None:
+            refusal = 400, frontends.refusal()
+        gated = (
+            token_gate is not None and frontend is not None and frontend.auth is AuthMode.URL_TOKEN
+        )
+        if refusal is None and gated and token_gate is not None:
+            refusal = token_gate(request.path, peer)
         session = None
         if refusal is None:
-            session = host.open_session(channel.transport, peer, pump.wake, authenticated=gated)
+            session = host.open_session(
+                channel.transport, peer, pump.wake, frontend=frontend, authenticated=gated
+            )
             if session is None:
                 refusal = 503, "too many connections"
         response: Response
@@ -612,59 +620,43 @@ async def serve_websocket_connection(
             channel.frames = FrameReader(max_message_size)
         # From the response on, the client may send: what it sends first is handled
         # before what others send after it (admission.py).
-        ticket = host.admission.hold()
+        ticket = host.admission.hold()  # for frames sent with the request (in the parser)
+        if channel.sees_input:  # else it counts as having input until its reader looks
+            ticket.watch(channel.input_pending)
         ticket.serve()
         try:
-            if foxglove is not None and subprotocol is not None:
-                await _open_foxglove(channel, session, foxglove, subprotocol)
-            else:
-                await _open(channel, pump, session, request)
+            await _open(channel, pump, session, request)
         finally:
             ticket.release()
             channel.release()
 
 
 async def _open(
-    channel: WebSocketChannel, pump: ConnectionPump, session: Session | None, request: Request
+    channel: WebSocketChannel,
+    pump: ConnectionPump,
+    session: ServerSession | None,
+    request: Request,
 ) -> None:
-    """Send the handshake response; run the session if the connection was accepted."""
-    try:
-        await channel.flush()
-    except (anyio.BrokenResourceError, OSError):
+    """Run the session if the connection was accepted (its pump sends the response).
+
+    Else send the refusal (the handshake's response) and close.
+    """
+    if session is None or channel.protocol.state is not State.OPEN:
+        with contextlib.suppress(anyio.BrokenResourceError, OSError):
+            await channel.flush()
         if session is not None:
             session.close()
-        return
-    if session is None:
-        return
-    if channel.protocol.state is not State.OPEN:
-        session.close()
         return
     await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
 
 
-def _foxglove_offered(request: Request) -> str | None:
-    """The Foxglove subprotocol the handshake will select, or None."""
-    offered = [
+def _offered(request: Request) -> list[str]:
+    """The subprotocols the handshake offers, in the client's order."""
+    return [
         name.strip()
         for value in request.headers.get_all("Sec-WebSocket-Protocol")
         for name in value.split(",")
     ]
-    return select_subprotocol(offered)
-
-
-async def _open_foxglove(
-    channel: WebSocketChannel, session: Session | None, foxglove: FoxgloveServe, subprotocol: str
-) -> None:
-    """Send the handshake response; run the Foxglove protocol if the connection was accepted."""
-    try:
-        await channel.flush()
-        if session is not None and channel.protocol.state is State.OPEN:
-            await foxglove(channel, session, subprotocol)
-    except (anyio.BrokenResourceError, OSError):
-        pass
-    finally:
-        if session is not None:
-            session.close()
 
 
 def _is_upgrade(request: Request) -> bool:

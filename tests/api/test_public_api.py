@@ -34,6 +34,7 @@ PLUMBING = {
     "AccessPolicy.check",
     "ConsoleSite.answer",
     "LocalSubscription.on_message",
+    "RosbridgeServer.add_frontend",
     "RosbridgeServer.open_session",
     "TFRepublisher.run_goal",
     "TFRepublisher.subscription",

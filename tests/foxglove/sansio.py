@@ -7,6 +7,7 @@ import struct
 
 from rwt_foxglove import FoxgloveSession
 from rwt_graph.graph import Graph
+from rwt_protocol.server.session import SessionConfig
 
 
 class Client:
@@ -18,10 +19,14 @@ class Client:
         *,
         with_params: bool = False,
         client_id: str = "foxglove:test#1",
+        run_jobs: bool = True,
         **kwargs: object,
     ) -> None:
+        self.run_jobs = run_jobs
         if with_params:
             kwargs["params"] = graph.params
+        if "access" in kwargs:  # the one per-client rule a test names most
+            kwargs["config"] = SessionConfig(access=kwargs.pop("access"))  # type: ignore[arg-type]
         self.session = FoxgloveSession(
             graph.port,
             client_id,
@@ -32,8 +37,20 @@ class Client:
         self.binary: list[bytes] = []
         self.drain()
 
+    now = 0.0
+    """The time the client's frames arrive at (monotonic seconds, moved by hand)."""
+
     def drain(self) -> None:
-        while frames := self.session.take():
+        """Run what the transport would (background jobs, due timers) and take every frame."""
+        session = self.session
+        while self.run_jobs and (job := session.take_background_job()) is not None:
+            try:
+                result: object = job.run()
+            except Exception as exc:
+                result = exc
+            session.finish_job(job, result, self.now)
+        session.handle_timer(self.now)
+        while frames := session.frames_to_send(1 << 20):
             for frame in frames:
                 if frame.binary:
                     self.binary.append(frame.prefix + frame.data)
@@ -41,15 +58,17 @@ class Client:
                     self.ops.append(json.loads(frame.data))
 
     def send(self, op: dict[str, object]) -> None:
-        self.session.receive(json.dumps(op).encode(), binary=False)
+        self.session.receive_frame(json.dumps(op).encode(), self.now, binary=False)
         self.drain()
 
     def send_raw(self, data: bytes, *, binary: bool) -> None:
-        self.session.receive(data, binary=binary)
+        self.session.receive_frame(data, self.now, binary=binary)
         self.drain()
 
-    def sync(self, now: float = 0.0) -> None:
-        self.session.sync(now)
+    def sync(self, now: float | None = None) -> None:
+        if now is not None:
+            self.now = now
+        self.session.sync()
         self.drain()
 
     def take_ops(self, op: str) -> list[dict[str, object]]:

@@ -140,33 +140,57 @@ def test_without_assets_the_op_is_refused_with_a_status() -> None:
     assert status["message"] == "op 'fetchAsset' is not supported by this server"
 
 
-def test_requests_wait_in_order_and_one_response_is_queued_at_a_time(tree: Path) -> None:
-    client = Client(Graph(), assets=True)
+def test_requests_wait_in_order_and_one_file_is_read_and_queued_at_a_time(tree: Path) -> None:
+    client = Client(Graph(), assets=roots(tree), run_jobs=False)
     assert "assets" in client.ops[0]["capabilities"]  # type: ignore[operator]
     session = client.session
     for n in (1, 2):
         client.send(
-            {"op": "fetchAsset", "uri": f"package://robot_description/{n}.stl", "requestId": n}
+            {
+                "op": "fetchAsset",
+                "uri": f"package://robot_description/meshes/{n}.stl",
+                "requestId": n,
+            }
         )
-    first = session.next_asset_request()
-    assert first is not None and first.requestId == 1
-    session.asset_fetched(1, MESH)
-    assert session.assets_queued and session.next_asset_request() is None  # not yet taken
+    first = session.take_background_job()
+    assert first is not None and session.take_background_job() is None  # one file at a time
+    session.finish_job(first, MESH, 0.0)  # read (as the runtime's worker thread would)
+    assert session.take_background_job() is None  # its response is not taken yet
     assert responses(client) == [(1, 0, "", MESH)]
-    assert not session.assets_queued
-    second = session.next_asset_request()
-    assert second is not None and second.requestId == 2
-    session.asset_fetched(2, None, "package://robot_description/2.stl: no such file")
-    assert responses(client) == [(2, 1, "package://robot_description/2.stl: no such file", b"")]
-    assert session.next_asset_request() is None
+    second = session.take_background_job()  # taken: the next one is read
+    assert second is not None
+    try:
+        second.run()
+    except AssetError as exc:
+        session.finish_job(second, exc, 0.0)
+    assert responses(client) == [
+        (2, 1, "package://robot_description/meshes/2.stl: no such file", b"")
+    ]
+    assert session.take_background_job() is None
 
 
-def test_too_many_waiting_requests_are_answered_at_once() -> None:
-    client = Client(Graph(), assets=True)
-    for n in range(MAX_PENDING_ASSETS + 1):
+def test_a_closed_session_drops_its_requests_and_the_file_read_for_it(tree: Path) -> None:
+    client = Client(Graph(), assets=roots(tree), run_jobs=False)
+    session = client.session
+    client.send(
+        {"op": "fetchAsset", "uri": "package://robot_description/meshes/base.stl", "requestId": 1}
+    )
+    client.send(
+        {"op": "fetchAsset", "uri": "package://robot_description/meshes/base.stl", "requestId": 2}
+    )
+    job = session.take_background_job()
+    assert job is not None
+    session.close()
+    session.finish_job(job, job.run(), 0.0)  # the read ends after the close: nothing is kept
+    assert session.frames_to_send() == [] and session.take_background_job() is None
+
+
+def test_too_many_waiting_requests_are_answered_at_once(tree: Path) -> None:
+    client = Client(Graph(), assets=roots(tree), run_jobs=False)
+    for n in range(MAX_PENDING_ASSETS + 2):  # one is being read, 64 wait
         client.send({"op": "fetchAsset", "uri": "package://p/a.stl", "requestId": n})
     ((request_id, status, error, _),) = responses(client)
-    assert (request_id, status) == (MAX_PENDING_ASSETS, 1)
+    assert (request_id, status) == (MAX_PENDING_ASSETS + 1, 1)
     assert error == f"more than {MAX_PENDING_ASSETS} asset requests wait: ask again later"
 
 
@@ -178,9 +202,11 @@ def test_too_many_waiting_requests_are_answered_at_once() -> None:
         ({"op": "fetchAsset", "uri": 5, "requestId": 1}, "fetchAsset: Expected `str`"),
     ],
 )
-def test_a_malformed_fetch_asset_gets_an_error_status(op: dict[str, object], message: str) -> None:
-    client = Client(Graph(), assets=True)
+def test_a_malformed_fetch_asset_gets_an_error_status(
+    tree: Path, op: dict[str, object], message: str
+) -> None:
+    client = Client(Graph(), assets=roots(tree), run_jobs=False)
     client.send(op)
     (status,) = client.take_ops("status")
     assert status["level"] == 2 and message in str(status["message"])
-    assert client.session.next_asset_request() is None
+    assert client.session.take_background_job() is None

@@ -22,9 +22,17 @@ from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rwt_graph.graph import Graph
-from rwt_protocol.auth import auth_from_query, auth_query, bound_mac, rosauth_mac, rosauth_op
+from rwt_protocol.auth import (
+    URL_MAC_LABEL,
+    auth_from_query,
+    auth_query,
+    bound_mac,
+    rosauth_mac,
+    rosauth_op,
+)
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.ops import Auth
+from rwt_protocol.server.session import SessionConfig
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from tests.support.realclients import node_missing, run_node
@@ -217,32 +225,56 @@ async def test_rosbridge_clients_still_send_the_auth_op(served: Served) -> None:
         assert (await rosapi(ws, "/rosapi/get_time"))["time"]
 
 
-async def test_bind_connection_servers_take_the_bound_mac_in_the_url() -> None:
+async def test_bind_connection_servers_take_the_url_tokens_own_mac_in_the_url() -> None:
+    """With ``--auth-bind-connection`` a URL token is signed as one (``URL_MAC_LABEL``).
+
+    An ``auth`` op signed for a rosbridge connection's challenge, captured and put
+    in a Foxglove URL, opens nothing (it did: it could set parameters, advertise and
+    call services); a URL token sent as a rosbridge ``auth`` op opens nothing either.
+    """
     graph = Graph()
     server = RosbridgeServer(
         graph,
-        ServerConfig(port=0),
+        ServerConfig(port=0, session=SessionConfig(auth_challenge=True)),
         authenticator=rosauth_authenticator(SECRET, graph.clock, bind_connection=True),
     )
     now = time.time()
-    fields = {
-        "client": "c",
-        "dest": "d",
-        "rand": "r",
-        "t": now,
-        "level": "user",
-        "end": now + 60,
-    }
-    bound = Auth(mac=bound_mac(SECRET, **fields), **fields)  # type: ignore[arg-type]
-    plain = Auth(mac=rosauth_mac(SECRET, **fields), **fields)  # type: ignore[arg-type]
+    fields = {"client": "c", "dest": "d", "t": now, "level": "user", "end": now + 60}
+    url_token = Auth(
+        mac=bound_mac(SECRET, rand="r", label=URL_MAC_LABEL, **fields), rand="r", **fields
+    )  # type: ignore[arg-type]
+    plain = Auth(mac=rosauth_mac(SECRET, rand="r", **fields), rand="r", **fields)  # type: ignore[arg-type]
     async with anyio.create_task_group() as tg:
         url = await tg.start(server.serve)
-        async with connect(with_token(url, bound), subprotocols=FOXGLOVE) as ws:
+        # a rosbridge client authenticates with its own challenge
+        async with connect(url) as rosbridge:
+            challenge = json.loads(await rosbridge.recv())
+            assert challenge["id"] == "auth_challenge"
+            rand = challenge["msg"]
+            signed = Auth(mac=bound_mac(SECRET, rand=rand, **fields), rand=rand, **fields)  # type: ignore[arg-type]
+            await rosbridge.send(json.dumps({"op": "auth", **signed.model_dump()}))
+            await rosbridge.send(
+                json.dumps({"op": "call_service", "service": "/rosapi/topics", "id": "1"})
+            )
+            assert json.loads(await rosbridge.recv())["result"] is True
+        # captured: that op opens no Foxglove connection, nor does rosauth's plain MAC
+        for captured in (signed, plain):
+            with pytest.raises(InvalidStatus) as refused:
+                async with connect(with_token(url, captured), subprotocols=FOXGLOVE):
+                    pass
+            assert refused.value.response.status_code == 403
+        async with connect(with_token(url, url_token), subprotocols=FOXGLOVE) as ws:
             assert json.loads(await ws.recv())["op"] == "serverInfo"
-        with pytest.raises(InvalidStatus) as refused:
-            async with connect(with_token(url, plain), subprotocols=FOXGLOVE):
-                pass
-        assert refused.value.response.status_code == 403
+        # the URL token is no auth op (its rand is no challenge, and its MAC is the URL's)
+        async with connect(url) as rosbridge:
+            rand = json.loads(await rosbridge.recv())["msg"]
+            forged = Auth(
+                mac=bound_mac(SECRET, rand=rand, label=URL_MAC_LABEL, **fields), rand=rand, **fields
+            )  # type: ignore[arg-type]
+            await rosbridge.send(json.dumps({"op": "auth", **forged.model_dump()}))
+            with pytest.raises(ConnectionClosed):
+                while True:
+                    await rosbridge.recv()
         tg.cancel_scope.cancel()
 
 

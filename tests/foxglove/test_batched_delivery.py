@@ -23,7 +23,7 @@ from websockets.asyncio.client import connect
 from rwt_foxglove.session import _TopicSink
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import MessageEvent
-from tests.foxglove.test_gather import serving
+from tests.foxglove.test_bursts import serving
 from tests.graph.test_batched_delivery import cdr
 from tests.support.shortcuts import switch_off
 

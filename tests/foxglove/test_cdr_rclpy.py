@@ -143,18 +143,19 @@ def test_message_data_is_rclpy_cdr(type_name: str) -> None:
     session = FoxgloveSession(graph.port, "foxglove:t#1", session_id="s")
     channel = next(
         channel
-        for frame in session.take()
+        for frame in session.frames_to_send()
         if not frame.binary and b'"advertise"' in frame.data
         for channel in json.loads(frame.data)["channels"]
     )
-    session.receive(
+    session.receive_frame(
         json.dumps(
             {"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel["id"]}]}
         ).encode(),
+        0.0,
         binary=False,
     )
     publisher.publish(graph.registry.message(type_name).from_python(as_dict))
-    (frame,) = [frame for frame in session.take() if frame.binary]
+    (frame,) = [frame for frame in session.frames_to_send() if frame.binary]
     message = frame.prefix + frame.data  # what the client gets in one message
     assert message[0] == 1 and struct.unpack_from("<I", message, 1) == (1,)
     payload = message[13:]

@@ -77,12 +77,12 @@ def test_an_update_waits_until_the_last_one_left_the_queue(graph: Graph) -> None
     assert _updates(client) == [_empty()]  # an empty graph: the first update comes all the same
     graph.create_publisher("/a", "std_msgs/msg/String", node="/n")
     client.session.sync()
-    first = client.session.take()
+    first = client.session.frames_to_send()
     graph.create_publisher("/b", "std_msgs/msg/String", node="/n")
     client.session.sync()
     graph.create_publisher("/c", "std_msgs/msg/String", node="/n")
     client.session.sync()  # the /b update still waits: /c joins the next
-    frames = client.session.take()
+    frames = client.session.frames_to_send()
     ops = [json.loads(frame.data) for frame in first + frames]
     updates = [op for op in ops if op["op"] == "connectionGraphUpdate"]
     published = [[t["name"] for t in u["publishedTopics"]] for u in updates]

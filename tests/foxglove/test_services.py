@@ -6,12 +6,12 @@ import struct
 
 import pytest
 
-from rwt_foxglove import FoxgloveLimits
 from rwt_foxglove.wire import decode_wire
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
 from tests.conftest import Peer
 from tests.foxglove.sansio import Client, cdr
 
@@ -102,7 +102,7 @@ def test_concurrent_calls_to_a_rosbridge_provider_are_answered_by_call_id(graph:
 def test_failures_come_by_call_id_and_the_session_goes_on(graph: Graph) -> None:
     peer = _rosbridge_adder(graph)
     graph.create_service("/local_add", ADD, lambda req: {"sum": req["a"] + req["b"]})
-    client = Client(graph, limits=FoxgloveLimits(max_pending_calls=2))
+    client = Client(graph, config=SessionConfig(max_pending_calls=2))  # --max-pending-calls
     sid = int(client.service("/rb_add")["id"])  # type: ignore[call-overload]
     local = int(client.service("/local_add")["id"])  # type: ignore[call-overload]
     client.call(9999, 1, _request(graph, 1, 2))
@@ -142,12 +142,14 @@ def test_failures_come_by_call_id_and_the_session_goes_on(graph: Graph) -> None:
 
 
 def test_a_call_without_answer_times_out_and_a_late_answer_goes_nowhere(graph: Graph) -> None:
+    """``--call-timeout`` binds a Foxglove client's calls, on a timer of their own."""
     peer = _rosbridge_adder(graph)
-    client = Client(graph, limits=FoxgloveLimits(call_timeout_s=5.0))
+    client = Client(graph, config=SessionConfig(call_timeout_s=5.0))
     sid = int(client.service("/rb_add")["id"])  # type: ignore[call-overload]
+    client.now = 100.0
     client.call(sid, 1, _request(graph, 1, 2))
-    client.sync(100.0)  # the call's clock starts at the first sync after it
-    client.sync(104.0)
+    assert client.session.get_timer() == 105.0  # its deadline: no polling
+    client.sync(104.999)
     assert _failures(client) == []
     client.sync(105.0)
     assert _failures(client) == [(sid, 1, "no response within 5 s")]
@@ -203,7 +205,7 @@ def test_a_closed_session_forgets_its_calls(graph: Graph) -> None:
     peer.send(
         op="service_response", service="/rb_add", id=request["id"], result=True, values={"sum": 3}
     )
-    assert client.session.take() == []
+    assert client.session.frames_to_send() == []
 
 
 def test_a_ros1_graph_calls_in_the_ros1_serialization() -> None:

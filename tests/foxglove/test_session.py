@@ -12,6 +12,7 @@ from rwt_foxglove.protocol import select_subprotocol
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.server.session import SessionConfig
 from tests.foxglove.sansio import Client, cdr
 
 
@@ -88,16 +89,36 @@ def test_subscribe_delivers_in_order_and_unsubscribe_stops(ros2_types: TypeRegis
     assert client.take_ops("status") == []
 
 
-def test_latched_message_goes_to_each_new_subscription(ros2_types: TypeRegistry) -> None:
+def test_one_subscription_per_channel_and_the_latched_message_goes_to_each_new_one(
+    ros2_types: TypeRegistry,
+) -> None:
+    """A second subscription of a channel is refused, as the Foxglove SDK's server ignores it:
+    4096 subscriptions of one channel would make each message 4096 frames."""
     graph = Graph(ros2_types)
     publisher = graph.create_publisher("/map", "std_msgs/msg/String", latch=True)
     publisher.publish({"data": "kept"})
     client = Client(graph)
     cid = client.channel("/map")["id"]
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
-    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
+    client.send(
+        {"op": "subscribe", "subscriptions": [{"id": n, "channelId": cid} for n in range(2, 4098)]}
+    )
+    (status,) = client.take_ops("status")  # one status for the 4096 refused entries
+    assert status["message"] == (
+        f"subscribe: channel {cid} is subscribed already (subscription 1); "
+        f"channel {cid} is subscribed already (subscription 1); "
+        f"channel {cid} is subscribed already (subscription 1) (and 4093 more refused)"
+    )
     expected = cdr(graph, "std_msgs/msg/String", {"data": "kept"})
-    assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
+    assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected)]
+    publisher.publish({"data": "next"})
+    client.drain()
+    assert [sid for sid, _, _ in client.data()] == [1]  # one frame a message
+    client.send({"op": "unsubscribe", "subscriptionIds": [1]})
+    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
+    assert [(sid, payload) for sid, _, payload in client.data()] == [
+        (2, cdr(graph, "std_msgs/msg/String", {"data": "next"}))
+    ]
 
 
 def test_a_message_that_cannot_be_encoded_is_skipped_and_said_once(
@@ -108,7 +129,6 @@ def test_a_message_that_cannot_be_encoded_is_skipped_and_said_once(
     client = Client(graph)
     cid = client.channel("/chatter")["id"]
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
-    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
     for _ in range(2):  # vouched for, but not a String: it cannot be serialized
         publisher.publish({"wrong": 1}, validated=True)
     publisher.publish({"data": "after"})
@@ -118,7 +138,7 @@ def test_a_message_that_cannot_be_encoded_is_skipped_and_said_once(
         (2, "/chatter: cannot encode its messages")
     ]
     expected = cdr(graph, "std_msgs/msg/String", {"data": "after"})
-    assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected), (2, expected)]
+    assert [(sid, payload) for sid, _, payload in client.data()] == [(1, expected)]
 
 
 def test_topics_that_appear_and_go_are_advertised_and_unadvertised(
@@ -267,15 +287,20 @@ def test_client_advertise_refusals(ros2_types: TypeRegistry) -> None:
 
 
 def test_subscription_limits_and_reused_ids(ros2_types: TypeRegistry) -> None:
+    """``--max-subscriptions`` binds a Foxglove client as it binds a rosbridge one."""
     graph = Graph(ros2_types)
     graph.create_publisher("/a", "std_msgs/msg/String")
-    client = Client(graph, limits=FoxgloveLimits(max_subscriptions=1))
+    graph.create_publisher("/b", "std_msgs/msg/String")
+    client = Client(graph, config=SessionConfig(max_subscriptions=1))
     cid = client.channel("/a")["id"]
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
     assert "in use" in str(client.take_ops("status")[0]["message"])
-    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": cid}]})
-    assert "more than 1 subscriptions" in str(client.take_ops("status")[0]["message"])
+    other = client.channel("/b")["id"]
+    client.send({"op": "subscribe", "subscriptions": [{"id": 2, "channelId": other}]})
+    assert client.take_ops("status")[0]["message"] == (
+        "subscribe: more than 1 subscriptions (--max-subscriptions)"
+    )
 
 
 def test_a_slow_client_drops_its_oldest_data_and_hears_once_per_episode(

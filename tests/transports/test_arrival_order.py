@@ -4,7 +4,9 @@ Three clients: A subscribes (with a throttle), B subscribes, then C advertises a
 publishes one message, each frame sent only once the one before was sent (one
 thread writes them all, so each is in the server's kernel before the next is
 written). Both subscribers must get the message every time: their subscribe
-reached the server before C's publish. On kept connections a round ends once
+reached the server before C's publish. On new WebSocket connections C is opened
+last, or first (a page that opens its publisher, then its subscribers): the order
+is the frames' arrival, whichever connection is older. On kept connections a round ends once
 every connection's frames are handled, so no read mixes two rounds' frames
 (docs/limits.md, "frames are handled in the order they reached the server").
 
@@ -122,7 +124,12 @@ def _settle(peers: list[_Tcp | _Ws], name: str) -> None:
 
 
 def _rounds(
-    transport: str, port: int, context: ssl.SSLContext | None, mode: str, accepted: Accepted
+    transport: str,
+    port: int,
+    context: ssl.SSLContext | None,
+    mode: str,
+    accepted: Accepted,
+    publisher_first: bool = False,
 ) -> list[str]:
     """Run the rounds; return a line for each subscriber that missed its round's message."""
     kind = _Ws if transport == "ws" else _Tcp
@@ -135,7 +142,10 @@ def _rounds(
                     peer.close()
                 peers = [kind(port, context) for _ in range(3)]
                 accepted(3)  # connected, as far as the server is concerned
-            a, b, c = peers
+            if publisher_first:  # C, the publisher, opened first
+                c, a, b = peers
+            else:
+                a, b, c = peers
             topic = f"/arrival_{index}"
             data = f"m{index}"
             a.send({"op": "subscribe", "topic": topic, "type": STRING, "throttle_rate": 400})
@@ -157,7 +167,9 @@ def _rounds(
     return missed
 
 
-async def _check(harness: Harness, transport: str, mode: str) -> None:
+async def _check(
+    harness: Harness, transport: str, mode: str, publisher_first: bool = False
+) -> None:
     port = harness.port("websocket" if transport == "ws" else "tcp")
     sessions = harness.server.sessions
     known = set(sessions)
@@ -173,7 +185,7 @@ async def _check(harness: Harness, transport: str, mode: str) -> None:
             time.sleep(0.0005)
 
     missed = await anyio.to_thread.run_sync(
-        _rounds, transport, port, harness.ssl_context, mode, accepted
+        _rounds, transport, port, harness.ssl_context, mode, accepted, publisher_first
     )
     assert missed == [], f"{len(missed)} missed of {2 * ROUNDS[mode]}: {missed[:10]}"
 
@@ -187,10 +199,27 @@ async def test_subscribers_get_a_publish_sent_after_their_subscribe(
         await _check(harness, transport, mode)
 
 
+async def test_a_publisher_whose_websocket_is_older_does_not_go_first() -> None:
+    """New WebSocket connections, the publisher's opened first: its publish comes after.
+
+    A page opens its connections in any order; over WebSocket the order is the
+    frames' arrival, whichever connection is older (the reader listens before the
+    upgrade response goes, docs/limits.md).
+    """
+    async with running_server() as harness:
+        await _check(harness, "ws", "new", publisher_first=True)
+
+
 @pytest.mark.parametrize("mode", ["kept", "new"])
 @pytest.mark.parametrize("transport", ["ws", "tcp"])
 async def test_the_order_holds_over_tls(tls_harness: Harness, transport: str, mode: str) -> None:
     await _check(tls_harness, transport, mode)
+
+
+async def test_a_publisher_whose_websocket_is_older_does_not_go_first_over_tls(
+    tls_harness: Harness,
+) -> None:
+    await _check(tls_harness, "ws", "new", publisher_first=True)
 
 
 async def test_readers_wait_for_their_own_servers_starting_connections_only() -> None:

@@ -1,4 +1,4 @@
-"""Slow consumers (D24, REF §9.1): report once, close if stalled.
+"""Slow consumers (D24, REF §9.1): report once, close if stalled; for every protocol.
 
 The outbox drops the oldest topic messages above its limit. This watch turns
 that into what a user sees: the first drop of an episode is logged
@@ -6,7 +6,9 @@ that into what a user sees: the first drop of an episode is logged
 checks every ``send_timeout_s`` whether the transport took any frame since; if
 it did not, the peer has stopped reading and the connection is closed (abort:
 nothing more can be delivered). The episode ends when the transport catches up
-to half the limit.
+to the high watermark (half the limit); the session is told (``dropping_over``:
+a Foxglove client's warning is withdrawn). How the peer is told is its
+protocol's (``SessionBase.warn_dropping``); the rule is the same for all.
 
 A message larger than the whole limit goes out when no other topic message
 waits (the outbox holds it alone); one that came while others waited was
@@ -29,8 +31,8 @@ from .commands import CloseCode
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
+    from .connection import SessionBase
     from .outbox import Outbox, OutFrame
-    from .session import Session
     from .timers import Timer
 
 __all__ = ["SEND_BUFFER_OPTION", "SlowConsumerWatch"]
@@ -49,7 +51,7 @@ class SlowConsumerWatch:
         outbox: that outbox.
     """
 
-    def __init__(self, session: Session, outbox: Outbox) -> None:
+    def __init__(self, session: SessionBase, outbox: Outbox) -> None:
         self.session = session
         self.outbox = outbox
         self.takes = 0  # how many times the transport took frames: progress
@@ -95,15 +97,15 @@ class SlowConsumerWatch:
             return
         self._told_slow = True
         logger.warning(
-            "event=slow_consumer client=%s limit_bytes=%d dropped_total=%d",
+            "event=slow_consumer client=%s protocol=%s limit_bytes=%d dropped_total=%d",
             session.client_id,
+            session.protocol,
             outbox.limit_bytes,
             dropped_before,
         )
-        session.report(
-            StatusLevel.WARNING,
+        session.warn_dropping(
             f"dropping the oldest topic messages: this connection reads slower than they "
-            f"arrive (send buffer limit {outbox.limit_bytes} bytes)",
+            f"arrive (send buffer limit {outbox.limit_bytes} bytes)"
         )
 
     def after_take(self) -> None:
@@ -112,10 +114,12 @@ class SlowConsumerWatch:
         outbox = self.outbox
         if self._held and not outbox.held_bytes:  # a message over the limit went out
             self._held = self._told_oversized = False
-        if self._timer is not None and outbox.queued_bytes <= outbox.limit_bytes // 2:
+        if self._timer is not None and outbox.fill_bytes <= outbox.high_water_bytes:
             self._timer.cancel()
             self._timer = None
-            self._told_slow = False
+            if self._told_slow:
+                self._told_slow = False
+                self.session.dropping_over()
 
     def _oversized_dropped(self, topic: str | None, size: int) -> None:
         """Log the drop of a message over the limit; tell the peer unless told already."""

@@ -5,8 +5,10 @@ silent (a half-open TCP socket, an abandoned page, a slot hoarder) would hold it
 for ever. A connection is idle when, for ``--idle-timeout`` seconds, its peer sent
 no frame **and** it held nothing in the graph: no subscription, advertisement,
 offered service or action, goal, call or goal waiting for its reply, or
-incomplete fragmented message. So a roslibpy or roslibjs client that subscribes
-and only listens is never cut, nor one that publishes or serves rarely; a
+incomplete fragmented message (``SessionBase.holds_anything`` says it for each
+protocol: a Foxglove client's subscriptions, client channels and calls count).
+So a roslibpy or roslibjs client that subscribes and only listens is never cut,
+nor one that publishes or serves rarely; a
 client that holds nothing and stays silent is closed with a reason.
 
 Nothing here reads a clock: the session's timer drives the checks, one per
@@ -21,15 +23,10 @@ from typing import TYPE_CHECKING
 from .commands import CloseCode
 
 if TYPE_CHECKING:
-    from .session import Session
+    from .connection import SessionBase
     from .timers import Timer
 
-__all__ = ["IdleWatch", "holds_anything"]
-
-
-def holds_anything(session: Session) -> bool:
-    """Whether ``session`` holds something in the graph that its peer waits on or serves."""
-    return session.holdings.holds_anything() or len(session.fragments) > 0
+__all__ = ["IdleWatch"]
 
 
 class IdleWatch:
@@ -42,7 +39,7 @@ class IdleWatch:
 
     __slots__ = ("_session", "_timer", "last_input", "timeout_s")
 
-    def __init__(self, session: Session, timeout_s: float) -> None:
+    def __init__(self, session: SessionBase, timeout_s: float) -> None:
         self._session = session
         self.timeout_s = timeout_s
         self.last_input = 0.0
@@ -57,7 +54,7 @@ class IdleWatch:
         self._timer = None
         session = self._session
         due = self.last_input + self.timeout_s
-        if now < due or holds_anything(session):  # input since, or it holds something
+        if now < due or session.holds_anything():  # input since, or it holds something
             self._timer = session.call_at(max(due, now + self.timeout_s), self._check)
             return
         reason = f"idle: no input for {self.timeout_s:g} s and nothing held"

@@ -23,6 +23,11 @@ while it does the queue counts as full, so every other topic message is dropped
 limit plus one message. Where other topic messages wait, such a message cannot
 go: it is dropped and counted apart (``dropped_oversized``), so that the
 session can tell the peer which option it needs (docs/limits.md).
+
+A queue may also bound the topic messages it holds by count (``max_messages``:
+a Foxglove client's backlog, as the Foxglove SDK bounds it): past it the
+oldest topic messages go, as past the byte limit. It counts droppable frames,
+so a fragmented message counts each of its parts.
 """
 
 from __future__ import annotations
@@ -92,6 +97,8 @@ class Outbox:
             payload plus ``frame_overhead_bytes``; frames that may not be
             dropped are always queued, even beyond it.
         frame_overhead_bytes: the memory charged per frame beyond its payload.
+        max_messages: the most droppable frames kept queued (None: no count
+            bound); past it the oldest go, the newest always stays.
 
     Attributes:
         dropped: topic messages dropped so far (a fragmented one counts once).
@@ -103,10 +110,20 @@ class Outbox:
         taken_frames: frames the transport took so far (replies included).
     """
 
-    def __init__(self, limit_bytes: int, frame_overhead_bytes: int = FRAME_OVERHEAD_BYTES) -> None:
+    def __init__(
+        self,
+        limit_bytes: int,
+        frame_overhead_bytes: int = FRAME_OVERHEAD_BYTES,
+        max_messages: int | None = None,
+    ) -> None:
         self._frames: deque[OutFrame] = deque()
         self._bytes = 0
         self._kept_bytes = 0
+        self._topic_frames = 0  # queued frames that may be dropped (``max_messages``)
+        self.max_messages = None if max_messages is None else max(1, max_messages)
+        self._per_message = (
+            0 if self.max_messages is None else max(1, limit_bytes // self.max_messages)
+        )
         self._sending_group: object = None  # partly taken: the rest must go too
         # The oversized message held alone: its frames still queued and their charge.
         # It is always the oldest droppable message, so ``take`` meets its frames first.
@@ -118,6 +135,7 @@ class Outbox:
         self.dropped_oversized = 0
         self.topic_messages = 0
         self.taken_frames = 0
+        self._peak = 0  # ``peak_bytes`` before the bytes queued now
 
     def __len__(self) -> int:
         return len(self._frames)
@@ -128,9 +146,33 @@ class Outbox:
         return self._bytes
 
     @property
+    def peak_bytes(self) -> int:
+        """The most bytes held at once (after drops), charged as ``queued_bytes`` is."""
+        # kept when frames leave (``take``, drops), not per push: between two of those
+        # the queue only grows, so its peak is where it stood before one of them, or now
+        return max(self._peak, self._bytes)
+
+    @property
     def undroppable_bytes(self) -> int:
         """Bytes charged for the queued frames that may not be dropped."""
         return self._kept_bytes
+
+    @property
+    def topic_frames(self) -> int:
+        """Droppable frames queued (what ``max_messages`` bounds)."""
+        return self._topic_frames
+
+    @property
+    def fill_bytes(self) -> int:
+        """How full the queue is, in bytes, for the watermarks (input backpressure).
+
+        With ``max_messages`` a topic message counts at least its share of the
+        byte limit (``limit_bytes / max_messages``), so that either bound
+        congests; else the bytes queued.
+        """
+        if not self._per_message:
+            return self._bytes
+        return max(self._bytes, self._topic_frames * self._per_message)
 
     @property
     def held_bytes(self) -> int:
@@ -203,11 +245,37 @@ class Outbox:
             message += cost
             if not frame.droppable:
                 self._kept_bytes += cost
+            else:
+                self._topic_frames += 1
         if self._bytes > self.limit_bytes:
             if message > self.limit_bytes and frames[0].droppable:
                 self._hold(len(frames), message)
             elif not self._held_frames:  # a held message is the only droppable one
                 self._shed()
+        elif self.max_messages is not None and self._topic_frames > self.max_messages:
+            self._shed()
+
+    def push_droppable(self, frame: OutFrame) -> None:
+        """``push`` one whole topic message (``droppable``, no ``group``): the hot path.
+
+        The same rules as ``extend`` of one frame, in the fewest steps while
+        the queue is within its bounds (a burst's per-message cost).
+        """
+        self.topic_messages += 1
+        if self._held_frames:
+            self.dropped += 1  # the queue is full with the held message
+            return
+        self._frames.append(frame)
+        self._topic_frames += 1
+        cost = len(frame.data) + self.frame_overhead_bytes
+        self._bytes += cost
+        if self._bytes > self.limit_bytes:
+            if cost > self.limit_bytes:
+                self._hold(1, cost)
+            else:
+                self._shed()
+        elif self.max_messages is not None and self._topic_frames > self.max_messages:
+            self._shed()
 
     def _hold(self, count: int, cost: int) -> None:
         """Hold the message just queued (``count`` frames, ``cost`` bytes) over the limit.
@@ -217,6 +285,7 @@ class Outbox:
         if self._bytes - cost > self._kept_bytes:  # other topic messages wait: it cannot go
             for _ in range(count):
                 self._frames.pop()
+            self._topic_frames -= count
             self._bytes -= cost
             self.dropped += 1
             self.dropped_oversized += 1
@@ -234,6 +303,7 @@ class Outbox:
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
         overhead = self.frame_overhead_bytes
+        self._peak = max(self._peak, self._bytes)
         while self._frames and (
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):
@@ -242,7 +312,9 @@ class Outbox:
             taken += len(frame.data)
             if not frame.droppable:
                 self._kept_bytes -= len(frame.data) + overhead
-            elif self._held_frames:  # the first droppable frames are the held message's
+                continue
+            self._topic_frames -= 1
+            if self._held_frames:  # the first droppable frames are the held message's
                 self._held_frames -= 1
                 self._held_bytes -= len(frame.data) + overhead
         self._bytes -= taken + len(frames) * overhead
@@ -256,10 +328,23 @@ class Outbox:
         """Remove and return every queued frame, oldest first."""
         return self.take()
 
+    def _over(self) -> bool:
+        """Whether the queue holds more than its bounds (bytes, or topic frames by count)."""
+        if self._bytes > self.limit_bytes:
+            return True
+        limit = self.max_messages
+        return limit is not None and self._topic_frames > limit
+
     def _shed(self) -> None:
         kept: list[OutFrame] = []
+        self._peak = max(
+            self._peak, self._bytes - len(self._frames[-1].data) - self.frame_overhead_bytes
+        )
         groups: set[object] = set()
-        while self._frames and self._bytes > self.limit_bytes:
+        newest = self._frames[-1] if self._frames else None  # always stays (count bound)
+        while self._frames and self._over():
+            if self._frames[0] is newest and not self._bytes > self.limit_bytes:
+                break
             frame = self._frames.popleft()
             if frame.droppable and (frame.group is None or frame.group != self._sending_group):
                 self._drop(frame, groups)
@@ -274,6 +359,7 @@ class Outbox:
 
     def _drop(self, frame: OutFrame, groups: set[object]) -> None:
         self._bytes -= len(frame.data) + self.frame_overhead_bytes
+        self._topic_frames -= 1
         if frame.group is None:
             self.dropped += 1
         elif frame.group not in groups:

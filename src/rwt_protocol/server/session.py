@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 from ..auth import AUTH_CHALLENGE_ID, new_challenge
 from ..codecs.cbor import decode_cbor
 from ..codecs.json import decode_json, decode_publish, parse_object, peek_id
-from ..errors import GraphError, LimitError, RwtError
+from ..errors import GraphError, RwtError
 from ..framing.fragments import FragmentBudget, Reassembler
 from ..levels import StatusLevel
 from ..ops import OpModel, PublishView, Status
@@ -46,26 +46,25 @@ from ..ops.base import Compression
 from ..shortcuts import enabled
 from . import gates
 from .access import AccessPolicy
-from .backpressure import SlowConsumerWatch
 from .commands import CloseCode, CloseConnection, Command
 from .compat import Compat, initial_status_level
+from .connection import SessionBase
 from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .holdings import Holdings
-from .idle import IdleWatch
 from .inflate import InflateJob, TokenBucket
-from .lifecycle import State, advance
-from .outbox import Outbox, OutFrame
-from .timers import Timer, TimerQueue
+from .lifecycle import State
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Callable
 
     from ..auth import Authenticator
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
+    from .contract import Job
     from .subscriptions import TopicSubscription
+    from .timers import Timer
 
 __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]
 
@@ -171,7 +170,7 @@ class SessionConfig:
     idle_timeout_s: float | None = None
 
 
-class Session:
+class Session(SessionBase):
     """The protocol state of one server-side connection.
 
     Args:
@@ -212,39 +211,27 @@ class Session:
         auth_nonce: str | None = None,
         authenticated: bool = False,
     ) -> None:
-        self._graph = graph
-        self._client_id = client_id
-        self._peer = peer
-        self._config = config or SessionConfig()
-        self._status_level = initial_status_level(self._config.compat, self._config.status_level)
+        config = config or SessionConfig()
+        super().__init__(
+            graph,
+            client_id,
+            config=config,
+            on_output=on_output,
+            peer=peer,
+            on_closed=on_closed,
+            authenticating=not authenticated and config.authenticator is not None,
+        )
+        self._status_level = initial_status_level(config.compat, config.status_level)
         self._holdings = Holdings()
         self._provider_link = ProviderLink(self)
-        self._outbox = Outbox(self._config.send_buffer_limit)
-        self._watch = SlowConsumerWatch(self, self._outbox)
-        self._commands: list[Command] = []
-        self._timers = TimerQueue()
         self._fragments = Reassembler(
-            max_bytes=self._config.max_message_size,
-            max_pending=self._config.max_pending_fragments,
-            timeout_s=self._config.fragment_timeout_s,
+            max_bytes=config.max_message_size,
+            max_pending=config.max_pending_fragments,
+            timeout_s=config.fragment_timeout_s,
             shared=fragment_budget,
         )
         self._fragment_timer: Timer | None = None
-        self._inflate_budget = TokenBucket(
-            self._config.png_inflate_rate, max(self._config.max_message_size, 1)
-        )
-        self._jobs: list[InflateJob] = []
-        self._runs_jobs = False  # set by a transport that runs ``take_job``'s jobs (``run_jobs``)
-        timeout = self._config.idle_timeout_s
-        self._idle = IdleWatch(self, timeout) if timeout else None
-        self._on_output = on_output
-        self._on_closed = on_closed
-        open_ = authenticated or self._config.authenticator is None
-        self._state = State.OPEN if open_ else State.AUTHENTICATING
-        self._admitted = self._state is State.OPEN  # ops were served (``authenticated``)
-        self._close_request: CloseConnection | None = None  # set on entering CLOSING
-        self._now = 0.0  # the latest monotonic time seen, for output without one
-        self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
+        self._inflate_budget = TokenBucket(config.png_inflate_rate, max(config.max_message_size, 1))
         self._auth_nonce: str | None = None
         if self._config.auth_challenge and self._state is State.AUTHENTICATING:
             self._auth_nonce = auth_nonce
@@ -270,9 +257,7 @@ class Session:
         """
         if not self._state.takes_input:
             return
-        self._now = now
-        if self._idle is not None:
-            self._idle.last_input = now
+        self.received(now)
         op_name: str | None = None
         op_id: str | int | None = None
         try:
@@ -321,31 +306,18 @@ class Session:
         if not self._runs_jobs:
             self.receive_frame(png.inflate(), now)
             return
-        self._jobs.append(InflateJob(png, op_id, now + wait))
+        self.add_job(InflateJob(png, op_id, now + wait))
 
-    def start(self, now: float) -> None:
-        """The transport serves the connection from ``now``: time-driven rules count from it."""
-        if self._idle is not None:
-            self._idle.start(now)
-
-    def take_job(self) -> InflateJob | None:
-        """The oldest job waiting for the transport to run it (``InflateJob.run``), or None."""
-        return self._jobs.pop(0) if self._jobs else None
-
-    @property
-    def has_jobs(self) -> bool:
-        """Whether jobs wait: the transport runs them before the next frame."""
-        return bool(self._jobs)
-
-    def finish_job(self, job: InflateJob, result: bytes | BaseException, now: float) -> None:
+    def finish_job(self, job: Job, result: object, now: float) -> None:
         """Take a job's outcome: its text is handled as a frame, its error reported.
 
         Args:
-            job: what ``take_job`` gave.
-            result: what ``job.run()`` returned, or the exception it raised.
+            job: what ``take_job`` gave (an ``InflateJob``).
+            result: what ``job.run()`` returned (the inflated text), or the
+                exception it raised.
             now: monotonic seconds.
         """
-        if not self._state.takes_input:
+        if not self._state.takes_input or not isinstance(job, InflateJob):
             return
         if isinstance(result, RwtError):
             self._refused(result, "png", job.op_id)
@@ -354,26 +326,8 @@ class Session:
                 raise result
             except Exception:
                 self._bug("png", job.op_id)
-        else:
+        elif isinstance(result, bytes | str):
             self.receive_frame(result, now)
-
-    def _bug(self, op_name: str | None, op_id: str | int | None) -> None:
-        """Report an exception that is not an ``RwtError``: a bug, logged once per connection."""
-        if self._log_once("bug"):
-            logger.exception("bug while handling a frame from %s", self._client_id)
-        else:
-            logger.debug("bug while handling a frame from %s", self._client_id, exc_info=True)
-        try:
-            self.report(StatusLevel.ERROR, _prefixed(op_name, "internal error"), op_id)
-        except Exception:  # the report is total; a bug there must still not reach the transport
-            logger.debug("cannot report a bug to %s", self._client_id, exc_info=True)
-
-    def _log_once(self, kind: str) -> bool:
-        """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""
-        if kind in self._logged:
-            return False
-        self._logged.add(kind)
-        return True
 
     def _refused(self, exc: RwtError, op_name: str | None, op_id: str | int | None) -> None:
         text = exc.message
@@ -394,117 +348,18 @@ class Session:
         gates.check_access(self, op)
         HANDLERS[type(op)](self, op, now)
 
-    def handle_timer(self, now: float) -> None:
-        """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
-        if self._state is not State.CLOSED:
-            self._now = max(self._now, now)
-            self._timers.run_due(now)
-
-    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
-        """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
-
-        Later input is ignored and later frames are not queued. Idempotent: only
-        the first request counts.
-
-        Args:
-            code: the close code (WebSocket; logged on other transports).
-            reason: why, for the peer and the log.
-            abort: the peer is not reading (slow consumer): cut without waiting.
-        """
-        if self._state in (State.CLOSING, State.CLOSED):
-            return
-        self._move(State.CLOSING)
-        self._close_request = CloseConnection(code, reason, abort)
-        logger.log(
-            logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
-            "event=closing client=%s code=%d reason=%r",
-            self._client_id,
-            code,
-            reason,
-        )
-        self._commands.append(self._close_request)
-        self._wake()
-
-    def begin_shutdown(self) -> None:
-        """The server is stopping: ignore further input and release what this client holds.
-
-        Releasing first lets the graph answer callers waiting on this client
-        (D4) while their connections can still send; the server then calls
-        ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
-        """
-        if self._state is State.CLOSED:
-            return
-        if self._state.takes_input:
-            self._move(State.DRAINING)
-        self._graph.release(self._client_id)
-
     def close(self) -> None:
         """The connection is gone: release everything it held in the graph. Idempotent."""
-        if self._state is State.CLOSED:
-            return
-        self._move(State.CLOSED)
-        try:
-            self._timers.clear()
+        if self._state is not State.CLOSED:
             self._holdings.clear()
             self._fragments.clear()
-            self._graph.release(self._client_id)
-        finally:  # even if releasing raised, the owner forgets the connection
-            if self._on_closed is not None:
-                self._on_closed(self._client_id)
+        super().close()
+
+    def holds_anything(self) -> bool:
+        """Whether it holds something in the graph, or a message still arriving (idle rule)."""
+        return self._holdings.holds_anything() or len(self._fragments) > 0
 
     # ---- outputs ------------------------------------------------------------
-
-    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
-        """Take the frames queued for the peer, oldest first.
-
-        Args:
-            max_bytes: take at most about this many payload bytes (at least one
-                frame); None takes every frame. Taking frames counts as progress
-                for the send timeout (D24).
-        """
-        frames = self._outbox.take(max_bytes)
-        if frames:
-            self._watch.after_take()
-        return frames
-
-    def commands_to_run(self) -> list[Command]:
-        """Take every command queued for the transport."""
-        commands, self._commands = self._commands, []
-        return commands
-
-    def get_timer(self) -> float | None:
-        """The monotonic time at which ``handle_timer`` must next be called, or None."""
-        return None if self._state is State.CLOSED else self._timers.next_deadline()
-
-    @property
-    def close_request(self) -> CloseConnection | None:
-        """The close this session asked for, if any (also while the transport has it)."""
-        return self._close_request
-
-    @property
-    def now(self) -> float:
-        """The latest monotonic time the session was given, in seconds (0 before any input)."""
-        return self._now
-
-    @property
-    def graph(self) -> GraphPort:
-        """The graph this session operates on."""
-        return self._graph
-
-    @property
-    def client_id(self) -> ClientId:
-        """This connection's identity in the graph."""
-        return self._client_id
-
-    @property
-    def peer(self) -> str:
-        """The peer's address, ``host:port`` (empty when unknown)."""
-        return self._peer
-
-    @property
-    def config(self) -> SessionConfig:
-        """This connection's settings."""
-        return self._config
 
     @property
     def holdings(self) -> Holdings:
@@ -535,96 +390,7 @@ class Session:
         """Change which status frames this connection receives (``set_level``, D2)."""
         self._status_level = level
 
-    def run_jobs(self) -> None:
-        """The transport runs ``take_job``'s jobs from now on, off its event loop."""
-        self._runs_jobs = True
-
-    @property
-    def state(self) -> State:
-        """Where the connection is in its life (``lifecycle.State``, its moves in one table)."""
-        return self._state
-
-    @property
-    def closed(self) -> bool:
-        """Whether ``close`` was called (``state`` is CLOSED)."""
-        return self._state is State.CLOSED
-
-    @property
-    def closing(self) -> bool:
-        """Whether the session stopped taking input (close requested, shutting down, closed)."""
-        return not self._state.takes_input
-
-    @property
-    def authenticated(self) -> bool:
-        """Whether ops were admitted (always, without an authenticator), even once closing."""
-        return self._admitted
-
-    def _move(self, target: State) -> None:
-        """Change ``state`` along ``lifecycle.TRANSITIONS``; LocalProtocolError otherwise."""
-        self._state = advance(self._state, target)
-
-    @property
-    def dropped_frames(self) -> int:
-        """Topic messages dropped so far because the peer was too slow (D24)."""
-        return self._outbox.dropped
-
-    @property
-    def topic_messages(self) -> int:
-        """Topic messages queued for the peer so far, those dropped since included."""
-        return self._outbox.topic_messages
-
-    @property
-    def taken_frames(self) -> int:
-        """Frames the transport took from the queue so far (topic messages and replies)."""
-        return self._outbox.taken_frames
-
-    @property
-    def queued_bytes(self) -> int:
-        """Payload bytes waiting to be taken by the transport."""
-        return self._outbox.queued_bytes
-
-    @property
-    def queued_reply_bytes(self) -> int:
-        """Bytes of queued frames that are never dropped (replies, statuses; D24)."""
-        return self._outbox.undroppable_bytes
-
-    @property
-    def water_marks(self) -> tuple[int, int]:
-        """The outbox's (high, low) watermarks in bytes, for input backpressure (docs/limits.md)."""
-        return self._outbox.high_water_bytes, self._outbox.low_water_bytes
-
     # ---- helpers for handlers -------------------------------------------------
-
-    def send_frames(self, frames: Sequence[OutFrame], topic: str | None = None) -> None:
-        """Queue the frames of one message (its parts stay together, D24) and wake the transport.
-
-        Past the limit, the oldest topic messages go (D24); when undroppable
-        frames alone exceed the limit the peer is not reading at all, and the
-        connection is closed rather than let memory grow. A topic message
-        larger than the limit goes out alone or is dropped with a status naming
-        ``--send-buffer-limit`` (``outbox``, ``backpressure``).
-
-        Args:
-            frames: the frames of one message, shared with other connections (never copied).
-            topic: the topic of a message, as the peer spells it, for the status of a drop.
-        """
-        if not self._state.sends:
-            return
-        limit = self._outbox.limit_bytes
-        if self._outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
-            self.request_close(
-                CloseCode.POLICY_VIOLATION,
-                f"send buffer overflow: over {limit} bytes unread",
-                abort=True,
-            )
-            return
-        outbox = self._outbox
-        was_empty = len(outbox) == 0
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.extend(frames)
-        self._watch.after_push(dropped, oversized, self._now, frames, topic)
-        if was_empty or outbox.queued_bytes > outbox.high_water_bytes:
-            self._wake()  # above the high watermark too: the transport applies backpressure
 
     def send(
         self,
@@ -694,16 +460,6 @@ class Session:
             failure.reason,
         )
 
-    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
-        """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
-
-        Wakes the transport so that it sees the new deadline in ``get_timer``.
-        """
-        timer = self._timers.schedule(deadline, callback)
-        if self._state is not State.CLOSED:
-            self._wake()
-        return timer
-
     def watch_fragments(self) -> None:
         """Make sure the earliest fragment deadline has a timer (D19 expiry)."""
         deadline = self._fragments.next_deadline()
@@ -751,19 +507,6 @@ class Session:
             )
             return
         self.send_frames(frames, subscription.spelling)
-
-    def check_cap(self, count: int, cap: int, what: str) -> None:
-        """Refuse an op that would hold more than ``cap`` of ``what`` (docs/limits.md).
-
-        Raises:
-            LimitError: ``count`` (what the connection holds now) reached ``cap``.
-        """
-        if count >= cap:
-            raise LimitError(f"{what}: this connection holds {cap} already (the server's limit)")
-
-    def _wake(self) -> None:
-        if self._on_output is not None:
-            self._on_output()
 
 
 def _prefixed(op_name: str | None, text: str) -> str:

@@ -1,0 +1,476 @@
+"""The per-client rules every protocol's session shares, defined once.
+
+``SessionBase`` implements the connection runtime's side of ``contract.ServerSession``
+for any protocol: the lifecycle (``lifecycle.State``), the bounded outbox
+(``outbox.Outbox``: bytes, and topic messages by count where the protocol bounds
+them), the slow-consumer watch (``backpressure.SlowConsumerWatch``: the first
+drop of an episode told, a peer that stays over its limit without reading
+closed after ``send_timeout_s``, undroppable frames past the limit close it
+too), the timers, the idle timeout (``idle.IdleWatch``), jobs the transport runs
+off the event loop, containment of a bug in a handler, and one log line per
+kind of trouble. rosbridge's ``session.Session`` and the Foxglove protocol's
+session are subclasses: each adds its ops and says how its peer is told of a
+problem (``report``), what it holds (``holds_anything``) and what it releases
+(``release``). Limits come from one ``SessionConfig`` (docs/limits.md,
+"Per connection"), whichever protocol the client speaks.
+
+Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
+given by the caller.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, ClassVar
+
+from ..errors import LimitError
+from ..levels import StatusLevel
+from ..ratelog import EpisodeLog
+from .access import AccessDeniedError, Family
+from .backpressure import SlowConsumerWatch
+from .commands import CloseCode, CloseConnection, Command
+from .idle import IdleWatch
+from .lifecycle import State, advance
+from .outbox import Outbox, OutFrame
+from .timers import Timer, TimerQueue
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from ..ports import ClientId, GraphPort
+    from .contract import Job
+    from .session import SessionConfig
+
+__all__ = ["SessionBase"]
+
+logger = logging.getLogger("rwt.session")
+_episodes = EpisodeLog(logger)  # a peer triggers these at will: one line per episode
+
+
+class SessionBase:
+    """One client's connection under the server's per-client rules (the module's text).
+
+    Args:
+        graph: the graph the session operates on.
+        client_id: the connection's identity in the graph; unique per server.
+        config: the per-client limits (``SessionConfig``; docs/limits.md).
+        on_output: called (synchronously, without arguments) whenever frames or
+            commands become available or a timer is set, so the transport can
+            wake its writer and look at ``get_timer`` again.
+        peer: the peer's address (``host:port``), for logs.
+        on_closed: called once with ``client_id`` when the session closes.
+        authenticating: the session starts in ``State.AUTHENTICATING`` (rosbridge's
+            ``auth`` op is due first, D23) rather than ``OPEN``.
+        max_messages: topic messages the outbox holds by count (None: bytes only).
+    """
+
+    protocol: ClassVar[str] = "rosbridge"
+    """The protocol's name in logs (``event=connect ... protocol=foxglove``)."""
+
+    def __init__(
+        self,
+        graph: GraphPort,
+        client_id: ClientId,
+        *,
+        config: SessionConfig,
+        on_output: Callable[[], None] | None = None,
+        peer: str = "",
+        on_closed: Callable[[ClientId], None] | None = None,
+        authenticating: bool = False,
+        max_messages: int | None = None,
+    ) -> None:
+        self._graph = graph
+        self._client_id = client_id
+        self._peer = peer
+        self._config = config
+        self._outbox = Outbox(config.send_buffer_limit, max_messages=max_messages)
+        self._watch = SlowConsumerWatch(self, self._outbox)
+        self._commands: list[Command] = []
+        self._timers = TimerQueue()
+        self._jobs: list[Job] = []  # input jobs: the reader waits for each
+        self._background: list[Job] = []  # the reader goes on meanwhile
+        self._runs_jobs = False  # set by a transport that runs the jobs (``run_jobs``)
+        self.on_job: Callable[[], None] | None = None
+        timeout = config.idle_timeout_s
+        self._idle = IdleWatch(self, timeout) if timeout else None
+        self._on_output = on_output
+        self._on_closed = on_closed
+        self._state = State.AUTHENTICATING if authenticating else State.OPEN
+        self._admitted = self._state is State.OPEN  # ops were served
+        self._close_request: CloseConnection | None = None  # set on entering CLOSING
+        self._now = 0.0  # the latest monotonic time seen, for output without one
+        self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
+
+    # ---- what each protocol says -------------------------------------------------
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Tell the peer of a problem or an event in its protocol's ``status``."""
+        raise NotImplementedError
+
+    def holds_anything(self) -> bool:
+        """Whether the client holds something in the graph it waits on or serves (idle rule)."""
+        raise NotImplementedError
+
+    def release(self) -> None:
+        """Drop what the client holds in the graph (it leaves, or the server stops)."""
+        self._graph.release(self._client_id)
+
+    def warn_dropping(self, text: str) -> None:
+        """Tell the peer that its oldest topic messages are being dropped (an episode began)."""
+        self.report(StatusLevel.WARNING, text)
+
+    def dropping_over(self) -> None:
+        """The episode of drops is over: the transport caught up (nothing to say by default)."""
+
+    def taken(self, frames: list[OutFrame]) -> None:
+        """The transport took ``frames`` (a protocol that tracks its frames looks here)."""
+
+    def finish_job(self, job: Job, result: object, now: float) -> None:
+        """Take a job's outcome: what ``job.run()`` returned, or the exception it raised."""
+        raise NotImplementedError
+
+    # ---- the transport's side ------------------------------------------------------
+
+    def start(self, now: float) -> None:
+        """The transport serves the connection from ``now``: time-driven rules count from it."""
+        self._now = now
+        if self._idle is not None:
+            self._idle.start(now)
+
+    def received(self, now: float) -> None:
+        """Input came at ``now`` (the idle rule counts from the last); every frame calls it."""
+        self._now = now
+        if self._idle is not None:
+            self._idle.last_input = now
+
+    def take_job(self) -> Job | None:
+        """The oldest input job (the reader waits for it before its next frame), or None."""
+        return self._jobs.pop(0) if self._jobs else None
+
+    @property
+    def has_jobs(self) -> bool:
+        """Whether input jobs wait: the transport runs them before the next frame."""
+        return bool(self._jobs)
+
+    def take_background_job(self) -> Job | None:
+        """The oldest background job, or None; the reader goes on while it runs."""
+        return self._background.pop(0) if self._background else None
+
+    def add_job(self, job: Job, *, background: bool = False) -> None:
+        """Leave ``job`` to the transport (``run_jobs``); ``background``: input goes on meanwhile.
+
+        Without a transport that runs jobs (a bare session in a test), the caller
+        runs them: ``take_job``/``take_background_job``, then ``finish_job``.
+        """
+        if background:
+            self._background.append(job)
+            if self.on_job is not None:
+                self.on_job()
+        else:
+            self._jobs.append(job)
+
+    def run_jobs(self) -> None:
+        """The transport runs the jobs from now on, off its event loop."""
+        self._runs_jobs = True
+
+    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
+        """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
+
+        Later input is ignored and later frames are not queued. Idempotent: only
+        the first request counts.
+
+        Args:
+            code: the close code (WebSocket; logged on other transports).
+            reason: why, for the peer and the log.
+            abort: the peer is not reading (slow consumer): cut without waiting.
+        """
+        if self._state in (State.CLOSING, State.CLOSED):
+            return
+        self._move(State.CLOSING)
+        self._close_request = CloseConnection(code, reason, abort)
+        logger.log(
+            logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
+            "event=closing client=%s code=%d reason=%r",
+            self._client_id,
+            code,
+            reason,
+        )
+        self._commands.append(self._close_request)
+        self._wake()
+
+    def begin_shutdown(self) -> None:
+        """The server is stopping: ignore further input and release what this client holds.
+
+        Releasing first lets the graph answer callers waiting on this client
+        (D4) while their connections can still send; the server then calls
+        ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
+        """
+        if self._state is State.CLOSED:
+            return
+        if self._state.takes_input:
+            self._move(State.DRAINING)
+        self.release()
+
+    def close(self) -> None:
+        """The connection is gone: release everything it held in the graph. Idempotent."""
+        if self._state is State.CLOSED:
+            return
+        self._move(State.CLOSED)
+        try:
+            self._timers.clear()
+            self._jobs.clear()
+            self._background.clear()
+            self._outbox.take()  # what a peer that left never read goes now
+            self.release()
+        finally:  # even if releasing raised, the owner forgets the connection
+            if self._on_closed is not None:
+                self._on_closed(self._client_id)
+
+    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Take the frames queued for the peer, oldest first.
+
+        Args:
+            max_bytes: take at most about this many payload bytes (at least one
+                frame); None takes every frame. Taking frames counts as progress
+                for the send timeout (D24).
+        """
+        frames = self._outbox.take(max_bytes)
+        if frames:
+            self._watch.after_take()
+            self.taken(frames)
+        return frames
+
+    def commands_to_run(self) -> list[Command]:
+        """Take every command queued for the transport."""
+        commands, self._commands = self._commands, []
+        return commands
+
+    def get_timer(self) -> float | None:
+        """The monotonic time at which ``handle_timer`` must next be called, or None."""
+        return None if self._state is State.CLOSED else self._timers.next_deadline()
+
+    def handle_timer(self, now: float) -> None:
+        """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
+        if self._state is not State.CLOSED:
+            self._now = max(self._now, now)
+            self._timers.run_due(now)
+
+    # ---- what the transport reads --------------------------------------------------
+
+    @property
+    def close_request(self) -> CloseConnection | None:
+        """The close this session asked for, if any (also while the transport has it)."""
+        return self._close_request
+
+    @property
+    def now(self) -> float:
+        """The latest monotonic time the session was given, in seconds (0 before any input)."""
+        return self._now
+
+    @property
+    def graph(self) -> GraphPort:
+        """The graph this session operates on."""
+        return self._graph
+
+    @property
+    def client_id(self) -> ClientId:
+        """This connection's identity in the graph."""
+        return self._client_id
+
+    @property
+    def peer(self) -> str:
+        """The peer's address, ``host:port`` (empty when unknown)."""
+        return self._peer
+
+    @property
+    def config(self) -> SessionConfig:
+        """This connection's settings."""
+        return self._config
+
+    @property
+    def hold_budget_s(self) -> float:
+        """Seconds this connection, as a reader, may be held (``SessionConfig.hold_budget_s``)."""
+        return self._config.hold_budget_s
+
+    @property
+    def state(self) -> State:
+        """Where the connection is in its life (``lifecycle.State``, its moves in one table)."""
+        return self._state
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close`` was called (``state`` is CLOSED)."""
+        return self._state is State.CLOSED
+
+    @property
+    def closing(self) -> bool:
+        """Whether the session stopped taking input (close requested, shutting down, closed)."""
+        return not self._state.takes_input
+
+    @property
+    def authenticated(self) -> bool:
+        """Whether ops were admitted (always, without an authenticator), even once closing."""
+        return self._admitted
+
+    @property
+    def dropped_frames(self) -> int:
+        """Topic messages dropped so far because the peer was too slow (D24)."""
+        return self._outbox.dropped
+
+    @property
+    def topic_messages(self) -> int:
+        """Topic messages queued for the peer so far, those dropped since included."""
+        return self._outbox.topic_messages
+
+    @property
+    def taken_frames(self) -> int:
+        """Frames the transport took from the queue so far (topic messages and replies)."""
+        return self._outbox.taken_frames
+
+    @property
+    def queued_bytes(self) -> int:
+        """Payload bytes waiting to be taken by the transport."""
+        return self._outbox.queued_bytes
+
+    @property
+    def queued_reply_bytes(self) -> int:
+        """Bytes of queued frames that are never dropped (replies, statuses; D24)."""
+        return self._outbox.undroppable_bytes
+
+    @property
+    def fill_bytes(self) -> int:
+        """How full the outbox is for the watermarks (``Outbox.fill_bytes``)."""
+        return self._outbox.fill_bytes
+
+    @property
+    def water_marks(self) -> tuple[int, int]:
+        """The outbox's (high, low) watermarks in bytes, for input backpressure (docs/limits.md)."""
+        return self._outbox.high_water_bytes, self._outbox.low_water_bytes
+
+    # ---- what the protocol's handlers use ------------------------------------------
+
+    def send_frames(self, frames: Sequence[OutFrame], topic: str | None = None) -> None:
+        """Queue the frames of one message (its parts stay together, D24) and wake the transport.
+
+        Past the limit, the oldest topic messages go (D24); when undroppable
+        frames alone exceed the limit the peer is not reading at all, and the
+        connection is closed rather than let memory grow. A topic message
+        larger than the limit goes out alone or is dropped with a status naming
+        ``--send-buffer-limit`` (``outbox``, ``backpressure``).
+
+        Args:
+            frames: the frames of one message, shared with other connections (never copied).
+            topic: the topic of a message, as the peer spells it, for the status of a drop.
+        """
+        if not self._state.sends:
+            return
+        outbox = self._outbox
+        limit = outbox.limit_bytes
+        if outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
+            self.request_close(
+                CloseCode.POLICY_VIOLATION,
+                f"send buffer overflow: over {limit} bytes unread",
+                abort=True,
+            )
+            return
+        was_empty = len(outbox) == 0
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        outbox.extend(frames)
+        self._watch.after_push(dropped, oversized, self._now, frames, topic)
+        if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
+            self._wake()  # above the high watermark too: the transport applies backpressure
+
+    def push_topic_frame(self, frame: OutFrame, topic: str | None = None) -> None:
+        """Queue one whole topic message frame (droppable, no parts) without waking anyone.
+
+        ``send_frames`` of one frame in the fewest steps, for a protocol that
+        queues a burst and wakes the transport once after it (``wake``).
+        """
+        outbox = self._outbox
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        outbox.push_droppable(frame)
+        if outbox.dropped != dropped or outbox.held_bytes:
+            self._watch.after_push(dropped, oversized, self._now, (frame,), topic)
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
+
+        Wakes the transport so that it sees the new deadline in ``get_timer``.
+        """
+        timer = self._timers.schedule(deadline, callback)
+        if self._state is not State.CLOSED:
+            self._wake()
+        return timer
+
+    def check_cap(self, count: int, cap: int, what: str) -> None:
+        """Refuse an op that would hold more than ``cap`` of ``what`` (docs/limits.md).
+
+        Raises:
+            LimitError: ``count`` (what the connection holds now) reached ``cap``.
+        """
+        if count >= cap:
+            raise LimitError(f"{what}: this connection holds {cap} already (the server's limit)")
+
+    def require_access(self, family: Family, name: str, op: str) -> None:
+        """The access gate of every protocol: refuse what the access rules deny.
+
+        The rules are the server's (``SessionConfig.access``: ``--topics-glob``
+        and friends); a refusal is logged as rosbridge's are
+        (``event=access_denied``, once per episode, repeats counted).
+
+        Args:
+            family: what ``name`` is (topic, service, action, parameter).
+            name: the resolved name.
+            op: what the client asked for, for the log (``subscribe``, ``advertise``).
+
+        Raises:
+            AccessDeniedError: ``name`` is outside the rules.
+        """
+        if self._config.access.allows(family, name):
+            return
+        text = f"{family.value[:-1]} {name} is not allowed on this server"
+        _episodes.log(
+            logging.WARNING,
+            "access_denied",
+            "event=access_denied client=%s op=%s reason=%r",
+            self._client_id,
+            op,
+            text,
+            now=self._now,
+        )
+        raise AccessDeniedError(text)
+
+    def wake(self) -> None:
+        """Tell the transport that output is ready (after ``push_topic_frame``)."""
+        self._wake()
+
+    def _wake(self) -> None:
+        if self._on_output is not None:
+            self._on_output()
+
+    def _move(self, target: State) -> None:
+        """Change ``state`` along ``lifecycle.TRANSITIONS``; LocalProtocolError otherwise."""
+        self._state = advance(self._state, target)
+
+    def _log_once(self, kind: str) -> bool:
+        """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""
+        if kind in self._logged:
+            return False
+        self._logged.add(kind)
+        return True
+
+    def _bug(self, what: str | None, op_id: str | int | None = None) -> None:
+        """Report an exception that is not an ``RwtError``: a bug, logged once per connection.
+
+        The peer gets an ``internal error`` status for ``what`` and the session goes
+        on (docs/limits.md, containment), whichever protocol it speaks.
+        """
+        if self._log_once("bug"):
+            logger.exception("bug while handling a frame from %s", self._client_id)
+        else:
+            logger.debug("bug while handling a frame from %s", self._client_id, exc_info=True)
+        try:
+            text = "internal error" if what is None else f"{what}: internal error"
+            self.report(StatusLevel.ERROR, text, op_id)
+        except Exception:  # the report is total; a bug there must still not reach the transport
+            logger.debug("cannot report a bug to %s", self._client_id, exc_info=True)

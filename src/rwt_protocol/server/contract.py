@@ -1,0 +1,144 @@
+"""What the connection runtime sees of a session, whatever protocol it speaks.
+
+One pump (``rwt_transports.pump``) drives every protocol's session over every
+transport: rosbridge's ``Session`` and the Foxglove WebSocket protocol's
+``FoxgloveSession`` both implement ``ServerSession``, through the per-client
+rules they share (``connection.SessionBase``: the bounded outbox, the slow-consumer
+watch, timers, the idle timeout, the lifecycle, jobs). A third protocol does the
+same and gets those rules, the server's admission, limits and flow control
+without restating them (docs/architecture.md, "How to add a protocol").
+
+The contract is sans-IO, after aioquic's connection: frames in with the time they
+arrived (``receive_frame``), frames out within a byte budget (``frames_to_send``),
+commands out (``commands_to_run``), one timer (``get_timer``/``handle_timer``),
+jobs to run off the event loop (``take_job``/``take_background_job``, answered
+with ``finish_job``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from ..levels import StatusLevel
+    from .commands import CloseCode, CloseConnection, Command
+    from .outbox import OutFrame
+
+__all__ = ["Job", "ServerSession"]
+
+
+class Job(Protocol):
+    """Work a session leaves to its transport: run ``run()`` off the event loop.
+
+    ``ready_at`` (monotonic seconds) is when it may start: the sender's own budget.
+    """
+
+    @property
+    def ready_at(self) -> float:
+        """Monotonic seconds before which the job must not run."""
+
+    def run(self) -> object:
+        """Do the work (in a worker thread); its result, or an exception, goes to ``finish_job``."""
+
+
+class ServerSession(Protocol):
+    """One server-side connection's protocol state, as the connection runtime drives it."""
+
+    @property
+    def client_id(self) -> str:
+        """The connection's identity in the graph (``ws:127.0.0.1:5000#3``)."""
+
+    @property
+    def peer(self) -> str:
+        """The peer's address, ``host:port``."""
+
+    @property
+    def hold_budget_s(self) -> float:
+        """Seconds this connection, as a reader, may be held for the outboxes it fills."""
+
+    on_job: Callable[[], None] | None
+    """Called when a background job was queued (``take_background_job``); set by the pump."""
+
+    def start(self, now: float) -> None:
+        """The transport serves the connection from ``now`` (monotonic seconds)."""
+
+    def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
+        """Handle one whole incoming frame; never raises for what the peer sent."""
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Tell the peer of a problem (a framing error) in its protocol's status."""
+
+    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one)."""
+
+    def commands_to_run(self) -> list[Command]:
+        """Take the commands queued for the transport (``CloseConnection``)."""
+
+    def get_timer(self) -> float | None:
+        """When ``handle_timer`` must next be called (monotonic seconds), or None."""
+
+    def handle_timer(self, now: float) -> None:
+        """Run what was due at or before ``now``."""
+
+    @property
+    def has_jobs(self) -> bool:
+        """Whether input jobs wait: the transport runs them before the next frame."""
+
+    def take_job(self) -> Job | None:
+        """The oldest input job (the reader waits for it), or None."""
+
+    def take_background_job(self) -> Job | None:
+        """The oldest background job (the reader goes on meanwhile), or None."""
+
+    def finish_job(self, job: Job, result: object, now: float) -> None:
+        """Take a job's outcome: what ``run`` returned, or the exception it raised."""
+
+    def run_jobs(self) -> None:
+        """The transport runs the jobs from now on (else a session does them at once)."""
+
+    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
+        """Ask the transport to close after the frames queued so far."""
+
+    def begin_shutdown(self) -> None:
+        """The server is stopping: take no more input, release what the client holds."""
+
+    def close(self) -> None:
+        """The connection is gone: release everything. Idempotent."""
+
+    @property
+    def close_request(self) -> CloseConnection | None:
+        """The close this session asked for, if any."""
+
+    @property
+    def closing(self) -> bool:
+        """Whether the session stopped taking input."""
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes charged for the frames waiting to be taken."""
+
+    @property
+    def queued_reply_bytes(self) -> int:
+        """Bytes of queued frames that are never dropped (replies, statuses, control)."""
+
+    @property
+    def fill_bytes(self) -> int:
+        """How full the outbox is for the watermarks (``Outbox.fill_bytes``)."""
+
+    @property
+    def water_marks(self) -> tuple[int, int]:
+        """The outbox's (high, low) watermarks in bytes (input backpressure)."""
+
+    @property
+    def topic_messages(self) -> int:
+        """Topic messages queued so far, dropped ones included."""
+
+    @property
+    def dropped_frames(self) -> int:
+        """Topic messages dropped so far (the peer read too slowly)."""
+
+    @property
+    def taken_frames(self) -> int:
+        """Frames the transport took so far."""

@@ -1,0 +1,119 @@
+"""The protocols a server speaks, each a front end on the one connection runtime.
+
+A front end names how a connection chooses it (a WebSocket subprotocol in the
+handshake now; a data-channel label or an HTTP path for transports to come), how
+its session is made, and how its clients authenticate. The listeners consult the
+registry (``FrontEnds``) and nothing else: admission (``--max-connections``, the
+host shares, ``/connected_clients``), the per-client limits, flow control, the
+idle timeout and the slow-consumer rule are the server's and the pump's, the same
+for every front end (docs/architecture.md, "How to add a protocol").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable, Sequence
+
+    from rwt_protocol.framing.fragments import FragmentBudget
+    from rwt_protocol.ports import GraphPort
+    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.server.session import SessionConfig
+
+__all__ = ["AuthMode", "FrontEnd", "FrontEnds", "SessionRequest"]
+
+
+class AuthMode(Enum):
+    """How a front end's clients authenticate when the server has an authenticator."""
+
+    OP = "op"
+    """With the protocol's first op (rosbridge's ``auth``, D23); the URL is not read."""
+    URL_TOKEN = "url"
+    """With a token in the handshake's URL, checked before any session (D33)."""
+
+
+@dataclass(frozen=True, slots=True)
+class SessionRequest:
+    """What a front end gets to make the session of an admitted connection.
+
+    Attributes:
+        graph: the served graph's port.
+        client_id: the connection's id in the graph (``ws:127.0.0.1:5000#3``).
+        transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``stdio`` or ``memory``.
+        peer: the peer's address.
+        config: the per-client rules (``SessionConfig``) for this transport.
+        on_output: the pump's wake-up.
+        on_closed: the server's bookkeeping when the session closes.
+        fragment_budget: the server-wide budget of incomplete messages.
+        auth_nonce: the connection's auth challenge when the transport sent it.
+        authenticated: the transport admitted the client already (a URL token).
+    """
+
+    graph: GraphPort
+    client_id: str
+    transport: str
+    peer: str
+    config: SessionConfig
+    on_output: Callable[[], None]
+    on_closed: Callable[[str], None]
+    fragment_budget: FragmentBudget | None = None
+    auth_nonce: str | None = None
+    authenticated: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class FrontEnd:
+    """One protocol on the server's connections.
+
+    Attributes:
+        name: its name in logs and errors (``rosbridge``, ``foxglove``).
+        subprotocols: WebSocket subprotocols that select it, in the server's
+            preference; empty for the default front end (a client that offers
+            none of the others).
+        make_session: the session of an admitted connection.
+        auth: how its clients authenticate (``AuthMode``).
+    """
+
+    name: str
+    subprotocols: tuple[str, ...]
+    make_session: Callable[[SessionRequest], ServerSession]
+    auth: AuthMode = AuthMode.OP
+
+
+class FrontEnds:
+    """The front ends of one listener: a default and the ones chosen by subprotocol.
+
+    Args:
+        default: the front end of a client that offers none of the others'
+            subprotocols (rosbridge); None: such a client is refused.
+        others: the front ends chosen by subprotocol.
+    """
+
+    def __init__(self, default: FrontEnd | None, others: Sequence[FrontEnd] = ()) -> None:
+        self.default = default
+        self.others = tuple(others)
+        self._by_subprotocol = {name: each for each in self.others for name in each.subprotocols}
+
+    def select(self, offered: Iterable[str]) -> tuple[FrontEnd | None, str | None]:
+        """The front end a handshake offering ``offered`` gets, and the subprotocol to answer.
+
+        The first subprotocol the client offers (in its order) that a front end
+        claims wins; none: the default front end, no subprotocol.
+        """
+        for name in offered:
+            frontend = self._by_subprotocol.get(name)
+            if frontend is not None:
+                return frontend, name
+        return self.default, None
+
+    def refusal(self) -> str:
+        """What a client that offers none of this listener's subprotocols is told (HTTP 400)."""
+        names = ", ".join(name for each in self.others for name in each.subprotocols)
+        return f"this port speaks {', '.join(e.name for e in self.others)} only: offer {names}"
+
+    def without_default(self) -> FrontEnds:
+        """These front ends, a client offering none of them refused (a protocol's own port)."""
+        return FrontEnds(None, self.others)

@@ -1,0 +1,196 @@
+"""A third protocol, registered through the front-end registry, gets the server's rules.
+
+docs/architecture.md, "How to add a protocol": a session that subclasses
+``SessionBase`` and a ``FrontEnd`` that makes it, handed to ``RosbridgeServer``
+(``add_frontend``), and nothing else. The protocol here is a few lines ("sub TOPIC" subscribes, any
+other text is echoed); what it never restates comes from the server, over a
+real WebSocket: admission (``--max-connections``), ``--max-subscriptions``, the
+access globs (with their log), the idle timeout, and the slow-consumer rule
+(a client that reads nothing loses its oldest data and is closed after
+``--send-timeout``) and a bug in a handler contained.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+import anyio
+import pytest
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed, InvalidStatus
+
+from rwt_graph.graph import Graph
+from rwt_protocol.errors import RwtError
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.ops import Subscribe
+from rwt_protocol.ports import MessageEvent
+from rwt_protocol.server.access import AccessPolicy, Family
+from rwt_protocol.server.connection import SessionBase
+from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.server.session import SessionConfig
+from rwt_transports.frontends import FrontEnd, SessionRequest
+from rwt_transports.server import RosbridgeServer, ServerConfig
+
+pytestmark = pytest.mark.anyio
+
+ECHO = "rwt.test.echo"
+
+
+class EchoSession(SessionBase):
+    """The whole protocol: ``sub TOPIC`` subscribes (its messages come as their text),
+    ``boom`` is a bug, anything else comes back."""
+
+    protocol = "echo"
+
+    def __init__(self, request: SessionRequest) -> None:
+        super().__init__(
+            request.graph,
+            request.client_id,
+            config=request.config,
+            on_output=request.on_output,
+            peer=request.peer,
+            on_closed=request.on_closed,
+        )
+        self.topics: set[str] = set()
+
+    def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
+        if not self._state.takes_input:
+            return
+        self.received(now)
+        text = frame.decode() if isinstance(frame, bytes) else frame
+        try:
+            if text == "boom":
+                raise ZeroDivisionError  # a bug in a handler
+            if text.startswith("sub "):
+                self._subscribe(text[4:])
+            else:
+                self.send_frames((OutFrame(text.encode()),))
+        except RwtError as exc:
+            self.report(exc.level, exc.message)
+        except Exception:
+            self._bug("echo")
+
+    def _subscribe(self, topic: str) -> None:
+        self.require_access(Family.TOPICS, topic, "sub")
+        self.check_cap(len(self.topics), self._config.max_subscriptions, "subscriptions")
+        op = Subscribe(topic=topic, type="std_msgs/msg/String")
+        self._graph.subscribe(self._client_id, op, _Sink(self))
+        self.topics.add(topic)
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        self.send_frames((OutFrame(f"{level.wire}: {text}".encode()),))
+
+    def holds_anything(self) -> bool:
+        return bool(self.topics)
+
+
+class _Sink:
+    def __init__(self, session: EchoSession) -> None:
+        self._session = session
+
+    def on_message(self, event: MessageEvent) -> None:
+        self._session.push_topic_frame(OutFrame(str(event.msg["data"]).encode(), False, True))
+        self._session.wake()
+
+
+FRONTEND = FrontEnd("echo", (ECHO,), EchoSession)
+
+
+@asynccontextmanager
+async def serving(graph: Graph, **config: object) -> AsyncIterator[RosbridgeServer]:
+    server = RosbridgeServer(graph, ServerConfig(port=0, **config))  # type: ignore[arg-type]
+    server.add_frontend(FRONTEND)
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        try:
+            with anyio.fail_after(60):
+                yield server
+        finally:
+            tg.cancel_scope.cancel()
+
+
+async def test_the_registry_picks_it_by_subprotocol_and_rosbridge_stays_the_default() -> None:
+    async with serving(Graph()) as server:
+        url = server.urls["websocket"]
+        async with connect(url, subprotocols=[ECHO]) as ws:  # type: ignore[list-item]
+            assert ws.subprotocol == ECHO
+            await ws.send("hello")
+            assert await ws.recv() == "hello"
+            await ws.send("boom")  # a bug: reported, and the connection goes on
+            assert await ws.recv() == "error: echo: internal error"
+            await ws.send("still here")
+            assert await ws.recv() == "still here"
+        async with connect(url) as ws:  # no subprotocol: rosbridge
+            await ws.send('{"op": "call_service", "service": "/rosapi/topics", "id": "1"}')
+            assert '"service_response"' in str(await ws.recv())
+
+
+async def test_admission_limits_and_access_rules_bind_it(caplog: pytest.LogCaptureFixture) -> None:
+    graph = Graph()
+    for topic in ("/a", "/b", "/secret"):
+        graph.create_publisher(topic, "std_msgs/msg/String")
+    session = SessionConfig(max_subscriptions=1, access=AccessPolicy(topics=("/a", "/b")))
+    async with serving(graph, max_connections=1, session=session) as server:
+        url = server.urls["websocket"]
+        async with connect(url, subprotocols=[ECHO]) as ws:  # type: ignore[list-item]
+            with pytest.raises(InvalidStatus) as refused:  # --max-connections: any protocol
+                async with connect(url):
+                    pass
+            assert refused.value.response.status_code == 503
+            await ws.send("sub /secret")
+            assert await ws.recv() == "error: topic /secret is not allowed on this server"
+            await ws.send("sub /a")
+            await ws.send("sub /b")
+            assert await ws.recv() == (
+                "error: subscriptions: this connection holds 1 already (the server's limit)"
+            )
+    assert "event=access_denied" in caplog.text and "op=sub" in caplog.text
+
+
+async def test_the_idle_timeout_closes_it_unless_it_holds_something() -> None:
+    graph = Graph()
+    graph.create_publisher("/a", "std_msgs/msg/String")
+    async with serving(graph, idle_timeout_s=0.5) as server:
+        url = server.urls["websocket"]
+        async with (
+            connect(url, subprotocols=[ECHO]) as idle,  # type: ignore[list-item]
+            connect(url, subprotocols=[ECHO]) as holding,  # type: ignore[list-item]
+        ):
+            await holding.send("sub /a")
+            with pytest.raises(ConnectionClosed) as closed:
+                await idle.recv()
+            assert closed.value.rcvd is not None and "idle" in closed.value.rcvd.reason
+            await holding.send("ping")  # still served
+            assert await holding.recv() == "ping"
+
+
+async def test_a_client_that_reads_nothing_loses_its_oldest_data_and_is_closed(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.INFO)
+    graph = Graph()
+    fast = graph.create_publisher("/fast", "std_msgs/msg/String")
+    session = SessionConfig(send_buffer_limit=64 * 1024, send_timeout_s=0.5)
+    async with serving(graph, session=session) as server:
+        port = int(server.urls["websocket"].rsplit(":", 1)[1])
+        stalled = await anyio.connect_tcp("127.0.0.1", port)
+        handshake = (
+            "GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+            f"Sec-WebSocket-Protocol: {ECHO}\r\n\r\n"
+        )
+        await stalled.send(handshake.encode())
+        assert b" 101 " in await stalled.receive()  # from here it reads nothing
+        payload = b"sub /fast"  # a masked text frame (an all-zero mask)
+        await stalled.send(bytes((0x81, 0x80 | len(payload))) + b"\x00\x00\x00\x00" + payload)
+        while not graph.topics["/fast"].subscribers:
+            await anyio.sleep(0.01)
+        async with connect(server.urls["websocket"], subprotocols=[ECHO]) as bystander:  # type: ignore[list-item]
+            while "closed by server: slow consumer" not in caplog.text:
+                fast.publish({"data": "x" * 1000})
+                await bystander.send("ping")
+                assert await bystander.recv() == "ping"  # the bystander is served all along
+        await stalled.aclose()
+    assert "event=slow_consumer" in caplog.text and "protocol=echo" in caplog.text
