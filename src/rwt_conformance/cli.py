@@ -8,17 +8,17 @@ from enum import StrEnum
 from functools import partial
 from pathlib import Path
 from typing import Annotated
-from urllib.parse import urlsplit
 
 import anyio
 import typer
 
 from rwt_protocol.auth import RosauthVerifier
+from rwt_protocol.errors import ConfigError
 
 from .bounds import CASE_BUDGET_BYTES, CASE_TIMEOUT_S, MAX_FRAME_BYTES, RUN_TIMEOUT_S
 from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
 
-__all__ = ["conformance", "server_url"]
+__all__ = ["conformance"]
 
 
 class TransportName(StrEnum):
@@ -28,21 +28,23 @@ class TransportName(StrEnum):
     TCP = "tcp"
 
 
-def server_url(url: str, transport: TransportName | None) -> str:
-    """The URL to connect to: ``HOST:PORT`` gets a scheme, ``--transport`` replaces one.
+def _server_url(url: str, transport: TransportName | None) -> str:
+    """The URL to connect to, read as every command reads a server (``server_url``).
 
-    ``--transport tcp`` with ``ws://h:9090`` connects to ``tcp://h:9090``; TLS
-    stays: ``wss://`` becomes ``tcp+tls://`` and back.
+    ``HOST:PORT`` gets a scheme; ``--transport`` replaces one (``wss://`` becomes
+    ``tcp+tls://`` and back).
+
+    Raises:
+        typer.Exit: code 2, after one line naming the forms taken.
     """
-    if "://" not in url:
-        url = f"{(transport or TransportName.WS).value}://{url}"
-    parts = urlsplit(url)
-    tls = parts.scheme in ("wss", "tcp+tls")
-    if transport is TransportName.TCP and parts.scheme not in ("tcp", "tcp+tls"):
-        return ("tcp+tls://" if tls else "tcp://") + parts.netloc
-    if transport is TransportName.WS and parts.scheme in ("tcp", "tcp+tls"):
-        return ("wss://" if tls else "ws://") + parts.netloc
-    return url
+    # the client loads with the runner, not with the CLI (see ``conformance``)
+    from rwt_client.connectors import server_url  # noqa: PLC0415
+
+    try:
+        return server_url(url, None if transport is None else transport.value)
+    except ConfigError as exc:
+        typer.echo(f"rwt conformance: {exc}", err=True)
+        raise typer.Exit(2) from None
 
 
 def _read_secret(path: Path) -> str:
@@ -169,6 +171,7 @@ def conformance(
     from .runner import RunOptions, run_suite  # noqa: PLC0415
 
     console = Console() if sys.stdout.isatty() else Console(width=160)
+    server = _server_url(url, transport)
     try:
         loaded = load_suite(suite or default_suite_dir())
     except SuiteError as exc:
@@ -177,7 +180,7 @@ def conformance(
     patterns = tuple(p for item in only or () for p in item.split(",") if p)
     context = _tls_context(cafile, insecure)
     options = RunOptions(
-        server_url(url, transport),
+        server,
         profile,
         patterns,
         expect_timeout_s=timeout,
