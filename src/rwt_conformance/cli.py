@@ -17,6 +17,7 @@ from rwt_protocol.errors import ConfigError
 
 from .bounds import CASE_BUDGET_BYTES, CASE_TIMEOUT_S, MAX_FRAME_BYTES, RUN_TIMEOUT_S
 from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
+from .pace import RETRY_BUDGET_S
 
 __all__ = ["conformance"]
 
@@ -99,8 +100,25 @@ _Only = Annotated[
 _Junit = Annotated[Path | None, typer.Option(help="Write JUnit XML here.")]
 _JsonFile = Annotated[Path | None, typer.Option("--json", help="Write a JSON report here.")]
 _Suite = Annotated[Path | None, typer.Option(help="Suite folder (default: the shipped suite).")]
-_Timeout = Annotated[float, typer.Option(help="Seconds one expected frame, or one send, may take.")]
-_CaseTimeout = Annotated[float, typer.Option(min=0.001, help="Seconds one whole case may take.")]
+_Timeout = Annotated[
+    float,
+    typer.Option(
+        help="Seconds one expected frame, or one send, may take from a server that answers"
+        " at once; the server's measured round trip is added."
+    ),
+]
+_CaseTimeout = Annotated[
+    float,
+    typer.Option(min=0.001, help="Seconds one whole case may take (the round trip added too)."),
+]
+_RetryBudget = Annotated[
+    float,
+    typer.Option(
+        min=0,
+        help="Seconds the run may spend running again, with longer waits, cases that"
+        " missed a wait (0: no retries).",
+    ),
+]
 _RunTimeout = Annotated[
     float,
     typer.Option(
@@ -152,6 +170,7 @@ def conformance(
     timeout: _Timeout = 3.0,
     case_timeout: _CaseTimeout = CASE_TIMEOUT_S,
     run_timeout: _RunTimeout = RUN_TIMEOUT_S,
+    retry_budget: _RetryBudget = RETRY_BUDGET_S,
     max_frame_bytes: _MaxFrameBytes = MAX_FRAME_BYTES,
     case_budget_bytes: _CaseBudgetBytes = CASE_BUDGET_BYTES,
     auth_secret_file: _AuthSecretFile = None,
@@ -186,6 +205,7 @@ def conformance(
         expect_timeout_s=timeout,
         case_timeout_s=case_timeout,
         run_timeout_s=run_timeout,
+        retry_budget_s=retry_budget,
         max_frame_bytes=max_frame_bytes,
         case_budget_bytes=case_budget_bytes,
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
