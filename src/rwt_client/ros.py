@@ -365,7 +365,8 @@ class Ros(RosapiMixin):
             except ConnectionClosedError as exc:
                 self._connected = anyio.Event()
                 then = "reconnecting" if self.reconnect else "reconnect is off"
-                self._down = f"not connected to {self.url}: {exc.message} ({then})"
+                why = exc.message.removeprefix(f"{self.url}: ")  # the URL once
+                self._down = f"not connected to {self.url}: {why} ({then})"
                 self._fail_waiters(f"connection lost: {exc.message}")
                 await self._close_connection()  # the lost connection's socket; never raises
                 if self._closing or not self.reconnect:
