@@ -6,7 +6,7 @@ from contextlib import suppress
 
 import anyio
 
-from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt import Graph, ListenError, RosbridgeServer, ServerConfig
 
 graph = Graph()
 tf = graph.create_publisher("/tf", "tf2_msgs/msg/TFMessage")
@@ -46,13 +46,19 @@ async def drive() -> None:
         t += 0.05
 
 
-async def main() -> None:
+async def main() -> str | None:
+    """Serve and drive until Ctrl-C; if the port is taken, return the error's one line."""
     server = RosbridgeServer(graph, ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090))
     async with anyio.create_task_group() as tg:
         tg.start_soon(drive)
-        await server.serve(on_listening=lambda url: print("listening on", url, flush=True))
-        tg.cancel_scope.cancel()
+        try:
+            url = await tg.start(server.serve)
+        except ListenError as exc:  # cannot listen for WebSocket on ...: address already in use
+            tg.cancel_scope.cancel()
+            return str(exc)
+        print("listening on", url, flush=True)
+    return None
 
 
 with suppress(KeyboardInterrupt):  # Ctrl-C: stop without a traceback
-    anyio.run(main)
+    sys.exit(anyio.run(main))  # the error's line on stderr and exit code 1, or 0

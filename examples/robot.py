@@ -1,11 +1,9 @@
 """A robot for roslibjs/roslibpy users: topics, a service, an action, parameters, rosapi."""
 
+import asyncio
 import sys
-from contextlib import suppress
 
-import anyio
-
-from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt import Graph, ListenError, RosbridgeServer, ServerConfig
 
 graph = Graph()
 graph.params.declare("/rwt", {"max_speed": 1.0, "name": "rwt-bot"})
@@ -19,11 +17,13 @@ async def fibonacci(goal: dict, context) -> dict:
     for _ in range(1, goal["order"]):
         sequence.append(sequence[-1] + sequence[-2])
         context.publish_feedback({"sequence": sequence})
-        await anyio.sleep(0.01)
+        await asyncio.sleep(0.01)
     return {"sequence": sequence}
 
 
 graph.create_action_server("/fibonacci", "example_interfaces/action/Fibonacci", fibonacci)
 server = RosbridgeServer(graph, ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090))
-with suppress(KeyboardInterrupt):  # Ctrl-C: stop without a traceback
-    anyio.run(lambda: server.serve(on_listening=lambda url: print("listening on", url, flush=True)))
+try:  # Ctrl-C stops quietly; a port in use is one line on stderr and exit code 1
+    asyncio.run(server.serve(on_listening=lambda url: print("listening on", url, flush=True)))
+except (KeyboardInterrupt, ListenError) as exc:
+    sys.exit(str(exc) or None)

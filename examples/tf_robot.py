@@ -16,7 +16,7 @@ from contextlib import suppress
 
 import anyio
 
-from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt import Graph, ListenError, RosbridgeServer, ServerConfig
 from rwt.types import Dialect, TypeRegistry
 
 port = int(sys.argv[1]) if sys.argv[1:] else 9090
@@ -45,12 +45,19 @@ async def move() -> None:
         await anyio.sleep(0.05)
 
 
-async def main() -> None:
+async def main() -> str | None:
+    """Serve and move until Ctrl-C; if the port is taken, return the error's one line."""
     server = RosbridgeServer(graph, ServerConfig(port=port))
     async with anyio.create_task_group() as tg:
         tg.start_soon(move)
-        await server.serve(on_listening=lambda url: print("listening on", url, flush=True))
+        try:
+            url = await tg.start(server.serve)
+        except ListenError as exc:  # cannot listen for WebSocket on ...: address already in use
+            tg.cancel_scope.cancel()
+            return str(exc)
+        print("listening on", url, flush=True)
+    return None
 
 
 with suppress(KeyboardInterrupt):  # Ctrl-C: stop without a traceback
-    anyio.run(main)
+    sys.exit(anyio.run(main))  # the error's line on stderr and exit code 1, or 0

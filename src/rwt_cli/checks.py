@@ -2,18 +2,26 @@
 
 Each check refuses a bad option value at start, naming the option, instead of
 letting it surface later as a traceback or as a server that silently matches
-nothing. Errors are one line on stderr: ``rwt serve: --port: ...``.
+nothing. Errors are one line on stderr: ``rwt serve: --port: ...``; an error
+raised while a command runs too, however deep task groups wrapped it
+(``one_line_errors``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import ssl
 import sys
 from pathlib import Path
-from typing import Any, Protocol, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import typer
+
+from rwt_protocol.errors import ConfigError
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
 
 __all__ = [
     "ClickException",
@@ -22,8 +30,11 @@ __all__ = [
     "check_directories",
     "check_glob_list",
     "check_readable_file",
+    "check_server_url",
     "check_tls",
     "error_line",
+    "error_message",
+    "one_line_errors",
     "usage_error",
 ]
 
@@ -184,3 +195,74 @@ def _plain(message: str) -> str:
     # typer >= 0.2x converts values with pydantic, whose errors may start so
     message = message.strip().removeprefix("Value error, ").removesuffix(".")
     return message[:1].lower() + message[1:]
+
+
+def check_server_url(text: str) -> str:
+    """Typer callback: a rosbridge server's address, as the client takes it (``server_url``).
+
+    Every command that takes a server (``rwt record``, and ``rwt conformance``,
+    which parses with ``server_url`` too) takes the same forms: ``ws://``,
+    ``wss://``, ``tcp://``, ``tcp+tls://`` and ``HOST:PORT`` (WebSocket).
+
+    Returns:
+        The URL with its scheme.
+
+    Raises:
+        OptionError: another scheme, no host or no port; the text lists the forms.
+    """
+    # the client's connectors load with the command that connects, not with the CLI
+    from rwt_client.connectors import server_url  # noqa: PLC0415
+
+    try:
+        return server_url(text)
+    except ConfigError as exc:
+        raise OptionError(str(exc)) from None
+
+
+def error_message(exc: BaseException, expected: tuple[type[BaseException], ...]) -> str | None:
+    """One line for an error a user can act on, however deep task groups wrapped it.
+
+    anyio's task groups wrap what a task raised in an ``ExceptionGroup``, one group
+    a level, whose own text (``unhandled errors in a TaskGroup (1 sub-exception)``)
+    says nothing: the line is made of the errors inside, each text once, joined
+    by ``; ``.
+
+    Args:
+        exc: what the command raised.
+        expected: the errors a user causes (a port in use, a bag that exists...).
+
+    Returns:
+        The line; None when an error inside is none of ``expected`` (a bug, whose
+        traceback the caller lets through).
+    """
+    if isinstance(exc, BaseExceptionGroup):
+        messages: list[str] = []
+        for each in exc.exceptions:
+            message = error_message(each, expected)
+            if message is None:
+                return None
+            if message not in messages:
+                messages.append(message)
+        return "; ".join(messages)
+    return str(exc) if isinstance(exc, expected) else None
+
+
+@contextlib.contextmanager
+def one_line_errors(command: str, expected: tuple[type[BaseException], ...]) -> Iterator[None]:
+    """Run the block; an ``expected`` error exits 1 with ``rwt COMMAND: MESSAGE`` on stderr.
+
+    The one place where the commands that run (``serve``, ``play``, ``record``)
+    turn what they raised into one line (``error_message``); anything else
+    goes on as a traceback.
+
+    Raises:
+        typer.Exit: code 1, after the line.
+    """
+    try:
+        yield
+    except (Exception, BaseExceptionGroup) as exc:
+        message = error_message(exc, expected)
+        if message is None:
+            raise
+        typer.echo(f"rwt {command}: {message}", err=True)
+        raise typer.Exit(1) from None

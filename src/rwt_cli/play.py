@@ -8,7 +8,6 @@ from typing import Annotated
 import anyio
 import typer
 
-from rwt_bag.errors import BagError
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
 from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
@@ -36,9 +35,9 @@ from .bag_options import (
     play_options,
     terminal_keys,
 )
-from .checks import check_glob_list
+from .checks import check_glob_list, one_line_errors
 from .options import PORT_RANGE
-from .running import run_server, startup_error
+from .running import STARTUP_ERRORS, run_server
 
 __all__ = ["play"]
 
@@ -103,11 +102,5 @@ def play(
     )
     keys = terminal_keys(disable_keyboard_controls)
     jobs = bag_jobs(graph, None, options, command="play", stop_at_end=server.stop, keyboard=keys)
-    try:
+    with one_line_errors("play", STARTUP_ERRORS):
         anyio.run(run_server, server, None, jobs)
-    except (OSError, ValueError, BaseExceptionGroup, BagError) as exc:  # ListenError: an OSError
-        message = startup_error(exc)
-        if message is None:
-            raise
-        typer.echo(f"rwt play: {message}", err=True)
-        raise typer.Exit(1) from None

@@ -11,6 +11,7 @@ import typer
 from rwt_bag.errors import BagError
 from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_graph.types import TypeRegistry
+from rwt_protocol.errors import RwtError
 from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
 
 from .bag_options import (
@@ -34,12 +35,23 @@ from .bag_options import (
     split_policy,
     topic_selection,
 )
+from .checks import check_server_url, one_line_errors
 
-__all__ = ["record"]
+__all__ = ["RECORD_ERRORS", "record"]
+
+RECORD_ERRORS: tuple[type[BaseException], ...] = (BagError, OSError, RwtError)
+"""What ends a recording that the user can fix: the bag (it exists, the disk), the
+server (unreachable: ``ConnectionClosedError``, an ``RwtError`` and ``OSError``)."""
 
 
 def record(
-    url: Annotated[str, typer.Argument(help="The rosbridge server: ws://, wss:// or tcp://.")],
+    url: Annotated[
+        str,
+        typer.Argument(
+            callback=check_server_url,
+            help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT.",
+        ),
+    ],
     out: Annotated[Path, typer.Argument(help="The bag to create (a folder; a .bag file).")],
     topics: Patterns = "",
     regex: Annotated[
@@ -76,7 +88,8 @@ def record(
     matches --topics or --regex and no exclusion, also to topics that appear
     later, and writes each message with its receive time and its type's
     definition. ROS 2 bags stay readable if the recorder is killed (up to the
-    last second or so).
+    last second or so). If the server goes away the recorder reconnects (and
+    subscribes again) until it stops; with --duration it stops on time even then.
     """
     if compression not in ("cbor", "none"):
         fail("record", f"--compression must be cbor or none, not {compression}")
@@ -93,7 +106,7 @@ def record(
 
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     registry = TypeRegistry(dialect_for(dialect, (), fmt), interfaces or ())
-    try:
+    with one_line_errors("record", RECORD_ERRORS):
         anyio.run(
             lambda: record_remote(
                 url,
@@ -104,7 +117,3 @@ def record(
                 duration=duration,
             )
         )
-    except (BagError, OSError) as exc:
-        fail("record", str(exc))
-    except BaseExceptionGroup as group:
-        fail("record", "; ".join(str(e) for e in group.exceptions))

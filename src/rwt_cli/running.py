@@ -2,7 +2,8 @@
 
 ``run_server`` serves until a signal: the bag jobs first, then the video server,
 then the listeners, each announced on stdout. Errors that stop a start-up
-(a port in use, a bad bag) become one line through ``startup_error``.
+(``STARTUP_ERRORS``: a port in use, a bad bag) become one line through
+``checks.one_line_errors``.
 """
 
 from __future__ import annotations
@@ -30,7 +31,11 @@ if TYPE_CHECKING:
     from rwt_video import VideoConfig
     from rwt_zenoh.config import ZenohOptions
 
-__all__ = ["run_server", "startup_error"]
+__all__ = ["STARTUP_ERRORS", "run_server"]
+
+STARTUP_ERRORS: tuple[type[BaseException], ...] = (OSError, ValueError, BagError)
+"""What stops a server's start that the user can fix: ``ListenError`` and ``SSLError``
+(``OSError``s), a bad option value (``ValueError``, ``ConfigError``), a bad bag."""
 
 
 async def run_server(
@@ -111,18 +116,3 @@ async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> 
                 scope.cancel()
                 return
             server.stop()
-
-
-def startup_error(exc: BaseException) -> str | None:
-    """The one-line message of an error that stops a server at start; None for a bug."""
-    if isinstance(exc, BaseExceptionGroup):  # raised inside a task group
-        messages = []
-        for each in exc.exceptions:
-            message = startup_error(each)
-            if message is None:
-                return None
-            messages.append(message)
-        return "; ".join(messages)
-    if isinstance(exc, OSError | ValueError | BagError):  # ListenError, SSLError: OSErrors
-        return str(exc)
-    return None

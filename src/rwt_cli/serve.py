@@ -43,11 +43,11 @@ from .bag_options import (
     split_policy,
     topic_selection,
 )
-from .checks import OptionError, check_tls, usage_error
+from .checks import OptionError, check_tls, one_line_errors, usage_error
 from .groups import grouped_command
 from .options import UVLOOP_EXTRA, VIDEO_PORT
 from .ros2_link import ros2_interface_dirs, ros2_options
-from .running import run_server, startup_error
+from .running import STARTUP_ERRORS, run_server
 from .serve_options import ServeOptions
 from .zenoh_link import require_zenoh, zenoh_options
 
@@ -322,15 +322,10 @@ def _run(
     uvloop: bool,
 ) -> None:
     """Serve until a signal; a start-up error is one line (exit 1)."""
-    try:
+    with one_line_errors("serve", STARTUP_ERRORS):
         anyio.run(
             run_server, server, video, jobs, zenoh, ros2, backend_options={"use_uvloop": uvloop}
         )
-    except (OSError, ValueError, BaseExceptionGroup) as exc:  # ListenError: an OSError
-        message = startup_error(exc)
-        if message is None:
-            raise
-        fail(message)
 
 
 def _depthcloud_encoder(graph: Graph, media: Media) -> None:

@@ -221,7 +221,13 @@ class Action:
     async def send_goal(
         self, goal: object = None, *, on_feedback: Callback | None = None
     ) -> GoalHandle:
-        """Send a goal; feedback (asked for when ``on_feedback`` is given) goes to it."""
+        """Send a goal; feedback (asked for when ``on_feedback`` is given) goes to it.
+
+        Raises:
+            ConnectionClosedError: the connection is down (reconnecting, or closed):
+                the goal would be lost.
+        """
+        self.ros.require_connection()
         goal_id = self.ros.session.send_action_goal(
             self.name, self.action_type, to_wire(goal), feedback=on_feedback is not None
         )

@@ -54,6 +54,7 @@ __all__ = [
     "TcpConnection",
     "WebSocketConnection",
     "connect",
+    "server_url",
 ]
 
 MiB = 1024 * 1024
@@ -99,8 +100,8 @@ async def connect(
     """Open a connection to a rosbridge server.
 
     Args:
-        url: ``ws://HOST:PORT[/path]``, ``wss://...``, ``tcp://HOST:PORT`` or
-            ``tcp+tls://HOST:PORT``.
+        url: ``ws://HOST:PORT[/path]``, ``wss://...``, ``tcp://HOST:PORT``,
+            ``tcp+tls://HOST:PORT`` or ``HOST:PORT`` (WebSocket; ``server_url``).
         timeout_s: seconds allowed for connecting and the handshake.
         max_message_size: largest incoming message, bytes.
         ssl_context: TLS settings for ``wss://`` and ``tcp+tls://``; the system
@@ -111,15 +112,15 @@ async def connect(
 
     Raises:
         ConnectionClosedError: the server cannot be reached or refused the handshake.
-        ConfigError: the URL's scheme is not one of the above.
+        ConfigError: not one of the above (``server_url``).
     """
-    scheme = urlsplit(url).scheme
+    url = server_url(url)
+    websocket = urlsplit(url).scheme in ("ws", "wss")  # else tcp or tcp+tls
     with anyio.fail_after(timeout_s):
         try:
-            if scheme in ("ws", "wss"):
+            if websocket:
                 return await WebSocketConnection.open(url, max_message_size, ssl_context)
-            if scheme in ("tcp", "tcp+tls"):
-                return await TcpConnection.open(url, max_message_size, ssl_context)
+            return await TcpConnection.open(url, max_message_size, ssl_context)
         except TimeoutError:
             raise
         except (OSError, anyio.BrokenResourceError, anyio.EndOfStream) as exc:
@@ -127,7 +128,54 @@ async def connect(
             # closed, or reset, the connection during the handshake
             reason = str(exc) or str(exc.__cause__ or "") or "the server closed the connection"
             raise ConnectionClosedError(f"cannot connect to {url}: {reason}") from None
-    raise ConfigError(f"unsupported URL scheme {scheme!r} in {url!r} (use ws, wss, tcp or tcp+tls)")
+
+
+URL_FORMS = "ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT"
+"""The forms of a server's address that ``server_url`` takes, as its errors list them."""
+
+
+def server_url(text: str, transport: str | None = None) -> str:
+    """A rosbridge server's address, in every form rwt takes it, as a URL to connect to.
+
+    The one parser of a server's address: the client (``connect``, ``Ros``),
+    ``rwt conformance`` and ``rwt record`` all take ``ws://HOST:PORT[/PATH]``,
+    ``wss://...``, ``tcp://HOST:PORT``, ``tcp+tls://HOST:PORT`` and ``HOST:PORT``
+    (WebSocket, the transport rosbridge clients use by default).
+
+    Args:
+        text: the address as the user wrote it.
+        transport: ``ws`` or ``tcp`` to replace the scheme (``rwt conformance
+            --transport``); TLS stays: ``wss://`` becomes ``tcp+tls://`` and back.
+
+    Returns:
+        The URL, with its scheme: ``127.0.0.1:9090`` gives ``ws://127.0.0.1:9090``.
+
+    Raises:
+        ConfigError: another scheme (``http://``), no host, or no port where one is
+            needed (TCP, ``HOST:PORT``), or a port outside 0-65535.
+    """
+    url = text if "://" in text else f"{transport or 'ws'}://{text}"
+    parts = urlsplit(url)
+    if parts.scheme not in _SCHEMES:
+        raise ConfigError(f"unsupported URL scheme {parts.scheme!r} in {text!r}: use {URL_FORMS}")
+    tls = parts.scheme in ("wss", "tcp+tls")
+    if transport == "tcp" and parts.scheme not in ("tcp", "tcp+tls"):
+        url = ("tcp+tls://" if tls else "tcp://") + parts.netloc
+    elif transport == "ws" and parts.scheme in ("tcp", "tcp+tls"):
+        url = ("wss://" if tls else "ws://") + parts.netloc
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError:  # urllib's own words: "Port out of range 0-65535"
+        raise ConfigError(f"{text!r}: the port is not a number in 0-65535") from None
+    if not parts.hostname:
+        raise ConfigError(f"{text!r} names no host: use {URL_FORMS}")
+    if port is None and ("://" not in text or parts.scheme in ("tcp", "tcp+tls")):
+        raise ConfigError(f"{text!r} names no port: use {URL_FORMS}")
+    return url
+
+
+_SCHEMES = ("ws", "wss", "tcp", "tcp+tls")
 
 
 async def close_quietly(stream: ByteStream) -> None:

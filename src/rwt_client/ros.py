@@ -17,9 +17,11 @@ When the connection drops and ``reconnect`` is on, ``Ros`` reconnects with
 back-off (doubling from 0.1 s to 5 s, each wait times a random 0.5-1.5 so that
 many clients of one restarted server do not come back in step) and replays the
 status level, advertisements, subscriptions and offered services and actions;
-calls and goals in flight fail with ``ConnectionClosedError``. Nothing relies on
-rwt's extensions: a foreign server that never answers makes a call time out
-with a clear error.
+calls and goals in flight fail with ``ConnectionClosedError``, and so does a
+call or goal made while the connection is down (at once: it would not be sent).
+Closing waits at most ``CLOSE_TIMEOUT_S`` for the server to take the close.
+Nothing relies on rwt's extensions: a foreign server that never answers makes a
+call time out with a clear error.
 """
 
 from __future__ import annotations
@@ -58,9 +60,14 @@ if TYPE_CHECKING:
 
     from rwt_protocol.levels import StatusLevel
 
-__all__ = ["CallTimeoutError", "Callback", "Ros", "ServiceCallError"]
+__all__ = ["CLOSE_TIMEOUT_S", "CallTimeoutError", "Callback", "Ros", "ServiceCallError"]
 
 logger = logging.getLogger("rwt.client")
+
+CLOSE_TIMEOUT_S = 2.0
+"""Seconds ``Ros.close`` waits for the server to take the close (a WebSocket close
+frame, a TLS close_notify) before it cuts the socket: a server that vanished
+without a word, or never reads, cannot hold a client's close (docs/client.md)."""
 
 Callback = Callable[..., object]
 """A plain or ``async`` function; called with the event's payload."""
@@ -112,6 +119,8 @@ class Ros(RosapiMixin):
         self._status_callbacks: list[Callback] = []
         self._reconnect_callbacks: list[Callback] = []
         self._connected = anyio.Event()
+        self._down = f"not connected to {url}"
+        """Why the connection is down, for calls made meanwhile."""
         self._closing = False
         self.reconnects = 0
 
@@ -148,9 +157,9 @@ class Ros(RosapiMixin):
         if self._tasks is None:
             return
         self._closing = True
+        self._down = f"the client closed its connection to {self.url}"
         self._fail_waiters("the client closed the connection")
-        if self._conn is not None:
-            await self._conn.aclose()
+        await self._close_connection()
         tasks, self._tasks = self._tasks, None
         tasks.cancel_scope.cancel()
         await tasks.__aexit__(None, None, None)
@@ -163,6 +172,21 @@ class Ros(RosapiMixin):
     def is_connected(self) -> bool:
         """Whether the connection is up right now."""
         return self._connected.is_set() and not self._closing
+
+    def require_connection(self) -> None:
+        """Raise unless the connection is up: what is sent meanwhile would be lost.
+
+        Raises:
+            ConnectionClosedError: not connected yet, reconnecting, or closed.
+        """
+        if not self.is_connected:
+            raise ConnectionClosedError(self._down)
+
+    async def _close_connection(self) -> None:
+        """Close the connection, cutting it after ``CLOSE_TIMEOUT_S`` (shielded)."""
+        if self._conn is not None:
+            with anyio.move_on_after(CLOSE_TIMEOUT_S, shield=True):
+                await self._conn.aclose()  # a cancelled close cuts the socket (anyio)
 
     # ---- sending ------------------------------------------------------------------
 
@@ -215,8 +239,10 @@ class Ros(RosapiMixin):
         Raises:
             ServiceCallError: the reply had ``result: false``.
             CallTimeoutError: no reply in time.
-            ConnectionClosedError: the connection dropped first.
+            ConnectionClosedError: the connection is down (at once: reconnecting, or
+                closed), or dropped before the reply.
         """
+        self.require_connection()
         seconds = timeout_s or self.timeout_s
         call_id = self.session.call_service(service, args, type=type_name, timeout=seconds)
         waiter = self._waiters[call_id] = _Waiter(
@@ -262,6 +288,8 @@ class Ros(RosapiMixin):
             await self.call_service("/rosapi/topic_type", {"topic": topic})
         except (ServiceCallError, CallTimeoutError):
             pass  # only a round trip: its own answer does not matter
+        except ConnectionClosedError:
+            pass  # down: the advertisement goes out with the reconnection's replay
         finally:
             self._waiters.pop(adv_id, None)
         if waiter.error is not None:
@@ -336,9 +364,11 @@ class Ros(RosapiMixin):
                         self._route(event)
             except ConnectionClosedError as exc:
                 self._connected = anyio.Event()
+                then = "reconnecting" if self.reconnect else "reconnect is off"
+                why = exc.message.removeprefix(f"{self.url}: ")  # the URL once
+                self._down = f"not connected to {self.url}: {why} ({then})"
                 self._fail_waiters(f"connection lost: {exc.message}")
-                if self._conn is not None:
-                    await self._conn.aclose()  # the lost connection's socket; never raises
+                await self._close_connection()  # the lost connection's socket; never raises
                 if self._closing or not self.reconnect:
                     return
                 logger.warning("%s; reconnecting", exc.message)

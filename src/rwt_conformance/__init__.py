@@ -21,6 +21,7 @@ if TYPE_CHECKING:
         Outcome,
         RequirementResult,
         RunOptions,
+        Slowness,
         SuiteResult,
         run_suite,
     )
@@ -33,6 +34,7 @@ __all__ = [
     "Requirement",
     "RequirementResult",
     "RunOptions",
+    "Slowness",
     "Suite",
     "SuiteError",
     "SuiteResult",
@@ -41,7 +43,15 @@ __all__ = [
 ]
 
 _RUNNER_NAMES = frozenset(
-    ("CaseResult", "Outcome", "RequirementResult", "RunOptions", "SuiteResult", "run_suite")
+    (
+        "CaseResult",
+        "Outcome",
+        "RequirementResult",
+        "RunOptions",
+        "Slowness",
+        "SuiteResult",
+        "run_suite",
+    )
 )
 
 

@@ -8,17 +8,18 @@ from enum import StrEnum
 from functools import partial
 from pathlib import Path
 from typing import Annotated
-from urllib.parse import urlsplit
 
 import anyio
 import typer
 
 from rwt_protocol.auth import RosauthVerifier
+from rwt_protocol.errors import ConfigError
 
 from .bounds import CASE_BUDGET_BYTES, CASE_TIMEOUT_S, MAX_FRAME_BYTES, RUN_TIMEOUT_S
 from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
+from .pace import RETRY_BUDGET_S
 
-__all__ = ["conformance", "server_url"]
+__all__ = ["conformance"]
 
 
 class TransportName(StrEnum):
@@ -28,21 +29,23 @@ class TransportName(StrEnum):
     TCP = "tcp"
 
 
-def server_url(url: str, transport: TransportName | None) -> str:
-    """The URL to connect to: ``HOST:PORT`` gets a scheme, ``--transport`` replaces one.
+def _server_url(url: str, transport: TransportName | None) -> str:
+    """The URL to connect to, read as every command reads a server (``server_url``).
 
-    ``--transport tcp`` with ``ws://h:9090`` connects to ``tcp://h:9090``; TLS
-    stays: ``wss://`` becomes ``tcp+tls://`` and back.
+    ``HOST:PORT`` gets a scheme; ``--transport`` replaces one (``wss://`` becomes
+    ``tcp+tls://`` and back).
+
+    Raises:
+        typer.Exit: code 2, after one line naming the forms taken.
     """
-    if "://" not in url:
-        url = f"{(transport or TransportName.WS).value}://{url}"
-    parts = urlsplit(url)
-    tls = parts.scheme in ("wss", "tcp+tls")
-    if transport is TransportName.TCP and parts.scheme not in ("tcp", "tcp+tls"):
-        return ("tcp+tls://" if tls else "tcp://") + parts.netloc
-    if transport is TransportName.WS and parts.scheme in ("tcp", "tcp+tls"):
-        return ("wss://" if tls else "ws://") + parts.netloc
-    return url
+    # the client loads with the runner, not with the CLI (see ``conformance``)
+    from rwt_client.connectors import server_url  # noqa: PLC0415
+
+    try:
+        return server_url(url, None if transport is None else transport.value)
+    except ConfigError as exc:
+        typer.echo(f"rwt conformance: {exc}", err=True)
+        raise typer.Exit(2) from None
 
 
 def _read_secret(path: Path) -> str:
@@ -97,8 +100,25 @@ _Only = Annotated[
 _Junit = Annotated[Path | None, typer.Option(help="Write JUnit XML here.")]
 _JsonFile = Annotated[Path | None, typer.Option("--json", help="Write a JSON report here.")]
 _Suite = Annotated[Path | None, typer.Option(help="Suite folder (default: the shipped suite).")]
-_Timeout = Annotated[float, typer.Option(help="Seconds one expected frame, or one send, may take.")]
-_CaseTimeout = Annotated[float, typer.Option(min=0.001, help="Seconds one whole case may take.")]
+_Timeout = Annotated[
+    float,
+    typer.Option(
+        help="Seconds one expected frame, or one send, may take from a server that answers"
+        " at once; the server's measured round trip is added."
+    ),
+]
+_CaseTimeout = Annotated[
+    float,
+    typer.Option(min=0.001, help="Seconds one whole case may take (the round trip added too)."),
+]
+_RetryBudget = Annotated[
+    float,
+    typer.Option(
+        min=0,
+        help="Seconds the run may spend running again, with longer waits, cases that"
+        " missed a wait (0: no retries).",
+    ),
+]
 _RunTimeout = Annotated[
     float,
     typer.Option(
@@ -150,6 +170,7 @@ def conformance(
     timeout: _Timeout = 3.0,
     case_timeout: _CaseTimeout = CASE_TIMEOUT_S,
     run_timeout: _RunTimeout = RUN_TIMEOUT_S,
+    retry_budget: _RetryBudget = RETRY_BUDGET_S,
     max_frame_bytes: _MaxFrameBytes = MAX_FRAME_BYTES,
     case_budget_bytes: _CaseBudgetBytes = CASE_BUDGET_BYTES,
     auth_secret_file: _AuthSecretFile = None,
@@ -169,6 +190,7 @@ def conformance(
     from .runner import RunOptions, run_suite  # noqa: PLC0415
 
     console = Console() if sys.stdout.isatty() else Console(width=160)
+    server = _server_url(url, transport)
     try:
         loaded = load_suite(suite or default_suite_dir())
     except SuiteError as exc:
@@ -177,12 +199,13 @@ def conformance(
     patterns = tuple(p for item in only or () for p in item.split(",") if p)
     context = _tls_context(cafile, insecure)
     options = RunOptions(
-        server_url(url, transport),
+        server,
         profile,
         patterns,
         expect_timeout_s=timeout,
         case_timeout_s=case_timeout,
         run_timeout_s=run_timeout,
+        retry_budget_s=retry_budget,
         max_frame_bytes=max_frame_bytes,
         case_budget_bytes=case_budget_bytes,
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),

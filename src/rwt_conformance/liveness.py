@@ -35,6 +35,8 @@ from .frames import auth_op
 if TYPE_CHECKING:
     import ssl
 
+    from .pace import RoundTrips
+
 __all__ = ["check_answers"]
 
 _RESEND_S = 0.5
@@ -51,6 +53,8 @@ async def check_answers(
     timeout_s: float = 3.0,
     auth_secret: str | None = None,
     max_frame_bytes: int = MAX_FRAME_BYTES,
+    *,
+    round_trips: RoundTrips | None = None,
 ) -> str | None:
     """Whether the server at ``url`` reads and answers; why not, in one line.
 
@@ -62,6 +66,8 @@ async def check_answers(
         auth_secret: the server's rosauth secret (D23): the connection
             authenticates first.
         max_frame_bytes: largest frame taken from the server, bytes.
+        round_trips: takes the time from the first send to the first answer, a
+            round trip (the runner's first measure of the server, ``pace``).
 
     Returns:
         None when the server answered; else the verdict, such as ``the server
@@ -84,10 +90,13 @@ async def check_answers(
             f"cannot connect to {url}: the server does not answer"
             f" (connecting{handshake} took over {connect_s:g} s)"
         )
+    probe = _Probe(conn, timeout_s)
     try:
-        verdict = await _Probe(conn, timeout_s).run(_frames(url, auth_secret))
+        verdict = await probe.run(_frames(url, auth_secret))
     finally:
         await close_within(conn)
+    if probe.answered_s is not None and round_trips is not None:
+        round_trips.add(probe.answered_s)
     if verdict is not None and auth_secret is None and "does not answer" in verdict:
         verdict += _NEEDS_AUTH
     return verdict
@@ -124,16 +133,20 @@ class _Probe:
         self.timeout_s = timeout_s
         self.sent_bytes = 0
         self.closed: str | None = None
+        self.answered_s: float | None = None
+        """Seconds from the first send to the first frame received, once answered."""
 
     async def run(self, frames: list[str]) -> str | None:
         with anyio.move_on_after(self.timeout_s):
             async with anyio.create_task_group() as tasks:
+                started = anyio.current_time()
                 tasks.start_soon(self._send, frames)
                 try:
                     await self.conn.receive()
                 except ConnectionClosedError as exc:
                     self.closed = exc.message
                 else:
+                    self.answered_s = anyio.current_time() - started
                     return None  # whatever came, the server answered
                 finally:
                     tasks.cancel_scope.cancel()

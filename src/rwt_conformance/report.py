@@ -1,4 +1,8 @@
-"""Reports of a conformance run: a rich table, JUnit XML and JSON."""
+"""Reports of a conformance run: a rich table, JUnit XML and JSON.
+
+Each says how the run was paced (``pace``): the server's round trip, what it
+added to the waits, the retries, and which cases passed late (slow) and why.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +13,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.table import Table
 
-from .runner import Outcome, SuiteResult
+from .runner import CaseResult, Outcome, Slowness, SuiteResult
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -20,7 +24,9 @@ _STYLE = {Outcome.PASSED: "green", Outcome.FAILED: "bold red", Outcome.SKIPPED: 
 
 
 def print_table(result: SuiteResult, console: Console | None = None) -> None:
-    """Print one row per requirement (id, section, result, detail), then the summary line.
+    """Print a row per requirement, the slow cases, the run's pace, then the summary line.
+
+    A row has the requirement's id, section, result and detail.
 
     A run that stopped early (``SuiteResult.verdict``) shows the requirements of
     the cases that ran; the command line prints the verdict itself.
@@ -39,7 +45,16 @@ def print_table(result: SuiteResult, console: Console | None = None) -> None:
             row.requirement.id, row.requirement.source, f"[{style}]{row.outcome.value}", row.detail
         )
     console.print(table)
-    console.print(f"{result.summary()} ({len(result.cases)} cases in {result.duration_s:.1f} s)")
+    for case in result.slow:
+        assert case.slow is not None
+        console.print(f"slow: {case.case.id}: {case.slow.describe()}", markup=False)
+    if result.timing is not None:
+        console.print(f"pace: {result.timing.describe()}", markup=False)
+    slow = f"; {len(result.slow)} slow" if result.slow else ""
+    console.print(
+        f"{result.summary()} ({len(result.cases)} cases in {result.duration_s:.1f} s{slow})",
+        markup=False,
+    )
 
 
 def write_junit(result: SuiteResult, path: Path) -> None:
@@ -57,6 +72,11 @@ def write_junit(result: SuiteResult, path: Path) -> None:
         skipped=str(result.count(Outcome.SKIPPED)),
         time=f"{result.duration_s:.3f}",
     )
+    timing = _timing(result)
+    if timing is not None:
+        properties = ET.SubElement(suite, "properties")
+        for name, value in timing.items():
+            ET.SubElement(properties, "property", name=name, value=json.dumps(value))
     if result.verdict is not None:
         element = ET.SubElement(suite, "testcase", classname="rwt-conformance", name="run")
         ET.SubElement(element, "error", message=result.verdict)
@@ -73,7 +93,7 @@ def write_junit(result: SuiteResult, path: Path) -> None:
             ET.SubElement(element, "failure", message=row.detail).text = row.requirement.statement
         elif row.outcome is Outcome.SKIPPED:
             ET.SubElement(element, "skipped", message=row.detail)
-        lines = [f"{c.case.id}: {c.outcome.value} {c.detail}".rstrip() for c in row.cases]
+        lines = [_case_line(c) for c in row.cases]
         ET.SubElement(element, "system-out").text = "\n".join(lines)
     root = ET.Element("testsuites")
     root.append(suite)
@@ -81,16 +101,20 @@ def write_junit(result: SuiteResult, path: Path) -> None:
 
 
 def write_json(result: SuiteResult, path: Path) -> None:
-    """Write the run as JSON: options, summary, the verdict, requirements with their cases.
+    """Write the run as JSON: options, summary, the verdict, the pace, requirements with cases.
 
     ``verdict`` is null, or why the run stopped early (``SuiteResult.verdict``).
+    ``timing`` is the run's pace (docs/conformance.md lists its fields); each case
+    has ``slow`` (null, or why it passed late) and ``retried``.
     """
     document = {
         "url": result.options.url,
         "profile": result.options.profile.value,
         "summary": {o.value: result.count(o) for o in Outcome},
+        "slow_cases": len(result.slow),
         "verdict": result.verdict,
         "duration_s": round(result.duration_s, 3),
+        "timing": _timing(result),
         "requirements": [
             {
                 "id": row.requirement.id,
@@ -104,6 +128,8 @@ def write_json(result: SuiteResult, path: Path) -> None:
                         "result": c.outcome.value,
                         "detail": c.detail,
                         "duration_s": round(c.duration_s, 3),
+                        "retried": c.retried,
+                        "slow": _slowness(c.slow),
                     }
                     for c in row.cases
                 ],
@@ -112,3 +138,46 @@ def write_json(result: SuiteResult, path: Path) -> None:
         ],
     }
     path.write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+
+
+def _case_line(case: CaseResult) -> str:
+    """``id: outcome detail``, and why it was slow."""
+    line = f"{case.case.id}: {case.outcome.value} {case.detail}".rstrip()
+    return line if case.slow is None else f"{line} (slow: {case.slow.describe()})"
+
+
+def _slowness(slow: Slowness | None) -> dict[str, object] | None:
+    if slow is None:
+        return None
+    return {
+        "step": slow.where,
+        "took_s": round(slow.took_s, 3),
+        "nominal_s": slow.nominal_s,
+        "first_try": slow.first_try,
+        "text": slow.describe(),
+    }
+
+
+def _round(value: float | None) -> float | None:
+    return None if value is None else round(value, 4)
+
+
+def _timing(result: SuiteResult) -> dict[str, object] | None:
+    """The run's pace (``pace.Timing``), in seconds, or None."""
+    timing = result.timing
+    if timing is None:
+        return None
+    return {
+        "round_trip_s": {
+            "samples": timing.samples,
+            "first": _round(timing.first_s),
+            "smoothed": _round(timing.smoothed_s),
+            "max": _round(timing.max_s),
+        },
+        "nominal_wait_s": timing.nominal_wait_s,
+        "extra_wait_s": _round(timing.extra_wait_s),
+        "retries": timing.retries,
+        "retry_s": _round(timing.retry_s),
+        "retry_budget_s": timing.retry_budget_s,
+        "not_retried": timing.not_retried,
+    }

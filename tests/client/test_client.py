@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
+import socket
+import subprocess
+import sys
 import threading
 from typing import Any
 
@@ -15,6 +19,7 @@ from websockets.asyncio.server import ServerConnection
 from rwt_client import (
     Action,
     CallTimeoutError,
+    ConnectionClosedError,
     Param,
     Ros,
     ServerGoal,
@@ -25,13 +30,15 @@ from rwt_client import (
     message_class,
 )
 from rwt_client.ros import jittered
-from rwt_protocol.errors import OpRefusedError
+from rwt_graph.graph import Graph
+from rwt_protocol.errors import ConfigError, OpRefusedError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.conformance import hostile
+from tests.support.realclients import REPO
 
 pytestmark = pytest.mark.anyio
 
@@ -299,6 +306,53 @@ async def _sync(ros: Ros) -> None:
     await topic.unsubscribe()
 
 
+async def test_a_call_or_goal_while_the_connection_is_down_fails_at_once() -> None:
+    """Sent while down it would be lost: it fails now, not after its timeout (10 min here)."""
+    stop, stopped = anyio.CancelScope(), anyio.Event()
+
+    async def run(*, task_status: TaskStatus[str]) -> None:
+        try:
+            with stop:
+                await RosbridgeServer(config=LOCAL).serve(task_status=task_status)
+        finally:
+            stopped.set()
+
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(run)
+        async with Ros(url, timeout_s=600) as ros:
+            await _sync(ros)
+            stop.cancel()
+            await stopped.wait()
+            with anyio.fail_after(60):  # a hang guard: the call would wait 600 s
+                while ros.is_connected:  # the reader sees the close
+                    await anyio.sleep(0.01)
+                with pytest.raises(ConnectionClosedError) as caught:
+                    await Service(ros, "/rosapi/get_time").call(timeout_s=600)
+                with pytest.raises(ConnectionClosedError):
+                    await Action(ros, "/a", "example_interfaces/Fibonacci").send_goal({})
+                await Topic(ros, "/t", "std_msgs/String").publish({"data": "dropped"})
+        assert caught.value.message.startswith(f"not connected to {url}: ")
+        assert caught.value.message.endswith("(reconnecting)")
+        tg.cancel_scope.cancel()
+
+
+LOCAL = ServerConfig(port=0)
+
+
+def _served_robot() -> Graph:
+    """A graph with an action, for the blocking facade."""
+    graph = Graph()
+
+    async def fibonacci(goal: dict[str, Any], context: object) -> dict[str, Any]:
+        sequence = [0, 1]
+        for _ in range(1, goal["order"]):
+            sequence.append(sequence[-1] + sequence[-2])
+        return {"sequence": sequence}
+
+    graph.create_action_server("/fibonacci", "example_interfaces/action/Fibonacci", fibonacci)
+    return graph
+
+
 def test_sync_facade() -> None:
     received = threading.Event()
     inbox: list[object] = []
@@ -308,13 +362,94 @@ def test_sync_facade() -> None:
         received.set()
 
     with start_blocking_portal() as portal:
-        future, url = portal.start_task(RosbridgeServer(config=ServerConfig(port=0)).serve)
+        future, url = portal.start_task(RosbridgeServer(_served_robot(), LOCAL).serve)
         with SyncRos(url) as ros:
             topic = ros.topic("/sync", "std_msgs/String")
-            ros.subscribe(topic, on_message)
+            ros.subscribe(topic, on_message)  # the Topic object, as before
             ros.publish(topic, {"data": "blocking"})
             assert received.wait(5)
             with pytest.raises(ServiceCallError, match="/missing"):
                 ros.call_service("/missing")
         future.cancel()
     assert inbox == [{"data": "blocking"}]
+
+
+def test_the_sync_facade_takes_names_as_the_async_api_does() -> None:
+    received = threading.Event()
+    inbox: list[object] = []
+
+    def on_message(msg: object) -> None:
+        inbox.append(msg)
+        received.set()
+
+    with start_blocking_portal() as portal:
+        future, url = portal.start_task(RosbridgeServer(_served_robot(), LOCAL).serve)
+        with SyncRos(url) as ros:
+            topic = ros.subscribe("/named", on_message, "std_msgs/String")
+            ros.publish("/named", {"data": "by name"}, "std_msgs/String")
+            assert received.wait(5)
+            ros.unsubscribe(topic)
+            assert not topic.is_subscribed
+            types = ros.call_service(
+                Service(ros.ros, "/rosapi/topic_type"), {"topic": "/named"}, timeout_s=5
+            )
+            assert types == {"type": "std_msgs/msg/String"}
+            goal = ros.send_goal(
+                "/fibonacci", {"order": 4}, action_type="example_interfaces/Fibonacci"
+            )
+            assert ros.result(goal, timeout_s=5).values == {"sequence": [0, 1, 1, 2, 3]}
+            with pytest.raises(ConfigError, match="needs its action_type"):
+                ros.send_goal("/fibonacci", {"order": 1})
+        future.cancel()
+    assert inbox == [{"data": "by name"}]
+
+
+def test_the_sync_facade_runs_nothing_before_it_connects() -> None:
+    ros = SyncRos("ws://127.0.0.1:1")
+    with pytest.raises(ConnectionClosedError, match="call connect"):
+        ros.call_service("/rosapi/get_time")
+    ros.close()  # nothing to close: no thread was started
+
+
+SYNC_DOWN = """
+import sys
+import rwt
+
+try:
+    with rwt.SyncRos(sys.argv[1]) as ros:
+        print("connected?")
+except rwt.ConnectionClosedError as exc:
+    print(exc, file=sys.stderr)
+    if sys.argv[2:] == ["raise"]:
+        raise
+print("the script ends")
+"""
+
+
+@pytest.mark.parametrize("caught", [True, False], ids=["caught", "uncaught"])
+def test_sync_ros_against_a_server_that_is_down_fails_and_the_process_ends(
+    caught: bool,
+) -> None:
+    """The background thread ends with the failed connect: the interpreter exits by itself."""
+    with socket.socket() as sock:  # bound, not listening: connections are refused
+        sock.bind(("127.0.0.1", 0))
+        url = f"ws://127.0.0.1:{sock.getsockname()[1]}"
+        try:
+            done = subprocess.run(
+                [sys.executable, "-c", SYNC_DOWN, url, *([] if caught else ["raise"])],
+                env={**os.environ, "PYTHONPATH": str(REPO / "src")},
+                capture_output=True,
+                text=True,
+                timeout=60,  # a hang guard: before the fix the process never ended
+                check=False,
+            )
+        except subprocess.TimeoutExpired as exc:
+            pytest.fail(f"the process did not end: {exc.stderr!r}")
+    line = f"cannot connect to {url}: All connection attempts failed"
+    if caught:
+        assert (done.returncode, done.stderr, done.stdout) == (0, line + "\n", "the script ends\n")
+    else:
+        assert done.returncode == 1
+        assert done.stderr.splitlines()[0] == line
+        assert done.stderr.splitlines()[-1] == f"rwt.ConnectionClosedError: {line}"
+        assert done.stdout == ""

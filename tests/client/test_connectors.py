@@ -10,7 +10,8 @@ import cbor2
 import pytest
 from anyio.abc import SocketStream
 
-from rwt_client.connectors import ConnectionClosedError, StdioConnection, connect
+from rwt_client.connectors import ConnectionClosedError, StdioConnection, connect, server_url
+from rwt_protocol.errors import ConfigError
 
 OBJECTS = [
     {"op": "publish", "msg": {"data": 'a"}\\{[' + str(i)}, "l": [1, [2, {}]]} for i in range(12)
@@ -57,6 +58,30 @@ async def test_unreachable_servers_and_bad_urls() -> None:
         await connect("ws://127.0.0.1:1")
     with pytest.raises(ValueError, match="unsupported URL scheme"):
         await connect("http://127.0.0.1:1")
+
+
+def test_every_form_of_a_server_address_is_read_by_one_parser() -> None:
+    """The client, rwt conformance and rwt record take the same forms (server_url)."""
+    assert server_url("127.0.0.1:9090") == "ws://127.0.0.1:9090"
+    assert server_url("[::1]:9090") == "ws://[::1]:9090"
+    assert server_url("127.0.0.1:9090", "tcp") == "tcp://127.0.0.1:9090"
+    assert server_url("ws://h:1/path", "tcp") == "tcp://h:1"
+    assert server_url("tcp://h:1", "ws") == "ws://h:1"
+    assert server_url("wss://h:1", "tcp") == "tcp+tls://h:1"
+    assert server_url("tcp+tls://h:1", "ws") == "wss://h:1"
+    assert server_url("wss://robot.example.com/rosbridge") == "wss://robot.example.com/rosbridge"
+    forms = "use ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT"
+    refused = {
+        "http://h:9090": f"unsupported URL scheme 'http' in 'http://h:9090': {forms}",
+        "localhost": f"'localhost' names no port: {forms}",
+        "tcp://h": f"'tcp://h' names no port: {forms}",
+        "ws://:9090": f"'ws://:9090' names no host: {forms}",
+        "h:99999": "'h:99999': the port is not a number in 0-65535",
+    }
+    for text, message in refused.items():
+        with pytest.raises(ConfigError) as caught:
+            server_url(text)
+        assert str(caught.value) == message
 
 
 @pytest.mark.anyio

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from rwt_conformance.cli import TransportName, server_url
 from rwt_conformance.runner import NEEDS_SECRET
 from tests.support.cli import RWT, run_rwt
 
@@ -148,9 +147,19 @@ def test_only_selects_requirements(served_url: str) -> None:
     assert "D26" in run.stdout and "D13" not in run.stdout
 
 
-def test_server_url_spelling() -> None:
-    assert server_url("127.0.0.1:9090", None) == "ws://127.0.0.1:9090"
-    assert server_url("127.0.0.1:9090", TransportName.TCP) == "tcp://127.0.0.1:9090"
-    assert server_url("ws://h:1/path", TransportName.TCP) == "tcp://h:1"
-    assert server_url("tcp://h:1", TransportName.WS) == "ws://h:1"
-    assert server_url("wss://h:1", None) == "wss://h:1"
+def test_a_url_of_another_scheme_is_one_line_naming_the_forms_taken() -> None:
+    run = run_rwt("conformance", "http://127.0.0.1:9090", timeout=RUN_LIMIT_S)
+    assert (run.returncode, run.stdout) == (2, "")
+    assert run.stderr == (
+        "rwt conformance: unsupported URL scheme 'http' in 'http://127.0.0.1:9090':"
+        " use ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT\n"
+    )
+
+
+def test_host_and_port_means_websocket(served_url: str) -> None:
+    """As for ``rwt record`` and the client: one parser (rwt_client.connectors.server_url)."""
+    bare = served_url.removeprefix("ws://")
+    run = run_rwt("conformance", bare, "--only", "D26", timeout=RUN_LIMIT_S)
+    assert run.returncode == 0, run.stderr
+    assert f"{served_url} (strict)" in run.stdout  # the table's title
+    assert "1 passed, 0 failed, 0 skipped" in run.stdout

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import trustme
 
-from rwt_conformance.cli import TransportName, server_url
+from rwt_client.connectors import server_url
 from tests.support.cli import run_rwt
 
 from .test_cli import RUN_LIMIT_S, _serve, _stop
@@ -100,6 +100,6 @@ def test_an_unreachable_server_is_one_line_not_every_case_failing() -> None:
 
 
 def test_transport_switch_keeps_tls() -> None:
-    assert server_url("wss://h:1", TransportName.TCP) == "tcp+tls://h:1"
-    assert server_url("tcp+tls://h:1", TransportName.WS) == "wss://h:1"
-    assert server_url("tcp+tls://h:1", TransportName.TCP) == "tcp+tls://h:1"
+    assert server_url("wss://h:1", "tcp") == "tcp+tls://h:1"  # --transport tcp
+    assert server_url("tcp+tls://h:1", "ws") == "wss://h:1"
+    assert server_url("tcp+tls://h:1", "tcp") == "tcp+tls://h:1"
