@@ -104,7 +104,7 @@ class Player(BackgroundJob):
         graph: where to publish.
         paths: the bag (several for split parts, read as one).
         rate: speed factor (2.0: twice as fast), from ``rwt_graph.playback.MIN_RATE``
-            (0.001) to ``MAX_RATE`` (1000).
+            (0.001) to ``MAX_RATE`` (1000000).
         loop: start over at the end.
         start_offset: seconds into the bag to start at.
         topics: glob patterns of the topics to play; all by default.
@@ -296,7 +296,7 @@ class Player(BackgroundJob):
 
         Raises:
             BagError: ``rate`` is not a number from ``rwt_graph.playback.MIN_RATE``
-                to ``MAX_RATE`` (0.001 to 1000); the rate stays as it was.
+                to ``MAX_RATE`` (0.001 to 1000000); the rate stays as it was.
         """
         _check_rate(rate)
         if not self._paused:
@@ -561,7 +561,7 @@ def _check_rate(rate: float) -> None:
     """The one check of a speed where a player's is set (``rwt_graph.playback.rate_problem``).
 
     Raises:
-        BagError: ``the rate: speed ... is not from 0.001 to 1000 times the recorded speed``.
+        BagError: ``the rate: speed ... is not from 0.001 to 1000000 times the recorded speed``.
     """
     problem = rate_problem(rate)
     if problem is not None:

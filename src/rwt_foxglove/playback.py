@@ -98,7 +98,7 @@ class PlaybackControl:
             FoxgloveInputError: the request id is longer than
                 ``MAX_PLAYBACK_REQUEST_ID_BYTES``, or the speed is one the player
                 refuses (``rwt_graph.playback.rate_problem``: outside 0.001 to
-                1000); nothing is applied.
+                1000000); nothing is applied.
         """
         size = len(request.request_id.encode())
         if size > MAX_PLAYBACK_REQUEST_ID_BYTES:
