@@ -5,8 +5,8 @@ key            does
 =============  ==========================================
 space          pause / resume
 right arrow    while paused, publish the next message
-up arrow       play 10 % faster
-down arrow     play 10 % slower
+up arrow       play 10 % faster (up to ``rwt_graph.playback.MAX_RATE``)
+down arrow     play 10 % slower (down to ``MIN_RATE``)
 =============  ==========================================
 
 The terminal is put in cbreak mode (keys arrive one by one, unechoed; Ctrl-C
@@ -23,6 +23,8 @@ import tty
 from typing import TYPE_CHECKING
 
 import anyio
+
+from rwt_graph.playback import MAX_RATE, MIN_RATE
 
 logger = logging.getLogger("rwt.bag")
 
@@ -45,14 +47,21 @@ def _actions(player: Player) -> dict[bytes, Callable[[], object]]:
         else:
             player.pause()
 
+    # held down, a key stops at the player's bounds instead of raising past them
+    def faster() -> None:
+        player.set_rate(min(player.rate * _RATE_STEP, MAX_RATE))
+
+    def slower() -> None:
+        player.set_rate(max(player.rate / _RATE_STEP, MIN_RATE))
+
     return {
         b" ": toggle,
         b"\x1b[C": player.play_next,  # right arrow (ANSI cursor keys, both modes)
         b"\x1bOC": player.play_next,
-        b"\x1b[A": lambda: player.set_rate(player.rate * _RATE_STEP),  # up
-        b"\x1bOA": lambda: player.set_rate(player.rate * _RATE_STEP),
-        b"\x1b[B": lambda: player.set_rate(player.rate / _RATE_STEP),  # down
-        b"\x1bOB": lambda: player.set_rate(player.rate / _RATE_STEP),
+        b"\x1b[A": faster,  # up
+        b"\x1bOA": faster,
+        b"\x1b[B": slower,  # down
+        b"\x1bOB": slower,
     }
 
 

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import anyio
 import anyio.to_thread
 
-from rwt_graph.playback import PlaybackStatus
+from rwt_graph.playback import PlaybackStatus, rate_problem
 from rwt_graph.types.convert import time_value
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import name_problem
@@ -103,7 +103,8 @@ class Player(BackgroundJob):
     Args:
         graph: where to publish.
         paths: the bag (several for split parts, read as one).
-        rate: speed factor (2.0: twice as fast).
+        rate: speed factor (2.0: twice as fast), from ``rwt_graph.playback.MIN_RATE``
+            (0.001) to ``MAX_RATE`` (1000000).
         loop: start over at the end.
         start_offset: seconds into the bag to start at.
         topics: glob patterns of the topics to play; all by default.
@@ -128,7 +129,7 @@ class Player(BackgroundJob):
 
     Raises:
         BagError: as ``BagSource`` (the bag cannot be read, an unknown or
-            conflicting type), or a bad ``rate``.
+            conflicting type), or a ``rate`` outside ``MIN_RATE``..``MAX_RATE``.
     """
 
     def __init__(
@@ -152,8 +153,7 @@ class Player(BackgroundJob):
         wait_for_subscribers: bool = False,
         wait_timeout: float | None = None,
     ) -> None:
-        if not rate > 0:
-            raise BagError(f"the rate must be above 0, not {rate}")
+        _check_rate(rate)
         self.prefix = _prefix(prefix)
         for old, new in (remap or {}).items():  # before the bag is opened
             problem = name_problem(_under(self.prefix, new))
@@ -295,10 +295,10 @@ class Player(BackgroundJob):
         """Play on at ``rate`` from the current position.
 
         Raises:
-            BagError: ``rate`` is not a finite number above 0.
+            BagError: ``rate`` is not a number from ``rwt_graph.playback.MIN_RATE``
+                to ``MAX_RATE`` (0.001 to 1000000); the rate stays as it was.
         """
-        if not (math.isfinite(rate) and rate > 0):
-            raise BagError(f"the rate must be above 0, not {rate}")
+        _check_rate(rate)
         if not self._paused:
             self._anchor(self.bag_time_ns())
         self.rate = rate
@@ -555,6 +555,17 @@ class Player(BackgroundJob):
                 await anyio.sleep(1 / hz)
         finally:
             publisher.close()
+
+
+def _check_rate(rate: float) -> None:
+    """The one check of a speed where a player's is set (``rwt_graph.playback.rate_problem``).
+
+    Raises:
+        BagError: ``the rate: speed ... is not from 0.001 to 1000000 times the recorded speed``.
+    """
+    problem = rate_problem(rate)
+    if problem is not None:
+        raise BagError(f"the rate: {problem}")
 
 
 def _prefix(prefix: str) -> str:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import struct
 from typing import TYPE_CHECKING, Final
 
-from rwt_graph.playback import PlaybackStatus
+from rwt_graph.playback import PlaybackStatus, rate_problem
 
 from .limits import MAX_PLAYBACK_REQUEST_ID_BYTES
 from .protocol import (
@@ -96,7 +96,9 @@ class PlaybackControl:
 
         Raises:
             FoxgloveInputError: the request id is longer than
-                ``MAX_PLAYBACK_REQUEST_ID_BYTES`` (nothing is applied).
+                ``MAX_PLAYBACK_REQUEST_ID_BYTES``, or the speed is one the player
+                refuses (``rwt_graph.playback.rate_problem``: outside 0.001 to
+                1000000); nothing is applied.
         """
         size = len(request.request_id.encode())
         if size > MAX_PLAYBACK_REQUEST_ID_BYTES:
@@ -105,10 +107,16 @@ class PlaybackControl:
                 f"(at most {MAX_PLAYBACK_REQUEST_ID_BYTES})"
             )
         playback = self._playback
+        rate = None
+        if _f32(playback.rate) != request.speed:  # the speed came as f32: compare as one
+            rate = _shortest(request.speed)
+            problem = rate_problem(rate)  # asked before the seek: all of it or nothing
+            if problem is not None:
+                raise FoxgloveInputError(f"playback control request: {problem}")
         if request.seek_ns is not None:
             playback.seek_ns(request.seek_ns)
-        if _f32(playback.rate) != request.speed:  # the speed came as f32: compare as one
-            playback.set_rate(_shortest(request.speed))
+        if rate is not None:
+            playback.set_rate(rate)
         if request.command is PlaybackCommand.PLAY:
             playback.resume()
         else:

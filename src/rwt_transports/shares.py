@@ -4,10 +4,16 @@
 share, one host could take every slot and keep it. But in local use and in tests
 every client is 127.0.0.1, so a fixed small share would break them. The rule:
 while fewer than ``SHARES_FROM`` of the slots are taken, anyone gets one; past
-that, a host that holds its share (``--max-connections-per-host``,
-``--udp-max-sessions-per-host``) or more gets no more. One host can so take at
-most ``SHARES_FROM`` of the slots, and the rest stays for hosts holding less
-than their share.
+that, a host gets one more only while it holds fewer than its share, and its
+share is the smaller of ``--max-connections-per-host`` (or
+``--udp-max-sessions-per-host``) and the slots still free. So the share shrinks
+as the slots fill: of the slots free past ``SHARES_FROM`` a host takes at most
+half (rounded up), the next host at most half of the rest, and the last free
+slot only goes to a host that holds none. However the first hosts connect (one
+after another, in turn, with a per-host option above ``--max-connections``),
+hosts that each hold a slot cannot take the last one while another host
+waits. A fixed share alone let three addresses hold all 40 slots of
+``--max-connections 40`` at the default 64 a host.
 
 A host is a network prefix of the source address (``HostPrefixes``): an IPv6
 machine gets a whole /64, so IPv6 addresses count by their /64 by default, and a
@@ -98,16 +104,30 @@ class HostShares:
     """The slots each host holds, and whether it may take one more.
 
     Args:
-        share: slots a host may hold once ``SHARES_FROM`` of ``limit`` are taken.
+        share: the most slots a host may hold once ``SHARES_FROM`` of ``limit``
+            are taken (the per-host option); ``allowance`` shrinks it with the
+            free slots.
     """
 
     def __init__(self, share: int) -> None:
         self.share = share
         self._held: Counter[str] = Counter()
 
+    def allowance(self, taken: int, limit: int) -> int:
+        """The slots a host may hold past ``SHARES_FROM`` while ``taken`` of ``limit`` are.
+
+        ``share``, but never more than the slots still free: a host holding as
+        many as are free leaves them to others (the module's docstring says why).
+        """
+        return min(self.share, limit - taken)
+
     def admits(self, host: str, taken: int, limit: int) -> bool:
-        """Whether ``host`` may take a slot while ``taken`` of ``limit`` are taken."""
-        return taken < limit * SHARES_FROM or self._held[host] < self.share
+        """Whether ``host`` may take a slot while ``taken`` of ``limit`` are taken.
+
+        Below ``SHARES_FROM`` of ``limit`` anyone may; past it only a host holding
+        fewer than ``allowance(taken, limit)``.
+        """
+        return taken < limit * SHARES_FROM or self._held[host] < self.allowance(taken, limit)
 
     def held(self, host: str) -> int:
         """Slots ``host`` holds."""

@@ -10,6 +10,7 @@ PyAV is the optional extra ``video``; without it the video types answer 501.
 
 from __future__ import annotations
 
+import functools
 import io
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -65,6 +66,15 @@ class Part:
     content_type: str
     data: bytes
     stamp_s: float
+
+    @functools.cached_property
+    def multipart(self) -> bytes:
+        """The part as a multipart stream sends it (``multipart_part``), made once.
+
+        Every viewer of a stream sends these same bytes; the hub makes them in its
+        encoder thread, so the event loop copies no image per viewer.
+        """
+        return multipart_part(self)
 
 
 @dataclass(frozen=True)

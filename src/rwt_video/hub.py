@@ -2,18 +2,24 @@
 
 A ``SharedStream`` exists while some viewer watches its ``StreamParams``. The
 graph's callback only keeps the newest message and wakes the stream's encoder
-task, which encodes in a worker thread and offers the result to every viewer;
-frames that arrive while it encodes are skipped. A viewer never makes the
-encoder wait: a still-image viewer keeps only the newest part, a video viewer
-keeps a bounded run of packets and, past that, drops them and restarts at the
-next keyframe. So a stalled viewer costs a bounded amount of memory and never
-slows another (docs/limits.md).
+task, which waits for one of the hub's encoder threads (``ENCODER_THREADS``),
+then takes the newest message, encodes it there once for all its viewers and
+offers the result to every viewer; frames that arrive meanwhile are skipped. A
+multipart part's bytes are made in that thread too, so the event loop only
+hands the same bytes to each viewer's socket. A viewer never makes the encoder
+wait: a still-image viewer keeps only the newest part, a video viewer keeps a
+bounded run of packets and, past that, drops them and restarts at the next
+keyframe. So a stalled viewer costs a bounded amount of memory and never slows
+another, and many streams cannot take more threads than the bound, so the
+event loop (every rosbridge client of the process) keeps its share of the CPU
+(docs/limits.md, docs/video.md).
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Protocol, TypeVar
@@ -40,7 +46,7 @@ if TYPE_CHECKING:
     from rwt_graph.graph import Graph
     from rwt_graph.local import LocalSubscription
 
-__all__ = ["PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
+__all__ = ["ENCODER_THREADS", "PartViewer", "SharedStream", "StreamHub", "VideoViewer"]
 
 logger = logging.getLogger("rwt.video")
 _episodes = EpisodeLog(logger)  # a peer can trigger these at will
@@ -50,6 +56,12 @@ Message = Mapping[str, object]
 #: A video viewer further behind than this drops what it holds and waits for a keyframe.
 MAX_PENDING_PACKETS = 60
 MAX_PENDING_BYTES = 8 * 1024 * 1024
+
+#: Frames encoded at once by one video server, whatever the number of streams: half
+#: the CPUs, at least one. Each encoder thread competes with the event loop for the
+#: CPU and the GIL; 16 streams of a 4K camera each encoding in its own thread took
+#: the event loop's turn away from the rosbridge clients (docs/video.md).
+ENCODER_THREADS = max(1, (os.cpu_count() or 1) // 2)
 
 
 class Viewer(Protocol):
@@ -147,11 +159,20 @@ class VideoViewer:
 
 
 class SharedStream:
-    """One topic encoded one way for every viewer that asks for the same params."""
+    """One topic encoded one way for every viewer that asks for the same params.
 
-    def __init__(self, params: StreamParams, encoder: FrameEncoder) -> None:
+    Args:
+        params: what the viewers asked for.
+        encoder: encodes a message for all of them.
+        limiter: the hub's encoder threads; the stream takes one for each frame.
+    """
+
+    def __init__(
+        self, params: StreamParams, encoder: FrameEncoder, limiter: anyio.CapacityLimiter
+    ) -> None:
         self.params = params
         self.encoder = encoder
+        self._limiter = limiter
         self.viewers: set[Viewer] = set()
         self.last_parts: list[Part] = []  # for viewers that join between frames
         self.subscription: LocalSubscription | None = None
@@ -185,22 +206,31 @@ class SharedStream:
             while True:
                 await self._wake.wait()
                 self._wake = anyio.Event()
-                msg, self._latest = self._latest, None
-                if msg is None:
-                    continue
-                try:
-                    items = await anyio.to_thread.run_sync(self.encoder.encode, msg)
-                except EncodeError as exc:
-                    self._log_once(str(exc))
-                    continue
-                except Exception as exc:  # a bug, or MemoryError: skip the frame, keep serving
-                    self._log_once(f"encoder failed: {type(exc).__name__}: {exc}")
-                    continue
+                async with self._limiter:  # a thread's turn first, then the newest frame
+                    msg, self._latest = self._latest, None
+                    if msg is None:
+                        continue
+                    try:
+                        items = await anyio.to_thread.run_sync(self._encode, msg)
+                    except EncodeError as exc:
+                        self._log_once(str(exc))
+                        continue
+                    except Exception as exc:  # a bug, or MemoryError: skip it, keep serving
+                        self._log_once(f"encoder failed: {type(exc).__name__}: {exc}")
+                        continue
                 parts = [item for item in items if isinstance(item, Part)]
                 if parts:
                     self.last_parts = parts
                 for viewer in list(self.viewers):
                     viewer.offer(items)
+
+    def _encode(self, msg: Message) -> list[Part] | list[VideoPacket]:
+        """In the worker thread: the frame encoded, each part's multipart bytes made."""
+        items = self.encoder.encode(msg)
+        for item in items:
+            if isinstance(item, Part):
+                _ = item.multipart  # cached on the part, for every viewer
+        return items
 
     def _log_once(self, text: str) -> None:
         # once per episode of skipped frames of this stream, whatever their causes
@@ -223,12 +253,21 @@ class StreamHub:
         max_streams: the most distinct streams (encoders) at once; each holds a few
             frames of at most ``params.MAX_PIXELS`` pixels, so this bounds the
             encoders' memory (docs/limits.md).
+        encoder_threads: the most frames encoded at once, over all streams
+            (``ENCODER_THREADS``); a stream waiting for its turn skips to its newest frame.
     """
 
-    def __init__(self, graph: Graph, task_group: TaskGroup, max_streams: int = 16) -> None:
+    def __init__(
+        self,
+        graph: Graph,
+        task_group: TaskGroup,
+        max_streams: int = 16,
+        encoder_threads: int = ENCODER_THREADS,
+    ) -> None:
         self.graph = graph
         self._tg = task_group
         self.max_streams = max_streams
+        self.limiter = anyio.CapacityLimiter(encoder_threads)
         self.streams: dict[StreamParams, SharedStream] = {}
 
     @contextlib.contextmanager
@@ -266,7 +305,7 @@ class StreamHub:
     def _start(self, params: StreamParams, type_name: str) -> SharedStream:
         if len(self.streams) >= self.max_streams:
             raise StreamParamError(f"{self.max_streams} distinct streams run already", status=503)
-        stream = SharedStream(params, make_encoder(params))
+        stream = SharedStream(params, make_encoder(params), self.limiter)
         stream.subscription = self.graph.create_subscription(
             params.source_topic, stream.on_message, type_name, node="/web_video_server"
         )

@@ -35,8 +35,8 @@ from anyio.abc import SocketAttribute, SocketStream, TaskStatus
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
 
-from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError, multipart_part
-from .hub import PartViewer, SharedStream, StreamHub, VideoViewer
+from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError
+from .hub import ENCODER_THREADS, PartViewer, SharedStream, StreamHub, VideoViewer
 from .pages import stream_viewer_page, topic_list_page
 from .params import StreamParamError, StreamParams, StreamType, parse_stream_params
 
@@ -69,6 +69,9 @@ class VideoConfig:
             next one is answered 503 at once (docs/limits.md).
         max_streams: the most distinct streams (topic, type and parameters; one
             encoder each) at once; a request for another one is answered 503.
+        encoder_threads: the most frames encoded at once over all streams, each in
+            a worker thread (``hub.ENCODER_THREADS``: half the CPUs, at least one);
+            a stream waiting for its turn skips to its newest frame.
         console: the web console under ``/console/`` (docs/console.md); None: not served.
         tokens: when set, every path but the console's needs a live token of these
             (``?token=`` or ``Authorization: Bearer``): 401 without one, 403 with a
@@ -81,6 +84,7 @@ class VideoConfig:
     snapshot_timeout_s: float = 10.0
     max_connections: int = 64
     max_streams: int = 16
+    encoder_threads: int = ENCODER_THREADS
     console: ConsoleSite | None = None
     tokens: VideoTokens | None = None
 
@@ -106,7 +110,7 @@ async def serve_video(
         local_host=config.host, local_port=config.port, reuse_port=False
     )
     async with listener, anyio.create_task_group() as tg:
-        hub = StreamHub(graph, tg, config.max_streams)
+        hub = StreamHub(graph, tg, config.max_streams, config.encoder_threads)
         port = listener.extra(SocketAttribute.local_port)
         host = f"[{config.host}]" if ":" in config.host else config.host
         url = f"http://{host}:{port}"
@@ -356,7 +360,7 @@ async def _send_parts(http: _Http, viewer: PartViewer) -> None:
     await http.start(200, f"multipart/x-mixed-replace;boundary={BOUNDARY}")
     await http.send(f"--{BOUNDARY}\r\n".encode())
     while True:
-        await http.send(multipart_part(await viewer.next_part()))
+        await http.send((await viewer.next_part()).multipart)  # the bytes all viewers share
 
 
 async def _send_video(http: _Http, params: StreamParams, viewer: VideoViewer) -> None:

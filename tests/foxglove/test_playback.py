@@ -36,6 +36,7 @@ from tests.bag.bags import CHATTER_GAP_S, T0, write_bag
 from .sansio import Client
 
 PLAY, PAUSE = 0, 1
+F32_MAX = 3.4028234663852886e38  # the largest 32-bit float: the largest speed on the wire
 END = T0 + 1_050_000_000  # the last record time of the tests' bag
 FIRST_CHATTER = T0 + 100_000_000
 
@@ -224,6 +225,12 @@ def test_bad_requests_get_error_statuses_and_the_connection_goes_on(
         request(PLAY, speed=math.inf): "speed inf is not a finite number above 0",
         request(PLAY, speed=0.0): "speed 0.0 is not a finite number above 0",
         request(PLAY, speed=-1.0): "speed -1.0 is not a finite number above 0",
+        # within a 32-bit float but not a speed a player takes (rwt_graph.playback):
+        # refused whole, its seek too
+        request(PLAY, speed=F32_MAX, seek=T0 + 500_000_000): "playback control request: "
+        "speed 3.403e+38 is not from 0.001 to 1000000 times the recorded speed",
+        request(PLAY, speed=2e6): "speed 2e+06 is not from 0.001 to 1000000",
+        request(PLAY, speed=1e-5, seek=END): "speed 1e-05 is not from 0.001 to 1000000",
         good[:15] + struct.pack("<I", 2) + b"\xff\xfe": "the request id is not UTF-8",
         request(PLAY, rid=longest + "x"): f"a request id of {len(longest) + 1} bytes (at most "
         f"{MAX_PLAYBACK_REQUEST_ID_BYTES})",
@@ -236,6 +243,7 @@ def test_bad_requests_get_error_statuses_and_the_connection_goes_on(
             (got,) = errors(client)
             assert message in got, frame
         assert take(client)[0] == [] and player.paused  # none was applied
+        assert (player.rate, player.clock_ns()) == (1.0, T0)
         client.send_raw(request(PLAY, rid=longest), binary=True)  # the longest id: answered
         (state,), _, _ = take(client)
         assert state["id"] == longest and not player.paused
@@ -387,6 +395,37 @@ async def test_two_clients_over_the_wire_see_the_state_of_a_served_bag(bag: Path
             assert parse_state(await _binary(two, 5))["id"] == "go"
             assert parse_state(await _binary(one, 5))["status"] == 0
         tg.cancel_scope.cancel()
+
+
+@pytest.mark.anyio
+async def test_a_speed_past_the_bound_is_refused_and_the_others_are_served(bag: Path) -> None:
+    graph = Graph()
+    player = Player(graph, [bag], paused=True, linger=True)
+    server = RosbridgeServer(graph, ServerConfig(port=0))
+    async with anyio.create_task_group() as tg:
+        await tg.start(player.run)
+        url = await tg.start(server.serve)
+        async with (
+            connect(url, subprotocols=["foxglove.sdk.v1"]) as hostile,
+            connect(url, subprotocols=["foxglove.sdk.v1"]) as bystander,
+        ):
+            for ws in (hostile, bystander):
+                json.loads(await ws.recv())  # serverInfo
+                await _binary(ws, 5)  # the state at connect
+            for speed in (F32_MAX, 1_000_001.0, 1e-4):
+                await hostile.send(request(PLAY, speed=speed, seek=END, rid="hostile"))
+                status = await _status(hostile)
+                assert status["level"] == 2
+                assert "is not from 0.001 to 1000000 times the recorded speed" in status["message"]
+            assert (player.rate, player.paused, player.clock_ns()) == (1.0, True, T0)
+            await hostile.send(request(PAUSE, speed=1e6, rid="fastest"))  # the bound: taken
+            answer = parse_state(await _binary(hostile, 5))
+            assert (answer["speed"], answer["id"]) == (1e6, "fastest")
+            await bystander.send(request(PAUSE, speed=2.0, seek=END, rid="mine"))
+            mine = parse_state(await _binary(bystander, 5))
+            assert (mine["speed"], mine["time"], mine["id"]) == (2.0, END, "mine")
+        tg.cancel_scope.cancel()
+    assert player.rate == 2.0
 
 
 # ---- the Foxglove SDK's server as the reference of the byte layout -----------------

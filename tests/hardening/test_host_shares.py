@@ -2,9 +2,10 @@
 
 Before, one source address could open ``--max-connections`` connections (or
 ``--udp-max-sessions`` UDP sessions) and everyone else was refused. Now, once
-3/4 of the slots are taken, a host holding its share gets no more, and the
-remaining slots go to hosts that hold less. Every test client is on loopback:
-127.0.0.1 is the hog, 127.0.0.2 the other host (Linux routes all of 127/8 locally).
+3/4 of the slots are taken, a host holding its share gets no more, and its share
+is never more than the slots still free, so the last free slot is for a host
+holding none. Every test client is on loopback: 127.0.0.1 is the hog, 127.0.0.2
+the other host (Linux routes all of 127/8 locally).
 
 A host is a prefix of the source address (``--host-prefix-v4``, ``-v6``): three
 addresses of one /24 took every slot while each counted alone; with
@@ -84,7 +85,8 @@ async def attempt(harness: Harness, transport: str, source: str) -> bool:
 @pytest.mark.parametrize("transport", ["ws", "tcp", "udp"])
 async def test_one_host_cannot_take_every_slot(transport: str) -> None:
     # 8 slots, shares from 6 taken, 2 a host: the hog gets 6 (UDP) or 5 (the
-    # harness's stdio session holds one), the other host the last 2.
+    # harness's stdio session holds one); of the last 2 the other host gets one
+    # (its share is the free slots: 2, then 1), a third host the last.
     config = ServerConfig(
         max_connections=8,
         max_connections_per_host=2,
@@ -99,11 +101,12 @@ async def test_one_host_cannot_take_every_slot(transport: str) -> None:
             while await attempt(harness, transport, "127.0.0.1"):
                 hog += 1
             assert hog == (6 if transport == "udp" else 5)
-            assert [await attempt(harness, transport, "127.0.0.2") for _ in range(3)] == [
-                True,
+            assert [await attempt(harness, transport, "127.0.0.2") for _ in range(2)] == [
                 True,
                 False,
             ]
+            assert await attempt(harness, transport, "127.0.0.3")
+            assert not await attempt(harness, transport, "127.0.0.4")  # the server is full
 
 
 async def test_a_host_alone_is_not_limited_below_the_share_threshold() -> None:
@@ -123,10 +126,12 @@ OTHER = "127.0.1.1"  # another /24: another host even with --host-prefix-v4 24
     ("prefix_v4", "hog_gets", "other_gets"),
     [
         # 8 slots, shares from 6 taken, 4 a host (the stream servers' stdio session
-        # holds one slot). Each address alone holds less than 4, so the three take
-        # every slot; as one /24 they stop at 6 taken and the other host gets the rest.
-        (32, {"ws": 7, "tcp": 7, "udp": 8}, [False]),
-        (24, {"ws": 5, "tcp": 5, "udp": 6}, [True, True, False]),
+        # holds one slot). Each address alone holds less than 4, but never more than
+        # the free slots: the three stop short of the last slot, which the other host
+        # gets; as one /24 they stop at 6 taken and the other host gets one of the
+        # last two (its share shrinks to the free slots).
+        (32, {"ws": 6, "tcp": 6, "udp": 6}, [True, False]),
+        (24, {"ws": 5, "tcp": 5, "udp": 6}, [True, False]),
     ],
 )
 async def test_addresses_of_one_prefix_share_one_hosts_slots(
@@ -163,7 +168,46 @@ async def test_rwt_serve_groups_ipv4_clients_by_host_prefix_v4() -> None:
             while await open_tcp(stack, tcp, HOG[hog % len(HOG)]):
                 hog += 1
             assert hog == 6
-            assert [await open_tcp(stack, tcp, OTHER) for _ in range(3)] == [True, True, False]
+            assert [await open_tcp(stack, tcp, OTHER) for _ in range(2)] == [True, False]
+
+
+async def take_all(harness: Harness, transport: str, sources: list[str]) -> int:
+    """Connect from ``sources`` in turn until one is refused; the connections admitted."""
+    admitted = 0
+    while await attempt(harness, transport, sources[admitted % len(sources)]):
+        admitted += 1
+    return admitted
+
+
+@pytest.mark.parametrize("transport", ["ws", "tcp", "udp"])
+@pytest.mark.parametrize("order", ["in turn", "one after another"])
+async def test_three_addresses_leave_room_for_others_at_the_default_share(
+    transport: str, order: str
+) -> None:
+    # --max-connections 40 with the default per-host share (64, 16 for UDP sessions):
+    # each address alone held less than its share, so three took all 40 slots and
+    # every other host was refused. Now a host's share is at most the free slots.
+    if transport == "udp":
+        config = ServerConfig(udp=UdpOptions(max_sessions=40))
+        slots = 40
+    else:
+        config = ServerConfig(max_connections=40)
+        slots = 39  # the harness's stdio session holds one
+    async with running_server(config) as harness:
+        with anyio.fail_after(TIMEOUT_S * 3):
+            if order == "in turn":
+                hog = await take_all(harness, transport, list(HOG))
+            else:
+                hog = sum([await take_all(harness, transport, [source]) for source in HOG])
+            assert all([not await attempt(harness, transport, source) for source in HOG])
+            others = [f"127.0.1.{index}" for index in range(1, 41)]
+            served = 0
+            for source in others:  # other hosts, one connection each, until the server is full
+                if not await attempt(harness, transport, source):
+                    break
+                served += 1
+    assert hog < slots - 1  # the three left room...
+    assert served == slots - hog  # ...and other hosts got every slot they left
 
 
 def ipv6_loopback() -> bool:

@@ -67,3 +67,24 @@ def test_shares_apply_only_past_three_quarters_of_the_slots() -> None:
     for _ in range(4):
         shares.remove("a")
     assert shares.admits("a", taken=6, limit=8) and shares.held("a") == 1
+
+
+def test_past_three_quarters_a_hosts_share_is_at_most_the_free_slots() -> None:
+    shares = HostShares(share=64)  # the default, above the slots: the free ones bound it
+    assert shares.allowance(taken=30, limit=40) == 10
+    assert shares.allowance(taken=39, limit=40) == 1
+    assert HostShares(share=2).allowance(taken=30, limit=40) == 2
+    for _ in range(10):
+        shares.add("a")
+    assert not shares.admits("a", taken=30, limit=40)  # holds as many as are free
+    taken = 30
+    while shares.admits("b", taken=taken, limit=40):  # a newcomer: half the free slots
+        shares.add("b")
+        taken += 1
+    assert shares.held("b") == 5
+    while shares.admits("c", taken=taken, limit=40):
+        shares.add("c")
+        taken += 1
+    assert (shares.held("c"), taken) == (3, 38)
+    assert not shares.admits("b", taken=39, limit=40)  # the last slot: only a host with none
+    assert shares.admits("d", taken=39, limit=40)
