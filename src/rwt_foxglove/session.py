@@ -249,7 +249,7 @@ class FoxgloveSession:
         self.params = (
             None
             if params is None
-            else ParameterBridge(graph, params, self, self._access, self.limits)
+            else ParameterBridge(graph, params, self, self._access, self.limits, client_id)
         )
         capabilities = list(CAPABILITIES)
         if params is not None:
