@@ -9,15 +9,22 @@ A byte array goes both ways as foxglove_bridge sends it: ``type: byte_array``
 and its bytes in base64 (standard alphabet, padded).
 
 ``getParameters`` answers ``parameterValues`` with its ``id`` (none named: every
-parameter the client may see); ``setParameters`` sets each parameter (no value
-deletes it) and, with an ``id``, answers the values they have then. A refused
-change is an error ``status`` naming it; the others are made. Parameters of a
-node that owns its own (a ROS 2 node copied by the link) are set by that node,
-and the answer waits for it. ``subscribeParameterUpdates`` pushes every change
-made from any side (rosapi's ``set_param``, another client, the link) as
-``parameterValues`` without ``id``; a deletion is the name without a value.
-Changes that come while an earlier push waits in the queue are merged into the
-next one (the newest value of each), so a client that does not read holds one.
+parameter the client may see), at most ``MAX_ANSWER_BYTES`` of them: the
+parameters past it are left out and an error ``status`` says how many and to ask
+for them by name. ``setParameters`` sets each parameter (no value deletes it)
+and, with an ``id``, answers the values they have then. A refused change is an
+error ``status`` naming it; the others are made. What the client sets is charged
+to it, by its client id, within its share of the store (``parameters.store``,
+D34). Parameters of a node that owns its own (a ROS 2 node copied by the link)
+are set by that node, and the answer waits for it.
+``subscribeParameterUpdates`` pushes every change made from any side (rosapi's
+``set_param``, another client, the link) as ``parameterValues`` without ``id``;
+a deletion is the name without a value. The bridge watches only the names the
+client subscribed to (``Parameters.watch(key=...)``), so a client costs nothing
+for a change of another name. Changes that come while an earlier push waits in
+the queue are merged into the next one (the newest value of each), so a client
+that does not read holds one. Values go out as the store holds them (shared by
+every client, never copied), each encoded in the client's answer.
 """
 
 from __future__ import annotations
@@ -26,6 +33,8 @@ import base64
 import binascii
 import math
 from typing import TYPE_CHECKING, Final
+
+import msgspec
 
 from rwt_graph.parameters.store import ParameterError, Parameters, ParamValue, ros2_value
 from rwt_protocol.errors import RwtError
@@ -44,7 +53,7 @@ from .protocol import (
 )
 
 if TYPE_CHECKING:
-    from collections.abc import Awaitable
+    from collections.abc import Awaitable, Callable
 
     from rwt_graph.core import GraphCore
     from rwt_protocol.server.outbox import OutFrame
@@ -52,10 +61,20 @@ if TYPE_CHECKING:
     from .limits import FoxgloveLimits
     from .output import SessionOutput
 
-__all__ = ["ParameterBridge"]
+__all__ = ["MAX_ANSWER_BYTES", "ParameterBridge"]
 
 _SEP: Final = "."  # foxglove_bridge's separator of node and parameter (ROS 2)
 _UNSET: Final = object()
+
+MAX_ANSWER_BYTES: Final = 4 * 1024 * 1024
+"""Bytes of JSON one ``parameterValues`` answer holds at most (``getParameters``, and
+``setParameters`` with an ``id``).
+
+Parameters go in by name (every parameter: sorted); the first one that would take
+the answer past it, and every one after it, is left out, and the client gets an error
+status naming how many and saying to ask for them by name (docs/limits.md). The first
+parameter always goes, however large: its size is bounded where it is set."""
+_encode = msgspec.json.Encoder().encode
 
 
 class _SetRound:
@@ -76,6 +95,7 @@ class ParameterBridge:
         out: where answers and updates go.
         access: which parameters the client may use (``--params-glob``).
         limits: ``max_parameter_subscriptions``.
+        client_id: the connection's id in the graph, charged for what it sets.
     """
 
     def __init__(
@@ -85,16 +105,18 @@ class ParameterBridge:
         out: SessionOutput,
         access: AccessPolicy,
         limits: FoxgloveLimits,
+        client_id: str | None = None,
     ) -> None:
         self._graph = graph
         self._params = params
         self._out = out
         self._access = access
         self._limits = limits
-        self._watched: dict[str, str] = {}  # store key -> the client's name
+        self._client = client_id
+        # store key -> the client's name, and the function that stops watching it
+        self._watched: dict[str, tuple[str, Callable[[], None]]] = {}
         self._changes: dict[str, object] = {}  # store key -> newest value (_UNSET: deleted)
         self._update: OutFrame | None = None  # the last push, while it waits in the queue
-        self._stop = params.watch(self._changed)
         self._closed = False
 
     # ---- names and values ----------------------------------------------------------
@@ -133,10 +155,12 @@ class ParameterBridge:
             return ParameterOut(
                 name=name, value=base64.b64encode(value).decode("ascii"), type="byte_array"
             )
-        if isinstance(value, list) and any(isinstance(item, float) for item in value):
-            return ParameterOut(
-                name=name, value=[_finite(float(item)) for item in value], type="float64_array"
-            )
+        if isinstance(value, tuple):
+            types = set(map(type, value))  # one C-level pass: the value is never copied here
+            if types == {float}:  # JSON encodes NaN and infinities as null
+                return ParameterOut(name=name, value=value, type="float64_array")
+            if types == {int, float}:  # a ROS 1 list of both
+                return ParameterOut(name=name, value=tuple(map(float, value)), type="float64_array")
         return ParameterOut(name=name, value=value)
 
     # ---- ops -----------------------------------------------------------------------
@@ -161,7 +185,7 @@ class ParameterBridge:
             keys = self._keys(op.parameterNames)
         else:
             keys = [key for key in self._params.names() if self._access.allows(Family.PARAMS, key)]
-        self._reply(keys, op.id)
+        self._reply(keys, op.id, "getParameters")
 
     def _keys(self, names: list[str]) -> list[str]:
         keys: list[str] = []
@@ -172,14 +196,32 @@ class ParameterBridge:
                 self._out.error(f"getParameters: {exc.message}")
         return keys
 
-    def _reply(self, keys: list[str], request_id: str | None) -> None:
-        found = []
-        for key in keys:
+    def _reply(self, keys: list[str], request_id: str | None, asked: str) -> None:
+        """Answer the values of ``keys`` that are set, within ``MAX_ANSWER_BYTES``."""
+        found: list[ParameterOut] = []
+        size = 0
+        left_out = 0
+        for key in dict.fromkeys(keys):  # a name asked twice is answered once
             value = self._params.get(key, _UNSET)
-            if value is not _UNSET:
-                found.append(self._out_value(key, value))
+            if value is _UNSET:
+                continue
+            if left_out:
+                left_out += 1
+                continue
+            parameter = self._out_value(key, value)
+            size += len(_encode(parameter)) + 1
+            if found and size > MAX_ANSWER_BYTES:
+                left_out = 1
+                continue
+            found.append(parameter)
         op = ParameterValues(parameters=found, id=request_id)
         self._out.answer(encode_op(op), binary=False)
+        if left_out:
+            self._out.error(
+                f"{asked}: {left_out} of {len(found) + left_out} parameters left out "
+                f"(an answer holds at most {MAX_ANSWER_BYTES} bytes): ask for them by name, "
+                "fewer at a time"
+            )
 
     def set(self, op: SetParameters) -> None:
         """Make each change of ``setParameters``; refusals are error statuses, one each."""
@@ -203,22 +245,14 @@ class ParameterBridge:
             ParameterError: a bad value, a node that does not exist, or what the store refuses.
         """
         value = _value_in(parameter)
-        if self._params.ros1:
-            if value is None:
-                self._params.delete(key)
-            else:
-                self._params.set(key, value)
-            return
-        node, _, param = key.partition(":")
-        if node not in self._graph.nodes.names() and node not in self._params.nodes():
-            raise ParameterError(f"node {node} does not exist")
-        owner = self._params.owned_by(node)
+        owner = None if self._params.ros1 else self._params.owned_by(key.partition(":")[0])
         if owner is None:
             if value is None:
                 self._params.delete(key)
-            else:
-                self._params.set(key, value)
+            else:  # the store judges the node and the client's share (D34)
+                self._params.set(key, value, client=self._client)
             return
+        node, _, param = key.partition(":")
         if value is None:
             raise ParameterError(f"{key}: the node {node} keeps its own parameters")
         spawner = self._graph.spawner
@@ -248,7 +282,7 @@ class ParameterBridge:
 
     def _finish(self, round_: _SetRound) -> None:
         if round_.request_id is not None and not self._closed:
-            self._reply(round_.names, round_.request_id)
+            self._reply(round_.names, round_.request_id, "setParameters")
 
     def subscribe(self, op: SubscribeParameterUpdates) -> None:
         """Watch these parameters: their changes are pushed (``parameterValues``, no ``id``)."""
@@ -264,7 +298,7 @@ class ParameterBridge:
                 limit = self._limits.max_parameter_subscriptions
                 self._out.error(f"subscribeParameterUpdates: more than {limit} parameters")
                 return
-            self._watched[key] = name
+            self._watched[key] = (name, self._params.watch(self._changed, key))
 
     def unsubscribe(self, op: UnsubscribeParameterUpdates) -> None:
         """Stop watching these parameters (names not watched are ignored, as the SDK does)."""
@@ -273,7 +307,9 @@ class ParameterBridge:
                 key = self._key(name)
             except ParameterError:
                 continue
-            self._watched.pop(key, None)
+            watched = self._watched.pop(key, None)
+            if watched is not None:
+                watched[1]()
             self._changes.pop(key, None)
 
     @property
@@ -284,7 +320,8 @@ class ParameterBridge:
     # ---- updates -------------------------------------------------------------------
 
     def _changed(self, key: str, value: ParamValue | None) -> None:
-        if key in self._watched and not self._closed:
+        """A change of a watched parameter (``Parameters.watch`` of its key)."""
+        if not self._closed:
             self._changes[key] = _UNSET if value is None else value
             self.flush()
 
@@ -299,7 +336,8 @@ class ParameterBridge:
     def close(self) -> None:
         """The connection is gone: stop watching the store. Idempotent."""
         self._closed = True
-        self._stop()
+        for _, stop in self._watched.values():
+            stop()
         self._watched.clear()
         self._changes.clear()
 
@@ -321,12 +359,10 @@ def _value_in(parameter: ParameterIn) -> object:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ParameterError(f"{parameter.name}: a float64 parameter needs a number")
         return float(value)
-    if kind == "float64_array":
-        if not isinstance(value, list) or not all(
-            isinstance(item, int | float) and not isinstance(item, bool) for item in value
-        ):
+    if kind == "float64_array":  # C-level passes: a large array costs no Python loop
+        if not isinstance(value, list) or not set(map(type, value)) <= {int, float}:
             raise ParameterError(f"{parameter.name}: a float64_array parameter needs numbers")
-        return [float(item) for item in value]
+        return tuple(map(float, value))
     if kind == "byte_array":
         try:
             if isinstance(value, str):

@@ -291,7 +291,7 @@ class FoxgloveSession(SessionBase):
         self.params = (
             None
             if params is None
-            else ParameterBridge(graph, params, self, self._access, self.limits)
+            else ParameterBridge(graph, params, self, self._access, self.limits, client_id)
         )
         # a bag playing when the client connects: its clock is server time
         self._time = None if graph.timeline is None else ServerTime(graph)

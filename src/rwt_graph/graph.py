@@ -75,7 +75,7 @@ class Graph:
         self.nodes = core.nodes
         self.taps = core.taps
         self.type_checks = core.type_checks
-        self.params = Parameters(self.registry.dialect)
+        self.params = Parameters(self.registry.dialect, nodes=self.nodes)
         self.ros_distro = DEFAULT_ROS_DISTRO
 
     @property

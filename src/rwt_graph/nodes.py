@@ -17,6 +17,8 @@ from rwt_protocol.errors import GraphError
 from rwt_protocol.names import resolve_name
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rwt_protocol.ports import ClientId
 
 __all__ = ["CLIENT_NODE_PREFIX", "DEFAULT_NODE", "Nodes", "node_name"]
@@ -44,9 +46,16 @@ def node_name(name: str) -> str:
 
 
 class Nodes:
-    """Which node each participant belongs to, and the host of each connection."""
+    """Which node each participant belongs to, and the host of each connection.
+
+    Attributes:
+        on_forget: called with ``(client, node)`` (its node, None if it had none)
+            after a participant is forgotten; the parameter store releases what a
+            client set (``parameters.store``).
+    """
 
     def __init__(self) -> None:
+        self.on_forget: list[Callable[[ClientId, str | None], None]] = []
         self._names: dict[ClientId, str] = {}
         self._hosts: dict[ClientId, str] = {}
         self._members: dict[str, set[ClientId]] = {}  # node -> participants: no walk per query
@@ -78,8 +87,11 @@ class Nodes:
 
     def forget(self, client: ClientId) -> None:
         """The participant is gone (disconnected, or its handle closed)."""
+        node = self._names.get(client)
         self._leave(client)
         self._hosts.pop(client, None)
+        for hook in list(self.on_forget):
+            hook(client, node)
 
     def _leave(self, client: ClientId) -> None:
         node = self._names.pop(client, None)

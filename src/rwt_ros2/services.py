@@ -113,8 +113,9 @@ class RosService:
         loop = link.loop
         timer = loop.call_later(link.options.call_timeout_s, self._timeout, request_id, future)
 
-        def done(_: Any) -> None:  # an executor thread
-            link.handoff.put(self._finish, request_id, future, timer)
+        def done(_: Any) -> None:  # an executor thread: a large response is decoded here,
+            # not in one turn of the event loop (a node's list of 20,000 parameters)
+            link.handoff.put(self._finish, request_id, self._decoded(future), timer)
 
         future.add_done_callback(done)
 
@@ -124,19 +125,20 @@ class RosService:
         timeout = self._link.options.call_timeout_s
         self._respond(request_id, False, f"service {self._name}: no reply within {timeout:g} s")
 
-    def _finish(self, request_id: str, future: Any, timer: Any) -> None:
+    def _decoded(self, future: Any) -> tuple[bool, object]:
+        """``(True, response)`` in the internal form, or ``(False, why)`` (any thread)."""
         from rclpy.serialization import serialize_message  # noqa: PLC0415
 
-        timer.cancel()
         try:
             response = future.result()
-            value = decode(
-                self._link.graph.registry, self._srvtype.response, serialize_message(response)
-            )
+            data = serialize_message(response)
+            return True, decode(self._link.graph.registry, self._srvtype.response, data)
         except Exception as exc:  # the call was cancelled, or the reply does not decode
-            self._respond(request_id, False, f"service {self._name} failed: {exc}")
-            return
-        self._respond(request_id, True, value)
+            return False, f"service {self._name} failed: {exc}"
+
+    def _finish(self, request_id: str, outcome: tuple[bool, object], timer: Any) -> None:
+        timer.cancel()
+        self._respond(request_id, *outcome)
 
     def _waits(self, request_id: str) -> bool:
         entry = self._link.graph.services.entries.get(self._name)

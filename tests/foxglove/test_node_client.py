@@ -80,8 +80,11 @@ class Scenario:
             raise AssertionError(f"node exited: {self.proc.stderr.read().decode()}")
         return json.loads(line)  # type: ignore[no-any-return]
 
-    def wait_event(self, name: str, deadline: float) -> None:
-        assert self._next(deadline) == {"event": name}
+    def wait_event(self, name: str, deadline: float) -> dict:
+        """The next line, which must be event ``name`` (with whatever it tells)."""
+        frame = self._next(deadline)
+        assert frame.get("event") == name, frame
+        return frame
 
     def result(self, deadline: float) -> dict:
         frame = self._next(deadline)
@@ -300,47 +303,48 @@ def test_the_servers_own_service_answers_a_foxglove_call(server: ServerProcess) 
 def test_parameters_set_get_and_updates_from_rosapi_and_another_client(
     server: ServerProcess, tmp_path: Path
 ) -> None:
-    steps = [
-        {"op": "connect", "conn": "c"},
-        {"op": "signal", "name": "ready"},
-        {"op": "await"},
-        {
-            "op": "api",
-            "conn": "c",
-            "call": "set_param",
-            "args": ["/rosapi:fg_gain", 2.75],
-            "as": "set",
-        },
-    ]
-    driver = Driver("roslibpy", server.url, steps, tmp_path, "roslibpy-params")
-    scenario = None
+    driver = None
+    scenario = Scenario("params", server.url)
     try:
         deadline = time.monotonic() + DRIVER_TIMEOUT
-        driver.wait_event("ready", deadline)
-        scenario = Scenario("params", server.url)
-        scenario.wait_event("subscribed", deadline)
-        driver.go()
+        node = scenario.wait_event("subscribed", deadline)["node"]
+        # roslibpy changes the parameter the Foxglove client created on its own node
+        steps = [
+            {"op": "connect", "conn": "c"},
+            {
+                "op": "api",
+                "conn": "c",
+                "call": "set_param",
+                "args": [f"{node}:fg_gain", 2.75],
+                "as": "set",
+            },
+        ]
+        driver = Driver("roslibpy", server.url, steps, tmp_path, "roslibpy-params")
         assert driver.wait_result(deadline)["calls"]["set"]["ok"]["successful"] is True
         result = scenario.result(deadline)
     except AssertionError:
-        print(driver.describe())
+        if driver is not None:
+            print(driver.describe())
         raise
     finally:
-        if scenario is not None:
-            scenario.kill()
-        driver.kill()
+        scenario.kill()
+        if driver is not None:
+            driver.kill()
     assert (
         "parameters" in result["capabilities"] and "parametersSubscribe" in result["capabilities"]
     )
+    assert node.startswith("/rwt_client_")
     assert (
         result["status"]["level"] == 2
         and "node /fg_ghost does not exist" in result["status"]["message"]
     )
-    gain = {"name": "/rosapi.fg_gain", "value": 1, "type": "float64"}  # 1.0: JSON writes it 1
-    assert result["set"] == [gain, {"name": "/rosapi.fg_mode", "value": "auto"}]
+    assert result["server"]["level"] == 2
+    assert "node /rosapi is the server's" in result["server"]["message"]
+    gain = {"name": f"{node}.fg_gain", "value": 1, "type": "float64"}  # 1.0: JSON writes it 1
+    assert result["set"] == [gain, {"name": f"{node}.fg_mode", "value": "auto"}]
     assert result["got"] == result["set"]
-    assert result["fromRosapi"] == [{"name": "/rosapi.fg_gain", "value": 2.75, "type": "float64"}]
-    assert result["fromOther"] == [{"name": "/rosapi.fg_mode", "value": "manual"}]
+    assert result["fromRosapi"] == [{"name": f"{node}.fg_gain", "value": 2.75, "type": "float64"}]
+    assert result["fromOther"] == [{"name": f"{node}.fg_mode", "value": "manual"}]
 
 
 def test_connection_graph_shows_a_roslibpy_publisher_come_and_go(

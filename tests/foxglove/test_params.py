@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import json
+
 from rwt_foxglove import FoxgloveLimits
+from rwt_foxglove.params import MAX_ANSWER_BYTES
 from rwt_graph.graph import Graph
+from rwt_graph.parameters.store import Parameters
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.server.access import AccessPolicy
@@ -301,3 +305,71 @@ def test_ros1_names_are_global(graph: Graph) -> None:
         {"name": "/robot/size", "value": 3},
         {"name": "/robot/speed", "value": 1.5, "type": "float64"},
     ]
+
+
+def test_a_large_value_is_one_object_for_every_reader_and_idle_clients_cost_nothing(
+    graph: Graph,
+) -> None:
+    _robot(graph)
+    idle = [Client(graph, with_params=True, client_id=f"foxglove:idle#{n}") for n in range(50)]
+    watcher = Client(graph, with_params=True, client_id="foxglove:watcher#1")
+    watcher.send({"op": "subscribeParameterUpdates", "parameterNames": ["/robot.big"]})
+    heard: list[object] = []
+    graph.params.watch(lambda name, value: heard.append(value), key="/robot:big")
+    big = list(range(1_000_000))
+    setter = idle[0]
+    parameters = [{"name": "/robot.big", "value": big}]
+    setter.send({"op": "setParameters", "parameters": parameters, "id": "s"})
+    held = graph.params.get("/robot:big")
+    assert heard == [held] and heard[0] is held  # the store's own value, not a copy
+    assert graph.params.get("/robot:big") is held  # and so for every reader
+    [answer] = _values(setter)
+    assert answer["id"] == "s" and answer["parameters"] == [{"name": "/robot.big", "value": big}]
+    watcher.drain()
+    [update] = _values(watcher)
+    assert update["parameters"] == [{"name": "/robot.big", "value": big}]
+    for client in idle[1:]:
+        client.drain()
+    assert [client for client in idle[1:] if _values(client)] == []  # the others: nothing
+
+
+def test_every_parameter_comes_within_the_answer_bound_and_the_rest_is_named(
+    graph: Graph,
+) -> None:
+    blob = "x" * (1536 * 1024)  # 1.5 MiB: two fit in one answer
+    graph.params.declare("/robot", {f"blob{n}": blob for n in range(4)})
+    client = Client(graph, with_params=True)
+    client.send({"op": "getParameters", "parameterNames": [], "id": "all"})  # 56 bytes of request
+    [answer] = _values(client)
+    assert len(json.dumps(answer)) <= MAX_ANSWER_BYTES
+    assert [each["name"] for each in answer["parameters"]] == ["/robot.blob0", "/robot.blob1"]  # type: ignore[index]
+    assert _errors(client) == [
+        "getParameters: 2 of 4 parameters left out (an answer holds at most 4194304 bytes): "
+        "ask for them by name, fewer at a time"
+    ]
+    client.send({"op": "getParameters", "parameterNames": ["/robot.blob3"] * 100, "id": "one"})
+    [answer] = _values(client)  # a name asked a hundred times is answered once
+    assert answer["parameters"] == [{"name": "/robot.blob3", "value": blob}]
+    assert _errors(client) == []
+
+
+def test_a_client_is_charged_for_what_it_sets_and_its_node_goes_with_it() -> None:
+    graph = Graph()
+    graph.params = Parameters(max_params=80, client_share=0.1, nodes=graph.nodes)
+    client_id = "foxglove:a#1"
+    node = graph.nodes.attach(client_id)
+    client = Client(graph, with_params=True, client_id=client_id)
+    install_rosapi(graph)
+    parameters = [{"name": f"{node}.p{n}", "value": n} for n in range(10)]
+    parameters.append({"name": "/rosapi.mine", "value": 1})
+    client.send({"op": "setParameters", "parameters": parameters, "id": "s"})
+    errors = _errors(client)
+    assert len(errors) == 3, errors
+    assert all(
+        "this client holds its share of the parameter store (8 parameters)" in e for e in errors[:2]
+    )
+    assert "node /rosapi is the server's" in errors[2]
+    assert len(_values(client)[0]["parameters"]) == 8  # type: ignore[arg-type]
+    assert graph.params.held_by(client_id) == (8, 64)
+    client.session.close()  # the connection went: its node's parameters with it
+    assert graph.params.names() == [] and graph.params.held_by(client_id) == (0, 0)

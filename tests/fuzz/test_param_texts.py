@@ -24,7 +24,8 @@ from tests.support.clients import Client, is_op, running_server
 pytestmark = pytest.mark.anyio
 
 TIMEOUT_S = 60
-NAME = {Dialect.ROS1: "/fuzz/p", Dialect.ROS2: "/rosapi:fuzz"}
+#: ROS 2: a node of the program, where a client may create parameters (D34)
+NAME = {Dialect.ROS1: "/fuzz/p", Dialect.ROS2: "/robot:fuzz"}
 
 
 async def call(client: Client, service: str, args: dict[str, Any], tag: str) -> Any:
@@ -55,7 +56,9 @@ async def test_every_grammar_text_is_answered_and_parameters_stay_readable(
     rng = random.Random(7)
     default_key = "default" if dialect is Dialect.ROS1 else "default_value"
     with anyio.fail_after(TIMEOUT_S):
-        async with running_server(graph=Graph(TypeRegistry(dialect))) as harness:
+        graph = Graph(TypeRegistry(dialect))
+        graph.create_publisher("/robot/state", "std_msgs/msg/String", node="/robot")
+        async with running_server(graph=graph) as harness:
             sender = await harness.connect("ws", "sender")
             reader = await harness.connect("ws", "reader")
             for index, gen in enumerate(grammar.PARAM_TEXTS):
@@ -63,7 +66,7 @@ async def test_every_grammar_text_is_answered_and_parameters_stay_readable(
                 args = {"name": NAME[dialect], "value": text}
                 reply = await call(sender, "set_param", args, f"set{index}")
                 assert reply["op"] == "service_response", reply
-                args = {"name": "/unset" if dialect is Dialect.ROS1 else "/rosapi:unset"}
+                args = {"name": "/unset" if dialect is Dialect.ROS1 else "/robot:unset"}
                 reply = await call(sender, "get_param", {**args, default_key: text}, f"get{index}")
                 assert reply["result"] is True, (index, reply)
                 json.loads(reply["values"]["value"])

@@ -7,10 +7,16 @@ parameter services would (tests/ros2/test_param_shares.py runs a real rclpy node
 from __future__ import annotations
 
 import logging
+import math
 from typing import TYPE_CHECKING
 
 from rwt_graph.graph import Graph
-from rwt_graph.parameters.replicas import MAX_RETRY_REFRESHES, ParamReplicas
+from rwt_graph.parameters.replicas import (
+    FETCH_SLICE,
+    MAX_RETRY_REFRESHES,
+    REFRESH_NAMES,
+    ParamReplicas,
+)
 from rwt_graph.parameters.wire import to_wire
 
 if TYPE_CHECKING:
@@ -26,9 +32,11 @@ class FakeNode:
         self.name = name
         self.values = values
         self.asked: list[list[str]] = []  # the names of each get_parameters
+        self.listed = 0  # list_parameters calls
         value_type = graph.registry.message("rcl_interfaces/msg/ParameterValue")
 
         def list_parameters(request: dict) -> dict:
+            self.listed += 1
             return {"result": {"names": list(self.values), "prefixes": []}}
 
         def get_parameters(request: dict) -> dict:
@@ -53,7 +61,9 @@ class FakeNode:
 
 
 def refresh(replicas: ParamReplicas, node: FakeNode, count: int) -> None:
-    for _ in range(count * REFRESH):
+    """Sweep for ``count`` refreshes: a node listing more names is refreshed less often."""
+    periods = max(1, math.ceil(len(node.values) / REFRESH_NAMES))
+    for _ in range(count * REFRESH * periods):
         replicas.sweep({node.name})
 
 
@@ -73,8 +83,11 @@ def test_a_node_listing_more_than_its_share_gets_its_first_names_and_others_keep
     names = graph.params.names()
     assert len(names) == share
     assert names[0] == "/big:p00000" and names[-1] == f"/big:p{share - 1:05}"
-    # names past the share are never fetched, so never tried and never refused
-    assert max(len(asked) for asked in node.asked) == share
+    # names past the share are never fetched, so never tried and never refused; the
+    # values come FETCH_SLICE names a call
+    asked = {name for names in node.asked for name in names}
+    assert asked == {f"p{n:05}" for n in range(share)}
+    assert max(len(names) for names in node.asked) == FETCH_SLICE
     graph.params.set("/other:gain", 2.5)  # another client's parameter has room
     assert graph.params.get("/other:gain") == 2.5
     [line] = partial_lines(caplog)
@@ -112,3 +125,19 @@ def test_a_value_the_store_refuses_is_tried_again_after_a_growing_wait(
     assert "expected <node>:<parameter>" in line
     replicas.close()
     node.close()
+
+
+def test_a_node_listing_many_names_is_refreshed_less_often() -> None:
+    graph = Graph()
+    small = FakeNode(graph, "/small", {"speed": 1.5})
+    big = FakeNode(graph, "/big", {f"p{n:05}": n for n in range(3 * REFRESH_NAMES)})
+    replicas = ParamReplicas(graph, "link:caller", refresh_sweeps=REFRESH)
+    for _ in range(1 + 12 * REFRESH):
+        replicas.sweep({small.name, big.name})
+    # the first sweep's refresh, then one each period (small) or each third period (big)
+    assert small.listed == 1 + 12
+    assert big.listed == 1 + 12 // 3
+    assert graph.params.get("/big:p01499") == 1499  # its copy is whole all the same
+    replicas.close()
+    small.close()
+    big.close()

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 
 import pytest
 
@@ -35,9 +37,9 @@ def test_declared_type_is_kept_and_ints_widen_to_float() -> None:
     params.set("/n:speed", 2)
     assert params.get("/n:speed") == 2.0 and isinstance(params.get("/n:speed"), float)
     params.set("/n:gains", [1, 2.5])
-    assert params.get("/n:gains") == [1.0, 2.5]
+    assert params.get("/n:gains") == (1.0, 2.5)
     params.set("/n:gains", [])
-    assert params.get("/n:gains") == []
+    assert params.get("/n:gains") == ()
     with pytest.raises(ParameterError, match="has type double, not string"):
         params.set("/n:speed", "fast")
     with pytest.raises(ParameterError, match="has type string, not integer"):
@@ -51,7 +53,7 @@ def test_undeclared_and_dynamically_typed_parameters_change_type() -> None:
     params.set("/n:free", "one")
     params.declare("/n", {"dyn": True}, dynamic_typing=True)
     params.set("/n:dyn", [1, 2])
-    assert params.get("/n:free") == "one" and params.get("/n:dyn") == [1, 2]
+    assert params.get("/n:free") == "one" and params.get("/n:dyn") == (1, 2)
 
 
 def test_read_only_parameters_refuse_set_and_delete() -> None:
@@ -105,15 +107,30 @@ def test_get_default_has_and_delete() -> None:
         params.delete("/n:p")
 
 
-def test_values_are_copies_both_ways() -> None:
-    params = Parameters()
+def test_values_are_held_frozen_and_shared_not_copied() -> None:
+    params = Parameters(Dialect.ROS2)
     mine = [1, 2]
     params.set("/n:list", mine)
-    mine.append(3)
+    mine.append(3)  # the caller's list is not the store's
     got = params.get("/n:list")
-    assert isinstance(got, list)
-    got.append(4)
-    assert params.get("/n:list") == [1, 2]
+    assert got == (1, 2) and params.get("/n:list") is got  # the held value, every time
+    seen: list[object] = []
+    params.watch(lambda name, value: seen.append(value))
+    params.watch(lambda name, value: seen.append(value))
+    params.set("/n:list", list(range(1000)))
+    assert seen[0] is seen[1] is params.get("/n:list")  # one object for every watcher
+    tree = ros1()
+    tree.set("/arm", {"joints": [1, 2], "name": "ur5"})
+    arm = tree.get("/arm")
+    assert arm == {"joints": (1, 2), "name": "ur5"} and tree.get("/arm") is arm
+    with pytest.raises(TypeError, match="cannot be changed"):
+        arm["name"] = "other"  # type: ignore[index]
+    with pytest.raises(TypeError, match="cannot be changed"):
+        arm.update(name="other")  # type: ignore[attr-defined]
+    tree.set("/arm/name", "ur10")
+    assert arm == {"joints": (1, 2), "name": "ur5"}  # what a reader got stays as it was
+    assert tree.get("/arm") == {"joints": (1, 2), "name": "ur10"}
+    assert copy.deepcopy(arm) is arm and pickle.loads(pickle.dumps(arm)) == arm
 
 
 def test_watchers_hear_sets_and_deletes_until_stopped() -> None:
@@ -131,6 +148,35 @@ def test_watchers_hear_sets_and_deletes_until_stopped() -> None:
     stop()
     params.set("/n:b", 3)
     assert seen == [("/n:a", 1), ("/n:a", 2), ("/n:a", None)]
+
+
+def test_a_watcher_of_one_name_hears_that_name_alone() -> None:
+    params = Parameters()
+    heard: list[tuple[str, object]] = []
+    stop = params.watch(lambda name, value: heard.append((name, value)), key="/n:speed")
+    params.set("/n:speed", 1.5)
+    params.set("/n:other", 2)  # not called at all for another name
+    params.delete("/n:speed")
+    stop()
+    params.set("/n:speed", 3.0)
+    assert heard == [("/n:speed", 1.5), ("/n:speed", None)]
+
+
+def test_large_arrays_are_checked_whole_and_a_bad_item_is_named() -> None:
+    params = Parameters(max_bytes=64 * 1024 * 1024, node_share=1)
+    params.set("/n:ints", list(range(1_000_000)))
+    assert params.get("/n:ints")[-1] == 999_999  # type: ignore[index]
+    with pytest.raises(ParameterError, match=r"integer 9223372036854775808 does not fit"):
+        params.set("/n:ints", [*range(1000), 2**63])
+    with pytest.raises(ParameterError, match="not valid Unicode"):
+        params.set("/n:texts", ["ok"] * 1000 + ["\ud800"])
+    with pytest.raises(ParameterError, match="must have one type"):
+        params.set("/n:mixed", [1, True])
+    params.set("/n:doubles", [1, 2.5, *range(1000)])  # ints among floats: a double array
+    assert set(map(type, params.get("/n:doubles"))) == {float}  # type: ignore[arg-type]
+    info = params.describe("/n:doubles")
+    assert info is not None and info.kind == "double_array"
+    assert params.get("/n:ints") == tuple(range(1_000_000))  # the refused sets changed nothing
 
 
 def test_the_store_is_bounded() -> None:
@@ -233,7 +279,7 @@ def test_byte_arrays_are_bytes_of_their_own_kind() -> None:
     with pytest.raises(ParameterError, match="has type integer_array, not byte_array"):
         params.set("/n:ids", b"\x01")
     params.set("/n:free", [1, 2])  # dynamic typing: now an integer array
-    assert params.get("/n:free") == [1, 2]
+    assert params.get("/n:free") == (1, 2)
     with pytest.raises(ParameterError, match="not bytes"):
         params.set("/n:p", [b"\x01"])  # rclpy's list of single bytes is no value here
 
@@ -267,7 +313,7 @@ def test_ros1_names_are_global_and_namespaces_are_dicts() -> None:
     assert params.names() == ["/robot/arm/joints", "/robot/arm/names", "/robot/speed"]
     assert params.get("/robot") == {
         "speed": 1.5,
-        "arm": {"joints": 6, "names": ["a", 1, True]},
+        "arm": {"joints": 6, "names": ("a", 1, True)},
     }
     assert params.has("/robot/arm") and not params.has("/robot/leg")
     params.delete("/robot/arm")
@@ -282,6 +328,16 @@ def test_ros1_declare_uses_the_node_namespace_and_search_finds_globals() -> None
     assert params.get("/camera/fps") == 30
     assert params.search("camera/fps") == "/camera/fps"
     assert params.search("nothing") == ""
+
+
+def test_ros1_a_leaf_a_namespace_replaces_gives_back_its_bytes() -> None:
+    params = Parameters(Dialect.ROS1, max_bytes=150)
+    params.set("/a", "x" * 100)
+    params.set("/a/b", 1)  # /a is now a namespace: its 100 bytes are free again
+    params.set("/c", "y" * 100)
+    assert params.get("/") == {"a": {"b": 1}, "c": "y" * 100}
+    params.delete("/a/b")  # an empty namespace stays, and counts as one parameter
+    assert params.get("/a") == {} and params.names() == ["/c"]
 
 
 def test_ros1_setting_under_a_value_makes_it_a_namespace() -> None:

@@ -40,14 +40,17 @@ HOSTILE = {
     "5000 digits": ("7" * 5000, "invalid JSON"),
 }
 
-#: A parameter name each dialect accepts on a fresh server (ROS 2: on a node that exists).
-NAMES = {Dialect.ROS1: "/robot/bad", Dialect.ROS2: "/rosapi:bad"}
-GOOD = {Dialect.ROS1: "/robot/speed", Dialect.ROS2: "/rosapi:speed"}
+#: A parameter name each dialect accepts on a fresh server (ROS 2: on a node that exists
+#: and is the robot's, not the server's: docs/decisions.md, D34).
+NAMES = {Dialect.ROS1: "/robot/bad", Dialect.ROS2: "/robot:bad"}
+GOOD = {Dialect.ROS1: "/robot/speed", Dialect.ROS2: "/robot:speed"}
 
 
 @asynccontextmanager
 async def server_in(dialect: Dialect) -> AsyncIterator[Harness]:
-    async with running_server(graph=Graph(TypeRegistry(dialect))) as harness:
+    graph = Graph(TypeRegistry(dialect))
+    graph.create_publisher("/robot/state", "std_msgs/msg/String", node="/robot")
+    async with running_server(graph=graph) as harness:
         yield harness
 
 
@@ -118,13 +121,13 @@ async def test_nan_and_infinity_from_python_clients_are_kept_and_read_back_as_nu
     with anyio.fail_after(TIMEOUT_S):
         async with server_in(Dialect.ROS2) as harness:
             client = await harness.connect("ws")
-            reply = await set_param(client, "/rosapi:gain", "[NaN, Infinity, 1]", "nan")
+            reply = await set_param(client, "/robot:gain", "[NaN, Infinity, 1]", "nan")
             assert reply["values"]["successful"] is True, reply
-            stored = harness.server.graph.params.get("/rosapi:gain")
-            assert isinstance(stored, list) and stored[1:] == [math.inf, 1]
+            stored = harness.server.graph.params.get("/robot:gain")
+            assert isinstance(stored, tuple) and stored[1:] == (math.inf, 1)
             assert isinstance(stored[0], float) and math.isnan(stored[0])
             reply = await rosapi(
-                client, "get_param", {"name": "/rosapi:gain", "default_value": ""}, "g"
+                client, "get_param", {"name": "/robot:gain", "default_value": ""}, "g"
             )
             assert json.loads(reply["values"]["value"]) == [None, None, 1.0]  # D10
 
@@ -193,3 +196,58 @@ async def test_a_flood_of_deep_values_logs_little_and_others_are_served(
             logged = [r for r in caplog.records if r.name.startswith("rwt")]
             assert len(logged) <= 5, [r.getMessage()[:200] for r in logged]
             assert sum(len(r.getMessage()) + len(r.exc_text or "") for r in logged) < 2000
+
+
+async def own_node(client: Client, tag: str) -> str:
+    """The node of ``client``'s connection: the publisher of a topic it advertises."""
+    await client.send({"op": "advertise", "topic": f"/owner_{tag}", "type": "std_msgs/String"})
+    reply = await rosapi(client, "publishers", {"topic": f"/owner_{tag}"}, f"who_{tag}")
+    [node] = reply["values"]["publishers"]
+    return str(node)
+
+
+async def test_one_client_cannot_fill_the_store_on_every_node_it_can_name() -> None:
+    per_node = 700  # 2,800 in all, past its share of 1,250 (the store holds 10,000)
+    with anyio.fail_after(120):
+        async with server_in(Dialect.ROS2) as harness:
+            params = harness.server.graph.params
+            flood = await harness.connect("ws", "flood")
+            bystander = await harness.connect("ws", "bystander")
+            mine, theirs = await own_node(flood, "flood"), await own_node(bystander, "by")
+            targets = [mine, theirs, "/rosapi", "/robot"]
+            for node in targets:  # sent at once, answered in order
+                for n in range(per_node):
+                    args = {"name": f"{node}:p{n:04}", "value": str(n)}
+                    call = {"op": "call_service", "service": "/rosapi/set_param", "args": args}
+                    await flood.send({**call, "id": f"{node}:{n}"})
+            replies = [
+                await flood.expect(lambda m: m.get("op") == "service_response")
+                for _ in range(per_node * len(targets))
+            ]
+            taken = [r["id"] for r in replies if r["values"]["successful"]]
+            reasons = {r["values"]["reason"].split(":")[0] for r in replies if r["id"] not in taken}
+            # its own node, then the robot's until its share was spent; never the others'
+            share = params.max_client_params
+            assert len(taken) == share == 1250
+            assert taken[:per_node] == [f"{mine}:{n}" for n in range(per_node)]
+            assert all(each.startswith("/robot:") for each in taken[per_node:])
+            assert reasons == {
+                "this client holds its share of the parameter store (1250 parameters)",
+                f"node {theirs} is another client's",
+                "node /rosapi is the server's",
+            }
+            # the bystander's own set goes on, and it is served
+            reply = await set_param(bystander, f"{theirs}:speed", "1.5", "by")
+            assert accepted(reply, Dialect.ROS2)
+            assert (await rosapi(bystander, "get_time", {}, "t"))["result"] is True
+            await flood.aclose()
+            # the flood's node goes with it; what it left on the robot stays, within a share
+            for n in range(200):
+                reply = await rosapi(bystander, "get_param_names", {}, f"n{n}")
+                names = reply["values"]["names"]
+                if not any(name.startswith(f"{mine}:") for name in names):
+                    break
+                await anyio.sleep(0.05)
+            assert not any(name.startswith(f"{mine}:") for name in names)
+            assert sum(name.startswith("/robot:") for name in names) == share - per_node
+            assert f"{theirs}:speed" in names

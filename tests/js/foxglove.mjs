@@ -17,8 +17,9 @@
 //   services URL              call /fg_add, /fg_refuse and /fg_hold (roslibpy providers) and
 //                             a few bad calls at once; signal "answered" when all but the
 //                             /fg_hold call are; report each answer by call id, in order
-//   params URL                set and get parameters of /rosapi, subscribe to them, signal
-//                             "subscribed", then report the updates from rosapi and another client
+//   params URL                set and get parameters of its own node, subscribe to them, signal
+//                             "subscribed" (with the node), then report the updates from rosapi
+//                             and another client
 //   graph URL                 follow the connection graph; signal "following", report
 //                             /fg_graph_topic's publishers, signal "seen", report it removed
 //   latched URL TOPIC         subscribe to TOPIC (a latched topic already published); report
@@ -366,36 +367,46 @@ async function params() {
   const fox = foxglove(["foxglove.sdk.v1"]);
   const other = foxglove(["foxglove.sdk.v1"]);
   const { info } = await fox.next((e) => e.kind === "serverInfo", "serverInfo");
+  // a client creates parameters on its own node (docs/decisions.md, D34): the node the
+  // connection graph names as the publisher of a channel it advertises
+  fox.client.advertise({ topic: "/fg_params_owner", encoding: "json", schemaName: "std_msgs/msg/String" });
+  fox.client.subscribeConnectionGraph();
+  const owned = (e) => e.kind === "graph" && e.update.publishedTopics.some((t) => t.name === "/fg_params_owner");
+  const { update } = await fox.next(owned, "its own node in the connection graph");
+  const node = update.publishedTopics.find((t) => t.name === "/fg_params_owner").publisherIds[0];
+  fox.client.unsubscribeConnectionGraph();
   const values = (id) =>
     fox.next((e) => e.kind === "parameterValues" && e.values.id === id, `parameterValues ${id}`);
   fox.client.setParameters(
     [
-      { name: "/rosapi.fg_gain", value: 1, type: "float64" },
-      { name: "/rosapi.fg_mode", value: "auto" },
+      { name: `${node}.fg_gain`, value: 1, type: "float64" },
+      { name: `${node}.fg_mode`, value: "auto" },
       { name: "/fg_ghost.x", value: 1 },
+      { name: "/rosapi.fg_gain", value: 1 },
     ],
     "set1",
   );
   const { status } = await fox.next((e) => e.kind === "status", "the ghost node's status");
+  const { status: server } = await fox.next((e) => e.kind === "status", "the server node's status");
   const set = (await values("set1")).values.parameters;
-  fox.client.getParameters(["/rosapi.fg_gain", "/rosapi.fg_mode", "/rosapi.fg_none"], "get1");
+  fox.client.getParameters([`${node}.fg_gain`, `${node}.fg_mode`, `${node}.fg_none`], "get1");
   const got = (await values("get1")).values.parameters;
-  fox.client.subscribeParameterUpdates(["/rosapi.fg_gain", "/rosapi.fg_mode"]);
+  fox.client.subscribeParameterUpdates([`${node}.fg_gain`, `${node}.fg_mode`]);
   fox.client.getParameters([], "probe"); // answered after the subscription is in
   await values("probe");
-  signal("subscribed");
-  const update = (name) =>
+  process.stdout.write(`${JSON.stringify({ event: "subscribed", node })}\n`);
+  const changeOf = (name) =>
     fox.next(
       (e) => e.kind === "parameterValues" && e.values.id === undefined && e.values.parameters.some((p) => p.name === name),
       `the update of ${name}`,
     );
-  const fromRosapi = (await update("/rosapi.fg_gain")).values.parameters;
+  const fromRosapi = (await changeOf(`${node}.fg_gain`)).values.parameters;
   await other.next((e) => e.kind === "serverInfo", "the other's serverInfo");
-  other.client.setParameters([{ name: "/rosapi.fg_mode", value: "manual" }]);
-  const fromOther = (await update("/rosapi.fg_mode")).values.parameters;
+  other.client.setParameters([{ name: `${node}.fg_mode`, value: "manual" }]); // a change: allowed
+  const fromOther = (await changeOf(`${node}.fg_mode`)).values.parameters;
   fox.client.close();
   other.client.close();
-  return { capabilities: info.capabilities, status, set, got, fromRosapi, fromOther };
+  return { capabilities: info.capabilities, node, status, server, set, got, fromRosapi, fromOther };
 }
 
 async function graph() {

@@ -159,9 +159,10 @@ def serve_ros2(tmp: Path, *args: str) -> ServerProcess:
 
 
 def roslibpy_prelude(port: int) -> str:
-    """The start of a roslibpy script connected to ``port`` (``ros``, ``wait_for``)."""
+    """The start of a roslibpy script connected to ``port`` (``ros``, ``wait_for``,
+    ``own_node()``: the connection's node, where it may create parameters, D34)."""
     return f"""
-import json, time
+import json, os, time
 import roslibpy
 ros = roslibpy.Ros("127.0.0.1", {port})
 ros.run(timeout=20)
@@ -171,6 +172,15 @@ def wait_for(predicate, within=20.0):
     while not predicate() and time.monotonic() < end:
         time.sleep(0.05)
     return predicate()
+
+def own_node():
+    topic = f"/owner_{{os.getpid()}}"
+    roslibpy.Topic(ros, topic, "std_msgs/String").advertise()
+    publishers = roslibpy.Service(ros, "/rosapi/publishers", "rosapi_msgs/srv/Publishers")
+    found = []
+    ask = lambda: publishers.call(roslibpy.ServiceRequest({{"topic": topic}}), timeout=10)
+    wait_for(lambda: found.extend(ask()["publishers"]) or found)
+    return found[0]
 """
 
 

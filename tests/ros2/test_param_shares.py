@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import time
 from typing import TYPE_CHECKING
 
 import pytest
+from websockets.sync.client import ClientConnection, connect
 
 from rwt_graph.parameters.store import Parameters
 from tests.support.realclients import run_python
@@ -17,7 +19,7 @@ if TYPE_CHECKING:
 
     from tests.integration.client_harness import ServerProcess
 
-pytestmark = [pytest.mark.anyio, skip_without_rclpy()]
+pytestmark = [skip_without_rclpy()]
 
 SHARE = Parameters().max_node_params  # the store `rwt serve` makes has the default share
 CROWD = SHARE + 500
@@ -38,7 +40,7 @@ other = wait_for(lambda: "/robot_params:speed" in listed(), 60)
 ticking = roslibpy.Param(ros, "/crowded:p00000")
 seen = set()
 wait_for(lambda: seen.add(ticking.get(timeout=20)) or len(seen) >= 4, 60)
-gain = roslibpy.Param(ros, "/rosbridge_websocket:gain")  # a client's, on a node the graph has
+gain = roslibpy.Param(ros, f"{{own_node()}}:gain")  # a client's, on its own node (D34)
 gain.set(2.5, timeout=20)
 mine = crowded()
 numbered = sorted(name for name in mine if name.startswith("/crowded:p"))
@@ -55,6 +57,7 @@ ros.terminate()
 """
 
 
+@pytest.mark.anyio
 async def test_a_node_past_its_share_leaves_the_store_to_others_and_logs_once(
     server: ServerProcess, ros_env: Path
 ) -> None:
@@ -78,3 +81,48 @@ async def test_a_node_past_its_share_leaves_the_store_to_others_and_logs_once(
     assert log.count("event=param_copy_partial node=/crowded") == 1, log[-3000:]
     assert f"node=/crowded held={SHARE} left_out=" in log
     assert "replacing" not in log and "Traceback" not in log, log[-3000:]
+
+
+def _has(ws: ClientConnection, name: str, call_id: str) -> bool:
+    call = {"op": "call_service", "service": "/rosapi/has_param", "args": {"name": name}}
+    ws.send(json.dumps({**call, "id": call_id}))
+    while True:
+        reply = json.loads(ws.recv(timeout=20))
+        if reply.get("id") == call_id:
+            return bool(reply["values"]["exists"])
+
+
+def test_a_bystander_is_answered_while_thousands_of_parameters_load(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    first, late = "/loading:p00000", "/loading:p02000"  # both within the node's share
+    partial = 0  # answers that saw the copy begun and not yet done
+    calls = 0
+    with (
+        connect(f"ws://127.0.0.1:{server.port}", max_size=None) as ws,
+        peers(ros_env, ("many_params", "loading", str(CROWD))),
+    ):
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            calls += 1
+            if not _has(ws, first, f"f{calls}"):
+                continue
+            if _has(ws, late, f"l{calls}"):
+                break
+            partial += 1  # p00000 was there, and p02000 still was not
+        names: list[str] = []
+        while time.monotonic() < end and len(names) < SHARE - 10:  # the rest of the copy
+            names = [n for n in _names(ws) if n.startswith("/loading:p")]
+    # the copy came in slices, with the bystander's calls answered between them
+    # (FETCH_SLICE: 25 slices of the first 2,500); one copy in one turn: no such answer
+    assert late in names and len(names) >= SHARE - 10
+    assert partial >= 1, (partial, calls)
+
+
+def _names(ws: ClientConnection) -> list[str]:
+    call = {"op": "call_service", "service": "/rosapi/get_param_names", "id": "names"}
+    ws.send(json.dumps(call))
+    while True:
+        reply = json.loads(ws.recv(timeout=20))
+        if reply.get("id") == "names":
+            return list(reply["values"]["names"])

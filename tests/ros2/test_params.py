@@ -41,9 +41,10 @@ async def test_rosapi_reads_and_sets_a_ros2_nodes_parameters(
 
 
 WEB_PARAMS = """
-gain = roslibpy.Param(ros, "/rosbridge_websocket:gain")  # a node the graph has
+node = own_node()  # where a client creates parameters (docs/decisions.md, D34)
+gain = roslibpy.Param(ros, f"{node}:gain")
 gain.set(2.5, timeout=10)
-print(json.dumps({"set": True}), flush=True)
+print(json.dumps({"set": node}), flush=True)
 input()  # the ROS 2 node reads it and sets it to 7 meanwhile
 print(json.dumps({"now": gain.get(timeout=10)}))
 ros.terminate()
@@ -59,8 +60,8 @@ async def test_a_ros2_node_reads_and_sets_parameters_a_rosbridge_client_set(
         assert client.stdout is not None and client.stdin is not None
         lines = JsonLines(client.stdout)
         with anyio.fail_after(20):
-            assert await lines.next() == {"set": True}
-        with Peer("param_client", "/rosbridge_websocket", ros_env) as ros2:
+            node = (await lines.next())["set"]
+        with Peer("param_client", node, ros_env) as ros2:
             got = await anyio.to_thread.run_sync(ros2.next)
             put = await anyio.to_thread.run_sync(ros2.next)
         await client.stdin.send(b"\n")
@@ -72,13 +73,14 @@ async def test_a_ros2_node_reads_and_sets_parameters_a_rosbridge_client_set(
 
 
 TUNING = """
-params = {n: roslibpy.Param(ros, f"/rosbridge_websocket:{n}") for n in ("volume", "style", "spare")}
+node = own_node()
+params = {n: roslibpy.Param(ros, f"{node}:{n}") for n in ("volume", "style", "spare")}
 for param, value in zip(params.values(), (2.5, "auto", 1)):
     param.set(value, timeout=10)
-print(json.dumps({"set": True}), flush=True)
+print(json.dumps({"set": node}), flush=True)
 input()  # the ROS 2 node describes them and sets them atomically meanwhile
 names = roslibpy.Service(ros, "/rosapi/get_param_names", "rosapi_msgs/srv/GetParamNames")
-ours = [f"/rosbridge_websocket:{n}" for n in params]
+ours = [f"{node}:{n}" for n in params]
 listed = [n for n in names.call(roslibpy.ServiceRequest({}))["names"] if n in ours]
 now = [params["volume"].get(timeout=10), params["style"].get(timeout=10)]
 print(json.dumps({"now": now, "listed": listed}))
@@ -95,8 +97,8 @@ async def test_a_ros2_node_describes_and_sets_atomically_parameters_a_rosbridge_
         assert client.stdout is not None and client.stdin is not None
         lines = JsonLines(client.stdout)
         with anyio.fail_after(20):
-            assert await lines.next() == {"set": True}
-        with Peer("param_suite", "/rosbridge_websocket", ros_env) as ros2:
+            node = (await lines.next())["set"]
+        with Peer("param_suite", node, ros_env) as ros2:
             described = await anyio.to_thread.run_sync(ros2.next)
             types = await anyio.to_thread.run_sync(ros2.next)
             atomic = await anyio.to_thread.run_sync(ros2.next)
@@ -113,14 +115,9 @@ async def test_a_ros2_node_describes_and_sets_atomically_parameters_a_rosbridge_
         ]
     }
     assert types == {"types": [3, 4, 0]}  # DOUBLE, STRING, NOT_SET: what rclpy answers
-    assert atomic == {
-        "atomic": [[False, "parameter /rosbridge_websocket:nope is not set"], [True, ""]]
-    }
+    assert atomic == {"atomic": [[False, f"parameter {node}:nope is not set"], [True, ""]]}
     # the refused set changed nothing (style stays "auto"); the other made both changes
-    assert now == {
-        "now": [7.0, "auto"],
-        "listed": ["/rosbridge_websocket:style", "/rosbridge_websocket:volume"],
-    }
+    assert now == {"now": [7.0, "auto"], "listed": [f"{node}:style", f"{node}:volume"]}
 
 
 REFUSALS = """

@@ -58,11 +58,36 @@ def test_set_param_is_seen_by_python_and_by_clients(robot: Graph, web: Peer) -> 
 
 def test_set_param_creates_a_parameter_on_an_existing_node(robot: Graph, web: Peer) -> None:
     assert call(web, "/rosapi/set_param", name="/robot:lights", value="[true, false]") == OK
-    assert robot.params.get("/robot:lights") == [True, False]
+    assert robot.params.get("/robot:lights") == (True, False)
     web.send(op="advertise", topic="/x", type="std_msgs/String")
     assert call(web, "/rosapi/set_param", name="/rwt_client_1:mine", value='"yes"') == OK
     assert robot.params.get("/rwt_client_1:mine") == "yes"
     assert "/rwt_client_1:mine" in call(web, "/rosapi/get_param_names")["names"]
+
+
+def test_a_client_creates_on_its_own_node_or_the_robots_and_is_charged_for_it(
+    robot: Graph, web: Peer
+) -> None:
+    other = connect(robot, "other")  # /rwt_client_2
+    refused = {
+        "/rosapi:x": "node /rosapi is the server's: no client creates parameters on it",
+        "/rwt_client_2:x": "node /rwt_client_2 is another client's: a client creates "
+        "parameters on its own node or on the robot's",
+    }
+    for name, reason in refused.items():
+        reply = call(web, "/rosapi/set_param", name=name, value="1")
+        assert reply == {"successful": False, "reason": reason}
+    assert call(other, "/rosapi/set_param", name="/rwt_client_2:x", value="1") == OK
+    assert call(web, "/rosapi/set_param", name="/rwt_client_1:x", value='"abc"') == OK
+    assert call(web, "/rosapi/set_param", name="/robot:fresh", value="2") == OK
+    assert call(web, "/rosapi/set_param", name="/robot:max_speed", value="2.5") == OK
+    assert robot.params.held_by("web") == (3, 3 + 8 + 8)  # each value's bytes
+    assert robot.params.held_by("other") == (1, 8)
+    web.session.close()  # it disconnects: its node goes, what it set on the robot stays
+    names = call(other, "/rosapi/get_param_names")["names"]
+    assert "/rwt_client_1:x" not in names and "/robot:fresh" in names
+    assert call(other, "/rosapi/get_param", name="/robot:max_speed")["value"] == "2.5"
+    assert robot.params.held_by("web") == (0, 0)
 
 
 @pytest.mark.parametrize(

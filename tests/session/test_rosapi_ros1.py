@@ -76,7 +76,7 @@ def test_params_are_global_names_with_namespaces(ros1: Graph, web: Peer) -> None
         "arm": {"joints": 6},
     }
     assert call(web, "/rosapi/set_param", name="robot/arm/names", value='["a", 2, true]') == {}
-    assert ros1.params.get("/robot/arm/names") == ["a", 2, True]
+    assert ros1.params.get("/robot/arm/names") == ("a", 2, True)
     assert call(web, "/rosapi/has_param", name="/robot/arm") == {"exists": True}
     assert call(web, "/rosapi/search_param", name="robot/max_speed") == {
         "global_name": "/robot/max_speed"
@@ -124,3 +124,20 @@ def test_actionlib_topic_sets_count_as_action_servers(ros1: Graph, web: Peer) ->
     assert call(web, "/rosapi/action_servers") == {"action_servers": []}
     web.send(op="advertise", topic=f"{ns}/result", type="std_msgs/String")
     assert call(web, "/rosapi/action_servers") == {"action_servers": [ns]}
+
+
+def test_a_namespace_past_one_answer_is_refused_with_how_to_ask(ros1: Graph, web: Peer) -> None:
+    blob = "x" * (1024 * 1024)
+    for n in range(5):  # 5 MiB under /maps: more than one answer carries (4 MiB)
+        ros1.params.set(f"/maps/m{n}", blob)
+    reply = call_raw(web, "/rosapi/get_param", name="/", default="")  # 60 bytes of request
+    assert reply["result"] is False
+    assert reply["values"] == (
+        "service /rosapi/get_param failed: the namespace / holds more than one answer "
+        "carries (4194304 bytes of JSON): get the namespaces and parameters in it by name "
+        "(get_param_names lists them)"
+    )
+    assert len(call(web, "/rosapi/get_param_names")["names"]) == 7
+    assert json.loads(call(web, "/rosapi/get_param", name="/maps/m4", default="")["value"]) == blob
+    robot = call(web, "/rosapi/get_param", name="/robot", default="")  # a namespace that fits
+    assert json.loads(robot["value"]) == {"max_speed": 1.5, "arm": {"joints": 6}}

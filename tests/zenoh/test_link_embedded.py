@@ -269,7 +269,7 @@ async def test_parameters_of_a_node_of_one_graph_are_read_and_set_from_the_other
         # a node shows in rosapi with its parameters, read through its parameter services
         await until(lambda: a.params.get("/camera:name", None) == "front", "replica")
         assert a.params.get("/camera:fps") == 30
-        assert a.params.get("/camera:gains") == [1.5, 2.0]
+        assert a.params.get("/camera:gains") == (1.5, 2.0)
         assert "/camera" in node_names(a)
         # set on A (what rosapi set_param does): it reaches the node on B
         a.params.set("/camera:fps", 15)

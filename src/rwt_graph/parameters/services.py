@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .store import ParameterError, value_size
+from .values import ParameterError, value_size
 from .wire import from_wire, to_wire, type_code
 
 if TYPE_CHECKING:
@@ -47,8 +47,7 @@ def param_nodes(graph: Graph) -> frozenset[str]:
 
 
 def _names_of(graph: Graph, node: str) -> list[str]:
-    prefix = f"{node}:"
-    return [name[len(prefix) :] for name in graph.params.names() if name.startswith(prefix)]
+    return sorted(graph.params.names_of(node))
 
 
 def _items(request: dict[str, object], field: str) -> list[object]:

@@ -2,42 +2,71 @@
 
 ROS 2 parameters belong to nodes and are named ``"<node>:<param>"`` on rosapi
 (``/robot:max_speed``). Their values are ``bool``, ``int`` (int64), ``float``,
-``str``, ``bytes`` (a byte array) or a list of one of the others. A parameter
-declared by Python code keeps its type (an ``int`` is accepted for a ``float``
-parameter and a list of octets for a byte array, converted, as D9 does for
-messages) and may be read-only; a parameter created by a plain ``set`` takes any
-type.
+``str``, ``bytes`` (a byte array) or a tuple of one of the others (a list given
+is held as a tuple). A parameter declared by Python code keeps its type (an
+``int`` is accepted for a ``float`` parameter and a list of octets for a byte
+array, converted, as D9 does for messages) and may be read-only; a parameter
+created by a plain ``set`` takes any type.
 
 ROS 1 parameters are one tree of global names (``/robot/max_speed``): a value
-may also be a dict (a namespace) or a list of mixed values; ``get`` of a
-namespace returns the dict; names list the leaves.
+may also be a namespace (a dict, held as ``FrozenNamespace``) or a tuple of mixed
+values; ``get`` of a namespace returns it; names list the leaves (``tree``).
 
-Every value handed in or out is copied, so callers cannot change the store
-behind its back. Watchers hear of every change.
+Values are checked once, when set, and then held frozen: ``get`` and every
+watcher get the held object itself, never a copy, and nobody can change it
+behind the store's back (``values``). A watcher of one name (``watch(key=...)``)
+costs nothing for a change of another.
+
+A client (a rosbridge or Foxglove connection) that sets a parameter is charged
+for it, within its share of the store (``CLIENT_SHARE``, ``shares``); it may
+create parameters only on a node that exists and is neither the server's
+(``SERVER_NODES``) nor another live client's. When it disconnects, the
+parameters of its own node go with the node, and the others it created outlive
+it, within one share for all that clients left behind (D34, docs/limits.md).
 """
 
 from __future__ import annotations
 
-import copy
 import logging
-import math
 from dataclasses import dataclass
-from enum import StrEnum
 from typing import TYPE_CHECKING, TypeAlias
 
 from rwt_protocol.codecs.json import valid_unicode
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
-from ..nodes import node_name
+from ..nodes import CLIENT_NODE_PREFIX, node_name
 from ..ratelog import EpisodeLog
 from ..types import Dialect
+from .shares import Shares
+from .tree import MISSING, Ros1Tree
+from .values import (
+    FrozenNamespace,
+    ParameterError,
+    ParameterNotSetError,
+    ParameterStoreFullError,
+    ParamKind,
+    ParamValue,
+    as_held,
+    json_text,
+    ros1_value,
+    ros2_value,
+    to_json_safe,
+    value_size,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Mapping, Sequence
 
+    from rwt_protocol.ports import ClientId
+
+    from ..nodes import Nodes
+
 __all__ = [
+    "CLIENT_SHARE",
     "NODE_SHARE",
+    "SERVER_NODES",
+    "FrozenNamespace",
     "NodeSetter",
     "ParamInfo",
     "ParamKind",
@@ -49,24 +78,22 @@ __all__ = [
     "Parameters",
     "as_held",
     "check_param_name",
+    "json_text",
+    "ros1_value",
+    "ros2_value",
+    "to_json_safe",
     "value_size",
 ]
 
 logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
-ParamValue: TypeAlias = (
-    "bool | int | float | str | bytes | list[ParamValue] | dict[str, ParamValue]"
-)
 ParamWatcher: TypeAlias = "Callable[[str, ParamValue | None], None]"
-"""Called with ``(name, value)`` after each change; ``value`` is None for a deletion."""
+"""Called with ``(name, value)`` after each change; ``value`` is None for a deletion.
+``value`` is the held (frozen) value itself, shared with every other reader."""
 NodeSetter: TypeAlias = "Callable[[str, ParamValue], Awaitable[tuple[bool, str]]]"
 """Sets ``(param, value)`` on the node that owns the parameters, not in the store; answers
 ``(successful, reason)`` as the node did (``Parameters.owned_by``)."""
-
-_INT64 = (-(2**63), 2**63 - 1)
-_INT32 = (-(2**31), 2**31 - 1)  # XML-RPC integers of the ROS 1 parameter server
-_MISSING = object()
 
 NODE_SHARE = 0.25
 """The fraction of the store's parameters and of its bytes one ROS 2 node may hold.
@@ -75,40 +102,19 @@ A node copied from ROS 2 or Zenoh (``replicas``) lists whatever it
 declares; without a share one node could fill the store, and every other
 client's ``set_param`` would fail (docs/limits.md)."""
 
+CLIENT_SHARE = 0.125
+"""The fraction of the store's parameters and of its bytes one client may be charged.
 
-class ParameterError(GraphError):
-    """A parameter operation was refused: bad name, bad value, type change, read-only."""
+A client (a rosbridge or Foxglove connection, by its id in the graph) is charged
+for the parameters it set, on any node; so are, together, the parameters clients
+that disconnected left behind (``shares``). Without it one client could fill the
+store on every node it can name, and every other client's ``set_param`` would
+fail (docs/limits.md)."""
 
-
-class ParameterNotSetError(ParameterError):
-    """The parameter does not exist."""
-
-
-class ParameterStoreFullError(ParameterError):
-    """No room for it: the store is full, or the node holds its share (``NODE_SHARE``)."""
-
-
-class ParamKind(StrEnum):
-    """ROS 2 parameter types (``rcl_interfaces/msg/ParameterType``); EMPTY_ARRAY fits any array."""
-
-    BOOL = "bool"
-    INTEGER = "integer"
-    DOUBLE = "double"
-    STRING = "string"
-    BYTE_ARRAY = "byte_array"
-    BOOL_ARRAY = "bool_array"
-    INTEGER_ARRAY = "integer_array"
-    DOUBLE_ARRAY = "double_array"
-    STRING_ARRAY = "string_array"
-    EMPTY_ARRAY = "empty_array"
-
-
-_ARRAY_OF = {
-    ParamKind.BOOL: ParamKind.BOOL_ARRAY,
-    ParamKind.INTEGER: ParamKind.INTEGER_ARRAY,
-    ParamKind.DOUBLE: ParamKind.DOUBLE_ARRAY,
-    ParamKind.STRING: ParamKind.STRING_ARRAY,
-}
+SERVER_NODES = frozenset({"/rosapi", "/rosbridge_websocket", "/tf2_web_republisher"})
+"""The server's own nodes (rosapi's, the server's topics', the TF republisher's), on
+which no client may create parameters (``rwt_graph.rosapi.ROSAPI_NODE``,
+``rwt_transports.server.SERVER_NODE``, ``rwt_graph.tf.install.TF_NODE``)."""
 
 
 @dataclass(frozen=True)
@@ -125,116 +131,37 @@ class ParamInfo:
     dynamic_typing: bool
 
 
-@dataclass
+@dataclass(slots=True)
 class _Param:
     value: ParamValue
     kind: ParamKind
+    size: int  # value_size(value), counted once
     read_only: bool = False
     fixed_type: bool = False
-
-
-def _scalar_kind(value: object, what: str) -> ParamKind:
-    if isinstance(value, bool):
-        return ParamKind.BOOL
-    if isinstance(value, int):
-        if not _INT64[0] <= value <= _INT64[1]:
-            raise ParameterError(f"{what}: integer {value} does not fit in int64")
-        return ParamKind.INTEGER
-    if isinstance(value, float):
-        return ParamKind.DOUBLE
-    if isinstance(value, str):
-        _check_text(value, what)
-        return ParamKind.STRING
-    raise ParameterError(
-        f"{what}: a ROS 2 parameter is a bool, int, float, str, bytes or a list of bool, "
-        f"int, float or str, not {type(value).__name__}"
-    )
-
-
-def _check_text(value: str, what: str) -> None:
-    """Refuse a string no wire form holds (JSON, UTF-8, CDR), so every reader can read it."""
-    if not valid_unicode(value):
-        raise ParameterError(f"{what}: a string is not valid Unicode (lone surrogate)")
-
-
-def ros2_value(value: object, what: str = "value") -> tuple[ParamValue, ParamKind]:
-    """Check a ROS 2 parameter value; return it (copied, ints widened in float lists) and its kind.
-
-    ``bytes`` (or ``bytearray``) is a byte array (``ParameterType`` 5), held as ``bytes``.
-
-    Raises:
-        ParameterError: not a ROS 2 parameter value (dicts, None, nested or mixed lists,
-            a list of bytes).
-    """
-    if isinstance(value, bytes | bytearray):
-        return bytes(value), ParamKind.BYTE_ARRAY
-    if not isinstance(value, list | tuple):
-        return value, _scalar_kind(value, what)  # type: ignore[return-value]
-    if not value:
-        return [], ParamKind.EMPTY_ARRAY
-    kinds = {_scalar_kind(item, f"{what}[]") for item in value}
-    if kinds == {ParamKind.INTEGER, ParamKind.DOUBLE}:
-        return [float(item) for item in value], ParamKind.DOUBLE_ARRAY
-    if len(kinds) != 1:
-        raise ParameterError(f"{what}: the items of a ROS 2 array parameter must have one type")
-    return list(value), _ARRAY_OF[kinds.pop()]
-
-
-def ros1_value(value: object, what: str = "value") -> ParamValue:
-    """Check a ROS 1 parameter value (XML-RPC: no None, int32 integers); return a copy.
-
-    Raises:
-        ParameterError: None, a non-str dict key, an integer outside int32, another type.
-    """
-    if isinstance(value, str):
-        _check_text(value, what)
-        return value
-    if isinstance(value, bool | float):
-        return value
-    if isinstance(value, int):
-        if not _INT32[0] <= value <= _INT32[1]:
-            raise ParameterError(f"{what}: integer {value} does not fit in int32")
-        return value
-    if isinstance(value, list | tuple):
-        return [ros1_value(item, f"{what}[{i}]") for i, item in enumerate(value)]
-    if isinstance(value, dict):
-        out: dict[str, ParamValue] = {}
-        for key, item in value.items():
-            if not isinstance(key, str) or not key or "/" in key:
-                raise ParameterError(f"{what}: namespace keys are non-empty names, got {key!r}")
-            _check_text(key, what)
-            out[key] = ros1_value(item, f"{what}.{key}")
-        return out
-    raise ParameterError(f"{what}: a ROS 1 parameter cannot be {type(value).__name__}")
-
-
-def as_held(held: object, value: ParamValue) -> ParamValue:
-    """``value`` as bytes when ``held`` is a byte array and ``value`` a list of octets.
-
-    JSON has no bytes: rosapi's ``get_param`` answers a byte array as its octets
-    (``to_json_safe``), so a client writing back what it read sends a list of ints
-    0-255; for a byte-array parameter that is the same byte array (D9 reads a
-    ``byte[]`` field from JSON the same way). Any other value is returned as it is.
-    """
-    if not isinstance(held, bytes) or not isinstance(value, list):
-        return value
-    octets = [item for item in value if type(item) is int and 0 <= item <= 255]
-    return bytes(octets) if len(octets) == len(value) else value
 
 
 def _fit(param: _Param, value: ParamValue, kind: ParamKind, name: str) -> ParamValue:
     """The value to store in a parameter whose type is fixed (declared)."""
     if param.kind is ParamKind.BYTE_ARRAY and isinstance(octets := as_held(b"", value), bytes):
-        return octets  # the byte array itself, or a list of octets (or an empty list)
+        return octets  # the byte array itself, or a tuple of octets (or an empty one)
     if kind is param.kind or (param.kind is ParamKind.EMPTY_ARRAY and kind.endswith("array")):
         return value
     if param.kind is ParamKind.DOUBLE and kind is ParamKind.INTEGER:
         return float(value)  # type: ignore[arg-type]
     if param.kind is ParamKind.DOUBLE_ARRAY and kind is ParamKind.INTEGER_ARRAY:
-        return [float(item) for item in value]  # type: ignore[union-attr, arg-type]
+        return tuple(map(float, value))  # type: ignore[arg-type]
     if kind is ParamKind.EMPTY_ARRAY and param.kind.endswith("array"):
-        return []
+        return ()
     raise ParameterError(f"parameter {name} has type {param.kind}, not {kind}")
+
+
+_NUMBER_ARRAYS = frozenset({ParamKind.BOOL_ARRAY, ParamKind.INTEGER_ARRAY, ParamKind.DOUBLE_ARRAY})
+
+
+def _entry(value: ParamValue, kind: ParamKind, **rules: bool) -> _Param:
+    """A held entry; an array of numbers is sized by its length (8 bytes an item)."""
+    size = 8 * len(value) if kind in _NUMBER_ARRAYS else value_size(value)  # type: ignore[arg-type]
+    return _Param(value, kind, size, **rules)
 
 
 def _changed(entry: _Param | None, value: object, full: str) -> _Param:
@@ -246,12 +173,12 @@ def _changed(entry: _Param | None, value: object, full: str) -> _Param:
     """
     stored, kind = ros2_value(value, full)
     if entry is None:
-        return _Param(stored, kind)
+        return _entry(stored, kind)
     if entry.read_only:
         raise ParameterError(f"parameter {full} is read-only")
     if entry.fixed_type:
-        return _Param(_fit(entry, stored, kind, full), entry.kind, fixed_type=True)
-    return _Param(stored, kind)
+        return _entry(_fit(entry, stored, kind, full), entry.kind, fixed_type=True)
+    return _entry(stored, kind)
 
 
 def _planned(entry: _Param | None, name: str, value: object, full: str) -> _Param | None:
@@ -307,37 +234,28 @@ def check_param_name(name: str, *, ros1: bool) -> None:
         raise ParameterError(f"parameter name: {problem}")
 
 
-def to_json_safe(value: ParamValue) -> object:
-    """``value`` with non-finite floats as None and bytes as a list of octets, for JSON text (D10).
-
-    A byte array becomes its octets (ints 0-255), as a ``byte[]`` field of a
-    message goes out in JSON (docs/ros2.md, "Parameters").
-    """
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, bytes):
-        return list(value)
-    if isinstance(value, list):
-        return [to_json_safe(item) for item in value]
-    if isinstance(value, dict):
-        return {key: to_json_safe(item) for key, item in value.items()}
-    return value
-
-
 class Parameters:
     """The parameters of one graph, in the dialect's naming.
 
     Args:
         dialect: ROS 2 names ``"<node>:<param>"``; ROS 1 global names.
-        max_params: most parameters (ROS 1: leaves) the store holds; a ``set`` that
-            would go over is refused, so a client cannot grow it without bound.
+        max_params: most parameters (ROS 1: leaves and empty namespaces) the store
+            holds; a ``set`` that would go over is refused, so a client cannot grow
+            it without bound.
         max_bytes: most bytes all values may hold together (strings count their
-            UTF-8 bytes, byte arrays their length, numbers and bools 8); a ``set``
-            that would go over is refused (docs/limits.md).
+            UTF-8 bytes, byte arrays their length, a number or bool 8; ROS 1 leaves
+            also their last name token); a ``set`` that would go over is refused
+            (docs/limits.md).
         node_share: the fraction of ``max_params`` and of ``max_bytes`` one ROS 2
             node may hold (``max_node_params``, ``max_node_bytes``; at least one
             parameter and byte), so one node cannot fill the store; 1 lets a node
             hold all of it. ROS 1 names have no nodes and no share.
+        client_share: the fraction one client may be charged (``max_client_params``,
+            ``max_client_bytes``; ``CLIENT_SHARE``, at least one of each).
+        nodes: the graph's nodes (``Graph.nodes``): with them, a client may create
+            parameters only on a node that exists and is neither the server's nor
+            another client's, and what it set is released when it leaves (D34);
+            without them only the client's share applies.
     """
 
     def __init__(
@@ -347,19 +265,28 @@ class Parameters:
         max_params: int = 10_000,
         max_bytes: int = 64 * 1024 * 1024,
         node_share: float = NODE_SHARE,
+        client_share: float = CLIENT_SHARE,
+        nodes: Nodes | None = None,
     ) -> None:
         self.dialect = dialect
         self.max_params = max_params
         self.max_bytes = max_bytes
         self.max_node_params = max(1, int(max_params * node_share))
         self.max_node_bytes = max(1, int(max_bytes * node_share))
-        self._bytes = 0  # the values' sizes (``value_size``), kept up to date
+        self.max_client_params = max(1, int(max_params * client_share))
+        self.max_client_bytes = max(1, int(max_bytes * client_share))
+        self._bytes = 0  # ROS 2: the values' sizes (``value_size``), kept up to date
         self._nodes: dict[str, dict[str, _Param]] = {}  # ROS 2
         self._node_bytes: dict[str, int] = {}  # ROS 2: each node's part of ``_bytes``
         self._count = 0  # ROS 2 parameters held: a new one checks room without a walk
-        self._tree: dict[str, ParamValue] = {}  # ROS 1
+        self._tree = Ros1Tree()  # ROS 1
         self._watchers: list[ParamWatcher] = []
+        self._keyed: dict[str, list[ParamWatcher]] = {}  # key -> watchers of it alone
         self._owners: dict[str, NodeSetter] = {}  # ROS 2 nodes whose values are copies
+        self._shares = Shares(self.max_client_params, self.max_client_bytes)
+        self._graph_nodes = nodes
+        if nodes is not None:
+            nodes.on_forget.append(self._forgotten)
 
     @property
     def ros1(self) -> bool:
@@ -395,42 +322,57 @@ class Parameters:
             full = f"{node}:{name}"
             node_key, param = split_ros2_name(full)
             stored, kind = ros2_value(value, full)
-            self._check_room(node_key, param)
-            old = self._nodes.get(node_key, {}).get(param)
-            self._grow(stored, None if old is None else old.value, node_key)
-            entry = _Param(stored, kind, read_only=read_only, fixed_type=not dynamic_typing)
-            self._nodes.setdefault(node_key, {})[param] = entry
-            if old is None:
-                self._count += 1
-            self._notify(f"{node_key}:{param}", stored)
+            entry = _entry(stored, kind, read_only=read_only, fixed_type=not dynamic_typing)
+            self._put(node_key, param, entry, None)
 
-    def set(self, name: str, value: object) -> None:
+    def set(self, name: str, value: object, *, client: ClientId | None = None) -> None:
         """Set a parameter, creating it (and, in ROS 2, its node's entry) if needed.
 
+        Args:
+            name: ``<node>:<param>`` (ROS 2) or a global name (ROS 1).
+            value: the value, checked and held frozen (a list as a tuple).
+            client: the client that asks (a connection's id): charged for it within
+                its share, and (ROS 2) refused a parameter it would create on a node
+                that does not exist, is the server's or another live client's. None:
+                in-process code or a link, charged to nobody.
+
         Raises:
-            ParameterStoreFullError: the store is full, or the ROS 2 node holds
-                its share of it (``max_node_params``, ``max_node_bytes``).
+            ParameterStoreFullError: the store is full, the ROS 2 node holds its
+                share of it (``max_node_params``, ``max_node_bytes``), or the
+                client its own (``max_client_params``, ``max_client_bytes``).
             ParameterError: bad name or value, a type change of a declared ROS 2
-                parameter, a read-only parameter.
+                parameter, a read-only parameter, a node the client may not use.
         """
         check_param_name(name, ros1=self.ros1)
         if self.ros1:
-            key = resolve_name(name)
-            stored = ros1_value(value, key)
-            self._tree_set(key, stored)
-            self._notify(key, stored)
+            self._ros1_set(resolve_name(name), value, client)
             return
         node, param = split_ros2_name(name)
         full = f"{node}:{param}"
         entry = self._nodes.get(node, {}).get(param)
         new = _changed(entry, value, full)
+        if entry is None and client is not None:
+            self._check_creator(client, node)
+        self._put(node, param, new, client)
+
+    def _put(self, node: str, param: str, new: _Param, client: ClientId | None) -> None:
+        """Make ``node:param`` hold ``new``, set by ``client`` (None: in-process, a link).
+
+        Raises:
+            ParameterStoreFullError: no room in the store, the node's or the client's share.
+        """
+        key = f"{node}:{param}"
+        entry = self._nodes.get(node, {}).get(param)
         if entry is None:
             self._check_room(node, param)
-        self._grow(new.value, None if entry is None else entry.value, node)
+        if client is not None:
+            self._shares.check(client, {key: new.size})
+        self._grow(new.size, 0 if entry is None else entry.size, node)
         self._nodes.setdefault(node, {})[param] = new
         if entry is None:
             self._count += 1
-        self._notify(full, new.value)
+        self._shares.charge(key, client, new.size)
+        self._notify(key, new.value)
 
     def set_all(self, changes: Sequence[tuple[str, object]]) -> None:
         """Set ROS 2 parameters all at once, or none: ``(name, value)`` pairs, None deletes.
@@ -439,7 +381,8 @@ class Parameters:
         it, in order (a later change of the same name sees the earlier one), and the
         room left in the store and in each node's share counts them all; watchers
         hear of the changes only once every one of them is made
-        (``set_parameters_atomically``, docs/ros2.md).
+        (``set_parameters_atomically``, docs/ros2.md). Its callers are links: the
+        parameters changed are charged to nobody.
 
         Raises:
             ParameterError: the first change refused (the message names it); nothing
@@ -457,9 +400,7 @@ class Parameters:
             old = plan[key] if key in plan else self._nodes.get(node, {}).get(param)
             new = _planned(old, name, value, f"{node}:{param}")
             added = (new is not None) - (old is not None)
-            grown = (0 if new is None else value_size(new.value)) - (
-                0 if old is None else value_size(old.value)
-            )
+            grown = (0 if new is None else new.size) - (0 if old is None else old.size)
             count += added
             size += grown
             counts[node] = counts.get(node, len(self._nodes.get(node, ()))) + added
@@ -467,22 +408,29 @@ class Parameters:
             self._check_counts(count, node, counts[node])
             plan[key] = new
         self._check_sizes(size, sizes)
+        self._apply_plan(plan, sizes)
+        self._count, self._bytes = count, size
+        for (node, param), new in plan.items():
+            self._notify(f"{node}:{param}", None if new is None else new.value)
+
+    def _apply_plan(
+        self, plan: dict[tuple[str, str], _Param | None], sizes: dict[str, int]
+    ) -> None:
         for (node, param), new in plan.items():
             params = self._nodes.setdefault(node, {})
             if new is None:
                 params.pop(param, None)
                 if not params:
                     del self._nodes[node]
+                self._shares.release(f"{node}:{param}")
             else:
                 params[param] = new
+                self._shares.charge(f"{node}:{param}", None, new.size)
         for node, node_size in sizes.items():
             if node in self._nodes:
                 self._node_bytes[node] = node_size
             else:
                 self._node_bytes.pop(node, None)
-        self._count, self._bytes = count, size
-        for (node, param), new in plan.items():
-            self._notify(f"{node}:{param}", None if new is None else new.value)
 
     def _check_counts(self, count: int, node: str, held: int) -> None:
         """Refuse a plan past which the store holds ``count``, ``node`` ``held`` parameters.
@@ -527,24 +475,24 @@ class Parameters:
             return None
         return ParamInfo(entry.kind, read_only=entry.read_only, dynamic_typing=not entry.fixed_type)
 
-    def get(self, name: str, default: object = _MISSING) -> ParamValue:
-        """A copy of the parameter's value (ROS 1: a namespace gives a dict).
+    def get(self, name: str, default: object = MISSING) -> ParamValue:
+        """The parameter's value, the held (frozen) object itself (ROS 1: a namespace).
 
         Raises:
             ParameterNotSetError: it does not exist and no ``default`` was given.
             ParameterError: a malformed name.
         """
         found = self._lookup(name)
-        if found is _MISSING:
-            if default is _MISSING:
+        if found is MISSING:
+            if default is MISSING:
                 raise ParameterNotSetError(f"parameter {name} is not set")
             return default  # type: ignore[return-value]
-        return copy.deepcopy(found)  # type: ignore[return-value]
+        return found  # type: ignore[return-value]
 
     def has(self, name: str) -> bool:
         """Whether the parameter (ROS 1: or namespace) exists; False for a malformed name."""
         try:
-            return self._lookup(name) is not _MISSING
+            return self._lookup(name) is not MISSING
         except ParameterError:
             return False
 
@@ -557,24 +505,29 @@ class Parameters:
         """
         if self.ros1:
             key = resolve_name(name)
-            self._tree_delete(key)
+            for removed in self._tree.delete(key):
+                self._shares.release(removed)
             self._notify(key, None)
             return
         node, param = split_ros2_name(name)
-        params = self._nodes.get(node, {})
-        entry = params.get(param)
+        entry = self._nodes.get(node, {}).get(param)
         if entry is None:
             raise ParameterNotSetError(f"parameter {node}:{param} is not set")
         if entry.read_only:
             raise ParameterError(f"parameter {node}:{param} is read-only")
-        size = value_size(entry.value)
+        self._remove(node, param)
+
+    def _remove(self, node: str, param: str) -> None:
+        """Delete ROS 2 ``node:param`` (it is set) and tell the watchers."""
+        params = self._nodes[node]
+        size = params.pop(param).size
         self._bytes -= size
         self._node_bytes[node] -= size
-        del params[param]
         self._count -= 1
         if not params:
             del self._nodes[node]
             del self._node_bytes[node]
+        self._shares.release(f"{node}:{param}")
         self._notify(f"{node}:{param}", None)
 
     def key(self, name: str) -> str:
@@ -591,8 +544,12 @@ class Parameters:
     def names(self) -> list[str]:
         """Every parameter name, sorted: ``/node:param`` (ROS 2) or leaf global names (ROS 1)."""
         if self.ros1:
-            return sorted(_leaves(self._tree, ""))
+            return self._tree.names()
         return sorted(f"{node}:{param}" for node, params in self._nodes.items() for param in params)
+
+    def names_of(self, node: str) -> list[str]:
+        """The names of ROS 2 ``node``'s parameters (without the node), in the order set."""
+        return list(self._nodes.get(node, ()))
 
     def nodes(self) -> frozenset[str]:
         """The ROS 2 nodes that have parameters (none in ROS 1)."""
@@ -616,18 +573,29 @@ class Parameters:
         """
         return self._room_problem(self._node_key(node))
 
+    def held_by(self, client: ClientId) -> tuple[int, int]:
+        """``(parameters, bytes)`` charged to ``client`` now (``CLIENT_SHARE``)."""
+        return self._shares.held(client)
+
     def search(self, name: str) -> str:
         """ROS 1 ``search_param`` from the root namespace: the global name if set, else ``""``."""
         key = resolve_name(name)
         return key if self.has(key) else ""
 
-    def watch(self, watcher: ParamWatcher) -> Callable[[], None]:
-        """Call ``watcher(name, value)`` after every change; returns a function that stops it."""
-        self._watchers.append(watcher)
+    def watch(self, watcher: ParamWatcher, key: str | None = None) -> Callable[[], None]:
+        """Call ``watcher(name, value)`` after every change; returns a function that stops it.
+
+        ``key``: only changes of that name as the store spells it (``key()``), and at
+        no cost for a change of another.
+        """
+        watchers = self._watchers if key is None else self._keyed.setdefault(key, [])
+        watchers.append(watcher)
 
         def stop() -> None:
-            if watcher in self._watchers:
-                self._watchers.remove(watcher)
+            if watcher in watchers:
+                watchers.remove(watcher)
+            if key is not None and not watchers and self._keyed.get(key) is watchers:
+                del self._keyed[key]
 
         return stop
 
@@ -647,12 +615,61 @@ class Parameters:
         """The setter of the node that owns ``node``'s parameters, or None (``own``)."""
         return self._owners.get(node)
 
+    # ---- clients -------------------------------------------------------------------
+
+    def _check_creator(self, client: ClientId, node: str) -> None:
+        """Refuse a parameter ``client`` would create on ``node`` (D34).
+
+        Raises:
+            ParameterError: the node does not exist, is the server's, or another
+                live client's (a node with a participant other than ``client``,
+                none of them in-process code).
+        """
+        nodes = self._graph_nodes
+        if nodes is None:
+            return
+        if node in SERVER_NODES:
+            raise ParameterError(f"node {node} is the server's: no client creates parameters on it")
+        members = nodes.clients_of(node)
+        if not members and node not in self._nodes:
+            raise ParameterError(f"node {node} does not exist")
+        if node.startswith(CLIENT_NODE_PREFIX) and members and client not in members:
+            raise ParameterError(
+                f"node {node} is another client's: a client creates parameters on its own "
+                "node or on the robot's"
+            )
+
+    def _forgotten(self, client: ClientId, node: str | None) -> None:
+        """``client`` left the graph (``Nodes.on_forget``): release what it set (D34).
+
+        The parameters of its own node go with the node; what else it set is left
+        behind, and the oldest left behind past one share are deleted.
+        """
+        if (
+            not self.ros1
+            and node is not None
+            and node.startswith(CLIENT_NODE_PREFIX)
+            and node in self._nodes
+            and self._graph_nodes is not None
+            and not self._graph_nodes.clients_of(node)
+        ):
+            for param in list(self._nodes[node]):
+                self._remove(node, param)
+        for key in self._shares.leave(client):
+            if self.ros1:
+                self._ros1_delete_leaf(key)
+            else:
+                node_key, _, param = key.partition(":")
+                self._remove(node_key, param)
+
     # ---- internals ---------------------------------------------------------------
 
     def _notify(self, name: str, value: ParamValue | None) -> None:
-        for watcher in list(self._watchers):
+        keyed = self._keyed.get(name)
+        watchers = self._watchers + keyed if keyed else self._watchers
+        for watcher in list(watchers):
             try:
-                watcher(name, copy.deepcopy(value))
+                watcher(name, value)
             except Exception:  # one broken watcher must not stop the others
                 _episodes.log(
                     logging.ERROR,
@@ -662,24 +679,21 @@ class Parameters:
                     exc_info=True,
                 )
 
-    def _grow(self, new: ParamValue, old: ParamValue | None, node: str | None = None) -> None:
-        """Account for ``old`` becoming ``new`` (a parameter of ROS 2 ``node``, if given).
+    def _grow(self, new: int, old: int, node: str) -> None:
+        """Account for a value of ``old`` bytes of ROS 2 ``node`` becoming one of ``new``.
 
         Raises:
             ParameterStoreFullError: the values would hold more than ``max_bytes``,
                 or ``node``'s more than ``max_node_bytes``; nothing is counted.
         """
-        grown = value_size(new) - (0 if old is None else value_size(old))
+        grown = new - old
         total = self._bytes + grown
         if total > self.max_bytes and grown > 0:
             raise ParameterStoreFullError(f"the parameter store is full ({self.max_bytes} bytes)")
-        if node is not None:
-            mine = self._node_bytes.get(node, 0) + grown
-            if mine > self.max_node_bytes and grown > 0:
-                raise ParameterStoreFullError(
-                    self._share_full(node, f"{self.max_node_bytes} bytes")
-                )
-            self._node_bytes[node] = mine
+        mine = self._node_bytes.get(node, 0) + grown
+        if mine > self.max_node_bytes and grown > 0:
+            raise ParameterStoreFullError(self._share_full(node, f"{self.max_node_bytes} bytes"))
+        self._node_bytes[node] = mine
         self._bytes = total
 
     def _check_room(self, node: str, param: str) -> None:
@@ -710,88 +724,46 @@ class Parameters:
 
     def _lookup(self, name: str) -> object:
         if self.ros1:
-            node: object = self._tree
-            for token in _tokens(resolve_name(name)):
-                if not isinstance(node, dict) or token not in node:
-                    return _MISSING
-                node = node[token]
-            return node
+            return self._tree.lookup(resolve_name(name))
         node_key, param = split_ros2_name(name)
         entry = self._nodes.get(node_key, {}).get(param)
-        return _MISSING if entry is None else entry.value
+        return MISSING if entry is None else entry.value
 
-    def _tree_set(self, key: str, value: ParamValue) -> None:
-        tokens = _tokens(key)
-        if not tokens:
-            if not isinstance(value, dict):
-                raise ParameterError("the root namespace / can only be set to a dict")
-            self._check_leaves(_count(value) - _count(self._tree))
-            self._grow(value, self._tree)
-            self._tree = value
-            return
-        old = self._lookup(key)
-        self._check_leaves(_count(value) - (0 if old is _MISSING else _count(old)))
-        self._grow(value, None if old is _MISSING else old)  # type: ignore[arg-type]
-        node = self._tree
-        for token in tokens[:-1]:
-            child = node.get(token)
-            if not isinstance(child, dict):  # a value on the way becomes a namespace
-                child = node[token] = {}
-            node = child
-        node[tokens[-1]] = value
+    # ---- ROS 1 ---------------------------------------------------------------------
 
-    def _check_leaves(self, added: int) -> None:
-        if added > 0 and _count(self._tree) + added > self.max_params:
+    def _ros1_set(self, key: str, value: object, client: ClientId | None) -> None:
+        """Set ROS 1 ``key`` (a leaf or a namespace) to ``value``, set by ``client``.
+
+        Raises:
+            ParameterStoreFullError: no room for the terminals it adds (the store's,
+                the client's share).
+            ParameterError: a bad value; the root set to anything but a dict.
+        """
+        stored = ros1_value(value, key)
+        if key == "/" and not isinstance(stored, FrozenNamespace):
+            raise ParameterError("the root namespace / can only be set to a dict")
+        tree = self._tree
+        removed = tree.replaced(key)
+        added = tree.added(key, stored)
+        count = len(tree.sizes) - len(removed) + len(added)
+        if count > self.max_params and count > len(tree.sizes):
             raise ParameterStoreFullError(
                 f"the parameter store is full ({self.max_params} parameters)"
             )
+        size = tree.bytes - sum(tree.sizes[name] for name in removed) + sum(added.values())
+        if size > self.max_bytes and size > tree.bytes:
+            raise ParameterStoreFullError(f"the parameter store is full ({self.max_bytes} bytes)")
+        if client is not None:
+            self._shares.check(client, {**dict.fromkeys(removed), **added})
+        tree.set(key, stored, removed, added)
+        for name in removed:
+            self._shares.release(name)
+        for name, name_size in added.items():
+            self._shares.charge(name, client, name_size)
+        self._notify(key, stored)
 
-    def _tree_delete(self, key: str) -> None:
-        tokens = _tokens(key)
-        if not tokens:
-            self._tree, self._bytes = {}, 0
-            return
-        node: object = self._tree
-        for token in tokens[:-1]:
-            node = node.get(token) if isinstance(node, dict) else None
-        if not isinstance(node, dict) or tokens[-1] not in node:
-            raise ParameterNotSetError(f"parameter {key} is not set")
-        self._bytes -= value_size(node[tokens[-1]])
-        del node[tokens[-1]]
-
-
-def _tokens(key: str) -> list[str]:
-    return [token for token in key.split("/") if token]
-
-
-def _leaves(tree: Mapping[str, ParamValue], prefix: str) -> list[str]:
-    found: list[str] = []
-    for key, value in tree.items():
-        if isinstance(value, dict):
-            found += _leaves(value, f"{prefix}/{key}")
-        else:
-            found.append(f"{prefix}/{key}")
-    return found
-
-
-def value_size(value: object) -> int:
-    """Count the bytes a parameter value holds against ``Parameters.max_bytes``.
-
-    UTF-8 bytes of strings and keys, the length of a byte array, 8 per number or
-    bool, summed over lists and dicts.
-    """
-    if isinstance(value, str):
-        return len(value) if value.isascii() else len(value.encode("utf-8", "surrogatepass"))
-    if isinstance(value, bytes):
-        return len(value)
-    if isinstance(value, dict):
-        return sum(value_size(key) + value_size(item) for key, item in value.items())
-    if isinstance(value, list):
-        return sum(value_size(item) for item in value)
-    return 8
-
-
-def _count(value: object) -> int:
-    if isinstance(value, dict):
-        return sum(_count(item) for item in value.values())
-    return 1
+    def _ros1_delete_leaf(self, key: str) -> None:
+        """Delete the ROS 1 terminal ``key`` (a client's left behind) and tell the watchers."""
+        for removed in self._tree.delete(key):
+            self._shares.release(removed)
+        self._notify(key, None)

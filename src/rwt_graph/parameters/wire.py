@@ -9,11 +9,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .store import ParameterError
+from .values import ParameterError
 
 if TYPE_CHECKING:
     from ..types import MessageType
-    from .store import ParamValue
+    from .values import ParamValue
 
 __all__ = ["PARAM_SERVICES", "from_wire", "to_wire", "type_code"]
 
@@ -44,8 +44,21 @@ _FIELDS = {
 }
 
 
+_ARRAYS = {
+    frozenset({bool}): _BOOLS,
+    frozenset({int}): _INTEGERS,
+    frozenset({float}): _DOUBLES,
+    frozenset({int, float}): _DOUBLES,
+    frozenset({str}): _STRINGS,
+    frozenset(): _STRINGS,  # an empty array: rclpy's type of []
+}
+
+
 def type_code(value: object) -> int:
     """The ``ParameterType`` code of a value of rwt's store.
+
+    An array's items are looked at by their exact types, in one C-level pass
+    (the store holds exact ``bool``, ``int``, ``float`` and ``str`` items).
 
     Raises:
         ParameterError: the value has no ROS 2 parameter type.
@@ -60,16 +73,10 @@ def type_code(value: object) -> int:
         return _STRING
     if isinstance(value, bytes | bytearray):
         return _BYTES
-    if isinstance(value, list):
-        kinds = {type_code(item) for item in value} or {_STRING}
-        if kinds == {_BOOL}:
-            return _BOOLS
-        if kinds == {_INTEGER}:
-            return _INTEGERS
-        if kinds <= {_INTEGER, _DOUBLE}:
-            return _DOUBLES
-        if kinds == {_STRING}:
-            return _STRINGS
+    if isinstance(value, list | tuple):
+        code = _ARRAYS.get(frozenset(map(type, value)))
+        if code is not None:
+            return code
     raise ParameterError(f"a value of type {type(value).__name__} is no ROS 2 parameter")
 
 
@@ -90,7 +97,8 @@ def from_wire(msg: dict[str, object]) -> object:
     """The value of a ``ParameterValue``; None when NOT_SET; a byte array as ``bytes``.
 
     The internal form holds ``byte[]`` as a list of octets (ints); the store tells
-    a byte array from an integer array by its type, so it gets ``bytes``.
+    a byte array from an integer array by its type, so it gets ``bytes``. Another
+    array comes as a tuple, as the store holds it (so a copy compares equal).
 
     Raises:
         ParameterError: an unknown type code, or a byte array with an item
@@ -105,7 +113,7 @@ def from_wire(msg: dict[str, object]) -> object:
     value = msg[name]
     if kind == _BYTES:
         return _octets(value)
-    return list(value) if isinstance(value, tuple) else value
+    return tuple(value) if isinstance(value, list) else value
 
 
 def _octets(value: object) -> bytes:

@@ -13,7 +13,7 @@ offer, say, a forged ``/rosapi/get_ros_version`` on a ROS 1 server
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from ..types import Dialect
@@ -210,6 +210,6 @@ def _bound(
 ) -> Callable[[ClientId, Message], Message | Awaitable[Message]]:
     def serve(caller: ClientId, request: Message) -> Message | Awaitable[Message]:
         vis = EVERYTHING if visibility is None else visibility(caller)
-        return handler(graph, vis, request)
+        return handler(graph, replace(vis, caller=caller), request)
 
     return serve

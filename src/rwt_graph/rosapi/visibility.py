@@ -29,12 +29,15 @@ class Visibility:
         services: service names (rosapi's own included).
         params: parameter names, ``/node:param`` (ROS 2) or global (ROS 1).
         actions: action names.
+        caller: the calling participant, which rosapi sets for each call (the
+            parameters a client sets are charged to it, ``parameters.store``).
     """
 
     topics: NameFilter | None = None
     services: NameFilter | None = None
     params: NameFilter | None = None
     actions: NameFilter | None = None
+    caller: ClientId | None = None
 
     def topic(self, name: str) -> bool:
         """Whether the topic shows."""

@@ -270,8 +270,28 @@ def decode_json_text(text: str | bytes, what: str) -> object:
         if type(item) is dict:
             stack.extend(item.values())
         elif type(item) is list:
-            stack.extend(item)
+            kinds = set(map(type, item))  # a list of scalars: its ints in C-level passes
+            if not kinds <= _SCALARS:
+                stack.extend(item)
+            elif int in kinds and not _ints_fit(item, kinds):
+                raise RemoteProtocolError(f"{what}: an integer does not fit in 64 bits")
     return value
+
+
+_SCALARS = frozenset({int, float, bool, str, type(None)})
+
+
+def _ints_fit(items: list[object], kinds: set[type]) -> bool:
+    """Whether the ints of a list of scalars lie within int64/uint64 (``_INT_RANGE``).
+
+    Numbers only: ``min`` and ``max`` within the range prove it (two C-level passes;
+    a NaN they stop at, or a float outside the range, takes the exact check).
+    """
+    low, high = _INT_RANGE
+    numbers = cast("list[float]", items)
+    if kinds <= {int, float, bool} and low <= min(numbers) and max(numbers) <= high:
+        return True
+    return all(low <= item <= high for item in numbers if type(item) is int)
 
 
 def decode_publish(frame: str | bytes) -> PublishView | None:
