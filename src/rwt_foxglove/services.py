@@ -21,7 +21,6 @@ import itertools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
 from rwt_protocol.errors import RwtError
 from rwt_protocol.server.access import AccessPolicy, Family
 
@@ -40,7 +39,7 @@ from .schemas import schema_of, wire_encoding
 from .wire import decode_wire, encode_wire
 
 if TYPE_CHECKING:
-    from rwt_graph.core import GraphCore
+    from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
     from rwt_protocol.ports import Pending
 
@@ -82,7 +81,7 @@ class ServiceCalls:
 
     def __init__(
         self,
-        graph: GraphCore,
+        graph: GraphFront,
         client_id: str,
         out: SessionOutput,
         access: AccessPolicy,
@@ -108,10 +107,11 @@ class ServiceCalls:
         Returns:
             Whether anything was queued.
         """
+        registry = self._graph.registry
         current = {
-            name: entry.srvtype
-            for name, entry in self._graph.services.entries.items()
-            if self._access.allows(Family.SERVICES, name)
+            change.name: registry.service(change.type_name)
+            for change in self._graph.feed.snapshot()[1]
+            if change.kind == "service" and self._access.allows(Family.SERVICES, change.name)
         }
         gone = [
             service
@@ -165,9 +165,7 @@ class ServiceCalls:
             self._answer(op.call_id, call, result, values)
 
         try:
-            call.pending = self._graph.call_service(
-                self._client_id, rosbridge.CallService(service=service.name, args=request), reply
-            )
+            call.pending = self._graph.call_service(self._client_id, service.name, request, reply)
         except RwtError as exc:
             if self._calls.get(op.call_id) is call:
                 del self._calls[op.call_id]

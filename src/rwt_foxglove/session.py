@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.types.registry import codec_for
-from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import name_problem, resolve_name
@@ -71,13 +70,12 @@ from .protocol import (
 from .schemas import JSON, metadata_for, schema_of, supported_encodings, wire_encoding
 from .servertime import TIME_CAPABILITY, ServerTime
 from .services import ServiceCalls
-from .wire import decode_wire
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rwt_graph.core import GraphCore
     from rwt_graph.parameters.store import Parameters
+    from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
 
@@ -213,7 +211,7 @@ class FoxgloveSession:
 
     def __init__(
         self,
-        graph: GraphCore,
+        graph: GraphFront,
         client_id: str,
         *,
         session_id: str,
@@ -487,13 +485,13 @@ class FoxgloveSession:
         self._subscriptions[sid] = channel
         channel.subscriptions.append(sid)
         if len(channel.subscriptions) > 1:  # the topic's sink is there: replay its latched
-            entry = self._graph.topics.get(channel.topic)
-            if entry is not None and entry.latched is not None:
-                _TopicSink(self, channel).on_message(entry.latched, (sid,))
+            latched = self._graph.latched(channel.topic)
+            if latched is not None:
+                _TopicSink(self, channel).on_message(latched, (sid,))
             return
         try:  # the graph hands the latched message to the new sink at once (D13)
-            request = rosbridge.Subscribe(topic=channel.topic, type=channel.mtype.name)
-            self._graph.subscribe(self._client_id, request, _TopicSink(self, channel))
+            sink = _TopicSink(self, channel)
+            self._graph.subscribe(self._client_id, channel.topic, channel.mtype.name, sink)
         except RwtError:
             channel.subscriptions.remove(sid)
             del self._subscriptions[sid]
@@ -531,8 +529,7 @@ class FoxgloveSession:
         topic = resolve_name(spec.topic)
         if not self._access.allows(Family.TOPICS, topic):
             raise FoxgloveInputError(f"{topic} is not allowed")
-        request = rosbridge.Advertise(topic=topic, type=spec.schemaName)
-        type_name = self._graph.advertise(self._client_id, request)
+        type_name = self._graph.advertise(self._client_id, topic, spec.schemaName)
         mtype = self._graph.registry.message(type_name)
         self._client_channels[spec.id] = _ClientChannel(spec.id, topic, mtype, spec.encoding)
 
@@ -581,10 +578,10 @@ class FoxgloveSession:
             raise FoxgloveInputError(f"message data on unknown client channel {op.channel_id}")
         if channel.encoding == JSON:
             value = decode_json_text(bytes(op.payload), "message")
-            self._graph.publish(self._client_id, rosbridge.Publish(topic=channel.topic, msg=value))
+            self._graph.publish(self._client_id, channel.topic, value)
             return
-        msg = decode_wire(self._graph.registry, channel.mtype, bytes(op.payload))
-        self._graph.publish_local(self._client_id, channel.topic, msg, latch=False)
+        data = bytes(op.payload)
+        self._graph.publish_serialized(self._client_id, channel.topic, data, encoding=self._wire)
 
     # ---- the graph ----------------------------------------------------------------
 
@@ -607,10 +604,11 @@ class FoxgloveSession:
         self.graph_updates.sync()
 
     def _sync_channels(self) -> None:
+        registry = self._graph.registry
         current = {
-            name: entry.msgtype
-            for name, entry in self._graph.topics.items()
-            if entry.publishers and self._access.allows(Family.TOPICS, name)
+            change.name: registry.message(change.type_name)
+            for change in self._graph.feed.snapshot()[1]
+            if change.kind == "publisher" and self._access.allows(Family.TOPICS, change.name)
         }
         gone = [
             channel

@@ -54,7 +54,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import Advertise, Subscribe
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Container
@@ -228,9 +227,9 @@ def mirror_endpoint(
     graph.nodes.bind(client, node)
     try:
         if kind is Kind.PUBLISHER:
-            graph.port.advertise(client, Advertise(topic=topic, type=type_name, latch=latched))
+            graph.port.advertise(client, topic, type_name, latch=latched)
         else:
-            graph.port.subscribe(client, Subscribe(topic=topic, type=type_name), NULL_SINK)
+            graph.port.subscribe(client, topic, type_name, NULL_SINK)
     except RwtError:
         graph.nodes.forget(client)
         raise

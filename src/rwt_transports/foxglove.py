@@ -51,8 +51,8 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
     from pathlib import Path
 
-    from rwt_graph.core import GraphCore
     from rwt_graph.parameters.store import Parameters
+    from rwt_graph.port import GraphFront
     from rwt_protocol.auth import Authenticator
     from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.session import Session
@@ -96,7 +96,7 @@ class FoxgloveOptions:
 
 
 def foxglove_server(
-    graph: GraphCore,
+    graph: GraphFront,
     access: AccessPolicy,
     options: FoxgloveOptions,
     params: Parameters | None = None,

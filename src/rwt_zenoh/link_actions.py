@@ -32,7 +32,6 @@ import zenoh
 from rwt_graph.actions import CANCEL_GOAL_TYPE
 from rwt_graph.calls import guarded
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 
 from .actions import (
@@ -64,7 +63,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rwt_graph.mirror import RemoteEntity
-    from rwt_protocol.ops import CancelActionGoal
+    from rwt_protocol.ops import CancelActionGoal, SendActionGoal
     from rwt_protocol.ports import ClientId
 
     from .link import OwnPublisher, ZenohLink
@@ -258,7 +257,8 @@ class ActionLink:
             served = self._served[goal_id] = _Served(action, wire, link.graph.clock.wall())
             served.handle = link.graph.port.send_action_goal(
                 link.caller,
-                SendActionGoal(action=action, action_type="", args=goal, feedback=True),
+                action,
+                goal,
                 partial(self._goal_done, goal_id),
                 partial(self._goal_feedback, action, wire, goal_id),
             )

@@ -21,7 +21,6 @@ from rwt_bag.player import Player
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.wire import WireCodec
-from rwt_protocol.ops import Advertise
 
 from .test_session import Client
 
@@ -51,7 +50,7 @@ def subscribed(graph: Graph, topic: str) -> Client:
 
 def test_a_sample_received_as_cdr_is_sent_as_it_came() -> None:
     graph = Graph()
-    graph.port.advertise("link:relay", Advertise(topic="/point", type=POINT))
+    graph.port.advertise("link:relay", "/point", POINT)
     client = subscribed(graph, "/point")
     wire = odd_cdr(graph)
     msg = graph.registry.message(POINT).from_python(VALUES)

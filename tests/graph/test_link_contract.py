@@ -24,7 +24,6 @@ from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.hashes import message_type_hash
 from rwt_graph.types.wire import CDR_TRAILING_SLACK, CdrError, read_cdr
 from rwt_protocol.errors import GraphError, RwtError
-from rwt_protocol.ops import Advertise, Publish, Subscribe
 from rwt_protocol.ports import MessageEvent
 
 STRING = "std_msgs/msg/String"
@@ -45,12 +44,11 @@ def test_private_names_match_exactly_or_by_prefix() -> None:
 def test_rules_share_only_local_entities_and_no_private_names() -> None:
     graph = Graph()
     rules = LinkRules("link:")
-    graph.port.advertise("ws:1", Advertise(topic="/chatter", type=STRING, latch=True))
-    graph.port.subscribe("ws:2", Subscribe(topic="/chatter", type=STRING), _Sink())
-    came_from_outside = Advertise(topic="/chatter", type=STRING)
-    graph.port.advertise("link:remote", came_from_outside)
-    graph.port.subscribe("link:remote2", Subscribe(topic="/heard", type=STRING), NULL_SINK)
-    graph.port.advertise("ws:1", Advertise(topic="/client_count", type="std_msgs/msg/Int32"))
+    graph.port.advertise("ws:1", "/chatter", STRING, latch=True)
+    graph.port.subscribe("ws:2", "/chatter", STRING, _Sink())
+    graph.port.advertise("link:remote", "/chatter", STRING)  # came from outside
+    graph.port.subscribe("link:remote2", "/heard", STRING, NULL_SINK)
+    graph.port.advertise("ws:1", "/client_count", "std_msgs/msg/Int32")
     graph.create_service("/add", "std_srvs/srv/SetBool", lambda request: {"success": True})
     wanted = rules.wanted(graph)
     assert wanted[(Kind.PUBLISHER, "ws:1", "/chatter")] == (STRING, True)
@@ -507,14 +505,13 @@ def test_a_fan_out_reaches_the_current_subscribers_and_skips_dropping_sinks() ->
     """A replaced or removed subscriber gets nothing more; a sink that drops is never called."""
     graph = Graph()
     first, second, remote = _Counting(), _Counting(), _Dropping()
-    graph.port.subscribe("ws:1", Subscribe(topic="/chatter", type=STRING), first)
-    graph.port.subscribe("link:remote", Subscribe(topic="/chatter", type=STRING), remote)
-    graph.port.publish("ws:2", Publish(topic="/chatter", msg={"data": "one"}))
-    again = Subscribe(topic="/chatter", type=STRING)  # the same client again
-    graph.port.subscribe("ws:1", again, second)
-    graph.port.publish("ws:2", Publish(topic="/chatter", msg={"data": "two"}))
+    graph.port.subscribe("ws:1", "/chatter", STRING, first)
+    graph.port.subscribe("link:remote", "/chatter", STRING, remote)
+    graph.port.publish("ws:2", "/chatter", {"data": "one"})
+    graph.port.subscribe("ws:1", "/chatter", STRING, second)  # the same client again
+    graph.port.publish("ws:2", "/chatter", {"data": "two"})
     graph.port.unsubscribe("ws:1", "/chatter")
-    graph.port.publish("ws:2", Publish(topic="/chatter", msg={"data": "three"}))
+    graph.port.publish("ws:2", "/chatter", {"data": "three"})
     assert first.got == ["one"]
     assert second.got == ["two"]
     assert remote.got == []
