@@ -22,7 +22,6 @@ from rwt_protocol.server.access import AccessPolicy, Family
 from .protocol import AdvertisedService, ConnectionGraphUpdate, PublishedTopic, SubscribedTopic
 
 if TYPE_CHECKING:
-
     from rwt_graph.port import GraphFront
     from rwt_protocol.server.outbox import OutFrame
 
