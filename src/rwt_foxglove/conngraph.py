@@ -17,12 +17,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from rwt_protocol.server.access import AccessPolicy, Family
+from rwt_graph.visibility import Visibility
 
 from .protocol import AdvertisedService, ConnectionGraphUpdate, PublishedTopic, SubscribedTopic
 
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
+    from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.outbox import OutFrame
 
     from .output import SessionOutput
@@ -44,9 +45,9 @@ class GraphView:
 def view_of(graph: GraphFront, access: AccessPolicy) -> GraphView:
     """The graph now, as a client under ``access`` sees it. Costs one pass over the graph."""
     found: dict[str, dict[str, set[str]]] = {"publisher": {}, "subscription": {}, "service": {}}
+    visible = Visibility.of(access)
     for change in graph.feed.snapshot()[1]:
-        family = Family.SERVICES if change.kind == "service" else Family.TOPICS
-        if change.kind in found and access.allows(family, change.name):
+        if change.kind in found and visible.sees(change):
             found[change.kind].setdefault(change.name, set()).add(change.node or change.client)
     published, subscribed, services = (
         {name: frozenset(ids) for name, ids in found[kind].items()}

@@ -21,8 +21,8 @@ import itertools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rwt_graph.visibility import Visibility
 from rwt_protocol.errors import RwtError
-from rwt_protocol.server.access import AccessPolicy, Family
 
 from .protocol import (
     AdvertiseServices,
@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
     from rwt_protocol.ports import Pending
+    from rwt_protocol.server.access import AccessPolicy
 
     from .limits import FoxgloveLimits
     from .output import SessionOutput
@@ -107,11 +108,11 @@ class ServiceCalls:
         Returns:
             Whether anything was queued.
         """
-        registry = self._graph.registry
+        registry, visible = self._graph.registry, Visibility.of(self._access)
         current = {
             change.name: registry.service(change.type_name)
             for change in self._graph.feed.snapshot()[1]
-            if change.kind == "service" and self._access.allows(Family.SERVICES, change.name)
+            if change.kind == "service" and visible.sees(change)
         }
         gone = [
             service

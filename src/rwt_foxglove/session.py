@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.types.registry import codec_for
+from rwt_graph.visibility import Visibility
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import name_problem, resolve_name
@@ -604,11 +605,11 @@ class FoxgloveSession:
         self.graph_updates.sync()
 
     def _sync_channels(self) -> None:
-        registry = self._graph.registry
+        registry, visible = self._graph.registry, Visibility.of(self._access)
         current = {
             change.name: registry.message(change.type_name)
             for change in self._graph.feed.snapshot()[1]
-            if change.kind == "publisher" and self._access.allows(Family.TOPICS, change.name)
+            if change.kind == "publisher" and visible.sees(change)
         }
         gone = [
             channel
