@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
+from rwt_protocol.errors import RemoteProtocolError
+
 if TYPE_CHECKING:
     from collections.abc import Iterable, Mapping, Sequence
 
@@ -73,7 +75,7 @@ _SCAN_DIRS: Final = 20_000  # directories looked at per package path, at most
 _XML_NAME = re.compile(rb"<name>\s*([^<\s]+)\s*</name>")
 
 
-class AssetError(Exception):
+class AssetError(RemoteProtocolError):
     """A ``fetchAsset`` that cannot be answered with data; its text goes to the client."""
 
 
