@@ -442,8 +442,11 @@ class GraphPort(ServicePort, Protocol):
         """Validate and publish ``data``, a message of ``topic``'s type in the graph's wire form.
 
         ``encoding`` names the form (``cdr`` for a ROS 2 graph, ``ros1`` for a
-        ROS 1 one); ``data`` goes on as it is (``MessageEvent.wire``) to every
-        subscriber that sends that form.
+        ROS 1 one). ``data`` comes from a peer, so it is validated by decoding it
+        once as the topic's type (a bad one raises ``CdrError``, a
+        ``RemoteProtocolError``, and reaches no subscriber); then ``data`` itself
+        goes on (``MessageEvent.wire``) to every subscriber that sends that form,
+        never serialized again, and the decoded values to the others.
         """
 
     def subscribe(
