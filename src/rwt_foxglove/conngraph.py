@@ -17,14 +17,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from rwt_protocol.server.access import AccessPolicy, Family
+from rwt_graph.visibility import Visibility
 
 from .protocol import AdvertisedService, ConnectionGraphUpdate, PublishedTopic, SubscribedTopic
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
-
-    from rwt_graph.core import GraphCore
+    from rwt_graph.port import GraphFront
+    from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.outbox import OutFrame
 
     from .output import SessionOutput
@@ -43,27 +42,17 @@ class GraphView:
     services: Nodes = field(default_factory=dict)
 
 
-def view_of(graph: GraphCore, access: AccessPolicy) -> GraphView:
+def view_of(graph: GraphFront, access: AccessPolicy) -> GraphView:
     """The graph now, as a client under ``access`` sees it. Costs one pass over the graph."""
-    nodes = graph.nodes
-
-    def ids(clients: Iterable[str]) -> frozenset[str]:
-        return frozenset(nodes.node_of(client) or client for client in clients)
-
-    published: Nodes = {}
-    subscribed: Nodes = {}
-    for name, entry in graph.topics.items():
-        if not access.allows(Family.TOPICS, name):
-            continue
-        if entry.publishers:
-            published[name] = ids(entry.publishers)
-        if entry.subscribers:
-            subscribed[name] = ids(entry.subscribers)
-    services = {
-        name: ids((entry.owner,))
-        for name, entry in graph.services.entries.items()
-        if access.allows(Family.SERVICES, name)
-    }
+    found: dict[str, dict[str, set[str]]] = {"publisher": {}, "subscription": {}, "service": {}}
+    visible = Visibility.of(access)
+    for change in graph.feed.snapshot()[1]:
+        if change.kind in found and visible.sees(change):
+            found[change.kind].setdefault(change.name, set()).add(change.node or change.client)
+    published, subscribed, services = (
+        {name: frozenset(ids) for name, ids in found[kind].items()}
+        for kind in ("publisher", "subscription", "service")
+    )
     return GraphView(published, subscribed, services)
 
 
@@ -119,7 +108,7 @@ class ConnectionGraph:
         access: what the client may see.
     """
 
-    def __init__(self, graph: GraphCore, out: SessionOutput, access: AccessPolicy) -> None:
+    def __init__(self, graph: GraphFront, out: SessionOutput, access: AccessPolicy) -> None:
         self._graph = graph
         self._out = out
         self._access = access

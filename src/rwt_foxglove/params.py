@@ -55,7 +55,7 @@ from .protocol import (
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable
 
-    from rwt_graph.core import GraphCore
+    from rwt_graph.port import GraphFront
     from rwt_protocol.server.outbox import OutFrame
 
     from .limits import FoxgloveLimits
@@ -100,7 +100,7 @@ class ParameterBridge:
 
     def __init__(
         self,
-        graph: GraphCore,
+        graph: GraphFront,
         params: Parameters,
         out: SessionOutput,
         access: AccessPolicy,

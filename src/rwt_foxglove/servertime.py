@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Final
 from .protocol import encode_time
 
 if TYPE_CHECKING:
-    from rwt_graph.core import GraphCore
+    from rwt_graph.port import GraphFront
 
 __all__ = ["TIME_CAPABILITY", "TIME_INTERVAL_S", "ServerTime"]
 
@@ -36,7 +36,7 @@ class ServerTime:
 
     __slots__ = ("_graph", "_sent")
 
-    def __init__(self, graph: GraphCore) -> None:
+    def __init__(self, graph: GraphFront) -> None:
         self._graph = graph
         self._sent: int | None = None
 

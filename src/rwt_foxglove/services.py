@@ -24,9 +24,8 @@ import itertools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
+from rwt_graph.visibility import Visibility
 from rwt_protocol.errors import RwtError
-from rwt_protocol.server.access import AccessPolicy, Family
 
 from .protocol import (
     AdvertiseServices,
@@ -43,9 +42,10 @@ from .schemas import schema_of, wire_encoding
 from .wire import decode_wire, encode_wire
 
 if TYPE_CHECKING:
-    from rwt_graph.core import GraphCore
+    from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
     from rwt_protocol.ports import Pending
+    from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.timers import Timer
 
     from .output import SessionOutput
@@ -87,7 +87,7 @@ class ServiceCalls:
 
     def __init__(
         self,
-        graph: GraphCore,
+        graph: GraphFront,
         client_id: str,
         out: SessionOutput,
         access: AccessPolicy,
@@ -112,10 +112,11 @@ class ServiceCalls:
         Returns:
             Whether anything was queued.
         """
+        registry, visible = self._graph.registry, Visibility.of(self._access)
         current = {
-            name: entry.srvtype
-            for name, entry in self._graph.services.entries.items()
-            if self._access.allows(Family.SERVICES, name)
+            change.name: registry.service(change.type_name)
+            for change in self._graph.feed.snapshot()[1]
+            if change.kind == "service" and visible.sees(change)
         }
         gone = [
             service
@@ -169,9 +170,7 @@ class ServiceCalls:
             self._answer(op.call_id, call, result, values)
 
         try:
-            call.pending = self._graph.call_service(
-                self._client_id, rosbridge.CallService(service=service.name, args=request), reply
-            )
+            call.pending = self._graph.call_service(self._client_id, service.name, request, reply)
         except RwtError as exc:
             if self._calls.get(op.call_id) is call:
                 del self._calls[op.call_id]

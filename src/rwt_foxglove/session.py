@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.types.registry import codec_for
-from rwt_protocol import ops as rosbridge  # the graph port takes rosbridge op models
+from rwt_graph.visibility import Visibility
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RwtError
 from rwt_protocol.levels import StatusLevel as Level
@@ -78,13 +78,12 @@ from .protocol import (
 from .schemas import JSON, metadata_for, schema_of, supported_encodings, wire_encoding
 from .servertime import TIME_CAPABILITY, TIME_INTERVAL_S, ServerTime
 from .services import ServiceCalls
-from .wire import decode_wire
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rwt_graph.core import GraphCore
     from rwt_graph.parameters.store import Parameters
+    from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
     from rwt_protocol.server.contract import Job
@@ -244,7 +243,7 @@ class FoxgloveSession(SessionBase):
 
     def __init__(
         self,
-        graph: GraphCore,
+        graph: GraphFront,
         client_id: str,
         *,
         session_id: str,
@@ -268,7 +267,7 @@ class FoxgloveSession(SessionBase):
             on_closed=on_closed,
             max_messages=self.limits.max_queue_messages,
         )
-        self._graph: GraphCore = graph
+        self._graph: GraphFront = graph
         self._access = config.access
         self._ids = itertools.count(1)
         self._channels: dict[str, _ServerChannel] = {}  # topic -> channel
@@ -538,8 +537,8 @@ class FoxgloveSession(SessionBase):
         self._subscriptions[sid] = channel
         channel.subscriptions.append(sid)
         try:  # the graph hands the latched message to the new sink at once (D13)
-            request = rosbridge.Subscribe(topic=channel.topic, type=channel.mtype.name)
-            self._graph.subscribe(self._client_id, request, _TopicSink(self, channel))
+            sink = _TopicSink(self, channel)
+            self._graph.subscribe(self._client_id, channel.topic, channel.mtype.name, sink)
         except RwtError:
             channel.subscriptions.remove(sid)
             del self._subscriptions[sid]
@@ -581,8 +580,7 @@ class FoxgloveSession(SessionBase):
             raise FoxgloveInputError(f"topic: {problem}")
         topic = resolve_name(spec.topic)
         self.require_access(Family.TOPICS, topic, "advertise")
-        request = rosbridge.Advertise(topic=topic, type=spec.schemaName)
-        type_name = self._graph.advertise(self._client_id, request)
+        type_name = self._graph.advertise(self._client_id, topic, spec.schemaName)
         mtype = self._graph.registry.message(type_name)
         self._client_channels[spec.id] = _ClientChannel(spec.id, topic, mtype, spec.encoding)
 
@@ -653,12 +651,12 @@ class FoxgloveSession(SessionBase):
             raise FoxgloveInputError(f"message data on unknown client channel {op.channel_id}")
         if channel.encoding == JSON:
             value = decode_json_text(bytes(op.payload), "message")
-            self._graph.publish(self._client_id, rosbridge.Publish(topic=channel.topic, msg=value))
+            self._graph.publish(self._client_id, channel.topic, value)
             return
-        wire = bytes(op.payload)
-        msg = decode_wire(self._graph.registry, channel.mtype, wire)
-        # the client's bytes go on as they are to every subscriber that sends CDR
-        self._graph.publish_local(self._client_id, channel.topic, msg, latch=False, wire=wire)
+        # checked by decoding it once; the client's bytes then go on as they are to every
+        # subscriber that sends the wire form (Foxglove clients, cbor-raw)
+        data = bytes(op.payload)
+        self._graph.publish_serialized(self._client_id, channel.topic, data, encoding=self._wire)
 
     # ---- the graph ----------------------------------------------------------------
 
@@ -680,10 +678,11 @@ class FoxgloveSession(SessionBase):
         self.graph_updates.sync()
 
     def _sync_channels(self) -> None:
+        registry, visible = self._graph.registry, Visibility.of(self._access)
         current = {
-            name: entry.msgtype
-            for name, entry in self._graph.topics.items()
-            if entry.publishers and self._access.allows(Family.TOPICS, name)
+            change.name: registry.message(change.type_name)
+            for change in self._graph.feed.snapshot()[1]
+            if change.kind == "publisher" and visible.sees(change)
         }
         gone = [
             channel

@@ -11,7 +11,13 @@ Modules:
 - ``graph``: ``Graph``, the graph as Python code in the same process sees it
   (the embedding API).
 - ``core``: the graph's state and the port (``rwt_protocol.ports``) that
-  sessions and links drive.
+  sessions and links drive, in the graph's terms.
+- ``port``: ``GraphFront``, the graph as a protocol front end sees it (the
+  port's calls, the feed, types, nodes, timeline); what other packages type against.
+- ``feed``: the change feed: every entity a participant gains or loses, announced
+  once, with versions (instead of rescanning the graph).
+- ``visibility``: which names a client may see, one rule for rosapi's and
+  Foxglove's listings, built from the access rules.
 - ``topics``: topics: advertisers, subscribers, latching, delivery (spec 3.3.1-3.3.5).
 - ``services``: services: providers, calls and their replies (spec 3.3.6-3.3.9).
 - ``actions``: actions: goals, feedback, results, cancels (spec 3.3.10-3.3.15).
@@ -26,6 +32,8 @@ Modules:
 - ``link``: the link contract: how a graph is mirrored to and from another middleware.
 - ``mirror``: the other middleware's entities as participants of the graph, one
   mirror for both links (they supply discovery, transport and codecs).
+- ``exports``: a link's outward side: the local entities it shares, followed
+  through the change feed, with one backlog of what changed.
 - ``topic_holds``: a link's topics held back while the subscribers they congested
   catch up.
 

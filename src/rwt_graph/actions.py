@@ -26,8 +26,6 @@ from .calls import ProviderTable, Spawner, convert_args, guarded, require_spawne
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
-    from rwt_protocol.ops import ActionFeedback, ActionResult
-
     from .clock import Clock
     from .types import ActionType, TypeRegistry
 
@@ -181,6 +179,11 @@ class ActionEntry:
     goals: dict[str, Goal] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
+    @property
+    def type_name(self) -> str:
+        """The canonical action type (``example_interfaces/action/Fibonacci``)."""
+        return self.actiontype.name
+
     def end_all(self, reason: str) -> None:
         """End every goal ABORTED with ``result: false`` and ``reason`` (D4).
 
@@ -211,16 +214,15 @@ class Actions(ProviderTable[ActionEntry]):
     def send_goal(
         self,
         client: ClientId,
-        op: SendActionGoal,
+        action: str,
+        args: object,
         done: GoalDone,
         on_feedback: GoalFeedback | None,
         *,
-        path: str,
+        path: str = "$",
     ) -> Goal:
-        """Start the goal ``op.args`` on ``op.action`` (spec 3.3.12).
+        """Start the goal ``args`` on ``action`` (spec 3.3.12).
 
-        ``op.action_type`` is not checked: clients name one action in different
-        packages (``tf2_web_republisher_msgs`` or ``..._interfaces``, REF §7.3).
         ``on_feedback`` gets each feedback message (None: nobody asked). A
         client provider gets the goal as a ``SendActionGoal`` op of its own: its
         spellings, the goal in the internal form, the id
@@ -232,10 +234,10 @@ class Actions(ProviderTable[ActionEntry]):
                 (docs/limits.md).
             FieldError: ``args`` does not fit the goal type.
         """
-        entry = self.entries.get(resolve_name(op.action))
+        entry = self.entries.get(resolve_name(action))
         if entry is None:
-            raise UnknownNameError("action", op.action)
-        goal_msg = convert_args(entry.actiontype.goal, op.args, path=path, now=self.clock.wall())
+            raise UnknownNameError("action", action)
+        goal_msg = convert_args(entry.actiontype.goal, args, path=path, now=self.clock.wall())
         goal_id = f"action_goal:{entry.spelling}:{next(entry.counter)}"
         goal = Goal(entry, goal_id, client, done, on_feedback, self.clock)
         entry.goals[goal_id] = goal
@@ -261,19 +263,37 @@ class Actions(ProviderTable[ActionEntry]):
                 raise
         return goal
 
-    def feedback(self, client: ClientId, op: ActionFeedback, *, path: str) -> None:
-        """Route the provider's feedback ``op.values`` for the goal ``op.id`` (spec 3.3.14).
+    def feedback(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str | int | None,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
+        """Route the provider's feedback ``values`` for the goal ``goal_id`` (spec 3.3.14).
 
         Raises:
             GraphError: not the provider; no or an unknown goal id (warning).
             FieldError: ``values`` does not fit the feedback type.
         """
-        self._goal(client, op.action, op.id).feedback(op.values, path=path)
+        self._goal(client, action, goal_id).feedback(values, path=path)
 
-    def result(self, client: ClientId, op: ActionResult, *, path: str) -> None:
-        """Route the provider's result for the goal ``op.id`` (spec 3.3.15, D18).
+    def result(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str | int | None,
+        result: bool,
+        values: object,
+        *,
+        status: int | None = None,
+        path: str = "$",
+    ) -> None:
+        """Route the provider's result for the goal ``goal_id`` (spec 3.3.15, D18).
 
-        ``op.status`` defaults to SUCCEEDED when ``op.result`` is true, ABORTED
+        ``status`` defaults to SUCCEEDED when ``result`` is true, ABORTED
         otherwise; the caller's ``result`` is true for every terminal status (D18).
 
         Raises:
@@ -281,9 +301,8 @@ class Actions(ProviderTable[ActionEntry]):
                 status not terminal.
             FieldError: ``values`` does not fit the result type (the goal aborts).
         """
-        goal = self._goal(client, op.action, op.id)
-        result, values = op.result, op.values
-        final = _terminal(op.status, result)
+        goal = self._goal(client, action, goal_id)
+        final = _terminal(status, result)
         if not result:
             goal.finish(final, True, goal.entry.actiontype.result.default())
             return

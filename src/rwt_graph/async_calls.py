@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING
 import anyio
 
 from rwt_protocol.errors import ServiceCallError
-from rwt_protocol.ops import CallService, SendActionGoal
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -59,8 +58,7 @@ async def call_service(
         outcome.append((result, values))
         done.set()
 
-    request = CallService(service=service, args=args)
-    pending = graph.port.call_service(graph.port.local_client(), request, reply)
+    pending = graph.port.call_service(graph.port.local_client(), service, args, reply)
     with anyio.move_on_after(timeout_s):
         await done.wait()
     if not outcome:
@@ -95,8 +93,9 @@ async def send_action_goal(
         outcome.append((status, result, values))
         done.set()
 
-    op = SendActionGoal(action=action, action_type="", args=goal, feedback=on_feedback is not None)
-    handle = graph.port.send_action_goal(graph.port.local_client(), op, finish, on_feedback)
+    handle = graph.port.send_action_goal(
+        graph.port.local_client(), action, goal, finish, on_feedback
+    )
     try:
         with anyio.move_on_after(timeout_s):
             await done.wait()

@@ -117,6 +117,11 @@ class Offer(Protocol):
     spelling: str
     owner: ClientId
 
+    @property
+    def type_name(self) -> str:
+        """The canonical type of the offer (``std_srvs/srv/SetBool``)."""
+        ...
+
     def end_all(self, reason: str) -> None:
         """Answer every caller waiting on this offer with a failure and ``reason`` (D4)."""
 
@@ -156,6 +161,8 @@ class ProviderTable(Generic[E]):
         """Resolved names no client may advertise even while nothing provides them."""
         self._refusals = EpisodeLog(logger)  # callers can trigger them at will
         self._owned: dict[ClientId, set[str]] = {}  # provider -> its names: release is O(held)
+        self.on_change: Callable[[E, bool], None] | None = None
+        """Told ``(entry, added)`` once the table has it or no longer has it (the change feed)."""
 
     def log_refusal(self, spelling: str, caller: str, reason: str) -> None:
         """Log that a client provider of ``spelling`` refused a request (busy, docs/limits.md).
@@ -193,6 +200,10 @@ class ProviderTable(Generic[E]):
         if old is not None:
             self._disown(old)
         self._owned.setdefault(entry.owner, set()).add(entry.name)
+        if self.on_change is not None:  # the old owner's removal, then the new one's addition
+            if old is not None:
+                self.on_change(old, False)
+            self.on_change(entry, True)
         if old is not None:
             reason = f"{self.kind} {old.spelling} was replaced by a newer advertiser"
             old.end_all(reason)
@@ -218,6 +229,8 @@ class ProviderTable(Generic[E]):
         entry = self.owned(client, name)
         del self.entries[entry.name]
         self._disown(entry)
+        if self.on_change is not None:
+            self.on_change(entry, False)
         entry.end_all(f"{self.kind} {entry.spelling} was unadvertised")
 
     def take_owned(self, client: ClientId) -> list[E]:
@@ -231,6 +244,8 @@ class ProviderTable(Generic[E]):
             if entry is not None and entry.owner == client:
                 del self.entries[name]
                 taken.append(entry)
+                if self.on_change is not None:
+                    self.on_change(entry, False)
         return taken
 
     def _disown(self, entry: E) -> None:

@@ -54,29 +54,19 @@ from .actions import (
 )
 from .calls import LOCAL_PREFIX, Soon, Spawner, guarded, is_local
 from .clock import Clock, SystemClock
+from .feed import ChangeFeed, EntityKind
 from .link import OPEN_GATE, OPEN_OUTFLOW, InflowGate, OutflowGate
 from .nodes import Nodes
 from .ratelog import EpisodeLog
 from .services import ServiceEntry, Services
 from .topics import Tap, Topic
 from .types import Dialect, MessageType, TypeRegistry, codec_for
+from .types.wire import wire_encoding
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
-    from rwt_protocol.ops import (
-        ActionFeedback,
-        ActionResult,
-        Advertise,
-        AdvertiseAction,
-        AdvertiseService,
-        CallService,
-        PublishView,
-        SendActionGoal,
-        ServiceResponse,
-        Subscribe,
-    )
-
+    from .calls import Offer
     from .playback import Playback
 
 
@@ -87,6 +77,8 @@ _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
 _T = TypeVar("_T")
+
+PUBLISHER, SUBSCRIPTION = EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION
 
 BATCH_MAX_MESSAGES = 1024
 """Messages of a turn's batch (``deliver_wire``) beyond which it is delivered at once
@@ -116,6 +108,9 @@ class GraphCore:
         topics: topic entries by resolved name.
         services, actions: the provider tables.
         nodes: the node of each participant.
+        feed: every entity a participant gains or loses, announced once
+            (``feed.ChangeFeed``): what protocols and links follow instead of
+            rescanning ``topics`` and ``services``.
         taps: functions that see every published message (``topics.Tap``).
         type_checks: functions of links telling why they cannot carry a type
             (``type_warning``); a link adds one while it runs.
@@ -143,6 +138,10 @@ class GraphCore:
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
         self.actions = Actions(self.registry, self._clock, lambda: self.spawner)
         self.nodes = Nodes()
+        self.feed = ChangeFeed(self.nodes.node_of)
+        self.nodes.on_change = self.feed.renode
+        self.services.on_change = partial(self._offer_changed, EntityKind.SERVICE)
+        self.actions.on_change = partial(self._offer_changed, EntityKind.ACTION)
         self._local_ids = itertools.count(1)
         self._reserved_topics: set[str] = set()
         self._reserved_prefixes: tuple[str, ...] = ()
@@ -258,23 +257,28 @@ class GraphCore:
 
     # ---- GraphPort ------------------------------------------------------------
 
-    def advertise(self, client: ClientId, op: Advertise) -> str:
-        """Register ``client`` as a publisher of ``op.topic`` (spec 3.3.1); ``op.latch`` latches.
+    def advertise(
+        self, client: ClientId, topic: str, type_name: str, *, latch: bool = False
+    ) -> str:
+        """Register ``client`` as a publisher of ``topic`` (spec 3.3.1); ``latch`` latches (D13).
+
+        A publisher that latches stays latched until it goes.
 
         Returns:
             The canonical type name.
 
         Raises:
-            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
             GraphError: the topic exists with another type, or is reserved.
         """
-        msgtype = self.registry.message(op.type)
-        topic = resolve_name(op.topic)
-        self._check_reserved(client, topic)
-        entry = self._topic(topic, msgtype)
-        entry.publishers[client] = op.latch or entry.publishers.get(client, False)
-        self._hold(client, entry.name)
+        msgtype = self.registry.message(type_name)
+        name = resolve_name(topic)
+        self._check_reserved(client, name)
+        entry = self._topic(name, msgtype)
         self.nodes.name_of(client)
+        latched = entry.publishers[client] = latch or entry.publishers.get(client, False)
+        self._hold(client, entry.name)
+        self.feed.put(PUBLISHER, entry.name, client, entry.msgtype.name, latched=latched)
         return entry.msgtype.name
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
@@ -285,18 +289,21 @@ class GraphCore:
             entry.remove_publisher(client)
             self._unhold(client, entry)
             self._collect(entry)
+            self.feed.drop(PUBLISHER, entry.name, client)
 
-    def publish(self, client: ClientId, op: PublishView, *, path: str = "$") -> tuple[str, ...]:
-        """Validate ``op.msg`` against the type of ``op.topic`` and deliver it (spec 3.3.3).
+    def publish(
+        self, client: ClientId, topic: str, msg: object, *, latch: bool = False, path: str = "$"
+    ) -> tuple[str, ...]:
+        """Validate ``msg`` against the type of ``topic`` and deliver it (spec 3.3.3).
 
         Publishing without advertising is allowed once the topic's type is known
         (REF §2.3); the client then counts as a publisher until it leaves.
 
         Args:
             client: the publishing participant.
-            op: the op as either decoder gives it (``Publish`` or its msgspec
-                twin): ``topic`` in any spelling, ``msg`` as decoded JSON (a
-                dict), ``latch`` keeps the message for later subscribers (D13).
+            topic: the topic in any spelling.
+            msg: the message as decoded JSON (a dict).
+            latch: keep the message for later subscribers (D13).
             path: JSON path of ``msg``, for error texts.
 
         Returns:
@@ -306,14 +313,60 @@ class GraphCore:
             GraphError: the topic's type is unknown.
             FieldError: ``msg`` does not fit the type (D9).
         """
-        entry, converted, missing = self.convert_publish(op.topic, op.msg, path=path)
-        if client not in entry.publishers:  # the first publish of this client: check it once
-            self._check_reserved(client, entry.name)
-            self._hold(client, entry.name)
-            self.nodes.name_of(client)
-        latched = entry.publishers.setdefault(client, False) or op.latch
-        self.deliver(entry, converted, latch=latched, client=client)
+        entry, converted, missing = self.convert_publish(topic, msg, path=path)
+        latched = entry.publishers.get(client)
+        if latched is None:  # the first publish of this client: check it once
+            self._join(client, entry)
+            latched = False
+        self.deliver(entry, converted, latched or latch, client)
         return missing
+
+    def publish_serialized(
+        self, client: ClientId, topic: str, data: bytes, *, encoding: str
+    ) -> None:
+        """Publish ``data``, a message in the graph's wire form, as it is (spec 3.3.3).
+
+        ``data`` is CDR with its encapsulation header on a ROS 2 graph
+        (``encoding`` ``cdr``), the ROS 1 format on a ROS 1 one (``ros1``), as a
+        Foxglove client sends its message data. It is validated by decoding it
+        once as the topic's type (``WireCodec.deserialize``: the header, every
+        field, no more trailing bytes than alignment explains), so a peer's bad
+        bytes fail its publish and never reach a subscriber. Then ``data``
+        itself goes to every subscriber that sends that form
+        (``MessageEvent.wire``: Foxglove clients, cbor-raw, the links), never
+        serialized again, and the values decoded to the others (JSON, CBOR,
+        Python callbacks), never decoded again. Publishing without advertising
+        is allowed as for ``publish``.
+
+        Raises:
+            GraphError: the topic's type is unknown, or ``encoding`` is not the graph's.
+            CdrError: ``data`` is not a message of the topic's type in that form.
+        """
+        entry = self.topics.get(topic)
+        if entry is None:
+            entry = self.topics.get(resolve_name(topic))
+            if entry is None:
+                raise GraphError(f"{topic} has no type yet (advertise it first)")
+        expected = wire_encoding(self.registry.dialect)
+        if encoding != expected:
+            raise GraphError(f"encoding {encoding[:40]!r} is not this graph's ({expected})")
+        codec = entry.codec
+        if codec is None:
+            codec = entry.codec = codec_for(self.registry, entry.msgtype)
+        msg = codec.deserialize(data)
+        latched = entry.publishers.get(client)
+        if latched is None:
+            self._join(client, entry)
+            latched = False
+        self.deliver(entry, msg, latched, client, data)
+
+    def _join(self, client: ClientId, entry: Topic) -> None:
+        """Make ``client`` a publisher of ``entry`` at its first publish (REF §2.3)."""
+        self._check_reserved(client, entry.name)
+        self.nodes.name_of(client)
+        entry.publishers[client] = False
+        self._hold(client, entry.name)
+        self.feed.put(PUBLISHER, entry.name, client, entry.msgtype.name)
 
     def convert_publish(
         self, topic: str, msg: object, *, path: str = "$"
@@ -341,30 +394,32 @@ class GraphCore:
         result = msgtype.from_json(msg, path=path, now=self._clock.wall())
         return entry, result.msg, result.missing
 
-    def subscribe(self, client: ClientId, op: Subscribe, sink: TopicSink) -> str:
-        """Attach ``sink`` as ``client``'s subscriber of ``op.topic`` (spec 3.3.4).
+    def subscribe(
+        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
+    ) -> str:
+        """Attach ``sink`` as ``client``'s subscriber of ``topic`` (spec 3.3.4).
 
         A new subscriber receives the latched message, if any, at once (D13).
-        Only ``op.topic`` and ``op.type`` matter here; the rest is the session's.
 
         Returns:
             The canonical type name.
 
         Raises:
             GraphError: no type given and the topic is unknown, or a conflicting type.
-            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
         """
-        name = resolve_name(op.topic)
-        if op.type is None:
+        name = resolve_name(topic)
+        if type_name is None:
             entry = self.topics.get(name)
             if entry is None:
-                raise GraphError(f"cannot infer the type of {op.topic}: give a type")
+                raise GraphError(f"cannot infer the type of {topic}: give a type")
         else:
-            entry = self._topic(name, self.registry.message(op.type))
+            entry = self._topic(name, self.registry.message(type_name))
         self.flush()  # the batch goes to the subscribers it was published to
+        self.nodes.name_of(client)
         is_new = entry.add_subscriber(client, sink)
         self._hold(client, entry.name)
-        self.nodes.name_of(client)
+        self.feed.put(SUBSCRIPTION, entry.name, client, entry.msgtype.name)
         if is_new and entry.latched is not None:
             sink.on_message(entry.latched)
         return entry.msgtype.name
@@ -377,6 +432,7 @@ class GraphCore:
             entry.remove_subscriber(client)
             self._unhold(client, entry)
             self._collect(entry)
+            self.feed.drop(SUBSCRIPTION, entry.name, client)
 
     def release(self, client: ClientId) -> None:
         """Drop every registration of ``client`` (it disconnected).
@@ -412,6 +468,8 @@ class GraphCore:
         entry.remove_publisher(client)
         entry.remove_subscriber(client)
         self._collect(entry)
+        self.feed.drop(PUBLISHER, entry.name, client)
+        self.feed.drop(SUBSCRIPTION, entry.name, client)
 
     def _hold(self, client: ClientId, name: str) -> None:
         held = self._held.get(client)
@@ -436,21 +494,32 @@ class GraphCore:
         for action in list(self.actions.entries.values()):
             action.end_all(reason)
 
+    def latched(self, topic: str) -> MessageEvent | None:
+        """The latched message of ``topic`` (D13), None if it has none or the topic is unknown."""
+        entry = self.topics.get(resolve_name(topic))
+        return None if entry is None else entry.latched
+
+    def _offer_changed(self, kind: EntityKind, entry: Offer, added: bool) -> None:
+        """A service or action table gained or lost ``entry``: tell the feed."""
+        if added:
+            self.feed.put(kind, entry.name, entry.owner, entry.type_name)
+        else:
+            self.feed.drop(kind, entry.name, entry.owner)
+
     # ---- ServicePort: services and actions of clients ---------------------------
 
     def advertise_service(
-        self, client: ClientId, op: AdvertiseService, provider: ServiceProvider
+        self, client: ClientId, service: str, type_name: str, provider: ServiceProvider
     ) -> str:
-        """Offer ``op.service`` of ``op.type``, provided by a client session (spec 3.3.6, D15).
+        """Offer ``service`` of ``type_name``, provided by a client session (spec 3.3.6, D15).
 
         Raises:
-            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
         """
-        srvtype = self.registry.service(op.type)
-        service = op.service
+        srvtype = self.registry.service(type_name)
         entry = ServiceEntry(resolve_name(service), service, srvtype, client, provider=provider)
-        self.services.advertise(entry)
         self.nodes.name_of(client)
+        self.services.advertise(entry)
         return srvtype.name
 
     def unadvertise_service(self, client: ClientId, service: str) -> None:
@@ -462,40 +531,61 @@ class GraphCore:
         self.services.unadvertise(client, service)
 
     def call_service(
-        self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str = "$"
+        self,
+        client: ClientId,
+        service: str,
+        args: object,
+        reply: ServiceReply,
+        *,
+        type_name: str | None = None,
+        timeout_s: float | None = None,
+        path: str = "$",
     ) -> Pending:
-        """Call ``op.service`` with ``op.args``; ``reply(result, values)`` runs once (spec 3.3.8).
+        """Call ``service`` with ``args``; ``reply(result, values)`` runs once (spec 3.3.8).
 
         A call that cannot run is answered too (``result: false``, D4).
 
-        ``op.args`` is an object, a list (positional, D25) or None; ``op.type``,
-        when given, must name the service's type. For an in-process service
-        with a sync handler, ``reply`` runs before this returns.
+        ``args`` is an object, a list (positional, D25) or None; ``type_name``,
+        when given, must name the service's type; ``timeout_s`` is how long the
+        caller waits for a service a link may still discover (``Services.call``).
+        For an in-process service with a sync handler, ``reply`` runs before
+        this returns.
 
         Raises:
             GraphError: the service does not exist or has another type.
             FieldError: ``args`` does not fit the request.
         """
-        return self.services.call(client, op, reply, path=path)
+        return self.services.call(
+            client, service, args, reply, type_name=type_name, timeout_s=timeout_s, path=path
+        )
 
-    def service_response(self, client: ClientId, op: ServiceResponse, *, path: str = "$") -> None:
+    def service_response(
+        self,
+        client: ClientId,
+        service: str,
+        request_id: str | int | None,
+        result: bool,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
         """Answer a forwarded request (spec 3.3.9); see ``Services.respond`` for errors."""
-        self.services.respond(client, op, path=path)
+        self.services.respond(client, service, request_id, result, values, path=path)
 
     def advertise_action(
-        self, client: ClientId, op: AdvertiseAction, provider: ActionProvider
+        self, client: ClientId, action: str, type_name: str, provider: ActionProvider
     ) -> str:
-        """Offer ``op.action`` of ``op.type``, provided by a client session (spec 3.3.10, D15).
+        """Offer ``action`` of ``type_name``, provided by a client session (spec 3.3.10, D15).
 
         Raises:
-            InvalidTypeNameError, UnknownTypeError: ``op.type`` is bad or unknown.
+            InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
         """
-        actiontype = self.registry.action(op.type)
-        name = resolve_name(op.action)
-        self.offer_action(
-            ActionEntry(name, op.action, op.type, actiontype, client, provider=provider)
-        )
+        actiontype = self.registry.action(type_name)
+        name = resolve_name(action)
         self.nodes.name_of(client)
+        self.offer_action(
+            ActionEntry(name, action, type_name, actiontype, client, provider=provider)
+        )
         return actiontype.name
 
     def unadvertise_action(self, client: ClientId, action: str) -> None:
@@ -512,31 +602,49 @@ class GraphCore:
     def send_action_goal(
         self,
         client: ClientId,
-        op: SendActionGoal,
+        action: str,
+        args: object,
         done: GoalDone,
         feedback: GoalFeedback | None = None,
         *,
         path: str = "$",
     ) -> GoalHandle:
-        """Send the goal ``op.args`` to ``op.action`` (spec 3.3.12, D4, D18).
+        """Send the goal ``args`` to ``action`` (spec 3.3.12, D4, D18).
 
-        ``done(status, result, values)`` runs once; ``feedback`` gets each
-        feedback message when ``op.feedback`` is true.
+        ``done(status, result, values)`` runs once; ``feedback``, when given,
+        gets each feedback message.
 
         Raises:
             GraphError: the action does not exist.
             FieldError: ``args`` does not fit the goal.
         """
-        on_feedback = feedback if op.feedback else None
-        return self.actions.send_goal(client, op, done, on_feedback, path=path)
+        return self.actions.send_goal(client, action, args, done, feedback, path=path)
 
-    def action_feedback(self, client: ClientId, op: ActionFeedback, *, path: str = "$") -> None:
+    def action_feedback(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str | int | None,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
         """Feedback from the provider (spec 3.3.14); see ``Actions.feedback``."""
-        self.actions.feedback(client, op, path=path)
+        self.actions.feedback(client, action, goal_id, values, path=path)
 
-    def action_result(self, client: ClientId, op: ActionResult, *, path: str = "$") -> None:
+    def action_result(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str | int | None,
+        result: bool,
+        values: object,
+        *,
+        status: int | None = None,
+        path: str = "$",
+    ) -> None:
         """The provider's result (spec 3.3.15, D18); see ``Actions.result``."""
-        self.actions.result(client, op, path=path)
+        self.actions.result(client, action, goal_id, result, values, status=status, path=path)
 
     def offer_action(self, entry: ActionEntry) -> None:
         """Advertise ``entry`` with its cancel service (a client's or in-process provider's).

@@ -15,7 +15,6 @@ import contextlib
 from typing import TYPE_CHECKING
 
 from rwt_protocol.names import resolve_name
-from rwt_protocol.ops import Advertise, Subscribe
 
 from .actions import ActionEntry, LocalActionHandler
 from .core import GraphCore
@@ -108,7 +107,7 @@ class Graph:
         if reserved:
             self.reserve_topic(name)
         with self._participant(node) as client:
-            self.port.advertise(client, Advertise(topic=name, type=type_name, latch=latch))
+            self.port.advertise(client, name, type_name, latch=latch)
         return LocalPublisher(self.port, client, self.topics[name], latch=latch)
 
     def create_subscription(
@@ -132,7 +131,7 @@ class Graph:
         """
         with self._participant(node) as client:
             subscription = LocalSubscription(self.port, client, resolve_name(topic), callback)
-            self.port.subscribe(client, Subscribe(topic=topic, type=type_name), subscription)
+            self.port.subscribe(client, topic, type_name, subscription)
         return subscription
 
     def create_service(

@@ -7,7 +7,8 @@ same rules, written here once:
 - **Local and remote.** Every participant the link adds to the graph (an entity
   of the other middleware) has a client id starting with the link's prefix
   (``LinkRules.ours``); everything else is local. Only local entities are shared
-  outward (``LinkRules.wanted``), and only local publishers' messages are
+  outward (``exports.Exports``, which follows the graph's change feed), and only
+  local publishers' messages are
   forwarded (``LinkRules.forwards``, which the link's graph tap asks), so
   nothing that came in goes back out.
 - **Private names.** Each server keeps its client counts and its rosapi to
@@ -49,19 +50,18 @@ same rules, written here once:
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import Advertise, Subscribe
+
+from .feed import EntityKind
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Container
 
     from rwt_protocol.ports import ClientId, MessageEvent
 
-    from .actions import ActionEntry
     from .graph import Graph
     from .topics import Topic
 
@@ -82,7 +82,6 @@ __all__ = [
     "LinkRules",
     "OutflowGate",
     "Relays",
-    "Wanted",
     "mirror_endpoint",
 ]
 
@@ -103,16 +102,8 @@ already answers for the whole graph). ``*`` ends a prefix."""
 PRIVATE_CACHE = 10_000
 
 
-class Kind(enum.Enum):
-    """The kinds of local entity a link shares."""
-
-    PUBLISHER = "publisher"
-    SUBSCRIPTION = "subscription"
-    SERVICE = "service"
-
-
-Wanted = dict[tuple[Kind, "ClientId", str], tuple[str, bool]]
-"""Local entities to share: (kind, participant, name) -> (type name, latched)."""
+Kind = EntityKind
+"""The kinds of entity a link shares and mirrors: the change feed's (``feed.EntityKind``)."""
 
 
 class _NullSink:
@@ -165,32 +156,6 @@ class LinkRules:
             private = self._private_names[name] = matches_private(name, self.private)
         return private
 
-    def wanted(self, graph: Graph) -> Wanted:
-        """The local entities of ``graph`` to share outward, private names left out."""
-        wanted: Wanted = {}
-        for name, entry in graph.topics.items():
-            if self.is_private(name):
-                continue
-            type_name = entry.msgtype.name
-            for client, latched in entry.publishers.items():
-                if not self.ours(client):
-                    wanted[(Kind.PUBLISHER, client, name)] = (type_name, latched)
-            for client in entry.subscribers:
-                if not self.ours(client):
-                    wanted[(Kind.SUBSCRIPTION, client, name)] = (type_name, False)
-        for name, service in graph.services.entries.items():
-            if not self.ours(service.owner) and not self.is_private(name):
-                wanted[(Kind.SERVICE, service.owner, name)] = (service.srvtype.name, False)
-        return wanted
-
-    def local_actions(self, graph: Graph) -> dict[str, ActionEntry]:
-        """The local action servers of ``graph`` to share outward, by name."""
-        return {
-            name: entry
-            for name, entry in graph.actions.entries.items()
-            if not self.ours(entry.owner) and not self.is_private(name)
-        }
-
 
 def matches_private(name: str, private: tuple[str, ...]) -> bool:
     """Whether ``name`` is one of ``private`` (an entry ending ``*`` is a prefix)."""
@@ -221,16 +186,17 @@ def mirror_endpoint(
 
     Raises:
         RwtError: the graph refuses it (``GraphError``: another type, a reserved
-            topic; ``UnknownTypeError``...). ``kind`` is a service: ``ValueError``.
+            topic; ``UnknownTypeError``...). ``kind`` is a service or an
+            action: ``ValueError``.
     """
-    if kind is Kind.SERVICE:
-        raise ValueError("a service is mirrored with its provider (GraphCore.advertise_service)")
+    if kind not in (Kind.PUBLISHER, Kind.SUBSCRIPTION):
+        raise ValueError(f"a {kind.value} is mirrored with its provider (GraphCore.advertise_*)")
     graph.nodes.bind(client, node)
     try:
         if kind is Kind.PUBLISHER:
-            graph.port.advertise(client, Advertise(topic=topic, type=type_name, latch=latched))
+            graph.port.advertise(client, topic, type_name, latch=latched)
         else:
-            graph.port.subscribe(client, Subscribe(topic=topic, type=type_name), NULL_SINK)
+            graph.port.subscribe(client, topic, type_name, NULL_SINK)
     except RwtError:
         graph.nodes.forget(client)
         raise

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import AdvertiseAction, AdvertiseService
 
 from .link import Kind, mirror_endpoint
 
@@ -269,15 +268,13 @@ class Mirror:
                     return
                 held.provider = service = self.side.service_provider(client, entity)
                 graph.nodes.bind(client, entity.node)
-                offer = AdvertiseService(service=entity.name, type=entity.type_name)
-                graph.port.advertise_service(client, offer, service)
+                graph.port.advertise_service(client, entity.name, entity.type_name, service)
             elif entity.kind is RemoteKind.ACTION:
                 if self._shadowed(client, entity.name in graph.actions.entries):
                     return
                 held.provider = action = self.side.action_provider(client, entity)
                 graph.nodes.bind(client, entity.node)
-                offered = AdvertiseAction(action=entity.name, type=entity.type_name)
-                graph.port.advertise_action(client, offered, action)
+                graph.port.advertise_action(client, entity.name, entity.type_name, action)
             else:
                 self.side.check_endpoint(entity)
                 publisher = entity.kind is RemoteKind.PUBLISHER

@@ -52,6 +52,9 @@ class Nodes:
         on_forget: called with ``(client, node)`` (its node, None if it had none)
             after a participant is forgotten; the parameter store releases what a
             client set (``parameters.store``).
+        on_change: called with a participant whose node changed (bound anew, or
+            forgotten); the graph's change feed re-announces its entities then
+            (``ChangeFeed.renode``).
     """
 
     def __init__(self) -> None:
@@ -60,6 +63,7 @@ class Nodes:
         self._hosts: dict[ClientId, str] = {}
         self._members: dict[str, set[ClientId]] = {}  # node -> participants: no walk per query
         self._numbers = itertools.count(1)
+        self.on_change: Callable[[ClientId], None] | None = None
 
     def attach(self, client: ClientId, *, host: str | None = None) -> str:
         """Give a connection its own node (once; later calls keep the first name).
@@ -81,25 +85,29 @@ class Nodes:
 
     def bind(self, client: ClientId, node: str) -> None:
         """Put an in-process participant in ``node`` (already checked by ``node_name``)."""
-        self._leave(client)
+        was = self._leave(client)
         self._names[client] = node
         self._members.setdefault(node, set()).add(client)
+        if was != node and self.on_change is not None:
+            self.on_change(client)
 
     def forget(self, client: ClientId) -> None:
         """The participant is gone (disconnected, or its handle closed)."""
-        node = self._names.get(client)
-        self._leave(client)
+        was = self._leave(client)
         self._hosts.pop(client, None)
+        if was is not None and self.on_change is not None:
+            self.on_change(client)
         for hook in list(self.on_forget):
-            hook(client, node)
+            hook(client, was)
 
-    def _leave(self, client: ClientId) -> None:
+    def _leave(self, client: ClientId) -> str | None:
         node = self._names.pop(client, None)
         if node is not None:
             members = self._members[node]
             members.discard(client)
             if not members:
                 del self._members[node]
+        return node
 
     def name_of(self, client: ClientId) -> str:
         """The node of ``client``; a participant never seen gets a client node."""

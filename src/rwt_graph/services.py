@@ -28,8 +28,6 @@ from .calls import ProviderTable, Spawner, convert_args, guarded
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
-    from rwt_protocol.ops import ServiceResponse
-
     from .clock import Clock
     from .types import ServiceType, TypeRegistry
 
@@ -70,10 +68,12 @@ def _kept() -> None:
 
 @dataclass(eq=False)
 class _Parked:
-    """A call waiting for its service to be discovered."""
+    """A call waiting for its service to be discovered (the arguments of ``Services.call``)."""
 
     call: PendingCall
-    op: CallService
+    service: str
+    args: object
+    type_name: str | None
     path: str
     cancels: list[Callable[[], None]]
     waits: int = 0  # links still waiting for the service
@@ -136,6 +136,11 @@ class ServiceEntry:
     pending: dict[str, PendingCall] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
+    @property
+    def type_name(self) -> str:
+        """The canonical service type (``std_srvs/srv/SetBool``)."""
+        return self.srvtype.name
+
     def end_all(self, reason: str) -> None:
         """Answer every pending call with ``result: false`` (D4, D15).
 
@@ -166,16 +171,24 @@ class Services(ProviderTable[ServiceEntry]):
         self._parked: dict[str, list[_Parked]] = {}  # resolved name -> calls waiting for it
 
     def call(
-        self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str
+        self,
+        client: ClientId,
+        service: str,
+        args: object,
+        reply: ServiceReply,
+        *,
+        type_name: str | None = None,
+        timeout_s: float | None = None,
+        path: str = "$",
     ) -> PendingCall:
-        """Start a call to ``op.service`` with ``op.args``, of ``op.type`` when given (spec 3.3.8).
+        """Start a call to ``service`` with ``args``, of ``type_name`` when given (spec 3.3.8).
 
         A client provider gets the request as a ``CallService`` op of its own:
         the service as it spelled it, the request in the internal form, and the
         id ``service_request:<name>:<n>``.
 
         A service nobody offers while a link may still discover it
-        (``discoveries``) is waited for: up to ``op.timeout`` when the caller gave
+        (``discoveries``) is waited for: up to ``timeout_s`` when the caller gave
         one (its timeout then ends the call, ``Pending.forget``), else as long as
         the link says; the call starts if the service comes, else fails as unknown
         (``result: false``).
@@ -186,22 +199,27 @@ class Services(ProviderTable[ServiceEntry]):
                 client provider is busy (docs/limits.md).
             FieldError: ``args`` does not fit the request type.
         """
-        entry = self.entries.get(resolve_name(op.service))
+        entry = self.entries.get(resolve_name(service))
         if entry is None:
-            parked = self._park(client, op, reply, path)
-            if parked is None:
-                raise UnknownNameError("service", op.service)
-            return parked
-        return self._start(entry, PendingCall(client, reply), op, path)
+            call = PendingCall(client, reply)
+            if not self._park(_Parked(call, service, args, type_name, path, []), timeout_s):
+                raise UnknownNameError("service", service)
+            return call
+        return self._start(entry, PendingCall(client, reply), service, args, type_name, path)
 
     def _start(
-        self, entry: ServiceEntry, call: PendingCall, op: CallService, path: str
+        self,
+        entry: ServiceEntry,
+        call: PendingCall,
+        service: str,
+        args: object,
+        type_name: str | None,
+        path: str,
     ) -> PendingCall:
         client = call.caller
-        service, type_name = op.service, op.type
         if type_name is not None and self.registry.service(type_name).name != entry.srvtype.name:
             raise GraphError(f"service {service} has type {entry.srvtype.name}, not {type_name}")
-        request = convert_args(entry.srvtype.request, op.args, path=path, now=self.clock.wall())
+        request = convert_args(entry.srvtype.request, args, path=path, now=self.clock.wall())
         if entry.caller_handler is not None:
             self._run_local(entry, _with_caller(entry.caller_handler, client), request.msg, call)
         elif entry.handler is not None:
@@ -222,32 +240,28 @@ class Services(ProviderTable[ServiceEntry]):
                 raise
         return call
 
-    def _park(
-        self, client: ClientId, op: CallService, reply: ServiceReply, path: str
-    ) -> PendingCall | None:
-        """Hold a call to a service a link may still discover; None if no link waits."""
+    def _park(self, parked: _Parked, timeout_s: float | None) -> bool:
+        """Hold a call to a service a link may still discover; False if no link waits."""
         if not self.discoveries:
-            return None
-        call = PendingCall(client, reply)
-        name = resolve_name(op.service)
-        parked = _Parked(call, op, path, [])
+            return False
+        name = resolve_name(parked.service)
         # a caller that said how long it waits is held that long: a node starting
         # on a loaded machine may take longer to discover than a link's own wait
-        expire = _kept if op.timeout is not None else partial(self._expire, name, parked)
+        expire = _kept if timeout_s is not None else partial(self._expire, name, parked)
         for wait in self.discoveries:
             cancel = wait(expire)
             if cancel is not None:
                 parked.cancels.append(cancel)
         if not parked.cancels:
-            return None
+            return False
         parked.waits = len(parked.cancels)
         self._parked.setdefault(name, []).append(parked)
 
         def forget() -> None:  # the caller stopped waiting (its timeout, its disconnect)
             self._unpark(name, parked)
 
-        call.cancel_job = forget
-        return call
+        parked.call.cancel_job = forget
+        return True
 
     def _unpark(self, name: str, parked: _Parked) -> bool:
         """Stop holding ``parked`` (started, expired or forgotten); False if it was not held."""
@@ -268,7 +282,7 @@ class Services(ProviderTable[ServiceEntry]):
         if parked.waits > 0:
             return  # another link's wait is still on: its expiry decides
         if self._unpark(name, parked):
-            parked.call.resolve(False, UnknownNameError("service", parked.op.service).message)
+            parked.call.resolve(False, UnknownNameError("service", parked.service).message)
 
     def advertise(self, entry: ServiceEntry) -> None:
         """Add ``entry`` (``ProviderTable.advertise``), then start the calls that waited for it."""
@@ -277,33 +291,39 @@ class Services(ProviderTable[ServiceEntry]):
             self._unpark(entry.name, parked)
             call = parked.call
             try:
-                self._start(entry, call, parked.op, parked.path)
+                self._start(entry, call, parked.service, parked.args, parked.type_name, parked.path)
             except RwtError as exc:  # another type, arguments that do not fit, a busy provider
                 call.resolve(False, exc.message)
 
-    def respond(self, client: ClientId, op: ServiceResponse, *, path: str) -> None:
+    def respond(
+        self,
+        client: ClientId,
+        service: str,
+        request_id: str | int | None,
+        result: bool,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
         """Route a provider's ``service_response`` to its caller (spec 3.3.9, D15, D28).
 
-        ``op.id`` names the request (the id of the ``CallService`` the provider
-        got); ``op.values`` is the response when ``op.result`` is true, else
+        ``request_id`` names the request (the id of the ``CallService`` the
+        provider got); ``values`` is the response when ``result`` is true, else
         the reason its caller gets when it is a text.
 
         Raises:
-            GraphError: ``client`` does not provide ``op.service``; no or an
+            GraphError: ``client`` does not provide ``service``; no or an
                 unknown request id (warning: it may have timed out).
             FieldError: ``values`` does not fit the response type (the caller gets
                 ``result: false`` too).
         """
-        service, result, values = op.service, op.result, op.values
         entry = self.owned(client, service)
-        if op.id is None:
+        if request_id is None:
             raise GraphError(f"service_response for {service} names no request id")
-        request_id = str(op.id)
-        call = entry.pending.pop(request_id, None)
+        key = str(request_id)
+        call = entry.pending.pop(key, None)
         if call is None:
-            raise GraphError(
-                f"no pending request {request_id!r} for {service}", level=StatusLevel.WARNING
-            )
+            raise GraphError(f"no pending request {key!r} for {service}", level=StatusLevel.WARNING)
         if not result:
             call.resolve(False, values if isinstance(values, str) else "service call failed")
             return

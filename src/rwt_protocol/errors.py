@@ -14,6 +14,9 @@ package is drawn here::
     │   │   ├── MessageTooBigError        rwt_protocol.framing.messages: over --max-message-size
     │   │   ├── AccessDeniedError         rwt_protocol.server.access: a --*-glob rule
     │   │   ├── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
+    │   │   ├── FoxgloveInputError        rwt_foxglove.protocol: what a Foxglove client sent
+    │   │   │                             cannot be used (an error status)
+    │   │   ├── AssetError                rwt_foxglove.assets: a package:// URI not served
     │   │   └── CdrError                  rwt_graph.types.wire: bytes that are not the type's CDR
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation

@@ -3,15 +3,24 @@
 ``rwt_protocol`` cannot import the graph (layering), so the session
 talks to a ``GraphPort`` and the graph calls back into a ``TopicSink``. Both are
 structural ``typing.Protocol`` types; ``rwt_graph.core.GraphCore`` implements the
-port (``Graph.port``; ``Graph`` itself is the embedding API, docs/embedding.md).
-All calls are synchronous and never block: the graph is in-memory.
+port (``Graph.port``; ``Graph`` itself is the embedding API, docs/embedding.md),
+and ``rwt_graph.port.GraphFront`` adds what a protocol front end needs beside
+it (the change feed, the types, the nodes, the timeline). All calls are
+synchronous and never block: the graph is in-memory.
 
-A call that carries an op takes the op's model (``rwt_protocol.ops``), the one
-definition of its fields, and not a list of them: the session hands on what it
-decoded (``publish`` takes either decoder's ``PublishView``), and the graph
-builds the ops it forwards to a provider (``CallService``, ``SendActionGoal``,
-``CancelActionGoal``), which a session sends as they are. Names and the id of
-an op passed here are as their sender spelled them (D26); the graph resolves them.
+The port speaks the graph's terms, not a protocol's: a topic, a type name, a
+message, a service and its arguments, so that every front end (rosbridge's
+handlers, the Foxglove session, a link, in-process code) calls it alike and
+none builds another protocol's ops to reach it. Names passed here are as their
+sender spelled them (D26); the graph resolves them.
+
+The other way, what the graph forwards to a client's provider stays op-shaped:
+``ServiceProvider.on_service_request`` takes a ``CallService``,
+``ActionProvider.on_action_goal`` a ``SendActionGoal``. Those are the frames a
+rosbridge provider is sent as they are, with the graph's request id and the
+provider's own spelling; the graph builds each once, the rosbridge session
+sends it without copying its fields again, and the links' providers read the
+same few fields (``service``, ``args``, ``id``) a tuple of them would carry.
 """
 
 from __future__ import annotations
@@ -21,19 +30,7 @@ from enum import IntEnum
 from typing import TYPE_CHECKING, Protocol, TypeVar
 
 if TYPE_CHECKING:
-    from .ops import (
-        ActionFeedback,
-        ActionResult,
-        Advertise,
-        AdvertiseAction,
-        AdvertiseService,
-        CallService,
-        CancelActionGoal,
-        PublishView,
-        SendActionGoal,
-        ServiceResponse,
-        Subscribe,
-    )
+    from .ops import CallService, CancelActionGoal, SendActionGoal
 
 __all__ = [
     "ActionProvider",
@@ -306,14 +303,14 @@ class ActionProvider(Protocol):
 class ServicePort(Protocol):
     """What a server session needs from the graph for services and actions.
 
-    ``path`` is the JSON path of the op's payload (``args`` or ``values``) in
-    the frame it came in, for error texts (``$.args``); ``$`` by default.
+    ``path`` is the JSON path of the payload (``args`` or ``values``) in the
+    frame it came in, for error texts (``$.args``); ``$`` by default.
     """
 
     def advertise_service(
-        self, client: ClientId, op: AdvertiseService, provider: ServiceProvider
+        self, client: ClientId, service: str, type_name: str, provider: ServiceProvider
     ) -> str:
-        """Offer ``op.service`` of ``op.type`` (newest advertiser wins, D15); return its type.
+        """Offer ``service`` of ``type_name`` (newest advertiser wins, D15); return its type.
 
         The type returned is the canonical name (``std_srvs/srv/Trigger``).
         """
@@ -322,26 +319,46 @@ class ServicePort(Protocol):
         """Withdraw a service ``client`` advertised; its pending calls fail (D15)."""
 
     def call_service(
-        self, client: ClientId, op: CallService, reply: ServiceReply, *, path: str = "$"
+        self,
+        client: ClientId,
+        service: str,
+        args: object,
+        reply: ServiceReply,
+        *,
+        type_name: str | None = None,
+        timeout_s: float | None = None,
+        path: str = "$",
     ) -> Pending:
-        """Call ``op.service`` with ``op.args``; ``reply`` may run before this returns.
+        """Call ``service`` with ``args``; ``reply`` may run before this returns.
 
-        ``op.service`` is a name without a ``#id`` suffix (the session splits it
-        off, D25); ``op.type``, when given, must be the service's type. The
-        other fields (``id``, encodings) are the caller's business, but for
-        ``timeout``: how long the caller waits for a service a link is still
-        discovering (it also ends the call then, with ``Pending.forget``).
+        ``args``: an object, a list (positional, D25) or None. ``service`` is a
+        name without a ``#id`` suffix (the session splits it off, D25);
+        ``type_name``, when given, must be the service's type. ``timeout_s``:
+        how long the caller waits for a service a link is still discovering (it
+        also ends the call then, with ``Pending.forget``); None, the link's own wait.
         """
 
-    def service_response(self, client: ClientId, op: ServiceResponse, *, path: str = "$") -> None:
-        """Answer the request ``op.id`` forwarded to ``client`` (only the advertiser may, D15)."""
+    def service_response(
+        self,
+        client: ClientId,
+        service: str,
+        request_id: str | int | None,
+        result: bool,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
+        """Answer the request ``request_id`` forwarded to ``client`` (only the advertiser may, D15).
+
+        ``values`` is the response when ``result`` is true, else the reason its caller gets (D28).
+        """
 
     def advertise_action(
-        self, client: ClientId, op: AdvertiseAction, provider: ActionProvider
+        self, client: ClientId, action: str, type_name: str, provider: ActionProvider
     ) -> str:
-        """Offer ``op.action`` of ``op.type`` (newest advertiser wins); return its canonical type.
+        """Offer ``action`` of ``type_name`` (newest advertiser wins); return its canonical type.
 
-        ``op.type`` stays as spelled for the goals the provider gets.
+        ``type_name`` stays as spelled for the goals the provider gets.
         """
 
     def unadvertise_action(self, client: ClientId, action: str) -> None:
@@ -350,24 +367,46 @@ class ServicePort(Protocol):
     def send_action_goal(
         self,
         client: ClientId,
-        op: SendActionGoal,
+        action: str,
+        args: object,
         done: GoalDone,
         feedback: GoalFeedback | None = None,
         *,
         path: str = "$",
     ) -> GoalHandle:
-        """Send the goal ``op.args`` to ``op.action``; ``done`` may run before this returns.
+        """Send the goal ``args`` to ``action``; ``done`` may run before this returns.
 
-        ``feedback`` gets the goal's feedback when ``op.feedback`` is true.
-        ``op.action_type`` is not checked (clients name one action in
-        different packages, REF §7.3).
+        ``feedback``, when given, gets the goal's feedback. No action type is
+        checked (clients name one action in different packages, REF §7.3).
         """
 
-    def action_feedback(self, client: ClientId, op: ActionFeedback, *, path: str = "$") -> None:
-        """Feedback from the advertiser of ``op.action`` for the goal ``op.id``."""
+    def action_feedback(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str | int | None,
+        values: object,
+        *,
+        path: str = "$",
+    ) -> None:
+        """Feedback ``values`` from the advertiser of ``action`` for the goal ``goal_id``."""
 
-    def action_result(self, client: ClientId, op: ActionResult, *, path: str = "$") -> None:
-        """The end of the goal ``op.id`` from the advertiser of ``op.action`` (D18)."""
+    def action_result(
+        self,
+        client: ClientId,
+        action: str,
+        goal_id: str | int | None,
+        result: bool,
+        values: object,
+        *,
+        status: int | None = None,
+        path: str = "$",
+    ) -> None:
+        """The end of the goal ``goal_id`` from the advertiser of ``action`` (D18).
+
+        ``status``: the terminal ``GoalStatus`` code; None, SUCCEEDED when
+        ``result`` is true, else ABORTED.
+        """
 
 
 class GraphPort(ServicePort, Protocol):
@@ -377,28 +416,46 @@ class GraphPort(ServicePort, Protocol):
     request the graph refuses; the session reports it as a ``status``.
     """
 
-    def advertise(self, client: ClientId, op: Advertise) -> str:
-        """Register ``client`` as a publisher of ``op.topic`` (latched when ``op.latch``).
+    def advertise(
+        self, client: ClientId, topic: str, type_name: str, *, latch: bool = False
+    ) -> str:
+        """Register ``client`` as a publisher of ``topic`` (latched when ``latch``).
 
-        Returns the topic's canonical type; ``op.id`` and ``op.queue_size`` are
-        the session's business.
+        Returns the topic's canonical type.
         """
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
         """Remove ``client`` as a publisher of ``topic``."""
 
-    def publish(self, client: ClientId, op: PublishView, *, path: str = "$") -> tuple[str, ...]:
-        """Validate and publish ``op.msg`` on ``op.topic``; return the paths filled with defaults.
+    def publish(
+        self, client: ClientId, topic: str, msg: object, *, latch: bool = False, path: str = "$"
+    ) -> tuple[str, ...]:
+        """Validate and publish ``msg`` on ``topic``; return the paths filled with defaults (D7).
 
-        ``op`` is either decoder's (the ``Publish`` model or its msgspec twin);
-        ``path`` is the JSON path of ``msg`` in the op, for error texts (``$.msg``).
+        ``msg`` is decoded JSON (a dict); ``path`` is its JSON path in the op,
+        for error texts (``$.msg``).
         """
 
-    def subscribe(self, client: ClientId, op: Subscribe, sink: TopicSink) -> str:
-        """Attach ``sink`` for ``client`` to ``op.topic`` (replacing an earlier one).
+    def publish_serialized(
+        self, client: ClientId, topic: str, data: bytes, *, encoding: str
+    ) -> None:
+        """Validate and publish ``data``, a message of ``topic``'s type in the graph's wire form.
 
-        ``op.type``, when given, must be the topic's type (or makes the topic);
-        returns the canonical type. The other fields are the session's business.
+        ``encoding`` names the form (``cdr`` for a ROS 2 graph, ``ros1`` for a
+        ROS 1 one). ``data`` comes from a peer, so it is validated by decoding it
+        once as the topic's type (a bad one raises ``CdrError``, a
+        ``RemoteProtocolError``, and reaches no subscriber); then ``data`` itself
+        goes on (``MessageEvent.wire``) to every subscriber that sends that form,
+        never serialized again, and the decoded values to the others.
+        """
+
+    def subscribe(
+        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
+    ) -> str:
+        """Attach ``sink`` for ``client`` to ``topic`` (replacing an earlier one).
+
+        ``type_name``, when given, must be the topic's type (or makes the topic);
+        returns the canonical type.
         """
 
     def unsubscribe(self, client: ClientId, topic: str) -> None:

@@ -15,7 +15,6 @@ import logging
 from typing import TYPE_CHECKING, Any
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 
 from .answer import Answer
@@ -26,7 +25,7 @@ from .runtime import interface_class
 if TYPE_CHECKING:
     from rwt_graph.actions import Goal
     from rwt_graph.types.message import ActionType
-    from rwt_protocol.ops import CancelActionGoal
+    from rwt_protocol.ops import CancelActionGoal, SendActionGoal
 
     from .link import Ros2Link
     from .node import RosNode
@@ -260,8 +259,7 @@ def _start_in_graph(
             else:
                 outcome.set(False, values, status)
 
-        op = SendActionGoal(action=name, action_type=type_name, args=goal, feedback=True)
-        outcome.handle = link.graph.port.send_action_goal(link.caller, op, done, feedback)
+        outcome.handle = link.graph.port.send_action_goal(link.caller, name, goal, done, feedback)
     except RwtError as exc:
         outcome.set(False, exc)
 

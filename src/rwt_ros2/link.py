@@ -21,7 +21,10 @@ graph:
   to ``/rosout`` (``rosout``).
 
 The ROS 2 graph is read every ``sweep_s`` seconds on a worker thread, and at once
-when its names change (read every ``GRAPH_POLL_S``); a call to a service nobody
+when its names change (read every ``GRAPH_POLL_S``); the local entities to share
+come from the graph's change feed (``rwt_graph.exports``), whose backlog each
+sweep applies (not sooner: a service withdrawn at once could lose the answers
+its waiting ROS 2 callers are being sent); a call to a service nobody
 offers waits for it to be discovered (its own timeout, else
 ``DISCOVERY_WAIT_S``); samples (on the take loop's thread, ``takeloop``) and
 replies (on rclpy's executor's) reach the event loop through a ``Handoff``
@@ -41,12 +44,9 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 
-from rwt_graph.link import (
-    LATCHED_DEPTH,
-    Kind,
-    LinkRules,
-    Relays,
-)
+from rwt_graph.exports import Exports
+from rwt_graph.feed import EntityKind
+from rwt_graph.link import LATCHED_DEPTH, LinkRules, Relays
 from rwt_graph.mirror import Mirror
 from rwt_graph.parameters.replicas import ParamReplicas
 from rwt_graph.parameters.services import answer as answer_param_request
@@ -83,6 +83,12 @@ if TYPE_CHECKING:
     from .answer import Answer
 
 __all__ = ["PARTICIPANT_PREFIX", "Ros2Link", "Ros2Options", "open_ros2_link"]
+
+PUB, SUB = EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION
+SRV, ACT = EntityKind.SERVICE, EntityKind.ACTION
+
+_LocalView = tuple[dict[str, str], dict[str, tuple[str, bool]], dict[str, str], dict[str, str]]
+"""The local entities by name: topics listened to, published (type, latched), services, actions."""
 
 logger = logging.getLogger("rwt.ros2")
 
@@ -191,6 +197,9 @@ class Ros2Link:
         self._action_servers: dict[str, _Server] = {}
         self._param_servers: dict[str, list[Any]] = {}  # node -> its 3 rclpy services
         self._relays = Relays(graph, self.rules, ros.fqn, self._mirror.publisher_of)
+        # the local entities to share, from the graph's change feed (``_share``)
+        self.outward = Exports(graph.port.feed, self.rules)
+        self._local: _LocalView = ({}, {}, {}, {})
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
@@ -216,6 +225,7 @@ class Ros2Link:
         self._loop = asyncio.get_running_loop()
         self.graph.nodes.bind(self.caller, self.ros.fqn)
         self.graph.taps.append(self._tap)
+        self.outward.open()
         self._params = ParamReplicas(self.graph, self.caller)
         self.graph.type_checks.append(self.type_warning)
         self.graph.services.discoveries.append(self._discovery_wait)
@@ -286,6 +296,7 @@ class Ros2Link:
 
     def _close(self) -> None:
         self._closed = True
+        self.outward.close()
         self.handoff.close()
         self.counters.log(logger)
         with contextlib.suppress(ValueError):
@@ -380,24 +391,29 @@ class Ros2Link:
     # ---- the local graph, outward ---------------------------------------------------
 
     def _sweep_local(self, *, periodic: bool) -> None:
-        wanted = self.rules.wanted(self.graph)
-        listening: dict[str, str] = {}
-        publishing: dict[str, tuple[str, bool]] = {}
-        serving: dict[str, str] = {}
-        for (kind, _, name), (type_name, latched) in wanted.items():
-            if kind is Kind.SUBSCRIPTION:
-                listening[name] = type_name
-            elif kind is Kind.PUBLISHER:
-                was = publishing.get(name, (type_name, False))[1]
-                publishing[name] = (type_name, was or latched)
-            else:
-                serving[name] = type_name
+        self._share()
+        self._sweep_param_servers()
+        self._relays.sweep(self._subs, tick=periodic)
+
+    def _share(self) -> None:
+        """Bring the rclpy subscriptions, publishers and servers in line with the local entities.
+
+        The local entities come from the change feed (``Exports``), gathered by
+        topic again only when some changed; the rest follows the ROS 2 graph's
+        QoS as the last sweep saw it (a deeper subscription, a new publisher).
+        """
+        if self.outward.take():
+            self._local = (
+                {name: type_name for name, (type_name, _) in self.outward.topics(SUB).items()},
+                self.outward.topics(PUB),
+                {name: c.type_name for name, c in self.outward.owners(SRV).items()},
+                {name: c.type_name for name, c in self.outward.owners(ACT).items()},
+            )
+        listening, publishing, serving, actions = self._local
         self._sweep_subscriptions(listening)
         self._sweep_publishers(publishing)
         self._sweep_servers(serving)
-        self._sweep_action_servers()
-        self._sweep_param_servers()
-        self._relays.sweep(self._subs, tick=periodic)
+        self._sweep_action_servers(actions)
 
     def _sweep_subscriptions(self, listening: dict[str, str]) -> None:
         for name, sub in list(self._subs.items()):
@@ -628,11 +644,7 @@ class Ros2Link:
             )
             self._servers[name] = _Server(type_name, handle)
 
-    def _sweep_action_servers(self) -> None:
-        offered = {
-            name: entry.actiontype.name
-            for name, entry in self.rules.local_actions(self.graph).items()
-        }
+    def _sweep_action_servers(self, offered: dict[str, str]) -> None:
         for name, server in list(self._action_servers.items()):
             if offered.get(name) != server.type_name:
                 _destroy(lambda handle: handle.destroy(), self._action_servers.pop(name).handle)

@@ -18,7 +18,6 @@ import logging
 from typing import TYPE_CHECKING, Any
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import CallService, ServiceResponse
 
 from .answer import Answer
 from .codec import decode, encode
@@ -30,6 +29,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Coroutine
 
     from rwt_graph.types import ServiceType
+    from rwt_protocol.ops import CallService
 
     from .link import Ros2Link
 
@@ -152,8 +152,7 @@ class RosService:
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            failure = ServiceResponse(service=self._name, result=False, values=value, id=request_id)
-            graph.port.service_response(self._client, failure)
+            graph.port.service_response(self._client, self._name, request_id, False, value)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the ROS 2 one in the graph; the ROS 2 one lives on."""
@@ -203,9 +202,7 @@ def serve_to_ros(
             if handler is not None:
                 reply(True, handler(request))
             else:
-                link.graph.port.call_service(
-                    link.caller, CallService(service=name, args=request), reply
-                )
+                link.graph.port.call_service(link.caller, name, request, reply)
         except RwtError as exc:
             timer.cancel()
             answer.set(False, str(exc))

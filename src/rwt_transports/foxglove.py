@@ -30,8 +30,8 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
     from pathlib import Path
 
-    from rwt_graph.core import GraphCore
     from rwt_graph.parameters.store import Parameters
+    from rwt_graph.port import GraphFront
 
     from .frontends import SessionRequest
 
@@ -64,7 +64,7 @@ class FoxgloveOptions:
 
 
 def foxglove_frontend(
-    graph: GraphCore, options: FoxgloveOptions, params: Parameters | None = None
+    graph: GraphFront, options: FoxgloveOptions, params: Parameters | None = None
 ) -> FrontEnd:
     """The Foxglove protocol's front end for one server.
 

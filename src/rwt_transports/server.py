@@ -48,14 +48,13 @@ from anyio.streams.tls import TLSStream
 from rwt_graph.graph import Graph
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
-from rwt_graph.rosapi.visibility import Visibility
 from rwt_graph.simtime import follow_clock
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
+from rwt_graph.visibility import Visibility
 from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
-from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
@@ -84,6 +83,7 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
     from rwt_protocol.ops import Auth
+    from rwt_protocol.server.access import AccessPolicy
     from rwt_protocol.server.contract import ServerSession
 
     from .holding import Held
@@ -1049,10 +1049,5 @@ def _url_host(host: str) -> str:
 
 def visibility_of(policy: AccessPolicy) -> VisibilityFor:
     """What rosapi shows every client under ``policy``: only what it may use."""
-    visibility = Visibility(
-        topics=lambda name: policy.allows(Family.TOPICS, name),
-        services=lambda name: policy.allows(Family.SERVICES, name),
-        params=lambda name: policy.allows(Family.PARAMS, name),
-        actions=lambda name: policy.allows(Family.ACTIONS, name),
-    )
+    visibility = Visibility.of(policy)  # the rule Foxglove clients' listings follow too
     return lambda client: visibility

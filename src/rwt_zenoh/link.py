@@ -36,7 +36,9 @@ import zenoh.ext
 
 import zenoh
 from rwt_graph.calls import guarded
-from rwt_graph.link import PRIVATE_NAMES, Kind, LinkRules, Relays
+from rwt_graph.exports import Exports
+from rwt_graph.feed import EntityKind as GraphKind
+from rwt_graph.link import PRIVATE_NAMES, LinkRules, Relays
 from rwt_graph.mirror import Mirror, RemoteKind
 from rwt_graph.nodes import CLIENT_NODE_PREFIX
 from rwt_graph.ratelog import EpisodeLog
@@ -93,11 +95,12 @@ _Event = tuple["Callable[..., None]", tuple[object, ...], str]
 _DRAIN_BATCH = 1000
 _SWEEP_DUTY = 10  # a sweep that took t seconds is followed by a pause of at least 10 t
 _DRAIN_BYTES = 4 * 1024 * 1024  # sample bytes handled between two yields to other tasks
-#: The graph's kinds of local entity as rmw_zenoh's tokens name them.
+#: The graph's kinds of local entity as rmw_zenoh's tokens name them (an action is
+#: shared by ``link_actions``, as its services and topics).
 _KINDS = {
-    Kind.PUBLISHER: EntityKind.PUBLISHER,
-    Kind.SUBSCRIPTION: EntityKind.SUBSCRIPTION,
-    Kind.SERVICE: EntityKind.SERVICE,
+    GraphKind.PUBLISHER: EntityKind.PUBLISHER,
+    GraphKind.SUBSCRIPTION: EntityKind.SUBSCRIPTION,
+    GraphKind.SERVICE: EntityKind.SERVICE,
 }
 
 
@@ -109,6 +112,7 @@ class _Export:
     token: Any  # zenoh.LivelinessToken
     type_name: str
     latched: bool = False
+    node: str = ""  # the graph node it was exported in
     gid: bytes = b""
     sequence: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     queryable: Any = None  # zenoh.Queryable of a service
@@ -176,8 +180,10 @@ class ZenohLink:
         session: an open Zenoh session; the link does not close it.
         domain_id: the ROS domain, the first part of every key.
         private: names never shared (``PRIVATE_NAMES``; ``*`` ends a prefix).
-        sweep_s: how often local changes are looked for, seconds (rosapi elsewhere
-            sees a change within this plus Zenoh's propagation).
+        sweep_s: how often the link sweeps: relays, callers, actions' and parameters'
+            services, remote services another provider shadowed, seconds. Local
+            entities are shared as the graph's change feed announces them
+            (``rwt_graph.exports``), within a turn of the event loop.
         call_timeout_s: how long a call to a remote service waits for its reply.
         compat: whose token defaults to write and read (``RmwCompat``).
         queue_bytes: bytes of remote samples waiting for the event loop at most
@@ -219,6 +225,9 @@ class ZenohLink:
         self._ids = itertools.count(1)  # node and entity ids share one counter, as in rmw_zenoh
         self._node_ids: dict[str, int] = {}
         self._exports: dict[tuple[EntityKind, ClientId, str], _Export] = {}
+        # the local entities to share, from the graph's change feed; its backlog is
+        # applied in the link's task as soon as it fills (``_share``)
+        self.outward = Exports(graph.port.feed, self.rules, on_backlog=self._share_soon)
         self._node_tokens: dict[str, Any] = {}
         self._pubs: dict[str, _Data] = {}
         self._subs: dict[str, _Data] = {}
@@ -258,6 +267,7 @@ class ZenohLink:
         self._loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
         self.graph.taps.append(self._tap)
+        self.outward.open()
         try:
             self._liveliness = self.session.liveliness().declare_subscriber(
                 f"@ros2_lv/{self.domain_id}/**", self._on_token_thread, history=True
@@ -331,6 +341,7 @@ class ZenohLink:
 
     def _close(self) -> None:
         self._closed = True
+        self.outward.close()
         with contextlib.suppress(ValueError):
             self.graph.taps.remove(self._tap)
         handles: list[Any] = [self._liveliness]
@@ -538,30 +549,45 @@ class ZenohLink:
     # ---- local entities, outward ---------------------------------------------------
 
     def _sweep(self) -> None:
-        """Bring tokens, subscribers and publishers in line with the graph."""
-        wanted = self._wanted()
-        for key in list(self._exports):
-            export = self._exports[key]
-            if wanted.get(key) != (export.type_name, export.latched):
-                self._unexport(key)
-        for key, (type_name, latched) in wanted.items():
-            if key not in self._exports:
-                self._export(key, type_name, latched=latched)
+        """The periodic sweep: what the graph's change feed does not announce, and the exports."""
+        self._share()
         self.clients.sweep()
         self._sweep_nodes()
-        self._sweep_subscribers()
-        self._sweep_publishers()
         self._relays.sweep(self._subs)
-        self._actions.sweep()
         self._params.sweep()
         self._mirror.retry()  # the local provider that shadowed one may have gone
 
-    def _wanted(self) -> dict[tuple[EntityKind, ClientId, str], tuple[str, bool]]:
-        """The local entities to share: (kind, participant, name) -> (type, latched)."""
-        wanted = self.rules.wanted(self.graph)
-        return {
-            (_KINDS[kind], client, name): value for (kind, client, name), value in wanted.items()
-        }
+    def _share_soon(self) -> None:
+        """The feed's backlog filled (inside a graph call): share it in the link's task."""
+        self._soon(self._share)
+
+    def _share(self) -> None:
+        """Bring tokens, subscribers, publishers and actions in line with the local entities.
+
+        Only the entities the change feed announced since the last call are
+        looked at (``Exports.take``): the graph is not walked.
+        """
+        changed = self.outward.take()
+        for (kind, client, name), change in changed.items():
+            wire_kind = _KINDS.get(kind)
+            if wire_kind is None:
+                continue  # an action: ``link_actions`` shares it
+            key = (wire_kind, client, name)
+            export = self._exports.get(key)
+            if export is not None and (
+                change is None
+                or (export.type_name, export.latched) != (change.type_name, change.latched)
+                or (change.node is not None and change.node != export.node)
+            ):
+                self._unexport(key)
+                export = None
+            if export is None and change is not None:
+                self._export(key, change.type_name, latched=change.latched)
+        if changed:
+            self._sweep_nodes()
+            self._sweep_subscribers()
+            self._sweep_publishers()
+            self._actions.sweep()
 
     def _node_id(self, node: str) -> int:
         nid = self._node_ids.get(node)
@@ -590,7 +616,8 @@ class ZenohLink:
         self, key: tuple[EntityKind, ClientId, str], type_name: str, *, latched: bool
     ) -> _Export | None:
         kind, client, name = key
-        node = self._node_entity(self.graph.nodes.name_of(client))
+        node_name = self.graph.nodes.name_of(client)
+        node = self._node_entity(node_name)
         registry = self.graph.registry
         try:
             if kind is EntityKind.SERVICE:
@@ -615,7 +642,9 @@ class ZenohLink:
             compat=self.compat,
         )
         token = self.session.liveliness().declare_token(entity.token())
-        export = _Export(entity, token, type_name, latched=latched, gid=entity.gid())
+        export = _Export(
+            entity, token, type_name, latched=latched, node=node_name, gid=entity.gid()
+        )
         if kind is EntityKind.SERVICE:
             keyexpr = topic_keyexpr(self.domain_id, name, topic.dds_type, topic.type_hash)
             export.queryable = self.declare_queryable(

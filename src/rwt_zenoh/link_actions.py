@@ -31,8 +31,8 @@ import zenoh.ext
 import zenoh
 from rwt_graph.actions import CANCEL_GOAL_TYPE
 from rwt_graph.calls import guarded
+from rwt_graph.feed import EntityKind as GraphKind
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 
 from .actions import (
@@ -64,7 +64,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rwt_graph.mirror import RemoteEntity
-    from rwt_protocol.ops import CancelActionGoal
+    from rwt_protocol.ops import CancelActionGoal, SendActionGoal
     from rwt_protocol.ports import ClientId
 
     from .link import OwnPublisher, ZenohLink
@@ -190,17 +190,16 @@ class ActionLink:
     # ---- provider side ------------------------------------------------------------
 
     def sweep(self) -> None:
-        """Offer each local action server; withdraw the ones gone."""
-        link = self.link
-        wanted = link.rules.local_actions(link.graph)
+        """Offer each local action server; withdraw the ones gone (``ZenohLink.outward``)."""
+        wanted = self.link.outward.owners(GraphKind.ACTION)
         for name in list(self._offers):
             entry = wanted.get(name)
-            if entry is None or entry.owner != self._offers[name].owner:
+            if entry is None or entry.client != self._offers[name].owner:
                 self._withdraw(name)
         for name, entry in wanted.items():
             if name not in self._offers:
                 try:
-                    self._offer(name, entry.owner, entry.actiontype.name)
+                    self._offer(name, entry.client, entry.type_name)
                 except (RwtError, WireError) as exc:
                     logger.debug("zenoh link: action %s is not shared: %s", name, exc)
 
@@ -258,7 +257,8 @@ class ActionLink:
             served = self._served[goal_id] = _Served(action, wire, link.graph.clock.wall())
             served.handle = link.graph.port.send_action_goal(
                 link.caller,
-                SendActionGoal(action=action, action_type="", args=goal, feedback=True),
+                action,
+                goal,
                 partial(self._goal_done, goal_id),
                 partial(self._goal_feedback, action, wire, goal_id),
             )

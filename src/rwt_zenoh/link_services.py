@@ -13,7 +13,6 @@ import logging
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import CallService, ServiceResponse
 
 from .payload import decode_message, encode_message
 from .wire import WireError, topic_keyexpr
@@ -21,6 +20,7 @@ from .wire import WireError, topic_keyexpr
 if TYPE_CHECKING:
     import zenoh
     from rwt_graph.types import ServiceType
+    from rwt_protocol.ops import CallService
     from rwt_protocol.ports import ClientId
 
     from .link import ZenohLink
@@ -63,7 +63,7 @@ def serve_query(link: ZenohLink, service: str, type_name: str, query: zenoh.Quer
         request = decode_message(
             registry, srvtype.request, b"" if payload is None else payload.to_bytes()
         )
-        link.graph.port.call_service(link.caller, CallService(service=service, args=request), reply)
+        link.graph.port.call_service(link.caller, service, request, reply)
     except (RwtError, WireError) as exc:
         reply(False, f"service {service} failed: {exc}")
 
@@ -133,8 +133,7 @@ class RemoteService:
         if ok:
             entry.pending.pop(request_id).resolve(True, value)
         else:
-            failure = ServiceResponse(service=service, result=False, values=value, id=request_id)
-            graph.port.service_response(self._client, failure)
+            graph.port.service_response(self._client, service, request_id, False, value)
 
     def on_service_lost(self, service: str, reason: str) -> None:
         """A local provider replaced the remote one here; the remote one lives on."""

@@ -18,21 +18,9 @@ import pytest
 
 import rwt_protocol.errors
 from rwt_protocol.errors import RwtError
+from tests.support.packages import packages
 
-PACKAGES = [
-    "rwt",
-    "rwt_protocol",
-    "rwt_graph",
-    "rwt_client",
-    "rwt_conformance",
-    "rwt_video",
-    "rwt_zenoh",
-    "rwt_transports",
-    "rwt_bag",
-    "rwt_console",
-    "rwt_ros2",
-    "rwt_cli",
-]
+PACKAGES = packages()  # every package under src/, found
 # Exceptions that never leave the module raising them: a checker's internal signal
 # (turned into a FieldError) and typer's own parameter error (a usage message).
 INTERNAL = {"Problem", "OptionError"}
@@ -80,6 +68,7 @@ def test_every_error_of_the_tree_is_in_rwt_or_a_namespace() -> None:
     drawn = set(re.findall(r"── (\w+)", rwt_protocol.errors.__doc__ or ""))
     home_only = {"InflateError", "SendTimeoutError", "StepFailedError", "SuiteError"}
     home_only |= {"StreamParamError", "EncodeError", "VideoError"}
+    home_only |= {"FoxgloveInputError", "AssetError"}  # the Foxglove session's own
     public = {name for homes in PUBLIC.values() for names in homes.values() for name in names}
     assert sorted(drawn - home_only - public) == []
 

@@ -25,7 +25,6 @@ from rwt_graph.graph import Graph
 from rwt_protocol.auth import Authenticator
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.names import resolve_name
-from rwt_protocol.ops import Subscribe
 from rwt_protocol.ports import TopicSink
 from rwt_protocol.server.session import Session
 from rwt_transports.server import (
@@ -57,11 +56,11 @@ def forgetful_graph() -> Graph:
     graph = Graph()
     subscribe = graph.port.subscribe
 
-    def forgetful(client: str, op: Subscribe, sink: TopicSink) -> str:
-        entry = graph.topics.get(resolve_name(op.topic))
+    def forgetful(client: str, topic: str, type_name: str | None, sink: TopicSink) -> str:
+        entry = graph.topics.get(resolve_name(topic))
         if entry is not None:
             entry.latched = None
-        return subscribe(client, op, sink)
+        return subscribe(client, topic, type_name, sink)
 
     graph.port.subscribe = forgetful  # type: ignore[method-assign]
     return graph

@@ -1,8 +1,9 @@
 """The contributor's map is true of the code: docs/architecture.md and the module maps.
 
 docs/architecture.md draws every package and names modules, attributes and test
-files; each must exist. ``rwt_graph`` and ``rwt_foxglove`` map their modules in
-their docstrings; each module and subpackage must be on the map.
+files; each must exist. The README's layout table has a row for every package.
+``rwt_graph`` and ``rwt_foxglove`` map their modules in their docstrings; each
+module and subpackage must be on the map.
 """
 
 from __future__ import annotations
@@ -13,17 +14,13 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-SRC = REPO / "src"
+from tests.support.packages import REPO, SRC, packages
+
 MAP_PAGES = [REPO / "docs" / "architecture.md", REPO / "CONTRIBUTING.md"]
 
 # ``rwt_graph.mirror``, ``rwt_transports.flow.FlowControl``, ``rwt_protocol/ops/``
 DOTTED = re.compile(r"`(rwt_[a-z0-9_]+(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`")
 SLASHED = re.compile(r"`((?:rwt_[a-z0-9_]+|tests)(?:/[A-Za-z0-9_.]+)+/?)`")
-
-
-def packages() -> list[str]:
-    return sorted(p.name for p in SRC.iterdir() if (p / "__init__.py").is_file())
 
 
 def resolves(dotted: str) -> bool:
@@ -46,6 +43,14 @@ def test_the_layer_drawing_names_every_package() -> None:
     text = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
     drawing = text.split("## Layers", 1)[1].split("```text", 1)[1].split("```", 1)[0]
     assert [name for name in packages() if name not in drawing.split()] == []
+
+
+def test_the_readme_layout_table_has_a_row_for_every_package_and_no_other() -> None:
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    table = text.split("## Layout", 1)[1].split("\n\n", 2)[1]
+    rows = re.findall(r"^\| `(rwt[a-z0-9_]*)` \|", table, flags=re.MULTILINE)
+    assert len(rows) == len(set(rows))
+    assert sorted(rows) == packages()
 
 
 @pytest.mark.parametrize("page", MAP_PAGES, ids=lambda page: page.name)

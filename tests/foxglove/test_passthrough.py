@@ -10,9 +10,11 @@ serialization made for a subscriber) stays 0.
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import anyio
+import cbor2
 import pytest
 from rosbags.rosbag2 import Writer as Ros2Writer
 from rosbags.typesys import Stores, get_typestore
@@ -21,7 +23,9 @@ from rwt_bag.player import Player
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.wire import WireCodec
-from rwt_protocol.ops import Advertise
+from rwt_protocol.errors import GraphError
+from rwt_protocol.ports import MessageEvent
+from tests.conftest import Peer
 
 from .test_session import Client
 
@@ -51,7 +55,7 @@ def subscribed(graph: Graph, topic: str) -> Client:
 
 def test_a_sample_received_as_cdr_is_sent_as_it_came() -> None:
     graph = Graph()
-    graph.port.advertise("link:relay", Advertise(topic="/point", type=POINT))
+    graph.port.advertise("link:relay", "/point", POINT)
     client = subscribed(graph, "/point")
     wire = odd_cdr(graph)
     msg = graph.registry.message(POINT).from_python(VALUES)
@@ -114,3 +118,76 @@ async def test_a_ros2_bag_is_replayed_as_its_records(tmp_path: Path) -> None:
                 client.binary = []
         tasks.cancel_scope.cancel()
     assert payloads == records
+
+
+def test_a_foxglove_clients_cdr_reaches_every_wire_subscriber_as_the_same_bytes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``publish_serialized``: validated by one decode, then passed on, never serialized again.
+
+    (That the graph passes on the very bytes object it was given is
+    tests/graph/test_serialized_publish.py's.)
+    """
+    graph = Graph()
+    publisher, reader = Client(graph), Client(graph)
+    publisher.send(
+        {
+            "op": "advertise",
+            "channels": [{"id": 1, "topic": "/point", "encoding": "cdr", "schemaName": POINT}],
+        }
+    )
+    raw = Peer(graph, "raw")
+    raw.send(op="subscribe", topic="/point", compression="cbor-raw")
+    heard: list[dict[str, object]] = []
+    graph.create_subscription("/point", heard.append)
+    events: list[MessageEvent] = []
+    graph.port.subscribe("probe", "/point", None, _Probe(events))
+    reader.sync()
+    channel = reader.channel("/point")["id"]
+    reader.send({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": channel}]})
+    wire = odd_cdr(graph)
+    decodes: list[bytes] = []
+    real = WireCodec.deserialize
+    monkeypatch.setattr(
+        WireCodec, "deserialize", lambda self, data: decodes.append(data) or real(self, data)
+    )
+    monkeypatch.setattr(WireCodec, "serialize", lambda self, msg: pytest.fail("serialized"))
+    publisher.send_raw(b"\x01" + struct.pack("<I", 1) + wire, binary=True)
+    assert publisher.take_ops("status") == []
+    [event] = events
+    assert event.wire == wire  # the bytes the client sent, one object for every subscriber
+    assert decodes == [wire]  # its one check; the values go to the others from it
+    assert heard[0]["point"] == VALUES["point"]
+    reader.drain()
+    ((sid, _, payload),) = reader.data()
+    assert sid == 3 and payload == wire  # the 0xAB padding byte too: not serialized again
+    [frame] = raw.session.frames_to_send()
+    assert cbor2.loads(frame.data)["msg"]["bytes"] == wire
+
+
+def test_bytes_that_are_not_the_topics_cdr_fail_their_publisher_and_reach_nobody() -> None:
+    graph = Graph()
+    publisher = Client(graph)
+    publisher.send(
+        {
+            "op": "advertise",
+            "channels": [{"id": 1, "topic": "/point", "encoding": "cdr", "schemaName": POINT}],
+        }
+    )
+    events: list[MessageEvent] = []
+    graph.port.subscribe("probe", "/point", None, _Probe(events))
+    publisher.send_raw(b"\x01" + struct.pack("<I", 1) + b"\x00\x01\x00\x00\x01", binary=True)
+    [status] = publisher.take_ops("status")
+    assert "not a cdr message" in str(status["message"])
+    assert events == []
+    with pytest.raises(GraphError, match="not this graph's"):
+        graph.port.publish_serialized("ws:2", "/point", odd_cdr(graph), encoding="ros1")
+    assert events == []
+
+
+class _Probe:
+    def __init__(self, events: list[MessageEvent]) -> None:
+        self.events = events
+
+    def on_message(self, event: MessageEvent) -> None:
+        self.events.append(event)

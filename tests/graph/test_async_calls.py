@@ -12,7 +12,6 @@ from tests.conftest import Peer
 from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
-from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import running_handlers
 
@@ -117,26 +116,33 @@ async def test_in_process_action_server_with_feedback_for_python_and_clients() -
 
 
 async def test_the_goal_op_alone_says_whether_its_caller_gets_feedback() -> None:
-    """``SendActionGoal.feedback`` decides; a callback given beside ``feedback: false`` is idle."""
+    """A goal with ``feedback: false`` gets its result alone; ``true`` its feedback too."""
     graph = Graph()
     graph.create_action_server("/fib", FIB, fibonacci)
-    heard: dict[bool, list[dict[str, object]]] = {True: [], False: []}
-    ended: list[GoalStatus] = []
+    quiet, chatty = Peer(graph, "quiet"), Peer(graph, "chatty")
     async with running_handlers(graph) as tg:
-        for wanted in (False, True):
-            graph.port.send_action_goal(
-                graph.port.local_client(),
-                SendActionGoal(action="/fib", action_type=FIB, args={"order": 3}, feedback=wanted),
-                lambda status, result, values: ended.append(status),
-                heard[wanted].append,
+        for peer, wanted in ((quiet, False), (chatty, True)):
+            peer.send(
+                op="send_action_goal",
+                action="/fib",
+                action_type=FIB,
+                args={"order": 3},
+                feedback=wanted,
+                id="g",
             )
+        frames: dict[str, list[dict[str, object]]] = {"quiet": [], "chatty": []}
         with anyio.fail_after(5):
-            while len(ended) < 2:
+            while any(not got or got[-1]["op"] != "action_result" for got in frames.values()):
+                frames["quiet"] += quiet.received()
+                frames["chatty"] += chatty.received()
                 await anyio.sleep(0.01)
         tg.cancel_scope.cancel()
-    assert ended == [GoalStatus.SUCCEEDED, GoalStatus.SUCCEEDED]
-    assert heard[False] == []
-    assert heard[True] == [{"sequence": [0, 1, 1]}, {"sequence": [0, 1, 1, 2]}]
+    assert [f["op"] for f in frames["quiet"]] == ["action_result"]
+    assert [f["values"] for f in frames["chatty"][:-1]] == [
+        {"sequence": [0, 1, 1]},
+        {"sequence": [0, 1, 1, 2]},
+    ]
+    assert frames["chatty"][-1]["status"] == frames["quiet"][-1]["status"] == 4
 
 
 async def test_feedback_marked_validated_reaches_the_client_as_checked_feedback_does() -> None:

@@ -30,7 +30,6 @@ from tests.support.shortcuts import switch_off
 from rwt_graph.core import BATCH_MAX_BYTES, BATCH_MAX_MESSAGES, SOLO_AFTER_ONE
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
-from rwt_protocol.ops import Subscribe
 from rwt_protocol.ports import MessageEvent
 
 pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]
@@ -94,7 +93,7 @@ class Plain:
 
 
 def subscribe(graph: Graph, client: str, topic: str, sink: object) -> None:
-    graph.port.subscribe(client, Subscribe(topic=topic, type=STRING), sink)  # type: ignore[arg-type]
+    graph.port.subscribe(client, topic, STRING, sink)  # type: ignore[arg-type]
 
 
 def one_topic() -> tuple[Graph, Log, LocalPublisher]:

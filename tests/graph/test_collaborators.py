@@ -9,7 +9,6 @@ import pytest
 
 import rwt
 from rwt_graph.graph import Graph
-from rwt_protocol.ops import CallService, Publish, Subscribe
 from rwt_protocol.ports import MessageEvent
 
 POSE = "geometry_msgs/msg/PoseStamped"
@@ -49,13 +48,11 @@ def _stamp_of_a_pose(graph: Graph) -> object:
 def test_the_port_and_the_embedding_api_are_one_graph() -> None:
     graph = Graph()
     sink = _Sink()
-    graph.port.subscribe("ws:1", Subscribe(topic="/chatter", type="std_msgs/String"), sink)
+    graph.port.subscribe("ws:1", "/chatter", "std_msgs/String", sink)
     heard: list[dict[str, object]] = []
     graph.create_subscription("/chatter", heard.append)
     graph.create_publisher("/chatter", "std_msgs/msg/String").publish({"data": "from python"})
-    graph.port.publish(
-        "ws:2", Publish(topic="/chatter", msg={"data": "from a client"}), path="$.msg"
-    )
+    graph.port.publish("ws:2", "/chatter", {"data": "from a client"}, path="$.msg")
     assert [event.msg["data"] for event in sink.events] == ["from python", "from a client"]
     assert [msg["data"] for msg in heard] == ["from python", "from a client"]
     assert graph.topic_names_and_types() == [("/chatter", "std_msgs/msg/String")]
@@ -100,8 +97,8 @@ def test_service_request_stamps_follow_the_clock_in_use() -> None:
     graph.create_service("/plan", "nav_msgs/srv/GetPlan", plan)
     client = graph.port.local_client()
     with graph.port.use_clock(_Clock(7.0)):
-        graph.port.call_service(client, CallService(service="/plan", args={}), lambda *reply: None)
-    graph.port.call_service(client, CallService(service="/plan", args={}), lambda *reply: None)
+        graph.port.call_service(client, "/plan", {}, lambda *reply: None)
+    graph.port.call_service(client, "/plan", {}, lambda *reply: None)
     assert seen == [{"sec": 7, "nanosec": 0}, {"sec": 5, "nanosec": 0}]
 
 
@@ -126,9 +123,7 @@ def test_async_handlers_run_only_while_a_server_serves_the_graph() -> None:
 
     def call() -> None:
         client = graph.port.local_client()
-        graph.port.call_service(
-            client, CallService(service="/async", args={}), lambda *reply: replies.append(reply)
-        )
+        graph.port.call_service(client, "/async", {}, lambda *reply: replies.append(reply))
 
     call()
     assert replies == [(False, "service /async is async but no event loop runs it")]

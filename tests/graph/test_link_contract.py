@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from rwt_graph.exports import Exports
 from rwt_graph.graph import Graph
 from rwt_graph.link import (
     NULL_SINK,
@@ -24,7 +25,6 @@ from rwt_graph.types import Dialect, TypeRegistry
 from rwt_graph.types.hashes import message_type_hash
 from rwt_graph.types.wire import CDR_TRAILING_SLACK, CdrError, read_cdr
 from rwt_protocol.errors import GraphError, RwtError
-from rwt_protocol.ops import Advertise, Publish, Subscribe
 from rwt_protocol.ports import MessageEvent
 
 STRING = "std_msgs/msg/String"
@@ -42,27 +42,90 @@ def test_private_names_match_exactly_or_by_prefix() -> None:
     assert not matches_private("/chatter", PRIVATE_NAMES)
 
 
+def shared(exports: Exports) -> dict[tuple[Kind, str, str], tuple[str, bool]]:
+    """What a link shares now: (kind, participant, name) -> (type, latched)."""
+    return {
+        key: (change.type_name, change.latched)
+        for entities in exports.current.values()
+        for key, change in entities.items()
+    }
+
+
 def test_rules_share_only_local_entities_and_no_private_names() -> None:
     graph = Graph()
     rules = LinkRules("link:")
-    graph.port.advertise("ws:1", Advertise(topic="/chatter", type=STRING, latch=True))
-    graph.port.subscribe("ws:2", Subscribe(topic="/chatter", type=STRING), _Sink())
-    came_from_outside = Advertise(topic="/chatter", type=STRING)
-    graph.port.advertise("link:remote", came_from_outside)
-    graph.port.subscribe("link:remote2", Subscribe(topic="/heard", type=STRING), NULL_SINK)
-    graph.port.advertise("ws:1", Advertise(topic="/client_count", type="std_msgs/msg/Int32"))
+    exports = Exports(graph.port.feed, rules)
+    graph.port.advertise("ws:1", "/chatter", STRING, latch=True)
+    exports.open()  # what the graph has when the link starts, then its changes
+    graph.port.subscribe("ws:2", "/chatter", STRING, _Sink())
+    graph.port.advertise("link:remote", "/chatter", STRING)  # came from outside
+    graph.port.subscribe("link:remote2", "/heard", STRING, NULL_SINK)
+    graph.port.advertise("ws:1", "/client_count", "std_msgs/msg/Int32")
     graph.create_service("/add", "std_srvs/srv/SetBool", lambda request: {"success": True})
-    wanted = rules.wanted(graph)
+    wanted = shared(exports)
     assert wanted[(Kind.PUBLISHER, "ws:1", "/chatter")] == (STRING, True)
     assert wanted[(Kind.SUBSCRIPTION, "ws:2", "/chatter")] == (STRING, False)
-    assert next(k for k in wanted if k[0] is Kind.SERVICE)[2] == "/add"
-    assert not any(rules.ours(client) for _, client, _ in wanted)
-    assert not any(name == "/client_count" for _, _, name in wanted)
+    assert [k[2] for k in wanted if k[0] is Kind.SERVICE] == ["/add"]
+    assert len(wanted) == 3  # no entity of the link's, nothing private
     assert rules.ours("link:remote") and not rules.ours("ws:1")
     assert rules.forwards("ws:1", "/chatter")
     assert not rules.forwards("link:remote", "/chatter")  # came in: never back out
     assert not rules.forwards("ws:1", "/rosapi/topics")
     NULL_SINK.on_message(MessageEvent("/heard", STRING, {"data": ""}, 0.0))  # drops it
+
+
+def test_exports_hold_each_changed_entity_once_in_one_backlog() -> None:
+    """A link applies the feed's changes when it can: each entity once, as it is now."""
+    graph = Graph()
+    woken: list[bool] = []
+    exports = Exports(graph.port.feed, LinkRules("link:"), on_backlog=lambda: woken.append(True))
+    exports.open()
+    assert exports.take() == {} and not exports.pending
+    graph.port.advertise("ws:1", "/odom", STRING)
+    graph.port.advertise("ws:1", "/odom", STRING, latch=True)  # removed and added again
+    graph.port.subscribe("ws:2", "/cmd", STRING, _Sink())
+    graph.port.unsubscribe("ws:2", "/cmd")
+    graph.port.advertise("link:far", "/odom", STRING)  # the link's own: not its to share
+    assert woken == [True]  # once: when the backlog stopped being empty
+    taken = exports.take()
+    assert set(taken) == {(Kind.PUBLISHER, "ws:1", "/odom"), (Kind.SUBSCRIPTION, "ws:2", "/cmd")}
+    odom = taken[(Kind.PUBLISHER, "ws:1", "/odom")]
+    assert odom is not None and odom.latched
+    assert taken[(Kind.SUBSCRIPTION, "ws:2", "/cmd")] is None  # gone again
+    assert exports.topics(Kind.PUBLISHER) == {"/odom": (STRING, True)}
+    graph.port.release("ws:1")
+    assert exports.take() == {(Kind.PUBLISHER, "ws:1", "/odom"): None}
+    assert woken == [True, True]
+    exports.close()
+    graph.port.advertise("ws:3", "/late", STRING)
+    assert not exports.pending  # a stopped link hears nothing more
+
+
+def test_exports_follow_a_changing_graph_as_a_walk_of_it_would() -> None:
+    """The link's view through the feed is what walking the graph's tables finds."""
+    graph = Graph()
+    rules = LinkRules("link:")
+    exports = Exports(graph.port.feed, rules)
+    graph.port.advertise("ws:1", "/a", STRING)
+    exports.open()
+    for client in ("ws:1", "ws:2", "link:x"):
+        graph.port.subscribe(client, "/b", STRING, _Sink())
+        graph.port.advertise(client, "/rosapi/topics", STRING)  # private: never shared
+    graph.port.release("ws:2")
+    graph.port.unadvertise("ws:1", "/a")
+    graph.port.advertise("ws:2", "/a", STRING, latch=True)
+    walked = {
+        (kind, client, name): (entry.msgtype.name, latched)
+        for name, entry in graph.topics.items()
+        if not rules.is_private(name)
+        for kind, members in (
+            (Kind.PUBLISHER, entry.publishers),
+            (Kind.SUBSCRIPTION, {c: False for c in entry.subscribers}),
+        )
+        for client, latched in members.items()
+        if not rules.ours(client)
+    }
+    assert shared(exports) == walked
 
 
 def test_rules_remember_privacy_within_a_bound(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -76,14 +139,19 @@ def test_rules_remember_privacy_within_a_bound(monkeypatch: pytest.MonkeyPatch) 
 
 def test_local_actions_leave_out_the_links_and_private_ones() -> None:
     graph = Graph()
-    rules = LinkRules("link:")
+    exports = Exports(graph.port.feed, LinkRules("link:"))
+    exports.open()
 
     async def fib(goal: dict, context: object) -> dict:
         return {"sequence": []}
 
     graph.create_action_server("/fib", "example_interfaces/action/Fibonacci", fib)
-    assert list(rules.local_actions(graph)) == ["/fib"]
-    assert LinkRules(graph.actions.entries["/fib"].owner[:3]).local_actions(graph) == {}
+    graph.create_action_server("/rosapi/fib", "example_interfaces/action/Fibonacci", fib)
+    owner = graph.actions.entries["/fib"].owner
+    assert {name: c.client for name, c in exports.owners(Kind.ACTION).items()} == {"/fib": owner}
+    theirs = Exports(graph.port.feed, LinkRules(owner[:3]))  # the actions' owners are its own
+    theirs.open()
+    assert theirs.owners(Kind.ACTION) == {}
 
 
 def test_parameter_values_cross_as_rcl_interfaces_values() -> None:
@@ -508,14 +576,13 @@ def test_a_fan_out_reaches_the_current_subscribers_and_skips_dropping_sinks() ->
     """A replaced or removed subscriber gets nothing more; a sink that drops is never called."""
     graph = Graph()
     first, second, remote = _Counting(), _Counting(), _Dropping()
-    graph.port.subscribe("ws:1", Subscribe(topic="/chatter", type=STRING), first)
-    graph.port.subscribe("link:remote", Subscribe(topic="/chatter", type=STRING), remote)
-    graph.port.publish("ws:2", Publish(topic="/chatter", msg={"data": "one"}))
-    again = Subscribe(topic="/chatter", type=STRING)  # the same client again
-    graph.port.subscribe("ws:1", again, second)
-    graph.port.publish("ws:2", Publish(topic="/chatter", msg={"data": "two"}))
+    graph.port.subscribe("ws:1", "/chatter", STRING, first)
+    graph.port.subscribe("link:remote", "/chatter", STRING, remote)
+    graph.port.publish("ws:2", "/chatter", {"data": "one"})
+    graph.port.subscribe("ws:1", "/chatter", STRING, second)  # the same client again
+    graph.port.publish("ws:2", "/chatter", {"data": "two"})
     graph.port.unsubscribe("ws:1", "/chatter")
-    graph.port.publish("ws:2", Publish(topic="/chatter", msg={"data": "three"}))
+    graph.port.publish("ws:2", "/chatter", {"data": "three"})
     assert first.got == ["one"]
     assert second.got == ["two"]
     assert remote.got == []

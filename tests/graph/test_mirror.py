@@ -17,7 +17,7 @@ from rwt_graph.link import LinkRules
 from rwt_graph.mirror import Mirror, RemoteEntity, RemoteKind
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import GraphError
-from rwt_protocol.ops import Advertise, CallService, CancelActionGoal, SendActionGoal
+from rwt_protocol.ops import CallService, CancelActionGoal, SendActionGoal
 
 STRING = "std_msgs/msg/String"
 SET_BOOL = "std_srvs/srv/SetBool"
@@ -159,7 +159,7 @@ def test_a_gone_services_callers_fail() -> None:
     replies: list[tuple[bool, object]] = []
     linked.graph.port.call_service(
         "ws:1",
-        CallService(service="/enable", args={"data": True}),
+        *_ENABLE,
         lambda ok, value: replies.append((ok, value)),
     )
     assert linked.side.providers["link:s"].requests  # the call went across
@@ -211,7 +211,7 @@ def test_a_refused_entity_is_skipped_once_and_leaves_nothing(
     caplog.set_level(logging.INFO, "rwt.test_mirror")
     linked = _Linked()
     linked.side.refuse.add("/refused")
-    linked.graph.port.advertise("ws:1", Advertise(topic="/odom", type="std_msgs/msg/Int32"))
+    linked.graph.port.advertise("ws:1", "/odom", "std_msgs/msg/Int32")
     linked.mirror.apply({"link:e": entity})
     linked.mirror.apply({"link:e": entity})  # not tried again while it lives
     [line] = _skips(caplog)
@@ -286,7 +286,7 @@ class _Discovery:
         self.cancelled += 1
 
 
-_ENABLE = CallService(service="/enable", args={"data": True})
+_ENABLE = ("/enable", {"data": True})  # the service and its arguments
 
 
 def test_a_call_to_a_service_being_discovered_waits_for_it() -> None:
@@ -294,7 +294,7 @@ def test_a_call_to_a_service_being_discovered_waits_for_it() -> None:
     discovery = _Discovery()
     linked.graph.services.discoveries.append(discovery)
     replies: list[tuple[bool, object]] = []
-    linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    linked.graph.port.call_service("ws:1", *_ENABLE, lambda ok, value: replies.append((ok, value)))
     assert replies == [] and len(discovery.expiries) == 1  # held, not refused
     linked.mirror.add("link:s", SERVICE)  # discovered: the call goes across
     assert len(linked.side.providers["link:s"].requests) == 1
@@ -307,7 +307,7 @@ def test_a_call_whose_service_is_not_discovered_fails_as_unknown() -> None:
     discovery = _Discovery()
     linked.graph.services.discoveries.append(discovery)
     replies: list[tuple[bool, object]] = []
-    linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    linked.graph.port.call_service("ws:1", *_ENABLE, lambda ok, value: replies.append((ok, value)))
     discovery.expiries[0]()  # type: ignore[operator]
     assert replies == [(False, "service /enable does not exist")]
     linked.mirror.add("link:s", SERVICE)  # too late: nothing left to send
@@ -320,9 +320,9 @@ def test_a_held_call_goes_with_its_caller_or_its_timeout() -> None:
     linked.graph.services.discoveries.append(discovery)
     replies: list[tuple[bool, object]] = []
     pending = linked.graph.port.call_service(
-        "ws:1", _ENABLE, lambda ok, value: replies.append((ok, value))
+        "ws:1", *_ENABLE, lambda ok, value: replies.append((ok, value))
     )
-    linked.graph.port.call_service("ws:2", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    linked.graph.port.call_service("ws:2", *_ENABLE, lambda ok, value: replies.append((ok, value)))
     pending.forget()  # the caller's timeout
     linked.graph.port.release("ws:2")  # the other caller left
     assert discovery.cancelled == 2
@@ -336,9 +336,8 @@ def test_a_call_with_its_own_timeout_is_held_past_the_links_wait() -> None:
     discovery = _Discovery()
     linked.graph.services.discoveries.append(discovery)
     replies: list[tuple[bool, object]] = []
-    patient = CallService(service="/enable", args={"data": True}, timeout=20.0)
     pending = linked.graph.port.call_service(
-        "ws:1", patient, lambda ok, value: replies.append((ok, value))
+        "ws:1", *_ENABLE, lambda ok, value: replies.append((ok, value)), timeout_s=20.0
     )
     discovery.expiries[0]()  # type: ignore[operator]
     assert replies == []  # it waits up to its own timeout, not the link's
@@ -351,8 +350,9 @@ def test_a_call_with_its_own_timeout_goes_at_that_timeout() -> None:
     linked = _Linked()
     discovery = _Discovery()
     linked.graph.services.discoveries.append(discovery)
-    patient = CallService(service="/enable", args={"data": True}, timeout=20.0)
-    pending = linked.graph.port.call_service("ws:1", patient, lambda ok, value: None)
+    pending = linked.graph.port.call_service(
+        "ws:1", *_ENABLE, lambda ok, value: None, timeout_s=20.0
+    )
     pending.forget()  # the caller's timeout (the session's timer) ends the wait
     assert discovery.cancelled == 1
     linked.mirror.add("link:s", SERVICE)
@@ -362,14 +362,14 @@ def test_a_call_with_its_own_timeout_goes_at_that_timeout() -> None:
 def test_without_a_discovering_link_an_unknown_service_fails_at_once() -> None:
     linked = _Linked()
     with pytest.raises(GraphError, match="service /enable does not exist"):
-        linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, v: None)
+        linked.graph.port.call_service("ws:1", *_ENABLE, lambda ok, v: None)
 
 
 def test_a_link_with_nothing_to_discover_lets_the_call_fail_at_once() -> None:
     linked = _Linked()
     linked.graph.services.discoveries.append(lambda expire: None)  # the link is not discovering
     with pytest.raises(GraphError, match="service /enable does not exist"):
-        linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, v: None)
+        linked.graph.port.call_service("ws:1", *_ENABLE, lambda ok, v: None)
 
 
 def test_a_held_call_fails_only_when_every_links_wait_is_over() -> None:
@@ -377,7 +377,7 @@ def test_a_held_call_fails_only_when_every_links_wait_is_over() -> None:
     first, second = _Discovery(), _Discovery()
     linked.graph.services.discoveries += [first, second]
     replies: list[tuple[bool, object]] = []
-    linked.graph.port.call_service("ws:1", _ENABLE, lambda ok, value: replies.append((ok, value)))
+    linked.graph.port.call_service("ws:1", *_ENABLE, lambda ok, value: replies.append((ok, value)))
     first.expiries[0]()  # type: ignore[operator]
     assert replies == []  # the other link may still find it
     second.expiries[0]()  # type: ignore[operator]
@@ -388,8 +388,12 @@ def test_a_held_call_to_a_service_that_comes_with_another_type_fails_with_the_re
     linked = _Linked()
     linked.graph.services.discoveries.append(_Discovery())
     replies: list[tuple[bool, object]] = []
-    typed = CallService(service="/enable", args={"data": True}, type="std_srvs/srv/Trigger")
-    linked.graph.port.call_service("ws:1", typed, lambda ok, value: replies.append((ok, value)))
+    linked.graph.port.call_service(
+        "ws:1",
+        *_ENABLE,
+        lambda ok, value: replies.append((ok, value)),
+        type_name="std_srvs/srv/Trigger",
+    )
     linked.mirror.add("link:s", SERVICE)  # discovered as a SetBool
     assert linked.side.providers["link:s"].requests == []
     reason = "service /enable has type std_srvs/srv/SetBool, not std_srvs/srv/Trigger"

@@ -17,13 +17,9 @@ from typing import Any
 from rwt_graph.graph import Graph
 from rwt_graph.parameters.store import Parameters
 from rwt_protocol.ops import (
-    Advertise,
-    AdvertiseAction,
-    AdvertiseService,
     CallService,
     CancelActionGoal,
     SendActionGoal,
-    Subscribe,
 )
 from rwt_protocol.ports import MessageEvent
 
@@ -100,20 +96,17 @@ def large_graph() -> tuple[Graph, list[tuple[object, ...]]]:
     provider = Provider()
     for n in range(OTHERS):
         client = f"other{n}"
-        graph.port.advertise(client, Advertise(topic=f"/pub{n}", type=STRING))
-        graph.port.subscribe(client, Subscribe(topic=f"/sub{n}", type=STRING), Sink())
-        graph.port.advertise_service(
-            client, AdvertiseService(service=f"/srv{n}", type=ADD), provider
-        )
-        graph.port.advertise_action(client, AdvertiseAction(action=f"/act{n}", type=FIB), provider)
+        graph.port.advertise(client, f"/pub{n}", STRING)
+        graph.port.subscribe(client, f"/sub{n}", STRING, Sink())
+        graph.port.advertise_service(client, f"/srv{n}", ADD, provider)
+        graph.port.advertise_action(client, f"/act{n}", FIB, provider)
     for n in range(OTHERS):  # each calls its neighbour's service and action
         peer = (n + 1) % OTHERS
-        graph.port.call_service(
-            f"other{n}", CallService(service=f"/srv{peer}", args={}), lambda *r: replies.append(r)
-        )
+        graph.port.call_service(f"other{n}", f"/srv{peer}", {}, lambda *r: replies.append(r))
         graph.port.send_action_goal(
             f"other{n}",
-            SendActionGoal(action=f"/act{peer}", action_type=FIB, args={}),
+            f"/act{peer}",
+            {},
             lambda *r: replies.append(r),
         )
     return graph, replies
@@ -125,22 +118,19 @@ def test_releasing_one_client_walks_no_table_and_drops_only_what_it_held() -> No
     other_provider = graph.actions.entries["/act6"].provider
     assert isinstance(other_provider, Provider)
     sink = Sink()
-    graph.port.advertise("holder", Advertise(topic="/pub0", type=STRING, latch=True))
-    graph.port.subscribe("holder", Subscribe(topic="/sub1", type=STRING), sink)
-    graph.port.advertise_service("holder", AdvertiseService(service="/mine", type=ADD), provider)
-    graph.port.advertise_action("holder", AdvertiseAction(action="/my_action", type=FIB), provider)
-    graph.port.call_service(
-        "holder", CallService(service="/srv5", args={}), lambda *r: replies.append(("holder", *r))
-    )
+    graph.port.advertise("holder", "/pub0", STRING, latch=True)
+    graph.port.subscribe("holder", "/sub1", STRING, sink)
+    graph.port.advertise_service("holder", "/mine", ADD, provider)
+    graph.port.advertise_action("holder", "/my_action", FIB, provider)
+    graph.port.call_service("holder", "/srv5", {}, lambda *r: replies.append(("holder", *r)))
     graph.port.send_action_goal(
         "holder",
-        SendActionGoal(action="/act6", action_type=FIB, args={}),
+        "/act6",
+        {},
         lambda *r: replies.append(("holder", *r)),
     )
     answers: list[tuple[object, ...]] = []
-    graph.port.call_service(
-        "other7", CallService(service="/mine", args={}), lambda *r: answers.append(r)
-    )
+    graph.port.call_service("other7", "/mine", {}, lambda *r: answers.append(r))
     counted(graph)
     CountingDict.walks = 0
 
@@ -184,10 +174,10 @@ def test_releasing_every_client_one_by_one_leaves_an_empty_graph() -> None:
 
 def test_unadvertising_then_releasing_forgets_the_topic_once() -> None:
     graph = Graph()
-    graph.port.advertise("a", Advertise(topic="/t", type=STRING))
+    graph.port.advertise("a", "/t", STRING)
     graph.port.unadvertise("a", "/t")
-    graph.port.subscribe("b", Subscribe(topic="/t", type=STRING), Sink())
-    graph.port.advertise("a", Advertise(topic="/u", type=STRING))
+    graph.port.subscribe("b", "/t", STRING, Sink())
+    graph.port.advertise("a", "/u", STRING)
     counted(graph)
 
     graph.port.release("a")

@@ -178,3 +178,36 @@ def test_a_closed_publisher_refuses_while_another_keeps_the_topic(graph: Graph, 
     keeper.publish(message)
     assert len(heard) == 2
     assert heard[0]["point"] == heard[1]["point"] == VALUES["point"]
+
+
+def test_a_clients_serialized_publish_is_checked_once_and_passed_on_as_the_same_object(
+    graph: Graph, decodes: list[bytes], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``GraphPort.publish_serialized`` (a Foxglove client's CDR): one decode, no serialization."""
+    graph.create_publisher("/point", POINT)  # the topic's type is known
+    raw = Peer(graph, "raw")
+    raw.send(op="subscribe", topic="/point", compression="cbor-raw")
+    as_json = Peer(graph, "json")
+    as_json.send(op="subscribe", topic="/point")
+    events: list[MessageEvent] = []
+    graph.port.subscribe("probe", "/point", None, _Probe(events))
+    data = serialized(graph)
+    monkeypatch.setattr(WireCodec, "serialize", lambda self, msg: pytest.fail("serialized"))
+    graph.port.publish_serialized("ws:9", "/point", data, encoding="cdr")
+    [event] = events
+    assert event.wire is data  # the very object, for every subscriber that sends it
+    assert decodes == [data]  # the check; JSON subscribers take its values
+    [frame] = raw.session.frames_to_send()
+    assert cbor2.loads(frame.data)["msg"]["bytes"] == data
+    assert messages(as_json) == [VALUES]
+    with pytest.raises(CdrError):
+        graph.port.publish_serialized("ws:9", "/point", data[:-9], encoding="cdr")
+    assert len(events) == 1  # refused: nobody got it
+
+
+class _Probe:
+    def __init__(self, events: list[MessageEvent]) -> None:
+        self.events = events
+
+    def on_message(self, event: MessageEvent) -> None:
+        self.events.append(event)

@@ -19,7 +19,6 @@ import pytest
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import install_rosapi
 from rwt_protocol import ops
-from rwt_protocol.ops import CallService
 from rwt_protocol.server import handlers
 from tests.conftest import FakeClock, Peer
 from tests.session.rosapi_support import call, connect
@@ -257,7 +256,7 @@ def test_a_provider_disconnect_leaves_no_zombie_even_if_a_step_fails(
     def broken_reply(result: bool, values: object) -> None:
         raise RuntimeError("a caller's reply failed")
 
-    graph.port.call_service("local:caller", CallService(service="/svc", args={}), broken_reply)
+    graph.port.call_service("local:caller", "/svc", {}, broken_reply)
     provider.received()
     provider.session.close()  # must not raise
     assert "/svc" not in graph.services.entries

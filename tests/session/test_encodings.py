@@ -21,7 +21,7 @@ from rwt_graph.types import Dialect, TypeRegistry, codec_for
 from rwt_protocol.codecs.png import decode_png, encode_png
 from rwt_protocol.framing.fragments import fragment_frames
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ops import Advertise, ServiceResponse, Subscribe
+from rwt_protocol.ops import ServiceResponse
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.ports import MessageEvent
 from rwt_protocol.server import encoding
@@ -166,7 +166,7 @@ def test_cbor_raw_sends_what_arrived_serialized_as_it_came(graph: Graph) -> None
     """A link's sample or a bag's record (``MessageEvent.wire``) is not serialized again."""
     sub = Peer(graph, "sub")
     sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="cbor-raw")
-    graph.port.advertise("link:relay", Advertise(topic="/c", type="std_msgs/msg/String"))
+    graph.port.advertise("link:relay", "/c", "std_msgs/msg/String")
     wire = b"\x00\x01\x00\x00\x03\x00\x00\x00hi\x00\xee"  # a trailing byte kept as it came
     msg = {"data": "hi"}
     graph.port.publish_local("link:relay", "/c", msg, latch=False, wire=wire)
@@ -280,9 +280,7 @@ def test_one_serialization_per_distinct_encoding(
     monkeypatch.setattr(codec, "serialize", counting("raw", codec.serialize))
     monkeypatch.setattr(codec, "typed", counting("typed", codec.typed))
 
-    graph.port.subscribe(
-        "probe", Subscribe(topic="/m", type="std_msgs/Float64MultiArray"), _Probe(events)
-    )
+    graph.port.subscribe("probe", "/m", "std_msgs/Float64MultiArray", _Probe(events))
     groups = {"none": 3, "cbor": 2, "cbor-raw": 2, "png": 3}
     peers = {c: [Peer(graph, f"{c}{i}") for i in range(n)] for c, n in groups.items()}
     for compression, members in peers.items():
@@ -309,7 +307,7 @@ class _Probe:
 
 def test_spellings_and_fragment_sizes_are_distinct_forms(graph: Graph, pub: Peer) -> None:
     events: list[MessageEvent] = []
-    graph.port.subscribe("probe", Subscribe(topic="/c", type="std_msgs/String"), _Probe(events))
+    graph.port.subscribe("probe", "/c", "std_msgs/String", _Probe(events))
     for i, (topic, size) in enumerate([("c", None), ("/c", None), ("/c", 10), ("/c", 10)]):
         Peer(graph, f"s{i}").send(op="subscribe", topic=topic, fragment_size=size)
     pub.send(op="publish", topic="/c", msg={"data": "spelled"})

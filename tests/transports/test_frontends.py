@@ -24,7 +24,6 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from rwt_graph.graph import Graph
 from rwt_protocol.errors import RwtError
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ops import Subscribe
 from rwt_protocol.ports import MessageEvent
 from rwt_protocol.server.access import AccessPolicy, Family
 from rwt_protocol.server.connection import SessionBase
@@ -75,8 +74,7 @@ class EchoSession(SessionBase):
     def _subscribe(self, topic: str) -> None:
         self.require_access(Family.TOPICS, topic, "sub")
         self.check_cap(len(self.topics), self._config.max_subscriptions, "subscriptions")
-        op = Subscribe(topic=topic, type="std_msgs/msg/String")
-        self._graph.subscribe(self._client_id, op, _Sink(self))
+        self._graph.subscribe(self._client_id, topic, "std_msgs/msg/String", _Sink(self))
         self.topics.add(topic)
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:

@@ -30,7 +30,6 @@ from rwt_graph.rosapi.listing import (
 )
 from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_protocol.errors import FieldError, RwtError
-from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import running_handlers
 from rwt_zenoh.link import ZenohLink, open_zenoh_link
@@ -219,7 +218,8 @@ async def test_an_action_of_one_graph_runs_goals_from_the_other() -> None:
         done: list[tuple[GoalStatus, bool, object]] = []
         handle = a.port.send_action_goal(
             a.port.local_client(),
-            SendActionGoal(action="/fib", action_type="", args={"order": 100}, feedback=True),
+            "/fib",
+            {"order": 100},
             lambda *outcome: done.append(outcome),
             feedback.append,
         )

@@ -18,7 +18,6 @@ import anyio
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_protocol.ops import CallService
 from rwt_zenoh.config import ZenohOptions
 from rwt_zenoh.link import open_zenoh_link
 from rwt_zenoh.payload import decode_sample, encode_sample, type_hash
@@ -233,7 +232,8 @@ async def test_a_callers_client_entity_is_withdrawn_when_its_node_leaves() -> No
             caller.nodes.bind(participant, "/web_page")
             caller.port.call_service(
                 participant,
-                CallService(service="/add", args={"a": 1, "b": 2}),
+                "/add",
+                {"a": 1, "b": 2},
                 lambda ok, value: answers.append(value),
             )
             await until(lambda: bool(answers), "the answer")

@@ -37,7 +37,6 @@ from rwt_graph.graph import Graph
 from rwt_graph.rosapi.listing import action_servers, publishers, services, subscribers
 from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_graph.types.registry import TypeRegistry
-from rwt_protocol.ops import SendActionGoal
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import running_handlers
 from rwt_zenoh.actions import ActionWire
@@ -418,7 +417,8 @@ async def test_a_graph_sends_goals_to_a_ros2_action_server_and_cancels_one() -> 
                 done: list[tuple[GoalStatus, bool, object]] = []
                 handle = graph.port.send_action_goal(
                     graph.port.local_client(),
-                    SendActionGoal(action="/fib", action_type="", args={"order": 1000}),
+                    "/fib",
+                    {"order": 1000},
                     lambda *ended: done.append(ended),
                 )
                 await until(lambda: len(server.asked) >= 4, "the second goal's result request")

@@ -37,7 +37,6 @@ from functools import partial
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import RwtError
-from rwt_protocol.ops import CallService
 
 from ..async_calls import call_service
 from ..calls import guarded
@@ -195,8 +194,7 @@ class ParamReplicas:
                 failed()
 
         try:
-            request = CallService(service=f"{node}/{part}", args=args)
-            self.graph.port.call_service(self.caller, request, reply)
+            self.graph.port.call_service(self.caller, f"{node}/{part}", args, reply)
         except RwtError as exc:  # its services are not (yet) in the graph
             logger.debug("parameters of %s: %s", node, exc)
             if failed is not None:

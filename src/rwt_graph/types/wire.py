@@ -31,11 +31,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CDR_TRAILING_SLACK",
+    "WIRE_ENCODINGS",
     "CdrError",
     "WireCodec",
     "check_wire_header",
     "compile_typed",
     "read_cdr",
+    "wire_encoding",
     "wire_input",
 ]
 
@@ -49,6 +51,15 @@ Typer = Callable[[Msg], Msg]
 
 #: The ``cdr-input-view`` shortcut (shortcuts.py); off, rosbags gets ``bytes`` always.
 _VIEW_INPUT = enabled("cdr-input-view")
+
+
+WIRE_ENCODINGS: Final = {Dialect.ROS2: "cdr", Dialect.ROS1: "ros1"}
+"""The name of each dialect's wire form, as Foxglove and MCAP name message encodings."""
+
+
+def wire_encoding(dialect: Dialect) -> str:
+    """The name of ``dialect``'s wire form: ``cdr`` (ROS 2) or ``ros1``."""
+    return WIRE_ENCODINGS[dialect]
 
 
 def wire_input(data: bytes) -> bytes | memoryview:

@@ -42,7 +42,9 @@ def advertise_action(session: HandlerContext, op: AdvertiseAction, now: float) -
     holdings = session.holdings
     if ("action", name) not in holdings.offers:
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
-    type_name = session.graph.advertise_action(session.client_id, op, session.provider_link)
+    type_name = session.graph.advertise_action(
+        session.client_id, op.action, op.type, session.provider_link
+    )
     holdings.add_offer("action", name)
     report_type_warning(session, "advertise_action", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_action: {op.action} advertised as {type_name}")
@@ -93,7 +95,12 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
         pending = session.holdings.pending_goals
         session.check_cap(pending, session.config.max_pending_goals, "pending goals")
         handle = session.graph.send_action_goal(
-            session.client_id, op, done, feedback, path="$.args"
+            session.client_id,
+            op.action,
+            op.args,
+            done,
+            feedback if op.feedback else None,
+            path="$.args",
         )
     except RwtError as exc:
         done(GoalStatus.ABORTED, False, reply_text(session.config.compat, exc))
@@ -124,7 +131,7 @@ def action_feedback(session: HandlerContext, op: ActionFeedback, now: float) -> 
     """
     if op.id is None:
         raise RemoteProtocolError("missing field at $.id")
-    session.graph.action_feedback(session.client_id, op, path="$.values")
+    session.graph.action_feedback(session.client_id, op.action, op.id, op.values, path="$.values")
 
 
 def action_result(session: HandlerContext, op: ActionResult, now: float) -> None:
@@ -137,4 +144,12 @@ def action_result(session: HandlerContext, op: ActionResult, now: float) -> None
     """
     if op.id is None:
         raise RemoteProtocolError("missing field at $.id")
-    session.graph.action_result(session.client_id, op, path="$.values")
+    session.graph.action_result(
+        session.client_id,
+        op.action,
+        op.id,
+        op.result,
+        op.values,
+        status=op.status,
+        path="$.values",
+    )

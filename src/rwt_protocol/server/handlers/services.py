@@ -28,7 +28,9 @@ def advertise_service(session: HandlerContext, op: AdvertiseService, now: float)
     holdings = session.holdings
     if ("service", name) not in holdings.offers:
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
-    type_name = session.graph.advertise_service(session.client_id, op, session.provider_link)
+    type_name = session.graph.advertise_service(
+        session.client_id, op.service, op.type, session.provider_link
+    )
     holdings.add_offer("service", name)
     report_type_warning(session, "advertise_service", type_name, None)
     session.report(StatusLevel.INFO, f"advertise_service: {op.service} advertised as {type_name}")
@@ -100,8 +102,9 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
         session.check_cap(pending_calls, session.config.max_pending_calls, "pending calls")
         # the graph gets the name without ``#id``, no ``type`` to check, and the
         # client's own timeout: how long it waits for a service being discovered
-        request = CallService(service=service, args=op.args, timeout=op.timeout)
-        pending = session.graph.call_service(session.client_id, request, call.reply, path="$.args")
+        pending = session.graph.call_service(
+            session.client_id, service, op.args, call.reply, timeout_s=op.timeout, path="$.args"
+        )
     except RwtError as exc:
         call.reply(False, reply_text(session.config.compat, exc))
         raise
@@ -130,4 +133,6 @@ def service_response(session: HandlerContext, op: ServiceResponse, now: float) -
     """
     if op.id is None:
         raise RemoteProtocolError("missing field at $.id")
-    session.graph.service_response(session.client_id, op, path="$.values")
+    session.graph.service_response(
+        session.client_id, op.service, op.id, op.result, op.values, path="$.values"
+    )

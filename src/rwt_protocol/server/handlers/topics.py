@@ -38,7 +38,7 @@ def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
     elif op.id not in ids:
         session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {op.topic}")
-    type_name = session.graph.advertise(session.client_id, op)
+    type_name = session.graph.advertise(session.client_id, op.topic, op.type, latch=op.latch)
     holdings.add_advertisement(topic, op.id)
     report_type_warning(session, "advertise", type_name, op.id)
     session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
@@ -81,7 +81,9 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
     Raises:
         GraphError: unknown topic type, or a message that does not fit it (D9).
     """
-    missing = session.graph.publish(session.client_id, op, path="$.msg")
+    missing = session.graph.publish(
+        session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg"
+    )
     if missing:
         listed = ", ".join(missing[:_MAX_LISTED])
         more = f" and {len(missing) - _MAX_LISTED} more" if len(missing) > _MAX_LISTED else ""
@@ -112,12 +114,14 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
             max_queue=session.config.max_queue_length,
         )
         subscription.add(op, now)
-        subscription.type_name = session.graph.subscribe(session.client_id, op, subscription)
+        subscription.type_name = session.graph.subscribe(
+            session.client_id, op.topic, op.type, subscription
+        )
         session.holdings.add_subscription(topic, subscription)
         report_type_warning(session, "subscribe", subscription.type_name, op.id)
     else:
         if op.type is not None:
-            session.graph.subscribe(session.client_id, op, subscription)
+            session.graph.subscribe(session.client_id, op.topic, op.type, subscription)
         subscription.add(op, now)
     cap = session.config.max_queue_length
     if op.queue_length > cap:
