@@ -84,6 +84,8 @@ async def test_a_duration_ends_the_recording_when_the_server_vanished(tmp_path: 
             with anyio.fail_after(HANG_GUARD_S):
                 while b"event=connect " not in await log.receive_until(b"\n", 10_000):
                     pass
+                while not bag.exists():  # made once the recorder is connected
+                    await anyio.sleep(0.05)
             server.kill()  # vanishes: no close frame
             with anyio.fail_after(HANG_GUARD_S):
                 await recorder.wait()
