@@ -541,15 +541,17 @@ class ServiceSchema(msgspec.Struct, frozen=True):
 
 
 class Service(msgspec.Struct, frozen=True):
-    """A server service; ``requestSchema``/``responseSchema`` repeat the schemas (older clients)."""
+    """A server service, its request and response described as channels are.
+
+    The deprecated ``requestSchema``/``responseSchema`` are not sent (as the
+    Foxglove SDK's server: Lichtblick warns once per service that has them).
+    """
 
     id: int
     name: str
     type: str
     request: ServiceSchema
     response: ServiceSchema
-    requestSchema: str
-    responseSchema: str
 
 
 class AdvertiseServices(msgspec.Struct, frozen=True, tag_field="op", tag="advertiseServices"):

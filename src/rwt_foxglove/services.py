@@ -24,7 +24,7 @@ import itertools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rwt_graph.visibility import Visibility
+from rwt_graph.feed import EntityKind
 from rwt_protocol.errors import RwtError
 
 from .protocol import (
@@ -45,9 +45,10 @@ if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
     from rwt_protocol.ports import Pending
-    from rwt_protocol.server.access import AccessPolicy
+    from rwt_protocol.server.outbox import OutFrame
     from rwt_protocol.server.timers import Timer
 
+    from .graphindex import GraphIndex
     from .output import SessionOutput
 
 __all__ = ["ServiceCalls"]
@@ -79,10 +80,12 @@ class ServiceCalls:
         graph: the graph's core; calls go through it as ``client_id``.
         client_id: this connection's identity in the graph.
         out: where advertisements and answers go.
-        access: which services the client may see and call (``--services-glob``).
+        index: the services the client may see (kept by the session from the
+            change feed, under the access globs: ``--services-glob``).
         max_pending_calls: calls in flight at once (``--max-pending-calls``).
         call_timeout_s: seconds a call waits for its answer (``--call-timeout``);
             None: for ever.
+        batch: services one ``advertiseServices`` carries at most.
     """
 
     def __init__(
@@ -90,14 +93,18 @@ class ServiceCalls:
         graph: GraphFront,
         client_id: str,
         out: SessionOutput,
-        access: AccessPolicy,
+        index: GraphIndex,
         max_pending_calls: int,
         call_timeout_s: float | None,
+        batch: int,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
         self._out = out
-        self._access = access
+        self._index = index
+        self._batch = max(1, batch)
+        self._dirty: dict[str, None] = dict.fromkeys(index.names(EntityKind.SERVICE))
+        self._advertised: OutFrame | None = None  # the last batch, while it waits
         self._max_pending = max_pending_calls
         self._timeout_s = call_timeout_s
         self._wire = wire_encoding(graph.registry.dialect)
@@ -106,35 +113,45 @@ class ServiceCalls:
         self._by_id: dict[int, _Service] = {}
         self._calls: dict[int, _Call] = {}  # call id -> the call in flight
 
+    def touched(self, name: str) -> None:
+        """A change of the graph touched service ``name``: it is looked at in the next batch."""
+        self._dirty[name] = None
+
+    @property
+    def waiting(self) -> bool:
+        """Whether services wait to be (un)advertised."""
+        return bool(self._dirty)
+
     def sync(self) -> bool:
-        """Advertise the services that appeared, unadvertise those gone.
+        """Advertise the services that appeared, unadvertise those gone or retyped.
+
+        Only the names a change touched are looked at, at most ``batch`` of them
+        advertised per frame, the next once the client took the last.
 
         Returns:
             Whether anything was queued.
         """
-        registry, visible = self._graph.registry, Visibility.of(self._access)
-        current = {
-            change.name: registry.service(change.type_name)
-            for change in self._graph.feed.snapshot()[1]
-            if change.kind == "service" and visible.sees(change)
-        }
-        gone = [
-            service
-            for name, service in self._by_name.items()
-            if (srvtype := current.get(name)) is None or srvtype.name != service.srvtype.name
-        ]
-        for service in gone:
-            del self._by_name[service.name]
-            del self._by_id[service.id]
+        if not self._dirty or (self._advertised is not None and self._out.unsent(self._advertised)):
+            return False
+        registry = self._graph.registry
+        gone: list[int] = []
+        added: list[Service] = []
+        while self._dirty and len(added) < self._batch:
+            name = next(iter(self._dirty))
+            del self._dirty[name]
+            type_name = self._index.type_of(EntityKind.SERVICE, name)
+            service = self._by_name.get(name)
+            if service is not None and service.srvtype.name != type_name:
+                del self._by_name[name]
+                del self._by_id[service.id]
+                gone.append(service.id)
+                service = None
+            if type_name is not None and service is None:
+                added.append(self._add(name, registry.service(type_name)))
         if gone:
-            self._out.control(UnadvertiseServices(serviceIds=[service.id for service in gone]))
-        added = [
-            self._add(name, srvtype)
-            for name, srvtype in sorted(current.items())
-            if name not in self._by_name
-        ]
+            self._out.control(UnadvertiseServices(serviceIds=gone))
         if added:
-            self._out.control(AdvertiseServices(services=added))
+            self._advertised = self._out.tracked(AdvertiseServices(services=added))
         return bool(gone or added)
 
     def _add(self, name: str, srvtype: ServiceType) -> Service:
@@ -148,8 +165,6 @@ class ServiceCalls:
             type=srvtype.name,
             request=request,
             response=response,
-            requestSchema=request.schema,
-            responseSchema=response.schema,
         )
 
     def call(self, op: ServiceCallRequest) -> None:

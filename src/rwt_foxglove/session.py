@@ -2,14 +2,20 @@
 
 A ``SessionBase`` like rosbridge's ``Session``: the server's one connection
 runtime (``rwt_transports.pump``) hands it each received frame
-(``receive_frame``), runs its timers (the look at the graph's topics every
-``SYNC_INTERVAL_S``, server time, service call deadlines) and its background
-jobs (asset files read off the event loop), and sends what ``frames_to_send``
-gives; it is bound by the same per-client rules (``SessionConfig``: the send
-buffer and its slow-consumer rule, subscriptions, calls in flight, the idle
-timeout), plus the Foxglove section (``FoxgloveLimits``). Graph messages reach it
+(``receive_frame``), runs its timers (server time, service call deadlines, the
+announcement of what changed in the graph) and its background jobs (asset files
+read off the event loop), and sends what ``frames_to_send`` gives; it is bound
+by the same per-client rules (``SessionConfig``: the send buffer and its
+slow-consumer rule, subscriptions, calls in flight, the idle timeout), plus the
+Foxglove section (``FoxgloveLimits``). Graph messages reach it
 through one ``TopicSink`` per subscribed topic, which only queues (a slow client
 never slows a publisher or another client: its outbox drops its oldest data).
+What topics and services there are it learns from the graph's change feed
+(``graphindex.GraphIndex``): nothing walks the graph but once, at the start; a
+change marks its name, and the names marked are announced in a turn of the loop,
+at most ``FoxgloveLimits.advertise_batch`` channels a frame, the next once the
+client took the last (a client new to thousands of topics gets them in bounded
+frames, one that reads nothing holds one).
 
 What maps to what: a server channel is a topic of the graph that has a
 publisher (and that the access globs let this client see); a subscription is a
@@ -27,6 +33,7 @@ import logging
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
+from rwt_graph.feed import EntityKind
 from rwt_graph.types.registry import codec_for
 from rwt_graph.visibility import Visibility
 from rwt_protocol.codecs.json import decode_json_text
@@ -41,6 +48,7 @@ from rwt_protocol.shortcuts import enabled
 
 from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetJob, AssetRequests
 from .conngraph import ConnectionGraph
+from .graphindex import GraphIndex
 from .limits import FoxgloveLimits
 from .params import ParameterBridge
 from .playback import PLAYBACK_CAPABILITY, PlaybackControl
@@ -82,6 +90,7 @@ from .services import ServiceCalls
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rwt_graph.feed import GraphChange
     from rwt_graph.parameters.store import Parameters
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
@@ -94,7 +103,6 @@ if TYPE_CHECKING:
 __all__ = [
     "CAPABILITIES",
     "PARAMETER_CAPABILITIES",
-    "SYNC_INTERVAL_S",
     "FoxgloveLimits",
     "FoxgloveSession",
 ]
@@ -111,8 +119,6 @@ _WIRE_KEY: Final = "foxglove-wire"  # ``MessageEvent.encoded`` key: one serializ
 DROPPING_STATUS: Final = "rwt.dropping"
 """The id of the warning that this client's oldest message data is being dropped,
 withdrawn (``removeStatus``) once it caught up (the slow-consumer rule's episode ends)."""
-SYNC_INTERVAL_S: Final = 0.25
-"""Seconds between two looks at the graph's topics (how late an advertise may come)."""
 _LEVELS: Final = {Level.ERROR: StatusLevel.ERROR, Level.WARNING: StatusLevel.WARNING}
 LEFT_OUT_STATUS: Final = "rwt.channels-left-out"
 """The id of the warning that topics are left out (``max_channels``), withdrawn once
@@ -276,17 +282,29 @@ class FoxgloveSession(SessionBase):
         self._client_channels: dict[int, _ClientChannel] = {}
         self._failed_topics: set[str] = set()  # told once that their data cannot be encoded
         self._tracked: dict[int, OutFrame] = {}  # id -> frame of ``tracked`` not yet taken
-        self._unadvertised = 0  # topics left out by ``max_channels`` at the last sync
-        self._sync_timer: Timer | None = None
+        self._unadvertised = 0  # topics left out by ``max_channels`` when last told
+        self._left_out: dict[str, None] = {}  # topics with a publisher and no channel (cap)
+        self._announce_timer: Timer | None = None
+        self._advertised: OutFrame | None = None  # the last advertise batch, while it waits
         self._tick_timer: Timer | None = None
         # ``foxglove-shared-frames`` (rwt_protocol/shortcuts.py): off, each client makes its own
         self._share = enabled("foxglove-shared-frames")
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
+        # what the client sees of the graph: the feed's snapshot, then each change
+        self._index = GraphIndex(graph.feed, Visibility.of(self._access))
+        self._dirty: dict[str, None] = dict.fromkeys(self._index.names(EntityKind.PUBLISHER))
+        self._stop_feed = graph.feed.listen(self._changed)
         self.services = ServiceCalls(
-            graph, client_id, self, self._access, config.max_pending_calls, config.call_timeout_s
+            graph,
+            client_id,
+            self,
+            self._index,
+            config.max_pending_calls,
+            config.call_timeout_s,
+            self.limits.advertise_batch,
         )
-        self.graph_updates = ConnectionGraph(graph, self, self._access)
+        self.graph_updates = ConnectionGraph(self._index, self)
         self.params = (
             None
             if params is None
@@ -342,13 +360,8 @@ class FoxgloveSession(SessionBase):
     def start(self, now: float) -> None:
         """The transport serves the client from ``now``: the graph and the clock are watched."""
         super().start(now)
-        self._sync_timer = self.call_at(now + SYNC_INTERVAL_S, self._on_sync)
         if self._time is not None:
             self._tick_timer = self.call_at(now + TIME_INTERVAL_S, self._on_tick)
-
-    def _on_sync(self, now: float) -> None:
-        self.sync()
-        self._sync_timer = self.call_at(now + SYNC_INTERVAL_S, self._on_sync)
 
     def _on_tick(self, now: float) -> None:
         self.tick()
@@ -398,6 +411,8 @@ class FoxgloveSession(SessionBase):
                 self._tracked.pop(id(frame), None)
             if self.params is not None:
                 self.params.flush()
+            if self._dirty or self.services.waiting or self.graph_updates.subscribed:
+                self._announce_soon()  # the next batch, or the changes since the last update
 
     @property
     def queued_messages(self) -> int:
@@ -660,65 +675,95 @@ class FoxgloveSession(SessionBase):
 
     # ---- the graph ----------------------------------------------------------------
 
+    def _changed(self, change: GraphChange) -> None:
+        """A change of the graph's feed: mark what it touched, announce it in a loop turn.
+
+        A listener of the feed must not change the graph, so the announcement
+        (which may unsubscribe a channel that went) runs from a timer, at once.
+        """
+        if self.closed or not self._index.apply(change):
+            return
+        if change.kind is EntityKind.PUBLISHER:
+            self._dirty[change.name] = None
+        elif change.kind is EntityKind.SERVICE:
+            self.services.touched(change.name)
+        self.graph_updates.touched(change)
+        self._announce_soon()
+
+    def _announce_soon(self) -> None:
+        if self._announce_timer is None and self._state.sends:
+            self._announce_timer = self.call_at(self._now, self._announce)
+
+    def _announce(self, now: float) -> None:
+        self._announce_timer = None
+        self.sync()
+
     def sync(self, now: float = 0.0) -> None:
-        """Bring the client up to date with the graph.
+        """Bring the client up to date with what changed in the graph.
 
         Advertise the topics and services that appeared, unadvertise those gone
-        (or retyped) and send the connection graph's changes to a client that
-        follows it. A channel is a topic with a publisher that this client may
-        see. Costs one pass over the graph's topics and services.
+        (or retyped), at most a batch at a time, and send the connection graph's
+        changes to a client that follows it. A channel is a topic with a
+        publisher that this client may see. Costs what the changes touched, not
+        a pass over the graph.
 
         Args:
             now: unused; kept for callers that pass the time.
         """
         if not self._state.sends:
             return
-        self._sync_channels()
+        self._announce_channels()
         self.services.sync()
         self.graph_updates.sync()
 
-    def _sync_channels(self) -> None:
-        registry, visible = self._graph.registry, Visibility.of(self._access)
-        current = {
-            change.name: registry.message(change.type_name)
-            for change in self._graph.feed.snapshot()[1]
-            if change.kind == "publisher" and visible.sees(change)
-        }
-        gone = [
-            channel
-            for topic, channel in self._channels.items()
-            if (mtype := current.get(topic)) is None or mtype.name != channel.mtype.name
-        ]
-        if gone:
-            for channel in gone:
-                self._drop_channel(channel)
-            self.control(Unadvertise(channelIds=[channel.id for channel in gone]))
+    def _announce_channels(self) -> None:
+        """(Un)advertise the topics marked, a batch of channels at most (module text)."""
+        if not self._dirty or (self._advertised is not None and self.unsent(self._advertised)):
+            return
+        gone: list[int] = []
         added: list[Channel] = []
-        room = self.limits.max_channels - len(self._channels)
-        left_out = 0
-        for topic, mtype in current.items():
-            if topic in self._channels:
-                continue
-            if len(added) >= room:
-                left_out += 1
-                continue
-            channel = _ServerChannel(next(self._ids), topic, mtype)
-            schema = schema_of(mtype)
-            self._channels[topic] = channel
-            self._by_id[channel.id] = channel
-            added.append(
-                Channel(
-                    id=channel.id,
-                    topic=topic,
-                    encoding=schema.encoding,
-                    schemaName=schema.schema_name,
-                    schema=schema.schema,
-                    schemaEncoding=schema.schema_encoding,
-                )
-            )
+        while self._dirty and len(added) < self.limits.advertise_batch:
+            topic = next(iter(self._dirty))
+            del self._dirty[topic]
+            type_name = self._index.type_of(EntityKind.PUBLISHER, topic)
+            channel = self._channels.get(topic)
+            if channel is not None and channel.mtype.name != type_name:
+                self._drop_channel(channel)
+                gone.append(channel.id)
+                channel = None
+            if type_name is None:
+                self._left_out.pop(topic, None)
+            elif channel is None:
+                if len(self._channels) >= self.limits.max_channels:
+                    self._left_out[topic] = None
+                    continue
+                self._left_out.pop(topic, None)
+                added.append(self._new_channel(topic, type_name))
+        if gone:
+            self.control(Unadvertise(channelIds=gone))
+            for topic in list(self._left_out)[: len(gone)]:  # room again for the left out
+                self._dirty[topic] = None
+            if self._dirty:
+                self._announce_soon()
         if added:
-            self.control(Advertise(channels=added))
-        self._tell_left_out(left_out)
+            self._advertised = self.tracked(Advertise(channels=added))
+        self._tell_left_out(len(self._left_out))
+
+    def _new_channel(self, topic: str, type_name: str) -> Channel:
+        """Make the channel of ``topic`` and its advertisement."""
+        mtype = self._graph.registry.message(type_name)
+        channel = _ServerChannel(next(self._ids), topic, mtype)
+        schema = schema_of(mtype)
+        self._channels[topic] = channel
+        self._by_id[channel.id] = channel
+        return Channel(
+            id=channel.id,
+            topic=topic,
+            encoding=schema.encoding,
+            schemaName=schema.schema_name,
+            schema=schema.schema,
+            schemaEncoding=schema.schema_encoding,
+        )
 
     def _tell_left_out(self, left_out: int) -> bool:
         """A warning when topics begin to be left out (``max_channels``); once per episode."""
@@ -770,6 +815,7 @@ class FoxgloveSession(SessionBase):
     def close(self) -> None:
         """The connection is gone: release its subscriptions and publishers. Idempotent."""
         if not self.closed:
+            self._stop_feed()
             self.services.close()
             if self.params is not None:
                 self.params.close()

@@ -112,8 +112,8 @@ INFLATE_THREADS = 1
 what a flood of them can take from the loop (Pillow holds the GIL in parts of it)."""
 
 BACKGROUND_THREADS = 2
-"""Worker threads running background jobs (asset files read) at once, over all
-connections of an event loop."""
+"""Worker threads running background jobs (asset files read, ``png`` messages
+deflated) at once, over all connections of an event loop."""
 
 _Limiters = weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, anyio.CapacityLimiter]
 _inflate_limiters: _Limiters = weakref.WeakKeyDictionary()

@@ -43,14 +43,17 @@ class Client:
     def drain(self) -> None:
         """Run what the transport would (background jobs, due timers) and take every frame."""
         session = self.session
-        while self.run_jobs and (job := session.take_background_job()) is not None:
-            try:
-                result: object = job.run()
-            except Exception as exc:
-                result = exc
-            session.finish_job(job, result, self.now)
-        session.handle_timer(self.now)
-        while frames := session.frames_to_send(1 << 20):
+        while True:
+            while self.run_jobs and (job := session.take_background_job()) is not None:
+                try:
+                    result: object = job.run()
+                except Exception as exc:
+                    result = exc
+                session.finish_job(job, result, self.now)
+            session.handle_timer(self.now)
+            frames = session.frames_to_send(1 << 20)
+            if not frames:
+                return
             for frame in frames:
                 if frame.binary:
                     self.binary.append(frame.prefix + frame.data)

@@ -50,15 +50,16 @@ def test_services_of_every_provider_are_advertised_with_their_schemas(graph: Gra
     for name in ("/local_add", "/rb_add"):
         service = client.service(name)
         assert service["type"] == ADD
+        assert "requestSchema" not in service and "responseSchema" not in service  # deprecated
         request = service["request"]
         assert request == {  # type: ignore[comparison-overlap]
             "encoding": "cdr",
             "schemaName": f"{ADD}_Request",
             "schemaEncoding": "ros2msg",
-            "schema": service["requestSchema"],
+            "schema": request["schema"],  # type: ignore[index]
         }
-        assert "int64 a\nint64 b\n" in str(service["requestSchema"])
-        assert "int64 sum\n" in str(service["responseSchema"])
+        assert "int64 a\nint64 b\n" in str(request["schema"])  # type: ignore[index]
+        assert "int64 sum\n" in str(service["response"]["schema"])  # type: ignore[index]
         assert service["response"]["schemaName"] == f"{ADD}_Response"  # type: ignore[index]
     assert client.service("/rosapi/topics")["type"] == "rosapi_msgs/srv/Topics"
     ids = [

@@ -24,7 +24,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import ServiceResponse
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.ports import MessageEvent
-from rwt_protocol.server import encoding
+from rwt_protocol.server import encoding, pngout
 from rwt_protocol.server.outbox import Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 from tests.conftest import FakeClock, Peer
@@ -220,6 +220,31 @@ def test_png_above_the_fragment_size_is_split_into_png_parts(graph: Graph, pub: 
     assert all(f["total"] == len(frames) and len(str(f["data"])) <= 40 for f in frames)
     assert len({f["id"] for f in frames}) == 1
     assert reassemble(frames) == [{"op": "publish", "topic": "/c", "msg": {"data": "x" * 500}}]
+
+
+def test_png_is_deflated_off_the_loop_in_order_and_a_backlog_loses_its_oldest(
+    graph: Graph, pub: Peer
+) -> None:
+    """With a transport that runs jobs, a png message is a background job (pngout):
+    each subscription's messages in order, at most MAX_PNG_WAITING of a topic waiting."""
+    sub = Peer(graph, "sub")
+    sub.session.run_jobs()  # as the connection runtime does
+    sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="png")
+    for n in range(10):  # faster than the worker takes them
+        pub.send(op="publish", topic="/c", msg={"data": str(n)})
+    assert sub.session.frames_to_send() == []  # nothing deflated on the loop
+    while (job := sub.session.take_background_job()) is not None:
+        sub.session.finish_job(job, job.run(), 0.0)
+    texts = [json.loads(decode_png(str(f["data"]), max_bytes=1 << 20)) for f in decoded(sub)]
+    waiting = pngout.MAX_PNG_WAITING
+    assert [t["msg"]["data"] for t in texts] == [str(n) for n in range(10 - waiting, 10)]
+    assert sub.session.dropped_frames == 10 - waiting
+    pub.send(op="publish", topic="/c", msg={"data": "late"})
+    job = sub.session.take_background_job()
+    assert job is not None
+    sub.send(op="unsubscribe", topic="/c")  # gone while its message was deflated
+    sub.session.finish_job(job, job.run(), 0.0)
+    assert decoded(sub) == []
 
 
 def test_json_above_the_fragment_size_is_fragmented_with_fresh_ids(graph: Graph, pub: Peer) -> None:

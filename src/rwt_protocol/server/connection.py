@@ -169,6 +169,19 @@ class SessionBase:
         else:
             self._jobs.append(job)
 
+    def drop_background_job(self, job: Job) -> bool:
+        """Withdraw a waiting background job that sends a topic message, counted as dropped.
+
+        Returns:
+            Whether it was waiting (False: the transport took it already).
+        """
+        try:
+            self._background.remove(job)
+        except ValueError:
+            return False
+        self._outbox.dropped += 1
+        return True
+
     def run_jobs(self) -> None:
         """The transport runs the jobs from now on, off its event loop."""
         self._runs_jobs = True

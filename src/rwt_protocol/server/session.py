@@ -55,6 +55,7 @@ from .handlers.providers import ProviderLink
 from .holdings import Holdings
 from .inflate import InflateJob, TokenBucket
 from .lifecycle import State
+from .pngout import PngPublishJob, PngWaiting
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -63,6 +64,7 @@ if TYPE_CHECKING:
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .contract import Job
+    from .encoding import Frames
     from .subscriptions import TopicSubscription
     from .timers import Timer
 
@@ -231,6 +233,7 @@ class Session(SessionBase):
             shared=fragment_budget,
         )
         self._fragment_timer: Timer | None = None
+        self._png_waiting = PngWaiting()  # messages to deflate off the loop (pngout)
         self._inflate_budget = TokenBucket(config.png_inflate_rate, max(config.max_message_size, 1))
         self._auth_nonce: str | None = None
         if self._config.auth_challenge and self._state is State.AUTHENTICATING:
@@ -312,11 +315,15 @@ class Session(SessionBase):
         """Take a job's outcome: its text is handled as a frame, its error reported.
 
         Args:
-            job: what ``take_job`` gave (an ``InflateJob``).
-            result: what ``job.run()`` returned (the inflated text), or the
-                exception it raised.
+            job: what ``take_job`` gave (an ``InflateJob``), or
+                ``take_background_job`` (a ``PngPublishJob``).
+            result: what ``job.run()`` returned (the inflated text, the
+                ``png`` frames), or the exception it raised.
             now: monotonic seconds.
         """
+        if isinstance(job, PngPublishJob):
+            self._png_done(job, result)
+            return
         if not self._state.takes_input or not isinstance(job, InflateJob):
             return
         if isinstance(result, RwtError):
@@ -353,7 +360,15 @@ class Session(SessionBase):
         if self._state is not State.CLOSED:
             self._holdings.clear()
             self._fragments.clear()
+            self._png_waiting.clear()
         super().close()
+
+    def take_background_job(self) -> Job | None:
+        """The oldest background job (a ``png`` message to deflate), or None."""
+        job = super().take_background_job()
+        if isinstance(job, PngPublishJob):
+            self._png_waiting.taken(job)
+        return job
 
     def holds_anything(self) -> bool:
         """Whether it holds something in the graph, or a message still arriving (idle rule)."""
@@ -495,15 +510,39 @@ class Session(SessionBase):
         """
         self._now = max(self._now, event.now)
         params = subscription.params
+        if params.compression == "png" and self._runs_jobs:  # deflated off the loop (pngout)
+            job = PngPublishJob(subscription, event, params.fragment_size)
+            dropped = self._png_waiting.add(job)
+            if dropped is not None:
+                self.drop_background_job(dropped)
+            self.add_job(job, background=True)
+            return
         frames = safe_publish_frames(
             event, subscription.spelling, params.compression, params.fragment_size
         )
+        self._send_publish(subscription, frames, params.compression)
+
+    def _png_done(self, job: PngPublishJob, result: object) -> None:
+        """A deflated message is back: sent unless its subscription went meanwhile."""
+        subscription = job.subscription
+        if not self._state.sends or not subscription.requests:
+            return
+        if isinstance(result, BaseException):
+            try:  # a bug in the encoder: reported and logged, as in a handler
+                raise result
+            except Exception:
+                self._bug("subscribe")
+            return
+        self._send_publish(subscription, result, "png")  # type: ignore[arg-type]
+
+    def _send_publish(
+        self, subscription: TopicSubscription, frames: Frames | EncodeFailure, compression: str
+    ) -> None:
         if isinstance(frames, EncodeFailure):
             self._unencodable(frames)
             self.report(
                 StatusLevel.ERROR,
-                f"subscribe: cannot send a message of {subscription.spelling}"
-                f" as {params.compression}",
+                f"subscribe: cannot send a message of {subscription.spelling} as {compression}",
             )
             return
         self.send_frames(frames, subscription.spelling)
