@@ -1,7 +1,9 @@
 """The server role of the protocol: one connection's session and everything it holds.
 
 ``session.Session`` is the state machine a transport drives (frames and timer
-ticks in, frames and commands out). Around it, one module a job:
+ticks in, frames and commands out): a ``connection.SessionBase``, the part every
+protocol's session shares (the contract the connection runtime drives is
+``contract.ServerSession``). Around it, one module a job:
 
 - ``handlers``: one handler per op, over ``handlers.HandlerContext`` (the session
   as handlers see it);
@@ -11,7 +13,8 @@ ticks in, frames and commands out). Around it, one module a job:
   ``replies`` (what a refused request gets besides its status);
 - ``encoding`` (topic messages and replies in each subscriber's encoding),
   ``outbox`` (the bounded queue of outgoing frames), ``backpressure`` (slow
-  consumers), ``inflate`` (the png inflation budget);
+  consumers), ``inflate`` (the png inflation budget), ``pngout`` (png messages
+  deflated off the event loop);
 - ``timers``, ``idle`` (closing silent connections), ``commands`` (what the
   session asks its transport to do).
 """
