@@ -300,8 +300,7 @@ class FoxgloveSession(SessionBase):
             client_id,
             self,
             self._index,
-            config.max_pending_calls,
-            config.call_timeout_s,
+            self.calls,
             self.limits.advertise_batch,
         )
         self.graph_updates = ConnectionGraph(self._index, self)

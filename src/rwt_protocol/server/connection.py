@@ -28,6 +28,7 @@ from ..levels import StatusLevel
 from ..ratelog import EpisodeLog
 from .access import AccessDeniedError, Family
 from .backpressure import SlowConsumerWatch
+from .callbook import CallBook
 from .commands import CloseCode, CloseConnection, Command
 from .idle import IdleWatch
 from .lifecycle import State, advance
@@ -87,6 +88,8 @@ class SessionBase:
         self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
         self._timers = TimerQueue()
+        self.calls = CallBook(self.call_at, config.max_pending_calls, config.call_timeout_s)
+        """The calls this client has in flight (every protocol's: ``callbook``)."""
         self._jobs: list[Job] = []  # input jobs: the reader waits for each
         self._background: list[Job] = []  # the reader goes on meanwhile
         self._runs_jobs = False  # set by a transport that runs the jobs (``run_jobs``)
@@ -231,6 +234,7 @@ class SessionBase:
         self._move(State.CLOSED)
         try:
             self._timers.clear()
+            self.calls.close()
             self._jobs.clear()
             self._background.clear()
             self._outbox.take()  # what a peer that left never read goes now
