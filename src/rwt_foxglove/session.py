@@ -183,7 +183,7 @@ class _TopicSink:
         session, channel = self._session, self._channel
         if subscriptions is None:
             subscriptions = channel.subscriptions
-        if not session._state.sends or not subscriptions:
+        if not session._sends or not subscriptions:
             return
         clock = session._time
         now = None if clock is None else clock.now()
@@ -212,13 +212,15 @@ class _TopicSink:
                             payload, True, True, None, None, encode_message_header(sid, log_time)
                         )
                     push(frame)
-            session._now = max(session._now, events[-1].now)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-        if outbox.dropped != dropped or outbox.held_bytes:  # the slow-consumer rule
+        if outbox.dropped != dropped or outbox._held_frames:  # the slow-consumer rule
+            session._now = max(session._now, events[-1].now)
             sent = () if frame is None else (frame,)
             session._watch.after_push(dropped, oversized, session._now, sent, channel.topic)
-        session._wake()
+        on_output = session._on_output  # (``_wake``, a call less per message and client)
+        if on_output is not None:
+            on_output()
 
 
 class FoxgloveSession(SessionBase):
@@ -305,8 +307,7 @@ class FoxgloveSession(SessionBase):
             client_id,
             self,
             self._index,
-            config.max_pending_calls,
-            config.call_timeout_s,
+            self.calls,
             self.limits.advertise_batch,
         )
         self.graph_updates = ConnectionGraph(self._index, self)
