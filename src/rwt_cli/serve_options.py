@@ -153,6 +153,14 @@ class Listeners:
             "share folders of AMENT_PREFIX_PATH (--no-assets: never)."
         ),
     ] = True
+    foxglove_show_plumbing: Annotated[
+        bool,
+        typer.Option(
+            help="Show Foxglove clients rwt's own helpers too: rosapi's services, /client_count, "
+            "/connected_clients, the TF republisher, and other connections' nodes in the "
+            "connection graph (by default they see the robot's topics, services and nodes)."
+        ),
+    ] = False
 
 
 @dataclass(frozen=True)

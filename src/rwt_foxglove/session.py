@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.feed import EntityKind
@@ -245,6 +245,9 @@ class FoxgloveSession(SessionBase):
             ``parameters`` capabilities are not announced.
         assets: reads the files clients ask for (``assets.AssetRoots``), in
             background jobs; None: ``fetchAsset`` is refused and not announced.
+        show_plumbing: list rwt's own helpers (rosapi's services, the client counts,
+            the TF republisher) and other connections' nodes too
+            (``Visibility.plumbing``; ``rwt serve --foxglove-show-plumbing``).
     """
 
     protocol = "foxglove"
@@ -263,6 +266,7 @@ class FoxgloveSession(SessionBase):
         name: str = "rwt",
         params: Parameters | None = None,
         assets: AssetReader | None = None,
+        show_plumbing: bool = False,
     ) -> None:
         config = config or SessionConfig()
         self.limits = limits or FoxgloveLimits()
@@ -294,7 +298,8 @@ class FoxgloveSession(SessionBase):
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
         # what the client sees of the graph: the feed's snapshot, then each change
-        self._index = GraphIndex(graph.feed, Visibility.of(self._access))
+        visibility = replace(Visibility.of(self._access), plumbing=show_plumbing)
+        self._index = GraphIndex(graph.feed, visibility, own=client_id)
         self._dirty: dict[str, None] = dict.fromkeys(self._index.names(EntityKind.PUBLISHER))
         self._stop_feed = graph.feed.listen(self._changed)
         self.services = ServiceCalls(

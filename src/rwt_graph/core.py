@@ -138,7 +138,7 @@ class GraphCore:
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
         self.actions = Actions(self.registry, self._clock, lambda: self.spawner)
         self.nodes = Nodes()
-        self.feed = ChangeFeed(self.nodes.node_of)
+        self.feed = ChangeFeed(self.nodes.node_of, self.nodes.role_of)
         self.nodes.on_change = self.feed.renode
         self.services.on_change = partial(self._offer_changed, EntityKind.SERVICE)
         self.actions.on_change = partial(self._offer_changed, EntityKind.ACTION)

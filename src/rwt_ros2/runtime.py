@@ -20,6 +20,7 @@ from typing import Any
 from rwt_protocol.errors import GraphError, RwtError
 
 __all__ = [
+    "KILTED_WHEELS",
     "ROS2_INSTALL",
     "Ros2Unavailable",
     "ament_interface_dirs",
@@ -74,10 +75,44 @@ def ros_distro() -> str | None:
     return installed[1] if installed else None
 
 
+KILTED_WHEELS = frozenset(
+    {
+        "action_msgs",
+        "actionlib_msgs",
+        "builtin_interfaces",
+        "diagnostic_msgs",
+        "geometry_msgs",
+        "lifecycle_msgs",
+        "nav_msgs",
+        "rcl_interfaces",
+        "rosgraph_msgs",
+        "sensor_msgs",
+        "service_msgs",
+        "shape_msgs",
+        "std_msgs",
+        "std_srvs",
+        "stereo_msgs",
+        "test_msgs",
+        "trajectory_msgs",
+        "type_description_interfaces",
+        "unique_identifier_msgs",
+        "visualization_msgs",
+    }
+)
+"""The interface packages PyPI has a ``ros-kilted-<package>`` wheel of (as of 2025-11; the
+test extra installs some, docs/ros2.md). Others (``tf2_msgs``, ``example_interfaces``)
+come from a ROS install (``apt``) or a build of the package."""
+
+
 def package_hint(package: str) -> str:
-    """How to get the generated Python package of the ROS 2 package ``package``."""
-    wheel = "ros-kilted-" + package.replace("_", "-")
-    return f"pip install {wheel}, or apt install ros-<distro>-{package.replace('_', '-')}"
+    """How to get the generated Python package of the ROS 2 package ``package``.
+
+    A PyPI wheel is named only where one exists (``KILTED_WHEELS``).
+    """
+    debian = f"apt install ros-<distro>-{package.replace('_', '-')}"
+    if package not in KILTED_WHEELS:
+        return f"{debian} (PyPI has no wheel of it), or build it for rclpy"
+    return f"pip install ros-kilted-{package.replace('_', '-')}, or {debian}"
 
 
 def interface_class(type_name: str) -> Any:

