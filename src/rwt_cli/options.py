@@ -5,6 +5,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Any
 
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
 
 __all__ = ["MIB", "PORT_RANGE", "UVLOOP_EXTRA", "VIDEO_PORT", "LevelName", "LogLevel"]
@@ -12,7 +13,7 @@ __all__ = ["MIB", "PORT_RANGE", "UVLOOP_EXTRA", "VIDEO_PORT", "LevelName", "LogL
 MIB = 1024 * 1024
 PORT_RANGE: dict[str, Any] = {"min": 0, "max": 65535}
 VIDEO_PORT = 8080
-UVLOOP_EXTRA = 'pip install "rwt[uvloop]"'
+UVLOOP_EXTRA = install_hint("uvloop")
 
 # typer offers an enum's values as choices: the status levels' wire spellings, made
 # from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)

@@ -16,6 +16,7 @@ from typing import Annotated, ClassVar
 import typer
 
 from rwt_bag.formats import BagFormat, ChunkCompression
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import HOLD_BUDGET_S
@@ -599,8 +600,8 @@ class Ros2:
     ros2: Annotated[
         bool,
         typer.Option(
-            help="Link the graph to ROS 2 through rclpy (ROS sourced, or pip install "
-            "'rwt[ros2]'); ROS_DOMAIN_ID and the middleware come from the environment."
+            help=f"Link the graph to ROS 2 through rclpy (ROS sourced, or {install_hint('ros2')});"
+            " ROS_DOMAIN_ID and the middleware come from the environment."
         ),
     ] = False
     ros2_node_name: Annotated[

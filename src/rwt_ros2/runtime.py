@@ -1,7 +1,7 @@
 """Loading rclpy and the generated Python classes of ROS 2 types, with errors that say what to do.
 
 rclpy comes from a ROS 2 install (``source /opt/ros/<distro>/setup.bash``) or,
-on a machine without ROS, from PyPI's ROS 2 Kilted wheels (``rwt[ros2]``). It
+on a machine without ROS, from PyPI's ROS 2 Kilted wheels (``rwt-rosbridge[ros2]``). It
 needs the generated Python package of every type it carries; a missing one is
 named with the package to install (docs/ros2.md).
 """
@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.errors import GraphError, RwtError
 
 __all__ = [
@@ -31,7 +32,7 @@ __all__ = [
 ]
 
 ROS2_INSTALL = (
-    'pip install "rwt[ros2]" (ROS 2 Kilted from PyPI), '
+    f"{install_hint('ros2')} (ROS 2 Kilted from PyPI), "
     "or source your ROS 2 install first: source /opt/ros/<distro>/setup.bash"
 )
 """What to do when rclpy cannot be imported."""

@@ -18,6 +18,8 @@ from pathlib import Path
 import pytest
 import trustme
 
+from rwt_protocol.distribution import DISTRIBUTION
+
 from .blocks import LANGUAGES, REPO, Block, bash_commands, blocks_of, markdown_files
 
 BLOCKS = [block for path in markdown_files() for block in blocks_of(path)]
@@ -170,13 +172,28 @@ def _run(command: str, cwd: Path, ports: Ports) -> None:
         words = shlex.split(part)
         if words[:4] == ["python", "-m", "pip", "install"]:
             # resolve what the user would install (the extras exist), without touching this env
-            words = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *words[4:]]
+            wanted = [_our_distribution(word) for word in words[4:]]
+            words = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *wanted]
             _shell(words, REPO)
         elif words[:2] == ["rwt", "serve"] or (words[:1] == ["python"] and "examples/" in part):
             with _running(_server_on_free_port(part, ports), cwd):
                 pass
         else:
             _shell(["bash", "-c", part], cwd)
+
+
+def _our_distribution(word: str) -> str:
+    """An install line's requirement, this repository where it names rwt's distribution.
+
+    ``rwt-rosbridge[zenoh]`` resolves to this checkout with that extra (what PyPI
+    serves once it is released), so the line is checked against this
+    ``pyproject.toml``; one naming ``rwt``, an unrelated project on PyPI, fails.
+    """
+    name = re.split(r"[\[=<>~!; ]", word, maxsplit=1)[0]
+    assert name.lower() != "rwt", f"{word!r} installs the PyPI project rwt, not this one"
+    if name == DISTRIBUTION:
+        return f"{REPO}{word[len(name) :]}"
+    return word
 
 
 def _shell(args: list[str], cwd: Path) -> None:

@@ -37,7 +37,7 @@ def test_without_rclpy_it_says_what_to_install_or_source(tmp_path: Path) -> None
     assert "listening" not in result.stdout
     err = result.stderr
     assert "--ros2 needs rclpy (librcl.so: cannot open shared object file)" in err
-    assert 'pip install "rwt[ros2]"' in err
+    assert 'pip install "rwt-rosbridge[ros2]"' in err
     assert "source /opt/ros/<distro>/setup.bash" in err
 
 
