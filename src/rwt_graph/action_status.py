@@ -18,8 +18,8 @@ goals, the newest (docs/limits.md).
 from __future__ import annotations
 
 import os
-from itertools import islice
 from dataclasses import dataclass
+from itertools import islice
 from typing import TYPE_CHECKING
 
 from rwt_protocol.ports import GoalStatus

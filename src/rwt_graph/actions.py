@@ -32,13 +32,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CANCEL_GOAL_TYPE",
+    "MAX_LEFT_GOALS",
     "ActionEntry",
     "Actions",
     "Goal",
     "GoalCanceledError",
     "GoalContext",
     "LocalActionHandler",
-    "MAX_LEFT_GOALS",
     "cancel_goals_handler",
     "cancel_service_name",
 ]
