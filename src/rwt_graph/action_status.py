@@ -5,7 +5,7 @@ A ROS 2 action server publishes ``action_msgs/msg/GoalStatusArray`` on
 subscriber gets the last list (rclcpp ``ServerBase::publish_status``); tools
 read it to show what an action is doing (``ros2 action info``, ros-mcp's
 ``get_action_status``). The graph does the same for the actions its clients and
-in-process code serve (docs/ros2.md): a goal is listed EXECUTING when its
+in-process code serve (docs/agents.md): a goal is listed EXECUTING when its
 provider has it, CANCELING once a cancel is asked, then with its terminal status.
 
 Goals here are named by rosbridge ids, so each gets a random UUID for the list

@@ -1,4 +1,4 @@
-"""Each node's ROS 2 parameter services, for the graph's clients (docs/ros2.md).
+"""Each node's ROS 2 parameter services, for the graph's clients (docs/agents.md).
 
 A ROS 2 node answers ``<node>/list_parameters``, ``get_parameters``,
 ``set_parameters``, ``describe_parameters``, ``get_parameter_types`` and
