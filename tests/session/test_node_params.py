@@ -91,7 +91,12 @@ def test_services_come_with_the_first_parameter_and_go_with_the_last(
     robot.params.set("/arm:joint", 1)
     services = call(web, "/rosapi/services")["services"]
     assert "/arm/list_parameters" in services
-    robot.params.delete("/arm:joint")
+    # deleting the last one through the services themselves is answered, then they go
+    gone = [{"name": "joint", "value": {"type": 0}}]  # NOT_SET deletes
+    assert call(web, "/arm/set_parameters", parameters=gone) == {
+        "results": [{"successful": True, "reason": ""}]
+    }
+    assert not robot.params.has("/arm:joint")
     assert "/arm/list_parameters" not in call(web, "/rosapi/services")["services"]
     reply = call_raw(web, "/arm/list_parameters")
     assert reply["result"] is False

@@ -564,6 +564,10 @@ class Parameters:
         """The names of ROS 2 ``node``'s parameters (without the node), in the order set."""
         return list(self._nodes.get(node, ()))
 
+    def holds(self, node: str) -> bool:
+        """Whether ROS 2 ``node`` has parameters (``nodes()`` for one node, at no copy)."""
+        return node in self._nodes
+
     def nodes(self) -> frozenset[str]:
         """The ROS 2 nodes that have parameters (none in ROS 1)."""
         return frozenset(self._nodes)

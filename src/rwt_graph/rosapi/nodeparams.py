@@ -65,13 +65,13 @@ class NodeParamServices:
 
     def _changed(self, name: str, value: ParamValue | None) -> None:
         node, sep, _ = name.partition(":")
-        if sep:
+        if sep and (value is None or node not in self._offered):  # a set there changes nothing
             self._sync(node)
 
     def _wanted(self, node: str) -> bool:
         params = self._graph.params
         return (
-            bool(params.names_of(node))
+            params.holds(node)
             and not node.startswith(CLIENT_NODE_PREFIX)
             and params.owned_by(node) is None
         )
