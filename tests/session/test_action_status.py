@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import base64
 
+import anyio
+import pytest
+
 from rwt_graph.action_status import FINISHED_KEPT, STATUS_SUFFIX
-from rwt_graph.actions import MAX_LEFT_GOALS
+from rwt_graph.actions import MAX_LEFT_GOALS, GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.access import AccessPolicy, parse_glob_list
 from rwt_protocol.server.session import SessionConfig
+from rwt_transports.server import running_handlers
 from tests.conftest import Peer
 from tests.session.test_gates import GatedPeer
 
@@ -56,15 +60,36 @@ def test_status_is_published_at_each_transition_and_latched(graph: Graph) -> Non
     assert listed["goal_info"]["stamp"]["sec"] == int(graph.clock.wall())
 
 
-def test_in_process_actions_publish_their_status_too(graph: Graph) -> None:
-    async def handler(goal: dict[str, object], context: object) -> dict[str, object]:
-        return {"sequence": [0]}
+@pytest.mark.anyio
+async def test_an_in_process_action_publishes_its_status_and_a_caller_that_left_cancels(
+    graph: Graph,
+) -> None:
+    """An in-process action server: its goals in the list, one outliving its caller."""
+    started = anyio.Event()
 
-    graph.create_action_server("/fib", FIB, handler)
+    async def slow(goal: dict[str, object], context: GoalContext) -> dict[str, object]:
+        started.set()
+        while not context.cancel_requested:
+            await anyio.sleep(0.01)
+        raise GoalCanceledError
+
+    graph.create_action_server("/fib", FIB, slow)
     watcher = Peer(graph, "w")
     watcher.send(op="subscribe", topic="/fib/_action/status", type=STATUS)
-    assert "/fib/_action/status" in graph.topics
-    assert _statuses(watcher) == []  # nothing until a goal comes, as ROS 2
+    async with running_handlers(graph) as tg:
+        caller = Peer(graph, "c")
+        _send_goal(caller, "goal_1")
+        with anyio.fail_after(5):
+            await started.wait()
+        caller.session.close()  # the goal runs on (D35)
+        Peer(graph, "later").send(op="cancel_action_goal", action="/fib", id="goal_1")
+        seen: list[list[int]] = []
+        with anyio.fail_after(5):
+            while not seen or seen[-1] != [CANCELED]:
+                seen += _statuses(watcher)
+                await anyio.sleep(0.01)
+        assert seen == [[EXECUTING], [CANCELING], [CANCELED]]
+        tg.cancel_scope.cancel()
 
 
 def test_the_status_list_keeps_the_last_finished_goals(graph: Graph) -> None:
