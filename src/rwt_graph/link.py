@@ -56,6 +56,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from rwt_protocol.errors import RwtError
 
+from .action_status import STATUS_SUFFIX
 from .feed import EntityKind
 
 if TYPE_CHECKING:
@@ -153,9 +154,15 @@ class LinkRules:
         """Whether a message ``client`` published on ``topic`` goes out (the links' taps).
 
         Only local publishers' messages on names that are not private do, so
-        nothing that came in goes back out (no echo, no loops).
+        nothing that came in goes back out (no echo, no loops). Nor does an
+        action's ``_action/status``: a link that serves the action publishes its
+        own (``exports.offered_by_links``), and the graph's would come out twice.
         """
-        return not client.startswith(self.prefix) and not self.is_private(topic)
+        return (
+            not client.startswith(self.prefix)
+            and not self.is_private(topic)
+            and not topic.endswith(STATUS_SUFFIX)
+        )
 
     def is_private(self, name: str) -> bool:
         """Whether ``name`` stays in this process; remembered, as taps ask per message."""

@@ -15,6 +15,15 @@ from .client_harness import REPO, ServerProcess
 
 EXAMPLE = REPO / "examples" / "robot.py"
 TIMEOUT_S = 10.0
+#: The parameter services a node with parameters answers, sorted.
+PARAM_PARTS = [
+    "describe_parameters",
+    "get_parameter_types",
+    "get_parameters",
+    "list_parameters",
+    "set_parameters",
+    "set_parameters_atomically",
+]
 
 
 @pytest.fixture
@@ -100,8 +109,10 @@ def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:
         assert rosapi(ws, "/rosapi/node_details", node="/rwt") == {
             "subscribing": ["/cmd_vel"],
             "publishing": ["/velocity"],
-            "services": ["/lights"],
+            "services": ["/lights", *(f"/rwt/{part}" for part in PARAM_PARTS)],
         }
+        listed = rosapi(ws, "/rwt/list_parameters")  # as a ROS 2 node's (docs/agents.md)
+        assert listed == {"result": {"names": ["max_speed", "name"], "prefixes": []}}
 
 
 def test_the_readme_points_to_the_example() -> None:
