@@ -316,19 +316,22 @@ class ConnectionPump(Held):
             self._writer_wake.set()
             return
         flow = self.flow
+        gatherer = self._gatherer
+        if self._deferred and self._writer_idle and not flow.in_batch and gatherer is not None:
+            # a burst outside a reader, per message and client: the fewest steps (a close
+            # asked meanwhile goes when the gathering ends: ``_send_now`` leaves it to
+            # the writer)
+            gatherer.more = True
+            if session.queued_bytes >= GATHER_BYTES:
+                self.flush_deferred()  # enough for a write of its own
+            return
         if session.close_request is not None:
             self._writer_wake.set()
             self._timer_wake.set()  # the timer task sees the closing
             if self._job_wait is not None:
                 self._job_wait.set()  # a reader waiting for its budget stops waiting
         elif self._deferred and self._writer_idle:
-            gatherer = self._gatherer
-            if not flow.in_batch and gatherer is not None:
-                # a burst outside a reader, per message and client: the fewest steps
-                gatherer.more = True
-                if session.queued_bytes >= GATHER_BYTES:
-                    self.flush_deferred()  # enough for a write of its own
-                return
+            pass  # in a reader's batch: written at its end (``flush_deferred``)
         elif self._writer_idle and self._direct is not None:
             self._defer()
         else:

@@ -302,10 +302,21 @@ class Outbox:
             max_bytes: stop once this many payload bytes are taken (at least one
                 frame is taken when any is queued); None takes everything.
         """
-        frames: list[OutFrame] = []
-        taken = 0  # payload: what the transport will write
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
+        queued = self._frames
+        count = len(queued)
+        if count and (max_bytes is None or self._bytes - count * overhead <= max_bytes):
+            # everything fits (a burst a writer takes whole): no per-frame bookkeeping
+            whole = list(queued)
+            queued.clear()
+            self._bytes = self._kept_bytes = self._topic_frames = 0
+            self._held_frames = self._held_bytes = 0
+            self.taken_frames += count
+            self._sending_group = None
+            return whole
+        frames: list[OutFrame] = []
+        taken = 0  # payload: what the transport will write
         while self._frames and (
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):
