@@ -175,7 +175,11 @@ async def _topics(agent: Agent, received: list[Message]) -> None:
     echoed = await agent.result("echo", topic="/battery", count=1, timeout_s=5)
     assert not echoed.isError
     texts = [block.text for block in echoed.content if isinstance(block, TextContent)]
-    assert json.loads(texts[0]) == {"topic": "/battery", "type": "std_msgs/msg/String", "received": 1}
+    assert json.loads(texts[0]) == {
+        "topic": "/battery",
+        "type": "std_msgs/msg/String",
+        "received": 1,
+    }
     assert json.loads(texts[1]) == {"data": "87%"}
 
     scan = await agent.result("echo", topic="/scan_like", timeout_s=5)
