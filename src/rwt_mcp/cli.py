@@ -46,9 +46,8 @@ async def serve_stdio(url: str) -> None:
         try:
             await link.connect(ended)
             await ended.wait()
-        finally:
-            with anyio.CancelScope(shield=True):
-                await link.close()
+        finally:  # in this task: the client's task group was entered here (connect)
+            await link.close()
 
 
 def mcp_command(

@@ -140,6 +140,8 @@ async def agent(served: tuple[str, list[Message]], tmp_path: Path) -> AsyncItera
         ):
             await session.initialize()
             yield Agent(session)
+    # the session ended (stdin closed): rwt mcp closed its connection and left quietly
+    assert "Traceback" not in (tmp_path / "rwt-mcp.log").read_text()
 
 
 async def test_rwt_mcp_drives_a_robot(served: tuple[str, list[Message]], agent: Agent) -> None:
