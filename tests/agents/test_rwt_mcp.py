@@ -14,8 +14,10 @@ from __future__ import annotations
 import base64
 import io
 import json
+import socket
 import sys
 from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +26,7 @@ import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_graph.actions import GoalCanceledError, GoalContext
-from tests.support.cli import ENV
+from tests.support.cli import ENV, invoke_rwt
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
@@ -126,10 +128,9 @@ class Agent:
         return result.structuredContent
 
 
-@pytest.fixture
-async def agent(served: tuple[str, list[Message]], tmp_path: Path) -> AsyncIterator[Agent]:
+@asynccontextmanager
+async def rwt_mcp(url: str, tmp_path: Path) -> AsyncIterator[Agent]:
     """``rwt mcp URL`` (this checkout's) started by the official MCP client over stdio."""
-    url, _ = served
     params = StdioServerParameters(
         command=sys.executable, args=["-m", "rwt", "mcp", url], env=ENV, cwd=str(tmp_path)
     )
@@ -142,6 +143,13 @@ async def agent(served: tuple[str, list[Message]], tmp_path: Path) -> AsyncItera
             yield Agent(session)
     # the session ended (stdin closed): rwt mcp closed its connection and left quietly
     assert "Traceback" not in (tmp_path / "rwt-mcp.log").read_text()
+
+
+@pytest.fixture
+async def agent(served: tuple[str, list[Message]], tmp_path: Path) -> AsyncIterator[Agent]:
+    """``rwt mcp`` in front of the robot."""
+    async with rwt_mcp(served[0], tmp_path) as started:
+        yield started
 
 
 async def test_rwt_mcp_drives_a_robot(served: tuple[str, list[Message]], agent: Agent) -> None:
@@ -215,6 +223,13 @@ async def _topics(agent: Agent, received: list[Message]) -> None:
         while not received or received[-1] != {"data": "off"}:
             await anyio.sleep(0.02)
     assert received.count({"data": "on"}) == repeated["count"]
+    clash = await agent.result(
+        "publish", topic="/battery", type="std_msgs/msg/Int32", msg={"data": 1}
+    )
+    assert clash.isError  # the server's refusal of the advertisement, in its words
+    assert "is established with type std_msgs/msg/String" in clash.content[0].text  # type: ignore[union-attr]
+    too_long = await agent.result("echo", topic="/battery", timeout_s=1000)
+    assert too_long.isError and "timeout_s must be in (0, 60]" in too_long.content[0].text  # type: ignore[union-attr]
     too_fast = await agent.result(
         "publish_for", topic="/cmd", type="std_msgs/msg/String", msg={}, rate_hz=1e6, duration_s=1
     )
@@ -280,3 +295,44 @@ async def _tf(agent: Agent) -> None:
         "lookup_transform", target_frame="base_link", source_frame="nowhere", timeout_s=1
     )
     assert lost.isError and "nowhere" in lost.content[0].text  # type: ignore[union-attr]
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+async def _clients(agent: Agent) -> set[str]:
+    """The rosbridge clients the server lists as nodes (``/rwt_client_<n>``)."""
+    nodes = (await agent.call("list_nodes"))["names"]
+    return {node for node in nodes if node.startswith("/rwt_client_")}
+
+
+async def test_one_connection_made_in_the_background_and_again_after_a_drop(
+    tmp_path: Path,
+) -> None:
+    port = free_port()
+    graph = robot_graph([])
+    async with rwt_mcp(f"127.0.0.1:{port}", tmp_path) as agent:  # HOST:PORT, nothing there yet
+        with anyio.fail_after(25):
+            down = await agent.result("list_topics")
+            assert down.isError
+            assert f"not connected to ws://127.0.0.1:{port}" in down.content[0].text  # type: ignore[union-attr]
+            for _ in range(2):  # the robot comes up, goes away, and comes back
+                async with anyio.create_task_group() as tg:
+                    config = ServerConfig(host="127.0.0.1", port=port)
+                    await tg.start(RosbridgeServer(graph, config).serve)
+                    while (await agent.result("list_nodes")).isError:
+                        await anyio.sleep(0.1)
+                    first = await _clients(agent)
+                    assert not (await agent.result("echo", topic="/battery")).isError
+                    await agent.call("list_topics")
+                    assert len(first) == 1 and await _clients(agent) == first
+                    tg.cancel_scope.cancel()
+
+
+def test_a_url_of_another_scheme_is_one_line_and_exit_code_2() -> None:
+    result = invoke_rwt("mcp", "http://127.0.0.1:9090")
+    assert result.exit_code == 2
+    assert "unsupported URL scheme 'http'" in result.output
