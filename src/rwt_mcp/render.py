@@ -20,11 +20,11 @@ from rwt_graph.media.images import ImageError, compressed_content_type, image_to
 __all__ = [
     "IMAGE_TYPES",
     "MAX_ARRAY_ITEMS",
+    "MAX_DECODE_PIXELS",
     "MAX_IMAGE_BYTES",
     "MAX_IMAGE_SIDE",
     "MAX_MESSAGE_CHARS",
     "MAX_STRING_CHARS",
-    "RenderError",
     "encode_image",
     "json_schema",
     "message_text",
@@ -41,6 +41,8 @@ MAX_MESSAGE_CHARS = 4000
 MAX_IMAGE_SIDE = 1024
 #: A ``CompressedImage`` larger than this is re-encoded (as JPEG, scaled down).
 MAX_IMAGE_BYTES = 2 * 1024 * 1024
+#: A ``CompressedImage`` of more pixels than this is refused, not decoded (memory).
+MAX_DECODE_PIXELS = 40_000_000
 #: The message types returned as MCP image content, both dialects' spellings.
 IMAGE_TYPES = frozenset(
     {
@@ -51,10 +53,6 @@ IMAGE_TYPES = frozenset(
     }
 )
 _JPEG_QUALITY = 85
-
-
-class RenderError(ValueError):
-    """A message that cannot become what was asked (an image of an unknown encoding)."""
 
 
 def summarise(value: object) -> object:
@@ -103,8 +101,9 @@ def encode_image(msg: Mapping[str, object], message_type: str) -> tuple[bytes, s
 
     A ``sensor_msgs/Image`` is converted to 8-bit RGB (``image_to_display``, the
     video server's conversion) and encoded as PNG; a ``CompressedImage`` in JPEG or
-    PNG is passed on as it is unless over ``MAX_IMAGE_BYTES``. Either is scaled
-    down to ``MAX_IMAGE_SIDE`` pixels on its longer side first.
+    PNG is passed on as it is unless over ``MAX_IMAGE_BYTES`` or
+    ``MAX_IMAGE_SIDE``, then re-encoded as JPEG; one over ``MAX_DECODE_PIXELS`` is
+    refused. Images are scaled down to ``MAX_IMAGE_SIDE`` pixels on their longer side.
 
     Args:
         msg: the message as the client decoded it: ``data`` as bytes, or as the
@@ -113,26 +112,27 @@ def encode_image(msg: Mapping[str, object], message_type: str) -> tuple[bytes, s
             (either dialect).
 
     Raises:
-        RenderError: an unknown encoding or format, or data that does not hold
+        ImageError: an unknown encoding or format, or data that does not hold
             the image the header describes.
     """
     data = _bytes(msg.get("data"))
     if message_type.endswith("CompressedImage"):
         content_type = compressed_content_type(str(msg.get("format", "")))
         if content_type is None:
-            raise RenderError(f"unknown compressed image format {msg.get('format')!r}")
+            raise ImageError(f"unknown compressed image format {msg.get('format')!r}")
         try:
-            image = Image.open(io.BytesIO(data))
-            size = image.size
+            image = Image.open(io.BytesIO(data))  # reads the header only
+            if image.width * image.height > MAX_DECODE_PIXELS:
+                raise ImageError(
+                    f"a {image.width}x{image.height} image is over {MAX_DECODE_PIXELS} pixels"
+                )
+            if len(data) <= MAX_IMAGE_BYTES and max(image.size) <= MAX_IMAGE_SIDE:
+                return data, content_type
+            image.draft("RGB", (MAX_IMAGE_SIDE, MAX_IMAGE_SIDE))  # JPEG: decoded scaled down
+            return _encode(image.convert("RGB"), "JPEG"), "image/jpeg"
         except (OSError, Image.DecompressionBombError) as exc:
-            raise RenderError(f"the compressed image cannot be read: {exc}") from None
-        if len(data) <= MAX_IMAGE_BYTES and max(size) <= MAX_IMAGE_SIDE:
-            return data, content_type
-        return _encode(image.convert("RGB"), "JPEG"), "image/jpeg"
-    try:
-        pixels = image_to_display({**msg, "data": data})
-    except ImageError as exc:
-        raise RenderError(str(exc)) from None
+            raise ImageError(f"the compressed image cannot be read: {exc}") from None
+    pixels = image_to_display({**msg, "data": data})
     return _encode(Image.fromarray(pixels), "PNG"), "image/png"
 
 
@@ -155,13 +155,13 @@ def _bytes(data: object) -> bytes:
         try:
             return pybase64.b64decode(data, validate=True)
         except ValueError:
-            raise RenderError("image data is neither bytes nor base64 text") from None
+            raise ImageError("image data is neither bytes nor base64 text") from None
     if isinstance(data, list) and all(isinstance(item, int) for item in data):
         try:
             return bytes(data)
         except ValueError:
-            raise RenderError("image data has values outside 0-255") from None
-    raise RenderError("the message has no image data")
+            raise ImageError("image data has values outside 0-255") from None
+    raise ImageError("the message has no image data")
 
 
 # fieldtypes as rosapi spells them: the .msg names (ROS 1) and the IDL names (ROS 2)
@@ -203,8 +203,9 @@ def json_schema(typedefs: list[dict[str, object]]) -> dict[str, object]:
             -1: not an array, 0: any length, N: exactly N).
 
     Returns:
-        The root type's schema, its nested types under ``$defs`` and referred to
-        by ``$ref``; a ``uint8[]`` or ``char[]`` field takes base64 text or a
+        The root type's schema, its nested types under ``$defs`` by type name
+        and referred to by ``$ref`` (``#/$defs/geometry_msgs~1Vector3``: a JSON
+        pointer, ``/`` escaped); a ``uint8[]`` or ``char[]`` field takes base64 text or a
         list of 0-255, as rosbridge's JSON does. An empty schema for no typedefs.
     """
     if not typedefs:
@@ -234,7 +235,8 @@ def _field_schema(field_type: str, length: int, known: set[str]) -> object:
     if item is not None and bound.rstrip(">").isdigit():
         item = {**_PRIMITIVES[base], "maxLength": int(bound.rstrip(">"))}
     if item is None:
-        item = {"$ref": f"#/$defs/{field_type}"} if field_type in known else {}
+        pointer = field_type.replace("~", "~0").replace("/", "~1")  # RFC 6901 escapes
+        item = {"$ref": f"#/$defs/{pointer}"} if field_type in known else {}
     if length < 0:
         return item
     schema: dict[str, object] = {"type": "array", "items": item}

@@ -23,10 +23,11 @@ from mcp.types import ImageContent, TextContent
 from pydantic import BaseModel
 
 from rwt_client import Param, Topic
+from rwt_graph.media.images import ImageError
 from rwt_protocol.errors import RwtError
 
 from .link import Goal, RobotLink
-from .render import IMAGE_TYPES, RenderError, encode_image, json_schema, message_text
+from .render import IMAGE_TYPES, encode_image, json_schema, message_text
 
 __all__ = [
     "MAX_ECHO_CHARS",
@@ -253,7 +254,7 @@ class RobotTools:
             if images:
                 try:
                     data, mime = encode_image(msg, message_type)
-                except RenderError as exc:
+                except ImageError as exc:
                     raise ToolError(f"{topic}: {exc}") from None
                 encoded = pybase64.b64encode(data).decode()
                 content.append(ImageContent(type="image", data=encoded, mimeType=mime))

@@ -175,7 +175,7 @@ async def _graph(agent: Agent) -> None:
     twist = await agent.call("type_definition", type="geometry_msgs/msg/Twist")
     schema = twist["json_schema"]
     assert schema["type"] == "object" and set(schema["properties"]) == {"linear", "angular"}
-    vector = schema["properties"]["linear"]["$ref"].removeprefix("#/$defs/")
+    vector = schema["properties"]["linear"]["$ref"].removeprefix("#/$defs/").replace("~1", "/")
     assert schema["$defs"][vector]["properties"]["x"] == {"type": "number"}
     unknown = await agent.result("type_definition", type="no_pkg/msg/Nothing")
     assert unknown.isError
