@@ -10,7 +10,9 @@ timeout, a connection down) becomes an MCP tool error with its text.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
+import re
 from collections.abc import AsyncIterator, Iterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -26,6 +28,7 @@ from rwt_client import Param, Topic
 from rwt_graph.media.images import ImageError
 from rwt_protocol.errors import RwtError
 
+from . import render
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text
 
@@ -578,5 +581,19 @@ def build_server(link: RobotLink) -> FastMCP:
     tools = RobotTools(link)
     for name in _TOOLS:
         function = getattr(tools, name)
-        server.add_tool(function, name=name, structured_output=name != "echo")
+        server.add_tool(
+            function,
+            name=name,
+            description=_described(inspect.getdoc(function) or ""),
+            structured_output=name != "echo",
+        )
     return server
+
+
+def _described(doc: str) -> str:
+    """A tool's docstring for the agent: each bound's name followed by its value."""
+    bounds = {**vars(render), **globals()}
+    return _BOUND.sub(lambda match: f"{match[0]} ({bounds[match[0]]:g})", doc)
+
+
+_BOUND = re.compile(r"\bMAX_[A-Z_]+\b")

@@ -35,6 +35,8 @@ from mcp.client.stdio import stdio_client
 from mcp.types import CallToolResult, ImageContent, TextContent
 from PIL import Image
 
+from rwt_mcp.tools import MAX_ECHO_COUNT
+
 pytestmark = pytest.mark.anyio
 
 FIB = "example_interfaces/action/Fibonacci"
@@ -158,6 +160,8 @@ async def test_rwt_mcp_drives_a_robot(served: tuple[str, list[Message]], agent: 
         listed = (await agent.session.list_tools()).tools
         assert {tool.name for tool in listed} == TOOLS
         assert all(tool.inputSchema["type"] == "object" for tool in listed)
+        echo = next(tool for tool in listed if tool.name == "echo")
+        assert f"MAX_ECHO_COUNT ({MAX_ECHO_COUNT})" in (echo.description or "")  # its bound
         await _graph(agent)
         await _topics(agent, received)
         await _services_and_parameters(agent)
