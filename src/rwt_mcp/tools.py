@@ -110,7 +110,10 @@ class ServiceAnswer(BaseModel):
 
 
 class GoalReport(BaseModel):
-    """A goal of this session: ``state`` is running, succeeded, canceled or aborted."""
+    """A goal of this session: ``state`` is running, succeeded, canceled or aborted.
+
+    ``unknown: <why>`` when the connection dropped before the result came.
+    """
 
     goal_id: str
     action: str
@@ -223,6 +226,7 @@ class RobotTools:
             timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
             type: the message type; None asks the server.
         """
+        seconds = _wait(timeout_s)
         ros = self.link.connected()
         with _tool_errors():
             message_type = type or await ros.get_topic_type(topic)
@@ -241,7 +245,7 @@ class RobotTools:
         with _tool_errors():
             await subscription.subscribe(take)
             try:
-                with anyio.move_on_after(_wait(timeout_s)):
+                with anyio.move_on_after(seconds):
                     await enough.wait()
             finally:
                 await subscription.unsubscribe()
@@ -464,7 +468,8 @@ class RobotTools:
 
         def take(msg: Message) -> None:
             for transform in msg.get("transforms", []):
-                if str(transform.get("child_frame_id", "")).lstrip("/") == source_frame.lstrip("/"):
+                child = str(transform.get("child_frame_id", "")).lstrip("/")
+                if not found and child == source_frame.lstrip("/"):
                     found.append(transform)
                     got.set()
 
