@@ -59,6 +59,7 @@ MAX_PUBLISH_RATE_HZ = 50.0
 MAX_PUBLISH_DURATION_S = 60.0
 #: The status codes of ``action_msgs/GoalStatus`` a result may carry (D18).
 GOAL_STATES = {4: "succeeded", 5: "canceled", 6: "aborted"}
+_LAST_PROGRESS_S = 1.0  # sending the last feedback, once the goal ended
 _TF_TOPIC_TIMEOUT = {"sec": 5, "nanosec": 0}  # the republisher drops its topic 5 s after us
 
 Message = dict[str, Any]
@@ -517,25 +518,44 @@ def _report(record: Goal) -> GoalReport:
     )
 
 
+class _Latest:
+    """The latest feedback not yet sent as a notification (one slot, overwritten)."""
+
+    def __init__(self) -> None:
+        self.values: object = None
+        self.fresh = False
+        self._ready = anyio.Event()
+
+    def put(self, values: object) -> None:
+        self.values, self.fresh = values, True
+        self._ready.set()
+
+    async def take(self) -> object:
+        await self._ready.wait()
+        self._ready = anyio.Event()
+        self.fresh = False
+        return self.values
+
+
 @asynccontextmanager
 async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:  # type: ignore[type-arg]
     """Forward the goal's feedback as MCP progress notifications while the call waits.
 
-    Feedback arriving faster than it is sent is dropped but the latest (the
-    notifications are a view, not a log; ``feedback_count`` counts all).
+    Feedback arriving while a notification is being sent replaces the one
+    waiting (the notifications are a view, not a log; ``feedback_count`` counts
+    all); the last feedback before the call ends is always sent, within
+    ``_LAST_PROGRESS_S``.
     """
-    send, receive = anyio.create_memory_object_stream[object](1)
+    latest = _Latest()
 
-    def listener(values: object) -> None:
-        with contextlib.suppress(anyio.WouldBlock):
-            send.send_nowait(values)
+    async def send(values: object) -> None:
+        await ctx.report_progress(record.feedback_count, None, message_text(values))
 
     async def forward() -> None:
-        async for values in receive:
-            text = message_text(values)
-            await ctx.report_progress(record.feedback_count, None, text)
+        while True:
+            await send(await latest.take())
 
-    record.listeners.append(listener)
+    record.listeners.append(latest.put)
     try:
         async with anyio.create_task_group() as tg:
             tg.start_soon(forward)
@@ -543,10 +563,11 @@ async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:  # type:
                 yield
             finally:
                 tg.cancel_scope.cancel()
+        if latest.fresh:
+            with anyio.move_on_after(_LAST_PROGRESS_S):  # a client that reads nothing
+                await send(latest.values)
     finally:
-        record.listeners.remove(listener)
-        send.close()
-        receive.close()
+        record.listeners.remove(latest.put)
 
 
 _TOOLS = (
