@@ -69,5 +69,6 @@ def mcp_command(
         target = server_url(url)
     except ConfigError as exc:
         raise typer.BadParameter(str(exc), param_hint="URL") from None
-    logging.basicConfig(level=logging.WARNING, stream=sys.stderr)  # stdout carries MCP
+    # stdout carries MCP: logs go to stderr, a line per retry to connect (back-off up to 5 s)
+    logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="rwt mcp: %(message)s")
     anyio.run(serve_stdio, target)
