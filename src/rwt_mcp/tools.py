@@ -30,7 +30,7 @@ from rwt_protocol.errors import RwtError
 
 from . import render
 from .link import Goal, RobotLink
-from .render import IMAGE_TYPES, encode_image, json_schema, message_text
+from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
 
 __all__ = [
     "MAX_ECHO_CHARS",
@@ -352,20 +352,20 @@ class RobotTools:
             values = await self.link.connected().call_service(
                 service, args or {}, type_name=type, timeout_s=_wait(timeout_s)
             )
-        return ServiceAnswer(service=service, values=values)
+        return ServiceAnswer(service=service, values=summarise(values))
 
     async def get_parameter(self, name: str) -> ParameterValue:
         """A parameter's value (rosapi; ROS 2 names are ``/node:param``); null if unset."""
         with _tool_errors():
             value = await Param(self.link.connected(), name).get()
-        return ParameterValue(name=name, value=value)
+        return ParameterValue(name=name, value=summarise(value))
 
     async def set_parameter(self, name: str, value: Any) -> ParameterValue:
         """Set a parameter (rosapi); the answer reads it back."""
         with _tool_errors():
             parameter = Param(self.link.connected(), name)
             await parameter.set(value)
-            return ParameterValue(name=name, value=await parameter.get())
+            return ParameterValue(name=name, value=summarise(await parameter.get()))
 
     # ---- actions --------------------------------------------------------------------
 
@@ -512,9 +512,9 @@ def _report(record: Goal) -> GoalReport:
         action=record.action,
         state=state,
         status=status,
-        result=record.result,
+        result=summarise(record.result),
         feedback_count=record.feedback_count,
-        last_feedback=record.last_feedback,
+        last_feedback=summarise(record.last_feedback),
     )
 
 

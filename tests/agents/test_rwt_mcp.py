@@ -67,7 +67,7 @@ Message = dict[str, Any]
 def robot_graph(received: list[Message]) -> Graph:
     """The robot: topics, a service, an action, parameters, a camera and a transform."""
     graph = Graph()
-    graph.params.declare("/robot", {"max_speed": 1.5, "name": "r2"})
+    graph.params.declare("/robot", {"max_speed": 1.5, "name": "r2", "path": [0.5] * 100})
     battery = graph.create_publisher("/battery", "std_msgs/msg/String", latch=True, node="/robot")
     battery.publish({"data": "87%"})
     scan = graph.create_publisher("/scan_like", "std_msgs/msg/Float32MultiArray", latch=True)
@@ -250,6 +250,8 @@ async def _services_and_parameters(agent: Agent) -> None:
     assert "/no_such_service" in missing.content[0].text  # type: ignore[union-attr]
 
     assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
+    long = await agent.call("get_parameter", name="/robot:path")
+    assert long["value"] == "<float[100]>"  # summarised as echo's messages
     written = await agent.call("set_parameter", name="/robot:max_speed", value=0.5)
     assert written["value"] == 0.5
     assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 0.5
