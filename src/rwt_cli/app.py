@@ -30,6 +30,12 @@ _COMMANDS: dict[str, tuple[str, str, str, type[TyperCommand] | None]] = {
         "Check a rosbridge server against the conformance suite.",
         None,
     ),
+    "mcp": (
+        "rwt_mcp.cli",
+        "mcp_command",
+        "Serve MCP over stdio in front of a rosbridge server, for AI agents.",
+        None,
+    ),
     "record": ("rwt_cli.record", "record", "Record topics of a rosbridge server into a bag.", None),
     "serve": ("rwt_cli.serve", "serve", "Run a rosbridge server.", GroupedCommand),
     "play": ("rwt_cli.play", "play", "Serve a bag's topics as a live robot.", None),

@@ -1,0 +1,74 @@
+"""``rwt mcp URL``: an MCP server over stdio in front of a rosbridge server.
+
+The command line's entry (``rwt_cli.app`` loads ``mcp_command`` when ``rwt mcp``
+runs); ``serve_stdio`` runs the server (docs/agents.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from typing import Annotated
+
+import anyio
+import typer
+
+from rwt_client.connectors import server_url
+from rwt_protocol.errors import ConfigError
+
+from .link import RobotLink
+from .tools import build_server
+
+__all__ = ["mcp_command", "serve_stdio"]
+
+
+async def serve_stdio(url: str) -> None:
+    """Serve MCP on this process's stdin and stdout until stdin closes.
+
+    One rosbridge connection to ``url`` for the whole session, made in the
+    background: tools called before it is up fail with the client's reason.
+
+    Args:
+        url: the rosbridge server (``rwt_client.connectors.server_url``'s forms).
+    """
+    link = RobotLink(url)
+    server = build_server(link)
+    ended = anyio.Event()
+
+    async def stdio() -> None:
+        try:
+            await server.run_stdio_async()
+        finally:
+            ended.set()
+
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(stdio)
+        try:
+            await link.connect(ended)
+            await ended.wait()
+        finally:  # in this task: the client's task group was entered here (connect)
+            await link.close()
+
+
+def mcp_command(
+    url: Annotated[
+        str,
+        typer.Argument(
+            help="The rosbridge server: ws://HOST:PORT, wss://..., tcp://HOST:PORT or HOST:PORT.",
+            show_default=False,
+        ),
+    ],
+) -> None:
+    """Serve MCP (Model Context Protocol) over stdio in front of a rosbridge server.
+
+    AI agents (Claude, Cursor, any MCP client) start it as a stdio server and
+    drive the robot through its tools: the graph, topics (echo, images, publish),
+    services, actions, parameters and TF. Logs go to stderr.
+    """
+    try:
+        target = server_url(url)
+    except ConfigError as exc:
+        raise typer.BadParameter(str(exc), param_hint="URL") from None
+    # stdout carries MCP: logs go to stderr, a line per retry to connect (back-off up to 5 s)
+    logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="rwt mcp: %(message)s")
+    anyio.run(serve_stdio, target)

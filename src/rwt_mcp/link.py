@@ -1,0 +1,160 @@
+"""The MCP session's one rosbridge connection, its publishers and the goals it sent.
+
+One ``rwt_client.Ros`` for the whole MCP session (docs/agents.md): connected in
+the background at start, reconnected by the client when it drops. A tool called
+while it is down fails at once with the client's reason.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import Any
+
+import anyio
+from mcp.server.fastmcp.exceptions import ToolError
+
+from rwt_client import Action, GoalHandle, Ros, Topic
+from rwt_client.connectors import ConnectionClosedError
+from rwt_client.ros import jittered
+from rwt_protocol.errors import RwtError
+
+__all__ = ["MAX_GOALS", "MAX_PUBLISHERS", "Goal", "RobotLink"]
+
+logger = logging.getLogger(__name__)
+
+#: Goals this session remembers (running, or finished and not yet read): a new goal
+#: drops the oldest finished one; with all of them running it is refused.
+MAX_GOALS = 32
+#: Topics this session keeps advertised for ``publish``; the least recently used
+#: is unadvertised past this.
+MAX_PUBLISHERS = 32
+_RECONNECT_MAX_S = 5.0
+
+
+@dataclass
+class Goal:
+    """A goal sent by ``send_action_goal``: its handle, and what came back so far."""
+
+    action: str
+    handle: GoalHandle
+    feedback_count: int = 0
+    last_feedback: Any = None
+    status: int | None = None
+    result: Any = None
+    error: str | None = None
+    listeners: list[Any] = field(default_factory=list)
+    done: anyio.Event = field(default_factory=anyio.Event)
+
+    def on_feedback(self, values: object) -> None:
+        """Keep the latest feedback; pass it to the tool call waiting, if any."""
+        self.feedback_count += 1
+        self.last_feedback = values
+        for listener in self.listeners:
+            listener(values)
+
+    async def watch(self) -> None:
+        """Wait for the result (a task of the client's) and keep it; then ``done`` is set."""
+        try:
+            reply = await self.handle.result()
+        except RwtError as exc:  # the connection dropped: the goal's end is not known
+            self.error = str(exc)
+        else:
+            self.status = reply.status if reply.status is not None else (4 if reply.result else 6)
+            self.result = reply.values
+        finally:
+            self.done.set()
+
+
+class RobotLink:
+    """The rosbridge connection an MCP session uses, made once.
+
+    Args:
+        url: the server, as ``rwt_client.connectors.server_url`` returns it.
+    """
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.ros = Ros(url, reconnect=True)
+        self.goals: OrderedDict[str, Goal] = OrderedDict()
+        self._publishers: OrderedDict[tuple[str, str], Topic] = OrderedDict()
+
+    async def connect(self, stop: anyio.Event) -> None:
+        """Connect, retrying with back-off until the server answers or ``stop`` is set.
+
+        Once connected, the client reconnects by itself. Runs in the task that
+        later calls ``close`` (the client's task group belongs to that task).
+        """
+        delay_s = 0.1
+        while not stop.is_set():
+            try:
+                await self.ros.connect()
+            except ConnectionClosedError as exc:
+                logger.warning("%s; retrying", exc.message)
+                with anyio.move_on_after(jittered(delay_s)):  # back-off, as the client's
+                    await stop.wait()
+                delay_s = min(delay_s * 2, _RECONNECT_MAX_S)
+                continue
+            logger.info("connected to %s", self.url)
+            return
+
+    def connected(self) -> Ros:
+        """The client, once connected.
+
+        Raises:
+            ToolError: not connected (yet, or any more): the client's reason.
+        """
+        try:
+            self.ros.require_connection()
+        except ConnectionClosedError as exc:
+            raise ToolError(exc.message) from None
+        return self.ros
+
+    async def publisher(self, topic: str, message_type: str) -> Topic:
+        """The advertised ``Topic`` for ``topic``, advertised on first use (bounded cache)."""
+        key = (topic, message_type)
+        found = self._publishers.get(key)
+        if found is not None:
+            self._publishers.move_to_end(key)
+            return found
+        publisher = Topic(self.connected(), topic, message_type)
+        await publisher.advertise()
+        self._publishers[key] = publisher
+        if len(self._publishers) > MAX_PUBLISHERS:
+            _, oldest = self._publishers.popitem(last=False)
+            await oldest.unadvertise()
+        return publisher
+
+    async def send_goal(self, action: str, action_type: str, goal: object) -> Goal:
+        """Send a goal and remember it (``MAX_GOALS``).
+
+        Raises:
+            ToolError: ``MAX_GOALS`` goals are running, or the connection is down.
+        """
+        self._make_room()
+        record: Goal | None = None
+
+        def on_feedback(values: object) -> None:
+            if record is not None:
+                record.on_feedback(values)
+
+        handle = await Action(self.connected(), action, action_type).send_goal(
+            goal, on_feedback=on_feedback
+        )
+        record = self.goals[handle.id] = Goal(action, handle)
+        self.ros.spawn(record.watch)
+        return record
+
+    def _make_room(self) -> None:
+        if len(self.goals) < MAX_GOALS:
+            return
+        for goal_id, goal in self.goals.items():
+            if goal.done.is_set():
+                del self.goals[goal_id]
+                return
+        raise ToolError(f"{MAX_GOALS} goals of this session are running: cancel one or wait for it")
+
+    async def close(self) -> None:
+        """Close the connection (idempotent)."""
+        await self.ros.close()

@@ -1,0 +1,625 @@
+"""The MCP tools: a robot's graph, topics, services, actions, parameters and TF.
+
+Each tool is a method of ``RobotTools`` over the session's one connection
+(``link.RobotLink``); ``build_server`` registers them on a FastMCP server. Every
+wait and size is bounded by a constant of this module or of ``render``
+(docs/limits.md, "MCP front end"); an error of the server (a refused call, a
+timeout, a connection down) becomes an MCP tool error with its text.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import inspect
+import json
+import re
+from collections.abc import AsyncIterator, Iterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+import anyio
+import pybase64
+from mcp.server.fastmcp import Context, FastMCP
+from mcp.server.fastmcp.exceptions import ToolError
+from mcp.types import ImageContent, TextContent
+from pydantic import BaseModel
+
+from rwt_client import Param, Topic
+from rwt_graph.media.images import ImageError
+from rwt_protocol.errors import RwtError
+
+from . import render
+from .link import Goal, RobotLink
+from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
+
+__all__ = [
+    "MAX_ECHO_CHARS",
+    "MAX_ECHO_COUNT",
+    "MAX_ECHO_IMAGES",
+    "MAX_LIST_ITEMS",
+    "MAX_PUBLISH_DURATION_S",
+    "MAX_PUBLISH_RATE_HZ",
+    "MAX_WAIT_S",
+    "RobotTools",
+    "build_server",
+]
+
+#: Any wait a tool takes (echo, service call, goal, cancel, transform), in seconds.
+MAX_WAIT_S = 60.0
+#: Messages one ``echo`` returns.
+MAX_ECHO_COUNT = 100
+#: Images one ``echo`` returns (each its own image content).
+MAX_ECHO_IMAGES = 4
+#: Characters of message text one ``echo`` returns in all; it stops once past them.
+MAX_ECHO_CHARS = 32_000
+#: Names a listing tool returns (``total`` says how many there were).
+MAX_LIST_ITEMS = 1000
+#: ``publish_for``'s rate and duration.
+MAX_PUBLISH_RATE_HZ = 50.0
+MAX_PUBLISH_DURATION_S = 60.0
+#: The status codes of ``action_msgs/GoalStatus`` a result may carry (D18).
+GOAL_STATES = {4: "succeeded", 5: "canceled", 6: "aborted"}
+_LAST_PROGRESS_S = 1.0  # sending the last feedback, once the goal ended
+_TF_TOPIC_TIMEOUT = {"sec": 5, "nanosec": 0}  # the republisher drops its topic 5 s after us
+
+Message = dict[str, Any]
+
+
+class Names(BaseModel):
+    """Names from rosapi, sorted: at most ``MAX_LIST_ITEMS``, of ``total``."""
+
+    names: list[str]
+    total: int
+
+
+class TopicInfo(BaseModel):
+    """A topic and its type."""
+
+    name: str
+    type: str
+
+
+class Topics(BaseModel):
+    """Topics from rosapi, sorted: at most ``MAX_LIST_ITEMS``, of ``total``."""
+
+    topics: list[TopicInfo]
+    total: int
+
+
+class TypeDefinition(BaseModel):
+    """A message type: rosapi's typedefs (root first) and a JSON schema of its messages."""
+
+    type: str
+    typedefs: list[dict[str, Any]]
+    json_schema: dict[str, Any]
+
+
+class Published(BaseModel):
+    """What ``publish`` and ``publish_for`` sent: messages, and whether a final one."""
+
+    topic: str
+    type: str
+    count: int
+    final_sent: bool = False
+
+
+class ServiceAnswer(BaseModel):
+    """A service's response values."""
+
+    service: str
+    values: Any
+
+
+class GoalReport(BaseModel):
+    """A goal of this session: ``state`` is running, succeeded, canceled or aborted.
+
+    ``unknown: <why>`` when the connection dropped before the result came.
+    """
+
+    goal_id: str
+    action: str
+    state: str
+    status: int | None
+    result: Any
+    feedback_count: int
+    last_feedback: Any
+
+
+class ParameterValue(BaseModel):
+    """A parameter's name and value (null: not set)."""
+
+    name: str
+    value: Any
+
+
+class Transform(BaseModel):
+    """``source_frame``'s pose in ``target_frame``: metres and a unit quaternion."""
+
+    target_frame: str
+    source_frame: str
+    translation: dict[str, float]
+    rotation: dict[str, float]
+
+
+@contextlib.contextmanager
+def _tool_errors() -> Iterator[None]:
+    """Rwt's errors (a refused call, a timeout, a lost connection) as tool errors."""
+    try:
+        yield
+    except RwtError as exc:
+        raise ToolError(str(exc)) from None
+
+
+def _wait(timeout_s: float) -> float:
+    if not 0 < timeout_s <= MAX_WAIT_S:
+        raise ToolError(f"timeout_s must be in (0, {MAX_WAIT_S:g}] seconds, not {timeout_s:g}")
+    return timeout_s
+
+
+def _names(names: list[str]) -> Names:
+    return Names(names=sorted(names)[:MAX_LIST_ITEMS], total=len(names))
+
+
+class RobotTools:
+    """The tools over one connection (``RobotLink``); see docs/agents.md for each."""
+
+    def __init__(self, link: RobotLink) -> None:
+        self.link = link
+
+    # ---- the graph ------------------------------------------------------------------
+
+    async def list_topics(self) -> Topics:
+        """Every topic of the robot and its message type (rosapi)."""
+        with _tool_errors():
+            topics = await self.link.connected().get_topics_and_types()
+        listed = [TopicInfo(name=name, type=topics[name]) for name in sorted(topics)]
+        return Topics(topics=listed[:MAX_LIST_ITEMS], total=len(listed))
+
+    async def list_services(self) -> Names:
+        """Every service of the robot (rosapi)."""
+        with _tool_errors():
+            return _names(await self.link.connected().get_services())
+
+    async def list_nodes(self) -> Names:
+        """Every node of the robot (rosapi)."""
+        with _tool_errors():
+            return _names(await self.link.connected().get_nodes())
+
+    async def list_actions(self) -> Names:
+        """Every action server of the robot (rosapi's action_servers, where offered)."""
+        with _tool_errors():
+            return _names(await self.link.connected().get_action_servers())
+
+    async def list_parameters(self) -> Names:
+        """Every parameter name of the robot (rosapi; ROS 2: ``/node:param``)."""
+        with _tool_errors():
+            return _names(await self.link.connected().get_params())
+
+    async def type_definition(self, type: str) -> TypeDefinition:
+        """A message type's fields (rosapi message_details) and a JSON schema for building one.
+
+        Args:
+            type: a message type, ``pkg/msg/Type`` or ``pkg/Type``.
+        """
+        with _tool_errors():
+            typedefs = await self.link.connected().get_message_details(type)
+        if not typedefs:
+            raise ToolError(f"the server knows no message type {type!r}")
+        return TypeDefinition(type=type, typedefs=typedefs, json_schema=json_schema(typedefs))
+
+    # ---- topics ---------------------------------------------------------------------
+
+    async def echo(
+        self,
+        topic: str,
+        count: int = 1,
+        timeout_s: float = 5.0,
+        type: str | None = None,
+    ) -> list[TextContent | ImageContent]:
+        """Up to ``count`` messages of a topic, or those of ``timeout_s`` seconds.
+
+        Large arrays are summarised (``"<int[921600]>"``), long strings cut; images
+        (sensor_msgs/Image, CompressedImage) come as image content.
+
+        Args:
+            topic: the topic name.
+            count: messages wanted (1 to MAX_ECHO_COUNT; images: MAX_ECHO_IMAGES).
+            timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
+            type: the message type; None asks the server.
+        """
+        seconds = _wait(timeout_s)
+        ros = self.link.connected()
+        with _tool_errors():
+            message_type = type or await ros.get_topic_type(topic)
+        images = message_type in IMAGE_TYPES
+        wanted = min(max(count, 1), MAX_ECHO_IMAGES if images else MAX_ECHO_COUNT)
+        received: list[Message] = []
+        enough = anyio.Event()
+
+        def take(msg: Message) -> None:
+            if len(received) < wanted:
+                received.append(msg)
+            if len(received) >= wanted:
+                enough.set()
+
+        subscription = Topic(ros, topic, message_type or None)
+        with _tool_errors():
+            await subscription.subscribe(take)
+            try:
+                with anyio.move_on_after(seconds):
+                    await enough.wait()
+            finally:
+                await subscription.unsubscribe()
+        return self._echoed(topic, message_type, received[:wanted], images, len(received) >= wanted)
+
+    @staticmethod
+    def _echoed(
+        topic: str, message_type: str, messages: list[Message], images: bool, complete: bool
+    ) -> list[TextContent | ImageContent]:
+        content: list[TextContent | ImageContent] = []
+        chars = 0
+        for msg in messages:
+            if images:
+                try:
+                    data, mime = encode_image(msg, message_type)
+                except ImageError as exc:
+                    raise ToolError(f"{topic}: {exc}") from None
+                encoded = pybase64.b64encode(data).decode()
+                content.append(ImageContent(type="image", data=encoded, mimeType=mime))
+            shown = {key: value for key, value in msg.items() if not (images and key == "data")}
+            text = message_text(shown)
+            chars += len(text)
+            if chars > MAX_ECHO_CHARS:
+                break
+            content.append(TextContent(type="text", text=text))
+        summary = {"topic": topic, "type": message_type, "received": len(messages)}
+        if not complete:
+            summary["timed_out"] = True
+        return [TextContent(type="text", text=json.dumps(summary)), *content]
+
+    async def publish(self, topic: str, type: str, msg: Message) -> Published:
+        """Publish one message (the topic is advertised on first use and stays advertised).
+
+        Args:
+            topic: the topic name.
+            type: its message type (see ``type_definition``).
+            msg: the message as JSON.
+        """
+        with _tool_errors():
+            publisher = await self.link.publisher(topic, type)
+            await publisher.publish(msg)
+        return Published(topic=topic, type=type, count=1)
+
+    async def publish_for(
+        self,
+        topic: str,
+        type: str,
+        msg: Message,
+        rate_hz: float,
+        duration_s: float,
+        final_msg: Message | None = None,
+    ) -> Published:
+        """Publish ``msg`` at ``rate_hz`` for ``duration_s`` seconds, then ``final_msg`` once.
+
+        For a velocity command followed by a stop (a zero Twist as ``final_msg``).
+
+        Args:
+            topic: the topic name.
+            type: its message type.
+            msg: the message repeated.
+            rate_hz: messages a second (at most MAX_PUBLISH_RATE_HZ).
+            duration_s: seconds (at most MAX_PUBLISH_DURATION_S).
+            final_msg: sent once at the end, also when the call is cancelled.
+        """
+        if not 0 < rate_hz <= MAX_PUBLISH_RATE_HZ:
+            raise ToolError(f"rate_hz must be in (0, {MAX_PUBLISH_RATE_HZ:g}]")
+        if not 0 < duration_s <= MAX_PUBLISH_DURATION_S:
+            raise ToolError(f"duration_s must be in (0, {MAX_PUBLISH_DURATION_S:g}]")
+        count = 0
+        with _tool_errors():
+            publisher = await self.link.publisher(topic, type)
+            start = anyio.current_time()
+            try:
+                with anyio.move_on_after(duration_s):
+                    while True:
+                        await publisher.publish(msg)
+                        count += 1
+                        await anyio.sleep_until(start + count / rate_hz)
+            finally:
+                if final_msg is not None:
+                    with anyio.CancelScope(shield=True):  # the stop goes out, whatever happens
+                        await publisher.publish(final_msg)
+        return Published(topic=topic, type=type, count=count, final_sent=final_msg is not None)
+
+    # ---- services and parameters ----------------------------------------------------
+
+    async def call_service(
+        self,
+        service: str,
+        type: str | None = None,
+        args: Message | None = None,
+        timeout_s: float = 10.0,
+    ) -> ServiceAnswer:
+        """Call a service and return its response.
+
+        Args:
+            service: the service name.
+            type: its service type (optional; rosbridge servers look it up).
+            args: the request as JSON (omitted: an empty request).
+            timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
+        """
+        with _tool_errors():
+            values = await self.link.connected().call_service(
+                service, args or {}, type_name=type, timeout_s=_wait(timeout_s)
+            )
+        return ServiceAnswer(service=service, values=summarise(values))
+
+    async def get_parameter(self, name: str) -> ParameterValue:
+        """A parameter's value (rosapi; ROS 2 names are ``/node:param``); null if unset."""
+        with _tool_errors():
+            value = await Param(self.link.connected(), name).get()
+        return ParameterValue(name=name, value=summarise(value))
+
+    async def set_parameter(self, name: str, value: Any) -> ParameterValue:
+        """Set a parameter (rosapi); the answer reads it back."""
+        with _tool_errors():
+            parameter = Param(self.link.connected(), name)
+            await parameter.set(value)
+            return ParameterValue(name=name, value=summarise(await parameter.get()))
+
+    # ---- actions --------------------------------------------------------------------
+
+    async def send_action_goal(
+        self,
+        action: str,
+        type: str,
+        goal: Message,
+        ctx: Context,  # type: ignore[type-arg]
+        timeout_s: float = 30.0,
+    ) -> GoalReport:
+        """Send a goal and wait up to ``timeout_s`` for its result; feedback as progress.
+
+        A goal still running then goes on: ``action_goal_status`` reads it later,
+        ``cancel_action_goal`` cancels it.
+
+        Args:
+            action: the action name.
+            type: its action type, ``pkg/action/Type``.
+            goal: the goal as JSON.
+            ctx: the MCP request (progress notifications, when the client asked).
+            timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
+        """
+        seconds = _wait(timeout_s)
+        with _tool_errors():
+            record = await self.link.send_goal(action, type, goal)
+        async with _progress(record, ctx):
+            await self._settle(record, seconds)
+        return _report(record)
+
+    async def cancel_action_goal(
+        self, action: str, goal_id: str, timeout_s: float = 5.0
+    ) -> GoalReport:
+        """Cancel a goal by its id; for a goal of this session, wait for its end.
+
+        Args:
+            action: the action name.
+            goal_id: the id ``send_action_goal`` returned (or another client's).
+            timeout_s: the longest wait for the goal's end, seconds (at most MAX_WAIT_S).
+        """
+        seconds = _wait(timeout_s)
+        ros = self.link.connected()
+        with _tool_errors():
+            ros.session.cancel_action_goal(action, goal_id)
+            await ros.flush()
+        record = self.link.goals.get(goal_id)
+        if record is None:
+            return GoalReport(
+                goal_id=goal_id,
+                action=action,
+                state="cancel sent",
+                status=None,
+                result=None,
+                feedback_count=0,
+                last_feedback=None,
+            )
+        await self._settle(record, seconds)
+        return _report(record)
+
+    async def action_goal_status(self, goal_id: str) -> GoalReport:
+        """A goal of this session: running, or how it ended and its result."""
+        record = self.link.goals.get(goal_id)
+        if record is None:
+            known = ", ".join(self.link.goals) or "none"
+            raise ToolError(f"no goal {goal_id!r} in this session (goals: {known})")
+        return _report(record)
+
+    @staticmethod
+    async def _settle(record: Goal, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for the goal's end; it may still be running then."""
+        with anyio.move_on_after(timeout_s):
+            await record.done.wait()
+
+    # ---- TF ---------------------------------------------------------------------------
+
+    async def lookup_transform(
+        self, target_frame: str, source_frame: str, timeout_s: float = 5.0
+    ) -> Transform:
+        """``source_frame``'s latest pose in ``target_frame``, from the TF republisher.
+
+        Asks the server's tf2_web_republisher (``/republish_tfs``) for the one
+        frame and reads the first transform it sends.
+
+        Args:
+            target_frame: the fixed frame (``map``, ``odom``, ``base_link``).
+            source_frame: the frame whose pose is wanted.
+            timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
+        """
+        seconds = _wait(timeout_s)
+        ros = self.link.connected()
+        request = {
+            "source_frames": [source_frame],
+            "target_frame": target_frame,
+            "angular_thres": 0.0,
+            "trans_thres": 0.0,
+            "rate": 10.0,
+            "timeout": _TF_TOPIC_TIMEOUT,
+        }
+        found: list[Message] = []
+        got = anyio.Event()
+
+        def take(msg: Message) -> None:
+            for transform in msg.get("transforms", []):
+                child = str(transform.get("child_frame_id", "")).lstrip("/")
+                if not found and child == source_frame.lstrip("/"):
+                    found.append(transform)
+                    got.set()
+
+        with _tool_errors(), anyio.move_on_after(seconds):
+            answer = await ros.call_service("/republish_tfs", request, timeout_s=seconds)
+            name = answer.get("topic_name") if isinstance(answer, dict) else None
+            if not isinstance(name, str):
+                raise ToolError(f"/republish_tfs answered no topic_name: {answer!r}")
+            topic = Topic(ros, name, "tf2_web_republisher/msg/TFArray")
+            await topic.subscribe(take)
+            try:
+                await got.wait()
+            finally:
+                await topic.unsubscribe()
+        if not found:
+            raise ToolError(
+                f"no transform from {source_frame!r} to {target_frame!r} within {seconds:g} s "
+                "(are both frames on /tf or /tf_static, and joined?)"
+            )
+        values = found[0].get("transform", {})
+        return Transform(
+            target_frame=target_frame,
+            source_frame=source_frame,
+            translation=values.get("translation", {}),
+            rotation=values.get("rotation", {}),
+        )
+
+
+def _report(record: Goal) -> GoalReport:
+    status = record.status
+    if record.error is not None:
+        state = f"unknown: {record.error}"
+    elif status is None:
+        state = "running"
+    else:
+        state = GOAL_STATES.get(status, f"status {status}")
+    return GoalReport(
+        goal_id=record.handle.id,
+        action=record.action,
+        state=state,
+        status=status,
+        result=summarise(record.result),
+        feedback_count=record.feedback_count,
+        last_feedback=summarise(record.last_feedback),
+    )
+
+
+class _Latest:
+    """The latest feedback not yet sent as a notification (one slot, overwritten)."""
+
+    def __init__(self) -> None:
+        self.values: object = None
+        self.fresh = False
+        self._ready = anyio.Event()
+
+    def put(self, values: object) -> None:
+        self.values, self.fresh = values, True
+        self._ready.set()
+
+    async def take(self) -> object:
+        await self._ready.wait()
+        self._ready = anyio.Event()
+        self.fresh = False
+        return self.values
+
+
+@asynccontextmanager
+async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:  # type: ignore[type-arg]
+    """Forward the goal's feedback as MCP progress notifications while the call waits.
+
+    Feedback arriving while a notification is being sent replaces the one
+    waiting (the notifications are a view, not a log; ``feedback_count`` counts
+    all); the last feedback before the call ends is always sent, within
+    ``_LAST_PROGRESS_S``.
+    """
+    latest = _Latest()
+
+    async def send(values: object) -> None:
+        await ctx.report_progress(record.feedback_count, None, message_text(values))
+
+    async def forward() -> None:
+        while True:
+            await send(await latest.take())
+
+    record.listeners.append(latest.put)
+    try:
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(forward)
+            try:
+                yield
+            finally:
+                tg.cancel_scope.cancel()
+        if latest.fresh:
+            with anyio.move_on_after(_LAST_PROGRESS_S):  # a client that reads nothing
+                await send(latest.values)
+    finally:
+        record.listeners.remove(latest.put)
+
+
+_TOOLS = (
+    "list_topics",
+    "list_services",
+    "list_nodes",
+    "list_actions",
+    "list_parameters",
+    "type_definition",
+    "echo",
+    "publish",
+    "publish_for",
+    "call_service",
+    "send_action_goal",
+    "cancel_action_goal",
+    "action_goal_status",
+    "get_parameter",
+    "set_parameter",
+    "lookup_transform",
+)
+
+
+def build_server(link: RobotLink) -> FastMCP:
+    """A FastMCP server whose tools drive the robot behind ``link``.
+
+    The caller connects ``link`` beside it (``cli.serve_stdio``).
+    """
+    server = FastMCP(
+        "rwt",
+        instructions=(
+            "Tools of a ROS robot behind a rosbridge server: list its graph, read "
+            "(echo) and publish topics, call services, send and cancel action goals, "
+            "get and set parameters, look up transforms. type_definition gives the "
+            "JSON schema of a message type."
+        ),
+    )
+    tools = RobotTools(link)
+    for name in _TOOLS:
+        function = getattr(tools, name)
+        server.add_tool(
+            function,
+            name=name,
+            description=_described(inspect.getdoc(function) or ""),
+            structured_output=name != "echo",
+        )
+    return server
+
+
+def _described(doc: str) -> str:
+    """A tool's docstring for the agent: each bound's name followed by its value."""
+    bounds = {**vars(render), **globals()}
+    return _BOUND.sub(lambda match: f"{match[0]} ({bounds[match[0]]:g})", doc)
+
+
+_BOUND = re.compile(r"\bMAX_[A-Z_]+\b")
