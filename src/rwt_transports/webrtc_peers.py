@@ -231,6 +231,8 @@ class WebRtcPeers:
 
 async def _negotiate(pc: RTCPeerConnection, sdp: str) -> Answer | None:
     """Set the offer and the answer (gathering every candidate); None when it worked."""
+    if not sdp.lstrip().startswith("v=0"):  # aiortc reads any text as an empty description
+        return Answer(400, "the offer is not a usable SDP offer: it must start with v=0")
     try:
         await pc.setRemoteDescription(RTCSessionDescription(sdp=sdp, type="offer"))
     except Exception as exc:  # aiortc raises ValueError and others for a bad offer

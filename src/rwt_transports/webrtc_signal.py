@@ -21,6 +21,7 @@ import contextlib
 import fnmatch
 import logging
 from dataclasses import dataclass
+from http import HTTPStatus
 from typing import TYPE_CHECKING, Protocol
 
 import anyio
@@ -264,7 +265,8 @@ async def _reply(
         fields += [(b"Content-Type", kind.encode()), (b"Content-Length", str(len(body)).encode())]
     with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
         try:
-            data = conn.send(h11.Response(status_code=status, headers=fields))
+            reason = HTTPStatus(status).phrase.encode()
+            data = conn.send(h11.Response(status_code=status, headers=fields, reason=reason))
             if body:
                 data = (data or b"") + (conn.send(h11.Data(data=body)) or b"")
             data = (data or b"") + (conn.send(h11.EndOfMessage()) or b"")

@@ -67,9 +67,7 @@ async def offer_sdp(pc: RTCPeerConnection) -> str:
 
 
 @asynccontextmanager
-async def rtc_client(
-    base: str, headers: dict[str, str] | None = None
-) -> AsyncIterator[RtcClient]:
+async def rtc_client(base: str, headers: dict[str, str] | None = None) -> AsyncIterator[RtcClient]:
     """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit."""
     pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
     channel = pc.createDataChannel("rosbridge")

@@ -1,0 +1,111 @@
+"""A rosbridge session over the ``rosbridge`` data channel, from a real WebRTC stack (aiortc).
+
+The same ops, limits and fragments as a WebSocket connection (docs/webrtc.md).
+"""
+
+from __future__ import annotations
+
+import json
+
+import anyio
+import cbor2
+import httpx
+import pytest
+
+from tests.webrtc.conftest import RtcClient, Served, rtc_client
+
+pytestmark = pytest.mark.anyio
+
+
+async def test_json_subscribe_publish_and_call_service(served: Served) -> None:
+    received: list[object] = []
+    served.graph.create_subscription("/from_browser", received.append, "std_msgs/msg/String")
+    robot = served.graph.create_publisher("/from_robot", "std_msgs/msg/String", node="/robot")
+    async with rtc_client(served.base) as client:
+        client.send({"op": "subscribe", "topic": "/from_robot", "type": "std_msgs/String"})
+        client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c1"})
+        reply = await client.next_op("service_response")
+        assert reply["id"] == "c1" and reply["result"] is True
+        assert "/from_robot" in reply["values"]["topics"]  # type: ignore[index]
+        robot.publish({"data": "hello"})
+        message = await client.next_op("publish")
+        assert message["topic"] == "/from_robot" and message["msg"] == {"data": "hello"}
+        client.send({"op": "advertise", "topic": "/from_browser", "type": "std_msgs/String"})
+        client.send({"op": "publish", "topic": "/from_browser", "msg": {"data": "hi"}})
+        with anyio.fail_after(10):
+            while not received:
+                await anyio.sleep(0.02)
+    assert [dict(m) for m in received] == [{"data": "hi"}]  # type: ignore[call-overload]
+
+
+async def test_cbor_in_and_out(served: Served) -> None:
+    robot = served.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
+    async with rtc_client(served.base) as client:
+        client.send(
+            {"op": "subscribe", "topic": "/count", "type": "std_msgs/Int32", "compression": "cbor"},
+            cbor=True,
+        )
+        client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c"}, cbor=True)
+        await client.next_op("service_response")
+        robot.publish({"data": 42})
+        raw = await _next_raw(client)
+        assert isinstance(raw, bytes)  # CBOR goes as a binary message
+        assert cbor2.loads(raw) == {"op": "publish", "topic": "/count", "msg": {"data": 42}}
+
+
+async def _next_raw(client: RtcClient) -> str | bytes:
+    while True:
+        raw = await client.receive()
+        if isinstance(raw, bytes):
+            return raw
+
+
+async def test_a_message_above_64_kib_arrives_whole_through_fragments(served: Served) -> None:
+    robot = served.graph.create_publisher("/big", "std_msgs/msg/String", node="/robot")
+    text = "".join(chr(0x41 + i % 26) for i in range(200_000)) + '"\\é'
+    async with rtc_client(served.base) as client:
+        client.send({"op": "subscribe", "topic": "/big", "type": "std_msgs/String"})
+        client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c"})
+        await client.next_op("service_response")
+        robot.publish({"data": text})
+        parts: dict[int, str] = {}
+        total = None
+        while total is None or len(parts) < total:
+            raw = await client.receive()
+            assert isinstance(raw, str) and len(raw.encode()) <= 64 * 1024
+            part = json.loads(raw)
+            assert part["op"] == "fragment"
+            parts[part["num"]] = part["data"]
+            total = part["total"]
+    assert total > 1
+    whole = json.loads("".join(parts[i] for i in range(total)))
+    assert whole["op"] == "publish" and whole["msg"] == {"data": text}
+
+
+async def test_the_session_counts_in_connected_clients_and_delete_ends_it(served: Served) -> None:
+    async with rtc_client(served.base) as client:
+        client.send({"op": "subscribe", "topic": "/client_count"})
+        assert (await client.next_op("publish"))["msg"] == {"data": 1}
+        client.send({"op": "subscribe", "topic": "/connected_clients"})
+        clients = (await client.next_op("publish"))["msg"]["clients"]  # type: ignore[index]
+        assert [c["ip_address"] for c in clients] == ["127.0.0.1"]
+        assert [cid.split(":")[0] for cid in served.server.sessions] == ["webrtc"]
+        async with httpx.AsyncClient(base_url=served.base) as http:
+            assert (await http.delete(client.location)).status_code == 204
+            with anyio.fail_after(10):
+                await client.closed.wait()  # the server closed the data channel
+                while served.server.sessions:
+                    await anyio.sleep(0.02)
+            assert (await http.delete(client.location)).status_code == 404
+
+
+async def test_closing_the_peer_connection_frees_the_session(served: Served) -> None:
+    async with rtc_client(served.base) as client:
+        client.send({"op": "subscribe", "topic": "/client_count"})
+        await client.next_op("publish")
+        assert len(served.server.sessions) == 1
+        await client.pc.close()
+        with anyio.fail_after(15):
+            while served.server.sessions:
+                await anyio.sleep(0.05)
+    assert served.server.webrtc is not None and not served.server.webrtc.peers
