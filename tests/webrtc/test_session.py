@@ -12,7 +12,11 @@ import cbor2
 import httpx
 import pytest
 
-from tests.webrtc.conftest import RtcClient, Served, rtc_client
+from tests.webrtc.conftest import NEEDS_AIORTC
+
+pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
+
+from tests.webrtc.peer import RtcClient, Served, rtc_client
 
 pytestmark = pytest.mark.anyio
 

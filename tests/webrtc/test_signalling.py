@@ -7,6 +7,11 @@ import json
 import anyio
 import httpx
 import pytest
+
+from tests.webrtc.conftest import NEEDS_AIORTC
+
+pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
+
 from aiortc import RTCConfiguration, RTCPeerConnection
 from websockets.asyncio.client import connect
 
@@ -14,7 +19,7 @@ from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_peers import MAX_CONNECTING
 from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
-from tests.webrtc.conftest import Served, offer_sdp, rtc_client, serving
+from tests.webrtc.peer import Served, offer_sdp, rtc_client, serving
 
 pytestmark = pytest.mark.anyio
 
