@@ -104,11 +104,13 @@ class _Site(http.server.SimpleHTTPRequestHandler):
         self.end_headers()
         self.wfile.write(body)
 
-    def log_message(self, format: str, *args: object) -> None:  # noqa: A002
-        pass
+    def log_message(self, format: str, *args: object) -> None:
+        pass  # the test's output is its assertions
 
     def guess_type(self, path: str | Path) -> str:
-        return "text/javascript" if str(path).endswith((".js", ".mjs")) else super().guess_type(path)
+        if str(path).endswith((".js", ".mjs")):
+            return "text/javascript"  # module scripts need a JavaScript type
+        return super().guess_type(path)
 
 
 @pytest.fixture(scope="module")
