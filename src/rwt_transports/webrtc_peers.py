@@ -151,11 +151,14 @@ class WebRtcPeers:
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
         pc.on("connectionstatechange", lambda: self._on_state(item))
         refusal: Answer | None = Answer(503, "answering the offer took too long")
-        with anyio.move_on_after(OFFER_TIMEOUT_S):
-            refusal = await _negotiate(pc, sdp)
+        try:
+            with anyio.move_on_after(OFFER_TIMEOUT_S):
+                refusal = await _negotiate(pc, sdp)
+        finally:  # refused, failed or cancelled (shutdown): the session and its sockets go
+            if refusal is not None or pc.localDescription is None or self._tg is None:
+                session.close()
+                await _close_pc(pc)
         if refusal is not None or pc.localDescription is None or self._tg is None:
-            session.close()
-            await _close_pc(pc)
             return refusal or Answer(503, "the server is stopping")
         self.peers[item.session_id] = item
         self._tg.start_soon(self._run, item)

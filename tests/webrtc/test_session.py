@@ -16,7 +16,10 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
-from tests.webrtc.peer import RtcClient, Served, rtc_client
+from rwt_graph.graph import Graph
+from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt_transports.webrtc_signal import WebRtcOptions
+from tests.webrtc.peer import RtcClient, Served, rtc_client, serving
 
 pytestmark = pytest.mark.anyio
 
@@ -113,3 +116,29 @@ async def test_closing_the_peer_connection_frees_the_session(served: Served) -> 
             while served.server.sessions:
                 await anyio.sleep(0.05)
     assert served.server.webrtc is not None and not served.server.webrtc.peers
+
+
+async def test_an_idle_session_is_closed_as_on_other_transports() -> None:
+    config = ServerConfig(port=0, idle_timeout_s=0.5, webrtc=WebRtcOptions())
+    async with serving(config) as running, rtc_client(running.base) as client:
+        client.send({"op": "set_level", "level": "info", "id": "hello"})
+        await client.next_op("status")
+        with anyio.fail_after(15):  # the idle timeout is 0.5 s: this bounds a hang only
+            await client.closed.wait()  # nothing held, nothing sent: the server closed it
+            while running.server.sessions:
+                await anyio.sleep(0.05)
+        assert running.server.webrtc is not None and not running.server.webrtc.peers
+
+
+async def test_stopping_the_server_closes_webrtc_sessions() -> None:
+    graph = Graph()
+    server = RosbridgeServer(graph, ServerConfig(port=0, webrtc=WebRtcOptions()))
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        async with rtc_client(url.replace("ws://", "http://")) as client:
+            client.send({"op": "subscribe", "topic": "/client_count"})
+            await client.next_op("publish")
+            server.stop()
+            with anyio.fail_after(15):
+                await client.closed.wait()
+    assert not server.sessions and server.webrtc is not None and not server.webrtc.peers
