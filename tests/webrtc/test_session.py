@@ -16,8 +16,11 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
+import anyio.lowlevel
+
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt_transports.webrtc import MAX_TEXT_FRAME_BYTES, SEND_HIGH_WATER_BYTES
 from rwt_transports.webrtc_signal import WebRtcOptions
 from tests.webrtc.peer import RtcClient, Served, rtc_client, serving
 
@@ -58,6 +61,19 @@ async def test_cbor_in_and_out(served: Served) -> None:
         raw = await _next_raw(client)
         assert isinstance(raw, bytes)  # CBOR goes as a binary message
         assert cbor2.loads(raw) == {"op": "publish", "topic": "/count", "msg": {"data": 42}}
+
+
+async def _next_fragment_text(client: RtcClient) -> str:
+    """The ``data`` of the next message that came in ``fragment`` ops, reassembled."""
+    parts: dict[int, str] = {}
+    while True:
+        part = json.loads(await client.receive())
+        if part["op"] != "fragment":
+            continue
+        parts[part["num"]] = part["data"]
+        if len(parts) == part["total"]:
+            whole = json.loads("".join(parts[i] for i in range(part["total"])))
+            return str(whole["msg"]["data"])
 
 
 async def _next_raw(client: RtcClient) -> str | bytes:
@@ -142,3 +158,39 @@ async def test_stopping_the_server_closes_webrtc_sessions() -> None:
             with anyio.fail_after(15):
                 await client.closed.wait()
     assert not server.sessions and server.webrtc is not None and not server.webrtc.peers
+
+
+async def test_the_data_channel_buffer_is_flow_controlled(served: Served) -> None:
+    """A burst far above the channel's buffer waits in the session, not in SCTP's queue."""
+    robot = served.graph.create_publisher("/burst", "std_msgs/msg/String", node="/robot")
+    payload = "y" * 100_000
+    count = 100  # 10 MB of JSON: ten times the buffer's high-water mark
+    async with rtc_client(served.base) as client:
+        client.send({"op": "subscribe", "topic": "/burst", "type": "std_msgs/String"})
+        client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c"})
+        await client.next_op("service_response")
+        assert served.server.webrtc is not None
+        (peer,) = served.server.webrtc.peers.values()
+        channel = peer.channel
+        assert channel is not None
+        highest = 0
+        done = anyio.Event()
+
+        async def watch() -> None:
+            nonlocal highest
+            while not done.is_set():
+                highest = max(highest, channel.bufferedAmount)
+                await anyio.lowlevel.checkpoint()
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(watch)
+            for i in range(count):
+                robot.publish({"data": f"{i:03d}{payload}"})
+                await anyio.lowlevel.checkpoint()
+            last = f"{count - 1:03d}"  # dropping is oldest first: the last one comes
+            with anyio.fail_after(60):
+                while not (await _next_fragment_text(client)).startswith(last):
+                    pass
+            done.set()
+    assert highest > 0  # the channel did buffer: the bound below was tested
+    assert highest <= SEND_HIGH_WATER_BYTES + MAX_TEXT_FRAME_BYTES
