@@ -194,3 +194,14 @@ async def test_the_data_channel_buffer_is_flow_controlled(served: Served) -> Non
             done.set()
     assert highest > 0  # the channel did buffer: the bound below was tested
     assert highest <= SEND_HIGH_WATER_BYTES + MAX_TEXT_FRAME_BYTES
+
+
+async def test_a_message_over_max_message_size_is_skipped_with_a_status() -> None:
+    config = ServerConfig(port=0, max_message_size=1000, webrtc=WebRtcOptions())
+    async with serving(config) as running, rtc_client(running.base) as client:
+        client.send({"op": "set_level", "level": "info", "id": "x" * 2000})
+        status = await client.next_op("status")
+        assert status["level"] == "error"
+        assert status["msg"] == "message larger than 1000 bytes skipped"
+        client.send({"op": "set_level", "level": "info", "id": "after"})  # the session goes on
+        assert (await client.next_op("status"))["id"] == "after"
