@@ -792,7 +792,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     if not rclpy_available():
-        print('skipped: rclpy is not importable (pip install "rwt[ros2]")')
+        print('skipped: rclpy is not importable (pip install "rwt-rosbridge[ros2]")')
         return 0
     receivers = [r for r in args.receivers.split(",") if r]
     tools = peer_tools(receivers)

@@ -426,7 +426,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="write every round's figures here")
     args = parser.parse_args(argv)
     if not rclpy_available():
-        print('skipped: rclpy is not importable (pip install "rwt[ros2]")')
+        print('skipped: rclpy is not importable (pip install "rwt-rosbridge[ros2]")')
         return 0
     rates = [int(x) for x in args.rates.split(",") if x]
     kinds = [k for k in args.kinds.split(",") if k]

@@ -167,7 +167,7 @@ def run(rounds: int, topics: int, domain: int, fastdds: str = "loopback") -> lis
             every topic within ``ROUND_LIMIT_S``.
     """
     if not rclpy_available():
-        raise RuntimeError('rclpy is not importable: pip install "rwt[ros2]"')
+        raise RuntimeError('rclpy is not importable: pip install "rwt-rosbridge[ros2]"')
     env = {**os.environ, **ros_env(domain, fastdds)}
     saved = dict(os.environ)
     os.environ.update(env)  # the link's rclpy reads it

@@ -4,12 +4,7 @@ import asyncio
 import sys
 
 from rwt import Graph, ListenError, RosbridgeServer, ServerConfig
-
-graph = Graph()
-graph.params.declare("/rwt", {"max_speed": 1.0, "name": "rwt-bot"})
-velocity = graph.create_publisher("/velocity", "geometry_msgs/msg/Twist", latch=True)
-graph.create_subscription("/cmd_vel", velocity.publish, "geometry_msgs/msg/Twist")  # obeys at once
-graph.create_service("/lights", "std_srvs/srv/SetBool", lambda req: {"success": req["data"]})
+from rwt.server import ConsoleSite, WebSocketOptions
 
 
 async def fibonacci(goal: dict, context) -> dict:
@@ -21,8 +16,15 @@ async def fibonacci(goal: dict, context) -> dict:
     return {"sequence": sequence}
 
 
+graph = Graph()
+graph.params.declare("/rwt", {"max_speed": 1.0, "name": "rwt-bot"})
+velocity = graph.create_publisher("/velocity", "geometry_msgs/msg/Twist", latch=True)
+graph.create_subscription("/cmd_vel", velocity.publish, "geometry_msgs/msg/Twist")  # obeys at once
+graph.create_service("/lights", "std_srvs/srv/SetBool", lambda req: {"success": req["data"]})
 graph.create_action_server("/fibonacci", "example_interfaces/action/Fibonacci", fibonacci)
-server = RosbridgeServer(graph, ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090))
+web = WebSocketOptions(console=ConsoleSite())  # http://127.0.0.1:9090/ shows the web console
+config = ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090, websocket=web)
+server = RosbridgeServer(graph, config)
 try:  # Ctrl-C stops quietly; a port in use is one line on stderr and exit code 1
     asyncio.run(server.serve(on_listening=lambda url: print("listening on", url, flush=True)))
 except (KeyboardInterrupt, ListenError) as exc:

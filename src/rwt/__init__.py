@@ -38,6 +38,8 @@ import importlib
 from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING
 
+from rwt_protocol.distribution import DISTRIBUTION
+
 from ._names import NAMESPACES, load
 
 if TYPE_CHECKING:
@@ -117,7 +119,7 @@ __all__ = [
 ]
 
 try:
-    __version__ = version("rwt")
+    __version__ = version(DISTRIBUTION)
 except PackageNotFoundError:  # pragma: no cover - running from a source tree without install
     __version__ = "0+unknown"
 
@@ -127,8 +129,8 @@ def __getattr__(name: str) -> object:
 
     Raises:
         AttributeError: ``name`` is not part of the public API.
-        ModuleNotFoundError: the name needs an extra (``pip install "rwt[server]"``,
-            ``rwt[zenoh]``, ``rwt[ros2]``) that is not installed.
+        ModuleNotFoundError: the name needs an extra (``pip install "rwt-rosbridge[server]"``,
+            ``rwt-rosbridge[zenoh]``, ``rwt-rosbridge[ros2]``) that is not installed.
     """
     if name in NAMESPACES:
         return importlib.import_module(f"{__name__}.{name}")

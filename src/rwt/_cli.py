@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from rwt_protocol.distribution import install_hint
+
 
 def main() -> None:
     """Run the ``rwt`` command (``rwt_cli``).
@@ -17,7 +19,7 @@ def main() -> None:
     except ModuleNotFoundError as exc:
         sys.stderr.write(
             f"rwt: the command line needs the server extra ({exc.name} is missing): "
-            'python -m pip install "rwt[server]"\n'
+            f"python -m {install_hint('server')}\n"
         )
         raise SystemExit(2) from None
     app()

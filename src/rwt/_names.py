@@ -189,8 +189,8 @@ def load(space: str, name: str) -> object:
 
     Raises:
         AttributeError: ``name`` is not in ``space``.
-        ModuleNotFoundError: the name needs an extra (``pip install "rwt[server]"``,
-            ``rwt[zenoh]``, ``rwt[ros2]``) that is not installed.
+        ModuleNotFoundError: the name needs an extra (``pip install "rwt-rosbridge[server]"``,
+            ``rwt-rosbridge[zenoh]``, ``rwt-rosbridge[ros2]``) that is not installed.
     """
     home = _HOME_OF.get((space, name))
     if home is None:

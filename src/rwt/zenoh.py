@@ -1,6 +1,6 @@
 """The Zenoh link: servers sharing one graph over rmw_zenoh's wire (docs/scaling.md).
 
-Needs the ``zenoh`` extra (``pip install "rwt[zenoh]"``), loaded with the first
+Needs the ``zenoh`` extra (``pip install "rwt-rosbridge[zenoh]"``), loaded with the first
 of these names used.
 
 Each name loads from its home on first use, as ``rwt``'s do.

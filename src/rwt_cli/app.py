@@ -12,6 +12,8 @@ import typer
 import typer.main
 from typer.core import TyperCommand, TyperGroup
 
+from rwt_protocol.distribution import DISTRIBUTION, install_hint
+
 from .checks import ClickException, NoArgsIsHelpError, error_line
 from .groups import GroupedCommand
 
@@ -49,7 +51,7 @@ def _load(name: str) -> Any:
     except ModuleNotFoundError as exc:  # as rwt._cli says when the CLI itself cannot load
         typer.echo(
             f"rwt: the command line needs the server extra ({exc.name} is missing): "
-            'python -m pip install "rwt[server]"',
+            f"python -m {install_hint('server')}",
             err=True,
         )
         sys.exit(2)
@@ -108,7 +110,7 @@ class _RwtGroup(TyperGroup):
 
 
 # rich_markup_mode=None: click's plain help, which wraps at 80 columns where rich's
-# tables cut option names, and prints [brackets] (rwt[uvloop]) instead of eating them;
+# tables cut option names, and prints [brackets] (rwt-rosbridge[uvloop]) instead of eating them;
 # GroupedCommand prints rwt serve's option groups as click help sections
 app = typer.Typer(
     cls=_RwtGroup,
@@ -121,7 +123,7 @@ app = typer.Typer(
 def _print_version(value: bool) -> None:
     if value:
         try:
-            version = importlib.metadata.version("rwt")
+            version = importlib.metadata.version(DISTRIBUTION)
         except importlib.metadata.PackageNotFoundError:  # a source tree, not installed
             version = "0+unknown"  # as rwt.__version__
         typer.echo(f"rwt {version}")

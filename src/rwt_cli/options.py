@@ -5,6 +5,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Any
 
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
 
 __all__ = [
@@ -20,8 +21,8 @@ __all__ = [
 MIB = 1024 * 1024
 PORT_RANGE: dict[str, Any] = {"min": 0, "max": 65535}
 VIDEO_PORT = 8080
-UVLOOP_EXTRA = 'pip install "rwt[uvloop]"'
-WEBRTC_EXTRA = 'pip install "rwt[webrtc]"'
+UVLOOP_EXTRA = install_hint("uvloop")
+WEBRTC_EXTRA = install_hint("webrtc")
 
 # typer offers an enum's values as choices: the status levels' wire spellings, made
 # from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)

@@ -231,6 +231,7 @@ def _server_config(
             port=listeners.foxglove_port,
             assets=listeners.assets,
             package_paths=tuple(listeners.package_path or ()),
+            show_plumbing=listeners.foxglove_show_plumbing,
         ),
         udp=UdpOptions(
             datagram_bytes=listeners.udp_datagram_size,

@@ -16,6 +16,7 @@ from typing import Annotated, ClassVar
 import typer
 
 from rwt_bag.formats import BagFormat, ChunkCompression
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import HOLD_BUDGET_S
@@ -119,7 +120,7 @@ class Listeners:
         bool,
         typer.Option(
             help="Answer WebRTC offers at POST /webrtc on --port; a 'rosbridge' data channel"
-            " is a session (docs/webrtc.md; needs rwt[webrtc])."
+            " is a session (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
         ),
     ] = False
     websocket_ping_interval: Annotated[
@@ -160,6 +161,14 @@ class Listeners:
             "share folders of AMENT_PREFIX_PATH (--no-assets: never)."
         ),
     ] = True
+    foxglove_show_plumbing: Annotated[
+        bool,
+        typer.Option(
+            help="Show Foxglove clients rwt's own helpers too: rosapi's services, /client_count, "
+            "/connected_clients, the TF republisher, and other connections' nodes in the "
+            "connection graph (by default they see the robot's topics, services and nodes)."
+        ),
+    ] = False
 
 
 @dataclass(frozen=True)
@@ -598,8 +607,8 @@ class Ros2:
     ros2: Annotated[
         bool,
         typer.Option(
-            help="Link the graph to ROS 2 through rclpy (ROS sourced, or pip install "
-            "'rwt[ros2]'); ROS_DOMAIN_ID and the middleware come from the environment."
+            help=f"Link the graph to ROS 2 through rclpy (ROS sourced, or {install_hint('ros2')});"
+            " ROS_DOMAIN_ID and the middleware come from the environment."
         ),
     ] = False
     ros2_node_name: Annotated[

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import anyio
 import typer
 
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.errors import ConfigError
 from rwt_transports.gcfreeze import freeze_startup_objects
 
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ZENOH_EXTRA", "linked", "require_zenoh", "run_router", "zenoh_options"]
 
-ZENOH_EXTRA = 'pip install "rwt[zenoh]"'
+ZENOH_EXTRA = install_hint("zenoh")
 
 
 def require_zenoh(option: str) -> None:

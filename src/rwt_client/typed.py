@@ -47,7 +47,7 @@ def message_class(type_name: str, registry: TypeRegistry | None = None) -> type[
 
     Raises:
         InvalidTypeNameError, UnknownTypeError: as ``TypeRegistry.message``.
-        ModuleNotFoundError: the ``typed`` extra (``pip install "rwt[typed]"``) is
+        ModuleNotFoundError: the ``typed`` extra (``pip install "rwt-rosbridge[typed]"``) is
             not installed.
     """
     registry = registry or _default_registry()

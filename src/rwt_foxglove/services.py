@@ -44,9 +44,8 @@ from .wire import decode_wire, encode_wire
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
-    from rwt_protocol.ports import Pending
+    from rwt_protocol.server.callbook import BookedCall, CallBook
     from rwt_protocol.server.outbox import OutFrame
-    from rwt_protocol.server.timers import Timer
 
     from .graphindex import GraphIndex
     from .output import SessionOutput
@@ -64,8 +63,7 @@ class _Service:
 @dataclass(eq=False, slots=True)
 class _Call:
     service: _Service
-    pending: Pending | None = None
-    timer: Timer | None = None  # its deadline (``call_timeout_s``)
+    booked: BookedCall  # in the connection's call book until settled
 
 
 def _schema(mtype: MessageType) -> ServiceSchema:
@@ -82,9 +80,8 @@ class ServiceCalls:
         out: where advertisements and answers go.
         index: the services the client may see (kept by the session from the
             change feed, under the access globs: ``--services-glob``).
-        max_pending_calls: calls in flight at once (``--max-pending-calls``).
-        call_timeout_s: seconds a call waits for its answer (``--call-timeout``);
-            None: for ever.
+        calls: the connection's call book (``--max-pending-calls``,
+            ``--call-timeout``), the same as a rosbridge client's.
         batch: services one ``advertiseServices`` carries at most.
     """
 
@@ -94,8 +91,7 @@ class ServiceCalls:
         client_id: str,
         out: SessionOutput,
         index: GraphIndex,
-        max_pending_calls: int,
-        call_timeout_s: float | None,
+        calls: CallBook,
         batch: int,
     ) -> None:
         self._graph = graph
@@ -105,8 +101,7 @@ class ServiceCalls:
         self._batch = max(1, batch)
         self._dirty: dict[str, None] = dict.fromkeys(index.names(EntityKind.SERVICE))
         self._advertised: OutFrame | None = None  # the last batch, while it waits
-        self._max_pending = max_pending_calls
-        self._timeout_s = call_timeout_s
+        self._book = calls
         self._wire = wire_encoding(graph.registry.dialect)
         self._ids = itertools.count(1)
         self._by_name: dict[str, _Service] = {}
@@ -179,30 +174,27 @@ class ServiceCalls:
         except FoxgloveInputError as exc:
             self._fail(op.service_id, op.call_id, f"bad request: {exc.message}")
             return
-        call = self._calls[op.call_id] = _Call(service)
+        call = self._calls[op.call_id] = _Call(service, self._book.book())
 
         def reply(result: bool, values: object) -> None:
             self._answer(op.call_id, call, result, values)
 
         try:
-            call.pending = self._graph.call_service(self._client_id, service.name, request, reply)
+            pending = self._graph.call_service(self._client_id, service.name, request, reply)
         except RwtError as exc:
-            if self._calls.get(op.call_id) is call:
+            if call.booked.settle():
                 del self._calls[op.call_id]
                 self._fail(service.id, op.call_id, exc.message)
             return
-        if self._calls.get(op.call_id) is call and self._timeout_s is not None:
-            timeout = self._timeout_s
+        call.booked.pending = pending
+        timeout = self._book.timeout_s
+        if timeout is not None:
 
-            def expire(now: float) -> None:
-                if self._calls.get(op.call_id) is not call:
-                    return
+            def expired(now: float) -> None:
                 del self._calls[op.call_id]
-                if call.pending is not None:
-                    call.pending.forget()
                 self._fail(service.id, op.call_id, f"no response within {timeout:g} s")
 
-            call.timer = self._out.call_at(self._out.now + timeout, expire)
+            self._book.expire_at(call.booked, self._out.now + timeout, expired)
 
     def _refusal(self, op: ServiceCallRequest, service: _Service | None) -> str | None:
         if service is None:
@@ -211,16 +203,14 @@ class ServiceCalls:
             return f"unsupported encoding {op.encoding[:40]!r} (expected {self._wire})"
         if op.call_id in self._calls:
             return f"call id {op.call_id} is already in flight"
-        if len(self._calls) >= self._max_pending:
-            return f"too many calls in flight (at most {self._max_pending})"
+        if self._book.full:
+            return f"too many calls in flight (at most {self._book.max_pending})"
         return None
 
     def _answer(self, call_id: int, call: _Call, result: bool, values: object) -> None:
-        if self._calls.get(call_id) is not call:
+        if not call.booked.settle():
             return  # timed out or closed: the client heard already
         del self._calls[call_id]
-        if call.timer is not None:
-            call.timer.cancel()
         service = call.service
         if not result or not isinstance(values, dict):
             self._fail(service.id, call_id, str(values))
@@ -243,10 +233,5 @@ class ServiceCalls:
         return len(self._calls)
 
     def close(self) -> None:
-        """The connection is gone: its calls are forgotten (their answers go nowhere)."""
-        calls, self._calls = list(self._calls.values()), {}
-        for call in calls:
-            if call.timer is not None:
-                call.timer.cancel()
-            if call.pending is not None:
-                call.pending.forget()
+        """The connection is gone: its calls are forgotten (the book settles them)."""
+        self._calls.clear()

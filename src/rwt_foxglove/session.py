@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Final
 
 from rwt_graph.feed import EntityKind
@@ -183,7 +183,7 @@ class _TopicSink:
         session, channel = self._session, self._channel
         if subscriptions is None:
             subscriptions = channel.subscriptions
-        if not session._state.sends or not subscriptions:
+        if not session._sends or not subscriptions:
             return
         clock = session._time
         now = None if clock is None else clock.now()
@@ -212,13 +212,15 @@ class _TopicSink:
                             payload, True, True, None, None, encode_message_header(sid, log_time)
                         )
                     push(frame)
-            session._now = max(session._now, events[-1].now)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-        if outbox.dropped != dropped or outbox.held_bytes:  # the slow-consumer rule
+        if outbox.dropped != dropped or outbox._held_frames:  # the slow-consumer rule
+            session._now = max(session._now, events[-1].now)
             sent = () if frame is None else (frame,)
             session._watch.after_push(dropped, oversized, session._now, sent, channel.topic)
-        session._wake()
+        on_output = session._on_output  # (``_wake``, a call less per message and client)
+        if on_output is not None:
+            on_output()
 
 
 class FoxgloveSession(SessionBase):
@@ -243,6 +245,9 @@ class FoxgloveSession(SessionBase):
             ``parameters`` capabilities are not announced.
         assets: reads the files clients ask for (``assets.AssetRoots``), in
             background jobs; None: ``fetchAsset`` is refused and not announced.
+        show_plumbing: list rwt's own helpers (rosapi's services, the client counts,
+            the TF republisher) and other connections' nodes too
+            (``Visibility.plumbing``; ``rwt serve --foxglove-show-plumbing``).
     """
 
     protocol = "foxglove"
@@ -261,6 +266,7 @@ class FoxgloveSession(SessionBase):
         name: str = "rwt",
         params: Parameters | None = None,
         assets: AssetReader | None = None,
+        show_plumbing: bool = False,
     ) -> None:
         config = config or SessionConfig()
         self.limits = limits or FoxgloveLimits()
@@ -292,7 +298,8 @@ class FoxgloveSession(SessionBase):
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
         # what the client sees of the graph: the feed's snapshot, then each change
-        self._index = GraphIndex(graph.feed, Visibility.of(self._access))
+        visibility = replace(Visibility.of(self._access), plumbing=show_plumbing)
+        self._index = GraphIndex(graph.feed, visibility, own=client_id)
         self._dirty: dict[str, None] = dict.fromkeys(self._index.names(EntityKind.PUBLISHER))
         self._stop_feed = graph.feed.listen(self._changed)
         self.services = ServiceCalls(
@@ -300,8 +307,7 @@ class FoxgloveSession(SessionBase):
             client_id,
             self,
             self._index,
-            config.max_pending_calls,
-            config.call_timeout_s,
+            self.calls,
             self.limits.advertise_batch,
         )
         self.graph_updates = ConnectionGraph(self._index, self)

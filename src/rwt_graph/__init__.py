@@ -21,6 +21,8 @@ Modules:
 - ``topics``: topics: advertisers, subscribers, latching, delivery (spec 3.3.1-3.3.5).
 - ``services``: services: providers, calls and their replies (spec 3.3.6-3.3.9).
 - ``actions``: actions: goals, feedback, results, cancels (spec 3.3.10-3.3.15).
+- ``action_status``: each served action's ``_action/status`` topic (ROS 2), as
+  ROS 2 action servers publish it.
 - ``calls``: what service calls and action goals share: arguments, pending records.
 - ``async_calls``: ``call_service`` and ``send_action_goal`` for Python callers.
 - ``local``: handles of in-process publishers, subscribers and providers.
@@ -43,7 +45,8 @@ Subpackages:
   conversion between JSON, messages, CDR and rosbags.
 - ``parameters``: the parameter store and its bridge to ROS 2 nodes' parameter
   services (``store``, ``wire``, ``services``, ``replicas``).
-- ``rosapi``: the built-in ``/rosapi/*`` services (introspection, parameters).
+- ``rosapi``: the built-in ``/rosapi/*`` services (introspection, parameters), and
+  each node's own ROS 2 parameter services (``nodeparams``).
 - ``tf``: a transform buffer and the built-in tf2_web_republisher.
 - ``media``: images as numpy arrays and the depth-cloud codec.
 - ``interfaces``, ``interfaces_ros1``: the shipped message definitions (data, no code).

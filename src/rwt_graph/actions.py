@@ -26,11 +26,13 @@ from .calls import ProviderTable, Spawner, convert_args, guarded, require_spawne
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
+    from .action_status import StatusBoard
     from .clock import Clock
     from .types import ActionType, TypeRegistry
 
 __all__ = [
     "CANCEL_GOAL_TYPE",
+    "MAX_LEFT_GOALS",
     "ActionEntry",
     "Actions",
     "Goal",
@@ -45,6 +47,18 @@ logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)  # a peer can trigger these per message
 
 Message = dict[str, object]
+
+MAX_LEFT_GOALS = 256
+"""Goals whose callers disconnected that the graph lets run, in all (docs/limits.md).
+
+A goal outlives its caller's connection, as on rosbridge_suite, whose goal table
+is shared by every connection (D35): another connection may still cancel it by
+its id. Past this many, the oldest of them is canceled, so callers that send
+goals and leave cannot pile up work on the providers."""
+
+
+def _ignore(status: GoalStatus, result: bool, values: object) -> None:
+    """The result of a goal whose caller left goes nowhere."""
 
 
 class GoalContext:
@@ -108,10 +122,12 @@ class Goal:
         done: GoalDone,
         on_feedback: GoalFeedback | None,
         clock: Clock,
+        request_id: str | None = None,
     ) -> None:
         self.entry = entry
         self.goal_id = goal_id
         self.caller = caller
+        self.request_id = request_id  # the caller's id of the goal (its op's ``id``), if any
         self._done: GoalDone | None = done
         self._on_feedback = on_feedback
         self._clock = clock
@@ -140,7 +156,8 @@ class Goal:
 
     def finish(self, status: GoalStatus, result: bool, values: object) -> None:
         """Give the caller its one result and drop the goal from its action."""
-        self.entry.goals.pop(self.goal_id, None)
+        if self.entry.goals.pop(self.goal_id, None) is self:
+            self.show_status(status)
         finished, self.on_finished = self.on_finished, None
         if finished is not None:
             finished()
@@ -152,6 +169,7 @@ class Goal:
         """Ask the provider to cancel (spec 3.3.13)."""
         if self.finished:
             return
+        self.show_status(GoalStatus.CANCELING)
         if self.entry.provider is not None:
             cancel = CancelActionGoal(action=self.entry.spelling, id=self.goal_id)
             self.entry.provider.on_action_cancel(cancel)
@@ -163,6 +181,18 @@ class Goal:
         self.request_cancel()
         self._done = None
         self._on_feedback = None
+
+    def detach(self) -> None:
+        """The caller left, the goal runs on: its feedback and result go nowhere (D35)."""
+        if self._done is not None:
+            self._done = _ignore
+        self._on_feedback = None
+
+    def show_status(self, status: GoalStatus) -> None:
+        """Tell the action's status topic (``action_status``), if it has one."""
+        board = self.entry.status
+        if board is not None:
+            guarded(f"status of {self.entry.spelling}", partial(board.change, self.goal_id, status))
 
 
 @dataclass(eq=False)
@@ -178,6 +208,7 @@ class ActionEntry:
     handler: LocalActionHandler | None = None
     goals: dict[str, Goal] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+    status: StatusBoard | None = None  # publishes ``<action>/_action/status`` (ROS 2)
 
     @property
     def type_name(self) -> str:
@@ -210,6 +241,9 @@ class Actions(ProviderTable[ActionEntry]):
         super().__init__("action", registry, clock, spawner)
         # caller -> its goals in flight, so that a caller's release costs its goals
         self._goals_of: dict[ClientId, set[Goal]] = {}
+        # (action, the caller's id of the goal) -> the newest such goal in flight (D35)
+        self._by_request: dict[tuple[str, str], Goal] = {}
+        self._left: dict[Goal, None] = {}  # goals whose callers left, oldest first
 
     def send_goal(
         self,
@@ -220,10 +254,14 @@ class Actions(ProviderTable[ActionEntry]):
         on_feedback: GoalFeedback | None,
         *,
         path: str = "$",
+        request_id: str | None = None,
     ) -> Goal:
         """Start the goal ``args`` on ``action`` (spec 3.3.12).
 
-        ``on_feedback`` gets each feedback message (None: nobody asked). A
+        ``on_feedback`` gets each feedback message (None: nobody asked).
+        ``request_id``: the caller's id of the goal (a rosbridge op's ``id``), by
+        which any client may cancel it (``cancel``) and which lets it outlive
+        its caller (D35); None: only the caller's handle cancels it. A
         client provider gets the goal as a ``SendActionGoal`` op of its own: its
         spellings, the goal in the internal form, the id
         ``action_goal:<name>:<n>`` and ``feedback: true``.
@@ -239,9 +277,11 @@ class Actions(ProviderTable[ActionEntry]):
             raise UnknownNameError("action", action)
         goal_msg = convert_args(entry.actiontype.goal, args, path=path, now=self.clock.wall())
         goal_id = f"action_goal:{entry.spelling}:{next(entry.counter)}"
-        goal = Goal(entry, goal_id, client, done, on_feedback, self.clock)
+        goal = Goal(entry, goal_id, client, done, on_feedback, self.clock, request_id)
         entry.goals[goal_id] = goal
         self._goals_of.setdefault(client, set()).add(goal)
+        if request_id is not None:
+            self._by_request[(entry.name, request_id)] = goal
         goal.on_finished = partial(self._untrack, goal)
         if entry.handler is not None:
             self._run_local(entry, entry.handler, goal, goal_msg.msg)
@@ -259,9 +299,29 @@ class Actions(ProviderTable[ActionEntry]):
                 )
             except RwtError as exc:  # refused (provider busy): the caller's goal fails
                 del entry.goals[goal_id]
+                self._untrack(goal)
                 self.log_refusal(entry.spelling, client, exc.message)
                 raise
+        if not goal.finished:
+            goal.show_status(GoalStatus.EXECUTING)
         return goal
+
+    def cancel(self, action: str, request_id: str) -> None:
+        """Ask to cancel the goal of ``action`` its caller named ``request_id``, whoever asks (D35).
+
+        The caller's own goal is its connection's to find first; this finds the
+        newest goal in flight with that id, from any caller, also one whose
+        caller left. Who may ask is the access rules' to say (the action's name).
+
+        Raises:
+            GraphError: warning when no such goal is in flight.
+        """
+        goal = self._by_request.get((resolve_name(action), request_id))
+        if goal is None or goal.finished:
+            raise GraphError(
+                f"no goal {request_id!r} in progress on {action}", level=StatusLevel.WARNING
+            )
+        goal.request_cancel()
 
     def feedback(
         self,
@@ -325,8 +385,17 @@ class Actions(ProviderTable[ActionEntry]):
         for entry in self.take_owned(client):
             entry.end_all(f"action {entry.spelling} is gone: its provider disconnected")
         for goal in sorted(self._goals_of.pop(client, ()), key=lambda g: g.goal_id):
-            if goal.entry.goals.get(goal.goal_id) is goal:
+            if goal.entry.goals.get(goal.goal_id) is not goal:
+                continue
+            if goal.request_id is None:
                 guarded(f"forgetting goal {goal.goal_id}", goal.forget)
+                continue
+            goal.detach()  # it runs on, cancellable by its id (D35)
+            self._left[goal] = None
+            while len(self._left) > MAX_LEFT_GOALS:
+                oldest = next(iter(self._left))
+                del self._left[oldest]
+                guarded(f"forgetting goal {oldest.goal_id}", oldest.forget)
 
     def _untrack(self, goal: Goal) -> None:
         goals = self._goals_of.get(goal.caller)
@@ -334,6 +403,10 @@ class Actions(ProviderTable[ActionEntry]):
             goals.discard(goal)
             if not goals:
                 del self._goals_of[goal.caller]
+        key = (goal.entry.name, goal.request_id or "")
+        if goal.request_id is not None and self._by_request.get(key) is goal:
+            del self._by_request[key]
+        self._left.pop(goal, None)
 
     def _goal(self, client: ClientId, action: str, goal_id: str | int | None) -> Goal:
         entry = self.owned(client, action)

@@ -45,6 +45,7 @@ from rwt_protocol.ports import (
 )
 from rwt_protocol.shortcuts import enabled
 
+from .action_status import GOAL_STATUS_ARRAY, StatusBoard, status_topic
 from .actions import (
     CANCEL_GOAL_TYPE,
     ActionEntry,
@@ -138,7 +139,7 @@ class GraphCore:
         self.services = Services(self.registry, self._clock, lambda: self.spawner)
         self.actions = Actions(self.registry, self._clock, lambda: self.spawner)
         self.nodes = Nodes()
-        self.feed = ChangeFeed(self.nodes.node_of)
+        self.feed = ChangeFeed(self.nodes.node_of, self.nodes.role_of)
         self.nodes.on_change = self.feed.renode
         self.services.on_change = partial(self._offer_changed, EntityKind.SERVICE)
         self.actions.on_change = partial(self._offer_changed, EntityKind.ACTION)
@@ -573,9 +574,19 @@ class GraphCore:
         self.services.respond(client, service, request_id, result, values, path=path)
 
     def advertise_action(
-        self, client: ClientId, action: str, type_name: str, provider: ActionProvider
+        self,
+        client: ClientId,
+        action: str,
+        type_name: str,
+        provider: ActionProvider,
+        *,
+        status: bool = True,
     ) -> str:
         """Offer ``action`` of ``type_name``, provided by a client session (spec 3.3.10, D15).
+
+        ``status``: the graph publishes the action's ``_action/status`` topic
+        (``action_status``); a link that mirrors a remote action server passes
+        False, the server publishing its own.
 
         Raises:
             InvalidTypeNameError, UnknownTypeError: ``type_name`` is bad or unknown.
@@ -584,7 +595,8 @@ class GraphCore:
         name = resolve_name(action)
         self.nodes.name_of(client)
         self.offer_action(
-            ActionEntry(name, action, type_name, actiontype, client, provider=provider)
+            ActionEntry(name, action, type_name, actiontype, client, provider=provider),
+            status=status,
         )
         return actiontype.name
 
@@ -598,6 +610,8 @@ class GraphCore:
         self.actions.unadvertise(client, action)
         with contextlib.suppress(GraphError):  # replaced by another participant meanwhile
             self.services.unadvertise(client, cancel_service_name(entry.name))
+        if entry.status is not None:
+            self.unadvertise(client, entry.status.topic)
 
     def send_action_goal(
         self,
@@ -608,17 +622,30 @@ class GraphCore:
         feedback: GoalFeedback | None = None,
         *,
         path: str = "$",
+        request_id: str | None = None,
     ) -> GoalHandle:
         """Send the goal ``args`` to ``action`` (spec 3.3.12, D4, D18).
 
         ``done(status, result, values)`` runs once; ``feedback``, when given,
-        gets each feedback message.
+        gets each feedback message. ``request_id``: the caller's id of the goal,
+        by which any client may cancel it and which lets it outlive its caller
+        (``Actions.send_goal``, D35).
 
         Raises:
             GraphError: the action does not exist.
             FieldError: ``args`` does not fit the goal.
         """
-        return self.actions.send_goal(client, action, args, done, feedback, path=path)
+        return self.actions.send_goal(
+            client, action, args, done, feedback, path=path, request_id=request_id
+        )
+
+    def cancel_action_goal(self, client: ClientId, action: str, request_id: str) -> None:
+        """Ask to cancel the goal its caller named ``request_id``, for ``client`` (D35).
+
+        Raises:
+            GraphError: warning when no such goal is in flight.
+        """
+        self.actions.cancel(action, request_id)
 
     def action_feedback(
         self,
@@ -646,22 +673,36 @@ class GraphCore:
         """The provider's result (spec 3.3.15, D18); see ``Actions.result``."""
         self.actions.result(client, action, goal_id, result, values, status=status, path=path)
 
-    def offer_action(self, entry: ActionEntry) -> None:
+    def offer_action(self, entry: ActionEntry, *, status: bool = True) -> None:
         """Advertise ``entry`` with its cancel service (a client's or in-process provider's).
 
         ROS 2 action servers also answer ``<action>/_action/cancel_goal``, which
         roslib's ``Action.cancelAllGoals`` calls; it belongs to the same provider.
+        With ``status`` (ROS 2), the provider also publishes
+        ``<action>/_action/status``, latched (``action_status``).
 
         Raises:
             GraphError: a client tried to take a name of the server's (D15).
         """
+        replaced = self.actions.entries.get(entry.name)
         self.actions.advertise(entry)
+        if replaced is not None and replaced.status is not None and replaced.owner != entry.owner:
+            self.unadvertise(replaced.owner, replaced.status.topic)  # its status goes with it
         service = cancel_service_name(entry.name)
         srvtype = self.registry.service(CANCEL_GOAL_TYPE)
         handler = cancel_goals_handler(entry)
         self.services.advertise(
             ServiceEntry(service, service, srvtype, entry.owner, handler=handler)
         )
+        if status and self.registry.dialect is Dialect.ROS2:
+            topic = status_topic(entry.name)
+            self.advertise(entry.owner, topic, GOAL_STATUS_ARRAY, latch=True)
+            entry.status = StatusBoard(topic, entry.owner, self._publish_status, self.clock.wall)
+
+    def _publish_status(self, client: ClientId, topic: str, msg: Message) -> None:
+        """Deliver one ``GoalStatusArray`` of an action, latched, if its provider still has it."""
+        with contextlib.suppress(GraphError):  # the provider went meanwhile
+            self.publish_local(client, topic, msg, True)
 
     # ---- in-process participants and internals ----------------------------------
 

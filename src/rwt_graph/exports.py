@@ -21,7 +21,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from .action_status import GOAL_STATUS_ARRAY, STATUS_SUFFIX
+from .calls import is_local
 from .feed import EntityKind
+from .parameters.wire import PARAM_SERVICES
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -31,10 +34,26 @@ if TYPE_CHECKING:
     from .feed import ChangeFeed, GraphChange
     from .link import LinkRules
 
-__all__ = ["ExportKey", "Exports"]
+__all__ = ["ExportKey", "Exports", "offered_by_links"]
 
 ExportKey = tuple[EntityKind, "ClientId", str]
 """One local entity as a link keys its export: (kind, participant, resolved name)."""
+
+
+def offered_by_links(change: GraphChange) -> bool:
+    """Whether each link offers ``change``'s entity its own way, so none exports it.
+
+    An action's ``_action/status`` publisher (``action_status``): a link that
+    serves the action to its middleware publishes that status itself. A node's
+    parameter service answered from the store (``parameters.offer``): each link
+    offers the store's nodes' parameter services itself (docs/ros2.md).
+    """
+    if change.kind is EntityKind.PUBLISHER:
+        return change.type_name == GOAL_STATUS_ARRAY and change.name.endswith(STATUS_SUFFIX)
+    if change.kind is EntityKind.SERVICE and is_local(change.client):
+        part = change.name.rpartition("/")[2]
+        return PARAM_SERVICES.get(part) == change.type_name
+    return False
 
 
 class Exports:
@@ -116,7 +135,7 @@ class Exports:
 
     def _note(self, change: GraphChange) -> None:
         client, name = change.client, change.name
-        if self._rules.ours(client) or self._rules.is_private(name):
+        if self._rules.ours(client) or self._rules.is_private(name) or offered_by_links(change):
             return
         key = (change.kind, client, name)
         current = self.current[change.kind]

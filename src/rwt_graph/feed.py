@@ -43,6 +43,7 @@ from dataclasses import dataclass, replace
 from enum import StrEnum
 from typing import TYPE_CHECKING
 
+from .nodes import Role
 from .ratelog import EpisodeLog
 
 if TYPE_CHECKING:
@@ -76,6 +77,8 @@ class GraphChange:
         added: True for an entity gained, False for one lost.
         latched: a latched publisher (transient local, D13).
         node: the node of ``client`` at the time (``Nodes.node_of``), None if it has none.
+        role: what ``client`` is at the time (``Nodes.role_of``): the robot, a
+            connection, or rwt's own plumbing.
     """
 
     version: int
@@ -86,6 +89,7 @@ class GraphChange:
     added: bool
     latched: bool = False
     node: str | None = None
+    role: Role = Role.ROBOT
 
     @property
     def key(self) -> EntityKey:
@@ -109,10 +113,16 @@ class ChangeFeed:
 
     Args:
         node_of: the node of a participant now, or None (``Nodes.node_of``).
+        role_of: what a participant is now (``Nodes.role_of``); the robot when None.
     """
 
-    def __init__(self, node_of: Callable[[ClientId], str | None] | None = None) -> None:
+    def __init__(
+        self,
+        node_of: Callable[[ClientId], str | None] | None = None,
+        role_of: Callable[[ClientId], Role] | None = None,
+    ) -> None:
         self._node_of = node_of or _no_node
+        self._role_of = role_of or _robot
         self._version = 0
         self._current: dict[EntityKey, GraphChange] = {}  # in order of addition
         self._of_client: dict[ClientId, set[EntityKey]] = {}
@@ -174,7 +184,8 @@ class ChangeFeed:
             if old.type_name == type_name and old.latched == latched and old.node == node:
                 return
             self._remove(key, old)
-        change = GraphChange(self._version + 1, kind, name, client, type_name, True, latched, node)
+        version, role = self._version + 1, self._role_of(client)
+        change = GraphChange(version, kind, name, client, type_name, True, latched, node, role)
         self._current[key] = change
         self._of_client.setdefault(client, set()).add(key)
         self._announce(change)
@@ -225,6 +236,10 @@ class ChangeFeed:
 
 def _no_node(client: ClientId) -> str | None:
     return None
+
+
+def _robot(client: ClientId) -> Role:
+    return Role.ROBOT
 
 
 def _failed(listener: FeedListener, change: GraphChange) -> None:

@@ -11,8 +11,9 @@ same rules, written here once:
   local publishers' messages are
   forwarded (``LinkRules.forwards``, which the link's graph tap asks), so
   nothing that came in goes back out.
-- **Private names.** Each server keeps its client counts and its rosapi to
-  itself (``PRIVATE_NAMES``): rosapi already answers for the whole graph.
+- **Private names.** Each server keeps its client counts, its rosapi and its TF
+  republisher to itself (``PRIVATE_NAMES``): rosapi already answers for the whole
+  graph, and each republisher serves its own clients.
 - **QoS.** A local publisher goes out reliable, volatile, keep last
   ``DEFAULT_DEPTH`` (ROS 2's default profile), or, once it latches, transient
   local, keep last ``LATCHED_DEPTH`` (a latched topic's profile, D13).
@@ -55,6 +56,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from rwt_protocol.errors import RwtError
 
+from .action_status import STATUS_SUFFIX
 from .feed import EntityKind
 
 if TYPE_CHECKING:
@@ -93,9 +95,18 @@ LATCHED_DEPTH = 1
 """History depth of a latched topic's publisher (reliable, transient local, keep
 last 1: the last message for each late subscriber, D13)."""
 
-PRIVATE_NAMES = ("/client_count", "/connected_clients", "/rosapi/*")
-"""Names each server keeps to itself: its own client counts and its rosapi (which
-already answers for the whole graph). ``*`` ends a prefix."""
+PRIVATE_NAMES = (
+    "/client_count",
+    "/connected_clients",
+    "/rosapi/*",
+    "/tf2_web_republisher",
+    "/tf2_web_republisher/*",
+    "/republish_tfs",
+)
+"""Names each server keeps to itself: its own client counts, its rosapi (which
+already answers for the whole graph) and its TF republisher's action, service and
+actionlib topics (``rwt_graph.tf.install``; each server answers its own clients from
+the ``/tf`` it shares). ``*`` ends a prefix."""
 
 #: Names remembered by ``LinkRules.is_private``; past it the memory starts over
 #: (topic names come from clients, so the table must stay bounded).
@@ -143,9 +154,15 @@ class LinkRules:
         """Whether a message ``client`` published on ``topic`` goes out (the links' taps).
 
         Only local publishers' messages on names that are not private do, so
-        nothing that came in goes back out (no echo, no loops).
+        nothing that came in goes back out (no echo, no loops). Nor does an
+        action's ``_action/status``: a link that serves the action publishes its
+        own (``exports.offered_by_links``), and the graph's would come out twice.
         """
-        return not client.startswith(self.prefix) and not self.is_private(topic)
+        return (
+            not client.startswith(self.prefix)
+            and not self.is_private(topic)
+            and not topic.endswith(STATUS_SUFFIX)
+        )
 
     def is_private(self, name: str) -> bool:
         """Whether ``name`` stays in this process; remembered, as taps ask per message."""

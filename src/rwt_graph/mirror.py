@@ -274,7 +274,9 @@ class Mirror:
                     return
                 held.provider = action = self.side.action_provider(client, entity)
                 graph.nodes.bind(client, entity.node)
-                graph.port.advertise_action(client, entity.name, entity.type_name, action)
+                graph.port.advertise_action(
+                    client, entity.name, entity.type_name, action, status=False
+                )
             else:
                 self.side.check_endpoint(entity)
                 publisher = entity.kind is RemoteKind.PUBLISHER

@@ -5,12 +5,18 @@ client connection, or a handle made by Python code in this process) belongs to
 one node: a connection is a node of its own, ``/rwt_client_<n>``; Python code
 names its node when it creates a publisher, service... (``/rwt`` by default).
 Several participants may share a node name; rosapi merges what they hold.
+
+Each participant also has a ``Role``: the server's own helpers (rosapi, the
+client counts, the TF republisher) are plumbing by their node
+(``SERVER_NODES``), a connection's own node marks a connection, anything else is
+the robot. A Foxglove client sees only the robot by default (docs/foxglove.md).
 """
 
 from __future__ import annotations
 
 import itertools
 import re
+from enum import StrEnum
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
@@ -21,12 +27,31 @@ if TYPE_CHECKING:
 
     from rwt_protocol.ports import ClientId
 
-__all__ = ["CLIENT_NODE_PREFIX", "DEFAULT_NODE", "Nodes", "node_name"]
+__all__ = ["CLIENT_NODE_PREFIX", "DEFAULT_NODE", "SERVER_NODES", "Nodes", "Role", "node_name"]
 
 #: The node of Python code that does not name one.
 DEFAULT_NODE = "/rwt"
 #: Connections are nodes ``/rwt_client_1``, ``/rwt_client_2``... in order of arrival.
 CLIENT_NODE_PREFIX = "/rwt_client_"
+
+SERVER_NODES = frozenset({"/rosapi", "/rosbridge_websocket", "/tf2_web_republisher"})
+"""The server's own nodes (rosapi's, the server's topics', the TF republisher's): their
+participants are plumbing (``Role.PLUMBING``), and no client may create parameters on
+them (``parameters.store``; ``rwt_graph.rosapi.ROSAPI_NODE``,
+``rwt_transports.server.SERVER_NODE``, ``rwt_graph.tf.install.TF_NODE``)."""
+
+
+class Role(StrEnum):
+    """What a participant is to the graph's users (``Nodes.role_of``)."""
+
+    ROBOT = "robot"
+    """Python code's handles, a link's mirrored ROS or Zenoh nodes: the robot itself."""
+    CONNECTION = "connection"
+    """A client connection on its own node (``/rwt_client_<n>``)."""
+    PLUMBING = "plumbing"
+    """rwt's own helpers, on one of ``SERVER_NODES``: rosapi's services, ``/client_count``
+    and ``/connected_clients``, the TF republisher's action, service and topics."""
+
 
 _TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
@@ -61,6 +86,7 @@ class Nodes:
         self.on_forget: list[Callable[[ClientId, str | None], None]] = []
         self._names: dict[ClientId, str] = {}
         self._hosts: dict[ClientId, str] = {}
+        self._connections: set[ClientId] = set()  # those ``attach`` gave a node
         self._members: dict[str, set[ClientId]] = {}  # node -> participants: no walk per query
         self._numbers = itertools.count(1)
         self.on_change: Callable[[ClientId], None] | None = None
@@ -80,6 +106,7 @@ class Nodes:
         name = self._names.get(client)
         if name is None:
             name = f"{CLIENT_NODE_PREFIX}{next(self._numbers)}"
+            self._connections.add(client)
             self.bind(client, name)
         return name
 
@@ -95,6 +122,7 @@ class Nodes:
         """The participant is gone (disconnected, or its handle closed)."""
         was = self._leave(client)
         self._hosts.pop(client, None)
+        self._connections.discard(client)
         if was is not None and self.on_change is not None:
             self.on_change(client)
         for hook in list(self.on_forget):
@@ -117,6 +145,13 @@ class Nodes:
     def node_of(self, client: ClientId) -> str | None:
         """The node of ``client`` if it has one; unlike ``name_of``, never makes one."""
         return self._names.get(client)
+
+    def role_of(self, client: ClientId) -> Role:
+        """What ``client`` is: rwt's plumbing by its node, a connection, or the robot."""
+        node = self._names.get(client)
+        if node in SERVER_NODES:
+            return Role.PLUMBING
+        return Role.CONNECTION if client in self._connections else Role.ROBOT
 
     def host_of(self, client: ClientId) -> str | None:
         """The peer address of a connection, None for in-process participants."""

@@ -9,6 +9,11 @@ one per calling client through its ``VisibilityFor`` hook) and a Foxglove
 client's channels, services and connection graph (``rwt_foxglove``), which
 ask it of each change of the graph's feed (``sees``). Checking an op against
 the rules stays the session's (``AccessPolicy.check``).
+
+A listing may also leave out rwt's own plumbing (``plumbing`` false): the
+entities of the server's own nodes (``rwt_graph.nodes.Role``). rosapi shows it,
+as rosbridge_suite does; a Foxglove client does not unless the server is told to
+(docs/foxglove.md, ``--foxglove-show-plumbing``).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from typing import TYPE_CHECKING
 from rwt_protocol.server.access import Family
 
 from .feed import EntityKind
+from .nodes import Role
 
 if TYPE_CHECKING:
     from rwt_protocol.ports import ClientId
@@ -44,6 +50,10 @@ class Visibility:
         actions: action names.
         caller: the calling participant, which rosapi sets for each call (the
             parameters a client sets are charged to it, ``parameters.store``).
+        plumbing: whether rwt's own helpers show (``Role.PLUMBING``: rosapi's
+            services, ``/client_count``, ``/connected_clients``, the TF
+            republisher's action, service and topics) and, in a connection graph,
+            the nodes of other connections (``Role.CONNECTION``).
     """
 
     topics: NameFilter | None = None
@@ -51,6 +61,7 @@ class Visibility:
     params: NameFilter | None = None
     actions: NameFilter | None = None
     caller: ClientId | None = None
+    plumbing: bool = True
 
     @classmethod
     def of(cls, policy: AccessPolicy) -> Visibility:
@@ -90,7 +101,12 @@ class Visibility:
         return self.actions is None or self.actions(name)
 
     def sees(self, change: GraphChange) -> bool:
-        """Whether the entity of a change of the graph's feed shows (by its kind's family)."""
+        """Whether the entity of a change of the graph's feed shows (by its kind's family).
+
+        rwt's plumbing shows only with ``plumbing``, whatever its name.
+        """
+        if not self.plumbing and change.role is Role.PLUMBING:
+            return False
         kind = change.kind
         if kind is EntityKind.SERVICE:
             return self.service(change.name)
@@ -98,6 +114,14 @@ class Visibility:
             return self.action(change.name)
         return self.topic(change.name)
 
+    def holder_shows(self, change: GraphChange, own: ClientId | None) -> bool:
+        """Whether a connection graph names the node of a visible entity's holder.
+
+        Other connections' own nodes (``/rwt_client_3``) show only with ``plumbing``;
+        ``own``'s (the client looking) always does.
+        """
+        return self.plumbing or change.role is not Role.CONNECTION or change.client == own
+
 
 EVERYTHING = Visibility()
-"""Every name shows (no access rules)."""
+"""Every name shows (no access rules), rwt's plumbing included."""

@@ -17,5 +17,6 @@ pyproject.toml); each subpackage's docstring lists its modules:
 - ``ops``: one pydantic model per op.
 - The vocabulary every part shares: ``errors`` (the error tree), ``levels``
   (status levels), ``names`` (ROS names), ``shortcuts`` (the fast paths' switch),
-  ``ratelog`` (log lines a peer can trigger).
+  ``ratelog`` (log lines a peer can trigger), ``distribution`` (the name rwt
+  installs under, and the install hints of its extras).
 """

@@ -373,11 +373,20 @@ class ServicePort(Protocol):
         feedback: GoalFeedback | None = None,
         *,
         path: str = "$",
+        request_id: str | None = None,
     ) -> GoalHandle:
         """Send the goal ``args`` to ``action``; ``done`` may run before this returns.
 
         ``feedback``, when given, gets the goal's feedback. No action type is
         checked (clients name one action in different packages, REF §7.3).
+        ``request_id``: the caller's id of the goal (the op's ``id``), by which
+        any client may cancel it; it lets the goal outlive its caller (D35).
+        """
+
+    def cancel_action_goal(self, client: ClientId, action: str, request_id: str) -> None:
+        """Ask to cancel the goal of ``action`` its caller named ``request_id`` (D35).
+
+        ``client`` asks; the caller may be another connection, or gone.
         """
 
     def action_feedback(

@@ -85,11 +85,11 @@ The shortcuts (name: what; module; benchmark; general path):
   ``SocketStream.send`` from the connection's writer task.
 - ``deferred-send``: an idle connection's frames written at the end of the
   reader's batch, one write per connection, from the server's flow control's
-  list (``flush_deferred``); a Foxglove connection's gathered over the loop's
-  turns while a burst goes on and written from the loop
-  (``rwt_foxglove.gather``); ``rwt_transports.pump``; B7 (latency), B2
-  (fan-out), the Foxglove comparison's bursts; waking the connection's writer
-  task for each output.
+  list (``flush_deferred``); output made outside a reader (an in-process
+  publisher, a link, a timer) gathered over the loop's turns while a burst goes
+  on and written from the loop (``rwt_transports.gather``), whatever the
+  protocol; ``rwt_transports.pump``; B7 (latency), B2 (fan-out), the Foxglove
+  comparison's bursts; waking the connection's writer task for each output.
 - ``foxglove-shared-frames``: a Foxglove message data frame (its 13-byte
   header and the payload) made once per message, subscription id and log
   time, and queued by every client subscribed with that id, so it is also
@@ -276,7 +276,7 @@ SHORTCUTS: tuple[Shortcut, ...] = (
         "deferred-send",
         "rwt_transports.pump.flush_deferred",
         "an idle connection written at the end of the reader's batch (flow control's list);"
-        " a Foxglove connection's burst gathered over loop turns (rwt_foxglove.gather)",
+        " output made outside a reader gathered over loop turns (rwt_transports.gather)",
         "B7, B2, Foxglove bursts",
         "waking the connection's writer task (ConnectionPump._writer)",
     ),

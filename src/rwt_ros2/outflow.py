@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import anyio
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.server.outbox import water_marks
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -63,7 +64,7 @@ class Outflow:
     def __init__(self, tasks: TaskGroup, max_bytes: int = MAX_OUTFLOW_BYTES) -> None:
         self._tasks = tasks
         self.max_bytes = max_bytes
-        self._marks = (max_bytes // 2, max_bytes // 4)
+        self._marks = water_marks(max_bytes)
         self._queued = 0
         self._on_take: Callable[[bool], None] | None = None
         self.drops = EpisodeLog(logger)

@@ -1,7 +1,7 @@
 """Loading rclpy and the generated Python classes of ROS 2 types, with errors that say what to do.
 
 rclpy comes from a ROS 2 install (``source /opt/ros/<distro>/setup.bash``) or,
-on a machine without ROS, from PyPI's ROS 2 Kilted wheels (``rwt[ros2]``). It
+on a machine without ROS, from PyPI's ROS 2 Kilted wheels (``rwt-rosbridge[ros2]``). It
 needs the generated Python package of every type it carries; a missing one is
 named with the package to install (docs/ros2.md).
 """
@@ -17,9 +17,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rwt_protocol.distribution import install_hint
 from rwt_protocol.errors import GraphError, RwtError
 
 __all__ = [
+    "KILTED_WHEELS",
     "ROS2_INSTALL",
     "Ros2Unavailable",
     "ament_interface_dirs",
@@ -30,7 +32,7 @@ __all__ = [
 ]
 
 ROS2_INSTALL = (
-    'pip install "rwt[ros2]" (ROS 2 Kilted from PyPI), '
+    f"{install_hint('ros2')} (ROS 2 Kilted from PyPI), "
     "or source your ROS 2 install first: source /opt/ros/<distro>/setup.bash"
 )
 """What to do when rclpy cannot be imported."""
@@ -74,10 +76,44 @@ def ros_distro() -> str | None:
     return installed[1] if installed else None
 
 
+KILTED_WHEELS = frozenset(
+    {
+        "action_msgs",
+        "actionlib_msgs",
+        "builtin_interfaces",
+        "diagnostic_msgs",
+        "geometry_msgs",
+        "lifecycle_msgs",
+        "nav_msgs",
+        "rcl_interfaces",
+        "rosgraph_msgs",
+        "sensor_msgs",
+        "service_msgs",
+        "shape_msgs",
+        "std_msgs",
+        "std_srvs",
+        "stereo_msgs",
+        "test_msgs",
+        "trajectory_msgs",
+        "type_description_interfaces",
+        "unique_identifier_msgs",
+        "visualization_msgs",
+    }
+)
+"""The interface packages PyPI has a ``ros-kilted-<package>`` wheel of (as of 2025-11; the
+test extra installs some, docs/ros2.md). Others (``tf2_msgs``, ``example_interfaces``)
+come from a ROS install (``apt``) or a build of the package."""
+
+
 def package_hint(package: str) -> str:
-    """How to get the generated Python package of the ROS 2 package ``package``."""
-    wheel = "ros-kilted-" + package.replace("_", "-")
-    return f"pip install {wheel}, or apt install ros-<distro>-{package.replace('_', '-')}"
+    """How to get the generated Python package of the ROS 2 package ``package``.
+
+    A PyPI wheel is named only where one exists (``KILTED_WHEELS``).
+    """
+    debian = f"apt install ros-<distro>-{package.replace('_', '-')}"
+    if package not in KILTED_WHEELS:
+        return f"{debian} (PyPI has no wheel of it), or build it for rclpy"
+    return f"pip install ros-kilted-{package.replace('_', '-')}, or {debian}"
 
 
 def interface_class(type_name: str) -> Any:

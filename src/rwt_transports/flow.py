@@ -37,7 +37,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Generic, Protocol, TypeVar
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 from .shares import HostPrefixes, address_of
 
@@ -250,10 +253,10 @@ OutletT = TypeVar("OutletT", bound=Outlet)
 class Hold(Generic[OutletT]):
     """One held reader waiting for one congested outlet: the stall rule and the budget.
 
-    ``FlowControl.hold`` makes it. The caller waits while the outlet is over
-    its low watermark: before each wait it asks ``next_wait`` how long to wait
-    for the consumer's next take, and after it reports the time it waited
-    (``waited``). The outlet is found slow when its consumer did not take
+    ``FlowControl.hold`` makes it. The caller (the pump's ``holding.wait_for``)
+    runs the hold loop: it asks ``wait_s`` how long to wait for the consumer's
+    next take, waits, and reports the time it waited (``waited``), until
+    ``wait_s`` says go on. The outlet is found slow when its consumer did not take
     ``READING_SHARE`` of its backlog in an ``INPUT_STALL_S`` window, or when
     the reader's budget ran out while it was waited for.
     """
@@ -292,6 +295,22 @@ class Hold(Generic[OutletT]):
                 self._flow.found_slow(self._outlet, now)
             return None
         return min(window.ends - now, left)
+
+    def wait_s(self, now: float, over_low: bool, backlog: Callable[[], int]) -> float | None:
+        """The hold loop's one decision at ``now``: seconds to wait, or None: go on.
+
+        Args:
+            now: monotonic seconds.
+            over_low: whether the outlet is over its low watermark now.
+            backlog: the outlet's bytes yet to be read (asked only when a
+                reading window starts: ``needs_backlog``).
+
+        The caller waits that long or until the consumer's next take, whichever
+        is first, then reports the time (``waited``) and asks again.
+        """
+        if not over_low:
+            return None
+        return self.next_wait(now, backlog() if self.needs_backlog(now) else 0)
 
     def waited(self, start: float, end: float) -> None:
         """The reader waited from ``start`` to ``end`` (s): charge its budget."""

@@ -54,6 +54,10 @@ class FoxgloveOptions:
             ``package_paths``, then ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH``'s
             share folders (``rwt serve --assets``; off where none of them exists).
         package_paths: directories holding ROS packages (``--package-path``).
+        show_plumbing: clients see rwt's own helpers too (rosapi's services,
+            ``/client_count``, ``/connected_clients``, the TF republisher) and other
+            connections' nodes in the connection graph (``--foxglove-show-plumbing``);
+            by default they see the robot's topics, services and nodes only.
     """
 
     on_rosbridge_port: bool = True
@@ -61,6 +65,7 @@ class FoxgloveOptions:
     limits: FoxgloveLimits = field(default_factory=FoxgloveLimits)
     assets: bool = False
     package_paths: Sequence[Path] = ()
+    show_plumbing: bool = False
 
 
 def foxglove_frontend(
@@ -91,6 +96,7 @@ def foxglove_frontend(
             on_closed=request.on_closed,
             params=params,
             assets=assets,
+            show_plumbing=options.show_plumbing,
         )
 
     return FrontEnd("foxglove", SUBPROTOCOLS, make_session, AuthMode.URL_TOKEN)

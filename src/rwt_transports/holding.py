@@ -88,8 +88,9 @@ async def wait_for(
     hold = flow.hold(held, account, now)
     if hold is None:
         return
-    while held.over_water(own=False, mark=held.low_water):
-        wait_s = hold.next_wait(now, held.backlog_bytes() if hold.needs_backlog(now) else 0)
+    while True:
+        over_low = held.over_water(own=False, mark=held.low_water)
+        wait_s = hold.wait_s(now, over_low, held.backlog_bytes)
         if wait_s is None:
             return
         await held.next_take(wait_s)

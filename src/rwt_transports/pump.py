@@ -55,6 +55,7 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import weakref
 from typing import TYPE_CHECKING, Protocol
@@ -74,6 +75,7 @@ from rwt_protocol.shortcuts import enabled
 
 from .admission import Admission, Ticket, current_ticket
 from .flow import FlowControl, HoldAccount
+from .gather import GATHER_BYTES, Gatherer
 from .holding import Held, wait_for
 
 if TYPE_CHECKING:
@@ -217,13 +219,43 @@ def flush_deferred(flow: FlowControl[Held]) -> None:
     out to idle subscribers goes out before the reader waits again, and the
     many frames of a burst go out in one write per connection (as the writer
     would batch them), not one system call each. Output made outside a reader
-    (in-process publishers, timers, service tasks) is flushed by a loop
-    callback scheduled at the first deferral. A connection whose socket cannot
-    take the frames at once gets its writer woken instead.
+    (in-process publishers, links, timers, service tasks) is flushed when the
+    loop's gathering ends (gather.py: the next quiet turn, or ``GATHER_S`` into
+    a burst). A connection whose socket cannot take the frames at once gets its
+    writer woken instead.
     """
     while batch := flow.take_deferred():
         for pump in batch:
             pump.flush_deferred()
+
+
+class _DeferredOutput:
+    """The output of a loop's connections deferred outside a reader (a ``gather.Member``)."""
+
+    __slots__ = ("_flow",)
+
+    def __init__(self, flow: FlowControl[Held]) -> None:
+        self._flow = flow
+
+    def queued_bytes(self) -> int:
+        """Nothing for the gatherer to weigh: each connection that holds enough goes alone."""
+        return 0
+
+    def flush(self) -> None:
+        """The gathering ended: write what every connection deferred."""
+        flush_deferred(self._flow)
+
+
+_members: weakref.WeakKeyDictionary[FlowControl[Held], _DeferredOutput] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _deferred_output(flow: FlowControl[Held]) -> _DeferredOutput:
+    member = _members.get(flow)
+    if member is None:
+        member = _members[flow] = _DeferredOutput(flow)
+    return member
 
 
 class ConnectionPump(Held):
@@ -270,6 +302,7 @@ class ConnectionPump(Held):
         self._direct = channel if abilities.send_now and enabled("deferred-send") else None
         self._writer_idle = False  # waiting for a wake-up, holding no frames
         self._deferred = False  # in the list of ``flush_deferred``
+        self._gatherer: Gatherer | None = None  # the loop's (gather.py), at its first use
         self._pausable = abilities.pause_reading
         self._queueing = abilities.unsent_bytes
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
@@ -277,23 +310,36 @@ class ConnectionPump(Held):
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
 
     def wake(self) -> None:
-        """The session has output (frames, commands or a new timer)."""
+        """The session has output (frames or commands; timers come to ``_wake_timers``)."""
         session = self._session
-        if (
-            self._writer_idle
-            and self._direct is not None
-            and session is not None
-            and session.close_request is None
-        ):
-            if not self._deferred:
-                self._defer()
+        if session is None:
+            self._writer_wake.set()
+            return
+        flow = self.flow
+        gatherer = self._gatherer
+        if self._deferred and self._writer_idle and not flow.in_batch and gatherer is not None:
+            # a burst outside a reader, per message and client: the fewest steps (a close
+            # asked meanwhile goes when the gathering ends: ``_send_now`` leaves it to
+            # the writer)
+            gatherer.more = True
+            if session.queued_bytes >= GATHER_BYTES:
+                self.flush_deferred()  # enough for a write of its own
+            return
+        if session.close_request is not None:
+            self._writer_wake.set()
+            self._timer_wake.set()  # the timer task sees the closing
+            if self._job_wait is not None:
+                self._job_wait.set()  # a reader waiting for its budget stops waiting
+        elif self._deferred and self._writer_idle:
+            pass  # in a reader's batch: written at its end (``flush_deferred``)
+        elif self._writer_idle and self._direct is not None:
+            self._defer()
         else:
             self._writer_wake.set()
-        self._wake_timers()
-        if self._job_wait is not None and session is not None and session.closing:
-            self._job_wait.set()  # a reader waiting for its budget stops waiting
-        if session is not None and self.flow.congests(self, session.fill_bytes):
-            self.flow.note_congested(self, anyio.current_time())
+        if session.closing:  # shutting down, closed: the timer task ends the connection
+            self._timer_wake.set()
+        if flow.in_batch and flow.congests(self, session.fill_bytes):
+            flow.note_congested(self, anyio.current_time())
 
     def _took(self) -> None:
         """The transport took frames: the peer makes progress; wake readers waiting on it.
@@ -305,14 +351,23 @@ class ConnectionPump(Held):
         self.note_take(session is None or session.queued_bytes == 0)
 
     def _defer(self) -> None:
-        """Leave the frames for ``flush_deferred`` instead of waking the writer."""
+        """Leave the frames for ``flush_deferred`` instead of waking the writer.
+
+        Output made inside a reader's batch is flushed at the batch's end; output
+        made outside one (in-process publishers, links, timers) is gathered over
+        turns of the loop (gather.py), so a burst published a message a turn
+        goes out in few writes.
+        """
         flow = self.flow
         if flow.needs_flush_callback():
             try:  # for output made outside a reader; a reader flushes sooner
-                asyncio.get_running_loop().call_soon(flush_deferred, flow)
+                loop = asyncio.get_running_loop()
             except RuntimeError:  # no asyncio loop (the direct path needs one)
                 self._writer_wake.set()
                 return
+            Gatherer.for_loop(loop).join(_deferred_output(flow))
+        elif not flow.in_batch and self._gatherer is not None:
+            self._gatherer.more = True  # more output during a gathering: a burst
         flow.defer(self)
         self._deferred = True
 
@@ -380,6 +435,9 @@ class ConnectionPump(Held):
         )
         session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
         session.on_job = self._jobs_wake.set
+        session.on_timer = self._wake_timers
+        with contextlib.suppress(RuntimeError):  # the loop's gathering (gather.py)
+            self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
         session.start(_clock()())
         try:
             async with anyio.create_task_group() as tg:

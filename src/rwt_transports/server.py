@@ -186,7 +186,7 @@ class ServerConfig:
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
         webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
-            docs/webrtc.md; needs ``rwt[webrtc]``); None: no WebRTC.
+            docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
         use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
             is the graph's timeline, which Foxglove clients get as server time
             (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
@@ -309,7 +309,7 @@ class RosbridgeServer:
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
             its address's width (``shares.HostPrefixes``).
-        ImportError: ``config.webrtc`` is set but aiortc is not (``rwt[webrtc]``).
+        ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``).
     """
 
     session_class: type[Session] = Session

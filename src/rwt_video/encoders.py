@@ -20,6 +20,7 @@ from PIL import Image
 
 from rwt_graph.media import ImageError, compressed_content_type, image_to_display
 from rwt_graph.types.convert import header_stamp
+from rwt_protocol.distribution import install_hint
 
 from .params import MAX_PIXELS, StreamParams, StreamType, VideoError
 
@@ -155,7 +156,7 @@ def make_encoder(params: StreamParams) -> FrameEncoder:
         try:
             from .libav import VideoEncoder  # noqa: PLC0415  (PyAV is the optional extra)
         except ImportError:
-            raise EncodeError(f"type={params.type} needs PyAV: pip install 'rwt[video]'") from None
+            raise EncodeError(f"type={params.type} needs PyAV: {install_hint('video')}") from None
         return VideoEncoder(params)
     return StillEncoder(params)
 

@@ -24,6 +24,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.server.outbox import water_marks
 
 from .deferred import Deferred
 from .inbox import Inbox, Sample
@@ -60,7 +61,7 @@ class Outbox:
         self._tickets: queue.SimpleQueue[str | None] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
         self._log = EpisodeLog(logger)
-        self._marks = (max_bytes // 2, max_bytes // 4)
+        self._marks = water_marks(max_bytes)
         self._on_take: Callable[[bool], None] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._notified = 0.0  # time.monotonic() of the last call to the watcher

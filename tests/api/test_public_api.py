@@ -370,5 +370,5 @@ def test_the_command_says_which_extra_it_needs() -> None:
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
     )
     assert run.returncode == 2
-    assert 'pip install "rwt[server]"' in run.stderr
+    assert 'pip install "rwt-rosbridge[server]"' in run.stderr
     assert "Traceback" not in run.stderr

@@ -20,7 +20,7 @@ from benchmarks.ros2_bridge import (
 )
 
 pytestmark = pytest.mark.skipif(
-    not rclpy_available(), reason='rclpy is not importable: pip install "rwt[ros2]"'
+    not rclpy_available(), reason='rclpy is not importable: pip install "rwt-rosbridge[ros2]"'
 )
 
 #: Clear of tests/ros2's domains (from 150) and of the benchmark's default (130-139).

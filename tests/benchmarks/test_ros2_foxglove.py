@@ -38,7 +38,7 @@ def test_the_stamp_comes_from_the_cdr_header_and_a_probe_has_none() -> None:
 
 
 @pytest.mark.skipif(
-    not rclpy_available(), reason='rclpy is not importable: pip install "rwt[ros2]"'
+    not rclpy_available(), reason='rclpy is not importable: pip install "rwt-rosbridge[ros2]"'
 )
 def test_every_image_reaches_the_foxglove_cbor_raw_and_json_readers() -> None:
     """Lightly paced: every kind of reader gets every image (the JSON ones check each

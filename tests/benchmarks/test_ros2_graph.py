@@ -14,7 +14,7 @@ DOMAIN = 110 + os.getpid() % 10
 
 
 @pytest.mark.skipif(
-    not rclpy_available(), reason='rclpy is not importable: pip install "rwt[ros2]"'
+    not rclpy_available(), reason='rclpy is not importable: pip install "rwt-rosbridge[ros2]"'
 )
 # rclpy's generated packages import a deprecated module when first loaded here
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")

@@ -286,6 +286,45 @@ def test_one_column_at_800_px_and_names_wrap_only_after_a_slash(page: Page) -> N
         page.send("Emulation.clearDeviceMetricsOverride")
 
 
+TABLE_BOX = (
+    "(() => { const box = document.querySelector('#topics').parentElement;"
+    " const aside = document.querySelector('aside').getBoundingClientRect();"
+    " const cells = [...document.querySelectorAll('#topics th, #topics td')]"
+    "   .map(c => c.getBoundingClientRect()).filter(r => r.width > 0);"
+    " return {right: Math.max(...cells.map(r => r.right)), column: aside.right,"
+    "   box: box.getBoundingClientRect().right, scrolls: box.scrollWidth > box.clientWidth,"
+    "   overflow: getComputedStyle(box).overflowX}; })()"
+)
+
+
+@pytest.mark.parametrize("width", [1920, 1400, 1100])
+def test_the_topic_table_is_never_cut_off_by_the_views(page: Page, width: int) -> None:
+    """Every column of the topic table shows, bandwidth included; at 1400 px it fits."""
+    page.send(
+        "Emulation.setDeviceMetricsOverride",
+        width=width,
+        height=900,
+        deviceScaleFactor=1,
+        mobile=False,
+    )
+    try:
+        page.wait_for(
+            "document.querySelectorAll('#topics tbody tr').length >= 5"
+            " && document.querySelector('aside').getBoundingClientRect().left"
+            " < document.querySelector('main').getBoundingClientRect().left",
+            what=f"two columns at {width} px",
+        )
+        assert page.evaluate(TWO_REFRESHES) >= 3  # rates and bandwidths filled in
+        seen = page.evaluate(TABLE_BOX)
+        assert seen["box"] <= seen["column"] + 1  # the table's box stays in its column
+        if width >= 1400:  # the robot's longest type wraps after a '/': it fits
+            assert seen["right"] <= seen["column"] and not seen["scrolls"], seen
+        else:  # narrower, a part alone may be too wide: the box scrolls, nothing is hidden
+            assert seen["right"] <= seen["box"] or seen["overflow"] == "auto", seen
+    finally:
+        page.send("Emulation.clearDeviceMetricsOverride")
+
+
 def test_counts_are_not_asked_for_every_topic_at_every_refresh(page: Page) -> None:
     """Publisher counts cost a call per topic: every 20 s, not every 2 s (docs/console.md)."""
     topics = page.wait_for(

@@ -22,6 +22,7 @@ import typer
 
 from rwt_cli.app import app
 from rwt_cli.checks import check_glob_list
+from rwt_protocol.distribution import DISTRIBUTION, install_hint
 from tests.support import cli
 from tests.support.cli import ENV, TIMEOUT_S, invoke_rwt, run_rwt
 from tests.support.realclients import REPO
@@ -221,7 +222,7 @@ def test_other_usage_errors_are_one_line(args: list[str], expected: str) -> None
 def test_version() -> None:
     run = run_rwt("--version")
     assert run.returncode == 0, run.stderr
-    assert run.stdout == f"rwt {importlib.metadata.version('rwt')}\n"
+    assert run.stdout == f"rwt {importlib.metadata.version(DISTRIBUTION)}\n"
 
 
 #: Internal references and markup that have no place in help text.
@@ -323,7 +324,7 @@ def test_uvloop_names_its_extra() -> None:
         "optional-dependencies"
     ]
     assert any(dep.startswith("uvloop") for dep in extras["uvloop"])
-    assert 'pip install "rwt[uvloop]"' in " ".join(run_rwt("serve", "--help").stdout.split())
+    assert install_hint("uvloop") in " ".join(run_rwt("serve", "--help").stdout.split())
 
 
 def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
@@ -335,4 +336,4 @@ def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
     )
     run = run_rwt("serve", "--port", "0", "--uvloop", command=[sys.executable, "-c", code])
     assert run.returncode == 1
-    assert only_line(run.stderr) == 'rwt serve: --uvloop needs uvloop: pip install "rwt[uvloop]"'
+    assert only_line(run.stderr) == f"rwt serve: --uvloop needs uvloop: {install_hint('uvloop')}"

@@ -7,6 +7,7 @@ import os
 import re
 import shlex
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -17,11 +18,59 @@ from pathlib import Path
 import pytest
 import trustme
 
+from rwt_protocol.distribution import DISTRIBUTION
+
 from .blocks import LANGUAGES, REPO, Block, bash_commands, blocks_of, markdown_files
 
 BLOCKS = [block for path in markdown_files() for block in blocks_of(path)]
 RUNNABLE = [b for b in BLOCKS if b.language in ("python", "bash", "json")]
 CI_RUN = (REPO / ".ci" / "run").read_text("utf-8").splitlines()
+
+NAMED_PORTS = (9090, 9091, 9092, 8080, 8765, 7447)
+"""The ports the docs name. A block runs with each on a free port instead: the README's
+first quick-start line (``rwt serve``, on 9090) may be serving while the suite runs."""
+_NAMED = re.compile(r"(?<!\d)(" + "|".join(map(str, NAMED_PORTS)) + r")(?!\d)")
+
+Ports = dict[str, str]
+
+
+def _free_ports() -> Ports:
+    """A free TCP port on 127.0.0.1 for each named port (UDP's 9092 is free there too)."""
+    found: Ports = {}
+    sockets = []
+    try:
+        for named in NAMED_PORTS:  # held together, so no two come out the same
+            sock = socket.socket()
+            sockets.append(sock)
+            sock.bind(("127.0.0.1", 0))
+            found[str(named)] = str(sock.getsockname()[1])
+    finally:
+        for sock in sockets:
+            sock.close()
+    return found
+
+
+def _on_free_ports(text: str, ports: Ports) -> str:
+    """``text`` with every named port replaced by its free one."""
+    return _NAMED.sub(lambda match: ports[match.group(1)], text)
+
+
+def _server_on_free_port(command: str, ports: Ports) -> str:
+    """A server command that names no port gets the free port of its default, 9090.
+
+    ``rwt serve`` takes ``--port``; an example takes the port as its first argument
+    (``sys.argv[1]``) or ``--port``.
+    """
+    command = _on_free_ports(command, ports)
+    words = shlex.split(command)
+    port = ports["9090"]
+    if words[:2] == ["rwt", "serve"]:
+        named = any(w == "--port" or w.startswith("--port=") for w in words)
+        return command if named else f"{command} --port {port}"
+    if words[:1] == ["python"] and len(words) == 2 and words[1].startswith("examples/"):
+        source = (REPO / words[1]).read_text("utf-8")
+        return f"{command} {port}" if "sys.argv[1]" in source else f"{command} --port {port}"
+    return command
 
 
 def test_every_block_has_a_known_language() -> None:
@@ -114,22 +163,37 @@ def _running(command: str, cwd: Path) -> Iterator[str]:
         assert "Traceback" not in log.read_text(), log.read_text()[-4000:]
 
 
-def _run(command: str, cwd: Path) -> None:
-    """Run one command of a bash block, as a user would type it."""
+def _run(command: str, cwd: Path, ports: Ports) -> None:
+    """Run one command of a bash block, as a user would type it (on free ports)."""
     if command in CI_RUN:
         return  # the test command itself: .ci/run runs it (test above), not run again here
-    parts = [part.strip() for part in command.split("&&")]
+    parts = [_on_free_ports(part.strip(), ports) for part in command.split("&&")]
     for part in parts:
         words = shlex.split(part)
         if words[:4] == ["python", "-m", "pip", "install"]:
             # resolve what the user would install (the extras exist), without touching this env
-            words = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *words[4:]]
+            wanted = [_our_distribution(word) for word in words[4:]]
+            words = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *wanted]
             _shell(words, REPO)
         elif words[:2] == ["rwt", "serve"] or (words[:1] == ["python"] and "examples/" in part):
-            with _running(part, cwd):
+            with _running(_server_on_free_port(part, ports), cwd):
                 pass
         else:
             _shell(["bash", "-c", part], cwd)
+
+
+def _our_distribution(word: str) -> str:
+    """An install line's requirement, this repository where it names rwt's distribution.
+
+    ``rwt-rosbridge[zenoh]`` resolves to this checkout with that extra (what PyPI
+    serves once it is released), so the line is checked against this
+    ``pyproject.toml``; one naming ``rwt``, an unrelated project on PyPI, fails.
+    """
+    name = re.split(r"[\[=<>~!; ]", word, maxsplit=1)[0]
+    assert name.lower() != "rwt", f"{word!r} installs the PyPI project rwt, not this one"
+    if name == DISTRIBUTION:
+        return f"{REPO}{word[len(name) :]}"
+    return word
 
 
 def _shell(args: list[str], cwd: Path) -> None:
@@ -150,14 +214,16 @@ def test_block_runs(block: Block, workdir: Path, tmp_path: Path) -> None:
                 if line.strip():
                     json.loads(line)
         return
-    with _running(block.start, workdir) if block.start else _nothing():
+    ports = _free_ports()
+    start = _server_on_free_port(block.start, ports) if block.start else None
+    with _running(start, workdir) if start else _nothing():
         if block.language == "python":
             script = tmp_path / "block.py"
-            script.write_text(block.text, "utf-8")
+            script.write_text(_on_free_ports(block.text, ports), "utf-8")
             _shell([sys.executable, str(script)], workdir)
         else:
             for command in bash_commands(block.text):
-                _run(command, workdir)
+                _run(command, workdir, ports)
 
 
 @contextmanager

@@ -46,7 +46,7 @@ def test_services_of_every_provider_are_advertised_with_their_schemas(graph: Gra
     graph.create_service("/local_add", ADD, lambda req: {"sum": req["a"] + req["b"]})
     _rosbridge_adder(graph)
     install_rosapi(graph)
-    client = Client(graph)
+    client = Client(graph, show_plumbing=True)  # rosapi's services too (test_plumbing.py)
     for name in ("/local_add", "/rb_add"):
         service = client.service(name)
         assert service["type"] == ADD

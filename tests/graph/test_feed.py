@@ -192,10 +192,14 @@ def test_services_and_actions_announce_their_providers_and_d15_replacements() ->
     assert heard.take() == [
         ("+", ACT, "/fib", "ws:1"),
         ("+", SRV, "/fib/_action/cancel_goal", "ws:1"),
+        ("+", PUB, "/fib/_action/status", "ws:1"),  # the graph publishes its status
         ("-", ACT, "/fib", "ws:1"),
         ("+", ACT, "/fib", "ws:2"),
+        ("-", PUB, "/fib/_action/status", "ws:1"),  # the status goes with the action
         ("-", SRV, "/fib/_action/cancel_goal", "ws:1"),
         ("+", SRV, "/fib/_action/cancel_goal", "ws:2"),
+        ("+", PUB, "/fib/_action/status", "ws:2"),
+        ("-", PUB, "/fib/_action/status", "ws:2"),
         ("-", SRV, "/fib/_action/cancel_goal", "ws:2"),
         ("-", ACT, "/fib", "ws:2"),
     ]

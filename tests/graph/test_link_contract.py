@@ -26,6 +26,7 @@ from rwt_graph.types.hashes import message_type_hash
 from rwt_graph.types.wire import CDR_TRAILING_SLACK, CdrError, read_cdr
 from rwt_protocol.errors import GraphError, RwtError
 from rwt_protocol.ports import MessageEvent
+from rwt_transports.server import RosbridgeServer, ServerConfig
 
 STRING = "std_msgs/msg/String"
 
@@ -40,6 +41,19 @@ def test_private_names_match_exactly_or_by_prefix() -> None:
     assert matches_private("/rosapi/topics", PRIVATE_NAMES)
     assert not matches_private("/client_count_2", PRIVATE_NAMES)
     assert not matches_private("/chatter", PRIVATE_NAMES)
+
+
+def test_a_server_shares_the_robots_tf_but_keeps_its_helpers_to_itself() -> None:
+    # what rwt serve installs: rosapi, the client counts and the TF republisher
+    graph = Graph()
+    RosbridgeServer(graph, ServerConfig(port=0))
+    exports = Exports(graph.port.feed, LinkRules("link:"))
+    exports.open()
+    names = {name for _, _, name in shared(exports)}
+    # the republisher's /tf and /tf_static subscriptions bring the robot's TF in
+    assert names == {"/tf", "/tf_static"}
+    assert matches_private("/tf2_web_republisher/goal", PRIVATE_NAMES)
+    assert not matches_private("/tf2_web_republisher_2", PRIVATE_NAMES)
 
 
 def shared(exports: Exports) -> dict[tuple[Kind, str, str], tuple[str, bool]]:

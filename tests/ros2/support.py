@@ -23,6 +23,7 @@ import anyio
 import pytest
 from anyio.streams.buffered import BufferedByteReceiveStream
 
+from rwt_protocol.distribution import install_hint
 from tests.integration.client_harness import ServerProcess, _LineReader
 
 if TYPE_CHECKING:
@@ -43,9 +44,9 @@ DOMAIN_BASE_ENV = "RWT_TEST_ROS_DOMAIN_BASE"
 
 
 def skip_without_rclpy() -> pytest.MarkDecorator:
-    """Skip a module when rclpy cannot be imported (no ROS sourced, no ``rwt[ros2]``)."""
+    """Skip a module when rclpy cannot be imported (no ROS sourced, no ``rwt-rosbridge[ros2]``)."""
     missing = importlib.util.find_spec("rclpy") is None
-    return pytest.mark.skipif(missing, reason='rclpy is not importable: pip install "rwt[ros2]"')
+    return pytest.mark.skipif(missing, reason=f"rclpy is not importable: {install_hint('ros2')}")
 
 
 @contextlib.contextmanager

@@ -49,7 +49,9 @@ async def test_a_type_without_its_python_package_gets_a_warning_naming_it(
     assert [(s["level"], s.get("id")) for s in statuses] == [("warning", "s1")], statuses
     text = statuses[0]["msg"]
     assert text.startswith("subscribe: ROS 2 has no Python package for tf2_msgs/msg/TFMessage")
-    assert "pip install ros-kilted-tf2-msgs" in text
+    # PyPI has no tf2_msgs wheel: the hint names none (test_cli.py checks the rule)
+    assert "apt install ros-<distro>-tf2-msgs (PyPI has no wheel of it)" in text
+    assert "pip install" not in text
 
 
 HASHED = """

@@ -169,5 +169,12 @@ def test_nodes_with_parameters_are_nodes(web: Peer) -> None:
     assert call(web, "/rosapi/node_details", node="/robot") == {
         "subscribing": [],
         "publishing": [],
-        "services": [],
+        "services": [  # as a ROS 2 node: its parameter services (test_node_params)
+            "/robot/describe_parameters",
+            "/robot/get_parameter_types",
+            "/robot/get_parameters",
+            "/robot/list_parameters",
+            "/robot/set_parameters",
+            "/robot/set_parameters_atomically",
+        ],
     }

@@ -240,7 +240,7 @@ class WebRtcClient(Client):
 async def connect_webrtc(base: str, stack: AsyncExitStack, name: str) -> WebRtcClient:
     """Offer to ``base``/webrtc (an ``http://`` URL), open ``rosbridge``; closed with ``stack``."""
     import httpx  # noqa: PLC0415 (the test extra's; with aiortc only)
-    from aiortc import (  # noqa: PLC0415 (optional: rwt[webrtc])
+    from aiortc import (  # noqa: PLC0415 (optional: rwt-rosbridge[webrtc])
         RTCConfiguration,
         RTCPeerConnection,
         RTCSessionDescription,

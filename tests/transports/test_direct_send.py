@@ -199,8 +199,10 @@ async def test_the_pump_mixes_both_paths_without_reordering(
     channel.ready = True
     publish(4)  # behind 3 in the queue: the writer sends both
     await anyio.wait_all_tasks_blocked()
-    publish(5)  # idle again: at once, by the loop callback when no reader flushes
-    await anyio.wait_all_tasks_blocked()
+    publish(5)  # idle again: from the loop's gathering when no reader flushes (gather.py)
+    with anyio.fail_after(5):
+        while len(channel.wire) < 6:  # the gathering ends after a quiet turn of the loop
+            await anyio.lowlevel.checkpoint()
     sent = [(path, int(data.split(b'"data":"')[1].split(b'"')[0])) for path, data in channel.wire]
     assert [n for _, n in sent] == list(range(6))
     assert [path for path, _ in sent] == ["now"] * 3 + ["writer"] * 2 + ["now"]

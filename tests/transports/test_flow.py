@@ -5,8 +5,8 @@ table: a reader held for a subscriber that keeps up, reads too slowly or does
 not read at all; the hold budget shared by whatever a reader waits for and
 regained slowly; a slow host's cool-down across reconnections; and what the
 link gates are told to wait for. The consumer is a model (bytes taken at fixed
-times), the hold loop the one the pump runs (``holding.wait_for``): ask how
-long to wait, wait for the next take or that long, charge the time.
+times); the hold loop's decisions are the flow's (``Hold.wait_s``), as the pump
+takes them (``holding.wait_for``): wait for the next take or that long, charge the time.
 """
 
 from __future__ import annotations
@@ -59,8 +59,9 @@ def hold_for(
     hold = flow.hold(outlet, account, now)
     if hold is None:
         return now
-    while peer.queued(now) > outlet.low_water:
-        wait = hold.next_wait(now, peer.queued(now) if hold.needs_backlog(now) else 0)
+    while True:
+        queued = peer.queued(now)
+        wait = hold.wait_s(now, queued > outlet.low_water, lambda: queued)  # noqa: B023
         if wait is None:
             break
         end = min(now + wait, peer.next_take(now))

@@ -11,13 +11,14 @@ from typing import TYPE_CHECKING
 
 import pytest
 
+from rwt_protocol.distribution import install_hint
 from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_signal import WebRtcOptions
 
 if TYPE_CHECKING:
     from tests.webrtc.peer import Served
 
-NEEDS_AIORTC = "the WebRTC tests need aiortc: pip install 'rwt[webrtc]'"
+NEEDS_AIORTC = f"the WebRTC tests need aiortc: {install_hint('webrtc')}"
 
 CONNECT_TIMEOUT_S = 2.0
 """The tests' ICE+DTLS deadline: short, so a peer that never connects is freed soon."""

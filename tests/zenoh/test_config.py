@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +12,7 @@ import pytest
 
 from rwt_cli import zenoh_link
 from rwt_graph.graph import Graph
+from rwt_protocol.distribution import install_hint
 from rwt_zenoh.config import (
     ZenohOptions,
     default_domain_id,
@@ -90,7 +92,7 @@ def test_without_the_extra_zenoh_options_say_how_to_install_it(
         importlib.util, "find_spec", lambda name: None if name == "zenoh" else real(name)
     )
     with pytest.raises(
-        ValueError, match=r'--zenoh needs Eclipse Zenoh: pip install "rwt\[zenoh\]"'
+        ValueError, match=re.escape(f"--zenoh needs Eclipse Zenoh: {install_hint('zenoh')}")
     ):
         zenoh_link.zenoh_options(
             mode="peer", connect=None, listen=None, config_file=None, domain_id=None

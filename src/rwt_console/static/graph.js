@@ -74,7 +74,8 @@ export class GraphView {
       const i = index.get(row.dataset.name);
       const [pubs, subs] = counts[i] ?? ['?', '?'];
       if (row.dataset.type !== types[i]) row.dataset.type = types[i]; // a write is a mutation
-      setText(row.cells[1], types[i]);
+      // a type wraps after a '/' as a name does: a long one must not widen the table
+      if (row.cells[1].textContent !== types[i]) row.cells[1].replaceChildren(rosName(types[i]));
       setText(row.cells[2], pubs);
       setText(row.cells[3], subs);
       row.classList.toggle('selected', row.dataset.name === this.selected);

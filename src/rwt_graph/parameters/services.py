@@ -15,6 +15,7 @@ may be read-only (``Parameters.declare``).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .values import ParameterError, value_size
@@ -23,7 +24,10 @@ from .wire import from_wire, to_wire, type_code
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rwt_protocol.ports import ClientId
+
     from ..graph import Graph
+    from .values import ParamValue
 
 __all__ = ["MAX_ANSWER_BYTES", "MAX_REQUEST_ITEMS", "answer", "param_nodes"]
 
@@ -64,12 +68,30 @@ def _items(request: dict[str, object], field: str) -> list[object]:
     return items
 
 
-def answer(graph: Graph, node: str, part: str, request: dict[str, object]) -> dict[str, object]:
+def answer(
+    graph: Graph,
+    node: str,
+    part: str,
+    request: dict[str, object],
+    *,
+    client: ClientId | None = None,
+    visible: Callable[[str], bool] | None = None,
+) -> dict[str, object]:
     """The response of ``<node>/<part>`` to ``request``.
 
     ``part`` is a key of ``wire.PARAM_SERVICES``. A parameter that cannot
     be set gets ``successful: false`` with the reason; ``set_parameters_atomically``
     sets all of its parameters or none (``Parameters.set_all``), with one result.
+
+    Args:
+        graph: whose store answers.
+        node: the node (``/robot``).
+        part: which service.
+        request: the request in the internal form.
+        client: the client that calls, charged for what it sets and judged as
+            rosapi's ``set_param`` judges it (D34); None: a link, in-process code.
+        visible: whether the caller may see a parameter (``/node:name``, the
+            access rules); a hidden one reads as not set and cannot be set.
 
     Raises:
         KeyError: another ``part``.
@@ -77,16 +99,52 @@ def answer(graph: Graph, node: str, part: str, request: dict[str, object]) -> di
             set, which answers it), a ``get_parameters`` answer over
             ``MAX_ANSWER_BYTES``.
     """
+    asking = _Asking(graph, node, client, visible or _everything)
     if part == "set_parameters_atomically":
-        return {"result": _set_atomically(graph, node, request)}
-    return _ANSWERS[part](graph, node, request)
+        return {"result": _set_atomically(asking, request)}
+    return _ANSWERS[part](asking, request)
 
 
-def _list(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+def _everything(name: str) -> bool:
+    return True
+
+
+@dataclass(frozen=True, slots=True)
+class _Asking:
+    """Who asks which node's services: the graph, the node, the client, what it sees."""
+
+    graph: Graph
+    node: str
+    client: ClientId | None
+    visible: Callable[[str], bool]
+
+    def get(self, name: object) -> ParamValue | None:
+        """The value of ``name`` of the node as the caller sees it; None: not set."""
+        full = f"{self.node}:{name}"
+        return self.graph.params.get(full, None) if self.visible(full) else None
+
+    def settable(self, name: object) -> str:
+        """``/node:name``, if the caller may see it.
+
+        Raises:
+            ParameterError: it may not.
+        """
+        full = f"{self.node}:{name}"
+        if not self.visible(full):
+            raise ParameterError(f"parameter {full} is not accessible")
+        return full
+
+
+def _list(asking: _Asking, request: dict[str, object]) -> dict[str, object]:
     prefixes = {prefix for prefix in _items(request, "prefixes") if isinstance(prefix, str)}
     depth = request.get("depth")
     depth = depth if isinstance(depth, int) else 0
-    names = [name for name in _names_of(graph, node) if _listed(name, prefixes, depth)]
+    node, visible = asking.node, asking.visible
+    names = [
+        name
+        for name in _names_of(asking.graph, node)
+        if _listed(name, prefixes, depth) and visible(f"{node}:{name}")
+    ]
     # the namespaces of the names listed, each once ("a.b" of "a.b.c"), as rclpy lists them
     spaces = dict.fromkeys(name.rpartition(".")[0] for name in names if "." in name)
     return {"result": {"names": names, "prefixes": list(spaces)}}
@@ -112,11 +170,11 @@ def _listed(name: str, prefixes: set[str], depth: int) -> bool:
     return False
 
 
-def _get(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
-    value_type = graph.registry.message("rcl_interfaces/msg/ParameterValue")
+def _get(asking: _Asking, request: dict[str, object]) -> dict[str, object]:
+    value_type = asking.graph.registry.message("rcl_interfaces/msg/ParameterValue")
     values, size = [], 0
     for name in _items(request, "names"):
-        value = graph.params.get(f"{node}:{name}", None)
+        value = asking.get(name)
         size += 0 if value is None else value_size(value)
         if size > MAX_ANSWER_BYTES:
             raise ParameterError(f"the answer would hold more than {MAX_ANSWER_BYTES} bytes")
@@ -124,60 +182,62 @@ def _get(graph: Graph, node: str, request: dict[str, object]) -> dict[str, objec
     return {"values": values}
 
 
-def _types(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+def _types(asking: _Asking, request: dict[str, object]) -> dict[str, object]:
     types = []
     for name in _items(request, "names"):
-        value = graph.params.get(f"{node}:{name}", None)
+        value = asking.get(name)
         types.append(0 if value is None else type_code(value))  # 0: NOT_SET
     return {"types": types}
 
 
-def _describe(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+def _describe(asking: _Asking, request: dict[str, object]) -> dict[str, object]:
+    graph, node = asking.graph, asking.node
     descriptor_type = graph.registry.message("rcl_interfaces/msg/ParameterDescriptor")
     descriptors = []
     for name in _items(request, "names"):
         descriptor = descriptor_type.default()
         descriptor["name"] = name  # as rclcpp: a name not set gets its name and NOT_SET
-        info = graph.params.describe(f"{node}:{name}")
-        if info is not None:
-            descriptor["type"] = type_code(graph.params.get(f"{node}:{name}"))
+        value = asking.get(name)
+        info = None if value is None else graph.params.describe(f"{node}:{name}")
+        if value is not None and info is not None:
+            descriptor["type"] = type_code(value)
             descriptor["read_only"] = info.read_only
             descriptor["dynamic_typing"] = info.dynamic_typing
         descriptors.append(descriptor)
     return {"descriptors": descriptors}
 
 
-def _set(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
-    params = graph.params
+def _set(asking: _Asking, request: dict[str, object]) -> dict[str, object]:
+    params = asking.graph.params
     results = []
     for parameter in _items(request, "parameters"):
         assert isinstance(parameter, dict)
-        name = f"{node}:{parameter['name']}"
         try:
+            name = asking.settable(parameter["name"])
             new = from_wire(parameter["value"])
             if new is None:
                 params.delete(name)
             else:
-                params.set(name, new)
+                params.set(name, new, client=asking.client)
             results.append({"successful": True, "reason": ""})
         except ParameterError as exc:
             results.append({"successful": False, "reason": exc.message})
     return {"results": results}
 
 
-def _set_atomically(graph: Graph, node: str, request: dict[str, object]) -> dict[str, object]:
+def _set_atomically(asking: _Asking, request: dict[str, object]) -> dict[str, object]:
     try:
         changes = []
         for parameter in _items(request, "parameters"):
             assert isinstance(parameter, dict)
-            changes.append((f"{node}:{parameter['name']}", from_wire(parameter["value"])))
-        graph.params.set_all(changes)
+            changes.append((asking.settable(parameter["name"]), from_wire(parameter["value"])))
+        asking.graph.params.set_all(changes, client=asking.client)
     except ParameterError as exc:
         return {"successful": False, "reason": exc.message}
     return {"successful": True, "reason": ""}
 
 
-_ANSWERS: dict[str, Callable[[Graph, str, dict[str, object]], dict[str, object]]] = {
+_ANSWERS: dict[str, Callable[[_Asking, dict[str, object]], dict[str, object]]] = {
     "list_parameters": _list,
     "get_parameters": _get,
     "set_parameters": _set,

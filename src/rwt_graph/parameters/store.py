@@ -35,7 +35,7 @@ from rwt_protocol.codecs.json import valid_unicode
 from rwt_protocol.errors import GraphError
 from rwt_protocol.names import MAX_NAME_LENGTH, name_problem, resolve_name
 
-from ..nodes import CLIENT_NODE_PREFIX, node_name
+from ..nodes import CLIENT_NODE_PREFIX, SERVER_NODES, node_name
 from ..ratelog import EpisodeLog
 from ..types import Dialect
 from .shares import Shares
@@ -110,11 +110,6 @@ for the parameters it set, on any node; so are, together, the parameters clients
 that disconnected left behind (``shares``). Without it one client could fill the
 store on every node it can name, and every other client's ``set_param`` would
 fail (docs/limits.md)."""
-
-SERVER_NODES = frozenset({"/rosapi", "/rosbridge_websocket", "/tf2_web_republisher"})
-"""The server's own nodes (rosapi's, the server's topics', the TF republisher's), on
-which no client may create parameters (``rwt_graph.rosapi.ROSAPI_NODE``,
-``rwt_transports.server.SERVER_NODE``, ``rwt_graph.tf.install.TF_NODE``)."""
 
 
 @dataclass(frozen=True)
@@ -374,15 +369,18 @@ class Parameters:
         self._shares.charge(key, client, new.size)
         self._notify(key, new.value)
 
-    def set_all(self, changes: Sequence[tuple[str, object]]) -> None:
+    def set_all(
+        self, changes: Sequence[tuple[str, object]], *, client: ClientId | None = None
+    ) -> None:
         """Set ROS 2 parameters all at once, or none: ``(name, value)`` pairs, None deletes.
 
         Each change is judged as ``set`` (a value) or ``delete`` (None) would judge
         it, in order (a later change of the same name sees the earlier one), and the
         room left in the store and in each node's share counts them all; watchers
         hear of the changes only once every one of them is made
-        (``set_parameters_atomically``, docs/ros2.md). Its callers are links: the
-        parameters changed are charged to nobody.
+        (``set_parameters_atomically``, docs/ros2.md). ``client``: the client that
+        asks, judged and charged as ``set`` judges and charges it (D34); None (a
+        link, in-process code): the parameters changed are charged to nobody.
 
         Raises:
             ParameterError: the first change refused (the message names it); nothing
@@ -399,6 +397,8 @@ class Parameters:
             key = (node, param)
             old = plan[key] if key in plan else self._nodes.get(node, {}).get(param)
             new = _planned(old, name, value, f"{node}:{param}")
+            if client is not None and old is None and new is not None:
+                self._check_creator(client, node)
             added = (new is not None) - (old is not None)
             grown = (0 if new is None else new.size) - (0 if old is None else old.size)
             count += added
@@ -408,13 +408,21 @@ class Parameters:
             self._check_counts(count, node, counts[node])
             plan[key] = new
         self._check_sizes(size, sizes)
-        self._apply_plan(plan, sizes)
+        if client is not None:
+            self._shares.check(
+                client,
+                {f"{n}:{p}": None if new is None else new.size for (n, p), new in plan.items()},
+            )
+        self._apply_plan(plan, sizes, client)
         self._count, self._bytes = count, size
         for (node, param), new in plan.items():
             self._notify(f"{node}:{param}", None if new is None else new.value)
 
     def _apply_plan(
-        self, plan: dict[tuple[str, str], _Param | None], sizes: dict[str, int]
+        self,
+        plan: dict[tuple[str, str], _Param | None],
+        sizes: dict[str, int],
+        client: ClientId | None,
     ) -> None:
         for (node, param), new in plan.items():
             params = self._nodes.setdefault(node, {})
@@ -425,7 +433,7 @@ class Parameters:
                 self._shares.release(f"{node}:{param}")
             else:
                 params[param] = new
-                self._shares.charge(f"{node}:{param}", None, new.size)
+                self._shares.charge(f"{node}:{param}", client, new.size)
         for node, node_size in sizes.items():
             if node in self._nodes:
                 self._node_bytes[node] = node_size
@@ -550,6 +558,10 @@ class Parameters:
     def names_of(self, node: str) -> list[str]:
         """The names of ROS 2 ``node``'s parameters (without the node), in the order set."""
         return list(self._nodes.get(node, ()))
+
+    def holds(self, node: str) -> bool:
+        """Whether ROS 2 ``node`` has parameters (``nodes()`` for one node, at no copy)."""
+        return node in self._nodes
 
     def nodes(self) -> frozenset[str]:
         """The ROS 2 nodes that have parameters (none in ROS 1)."""

@@ -3,6 +3,8 @@
 ``install_rosapi(graph)`` registers them as in-process services of node
 ``/rosapi``; ``RosbridgeServer`` does so for every server. Listings answer for
 the calling client through a ``Visibility`` (the hook for access rules).
+In ROS 2 it also makes each node with parameters answer its own parameter
+services (``nodeparams``), as ROS 2 tools expect.
 """
 
 from __future__ import annotations

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 from ..types import Dialect
 from ..types.convert import time_keys, time_value
 from . import listing
+from .nodeparams import NodeParamServices
 from .paramsrv import ROS1_HANDLERS, ROS2_HANDLERS
 from .typedefs import typedefs
 from .visibility import EVERYTHING, Visibility, VisibilityFor
@@ -159,9 +160,13 @@ class Rosapi:
     services: list[LocalService] = field(default_factory=list)
     reserved: set[str] = field(default_factory=set)
     graph: Graph | None = None
+    node_params: NodeParamServices | None = None
 
     def close(self) -> None:
         """Withdraw every rosapi service (pending calls have already been answered)."""
+        if self.node_params is not None:
+            self.node_params.close()
+            self.node_params = None
         for service in self.services:
             service.close()
         self.services.clear()
@@ -174,6 +179,9 @@ def install_rosapi(
     graph: Graph, *, visibility: VisibilityFor | None = None, distro: str | None = None
 ) -> Rosapi:
     """Offer the rosapi services of ``graph``'s dialect, provided by node ``/rosapi``.
+
+    In ROS 2, each node with parameters in the store also answers its own
+    parameter services (``nodeparams``), as ROS 2 tools expect.
 
     Args:
         graph: the graph to describe and whose parameters to serve.
@@ -202,6 +210,8 @@ def install_rosapi(
                 amend=_both_time_spellings if short == "get_time" and not ros1 else None,
             )
         )
+    if not ros1:  # each node's own parameter services, as ROS 2 tools call them
+        rosapi.node_params = NodeParamServices(graph, visibility)
     return rosapi
 
 

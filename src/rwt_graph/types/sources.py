@@ -5,6 +5,8 @@ overlay (``rwt_graph/interfaces_ros1``, ROS 1 only), the packaged interfaces
 (``rwt_graph/interfaces``), then the rosbags store of the dialect. rosbags
 stores hold messages only and drop written defaults; :data:`STORE_DEFAULTS`
 puts back the ones ROS 2 writes, for when no packaged text overrides them.
+They also hold constants apart from fields: :data:`DECLARATION_ORDER` gives
+back the ``.msg`` file's order where the constants are not all first.
 """
 
 from __future__ import annotations
@@ -27,11 +29,13 @@ if TYPE_CHECKING:
     from rosbags.interfaces.typing import FieldDesc, Typesdict
 
 __all__ = [
+    "DECLARATION_ORDER",
     "IDL_PLACEHOLDER",
     "KINDS",
     "PACKAGED_STORES",
     "STORE_DEFAULTS",
     "FileIndex",
+    "declaration_orders",
     "packaged_dirs",
     "render_text",
     "store_for",
@@ -54,6 +58,12 @@ _PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 #: rosbags' ROS 2 Jazzy and ROS 1 Noetic field definitions as JSON, with the rosbags
 #: version they were taken from (see :func:`store_for`).
 PACKAGED_STORES = Path(__file__).resolve().parent / "rosbags_stores.json"
+
+
+#: The declaration order (constant and field names) of the ROS 2 store's messages whose
+#: ``.msg`` file does not declare all its constants first, taken from ROS 2 Kilted's files
+#: (tests/graph/types/test_declaration_order.py writes it and checks it).
+DECLARATION_ORDER = Path(__file__).resolve().parent / "declaration_order.json"
 
 
 def packaged_dirs(dialect: Dialect) -> list[Path]:
@@ -189,16 +199,51 @@ def _render(ftype: FieldType, dialect: Dialect) -> str:
 
 
 def render_text(
-    fields: Sequence[FieldSpec], constants: Sequence[Constant], dialect: Dialect
+    fields: Sequence[FieldSpec],
+    constants: Sequence[Constant],
+    dialect: Dialect,
+    order: Sequence[str] | None = None,
 ) -> str:
-    """Write ``.msg`` text for fields and constants (types without a source text)."""
-    lines = [f"{c.type} {c.name}={_literal(c.value)}" for c in constants]
+    """Write ``.msg`` text for fields and constants (types without a source text).
+
+    Args:
+        fields: the fields, in declaration order.
+        constants: the constants, in declaration order.
+        dialect: spells the type names.
+        order: every constant and field name in the ``.msg`` file's order; None, or an
+            order that names other members or reorders the fields, puts the constants
+            first. Clients such as Lichtblick compare an advertised definition with
+            their own copy line by line, so the file's order matters
+            (docs/foxglove.md).
+
+    Returns:
+        One line a constant or field, without a last newline.
+    """
+    lines = {c.name: f"{c.type} {c.name}={_literal(c.value)}" for c in constants}
     for spec in fields:
         line = f"{_render(spec.type, dialect)} {spec.name}"
         if spec.default is not None:
             line += f" {_literal(spec.default)}"
-        lines.append(line)
-    return "\n".join(lines)
+        lines[spec.name] = line
+    if order is None or not _fits(order, fields, lines):
+        return "\n".join(lines.values())
+    return "\n".join(lines[name] for name in order)
+
+
+def _fits(order: Sequence[str], fields: Sequence[FieldSpec], lines: dict[str, str]) -> bool:
+    """Whether ``order`` names each member once and keeps the fields' own order."""
+    names = set(order)
+    if len(names) != len(order) or names != lines.keys():
+        return False
+    field_names = {spec.name for spec in fields}
+    return [name for name in order if name in field_names] == [spec.name for spec in fields]
+
+
+@cache
+def declaration_orders() -> dict[str, tuple[str, ...]]:
+    """:data:`DECLARATION_ORDER`: ``{"pkg/msg/Type": (member names in file order)}``."""
+    data = json.loads(DECLARATION_ORDER.read_text(encoding="utf-8"))
+    return {key: tuple(names) for key, names in data["types"].items()}
 
 
 def _literal(value: object) -> str:
@@ -231,5 +276,7 @@ def store_message(
         if name != IDL_PLACEHOLDER
     )
     constants = tuple(Constant(name, ctype, value) for name, ctype, value in consts)
+    # the order is ROS 2's files'; ROS 1 keeps the store's (its own files are not at hand)
+    order = declaration_orders().get(key) if dialect is Dialect.ROS2 else None
     # ends with a newline, as a .msg file does (ROS 1's full text keeps each file's last one)
-    return fields, constants, render_text(fields, constants, dialect) + "\n"
+    return fields, constants, render_text(fields, constants, dialect, order) + "\n"

@@ -9,6 +9,7 @@ protocol's session shares (the contract the connection runtime drives is
   as handlers see it);
 - ``lifecycle`` (its states), ``holdings`` (what it holds in the graph),
   ``subscriptions`` (one topic's merged subscriptions);
+- ``callbook`` (the calls in flight: a cap, a deadline each, answered once);
 - ``gates`` (authentication, then ``access`` rules, before each handler) and
   ``replies`` (what a refused request gets besides its status);
 - ``encoding`` (topic messages and replies in each subscriber's encoding),

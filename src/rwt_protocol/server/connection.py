@@ -28,6 +28,7 @@ from ..levels import StatusLevel
 from ..ratelog import EpisodeLog
 from .access import AccessDeniedError, Family
 from .backpressure import SlowConsumerWatch
+from .callbook import CallBook
 from .commands import CloseCode, CloseConnection, Command
 from .idle import IdleWatch
 from .lifecycle import State, advance
@@ -87,15 +88,19 @@ class SessionBase:
         self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
         self._timers = TimerQueue()
+        self.calls = CallBook(self.call_at, config.max_pending_calls, config.call_timeout_s)
+        """The calls this client has in flight (every protocol's: ``callbook``)."""
         self._jobs: list[Job] = []  # input jobs: the reader waits for each
         self._background: list[Job] = []  # the reader goes on meanwhile
         self._runs_jobs = False  # set by a transport that runs the jobs (``run_jobs``)
         self.on_job: Callable[[], None] | None = None
+        self.on_timer: Callable[[], None] | None = None
         timeout = config.idle_timeout_s
         self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
         self._on_closed = on_closed
         self._state = State.AUTHENTICATING if authenticating else State.OPEN
+        self._sends = True  # ``_state.sends``, kept by ``_move`` for the per-message paths
         self._admitted = self._state is State.OPEN  # ops were served
         self._close_request: CloseConnection | None = None  # set on entering CLOSING
         self._now = 0.0  # the latest monotonic time seen, for output without one
@@ -231,6 +236,7 @@ class SessionBase:
         self._move(State.CLOSED)
         try:
             self._timers.clear()
+            self.calls.close()
             self._jobs.clear()
             self._background.clear()
             self._outbox.take()  # what a peer that left never read goes now
@@ -408,11 +414,15 @@ class SessionBase:
     def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
         """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
 
-        Wakes the transport so that it sees the new deadline in ``get_timer``.
+        Tells the transport (``on_timer``, else ``on_output``) so that it sees the
+        new deadline in ``get_timer``.
         """
         timer = self._timers.schedule(deadline, callback)
         if self._state is not State.CLOSED:
-            self._wake()
+            if self.on_timer is not None:
+                self.on_timer()
+            else:
+                self._wake()
         return timer
 
     def check_cap(self, count: int, cap: int, what: str) -> None:
@@ -464,6 +474,7 @@ class SessionBase:
     def _move(self, target: State) -> None:
         """Change ``state`` along ``lifecycle.TRANSITIONS``; LocalProtocolError otherwise."""
         self._state = advance(self._state, target)
+        self._sends = self._state.sends
 
     def _log_once(self, kind: str) -> bool:
         """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""

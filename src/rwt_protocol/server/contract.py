@@ -61,6 +61,10 @@ class ServerSession(Protocol):
     on_job: Callable[[], None] | None
     """Called when a background job was queued (``take_background_job``); set by the pump."""
 
+    on_timer: Callable[[], None] | None
+    """Called when a timer was set (``get_timer`` may say an earlier time); set by the
+    pump. None: output's wake-up (``on_output``) is called instead."""
+
     def start(self, now: float) -> None:
         """The transport serves the connection from ``now`` (monotonic seconds)."""
 

@@ -30,7 +30,6 @@ class Holdings:
         "_advertisements",
         "_goals",
         "_offers",
-        "_pending_calls",
         "_pending_goals",
         "_subscriptions",
     )
@@ -40,7 +39,6 @@ class Holdings:
         self._advertisements: dict[str, set[OpId]] = {}
         self._offers: set[tuple[OfferKind, str]] = set()
         self._goals: dict[OpId, GoalHandle] = {}
-        self._pending_calls = 0
         self._pending_goals = 0
 
     # ---- reading ----------------------------------------------------------------
@@ -66,11 +64,6 @@ class Holdings:
         return self._goals
 
     @property
-    def pending_calls(self) -> int:
-        """``call_service`` ops waiting for their reply (counted by ``call_started``)."""
-        return self._pending_calls
-
-    @property
     def pending_goals(self) -> int:
         """``send_action_goal`` ops waiting for their result (counted by ``goal_started``)."""
         return self._pending_goals
@@ -86,7 +79,6 @@ class Holdings:
             or self._advertisements
             or self._offers
             or self._goals
-            or self._pending_calls
             or self._pending_goals
         )
 
@@ -130,14 +122,6 @@ class Holdings:
     def drop_offer(self, kind: OfferKind, name: str) -> None:
         """Forget an offered service or action (withdrawn, or taken away, D15)."""
         self._offers.discard((kind, name))
-
-    def call_started(self) -> None:
-        """A ``call_service`` now waits for its reply."""
-        self._pending_calls += 1
-
-    def call_finished(self) -> None:
-        """A counted ``call_service`` was answered."""
-        self._pending_calls -= 1
 
     def goal_started(self, op_id: OpId, handle: GoalHandle) -> None:
         """A goal of this connection is in progress and waits for its result."""

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
 
-__all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox"]
+__all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox", "water_marks"]
 
 FRAME_OVERHEAD_BYTES = 192
 """Memory a queued frame costs beyond its payload, in bytes, charged against the limit.
@@ -51,6 +51,17 @@ header), the payload's ``bytes`` header (33 B) and allocator rounding, the
 WebSocket header kept on the frame (a 35-43 B ``bytes``) and the queue's slot;
 192 B leaves a margin.
 """
+
+
+def water_marks(limit_bytes: int) -> tuple[int, int]:
+    """The (high, low) watermarks in bytes of a queue bounded at ``limit_bytes``.
+
+    The one input-backpressure rule of every queue a reader may be held for
+    (a connection's outbox, a link's queue for the other middleware): a reader
+    whose input pushed a queue past half its bound waits until it is under a
+    quarter (docs/limits.md, input backpressure).
+    """
+    return limit_bytes // 2, limit_bytes // 4
 
 
 @dataclass(slots=True)
@@ -108,6 +119,14 @@ class Outbox:
             dropped ones included: the ones sent are ``topic_messages - dropped``
             once the queue is empty.
         taken_frames: frames the transport took so far (replies included).
+        high_water_bytes: fill above which the input that fills this queue is
+            paused, half the limit (``water_marks``). Input backpressure
+            (docs/limits.md): a reader whose frames pushed a queue over this
+            mark stops reading until it is back under ``low_water_bytes``, within
+            the peer's hold budget (``--hold-budget``), so a peer that keeps up
+            on average loses nothing to a burst and the drop rule (D24) is left
+            to peers that read slower than their topics come, or not at all.
+        low_water_bytes: fill under which paused input resumes, a quarter of the limit.
     """
 
     def __init__(
@@ -130,6 +149,7 @@ class Outbox:
         self._held_frames = 0
         self._held_bytes = 0
         self.limit_bytes = limit_bytes
+        self.high_water_bytes, self.low_water_bytes = water_marks(limit_bytes)
         self.frame_overhead_bytes = frame_overhead_bytes
         self.dropped = 0
         self.dropped_oversized = 0
@@ -178,24 +198,6 @@ class Outbox:
     def held_bytes(self) -> int:
         """Bytes charged for the frames of a held message over ``limit_bytes`` still queued."""
         return self._held_bytes
-
-    @property
-    def high_water_bytes(self) -> int:
-        """Queued bytes above which the input that fills this queue is paused: half the limit.
-
-        Input backpressure (docs/limits.md): a reader whose frames pushed a
-        queue over this mark stops reading until it is back under
-        ``low_water_bytes``, within the peer's hold budget (``--hold-budget``),
-        so a peer that keeps up on average loses nothing to a burst and the
-        drop rule (D24) is left to peers that read slower than their topics
-        come, or not at all.
-        """
-        return self.limit_bytes // 2
-
-    @property
-    def low_water_bytes(self) -> int:
-        """Queued bytes under which paused input resumes: a quarter of the limit."""
-        return self.limit_bytes // 4
 
     @property
     def over_limit(self) -> bool:
@@ -300,10 +302,21 @@ class Outbox:
             max_bytes: stop once this many payload bytes are taken (at least one
                 frame is taken when any is queued); None takes everything.
         """
-        frames: list[OutFrame] = []
-        taken = 0  # payload: what the transport will write
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
+        queued = self._frames
+        count = len(queued)
+        if count and (max_bytes is None or self._bytes - count * overhead <= max_bytes):
+            # everything fits (a burst a writer takes whole): no per-frame bookkeeping
+            whole = list(queued)
+            queued.clear()
+            self._bytes = self._kept_bytes = self._topic_frames = 0
+            self._held_frames = self._held_bytes = 0
+            self.taken_frames += count
+            self._sending_group = None
+            return whole
+        frames: list[OutFrame] = []
+        taken = 0  # payload: what the transport will write
         while self._frames and (
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):

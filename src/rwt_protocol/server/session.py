@@ -64,7 +64,6 @@ if TYPE_CHECKING:
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .contract import Job
-    from .encoding import Frames
     from .subscriptions import TopicSubscription
     from .timers import Timer
 
@@ -372,7 +371,9 @@ class Session(SessionBase):
 
     def holds_anything(self) -> bool:
         """Whether it holds something in the graph, or a message still arriving (idle rule)."""
-        return self._holdings.holds_anything() or len(self._fragments) > 0
+        return (
+            self._holdings.holds_anything() or self.calls.in_flight > 0 or len(self._fragments) > 0
+        )
 
     # ---- outputs ------------------------------------------------------------
 
@@ -510,17 +511,26 @@ class Session(SessionBase):
         """
         self._now = max(self._now, event.now)
         params = subscription.params
-        if params.compression == "png" and self._runs_jobs:  # deflated off the loop (pngout)
-            job = PngPublishJob(subscription, event, params.fragment_size)
-            dropped = self._png_waiting.add(job)
-            if dropped is not None:
-                self.drop_background_job(dropped)
-            self.add_job(job, background=True)
+        if params.compression is Compression.PNG and self._runs_jobs:
+            self._deflate_later(subscription, event, params.fragment_size)
             return
         frames = safe_publish_frames(
             event, subscription.spelling, params.compression, params.fragment_size
         )
-        self._send_publish(subscription, frames, params.compression)
+        if isinstance(frames, EncodeFailure):
+            self._encode_failed(subscription, frames, params.compression)
+            return
+        self.send_frames(frames, subscription.spelling)
+
+    def _deflate_later(
+        self, subscription: TopicSubscription, event: MessageEvent, fragment_size: int | None
+    ) -> None:
+        """Leave a png message to a background job (pngout): in order, a bounded backlog."""
+        job = PngPublishJob(subscription, event, fragment_size)
+        dropped = self._png_waiting.add(job)
+        if dropped is not None:
+            self.drop_background_job(dropped)
+        self.add_job(job, background=True)
 
     def _png_done(self, job: PngPublishJob, result: object) -> None:
         """A deflated message is back: sent unless its subscription went meanwhile."""
@@ -533,19 +543,19 @@ class Session(SessionBase):
             except Exception:
                 self._bug("subscribe")
             return
-        self._send_publish(subscription, result, "png")  # type: ignore[arg-type]
+        if isinstance(result, EncodeFailure):
+            self._encode_failed(subscription, result, Compression.PNG)
+        else:
+            self.send_frames(result, subscription.spelling)  # type: ignore[arg-type]
 
-    def _send_publish(
-        self, subscription: TopicSubscription, frames: Frames | EncodeFailure, compression: str
+    def _encode_failed(
+        self, subscription: TopicSubscription, failure: EncodeFailure, compression: str
     ) -> None:
-        if isinstance(frames, EncodeFailure):
-            self._unencodable(frames)
-            self.report(
-                StatusLevel.ERROR,
-                f"subscribe: cannot send a message of {subscription.spelling} as {compression}",
-            )
-            return
-        self.send_frames(frames, subscription.spelling)
+        self._unencodable(failure)
+        self.report(
+            StatusLevel.ERROR,
+            f"subscribe: cannot send a message of {subscription.spelling} as {compression}",
+        )
 
 
 def _prefixed(op_name: str | None, text: str) -> str:

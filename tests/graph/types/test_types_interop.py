@@ -40,7 +40,9 @@ def test_definition_text_of_file_and_store_types(ros2: TypeRegistry) -> None:
     assert ros2.message("std_msgs/String").definition_text() == "string data\n"
     status = ros2.message("sensor_msgs/NavSatStatus").definition_text()
     assert status.startswith("int8 STATUS_UNKNOWN=-2\n")
-    assert status.endswith("int8 status\nuint16 service\n")
+    # in the .msg file's order: each field after its constants (test_declaration_order.py)
+    assert "int8 STATUS_GBAS_FIX=2\nint8 status\nuint16 SERVICE_UNKNOWN=0\n" in status
+    assert status.endswith("uint16 SERVICE_GALILEO=8\nuint16 service\n")
     assert ros2.message("std_msgs/Empty").definition_text() == ""
     assert ros2.message("std_msgs/Empty").fields == ()
 

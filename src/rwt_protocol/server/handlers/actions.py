@@ -101,6 +101,7 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
             done,
             feedback if op.feedback else None,
             path="$.args",
+            request_id=None if op.id is None else str(op.id),
         )
     except RwtError as exc:
         done(GoalStatus.ABORTED, False, reply_text(session.config.compat, exc))
@@ -110,15 +111,23 @@ def send_action_goal(session: HandlerContext, op: SendActionGoal, now: float) ->
 
 
 def cancel_action_goal(session: HandlerContext, op: CancelActionGoal, now: float) -> None:
-    """Ask to cancel this client's goal ``op.id`` (spec 3.3.13).
+    """Ask to cancel the goal ``op.id`` of ``op.action`` (spec 3.3.13, D35).
+
+    This connection's own goal with that id first; else the newest goal in
+    flight on the action with that id, sent by any connection (also one that
+    closed), as rosbridge_suite's goal table is shared. The access rules have
+    allowed the action already (``AccessPolicy.check``).
 
     Raises:
         GraphError: warning when no goal with that id is in progress.
     """
     handle = session.holdings.goals.get(op.id)
-    if handle is None:
-        raise GraphError(f"no goal {op.id!r} in progress", level=StatusLevel.WARNING)
-    handle.request_cancel()
+    if handle is not None:
+        handle.request_cancel()
+        return
+    if op.id is None:
+        raise GraphError("no goal None in progress", level=StatusLevel.WARNING)
+    session.graph.cancel_action_goal(session.client_id, op.action, str(op.id))
 
 
 def action_feedback(session: HandlerContext, op: ActionFeedback, now: float) -> None:

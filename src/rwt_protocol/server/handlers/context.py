@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from ...levels import StatusLevel
     from ...ops import OpModel
     from ...ports import ClientId, GraphPort, MessageCodec, MessageEvent
+    from ..callbook import CallBook
     from ..holdings import Holdings
     from ..subscriptions import TopicSubscription
     from ..timers import Timer
@@ -50,6 +51,10 @@ class HandlerContext(Protocol):
     @property
     def holdings(self) -> Holdings:
         """What the connection holds: subscriptions, advertisements, offers, goals, counts."""
+
+    @property
+    def calls(self) -> CallBook:
+        """The connection's calls in flight (a cap, a deadline each, answered once)."""
 
     @property
     def provider_link(self) -> ProviderLink:

@@ -12,7 +12,6 @@ from ..compat import late_reply_text, reply_text
 from .topics import report_type_warning
 
 if TYPE_CHECKING:
-    from ..timers import Timer
     from .context import HandlerContext
 
 __all__ = ["advertise_service", "call_service", "service_response", "unadvertise_service"]
@@ -57,20 +56,20 @@ class _Call:
         self.op = op
         self.service = service  # as the graph got it: without ``#id``
         self.op_id = op_id
-        self.done = False
-        self.counted = False  # in the holdings' pending calls until answered
-        self.timer: Timer | None = None
+        self.booked = session.calls.book()  # settled once: answer, deadline or close
 
     def reply(self, result: bool, values: object) -> None:
-        if self.done:
+        if not self.booked.settle():
             return
-        self.done = True
-        if self.counted:
-            self.session.holdings.call_finished()
-        if self.timer is not None:
-            self.timer.cancel()
         if not result:  # a call that waited for discovery in vain: the mode's text
             values = late_reply_text(self.session.config.compat, self.service, values)
+        self._send(result, values)
+
+    def expired(self, timeout_s: float) -> None:
+        """Its deadline passed (the book settled it): the caller hears so."""
+        self._send(False, f"service call timed out after {timeout_s:g} s")
+
+    def _send(self, result: bool, values: object) -> None:
         message = ServiceResponse(
             service=self.op.service,
             result=result,
@@ -96,31 +95,21 @@ def call_service(session: HandlerContext, op: CallService, now: float) -> None:
     service, op_id = op.service, op.id
     if op_id is None and "#" in service:
         service, op_id = service.split("#", 1)
+    calls = session.calls
     call = _Call(session, op, service, op_id)
     try:
-        pending_calls = session.holdings.pending_calls
-        session.check_cap(pending_calls, session.config.max_pending_calls, "pending calls")
+        session.check_cap(calls.in_flight - 1, calls.max_pending, "pending calls")
         # the graph gets the name without ``#id``, no ``type`` to check, and the
         # client's own timeout: how long it waits for a service being discovered
-        pending = session.graph.call_service(
+        call.booked.pending = session.graph.call_service(
             session.client_id, service, op.args, call.reply, timeout_s=op.timeout, path="$.args"
         )
     except RwtError as exc:
         call.reply(False, reply_text(session.config.compat, exc))
         raise
-    if call.done:
-        return
-    call.counted = True
-    session.holdings.call_started()
-    timeout_s = op.timeout or session.config.call_timeout_s
-    if timeout_s is None:
-        return
-
-    def expire(at: float) -> None:
-        pending.forget()
-        call.reply(False, f"service call timed out after {timeout_s:g} s")
-
-    call.timer = session.call_at(now + timeout_s, expire)
+    timeout_s = op.timeout or calls.timeout_s
+    if timeout_s is not None:
+        calls.expire_at(call.booked, now + timeout_s, lambda _now: call.expired(timeout_s))
 
 
 def service_response(session: HandlerContext, op: ServiceResponse, now: float) -> None:
