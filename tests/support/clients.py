@@ -7,7 +7,6 @@ Each client sends ops (or raw bytes) and reads JSON messages, reassembling
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import ssl
@@ -35,7 +34,28 @@ def is_op(name: str, **fields: object) -> Callable[[Message], bool]:
 
 TRANSPORTS = ("memory", "ws", "tcp", "udp", "stdio")
 
-HAS_AIORTC = importlib.util.find_spec("aiortc") is not None
+
+def _webrtc_runs_here() -> bool:
+    """aiortc is installed and the machine has an address besides loopback.
+
+    aiortc's ICE (aioice) offers no 127.0.0.1 candidate: on a machine with only
+    loopback no two peers can connect.
+    """
+    try:
+        import aiortc  # noqa: F401, PLC0415 (optional: rwt-rosbridge[webrtc])
+        import ifaddr  # noqa: PLC0415 (aioice's, so aiortc's, dependency)
+    except ImportError:
+        return False
+
+    loopback = {"127.0.0.1", "::1"}
+    return any(
+        (ip.ip if isinstance(ip.ip, str) else ip.ip[0]) not in loopback
+        for adapter in ifaddr.get_adapters()
+        for ip in adapter.ips
+    )
+
+
+HAS_AIORTC = _webrtc_runs_here()
 """Whether ``running_server`` answers WebRTC offers and ``Harness.connect("webrtc")`` works."""
 
 CONTRACT_TRANSPORTS = (*TRANSPORTS, "webrtc") if HAS_AIORTC else TRANSPORTS
