@@ -99,6 +99,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_protocol.auth": ("auth_query", "rosauth_op"),
         "rwt_transports.websocket": ("WebSocketOptions",),
         "rwt_transports.udp": ("UdpOptions",),
+        "rwt_transports.webrtc_signal": ("WebRtcOptions",),
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),

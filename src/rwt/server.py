@@ -9,7 +9,7 @@ authenticator gets, ``rosauth_authenticator``; ``rosauth_op`` signs one and
 and off in this process (``shortcut_report``, docs/shortcuts.md), and ``Compat``, the
 drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
-docs/foxglove.md).
+docs/foxglove.md), and WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md).
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """
@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import rosauth_authenticator
     from rwt_transports.udp import UdpOptions
+    from rwt_transports.webrtc_signal import WebRtcOptions
     from rwt_transports.websocket import WebSocketOptions
 
 __all__ = [
@@ -46,6 +47,7 @@ __all__ = [
     "FoxgloveOptions",
     "MemoryConnection",
     "UdpOptions",
+    "WebRtcOptions",
     "WebSocketOptions",
     "auth_query",
     "rosauth_authenticator",

@@ -31,6 +31,7 @@ from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
+from rwt_transports.webrtc_signal import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.workers import run_workers
 
@@ -45,7 +46,7 @@ from .bag_options import (
 )
 from .checks import OptionError, check_tls, one_line_errors, usage_error
 from .groups import grouped_command
-from .options import UVLOOP_EXTRA, VIDEO_PORT
+from .options import UVLOOP_EXTRA, VIDEO_PORT, WEBRTC_EXTRA
 from .ros2_link import ros2_interface_dirs, ros2_options
 from .running import STARTUP_ERRORS, run_server
 from .serve_options import ServeOptions
@@ -56,7 +57,7 @@ if TYPE_CHECKING:
 
     from rwt_bag.jobs import BagJobs
     from rwt_ros2 import Ros2Options
-    from rwt_video import VideoConfig
+    from rwt_video import VideoConfig, VideoTokens
     from rwt_zenoh.config import ZenohOptions
 
     from .serve_options import Media, PlayOptions, Process, RecordOptions, ScaleOut
@@ -108,6 +109,8 @@ def serve(options: ServeOptions) -> None:
     )
     if options.process.uvloop and importlib.util.find_spec("uvloop") is None:
         fail(f"--uvloop needs uvloop: {UVLOOP_EXTRA}")
+    if options.listeners.webrtc and importlib.util.find_spec("aiortc") is None:
+        fail(f"--webrtc needs aiortc: {WEBRTC_EXTRA}")
     _set_up_process(options.process)
     scale_out = options.scale_out
     if (scale_out.zenoh or scale_out.workers > 1) and dialect is not Dialect.ROS2:
@@ -120,18 +123,19 @@ def serve(options: ServeOptions) -> None:
     if ros2_link is not None:  # the robot's own definitions, after the user's
         interface_dirs += ros2_interface_dirs()
     graph = Graph(TypeRegistry(dialect, interface_dirs))
-    server = _server(options, graph, secret)
+    tokens = _video_tokens(options, graph) if secret is not None else None
+    server = _server(options, graph, secret, tokens)
     media = options.media
     if media.depthcloud:
         _depthcloud_encoder(graph, media)
-    video = _video_config(options, server.config.websocket.console, graph, secret is not None)
+    video = _video_config(options, server.config.websocket.console, tokens)
     jobs = _bag_jobs(graph, options.record, options.play)
     freeze_startup_objects()
     _run(server, video, jobs, zenoh_link, ros2_link, uvloop=options.process.uvloop)
 
 
 def _check_listeners(options: ServeOptions) -> None:
-    """Refuse a server with no listener at all (usage error)."""
+    """Refuse a server with no listener at all, or WebRTC without its port (usage error)."""
     listeners = options.listeners
     if not (
         listeners.websocket
@@ -142,6 +146,8 @@ def _check_listeners(options: ServeOptions) -> None:
         raise usage_error(
             "nothing to serve: --no-websocket needs --tcp-port, --udp-port or --stdio"
         )
+    if listeners.webrtc and not listeners.websocket:
+        raise usage_error("--webrtc answers on the WebSocket port: not with --no-websocket")
 
 
 def _set_up_process(process: Process) -> None:
@@ -158,8 +164,13 @@ def _set_up_process(process: Process) -> None:
         raise_nofile_limit()
 
 
-def _server(options: ServeOptions, graph: Graph, secret: str | None) -> RosbridgeServer:
-    """The server of the options on ``graph``, its console listing its limits."""
+def _server(
+    options: ServeOptions, graph: Graph, secret: str | None, tokens: VideoTokens | None
+) -> RosbridgeServer:
+    """The server of the options on ``graph``, its console listing its limits.
+
+    ``tokens``: the video tokens an offer's ``Authorization: Bearer`` may carry (--webrtc).
+    """
     security = options.security
     origins = tuple(o.strip() for o in security.allowed_origins.split(",") if o.strip())
     site = _console_site(
@@ -171,6 +182,9 @@ def _server(options: ServeOptions, graph: Graph, secret: str | None) -> Rosbridg
         foxglove=options.listeners.foxglove,
     )
     config = _server_config(options, origins, site)
+    if options.listeners.webrtc:  # an offer's bearer token is a video token (docs/webrtc.md)
+        check = None if tokens is None else tokens.valid
+        config = replace(config, webrtc=WebRtcOptions(bearer_token=check))
     if site is not None:
         site.limits = _limits(config)
     authenticator = (
@@ -452,26 +466,39 @@ def _limits(config: ServerConfig) -> dict[str, object]:
     }
 
 
+def _video_tokens(options: ServeOptions, graph: Graph) -> VideoTokens | None:
+    """With --auth-secret-file: the tokens of ``/rwt/video_token`` on ``graph``, if used.
+
+    The video server's streams (docs/video.md, D32) and WebRTC offers
+    (docs/webrtc.md) take them; None without --video, --video-port or --webrtc.
+    """
+    media = options.media
+    if not (media.video or media.video_port is not None or options.listeners.webrtc):
+        return None
+    # the video package (Pillow, numpy) loads only when used (B11: base memory)
+    from rwt_video import VideoTokens, install_token_service  # noqa: PLC0415
+
+    tokens = VideoTokens()
+    install_token_service(graph, tokens)
+    return tokens
+
+
 def _video_config(
-    options: ServeOptions, site: ConsoleSite | None, graph: Graph, tokens: bool
+    options: ServeOptions, site: ConsoleSite | None, tokens: VideoTokens | None
 ) -> VideoConfig | None:
     """The video server of ``--video``/``--video-port``, or None without them.
 
-    With ``tokens`` (--auth-secret-file) its streams need a token from the
-    graph's ``/rwt/video_token`` (docs/video.md, D32).
+    With ``tokens`` (--auth-secret-file, ``_video_tokens``) its streams need a token
+    from the graph's ``/rwt/video_token`` (docs/video.md, D32).
     """
     media = options.media
     if not media.video and media.video_port is None:  # a video port asks for the video server
         return None
     # the video server (Pillow, numpy) loads only with --video (B11: base memory)
-    from rwt_video import VideoConfig, VideoTokens, install_token_service  # noqa: PLC0415
+    from rwt_video import VideoConfig  # noqa: PLC0415
 
-    video_tokens = None
-    if tokens:
-        video_tokens = VideoTokens()
-        install_token_service(graph, video_tokens)
-        if site is not None:
-            site.video_token = True
+    if tokens is not None and site is not None:
+        site.video_token = True
     console = None
     if site is not None:  # the same page under /console/; its WebSocket port is set later
         console = replace(site, root_is_console=False)
@@ -481,7 +508,7 @@ def _video_config(
         max_connections=media.video_max_connections,
         max_streams=media.video_max_streams,
         console=console,
-        tokens=video_tokens,
+        tokens=tokens,
     )
 
 

@@ -116,6 +116,13 @@ class Listeners:
         str | None, typer.Option(help="Only accept WebSocket connections on this path.")
     ] = None
     websocket_compression: Annotated[bool, typer.Option(help="Offer permessage-deflate.")] = False
+    webrtc: Annotated[
+        bool,
+        typer.Option(
+            help="Answer WebRTC offers at POST /webrtc on --port; a 'rosbridge' data channel"
+            " is a session (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
+        ),
+    ] = False
     websocket_ping_interval: Annotated[
         float, typer.Option(help="Seconds between WebSocket keepalive pings (0: none).")
     ] = 0.0

@@ -73,6 +73,7 @@ from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
 from .udp_auth import UdpAuth
 from .urltoken import url_token_gate
+from .webrtc_signal import WebRtcOptions, WebRtcSignalling
 from .websocket import WebSocketOptions, serve_websocket_connection
 
 if TYPE_CHECKING:
@@ -87,6 +88,7 @@ if TYPE_CHECKING:
     from rwt_protocol.server.contract import ServerSession
 
     from .holding import Held
+    from .webrtc_peers import WebRtcPeers
 
 __all__ = [
     "SERVER_NODE",
@@ -111,7 +113,7 @@ _ACCEPT_BACKOFF_S = 0.1
 _ACCEPT_BACKOFF_MAX_S = 1.0
 """Longest pause of the accept loop between two failed ``accept()`` calls."""
 
-_NETWORK = frozenset({"ws", "tcp", "tls", "udp"})
+_NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc"})
 """Transports whose connections count against their host's share (not stdio, memory)."""
 
 #: The node of the server's own publishers, as rosbridge names it.
@@ -183,6 +185,8 @@ class ServerConfig:
             with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
+        webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
+            docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
         use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
             is the graph's timeline, which Foxglove clients get as server time
             (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
@@ -216,6 +220,7 @@ class ServerConfig:
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
     use_sim_time: bool = False
+    webrtc: WebRtcOptions | None = None
 
 
 def rosauth_authenticator(
@@ -304,6 +309,7 @@ class RosbridgeServer:
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
             its address's width (``shares.HostPrefixes``).
+        ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``).
     """
 
     session_class: type[Session] = Session
@@ -376,10 +382,28 @@ class RosbridgeServer:
         self.tf: TFRepublisher | None = None
         if self.config.tf:
             self.tf = install_tf_republisher(self.graph)
+        self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def _set_up_webrtc(
+        self, options: WebRtcOptions | None
+    ) -> tuple[WebRtcPeers | None, WebRtcSignalling | None]:
+        """WebRTC's peers and its signalling on the WebSocket port (docs/webrtc.md), or none."""
+        if options is None:
+            return None, None
+        from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
+
+        peers = WebRtcPeers(self, options, self.config.max_message_size)
+        signalling = WebRtcSignalling(
+            peers,
+            options,
+            self.config.websocket.allowed_origins,
+            auth_required=self.session_config.authenticator is not None,
+        )
+        return peers, signalling
 
     def add_frontend(self, frontend: FrontEnd) -> None:
         """Speak one more protocol on the WebSocket port, chosen by its subprotocols.
@@ -436,6 +460,8 @@ class RosbridgeServer:
                     with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
+                        if self.webrtc is not None:
+                            self.webrtc.bind(connections)
                         async with anyio.create_task_group() as accepting:
                             for runner in runners:
                                 accepting.start_soon(runner, connections)
@@ -443,6 +469,8 @@ class RosbridgeServer:
                             accepting.cancel_scope.cancel()
                         await self._shutdown(connections)
                 finally:
+                    if self.webrtc is not None:
+                        self.webrtc.bind(None)
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
 
@@ -462,6 +490,9 @@ class RosbridgeServer:
         sessions = list(self.sessions.values())
         logger.info("event=shutdown sessions=%d", len(sessions))
         self.graph.port.fail_pending("server shutting down")  # while callers can still read
+        if self.webrtc is not None:  # not connected yet: nothing to close gracefully
+            self.webrtc.bind(None)
+            self.webrtc.stop_connecting()
         for session in sessions:
             session.begin_shutdown()
         for session in sessions:
@@ -671,6 +702,7 @@ class RosbridgeServer:
             self.fragment_budget,
             frontends=self.frontends,
             token_gate=self._token_gate,
+            webrtc=self._signalling,
         )
 
     async def _handle_foxglove(self, stream: ByteStream) -> None:
@@ -757,7 +789,7 @@ class RosbridgeServer:
         makes the session, under the per-client rules of its transport.
 
         Args:
-            transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``stdio`` or ``memory``;
+            transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``webrtc``, ``stdio`` or ``memory``;
                 the client id is ``<transport>:<peer>#<n>``.
             peer: the peer's address.
             on_output: the pump's wake-up.
@@ -777,7 +809,7 @@ class RosbridgeServer:
         if admitted is None:
             return None
         client_id, host, address = admitted
-        stream = transport in ("ws", "tcp", "tls")
+        stream = transport in ("ws", "tcp", "tls", "webrtc")
         request = SessionRequest(
             self.graph.port,
             client_id,

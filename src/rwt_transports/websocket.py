@@ -73,6 +73,7 @@ if TYPE_CHECKING:
 
     from .frontends import FrontEnds
     from .urltoken import TokenGate
+    from .webrtc_signal import WebRtcSignalling
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
@@ -493,19 +494,56 @@ def _make_protocol(
     )
 
 
-async def _handshake(stream: ByteStream, protocol: ServerProtocol) -> tuple[Request, bool] | None:
+async def _read_head(stream: ByteStream, webrtc: WebRtcSignalling) -> tuple[bytes, bool] | None:
+    """The request's first bytes, and whether they are WebRTC signalling's (``claims``).
+
+    None if the peer left first. Reads only until ``claims`` can tell (a few
+    bytes); the socket's handshake timeout bounds the wait.
+    """
+    head = b""
+    with anyio.move_on_after(_HANDSHAKE_LIMIT_S):
+        while True:
+            try:
+                head += await stream.receive(_READ_SIZE)
+            except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
+                return None
+            claimed = webrtc.claims(head)
+            if claimed is not None:
+                return head, claimed
+    return None
+
+
+async def _signalling(stream: ByteStream, webrtc: WebRtcSignalling, peer: str) -> bytes | None:
+    """Answer a WebRTC signalling request (None), or return the first bytes of another."""
+    read = await _read_head(stream, webrtc)
+    if read is None:
+        return None
+    head, claimed = read
+    if claimed:
+        await webrtc.serve(stream, head, peer)
+        return None
+    return head
+
+
+async def _handshake(
+    stream: ByteStream, protocol: ServerProtocol, head: bytes = b""
+) -> tuple[Request, bool] | None:
     """Read the upgrade request; also whether it ended exactly where the bytes read end.
 
-    Only then does the next byte start a frame that websockets has not begun to
-    parse, so that ``FrameReader`` may read from there.
+    ``head``: the request's first bytes, read already. Only when the request
+    ends where the bytes read end does the next byte start a frame that
+    websockets has not begun to parse, so that ``FrameReader`` may read from there.
     """
     received = bytearray()  # bounded: websockets refuses an oversized request
     with anyio.move_on_after(_HANDSHAKE_LIMIT_S):
         while True:
-            try:
-                data = await stream.receive(_READ_SIZE)
-            except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
-                return None
+            if head:
+                data, head = head, b""
+            else:
+                try:
+                    data = await stream.receive(_READ_SIZE)
+                except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
+                    return None
             received += data
             protocol.receive_data(data)
             if protocol.handshake_exc is not None:  # not HTTP, not GET, too long, ...
@@ -556,6 +594,7 @@ async def serve_websocket_connection(
     *,
     frontends: FrontEnds,
     token_gate: TokenGate | None = None,
+    webrtc: WebRtcSignalling | None = None,
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -577,12 +616,18 @@ async def serve_websocket_connection(
             handshake of a front end whose clients authenticate with a URL token
             (``AuthMode.URL_TOKEN``, a Foxglove client); an admitted one's session
             starts authenticated. None: no authentication.
+        webrtc: answers WebRTC signalling requests (``POST``/``DELETE``/``OPTIONS``
+            on ``/webrtc``, docs/webrtc.md) on this port; None: they fail the
+            handshake as before.
 
     Never raises for what the peer does; the stream is closed on return.
     """
     protocol = _make_protocol(options, max_message_size, frontends)
     async with stream:
-        handshake = await _handshake(stream, protocol)
+        head = b"" if webrtc is None else await _signalling(stream, webrtc, peer)
+        if head is None:
+            return
+        handshake = await _handshake(stream, protocol, head)
         if handshake is None:
             return
         request, at_frame_start = handshake

@@ -239,6 +239,7 @@ NEVER_IN_RWT = {
     "FoxgloveOptions",
     "PlaybackStatus",
     "UnknownNameError",
+    "WebRtcOptions",
     "auth_query",
     "rosauth_op",
     "shortcut_report",

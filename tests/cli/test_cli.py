@@ -42,6 +42,7 @@ async def test_help_documents_every_option() -> None:
         "--websocket-ping-timeout",
         "--log-level",
         "--uvloop",
+        "--webrtc",
     ):
         assert option in text, option
 

@@ -201,6 +201,10 @@ def test_a_missing_interfaces_folder_is_named(tmp_path: Path) -> None:
     ("args", "expected"),
     [
         (["serve", "--no-websocket"], "rwt serve: nothing to serve: --no-websocket needs"),
+        (
+            ["serve", "--no-websocket", "--tcp-port", "0", "--webrtc"],
+            "rwt serve: --webrtc answers on the WebSocket port",
+        ),
         (["serve", "--log-level", "loud"], "rwt serve: --log-level: 'loud' is not one of"),
         (["serve", "--prot", "1"], "rwt serve: no such option: --prot"),
         (["nosuch"], "rwt: no such command 'nosuch'"),

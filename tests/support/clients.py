@@ -22,6 +22,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from rwt_transports.memory import MemoryConnection
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.udp_validation import CHALLENGE_TEXT, MIN_PROBE_BYTES, SESSION_CHALLENGE_TEXT
+from rwt_transports.webrtc_signal import WebRtcOptions
 
 Message = dict[str, Any]
 
@@ -32,6 +33,33 @@ def is_op(name: str, **fields: object) -> Callable[[Message], bool]:
 
 
 TRANSPORTS = ("memory", "ws", "tcp", "udp", "stdio")
+
+
+def _webrtc_runs_here() -> bool:
+    """aiortc is installed and the machine has an address besides loopback.
+
+    aiortc's ICE (aioice) offers no 127.0.0.1 candidate: on a machine with only
+    loopback no two peers can connect.
+    """
+    try:
+        import aiortc  # noqa: F401, PLC0415 (optional: rwt-rosbridge[webrtc])
+        import ifaddr  # noqa: PLC0415 (aioice's, so aiortc's, dependency)
+    except ImportError:
+        return False
+
+    loopback = {"127.0.0.1", "::1"}
+    return any(
+        (ip.ip if isinstance(ip.ip, str) else ip.ip[0]) not in loopback
+        for adapter in ifaddr.get_adapters()
+        for ip in adapter.ips
+    )
+
+
+HAS_AIORTC = _webrtc_runs_here()
+"""Whether ``running_server`` answers WebRTC offers and ``Harness.connect("webrtc")`` works."""
+
+CONTRACT_TRANSPORTS = (*TRANSPORTS, "webrtc") if HAS_AIORTC else TRANSPORTS
+"""The transports tests/transports/test_contract.py runs its contract over."""
 
 
 @dataclass
@@ -213,6 +241,55 @@ class PipeStream(ByteStream):
 
 
 @dataclass
+class WebRtcClient(Client):
+    """A real WebRTC peer (aiortc) on the ``rosbridge`` data channel (docs/webrtc.md)."""
+
+    channel: Any = None
+    inbox: Any = None  # anyio receive stream of the channel's messages
+
+    async def send_raw(self, data: bytes) -> None:
+        self.channel.send(data.decode("utf-8", "replace"))  # text, as WsClient sends
+
+    async def _receive_raw(self) -> bytes | str:
+        return await self.inbox.receive()  # type: ignore[no-any-return]
+
+    async def aclose(self) -> None:
+        self.channel.close()
+
+
+async def connect_webrtc(base: str, stack: AsyncExitStack, name: str) -> WebRtcClient:
+    """Offer to ``base``/webrtc (an ``http://`` URL), open ``rosbridge``; closed with ``stack``."""
+    import httpx  # noqa: PLC0415 (the test extra's; with aiortc only)
+    from aiortc import (  # noqa: PLC0415 (optional: rwt-rosbridge[webrtc])
+        RTCConfiguration,
+        RTCPeerConnection,
+        RTCSessionDescription,
+    )
+
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    stack.push_async_callback(pc.close)
+    channel = pc.createDataChannel("rosbridge")
+    sender, inbox = anyio.create_memory_object_stream[bytes | str](max_buffer_size=10_000)
+    stack.callback(inbox.close)
+    opened = anyio.Event()
+    channel.on("open", opened.set)
+    channel.on("message", sender.send_nowait)
+    channel.on("close", sender.close)
+    await pc.setLocalDescription(await pc.createOffer())
+    async with httpx.AsyncClient(base_url=base) as http:
+        reply = await http.post(
+            "/webrtc",
+            content=pc.localDescription.sdp,
+            headers={"Content-Type": "application/sdp"},
+        )
+    assert reply.status_code == 201, reply.text
+    await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+    with anyio.fail_after(10):
+        await opened.wait()
+    return WebRtcClient(name, channel=channel, inbox=inbox)
+
+
+@dataclass
 class Harness:
     """A running in-process server with every transport, and a way to connect to each."""
 
@@ -256,6 +333,9 @@ class Harness:
             return UdpClient(name, sock=sock, prefix=prefix)
         if transport == "stdio":
             return StreamClient(name, stream=self.stdio_client)
+        if transport == "webrtc":
+            base = f"http://127.0.0.1:{self.port('websocket')}"
+            return await connect_webrtc(base, self.stack, name)
         raise ValueError(transport)
 
 
@@ -263,7 +343,11 @@ class Harness:
 async def running_server(
     config: ServerConfig | None = None, **server_kw: Any
 ) -> AsyncIterator[Harness]:
-    """An in-process server with WebSocket, TCP, UDP and stdio (on pipes), all on free ports."""
+    """An in-process server with WebSocket, TCP, UDP and stdio (on pipes), all on free ports.
+
+    With aiortc installed it answers WebRTC offers on the WebSocket port too
+    (``HAS_AIORTC``), unless ``config`` says otherwise.
+    """
     to_server_r, to_server_w = os.pipe()
     from_server_r, from_server_w = os.pipe()
     config = replace(
@@ -274,6 +358,8 @@ async def running_server(
         stdio=True,
         stdio_fds=(to_server_r, from_server_w),
     )
+    if HAS_AIORTC and config.webrtc is None:
+        config = replace(config, webrtc=WebRtcOptions())
     server = RosbridgeServer(config=config, **server_kw)
     pipe = PipeStream(to_server_w, from_server_r)
     async with AsyncExitStack() as stack, anyio.create_task_group() as tg:

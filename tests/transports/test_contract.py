@@ -1,4 +1,4 @@
-"""One transport contract, run over memory, WebSocket, TCP, UDP and stdio (D22).
+"""One transport contract, run over memory, WebSocket, TCP, UDP, stdio and WebRTC (D22).
 
 Every scenario pairs a client of the transport under test with an in-process
 (memory) client of the same server: they share one graph, so each scenario is
@@ -21,7 +21,7 @@ from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.support.clients import (
-    TRANSPORTS,
+    CONTRACT_TRANSPORTS,
     Client,
     Harness,
     StreamClient,
@@ -40,7 +40,7 @@ async def harness() -> AsyncIterator[Harness]:
         yield h
 
 
-@pytest.fixture(params=TRANSPORTS)
+@pytest.fixture(params=CONTRACT_TRANSPORTS)
 async def pair(request: pytest.FixtureRequest, harness: Harness) -> tuple[Client, Client]:
     client = await harness.connect(request.param)
     other = await harness.connect("memory", "other")
@@ -200,7 +200,7 @@ async def test_access_rules_apply_on_every_transport() -> None:
     policy = AccessPolicy(topics=("/public/*",), services=("/public/*",))
     config = ServerConfig(session=SessionConfig(access=policy))
     async with running_server(config) as harness:
-        for transport in TRANSPORTS:
+        for transport in CONTRACT_TRANSPORTS:
             client = await harness.connect(transport)
             with anyio.fail_after(TIMEOUT_S):
                 await client.send({"op": "subscribe", "topic": "/secret", "id": "s"})

@@ -1,0 +1,255 @@
+"""The server's WebRTC peer connections: an offer in, a session on the pump out (docs/webrtc.md).
+
+An offer is admitted as any connection is (``SessionHost.open_session``:
+``--max-connections``, host shares, ``/connected_clients``), then answered by
+aiortc with every ICE candidate gathered (no trickle). The session starts
+when the peer opens its ``rosbridge`` data channel (webrtc.py) and runs on the
+connection pump like a WebSocket's. Bounds, each enforced here
+(docs/limits.md):
+
+- ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
+  the server; more get 503. Each holds UDP sockets and aiortc's ICE and DTLS
+  state, and answering one makes a key pair, so a burst of offers is bounded.
+- ``OFFER_TIMEOUT_S``: answering one offer (ICE gathering); after it, 503.
+- ``WebRtcOptions.connect_timeout_s``: from the answer to an open data channel
+  (ICE, DTLS, SCTP); a peer that never gets there is freed.
+
+A session ends when its data channel or peer connection closes or fails, on
+``DELETE /webrtc/<id>``, on its idle timeout, or as any session does; its peer
+connection is closed with it.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import secrets
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import anyio
+from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
+
+from rwt_protocol.server.commands import CloseCode
+
+from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
+from .webrtc import MAX_TEXT_FRAME_BYTES, DataChannelChannel
+from .webrtc_signal import WEBRTC_PATH, Answer
+
+if TYPE_CHECKING:
+    from aiortc import RTCDataChannel
+    from anyio.abc import TaskGroup
+
+    from rwt_protocol.server.contract import ServerSession
+
+    from .webrtc_signal import WebRtcOptions
+
+__all__ = ["DATA_CHANNEL_LABEL", "MAX_CONNECTING", "OFFER_TIMEOUT_S", "WebRtcPeers"]
+
+logger = logging.getLogger("rwt.webrtc")
+
+DATA_CHANNEL_LABEL = "rosbridge"
+"""The label of the data channel that carries the rosbridge session; others are closed."""
+
+MAX_CONNECTING = 16
+"""Offers being answered plus peers not yet connected, over the server; more get 503."""
+
+OFFER_TIMEOUT_S = 10.0
+"""Seconds answering one offer (ICE gathering) may take; then 503."""
+
+_MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
+
+
+def remote_max_message_size(sdp: str) -> int:
+    """The largest message the peer accepts: its ``a=max-message-size`` (0: any size).
+
+    Without the attribute, 64 KiB (RFC 8841 6.1).
+    """
+    found = _MAX_MESSAGE_SIZE.search(sdp)
+    return int(found.group(1)) if found else MAX_TEXT_FRAME_BYTES
+
+
+@dataclass(eq=False)
+class _Peer:
+    """One peer connection and the session it carries."""
+
+    session_id: str
+    pc: RTCPeerConnection
+    session: ServerSession
+    remote_max: int
+    ready: anyio.Event = field(default_factory=anyio.Event)
+    channel: RTCDataChannel | None = None
+    running: bool = False
+    scope: anyio.CancelScope = field(default_factory=anyio.CancelScope)
+    wake: list[ConnectionPump] = field(default_factory=list)
+
+    def on_output(self) -> None:
+        """The session's output callback: the pump's, once the data channel opened."""
+        if self.wake:
+            self.wake[0].wake()
+
+
+class WebRtcPeers:
+    """Answers offers and runs each peer's session until it ends.
+
+    Args:
+        host: admits connections and makes their sessions (the server).
+        options: the WebRTC settings.
+        max_message_size: the largest incoming message, bytes (``--max-message-size``).
+
+    Call ``bind`` with the task group the sessions run in before the first offer.
+    """
+
+    def __init__(self, host: SessionHost, options: WebRtcOptions, max_message_size: int) -> None:
+        self.host = host
+        self.options = options
+        self.max_message_size = max_message_size
+        self.peers: dict[str, _Peer] = {}
+        self._answering = 0
+        self._tg: TaskGroup | None = None
+
+    @property
+    def connecting(self) -> int:
+        """Offers being answered plus peers whose data channel is not open yet."""
+        return self._answering + sum(not p.running for p in self.peers.values())
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Run sessions in ``tg`` (the server's connections); None: take no offers."""
+        self._tg = tg
+
+    async def offer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
+        """Admit and answer an offer.
+
+        Returns:
+            201 with the answer SDP and the session's path; 400 (the offer cannot be
+            answered: not SDP, no data channel), 503 (server full, too many peers
+            connecting, stopping, or answering took over ``OFFER_TIMEOUT_S``).
+        """
+        if self._tg is None:
+            return Answer(503, "the server is not serving")
+        if self.connecting >= MAX_CONNECTING:
+            return Answer(503, "too many WebRTC peers connecting: try again later")
+        self._answering += 1
+        try:
+            return await self._answer(sdp, peer, authenticated=authenticated)
+        finally:
+            self._answering -= 1
+
+    async def _answer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
+        holder: list[_Peer] = []
+        session = self.host.open_session(
+            "webrtc",
+            peer,
+            lambda: holder[0].on_output() if holder else None,
+            authenticated=authenticated,
+        )
+        if session is None:
+            return Answer(503, "too many connections")
+        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))  # no STUN: no traffic elsewhere
+        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max_message_size(sdp))
+        holder.append(item)
+        pc.on("datachannel", lambda channel: self._on_channel(item, channel))
+        pc.on("connectionstatechange", lambda: self._on_state(item))
+        refusal: Answer | None = Answer(503, "answering the offer took too long")
+        try:
+            with anyio.move_on_after(OFFER_TIMEOUT_S):
+                refusal = await _negotiate(pc, sdp)
+        finally:  # refused, failed or cancelled (shutdown): the session and its sockets go
+            if refusal is not None or pc.localDescription is None or self._tg is None:
+                session.close()
+                await _close_pc(pc)
+        if refusal is not None or pc.localDescription is None or self._tg is None:
+            return refusal or Answer(503, "the server is stopping")
+        self.peers[item.session_id] = item
+        self._tg.start_soon(self._run, item)
+        return Answer(201, pc.localDescription.sdp, f"{WEBRTC_PATH}/{item.session_id}")
+
+    def _on_channel(self, item: _Peer, channel: RTCDataChannel) -> None:
+        """Take the ``rosbridge`` channel (reliable, ordered); close any other."""
+        reliable = channel.maxRetransmits is None and channel.maxPacketLifeTime is None
+        if channel.label != DATA_CHANNEL_LABEL or not channel.ordered or not reliable:
+            logger.info("event=channel_refused label=%r", channel.label)
+            channel.close()
+            return
+        if item.channel is not None:
+            logger.info("event=channel_refused label=%r reason=second", channel.label)
+            channel.close()
+            return
+        item.channel = channel
+        if channel.readyState == "open":
+            item.ready.set()
+        else:
+            channel.on("open", item.ready.set)
+
+    def _on_state(self, item: _Peer) -> None:
+        """A failed or closed peer connection ends its session."""
+        if item.pc.connectionState in ("failed", "closed"):
+            item.ready.set()
+            if item.running:
+                item.session.request_close(CloseCode.GOING_AWAY, "peer connection closed")
+            else:
+                item.scope.cancel()
+
+    async def _run(self, item: _Peer) -> None:
+        """Wait for the data channel, run the session on the pump, then free everything."""
+        try:
+            with item.scope:
+                with anyio.move_on_after(self.options.connect_timeout_s):
+                    await item.ready.wait()
+                channel = item.channel
+                if channel is None or channel.readyState != "open":
+                    logger.info(
+                        "event=webrtc_not_connected client=%s state=%s",
+                        item.session.client_id,
+                        item.pc.connectionState,
+                    )
+                    return
+                dc = DataChannelChannel(channel, self.max_message_size, item.remote_max)
+                pump = ConnectionPump(dc, self.host.flow, self.host.admission)
+                item.wake.append(pump)
+                item.running = True
+                await run_connection(pump, item.session, f"webrtc={item.session_id}")
+        finally:
+            self.peers.pop(item.session_id, None)
+            item.session.close()
+            await _close_pc(item.pc)
+
+    def delete(self, session_id: str) -> bool:
+        """End the session ``session_id`` (``DELETE /webrtc/<id>``); False if there is none."""
+        item = self.peers.get(session_id)
+        if item is None:
+            return False
+        if item.running:
+            item.session.request_close(CloseCode.NORMAL, "ended by DELETE")
+        else:
+            item.scope.cancel()
+        return True
+
+    def stop_connecting(self) -> None:
+        """Free the peers that are not connected yet (the server is stopping)."""
+        for item in list(self.peers.values()):
+            if not item.running:
+                item.scope.cancel()
+
+
+async def _negotiate(pc: RTCPeerConnection, sdp: str) -> Answer | None:
+    """Set the offer and the answer (gathering every candidate); None when it worked."""
+    if not sdp.lstrip().startswith("v=0"):  # aiortc reads any text as an empty description
+        return Answer(400, "the offer is not a usable SDP offer: it must start with v=0")
+    try:
+        await pc.setRemoteDescription(RTCSessionDescription(sdp=sdp, type="offer"))
+    except Exception as exc:  # aiortc raises ValueError and others for a bad offer
+        return Answer(400, f"the offer is not a usable SDP offer: {exc or type(exc).__name__}")
+    if pc.sctp is None:
+        return Answer(400, "the offer has no data channel (m=application)")
+    try:
+        await pc.setLocalDescription(await pc.createAnswer())
+    except Exception as exc:  # an offer aiortc accepted but cannot answer
+        return Answer(400, f"the offer cannot be answered: {exc or type(exc).__name__}")
+    return None
+
+
+async def _close_pc(pc: RTCPeerConnection) -> None:
+    """Close a peer connection, within ``CLOSE_WAIT_S`` even while cancelled."""
+    with anyio.CancelScope(shield=True), anyio.move_on_after(CLOSE_WAIT_S):
+        await pc.close()

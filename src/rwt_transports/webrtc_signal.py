@@ -1,0 +1,275 @@
+"""WebRTC signalling on the WebSocket port, WHEP style (``rwt serve --webrtc``, docs/webrtc.md).
+
+``POST /webrtc`` with ``Content-Type: application/sdp`` (a complete offer, its
+ICE candidates in it: no trickle) answers ``201 Created`` with the answer SDP
+and ``Location: /webrtc/<id>``; ``DELETE /webrtc/<id>`` ends that session
+(204, or 404 for an unknown id); ``OPTIONS`` answers a browser's CORS
+preflight. Everything else on the port (the WebSocket upgrade, the console) is
+unchanged: the WebSocket listener hands a request here only when its request
+line starts with one of these methods and the path (``claims``).
+
+HTTP/1.1 is parsed by h11 (sans-IO); one request per connection. The offer is
+at most ``MAX_OFFER_BYTES``. With an authenticator (``--auth-secret-file``) an
+offer carrying ``Authorization: Bearer <token>`` must carry a live video token
+(``/rwt/video_token``, docs/video.md), else 401; an offer without one opens a
+session that must send the ``auth`` op first, as a WebSocket client does (D23).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fnmatch
+import logging
+from dataclasses import dataclass
+from http import HTTPStatus
+from typing import TYPE_CHECKING, Protocol
+
+import anyio
+import h11
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from anyio.abc import ByteStream
+
+__all__ = [
+    "CONNECT_TIMEOUT_S",
+    "MAX_OFFER_BYTES",
+    "WEBRTC_PATH",
+    "Answer",
+    "OfferHandler",
+    "WebRtcOptions",
+    "WebRtcSignalling",
+]
+
+logger = logging.getLogger("rwt.webrtc")
+
+WEBRTC_PATH = "/webrtc"
+"""The signalling endpoint: offers are posted here, sessions live under it."""
+
+MAX_OFFER_BYTES = 64 * 1024
+"""Largest offer SDP accepted (a browser's offer with a data channel is about 1 KiB): 413."""
+
+CONNECT_TIMEOUT_S = 15.0
+"""Default seconds a peer has, from its answer, to complete ICE and DTLS and open the
+``rosbridge`` data channel; then its session is freed (``WebRtcOptions``)."""
+
+_READ_SIZE = 65536
+_METHODS = (b"POST", b"DELETE", b"OPTIONS")
+_SDP = "application/sdp"
+_CORS = [
+    (b"Access-Control-Allow-Methods", b"POST, DELETE, OPTIONS"),
+    (b"Access-Control-Allow-Headers", b"Authorization, Content-Type"),
+    (b"Access-Control-Expose-Headers", b"Location"),
+    (b"Access-Control-Max-Age", b"600"),
+]
+
+
+@dataclass(frozen=True, slots=True)
+class WebRtcOptions:
+    """Settings of WebRTC signalling (``rwt serve --webrtc``).
+
+    Attributes:
+        connect_timeout_s: seconds from the answer for ICE, DTLS and the
+            ``rosbridge`` data channel to open; a peer that does not is freed
+            (``CONNECT_TIMEOUT_S``).
+        bearer_token: with an authenticator, checks the token of an offer's
+            ``Authorization: Bearer`` header (the video server's tokens,
+            ``rwt_video.VideoTokens.valid``); None: such an offer gets 401.
+    """
+
+    connect_timeout_s: float = CONNECT_TIMEOUT_S
+    bearer_token: Callable[[str], bool] | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Answer:
+    """What an offer got: an HTTP status, its text (the answer SDP on 201), its session path."""
+
+    status: int
+    text: str
+    location: str | None = None
+
+
+class OfferHandler(Protocol):
+    """The peer connections behind signalling (``webrtc_peers.WebRtcPeers``)."""
+
+    async def offer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
+        """Answer an offer: 201 with the answer SDP, else the refusal."""
+
+    def delete(self, session_id: str) -> bool:
+        """End the session ``session_id``; False if there is none."""
+
+
+class WebRtcSignalling:
+    """Answers WebRTC signalling requests on the WebSocket port.
+
+    Args:
+        peers: makes and ends the peer connections.
+        options: the WebRTC settings.
+        allowed_origins: fnmatch patterns of accepted ``Origin`` headers
+            (``--allowed-origins``); empty: any origin, as on the WebSocket.
+        auth_required: the server has an authenticator (``--auth-secret-file``).
+    """
+
+    def __init__(
+        self,
+        peers: OfferHandler,
+        options: WebRtcOptions,
+        allowed_origins: tuple[str, ...] = (),
+        *,
+        auth_required: bool = False,
+    ) -> None:
+        self.peers = peers
+        self.options = options
+        self.allowed_origins = allowed_origins
+        self.auth_required = auth_required
+
+    @staticmethod
+    def claims(head: bytes) -> bool | None:
+        """Whether the request starting with ``head`` is signalling; None: too short to tell."""
+        path = WEBRTC_PATH.encode()
+        for method in _METHODS:
+            prefix = method + b" " + path
+            if len(head) <= len(prefix):
+                if prefix.startswith(head):
+                    return None
+                continue
+            if head.startswith(prefix):
+                return head[len(prefix) : len(prefix) + 1] in (b" ", b"/", b"?")
+        return False
+
+    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
+        """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
+
+        The caller bounds the time (the handshake timeout) and closes the stream.
+        """
+        conn = h11.Connection(h11.SERVER)
+        conn.receive_data(head)
+        try:
+            request, body = await _read_request(conn, stream)
+        except h11.RemoteProtocolError as exc:
+            await _reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
+            return
+        except _TooLarge:
+            await _reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
+            return
+        if request is None:
+            return
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
+        origin = headers.get("origin")
+        cors = self._cors(origin)
+        if cors is None:
+            await _reply(conn, stream, 403, f"origin {origin} is not allowed", [])
+            return
+        answer = await self._route(request, headers, body, peer)
+        extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
+        kind = _SDP if answer.status == 201 else "text/plain; charset=utf-8"
+        logger.info(
+            "event=signalling peer=%s method=%s status=%d",
+            peer,
+            request.method.decode(),
+            answer.status,
+        )
+        await _reply(conn, stream, answer.status, answer.text, extra, kind)
+
+    def _cors(self, origin: str | None) -> list[tuple[bytes, bytes]] | None:
+        """The CORS headers for ``origin``; None if ``--allowed-origins`` refuses it."""
+        if origin is None:
+            return []
+        patterns = self.allowed_origins
+        if patterns and not any(fnmatch.fnmatchcase(origin, p) for p in patterns):
+            return None
+        return [(b"Access-Control-Allow-Origin", origin.encode("latin-1")), *_CORS]
+
+    async def _route(
+        self, request: h11.Request, headers: dict[str, str], body: bytes, peer: str
+    ) -> Answer:
+        method = request.method.decode()
+        path = request.target.decode("latin-1").split("?", 1)[0].rstrip("/")
+        if method == "OPTIONS":
+            return Answer(204, "")
+        if method == "DELETE":
+            session_id = path.removeprefix(WEBRTC_PATH + "/")
+            if path.startswith(WEBRTC_PATH + "/") and self.peers.delete(session_id):
+                return Answer(204, "")
+            return Answer(404, f"no WebRTC session at {path}")
+        if path != WEBRTC_PATH:
+            return Answer(404, f"post offers to {WEBRTC_PATH}, not {path}")
+        kind = headers.get("content-type", "").split(";", 1)[0].strip().lower()
+        if kind != _SDP:
+            return Answer(400, f"the offer must be sent as Content-Type: {_SDP}, not {kind!r}")
+        authenticated = False
+        if self.auth_required and "authorization" in headers:
+            scheme, _, token = headers["authorization"].partition(" ")
+            check = self.options.bearer_token
+            if scheme.lower() != "bearer" or check is None or not check(token.strip()):
+                return Answer(401, "the bearer token is wrong or expired: call /rwt/video_token")
+            authenticated = True
+        try:
+            sdp = body.decode("utf-8")
+        except UnicodeDecodeError:
+            return Answer(400, "the offer is not UTF-8 text")
+        if not sdp.strip():
+            return Answer(400, "the offer is empty: post a complete SDP offer")
+        return await self.peers.offer(sdp, peer, authenticated=authenticated)
+
+
+class _TooLarge(Exception):
+    """The request's body is over ``MAX_OFFER_BYTES``."""
+
+
+async def _read_request(
+    conn: h11.Connection, stream: ByteStream
+) -> tuple[h11.Request | None, bytes]:
+    """The request and its body; (None, b"") if the peer left first (h11 bounds the head).
+
+    Raises:
+        h11.RemoteProtocolError: not HTTP/1.1 h11 can read.
+        _TooLarge: the body is over ``MAX_OFFER_BYTES``.
+    """
+    request: h11.Request | None = None
+    body = bytearray()
+    while True:
+        event = conn.next_event()
+        if event is h11.NEED_DATA:
+            try:
+                data = await stream.receive(_READ_SIZE)
+            except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
+                data = b""
+            conn.receive_data(data)
+        elif isinstance(event, h11.Request):
+            request = event
+        elif isinstance(event, h11.Data):
+            body += event.data
+            if len(body) > MAX_OFFER_BYTES:
+                raise _TooLarge
+        elif isinstance(event, h11.EndOfMessage):
+            return request, bytes(body)
+        else:  # ConnectionClosed, PAUSED
+            return None, b""
+
+
+async def _reply(
+    conn: h11.Connection,
+    stream: ByteStream,
+    status: int,
+    text: str,
+    headers: list[tuple[bytes, bytes]],
+    kind: str = "text/plain; charset=utf-8",
+) -> None:
+    """Send one response and let the connection end (``Connection: close``)."""
+    body = (text + "\n" if text and kind.startswith("text/") else text).encode()
+    fields = [*headers, (b"Connection", b"close")]
+    if status != 204:  # no content: no type, no length (RFC 9110 8.6)
+        fields += [(b"Content-Type", kind.encode()), (b"Content-Length", str(len(body)).encode())]
+    with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+        try:
+            reason = HTTPStatus(status).phrase.encode()
+            data = conn.send(h11.Response(status_code=status, headers=fields, reason=reason))
+            if body:
+                data = (data or b"") + (conn.send(h11.Data(data=body)) or b"")
+            data = (data or b"") + (conn.send(h11.EndOfMessage()) or b"")
+        except h11.LocalProtocolError:  # h11 is in a state where it cannot answer
+            return
+        await stream.send(data)

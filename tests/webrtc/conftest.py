@@ -1,0 +1,44 @@
+"""The WebRTC tests' server: every test module here skips when aiortc is missing.
+
+Each module calls ``pytest.importorskip("aiortc", reason=NEEDS_AIORTC)`` before it
+imports the real peer (peer.py).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import AsyncIterator
+from typing import TYPE_CHECKING
+
+import pytest
+
+from rwt_protocol.distribution import install_hint
+from rwt_transports.server import ServerConfig
+from rwt_transports.webrtc_signal import WebRtcOptions
+from tests.support.clients import HAS_AIORTC
+
+if TYPE_CHECKING:
+    from tests.webrtc.peer import Served
+
+NEEDS_AIORTC = f"the WebRTC tests need aiortc: {install_hint('webrtc')}"
+
+
+@pytest.fixture(autouse=True)
+def _an_interface_besides_loopback() -> None:
+    """Skip where WebRTC cannot connect: aiortc installed but only a loopback address."""
+    if importlib.util.find_spec("aiortc") is not None and not HAS_AIORTC:
+        pytest.skip("WebRTC needs an address besides loopback (aiortc offers no 127.0.0.1)")
+
+
+CONNECT_TIMEOUT_S = 2.0
+"""The tests' ICE+DTLS deadline: short, so a peer that never connects is freed soon."""
+
+
+@pytest.fixture
+async def served() -> AsyncIterator[Served]:
+    """An in-process server with WebRTC on its WebSocket port (port 0)."""
+    from tests.webrtc.peer import serving  # noqa: PLC0415 (aiortc: after the skip)
+
+    config = ServerConfig(port=0, webrtc=WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S))
+    async with serving(config) as running:
+        yield running

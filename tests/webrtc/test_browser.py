@@ -1,0 +1,165 @@
+"""Chromium running roslib 2.x over the ``rosbridge`` data channel: the page of docs/webrtc.md.
+
+The page's transport factory is the one docs/webrtc.md shows (read from the page
+itself), served from another origin than ``rwt serve --webrtc`` (so CORS is the
+browser's), with roslib and its dependencies from tests/js/node_modules.
+"""
+
+from __future__ import annotations
+
+import functools
+import http.server
+import json
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.webrtc.conftest import NEEDS_AIORTC
+
+pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
+
+from tests.browser.cdp import Browser, chromium_path
+from tests.integration.client_harness import ServerProcess
+
+REPO = Path(__file__).resolve().parents[2]
+MODULES = REPO / "tests" / "js" / "node_modules"
+
+IMPORTS = {
+    "roslib": "roslib/dist/RosLib.js",
+    "eventemitter3": "eventemitter3/dist/eventemitter3.esm.js",  # its ESM build
+    "uuid": "uuid/dist/index.js",
+    "bson": "bson/lib/bson.mjs",
+    "cbor2": "cbor2/lib/index.js",
+    "fast-png": "fast-png/lib/index.js",
+    "fflate": "fflate/esm/browser.js",
+    "iobuffer": "iobuffer/lib/iobuffer.js",
+    "@cto.af/wtf8": "@cto.af/wtf8/lib/index.js",
+}
+"""roslib and what it imports, as an import map over tests/js/node_modules (no network)."""
+
+BIG = 100_000
+"""Characters of the message that must come back in ``fragment`` ops (over 64 KiB)."""
+
+
+def documented_factory() -> str:
+    """The JavaScript of docs/webrtc.md up to its ``new Ros``: the transport factory."""
+    page = (REPO / "docs" / "webrtc.md").read_text("utf-8")
+    block = next(b for b in page.split("```text\n")[1:] if "transportFactory" in b)
+    code = block.split("```", 1)[0]
+    return code.split("const ros = ", 1)[0]
+
+
+PAGE_TEST = """
+const server = new URL(location.href).searchParams.get("server");
+const ros = new Ros({ url: server, transportFactory: webrtcTransport });
+ros.on("error", (e) => { window.failure = String(e && (e.message || e.type || e)); });
+ros.on("connection", async () => {
+  try {
+    const topics = await new Promise((ok, fail) => new Service({
+      ros, name: "/rosapi/topics", serviceType: "rosapi/Topics",
+    }).callService({}, ok, fail));
+    const echo = new Topic({ ros, name: "/page_echo", messageType: "std_msgs/String" });
+    const big = "x".repeat(%(big)d) + "\\u00e9";
+    const received = new Promise((ok) => echo.subscribe((m) => ok(m.data)));
+    await new Promise((ok) => setTimeout(ok, 200));  // the subscription reaches the server
+    echo.publish({ data: big });
+    const back = await received;
+    window.result = { topics: topics.topics, same: back === big, length: back.length };
+  } catch (e) { window.failure = String(e); }
+});
+"""
+
+
+def page_html() -> str:
+    imports = {name: f"/node_modules/{path}" for name, path in IMPORTS.items()}
+    script = documented_factory().replace(
+        'import { Ros, Topic, AbstractTransport } from "roslib";',
+        'import { Ros, Topic, Service, AbstractTransport } from "roslib";',
+    )
+    return (
+        "<!doctype html><html><head>"
+        f'<script type="importmap">{json.dumps({"imports": imports})}</script>'
+        f'<script type="module">{script}{PAGE_TEST % {"big": BIG}}</script>'
+        "</head><body>roslib over WebRTC</body></html>"
+    )
+
+
+class _Site(http.server.SimpleHTTPRequestHandler):
+    """The page at ``/``; tests/js/node_modules under ``/node_modules/``."""
+
+    def __init__(self, *args: object, page: str, **kwargs: object) -> None:
+        self.page = page
+        super().__init__(*args, directory=str(MODULES.parent), **kwargs)  # type: ignore[arg-type]
+
+    def do_GET(self) -> None:
+        if self.path.split("?", 1)[0] != "/":
+            super().do_GET()
+            return
+        body = self.page.encode()
+        self.send_response(200)
+        self.send_header("Content-Type", "text/html; charset=utf-8")
+        self.send_header("Content-Length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, format: str, *args: object) -> None:
+        pass  # the test's output is its assertions
+
+    def guess_type(self, path: str | Path) -> str:
+        if str(path).endswith((".js", ".mjs")):
+            return "text/javascript"  # module scripts need a JavaScript type
+        return super().guess_type(path)
+
+
+@pytest.fixture(scope="module")
+def site() -> Iterator[str]:
+    if not (MODULES / "roslib").is_dir():
+        pytest.skip("roslib is not installed: npm ci --prefix tests/js")
+    handler = functools.partial(_Site, page=page_html())
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{httpd.server_address[1]}"
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    executable = chromium_path()
+    if executable is None:
+        pytest.skip("chromium is not installed (apt-get install chromium; .ci/run does it as root)")
+    browser = Browser(executable)
+    try:
+        yield browser
+    finally:
+        browser.close()
+
+
+def test_roslib_in_chromium_talks_rosbridge_over_the_data_channel(
+    browser: Browser, site: str, tmp_path: Path
+) -> None:
+    server = ServerProcess(tmp_path, ("--webrtc",))
+    try:
+        http_url = server.url.replace("ws://", "http://")
+        page = browser.new_page()
+        try:
+            page.goto(f"{site}/?server={http_url}")
+            result = page.wait_for(
+                "window.result || (window.failure && {failure: window.failure})",
+                30,
+                "roslib over WebRTC",
+            )
+        finally:
+            page.close()
+    finally:
+        server.stop()
+    assert "failure" not in result, result
+    assert "/client_count" in result["topics"]
+    assert result["same"] is True and result["length"] == BIG + 1
+    log = server.stderr_path.read_text()
+    assert "transport=webrtc" in log  # the session was the data channel's, not a WebSocket
