@@ -25,6 +25,7 @@ from rwt_protocol.server.session import SessionConfig
 from tests.foxglove.sansio import cdr
 from tests.foxglove.test_hardening import fox, serving
 from tests.support.cli import rwt_serve
+from tests.support.rawws import masked_text, raw_websocket
 
 pytestmark = pytest.mark.anyio
 
@@ -112,13 +113,7 @@ async def test_a_foxglove_client_that_never_reads_is_closed_past_its_bound(
     fast = graph.create_publisher("/fast", "std_msgs/msg/String")
     session = SessionConfig(send_buffer_limit=64 * 1024, send_timeout_s=0.5)
     async with serving(graph, session=session) as server:
-        port = int(server.urls["websocket"].rsplit(":", 1)[1])
-        stalled = await anyio.connect_tcp("127.0.0.1", port)
-        await stalled.send(
-            b"GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-            b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
-            b"Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
-        )
+        stalled = await raw_websocket(server.urls["websocket"], "foxglove.sdk.v1")
         received = b""
         while b'"advertise"' not in received:  # the response, serverInfo, the channels
             received += await stalled.receive()
@@ -129,9 +124,7 @@ async def test_a_foxglove_client_that_never_reads_is_closed_past_its_bound(
                 "subscriptions": [{"id": 1, "channelId": channel["channels"][0]["id"]}],
             }
         ).encode()
-        await stalled.send(
-            bytes((0x81, 0xFE)) + struct.pack("!H", len(payload)) + bytes(4) + payload
-        )
+        await stalled.send(masked_text(payload))
         while not graph.topics["/fast"].subscribers:
             await anyio.sleep(0.01)
         async with fox(server) as bystander:  # from here the stalled client reads nothing

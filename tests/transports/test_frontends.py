@@ -31,6 +31,7 @@ from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.frontends import FrontEnd, SessionRequest
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.support.rawws import masked_text, raw_websocket
 
 pytestmark = pytest.mark.anyio
 
@@ -172,17 +173,9 @@ async def test_a_client_that_reads_nothing_loses_its_oldest_data_and_is_closed(
     fast = graph.create_publisher("/fast", "std_msgs/msg/String")
     session = SessionConfig(send_buffer_limit=64 * 1024, send_timeout_s=0.5)
     async with serving(graph, session=session) as server:
-        port = int(server.urls["websocket"].rsplit(":", 1)[1])
-        stalled = await anyio.connect_tcp("127.0.0.1", port)
-        handshake = (
-            "GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-            "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
-            f"Sec-WebSocket-Protocol: {ECHO}\r\n\r\n"
-        )
-        await stalled.send(handshake.encode())
+        stalled = await raw_websocket(server.urls["websocket"], ECHO)
         assert b" 101 " in await stalled.receive()  # from here it reads nothing
-        payload = b"sub /fast"  # a masked text frame (an all-zero mask)
-        await stalled.send(bytes((0x81, 0x80 | len(payload))) + b"\x00\x00\x00\x00" + payload)
+        await stalled.send(masked_text(b"sub /fast"))
         while not graph.topics["/fast"].subscribers:
             await anyio.sleep(0.01)
         async with connect(server.urls["websocket"], subprotocols=[ECHO]) as bystander:  # type: ignore[list-item]
