@@ -13,8 +13,12 @@ from hypothesis import strategies as st
 
 from rwt_protocol.server.outbox import Outbox, OutFrame
 
+# a message's parts share its kind: a topic message's are droppable, a reply's are not
 FRAMES = st.lists(
-    st.tuples(st.integers(1, 400), st.booleans(), st.sampled_from([None, "g1", "g2"])),
+    st.one_of(
+        st.tuples(st.integers(1, 400), st.just(True), st.sampled_from([None, "topic1", "topic2"])),
+        st.tuples(st.integers(1, 400), st.just(False), st.sampled_from([None, "reply1"])),
+    ),
     max_size=40,
 )
 
