@@ -20,7 +20,7 @@ from rwt_client.connectors import ConnectionClosedError
 from rwt_client.ros import jittered
 from rwt_protocol.errors import RwtError
 
-__all__ = ["MAX_GOALS", "MAX_PUBLISHERS", "Goal", "RobotLink"]
+__all__ = ["FIRST_CONNECT_WAIT_S", "MAX_GOALS", "MAX_PUBLISHERS", "Goal", "RobotLink"]
 
 logger = logging.getLogger(__name__)
 
@@ -30,6 +30,9 @@ MAX_GOALS = 32
 #: Topics this session keeps advertised for ``publish``; the least recently used
 #: is unadvertised past this.
 MAX_PUBLISHERS = 32
+#: Seconds a tool called before the first connection was made waits for it (an agent's
+#: first call right after starting ``rwt mcp``); then it fails with the client's reason.
+FIRST_CONNECT_WAIT_S = 5.0
 _RECONNECT_MAX_S = 5.0
 
 
@@ -79,6 +82,7 @@ class RobotLink:
         self.ros = Ros(url, reconnect=True)
         self.goals: OrderedDict[str, Goal] = OrderedDict()
         self._publishers: OrderedDict[tuple[str, str], Topic] = OrderedDict()
+        self._ready = anyio.Event()  # the first connection was made
 
     async def connect(self, stop: anyio.Event) -> None:
         """Connect, retrying with back-off until the server answers or ``stop`` is set.
@@ -97,14 +101,20 @@ class RobotLink:
                 delay_s = min(delay_s * 2, _RECONNECT_MAX_S)
                 continue
             logger.info("connected to %s", self.url)
+            self._ready.set()
             return
 
-    def connected(self) -> Ros:
+    async def connected(self) -> Ros:
         """The client, once connected.
+
+        A tool called while the first connection is still being made waits for
+        it, ``FIRST_CONNECT_WAIT_S`` at most.
 
         Raises:
             ToolError: not connected (yet, or any more): the client's reason.
         """
+        with anyio.move_on_after(FIRST_CONNECT_WAIT_S):
+            await self._ready.wait()
         try:
             self.ros.require_connection()
         except ConnectionClosedError as exc:
@@ -118,7 +128,7 @@ class RobotLink:
         if found is not None:
             self._publishers.move_to_end(key)
             return found
-        publisher = Topic(self.connected(), topic, message_type)
+        publisher = Topic(await self.connected(), topic, message_type)
         await publisher.advertise()
         self._publishers[key] = publisher
         if len(self._publishers) > MAX_PUBLISHERS:
@@ -139,7 +149,7 @@ class RobotLink:
             if record is not None:
                 record.on_feedback(values)
 
-        handle = await Action(self.connected(), action, action_type).send_goal(
+        handle = await Action(await self.connected(), action, action_type).send_goal(
             goal, on_feedback=on_feedback
         )
         record = self.goals[handle.id] = Goal(action, handle)

@@ -171,29 +171,29 @@ class RobotTools:
     async def list_topics(self) -> Topics:
         """Every topic of the robot and its message type (rosapi)."""
         with _tool_errors():
-            topics = await self.link.connected().get_topics_and_types()
+            topics = await (await self.link.connected()).get_topics_and_types()
         listed = [TopicInfo(name=name, type=topics[name]) for name in sorted(topics)]
         return Topics(topics=listed[:MAX_LIST_ITEMS], total=len(listed))
 
     async def list_services(self) -> Names:
         """Every service of the robot (rosapi)."""
         with _tool_errors():
-            return _names(await self.link.connected().get_services())
+            return _names(await (await self.link.connected()).get_services())
 
     async def list_nodes(self) -> Names:
         """Every node of the robot (rosapi)."""
         with _tool_errors():
-            return _names(await self.link.connected().get_nodes())
+            return _names(await (await self.link.connected()).get_nodes())
 
     async def list_actions(self) -> Names:
         """Every action server of the robot (rosapi's action_servers, where offered)."""
         with _tool_errors():
-            return _names(await self.link.connected().get_action_servers())
+            return _names(await (await self.link.connected()).get_action_servers())
 
     async def list_parameters(self) -> Names:
         """Every parameter name of the robot (rosapi; ROS 2: ``/node:param``)."""
         with _tool_errors():
-            return _names(await self.link.connected().get_params())
+            return _names(await (await self.link.connected()).get_params())
 
     async def type_definition(self, type: str) -> TypeDefinition:
         """A message type's fields (rosapi message_details) and a JSON schema for building one.
@@ -202,7 +202,7 @@ class RobotTools:
             type: a message type, ``pkg/msg/Type`` or ``pkg/Type``.
         """
         with _tool_errors():
-            typedefs = await self.link.connected().get_message_details(type)
+            typedefs = await (await self.link.connected()).get_message_details(type)
         if not typedefs:
             raise ToolError(f"the server knows no message type {type!r}")
         return TypeDefinition(type=type, typedefs=typedefs, json_schema=json_schema(typedefs))
@@ -228,7 +228,7 @@ class RobotTools:
             type: the message type; None asks the server.
         """
         seconds = _wait(timeout_s)
-        ros = self.link.connected()
+        ros = await self.link.connected()
         with _tool_errors():
             message_type = type or await ros.get_topic_type(topic)
         images = message_type in IMAGE_TYPES
@@ -349,7 +349,7 @@ class RobotTools:
             timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
         """
         with _tool_errors():
-            values = await self.link.connected().call_service(
+            values = await (await self.link.connected()).call_service(
                 service, args or {}, type_name=type, timeout_s=_wait(timeout_s)
             )
         return ServiceAnswer(service=service, values=summarise(values))
@@ -357,13 +357,13 @@ class RobotTools:
     async def get_parameter(self, name: str) -> ParameterValue:
         """A parameter's value (rosapi; ROS 2 names are ``/node:param``); null if unset."""
         with _tool_errors():
-            value = await Param(self.link.connected(), name).get()
+            value = await Param(await self.link.connected(), name).get()
         return ParameterValue(name=name, value=summarise(value))
 
     async def set_parameter(self, name: str, value: Any) -> ParameterValue:
         """Set a parameter (rosapi); the answer reads it back."""
         with _tool_errors():
-            parameter = Param(self.link.connected(), name)
+            parameter = Param(await self.link.connected(), name)
             await parameter.set(value)
             return ParameterValue(name=name, value=summarise(await parameter.get()))
 
@@ -407,7 +407,7 @@ class RobotTools:
             timeout_s: the longest wait for the goal's end, seconds (at most MAX_WAIT_S).
         """
         seconds = _wait(timeout_s)
-        ros = self.link.connected()
+        ros = await self.link.connected()
         with _tool_errors():
             ros.session.cancel_action_goal(action, goal_id)
             await ros.flush()
@@ -455,7 +455,7 @@ class RobotTools:
             timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
         """
         seconds = _wait(timeout_s)
-        ros = self.link.connected()
+        ros = await self.link.connected()
         request = {
             "source_frames": [source_frame],
             "target_frame": target_frame,

@@ -91,11 +91,21 @@ def shown(page: Page, kind: str) -> list[str]:
 def test_the_node_graph_draws_nodes_topics_and_their_edges(page: Page) -> None:
     click(page, '#tabs button[data-tab="node-graph"]')
     page.wait_for(f"!!document.querySelector('{item('node', '/base')}')", what="the node graph")
-    nodes = shown(page, "node")
     sensors = [f"/sensor_{i:02d}" for i in range(SENSORS)]
     expected = ["/talker", "/listener", "/map_server", "/static_tf", "/odometry", "/amcl"]
     expected += ["/fusion", "/base"]
-    assert set(nodes) == {*expected, *sensors}  # not rwt's own nodes, nor this page's
+    # not rwt's own nodes, nor this page's: a first draw may come before the page knows
+    # its own node's name, so the refreshes are waited for (each poll presses Refresh)
+    page.wait_for(
+        f"(() => {{ const want = {json.dumps(sorted({*expected, *sensors}))};"
+        " const got = [...document.querySelectorAll('#node-graph g[data-kind=node]')]"
+        ".map(g => g.querySelector('text').textContent).sort();"
+        " return JSON.stringify(got) === JSON.stringify(want)"
+        " || (document.getElementById('refresh').click(), false); })()",
+        what="the robot's nodes alone",
+    )
+    nodes = shown(page, "node")
+    assert set(nodes) == {*expected, *sensors}
     topics = shown(page, "topic")
     assert {"/chatter", "/map", "/tf", "/tf_static", "/cmd_vel", "/sensors/s07"} <= set(topics)
     assert "/rosout" not in topics and "/client_count" not in topics  # debug, hidden
