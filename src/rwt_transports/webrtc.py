@@ -27,10 +27,11 @@ the server's (pump.py); this module only moves frames:
   (``background``) therefore hands a message over only while both channels
   buffer at most ``LOSSY_GATE_BYTES`` together (their ``bufferedAmount``; the
   outbound queue holds the rest of one message at most, as aiortc moves the
-  next only when it is empty), and while a lossy message waits the reliable
-  writer keeps its channel's buffer under that gate too rather than
-  ``SEND_HIGH_WATER_BYTES``: the lossy message goes next, ahead of the
-  reliable backlog, which stays in the session's outbox.
+  next only when it is empty), and while the lane holds a message the
+  reliable writer hands aiortc nothing: the lossy messages go next, ahead of
+  the reliable backlog, which waits in the session's outbox. The lossy channel
+  so has priority: a lossy stream that takes the whole link holds the reliable
+  channel's messages back (the peer chooses it; ``throttle_rate`` limits it).
 """
 
 from __future__ import annotations
@@ -124,7 +125,7 @@ class DataChannelChannel(PlainChannel):
         self._lossy: RTCDataChannel | None = None
         self._lossy_state = anyio.Event()  # the lossy channel came, or went
         self._lane_ready = anyio.Event()  # the session's lossy lane holds a message
-        self._lossy_waits = False  # a lossy message waits for room (the reliable writer yields)
+        self._lossy_pending = False  # the lane holds messages: the reliable writer yields
         self._room = anyio.Event()  # the lossy writer's wake-up: a channel's buffer went down
         if channel is not None:
             self.attach(channel)
@@ -163,10 +164,12 @@ class DataChannelChannel(PlainChannel):
 
     def lossy_ready(self) -> None:
         """The session's lossy lane got a message (the lane's ``on_output``)."""
+        self._lossy_pending = True
         self._lane_ready.set()
 
     def _on_lossy_close(self) -> None:
         self._lossy = None
+        self._lossy_pending = False
         self._lossy_state.set()
         self._lane_ready.set()
         self._room.set()
@@ -246,10 +249,12 @@ class DataChannelChannel(PlainChannel):
                         limit,
                     )
                     continue
+                await self._yield_to_lossy()
                 self._send(data)
             else:
                 parts = fragment_datagrams(data, MAX_TEXT_FRAME_BYTES, f"webrtc:{next(_ids)}")
                 for part in parts:
+                    await self._yield_to_lossy()
                     self._send(part.decode("utf-8"))
                     await self._drain()
             await self._drain()
@@ -263,14 +268,21 @@ class DataChannelChannel(PlainChannel):
             raise anyio.BrokenResourceError from exc
 
     async def _drain(self) -> None:
-        """Wait while the channel buffers more than ``SEND_HIGH_WATER_BYTES`` for the peer.
-
-        While a lossy message waits for room, down to ``LOSSY_GATE_BYTES`` (D36).
-        """
+        """Wait while the channel buffers more than ``SEND_HIGH_WATER_BYTES`` for the peer."""
         channel = self._dc
-        while channel.bufferedAmount > (
-            LOSSY_GATE_BYTES if self._lossy_waits else SEND_HIGH_WATER_BYTES
-        ):
+        while channel.bufferedAmount > SEND_HIGH_WATER_BYTES:
+            if self._ended:
+                raise anyio.BrokenResourceError
+            self._drained = anyio.Event()
+            await self._drained.wait()
+
+    async def _yield_to_lossy(self) -> None:
+        """Wait while the lossy lane holds messages: they go first (D36).
+
+        The reliable channel's backlog stays in the session's outbox meanwhile,
+        so the lossy writer finds room in aiortc's queue soon.
+        """
+        while self._lossy_pending and self._lossy is not None:
             if self._ended:
                 raise anyio.BrokenResourceError
             self._drained = anyio.Event()
@@ -298,9 +310,15 @@ class DataChannelChannel(PlainChannel):
                 session.close_lossy_lane()  # closed: its subscriptions go on the reliable one
                 await self._lossy_state.wait()
                 continue
-            while self._lossy is channel and await self._room_for_lossy(channel):
+            while (
+                self._lossy is channel
+                and self._lossy_pending
+                and await self._room_for_lossy(channel)
+            ):
                 frame = session.lossy_frame_to_send()
-                if frame is None:
+                if frame is None:  # the lane is empty: the reliable writer goes on
+                    self._lossy_pending = False
+                    self._drained.set()
                     break
                 data = frame.prefix + frame.data if frame.prefix else frame.data
                 try:
@@ -314,10 +332,9 @@ class DataChannelChannel(PlainChannel):
         """Wait until the channels buffer at most ``LOSSY_GATE_BYTES``; False if it closed.
 
         The lane keeps only each topic's latest message meanwhile, and the
-        reliable writer stays under the gate (``_drain``).
+        reliable writer waits (``_yield_to_lossy``).
         """
         reliable = self._dc
-        self._lossy_waits = True
         try:
             reliable.bufferedAmountLowThreshold = LOSSY_GATE_BYTES
             while reliable.bufferedAmount + channel.bufferedAmount > LOSSY_GATE_BYTES:
@@ -326,7 +343,5 @@ class DataChannelChannel(PlainChannel):
                 self._room = anyio.Event()
                 await self._room.wait()
         finally:
-            self._lossy_waits = False
             reliable.bufferedAmountLowThreshold = SEND_LOW_WATER_BYTES
-            self._drained.set()  # the reliable writer's mark went back up: it looks again
         return self._lossy is channel
