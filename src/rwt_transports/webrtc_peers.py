@@ -219,6 +219,11 @@ class WebRtcPeers:
         item.lossy = channel
         item.dc.attach_lossy(channel)
         item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
+        logger.info(
+            "event=lossy_channel client=%s max_message_bytes=%d",
+            item.session.client_id,
+            item.remote_max,
+        )
 
     def _on_state(self, item: _Peer) -> None:
         """A failed or closed peer connection ends its session."""

@@ -4,9 +4,12 @@
 ICE candidates in it: no trickle) answers ``201 Created`` with the answer SDP
 and ``Location: /webrtc/<id>``; ``DELETE /webrtc/<id>`` ends that session
 (204, or 404 for an unknown id); ``OPTIONS`` answers a browser's CORS
-preflight. Everything else on the port (the WebSocket upgrade, the console) is
-unchanged: the WebSocket listener hands a request here only when its request
-line starts with one of these methods and the path (``claims``).
+preflight; ``GET /webrtc/roslib-transport.js`` serves roslib's transport
+factory for WebRTC (``ROSLIB_TRANSPORT_PATH``, a file of this package, with the
+same CORS headers, so a page elsewhere can import it). Everything else on the
+port (the WebSocket upgrade, the console) is unchanged: the WebSocket listener
+hands a request here only when its request line starts with one of these
+methods and the path (``claims``; a ``GET`` only below ``/webrtc/``).
 
 HTTP/1.1 is parsed by h11 (sans-IO); one request per connection. The offer is
 at most ``MAX_OFFER_BYTES``. With an authenticator (``--auth-secret-file``) an
@@ -21,7 +24,9 @@ import contextlib
 import fnmatch
 import logging
 from dataclasses import dataclass
+from functools import cache
 from http import HTTPStatus
+from importlib import resources
 from typing import TYPE_CHECKING, Protocol
 
 import anyio
@@ -35,6 +40,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "MAX_OFFER_BYTES",
+    "ROSLIB_TRANSPORT_PATH",
     "WEBRTC_PATH",
     "Answer",
     "OfferHandler",
@@ -47,6 +53,9 @@ logger = logging.getLogger("rwt.webrtc")
 WEBRTC_PATH = "/webrtc"
 """The signalling endpoint: offers are posted here, sessions live under it."""
 
+ROSLIB_TRANSPORT_PATH = WEBRTC_PATH + "/roslib-transport.js"
+"""Where roslib's transport factory for WebRTC is served (docs/webrtc.md, "A page with roslib")."""
+
 MAX_OFFER_BYTES = 64 * 1024
 """Largest offer SDP accepted (a browser's offer with a data channel is about 1 KiB): 413."""
 
@@ -55,8 +64,9 @@ CONNECT_TIMEOUT_S = 15.0
 ``rosbridge`` data channel; then its session is freed (``WebRtcOptions``)."""
 
 _READ_SIZE = 65536
-_METHODS = (b"POST", b"DELETE", b"OPTIONS")
+_METHODS = (b"POST", b"DELETE", b"OPTIONS", b"GET")
 _SDP = "application/sdp"
+_JS = "text/javascript; charset=utf-8"
 _CORS = [
     (b"Access-Control-Allow-Methods", b"POST, DELETE, OPTIONS"),
     (b"Access-Control-Allow-Headers", b"Authorization, Content-Type"),
@@ -136,7 +146,8 @@ class WebRtcSignalling:
                     return None
                 continue
             if head.startswith(prefix):
-                return head[len(prefix) : len(prefix) + 1] in (b" ", b"/", b"?")
+                after = head[len(prefix) : len(prefix) + 1]
+                return after == b"/" if method == b"GET" else after in (b" ", b"/", b"?")
         return False
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
@@ -165,6 +176,9 @@ class WebRtcSignalling:
         answer = await self._route(request, headers, body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
         kind = _SDP if answer.status == 201 else "text/plain; charset=utf-8"
+        if request.method == b"GET" and answer.status == 200:
+            kind = _JS
+            extra.append((b"Cache-Control", b"no-cache"))  # a new rwt serves a new file
         logger.info(
             "event=signalling peer=%s method=%s status=%d",
             peer,
@@ -189,6 +203,10 @@ class WebRtcSignalling:
         path = request.target.decode("latin-1").split("?", 1)[0].rstrip("/")
         if method == "OPTIONS":
             return Answer(204, "")
+        if method == "GET":
+            if path == ROSLIB_TRANSPORT_PATH:
+                return Answer(200, roslib_transport())
+            return Answer(404, f"nothing at {path}: the transport is at {ROSLIB_TRANSPORT_PATH}")
         if method == "DELETE":
             session_id = path.removeprefix(WEBRTC_PATH + "/")
             if path.startswith(WEBRTC_PATH + "/") and self.peers.delete(session_id):
@@ -213,6 +231,12 @@ class WebRtcSignalling:
         if not sdp.strip():
             return Answer(400, "the offer is empty: post a complete SDP offer")
         return await self.peers.offer(sdp, peer, authenticated=authenticated)
+
+
+@cache
+def roslib_transport() -> str:
+    """The JavaScript served at ``ROSLIB_TRANSPORT_PATH``, read from the package once."""
+    return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
 
 
 class _TooLarge(Exception):
