@@ -5,9 +5,17 @@ ICE candidates gathered (no trickle), is posted to the URL without its
 ``webrtc+`` prefix (``http://HOST:PORT/webrtc``; ``webrtc+https://`` posts over
 TLS), the answer comes back with ``201 Created`` and the session's
 ``Location``, and the ``rosbridge`` data channel then carries whole frames as a
-WebSocket does: JSON as text messages, CBOR as binary ones. Closing the
-connection deletes the session (``DELETE`` its ``Location``) and closes the peer
-connection.
+WebSocket does: JSON as text messages, CBOR as binary ones. A JSON message
+larger than the server takes in one (its answer's ``a=max-message-size``, 64 KiB
+without one, RFC 8841) goes as ``fragment`` ops (spec 3.1.1, D19), which the
+server reassembles; a CBOR one that large cannot be cut and is refused
+(``ConnectionClosedError``). The other way, the server cuts a JSON message over
+64 KiB into ``fragment`` ops whose id starts ``webrtc:`` (docs/webrtc.md): this
+connection joins those, so its reader gets the message whole, as over a WebSocket
+(fragments a subscription asked for with ``fragment_size`` are left to the
+reader). ``send`` waits while the channel buffers more than
+``SEND_HIGH_WATER_BYTES``. Closing the connection deletes the session (``DELETE``
+its ``Location``) and closes the peer connection.
 
 WebRTC comes from aiortc, the ``webrtc`` extra; without it, opening such a URL
 raises ``ConfigError`` with the command that installs it. The request is one
@@ -17,6 +25,9 @@ HTTP/1.1 exchange made with h11 (the ``server`` extra, which ``webrtc`` brings).
 from __future__ import annotations
 
 import contextlib
+import itertools
+import json
+import re
 import ssl
 from collections import deque
 from typing import TYPE_CHECKING, Any
@@ -25,7 +36,9 @@ from urllib.parse import urljoin, urlsplit
 import anyio
 
 from rwt_protocol.distribution import install_hint
-from rwt_protocol.errors import ConfigError
+from rwt_protocol.errors import ConfigError, RwtError
+from rwt_protocol.framing.datagrams import fragment_datagrams
+from rwt_protocol.framing.fragments import PartKind, Reassembler
 
 from .connectors import WEBRTC_SCHEMES, ConnectionClosedError
 
@@ -40,23 +53,46 @@ DEFAULT_PATH = "/webrtc"
 MAX_ANSWER_BYTES = 256 * 1024
 """The largest answer (status line, headers and SDP) read from the server."""
 
+SEND_HIGH_WATER_BYTES = 1024 * 1024
+"""``send`` waits while the data channel buffers more than this for the server."""
+
+DEFAULT_MAX_MESSAGE_BYTES = 64 * 1024
+"""The largest message a peer whose SDP states no ``a=max-message-size`` takes (RFC 8841 6.1)."""
+
+MAX_PENDING_MESSAGES = 4
+"""Messages the server cut into ``fragment`` ops that may be incomplete at once."""
+
 _READ_SIZE = 65536
+_TRANSPORT_FRAGMENT = '{"op":"fragment","id":"webrtc:'  # the server's own cut (webrtc.py)
+_MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
+_ids = itertools.count(1)
 
 
 class WebRtcConnection:
     """A rosbridge session over the ``rosbridge`` data channel of one peer connection."""
 
-    def __init__(self, url: str, pc: Any, channel: Any, session: str, limit: int) -> None:
+    def __init__(
+        self, url: str, pc: Any, channel: Any, session: str, limit: int, answer: str
+    ) -> None:
         self.url = url
         self._pc = pc
         self._channel = channel
         self._session = session  # the http(s) URL that DELETE ends
         self._limit = limit
+        found = _MAX_MESSAGE_SIZE.search(answer)
+        self.remote_max_message_size = int(found.group(1)) if found else DEFAULT_MAX_MESSAGE_BYTES
+        """The largest message the server takes, bytes (0: any size)."""
         self._messages: deque[str | bytes] = deque()
+        self._parts = Reassembler(
+            max_bytes=limit, max_pending=MAX_PENDING_MESSAGES, timeout_s=float("inf")
+        )
         self._arrived = anyio.Event()
+        self._drained = anyio.Event()
         self._closed_reason: str | None = None
+        channel.bufferedAmountLowThreshold = SEND_HIGH_WATER_BYTES // 4
         channel.on("message", self._on_message)
         channel.on("close", lambda: self._end("closed by the server"))
+        channel.on("bufferedamountlow", self._on_low)
 
     @classmethod
     async def open(
@@ -90,7 +126,8 @@ class WebRtcConnection:
             if status != 201 or location is None:
                 raise ConnectionClosedError(f"{url} refused the offer: {status} {text.strip()}")
             await pc.setRemoteDescription(RTCSessionDescription(text, "answer"))
-            conn = cls(url, pc, channel, urljoin(endpoint, location), max_message_size)
+            session = urljoin(endpoint, location)
+            conn = cls(url, pc, channel, session, max_message_size, text)
             await opened.wait()
             if channel.readyState != "open":
                 raise ConnectionClosedError(f"{url}: the data channel closed before it opened")
@@ -106,19 +143,68 @@ class WebRtcConnection:
             self._end(f"closed by the client (message of {size} bytes over {self._limit})")
             self._channel.close()
             return
+        if isinstance(message, str) and message.startswith(_TRANSPORT_FRAGMENT):
+            try:
+                part = json.loads(message)
+                whole = self._parts.add(
+                    PartKind.FRAGMENT,
+                    part["id"],
+                    part["num"],
+                    part["total"],
+                    data=part["data"],
+                    now=0.0,
+                )
+            except (RwtError, ValueError, KeyError, TypeError) as exc:
+                self._end(f"closed by the client (a fragment of the server's is wrong: {exc})")
+                self._channel.close()
+                return
+            if whole is None:
+                return
+            message = whole
         self._messages.append(message)
         self._arrived.set()
+
+    def _on_low(self) -> None:
+        self._drained.set()  # the current event: ``send`` makes a new one each wait
 
     def _end(self, reason: str) -> None:
         if self._closed_reason is None:
             self._closed_reason = reason
         self._arrived.set()
+        self._drained.set()
 
     async def send(self, frame: str | bytes) -> None:
-        """Send one text (``str``, JSON) or binary (``bytes``, CBOR) message."""
-        if self._closed_reason is not None or self._channel.readyState != "open":
-            raise ConnectionClosedError(f"{self.url}: {self._closed_reason or 'connection closed'}")
-        self._channel.send(frame)
+        """Send one text (``str``, JSON) or binary (``bytes``, CBOR) message.
+
+        Raises:
+            ConnectionClosedError: the connection is gone, or a CBOR message is larger
+                than the server takes (``remote_max_message_size``).
+        """
+        limit = self.remote_max_message_size
+        if isinstance(frame, bytes):
+            if limit and len(frame) > limit:
+                raise ConnectionClosedError(
+                    f"{self.url}: a CBOR message of {len(frame)} bytes is over the server's "
+                    f"max-message-size ({limit}): it cannot be cut into fragment ops"
+                )
+            parts: list[str | bytes] = [frame]
+        else:
+            data = frame.encode()
+            parts = (
+                [frame]
+                if not limit or len(data) <= limit
+                else [
+                    part.decode() for part in fragment_datagrams(data, limit, f"rwt:{next(_ids)}")
+                ]
+            )
+        for part in parts:
+            if self._closed_reason is not None or self._channel.readyState != "open":
+                reason = self._closed_reason or "connection closed"
+                raise ConnectionClosedError(f"{self.url}: {reason}")
+            self._channel.send(part)
+            while self._channel.bufferedAmount > SEND_HIGH_WATER_BYTES:
+                self._drained = anyio.Event()
+                await self._drained.wait()
 
     async def receive(self) -> str | bytes:
         """Wait for the next whole message."""
