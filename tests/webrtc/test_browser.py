@@ -176,3 +176,31 @@ def test_roslib_in_chromium_talks_rosbridge_over_the_data_channel(
     log = server.stderr_path.read_text()
     assert "transport=webrtc" in log  # the session was the data channel's, not a WebSocket
     assert "event=lossy_channel" in log  # and the page opened the lossy one beside it
+
+
+def test_the_console_talks_over_the_data_channel_with_webrtc_in_its_url(
+    browser: Browser, tmp_path: Path
+) -> None:
+    server = ServerProcess(tmp_path, ("--webrtc",))
+    try:
+        page = browser.new_page()
+        try:
+            page.goto(server.url.replace("ws://", "http://") + "/?webrtc")
+            page.wait_for("!!document.querySelector('#status.ok')", 30, "the console to connect")
+            page.wait_for(
+                "!!document.querySelector('#topics tbody tr[data-name=\"/client_count\"]')",
+                30,
+                "the graph over the data channel",
+            )
+            shown = page.text("#server-url")
+            requested = page.requested_urls()
+            errors = page.errors()
+        finally:
+            page.close()
+    finally:
+        server.stop()
+    assert shown.endswith("/webrtc (WebRTC)")
+    assert not any(url.startswith("ws://") for url in requested)  # no WebSocket at all
+    assert errors == []
+    log = server.stderr_path.read_text()
+    assert "transport=webrtc" in log and "transport=ws" not in log
