@@ -25,14 +25,20 @@ export function webrtcTransportFactory(AbstractTransport, options = {}) {
       super();
       Object.assign(this, { pc, channel, lossyChannel, session });
       const channels = lossyChannel ? [channel, lossyChannel] : [channel];
-      const opened = () => {  // both open: roslib may subscribe on either
-        if (channels.every((c) => c.readyState === "open")) this.emit("open", {});
+      let announced = false;
+      const opened = () => {  // both settled: roslib may subscribe on either
+        const lossySettled = !lossyChannel || lossyChannel.readyState !== "connecting";
+        if (!announced && channel.readyState === "open" && lossySettled) {
+          announced = true;  // a server that refuses the lossy channel closes it: go without
+          this.emit("open", {});
+        }
       };
       for (const c of channels) {
         c.binaryType = "arraybuffer";
         c.onopen = opened;
         c.onmessage = (e) => this.handleRawMessage(e.data);
       }
+      if (lossyChannel) lossyChannel.onclose = opened;
       channel.onclose = (e) => this.emit("close", e);
       channel.onerror = (e) => this.emit("error", e);
     }
