@@ -15,8 +15,8 @@ protocol's session shares (the contract the connection runtime drives is
 - ``encoding`` (topic messages and replies in each subscriber's encoding),
   ``outbox`` (the bounded queue of outgoing frames), ``lossy`` (the latest
   message of each topic subscribed on a transport's lossy channel, D36),
-  ``backpressure`` (slow consumers), ``inflate`` (the png inflation budget), ``pngout`` (png messages
-  deflated off the event loop);
+  ``backpressure`` (slow consumers), ``inflate`` (the png inflation budget),
+  ``pngout`` (png messages deflated off the event loop);
 - ``timers``, ``idle`` (closing silent connections), ``commands`` (what the
   session asks its transport to do).
 """

@@ -558,10 +558,12 @@ class Session(SessionBase):
         if lane is None:  # the lossy channel closed: the reliable one carries it
             self.send_frames(frames, subscription.spelling)
             return
+        # one frame: the lane's messages are made without fragment_size (no parts)
         size = sum(len(frame.data) for frame in frames)
         if len(frames) == 1 and lane.put(subscription.topic, frames[0]):
             return
-        lane.refused += len(frames) > 1  # parts of a png message: the lane sends whole ones
+        if len(frames) > 1:
+            lane.refused += 1  # (``put`` counts the one-frame refusals)
         if subscription.topic not in self._oversize_warned and len(self._oversize_warned) < (
             self._config.max_subscriptions
         ):
