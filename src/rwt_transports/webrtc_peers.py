@@ -219,6 +219,8 @@ class WebRtcPeers:
         item.lossy = channel
         item.dc.attach_lossy(channel)
         item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
+        # closed: its subscriptions' next messages go on the reliable channel at once
+        channel.on("close", item.session.close_lossy_lane)
         logger.info(
             "event=lossy_channel client=%s max_message_bytes=%d",
             item.session.client_id,

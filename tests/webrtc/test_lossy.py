@@ -134,3 +134,22 @@ async def test_the_lossy_channel_stays_fresh_behind_a_reliable_backlog(served: S
     assert max(reliable_seen, default=-1) < count - 100, "the reliable channel was not behind"
     seen = [m["msg"]["data"] for m in _lossy_messages(client)]  # type: ignore[index]
     assert seen[-1] == count - 1
+
+
+async def test_when_the_lossy_channel_closes_its_subscriptions_go_on_the_reliable_one(
+    served: Served,
+) -> None:
+    counter = served.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
+    async with rtc_client(served.base, lossy=LOSSY) as client:
+        await _lossy_open(client)
+        assert client.lossy is not None
+        client.send_lossy({"op": "subscribe", "topic": "/count", "type": "std_msgs/Int32"})
+        await _subscribed(client, "s")
+        client.lossy.close()
+        with anyio.fail_after(RECEIVE_S):
+            while client.lossy.readyState != "closed":
+                await anyio.sleep(0.01)
+        await _subscribed(client, "closed")  # the server saw the close before this reply
+        counter.publish({"data": 7})
+        message = await client.next_op("publish")
+    assert message["topic"] == "/count" and message["msg"] == {"data": 7}
