@@ -1,13 +1,14 @@
 """Lichtblick's schema check on what rwt advertises, with the real Foxglove client in Node.
 
-Lichtblick (v1.28.1) preloads its copy of ROS 2 Humble's common definitions when
-``serverInfo`` names a ROS distribution, parses each advertised ``ros2msg`` schema with
-@lichtblick/rosmsg and compares every definition with the one it holds under that name,
-member by member and in order (@lichtblick/message-definition's ``isMsgDefEqual``); a
-mismatch is the error alert "Definition of schema 'X' has changed during the server's
-runtime" (docs/foxglove.md). tests/js/lichtblick_schemas.mjs replays that rule, with
-those two packages pinned, against ``lichtblick_ros2humble.json``: the repository's copy of
-the reference definitions, one ``.msg`` text a type in the file's order.
+Lichtblick (v1.28.1) preloads its copy of ROS 2 Humble's common definitions (ROS 1's for
+``noetic``) when ``serverInfo`` names a ROS distribution, parses each advertised
+``ros2msg`` (``ros1msg``) schema with @lichtblick/rosmsg and compares every definition
+with the one it holds under that name, member by member and in order
+(@lichtblick/message-definition's ``isMsgDefEqual``); a mismatch is the error alert
+"Definition of schema 'X' has changed during the server's runtime" (docs/foxglove.md).
+tests/js/lichtblick_schemas.mjs replays that rule, with those two packages pinned,
+against ``lichtblick_ros2humble.json`` and ``lichtblick_ros1.json``: the repository's
+copies of the reference definitions, one ``.msg`` text a type in the file's order.
 """
 
 from __future__ import annotations
@@ -30,7 +31,22 @@ pytestmark = pytest.mark.node
 
 SCRIPT = "lichtblick_schemas.mjs"
 REFERENCE = Path(__file__).resolve().parent / "lichtblick_ros2humble.json"
+ROS1_REFERENCE = REFERENCE.with_name("lichtblick_ros1.json")
 EXAMPLE = REPO / "examples" / "robot.py"
+#: A ROS 1 robot (``noetic``) with common types on its topics and a service.
+ROS1_ROBOT = """
+import asyncio
+from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt.types import Dialect, TypeRegistry
+graph = Graph(TypeRegistry(Dialect.ROS1))
+graph.create_publisher("/velocity", "geometry_msgs/Twist")
+graph.create_publisher("/fix", "sensor_msgs/NavSatFix")
+graph.create_publisher("/markers", "visualization_msgs/MarkerArray")
+graph.create_publisher("/scan", "sensor_msgs/LaserScan")
+graph.create_service("/lights", "std_srvs/SetBool", lambda req: {"success": True})
+server = RosbridgeServer(graph, ServerConfig(port=0))
+asyncio.run(server.serve(on_listening=lambda url: print("listening on", url, flush=True)))
+"""
 
 #: Where ROS 2 itself changed a common type after Humble: rwt serves Jazzy's (Kilted's)
 #: definitions, so Lichtblick flags these whoever serves them (foxglove_bridge on Jazzy too).
@@ -50,8 +66,14 @@ def run(*args: str) -> Any:
     return extras.run(*args, script=SCRIPT)
 
 
-def reference_types() -> dict[str, str]:
-    return json.loads(REFERENCE.read_text(encoding="utf-8"))["types"]  # type: ignore[no-any-return]
+#: The one type of Lichtblick's ROS 1 set a ROS 1 graph writes otherwise: a ROS 2 type
+#: (no ROS 1 file), whose ``byte`` constants Lichtblick reads as ROS 1's ``byte`` (int8)
+#: and rwt writes as ROS 2's (an octet: uint8).
+ROS1_DIFFERS = {"rcl_interfaces/Log"}
+
+
+def reference_types(path: Path = REFERENCE) -> dict[str, str]:
+    return json.loads(path.read_text(encoding="utf-8"))["types"]  # type: ignore[no-any-return]
 
 
 def full(name: str) -> str:
@@ -74,19 +96,29 @@ def robot(tmp_path: Path) -> Iterator[ServerProcess]:
         server.stop()
 
 
-@pytest.fixture
-def default_server(tmp_path: Path) -> Iterator[ServerProcess]:
-    server = ServerProcess(tmp_path)
+@pytest.fixture(params=[(), ("--dialect", "ros1")], ids=["ros2", "ros1"])
+def default_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[ServerProcess]:
+    server = ServerProcess(tmp_path, request.param)
     try:
         yield server
     finally:
         server.stop()
 
 
-def test_the_reference_is_lichtblicks_own_set() -> None:
+@pytest.fixture
+def ros1_robot(tmp_path: Path) -> Iterator[ServerProcess]:
+    server = ServerProcess(tmp_path, cmd=[sys.executable, "-c", ROS1_ROBOT])
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.mark.parametrize(("name", "path"), [("ros2humble", REFERENCE), ("ros1", ROS1_REFERENCE)])
+def test_the_reference_is_lichtblicks_own_set(name: str, path: Path) -> None:
     # parsed by Lichtblick's rule, each type equals @lichtblick/rosmsg-msgs-common's
-    result = run("data", str(REFERENCE))
-    assert result["types"] == len(reference_types()) > 100
+    result = run("data", name, str(path))
+    assert result["types"] == len(reference_types(path)) > 100
     assert result["unequal"] == []
     assert result["extra"] == []
 
@@ -109,8 +141,9 @@ def test_the_example_robot_raises_no_alert(robot: ServerProcess) -> None:
 
 
 def test_a_default_server_raises_no_alert(default_server: ServerProcess) -> None:
-    result = run("server", default_server.url, str(REFERENCE))
-    assert result["distro"] == "kilted"
+    ros1 = "--dialect" in default_server.cmd
+    result = run("server", default_server.url, str(ROS1_REFERENCE if ros1 else REFERENCE))
+    assert result["distro"] == ("noetic" if ros1 else "kilted")
     # its own plumbing (rosapi, the server's parameters) is hidden from Foxglove clients
     assert result["channels"] == [] and result["services"] == []
     assert result["alerts"] == []
@@ -158,10 +191,43 @@ def test_the_foxglove_sdk_server_of_the_same_robot_raises_no_fewer(robot: Server
     assert len(ours["alerts"]) <= len(sdk["alerts"])
 
 
-def rwt_schemas(tmp_path: Path, texts: dict[str, str]) -> Any:
+def test_a_ros1_robot_raises_no_alert(ros1_robot: ServerProcess) -> None:
+    names = ["/velocity", "/fix", "/markers", "/scan", "/lights"]
+    result = run("server", ros1_robot.url, str(ROS1_REFERENCE), *names)
+    assert result["distro"] == "noetic"
+    assert result["alerts"] == []
+    # Kilted's NavSatStatus differs from Humble's, Noetic's is Lichtblick's ROS 1 copy
+    for name in (
+        "geometry_msgs/Twist",
+        "sensor_msgs/NavSatFix",
+        "sensor_msgs/NavSatStatus",
+        "visualization_msgs/Marker",
+        "sensor_msgs/LaserScan",
+        "std_msgs/Header",
+    ):
+        assert name in result["compared"]
+
+
+def rwt_schemas(tmp_path: Path, texts: dict[str, str], reference: Path = REFERENCE) -> Any:
     path = tmp_path / "schemas.json"
     path.write_text(json.dumps(texts), encoding="utf-8")
-    return run("schemas", str(path), str(REFERENCE))
+    return run("schemas", str(path), str(reference))
+
+
+def test_every_common_ros1_type_matches_but_a_ros2_one(tmp_path: Path) -> None:
+    # ROS 1 (shape_msgs, visualization_msgs...) in Noetic's order (test_ros1_declaration_order)
+    registry = TypeRegistry(Dialect.ROS1)
+    known = set(registry.message_names())
+    texts = {
+        name: schema_of(registry.message(name)).schema
+        for name in reference_types(ROS1_REFERENCE)
+        if name in known
+    }
+    assert len(texts) >= len(reference_types(ROS1_REFERENCE)) - 2  # but velodyne_msgs'
+    result = rwt_schemas(tmp_path, texts, ROS1_REFERENCE)
+    changed = {alert["id"].removeprefix("schema-changed-") for alert in result["alerts"]}
+    assert changed == ROS1_DIFFERS
+    assert set(texts) <= set(result["compared"])  # each met its reference
 
 
 def test_every_common_type_matches_but_where_ros_2_changed_it(tmp_path: Path) -> None:

@@ -1,23 +1,25 @@
 // Lichtblick's schema check, replayed against a Foxglove server with the real Foxglove client.
 //
-// Lichtblick (v1.28.1, its Foxglove WebSocket player) preloads its copy of the common ROS 2
-// definitions when serverInfo names a ROS distribution, parses every advertised ros2msg schema
-// with @lichtblick/rosmsg (ros2: true), and compares each parsed definition with the one it
-// already holds under that name by @lichtblick/message-definition's isMsgDefEqual, which
-// compares the members in order. A mismatch is the error alert "Definition of schema 'X' has
-// changed during the server's runtime". The reference definitions are
-// tests/foxglove/lichtblick_ros2humble.json, rwt's own copy: one `.msg` text a type, members
-// in the file's order (docs/foxglove.md).
+// Lichtblick (v1.28.1, its Foxglove WebSocket player) preloads its copy of the common ROS
+// definitions when serverInfo names a ROS distribution (ROS 2 Humble's, or ROS 1's for
+// melodic and noetic), parses every advertised ros2msg (ros1msg) schema with @lichtblick/rosmsg,
+// and compares each parsed definition with the one it already holds under that name by
+// @lichtblick/message-definition's isMsgDefEqual, which compares the members in order. A
+// mismatch is the error alert "Definition of schema 'X' has changed during the server's
+// runtime". The reference definitions are rwt's own copies, tests/foxglove/lichtblick_ros2humble.json
+// and lichtblick_ros1.json: one `.msg` text a type, members in the file's order
+// (docs/foxglove.md).
 //
 //   node lichtblick_schemas.mjs server URL DATA [TOPIC_OR_SERVICE...]
 //       connect, wait for the named topics and services (then for a second of quiet), and
 //       report the alerts Lichtblick's rules raise for what the server advertised
 //   node lichtblick_schemas.mjs schemas SCHEMAS_JSON DATA
-//       the same rule over {"pkg/msg/Type": "full ros2msg text"} (a type per channel)
-//   node lichtblick_schemas.mjs data DATA
-//       compare DATA, parsed as above, with Lichtblick's own set (@lichtblick/rosmsg-msgs-common)
-//   node lichtblick_schemas.mjs write DATA
-//       write DATA from Lichtblick's own set (done once; the file is then the repository's)
+//       the same rule over {"pkg/msg/Type": "full text"} (a type per channel, DATA's syntax)
+//   node lichtblick_schemas.mjs data SET DATA
+//       compare DATA, parsed as above, with Lichtblick's own SET (ros2humble or ros1, of
+//       @lichtblick/rosmsg-msgs-common)
+//   node lichtblick_schemas.mjs write SET DATA
+//       write DATA from Lichtblick's own SET (done once; the file is then the repository's)
 import fs from "node:fs";
 
 import { isMsgDefEqual } from "@lichtblick/message-definition";
@@ -31,8 +33,21 @@ const QUIET_MS = 1000;
 const ROS1 = ["melodic", "noetic"];
 const GALACTIC = ["foxy", "galactic"];
 // The wire encodings Lichtblick calls services in, and the ones it parses ROS schemas of.
-// Only cdr with ros2msg is checked here (rwt's ROS 2 wire); anything else is reported unchecked.
+// Only cdr with ros2msg and ros1 with ros1msg (rwt's wires) are checked here; anything else
+// is reported unchecked.
 const SERVICE_ENCODINGS = ["json", "ros1", "cdr"];
+const SCHEMA_ENCODING = { cdr: "ros2msg", ros1: "ros1msg" };
+// What each of Lichtblick's sets is called and how its reference file is written.
+const SETS = {
+  ros2humble: {
+    syntax: "ros2msg",
+    source: "ROS 2 Humble's common definitions as Lichtblick v1.28.1 preloads them (@lichtblick/rosmsg-msgs-common 1.0.1, ros2humble)",
+  },
+  ros1: {
+    syntax: "ros1msg",
+    source: "ROS 1 Noetic's common definitions as Lichtblick v1.28.1 preloads them (@lichtblick/rosmsg-msgs-common 1.0.1, ros1)",
+  },
+};
 
 // "pkg/Type" is also known as "pkg/msg/Type" (Lichtblick's dataTypeToFullName).
 function fullName(name) {
@@ -42,24 +57,25 @@ function fullName(name) {
 
 // A schema's datatypes as Lichtblick's parseChannel gives them: the first definition under the
 // schema's name, each later one under its MSG: name.
-function datatypes(schemaName, text) {
+function datatypes(schemaName, text, syntax) {
   const map = new Map();
-  parse(text, { ros2: true }).forEach(({ name, definitions }, index) => {
+  parse(text, { ros2: syntax === "ros2msg" }).forEach(({ name, definitions }, index) => {
     if (index === 0) map.set(schemaName, { name: schemaName, definitions });
     else if (name !== undefined) map.set(name, { name, definitions });
   });
   return map;
 }
 
-// The reference file's types, parsed one by one as Lichtblick holds them.
+// The reference file's types, parsed one by one as Lichtblick holds them, and their syntax.
 function reference(path) {
   const data = JSON.parse(fs.readFileSync(path, "utf8"));
   const map = new Map();
   for (const [name, text] of Object.entries(data.types)) {
-    const [definition] = parse(text, { ros2: true, skipTypeFixup: true });
+    const ros2 = data.syntax === "ros2msg";
+    const [definition] = parse(text, { ros2, skipTypeFixup: true });
     map.set(name, { name, definitions: definition.definitions });
   }
-  return map;
+  return { syntax: data.syntax, types: map };
 }
 
 // Lichtblick's datatype bookkeeping and the alerts it raises, keyed as it keys them.
@@ -96,15 +112,14 @@ class Player {
   }
 
   channel(channel, seen) {
-    const ros2 = channel.encoding === "cdr";
-    const schemaEncoding = channel.schemaEncoding ?? (ros2 ? "ros2msg" : undefined);
-    if (!ros2 || schemaEncoding !== "ros2msg") {
+    const syntax = SCHEMA_ENCODING[channel.encoding];
+    if (syntax === undefined || (channel.schemaEncoding ?? syntax) !== syntax) {
       this.alert(`unchecked:${channel.topic}`, "error", `not checked: ${channel.encoding}`);
       return;
     }
     let types;
     try {
-      types = datatypes(channel.schemaName, channel.schema);
+      types = datatypes(channel.schemaName, channel.schema, syntax);
     } catch (error) {
       this.alert(`schema:${channel.topic}`, "error", `Failed to parse channel schema: ${error}`);
       return;
@@ -129,12 +144,13 @@ class Player {
     }
     for (const part of parts) {
       const encoding = part.encoding ?? defaultEncoding;
-      if (encoding !== "cdr") {
+      const syntax = SCHEMA_ENCODING[encoding];
+      if (syntax === undefined) {
         this.alert(`unchecked:${service.name}`, "error", `not checked: ${encoding}`);
         return;
       }
       try {
-        this.update(datatypes(part.schemaName, part.schema));
+        this.update(datatypes(part.schemaName, part.schema, syntax));
       } catch (error) {
         this.alert(`service:${service.id}`, "error", `Failed to parse service: ${error}`);
         return;
@@ -146,11 +162,13 @@ class Player {
 function distroCheck(player, metadata, path) {
   const distro = metadata?.ROS_DISTRO;
   if (!distro) return "none";
-  if (ROS1.includes(distro) || GALACTIC.includes(distro)) {
-    player.alert("reference", "error", `no reference here for ${distro}'s preloaded set`);
+  const { syntax, types } = reference(path);
+  const wanted = ROS1.includes(distro) ? "ros1msg" : "ros2msg";
+  if (GALACTIC.includes(distro) || syntax !== wanted) {
+    player.alert("reference", "error", `${path} is not ${distro}'s preloaded set`);
     return distro;
   }
-  player.update(reference(path));
+  player.update(types);
   return distro;
 }
 
@@ -204,24 +222,27 @@ async function server(url, path, ...names) {
 
 function schemas(schemasPath, path) {
   const player = new Player();
-  player.update(reference(path));
+  const { syntax, types } = reference(path);
+  player.update(types);
+  const encoding = syntax === "ros2msg" ? "cdr" : "ros1";
   const texts = JSON.parse(fs.readFileSync(schemasPath, "utf8"));
   const seen = new Map();
   for (const [name, text] of Object.entries(texts)) {
-    const channel = { topic: name, encoding: "cdr", schemaName: name, schema: text };
-    player.channel({ ...channel, schemaEncoding: "ros2msg" }, seen);
+    const channel = { topic: name, encoding, schemaName: name, schema: text };
+    player.channel({ ...channel, schemaEncoding: syntax }, seen);
   }
   return report(player, { types: Object.keys(texts).length });
 }
 
-async function lichtblickSet() {
+async function lichtblickSet(set) {
   const { default: common } = await import("@lichtblick/rosmsg-msgs-common");
-  return common.ros2humble;
+  if (!(set in SETS)) throw new Error(`no set ${set}: ${Object.keys(SETS)}`);
+  return common[set];
 }
 
-async function data(path) {
-  const own = reference(path);
-  const theirs = await lichtblickSet();
+async function data(set, path) {
+  const own = reference(path).types;
+  const theirs = await lichtblickSet(set);
   const unequal = Object.keys(theirs).filter(
     (name) => !own.has(name) || !isMsgDefEqual(own.get(name), theirs[name]),
   );
@@ -236,9 +257,9 @@ function literal(value) {
   return String(value);
 }
 
-function line(member) {
-  const type = { time: "builtin_interfaces/Time", duration: "builtin_interfaces/Duration" };
-  let text = type[member.type] ?? member.type;
+function line(member, syntax) {
+  const ros2 = { time: "builtin_interfaces/Time", duration: "builtin_interfaces/Duration" };
+  let text = (syntax === "ros2msg" ? ros2[member.type] : undefined) ?? member.type;
   if (member.upperBound !== undefined) text += `<=${member.upperBound}`;
   if (member.arrayLength !== undefined) text += `[${member.arrayLength}]`;
   else if (member.arrayUpperBound !== undefined) text += `[<=${member.arrayUpperBound}]`;
@@ -249,16 +270,16 @@ function line(member) {
   return text;
 }
 
-async function write(path) {
-  const theirs = await lichtblickSet();
+async function write(set, path) {
+  const theirs = await lichtblickSet(set);
+  const { syntax, source } = SETS[set];
   const types = {};
   for (const name of Object.keys(theirs).sort()) {
-    types[name] = theirs[name].definitions.map(line).join("\n");
+    types[name] = theirs[name].definitions.map((member) => line(member, syntax)).join("\n");
   }
-  const source =
-    "ROS 2 Humble's common definitions as Lichtblick v1.28.1 preloads them (@lichtblick/rosmsg-msgs-common 1.0.1, ros2humble)";
   const lines = Object.entries(types).map(([k, v]) => `${JSON.stringify(k)}: ${JSON.stringify(v)}`);
-  const text = `{"source": ${JSON.stringify(source)}, "types": {\n${lines.join(",\n")}\n}}\n`;
+  const head = `{"source": ${JSON.stringify(source)}, "syntax": ${JSON.stringify(syntax)}`;
+  const text = `${head}, "types": {\n${lines.join(",\n")}\n}}\n`;
   fs.writeFileSync(path, text);
   return { types: Object.keys(types).length };
 }
