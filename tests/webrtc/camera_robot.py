@@ -1,8 +1,8 @@
 """An embedded rwt server with WebRTC and a 320x240 camera at 15 Hz, for the WHEP player test.
 
 Usage: python camera_robot.py. Prints ``listening on ws://HOST:PORT`` (a free port),
-then serves until SIGINT/SIGTERM, logging to stderr. ``/camera/image`` is rgb8, the left half red, the
-right half blue, with a white bar moving across so successive frames differ.
+then serves until SIGINT/SIGTERM, logging to stderr. ``/camera/image`` is rgb8, the
+left half red, the right half blue, with a white bar moving across so frames differ.
 """
 
 from __future__ import annotations

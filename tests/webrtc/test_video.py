@@ -5,10 +5,13 @@ docs/webrtc.md, "Video tracks".
 
 from __future__ import annotations
 
+import fractions
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 import anyio
+import av
+import av.video.codeccontext
 import httpx
 import numpy as np
 import pytest
@@ -20,14 +23,15 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from aiortc import MediaStreamTrack, RTCConfiguration, RTCPeerConnection, RTCSessionDescription
 from aiortc.rtp import RTCP_PSFB_APP, RtcpPsfbPacket, pack_remb_fci
 
+from rwt_graph.graph import Graph
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
-from rwt_transports.server import ServerConfig
+from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_transports.webrtc_signal import MAX_VIDEO_TRACKS, WebRtcOptions
 from rwt_transports.webrtc_video import VideoTrack
 from rwt_video.encoders import VideoPacket
 from rwt_video.params import StreamParams
-from rwt_video.rtp import RtpEncoder
+from rwt_video.rtp import H264PassThrough, RtpEncoder
 from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, serving
 from tests.webrtc.whep import image, player, post_offer, recvonly_offer
 
@@ -235,3 +239,78 @@ async def test_a_data_channel_peer_gets_video_too(served: Served) -> None:
 async def _first_frame(track: MediaStreamTrack, done: anyio.Event) -> None:
     await track.recv()
     done.set()
+
+
+def h264_frames(count: int, size: tuple[int, int], rgb: tuple[int, int, int]) -> list[bytes]:
+    """``count`` H.264 access units (Annex B, Constrained Baseline) of one colour, as a camera's."""
+    codec = av.CodecContext.create("libx264", "w")
+    assert isinstance(codec, av.video.codeccontext.VideoCodecContext)
+    codec.width, codec.height = size
+    codec.pix_fmt = "yuv420p"
+    codec.time_base = fractions.Fraction(1, 15)
+    codec.gop_size = 5
+    codec.options = {"preset": "ultrafast", "tune": "zerolatency", "profile": "baseline"}
+    pixels = np.empty((size[1], size[0], 3), np.uint8)
+    pixels[...] = rgb
+    units = []
+    for pts in range(count):
+        frame = av.VideoFrame.from_ndarray(pixels, format="rgb24")
+        frame.pts = pts
+        units.extend(bytes(packet) for packet in codec.encode(frame))
+    return units
+
+
+async def test_h264_from_a_compressed_topic_passes_through(served: Served) -> None:
+    frames = h264_frames(30, (96, 64), (40, 200, 40))
+    topic = "/camera/h264"
+    publisher = served.graph.create_publisher(topic, "sensor_msgs/msg/CompressedImage")
+    async with player(served.base, f"video={topic}", codec="video/H264") as played:
+        (stream,) = hub_of(served).streams.values()
+        assert isinstance(stream.encoder, H264PassThrough)  # no encoder: the bytes as they are
+        for stamp, unit in enumerate(frames * 4):
+            header = {"stamp": {"sec": stamp, "nanosec": 0}, "frame_id": "camera"}
+            publisher.publish({"header": header, "format": "h264", "data": unit})
+            await anyio.sleep(1 / 15)
+            if played.counts[0] > 2:
+                break
+        frame = await played.frame(after=2)
+        assert (frame.width, frame.height) == (96, 64)
+        assert frame.to_ndarray(format="rgb24").reshape(-1, 3).mean(axis=0)[1] > 150
+
+
+async def test_a_compressed_topic_needs_h264(served: Served) -> None:
+    served.graph.create_publisher("/camera/h264", "sensor_msgs/msg/CompressedImage")
+    reply = await post_offer(served.base, "video=/camera/h264", await a_video_offer())
+    assert reply.status_code == 400 and "only H.264 passes through" in reply.text
+    assert not served.server.sessions and not hub_of(served).streams
+
+
+async def test_with_auth_video_needs_the_bearer_token() -> None:
+    config = ServerConfig(
+        port=0,
+        webrtc=WebRtcOptions(
+            connect_timeout_s=CONNECT_TIMEOUT_S, bearer_token=lambda token: token == "live"
+        ),
+        session=SessionConfig(authenticator=rosauth_authenticator("s" * 16, Graph().clock)),
+    )
+    async with serving(config) as served:
+        offer = await a_video_offer()
+        refused = await post_offer(served.base, f"video={CAMERA}", offer)
+        assert refused.status_code == 401 and "Authorization: Bearer" in refused.text
+        async with camera(served):
+            reply = await post_offer(
+                served.base, f"video={CAMERA}", offer, Authorization="Bearer live"
+            )
+            assert reply.status_code == 201, reply.text  # (this peer never connects)
+
+
+async def test_a_video_peer_that_never_connects_is_freed(served: Served) -> None:
+    async with camera(served):
+        reply = await post_offer(served.base, f"video={CAMERA}", await a_video_offer())
+        assert reply.status_code == 201
+        assert len(served.server.sessions) == 1 and len(hub_of(served).streams) == 1
+        with anyio.fail_after(CONNECT_TIMEOUT_S + RECEIVE_S):
+            while served.server.sessions or hub_of(served).streams:
+                await anyio.sleep(0.05)
+        async with httpx.AsyncClient(base_url=served.base) as http:
+            assert (await http.delete(reply.headers["Location"])).status_code == 404

@@ -170,9 +170,9 @@ def test_a_whep_player_in_chromium_plays_the_camera(
         page = browser.new_page()
         try:
             page.goto(f"{site}/?server={http_url}")
-            playing = "window.failure ? {failure: window.failure} : window.sample && "
+            failed = "window.failure ? {failure: window.failure} : window.sample && "
             first = page.wait_for(
-                playing + "(window.sample().width > 0 && window.sample().time > 0 && window.sample())",
+                failed + "(sample().width > 0 && sample().time > 0 && sample())",
                 40,
                 "the player showing the camera",
             )
