@@ -217,8 +217,8 @@ class VideoBinding:
         if len(self.tracks) > len(receiving):
             return Answer(
                 400,
-                f"{len(self.tracks)} video parameters but the offer receives "
-                f"{len(receiving)} video tracks (one recvonly video transceiver each)",
+                f"{len(self.tracks)} video parameters but {len(receiving)} receiving "
+                "video transceivers in the offer: one recvonly transceiver a topic",
             )
         by_mid = {t.mid: t for t in pc.getTransceivers()}
         for transceiver in by_mid.values():

@@ -206,9 +206,8 @@ class RtpEncoder:
 class H264PassThrough:
     """H.264 frames of a ``sensor_msgs/CompressedImage`` topic (format ``h264``), as they are.
 
-    Each message must hold one access unit in Annex B (start codes), as
-    ffmpeg_image_transport and the H.264 cameras' drivers publish; a key frame is
-    one with an IDR slice. Nothing is re-encoded, so neither the receivers'
+    Each message must hold one access unit in Annex B (start codes); a key frame
+    is one with an IDR slice. Nothing is re-encoded, so neither the receivers'
     estimates nor their key-frame requests reach the source.
     """
 

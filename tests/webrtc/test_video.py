@@ -28,11 +28,11 @@ from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_transports.webrtc_signal import MAX_VIDEO_TRACKS, WebRtcOptions
-from rwt_transports.webrtc_video import VideoTrack
+from rwt_transports.webrtc_video import MAX_VIDEO_STREAMS, VideoTrack
 from rwt_video.encoders import VideoPacket
 from rwt_video.params import StreamParams
 from rwt_video.rtp import H264PassThrough, RtpEncoder
-from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, serving
+from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, rtc_client, serving
 from tests.webrtc.whep import image, player, post_offer, recvonly_offer
 
 pytestmark = pytest.mark.anyio
@@ -177,7 +177,11 @@ async def a_video_offer(tracks: int = 1) -> str:
     [
         ("video=/nowhere", 404, "topic '/nowhere' does not exist"),
         ("video=/chatter", 400, "is a std_msgs/msg/String, not an image topic"),
-        (f"video={CAMERA}&video={CAMERA}", 400, "2 video parameters but the offer receives 1"),
+        (
+            f"video={CAMERA}&video={CAMERA}",
+            400,
+            "2 video parameters but 1 receiving video transceivers",
+        ),
         ("&".join([f"video={CAMERA}"] * 1000), 400, f"at most {MAX_VIDEO_TRACKS}"),
         ("video=", 400, "an empty video parameter"),
         (f"video={CAMERA}&bitrate=lots", 400, "bitrate='lots' is not an integer"),
@@ -314,3 +318,24 @@ async def test_a_video_peer_that_never_connects_is_freed(served: Served) -> None
                 await anyio.sleep(0.05)
         async with httpx.AsyncClient(base_url=served.base) as http:
             assert (await http.delete(reply.headers["Location"])).status_code == 404
+
+
+async def test_distinct_streams_are_bounded(served: Served) -> None:
+    topics = [f"/camera{n}/image" for n in range(MAX_VIDEO_STREAMS + 1)]
+    for topic in topics:  # no frame comes: nothing is encoded, the streams only exist
+        served.graph.create_publisher(topic, "sensor_msgs/msg/Image")
+    per_offer = [topics[n : n + MAX_VIDEO_TRACKS] for n in range(0, len(topics), MAX_VIDEO_TRACKS)]
+    for group in per_offer[:-1]:
+        query = "&".join(f"video={topic}" for topic in group)
+        reply = await post_offer(served.base, query, await a_video_offer(len(group)))
+        assert reply.status_code == 201, reply.text
+    assert len(hub_of(served).streams) == MAX_VIDEO_STREAMS
+    last = per_offer[-1]
+    refused = await post_offer(served.base, f"video={last[0]}", await a_video_offer())
+    assert refused.status_code == 503
+    assert f"{MAX_VIDEO_STREAMS} distinct streams run already" in refused.text
+    assert len(hub_of(served).streams) == MAX_VIDEO_STREAMS
+    assert len(served.server.sessions) == len(per_offer) - 1  # the refused one holds none
+    async with rtc_client(served.base) as bystander:  # a data channel needs no stream
+        bystander.send({"op": "call_service", "service": "/rosapi/topics", "id": "b"})
+        assert (await bystander.next_op("service_response"))["result"] is True
