@@ -29,7 +29,7 @@ from .params import StreamParams, StreamType
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-__all__ = ["CODECS", "PtsClock", "VideoEncoder", "VideoMuxer", "codec_options"]
+__all__ = ["CODECS", "CODEC_THREADS", "PtsClock", "VideoEncoder", "VideoMuxer", "codec_options"]
 
 _MS = fractions.Fraction(1, 1000)
 
@@ -54,6 +54,13 @@ CODECS: Mapping[StreamType, _Codec] = {
         {"movflags": "frag_keyframe+frag_every_frame+empty_moov+default_base_moof"},
     ),
 }
+
+
+CODEC_THREADS = 1
+"""Threads of one libvpx or libx264 encoder. Streams encode in parallel already (the
+hub's ``ENCODER_THREADS``); FFmpeg's automatic count (one per CPU) made libvpx spend
+17 to 77 ms of CPU on a frame of a 640x480 camera on a busy 2-core machine, against
+7 ms with one thread (benchmarks/webrtc_video.py, benchmarks/JOURNAL.md)."""
 
 
 def codec_options(params: StreamParams) -> dict[str, str]:
@@ -171,6 +178,7 @@ class VideoEncoder:
         context.time_base = _MS
         context.bit_rate = self.params.bitrate
         context.gop_size = self.params.gop
+        context.thread_count = CODEC_THREADS
         context.options = codec_options(self.params)
         stream.time_base = _MS
         try:

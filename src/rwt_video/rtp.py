@@ -37,7 +37,7 @@ import numpy as np
 from PIL import Image
 
 from .encoders import EncodeError, FrameEncoder, Message, Muxer, VideoPacket, prepare
-from .libav import PtsClock, codec_options
+from .libav import CODEC_THREADS, PtsClock, codec_options
 from .params import StreamParams, StreamType
 
 if TYPE_CHECKING:
@@ -190,6 +190,7 @@ class RtpEncoder:
         created.framerate = fractions.Fraction(30)
         created.bit_rate = self.target_bitrate
         created.gop_size = self.params.gop
+        created.thread_count = CODEC_THREADS
         options = codec_options(self.params)
         if self.params.type is StreamType.H264:  # what browsers and aiortc negotiate
             options |= {"profile": "baseline"}
