@@ -298,7 +298,10 @@ def cpu_rows(seconds: float, viewers: int) -> list[dict[str, object]]:
             line = robot.stdout.readline()
             assert line.startswith("listening on ws://"), line
             base = line.split()[-1].replace("ws://", "http://")
-            cases = [asyncio.run(_watch(base, n, codec, seconds, robot.pid)) for n in (0, 1, viewers)]
+            cases = [
+                asyncio.run(_watch(base, count, codec, seconds, robot.pid))
+                for count in (0, 1, viewers)
+            ]
         finally:
             robot.send_signal(signal.SIGINT)
             robot.wait(10)
