@@ -68,7 +68,14 @@ if TYPE_CHECKING:
 
     from .webrtc_signal import VideoRequest
 
-__all__ = ["DEFAULT_BITRATE", "MAX_VIDEO_STREAMS", "VideoBinding", "VideoTrack", "WebRtcVideo"]
+__all__ = [
+    "DEFAULT_BITRATE",
+    "MAX_VIDEO_STREAMS",
+    "VIDEO_NODE",
+    "VideoBinding",
+    "VideoTrack",
+    "WebRtcVideo",
+]
 
 logger = logging.getLogger("rwt.webrtc")
 
@@ -80,6 +87,9 @@ for a 640x480 camera)."""
 MAX_VIDEO_STREAMS = 16
 """Distinct video streams (topic, codec and parameters: one encoder each) at once over
 the server's WebRTC peers; an offer for another one gets 503."""
+
+VIDEO_NODE = "/rwt_webrtc_video"
+"""The node the video tracks' streams subscribe as (rosapi lists it on their topics)."""
 
 _MS = fractions.Fraction(1, 1000)
 _IMAGE = "sensor_msgs/msg/Image"
@@ -298,7 +308,12 @@ class WebRtcVideo:
             self.hub = None
             return
         self.hub = StreamHub(
-            self.graph, tg, self.max_streams, self.encoder_threads, make=make_rtp_encoder
+            self.graph,
+            tg,
+            self.max_streams,
+            self.encoder_threads,
+            make=make_rtp_encoder,
+            node=VIDEO_NODE,
         )
 
     def binding(self, request: VideoRequest) -> VideoBinding | Answer:

@@ -258,6 +258,7 @@ class StreamHub:
         make: the encoder of a new stream, from its params and the topic's type
             (default: the HTTP streams' ``make_encoder``; WebRTC's video tracks
             use ``rtp.make_rtp_encoder``).
+        node: the node the streams subscribe as (what rosapi shows).
 
     Attributes:
         started: streams (encoders) started so far, for the tests and the logs.
@@ -270,8 +271,10 @@ class StreamHub:
         max_streams: int = 16,
         encoder_threads: int = ENCODER_THREADS,
         make: Callable[[StreamParams, str], FrameEncoder] | None = None,
+        node: str = "/web_video_server",
     ) -> None:
         self.graph = graph
+        self.node = node
         self._make = make or (lambda params, _type_name: make_encoder(params))
         self.started = 0
         self._tg = task_group
@@ -316,7 +319,7 @@ class StreamHub:
             raise StreamParamError(f"{self.max_streams} distinct streams run already", status=503)
         stream = SharedStream(params, self._make(params, type_name), self.limiter)
         stream.subscription = self.graph.create_subscription(
-            params.source_topic, stream.on_message, type_name, node="/web_video_server"
+            params.source_topic, stream.on_message, type_name, node=self.node
         )
         self.streams[params] = stream
         self.started += 1

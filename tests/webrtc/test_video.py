@@ -125,7 +125,8 @@ async def test_a_picture_loss_gets_a_key_frame(served: Served) -> None:
         assert isinstance(stream.encoder, RtpEncoder)
         before = stream.encoder.keyframes
         (transceiver,) = played.pc.getTransceivers()
-        ssrc = next(iter(transceiver.receiver._RTCRtpReceiver__remote_streams))  # type: ignore[attr-defined]
+        (source,) = transceiver.receiver.getSynchronizationSources()
+        ssrc = source.source
         await transceiver.receiver._send_rtcp_pli(ssrc)
         with anyio.fail_after(RECEIVE_S):
             while stream.encoder.keyframes == before:
@@ -139,7 +140,8 @@ async def test_a_receiver_estimate_sets_the_bit_rate(served: Served) -> None:
         (stream,) = hub_of(served).streams.values()
         assert isinstance(stream.encoder, RtpEncoder)
         (transceiver,) = played.pc.getTransceivers()
-        ssrc = next(iter(transceiver.receiver._RTCRtpReceiver__remote_streams))  # type: ignore[attr-defined]
+        (source,) = transceiver.receiver.getSynchronizationSources()
+        ssrc = source.source
         remb = RtcpPsfbPacket(
             fmt=RTCP_PSFB_APP, ssrc=1, media_ssrc=0, fci=pack_remb_fci(300_000, [ssrc])
         )
