@@ -131,7 +131,7 @@ async def test_a_picture_loss_gets_a_key_frame(served: Served) -> None:
         with anyio.fail_after(RECEIVE_S):
             while stream.encoder.keyframes == before:
                 await anyio.sleep(0.05)
-        assert stream.encoder.keyframes == before + 1
+        assert stream.encoder.keyframes > before  # gop=1000: none would come for a minute
 
 
 async def test_a_receiver_estimate_sets_the_bit_rate(served: Served) -> None:
@@ -142,6 +142,8 @@ async def test_a_receiver_estimate_sets_the_bit_rate(served: Served) -> None:
         (transceiver,) = played.pc.getTransceivers()
         (source,) = transceiver.receiver.getSynchronizationSources()
         ssrc = source.source
+        # the player's own estimates would race this one: only ours is sent
+        transceiver.receiver._RTCRtpReceiver__remote_bitrate_estimator = None  # type: ignore[attr-defined]
         remb = RtcpPsfbPacket(
             fmt=RTCP_PSFB_APP, ssrc=1, media_ssrc=0, fci=pack_remb_fci(300_000, [ssrc])
         )
