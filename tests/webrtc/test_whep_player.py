@@ -5,6 +5,8 @@ server with a camera (camera_robot.py) and fills a ``<video>`` element: it must 
 the camera's size, play (its time advances), and show the camera's colours. The
 player's CommonJS build is loaded by a small ``require`` over tests/js/node_modules
 (no bundler, no network); the page is served from another origin than the server.
+A second page offers H.264 only (``setCodecPreferences``), so Chromium's own decoder
+plays the libx264 stream.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -88,7 +91,12 @@ const video = document.getElementById("video");
 const player = new WebRTCPlayer({ video, type: "whep" });
 player.load(new URL(server + "/webrtc?video=/camera/image"))
   .catch((e) => { window.failure = String(e); });
+"""
+
+
+SAMPLE = """
 window.sample = () => {  // the size, the time, and the colours left and right
+  const video = document.getElementById("video");
   const canvas = document.createElement("canvas");
   canvas.width = video.videoWidth; canvas.height = video.videoHeight;
   const context = canvas.getContext("2d");
@@ -99,12 +107,38 @@ window.sample = () => {  // the size, the time, and the colours left and right
 };
 """
 
+H264 = """
+const server = new URL(location.href).searchParams.get("server");
+(async () => {
+  const pc = new RTCPeerConnection();
+  const transceiver = pc.addTransceiver("video", { direction: "recvonly" });
+  const h264 = RTCRtpReceiver.getCapabilities("video").codecs
+    .filter((c) => c.mimeType === "video/H264");
+  if (!h264.length) { window.failure = "no H.264 in this Chromium"; return; }
+  transceiver.setCodecPreferences(h264);
+  pc.ontrack = (e) => { document.getElementById("video").srcObject = e.streams[0]; };
+  await pc.setLocalDescription(await pc.createOffer());
+  await new Promise((done) => {
+    if (pc.iceGatheringState === "complete") return done();
+    pc.onicegatheringstatechange = () => pc.iceGatheringState === "complete" && done();
+  });
+  const reply = await fetch(server + "/webrtc?video=/camera/image", {
+    method: "POST", headers: { "Content-Type": "application/sdp" }, body: pc.localDescription.sdp,
+  });
+  if (reply.status !== 201) { window.failure = await reply.text(); return; }
+  const answer = await reply.text();
+  window.codec = (answer.match(/a=rtpmap:\\d+ (\\w+)\\/90000/) || [])[1];
+  await pc.setRemoteDescription({ type: "answer", sdp: answer });
+})().catch((e) => { window.failure = String(e); });
+"""
 
-def page_html() -> str:
+
+def page_html(path: str = "/") -> str:
+    script = H264 if path == "/h264" else REQUIRE + PLAY % {"player": PLAYER}
     return (
         "<!doctype html><html><body>"
         '<video id="video" muted autoplay playsinline></video>'
-        f"<script>{REQUIRE}{PLAY % {'player': PLAYER}}</script>"
+        f"<script>{SAMPLE}{script}</script>"
         "</body></html>"
     )
 
@@ -116,10 +150,11 @@ class _Site(http.server.SimpleHTTPRequestHandler):
         super().__init__(*args, directory=str(MODULES.parent), **kwargs)  # type: ignore[arg-type]
 
     def do_GET(self) -> None:
-        if self.path.split("?", 1)[0] != "/":
+        path = self.path.split("?", 1)[0]
+        if path not in ("/", "/h264"):
             super().do_GET()
             return
-        body = page_html().encode()
+        body = page_html(path).encode()
         self.send_response(200)
         self.send_header("Content-Type", "text/html; charset=utf-8")
         self.send_header("Content-Length", str(len(body)))
@@ -160,16 +195,15 @@ def _near(pixel: list[int], rgb: tuple[int, int, int]) -> bool:
     return max(abs(a - b) for a, b in zip(pixel, rgb, strict=True)) < 40
 
 
-def test_a_whep_player_in_chromium_plays_the_camera(
-    browser: Browser, site: str, tmp_path: Path
-) -> None:
+def _watch(browser: Browser, site: str, tmp_path: Path, path: str) -> tuple[Any, Any, str]:
+    """Open ``path`` against a camera server: the first sample playing, a later one, the log."""
     script = Path(__file__).with_name("camera_robot.py")
     server = ServerProcess(tmp_path, cmd=[sys.executable, str(script)])
     try:
         http_url = server.url.replace("ws://", "http://")
         page = browser.new_page()
         try:
-            page.goto(f"{site}/?server={http_url}")
+            page.goto(f"{site}{path}?server={http_url}")
             failed = "window.failure ? {failure: window.failure} : window.sample && "
             first = page.wait_for(
                 failed + "(sample().width > 0 && sample().time > 0 && sample())",
@@ -180,11 +214,27 @@ def test_a_whep_player_in_chromium_plays_the_camera(
             later = page.wait_for(
                 f"window.sample().time > {first['time']} && window.sample()", 20, "playing on"
             )
+            later["codec"] = page.evaluate("window.codec || null")
         finally:
             page.close()
     finally:
         server.stop()
+    return first, later, server.stderr_path.read_text()
+
+
+def test_a_whep_player_in_chromium_plays_the_camera(
+    browser: Browser, site: str, tmp_path: Path
+) -> None:
+    first, later, log = _watch(browser, site, tmp_path, "/")
     assert (first["width"], first["height"]) == (320, 240)
     assert later["time"] > first["time"]  # it plays: the element's time advances
     assert _near(later["left"], RED) and _near(later["right"], BLUE), later
-    assert "protocol=video" in server.stderr_path.read_text()  # a video-only WebRTC peer
+    assert "protocol=video" in log  # a video-only WebRTC peer
+
+
+def test_chromium_preferring_h264_gets_h264(browser: Browser, site: str, tmp_path: Path) -> None:
+    first, later, _ = _watch(browser, site, tmp_path, "/h264")
+    assert later["codec"] == "H264"  # the offer's preference decided
+    assert (first["width"], first["height"]) == (320, 240)
+    assert later["time"] > first["time"]
+    assert _near(later["left"], RED) and _near(later["right"], BLUE), later
