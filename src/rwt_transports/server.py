@@ -420,8 +420,10 @@ class RosbridgeServer:
         if options is None:
             return None, None
         from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
+        from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
 
-        peers = WebRtcPeers(self, options, self.config.max_message_size)
+        video = WebRtcVideo(self.graph, self.session_config.access)
+        peers = WebRtcPeers(self, options, self.config.max_message_size, video)
         signalling = WebRtcSignalling(
             peers,
             options,
