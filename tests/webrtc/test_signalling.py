@@ -165,14 +165,15 @@ async def test_the_roslib_transport_is_served_as_javascript_with_cors(served: Se
     async with httpx.AsyncClient(base_url=served.base) as http:
         reply = await http.get("/webrtc/roslib-transport.js", headers={"Origin": page})
         missing = await http.get("/webrtc/nothing.js")
-        websocket = await http.get("/")  # not signalling's: the WebSocket listener's
+        websocket = await http.get("/")  # not signalling's: the console's
     assert reply.status_code == 200
     assert reply.headers["Content-Type"] == "text/javascript; charset=utf-8"
     assert reply.headers["Access-Control-Allow-Origin"] == page  # importable from a page elsewhere
     assert "export function webrtcTransportFactory(AbstractTransport" in reply.text
     assert '"rosbridge-lossy"' in reply.text
     assert missing.status_code == 404 and "/webrtc/roslib-transport.js" in missing.text
-    assert websocket.status_code == 426  # Upgrade Required: no console in this server
+    assert websocket.status_code == 200  # the console's page, as before
+    assert websocket.headers["Content-Type"].startswith("text/html")
 
 
 async def test_the_roslib_transport_obeys_allowed_origins() -> None:
