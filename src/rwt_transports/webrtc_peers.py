@@ -4,7 +4,9 @@ An offer is admitted as any connection is (``SessionHost.open_session``:
 ``--max-connections``, host shares, ``/connected_clients``), then answered by
 aiortc with every ICE candidate gathered (no trickle). The session starts
 when the peer opens its ``rosbridge`` data channel (webrtc.py) and runs on the
-connection pump like a WebSocket's. Bounds, each enforced here
+connection pump like a WebSocket's. A ``rosbridge-lossy`` channel (unordered,
+``maxRetransmits`` 0) belongs to the same session: it opens the session's
+lossy lane (D36). Bounds, each enforced here
 (docs/limits.md):
 
 - ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
@@ -51,12 +53,21 @@ if TYPE_CHECKING:
     from .webrtc_signal import VideoRequest, WebRtcOptions
     from .webrtc_video import VideoBinding, WebRtcVideo
 
-__all__ = ["DATA_CHANNEL_LABEL", "MAX_CONNECTING", "OFFER_TIMEOUT_S", "WebRtcPeers"]
+__all__ = [
+    "DATA_CHANNEL_LABEL",
+    "LOSSY_CHANNEL_LABEL",
+    "MAX_CONNECTING",
+    "OFFER_TIMEOUT_S",
+    "WebRtcPeers",
+]
 
 logger = logging.getLogger("rwt.webrtc")
 
 DATA_CHANNEL_LABEL = "rosbridge"
 """The label of the data channel that carries the rosbridge session; others are closed."""
+
+LOSSY_CHANNEL_LABEL = "rosbridge-lossy"
+"""The label of the session's lossy channel (``ordered: false, maxRetransmits: 0``; D36)."""
 
 MAX_CONNECTING = 16
 """Offers being answered plus peers not yet connected, over the server; more get 503."""
@@ -84,8 +95,10 @@ class _Peer:
     pc: RTCPeerConnection
     session: ServerSession
     remote_max: int
+    dc: DataChannelChannel
     ready: anyio.Event = field(default_factory=anyio.Event)
     channel: RTCDataChannel | None = None
+    lossy: RTCDataChannel | None = None
     running: bool = False
     scope: anyio.CancelScope = field(default_factory=anyio.CancelScope)
     wake: list[ConnectionPump] = field(default_factory=list)
@@ -186,7 +199,9 @@ class WebRtcPeers:
         if session is None:
             return Answer(503, "too many connections")
         pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))  # no STUN: no traffic elsewhere
-        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max_message_size(sdp))
+        remote_max = remote_max_message_size(sdp)
+        dc = DataChannelChannel(None, self.max_message_size, remote_max)
+        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc)
         item.video = video
         holder.append(item)
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
@@ -208,7 +223,14 @@ class WebRtcPeers:
         return Answer(201, pc.localDescription.sdp, f"{WEBRTC_PATH}/{item.session_id}")
 
     def _on_channel(self, item: _Peer, channel: RTCDataChannel) -> None:
-        """Take the ``rosbridge`` channel (reliable, ordered); close any other."""
+        """Take one ``rosbridge`` channel (reliable, ordered) and one ``rosbridge-lossy``.
+
+        The lossy one must be unordered with ``maxRetransmits`` 0 (D36); any other
+        channel is closed.
+        """
+        if channel.label == LOSSY_CHANNEL_LABEL:
+            self._on_lossy(item, channel)
+            return
         reliable = channel.maxRetransmits is None and channel.maxPacketLifeTime is None
         if channel.label != DATA_CHANNEL_LABEL or not channel.ordered or not reliable:
             logger.info("event=channel_refused label=%r", channel.label)
@@ -219,10 +241,34 @@ class WebRtcPeers:
             channel.close()
             return
         item.channel = channel
+        item.dc.attach(channel)  # its messages wait for the session from now on
         if channel.readyState == "open":
             item.ready.set()
         else:
             channel.on("open", item.ready.set)
+
+    def _on_lossy(self, item: _Peer, channel: RTCDataChannel) -> None:
+        """Take the ``rosbridge-lossy`` channel, opening the session's lossy lane (D36).
+
+        Its messages go to the session as any; the subscriptions made on it get
+        their messages there.
+        """
+        lossy = not channel.ordered and channel.maxRetransmits == 0
+        if not lossy or channel.maxPacketLifeTime is not None or item.lossy is not None:
+            reason = "second" if lossy and item.lossy is not None else "not_unordered_unreliable"
+            logger.info("event=channel_refused label=%r reason=%s", channel.label, reason)
+            channel.close()
+            return
+        item.lossy = channel
+        item.dc.attach_lossy(channel)
+        item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
+        # closed: its subscriptions' next messages go on the reliable channel at once
+        channel.on("close", item.session.close_lossy_lane)
+        logger.info(
+            "event=lossy_channel client=%s max_message_bytes=%d",
+            item.session.client_id,
+            item.remote_max,
+        )
 
     def _on_state(self, item: _Peer) -> None:
         """A failed or closed peer connection ends its session."""
@@ -252,8 +298,7 @@ class WebRtcPeers:
                         item.pc.connectionState,
                     )
                     return
-                dc = DataChannelChannel(channel, self.max_message_size, item.remote_max)
-                pump = ConnectionPump(dc, self.host.flow, self.host.admission)
+                pump = ConnectionPump(item.dc, self.host.flow, self.host.admission)
                 item.wake.append(pump)
                 item.running = True
                 await run_connection(pump, item.session, f"webrtc={item.session_id}")

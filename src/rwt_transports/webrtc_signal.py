@@ -4,9 +4,12 @@
 ICE candidates in it: no trickle) answers ``201 Created`` with the answer SDP
 and ``Location: /webrtc/<id>``; ``DELETE /webrtc/<id>`` ends that session
 (204, or 404 for an unknown id); ``OPTIONS`` answers a browser's CORS
-preflight. Everything else on the port (the WebSocket upgrade, the console) is
-unchanged: the WebSocket listener hands a request here only when its request
-line starts with one of these methods and the path (``claims``).
+preflight; ``GET /webrtc/roslib-transport.js`` serves roslib's transport
+factory for WebRTC (``ROSLIB_TRANSPORT_PATH``, a file of this package, with the
+same CORS headers, so a page elsewhere can import it). Everything else on the
+port (the WebSocket upgrade, the console) is unchanged: the WebSocket listener
+hands a request here only when its request line starts with one of these
+methods and the path (``claims``; a ``GET`` only below ``/webrtc/``).
 
 HTTP/1.1 is parsed by h11 (sans-IO); one request per connection. The offer is
 at most ``MAX_OFFER_BYTES``. With an authenticator (``--auth-secret-file``) an
@@ -26,7 +29,9 @@ import contextlib
 import fnmatch
 import logging
 from dataclasses import dataclass, field
+from functools import cache
 from http import HTTPStatus
+from importlib import resources
 from typing import TYPE_CHECKING, Protocol
 from urllib.parse import parse_qsl
 
@@ -42,6 +47,7 @@ __all__ = [
     "CONNECT_TIMEOUT_S",
     "MAX_OFFER_BYTES",
     "MAX_VIDEO_TRACKS",
+    "ROSLIB_TRANSPORT_PATH",
     "WEBRTC_PATH",
     "Answer",
     "OfferHandler",
@@ -55,6 +61,9 @@ logger = logging.getLogger("rwt.webrtc")
 WEBRTC_PATH = "/webrtc"
 """The signalling endpoint: offers are posted here, sessions live under it."""
 
+ROSLIB_TRANSPORT_PATH = WEBRTC_PATH + "/roslib-transport.js"
+"""Where roslib's transport factory for WebRTC is served (docs/webrtc.md, "A page with roslib")."""
+
 MAX_OFFER_BYTES = 64 * 1024
 """Largest offer SDP accepted (a browser's offer with a data channel is about 1 KiB): 413."""
 
@@ -66,8 +75,9 @@ MAX_VIDEO_TRACKS = 4
 """The most ``video`` query parameters (video tracks) of one offer: past it, 400."""
 
 _READ_SIZE = 65536
-_METHODS = (b"POST", b"DELETE", b"OPTIONS")
+_METHODS = (b"POST", b"DELETE", b"OPTIONS", b"GET")
 _SDP = "application/sdp"
+_JS = "text/javascript; charset=utf-8"
 _CORS = [
     (b"Access-Control-Allow-Methods", b"POST, DELETE, OPTIONS"),
     (b"Access-Control-Allow-Headers", b"Authorization, Content-Type"),
@@ -175,7 +185,8 @@ class WebRtcSignalling:
                     return None
                 continue
             if head.startswith(prefix):
-                return head[len(prefix) : len(prefix) + 1] in (b" ", b"/", b"?")
+                after = head[len(prefix) : len(prefix) + 1]
+                return after == b"/" if method == b"GET" else after in (b" ", b"/", b"?")
         return False
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
@@ -204,6 +215,9 @@ class WebRtcSignalling:
         answer = await self._route(request, headers, body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
         kind = _SDP if answer.status == 201 else "text/plain; charset=utf-8"
+        if request.method == b"GET" and answer.status == 200:
+            kind = _JS
+            extra.append((b"Cache-Control", b"no-cache"))  # a new rwt serves a new file
         logger.info(
             "event=signalling peer=%s method=%s status=%d",
             peer,
@@ -226,8 +240,8 @@ class WebRtcSignalling:
     ) -> Answer:
         method = request.method.decode()
         path = request.target.decode("latin-1").split("?", 1)[0].rstrip("/")
-        if method == "OPTIONS":
-            return Answer(204, "")
+        if method in ("OPTIONS", "GET"):
+            return _bodiless(method, path)
         if method == "DELETE":
             session_id = path.removeprefix(WEBRTC_PATH + "/")
             if path.startswith(WEBRTC_PATH + "/") and self.peers.delete(session_id):
@@ -257,6 +271,21 @@ class WebRtcSignalling:
         if video.topics and self.auth_required and not authenticated:
             return Answer(401, "video tracks need Authorization: Bearer <token> (/rwt/video_token)")
         return await self.peers.offer(sdp, peer, authenticated=authenticated, video=video)
+
+
+def _bodiless(method: str, path: str) -> Answer:
+    """``OPTIONS`` (a CORS preflight: 204) or ``GET`` (the roslib transport, else 404)."""
+    if method == "OPTIONS":
+        return Answer(204, "")
+    if path == ROSLIB_TRANSPORT_PATH:
+        return Answer(200, roslib_transport())
+    return Answer(404, f"nothing at {path}: the transport is at {ROSLIB_TRANSPORT_PATH}")
+
+
+@cache
+def roslib_transport() -> str:
+    """The JavaScript served at ``ROSLIB_TRANSPORT_PATH``, read from the package once."""
+    return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
 
 
 class _TooLarge(Exception):
