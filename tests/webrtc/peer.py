@@ -13,7 +13,13 @@ import anyio
 import cbor2
 import httpx
 import msgspec
-from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
+from aiortc import (
+    RTCConfiguration,
+    RTCDataChannel,
+    RTCIceServer,
+    RTCPeerConnection,
+    RTCSessionDescription,
+)
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
@@ -62,9 +68,14 @@ async def offer_sdp(pc: RTCPeerConnection) -> str:
 
 
 @asynccontextmanager
-async def rtc_client(base: str, headers: dict[str, str] | None = None) -> AsyncIterator[RtcClient]:
-    """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit."""
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+async def rtc_client(
+    base: str, headers: dict[str, str] | None = None, ice_servers: list[RTCIceServer] | None = None
+) -> AsyncIterator[RtcClient]:
+    """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit.
+
+    ``ice_servers``: the STUN and TURN servers a browser page would pass; none by default.
+    """
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=ice_servers or []))
     channel = pc.createDataChannel("rosbridge")
     opened = anyio.Event()
     channel.on("open", opened.set)
