@@ -57,10 +57,22 @@ _STEP_TIMEOUT_S = 20.0
 """Bounds a hung command or a server that never starts: a failure, not a measurement."""
 
 
-def unavailable() -> str | None:
-    """Why the topology cannot be built here (a skip reason), or None."""
-    for tool, package in (("ip", "iproute2"), ("iptables", "iptables"), ("turnserver", "coturn")):
-        if shutil.which(tool) is None:
+_PACKAGES = {"ip": "iproute2", "iptables": "iptables", "turnserver": "coturn"}
+
+
+def unavailable(tools: tuple[str, ...] = ("iptables", "turnserver")) -> str | None:
+    """Why namespaces with ``tools`` cannot be had here (a skip reason), or None.
+
+    Args:
+        tools: the commands the test runs in them besides ``ip`` (``iptables``,
+            ``turnserver``; ``tun`` for /dev/net/tun).
+    """
+    for tool in ("ip", *tools):
+        if tool == "tun":
+            if not os.path.exists("/dev/net/tun"):
+                return "no /dev/net/tun: the WAN link needs TUN devices"
+        elif shutil.which(tool) is None:
+            package = _PACKAGES.get(tool, tool)
             return f"{tool} is not installed (apt-get install {package}; .ci/run does it as root)"
     if os.geteuid() != 0:
         return "network namespaces with veth and iptables need root (ip netns add)"
@@ -69,12 +81,28 @@ def unavailable() -> str | None:
     if made.returncode != 0:
         return f"ip netns add fails here: {made.stderr.strip()}"
     try:
-        nat = _ip_netns(probe, "iptables", "-t", "nat", "-L", "-n", check=False)
-        if nat.returncode != 0:
-            return f"iptables' nat table does not work in a namespace: {nat.stderr.strip()}"
+        if "iptables" in tools:
+            nat = _ip_netns(probe, "iptables", "-t", "nat", "-L", "-n", check=False)
+            if nat.returncode != 0:
+                return f"iptables' nat table does not work in a namespace: {nat.stderr.strip()}"
     finally:
         _ip("netns", "del", probe)
     return None
+
+
+@contextmanager
+def namespaces(*roles: str) -> Iterator[list[Host]]:
+    """Bare namespaces (only ``lo``, up), one a role; deleted, their processes ended, on exit."""
+    hosts = [Host(f"rwt{os.getpid()}-{role}", "") for role in roles]
+    try:
+        for item in hosts:
+            made = _ip("netns", "add", item.ns)
+            if made.returncode != 0:
+                raise RuntimeError(f"ip netns add {item.ns}: {made.stderr.strip()}")
+            item.run("ip", "link", "set", "lo", "up")
+        yield hosts
+    finally:
+        _close(hosts)
 
 
 def _ip(*argv: str) -> subprocess.CompletedProcess[str]:
@@ -268,15 +296,19 @@ class Topology:
 
     def close(self) -> None:
         """End every process in the namespaces (only this topology's), then delete them."""
-        for item in self.hosts:
-            pids = _ip("netns", "pids", item.ns).stdout.split()
-            for pid in pids:
-                with suppress(ProcessLookupError, ValueError):
-                    os.kill(int(pid), signal.SIGKILL)
-            for process in item.started:  # reaped: `ip netns exec` ends with its child
-                with suppress(subprocess.TimeoutExpired):
-                    process.wait(5)
-            _ip("netns", "del", item.ns)
+        _close(self.hosts)
+
+
+def _close(hosts: Sequence[Host]) -> None:
+    """End every process in these namespaces (they were made for a test), then delete them."""
+    for item in hosts:
+        for pid in _ip("netns", "pids", item.ns).stdout.split():
+            with suppress(ProcessLookupError, ValueError):
+                os.kill(int(pid), signal.SIGKILL)
+        for process in item.started:  # reaped: `ip netns exec` ends with its child
+            with suppress(subprocess.TimeoutExpired):
+                process.wait(5)
+        _ip("netns", "del", item.ns)
 
 
 @contextmanager
