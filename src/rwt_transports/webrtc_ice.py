@@ -29,7 +29,11 @@ from urllib.parse import unquote
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-__all__ = ["IceServer", "parse_ice_server", "parse_ice_servers"]
+__all__ = ["ICE_SERVERS_PER_KIND", "IceServer", "parse_ice_server", "parse_ice_servers"]
+
+ICE_SERVERS_PER_KIND = 1
+"""STUN servers, and TURN servers, ``--ice-server`` takes: aiortc's ICE agent (aioice) uses
+one of each and ignores the others, so a second is refused rather than left unused."""
 
 _DEFAULT_PORT = {"stun": 3478, "turn": 3478, "turns": 5349}
 _TRANSPORTS = {"turn": ("udp", "tcp"), "turns": ("tcp",)}
@@ -138,7 +142,7 @@ def parse_ice_servers(urls: Sequence[str]) -> tuple[IceServer, ...]:
     """
     servers = tuple(parse_ice_server(url) for url in urls)
     for kind in ("stun", "turn"):
-        if sum(server.kind == kind for server in servers) > 1:
+        if sum(server.kind == kind for server in servers) > ICE_SERVERS_PER_KIND:
             raise ValueError(
                 f"more than one {kind.upper()} server: aiortc uses one STUN and one TURN server"
             )

@@ -1,0 +1,282 @@
+"""A 1 kHz topic to a browser behind a WAN link: the rosbridge data channel against the WebSocket.
+
+The robot (an in-process ``RosbridgeServer`` with ``--webrtc``, publishing
+``std_msgs/String`` at ``--rate`` Hz whose data is its send time) and the
+browser (one subscriber per transport, run one after the other) are in two
+network namespaces joined by benchmarks/wanlink.py (30 ms +- 10 ms each way, 2 %
+loss, 15 Mbit/s by default). Per transport: messages delivered a second (the
+topic's rate when it keeps up), messages the server dropped for the session
+(its slow-consumer rule, D24), the age of each message when it arrived (receive
+time - send time, the same clock: one machine) at p50 and p99, and the longest
+stall (the longest time between two messages, where 1 ms is expected; a lost
+packet on a reliable, ordered transport stalls everything behind it until its
+retransmission arrives).
+
+Transports: ``websocket`` (TCP), ``webrtc`` (the ``rosbridge`` data channel,
+reliable and ordered: SCTP over DTLS over UDP). A transport is a function from
+(server address, topic) to an async iterator of raw messages in ``TRANSPORTS``:
+the lossy data channel and a video track get their rows by adding theirs there.
+
+Run (root, network namespaces; a few seconds a transport)::
+
+    nice -n 10 python -m benchmarks.wan_topic --duration 15 [--transport webrtc ...]
+
+Results: a table on stdout and ``benchmarks/results/wan_topic.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import logging
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import AsyncIterator, Callable
+from contextlib import contextmanager, suppress
+from pathlib import Path
+from typing import Any
+
+import anyio
+
+from benchmarks.wanlink import LinkProfile, WanLink
+
+ROBOT_ADDR = "198.18.5.1"
+BROWSER_ADDR = "198.18.5.2"
+PORT = 9090
+TOPIC = "/wan_clock"
+WARMUP_S = 2.0
+"""Seconds of each run left out of the figures (connecting, the first window)."""
+
+RESULTS = Path(__file__).parent / "results" / "wan_topic.json"
+REPO = Path(__file__).resolve().parents[1]
+ENV = {**os.environ, "PYTHONPATH": f"{REPO / 'src'}:{REPO}", "PYTHONUNBUFFERED": "1"}
+
+Transport = Callable[[str, str], AsyncIterator[str | bytes]]
+
+
+async def _websocket(base: str, topic: str) -> AsyncIterator[str | bytes]:
+    import websockets  # noqa: PLC0415 (the browser process only)
+
+    async with websockets.connect(f"ws://{base}", max_size=None) as ws:
+        await ws.send(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"}))
+        async for raw in ws:
+            yield raw
+
+
+async def _webrtc(base: str, topic: str) -> AsyncIterator[str | bytes]:
+    import httpx  # noqa: PLC0415 (the browser process only)
+    from aiortc import (  # noqa: PLC0415
+        RTCConfiguration,
+        RTCPeerConnection,
+        RTCSessionDescription,
+    )
+
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    channel = pc.createDataChannel("rosbridge")
+    inbox: list[str | bytes] = []
+    arrived = anyio.Event()
+    opened = anyio.Event()
+
+    def on_message(message: str | bytes) -> None:
+        inbox.append(message)
+        arrived.set()
+
+    channel.on("open", opened.set)
+    channel.on("message", on_message)
+    try:
+        await pc.setLocalDescription(await pc.createOffer())
+        async with httpx.AsyncClient() as http:
+            reply = await http.post(
+                f"http://{base}/webrtc",
+                content=pc.localDescription.sdp,
+                headers={"Content-Type": "application/sdp"},
+            )
+        reply.raise_for_status()
+        await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+        with anyio.fail_after(20):
+            await opened.wait()
+        channel.send(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"}))
+        while True:
+            await arrived.wait()
+            arrived = anyio.Event()
+            batch, inbox[:] = inbox[:], []
+            for message in batch:
+                yield message
+    finally:
+        await pc.close()
+
+
+TRANSPORTS: dict[str, Transport] = {"websocket": _websocket, "webrtc": _webrtc}
+"""The browser's transports by name; the lossy channel and video tracks add theirs here."""
+
+
+async def browse(transport: str, duration: float) -> dict[str, Any]:
+    """Subscribe over ``transport`` for ``duration`` s; the figures after the warm-up."""
+    ages: list[float] = []
+    arrivals: list[float] = []
+    start = time.time()
+    with anyio.move_on_after(duration):
+        async for raw in TRANSPORTS[transport](f"{ROBOT_ADDR}:{PORT}", TOPIC):
+            now = time.time()
+            message = json.loads(raw)
+            if message.get("op") != "publish" or now - start < WARMUP_S:
+                continue
+            ages.append(now - float(message["msg"]["data"]))
+            arrivals.append(now)
+    if len(ages) < 2:
+        return {"transport": transport, "received": len(ages)}
+    quantiles = statistics.quantiles(ages, n=100)
+    return {
+        "transport": transport,
+        "received": len(ages),
+        "window_s": round(arrivals[-1] - arrivals[0], 2),
+        "delivered_hz": round((len(ages) - 1) / (arrivals[-1] - arrivals[0])),
+        "age_p50_ms": round(quantiles[49] * 1000, 1),
+        "age_p99_ms": round(quantiles[98] * 1000, 1),
+        "longest_stall_ms": round(max(b - a for a, b in itertools.pairwise(arrivals)) * 1000, 1),
+    }
+
+
+async def robot(rate: float) -> None:
+    """The robot: a server with WebRTC on ``ROBOT_ADDR``, publishing ``TOPIC`` at ``rate`` Hz."""
+    from rwt_graph.graph import Graph  # noqa: PLC0415 (the robot process only)
+    from rwt_transports.server import RosbridgeServer, ServerConfig  # noqa: PLC0415
+    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+
+    logging.basicConfig(stream=sys.stderr, level=logging.WARNING)
+    logging.getLogger("rwt").setLevel(logging.INFO)  # event=disconnect: the session's drops
+    graph = Graph()
+    config = ServerConfig(host=ROBOT_ADDR, port=PORT, webrtc=WebRtcOptions())
+    server = RosbridgeServer(graph, config)
+    clock = graph.create_publisher(TOPIC, "std_msgs/msg/String", node="/robot")
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        print("robot up", flush=True)
+        start = time.monotonic()
+        sent = 0
+        while True:  # on schedule: a late tick publishes at once, no drift
+            sent += 1
+            await anyio.sleep(max(0.0, start + sent / rate - time.monotonic()))
+            clock.publish({"data": repr(time.time())})
+
+
+@contextmanager
+def _namespaces(*names: str) -> Any:
+    try:
+        for name in names:
+            subprocess.run(["ip", "netns", "add", name], check=True)
+            subprocess.run(["ip", "-n", name, "link", "set", "lo", "up"], check=True)
+        yield
+    finally:
+        for name in names:
+            pids = subprocess.run(
+                ["ip", "netns", "pids", name], capture_output=True, text=True, check=False
+            )
+            for pid in pids.stdout.split():
+                with suppress(ProcessLookupError):
+                    os.kill(int(pid), 9)
+            subprocess.run(["ip", "netns", "del", name], check=False)
+
+
+def _in(ns: str, *argv: str) -> list[str]:
+    return ["ip", "netns", "exec", ns, sys.executable, "-m", "benchmarks.wan_topic", *argv]
+
+
+def _dropped(log: Path, kind: str) -> int | None:
+    """Messages the server dropped for the last session of ``kind`` (its ``event=disconnect``)."""
+    for _ in range(50):  # the session ends a moment after its browser left
+        found = re.findall(
+            rf"event=disconnect client={kind}:\S+ .*? dropped=(\d+)", log.read_text()
+        )
+        if found:
+            return int(found[-1])
+        time.sleep(0.1)
+    return None
+
+
+def run(transports: list[str], duration: float, rate: float, profile: LinkProfile) -> list[Any]:
+    """Namespaces, the link, the robot, then each transport's browser in turn: their figures."""
+    robot_ns, browser_ns = f"wanrobot{os.getpid()}", f"wanbrowser{os.getpid()}"
+    rows = []
+    with _namespaces(robot_ns, browser_ns):
+        link = WanLink(browser_ns, BROWSER_ADDR, robot_ns, ROBOT_ADDR, profile, seed=1)
+        link.start()
+        log = Path(tempfile.mkdtemp(prefix="wan_topic")) / "robot.log"
+        server = subprocess.Popen(
+            _in(robot_ns, "robot", "--rate", str(rate)),
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=log.open("w"),
+            text=True,
+        )
+        try:
+            assert server.stdout is not None
+            assert server.stdout.readline().strip() == "robot up"
+            for transport in transports:
+                done = subprocess.run(
+                    _in(browser_ns, "browser", transport, "--duration", str(duration)),
+                    env=ENV,
+                    capture_output=True,
+                    text=True,
+                    timeout=duration + 60,
+                    check=True,
+                )
+                row = json.loads(done.stdout.strip().splitlines()[-1])
+                row["server_dropped"] = _dropped(log, "webrtc" if transport == "webrtc" else "ws")
+                rows.append(row)
+        finally:
+            server.terminate()
+            server.wait(10)
+            link.stop()
+    print(f"link robot->browser {link.b_to_a.stats}, browser->robot {link.a_to_b.stats}")
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("role", nargs="?", default="run", choices=["run", "robot", "browser"])
+    parser.add_argument("transport_name", nargs="?", default=None)
+    parser.add_argument("--transport", action="append", choices=sorted(TRANSPORTS))
+    parser.add_argument("--duration", type=float, default=15.0)
+    parser.add_argument("--rate", type=float, default=1000.0)
+    parser.add_argument("--delay-ms", type=float, default=30.0)
+    parser.add_argument("--jitter-ms", type=float, default=10.0)
+    parser.add_argument("--loss", type=float, default=0.02)
+    parser.add_argument("--rate-mbit", type=float, default=15.0)
+    args = parser.parse_args()
+    if args.role == "robot":
+        anyio.run(robot, args.rate)
+        return
+    if args.role == "browser":
+        print(json.dumps(anyio.run(browse, args.transport_name, args.duration)), flush=True)
+        return
+    profile = LinkProfile(
+        args.delay_ms / 1000, args.jitter_ms / 1000, args.loss, args.rate_mbit * 1e6
+    )
+    rows = run(args.transport or ["websocket", "webrtc"], args.duration, args.rate, profile)
+    link = (
+        f"{args.delay_ms:g} ms +- {args.jitter_ms:g} ms, {args.loss:.0%} loss,"
+        f" {args.rate_mbit:g} Mbit/s"
+    )
+    print(f"WAN link each way: {link}; {args.rate:g} Hz std_msgs/String")
+    print("| transport | delivered msg/s | server drops | age p50 | age p99 | longest stall |")
+    print("|---|---|---|---|---|---|")
+    for row in rows:
+        print(
+            f"| {row['transport']} | {row.get('delivered_hz')} | "
+            f"{row.get('server_dropped')} | "
+            f"{row.get('age_p50_ms')} ms | {row.get('age_p99_ms')} ms | "
+            f"{row.get('longest_stall_ms')} ms |"
+        )
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps({"link": link, "rate_hz": args.rate, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
