@@ -200,39 +200,45 @@ def _dropped(log: Path, kind: str) -> int | None:
     return None
 
 
+def _browse_in(ns: str, transport: str, duration: float, log: Path) -> dict[str, Any]:
+    """One transport's browser run in ``ns``: its figures and the server's drops."""
+    done = subprocess.run(
+        _in(ns, "browser", transport, "--duration", str(duration)),
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=duration + 60,
+        check=True,
+    )
+    row: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
+    row["server_dropped"] = _dropped(log, "webrtc" if transport == "webrtc" else "ws")
+    return row
+
+
 def run(transports: list[str], duration: float, rate: float, profile: LinkProfile) -> list[Any]:
     """Namespaces, the link, the robot, then each transport's browser in turn: their figures."""
     robot_ns, browser_ns = f"wanrobot{os.getpid()}", f"wanbrowser{os.getpid()}"
-    rows = []
     with _namespaces(robot_ns, browser_ns):
         link = WanLink(browser_ns, BROWSER_ADDR, robot_ns, ROBOT_ADDR, profile, seed=1)
         link.start()
         log = Path(tempfile.mkdtemp(prefix="wan_topic")) / "robot.log"
-        server = subprocess.Popen(
-            _in(robot_ns, "robot", "--rate", str(rate)),
-            env=ENV,
-            stdout=subprocess.PIPE,
-            stderr=log.open("w"),
-            text=True,
-        )
+        with log.open("w") as robot_log:
+            server = subprocess.Popen(
+                _in(robot_ns, "robot", "--rate", str(rate)),
+                env=ENV,
+                stdout=subprocess.PIPE,
+                stderr=robot_log,
+                text=True,
+            )
         try:
             assert server.stdout is not None
             assert server.stdout.readline().strip() == "robot up"
-            for transport in transports:
-                done = subprocess.run(
-                    _in(browser_ns, "browser", transport, "--duration", str(duration)),
-                    env=ENV,
-                    capture_output=True,
-                    text=True,
-                    timeout=duration + 60,
-                    check=True,
-                )
-                row = json.loads(done.stdout.strip().splitlines()[-1])
-                row["server_dropped"] = _dropped(log, "webrtc" if transport == "webrtc" else "ws")
-                rows.append(row)
+            rows = [_browse_in(browser_ns, t, duration, log) for t in transports]
         finally:
             server.terminate()
             server.wait(10)
+            if server.stdout is not None:
+                server.stdout.close()
             link.stop()
     print(f"link robot->browser {link.b_to_a.stats}, browser->robot {link.a_to_b.stats}")
     return rows

@@ -82,3 +82,18 @@ def test_packets_through_the_link_between_two_namespaces() -> None:
     assert [s for s, _ in got] == sorted(s for s, _ in got)  # in order
     assert min(delay for _, delay in got) >= 0.020  # never faster than 30 ms - 10 ms
     assert link.a_to_b.stats.packets == count and link.a_to_b.stats.lost == count - len(got)
+
+
+def test_the_wan_benchmark_runs_both_transports_through_the_link() -> None:
+    """A smoke run of benchmarks/wan_topic.py: each transport's subscriber gets the topic."""
+    reason = netns.unavailable(("tun",))
+    if reason is not None:
+        pytest.skip(reason)
+    pytest.importorskip("aiortc", reason="the data channel's row needs aiortc")
+    from benchmarks.wan_topic import WARMUP_S, run  # noqa: PLC0415 (after the skips)
+
+    rows = run(["websocket", "webrtc"], WARMUP_S + 1, 100.0, LinkProfile(loss=0.0))
+    assert [row["transport"] for row in rows] == ["websocket", "webrtc"]
+    for row in rows:
+        assert row["received"] > 10 and row["server_dropped"] == 0, row
+        assert row["age_p50_ms"] >= 20  # the link's delay (30 ms +- 10 ms) is in every age
