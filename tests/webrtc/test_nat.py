@@ -2,7 +2,8 @@
 
 The topology of tests/support/netns.py: the robot's ``rwt serve`` behind an
 iptables NAT that forwards only its signalling port, the browser (an aiortc
-peer, nat_peer.py) on the internet side, Debian's coturn as STUN and TURN server
+peer, nat_peer.py, or Chromium running nat_page.py's page) behind another, and
+Debian's coturn as STUN and TURN server
 (docs/webrtc.md, "Through NAT"). Each test does a rosbridge round trip on the
 data channel and asserts where the data went: to the NAT's public address (the
 robot's server-reflexive candidate) when the NAT lets the peers meet, or to the
@@ -18,14 +19,16 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from urllib.parse import quote
+from urllib.parse import quote, urlencode
 
+import anyio
 import pytest
 
 from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
+from tests.browser.cdp import chromium_path
 from tests.support import netns
 from tests.support.realclients import REPO
 
@@ -48,9 +51,12 @@ def topology(tmp_path: Path) -> Iterator[netns.Topology]:
 
 
 async def _serve_robot(topology: netns.Topology, folder: Path, *ice: str) -> netns.Started:
-    """Coturn, then ``rwt serve --webrtc`` with ``ice`` in the robot's namespace, listening."""
-    coturn = topology.turn.start(netns.coturn_argv(topology.turn, folder), folder / "coturn.log")
-    await coturn.wait_for(netns.COTURN_READY)
+    """Coturn (for ``ice``), then ``rwt serve --webrtc`` with ``ice`` in the robot's namespace."""
+    if ice:
+        coturn = topology.turn.start(
+            netns.coturn_argv(topology.turn, folder), folder / "coturn.log"
+        )
+        await coturn.wait_for(netns.COTURN_READY)
     args = ["--host", netns.ROBOT, "--port", str(netns.SIGNALLING_PORT), "--webrtc"]
     for url in ice:
         args += ["--ice-server", url]
@@ -122,3 +128,41 @@ async def test_without_ice_servers_the_peers_never_meet(
     done = _browser(topology, "--wait", "2")
     assert done.returncode != 0 and "TimeoutError" in done.stderr
     assert "typ srflx" not in robot.log.read_text() and done.stdout == ""
+
+
+@pytest.mark.parametrize("only_turn", [False, True], ids=["direct", "relayed"])
+async def test_chromium_behind_its_nat_reaches_the_robot_behind_its_own(
+    topology: netns.Topology, tmp_path: Path, only_turn: bool
+) -> None:
+    """Chromium's own ICE (its host candidates hidden as mDNS names) through both NATs:
+    straight between them (it picks the robot's srflx candidate over its relayed one),
+    or through TURN when UDP between the NATs is dropped."""
+    executable = chromium_path()
+    if executable is None:
+        pytest.skip("chromium is not installed (apt-get install chromium; .ci/run does it as root)")
+    if only_turn:
+        topology.only_turn_reachable()
+    await _serve_robot(topology, tmp_path, STUN, TURN)
+    result_file = tmp_path / "result.json"
+    page = topology.browser.start(
+        [sys.executable, "-m", "tests.webrtc.nat_page", "8000", str(result_file)],
+        tmp_path / "page.log",
+        ENV,
+    )
+    await page.wait_for("page up")
+    server = f"http://{netns.NAT_PUBLIC}:{netns.SIGNALLING_PORT}"
+    url = f"http://127.0.0.1:8000/?{urlencode({'server': server, 'stun': STUN})}"
+    argv = [executable, "--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run"]
+    argv += [f"--user-data-dir={tmp_path / 'profile'}", "--disable-dev-shm-usage", url]
+    chromium = topology.browser.start(argv, tmp_path / "chromium.log")
+    with anyio.fail_after(PEER_TIMEOUT_S):
+        while not result_file.exists() and chromium.process.poll() is None:
+            await anyio.sleep(0.1)
+    chromium.stop()
+    assert result_file.exists(), (tmp_path / "chromium.log").read_text()[-3000:]
+    result = json.loads(result_file.read_text())
+    assert "failure" not in result, result
+    assert result["echo"] == {"data": "through the NAT"}
+    assert result["offer_mdns"] is True  # its host address hidden, as Chromium does by default
+    assert "srflx" in result["offer_types"]  # from the page's iceServers
+    assert result["remote"][0] == (netns.TURN if only_turn else netns.NAT_PUBLIC)
