@@ -125,6 +125,7 @@ async def browse(transport: str, duration: float) -> dict[str, Any]:
     ages: list[float] = []
     arrivals: list[float] = []
     start = 0.0
+    cpu, wall = time.process_time(), time.monotonic()
     with anyio.move_on_after(CONNECT_BOUND_S) as scope:
         async for raw in TRANSPORTS[transport](f"{ROBOT_ADDR}:{PORT}", TOPIC):
             now = time.time()
@@ -138,6 +139,7 @@ async def browse(transport: str, duration: float) -> dict[str, Any]:
                 continue
             ages.append(now - float(message["msg"]["data"]))
             arrivals.append(now)
+    used = (time.process_time() - cpu) / (time.monotonic() - wall)
     if len(ages) < 2:
         return {"transport": transport, "received": len(ages)}
     quantiles = statistics.quantiles(ages, n=100)
@@ -148,6 +150,7 @@ async def browse(transport: str, duration: float) -> dict[str, Any]:
         "delivered_hz": round((len(ages) - 1) / (arrivals[-1] - arrivals[0])),
         "age_p50_ms": round(quantiles[49] * 1000, 1),
         "age_p99_ms": round(quantiles[98] * 1000, 1),
+        "browser_cpu_pct": round(100 * used),
         "longest_stall_ms": round(max(b - a for a, b in itertools.pairwise(arrivals)) * 1000, 1),
     }
 
@@ -197,9 +200,15 @@ def _in(ns: str, *argv: str) -> list[str]:
     return ["ip", "netns", "exec", ns, sys.executable, "-m", "benchmarks.wan_topic", *argv]
 
 
+def _cpu_s(pid: int) -> float:
+    """CPU seconds (user and system) process ``pid`` used so far (/proc/PID/stat)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _dropped(log: Path, kind: str) -> int | None:
     """Messages the server dropped for the last session of ``kind`` (its ``event=disconnect``)."""
-    for _ in range(50):  # the session ends a moment after its browser left
+    for _ in range(300):  # the session ends once the server sees the browser leave
         found = re.findall(
             rf"event=disconnect client={kind}:\S+ .*? dropped=(\d+)", log.read_text()
         )
@@ -242,7 +251,13 @@ def run(transports: list[str], duration: float, rate: float, profile: LinkProfil
         try:
             assert server.stdout is not None
             assert server.stdout.readline().strip() == "robot up"
-            rows = [_browse_in(browser_ns, t, duration, log) for t in transports]
+            rows = []
+            for transport in transports:
+                cpu, wall = _cpu_s(server.pid), time.monotonic()
+                row = _browse_in(browser_ns, transport, duration, log)
+                used = (_cpu_s(server.pid) - cpu) / (time.monotonic() - wall)
+                row["robot_cpu_pct"] = round(100 * used)  # of one core, the browser's run
+                rows.append(row)
         finally:
             server.terminate()
             server.wait(10)
@@ -280,14 +295,18 @@ def main() -> None:
         f" {args.rate_mbit:g} Mbit/s"
     )
     print(f"WAN link each way: {link}; {args.rate:g} Hz std_msgs/String")
-    print("| transport | delivered msg/s | server drops | age p50 | age p99 | longest stall |")
-    print("|---|---|---|---|---|---|")
+    print(
+        "| transport | delivered msg/s | server drops | age p50 | age p99 | longest stall"
+        " | robot CPU | browser CPU |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
     for row in rows:
         print(
             f"| {row['transport']} | {row.get('delivered_hz')} | "
             f"{row.get('server_dropped')} | "
             f"{row.get('age_p50_ms')} ms | {row.get('age_p99_ms')} ms | "
-            f"{row.get('longest_stall_ms')} ms |"
+            f"{row.get('longest_stall_ms')} ms | {row.get('robot_cpu_pct')} % | "
+            f"{row.get('browser_cpu_pct')} % |"
         )
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps({"link": link, "rate_hz": args.rate, "rows": rows}, indent=1))
