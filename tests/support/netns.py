@@ -326,6 +326,25 @@ COTURN_READY = "Total General servers"
 """What coturn prints once it listens."""
 
 
+LAN_ROBOT = "198.18.6.2"
+LAN_BROWSER = "198.18.6.3"
+
+
+@contextmanager
+def lan() -> Iterator[tuple[Host, Host]]:
+    """The robot and the browser on one LAN segment (a veth pair: multicast reaches across).
+
+    No NAT, no router: each has a route for everything (multicast DNS included) out
+    of its one interface, as a host on a LAN does.
+    """
+    with namespaces("lan-robot", "lan-browser") as (robot, browser):
+        robot.address, browser.address = LAN_ROBOT, LAN_BROWSER
+        Topology._link(robot, "eth0", LAN_ROBOT, browser, "eth0", LAN_BROWSER)
+        for item in (robot, browser):
+            item.run("ip", "route", "add", "default", "dev", "eth0")
+        yield robot, browser
+
+
 def coturn_argv(host: Host, folder: Path) -> list[str]:
     """Debian's coturn as STUN and TURN server on ``host``: UDP 3478, one user, no TLS.
 

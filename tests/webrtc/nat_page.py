@@ -19,7 +19,8 @@ PAGE = """<!doctype html><html><body><script type="module">
 const query = new URL(location.href).searchParams;
 const report = (result) => fetch("/result", { method: "POST", body: JSON.stringify(result) });
 try {
-  const pc = new RTCPeerConnection({ iceServers: [{ urls: query.get("stun") }] });
+  const stun = query.get("stun");  // none: Chromium's host (mDNS) candidates only
+  const pc = new RTCPeerConnection({ iceServers: stun ? [{ urls: stun }] : [] });
   const channel = pc.createDataChannel("rosbridge");
   await pc.setLocalDescription(await pc.createOffer());
   await new Promise((done) => {

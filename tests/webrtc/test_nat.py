@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -143,26 +144,61 @@ async def test_chromium_behind_its_nat_reaches_the_robot_behind_its_own(
     if only_turn:
         topology.only_turn_reachable()
     await _serve_robot(topology, tmp_path, STUN, TURN)
-    result_file = tmp_path / "result.json"
-    page = topology.browser.start(
-        [sys.executable, "-m", "tests.webrtc.nat_page", "8000", str(result_file)],
-        tmp_path / "page.log",
-        ENV,
-    )
-    await page.wait_for("page up")
     server = f"http://{netns.NAT_PUBLIC}:{netns.SIGNALLING_PORT}"
-    url = f"http://127.0.0.1:8000/?{urlencode({'server': server, 'stun': STUN})}"
-    argv = [executable, "--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run"]
-    argv += [f"--user-data-dir={tmp_path / 'profile'}", "--disable-dev-shm-usage", url]
-    chromium = topology.browser.start(argv, tmp_path / "chromium.log")
-    with anyio.fail_after(PEER_TIMEOUT_S):
-        while not result_file.exists() and chromium.process.poll() is None:
-            await anyio.sleep(0.1)
-    chromium.stop()
-    assert result_file.exists(), (tmp_path / "chromium.log").read_text()[-3000:]
-    result = json.loads(result_file.read_text())
+    result = await _chromium(executable, topology.browser, tmp_path, server=server, stun=STUN)
     assert "failure" not in result, result
     assert result["echo"] == {"data": "through the NAT"}
     assert result["offer_mdns"] is True  # its host address hidden, as Chromium does by default
     assert "srflx" in result["offer_types"]  # from the page's iceServers
     assert result["remote"][0] == (netns.TURN if only_turn else netns.NAT_PUBLIC)
+
+
+async def _chromium(
+    executable: str, browser: netns.Host, folder: Path, **query: str
+) -> dict[str, object]:
+    """Headless Chromium in ``browser``'s namespace running nat_page.py's page; its report."""
+    result_file = folder / "result.json"
+    page = browser.start(
+        [sys.executable, "-m", "tests.webrtc.nat_page", "8000", str(result_file)],
+        folder / "page.log",
+        ENV,
+    )
+    await page.wait_for("page up")
+    url = f"http://127.0.0.1:8000/?{urlencode(query)}"
+    argv = [executable, "--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run"]
+    argv += [f"--user-data-dir={folder / 'profile'}", "--disable-dev-shm-usage", url]
+    chromium = browser.start(argv, folder / "chromium.log")
+    with anyio.fail_after(PEER_TIMEOUT_S):
+        while not result_file.exists() and chromium.process.poll() is None:
+            await anyio.sleep(0.1)
+    chromium.stop()
+    assert result_file.exists(), (folder / "chromium.log").read_text()[-3000:]
+    return json.loads(result_file.read_text())  # type: ignore[no-any-return]
+
+
+async def test_chromium_on_the_robots_lan_connects_with_only_an_mdns_host_candidate(
+    tmp_path: Path,
+) -> None:
+    """No ICE servers on either side, Chromium's host address hidden behind an mDNS name.
+
+    aioice tries to resolve the name by multicast DNS (here it gets no answer); the
+    session connects anyway: Chromium's checks reach the robot's host candidate, and
+    the robot answers the address they came from (a peer-reflexive candidate).
+    """
+    reason = netns.unavailable(())
+    executable = chromium_path()
+    if reason is not None or executable is None:
+        pytest.skip(reason or "chromium is not installed (apt-get install chromium)")
+    with netns.lan() as (robot_host, browser):
+        args = ["--host", netns.LAN_ROBOT, "--port", str(netns.SIGNALLING_PORT), "--webrtc"]
+        argv = [sys.executable, "-m", "rwt", "serve", "--log-level", "info", *args]
+        robot = robot_host.start(argv, tmp_path / "robot.log", ENV)
+        await robot.wait_for("listening on ws://")
+        server = f"http://{netns.LAN_ROBOT}:{netns.SIGNALLING_PORT}"
+        result = await _chromium(executable, browser, tmp_path, server=server)
+    assert "failure" not in result, result
+    assert result["echo"] == {"data": "through the NAT"}
+    assert result["offer_mdns"] is True and result["offer_types"] == ["host"]
+    assert result["remote"][0] == netns.LAN_ROBOT
+    log = (tmp_path / "robot.log").read_text()
+    assert re.search(r'Remote candidate "[0-9a-f-]+\.local" (could not be resolved|resolved)', log)
