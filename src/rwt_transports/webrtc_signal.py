@@ -20,7 +20,7 @@ from __future__ import annotations
 import contextlib
 import fnmatch
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from http import HTTPStatus
 from typing import TYPE_CHECKING, Protocol
 
@@ -90,7 +90,7 @@ class WebRtcOptions:
 
     connect_timeout_s: float = CONNECT_TIMEOUT_S
     bearer_token: Callable[[str], bool] | None = None
-    ice_servers: tuple[str, ...] = ()
+    ice_servers: tuple[str, ...] = field(default=(), repr=False)  # TURN passwords: no repr
 
     def __post_init__(self) -> None:
         parse_ice_servers(self.ice_servers)  # refuse a bad URL here, not at the first offer

@@ -81,6 +81,7 @@ def test_an_error_never_shows_the_turn_password() -> None:
         with pytest.raises(ValueError, match=r"^(?!.*hunter2)"):
             parse_ice_server(text)
     assert "hunter2" not in repr(parse_ice_server("turn:robot:hunter2@h"))
+    assert "hunter2" not in repr(WebRtcOptions(ice_servers=("turn:robot:hunter2@h",)))
 
 
 def test_one_stun_and_one_turn_server_at_most() -> None:
