@@ -181,7 +181,8 @@ async def test_chromium_on_the_robots_lan_connects_with_only_an_mdns_host_candid
 ) -> None:
     """No ICE servers on either side, Chromium's host address hidden behind an mDNS name.
 
-    aioice tries to resolve the name by multicast DNS (here it gets no answer); the
+    aioice asks for the name by multicast DNS and Chromium answers, but aioice drops
+    the answer (dnspython refuses its NSEC record, docs/webrtc.md "The page"); the
     session connects anyway: Chromium's checks reach the robot's host candidate, and
     the robot answers the address they came from (a peer-reflexive candidate).
     """
