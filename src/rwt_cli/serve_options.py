@@ -120,7 +120,8 @@ class Listeners:
         bool,
         typer.Option(
             help="Answer WebRTC offers at POST /webrtc on --port; a 'rosbridge' data channel"
-            " is a session (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
+            " is a session, ?video=TOPIC sends an image topic as a video track"
+            " (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
         ),
     ] = False
     ice_server: Annotated[

@@ -13,6 +13,11 @@ at most ``MAX_OFFER_BYTES``. With an authenticator (``--auth-secret-file``) an
 offer carrying ``Authorization: Bearer <token>`` must carry a live video token
 (``/rwt/video_token``, docs/video.md), else 401; an offer without one opens a
 session that must send the ``auth`` op first, as a WebSocket client does (D23).
+
+Video tracks: ``POST /webrtc?video=/camera/image&video=/arm/image`` binds the
+offer's receiving video transceivers, in order, to those image topics (at most
+``MAX_VIDEO_TRACKS``; webrtc_video.py); with an authenticator they need the
+bearer token, since a video-only peer has no data channel to authenticate on.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import logging
 from dataclasses import dataclass, field
 from http import HTTPStatus
 from typing import TYPE_CHECKING, Protocol
+from urllib.parse import parse_qsl
 
 import anyio
 import h11
@@ -30,16 +36,18 @@ import h11
 from .webrtc_ice import parse_ice_servers
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Mapping
 
     from anyio.abc import ByteStream
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "MAX_OFFER_BYTES",
+    "MAX_VIDEO_TRACKS",
     "WEBRTC_PATH",
     "Answer",
     "OfferHandler",
+    "VideoRequest",
     "WebRtcOptions",
     "WebRtcSignalling",
 ]
@@ -55,6 +63,9 @@ MAX_OFFER_BYTES = 64 * 1024
 CONNECT_TIMEOUT_S = 15.0
 """Default seconds a peer has, from its answer, to complete ICE and DTLS and open the
 ``rosbridge`` data channel; then its session is freed (``WebRtcOptions``)."""
+
+MAX_VIDEO_TRACKS = 4
+"""The most ``video`` query parameters (video tracks) of one offer: past it, 400."""
 
 _READ_SIZE = 65536
 _METHODS = (b"POST", b"DELETE", b"OPTIONS")
@@ -105,11 +116,39 @@ class Answer:
     location: str | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class VideoRequest:
+    """The video tracks an offer's query asks for (docs/webrtc.md, "Video tracks").
+
+    Attributes:
+        topics: the image topic of each ``video`` parameter, in the query's order.
+        query: the other parameters, the last value of each (the video server's
+            stream parameters: ``bitrate``, ``width``, ``height``, ``gop``...).
+    """
+
+    topics: tuple[str, ...] = ()
+    query: Mapping[str, str] = field(default_factory=dict)
+
+
+def video_request(target: str) -> VideoRequest | Answer:
+    """The video tracks the request target's query asks for, or a 400 ``Answer``."""
+    _, _, query = target.partition("?")
+    pairs = parse_qsl(query, keep_blank_values=True)
+    topics = tuple(value for name, value in pairs if name == "video")
+    if len(topics) > MAX_VIDEO_TRACKS:
+        return Answer(400, f"{len(topics)} video parameters: at most {MAX_VIDEO_TRACKS}")
+    if not all(topics):
+        return Answer(400, "an empty video parameter: give an image topic, video=/camera/image")
+    return VideoRequest(topics, {name: value for name, value in pairs if name != "video"})
+
+
 class OfferHandler(Protocol):
     """The peer connections behind signalling (``webrtc_peers.WebRtcPeers``)."""
 
-    async def offer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
-        """Answer an offer: 201 with the answer SDP, else the refusal."""
+    async def offer(
+        self, sdp: str, peer: str, *, authenticated: bool, video: VideoRequest | None = None
+    ) -> Answer:
+        """Answer an offer (with the video tracks of ``video``): 201 with the answer SDP."""
 
     def delete(self, session_id: str) -> bool:
         """End the session ``session_id``; False if there is none."""
@@ -226,7 +265,12 @@ class WebRtcSignalling:
             return Answer(400, "the offer is not UTF-8 text")
         if not sdp.strip():
             return Answer(400, "the offer is empty: post a complete SDP offer")
-        return await self.peers.offer(sdp, peer, authenticated=authenticated)
+        video = video_request(request.target.decode("latin-1"))
+        if isinstance(video, Answer):
+            return video
+        if video.topics and self.auth_required and not authenticated:
+            return Answer(401, "video tracks need Authorization: Bearer <token> (/rwt/video_token)")
+        return await self.peers.offer(sdp, peer, authenticated=authenticated, video=video)
 
 
 class _TooLarge(Exception):
