@@ -13,9 +13,12 @@ packet on a reliable, ordered transport stalls everything behind it until its
 retransmission arrives).
 
 Transports: ``websocket`` (TCP), ``webrtc`` (the ``rosbridge`` data channel,
-reliable and ordered: SCTP over DTLS over UDP). A transport is a function from
-(server address, topic) to an async iterator of raw messages in ``TRANSPORTS``:
-the lossy data channel and a video track get their rows by adding theirs there.
+reliable and ordered: SCTP over DTLS over UDP), and ``video``: the robot's 30 Hz
+640x480 camera (``CAMERA``) played as a VP8 video track (docs/webrtc.md), whose
+figures are decoded frames a second and the longest stall (a frame carries no send
+time). A message transport is a function from (server address, topic) to an async
+iterator of raw messages in ``TRANSPORTS``: the lossy data channel gets its row by
+adding its client there.
 
 Run (root, network namespaces; a few seconds a transport)::
 
@@ -53,6 +56,8 @@ TOPIC = "/wan_clock"
 WARMUP_S = 2.0
 """Seconds of each run left out of the figures (connecting, the first window)."""
 
+CAMERA = "/wan_camera"
+CAMERA_HZ = 30.0
 CONNECT_BOUND_S = 60.0
 """Longest wait for the first message: a failure bound, not a measurement."""
 
@@ -155,6 +160,67 @@ async def browse(transport: str, duration: float) -> dict[str, Any]:
     }
 
 
+async def browse_video(duration: float) -> dict[str, Any]:
+    """Play ``CAMERA`` as a VP8 video track for ``duration`` s from its first frame.
+
+    The figures are decoded frames a second and the longest time between two; a
+    frame's age would need a send time in the picture, so there is none.
+    """
+    import httpx  # noqa: PLC0415 (the browser process only)
+    from aiortc import (  # noqa: PLC0415
+        RTCConfiguration,
+        RTCPeerConnection,
+        RTCRtpReceiver,
+        RTCSessionDescription,
+    )
+
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    vp8 = [c for c in RTCRtpReceiver.getCapabilities("video").codecs if c.mimeType == "video/VP8"]
+    pc.addTransceiver("video", direction="recvonly").setCodecPreferences(vp8)
+    tracks: list[Any] = []
+    got_track = anyio.Event()
+
+    def on_track(track: Any) -> None:
+        tracks.append(track)
+        got_track.set()
+
+    pc.on("track", on_track)
+    arrivals: list[float] = []
+    cpu, wall = time.process_time(), time.monotonic()
+    try:
+        await pc.setLocalDescription(await pc.createOffer())
+        async with httpx.AsyncClient() as http:
+            reply = await http.post(
+                f"http://{ROBOT_ADDR}:{PORT}/webrtc?video={CAMERA}",
+                content=pc.localDescription.sdp,
+                headers={"Content-Type": "application/sdp"},
+            )
+        reply.raise_for_status()
+        await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+        with anyio.move_on_after(CONNECT_BOUND_S) as scope:
+            await got_track.wait()
+            while True:
+                await tracks[0].recv()
+                now = time.time()
+                if not arrivals:
+                    scope.deadline = anyio.current_time() + duration
+                arrivals.append(now)
+    finally:
+        await pc.close()
+    used = (time.process_time() - cpu) / (time.monotonic() - wall)
+    kept = [t for t in arrivals if t - arrivals[0] >= WARMUP_S] if arrivals else []
+    if len(kept) < 2:
+        return {"transport": "video", "received": len(kept)}
+    return {
+        "transport": "video",
+        "received": len(kept),
+        "window_s": round(kept[-1] - kept[0], 2),
+        "delivered_hz": round((len(kept) - 1) / (kept[-1] - kept[0]), 1),
+        "browser_cpu_pct": round(100 * used),
+        "longest_stall_ms": round(max(b - a for a, b in itertools.pairwise(kept)) * 1000, 1),
+    }
+
+
 async def robot(rate: float) -> None:
     """The robot: a server with WebRTC on ``ROBOT_ADDR``, publishing ``TOPIC`` at ``rate`` Hz."""
     from rwt_graph.graph import Graph  # noqa: PLC0415 (the robot process only)
@@ -169,6 +235,7 @@ async def robot(rate: float) -> None:
     clock = graph.create_publisher(TOPIC, "std_msgs/msg/String", node="/robot")
     async with anyio.create_task_group() as tg:
         await tg.start(server.serve)
+        tg.start_soon(_camera, graph)
         print("robot up", flush=True)
         start = time.monotonic()
         sent = 0
@@ -176,6 +243,24 @@ async def robot(rate: float) -> None:
             sent += 1
             await anyio.sleep(max(0.0, start + sent / rate - time.monotonic()))
             clock.publish({"data": repr(time.time())})
+
+
+async def _camera(graph: Any) -> None:
+    """``CAMERA`` at ``CAMERA_HZ``: the paper's synthetic 640x480 scene (4 frames looped).
+
+    Encoded for a video track only while a peer watches it (docs/webrtc.md).
+    """
+    from benchmarks.paper.video import messages  # noqa: PLC0415 (the robot process only)
+
+    frames = list(messages(4))
+    publisher = graph.create_publisher(CAMERA, "sensor_msgs/msg/Image", node="/robot")
+    start, index = time.monotonic(), 0
+    while True:
+        frame = dict(frames[index % len(frames)])
+        frame["header"] = {"stamp": {"sec": index // 30, "nanosec": index % 30 * 33_333_333}}
+        publisher.publish(frame)
+        index += 1
+        await anyio.sleep(max(0.0, start + index / CAMERA_HZ - time.monotonic()))
 
 
 @contextmanager
@@ -229,7 +314,8 @@ def _browse_in(ns: str, transport: str, duration: float, log: Path) -> dict[str,
         check=True,
     )
     row: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
-    row["server_dropped"] = _dropped(log, "webrtc" if transport == "webrtc" else "ws")
+    if transport != "video":  # a video-only peer has no rosbridge session
+        row["server_dropped"] = _dropped(log, "webrtc" if transport == "webrtc" else "ws")
     return row
 
 
@@ -272,7 +358,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("role", nargs="?", default="run", choices=["run", "robot", "browser"])
     parser.add_argument("transport_name", nargs="?", default=None)
-    parser.add_argument("--transport", action="append", choices=sorted(TRANSPORTS))
+    parser.add_argument("--transport", action="append", choices=[*sorted(TRANSPORTS), "video"])
     parser.add_argument("--duration", type=float, default=15.0)
     parser.add_argument("--rate", type=float, default=1000.0)
     parser.add_argument("--delay-ms", type=float, default=30.0)
@@ -284,12 +370,17 @@ def main() -> None:
         anyio.run(robot, args.rate)
         return
     if args.role == "browser":
-        print(json.dumps(anyio.run(browse, args.transport_name, args.duration)), flush=True)
+        if args.transport_name == "video":
+            row = anyio.run(browse_video, args.duration)
+        else:
+            row = anyio.run(browse, args.transport_name, args.duration)
+        print(json.dumps(row), flush=True)
         return
     profile = LinkProfile(
         args.delay_ms / 1000, args.jitter_ms / 1000, args.loss, args.rate_mbit * 1e6
     )
-    rows = run(args.transport or ["websocket", "webrtc"], args.duration, args.rate, profile)
+    chosen = args.transport or ["websocket", "webrtc", "video"]
+    rows = run(chosen, args.duration, args.rate, profile)
     link = (
         f"{args.delay_ms:g} ms +- {args.jitter_ms:g} ms, {args.loss:.0%} loss,"
         f" {args.rate_mbit:g} Mbit/s"
@@ -304,7 +395,7 @@ def main() -> None:
         print(
             f"| {row['transport']} | {row.get('delivered_hz')} | "
             f"{row.get('server_dropped')} | "
-            f"{row.get('age_p50_ms')} ms | {row.get('age_p99_ms')} ms | "
+            f"{row.get('age_p50_ms', '-')} ms | {row.get('age_p99_ms', '-')} ms | "
             f"{row.get('longest_stall_ms')} ms | {row.get('robot_cpu_pct')} % | "
             f"{row.get('browser_cpu_pct')} % |"
         )
