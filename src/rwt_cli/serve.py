@@ -135,7 +135,7 @@ def serve(options: ServeOptions) -> None:
 
 
 def _check_listeners(options: ServeOptions) -> None:
-    """Refuse a server with no listener at all, or WebRTC without its port (usage error)."""
+    """Refuse no listener at all, WebRTC without its port, ICE servers without WebRTC."""
     listeners = options.listeners
     if not (
         listeners.websocket
@@ -148,6 +148,8 @@ def _check_listeners(options: ServeOptions) -> None:
         )
     if listeners.webrtc and not listeners.websocket:
         raise usage_error("--webrtc answers on the WebSocket port: not with --no-websocket")
+    if listeners.ice_server and not listeners.webrtc:
+        raise usage_error("--ice-server gives --webrtc its STUN and TURN servers: add --webrtc")
 
 
 def _set_up_process(process: Process) -> None:
@@ -184,7 +186,8 @@ def _server(
     config = _server_config(options, origins, site)
     if options.listeners.webrtc:  # an offer's bearer token is a video token (docs/webrtc.md)
         check = None if tokens is None else tokens.valid
-        config = replace(config, webrtc=WebRtcOptions(bearer_token=check))
+        ice_servers = tuple(options.listeners.ice_server or ())
+        config = replace(config, webrtc=WebRtcOptions(bearer_token=check, ice_servers=ice_servers))
     if site is not None:
         site.limits = _limits(config)
     authenticator = (

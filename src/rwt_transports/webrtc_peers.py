@@ -2,7 +2,9 @@
 
 An offer is admitted as any connection is (``SessionHost.open_session``:
 ``--max-connections``, host shares, ``/connected_clients``), then answered by
-aiortc with every ICE candidate gathered (no trickle). The session starts
+aiortc with every ICE candidate gathered (no trickle): host candidates, and
+with ``--ice-server`` the server-reflexive and relayed ones its STUN and TURN
+servers give (aioice waits at most 5 s for them). The session starts
 when the peer opens its ``rosbridge`` data channel (webrtc.py) and runs on the
 connection pump like a WebSocket's. A ``rosbridge-lossy`` channel (unordered,
 ``maxRetransmits`` 0) belongs to the same session: it opens the session's
@@ -12,7 +14,8 @@ lossy lane (D36). Bounds, each enforced here
 - ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
   the server; more get 503. Each holds UDP sockets and aiortc's ICE and DTLS
   state, and answering one makes a key pair, so a burst of offers is bounded.
-- ``OFFER_TIMEOUT_S``: answering one offer (ICE gathering); after it, 503.
+- ``OFFER_TIMEOUT_S``: answering one offer (ICE gathering, a TURN allocation
+  included); after it, 503.
 - ``WebRtcOptions.connect_timeout_s``: from the answer to an open data channel
   (ICE, DTLS, SCTP); a peer that never gets there is freed.
 
@@ -36,12 +39,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import anyio
-from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
+from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSessionDescription
 
 from rwt_protocol.server.commands import CloseCode
 
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .webrtc import MAX_TEXT_FRAME_BYTES, DataChannelChannel
+from .webrtc_ice import parse_ice_servers
 from .webrtc_signal import WEBRTC_PATH, Answer
 
 if TYPE_CHECKING:
@@ -139,6 +143,7 @@ class WebRtcPeers:
         self.video = video
         self.options = options
         self.max_message_size = max_message_size
+        self.ice_servers = parse_ice_servers(options.ice_servers)
         self.peers: dict[str, _Peer] = {}
         self._answering = 0
         self._tg: TaskGroup | None = None
@@ -198,7 +203,7 @@ class WebRtcPeers:
         )
         if session is None:
             return Answer(503, "too many connections")
-        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))  # no STUN: no traffic elsewhere
+        pc = RTCPeerConnection(self._configuration())
         remote_max = remote_max_message_size(sdp)
         dc = DataChannelChannel(None, self.max_message_size, remote_max)
         item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc)
@@ -221,6 +226,18 @@ class WebRtcPeers:
         self.peers[item.session_id] = item
         self._tg.start_soon(self._run, item)
         return Answer(201, pc.localDescription.sdp, f"{WEBRTC_PATH}/{item.session_id}")
+
+    def _configuration(self) -> RTCConfiguration:
+        """A peer connection's ICE servers: ``--ice-server``'s, or none.
+
+        None at all (not aiortc's default, a public STUN server) without
+        ``--ice-server``: the server then sends nothing to any other host.
+        """
+        servers = [
+            RTCIceServer(urls=s.url, username=s.username, credential=s.credential)
+            for s in self.ice_servers
+        ]
+        return RTCConfiguration(iceServers=servers)
 
     def _on_channel(self, item: _Peer, channel: RTCDataChannel) -> None:
         """Take one ``rosbridge`` channel (reliable, ordered) and one ``rosbridge-lossy``.

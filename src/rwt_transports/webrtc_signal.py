@@ -38,6 +38,8 @@ from urllib.parse import parse_qsl
 import anyio
 import h11
 
+from .webrtc_ice import parse_ice_servers
+
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
@@ -97,10 +99,22 @@ class WebRtcOptions:
         bearer_token: with an authenticator, checks the token of an offer's
             ``Authorization: Bearer`` header (the video server's tokens,
             ``rwt_video.VideoTokens.valid``); None: such an offer gets 401.
+        ice_servers: STUN and TURN server URLs (``--ice-server``, the forms of
+            ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
+            and relayed candidates each answer carries (docs/webrtc.md, "Through
+            NAT"); empty: host candidates only, and no traffic to any other host.
+
+    Raises:
+        ValueError: an ICE server URL aiortc cannot use, or more than one STUN or
+            TURN server (``parse_ice_servers``).
     """
 
     connect_timeout_s: float = CONNECT_TIMEOUT_S
     bearer_token: Callable[[str], bool] | None = None
+    ice_servers: tuple[str, ...] = field(default=(), repr=False)  # TURN passwords: no repr
+
+    def __post_init__(self) -> None:
+        parse_ice_servers(self.ice_servers)  # refuse a bad URL here, not at the first offer
 
 
 @dataclass(frozen=True, slots=True)

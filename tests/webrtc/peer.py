@@ -13,7 +13,13 @@ import anyio
 import cbor2
 import httpx
 import msgspec
-from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
+from aiortc import (
+    RTCConfiguration,
+    RTCDataChannel,
+    RTCIceServer,
+    RTCPeerConnection,
+    RTCSessionDescription,
+)
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
@@ -74,13 +80,15 @@ async def rtc_client(
     headers: dict[str, str] | None = None,
     *,
     lossy: dict[str, object] | None = None,
+    ice_servers: list[RTCIceServer] | None = None,
 ) -> AsyncIterator[RtcClient]:
     """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit.
 
     ``lossy``: also open a ``rosbridge-lossy`` channel with these ``createDataChannel``
     options (``{"ordered": False, "maxRetransmits": 0}`` for the server to keep it).
+    ``ice_servers``: the STUN and TURN servers a browser page would pass; none by default.
     """
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=ice_servers or []))
     channel = pc.createDataChannel("rosbridge")
     opened = anyio.Event()
     channel.on("open", opened.set)
