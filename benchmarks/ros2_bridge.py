@@ -500,9 +500,11 @@ STAGES = (
     "max_batch",
     "handed",
     "refused",
+    "expired",
     "published",
     "queued",
     "dropped",
+    "expired_out",
     "written",
 )
 """The per-stage counts of an rwt case, in order (``stage_counts``)."""
@@ -513,9 +515,11 @@ def stage_counts(log: str, result: Result) -> dict[str, int]:
 
     ``sent``: what the publisher sent (probes included); ``taken`` ... ``published``:
     the link's ``event=ros2_counters`` line of the case's topic, plus ``batch_<bucket>``
-    (wake-ups by samples taken); ``queued``, ``dropped``, ``written``: the subscribers'
-    ``event=disconnect`` lines (topic messages queued, dropped, frames handed to the
-    socket), summed over the subscribers. Absent lines count 0.
+    (wake-ups by samples taken); ``expired``: of those handed, dropped for their wait
+    in the handoff; ``queued``, ``dropped``, ``expired_out``, ``written``: the
+    subscribers' ``event=disconnect`` lines (topic messages queued, dropped, of those
+    expired in the outbox, frames handed to the socket), summed over the subscribers.
+    Absent lines (and fields: an older rwt's) count 0.
     """
     counts = dict.fromkeys(STAGES, 0)
     counts["sent"] = result.sent + result.probes
@@ -524,12 +528,14 @@ def stage_counts(log: str, result: Result) -> dict[str, int]:
         if fields.get("event") == "ros2_counters" and fields.get("topic", "").startswith("/bench_"):
             for key in ("taken", "wakes", "max_batch", "handed", "refused", "published"):
                 counts[key] = int(fields[key])
+            counts["expired"] = int(fields.get("expired", 0))
             for bucket in fields["batches"].split(","):
                 name, _, n = bucket.partition(":")
                 counts[f"batch_{name}"] = int(n)
         elif fields.get("event") == "disconnect":
             counts["queued"] += int(fields.get("topic_messages", 0))
             counts["dropped"] += int(fields.get("dropped", 0))
+            counts["expired_out"] += int(fields.get("expired", 0))
             counts["written"] += int(fields.get("frames_sent", 0))
     return counts
 

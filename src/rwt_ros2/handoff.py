@@ -9,6 +9,14 @@ already, asks the loop to run what is queued, in order (``drain``). Samples beyo
 exhaust memory; replies and graph events are never dropped (they are small and
 each answers something this process asked for).
 
+Samples are bounded by time too: one that has waited more than ``max_wait_s``
+(``MAX_WAIT_S``; since the middleware received it, when the link knows that)
+when its turn comes is dropped if a newer sample of its topic is queued behind
+it, and counted in ``expired`` (docs/ros2.md, "Latency under rate"). So a loop
+that fell behind (a busy machine, a flood) catches up with the newest samples
+rather than working through old ones, as a ROS 2 subscription's history drops
+its oldest samples when its node falls behind.
+
 A topic whose delivery congested a subscriber is held back alone
 (``rwt_graph.topic_holds``): its samples wait, still counted here, while every
 other topic's go on.
@@ -20,6 +28,7 @@ import asyncio
 import contextlib
 import logging
 import threading
+import time
 from collections import deque
 from typing import TYPE_CHECKING
 
@@ -34,30 +43,54 @@ if TYPE_CHECKING:
 
     from rwt_graph.link import InflowGate
 
-__all__ = ["MAX_QUEUED_BYTES", "Handoff"]
+__all__ = ["MAX_QUEUED_BYTES", "MAX_WAIT_S", "Handoff"]
 
 logger = logging.getLogger("rwt.ros2")
 
 MAX_QUEUED_BYTES = 64 * 1024 * 1024
 """Bytes of ROS 2 samples waiting for the event loop beyond which new ones are dropped."""
 
+MAX_WAIT_S = 0.010
+"""Seconds a ROS 2 sample may wait for the event loop while a newer one of its topic
+waits behind it (counted from when the middleware received it); older, it is dropped."""
+
 _BATCH = 1000
 
-_Event = tuple["Callable[..., None]", tuple[object, ...], int, str]
-"""A queued callback, its arguments, its bytes and its topic ("" if no sample)."""
+_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float]
+"""A queued callback, its arguments, its bytes, its topic ("" if no sample) and
+when it came (monotonic seconds)."""
+
+Sample = tuple[tuple[object, ...], int, float]
+"""A sample for ``Handoff.put_many``: its callback's arguments, its bytes, and when
+the middleware received it (monotonic seconds)."""
 
 
 class Handoff:
-    """A byte-bounded queue of callbacks from other threads to one event loop's task.
+    """A byte- and time-bounded queue of callbacks from other threads to one event loop's task.
 
     Args:
         max_bytes: samples' bytes kept waiting at most (``MAX_QUEUED_BYTES``).
+        max_wait_s: seconds a sample waits at most while a newer one of its
+            topic is queued (``MAX_WAIT_S``).
+        clock: monotonic seconds (a test's hand-moved clock).
+
+    Attributes:
+        expired: samples dropped for their wait, by topic.
     """
 
-    def __init__(self, max_bytes: int = MAX_QUEUED_BYTES) -> None:
+    def __init__(
+        self,
+        max_bytes: int = MAX_QUEUED_BYTES,
+        max_wait_s: float = MAX_WAIT_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.max_bytes = max_bytes
+        self.max_wait_s = max_wait_s
+        self.clock = clock
         self.queued_bytes = 0
         self.dropped = 0
+        self.expired: dict[str, int] = {}
+        self._pending: dict[str, int] = {}  # samples queued (not held) by topic
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
@@ -88,23 +121,21 @@ class Handoff:
                 self._refuse(topic)
                 return False
             self.queued_bytes += size
-            self._events.append((callback, args, size, topic))
+            if topic:
+                self._pending[topic] = self._pending.get(topic, 0) + 1
+            self._events.append((callback, args, size, topic, self.clock()))
             signal = self._signal()
         if signal:
             self._wake_loop()
         return True
 
-    def put_many(
-        self,
-        callback: Callable[..., None],
-        samples: list[tuple[tuple[object, ...], int]],
-        topic: str,
-    ) -> int:
-        """Queue ``callback(*args)`` for each ``(args, size)`` of ``samples``, in order.
+    def put_many(self, callback: Callable[..., None], samples: list[Sample], topic: str) -> int:
+        """Queue ``callback(*args)`` for each ``(args, size, received)`` of ``samples``, in order.
 
         ``samples``: one batch taken from ``topic``'s subscription; one lock and
         at most one wake-up of the loop for all of them, where ``put`` takes both
-        per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it.
+        per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it;
+        its wait (``max_wait_s``) counts from ``received``.
 
         Returns:
             How many were queued (the rest were dropped, or the handoff is closed).
@@ -113,13 +144,16 @@ class Handoff:
         with self._lock:
             if self._closed:
                 return 0
-            for args, size in samples:
+            events = self._events
+            for args, size, received in samples:
                 if self.queued_bytes + size > self.max_bytes:
                     self._refuse(topic)
                     continue
                 self.queued_bytes += size
-                self._events.append((callback, args, size, topic))
+                events.append((callback, args, size, topic, received))
                 queued += 1
+            if queued:
+                self._pending[topic] = self._pending.get(topic, 0) + queued
             signal = queued > 0 and self._signal()
         if signal:
             self._wake_loop()
@@ -190,10 +224,15 @@ class Handoff:
             self._loop.call_soon(self._turn)  # a flood: let the servers send meanwhile
 
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
+        oldest = self.clock() - self.max_wait_s  # a sample that came before waited too long
         for _ in range(min(len(self._events), _BATCH)):
             with self._lock:
                 event = self._events.popleft()
-            callback, args, size, topic = event
+                callback, args, size, topic, came = event
+                newer = topic and self._left(topic)  # samples of its topic behind it
+            if newer and came < oldest:
+                self._expire(topic, size)
+                continue
             if topic and holds.park(topic, event):
                 continue  # still counted in ``queued_bytes``: it waits here
             with self._lock:
@@ -204,11 +243,29 @@ class Handoff:
                 logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
             holds.delivered(topic or None, inflow)
 
+    def _left(self, topic: str) -> int:
+        """One sample of ``topic`` leaves the queue: how many stay queued (under the lock)."""
+        left = self._pending[topic] - 1
+        if left:
+            self._pending[topic] = left
+        else:
+            del self._pending[topic]
+        return left
+
+    def _expire(self, topic: str, size: int) -> None:
+        """Drop a sample of ``topic`` that waited too long (on the loop)."""
+        with self._lock:
+            self.queued_bytes -= size
+        self.expired[topic] = self.expired.get(topic, 0) + 1
+
     def _resume(self, events: list[_Event]) -> None:
         """Put a held topic's samples back at the front, oldest first (on the loop)."""
         with self._lock:
             if self._closed:
                 return
+            for event in events:
+                topic = event[3]
+                self._pending[topic] = self._pending.get(topic, 0) + 1
             self._events.extendleft(reversed(events))
         if self._loop is not None:
             self._loop.call_soon(self._turn)
@@ -218,4 +275,5 @@ class Handoff:
         with self._lock:
             self._closed = True
             self._events.clear()
+            self._pending.clear()
             self.queued_bytes = 0

@@ -61,7 +61,7 @@ from .codec import decode, encode
 from .counters import LinkCounters, TopicCounters
 from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
-from .handoff import MAX_QUEUED_BYTES, Handoff
+from .handoff import MAX_QUEUED_BYTES, Handoff, Sample
 from .node import RosNode
 from .outflow import Lane, Outflow
 from .remotes import RosRemotes, entities
@@ -113,6 +113,13 @@ DISCOVERY_WAIT_S = 2.0
 """Seconds a call to a service nobody offers waits for the link to discover it (a
 node starting as the call comes), when the call gave no timeout of its own; one
 that did waits up to that timeout (``rwt_graph.services.DiscoveryWait``)."""
+
+SAMPLE_LIFESPAN_S = 0.020
+"""Seconds a sample from ROS 2 may wait in a subscriber's queue (its outbox) while a
+newer sample of its topic waits behind it; older, it is dropped there
+(``MessageEvent.lifespan``, ``rwt_protocol.server.outbox``; docs/ros2.md, "Latency
+under rate"). A ROS 2 publisher cannot be slowed, so a reader that falls behind gets
+the newest samples, as from a ROS 2 subscription's history, not a growing backlog."""
 
 GRAPH_POLL_S = 0.05
 """How often the link reads the ROS 2 graph's names between sweeps, seconds
@@ -298,6 +305,8 @@ class Ros2Link:
         self._closed = True
         self.outward.close()
         self.handoff.close()
+        for topic, expired in self.handoff.expired.items():
+            self.counters.of(topic).expired = expired
         self.counters.log(logger)
         with contextlib.suppress(ValueError):
             self.graph.taps.remove(self._tap)
@@ -376,7 +385,14 @@ class Ros2Link:
             )
             return
         try:  # by its publisher's participant, or a relay until discovery finds it
-            self._relays.deliver(entry, gid or None, msg, latched=transient_local, wire=data)
+            self._relays.deliver(
+                entry,
+                gid or None,
+                msg,
+                latched=transient_local,
+                wire=data,
+                lifespan=SAMPLE_LIFESPAN_S,
+            )
             counters.skipped -= 1
             counters.published += 1
         except RwtError as exc:  # a topic reserved by the server: not ROS 2's
@@ -470,10 +486,15 @@ class Ros2Link:
         on_loop = self._on_sample
 
         def on_batch(batch: list[Taken]) -> None:
-            samples: list[tuple[tuple[object, ...], int]] = []
+            samples: list[Sample] = []
+            now, wall_ns = time.monotonic(), time.time_ns()
             for data, info in batch:
                 gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
-                samples.append(((name, type_name, data, gid, latched, counters), len(data)))
+                # the middleware's reception time (system clock, ns; 0 where rmw has none)
+                came = info.get("received_timestamp") or wall_ns
+                received = now - max(0, wall_ns - came) * 1e-9
+                args = (name, type_name, data, gid, latched, counters)
+                samples.append((args, len(data), received))
             queued = handoff.put_many(on_loop, samples, name)
             counters.handed += queued
             counters.refused += len(batch) - queued

@@ -176,12 +176,13 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
         await pump.run(session)
     finally:
         logger.info(
-            "event=disconnect client=%s reason=%r topic_messages=%d dropped=%d "
+            "event=disconnect client=%s reason=%r topic_messages=%d dropped=%d expired=%d "
             "frames_sent=%d duration_s=%.1f",
             session.client_id,
             pump.close_reason,
             session.topic_messages,
             session.dropped_frames,
+            session.expired_messages,
             session.taken_frames,
             anyio.current_time() - started,
         )
@@ -308,6 +309,7 @@ class ConnectionPump(Held):
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
+        self._clock: Callable[[], float] = anyio.current_time  # the loop's (``run``)
 
     def wake(self) -> None:
         """The session has output (frames or commands; timers come to ``_wake_timers``)."""
@@ -399,7 +401,7 @@ class ConnectionPump(Held):
             or not channel.can_send_now()
         ):
             return False
-        frames = session.frames_to_send(BATCH_BYTES)
+        frames = session.frames_to_send(BATCH_BYTES, self._clock())
         if frames:
             try:
                 channel.send_now(frames)
@@ -438,7 +440,8 @@ class ConnectionPump(Held):
         session.on_timer = self._wake_timers
         with contextlib.suppress(RuntimeError):  # the loop's gathering (gather.py)
             self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
-        session.start(_clock()())
+        self._clock = _clock()
+        session.start(self._clock())
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
@@ -666,7 +669,7 @@ class ConnectionPump(Held):
             while True:
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
-                frames = session.frames_to_send(BATCH_BYTES)
+                frames = session.frames_to_send(BATCH_BYTES, self._clock())
                 if frames:
                     await self.channel.send(frames)
                     self._took()

@@ -245,15 +245,19 @@ class SessionBase:
             if self._on_closed is not None:
                 self._on_closed(self._client_id)
 
-    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+    def frames_to_send(
+        self, max_bytes: int | None = None, now: float | None = None
+    ) -> list[OutFrame]:
         """Take the frames queued for the peer, oldest first.
 
         Args:
             max_bytes: take at most about this many payload bytes (at least one
                 frame); None takes every frame. Taking frames counts as progress
                 for the send timeout (D24).
+            now: the monotonic time (s): messages that outlived their lifespan
+                by then go first (``outbox``).
         """
-        frames = self._outbox.take(max_bytes)
+        frames = self._outbox.take(max_bytes, now)
         if frames:
             self._watch.after_take()
             self.taken(frames)
@@ -337,6 +341,11 @@ class SessionBase:
         return self._outbox.dropped
 
     @property
+    def expired_messages(self) -> int:
+        """Of ``dropped_frames``, messages that outlived their lifespan (``outbox``)."""
+        return self._outbox.expired
+
+    @property
     def topic_messages(self) -> int:
         """Topic messages queued for the peer so far, those dropped since included."""
         return self._outbox.topic_messages
@@ -368,7 +377,9 @@ class SessionBase:
 
     # ---- what the protocol's handlers use ------------------------------------------
 
-    def send_frames(self, frames: Sequence[OutFrame], topic: str | None = None) -> None:
+    def send_frames(
+        self, frames: Sequence[OutFrame], topic: str | None = None, lifespan: float = 0.0
+    ) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
         Past the limit, the oldest topic messages go (D24); when undroppable
@@ -380,6 +391,8 @@ class SessionBase:
         Args:
             frames: the frames of one message, shared with other connections (never copied).
             topic: the topic of a message, as the peer spells it, for the status of a drop.
+            lifespan: seconds the message may wait behind a newer one of ``topic``
+                (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
         """
         if not self._state.sends:
             return
@@ -394,7 +407,7 @@ class SessionBase:
             return
         was_empty = len(outbox) == 0
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.extend(frames)
+        outbox.extend(frames, self._now, lifespan, topic or "")
         self._watch.after_push(dropped, oversized, self._now, frames, topic)
         if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure

@@ -28,13 +28,23 @@ A queue may also bound the topic messages it holds by count (``max_messages``:
 a Foxglove client's backlog, as the Foxglove SDK bounds it): past it the
 oldest topic messages go, as past the byte limit. It counts droppable frames,
 so a fragmented message counts each of its parts.
+
+A topic message may also come with a lifespan (``extend``'s ``lifespan``: a
+sample from ROS 2, whose publisher no input backpressure can slow; docs/ros2.md,
+"Latency under rate"): once it has waited that long, it is dropped as soon as
+the queue meets it at its head (a push or a take that gives the time), if a
+newer message of its ``key`` (its topic) is queued behind it, and counted in
+``dropped`` and ``expired``. So a reader that keeps up never waits behind
+such a backlog, and one that cannot gets the newest messages rather than old
+ones. Messages without a lifespan (a rosbridge client's, which input
+backpressure paces, replies) never expire: the byte bound alone applies.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
@@ -62,6 +72,14 @@ def water_marks(limit_bytes: int) -> tuple[int, int]:
     quarter (docs/limits.md, input backpressure).
     """
     return limit_bytes // 2, limit_bytes // 4
+
+
+class _Timing(NamedTuple):
+    """When a queued frame of a message with a lifespan expires, and its message's key."""
+
+    expires: float  # monotonic seconds
+    key: str  # the message's topic: its newest message never expires
+    first: bool  # the message's first frame (a message counts once in ``_timed``)
 
 
 @dataclass(slots=True)
@@ -112,7 +130,9 @@ class Outbox:
             bound); past it the oldest go, the newest always stays.
 
     Attributes:
-        dropped: topic messages dropped so far (a fragmented one counts once).
+        dropped: topic messages dropped so far (a fragmented one counts once),
+            expired ones included.
+        expired: of those, messages dropped for outliving their lifespan.
         dropped_oversized: of those, messages larger than ``limit_bytes`` that
             came while other topic messages were queued.
         topic_messages: topic messages queued so far (a fragmented one counts once),
@@ -155,7 +175,12 @@ class Outbox:
         self.dropped_oversized = 0
         self.topic_messages = 0
         self.taken_frames = 0
+        self.expired = 0
         self._peak = 0  # ``peak_bytes`` before the bytes queued now
+        # Once a message with a lifespan came: one entry per queued frame, in step with
+        # ``_frames`` (None for a frame without one), and its messages queued by key.
+        self._times: deque[_Timing | None] | None = None
+        self._timed: dict[str, int] = {}
 
     def __len__(self) -> int:
         return len(self._frames)
@@ -224,7 +249,13 @@ class Outbox:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""
         self.extend((frame,))
 
-    def extend(self, frames: Sequence[OutFrame]) -> None:
+    def extend(
+        self,
+        frames: Sequence[OutFrame],
+        now: float | None = None,
+        lifespan: float = 0.0,
+        key: str = "",
+    ) -> None:
         """Queue the frames of one message (all its parts), then drop if over the bound.
 
         Queueing every part before dropping lets a message's parts go together.
@@ -232,12 +263,22 @@ class Outbox:
         message is queued, and dropped (``dropped_oversized``) otherwise; while
         one is held, every other topic message is dropped on arrival. The
         frames of one message are all droppable or none.
+
+        Args:
+            frames: the message's frames.
+            now: the monotonic time (s); given, expired messages at the head go first.
+            lifespan: with ``now``, a topic message expires ``lifespan`` s from
+                ``now`` (module text); 0: never.
+            key: the message's topic, for ``lifespan``.
         """
+        if now is not None:
+            self.expire(now)
         if frames and frames[0].droppable:
             self.topic_messages += 1
         if self._held_frames and frames and frames[0].droppable:
             self.dropped += 1  # the queue is full with the held message
             return
+        self._note_timing(frames, now, lifespan, key)
         overhead = self.frame_overhead_bytes
         message = 0
         for frame in frames:
@@ -260,13 +301,15 @@ class Outbox:
     def push_droppable(self, frame: OutFrame) -> None:
         """``push`` one whole topic message (``droppable``, no ``group``): the hot path.
 
-        The same rules as ``extend`` of one frame, in the fewest steps while
-        the queue is within its bounds (a burst's per-message cost).
+        The same rules as ``extend`` of one frame (without a lifespan), in the
+        fewest steps while the queue is within its bounds (a burst's per-message cost).
         """
         self.topic_messages += 1
         if self._held_frames:
             self.dropped += 1  # the queue is full with the held message
             return
+        if self._times is not None:
+            self._times.append(None)
         self._frames.append(frame)
         self._topic_frames += 1
         cost = len(frame.data) + self.frame_overhead_bytes
@@ -287,6 +330,7 @@ class Outbox:
         if self._bytes - cost > self._kept_bytes:  # other topic messages wait: it cannot go
             for _ in range(count):
                 self._frames.pop()
+                self._pop_timing(last=True)
             self._topic_frames -= count
             self._bytes -= cost
             self.dropped += 1
@@ -295,13 +339,16 @@ class Outbox:
         self._held_frames = count
         self._held_bytes = cost
 
-    def take(self, max_bytes: int | None = None) -> list[OutFrame]:
+    def take(self, max_bytes: int | None = None, now: float | None = None) -> list[OutFrame]:
         """Remove and return the oldest frames, oldest first.
 
         Args:
             max_bytes: stop once this many payload bytes are taken (at least one
                 frame is taken when any is queued); None takes everything.
+            now: the monotonic time (s); given, expired messages go first (``expire``).
         """
+        if now is not None and self._timed:
+            self.expire(now)
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
         queued = self._frames
@@ -314,6 +361,9 @@ class Outbox:
             self._held_frames = self._held_bytes = 0
             self.taken_frames += count
             self._sending_group = None
+            if self._times is not None:
+                self._times.clear()
+                self._timed.clear()
             return whole
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
@@ -321,6 +371,7 @@ class Outbox:
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):
             frame = self._frames.popleft()
+            self._pop_timing()
             frames.append(frame)
             taken += len(frame.data)
             if not frame.droppable:
@@ -350,6 +401,8 @@ class Outbox:
 
     def _shed(self) -> None:
         kept: list[OutFrame] = []
+        kept_times: list[_Timing | None] = []
+        times = self._times
         self._peak = max(
             self._peak, self._bytes - len(self._frames[-1].data) - self.frame_overhead_bytes
         )
@@ -359,16 +412,91 @@ class Outbox:
             if self._frames[0] is newest and not self._bytes > self.limit_bytes:
                 break
             frame = self._frames.popleft()
+            timing = self._pop_timing()
             if frame.droppable and (frame.group is None or frame.group != self._sending_group):
                 self._drop(frame, groups)
             else:
                 kept.append(frame)
+                kept_times.append(timing)
         # The rest of a message whose first parts were dropped follows right after them.
         while (
             self._frames and self._frames[0].group is not None and self._frames[0].group in groups
         ):
+            self._pop_timing()
             self._drop(self._frames.popleft(), groups)
         self._frames.extendleft(reversed(kept))  # the kept ones keep their place
+        if times is not None:
+            times.extendleft(reversed(kept_times))
+            for timing in kept_times:  # still queued: counted again
+                if timing is not None and timing.first:
+                    self._timed[timing.key] = self._timed.get(timing.key, 0) + 1
+
+    def expire(self, now: float) -> None:
+        """Drop the messages at the head that outlived their lifespan by ``now`` (module text).
+
+        It stops at the first frame that is not such a message, at a message
+        not yet expired, at the newest queued message of its key, and at a
+        message partly taken: each frame is looked at once, as it reaches the head.
+        """
+        times = self._times
+        if not self._timed or times is None:
+            return
+        frames = self._frames
+        self._peak = max(self._peak, self._bytes)
+        while frames:
+            timing = times[0]
+            if (
+                timing is None
+                or not timing.first
+                or timing.expires > now
+                or self._timed[timing.key] < 2
+                or (frames[0].group is not None and frames[0].group == self._sending_group)
+            ):
+                return
+            group = frames[0].group
+            self._drop_expired()
+            while group is not None and frames and frames[0].group == group:
+                self._drop_expired()
+            self.dropped += 1
+            self.expired += 1
+
+    def _drop_expired(self) -> None:
+        """Drop the head frame, one of an expired message's (counted by the caller)."""
+        frame = self._frames.popleft()
+        self._pop_timing()
+        self._bytes -= len(frame.data) + self.frame_overhead_bytes
+        self._topic_frames -= 1
+
+    def _note_timing(
+        self, frames: Sequence[OutFrame], now: float | None, lifespan: float, key: str
+    ) -> None:
+        """Record the lifespan of the message ``frames`` is about to queue (``extend``)."""
+        times = self._times
+        if now is None or lifespan <= 0 or not frames or not frames[0].droppable:
+            if times is not None:
+                times.extend([None] * len(frames))
+            return
+        if times is None:
+            times = self._times = deque([None] * len(self._frames))
+        expires = now + lifespan
+        times.append(_Timing(expires, key, True))
+        if len(frames) > 1:
+            times.extend([_Timing(expires, key, False)] * (len(frames) - 1))
+        self._timed[key] = self._timed.get(key, 0) + 1
+
+    def _pop_timing(self, *, last: bool = False) -> _Timing | None:
+        """Forget the timing of the frame leaving the head (or the tail: ``last``)."""
+        times = self._times
+        if times is None:
+            return None
+        timing = times.pop() if last else times.popleft()
+        if timing is not None and timing.first:
+            left = self._timed[timing.key] - 1
+            if left:
+                self._timed[timing.key] = left
+            else:
+                del self._timed[timing.key]
+        return timing
 
     def _drop(self, frame: OutFrame, groups: set[object]) -> None:
         self._bytes -= len(frame.data) + self.frame_overhead_bytes

@@ -520,7 +520,7 @@ class Session(SessionBase):
         if isinstance(frames, EncodeFailure):
             self._encode_failed(subscription, frames, params.compression)
             return
-        self.send_frames(frames, subscription.spelling)
+        self.send_frames(frames, subscription.spelling, event.lifespan)
 
     def _deflate_later(
         self, subscription: TopicSubscription, event: MessageEvent, fragment_size: int | None
