@@ -54,6 +54,12 @@ MAX_WAIT_S = 0.010
 """Seconds a ROS 2 sample may wait for the event loop while a newer one of its topic
 waits behind it (counted from when the middleware received it); older, it is dropped."""
 
+TURN_S = 0.002
+"""Seconds of queued callbacks one turn of the event loop runs at most; the rest go on
+the next turn, after the connections have written what these queued (a flood of
+samples to ten subscribers cost 0.2 ms each, so 1,000 in one turn held every frame
+they made for 0.2 s: benchmarks/README.md, "ROS 2 bridge")."""
+
 _BATCH = 1000
 
 _Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float]
@@ -208,24 +214,31 @@ class Handoff:
                 self._holds = None
 
     def _turn(self) -> None:
-        """Run up to ``_BATCH`` queued callbacks (on the loop); a flood goes on next turn."""
+        """Run queued callbacks for up to ``TURN_S`` (and ``_BATCH`` of them) on the loop.
+
+        A flood goes on next turn, after the connections have written.
+        """
         with self._lock:
             self._signalled = False
         holds = self._holds
-        if holds is None or not self._events:
-            return
-        inflow = self._gate()
-        inflow.begin()
-        try:
-            self._run_batch(inflow, holds)
-        finally:
-            inflow.end()
+        if holds is not None and self._events:
+            inflow = self._gate()
+            inflow.begin()
+            try:
+                self._run_batch(inflow, holds)
+            finally:
+                inflow.end()
         if self._events and self._loop is not None:
             self._loop.call_soon(self._turn)  # a flood: let the servers send meanwhile
 
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
-        oldest = self.clock() - self.max_wait_s  # a sample that came before waited too long
+        clock = self.clock
+        start = clock()
+        oldest = start - self.max_wait_s  # a sample that came before waited too long
+        end = start + TURN_S
         for _ in range(min(len(self._events), _BATCH)):
+            if clock() > end:
+                return
             with self._lock:
                 event = self._events.popleft()
                 callback, args, size, topic, came = event
