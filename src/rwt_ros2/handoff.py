@@ -15,7 +15,10 @@ when its turn comes is dropped if a newer sample of its topic is queued behind
 it, and counted in ``expired`` (docs/ros2.md, "Latency under rate"). So a loop
 that fell behind (a busy machine, a flood) catches up with the newest samples
 rather than working through old ones, as a ROS 2 subscription's history drops
-its oldest samples when its node falls behind.
+its oldest samples when its node falls behind. While the oldest queued sample
+has waited half that (``behind``), the taking thread pauses (``pause_while_behind``):
+new samples wait in the middleware's history, which keeps the newest at no cost
+to the loop, rather than being taken only to expire here.
 
 A topic whose delivery congested a subscriber is held back alone
 (``rwt_graph.topic_holds``): its samples wait, still counted here, while every
@@ -53,6 +56,9 @@ MAX_QUEUED_BYTES = 64 * 1024 * 1024
 MAX_WAIT_S = 0.010
 """Seconds a ROS 2 sample may wait for the event loop while a newer one of its topic
 waits behind it (counted from when the middleware received it); older, it is dropped."""
+
+PAUSE_S = 0.001
+"""Seconds the taking thread sleeps at a time while the loop is behind (``behind``)."""
 
 TURN_S = 0.002
 """Seconds of queued callbacks one turn of the event loop runs at most; the rest go on
@@ -164,6 +170,21 @@ class Handoff:
         if signal:
             self._wake_loop()
         return queued
+
+    def behind(self) -> bool:
+        """Whether the oldest queued sample has waited over half ``max_wait_s`` (any thread)."""
+        try:
+            oldest = self._events[0][4]
+        except IndexError:
+            return False
+        return oldest < self.clock() - self.max_wait_s / 2
+
+    def pause_while_behind(self) -> None:
+        """Sleep while ``behind``, ``PAUSE_S`` at a time, ``max_wait_s`` at most (taking thread)."""
+        waited = 0.0
+        while waited < self.max_wait_s and not self._closed and self.behind():
+            time.sleep(PAUSE_S)
+            waited += PAUSE_S
 
     def _refuse(self, topic: str) -> None:
         """Count and log a dropped sample of ``topic`` (under the lock)."""

@@ -187,6 +187,8 @@ class Ros2Link:
         self.options = options or Ros2Options()
         self.rules = LinkRules(PARTICIPANT_PREFIX)
         self.handoff = Handoff(self.options.max_queued_bytes)
+        if ros.takes is not None:  # it takes no more while the loop is behind
+            ros.takes.pace = self.handoff.pause_while_behind
         self.episodes = EpisodeLog(logger)
         self.caller: ClientId = f"{PARTICIPANT_PREFIX}caller"
         self.pending_answers: set[Answer] = set()
