@@ -9,16 +9,21 @@ already, asks the loop to run what is queued, in order (``drain``). Samples beyo
 exhaust memory; replies and graph events are never dropped (they are small and
 each answers something this process asked for).
 
-Samples are bounded by time too: one that has waited more than ``max_wait_s``
-(``MAX_WAIT_S``; since the middleware received it, when the link knows that)
-when its turn comes is dropped if a newer sample of its topic is queued behind
-it, and counted in ``expired`` (docs/ros2.md, "Latency under rate"). So a loop
-that fell behind (a busy machine, a flood) catches up with the newest samples
-rather than working through old ones, as a ROS 2 subscription's history drops
-its oldest samples when its node falls behind. While the oldest queued sample
-has waited half that (``behind``), the taking thread pauses (``pause_while_behind``):
-new samples wait in the middleware's history, which keeps the newest at no cost
-to the loop, rather than being taken only to expire here.
+Samples are bounded by time too: the queue holds at most ``max_wait_s``
+(``MAX_WAIT_S``) of one publisher's samples of a topic, by when they were
+published (their source timestamps, on the publisher's clock, so a clock of
+another host skews nothing: samples of one publisher are only compared with
+each other). A sample published more than that before the newest queued sample
+of its publisher is dropped when its turn comes, and counted in ``expired``
+(docs/ros2.md, "Latency under rate"). So a
+loop that fell behind a steady stream (a busy machine, a flood) catches up with
+the newest samples rather than working through old ones, as a ROS 2
+subscription's history drops its oldest samples when its node falls behind,
+while a burst that came within ``max_wait_s`` reaches the graph whole. While
+the oldest queued sample has waited half that (``behind``), the taking thread
+pauses (``pause_while_behind``): new samples wait in the middleware's history,
+which keeps the newest at no cost to the loop, rather than being taken only to
+expire here.
 
 A topic whose delivery congested a subscriber is held back alone
 (``rwt_graph.topic_holds``): its samples wait, still counted here, while every
@@ -53,9 +58,9 @@ logger = logging.getLogger("rwt.ros2")
 MAX_QUEUED_BYTES = 64 * 1024 * 1024
 """Bytes of ROS 2 samples waiting for the event loop beyond which new ones are dropped."""
 
-MAX_WAIT_S = 0.010
-"""Seconds a ROS 2 sample may wait for the event loop while a newer one of its topic
-waits behind it (counted from when the middleware received it); older, it is dropped."""
+MAX_WAIT_S = 0.005
+"""Seconds of a topic's ROS 2 samples waiting for the event loop: a sample that came
+more than this before the newest queued one of its topic is dropped (module text)."""
 
 PAUSE_S = 0.001
 """Seconds the taking thread sleeps at a time while the loop is behind (``behind``)."""
@@ -68,13 +73,14 @@ they made for 0.2 s: benchmarks/README.md, "ROS 2 bridge")."""
 
 _BATCH = 1000
 
-_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float]
-"""A queued callback, its arguments, its bytes, its topic ("" if no sample) and
-when it came (monotonic seconds)."""
+_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float, bytes]
+"""A queued callback, its arguments, its bytes, its topic ("" if no sample), when
+it came (``Sample``) and its publisher."""
 
-Sample = tuple[tuple[object, ...], int, float]
-"""A sample for ``Handoff.put_many``: its callback's arguments, its bytes, and when
-the middleware received it (monotonic seconds)."""
+Sample = tuple[tuple[object, ...], int, float, bytes]
+"""A sample for ``Handoff.put_many``: its callback's arguments, its bytes, when it
+was published (seconds, any clock its publisher keeps monotonic) and its publisher
+(its GID; samples of one publisher are compared with each other only)."""
 
 
 class Handoff:
@@ -82,8 +88,8 @@ class Handoff:
 
     Args:
         max_bytes: samples' bytes kept waiting at most (``MAX_QUEUED_BYTES``).
-        max_wait_s: seconds a sample waits at most while a newer one of its
-            topic is queued (``MAX_WAIT_S``).
+        max_wait_s: seconds of one publisher's samples of a topic queued at most
+            (``MAX_WAIT_S``).
         clock: monotonic seconds (a test's hand-moved clock).
 
     Attributes:
@@ -102,7 +108,9 @@ class Handoff:
         self.queued_bytes = 0
         self.dropped = 0
         self.expired: dict[str, int] = {}
-        self._pending: dict[str, int] = {}  # samples queued (not held) by topic
+        # when the newest queued sample came, by topic and publisher
+        self._newest: dict[tuple[str, bytes], float] = {}
+        self._head_since: float | None = None  # since when events wait (``clock``)
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
@@ -133,21 +141,23 @@ class Handoff:
                 self._refuse(topic)
                 return False
             self.queued_bytes += size
+            came = self.clock()
+            if not self._events:
+                self._head_since = came
             if topic:
-                self._pending[topic] = self._pending.get(topic, 0) + 1
-            self._events.append((callback, args, size, topic, self.clock()))
+                self._newest[topic, b""] = came
+            self._events.append((callback, args, size, topic, came, b""))
             signal = self._signal()
         if signal:
             self._wake_loop()
         return True
 
     def put_many(self, callback: Callable[..., None], samples: list[Sample], topic: str) -> int:
-        """Queue ``callback(*args)`` for each ``(args, size, received)`` of ``samples``, in order.
+        """Queue ``callback(*args)`` for each ``Sample`` of ``samples``, in order.
 
         ``samples``: one batch taken from ``topic``'s subscription; one lock and
         at most one wake-up of the loop for all of them, where ``put`` takes both
-        per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it;
-        its wait (``max_wait_s``) counts from ``received``.
+        per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it.
 
         Returns:
             How many were queued (the rest were dropped, or the handoff is closed).
@@ -156,28 +166,29 @@ class Handoff:
         with self._lock:
             if self._closed:
                 return 0
-            events = self._events
-            for args, size, received in samples:
+            events, newest = self._events, self._newest
+            if not events:
+                self._head_since = self.clock()
+            for args, size, came, source in samples:
                 if self.queued_bytes + size > self.max_bytes:
                     self._refuse(topic)
                     continue
                 self.queued_bytes += size
-                events.append((callback, args, size, topic, received))
+                events.append((callback, args, size, topic, came, source))
+                newest[topic, source] = came
                 queued += 1
-            if queued:
-                self._pending[topic] = self._pending.get(topic, 0) + queued
             signal = queued > 0 and self._signal()
         if signal:
             self._wake_loop()
         return queued
 
     def behind(self) -> bool:
-        """Whether the oldest queued sample has waited over half ``max_wait_s`` (any thread)."""
-        try:
-            oldest = self._events[0][4]
-        except IndexError:
-            return False
-        return oldest < self.clock() - self.max_wait_s / 2
+        """Whether events have waited over half ``max_wait_s`` (any thread): the loop is behind.
+
+        Counted from when the queue last stopped being empty, by ``clock``.
+        """
+        since = self._head_since
+        return since is not None and since < self.clock() - self.max_wait_s / 2
 
     def pause_while_behind(self) -> None:
         """Sleep while ``behind``, ``PAUSE_S`` at a time, ``max_wait_s`` at most (taking thread)."""
@@ -249,22 +260,25 @@ class Handoff:
                 self._run_batch(inflow, holds)
             finally:
                 inflow.end()
-        if self._events and self._loop is not None:
+        with self._lock:
+            if not self._events:
+                self._head_since = None
+                return
+        if self._loop is not None:
             self._loop.call_soon(self._turn)  # a flood: let the servers send meanwhile
 
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
         clock = self.clock
-        start = clock()
-        oldest = start - self.max_wait_s  # a sample that came before waited too long
-        end = start + TURN_S
+        end = clock() + TURN_S
+        newest, span = self._newest, self.max_wait_s
         for _ in range(min(len(self._events), _BATCH)):
             if clock() > end:
                 return
             with self._lock:
                 event = self._events.popleft()
-                callback, args, size, topic, came = event
-                newer = topic and self._left(topic)  # samples of its topic behind it
-            if newer and came < oldest:
+                callback, args, size, topic, came, source = event
+                outdated = bool(topic) and newest[topic, source] - came > span
+            if outdated:
                 self._expire(topic, size)
                 continue
             if topic and holds.park(topic, event):
@@ -277,17 +291,8 @@ class Handoff:
                 logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
             holds.delivered(topic or None, inflow)
 
-    def _left(self, topic: str) -> int:
-        """One sample of ``topic`` leaves the queue: how many stay queued (under the lock)."""
-        left = self._pending[topic] - 1
-        if left:
-            self._pending[topic] = left
-        else:
-            del self._pending[topic]
-        return left
-
     def _expire(self, topic: str, size: int) -> None:
-        """Drop a sample of ``topic`` that waited too long (on the loop)."""
+        """Drop a sample of ``topic`` that a newer one outdated (on the loop)."""
         with self._lock:
             self.queued_bytes -= size
         self.expired[topic] = self.expired.get(topic, 0) + 1
@@ -297,9 +302,6 @@ class Handoff:
         with self._lock:
             if self._closed:
                 return
-            for event in events:
-                topic = event[3]
-                self._pending[topic] = self._pending.get(topic, 0) + 1
             self._events.extendleft(reversed(events))
         if self._loop is not None:
             self._loop.call_soon(self._turn)
@@ -309,5 +311,6 @@ class Handoff:
         with self._lock:
             self._closed = True
             self._events.clear()
-            self._pending.clear()
+            self._newest.clear()
+            self._head_since = None
             self.queued_bytes = 0

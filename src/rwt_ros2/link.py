@@ -115,11 +115,12 @@ node starting as the call comes), when the call gave no timeout of its own; one
 that did waits up to that timeout (``rwt_graph.services.DiscoveryWait``)."""
 
 SAMPLE_LIFESPAN_S = 0.020
-"""Seconds a sample from ROS 2 may wait in a subscriber's queue (its outbox) while a
-newer sample of its topic waits behind it; older, it is dropped there
-(``MessageEvent.lifespan``, ``rwt_protocol.server.outbox``; docs/ros2.md, "Latency
-under rate"). A ROS 2 publisher cannot be slowed, so a reader that falls behind gets
-the newest samples, as from a ROS 2 subscription's history, not a growing backlog."""
+"""Seconds of a topic's samples from ROS 2 a subscriber's queue (its outbox) holds: a
+sample that came more than this before the newest queued one of its topic is dropped
+there (``MessageEvent.lifespan``, ``rwt_protocol.server.outbox``; docs/ros2.md,
+"Latency under rate"). A ROS 2 publisher cannot be slowed, so a reader that falls
+behind gets the newest samples, as from a ROS 2 subscription's history, not a growing
+backlog; a burst that came within it reaches the reader whole."""
 
 GRAPH_POLL_S = 0.05
 """How often the link reads the ROS 2 graph's names between sweeps, seconds
@@ -492,11 +493,11 @@ class Ros2Link:
             now, wall_ns = time.monotonic(), time.time_ns()
             for data, info in batch:
                 gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
-                # the middleware's reception time (system clock, ns; 0 where rmw has none)
-                came = info.get("received_timestamp") or wall_ns
-                received = now - max(0, wall_ns - came) * 1e-9
+                # when it was published, on its publisher's clock (ns; 0 where rmw has none):
+                # the handoff compares one publisher's samples only (``Handoff``)
+                sent = info.get("source_timestamp") or wall_ns
                 args = (name, type_name, data, gid, latched, counters)
-                samples.append((args, len(data), received))
+                samples.append((args, len(data), now - (wall_ns - sent) * 1e-9, gid))
             queued = handoff.put_many(on_loop, samples, name)
             counters.handed += queued
             counters.refused += len(batch) - queued

@@ -309,7 +309,6 @@ class ConnectionPump(Held):
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
-        self._clock: Callable[[], float] = anyio.current_time  # the loop's (``run``)
 
     def wake(self) -> None:
         """The session has output (frames or commands; timers come to ``_wake_timers``)."""
@@ -401,7 +400,7 @@ class ConnectionPump(Held):
             or not channel.can_send_now()
         ):
             return False
-        frames = session.frames_to_send(BATCH_BYTES, self._clock())
+        frames = session.frames_to_send(BATCH_BYTES)
         if frames:
             try:
                 channel.send_now(frames)
@@ -440,8 +439,7 @@ class ConnectionPump(Held):
         session.on_timer = self._wake_timers
         with contextlib.suppress(RuntimeError):  # the loop's gathering (gather.py)
             self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
-        self._clock = _clock()
-        session.start(self._clock())
+        session.start(_clock()())
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
@@ -669,7 +667,7 @@ class ConnectionPump(Held):
             while True:
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
-                frames = session.frames_to_send(BATCH_BYTES, self._clock())
+                frames = session.frames_to_send(BATCH_BYTES)
                 if frames:
                     await self.channel.send(frames)
                     self._took()

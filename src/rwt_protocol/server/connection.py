@@ -245,19 +245,15 @@ class SessionBase:
             if self._on_closed is not None:
                 self._on_closed(self._client_id)
 
-    def frames_to_send(
-        self, max_bytes: int | None = None, now: float | None = None
-    ) -> list[OutFrame]:
+    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Take the frames queued for the peer, oldest first.
 
         Args:
             max_bytes: take at most about this many payload bytes (at least one
                 frame); None takes every frame. Taking frames counts as progress
                 for the send timeout (D24).
-            now: the monotonic time (s): messages that outlived their lifespan
-                by then go first (``outbox``).
         """
-        frames = self._outbox.take(max_bytes, now)
+        frames = self._outbox.take(max_bytes)
         if frames:
             self._watch.after_take()
             self.taken(frames)
@@ -342,7 +338,7 @@ class SessionBase:
 
     @property
     def expired_messages(self) -> int:
-        """Of ``dropped_frames``, messages that outlived their lifespan (``outbox``)."""
+        """Of ``dropped_frames``, messages a newer one outdated (``Outbox.expired``)."""
         return self._outbox.expired
 
     @property
@@ -391,7 +387,7 @@ class SessionBase:
         Args:
             frames: the frames of one message, shared with other connections (never copied).
             topic: the topic of a message, as the peer spells it, for the status of a drop.
-            lifespan: seconds the message may wait behind a newer one of ``topic``
+            lifespan: seconds of ``topic``'s messages its queue holds at most
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
         """
         if not self._state.sends:

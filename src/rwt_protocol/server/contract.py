@@ -74,13 +74,8 @@ class ServerSession(Protocol):
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Tell the peer of a problem (a framing error) in its protocol's status."""
 
-    def frames_to_send(
-        self, max_bytes: int | None = None, now: float | None = None
-    ) -> list[OutFrame]:
-        """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one).
-
-        ``now`` (monotonic seconds): expired topic messages go first (``Outbox.expire``).
-        """
+    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+        """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one)."""
 
     def commands_to_run(self) -> list[Command]:
         """Take the commands queued for the transport (``CloseConnection``)."""
@@ -150,7 +145,7 @@ class ServerSession(Protocol):
 
     @property
     def expired_messages(self) -> int:
-        """Of ``dropped_frames``, those that outlived their lifespan (``Outbox.expire``)."""
+        """Of ``dropped_frames``, those a newer one outdated (``Outbox.expired``)."""
 
     @property
     def taken_frames(self) -> int:

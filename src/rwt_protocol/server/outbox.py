@@ -31,13 +31,16 @@ so a fragmented message counts each of its parts.
 
 A topic message may also come with a lifespan (``extend``'s ``lifespan``: a
 sample from ROS 2, whose publisher no input backpressure can slow; docs/ros2.md,
-"Latency under rate"): once it has waited that long, it is dropped as soon as
-the queue meets it at its head (a push or a take that gives the time), if a
-newer message of its ``key`` (its topic) is queued behind it, and counted in
-``dropped`` and ``expired``. So a reader that keeps up never waits behind
-such a backlog, and one that cannot gets the newest messages rather than old
-ones. Messages without a lifespan (a rosbridge client's, which input
-backpressure paces, replies) never expire: the byte bound alone applies.
+"Latency under rate"): the queue holds at most that span of its ``key``'s (its
+topic's) messages. A message that came more than its lifespan before the newest
+queued message of its topic is dropped as soon as the queue meets it at its
+head (each push looks), and counted in ``dropped`` and ``expired``. So a reader
+that falls behind a steady stream waits behind at most the lifespan's worth of
+it and gets the newest messages rather than old ones, while a burst that came
+within the lifespan reaches it whole however slowly it reads, and the newest
+message of a topic always stays. Messages without a lifespan (a rosbridge
+client's, which input backpressure paces, replies) never expire: the byte
+bound alone applies.
 """
 
 from __future__ import annotations
@@ -75,10 +78,11 @@ def water_marks(limit_bytes: int) -> tuple[int, int]:
 
 
 class _Timing(NamedTuple):
-    """When a queued frame of a message with a lifespan expires, and its message's key."""
+    """When a queued frame's message with a lifespan came, its lifespan and its key."""
 
-    expires: float  # monotonic seconds
-    key: str  # the message's topic: its newest message never expires
+    came: float  # monotonic seconds
+    lifespan: float  # seconds
+    key: str  # the message's topic
     first: bool  # the message's first frame (a message counts once in ``_timed``)
 
 
@@ -132,7 +136,7 @@ class Outbox:
     Attributes:
         dropped: topic messages dropped so far (a fragmented one counts once),
             expired ones included.
-        expired: of those, messages dropped for outliving their lifespan.
+        expired: of those, messages dropped for their lifespan (module text).
         dropped_oversized: of those, messages larger than ``limit_bytes`` that
             came while other topic messages were queued.
         topic_messages: topic messages queued so far (a fragmented one counts once),
@@ -178,9 +182,11 @@ class Outbox:
         self.expired = 0
         self._peak = 0  # ``peak_bytes`` before the bytes queued now
         # Once a message with a lifespan came: one entry per queued frame, in step with
-        # ``_frames`` (None for a frame without one), and its messages queued by key.
+        # ``_frames`` (None for a frame without one); by key, its messages queued and
+        # when the newest of them came.
         self._times: deque[_Timing | None] | None = None
         self._timed: dict[str, int] = {}
+        self._newest: dict[str, float] = {}
 
     def __len__(self) -> int:
         return len(self._frames)
@@ -266,19 +272,17 @@ class Outbox:
 
         Args:
             frames: the message's frames.
-            now: the monotonic time (s); given, expired messages at the head go first.
-            lifespan: with ``now``, a topic message expires ``lifespan`` s from
-                ``now`` (module text); 0: never.
+            now: when the message came (monotonic seconds), for ``lifespan``.
+            lifespan: with ``now``, seconds of ``key``'s topic messages this queue
+                holds at most (module text); 0: no such bound.
             key: the message's topic, for ``lifespan``.
         """
-        if now is not None:
-            self.expire(now)
         if frames and frames[0].droppable:
             self.topic_messages += 1
         if self._held_frames and frames and frames[0].droppable:
             self.dropped += 1  # the queue is full with the held message
             return
-        self._note_timing(frames, now, lifespan, key)
+        timed = self._note_timing(frames, now, lifespan, key)
         overhead = self.frame_overhead_bytes
         message = 0
         for frame in frames:
@@ -290,6 +294,8 @@ class Outbox:
                 self._kept_bytes += cost
             else:
                 self._topic_frames += 1
+        if timed:
+            self.expire()
         if self._bytes > self.limit_bytes:
             if message > self.limit_bytes and frames[0].droppable:
                 self._hold(len(frames), message)
@@ -339,16 +345,13 @@ class Outbox:
         self._held_frames = count
         self._held_bytes = cost
 
-    def take(self, max_bytes: int | None = None, now: float | None = None) -> list[OutFrame]:
+    def take(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Remove and return the oldest frames, oldest first.
 
         Args:
             max_bytes: stop once this many payload bytes are taken (at least one
                 frame is taken when any is queued); None takes everything.
-            now: the monotonic time (s); given, expired messages go first (``expire``).
         """
-        if now is not None and self._timed:
-            self.expire(now)
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
         queued = self._frames
@@ -364,6 +367,7 @@ class Outbox:
             if self._times is not None:
                 self._times.clear()
                 self._timed.clear()
+                self._newest.clear()
             return whole
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
@@ -430,13 +434,14 @@ class Outbox:
             for timing in kept_times:  # still queued: counted again
                 if timing is not None and timing.first:
                     self._timed[timing.key] = self._timed.get(timing.key, 0) + 1
+                    self._newest.setdefault(timing.key, timing.came)
 
-    def expire(self, now: float) -> None:
-        """Drop the messages at the head that outlived their lifespan by ``now`` (module text).
+    def expire(self) -> None:
+        """Drop the messages at the head that their lifespan outdated (module text).
 
         It stops at the first frame that is not such a message, at a message
-        not yet expired, at the newest queued message of its key, and at a
-        message partly taken: each frame is looked at once, as it reaches the head.
+        that came within its lifespan of the newest of its key, and at a message
+        partly taken: each frame is looked at once, as it reaches the head.
         """
         times = self._times
         if not self._timed or times is None:
@@ -448,8 +453,7 @@ class Outbox:
             if (
                 timing is None
                 or not timing.first
-                or timing.expires > now
-                or self._timed[timing.key] < 2
+                or self._newest[timing.key] - timing.came <= timing.lifespan
                 or (frames[0].group is not None and frames[0].group == self._sending_group)
             ):
                 return
@@ -469,20 +473,25 @@ class Outbox:
 
     def _note_timing(
         self, frames: Sequence[OutFrame], now: float | None, lifespan: float, key: str
-    ) -> None:
-        """Record the lifespan of the message ``frames`` is about to queue (``extend``)."""
+    ) -> bool:
+        """Record the lifespan of the message ``frames`` is about to queue (``extend``).
+
+        Returns:
+            Whether the message has one.
+        """
         times = self._times
         if now is None or lifespan <= 0 or not frames or not frames[0].droppable:
             if times is not None:
                 times.extend([None] * len(frames))
-            return
+            return False
         if times is None:
             times = self._times = deque([None] * len(self._frames))
-        expires = now + lifespan
-        times.append(_Timing(expires, key, True))
+        times.append(_Timing(now, lifespan, key, True))
         if len(frames) > 1:
-            times.extend([_Timing(expires, key, False)] * (len(frames) - 1))
+            times.extend([_Timing(now, lifespan, key, False)] * (len(frames) - 1))
         self._timed[key] = self._timed.get(key, 0) + 1
+        self._newest[key] = now
+        return True
 
     def _pop_timing(self, *, last: bool = False) -> _Timing | None:
         """Forget the timing of the frame leaving the head (or the tail: ``last``)."""
@@ -496,6 +505,7 @@ class Outbox:
                 self._timed[timing.key] = left
             else:
                 del self._timed[timing.key]
+                del self._newest[timing.key]
         return timing
 
     def _drop(self, frame: OutFrame, groups: set[object]) -> None:
