@@ -58,7 +58,7 @@ logger = logging.getLogger("rwt.ros2")
 MAX_QUEUED_BYTES = 64 * 1024 * 1024
 """Bytes of ROS 2 samples waiting for the event loop beyond which new ones are dropped."""
 
-MAX_WAIT_S = 0.005
+MAX_WAIT_S = 0.020
 """Seconds of a topic's ROS 2 samples waiting for the event loop: a sample that came
 more than this before the newest queued one of its topic is dropped (module text)."""
 

@@ -32,9 +32,10 @@ so a fragmented message counts each of its parts.
 A topic message may also come with a lifespan (``extend``'s ``lifespan``: a
 sample from ROS 2, whose publisher no input backpressure can slow; docs/ros2.md,
 "Latency under rate"): the queue holds at most that span of its ``key``'s (its
-topic's) messages. A message that came more than its lifespan before the newest
-queued message of its topic is dropped as soon as the queue meets it at its
-head (each push looks), and counted in ``dropped`` and ``expired``. So a reader
+topic's) messages. When a message comes, the messages of its topic that came
+more than their lifespan before it are dropped, wherever they wait (their
+frames are left in place, dead, and skipped when they reach the head: dropping
+stays amortised O(1)), and counted in ``dropped`` and ``expired``. So a reader
 that falls behind a steady stream waits behind at most the lifespan's worth of
 it and gets the newest messages rather than old ones, while a burst that came
 within the lifespan reaches it whole however slowly it reads, and the newest
@@ -47,7 +48,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
@@ -77,13 +78,19 @@ def water_marks(limit_bytes: int) -> tuple[int, int]:
     return limit_bytes // 2, limit_bytes // 4
 
 
-class _Timing(NamedTuple):
-    """When a queued frame's message with a lifespan came, its lifespan and its key."""
+class _Timed:
+    """A queued message with a lifespan: shared by the timing entries of its frames."""
 
-    came: float  # monotonic seconds
-    lifespan: float  # seconds
-    key: str  # the message's topic
-    first: bool  # the message's first frame (a message counts once in ``_timed``)
+    __slots__ = ("came", "cost", "dead", "frames", "key", "lifespan", "queued")
+
+    def __init__(self, came: float, lifespan: float, key: str, frames: int) -> None:
+        self.came = came  # monotonic seconds
+        self.lifespan = lifespan  # seconds
+        self.key = key  # the message's topic
+        self.frames = frames
+        self.cost = 0  # bytes charged for its frames
+        self.dead = False  # dropped for its lifespan; its frames still in the queue
+        self.queued = True  # among its key's (``_by_key``): none of its frames left yet
 
 
 @dataclass(slots=True)
@@ -182,14 +189,14 @@ class Outbox:
         self.expired = 0
         self._peak = 0  # ``peak_bytes`` before the bytes queued now
         # Once a message with a lifespan came: one entry per queued frame, in step with
-        # ``_frames`` (None for a frame without one); by key, its messages queued and
-        # when the newest of them came.
-        self._times: deque[_Timing | None] | None = None
-        self._timed: dict[str, int] = {}
-        self._newest: dict[str, float] = {}
+        # ``_frames`` (None for a frame without one); by key, its messages none of whose
+        # frames has left, oldest first; and how many dead frames wait for the head.
+        self._times: deque[_Timed | None] | None = None
+        self._by_key: dict[str, deque[_Timed]] = {}
+        self._dead_frames = 0
 
     def __len__(self) -> int:
-        return len(self._frames)
+        return len(self._frames) - self._dead_frames
 
     @property
     def queued_bytes(self) -> int:
@@ -294,8 +301,9 @@ class Outbox:
                 self._kept_bytes += cost
             else:
                 self._topic_frames += 1
-        if timed:
-            self.expire()
+        if timed is not None:
+            timed.cost = message
+            self._expire(key, timed.came)
         if self._bytes > self.limit_bytes:
             if message > self.limit_bytes and frames[0].droppable:
                 self._hold(len(frames), message)
@@ -336,7 +344,7 @@ class Outbox:
         if self._bytes - cost > self._kept_bytes:  # other topic messages wait: it cannot go
             for _ in range(count):
                 self._frames.pop()
-                self._pop_timing(last=True)
+                self._forget(last=True)
             self._topic_frames -= count
             self._bytes -= cost
             self.dropped += 1
@@ -355,10 +363,10 @@ class Outbox:
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
         queued = self._frames
-        count = len(queued)
+        count = len(queued) - self._dead_frames
         if count and (max_bytes is None or self._bytes - count * overhead <= max_bytes):
             # everything fits (a burst a writer takes whole): no per-frame bookkeeping
-            whole = list(queued)
+            whole = self._live() if self._dead_frames else list(queued)
             queued.clear()
             self._bytes = self._kept_bytes = self._topic_frames = 0
             self._held_frames = self._held_bytes = 0
@@ -366,25 +374,27 @@ class Outbox:
             self._sending_group = None
             if self._times is not None:
                 self._times.clear()
-                self._timed.clear()
-                self._newest.clear()
+                self._by_key.clear()
+                self._dead_frames = 0
             return whole
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
+        self._skip_dead()
         while self._frames and (
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):
             frame = self._frames.popleft()
-            self._pop_timing()
+            self._forget()
             frames.append(frame)
             taken += len(frame.data)
             if not frame.droppable:
                 self._kept_bytes -= len(frame.data) + overhead
-                continue
-            self._topic_frames -= 1
-            if self._held_frames:  # the first droppable frames are the held message's
-                self._held_frames -= 1
-                self._held_bytes -= len(frame.data) + overhead
+            else:
+                self._topic_frames -= 1
+                if self._held_frames:  # the first droppable frames are the held message's
+                    self._held_frames -= 1
+                    self._held_bytes -= len(frame.data) + overhead
+            self._skip_dead()
         self._bytes -= taken + len(frames) * overhead
         self.taken_frames += len(frames)
         last = frames[-1].group if frames else None
@@ -405,7 +415,7 @@ class Outbox:
 
     def _shed(self) -> None:
         kept: list[OutFrame] = []
-        kept_times: list[_Timing | None] = []
+        kept_times: list[_Timed | None] = []
         times = self._times
         self._peak = max(
             self._peak, self._bytes - len(self._frames[-1].data) - self.frame_overhead_bytes
@@ -416,7 +426,9 @@ class Outbox:
             if self._frames[0] is newest and not self._bytes > self.limit_bytes:
                 break
             frame = self._frames.popleft()
-            timing = self._pop_timing()
+            timing = self._forget()
+            if timing is not None and timing.dead:
+                continue  # already dropped and uncharged
             if frame.droppable and (frame.group is None or frame.group != self._sending_group):
                 self._drop(frame, groups)
             else:
@@ -426,87 +438,92 @@ class Outbox:
         while (
             self._frames and self._frames[0].group is not None and self._frames[0].group in groups
         ):
-            self._pop_timing()
+            self._forget()
             self._drop(self._frames.popleft(), groups)
         self._frames.extendleft(reversed(kept))  # the kept ones keep their place
         if times is not None:
             times.extendleft(reversed(kept_times))
-            for timing in kept_times:  # still queued: counted again
-                if timing is not None and timing.first:
-                    self._timed[timing.key] = self._timed.get(timing.key, 0) + 1
-                    self._newest.setdefault(timing.key, timing.came)
 
-    def expire(self) -> None:
-        """Drop the messages at the head that their lifespan outdated (module text).
+    def _expire(self, key: str, newest: float) -> None:
+        """Drop ``key``'s messages that came more than their lifespan before ``newest``.
 
-        It stops at the first frame that is not such a message, at a message
-        that came within its lifespan of the newest of its key, and at a message
-        partly taken: each frame is looked at once, as it reaches the head.
+        They are the oldest of their key; each is looked at once (module text).
         """
-        times = self._times
-        if not self._timed or times is None:
-            return
-        frames = self._frames
-        self._peak = max(self._peak, self._bytes)
-        while frames:
-            timing = times[0]
-            if (
-                timing is None
-                or not timing.first
-                or self._newest[timing.key] - timing.came <= timing.lifespan
-                or (frames[0].group is not None and frames[0].group == self._sending_group)
-            ):
-                return
-            group = frames[0].group
-            self._drop_expired()
-            while group is not None and frames and frames[0].group == group:
-                self._drop_expired()
+        waiting = self._by_key[key]
+        while newest - waiting[0].came > waiting[0].lifespan:  # the newest never expires
+            timed = waiting.popleft()
+            timed.dead = True
+            timed.queued = False
+            self._bytes -= timed.cost
+            self._topic_frames -= timed.frames
+            self._dead_frames += timed.frames
             self.dropped += 1
             self.expired += 1
 
-    def _drop_expired(self) -> None:
-        """Drop the head frame, one of an expired message's (counted by the caller)."""
-        frame = self._frames.popleft()
-        self._pop_timing()
-        self._bytes -= len(frame.data) + self.frame_overhead_bytes
-        self._topic_frames -= 1
-
     def _note_timing(
         self, frames: Sequence[OutFrame], now: float | None, lifespan: float, key: str
-    ) -> bool:
+    ) -> _Timed | None:
         """Record the lifespan of the message ``frames`` is about to queue (``extend``).
 
         Returns:
-            Whether the message has one.
+            Its record, or None if it has no lifespan.
         """
         times = self._times
         if now is None or lifespan <= 0 or not frames or not frames[0].droppable:
             if times is not None:
                 times.extend([None] * len(frames))
-            return False
+            return None
         if times is None:
             times = self._times = deque([None] * len(self._frames))
-        times.append(_Timing(now, lifespan, key, True))
-        if len(frames) > 1:
-            times.extend([_Timing(now, lifespan, key, False)] * (len(frames) - 1))
-        self._timed[key] = self._timed.get(key, 0) + 1
-        self._newest[key] = now
-        return True
+        timed = _Timed(now, lifespan, key, len(frames))
+        times.extend([timed] * len(frames))
+        waiting = self._by_key.get(key)
+        if waiting is None:
+            waiting = self._by_key[key] = deque()
+        waiting.append(timed)
+        return timed
 
-    def _pop_timing(self, *, last: bool = False) -> _Timing | None:
-        """Forget the timing of the frame leaving the head (or the tail: ``last``)."""
+    def _forget(self, *, last: bool = False) -> _Timed | None:
+        """The timing of the frame leaving the head (or the tail: ``last``), now gone.
+
+        A live message leaves its key's list as its first frame leaves the
+        queue; a dead frame leaving is one fewer waiting for the head.
+        """
         times = self._times
         if times is None:
             return None
-        timing = times.pop() if last else times.popleft()
-        if timing is not None and timing.first:
-            left = self._timed[timing.key] - 1
-            if left:
-                self._timed[timing.key] = left
+        timed = times.pop() if last else times.popleft()
+        if timed is None:
+            return None
+        if timed.dead:
+            self._dead_frames -= 1
+        elif timed.queued:
+            timed.queued = False
+            waiting = self._by_key[timed.key]
+            if last:
+                waiting.pop()
             else:
-                del self._timed[timing.key]
-                del self._newest[timing.key]
-        return timing
+                waiting.popleft()  # the oldest of its key: the queue is in order
+            if not waiting:
+                del self._by_key[timed.key]
+        return timed
+
+    def _skip_dead(self) -> None:
+        """Pop the dead frames at the head (their bytes were uncharged when they died)."""
+        times = self._times
+        while self._dead_frames and times and times[0] is not None and times[0].dead:
+            self._frames.popleft()
+            self._forget()
+
+    def _live(self) -> list[OutFrame]:
+        """The queued frames but the dead ones, oldest first."""
+        times = self._times
+        assert times is not None  # (dead frames come only with timings)
+        return [
+            frame
+            for frame, timed in zip(self._frames, times, strict=True)
+            if timed is None or not timed.dead
+        ]
 
     def _drop(self, frame: OutFrame, groups: set[object]) -> None:
         self._bytes -= len(frame.data) + self.frame_overhead_bytes
