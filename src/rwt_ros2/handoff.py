@@ -65,7 +65,7 @@ more than this before the newest queued one of its topic is dropped (module text
 PAUSE_S = 0.001
 """Seconds the taking thread sleeps at a time while the loop is behind (``behind``)."""
 
-TURN_S = 0.002
+TURN_S = 0.005
 """Seconds of queued callbacks one turn of the event loop runs at most; the rest go on
 the next turn, after the connections have written what these queued (a flood of
 samples to ten subscribers cost 0.2 ms each, so 1,000 in one turn held every frame
@@ -73,9 +73,9 @@ they made for 0.2 s: benchmarks/README.md, "ROS 2 bridge")."""
 
 _BATCH = 1000
 
-_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float, bytes]
+_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float, bytes, float]
 """A queued callback, its arguments, its bytes, its topic ("" if no sample), when
-it came (``Sample``) and its publisher."""
+it came (``Sample``), its publisher, and when it was queued (``clock``)."""
 
 Sample = tuple[tuple[object, ...], int, float, bytes]
 """A sample for ``Handoff.put_many``: its callback's arguments, its bytes, when it
@@ -110,7 +110,6 @@ class Handoff:
         self.expired: dict[str, int] = {}
         # when the newest queued sample came, by topic and publisher
         self._newest: dict[tuple[str, bytes], float] = {}
-        self._head_since: float | None = None  # since when events wait (``clock``)
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
@@ -142,11 +141,9 @@ class Handoff:
                 return False
             self.queued_bytes += size
             came = self.clock()
-            if not self._events:
-                self._head_since = came
             if topic:
                 self._newest[topic, b""] = came
-            self._events.append((callback, args, size, topic, came, b""))
+            self._events.append((callback, args, size, topic, came, b"", came))
             signal = self._signal()
         if signal:
             self._wake_loop()
@@ -166,15 +163,13 @@ class Handoff:
         with self._lock:
             if self._closed:
                 return 0
-            events, newest = self._events, self._newest
-            if not events:
-                self._head_since = self.clock()
+            events, newest, now = self._events, self._newest, self.clock()
             for args, size, came, source in samples:
                 if self.queued_bytes + size > self.max_bytes:
                     self._refuse(topic)
                     continue
                 self.queued_bytes += size
-                events.append((callback, args, size, topic, came, source))
+                events.append((callback, args, size, topic, came, source, now))
                 newest[topic, source] = came
                 queued += 1
             signal = queued > 0 and self._signal()
@@ -183,12 +178,15 @@ class Handoff:
         return queued
 
     def behind(self) -> bool:
-        """Whether events have waited over half ``max_wait_s`` (any thread): the loop is behind.
+        """Whether the oldest queued event has waited over half ``max_wait_s`` (any thread).
 
-        Counted from when the queue last stopped being empty, by ``clock``.
+        Its wait counts from when it was queued, by ``clock``: the loop is behind.
         """
-        since = self._head_since
-        return since is not None and since < self.clock() - self.max_wait_s / 2
+        try:
+            queued = self._events[0][6]
+        except IndexError:
+            return False
+        return queued < self.clock() - self.max_wait_s / 2
 
     def pause_while_behind(self) -> None:
         """Sleep while ``behind``, ``PAUSE_S`` at a time, ``max_wait_s`` at most (taking thread)."""
@@ -260,11 +258,7 @@ class Handoff:
                 self._run_batch(inflow, holds)
             finally:
                 inflow.end()
-        with self._lock:
-            if not self._events:
-                self._head_since = None
-                return
-        if self._loop is not None:
+        if self._events and self._loop is not None:
             self._loop.call_soon(self._turn)  # a flood: let the servers send meanwhile
 
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
@@ -276,7 +270,7 @@ class Handoff:
                 return
             with self._lock:
                 event = self._events.popleft()
-                callback, args, size, topic, came, source = event
+                callback, args, size, topic, came, source, _ = event
                 outdated = bool(topic) and newest[topic, source] - came > span
             if outdated:
                 self._expire(topic, size)
@@ -312,5 +306,4 @@ class Handoff:
             self._closed = True
             self._events.clear()
             self._newest.clear()
-            self._head_since = None
             self.queued_bytes = 0

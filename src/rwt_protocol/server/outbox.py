@@ -303,7 +303,9 @@ class Outbox:
                 self._topic_frames += 1
         if timed is not None:
             timed.cost = message
-            self._expire(key, timed.came)
+            oldest = self._by_key[key][0]
+            if timed.came - oldest.came > oldest.lifespan:
+                self._expire(key, timed.came)
         if self._bytes > self.limit_bytes:
             if message > self.limit_bytes and frames[0].droppable:
                 self._hold(len(frames), message)
@@ -476,7 +478,10 @@ class Outbox:
         if times is None:
             times = self._times = deque([None] * len(self._frames))
         timed = _Timed(now, lifespan, key, len(frames))
-        times.extend([timed] * len(frames))
+        if len(frames) == 1:
+            times.append(timed)
+        else:
+            times.extend([timed] * len(frames))
         waiting = self._by_key.get(key)
         if waiting is None:
             waiting = self._by_key[key] = deque()
