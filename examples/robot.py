@@ -4,7 +4,6 @@ import asyncio
 import sys
 
 from rwt import Graph, ListenError, RosbridgeServer, ServerConfig
-from rwt.server import ConsoleSite, WebSocketOptions
 
 
 async def fibonacci(goal: dict, context) -> dict:
@@ -22,8 +21,8 @@ velocity = graph.create_publisher("/velocity", "geometry_msgs/msg/Twist", latch=
 graph.create_subscription("/cmd_vel", velocity.publish, "geometry_msgs/msg/Twist")  # obeys at once
 graph.create_service("/lights", "std_srvs/srv/SetBool", lambda req: {"success": req["data"]})
 graph.create_action_server("/fibonacci", "example_interfaces/action/Fibonacci", fibonacci)
-web = WebSocketOptions(console=ConsoleSite())  # http://127.0.0.1:9090/ shows the web console
-config = ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090, websocket=web)
+# http://127.0.0.1:9090/ shows the web console, as with rwt serve (console=False: none)
+config = ServerConfig(port=int(sys.argv[1]) if sys.argv[1:] else 9090)
 server = RosbridgeServer(graph, config)
 try:  # Ctrl-C stops quietly; a port in use is one line on stderr and exit code 1
     asyncio.run(server.serve(on_listening=lambda url: print("listening on", url, flush=True)))

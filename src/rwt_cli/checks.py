@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 import typer
 
 from rwt_protocol.errors import ConfigError
+from rwt_transports.webrtc_ice import parse_ice_servers
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -97,6 +98,19 @@ def check_directories(paths: list[Path] | None) -> list[Path] | None:
         if not path.is_dir():
             raise OptionError(f"not a directory: {path}")
     return paths
+
+
+def check_ice_servers(urls: list[str] | None) -> list[str] | None:
+    """Typer callback: the ``--ice-server`` URLs are ones aiortc can use, one STUN and one TURN.
+
+    Raises:
+        OptionError: the reason ``rwt_transports.webrtc_ice.parse_ice_servers`` gives.
+    """
+    try:
+        parse_ice_servers(urls or ())
+    except ValueError as exc:
+        raise OptionError(str(exc)) from None
+    return urls
 
 
 def check_glob_list(text: str) -> str:

@@ -49,7 +49,8 @@ def record(
         str,
         typer.Argument(
             callback=check_server_url,
-            help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT.",
+            help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT,"
+            " webrtc+http://HOST:PORT/webrtc, or HOST:PORT.",
         ),
     ],
     out: Annotated[Path, typer.Argument(help="The bag to create (a folder; a .bag file).")],

@@ -81,7 +81,7 @@ async def _start_video(tg: TaskGroup, server: RosbridgeServer, video: VideoConfi
         video_url: str = await tg.start(serve_video, server.graph, video)
     except OSError as exc:
         raise ListenError("HTTP video", video.host, video.port, exc) from exc
-    site = server.config.websocket.console
+    site = server.console
     if site is not None:  # the console on either port shows the streams
         site.video_port = _port(video_url)
     if video.console is not None:

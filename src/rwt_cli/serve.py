@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, NoReturn
 import anyio
 import typer
 
-from rwt_console import ConsoleSite
+from rwt_console import ConsoleSite, console_for
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
@@ -128,14 +128,14 @@ def serve(options: ServeOptions) -> None:
     media = options.media
     if media.depthcloud:
         _depthcloud_encoder(graph, media)
-    video = _video_config(options, server.config.websocket.console, tokens)
+    video = _video_config(options, server.console, tokens)
     jobs = _bag_jobs(graph, options.record, options.play)
     freeze_startup_objects()
     _run(server, video, jobs, zenoh_link, ros2_link, uvloop=options.process.uvloop)
 
 
 def _check_listeners(options: ServeOptions) -> None:
-    """Refuse a server with no listener at all, or WebRTC without its port (usage error)."""
+    """Refuse no listener at all, WebRTC without its port, ICE servers without WebRTC."""
     listeners = options.listeners
     if not (
         listeners.websocket
@@ -148,6 +148,8 @@ def _check_listeners(options: ServeOptions) -> None:
         )
     if listeners.webrtc and not listeners.websocket:
         raise usage_error("--webrtc answers on the WebSocket port: not with --no-websocket")
+    if listeners.ice_server and not listeners.webrtc:
+        raise usage_error("--ice-server gives --webrtc its STUN and TURN servers: add --webrtc")
 
 
 def _set_up_process(process: Process) -> None:
@@ -173,7 +175,7 @@ def _server(
     """
     security = options.security
     origins = tuple(o.strip() for o in security.allowed_origins.split(",") if o.strip())
-    site = _console_site(
+    site = console_for(
         options.media.console,
         origins,
         options.listeners.url_path,
@@ -184,7 +186,8 @@ def _server(
     config = _server_config(options, origins, site)
     if options.listeners.webrtc:  # an offer's bearer token is a video token (docs/webrtc.md)
         check = None if tokens is None else tokens.valid
-        config = replace(config, webrtc=WebRtcOptions(bearer_token=check))
+        ice_servers = tuple(options.listeners.ice_server or ())
+        config = replace(config, webrtc=WebRtcOptions(bearer_token=check, ice_servers=ice_servers))
     if site is not None:
         site.limits = _limits(config)
     authenticator = (
@@ -424,30 +427,6 @@ def _read_secret(path: Path) -> str:
     if not secret:
         raise OptionError(f"the first line of {path} is empty", param_hint="--auth-secret-file")
     return secret
-
-
-def _console_site(
-    wanted: bool | None,
-    origins: tuple[str, ...],
-    url_path: str | None,
-    *,
-    tls: bool,
-    auth: bool,
-    foxglove: bool,
-) -> ConsoleSite | None:
-    """The console of the WebSocket port, or None when it is off (docs/console.md).
-
-    By default it is on, except with --allowed-origins: the operator chose which
-    web pages may reach the robot, and the robot's own page is not one of them
-    unless --console says so (its origin must then be allowed too). With
-    --auth-secret-file it stays on: the page asks for the ``auth`` op first.
-    """
-    if wanted is None:
-        wanted = not origins
-    if not wanted:
-        return None
-    path = url_path or "/"
-    return ConsoleSite(websocket_path=path, websocket_tls=tls, auth=auth, foxglove=foxglove)
 
 
 def _limits(config: ServerConfig) -> dict[str, object]:

@@ -53,7 +53,7 @@ from .bag_options import (
     WaitForSubscribers,
     WaitTimeout,
 )
-from .checks import check_directories, check_glob_list, check_readable_file
+from .checks import check_directories, check_glob_list, check_ice_servers, check_readable_file
 from .options import MIB, PORT_RANGE, UVLOOP_EXTRA, VIDEO_PORT, LevelName, LogLevel
 from .zenoh_link import ZENOH_EXTRA
 
@@ -120,9 +120,20 @@ class Listeners:
         bool,
         typer.Option(
             help="Answer WebRTC offers at POST /webrtc on --port; a 'rosbridge' data channel"
-            " is a session (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
+            " is a session, ?video=TOPIC sends an image topic as a video track"
+            " (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
         ),
     ] = False
+    ice_server: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="URL",
+            callback=check_ice_servers,
+            help="A STUN or TURN server for --webrtc's candidates behind NAT: stun:HOST[:PORT],"
+            " turn:USER:PASS@HOST[:PORT][?transport=tcp], turns:USER:PASS@HOST[:PORT];"
+            " repeatable, one of each (docs/webrtc.md, 'Through NAT').",
+        ),
+    ] = None
     websocket_ping_interval: Annotated[
         float, typer.Option(help="Seconds between WebSocket keepalive pings (0: none).")
     ] = 0.0

@@ -18,6 +18,9 @@ underneath (D22).
   rosbridge_tcp writes them back to back, D22), and into CBOR items, which
   ``receive`` returns as ``bytes``.
 - stdio: a subprocess speaking one JSON object per line on stdin/stdout.
+- WebRTC (``webrtc+http://HOST:PORT/webrtc``, ``webrtc+https://...``): the
+  ``rosbridge`` data channel of ``rwt serve --webrtc`` (``webrtc.WebRtcConnection``;
+  aiortc, the ``webrtc`` extra).
 
 Every failure of the underlying stream is raised as ``ConnectionClosedError`` (a
 ``TransportError``), so callers catch only rwt's errors.
@@ -48,6 +51,7 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream, Process
 
 __all__ = [
+    "WEBRTC_SCHEMES",
     "Connection",
     "ConnectionClosedError",
     "StdioConnection",
@@ -101,7 +105,8 @@ async def connect(
 
     Args:
         url: ``ws://HOST:PORT[/path]``, ``wss://...``, ``tcp://HOST:PORT``,
-            ``tcp+tls://HOST:PORT`` or ``HOST:PORT`` (WebSocket; ``server_url``).
+            ``tcp+tls://HOST:PORT``, ``webrtc+http://HOST:PORT/webrtc`` (a WebRTC
+            data channel, docs/webrtc.md) or ``HOST:PORT`` (WebSocket; ``server_url``).
         timeout_s: seconds allowed for connecting and the handshake.
         max_message_size: largest incoming message, bytes.
         ssl_context: TLS settings for ``wss://`` and ``tcp+tls://``; the system
@@ -112,14 +117,19 @@ async def connect(
 
     Raises:
         ConnectionClosedError: the server cannot be reached or refused the handshake.
-        ConfigError: not one of the above (``server_url``).
+        ConfigError: not one of the above (``server_url``), or a WebRTC URL without
+            aiortc installed.
     """
     url = server_url(url)
-    websocket = urlsplit(url).scheme in ("ws", "wss")  # else tcp or tcp+tls
+    scheme = urlsplit(url).scheme
     with anyio.fail_after(timeout_s):
         try:
-            if websocket:
+            if scheme in ("ws", "wss"):
                 return await WebSocketConnection.open(url, max_message_size, ssl_context)
+            if scheme in WEBRTC_SCHEMES:
+                from .webrtc import WebRtcConnection  # noqa: PLC0415 (aiortc: optional)
+
+                return await WebRtcConnection.open(url, max_message_size, ssl_context)
             return await TcpConnection.open(url, max_message_size, ssl_context)
         except TimeoutError:
             raise
@@ -130,7 +140,9 @@ async def connect(
             raise ConnectionClosedError(f"cannot connect to {url}: {reason}") from None
 
 
-URL_FORMS = "ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT"
+URL_FORMS = (
+    "ws://, wss://, tcp:// or tcp+tls://HOST:PORT, webrtc+http://HOST:PORT/webrtc, or HOST:PORT"
+)
 """The forms of a server's address that ``server_url`` takes, as its errors list them."""
 
 
@@ -139,8 +151,11 @@ def server_url(text: str, transport: str | None = None) -> str:
 
     The one parser of a server's address: the client (``connect``, ``Ros``),
     ``rwt conformance`` and ``rwt record`` all take ``ws://HOST:PORT[/PATH]``,
-    ``wss://...``, ``tcp://HOST:PORT``, ``tcp+tls://HOST:PORT`` and ``HOST:PORT``
-    (WebSocket, the transport rosbridge clients use by default).
+    ``wss://...``, ``tcp://HOST:PORT``, ``tcp+tls://HOST:PORT``,
+    ``webrtc+http(s)://HOST:PORT[/PATH]`` (the ``rosbridge`` data channel of
+    ``rwt serve --webrtc``, its signalling at ``/webrtc`` unless the path says
+    otherwise) and ``HOST:PORT`` (WebSocket, the transport rosbridge clients use
+    by default).
 
     Args:
         text: the address as the user wrote it.
@@ -175,7 +190,10 @@ def server_url(text: str, transport: str | None = None) -> str:
     return url
 
 
-_SCHEMES = ("ws", "wss", "tcp", "tcp+tls")
+WEBRTC_SCHEMES = ("webrtc+http", "webrtc+https")
+"""The schemes of a WebRTC signalling endpoint (``webrtc.WebRtcConnection``)."""
+
+_SCHEMES = ("ws", "wss", "tcp", "tcp+tls", *WEBRTC_SCHEMES)
 
 
 async def close_quietly(stream: ByteStream) -> None:

@@ -194,7 +194,8 @@ class Ros(RosapiMixin):
         """Send everything the session queued.
 
         Raises:
-            ConnectionClosedError: the connection is down and not coming back.
+            ConnectionClosedError: the connection is down and not coming back
+                (``reconnect`` off, or closing).
         """
         async with self._write_lock:
             frames = self.session.frames_to_send()
@@ -203,8 +204,14 @@ class Ros(RosapiMixin):
             if not self._connected.is_set():
                 return  # replayed or dropped on reconnect; see the module docstring
             assert self._conn is not None
-            for frame in frames:
-                await self._conn.send(frame)
+            try:
+                for frame in frames:
+                    await self._conn.send(frame)
+            except ConnectionClosedError:
+                if self._closing or not self.reconnect:
+                    raise
+                # Dropped under our feet: the reader sees it too and reconnects, and
+                # the replay carries what is to be replayed, as when already down.
 
     def spawn(self, function: Callback, *args: object) -> None:
         """Run a callback: coroutine functions as tasks, plain ones now; errors logged."""

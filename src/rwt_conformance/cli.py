@@ -77,7 +77,10 @@ def _tls_context(cafile: Path | None, insecure: bool) -> ssl.SSLContext | None:
 # The options of `rwt conformance`, one alias each, so the command reads as its steps.
 _Url = Annotated[
     str,
-    typer.Argument(help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT."),
+    typer.Argument(
+        help="Server: ws://, wss://, tcp:// or tcp+tls://HOST:PORT,"
+        " webrtc+http://HOST:PORT/webrtc, or HOST:PORT."
+    ),
 ]
 _Transport = Annotated[
     TransportName | None, typer.Option(help="Transport (default: from the URL's scheme).")

@@ -52,7 +52,7 @@ Every case says where it applies: ``profiles`` (``strict``, ``reference``) and
 reason in ``skip``, a table keyed by the profile, the dialect or
 ``"profile+dialect"`` (``{ "reference+ros1" = "REF §1.3: ..." }``, which
 also narrows a case that otherwise runs everywhere); the runner reports the
-reason when it skips. Optional per case: ``transports`` (``ws``/``tcp``),
+reason when it skips. Optional per case: ``transports`` (``ws``/``tcp``/``webrtc``),
 ``pending`` (a reason: skipped until the feature exists), ``authenticates =
 true`` (the case sends ``auth`` itself: it needs the server's secret, and the
 runner does not authenticate its connections first).
@@ -148,7 +148,7 @@ _CASE_KEYS = {
     "pending",
     "authenticates",
 }
-TRANSPORTS = ("ws", "tcp")
+TRANSPORTS = ("ws", "tcp", "webrtc")
 
 
 class SuiteError(RwtError):

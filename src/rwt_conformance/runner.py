@@ -140,8 +140,11 @@ class RunOptions:
 
     @property
     def transport(self) -> str:
-        """``ws`` or ``tcp``, from the URL's scheme (``wss`` and ``tcp+tls`` included)."""
-        return "tcp" if urlsplit(self.url).scheme in ("tcp", "tcp+tls") else "ws"
+        """``ws``, ``tcp`` or ``webrtc``, from the URL's scheme (its TLS forms included)."""
+        scheme = urlsplit(self.url).scheme
+        if scheme.startswith("webrtc+"):
+            return "webrtc"
+        return "tcp" if scheme in ("tcp", "tcp+tls") else "ws"
 
 
 @dataclass(frozen=True, slots=True)

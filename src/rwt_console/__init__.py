@@ -8,6 +8,6 @@ WebSocket transport and the video server send the ``Reply``.
 
 from __future__ import annotations
 
-from .site import ConsoleSite, Reply
+from .site import ConsoleSite, Reply, console_for
 
-__all__ = ["ConsoleSite", "Reply"]
+__all__ = ["ConsoleSite", "Reply", "console_for"]

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
 
-__all__ = ["ConsoleSite", "Reply", "http_response_bytes"]
+__all__ = ["ConsoleSite", "Reply", "console_for", "http_response_bytes"]
 
 PREFIX = "/console/"
 """Where the console's files live on a port; ``/`` is the page too on the WebSocket port."""
@@ -156,6 +156,40 @@ class ConsoleSite:
             return _text(404, f"no console file at {path}")
         data, kind = found
         return _reply(200, data, kind, head=method == "HEAD")
+
+
+def console_for(
+    wanted: bool | None,
+    origins: tuple[str, ...],
+    url_path: str | None,
+    *,
+    tls: bool,
+    auth: bool,
+    foxglove: bool,
+) -> ConsoleSite | None:
+    """The console of a WebSocket port, or None when it is off (docs/console.md).
+
+    By default (``wanted`` None) it is on, except with allowed origins: the operator
+    chose which web pages may reach the robot, and the robot's own page is not one of
+    them unless ``wanted`` says so (its origin must then be allowed too). With an
+    authenticator it stays on: the page asks for the ``auth`` op first. ``rwt serve``
+    (``--console``/``--no-console``, ``--allowed-origins``) and an embedded
+    ``RosbridgeServer`` (``WebSocketOptions.console``) both decide by this rule.
+
+    Args:
+        wanted: True or False as asked for; None for the default.
+        origins: the allowed ``Origin`` patterns (empty: any origin).
+        url_path: the WebSocket's only path, or None for any.
+        tls: the WebSocket is wss.
+        auth: the server asks for the ``auth`` op first.
+        foxglove: Foxglove clients are answered on the same port.
+    """
+    if wanted is None:
+        wanted = not origins
+    if not wanted:
+        return None
+    path = url_path or "/"
+    return ConsoleSite(websocket_path=path, websocket_tls=tls, auth=auth, foxglove=foxglove)
 
 
 def _reply(status: int, body: bytes, kind: str, *, head: bool = False, **extra: str) -> Reply:

@@ -552,7 +552,10 @@ class ConnectionPump(Held):
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
                     size += len(event.data)
-                    session.receive_frame(event.data, now, binary=event.binary)
+                    if event.lossy:  # WebRTC's lossy channel (D36)
+                        session.receive_lossy_frame(event.data, now, binary=event.binary)
+                    else:
+                        session.receive_frame(event.data, now, binary=event.binary)
                     if session.has_jobs:  # run it before the next frame (order)
                         break
         finally:

@@ -45,6 +45,7 @@ from anyio.abc import (
 )
 from anyio.streams.tls import TLSStream
 
+from rwt_console.site import ConsoleSite, console_for
 from rwt_graph.graph import Graph
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
@@ -339,6 +340,8 @@ class RosbridgeServer:
         if authenticator is not None:
             session_config = replace(session_config, authenticator=authenticator)
         self.session_config = session_config
+        # the web console of the WebSocket port, or None; the config then names it
+        self.console, self.config = self._console_site()
         # a link's queue for the other middleware holds publishers back as a subscriber does
         self.graph.port.outflow = OutboundHold(self.flow)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
@@ -388,6 +391,28 @@ class RosbridgeServer:
         self._all_closed: anyio.Event | None = None
         self._stopping = False
 
+    def _console_site(self) -> tuple[ConsoleSite | None, ServerConfig]:
+        """``WebSocketOptions.console`` made a site, and the config with it.
+
+        True builds it as ``rwt serve`` does (``console_for``) from the server's
+        settings; False and None are off; a ``ConsoleSite`` is kept.
+        """
+        config = self.config
+        wanted = config.websocket.console
+        site: ConsoleSite | None = None
+        if isinstance(wanted, ConsoleSite):
+            site = wanted
+        elif wanted:
+            site = console_for(
+                None,
+                config.websocket.allowed_origins,
+                config.websocket.url_path,
+                tls=config.certfile is not None,
+                auth=self.session_config.authenticator is not None,
+                foxglove=config.foxglove.on_rosbridge_port,
+            )
+        return site, replace(config, websocket=replace(config.websocket, console=site))
+
     def _set_up_webrtc(
         self, options: WebRtcOptions | None
     ) -> tuple[WebRtcPeers | None, WebRtcSignalling | None]:
@@ -395,8 +420,10 @@ class RosbridgeServer:
         if options is None:
             return None, None
         from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
+        from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
 
-        peers = WebRtcPeers(self, options, self.config.max_message_size)
+        video = WebRtcVideo(self.graph, self.session_config.access)
+        peers = WebRtcPeers(self, options, self.config.max_message_size, video)
         signalling = WebRtcSignalling(
             peers,
             options,

@@ -1,4 +1,4 @@
-"""The ``rosbridge`` WebRTC data channel as a pump ``Channel`` (docs/webrtc.md).
+"""The ``rosbridge`` WebRTC data channels as a pump ``Channel`` (docs/webrtc.md).
 
 A reliable, ordered data channel labelled ``rosbridge`` carries a rosbridge
 session exactly as a WebSocket connection does: one message per frame, JSON as
@@ -17,6 +17,21 @@ the server's (pump.py); this module only moves frames:
   the channel's ``bufferedAmount`` is above ``SEND_HIGH_WATER_BYTES``, until
   its ``bufferedamountlow`` event, so a slow reader fills the session's outbox
   and the slow-consumer rule (D24) applies as on a WebSocket.
+- the ``rosbridge-lossy`` channel (unordered, no retransmission; D36) is the
+  same session's second way out: its incoming messages go to the session as
+  any (``LossyInFrame``), and the messages of the subscriptions made on it wait
+  in the session's lossy lane, latest-only per topic. aiortc sends every data
+  channel's messages of a peer connection in one FIFO (its SCTP transport's
+  data channel queue, then its outbound queue), so a lossy message handed over
+  behind a reliable backlog would wait for all of it. The lossy writer
+  (``background``) therefore hands a message over only while both channels
+  buffer at most ``LOSSY_GATE_BYTES`` together (their ``bufferedAmount``; the
+  outbound queue holds the rest of one message at most, as aiortc moves the
+  next only when it is empty), and while the lane holds a message the
+  reliable writer hands aiortc nothing: the lossy messages go next, ahead of
+  the reliable backlog, which waits in the session's outbox. The lossy channel
+  so has priority: a lossy stream that takes the whole link holds the reliable
+  channel's messages back (the peer chooses it; ``throttle_rate`` limits it).
 """
 
 from __future__ import annotations
@@ -31,7 +46,7 @@ from aiortc.exceptions import InvalidStateError
 
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.framing.datagrams import fragment_datagrams
-from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
+from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame, LossyInFrame
 
 from .channel import PlainChannel
 
@@ -46,6 +61,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "INBOX_LIMIT_BYTES",
+    "LOSSY_GATE_BYTES",
     "MAX_TEXT_FRAME_BYTES",
     "SEND_HIGH_WATER_BYTES",
     "SEND_LOW_WATER_BYTES",
@@ -71,14 +87,19 @@ SEND_HIGH_WATER_BYTES = 1 * MiB
 SEND_LOW_WATER_BYTES = 256 * 1024
 """``send`` goes on when the channel's buffer is back under this (``bufferedamountlow``)."""
 
+LOSSY_GATE_BYTES = 64 * 1024
+"""A lossy message is handed to aiortc only while the session's data channels buffer at most
+this together; while one waits, the reliable writer keeps its channel under it too (D36)."""
+
 _ids = itertools.count(1)
 
 
 class DataChannelChannel(PlainChannel):
-    """One open ``rosbridge`` data channel as a pump ``Channel``.
+    """A peer's ``rosbridge`` data channel, and its ``rosbridge-lossy`` one, as a pump ``Channel``.
 
     Args:
-        channel: the open data channel (aiortc).
+        channel: the ``rosbridge`` data channel (aiortc), or None to ``attach`` it
+            later; the pump runs only once it is attached and open.
         max_message_size: the largest incoming message, bytes (``--max-message-size``).
         remote_max_message_size: the largest message the peer accepts, bytes (its
             SDP's ``a=max-message-size``; 0: any size).
@@ -88,9 +109,8 @@ class DataChannelChannel(PlainChannel):
     awaits_peer_close = False
 
     def __init__(
-        self, channel: RTCDataChannel, max_message_size: int, remote_max_message_size: int
+        self, channel: RTCDataChannel | None, max_message_size: int, remote_max_message_size: int
     ) -> None:
-        self._dc = channel
         self.max_message_size = max_message_size
         self.remote_max_message_size = remote_max_message_size
         self._inbox: deque[FramerEvent] = deque()
@@ -100,6 +120,26 @@ class DataChannelChannel(PlainChannel):
         self._ended = False
         self.overflowed = False
         """The peer sent more than ``INBOX_LIMIT_BYTES`` ahead of the session: it was cut."""
+        self._channels: list[RTCDataChannel] = []  # every channel attached, to close
+        self._reliable: RTCDataChannel | None = None
+        self._lossy: RTCDataChannel | None = None
+        self._lossy_state = anyio.Event()  # the lossy channel came, or went
+        self._lane_ready = anyio.Event()  # the session's lossy lane holds a message
+        self._lossy_pending = False  # the lane holds messages: the reliable writer yields
+        self._room = anyio.Event()  # the lossy writer's wake-up: a channel's buffer went down
+        if channel is not None:
+            self.attach(channel)
+
+    @property
+    def _dc(self) -> RTCDataChannel:
+        if self._reliable is None:  # the pump runs only once it is attached
+            raise anyio.BrokenResourceError
+        return self._reliable
+
+    def attach(self, channel: RTCDataChannel) -> None:
+        """Take the ``rosbridge`` channel (reliable, ordered): the session's input and output."""
+        self._reliable = channel
+        self._channels.append(channel)
         channel.bufferedAmountLowThreshold = SEND_LOW_WATER_BYTES
         channel.on("message", self._on_message)
         channel.on("close", self._on_close)
@@ -107,7 +147,35 @@ class DataChannelChannel(PlainChannel):
         if channel.readyState in ("closing", "closed"):
             self._on_close()
 
-    def _on_message(self, message: str | bytes) -> None:
+    def attach_lossy(self, channel: RTCDataChannel) -> None:
+        """Take the ``rosbridge-lossy`` channel (unordered, never retransmitted; D36).
+
+        Its messages reach the session as ``LossyInFrame``; its output is the
+        session's lossy lane, which the caller opens (``lossy_ready`` is the
+        lane's wake-up) and ``background`` sends.
+        """
+        self._lossy = channel
+        self._channels.append(channel)
+        channel.bufferedAmountLowThreshold = 0
+        channel.on("message", lambda message: self._on_message(message, lossy=True))
+        channel.on("close", self._on_lossy_close)
+        channel.on("bufferedamountlow", self._on_low)
+        self._lossy_state.set()
+
+    def lossy_ready(self) -> None:
+        """The session's lossy lane got a message (the lane's ``on_output``)."""
+        self._lossy_pending = True
+        self._lane_ready.set()
+
+    def _on_lossy_close(self) -> None:
+        self._lossy = None
+        self._lossy_pending = False
+        self._lossy_state.set()
+        self._lane_ready.set()
+        self._room.set()
+        self._drained.set()  # the reliable writer need not yield any more
+
+    def _on_message(self, message: str | bytes, *, lossy: bool = False) -> None:
         """Queue one incoming message for ``receive`` (aiortc's callback)."""
         if self._ended:
             return
@@ -118,7 +186,7 @@ class DataChannelChannel(PlainChannel):
                 FramingError(f"message larger than {self.max_message_size} bytes skipped")
             )
         else:
-            self._inbox.append(InFrame(data, binary))
+            self._inbox.append(LossyInFrame(data, binary) if lossy else InFrame(data, binary))
             self._inbox_bytes += len(data)
         if self._inbox_bytes > INBOX_LIMIT_BYTES:
             _episodes.log(
@@ -132,16 +200,18 @@ class DataChannelChannel(PlainChannel):
             self._inbox.clear()
             self._inbox_bytes = 0
             self._on_close()
-            self._dc.close()
+            self._close_all()
         self._arrived.set()
 
     def _on_low(self) -> None:
         self._drained.set()
+        self._room.set()
 
     def _on_close(self) -> None:
         self._ended = True
         self._arrived.set()
         self._drained.set()
+        self._room.set()
 
     async def receive(self) -> Sequence[FramerEvent]:
         """The messages received since the last call; waits for at least one.
@@ -179,10 +249,12 @@ class DataChannelChannel(PlainChannel):
                         limit,
                     )
                     continue
+                await self._yield_to_lossy()
                 self._send(data)
             else:
                 parts = fragment_datagrams(data, MAX_TEXT_FRAME_BYTES, f"webrtc:{next(_ids)}")
                 for part in parts:
+                    await self._yield_to_lossy()
                     self._send(part.decode("utf-8"))
                     await self._drain()
             await self._drain()
@@ -197,16 +269,79 @@ class DataChannelChannel(PlainChannel):
 
     async def _drain(self) -> None:
         """Wait while the channel buffers more than ``SEND_HIGH_WATER_BYTES`` for the peer."""
-        while self._dc.bufferedAmount > SEND_HIGH_WATER_BYTES:
+        channel = self._dc
+        while channel.bufferedAmount > SEND_HIGH_WATER_BYTES:
+            if self._ended:
+                raise anyio.BrokenResourceError
+            self._drained = anyio.Event()
+            await self._drained.wait()
+
+    async def _yield_to_lossy(self) -> None:
+        """Wait while the lossy lane holds messages: they go first (D36).
+
+        The reliable channel's backlog stays in the session's outbox meanwhile,
+        so the lossy writer finds room in aiortc's queue soon.
+        """
+        while self._lossy_pending and self._lossy is not None:
             if self._ended:
                 raise anyio.BrokenResourceError
             self._drained = anyio.Event()
             await self._drained.wait()
 
     async def close(self, code: CloseCode, reason: str) -> None:
-        """Close the data channel (it has no close code; the reason is in the server log)."""
+        """Close the data channels (they have no close code; the reason is in the server log)."""
         self._on_close()
-        self._dc.close()
+        self._close_all()
+
+    def _close_all(self) -> None:
+        for channel in self._channels:
+            channel.close()
 
     async def background(self, session: ServerSession) -> None:
-        """Nothing to do: SCTP has its own heartbeat."""
+        """Send the session's lossy lane on the ``rosbridge-lossy`` channel while it is open.
+
+        SCTP has its own heartbeat: nothing else to do.
+        """
+        while True:
+            self._lane_ready = anyio.Event()
+            self._lossy_state = anyio.Event()
+            channel = self._lossy
+            if channel is None:
+                session.close_lossy_lane()  # closed: its subscriptions go on the reliable one
+                await self._lossy_state.wait()
+                continue
+            while (
+                self._lossy is channel
+                and self._lossy_pending
+                and await self._room_for_lossy(channel)
+            ):
+                frame = session.lossy_frame_to_send()
+                if frame is None:  # the lane is empty: the reliable writer goes on
+                    self._lossy_pending = False
+                    self._drained.set()
+                    break
+                data = frame.prefix + frame.data if frame.prefix else frame.data
+                try:
+                    channel.send(data if frame.binary else data.decode("utf-8"))
+                except (InvalidStateError, ConnectionError, ValueError):
+                    self._on_lossy_close()
+            if self._lossy is channel:
+                await self._lane_ready.wait()
+
+    async def _room_for_lossy(self, channel: RTCDataChannel) -> bool:
+        """Wait until the channels buffer at most ``LOSSY_GATE_BYTES``; False if it closed.
+
+        The lane keeps only each topic's latest message meanwhile, and the
+        reliable writer waits (``_yield_to_lossy``).
+        """
+        reliable = self._dc
+        try:
+            reliable.bufferedAmountLowThreshold = LOSSY_GATE_BYTES
+            while reliable.bufferedAmount + channel.bufferedAmount > LOSSY_GATE_BYTES:
+                if self._lossy is not channel or self._ended:
+                    return False
+                self._room = anyio.Event()
+                await self._room.wait()
+        finally:
+            reliable.bufferedAmountLowThreshold = SEND_LOW_WATER_BYTES
+        return self._lossy is channel

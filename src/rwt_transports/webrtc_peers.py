@@ -2,21 +2,32 @@
 
 An offer is admitted as any connection is (``SessionHost.open_session``:
 ``--max-connections``, host shares, ``/connected_clients``), then answered by
-aiortc with every ICE candidate gathered (no trickle). The session starts
+aiortc with every ICE candidate gathered (no trickle): host candidates, and
+with ``--ice-server`` the server-reflexive and relayed ones its STUN and TURN
+servers give (aioice waits at most 5 s for them). The session starts
 when the peer opens its ``rosbridge`` data channel (webrtc.py) and runs on the
-connection pump like a WebSocket's. Bounds, each enforced here
+connection pump like a WebSocket's. A ``rosbridge-lossy`` channel (unordered,
+``maxRetransmits`` 0) belongs to the same session: it opens the session's
+lossy lane (D36). Bounds, each enforced here
 (docs/limits.md):
 
 - ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
   the server; more get 503. Each holds UDP sockets and aiortc's ICE and DTLS
   state, and answering one makes a key pair, so a burst of offers is bounded.
-- ``OFFER_TIMEOUT_S``: answering one offer (ICE gathering); after it, 503.
+- ``OFFER_TIMEOUT_S``: answering one offer (ICE gathering, a TURN allocation
+  included); after it, 503.
 - ``WebRtcOptions.connect_timeout_s``: from the answer to an open data channel
   (ICE, DTLS, SCTP); a peer that never gets there is freed.
 
 A session ends when its data channel or peer connection closes or fails, on
 ``DELETE /webrtc/<id>``, on its idle timeout, or as any session does; its peer
 connection is closed with it.
+
+Video tracks (``?video=``, webrtc_video.py) are bound to the offer's video
+transceivers before the answer and leave their shared streams when the peer
+connection ends. An offer with video and no data channel is a video-only peer:
+its session (admitted and counted as any) runs no rosbridge ops and lasts as
+long as its peer connection (until it fails or closes, ``DELETE``, shutdown).
 """
 
 from __future__ import annotations
@@ -28,12 +39,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import anyio
-from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
+from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSessionDescription
 
 from rwt_protocol.server.commands import CloseCode
 
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .webrtc import MAX_TEXT_FRAME_BYTES, DataChannelChannel
+from .webrtc_ice import parse_ice_servers
 from .webrtc_signal import WEBRTC_PATH, Answer
 
 if TYPE_CHECKING:
@@ -42,14 +54,24 @@ if TYPE_CHECKING:
 
     from rwt_protocol.server.contract import ServerSession
 
-    from .webrtc_signal import WebRtcOptions
+    from .webrtc_signal import VideoRequest, WebRtcOptions
+    from .webrtc_video import VideoBinding, WebRtcVideo
 
-__all__ = ["DATA_CHANNEL_LABEL", "MAX_CONNECTING", "OFFER_TIMEOUT_S", "WebRtcPeers"]
+__all__ = [
+    "DATA_CHANNEL_LABEL",
+    "LOSSY_CHANNEL_LABEL",
+    "MAX_CONNECTING",
+    "OFFER_TIMEOUT_S",
+    "WebRtcPeers",
+]
 
 logger = logging.getLogger("rwt.webrtc")
 
 DATA_CHANNEL_LABEL = "rosbridge"
 """The label of the data channel that carries the rosbridge session; others are closed."""
+
+LOSSY_CHANNEL_LABEL = "rosbridge-lossy"
+"""The label of the session's lossy channel (``ordered: false, maxRetransmits: 0``; D36)."""
 
 MAX_CONNECTING = 16
 """Offers being answered plus peers not yet connected, over the server; more get 503."""
@@ -77,11 +99,19 @@ class _Peer:
     pc: RTCPeerConnection
     session: ServerSession
     remote_max: int
+    dc: DataChannelChannel
     ready: anyio.Event = field(default_factory=anyio.Event)
     channel: RTCDataChannel | None = None
+    lossy: RTCDataChannel | None = None
     running: bool = False
     scope: anyio.CancelScope = field(default_factory=anyio.CancelScope)
     wake: list[ConnectionPump] = field(default_factory=list)
+    video: VideoBinding | None = None
+
+    @property
+    def pumped(self) -> bool:
+        """Its session runs on the pump (a data channel open), so it ends by ``request_close``."""
+        return self.running and self.channel is not None
 
     def on_output(self) -> None:
         """The session's output callback: the pump's, once the data channel opened."""
@@ -96,14 +126,24 @@ class WebRtcPeers:
         host: admits connections and makes their sessions (the server).
         options: the WebRTC settings.
         max_message_size: the largest incoming message, bytes (``--max-message-size``).
+        video: the video tracks' streams (``?video=``); None: an offer asking for
+            video gets 501.
 
     Call ``bind`` with the task group the sessions run in before the first offer.
     """
 
-    def __init__(self, host: SessionHost, options: WebRtcOptions, max_message_size: int) -> None:
+    def __init__(
+        self,
+        host: SessionHost,
+        options: WebRtcOptions,
+        max_message_size: int,
+        video: WebRtcVideo | None = None,
+    ) -> None:
         self.host = host
+        self.video = video
         self.options = options
         self.max_message_size = max_message_size
+        self.ice_servers = parse_ice_servers(options.ice_servers)
         self.peers: dict[str, _Peer] = {}
         self._answering = 0
         self._tg: TaskGroup | None = None
@@ -116,26 +156,44 @@ class WebRtcPeers:
     def bind(self, tg: TaskGroup | None) -> None:
         """Run sessions in ``tg`` (the server's connections); None: take no offers."""
         self._tg = tg
+        if self.video is not None:
+            self.video.bind(tg)
 
-    async def offer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
-        """Admit and answer an offer.
+    async def offer(
+        self, sdp: str, peer: str, *, authenticated: bool, video: VideoRequest | None = None
+    ) -> Answer:
+        """Admit and answer an offer, with the video tracks ``video`` asks for.
 
         Returns:
             201 with the answer SDP and the session's path; 400 (the offer cannot be
-            answered: not SDP, no data channel), 503 (server full, too many peers
-            connecting, stopping, or answering took over ``OFFER_TIMEOUT_S``).
+            answered: not SDP, neither a data channel nor video), 503 (server full,
+            too many peers connecting, stopping, or answering took over
+            ``OFFER_TIMEOUT_S``); for video, ``WebRtcVideo.binding``'s refusals.
         """
         if self._tg is None:
             return Answer(503, "the server is not serving")
         if self.connecting >= MAX_CONNECTING:
             return Answer(503, "too many WebRTC peers connecting: try again later")
+        binding = self._video_binding(video)
+        if isinstance(binding, Answer):
+            return binding
         self._answering += 1
         try:
-            return await self._answer(sdp, peer, authenticated=authenticated)
+            return await self._answer(sdp, peer, authenticated=authenticated, video=binding)
         finally:
             self._answering -= 1
 
-    async def _answer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
+    def _video_binding(self, video: VideoRequest | None) -> VideoBinding | Answer | None:
+        """The tracks ``video`` asks for (None: none), or why not (webrtc_video.py)."""
+        if video is None or not video.topics:
+            return None
+        if self.video is None:
+            return Answer(501, "this server sends no video tracks")
+        return self.video.binding(video)
+
+    async def _answer(
+        self, sdp: str, peer: str, *, authenticated: bool, video: VideoBinding | None
+    ) -> Answer:
         holder: list[_Peer] = []
         session = self.host.open_session(
             "webrtc",
@@ -145,18 +203,23 @@ class WebRtcPeers:
         )
         if session is None:
             return Answer(503, "too many connections")
-        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))  # no STUN: no traffic elsewhere
-        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max_message_size(sdp))
+        pc = RTCPeerConnection(self._configuration())
+        remote_max = remote_max_message_size(sdp)
+        dc = DataChannelChannel(None, self.max_message_size, remote_max)
+        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc)
+        item.video = video
         holder.append(item)
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
         pc.on("connectionstatechange", lambda: self._on_state(item))
         refusal: Answer | None = Answer(503, "answering the offer took too long")
         try:
             with anyio.move_on_after(OFFER_TIMEOUT_S):
-                refusal = await _negotiate(pc, sdp)
+                refusal = await _negotiate(pc, sdp, video)
         finally:  # refused, failed or cancelled (shutdown): the session and its sockets go
             if refusal is not None or pc.localDescription is None or self._tg is None:
                 session.close()
+                if video is not None:
+                    video.close()
                 await _close_pc(pc)
         if refusal is not None or pc.localDescription is None or self._tg is None:
             return refusal or Answer(503, "the server is stopping")
@@ -164,8 +227,27 @@ class WebRtcPeers:
         self._tg.start_soon(self._run, item)
         return Answer(201, pc.localDescription.sdp, f"{WEBRTC_PATH}/{item.session_id}")
 
+    def _configuration(self) -> RTCConfiguration:
+        """A peer connection's ICE servers: ``--ice-server``'s, or none.
+
+        None at all (not aiortc's default, a public STUN server) without
+        ``--ice-server``: the server then sends nothing to any other host.
+        """
+        servers = [
+            RTCIceServer(urls=s.url, username=s.username, credential=s.credential)
+            for s in self.ice_servers
+        ]
+        return RTCConfiguration(iceServers=servers)
+
     def _on_channel(self, item: _Peer, channel: RTCDataChannel) -> None:
-        """Take the ``rosbridge`` channel (reliable, ordered); close any other."""
+        """Take one ``rosbridge`` channel (reliable, ordered) and one ``rosbridge-lossy``.
+
+        The lossy one must be unordered with ``maxRetransmits`` 0 (D36); any other
+        channel is closed.
+        """
+        if channel.label == LOSSY_CHANNEL_LABEL:
+            self._on_lossy(item, channel)
+            return
         reliable = channel.maxRetransmits is None and channel.maxPacketLifeTime is None
         if channel.label != DATA_CHANNEL_LABEL or not channel.ordered or not reliable:
             logger.info("event=channel_refused label=%r", channel.label)
@@ -176,16 +258,42 @@ class WebRtcPeers:
             channel.close()
             return
         item.channel = channel
+        item.dc.attach(channel)  # its messages wait for the session from now on
         if channel.readyState == "open":
             item.ready.set()
         else:
             channel.on("open", item.ready.set)
 
+    def _on_lossy(self, item: _Peer, channel: RTCDataChannel) -> None:
+        """Take the ``rosbridge-lossy`` channel, opening the session's lossy lane (D36).
+
+        Its messages go to the session as any; the subscriptions made on it get
+        their messages there.
+        """
+        lossy = not channel.ordered and channel.maxRetransmits == 0
+        if not lossy or channel.maxPacketLifeTime is not None or item.lossy is not None:
+            reason = "second" if lossy and item.lossy is not None else "not_unordered_unreliable"
+            logger.info("event=channel_refused label=%r reason=%s", channel.label, reason)
+            channel.close()
+            return
+        item.lossy = channel
+        item.dc.attach_lossy(channel)
+        item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
+        # closed: its subscriptions' next messages go on the reliable channel at once
+        channel.on("close", item.session.close_lossy_lane)
+        logger.info(
+            "event=lossy_channel client=%s max_message_bytes=%d",
+            item.session.client_id,
+            item.remote_max,
+        )
+
     def _on_state(self, item: _Peer) -> None:
         """A failed or closed peer connection ends its session."""
+        if item.pc.connectionState == "connected" and item.pc.sctp is None:
+            item.ready.set()  # video only: connected is all it waits for
         if item.pc.connectionState in ("failed", "closed"):
             item.ready.set()
-            if item.running:
+            if item.pumped:
                 item.session.request_close(CloseCode.GOING_AWAY, "peer connection closed")
             else:
                 item.scope.cancel()
@@ -196,6 +304,9 @@ class WebRtcPeers:
             with item.scope:
                 with anyio.move_on_after(self.options.connect_timeout_s):
                     await item.ready.wait()
+                if item.pc.sctp is None:
+                    await self._run_video_only(item)
+                    return
                 channel = item.channel
                 if channel is None or channel.readyState != "open":
                     logger.info(
@@ -204,49 +315,76 @@ class WebRtcPeers:
                         item.pc.connectionState,
                     )
                     return
-                dc = DataChannelChannel(channel, self.max_message_size, item.remote_max)
-                pump = ConnectionPump(dc, self.host.flow, self.host.admission)
+                pump = ConnectionPump(item.dc, self.host.flow, self.host.admission)
                 item.wake.append(pump)
                 item.running = True
                 await run_connection(pump, item.session, f"webrtc={item.session_id}")
         finally:
             self.peers.pop(item.session_id, None)
             item.session.close()
+            if item.video is not None:
+                item.video.close()
             await _close_pc(item.pc)
+
+    async def _run_video_only(self, item: _Peer) -> None:
+        """A peer with video and no data channel: it lasts as long as its peer connection."""
+        if item.pc.connectionState != "connected":
+            logger.info(
+                "event=webrtc_not_connected client=%s state=%s",
+                item.session.client_id,
+                item.pc.connectionState,
+            )
+            return
+        item.running = True
+        logger.info(
+            "event=connect client=%s transport=webrtc protocol=video peer=%s webrtc=%s",
+            item.session.client_id,
+            item.session.peer,
+            item.session_id,
+        )
+        await anyio.sleep_forever()  # until failed, closed, DELETE or shutdown cancels it
 
     def delete(self, session_id: str) -> bool:
         """End the session ``session_id`` (``DELETE /webrtc/<id>``); False if there is none."""
         item = self.peers.get(session_id)
         if item is None:
             return False
-        if item.running:
+        if item.pumped:
             item.session.request_close(CloseCode.NORMAL, "ended by DELETE")
         else:
             item.scope.cancel()
         return True
 
     def stop_connecting(self) -> None:
-        """Free the peers that are not connected yet (the server is stopping)."""
+        """Free the peers that are not connected yet, and video-only ones (server stopping)."""
         for item in list(self.peers.values()):
-            if not item.running:
+            if not item.pumped:
                 item.scope.cancel()
 
 
-async def _negotiate(pc: RTCPeerConnection, sdp: str) -> Answer | None:
-    """Set the offer and the answer (gathering every candidate); None when it worked."""
+async def _negotiate(
+    pc: RTCPeerConnection, sdp: str, video: VideoBinding | None = None
+) -> Answer | None:
+    """Set the offer and the answer (gathering every candidate); None when it worked.
+
+    ``video`` binds its tracks to the offer's transceivers before the answer and
+    starts their streams in the negotiated codecs after it.
+    """
     if not sdp.lstrip().startswith("v=0"):  # aiortc reads any text as an empty description
         return Answer(400, "the offer is not a usable SDP offer: it must start with v=0")
     try:
         await pc.setRemoteDescription(RTCSessionDescription(sdp=sdp, type="offer"))
     except Exception as exc:  # aiortc raises ValueError and others for a bad offer
         return Answer(400, f"the offer is not a usable SDP offer: {exc or type(exc).__name__}")
-    if pc.sctp is None:
-        return Answer(400, "the offer has no data channel (m=application)")
+    if video is not None and (refusal := video.prepare(pc, sdp)) is not None:
+        return refusal
+    if pc.sctp is None and video is None:
+        return Answer(400, "the offer has no data channel (m=application) and asks for no video")
     try:
         await pc.setLocalDescription(await pc.createAnswer())
     except Exception as exc:  # an offer aiortc accepted but cannot answer
         return Answer(400, f"the offer cannot be answered: {exc or type(exc).__name__}")
-    return None
+    return video.start(pc) if video is not None else None
 
 
 async def _close_pc(pc: RTCPeerConnection) -> None:

@@ -4,15 +4,23 @@
 ICE candidates in it: no trickle) answers ``201 Created`` with the answer SDP
 and ``Location: /webrtc/<id>``; ``DELETE /webrtc/<id>`` ends that session
 (204, or 404 for an unknown id); ``OPTIONS`` answers a browser's CORS
-preflight. Everything else on the port (the WebSocket upgrade, the console) is
-unchanged: the WebSocket listener hands a request here only when its request
-line starts with one of these methods and the path (``claims``).
+preflight; ``GET /webrtc/roslib-transport.js`` serves roslib's transport
+factory for WebRTC (``ROSLIB_TRANSPORT_PATH``, a file of this package, with the
+same CORS headers, so a page elsewhere can import it). Everything else on the
+port (the WebSocket upgrade, the console) is unchanged: the WebSocket listener
+hands a request here only when its request line starts with one of these
+methods and the path (``claims``; a ``GET`` only below ``/webrtc/``).
 
 HTTP/1.1 is parsed by h11 (sans-IO); one request per connection. The offer is
 at most ``MAX_OFFER_BYTES``. With an authenticator (``--auth-secret-file``) an
 offer carrying ``Authorization: Bearer <token>`` must carry a live video token
 (``/rwt/video_token``, docs/video.md), else 401; an offer without one opens a
 session that must send the ``auth`` op first, as a WebSocket client does (D23).
+
+Video tracks: ``POST /webrtc?video=/camera/image&video=/arm/image`` binds the
+offer's receiving video transceivers, in order, to those image topics (at most
+``MAX_VIDEO_TRACKS``; webrtc_video.py); with an authenticator they need the
+bearer token, since a video-only peer has no data channel to authenticate on.
 """
 
 from __future__ import annotations
@@ -20,24 +28,32 @@ from __future__ import annotations
 import contextlib
 import fnmatch
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cache
 from http import HTTPStatus
+from importlib import resources
 from typing import TYPE_CHECKING, Protocol
+from urllib.parse import parse_qsl
 
 import anyio
 import h11
 
+from .webrtc_ice import parse_ice_servers
+
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Mapping
 
     from anyio.abc import ByteStream
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "MAX_OFFER_BYTES",
+    "MAX_VIDEO_TRACKS",
+    "ROSLIB_TRANSPORT_PATH",
     "WEBRTC_PATH",
     "Answer",
     "OfferHandler",
+    "VideoRequest",
     "WebRtcOptions",
     "WebRtcSignalling",
 ]
@@ -47,6 +63,9 @@ logger = logging.getLogger("rwt.webrtc")
 WEBRTC_PATH = "/webrtc"
 """The signalling endpoint: offers are posted here, sessions live under it."""
 
+ROSLIB_TRANSPORT_PATH = WEBRTC_PATH + "/roslib-transport.js"
+"""Where roslib's transport factory for WebRTC is served (docs/webrtc.md, "A page with roslib")."""
+
 MAX_OFFER_BYTES = 64 * 1024
 """Largest offer SDP accepted (a browser's offer with a data channel is about 1 KiB): 413."""
 
@@ -54,9 +73,13 @@ CONNECT_TIMEOUT_S = 15.0
 """Default seconds a peer has, from its answer, to complete ICE and DTLS and open the
 ``rosbridge`` data channel; then its session is freed (``WebRtcOptions``)."""
 
+MAX_VIDEO_TRACKS = 4
+"""The most ``video`` query parameters (video tracks) of one offer: past it, 400."""
+
 _READ_SIZE = 65536
-_METHODS = (b"POST", b"DELETE", b"OPTIONS")
+_METHODS = (b"POST", b"DELETE", b"OPTIONS", b"GET")
 _SDP = "application/sdp"
+_JS = "text/javascript; charset=utf-8"
 _CORS = [
     (b"Access-Control-Allow-Methods", b"POST, DELETE, OPTIONS"),
     (b"Access-Control-Allow-Headers", b"Authorization, Content-Type"),
@@ -76,10 +99,22 @@ class WebRtcOptions:
         bearer_token: with an authenticator, checks the token of an offer's
             ``Authorization: Bearer`` header (the video server's tokens,
             ``rwt_video.VideoTokens.valid``); None: such an offer gets 401.
+        ice_servers: STUN and TURN server URLs (``--ice-server``, the forms of
+            ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
+            and relayed candidates each answer carries (docs/webrtc.md, "Through
+            NAT"); empty: host candidates only, and no traffic to any other host.
+
+    Raises:
+        ValueError: an ICE server URL aiortc cannot use, or more than one STUN or
+            TURN server (``parse_ice_servers``).
     """
 
     connect_timeout_s: float = CONNECT_TIMEOUT_S
     bearer_token: Callable[[str], bool] | None = None
+    ice_servers: tuple[str, ...] = field(default=(), repr=False)  # TURN passwords: no repr
+
+    def __post_init__(self) -> None:
+        parse_ice_servers(self.ice_servers)  # refuse a bad URL here, not at the first offer
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,11 +126,39 @@ class Answer:
     location: str | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class VideoRequest:
+    """The video tracks an offer's query asks for (docs/webrtc.md, "Video tracks").
+
+    Attributes:
+        topics: the image topic of each ``video`` parameter, in the query's order.
+        query: the other parameters, the last value of each (the video server's
+            stream parameters: ``bitrate``, ``width``, ``height``, ``gop``...).
+    """
+
+    topics: tuple[str, ...] = ()
+    query: Mapping[str, str] = field(default_factory=dict)
+
+
+def video_request(target: str) -> VideoRequest | Answer:
+    """The video tracks the request target's query asks for, or a 400 ``Answer``."""
+    _, _, query = target.partition("?")
+    pairs = parse_qsl(query, keep_blank_values=True)
+    topics = tuple(value for name, value in pairs if name == "video")
+    if len(topics) > MAX_VIDEO_TRACKS:
+        return Answer(400, f"{len(topics)} video parameters: at most {MAX_VIDEO_TRACKS}")
+    if not all(topics):
+        return Answer(400, "an empty video parameter: give an image topic, video=/camera/image")
+    return VideoRequest(topics, {name: value for name, value in pairs if name != "video"})
+
+
 class OfferHandler(Protocol):
     """The peer connections behind signalling (``webrtc_peers.WebRtcPeers``)."""
 
-    async def offer(self, sdp: str, peer: str, *, authenticated: bool) -> Answer:
-        """Answer an offer: 201 with the answer SDP, else the refusal."""
+    async def offer(
+        self, sdp: str, peer: str, *, authenticated: bool, video: VideoRequest | None = None
+    ) -> Answer:
+        """Answer an offer (with the video tracks of ``video``): 201 with the answer SDP."""
 
     def delete(self, session_id: str) -> bool:
         """End the session ``session_id``; False if there is none."""
@@ -136,7 +199,8 @@ class WebRtcSignalling:
                     return None
                 continue
             if head.startswith(prefix):
-                return head[len(prefix) : len(prefix) + 1] in (b" ", b"/", b"?")
+                after = head[len(prefix) : len(prefix) + 1]
+                return after == b"/" if method == b"GET" else after in (b" ", b"/", b"?")
         return False
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
@@ -165,6 +229,9 @@ class WebRtcSignalling:
         answer = await self._route(request, headers, body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
         kind = _SDP if answer.status == 201 else "text/plain; charset=utf-8"
+        if request.method == b"GET" and answer.status == 200:
+            kind = _JS
+            extra.append((b"Cache-Control", b"no-cache"))  # a new rwt serves a new file
         logger.info(
             "event=signalling peer=%s method=%s status=%d",
             peer,
@@ -187,8 +254,8 @@ class WebRtcSignalling:
     ) -> Answer:
         method = request.method.decode()
         path = request.target.decode("latin-1").split("?", 1)[0].rstrip("/")
-        if method == "OPTIONS":
-            return Answer(204, "")
+        if method in ("OPTIONS", "GET"):
+            return _bodiless(method, path)
         if method == "DELETE":
             session_id = path.removeprefix(WEBRTC_PATH + "/")
             if path.startswith(WEBRTC_PATH + "/") and self.peers.delete(session_id):
@@ -212,7 +279,27 @@ class WebRtcSignalling:
             return Answer(400, "the offer is not UTF-8 text")
         if not sdp.strip():
             return Answer(400, "the offer is empty: post a complete SDP offer")
-        return await self.peers.offer(sdp, peer, authenticated=authenticated)
+        video = video_request(request.target.decode("latin-1"))
+        if isinstance(video, Answer):
+            return video
+        if video.topics and self.auth_required and not authenticated:
+            return Answer(401, "video tracks need Authorization: Bearer <token> (/rwt/video_token)")
+        return await self.peers.offer(sdp, peer, authenticated=authenticated, video=video)
+
+
+def _bodiless(method: str, path: str) -> Answer:
+    """``OPTIONS`` (a CORS preflight: 204) or ``GET`` (the roslib transport, else 404)."""
+    if method == "OPTIONS":
+        return Answer(204, "")
+    if path == ROSLIB_TRANSPORT_PATH:
+        return Answer(200, roslib_transport())
+    return Answer(404, f"nothing at {path}: the transport is at {ROSLIB_TRANSPORT_PATH}")
+
+
+@cache
+def roslib_transport() -> str:
+    """The JavaScript served at ``ROSLIB_TRANSPORT_PATH``, read from the package once."""
+    return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
 
 
 class _TooLarge(Exception):

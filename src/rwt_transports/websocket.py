@@ -43,7 +43,7 @@ from websockets.protocol import State
 from websockets.server import ServerProtocol
 from websockets.typing import Subprotocol
 
-from rwt_console.site import http_response_bytes
+from rwt_console.site import ConsoleSite, http_response_bytes
 from rwt_protocol.framing.fragments import BudgetCharge
 from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
 from rwt_protocol.framing.streams import FramerEvent, InFrame
@@ -66,7 +66,6 @@ if TYPE_CHECKING:
     from websockets.datastructures import Headers
     from websockets.extensions.base import ServerExtensionFactory
 
-    from rwt_console import ConsoleSite
     from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.outbox import OutFrame
@@ -109,8 +108,12 @@ class WebSocketOptions:
         ping_timeout_s: seconds to wait for the pong before closing with 1011
             (``--websocket-ping-timeout``, rosbridge's default 30).
         console: answers plain HTTP GET/HEAD requests (no ``Upgrade``) with the
-            web console (``--console``, docs/console.md); None: such requests
-            fail the handshake as before.
+            web console (docs/console.md). True (the default): the server's own
+            console, as ``rwt serve`` has it: on unless ``allowed_origins`` is set
+            (``rwt_console.console_for``; ``RosbridgeServer`` builds it from its
+            settings). A ``ConsoleSite``: that one, whatever the origins
+            (``--console``). False or None: off (``--no-console``), such requests
+            fail the handshake.
     """
 
     compression: bool = False
@@ -118,7 +121,7 @@ class WebSocketOptions:
     allowed_origins: tuple[str, ...] = ()
     ping_interval_s: float = 0.0
     ping_timeout_s: float = 30.0
-    console: ConsoleSite | None = None
+    console: ConsoleSite | bool | None = True
 
 
 class WebSocketChannel:
@@ -631,7 +634,7 @@ async def serve_websocket_connection(
         if handshake is None:
             return
         request, at_frame_start = handshake
-        if options.console is not None and not _is_upgrade(request):
+        if isinstance(options.console, ConsoleSite) and not _is_upgrade(request):
             await _serve_console(stream, request, options.console, peer)
             return
         channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)

@@ -255,6 +255,13 @@ class StreamHub:
             encoders' memory (docs/limits.md).
         encoder_threads: the most frames encoded at once, over all streams
             (``ENCODER_THREADS``); a stream waiting for its turn skips to its newest frame.
+        make: the encoder of a new stream, from its params and the topic's type
+            (default: the HTTP streams' ``make_encoder``; WebRTC's video tracks
+            use ``rtp.make_rtp_encoder``).
+        node: the node the streams subscribe as (what rosapi shows).
+
+    Attributes:
+        started: streams (encoders) started so far, for the tests and the logs.
     """
 
     def __init__(
@@ -263,8 +270,13 @@ class StreamHub:
         task_group: TaskGroup,
         max_streams: int = 16,
         encoder_threads: int = ENCODER_THREADS,
+        make: Callable[[StreamParams, str], FrameEncoder] | None = None,
+        node: str = "/web_video_server",
     ) -> None:
         self.graph = graph
+        self.node = node
+        self._make = make or (lambda params, _type_name: make_encoder(params))
+        self.started = 0
         self._tg = task_group
         self.max_streams = max_streams
         self.limiter = anyio.CapacityLimiter(encoder_threads)
@@ -305,11 +317,12 @@ class StreamHub:
     def _start(self, params: StreamParams, type_name: str) -> SharedStream:
         if len(self.streams) >= self.max_streams:
             raise StreamParamError(f"{self.max_streams} distinct streams run already", status=503)
-        stream = SharedStream(params, make_encoder(params), self.limiter)
+        stream = SharedStream(params, self._make(params, type_name), self.limiter)
         stream.subscription = self.graph.create_subscription(
-            params.source_topic, stream.on_message, type_name, node="/web_video_server"
+            params.source_topic, stream.on_message, type_name, node=self.node
         )
         self.streams[params] = stream
+        self.started += 1
         self._tg.start_soon(stream.run)
         _episodes.log(
             logging.INFO,

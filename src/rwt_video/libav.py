@@ -29,7 +29,7 @@ from .params import StreamParams, StreamType
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-__all__ = ["CODECS", "VideoEncoder", "VideoMuxer"]
+__all__ = ["CODECS", "CODEC_THREADS", "PtsClock", "VideoEncoder", "VideoMuxer", "codec_options"]
 
 _MS = fractions.Fraction(1, 1000)
 
@@ -56,6 +56,56 @@ CODECS: Mapping[StreamType, _Codec] = {
 }
 
 
+CODEC_THREADS = 1
+"""Threads of one libvpx or libx264 encoder. Streams encode in parallel already (the
+hub's ``ENCODER_THREADS``); FFmpeg's automatic count (one per CPU) made libvpx spend
+17 to 77 ms of CPU on a frame of a 640x480 camera on a busy 2-core machine, against
+7 ms with one thread (benchmarks/webrtc_video.py, benchmarks/JOURNAL.md)."""
+
+
+def codec_options(params: StreamParams) -> dict[str, str]:
+    """The options that run libvpx or libx264 in real time, with the bounds of ``params``.
+
+    VP8 runs libvpx in real-time mode at its fastest setting, without lag or
+    alt-ref frames, error-resilient (as web_video_server configures it); H.264
+    runs libx264's ``ultrafast`` preset tuned for zero latency, without B-frames.
+    """
+    bounds = {"qmin": str(params.qmin), "qmax": str(params.qmax), "bf": "0"}
+    if params.type in (StreamType.VP8, StreamType.VP9):
+        return bounds | {
+            "deadline": "realtime",
+            "cpu-used": "8",
+            "lag-in-frames": "0",
+            "auto-alt-ref": "0",
+            "error-resilient": "1",
+        }
+    return bounds | {"preset": "ultrafast", "tune": "zerolatency"}
+
+
+class PtsClock:
+    """Presentation times, ms from the first frame, from header stamps or arrival times.
+
+    A stamp that advances gives the step; a stamp that does not (none, or repeated)
+    is replaced by the arrival time, so the rate control sees the real frame rate.
+    Times always advance by at least 1 ms.
+    """
+
+    def __init__(self) -> None:
+        self._last: tuple[float, float, int] | None = None  # stamp, arrival, pts
+
+    def pts(self, msg: Message) -> int:
+        """The presentation time of ``msg``, ms."""
+        stamp, now = stamp_seconds(msg), time.monotonic()
+        if self._last is None:
+            pts = 0
+        else:
+            last_stamp, last_now, last_pts = self._last
+            step_s = stamp - last_stamp if stamp > last_stamp else now - last_now
+            pts = last_pts + max(1, round(step_s * 1000))
+        self._last = (stamp, now, pts)
+        return pts
+
+
 class VideoEncoder:
     """VP8 (WebM) or H.264 (fragmented MP4) through one PyAV codec context.
 
@@ -75,7 +125,7 @@ class VideoEncoder:
         self._stream: av.video.stream.VideoStream | None = None
         self._size: tuple[int, int] | None = None
         self._keyframe_requested = False
-        self._last: tuple[float, float, int] | None = None  # stamp, arrival, pts
+        self._clock = PtsClock()
 
     def request_keyframe(self) -> None:
         """Make the next frame a keyframe (a viewer joined or resynchronises)."""
@@ -93,7 +143,7 @@ class VideoEncoder:
             if self._size != image.size:
                 image = image.resize(self._size or image.size, Image.Resampling.BILINEAR)
             frame = av.VideoFrame.from_ndarray(np.asarray(image), format="rgb24")
-            frame.pts = self._pts(msg)
+            frame.pts = self._clock.pts(msg)
             frame.time_base = _MS
             if self._keyframe_requested:
                 frame.pict_type = av.video.frame.PictureType.I
@@ -128,7 +178,8 @@ class VideoEncoder:
         context.time_base = _MS
         context.bit_rate = self.params.bitrate
         context.gop_size = self.params.gop
-        context.options = self._codec_options()
+        context.thread_count = CODEC_THREADS
+        context.options = codec_options(self.params)
         stream.time_base = _MS
         try:
             master.start_encoding()  # opens the codec with the container's flags
@@ -136,29 +187,6 @@ class VideoEncoder:
             raise EncodeError(f"{self.codec.codec}: {exc}") from None
         self._stream = stream
         return stream
-
-    def _codec_options(self) -> dict[str, str]:
-        bounds = {"qmin": str(self.params.qmin), "qmax": str(self.params.qmax), "bf": "0"}
-        if self.params.type in (StreamType.VP8, StreamType.VP9):
-            return bounds | {
-                "deadline": "realtime",
-                "cpu-used": "8",
-                "lag-in-frames": "0",
-                "auto-alt-ref": "0",
-                "error-resilient": "1",
-            }
-        return bounds | {"preset": "ultrafast", "tune": "zerolatency"}
-
-    def _pts(self, msg: Message) -> int:
-        stamp, now = stamp_seconds(msg), time.monotonic()
-        if self._last is None:
-            pts = 0
-        else:
-            last_stamp, last_now, last_pts = self._last
-            step_s = stamp - last_stamp if stamp > last_stamp else now - last_now
-            pts = last_pts + max(1, round(step_s * 1000))
-        self._last = (stamp, now, pts)
-        return pts
 
 
 class VideoMuxer:

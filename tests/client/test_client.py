@@ -336,6 +336,34 @@ async def test_a_call_or_goal_while_the_connection_is_down_fails_at_once() -> No
         tg.cancel_scope.cancel()
 
 
+async def test_a_subscription_made_as_the_connection_drops_is_replayed() -> None:
+    """The drop lands between the client's "connected" and its send (``rwt record``
+    subscribing as its server vanishes): the subscribe does not fail, and the
+    reconnection's replay carries it."""
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(RosbridgeServer(config=LOCAL).serve)
+        async with Ros(url) as listener, Ros(url) as talker:
+            reconnected, inbox = Inbox(), Inbox()
+            listener.on_reconnect(reconnected)
+            conn = listener._conn
+            assert conn is not None
+            send = conn.send
+
+            async def send_as_it_drops(frame: str | bytes) -> None:
+                await conn.aclose()  # the drop lands after the client chose to send
+                await send(frame)
+
+            conn.send = send_as_it_drops  # type: ignore[method-assign]
+            await Topic(listener, "/dropped", "std_msgs/String").subscribe(inbox)
+            assert await reconnected.wait(timeout_s=10) == [1]
+            chatter = Topic(talker, "/dropped", "std_msgs/String")
+            await chatter.advertise()
+            await _sync(listener)
+            await chatter.publish({"data": "replayed"})
+            assert await inbox.wait() == [{"data": "replayed"}]
+        tg.cancel_scope.cancel()
+
+
 LOCAL = ServerConfig(port=0)
 
 

@@ -70,7 +70,10 @@ def test_every_form_of_a_server_address_is_read_by_one_parser() -> None:
     assert server_url("wss://h:1", "tcp") == "tcp+tls://h:1"
     assert server_url("tcp+tls://h:1", "ws") == "wss://h:1"
     assert server_url("wss://robot.example.com/rosbridge") == "wss://robot.example.com/rosbridge"
-    forms = "use ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT"
+    forms = (
+        "use ws://, wss://, tcp:// or tcp+tls://HOST:PORT, webrtc+http://HOST:PORT/webrtc,"
+        " or HOST:PORT"
+    )
     refused = {
         "http://h:9090": f"unsupported URL scheme 'http' in 'http://h:9090': {forms}",
         "localhost": f"'localhost' names no port: {forms}",

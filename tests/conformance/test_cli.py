@@ -152,7 +152,8 @@ def test_a_url_of_another_scheme_is_one_line_naming_the_forms_taken() -> None:
     assert (run.returncode, run.stdout) == (2, "")
     assert run.stderr == (
         "rwt conformance: unsupported URL scheme 'http' in 'http://127.0.0.1:9090':"
-        " use ws://, wss://, tcp:// or tcp+tls://HOST:PORT, or HOST:PORT\n"
+        " use ws://, wss://, tcp:// or tcp+tls://HOST:PORT, webrtc+http://HOST:PORT/webrtc,"
+        " or HOST:PORT\n"
     )
 
 

@@ -21,11 +21,11 @@ def missing() -> str | None:
     return None
 
 
-def command(scenario: str, url: str, *args: str) -> list[str]:
-    """The command line of ``scenario`` against ``url``."""
+def command(scenario: str, url: str, *args: str, script: str = SCRIPT.name) -> list[str]:
+    """The command line of ``scenario`` against ``url`` (``script``: a file of tests/js)."""
     node = shutil.which("node")
     assert node is not None
-    return [node, str(SCRIPT), scenario, url, *args]
+    return [node, str(JS_DIR / script), scenario, url, *args]
 
 
 def result_of(stdout: str) -> Any:
@@ -33,10 +33,10 @@ def result_of(stdout: str) -> Any:
     return json.loads(stdout.strip().splitlines()[-1])["result"]
 
 
-def run(scenario: str, url: str, *args: str) -> Any:
-    """Run ``scenario`` to its end (bounded: 120 s) and return its result."""
+def run(scenario: str, url: str, *args: str, script: str = SCRIPT.name) -> Any:
+    """Run ``scenario`` of ``script`` to its end (bounded: 120 s) and return its result."""
     done = subprocess.run(
-        command(scenario, url, *args),
+        command(scenario, url, *args, script=script),
         capture_output=True,
         text=True,
         timeout=120,

@@ -13,7 +13,13 @@ import anyio
 import cbor2
 import httpx
 import msgspec
-from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
+from aiortc import (
+    RTCConfiguration,
+    RTCDataChannel,
+    RTCIceServer,
+    RTCPeerConnection,
+    RTCSessionDescription,
+)
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
@@ -32,6 +38,13 @@ class RtcClient:
     inbox: list[str | bytes] = field(default_factory=list)
     arrived: anyio.Event = field(default_factory=anyio.Event)
     closed: anyio.Event = field(default_factory=anyio.Event)
+    lossy: RTCDataChannel | None = None
+    """The ``rosbridge-lossy`` channel, when asked for (its messages: ``lossy_inbox``)."""
+    lossy_inbox: list[str | bytes] = field(default_factory=list)
+
+    def send_lossy(self, op: dict[str, object]) -> None:
+        assert self.lossy is not None
+        self.lossy.send(msgspec.json.encode(op).decode())
 
     def send(self, op: dict[str, object], *, cbor: bool = False) -> None:
         self.channel.send(cbor2.dumps(op) if cbor else msgspec.json.encode(op).decode())
@@ -62,12 +75,27 @@ async def offer_sdp(pc: RTCPeerConnection) -> str:
 
 
 @asynccontextmanager
-async def rtc_client(base: str, headers: dict[str, str] | None = None) -> AsyncIterator[RtcClient]:
-    """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit."""
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+async def rtc_client(
+    base: str,
+    headers: dict[str, str] | None = None,
+    *,
+    lossy: dict[str, object] | None = None,
+    ice_servers: list[RTCIceServer] | None = None,
+) -> AsyncIterator[RtcClient]:
+    """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit.
+
+    ``lossy``: also open a ``rosbridge-lossy`` channel with these ``createDataChannel``
+    options (``{"ordered": False, "maxRetransmits": 0}`` for the server to keep it).
+    ``ice_servers``: the STUN and TURN servers a browser page would pass; none by default.
+    """
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=ice_servers or []))
     channel = pc.createDataChannel("rosbridge")
     opened = anyio.Event()
     channel.on("open", opened.set)
+    second = None if lossy is None else pc.createDataChannel("rosbridge-lossy", **lossy)
+    lossy_inbox: list[str | bytes] = []
+    if second is not None:
+        second.on("message", lossy_inbox.append)
     try:
         sdp = await offer_sdp(pc)
         async with httpx.AsyncClient(base_url=base) as http:
@@ -80,7 +108,9 @@ async def rtc_client(base: str, headers: dict[str, str] | None = None) -> AsyncI
         await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
         with anyio.fail_after(RECEIVE_S):
             await opened.wait()
-        client = RtcClient(pc, channel, reply.headers["Location"])
+        client = RtcClient(
+            pc, channel, reply.headers["Location"], lossy=second, lossy_inbox=lossy_inbox
+        )
 
         def on_message(message: str | bytes) -> None:
             client.inbox.append(message)

@@ -1,16 +1,18 @@
-"""Chromium running roslib 2.x over the ``rosbridge`` data channel: the page of docs/webrtc.md.
+"""Chromium running roslib 2.x over the data channels: the page of docs/webrtc.md.
 
-The page's transport factory is the one docs/webrtc.md shows (read from the page
-itself), served from another origin than ``rwt serve --webrtc`` (so CORS is the
-browser's), with roslib and its dependencies from tests/js/node_modules.
+The page's code is the one docs/webrtc.md shows (read from the page itself, with
+the server's address), which imports the transport factory rwt serves at
+``/webrtc/roslib-transport.js``; the page comes from another origin than
+``rwt serve --webrtc`` (so CORS is the browser's), with roslib and its
+dependencies from tests/js/node_modules.
 """
 
 from __future__ import annotations
 
-import functools
 import http.server
 import json
 import threading
+import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -43,17 +45,18 @@ BIG = 100_000
 """Characters of the message that must come back in ``fragment`` ops (over 64 KiB)."""
 
 
-def documented_factory() -> str:
-    """The JavaScript of docs/webrtc.md up to its ``new Ros``: the transport factory."""
+DOCUMENTED_SERVER = "http://127.0.0.1:9090"
+"""The server's address in the page of docs/webrtc.md; the test puts its own in."""
+
+
+def documented_page() -> str:
+    """The JavaScript of docs/webrtc.md's page with roslib: the factory's import and ``ros``."""
     page = (REPO / "docs" / "webrtc.md").read_text("utf-8")
     block = next(b for b in page.split("```text\n")[1:] if "transportFactory" in b)
-    code = block.split("```", 1)[0]
-    return code.split("const ros = ", 1)[0]
+    return block.split("```", 1)[0]
 
 
 PAGE_TEST = """
-const server = new URL(location.href).searchParams.get("server");
-const ros = new Ros({ url: server, transportFactory: webrtcTransport });
 ros.on("error", (e) => { window.failure = String(e && (e.message || e.type || e)); });
 ros.on("connection", async () => {
   try {
@@ -66,18 +69,26 @@ ros.on("connection", async () => {
     await new Promise((ok) => setTimeout(ok, 200));  // the subscription reaches the server
     echo.publish({ data: big });
     const back = await received;
-    window.result = { topics: topics.topics, same: back === big, length: back.length };
+    const pose = new Topic({ ros, name: "/pose", messageType: "geometry_msgs/Pose" });
+    const fast = new Promise((ok) => pose.subscribe((m) => ok(m.position.x)));  // lossy
+    await new Promise((ok) => setTimeout(ok, 200));
+    pose.publish({ position: { x: 1.5, y: 0, z: 0 }, orientation: { x: 0, y: 0, z: 0, w: 1 } });
+    const x = await fast;
+    window.result = { topics: topics.topics, same: back === big, length: back.length, x };
   } catch (e) { window.failure = String(e); }
 });
 """
 
 
-def page_html() -> str:
+def page_html(server: str) -> str:
+    """The page, its code the documented one with ``server`` for the documented address."""
     imports = {name: f"/node_modules/{path}" for name, path in IMPORTS.items()}
-    script = documented_factory().replace(
+    script = documented_page().replace(
         'import { Ros, Topic, AbstractTransport } from "roslib";',
         'import { Ros, Topic, Service, AbstractTransport } from "roslib";',
     )
+    assert DOCUMENTED_SERVER in script
+    script = script.replace(DOCUMENTED_SERVER, server)
     return (
         "<!doctype html><html><head>"
         f'<script type="importmap">{json.dumps({"imports": imports})}</script>'
@@ -87,17 +98,18 @@ def page_html() -> str:
 
 
 class _Site(http.server.SimpleHTTPRequestHandler):
-    """The page at ``/``; tests/js/node_modules under ``/node_modules/``."""
+    """The page at ``/?server=URL``; tests/js/node_modules under ``/node_modules/``."""
 
-    def __init__(self, *args: object, page: str, **kwargs: object) -> None:
-        self.page = page
+    def __init__(self, *args: object, **kwargs: object) -> None:
         super().__init__(*args, directory=str(MODULES.parent), **kwargs)  # type: ignore[arg-type]
 
     def do_GET(self) -> None:
-        if self.path.split("?", 1)[0] != "/":
+        path, _, query = self.path.partition("?")
+        if path != "/":
             super().do_GET()
             return
-        body = self.page.encode()
+        server = urllib.parse.parse_qs(query)["server"][0]
+        body = page_html(server).encode()
         self.send_response(200)
         self.send_header("Content-Type", "text/html; charset=utf-8")
         self.send_header("Content-Length", str(len(body)))
@@ -117,8 +129,7 @@ class _Site(http.server.SimpleHTTPRequestHandler):
 def site() -> Iterator[str]:
     if not (MODULES / "roslib").is_dir():
         pytest.skip("roslib is not installed: npm ci --prefix tests/js")
-    handler = functools.partial(_Site, page=page_html())
-    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _Site)
     thread = threading.Thread(target=httpd.serve_forever, daemon=True)
     thread.start()
     try:
@@ -161,5 +172,35 @@ def test_roslib_in_chromium_talks_rosbridge_over_the_data_channel(
     assert "failure" not in result, result
     assert "/client_count" in result["topics"]
     assert result["same"] is True and result["length"] == BIG + 1
+    assert result["x"] == 1.5  # received on the lossy channel
     log = server.stderr_path.read_text()
     assert "transport=webrtc" in log  # the session was the data channel's, not a WebSocket
+    assert "event=lossy_channel" in log  # and the page opened the lossy one beside it
+
+
+def test_the_console_talks_over_the_data_channel_with_webrtc_in_its_url(
+    browser: Browser, tmp_path: Path
+) -> None:
+    server = ServerProcess(tmp_path, ("--webrtc",))
+    try:
+        page = browser.new_page()
+        try:
+            page.goto(server.url.replace("ws://", "http://") + "/?webrtc")
+            page.wait_for("!!document.querySelector('#status.ok')", 30, "the console to connect")
+            page.wait_for(
+                "!!document.querySelector('#topics tbody tr[data-name=\"/client_count\"]')",
+                30,
+                "the graph over the data channel",
+            )
+            shown = page.text("#server-url")
+            requested = page.requested_urls()
+            errors = page.errors()
+        finally:
+            page.close()
+    finally:
+        server.stop()
+    assert shown.endswith("/webrtc (WebRTC)")
+    assert not any(url.startswith("ws://") for url in requested)  # no WebSocket at all
+    assert errors == []
+    log = server.stderr_path.read_text()
+    assert "transport=webrtc" in log and "transport=ws" not in log

@@ -158,3 +158,36 @@ async def test_a_burst_of_offers_is_bounded_and_a_websocket_bystander_is_served(
     assert statuses.count(201) <= MAX_CONNECTING
     assert served.server.webrtc is not None
     assert len(served.server.webrtc.peers) <= MAX_CONNECTING
+
+
+async def test_the_roslib_transport_is_served_as_javascript_with_cors(served: Served) -> None:
+    page = "http://page.example:8000"
+    async with httpx.AsyncClient(base_url=served.base) as http:
+        reply = await http.get("/webrtc/roslib-transport.js", headers={"Origin": page})
+        missing = await http.get("/webrtc/nothing.js")
+        websocket = await http.get("/")  # not signalling's: the console's
+    assert reply.status_code == 200
+    assert reply.headers["Content-Type"] == "text/javascript; charset=utf-8"
+    assert reply.headers["Access-Control-Allow-Origin"] == page  # importable from a page elsewhere
+    assert "export function webrtcTransportFactory(AbstractTransport" in reply.text
+    assert '"rosbridge-lossy"' in reply.text
+    assert missing.status_code == 404 and "/webrtc/roslib-transport.js" in missing.text
+    assert websocket.status_code == 200  # the console's page, as before
+    assert websocket.headers["Content-Type"].startswith("text/html")
+
+
+async def test_the_roslib_transport_obeys_allowed_origins() -> None:
+    config = ServerConfig(
+        port=0,
+        webrtc=WebRtcOptions(),
+        websocket=WebSocketOptions(allowed_origins=("http://good.example",)),
+    )
+    async with serving(config) as served, httpx.AsyncClient(base_url=served.base) as http:
+        bad = await http.get(
+            "/webrtc/roslib-transport.js", headers={"Origin": "http://evil.example"}
+        )
+        good = await http.get(
+            "/webrtc/roslib-transport.js", headers={"Origin": "http://good.example"}
+        )
+    assert bad.status_code == 403
+    assert good.status_code == 200

@@ -127,8 +127,12 @@ function watchClients(ros, types) {
   }
 }
 
+// ?webrtc in the page's URL: the rosbridge data channel of `rwt serve --webrtc`
+// (docs/console.md), its offer posted to this origin's /webrtc, instead of the WebSocket
+const webrtc = new URLSearchParams(location.search).has('webrtc') ? location.origin : null;
+
 async function connectOnce(url, auth) {
-  const ros = new Rosbridge(url);
+  const ros = new Rosbridge(url, { webrtc });
   let closed = null;
   ros.on('close', (event) => {
     closed = event;
@@ -149,7 +153,7 @@ async function connectOnce(url, auth) {
 
 async function connect(config) {
   const url = websocketUrl(config);
-  document.getElementById('server-url').textContent = url;
+  document.getElementById('server-url').textContent = webrtc ? `${webrtc}/webrtc (WebRTC)` : url;
   if (config.foxglove) {
     document.getElementById('foxglove-url').textContent = url;
     document.getElementById('foxglove-token').hidden = !config.auth;

@@ -1,11 +1,16 @@
 // A small rosbridge v2 client for the console (docs/console.md): JSON over one
 // WebSocket, the ops the console uses and nothing more. Replies are matched by id.
+// Given `webrtc` (the server's http(s) origin), the WebSocket is the `rosbridge` data
+// channel instead (datachannel.js, docs/webrtc.md).
+
+import { DataChannelSocket } from './datachannel.js';
 
 export class RosbridgeError extends Error {}
 
 export class Rosbridge {
-  constructor(url) {
+  constructor(url, { webrtc = null } = {}) {
     this.url = url;
+    this.webrtc = webrtc;
     this.socket = null;
     this.nextId = 1;
     this.pending = new Map(); // id -> {resolve, reject, onFeedback}
@@ -40,7 +45,7 @@ export class Rosbridge {
   }
 
   open() {
-    const socket = new WebSocket(this.url);
+    const socket = this.webrtc ? new DataChannelSocket(this.webrtc) : new WebSocket(this.url);
     this.socket = socket;
     socket.onclose = (event) => {
       for (const call of this.pending.values()) {

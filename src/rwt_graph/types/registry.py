@@ -21,7 +21,7 @@ from .genaction import wrapper_of, wrapper_text
 from .message import ActionType, MessageType, ServiceType
 from .msgparse import DefinitionError, ParsedMessage, parse_message, split_sections
 from .names import Dialect, Kind, TypeName, UnknownTypeError, parse_type_name
-from .sources import FileIndex, packaged_dirs, store_message, stores_for
+from .sources import FileIndex, packaged_dirs, store_dialects, store_message, stores_for
 from .wire import WireCodec
 
 __all__ = ["TypeRegistry", "codec_for"]
@@ -54,8 +54,10 @@ class TypeRegistry:
         self.dialect = Dialect(dialect)
         roots = [Path(folder) for folder in interface_dirs] + packaged_dirs(self.dialect)
         self._files = FileIndex(roots)
-        self._stores = stores_for(self.dialect)
-        self._store_keys = [key for store in self._stores for key in store]
+        self._stores = list(
+            zip(store_dialects(self.dialect), stores_for(self.dialect), strict=True)
+        )
+        self._store_keys = [key for _, store in self._stores for key in store]
         self._packages = self._files.packages() | {k.split("/")[0] for k in self._store_keys}
         self._messages: dict[str, MessageType] = {}
         self._aliases: dict[str, MessageType] = {}
@@ -126,8 +128,8 @@ class TypeRegistry:
         return mtype
 
     def _from_stores(self, key: str) -> ParsedMessage | None:
-        for store in self._stores:
-            stored = store_message(store, key, self.dialect)
+        for origin, store in self._stores:
+            stored = store_message(store, key, self.dialect, origin)
             if stored is not None:
                 return ParsedMessage(*stored)
         return None

@@ -38,6 +38,7 @@ __all__ = [
     "declaration_orders",
     "packaged_dirs",
     "render_text",
+    "store_dialects",
     "store_for",
     "store_message",
     "stores_for",
@@ -60,10 +61,15 @@ _PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 PACKAGED_STORES = Path(__file__).resolve().parent / "rosbags_stores.json"
 
 
-#: The declaration order (constant and field names) of the ROS 2 store's messages whose
-#: ``.msg`` file does not declare all its constants first, taken from ROS 2 Kilted's files
-#: (tests/graph/types/test_declaration_order.py writes it and checks it).
+#: The declaration order (constant and field names) of the stores' messages whose ``.msg``
+#: file does not declare all its constants first: ``types`` for the ROS 2 store, from ROS 2
+#: Kilted's files (tests/graph/types/test_declaration_order.py writes it and checks it),
+#: ``ros1_types`` for the ROS 1 store, from ROS 1 Noetic's
+#: (tests/graph/types/test_ros1_declaration_order.py).
 DECLARATION_ORDER = Path(__file__).resolve().parent / "declaration_order.json"
+
+#: The key of each store's orders in :data:`DECLARATION_ORDER`.
+_ORDER_SECTION = {Dialect.ROS2: "types", Dialect.ROS1: "ros1_types"}
 
 
 def packaged_dirs(dialect: Dialect) -> list[Path]:
@@ -101,9 +107,12 @@ def stores_for(dialect: Dialect) -> list[Typesdict]:
     example ``rcl_interfaces`` services) use ROS 2-only messages, which then
     still resolve, with ROS 1 time spelling.
     """
-    if dialect is Dialect.ROS1:
-        return [store_for(Dialect.ROS1), store_for(Dialect.ROS2)]
-    return [store_for(Dialect.ROS2)]
+    return [store_for(origin) for origin in store_dialects(dialect)]
+
+
+def store_dialects(dialect: Dialect) -> list[Dialect]:
+    """Whose store each of :func:`stores_for` is, in the same order."""
+    return [Dialect.ROS1, Dialect.ROS2] if dialect is Dialect.ROS1 else [Dialect.ROS2]
 
 
 @cache
@@ -240,10 +249,10 @@ def _fits(order: Sequence[str], fields: Sequence[FieldSpec], lines: dict[str, st
 
 
 @cache
-def declaration_orders() -> dict[str, tuple[str, ...]]:
-    """:data:`DECLARATION_ORDER`: ``{"pkg/msg/Type": (member names in file order)}``."""
+def declaration_orders(store: Dialect = Dialect.ROS2) -> dict[str, tuple[str, ...]]:
+    """:data:`DECLARATION_ORDER` of ``store``'s store: ``{"pkg/msg/Type": (member names)}``."""
     data = json.loads(DECLARATION_ORDER.read_text(encoding="utf-8"))
-    return {key: tuple(names) for key, names in data["types"].items()}
+    return {key: tuple(names) for key, names in data[_ORDER_SECTION[store]].items()}
 
 
 def _literal(value: object) -> str:
@@ -257,9 +266,16 @@ def _literal(value: object) -> str:
 
 
 def store_message(
-    store: Typesdict, key: str, dialect: Dialect
+    store: Typesdict, key: str, dialect: Dialect, origin: Dialect | None = None
 ) -> tuple[tuple[FieldSpec, ...], tuple[Constant, ...], str] | None:
     """Read a message from a store's field definitions by its key (``pkg/msg/Type``).
+
+    Args:
+        store: a store's field definitions (:func:`store_for`).
+        key: the message's key in it.
+        dialect: the graph's dialect, which spells the text.
+        origin: whose store it is (``dialect`` when None): its files' order of
+            constants and fields is kept (:data:`DECLARATION_ORDER`).
 
     Returns:
         ``(fields, constants, text)``, with :data:`STORE_DEFAULTS` applied, or
@@ -276,7 +292,7 @@ def store_message(
         if name != IDL_PLACEHOLDER
     )
     constants = tuple(Constant(name, ctype, value) for name, ctype, value in consts)
-    # the order is ROS 2's files'; ROS 1 keeps the store's (its own files are not at hand)
-    order = declaration_orders().get(key) if dialect is Dialect.ROS2 else None
+    # the order of the files the store was made from (Kilted's or Noetic's)
+    order = declaration_orders(origin or dialect).get(key)
     # ends with a newline, as a .msg file does (ROS 1's full text keeps each file's last one)
     return fields, constants, render_text(fields, constants, dialect, order) + "\n"

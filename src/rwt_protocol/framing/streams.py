@@ -33,10 +33,18 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from enum import Enum, auto
+from typing import ClassVar
 
 from .fragments import BudgetCharge, FragmentBudget
 
-__all__ = ["FramerEvent", "FramingError", "InFrame", "JsonStreamFramer", "LineFramer"]
+__all__ = [
+    "FramerEvent",
+    "FramingError",
+    "InFrame",
+    "JsonStreamFramer",
+    "LineFramer",
+    "LossyInFrame",
+]
 
 _NOT_SPACE = re.compile(rb"[^ \t\r\n]")
 _CONTAINER_STOP = re.compile(rb'[{}\[\]"\n]')
@@ -58,10 +66,19 @@ class InFrame:
     Attributes:
         data: the frame's bytes (a JSON text, or one CBOR item when ``binary``).
         binary: the frame is CBOR (D21), not JSON text.
+        lossy: it came on the transport's lossy channel (``LossyInFrame``, D36).
     """
 
     data: bytes
     binary: bool = False
+    lossy: ClassVar[bool] = False
+
+
+@dataclass(frozen=True, slots=True)
+class LossyInFrame(InFrame):
+    """One whole frame that came on a transport's lossy channel (WebRTC's, D36)."""
+
+    lossy: ClassVar[bool] = True
 
 
 @dataclass(frozen=True, slots=True)

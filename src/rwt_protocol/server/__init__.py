@@ -13,9 +13,10 @@ protocol's session shares (the contract the connection runtime drives is
 - ``gates`` (authentication, then ``access`` rules, before each handler) and
   ``replies`` (what a refused request gets besides its status);
 - ``encoding`` (topic messages and replies in each subscriber's encoding),
-  ``outbox`` (the bounded queue of outgoing frames), ``backpressure`` (slow
-  consumers), ``inflate`` (the png inflation budget), ``pngout`` (png messages
-  deflated off the event loop);
+  ``outbox`` (the bounded queue of outgoing frames), ``lossy`` (the latest
+  message of each topic subscribed on a transport's lossy channel, D36),
+  ``backpressure`` (slow consumers), ``inflate`` (the png inflation budget),
+  ``pngout`` (png messages deflated off the event loop);
 - ``timers``, ``idle`` (closing silent connections), ``commands`` (what the
   session asks its transport to do).
 """

@@ -32,6 +32,7 @@ from .callbook import CallBook
 from .commands import CloseCode, CloseConnection, Command
 from .idle import IdleWatch
 from .lifecycle import State, advance
+from .lossy import LossyLane
 from .outbox import Outbox, OutFrame
 from .timers import Timer, TimerQueue
 
@@ -105,6 +106,7 @@ class SessionBase:
         self._close_request: CloseConnection | None = None  # set on entering CLOSING
         self._now = 0.0  # the latest monotonic time seen, for output without one
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
+        self._lossy: LossyLane | None = None  # a transport's lossy channel (D36)
 
     # ---- what each protocol says -------------------------------------------------
 
@@ -240,10 +242,57 @@ class SessionBase:
             self._jobs.clear()
             self._background.clear()
             self._outbox.take()  # what a peer that left never read goes now
+            self.close_lossy_lane()
             self.release()
         finally:  # even if releasing raised, the owner forgets the connection
             if self._on_closed is not None:
                 self._on_closed(self._client_id)
+
+    def receive_lossy_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Handle a frame that came on the transport's lossy channel (D36).
+
+        A protocol without a lossy lane handles it as any frame (``receive_frame``).
+        """
+        self.receive_frame(frame, now, binary=binary)
+
+    def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Handle one whole incoming frame (each protocol's)."""
+        raise NotImplementedError
+
+    def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
+        """Open the lane of the transport's lossy channel (D36; ``lossy.LossyLane``).
+
+        Args:
+            max_message_bytes: the largest message the channel carries (0: any size).
+            on_output: called when the lane gets a message while empty.
+
+        Returns:
+            The lane; the transport takes its messages with ``lossy_frame_to_send``.
+        """
+        limit = self._config.send_buffer_limit
+        self._lossy = LossyLane(max_message_bytes, limit, on_output)
+        return self._lossy
+
+    def close_lossy_lane(self) -> None:
+        """The lossy channel closed: its subscriptions' messages go on the reliable one."""
+        if self._lossy is not None:
+            self._lossy.clear()
+            self._lossy = None
+
+    @property
+    def lossy_lane(self) -> LossyLane | None:
+        """The lane of the transport's lossy channel, while it is open (D36)."""
+        return self._lossy
+
+    def lossy_frame_to_send(self) -> OutFrame | None:
+        """Take the lossy lane's message that waited longest, or None (D36)."""
+        lane = self._lossy
+        if lane is None:
+            return None
+        frame = lane.pop()
+        if frame is not None:
+            self._outbox.taken_frames += 1
+        return frame
 
     def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Take the frames queued for the peer, oldest first.

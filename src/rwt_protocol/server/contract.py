@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
     from ..levels import StatusLevel
     from .commands import CloseCode, CloseConnection, Command
+    from .lossy import LossyLane
     from .outbox import OutFrame
 
 __all__ = ["Job", "ServerSession"]
@@ -70,6 +71,18 @@ class ServerSession(Protocol):
 
     def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
         """Handle one whole incoming frame; never raises for what the peer sent."""
+
+    def receive_lossy_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
+        """Handle one frame that came on the transport's lossy channel (D36)."""
+
+    def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
+        """Open the lane whose messages go on the transport's lossy channel (D36)."""
+
+    def close_lossy_lane(self) -> None:
+        """The lossy channel closed: its subscriptions' messages go on the reliable one."""
+
+    def lossy_frame_to_send(self) -> OutFrame | None:
+        """Take the lossy lane's message that waited longest, or None."""
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Tell the peer of a problem (a framing error) in its protocol's status."""

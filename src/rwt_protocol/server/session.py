@@ -58,12 +58,13 @@ from .lifecycle import State
 from .pngout import PngPublishJob, PngWaiting
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Sequence
 
     from ..auth import Authenticator
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .contract import Job
+    from .outbox import OutFrame
     from .subscriptions import TopicSubscription
     from .timers import Timer
 
@@ -235,6 +236,8 @@ class Session(SessionBase):
         self._png_waiting = PngWaiting()  # messages to deflate off the loop (pngout)
         self._inflate_budget = TokenBucket(config.png_inflate_rate, max(config.max_message_size, 1))
         self._auth_nonce: str | None = None
+        self._input_lossy = False  # the frame being handled came on the lossy channel
+        self._oversize_warned: set[str] = set()  # topics told of a message too large for it
         if self._config.auth_challenge and self._state is State.AUTHENTICATING:
             self._auth_nonce = auth_nonce
             if auth_nonce is None:
@@ -290,6 +293,24 @@ class Session(SessionBase):
             self._refused(exc, op_name, op_id)
         except Exception:
             self._bug(op_name, op_id)
+
+    def receive_lossy_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Process a frame that came on the transport's lossy channel (D36).
+
+        As ``receive_frame``; a ``subscribe`` in it gets its messages on the lossy
+        lane (``open_lossy_lane``), latest-only; everything else is answered on
+        the reliable channel.
+        """
+        self._input_lossy = True
+        try:
+            self.receive_frame(frame, now, binary=binary)
+        finally:
+            self._input_lossy = False
+
+    @property
+    def input_lossy(self) -> bool:
+        """Whether the op being handled came on the transport's lossy channel (D36)."""
+        return self._input_lossy
 
     def inflate_png(self, png: PendingPng, op_id: str | int | None, now: float) -> None:
         """Inflate a ``png`` op's image, then handle its text as a frame (D20).
@@ -511,16 +532,48 @@ class Session(SessionBase):
         """
         self._now = max(self._now, event.now)
         params = subscription.params
+        lossy = subscription.lossy and self._lossy is not None
         if params.compression is Compression.PNG and self._runs_jobs:
-            self._deflate_later(subscription, event, params.fragment_size)
+            self._deflate_later(subscription, event, None if lossy else params.fragment_size)
             return
         frames = safe_publish_frames(
-            event, subscription.spelling, params.compression, params.fragment_size
+            event,
+            subscription.spelling,
+            params.compression,
+            None if lossy else params.fragment_size,  # no fragments on the lossy lane
         )
         if isinstance(frames, EncodeFailure):
             self._encode_failed(subscription, frames, params.compression)
+        elif lossy:
+            self._queue_lossy(subscription, frames)
+        else:
+            self.send_frames(frames, subscription.spelling, event.lifespan)
+
+    def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
+        """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.
+
+        The warning is sent once per topic (a peer's subscriptions bound the topics).
+        """
+        lane = self._lossy
+        if lane is None:  # the lossy channel closed: the reliable one carries it
+            self.send_frames(frames, subscription.spelling)
             return
-        self.send_frames(frames, subscription.spelling, event.lifespan)
+        # one frame: the lane's messages are made without fragment_size (no parts)
+        size = sum(len(frame.data) for frame in frames)
+        if len(frames) == 1 and lane.put(subscription.topic, frames[0]):
+            return
+        if len(frames) > 1:
+            lane.refused += 1  # (``put`` counts the one-frame refusals)
+        if subscription.topic not in self._oversize_warned and len(self._oversize_warned) < (
+            self._config.max_subscriptions
+        ):
+            self._oversize_warned.add(subscription.topic)
+            self.report(
+                StatusLevel.WARNING,
+                f"subscribe: a message of {subscription.spelling} ({size} bytes) is over the "
+                f"lossy channel's limit ({lane.max_message_bytes} bytes, the peer's "
+                "max-message-size) and was dropped; subscribe on the reliable channel for it",
+            )
 
     def _deflate_later(
         self, subscription: TopicSubscription, event: MessageEvent, fragment_size: int | None
@@ -545,6 +598,8 @@ class Session(SessionBase):
             return
         if isinstance(result, EncodeFailure):
             self._encode_failed(subscription, result, Compression.PNG)
+        elif subscription.lossy:
+            self._queue_lossy(subscription, result)  # type: ignore[arg-type]
         else:
             self.send_frames(result, subscription.spelling)  # type: ignore[arg-type]
 

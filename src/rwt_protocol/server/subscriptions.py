@@ -18,6 +18,11 @@ Throttle and queue follow D12 (REF §5.3 for the reference's behaviour):
 - changing the parameters keeps the time of the last send and the queue; a
   lower throttle takes effect at once (0 flushes the queue).
 
+A subscription made on a transport's lossy channel (D36) is ``lossy`` while
+every id it holds came on that channel: its messages go on the lossy lane,
+latest-only. One id from the reliable channel makes the merged subscription
+reliable (one copy of each message, D11, on the channel that loses none).
+
 Time is the ``now`` of each message event and of the session's timer; nothing
 here reads a clock.
 """
@@ -119,15 +124,23 @@ class TopicSubscription:
         self._schedule = schedule
         self._max_queue = max(1, max_queue)
         self._timer: Timer | None = None
+        self._lossy_ids: set[SubscriptionKey] = set()
+        self.lossy = False
+        """Every id came on the lossy channel: messages go on the lossy lane (D36)."""
 
-    def add(self, request: Subscribe, now: float) -> None:
+    def add(self, request: Subscribe, now: float, *, lossy: bool = False) -> None:
         """Add or replace the subscription ``request.id`` and re-merge (D11).
 
         Args:
             request: the subscribe op.
             now: monotonic seconds; a lowered throttle takes effect from here.
+            lossy: the op came on the transport's lossy channel (D36).
         """
         self.requests[request.id] = request
+        if lossy:
+            self._lossy_ids.add(request.id)
+        else:
+            self._lossy_ids.discard(request.id)
         self.spelling = request.topic
         self._remerge(now)
 
@@ -136,6 +149,7 @@ class TopicSubscription:
         if key not in self.requests:
             return False
         del self.requests[key]
+        self._lossy_ids.discard(key)
         if self.requests:
             self._remerge(now)
         return True
@@ -143,6 +157,7 @@ class TopicSubscription:
     def close(self) -> None:
         """Stop delivering: cancel the pending window and drop queued messages."""
         self.requests.clear()
+        self._lossy_ids.clear()
         self.queue.clear()
         if self._timer is not None:
             self._timer.cancel()
@@ -194,6 +209,7 @@ class TopicSubscription:
 
     def _remerge(self, now: float) -> None:
         self.params = merge(list(self.requests.values()))
+        self.lossy = self._lossy_ids.issuperset(self.requests)
         self._trim()
         if self._timer is not None:
             # A changed throttle moves the end of the current window.

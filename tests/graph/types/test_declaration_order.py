@@ -183,12 +183,27 @@ def file_orders(share_dirs: list[Path]) -> dict[str, list[str]]:
     return orders
 
 
-def render_json(share_dirs: list[Path]) -> str:
-    """The text of the order file for the files found under ``share_dirs``."""
-    orders = dict(sorted(file_orders(share_dirs).items()))
-    lines = [f"{json.dumps(key)}: {json.dumps(names)}" for key, names in orders.items()]
-    source = "ROS 2 Kilted .msg files (common_interfaces 5.5)"
-    return f'{{"source": {json.dumps(source)}, "types": {{\n' + ",\n".join(lines) + "\n}}\n"
+def render_json(sections: dict[str, tuple[str, dict[str, list[str]]]]) -> str:
+    """The text of the order file: ``{section: (source, orders)}``, one type a line."""
+    parts = []
+    for section, (source, orders) in sections.items():
+        lines = [f"{json.dumps(key)}: {json.dumps(names)}" for key, names in sorted(orders.items())]
+        source_key = "source" if section == "types" else section.replace("types", "source")
+        parts.append(f"{json.dumps(source_key)}: {json.dumps(source)}")
+        parts.append(f"{json.dumps(section)}: {{\n" + ",\n".join(lines) + "\n}")
+    return "{" + ",\n".join(parts) + "}\n"
+
+
+def write_section(section: str, source: str, orders: dict[str, list[str]]) -> None:
+    """Replace one store's orders in the order file, keeping the other's."""
+    data = json.loads(sources.DECLARATION_ORDER.read_text(encoding="utf-8"))
+    sections = {
+        name: (data["source" if name == "types" else name.replace("types", "source")], value)
+        for name, value in data.items()
+        if name.endswith("types")
+    }
+    sections[section] = (source, orders)
+    sources.DECLARATION_ORDER.write_text(render_json(sections), encoding="utf-8")
 
 
 @pytest.fixture(scope="module")
@@ -240,4 +255,4 @@ def test_an_order_that_does_not_fit_the_members_puts_constants_first() -> None:
 
 if __name__ == "__main__":
     dirs = [INSTALLED_SHARE, *(Path(arg) for arg in sys.argv[1:])]
-    sources.DECLARATION_ORDER.write_text(render_json(dirs), encoding="utf-8")
+    write_section("types", "ROS 2 Kilted .msg files (common_interfaces 5.5)", file_orders(dirs))

@@ -61,6 +61,10 @@ class HandlerContext(Protocol):
         """The graph's way to the peer's services and actions."""
 
     @property
+    def input_lossy(self) -> bool:
+        """Whether the op being handled came on the transport's lossy channel (D36)."""
+
+    @property
     def fragments(self) -> Reassembler:
         """The connection's incomplete ``fragment`` and ``png`` messages (D19)."""
 

@@ -93,6 +93,9 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
 def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
     """Add a subscription to ``op.topic`` (spec 3.3.4, merging per D11).
 
+    One made on the transport's lossy channel gets its messages there while all
+    its ids came there (D36, ``TopicSubscription.lossy``).
+
     Raises:
         GraphError: the type is unknown, cannot be inferred, or conflicts.
     """
@@ -113,7 +116,7 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
             session.call_at,
             max_queue=session.config.max_queue_length,
         )
-        subscription.add(op, now)
+        subscription.add(op, now, lossy=session.input_lossy)
         subscription.type_name = session.graph.subscribe(
             session.client_id, op.topic, op.type, subscription
         )
@@ -122,7 +125,7 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
     else:
         if op.type is not None:
             session.graph.subscribe(session.client_id, op.topic, op.type, subscription)
-        subscription.add(op, now)
+        subscription.add(op, now, lossy=session.input_lossy)
     cap = session.config.max_queue_length
     if op.queue_length > cap:
         session.report(
