@@ -10,10 +10,11 @@ timeout, a connection down) becomes an MCP tool error with its text.
 from __future__ import annotations
 
 import contextlib
+import functools
 import inspect
 import json
 import re
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from contextlib import asynccontextmanager
 from typing import Any
 
@@ -21,6 +22,7 @@ import anyio
 import pybase64
 from mcp.server.fastmcp import Context, FastMCP
 from mcp.server.fastmcp.exceptions import ToolError
+from mcp.server.models import InitializationOptions
 from mcp.types import ImageContent, TextContent
 from pydantic import BaseModel
 
@@ -29,8 +31,10 @@ from rwt_graph.media.images import ImageError
 from rwt_protocol.errors import RwtError
 
 from . import render
+from .guard import Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
+from .resources import TopicResources
 
 __all__ = [
     "MAX_ECHO_CHARS",
@@ -42,6 +46,7 @@ __all__ = [
     "MAX_WAIT_S",
     "RobotTools",
     "build_server",
+    "initialization_options",
 ]
 
 #: Any wait a tool takes (echo, service call, goal, cancel, transform), in seconds.
@@ -590,30 +595,71 @@ _TOOLS = (
 )
 
 
-def build_server(link: RobotLink) -> FastMCP:
-    """A FastMCP server whose tools drive the robot behind ``link``.
+def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
+    """A FastMCP server whose tools and resources drive the robot behind ``link``.
 
-    The caller connects ``link`` beside it (``cli.serve_stdio``).
+    Every tool call passes ``guard`` first (``guard.Guard.admit``: access rules,
+    read-only mode, rate and size caps); the topics are resources
+    (``resources.TopicResources``). The caller connects ``link`` beside it
+    (``cli.serve_stdio``, ``http.McpEndpoint``) and runs it with
+    ``initialization_options``.
+
+    Args:
+        link: the session's connection.
+        guard: the session's rules; None: a ``Guard()`` (no access rules, writes allowed).
     """
+    guard = guard or Guard()
     server = FastMCP(
         "rwt",
         instructions=(
             "Tools of a ROS robot behind a rosbridge server: list its graph, read "
             "(echo) and publish topics, call services, send and cancel action goals, "
             "get and set parameters, look up transforms. type_definition gives the "
-            "JSON schema of a message type."
+            "JSON schema of a message type. Topics are resources too (ros://topics/...): "
+            "read one for its latest message, subscribe for updates."
+            + (
+                " This server is read-only: publish, calls, goals and set are refused."
+                if guard.read_only
+                else ""
+            )
         ),
     )
     tools = RobotTools(link)
     for name in _TOOLS:
-        function = getattr(tools, name)
+        function = _guarded(guard, name, getattr(tools, name))
         server.add_tool(
             function,
             name=name,
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
         )
+    TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
     return server
+
+
+def initialization_options(server: FastMCP) -> InitializationOptions:
+    """The MCP ``initialize`` answer of ``server``, saying it takes resource subscriptions.
+
+    (FastMCP's own says ``subscribe: false``; ``resources.TopicResources`` answers them.)
+    """
+    options = server._mcp_server.create_initialization_options()
+    resources = options.capabilities.resources
+    if resources is not None:
+        resources.subscribe = True
+    return options
+
+
+def _guarded(
+    guard: Guard, name: str, function: Callable[..., Awaitable[Any]]
+) -> Callable[..., Awaitable[Any]]:
+    """``function`` (a tool) run only once ``guard`` admits the call (same signature)."""
+
+    @functools.wraps(function)
+    async def guarded(*args: Any, **kwargs: Any) -> Any:
+        guard.admit(name, {k: v for k, v in kwargs.items() if k != "ctx"})
+        return await function(*args, **kwargs)
+
+    return guarded
 
 
 def _described(doc: str) -> str:

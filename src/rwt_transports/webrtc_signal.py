@@ -147,12 +147,12 @@ class WebRtcSignalling:
         conn = h11.Connection(h11.SERVER)
         conn.receive_data(head)
         try:
-            request, body = await _read_request(conn, stream)
+            request, body = await read_request(conn, stream)
         except h11.RemoteProtocolError as exc:
-            await _reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
+            await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
             return
-        except _TooLarge:
-            await _reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
+        except TooLargeError:
+            await reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
             return
         if request is None:
             return
@@ -160,7 +160,7 @@ class WebRtcSignalling:
         origin = headers.get("origin")
         cors = self._cors(origin)
         if cors is None:
-            await _reply(conn, stream, 403, f"origin {origin} is not allowed", [])
+            await reply(conn, stream, 403, f"origin {origin} is not allowed", [])
             return
         answer = await self._route(request, headers, body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
@@ -171,7 +171,7 @@ class WebRtcSignalling:
             request.method.decode(),
             answer.status,
         )
-        await _reply(conn, stream, answer.status, answer.text, extra, kind)
+        await reply(conn, stream, answer.status, answer.text, extra, kind)
 
     def _cors(self, origin: str | None) -> list[tuple[bytes, bytes]] | None:
         """The CORS headers for ``origin``; None if ``--allowed-origins`` refuses it."""
@@ -215,18 +215,20 @@ class WebRtcSignalling:
         return await self.peers.offer(sdp, peer, authenticated=authenticated)
 
 
-class _TooLarge(Exception):
-    """The request's body is over ``MAX_OFFER_BYTES``."""
+class TooLargeError(Exception):
+    """The request's body is over its limit (``MAX_OFFER_BYTES`` for an offer)."""
 
 
-async def _read_request(
-    conn: h11.Connection, stream: ByteStream
+async def read_request(
+    conn: h11.Connection, stream: ByteStream, limit: int = MAX_OFFER_BYTES
 ) -> tuple[h11.Request | None, bytes]:
     """The request and its body; (None, b"") if the peer left first (h11 bounds the head).
 
+    Also the MCP endpoint's (``mcp_http``), with its own ``limit`` (bytes).
+
     Raises:
         h11.RemoteProtocolError: not HTTP/1.1 h11 can read.
-        _TooLarge: the body is over ``MAX_OFFER_BYTES``.
+        TooLargeError: the body is over ``limit``.
     """
     request: h11.Request | None = None
     body = bytearray()
@@ -242,15 +244,15 @@ async def _read_request(
             request = event
         elif isinstance(event, h11.Data):
             body += event.data
-            if len(body) > MAX_OFFER_BYTES:
-                raise _TooLarge
+            if len(body) > limit:
+                raise TooLargeError
         elif isinstance(event, h11.EndOfMessage):
             return request, bytes(body)
         else:  # ConnectionClosed, PAUSED
             return None, b""
 
 
-async def _reply(
+async def reply(
     conn: h11.Connection,
     stream: ByteStream,
     status: int,
@@ -258,7 +260,7 @@ async def _reply(
     headers: list[tuple[bytes, bytes]],
     kind: str = "text/plain; charset=utf-8",
 ) -> None:
-    """Send one response and let the connection end (``Connection: close``)."""
+    """Send one response and let the connection end (``Connection: close``; also ``mcp_http``'s)."""
     body = (text + "\n" if text and kind.startswith("text/") else text).encode()
     fields = [*headers, (b"Connection", b"close")]
     if status != 204:  # no content: no type, no length (RFC 9110 8.6)
