@@ -138,7 +138,14 @@ class _Admitted:
             try:
                 yield Ros(url, reconnect=False, connector=connector)
             finally:
-                await self.connection.aclose()
+                await _close_pair(self.connection)
+
+
+async def _close_pair(connection: MemoryConnection) -> None:
+    """Close both ends of an in-process connection (the server's too, if its pump did not)."""
+    await connection.aclose()
+    connection.channel.inbound.close()
+    connection.channel.outbound.close()
 
 
 class McpEndpoint:
@@ -265,7 +272,7 @@ class McpEndpoint:
     async def _open(self, exchange: _Exchange, token: str | None) -> None:
         """A request without a session: admit a new session and let it answer (initialize)."""
         tg = self._tg
-        admitted = None if tg is None else self._admit(exchange.peer)
+        admitted = None if tg is None else await self._admit(exchange.peer)
         if tg is None or admitted is None:
             await exchange.refuse(503, "too many connections")
             return
@@ -289,12 +296,15 @@ class McpEndpoint:
             if not established:
                 await self._discard(session_id)
 
-    def _admit(self, peer: str) -> _Admitted | None:
+    async def _admit(self, peer: str) -> _Admitted | None:
         """The server's admission for a new MCP session: an in-process rosbridge session."""
         channel, connection = memory_pair()
         pump = ConnectionPump(channel, self.server.flow, self.server.admission)
         session = self.server.open_session("mcp", peer, pump.wake, authenticated=True)
-        return None if session is None else _Admitted(pump, session, connection)
+        if session is None:
+            await _close_pair(connection)
+            return None
+        return _Admitted(pump, session, connection)
 
     async def _continue(self, exchange: _Exchange, session: _Session) -> None:
         """A request of a session: the socket joins it (no handshake deadline), MCP answers."""

@@ -33,6 +33,7 @@ from tests.support.cli import ENV, invoke_rwt
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
 from mcp import ClientSession, StdioServerParameters
+from mcp.client.session import MessageHandlerFnT as MessageHandler
 from mcp.client.stdio import stdio_client
 from mcp.client.streamable_http import streamable_http_client
 from mcp.types import CallToolResult, ImageContent, TextContent
@@ -136,15 +137,20 @@ class Agent:
 
 
 @asynccontextmanager
-async def rwt_mcp(url: str, tmp_path: Path) -> AsyncIterator[Agent]:
-    """``rwt mcp URL`` (this checkout's) started by the official MCP client over stdio."""
+async def rwt_mcp(
+    url: str, tmp_path: Path, *options: str, on_message: MessageHandler | None = None
+) -> AsyncIterator[Agent]:
+    """``rwt mcp URL [OPTIONS]`` (this checkout's) started by the official MCP client over stdio."""
     params = StdioServerParameters(
-        command=sys.executable, args=["-m", "rwt", "mcp", url], env=ENV, cwd=str(tmp_path)
+        command=sys.executable,
+        args=["-m", "rwt", "mcp", url, *options],
+        env=ENV,
+        cwd=str(tmp_path),
     )
     with (tmp_path / "rwt-mcp.log").open("w") as errlog:
         async with (
             stdio_client(params, errlog=errlog) as (read, write),
-            ClientSession(read, write) as session,
+            ClientSession(read, write, message_handler=on_message) as session,
         ):
             await session.initialize()
             yield Agent(session)
@@ -153,7 +159,9 @@ async def rwt_mcp(url: str, tmp_path: Path) -> AsyncIterator[Agent]:
 
 
 @asynccontextmanager
-async def rwt_serve_mcp(url: str, token: str | None = None) -> AsyncIterator[Agent]:
+async def rwt_serve_mcp(
+    url: str, token: str | None = None, on_message: MessageHandler | None = None
+) -> AsyncIterator[Agent]:
     """The official MCP client over Streamable HTTP at the server's ``/mcp`` (``rwt serve --mcp``)."""
     headers = {} if token is None else {"Authorization": f"Bearer {token}"}
     endpoint = url.replace("ws://", "http://", 1) + "/mcp"
@@ -161,7 +169,7 @@ async def rwt_serve_mcp(url: str, token: str | None = None) -> AsyncIterator[Age
     async with (
         http,
         streamable_http_client(endpoint, http_client=http) as (read, write, _),
-        ClientSession(read, write) as session,
+        ClientSession(read, write, message_handler=on_message) as session,
     ):
         await session.initialize()
         yield Agent(session)
