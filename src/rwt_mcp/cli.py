@@ -76,7 +76,8 @@ def mcp_command(
 
     AI agents (Claude, Cursor, any MCP client) start it as a stdio server and
     drive the robot through its tools: the graph, topics (echo, images, publish),
-    services, actions, parameters and TF. Logs go to stderr.
+    services, actions, parameters and TF; its topics are resources to read and
+    subscribe to. Logs go to stderr.
     """
     try:
         target = server_url(url)

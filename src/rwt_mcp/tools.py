@@ -24,7 +24,7 @@ from mcp.server.fastmcp import Context, FastMCP
 from mcp.server.fastmcp.exceptions import ToolError
 from mcp.server.models import InitializationOptions
 from mcp.types import ImageContent, TextContent
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
 from rwt_client import Param, Topic
 from rwt_graph.media.images import ImageError
@@ -65,6 +65,7 @@ MAX_PUBLISH_DURATION_S = 60.0
 #: The status codes of ``action_msgs/GoalStatus`` a result may carry (D18).
 GOAL_STATES = {4: "succeeded", 5: "canceled", 6: "aborted"}
 _LAST_PROGRESS_S = 1.0  # sending the last feedback, once the goal ended
+_MAX_FIELD_ERRORS = 5  # fields a bad call's tool error names
 _TF_TOPIC_TIMEOUT = {"sec": 5, "nanosec": 0}  # the republisher drops its topic 5 s after us
 
 Message = dict[str, Any]
@@ -634,7 +635,34 @@ def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
             structured_output=name != "echo",
         )
     TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
+    _name_bad_fields(server)
     return server
+
+
+def _name_bad_fields(server: FastMCP) -> None:
+    """Arguments that fail a tool's input schema: a tool error naming each field, briefly.
+
+    (FastMCP's own text is pydantic's whole report, with links.)
+    """
+    manager = server._tool_manager
+    call = manager.call_tool
+
+    async def call_tool(
+        name: str, arguments: dict[str, Any], context: Any = None, convert_result: bool = False
+    ) -> Any:
+        try:
+            return await call(name, arguments, context=context, convert_result=convert_result)
+        except ToolError as exc:
+            if not isinstance(exc.__cause__, ValidationError):
+                raise
+            wrong = [
+                f"{'.'.join(map(str, error['loc'])) or 'arguments'}: {error['msg']}"
+                + ("" if error["type"] == "missing" else f" (got {type(error['input']).__name__})")
+                for error in exc.__cause__.errors()[:_MAX_FIELD_ERRORS]
+            ]
+            raise ToolError(f"{name}: bad arguments: {'; '.join(wrong)}") from None
+
+    manager.call_tool = call_tool  # type: ignore[method-assign]
 
 
 def initialization_options(server: FastMCP) -> InitializationOptions:

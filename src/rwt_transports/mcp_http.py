@@ -299,6 +299,7 @@ class McpEndpoint:
     async def _admit(self, peer: str) -> _Admitted | None:
         """The server's admission for a new MCP session: an in-process rosbridge session."""
         channel, connection = memory_pair()
+        channel.transport = "mcp"  # in the logs: an MCP session's connection
         pump = ConnectionPump(channel, self.server.flow, self.server.admission)
         session = self.server.open_session("mcp", peer, pump.wake, authenticated=True)
         if session is None:

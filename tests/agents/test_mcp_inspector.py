@@ -48,7 +48,13 @@ async def test_the_inspector_lists_and_calls_the_tools_of_both_fronts() -> None:
         for target in (http, stdio):
             listed = await _inspect(*target, method="tools/list")
             assert {tool["name"] for tool in listed["tools"]} == TOOLS  # type: ignore[attr-defined]
-            called = await _inspect(*target, method="tools/call", name="echo", topic="/client_count")
+            called = await _inspect(
+                *target, method="tools/call", name="echo", topic="/client_count"
+            )
             assert called["isError"] is False
             summary = json.loads(called["content"][0]["text"])  # type: ignore[index]
-            assert summary == {"topic": "/client_count", "type": "std_msgs/msg/Int32", "received": 1}
+            assert summary == {
+                "topic": "/client_count",
+                "type": "std_msgs/msg/Int32",
+                "received": 1,
+            }

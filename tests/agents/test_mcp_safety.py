@@ -11,6 +11,7 @@ client beside an MCP flood is still served.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -35,7 +36,7 @@ from rwt_transports.mcp_http import MAX_REQUEST_BYTES
 from rwt_transports.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
 from rwt_video import VideoTokens, install_token_service
-from tests.agents.test_rwt_mcp import FIB, Agent, Message, robot_graph, rwt_mcp, rwt_serve_mcp
+from tests.agents.test_rwt_mcp import FIB, Message, robot_graph, rwt_mcp, rwt_serve_mcp
 
 pytestmark = pytest.mark.anyio
 
@@ -161,9 +162,7 @@ async def test_read_only_refuses_every_write_and_the_robot_hears_none(
 ) -> None:
     received: list[Message] = []
     url, _ = await serving(robot_graph(received), _config(McpOptions(read_only=True)))
-    opened = (
-        rwt_serve_mcp(url) if front == "http" else rwt_mcp(url, tmp_path, "--read-only")
-    )
+    opened = rwt_serve_mcp(url) if front == "http" else rwt_mcp(url, tmp_path, "--read-only")
     async with opened as agent:
         assert set(WRITES) == WRITE_TOOLS
         for tool, arguments in WRITES.items():
@@ -175,7 +174,9 @@ async def test_read_only_refuses_every_write_and_the_robot_hears_none(
     assert received == []
 
 
-async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(serving: Any) -> None:
+async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
+    serving: Any, caplog: pytest.LogCaptureFixture
+) -> None:
     received: list[Message] = []
     url, _ = await serving(robot_graph(received), _config())
     async with rwt_serve_mcp(url) as agent:
@@ -184,8 +185,23 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(serving: Any
         assert oversized.isError
         assert f"over {MAX_TOOL_ARGUMENT_BYTES} (MAX_TOOL_ARGUMENT_BYTES)" in _text(oversized)
         wrong = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg="go")
-        assert wrong.isError and "msg" in _text(wrong)  # the field that is wrong
+        assert wrong.isError
+        assert (
+            _text(wrong)
+            == "publish: bad arguments: msg: Input should be a valid dictionary (got str)"
+        )
+        missing = await agent.result("echo", count=2)
+        assert _text(missing) == "echo: bad arguments: topic: Field required"
         assert received == []
+        caplog.set_level(logging.INFO, logger="rwt.mcp")
+        for _ in range(3):
+            await agent.call(
+                "publish", topic="/cmd", type="std_msgs/msg/String", msg={"data": "go"}
+            )
+        writes = [r.getMessage() for r in caplog.records if "event=mcp_write" in r.getMessage()]
+        assert len(writes) == 1  # once per episode, with the client
+        assert writes[0].startswith("event=mcp_write client=mcp:127.0.0.1:")
+        assert writes[0].endswith("tool=publish target=/cmd")
 
         calls, refused = 40, 0
         started = time.monotonic()

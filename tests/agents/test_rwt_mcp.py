@@ -162,7 +162,7 @@ async def rwt_mcp(
 async def rwt_serve_mcp(
     url: str, token: str | None = None, on_message: MessageHandler | None = None
 ) -> AsyncIterator[Agent]:
-    """The official MCP client over Streamable HTTP at the server's ``/mcp`` (``rwt serve --mcp``)."""
+    """The official MCP client over Streamable HTTP at ``/mcp`` (``rwt serve --mcp``)."""
     headers = {} if token is None else {"Authorization": f"Bearer {token}"}
     endpoint = url.replace("ws://", "http://", 1) + "/mcp"
     http = httpx.AsyncClient(headers=headers, timeout=httpx.Timeout(30, read=300))
