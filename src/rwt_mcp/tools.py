@@ -23,7 +23,7 @@ import pybase64
 from mcp.server.fastmcp import Context, FastMCP
 from mcp.server.fastmcp.exceptions import ToolError
 from mcp.server.models import InitializationOptions
-from mcp.types import ImageContent, TextContent
+from mcp.types import ImageContent, TextContent, ToolAnnotations
 from pydantic import BaseModel, ValidationError
 
 from rwt_client import Param, Topic
@@ -31,7 +31,7 @@ from rwt_graph.media.images import ImageError
 from rwt_protocol.errors import RwtError
 
 from . import render
-from .guard import Guard
+from .guard import WRITE_TOOLS, Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
 from .resources import TopicResources
@@ -633,6 +633,7 @@ def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
             name=name,
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
+            annotations=ToolAnnotations(readOnlyHint=name not in WRITE_TOOLS),
         )
     TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
     _name_bad_fields(server)

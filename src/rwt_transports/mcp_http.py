@@ -79,6 +79,22 @@ _CORS = [
 _NO_SDK_CHECK = TransportSecuritySettings(enable_dns_rebinding_protection=False)
 
 
+def _not_a_closed_event_stream(record: logging.LogRecord) -> bool:
+    """Drop the SDK's traceback for an event stream its own ``terminate`` closed.
+
+    A client's ``DELETE`` while its event stream (GET) is open makes the SDK's
+    transport close that stream under its writer, which logs the end as an
+    error with a traceback (mcp 1.x); it is the session's normal end.
+    """
+    closed = record.exc_info is not None and isinstance(
+        record.exc_info[1], anyio.ClosedResourceError
+    )
+    return not (closed and record.getMessage() == "Error in standalone SSE writer")
+
+
+logging.getLogger("mcp.server.streamable_http").addFilter(_not_a_closed_event_stream)
+
+
 @dataclass
 class _Session:
     """One MCP session: its transport, the token that opened it, requests in flight."""
