@@ -44,7 +44,7 @@ from rwt_mcp.tools import build_server, initialization_options
 from .mcp_options import MCP_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
-from .webrtc_signal import TooLargeError, read_request, reply
+from .webrtc_signal import read_request, reply
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
@@ -222,10 +222,10 @@ class McpEndpoint:
         except h11.RemoteProtocolError as exc:
             await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
             return
-        except TooLargeError:
-            await reply(conn, stream, 413, f"the request is over {MAX_REQUEST_BYTES} bytes", [])
-            return
         if request is None:
+            return
+        if body is None:
+            await reply(conn, stream, 413, f"the request is over {MAX_REQUEST_BYTES} bytes", [])
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
         cors = self._cors(headers.get("origin"))

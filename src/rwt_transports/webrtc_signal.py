@@ -151,10 +151,10 @@ class WebRtcSignalling:
         except h11.RemoteProtocolError as exc:
             await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
             return
-        except TooLargeError:
-            await reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
-            return
         if request is None:
+            return
+        if body is None:
+            await reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
         origin = headers.get("origin")
@@ -215,20 +215,16 @@ class WebRtcSignalling:
         return await self.peers.offer(sdp, peer, authenticated=authenticated)
 
 
-class TooLargeError(Exception):
-    """The request's body is over its limit (``MAX_OFFER_BYTES`` for an offer)."""
-
-
 async def read_request(
     conn: h11.Connection, stream: ByteStream, limit: int = MAX_OFFER_BYTES
-) -> tuple[h11.Request | None, bytes]:
+) -> tuple[h11.Request | None, bytes | None]:
     """The request and its body; (None, b"") if the peer left first (h11 bounds the head).
 
-    Also the MCP endpoint's (``mcp_http``), with its own ``limit`` (bytes).
+    The body is None when it is over ``limit`` bytes (the rest is not read). Also
+    the MCP endpoint's (``mcp_http``), with its own ``limit``.
 
     Raises:
         h11.RemoteProtocolError: not HTTP/1.1 h11 can read.
-        TooLargeError: the body is over ``limit``.
     """
     request: h11.Request | None = None
     body = bytearray()
@@ -245,7 +241,7 @@ async def read_request(
         elif isinstance(event, h11.Data):
             body += event.data
             if len(body) > limit:
-                raise TooLargeError
+                return request, None
         elif isinstance(event, h11.EndOfMessage):
             return request, bytes(body)
         else:  # ConnectionClosed, PAUSED
