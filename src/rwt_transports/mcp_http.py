@@ -461,7 +461,8 @@ class _Exchange:
     async def _send(self, message: dict[str, Any]) -> None:
         if message["type"] == "http.response.start":
             self.status = int(message["status"])
-            fields = [*message.get("headers", []), *self.cors, (b"Connection", b"close")]
+            kept = [(k, v) for k, v in message.get("headers", []) if k.lower() != b"connection"]
+            fields = [*kept, *self.cors, (b"Connection", b"close")]  # one request a connection
             data = self.conn.send(h11.Response(status_code=self.status, headers=fields))
         elif message["type"] == "http.response.body":
             data = b""

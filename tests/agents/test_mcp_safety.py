@@ -35,6 +35,7 @@ from rwt_mcp.resources import UPDATE_INTERVAL_S
 from rwt_transports.mcp_http import MAX_REQUEST_BYTES
 from rwt_transports.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
+from rwt_transports.websocket import WebSocketOptions
 from rwt_video import VideoTokens, install_token_service
 from tests.agents.test_rwt_mcp import FIB, Message, robot_graph, rwt_mcp, rwt_serve_mcp
 
@@ -299,3 +300,28 @@ async def test_a_websocket_client_is_served_through_an_mcp_flood(serving: Any) -
     assert len(mcp_sessions) <= limit - 1  # the bystander holds one slot
     assert statuses.count(200) == len(mcp_sessions) and statuses.count(503) >= 1
     assert set(statuses) <= {200, 503}
+
+
+async def test_a_request_outside_a_session_gets_a_status_saying_why(serving: Any) -> None:
+    config = _config(websocket=WebSocketOptions(allowed_origins=("https://ok.example",)))
+    url, server = await serving(robot_graph([]), config)
+    endpoint = url.replace("ws://", "http://") + "/mcp"
+    listing = {"jsonrpc": "2.0", "id": 2, "method": "tools/list"}
+    async with httpx.AsyncClient(timeout=30) as http:
+        unknown = await http.post(endpoint, json=listing, headers={**ACCEPT, "Mcp-Session-Id": "x"})
+        assert unknown.status_code == 404 and "no MCP session x" in unknown.text
+        stream = await http.get(endpoint, headers={"Accept": "text/event-stream"})
+        assert stream.status_code == 400 and "POST an initialize request first" in stream.text
+        foreign = {**ACCEPT, "Origin": "https://evil.example"}
+        refused = await http.post(endpoint, json=INITIALIZE, headers=foreign)
+        assert refused.status_code == 403
+        assert "origin https://evil.example is not allowed" in refused.text
+        allowed = await http.post(
+            endpoint, json=INITIALIZE, headers={**ACCEPT, "Origin": "https://ok.example"}
+        )
+        assert allowed.status_code == 200
+        assert allowed.headers["Access-Control-Allow-Origin"] == "https://ok.example"
+        assert allowed.headers["Access-Control-Expose-Headers"] == "Mcp-Session-Id"
+        # another path is the WebSocket listener's own: no console here, so it asks for an upgrade
+        assert (await http.get(url.replace("ws://", "http://") + "/mcpx")).status_code == 426
+    assert [client for client in server.sessions if client.startswith("mcp:")] != []
