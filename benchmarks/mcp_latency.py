@@ -96,12 +96,13 @@ async def robot() -> AsyncIterator[str]:
     process = subprocess.Popen(  # noqa: ASYNC220 (read once, at start)
         [sys.executable, "-c", _ROBOT], env=ENV, stdout=subprocess.PIPE, text=True
     )
-    try:
-        assert process.stdout is not None
-        yield process.stdout.readline().strip()
-    finally:
-        process.terminate()
-        process.wait(10)
+    assert process.stdout is not None
+    with process.stdout:
+        try:
+            yield process.stdout.readline().strip()
+        finally:
+            process.terminate()
+            process.wait(10)
 
 
 @asynccontextmanager
