@@ -155,6 +155,8 @@ def _check_listeners(options: ServeOptions) -> None:
         raise usage_error("--mcp answers on the WebSocket port: not with --no-websocket")
     if listeners.mcp_read_only and not listeners.mcp:
         raise usage_error("--mcp-read-only is a setting of --mcp: add --mcp")
+    if listeners.mcp and options.scale_out.workers > 1:  # each request is a connection of its own
+        raise usage_error("--mcp keeps its sessions in one process: not with --workers")
 
 
 def _set_up_process(process: Process) -> None:
