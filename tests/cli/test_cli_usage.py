@@ -210,7 +210,10 @@ def test_a_missing_interfaces_folder_is_named(tmp_path: Path) -> None:
             "rwt serve: --mcp answers on the WebSocket port",
         ),
         (["serve", "--mcp-read-only"], "rwt serve: --mcp-read-only is a setting of --mcp"),
-        (["serve", "--mcp", "--workers", "2"], "rwt serve: --mcp keeps its sessions in one process"),
+        (
+            ["serve", "--mcp", "--workers", "2"],
+            "rwt serve: --mcp keeps its sessions in one process",
+        ),
         (["serve", "--log-level", "loud"], "rwt serve: --log-level: 'loud' is not one of"),
         (["serve", "--prot", "1"], "rwt serve: no such option: --prot"),
         (["nosuch"], "rwt: no such command 'nosuch'"),
