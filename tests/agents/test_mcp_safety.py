@@ -32,7 +32,7 @@ from mcp.types import ResourceUpdatedNotification, ServerNotification, TextConte
 
 from rwt_mcp.guard import MAX_TOOL_ARGUMENT_BYTES, TOOL_BURST, TOOL_CALLS_PER_S, WRITE_TOOLS
 from rwt_mcp.resources import UPDATE_INTERVAL_S
-from rwt_transports.mcp_http import MAX_REQUEST_BYTES
+from rwt_transports.mcp_http import MAX_REQUEST_BYTES, MAX_REQUESTS_IN_FLIGHT
 from rwt_transports.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
 from rwt_transports.websocket import WebSocketOptions
@@ -325,3 +325,44 @@ async def test_a_request_outside_a_session_gets_a_status_saying_why(serving: Any
         # another path is the WebSocket listener's own: no console here, so it asks for an upgrade
         assert (await http.get(url.replace("ws://", "http://") + "/mcpx")).status_code == 426
     assert [client for client in server.sessions if client.startswith("mcp:")] != []
+
+
+async def test_a_session_holds_a_bounded_number_of_requests_at_once(serving: Any) -> None:
+    url, server = await serving(robot_graph([]), _config())
+    endpoint = url.replace("ws://", "http://") + "/mcp"
+    async with httpx.AsyncClient(timeout=30) as http:
+        opened = await http.post(endpoint, json=INITIALIZE, headers=ACCEPT)
+        session = {
+            **ACCEPT,
+            "Mcp-Session-Id": opened.headers["Mcp-Session-Id"],
+            "Mcp-Protocol-Version": "2025-06-18",
+        }
+        ready = {"jsonrpc": "2.0", "method": "notifications/initialized"}
+        assert (await http.post(endpoint, json=ready, headers=session)).status_code == 202
+        statuses: list[int] = []
+
+        async def wait_on_a_quiet_topic(call_id: int) -> None:
+            call = {
+                "jsonrpc": "2.0",
+                "id": call_id,
+                "method": "tools/call",
+                "params": {"name": "echo", "arguments": {"topic": "/cmd", "timeout_s": 3}},
+            }
+            statuses.append((await http.post(endpoint, json=call, headers=session)).status_code)
+
+        async with anyio.create_task_group() as tg:
+            for call_id in range(MAX_REQUESTS_IN_FLIGHT):
+                tg.start_soon(wait_on_a_quiet_topic, 10 + call_id)
+            held = server.mcp.sessions[session["Mcp-Session-Id"]]
+            with anyio.fail_after(10):
+                while held.in_flight < MAX_REQUESTS_IN_FLIGHT:
+                    await anyio.sleep(0.05)
+            one_more = await http.post(endpoint, json=ready, headers=session)
+            assert one_more.status_code == 429
+            assert (
+                f"{MAX_REQUESTS_IN_FLIGHT} requests of this MCP session are in flight"
+                in one_more.text
+            )
+        assert statuses == [200] * MAX_REQUESTS_IN_FLIGHT  # the eight were answered
+        after = await http.post(endpoint, json=ready, headers=session)
+        assert after.status_code == 202  # room again
