@@ -4,16 +4,22 @@ The Inspector (npm ``@modelcontextprotocol/inspector``, pinned in tests/js) is
 the MCP project's own client for checking a server: in ``--cli`` mode it
 connects, makes one request and prints the answer as JSON. It lists the tools
 and calls one, over Streamable HTTP at ``/mcp`` of ``rwt serve --mcp`` and over
-stdio with ``rwt mcp``.
+stdio with ``rwt mcp``; with ``--auth-secret-file`` it needs a bearer token, a
+video token an authenticated rosbridge connection asked for.
 """
 
 from __future__ import annotations
 
 import json
 import sys
+import time
+from pathlib import Path
 
+import httpx
 import pytest
+from websockets.asyncio.client import connect
 
+from rwt_protocol.auth import rosauth_mac
 from tests.agents.test_rwt_mcp import TOOLS
 from tests.support.cli import rwt_serve
 from tests.support.realclients import JS_DIR, node_missing, run_node_bin
@@ -21,6 +27,7 @@ from tests.support.realclients import JS_DIR, node_missing, run_node_bin
 pytestmark = pytest.mark.anyio
 
 INSPECTOR = "mcp-inspector"
+SECRET = "1234567890abcdef"
 _missing = node_missing() or (
     None
     if (JS_DIR / "node_modules" / ".bin" / INSPECTOR).exists()
@@ -58,3 +65,38 @@ async def test_the_inspector_lists_and_calls_the_tools_of_both_fronts() -> None:
                 "type": "std_msgs/msg/Int32",
                 "received": 1,
             }
+
+
+async def test_with_an_auth_secret_the_inspector_needs_a_video_token(tmp_path: Path) -> None:
+    secret = tmp_path / "secret"
+    secret.write_text(SECRET)
+    async with rwt_serve("--port", "0", "--mcp", "--auth-secret-file", str(secret)) as (_, urls):
+        url = urls["ws"]
+        endpoint = url.replace("ws://", "http://") + "/mcp"
+        async with httpx.AsyncClient(timeout=30) as http:
+            refused = await http.post(endpoint, json={"jsonrpc": "2.0", "id": 1, "method": "ping"})
+        assert refused.status_code == 401 and "/rwt/video_token" in refused.text
+        async with connect(url) as rosbridge:  # an authenticated connection asks for a token
+            await rosbridge.send(json.dumps(_auth_op()))
+            call = {"op": "call_service", "service": "/rwt/video_token", "id": "t"}
+            await rosbridge.send(json.dumps(call))
+            reply = json.loads(await rosbridge.recv())
+        assert reply["result"] is True
+        bearer = f"Authorization: Bearer {reply['values']['message']}"
+        target = (endpoint, "--transport", "http", "--header", bearer)
+        listed = await _inspect(*target, method="tools/list")
+        assert {tool["name"] for tool in listed["tools"]} == TOOLS  # type: ignore[attr-defined]
+
+
+def _auth_op() -> dict[str, object]:
+    """rosauth's ``auth`` op for ``SECRET``, valid for a minute (D23)."""
+    now = time.time()
+    fields = {
+        "client": "127.0.0.1",
+        "dest": "127.0.0.1",
+        "rand": "fresh-random-string",
+        "t": int(now - 1),
+        "level": "user",
+        "end": int(now + 60),
+    }
+    return {"op": "auth", "mac": rosauth_mac(SECRET, **fields), **fields}  # type: ignore[arg-type]
