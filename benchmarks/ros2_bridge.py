@@ -107,6 +107,9 @@ FAST_HZ = 5000
 MID_HZ = 1000
 """The middle paced String rate, where CPU per delivery is compared with bare rclpy's."""
 IMAGE_HZ = 30
+MAX_RATE_P50_MS = 50
+"""B21: rwt's p50 at full rate to 10 subscribers, ms at most: a reader that cannot keep
+up loses old messages rather than waiting behind them (docs/ros2.md)."""
 PROBE_EVERY_S = 0.05
 DISCOVERY_S = 60.0
 """Bound on waiting for every subscriber's first probe."""
@@ -500,9 +503,11 @@ STAGES = (
     "max_batch",
     "handed",
     "refused",
+    "expired",
     "published",
     "queued",
     "dropped",
+    "expired_out",
     "written",
 )
 """The per-stage counts of an rwt case, in order (``stage_counts``)."""
@@ -513,9 +518,11 @@ def stage_counts(log: str, result: Result) -> dict[str, int]:
 
     ``sent``: what the publisher sent (probes included); ``taken`` ... ``published``:
     the link's ``event=ros2_counters`` line of the case's topic, plus ``batch_<bucket>``
-    (wake-ups by samples taken); ``queued``, ``dropped``, ``written``: the subscribers'
-    ``event=disconnect`` lines (topic messages queued, dropped, frames handed to the
-    socket), summed over the subscribers. Absent lines count 0.
+    (wake-ups by samples taken); ``expired``: of those handed, dropped for their wait
+    in the handoff; ``queued``, ``dropped``, ``expired_out``, ``written``: the
+    subscribers' ``event=disconnect`` lines (topic messages queued, dropped, of those
+    expired in the outbox, frames handed to the socket), summed over the subscribers.
+    Absent lines (and fields: an older rwt's) count 0.
     """
     counts = dict.fromkeys(STAGES, 0)
     counts["sent"] = result.sent + result.probes
@@ -524,12 +531,14 @@ def stage_counts(log: str, result: Result) -> dict[str, int]:
         if fields.get("event") == "ros2_counters" and fields.get("topic", "").startswith("/bench_"):
             for key in ("taken", "wakes", "max_batch", "handed", "refused", "published"):
                 counts[key] = int(fields[key])
+            counts["expired"] = int(fields.get("expired", 0))
             for bucket in fields["batches"].split(","):
                 name, _, n = bucket.partition(":")
                 counts[f"batch_{name}"] = int(n)
         elif fields.get("event") == "disconnect":
             counts["queued"] += int(fields.get("topic_messages", 0))
             counts["dropped"] += int(fields.get("dropped", 0))
+            counts["expired_out"] += int(fields.get("expired", 0))
             counts["written"] += int(fields.get("frames_sent", 0))
     return counts
 
@@ -668,9 +677,35 @@ def _met(ok: bool) -> str:
     return "met" if ok else "NOT met"
 
 
+def medians(results: list[Result]) -> list[Result]:
+    """One ``Result`` per case, subscribers and receiver: the rounds' medians, field by field."""
+    groups: dict[tuple[str, int, str], list[Result]] = {}
+    for r in results:
+        groups.setdefault((r.case, r.subscribers, r.receiver), []).append(r)
+    out = []
+    for rs in groups.values():
+        first = rs[0]
+        out.append(
+            Result(
+                first.receiver,
+                first.case,
+                first.subscribers,
+                round(statistics.median(r.sent for r in rs)),
+                round(statistics.median(r.delivered for r in rs)),
+                statistics.median(r.msg_per_s for r in rs),
+                statistics.median(r.loss for r in rs),
+                statistics.median(r.p50_ms for r in rs),
+                statistics.median(r.p99_ms for r in rs),
+                statistics.median(r.cpu_us_per_delivery for r in rs),
+            )
+        )
+    return out
+
+
 def verdicts(results: list[Result]) -> list[str]:
-    """The targets of the ROS 2 bridge benchmark, each with the figures it was judged on."""
-    by = {(r.receiver, r.case, r.subscribers): r for r in results}
+    """The targets of the ROS 2 bridge benchmark, each with the figures it was judged on
+    (the rounds' medians, ``medians``)."""
+    by = {(r.receiver, r.case, r.subscribers): r for r in medians(results)}
     out = []
     for case in CASES:
         name = f"{case.label} 1->{case.subscribers}"
@@ -692,6 +727,17 @@ def verdicts(results: list[Result]) -> list[str]:
         if rwt and bare and case.subscribers == 1:
             ratio = rwt.cpu_us_per_delivery / max(bare.cpu_us_per_delivery, 1e-9)
             out.append(f"{name}: CPU/delivery {ratio:.1f}x bare rclpy (<= 2x): {_met(ratio <= 2)}")
+        if rwt and bare and case.subscribers == 1 and case.hz == FAST_HZ:
+            bound = 2 * bare.p99_ms + 2
+            out.append(
+                f"{name}: p99 {rwt.p99_ms:.1f} ms, bare rclpy {bare.p99_ms:.1f} ms "
+                f"(<= 2x + 2 ms = {bound:.1f}): {_met(rwt.p99_ms <= bound)}"
+            )
+        if rwt and case.kind == "string" and not case.hz and case.subscribers > 1:
+            p50 = rwt.p50_ms
+            out.append(
+                f"{name}: p50 {p50:.1f} ms (< {MAX_RATE_P50_MS} ms): {_met(p50 < MAX_RATE_P50_MS)}"
+            )
         if rwt and case.kind == "image":
             p99 = rwt.p99_ms
             out.append(f"{name}: p99 {p99:.1f} ms (<= 20 ms): {_met(p99 <= 20)}")

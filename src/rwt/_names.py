@@ -93,6 +93,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
     "rwt.client": {
         "rwt_protocol.ops": ("ActionResult",),
         "rwt_client.typed": ("MessageClass", "message_class"),
+        "rwt_client.connectors": ("Connection",),
     },
     "rwt.server": {
         "rwt_transports.server": ("rosauth_authenticator",),
@@ -100,6 +101,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.websocket": ("WebSocketOptions",),
         "rwt_transports.udp": ("UdpOptions",),
         "rwt_transports.webrtc_signal": ("WebRtcOptions",),
+        "rwt_transports.mcp_options": ("McpOptions",),
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),

@@ -9,7 +9,8 @@ authenticator gets, ``rosauth_authenticator``; ``rosauth_op`` signs one and
 and off in this process (``shortcut_report``, docs/shortcuts.md), and ``Compat``, the
 drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
-docs/foxglove.md), and WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md).
+docs/foxglove.md), WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md), and the
+MCP endpoint's (``McpOptions``, docs/mcp.md).
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
     from rwt_protocol.shortcuts import shortcut_report
     from rwt_transports.allocator import tune_allocator
     from rwt_transports.foxglove import FoxgloveOptions
+    from rwt_transports.mcp_options import McpOptions
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import rosauth_authenticator
     from rwt_transports.udp import UdpOptions
@@ -45,6 +47,7 @@ __all__ = [
     "Family",
     "FoxgloveLimits",
     "FoxgloveOptions",
+    "McpOptions",
     "MemoryConnection",
     "UdpOptions",
     "WebRtcOptions",

@@ -9,6 +9,7 @@ from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
 
 __all__ = [
+    "MCP_EXTRA",
     "MIB",
     "PORT_RANGE",
     "UVLOOP_EXTRA",
@@ -23,6 +24,7 @@ PORT_RANGE: dict[str, Any] = {"min": 0, "max": 65535}
 VIDEO_PORT = 8080
 UVLOOP_EXTRA = install_hint("uvloop")
 WEBRTC_EXTRA = install_hint("webrtc")
+MCP_EXTRA = install_hint("mcp")
 
 # typer offers an enum's values as choices: the status levels' wire spellings, made
 # from StatusLevel itself so the two cannot differ (Dialect is a StrEnum already)

@@ -29,6 +29,7 @@ from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
+from rwt_transports.mcp_options import McpOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc_signal import WebRtcOptions
@@ -46,7 +47,7 @@ from .bag_options import (
 )
 from .checks import OptionError, check_tls, one_line_errors, usage_error
 from .groups import grouped_command
-from .options import UVLOOP_EXTRA, VIDEO_PORT, WEBRTC_EXTRA
+from .options import MCP_EXTRA, UVLOOP_EXTRA, VIDEO_PORT, WEBRTC_EXTRA
 from .ros2_link import ros2_interface_dirs, ros2_options
 from .running import STARTUP_ERRORS, run_server
 from .serve_options import ServeOptions
@@ -111,6 +112,8 @@ def serve(options: ServeOptions) -> None:
         fail(f"--uvloop needs uvloop: {UVLOOP_EXTRA}")
     if options.listeners.webrtc and importlib.util.find_spec("aiortc") is None:
         fail(f"--webrtc needs aiortc: {WEBRTC_EXTRA}")
+    if options.listeners.mcp and importlib.util.find_spec("mcp") is None:
+        fail(f"--mcp needs the MCP SDK: {MCP_EXTRA}")
     _set_up_process(options.process)
     scale_out = options.scale_out
     if (scale_out.zenoh or scale_out.workers > 1) and dialect is not Dialect.ROS2:
@@ -150,6 +153,12 @@ def _check_listeners(options: ServeOptions) -> None:
         raise usage_error("--webrtc answers on the WebSocket port: not with --no-websocket")
     if listeners.ice_server and not listeners.webrtc:
         raise usage_error("--ice-server gives --webrtc its STUN and TURN servers: add --webrtc")
+    if listeners.mcp and not listeners.websocket:
+        raise usage_error("--mcp answers on the WebSocket port: not with --no-websocket")
+    if listeners.mcp_read_only and not listeners.mcp:
+        raise usage_error("--mcp-read-only is a setting of --mcp: add --mcp")
+    if listeners.mcp and options.scale_out.workers > 1:  # each request is a connection of its own
+        raise usage_error("--mcp keeps its sessions in one process: not with --workers")
 
 
 def _set_up_process(process: Process) -> None:
@@ -171,7 +180,8 @@ def _server(
 ) -> RosbridgeServer:
     """The server of the options on ``graph``, its console listing its limits.
 
-    ``tokens``: the video tokens an offer's ``Authorization: Bearer`` may carry (--webrtc).
+    ``tokens``: the video tokens an offer's ``Authorization: Bearer`` may carry (--webrtc),
+    and a new MCP session's (--mcp).
     """
     security = options.security
     origins = tuple(o.strip() for o in security.allowed_origins.split(",") if o.strip())
@@ -188,6 +198,10 @@ def _server(
         check = None if tokens is None else tokens.valid
         ice_servers = tuple(options.listeners.ice_server or ())
         config = replace(config, webrtc=WebRtcOptions(bearer_token=check, ice_servers=ice_servers))
+    if options.listeners.mcp:  # a new MCP session's bearer token is a video token (docs/mcp.md)
+        check = None if tokens is None else tokens.valid
+        mcp = McpOptions(read_only=options.listeners.mcp_read_only, bearer_token=check)
+        config = replace(config, mcp=mcp)
     if site is not None:
         site.limits = _limits(config)
     authenticator = (
@@ -449,10 +463,12 @@ def _video_tokens(options: ServeOptions, graph: Graph) -> VideoTokens | None:
     """With --auth-secret-file: the tokens of ``/rwt/video_token`` on ``graph``, if used.
 
     The video server's streams (docs/video.md, D32) and WebRTC offers
-    (docs/webrtc.md) take them; None without --video, --video-port or --webrtc.
+    (docs/webrtc.md) and MCP sessions (docs/mcp.md) take them; None without --video,
+    --video-port, --webrtc or --mcp.
     """
     media = options.media
-    if not (media.video or media.video_port is not None or options.listeners.webrtc):
+    listeners = options.listeners
+    if not (media.video or media.video_port is not None or listeners.webrtc or listeners.mcp):
         return None
     # the video package (Pillow, numpy) loads only when used (B11: base memory)
     from rwt_video import VideoTokens, install_token_service  # noqa: PLC0415

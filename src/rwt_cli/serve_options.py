@@ -134,6 +134,20 @@ class Listeners:
             " repeatable, one of each (docs/webrtc.md, 'Through NAT').",
         ),
     ] = None
+    mcp: Annotated[
+        bool,
+        typer.Option(
+            help="Serve MCP (Streamable HTTP) for AI agents at /mcp on --port: the tools of"
+            " 'rwt mcp' on this graph (docs/mcp.md; needs rwt-rosbridge[mcp])."
+        ),
+    ] = False
+    mcp_read_only: Annotated[
+        bool,
+        typer.Option(
+            help="With --mcp: refuse the tools that change the robot (publish, calls, goals,"
+            " cancel, set_parameter)."
+        ),
+    ] = False
     websocket_ping_interval: Annotated[
         float, typer.Option(help="Seconds between WebSocket keepalive pings (0: none).")
     ] = 0.0

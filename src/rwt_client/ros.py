@@ -93,6 +93,9 @@ class Ros(RosapiMixin):
         reconnect: reconnect (with replay) when the connection drops.
         timeout_s: default seconds for connecting and for service calls.
         max_message_size: largest incoming message, bytes.
+        connector: opens the connection instead of ``connectors.connect(url)``
+            (an in-process connection to a server in the same process); it
+            raises ``ConnectionClosedError`` when it cannot.
     """
 
     def __init__(
@@ -102,8 +105,10 @@ class Ros(RosapiMixin):
         reconnect: bool = True,
         timeout_s: float = 10.0,
         max_message_size: int = 64 * 1024 * 1024,
+        connector: Callable[[], Awaitable[Connection]] | None = None,
     ) -> None:
         self.url = url
+        self._connector = connector
         self.reconnect = reconnect
         self.timeout_s = timeout_s
         self.max_message_size = max_message_size
@@ -144,13 +149,18 @@ class Ros(RosapiMixin):
         Raises:
             ConnectionClosedError: the server cannot be reached.
         """
-        self._conn = await connect(
-            self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
-        )
+        self._conn = await self._open()
         self._tasks = anyio.create_task_group()
         await self._tasks.__aenter__()
         self._tasks.start_soon(self._read_loop)
         self._connected.set()
+
+    async def _open(self) -> Connection:
+        if self._connector is not None:
+            return await self._connector()
+        return await connect(
+            self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
+        )
 
     async def close(self) -> None:
         """Close the connection and stop every task; waiting calls fail. Idempotent."""
@@ -385,9 +395,7 @@ class Ros(RosapiMixin):
         delay_s = 0.1
         while not self._closing:
             try:
-                self._conn = await connect(
-                    self.url, timeout_s=self.timeout_s, max_message_size=self.max_message_size
-                )
+                self._conn = await self._open()
             except ConnectionClosedError:
                 await anyio.sleep(jittered(delay_s))  # back-off, not synchronisation
                 delay_s = min(delay_s * 2, 5.0)

@@ -713,6 +713,7 @@ class GraphCore:
         msg: Message | None,
         latch: bool,
         wire: bytes | None = None,
+        lifespan: float = 0.0,
     ) -> MessageEvent:
         """Deliver an already-converted message from an in-process publisher.
 
@@ -720,7 +721,8 @@ class GraphCore:
         link's sample, a bag's record), which subscribers sending that form pass
         on as it is (``MessageEvent.wire``); the caller vouches that it is ``msg``.
         ``msg`` None: the message is ``wire`` alone, decoded on first use
-        (``MessageEvent.msg``).
+        (``MessageEvent.msg``). ``lifespan``: how long a subscriber's queue keeps
+        it behind newer messages (``MessageEvent.lifespan``; a link's samples).
 
         Returns:
             the event its subscribers got.
@@ -731,7 +733,7 @@ class GraphCore:
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        return self.deliver(entry, msg, latch, client, wire)  # positional: per message
+        return self.deliver(entry, msg, latch, client, wire, lifespan)  # positional: per message
 
     def deliver(
         self,
@@ -740,13 +742,14 @@ class GraphCore:
         latch: bool,
         client: ClientId,
         wire: bytes | None = None,
+        lifespan: float = 0.0,
     ) -> MessageEvent:
         """Deliver a message on ``entry`` from ``client``, one of its publishers.
 
         ``publish_local`` without finding the topic by name: for a caller that
         holds the ``Topic`` and has checked that ``client`` publishes on it
-        (``LocalPublisher``, a call less per message of a burst). ``msg`` and
-        ``wire`` as for ``publish_local``.
+        (``LocalPublisher``, a call less per message of a burst). ``msg``,
+        ``wire`` and ``lifespan`` as for ``publish_local``.
 
         Returns:
             the event its subscribers got.
@@ -759,7 +762,14 @@ class GraphCore:
             codec = entry.codec = codec_for(self.registry, entry.msgtype)
         # positional: keywords to a class cost a dict per call (0.5 us a message)
         event = MessageEvent(
-            entry.name, entry.msgtype.name, msg, clock.monotonic(), clock.wall(), codec, wire
+            entry.name,
+            entry.msgtype.name,
+            msg,
+            clock.monotonic(),
+            clock.wall(),
+            codec,
+            wire,
+            lifespan,
         )
         entry.fan_out(event, latch, client)
         if self.taps:

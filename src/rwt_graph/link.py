@@ -289,11 +289,14 @@ class Relays:
         *,
         latched: bool = False,
         wire: bytes | None = None,
+        lifespan: float = 0.0,
     ) -> None:
         """Publish ``msg``, a decoded sample of ``entry``'s topic, in the graph.
 
         ``wire`` is the sample as it came (its CDR), passed on with the message
         (``MessageEvent.wire``) so that subscribers sending CDR do not serialize it again.
+        ``lifespan``: how long subscribers' queues keep it behind newer samples
+        (``MessageEvent.lifespan``).
 
         By the participant of ``source`` (its publisher's GID) when the link
         mirrors it as a publisher of the topic (latched as it advertised),
@@ -309,7 +312,9 @@ class Relays:
         if publisher is not None:
             latches = entry.publishers.get(publisher)
             if latches is not None:
-                port.publish_local(publisher, entry.name, msg, latch=latches, wire=wire)
+                port.publish_local(
+                    publisher, entry.name, msg, latch=latches, wire=wire, lifespan=lifespan
+                )
                 return
         relay = self._relays.get(entry.name)
         if relay is None:
@@ -318,7 +323,9 @@ class Relays:
                 self._graph, client, self._node, Kind.PUBLISHER, entry.name, entry.msgtype.name
             )
             relay = self._relays[entry.name] = _Relay(client)
-        event = port.publish_local(relay.client, entry.name, msg, latch=latched, wire=wire)
+        event = port.publish_local(
+            relay.client, entry.name, msg, latch=latched, wire=wire, lifespan=lifespan
+        )
         relay.idle = 0
         if source is not None:
             held = relay.held

@@ -6,23 +6,26 @@ runs); ``serve_stdio`` runs the server (docs/agents.md).
 
 from __future__ import annotations
 
+import functools
 import logging
 import sys
 from typing import Annotated
 
 import anyio
 import typer
+from mcp.server.stdio import stdio_server
 
 from rwt_client.connectors import server_url
 from rwt_protocol.errors import ConfigError
 
+from .guard import Guard
 from .link import RobotLink
-from .tools import build_server
+from .tools import build_server, initialization_options
 
 __all__ = ["mcp_command", "serve_stdio"]
 
 
-async def serve_stdio(url: str) -> None:
+async def serve_stdio(url: str, *, read_only: bool = False) -> None:
     """Serve MCP on this process's stdin and stdout until stdin closes.
 
     One rosbridge connection to ``url`` for the whole session, made in the
@@ -30,14 +33,16 @@ async def serve_stdio(url: str) -> None:
 
     Args:
         url: the rosbridge server (``rwt_client.connectors.server_url``'s forms).
+        read_only: refuse the tools that change the robot (``guard.WRITE_TOOLS``).
     """
     link = RobotLink(url)
-    server = build_server(link)
+    server = build_server(link, Guard(client=f"stdio:{url}", read_only=read_only))
     ended = anyio.Event()
 
     async def stdio() -> None:
         try:
-            await server.run_stdio_async()
+            async with stdio_server() as (read, write):
+                await server._mcp_server.run(read, write, initialization_options(server))
         finally:
             ended.set()
 
@@ -58,12 +63,21 @@ def mcp_command(
             show_default=False,
         ),
     ],
+    read_only: Annotated[
+        bool,
+        typer.Option(
+            "--read-only",
+            help="Refuse the tools that change the robot: publish, publish_for, call_service,"
+            " send_action_goal, cancel_action_goal, set_parameter.",
+        ),
+    ] = False,
 ) -> None:
     """Serve MCP (Model Context Protocol) over stdio in front of a rosbridge server.
 
     AI agents (Claude, Cursor, any MCP client) start it as a stdio server and
     drive the robot through its tools: the graph, topics (echo, images, publish),
-    services, actions, parameters and TF. Logs go to stderr.
+    services, actions, parameters and TF; its topics are resources to read and
+    subscribe to. Logs go to stderr.
     """
     try:
         target = server_url(url)
@@ -71,4 +85,4 @@ def mcp_command(
         raise typer.BadParameter(str(exc), param_hint="URL") from None
     # stdout carries MCP: logs go to stderr, a line per retry to connect (back-off up to 5 s)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="rwt mcp: %(message)s")
-    anyio.run(serve_stdio, target)
+    anyio.run(functools.partial(serve_stdio, target, read_only=read_only))

@@ -75,11 +75,13 @@ class RobotLink:
 
     Args:
         url: the server, as ``rwt_client.connectors.server_url`` returns it.
+        ros: the client to use (an in-process connection, ``rwt serve --mcp``);
+            None: one to ``url`` that reconnects when the connection drops.
     """
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, ros: Ros | None = None) -> None:
         self.url = url
-        self.ros = Ros(url, reconnect=True)
+        self.ros = ros or Ros(url, reconnect=True)
         self.goals: OrderedDict[str, Goal] = OrderedDict()
         self._publishers: OrderedDict[tuple[str, str], Topic] = OrderedDict()
         self._ready = anyio.Event()  # the first connection was made

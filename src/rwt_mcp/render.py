@@ -207,6 +207,9 @@ def json_schema(typedefs: list[dict[str, object]]) -> dict[str, object]:
         and referred to by ``$ref`` (``#/$defs/geometry_msgs~1Vector3``: a JSON
         pointer, ``/`` escaped); a ``uint8[]`` or ``char[]`` field takes base64 text or a
         list of 0-255, as rosbridge's JSON does. An empty schema for no typedefs.
+        A field name's leading ``_`` is dropped: ROS field names start with a
+        letter, and rosbridge_suite 2.1.0's rosapi on ROS 2 Kilted reports the
+        Python slots (``_linear``) instead (docs/agents.md).
     """
     if not typedefs:
         return {}
@@ -223,7 +226,7 @@ def _object_schema(typedef: Mapping[str, object], known: set[str]) -> dict[str, 
     properties: dict[str, object] = {}
     for index, (name, field_type) in enumerate(zip(names, types, strict=False)):
         length = lengths[index] if index < len(lengths) else -1
-        properties[str(name)] = _field_schema(str(field_type), int(length), known)
+        properties[str(name).removeprefix("_")] = _field_schema(str(field_type), int(length), known)
     return {"type": "object", "title": str(typedef.get("type")), "properties": properties}
 
 

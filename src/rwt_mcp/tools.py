@@ -10,10 +10,11 @@ timeout, a connection down) becomes an MCP tool error with its text.
 from __future__ import annotations
 
 import contextlib
+import functools
 import inspect
 import json
 import re
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from contextlib import asynccontextmanager
 from typing import Any
 
@@ -21,16 +22,19 @@ import anyio
 import pybase64
 from mcp.server.fastmcp import Context, FastMCP
 from mcp.server.fastmcp.exceptions import ToolError
-from mcp.types import ImageContent, TextContent
-from pydantic import BaseModel
+from mcp.server.models import InitializationOptions
+from mcp.types import ImageContent, TextContent, ToolAnnotations
+from pydantic import BaseModel, ValidationError
 
 from rwt_client import Param, Topic
 from rwt_graph.media.images import ImageError
 from rwt_protocol.errors import RwtError
 
 from . import render
+from .guard import WRITE_TOOLS, Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
+from .resources import TopicResources
 
 __all__ = [
     "MAX_ECHO_CHARS",
@@ -42,6 +46,7 @@ __all__ = [
     "MAX_WAIT_S",
     "RobotTools",
     "build_server",
+    "initialization_options",
 ]
 
 #: Any wait a tool takes (echo, service call, goal, cancel, transform), in seconds.
@@ -60,6 +65,7 @@ MAX_PUBLISH_DURATION_S = 60.0
 #: The status codes of ``action_msgs/GoalStatus`` a result may carry (D18).
 GOAL_STATES = {4: "succeeded", 5: "canceled", 6: "aborted"}
 _LAST_PROGRESS_S = 1.0  # sending the last feedback, once the goal ended
+_MAX_FIELD_ERRORS = 5  # fields a bad call's tool error names
 _TF_TOPIC_TIMEOUT = {"sec": 5, "nanosec": 0}  # the republisher drops its topic 5 s after us
 
 Message = dict[str, Any]
@@ -590,30 +596,99 @@ _TOOLS = (
 )
 
 
-def build_server(link: RobotLink) -> FastMCP:
-    """A FastMCP server whose tools drive the robot behind ``link``.
+def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
+    """A FastMCP server whose tools and resources drive the robot behind ``link``.
 
-    The caller connects ``link`` beside it (``cli.serve_stdio``).
+    Every tool call passes ``guard`` first (``guard.Guard.admit``: access rules,
+    read-only mode, rate and size caps); the topics are resources
+    (``resources.TopicResources``). The caller connects ``link`` beside it
+    (``cli.serve_stdio``, ``http.McpEndpoint``) and runs it with
+    ``initialization_options``.
+
+    Args:
+        link: the session's connection.
+        guard: the session's rules; None: a ``Guard()`` (no access rules, writes allowed).
     """
+    guard = guard or Guard()
     server = FastMCP(
         "rwt",
         instructions=(
             "Tools of a ROS robot behind a rosbridge server: list its graph, read "
             "(echo) and publish topics, call services, send and cancel action goals, "
             "get and set parameters, look up transforms. type_definition gives the "
-            "JSON schema of a message type."
+            "JSON schema of a message type. Topics are resources too (ros://topics/...): "
+            "read one for its latest message, subscribe for updates."
+            + (
+                " This server is read-only: publish, calls, goals and set are refused."
+                if guard.read_only
+                else ""
+            )
         ),
     )
     tools = RobotTools(link)
     for name in _TOOLS:
-        function = getattr(tools, name)
+        function = _guarded(guard, name, getattr(tools, name))
         server.add_tool(
             function,
             name=name,
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
+            annotations=ToolAnnotations(readOnlyHint=name not in WRITE_TOOLS),
         )
+    TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
+    _name_bad_fields(server)
     return server
+
+
+def _name_bad_fields(server: FastMCP) -> None:
+    """Arguments that fail a tool's input schema: a tool error naming each field, briefly.
+
+    (FastMCP's own text is pydantic's whole report, with links.)
+    """
+    manager = server._tool_manager
+    call = manager.call_tool
+
+    async def call_tool(
+        name: str, arguments: dict[str, Any], context: Any = None, convert_result: bool = False
+    ) -> Any:
+        try:
+            return await call(name, arguments, context=context, convert_result=convert_result)
+        except ToolError as exc:
+            if not isinstance(exc.__cause__, ValidationError):
+                raise
+            wrong = [
+                f"{'.'.join(map(str, error['loc'])) or 'arguments'}: {error['msg']}"
+                + ("" if error["type"] == "missing" else f" (got {type(error['input']).__name__})")
+                for error in exc.__cause__.errors()[:_MAX_FIELD_ERRORS]
+            ]
+            raise ToolError(f"{name}: bad arguments: {'; '.join(wrong)}") from None
+
+    manager.call_tool = call_tool  # type: ignore[method-assign]
+
+
+def initialization_options(server: FastMCP) -> InitializationOptions:
+    """The MCP ``initialize`` answer of ``server``, saying it takes resource subscriptions.
+
+    (FastMCP's own says ``subscribe: false``; ``resources.TopicResources`` answers them.)
+    """
+    options = server._mcp_server.create_initialization_options()
+    resources = options.capabilities.resources
+    if resources is not None:
+        resources.subscribe = True
+    return options
+
+
+def _guarded(
+    guard: Guard, name: str, function: Callable[..., Awaitable[Any]]
+) -> Callable[..., Awaitable[Any]]:
+    """``function`` (a tool) run only once ``guard`` admits the call (same signature)."""
+
+    @functools.wraps(function)
+    async def guarded(*args: Any, **kwargs: Any) -> Any:
+        guard.admit(name, {k: v for k, v in kwargs.items() if k != "ctx"})
+        return await function(*args, **kwargs)
+
+    return guarded
 
 
 def _described(doc: str) -> str:

@@ -113,6 +113,9 @@ class MessageEvent:
             values. Subscribers that send this form pass it on unchanged
             instead of serializing ``msg`` (Foxglove message data, cbor-raw).
             Subscribers that send it so never decode a message given only as ``wire``.
+        lifespan: seconds a subscriber's queue may keep it waiting while a newer
+            message of the topic waits behind it (a ROS 2 sample: docs/ros2.md,
+            "Latency under rate"); 0: as long as the queue's byte bound allows.
         memos: the forms ``encoded`` and ``memo`` made, by key; a hot path may
             read and fill it directly with the same care for keys (no call).
             Those keys are strings or tuples that start with one; an ``int``
@@ -125,6 +128,7 @@ class MessageEvent:
         "_msg",
         "codec",
         "encodings_made",
+        "lifespan",
         "memos",
         "now",
         "stamp",
@@ -142,6 +146,7 @@ class MessageEvent:
         stamp: float = 0.0,
         codec: MessageCodec | None = None,
         wire: bytes | None = None,
+        lifespan: float = 0.0,
     ) -> None:
         """Raises ``ValueError`` for an event with no ``msg`` and no ``wire`` and ``codec``."""
         if msg is None and (wire is None or codec is None):
@@ -154,6 +159,7 @@ class MessageEvent:
         self.stamp = stamp
         self.codec = codec
         self.wire = wire
+        self.lifespan = lifespan
         self.encodings_made = 0
         self.memos: dict[Hashable, object] = {}
 

@@ -10,12 +10,15 @@ loss can be put on one of them (benchmarks/README.md, "ROS 2 bridge"):
    middleware dropped from the subscription's history before it was taken is in
    none of these: it shows as the publisher's count minus ``taken``.
 2. handed: queued for the event loop (``handed``) or refused by the handoff's byte
-   bound (``refused``, ``handoff.MAX_QUEUED_BYTES``).
+   bound (``refused``, ``handoff.MAX_QUEUED_BYTES``); of those queued, ``expired``
+   waited longer than ``handoff.MAX_WAIT_S`` with a newer sample behind them and
+   were dropped.
 3. published: run on the event loop and published in the graph (``published``),
    or not (``skipped``: the link's own publisher, a foreign definition, a topic no
    longer listened to, a bad sample).
 4. per subscriber, the session's queue: the ``event=disconnect`` line of each
-   connection says what its outbox queued, dropped and sent (``rwt_transports.pump``).
+   connection says what its outbox queued, dropped (``expired`` of them: past
+   their lifespan, ``rwt_ros2.link.LIFESPAN_S``) and sent (``rwt_transports.pump``).
 
 Stage 1 is written by the taking thread only, stages 2-3 under the
 handoff's lock or on the event loop: plain integer increments, no lock of their own.
@@ -47,6 +50,7 @@ class TopicCounters:
     max_batch: int = 0
     handed: int = 0
     refused: int = 0
+    expired: int = 0
     published: int = 0
     skipped: int = 0
 
@@ -70,7 +74,8 @@ class TopicCounters:
         batches = ",".join(f"{name}:{n}" for name, n in zip(names, self.batches, strict=True))
         return (
             f"wakes={self.wakes} taken={self.taken} batches={batches} max_batch={self.max_batch} "
-            f"handed={self.handed} refused={self.refused} published={self.published} "
+            f"handed={self.handed} refused={self.refused} expired={self.expired} "
+            f"published={self.published} "
             f"skipped={self.skipped}"
         )
 

@@ -9,6 +9,22 @@ already, asks the loop to run what is queued, in order (``drain``). Samples beyo
 exhaust memory; replies and graph events are never dropped (they are small and
 each answers something this process asked for).
 
+Samples are bounded by time too: the queue holds at most ``max_wait_s``
+(``MAX_WAIT_S``) of one publisher's samples of a topic, by when they were
+published (their source timestamps, on the publisher's clock, so a clock of
+another host skews nothing: samples of one publisher are only compared with
+each other). A sample published more than that before the newest queued sample
+of its publisher is dropped when its turn comes, and counted in ``expired``
+(docs/ros2.md, "Latency under rate"). So a
+loop that fell behind a steady stream (a busy machine, a flood) catches up with
+the newest samples rather than working through old ones, as a ROS 2
+subscription's history drops its oldest samples when its node falls behind,
+while a burst that came within ``max_wait_s`` reaches the graph whole. While
+the oldest queued sample has waited half that (``behind``), the taking thread
+pauses (``pause_while_behind``): new samples wait in the middleware's history,
+which keeps the newest at no cost to the loop, rather than being taken only to
+expire here.
+
 A topic whose delivery congested a subscriber is held back alone
 (``rwt_graph.topic_holds``): its samples wait, still counted here, while every
 other topic's go on.
@@ -20,6 +36,7 @@ import asyncio
 import contextlib
 import logging
 import threading
+import time
 from collections import deque
 from typing import TYPE_CHECKING
 
@@ -34,30 +51,65 @@ if TYPE_CHECKING:
 
     from rwt_graph.link import InflowGate
 
-__all__ = ["MAX_QUEUED_BYTES", "Handoff"]
+__all__ = ["MAX_QUEUED_BYTES", "MAX_WAIT_S", "Handoff"]
 
 logger = logging.getLogger("rwt.ros2")
 
 MAX_QUEUED_BYTES = 64 * 1024 * 1024
 """Bytes of ROS 2 samples waiting for the event loop beyond which new ones are dropped."""
 
+MAX_WAIT_S = 0.020
+"""Seconds of a topic's ROS 2 samples waiting for the event loop: a sample that came
+more than this before the newest queued one of its topic is dropped (module text)."""
+
+PAUSE_S = 0.001
+"""Seconds the taking thread sleeps at a time while the loop is behind (``behind``)."""
+
+TURN_S = 0.005
+"""Seconds of queued callbacks one turn of the event loop runs at most; the rest go on
+the next turn, after the connections have written what these queued (a flood of
+samples to ten subscribers cost 0.2 ms each, so 1,000 in one turn held every frame
+they made for 0.2 s: benchmarks/README.md, "ROS 2 bridge")."""
+
 _BATCH = 1000
 
-_Event = tuple["Callable[..., None]", tuple[object, ...], int, str]
-"""A queued callback, its arguments, its bytes and its topic ("" if no sample)."""
+_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float, bytes, float]
+"""A queued callback, its arguments, its bytes, its topic ("" if no sample), when
+it came (``Sample``), its publisher, and when it was queued (``clock``)."""
+
+Sample = tuple[tuple[object, ...], int, float, bytes]
+"""A sample for ``Handoff.put_many``: its callback's arguments, its bytes, when it
+was published (seconds, any clock its publisher keeps monotonic) and its publisher
+(its GID; samples of one publisher are compared with each other only)."""
 
 
 class Handoff:
-    """A byte-bounded queue of callbacks from other threads to one event loop's task.
+    """A byte- and time-bounded queue of callbacks from other threads to one event loop's task.
 
     Args:
         max_bytes: samples' bytes kept waiting at most (``MAX_QUEUED_BYTES``).
+        max_wait_s: seconds of one publisher's samples of a topic queued at most
+            (``MAX_WAIT_S``).
+        clock: monotonic seconds (a test's hand-moved clock).
+
+    Attributes:
+        expired: samples dropped for their wait, by topic.
     """
 
-    def __init__(self, max_bytes: int = MAX_QUEUED_BYTES) -> None:
+    def __init__(
+        self,
+        max_bytes: int = MAX_QUEUED_BYTES,
+        max_wait_s: float = MAX_WAIT_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.max_bytes = max_bytes
+        self.max_wait_s = max_wait_s
+        self.clock = clock
         self.queued_bytes = 0
         self.dropped = 0
+        self.expired: dict[str, int] = {}
+        # when the newest queued sample came, by topic and publisher
+        self._newest: dict[tuple[str, bytes], float] = {}
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
@@ -88,19 +140,17 @@ class Handoff:
                 self._refuse(topic)
                 return False
             self.queued_bytes += size
-            self._events.append((callback, args, size, topic))
+            came = self.clock()
+            if topic:
+                self._newest[topic, b""] = came
+            self._events.append((callback, args, size, topic, came, b"", came))
             signal = self._signal()
         if signal:
             self._wake_loop()
         return True
 
-    def put_many(
-        self,
-        callback: Callable[..., None],
-        samples: list[tuple[tuple[object, ...], int]],
-        topic: str,
-    ) -> int:
-        """Queue ``callback(*args)`` for each ``(args, size)`` of ``samples``, in order.
+    def put_many(self, callback: Callable[..., None], samples: list[Sample], topic: str) -> int:
+        """Queue ``callback(*args)`` for each ``Sample`` of ``samples``, in order.
 
         ``samples``: one batch taken from ``topic``'s subscription; one lock and
         at most one wake-up of the loop for all of them, where ``put`` takes both
@@ -113,17 +163,37 @@ class Handoff:
         with self._lock:
             if self._closed:
                 return 0
-            for args, size in samples:
+            events, newest, now = self._events, self._newest, self.clock()
+            for args, size, came, source in samples:
                 if self.queued_bytes + size > self.max_bytes:
                     self._refuse(topic)
                     continue
                 self.queued_bytes += size
-                self._events.append((callback, args, size, topic))
+                events.append((callback, args, size, topic, came, source, now))
+                newest[topic, source] = came
                 queued += 1
             signal = queued > 0 and self._signal()
         if signal:
             self._wake_loop()
         return queued
+
+    def behind(self) -> bool:
+        """Whether the oldest queued event has waited over half ``max_wait_s`` (any thread).
+
+        Its wait counts from when it was queued, by ``clock``: the loop is behind.
+        """
+        try:
+            queued = self._events[0][6]
+        except IndexError:
+            return False
+        return queued < self.clock() - self.max_wait_s / 2
+
+    def pause_while_behind(self) -> None:
+        """Sleep while ``behind``, ``PAUSE_S`` at a time, ``max_wait_s`` at most (taking thread)."""
+        waited = 0.0
+        while waited < self.max_wait_s and not self._closed and self.behind():
+            time.sleep(PAUSE_S)
+            waited += PAUSE_S
 
     def _refuse(self, topic: str) -> None:
         """Count and log a dropped sample of ``topic`` (under the lock)."""
@@ -174,26 +244,37 @@ class Handoff:
                 self._holds = None
 
     def _turn(self) -> None:
-        """Run up to ``_BATCH`` queued callbacks (on the loop); a flood goes on next turn."""
+        """Run queued callbacks for up to ``TURN_S`` (and ``_BATCH`` of them) on the loop.
+
+        A flood goes on next turn, after the connections have written.
+        """
         with self._lock:
             self._signalled = False
         holds = self._holds
-        if holds is None or not self._events:
-            return
-        inflow = self._gate()
-        inflow.begin()
-        try:
-            self._run_batch(inflow, holds)
-        finally:
-            inflow.end()
+        if holds is not None and self._events:
+            inflow = self._gate()
+            inflow.begin()
+            try:
+                self._run_batch(inflow, holds)
+            finally:
+                inflow.end()
         if self._events and self._loop is not None:
             self._loop.call_soon(self._turn)  # a flood: let the servers send meanwhile
 
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
+        clock = self.clock
+        end = clock() + TURN_S
+        newest, span = self._newest, self.max_wait_s
         for _ in range(min(len(self._events), _BATCH)):
+            if clock() > end:
+                return
             with self._lock:
                 event = self._events.popleft()
-            callback, args, size, topic = event
+                callback, args, size, topic, came, source, _ = event
+                outdated = bool(topic) and newest[topic, source] - came > span
+            if outdated:
+                self._expire(topic, size)
+                continue
             if topic and holds.park(topic, event):
                 continue  # still counted in ``queued_bytes``: it waits here
             with self._lock:
@@ -203,6 +284,12 @@ class Handoff:
             except Exception:
                 logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
             holds.delivered(topic or None, inflow)
+
+    def _expire(self, topic: str, size: int) -> None:
+        """Drop a sample of ``topic`` that a newer one outdated (on the loop)."""
+        with self._lock:
+            self.queued_bytes -= size
+        self.expired[topic] = self.expired.get(topic, 0) + 1
 
     def _resume(self, events: list[_Event]) -> None:
         """Put a held topic's samples back at the front, oldest first (on the loop)."""
@@ -218,4 +305,5 @@ class Handoff:
         with self._lock:
             self._closed = True
             self._events.clear()
+            self._newest.clear()
             self.queued_bytes = 0

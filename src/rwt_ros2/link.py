@@ -61,7 +61,7 @@ from .codec import decode, encode
 from .counters import LinkCounters, TopicCounters
 from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
-from .handoff import MAX_QUEUED_BYTES, Handoff
+from .handoff import MAX_QUEUED_BYTES, Handoff, Sample
 from .node import RosNode
 from .outflow import Lane, Outflow
 from .remotes import RosRemotes, entities
@@ -113,6 +113,14 @@ DISCOVERY_WAIT_S = 2.0
 """Seconds a call to a service nobody offers waits for the link to discover it (a
 node starting as the call comes), when the call gave no timeout of its own; one
 that did waits up to that timeout (``rwt_graph.services.DiscoveryWait``)."""
+
+SAMPLE_LIFESPAN_S = 0.020
+"""Seconds of a topic's samples from ROS 2 a subscriber's queue (its outbox) holds: a
+sample that came more than this before the newest queued one of its topic is dropped
+there (``MessageEvent.lifespan``, ``rwt_protocol.server.outbox``; docs/ros2.md,
+"Latency under rate"). A ROS 2 publisher cannot be slowed, so a reader that falls
+behind gets the newest samples, as from a ROS 2 subscription's history, not a growing
+backlog; a burst that came within it reaches the reader whole."""
 
 GRAPH_POLL_S = 0.05
 """How often the link reads the ROS 2 graph's names between sweeps, seconds
@@ -180,6 +188,8 @@ class Ros2Link:
         self.options = options or Ros2Options()
         self.rules = LinkRules(PARTICIPANT_PREFIX)
         self.handoff = Handoff(self.options.max_queued_bytes)
+        if ros.takes is not None:  # it takes no more while the loop is behind
+            ros.takes.pace = self.handoff.pause_while_behind
         self.episodes = EpisodeLog(logger)
         self.caller: ClientId = f"{PARTICIPANT_PREFIX}caller"
         self.pending_answers: set[Answer] = set()
@@ -298,6 +308,8 @@ class Ros2Link:
         self._closed = True
         self.outward.close()
         self.handoff.close()
+        for topic, expired in self.handoff.expired.items():
+            self.counters.of(topic).expired = expired
         self.counters.log(logger)
         with contextlib.suppress(ValueError):
             self.graph.taps.remove(self._tap)
@@ -376,7 +388,14 @@ class Ros2Link:
             )
             return
         try:  # by its publisher's participant, or a relay until discovery finds it
-            self._relays.deliver(entry, gid or None, msg, latched=transient_local, wire=data)
+            self._relays.deliver(
+                entry,
+                gid or None,
+                msg,
+                latched=transient_local,
+                wire=data,
+                lifespan=SAMPLE_LIFESPAN_S,
+            )
             counters.skipped -= 1
             counters.published += 1
         except RwtError as exc:  # a topic reserved by the server: not ROS 2's
@@ -470,10 +489,15 @@ class Ros2Link:
         on_loop = self._on_sample
 
         def on_batch(batch: list[Taken]) -> None:
-            samples: list[tuple[tuple[object, ...], int]] = []
+            samples: list[Sample] = []
+            now, wall_ns = time.monotonic(), time.time_ns()
             for data, info in batch:
                 gid = bytes((info.get("publisher_gid") or {}).get("data", b""))[:16]
-                samples.append(((name, type_name, data, gid, latched, counters), len(data)))
+                # when it was published, on its publisher's clock (ns; 0 where rmw has none):
+                # the handoff compares one publisher's samples only (``Handoff``)
+                sent = info.get("source_timestamp") or wall_ns
+                args = (name, type_name, data, gid, latched, counters)
+                samples.append((args, len(data), now - (wall_ns - sent) * 1e-9, gid))
             queued = handoff.put_many(on_loop, samples, name)
             counters.handed += queued
             counters.refused += len(batch) - queued

@@ -84,6 +84,9 @@ class TakeLoop:
         self._changed = True
         self._stopped = False
         self._last = 0.0  # when the last wake-up took samples (``time.monotonic``)
+        self.pace: Callable[[], None] | None = None
+        """Called before each wait: the link's ``Handoff.pause_while_behind``, so that
+        samples wait in the middleware while the event loop is behind."""
         self._thread = threading.Thread(target=self._run, name="rwt-ros2-take", daemon=True)
 
     def start(self) -> None:
@@ -161,6 +164,8 @@ class TakeLoop:
                 with self._lock:
                     entries, self._changed = list(self._entries.values()), False
                 wait_set = self._rclpy.WaitSet(len(entries), 1, 0, 0, 0, 0, self._context.handle)
+            if self.pace is not None:
+                self.pace()
             try:
                 count = self._wait_and_take(wait_set, entries, timeout_ns)
             except InvalidHandle:  # unsubscribed meanwhile: the next turn leaves it out

@@ -176,12 +176,13 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
         await pump.run(session)
     finally:
         logger.info(
-            "event=disconnect client=%s reason=%r topic_messages=%d dropped=%d "
+            "event=disconnect client=%s reason=%r topic_messages=%d dropped=%d expired=%d "
             "frames_sent=%d duration_s=%.1f",
             session.client_id,
             pump.close_reason,
             session.topic_messages,
             session.dropped_frames,
+            session.expired_messages,
             session.taken_frames,
             anyio.current_time() - started,
         )

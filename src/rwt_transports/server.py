@@ -89,7 +89,10 @@ if TYPE_CHECKING:
     from rwt_protocol.server.contract import ServerSession
 
     from .holding import Held
+    from .mcp_http import McpEndpoint
+    from .mcp_options import McpOptions
     from .webrtc_peers import WebRtcPeers
+    from .websocket import HttpEndpoint
 
 __all__ = [
     "SERVER_NODE",
@@ -114,7 +117,7 @@ _ACCEPT_BACKOFF_S = 0.1
 _ACCEPT_BACKOFF_MAX_S = 1.0
 """Longest pause of the accept loop between two failed ``accept()`` calls."""
 
-_NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc"})
+_NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc", "mcp"})
 """Transports whose connections count against their host's share (not stdio, memory)."""
 
 #: The node of the server's own publishers, as rosbridge names it.
@@ -188,6 +191,8 @@ class ServerConfig:
             ``rwt serve --workers N`` share one port (Linux spreads connections).
         webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
             docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
+        mcp: serve MCP (Streamable HTTP) at ``/mcp`` on the WebSocket port
+            (``--mcp``, docs/mcp.md; needs ``rwt-rosbridge[mcp]``); None: no MCP.
         use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
             is the graph's timeline, which Foxglove clients get as server time
             (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
@@ -222,6 +227,7 @@ class ServerConfig:
     reuse_port: bool = False
     use_sim_time: bool = False
     webrtc: WebRtcOptions | None = None
+    mcp: McpOptions | None = None
 
 
 def rosauth_authenticator(
@@ -310,7 +316,8 @@ class RosbridgeServer:
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
             its address's width (``shares.HostPrefixes``).
-        ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``).
+        ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
+            ``config.mcp`` is set but the MCP SDK is not (``rwt-rosbridge[mcp]``).
     """
 
     session_class: type[Session] = Session
@@ -376,20 +383,26 @@ class RosbridgeServer:
             self.graph, "/connected_clients", "rosbridge_msgs/msg/ConnectedClients"
         )
         self._publish_clients()
-        self.rosapi: Rosapi | None = None
-        if self.config.rosapi:
-            visibility = self.config.rosapi_visibility
-            if visibility is None and session_config.access.restricted:
-                visibility = visibility_of(session_config.access)
-            self.rosapi = install_rosapi(self.graph, visibility=visibility)
-        self.tf: TFRepublisher | None = None
-        if self.config.tf:
-            self.tf = install_tf_republisher(self.graph)
+        self.rosapi, self.tf = self._install_helpers()
         self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
+        self.mcp = self._set_up_mcp(self.config.mcp)
+        self._http: list[HttpEndpoint] = [e for e in (self._signalling, self.mcp) if e is not None]
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def _install_helpers(self) -> tuple[Rosapi | None, TFRepublisher | None]:
+        """The helpers: rosapi (showing what the access rules let one see), TF republisher."""
+        rosapi = None
+        if self.config.rosapi:
+            visibility = self.config.rosapi_visibility
+            access = self.session_config.access
+            if visibility is None and access.restricted:
+                visibility = visibility_of(access)
+            rosapi = install_rosapi(self.graph, visibility=visibility)
+        tf = install_tf_republisher(self.graph) if self.config.tf else None
+        return rosapi, tf
 
     def _console_site(self) -> tuple[ConsoleSite | None, ServerConfig]:
         """``WebSocketOptions.console`` made a site, and the config with it.
@@ -431,6 +444,16 @@ class RosbridgeServer:
             auth_required=self.session_config.authenticator is not None,
         )
         return peers, signalling
+
+    def _set_up_mcp(self, options: McpOptions | None) -> McpEndpoint | None:
+        """The MCP endpoint on the WebSocket port (docs/mcp.md), or none."""
+        if options is None:
+            return None
+        from .mcp_http import McpEndpoint  # noqa: PLC0415 (the MCP SDK: only with --mcp)
+
+        policy = self.session_config.access
+        access = _access_check(policy) if policy.restricted else None
+        return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
 
     def add_frontend(self, frontend: FrontEnd) -> None:
         """Speak one more protocol on the WebSocket port, chosen by its subprotocols.
@@ -489,6 +512,8 @@ class RosbridgeServer:
                         connections.start_soon(self._publish_clients_loop)
                         if self.webrtc is not None:
                             self.webrtc.bind(connections)
+                        if self.mcp is not None:
+                            self.mcp.bind(connections)
                         async with anyio.create_task_group() as accepting:
                             for runner in runners:
                                 accepting.start_soon(runner, connections)
@@ -498,6 +523,8 @@ class RosbridgeServer:
                 finally:
                     if self.webrtc is not None:
                         self.webrtc.bind(None)
+                    if self.mcp is not None:
+                        self.mcp.bind(None)
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
 
@@ -517,6 +544,8 @@ class RosbridgeServer:
         sessions = list(self.sessions.values())
         logger.info("event=shutdown sessions=%d", len(sessions))
         self.graph.port.fail_pending("server shutting down")  # while callers can still read
+        if self.mcp is not None:  # no new MCP sessions; the open ones close with theirs
+            self.mcp.bind(None)
         if self.webrtc is not None:  # not connected yet: nothing to close gracefully
             self.webrtc.bind(None)
             self.webrtc.stop_connecting()
@@ -729,7 +758,7 @@ class RosbridgeServer:
             self.fragment_budget,
             frontends=self.frontends,
             token_gate=self._token_gate,
-            webrtc=self._signalling,
+            http=self._http,
         )
 
     async def _handle_foxglove(self, stream: ByteStream) -> None:
@@ -816,7 +845,8 @@ class RosbridgeServer:
         makes the session, under the per-client rules of its transport.
 
         Args:
-            transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``webrtc``, ``stdio`` or ``memory``;
+            transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``webrtc``, ``mcp``, ``stdio`` or
+                ``memory``;
                 the client id is ``<transport>:<peer>#<n>``.
             peer: the peer's address.
             on_output: the pump's wake-up.
@@ -861,6 +891,21 @@ class RosbridgeServer:
         }
         self._clients_churned()
         return session
+
+    def adopt_socket(self) -> None:
+        """The socket of this task carries a request of a session admitted already.
+
+        An MCP session's requests come on sockets of their own (Streamable HTTP):
+        once one is known to belong to an admitted session its handshake deadline
+        is lifted and it no longer counts as a socket in its handshake; the
+        session bounds its requests (``mcp_http.MAX_REQUESTS_IN_FLIGHT``).
+        """
+        pending = _PENDING.get(None)
+        if pending is not None and not pending.admitted:
+            pending.admitted = True
+            pending.scope.deadline = math.inf
+            self._handshaking -= 1
+            self._free_slot()
 
     def _admit(self, transport: str, peer: str) -> tuple[str, str | None, str] | None:
         """Admission: a slot (``--max-connections``) and the host's share, or None.
@@ -1104,6 +1149,20 @@ def _peer(stream: ByteStream | SocketStream) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
+
+
+def _access_check(policy: AccessPolicy) -> Callable[[str, str], str | None]:
+    """``policy`` as the MCP guard asks it: ``(family, name) -> the refusing rule`` or None."""
+    from rwt_protocol.server.access import Family  # noqa: PLC0415 (only with --mcp)
+
+    def check(family: str, name: str) -> str | None:
+        kind = Family(family)
+        if policy.allows(kind, name):
+            return None
+        patterns = ", ".join(getattr(policy, kind.value))
+        return f"--{kind.value}-glob [{patterns}]"
+
+    return check
 
 
 def visibility_of(policy: AccessPolicy) -> VisibilityFor:

@@ -211,20 +211,20 @@ class WebRtcSignalling:
         conn = h11.Connection(h11.SERVER)
         conn.receive_data(head)
         try:
-            request, body = await _read_request(conn, stream)
+            request, body = await read_request(conn, stream)
         except h11.RemoteProtocolError as exc:
-            await _reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
-            return
-        except _TooLarge:
-            await _reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
+            await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
             return
         if request is None:
+            return
+        if body is None:
+            await reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
         origin = headers.get("origin")
         cors = self._cors(origin)
         if cors is None:
-            await _reply(conn, stream, 403, f"origin {origin} is not allowed", [])
+            await reply(conn, stream, 403, f"origin {origin} is not allowed", [])
             return
         answer = await self._route(request, headers, body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
@@ -238,7 +238,7 @@ class WebRtcSignalling:
             request.method.decode(),
             answer.status,
         )
-        await _reply(conn, stream, answer.status, answer.text, extra, kind)
+        await reply(conn, stream, answer.status, answer.text, extra, kind)
 
     def _cors(self, origin: str | None) -> list[tuple[bytes, bytes]] | None:
         """The CORS headers for ``origin``; None if ``--allowed-origins`` refuses it."""
@@ -302,18 +302,16 @@ def roslib_transport() -> str:
     return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
 
 
-class _TooLarge(Exception):
-    """The request's body is over ``MAX_OFFER_BYTES``."""
-
-
-async def _read_request(
-    conn: h11.Connection, stream: ByteStream
-) -> tuple[h11.Request | None, bytes]:
+async def read_request(
+    conn: h11.Connection, stream: ByteStream, limit: int = MAX_OFFER_BYTES
+) -> tuple[h11.Request | None, bytes | None]:
     """The request and its body; (None, b"") if the peer left first (h11 bounds the head).
+
+    The body is None when it is over ``limit`` bytes (the rest is not read). Also
+    the MCP endpoint's (``mcp_http``), with its own ``limit``.
 
     Raises:
         h11.RemoteProtocolError: not HTTP/1.1 h11 can read.
-        _TooLarge: the body is over ``MAX_OFFER_BYTES``.
     """
     request: h11.Request | None = None
     body = bytearray()
@@ -329,15 +327,15 @@ async def _read_request(
             request = event
         elif isinstance(event, h11.Data):
             body += event.data
-            if len(body) > MAX_OFFER_BYTES:
-                raise _TooLarge
+            if len(body) > limit:
+                return request, None
         elif isinstance(event, h11.EndOfMessage):
             return request, bytes(body)
         else:  # ConnectionClosed, PAUSED
             return None, b""
 
 
-async def _reply(
+async def reply(
     conn: h11.Connection,
     stream: ByteStream,
     status: int,
@@ -345,7 +343,7 @@ async def _reply(
     headers: list[tuple[bytes, bytes]],
     kind: str = "text/plain; charset=utf-8",
 ) -> None:
-    """Send one response and let the connection end (``Connection: close``)."""
+    """Send one response and let the connection end (``Connection: close``; also ``mcp_http``'s)."""
     body = (text + "\n" if text and kind.startswith("text/") else text).encode()
     fields = [*headers, (b"Connection", b"close")]
     if status != 204:  # no content: no type, no length (RFC 9110 8.6)

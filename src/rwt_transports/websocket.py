@@ -32,7 +32,7 @@ import logging
 import os
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Final, Protocol
 
 import anyio
 from websockets.exceptions import InvalidState
@@ -72,9 +72,8 @@ if TYPE_CHECKING:
 
     from .frontends import FrontEnds
     from .urltoken import TokenGate
-    from .webrtc_signal import WebRtcSignalling
 
-__all__ = ["WebSocketOptions", "serve_websocket_connection"]
+__all__ = ["HttpEndpoint", "WebSocketOptions", "serve_websocket_connection"]
 
 logger = logging.getLogger("rwt.websocket")
 
@@ -497,10 +496,22 @@ def _make_protocol(
     )
 
 
-async def _read_head(stream: ByteStream, webrtc: WebRtcSignalling) -> tuple[bytes, bool] | None:
-    """The request's first bytes, and whether they are WebRTC signalling's (``claims``).
+class HttpEndpoint(Protocol):
+    """An HTTP front end on the WebSocket port (WebRTC signalling, MCP): it claims requests."""
 
-    None if the peer left first. Reads only until ``claims`` can tell (a few
+    def claims(self, head: bytes) -> bool | None:
+        """Whether the request starting with ``head`` is this endpoint's; None: too short."""
+
+    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
+        """Answer the request on ``stream`` whose first bytes are ``head``."""
+
+
+async def _read_head(
+    stream: ByteStream, endpoints: Sequence[HttpEndpoint]
+) -> tuple[bytes, HttpEndpoint | None] | None:
+    """The request's first bytes, and the endpoint that claims them (``claims``), if any.
+
+    None if the peer left first. Reads only until every endpoint can tell (a few
     bytes); the socket's handshake timeout bounds the wait.
     """
     head = b""
@@ -510,20 +521,23 @@ async def _read_head(stream: ByteStream, webrtc: WebRtcSignalling) -> tuple[byte
                 head += await stream.receive(_READ_SIZE)
             except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
                 return None
-            claimed = webrtc.claims(head)
-            if claimed is not None:
+            answers = [(endpoint, endpoint.claims(head)) for endpoint in endpoints]
+            claimed = next((endpoint for endpoint, answer in answers if answer), None)
+            if claimed is not None or all(answer is False for _, answer in answers):
                 return head, claimed
     return None
 
 
-async def _signalling(stream: ByteStream, webrtc: WebRtcSignalling, peer: str) -> bytes | None:
-    """Answer a WebRTC signalling request (None), or return the first bytes of another."""
-    read = await _read_head(stream, webrtc)
+async def _claimed(
+    stream: ByteStream, endpoints: Sequence[HttpEndpoint], peer: str
+) -> bytes | None:
+    """Answer a request an HTTP endpoint claims (None), or return the first bytes of another."""
+    read = await _read_head(stream, endpoints)
     if read is None:
         return None
     head, claimed = read
-    if claimed:
-        await webrtc.serve(stream, head, peer)
+    if claimed is not None:
+        await claimed.serve(stream, head, peer)
         return None
     return head
 
@@ -597,7 +611,7 @@ async def serve_websocket_connection(
     *,
     frontends: FrontEnds,
     token_gate: TokenGate | None = None,
-    webrtc: WebRtcSignalling | None = None,
+    http: Sequence[HttpEndpoint] = (),
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -619,15 +633,15 @@ async def serve_websocket_connection(
             handshake of a front end whose clients authenticate with a URL token
             (``AuthMode.URL_TOKEN``, a Foxglove client); an admitted one's session
             starts authenticated. None: no authentication.
-        webrtc: answers WebRTC signalling requests (``POST``/``DELETE``/``OPTIONS``
-            on ``/webrtc``, docs/webrtc.md) on this port; None: they fail the
-            handshake as before.
+        http: the HTTP endpoints on this port, each answering the requests it
+            claims: WebRTC signalling (``/webrtc``, docs/webrtc.md), MCP (``/mcp``,
+            docs/mcp.md); other requests are the WebSocket's (or the console's).
 
     Never raises for what the peer does; the stream is closed on return.
     """
     protocol = _make_protocol(options, max_message_size, frontends)
     async with stream:
-        head = b"" if webrtc is None else await _signalling(stream, webrtc, peer)
+        head = await _claimed(stream, http, peer) if http else b""
         if head is None:
             return
         handshake = await _handshake(stream, protocol, head)

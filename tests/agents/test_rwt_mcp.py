@@ -1,9 +1,10 @@
-"""``rwt mcp URL``, rwt's own MCP server, driven by the official MCP client.
+"""``rwt mcp URL`` and ``rwt serve --mcp``, rwt's own MCP server, driven by the official MCP client.
 
 An rwt server runs a small robot on a free port (a latched topic, a subscriber,
 a service, an action whose long goals run until canceled, parameters, a camera
 image and a static transform). The official MCP Python client starts ``rwt mcp
-ws://...`` as a stdio server, lists its tools and calls each of them, checking
+ws://...`` as a stdio server, or reaches the server's own ``/mcp`` over
+Streamable HTTP, lists the tools and calls each of them, checking
 what an agent would read: messages, a publish the robot received, a service's
 answer, a goal's progress notifications and result, a cancel, parameters, an
 image as image content, a transform, and a refused call as a tool error.
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import anyio
+import httpx
 import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
@@ -31,11 +33,14 @@ from tests.support.cli import ENV, invoke_rwt
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
 from mcp import ClientSession, StdioServerParameters
+from mcp.client.session import MessageHandlerFnT as MessageHandler
 from mcp.client.stdio import stdio_client
+from mcp.client.streamable_http import streamable_http_client
 from mcp.types import CallToolResult, ImageContent, TextContent
 from PIL import Image
 
 from rwt_mcp.tools import MAX_ECHO_COUNT
+from rwt_transports.mcp_options import McpOptions
 
 pytestmark = pytest.mark.anyio
 
@@ -104,9 +109,10 @@ def robot_graph(received: list[Message]) -> Graph:
 
 @pytest.fixture
 async def served() -> AsyncIterator[tuple[str, list[Message]]]:
-    """rwt serving the robot on a free port: ``(URL, messages /cmd received)``."""
+    """rwt serving the robot on a free port, MCP too: ``(URL, messages /cmd received)``."""
     received: list[Message] = []
-    server = RosbridgeServer(robot_graph(received), ServerConfig(host="127.0.0.1", port=0))
+    config = ServerConfig(host="127.0.0.1", port=0, mcp=McpOptions())
+    server = RosbridgeServer(robot_graph(received), config)
     async with anyio.create_task_group() as tg:
         url = await tg.start(server.serve)
         yield url, received
@@ -114,7 +120,7 @@ async def served() -> AsyncIterator[tuple[str, list[Message]]]:
 
 
 class Agent:
-    """An MCP client session with ``rwt mcp``."""
+    """An MCP client session with ``rwt mcp`` or ``rwt serve --mcp``."""
 
     def __init__(self, session: ClientSession) -> None:
         self.session = session
@@ -131,15 +137,20 @@ class Agent:
 
 
 @asynccontextmanager
-async def rwt_mcp(url: str, tmp_path: Path) -> AsyncIterator[Agent]:
-    """``rwt mcp URL`` (this checkout's) started by the official MCP client over stdio."""
+async def rwt_mcp(
+    url: str, tmp_path: Path, *options: str, on_message: MessageHandler | None = None
+) -> AsyncIterator[Agent]:
+    """``rwt mcp URL [OPTIONS]`` (this checkout's) started by the official MCP client over stdio."""
     params = StdioServerParameters(
-        command=sys.executable, args=["-m", "rwt", "mcp", url], env=ENV, cwd=str(tmp_path)
+        command=sys.executable,
+        args=["-m", "rwt", "mcp", url, *options],
+        env=ENV,
+        cwd=str(tmp_path),
     )
     with (tmp_path / "rwt-mcp.log").open("w") as errlog:
         async with (
             stdio_client(params, errlog=errlog) as (read, write),
-            ClientSession(read, write) as session,
+            ClientSession(read, write, message_handler=on_message) as session,
         ):
             await session.initialize()
             yield Agent(session)
@@ -147,10 +158,30 @@ async def rwt_mcp(url: str, tmp_path: Path) -> AsyncIterator[Agent]:
     assert "Traceback" not in (tmp_path / "rwt-mcp.log").read_text()
 
 
-@pytest.fixture
-async def agent(served: tuple[str, list[Message]], tmp_path: Path) -> AsyncIterator[Agent]:
-    """``rwt mcp`` in front of the robot."""
-    async with rwt_mcp(served[0], tmp_path) as started:
+@asynccontextmanager
+async def rwt_serve_mcp(
+    url: str, token: str | None = None, on_message: MessageHandler | None = None
+) -> AsyncIterator[Agent]:
+    """The official MCP client over Streamable HTTP at ``/mcp`` (``rwt serve --mcp``)."""
+    headers = {} if token is None else {"Authorization": f"Bearer {token}"}
+    endpoint = url.replace("ws://", "http://", 1) + "/mcp"
+    http = httpx.AsyncClient(headers=headers, timeout=httpx.Timeout(30, read=300))
+    async with (
+        http,
+        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        ClientSession(read, write, message_handler=on_message) as session,
+    ):
+        await session.initialize()
+        yield Agent(session)
+
+
+@pytest.fixture(params=["stdio", "http"])
+async def agent(
+    request: pytest.FixtureRequest, served: tuple[str, list[Message]], tmp_path: Path
+) -> AsyncIterator[Agent]:
+    """The same tools two ways: ``rwt mcp`` in front of the robot, and its own ``/mcp``."""
+    opened = rwt_mcp(served[0], tmp_path) if request.param == "stdio" else rwt_serve_mcp(served[0])
+    async with opened as started:
         yield started
 
 

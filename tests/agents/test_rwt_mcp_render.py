@@ -146,3 +146,25 @@ def test_images_that_cannot_be_shown_are_errors() -> None:
     assert MAX_DECODE_PIXELS < 8000 * 8000
     with pytest.raises(ImageError, match=f"over {MAX_DECODE_PIXELS} pixels"):
         encode_image({"format": "png", "data": header.getvalue()}, "sensor_msgs/CompressedImage")
+
+
+def test_the_schema_of_rosbridge_suite_2_1_slot_names_has_the_field_names() -> None:
+    # rosbridge_suite 2.1.0's message_details on ROS 2 Kilted, as it answered (docs/agents.md)
+    answered = [
+        {
+            "type": "geometry_msgs/Twist",
+            "fieldnames": ["_linear", "_angular"],
+            "fieldtypes": ["geometry_msgs/Vector3", "geometry_msgs/Vector3"],
+            "fieldarraylen": [-1, -1],
+        },
+        {
+            "type": "geometry_msgs/Vector3",
+            "fieldnames": ["_x", "_y", "_z"],
+            "fieldtypes": ["float64", "float64", "float64"],
+            "fieldarraylen": [-1, -1, -1],
+        },
+    ]
+    schema = json_schema(answered)
+    assert set(schema["properties"]) == {"linear", "angular"}  # type: ignore[arg-type]
+    vector = schema["$defs"]["geometry_msgs/Vector3"]  # type: ignore[index]
+    assert set(vector["properties"]) == {"x", "y", "z"}

@@ -43,6 +43,8 @@ async def test_help_documents_every_option() -> None:
         "--log-level",
         "--uvloop",
         "--webrtc",
+        "--mcp",
+        "--mcp-read-only",
     ):
         assert option in text, option
 

@@ -205,6 +205,15 @@ def test_a_missing_interfaces_folder_is_named(tmp_path: Path) -> None:
             ["serve", "--no-websocket", "--tcp-port", "0", "--webrtc"],
             "rwt serve: --webrtc answers on the WebSocket port",
         ),
+        (
+            ["serve", "--no-websocket", "--tcp-port", "0", "--mcp"],
+            "rwt serve: --mcp answers on the WebSocket port",
+        ),
+        (["serve", "--mcp-read-only"], "rwt serve: --mcp-read-only is a setting of --mcp"),
+        (
+            ["serve", "--mcp", "--workers", "2"],
+            "rwt serve: --mcp keeps its sessions in one process",
+        ),
         (["serve", "--log-level", "loud"], "rwt serve: --log-level: 'loud' is not one of"),
         (["serve", "--prot", "1"], "rwt serve: no such option: --prot"),
         (["nosuch"], "rwt: no such command 'nosuch'"),

@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from rwt_ros2.handoff import Handoff
+from rwt_ros2.handoff import TURN_S, Handoff, Sample
 
 pytestmark = pytest.mark.anyio
 
@@ -102,3 +102,97 @@ async def test_what_an_event_that_is_no_sample_congested_holds_nothing() -> None
     assert delivered(gate) == ["reply", "cam 1"]  # no "hold": nothing waited for
     task.cancel()
     handoff.close()
+
+
+class HandClock:
+    """Monotonic seconds the test (or a callback) moves by hand."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _samples(names: list[str], came: list[float], source: bytes) -> list[Sample]:
+    """Samples whose callback gets their name, published at ``came`` by ``source``."""
+    return [((name,), 10, t, source) for name, t in zip(names, came, strict=True)]
+
+
+async def test_a_loop_behind_a_steady_stream_runs_only_the_newest_span() -> None:
+    clock = HandClock()
+    handoff = Handoff(max_wait_s=0.0055, clock=clock)
+    ran: list[str] = []
+    names = [f"s{i}" for i in range(100)]  # 1 kHz for 0.1 s, while the loop was away
+    handoff.put_many(ran.append, _samples(names, [i / 1000 for i in range(100)], b"p"), "/t")
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert ran == [f"s{i}" for i in range(94, 100)]  # 5.5 ms of it, the newest
+    assert handoff.expired == {"/t": 94}
+    assert handoff.queued_bytes == 0
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_burst_within_the_span_reaches_the_loop_whole_however_late() -> None:
+    clock = HandClock()
+    handoff = Handoff(max_wait_s=0.005, clock=clock)
+    ran: list[str] = []
+    names = [f"b{i}" for i in range(300)]
+    handoff.put_many(ran.append, _samples(names, [0.001] * 300, b"p"), "/t")
+    clock.now += 10.0  # the loop comes very late
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert ran == names
+    assert handoff.expired == {}
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_publishers_samples_are_compared_with_its_own_only() -> None:
+    handoff = Handoff(max_wait_s=0.005, clock=HandClock())
+    ran: list[str] = []
+    # two publishers whose clocks are 60 s apart (other hosts): neither outdates the other
+    handoff.put_many(ran.append, _samples(["a0", "a1"], [0.0, 0.001], b"a"), "/t")
+    handoff.put_many(ran.append, _samples(["b0", "b1"], [60.0, 60.001], b"b"), "/t")
+    handoff.put_many(ran.append, _samples(["a2"], [0.002], b"a"), "/t")
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert ran == ["a0", "a1", "b0", "b1", "a2"]
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_turn_runs_samples_for_turn_s_at_most_then_lets_others_run() -> None:
+    clock = HandClock()
+    handoff = Handoff(clock=clock)
+    ran: list[str] = []
+    loop = asyncio.get_running_loop()
+
+    def slow(name: str) -> None:  # each takes 0.45 TURN_S of the loop: 3 fit in a turn
+        ran.append(name)
+        clock.now += TURN_S * 0.45
+        if name == "s0":  # another task's work, due at the loop's next turn
+            loop.call_soon(ran.append, "other")
+
+    names = [f"s{i}" for i in range(10)]
+    handoff.put_many(slow, _samples(names, [0.0] * 10, b"p"), "/t")
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert ran == [*names[:3], "other", *names[3:]]
+    task.cancel()
+    handoff.close()
+
+
+async def test_the_taking_thread_sees_when_the_loop_is_behind() -> None:
+    clock = HandClock()
+    handoff = Handoff(max_wait_s=0.01, clock=clock)
+    assert not handoff.behind()  # nothing queued
+    handoff.put_many(print, [(("x",), 1, 0.0, b"p")], "/t")
+    clock.now += 0.004
+    assert not handoff.behind()  # waiting less than half the span
+    clock.now += 0.002
+    assert handoff.behind()
+    handoff.pause_while_behind()  # returns: it sleeps at most max_wait_s
+    handoff.close()
+    assert not handoff.behind()

@@ -44,6 +44,11 @@ async def run_node(code: str) -> str:
         script.unlink(missing_ok=True)
 
 
+async def run_node_bin(name: str, *args: str) -> str:
+    """Run a command of tests/js/node_modules/.bin (an npm package's CLI); return its stdout."""
+    return await _run([str(JS_DIR / "node_modules" / ".bin" / name), *args], None, JS_DIR)
+
+
 async def _run(cmd: list[str], env: dict[str, str] | None, cwd: Path) -> str:
     full_env = {**os.environ, **(env or {}), "PYTHONPATH": str(REPO / "src")}
     with anyio.fail_after(CLIENT_TIMEOUT_S):

@@ -386,6 +386,11 @@ class SessionBase:
         return self._outbox.dropped
 
     @property
+    def expired_messages(self) -> int:
+        """Of ``dropped_frames``, messages a newer one outdated (``Outbox.expired``)."""
+        return self._outbox.expired
+
+    @property
     def topic_messages(self) -> int:
         """Topic messages queued for the peer so far, those dropped since included."""
         return self._outbox.topic_messages
@@ -417,7 +422,9 @@ class SessionBase:
 
     # ---- what the protocol's handlers use ------------------------------------------
 
-    def send_frames(self, frames: Sequence[OutFrame], topic: str | None = None) -> None:
+    def send_frames(
+        self, frames: Sequence[OutFrame], topic: str | None = None, lifespan: float = 0.0
+    ) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
         Past the limit, the oldest topic messages go (D24); when undroppable
@@ -429,6 +436,8 @@ class SessionBase:
         Args:
             frames: the frames of one message, shared with other connections (never copied).
             topic: the topic of a message, as the peer spells it, for the status of a drop.
+            lifespan: seconds of ``topic``'s messages its queue holds at most
+                (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
         """
         if not self._state.sends:
             return
@@ -443,7 +452,7 @@ class SessionBase:
             return
         was_empty = len(outbox) == 0
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.extend(frames)
+        outbox.extend(frames, self._now, lifespan, topic or "")
         self._watch.after_push(dropped, oversized, self._now, frames, topic)
         if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure

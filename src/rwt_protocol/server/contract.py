@@ -157,5 +157,9 @@ class ServerSession(Protocol):
         """Topic messages dropped so far (the peer read too slowly)."""
 
     @property
+    def expired_messages(self) -> int:
+        """Of ``dropped_frames``, those a newer one outdated (``Outbox.expired``)."""
+
+    @property
     def taken_frames(self) -> int:
         """Frames the transport took so far."""

@@ -28,6 +28,20 @@ A queue may also bound the topic messages it holds by count (``max_messages``:
 a Foxglove client's backlog, as the Foxglove SDK bounds it): past it the
 oldest topic messages go, as past the byte limit. It counts droppable frames,
 so a fragmented message counts each of its parts.
+
+A topic message may also come with a lifespan (``extend``'s ``lifespan``: a
+sample from ROS 2, whose publisher no input backpressure can slow; docs/ros2.md,
+"Latency under rate"): the queue holds at most that span of its ``key``'s (its
+topic's) messages. When a message comes, the messages of its topic that came
+more than their lifespan before it are dropped, wherever they wait (their
+frames are left in place, dead, and skipped when they reach the head: dropping
+stays amortised O(1)), and counted in ``dropped`` and ``expired``. So a reader
+that falls behind a steady stream waits behind at most the lifespan's worth of
+it and gets the newest messages rather than old ones, while a burst that came
+within the lifespan reaches it whole however slowly it reads, and the newest
+message of a topic always stays. Messages without a lifespan (a rosbridge
+client's, which input backpressure paces, replies) never expire: the byte
+bound alone applies.
 """
 
 from __future__ import annotations
@@ -62,6 +76,21 @@ def water_marks(limit_bytes: int) -> tuple[int, int]:
     quarter (docs/limits.md, input backpressure).
     """
     return limit_bytes // 2, limit_bytes // 4
+
+
+class _Timed:
+    """A queued message with a lifespan: shared by the timing entries of its frames."""
+
+    __slots__ = ("came", "cost", "dead", "frames", "key", "lifespan", "queued")
+
+    def __init__(self, came: float, lifespan: float, key: str, frames: int) -> None:
+        self.came = came  # monotonic seconds
+        self.lifespan = lifespan  # seconds
+        self.key = key  # the message's topic
+        self.frames = frames
+        self.cost = 0  # bytes charged for its frames
+        self.dead = False  # dropped for its lifespan; its frames still in the queue
+        self.queued = True  # among its key's (``_by_key``): none of its frames left yet
 
 
 @dataclass(slots=True)
@@ -112,7 +141,9 @@ class Outbox:
             bound); past it the oldest go, the newest always stays.
 
     Attributes:
-        dropped: topic messages dropped so far (a fragmented one counts once).
+        dropped: topic messages dropped so far (a fragmented one counts once),
+            expired ones included.
+        expired: of those, messages dropped for their lifespan (module text).
         dropped_oversized: of those, messages larger than ``limit_bytes`` that
             came while other topic messages were queued.
         topic_messages: topic messages queued so far (a fragmented one counts once),
@@ -155,10 +186,17 @@ class Outbox:
         self.dropped_oversized = 0
         self.topic_messages = 0
         self.taken_frames = 0
+        self.expired = 0
         self._peak = 0  # ``peak_bytes`` before the bytes queued now
+        # Once a message with a lifespan came: one entry per queued frame, in step with
+        # ``_frames`` (None for a frame without one); by key, its messages none of whose
+        # frames has left, oldest first; and how many dead frames wait for the head.
+        self._times: deque[_Timed | None] | None = None
+        self._by_key: dict[str, deque[_Timed]] = {}
+        self._dead_frames = 0
 
     def __len__(self) -> int:
-        return len(self._frames)
+        return len(self._frames) - self._dead_frames
 
     @property
     def queued_bytes(self) -> int:
@@ -224,7 +262,13 @@ class Outbox:
         """Queue ``frame``, dropping the oldest droppable frames if over the bound."""
         self.extend((frame,))
 
-    def extend(self, frames: Sequence[OutFrame]) -> None:
+    def extend(
+        self,
+        frames: Sequence[OutFrame],
+        now: float | None = None,
+        lifespan: float = 0.0,
+        key: str = "",
+    ) -> None:
         """Queue the frames of one message (all its parts), then drop if over the bound.
 
         Queueing every part before dropping lets a message's parts go together.
@@ -232,12 +276,20 @@ class Outbox:
         message is queued, and dropped (``dropped_oversized``) otherwise; while
         one is held, every other topic message is dropped on arrival. The
         frames of one message are all droppable or none.
+
+        Args:
+            frames: the message's frames.
+            now: when the message came (monotonic seconds), for ``lifespan``.
+            lifespan: with ``now``, seconds of ``key``'s topic messages this queue
+                holds at most (module text); 0: no such bound.
+            key: the message's topic, for ``lifespan``.
         """
         if frames and frames[0].droppable:
             self.topic_messages += 1
         if self._held_frames and frames and frames[0].droppable:
             self.dropped += 1  # the queue is full with the held message
             return
+        timed = self._note_timing(frames, now, lifespan, key)
         overhead = self.frame_overhead_bytes
         message = 0
         for frame in frames:
@@ -249,6 +301,11 @@ class Outbox:
                 self._kept_bytes += cost
             else:
                 self._topic_frames += 1
+        if timed is not None:
+            timed.cost = message
+            oldest = self._by_key[key][0]
+            if timed.came - oldest.came > oldest.lifespan:
+                self._expire(key, timed.came)
         if self._bytes > self.limit_bytes:
             if message > self.limit_bytes and frames[0].droppable:
                 self._hold(len(frames), message)
@@ -260,13 +317,15 @@ class Outbox:
     def push_droppable(self, frame: OutFrame) -> None:
         """``push`` one whole topic message (``droppable``, no ``group``): the hot path.
 
-        The same rules as ``extend`` of one frame, in the fewest steps while
-        the queue is within its bounds (a burst's per-message cost).
+        The same rules as ``extend`` of one frame (without a lifespan), in the
+        fewest steps while the queue is within its bounds (a burst's per-message cost).
         """
         self.topic_messages += 1
         if self._held_frames:
             self.dropped += 1  # the queue is full with the held message
             return
+        if self._times is not None:
+            self._times.append(None)
         self._frames.append(frame)
         self._topic_frames += 1
         cost = len(frame.data) + self.frame_overhead_bytes
@@ -287,6 +346,7 @@ class Outbox:
         if self._bytes - cost > self._kept_bytes:  # other topic messages wait: it cannot go
             for _ in range(count):
                 self._frames.pop()
+                self._forget(last=True)
             self._topic_frames -= count
             self._bytes -= cost
             self.dropped += 1
@@ -305,31 +365,38 @@ class Outbox:
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
         queued = self._frames
-        count = len(queued)
+        count = len(queued) - self._dead_frames
         if count and (max_bytes is None or self._bytes - count * overhead <= max_bytes):
             # everything fits (a burst a writer takes whole): no per-frame bookkeeping
-            whole = list(queued)
+            whole = self._live() if self._dead_frames else list(queued)
             queued.clear()
             self._bytes = self._kept_bytes = self._topic_frames = 0
             self._held_frames = self._held_bytes = 0
             self.taken_frames += count
             self._sending_group = None
+            if self._times is not None:
+                self._times.clear()
+                self._by_key.clear()
+                self._dead_frames = 0
             return whole
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
+        self._skip_dead()
         while self._frames and (
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):
             frame = self._frames.popleft()
+            self._forget()
             frames.append(frame)
             taken += len(frame.data)
             if not frame.droppable:
                 self._kept_bytes -= len(frame.data) + overhead
-                continue
-            self._topic_frames -= 1
-            if self._held_frames:  # the first droppable frames are the held message's
-                self._held_frames -= 1
-                self._held_bytes -= len(frame.data) + overhead
+            else:
+                self._topic_frames -= 1
+                if self._held_frames:  # the first droppable frames are the held message's
+                    self._held_frames -= 1
+                    self._held_bytes -= len(frame.data) + overhead
+            self._skip_dead()
         self._bytes -= taken + len(frames) * overhead
         self.taken_frames += len(frames)
         last = frames[-1].group if frames else None
@@ -350,6 +417,8 @@ class Outbox:
 
     def _shed(self) -> None:
         kept: list[OutFrame] = []
+        kept_times: list[_Timed | None] = []
+        times = self._times
         self._peak = max(
             self._peak, self._bytes - len(self._frames[-1].data) - self.frame_overhead_bytes
         )
@@ -359,16 +428,107 @@ class Outbox:
             if self._frames[0] is newest and not self._bytes > self.limit_bytes:
                 break
             frame = self._frames.popleft()
+            timing = self._forget()
+            if timing is not None and timing.dead:
+                continue  # already dropped and uncharged
             if frame.droppable and (frame.group is None or frame.group != self._sending_group):
                 self._drop(frame, groups)
             else:
                 kept.append(frame)
+                kept_times.append(timing)
         # The rest of a message whose first parts were dropped follows right after them.
         while (
             self._frames and self._frames[0].group is not None and self._frames[0].group in groups
         ):
+            self._forget()
             self._drop(self._frames.popleft(), groups)
         self._frames.extendleft(reversed(kept))  # the kept ones keep their place
+        if times is not None:
+            times.extendleft(reversed(kept_times))
+
+    def _expire(self, key: str, newest: float) -> None:
+        """Drop ``key``'s messages that came more than their lifespan before ``newest``.
+
+        They are the oldest of their key; each is looked at once (module text).
+        """
+        waiting = self._by_key[key]
+        while newest - waiting[0].came > waiting[0].lifespan:  # the newest never expires
+            timed = waiting.popleft()
+            timed.dead = True
+            timed.queued = False
+            self._bytes -= timed.cost
+            self._topic_frames -= timed.frames
+            self._dead_frames += timed.frames
+            self.dropped += 1
+            self.expired += 1
+
+    def _note_timing(
+        self, frames: Sequence[OutFrame], now: float | None, lifespan: float, key: str
+    ) -> _Timed | None:
+        """Record the lifespan of the message ``frames`` is about to queue (``extend``).
+
+        Returns:
+            Its record, or None if it has no lifespan.
+        """
+        times = self._times
+        if now is None or lifespan <= 0 or not frames or not frames[0].droppable:
+            if times is not None:
+                times.extend([None] * len(frames))
+            return None
+        if times is None:
+            times = self._times = deque([None] * len(self._frames))
+        timed = _Timed(now, lifespan, key, len(frames))
+        if len(frames) == 1:
+            times.append(timed)
+        else:
+            times.extend([timed] * len(frames))
+        waiting = self._by_key.get(key)
+        if waiting is None:
+            waiting = self._by_key[key] = deque()
+        waiting.append(timed)
+        return timed
+
+    def _forget(self, *, last: bool = False) -> _Timed | None:
+        """The timing of the frame leaving the head (or the tail: ``last``), now gone.
+
+        A live message leaves its key's list as its first frame leaves the
+        queue; a dead frame leaving is one fewer waiting for the head.
+        """
+        times = self._times
+        if times is None:
+            return None
+        timed = times.pop() if last else times.popleft()
+        if timed is None:
+            return None
+        if timed.dead:
+            self._dead_frames -= 1
+        elif timed.queued:
+            timed.queued = False
+            waiting = self._by_key[timed.key]
+            if last:
+                waiting.pop()
+            else:
+                waiting.popleft()  # the oldest of its key: the queue is in order
+            if not waiting:
+                del self._by_key[timed.key]
+        return timed
+
+    def _skip_dead(self) -> None:
+        """Pop the dead frames at the head (their bytes were uncharged when they died)."""
+        times = self._times
+        while self._dead_frames and times and times[0] is not None and times[0].dead:
+            self._frames.popleft()
+            self._forget()
+
+    def _live(self) -> list[OutFrame]:
+        """The queued frames but the dead ones, oldest first."""
+        times = self._times
+        assert times is not None  # (dead frames come only with timings)
+        return [
+            frame
+            for frame, timed in zip(self._frames, times, strict=True)
+            if timed is None or not timed.dead
+        ]
 
     def _drop(self, frame: OutFrame, groups: set[object]) -> None:
         self._bytes -= len(frame.data) + self.frame_overhead_bytes

@@ -547,7 +547,7 @@ class Session(SessionBase):
         elif lossy:
             self._queue_lossy(subscription, frames)
         else:
-            self.send_frames(frames, subscription.spelling)
+            self.send_frames(frames, subscription.spelling, event.lifespan)
 
     def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
         """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.

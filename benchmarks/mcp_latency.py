@@ -1,0 +1,210 @@
+"""B23: MCP tool-call latency, rwt's MCP server against ros-mcp on the same robot.
+
+``python -m benchmarks.mcp_latency [--calls 30]``. One robot (an rwt server with
+``--mcp`` in a process of its own: a latched ``/battery``, a ``/cmd`` subscriber,
+a ``/lights`` service) and three MCP servers in front of it, each driven by the
+official MCP Python client in this process:
+
+- ``rwt serve --mcp``: Streamable HTTP at the robot's own ``/mcp``;
+- ``rwt mcp URL``: stdio, one persistent rosbridge connection;
+- ros-mcp 3.1.2 (``pip install ros-mcp==3.1.2``): stdio, a rosbridge connection
+  per tool call.
+
+Four comparable calls: list the topics, read one latched message, publish one
+message, call a service. Each is timed from the client's ``call_tool`` to its
+answer, ``--calls`` times after two warm-up rounds; the rounds are paced at
+``PACE_S`` so that no call meets rwt's per-tool rate cap (docs/mcp.md). Prints a
+table (p50 and p99 in ms) and writes ``benchmarks/results/mcp_latency.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import AsyncIterator, Callable
+from contextlib import AbstractAsyncContextManager, asynccontextmanager
+from pathlib import Path
+from typing import Any
+
+import anyio
+import httpx
+from mcp import ClientSession, StdioServerParameters
+from mcp.client.stdio import stdio_client
+from mcp.client.streamable_http import streamable_http_client
+
+RESULTS = Path(__file__).resolve().parent / "results"
+SRC = Path(__file__).resolve().parents[1] / "src"
+ENV = {**os.environ, "PYTHONPATH": str(SRC)}
+PACE_S = 0.15
+"""Seconds between two calls of one tool: under rwt's 10 a second (TOOL_CALLS_PER_S)."""
+
+# each call as (rwt's tool, its arguments), (ros-mcp's tool, its arguments)
+CALLS: dict[str, tuple[tuple[str, dict[str, Any]], tuple[str, dict[str, Any]]]] = {
+    "list topics": (("list_topics", {}), ("get_topics", {})),
+    "read a latched message": (
+        ("echo", {"topic": "/battery", "type": "std_msgs/msg/String"}),
+        ("subscribe_once", {"topic": "/battery", "msg_type": "std_msgs/msg/String"}),
+    ),
+    "publish one message": (
+        ("publish", {"topic": "/cmd", "type": "std_msgs/msg/String", "msg": {"data": "go"}}),
+        (
+            "publish_once",
+            {"topic": "/cmd", "msg_type": "std_msgs/msg/String", "msg": {"data": "go"}},
+        ),
+    ),
+    "call a service": (
+        (
+            "call_service",
+            {"service": "/lights", "type": "std_srvs/srv/SetBool", "args": {"data": True}},
+        ),
+        (
+            "call_service",
+            {
+                "service_name": "/lights",
+                "service_type": "std_srvs/srv/SetBool",
+                "request": {"data": True},
+            },
+        ),
+    ),
+}
+
+_ROBOT = """
+import anyio
+from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt.server import McpOptions
+
+async def main() -> None:
+    graph = Graph()
+    graph.create_publisher("/battery", "std_msgs/msg/String", latch=True).publish({"data": "87%"})
+    graph.create_subscription("/cmd", lambda msg: None, "std_msgs/msg/String")
+    graph.create_service("/lights", "std_srvs/srv/SetBool", lambda req: {"success": req["data"]})
+    server = RosbridgeServer(graph, ServerConfig(host="127.0.0.1", port=0, mcp=McpOptions()))
+    await server.serve(on_listening=lambda url: print(url, flush=True))
+
+anyio.run(main)
+"""
+
+
+@asynccontextmanager
+async def robot() -> AsyncIterator[str]:
+    """The robot in a process of its own; its WebSocket URL."""
+    process = subprocess.Popen(  # noqa: ASYNC220 (read once, at start)
+        [sys.executable, "-c", _ROBOT], env=ENV, stdout=subprocess.PIPE, text=True
+    )
+    assert process.stdout is not None
+    with process.stdout:
+        try:
+            yield process.stdout.readline().strip()
+        finally:
+            process.terminate()
+            process.wait(10)
+
+
+@asynccontextmanager
+async def over_http(url: str) -> AsyncIterator[ClientSession]:
+    endpoint = url.replace("ws://", "http://") + "/mcp"
+    async with (
+        httpx.AsyncClient(timeout=httpx.Timeout(30, read=300)) as http,
+        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        ClientSession(read, write) as session,
+    ):
+        await session.initialize()
+        yield session
+
+
+@asynccontextmanager
+async def over_stdio(args: list[str], errlog: Path) -> AsyncIterator[ClientSession]:
+    params = StdioServerParameters(command=sys.executable, args=args, env=ENV)
+    with errlog.open("w") as log:
+        async with (
+            stdio_client(params, errlog=log) as (read, write),
+            ClientSession(read, write) as session,
+        ):
+            await session.initialize()
+            yield session
+
+
+async def measure(session: ClientSession, ros_mcp: bool, calls: int) -> dict[str, list[float]]:
+    """Milliseconds of each call, ``calls`` times each (after two warm-up rounds)."""
+    times: dict[str, list[float]] = {name: [] for name in CALLS}
+    for round_ in range(calls + 2):
+        started = time.perf_counter()
+        for name, pair in CALLS.items():
+            tool, arguments = pair[ros_mcp]
+            began = time.perf_counter()
+            result = await session.call_tool(tool, arguments)
+            elapsed_ms = (time.perf_counter() - began) * 1000
+            text = json.dumps([block.model_dump() for block in result.content])
+            if result.isError or '"error"' in text:
+                raise RuntimeError(f"{tool} failed: {text[:300]}")
+            if round_ >= 2:
+                times[name].append(elapsed_ms)
+        await anyio.sleep(max(0.0, PACE_S - (time.perf_counter() - started)))
+    return times
+
+
+def _p(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+async def main(calls: int) -> dict[str, dict[str, dict[str, float]]]:
+    results: dict[str, dict[str, dict[str, float]]] = {}
+    logs = Path(os.environ.get("TMPDIR", "/tmp"))
+    async with robot() as url:
+        fronts: dict[str, tuple[Callable[[], AbstractAsyncContextManager[ClientSession]], bool]] = {
+            "rwt serve --mcp (HTTP)": (lambda: over_http(url), False),
+            "rwt mcp URL (stdio)": (
+                lambda: over_stdio(["-m", "rwt", "mcp", url], logs / "b23-rwt-mcp.log"),
+                False,
+            ),
+            "ros-mcp 3.1.2 (stdio)": (
+                lambda: over_stdio(["-m", "ros_mcp.main"], logs / "b23-ros-mcp.log"),
+                True,
+            ),
+        }
+        for front, (opened, ros_mcp) in fronts.items():
+            async with opened() as session:
+                if ros_mcp:
+                    port = int(url.rsplit(":", 1)[1])
+                    await session.call_tool("connect_to_robot", {"ip": "127.0.0.1", "port": port})
+                times = await measure(session, ros_mcp, calls)
+            results[front] = {
+                name: {
+                    "p50_ms": statistics.median(values),
+                    "p99_ms": _p(values, 0.99),
+                    "calls": len(values),
+                }
+                for name, values in times.items()
+            }
+            print(f"{front}: done", file=sys.stderr, flush=True)
+    return results
+
+
+def table(results: dict[str, dict[str, dict[str, float]]]) -> str:
+    fronts = list(results)
+    lines = [
+        "| call | " + " | ".join(f"{front} p50 / p99 ms" for front in fronts) + " |",
+        "|---|" + "---|" * len(fronts),
+    ]
+    for name in CALLS:
+        cells = [
+            f"{results[f][name]['p50_ms']:.1f} / {results[f][name]['p99_ms']:.1f}" for f in fronts
+        ]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calls", type=int, default=30, help="timed calls of each tool")
+    options = parser.parse_args()
+    measured = anyio.run(main, options.calls)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "mcp_latency.json").write_text(json.dumps(measured, indent=2) + "\n")
+    print(table(measured))

@@ -1,0 +1,170 @@
+"""What an MCP session may do: access rules, read-only mode, rate and size caps, the write log.
+
+Every tool call passes ``Guard.admit`` before it runs (``tools.build_server``
+wraps each tool): a call refused here is a tool error that names the rule, and
+the robot never hears of it. The rules (docs/mcp.md, "Safety"):
+
+- the server's access globs (``--topics-glob`` and friends, docs/server.md) for
+  the topic, service, action or parameter a tool names (``TOOL_NAMES``);
+- read-only mode (``--mcp-read-only``, ``rwt mcp --read-only``): the tools that
+  change the robot (``WRITE_TOOLS``) are refused;
+- a rate per tool and session (``TOOL_CALLS_PER_S``, a bucket of ``TOOL_BURST``)
+  and a size for a call's arguments (``MAX_TOOL_ARGUMENT_BYTES``);
+- every write is logged with its client, once per episode (``rwt.mcp`` logger).
+
+No I/O: the time comes from ``clock``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from mcp.server.fastmcp.exceptions import ToolError
+
+from rwt_graph.ratelog import EpisodeLog
+
+__all__ = [
+    "MAX_TOOL_ARGUMENT_BYTES",
+    "TOOL_BURST",
+    "TOOL_CALLS_PER_S",
+    "TOOL_NAMES",
+    "WRITE_TOOLS",
+    "AccessCheck",
+    "Guard",
+]
+
+logger = logging.getLogger("rwt.mcp")
+
+#: Calls a second one session may make of one tool, on average; more is a tool error.
+TOOL_CALLS_PER_S = 10.0
+#: Calls of one tool a session may make at once after a quiet spell (the bucket's size).
+TOOL_BURST = 10
+#: A call's arguments, as JSON, in bytes: a larger call is a tool error.
+MAX_TOOL_ARGUMENT_BYTES = 64 * 1024
+#: The tools that change the robot: refused in read-only mode, logged when they run.
+WRITE_TOOLS = frozenset(
+    {
+        "publish",
+        "publish_for",
+        "call_service",
+        "send_action_goal",
+        "cancel_action_goal",
+        "set_parameter",
+    }
+)
+#: For each tool that names something: the access family and the argument naming it.
+TOOL_NAMES: Mapping[str, tuple[str, str]] = {
+    "echo": ("topics", "topic"),
+    "publish": ("topics", "topic"),
+    "publish_for": ("topics", "topic"),
+    "call_service": ("services", "service"),
+    "send_action_goal": ("actions", "action"),
+    "cancel_action_goal": ("actions", "action"),
+    "get_parameter": ("params", "name"),
+    "set_parameter": ("params", "name"),
+}
+
+AccessCheck = Callable[[str, str], str | None]
+"""``(family, name) -> refusal``: the rule refusing ``name`` (``--topics-glob [/robot/*]``),
+or None if allowed; ``family`` is ``topics``, ``services``, ``actions`` or ``params``."""
+
+
+@dataclass
+class _Bucket:
+    tokens: float
+    at: float
+
+
+@dataclass
+class Guard:
+    """One MCP session's rules, checked before each tool runs.
+
+    Attributes:
+        client: who the session is, for the write log (``mcp:127.0.0.1:5123#3``).
+        read_only: refuse ``WRITE_TOOLS``.
+        access: the server's access rules; None allows every name.
+        clock: monotonic seconds.
+    """
+
+    client: str = "stdio"
+    read_only: bool = False
+    access: AccessCheck | None = None
+    clock: Callable[[], float] = time.monotonic
+    _buckets: dict[str, _Bucket] = field(default_factory=dict, repr=False)
+    _writes: EpisodeLog = field(default_factory=lambda: EpisodeLog(logger), repr=False)
+
+    def admit(self, tool: str, arguments: Mapping[str, object]) -> None:
+        """Let a call of ``tool`` with ``arguments`` run, or refuse it.
+
+        Raises:
+            ToolError: read-only mode and a write; a name the access rules refuse;
+                the arguments over ``MAX_TOOL_ARGUMENT_BYTES``; the tool called
+                faster than ``TOOL_CALLS_PER_S``. The text names the rule.
+        """
+        if self.read_only and tool in WRITE_TOOLS:
+            raise ToolError(f"{tool}: refused, the MCP server is read-only (--mcp-read-only)")
+        self._check_size(tool, arguments)
+        self.check_name(tool, arguments)
+        self._check_rate(tool)
+        if tool in WRITE_TOOLS:
+            family_field = TOOL_NAMES.get(tool)
+            target = arguments.get(family_field[1]) if family_field else None
+            self._writes.log(
+                logging.INFO,
+                f"{tool}:{target}",
+                "event=mcp_write client=%s tool=%s target=%s",
+                self.client,
+                tool,
+                target,
+            )
+
+    def check_name(self, tool: str, arguments: Mapping[str, object]) -> None:
+        """Refuse a call naming a topic, service, action or parameter the rules refuse.
+
+        Raises:
+            ToolError: ``<field> <name>: refused by <rule>``.
+        """
+        entry = TOOL_NAMES.get(tool)
+        if entry is None or self.access is None:
+            return
+        family, name_field = entry
+        name = arguments.get(name_field)
+        if isinstance(name, str):
+            self.check_access(family, name, name_field)
+
+    def check_access(self, family: str, name: str, what: str) -> None:
+        """Refuse ``name`` of ``family`` if the access rules do.
+
+        Raises:
+            ToolError: ``<what> <name>: refused by <rule>``.
+        """
+        if self.access is None:
+            return
+        refusal = self.access(family, name)
+        if refusal is not None:
+            raise ToolError(f"{what} {name}: refused by {refusal}")
+
+    def _check_size(self, tool: str, arguments: Mapping[str, object]) -> None:
+        size = len(json.dumps(arguments, default=repr).encode())
+        if size > MAX_TOOL_ARGUMENT_BYTES:
+            raise ToolError(
+                f"{tool}: the arguments are {size} bytes, over {MAX_TOOL_ARGUMENT_BYTES}"
+                " (MAX_TOOL_ARGUMENT_BYTES)"
+            )
+
+    def _check_rate(self, tool: str) -> None:
+        """A token bucket per tool: ``TOOL_BURST`` calls, refilled at ``TOOL_CALLS_PER_S``."""
+        now = self.clock()
+        bucket = self._buckets.setdefault(tool, _Bucket(float(TOOL_BURST), now))
+        bucket.tokens = min(TOOL_BURST, bucket.tokens + (now - bucket.at) * TOOL_CALLS_PER_S)
+        bucket.at = now
+        if bucket.tokens < 1:
+            raise ToolError(
+                f"{tool}: called more than {TOOL_CALLS_PER_S:g} times a second"
+                " (TOOL_CALLS_PER_S): wait and call again"
+            )
+        bucket.tokens -= 1

@@ -1,0 +1,476 @@
+"""MCP over Streamable HTTP on the WebSocket port (``rwt serve --mcp``, docs/mcp.md).
+
+An MCP client posts JSON-RPC to ``/mcp`` (``mcp_options.MCP_PATH``); the
+WebSocket listener hands such a request here (``claims``). Each MCP session is
+one rosbridge session of the server, opened in-process (``open_session`` with
+transport ``mcp``): it is admitted as every connection is (``--max-connections``,
+the host's share), runs under the same per-client limits, idle rules and access
+rules, and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s) drive it
+through rwt's client over a memory connection. The official MCP SDK answers the
+protocol (its ``StreamableHTTPServerTransport``, driven as an ASGI app over the
+request's socket; h11 parses the request). A refused session gets 503 and no
+MCP session.
+
+Safety (docs/mcp.md, "Safety"): with ``--auth-secret-file`` a new session needs
+``Authorization: Bearer <token>``, a live token of ``/rwt/video_token`` (else
+401), and every later request of the session the same header; a request's body
+is at most ``MAX_REQUEST_BYTES`` (413), a session has at most
+``MAX_REQUESTS_IN_FLIGHT`` requests at once (429); ``--allowed-origins`` applies
+(403). Each tool call passes the session's ``rwt_mcp.guard.Guard``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fnmatch
+import hmac
+import logging
+import uuid
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import anyio
+import h11
+from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
+from mcp.server.transport_security import TransportSecuritySettings
+
+from rwt_client import Ros
+from rwt_client.connectors import ConnectionClosedError
+from rwt_mcp.guard import Guard
+from rwt_mcp.link import RobotLink
+from rwt_mcp.tools import build_server, initialization_options
+
+from .mcp_options import MCP_PATH, McpOptions
+from .memory import MemoryConnection, memory_pair
+from .pump import ConnectionPump, run_connection
+from .webrtc_signal import read_request, reply
+
+if TYPE_CHECKING:
+    from collections.abc import AsyncIterator, Callable
+
+    from anyio.abc import ByteStream, TaskGroup, TaskStatus
+
+    from rwt_protocol.server.contract import ServerSession
+
+    from .server import RosbridgeServer
+
+__all__ = ["MAX_REQUESTS_IN_FLIGHT", "MAX_REQUEST_BYTES", "McpEndpoint"]
+
+logger = logging.getLogger("rwt.mcp")
+
+MAX_REQUEST_BYTES = 1024 * 1024
+"""Largest body of a request to ``/mcp`` (one JSON-RPC message or batch): 413."""
+MAX_REQUESTS_IN_FLIGHT = 8
+"""Requests of one MCP session served at once (its event stream counts); one more: 429."""
+
+_METHODS = (b"POST", b"GET", b"DELETE", b"OPTIONS")
+_READ_SIZE = 65536
+_CORS = [
+    (b"Access-Control-Allow-Methods", b"POST, GET, DELETE, OPTIONS"),
+    (
+        b"Access-Control-Allow-Headers",
+        b"Authorization, Content-Type, Accept, Mcp-Session-Id, Mcp-Protocol-Version, Last-Event-ID",
+    ),
+    (b"Access-Control-Expose-Headers", b"Mcp-Session-Id"),
+    (b"Access-Control-Max-Age", b"600"),
+]
+# our own Origin check (--allowed-origins) replaces the SDK's Host check
+_NO_SDK_CHECK = TransportSecuritySettings(enable_dns_rebinding_protection=False)
+
+
+def _not_a_closed_event_stream(record: logging.LogRecord) -> bool:
+    """Drop the SDK's traceback for an event stream its own ``terminate`` closed.
+
+    A client's ``DELETE`` while its event stream (GET) is open makes the SDK's
+    transport close that stream under its writer, which logs the end as an
+    error with a traceback (mcp 1.x); it is the session's normal end.
+    """
+    closed = record.exc_info is not None and isinstance(
+        record.exc_info[1], anyio.ClosedResourceError
+    )
+    return not (closed and record.getMessage() == "Error in standalone SSE writer")
+
+
+logging.getLogger("mcp.server.streamable_http").addFilter(_not_a_closed_event_stream)
+
+
+@dataclass
+class _Session:
+    """One MCP session: its transport, the token that opened it, requests in flight."""
+
+    transport: StreamableHTTPServerTransport
+    token: str | None
+    client_id: str
+    in_flight: int = 0
+
+
+class _InProcess:
+    """A memory connection as ``rwt_client``'s ``Connection``."""
+
+    def __init__(self, url: str, connection: MemoryConnection) -> None:
+        self.url = url
+        self.connection = connection
+
+    async def send(self, frame: str | bytes) -> None:
+        try:
+            await self.connection.send_frame(frame, binary=isinstance(frame, bytes))
+        except (anyio.ClosedResourceError, anyio.BrokenResourceError):
+            raise ConnectionClosedError(self._why()) from None
+
+    async def receive(self) -> str | bytes:
+        try:
+            return await self.connection.receive_frame()
+        except (anyio.EndOfStream, anyio.ClosedResourceError, anyio.BrokenResourceError):
+            raise ConnectionClosedError(self._why()) from None
+
+    async def aclose(self) -> None:
+        await self.connection.aclose()
+
+    def _why(self) -> str:
+        reason = self.connection.channel.close_reason
+        return f"the server closed the MCP session's connection: {reason or 'closed'}"
+
+
+@dataclass
+class _Admitted:
+    """A rosbridge session admitted for a new MCP session, not yet running."""
+
+    pump: ConnectionPump
+    session: ServerSession
+    connection: MemoryConnection
+
+    @asynccontextmanager
+    async def client(self) -> AsyncIterator[Ros]:
+        """Run the session's pump; yield a client of it (connect it before use)."""
+        url = f"mcp:{self.session.client_id}"
+        connection = _InProcess(url, self.connection)
+
+        async def connector() -> _InProcess:
+            return connection
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(run_connection, self.pump, self.session)
+            try:
+                yield Ros(url, reconnect=False, connector=connector)
+            finally:
+                await _close_pair(self.connection)
+
+
+async def _close_pair(connection: MemoryConnection) -> None:
+    """Close both ends of an in-process connection (the server's too, if its pump did not)."""
+    await connection.aclose()
+    connection.channel.inbound.close()
+    connection.channel.outbound.close()
+
+
+class McpEndpoint:
+    """Answers MCP requests on the WebSocket port (``/mcp``).
+
+    Args:
+        server: admits the sessions and holds the access rules.
+        options: the MCP settings.
+        allowed_origins: fnmatch patterns of accepted ``Origin`` headers
+            (``--allowed-origins``); empty: any origin.
+        access: the server's access rules as ``rwt_mcp.guard.AccessCheck``; None: none.
+    """
+
+    def __init__(
+        self,
+        server: RosbridgeServer,
+        options: McpOptions,
+        allowed_origins: tuple[str, ...] = (),
+        access: Callable[[str, str], str | None] | None = None,
+    ) -> None:
+        self.server = server
+        self.options = options
+        self.allowed_origins = allowed_origins
+        self.access = access
+        self.auth_required = server.session_config.authenticator is not None
+        self.sessions: dict[str, _Session] = {}
+        self._tg: TaskGroup | None = None
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Run sessions in ``tg`` (the server's connections); None: open no new ones."""
+        self._tg = tg
+
+    @staticmethod
+    def claims(head: bytes) -> bool | None:
+        """Whether the request starting with ``head`` is MCP's; None: too short to tell."""
+        path = MCP_PATH.encode()
+        for method in _METHODS:
+            prefix = method + b" " + path
+            if len(head) <= len(prefix):
+                if prefix.startswith(head):
+                    return None
+                continue
+            if head.startswith(prefix):
+                return head[len(prefix) : len(prefix) + 1] in (b" ", b"?")
+        return False
+
+    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
+        """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
+
+        The caller bounds the time until the request is read (the handshake
+        timeout); an admitted request then runs as long as MCP needs (an event
+        stream, a long tool call), bounded per session by ``MAX_REQUESTS_IN_FLIGHT``.
+        """
+        conn = h11.Connection(h11.SERVER)
+        conn.receive_data(head)
+        try:
+            request, body = await read_request(conn, stream, MAX_REQUEST_BYTES)
+        except h11.RemoteProtocolError as exc:
+            await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
+            return
+        if request is None:
+            return
+        if body is None:
+            await reply(conn, stream, 413, f"the request is over {MAX_REQUEST_BYTES} bytes", [])
+            return
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
+        cors = self._cors(headers.get("origin"))
+        if cors is None:
+            await reply(conn, stream, 403, f"origin {headers.get('origin')} is not allowed", [])
+            return
+        refusal = self._refusal(request, headers)
+        if refusal is not None:
+            logger.info("event=mcp_refused peer=%s status=%d reason=%r", peer, *refusal)
+            extra = [(b"WWW-Authenticate", b"Bearer")] if refusal[0] == 401 else []
+            await reply(conn, stream, refusal[0], refusal[1], cors + extra)
+            return
+        if request.method == b"OPTIONS":
+            await reply(conn, stream, 204, "", cors)
+            return
+        exchange = _Exchange(conn, stream, request, body, peer, cors)
+        session_id = headers.get(MCP_SESSION_ID_HEADER)
+        if session_id is None:
+            await self._open(exchange, _bearer(headers))
+        else:
+            await self._continue(exchange, self.sessions[session_id])
+
+    def _refusal(self, request: h11.Request, headers: dict[str, str]) -> tuple[int, str] | None:
+        """Why the request is refused before MCP sees it (status, text), or None."""
+        path = request.target.decode("latin-1").split("?", 1)[0]
+        if path != MCP_PATH:
+            return 404, f"the MCP endpoint is {MCP_PATH}, not {path}"
+        if request.method == b"OPTIONS":
+            return None
+        session_id = headers.get(MCP_SESSION_ID_HEADER)
+        token = _bearer(headers)
+        if session_id is None:
+            if request.method != b"POST":
+                return 400, f"no {MCP_SESSION_ID_HEADER}: POST an initialize request first"
+            if self.auth_required:
+                check = self.options.bearer_token
+                if token is None or check is None or not check(token):
+                    return 401, "a bearer token is needed: call /rwt/video_token for one"
+            return None
+        session = self.sessions.get(session_id)
+        if session is None:
+            return 404, f"no MCP session {session_id[:64]}: initialize a new one"
+        if session.token is not None and (
+            token is None or not hmac.compare_digest(token.encode(), session.token.encode())
+        ):
+            return 401, "the bearer token is not the one that opened this MCP session"
+        if session.in_flight >= MAX_REQUESTS_IN_FLIGHT:
+            return 429, f"{MAX_REQUESTS_IN_FLIGHT} requests of this MCP session are in flight"
+        return None
+
+    def _cors(self, origin: str | None) -> list[tuple[bytes, bytes]] | None:
+        """The CORS headers for ``origin``; None if ``--allowed-origins`` refuses it."""
+        if origin is None:
+            return []
+        patterns = self.allowed_origins
+        if patterns and not any(fnmatch.fnmatchcase(origin, p) for p in patterns):
+            return None
+        return [(b"Access-Control-Allow-Origin", origin.encode("latin-1")), *_CORS]
+
+    async def _open(self, exchange: _Exchange, token: str | None) -> None:
+        """A request without a session: admit a new session and let it answer (initialize)."""
+        tg = self._tg
+        admitted = None if tg is None else await self._admit(exchange.peer)
+        if tg is None or admitted is None:
+            await exchange.refuse(503, "too many connections")
+            return
+        transport = StreamableHTTPServerTransport(
+            mcp_session_id=uuid.uuid4().hex,
+            security_settings=_NO_SDK_CHECK,
+            idle_timeout=self.options.idle_s,
+        )
+        session_id = transport.mcp_session_id
+        assert session_id is not None  # given just above
+        session = _Session(
+            transport, token if self.auth_required else None, admitted.session.client_id
+        )
+        self.sessions[session_id] = session
+        established = False
+        try:
+            await tg.start(self._run, session_id, session, admitted)
+            status = await self._handle(exchange, session)
+            established = status is not None and status < 400
+        finally:
+            if not established:
+                await self._discard(session_id)
+
+    async def _admit(self, peer: str) -> _Admitted | None:
+        """The server's admission for a new MCP session: an in-process rosbridge session."""
+        channel, connection = memory_pair()
+        channel.transport = "mcp"  # in the logs: an MCP session's connection
+        pump = ConnectionPump(channel, self.server.flow, self.server.admission)
+        session = self.server.open_session("mcp", peer, pump.wake, authenticated=True)
+        if session is None:
+            await _close_pair(connection)
+            return None
+        return _Admitted(pump, session, connection)
+
+    async def _continue(self, exchange: _Exchange, session: _Session) -> None:
+        """A request of a session: the socket joins it (no handshake deadline), MCP answers."""
+        self.server.adopt_socket()
+        await self._handle(exchange, session)
+        if session.transport.is_terminated and session.transport.mcp_session_id:
+            await self._discard(session.transport.mcp_session_id)  # the client's DELETE
+
+    async def _handle(self, exchange: _Exchange, session: _Session) -> int | None:
+        session.in_flight += 1
+        try:
+            return await exchange.run(session.transport.handle_request)
+        finally:
+            session.in_flight -= 1
+
+    async def _run(
+        self,
+        session_id: str,
+        session: _Session,
+        admitted: _Admitted,
+        *,
+        task_status: TaskStatus[None],
+    ) -> None:
+        """One MCP session, to its end (DELETE, idle, the server stopping, its connection gone)."""
+        started = False
+        try:
+            async with admitted.client() as ros:
+                link = RobotLink(ros.url, ros)
+                await link.connect(anyio.Event())
+                guard = Guard(session.client_id, self.options.read_only, self.access)
+                mcp = build_server(link, guard)
+                try:
+                    async with session.transport.connect() as (read, write):
+                        task_status.started()
+                        started = True
+                        await _serve_until_idle(mcp, session.transport, read, write)
+                finally:
+                    await link.close()
+        except Exception:  # a bug ends this session only
+            logger.exception("event=bug task=mcp_session client=%s", session.client_id)
+        finally:
+            if not started:
+                task_status.started()
+            await self._discard(session_id)
+
+    async def _discard(self, session_id: str) -> None:
+        """Forget the session (its id answers 404 from now) and end its transport."""
+        session = self.sessions.pop(session_id, None)
+        if session is not None:
+            with anyio.CancelScope(shield=True):
+                await session.transport.terminate()
+
+
+async def _serve_until_idle(
+    mcp: Any, transport: StreamableHTTPServerTransport, read: Any, write: Any
+) -> None:
+    """Run the MCP server on the transport's streams until it ends or goes idle."""
+    async with anyio.create_task_group() as tg:
+        idle = transport.idle_scope
+        if idle is not None:
+
+            async def end_when_idle(scope: anyio.CancelScope) -> None:
+                with scope:
+                    await anyio.sleep_forever()
+                tg.cancel_scope.cancel()  # no request for the idle time: the session ends
+
+            tg.start_soon(end_when_idle, idle)
+        await mcp._mcp_server.run(read, write, initialization_options(mcp), stateless=False)
+        tg.cancel_scope.cancel()
+
+
+def _bearer(headers: dict[str, str]) -> str | None:
+    """The token of ``Authorization: Bearer <token>``, or None."""
+    scheme, _, token = headers.get("authorization", "").partition(" ")
+    return token.strip() or None if scheme.lower() == "bearer" else None
+
+
+class _Exchange:
+    """One HTTP request read, answered by an ASGI app over its socket (``Connection: close``)."""
+
+    def __init__(
+        self,
+        conn: h11.Connection,
+        stream: ByteStream,
+        request: h11.Request,
+        body: bytes,
+        peer: str,
+        cors: list[tuple[bytes, bytes]],
+    ) -> None:
+        self.conn, self.stream, self.request, self.body = conn, stream, request, body
+        self.peer, self.cors = peer, cors
+        self.status: int | None = None
+
+    async def refuse(self, status: int, text: str) -> None:
+        logger.info("event=mcp_refused peer=%s status=%d reason=%r", self.peer, status, text)
+        await reply(self.conn, self.stream, status, text, self.cors)
+
+    async def run(self, app: Callable[..., Any]) -> int | None:
+        """Run ``app`` (ASGI 3) for the request; the response's status, None if none was sent."""
+        target = self.request.target.decode("latin-1")
+        path, _, query = target.partition("?")
+        host, _, port = self.peer.rpartition(":")
+        scope = {
+            "type": "http",
+            "asgi": {"version": "3.0", "spec_version": "2.3"},
+            "http_version": "1.1",
+            "method": self.request.method.decode(),
+            "scheme": "http",
+            "path": path,
+            "raw_path": path.encode("latin-1"),
+            "query_string": query.encode("latin-1"),
+            "root_path": "",
+            "headers": [(k.lower(), v) for k, v in self.request.headers],
+            "client": (host.strip("[]"), int(port) if port.isdigit() else 0),
+            "server": None,
+        }
+        with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+            await app(scope, self._receive, self._send)
+        return self.status
+
+    async def _receive(self) -> dict[str, Any]:
+        """The body, then (waiting on the socket) the client's disconnect."""
+        if self.body is not None:
+            body, self.body = self.body, None  # type: ignore[assignment]
+            return {"type": "http.request", "body": body, "more_body": False}
+        while True:  # bytes after the request are dropped: one request per connection
+            try:
+                await self.stream.receive(_READ_SIZE)
+            except (
+                anyio.EndOfStream,
+                anyio.BrokenResourceError,
+                anyio.ClosedResourceError,
+                OSError,
+            ):
+                return {"type": "http.disconnect"}
+
+    async def _send(self, message: dict[str, Any]) -> None:
+        if message["type"] == "http.response.start":
+            self.status = int(message["status"])
+            kept = [(k, v) for k, v in message.get("headers", []) if k.lower() != b"connection"]
+            fields = [*kept, *self.cors, (b"Connection", b"close")]  # one request a connection
+            data = self.conn.send(h11.Response(status_code=self.status, headers=fields))
+        elif message["type"] == "http.response.body":
+            data = b""
+            if message.get("body"):
+                data += self.conn.send(h11.Data(data=message["body"])) or b""
+            if not message.get("more_body", False):
+                data += self.conn.send(h11.EndOfMessage()) or b""
+        else:
+            return
+        if data:
+            await self.stream.send(data)
