@@ -1,30 +1,33 @@
-"""A 1 kHz topic to a browser behind a WAN link: the rosbridge data channel against the WebSocket.
+"""A 1 kHz topic and a 30 Hz camera to a browser behind a WAN link, over each transport.
 
-The robot (an in-process ``RosbridgeServer`` with ``--webrtc``, publishing
-``std_msgs/String`` at ``--rate`` Hz whose data is its send time) and the
-browser (one subscriber per transport, run one after the other) are in two
-network namespaces joined by benchmarks/wanlink.py (30 ms +- 10 ms each way, 2 %
-loss, 15 Mbit/s by default). Per transport: messages delivered a second (the
-topic's rate when it keeps up), messages the server dropped for the session
-(its slow-consumer rule, D24), the age of each message when it arrived (receive
-time - send time, the same clock: one machine) at p50 and p99, and the longest
-stall (the longest time between two messages, where 1 ms is expected; a lost
-packet on a reliable, ordered transport stalls everything behind it until its
-retransmission arrives).
+The robot (an in-process ``RosbridgeServer`` with ``--webrtc`` and the video server,
+publishing ``std_msgs/String`` at ``--rate`` Hz whose data is its send time, and a 30 Hz
+640x480 camera, ``CAMERA``) and the browser (one subscriber per transport, run one after
+the other) are in two network namespaces joined by benchmarks/wanlink.py (30 ms +- 10 ms
+each way, 2 % loss, 15 Mbit/s by default).
 
-Transports: ``websocket`` (TCP), ``webrtc`` (the ``rosbridge`` data channel,
-reliable and ordered: SCTP over DTLS over UDP), and ``video``: the robot's 30 Hz
-640x480 camera (``CAMERA``) played as a VP8 video track (docs/webrtc.md), whose
-figures are decoded frames a second and the longest stall (a frame carries no send
-time). A message transport is a function from (server address, topic) to an async
-iterator of raw messages in ``TRANSPORTS``: the lossy data channel gets its row by
-adding its client there.
+The topic's transports (``TRANSPORTS``): ``websocket`` (TCP), ``webrtc`` (the
+``rosbridge`` data channel, reliable and ordered: SCTP over DTLS over UDP) and
+``webrtc-lossy`` (subscribed on the ``rosbridge-lossy`` channel: unordered, never
+retransmitted, the newest message of the topic; docs/webrtc.md). Per transport: messages
+delivered a second, messages the server dropped for the session (its slow-consumer rule,
+D24), the age of each message when it arrived (receive time - send time, the same clock:
+one machine) at p50 and p99, and the longest stall (the longest time between two
+messages, where 1 ms is expected).
+
+The camera's transports (``PICTURES``): ``vp8`` and ``h264`` (video tracks,
+docs/webrtc.md), ``mjpeg`` (the video server's ``/stream``, as an ``<img>`` shows it) and
+``cbor-image`` (a rosbridge subscription with ``compression: cbor`` over the WebSocket, as
+a roslib page makes it). Each picture carries its publish time painted in as blocks
+(``stamp_picture``), read back from the decoded picture (``read_stamp``): pictures a
+second, their age at p50 and p99, the longest stall, and pictures whose stamp did not read.
 
 Run (root, network namespaces; a few seconds a transport)::
 
-    nice -n 10 python -m benchmarks.wan_topic --duration 15 [--transport webrtc ...]
+    nice -n 10 python -m benchmarks.wan_topic --duration 12 [--transport webrtc ...] [--trace-sctp]
 
-Results: a table on stdout and ``benchmarks/results/wan_topic.json``.
+Results: a table on stdout and ``benchmarks/results/wan_topic.json``; ``--trace-sctp``
+puts aiortc's SCTP state in the robot's log each second (benchmarks/sctp_trace.py).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zlib
 from collections.abc import AsyncIterator, Callable
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -58,6 +62,8 @@ WARMUP_S = 2.0
 
 CAMERA = "/wan_camera"
 CAMERA_HZ = 30.0
+VIDEO_PORT = 8080
+"""The robot's video server (MJPEG over HTTP, ``rwt serve --video``)."""
 CONNECT_BOUND_S = 60.0
 """Longest wait for the first message: a failure bound, not a measurement."""
 
@@ -78,6 +84,17 @@ async def _websocket(base: str, topic: str) -> AsyncIterator[str | bytes]:
 
 
 async def _webrtc(base: str, topic: str) -> AsyncIterator[str | bytes]:
+    async for message in _data_channel(base, topic, lossy=False):
+        yield message
+
+
+async def _webrtc_lossy(base: str, topic: str) -> AsyncIterator[str | bytes]:
+    async for message in _data_channel(base, topic, lossy=True):
+        yield message
+
+
+async def _data_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[str | bytes]:
+    """The topic over ``rosbridge``, or subscribed on ``rosbridge-lossy`` (docs/webrtc.md)."""
     import httpx  # noqa: PLC0415 (the browser process only)
     from aiortc import (  # noqa: PLC0415
         RTCConfiguration,
@@ -86,17 +103,20 @@ async def _webrtc(base: str, topic: str) -> AsyncIterator[str | bytes]:
     )
 
     pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    channel = pc.createDataChannel("rosbridge")
+    channels = [pc.createDataChannel("rosbridge")]
+    if lossy:  # the settings the server keeps the channel for (D36)
+        channels.append(pc.createDataChannel("rosbridge-lossy", ordered=False, maxRetransmits=0))
     inbox: list[str | bytes] = []
     arrived = anyio.Event()
-    opened = anyio.Event()
+    opened = [anyio.Event() for _ in channels]
 
     def on_message(message: str | bytes) -> None:
         inbox.append(message)
         arrived.set()
 
-    channel.on("open", opened.set)
-    channel.on("message", on_message)
+    for channel, event in zip(channels, opened, strict=True):
+        channel.on("open", event.set)
+    channels[-1].on("message", on_message)
     try:
         await pc.setLocalDescription(await pc.createOffer())
         async with httpx.AsyncClient() as http:
@@ -108,8 +128,11 @@ async def _webrtc(base: str, topic: str) -> AsyncIterator[str | bytes]:
         reply.raise_for_status()
         await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
         with anyio.fail_after(20):
-            await opened.wait()
-        channel.send(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"}))
+            for event in opened:
+                await event.wait()
+        channels[-1].send(
+            json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
+        )
         while True:
             await arrived.wait()
             arrived = anyio.Event()
@@ -120,8 +143,12 @@ async def _webrtc(base: str, topic: str) -> AsyncIterator[str | bytes]:
         await pc.close()
 
 
-TRANSPORTS: dict[str, Transport] = {"websocket": _websocket, "webrtc": _webrtc}
-"""The browser's transports by name; the lossy channel and video tracks add theirs here."""
+TRANSPORTS: dict[str, Transport] = {
+    "websocket": _websocket,
+    "webrtc": _webrtc,
+    "webrtc-lossy": _webrtc_lossy,
+}
+"""The browser's transports of the 1 kHz topic by name."""
 
 
 async def browse(transport: str, duration: float) -> dict[str, Any]:
@@ -160,12 +187,61 @@ async def browse(transport: str, duration: float) -> dict[str, Any]:
     }
 
 
-async def browse_video(duration: float) -> dict[str, Any]:
-    """Play ``CAMERA`` as a VP8 video track for ``duration`` s from its first frame.
+# ---- the camera's pictures, each stamped with its publish time ---------------------
 
-    The figures are decoded frames a second and the longest time between two; a
-    frame's age would need a send time in the picture, so there is none.
+STAMP_BLOCK = 32
+"""Side of one block of the stamp, px: two macroblocks of VP8 and H.264 (16 px) wide, so
+each block is flat inside its own blocks and survives compression."""
+STAMP_BITS = 32
+"""The publish time in ms modulo 2**32 (49 days), then an 8-bit check of it."""
+_BLOCKS_PER_ROW = 20  # 640 px / 32 px: the stamp is the top 64 rows of the picture
+
+
+def stamp_picture(pixels: Any, now: float) -> None:
+    """Paint ``now`` (s, ``time.time()``) into ``pixels`` (rgb8, at least 640 wide) in place.
+
+    Blocks of ``STAMP_BLOCK`` px, black for 0 and white for 1: the low ``STAMP_BITS`` of
+    the time in ms, most significant first, then ``zlib.crc32`` of it (8 bits), two rows.
     """
+    value = int(now * 1000) % (1 << STAMP_BITS)
+    for index, bit in enumerate(_stamp_bits(value)):
+        row, column = divmod(index, _BLOCKS_PER_ROW)
+        y, x = row * STAMP_BLOCK, column * STAMP_BLOCK
+        pixels[y : y + STAMP_BLOCK, x : x + STAMP_BLOCK] = 255 if bit else 0
+
+
+def read_stamp(gray: Any, now: float) -> float | None:
+    """The publish time painted by ``stamp_picture`` into a decoded picture, s; None when
+    its check fails (a picture too damaged to read). ``gray``: (height, width) luminance.
+    ``now`` (s) gives the high bits the stamp leaves out.
+    """
+    half, quarter = STAMP_BLOCK // 2, STAMP_BLOCK // 4
+    bits = []
+    for index in range(STAMP_BITS + 8):
+        row, column = divmod(index, _BLOCKS_PER_ROW)
+        y, x = row * STAMP_BLOCK + half, column * STAMP_BLOCK + half
+        centre = gray[y - quarter : y + quarter, x - quarter : x + quarter]
+        bits.append(int(centre.mean() > 128))
+    value = int("".join(map(str, bits[:STAMP_BITS])), 2)
+    if bits != _stamp_bits(value):
+        return None
+    now_ms = int(now * 1000)
+    age_ms = (now_ms - value) % (1 << STAMP_BITS)
+    return (now_ms - age_ms) / 1000
+
+
+def _stamp_bits(value: int) -> list[int]:
+    check = zlib.crc32(value.to_bytes(4, "big")) & 0xFF
+    word = (value << 8) | check
+    return [(word >> shift) & 1 for shift in range(STAMP_BITS + 7, -1, -1)]
+
+
+Pictures = AsyncIterator[Any]
+"""A picture transport's decoded pictures, each as (height, width) luminance."""
+
+
+async def _video_track(codec: str) -> Pictures:
+    """``CAMERA`` played as a video track in ``codec`` (``VP8``, ``H264``)."""
     import httpx  # noqa: PLC0415 (the browser process only)
     from aiortc import (  # noqa: PLC0415
         RTCConfiguration,
@@ -175,8 +251,9 @@ async def browse_video(duration: float) -> dict[str, Any]:
     )
 
     pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    vp8 = [c for c in RTCRtpReceiver.getCapabilities("video").codecs if c.mimeType == "video/VP8"]
-    pc.addTransceiver("video", direction="recvonly").setCodecPreferences(vp8)
+    codecs = RTCRtpReceiver.getCapabilities("video").codecs
+    chosen = [c for c in codecs if c.mimeType == f"video/{codec}"]
+    pc.addTransceiver("video", direction="recvonly").setCodecPreferences(chosen)
     tracks: list[Any] = []
     got_track = anyio.Event()
 
@@ -185,8 +262,6 @@ async def browse_video(duration: float) -> dict[str, Any]:
         got_track.set()
 
     pc.on("track", on_track)
-    arrivals: list[float] = []
-    cpu, wall = time.process_time(), time.monotonic()
     try:
         await pc.setLocalDescription(await pc.createOffer())
         async with httpx.AsyncClient() as http:
@@ -197,35 +272,140 @@ async def browse_video(duration: float) -> dict[str, Any]:
             )
         reply.raise_for_status()
         await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
-        with anyio.move_on_after(CONNECT_BOUND_S) as scope:
-            await got_track.wait()
-            while True:
-                await tracks[0].recv()
-                now = time.time()
-                if not arrivals:
-                    scope.deadline = anyio.current_time() + duration
-                arrivals.append(now)
+        await got_track.wait()
+        while True:
+            frame = await tracks[0].recv()
+            yield frame.to_ndarray(format="gray")
     finally:
         await pc.close()
-    used = (time.process_time() - cpu) / (time.monotonic() - wall)
-    kept = [t for t in arrivals if t - arrivals[0] >= WARMUP_S] if arrivals else []
-    if len(kept) < 2:
-        return {"transport": "video", "received": len(kept)}
-    return {
-        "transport": "video",
-        "received": len(kept),
-        "window_s": round(kept[-1] - kept[0], 2),
-        "delivered_hz": round((len(kept) - 1) / (kept[-1] - kept[0]), 1),
-        "browser_cpu_pct": round(100 * used),
-        "longest_stall_ms": round(max(b - a for a, b in itertools.pairwise(kept)) * 1000, 1),
+
+
+async def _vp8() -> Pictures:
+    async for picture in _video_track("VP8"):
+        yield picture
+
+
+async def _h264() -> Pictures:
+    async for picture in _video_track("H264"):
+        yield picture
+
+
+async def _mjpeg() -> Pictures:
+    """``CAMERA`` from the video server's ``/stream`` (MJPEG, its default quality), as an
+    ``<img>`` would: each part's JPEG decoded."""
+    import io  # noqa: PLC0415
+
+    import httpx  # noqa: PLC0415 (the browser process only)
+    import numpy as np  # noqa: PLC0415
+    from PIL import Image  # noqa: PLC0415
+
+    url = f"http://{ROBOT_ADDR}:{VIDEO_PORT}/stream?topic={CAMERA}&type=mjpeg"
+    buffer = b""
+    async with httpx.AsyncClient(timeout=None) as http, http.stream("GET", url) as reply:
+        reply.raise_for_status()
+        async for chunk in reply.aiter_raw():
+            buffer += chunk
+            while True:  # every whole part in the buffer: headers, then Content-Length bytes
+                head_end = buffer.find(b"\r\n\r\n")
+                found = re.search(rb"Content-Length: (\d+)", buffer[: max(head_end, 0)])
+                if head_end < 0 or found is None or len(buffer) < head_end + 4 + int(found[1]):
+                    break
+                body_start = head_end + 4
+                jpeg = buffer[body_start : body_start + int(found[1])]
+                buffer = buffer[body_start + len(jpeg) :]
+                yield np.asarray(Image.open(io.BytesIO(jpeg)).convert("L"))
+
+
+async def _cbor_image() -> Pictures:
+    """``CAMERA`` subscribed over the WebSocket with ``compression: cbor``, as a roslib
+    page would (no throttle, no queue length): each message's pixels."""
+    import cbor2  # noqa: PLC0415 (the browser process only)
+    import numpy as np  # noqa: PLC0415
+    import websockets  # noqa: PLC0415
+
+    subscribe = {
+        "op": "subscribe",
+        "topic": CAMERA,
+        "type": "sensor_msgs/Image",
+        "compression": "cbor",
     }
+    async with websockets.connect(f"ws://{ROBOT_ADDR}:{PORT}", max_size=None) as ws:
+        await ws.send(json.dumps(subscribe))
+        async for raw in ws:
+            if not isinstance(raw, bytes):
+                continue  # a status
+            message = cbor2.loads(raw)
+            if message.get("op") != "publish":
+                continue
+            image = message["msg"]
+            pixels = np.frombuffer(bytes(image["data"]), np.uint8)
+            pixels = pixels.reshape(image["height"], image["width"], 3)
+            yield pixels.mean(axis=2)
 
 
-async def robot(rate: float) -> None:
-    """The robot: a server with WebRTC on ``ROBOT_ADDR``, publishing ``TOPIC`` at ``rate`` Hz."""
+PICTURES: dict[str, Callable[[], Pictures]] = {
+    "vp8": _vp8,
+    "h264": _h264,
+    "mjpeg": _mjpeg,
+    "cbor-image": _cbor_image,
+}
+"""The browser's transports of the camera by name: each yields decoded pictures."""
+
+
+async def browse_pictures(transport: str, duration: float) -> dict[str, Any]:
+    """Watch ``CAMERA`` over ``transport`` for ``duration`` s from its first picture.
+
+    The figures (after the warm-up): pictures a second, their age (the stamp painted
+    into each at publish, read back from the decoded picture) and the longest time
+    between two; pictures whose stamp does not read are counted, not aged.
+    """
+    ages: list[float] = []
+    arrivals: list[float] = []
+    unread = 0
+    start = 0.0
+    cpu, wall = time.process_time(), time.monotonic()
+    with anyio.move_on_after(CONNECT_BOUND_S) as scope:
+        async for gray in PICTURES[transport]():
+            now = time.time()
+            if not start:
+                start = now
+                scope.deadline = anyio.current_time() + duration
+            if now - start < WARMUP_S:
+                continue
+            arrivals.append(now)
+            sent = read_stamp(gray, now)
+            if sent is None:
+                unread += 1
+            else:
+                ages.append(now - sent)
+    used = (time.process_time() - cpu) / (time.monotonic() - wall)
+    row: dict[str, Any] = {"transport": transport, "received": len(arrivals), "unread": unread}
+    if len(arrivals) >= 2:
+        window = arrivals[-1] - arrivals[0]
+        stall = max(b - a for a, b in itertools.pairwise(arrivals))
+        row.update(
+            window_s=round(window, 2),
+            delivered_hz=round((len(arrivals) - 1) / window, 1),
+            longest_stall_ms=round(stall * 1000, 1),
+        )
+    if ages:
+        ages.sort()
+        row.update(
+            age_p50_ms=round(ages[len(ages) // 2] * 1000, 1),
+            age_p99_ms=round(ages[min(len(ages) - 1, int(len(ages) * 0.99))] * 1000, 1),
+        )
+    row["browser_cpu_pct"] = round(100 * used)
+    return row
+
+
+async def robot(rate: float, trace_sctp: bool = False) -> None:
+    """The robot: a server with WebRTC on ``ROBOT_ADDR``, publishing ``TOPIC`` at ``rate`` Hz,
+    the camera, and the video server on ``VIDEO_PORT``. ``trace_sctp``: aiortc's SCTP
+    sender's state in its log (benchmarks/sctp_trace.py)."""
     from rwt_graph.graph import Graph  # noqa: PLC0415 (the robot process only)
     from rwt_transports.server import RosbridgeServer, ServerConfig  # noqa: PLC0415
     from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_video import VideoConfig, serve_video  # noqa: PLC0415
 
     logging.basicConfig(stream=sys.stderr, level=logging.WARNING)
     logging.getLogger("rwt").setLevel(logging.INFO)  # event=disconnect: the session's drops
@@ -234,7 +414,13 @@ async def robot(rate: float) -> None:
     server = RosbridgeServer(graph, config)
     clock = graph.create_publisher(TOPIC, "std_msgs/msg/String", node="/robot")
     async with anyio.create_task_group() as tg:
+        if trace_sctp:
+            from benchmarks import sctp_trace  # noqa: PLC0415 (only when tracing)
+
+            sctp_trace.install()
+            tg.start_soon(sctp_trace.report)
         await tg.start(server.serve)
+        await tg.start(serve_video, graph, VideoConfig(host=ROBOT_ADDR, port=VIDEO_PORT))
         tg.start_soon(_camera, graph)
         print("robot up", flush=True)
         start = time.monotonic()
@@ -246,19 +432,23 @@ async def robot(rate: float) -> None:
 
 
 async def _camera(graph: Any) -> None:
-    """``CAMERA`` at ``CAMERA_HZ``: the paper's synthetic 640x480 scene (4 frames looped).
+    """``CAMERA`` at ``CAMERA_HZ``: the paper's synthetic 640x480 scene (4 frames looped),
+    each stamped with its publish time in the picture (``stamp_picture``) and the header.
 
-    Encoded for a video track only while a peer watches it (docs/webrtc.md).
+    Encoded for a video track or MJPEG only while a peer watches it (docs/webrtc.md).
     """
-    from benchmarks.paper.video import messages  # noqa: PLC0415 (the robot process only)
+    from benchmarks.paper.video import camera_frames  # noqa: PLC0415 (the robot process only)
+    from rwt_graph.media import array_to_image  # noqa: PLC0415
 
-    frames = list(messages(4))
+    frames = list(camera_frames(4))
     publisher = graph.create_publisher(CAMERA, "sensor_msgs/msg/Image", node="/robot")
     start, index = time.monotonic(), 0
     while True:
-        frame = dict(frames[index % len(frames)])
-        frame["header"] = {"stamp": {"sec": index // 30, "nanosec": index % 30 * 33_333_333}}
-        publisher.publish(frame)
+        pixels = frames[index % len(frames)].copy()
+        now = time.time()
+        stamp_picture(pixels, now)
+        header = {"stamp": {"sec": int(now), "nanosec": int(now % 1 * 1e9)}}
+        publisher.publish(array_to_image(pixels, "rgb8", header=header))
         index += 1
         await anyio.sleep(max(0.0, start + index / CAMERA_HZ - time.monotonic()))
 
@@ -291,20 +481,27 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _dropped(log: Path, kind: str) -> int | None:
-    """Messages the server dropped for the last session of ``kind`` (its ``event=disconnect``)."""
-    for _ in range(300):  # the session ends once the server sees the browser leave
-        found = re.findall(
-            rf"event=disconnect client={kind}:\S+ .*? dropped=(\d+)", log.read_text()
-        )
-        if found:
-            return int(found[-1])
+def _disconnects(log: Path, kind: str) -> list[int]:
+    """The drops of each session of ``kind`` that ended so far (its ``event=disconnect``)."""
+    pattern = rf"event=disconnect client={kind}:\S+ .*? dropped=(\d+)"
+    return [int(found) for found in re.findall(pattern, log.read_text())]
+
+
+def _dropped(log: Path, kind: str, before: int) -> int | None:
+    """Messages the server dropped for the session of ``kind`` that ends after ``before``
+    others of its kind ended (a session with a long outbox ends a while after its peer)."""
+    for _ in range(300):
+        ended = _disconnects(log, kind)
+        if len(ended) > before:
+            return ended[before]
         time.sleep(0.1)
     return None
 
 
 def _browse_in(ns: str, transport: str, duration: float, log: Path) -> dict[str, Any]:
     """One transport's browser run in ``ns``: its figures and the server's drops."""
+    kind = "webrtc" if "webrtc" in transport else "ws"
+    before = len(_disconnects(log, kind))
     done = subprocess.run(
         _in(ns, "browser", transport, "--duration", str(duration)),
         env=ENV,
@@ -314,21 +511,32 @@ def _browse_in(ns: str, transport: str, duration: float, log: Path) -> dict[str,
         check=True,
     )
     row: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
-    if transport != "video":  # a video-only peer has no rosbridge session
-        row["server_dropped"] = _dropped(log, "webrtc" if transport == "webrtc" else "ws")
+    if transport in TRANSPORTS or transport == "cbor-image":  # a rosbridge session's drops
+        row["server_dropped"] = _dropped(log, kind, before)
     return row
 
 
-def run(transports: list[str], duration: float, rate: float, profile: LinkProfile) -> list[Any]:
-    """Namespaces, the link, the robot, then each transport's browser in turn: their figures."""
+def run(
+    transports: list[str],
+    duration: float,
+    rate: float,
+    profile: LinkProfile,
+    trace_sctp: bool = False,
+) -> list[Any]:
+    """Namespaces, the link, the robot, then each transport's browser in turn: their figures.
+
+    The robot's log (its path printed first) holds its sessions and, with ``trace_sctp``,
+    aiortc's SCTP state each second.
+    """
     robot_ns, browser_ns = f"wanrobot{os.getpid()}", f"wanbrowser{os.getpid()}"
     with _namespaces(robot_ns, browser_ns):
         link = WanLink(browser_ns, BROWSER_ADDR, robot_ns, ROBOT_ADDR, profile, seed=1)
         link.start()
         log = Path(tempfile.mkdtemp(prefix="wan_topic")) / "robot.log"
+        print(f"robot log: {log}", flush=True)
         with log.open("w") as robot_log:
             server = subprocess.Popen(
-                _in(robot_ns, "robot", "--rate", str(rate)),
+                _in(robot_ns, "robot", "--rate", str(rate), *["--trace-sctp"] * trace_sctp),
                 env=ENV,
                 stdout=subprocess.PIPE,
                 stderr=robot_log,
@@ -358,20 +566,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("role", nargs="?", default="run", choices=["run", "robot", "browser"])
     parser.add_argument("transport_name", nargs="?", default=None)
-    parser.add_argument("--transport", action="append", choices=[*sorted(TRANSPORTS), "video"])
+    parser.add_argument("--transport", action="append", choices=[*TRANSPORTS, *PICTURES])
     parser.add_argument("--duration", type=float, default=15.0)
     parser.add_argument("--rate", type=float, default=1000.0)
     parser.add_argument("--delay-ms", type=float, default=30.0)
     parser.add_argument("--jitter-ms", type=float, default=10.0)
     parser.add_argument("--loss", type=float, default=0.02)
     parser.add_argument("--rate-mbit", type=float, default=15.0)
+    parser.add_argument(
+        "--trace-sctp", action="store_true", help="aiortc's SCTP state in the robot's log"
+    )
     args = parser.parse_args()
     if args.role == "robot":
-        anyio.run(robot, args.rate)
+        anyio.run(robot, args.rate, args.trace_sctp)
         return
     if args.role == "browser":
-        if args.transport_name == "video":
-            row = anyio.run(browse_video, args.duration)
+        if args.transport_name in PICTURES:
+            row = anyio.run(browse_pictures, args.transport_name, args.duration)
         else:
             row = anyio.run(browse, args.transport_name, args.duration)
         print(json.dumps(row), flush=True)
@@ -379,25 +590,25 @@ def main() -> None:
     profile = LinkProfile(
         args.delay_ms / 1000, args.jitter_ms / 1000, args.loss, args.rate_mbit * 1e6
     )
-    chosen = args.transport or ["websocket", "webrtc", "video"]
-    rows = run(chosen, args.duration, args.rate, profile)
+    chosen = args.transport or [*TRANSPORTS, *PICTURES]
+    rows = run(chosen, args.duration, args.rate, profile, args.trace_sctp)
     link = (
         f"{args.delay_ms:g} ms +- {args.jitter_ms:g} ms, {args.loss:.0%} loss,"
         f" {args.rate_mbit:g} Mbit/s"
     )
     print(f"WAN link each way: {link}; {args.rate:g} Hz std_msgs/String")
     print(
-        "| transport | delivered msg/s | server drops | age p50 | age p99 | longest stall"
-        " | robot CPU | browser CPU |"
+        "| transport | delivered a second | server drops | age p50 | age p99 | longest stall"
+        " | robot CPU | browser CPU | stamps unread |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         print(
             f"| {row['transport']} | {row.get('delivered_hz')} | "
             f"{row.get('server_dropped')} | "
             f"{row.get('age_p50_ms', '-')} ms | {row.get('age_p99_ms', '-')} ms | "
             f"{row.get('longest_stall_ms')} ms | {row.get('robot_cpu_pct')} % | "
-            f"{row.get('browser_cpu_pct')} % |"
+            f"{row.get('browser_cpu_pct')} % | {row.get('unread', '')} |"
         )
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps({"link": link, "rate_hz": args.rate, "rows": rows}, indent=1))

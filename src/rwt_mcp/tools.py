@@ -325,12 +325,14 @@ class RobotTools:
         with _tool_errors():
             publisher = await self.link.publisher(topic, type)
             start = anyio.current_time()
+            deadline = start + duration_s
             try:
-                with anyio.move_on_after(duration_s):
-                    while True:
-                        await publisher.publish(msg)
-                        count += 1
-                        await anyio.sleep_until(start + count / rate_hz)
+                # the deadline is checked between publishes, never cancels one: a publish
+                # cut off after its frame went out would be sent and not counted
+                while anyio.current_time() < deadline:
+                    await publisher.publish(msg)
+                    count += 1
+                    await anyio.sleep_until(min(deadline, start + count / rate_hz))
             finally:
                 if final_msg is not None:
                     with anyio.CancelScope(shield=True):  # the stop goes out, whatever happens

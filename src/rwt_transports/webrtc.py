@@ -87,9 +87,11 @@ SEND_HIGH_WATER_BYTES = 1 * MiB
 SEND_LOW_WATER_BYTES = 256 * 1024
 """``send`` goes on when the channel's buffer is back under this (``bufferedamountlow``)."""
 
-LOSSY_GATE_BYTES = 64 * 1024
+LOSSY_GATE_BYTES = 2 * 1024
 """A lossy message is handed to aiortc only while the session's data channels buffer at most
-this together; while one waits, the reliable writer keeps its channel under it too (D36)."""
+this together; while one waits, the reliable writer keeps its channel under it too (D36).
+A few small messages: what waits in aiortc's queue is not latest-only, and at 64 KiB a
+1 kHz topic on a lossy WAN link queued there 1.5 s (docs/benchmarks.md, "Over a WAN link")."""
 
 _ids = itertools.count(1)
 

@@ -105,3 +105,21 @@ def test_the_wan_benchmark_runs_both_transports_through_the_link() -> None:
     for row in rows:
         assert row["received"] > 10 and row["server_dropped"] == 0, row
         assert row["age_p50_ms"] >= 20  # the link's delay (30 ms +- 10 ms) is in every age
+
+
+def test_the_wan_benchmark_reads_the_picture_stamps_through_the_link() -> None:
+    """A smoke run of the lossy channel and the camera's transports: each gets its messages or
+    pictures, and every picture's stamp (painted at publish) reads back after decoding."""
+    reason = netns.unavailable(("tun",))
+    if reason is not None:
+        pytest.skip(reason)
+    pytest.importorskip("aiortc", reason="the data channel's and the track's rows need aiortc")
+    from benchmarks.wan_topic import WARMUP_S, run  # noqa: PLC0415 (after the skips)
+
+    transports = ["webrtc-lossy", "vp8", "mjpeg", "cbor-image"]
+    rows = run(transports, WARMUP_S + 2, 100.0, LinkProfile(loss=0.0))
+    assert [row["transport"] for row in rows] == transports
+    for row in rows:
+        assert row["received"] >= 1 and row.get("unread", 0) == 0, row
+        assert row["age_p50_ms"] >= 20, row  # the link's delay (30 ms +- 10 ms) is in every age
+    assert rows[0]["received"] > 10  # 100 Hz on the lossy channel without loss
