@@ -41,6 +41,7 @@ from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tools import build_server, initialization_options
 
+from .httpclaims import claims_path
 from .mcp_options import MCP_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
@@ -197,16 +198,7 @@ class McpEndpoint:
     @staticmethod
     def claims(head: bytes) -> bool | None:
         """Whether the request starting with ``head`` is MCP's; None: too short to tell."""
-        path = MCP_PATH.encode()
-        for method in _METHODS:
-            prefix = method + b" " + path
-            if len(head) <= len(prefix):
-                if prefix.startswith(head):
-                    return None
-                continue
-            if head.startswith(prefix):
-                return head[len(prefix) : len(prefix) + 1] in (b" ", b"?")
-        return False
+        return claims_path(head, _METHODS, MCP_PATH, lambda _method, after: after in (b" ", b"?"))
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
         """Answer the one request on ``stream`` whose first bytes are ``head``, then return.

@@ -38,6 +38,7 @@ from urllib.parse import parse_qsl
 import anyio
 import h11
 
+from .httpclaims import claims_path
 from .webrtc_ice import parse_ice_servers
 
 if TYPE_CHECKING:
@@ -86,6 +87,11 @@ _CORS = [
     (b"Access-Control-Expose-Headers", b"Location"),
     (b"Access-Control-Max-Age", b"600"),
 ]
+
+
+def _names_signalling(method: bytes, after: bytes) -> bool:
+    """After ``/webrtc``: a GET is of a file below it; the others of it or a session."""
+    return after == b"/" if method == b"GET" else after in (b" ", b"/", b"?")
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,17 +197,7 @@ class WebRtcSignalling:
     @staticmethod
     def claims(head: bytes) -> bool | None:
         """Whether the request starting with ``head`` is signalling; None: too short to tell."""
-        path = WEBRTC_PATH.encode()
-        for method in _METHODS:
-            prefix = method + b" " + path
-            if len(head) <= len(prefix):
-                if prefix.startswith(head):
-                    return None
-                continue
-            if head.startswith(prefix):
-                after = head[len(prefix) : len(prefix) + 1]
-                return after == b"/" if method == b"GET" else after in (b" ", b"/", b"?")
-        return False
+        return claims_path(head, _METHODS, WEBRTC_PATH, _names_signalling)
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
         """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
