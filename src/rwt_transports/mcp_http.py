@@ -22,7 +22,6 @@ is at most ``MAX_REQUEST_BYTES`` (413), a session has at most
 from __future__ import annotations
 
 import contextlib
-import fnmatch
 import hmac
 import logging
 import uuid
@@ -41,11 +40,10 @@ from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tools import build_server, initialization_options
 
-from .httpclaims import claims_path
+from .http_endpoint import claims_path, open_request, reply
 from .mcp_options import MCP_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
-from .webrtc_signal import read_request, reply
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
@@ -207,23 +205,23 @@ class McpEndpoint:
         timeout); an admitted request then runs as long as MCP needs (an event
         stream, a long tool call), bounded per session by ``MAX_REQUESTS_IN_FLIGHT``.
         """
-        conn = h11.Connection(h11.SERVER)
-        conn.receive_data(head)
-        try:
-            request, body = await read_request(conn, stream, MAX_REQUEST_BYTES)
-        except h11.RemoteProtocolError as exc:
-            await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
+        opened = await open_request(
+            stream,
+            head,
+            limit=MAX_REQUEST_BYTES,
+            too_large=f"the request is over {MAX_REQUEST_BYTES} bytes",
+            allowed_origins=self.allowed_origins,
+            cors=_CORS,
+        )
+        if opened is None:
             return
-        if request is None:
-            return
-        if body is None:
-            await reply(conn, stream, 413, f"the request is over {MAX_REQUEST_BYTES} bytes", [])
-            return
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
-        cors = self._cors(headers.get("origin"))
-        if cors is None:
-            await reply(conn, stream, 403, f"origin {headers.get('origin')} is not allowed", [])
-            return
+        conn, request, body, headers, cors = (
+            opened.conn,
+            opened.request,
+            opened.body,
+            opened.headers,
+            opened.cors,
+        )
         refusal = self._refusal(request, headers)
         if refusal is not None:
             logger.info("event=mcp_refused peer=%s status=%d reason=%r", peer, *refusal)
@@ -267,15 +265,6 @@ class McpEndpoint:
         if session.in_flight >= MAX_REQUESTS_IN_FLIGHT:
             return 429, f"{MAX_REQUESTS_IN_FLIGHT} requests of this MCP session are in flight"
         return None
-
-    def _cors(self, origin: str | None) -> list[tuple[bytes, bytes]] | None:
-        """The CORS headers for ``origin``; None if ``--allowed-origins`` refuses it."""
-        if origin is None:
-            return []
-        patterns = self.allowed_origins
-        if patterns and not any(fnmatch.fnmatchcase(origin, p) for p in patterns):
-            return None
-        return [(b"Access-Control-Allow-Origin", origin.encode("latin-1")), *_CORS]
 
     async def _open(self, exchange: _Exchange, token: str | None) -> None:
         """A request without a session: admit a new session and let it answer (initialize)."""

@@ -25,25 +25,20 @@ bearer token, since a video-only peer has no data channel to authenticate on.
 
 from __future__ import annotations
 
-import contextlib
-import fnmatch
 import logging
 from dataclasses import dataclass, field
 from functools import cache
-from http import HTTPStatus
 from importlib import resources
 from typing import TYPE_CHECKING, Protocol
 from urllib.parse import parse_qsl
 
-import anyio
-import h11
-
-from .httpclaims import claims_path
+from .http_endpoint import claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
+    import h11
     from anyio.abc import ByteStream
 
 __all__ = [
@@ -77,7 +72,6 @@ CONNECT_TIMEOUT_S = 15.0
 MAX_VIDEO_TRACKS = 4
 """The most ``video`` query parameters (video tracks) of one offer: past it, 400."""
 
-_READ_SIZE = 65536
 _METHODS = (b"POST", b"DELETE", b"OPTIONS", b"GET")
 _SDP = "application/sdp"
 _JS = "text/javascript; charset=utf-8"
@@ -204,24 +198,23 @@ class WebRtcSignalling:
 
         The caller bounds the time (the handshake timeout) and closes the stream.
         """
-        conn = h11.Connection(h11.SERVER)
-        conn.receive_data(head)
-        try:
-            request, body = await read_request(conn, stream)
-        except h11.RemoteProtocolError as exc:
-            await reply(conn, stream, exc.error_status_hint, f"bad request: {exc}", [])
+        opened = await open_request(
+            stream,
+            head,
+            limit=MAX_OFFER_BYTES,
+            too_large=f"the offer is over {MAX_OFFER_BYTES} bytes",
+            allowed_origins=self.allowed_origins,
+            cors=_CORS,
+        )
+        if opened is None:
             return
-        if request is None:
-            return
-        if body is None:
-            await reply(conn, stream, 413, f"the offer is over {MAX_OFFER_BYTES} bytes", [])
-            return
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
-        origin = headers.get("origin")
-        cors = self._cors(origin)
-        if cors is None:
-            await reply(conn, stream, 403, f"origin {origin} is not allowed", [])
-            return
+        conn, request, body, headers, cors = (
+            opened.conn,
+            opened.request,
+            opened.body,
+            opened.headers,
+            opened.cors,
+        )
         answer = await self._route(request, headers, body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
         kind = _SDP if answer.status == 201 else "text/plain; charset=utf-8"
@@ -235,15 +228,6 @@ class WebRtcSignalling:
             answer.status,
         )
         await reply(conn, stream, answer.status, answer.text, extra, kind)
-
-    def _cors(self, origin: str | None) -> list[tuple[bytes, bytes]] | None:
-        """The CORS headers for ``origin``; None if ``--allowed-origins`` refuses it."""
-        if origin is None:
-            return []
-        patterns = self.allowed_origins
-        if patterns and not any(fnmatch.fnmatchcase(origin, p) for p in patterns):
-            return None
-        return [(b"Access-Control-Allow-Origin", origin.encode("latin-1")), *_CORS]
 
     async def _route(
         self, request: h11.Request, headers: dict[str, str], body: bytes, peer: str
@@ -296,61 +280,3 @@ def _bodiless(method: str, path: str) -> Answer:
 def roslib_transport() -> str:
     """The JavaScript served at ``ROSLIB_TRANSPORT_PATH``, read from the package once."""
     return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
-
-
-async def read_request(
-    conn: h11.Connection, stream: ByteStream, limit: int = MAX_OFFER_BYTES
-) -> tuple[h11.Request | None, bytes | None]:
-    """The request and its body; (None, b"") if the peer left first (h11 bounds the head).
-
-    The body is None when it is over ``limit`` bytes (the rest is not read). Also
-    the MCP endpoint's (``mcp_http``), with its own ``limit``.
-
-    Raises:
-        h11.RemoteProtocolError: not HTTP/1.1 h11 can read.
-    """
-    request: h11.Request | None = None
-    body = bytearray()
-    while True:
-        event = conn.next_event()
-        if event is h11.NEED_DATA:
-            try:
-                data = await stream.receive(_READ_SIZE)
-            except (anyio.EndOfStream, anyio.BrokenResourceError, OSError):
-                data = b""
-            conn.receive_data(data)
-        elif isinstance(event, h11.Request):
-            request = event
-        elif isinstance(event, h11.Data):
-            body += event.data
-            if len(body) > limit:
-                return request, None
-        elif isinstance(event, h11.EndOfMessage):
-            return request, bytes(body)
-        else:  # ConnectionClosed, PAUSED
-            return None, b""
-
-
-async def reply(
-    conn: h11.Connection,
-    stream: ByteStream,
-    status: int,
-    text: str,
-    headers: list[tuple[bytes, bytes]],
-    kind: str = "text/plain; charset=utf-8",
-) -> None:
-    """Send one response and let the connection end (``Connection: close``; also ``mcp_http``'s)."""
-    body = (text + "\n" if text and kind.startswith("text/") else text).encode()
-    fields = [*headers, (b"Connection", b"close")]
-    if status != 204:  # no content: no type, no length (RFC 9110 8.6)
-        fields += [(b"Content-Type", kind.encode()), (b"Content-Length", str(len(body)).encode())]
-    with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
-        try:
-            reason = HTTPStatus(status).phrase.encode()
-            data = conn.send(h11.Response(status_code=status, headers=fields, reason=reason))
-            if body:
-                data = (data or b"") + (conn.send(h11.Data(data=body)) or b"")
-            data = (data or b"") + (conn.send(h11.EndOfMessage()) or b"")
-        except h11.LocalProtocolError:  # h11 is in a state where it cannot answer
-            return
-        await stream.send(data)
