@@ -215,13 +215,7 @@ class McpEndpoint:
         )
         if opened is None:
             return
-        conn, request, body, headers, cors = (
-            opened.conn,
-            opened.request,
-            opened.body,
-            opened.headers,
-            opened.cors,
-        )
+        conn, request, headers, cors = opened.conn, opened.request, opened.headers, opened.cors
         refusal = self._refusal(request, headers)
         if refusal is not None:
             logger.info("event=mcp_refused peer=%s status=%d reason=%r", peer, *refusal)
@@ -231,7 +225,7 @@ class McpEndpoint:
         if request.method == b"OPTIONS":
             await reply(conn, stream, 204, "", cors)
             return
-        exchange = _Exchange(conn, stream, request, body, peer, cors)
+        exchange = _Exchange(conn, stream, request, opened.body, peer, cors)
         session_id = headers.get(MCP_SESSION_ID_HEADER)
         if session_id is None:
             await self._open(exchange, _bearer(headers))

@@ -208,14 +208,8 @@ class WebRtcSignalling:
         )
         if opened is None:
             return
-        conn, request, body, headers, cors = (
-            opened.conn,
-            opened.request,
-            opened.body,
-            opened.headers,
-            opened.cors,
-        )
-        answer = await self._route(request, headers, body, peer)
+        conn, request, headers, cors = opened.conn, opened.request, opened.headers, opened.cors
+        answer = await self._route(request, headers, opened.body, peer)
         extra = cors + ([(b"Location", answer.location.encode())] if answer.location else [])
         kind = _SDP if answer.status == 201 else "text/plain; charset=utf-8"
         if request.method == b"GET" and answer.status == 200:
