@@ -9,9 +9,7 @@ dependencies from tests/js/node_modules.
 
 from __future__ import annotations
 
-import http.server
 import json
-import threading
 import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,9 +22,9 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
 from tests.browser.cdp import Browser, chromium_path
 from tests.integration.client_harness import ServerProcess
+from tests.webrtc.pagesite import MODULES, serve_pages
 
 REPO = Path(__file__).resolve().parents[2]
-MODULES = REPO / "tests" / "js" / "node_modules"
 
 IMPORTS = {
     "roslib": "roslib/dist/RosLib.js",
@@ -97,46 +95,19 @@ def page_html(server: str) -> str:
     )
 
 
-class _Site(http.server.SimpleHTTPRequestHandler):
-    """The page at ``/?server=URL``; tests/js/node_modules under ``/node_modules/``."""
-
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        super().__init__(*args, directory=str(MODULES.parent), **kwargs)  # type: ignore[arg-type]
-
-    def do_GET(self) -> None:
-        path, _, query = self.path.partition("?")
-        if path != "/":
-            super().do_GET()
-            return
-        server = urllib.parse.parse_qs(query)["server"][0]
-        body = page_html(server).encode()
-        self.send_response(200)
-        self.send_header("Content-Type", "text/html; charset=utf-8")
-        self.send_header("Content-Length", str(len(body)))
-        self.end_headers()
-        self.wfile.write(body)
-
-    def log_message(self, format: str, *args: object) -> None:
-        pass  # the test's output is its assertions
-
-    def guess_type(self, path: str | Path) -> str:
-        if str(path).endswith((".js", ".mjs")):
-            return "text/javascript"  # module scripts need a JavaScript type
-        return super().guess_type(path)
+def _page(path: str, query: str) -> str | None:
+    """The page at ``/?server=URL``."""
+    if path != "/":
+        return None
+    return page_html(urllib.parse.parse_qs(query)["server"][0])
 
 
 @pytest.fixture(scope="module")
 def site() -> Iterator[str]:
     if not (MODULES / "roslib").is_dir():
         pytest.skip("roslib is not installed: npm ci --prefix tests/js")
-    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _Site)
-    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{httpd.server_address[1]}"
-    finally:
-        httpd.shutdown()
-        httpd.server_close()
+    with serve_pages(_page) as url:
+        yield url
 
 
 @pytest.fixture(scope="module")

@@ -11,10 +11,7 @@ plays the libx264 stream.
 
 from __future__ import annotations
 
-import functools
-import http.server
 import sys
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -28,9 +25,10 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from tests.browser.cdp import Browser, chromium_path
 from tests.integration.client_harness import ServerProcess
 from tests.webrtc.camera_robot import BLUE, RED
+from tests.webrtc.pagesite import MODULES, serve_pages
 
 REPO = Path(__file__).resolve().parents[2]
-MODULES = REPO / "tests" / "js" / "node_modules"
+
 PLAYER = "@eyevinn/webrtc-player"
 
 REQUIRE = """
@@ -143,40 +141,14 @@ def page_html(path: str = "/") -> str:
     )
 
 
-class _Site(http.server.SimpleHTTPRequestHandler):
-    """The page at ``/``; tests/js/node_modules under ``/node_modules/``."""
-
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        super().__init__(*args, directory=str(MODULES.parent), **kwargs)  # type: ignore[arg-type]
-
-    def do_GET(self) -> None:
-        path = self.path.split("?", 1)[0]
-        if path not in ("/", "/h264"):
-            super().do_GET()
-            return
-        body = page_html(path).encode()
-        self.send_response(200)
-        self.send_header("Content-Type", "text/html; charset=utf-8")
-        self.send_header("Content-Length", str(len(body)))
-        self.end_headers()
-        self.wfile.write(body)
-
-    def log_message(self, format: str, *args: object) -> None:
-        pass  # the test's output is its assertions
-
-
 @pytest.fixture
 def site() -> Iterator[str]:
     if not (MODULES / PLAYER).is_dir():
         pytest.skip(f"{PLAYER} is not installed: npm ci --prefix tests/js")
-    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Site))
-    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{httpd.server_address[1]}"
-    finally:
-        httpd.shutdown()
-        httpd.server_close()
+    with serve_pages(
+        lambda path, _query: page_html(path) if path in ("/", "/h264") else None
+    ) as url:
+        yield url
 
 
 @pytest.fixture
