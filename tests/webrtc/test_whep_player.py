@@ -27,8 +27,6 @@ from tests.integration.client_harness import ServerProcess
 from tests.webrtc.camera_robot import BLUE, RED
 from tests.webrtc.pagesite import MODULES, serve_pages
 
-REPO = Path(__file__).resolve().parents[2]
-
 PLAYER = "@eyevinn/webrtc-player"
 
 REQUIRE = """
