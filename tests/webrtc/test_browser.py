@@ -20,7 +20,7 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
-from tests.browser.cdp import Browser, chromium_path
+from tests.browser.cdp import Browser
 from tests.integration.client_harness import ServerProcess
 from tests.webrtc.pagesite import MODULES, serve_pages
 
@@ -108,18 +108,6 @@ def site() -> Iterator[str]:
         pytest.skip("roslib is not installed: npm ci --prefix tests/js")
     with serve_pages(_page) as url:
         yield url
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Browser]:
-    executable = chromium_path()
-    if executable is None:
-        pytest.skip("chromium is not installed (apt-get install chromium; .ci/run does it as root)")
-    browser = Browser(executable)
-    try:
-        yield browser
-    finally:
-        browser.close()
 
 
 def test_roslib_in_chromium_talks_rosbridge_over_the_data_channel(

@@ -22,7 +22,7 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
-from tests.browser.cdp import Browser, chromium_path
+from tests.browser.cdp import Browser
 from tests.integration.client_harness import ServerProcess
 from tests.webrtc.camera_robot import BLUE, RED
 from tests.webrtc.pagesite import MODULES, serve_pages
@@ -147,18 +147,6 @@ def site() -> Iterator[str]:
         lambda path, _query: page_html(path) if path in ("/", "/h264") else None
     ) as url:
         yield url
-
-
-@pytest.fixture
-def browser() -> Iterator[Browser]:
-    executable = chromium_path()
-    if executable is None:
-        pytest.skip("chromium is not installed (apt-get install chromium; .ci/run does it as root)")
-    browser = Browser(executable)
-    try:
-        yield browser
-    finally:
-        browser.close()
 
 
 def _near(pixel: list[int], rgb: tuple[int, int, int]) -> bool:
