@@ -32,6 +32,7 @@ from rwt_graph.types import message as message_module
 from rwt_protocol.codecs import cbor as codec_cbor
 from rwt_protocol.codecs import json as codec
 from rwt_protocol.server import session as session_module
+from rwt_protocol.server import subscriptions
 from rwt_transports import direct, pump, websocket, wsread
 from rwt_transports.server import ServerConfig
 from tests.conftest import FakeClock
@@ -69,6 +70,8 @@ def install_counters() -> Counter[str]:
     direct.DirectWriter.write = _count(counts, "direct-write", direct.DirectWriter.write)  # type: ignore[method-assign]
     pump.ConnectionPump._defer = _count(counts, "deferred-send", pump.ConnectionPump._defer)  # type: ignore[method-assign]
     session_module.decode_publish = _count(counts, "publish-decode", session_module.decode_publish)  # type: ignore[assignment]
+    batch_sink = subscriptions.BatchTopicSubscription
+    batch_sink.on_messages = _count(counts, "rosbridge-batch-sink", batch_sink.on_messages)  # type: ignore[method-assign]
 
     receive = direct.DirectReader.receive
 

@@ -549,6 +549,53 @@ class Session(SessionBase):
         else:
             self.send_frames(frames, subscription.spelling, event.lifespan)
 
+    def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
+        """``deliver`` each of ``events`` (a run of one topic's messages), in order.
+
+        A message that is one frame (not fragmented) is queued in the fewest steps
+        (``Outbox.push_timed``, ``push_droppable``) and the transport is woken
+        once for the run, so a burst to many subscribers costs each little more
+        than its frame (``rosbridge-batch-sink``, ``rwt_protocol.shortcuts``).
+        Everything else goes as ``deliver`` sends it: PNG, the lossy lane,
+        fragments, a message that cannot be encoded.
+        """
+        params = subscription.params
+        compression = params.compression
+        if (compression is Compression.PNG and self._runs_jobs) or (
+            subscription.lossy and self._lossy is not None
+        ):
+            for event in events:
+                self.deliver(subscription, event)
+            return
+        if not self._state.sends:
+            return
+        outbox = self._outbox
+        spelling, size = subscription.spelling, params.fragment_size
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        was_empty = len(outbox) == 0
+        for event in events:
+            now = self._now = max(self._now, event.now)
+            frames = safe_publish_frames(event, spelling, compression, size)
+            if isinstance(frames, EncodeFailure):
+                self._encode_failed(subscription, frames, compression)
+                continue
+            frame = frames[0]
+            if len(frames) > 1 or not frame.droppable:  # fragments: as ``send_frames`` queues them
+                self.send_frames(frames, spelling, event.lifespan)
+                dropped, oversized = outbox.dropped, outbox.dropped_oversized
+                continue
+            if event.lifespan > 0:
+                outbox.push_timed(frame, now, event.lifespan, spelling)
+            else:
+                outbox.push_droppable(frame)
+            if outbox.dropped != dropped:  # the slow-consumer rule, as ``send_frames`` asks it
+                self._watch.after_push(dropped, oversized, now, frames, spelling)
+                dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        if outbox.held_bytes:
+            self._watch.after_push(dropped, oversized, self._now, (), spelling)
+        if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
+            self._wake()
+
     def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
         """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.
 

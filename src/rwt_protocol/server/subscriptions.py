@@ -38,10 +38,12 @@ from ..ops.base import Compression
 from .timers import Timer
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from ..ops import Subscribe
     from ..ports import MessageEvent
 
-__all__ = ["MergedParams", "TopicSubscription", "merge"]
+__all__ = ["BatchTopicSubscription", "MergedParams", "TopicSubscription", "merge"]
 
 _STRENGTH: dict[Compression, int] = {
     Compression.NONE: 0,
@@ -219,3 +221,40 @@ class TopicSubscription:
             self._window_ended(now)
         else:
             self._arm(now)
+
+
+class BatchTopicSubscription(TopicSubscription):
+    """A ``TopicSubscription`` that takes a run of messages in one call (a ``BatchSink``).
+
+    Unthrottled with nothing queued, the run goes to ``deliver_many`` whole (the
+    session queues each message's frame in the fewest steps); otherwise message by
+    message, as ``on_message`` takes them. The ``rosbridge-batch-sink`` shortcut
+    (``rwt_protocol.shortcuts``); ``TopicSubscription`` is its general path.
+
+    Args:
+        deliver_many: sends a run of messages to the client now, in order.
+        *args, **kwargs: as for ``TopicSubscription``.
+    """
+
+    def __init__(
+        self,
+        topic: str,
+        spelling: str,
+        deliver: Callable[[TopicSubscription, MessageEvent], None],
+        deliver_many: Callable[[TopicSubscription, Sequence[MessageEvent]], None],
+        schedule: Schedule,
+        *,
+        max_queue: int = 100,
+    ) -> None:
+        super().__init__(topic, spelling, deliver, schedule, max_queue=max_queue)
+        self._deliver_many = deliver_many
+
+    def on_messages(self, events: Sequence[MessageEvent]) -> None:
+        """Receive a run of one topic's messages (``BatchSink``), as ``on_message`` would each."""
+        if self.queue or self._timer is not None or self.params.throttle_s > 0:
+            for event in events:
+                self.on_message(event)
+            return
+        if events:
+            self.last_sent = events[-1].now
+            self._deliver_many(self, events)

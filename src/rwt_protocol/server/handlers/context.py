@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Protocol
 from ...ops.base import Compression
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Sequence
 
     from ...codecs.png import PendingPng
     from ...framing.fragments import Reassembler
@@ -112,6 +112,9 @@ class HandlerContext(Protocol):
 
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer (the subscription's sink)."""
+
+    def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
+        """Queue a run of one topic's messages for the peer, in order (a batch sink's)."""
 
 
 if TYPE_CHECKING:

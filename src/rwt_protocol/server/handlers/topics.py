@@ -7,7 +7,8 @@ from typing import TYPE_CHECKING
 from ...errors import GraphError
 from ...levels import StatusLevel
 from ...names import resolve_name
-from ..subscriptions import TopicSubscription
+from ...shortcuts import enabled
+from ..subscriptions import BatchTopicSubscription, TopicSubscription
 
 if TYPE_CHECKING:
     from ...ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
@@ -23,6 +24,9 @@ __all__ = [
 ]
 
 _MAX_LISTED = 8
+
+_BATCH_SINK = enabled("rosbridge-batch-sink")
+# a subscription takes a run of messages in one call (``BatchTopicSubscription``)
 
 
 def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
@@ -109,13 +113,7 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
         cap = session.config.max_ids_per_topic
         session.check_cap(len(subscription.requests), cap, f"ids on {op.topic}")
     if subscription is None:
-        subscription = TopicSubscription(
-            topic,
-            op.topic,
-            session.deliver,
-            session.call_at,
-            max_queue=session.config.max_queue_length,
-        )
+        subscription = _new_subscription(session, topic, op.topic)
         subscription.add(op, now, lossy=session.input_lossy)
         subscription.type_name = session.graph.subscribe(
             session.client_id, op.topic, op.type, subscription
@@ -155,3 +153,18 @@ def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
         session.holdings.drop_subscription(topic)
         session.graph.unsubscribe(session.client_id, topic)
     session.report(StatusLevel.INFO, f"unsubscribe: unsubscribed from {op.topic}", op.id)
+
+
+def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> TopicSubscription:
+    """A subscription of ``session`` to ``topic``: one that takes runs unless switched off."""
+    max_queue = session.config.max_queue_length
+    if _BATCH_SINK:
+        return BatchTopicSubscription(
+            topic,
+            spelling,
+            session.deliver,
+            session.deliver_many,
+            session.call_at,
+            max_queue=max_queue,
+        )
+    return TopicSubscription(topic, spelling, session.deliver, session.call_at, max_queue=max_queue)
