@@ -65,7 +65,7 @@ from .types import Dialect, MessageType, TypeRegistry, codec_for
 from .types.wire import wire_encoding
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterator
+    from collections.abc import Callable, Iterator, Sequence
 
     from .calls import Offer
     from .playback import Playback
@@ -735,6 +735,27 @@ class GraphCore:
             raise GraphError(f"the publisher of {topic} was closed")
         return self.deliver(entry, msg, latch, client, wire, lifespan)  # positional: per message
 
+    def publish_local_many(
+        self,
+        client: ClientId,
+        topic: str,
+        msgs: Sequence[Message | None],
+        wires: Sequence[bytes | None],
+        lifespan: float = 0.0,
+    ) -> list[MessageEvent]:
+        """``publish_local`` of a run of messages, not latched, in order (``deliver_many``).
+
+        Returns:
+            the events its subscribers got.
+
+        Raises:
+            GraphError: ``client`` does not publish ``topic`` (any more).
+        """
+        entry = self.topics.get(topic)
+        if entry is None or client not in entry.publishers:
+            raise GraphError(f"the publisher of {topic} was closed")
+        return self.deliver_many(entry, msgs, client, wires, lifespan)
+
     def deliver(
         self,
         entry: Topic,
@@ -775,6 +796,52 @@ class GraphCore:
         if self.taps:
             self._tap(entry, event, client, latch)
         return event
+
+    def deliver_many(
+        self,
+        entry: Topic,
+        msgs: Sequence[Message | None],
+        client: ClientId,
+        wires: Sequence[bytes | None],
+        lifespan: float = 0.0,
+    ) -> list[MessageEvent]:
+        """``deliver`` a run of messages of ``entry`` from ``client``, not latched, in order.
+
+        ``msgs`` and ``wires`` pair up, as ``deliver``'s ``msg`` and ``wire``. Where
+        every subscriber takes runs (``Topic.batchable``: ``BatchSink``), each gets
+        the run in one call (``Topic.fan_out_batch``) and the events share this
+        delivery's time (``MessageEvent.now`` and ``stamp``), as ``flush`` gives a
+        turn's batch; otherwise each message is delivered as ``deliver`` does it.
+
+        Returns:
+            the events its subscribers got, in order.
+        """
+        if len(msgs) == 1:
+            return [self.deliver(entry, msgs[0], False, client, wires[0], lifespan)]
+        if self._batch is not None:  # this turn's batch was published first
+            self.flush()
+        if entry._calls is None:  # subscribers changed since the last delivery
+            entry.sinks()
+        if not entry.batchable:
+            return [
+                self.deliver(entry, msg, False, client, wire, lifespan)
+                for msg, wire in zip(msgs, wires, strict=True)
+            ]
+        clock = self._clock
+        now, stamp = clock.monotonic(), clock.wall()
+        codec = entry.codec
+        if codec is None:
+            codec = entry.codec = codec_for(self.registry, entry.msgtype)
+        name, type_name = entry.name, entry.msgtype.name
+        events = [
+            MessageEvent(name, type_name, msg, now, stamp, codec, wire, lifespan)
+            for msg, wire in zip(msgs, wires, strict=True)
+        ]
+        entry.fan_out_batch(events)
+        if self.taps:
+            for event in events:
+                self._tap(entry, event, client, False)
+        return events
 
     def deliver_wire(self, entry: Topic, latch: bool, client: ClientId, wire: bytes) -> None:
         """``deliver`` a serialized message, or add it to this turn's batch.

@@ -60,7 +60,7 @@ from .action_status import STATUS_SUFFIX
 from .feed import EntityKind
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Container
+    from collections.abc import Callable, Container, Sequence
 
     from rwt_protocol.ports import ClientId, MessageEvent
 
@@ -316,6 +316,48 @@ class Relays:
                     publisher, entry.name, msg, latch=latches, wire=wire, lifespan=lifespan
                 )
                 return
+        relay = self._relay(entry)
+        event = port.publish_local(
+            relay.client, entry.name, msg, latch=latched, wire=wire, lifespan=lifespan
+        )
+        self._relayed(relay, source, event, entry)
+
+    def deliver_many(
+        self,
+        entry: Topic,
+        source: bytes | None,
+        msgs: Sequence[dict[str, object]],
+        wires: Sequence[bytes | None],
+        *,
+        latched: bool = False,
+        lifespan: float = 0.0,
+    ) -> None:
+        """``deliver`` a run of one publisher's samples of ``entry``, in order.
+
+        ``msgs`` and ``wires`` pair up. Unlatched, the run reaches each subscriber
+        in one call where they take runs (``GraphCore.deliver_many``); a latched
+        one goes sample by sample, each kept as ``deliver`` keeps it.
+
+        Raises:
+            RwtError: as ``deliver``.
+        """
+        port = self._graph.port
+        publisher = None if source is None else self._publisher_of(source)
+        if publisher is not None:
+            latches = entry.publishers.get(publisher)
+            if latches is not None and not latches:
+                port.publish_local_many(publisher, entry.name, msgs, wires, lifespan)
+                return
+        if latched or publisher is not None:
+            for msg, wire in zip(msgs, wires, strict=True):
+                self.deliver(entry, source, msg, latched=latched, wire=wire, lifespan=lifespan)
+            return
+        relay = self._relay(entry)
+        events = port.publish_local_many(relay.client, entry.name, msgs, wires, lifespan)
+        self._relayed(relay, source, events[-1], entry)
+
+    def _relay(self, entry: Topic) -> _Relay:
+        """The relay of ``entry``'s topic, made (and mirrored as a publisher) on first use."""
         relay = self._relays.get(entry.name)
         if relay is None:
             client = f"{self._rules.prefix}relay:{entry.name}"
@@ -323,9 +365,12 @@ class Relays:
                 self._graph, client, self._node, Kind.PUBLISHER, entry.name, entry.msgtype.name
             )
             relay = self._relays[entry.name] = _Relay(client)
-        event = port.publish_local(
-            relay.client, entry.name, msg, latch=latched, wire=wire, lifespan=lifespan
-        )
+        return relay
+
+    def _relayed(
+        self, relay: _Relay, source: bytes | None, event: MessageEvent, entry: Topic
+    ) -> None:
+        """Note that ``relay`` published ``event``, the newest sample of ``source``."""
         relay.idle = 0
         if source is not None:
             held = relay.held

@@ -25,6 +25,11 @@ pauses (``pause_while_behind``): new samples wait in the middleware's history,
 which keeps the newest at no cost to the loop, rather than being taken only to
 expire here.
 
+A sample queued with a run callback (``put_many``'s ``run``) goes with the
+samples of its topic and publisher queued right behind it, up to ``RUN_MAX``,
+in one call: the link publishes them as one run, which each subscriber that
+takes runs gets in one call.
+
 A topic whose delivery congested a subscriber is held back alone
 (``rwt_graph.topic_holds``): its samples wait, still counted here, while every
 other topic's go on.
@@ -73,9 +78,24 @@ they made for 0.2 s: benchmarks/README.md, "ROS 2 bridge")."""
 
 _BATCH = 1000
 
-_Event = tuple["Callable[..., None]", tuple[object, ...], int, str, float, bytes, float]
+RUN_MAX = 64
+"""The most samples of one topic and publisher handed to a run callback at once
+(``put_many``'s ``run``): what a topic held back for a congested subscriber
+overshoots its high watermark by at most."""
+
+_Event = tuple[
+    "Callable[..., None]",
+    tuple[object, ...],
+    int,
+    str,
+    float,
+    bytes,
+    float,
+    "Callable[[list[tuple[object, ...]]], None] | None",
+]
 """A queued callback, its arguments, its bytes, its topic ("" if no sample), when
-it came (``Sample``), its publisher, and when it was queued (``clock``)."""
+it came (``Sample``), its publisher, when it was queued (``clock``), and the
+callback that takes a run of such samples' arguments at once (or None)."""
 
 Sample = tuple[tuple[object, ...], int, float, bytes]
 """A sample for ``Handoff.put_many``: its callback's arguments, its bytes, when it
@@ -143,18 +163,28 @@ class Handoff:
             came = self.clock()
             if topic:
                 self._newest[topic, b""] = came
-            self._events.append((callback, args, size, topic, came, b"", came))
+            self._events.append((callback, args, size, topic, came, b"", came, None))
             signal = self._signal()
         if signal:
             self._wake_loop()
         return True
 
-    def put_many(self, callback: Callable[..., None], samples: list[Sample], topic: str) -> int:
+    def put_many(
+        self,
+        callback: Callable[..., None],
+        samples: list[Sample],
+        topic: str,
+        run: Callable[[list[tuple[object, ...]]], None] | None = None,
+    ) -> int:
         """Queue ``callback(*args)`` for each ``Sample`` of ``samples``, in order.
 
         ``samples``: one batch taken from ``topic``'s subscription; one lock and
         at most one wake-up of the loop for all of them, where ``put`` takes both
         per sample. A sample past ``max_bytes`` is dropped as ``put`` drops it.
+        ``run``: when given, the loop calls ``run([args, ...])`` instead, once for
+        each run of queued samples of ``topic`` from one publisher (up to
+        ``RUN_MAX``, none of them outdated), so that their delivery costs one call
+        per subscriber (``rwt_graph.link.Relays.deliver_many``).
 
         Returns:
             How many were queued (the rest were dropped, or the handoff is closed).
@@ -169,7 +199,7 @@ class Handoff:
                     self._refuse(topic)
                     continue
                 self.queued_bytes += size
-                events.append((callback, args, size, topic, came, source, now))
+                events.append((callback, args, size, topic, came, source, now, run))
                 newest[topic, source] = came
                 queued += 1
             signal = queued > 0 and self._signal()
@@ -264,26 +294,73 @@ class Handoff:
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
         clock = self.clock
         end = clock() + TURN_S
-        newest, span = self._newest, self.max_wait_s
-        for _ in range(min(len(self._events), _BATCH)):
-            if clock() > end:
+        newest, span, events = self._newest, self.max_wait_s, self._events
+        for _ in range(_BATCH):
+            if not events or clock() > end:
                 return
             with self._lock:
-                event = self._events.popleft()
-                callback, args, size, topic, came, source, _ = event
+                event = events.popleft()
+                callback, args, size, topic, came, source, _, run = event
                 outdated = bool(topic) and newest[topic, source] - came > span
             if outdated:
                 self._expire(topic, size)
                 continue
             if topic and holds.park(topic, event):
                 continue  # still counted in ``queued_bytes``: it waits here
-            with self._lock:
-                self.queued_bytes -= size
-            try:
-                callback(*args)
-            except Exception:
-                logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
+            if run is not None and self._follows(run, topic, source):
+                self._run(run, args, size, topic, source)
+            else:
+                with self._lock:
+                    self.queued_bytes -= size
+                try:
+                    callback(*args)
+                except Exception:
+                    logger.exception("ros2 link: %s failed", getattr(callback, "__name__", ""))
             holds.delivered(topic or None, inflow)
+
+    def _follows(
+        self, run: Callable[[list[tuple[object, ...]]], None], topic: str, source: bytes
+    ) -> bool:
+        """Whether the next queued sample would join a run of ``topic`` from ``source``.
+
+        A sample alone goes to its own callback: one call less (1 kHz and below).
+        """
+        try:
+            follower = self._events[0]
+        except IndexError:
+            return False
+        return follower[7] is run and follower[3] == topic and follower[5] == source
+
+    def _run(
+        self,
+        run: Callable[[list[tuple[object, ...]]], None],
+        args: tuple[object, ...],
+        size: int,
+        topic: str,
+        source: bytes,
+    ) -> None:
+        """Call ``run`` with ``args`` and the samples' queued right behind it.
+
+        Those of ``topic`` from ``source``, up to ``RUN_MAX``; the outdated ones expire.
+        """
+        runs = [args]
+        events, newest, span = self._events, self._newest, self.max_wait_s
+        with self._lock:
+            while events and len(runs) < RUN_MAX:
+                follower = events[0]
+                if follower[7] is not run or follower[3] != topic or follower[5] != source:
+                    break
+                events.popleft()
+                size += follower[2]
+                if newest[topic, source] - follower[4] > span:
+                    self.expired[topic] = self.expired.get(topic, 0) + 1
+                    continue
+                runs.append(follower[1])
+            self.queued_bytes -= size
+        try:
+            run(runs)
+        except Exception:
+            logger.exception("ros2 link: a run of %s failed", topic)
 
     def _expire(self, topic: str, size: int) -> None:
         """Drop a sample of ``topic`` that a newer one outdated (on the loop)."""

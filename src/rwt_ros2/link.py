@@ -379,13 +379,7 @@ class Ros2Link:
         try:
             msg = decode(self.graph.registry, entry.msgtype, data)
         except RwtError as exc:
-            self.episodes.log(
-                logging.WARNING,
-                f"bad:{topic}",
-                "event=ros2_bad_sample topic=%s reason=%r",
-                topic,
-                str(exc),
-            )
+            self._bad_sample(topic, exc)
             return
         try:  # by its publisher's participant, or a relay until discovery finds it
             self._relays.deliver(
@@ -399,13 +393,27 @@ class Ros2Link:
             counters.skipped -= 1
             counters.published += 1
         except RwtError as exc:  # a topic reserved by the server: not ROS 2's
-            self.episodes.log(
-                logging.WARNING,
-                f"refused:{topic}",
-                "event=ros2_sample_refused topic=%s reason=%r",
-                topic,
-                exc.message,
-            )
+            self._refused(topic, exc)
+
+    def _bad_sample(self, topic: str, exc: RwtError) -> None:
+        """Log a sample of ``topic`` that is not CDR of its type (once per episode)."""
+        self.episodes.log(
+            logging.WARNING,
+            f"bad:{topic}",
+            "event=ros2_bad_sample topic=%s reason=%r",
+            topic,
+            str(exc),
+        )
+
+    def _refused(self, topic: str, exc: RwtError) -> None:
+        """Log a sample the graph refused (a topic the server reserved), once per episode."""
+        self.episodes.log(
+            logging.WARNING,
+            f"refused:{topic}",
+            "event=ros2_sample_refused topic=%s reason=%r",
+            topic,
+            exc.message,
+        )
 
     # ---- the local graph, outward ---------------------------------------------------
 
@@ -486,7 +494,7 @@ class Ros2Link:
         """
         handoff = self.handoff
         counters = self.counters.of(name)
-        on_loop = self._on_sample
+        on_loop, run = self._on_sample, self._on_samples
 
         def on_batch(batch: list[Taken]) -> None:
             samples: list[Sample] = []
@@ -498,12 +506,58 @@ class Ros2Link:
                 sent = info.get("source_timestamp") or wall_ns
                 args = (name, type_name, data, gid, latched, counters)
                 samples.append((args, len(data), now - (wall_ns - sent) * 1e-9, gid))
-            queued = handoff.put_many(on_loop, samples, name)
+            queued = handoff.put_many(on_loop, samples, name, run)
             counters.handed += queued
             counters.refused += len(batch) - queued
             counters.woke(len(batch))
 
         return on_batch
+
+    def _on_samples(self, runs: list[tuple[object, ...]]) -> None:
+        """``_on_sample`` of a run of one publisher's samples of one topic (``Handoff``).
+
+        Each is decoded (one that is not CDR of its type is skipped and logged) and
+        the run published in the graph at once (``Relays.deliver_many``): a
+        subscriber that takes runs gets it in one call.
+        """
+        topic, type_name, _, gid, transient_local, counters = runs[0]
+        assert isinstance(topic, str) and isinstance(type_name, str)  # (``_hand_over``)
+        assert isinstance(gid, bytes) and isinstance(counters, TopicCounters)
+        if len(runs) == 1 or gid in self._own_gids or self._remotes.mismatched(gid):
+            for args in runs:
+                self._on_sample(*args)  # type: ignore[arg-type]
+            return
+        entry = self.graph.topics.get(topic)
+        counters.skipped += len(runs)  # until published
+        if entry is None or entry.msgtype.name != type_name:
+            return
+        registry, msgtype = self.graph.registry, entry.msgtype
+        msgs: list[dict[str, object]] = []
+        wires: list[bytes | None] = []
+        for args in runs:
+            data = args[2]
+            assert isinstance(data, bytes)
+            try:
+                msgs.append(decode(registry, msgtype, data))
+            except RwtError as exc:
+                self._bad_sample(topic, exc)
+                continue
+            wires.append(data)
+        if not msgs:
+            return
+        try:  # by its publisher's participant, or a relay until discovery finds it
+            self._relays.deliver_many(
+                entry,
+                gid or None,
+                msgs,
+                wires,
+                latched=bool(transient_local),
+                lifespan=SAMPLE_LIFESPAN_S,
+            )
+            counters.skipped -= len(msgs)
+            counters.published += len(msgs)
+        except RwtError as exc:  # a topic reserved by the server: not ROS 2's
+            self._refused(topic, exc)
 
     def type_warning(self, type_name: str) -> str | None:
         """Why ROS 2 cannot carry ``type_name`` here (the package to install), or None.

@@ -356,7 +356,7 @@ class _Linked:
     def __init__(self) -> None:
         self.graph = Graph()
         self.heard: list[str] = []
-        self.graph.create_subscription(
+        self.listener = self.graph.create_subscription(
             "/chatter", lambda msg: self.heard.append(str(msg["data"])), STRING
         )
         self.known: dict[bytes, str] = {}
@@ -480,6 +480,53 @@ def test_the_last_latched_sample_wins_the_hand_over() -> None:
     relays.sweep({"/chatter"})
     assert linked.late_subscriber() == ["newer"]
     assert linked.heard == ["first", "passing", "early", "newer"]
+
+
+class _RunSink:
+    """A subscriber that takes runs (a ``BatchSink``, as a client's queue is)."""
+
+    def __init__(self) -> None:
+        self.runs: list[list[str]] = []
+
+    def on_message(self, event: MessageEvent) -> None:
+        self.on_messages([event])
+
+    def on_messages(self, events: list[MessageEvent]) -> None:
+        self.runs.append([str(event.msg["data"]) for event in events])  # type: ignore[index]
+
+
+def _texts(*texts: str) -> tuple[list[dict[str, object]], list[bytes | None]]:
+    return [{"data": text} for text in texts], [None] * len(texts)
+
+
+def test_a_run_of_samples_reaches_each_subscriber_whole_and_in_order() -> None:
+    linked = _Linked()
+    relays, entry = linked.relays, linked.entry
+    runs = _RunSink()
+    linked.graph.port.subscribe("runs", "/chatter", STRING, runs)
+    relays.deliver_many(entry, b"pub", *_texts("r0", "r1", "r2"), lifespan=0.02)  # a relay's
+    assert linked.heard == ["r0", "r1", "r2"]
+    assert runs.runs == [["r0"], ["r1"], ["r2"]]  # one by one while a callback listens too
+    linked.listener.close()  # every subscriber takes runs now
+    linked.discover(b"pub", "link:pub", latched=False)
+    relays.deliver_many(entry, b"pub", *_texts("p0", "p1"))  # its publisher's own
+    assert runs.runs[3:] == [["p0", "p1"]]  # one call for the run
+    relays.sweep({"/chatter"})
+    assert set(entry.publishers) == {"link:pub"}
+    assert linked.late_subscriber() == []  # nothing latched
+
+
+def test_a_latched_run_is_kept_as_its_last_sample() -> None:
+    linked = _Linked()
+    relays, entry = linked.relays, linked.entry
+    relays.deliver_many(entry, b"map_server", *_texts("m0", "m1"), latched=True)
+    assert linked.late_subscriber() == ["m1"]  # before its publisher is known
+    linked.discover(b"map_server", "link:map_server", latched=True)
+    relays.sweep({"/chatter"})  # the relay goes, its last sample stays latched
+    assert linked.late_subscriber() == ["m1"]
+    relays.deliver_many(entry, b"map_server", *_texts("m2", "m3"))  # the publisher latches
+    assert linked.late_subscriber() == ["m3"]
+    assert linked.heard == ["m0", "m1", "m2", "m3"]
 
 
 def test_a_relay_waits_a_while_for_the_publishers_it_relayed_for() -> None:

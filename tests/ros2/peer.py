@@ -16,6 +16,8 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         0.05 s more every 50 ms
   joints TOPIC          sensor_msgs/JointState (name ["a"], position [1.5]) every 50 ms
   garbage TOPIC         raw bytes that are no std_msgs/String CDR, every 50 ms
+  mixed TOPIC           every 50 ms a burst of ten raw samples, std_msgs/String "g0", "g1"...
+                        (counting on) each followed by bytes that are no String CDR
   point_raw TOPIC       geometry_msgs/PointStamped published as serialized CDR every 50 ms,
                         its one alignment padding byte set to 0xAB (rclpy's own serializer
                         leaves it uninitialised): header stamp 7 s, frame "ab", (1, -2, 0.5)
@@ -168,6 +170,18 @@ def main() -> None:
     elif mode == "garbage":
         pub = node.create_publisher(String, name, 10)
         tick = lambda: pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7fgarbage")  # noqa: E731
+    elif mode == "mixed":
+        from rclpy.serialization import serialize_message  # noqa: PLC0415
+
+        pub = node.create_publisher(String, name, 100)
+        goods = (serialize_message(String(data=f"g{n}")) for n in range(10**9))
+
+        def burst() -> None:
+            for _ in range(5):
+                pub.publish(next(goods))
+                pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7fgarbage")
+
+        tick = burst
     elif mode == "point_raw":
         from geometry_msgs.msg import PointStamped  # noqa: PLC0415
         from rclpy.serialization import serialize_message  # noqa: PLC0415

@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from rwt_ros2.handoff import TURN_S, Handoff, Sample
+from rwt_ros2.handoff import RUN_MAX, TURN_S, Handoff, Sample
 
 pytestmark = pytest.mark.anyio
 
@@ -196,3 +196,95 @@ async def test_the_taking_thread_sees_when_the_loop_is_behind() -> None:
     handoff.pause_while_behind()  # returns: it sleeps at most max_wait_s
     handoff.close()
     assert not handoff.behind()
+
+
+class Runs:
+    """A run callback that records each run it got (the samples' names), and each sample;
+    ``one`` is the samples' own callback, for a sample that goes alone."""
+
+    def __init__(self, calls: list[str] | None = None) -> None:
+        self.runs: list[list[str]] = []
+        self.calls = calls
+
+    def one(self, name: str) -> None:  # a sample with no other of its run behind it
+        self.runs.append([name])
+        if self.calls is not None:
+            self.calls.append(name)
+
+    def __call__(self, runs: list[tuple[object, ...]]) -> None:
+        names = [str(args[0]) for args in runs]
+        self.runs.append(names)
+        if self.calls is not None:
+            self.calls.extend(names)
+
+
+async def test_a_publishers_queued_samples_go_in_runs_of_run_max_at_most() -> None:
+    handoff = Handoff(clock=HandClock())
+    runs = Runs()
+    names = [f"s{i}" for i in range(RUN_MAX + 10)]
+    handoff.put_many(runs.one, _samples(names, [0.0] * len(names), b"p"), "/t", runs)
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert runs.runs == [names[:RUN_MAX], names[RUN_MAX:]]
+    assert handoff.queued_bytes == 0
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_run_is_one_topic_and_one_publisher_in_the_order_they_came() -> None:
+    handoff = Handoff(clock=HandClock())
+    runs = Runs()
+    handoff.put_many(runs.one, _samples(["a0", "a1"], [0.0, 0.001], b"a"), "/t", runs)
+    handoff.put_many(runs.one, _samples(["b0"], [5.0], b"b"), "/t", runs)
+    handoff.put_many(runs.one, _samples(["a2", "a3"], [0.002, 0.003], b"a"), "/t", runs)
+    handoff.put_many(runs.one, _samples(["u0", "u1"], [0.0, 0.0], b"a"), "/u", runs)
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert runs.runs == [["a0", "a1"], ["b0"], ["a2", "a3"], ["u0", "u1"]]
+    task.cancel()
+    handoff.close()
+
+
+async def test_samples_outdated_inside_a_run_expire_and_the_rest_go() -> None:
+    handoff = Handoff(max_wait_s=0.005, clock=HandClock())
+    runs = Runs()
+    came = [0.0, 0.001, 0.002, 0.010]  # the first three are over 5 ms before the newest
+    handoff.put_many(runs.one, _samples(["s0", "s1", "s2"], came[:3], b"p"), "/t", runs)
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert runs.runs == [["s0", "s1", "s2"]]  # none was outdated while they waited
+    handoff.put_many(runs.one, _samples(["x0", "x1", "x2", "x3"], came, b"p"), "/t", runs)
+    await settle()
+    assert runs.runs[1:] == [["x3"]]
+    assert handoff.expired == {"/t": 3}
+    assert handoff.queued_bytes == 0
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_run_that_congested_a_subscriber_holds_its_topic() -> None:
+    handoff = Handoff(clock=HandClock())
+    gate = RecordingGate()
+    runs = Runs(gate.calls)
+    congest_next = [True]
+
+    def run(batch: list[tuple[object, ...]]) -> None:
+        runs(batch)
+        if congest_next[0]:
+            gate.congest, congest_next[0] = True, False
+
+    handoff.put_many(runs.one, _samples(["c0", "c1"], [0.0, 0.0], b"p"), "/cam", run)
+    task = asyncio.create_task(handoff.drain(lambda: gate))
+    await settle()
+    assert delivered(gate) == ["c0", "c1", "hold"]
+    handoff.put_many(runs.one, _samples(["c2", "c3"], [0.001, 0.001], b"p"), "/cam", run)
+    handoff.put_many(runs.one, _samples(["o0"], [0.0], b"q"), "/odom", run)
+    await settle()
+    assert delivered(gate) == ["c0", "c1", "hold", "o0"]  # /cam waits, /odom goes on
+    assert handoff.queued_bytes == 20
+    gate.holds[0].release.set()
+    await settle()
+    assert delivered(gate)[4:] == ["released", "c2", "c3"]
+    assert handoff.queued_bytes == 0
+    task.cancel()
+    handoff.close()

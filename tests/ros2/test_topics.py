@@ -162,6 +162,26 @@ ros.terminate()
     assert " WARNING rwt." in line, line
 
 
+async def test_garbage_inside_a_burst_costs_only_itself(
+    server: ServerProcess, ros_env: Path
+) -> None:
+    # A burst's samples reach the graph as one run (docs/ros2.md, "Latency under
+    # rate"): one that is not CDR of its type is dropped alone, the rest go in order.
+    script = """
+got = []
+roslibpy.Topic(ros, "/mixed", "std_msgs/msg/String").subscribe(lambda m: got.append(m["data"]))
+wait_for(lambda: len(got) >= 40)
+print(json.dumps(got[:40]))
+ros.terminate()
+"""
+    with Peer("mixed", "/mixed", ros_env):
+        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    first = int(got[0][1:])  # the subscription may match mid-burst
+    assert got == [f"g{n}" for n in range(first, first + 40)]
+    log = server.stderr_text()
+    assert len([x for x in log.splitlines() if "event=ros2_bad_sample topic=/mixed" in x]) == 1
+
+
 async def test_a_ros2_talker_on_a_topic_the_server_keeps_is_refused_once(
     server: ServerProcess, ros_env: Path
 ) -> None:
