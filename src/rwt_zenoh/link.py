@@ -131,12 +131,16 @@ class OwnPublisher:
     token: Any  # zenoh.LivelinessToken
     handle: Any  # zenoh.Publisher, or an advanced one keeping the last samples
     gid: bytes
+    topic: str = ""
     sequence: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     def put(self, payload: bytes | bytearray) -> None:
-        """Publish one CDR sample."""
-        attachment = pack_attachment(next(self.sequence), time.time_ns(), self.gid)
-        self.handle.put(payload, attachment=attachment)
+        """Publish one CDR sample, now (a publisher with congestion control DROP)."""
+        self.handle.put(payload, attachment=self.attachment())
+
+    def attachment(self) -> bytes:
+        """rmw_zenoh's attachment of the next sample: sequence number, time, GID."""
+        return pack_attachment(next(self.sequence), time.time_ns(), self.gid)
 
     def undeclare(self) -> None:
         """Withdraw the publisher and its token."""
@@ -431,23 +435,41 @@ class ZenohLink:
         queryable = self.declare_queryable(keyexpr, on_query)
         return [queryable, token]
 
-    def declare_publisher(self, node: str, topic: Topic) -> OwnPublisher:
+    def declare_publisher(self, node: str, topic: Topic, *, block: bool = False) -> OwnPublisher:
         """A publisher of ``node`` on ``topic``, with its token (see ``OwnPublisher``).
 
         A transient local ``topic.qos`` keeps its last ``depth`` samples for late
         subscribers, as a latched topic's publisher does. Samples go to other
-        sessions only.
+        sessions only. ``block``: a volatile publisher whose samples must not be
+        lost to a full transmission queue (congestion control BLOCK, as the link's
+        topics' publishers): put it through ``put_queued``, never ``put``.
         """
         entity = self.entity_of(node, EntityKind.PUBLISHER, topic)
         keyexpr = topic_keyexpr(self.domain_id, topic.name, topic.dds_type, topic.type_hash)
         if topic.qos.durability is Durability.TRANSIENT_LOCAL:
             handle = _caching_publisher(self.session, keyexpr, topic.qos.depth)
         else:
+            congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
             handle = self.session.declare_publisher(
-                keyexpr, allowed_destination=zenoh.Locality.REMOTE
+                keyexpr,
+                allowed_destination=zenoh.Locality.REMOTE,
+                congestion_control=congestion,
+                reliability=zenoh.Reliability.RELIABLE,
             )
         token = self.session.liveliness().declare_token(entity.token())
-        return OwnPublisher(token, handle, entity.gid())
+        return OwnPublisher(token, handle, entity.gid(), topic.name)
+
+    def put_queued(self, publisher: OwnPublisher, payload: bytes | bytearray) -> None:
+        """Put a sample of ``publisher`` (declared with ``block``) from the outbox's thread.
+
+        In order with the link's other queued puts, bounded as they are (``outbox``);
+        the event loop never waits for a full transmission queue.
+        """
+        self._outbox.put(publisher.topic, publisher.handle, payload, publisher.attachment())
+
+    def after_puts(self, call: Callable[[], None]) -> None:
+        """Run ``call`` (an answer) once the samples queued before it are put (``outbox``)."""
+        self._outbox.call_after_puts(call)
 
     def declare_queryable(self, keyexpr: str, on_query: Callable[[zenoh.Query], None]) -> Any:
         """A service's queryable as rmw_zenoh declares one: complete, for others only.

@@ -227,7 +227,7 @@ class ActionLink:
         self._offers[name] = _Offer(
             owner,
             handles,
-            link.declare_publisher(node, feedback),
+            link.declare_publisher(node, feedback, block=True),
             link.declare_publisher(node, status),
         )
 
@@ -274,8 +274,8 @@ class ActionLink:
         self, action: str, wire: ActionWire, goal_id: bytes, msg: dict[str, object]
     ) -> None:
         offer = self._offers.get(action)
-        if offer is not None:
-            offer.feedback.put(wire.feedback(goal_id, msg))
+        if offer is not None:  # reliable: lost to no full queue, and before the result
+            self.link.put_queued(offer.feedback, wire.feedback(goal_id, msg))
 
     def _goal_done(self, goal_id: bytes, status: GoalStatus, result: bool, values: object) -> None:
         served = self._served.get(goal_id)
@@ -307,14 +307,25 @@ class ActionLink:
     def _answer(self, goal_id: bytes, served: _Served, query: zenoh.Query) -> None:
         assert served.outcome is not None
         status, result, values = served.outcome
+        self._served.pop(goal_id, None)
+        link = self.link
+        payload: bytes | None = None
         try:
             if result and isinstance(values, dict):
-                self.link.reply(query, served.wire.result(int(status), values))
-            else:
-                query.reply_err(str(values))
-        finally:
-            query.drop()  # type: ignore[no-untyped-call]
-            self._served.pop(goal_id, None)
+                payload = served.wire.result(int(status), values)
+        except (RwtError, WireError) as exc:
+            values = f"action {served.action}: {exc}"
+
+        def answer() -> None:  # after the goal's feedback (the outbox's thread)
+            try:
+                if payload is not None:
+                    link.reply(query, payload)
+                else:
+                    query.reply_err(str(values))
+            finally:
+                query.drop()  # type: ignore[no-untyped-call]
+
+        link.after_puts(answer)
 
     def try_cancel(self, service: str, query: zenoh.Query) -> bool:
         """Cancel one of the goals remote callers sent, if ``query`` names one."""

@@ -58,7 +58,8 @@ class Outbox:
 
     def __init__(self, max_bytes: int = MAX_OUTBOX_BYTES) -> None:
         self._held = Inbox(max_bytes, drop_log=EpisodeLog(logger))
-        self._tickets: queue.SimpleQueue[str | None] = queue.SimpleQueue()
+        # a topic's sample to put, a call to make after the samples before it, or the end
+        self._tickets: queue.SimpleQueue[str | Callable[[], None] | None] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
         self._log = EpisodeLog(logger)
         self._marks = water_marks(max_bytes)
@@ -111,10 +112,23 @@ class Outbox:
             handle.put(data.make() if isinstance(data, Deferred) else data, attachment=extra)
 
         if self._held.put(key, Sample(send, payload, attachment)):
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._run, name="rwt-zenoh-out", daemon=True)
-                self._thread.start()
+            self._start()
             self._tickets.put(key)
+
+    def call_after_puts(self, call: Callable[[], None]) -> None:
+        """Run ``call`` on the sender thread once the samples handed over before it are put.
+
+        Never dropped, never waits (on the event loop): for an answer that must not
+        overtake them, as an action's result its feedback (``link_actions``). The
+        caller bounds how many it hands over.
+        """
+        self._start()
+        self._tickets.put(call)
+
+    def _start(self) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="rwt-zenoh-out", daemon=True)
+            self._thread.start()
 
     def close(self, timeout_s: float = 1.0) -> None:
         """Stop the sender thread after what it holds is put (waits ``timeout_s`` at most)."""
@@ -125,6 +139,9 @@ class Outbox:
 
     def _run(self) -> None:
         while (key := self._tickets.get()) is not None:
+            if not isinstance(key, str):
+                self._call(key)
+                continue
             sample = self._held.take(key)
             if sample is not None:  # else dropped while it waited
                 self._put(key, sample)
@@ -139,6 +156,17 @@ class Outbox:
                 f"zenoh_put_failed:{key}",
                 "event=zenoh_put_failed topic=%s reason=%r",
                 key,
+                str(exc),
+            )
+
+    def _call(self, call: Callable[[], None]) -> None:
+        try:
+            call()
+        except Exception as exc:
+            self._log.log(
+                logging.WARNING,
+                "zenoh_put_failed:call",
+                "event=zenoh_put_failed reason=%r",
                 str(exc),
             )
 

@@ -95,3 +95,33 @@ async def test_a_watcher_hears_of_progress_at_a_bounded_rate_and_always_of_the_e
     progress = [c for c in calls if not c]
     assert len(progress) <= elapsed / NOTIFY_EVERY_S + 1, (len(progress), elapsed)
     assert len(calls) < COUNT / 2, len(calls)
+
+
+class _Recorded:
+    """A real publisher whose puts are noted in order, beside the outbox's other calls."""
+
+    def __init__(self, publisher: Any, order: list[str]) -> None:
+        self.publisher, self.order = publisher, order
+
+    def put(self, data: bytes, *, attachment: bytes | None = None) -> None:
+        self.publisher.put(data, attachment=attachment)
+        self.order.append(data.decode())
+
+
+def test_an_answer_goes_after_the_samples_handed_over_before_it(
+    sessions: tuple[Any, Any],
+) -> None:
+    # An action's result must not overtake its feedback (rwt_zenoh.link_actions): the
+    # answer waits on the outbox's thread for the puts before it, however slow they are.
+    sender, _ = sessions
+    order: list[str] = []
+    publisher = _Recorded(sender.declare_publisher(KEY), order)
+    outbox = Outbox()
+    done = threading.Event()
+    for i in range(200):
+        outbox.put(KEY, publisher, f"s{i}".encode(), b"")
+    outbox.call_after_puts(lambda: (order.append("answer"), done.set()))
+    outbox.put(KEY, publisher, b"later", b"")
+    assert done.wait(10)
+    outbox.close()
+    assert order == [f"s{i}" for i in range(200)] + ["answer", "later"]
