@@ -730,9 +730,7 @@ class GraphCore:
         Raises:
             GraphError: ``client`` does not publish ``topic`` (any more).
         """
-        entry = self.topics.get(topic)
-        if entry is None or client not in entry.publishers:
-            raise GraphError(f"the publisher of {topic} was closed")
+        entry = self._published_by(client, topic)
         return self.deliver(entry, msg, latch, client, wire, lifespan)  # positional: per message
 
     def publish_local_many(
@@ -751,10 +749,18 @@ class GraphCore:
         Raises:
             GraphError: ``client`` does not publish ``topic`` (any more).
         """
+        return self.deliver_many(self._published_by(client, topic), msgs, client, wires, lifespan)
+
+    def _published_by(self, client: ClientId, topic: str) -> Topic:
+        """The topic ``topic``, which ``client`` publishes.
+
+        Raises:
+            GraphError: it does not (any more).
+        """
         entry = self.topics.get(topic)
         if entry is None or client not in entry.publishers:
             raise GraphError(f"the publisher of {topic} was closed")
-        return self.deliver_many(entry, msgs, client, wires, lifespan)
+        return entry
 
     def deliver(
         self,

@@ -370,30 +370,7 @@ class Ros2Link:
         too (a transient-local reader matches no volatile writer): a relay latches it.
         ``counters``: the topic's, counting it published or skipped.
         """
-        counters.skipped += 1  # until it is published
-        if gid in self._own_gids or self._remotes.mismatched(gid):
-            return  # the link's own publisher (it came from the graph), or a foreign definition
-        entry = self.graph.topics.get(topic)
-        if entry is None or entry.msgtype.name != type_name:
-            return
-        try:
-            msg = decode(self.graph.registry, entry.msgtype, data)
-        except RwtError as exc:
-            self._bad_sample(topic, exc)
-            return
-        try:  # by its publisher's participant, or a relay until discovery finds it
-            self._relays.deliver(
-                entry,
-                gid or None,
-                msg,
-                latched=transient_local,
-                wire=data,
-                lifespan=SAMPLE_LIFESPAN_S,
-            )
-            counters.skipped -= 1
-            counters.published += 1
-        except RwtError as exc:  # a topic reserved by the server: not ROS 2's
-            self._refused(topic, exc)
+        self._on_samples([(topic, type_name, data, gid, transient_local, counters)])
 
     def _bad_sample(self, topic: str, exc: RwtError) -> None:
         """Log a sample of ``topic`` that is not CDR of its type (once per episode)."""
@@ -514,7 +491,7 @@ class Ros2Link:
         return on_batch
 
     def _on_samples(self, runs: list[tuple[object, ...]]) -> None:
-        """``_on_sample`` of a run of one publisher's samples of one topic (``Handoff``).
+        """Publish a run of one publisher's samples of one topic (``Handoff``), in order.
 
         Each is decoded (one that is not CDR of its type is skipped and logged) and
         the run published in the graph at once (``Relays.deliver_many``): a
@@ -523,12 +500,10 @@ class Ros2Link:
         topic, type_name, _, gid, transient_local, counters = runs[0]
         assert isinstance(topic, str) and isinstance(type_name, str)  # (``_hand_over``)
         assert isinstance(gid, bytes) and isinstance(counters, TopicCounters)
-        if len(runs) == 1 or gid in self._own_gids or self._remotes.mismatched(gid):
-            for args in runs:
-                self._on_sample(*args)  # type: ignore[arg-type]
-            return
-        entry = self.graph.topics.get(topic)
         counters.skipped += len(runs)  # until published
+        if gid in self._own_gids or self._remotes.mismatched(gid):
+            return  # the link's own publisher (it came from the graph), or a foreign definition
+        entry = self.graph.topics.get(topic)
         if entry is None or entry.msgtype.name != type_name:
             return
         registry, msgtype = self.graph.registry, entry.msgtype

@@ -330,13 +330,7 @@ class Outbox:
         self._topic_frames += 1
         cost = len(frame.data) + self.frame_overhead_bytes
         self._bytes += cost
-        if self._bytes > self.limit_bytes:
-            if cost > self.limit_bytes:
-                self._hold(1, cost)
-            else:
-                self._shed()
-        elif self.max_messages is not None and self._topic_frames > self.max_messages:
-            self._shed()
+        self._bound_one(cost)
 
     def push_timed(self, frame: OutFrame, now: float, lifespan: float, key: str) -> None:
         """``extend((frame,), now, lifespan, key)`` of one whole topic message: the hot path.
@@ -367,6 +361,10 @@ class Outbox:
         oldest = waiting[0]
         if now - oldest.came > oldest.lifespan:
             self._expire(key, now)
+        self._bound_one(cost)
+
+    def _bound_one(self, cost: int) -> None:
+        """Apply the bounds after one whole topic message of ``cost`` bytes was queued."""
         if self._bytes > self.limit_bytes:
             if cost > self.limit_bytes:
                 self._hold(1, cost)
