@@ -167,15 +167,10 @@ async def test_garbage_inside_a_burst_costs_only_itself(
 ) -> None:
     # A burst's samples reach the graph as one run (docs/ros2.md, "Latency under
     # rate"): one that is not CDR of its type is dropped alone, the rest go in order.
-    script = """
-got = []
-roslibpy.Topic(ros, "/mixed", "std_msgs/msg/String").subscribe(lambda m: got.append(m["data"]))
-wait_for(lambda: len(got) >= 40)
-print(json.dumps(got[:40]))
-ros.terminate()
-"""
+    script = SUBSCRIBE.format(topic="/mixed", type="std_msgs/msg/String", count=40)
     with Peer("mixed", "/mixed", ros_env):
-        got = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+        messages = _last_json(await run_python(roslibpy_prelude(server.port) + script))
+    got = [m["data"] for m in messages]
     first = int(got[0][1:])  # the subscription may match mid-burst
     assert got == [f"g{n}" for n in range(first, first + 40)]
     log = server.stderr_text()
