@@ -42,6 +42,7 @@ PLUMBING = {
     "ZenohLink.declare_queryable",
     "ZenohLink.declare_service",
     "ZenohLink.entity_of",
+    "ZenohLink.put_queued",
 }
 # Classes rwt hands out (from create_*, open_*, send_goal...) and never asks a user
 # to build: their constructors are internal.
