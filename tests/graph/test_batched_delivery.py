@@ -30,6 +30,7 @@ from tests.support.shortcuts import switch_off
 from rwt_graph.core import BATCH_MAX_BYTES, BATCH_MAX_MESSAGES, SOLO_AFTER_ONE
 from rwt_graph.graph import Graph
 from rwt_graph.local import LocalPublisher
+from rwt_protocol.errors import GraphError
 from rwt_protocol.ports import MessageEvent
 
 pytestmark = [pytest.mark.anyio, pytest.mark.uvloop_too]
@@ -297,3 +298,21 @@ async def test_a_failing_sink_leaves_the_others_their_batch(
         await anyio.lowlevel.checkpoint()
     assert log.texts("fox") == ["a0", "a1"]
     assert f"subscriber broken of {topic} failed" in caplog.text
+
+
+async def test_a_run_from_a_link_goes_after_the_turns_batch_and_past_its_taps() -> None:
+    # A link's run of samples (``GraphCore.deliver_many``): one call per sink that takes
+    # runs, after what the turn's batch holds, and each sample seen by the graph's taps.
+    graph, log, publisher = one_topic()
+    graph.port.advertise("link", "/a", STRING)
+    tapped: list[str] = []
+    with served(graph):
+        publisher.publish(cdr("a0"))  # waits for the turn's end
+        graph.port.publish_local_many("link", "/a", [None, None], [cdr("r0"), cdr("r1")])
+        assert log.texts() == ["a0", "r0", "r1"]
+        graph.port.taps.append(lambda topic, event, client, latch: tapped.append(text_of(event)))
+        graph.port.publish_local_many("link", "/a", [None, None], [cdr("r2"), cdr("r3")])
+    assert log.batches == [("fox", 1), ("fox", 2), ("fox", 2)]
+    assert tapped == ["r2", "r3"]
+    with pytest.raises(GraphError, match="publisher of /a"):
+        graph.port.publish_local_many("stranger", "/a", [None], [cdr("x")])

@@ -15,11 +15,14 @@ from __future__ import annotations
 import json
 from typing import Any
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from rwt_graph.graph import Graph
+from rwt_graph.types import codec_for
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.server.commands import CloseCode
 from rwt_protocol.server.handlers import topics as topic_handlers
 from rwt_protocol.server.outbox import Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
@@ -156,11 +159,12 @@ SUBSCRIBE = st.fixed_dictionaries(
         "queue_length": st.sampled_from([0, 3]),
     }
 )
-# One step: publish a run (messages, ms after the previous step, with a lifespan),
-# let time pass (ms, for a throttle's windows), or read about so many bytes (None: all).
+# One step: publish a run (messages, ms after the previous step, with a lifespan, one
+# of them larger than the small send buffer), let time pass (ms, for a throttle's
+# windows), or read about so many bytes (None: all).
 STEPS = st.lists(
     st.one_of(
-        st.tuples(st.integers(1, 12), st.integers(0, 6), st.booleans()),
+        st.tuples(st.integers(1, 12), st.integers(0, 6), st.booleans(), st.booleans()),
         st.integers(1, 8),
         st.sampled_from([None, 300, 2000]),
     ),
@@ -171,15 +175,17 @@ STEPS = st.lists(
 @given(SUBSCRIBE, STEPS, st.sampled_from([1 << 20, 2500]))
 def test_a_run_reaches_the_peer_as_its_messages_one_by_one(
     subscribe: dict[str, Any],
-    steps: list[tuple[int, int, bool] | int | None],
+    steps: list[tuple[int, int, bool, bool] | int | None],
     limit: int,
 ) -> None:
     sides = [Side(batch, subscribe, limit) for batch in (True, False)]
     serial = 0
     for step in steps:
         if isinstance(step, tuple):
-            count, gap_ms, timed = step
+            count, gap_ms, timed, big = step
             texts = [f"m{serial + i}" for i in range(count)]
+            if big:  # over the small limit: held alone, or dropped
+                texts[-1] = texts[-1].ljust(3000, "x")
             serial += count
             for side in sides:
                 side.publish(texts, gap_ms, LIFESPAN if timed else 0.0)
@@ -211,3 +217,81 @@ def test_a_run_to_an_unthrottled_subscription_is_one_call_and_one_wake() -> None
     texts = [json.loads(data)["msg"]["data"] for _, data in side.frames]
     assert texts == [f"m{i}" for i in range(50)]
     side.session.close()
+
+
+def test_a_run_on_the_lossy_lane_leaves_its_latest_message() -> None:
+    side = Side(True, {}, 1 << 20)
+    lane = side.session.open_lossy_lane(0, lambda: None)
+    chosen, topic_handlers._BATCH_SINK = topic_handlers._BATCH_SINK, True
+    try:
+        side.session.receive_lossy_frame(
+            json.dumps({"op": "subscribe", "topic": "/t", "type": STRING}), side.clock.now
+        )
+    finally:
+        topic_handlers._BATCH_SINK = chosen
+    side.read(None)
+    side.publish(["a", "b", "c"], 1, LIFESPAN)
+    frame = side.session.lossy_frame_to_send()
+    assert frame is not None and json.loads(frame.data)["msg"] == {"data": "c"}
+    assert lane.replaced == 2
+    side.read(None)
+    assert side.frames == []  # nothing of it on the reliable channel
+    side.session.close()
+
+
+def test_a_run_that_cannot_be_encoded_is_told_as_each_message_would_be(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    received = []
+    for batch in (True, False):
+        side = Side(batch, {"compression": "cbor-raw"}, 1 << 20)
+        codec = codec_for(side.graph.registry, side.graph.registry.message(STRING))
+
+        def broken(msg: object) -> bytes:
+            raise KeyError(STRING)
+
+        monkeypatch.setattr(codec, "serialize", broken)
+        side.read(None)
+        msgs: list[dict[str, object] | None] = [{"data": "a"}, {"data": "b"}]
+        side.graph.port.publish_local_many("pub", "/t", msgs, [None, None])
+        side.read(None)
+        received.append([json.loads(data) for _, data in side.frames])
+        side.session.close()
+    fast, general = received
+    assert fast == general
+    assert fast and all(
+        (m["op"], m["level"], m["msg"])
+        == ("status", "error", "subscribe: cannot send a message of /t as cbor-raw")
+        for m in fast
+    )
+
+
+def test_a_closing_connection_queues_nothing_of_a_run() -> None:
+    side = Side(True, {}, 1 << 20)
+    side.read(None)
+    side.session.request_close(CloseCode.GOING_AWAY, "bye")
+    side.publish(["a", "b"], 1, LIFESPAN)
+    side.read(None)
+    assert side.frames == []
+
+
+def test_an_oversized_message_in_a_run_is_held_alone_as_one_by_one() -> None:
+    # over the send buffer: held while no other topic message waits, and the run's
+    # messages after it are dropped until it is taken (D24), on both paths alike
+    sides = [Side(batch, {}, 2500) for batch in (True, False)]
+    for side in sides:
+        side.read(None)
+        side.publish(["big".ljust(3000, "x"), "after", "after too"], 1, LIFESPAN)
+        side.publish(["later"], 1, 0.0)
+        side.read(None)
+        side.publish(["next", "big again".ljust(3000, "x")], 1, LIFESPAN)
+        side.tick(50)
+        side.read(None)
+    fast, general = sides
+    assert fast.frames == general.frames
+    ops = [json.loads(data) for _, data in fast.frames]
+    texts = [op["msg"]["data"][:9] for op in ops if op["op"] == "publish"]
+    assert texts == ["bigxxxxxx", "next"]  # the second big one dropped: "next" waited
+    warnings = [op["msg"] for op in ops if op["op"] == "status"]
+    assert warnings[-1].startswith("dropped a 3047-byte message of /t")
+    assert fast.session.dropped_frames == general.session.dropped_frames == 4
