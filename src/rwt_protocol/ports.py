@@ -215,10 +215,12 @@ class TopicSink(Protocol):
 class BatchSink(TopicSink, Protocol):
     """A ``TopicSink`` that also takes the messages of one turn of the loop in one call.
 
-    A sink that only queues output for a connection (a Foxglove client) has
-    it: while a server serves the graph, serialized messages published on a
-    topic whose every subscriber is such a sink are handed over as a batch at
-    the end of the event loop's turn (docs/embedding.md, "Batched delivery").
+    A sink that only queues output for a connection (a Foxglove client's, a
+    rosbridge client's with ``rosbridge-batch-sink``) has it: while a server
+    serves the graph, serialized messages published on a topic whose every
+    subscriber is such a sink are handed over as a batch at the end of the event
+    loop's turn (docs/embedding.md, "Batched delivery"), and a link's run of
+    samples in one call (``GraphCore.deliver_many``).
     """
 
     def on_messages(self, events: list[MessageEvent]) -> None:
