@@ -14,12 +14,14 @@ Samples are bounded by time too: the queue holds at most ``max_wait_s``
 published (their source timestamps, on the publisher's clock, so a clock of
 another host skews nothing: samples of one publisher are only compared with
 each other). A sample published more than that before the newest queued sample
-of its publisher is dropped when its turn comes, and counted in ``expired``
-(docs/ros2.md, "Latency under rate"). So a
+of its publisher, with at least ``KEEP_NEWER`` (the link's history depth) of that
+publisher's samples queued after it, is dropped when its turn comes, and counted
+in ``expired`` (docs/ros2.md, "Latency under rate"). So a
 loop that fell behind a steady stream (a busy machine, a flood) catches up with
 the newest samples rather than working through old ones, as a ROS 2
 subscription's history drops its oldest samples when its node falls behind,
-while a burst that came within ``max_wait_s`` reaches the graph whole. While
+while a burst that came within ``max_wait_s``, or of fewer samples than that
+history keeps, reaches the graph whole. While
 the oldest queued sample has waited half that (``behind``), the taking thread
 pauses (``pause_while_behind``): new samples wait in the middleware's history,
 which keeps the newest at no cost to the loop, rather than being taken only to
@@ -51,6 +53,8 @@ from rwt_graph.link import OPEN_GATE
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.topic_holds import TopicHolds
 
+from .graphview import INWARD_DEPTH
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -66,6 +70,12 @@ MAX_QUEUED_BYTES = 64 * 1024 * 1024
 MAX_WAIT_S = 0.020
 """Seconds of a topic's ROS 2 samples waiting for the event loop: a sample that came
 more than this before the newest queued one of its topic is dropped (module text)."""
+
+KEEP_NEWER = INWARD_DEPTH
+"""Newer queued samples of its publisher a sample must have behind it before its wait
+can drop it (``MAX_WAIT_S``): the link's subscriptions' history depth
+(``graphview.INWARD_DEPTH``), so the handoff never drops a sample such a history
+would still keep (a burst of a publisher the machine slowed down)."""
 
 PAUSE_S = 0.001
 """Seconds the taking thread sleeps at a time while the loop is behind (``behind``)."""
@@ -92,10 +102,12 @@ _Event = tuple[
     bytes,
     float,
     "Callable[[list[tuple[object, ...]]], None] | None",
+    int,
 ]
 """A queued callback, its arguments, its bytes, its topic ("" if no sample), when
-it came (``Sample``), its publisher, when it was queued (``clock``), and the
-callback that takes a run of such samples' arguments at once (or None)."""
+it came (``Sample``), its publisher, when it was queued (``clock``), the
+callback that takes a run of such samples' arguments at once (or None), and how
+many samples of its topic and publisher were queued before it."""
 
 Sample = tuple[tuple[object, ...], int, float, bytes]
 """A sample for ``Handoff.put_many``: its callback's arguments, its bytes, when it
@@ -109,7 +121,9 @@ class Handoff:
     Args:
         max_bytes: samples' bytes kept waiting at most (``MAX_QUEUED_BYTES``).
         max_wait_s: seconds of one publisher's samples of a topic queued at most
-            (``MAX_WAIT_S``).
+            (``MAX_WAIT_S``) once ``keep_newer`` newer ones of it are queued too.
+        keep_newer: newer samples of its publisher a sample waits behind at least
+            before its wait can drop it (``KEEP_NEWER``).
         clock: monotonic seconds (a test's hand-moved clock).
 
     Attributes:
@@ -121,15 +135,17 @@ class Handoff:
         max_bytes: int = MAX_QUEUED_BYTES,
         max_wait_s: float = MAX_WAIT_S,
         clock: Callable[[], float] = time.monotonic,
+        keep_newer: int = KEEP_NEWER,
     ) -> None:
         self.max_bytes = max_bytes
         self.max_wait_s = max_wait_s
+        self.keep_newer = keep_newer
         self.clock = clock
         self.queued_bytes = 0
         self.dropped = 0
         self.expired: dict[str, int] = {}
-        # when the newest queued sample came, by topic and publisher
-        self._newest: dict[tuple[str, bytes], float] = {}
+        # when the newest queued sample came, and how many were queued, by topic and publisher
+        self._newest: dict[tuple[str, bytes], tuple[float, int]] = {}
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
@@ -161,9 +177,8 @@ class Handoff:
                 return False
             self.queued_bytes += size
             came = self.clock()
-            if topic:
-                self._newest[topic, b""] = came
-            self._events.append((callback, args, size, topic, came, b"", came, None))
+            index = self._note(topic, b"", came) if topic else 0
+            self._events.append((callback, args, size, topic, came, b"", came, None, index))
             signal = self._signal()
         if signal:
             self._wake_loop()
@@ -193,19 +208,38 @@ class Handoff:
         with self._lock:
             if self._closed:
                 return 0
-            events, newest, now = self._events, self._newest, self.clock()
+            events, now = self._events, self.clock()
             for args, size, came, source in samples:
                 if self.queued_bytes + size > self.max_bytes:
                     self._refuse(topic)
                     continue
                 self.queued_bytes += size
-                events.append((callback, args, size, topic, came, source, now, run))
-                newest[topic, source] = came
+                index = self._note(topic, source, came)
+                events.append((callback, args, size, topic, came, source, now, run, index))
                 queued += 1
             signal = queued > 0 and self._signal()
         if signal:
             self._wake_loop()
         return queued
+
+    def _note(self, topic: str, source: bytes, came: float) -> int:
+        """Note a sample of ``topic`` from ``source`` that came at ``came`` (under the lock).
+
+        Returns:
+            How many of that publisher's samples of the topic were queued before it.
+        """
+        _, count = self._newest.get((topic, source), (0.0, 0))
+        self._newest[topic, source] = (came, count + 1)
+        return count
+
+    def _outdated(self, topic: str, source: bytes, came: float, index: int) -> bool:
+        """Whether a sample (``came``, ``index`` as ``_note`` gave it) is to be dropped.
+
+        It came more than ``max_wait_s`` before the newest sample of its publisher
+        and topic, and ``keep_newer`` of those came after it (under the lock).
+        """
+        newest, count = self._newest[topic, source]
+        return newest - came > self.max_wait_s and count - index > self.keep_newer
 
     def behind(self) -> bool:
         """Whether the oldest queued event has waited over half ``max_wait_s`` (any thread).
@@ -294,14 +328,14 @@ class Handoff:
     def _run_batch(self, inflow: InflowGate, holds: TopicHolds[_Event]) -> None:
         clock = self.clock
         end = clock() + TURN_S
-        newest, span, events = self._newest, self.max_wait_s, self._events
+        events = self._events
         for _ in range(_BATCH):
             if not events or clock() > end:
                 return
             with self._lock:
                 event = events.popleft()
-                callback, args, size, topic, came, source, _, run = event
-                outdated = bool(topic) and newest[topic, source] - came > span
+                callback, args, size, topic, came, source, _, run, index = event
+                outdated = bool(topic) and self._outdated(topic, source, came, index)
             if outdated:
                 self._expire(topic, size)
                 continue
@@ -344,7 +378,7 @@ class Handoff:
         Those of ``topic`` from ``source``, up to ``RUN_MAX``; the outdated ones expire.
         """
         runs = [args]
-        events, newest, span = self._events, self._newest, self.max_wait_s
+        events = self._events
         with self._lock:
             while events and len(runs) < RUN_MAX:
                 follower = events[0]
@@ -352,7 +386,7 @@ class Handoff:
                     break
                 events.popleft()
                 size += follower[2]
-                if newest[topic, source] - follower[4] > span:
+                if self._outdated(topic, source, follower[4], follower[8]):
                     self.expired[topic] = self.expired.get(topic, 0) + 1
                     continue
                 runs.append(follower[1])

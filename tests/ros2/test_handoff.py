@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from rwt_ros2.handoff import RUN_MAX, TURN_S, Handoff, Sample
+from rwt_ros2.handoff import KEEP_NEWER, RUN_MAX, TURN_S, Handoff, Sample
 
 pytestmark = pytest.mark.anyio
 
@@ -121,7 +121,7 @@ def _samples(names: list[str], came: list[float], source: bytes) -> list[Sample]
 
 async def test_a_loop_behind_a_steady_stream_runs_only_the_newest_span() -> None:
     clock = HandClock()
-    handoff = Handoff(max_wait_s=0.0055, clock=clock)
+    handoff = Handoff(max_wait_s=0.0055, clock=clock, keep_newer=5)
     ran: list[str] = []
     names = [f"s{i}" for i in range(100)]  # 1 kHz for 0.1 s, while the loop was away
     handoff.put_many(ran.append, _samples(names, [i / 1000 for i in range(100)], b"p"), "/t")
@@ -130,6 +130,23 @@ async def test_a_loop_behind_a_steady_stream_runs_only_the_newest_span() -> None
     assert ran == [f"s{i}" for i in range(94, 100)]  # 5.5 ms of it, the newest
     assert handoff.expired == {"/t": 94}
     assert handoff.queued_bytes == 0
+    task.cancel()
+    handoff.close()
+
+
+async def test_a_slowed_burst_loses_only_what_the_links_history_would_have() -> None:
+    # a publisher the machine slowed: 150 samples over 150 ms, far over the span, while
+    # the loop was away; the newest KEEP_NEWER go, as a history of that depth keeps them
+    clock = HandClock()
+    handoff = Handoff(max_wait_s=0.005, clock=clock)
+    ran: list[str] = []
+    names = [f"s{i}" for i in range(150)]
+    handoff.put_many(ran.append, _samples(names, [i / 1000 for i in range(150)], b"p"), "/t")
+    handoff.put_many(ran.append, _samples(["q0"], [0.0], b"q"), "/t")  # another publisher's
+    task = asyncio.create_task(handoff.drain())
+    await settle()
+    assert ran == names[150 - KEEP_NEWER :] + ["q0"]
+    assert handoff.expired == {"/t": 150 - KEEP_NEWER}
     task.cancel()
     handoff.close()
 
@@ -246,7 +263,7 @@ async def test_a_run_is_one_topic_and_one_publisher_in_the_order_they_came() -> 
 
 
 async def test_samples_outdated_inside_a_run_expire_and_the_rest_go() -> None:
-    handoff = Handoff(max_wait_s=0.005, clock=HandClock())
+    handoff = Handoff(max_wait_s=0.005, clock=HandClock(), keep_newer=0)
     runs = Runs()
     came = [0.0, 0.001, 0.002, 0.010]  # the first three are over 5 ms before the newest
     handoff.put_many(runs.one, _samples(["s0", "s1", "s2"], came[:3], b"p"), "/t", runs)
