@@ -145,7 +145,7 @@ async def test_a_slowed_burst_loses_only_what_the_links_history_would_have() -> 
     handoff.put_many(ran.append, _samples(["q0"], [0.0], b"q"), "/t")  # another publisher's
     task = asyncio.create_task(handoff.drain())
     await settle()
-    assert ran == names[150 - KEEP_NEWER :] + ["q0"]
+    assert ran == [*names[150 - KEEP_NEWER :], "q0"]
     assert handoff.expired == {"/t": 150 - KEEP_NEWER}
     task.cancel()
     handoff.close()

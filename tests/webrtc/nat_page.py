@@ -50,9 +50,17 @@ try {
     { op: "call_service", service: "/rosapi/topics", id: "sync" },
   ]) channel.send(JSON.stringify(op));
   const msg = await echo;
-  const stats = [...(await pc.getStats()).values()];
-  const pair = stats.find(
-    (s) => s.type === "candidate-pair" && s.nominated && s.state === "succeeded");
+  // the pair in use: the transport's selected one (or the nominated one), which the
+  // stats may list a moment after the channel opened
+  let stats = [], pair;
+  for (let tries = 0; !pair && tries < 50; tries++) {
+    if (tries) await new Promise((later) => setTimeout(later, 100));
+    stats = [...(await pc.getStats()).values()];
+    const transport = stats.find((s) => s.type === "transport");
+    pair = stats.find((s) => transport && s.id === transport.selectedCandidatePairId) ||
+      stats.find((s) => s.type === "candidate-pair" && s.nominated && s.state === "succeeded");
+  }
+  if (!pair) throw new Error("no candidate pair in use in the stats");
   const remote = stats.find((s) => s.id === pair.remoteCandidateId);
   const lines = offer.split("\\r\\n").filter((l) => l.includes(" typ "));
   await report({
