@@ -144,8 +144,10 @@ class Handoff:
         self.queued_bytes = 0
         self.dropped = 0
         self.expired: dict[str, int] = {}
-        # when the newest queued sample came, and how many were queued, by topic and publisher
-        self._newest: dict[tuple[str, bytes], tuple[float, int]] = {}
+        # by topic and publisher with samples waiting: when the newest came, how many were
+        # queued since the first of those waiting, and how many wait (the key goes with
+        # its last sample, so publishers that come and go, or forged GIDs, leave nothing)
+        self._newest: dict[tuple[str, bytes], list[float]] = {}
         self._events: deque[_Event] = deque()
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
@@ -228,9 +230,21 @@ class Handoff:
         Returns:
             How many of that publisher's samples of the topic were queued before it.
         """
-        _, count = self._newest.get((topic, source), (0.0, 0))
-        self._newest[topic, source] = (came, count + 1)
+        noted = self._newest.get((topic, source))
+        if noted is None:
+            self._newest[topic, source] = [came, 1, 1]
+            return 0
+        count = int(noted[1])
+        noted[0], noted[1], noted[2] = came, count + 1, noted[2] + 1
         return count
+
+    def _left(self, topic: str, source: bytes, count: int = 1) -> None:
+        """``count`` samples of ``topic`` from ``source`` left the queue (under the lock)."""
+        key = (topic, source)
+        noted = self._newest[key]
+        noted[2] -= count
+        if noted[2] <= 0:
+            del self._newest[key]
 
     def _outdated(self, topic: str, source: bytes, came: float, index: int) -> bool:
         """Whether a sample (``came``, ``index`` as ``_note`` gave it) is to be dropped.
@@ -238,7 +252,7 @@ class Handoff:
         It came more than ``max_wait_s`` before the newest sample of its publisher
         and topic, and ``keep_newer`` of those came after it (under the lock).
         """
-        newest, count = self._newest[topic, source]
+        newest, count, _ = self._newest[topic, source]
         return newest - came > self.max_wait_s and count - index > self.keep_newer
 
     def behind(self) -> bool:
@@ -336,6 +350,8 @@ class Handoff:
                 event = events.popleft()
                 callback, args, size, topic, came, source, _, run, index = event
                 outdated = bool(topic) and self._outdated(topic, source, came, index)
+                if outdated:
+                    self._left(topic, source)
             if outdated:
                 self._expire(topic, size)
                 continue
@@ -346,6 +362,8 @@ class Handoff:
             else:
                 with self._lock:
                     self.queued_bytes -= size
+                    if topic:
+                        self._left(topic, source)
                 try:
                     callback(*args)
                 except Exception:
@@ -378,19 +396,21 @@ class Handoff:
         Those of ``topic`` from ``source``, up to ``RUN_MAX``; the outdated ones expire.
         """
         runs = [args]
-        events = self._events
+        events, taken = self._events, 1
         with self._lock:
             while events and len(runs) < RUN_MAX:
                 follower = events[0]
                 if follower[7] is not run or follower[3] != topic or follower[5] != source:
                     break
                 events.popleft()
+                taken += 1
                 size += follower[2]
                 if self._outdated(topic, source, follower[4], follower[8]):
                     self.expired[topic] = self.expired.get(topic, 0) + 1
                     continue
                 runs.append(follower[1])
             self.queued_bytes -= size
+            self._left(topic, source, taken)
         try:
             run(runs)
         except Exception:

@@ -305,3 +305,27 @@ async def test_a_run_that_congested_a_subscriber_holds_its_topic() -> None:
     assert handoff.queued_bytes == 0
     task.cancel()
     handoff.close()
+
+
+async def test_what_it_keeps_of_publishers_goes_with_their_last_waiting_sample() -> None:
+    # A ROS 2 peer is untrusted: samples each with a fresh publisher GID (forged, or
+    # publishers that come and go) must leave nothing behind once delivered or dropped.
+    clock = HandClock()
+    handoff = Handoff(max_wait_s=0.005, clock=clock, keep_newer=0)
+    runs = Runs()
+    for i in range(2000):
+        handoff.put_many(runs.one, _samples([f"g{i}"], [0.0], i.to_bytes(16, "big")), "/t", runs)
+    handoff.put_many(runs.one, _samples(["a0", "a1"], [0.0, 0.01], b"a"), "/t", runs)  # a0 expires
+    handoff.put(runs.one, "event")
+    task = asyncio.create_task(handoff.drain())
+    for _ in range(50):
+        await settle()
+    assert [name for run in runs.runs for name in run] == [
+        *(f"g{i}" for i in range(2000)),
+        "a1",
+        "event",
+    ]
+    assert handoff.expired == {"/t": 1}
+    assert handoff._newest == {}  # (what would grow: one entry per publisher and topic)
+    task.cancel()
+    handoff.close()
