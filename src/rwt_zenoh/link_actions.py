@@ -80,6 +80,13 @@ RESULT_TIMEOUT_S = 24 * 3600.0
 STATUS_SUFFIX = "/_action/status"
 GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 
+MAX_RESULT_WAITERS = 16
+"""``get_result`` queries one served goal keeps waiting for its result at most (a
+remote caller asks once, or again after a timeout); past it a query is answered with
+an error at once, so a peer repeating it cannot grow the link's memory. A peer that
+queries first could so crowd out the goal's caller, as it could cancel the goal: the
+action services are open to every peer, as in ROS 2."""
+
 
 @dataclass(eq=False)
 class _Served:
@@ -298,6 +305,11 @@ class ActionLink:
         served = self._served.get(goal_id)
         if served is None:
             query.reply_err(f"action {action}: unknown goal")
+            query.drop()  # type: ignore[no-untyped-call]
+        elif served.outcome is None and len(served.waiting) >= MAX_RESULT_WAITERS:
+            query.reply_err(
+                f"action {action}: {MAX_RESULT_WAITERS} get_result queries wait for this goal"
+            )
             query.drop()  # type: ignore[no-untyped-call]
         elif served.outcome is None:
             served.waiting.append(query)

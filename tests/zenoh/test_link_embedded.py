@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import anyio
 import pytest
 
+import zenoh
 from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
@@ -32,7 +33,10 @@ from rwt_graph.rosapi.visibility import EVERYTHING
 from rwt_protocol.errors import FieldError, RwtError
 from rwt_protocol.ports import GoalStatus
 from rwt_transports.server import running_handlers
+from rwt_zenoh.actions import GET_RESULT_SUFFIX
+from rwt_zenoh.config import make_config
 from rwt_zenoh.link import ZenohLink, open_zenoh_link
+from rwt_zenoh.link_actions import MAX_RESULT_WAITERS
 
 from .processes import REPO
 from .support import WAIT_S, endpoint, peer, until
@@ -359,3 +363,62 @@ async def test_a_burst_of_200_images_from_another_process_arrives_whole() -> Non
             await process.stdin.send(b"\n")
         assert len(got) == count
         assert link._inbox.dropped == 0
+
+
+async def test_a_peer_repeating_get_result_for_a_running_goal_is_refused_past_a_bound() -> None:
+    # Any Zenoh peer may query a served goal's result; each query waits for the goal
+    # to end, so a peer repeating it must not grow the server's memory without bound.
+    first = endpoint()
+    a, b = Graph(), Graph()
+
+    async def slow(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        while not context.cancel_requested:
+            await anyio.sleep(0.02)
+        raise GoalCanceledError
+
+    async with (
+        running_handlers(b) as tg,
+        open_zenoh_link(a, peer(listen=first)),
+        open_zenoh_link(b, peer(connect=(first,))) as b_link,
+    ):
+        fib = "example_interfaces/action/Fibonacci"
+        b.create_action_server("/fib", fib, slow, node="/f")
+        await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
+        done: list[tuple[GoalStatus, bool, object]] = []
+        handle = a.port.send_action_goal(
+            a.port.local_client(), "/fib", {"order": 3}, lambda *o: done.append(o), print
+        )
+        actions = b_link._actions
+        await until(lambda: bool(actions._served), "the goal served on B")
+        [uuid] = actions._served
+        # A's own query waits first; queries past the bound could crowd out a caller's
+        # as a cancel from any peer could end its goal (link_actions.MAX_RESULT_WAITERS)
+        await until(lambda: bool(actions._served[uuid].waiting), "A's own get_result")
+        wire = actions.wire(fib)
+        key = actions._key("/fib" + GET_RESULT_SUFFIX, wire, "GetResult")
+        errors: list[str] = []
+
+        def on_reply(reply: Any) -> None:  # a Zenoh thread
+            if reply.err is not None:
+                errors.append(reply.err.payload.to_string())
+
+        repeater = zenoh.open(make_config(peer(connect=(first,))))
+        try:
+            for _ in range(MAX_RESULT_WAITERS + 40):
+                repeater.get(
+                    key,
+                    lambda reply: (
+                        errors.append(reply.err.payload.to_string()) if reply.err else None
+                    ),
+                    payload=wire.get_result(uuid),
+                )
+            await until(lambda: len(errors) >= 40, "the refusals")
+            waiting = actions._served[uuid].waiting
+            assert len(waiting) <= MAX_RESULT_WAITERS
+            assert all("get_result queries wait for this goal" in e for e in errors)
+            handle.request_cancel()  # the goal ends: A's caller still gets its outcome
+            await until(lambda: bool(done), "the canceled goal")
+            assert done[0][0] is GoalStatus.CANCELED
+        finally:
+            repeater.close()
+        tg.cancel_scope.cancel()
