@@ -95,10 +95,12 @@ def test_echoes_a_topic(page: Page) -> None:
         "(t => /window [1-9]/.test(t) && t)(document.getElementById('echo-details').textContent)",
         what="ros2 topic hz's figures",
     )
-    # about 10 Hz: intervals near 0.1 s; the window's messages and their sizes
+    # about 10 Hz: intervals near 0.1 s (two can arrive in one read of a loaded
+    # machine's socket: a minimum of 0); the window's messages and their sizes
     gaps = [float(x) for x in re.findall(r"(?:min|max) ([0-9.]+)s", details)]
     assert len(gaps) == 2
-    assert 0.01 < gaps[0] <= gaps[1] < 2
+    assert 0 <= gaps[0] <= gaps[1] < 2
+    assert gaps[1] > 0.01
     assert "std dev" in details
     assert re.search(r"mean [1-9][0-9]* B min [1-9][0-9]* B max [1-9][0-9]* B", details)
     rate = page.wait_for(f"Number(document.querySelector('{row} .hz').textContent)")
