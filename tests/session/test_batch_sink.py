@@ -16,7 +16,7 @@ import json
 from typing import Any
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rwt_graph.graph import Graph
@@ -172,6 +172,7 @@ STEPS = st.lists(
 )
 
 
+@settings(max_examples=50)  # two graphs and sessions an example: the suite's time
 @given(SUBSCRIBE, STEPS, st.sampled_from([1 << 20, 2500]))
 def test_a_run_reaches_the_peer_as_its_messages_one_by_one(
     subscribe: dict[str, Any],
