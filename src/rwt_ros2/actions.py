@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 
     from .link import Ros2Link
     from .node import RosNode
+    from .offers import Offer
 
 __all__ = ["GoalOutcome", "RosAction", "serve_action_to_ros"]
 
@@ -264,14 +265,17 @@ def _start_in_graph(
         outcome.set(False, exc)
 
 
-def serve_action_to_ros(link: Ros2Link, name: str, type_name: str, ros_type: Any) -> Any:
+def serve_action_to_ros(
+    link: Ros2Link, name: str, type_name: str, ros_type: Any, offer: Offer
+) -> Any:
     """An rclpy action server offering the graph's action ``name`` to ROS 2 action clients.
 
     Each ROS 2 goal becomes a graph goal (``Graph.send_action_goal``) sent by the
     link's caller: its feedback is published to the ROS 2 client, its result
     and status end the ROS 2 goal, and a ROS 2 cancel request is forwarded. A
     goal the graph refuses, or whose provider goes, ends ABORTED (logged once
-    per episode); so do goals in flight when the link stops.
+    per episode); so do goals in flight when the link stops. Each goal is
+    inside ``offer`` while it runs, so the server outlives it (``offers``).
     """
     from rclpy.action.server import ActionServer, CancelResponse  # noqa: PLC0415
     from rclpy.serialization import serialize_message  # noqa: PLC0415
@@ -286,6 +290,13 @@ def serve_action_to_ros(link: Ros2Link, name: str, type_name: str, ros_type: Any
     running: dict[bytes, GoalOutcome] = {}  # goal id -> its outcome, while it runs
 
     async def execute(goal_handle: Any) -> Any:  # a task of the executor, until the goal ends
+        offer.enter()
+        try:
+            return await run_goal(goal_handle)
+        finally:
+            offer.leave()
+
+    async def run_goal(goal_handle: Any) -> Any:
         outcome = GoalOutcome(link.ros)
         if not link.ros.waiting.acquire(blocking=False):
             outcome.set(False, f"{MAX_WAITING} calls and goals from ROS 2 wait already")

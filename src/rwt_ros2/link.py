@@ -63,6 +63,7 @@ from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, sn
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff, Sample
 from .node import RosNode
+from .offers import Offer
 from .outflow import Lane, Outflow
 from .remotes import RosRemotes, entities
 from .rosout import RosoutHandler
@@ -167,12 +168,6 @@ class _Pub:
     gids: set[bytes] = field(default_factory=set)
 
 
-@dataclass(eq=False)
-class _Server:
-    type_name: str
-    handle: Any
-
-
 class Ros2Link:
     """Mirrors a graph to and from ROS 2 through one rclpy node (see the module text).
 
@@ -203,9 +198,10 @@ class Ros2Link:
         self._subscription_qos: dict[str, list[Qos]] = {}  # the view's, by topic
         self._subs: dict[str, _Sub] = {}
         self._pubs: dict[str, _Pub] = {}
-        self._servers: dict[str, _Server] = {}
-        self._action_servers: dict[str, _Server] = {}
-        self._param_servers: dict[str, list[Any]] = {}  # node -> its 3 rclpy services
+        self._servers: dict[str, Offer] = {}
+        self._action_servers: dict[str, Offer] = {}
+        self._param_servers: dict[str, list[Offer]] = {}  # node -> its 3 rclpy services
+        self._retired: set[Offer] = set()  # gone from the graph, answering their last calls
         self._relays = Relays(graph, self.rules, ros.fqn, self._mirror.publisher_of)
         # the local entities to share, from the graph's change feed (``_share``)
         self.outward = Exports(graph.port.feed, self.rules)
@@ -326,15 +322,12 @@ class Ros2Link:
         for pub in self._pubs.values():
             pub.lane.take_held()
             _destroy(node.destroy_publisher, pub.handle)
-        for server in self._servers.values():
-            _destroy(node.destroy_service, server.handle)
-        for server in self._action_servers.values():
-            _destroy(lambda handle: handle.destroy(), server.handle)
+        offers = [*self._servers.values(), *self._action_servers.values(), *self._retired]
+        for offer in offers + [o for group in self._param_servers.values() for o in group]:
+            offer.destroy()
         self._action_servers.clear()
-        for handles in self._param_servers.values():
-            for handle in handles:
-                _destroy(node.destroy_service, handle)
         self._param_servers.clear()
+        self._retired.clear()
         self._subs.clear()
         self._pubs.clear()
         self._servers.clear()
@@ -676,38 +669,48 @@ class Ros2Link:
         if entry.latched is event:
             pub.latched_sent = event
 
+    def _retire(self, offer: Offer) -> None:
+        """Destroy ``offer`` once its last call is answered (``offers``)."""
+        self._retired = {o for o in self._retired if o.handle is not None}
+        self._retired.add(offer)
+        offer.retire()
+
+    def _offer(self, type_name: str, destroy: Callable[[Any], object]) -> Offer:
+        return Offer(type_name, self.ros.executor, destroy)
+
     def _sweep_servers(self, serving: dict[str, str]) -> None:
         node = self.ros.node
         for name, server in list(self._servers.items()):
             if serving.get(name) != server.type_name:
-                _destroy(node.destroy_service, self._servers.pop(name).handle)
+                self._retire(self._servers.pop(name))
         for name, type_name in serving.items():
             if name in self._servers:
                 continue
             ros_type = self._ros_type(name, type_name)
             if ros_type is None:
                 continue
-            callback = serve_to_ros(self, name, type_name, ros_type)
-            handle = node.create_service(
+            offer = self._offer(type_name, node.destroy_service)
+            offer.handle = node.create_service(
                 ros_type,
                 name,
-                callback,
+                serve_to_ros(self, name, type_name, ros_type, offer),
                 qos_profile=rclpy_profile(SERVICE_QOS),
                 callback_group=self.ros.group,
             )
-            self._servers[name] = _Server(type_name, handle)
+            self._servers[name] = offer
 
     def _sweep_action_servers(self, offered: dict[str, str]) -> None:
         for name, server in list(self._action_servers.items()):
             if offered.get(name) != server.type_name:
-                _destroy(lambda handle: handle.destroy(), self._action_servers.pop(name).handle)
+                self._retire(self._action_servers.pop(name))
         for name, type_name in offered.items():
             if name in self._action_servers:
                 continue
             ros_type = self._ros_type(name, type_name)
             if ros_type is not None:
-                handle = serve_action_to_ros(self, name, type_name, ros_type)
-                self._action_servers[name] = _Server(type_name, handle)
+                offer = self._offer(type_name, lambda handle: handle.destroy())
+                offer.handle = serve_action_to_ros(self, name, type_name, ros_type, offer)
+                self._action_servers[name] = offer
 
     def _sweep_param_servers(self) -> None:
         """The parameter services of each local node with parameters, as a ROS 2 node's."""
@@ -716,26 +719,25 @@ class Ros2Link:
         node = self.ros.node
         for name in list(self._param_servers):
             if name not in local:
-                for handle in self._param_servers.pop(name):
-                    _destroy(node.destroy_service, handle)
+                for offer in self._param_servers.pop(name):
+                    self._retire(offer)
         for name in local - self._param_servers.keys():
-            handles = []
+            offers = []
             for part, type_name in PARAM_SERVICES.items():
                 ros_type = self._ros_type(f"{name}/{part}", type_name)
                 if ros_type is None:
                     continue
+                offer = self._offer(type_name, node.destroy_service)
                 handler = partial(answer_param_request, self.graph, name, part)
-                callback = serve_to_ros(self, f"{name}/{part}", type_name, ros_type, handler)
-                handles.append(
-                    node.create_service(
-                        ros_type,
-                        f"{name}/{part}",
-                        callback,
-                        qos_profile=rclpy_profile(SERVICE_QOS),
-                        callback_group=self.ros.group,
-                    )
+                offer.handle = node.create_service(
+                    ros_type,
+                    f"{name}/{part}",
+                    serve_to_ros(self, f"{name}/{part}", type_name, ros_type, offer, handler),
+                    qos_profile=rclpy_profile(SERVICE_QOS),
+                    callback_group=self.ros.group,
                 )
-            self._param_servers[name] = handles
+                offers.append(offer)
+            self._param_servers[name] = offers
 
 
 def _destroy(destroy: Any, handle: Any) -> None:

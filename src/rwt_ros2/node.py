@@ -17,15 +17,19 @@ are coroutines awaiting an ``answer.Answer`` the event loop completes.
 
 from __future__ import annotations
 
+import logging
 import threading
 from typing import Any
 
+from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.shortcuts import enabled
 
 from .runtime import load_rclpy
 from .takeloop import TakeLoop
 
 __all__ = ["MAX_WAITING", "SPIN_TIMEOUT_S", "RosNode"]
+
+logger = logging.getLogger("rwt.ros2")
 
 SPIN_TIMEOUT_S = 0.1
 """How long one executor wait lasts, seconds: how soon the thread notices shutdown."""
@@ -82,6 +86,7 @@ class RosNode:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="rwt-ros2", daemon=True)
+        self._episodes = EpisodeLog(logger)
         #: the link's subscriptions' own thread (``ros2-take-loop``); None: the executor's
         self.takes = TakeLoop(self.node) if enabled("ros2-take-loop") else None
 
@@ -95,10 +100,18 @@ class RosNode:
         while self.context.ok():
             try:
                 self.executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
-            except Exception:  # shutdown under the executor's feet
-                if self.context.ok():
-                    raise
-                return
+            except Exception as exc:
+                if not self.context.ok():  # shutdown under the executor's feet
+                    return
+                # one callback failed (an entity destroyed under a call it was answering,
+                # a peer's odd request): the others, and the thread, go on
+                self._episodes.log(
+                    logging.WARNING,
+                    f"spin:{type(exc).__name__}",
+                    "event=ros2_callback_failed error=%r",
+                    exc,
+                    exc_info=True,
+                )
 
     def close(self) -> None:
         """Stop spinning, then destroy the node and the context."""

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import anyio
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_graph.tasks import start_soon
 from rwt_protocol.server.outbox import water_marks
 
 if TYPE_CHECKING:
@@ -143,7 +144,7 @@ class Lane:
         outflow._counted(len(data) + SAMPLE_OVERHEAD)
         if not self._pumping:
             self._pumping = True
-            outflow._tasks.start_soon(self._pump)
+            start_soon(outflow._tasks, self._pump)  # maybe from a hand-over's callback
 
     def take_held(self) -> list[bytes]:
         """Close the lane; what still waits, for the publisher replacing it."""

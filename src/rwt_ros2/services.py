@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from rwt_protocol.ops import CallService
 
     from .link import Ros2Link
+    from .offers import Offer
 
 __all__ = ["SERVER_MATCH_S", "SERVICE_QOS", "RosService", "serve_to_ros"]
 
@@ -170,13 +171,15 @@ def serve_to_ros(
     name: str,
     type_name: str,
     ros_type: Any,
+    offer: Offer,
     handler: Callable[[dict[str, object]], dict[str, object]] | None = None,
 ) -> Callable[[Any, Any], Coroutine[Any, Any, Any]]:
     """The callback of the rclpy service offering the graph's service ``name`` to ROS 2.
 
     Each request is called in the graph, or, with ``handler``, answered by it on
     the event loop (``handler(request) -> response``, internal forms; a node's
-    parameter services, ``rwt_graph.parameters.services``).
+    parameter services, ``rwt_graph.parameters.services``). Each call is inside
+    ``offer`` until its response is ready, so the service outlives it (``offers``).
     """
     from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
 
@@ -208,6 +211,13 @@ def serve_to_ros(
             answer.set(False, str(exc))
 
     async def callback(request: Any, response: Any) -> Any:  # a task of the executor
+        offer.enter()
+        try:
+            return await answer_call(request, response)
+        finally:
+            offer.leave()
+
+    async def answer_call(request: Any, response: Any) -> Any:
         answer = Answer(link.ros)
         if not link.ros.waiting.acquire(blocking=False):
             answer.set(False, f"{MAX_WAITING} calls and goals from ROS 2 wait already")

@@ -50,6 +50,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.rosapi import Rosapi, VisibilityFor, install_rosapi
 from rwt_graph.simtime import follow_clock
+from rwt_graph.tasks import start_soon
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_graph.visibility import Visibility
@@ -1013,20 +1014,35 @@ class RosbridgeServer:
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
-    """A graph spawner running jobs in ``tg``; each job can be cancelled alone."""
+    """A graph spawner running jobs in ``tg``; each job can be cancelled alone.
+
+    It may be called from a plain event-loop callback (a link's hand-over), where
+    anyio can make no cancel scope (``rwt_graph.tasks``): the job makes its own
+    once it runs, and a cancel that comes first stops it there.
+    """
 
     def spawn(job: Callable[[], Awaitable[None]]) -> Callable[[], None]:
-        scope = anyio.CancelScope()
+        scope: anyio.CancelScope | None = None
+        cancelled = False
+
+        def cancel() -> None:
+            nonlocal cancelled
+            cancelled = True
+            if scope is not None:
+                scope.cancel()
 
         async def run() -> None:
-            with scope:
+            nonlocal scope
+            if cancelled:  # before it ran
+                return
+            with anyio.CancelScope() as scope:
                 try:
                     await job()
                 except Exception:  # a bug in an in-process handler: never the server's end
                     logger.exception("event=bug in a spawned job; it is dropped")
 
-        tg.start_soon(run)
-        return scope.cancel
+        start_soon(tg, run)
+        return cancel
 
     return spawn
 

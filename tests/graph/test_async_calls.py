@@ -13,7 +13,7 @@ from rwt_graph.actions import GoalCanceledError, GoalContext
 from rwt_graph.async_calls import ServiceCallError, call_service, send_action_goal
 from rwt_graph.graph import Graph
 from rwt_protocol.ports import GoalStatus
-from rwt_transports.server import running_handlers
+from rwt_transports.server import running_handlers, spawner_for
 
 pytestmark = pytest.mark.anyio
 
@@ -233,3 +233,58 @@ async def test_python_goal_times_out_on_a_silent_action_server() -> None:
     with anyio.fail_after(5), pytest.raises(ServiceCallError, match="timed out"):
         await send_action_goal(graph, "/quiet", {"order": 1}, timeout_s=0.05)
     assert provider.received()[0]["op"] == "send_action_goal"
+
+
+async def test_an_async_service_called_from_a_plain_loop_callback_answers() -> None:
+    # links call the graph from event-loop callbacks another thread scheduled (a ROS 2
+    # hand-over), where no task runs and no context says which async library runs:
+    # the handler's job must still start
+    import asyncio  # noqa: PLC0415
+    import contextvars  # noqa: PLC0415
+
+    graph = Graph()
+
+    async def add(request: dict[str, object]) -> dict[str, object]:
+        await anyio.lowlevel.checkpoint()
+        return {"sum": request["a"] + request["b"]}  # type: ignore[operator]
+
+    graph.create_service("/add", "example_interfaces/srv/AddTwoInts", add)
+    replies: list[tuple[bool, object]] = []
+    async with running_handlers(graph) as tg:
+        asyncio.get_running_loop().call_soon(
+            lambda: graph.port.call_service(
+                "caller", "/add", {"a": 2, "b": 3}, lambda ok, values: replies.append((ok, values))
+            ),
+            context=contextvars.Context(),
+        )
+        with anyio.fail_after(5):
+            while not replies:
+                await anyio.sleep(0.01)
+        tg.cancel_scope.cancel()
+    assert replies == [(True, {"sum": 5})]
+
+
+async def test_a_job_spawned_and_cancelled_in_one_plain_callback_never_runs() -> None:
+    import asyncio  # noqa: PLC0415
+    import contextvars  # noqa: PLC0415
+
+    ran: list[str] = []
+
+    async def job() -> None:
+        ran.append("ran")
+
+    async with anyio.create_task_group() as tg:
+        spawn = spawner_for(tg)
+
+        def spawn_and_cancel() -> None:
+            cancel = spawn(job)
+            cancel()
+
+        loop = asyncio.get_running_loop()
+        loop.call_soon(spawn_and_cancel, context=contextvars.Context())
+        loop.call_soon(lambda: spawn(job) and None, context=contextvars.Context())
+        with anyio.fail_after(5):
+            while not ran:
+                await anyio.sleep(0.01)
+        await anyio.sleep(0.05)
+    assert ran == ["ran"]

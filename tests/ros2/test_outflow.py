@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextvars
 import logging
 from typing import TYPE_CHECKING, Any
 
@@ -90,6 +92,22 @@ async def test_a_lane_waits_for_a_match_within_its_bound(publisher: Any) -> None
         lane.put(_cdr("0"))
         assert lane.waiting == 1
         await _drained(lane)  # MATCH_WAIT_S later it went to whatever matched
+        tasks.cancel_scope.cancel()
+    assert outflow.queued_bytes == 0
+
+
+async def test_a_sample_put_from_a_hand_over_callback_is_published(publisher: Any) -> None:
+    # a ROS 2 sample handed over to a local subscriber that publishes on to ROS 2: the
+    # hand-over's callback runs in no task, where the lane still starts its pump
+    async with anyio.create_task_group() as tasks:
+        outflow = Outflow(tasks)
+        lane = outflow.lane("/lane", publisher, expected=1)  # it never comes
+        loop = asyncio.get_running_loop()
+        loop.call_soon(lane.put, _cdr("0"), context=contextvars.Context())
+        with anyio.fail_after(5):
+            while not lane.waiting:
+                await anyio.sleep(0.01)
+        await _drained(lane)
         tasks.cancel_scope.cancel()
     assert outflow.queued_bytes == 0
 
