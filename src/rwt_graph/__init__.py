@@ -3,7 +3,8 @@
 Sessions (``rwt_protocol``), links to other middleware (``rwt_zenoh``,
 ``rwt_ros2``) and Python code in the same process all attach to one graph.
 The graph does no network I/O; its two waits (``async_calls``, the TF
-republisher's ticks) use anyio's events and sleep in the caller's loop.
+republisher's ticks) use anyio's events and sleep in the caller's loop, and
+``tasks`` starts a task from a plain loop callback.
 docs/architecture.md shows where it sits.
 
 Modules:
@@ -31,6 +32,8 @@ Modules:
 - ``simtime``: the latest ``/clock`` as the graph's timeline (``use_sim_time``).
 - ``playback``: what a running player offers (status, rate, seek) beside the timeline.
 - ``ratelog``: peer-triggered log lines once per episode, on the process's clock.
+- ``tasks``: a task group's task started from any code on the loop, a plain
+  callback that another thread scheduled included (a link's hand-over).
 - ``link``: the link contract: how a graph is mirrored to and from another middleware.
 - ``mirror``: the other middleware's entities as participants of the graph, one
   mirror for both links (they supply discovery, transport and codecs).
