@@ -123,6 +123,7 @@ class ServiceEntry:
         amend: applied to each checked response of an in-process service (used
             to add fields a client expects beyond the type, see rosapi get_time).
         pending: request id -> call, for client-advertised services.
+        running: the calls an in-process async handler is answering.
     """
 
     name: str
@@ -134,6 +135,7 @@ class ServiceEntry:
     caller_handler: CallerServiceHandler | None = None
     amend: Amend | None = None
     pending: dict[str, PendingCall] = field(default_factory=dict)
+    running: dict[PendingCall, None] = field(default_factory=dict)
     counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     @property
@@ -144,11 +146,16 @@ class ServiceEntry:
     def end_all(self, reason: str) -> None:
         """Answer every pending call with ``result: false`` (D4, D15).
 
+        An in-process handler's jobs are cancelled: their answers have nowhere to go.
         One failing reply does not keep the others from theirs.
         """
         calls, self.pending = list(self.pending.values()), {}
-        for call in calls:
+        running, self.running = list(self.running), {}
+        for call in calls + running:
             guarded(f"failing a call to {self.spelling}", partial(call.resolve, False, reason))
+        for call in running:
+            if call.cancel_job is not None:
+                call.cancel_job()
 
     def tell_lost(self, reason: str) -> None:
         """Warn a client provider that its service was replaced (D15)."""
@@ -392,8 +399,17 @@ class Services(ProviderTable[ServiceEntry]):
                 _failed(entry, call, exc)
             else:
                 self._finish(entry, response, call)
+            finally:
+                entry.running.pop(call, None)
 
-        call.cancel_job = spawner(wait)
+        cancel = spawner(wait)
+
+        def cancel_job() -> None:  # also before the job ran: it may never run
+            entry.running.pop(call, None)
+            cancel()
+
+        entry.running[call] = None
+        call.cancel_job = cancel_job
 
     def _finish(self, entry: ServiceEntry, response: object, call: PendingCall) -> None:
         try:

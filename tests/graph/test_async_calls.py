@@ -288,3 +288,49 @@ async def test_a_job_spawned_and_cancelled_in_one_plain_callback_never_runs() ->
                 await anyio.sleep(0.01)
         await anyio.sleep(0.05)
     assert ran == ["ran"]
+
+
+async def test_closing_an_async_service_fails_its_running_calls_and_cancels_them() -> None:
+    # D15 for in-process providers: the service goes, its callers hear so at once
+    graph = Graph()
+    entered = anyio.Event()
+    cancelled: list[bool] = []
+
+    async def hold(request: dict[str, object]) -> dict[str, object]:
+        entered.set()
+        try:
+            await anyio.sleep_forever()
+        except anyio.get_cancelled_exc_class():
+            cancelled.append(True)
+            raise
+        return {}
+
+    service = graph.create_service("/hold", "std_srvs/srv/Trigger", hold)
+    replies: list[tuple[bool, object]] = []
+    async with running_handlers(graph) as tg:
+        graph.port.call_service("c", "/hold", {}, lambda ok, values: replies.append((ok, values)))
+        with anyio.fail_after(5):
+            await entered.wait()
+        service.close()
+        with anyio.fail_after(5):
+            while not cancelled:
+                await anyio.sleep(0.01)
+        tg.cancel_scope.cancel()
+    assert replies == [(False, "service /hold was unadvertised")]
+
+
+async def test_a_caller_that_stops_waiting_leaves_nothing_behind_in_the_service() -> None:
+    graph = Graph()
+
+    async def hold(request: dict[str, object]) -> dict[str, object]:
+        await anyio.sleep_forever()
+        return {}
+
+    graph.create_service("/hold", "std_srvs/srv/Trigger", hold)
+    async with running_handlers(graph) as tg:
+        for _ in range(3):
+            with pytest.raises(ServiceCallError, match="timed out"):
+                await call_service(graph, "/hold", timeout_s=0.05)
+        entry = graph.services.entries.get("/hold")
+        assert entry is not None and not entry.running
+        tg.cancel_scope.cancel()
