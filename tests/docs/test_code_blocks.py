@@ -11,6 +11,7 @@ import socket
 import subprocess
 import sys
 import threading
+import tomllib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,6 +22,8 @@ import trustme
 from rwt_protocol.distribution import DISTRIBUTION
 
 from .blocks import LANGUAGES, REPO, Block, bash_commands, blocks_of, markdown_files
+
+PYPROJECT = tomllib.loads((REPO / "pyproject.toml").read_text("utf-8"))
 
 BLOCKS = [block for path in markdown_files() for block in blocks_of(path)]
 RUNNABLE = [b for b in BLOCKS if b.language in ("python", "bash", "json")]
@@ -172,9 +175,12 @@ def _run(command: str, cwd: Path, ports: Ports) -> None:
         words = shlex.split(part)
         if words[:4] == ["python", "-m", "pip", "install"]:
             # resolve what the user would install (the extras exist), without touching this env
-            wanted = [_our_distribution(word) for word in words[4:]]
-            words = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *wanted]
-            _shell(words, REPO)
+            others = [w for w in words[4:] if not w.startswith("-") and not _ours(w)]
+            if others:  # another project's: pip resolves it against the index
+                _shell(
+                    [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", *others],
+                    REPO,
+                )
         elif words[:2] == ["rwt", "serve"] or (words[:1] == ["python"] and "examples/" in part):
             with _running(_server_on_free_port(part, ports), cwd):
                 pass
@@ -182,18 +188,23 @@ def _run(command: str, cwd: Path, ports: Ports) -> None:
             _shell(["bash", "-c", part], cwd)
 
 
-def _our_distribution(word: str) -> str:
-    """An install line's requirement, this repository where it names rwt's distribution.
+def _ours(word: str) -> bool:
+    """Whether an install line's requirement is this project; if so, its extras must exist.
 
-    ``rwt-rosbridge[zenoh]`` resolves to this checkout with that extra (what PyPI
-    serves once it is released), so the line is checked against this
-    ``pyproject.toml``; one naming ``rwt``, an unrelated project on PyPI, fails.
+    ``rwt-rosbridge[zenoh]`` is what PyPI serves once it is released, ``".[server]"``
+    this checkout: both are checked against this ``pyproject.toml`` (reading it, not
+    building the project's metadata, which pip would do for every line). One naming
+    ``rwt``, an unrelated project on PyPI, fails.
     """
     name = re.split(r"[\[=<>~!; ]", word, maxsplit=1)[0]
+    extras = re.search(r"\[([^\]]*)\]", word)
     assert name.lower() != "rwt", f"{word!r} installs the PyPI project rwt, not this one"
-    if name == DISTRIBUTION:
-        return f"{REPO}{word[len(name) :]}"
-    return word
+    if name not in {DISTRIBUTION, "."}:
+        return False
+    known = set(PYPROJECT["project"]["optional-dependencies"])
+    wanted = {e.strip() for e in (extras[1] if extras else "").split(",") if e.strip()}
+    assert wanted <= known, f"{word!r}: no extra {sorted(wanted - known)} in pyproject.toml"
+    return True
 
 
 def _shell(args: list[str], cwd: Path) -> None:
