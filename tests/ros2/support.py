@@ -27,7 +27,7 @@ from rwt_protocol.distribution import install_hint
 from tests.integration.client_harness import ServerProcess, _LineReader
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator
+    from collections.abc import Callable, Iterator
 
     from anyio.abc import ByteReceiveStream
 
@@ -152,6 +152,16 @@ def peers(tmp: Path, *specs: tuple[str, ...]) -> Iterator[list[Peer]]:
             peer.terminate()
         for peer in started:
             peer.stop()
+
+
+async def until(condition: Callable[[], bool], what: str) -> None:
+    """Poll ``condition`` every 50 ms until it holds; AssertionError naming ``what`` after 30 s."""
+    try:
+        with anyio.fail_after(30):
+            while not condition():
+                await anyio.sleep(0.05)
+    except TimeoutError:
+        raise AssertionError(f"no {what} within 30 s") from None
 
 
 def serve_ros2(tmp: Path, *args: str) -> ServerProcess:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import anyio
 import pytest
 
 from rwt_graph.feed import EntityKind
@@ -17,10 +16,9 @@ from rwt_graph.graph import Graph
 from rwt_ros2 import Ros2Options, open_ros2_link
 from rwt_ros2.node import RosNode
 
-from .support import skip_without_rclpy
+from .support import skip_without_rclpy, until
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
     from pathlib import Path
 
 pytestmark = [
@@ -56,15 +54,6 @@ def _services(node: Any) -> list[tuple[str, str, list[str]]]:
         if node_name == "exports_test"
         for name, types in node.get_service_names_and_types_by_node(node_name, namespace)
     ]
-
-
-async def until(condition: Callable[[], bool], what: str) -> None:
-    try:
-        with anyio.fail_after(30):
-            while not condition():
-                await anyio.sleep(0.05)
-    except TimeoutError:
-        raise AssertionError(f"no {what} within 30 s") from None
 
 
 async def test_local_entities_reach_ros2_and_leave_it_and_the_mirrored_do_not_echo(

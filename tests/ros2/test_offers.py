@@ -24,10 +24,10 @@ from rwt_ros2.node import RosNode
 from rwt_ros2.runtime import ament_interface_dirs
 from rwt_transports.server import running_handlers
 
-from .support import skip_without_rclpy
+from .support import skip_without_rclpy, until
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterator
+    from collections.abc import Iterator
     from contextlib import AbstractContextManager
     from pathlib import Path
 
@@ -41,15 +41,6 @@ pytestmark = [
 
 SET_BOOL = "std_srvs/srv/SetBool"
 FIBONACCI = "test_msgs/action/Fibonacci"
-
-
-async def until(condition: Callable[[], bool], what: str) -> None:
-    try:
-        with anyio.fail_after(30):
-            while not condition():
-                await anyio.sleep(0.05)
-    except TimeoutError:
-        raise AssertionError(f"no {what} within 30 s") from None
 
 
 class HeldExecutor:
