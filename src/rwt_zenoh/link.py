@@ -504,12 +504,17 @@ class ZenohLink:
         attachment: bytes | None = None,
         *,
         reliable: bool = False,
+        hold: bool = True,
     ) -> None:
         """Run ``deliver(payload, attachment)`` in the link's task (from a Zenoh thread).
 
         A ``reliable`` sample (put with congestion control BLOCK) waits up to
         ``limits.RELIABLE_WAIT_S`` for room in a full queue, holding its peer back,
         before the rule below applies (docs/zenoh.md, "Reliability").
+
+        ``hold`` False: the sample keeps its place among the replies however its
+        deliveries congest a subscriber (``TopicHolds`` would let a reply pass it):
+        an action's feedback, which must reach its goal before the goal's result.
 
         The samples waiting are bounded in bytes (``queue_bytes``): past it the
         oldest samples of the busiest ``key`` (a topic) are dropped, logged once
@@ -520,7 +525,7 @@ class ZenohLink:
             return
         wait_s = RELIABLE_WAIT_S if reliable else 0.0
         if self._inbox.put(key, Sample(deliver, payload, attachment), wait_s=wait_s):
-            self._soon(self._take_sample, key, topic=key)
+            self._soon(self._take_sample, key, topic=key if hold else "")
 
     def _take_sample(self, key: str) -> None:
         sample = self._inbox.take(key)

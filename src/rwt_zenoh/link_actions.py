@@ -494,7 +494,11 @@ class ActionLink:
             self._on_feedback(wire, payload)
 
         def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
-            self.link.soon_sample(action + FEEDBACK_SUFFIX, deliver, sample.payload.to_bytes())
+            # never held back behind a congested subscriber: the goal's result, a reply,
+            # would pass it and end the goal, and the feedback after it would be lost
+            self.link.soon_sample(
+                action + FEEDBACK_SUFFIX, deliver, sample.payload.to_bytes(), hold=False
+            )
 
         self._feedback_subs[key] = self.link.session.declare_subscriber(
             key, on_sample, allowed_origin=zenoh.Locality.REMOTE

@@ -419,3 +419,54 @@ async def test_a_peer_repeating_get_result_for_a_running_goal_is_refused_past_a_
         finally:
             repeater.close()
         tg.cancel_scope.cancel()
+
+
+class _CongestedGate:
+    """An inflow gate whose every delivery congested a subscriber that drains in 0.3 s."""
+
+    def begin(self) -> None:
+        pass
+
+    def end(self) -> None:
+        pass
+
+    def congested(self) -> bool:
+        return True
+
+    def take_hold(self) -> Any:
+        class Hold:
+            async def wait(self) -> None:
+                await anyio.sleep(0.3)
+
+        return Hold()
+
+
+async def test_a_goals_feedback_reaches_it_before_its_result_while_subscribers_congest() -> None:
+    # A topic whose deliveries congest a subscriber is held back while replies go on
+    # (TopicHolds); an action's feedback must not be: the goal's result, a reply, would
+    # pass it and end the goal, and the feedback behind would be lost.
+    first = endpoint()
+    a, b = Graph(), Graph()
+
+    async def fibonacci(goal: dict[str, Any], context: GoalContext) -> dict[str, Any]:
+        sequence = [0, 1]
+        for _ in range(goal["order"] - 1):
+            sequence.append(sequence[-1] + sequence[-2])
+            context.publish_feedback({"sequence": list(sequence)})
+        return {"sequence": sequence}
+
+    async with (
+        running_handlers(b) as tg,
+        open_zenoh_link(a, peer(listen=first)),
+        open_zenoh_link(b, peer(connect=(first,))),
+    ):
+        b.create_action_server("/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f")
+        await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
+        a.port.inflow = _CongestedGate()  # type: ignore[misc]
+        feedback: list[dict[str, Any]] = []
+        outcome = await send_action_goal(
+            a, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
+        )
+        assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
+        assert feedback == [{"sequence": [0, 1, 1, 2, 3, 5][: n + 3]} for n in range(4)]
+        tg.cancel_scope.cancel()
