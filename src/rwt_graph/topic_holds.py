@@ -11,6 +11,9 @@ drain to their low watermark, each within its hold budget (docs/limits.md,
 "Backpressure"). When the hold ends, the waiting samples go back to the front
 of the link's queue (``resume``), ahead of anything later of that topic.
 Every other topic, and every event that is no sample, is delivered at once.
+So is a topic in ``never``: an action's feedback, which a hold would keep
+back while the goal's result (a reply, never held) passes it and ends the
+goal, leaving the feedback behind it nowhere to go.
 
 What waits here is bounded by the link's queue: the samples (or their
 tickets) stay counted there until delivered, and they wait no longer than the
@@ -42,16 +45,20 @@ class TopicHolds(Generic[Item]):
             ``TaskGroup.start_soon``): each hold waits there.
         resume: takes a topic's waiting items back, oldest first, when its hold
             ends: the link puts them at the front of its queue.
+        never: topics never held (the link's, kept up to date by it: its
+            actions' feedback topics).
     """
 
     def __init__(
         self,
         start: Callable[[Callable[[], Coroutine[Any, Any, None]]], object],
         resume: Callable[[list[Item]], None],
+        never: set[str] | frozenset[str] = frozenset(),
     ) -> None:
         self._start = start
         self._resume = resume
         self._held: dict[str, list[Item]] = {}
+        self._never = never
 
     def __contains__(self, topic: str) -> bool:
         return topic in self._held
@@ -73,7 +80,7 @@ class TopicHolds(Generic[Item]):
         if not gate.congested():
             return
         hold = gate.take_hold()
-        if hold is None or topic is None or topic in self._held:
+        if hold is None or topic is None or topic in self._held or topic in self._never:
             return
         self._held[topic] = []
         self._start(lambda: self._wait(topic, hold))

@@ -55,6 +55,9 @@ class RosAction:
         self._action_client: Any = None
         self._handles: dict[str, Any] = {}  # goal id -> rclpy ClientGoalHandle
         self._cancelled: set[str] = set()  # canceled before the server accepted
+        # never held back behind a congested subscriber: the goal's result would pass it
+        self._feedback_topic = name + "/_action/feedback"
+        link.handoff.never_held.add(self._feedback_topic)
 
     def _goal(self, goal_id: str) -> Goal | None:
         entry = self._link.graph.actions.entries.get(self._name)
@@ -98,7 +101,9 @@ class RosAction:
             from rclpy.serialization import serialize_message  # noqa: PLC0415
 
             data = serialize_message(message.feedback)
-            link.handoff.put(self._feedback, goal_id, data, size=len(data), topic=self._name)
+            link.handoff.put(
+                self._feedback, goal_id, data, size=len(data), topic=self._feedback_topic
+            )
 
         future = self._action_client.send_goal_async(goal_msg, feedback_callback=on_feedback)
         future.add_done_callback(lambda f: link.handoff.put(self._accepted, goal_id, f))
@@ -174,6 +179,7 @@ class RosAction:
 
     def close(self) -> None:
         """Destroy the rclpy action client."""
+        self._link.handoff.never_held.discard(self._feedback_topic)
         if self._action_client is not None:
             self._action_client.destroy()
             self._action_client = None

@@ -152,6 +152,8 @@ class Handoff:
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None  # while ``drain`` runs
         self._holds: TopicHolds[_Event] | None = None
+        #: topics never held back (``TopicHolds``): the mirrored actions' feedback
+        self.never_held: set[str] = set()
         self._gate: Callable[[], InflowGate] = lambda: OPEN_GATE
         self._signalled = False
         self._closed = False
@@ -311,7 +313,7 @@ class Handoff:
         """
         loop = asyncio.get_running_loop()
         async with anyio.create_task_group() as tg:
-            self._holds = TopicHolds(tg.start_soon, self._resume)
+            self._holds = TopicHolds(tg.start_soon, self._resume, self.never_held)
             self._gate = gate
             self._loop = loop
             try:

@@ -248,6 +248,8 @@ class ZenohLink:
         self._signalled = False
         self.peer_log = EpisodeLog(logger)
         self._inbox = Inbox(queue_bytes, drop_log=EpisodeLog(logger))  # on Zenoh's threads
+        #: keys of samples never held back (``TopicHolds``): the mirrored actions' feedback
+        self.never_held: set[str] = set()
         self._outbox = Outbox(outbox_bytes)  # Zenoh's blocking puts, off the loop
         self._deferred = DeferredEncoder(graph.registry)  # large ones serialized there
         self._drained_bytes = 0
@@ -310,7 +312,7 @@ class ZenohLink:
             wake.set()
 
         async with anyio.create_task_group() as tg:
-            holds: TopicHolds[_Event] = TopicHolds(tg.start_soon, resume)
+            holds: TopicHolds[_Event] = TopicHolds(tg.start_soon, resume, self.never_held)
             while True:
                 await wake.wait()
                 self._signalled = False
@@ -504,17 +506,12 @@ class ZenohLink:
         attachment: bytes | None = None,
         *,
         reliable: bool = False,
-        hold: bool = True,
     ) -> None:
         """Run ``deliver(payload, attachment)`` in the link's task (from a Zenoh thread).
 
         A ``reliable`` sample (put with congestion control BLOCK) waits up to
         ``limits.RELIABLE_WAIT_S`` for room in a full queue, holding its peer back,
         before the rule below applies (docs/zenoh.md, "Reliability").
-
-        ``hold`` False: the sample keeps its place among the replies however its
-        deliveries congest a subscriber (``TopicHolds`` would let a reply pass it):
-        an action's feedback, which must reach its goal before the goal's result.
 
         The samples waiting are bounded in bytes (``queue_bytes``): past it the
         oldest samples of the busiest ``key`` (a topic) are dropped, logged once
@@ -525,7 +522,7 @@ class ZenohLink:
             return
         wait_s = RELIABLE_WAIT_S if reliable else 0.0
         if self._inbox.put(key, Sample(deliver, payload, attachment), wait_s=wait_s):
-            self._soon(self._take_sample, key, topic=key if hold else "")
+            self._soon(self._take_sample, key, topic=key)
 
     def _take_sample(self, key: str) -> None:
         sample = self._inbox.take(key)

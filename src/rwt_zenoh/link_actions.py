@@ -144,6 +144,7 @@ class ActionLink:
         self._status_due: set[str] = set()  # actions whose status is to be published
         self._feedback_subs: dict[str, Any] = {}  # by key expression
         self._feedback_of: dict[ClientId, str] = {}  # a mirrored action's remote -> its key
+        self._unheld_of: dict[str, str] = {}  # a feedback key -> its topic in never_held
         self._calling: dict[bytes, tuple[_RemoteAction, str]] = {}
 
     def wire(self, type_name: str) -> ActionWire:
@@ -413,6 +414,9 @@ class ActionLink:
             handle = self._feedback_subs.pop(key, None)
             if handle is not None:
                 guarded("undeclaring an action's entity", handle.undeclare)
+            topic = self._unheld_of.pop(key, None)
+            if topic is not None and topic not in self._unheld_of.values():
+                self.link.never_held.discard(topic)
 
     def send_remote_goal(
         self, provider: _RemoteAction, goal_id: str, args: dict[str, object]
@@ -494,11 +498,11 @@ class ActionLink:
             self._on_feedback(wire, payload)
 
         def on_sample(sample: zenoh.Sample) -> None:  # a Zenoh thread
-            # never held back behind a congested subscriber: the goal's result, a reply,
-            # would pass it and end the goal, and the feedback after it would be lost
-            self.link.soon_sample(
-                action + FEEDBACK_SUFFIX, deliver, sample.payload.to_bytes(), hold=False
-            )
+            self.link.soon_sample(action + FEEDBACK_SUFFIX, deliver, sample.payload.to_bytes())
+
+        # never held back behind a congested subscriber: the goal's result would pass it
+        self._unheld_of[key] = action + FEEDBACK_SUFFIX
+        self.link.never_held.add(action + FEEDBACK_SUFFIX)
 
         self._feedback_subs[key] = self.link.session.declare_subscriber(
             key, on_sample, allowed_origin=zenoh.Locality.REMOTE
@@ -554,6 +558,8 @@ class ActionLink:
             guarded("undeclaring an action's entity", handle.undeclare)
         self._feedback_subs.clear()
         self._feedback_of.clear()
+        self.link.never_held.difference_update(self._unheld_of.values())
+        self._unheld_of.clear()
         self._calling.clear()
         self._served.clear()
 

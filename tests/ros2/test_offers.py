@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import anyio
 import pytest
 
+from rwt_graph.async_calls import send_action_goal
 from rwt_graph.graph import Graph
 from rwt_graph.types.names import Dialect
 from rwt_graph.types.registry import TypeRegistry
@@ -23,8 +24,9 @@ from rwt_ros2 import Ros2Options, open_ros2_link
 from rwt_ros2.node import RosNode
 from rwt_ros2.runtime import ament_interface_dirs
 from rwt_transports.server import running_handlers
+from tests.support.gates import CongestedGate
 
-from .support import skip_without_rclpy, until
+from .support import Peer, skip_without_rclpy, until
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -169,3 +171,28 @@ async def test_a_callback_that_raises_leaves_the_node_spinning(
     failed = [r for r in caplog.records if "ros2_callback_failed" in r.getMessage()]
     assert len(failed) == 1  # once per episode, however often it repeats
     assert "one bad callback" in failed[0].getMessage()
+
+
+async def test_a_ros2_goals_feedback_reaches_it_before_its_result_while_subscribers_congest(
+    ros_env: Path,
+) -> None:
+    # A topic whose deliveries congest a subscriber is held back while other events go
+    # on (TopicHolds); an action's feedback must not be: the goal's result would pass it
+    # and end the goal, and the feedback behind would be lost.
+    graph = Graph(TypeRegistry(Dialect.ROS2, ament_interface_dirs()))
+    with Peer("fibonacci", "/o_served_fib", ros_env) as server:
+        async with (
+            running_handlers(graph) as handlers,
+            open_ros2_link(graph, Ros2Options(node_name="offers_test")),
+        ):
+            await until(lambda: "/o_served_fib" in graph.actions.entries, "the ROS 2 action")
+            graph.port.inflow = CongestedGate()  # type: ignore[misc]
+            feedback: list[dict[str, Any]] = []
+            with anyio.fail_after(30):
+                outcome = await send_action_goal(
+                    graph, "/o_served_fib", {"order": 4}, on_feedback=feedback.append
+                )
+            handlers.cancel_scope.cancel()
+        del server
+    assert outcome.result == {"sequence": [0, 1, 1, 2, 3]}
+    assert [f["sequence"] for f in feedback] == [[0, 1, 1], [0, 1, 1, 2], [0, 1, 1, 2, 3]]

@@ -37,6 +37,7 @@ from rwt_zenoh.actions import GET_RESULT_SUFFIX
 from rwt_zenoh.config import make_config
 from rwt_zenoh.link import ZenohLink, open_zenoh_link
 from rwt_zenoh.link_actions import MAX_RESULT_WAITERS
+from tests.support.gates import CongestedGate
 
 from .processes import REPO
 from .support import WAIT_S, endpoint, peer, until
@@ -421,26 +422,6 @@ async def test_a_peer_repeating_get_result_for_a_running_goal_is_refused_past_a_
         tg.cancel_scope.cancel()
 
 
-class _CongestedGate:
-    """An inflow gate whose every delivery congested a subscriber that drains in 0.3 s."""
-
-    def begin(self) -> None:
-        pass
-
-    def end(self) -> None:
-        pass
-
-    def congested(self) -> bool:
-        return True
-
-    def take_hold(self) -> Any:
-        class Hold:
-            async def wait(self) -> None:
-                await anyio.sleep(0.3)
-
-        return Hold()
-
-
 async def test_a_goals_feedback_reaches_it_before_its_result_while_subscribers_congest() -> None:
     # A topic whose deliveries congest a subscriber is held back while replies go on
     # (TopicHolds); an action's feedback must not be: the goal's result, a reply, would
@@ -462,7 +443,7 @@ async def test_a_goals_feedback_reaches_it_before_its_result_while_subscribers_c
     ):
         b.create_action_server("/fib", "example_interfaces/action/Fibonacci", fibonacci, node="/f")
         await until(lambda: "/fib" in action_servers(a, EVERYTHING), "action")
-        a.port.inflow = _CongestedGate()  # type: ignore[misc]
+        a.port.inflow = CongestedGate()  # type: ignore[misc]
         feedback: list[dict[str, Any]] = []
         outcome = await send_action_goal(
             a, "/fib", {"order": 5}, on_feedback=feedback.append, timeout_s=WAIT_S
