@@ -401,6 +401,20 @@ async def test_a_peer_repeating_get_result_for_a_running_goal_is_refused_past_a_
 
         repeater = zenoh.open(make_config(peer(connect=(first,))))
         try:
+            # its queries go once it reaches B's queryable (sent before, they reach
+            # nobody): B answers a goal it does not know at once
+            probes: list[str] = []
+
+            def probe() -> bool:
+                repeater.get(
+                    key,
+                    lambda reply: probes.append(reply.err.payload.to_string() if reply.err else ""),
+                    payload=wire.get_result(bytes(16)),
+                    timeout=1,
+                )
+                return any("unknown goal" in p for p in probes)
+
+            await until(probe, "B's get_result queryable")
             for _ in range(MAX_RESULT_WAITERS + 40):
                 repeater.get(
                     key,
