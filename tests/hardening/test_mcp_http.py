@@ -205,7 +205,7 @@ async def test_a_call_past_the_slots_of_its_session_takes_one_or_gets_503() -> N
         assert heads == ["200"] * (SESSION_SLOTS + 1)
         one_more: list[str] = []
         await held_call(http, endpoint, session, 99, one_more)
-        assert one_more == ["503"]  # its socket was not counted before: 200, and held
+        assert one_more == ["503"]  # before, its socket was not counted: 200, and held
         ws_url = endpoint.replace("http://", "ws://").removesuffix("/mcp")
         async with connect(ws_url, local_addr=("127.0.0.2", 0)) as ws:  # another host
             await ws.send(json.dumps(SET_LEVEL))
@@ -283,7 +283,7 @@ HOSTILE = {
     "JSON 100,000 deep": (b"[" * 100_000 + b"]" * 100_000, "Parse error: nesting deeper than 100"),
     "a 5,000-digit integer": (
         b'{"jsonrpc":"2.0","id":' + b"9" * 5000 + b',"method":"ping"}',
-        "Parse error: invalid JSON: Exceeds the limit (4300 digits)",
+        "Parse error: invalid JSON: ",  # Python's own words for the digits follow
     ),
     "bytes that are not UTF-8": (
         b'{"jsonrpc":"2.0","id":1,"method":"' + bytes([0xFF, 0xFE]) + b'"}',
