@@ -352,7 +352,7 @@ class Limits:
         typer.Option(
             min=1,
             help="Connections one host (see --host-prefix-v4/-v6) may hold once 3/4 of"
-            " --max-connections are taken.",
+            " --max-connections are taken; MCP sessions (--mcp) from the first.",
         ),
     ] = 64
     host_prefix_v4: Annotated[
@@ -380,7 +380,8 @@ class Limits:
         typer.Option(
             min=0,
             help="Seconds after which a WebSocket or TCP connection that sent nothing and"
-            " holds nothing (no subscription, advertisement, call...) is closed; 0: never.",
+            " holds nothing (no subscription, advertisement, call...) is closed, and an MCP"
+            " session without a request ends; 0: never.",
         ),
     ] = 600.0
     call_timeout: Annotated[
