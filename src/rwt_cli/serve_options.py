@@ -190,8 +190,10 @@ class Listeners:
         bool,
         typer.Option(
             help="Show Foxglove clients rwt's own helpers too: rosapi's services, /client_count, "
-            "/connected_clients, the TF republisher, and other connections' nodes in the "
-            "connection graph (by default they see the robot's topics, services and nodes)."
+            "/connected_clients, the TF republisher and their nodes (/rosapi, "
+            "/rosbridge_websocket, /tf2_web_republisher) in the connection graph. By default "
+            "they see the robot's topics, services and nodes, a rosbridge client's own "
+            "(/rwt_client_<n>) included."
         ),
     ] = False
 

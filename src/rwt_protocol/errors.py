@@ -51,6 +51,8 @@ package is drawn here::
     ├── BagError                          rwt_bag: a bag that cannot be read, written or played
     │   └── InflateError                  past a decompression bound (docs/limits.md)
     ├── Ros2Unavailable                   rwt_ros2: rclpy cannot be imported (also a RuntimeError)
+    ├── InterfaceBuildError               rwt_ros2.interfaces: a package rclpy lacks cannot be
+    │                                     built (also a RuntimeError)
     ├── SuiteError                        rwt_conformance: malformed suite data
     └── StepFailedError                   rwt_conformance: a step's expectation failed
 
