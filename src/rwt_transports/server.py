@@ -450,7 +450,7 @@ class RosbridgeServer:
         from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
 
         video = WebRtcVideo(self.graph, self.session_config.access)
-        peers = WebRtcPeers(self, options, self.config.max_message_size, video)
+        peers = WebRtcPeers(self, options, self.config.max_message_size, video, self._host_prefixes)
         signalling = WebRtcSignalling(
             peers,
             options,
