@@ -163,7 +163,7 @@ def _tool_errors() -> Iterator[None]:
 
 
 async def subscribe_confirmed(topic: Topic, callback: Callable[[Any], None], what: str) -> None:
-    """Subscribe ``topic``, waiting one round trip for the server's refusal.
+    """Subscribe ``topic``, waiting one round trip for the server's refusal (D43).
 
     rosbridge does not acknowledge ``subscribe``: without the round trip a
     subscription the server refused (``--max-subscriptions``, a type conflict)

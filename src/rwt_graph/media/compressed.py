@@ -8,7 +8,7 @@ when it opens an image) and refuses an image that would decode to more than
 (libjpeg decodes it at 1/2, 1/4 or 1/8 scale at once), so the bound applies to
 the pixels actually decoded. The decoding itself runs in an image thread
 (``threads``), never on the event loop. One rule for every front end that
-decodes such an image (docs/limits.md, "Images the server decodes").
+decodes such an image (D42; docs/limits.md, "Images the server decodes").
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ codecs release the GIL while they work), and all of them together take at most
 WebRTC tracks' encoders (``rwt_video.hub``), the MCP tools' images
 (``rwt_mcp.render``). A piece of work waits for a thread's turn, so many streams
 or many agents cannot take more of the CPU than that, and the event loop keeps
-its share (docs/limits.md, "Images the server decodes").
+its share (D42; docs/limits.md, "Images the server decodes").
 """
 
 from __future__ import annotations
