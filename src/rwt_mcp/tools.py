@@ -13,6 +13,7 @@ import contextlib
 import functools
 import inspect
 import json
+import logging
 import re
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from contextlib import asynccontextmanager
@@ -71,6 +72,10 @@ _MAX_FIELD_ERRORS = 5  # fields a bad call's tool error names
 _TF_TOPIC_TIMEOUT = {"sec": 5, "nanosec": 0}  # the republisher drops its topic 5 s after us
 
 Message = dict[str, Any]
+
+# The SDK logs every request at INFO ("Processing request of type CallToolRequest"): a
+# line per request, at the rate a peer chooses (docs/limits.md, "Logs a peer can trigger")
+logging.getLogger("mcp.server.lowlevel.server").setLevel(logging.WARNING)
 
 
 # The listings are typed dicts, not models: a model of 1000 topics took 5 to 12 ms
@@ -521,7 +526,7 @@ class RobotTools:
             if not isinstance(name, str):
                 raise ToolError(f"/republish_tfs answered no topic_name: {answer!r}")
             topic = Topic(ros, name, "tf2_web_republisher/msg/TFArray")
-            await topic.subscribe(take)
+            await subscribe_confirmed(topic, take, f"lookup_transform {name}")
             try:
                 await got.wait()
             finally:

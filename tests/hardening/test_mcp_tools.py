@@ -12,6 +12,7 @@ images: tests/hardening/test_image_work.py):
 from __future__ import annotations
 
 import json
+import logging
 import re
 import threading
 import time
@@ -166,7 +167,10 @@ async def _refused_text(agent: Agent, tool: str, **arguments: object) -> str:
     return _text(result)
 
 
-async def test_a_refused_set_or_subscription_is_a_tool_error_saying_why() -> None:
+async def test_a_refused_set_or_subscription_is_a_tool_error_saying_why(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.INFO)
     async with serving(_robot()) as url, rwt_serve_mcp(url) as agent:
         with anyio.fail_after(20):
             # main: success, value null (rosapi answered successful: false)
@@ -179,6 +183,8 @@ async def test_a_refused_set_or_subscription_is_a_tool_error_saying_why() -> Non
             assert "echo /battery: the server refused the subscription: subscribe:" in wrong
             assert "is established with type std_msgs/msg/String" in wrong
             assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
+    # no log line per request (main: the SDK's "Processing request of type ..." at INFO)
+    assert not [r for r in caplog.records if r.getMessage().startswith("Processing request")]
 
 
 async def test_max_subscriptions_binds_an_mcp_session_and_says_so() -> None:
