@@ -89,6 +89,8 @@ class Topic:
             OpRefusedError: with ``confirm``, the server refused it (an access rule,
                 ``--max-subscriptions``, a type conflict): the status text says why,
                 and the subscription is forgotten (never replayed).
+            ConnectionClosedError: with ``confirm``, the connection dropped before
+                the answer; the subscription is forgotten too.
         """
         if self._sub_id is not None:
             await self.unsubscribe()

@@ -304,16 +304,15 @@ class Ros(RosapiMixin):
             raise refusal
         return adv_id
 
-    async def refusal(self, op: str, op_id: str, topic: str) -> OpRefusedError | None:
-        """The server's refusal of the op ``op_id`` already queued, if it sent one.
+    async def refusal(self, op: str, op_id: str, topic: str) -> RwtError | None:
+        """What ended the op ``op_id`` already queued: the server's refusal, if it sent one.
 
         The protocol acknowledges neither ``advertise`` nor ``subscribe``: one
         round trip after the op (a ``/rosapi/topic_type`` call for ``topic``,
         answered or refused, by any rosbridge server) shows whether the server
         sent an ``error`` status for its id (D1). A server that never answers
         makes this wait ``timeout_s``; with the status level ``none`` no refusal
-        can be seen, and a dropped connection shows none (the op goes out again
-        with the reconnection's replay).
+        can be seen.
 
         Args:
             op: the op's name, for the error (``subscribe``).
@@ -321,7 +320,9 @@ class Ros(RosapiMixin):
             topic: its topic, which the round trip asks about.
 
         Returns:
-            ``OpRefusedError`` carrying the status text, or None if it was not refused.
+            ``OpRefusedError`` carrying the status text; ``ConnectionClosedError``
+            when the connection dropped before the round trip ended (whether the
+            server took the op is not known); None when it was not refused.
         """
         waiter = self._waiters[op_id] = _Waiter(
             refused=lambda text: OpRefusedError(op, op_id, text)
@@ -332,7 +333,7 @@ class Ros(RosapiMixin):
             pass  # only a round trip: its own answer does not matter
         finally:
             self._waiters.pop(op_id, None)
-        return waiter.error if isinstance(waiter.error, OpRefusedError) else None
+        return waiter.error
 
     def goal_waiter(self, goal_id: str, on_feedback: Callback | None) -> _Waiter:
         """Register a waiter for a goal's feedback and result (used by ``Action``)."""
