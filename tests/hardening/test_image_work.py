@@ -66,9 +66,11 @@ async def test_images_are_decoded_off_the_event_loop() -> None:
     """An echo of two 4K PNGs: their decoding is not the event loop's CPU (its clients')."""
     graph = Graph()
     camera = graph.create_publisher("/camera/compressed", COMPRESSED)
-    y, x = np.mgrid[0:2160, 0:3840]
-    pattern = np.stack([(x * 7) % 256, (y * 3) % 256, ((x + y) * 5) % 256], axis=-1)
-    frame = {"format": "png", "data": _png(Image.fromarray(pattern.astype(np.uint8)))}
+    x = np.arange(3840, dtype=np.uint8)[np.newaxis, :]  # uint8: the products wrap at 256
+    y = np.arange(2160, dtype=np.uint8)[:, np.newaxis]
+    pattern = np.empty((2160, 3840, 3), np.uint8)
+    pattern[..., 0], pattern[..., 1], pattern[..., 2] = x * 7, y * 3, (x + y) * 5
+    frame = {"format": "png", "data": _png(Image.fromarray(pattern))}
     async with serving(graph) as url, rwt_serve_mcp(url) as agent:
 
         async def keep_publishing() -> None:
