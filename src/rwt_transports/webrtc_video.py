@@ -49,7 +49,7 @@ from rwt_protocol.errors import RwtError
 from rwt_protocol.names import resolve_name
 from rwt_protocol.server.access import Family
 from rwt_video.encoders import VideoPacket
-from rwt_video.hub import ENCODER_THREADS, StreamHub
+from rwt_video.hub import StreamHub
 from rwt_video.params import StreamParamError, StreamParams, StreamType, parse_stream_params
 from rwt_video.rtp import RtpFrameEncoder, make_rtp_encoder
 
@@ -303,7 +303,8 @@ class WebRtcVideo:
         access: the server's access rules; a topic they deny is refused as a
             subscription would be (``--topics-glob``).
         max_streams: the most distinct streams at once (``MAX_VIDEO_STREAMS``).
-        encoder_threads: the most frames encoded at once (``hub.ENCODER_THREADS``).
+        encoder_threads: the most frames encoded at once; None: the image threads
+            every front end shares (``hub.ENCODER_THREADS``).
 
     Call ``bind`` with the task group the streams' encoders run in.
     """
@@ -313,7 +314,7 @@ class WebRtcVideo:
         graph: Graph,
         access: AccessPolicy,
         max_streams: int = MAX_VIDEO_STREAMS,
-        encoder_threads: int = ENCODER_THREADS,
+        encoder_threads: int | None = None,
     ) -> None:
         self.graph = graph
         self.access = access
