@@ -593,7 +593,7 @@ class Session(SessionBase):
                 dropped, oversized = outbox.dropped, outbox.dropped_oversized
         if outbox.held_bytes:
             self._watch.after_push(dropped, oversized, self._now, (), spelling)
-        if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
+        if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()
 
     def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
