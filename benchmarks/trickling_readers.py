@@ -9,6 +9,8 @@ input backpressure):
 
 - ``four``: four subscribers with 64 KiB receive buffers reading 64 KB every
   0.5 s (about 1 % of the topic: their send queues shrink, so they look alive);
+- ``staggered``: the same four, subscribing ``STAGGER_S`` apart (each falls behind
+  on its own, so each is judged on its own);
 - ``reconnect``: one such subscriber that closes and reconnects every budget + 1 s;
 - ``drain``: one that catches up after each budget and trickles again;
 - ``none``: no attacker, the reference.
@@ -27,6 +29,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import math
 import os
 import shlex
 import socket
@@ -50,6 +53,7 @@ TRICKLE_EVERY_S = 0.5  # ... this often
 RCVBUF = 64 * 1024  # an attacker's kernel receive buffer
 FROZEN_GAP_S = 0.25  # a gap between two messages this long counts as frozen (25 periods)
 TIMEOUT_S = 30.0
+STAGGER_S = 0.3  # between the subscriptions of ``staggered``
 
 
 @dataclass
@@ -148,13 +152,16 @@ def _drain(sock: socket.socket, until: float) -> None:
 def _attack(name: str, port: int, budget_s: float, done: threading.Event) -> list[_Peer]:
     """Run attack ``name`` until ``done``; the peers it opened (to close)."""
     opened: list[_Peer] = []
-    if name == "four":
-        opened += [_subscriber(port, RCVBUF) for _ in range(4)]
-        threads = [
-            threading.Thread(target=_trickle, args=(p.sock, float("inf"), done)) for p in opened
-        ]
-        for thread in threads:
-            thread.start()
+    if name in ("four", "staggered"):
+        threads = []
+        for _ in range(4):
+            opened.append(_subscriber(port, RCVBUF))
+            threads.append(
+                threading.Thread(target=_trickle, args=(opened[-1].sock, math.inf, done))
+            )
+            threads[-1].start()
+            if name == "staggered":
+                done.wait(STAGGER_S)
         for thread in threads:
             thread.join()
     elif name == "reconnect":
@@ -238,7 +245,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the attacks, print a table and write ``results/trickling_readers.json``."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=40.0)
-    parser.add_argument("--attack", action="append", choices=["four", "reconnect", "drain", "none"])
+    parser.add_argument(
+        "--attack", action="append", choices=["four", "staggered", "reconnect", "drain", "none"]
+    )
     parser.add_argument("--serve-args", default="", help="more rwt serve options, one string")
     args = parser.parse_args(argv)
     serve_args = shlex.split(args.serve_args)
