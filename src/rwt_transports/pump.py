@@ -349,6 +349,8 @@ class ConnectionPump(Held):
         slow until its cool-down ends: ``flow.FlowControl.found_slow``).
         """
         session = self._session
+        if session is not None:
+            session.frames_sent()  # no longer held (the memory budget, D44)
         self.note_take(session is None or session.queued_bytes == 0)
 
     def _defer(self) -> None:
@@ -657,9 +659,9 @@ class ConnectionPump(Held):
         return self.channel.unsent_bytes() if self._queueing else None
 
     def backlog_bytes(self) -> int:
-        """What the peer has yet to read: its outbox and the socket's send queue."""
+        """What the peer has yet to read: its outbox, what is made for it, the send queue."""
         session = self._session
-        queued = 0 if session is None else session.queued_bytes
+        queued = 0 if session is None else session.queued_bytes + session.pending_bytes
         return queued + (self.unsent_bytes() or 0)
 
     async def _writer(self, session: ServerSession, scope: anyio.CancelScope) -> None:

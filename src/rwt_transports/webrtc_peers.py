@@ -205,7 +205,7 @@ class WebRtcPeers:
             return Answer(503, "too many connections")
         pc = RTCPeerConnection(self._configuration())
         remote_max = remote_max_message_size(sdp)
-        dc = DataChannelChannel(None, self.max_message_size, remote_max)
+        dc = DataChannelChannel(None, self.max_message_size, remote_max, session.memory)
         item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc)
         item.video = video
         holder.append(item)

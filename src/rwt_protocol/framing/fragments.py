@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import Protocol
 
 from ..codecs.json import encode_op
 from ..errors import ConfigError, RemoteProtocolError
@@ -29,6 +30,7 @@ __all__ = [
     "FragmentBudget",
     "PartKind",
     "Reassembler",
+    "SharedBudget",
     "fragment_frames",
     "fresh_id",
     "held_size",
@@ -114,6 +116,19 @@ class PartKind(StrEnum):
     PNG = "png"
 
 
+class SharedBudget(Protocol):
+    """A wider budget a ``FragmentBudget`` draws from too (the server's memory budget, D44)."""
+
+    def take(self, cost: int) -> bool:
+        """Charge ``cost`` bytes if they fit; whether they were charged."""
+
+    def give(self, cost: int) -> None:
+        """Return ``cost`` bytes charged before."""
+
+    def refusal(self, what: str) -> str:
+        """The status text for ``what`` refused by this budget."""
+
+
 class FragmentBudget:
     """The bytes of incomplete messages every connection of a server may hold together.
 
@@ -121,22 +136,31 @@ class FragmentBudget:
     thousands of connections could hold thousands of times that; they all draw
     from this one budget (``--max-fragment-memory``, docs/limits.md), and a part
     that would take it past ``limit`` is refused. Frames still arriving on TCP and
-    WebSocket connections draw from it too (``BudgetCharge``).
+    WebSocket connections draw from it too (``BudgetCharge``). What it holds is
+    charged to ``parent`` as well, the server's memory budget (D44): a part that
+    does not fit there is refused too, with the parent's text.
 
     Args:
         limit: bytes (``held_size`` plus ``FRAGMENT_OVERHEAD`` a part) held at once,
             over all connections.
+        parent: the wider budget; None: this one alone.
     """
 
-    __slots__ = ("limit", "used")
+    __slots__ = ("_refused_by_parent", "limit", "parent", "used")
 
-    def __init__(self, limit: int) -> None:
+    def __init__(self, limit: int, parent: SharedBudget | None = None) -> None:
         self.limit = limit
+        self.parent = parent
         self.used = 0
+        self._refused_by_parent = False
 
     def take(self, cost: int) -> bool:
-        """Charge ``cost`` bytes if they fit under ``limit``; whether they were charged."""
+        """Charge ``cost`` bytes if they fit under ``limit`` and the parent's; whether they did."""
         if self.used + cost > self.limit:
+            self._refused_by_parent = False
+            return False
+        if self.parent is not None and not self.parent.take(cost):
+            self._refused_by_parent = True
             return False
         self.used += cost
         return True
@@ -144,9 +168,13 @@ class FragmentBudget:
     def give(self, cost: int) -> None:
         """Return ``cost`` bytes charged before."""
         self.used -= cost
+        if self.parent is not None:
+            self.parent.give(cost)
 
     def refusal(self, what: str) -> str:
-        """The status text for ``what`` (``message 'ID'``, ``frame``) refused by this budget."""
+        """The status text for ``what`` (``message 'ID'``, ``frame``) that ``take`` refused."""
+        if self._refused_by_parent and self.parent is not None:
+            return self.parent.refusal(what)
         return (
             f"{what} dropped: the server holds {self.limit} bytes of"
             " incomplete messages from all connections already (the server's limit)"
