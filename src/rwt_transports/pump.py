@@ -392,6 +392,9 @@ class ConnectionPump(Held):
 
         Called only while the writer is idle. Returns True when nothing is left
         for the writer: every frame went to the transport and no close is pending.
+        More than a batch queued (a large message: an asset file, a point cloud)
+        is the writer's, which waits until the transport took it before the
+        session counts it as sent (the memory budget, D44).
         """
         session = self._session
         channel = self._direct
@@ -399,6 +402,7 @@ class ConnectionPump(Held):
             session is None
             or channel is None
             or session.close_request is not None
+            or session.queued_bytes > BATCH_BYTES
             or not channel.can_send_now()
         ):
             return False

@@ -117,16 +117,13 @@ class PartKind(StrEnum):
 
 
 class SharedBudget(Protocol):
-    """A wider budget a ``FragmentBudget`` draws from too (the server's memory budget, D44)."""
+    """A wider budget a ``FragmentBudget`` is counted in too (the server's memory budget, D44)."""
 
-    def take(self, cost: int) -> bool:
-        """Charge ``cost`` bytes if they fit; whether they were charged."""
+    def hold(self, cost: int) -> None:
+        """Count ``cost`` bytes more (never refused: the sender's own bounds apply)."""
 
-    def give(self, cost: int) -> None:
-        """Return ``cost`` bytes charged before."""
-
-    def refusal(self, what: str) -> str:
-        """The status text for ``what`` refused by this budget."""
+    def release(self, cost: int) -> None:
+        """Count ``cost`` bytes fewer."""
 
 
 class FragmentBudget:
@@ -137,8 +134,8 @@ class FragmentBudget:
     from this one budget (``--max-fragment-memory``, docs/limits.md), and a part
     that would take it past ``limit`` is refused. Frames still arriving on TCP and
     WebSocket connections draw from it too (``BudgetCharge``). What it holds is
-    charged to ``parent`` as well, the server's memory budget (D44): a part that
-    does not fit there is refused too, with the parent's text.
+    counted in ``parent`` as well, the server's memory budget (D44), which never
+    refuses it: a sender's input is bounded by this budget and its own limits.
 
     Args:
         limit: bytes (``held_size`` plus ``FRAGMENT_OVERHEAD`` a part) held at once,
@@ -146,35 +143,30 @@ class FragmentBudget:
         parent: the wider budget; None: this one alone.
     """
 
-    __slots__ = ("_refused_by_parent", "limit", "parent", "used")
+    __slots__ = ("limit", "parent", "used")
 
     def __init__(self, limit: int, parent: SharedBudget | None = None) -> None:
         self.limit = limit
         self.parent = parent
         self.used = 0
-        self._refused_by_parent = False
 
     def take(self, cost: int) -> bool:
-        """Charge ``cost`` bytes if they fit under ``limit`` and the parent's; whether they did."""
+        """Charge ``cost`` bytes if they fit under ``limit``; whether they were charged."""
         if self.used + cost > self.limit:
-            self._refused_by_parent = False
-            return False
-        if self.parent is not None and not self.parent.take(cost):
-            self._refused_by_parent = True
             return False
         self.used += cost
+        if self.parent is not None:
+            self.parent.hold(cost)
         return True
 
     def give(self, cost: int) -> None:
         """Return ``cost`` bytes charged before."""
         self.used -= cost
         if self.parent is not None:
-            self.parent.give(cost)
+            self.parent.release(cost)
 
     def refusal(self, what: str) -> str:
-        """The status text for ``what`` (``message 'ID'``, ``frame``) that ``take`` refused."""
-        if self._refused_by_parent and self.parent is not None:
-            return self.parent.refusal(what)
+        """The status text for ``what`` (``message 'ID'``, ``frame``) refused by this budget."""
         return (
             f"{what} dropped: the server holds {self.limit} bytes of"
             " incomplete messages from all connections already (the server's limit)"

@@ -255,6 +255,8 @@ class SessionBase:
             self._outbox.take()  # what a peer that left never read goes now
             if self._memory is not None:
                 self._memory.close()
+                if self._memory.budget.sweeper is self:  # another session takes it over
+                    self._memory.budget.sweeper = None
             self.close_lossy_lane()
             self.release()
         finally:  # even if releasing raised, the owner forgets the connection
@@ -318,7 +320,7 @@ class SessionBase:
         frames = self._outbox.take(max_bytes)
         if frames:
             if self._memory is not None:
-                self._memory.took()
+                self._memory.took(self._now)
             self._watch.after_take()
             self.taken(frames)
             self.sweep_memory()
@@ -509,8 +511,23 @@ class SessionBase:
         ``memory.PRESSURE_SWEEP_S``, on the session's latest time.
         """
         memory = self._memory
-        if memory is not None and memory.budget.pressed:
-            memory.budget.sweep(self._now)
+        if memory is None:
+            return
+        memory.clocked(self._now)
+        budget = memory.budget
+        if budget.pressed:
+            budget.sweep(self._now)
+            if budget.sweeper is None and self._state.sends:  # the next, should nothing happen
+                budget.sweeper = self
+                self.call_at(budget.next_sweep, self._sweep_due)
+
+    def _sweep_due(self, now: float) -> None:
+        """This session's timer for the memory budget's next sweep (``sweep_memory``)."""
+        memory = self._memory
+        if memory is not None and memory.budget.sweeper is self:
+            memory.budget.sweeper = None
+            self._now = max(self._now, now)
+            self.sweep_memory()
 
     def make_room(self, excess: int, now: float) -> None:
         """Drop the oldest topic messages worth ``excess`` bytes for the memory budget (D44).
@@ -544,7 +561,7 @@ class SessionBase:
         account = self._memory
         if account is None or not self._state.sends:
             return
-        excess = account.excess(self._outbox.high_water_bytes)
+        excess = account.excess(self._outbox.limit_bytes)
         if excess:
             self.make_room(excess, now)
         if account.held > PRESSURE_FLOOR_BYTES:

@@ -8,30 +8,40 @@ bound on the total (``--memory-budget``). Charged to it: every connection's
 outbox (topic messages, replies, asset files) and what its transport took from it
 and is still writing, its png messages waiting to be deflated, a WebRTC peer's
 input not read yet (each connection's ``MemoryAccount``), and the incomplete
-messages and frames of every connection (``FragmentBudget`` draws from it).
+messages and frames of every connection (``FragmentBudget`` is counted in it).
 
 The per-client bounds stay as they are, inside the budget. While it is full
 (charged past its ``limit``, or something was refused for want of room), the
 rule takes from the clients that do not read, the slow-consumer rule (D24):
 
-- a connection that took nothing from its outbox between two sweeps (at least
-  ``PRESSURE_SWEEP_S`` apart) while holding something is *stalled*: it keeps
-  only its newest topic message, the oldest dropped first;
+- a connection that has held something for ``PRESSURE_STALL_S`` without its
+  transport taking anything from it is *stalled*: it keeps only its newest topic
+  message, the oldest dropped first;
 - over the limit, any other connection keeps at most the larger of its share
-  (``limit`` over the connections holding anything) and half its send buffer,
-  the high watermark at which input backpressure holds a publisher for a
-  reader: a reader keeping up loses nothing;
+  (``limit`` over the connections holding anything) and ``READER_KEEP`` of its
+  send buffer: a reader is held at half its buffer by input backpressure
+  (docs/limits.md), so it loses nothing it would not lose alone, and a
+  connection that stops reading is cut within ``PRESSURE_STALL_S``;
 - a connection holding more than ``PRESSURE_FLOOR_BYTES`` that takes nothing for
   ``--send-timeout`` is closed as a slow consumer, whatever it holds (replies,
   an asset file): replies are never dropped, so this is how they are freed;
-- what would grow the total and can be refused is refused, with a text naming
-  ``--memory-budget`` (``refusal``): a Foxglove asset file, an incomplete
-  message's part, a frame still arriving.
+- a Foxglove asset file, which would grow the total, is refused with a text
+  naming ``--memory-budget`` (``refusal``) until there is room.
 
-A reader's replies and its input are never refused or dropped for the budget.
-The sweep is one pass over the connections holding anything, at most once per
-``PRESSURE_SWEEP_S`` and only while the budget is full; time comes from the
-caller (sans-IO).
+A reader's replies and every client's input are never refused or dropped for
+the budget: input (incomplete messages, frames still arriving, WebRTC input not
+read yet) is counted, within its own bounds, so that the outboxes of clients
+that do not read are cut sooner.
+So the total stays within the limit, but for the backlogs of connections that
+took something within ``PRESSURE_STALL_S`` (each within ``READER_KEEP`` of its
+send buffer), the newest message of each and the replies of those about to be
+closed. The
+rule is applied when a message comes for a connection, and to every connection
+by a sweep, one pass over those holding anything, at most once per
+``PRESSURE_SWEEP_S`` and only while the budget is full: whenever a session
+queues or takes output, and on a timer of one session (the ``sweeper``) while
+nothing else happens. Time comes from the callers (sans-IO): the latest any
+session gave (``clock``).
 """
 
 from __future__ import annotations
@@ -45,7 +55,9 @@ __all__ = [
     "DEFAULT_MEMORY_BUDGET",
     "MEMORY_BUDGET_OPTION",
     "PRESSURE_FLOOR_BYTES",
+    "PRESSURE_STALL_S",
     "PRESSURE_SWEEP_S",
+    "READER_KEEP",
     "MemoryAccount",
     "MemoryBudget",
 ]
@@ -57,8 +69,16 @@ MEMORY_BUDGET_OPTION: Final = "--memory-budget"
 """The option that sets the budget, named to a client that meets it."""
 
 PRESSURE_SWEEP_S: Final = 1.0
-"""Seconds between two passes over the connections while the budget is full: a
-connection that took nothing between two passes is stalled (module text)."""
+"""Seconds between two passes over the connections while the budget is full."""
+
+PRESSURE_STALL_S: Final = 1.0
+"""Seconds a connection holds something without its transport taking anything before
+it counts as not reading (stalled) for the budget (module text)."""
+
+READER_KEEP: Final = 0.75
+"""Share of its send buffer a connection that reads keeps while the budget is over its
+limit: its high watermark (half), where input backpressure holds its publishers, and
+a quarter for what comes before the hold takes effect (a read slice of a publisher)."""
 
 PRESSURE_FLOOR_BYTES: Final = 64 * 1024
 """Bytes a connection may hold while the budget is full without being watched: past
@@ -75,16 +95,26 @@ class MemoryBudget:
         limit: the budget, bytes.
         used: bytes charged now (connections' accounts and ``take``).
         wanted: something was refused for want of room since the last sweep.
+        now: the latest monotonic time a session gave (``clock``), seconds.
+        next_sweep: when the next sweep may run, monotonic seconds.
+        sweeper: the session whose timer runs the next sweep while the budget is
+            full (set and cleared by it), or None.
     """
 
-    __slots__ = ("_holders", "_next_sweep", "limit", "used", "wanted")
+    __slots__ = ("_holders", "limit", "next_sweep", "now", "sweeper", "used", "wanted")
 
     def __init__(self, limit: int = DEFAULT_MEMORY_BUDGET) -> None:
         self.limit = limit
         self.used = 0
         self.wanted = False
+        self.now = float("-inf")
+        self.sweeper: object | None = None
         self._holders: set[MemoryAccount] = set()  # the accounts holding anything
-        self._next_sweep = float("-inf")
+        self.next_sweep = float("-inf")
+
+    def clock(self, now: float) -> None:
+        """A session's time, monotonic seconds: the budget's clock goes forward to it."""
+        self.now = max(self.now, now)
 
     @property
     def pressed(self) -> bool:
@@ -112,18 +142,16 @@ class MemoryBudget:
         self.wanted = True
         return False
 
-    def take(self, cost: int) -> bool:
-        """Charge ``cost`` bytes held by no connection's account if they fit; whether they did.
+    def hold(self, cost: int) -> None:
+        """Count ``cost`` bytes held by no connection's account, never refused.
 
-        What the incomplete messages hold (``FragmentBudget``'s parent) is charged so.
+        The incomplete messages and frames still arriving (``FragmentBudget``,
+        bounded by ``--max-fragment-memory``) are counted so: a sender's input.
         """
-        if not self.fits(cost):
-            return False
         self.used += cost
-        return True
 
-    def give(self, cost: int) -> None:
-        """Return ``cost`` bytes charged by ``take``."""
+    def release(self, cost: int) -> None:
+        """Count ``cost`` bytes of ``hold`` fewer."""
         self.used -= cost
 
     def refusal(self, what: str) -> str:
@@ -134,20 +162,16 @@ class MemoryBudget:
         )
 
     def sweep(self, now: float) -> None:
-        """While the budget is full, judge and tell each connection holding anything.
+        """While the budget is full, tell each connection holding anything (``on_pressure``).
 
-        At most once per ``PRESSURE_SWEEP_S``; ``now`` is monotonic seconds. A
-        connection that took nothing since the last sweep, holding something at
-        both, is stalled; each gets ``on_pressure(now)`` (module text).
+        At most once per ``PRESSURE_SWEEP_S``; ``now`` is monotonic seconds.
         """
-        if now < self._next_sweep or not self.pressed:
+        self.clock(now)
+        if now < self.next_sweep or not self.pressed:
             return
-        self._next_sweep = now + PRESSURE_SWEEP_S
+        self.next_sweep = now + PRESSURE_SWEEP_S
         self.wanted = False
         for account in list(self._holders):
-            account.stalled = account.swept and account.takes == account.takes_swept
-            account.swept = True
-            account.takes_swept = account.takes
             if account.on_pressure is not None:
                 account.on_pressure(now)
 
@@ -161,22 +185,12 @@ class MemoryAccount:
 
     Attributes:
         held: bytes this connection holds now.
-        takes: how many times its transport took from its outbox (``took``).
-        stalled: it took nothing between the last two sweeps (module text).
-        swept: it held something at the last sweep (and since).
-        takes_swept: ``takes`` at the last sweep.
+        idle_since: when its transport last took something, or it began to hold
+            something, on the budget's clock (seconds); None: it began to hold
+            since the clock was last read (``clocked``).
     """
 
-    __slots__ = (
-        "budget",
-        "closed",
-        "held",
-        "on_pressure",
-        "stalled",
-        "swept",
-        "takes",
-        "takes_swept",
-    )
+    __slots__ = ("budget", "closed", "held", "idle_since", "on_pressure")
 
     def __init__(
         self, budget: MemoryBudget, on_pressure: Callable[[float], None] | None = None
@@ -185,10 +199,7 @@ class MemoryAccount:
         self.held = 0
         self.on_pressure = on_pressure
         self.closed = False
-        self.takes = 0
-        self.takes_swept = 0
-        self.stalled = False
-        self.swept = False
+        self.idle_since: float | None = None
 
     def charge(self, delta: int) -> None:
         """Add ``delta`` bytes (negative: they were freed); nothing once closed."""
@@ -201,28 +212,47 @@ class MemoryAccount:
         if not before:
             if self.held:
                 budget._holders.add(self)
+                self.idle_since = None  # the budget's clock may lag: ``clocked`` sets it
         elif not self.held:
             budget._holders.discard(self)
-            self.stalled = self.swept = False  # it holds nothing: it read, or lost, all
 
-    def took(self) -> None:
-        """Its transport took frames: it reads."""
-        self.takes += 1
-        self.stalled = False
+    def took(self, now: float) -> None:
+        """Its transport took frames at ``now`` (monotonic seconds): it reads."""
+        self.budget.clock(now)
+        self.idle_since = self.budget.now
 
-    def excess(self, keep: int) -> int:
+    def clocked(self, now: float) -> None:
+        """Its session's time is ``now`` (monotonic seconds), after it queued or took output."""
+        budget = self.budget
+        budget.clock(now)
+        if self.idle_since is None:
+            self.idle_since = budget.now
+
+    @property
+    def stalled(self) -> bool:
+        """Whether it has held something for ``PRESSURE_STALL_S`` with nothing taken."""
+        since = self.idle_since
+        return since is not None and self.budget.now - since >= PRESSURE_STALL_S
+
+    def excess(self, send_buffer: int) -> int:
         """Bytes of its topic messages to drop now for the budget (module text); 0 when none.
 
         Args:
-            keep: what a connection that reads may keep over its share, bytes
-                (its outbox's high watermark).
+            send_buffer: the connection's send buffer limit, bytes
+                (``--send-buffer-limit``).
+
+        Stalled while the budget is full: all it holds; else over the limit:
+        what it holds past the larger of its share and ``READER_KEEP`` of
+        ``send_buffer``.
         """
         budget = self.budget
+        if not budget.pressed:
+            return 0
         if self.stalled:
-            return self.held if budget.pressed else 0
+            return self.held
         if budget.used <= budget.limit:
             return 0
-        return max(0, self.held - max(budget.share, keep))
+        return max(0, self.held - max(budget.share, int(send_buffer * READER_KEEP)))
 
     def close(self) -> None:
         """Give back everything (the connection ended); later charges are ignored."""

@@ -511,7 +511,7 @@ class Outbox:
         account.charge(delta)
         if delta < 0 or self._held_frames or not self._topic_frames:
             return
-        excess = account.excess(self.high_water_bytes)
+        excess = account.excess(self.limit_bytes)
         if excess:
             dropped = self.dropped
             self._shed(max(0, self._bytes - excess))

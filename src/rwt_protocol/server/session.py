@@ -652,7 +652,7 @@ class Session(SessionBase):
         self._bound_waiting(spelling)
         memory = self._memory
         if memory is not None:
-            excess = memory.excess(self._outbox.high_water_bytes)
+            excess = memory.excess(self._outbox.limit_bytes)
             if excess:
                 self.make_room(excess, self._now)
         if self.fill_bytes > self._outbox.high_water_bytes:
