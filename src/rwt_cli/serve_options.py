@@ -191,8 +191,10 @@ class Listeners:
         bool,
         typer.Option(
             help="Show Foxglove clients rwt's own helpers too: rosapi's services, /client_count, "
-            "/connected_clients, the TF republisher, and other connections' nodes in the "
-            "connection graph (by default they see the robot's topics, services and nodes)."
+            "/connected_clients, the TF republisher and their nodes (/rosapi, "
+            "/rosbridge_websocket, /tf2_web_republisher) in the connection graph. By default "
+            "they see the robot's topics, services and nodes, a rosbridge client's own "
+            "(/rwt_client_<n>) included."
         ),
     ] = False
 
@@ -362,7 +364,7 @@ class Limits:
         typer.Option(
             min=1,
             help="Connections one host (see --host-prefix-v4/-v6) may hold once 3/4 of"
-            " --max-connections are taken.",
+            " --max-connections are taken; MCP sessions (--mcp) from the first.",
         ),
     ] = 64
     host_prefix_v4: Annotated[
@@ -390,7 +392,8 @@ class Limits:
         typer.Option(
             min=0,
             help="Seconds after which a WebSocket or TCP connection that sent nothing and"
-            " holds nothing (no subscription, advertisement, call...) is closed; 0: never.",
+            " holds nothing (no subscription, advertisement, call...) is closed, and an MCP"
+            " session without a request ends; 0: never.",
         ),
     ] = 600.0
     call_timeout: Annotated[

@@ -76,15 +76,39 @@ class Topic:
         """Whether ``subscribe`` was called and not undone."""
         return self._sub_id is not None
 
-    async def subscribe(self, callback: Callback) -> None:
-        """Deliver each message to ``callback(msg)`` (one subscription per Topic object)."""
+    async def subscribe(self, callback: Callback, *, confirm: bool = False) -> None:
+        """Deliver each message to ``callback(msg)`` (one subscription per Topic object).
+
+        Args:
+            callback: called with each message.
+            confirm: wait one round trip for the server's refusal, as ``advertise``
+                does (``Ros.refusal``); without it a refused subscription is
+                silent (rosbridge does not acknowledge ``subscribe``).
+
+        Raises:
+            OpRefusedError: with ``confirm``, the server refused it (an access rule,
+                ``--max-subscriptions``, a type conflict): the status text says why,
+                and the subscription is forgotten (never replayed).
+            ConnectionClosedError: with ``confirm``, the connection dropped before
+                the answer; the subscription is forgotten too.
+        """
         if self._sub_id is not None:
             await self.unsubscribe()
         cls = self.message_class
         deliver: Callback = callback if cls is None else (lambda msg: callback(cls.from_dict(msg)))
-        self._sub_id = self.ros.session.subscribe(self.name, self.message_type, **self.options)
-        self.ros.add_topic_callback(self.name, self._sub_id, deliver)
+        sub_id = self._sub_id = self.ros.session.subscribe(
+            self.name, self.message_type, **self.options
+        )
+        self.ros.add_topic_callback(self.name, sub_id, deliver)
         await self.ros.flush()
+        if not confirm:
+            return
+        refusal = await self.ros.refusal("subscribe", sub_id, self.name)
+        if refusal is not None:
+            self.ros.remove_topic_callback(self.name, sub_id)
+            self.ros.session.forget_subscription(sub_id)
+            self._sub_id = None
+            raise refusal
 
     async def unsubscribe(self) -> None:
         """Stop this object's subscription."""

@@ -298,21 +298,42 @@ class Ros(RosapiMixin):
             ConnectionClosedError: the connection dropped first.
         """
         adv_id = self.session.advertise(topic, type_name, latch=latch, queue_size=queue_size)
-        waiter = self._waiters[adv_id] = _Waiter(
-            refused=lambda text: OpRefusedError("advertise", adv_id, text)
+        refusal = await self.refusal("advertise", adv_id, topic)
+        if refusal is not None:
+            self.session.forget_advertisement(adv_id)
+            raise refusal
+        return adv_id
+
+    async def refusal(self, op: str, op_id: str, topic: str) -> RwtError | None:
+        """What ended the op ``op_id`` already queued: the server's refusal, if it sent one.
+
+        The protocol acknowledges neither ``advertise`` nor ``subscribe``: one
+        round trip after the op (a ``/rosapi/topic_type`` call for ``topic``,
+        answered or refused, by any rosbridge server) shows whether the server
+        sent an ``error`` status for its id (D1). A server that never answers
+        makes this wait ``timeout_s``; with the status level ``none`` no refusal
+        can be seen.
+
+        Args:
+            op: the op's name, for the error (``subscribe``).
+            op_id: its id.
+            topic: its topic, which the round trip asks about.
+
+        Returns:
+            ``OpRefusedError`` carrying the status text; ``ConnectionClosedError``
+            when the connection dropped before the round trip ended (whether the
+            server took the op is not known); None when it was not refused.
+        """
+        waiter = self._waiters[op_id] = _Waiter(
+            refused=lambda text: OpRefusedError(op, op_id, text)
         )
         try:
             await self.call_service("/rosapi/topic_type", {"topic": topic})
-        except (ServiceCallError, CallTimeoutError):
+        except (ServiceCallError, CallTimeoutError, ConnectionClosedError):
             pass  # only a round trip: its own answer does not matter
-        except ConnectionClosedError:
-            pass  # down: the advertisement goes out with the reconnection's replay
         finally:
-            self._waiters.pop(adv_id, None)
-        if waiter.error is not None:
-            self.session.forget_advertisement(adv_id)
-            raise waiter.error
-        return adv_id
+            self._waiters.pop(op_id, None)
+        return waiter.error
 
     def goal_waiter(self, goal_id: str, on_feedback: Callback | None) -> _Waiter:
         """Register a waiter for a goal's feedback and result (used by ``Action``)."""

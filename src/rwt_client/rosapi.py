@@ -11,6 +11,7 @@ import json
 from typing import TYPE_CHECKING, Protocol
 
 from rwt_protocol.codecs.json import decode_json_text
+from rwt_protocol.errors import ServiceCallError
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -34,6 +35,13 @@ async def _rosapi(
 ) -> dict[str, object]:
     values = await ros.call_service(f"/rosapi/{name}", args or {})
     return values if isinstance(values, dict) else {}
+
+
+def _succeeded(values: dict[str, object], what: str) -> None:
+    """Raise ``ServiceCallError`` for a ROS 2 rosapi answer saying ``successful: false``."""
+    if values.get("successful") is False:
+        reason = values.get("reason") or "no reason given"
+        raise ServiceCallError(f"{what} refused by the server: {reason}", values)
 
 
 def _strings(values: dict[str, object], key: str) -> list[str]:
@@ -104,12 +112,23 @@ class RosapiMixin:
         return decode_json_text(text, "get_param value")
 
     async def set_param(self: _Caller, name: str, value: object) -> None:
-        """Set a parameter to ``value`` (sent as JSON text, ``/rosapi/set_param``)."""
-        await _rosapi(self, "set_param", {"name": name, "value": json.dumps(value)})
+        """Set a parameter to ``value`` (sent as JSON text, ``/rosapi/set_param``).
+
+        Raises:
+            ServiceCallError: the server refused it: the call failed (ROS 1), or
+                answered ``successful: false`` (ROS 2; roslibjs calls its failure
+                callback then): the text carries the server's ``reason``.
+        """
+        args = {"name": name, "value": json.dumps(value)}
+        _succeeded(await _rosapi(self, "set_param", args), f"set_param {name}")
 
     async def delete_param(self: _Caller, name: str) -> None:
-        """Delete a parameter (``/rosapi/delete_param``)."""
-        await _rosapi(self, "delete_param", {"name": name})
+        """Delete a parameter (``/rosapi/delete_param``).
+
+        Raises:
+            ServiceCallError: refused, as ``set_param``.
+        """
+        _succeeded(await _rosapi(self, "delete_param", {"name": name}), f"delete_param {name}")
 
     async def get_time(self: _Caller) -> float:
         """The server's time in seconds (``/rosapi/get_time``; ROS 1 or ROS 2 shape)."""

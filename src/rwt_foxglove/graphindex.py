@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from rwt_graph.feed import ChangeFeed, EntityKind, GraphChange
     from rwt_graph.visibility import Visibility
-    from rwt_protocol.ports import ClientId
 
 __all__ = ["GraphIndex"]
 
@@ -26,18 +25,13 @@ class GraphIndex:
     Args:
         feed: the graph's change feed; its snapshot is read here.
         visibility: what the client may see.
-        own: the client's own participant, whose node its connection graph names
-            even when other connections' nodes are left out (``Visibility.holder_shows``).
 
     Attributes:
         version: the feed's version the index is at.
     """
 
-    def __init__(
-        self, feed: ChangeFeed, visibility: Visibility, own: ClientId | None = None
-    ) -> None:
+    def __init__(self, feed: ChangeFeed, visibility: Visibility) -> None:
         self._visibility = visibility
-        self._own = own
         self._by_name: dict[tuple[str, str], dict[str, GraphChange]] = {}
         self.version, entities = feed.snapshot()
         for change in entities:
@@ -82,12 +76,12 @@ class GraphIndex:
     def nodes(self, kind: EntityKind, name: str) -> frozenset[str]:
         """The nodes (or, without one, the participants) holding ``kind`` ``name``.
 
-        Other connections' nodes are left out unless the visibility shows plumbing.
+        Every holder the index keeps shows: a client connection's node
+        (``/rwt_client_3``, a robot served through a rosbridge client) as any
+        other; rwt's own nodes only where the visibility shows plumbing, as their
+        entities are not kept otherwise (D47).
         """
         holders = self._by_name.get((kind, name))
         if not holders:
             return frozenset()
-        shows, own = self._visibility.holder_shows, self._own
-        return frozenset(
-            change.node or change.client for change in holders.values() if shows(change, own)
-        )
+        return frozenset(change.node or change.client for change in holders.values())

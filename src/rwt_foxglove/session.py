@@ -247,9 +247,10 @@ class FoxgloveSession(SessionBase):
             ``parameters`` capabilities are not announced.
         assets: reads the files clients ask for (``assets.AssetRoots``), in
             background jobs; None: ``fetchAsset`` is refused and not announced.
-        show_plumbing: list rwt's own helpers (rosapi's services, the client counts,
-            the TF republisher) and other connections' nodes too
-            (``Visibility.plumbing``; ``rwt serve --foxglove-show-plumbing``).
+        show_plumbing: list rwt's own helpers too (rosapi's services, the client
+            counts, the TF republisher) and their nodes (``Visibility.plumbing``;
+            ``rwt serve --foxglove-show-plumbing``); other connections' entities
+            and nodes show either way (D47).
         memory: the server's memory budget (``--memory-budget``, D44) the client's
             queue and asset files are charged to; while it is full, asset
             requests are refused. None: its own bounds alone.
@@ -306,7 +307,7 @@ class FoxgloveSession(SessionBase):
         self._wire = wire_encoding(dialect)
         # what the client sees of the graph: the feed's snapshot, then each change
         visibility = replace(Visibility.of(self._access), plumbing=show_plumbing)
-        self._index = GraphIndex(graph.feed, visibility, own=client_id)
+        self._index = GraphIndex(graph.feed, visibility)
         self._dirty: dict[str, None] = dict.fromkeys(self._index.names(EntityKind.PUBLISHER))
         self._stop_feed = graph.feed.listen(self._changed)
         self.services = ServiceCalls(

@@ -11,9 +11,12 @@ ask it of each change of the graph's feed (``sees``). Checking an op against
 the rules stays the session's (``AccessPolicy.check``).
 
 A listing may also leave out rwt's own plumbing (``plumbing`` false): the
-entities of the server's own nodes (``rwt_graph.nodes.Role``). rosapi shows it,
-as rosbridge_suite does; a Foxglove client does not unless the server is told to
-(docs/foxglove.md, ``--foxglove-show-plumbing``).
+entities of the server's own nodes (``rwt_graph.nodes.Role.PLUMBING``), so those
+nodes too. rosapi shows it, as rosbridge_suite does; a Foxglove client does not
+unless the server is told to (docs/foxglove.md, ``--foxglove-show-plumbing``).
+What a client connection holds (a robot whose program is a rosbridge client, a
+web page's publisher) is never plumbing: it shows, with its node, in every
+listing (D47).
 """
 
 from __future__ import annotations
@@ -52,8 +55,8 @@ class Visibility:
             parameters a client sets are charged to it, ``parameters.store``).
         plumbing: whether rwt's own helpers show (``Role.PLUMBING``: rosapi's
             services, ``/client_count``, ``/connected_clients``, the TF
-            republisher's action, service and topics) and, in a connection graph,
-            the nodes of other connections (``Role.CONNECTION``).
+            republisher's action, service and topics), and so their nodes; other
+            connections' entities and nodes show either way (D47).
     """
 
     topics: NameFilter | None = None
@@ -113,14 +116,6 @@ class Visibility:
         if kind is EntityKind.ACTION:
             return self.action(change.name)
         return self.topic(change.name)
-
-    def holder_shows(self, change: GraphChange, own: ClientId | None) -> bool:
-        """Whether a connection graph names the node of a visible entity's holder.
-
-        Other connections' own nodes (``/rwt_client_3``) show only with ``plumbing``;
-        ``own``'s (the client looking) always does.
-        """
-        return self.plumbing or change.role is not Role.CONNECTION or change.client == own
 
 
 EVERYTHING = Visibility()

@@ -8,8 +8,10 @@ the robot never hears of it. The rules (docs/mcp.md, "Safety"):
   the topic, service, action or parameter a tool names (``TOOL_NAMES``);
 - read-only mode (``--mcp-read-only``, ``rwt mcp --read-only``): the tools that
   change the robot (``WRITE_TOOLS``) are refused;
-- a rate per tool and session (``TOOL_CALLS_PER_S``, a bucket of ``TOOL_BURST``)
-  and a size for a call's arguments (``MAX_TOOL_ARGUMENT_BYTES``);
+- a rate per tool and session (``TOOL_CALLS_PER_S``, a bucket of ``TOOL_BURST``),
+  the listings' together a lower one (``LISTINGS``: ``LISTING_CALLS_PER_S``, a
+  bucket of ``LISTING_BURST``), and a size for a call's arguments
+  (``MAX_TOOL_ARGUMENT_BYTES``);
 - every write is logged with its client, once per episode (``rwt.mcp`` logger).
 
 No I/O: the time comes from ``clock``.
@@ -28,6 +30,9 @@ from mcp.server.fastmcp.exceptions import ToolError
 from rwt_graph.ratelog import EpisodeLog
 
 __all__ = [
+    "LISTINGS",
+    "LISTING_BURST",
+    "LISTING_CALLS_PER_S",
     "MAX_TOOL_ARGUMENT_BYTES",
     "TOOL_BURST",
     "TOOL_CALLS_PER_S",
@@ -45,6 +50,23 @@ TOOL_CALLS_PER_S = 10.0
 TOOL_BURST = 10
 #: A call's arguments, as JSON, in bytes: a larger call is a tool error.
 MAX_TOOL_ARGUMENT_BYTES = 64 * 1024
+#: The requests that list the graph: the largest answers (a listing of 1000 topics is
+#: about 130 KB to serialise and send, ten times a plain call's cost), so they share
+#: one bucket per session, of a lower rate; one more is an error.
+LISTINGS = frozenset(
+    {
+        "list_topics",
+        "list_services",
+        "list_nodes",
+        "list_actions",
+        "list_parameters",
+        "resources/list",
+    }
+)
+#: Listings a second one session may make, all of them together, on average.
+LISTING_CALLS_PER_S = 2.0
+#: Listings a session may make at once after a quiet spell.
+LISTING_BURST = 5
 #: The tools that change the robot: refused in read-only mode, logged when they run.
 WRITE_TOOLS = frozenset(
     {
@@ -109,7 +131,7 @@ class Guard:
             raise ToolError(f"{tool}: refused, the MCP server is read-only (--mcp-read-only)")
         self._check_size(tool, arguments)
         self.check_name(tool, arguments)
-        self._check_rate(tool)
+        self.check_rate(tool)
         if tool in WRITE_TOOLS:
             family_field = TOOL_NAMES.get(tool)
             target = arguments.get(family_field[1]) if family_field else None
@@ -156,15 +178,34 @@ class Guard:
                 " (MAX_TOOL_ARGUMENT_BYTES)"
             )
 
-    def _check_rate(self, tool: str) -> None:
-        """A token bucket per tool: ``TOOL_BURST`` calls, refilled at ``TOOL_CALLS_PER_S``."""
+    def check_rate(self, tool: str) -> None:
+        """A token bucket per tool: ``TOOL_BURST`` calls, refilled at ``TOOL_CALLS_PER_S``.
+
+        ``tool`` may also name a request that is not a tool (``resources/read``):
+        each has its own bucket, but the ``LISTINGS``, which share one of
+        ``LISTING_BURST`` calls, refilled at ``LISTING_CALLS_PER_S``.
+
+        Raises:
+            ToolError: ``<tool>: called more than 10 times a second (TOOL_CALLS_PER_S):
+                ...``; a listing: ``listings called more than 2 times a second
+                (LISTING_CALLS_PER_S)``.
+        """
+        if tool in LISTINGS:
+            key, rate, burst, name = (
+                "listings",
+                LISTING_CALLS_PER_S,
+                LISTING_BURST,
+                "listings called",
+            )
+        else:
+            key, rate, burst, name = tool, TOOL_CALLS_PER_S, TOOL_BURST, "called"
         now = self.clock()
-        bucket = self._buckets.setdefault(tool, _Bucket(float(TOOL_BURST), now))
-        bucket.tokens = min(TOOL_BURST, bucket.tokens + (now - bucket.at) * TOOL_CALLS_PER_S)
+        bucket = self._buckets.setdefault(key, _Bucket(float(burst), now))
+        bucket.tokens = min(burst, bucket.tokens + (now - bucket.at) * rate)
         bucket.at = now
         if bucket.tokens < 1:
+            bound = "LISTING_CALLS_PER_S" if tool in LISTINGS else "TOOL_CALLS_PER_S"
             raise ToolError(
-                f"{tool}: called more than {TOOL_CALLS_PER_S:g} times a second"
-                " (TOOL_CALLS_PER_S): wait and call again"
+                f"{tool}: {name} more than {rate:g} times a second ({bound}): wait and call again"
             )
         bucket.tokens -= 1

@@ -15,6 +15,7 @@ from typing import Any
 import pybase64
 from PIL import Image
 
+from rwt_graph.media.compressed import MAX_DECODE_PIXELS, open_compressed
 from rwt_graph.media.images import ImageError, compressed_content_type, image_to_display
 
 __all__ = [
@@ -41,8 +42,8 @@ MAX_MESSAGE_CHARS = 4000
 MAX_IMAGE_SIDE = 1024
 #: A ``CompressedImage`` larger than this is re-encoded (as JPEG, scaled down).
 MAX_IMAGE_BYTES = 2 * 1024 * 1024
-#: A ``CompressedImage`` of more pixels than this is refused, not decoded (memory).
-MAX_DECODE_PIXELS = 40_000_000
+# MAX_DECODE_PIXELS: the pixels of a ``CompressedImage`` decoded at most, the rule of
+# every front end (``rwt_graph.media.compressed``); a larger one is a tool error
 #: The message types returned as MCP image content, both dialects' spellings.
 IMAGE_TYPES = frozenset(
     {
@@ -102,8 +103,12 @@ def encode_image(msg: Mapping[str, object], message_type: str) -> tuple[bytes, s
     A ``sensor_msgs/Image`` is converted to 8-bit RGB (``image_to_display``, the
     video server's conversion) and encoded as PNG; a ``CompressedImage`` in JPEG or
     PNG is passed on as it is unless over ``MAX_IMAGE_BYTES`` or
-    ``MAX_IMAGE_SIDE``, then re-encoded as JPEG; one over ``MAX_DECODE_PIXELS`` is
-    refused. Images are scaled down to ``MAX_IMAGE_SIDE`` pixels on their longer side.
+    ``MAX_IMAGE_SIDE``, then re-encoded as JPEG; one that would decode to more
+    than ``MAX_DECODE_PIXELS`` pixels is refused from its header
+    (``rwt_graph.media.compressed``). Images are scaled down to ``MAX_IMAGE_SIDE``
+    pixels on their longer side. Seconds of CPU for a large image: callers run it
+    in an image thread (``rwt_graph.media.threads.in_image_thread``), never on the
+    event loop.
 
     Args:
         msg: the message as the client decoded it: ``data`` as bytes, or as the
@@ -120,18 +125,14 @@ def encode_image(msg: Mapping[str, object], message_type: str) -> tuple[bytes, s
         content_type = compressed_content_type(str(msg.get("format", "")))
         if content_type is None:
             raise ImageError(f"unknown compressed image format {msg.get('format')!r}")
-        try:
-            image = Image.open(io.BytesIO(data))  # reads the header only
-            if image.width * image.height > MAX_DECODE_PIXELS:
-                raise ImageError(
-                    f"a {image.width}x{image.height} image is over {MAX_DECODE_PIXELS} pixels"
-                )
+        image = open_compressed(data, fit=MAX_IMAGE_SIDE)  # the header; a JPEG drafted
+        with image:
             if len(data) <= MAX_IMAGE_BYTES and max(image.size) <= MAX_IMAGE_SIDE:
                 return data, content_type
-            image.draft("RGB", (MAX_IMAGE_SIDE, MAX_IMAGE_SIDE))  # JPEG: decoded scaled down
-            return _encode(image.convert("RGB"), "JPEG"), "image/jpeg"
-        except (OSError, Image.DecompressionBombError) as exc:
-            raise ImageError(f"the compressed image cannot be read: {exc}") from None
+            try:
+                return _encode(image.convert("RGB"), "JPEG"), "image/jpeg"
+            except (OSError, ValueError, SyntaxError) as exc:  # data cut short, corrupt
+                raise ImageError(f"the compressed image cannot be read: {exc}") from None
     pixels = image_to_display({**msg, "data": data})
     return _encode(Image.fromarray(pixels), "PNG"), "image/png"
 

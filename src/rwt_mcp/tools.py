@@ -13,6 +13,7 @@ import contextlib
 import functools
 import inspect
 import json
+import logging
 import re
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from contextlib import asynccontextmanager
@@ -23,12 +24,14 @@ import pybase64
 from mcp.server.fastmcp import Context, FastMCP
 from mcp.server.fastmcp.exceptions import ToolError
 from mcp.server.models import InitializationOptions
-from mcp.types import ImageContent, TextContent, ToolAnnotations
+from mcp.types import CallToolResult, ImageContent, TextContent, ToolAnnotations
 from pydantic import BaseModel, ValidationError
+from typing_extensions import TypedDict  # pydantic reads it on Python 3.11
 
 from rwt_client import Param, Topic
 from rwt_graph.media.images import ImageError
-from rwt_protocol.errors import RwtError
+from rwt_graph.media.threads import in_image_thread
+from rwt_protocol.errors import OpRefusedError, RwtError
 
 from . import render
 from .guard import WRITE_TOOLS, Guard
@@ -70,22 +73,30 @@ _TF_TOPIC_TIMEOUT = {"sec": 5, "nanosec": 0}  # the republisher drops its topic 
 
 Message = dict[str, Any]
 
+# The SDK logs every request at INFO ("Processing request of type CallToolRequest"): a
+# line per request, at the rate a peer chooses (docs/limits.md, "Logs a peer can trigger")
+logging.getLogger("mcp.server.lowlevel.server").setLevel(logging.WARNING)
 
-class Names(BaseModel):
+
+# The listings are typed dicts, not models: a model of 1000 topics took 5 to 12 ms
+# to build, for an answer that is a dict again at once (docs/limits.md, "MCP front end").
+
+
+class Names(TypedDict):
     """Names from rosapi, sorted: at most ``MAX_LIST_ITEMS``, of ``total``."""
 
     names: list[str]
     total: int
 
 
-class TopicInfo(BaseModel):
+class TopicInfo(TypedDict):
     """A topic and its type."""
 
     name: str
     type: str
 
 
-class Topics(BaseModel):
+class Topics(TypedDict):
     """Topics from rosapi, sorted: at most ``MAX_LIST_ITEMS``, of ``total``."""
 
     topics: list[TopicInfo]
@@ -156,6 +167,25 @@ def _tool_errors() -> Iterator[None]:
         raise ToolError(str(exc)) from None
 
 
+async def subscribe_confirmed(topic: Topic, callback: Callable[[Any], None], what: str) -> None:
+    """Subscribe ``topic``, waiting one round trip for the server's refusal (D43).
+
+    rosbridge does not acknowledge ``subscribe``: without the round trip a
+    subscription the server refused (``--max-subscriptions``, a type conflict)
+    would look like a quiet topic (``rwt_client.Topic.subscribe(confirm=True)``).
+
+    Raises:
+        ToolError: ``<what>: the server refused the subscription: <its status text>``,
+            or the connection's error.
+    """
+    try:
+        await topic.subscribe(callback, confirm=True)
+    except OpRefusedError as exc:
+        raise ToolError(f"{what}: the server refused the subscription: {exc.reason}") from None
+    except RwtError as exc:
+        raise ToolError(str(exc)) from None
+
+
 def _wait(timeout_s: float) -> float:
     if not 0 < timeout_s <= MAX_WAIT_S:
         raise ToolError(f"timeout_s must be in (0, {MAX_WAIT_S:g}] seconds, not {timeout_s:g}")
@@ -163,7 +193,7 @@ def _wait(timeout_s: float) -> float:
 
 
 def _names(names: list[str]) -> Names:
-    return Names(names=sorted(names)[:MAX_LIST_ITEMS], total=len(names))
+    return {"names": sorted(names)[:MAX_LIST_ITEMS], "total": len(names)}
 
 
 class RobotTools:
@@ -178,8 +208,10 @@ class RobotTools:
         """Every topic of the robot and its message type (rosapi)."""
         with _tool_errors():
             topics = await (await self.link.connected()).get_topics_and_types()
-        listed = [TopicInfo(name=name, type=topics[name]) for name in sorted(topics)]
-        return Topics(topics=listed[:MAX_LIST_ITEMS], total=len(listed))
+        listed: list[TopicInfo] = [
+            {"name": name, "type": topics[name]} for name in sorted(topics)[:MAX_LIST_ITEMS]
+        ]
+        return {"topics": listed, "total": len(topics)}
 
     async def list_services(self) -> Names:
         """Every service of the robot (rosapi)."""
@@ -249,25 +281,27 @@ class RobotTools:
                 enough.set()
 
         subscription = Topic(ros, topic, message_type or None)
+        await subscribe_confirmed(subscription, take, f"echo {topic}")
         with _tool_errors():
-            await subscription.subscribe(take)
             try:
                 with anyio.move_on_after(seconds):
                     await enough.wait()
             finally:
                 await subscription.unsubscribe()
-        return self._echoed(topic, message_type, received[:wanted], images, len(received) >= wanted)
+        complete = len(received) >= wanted
+        return await self._echoed(topic, message_type, received[:wanted], images, complete)
 
     @staticmethod
-    def _echoed(
+    async def _echoed(
         topic: str, message_type: str, messages: list[Message], images: bool, complete: bool
     ) -> list[TextContent | ImageContent]:
+        """The echo's content blocks; images decoded and encoded in an image thread."""
         content: list[TextContent | ImageContent] = []
         chars = 0
         for msg in messages:
             if images:
                 try:
-                    data, mime = encode_image(msg, message_type)
+                    data, mime = await in_image_thread(encode_image, msg, message_type)
                 except ImageError as exc:
                     raise ToolError(f"{topic}: {exc}") from None
                 encoded = pybase64.b64encode(data).decode()
@@ -369,7 +403,11 @@ class RobotTools:
         return ParameterValue(name=name, value=summarise(value))
 
     async def set_parameter(self, name: str, value: Any) -> ParameterValue:
-        """Set a parameter (rosapi); the answer reads it back."""
+        """Set a parameter (rosapi); the answer reads it back.
+
+        A set the server refuses is a tool error with its reason (rosapi's
+        ``successful: false``, or a failed call).
+        """
         with _tool_errors():
             parameter = Param(await self.link.connected(), name)
             await parameter.set(value)
@@ -488,7 +526,7 @@ class RobotTools:
             if not isinstance(name, str):
                 raise ToolError(f"/republish_tfs answered no topic_name: {answer!r}")
             topic = Topic(ros, name, "tf2_web_republisher/msg/TFArray")
-            await topic.subscribe(take)
+            await subscribe_confirmed(topic, take, f"lookup_transform {name}")
             try:
                 await got.wait()
             finally:
@@ -638,14 +676,17 @@ def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
             annotations=ToolAnnotations(readOnlyHint=name not in WRITE_TOOLS),
         )
     TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
-    _name_bad_fields(server)
+    _call_tools(server)
     return server
 
 
-def _name_bad_fields(server: FastMCP) -> None:
-    """Arguments that fail a tool's input schema: a tool error naming each field, briefly.
+def _call_tools(server: FastMCP) -> None:
+    """Call the tools as FastMCP does, but for two things.
 
-    (FastMCP's own text is pydantic's whole report, with links.)
+    Arguments that fail a tool's input schema are a tool error naming each field,
+    briefly (FastMCP's own text is pydantic's whole report, with links). A result
+    the tool made already (``_as_result``: a typed answer, built to its output
+    schema) goes out as it is, not validated again against the schema.
     """
     manager = server._tool_manager
     call = manager.call_tool
@@ -654,7 +695,7 @@ def _name_bad_fields(server: FastMCP) -> None:
         name: str, arguments: dict[str, Any], context: Any = None, convert_result: bool = False
     ) -> Any:
         try:
-            return await call(name, arguments, context=context, convert_result=convert_result)
+            result = await call(name, arguments, context=context, convert_result=False)
         except ToolError as exc:
             if not isinstance(exc.__cause__, ValidationError):
                 raise
@@ -664,6 +705,10 @@ def _name_bad_fields(server: FastMCP) -> None:
                 for error in exc.__cause__.errors()[:_MAX_FIELD_ERRORS]
             ]
             raise ToolError(f"{name}: bad arguments: {'; '.join(wrong)}") from None
+        tool = manager.get_tool(name)
+        if not convert_result or isinstance(result, CallToolResult) or tool is None:
+            return result
+        return tool.fn_metadata.convert_result(result)
 
     manager.call_tool = call_tool  # type: ignore[method-assign]
 
@@ -688,9 +733,26 @@ def _guarded(
     @functools.wraps(function)
     async def guarded(*args: Any, **kwargs: Any) -> Any:
         guard.admit(name, {k: v for k, v in kwargs.items() if k != "ctx"})
-        return await function(*args, **kwargs)
+        result = await function(*args, **kwargs)
+        if isinstance(result, BaseModel):
+            return _as_result(result.model_dump(mode="json"))
+        return _as_result(result) if isinstance(result, dict) else result
 
     return guarded
+
+
+def _as_result(structured: dict[str, Any]) -> CallToolResult:
+    """A tool's typed answer as MCP's result: structured content and the same as JSON text.
+
+    Made once here: the SDK, handed the answer, would serialise it twice and check
+    it against the tool's output schema with a generic JSON schema validator
+    (about 100 ms for a listing of 1000 topics, docs/limits.md); the answer is
+    built to that schema already (its model or typed dict).
+    """
+    text = json.dumps(structured, ensure_ascii=False, separators=(",", ":"))
+    return CallToolResult(
+        content=[TextContent(type="text", text=text)], structuredContent=structured
+    )
 
 
 def _described(doc: str) -> str:

@@ -177,6 +177,10 @@ class ClientSession:
         self.send(op)
         return sub_id
 
+    def forget_subscription(self, sub_id: OpId) -> None:
+        """Drop a subscription the server refused: nothing is sent, nothing replayed."""
+        self.subscriptions.pop(sub_id, None)
+
     def unsubscribe(self, topic: str, sub_id: OpId) -> None:
         """Queue ``unsubscribe`` of one subscription (spec 3.3.5)."""
         self.subscriptions.pop(sub_id, None)

@@ -17,6 +17,8 @@ package is drawn here::
     │   │   ├── FoxgloveInputError        rwt_foxglove.protocol: what a Foxglove client sent
     │   │   │                             cannot be used (an error status)
     │   │   ├── AssetError                rwt_foxglove.assets: a package:// URI not served
+    │   │   ├── OfferError                rwt_transports.webrtc_offer: a WebRTC offer refused
+    │   │   │                             before anything is built for it (HTTP 400, D38)
     │   │   └── CdrError                  rwt_graph.types.wire: bytes that are not the type's CDR
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation
@@ -51,6 +53,8 @@ package is drawn here::
     ├── BagError                          rwt_bag: a bag that cannot be read, written or played
     │   └── InflateError                  past a decompression bound (docs/limits.md)
     ├── Ros2Unavailable                   rwt_ros2: rclpy cannot be imported (also a RuntimeError)
+    ├── InterfaceBuildError               rwt_ros2.interfaces: a package rclpy lacks cannot be
+    │                                     built (also a RuntimeError)
     ├── SuiteError                        rwt_conformance: malformed suite data
     └── StepFailedError                   rwt_conformance: a step's expectation failed
 

@@ -62,8 +62,10 @@ from .counters import LinkCounters, TopicCounters
 from .graphview import Qos, RosGraph, digest, publisher_depth, rclpy_profile, snapshot
 from .graphview import subscription_qos as matching_qos
 from .handoff import MAX_QUEUED_BYTES, Handoff, Sample
+from .interfaces import BUILD_TIMEOUT_S
 from .node import RosNode
 from .offers import Offer
+from .ondemand import OnDemand
 from .outflow import Lane, Outflow
 from .remotes import RosRemotes, entities
 from .rosout import RosoutHandler
@@ -140,6 +142,13 @@ class Ros2Options:
         sweep_s: ``SWEEP_S``.
         call_timeout_s: ``CALL_TIMEOUT_S``.
         max_queued_bytes: ``handoff.MAX_QUEUED_BYTES``.
+        build_interfaces: build a package rclpy lacks and rwt can build
+            (``rwt_ros2.build.BUILDS``: ``tf2_msgs``) the first time the link needs
+            it, in the background (``rwt_ros2.ondemand``; docs/ros2.md); False: its
+            types do not cross, as with any missing package.
+        build_timeout_s: the longest such a build may run, seconds
+            (``rwt_ros2.interfaces.BUILD_TIMEOUT_S``): then it is stopped, and the
+            package's types do not cross.
     """
 
     node_name: str = "rwt"
@@ -147,6 +156,8 @@ class Ros2Options:
     sweep_s: float = SWEEP_S
     call_timeout_s: float = CALL_TIMEOUT_S
     max_queued_bytes: int = MAX_QUEUED_BYTES
+    build_interfaces: bool = True
+    build_timeout_s: float = BUILD_TIMEOUT_S
 
 
 @dataclass(eq=False)
@@ -209,6 +220,11 @@ class Ros2Link:
         self._params: ParamReplicas | None = None
         self._missing_types: set[str] = set()
         self._type_warnings: dict[str, str | None] = {}
+        self._builds = OnDemand(
+            self._built,
+            enabled=self.options.build_interfaces,
+            timeout_s=self.options.build_timeout_s,
+        )
         self._outflow: Outflow | None = None  # made in ``run``, with its task group
         self._digest: object = None  # the graph's names at the last look (``graphview.digest``)
         self._closed = False
@@ -241,6 +257,7 @@ class Ros2Link:
             self.ros.start()
             async with anyio.create_task_group() as tg:
                 self._outflow = Outflow(tg)
+                self._builds.open(tg)
                 await self._sweep_once(periodic=True)
                 tg.start_soon(self.handoff.drain, lambda: self.graph.port.inflow)
                 task_status.started()
@@ -531,6 +548,8 @@ class Ros2Link:
         """Why ROS 2 cannot carry ``type_name`` here (the package to install), or None.
 
         The graph's sessions report it as a warning status (``Graph.type_checks``).
+        A package rwt builds says so instead (``OnDemand.warning``), and starts
+        being built if it was not.
         """
         if type_name in self._type_warnings:
             return self._type_warnings[type_name]
@@ -538,17 +557,25 @@ class Ros2Link:
             interface_class(type_name)
             warning = None
         except RwtError as exc:
-            warning = f"{exc} (it does not cross to ROS 2)"
+            package = self._builds.buildable(type_name)
+            if package is not None:
+                self._builds.start(package)
+                warning = self._builds.warning(type_name, str(exc))
+            else:
+                warning = f"{exc} (it does not cross to ROS 2)"
         # type names reaching here are the registry's: the table stays bounded
         self._type_warnings[type_name] = warning
         return warning
 
     def _ros_type(self, name: str, type_name: str) -> Any:
-        if type_name in self._missing_types:
+        if type_name in self._missing_types or self._builds.pending(type_name):
             return None
         try:
             return interface_class(type_name)
         except RwtError as exc:
+            package = self._builds.buildable(type_name)
+            if package is not None and self._builds.start(package):
+                return None  # being built: a sweep after it is ready carries the type
             # one line per type: installing the package needs a restart anyway
             self._missing_types.add(type_name)
             self.episodes.log(
@@ -559,6 +586,15 @@ class Ros2Link:
                 str(exc),
             )
             return None
+
+    def _built(self, package: str) -> None:
+        """A package's build is ready or failed: what was told of its types is told anew."""
+
+        def other(type_name: str) -> bool:
+            return type_name.partition("/")[0] != package
+
+        self._type_warnings = {t: w for t, w in self._type_warnings.items() if other(t)}
+        self._missing_types = {t for t in self._missing_types if other(t)}
 
     def _sweep_publishers(self, publishing: dict[str, tuple[str, bool]]) -> None:
         carried: dict[str, tuple[str, list[bytes]]] = {}  # what waited in a replaced lane

@@ -20,6 +20,8 @@ from typing import Any
 from rwt_protocol.distribution import install_hint
 from rwt_protocol.errors import GraphError, RwtError
 
+from .interfaces import BUILDS, COMMAND
+
 __all__ = [
     "KILTED_WHEELS",
     "ROS2_INSTALL",
@@ -102,15 +104,19 @@ KILTED_WHEELS = frozenset(
 )
 """The interface packages PyPI has a ``ros-kilted-<package>`` wheel of (as of 2025-11; the
 test extra installs some, docs/ros2.md). Others (``tf2_msgs``, ``example_interfaces``)
-come from a ROS install (``apt``) or a build of the package."""
+come from a ROS install (``apt``) or a build of the package (rwt builds ``tf2_msgs``
+itself: ``rwt_ros2.build``)."""
 
 
 def package_hint(package: str) -> str:
     """How to get the generated Python package of the ROS 2 package ``package``.
 
-    A PyPI wheel is named only where one exists (``KILTED_WHEELS``).
+    A PyPI wheel is named only where one exists (``KILTED_WHEELS``); rwt's own build
+    command where rwt builds the package (``interfaces.BUILDS``).
     """
     debian = f"apt install ros-<distro>-{package.replace('_', '-')}"
+    if package in BUILDS:
+        return f"{debian} (PyPI has no wheel of it), or build it for rclpy: {COMMAND} {package}"
     if package not in KILTED_WHEELS:
         return f"{debian} (PyPI has no wheel of it), or build it for rclpy"
     return f"pip install ros-kilted-{package.replace('_', '-')}, or {debian}"

@@ -55,9 +55,10 @@ class FoxgloveOptions:
             share folders (``rwt serve --assets``; off where none of them exists).
         package_paths: directories holding ROS packages (``--package-path``).
         show_plumbing: clients see rwt's own helpers too (rosapi's services,
-            ``/client_count``, ``/connected_clients``, the TF republisher) and other
-            connections' nodes in the connection graph (``--foxglove-show-plumbing``);
-            by default they see the robot's topics, services and nodes only.
+            ``/client_count``, ``/connected_clients``, the TF republisher) and
+            their nodes (``--foxglove-show-plumbing``); by default they see the
+            robot's topics, services and nodes only, the nodes of client
+            connections included (D47).
     """
 
     on_rosbridge_port: bool = True

@@ -4,19 +4,28 @@ An MCP client posts JSON-RPC to ``/mcp`` (``mcp_options.MCP_PATH``); the
 WebSocket listener hands such a request here (``claims``). Each MCP session is
 one rosbridge session of the server, opened in-process (``open_session`` with
 transport ``mcp``): it is admitted as every connection is (``--max-connections``,
-the host's share), runs under the same per-client limits, idle rules and access
-rules, and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s) drive it
-through rwt's client over a memory connection. The official MCP SDK answers the
-protocol (its ``StreamableHTTPServerTransport``, driven as an ASGI app over the
-request's socket; h11 parses the request). A refused session gets 503 and no
-MCP session.
+the host's share, which for MCP sessions applies from the first), runs under the
+same per-client limits and access rules, ends after ``--idle-timeout`` without a
+request in flight, and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s)
+drive it through rwt's client over a memory connection. The official MCP SDK
+answers the protocol (its ``StreamableHTTPServerTransport``, driven as an ASGI app
+over the request's socket; h11 parses the request). A refused session gets 503 and
+no MCP session.
+
+Every socket a request holds is a connection slot (D40): a session holds
+``SESSION_SLOTS`` (itself and its event stream, and one request), and a request
+beyond them takes one more while it runs (``RosbridgeServer.take_slot``), or gets
+503; so requests in flight cannot run the server out of descriptors.
 
 Safety (docs/mcp.md, "Safety"): with ``--auth-secret-file`` a new session needs
 ``Authorization: Bearer <token>``, a live token of ``/rwt/video_token`` (else
 401), and every later request of the session the same header; a request's body
-is at most ``MAX_REQUEST_BYTES`` (413), a session has at most
-``MAX_REQUESTS_IN_FLIGHT`` requests at once (429); ``--allowed-origins`` applies
-(403). Each tool call passes the session's ``rwt_mcp.guard.Guard``.
+is at most ``MAX_REQUEST_BYTES`` (413) of JSON under the rules of frames
+(``rwt_protocol.codecs.json``: nesting, integers, UTF-8; else 400 with a JSON-RPC
+parse error), and only an ``initialize`` request opens a session (400, before
+anything is built; D41); a session has at most ``MAX_REQUESTS_IN_FLIGHT`` requests at
+once (429); ``--allowed-origins`` applies (403). Each tool call passes the
+session's ``rwt_mcp.guard.Guard``. Refusals are logged once per episode.
 """
 
 from __future__ import annotations
@@ -33,12 +42,16 @@ import anyio
 import h11
 from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
 from mcp.server.transport_security import TransportSecuritySettings
+from mcp.types import INVALID_REQUEST, PARSE_ERROR, ErrorData, JSONRPCError
 
 from rwt_client import Ros
 from rwt_client.connectors import ConnectionClosedError
+from rwt_graph.ratelog import EpisodeLog
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tools import build_server, initialization_options
+from rwt_protocol.codecs.json import decode_json_text
+from rwt_protocol.errors import RemoteProtocolError
 
 from .http_endpoint import claims_path, open_request, reply
 from .mcp_options import MCP_PATH, McpOptions
@@ -54,14 +67,19 @@ if TYPE_CHECKING:
 
     from .server import RosbridgeServer
 
-__all__ = ["MAX_REQUESTS_IN_FLIGHT", "MAX_REQUEST_BYTES", "McpEndpoint"]
+__all__ = ["MAX_REQUESTS_IN_FLIGHT", "MAX_REQUEST_BYTES", "SESSION_SLOTS", "McpEndpoint"]
 
 logger = logging.getLogger("rwt.mcp")
+_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 MAX_REQUEST_BYTES = 1024 * 1024
 """Largest body of a request to ``/mcp`` (one JSON-RPC message or batch): 413."""
 MAX_REQUESTS_IN_FLIGHT = 8
 """Requests of one MCP session served at once (its event stream counts); one more: 429."""
+SESSION_SLOTS = 2
+"""Connection slots an MCP session holds (``--max-connections``, the host's share): itself
+with its event stream, and one request at once, as the official client holds them; a
+request beyond them takes one more slot while it runs, or gets 503 (D40)."""
 
 _METHODS = (b"POST", b"GET", b"DELETE", b"OPTIONS")
 _READ_SIZE = 65536
@@ -96,11 +114,16 @@ logging.getLogger("mcp.server.streamable_http").addFilter(_not_a_closed_event_st
 
 @dataclass
 class _Session:
-    """One MCP session: its transport, the token that opened it, requests in flight."""
+    """One MCP session: its transport, the token that opened it, requests in flight.
+
+    ``slot``: the host of the slot it holds besides its session's
+    (``SESSION_SLOTS``), given back when it ends.
+    """
 
     transport: StreamableHTTPServerTransport
     token: str | None
     client_id: str
+    slot: str
     in_flight: int = 0
 
 
@@ -216,17 +239,21 @@ class McpEndpoint:
         if opened is None:
             return
         conn, request, headers, cors = opened.conn, opened.request, opened.headers, opened.cors
+        exchange = _Exchange(conn, stream, request, opened.body, peer, cors)
         refusal = self._refusal(request, headers)
         if refusal is not None:
-            logger.info("event=mcp_refused peer=%s status=%d reason=%r", peer, *refusal)
             extra = [(b"WWW-Authenticate", b"Bearer")] if refusal[0] == 401 else []
-            await reply(conn, stream, refusal[0], refusal[1], cors + extra)
+            await exchange.refuse(*refusal, extra)
             return
         if request.method == b"OPTIONS":
             await reply(conn, stream, 204, "", cors)
             return
-        exchange = _Exchange(conn, stream, request, opened.body, peer, cors)
         session_id = headers.get(MCP_SESSION_ID_HEADER)
+        if request.method == b"POST":
+            problem = _body_refusal(opened.body, new_session=session_id is None)
+            if problem is not None:
+                await exchange.refuse_jsonrpc(*problem)
+                return
         if session_id is None:
             await self._open(exchange, _bearer(headers))
         else:
@@ -243,7 +270,7 @@ class McpEndpoint:
         token = _bearer(headers)
         if session_id is None:
             if request.method != b"POST":
-                return 400, f"no {MCP_SESSION_ID_HEADER}: POST an initialize request first"
+                return 400, "no Mcp-Session-Id: POST an initialize request first"
             if self.auth_required:
                 check = self.options.bearer_token
                 if token is None or check is None or not check(token):
@@ -261,21 +288,27 @@ class McpEndpoint:
         return None
 
     async def _open(self, exchange: _Exchange, token: str | None) -> None:
-        """A request without a session: admit a new session and let it answer (initialize)."""
+        """A request without a session: admit a new session and let it answer (initialize).
+
+        The session takes ``SESSION_SLOTS`` slots: one more (taken first) beside its own.
+        """
         tg = self._tg
-        admitted = None if tg is None else await self._admit(exchange.peer)
-        if tg is None or admitted is None:
+        slot = None if tg is None else self.server.take_slot("mcp", exchange.peer)
+        admitted = None if slot is None else await self._admit(exchange.peer)
+        if tg is None or slot is None or admitted is None:
+            if slot is not None:
+                self.server.give_slot(slot)
             await exchange.refuse(503, "too many connections")
             return
         transport = StreamableHTTPServerTransport(
             mcp_session_id=uuid.uuid4().hex,
             security_settings=_NO_SDK_CHECK,
-            idle_timeout=self.options.idle_s,
+            idle_timeout=self.server.config.idle_timeout_s or None,  # --idle-timeout (D40)
         )
         session_id = transport.mcp_session_id
         assert session_id is not None  # given just above
         session = _Session(
-            transport, token if self.auth_required else None, admitted.session.client_id
+            transport, token if self.auth_required else None, admitted.session.client_id, slot
         )
         self.sessions[session_id] = session
         established = False
@@ -299,9 +332,23 @@ class McpEndpoint:
         return _Admitted(pump, session, connection)
 
     async def _continue(self, exchange: _Exchange, session: _Session) -> None:
-        """A request of a session: the socket joins it (no handshake deadline), MCP answers."""
+        """A request of a session: the socket joins it (no handshake deadline), MCP answers.
+
+        Past ``SESSION_SLOTS`` requests in flight its socket takes a slot of its
+        own (D40), or the request gets 503.
+        """
+        slot = None
+        if session.in_flight >= SESSION_SLOTS:  # the session's own slots are in use
+            slot = self.server.take_slot("mcp", exchange.peer)
+            if slot is None:
+                await exchange.refuse(503, "too many connections")
+                return
         self.server.adopt_socket()
-        await self._handle(exchange, session)
+        try:
+            await self._handle(exchange, session)
+        finally:
+            if slot is not None:
+                self.server.give_slot(slot)
         if session.transport.is_terminated and session.transport.mcp_session_id:
             await self._discard(session.transport.mcp_session_id)  # the client's DELETE
 
@@ -346,6 +393,7 @@ class McpEndpoint:
         """Forget the session (its id answers 404 from now) and end its transport."""
         session = self.sessions.pop(session_id, None)
         if session is not None:
+            self.server.give_slot(session.slot)
             with anyio.CancelScope(shield=True):
                 await session.transport.terminate()
 
@@ -368,10 +416,43 @@ async def _serve_until_idle(
         tg.cancel_scope.cancel()
 
 
+def _body_refusal(body: bytes, *, new_session: bool) -> tuple[int, str, int] | None:
+    """Why a POST's body is refused before MCP sees it: (HTTP status, text, JSON-RPC code).
+
+    The body is JSON under the rules of rosbridge frames (``decode_json_text``:
+    UTF-8, ``MAX_NESTING`` levels, integers within 64 bits), which the SDK's
+    parser cannot bound (a deep one or a long integer made it answer 500 with a
+    traceback); without a session id only an ``initialize`` request may come,
+    refused before a session is built for it (docs/mcp.md, D41).
+    """
+    try:
+        message = decode_json_text(body, "Parse error")
+    except RemoteProtocolError as exc:
+        return 400, exc.message, PARSE_ERROR
+    if new_session and not (
+        isinstance(message, dict) and message.get("method") == "initialize" and "id" in message
+    ):
+        text = "Bad Request: no Mcp-Session-Id: only an initialize request opens a session"
+        return 400, text, INVALID_REQUEST
+    return None
+
+
 def _bearer(headers: dict[str, str]) -> str | None:
     """The token of ``Authorization: Bearer <token>``, or None."""
     scheme, _, token = headers.get("authorization", "").partition(" ")
     return token.strip() or None if scheme.lower() == "bearer" else None
+
+
+def _log_refusal(peer: str, status: int, text: str) -> None:
+    """``event=mcp_refused``, once per episode of each status (docs/limits.md, logs)."""
+    _episodes.log(
+        logging.INFO,
+        f"mcp_refused:{status}",
+        "event=mcp_refused peer=%s status=%d reason=%r",
+        peer,
+        status,
+        text[:200],
+    )
 
 
 class _Exchange:
@@ -390,9 +471,21 @@ class _Exchange:
         self.peer, self.cors = peer, cors
         self.status: int | None = None
 
-    async def refuse(self, status: int, text: str) -> None:
-        logger.info("event=mcp_refused peer=%s status=%d reason=%r", self.peer, status, text)
-        await reply(self.conn, self.stream, status, text, self.cors)
+    async def refuse(
+        self, status: int, text: str, extra: list[tuple[bytes, bytes]] | None = None
+    ) -> None:
+        """Answer ``status`` with ``text`` (logged once per episode of that status)."""
+        _log_refusal(self.peer, status, text)
+        await reply(self.conn, self.stream, status, text, self.cors + (extra or []))
+
+    async def refuse_jsonrpc(self, status: int, text: str, code: int) -> None:
+        """Answer ``status`` with a JSON-RPC error ``code`` saying ``text``, as the SDK does."""
+        _log_refusal(self.peer, status, text)
+        error = JSONRPCError(
+            jsonrpc="2.0", id="server-error", error=ErrorData(code=code, message=text)
+        )
+        body = error.model_dump_json(by_alias=True, exclude_none=True)
+        await reply(self.conn, self.stream, status, body, self.cors, "application/json")
 
     async def run(self, app: Callable[..., Any]) -> int | None:
         """Run ``app`` (ASGI 3) for the request; the response's status, None if none was sent."""

@@ -1,7 +1,9 @@
 """Settings of the MCP endpoint on the WebSocket port (``rwt serve --mcp``, docs/mcp.md).
 
 Apart from ``mcp_http`` so that the server's configuration names them without
-loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs.
+loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs. What bounds
+an MCP session as a client (its slots, its host's share, ``--idle-timeout``) is
+the server's own configuration (D40).
 """
 
 from __future__ import annotations
@@ -12,13 +14,10 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-__all__ = ["MCP_PATH", "MCP_SESSION_IDLE_S", "McpOptions"]
+__all__ = ["MCP_PATH", "McpOptions"]
 
 MCP_PATH = "/mcp"
 """The MCP endpoint (Streamable HTTP): every request of an MCP client goes here."""
-
-MCP_SESSION_IDLE_S = 600.0
-"""Seconds an MCP session lives with no request in flight; then it ends (its id: 404)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,9 +31,7 @@ class McpOptions:
             token of a new session's ``Authorization: Bearer`` header (the video
             tokens of ``/rwt/video_token``, ``rwt_video.VideoTokens.valid``);
             None: every new session gets 401.
-        idle_s: seconds an MCP session lives without a request (``MCP_SESSION_IDLE_S``).
     """
 
     read_only: bool = False
     bearer_token: Callable[[str], bool] | None = None
-    idle_s: float = MCP_SESSION_IDLE_S

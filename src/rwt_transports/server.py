@@ -122,6 +122,11 @@ _ACCEPT_BACKOFF_MAX_S = 1.0
 _NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc", "mcp"})
 """Transports whose connections count against their host's share (not stdio, memory)."""
 
+_SHARED_FROM_FIRST = frozenset({"mcp"})
+"""Transports whose sessions count against their host's share from the first (D40): an
+MCP session holds no socket of its own, so a ``--max-connections`` derived from the
+descriptors, and the shares that apply past ``shares.SHARES_FROM`` of it, bound it late."""
+
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
 
@@ -155,14 +160,17 @@ class ServerConfig:
             (``rwt_protocol.server.memory.MemoryBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
-            before its TLS/WebSocket handshake. None: derived from the soft
-            RLIMIT_NOFILE when serving starts (``fdlimit.default_max_connections``).
+            before its TLS/WebSocket handshake, and an MCP session holds
+            ``mcp_http.SESSION_SLOTS`` plus one per request beyond them (D40).
+            None: derived from the soft RLIMIT_NOFILE when serving starts
+            (``fdlimit.default_max_connections``).
         max_connections_per_host: connections one host (``host_prefix_v4``,
             ``host_prefix_v6``) may hold once ``shares.SHARES_FROM`` of
             ``max_connections`` are taken (``--max-connections-per-host``); before
             that anyone gets one, so local use, where every client is 127.0.0.1, is
-            not limited. WebSocket, TCP and UDP count; stdio and in-process
-            connections do not.
+            not limited. WebSocket, TCP, UDP, WebRTC and MCP count; stdio and
+            in-process connections do not. A host's MCP sessions count against
+            it from the first (D40).
         host_prefix_v4: leading bits of an IPv4 source address (or IPv4-mapped
             IPv6 one) that name its host for the per-host shares, 0 to 32
             (``--host-prefix-v4``; 24: a /24 is one host).
@@ -170,7 +178,8 @@ class ServerConfig:
             default the /64 one machine gets).
         idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
             sent nothing and that holds nothing is closed (``--idle-timeout``;
-            ``rwt_protocol.server.idle``); None: never. UDP has ``udp.idle_timeout_s``.
+            ``rwt_protocol.server.idle``), and an MCP session without a request in
+            flight ends (D40); None: never. UDP has ``udp.idle_timeout_s``.
         certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
         keyfile: PEM private key for it (``--keyfile``).
         shutdown_grace_s: seconds a stopping server waits for connections to
@@ -382,6 +391,10 @@ class RosbridgeServer:
         )
         self._shares = HostShares(self.config.max_connections_per_host)
         self._hosts: dict[str, str] = {}  # client id -> its host, for the shares
+        # sessions of _SHARED_FROM_FIRST transports, per host, from the first (D40)
+        self._first_shares = HostShares(self.config.max_connections_per_host)
+        self._first_hosts: dict[str, str] = {}  # client id -> its host, for those
+        self._extra_slots = 0  # slots held without a session of their own (take_slot)
         self._refusals = EpisodeLog(logger)
         self.sessions: dict[str, ServerSession] = {}
         self.urls: dict[str, str] = {}
@@ -449,7 +462,7 @@ class RosbridgeServer:
         from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
 
         video = WebRtcVideo(self.graph, self.session_config.access)
-        peers = WebRtcPeers(self, options, self.config.max_message_size, video)
+        peers = WebRtcPeers(self, options, self.config.max_message_size, video, self._host_prefixes)
         signalling = WebRtcSignalling(
             peers,
             options,
@@ -687,9 +700,9 @@ class RosbridgeServer:
             connections.start_soon(self._serve_socket, sock, handler, tls, ticket)
 
     async def _accept_slot(self) -> None:
-        """Wait while the server holds all the sockets it may (sessions and handshakes)."""
+        """Wait while the server holds all the sockets it may (slots and handshakes)."""
         while (limit := self._limit) is not None and (
-            len(self.sessions) + self._handshaking >= limit + REFUSING_SOCKETS
+            self._slots_taken() + self._handshaking >= limit + REFUSING_SOCKETS
         ):
             if self._slot_freed is None or self._slot_freed.is_set():
                 self._slot_freed = anyio.Event()  # one for every listener waiting
@@ -698,6 +711,10 @@ class RosbridgeServer:
     def _free_slot(self) -> None:
         if self._slot_freed is not None:
             self._slot_freed.set()
+
+    def _slots_taken(self) -> int:
+        """Connection slots held: one per session, and those taken without one (``take_slot``)."""
+        return len(self.sessions) + self._extra_slots
 
     async def _serve_socket(
         self,
@@ -872,8 +889,9 @@ class RosbridgeServer:
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
-            still in their handshake count), the peer's host holds its share, or
-            the server is stopping.
+            still in their handshake count), the peer's host holds its share (an
+            MCP session's host: its share of MCP sessions, from the first, D40),
+            or the server is stopping.
         """
         admitted = self._admit(transport, peer)
         if admitted is None:
@@ -898,6 +916,9 @@ class RosbridgeServer:
         if host is not None:
             self._shares.add(host)
             self._hosts[client_id] = host
+            if transport in _SHARED_FROM_FIRST:
+                self._first_shares.add(host)
+                self._first_hosts[client_id] = host
         self.graph.nodes.attach(client_id, host=address)
         self._connected[client_id] = {
             "ip_address": address,
@@ -911,8 +932,9 @@ class RosbridgeServer:
 
         An MCP session's requests come on sockets of their own (Streamable HTTP):
         once one is known to belong to an admitted session its handshake deadline
-        is lifted and it no longer counts as a socket in its handshake; the
-        session bounds its requests (``mcp_http.MAX_REQUESTS_IN_FLIGHT``).
+        is lifted and it no longer counts as a socket in its handshake; the slots
+        of its session cover it, or one it took (``take_slot``; docs/limits.md,
+        D40).
         """
         pending = _PENDING.get(None)
         if pending is not None and not pending.admitted:
@@ -920,6 +942,38 @@ class RosbridgeServer:
             pending.scope.deadline = math.inf
             self._handshaking -= 1
             self._free_slot()
+
+    def take_slot(self, transport: str, peer: str) -> str | None:
+        """Take a connection slot without a session, for a socket a session's request holds.
+
+        An MCP session's requests each hold a socket (Streamable HTTP), which its
+        own slot cannot cover (D40): each takes a slot as a connection does,
+        within ``max_connections`` and the host share of ``peer``. The socket of
+        this task, if still in its handshake, does not count against it.
+
+        Args:
+            transport: the session's transport (``mcp``), for the log.
+            peer: the address the socket came from (``HOST:PORT``).
+
+        Returns:
+            The host it counts against: give it back with ``give_slot`` once the
+            socket is closed. None: refused (the server is full or stopping, or
+            the host holds its share), as ``open_session`` refuses a connection.
+        """
+        pending = _PENDING.get(None)
+        checked = self._check_slot(transport, peer, pending is not None and not pending.admitted)
+        if checked is None:
+            return None
+        host = checked[0] or address_of(peer)
+        self._extra_slots += 1
+        self._shares.add(host)
+        return host
+
+    def give_slot(self, host: str) -> None:
+        """Give back a slot ``take_slot`` gave for ``host``."""
+        self._extra_slots -= 1
+        self._shares.remove(host)
+        self._free_slot()
 
     def _admit(self, transport: str, peer: str) -> tuple[str, str | None, str] | None:
         """Admission: a slot (``--max-connections``) and the host's share, or None.
@@ -931,29 +985,55 @@ class RosbridgeServer:
         pending = _PENDING.get(None)
         if pending is not None and pending.admitted:
             pending = None  # a task of an admitted connection, not a new one
-        others = self._handshaking - (pending is not None)
-        limit = self._limit
-        taken = len(self.sessions) + others
-        if self._stopping or (limit is not None and taken >= limit):
+        checked = self._check_slot(transport, peer, pending is not None)
+        if checked is None:
             return None
-        address = address_of(peer)
-        host = self._host_prefixes.host(address) if transport in _NETWORK else None
-        if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
-            self._refusals.log(
-                logging.WARNING,
-                f"share:{host}",
-                "event=refused peer=%s host=%s reason='host share' held=%d share=%d",
-                peer,
-                host,
-                self._shares.held(host),
-                self._shares.share,
-            )
-            return None
+        host, address = checked
+        if host is not None and transport in _SHARED_FROM_FIRST:
+            share = self._first_shares.share
+            if self._first_shares.held(host) >= share:  # D40: from the first session
+                held = self._first_shares.held(host)
+                self._refused(peer, host, f"host share of {transport} sessions", held, share)
+                return None
         if pending is not None:  # the socket's handshake is over: no deadline, a session now
             pending.admitted = True
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         return f"{transport}:{peer}#{next(self._ids)}", host, address
+
+    def _check_slot(
+        self, transport: str, peer: str, own_socket: bool
+    ) -> tuple[str | None, str] | None:
+        """Whether a slot is free for ``peer``: its host (None if not shared) and address.
+
+        ``own_socket``: the socket of this task is in its handshake and is what asks,
+        so it does not count against itself. None: refused (full, stopping, the
+        host holds its share; a share refusal is logged once per episode).
+        """
+        others = self._handshaking - own_socket
+        limit = self._limit
+        taken = self._slots_taken() + others
+        if self._stopping or (limit is not None and taken >= limit):
+            return None
+        address = address_of(peer)
+        host = self._host_prefixes.host(address) if transport in _NETWORK else None
+        if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
+            self._refused(peer, host, "host share", self._shares.held(host), self._shares.share)
+            return None
+        return host, address
+
+    def _refused(self, peer: str, host: str, reason: str, held: int, share: int) -> None:
+        """Log a refusal for a host's share, once per episode of that host and reason."""
+        self._refusals.log(
+            logging.WARNING,
+            f"share:{host}" if reason == "host share" else f"share:{host}:{reason}",
+            "event=refused peer=%s host=%s reason=%r held=%d share=%d",
+            peer,
+            host,
+            reason,
+            held,
+            share,
+        )
 
     @property
     def _rosbridge(self) -> FrontEnd:
@@ -979,6 +1059,9 @@ class RosbridgeServer:
         host = self._hosts.pop(client_id, None)
         if host is not None:
             self._shares.remove(host)
+        first = self._first_hosts.pop(client_id, None)
+        if first is not None:
+            self._first_shares.remove(first)
         self._connected.pop(client_id, None)
         self._free_slot()
         if not self.sessions and self._all_closed is not None:

@@ -6,11 +6,13 @@ text, CBOR as binary (D27). The session, its limits and its flow control are
 the server's (pump.py); this module only moves frames:
 
 - in: aiortc hands over whole messages from a callback, with no way to make the
-  peer wait, so the messages the pump has not read yet are bounded by
+  peer wait, so the messages the pump has not read yet, with the fragments its
+  SCTP holds for the session (``held_below``, webrtc_sctp.py), are bounded by
   ``INBOX_LIMIT_BYTES``; past it the peer is disconnected. A message above
-  ``--max-message-size`` is skipped with an error status, as UDP does. What
-  waits is charged to the server's memory budget (``--memory-budget``, D44) as
-  the connection's, never refused by it: it is a reader's input.
+  ``--max-message-size`` is skipped with an error status, as UDP does (webrtc_sctp.py
+  abandons it as it arrives). What waits for the session is charged to the
+  server's memory budget (``--memory-budget``, D44) as the connection's, never
+  refused by it: it is a reader's input.
 - out: a JSON frame above ``MAX_TEXT_FRAME_BYTES`` (64 KiB, the size every
   peer accepts, RFC 8841 6.1) goes out as ``fragment`` ops (spec 3.1.1, D19),
   which the client reassembles. A CBOR frame cannot be cut so: it goes whole if
@@ -53,7 +55,7 @@ from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame, Los
 from .channel import PlainChannel
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
     from aiortc import RTCDataChannel
 
@@ -132,6 +134,9 @@ class DataChannelChannel(PlainChannel):
         self._ended = False
         self.overflowed = False
         """The peer sent more than ``INBOX_LIMIT_BYTES`` ahead of the session: it was cut."""
+        self.held_below: Callable[[], int] = lambda: 0
+        """Bytes the peer connection holds for the session below it (its SCTP reassembly,
+        ``webrtc_sctp.SctpBound``): they count toward ``INBOX_LIMIT_BYTES`` with the inbox."""
         self._channels: list[RTCDataChannel] = []  # every channel attached, to close
         self._reliable: RTCDataChannel | None = None
         self._lossy: RTCDataChannel | None = None
@@ -194,28 +199,49 @@ class DataChannelChannel(PlainChannel):
         binary = isinstance(message, bytes)
         data = message if isinstance(message, bytes) else message.encode("utf-8", "replace")
         if len(data) > self.max_message_size:
+            self.oversized()
+            return
+        self._inbox.append(LossyInFrame(data, binary) if lossy else InFrame(data, binary))
+        self._inbox_bytes += len(data)
+        if self._memory is not None:
+            self._memory.charge(len(data))
+        if self._inbox_bytes + self.held_below() > INBOX_LIMIT_BYTES:
+            self.overflow()
+        self._arrived.set()
+
+    @property
+    def inbox_bytes(self) -> int:
+        """Bytes of received messages the session has not read yet."""
+        return self._inbox_bytes
+
+    def oversized(self) -> None:
+        """A message over ``max_message_size`` was skipped: the session answers an error.
+
+        Skipped here, or abandoned below as it arrived (webrtc_sctp.py); the
+        status is the one UDP answers.
+        """
+        if not self._ended:
             self._inbox.append(
                 FramingError(f"message larger than {self.max_message_size} bytes skipped")
             )
-        else:
-            self._inbox.append(LossyInFrame(data, binary) if lossy else InFrame(data, binary))
-            self._inbox_bytes += len(data)
-            if self._memory is not None:
-                self._memory.charge(len(data))
-        if self._inbox_bytes > INBOX_LIMIT_BYTES:
-            _episodes.log(
-                logging.WARNING,
-                "webrtc_inbox",
-                "event=webrtc_overflow bytes=%d limit=%d: peer disconnected",
-                self._inbox_bytes,
-                INBOX_LIMIT_BYTES,
-            )
-            self.overflowed = True
-            self._inbox.clear()
-            self._inbox_read()
-            self._on_close()
-            self._close_all()
-        self._arrived.set()
+            self._arrived.set()
+
+    def overflow(self) -> None:
+        """The peer sent more than ``INBOX_LIMIT_BYTES`` ahead of the session: cut it."""
+        if self._ended:
+            return
+        _episodes.log(
+            logging.WARNING,
+            "webrtc_inbox",
+            "event=webrtc_overflow bytes=%d limit=%d: peer disconnected",
+            self._inbox_bytes + self.held_below(),
+            INBOX_LIMIT_BYTES,
+        )
+        self.overflowed = True
+        self._inbox.clear()
+        self._inbox_read()
+        self._on_close()
+        self._close_all()
 
     def _on_low(self) -> None:
         self._drained.set()

@@ -11,20 +11,28 @@ connection pump like a WebSocket's. A ``rosbridge-lossy`` channel (unordered,
 lossy lane (D36). Bounds, each enforced here
 (docs/limits.md):
 
+- the offer's form (webrtc_offer.py, D38): checked before anything else, so a
+  malformed or oversized one (media sections, candidates and the addresses they
+  name) costs a read of its text.
 - ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
-  the server; more get 503. Each holds UDP sockets and aiortc's ICE and DTLS
-  state, and answering one makes a key pair, so a burst of offers is bounded.
+  the server, shared per host as the connections are (``shares.HostShares``,
+  D37); more get 503. Each holds UDP sockets and aiortc's ICE and DTLS state,
+  and answering one makes a key pair, so a burst of offers is bounded, and one
+  host cannot hold every slot.
 - ``OFFER_TIMEOUT_S``: answering one offer (ICE gathering, a TURN allocation
   included); after it, 503.
 - ``WebRtcOptions.connect_timeout_s``: from the answer to an open data channel
   (ICE, DTLS, SCTP); a peer that never gets there is freed.
+- what a peer's SCTP holds below its session (webrtc_sctp.py, D39): messages
+  over the size abandoned as they arrive, held fragments counted in the inbox.
 
 A session ends when its data channel or peer connection closes or fails, on
 ``DELETE /webrtc/<id>``, on its idle timeout, or as any session does; its peer
 connection is closed with it.
 
 Video tracks (``?video=``, webrtc_video.py) are bound to the offer's video
-transceivers before the answer and leave their shared streams when the peer
+transceivers before the answer, join their shared streams when the peer connects
+(D37: a peer that never connects runs no encoder) and leave them when the peer
 connection ends. An offer with video and no data channel is a video-only peer:
 its session (admitted and counted as any) runs no rosbridge ops and lasts as
 long as its peer connection (until it fails or closes, ``DELETE``, shutdown).
@@ -41,15 +49,19 @@ from typing import TYPE_CHECKING
 import anyio
 from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSessionDescription
 
+from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.server.commands import CloseCode
 
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
-from .webrtc import MAX_TEXT_FRAME_BYTES, DataChannelChannel
+from .shares import HostPrefixes, HostShares, address_of
+from .webrtc import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
 from .webrtc_ice import parse_ice_servers
+from .webrtc_offer import OfferError, check_offer
+from .webrtc_sctp import SctpBound, bound_sctp, incoming_message_limit
 from .webrtc_signal import WEBRTC_PATH, Answer
 
 if TYPE_CHECKING:
-    from aiortc import RTCDataChannel
+    from aiortc import RTCDataChannel, RTCSctpTransport
     from anyio.abc import TaskGroup
 
     from rwt_protocol.server.contract import ServerSession
@@ -79,6 +91,7 @@ MAX_CONNECTING = 16
 OFFER_TIMEOUT_S = 10.0
 """Seconds answering one offer (ICE gathering) may take; then 503."""
 
+_NO_DATA_CHANNEL = "the offer has no data channel (m=application) and asks for no video"
 _MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
 
 
@@ -107,6 +120,8 @@ class _Peer:
     scope: anyio.CancelScope = field(default_factory=anyio.CancelScope)
     wake: list[ConnectionPump] = field(default_factory=list)
     video: VideoBinding | None = None
+    host: str | None = None
+    """The host whose connecting slot it holds (``WebRtcPeers``); None once connected."""
 
     @property
     def pumped(self) -> bool:
@@ -138,20 +153,20 @@ class WebRtcPeers:
         options: WebRtcOptions,
         max_message_size: int,
         video: WebRtcVideo | None = None,
+        hosts: HostPrefixes | None = None,
     ) -> None:
         self.host = host
         self.video = video
         self.options = options
-        self.max_message_size = max_message_size
+        self.max_message_size = incoming_message_limit(max_message_size)
         self.ice_servers = parse_ice_servers(options.ice_servers)
+        self.hosts = hosts or HostPrefixes()
         self.peers: dict[str, _Peer] = {}
-        self._answering = 0
-        self._tg: TaskGroup | None = None
-
-    @property
-    def connecting(self) -> int:
+        self.connecting = 0
         """Offers being answered plus peers whose data channel is not open yet."""
-        return self._answering + sum(not p.running for p in self.peers.values())
+        self._shares = HostShares(MAX_CONNECTING)  # the free slots bound each host (D37)
+        self._refusals = EpisodeLog(logger)
+        self._tg: TaskGroup | None = None
 
     def bind(self, tg: TaskGroup | None) -> None:
         """Run sessions in ``tg`` (the server's connections); None: take no offers."""
@@ -164,24 +179,72 @@ class WebRtcPeers:
     ) -> Answer:
         """Admit and answer an offer, with the video tracks ``video`` asks for.
 
+        The offer is checked first (``webrtc_offer.check_offer``, D38), then it
+        takes a connecting slot of its host's share (D37), which its peer holds
+        until it connects.
+
         Returns:
-            201 with the answer SDP and the session's path; 400 (the offer cannot be
-            answered: not SDP, neither a data channel nor video), 503 (server full,
-            too many peers connecting, stopping, or answering took over
-            ``OFFER_TIMEOUT_S``); for video, ``WebRtcVideo.binding``'s refusals.
+            201 with the answer SDP and the session's path; 400 (the offer is not
+            usable SDP or passes its bounds, has neither a data channel nor video, or
+            cannot be answered), 503 (server full, too many peers connecting or too
+            many of its host's, stopping, or answering took over
+            ``OFFER_TIMEOUT_S``); for video, ``WebRtcVideo.binding``'s and
+            ``VideoBinding.negotiate``'s refusals.
         """
         if self._tg is None:
             return Answer(503, "the server is not serving")
-        if self.connecting >= MAX_CONNECTING:
+        try:  # before anything is held or built (D38)
+            shape = check_offer(sdp)
+        except OfferError as exc:
+            return Answer(400, str(exc))
+        if not shape.data_channel and not (video and video.topics):
+            return Answer(400, _NO_DATA_CHANNEL)
+        host = self.hosts.host(address_of(peer))
+        if not self._take_slot(host):
             return Answer(503, "too many WebRTC peers connecting: try again later")
-        binding = self._video_binding(video)
-        if isinstance(binding, Answer):
-            return binding
-        self._answering += 1
+        answer = Answer(503, "the server is stopping")
         try:
-            return await self._answer(sdp, peer, authenticated=authenticated, video=binding)
+            binding = self._video_binding(video)
+            if isinstance(binding, Answer):
+                answer = binding
+            else:
+                answer = await self._answer(sdp, peer, host, authenticated, binding)
+            return answer
         finally:
-            self._answering -= 1
+            if answer.status != 201:  # refused: else its peer holds the slot until it connects
+                self._free_slot(host)
+
+    def _take_slot(self, host: str) -> bool:
+        """Take a connecting slot for ``host``; False when there is none for it (D37).
+
+        Fewer than ``MAX_CONNECTING`` must be taken, and past three quarters of
+        them ``host`` must hold fewer than are free (``shares.HostShares``).
+        """
+        taken = self.connecting
+        if taken >= MAX_CONNECTING or not self._shares.admits(host, taken, MAX_CONNECTING):
+            self._refusals.log(
+                logging.WARNING,
+                f"connecting:{host}",
+                "event=refused transport=webrtc host=%s reason='peers connecting' held=%d "
+                "connecting=%d",
+                host,
+                self._shares.held(host),
+                taken,
+            )
+            return False
+        self.connecting += 1
+        self._shares.add(host)
+        return True
+
+    def _free_slot(self, host: str) -> None:
+        self.connecting -= 1
+        self._shares.remove(host)
+
+    def _release(self, item: _Peer) -> None:
+        """``item`` connected or ended: its connecting slot is free."""
+        if item.host is not None:
+            self._free_slot(item.host)
+            item.host = None
 
     def _video_binding(self, video: VideoRequest | None) -> VideoBinding | Answer | None:
         """The tracks ``video`` asks for (None: none), or why not (webrtc_video.py)."""
@@ -192,7 +255,12 @@ class WebRtcPeers:
         return self.video.binding(video)
 
     async def _answer(
-        self, sdp: str, peer: str, *, authenticated: bool, video: VideoBinding | None
+        self,
+        sdp: str,
+        peer: str,
+        host: str,
+        authenticated: bool,
+        video: VideoBinding | None,
     ) -> Answer:
         holder: list[_Peer] = []
         session = self.host.open_session(
@@ -206,15 +274,14 @@ class WebRtcPeers:
         pc = RTCPeerConnection(self._configuration())
         remote_max = remote_max_message_size(sdp)
         dc = DataChannelChannel(None, self.max_message_size, remote_max, session.memory)
-        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc)
-        item.video = video
+        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc, video=video)
         holder.append(item)
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
         pc.on("connectionstatechange", lambda: self._on_state(item))
         refusal: Answer | None = Answer(503, "answering the offer took too long")
         try:
             with anyio.move_on_after(OFFER_TIMEOUT_S):
-                refusal = await _negotiate(pc, sdp, video)
+                refusal = await self._negotiate(item, sdp)
         finally:  # refused, failed or cancelled (shutdown): the session and its sockets go
             if refusal is not None or pc.localDescription is None or self._tg is None:
                 session.close()
@@ -223,9 +290,59 @@ class WebRtcPeers:
                 await _close_pc(pc)
         if refusal is not None or pc.localDescription is None or self._tg is None:
             return refusal or Answer(503, "the server is stopping")
+        item.host = host  # its connecting slot, until it connects (_release)
         self.peers[item.session_id] = item
         self._tg.start_soon(self._run, item)
         return Answer(201, pc.localDescription.sdp, f"{WEBRTC_PATH}/{item.session_id}")
+
+    async def _negotiate(self, item: _Peer, sdp: str) -> Answer | None:
+        """Set the offer and the answer (gathering every candidate); None when it worked.
+
+        The peer's SCTP transport is bounded before it starts (webrtc_sctp.py);
+        its video tracks are bound to the offer's transceivers before the answer
+        and their codecs checked after it (their streams start when it connects).
+        """
+        pc, video = item.pc, item.video
+        try:
+            await pc.setRemoteDescription(RTCSessionDescription(sdp=sdp, type="offer"))
+        except Exception as exc:  # aiortc raises ValueError and others for a bad offer
+            return Answer(400, f"the offer is not a usable SDP offer: {exc or type(exc).__name__}")
+        if pc.sctp is not None:
+            self._bound_sctp(item, pc.sctp)
+        if video is not None and (refusal := video.prepare(pc, sdp)) is not None:
+            return refusal
+        if pc.sctp is None and video is None:
+            return Answer(400, _NO_DATA_CHANNEL)
+        try:
+            await pc.setLocalDescription(await pc.createAnswer())
+        except Exception as exc:  # an offer aiortc accepted but cannot answer
+            return Answer(400, f"the offer cannot be answered: {exc or type(exc).__name__}")
+        return video.negotiate(pc) if video is not None else None
+
+    def _bound_sctp(self, item: _Peer, transport: RTCSctpTransport) -> None:
+        """Bound what ``item``'s SCTP holds below its session (D39, webrtc_sctp.py)."""
+        bound = SctpBound(
+            self.max_message_size,
+            INBOX_LIMIT_BYTES,
+            lambda: item.dc.inbox_bytes,
+            lambda stream_id: self._on_oversized(item, stream_id),
+            lambda: self._on_overflow(item),
+        )
+        bound_sctp(transport, bound)
+        item.dc.held_below = lambda: bound.held_bytes
+
+    @staticmethod
+    def _on_oversized(item: _Peer, stream_id: int) -> None:
+        """A message over the size was abandoned as it arrived: tell the session."""
+        if any(c is not None and c.id == stream_id for c in (item.channel, item.lossy)):
+            item.dc.oversized()
+
+    @staticmethod
+    def _on_overflow(item: _Peer) -> None:
+        """The peer sent more than its session may hold: it is disconnected."""
+        item.dc.overflow()
+        if not item.pumped:
+            item.scope.cancel()
 
     def _configuration(self) -> RTCConfiguration:
         """A peer connection's ICE servers: ``--ice-server``'s, or none.
@@ -309,31 +426,54 @@ class WebRtcPeers:
                     return
                 channel = item.channel
                 if channel is None or channel.readyState != "open":
-                    logger.info(
-                        "event=webrtc_not_connected client=%s state=%s",
-                        item.session.client_id,
-                        item.pc.connectionState,
-                    )
+                    self._not_connected(item)
+                    return
+                if not self._connected(item):
                     return
                 pump = ConnectionPump(item.dc, self.host.flow, self.host.admission)
                 item.wake.append(pump)
                 item.running = True
                 await run_connection(pump, item.session, f"webrtc={item.session_id}")
         finally:
+            self._release(item)
             self.peers.pop(item.session_id, None)
             item.session.close()
             if item.video is not None:
                 item.video.close()
             await _close_pc(item.pc)
 
+    def _connected(self, item: _Peer) -> bool:
+        """``item`` connected: its connecting slot is free, its video streams start (D37).
+
+        False when a stream cannot start (the streams' bound reached since the
+        answer): the peer connection is then ended.
+        """
+        self._release(item)
+        reason = item.video.start() if item.video is not None else None
+        if reason is not None:
+            self._refusals.log(
+                logging.WARNING,
+                "webrtc_video_refused",
+                "event=webrtc_video_refused client=%s reason=%r: peer connection closed",
+                item.session.client_id,
+                reason,
+            )
+        return reason is None
+
+    @staticmethod
+    def _not_connected(item: _Peer) -> None:
+        logger.info(
+            "event=webrtc_not_connected client=%s state=%s",
+            item.session.client_id,
+            item.pc.connectionState,
+        )
+
     async def _run_video_only(self, item: _Peer) -> None:
         """A peer with video and no data channel: it lasts as long as its peer connection."""
         if item.pc.connectionState != "connected":
-            logger.info(
-                "event=webrtc_not_connected client=%s state=%s",
-                item.session.client_id,
-                item.pc.connectionState,
-            )
+            self._not_connected(item)
+            return
+        if not self._connected(item):
             return
         item.running = True
         logger.info(
@@ -360,31 +500,6 @@ class WebRtcPeers:
         for item in list(self.peers.values()):
             if not item.pumped:
                 item.scope.cancel()
-
-
-async def _negotiate(
-    pc: RTCPeerConnection, sdp: str, video: VideoBinding | None = None
-) -> Answer | None:
-    """Set the offer and the answer (gathering every candidate); None when it worked.
-
-    ``video`` binds its tracks to the offer's transceivers before the answer and
-    starts their streams in the negotiated codecs after it.
-    """
-    if not sdp.lstrip().startswith("v=0"):  # aiortc reads any text as an empty description
-        return Answer(400, "the offer is not a usable SDP offer: it must start with v=0")
-    try:
-        await pc.setRemoteDescription(RTCSessionDescription(sdp=sdp, type="offer"))
-    except Exception as exc:  # aiortc raises ValueError and others for a bad offer
-        return Answer(400, f"the offer is not a usable SDP offer: {exc or type(exc).__name__}")
-    if video is not None and (refusal := video.prepare(pc, sdp)) is not None:
-        return refusal
-    if pc.sctp is None and video is None:
-        return Answer(400, "the offer has no data channel (m=application) and asks for no video")
-    try:
-        await pc.setLocalDescription(await pc.createAnswer())
-    except Exception as exc:  # an offer aiortc accepted but cannot answer
-        return Answer(400, f"the offer cannot be answered: {exc or type(exc).__name__}")
-    return video.start(pc) if video is not None else None
 
 
 async def _close_pc(pc: RTCPeerConnection) -> None:

@@ -12,7 +12,8 @@ packets (``Encoder.pack``). aiortc's ``MediaRelay`` relays decoded frames, which
 each sender would encode again. So a ``VideoTrack`` yields packets: the frames
 one shared stream (``rwt_video.hub.StreamHub`` with ``rwt_video.rtp``'s
 encoders) encoded for every peer of that topic and codec, the stream starting
-with the first viewer and stopping with the last.
+with the first viewer to connect (never at the answer: an offer that never
+connects runs no encoder, D37) and stopping with the last.
 
 Feedback. The sender handles RTCP itself: a PLI or FIR sets its own encoder's
 key-frame flag, a REMB its own encoder's bit rate, neither of which exists for
@@ -48,7 +49,7 @@ from rwt_protocol.errors import RwtError
 from rwt_protocol.names import resolve_name
 from rwt_protocol.server.access import Family
 from rwt_video.encoders import VideoPacket
-from rwt_video.hub import ENCODER_THREADS, StreamHub
+from rwt_video.hub import StreamHub
 from rwt_video.params import StreamParamError, StreamParams, StreamType, parse_stream_params
 from rwt_video.rtp import RtpFrameEncoder, make_rtp_encoder
 
@@ -240,12 +241,16 @@ class VideoBinding:
             _hook_rtcp(transceiver.sender, track)
         return None
 
-    def start(self, pc: RTCPeerConnection) -> Answer | None:
-        """After the answer: start (or join) each track's stream in the negotiated codec.
+    def negotiate(self, pc: RTCPeerConnection) -> Answer | None:
+        """After the answer: each track's codec, and whether its stream could start.
+
+        Nothing starts here: the streams start when the peer connects (``start``),
+        so an offer that never connects runs no encoder (D37).
 
         Returns:
-            None, or the refusal: 503 when ``MAX_VIDEO_STREAMS`` streams run already,
-            400 when a compressed topic is not sent as H.264 (the streams are freed).
+            None, or the refusal: 400 when the offer has no video codec in common or
+            a compressed topic is not sent as H.264; 503 when the streams this offer
+            would add pass ``max_streams`` with those running.
         """
         assert pc.localDescription is not None
         codecs = {
@@ -254,19 +259,33 @@ class VideoBinding:
             if media.kind == "video" and media.rtp.codecs
         }
         by_track = {id(t.sender.track): t.mid for t in pc.getTransceivers()}
+        for track in self.tracks:
+            codec = codecs.get(by_track.get(id(track)) or "")
+            if codec is None:
+                return Answer(400, "the offer has no video codec in common: offer VP8 or H.264")
+            if track.type_name == _COMPRESSED and codec is not StreamType.H264:
+                return Answer(400, f"{track.params.topic} is compressed: only H.264 passes through")
+            track.params = replace(track.params, type=codec)
+        new = {t.params for t in self.tracks} - set(self.hub.streams)
+        if new and len(self.hub.streams) + len(new) > self.hub.max_streams:
+            return Answer(503, f"{self.hub.max_streams} distinct streams run already")
+        return None
+
+    def start(self) -> str | None:
+        """The peer connected: start (or join) each track's stream.
+
+        Returns:
+            None, or why a stream could not start (``max_streams`` reached since
+            the answer, the topic gone): the caller ends the peer connection.
+        """
         try:
             for track in self.tracks:
-                codec = codecs.get(by_track.get(id(track)) or "")
-                if codec is None:
-                    return Answer(400, "the offer has no video codec in common: offer VP8 or H.264")
-                track.params = replace(track.params, type=codec)
                 self._stack.enter_context(
                     self.hub.watching(track.params, track.type_name, track.bind)
                 )
-        except StreamParamError as exc:
-            return Answer(exc.status, str(exc))
-        except RwtError as exc:  # EncodeError: a compressed topic in VP8
-            return Answer(400, exc.message)
+        except (StreamParamError, RwtError) as exc:
+            self._stack.close()
+            return str(exc)
         return None
 
     def close(self) -> None:
@@ -284,7 +303,8 @@ class WebRtcVideo:
         access: the server's access rules; a topic they deny is refused as a
             subscription would be (``--topics-glob``).
         max_streams: the most distinct streams at once (``MAX_VIDEO_STREAMS``).
-        encoder_threads: the most frames encoded at once (``hub.ENCODER_THREADS``).
+        encoder_threads: the most frames encoded at once; None: the image threads
+            every front end shares (``hub.ENCODER_THREADS``).
 
     Call ``bind`` with the task group the streams' encoders run in.
     """
@@ -294,7 +314,7 @@ class WebRtcVideo:
         graph: Graph,
         access: AccessPolicy,
         max_streams: int = MAX_VIDEO_STREAMS,
-        encoder_threads: int = ENCODER_THREADS,
+        encoder_threads: int | None = None,
     ) -> None:
         self.graph = graph
         self.access = access

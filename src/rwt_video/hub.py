@@ -2,7 +2,8 @@
 
 A ``SharedStream`` exists while some viewer watches its ``StreamParams``. The
 graph's callback only keeps the newest message and wakes the stream's encoder
-task, which waits for one of the hub's encoder threads (``ENCODER_THREADS``),
+task, which waits for one of the image threads (``ENCODER_THREADS``, shared
+with every front end's image work: ``rwt_graph.media.threads``),
 then takes the newest message, encodes it there once for all its viewers and
 offers the result to every viewer; frames that arrive meanwhile are skipped. A
 multipart part's bytes are made in that thread too, so the event loop only
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Protocol, TypeVar
@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 import anyio
 import anyio.to_thread
 
+from rwt_graph.media.threads import IMAGE_THREADS, image_threads
 from rwt_graph.ratelog import EpisodeLog
 
 from .encoders import (
@@ -57,11 +58,13 @@ Message = Mapping[str, object]
 MAX_PENDING_PACKETS = 60
 MAX_PENDING_BYTES = 8 * 1024 * 1024
 
-#: Frames encoded at once by one video server, whatever the number of streams: half
-#: the CPUs, at least one. Each encoder thread competes with the event loop for the
-#: CPU and the GIL; 16 streams of a 4K camera each encoding in its own thread took
-#: the event loop's turn away from the rosbridge clients (docs/video.md).
-ENCODER_THREADS = max(1, (os.cpu_count() or 1) // 2)
+#: Frames encoded at once, whatever the number of streams: the image threads every
+#: front end shares (``rwt_graph.media.threads.IMAGE_THREADS``: half the CPUs, at
+#: least one), the video server's streams, the WebRTC tracks' and the MCP tools'
+#: images together. Each encoder thread competes with the event loop for the CPU;
+#: 16 streams of a 4K camera each encoding in its own thread took the event loop's
+#: turn away from the rosbridge clients (docs/video.md).
+ENCODER_THREADS = IMAGE_THREADS
 
 
 class Viewer(Protocol):
@@ -253,8 +256,10 @@ class StreamHub:
         max_streams: the most distinct streams (encoders) at once; each holds a few
             frames of at most ``params.MAX_PIXELS`` pixels, so this bounds the
             encoders' memory (docs/limits.md).
-        encoder_threads: the most frames encoded at once, over all streams
-            (``ENCODER_THREADS``); a stream waiting for its turn skips to its newest frame.
+        encoder_threads: the most frames encoded at once, over all streams; None:
+            the image threads of the event loop, shared with every other front end's
+            image work (``ENCODER_THREADS`` of them, ``rwt_graph.media.threads``). A
+            stream waiting for its turn skips to its newest frame.
         make: the encoder of a new stream, from its params and the topic's type
             (default: the HTTP streams' ``make_encoder``; WebRTC's video tracks
             use ``rtp.make_rtp_encoder``).
@@ -269,7 +274,7 @@ class StreamHub:
         graph: Graph,
         task_group: TaskGroup,
         max_streams: int = 16,
-        encoder_threads: int = ENCODER_THREADS,
+        encoder_threads: int | None = None,
         make: Callable[[StreamParams, str], FrameEncoder] | None = None,
         node: str = "/web_video_server",
     ) -> None:
@@ -279,8 +284,17 @@ class StreamHub:
         self.started = 0
         self._tg = task_group
         self.max_streams = max_streams
-        self.limiter = anyio.CapacityLimiter(encoder_threads)
+        self.encoder_threads = encoder_threads
+        self._limiter: anyio.CapacityLimiter | None = None
         self.streams: dict[StreamParams, SharedStream] = {}
+
+    @property
+    def limiter(self) -> anyio.CapacityLimiter:
+        """The encoder threads the streams take turns on (made on first use, in the loop)."""
+        if self._limiter is None:
+            threads = self.encoder_threads
+            self._limiter = image_threads() if threads is None else anyio.CapacityLimiter(threads)
+        return self._limiter
 
     @contextlib.contextmanager
     def watching(

@@ -36,7 +36,7 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
 
 from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError
-from .hub import ENCODER_THREADS, PartViewer, SharedStream, StreamHub, VideoViewer
+from .hub import PartViewer, SharedStream, StreamHub, VideoViewer
 from .pages import stream_viewer_page, topic_list_page
 from .params import StreamParamError, StreamParams, StreamType, parse_stream_params
 
@@ -70,8 +70,9 @@ class VideoConfig:
         max_streams: the most distinct streams (topic, type and parameters; one
             encoder each) at once; a request for another one is answered 503.
         encoder_threads: the most frames encoded at once over all streams, each in
-            a worker thread (``hub.ENCODER_THREADS``: half the CPUs, at least one);
-            a stream waiting for its turn skips to its newest frame.
+            a worker thread; None: the image threads every front end shares
+            (``hub.ENCODER_THREADS``: half the CPUs, at least one). A stream
+            waiting for its turn skips to its newest frame.
         console: the web console under ``/console/`` (docs/console.md); None: not served.
         tokens: when set, every path but the console's needs a live token of these
             (``?token=`` or ``Authorization: Bearer``): 401 without one, 403 with a
@@ -84,7 +85,7 @@ class VideoConfig:
     snapshot_timeout_s: float = 10.0
     max_connections: int = 64
     max_streams: int = 16
-    encoder_threads: int = ENCODER_THREADS
+    encoder_threads: int | None = None
     console: ConsoleSite | None = None
     tokens: VideoTokens | None = None
 

@@ -6,21 +6,28 @@ only fetches a URL. So an authenticated connection asks for a token, calling
 the service ``/rwt/video_token`` (``std_srvs/srv/Trigger``; the token is the
 response's ``message``), and puts it in the stream URL (``?token=...``); the
 video server answers only requests that carry a live token (docs/video.md, D32).
+The same tokens open MCP sessions and WebRTC offers (``Authorization: Bearer``).
 
-Tokens are 256 random bits (``secrets``), live ``lifetime_s`` seconds, at most
-``max_tokens`` at once (the oldest goes first), and are compared with
-``hmac.compare_digest`` against every live one, so the time a check takes says
-nothing about how close a guess was. A token may open several streams until it
-expires; a stream already open goes on after its token expires (as a
-WebSocket connection does after its ``auth`` op's ``end``).
+A token is signed, not stored: its expiry and 64 random bits (``secrets``),
+followed by an HMAC-SHA256 of both under a key made when the ``VideoTokens`` is
+(256 random bits, never sent). ``valid`` checks the signature with
+``hmac.compare_digest`` (the time a check takes says nothing about how close a
+forgery was) and the expiry. Nothing is kept per token, so no client can push
+another's token out by asking for many (there is no store to fill, D32); a
+token opens streams until it expires, ``lifetime_s`` after it was issued, and
+a stream already open goes on after that (as a WebSocket connection does after
+its ``auth`` op's ``end``).
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
+import hashlib
 import hmac
 import secrets
+import struct
 import time
-from collections import deque
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -29,7 +36,13 @@ if TYPE_CHECKING:
     from rwt_graph.graph import Graph
     from rwt_graph.local import LocalService
 
-__all__ = ["TOKEN_SERVICE", "TOKEN_SERVICE_TYPE", "VideoTokens", "install_token_service"]
+__all__ = [
+    "TOKEN_CHARS",
+    "TOKEN_SERVICE",
+    "TOKEN_SERVICE_TYPE",
+    "VideoTokens",
+    "install_token_service",
+]
 
 TOKEN_SERVICE = "/rwt/video_token"
 """The service an authenticated connection calls for a video token."""
@@ -37,59 +50,63 @@ TOKEN_SERVICE = "/rwt/video_token"
 TOKEN_SERVICE_TYPE = "std_srvs/srv/Trigger"
 """Its type: ``success`` true and the token as ``message``."""
 
+_LABEL = b"rwt-video-token-1"  # what the key signs, so it signs nothing else
+_EXPIRY = struct.Struct(">q")  # the expiry, microseconds of the tokens' clock
+_NONCE_BYTES = 8
+_MAC_BYTES = hashlib.sha256().digest_size
+_TOKEN_BYTES = _EXPIRY.size + _NONCE_BYTES + _MAC_BYTES
+TOKEN_CHARS = 64
+"""Characters of a token: URL-safe base64 (no padding) of its 48 bytes."""
+
 
 class VideoTokens:
-    """The live video tokens: ``issue()`` makes one, ``valid(token)`` checks one.
+    """Video tokens: ``issue()`` makes one, ``valid(token)`` checks one; none is stored.
 
     Args:
         lifetime_s: how long a token opens streams, seconds (60).
-        max_tokens: the most live tokens; issuing one more drops the oldest (256).
         clock: monotonic seconds (``time.monotonic``; a test may pass its own).
 
     Raises:
-        ValueError: ``lifetime_s`` or ``max_tokens`` is not positive.
+        ValueError: ``lifetime_s`` is not positive.
     """
 
     def __init__(
-        self,
-        lifetime_s: float = 60.0,
-        max_tokens: int = 256,
-        clock: Callable[[], float] = time.monotonic,
+        self, lifetime_s: float = 60.0, clock: Callable[[], float] = time.monotonic
     ) -> None:
-        if lifetime_s <= 0 or max_tokens <= 0:
-            raise ValueError("lifetime_s and max_tokens must be positive")
+        if lifetime_s <= 0:
+            raise ValueError("lifetime_s must be positive")
         self.lifetime_s = lifetime_s
-        self.max_tokens = max_tokens
         self._clock = clock
-        self._live: deque[tuple[float, bytes]] = deque()  # (expiry, token), oldest first
+        self._key = secrets.token_bytes(32)
 
     def issue(self) -> str:
-        """A new token: 43 URL-safe characters (256 random bits), live ``lifetime_s``."""
-        self._expire()
-        while len(self._live) >= self.max_tokens:
-            self._live.popleft()
-        token = secrets.token_urlsafe(32)
-        self._live.append((self._clock() + self.lifetime_s, token.encode()))
-        return token
+        """A new token: ``TOKEN_CHARS`` URL-safe characters, live ``lifetime_s``."""
+        expiry_us = round((self._clock() + self.lifetime_s) * 1e6)
+        body = _EXPIRY.pack(expiry_us) + secrets.token_bytes(_NONCE_BYTES)
+        return base64.urlsafe_b64encode(body + self._sign(body)).decode().rstrip("=")
 
     def valid(self, token: str) -> bool:
-        """Whether ``token`` is a live token, in time independent of where a guess differs."""
-        self._expire()
-        given = token.encode("utf-8", "replace")
-        found = False
-        for _, live in self._live:  # every one, no early exit
-            found |= hmac.compare_digest(given, live)
-        return found
+        """Whether ``token`` was issued here and has not expired.
 
-    def __len__(self) -> int:
-        """The number of live tokens."""
-        self._expire()
-        return len(self._live)
+        The signature is compared in constant time before the expiry is read, so a
+        forged token learns nothing from how long the check took.
+        """
+        if len(token) != TOKEN_CHARS or not token.isascii():
+            return False
+        try:
+            raw = base64.urlsafe_b64decode(token + "=" * (-len(token) % 4))
+        except (binascii.Error, ValueError):
+            return False
+        if len(raw) != _TOKEN_BYTES:
+            return False
+        body, mac = raw[:-_MAC_BYTES], raw[-_MAC_BYTES:]
+        if not hmac.compare_digest(mac, self._sign(body)):
+            return False
+        (expiry_us,) = _EXPIRY.unpack_from(body)
+        return bool(self._clock() * 1e6 < expiry_us)
 
-    def _expire(self) -> None:
-        now = self._clock()
-        while self._live and self._live[0][0] <= now:
-            self._live.popleft()
+    def _sign(self, body: bytes) -> bytes:
+        return hmac.digest(self._key, _LABEL + body, "sha256")
 
 
 def install_token_service(graph: Graph, tokens: VideoTokens) -> LocalService:

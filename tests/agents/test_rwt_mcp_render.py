@@ -62,10 +62,11 @@ def test_a_message_text_is_cut_at_its_bound_and_says_so() -> None:
     assert json.loads(message_text({"data": "ok"})) == {"data": "ok"}
 
 
-def test_an_echo_stops_adding_messages_past_its_total() -> None:
+@pytest.mark.anyio
+async def test_an_echo_stops_adding_messages_past_its_total() -> None:
     big = {"data": "z" * MAX_STRING_CHARS}  # each ~530 characters as text
     messages = [big] * 100
-    content = RobotTools._echoed("/t", "std_msgs/msg/String", messages, False, True)
+    content = await RobotTools._echoed("/t", "std_msgs/msg/String", messages, False, True)
     texts = [block.text for block in content[1:]]  # type: ignore[union-attr]
     assert sum(len(text) for text in texts) <= MAX_ECHO_CHARS
     assert 0 < len(texts) < 100

@@ -141,16 +141,25 @@ async def test_service_failures_are_clear_errors(url: str) -> None:
 
 
 async def test_refusals_raise_clear_errors() -> None:
-    """A parameter outside ``--params-glob`` and an advertise of another type raise."""
+    """Refused parameters (``--params-glob``, the store) and an advertise of another type raise."""
     access = AccessPolicy(params=("/open_*",))
-    server = RosbridgeServer(config=ServerConfig(port=0, session=SessionConfig(access=access)))
+    graph = Graph()
+    graph.params.declare("/open_door", {"state": 0})
+    config = ServerConfig(port=0, session=SessionConfig(access=access))
+    server = RosbridgeServer(graph, config)
     async with anyio.create_task_group() as tg:
         await tg.start(server.serve)
         url = server.urls["websocket"]
         async with Ros(url) as ros, Ros(url) as other:
-            await Param(ros, "/open_door").set(1)
+            await Param(ros, "/open_door:state").set(1)
+            assert await Param(ros, "/open_door:state").get() == 1
             with pytest.raises(ServiceCallError, match="parameter /secret is not allowed"):
                 await Param(ros, "/secret").set(1)
+            # rosapi answers successful: false (ROS 2), which raises with its reason
+            with pytest.raises(ServiceCallError, match="node /open_ghost does not exist"):
+                await Param(ros, "/open_ghost:x").set(1)
+            with pytest.raises(ServiceCallError, match="expected <node>:<parameter>"):
+                await ros.delete_param("/open_door")
             await Topic(other, "/t", "std_msgs/String").advertise()
             wrong = Topic(ros, "/t", "std_msgs/Int32")
             with pytest.raises(OpRefusedError, match="established with type std_msgs/msg/String"):

@@ -36,7 +36,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
     if (reason := missing()) is not None:
         pytest.skip(reason)
     # no assets: a sourced ROS environment (AMENT_PREFIX_PATH) would announce them; rosapi's
-    # services and the roslibpy client's node show to the Foxglove client (test_plumbing.py)
+    # services show to the Foxglove client (test_plumbing.py)
     process = ServerProcess(
         tmp_path_factory.mktemp("foxglove"), ("--no-assets", "--foxglove-show-plumbing")
     )

@@ -2,9 +2,10 @@
 
 rwt's plumbing, the entities of the server's own nodes (rosapi's services,
 ``/client_count`` and ``/connected_clients``, the TF republisher's action,
-service and topics), and other connections' nodes in the connection graph show
-only with ``show_plumbing`` (``rwt serve --foxglove-show-plumbing``). rosbridge
-clients keep seeing all of it through rosapi, as rosbridge_suite shows it.
+service and topics), and so those nodes in the connection graph, show only with
+``show_plumbing`` (``rwt serve --foxglove-show-plumbing``); other connections'
+entities and nodes always do (D47; with the real clients: test_robot_graph.py).
+rosbridge clients keep seeing all of it through rosapi, as rosbridge_suite shows it.
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ def test_rosbridge_clients_still_see_the_helpers_through_rosapi() -> None:
 
 
 @pytest.mark.parametrize("show", [False, True])
-def test_other_connections_nodes_show_only_with_show_plumbing(show: bool) -> None:
+def test_other_connections_nodes_show_with_or_without_show_plumbing(show: bool) -> None:
     graph = served_robot()
     graph.nodes.attach("foxglove:test#1")  # the server gives each connection its node
     own = graph.nodes.name_of("foxglove:test#1")
@@ -119,17 +120,17 @@ def test_other_connections_nodes_show_only_with_show_plumbing(show: bool) -> Non
     peer = Peer(graph, "rb")
     peer.send(op="advertise", topic="/from_web", type=STRING)
     peer.send(op="subscribe", topic="/odom", type=STRING)
+    peer.send(op="advertise_service", service="/robot_reset", type=TRIGGER)
     web = graph.nodes.name_of("rb")
     client.sync()
-    # what a web page publishes is a topic of the robot all the same
+    # what a web page or a robot's rosbridge program holds is the robot's all the same
     assert "/from_web" in channels(client)
     odom = next(c for c in client.session._channels.values() if c.topic == "/odom")
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": odom.id}]})
     ids = graph_ids(client)
-    if show:
-        assert ids["/odom"] == {"/robot", web, own} and ids["/from_web"] == {web}
-    else:  # the client's own node shows, another connection's does not
-        assert ids["/odom"] == {"/robot", own} and "/from_web" not in ids
+    assert ids["/odom"] == {"/robot", web, own}
+    assert ids["/from_web"] == ids["/robot_reset"] == {web}
+    assert ("/rosapi/topics" in ids) is show
 
 
 # ---- through a real server ------------------------------------------------------------
@@ -180,4 +181,5 @@ async def test_rwt_serve_shows_its_helpers_only_when_asked(flags: tuple[str, ...
         assert nodes >= SERVER_NODES and any(n.startswith("/rwt_client_") for n in nodes)
     else:
         assert topics == {"/odom"} and names == {"/reset"}
-        assert nodes == set()  # the only other participant is the web page's connection
+        [web] = nodes  # the web page's connection, which holds /odom and /reset (D47)
+        assert web.startswith("/rwt_client_")

@@ -24,6 +24,11 @@
 //                            it; its value read and the next COUNT values pushed
 //   graph URL TOPIC          follow the connection graph until TOPIC is published and
 //                            subscribed to; its publisher and subscriber ids
+//   robot URL                a robot whose program is roslib: it subscribes to /cmd_vel and
+//                            /tf, advertises the service /reset and the topic /chatter (in
+//                            that order, so once /chatter is a channel all are in the
+//                            graph); then the Foxglove client's whole connection graph, the
+//                            channels and the services it was told of
 // Stdout's last line: {"result": {...}}.
 import { createHash } from "node:crypto";
 import rosmsg from "@foxglove/rosmsg";
@@ -280,4 +285,35 @@ async function graph() {
   return { publisherIds: published.get(topic), subscriberIds: subscribed.get(topic) };
 }
 
-await main({ receive, publish, play, assets, call: callService, params, param, watch, graph }, scenario);
+async function robot() {
+  const ros = await rosbridge();
+  for (const [name, messageType] of [["/cmd_vel", "geometry_msgs/msg/Twist"], ["/tf", "tf2_msgs/msg/TFMessage"]]) {
+    new ROSLIB.Topic({ ros, name, messageType }).subscribe(() => {});
+  }
+  const reset = new ROSLIB.Service({ ros, name: "/reset", serviceType: "std_srvs/srv/Trigger" });
+  await reset.advertise((request, response) => {
+    Object.assign(response, { success: true, message: "reset" });
+    return true;
+  });
+  new ROSLIB.Topic({ ros, name: "/chatter", messageType: "std_msgs/msg/String" }).advertise();
+  const fox = foxglove(url);
+  await fox.channel("/chatter");
+  fox.client.subscribeConnectionGraph();
+  const { update } = await fox.next((e) => e.kind === "graph", "the whole connection graph");
+  const ids = (entries, field) => Object.fromEntries(entries.map((e) => [e.name, e[field]]));
+  const result = {
+    published: ids(update.publishedTopics, "publisherIds"),
+    subscribed: ids(update.subscribedTopics, "subscriberIds"),
+    services: ids(update.advertisedServices, "providerIds"),
+    channels: [...fox.channels.keys()],
+    advertisedServices: [...fox.services.keys()],
+  };
+  fox.client.close();
+  ros.close();
+  return result;
+}
+
+await main(
+  { receive, publish, play, assets, call: callService, params, param, watch, graph, robot },
+  scenario,
+);

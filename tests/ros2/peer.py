@@ -63,7 +63,8 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
   tf TOPIC              tf2_msgs/TFMessage as tf2's broadcaster (volatile, depth 100)
                         every 50 ms: odom -> base_link at (0.01 n, 0, 0), turned 90 deg
                         about z, stamped now
-  (the tf modes need tf2_msgs for rclpy: tests/ros2/tf2_msgs_build.py)
+  tf_echo TOPIC         prints {"frames": [[parent, child], ...]} for each tf2_msgs/TFMessage
+  (the tf modes need tf2_msgs for rclpy: python -m rwt_ros2.build, test_tf.py)
 Bounded: every mode exits after 60 s.
 """
 
@@ -362,6 +363,13 @@ def main() -> None:
         tick = lambda: node.get_logger().info(name)  # noqa: E731
     elif mode in ("tf", "tf_static"):
         tick = tf_broadcaster(node, name, static=mode == "tf_static")
+    elif mode == "tf_echo":
+        from tf2_msgs.msg import TFMessage  # noqa: PLC0415 (tf2_msgs: as tf_broadcaster)
+
+        def frames(message):
+            say(frames=[[t.header.frame_id, t.child_frame_id] for t in message.transforms])
+
+        node.create_subscription(TFMessage, name, frames, 100)
     else:
         raise SystemExit(f"unknown mode {mode}")
     say(ready=True)
@@ -388,7 +396,7 @@ def read_params(node, target):
 
 def tf_broadcaster(node, topic, *, static):
     """Publish as tf2's (static) transform broadcaster does; the tick for /tf, else None."""
-    # here, not at the top: only these modes need tf2_msgs (not on PyPI: tf2_msgs_build.py)
+    # here, not at the top: only these modes need tf2_msgs (rwt_ros2.interfaces builds it)
     from geometry_msgs.msg import TransformStamped  # noqa: PLC0415
     from tf2_msgs.msg import TFMessage  # noqa: PLC0415
 

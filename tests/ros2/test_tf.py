@@ -5,8 +5,11 @@ transient local (published before ``rwt serve --ros2`` even starts) and ``/tf``
 volatile. The TF clients of roslibpy (``/republish_tfs``) and roslib in Node
 (``ROS2TFClient``: the action; ``TFClient``: actionlib topics, as ros3djs) ask for
 frames in two fixed frames. rclpy carries ``tf2_msgs/msg/TFMessage`` only with its
-generated package, which PyPI lacks for Kilted: the module builds it first
-(tf2_msgs_build, once, then cached) and skips where it cannot (no C compiler).
+generated package, which PyPI lacks for Kilted: ``rwt serve --ros2`` builds it on first
+use (``rwt_ros2.interfaces``, then cached) and loads it into its own process. The module
+builds it first (once, as CI does before the suite: the peers need it too), skips where
+it cannot (no C compiler), and starts the server as a pip install runs it: nothing in its
+environment points at the build.
 """
 
 from __future__ import annotations
@@ -15,15 +18,17 @@ import importlib.util
 import itertools
 import json
 import math
+import os
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
 
+from rwt_ros2 import interfaces
 from tests.integration.client_harness import ServerProcess, node_missing_reason
 from tests.support.realclients import run_node, run_python
 
-from . import tf2_msgs_build
 from .support import Peer, roslibpy_prelude, skip_without_rclpy
 
 if TYPE_CHECKING:
@@ -45,26 +50,36 @@ def _installed_for_rclpy() -> bool:
 
 @pytest.fixture(scope="module")
 def tf_env(ros_env: Path) -> Iterator[Path]:
-    """The module's ROS 2 environment, with tf2_msgs importable by its processes."""
+    """The module's ROS 2 environment, with tf2_msgs importable by its peers."""
     if _installed_for_rclpy():
         yield ros_env
         return
-    where = tf2_msgs_build.prefix()
-    if not tf2_msgs_build.is_built(where):
-        if missing := tf2_msgs_build.missing_tools():
+    where = interfaces.prefix("tf2_msgs")
+    if not interfaces.is_built(where):
+        if missing := interfaces.missing_tools():
             pytest.skip(
                 f"tf2_msgs for rclpy is not on PyPI and cannot be built here (missing "
                 f"{', '.join(missing)}): apt-get install build-essential, "
-                f"then {tf2_msgs_build.COMMAND}"
+                f"then {interfaces.COMMAND} tf2_msgs"
             )
         try:
-            tf2_msgs_build.build()
-        except tf2_msgs_build.BuildError as exc:
+            interfaces.build("tf2_msgs")
+        except interfaces.InterfaceBuildError as exc:
             pytest.fail(f"building tf2_msgs for rclpy failed: {exc}")
     with pytest.MonkeyPatch.context() as patch:
-        for key, value in tf2_msgs_build.runtime_env(where).items():
+        for key, value in interfaces.runtime_env(where).items():
             patch.setenv(key, value)
         yield ros_env
+
+
+def as_pip_installed(tmp: Path) -> ServerProcess:
+    """`rwt serve --ros2` (TF republisher on) with none of the peers' paths to the build."""
+    with pytest.MonkeyPatch.context() as patch:
+        build = str(interfaces.prefix("tf2_msgs"))
+        for key in ("PYTHONPATH", "LD_LIBRARY_PATH"):
+            kept = [p for p in os.environ.get(key, "").split(os.pathsep) if p and build not in p]
+            patch.setenv(key, os.pathsep.join(kept))
+        return ServerProcess(tmp, ("--ros2",))
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +87,7 @@ def robot(tf_env: Path) -> Iterator[ServerProcess]:
     """A static broadcaster, then `rwt serve --ros2` (TF republisher on), then /tf's."""
     # /tf_static's one message is older than the server: only durability brings it
     with Peer("tf_static", "/tf_static", tf_env, "static_broadcaster"):
-        server = ServerProcess(tf_env, ("--ros2",))
+        server = as_pip_installed(tf_env)
         try:
             with Peer("tf", "/tf", tf_env, "broadcaster"):
                 yield server
@@ -161,3 +176,30 @@ async def test_roslib_tf_clients_on_ros2_tf(robot: ServerProcess) -> None:
     for way in ("action", "topics"):
         check_static(got[f"{way}, in base_link"])
         check_composed(got[f"{way}, in odom"])
+
+
+ROSLIBPY_BROADCASTER = """
+import roslibpy
+
+tf = roslibpy.Topic(ros, "/tf", "tf2_msgs/msg/TFMessage")
+stamp = {"sec": 1, "nanosec": 0}
+pose = {"translation": {"x": 1.0, "y": 0.0, "z": 0.0}, "rotation": {"w": 1.0}}
+frame = {"header": {"stamp": stamp, "frame_id": "map"}, "child_frame_id": "odom"}
+for _ in range(40):
+    tf.publish(roslibpy.Message({"transforms": [{**frame, "transform": pose}]}))
+    time.sleep(0.05)
+ros.terminate()
+"""
+
+
+async def test_a_rosbridge_clients_tf_reaches_an_rclpy_node(
+    robot: ServerProcess, tf_env: Path
+) -> None:
+    """A web page's localization (map -> odom on /tf) reaches the robot's tf2 listener."""
+    with Peer("tf_echo", "/tf", tf_env) as listener:
+        await run_python(roslibpy_prelude(robot.port) + ROSLIBPY_BROADCASTER)
+        heard: list[list[str]] = []
+        deadline = time.monotonic() + 20
+        while ["map", "odom"] not in heard:  # the robot's own /tf (odom -> base_link) too
+            assert time.monotonic() < deadline, "no map -> odom reached the rclpy node"
+            heard = listener.next()["frames"]

@@ -16,6 +16,7 @@ import httpx
 import pytest
 
 from rwt_protocol.auth import rosauth_mac
+from rwt_video.tokens import TOKEN_CHARS
 from tests.integration.client_harness import ServerProcess
 from tests.support.realclients import run_python
 
@@ -98,7 +99,7 @@ async def test_a_token_from_an_authenticated_roslibpy_session_opens_a_snapshot(
     process, video = server
     out = json.loads(await run_python(CLIENT.format(port=process.port, video=video, auth=_auth())))
     assert out["reply"]["success"] is True
-    assert len(out["reply"]["message"]) >= 43  # 256 random bits, URL-safe base64
+    assert len(out["reply"]["message"]) == TOKEN_CHARS  # signed, URL-safe base64
     assert out["with"] == [200, "image/jpeg"]
     assert out["without"][0] == 401
 
@@ -114,7 +115,7 @@ def test_an_unauthenticated_get_is_refused(server: tuple[ServerProcess, str], pa
 
 def test_a_forged_token_is_refused(server: tuple[ServerProcess, str]) -> None:
     _, video = server
-    forged = "A" * 43
+    forged = "A" * TOKEN_CHARS  # well formed, not signed by the server
     answer = httpx.get(f"{video}/stream?topic=/camera/image&token={forged}", timeout=TIMEOUT_S)
     assert answer.status_code == 403
     bearer = httpx.get(

@@ -81,12 +81,14 @@ async def rtc_client(
     *,
     lossy: dict[str, object] | None = None,
     ice_servers: list[RTCIceServer] | None = None,
+    local_address: str | None = None,
 ) -> AsyncIterator[RtcClient]:
     """Offer to ``base``/webrtc, open the ``rosbridge`` channel; closed on exit.
 
     ``lossy``: also open a ``rosbridge-lossy`` channel with these ``createDataChannel``
     options (``{"ordered": False, "maxRetransmits": 0}`` for the server to keep it).
     ``ice_servers``: the STUN and TURN servers a browser page would pass; none by default.
+    ``local_address``: the address the offer is posted from (another host: ``127.0.0.2``).
     """
     pc = RTCPeerConnection(RTCConfiguration(iceServers=ice_servers or []))
     channel = pc.createDataChannel("rosbridge")
@@ -98,7 +100,8 @@ async def rtc_client(
         second.on("message", lossy_inbox.append)
     try:
         sdp = await offer_sdp(pc)
-        async with httpx.AsyncClient(base_url=base) as http:
+        transport = httpx.AsyncHTTPTransport(local_address=local_address)
+        async with httpx.AsyncClient(base_url=base, transport=transport) as http:
             reply = await http.post(
                 "/webrtc",
                 content=sdp,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import fractions
 from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from contextlib import AsyncExitStack, asynccontextmanager
 
 import anyio
 import av
@@ -62,6 +62,13 @@ def hub_of(served: Served):  # type: ignore[no-untyped-def]
     hub = served.server.webrtc.video.hub
     assert hub is not None
     return hub
+
+
+async def streams_running(served: Served, count: int) -> None:
+    """Wait until ``count`` streams run: they start as their peers connect."""
+    with anyio.fail_after(RECEIVE_S):
+        while len(hub_of(served).streams) < count:
+            await anyio.sleep(0.02)
 
 
 @pytest.mark.parametrize("codec", ["video/VP8", "video/H264"])
@@ -273,6 +280,7 @@ async def test_h264_from_a_compressed_topic_passes_through(served: Served) -> No
     topic = "/camera/h264"
     publisher = served.graph.create_publisher(topic, "sensor_msgs/msg/CompressedImage")
     async with player(served.base, f"video={topic}", codec="video/H264") as played:
+        await streams_running(served, 1)
         (stream,) = hub_of(served).streams.values()
         assert isinstance(stream.encoder, H264PassThrough)  # no encoder: the bytes as they are
         for stamp, unit in enumerate(frames * 4):
@@ -312,42 +320,40 @@ async def test_with_auth_video_needs_the_bearer_token() -> None:
             assert reply.status_code == 201, reply.text  # (this peer never connects)
 
 
-async def test_a_video_peer_that_never_connects_is_freed(served: Served) -> None:
+async def test_a_video_peer_that_never_connects_runs_no_encoder_and_is_freed(
+    served: Served,
+) -> None:
+    # its stream would start with the answer and encode the camera until the connect
+    # deadline, for no viewer; it starts only when a peer connects (D37)
     async with camera(served):
         reply = await post_offer(served.base, f"video={CAMERA}", await a_video_offer())
         assert reply.status_code == 201
-        assert len(served.server.sessions) == 1 and len(hub_of(served).streams) == 1
+        assert len(served.server.sessions) == 1  # admitted as it was answered
         with anyio.fail_after(CONNECT_TIMEOUT_S + RECEIVE_S):
-            while served.server.sessions or hub_of(served).streams:
+            while served.server.sessions:
+                assert not hub_of(served).streams
                 await anyio.sleep(0.05)
+        assert hub_of(served).started == 0  # no encoder ever ran
         async with httpx.AsyncClient(base_url=served.base) as http:
             assert (await http.delete(reply.headers["Location"])).status_code == 404
 
 
-async def test_distinct_streams_are_bounded() -> None:
-    # its peers never connect: they hold their streams until the test ends, not for the
-    # tests' short connect timeout, which a loaded machine may spend on the offers alone
-    config = ServerConfig(port=0, webrtc=WebRtcOptions(connect_timeout_s=120))
-    async with serving(config) as served:
-        await _streams_are_bounded(served)
-
-
-async def _streams_are_bounded(served: Served) -> None:
+async def test_distinct_streams_are_bounded(served: Served) -> None:
     topics = [f"/camera{n}/image" for n in range(MAX_VIDEO_STREAMS + 1)]
     for topic in topics:  # no frame comes: nothing is encoded, the streams only exist
         served.graph.create_publisher(topic, "sensor_msgs/msg/Image")
     per_offer = [topics[n : n + MAX_VIDEO_TRACKS] for n in range(0, len(topics), MAX_VIDEO_TRACKS)]
-    for group in per_offer[:-1]:
-        query = "&".join(f"video={topic}" for topic in group)
-        reply = await post_offer(served.base, query, await a_video_offer(len(group)))
-        assert reply.status_code == 201, reply.text
-    assert len(hub_of(served).streams) == MAX_VIDEO_STREAMS
-    last = per_offer[-1]
-    refused = await post_offer(served.base, f"video={last[0]}", await a_video_offer())
-    assert refused.status_code == 503
-    assert f"{MAX_VIDEO_STREAMS} distinct streams run already" in refused.text
-    assert len(hub_of(served).streams) == MAX_VIDEO_STREAMS
-    assert len(served.server.sessions) == len(per_offer) - 1  # the refused one holds none
-    async with rtc_client(served.base) as bystander:  # a data channel needs no stream
-        bystander.send({"op": "call_service", "service": "/rosapi/topics", "id": "b"})
-        assert (await bystander.next_op("service_response"))["result"] is True
+    async with AsyncExitStack() as players:
+        for group in per_offer[:-1]:  # connected players hold the streams
+            query = "&".join(f"video={topic}" for topic in group)
+            await players.enter_async_context(player(served.base, query, tracks=len(group)))
+        await streams_running(served, MAX_VIDEO_STREAMS)
+        last = per_offer[-1]
+        refused = await post_offer(served.base, f"video={last[0]}", await a_video_offer())
+        assert refused.status_code == 503
+        assert f"{MAX_VIDEO_STREAMS} distinct streams run already" in refused.text
+        assert len(hub_of(served).streams) == MAX_VIDEO_STREAMS
+        assert len(served.server.sessions) == len(per_offer) - 1  # the refused one holds none
+        async with rtc_client(served.base) as bystander:  # a data channel needs no stream
+            bystander.send({"op": "call_service", "service": "/rosapi/topics", "id": "b"})
+            assert (await bystander.next_op("service_response"))["result"] is True

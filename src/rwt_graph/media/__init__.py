@@ -1,7 +1,11 @@
 """Images as numpy arrays: ``sensor_msgs/Image`` conversion and the depth-cloud codec.
 
 Pure numpy, no I/O: the video server (``rwt_video``) and the
-depth-cloud encoder node build on these.
+depth-cloud encoder node build on these. Two modules, not loaded with this
+package, hold the rule every front end's image work follows (D42):
+``compressed`` (a JPEG or PNG bounded from its header before decoding, with
+Pillow) and ``threads`` (the image threads of the event loop, off which the
+work never runs).
 """
 
 from __future__ import annotations

@@ -3,6 +3,13 @@
 It subscribes to a depth image topic (and optionally a colour one) and publishes
 one ``sensor_msgs/Image`` per depth frame on ``/depthcloud_encoded``, which the
 video server streams to ros3djs's ``DepthCloud`` like any other image topic.
+
+Encoding a frame takes 16 ms of CPU at 640x480 and 0.65 s at 3840x2160, and
+whoever publishes on the depth topic chooses both size and rate. So while a
+server runs the graph (its spawner), frames are encoded in an image thread
+(``threads``, shared with every front end's image work), never on the event
+loop, one at a time: a frame paired while another is encoded waits, and a newer
+one replaces it (the newest goes out, as the video server's streams do).
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from ..ratelog import EpisodeLog
 from ..types.convert import header_stamp
 from .depthcloud import encode_depthcloud
 from .images import ImageError, array_to_image, depth_to_metres, image_to_display
+from .threads import in_image_thread
 
 if TYPE_CHECKING:
     from ..graph import Graph
@@ -75,6 +83,9 @@ class DepthCloudEncoder:
         self.tile_size = tile_size
         self._colours: deque[Message] = deque(maxlen=_KEPT_COLOUR_FRAMES)
         self._pending: Message | None = None
+        self._graph = graph
+        self._next: tuple[Message, Message | None] | None = None  # waiting for the thread
+        self._encoding = False
         self._last_error = ""
         self._publisher: LocalPublisher = graph.create_publisher(
             topic, IMAGE_TYPE, node=node, reserved=True
@@ -155,16 +166,41 @@ class DepthCloudEncoder:
         return min(self._colours, key=lambda c: abs(_stamp_ns(c) - stamp), default=None)
 
     def _publish(self, depth_msg: Message, colour_msg: Message | None) -> None:
+        """Encode and publish a pair: in an image thread while a server runs the graph."""
+        spawner = self._graph.port.spawner
+        if spawner is None:  # no event loop (a test, a script): at once
+            self._publish_encoded(self._encoded(depth_msg, colour_msg))
+            return
+        self._next = (depth_msg, colour_msg)  # a newer pair replaces one still waiting
+        if not self._encoding:
+            self._encoding = True
+            spawner(self._encode_waiting)
+
+    async def _encode_waiting(self) -> None:
         try:
-            encoded = self.encode(depth_msg, colour_msg)
+            while self._next is not None:
+                (depth_msg, colour_msg), self._next = self._next, None
+                encoded = await in_image_thread(self._encoded, depth_msg, colour_msg)
+                if self._subscriptions:  # not closed meanwhile
+                    self._publish_encoded(encoded)
+        finally:
+            self._encoding = False
+
+    def _encoded(self, depth_msg: Message, colour_msg: Message | None) -> dict[str, object] | None:
+        """The encoded frame, or None (logged) for a frame that cannot be encoded."""
+        try:
+            return self.encode(depth_msg, colour_msg)
         except ImageError as exc:
             if str(exc) != self._last_error:  # once per cause, not 30 times a second
                 _episodes.log(
                     logging.WARNING, "depthcloud_skipped", "depth cloud frame skipped: %s", exc
                 )
                 self._last_error = str(exc)
-            return
-        self._publisher.publish(encoded)
+            return None
+
+    def _publish_encoded(self, encoded: dict[str, object] | None) -> None:
+        if encoded is not None:
+            self._publisher.publish(encoded)
 
 
 def _stamp_ns(msg: Message) -> int:

@@ -25,4 +25,4 @@ VisibilityFor = Callable[[ClientId], Visibility]
 
 def is_hidden(name: str) -> bool:
     """ROS 2 hides names with a part starting with ``_`` from listings (``/fib/_action/status``)."""
-    return any(part.startswith("_") for part in name.split("/"))
+    return name.startswith("_") or "/_" in name  # a part starts with "_"; no split per name
