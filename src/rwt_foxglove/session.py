@@ -215,6 +215,7 @@ class _TopicSink:
                     push(frame)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
+        outbox.settle()  # the memory budget, once for the run (D44)
         if outbox.dropped != dropped or outbox._held_frames:  # the slow-consumer rule
             session._now = max(session._now, events[-1].now)
             sent = () if frame is None else (frame,)

@@ -500,6 +500,7 @@ class SessionBase:
         outbox = self._outbox
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
         outbox.push_droppable(frame)
+        outbox.settle()
         if outbox.dropped != dropped or outbox.held_bytes:
             self._watch.after_push(dropped, oversized, self._now, (frame,), topic)
 

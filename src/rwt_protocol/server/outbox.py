@@ -45,9 +45,10 @@ bound alone applies.
 
 A queue may also be charged to the server's memory budget (``account``, a
 ``memory.MemoryAccount``; D44): what it holds is charged as it changes, with
-what the transport took and is still writing (until ``sent``), and while the
-budget is full a queue whose connection it judges over its part drops its own
-oldest topic messages when a message comes (``MemoryAccount.excess``), the
+what the transport took and is still writing (until ``sent``; the hot paths,
+``push_droppable`` and ``push_timed``, once for a run at ``settle``), and while
+the budget is full a queue whose connection it judges over its part drops its
+own oldest topic messages when messages come (``MemoryAccount.excess``), the
 newest staying, as past its own limit.
 """
 
@@ -338,6 +339,7 @@ class Outbox:
 
         The same rules as ``extend`` of one frame (without a lifespan), in the
         fewest steps while the queue is within its bounds (a burst's per-message cost).
+        The memory budget is charged at the caller's ``settle``, once for a run.
         """
         self.topic_messages += 1
         if self._held_frames:
@@ -350,8 +352,6 @@ class Outbox:
         cost = len(frame.data) + self.frame_overhead_bytes
         self._bytes += cost
         self._bound_one(cost)
-        if self.account is not None:
-            self._settle()
 
     def push_timed(self, frame: OutFrame, now: float, lifespan: float, key: str) -> None:
         """``extend((frame,), now, lifespan, key)`` of one whole topic message: the hot path.
@@ -359,7 +359,8 @@ class Outbox:
         ``frame`` is droppable with no ``group``; ``lifespan`` is over 0 (seconds).
         The same rules as ``extend`` in fewer steps while the queue is within its
         bounds: a ROS 2 burst's per-message and per-subscriber cost
-        (``Session.deliver_many``).
+        (``Session.deliver_many``). The memory budget is charged at the caller's
+        ``settle``, once for a run.
         """
         self.topic_messages += 1
         if self._held_frames:
@@ -383,8 +384,6 @@ class Outbox:
         if now - oldest.came > oldest.lifespan:
             self._expire(key, now)
         self._bound_one(cost)
-        if self.account is not None:
-            self._settle()
 
     def _bound_one(self, cost: int) -> None:
         """Apply the bounds after one whole topic message of ``cost`` bytes was queued."""
@@ -499,6 +498,15 @@ class Outbox:
             if self.account is not None:
                 self._settle()
 
+    def settle(self) -> None:
+        """Charge the memory budget with what changed since (``push_droppable``, ``push_timed``).
+
+        Every other change settles at once; what was pushed and not settled is
+        charged at the next change (a ``take``) otherwise.
+        """
+        if self.account is not None:
+            self._settle()
+
     def _settle(self) -> None:
         """Charge ``account`` with what changed; drop down to the share while the budget is full."""
         account = self.account
@@ -508,6 +516,13 @@ class Outbox:
         if not delta:
             return
         self._charged = held
+        budget = account.budget
+        if account.held > 0 < delta and budget.used + delta <= budget.limit and not budget.wanted:
+            # the hot path (a message more, room in the budget): ``charge`` in the fewest steps
+            if not account.closed:
+                account.held += delta
+                budget.used += delta
+            return
         account.charge(delta)
         if delta < 0 or self._held_frames or not self._topic_frames:
             return

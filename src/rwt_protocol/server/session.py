@@ -600,7 +600,8 @@ class Session(SessionBase):
             if outbox.dropped != dropped:  # the slow-consumer rule, as ``send_frames`` asks it
                 self._watch.after_push(dropped, oversized, now, frames, spelling)
                 dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if outbox.held_bytes:
+        outbox.settle()  # the memory budget, once for the run (D44)
+        if outbox.dropped != dropped or outbox.held_bytes:
             self._watch.after_push(dropped, oversized, self._now, (), spelling)
         if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
             self._wake()
