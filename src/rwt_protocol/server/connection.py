@@ -514,9 +514,8 @@ class SessionBase:
         memory = self._memory
         if memory is None:
             return
-        memory.clocked(self._now)
         budget = memory.budget
-        if budget.pressed:
+        if budget.used > budget.limit or budget.wanted:  # (``pressed``, inline: every push)
             budget.sweep(self._now)
             if budget.sweeper is None and self._state.sends:  # the next, should nothing happen
                 budget.sweeper = self

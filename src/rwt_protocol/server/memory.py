@@ -15,7 +15,8 @@ The per-client bounds stay as they are, inside the budget. While it is full
 rule takes from the clients that do not read, the slow-consumer rule (D24):
 
 - a connection that has held something for ``PRESSURE_STALL_S`` without its
-  transport taking anything from it is *stalled*: it keeps only its newest topic
+  transport taking anything from it (counted from its last take, or from the
+  first sweep that saw it holding) is *stalled*: it keeps only its newest topic
   message, the oldest dropped first;
 - over the limit, any other connection keeps at most the larger of its share
   (``limit`` over the connections holding anything) and ``READER_KEEP`` of its
@@ -31,13 +32,13 @@ rule takes from the clients that do not read, the slow-consumer rule (D24):
 A reader's replies and every client's input are never refused or dropped for
 the budget: input (incomplete messages, frames still arriving, WebRTC input not
 read yet) is counted, within its own bounds, so that the outboxes of clients
-that do not read are cut sooner.
-So the total stays within the limit, but for the backlogs of connections that
-took something within ``PRESSURE_STALL_S`` (each within ``READER_KEEP`` of its
-send buffer), the newest message of each and the replies of those about to be
-closed. The
-rule is applied when a message comes for a connection, and to every connection
-by a sweep, one pass over those holding anything, at most once per
+that do not read are cut sooner. So the total stays within the limit, but for
+the backlogs of connections that took something within ``PRESSURE_STALL_S``
+(each within ``READER_KEEP`` of its send buffer), the newest message of each,
+input, and the replies of those about to be closed.
+
+The rule is applied when messages come for a connection, and to every
+connection by a sweep, one pass over those holding anything, at most once per
 ``PRESSURE_SWEEP_S`` and only while the budget is full: whenever a session
 queues or takes output, and on a timer of one session (the ``sweeper``) while
 nothing else happens. Time comes from the callers (sans-IO): the latest any
@@ -164,7 +165,8 @@ class MemoryBudget:
     def sweep(self, now: float) -> None:
         """While the budget is full, tell each connection holding anything (``on_pressure``).
 
-        At most once per ``PRESSURE_SWEEP_S``; ``now`` is monotonic seconds.
+        At most once per ``PRESSURE_SWEEP_S``; ``now`` is monotonic seconds. A
+        connection seen holding for the first time is timed from here (``stalled``).
         """
         self.clock(now)
         if now < self.next_sweep or not self.pressed:
@@ -172,6 +174,8 @@ class MemoryBudget:
         self.next_sweep = now + PRESSURE_SWEEP_S
         self.wanted = False
         for account in list(self._holders):
+            if account.idle_since is None:
+                account.idle_since = self.now  # (a fresh clock: it lags between sweeps)
             if account.on_pressure is not None:
                 account.on_pressure(now)
 
@@ -185,9 +189,9 @@ class MemoryAccount:
 
     Attributes:
         held: bytes this connection holds now.
-        idle_since: when its transport last took something, or it began to hold
-            something, on the budget's clock (seconds); None: it began to hold
-            since the clock was last read (``clocked``).
+        idle_since: when its transport last took something, or a sweep first saw
+            it holding something, on the budget's clock (seconds); None: neither
+            since it began to hold.
     """
 
     __slots__ = ("budget", "closed", "held", "idle_since", "on_pressure")
@@ -212,7 +216,7 @@ class MemoryAccount:
         if not before:
             if self.held:
                 budget._holders.add(self)
-                self.idle_since = None  # the budget's clock may lag: ``clocked`` sets it
+                self.idle_since = None  # the budget's clock may lag: a sweep starts it
         elif not self.held:
             budget._holders.discard(self)
 
@@ -221,16 +225,12 @@ class MemoryAccount:
         self.budget.clock(now)
         self.idle_since = self.budget.now
 
-    def clocked(self, now: float) -> None:
-        """Its session's time is ``now`` (monotonic seconds), after it queued or took output."""
-        budget = self.budget
-        budget.clock(now)
-        if self.idle_since is None:
-            self.idle_since = budget.now
-
     @property
     def stalled(self) -> bool:
-        """Whether it has held something for ``PRESSURE_STALL_S`` with nothing taken."""
+        """Whether it has held something for ``PRESSURE_STALL_S`` with nothing taken.
+
+        Counted from its last take, or from the first sweep that saw it holding.
+        """
         since = self.idle_since
         return since is not None and self.budget.now - since >= PRESSURE_STALL_S
 
