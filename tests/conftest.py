@@ -6,6 +6,7 @@ processes, the ``rwt`` command line) are in tests/support/.
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import socket
@@ -35,6 +36,14 @@ from hypothesis import HealthCheck, settings
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import Session, SessionConfig
+
+# The test process's garbage collector: a worker holds every collected test module and
+# item and the caches of thousands of tests, so Python's default thresholds (700, 10, 10)
+# made it walk that heap often: 17 % of the CPU of tests/session, protocol and graph. A
+# tenfold first threshold, and everything collection made moved out of the collector's
+# sight (``pytest_collection_finish``), take that to 8 %. Only this process: the servers
+# and peers the tests start keep Python's defaults (or rwt's own, docs/limits.md).
+gc.set_threshold(10_000, 10, 10)
 
 # Property tests check behaviour, never speed: no per-example deadline, and no health
 # check that fails a test because a shared, loaded machine generated examples slowly.
@@ -94,6 +103,12 @@ def peers(graph: Graph) -> Iterator[tuple[Peer, Peer]]:
     yield a, b
     a.session.close()
     b.session.close()
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Move what collection made (modules, items, parameters) out of the collector's sight."""
+    gc.collect()
+    gc.freeze()
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:

@@ -14,8 +14,9 @@ waited for alike:
 one): the batch being handled and the outlets it congested, the outputs
 deferred to its end (the ``deferred-send`` shortcut), each outlet's watermarks
 and progress, the hold budgets (``HoldAccount``), the stall rule
-(``ReadingWindow``: is this consumer reading) and the slow verdicts with their
-cool-downs (``HostCoolDowns``). Its methods take the time (``now``, seconds of
+(``ReadingWindow``: is this consumer reading, judged on each outlet's own clock
+from the moment it falls behind) and the slow verdicts with their cool-downs
+(``HostCoolDowns``). Its methods take the time (``now``, seconds of
 the event loop's clock) and byte counts and return decisions; the pump
 (pump.py, holding.py) and the links' gates (gates.py) carry them out: pause a
 socket, wait for a consumer's next take, write deferred output.
@@ -23,7 +24,11 @@ socket, wait for a consumer's next take, write deferred output.
 The time waited is charged to the reader being held (a publishing connection,
 or a graph's link deliveries as one), however many outlets it waits for:
 several slow subscribers share one budget instead of adding theirs. An outlet
-is waited for only while its consumer reads; one found slow (it did not read,
+is waited for only while its consumer reads, judged over ``INPUT_STALL_S`` (or
+more) of being behind: a connection from the moment its outbox passes
+``WATCH_SHARE`` of its high watermark, before anyone waits for it, so several
+that fall behind together are judged together, not one hold after another; a
+link's queue from the start of a hold. One found slow (it did not read,
 or the budget ran out while it was waited for) is left to its own drop rules
 (D24 for a connection, the link's byte bound for a link): a connection for
 ``COOL_DOWN_BUDGETS`` budgets, and so is every connection its host opens
@@ -49,6 +54,7 @@ __all__ = [
     "HOLD_REFILL",
     "INPUT_STALL_S",
     "READING_SHARE",
+    "WATCH_SHARE",
     "ChannelAbilities",
     "FlowControl",
     "Hold",
@@ -61,17 +67,27 @@ __all__ = [
 ]
 
 INPUT_STALL_S = 1.0
-"""Seconds of a hold over which a peer must show that it reads (``READING_SHARE``),
-else it counts as slow at once: readers stop waiting for it before the hold
-budget is spent (docs/limits.md). Its queue then drops and it is closed after
-``--send-timeout`` (D24)."""
+"""Seconds over which a peer that has fallen behind must show that it reads
+(``READING_SHARE``), else it counts as slow at once: readers stop waiting for it
+before the hold budget is spent (docs/limits.md). A connection's seconds count from
+the moment its outbox passed ``WATCH_SHARE`` of its high watermark, not from the
+start of a hold: a reader held for it waits only for what is left of them. Its queue
+then drops and it is closed after ``--send-timeout`` (D24)."""
 
 READING_SHARE = 1 / 16
 """Share of its backlog (outbox plus the socket's send queue, sendqueue.py) a peer
-must take in each ``INPUT_STALL_S`` of a hold to count as reading. A viewer
+must take per ``INPUT_STALL_S`` while it is behind to count as reading. A viewer
 drawing three 300 KB frames a second from a full 16 MiB connection (8 MiB queued,
 4 MiB in the kernel) takes 7 %; one reading 64 KB every 0.5 s of a 10 MB/s topic,
 1 %: it only looks alive."""
+
+WATCH_SHARE = 1 / 8
+"""Share of its high watermark past which a connection's outbox counts as behind:
+its reading window (``INPUT_STALL_S``) starts then, and ends when the outbox is
+back at this mark or with a verdict (the next starts then). 1 MiB at the default
+16 MiB send buffer: a 10 MB/s topic takes a reader that only looks alive from here
+to the high watermark in 0.7 s, so a publisher waits some 0.3 s for it, however
+many such readers fall behind together (docs/limits.md)."""
 
 HOLD_REFILL = 0.1
 """Seconds of hold budget a reader regains per second, up to the whole budget: over
@@ -147,20 +163,32 @@ class HoldAccount:
 
 
 class ReadingWindow:
-    """Whether a peer reads, judged over ``INPUT_STALL_S`` of a hold.
+    """Whether a peer reads, judged over at least ``INPUT_STALL_S`` while it is behind.
 
     Args:
-        backlog: bytes waiting for the peer at ``now`` (outbox and send queue).
+        taken: bytes its consumer had taken by ``now`` (a count that only grows,
+            ``holding.Held.progress``).
+        backlog: bytes waiting for it at ``now`` (outbox and send queue).
         now: the window's start, seconds.
     """
 
-    def __init__(self, backlog: int, now: float) -> None:
+    def __init__(self, taken: int, backlog: int, now: float) -> None:
+        self.taken = taken
         self.backlog = backlog
+        self.start = now
         self.ends = now + INPUT_STALL_S
 
-    def reading(self, backlog: int) -> bool:
-        """Whether the peer took ``READING_SHARE`` of the window's backlog, now ``backlog``."""
-        return self.backlog - backlog >= self.backlog * READING_SHARE
+    def reading(self, taken: int, backlog: int, now: float) -> bool:
+        """Whether the peer took ``READING_SHARE`` per ``INPUT_STALL_S`` since the start.
+
+        ``taken`` and ``backlog`` as at the start, at ``now`` (at or after
+        ``ends``). The share is of the larger backlog, the start's or this one,
+        so a window that started when the peer fell behind asks the rate its
+        backlog has reached since.
+        """
+        elapsed = max(now - self.start, INPUT_STALL_S)
+        share = READING_SHARE * elapsed / INPUT_STALL_S
+        return taken - self.taken >= max(self.backlog, backlog) * share
 
 
 def send_queue_shrank(before: int | None, after: int | None) -> bool:
@@ -215,14 +243,26 @@ class Outlet:
     Attributes:
         high_water: bytes past which it congests a reader's batch.
         low_water: bytes under which a reader held for it goes on.
+        watch_water: bytes past which its reading window starts before any hold
+            (a connection: ``WATCH_SHARE`` of ``high_water``); a link's starts
+            with a hold.
         congested: in the current batch's list of outlets to wait for.
         takes: its consumer's takes so far: its progress.
+        window: the reading window since it fell behind (None: not behind), one
+            for every reader held for it.
+        counts_taken: its progress counts what its consumer took, so its window
+            runs while it is behind, across holds; else (a link's queue, whose
+            progress is its backlog's shrinking) a window lasts one hold.
     """
+
+    counts_taken = False
 
     def __init__(self, high_water: int = 0, low_water: int = 0) -> None:
         self.high_water = high_water
         self.low_water = low_water
+        self.watch_water = high_water
         self.congested = False
+        self.window: ReadingWindow | None = None
         self.takes = 0
         self.cool_down_s: float | None = None  # None: slow until caught up (a link)
         self.host: str | None = None  # its host, for the cool-downs (a connection of a server)
@@ -257,60 +297,67 @@ class Hold(Generic[OutletT]):
     runs the hold loop: it asks ``wait_s`` how long to wait for the consumer's
     next take, waits, and reports the time it waited (``waited``), until
     ``wait_s`` says go on. The outlet is found slow when its consumer did not take
-    ``READING_SHARE`` of its backlog in an ``INPUT_STALL_S`` window, or when
-    the reader's budget ran out while it was waited for.
+    ``READING_SHARE`` of its backlog in its reading window (the outlet's, which may
+    have started before the hold: ``WATCH_SHARE``), or when the reader's budget ran
+    out while it was waited for.
     """
 
     def __init__(self, flow: FlowControl[OutletT], outlet: OutletT, account: HoldAccount) -> None:
         self._flow = flow
         self._outlet = outlet
         self._account = account
-        self._window: ReadingWindow | None = None
         self._waited = False
 
-    def needs_backlog(self, now: float) -> bool:
-        """Whether ``next_wait`` at ``now`` needs the outlet's backlog (a window starts)."""
-        window = self._window
+    def needs_progress(self, now: float) -> bool:
+        """Whether ``next_wait`` at ``now`` needs the outlet's progress (a window starts, ends)."""
+        window = self._outlet.window
         return window is None or now >= window.ends
 
-    def next_wait(self, now: float, backlog: int) -> float | None:
+    def next_wait(self, now: float, progress: tuple[int, int]) -> float | None:
         """Seconds to wait for the consumer's next take at ``now``, or None: stop waiting.
 
         Args:
             now: the time, seconds.
-            backlog: bytes its consumer has yet to take (outbox and send queue);
-                read only when ``needs_backlog`` said so.
+            progress: bytes its consumer has taken so far and bytes it has yet to
+                take (outbox and send queue), ``holding.Held.progress``; read
+                only when ``needs_progress`` said so.
         """
-        window = self._window
+        outlet = self._outlet
+        window = outlet.window
         if window is None:
-            window = self._window = ReadingWindow(backlog, now)
+            window = outlet.window = ReadingWindow(*progress, now)
         elif now >= window.ends:
-            if not window.reading(backlog):
-                self._flow.found_slow(self._outlet, now)
+            if not window.reading(*progress, now):
+                self._flow.found_slow(outlet, now)
                 return None
-            window = self._window = ReadingWindow(backlog, now)
+            window = outlet.window = ReadingWindow(*progress, now)
         left = self._account.left(now)
         if left <= 0:
             if self._waited:  # it kept the reader until the budget ran out
-                self._flow.found_slow(self._outlet, now)
+                self._flow.found_slow(outlet, now)
             return None
         return min(window.ends - now, left)
 
-    def wait_s(self, now: float, over_low: bool, backlog: Callable[[], int]) -> float | None:
+    def wait_s(
+        self, now: float, over_low: bool, progress: Callable[[], tuple[int, int]]
+    ) -> float | None:
         """The hold loop's one decision at ``now``: seconds to wait, or None: go on.
 
         Args:
             now: monotonic seconds.
             over_low: whether the outlet is over its low watermark now.
-            backlog: the outlet's bytes yet to be read (asked only when a
-                reading window starts: ``needs_backlog``).
+            progress: the outlet's bytes taken so far and yet to be taken (asked
+                only when a reading window starts or ends: ``needs_progress``).
 
         The caller waits that long or until the consumer's next take, whichever
         is first, then reports the time (``waited``) and asks again.
         """
-        if not over_low:
-            return None
-        return self.next_wait(now, backlog() if self.needs_backlog(now) else 0)
+        wait = None
+        if over_low:
+            wait = self.next_wait(now, progress() if self.needs_progress(now) else (0, 0))
+        if wait is None and not self._outlet.counts_taken:
+            self._outlet.window = None  # its window lasts one hold
+        return wait
 
     def waited(self, start: float, end: float) -> None:
         """The reader waited from ``start`` to ``end`` (s): charge its budget."""
@@ -410,13 +457,15 @@ class FlowControl(Generic[OutletT]):
             outlet: the connection's outlet.
             peer: its peer address (``host:port``, ``stdio``, ``memory``).
             budget_s: its hold budget as a reader (``--hold-budget``), seconds.
-            water_marks: its outbox's (high, low) watermarks, bytes.
+            water_marks: its outbox's (high, low) watermarks, bytes; its reading
+                window starts past ``WATCH_SHARE`` of the high one.
 
         Returns:
             the account its reader is charged for every outlet it waits for. A
             reconnection of a host found slow within its cool-down starts slow.
         """
         outlet.high_water, outlet.low_water = water_marks
+        outlet.watch_water = int(outlet.high_water * WATCH_SHARE)
         outlet.cool_down_s = COOL_DOWN_BUDGETS * budget_s
         cool_downs = self.cool_downs
         if cool_downs is not None:
@@ -430,6 +479,7 @@ class FlowControl(Generic[OutletT]):
         A connection is not waited for during its cool-down, nor its host's
         connections opened meanwhile; a link until it catches up.
         """
+        outlet.window = None  # judged: the next verdict is on what comes after
         cool_down_s = outlet.cool_down_s
         if cool_down_s is None:
             outlet._slow = True

@@ -29,7 +29,8 @@ class Held(Outlet):
 
     Subclasses say what is queued (``over_water``, ``backlog_bytes``) and call
     ``note_take`` each time their consumer takes something; one over a socket
-    also says what the kernel still holds for its peer (``unsent_bytes``).
+    also says what the kernel still holds for its peer (``unsent_bytes``), and
+    one that counts what its consumer took says so (``progress``).
     """
 
     def __init__(self) -> None:
@@ -43,6 +44,16 @@ class Held(Outlet):
     def backlog_bytes(self) -> int:
         """Bytes its consumer has yet to take: queued, and in the socket's send queue."""
         raise NotImplementedError
+
+    def progress(self) -> tuple[int, int]:
+        """Bytes its consumer has taken so far (a count that only grows) and bytes left.
+
+        By default the count is the backlog's shrinking (minus the backlog): right
+        only while nothing is added, so such an outlet's reading window lasts one
+        hold (``counts_taken`` False); a connection counts what it sent.
+        """
+        backlog = self.backlog_bytes()
+        return -backlog, backlog
 
     def unsent_bytes(self) -> int | None:
         """Bytes past the outbox that its consumer has not taken yet, or None.
@@ -90,7 +101,7 @@ async def wait_for(
         return
     while True:
         over_low = held.over_water(own=False, mark=held.low_water)
-        wait_s = hold.wait_s(now, over_low, held.backlog_bytes)
+        wait_s = hold.wait_s(now, over_low, held.progress)
         if wait_s is None:
             return
         await held.next_take(wait_s)

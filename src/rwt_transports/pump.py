@@ -74,7 +74,7 @@ from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.shortcuts import enabled
 
 from .admission import Admission, Ticket, current_ticket
-from .flow import FlowControl, HoldAccount
+from .flow import FlowControl, HoldAccount, ReadingWindow
 from .gather import GATHER_BYTES, Gatherer
 from .holding import Held, wait_for
 
@@ -280,6 +280,8 @@ class ConnectionPump(Held):
     Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
     """
 
+    counts_taken = True  # ``progress``: what it sent, less the socket's send queue
+
     def __init__(
         self,
         channel: Channel,
@@ -310,6 +312,7 @@ class ConnectionPump(Held):
         self._gatherer: Gatherer | None = None  # the loop's (gather.py), at its first use
         self._pausable = abilities.pause_reading
         self._queueing = abilities.unsent_bytes
+        self._sent = 0  # bytes of frames handed to the channel (``progress``)
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
@@ -344,20 +347,45 @@ class ConnectionPump(Held):
             self._writer_wake.set()
         if session.closing:  # shutting down, closed: the timer task ends the connection
             self._timer_wake.set()
-        if flow.in_batch and flow.congests(self, session.fill_bytes):
-            flow.note_congested(self, anyio.current_time())
+        if flow.in_batch:
+            fill = session.fill_bytes
+            if fill > self.watch_water and session.wake_above_bytes < self.high_water:
+                self._fell_behind(session)
+            if flow.congests(self, fill):
+                flow.note_congested(self, anyio.current_time())
+
+    def _fell_behind(self, session: ServerSession) -> None:
+        """The outbox passed its ``watch_water``: its reading window starts (flow.py).
+
+        The session wakes this pump again only past the high watermark, until
+        the peer is back at its ``watch_water`` (``_took``).
+        """
+        if self.window is None:  # (a hold may have started one)
+            self.window = ReadingWindow(*self.progress(), anyio.current_time())
+        session.wake_above_bytes = self.high_water
 
     def _took(self, *, sent: bool = True) -> None:
         """The transport took frames: the peer makes progress; wake readers waiting on it.
 
         Having taken everything queued, the peer caught up (a slow one stays
-        slow until its cool-down ends: ``flow.FlowControl.found_slow``).
-        ``sent``: the transport wrote them, so they are no longer held (D44).
+        slow until its cool-down ends: ``flow.FlowControl.found_slow``); back at
+        its ``watch_water``, it is no longer behind: its reading window ends, and
+        the session wakes this pump at the next output past the mark. ``sent``:
+        the transport wrote them, so they are no longer held (D44).
         """
         session = self._session
-        if session is not None and sent:
+        if session is None:
+            self.note_take(True)
+            return
+        if sent:
             session.frames_sent()
-        self.note_take(session is None or session.queued_bytes == 0)
+        watch = self.watch_water
+        if session.fill_bytes <= watch and (
+            self.window is not None or session.wake_above_bytes != watch
+        ):
+            self.window = None
+            session.wake_above_bytes = watch
+        self.note_take(session.queued_bytes == 0)
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer.
@@ -411,8 +439,10 @@ class ConnectionPump(Held):
             or not channel.can_send_now()
         ):
             return False
+        queued = session.queued_bytes
         frames = session.frames_to_send(BATCH_BYTES)
         if frames:
+            self._sent += queued - session.queued_bytes
             try:
                 channel.send_now(frames)
             except Exception:  # a publish must never fail for another peer's socket
@@ -449,6 +479,7 @@ class ConnectionPump(Held):
         self._account = self.flow.open_connection(
             self, session.peer, session.hold_budget_s, session.water_marks
         )
+        session.wake_above_bytes = self.watch_water  # to see the peer fall behind
         session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
         session.on_job = self._jobs_wake.set
         session.on_timer = self._wake_timers
@@ -677,6 +708,19 @@ class ConnectionPump(Held):
         queued = 0 if session is None else session.queued_bytes + session.pending_bytes
         return queued + (self.unsent_bytes() or 0)
 
+    def progress(self) -> tuple[int, int]:
+        """What the peer took so far (sent, less the socket's send queue) and has yet to.
+
+        Bytes as the outbox counts them, taken counted from the frames handed to
+        the channel less its socket's send queue where the channel can read it
+        (sendqueue.py); what a channel buffers itself (a write of at most
+        ``BATCH_BYTES`` or so) counts as taken.
+        """
+        session = self._session
+        queued = 0 if session is None else session.queued_bytes
+        unsent = self.unsent_bytes() or 0
+        return self._sent - unsent, queued + unsent
+
     async def _writer(self, session: ServerSession, scope: anyio.CancelScope) -> None:
         try:
             if self._hello is not None:
@@ -685,8 +729,10 @@ class ConnectionPump(Held):
             while True:
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
+                queued = session.queued_bytes
                 frames = session.frames_to_send(BATCH_BYTES)
                 if frames:
+                    self._sent += queued - session.queued_bytes
                     await self.channel.send(frames)
                     self._unwritten = False  # (its send waited for what came before too)
                     self._took()

@@ -20,6 +20,7 @@ from PIL import Image
 
 from rwt_protocol.auth import rosauth_op
 from rwt_protocol.codecs.json import op_object
+from rwt_video.tokens import TOKEN_CHARS
 from tests.integration.client_harness import ServerProcess
 
 from .cdp import Browser, Page
@@ -132,7 +133,7 @@ def test_the_images_panel_shows_frames_through_a_video_token(page: Page) -> None
         what="the MJPEG image",
     )
     src = page.evaluate(f"document.querySelector('{selector}').src")
-    assert re.search(r"[?&]token=[\w-]{43}(&|$)", src), src
+    assert re.search(rf"[?&]token=[\w-]{{{TOKEN_CHARS}}}(&|$)", src), src
     shot = Image.open(io.BytesIO(page.screenshot(selector))).convert("RGB")
     width, height = shot.size
     left = shot.getpixel((width // 4, height // 2))

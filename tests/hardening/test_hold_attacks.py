@@ -15,16 +15,24 @@ again:
 
 With the hold budget charged to the publisher, a host found slow cooled down
 across reconnections and catching up, and "reading" meaning a useful share of
-the backlog (``flow.READING_SHARE``), the topic is frozen for the bystander
-for about one budget (1 s here) in all: under 1.5 budgets over the run, and no
-later gap is longer than a budget. ``RUN_S`` lets every attack come back after
-the first hold (the reconnecting one three times, the catching-up one twice):
-the bound is on the frozen seconds, not a share of the run, so a longer run
-asserts nothing more. The rule is about time, so time is asserted (frozen
-seconds, a gap), with margins for a loaded machine: these attacks froze 27 % to
-44 % of a 15 s run before (4 to 6.6 s; one gap of 4 s with four readers). A
-burst publisher still loses nothing to a subscriber that reads
-(test_backpressure.py).
+the backlog (``flow.READING_SHARE``), the first two freeze the topic for the
+bystander for about one budget (1 s here) at most: under 1.5 budgets over the
+run, and no later gap is longer than a budget. ``RUN_S`` lets them come back
+after the first hold (the reconnecting one three times, the catching-up one
+twice): the bound is on the frozen seconds, not a share of the run.
+
+The four are judged at the server's defaults (``rwt serve``: a 5 s budget, a
+16 MiB send buffer), where they were waited for one ``INPUT_STALL_S`` window
+after another: 4 s frozen in every 40 s attack, gaps of 2 s. Each connection's
+window now runs from the moment its outbox fell behind (``flow.WATCH_SHARE``),
+so the four are judged together, before the publisher has waited a whole
+window: some 0.3 s frozen once (benchmarks/trickling_readers.py measures 40 s),
+asserted as under 1.5 windows in all and no gap as long as one. Found slow,
+they are not waited for again for 100 s, so ``FOUR_RUN_S`` is short.
+
+The rule is about time, so time is asserted (frozen seconds, a gap), with
+margins for a loaded machine. A burst publisher still loses nothing to a
+subscriber that reads (test_backpressure.py).
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ import anyio.to_thread
 import pytest
 
 from rwt_protocol.server.session import SessionConfig
+from rwt_transports.flow import INPUT_STALL_S
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import TcpPeer, settle
 from tests.support.clients import Harness, running_server
@@ -49,6 +58,8 @@ pytestmark = pytest.mark.anyio
 
 HOLD_BUDGET_S = 1.0
 RUN_S = 8.0  # the publisher's stream: RATE x RUN_S messages
+FOUR_RUN_S = 4.0  # the four: judged once in the first seconds, then cooled down for 100 s
+MAX_FOUR_FROZEN_S = 1.5 * INPUT_STALL_S  # some 0.3 s, with margin for a loaded machine
 RATE = 100  # messages a second
 PAYLOAD = 100_000  # bytes of a message's data
 TOPIC = "/stream"
@@ -67,6 +78,13 @@ async def harness() -> AsyncIterator[Harness]:
         yield h
 
 
+@pytest.fixture
+async def defaults() -> AsyncIterator[Harness]:
+    """A server with ``rwt serve``'s flow settings: a 5 s hold budget, a 16 MiB send buffer."""
+    async with running_server(ServerConfig()) as h:
+        yield h
+
+
 def subscriber(port: int, tag: str, rcvbuf: int | None = None) -> TcpPeer:
     peer = TcpPeer(port, rcvbuf)
     peer.send({"op": "subscribe", "topic": TOPIC, "type": "std_msgs/String"})
@@ -74,11 +92,11 @@ def subscriber(port: int, tag: str, rcvbuf: int | None = None) -> TcpPeer:
     return peer
 
 
-def publish(peer: TcpPeer) -> None:
-    """``RATE`` x ``RUN_S`` messages, paced at ``RATE`` (a held publisher catches up)."""
+def publish(peer: TcpPeer, run_s: float) -> None:
+    """``RATE`` x ``run_s`` messages, paced at ``RATE`` (a held publisher catches up)."""
     peer.send({"op": "advertise", "topic": TOPIC, "type": "std_msgs/String"})
     pad = "x" * PAYLOAD
-    count = int(RATE * RUN_S)
+    count = int(RATE * run_s)
     start = time.monotonic()
     for i in range(count):
         delay = start + i / RATE - time.monotonic()
@@ -148,9 +166,17 @@ def draining(port: int, done: threading.Event, opened: list[TcpPeer]) -> None:
 
 
 def four_trickling(port: int, done: threading.Event, opened: list[TcpPeer]) -> None:
-    """Four connections trickling at once, until ``done``."""
-    peers = [subscriber(port, f"t{n}", RCVBUF) for n in range(4)]
+    """Four connections subscribing together and trickling at once, until ``done``.
+
+    Together: the subscriptions, sent before any answer is awaited, start within
+    a turn of the server's loop however loaded the machine is (four opened a
+    window apart are four attacks, benchmarks/trickling_readers.py)."""
+    peers = [TcpPeer(port, RCVBUF) for _ in range(4)]
     opened.extend(peers)
+    for peer in peers:
+        peer.send({"op": "subscribe", "topic": TOPIC, "type": "std_msgs/String"})
+    for n, peer in enumerate(peers):
+        settle(peer, f"t{n}")
     threads = [threading.Thread(target=trickle, args=(p.sock, float("inf"), done)) for p in peers]
     for thread in threads:
         thread.start()
@@ -164,14 +190,10 @@ def frozen(arrivals: list[float]) -> tuple[float, float, list[float]]:
     return arrivals[-1] - arrivals[0], sum(gaps), gaps
 
 
-@pytest.mark.parametrize(
-    "attack",
-    [reconnecting, draining, four_trickling],
-    ids=["reconnect-every-budget", "catch-up-and-hold-again", "four-trickling-readers"],
-)
-async def test_a_reader_that_only_looks_alive_freezes_the_topic_for_one_budget_at_most(
-    harness: Harness, attack: Callable[[int, threading.Event, list[TcpPeer]], None]
-) -> None:
+async def bystander_arrivals(
+    harness: Harness, attack: Callable[[int, threading.Event, list[TcpPeer]], None], run_s: float
+) -> list[float]:
+    """Publish ``run_s`` of the stream with ``attack`` beside it; each message's arrival."""
     port = harness.port("tcp")
     opened: list[TcpPeer] = []
     bystander = await anyio.to_thread.run_sync(subscriber, port, "b")
@@ -187,19 +209,37 @@ async def test_a_reader_that_only_looks_alive_freezes_the_topic_for_one_budget_a
         arrivals.extend(await anyio.to_thread.run_sync(read_arrivals, bystander, done))
 
     try:
-        with anyio.fail_after(RUN_S * 6):
+        with anyio.fail_after(run_s * 6):
             async with anyio.create_task_group() as tg:
                 tg.start_soon(attacker)
                 tg.start_soon(watch)
                 try:
-                    await anyio.to_thread.run_sync(publish, publisher)
+                    await anyio.to_thread.run_sync(publish, publisher, run_s)
                 finally:
                     done.set()
     finally:
         for peer in opened:
             await anyio.to_thread.run_sync(peer.close)
-    run_s, frozen_s, gaps = frozen(arrivals)
-    assert len(arrivals) >= 0.9 * RATE * RUN_S, len(arrivals)  # the bystander was served
+    assert len(arrivals) >= 0.9 * RATE * run_s, len(arrivals)  # the bystander was served
+    return arrivals
+
+
+@pytest.mark.parametrize(
+    "attack",
+    [reconnecting, draining],
+    ids=["reconnect-every-budget", "catch-up-and-hold-again"],
+)
+async def test_a_reader_that_only_looks_alive_freezes_the_topic_for_one_budget_at_most(
+    harness: Harness, attack: Callable[[int, threading.Event, list[TcpPeer]], None]
+) -> None:
+    run_s, frozen_s, gaps = frozen(await bystander_arrivals(harness, attack, RUN_S))
     assert frozen_s < MAX_FROZEN_S, (frozen_s, run_s, gaps)
     first = next((n for n, gap in enumerate(gaps) if gap >= HOLD_BUDGET_S / 2), len(gaps))
     assert all(gap <= MAX_LATER_GAP_S for gap in gaps[first + 1 :]), gaps  # after the first hold
+
+
+async def test_four_readers_that_only_look_alive_are_judged_together(defaults: Harness) -> None:
+    run_s, frozen_s, gaps = frozen(await bystander_arrivals(defaults, four_trickling, FOUR_RUN_S))
+    # judged together, before a whole window is over: 4 s in gaps of 1 to 2 s before
+    assert frozen_s < MAX_FOUR_FROZEN_S, (frozen_s, run_s, gaps)
+    assert all(gap < INPUT_STALL_S for gap in gaps), gaps

@@ -2,11 +2,12 @@
 
 Each scenario of input backpressure (docs/limits.md, "Backpressure") as a
 table: a reader held for a subscriber that keeps up, reads too slowly or does
-not read at all; the hold budget shared by whatever a reader waits for and
-regained slowly; a slow host's cool-down across reconnections; and what the
-link gates are told to wait for. The consumer is a model (bytes taken at fixed
-times); the hold loop's decisions are the flow's (``Hold.wait_s``), as the pump
-takes them (``holding.wait_for``): wait for the next take or that long, charge the time.
+not read at all; subscribers that fell behind together judged together; the
+hold budget shared by whatever a reader waits for and regained slowly; a slow
+host's cool-down across reconnections; and what the link gates are told to wait
+for. The consumer is a model (bytes taken at fixed times); the hold loop's
+decisions are the flow's (``Hold.wait_s``), as the pump takes them
+(``holding.wait_for``): wait for the next take or that long, charge the time.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from rwt_transports.flow import (
     HoldAccount,
     HostCoolDowns,
     Outlet,
+    ReadingWindow,
     send_queue_shrank,
 )
 from rwt_transports.shares import HostPrefixes
@@ -61,7 +63,8 @@ def hold_for(
         return now
     while True:
         queued = peer.queued(now)
-        wait = hold.wait_s(now, queued > outlet.low_water, lambda: queued)  # noqa: B023
+        progress = (peer.backlog - queued, queued)
+        wait = hold.wait_s(now, queued > outlet.low_water, lambda: progress)  # noqa: B023
         if wait is None:
             break
         end = min(now + wait, peer.next_take(now))
@@ -116,6 +119,43 @@ def test_several_slow_subscribers_share_the_readers_one_budget() -> None:
         verdicts.append((round(now - start, 2), subscriber.is_slow(now)))
     # the first spends the whole budget; the others find it spent: not waited for, not judged
     assert verdicts == [(5.53, True), (0.0, False), (0.0, False), (0.0, False)]
+
+
+def behind(flow: FlowControl[Outlet], peer: str) -> tuple[Outlet, HoldAccount]:
+    """A connection whose outbox passed its ``watch_water`` at 0 s (the pump's ``_fell_behind``)."""
+    outlet, account = connection(flow, peer)
+    outlet.counts_taken = True  # a pump's: it counts what its peer took
+    outlet.window = ReadingWindow(0, outlet.watch_water, 0.0)
+    return outlet, account
+
+
+CONGESTED_AT = 0.7  # from the watch mark (1 MiB) to the high one (8 MiB) at 10 MB/s
+
+
+@pytest.mark.parametrize(
+    "peer",
+    [Consumer(12 * MiB, 32 * 1024), Consumer(12 * MiB, 0)],  # 64 KB every 0.5 s; stalled
+    ids=["only look alive", "stalled"],
+)
+def test_connections_that_fell_behind_together_are_judged_together(peer: Consumer) -> None:
+    flow: FlowControl[Outlet] = FlowControl(cool_downs=HostCoolDowns(HostPrefixes()))
+    _, publisher = connection(flow, "192.0.2.9:5000")
+    subscribers = [behind(flow, f"192.0.2.{n}:4000")[0] for n in range(1, 5)]
+    now = CONGESTED_AT
+    for subscriber in subscribers:  # waited for one after another, as the pump does
+        now = hold_for(flow, subscriber, publisher, peer, now)
+    # what was left of the first one's window; the others' ended with it
+    assert now == pytest.approx(INPUT_STALL_S)
+    assert all(subscriber.is_slow(now) for subscriber in subscribers)
+
+
+def test_a_viewer_that_fell_behind_is_waited_for_while_it_reads() -> None:
+    flow: FlowControl[Outlet] = FlowControl()
+    _, publisher = connection(flow, "192.0.2.9:5000")
+    viewer, _ = behind(flow, "192.0.2.1:4000")
+    viewer_peer = Consumer(12 * MiB, 225_000)  # three 300 KB frames a second
+    # judged reading at 1 s and on; waited for until the budget ran out (it would need 9 s)
+    assert hold_for(flow, viewer, publisher, viewer_peer, CONGESTED_AT) > CONGESTED_AT + 5.0
 
 
 @pytest.mark.parametrize(
@@ -185,9 +225,9 @@ def test_a_link_found_slow_is_waited_for_again_once_it_caught_up() -> None:
     outlet = link_outlet()
     hold = flow.hold(outlet, flow.links, 0.0)
     assert hold is not None
-    assert hold.next_wait(0.0, 2000) == INPUT_STALL_S
+    assert hold.next_wait(0.0, (-2000, 2000)) == INPUT_STALL_S  # (taken: the backlog's shrinking)
     hold.waited(0.0, INPUT_STALL_S)
-    assert hold.next_wait(INPUT_STALL_S, 2000) is None  # nothing taken in the window
+    assert hold.next_wait(INPUT_STALL_S, (-2000, 2000)) is None  # nothing taken in the window
     assert outlet.is_slow(1000.0)  # however long after
     outlet.took(caught_up=False)
     assert outlet.is_slow(1000.0)

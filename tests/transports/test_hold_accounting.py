@@ -2,8 +2,9 @@
 
 The hold budget is charged to the reader being held, whatever it waits for, and
 regained at ``HOLD_REFILL`` a second; a peer reads when it takes
-``READING_SHARE`` of its backlog per ``INPUT_STALL_S``; a host found slow is not
-waited for until its cool-down ends (docs/limits.md, input backpressure).
+``READING_SHARE`` of its backlog per ``INPUT_STALL_S`` since it fell behind; a
+host found slow is not waited for until its cool-down ends (docs/limits.md,
+input backpressure).
 """
 
 from __future__ import annotations
@@ -76,9 +77,26 @@ def test_a_zero_budget_never_holds() -> None:
     ],
 )
 def test_reading_is_a_useful_share_of_the_backlog(backlog: int, after: int, reading: bool) -> None:
-    window = ReadingWindow(backlog, 10.0)
+    window = ReadingWindow(0, backlog, 10.0)
     assert window.ends == 10.0 + INPUT_STALL_S
-    assert window.reading(after) is reading
+    assert window.reading(backlog - after, after, window.ends) is reading
+
+
+@pytest.mark.parametrize(
+    ("taken", "elapsed_s", "reading"),
+    [
+        # fell behind at 1 MiB; 12 MiB now: the share is of the 12 MiB
+        (128 * 1024, INPUT_STALL_S, False),  # 64 KB every 0.5 s
+        (900 * 1000, INPUT_STALL_S, True),  # a viewer at three 300 KB frames a second
+        (3 * 900 * 1000, 3 * INPUT_STALL_S, True),  # judged late: the same rate
+        (900 * 1000, 3 * INPUT_STALL_S, False),  # a third of it
+    ],
+)
+def test_a_window_started_when_the_peer_fell_behind_asks_the_rate_of_its_backlog_since(
+    taken: int, elapsed_s: float, reading: bool
+) -> None:
+    window = ReadingWindow(5 * MiB, 1 * MiB, 10.0)  # 5 MiB taken before
+    assert window.reading(5 * MiB + taken, 12 * MiB, 10.0 + elapsed_s) is reading
 
 
 @pytest.mark.parametrize(

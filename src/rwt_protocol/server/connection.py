@@ -110,6 +110,9 @@ class SessionBase:
         timeout = config.idle_timeout_s
         self._idle = IdleWatch(self, timeout) if timeout else None
         self._on_output = on_output
+        self.wake_above_bytes = self._outbox.high_water_bytes
+        """Fill past which each output wakes the transport (``ServerSession``): the
+        high watermark, or lower while the transport watches for the peer to fall behind."""
         self._on_closed = on_closed
         self._state = State.AUTHENTICATING if authenticating else State.OPEN
         self._sends = True  # ``_state.sends``, kept by ``_move`` for the per-message paths
@@ -487,7 +490,7 @@ class SessionBase:
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
         outbox.extend(frames, self._now, lifespan, topic or "")
         self._watch.after_push(dropped, oversized, self._now, frames, topic)
-        if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
+        if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure
         self.sweep_memory()
 

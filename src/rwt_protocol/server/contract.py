@@ -67,6 +67,11 @@ class ServerSession(Protocol):
     """Called when a timer was set (``get_timer`` may say an earlier time); set by the
     pump. None: output's wake-up (``on_output``) is called instead."""
 
+    wake_above_bytes: int
+    """Fill (``fill_bytes``) past which every output calls ``on_output``, not only one
+    to an empty outbox: the high watermark, or lower while the pump waits to see the
+    peer fall behind (flow.py, ``WATCH_SHARE``). A protocol may wake more often."""
+
     def start(self, now: float) -> None:
         """The transport serves the connection from ``now`` (monotonic seconds)."""
 

@@ -603,7 +603,7 @@ class Session(SessionBase):
         outbox.settle()  # the memory budget, once for the run (D44)
         if outbox.dropped != dropped or outbox.held_bytes:
             self._watch.after_push(dropped, oversized, self._now, (), spelling)
-        if was_empty or outbox.fill_bytes > outbox.high_water_bytes:
+        if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()
         self.sweep_memory()
 
@@ -656,7 +656,7 @@ class Session(SessionBase):
             excess = memory.excess(self._outbox.limit_bytes)
             if excess:
                 self.make_room(excess, self._now)
-        if self.fill_bytes > self._outbox.high_water_bytes:
+        if self.fill_bytes > self.wake_above_bytes:
             self._wake()  # the transport holds the publisher (input backpressure)
         self.sweep_memory()
 
