@@ -227,6 +227,7 @@ def _server_config(
         stdio=listeners.stdio,
         max_message_size=limits.max_message_size,
         max_fragment_memory=limits.max_fragment_memory,
+        memory_budget=limits.memory_budget,
         max_connections=limits.max_connections,
         max_connections_per_host=limits.max_connections_per_host,
         host_prefix_v4=limits.host_prefix_v4,

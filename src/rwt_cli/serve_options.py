@@ -19,6 +19,7 @@ from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.compat import Compat
+from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
 from rwt_transports.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
@@ -295,6 +296,15 @@ class Limits:
             " all connections hold together.",
         ),
     ] = 256 * MIB
+    memory_budget: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Bytes all connections may make the server hold together: outboxes,"
+            " asset files, png messages waiting, incomplete messages, WebRTC input"
+            " (docs/limits.md).",
+        ),
+    ] = DEFAULT_MEMORY_BUDGET
     fragment_timeout: Annotated[
         float, typer.Option(min=0.001, help="Seconds without a new fragment before dropping.")
     ] = 600.0

@@ -37,7 +37,7 @@ from rwt_graph.feed import EntityKind
 from rwt_graph.types.registry import codec_for
 from rwt_graph.visibility import Visibility
 from rwt_protocol.codecs.json import decode_json_text
-from rwt_protocol.errors import RwtError
+from rwt_protocol.errors import RemoteProtocolError, RwtError
 from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.server.access import Family
@@ -96,6 +96,7 @@ if TYPE_CHECKING:
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
     from rwt_protocol.server.contract import Job
+    from rwt_protocol.server.memory import MemoryBudget
     from rwt_protocol.server.timers import Timer
 
     from .assetrequests import AssetReader
@@ -214,6 +215,7 @@ class _TopicSink:
                     push(frame)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
+        outbox.settle()  # the memory budget, once for the run (D44)
         if outbox.dropped != dropped or outbox._held_frames:  # the slow-consumer rule
             session._now = max(session._now, events[-1].now)
             sent = () if frame is None else (frame,)
@@ -221,6 +223,7 @@ class _TopicSink:
         on_output = session._on_output  # (``_wake``, a call less per message and client)
         if on_output is not None:
             on_output()
+        session.sweep_memory()
 
 
 class FoxgloveSession(SessionBase):
@@ -249,6 +252,9 @@ class FoxgloveSession(SessionBase):
             counts, the TF republisher) and their nodes (``Visibility.plumbing``;
             ``rwt serve --foxglove-show-plumbing``); other connections' entities
             and nodes show either way (D47).
+        memory: the server's memory budget (``--memory-budget``, D44) the client's
+            queue and asset files are charged to; while it is full, asset
+            requests are refused. None: its own bounds alone.
     """
 
     protocol = "foxglove"
@@ -268,6 +274,7 @@ class FoxgloveSession(SessionBase):
         params: Parameters | None = None,
         assets: AssetReader | None = None,
         show_plumbing: bool = False,
+        memory: MemoryBudget | None = None,
     ) -> None:
         config = config or SessionConfig()
         self.limits = limits or FoxgloveLimits()
@@ -279,6 +286,7 @@ class FoxgloveSession(SessionBase):
             peer=peer,
             on_closed=on_closed,
             max_messages=self.limits.max_queue_messages,
+            memory=memory,
         )
         self._graph: GraphFront = graph
         self._access = config.access
@@ -632,13 +640,22 @@ class FoxgloveSession(SessionBase):
         self._read_next_asset()
 
     def _read_next_asset(self) -> None:
-        """Leave the oldest waiting request to a background job, one file at a time."""
+        """Leave the oldest waiting request to a background job, one file at a time.
+
+        While the server's memory budget is full (D44) the requests are answered
+        with its refusal instead, without reading their files.
+        """
         if self._assets is None or self._reader is None or not self._state.sends:
             return
-        request = self._assets.next()
-        if request is not None:
-            self._assets.reading = True
-            self.add_job(AssetJob(self._reader, request), background=True)
+        memory = self._memory
+        while (request := self._assets.next()) is not None:
+            if memory is None or not memory.budget.pressed:
+                self._assets.reading = True
+                self.add_job(AssetJob(self._reader, request), background=True)
+                return
+            error = memory.budget.refusal(request.uri)
+            self.answer(encode_fetch_asset_response(request.requestId, None, error), binary=True)
+        self.sweep_memory()
 
     def finish_job(self, job: Job, result: object, now: float) -> None:
         """Queue the response to an asset job: its file, or the reason it has none."""
@@ -648,6 +665,9 @@ class FoxgloveSession(SessionBase):
         if not self._state.sends:
             return
         request_id = job.request.requestId
+        memory = self._memory
+        if isinstance(result, bytes) and memory is not None and not memory.budget.fits(len(result)):
+            result = RemoteProtocolError(memory.budget.refusal(job.request.uri))  # D44
         if isinstance(result, bytes):  # the header apart: the file's bytes are not copied
             header = encode_fetch_asset_response(request_id, b"")
             frame = OutFrame(result, True, False, _ASSET, None, header)

@@ -98,6 +98,7 @@ def foxglove_frontend(
             params=params,
             assets=assets,
             show_plumbing=options.show_plumbing,
+            memory=request.memory,
         )
 
     return FrontEnd("foxglove", SUBPROTOCOLS, make_session, AuthMode.URL_TOKEN)

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.ports import GraphPort
     from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.server.memory import MemoryBudget
     from rwt_protocol.server.session import SessionConfig
 
 __all__ = ["AuthMode", "FrontEnd", "FrontEnds", "SessionRequest"]
@@ -50,6 +51,7 @@ class SessionRequest:
         fragment_budget: the server-wide budget of incomplete messages.
         auth_nonce: the connection's auth challenge when the transport sent it.
         authenticated: the transport admitted the client already (a URL token).
+        memory: the server's memory budget every session is charged to (D44).
     """
 
     graph: GraphPort
@@ -62,6 +64,7 @@ class SessionRequest:
     fragment_budget: FragmentBudget | None = None
     auth_nonce: str | None = None
     authenticated: bool = False
+    memory: MemoryBudget | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -113,6 +113,10 @@ INFLATE_THREADS = 1
 """Worker threads inflating ``png`` ops at once, over all connections of an event loop:
 what a flood of them can take from the loop (Pillow holds the GIL in parts of it)."""
 
+UNWRITTEN_POLL_S = 0.01
+"""First wait before the writer asks again whether the transport wrote what a direct
+send left in it (``ConnectionPump._until_written``); it doubles up to 1 s."""
+
 BACKGROUND_THREADS = 2
 """Worker threads running background jobs (asset files read, ``png`` messages
 deflated) at once, over all connections of an event loop."""
@@ -312,6 +316,7 @@ class ConnectionPump(Held):
         self._slice_frames = 0  # frames and bytes handled since the reader last yielded
         self._slice_bytes = 0
         self._job_wait: anyio.Event | None = None  # set when the session starts closing
+        self._unwritten = False  # a direct send left bytes in the transport (``_until_written``)
 
     def wake(self) -> None:
         """The session has output (frames or commands; timers come to ``_wake_timers``)."""
@@ -359,18 +364,21 @@ class ConnectionPump(Held):
             self.window = ReadingWindow(*self.progress(), anyio.current_time())
         session.wake_above_bytes = self.high_water
 
-    def _took(self) -> None:
+    def _took(self, *, sent: bool = True) -> None:
         """The transport took frames: the peer makes progress; wake readers waiting on it.
 
         Having taken everything queued, the peer caught up (a slow one stays
         slow until its cool-down ends: ``flow.FlowControl.found_slow``); back at
         its ``watch_water``, it is no longer behind: its reading window ends, and
-        the session wakes this pump at the next output past the mark.
+        the session wakes this pump at the next output past the mark. ``sent``:
+        the transport wrote them, so they are no longer held (D44).
         """
         session = self._session
         if session is None:
             self.note_take(True)
             return
+        if sent:
+            session.frames_sent()
         watch = self.watch_water
         if session.fill_bytes <= watch and (
             self.window is not None or session.wake_above_bytes != watch
@@ -418,6 +426,9 @@ class ConnectionPump(Held):
 
         Called only while the writer is idle. Returns True when nothing is left
         for the writer: every frame went to the transport and no close is pending.
+        What the transport could not write at once still counts as held (the
+        memory budget, D44): the writer waits until it is written
+        (``_until_written``).
         """
         session = self._session
         channel = self._direct
@@ -437,7 +448,11 @@ class ConnectionPump(Held):
             except Exception:  # a publish must never fail for another peer's socket
                 logger.debug("event=direct_send_failed client=%s", session.client_id)
                 return False  # the writer finds the broken stream and ends the connection
-            self._took()
+            written = channel.can_send_now()  # the transport kept none of it
+            self._took(sent=written)
+            if not written:
+                self._unwritten = True
+                return False
         return session.queued_bytes == 0
 
     def _wake_timers(self) -> None:
@@ -688,9 +703,9 @@ class ConnectionPump(Held):
         return self.channel.unsent_bytes() if self._queueing else None
 
     def backlog_bytes(self) -> int:
-        """What the peer has yet to read: its outbox and the socket's send queue."""
+        """What the peer has yet to read: its outbox, what is made for it, the send queue."""
         session = self._session
-        queued = 0 if session is None else session.queued_bytes
+        queued = 0 if session is None else session.queued_bytes + session.pending_bytes
         return queued + (self.unsent_bytes() or 0)
 
     def progress(self) -> tuple[int, int]:
@@ -719,12 +734,16 @@ class ConnectionPump(Held):
                 if frames:
                     self._sent += queued - session.queued_bytes
                     await self.channel.send(frames)
+                    self._unwritten = False  # (its send waited for what came before too)
                     self._took()
                     continue
                 for command in session.commands_to_run():
                     if isinstance(command, CloseConnection):
                         await self._close(command, scope)
                         return
+                if self._unwritten:
+                    await self._until_written(session)
+                    continue
                 self._writer_idle = True
                 try:
                     await self._writer_wake.wait()
@@ -733,6 +752,23 @@ class ConnectionPump(Held):
         except _BROKEN:
             self.close_reason = "connection broken while sending"
             scope.cancel()
+
+    async def _until_written(self, session: ServerSession) -> None:
+        """Wait until the transport wrote what a direct send left in it, or output comes.
+
+        Till then it is held and counted (the memory budget, D44). The transport
+        tells only whether it is empty: it is asked every ``UNWRITTEN_POLL_S``,
+        doubling up to 1 s; new output or a close wakes the writer at once.
+        """
+        channel, delay = self._direct, UNWRITTEN_POLL_S
+        while channel is not None and not channel.can_send_now():
+            with anyio.move_on_after(delay):
+                await self._writer_wake.wait()
+            if self._writer_wake.is_set():
+                return  # the writer takes the new output; its send waits for the rest
+            delay = min(2 * delay, 1.0)
+        self._unwritten = False
+        session.frames_sent()
 
     async def _close(self, command: CloseConnection, scope: anyio.CancelScope) -> None:
         if not self._reader_done.is_set():

@@ -57,6 +57,7 @@ from rwt_graph.visibility import Visibility
 from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
+from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
@@ -150,6 +151,13 @@ class ServerConfig:
             error status and its message dropped, a frame skipped (TCP) or its
             connection closed (WebSocket, 1013)
             (``rwt_protocol.framing.fragments.FragmentBudget``, docs/limits.md).
+        memory_budget: bytes every connection together may make the server hold
+            (``--memory-budget``, D44): outboxes (topic messages, replies, asset
+            files), png messages waiting to be deflated, incomplete messages (within
+            ``max_fragment_memory``) and WebRTC input not read yet. While it is full,
+            clients that do not read lose their oldest topic messages and are closed
+            as slow consumers, and what would grow it is refused
+            (``rwt_protocol.server.memory.MemoryBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake, and an MCP session holds
@@ -216,6 +224,7 @@ class ServerConfig:
     stdio_fds: tuple[int, int] | None = None
     max_message_size: int = 10 * MiB
     max_fragment_memory: int = 256 * MiB
+    memory_budget: int = DEFAULT_MEMORY_BUDGET
     max_connections: int | None = None
     max_connections_per_host: int = 64
     host_prefix_v4: int = DEFAULT_PREFIX_V4
@@ -361,7 +370,10 @@ class RosbridgeServer:
         self.console, self.config = self._console_site()
         # a link's queue for the other middleware holds publishers back as a subscriber does
         self.graph.port.outflow = OutboundHold(self.flow)
-        self.fragment_budget = FragmentBudget(self.config.max_fragment_memory)
+        # one budget for what every connection makes the server hold (D44); incomplete
+        # messages draw from it within their own
+        self.memory = MemoryBudget(self.config.memory_budget)
+        self.fragment_budget = FragmentBudget(self.config.max_fragment_memory, self.memory)
         # the protocols of the WebSocket listeners: rosbridge by default, Foxglove by
         # subprotocol (on the rosbridge port unless --no-foxglove, and on its own port)
         rosbridge = FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
@@ -897,6 +909,7 @@ class RosbridgeServer:
             self.fragment_budget,
             auth_nonce,
             authenticated,
+            self.memory,
         )
         session = (frontend or self.frontends.default or self._rosbridge).make_session(request)
         self.sessions[client_id] = session
@@ -1038,6 +1051,7 @@ class RosbridgeServer:
             fragment_budget=request.fragment_budget,
             auth_nonce=request.auth_nonce,
             authenticated=request.authenticated,
+            memory=request.memory,
         )
 
     def _session_closed(self, client_id: str) -> None:

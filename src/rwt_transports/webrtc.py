@@ -10,7 +10,9 @@ the server's (pump.py); this module only moves frames:
   SCTP holds for the session (``held_below``, webrtc_sctp.py), are bounded by
   ``INBOX_LIMIT_BYTES``; past it the peer is disconnected. A message above
   ``--max-message-size`` is skipped with an error status, as UDP does (webrtc_sctp.py
-  abandons it as it arrives).
+  abandons it as it arrives). What waits for the session is charged to the
+  server's memory budget (``--memory-budget``, D44) as the connection's, never
+  refused by it: it is a reader's input.
 - out: a JSON frame above ``MAX_TEXT_FRAME_BYTES`` (64 KiB, the size every
   peer accepts, RFC 8841 6.1) goes out as ``fragment`` ops (spec 3.1.1, D19),
   which the client reassembles. A CBOR frame cannot be cut so: it goes whole if
@@ -59,6 +61,7 @@ if TYPE_CHECKING:
 
     from rwt_protocol.server.commands import CloseCode
     from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.server.memory import MemoryAccount
     from rwt_protocol.server.outbox import OutFrame
 
 __all__ = [
@@ -107,16 +110,23 @@ class DataChannelChannel(PlainChannel):
         max_message_size: the largest incoming message, bytes (``--max-message-size``).
         remote_max_message_size: the largest message the peer accepts, bytes (its
             SDP's ``a=max-message-size``; 0: any size).
+        memory: the session's account of the server's memory budget (D44), charged
+            with the messages not read yet; None: not charged.
     """
 
     transport = "webrtc"
     awaits_peer_close = False
 
     def __init__(
-        self, channel: RTCDataChannel | None, max_message_size: int, remote_max_message_size: int
+        self,
+        channel: RTCDataChannel | None,
+        max_message_size: int,
+        remote_max_message_size: int,
+        memory: MemoryAccount | None = None,
     ) -> None:
         self.max_message_size = max_message_size
         self.remote_max_message_size = remote_max_message_size
+        self._memory = memory
         self._inbox: deque[FramerEvent] = deque()
         self._inbox_bytes = 0
         self._arrived = anyio.Event()
@@ -193,6 +203,8 @@ class DataChannelChannel(PlainChannel):
             return
         self._inbox.append(LossyInFrame(data, binary) if lossy else InFrame(data, binary))
         self._inbox_bytes += len(data)
+        if self._memory is not None:
+            self._memory.charge(len(data))
         if self._inbox_bytes + self.held_below() > INBOX_LIMIT_BYTES:
             self.overflow()
         self._arrived.set()
@@ -227,7 +239,7 @@ class DataChannelChannel(PlainChannel):
         )
         self.overflowed = True
         self._inbox.clear()
-        self._inbox_bytes = 0
+        self._inbox_read()
         self._on_close()
         self._close_all()
 
@@ -254,8 +266,14 @@ class DataChannelChannel(PlainChannel):
             await self._arrived.wait()
         events = list(self._inbox)
         self._inbox.clear()
-        self._inbox_bytes = 0
+        self._inbox_read()
         return events
+
+    def _inbox_read(self) -> None:
+        """The inbox was emptied: its bytes are no longer held (nor charged)."""
+        if self._memory is not None:
+            self._memory.charge(-self._inbox_bytes)
+        self._inbox_bytes = 0
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send the frames in order, waiting while the channel's buffer is full.

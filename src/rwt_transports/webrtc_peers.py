@@ -273,7 +273,7 @@ class WebRtcPeers:
             return Answer(503, "too many connections")
         pc = RTCPeerConnection(self._configuration())
         remote_max = remote_max_message_size(sdp)
-        dc = DataChannelChannel(None, self.max_message_size, remote_max)
+        dc = DataChannelChannel(None, self.max_message_size, remote_max, session.memory)
         item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc, video=video)
         holder.append(item)
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))

@@ -485,10 +485,13 @@ def connect(role: str) -> dict:
     return {"op": "connect", "conn": role}
 
 
-def subscribe(role: str, topic: str, msg_type: str | None) -> dict:
+def subscribe(role: str, topic: str, msg_type: str | None, compression: str | None = None) -> dict:
+    """Subscribe `role` to `topic`; `compression` ("png", "cbor") as its Topic sends it."""
     step = {"op": "subscribe", "conn": role, "topic": topic}
     if msg_type is not None:
         step["type"] = msg_type
+    if compression is not None:
+        step["compression"] = compression
     return step
 
 

@@ -8,6 +8,7 @@ format (see client_harness.py, which writes the files and reads the output):
     {"timeout_ms": 30000, "step_timeout_ms": 10000, "steps": [
         {"op": "connect", "conn": "sub"},
         {"op": "subscribe", "conn": "sub", "topic": "/chatter", "type": "std_msgs/String"},
+        {"op": "subscribe", "conn": "sub", "topic": "/image", "compression": "png"},
         {"op": "sync", "conn": "sub"},
         {"op": "signal", "name": "ready"},
         {"op": "await"},
@@ -238,12 +239,17 @@ class Driver:
         return self.conns[name]
 
     def topic(
-        self, conn: Conn, name: str, msg_type: str | None, typeless: bool = False
+        self,
+        conn: Conn,
+        name: str,
+        msg_type: str | None,
+        typeless: bool = False,
+        compression: str | None = None,
     ) -> roslibpy.Topic:
         if name not in conn.topics:
             if msg_type is None and not typeless:
                 _die(2, f"step {self.current}: topic {name} needs a type on first use")
-            conn.topics[name] = roslibpy.Topic(conn.ros, name, msg_type)
+            conn.topics[name] = roslibpy.Topic(conn.ros, name, msg_type, compression=compression)
         return conn.topics[name]
 
     def do_connect(self, step: dict) -> None:
@@ -280,7 +286,9 @@ class Driver:
 
         # A subscribe step may leave the type out (the server knows the topic):
         # roslibpy then sends "type": null.
-        self.topic(conn, name, step.get("type"), typeless=True).subscribe(on_message)
+        # "compression" goes with the subscribe (roslibpy decodes cbor, not png ops).
+        topic = self.topic(conn, name, step.get("type"), True, step.get("compression"))
+        topic.subscribe(on_message)
 
     def do_unsubscribe(self, step: dict) -> None:
         conn = self.conn(step)

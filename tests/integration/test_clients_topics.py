@@ -128,6 +128,36 @@ def test_string_and_twist_arrive_exact(rwt_server, tmp_path, pub_client, sub_cli
     assert_no_error_status(out)
 
 
+# --------------------------------------------------------------------------- png
+@pytest.mark.node
+@pytest.mark.parametrize("count", [12, 1000])
+def test_png_subscriber_that_reads_gets_every_message_in_order(rwt_server, tmp_path, count):
+    """roslib publishing a burst back to back to a roslib `compression: "png"` subscriber.
+
+    The subscriber reads all the while, so it gets every message, in order, as on
+    rosbridge_suite (D20, D24: only a subscriber that does not read loses messages;
+    docs/limits.md, png). It once got 4 of 12: at most 4 could wait for deflating.
+    """
+    topic = f"/png_burst_{count}"
+    msgs = [{"data": f"message {i}"} for i in range(count)]
+    phases = [
+        ("sub", [connect("sub"), subscribe("sub", topic, "std_msgs/String", "png"), sync("sub")]),
+        (
+            "pub",
+            [
+                connect("pub"),
+                advertise("pub", topic, "std_msgs/String"),
+                publish("pub", topic, *msgs),
+                sync("pub"),
+            ],
+        ),
+        ("sub", [wait("sub", topic, count), quiet(200)]),
+    ]
+    out = run_scenario(rwt_server.url, phases, {"pub": JS, "sub": JS}, tmp_path)
+    assert out.got("sub", topic) == msgs
+    assert_no_error_status(out)
+
+
 # --------------------------------------------------------------------------- images
 WIDTH, HEIGHT = 640, 480
 

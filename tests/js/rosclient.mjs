@@ -140,10 +140,10 @@ function conn(step) {
   return c;
 }
 
-function topic(c, name, type, typeless = false) {
+function topic(c, name, type, typeless = false, compression = undefined) {
   if (!c.topics.has(name)) {
     if (!type && !typeless) throw new Error(`topic ${name} needs a type on first use`);
-    c.topics.set(name, new ROSLIB.Topic({ ros: c.ros, name, messageType: type }));
+    c.topics.set(name, new ROSLIB.Topic({ ros: c.ros, name, messageType: type, compression }));
   }
   return c.topics.get(name);
 }
@@ -216,7 +216,10 @@ const steps = {
     }
     // A subscribe step may leave the type out (the server knows the topic):
     // roslib then sends no "type" at all.
-    topic(c, name, step.type, true).subscribe((msg) => record(c.received, name, msg));
+    // "compression" ("png", "cbor") is roslib's Topic option, sent with the subscribe.
+    topic(c, name, step.type, true, step.compression).subscribe((msg) =>
+      record(c.received, name, msg),
+    );
   },
 
   async unsubscribe(step) {

@@ -24,8 +24,8 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import ServiceResponse
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.ports import MessageEvent
-from rwt_protocol.server import encoding, pngout
-from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.server import encoding
+from rwt_protocol.server.outbox import FRAME_OVERHEAD_BYTES, Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 from tests.conftest import FakeClock, Peer
 
@@ -222,29 +222,69 @@ def test_png_above_the_fragment_size_is_split_into_png_parts(graph: Graph, pub: 
     assert reassemble(frames) == [{"op": "publish", "topic": "/c", "msg": {"data": "x" * 500}}]
 
 
-def test_png_is_deflated_off_the_loop_in_order_and_a_backlog_loses_its_oldest(
+def test_png_is_deflated_off_the_loop_in_order_and_a_backlog_keeps_every_message(
     graph: Graph, pub: Peer
 ) -> None:
     """With a transport that runs jobs, a png message is a background job (pngout):
-    each subscription's messages in order, at most MAX_PNG_WAITING of a topic waiting."""
+    a subscriber's messages in order, however many wait within its send buffer limit."""
     sub = Peer(graph, "sub")
     sub.session.run_jobs()  # as the connection runtime does
     sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="png")
-    for n in range(10):  # faster than the worker takes them
+    for n in range(100):  # faster than the worker takes them
         pub.send(op="publish", topic="/c", msg={"data": str(n)})
     assert sub.session.frames_to_send() == []  # nothing deflated on the loop
+    assert sub.session.pending_bytes >= 100 * pngout_cost("0")
     while (job := sub.session.take_background_job()) is not None:
         sub.session.finish_job(job, job.run(), 0.0)
     texts = [json.loads(decode_png(str(f["data"]), max_bytes=1 << 20)) for f in decoded(sub)]
-    waiting = pngout.MAX_PNG_WAITING
-    assert [t["msg"]["data"] for t in texts] == [str(n) for n in range(10 - waiting, 10)]
-    assert sub.session.dropped_frames == 10 - waiting
+    assert [t["msg"]["data"] for t in texts] == [str(n) for n in range(100)]
+    assert sub.session.dropped_frames == 0 and sub.session.pending_bytes == 0
     pub.send(op="publish", topic="/c", msg={"data": "late"})
     job = sub.session.take_background_job()
     assert job is not None
     sub.send(op="unsubscribe", topic="/c")  # gone while its message was deflated
     sub.session.finish_job(job, job.run(), 0.0)
     assert decoded(sub) == []
+
+
+def pngout_cost(data: str) -> int:
+    """What a waiting png message of ``/c`` with ``data`` is charged (pngout)."""
+    text = json.dumps({"op": "publish", "topic": "/c", "msg": {"data": data}})
+    return len(text.replace(" ", "")) + FRAME_OVERHEAD_BYTES
+
+
+def test_png_backlog_past_the_send_buffer_limit_loses_its_oldest(graph: Graph, pub: Peer) -> None:
+    """The waiting png messages count with the outbox: past --send-buffer-limit the oldest
+    topic messages go (D24), queued ones first, and the peer is told once."""
+    limit = 20 * pngout_cost("00")
+    session = Session(
+        graph.port,
+        "sub",
+        config=SessionConfig(send_buffer_limit=limit, status_level=StatusLevel.WARNING),
+    )
+    session.run_jobs()
+    session.receive_frame(
+        json.dumps(
+            {"op": "subscribe", "topic": "/c", "type": "std_msgs/String", "compression": "png"}
+        ),
+        0.0,
+    )
+    for n in range(50):
+        pub.send(op="publish", topic="/c", msg={"data": f"{n:02}"})
+    assert session.queued_bytes + session.pending_bytes <= limit
+    while (job := session.take_background_job()) is not None:
+        session.finish_job(job, job.run(), 0.0)
+    frames = [json.loads(f.data) for f in session.frames_to_send()]
+    texts = [
+        json.loads(decode_png(str(f["data"]), max_bytes=1 << 20))
+        for f in frames
+        if f["op"] == "png"
+    ]
+    got = [t["msg"]["data"] for t in texts]
+    assert got == [f"{n:02}" for n in range(50 - len(got), 50)] and 10 < len(got) <= 20
+    assert session.dropped_frames == 50 - len(got)
+    warnings = [f["msg"] for f in frames if f["op"] == "status"]
+    assert len(warnings) == 1 and "dropping the oldest topic messages" in warnings[0]
 
 
 def test_json_above_the_fragment_size_is_fragmented_with_fresh_ids(graph: Graph, pub: Peer) -> None:

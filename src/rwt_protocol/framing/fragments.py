@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import Protocol
 
 from ..codecs.json import encode_op
 from ..errors import ConfigError, RemoteProtocolError
@@ -29,6 +30,7 @@ __all__ = [
     "FragmentBudget",
     "PartKind",
     "Reassembler",
+    "SharedBudget",
     "fragment_frames",
     "fresh_id",
     "held_size",
@@ -114,6 +116,16 @@ class PartKind(StrEnum):
     PNG = "png"
 
 
+class SharedBudget(Protocol):
+    """A wider budget a ``FragmentBudget`` is counted in too (the server's memory budget, D44)."""
+
+    def hold(self, cost: int) -> None:
+        """Count ``cost`` bytes more (never refused: the sender's own bounds apply)."""
+
+    def release(self, cost: int) -> None:
+        """Count ``cost`` bytes fewer."""
+
+
 class FragmentBudget:
     """The bytes of incomplete messages every connection of a server may hold together.
 
@@ -121,17 +133,21 @@ class FragmentBudget:
     thousands of connections could hold thousands of times that; they all draw
     from this one budget (``--max-fragment-memory``, docs/limits.md), and a part
     that would take it past ``limit`` is refused. Frames still arriving on TCP and
-    WebSocket connections draw from it too (``BudgetCharge``).
+    WebSocket connections draw from it too (``BudgetCharge``). What it holds is
+    counted in ``parent`` as well, the server's memory budget (D44), which never
+    refuses it: a sender's input is bounded by this budget and its own limits.
 
     Args:
         limit: bytes (``held_size`` plus ``FRAGMENT_OVERHEAD`` a part) held at once,
             over all connections.
+        parent: the wider budget; None: this one alone.
     """
 
-    __slots__ = ("limit", "used")
+    __slots__ = ("limit", "parent", "used")
 
-    def __init__(self, limit: int) -> None:
+    def __init__(self, limit: int, parent: SharedBudget | None = None) -> None:
         self.limit = limit
+        self.parent = parent
         self.used = 0
 
     def take(self, cost: int) -> bool:
@@ -139,11 +155,15 @@ class FragmentBudget:
         if self.used + cost > self.limit:
             return False
         self.used += cost
+        if self.parent is not None:
+            self.parent.hold(cost)
         return True
 
     def give(self, cost: int) -> None:
         """Return ``cost`` bytes charged before."""
         self.used -= cost
+        if self.parent is not None:
+            self.parent.release(cost)
 
     def refusal(self, what: str) -> str:
         """The status text for ``what`` (``message 'ID'``, ``frame``) refused by this budget."""

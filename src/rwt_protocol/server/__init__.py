@@ -16,7 +16,8 @@ protocol's session shares (the contract the connection runtime drives is
   ``outbox`` (the bounded queue of outgoing frames), ``lossy`` (the latest
   message of each topic subscribed on a transport's lossy channel, D36),
   ``backpressure`` (slow consumers), ``inflate`` (the png inflation budget),
-  ``pngout`` (png messages deflated off the event loop);
+  ``pngout`` (png messages deflated off the event loop), ``memory`` (the
+  server-wide memory budget every connection is charged to, D44);
 - ``timers``, ``idle`` (closing silent connections), ``commands`` (what the
   session asks its transport to do).
 """

@@ -18,6 +18,13 @@ every such message to a peer that falls behind), and told again only after a
 message over the limit went out to it since; the server logs
 ``event=oversized_dropped`` once per connection (then at debug level). Such a
 drop also starts an episode, so a peer that reads nothing is still closed.
+
+The server's memory budget (``memory``, D44) applies the same rule to every
+connection while it is full: drops it makes start an episode as above (the
+warning then names ``--memory-budget``), and a connection holding more than
+``memory.PRESSURE_FLOOR_BYTES`` that takes nothing for ``send_timeout_s`` is
+closed (``memory_pressed``), whatever it holds: a client that does not read
+cannot keep its replies or an asset file in a full server's memory.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from typing import TYPE_CHECKING
 
 from ..levels import StatusLevel
 from .commands import CloseCode
+from .memory import MEMORY_BUDGET_OPTION
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -60,6 +68,8 @@ class SlowConsumerWatch:
         self._told_oversized = False  # until a message over the limit goes out again
         self._logged_oversized = False
         self._held = False  # a message over the limit was held when last seen
+        self._memory_drops = 0  # ``Outbox.dropped_memory`` when last seen
+        self._for_memory = False  # the running timer is the memory budget's
 
     def after_push(
         self,
@@ -90,23 +100,47 @@ class SlowConsumerWatch:
             return
         session = self.session
         if self._timer is None:
-            self._timer = session.call_at(
-                now + session.config.send_timeout_s, self._check(self.takes)
-            )
+            self._start_timer(now)
         if not slow or self._told_slow:
             return
         self._told_slow = True
+        for_memory = outbox.dropped_memory != self._memory_drops
+        self._memory_drops = outbox.dropped_memory
         logger.warning(
-            "event=slow_consumer client=%s protocol=%s limit_bytes=%d dropped_total=%d",
+            "event=slow_consumer client=%s protocol=%s limit_bytes=%d dropped_total=%d%s",
             session.client_id,
             session.protocol,
             outbox.limit_bytes,
             dropped_before,
+            " reason=memory_budget" if for_memory else "",
+        )
+        bound = (
+            self._bound_text() if for_memory else f"send buffer limit {outbox.limit_bytes} bytes"
         )
         session.warn_dropping(
             f"dropping the oldest topic messages: this connection reads slower than they "
-            f"arrive (send buffer limit {outbox.limit_bytes} bytes)"
+            f"arrive ({bound})"
         )
+
+    def memory_pressed(self, now: float) -> None:
+        """The server's memory budget is full and this connection holds much (D44).
+
+        Unless a check runs already, it is closed if it takes nothing for
+        ``send_timeout_s`` from ``now`` (monotonic seconds).
+        """
+        if self._timer is None:
+            self._start_timer(now, for_memory=True)
+
+    def _start_timer(self, now: float, *, for_memory: bool = False) -> None:
+        session = self.session
+        self._for_memory = for_memory
+        self._timer = session.call_at(now + session.config.send_timeout_s, self._check(self.takes))
+
+    def _bound_text(self) -> str:
+        """The memory budget's words for a peer: the budget full, and its option."""
+        account = self.outbox.account
+        limit = 0 if account is None else account.budget.limit
+        return f"the server's memory budget is full, {MEMORY_BUDGET_OPTION} {limit} bytes"
 
     def after_take(self) -> None:
         """The transport took frames: progress; the episode ends once it caught up."""
@@ -151,16 +185,25 @@ class SlowConsumerWatch:
         def check(now: float) -> None:
             session = self.session
             if self.takes != takes:  # still full, but the peer is reading: look again later
-                self._timer = session.call_at(
-                    now + session.config.send_timeout_s, self._check(self.takes)
-                )
+                if self._for_memory:  # the budget's next sweep looks again if need be
+                    self._timer = None
+                    return
+                self._start_timer(now)
                 return
             self._timer = None
-            session.request_close(
-                CloseCode.POLICY_VIOLATION,
-                f"slow consumer: send buffer over {self.outbox.limit_bytes} bytes "
-                f"for {session.config.send_timeout_s:g} s",
-                abort=True,
-            )
+            timeout = session.config.send_timeout_s
+            if self._for_memory:
+                account = self.outbox.account
+                held = self.outbox.queued_bytes if account is None else account.held
+                reason = (
+                    f"slow consumer: {held} bytes unread for {timeout:g} s "
+                    f"while {self._bound_text()}"
+                )
+            else:
+                reason = (
+                    f"slow consumer: send buffer over {self.outbox.limit_bytes} bytes "
+                    f"for {timeout:g} s"
+                )
+            session.request_close(CloseCode.POLICY_VIOLATION, reason, abort=True)
 
         return check

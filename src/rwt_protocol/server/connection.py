@@ -7,12 +7,15 @@ them), the slow-consumer watch (``backpressure.SlowConsumerWatch``: the first
 drop of an episode told, a peer that stays over its limit without reading
 closed after ``send_timeout_s``, undroppable frames past the limit close it
 too), the timers, the idle timeout (``idle.IdleWatch``), jobs the transport runs
-off the event loop, containment of a bug in a handler, and one log line per
-kind of trouble. rosbridge's ``session.Session`` and the Foxglove protocol's
-session are subclasses: each adds its ops and says how its peer is told of a
-problem (``report``), what it holds (``holds_anything``) and what it releases
-(``release``). Limits come from one ``SessionConfig`` (docs/limits.md,
-"Per connection"), whichever protocol the client speaks.
+off the event loop, containment of a bug in a handler, one log line per
+kind of trouble, and the connection's account of the server's memory budget
+(``memory.MemoryAccount``, D44: what its outbox and the messages being prepared
+for it hold, and the slow-consumer rule while the budget is full). rosbridge's
+``session.Session`` and the Foxglove protocol's session are subclasses: each
+adds its ops and says how its peer is told of a problem (``report``), what it
+holds (``holds_anything``) and what it releases (``release``). Limits come
+from one ``SessionConfig`` (docs/limits.md, "Per connection"), whichever
+protocol the client speaks.
 
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
 given by the caller.
@@ -33,6 +36,7 @@ from .commands import CloseCode, CloseConnection, Command
 from .idle import IdleWatch
 from .lifecycle import State, advance
 from .lossy import LossyLane
+from .memory import PRESSURE_FLOOR_BYTES
 from .outbox import Outbox, OutFrame
 from .timers import Timer, TimerQueue
 
@@ -41,6 +45,7 @@ if TYPE_CHECKING:
 
     from ..ports import ClientId, GraphPort
     from .contract import Job
+    from .memory import MemoryAccount, MemoryBudget
     from .session import SessionConfig
 
 __all__ = ["SessionBase"]
@@ -64,6 +69,8 @@ class SessionBase:
         authenticating: the session starts in ``State.AUTHENTICATING`` (rosbridge's
             ``auth`` op is due first, D23) rather than ``OPEN``.
         max_messages: topic messages the outbox holds by count (None: bytes only).
+        memory: the server's memory budget the connection is charged to (D44);
+            None: its own bounds alone.
     """
 
     protocol: ClassVar[str] = "rosbridge"
@@ -80,12 +87,16 @@ class SessionBase:
         on_closed: Callable[[ClientId], None] | None = None,
         authenticating: bool = False,
         max_messages: int | None = None,
+        memory: MemoryBudget | None = None,
     ) -> None:
         self._graph = graph
         self._client_id = client_id
         self._peer = peer
         self._config = config
         self._outbox = Outbox(config.send_buffer_limit, max_messages=max_messages)
+        self._memory = None if memory is None else memory.account(self._memory_pressure)
+        self._outbox.account = self._memory
+        self._pending_bytes = 0  # topic messages being made for the outbox (png, ``pngout``)
         self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
         self._timers = TimerQueue()
@@ -245,6 +256,10 @@ class SessionBase:
             self._jobs.clear()
             self._background.clear()
             self._outbox.take()  # what a peer that left never read goes now
+            if self._memory is not None:
+                self._memory.close()
+                if self._memory.budget.sweeper is self:  # another session takes it over
+                    self._memory.budget.sweeper = None
             self.close_lossy_lane()
             self.release()
         finally:  # even if releasing raised, the owner forgets the connection
@@ -307,9 +322,16 @@ class SessionBase:
         """
         frames = self._outbox.take(max_bytes)
         if frames:
+            if self._memory is not None:
+                self._memory.took(self._now)
             self._watch.after_take()
             self.taken(frames)
+            self.sweep_memory()
         return frames
+
+    def frames_sent(self) -> None:
+        """The transport wrote the frames it took: they are no longer held (D44)."""
+        self._outbox.sent()
 
     def commands_to_run(self) -> list[Command]:
         """Take every command queued for the transport."""
@@ -325,6 +347,7 @@ class SessionBase:
         if self._state is not State.CLOSED:
             self._now = max(self._now, now)
             self._timers.run_due(now)
+            self.sweep_memory()
 
     # ---- what the transport reads --------------------------------------------------
 
@@ -415,8 +438,18 @@ class SessionBase:
 
     @property
     def fill_bytes(self) -> int:
-        """How full the outbox is for the watermarks (``Outbox.fill_bytes``)."""
-        return self._outbox.fill_bytes
+        """How full the outbox is for the watermarks, ``pending_bytes`` included."""
+        return self._outbox.fill_bytes + self._pending_bytes
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes of topic messages being made for the outbox off the loop (png, ``pngout``)."""
+        return self._pending_bytes
+
+    @property
+    def memory(self) -> MemoryAccount | None:
+        """This connection's account of the server's memory budget (D44), or None."""
+        return self._memory
 
     @property
     def water_marks(self) -> tuple[int, int]:
@@ -459,6 +492,7 @@ class SessionBase:
         self._watch.after_push(dropped, oversized, self._now, frames, topic)
         if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure
+        self.sweep_memory()
 
     def push_topic_frame(self, frame: OutFrame, topic: str | None = None) -> None:
         """Queue one whole topic message frame (droppable, no parts) without waking anyone.
@@ -469,8 +503,72 @@ class SessionBase:
         outbox = self._outbox
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
         outbox.push_droppable(frame)
+        outbox.settle()
         if outbox.dropped != dropped or outbox.held_bytes:
             self._watch.after_push(dropped, oversized, self._now, (frame,), topic)
+
+    def sweep_memory(self) -> None:
+        """While the server's memory budget is full, let it sweep its connections (D44).
+
+        Cheap when it is not (one comparison): every path that queues or takes
+        output calls it. The sweep itself runs at most once per
+        ``memory.PRESSURE_SWEEP_S``, on the session's latest time.
+        """
+        memory = self._memory
+        if memory is None:
+            return
+        budget = memory.budget
+        if budget.used > budget.limit or budget.wanted:  # (``pressed``, inline: every push)
+            budget.sweep(self._now)
+            if budget.sweeper is None and self._state.sends:  # the next, should nothing happen
+                budget.sweeper = self
+                self.call_at(budget.next_sweep, self._sweep_due)
+
+    def _sweep_due(self, now: float) -> None:
+        """This session's timer for the memory budget's next sweep (``sweep_memory``)."""
+        memory = self._memory
+        if memory is not None and memory.budget.sweeper is self:
+            memory.budget.sweeper = None
+            self._now = max(self._now, now)
+            self.sweep_memory()
+
+    def make_room(self, excess: int, now: float) -> None:
+        """Drop the oldest topic messages worth ``excess`` bytes for the memory budget (D44).
+
+        The slow-consumer rule (D24): the drops are counted and the peer told
+        once per episode, replies and statuses stay.
+        """
+        outbox = self._outbox
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        self.shed_topic_messages(max(0, outbox.queued_bytes + self._pending_bytes - excess))
+        if outbox.dropped != dropped:
+            outbox.dropped_memory += outbox.dropped - dropped
+            self._watch.after_push(dropped, oversized, now, (), None)
+
+    def shed_topic_messages(self, cap: int) -> None:
+        """Drop the oldest topic messages until what waits for the peer is at most ``cap`` bytes.
+
+        What waits: the outbox, and what is being made for it (``pending_bytes``);
+        a protocol that makes messages off the loop drops those too.
+        """
+        self._outbox.shed_to(cap)
+
+    def _memory_pressure(self, now: float) -> None:
+        """The server's memory budget is full (its sweep, D44): take from this peer if it lags.
+
+        Stalled, or past its part, it loses its oldest topic messages
+        (``MemoryAccount.excess``, ``make_room``); holding more than
+        ``memory.PRESSURE_FLOOR_BYTES``, it is closed as a slow consumer if it
+        takes nothing for ``--send-timeout`` (``SlowConsumerWatch.memory_pressed``).
+        """
+        account = self._memory
+        if account is None or not self._state.sends:
+            return
+        excess = account.excess(self._outbox.limit_bytes)
+        if excess:
+            self.make_room(excess, now)
+        if account.held > PRESSURE_FLOOR_BYTES:
+            self._watch.memory_pressed(now)
 
     def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
         """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.

@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from ..levels import StatusLevel
     from .commands import CloseCode, CloseConnection, Command
     from .lossy import LossyLane
+    from .memory import MemoryAccount
     from .outbox import OutFrame
 
 __all__ = ["Job", "ServerSession"]
@@ -95,6 +96,9 @@ class ServerSession(Protocol):
     def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one)."""
 
+    def frames_sent(self) -> None:
+        """The transport wrote the frames it took (they count as held until then, D44)."""
+
     def commands_to_run(self) -> list[Command]:
         """Take the commands queued for the transport (``CloseConnection``)."""
 
@@ -146,8 +150,20 @@ class ServerSession(Protocol):
         """Bytes of queued frames that are never dropped (replies, statuses, control)."""
 
     @property
+    def memory(self) -> MemoryAccount | None:
+        """The connection's account of the server's memory budget (D44), or None.
+
+        A transport charges what it holds for the connection beyond the
+        session's own (a WebRTC peer's input not read yet).
+        """
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes of topic messages being made for the outbox off the loop (png, ``pngout``)."""
+
+    @property
     def fill_bytes(self) -> int:
-        """How full the outbox is for the watermarks (``Outbox.fill_bytes``)."""
+        """How full the outbox is for the watermarks, ``pending_bytes`` included."""
 
     @property
     def water_marks(self) -> tuple[int, int]:

@@ -51,6 +51,7 @@ __all__ = [
     "json_frames",
     "png_frames",
     "publish_frames",
+    "publish_text_size",
     "safe_op_frames",
     "safe_publish_frames",
 ]
@@ -152,6 +153,21 @@ def _make_publish(
 
 def _publish_json(event: MessageEvent, spelling: str) -> bytes:
     return encode_publish_json(spelling, event.msg)
+
+
+def publish_text_size(event: MessageEvent, spelling: str) -> int:
+    """Bytes of the JSON text of ``event``'s ``publish`` op to ``spelling``; 0 if it has none.
+
+    The text is made once (memoised on the event, as ``publish_frames`` makes
+    it for JSON and png subscribers): a png message waiting to be deflated is
+    charged its size (``pngout``). Never raises: a message without a JSON form
+    is told to its subscriber by ``safe_publish_frames``.
+    """
+    try:
+        text = event.memo(("memo", "json", spelling), lambda: _publish_json(event, spelling))
+    except Exception:  # any encoder error, as in ``safe_publish_frames``
+        return 0
+    return len(text)
 
 
 def _raw_frame(event: MessageEvent, spelling: str) -> bytes:

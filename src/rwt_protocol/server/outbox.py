@@ -42,6 +42,14 @@ within the lifespan reaches it whole however slowly it reads, and the newest
 message of a topic always stays. Messages without a lifespan (a rosbridge
 client's, which input backpressure paces, replies) never expire: the byte
 bound alone applies.
+
+A queue may also be charged to the server's memory budget (``account``, a
+``memory.MemoryAccount``; D44): what it holds is charged as it changes, with
+what the transport took and is still writing (until ``sent``; the hot paths,
+``push_droppable`` and ``push_timed``, once for a run at ``settle``), and while
+the budget is full a queue whose connection it judges over its part drops its
+own oldest topic messages when messages come (``MemoryAccount.excess``), the
+newest staying, as past its own limit.
 """
 
 from __future__ import annotations
@@ -52,6 +60,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
+
+    from .memory import MemoryAccount
 
 __all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox", "water_marks"]
 
@@ -146,6 +156,8 @@ class Outbox:
         expired: of those, messages dropped for their lifespan (module text).
         dropped_oversized: of those, messages larger than ``limit_bytes`` that
             came while other topic messages were queued.
+        dropped_memory: of those, messages dropped for the server's memory budget
+            (``account``, D44).
         topic_messages: topic messages queued so far (a fragmented one counts once),
             dropped ones included: the ones sent are ``topic_messages - dropped``
             once the queue is empty.
@@ -158,6 +170,8 @@ class Outbox:
             on average loses nothing to a burst and the drop rule (D24) is left
             to peers that read slower than their topics come, or not at all.
         low_water_bytes: fill under which paused input resumes, a quarter of the limit.
+        account: the connection's account of the server's memory budget (D44), or
+            None; set once, before anything is queued.
     """
 
     def __init__(
@@ -184,6 +198,7 @@ class Outbox:
         self.frame_overhead_bytes = frame_overhead_bytes
         self.dropped = 0
         self.dropped_oversized = 0
+        self.dropped_memory = 0
         self.topic_messages = 0
         self.taken_frames = 0
         self.expired = 0
@@ -194,6 +209,9 @@ class Outbox:
         self._times: deque[_Timed | None] | None = None
         self._by_key: dict[str, deque[_Timed]] = {}
         self._dead_frames = 0
+        self.account: MemoryAccount | None = None
+        self._charged = 0  # bytes charged to ``account``
+        self._in_flight = 0  # bytes taken by the transport and not yet ``sent``
 
     def __len__(self) -> int:
         return len(self._frames) - self._dead_frames
@@ -313,12 +331,15 @@ class Outbox:
                 self._shed()
         elif self.max_messages is not None and self._topic_frames > self.max_messages:
             self._shed()
+        if self.account is not None:
+            self._settle()
 
     def push_droppable(self, frame: OutFrame) -> None:
         """``push`` one whole topic message (``droppable``, no ``group``): the hot path.
 
         The same rules as ``extend`` of one frame (without a lifespan), in the
         fewest steps while the queue is within its bounds (a burst's per-message cost).
+        The memory budget is charged at the caller's ``settle``, once for a run.
         """
         self.topic_messages += 1
         if self._held_frames:
@@ -338,7 +359,8 @@ class Outbox:
         ``frame`` is droppable with no ``group``; ``lifespan`` is over 0 (seconds).
         The same rules as ``extend`` in fewer steps while the queue is within its
         bounds: a ROS 2 burst's per-message and per-subscriber cost
-        (``Session.deliver_many``).
+        (``Session.deliver_many``). The memory budget is charged at the caller's
+        ``settle``, once for a run.
         """
         self.topic_messages += 1
         if self._held_frames:
@@ -404,6 +426,7 @@ class Outbox:
         if count and (max_bytes is None or self._bytes - count * overhead <= max_bytes):
             # everything fits (a burst a writer takes whole): no per-frame bookkeeping
             whole = self._live() if self._dead_frames else list(queued)
+            self._in_flight += self._bytes
             queued.clear()
             self._bytes = self._kept_bytes = self._topic_frames = 0
             self._held_frames = self._held_bytes = 0
@@ -413,6 +436,8 @@ class Outbox:
                 self._times.clear()
                 self._by_key.clear()
                 self._dead_frames = 0
+            if self.account is not None:
+                self._settle()
             return whole
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
@@ -433,11 +458,21 @@ class Outbox:
                     self._held_bytes -= len(frame.data) + overhead
             self._skip_dead()
         self._bytes -= taken + len(frames) * overhead
+        self._in_flight += taken + len(frames) * overhead
         self.taken_frames += len(frames)
         last = frames[-1].group if frames else None
         following = self._frames[0].group if self._frames else None
         self._sending_group = last if last is not None and last == following else None
+        if self.account is not None:
+            self._settle()
         return frames
+
+    def sent(self) -> None:
+        """The transport wrote what it took: it is no longer held (nor charged)."""
+        if self._in_flight:
+            self._in_flight = 0
+            if self.account is not None:
+                self._settle()
 
     def drain(self) -> list[OutFrame]:
         """Remove and return every queued frame, oldest first."""
@@ -450,17 +485,69 @@ class Outbox:
         limit = self.max_messages
         return limit is not None and self._topic_frames > limit
 
-    def _shed(self) -> None:
+    def shed_to(self, cap: int) -> None:
+        """Drop the oldest topic messages until at most ``cap`` bytes are queued.
+
+        Replies and statuses stay, the newest frame stays, and so does a held
+        message over the limit (it is the only topic message queued). Dropped
+        messages are counted in ``dropped``. For a session making room for
+        what waits to be queued (``pngout``) or for the memory budget (D44).
+        """
+        if self._bytes > cap and self._topic_frames and not self._held_frames:
+            self._shed(cap)
+            if self.account is not None:
+                self._settle()
+
+    def settle(self) -> None:
+        """Charge the memory budget with what changed since (``push_droppable``, ``push_timed``).
+
+        Every other change settles at once; what was pushed and not settled is
+        charged at the next change (a ``take``) otherwise.
+        """
+        if self.account is not None:
+            self._settle()
+
+    def _settle(self) -> None:
+        """Charge ``account`` with what changed; drop down to the share while the budget is full."""
+        account = self.account
+        assert account is not None
+        held = self._bytes + self._in_flight
+        delta = held - self._charged
+        if not delta:
+            return
+        self._charged = held
+        budget = account.budget
+        if account.held > 0 < delta and budget.used + delta <= budget.limit and not budget.wanted:
+            # the hot path (a message more, room in the budget): ``charge`` in the fewest steps
+            if not account.closed:
+                account.held += delta
+                budget.used += delta
+            return
+        account.charge(delta)
+        if delta < 0 or self._held_frames or not self._topic_frames:
+            return
+        excess = account.excess(self.limit_bytes)
+        if excess:
+            dropped = self.dropped
+            self._shed(max(0, self._bytes - excess))
+            self.dropped_memory += self.dropped - dropped
+            freed = self._bytes + self._in_flight - self._charged
+            self._charged += freed
+            account.charge(freed)
+
+    def _shed(self, cap: int | None = None) -> None:
+        """Drop the oldest droppable frames while over the bounds (or over ``cap`` bytes)."""
         kept: list[OutFrame] = []
         kept_times: list[_Timed | None] = []
         times = self._times
-        self._peak = max(
-            self._peak, self._bytes - len(self._frames[-1].data) - self.frame_overhead_bytes
-        )
+        if self._frames:
+            self._peak = max(
+                self._peak, self._bytes - len(self._frames[-1].data) - self.frame_overhead_bytes
+            )
         groups: set[object] = set()
         newest = self._frames[-1] if self._frames else None  # always stays (count bound)
-        while self._frames and self._over():
-            if self._frames[0] is newest and not self._bytes > self.limit_bytes:
+        while self._frames and (self._over() if cap is None else self._bytes > cap):
+            if self._frames[0] is newest and (cap is not None or self._bytes <= self.limit_bytes):
                 break
             frame = self._frames.popleft()
             timing = self._forget()

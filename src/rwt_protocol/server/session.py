@@ -49,12 +49,13 @@ from .access import AccessPolicy
 from .commands import CloseCode, CloseConnection, Command
 from .compat import Compat, initial_status_level
 from .connection import SessionBase
-from .encoding import EncodeFailure, safe_op_frames, safe_publish_frames
+from .encoding import EncodeFailure, publish_text_size, safe_op_frames, safe_publish_frames
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .holdings import Holdings
 from .inflate import InflateJob, TokenBucket
 from .lifecycle import State
+from .outbox import FRAME_OVERHEAD_BYTES
 from .pngout import PngPublishJob, PngWaiting
 
 if TYPE_CHECKING:
@@ -64,6 +65,7 @@ if TYPE_CHECKING:
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from .contract import Job
+    from .memory import MemoryBudget
     from .outbox import OutFrame
     from .subscriptions import TopicSubscription
     from .timers import Timer
@@ -196,6 +198,8 @@ class Session(SessionBase):
         authenticated: the transport already admitted the connection with the
             authenticator (a Foxglove client's URL token, ``auth.auth_from_query``):
             the session starts open and sends no challenge.
+        memory: the server's memory budget (``--memory-budget``, D44) its outbox and
+            png messages waiting are charged to; None: its own bounds alone.
 
     The client end is ``client.ClientSession``: the same ops, from the other end.
     """
@@ -212,6 +216,7 @@ class Session(SessionBase):
         fragment_budget: FragmentBudget | None = None,
         auth_nonce: str | None = None,
         authenticated: bool = False,
+        memory: MemoryBudget | None = None,
     ) -> None:
         config = config or SessionConfig()
         super().__init__(
@@ -222,6 +227,7 @@ class Session(SessionBase):
             peer=peer,
             on_closed=on_closed,
             authenticating=not authenticated and config.authenticator is not None,
+            memory=memory,
         )
         self._status_level = initial_status_level(config.compat, config.status_level)
         self._holdings = Holdings()
@@ -381,13 +387,16 @@ class Session(SessionBase):
             self._holdings.clear()
             self._fragments.clear()
             self._png_waiting.clear()
+            self._png_charge(-self._pending_bytes)
         super().close()
 
     def take_background_job(self) -> Job | None:
         """The oldest background job (a ``png`` message to deflate), or None."""
         job = super().take_background_job()
         if isinstance(job, PngPublishJob):
+            before = self._png_waiting.bytes
             self._png_waiting.taken(job)
+            self._png_charge(self._png_waiting.bytes - before)
         return job
 
     def holds_anything(self) -> bool:
@@ -591,10 +600,12 @@ class Session(SessionBase):
             if outbox.dropped != dropped:  # the slow-consumer rule, as ``send_frames`` asks it
                 self._watch.after_push(dropped, oversized, now, frames, spelling)
                 dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if outbox.held_bytes:
+        outbox.settle()  # the memory budget, once for the run (D44)
+        if outbox.dropped != dropped or outbox.held_bytes:
             self._watch.after_push(dropped, oversized, self._now, (), spelling)
         if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()
+        self.sweep_memory()
 
     def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
         """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.
@@ -625,12 +636,57 @@ class Session(SessionBase):
     def _deflate_later(
         self, subscription: TopicSubscription, event: MessageEvent, fragment_size: int | None
     ) -> None:
-        """Leave a png message to a background job (pngout): in order, a bounded backlog."""
-        job = PngPublishJob(subscription, event, fragment_size)
-        dropped = self._png_waiting.add(job)
-        if dropped is not None:
-            self.drop_background_job(dropped)
+        """Leave a png message to a background job (pngout), in order, bounded as the outbox.
+
+        It waits charged with its JSON text's size: past ``--send-buffer-limit``
+        (the outbox and the waiting messages together) the oldest topic messages
+        go (D24); past the high watermark the transport holds the publisher
+        (input backpressure); while the server's memory budget is full, a
+        connection past its part loses its oldest too (D44).
+        """
+        spelling = subscription.spelling
+        cost = publish_text_size(event, spelling) + FRAME_OVERHEAD_BYTES
+        job = PngPublishJob(subscription, event, fragment_size, cost)
+        self._png_waiting.add(job)
+        self._png_charge(cost)
         self.add_job(job, background=True)
+        self._bound_waiting(spelling)
+        memory = self._memory
+        if memory is not None:
+            excess = memory.excess(self._outbox.limit_bytes)
+            if excess:
+                self.make_room(excess, self._now)
+        if self.fill_bytes > self.wake_above_bytes:
+            self._wake()  # the transport holds the publisher (input backpressure)
+        self.sweep_memory()
+
+    def _bound_waiting(self, topic: str) -> None:
+        """Keep the outbox and the png messages waiting within ``--send-buffer-limit`` (D24)."""
+        outbox = self._outbox
+        limit = outbox.limit_bytes
+        if outbox.queued_bytes + self._pending_bytes > limit:
+            dropped, oversized = outbox.dropped, outbox.dropped_oversized
+            self.shed_topic_messages(limit)
+            self._watch.after_push(dropped, oversized, self._now, (), topic)
+
+    def shed_topic_messages(self, cap: int) -> None:
+        """Drop the oldest topic messages, queued then waiting for png, down to ``cap`` bytes.
+
+        The newest waiting message stays: as in the outbox, a message is never
+        dropped for being the only one.
+        """
+        outbox, waiting = self._outbox, self._png_waiting
+        outbox.shed_to(max(0, cap - waiting.bytes))
+        while len(waiting) > 1 and outbox.queued_bytes + waiting.bytes > cap:
+            job = waiting.oldest()
+            self._png_charge(-job.cost)
+            self.drop_background_job(job)
+
+    def _png_charge(self, delta: int) -> None:
+        """``delta`` bytes more (or fewer) wait for png: in the fill and the memory budget."""
+        self._pending_bytes += delta
+        if self._memory is not None and delta:
+            self._memory.charge(delta)
 
     def _png_done(self, job: PngPublishJob, result: object) -> None:
         """A deflated message is back: sent unless its subscription went meanwhile."""
@@ -649,6 +705,8 @@ class Session(SessionBase):
             self._queue_lossy(subscription, result)  # type: ignore[arg-type]
         else:
             self.send_frames(result, subscription.spelling)  # type: ignore[arg-type]
+            if self._pending_bytes:  # its png op may be larger than what it was charged
+                self._bound_waiting(subscription.spelling)
 
     def _encode_failed(
         self, subscription: TopicSubscription, failure: EncodeFailure, compression: str
