@@ -388,6 +388,16 @@ class ZenohLink:
             with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
                 loop.call_soon_threadsafe(wake.set)
 
+    def later(self, delay_s: float, callback: Callable[..., None], *args: object) -> None:
+        """Run ``callback(*args)`` in the link's task ``delay_s`` seconds from now.
+
+        Called from the link's task (the event loop); nothing runs once the link closed.
+        """
+        loop = self._loop
+        if loop is None or self._closed:
+            return
+        loop.call_later(delay_s, self._soon, callback, *args)
+
     def _guarded(self, callback: Callable[..., None], *args: object) -> None:
         if self._closed:
             return
