@@ -130,7 +130,8 @@ def _arrivals(peer: _Peer, done: threading.Event, out: list[float]) -> None:
         out.extend([time.monotonic()] * chunk.count(b"\n"))
 
 
-def _trickle(sock: socket.socket, until: float, done: threading.Event) -> None:
+def trickle(sock: socket.socket, until: float, done: threading.Event) -> None:
+    """Read ``TRICKLE_BYTES`` every ``TRICKLE_EVERY_S`` until ``until`` (monotonic) or ``done``."""
     sock.settimeout(TRICKLE_EVERY_S)
     while time.monotonic() < until and not done.is_set():
         try:
@@ -140,7 +141,8 @@ def _trickle(sock: socket.socket, until: float, done: threading.Event) -> None:
         done.wait(TRICKLE_EVERY_S)
 
 
-def _drain(sock: socket.socket, until: float) -> None:
+def drain(sock: socket.socket, until: float) -> None:
+    """Read everything that comes until ``until``: catch up."""
     sock.settimeout(0.1)
     while time.monotonic() < until:
         try:
@@ -156,9 +158,7 @@ def _attack(name: str, port: int, budget_s: float, done: threading.Event) -> lis
         threads = []
         for _ in range(4):
             opened.append(_subscriber(port, RCVBUF))
-            threads.append(
-                threading.Thread(target=_trickle, args=(opened[-1].sock, math.inf, done))
-            )
+            threads.append(threading.Thread(target=trickle, args=(opened[-1].sock, math.inf, done)))
             threads[-1].start()
             if name == "staggered":
                 done.wait(STAGGER_S)
@@ -168,14 +168,14 @@ def _attack(name: str, port: int, budget_s: float, done: threading.Event) -> lis
         while not done.is_set():
             peer = _subscriber(port, RCVBUF)
             opened.append(peer)
-            _trickle(peer.sock, time.monotonic() + budget_s + 1.0, done)
+            trickle(peer.sock, time.monotonic() + budget_s + 1.0, done)
             peer.close()
     elif name == "drain":
         peer = _subscriber(port, RCVBUF)
         opened.append(peer)
         while not done.is_set():
-            _trickle(peer.sock, time.monotonic() + budget_s + 2.0, done)
-            _drain(peer.sock, time.monotonic() + 0.5)
+            trickle(peer.sock, time.monotonic() + budget_s + 2.0, done)
+            drain(peer.sock, time.monotonic() + 0.5)
     return opened
 
 

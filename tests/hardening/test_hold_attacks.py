@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import socket
 import threading
 import time
 from collections.abc import AsyncIterator, Callable
@@ -47,6 +46,15 @@ from collections.abc import AsyncIterator, Callable
 import anyio
 import anyio.to_thread
 import pytest
+from benchmarks.trickling_readers import (
+    FROZEN_GAP_S,
+    PAYLOAD,
+    RATE,
+    RCVBUF,
+    TOPIC,
+    drain,
+    trickle,
+)
 
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.flow import INPUT_STALL_S
@@ -60,13 +68,6 @@ HOLD_BUDGET_S = 1.0
 RUN_S = 8.0  # the publisher's stream: RATE x RUN_S messages
 FOUR_RUN_S = 4.0  # the four: judged once in the first seconds, then cooled down for 100 s
 MAX_FOUR_FROZEN_S = 1.5 * INPUT_STALL_S  # some 0.3 s, with margin for a loaded machine
-RATE = 100  # messages a second
-PAYLOAD = 100_000  # bytes of a message's data
-TOPIC = "/stream"
-TRICKLE_BYTES = 64 * 1024  # what an attacker reads at a time ...
-TRICKLE_EVERY_S = 0.5  # ... this often
-RCVBUF = 64 * 1024  # an attacker's kernel buffer: the kernel does not read for it
-FROZEN_GAP_S = 0.25  # a gap between two messages this long counts as frozen (25 periods)
 MAX_FROZEN_S = 1.5 * HOLD_BUDGET_S  # the first hold, with margin for a loaded machine
 MAX_LATER_GAP_S = HOLD_BUDGET_S
 
@@ -124,27 +125,6 @@ def read_arrivals(peer: TcpPeer, done: threading.Event) -> list[float]:
         if not chunk:
             return arrivals
         arrivals.extend([time.monotonic()] * chunk.count(b"\n"))  # one line a message
-
-
-def trickle(sock: socket.socket, until: float, done: threading.Event) -> None:
-    """Read ``TRICKLE_BYTES`` every ``TRICKLE_EVERY_S`` until ``until`` (monotonic) or ``done``."""
-    sock.settimeout(TRICKLE_EVERY_S)
-    while time.monotonic() < until and not done.is_set():
-        try:
-            sock.recv(TRICKLE_BYTES)
-        except TimeoutError:
-            continue
-        done.wait(TRICKLE_EVERY_S)
-
-
-def drain(sock: socket.socket, until: float) -> None:
-    """Read everything that comes until ``until``: catch up."""
-    sock.settimeout(0.1)
-    while time.monotonic() < until:
-        try:
-            sock.recv(1 << 20)
-        except TimeoutError:
-            continue
 
 
 def reconnecting(port: int, done: threading.Event, opened: list[TcpPeer]) -> None:

@@ -46,21 +46,11 @@ from mcp.client.streamable_http import streamable_http_client
 
 from rwt_transports.mcp_http import MAX_REQUESTS_IN_FLIGHT, SESSION_SLOTS
 from rwt_transports.mcp_options import McpOptions
+from tests.agents.test_mcp_safety import ACCEPT, INITIALIZE
 
 pytestmark = pytest.mark.anyio
 
 WAIT_S = 30  # a bound on a hang, not a speed requirement
-ACCEPT = {"Accept": "application/json, text/event-stream", "Content-Type": "application/json"}
-INITIALIZE = {
-    "jsonrpc": "2.0",
-    "id": 1,
-    "method": "initialize",
-    "params": {
-        "protocolVersion": "2025-06-18",
-        "capabilities": {},
-        "clientInfo": {"name": "raw", "version": "0"},
-    },
-}
 INITIALIZED = {"jsonrpc": "2.0", "method": "notifications/initialized"}
 SET_LEVEL = {"op": "set_level", "level": "info", "id": "served"}
 ONLY_INITIALIZE = "only an initialize request opens a session"

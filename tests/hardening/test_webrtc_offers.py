@@ -19,7 +19,6 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
-from aiortc import RTCConfiguration, RTCPeerConnection
 
 from rwt_transports.server import ServerConfig
 from rwt_transports.shares import SHARES_FROM
@@ -31,7 +30,7 @@ from rwt_transports.webrtc_offer import (
 from rwt_transports.webrtc_peers import MAX_CONNECTING
 from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
 from tests.support.clients import HAS_AIORTC
-from tests.webrtc.peer import Served, offer_sdp, rtc_client, serving
+from tests.webrtc.peer import Served, closed_offer, rtc_client, serving
 
 pytestmark = [
     pytest.mark.anyio,
@@ -44,12 +43,7 @@ SDP = {"Content-Type": "application/sdp"}
 @pytest.fixture(scope="module")
 async def offer() -> str:
     """A real offer with a ``rosbridge`` data channel (its peer closed: never connects)."""
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    pc.createDataChannel("rosbridge")
-    try:
-        return await offer_sdp(pc)
-    finally:
-        await pc.close()
+    return await closed_offer()
 
 
 @pytest.fixture(scope="module")

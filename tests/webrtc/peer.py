@@ -74,6 +74,16 @@ async def offer_sdp(pc: RTCPeerConnection) -> str:
     return pc.localDescription.sdp
 
 
+async def closed_offer() -> str:
+    """An offer from a real peer with a ``rosbridge`` channel, closed at once: it never connects."""
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    pc.createDataChannel("rosbridge")
+    try:
+        return await offer_sdp(pc)
+    finally:
+        await pc.close()
+
+
 @asynccontextmanager
 async def rtc_client(
     base: str,

@@ -19,21 +19,11 @@ from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_peers import MAX_CONNECTING
 from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
-from tests.webrtc.peer import Served, offer_sdp, rtc_client, serving
+from tests.webrtc.peer import Served, closed_offer, offer_sdp, rtc_client, serving
 
 pytestmark = pytest.mark.anyio
 
 SDP = {"Content-Type": "application/sdp"}
-
-
-async def a_complete_offer() -> str:
-    """An offer from a real peer that will never answer it (closed at once)."""
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    pc.createDataChannel("rosbridge")
-    try:
-        return await offer_sdp(pc)
-    finally:
-        await pc.close()
 
 
 @pytest.mark.parametrize(
@@ -113,7 +103,7 @@ async def test_allowed_origins_apply_to_signalling() -> None:
 
 async def test_a_peer_that_never_connects_is_freed_after_the_deadline(served: Served) -> None:
     async with httpx.AsyncClient(base_url=served.base) as http:
-        reply = await http.post("/webrtc", content=await a_complete_offer(), headers=SDP)
+        reply = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
         assert reply.status_code == 201 and reply.headers["Content-Type"] == "application/sdp"
         assert "a=candidate" in reply.text  # gathered: no trickle
         assert len(served.server.sessions) == 1  # admitted as it was answered
@@ -128,7 +118,7 @@ async def test_max_connections_refuses_an_offer_with_503() -> None:
     config = ServerConfig(port=0, max_connections=1, webrtc=WebRtcOptions())
     async with serving(config) as running, rtc_client(running.base):
         async with httpx.AsyncClient(base_url=running.base) as http:
-            reply = await http.post("/webrtc", content=await a_complete_offer(), headers=SDP)
+            reply = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
         assert reply.status_code == 503 and "too many connections" in reply.text
         assert len(running.server.sessions) == 1
 
@@ -136,7 +126,7 @@ async def test_max_connections_refuses_an_offer_with_503() -> None:
 async def test_a_burst_of_offers_is_bounded_and_a_websocket_bystander_is_served(
     served: Served,
 ) -> None:
-    sdp = await a_complete_offer()
+    sdp = await closed_offer()
     statuses: list[int] = []
 
     async def post(http: httpx.AsyncClient) -> None:
