@@ -87,6 +87,16 @@ class _RwtGroup(TyperGroup):
             self.add_command(command, cmd_name)
         return command
 
+    def format_commands(self, ctx: Any, formatter: Any) -> None:
+        """``rwt --help``'s list of commands, from ``_COMMANDS``: it imports no command.
+
+        Click's own asks each command for its short help, which loaded every command's
+        module (the MCP SDK, the server, the conformance runner: a second a run).
+        """
+        rows = [(name, short_help) for name, (_, _, short_help, _) in _COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
     def main(
         self,
         args: Sequence[str] | None = None,

@@ -9,6 +9,7 @@ many small usage cases use typer's CliRunner, which drives the same group.
 
 from __future__ import annotations
 
+import functools
 import importlib.metadata
 import re
 import signal
@@ -254,9 +255,15 @@ def commands() -> list[list[str]]:
     return [[], *([name] for name in sorted(names))]
 
 
+@functools.cache
+def help_of(*command: str) -> subprocess.CompletedProcess[str]:
+    """``rwt COMMAND --help`` on an 80-column terminal, run once for the module's tests."""
+    return run_rwt(*command, "--help", env={"COLUMNS": "80"})
+
+
 @pytest.mark.parametrize("command", commands(), ids=lambda c: " ".join(["rwt", *c]))
 def test_help_is_for_users_and_fits_80_columns(command: list[str]) -> None:
-    run = run_rwt(*command, "--help", env={"COLUMNS": "80"})
+    run = help_of(*command)
     assert run.returncode == 0, run.stderr
     text = run.stdout
     assert text.startswith("Usage: rwt")
@@ -268,7 +275,7 @@ def test_help_is_for_users_and_fits_80_columns(command: list[str]) -> None:
 
 
 def test_the_commands_are_listed() -> None:
-    text = run_rwt("--help", env={"COLUMNS": "80"}).stdout
+    text = help_of().stdout
     assert re.search(r"^  conformance +\S", text, re.MULTILINE)
     assert re.search(r"^  serve +\S", text, re.MULTILINE)
 
@@ -313,7 +320,7 @@ SERVE_SECTIONS = {
 
 
 def test_serve_help_lists_its_options_in_sections() -> None:
-    text = run_rwt("serve", "--help", env={"COLUMNS": "80"}).stdout
+    text = help_of("serve").stdout
     headings = re.findall(r"^(\S[^:\n]*):$", text, re.MULTILINE)
     assert headings == list(SERVE_SECTIONS)
     bodies = re.split(r"^\S[^:\n]*:$", text, flags=re.MULTILINE)[1:]
@@ -324,7 +331,7 @@ def test_serve_help_lists_its_options_in_sections() -> None:
 
 
 def test_the_help_of_video_port_says_it_implies_video() -> None:
-    text = " ".join(run_rwt("serve", "--help").stdout.split())
+    text = " ".join(help_of("serve").stdout.split())
     assert "implies --video" in text
 
 
@@ -333,7 +340,7 @@ def test_uvloop_names_its_extra() -> None:
         "optional-dependencies"
     ]
     assert any(dep.startswith("uvloop") for dep in extras["uvloop"])
-    assert install_hint("uvloop") in " ".join(run_rwt("serve", "--help").stdout.split())
+    assert install_hint("uvloop") in " ".join(help_of("serve").stdout.split())
 
 
 def test_uvloop_missing_is_one_line_naming_the_extra() -> None:
