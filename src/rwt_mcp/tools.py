@@ -23,6 +23,7 @@ import anyio
 import pybase64
 from mcp.server.fastmcp import Context, FastMCP
 from mcp.server.fastmcp.exceptions import ToolError
+from mcp.server.fastmcp.tools import Tool
 from mcp.server.models import InitializationOptions
 from mcp.types import CallToolResult, ImageContent, TextContent, ToolAnnotations
 from pydantic import BaseModel, ValidationError
@@ -666,18 +667,42 @@ def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
         ),
     )
     tools = RobotTools(link)
+    manager = server._tool_manager  # the SDK's registry: a tool made once, shared below
     for name in _TOOLS:
         function = _guarded(guard, name, getattr(tools, name))
-        server.add_tool(
+        manager._tools[name] = _tool_template(name, function).model_copy(update={"fn": function})
+    TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
+    _call_tools(server)
+    return server
+
+
+_TEMPLATES: dict[str, Tool] = {}
+
+
+def _tool_template(name: str, function: Callable[..., Awaitable[Any]]) -> Tool:
+    """The tool ``name`` as the SDK describes it (schemas, argument model), made once.
+
+    Every session's tool ``name`` has the same signature and text, only its function
+    (bound to the session's link and guard) differs: each session shares this one's
+    models (``Tool.model_copy``) instead of building them again, which was most of an
+    MCP session's cost (about 20 ms of the event loop's time each; docs/limits.md).
+    """
+    template = _TEMPLATES.get(name)
+    if template is None:
+        made = Tool.from_function(
             function,
             name=name,
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
             annotations=ToolAnnotations(readOnlyHint=name not in WRITE_TOOLS),
-        )
-    TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
-    _call_tools(server)
-    return server
+        )  # kept without this session's function, so that it keeps nothing of the session
+        template = _TEMPLATES[name] = made.model_copy(update={"fn": _no_session})
+    return template
+
+
+async def _no_session(**_: Any) -> None:
+    """A template's function: every session's copy of a tool has its own (``_tool_template``)."""
+    raise RuntimeError("a tool template was called instead of a session's tool")
 
 
 def _call_tools(server: FastMCP) -> None:
