@@ -66,7 +66,10 @@ def test_a_run_against_fuzzed_servers_judges_every_case(scripted: tuple[str, Scr
     @given(rng=seeded)
     def one_run(rng: random.Random) -> None:
         script.burst = grammar.server_frames(rng)
-        options = RunOptions(url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10)
+        # no retry: what is fuzzed is how frames are judged, and a retried case waits twice
+        options = RunOptions(
+            url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10, retry_budget_s=0
+        )
 
         async def run() -> None:
             with anyio.fail_after(60):
@@ -89,7 +92,7 @@ def test_a_fragment_named_by_an_integer_too_long_to_print_is_judged(
     url, script = scripted
     part = {"op": "fragment", "id": 10**5000, "num": 0, "total": 2, "data": '{"op":'}
     script.burst = [(cbor2.dumps(part), True)]
-    options = RunOptions(url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10)
+    options = RunOptions(url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10, retry_budget_s=0)
 
     async def run() -> None:
         result = await run_suite(SUITE, options)
