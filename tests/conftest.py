@@ -12,6 +12,7 @@ import os
 import socket
 import sys
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 # With PYTHONDONTWRITEBYTECODE set (as in many containers), every xdist worker would
@@ -70,8 +71,15 @@ class FakeClock:
 class Peer:
     """A client connection reduced to its session: send ops as dicts, read frames as dicts."""
 
-    def __init__(self, graph: Graph, name: str, level: StatusLevel = StatusLevel.ERROR) -> None:
-        self.session = Session(graph.port, name, config=SessionConfig(status_level=level))
+    def __init__(
+        self,
+        graph: Graph,
+        name: str,
+        level: StatusLevel = StatusLevel.ERROR,
+        config: SessionConfig | None = None,
+    ) -> None:
+        config = replace(config or SessionConfig(), status_level=level)
+        self.session = Session(graph.port, name, config=config)
         self.clock = graph.clock
 
     def send(self, **op: object) -> None:

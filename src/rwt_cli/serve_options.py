@@ -441,7 +441,9 @@ class GraphOptions:
         Compat,
         typer.Option(
             help="rosbridge: behave as rosbridge_suite where clients notice (no status op"
-            " until a client sends set_level, its reply texts; docs/differences.md)."
+            " until a client sends set_level, its reply texts); rosbridge-2.1: also, as 2.1.0,"
+            " a publish with type does not advertise, so one to an unknown topic is refused"
+            " (D48; docs/differences.md)."
         ),
     ] = Compat.RWT
     tf: Annotated[

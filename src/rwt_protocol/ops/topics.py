@@ -46,7 +46,10 @@ class Publish(OpModel):
     """A message on a topic, in either direction (spec 3.3.3).
 
     ``msg`` is left unvalidated here: the topic's message type checks it, with
-    field paths (D9). ``latch`` is the ROS 1 extension (D13).
+    field paths (D9). ``latch`` is the ROS 1 extension (D13). ``type``, from a
+    client, advertises the topic for it when it has not (protocol 2.0.0,
+    rosbridge_suite 2.6.0/3.2.0/4.1.0; docs/reference-behaviour.md §13.3, D48);
+    the server never sends it.
     """
 
     op: Literal["publish"] = "publish"
@@ -54,6 +57,7 @@ class Publish(OpModel):
     msg: Any = Field(default_factory=dict)
     id: MessageId | None = None
     latch: bool = False
+    type: str | None = None
 
 
 class Subscribe(OpModel):

@@ -106,3 +106,7 @@ class PublishView(Protocol):
     @property
     def latch(self) -> bool:
         """The ``latch`` field."""
+
+    @property
+    def type(self) -> str | None:
+        """The ``type`` field (D48)."""

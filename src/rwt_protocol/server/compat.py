@@ -13,6 +13,11 @@ rwt's own texts and statuses are the default (docs/decisions.md, D1-D4). With
   also when the call first waited for a link to discover the service (``late_reply_text``).
 
 The reply is sent in both modes (D4): rosbridge_suite answers a missing service too.
+
+``Compat.ROSBRIDGE_2_1`` (``--compat rosbridge-2.1``) is ``Compat.ROSBRIDGE`` plus
+rosbridge_suite 2.1.0's ``publish``: a ``publish`` carrying ``type`` does not advertise
+the topic (D48; it does from rosbridge_suite 2.6.0, 3.2.0 and 4.1.0,
+docs/reference-behaviour.md §13.3), so one to a topic the graph does not know is refused.
 """
 
 from __future__ import annotations
@@ -32,6 +37,22 @@ class Compat(StrEnum):
     """rwt's own texts and statuses (docs/decisions.md)."""
     ROSBRIDGE = "rosbridge"
     """rosbridge_suite 2.1.0's, for clients that match its texts or choke on ``status``."""
+    ROSBRIDGE_2_1 = "rosbridge-2.1"
+    """``ROSBRIDGE``, and a ``publish`` with ``type`` never advertises (rosbridge_suite 2.1.0)."""
+
+    @property
+    def rosbridge(self) -> bool:
+        """Whether the connection takes rosbridge_suite's texts and statuses."""
+        return self is not Compat.RWT
+
+    @property
+    def publish_advertises(self) -> bool:
+        """Whether a ``publish`` with ``type`` advertises its topic for the client (D48).
+
+        False for ``ROSBRIDGE_2_1`` only: rosbridge_suite before 2.6.0, 3.2.0 and
+        4.1.0 reads no ``type`` on ``publish`` (docs/reference-behaviour.md §13.3).
+        """
+        return self is not Compat.ROSBRIDGE_2_1
 
 
 def initial_status_level(compat: Compat, configured: StatusLevel) -> StatusLevel:
@@ -42,10 +63,10 @@ def initial_status_level(compat: Compat, configured: StatusLevel) -> StatusLevel
         configured: ``SessionConfig.status_level`` (``--status-level``).
 
     Returns:
-        ``configured``; ``StatusLevel.NONE`` with ``Compat.ROSBRIDGE``, so that only a
+        ``configured``; ``StatusLevel.NONE`` in the rosbridge modes, so that only a
         client that sent ``set_level`` ever receives a ``status``.
     """
-    return StatusLevel.NONE if compat is Compat.ROSBRIDGE else configured
+    return StatusLevel.NONE if compat.rosbridge else configured
 
 
 def reply_text(compat: Compat, error: RwtError) -> str:
@@ -56,11 +77,10 @@ def reply_text(compat: Compat, error: RwtError) -> str:
         error: why the call or goal was refused.
 
     Returns:
-        ``error.message``, or with ``Compat.ROSBRIDGE`` rosbridge_suite's text for
+        ``error.message``, or in the rosbridge modes rosbridge_suite's text for
         the same refusal where it has one.
     """
-    rosbridge = compat is Compat.ROSBRIDGE
-    if rosbridge and isinstance(error, UnknownNameError) and error.kind == "service":
+    if compat.rosbridge and isinstance(error, UnknownNameError) and error.kind == "service":
         return f"Service {error.name} does not exist"
     return error.message
 
@@ -78,10 +98,10 @@ def late_reply_text(compat: Compat, service: str, values: object) -> object:
         values: what the graph answered.
 
     Returns:
-        ``values``, or with ``Compat.ROSBRIDGE`` rosbridge_suite's text when
+        ``values``, or in the rosbridge modes rosbridge_suite's text when
         ``values`` is the missing service's text.
     """
     missing = UnknownNameError("service", service)
-    if compat is Compat.ROSBRIDGE and values == missing.message:
+    if compat.rosbridge and values == missing.message:
         return reply_text(compat, missing)
     return values

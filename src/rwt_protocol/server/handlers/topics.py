@@ -34,18 +34,40 @@ def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
 
     Raises:
         GraphError: bad or unknown type, or the topic has another type.
+        LimitError: past ``--max-advertisements`` or ``max_ids_per_topic``.
     """
-    topic = resolve_name(op.topic)
+    _register(session, "advertise", op.topic, op.type, op.id, latch=op.latch)
+
+
+def _register(
+    session: HandlerContext,
+    op_name: str,
+    spelling: str,
+    type_name: str,
+    op_id: str | int | None,
+    *,
+    latch: bool,
+) -> None:
+    """Advertise ``spelling`` as ``type_name`` for the client, under ``op_id``.
+
+    What ``advertise`` does, and a ``publish`` with ``type`` the client has not
+    advertised (D48): the caps, the graph's checks, the id kept for ``unadvertise``.
+
+    Raises:
+        GraphError: bad or unknown type, or the topic has another type.
+        LimitError: past ``--max-advertisements`` or ``max_ids_per_topic``.
+    """
+    topic = resolve_name(spelling)
     holdings = session.holdings
     ids = holdings.advertisements.get(topic)
     if ids is None:
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
-    elif op.id not in ids:
-        session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {op.topic}")
-    type_name = session.graph.advertise(session.client_id, op.topic, op.type, latch=op.latch)
-    holdings.add_advertisement(topic, op.id)
-    report_type_warning(session, "advertise", type_name, op.id)
-    session.report(StatusLevel.INFO, f"advertise: {op.topic} advertised as {type_name}", op.id)
+    elif op_id not in ids:
+        session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {spelling}")
+    canonical = session.graph.advertise(session.client_id, spelling, type_name, latch=latch)
+    holdings.add_advertisement(topic, op_id)
+    report_type_warning(session, op_name, canonical, op_id)
+    session.report(StatusLevel.INFO, f"{op_name}: {spelling} advertised as {canonical}", op_id)
 
 
 def report_type_warning(
@@ -80,11 +102,19 @@ def unadvertise(session: HandlerContext, op: Unadvertise, now: float) -> None:
 def publish(session: HandlerContext, op: PublishView, now: float) -> None:
     """Publish ``op.msg`` on ``op.topic`` (spec 3.3.3).
 
-    A warning lists the fields filled with defaults (spec 3.3.3, D7).
+    A ``publish`` with ``type`` from a client that does not advertise the topic
+    advertises it first, as ``advertise`` with the op's ``id`` and ``latch`` would
+    (D48; protocol 2.0.0, docs/reference-behaviour.md §13.3), unless the server
+    runs ``--compat rosbridge-2.1``. Once the client advertises the topic, ``type``
+    is not read again. A warning lists the fields filled with defaults (spec 3.3.3, D7).
 
     Raises:
-        GraphError: unknown topic type, or a message that does not fit it (D9).
+        GraphError: unknown topic type, a ``type`` other than the topic's, or a
+            message that does not fit it (D9); nothing is published.
+        LimitError: the advertisement is past ``--max-advertisements``.
     """
+    if op.type is not None and _advertises(session, op.topic):
+        _register(session, "publish", op.topic, op.type, op.id, latch=op.latch)
     missing = session.graph.publish(
         session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg"
     )
@@ -92,6 +122,13 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
         listed = ", ".join(missing[:_MAX_LISTED])
         more = f" and {len(missing) - _MAX_LISTED} more" if len(missing) > _MAX_LISTED else ""
         session.report(StatusLevel.WARNING, f"publish: filled with defaults: {listed}{more}", op.id)
+
+
+def _advertises(session: HandlerContext, spelling: str) -> bool:
+    """Whether a ``publish`` with ``type`` on ``spelling`` advertises it first (D48)."""
+    if not session.config.compat.publish_advertises:
+        return False
+    return resolve_name(spelling) not in session.holdings.advertisements
 
 
 def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
