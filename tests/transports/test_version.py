@@ -24,7 +24,7 @@ from rwt_protocol.distribution import DISTRIBUTION
 from rwt_protocol.version import PROTOCOL_VERSION
 from rwt_transports.version_http import installed_version
 from tests.console.test_http import http_get
-from tests.support.clients import Harness, running_server
+from tests.support.clients import Harness, is_op, running_server
 
 pytestmark = pytest.mark.anyio
 
@@ -166,3 +166,27 @@ def test_a_bound_auth_and_no_foxglove() -> None:
     assert features.auth == "op-bound"
     assert features.subprotocols == ()
     assert features.transports == ("ws",)
+
+
+async def test_the_console_shows_the_versions() -> None:
+    async with running_server() as harness:
+        url = f"http://127.0.0.1:{harness.port('websocket')}"
+        page = (await anyio.to_thread.run_sync(http_get, url, "/"))[2]
+        script = (await anyio.to_thread.run_sync(http_get, url, "/console/main.js"))[2]
+    assert b'id="server-version"' in page
+    assert b"fetch('/version'" in script
+    assert b"getElementById('server-version')" in script
+
+
+async def test_the_optional_qos_of_protocol_2_1_is_accepted() -> None:
+    """2.1.0's ``qos`` (docs/reference-behaviour.md §13.2) is read and ignored (PROTOCOL_VERSION)."""
+    qos = {"history": "keep_last", "depth": 1, "reliability": "reliable", "durability": "volatile"}
+    async with running_server() as harness:
+        ws = await harness.connect("ws")
+        with anyio.fail_after(TIMEOUT_S):
+            topic, kind = "/qos_chatter", "std_msgs/msg/String"
+            await ws.send({"op": "advertise", "topic": topic, "type": kind, "qos": qos})
+            await ws.send({"op": "subscribe", "topic": topic, "type": kind, "qos": qos})
+            await ws.send({"op": "publish", "topic": topic, "msg": {"data": "hi"}, "qos": qos})
+            message = await ws.expect(is_op("publish", topic=topic))
+        assert message["msg"] == {"data": "hi"}
