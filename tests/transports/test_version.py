@@ -179,7 +179,7 @@ async def test_the_console_shows_the_versions() -> None:
 
 
 async def test_the_optional_qos_of_protocol_2_1_is_accepted() -> None:
-    """2.1.0's ``qos`` (docs/reference-behaviour.md §13.2) is read and ignored (PROTOCOL_VERSION)."""
+    """2.1.0's ``qos`` (docs/reference-behaviour.md §13.2) is read and ignored."""
     qos = {"history": "keep_last", "depth": 1, "reliability": "reliable", "durability": "volatile"}
     async with running_server() as harness:
         ws = await harness.connect("ws")
