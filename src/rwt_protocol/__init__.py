@@ -18,5 +18,6 @@ pyproject.toml); each subpackage's docstring lists its modules:
 - The vocabulary every part shares: ``errors`` (the error tree), ``levels``
   (status levels), ``names`` (ROS names), ``shortcuts`` (the fast paths' switch),
   ``ratelog`` (log lines a peer can trigger), ``distribution`` (the name rwt
-  installs under, and the install hints of its extras).
+  installs under, and the install hints of its extras), ``version`` (the protocol
+  version rwt speaks, ``PROTOCOL_VERSION``).
 """

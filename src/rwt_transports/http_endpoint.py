@@ -1,7 +1,7 @@
 """What the HTTP endpoints on the WebSocket port share: claiming, reading, answering.
 
 The WebSocket listener reads the start of a connection and offers it to each HTTP
-endpoint (WebRTC signalling, MCP) before the WebSocket handshake takes it
+endpoint (``/version``, WebRTC signalling, MCP) before the WebSocket handshake takes it
 (docs/architecture.md). Each endpoint answers one request a connection with h11:
 ``open_request`` reads it (bounded), answers the malformed, oversized and
 cross-origin ones itself, and ``reply`` sends a response and ends the connection.

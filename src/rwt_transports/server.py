@@ -57,6 +57,7 @@ from rwt_graph.visibility import Visibility
 from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
+from rwt_protocol.ops.base import Compression
 from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
@@ -76,6 +77,7 @@ from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
 from .udp_auth import UdpAuth
 from .urltoken import url_token_gate
+from .version_http import Features, VersionEndpoint
 from .webrtc_signal import WebRtcOptions, WebRtcSignalling
 from .websocket import WebSocketOptions, serve_websocket_connection
 
@@ -412,7 +414,9 @@ class RosbridgeServer:
         self.rosapi, self.tf = self._install_helpers()
         self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
         self.mcp = self._set_up_mcp(self.config.mcp)
-        self._http: list[HttpEndpoint] = [e for e in (self._signalling, self.mcp) if e is not None]
+        version = VersionEndpoint(self.features, self.config.websocket.allowed_origins)
+        endpoints = (version, self._signalling, self.mcp)
+        self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
@@ -480,6 +484,35 @@ class RosbridgeServer:
         policy = self.session_config.access
         access = _access_check(policy) if policy.restricted else None
         return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
+
+    def features(self) -> Features:
+        """What this server offers, for ``GET /version``'s ``rwt`` object (D49).
+
+        From the configuration and the front ends as they are now; nothing secret.
+        """
+        config, tls = self.config, self.config.certfile is not None
+        transports = [
+            name
+            for name, on in (
+                ("wss" if tls else "ws", config.port is not None),
+                ("tcp+tls" if tls else "tcp", config.tcp_port is not None),
+                ("udp", config.udp_port is not None),
+                ("stdio", config.stdio),
+                ("webrtc", self.webrtc is not None),
+            )
+            if on
+        ]
+        auth = "none"
+        if self.session_config.authenticator is not None:
+            auth = "op-bound" if self.session_config.auth_challenge else "op"
+        return Features(
+            transports=tuple(transports),
+            encodings=tuple(each.value for each in Compression),
+            subprotocols=tuple(n for each in self.frontends.others for n in each.subprotocols),
+            webrtc=self.webrtc is not None,
+            mcp=self.mcp is not None,
+            auth=auth,
+        )
 
     def add_frontend(self, frontend: FrontEnd) -> None:
         """Speak one more protocol on the WebSocket port, chosen by its subprotocols.

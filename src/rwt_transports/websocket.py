@@ -497,7 +497,7 @@ def _make_protocol(
 
 
 class HttpEndpoint(Protocol):
-    """An HTTP front end on the WebSocket port (WebRTC signalling, MCP): it claims requests."""
+    """An HTTP front end on the WebSocket port (``/version``, WebRTC, MCP): it claims requests."""
 
     def claims(self, head: bytes) -> bool | None:
         """Whether the request starting with ``head`` is this endpoint's; None: too short."""
@@ -634,8 +634,9 @@ async def serve_websocket_connection(
             (``AuthMode.URL_TOKEN``, a Foxglove client); an admitted one's session
             starts authenticated. None: no authentication.
         http: the HTTP endpoints on this port, each answering the requests it
-            claims: WebRTC signalling (``/webrtc``, docs/webrtc.md), MCP (``/mcp``,
-            docs/mcp.md); other requests are the WebSocket's (or the console's).
+            claims: the versions (``/version``, docs/server.md), WebRTC signalling
+            (``/webrtc``, docs/webrtc.md), MCP (``/mcp``, docs/mcp.md); other requests
+            are the WebSocket's (or the console's).
 
     Never raises for what the peer does; the stream is closed on return.
     """

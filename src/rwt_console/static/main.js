@@ -205,10 +205,26 @@ function showLimits(limits) {
     el('tr', { dataset: { name } }, el('td', { text: name }), el('td', { text: String(value) }))));
 }
 
+// The versions from GET /version (docs/server.md, "Version endpoint"), when the page
+// is served from the WebSocket port itself; elsewhere (the video port) it is not asked.
+async function showVersion(config) {
+  if (config.websocket.port) return;
+  try {
+    const response = await fetch('/version', { cache: 'no-store' });
+    if (!response.ok) return;
+    const { protocol, server } = await response.json();
+    document.getElementById('server-version').textContent =
+      `rwt ${server} · protocol ${protocol.major}.${protocol.minor}.${protocol.patch}`;
+  } catch {
+    // an older server without /version: the header shows no version
+  }
+}
+
 async function main() {
   const response = await fetch('/console/config.json', { cache: 'no-store' });
   const config = await response.json();
   showLimits(config.limits);
+  showVersion(config); // not awaited: the connection does not wait for it
   let ros;
   try {
     ros = await connect(config);

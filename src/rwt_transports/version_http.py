@@ -1,0 +1,200 @@
+"""``GET /version`` on the WebSocket port: the protocol and server versions, and rwt's features.
+
+rosbridge_server's version handler answers ``GET /version`` on its WebSocket port
+with ``{"protocol": {"major", "minor", "patch"}, "server": "<version>"}`` as
+``application/json`` (docs/reference-behaviour.md §13.4). rwt answers the same
+fields, the protocol version from ``rwt_protocol.version.PROTOCOL_VERSION`` and the
+server's from the installed distribution, plus ``rwt``: what this server offers
+(``Features``), built from its configuration when the request comes. No
+authentication, whatever ``--auth-secret-file`` says, as the reference's (D49):
+the answer names no secret, topic, client, port or address.
+
+One request a connection, read by h11 through ``http_endpoint`` (a body over
+``MAX_BODY_BYTES`` is refused with 413; the caller's handshake timeout bounds the
+time, and the socket holds a connection slot as any). ``GET`` and ``HEAD`` answer
+200, ``OPTIONS`` 204 with ``Allow``, any other method 405. A browser's request is
+answered with CORS headers when ``--allowed-origins`` allows its origin (any
+origin when unset), 403 otherwise, as the other HTTP endpoints do.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import json
+import logging
+from dataclasses import asdict, dataclass
+from functools import cache
+from typing import TYPE_CHECKING
+
+import anyio
+import h11
+
+from rwt_protocol.distribution import DISTRIBUTION
+from rwt_protocol.version import PROTOCOL_VERSION
+
+from .http_endpoint import claims_path, open_request, reply
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from anyio.abc import ByteStream
+
+__all__ = [
+    "MAX_BODY_BYTES",
+    "VERSION_PATH",
+    "Features",
+    "VersionEndpoint",
+    "installed_version",
+    "version_document",
+]
+
+logger = logging.getLogger("rwt.websocket")
+
+VERSION_PATH = "/version"
+"""Where the versions are answered (rosbridge_server's path, docs/reference-behaviour.md §13.4)."""
+
+MAX_BODY_BYTES = 1024
+"""Largest request body read (a ``GET /version`` has none): past it, 413."""
+
+_METHODS = (b"GET", b"HEAD", b"OPTIONS", b"POST", b"PUT", b"PATCH", b"DELETE")
+_ALLOW = b"GET, HEAD, OPTIONS"
+_JSON = "application/json"
+_CORS = [(b"Access-Control-Allow-Methods", _ALLOW)]
+
+
+@dataclass(frozen=True, slots=True)
+class Features:
+    """What a server offers beyond the protocol: the ``rwt`` object of ``GET /version``.
+
+    Attributes:
+        transports: the ways in, as the server's URLs name them: ``ws`` or ``wss``,
+            ``tcp`` or ``tcp+tls``, ``udp``, ``stdio``, ``webrtc`` (docs/server.md).
+        encodings: the ``compression`` values a ``subscribe`` may ask for (spec
+            3.3.4: ``none``, ``png``, ``cbor``, ``cbor-raw``; D20, D21).
+        subprotocols: the WebSocket subprotocols that select another protocol on
+            this port (Foxglove's, docs/foxglove.md); rosbridge needs none.
+        webrtc: offers are answered at ``/webrtc`` (docs/webrtc.md).
+        mcp: MCP is served at ``/mcp`` (docs/mcp.md).
+        auth: how a client authenticates: ``none``; ``op``, the rosauth ``auth`` op
+            first (a Foxglove client: a token in its URL; D23, D33); ``op-bound``,
+            the same signed over the connection's ``auth_challenge`` (D31).
+    """
+
+    transports: tuple[str, ...]
+    encodings: tuple[str, ...]
+    subprotocols: tuple[str, ...]
+    webrtc: bool
+    mcp: bool
+    auth: str
+
+
+@cache
+def installed_version() -> str:
+    """The installed rwt's version (``rwt --version``); ``0+unknown`` from a source tree."""
+    try:
+        return importlib.metadata.version(DISTRIBUTION)
+    except importlib.metadata.PackageNotFoundError:
+        return "0+unknown"  # as rwt.__version__
+
+
+def version_document(features: Features) -> dict[str, object]:
+    """The JSON object ``GET /version`` answers, for a server offering ``features``.
+
+    ``{"protocol": {"major": 2, "minor": 1, "patch": 0}, "server": "0.9.0",
+    "rwt": {...}}``: the first two fields are rosbridge_server's
+    (docs/reference-behaviour.md §13.4), ``rwt`` is ``Features`` as an object.
+    """
+    major, minor, patch = PROTOCOL_VERSION
+    return {
+        "protocol": {"major": major, "minor": minor, "patch": patch},
+        "server": installed_version(),
+        "rwt": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(features).items()},
+    }
+
+
+def _names_version(_method: bytes, after: bytes) -> bool:
+    """After ``/version``: the path ends (a space) or its query begins."""
+    return after in (b" ", b"?")
+
+
+class VersionEndpoint:
+    """Answers ``/version`` on the WebSocket port (an ``HttpEndpoint``).
+
+    Args:
+        features: what the server offers, asked at each request (a front end
+            added after the server was built shows).
+        allowed_origins: fnmatch patterns of accepted ``Origin`` headers
+            (``--allowed-origins``); empty: any origin.
+    """
+
+    def __init__(
+        self, features: Callable[[], Features], allowed_origins: tuple[str, ...] = ()
+    ) -> None:
+        self.features = features
+        self.allowed_origins = allowed_origins
+
+    @staticmethod
+    def claims(head: bytes) -> bool | None:
+        """Whether the request starting with ``head`` is for ``/version``; None: too short."""
+        return claims_path(head, _METHODS, VERSION_PATH, _names_version)
+
+    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
+        """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
+
+        The caller bounds the time (the handshake timeout) and closes the stream.
+        """
+        opened = await open_request(
+            stream,
+            head,
+            limit=MAX_BODY_BYTES,
+            too_large=f"{VERSION_PATH} takes no body (at most {MAX_BODY_BYTES} bytes)",
+            allowed_origins=self.allowed_origins,
+            cors=_CORS,
+        )
+        if opened is None:
+            return
+        method = opened.request.method
+        allow = [(b"Allow", _ALLOW)]
+        if method in (b"GET", b"HEAD"):
+            status = 200
+            body = json.dumps(version_document(self.features())).encode()
+            await _send_json(opened.conn, stream, body, opened.cors, head=method == b"HEAD")
+        elif method == b"OPTIONS":
+            status = 204
+            await reply(opened.conn, stream, status, "", [*opened.cors, *allow])
+        else:
+            status = 405
+            text = f"{VERSION_PATH} answers GET and HEAD only"
+            await reply(opened.conn, stream, status, text, [*opened.cors, *allow])
+        logger.debug(
+            "event=version peer=%s method=%s status=%d", peer, method.decode("latin-1"), status
+        )
+
+
+async def _send_json(
+    conn: h11.Connection,
+    stream: ByteStream,
+    body: bytes,
+    headers: list[tuple[bytes, bytes]],
+    *,
+    head: bool,
+) -> None:
+    """Send ``body`` as JSON and end the connection; for HEAD its length and no body.
+
+    ``http_endpoint.reply`` cannot answer HEAD: h11 refuses a body there.
+    """
+    fields = [
+        *headers,
+        (b"Content-Type", _JSON.encode()),
+        (b"Content-Length", str(len(body)).encode()),
+        (b"Cache-Control", b"no-cache"),
+        (b"X-Content-Type-Options", b"nosniff"),
+        (b"Connection", b"close"),
+    ]
+    with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+        data = conn.send(h11.Response(status_code=200, headers=fields, reason=b"OK")) or b""
+        if not head:
+            data += conn.send(h11.Data(data=body)) or b""
+        data += conn.send(h11.EndOfMessage()) or b""
+        await stream.send(data)
