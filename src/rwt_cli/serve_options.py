@@ -443,7 +443,7 @@ class GraphOptions:
             help="rosbridge: behave as rosbridge_suite where clients notice (no status op"
             " until a client sends set_level, its reply texts); rosbridge-2.1: also, as 2.1.0,"
             " a publish with type does not advertise, so one to an unknown topic is refused"
-            " (D48; docs/differences.md)."
+            " (docs/differences.md)."
         ),
     ] = Compat.RWT
     tf: Annotated[
