@@ -249,7 +249,7 @@ class Security:
             callback=check_glob_list,
             metavar="PATTERNS",
             help="Topics clients may advertise and publish, merged with --topics-glob;"
-            " [] with no --topics-glob allows none (default: --topics-glob's, D50).",
+            " [] with no --topics-glob allows none (default: --topics-glob's).",
         ),
     ] = ""
     topics_sub_glob: Annotated[
@@ -258,7 +258,7 @@ class Security:
             callback=check_glob_list,
             metavar="PATTERNS",
             help="Topics clients may subscribe to, merged with --topics-glob;"
-            " [] with no --topics-glob allows none (default: --topics-glob's, D50).",
+            " [] with no --topics-glob allows none (default: --topics-glob's).",
         ),
     ] = ""
     services_glob: Annotated[
