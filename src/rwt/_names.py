@@ -105,7 +105,12 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),
-        "rwt_protocol.server.access": ("AccessDeniedError", "AccessPolicy", "Family"),
+        "rwt_protocol.server.access": (
+            "AccessDeniedError",
+            "AccessPolicy",
+            "Family",
+            "TopicUse",
+        ),
         "rwt_protocol.ops": ("Auth",),
         "rwt_protocol.server.compat": ("Compat",),
         "rwt_transports.foxglove": ("FoxgloveOptions",),

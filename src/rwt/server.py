@@ -1,9 +1,9 @@
 """The parts of ``rwt.ServerConfig`` and an embedded server's hooks (docs/server.md).
 
 Listener options (``WebSocketOptions``, ``UdpOptions``, the web console's
-``ConsoleSite``), access rules (``AccessPolicy`` over a ``Family`` of names, and
-the ``AccessDeniedError`` a client gets), authentication (the ``Auth`` op an
-authenticator gets, ``rosauth_authenticator``; ``rosauth_op`` signs one and
+``ConsoleSite``), access rules (``AccessPolicy`` over a ``Family`` of names and a
+topic's ``TopicUse``, and the ``AccessDeniedError`` a client gets), authentication
+(the ``Auth`` op an authenticator gets, ``rosauth_authenticator``; ``rosauth_op`` signs one and
 ``auth_query`` puts it in a Foxglove client's URL), the in-process client connection
 (``MemoryConnection``), the allocator tuning ``rwt serve`` does, the shortcuts on
 and off in this process (``shortcut_report``, docs/shortcuts.md), and ``Compat``, the
@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from rwt_foxglove.session import FoxgloveLimits
     from rwt_protocol.auth import auth_query, rosauth_op
     from rwt_protocol.ops import Auth
-    from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family
+    from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family, TopicUse
     from rwt_protocol.server.compat import Compat
     from rwt_protocol.shortcuts import shortcut_report
     from rwt_transports.allocator import tune_allocator
@@ -49,6 +49,7 @@ __all__ = [
     "FoxgloveOptions",
     "McpOptions",
     "MemoryConnection",
+    "TopicUse",
     "UdpOptions",
     "WebRtcOptions",
     "WebSocketOptions",

@@ -23,7 +23,7 @@ from rwt_console import ConsoleSite, console_for
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.access import AccessPolicy, parse_glob_list
+from rwt_protocol.server.access import AccessPolicy, parse_glob_list, parse_split_glob
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit
@@ -276,6 +276,8 @@ def _session_config(options: ServeOptions) -> SessionConfig:
         hold_budget_s=limits.hold_budget,
         access=AccessPolicy(
             topics=parse_glob_list(security.topics_glob),
+            topics_pub=parse_split_glob(security.topics_pub_glob),
+            topics_sub=parse_split_glob(security.topics_sub_glob),
             services=parse_glob_list(security.services_glob),
             params=parse_glob_list(security.params_glob),
             actions=parse_glob_list(security.actions_glob),

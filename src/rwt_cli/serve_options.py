@@ -243,6 +243,24 @@ class Security:
             help="Allowed topics: fnmatch patterns, as /a/*,/b or [/a/*, /b] (default: all).",
         ),
     ] = ""
+    topics_pub_glob: Annotated[
+        str,
+        typer.Option(
+            callback=check_glob_list,
+            metavar="PATTERNS",
+            help="Topics clients may advertise and publish, merged with --topics-glob;"
+            " [] with no --topics-glob allows none (default: --topics-glob's).",
+        ),
+    ] = ""
+    topics_sub_glob: Annotated[
+        str,
+        typer.Option(
+            callback=check_glob_list,
+            metavar="PATTERNS",
+            help="Topics clients may subscribe to, merged with --topics-glob;"
+            " [] with no --topics-glob allows none (default: --topics-glob's).",
+        ),
+    ] = ""
     services_glob: Annotated[
         str,
         typer.Option(

@@ -18,9 +18,9 @@ client took the last (a client new to thousands of topics gets them in bounded
 frames, one that reads nothing holds one).
 
 What maps to what: a server channel is a topic of the graph that has a
-publisher (and that the access globs let this client see); a subscription is a
-graph subscription of this client id; a client channel is a graph publisher of
-this client id. Services, parameters and the connection graph are parts of
+publisher (and that the access globs let this client subscribe to, D50); a
+subscription is a graph subscription of this client id; a client channel is a
+graph publisher of this client id. Services, parameters and the connection graph are parts of
 their own (``services``, ``params``, ``conngraph``), which send through the
 session (``output.SessionOutput``). Every bad input is answered with an error
 ``status`` and the session goes on.
@@ -40,7 +40,7 @@ from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError, RwtError
 from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
-from rwt_protocol.server.access import Family
+from rwt_protocol.server.access import Family, TopicUse
 from rwt_protocol.server.connection import SessionBase
 from rwt_protocol.server.outbox import OutFrame
 from rwt_protocol.server.session import SessionConfig
@@ -556,6 +556,7 @@ class FoxgloveSession(SessionBase):
         channel = self._by_id.get(channel_id)
         if channel is None:
             raise FoxgloveInputError(f"unknown channel {channel_id}")
+        self.require_access(Family.TOPICS, channel.topic, "subscribe", TopicUse.SUBSCRIBE)
         if channel.subscriptions:  # one subscription per channel, as the SDK's server
             first = channel.subscriptions[0]
             raise FoxgloveInputError(
@@ -609,7 +610,7 @@ class FoxgloveSession(SessionBase):
         if problem is not None:
             raise FoxgloveInputError(f"topic: {problem}")
         topic = resolve_name(spec.topic)
-        self.require_access(Family.TOPICS, topic, "advertise")
+        self.require_access(Family.TOPICS, topic, "advertise", TopicUse.PUBLISH)
         type_name = self._graph.advertise(self._client_id, topic, spec.schemaName)
         mtype = self._graph.registry.message(type_name)
         self._client_channels[spec.id] = _ClientChannel(spec.id, topic, mtype, spec.encoding)
@@ -753,6 +754,8 @@ class FoxgloveSession(SessionBase):
             topic = next(iter(self._dirty))
             del self._dirty[topic]
             type_name = self._index.type_of(EntityKind.PUBLISHER, topic)
+            if not self._access.allows(Family.TOPICS, topic, TopicUse.SUBSCRIBE):
+                type_name = None  # a channel is for subscribing: --topics-sub-glob (D50)
             channel = self._channels.get(topic)
             if channel is not None and channel.mtype.name != type_name:
                 self._drop_channel(channel)

@@ -5,7 +5,9 @@ wraps each tool): a call refused here is a tool error that names the rule, and
 the robot never hears of it. The rules (docs/mcp.md, "Safety"):
 
 - the server's access globs (``--topics-glob`` and friends, docs/server.md) for
-  the topic, service, action or parameter a tool names (``TOOL_NAMES``);
+  the topic, service, action or parameter a tool names (``TOOL_NAMES``): a tool
+  that publishes is held to ``--topics-pub-glob``, one that reads a topic to
+  ``--topics-sub-glob`` (D50);
 - read-only mode (``--mcp-read-only``, ``rwt mcp --read-only``): the tools that
   change the robot (``WRITE_TOOLS``) are refused;
 - a rate per tool and session (``TOOL_CALLS_PER_S``, a bucket of ``TOOL_BURST``),
@@ -78,11 +80,12 @@ WRITE_TOOLS = frozenset(
         "set_parameter",
     }
 )
-#: For each tool that names something: the access family and the argument naming it.
+#: For each tool that names something: the access family and the argument naming it
+#: (a topic's family says which split glob decides: ``topics_pub``, ``topics_sub``, D50).
 TOOL_NAMES: Mapping[str, tuple[str, str]] = {
-    "echo": ("topics", "topic"),
-    "publish": ("topics", "topic"),
-    "publish_for": ("topics", "topic"),
+    "echo": ("topics_sub", "topic"),
+    "publish": ("topics_pub", "topic"),
+    "publish_for": ("topics_pub", "topic"),
     "call_service": ("services", "service"),
     "send_action_goal": ("actions", "action"),
     "cancel_action_goal": ("actions", "action"),
@@ -92,7 +95,9 @@ TOOL_NAMES: Mapping[str, tuple[str, str]] = {
 
 AccessCheck = Callable[[str, str], str | None]
 """``(family, name) -> refusal``: the rule refusing ``name`` (``--topics-glob [/robot/*]``),
-or None if allowed; ``family`` is ``topics``, ``services``, ``actions`` or ``params``."""
+or None if allowed; ``family`` is ``topics`` (a listing: either use),
+``topics_pub`` (publishing), ``topics_sub`` (subscribing, reading), ``services``,
+``actions`` or ``params``."""
 
 
 @dataclass

@@ -303,7 +303,7 @@ class TopicResources:
     def _allowed(self, uri: AnyUrl) -> str:
         topic = topic_of(uri)
         try:
-            self.guard.check_access("topics", topic, "uri topic")
+            self.guard.check_access("topics_sub", topic, "uri topic")
         except ToolError as exc:
             raise _refused(str(exc)) from None
         return topic

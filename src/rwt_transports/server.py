@@ -1298,15 +1298,22 @@ def _url_host(host: str) -> str:
 
 
 def _access_check(policy: AccessPolicy) -> Callable[[str, str], str | None]:
-    """``policy`` as the MCP guard asks it: ``(family, name) -> the refusing rule`` or None."""
-    from rwt_protocol.server.access import Family  # noqa: PLC0415 (only with --mcp)
+    """``policy`` as the MCP guard asks it: ``(family, name) -> the refusing rule`` or None.
+
+    ``family`` is an ``rwt_mcp.guard.AccessCheck`` family: ``topics_pub`` and
+    ``topics_sub`` check a topic's use (D50); the rule is named as its option,
+    with the patterns that refused (``--topics-sub-glob [/a, /b]``).
+    """
+    from rwt_protocol.server.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
 
     def check(family: str, name: str) -> str | None:
-        kind = Family(family)
-        if policy.allows(kind, name):
+        kind, _, use_name = family.partition("_")
+        use = TopicUse(use_name) if use_name else None
+        glob = policy.refusal(Family(kind), name, use)
+        if glob is None:
             return None
-        patterns = ", ".join(getattr(policy, kind.value))
-        return f"--{kind.value}-glob [{patterns}]"
+        patterns = ", ".join(policy.patterns(glob))
+        return f"--{glob.replace('_', '-')} [{patterns}]"
 
     return check
 

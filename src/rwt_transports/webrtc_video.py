@@ -47,7 +47,7 @@ from aiortc.sdp import SessionDescription
 
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import resolve_name
-from rwt_protocol.server.access import Family
+from rwt_protocol.server.access import Family, TopicUse
 from rwt_video.encoders import VideoPacket
 from rwt_video.hub import StreamHub
 from rwt_video.params import StreamParamError, StreamParams, StreamType, parse_stream_params
@@ -301,7 +301,7 @@ class WebRtcVideo:
     Args:
         graph: where the image topics are.
         access: the server's access rules; a topic they deny is refused as a
-            subscription would be (``--topics-glob``).
+            subscription would be (``--topics-sub-glob``, D50).
         max_streams: the most distinct streams at once (``MAX_VIDEO_STREAMS``).
         encoder_threads: the most frames encoded at once; None: the image threads
             every front end shares (``hub.ENCODER_THREADS``).
@@ -351,7 +351,7 @@ class WebRtcVideo:
         for name in request.topics:
             topic = resolve_name(name)
             shown = topic if len(topic) <= 80 else topic[:77] + "..."
-            if not self.access.allows(Family.TOPICS, topic):
+            if not self.access.allows(Family.TOPICS, topic, TopicUse.SUBSCRIBE):
                 return Answer(403, f"topic {shown!r} is not allowed")
             type_name = _full(types.get(topic))
             if type_name is None:

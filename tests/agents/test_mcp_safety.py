@@ -157,6 +157,22 @@ async def test_the_access_globs_refuse_a_tool_call_naming_the_rule(serving: Any)
     assert received == []
 
 
+async def test_the_split_globs_hold_publishing_and_reading_apart(serving: Any) -> None:
+    # --topics-pub-glob [/cmd] --topics-sub-glob [/battery] (D50)
+    received: list[Message] = []
+    access = AccessPolicy(topics_pub=("/cmd",), topics_sub=("/battery",))
+    url, _ = await serving(robot_graph(received), _config(session=SessionConfig(access=access)))
+    async with rwt_serve_mcp(url) as agent:
+        assert not (await agent.result("publish", **WRITES["publish"])).isError
+        refused = await agent.result("echo", topic="/cmd", timeout_s=1)
+        assert "topic /cmd: refused by --topics-sub-glob [/battery]" in _text(refused)
+        battery = {"topic": "/battery", "type": "std_msgs/msg/String", "msg": {"data": "0%"}}
+        refused = await agent.result("publish", **battery)
+        assert "topic /battery: refused by --topics-pub-glob [/cmd]" in _text(refused)
+        assert not (await agent.result("echo", topic="/battery")).isError
+    assert received == [{"data": "go"}]
+
+
 @pytest.mark.parametrize("front", ["http", "stdio"])
 async def test_read_only_refuses_every_write_and_the_robot_hears_none(
     serving: Any, front: str, tmp_path: Path

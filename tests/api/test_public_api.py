@@ -242,6 +242,7 @@ NEVER_IN_RWT = {
     "FoxgloveOptions",
     "PlaybackStatus",
     "UnknownNameError",
+    "TopicUse",
     "WebRtcOptions",
     "auth_query",
     "rosauth_op",

@@ -180,6 +180,30 @@ def test_access_globs_hide_topics(ros2_types: TypeRegistry) -> None:
     assert "not allowed" in str(client.take_ops("status")[0]["message"])
 
 
+def test_split_globs_bind_a_foxglove_client(ros2_types: TypeRegistry) -> None:
+    # --topics-pub-glob [/cmd] --topics-sub-glob [/state] (D50): channels are for
+    # subscribing, so /cmd has none; the client may advertise /cmd, not /state
+    graph = Graph(ros2_types)
+    graph.create_publisher("/cmd", "std_msgs/msg/String")
+    graph.create_publisher("/state", "std_msgs/msg/String")
+    client = Client(graph, access=AccessPolicy(topics_pub=("/cmd",), topics_sub=("/state",)))
+    client.channel("/state")
+    with pytest.raises(AssertionError):
+        client.channel("/cmd")
+    for cid, topic in ((1, "/cmd"), (2, "/state")):
+        channel = {
+            "id": cid,
+            "topic": topic,
+            "encoding": "json",
+            "schemaName": "std_msgs/msg/String",
+        }
+        client.send({"op": "advertise", "channels": [channel]})
+    [status] = client.take_ops("status")
+    assert status["message"] == "advertise: topic /state is not allowed on this server"
+    assert "foxglove:test#1" in graph.topics["/cmd"].publishers
+    assert "foxglove:test#1" not in graph.topics["/state"].publishers
+
+
 @pytest.mark.parametrize(
     ("frame", "binary", "expected"),
     [

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 
 import pytest
 
@@ -13,7 +14,15 @@ from rwt_protocol.auth import RosauthVerifier, rosauth_mac
 from rwt_protocol.errors import LocalProtocolError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Auth, CallService, Subscribe
-from rwt_protocol.server.access import AccessPolicy, Family, parse_glob_list
+from rwt_protocol.ratelog import EpisodeLog
+from rwt_protocol.server import gates
+from rwt_protocol.server.access import (
+    AccessPolicy,
+    Family,
+    TopicUse,
+    parse_glob_list,
+    parse_split_glob,
+)
 from rwt_protocol.server.handlers import HANDLERS
 from rwt_protocol.server.lifecycle import TRANSITIONS, State, advance
 from rwt_protocol.server.outbox import Outbox, OutFrame
@@ -295,6 +304,94 @@ def test_allowed_ops_pass_the_policy(graph: Graph) -> None:
     peer.send(op="publish", topic="/public/chat", msg={"data": "ok"})
     assert peer.received() == []
     assert other.received()[0]["msg"] == {"data": "ok"}
+
+
+# ---- split topic globs: --topics-pub-glob, --topics-sub-glob (REF §13.5, D50) ----------
+
+PUB, SUB = TopicUse.PUBLISH, TopicUse.SUBSCRIBE
+
+
+def split(topics: str = "", pub: str = "", sub: str = "") -> AccessPolicy:
+    """The policy ``rwt serve`` builds from the three options' texts."""
+    return AccessPolicy(
+        topics=parse_glob_list(topics),
+        topics_pub=parse_split_glob(pub),
+        topics_sub=parse_split_glob(sub),
+    )
+
+
+def test_split_globs_parse_unset_apart_from_an_empty_list() -> None:
+    assert parse_split_glob("") is None and parse_split_glob("  ") is None
+    assert parse_split_glob("[]") == ()
+    assert parse_split_glob("[/a/*, '/b']") == ("/a/*", "/b")
+
+
+ALL = {"/a", "/b", "/c"}
+
+
+@pytest.mark.parametrize(
+    ("options", "publish", "subscribe", "listed", "refused_by"),
+    [
+        # nothing set, or "" (unset): no filtering
+        ({}, ALL, ALL, ALL, None),
+        ({"pub": "", "sub": ""}, ALL, ALL, ALL, None),
+        # pub allowed, sub denied on the same topic
+        ({"pub": "[/a]", "sub": "[/b]"}, {"/a"}, {"/b"}, {"/a", "/b"}, "topics_sub_glob"),
+        # "[]" alone denies every publish; sub unset inherits topics_glob (none: all)
+        ({"pub": "[]"}, set(), ALL, ALL, None),
+        ({"pub": "[]", "sub": "[]"}, set(), set(), set(), "topics_sub_glob"),
+        # unset inherits topics_glob as it is
+        ({"topics": "[/a]"}, {"/a"}, {"/a"}, {"/a"}, "topics_glob"),
+        ({"topics": "[/a]", "sub": "[/b]"}, {"/a"}, {"/a", "/b"}, {"/a", "/b"}, None),
+        # set, even "[]", is merged with topics_glob
+        ({"topics": "[/a]", "pub": "[]"}, {"/a"}, {"/a"}, {"/a"}, "topics_glob"),
+        (
+            {"topics": "[/a]", "pub": "[/c]", "sub": "[]"},
+            {"/a", "/c"},
+            {"/a"},
+            {"/a", "/c"},
+            "topics_sub_glob",
+        ),
+    ],
+)
+def test_split_globs_follow_the_reference(
+    options: dict[str, str],
+    publish: set[str],
+    subscribe: set[str],
+    listed: set[str],
+    refused_by: str | None,
+) -> None:
+    policy = split(**options)
+    assert {n for n in sorted(ALL) if policy.allows(Family.TOPICS, n, PUB)} == publish
+    assert {n for n in sorted(ALL) if policy.allows(Family.TOPICS, n, SUB)} == subscribe
+    # a listing (rosapi, what a Foxglove client sees of the graph): either use allows it
+    assert set(policy.filter(Family.TOPICS, sorted(ALL))) == listed
+    assert policy.refusal(Family.TOPICS, "b", SUB) == (None if "/b" in subscribe else refused_by)
+    assert policy.restricted == (publish != ALL or subscribe != ALL)
+
+
+def test_a_refused_subscribe_names_its_glob_and_a_publish_on_the_topic_passes(
+    graph: Graph, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(gates, "_episodes", EpisodeLog(gates.logger))  # a new episode
+    caplog.set_level(logging.WARNING, logger="rwt.session")
+    peer = GatedPeer(graph, "s", SessionConfig(access=split(pub="[/cmd]", sub="[/state]")))
+    other = Peer(graph, "o")
+    other.send(op="subscribe", topic="/cmd", type="std_msgs/String")
+    peer.send(op="advertise", topic="/cmd", type="std_msgs/String")
+    peer.send(op="publish", topic="cmd", msg={"data": "go"})
+    assert other.received()[0]["msg"] == {"data": "go"}
+    peer.send(op="subscribe", topic="/cmd", id="s1")
+    peer.clock.now += 60  # the next refusal is a new episode, logged again
+    peer.send(op="advertise", topic="/state", type="std_msgs/String", id="a1")
+    refused = peer.received()
+    assert [(m["id"], m["msg"]) for m in refused] == [
+        ("s1", "subscribe: topic /cmd is not allowed on this server"),
+        ("a1", "advertise: topic /state is not allowed on this server"),
+    ]
+    assert "op=subscribe glob=topics_sub_glob" in caplog.text
+    assert "op=advertise glob=topics_pub_glob" in caplog.text
+    assert list(graph.topics["/cmd"].subscribers) == ["o"]
 
 
 # ---- slow consumers (D24) ----------------------------------------------------------------

@@ -3,7 +3,15 @@
 rosbridge's ``topics_glob``, ``services_glob`` and ``params_glob`` parameters
 (REF §1.2), plus ``actions_glob``, which rosbridge has in code but never wires:
 each is a list of ``fnmatch`` patterns matched against resolved names
-(``/chatter``); an empty list means no filtering. The session checks every op
+(``/chatter``); an empty list means no filtering.
+
+rosbridge's split topic globs (REF §13.5, D50), ``topics_pub_glob`` for what a
+client publishes (advertise, unadvertise, publish) and ``topics_sub_glob`` for
+what it subscribes to: unset (None), each is ``topics_glob`` as it is; set, even
+to an empty list, it is its own patterns plus ``topics_glob``'s, and an empty
+result allows nothing. A listing shows a topic either one allows
+(``TopicUse``: None). Every refusal names the glob that refused it
+(``AccessPolicy.refusal``, ``AccessDeniedError.glob``). The session checks every op
 against the policy before dispatch, by op family and name, so every handler is
 covered without knowing about it. Unlike the reference, which drops a denied op
 with only a log line (a denied ``call_service`` then waits forever), a denied op
@@ -46,7 +54,14 @@ from ..ops import (
 if TYPE_CHECKING:
     from collections.abc import Iterable, Mapping, Sequence
 
-__all__ = ["AccessDeniedError", "AccessPolicy", "Family", "parse_glob_list"]
+__all__ = [
+    "AccessDeniedError",
+    "AccessPolicy",
+    "Family",
+    "TopicUse",
+    "parse_glob_list",
+    "parse_split_glob",
+]
 
 ROSAPI_PREFIX = "/rosapi/"
 _PARAM_SERVICES = frozenset(
@@ -64,8 +79,25 @@ class Family(StrEnum):
     ACTIONS = "actions"
 
 
+class TopicUse(StrEnum):
+    """What a client does with a topic: which split glob decides (REF §13.5, D50)."""
+
+    PUBLISH = "pub"
+    SUBSCRIBE = "sub"
+
+
 class AccessDeniedError(RemoteProtocolError):
-    """An op names something the server's access rules do not allow (error status, D1)."""
+    """An op names something the server's access rules do not allow (error status, D1).
+
+    Args:
+        message: what the client is told (``topic /x is not allowed on this server``).
+        glob: the rule that refused, as rosbridge names it (``topics_pub_glob``), for
+            the server's log.
+    """
+
+    def __init__(self, message: str, glob: str = "") -> None:
+        super().__init__(message)
+        self.glob = glob
 
 
 _OP_FAMILIES: Mapping[type, tuple[Family, str]] = {
@@ -85,6 +117,19 @@ _OP_FAMILIES: Mapping[type, tuple[Family, str]] = {
 }
 """Op model -> (family, name of the field holding the checked name)."""
 
+_TOPIC_USES: Mapping[type, TopicUse] = {
+    Advertise: TopicUse.PUBLISH,
+    Unadvertise: TopicUse.PUBLISH,
+    Publish: TopicUse.PUBLISH,
+    PublishFrame: TopicUse.PUBLISH,
+    Subscribe: TopicUse.SUBSCRIBE,
+    Unsubscribe: TopicUse.SUBSCRIBE,
+}
+"""Topic op model -> the split glob that decides it (REF §13.5)."""
+
+_NOTHING = re.compile(r"(?!)")
+"""Matches no name: a set glob whose list is empty (``"[]"``, REF §13.5)."""
+
 
 def parse_glob_list(text: str) -> tuple[str, ...]:
     """Parse a rosbridge glob parameter into patterns.
@@ -101,6 +146,21 @@ def parse_glob_list(text: str) -> tuple[str, ...]:
         text = text[1:-1]
     items = (item.strip().strip("'\"").strip() for item in text.split(","))
     return tuple(item for item in items if item)
+
+
+def parse_split_glob(text: str) -> tuple[str, ...] | None:
+    """Parse ``--topics-pub-glob`` or ``--topics-sub-glob`` as rosbridge does (REF §13.5).
+
+    Args:
+        text: as for ``parse_glob_list``.
+
+    Returns:
+        None for ``""`` (unset: ``topics_glob`` decides); otherwise the patterns,
+        empty for ``"[]"`` (which, with no ``topics_glob``, allows nothing).
+    """
+    if not text.strip():
+        return None
+    return parse_glob_list(text)
 
 
 def _compile(patterns: Iterable[str], *, absolute: bool) -> re.Pattern[str] | None:
@@ -126,13 +186,21 @@ class AccessPolicy:
         services: patterns of allowed services (``/rosapi/*`` is always allowed).
         params: patterns of allowed parameter names.
         actions: patterns of allowed actions.
+        topics_pub: ``--topics-pub-glob``: None (unset) leaves publishing to
+            ``topics``; a tuple, even empty, is merged with ``topics`` (REF §13.5).
+        topics_sub: ``--topics-sub-glob``, the same for subscribing.
     """
 
     topics: Sequence[str] = ()
     services: Sequence[str] = ()
     params: Sequence[str] = ()
     actions: Sequence[str] = ()
+    topics_pub: Sequence[str] | None = None
+    topics_sub: Sequence[str] | None = None
     _matchers: dict[Family, re.Pattern[str] | None] = field(
+        init=False, repr=False, compare=False, default_factory=dict
+    )
+    _topic_matchers: dict[TopicUse, re.Pattern[str] | None] = field(
         init=False, repr=False, compare=False, default_factory=dict
     )
 
@@ -140,28 +208,79 @@ class AccessPolicy:
         for family in Family:
             absolute = family is not Family.PARAMS
             self._matchers[family] = _compile(getattr(self, family.value), absolute=absolute)
+        for use in TopicUse:
+            own = self._own(use)
+            if own is None:  # unset: topics_glob as it is
+                self._topic_matchers[use] = self._matchers[Family.TOPICS]
+            else:  # set: its own patterns plus topics_glob's; none at all match nothing
+                merged = [*own, *self.topics]
+                self._topic_matchers[use] = _compile(merged, absolute=True) or _NOTHING
+
+    def _own(self, use: TopicUse) -> Sequence[str] | None:
+        return self.topics_pub if use is TopicUse.PUBLISH else self.topics_sub
+
+    def patterns(self, glob: str) -> tuple[str, ...]:
+        """The patterns a rule named as ``refusal`` names it holds (``topics_pub_glob``).
+
+        A set split glob holds its own patterns then ``topics_glob``'s (REF §13.5).
+        """
+        for use in TopicUse:
+            own = self._own(use)
+            if glob == f"topics_{use.value}_glob" and own is not None:
+                return (*own, *self.topics)
+        family = glob.removesuffix("_glob")
+        return tuple(getattr(self, family)) if family in set(Family) else ()
 
     @property
     def restricted(self) -> bool:
-        """Whether any family is filtered at all."""
-        return any(matcher is not None for matcher in self._matchers.values())
+        """Whether any family (or either use of topics) is filtered at all."""
+        matchers = [*self._matchers.values(), *self._topic_matchers.values()]
+        return any(matcher is not None for matcher in matchers)
 
-    def allows(self, family: Family, name: str) -> bool:
+    def allows(self, family: Family, name: str, use: TopicUse | None = None) -> bool:
         """Whether a client may use ``name``.
 
         Topic, service and action names are resolved first (``chatter`` is
         ``/chatter``, D26); parameter names are matched as written.
-        """
-        return self._allows(family, name, calling=True)
 
-    def _allows(self, family: Family, name: str, *, calling: bool) -> bool:
+        Args:
+            family: what ``name`` is.
+            name: the name.
+            use: for a topic, publishing or subscribing (the split globs, D50);
+                None asks whether it may be listed: either use allows it.
+        """
+        return self.refusal(family, name, use) is None
+
+    def refusal(self, family: Family, name: str, use: TopicUse | None = None) -> str | None:
+        """The glob refusing ``name``, as rosbridge names it (``topics_sub_glob``), or None.
+
+        Args as for ``allows``.
+        """
+        return self._refusal(family, name, use, calling=True)
+
+    def _refusal(
+        self, family: Family, name: str, use: TopicUse | None, *, calling: bool
+    ) -> str | None:
+        if family is Family.TOPICS:
+            return self._topic_refusal(name, use)
         matcher = self._matchers[family]
         if matcher is None:
-            return True
+            return None
         resolved = name if family is Family.PARAMS else resolve_name(name)
         if calling and family is Family.SERVICES and resolved.startswith(ROSAPI_PREFIX):
-            return True  # calling rosapi, never advertising over it
-        return matcher.fullmatch(resolved) is not None
+            return None  # calling rosapi, never advertising over it
+        return None if matcher.fullmatch(resolved) is not None else f"{family.value}_glob"
+
+    def _topic_refusal(self, name: str, use: TopicUse | None) -> str | None:
+        uses = (TopicUse.PUBLISH, TopicUse.SUBSCRIBE) if use is None else (use,)
+        refused: list[str] = []
+        for each in uses:
+            matcher = self._topic_matchers[each]
+            if matcher is None or matcher.fullmatch(resolve_name(name)) is not None:
+                return None  # a listing shows what either use allows
+            own = self._own(each)
+            refused.append("topics_glob" if own is None else f"topics_{each.value}_glob")
+        return "/".join(dict.fromkeys(refused))
 
     def filter(self, family: Family, names: Iterable[str]) -> list[str]:
         """The names a client may see, in their order (for rosapi's listings)."""
@@ -179,12 +298,16 @@ class AccessPolicy:
             return
         family, attribute = entry
         name: str = getattr(op, attribute)
-        if not self._allows(family, name, calling=isinstance(op, CallService)):
-            raise AccessDeniedError(f"{family.value[:-1]} {name} is not allowed on this server")
+        use = _TOPIC_USES.get(type(op))
+        glob = self._refusal(family, name, use, calling=isinstance(op, CallService))
+        if glob is not None:
+            text = f"{family.value[:-1]} {name} is not allowed on this server"
+            raise AccessDeniedError(text, glob)
         if isinstance(op, CallService) and resolve_name(op.service) in _PARAM_SERVICES:
             param = _param_name(op.args)
             if param is not None and not self.allows(Family.PARAMS, param):
-                raise AccessDeniedError(f"parameter {param} is not allowed on this server")
+                text = f"parameter {param} is not allowed on this server"
+                raise AccessDeniedError(text, "params_glob")
 
 
 def _param_name(args: object) -> str | None:

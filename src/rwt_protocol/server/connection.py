@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, ClassVar
 from ..errors import LimitError
 from ..levels import StatusLevel
 from ..ratelog import EpisodeLog
-from .access import AccessDeniedError, Family
+from .access import AccessDeniedError, Family, TopicUse
 from .backpressure import SlowConsumerWatch
 from .callbook import CallBook
 from .commands import CloseCode, CloseConnection, Command
@@ -593,34 +593,41 @@ class SessionBase:
         if count >= cap:
             raise LimitError(f"{what}: this connection holds {cap} already (the server's limit)")
 
-    def require_access(self, family: Family, name: str, op: str) -> None:
+    def require_access(
+        self, family: Family, name: str, op: str, use: TopicUse | None = None
+    ) -> None:
         """The access gate of every protocol: refuse what the access rules deny.
 
         The rules are the server's (``SessionConfig.access``: ``--topics-glob``
         and friends); a refusal is logged as rosbridge's are
-        (``event=access_denied``, once per episode, repeats counted).
+        (``event=access_denied``, once per episode, repeats counted), naming the
+        glob that refused (``glob=topics_sub_glob``, D50).
 
         Args:
             family: what ``name`` is (topic, service, action, parameter).
             name: the resolved name.
             op: what the client asked for, for the log (``subscribe``, ``advertise``).
+            use: for a topic, publishing or subscribing (``--topics-pub-glob``,
+                ``--topics-sub-glob``); None checks it as a listing would.
 
         Raises:
             AccessDeniedError: ``name`` is outside the rules.
         """
-        if self._config.access.allows(family, name):
+        glob = self._config.access.refusal(family, name, use)
+        if glob is None:
             return
         text = f"{family.value[:-1]} {name} is not allowed on this server"
         _episodes.log(
             logging.WARNING,
             "access_denied",
-            "event=access_denied client=%s op=%s reason=%r",
+            "event=access_denied client=%s op=%s glob=%s reason=%r",
             self._client_id,
             op,
+            glob,
             text,
             now=self._now,
         )
-        raise AccessDeniedError(text)
+        raise AccessDeniedError(text, glob)
 
     def wake(self) -> None:
         """Tell the transport that output is ready (after ``push_topic_frame``)."""

@@ -101,9 +101,10 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
         _episodes.log(
             logging.WARNING,
             "access_denied",
-            "event=access_denied client=%s op=%s reason=%r",
+            "event=access_denied client=%s op=%s glob=%s reason=%r",
             session.client_id,
             name,
+            exc.glob,
             exc.message,
             now=session.now,
         )
