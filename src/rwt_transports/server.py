@@ -414,7 +414,7 @@ class RosbridgeServer:
         self.rosapi, self.tf = self._install_helpers()
         self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
         self.mcp = self._set_up_mcp(self.config.mcp)
-        version = VersionEndpoint(self.features, self.config.websocket.allowed_origins)
+        version = VersionEndpoint(self._features, self.config.websocket.allowed_origins)
         endpoints = (version, self._signalling, self.mcp)
         self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
         self._stop_requested = False
@@ -485,7 +485,7 @@ class RosbridgeServer:
         access = _access_check(policy) if policy.restricted else None
         return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
 
-    def features(self) -> Features:
+    def _features(self) -> Features:
         """What this server offers, for ``GET /version``'s ``rwt`` object (D49).
 
         From the configuration and the front ends as they are now; nothing secret.

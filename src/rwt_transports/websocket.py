@@ -633,10 +633,9 @@ async def serve_websocket_connection(
             handshake of a front end whose clients authenticate with a URL token
             (``AuthMode.URL_TOKEN``, a Foxglove client); an admitted one's session
             starts authenticated. None: no authentication.
-        http: the HTTP endpoints on this port, each answering the requests it
-            claims: the versions (``/version``, docs/server.md), WebRTC signalling
-            (``/webrtc``, docs/webrtc.md), MCP (``/mcp``, docs/mcp.md); other requests
-            are the WebSocket's (or the console's).
+        http: the HTTP endpoints on this port, each answering the paths it claims
+            (``/version``, ``/webrtc``, ``/mcp``; docs/server.md); the rest are the
+            WebSocket's (or the console's).
 
     Never raises for what the peer does; the stream is closed on return.
     """

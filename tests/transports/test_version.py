@@ -156,16 +156,22 @@ async def test_auth_mode_and_features_follow_the_configuration() -> None:
         assert status == 403
 
 
-def test_a_bound_auth_and_no_foxglove() -> None:
+async def test_a_bound_auth_and_no_foxglove() -> None:
     config = ServerConfig(
+        port=0,
         session=replace(ServerConfig().session, auth_challenge=True),
         foxglove=FoxgloveOptions(on_rosbridge_port=False),
     )
     server = RosbridgeServer(config=config, authenticator=lambda op, peer: True)
-    features = server.features()
-    assert features.auth == "op-bound"
-    assert features.subprotocols == ()
-    assert features.transports == ("ws",)
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        status, _, body = await fetch_async(url.replace("ws://", "http://") + "/version")
+        tg.cancel_scope.cancel()
+    assert status == 200
+    features = json.loads(body)["rwt"]
+    assert features["auth"] == "op-bound"
+    assert features["subprotocols"] == []
+    assert features["transports"] == ["ws"]
 
 
 async def test_the_console_shows_the_versions() -> None:
