@@ -238,6 +238,28 @@ class ServerProcess:
 
 
 # --------------------------------------------------------------------------- drivers
+def run_client_script(
+    workdir: Path, server_args: tuple[str, ...], script: str
+) -> tuple[Any, str, str]:
+    """Run a Python client ``script`` (its ``{port}`` filled in) against ``rwt serve ARGS``.
+
+    Returns what the script printed last, as JSON, its stderr (a client's log) and
+    the server's log. The server is stopped afterwards whatever happened.
+    """
+    server = ServerProcess(workdir, server_args)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", script.format(port=server.port)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=True,
+        )
+    finally:
+        server.stop()
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr, server.stderr_text()
+
+
 class DriverError(AssertionError):
     pass
 

@@ -7,12 +7,9 @@ and a missing service is answered in rosbridge_suite's words (docs/differences.m
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from typing import TYPE_CHECKING
 
-from tests.integration.client_harness import ServerProcess
+from tests.integration.client_harness import run_client_script
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -42,15 +39,8 @@ ros.terminate()
 
 def refused_ops(tmp_path: Path, *args: str) -> tuple[dict, str]:
     """What roslibpy's failure callback got, and everything roslibpy logged."""
-    server = ServerProcess(tmp_path, args)
-    try:
-        script = REFUSED_OPS.format(port=server.port)
-        done = subprocess.run(
-            [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=True
-        )
-    finally:
-        server.stop()
-    return json.loads(done.stdout), done.stderr
+    got, logged, _ = run_client_script(tmp_path, args, REFUSED_OPS)
+    return got, logged
 
 
 def test_roslibpy_logs_no_traceback_for_refused_ops_in_compat_mode(tmp_path: Path) -> None:

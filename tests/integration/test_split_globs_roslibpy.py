@@ -8,12 +8,9 @@ advertise or the publish, and rosapi lists the topic (the pub glob allows it).
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from typing import TYPE_CHECKING
 
-from tests.integration.client_harness import ServerProcess
+from tests.integration.client_harness import run_client_script
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -47,19 +44,11 @@ ros.terminate()
 
 
 def test_roslibpy_may_publish_a_topic_it_may_not_subscribe_to(tmp_path: Path) -> None:
-    server = ServerProcess(tmp_path, ("--topics-pub-glob", "[/cmd]", "--topics-sub-glob", "[]"))
-    try:
-        script = PUBLISH_AND_SUBSCRIBE.format(port=server.port)
-        done = subprocess.run(
-            [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=True
-        )
-    finally:
-        server.stop()
-    got = json.loads(done.stdout)
+    globs = ("--topics-pub-glob", "[/cmd]", "--topics-sub-glob", "[]")
+    got, _, logged = run_client_script(tmp_path, globs, PUBLISH_AND_SUBSCRIBE)
     assert [(s["level"], s["msg"]) for s in got["statuses"]] == [
         ("error", "subscribe: topic /cmd is not allowed on this server")
     ]
     assert got["heard"] == []
     assert "/cmd" in got["topics"][0]["topics"]  # listed: the pub glob allows it (REF §13.5)
-    logged = server.stderr_path.read_text()
     assert "event=access_denied" in logged and "glob=topics_sub_glob" in logged
