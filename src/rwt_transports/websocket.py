@@ -176,11 +176,19 @@ class WebSocketChannel:
         self._pong = anyio.Event()
         self._failed: str | None = None  # a text message was not UTF-8: read no more (1007)
         self._closing_deadline: float | None = None  # set by the first read after our close
+        self.early: list[Frame] = []
+        """Whole frames the client sent with its upgrade request, parsed with it: read first."""
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read, parse, answer control frames; return the whole data messages."""
         if self._eof or self.protocol.state is State.CLOSED:
             raise anyio.EndOfStream
+        if self.early:  # parsed with the request: no read may come before them
+            early, self.early = self.early, []
+            messages, control = self._take_frames(early)
+            if control or self.protocol.state is not State.OPEN:
+                await self.flush()
+            return messages
         try:
             if self.protocol.state is State.OPEN:
                 data = await self._read()
@@ -233,7 +241,7 @@ class WebSocketChannel:
         some (``admission.stream_probe``).
         """
         frames = self.frames
-        if _parser_held(self.protocol) or (frames is not None and frames.held):
+        if self.early or _parser_held(self.protocol) or (frames is not None and frames.held):
             return True
         return self._probe()
 
@@ -266,14 +274,9 @@ class WebSocketChannel:
                     frames.stop()  # websockets parses the rest, as it would without ``frames``
                 continue
             self.protocol.receive_data(item)
-            for event in self.protocol.events_received():
-                if isinstance(event, Frame):
-                    if event.opcode is Opcode.PONG:
-                        self._pong.set()
-                    control = control or event.opcode not in _DATA_OPCODES
-                    message = self._assemble(event)
-                    if message is not None and self._failed is None and self._accept_text(message):
-                        messages.append(message)  # none after a failure in this chunk
+            parsed, had_control = self._take_frames(self.protocol.events_received())
+            messages += parsed
+            control = control or had_control
             if frames is not None and self.protocol.state is not State.OPEN:
                 frames.stop()  # websockets failed the connection or got a close frame
         if self._failed is not None and self.protocol.state is State.OPEN:
@@ -282,6 +285,23 @@ class WebSocketChannel:
             self.protocol.fail(int(CloseCode.INVALID_DATA), self._failed)
             control = True
         return messages, self._charge_held() or control
+
+    def _take_frames(self, events: Sequence[object]) -> tuple[list[FramerEvent], bool]:
+        """The whole data messages websockets' ``events`` complete; whether one was control.
+
+        A control frame (a ping, a close) may leave the protocol bytes to send.
+        """
+        messages: list[FramerEvent] = []
+        control = False
+        for event in events:
+            if isinstance(event, Frame):
+                if event.opcode is Opcode.PONG:
+                    self._pong.set()
+                control = control or event.opcode not in _DATA_OPCODES
+                message = self._assemble(event)
+                if message is not None and self._failed is None and self._accept_text(message):
+                    messages.append(message)  # none after a failure in this chunk
+        return messages, control
 
     def _charge_held(self) -> bool:
         """Charge what waits to become a message; whether that failed the connection (1013)."""
@@ -544,12 +564,15 @@ async def _claimed(
 
 async def _handshake(
     stream: ByteStream, protocol: ServerProtocol, head: bytes = b""
-) -> tuple[Request, bool] | None:
-    """Read the upgrade request; also whether it ended exactly where the bytes read end.
+) -> tuple[Request, bool, list[Frame]] | None:
+    """Read the upgrade request, whether it ended where the bytes read end, its frames.
 
     ``head``: the request's first bytes, read already. Only when the request
     ends where the bytes read end does the next byte start a frame that
     websockets has not begun to parse, so that ``FrameReader`` may read from there.
+    websockets parses frames sent with the request at once, with it: they are
+    kept for the connection to read first (frames are handled in the order
+    they reached the server, docs/limits.md).
     """
     received = bytearray()  # bounded: websockets refuses an oversized request
     with anyio.move_on_after(_HANDSHAKE_LIMIT_S):
@@ -566,9 +589,12 @@ async def _handshake(
             if protocol.handshake_exc is not None:  # not HTTP, not GET, too long, ...
                 await _refuse_malformed(stream, protocol)
                 return None
-            for event in protocol.events_received():
+            events = protocol.events_received()
+            for index, event in enumerate(events):
                 if isinstance(event, Request):
-                    return event, received.find(b"\r\n\r\n") + 4 == len(received)
+                    at_frame_start = received.find(b"\r\n\r\n") + 4 == len(received)
+                    early = [e for e in events[index + 1 :] if isinstance(e, Frame)]
+                    return event, at_frame_start, early
             if protocol.state is not State.CONNECTING:
                 return None
     return None
@@ -647,11 +673,12 @@ async def serve_websocket_connection(
         handshake = await _handshake(stream, protocol, head)
         if handshake is None:
             return
-        request, at_frame_start = handshake
+        request, at_frame_start, early = handshake
         if isinstance(options.console, ConsoleSite) and not _is_upgrade(request):
             await _serve_console(stream, request, options.console, peer)
             return
         channel = WebSocketChannel(stream, protocol, options, max_message_size, budget)
+        channel.early = early
         # the upgrade response goes once the reader listens (``hello``: arrival order)
         pump = ConnectionPump(channel, host.flow, host.admission, hello=channel.flush)
         refusal = _refusal(request, options)

@@ -10,6 +10,7 @@ same state as a channel on which websockets reads everything.
 from __future__ import annotations
 
 import itertools
+import json
 import os
 import struct
 from dataclasses import dataclass
@@ -201,3 +202,28 @@ async def test_frames_sent_with_the_handshake_are_read_by_websockets() -> None:
                     received += await stream.receive()
     assert received.startswith(b"HTTP/1.1 101")
     assert b'"op":"service_response"' in received.replace(b" ", b"")
+
+
+@pytest.mark.anyio
+async def test_whole_frames_sent_with_the_handshake_are_answered_in_order() -> None:
+    """A client that sends its first ops whole in the same packet as the upgrade request:
+    websockets parses them with the request, and none may be lost (they once were)."""
+    ops = [
+        json.dumps({"op": "call_service", "service": "/rosapi/topics", "id": f"early{n}"}).encode()
+        for n in range(2)
+    ]
+    request = (
+        b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+    )
+    async with running_server(ServerConfig()) as harness:
+        with anyio.fail_after(10):
+            stream = await anyio.connect_tcp("127.0.0.1", harness.port("websocket"))
+            async with stream:
+                frames = b"".join(Spec(Opcode.TEXT.value, op).encode() for op in ops)
+                await stream.send(request + frames)
+                received = b""
+                while b'"id":"early1"' not in received:
+                    received += await stream.receive()
+    assert received.startswith(b"HTTP/1.1 101")
+    assert 0 < received.index(b'"id":"early0"') < received.index(b'"id":"early1"')
