@@ -1,4 +1,4 @@
-"""rosbridge_suite's newer WebSocket tests (REF §13.9, W16-W22), in their intent, on rwt.
+"""rosbridge_suite's newer WebSocket tests (REF §13.9: W16-W18, W20-W22), in their intent, on rwt.
 
 Each runs against an in-process server (``running_server``) with WebSocket clients
 (websockets', or raw sockets where a client must vanish without a close); the graph's
