@@ -35,7 +35,7 @@ def print_table(result: SuiteResult, console: Console | None = None) -> None:
     """
     console = console or Console()
     if result.spec is not None:
-        console.print(result.spec.describe(), markup=False)
+        console.print(result.spec.describe(), markup=False, soft_wrap=True)  # one line
     table = Table(
         title=f"rosbridge conformance: {result.options.url} ({result.options.profile.value})"
     )

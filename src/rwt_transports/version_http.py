@@ -167,9 +167,10 @@ class VersionEndpoint:
             return
         method = opened.request.method
         allow = [(b"Allow", _ALLOW)]
-        if self.absent is not None:
+        if self.absent is not None:  # HEAD: no body (h11 refuses one)
             status = 404
-            await reply(opened.conn, stream, status, self.absent, opened.cors)
+            text = "" if method == b"HEAD" else self.absent
+            await reply(opened.conn, stream, status, text, opened.cors)
         elif method in (b"GET", b"HEAD"):
             status = 200
             body = json.dumps(version_document(self.features())).encode()
