@@ -172,10 +172,11 @@ def _spec_version(text: str | None) -> SpecVersion | None:
 _SpecVersion = Annotated[
     SpecVersion | None,
     typer.Option(
-        metavar=f"X.Y[.Z]|{UNVERSIONED}",
+        metavar="VERSION",
         parser=_spec_version,
-        help="Judge the server by this spec version (requirements outside it are skipped);"
-        f" default: its GET /version, else a probe. '{UNVERSIONED}': the text before 2.0.0.",
+        help=f"Judge the server by this spec version: X.Y, X.Y.Z or '{UNVERSIONED}' (the text"
+        " before 2.0.0); requirements outside it are skipped. Default: the server's"
+        " GET /version, else a probe.",
     ),
 ]
 _Insecure = Annotated[
