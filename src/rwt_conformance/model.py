@@ -2,7 +2,9 @@
 
 ``requirements.toml`` lists one ``[[requirement]]`` per rule: a stable ``id``,
 the ``source`` it comes from (spec section, docs/decisions.md ``Dn`` or a
-docs/reference-behaviour.md scenario) and a one-line ``statement``. Each file in
+docs/reference-behaviour.md scenario) and a one-line ``statement``; optional
+``since`` and ``until`` name the spec versions it holds for (``versions``: ``since <=
+version < until``, ``X.Y.Z`` or ``unversioned``; default every version). Each file in
 ``cases/`` lists ``[[case]]`` tables: an ``id``, the ``requirements`` it checks, a
 ``title`` and ``steps``, a transcript of frames to send and frames to expect
 on one or more connections (``on``, default ``"a"``; other names are peers
