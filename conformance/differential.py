@@ -13,8 +13,10 @@ table per profile of the cases whose outcomes differ, then the totals. Exit code
 when the reference profile has no failure on either server (or when no peer is given:
 it says it skips), 1 otherwise, 2 when the peer cannot be reached. Where the peer
 breaks the spec, the reference profile accepts its recorded way
-(docs/reference-behaviour.md §12, ``Step.defect``). Run the reference profile first:
-the strict one can stall a ROS 2 peer's rosapi (REF §12.9).
+(docs/reference-behaviour.md §12, ``Step.defect``). Each server is judged by its own
+spec version (docs/conformance.md, "Spec versions": the peers are unversioned, rwt
+answers 2.1.0); a case one of them skips for its version is not a difference. Run
+the reference profile first: the strict one can stall a ROS 2 peer's rosapi (REF §12.9).
 """
 
 from __future__ import annotations
@@ -61,11 +63,17 @@ class Differential:
     dialect: Dialect = Dialect.ROS1
 
     def differing(self) -> list[tuple[str, str, str, str]]:
-        """``(case, peer outcome, rwt outcome, detail)`` for every case whose outcome differs."""
+        """``(case, peer outcome, rwt outcome, detail)`` for every case whose outcome differs.
+
+        A case either server skips for its spec version (``CaseResult.off_version``)
+        is left out: the two are judged by different versions there.
+        """
         rwt = {r.case.id: r for r in self.rwt.cases}
         rows = []
         for mine in self.peer.cases:
             theirs = rwt[mine.case.id]
+            if mine.off_version or theirs.off_version:
+                continue
             if mine.outcome is not theirs.outcome:
                 detail = (mine.detail or theirs.detail).replace("|", "/")
                 rows.append((mine.case.id, mine.outcome.value, theirs.outcome.value, detail))
@@ -111,6 +119,12 @@ def render(results: list[Differential]) -> str:
     ]
     for result in results:
         lines.append(f"| {result.profile.value} | {_totals(result.peer)} | {_totals(result.rwt)} |")
+    if results:
+        lines += [
+            "",
+            f"{peer_name(dialect)}: {_spec(results[0].peer)}; {rwt_name(dialect)}:"
+            f" {_spec(results[0].rwt)}",
+        ]
     for result in results:
         rows = result.differing()
         lines += ["", f"Cases whose outcome differs, profile {result.profile.value}: {len(rows)}"]
@@ -122,6 +136,10 @@ def render(results: list[Differential]) -> str:
             ]
             lines += [f"| {c} | {p} | {r} | {d[:140]} |" for c, p, r, d in rows]
     return "\n".join(lines)
+
+
+def _spec(result: SuiteResult) -> str:
+    return "spec version unknown" if result.spec is None else result.spec.describe()
 
 
 def _totals(result: SuiteResult) -> str:

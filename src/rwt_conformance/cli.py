@@ -18,6 +18,7 @@ from rwt_protocol.errors import ConfigError
 from .bounds import CASE_BUDGET_BYTES, CASE_TIMEOUT_S, MAX_FRAME_BYTES, RUN_TIMEOUT_S
 from .model import Dialect, Profile, SuiteError, default_suite_dir, load_suite
 from .pace import RETRY_BUDGET_S
+from .versions import UNVERSIONED, SpecVersion
 
 __all__ = ["conformance"]
 
@@ -156,6 +157,28 @@ _Cafile = Annotated[
         help="Trust the certificate authorities in this PEM file (wss://, tcp+tls://).",
     ),
 ]
+
+
+def _spec_version(text: str | None) -> SpecVersion | None:
+    """``--spec-version``'s value, read (``SpecVersion.parse``)."""
+    if text is None:
+        return None
+    try:
+        return SpecVersion.parse(text)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from None
+
+
+_SpecVersion = Annotated[
+    SpecVersion | None,
+    typer.Option(
+        metavar="VERSION",
+        parser=_spec_version,
+        help=f"Judge the server by this spec version: X.Y, X.Y.Z or '{UNVERSIONED}' (the text"
+        " before 2.0.0); requirements outside it are skipped. Default: the server's"
+        " GET /version, else a probe.",
+    ),
+]
 _Insecure = Annotated[
     bool, typer.Option("--insecure", help="Do not check the server's TLS certificate.")
 ]
@@ -179,6 +202,7 @@ def conformance(
     auth_secret_file: _AuthSecretFile = None,
     cafile: _Cafile = None,
     insecure: _Insecure = False,
+    spec_version: _SpecVersion = None,
 ) -> None:
     """Check a rosbridge server against the conformance suite; exit 1 on any failure.
 
@@ -214,6 +238,7 @@ def conformance(
         auth_secret=None if auth_secret_file is None else _read_secret(auth_secret_file),
         ssl_context=context,
         dialect=dialect,
+        spec_version=spec_version,
     )
 
     def found(spoken: Dialect, how: str) -> None:

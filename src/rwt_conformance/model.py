@@ -2,7 +2,9 @@
 
 ``requirements.toml`` lists one ``[[requirement]]`` per rule: a stable ``id``,
 the ``source`` it comes from (spec section, docs/decisions.md ``Dn`` or a
-docs/reference-behaviour.md scenario) and a one-line ``statement``. Each file in
+docs/reference-behaviour.md scenario) and a one-line ``statement``; optional
+``since`` and ``until`` name the spec versions it holds for (``versions``: ``since <=
+version < until``, ``X.Y.Z`` or ``unversioned``; default every version). Each file in
 ``cases/`` lists ``[[case]]`` tables: an ``id``, the ``requirements`` it checks, a
 ``title`` and ``steps``, a transcript of frames to send and frames to expect
 on one or more connections (``on``, default ``"a"``; other names are peers
@@ -61,12 +63,14 @@ runner does not authenticate its connections first).
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
 from rwt_protocol.errors import RwtError
+
+from .versions import SpecVersion, VersionRange
 
 __all__ = [
     "Case",
@@ -164,11 +168,14 @@ class Requirement:
         source: where the rule comes from (``spec 3.3.3``, ``docs/decisions.md
             D11``, ``REF §8.1 W1``).
         statement: the rule in one sentence.
+        versions: the spec versions it holds for (``since``/``until``; default:
+            every version, ``versions``).
     """
 
     id: str
     source: str
     statement: str
+    versions: VersionRange = field(default_factory=VersionRange)
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,6 +240,8 @@ class Case:
 
     ``skip`` maps what the case leaves out (a profile, a dialect, or
     ``"profile+dialect"``) to the reason shown when it is skipped there.
+    ``versions`` are the ranges of its requirements (set by ``load_suite``): the
+    case runs for a spec version one of them holds for.
     """
 
     id: str
@@ -246,6 +255,17 @@ class Case:
     pending: str | None = None
     authenticates: bool = False
     file: str = ""
+    versions: tuple[VersionRange, ...] = ()
+
+    def version_skip(self, version: SpecVersion) -> str | None:
+        """Why the case does not run for a server judged by ``version``, or None.
+
+        It runs when any of its requirements holds for ``version``.
+        """
+        if not self.versions or any(r.holds(version) for r in self.versions):
+            return None
+        ranges = "; ".join(dict.fromkeys(str(r) for r in self.versions))
+        return f"holds for {ranges}; the server is judged by {version.label}"
 
     def defects(self, profile: Profile, dialect: Dialect) -> tuple[str, ...]:
         """The reference defects this case accepts in ``profile`` against ``dialect``.
@@ -308,6 +328,9 @@ def load_suite(directory: Path | None = None) -> Suite:
         unknown = [r for r in case.requirements if r not in requirements]
         if unknown:
             raise SuiteError(f"{case.file}: case {case.id!r} names unknown requirements {unknown}")
+    cases = [
+        replace(c, versions=tuple(requirements[r].versions for r in c.requirements)) for c in cases
+    ]
     return Suite(requirements, tuple(cases), directory)
 
 
@@ -324,14 +347,34 @@ def _load_requirements(path: Path) -> dict[str, Requirement]:
     for table in _read(path).get("requirement", []):
         try:
             requirement = Requirement(
-                id=str(table["id"]), source=str(table["source"]), statement=str(table["statement"])
+                id=str(table["id"]),
+                source=str(table["source"]),
+                statement=str(table["statement"]),
+                versions=_versions(table),
             )
         except KeyError as exc:
             raise SuiteError(f"{path.name}: requirement {table} lacks {exc}") from None
+        except ValueError as exc:
+            raise SuiteError(f"{path.name}: requirement {table.get('id')!r}: {exc}") from None
         if requirement.id in requirements:
             raise SuiteError(f"{path.name}: requirement id {requirement.id!r} repeats")
         requirements[requirement.id] = requirement
     return requirements
+
+
+def _versions(table: dict[str, Any]) -> VersionRange:
+    """A requirement's ``since``/``until`` (``X.Y[.Z]`` or ``unversioned``; default: open)."""
+    unknown = set(table) - {"id", "source", "statement", "since", "until"}
+    if unknown:
+        raise ValueError(f"unknown keys {sorted(unknown)}")
+    since, until = table.get("since"), table.get("until")
+    found = VersionRange(
+        None if since is None else SpecVersion.parse(str(since)),
+        None if until is None else SpecVersion.parse(str(until)),
+    )
+    if found.since is not None and found.until is not None and found.until <= found.since:
+        raise ValueError(f"until ({found.until}) must come after since ({found.since})")
+    return found
 
 
 def _case(table: dict[str, object], file: str) -> Case:

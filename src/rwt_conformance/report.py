@@ -1,7 +1,8 @@
 """Reports of a conformance run: a rich table, JUnit XML and JSON.
 
 Each says how the run was paced (``pace``): the server's round trip, what it
-added to the waits, the retries, and which cases passed late (slow) and why.
+added to the waits, the retries, and which cases passed late (slow) and why;
+and which spec version it judged by, and where that came from (``specdetect``).
 """
 
 from __future__ import annotations
@@ -24,14 +25,17 @@ _STYLE = {Outcome.PASSED: "green", Outcome.FAILED: "bold red", Outcome.SKIPPED: 
 
 
 def print_table(result: SuiteResult, console: Console | None = None) -> None:
-    """Print a row per requirement, the slow cases, the run's pace, then the summary line.
+    """Print the spec version, a row per requirement, the slow cases, the pace, the summary.
 
-    A row has the requirement's id, section, result and detail.
+    The first line is ``spec version 2.1.0 (from GET /version)`` (``SpecFinding``);
+    a row has the requirement's id, section, result and detail.
 
     A run that stopped early (``SuiteResult.verdict``) shows the requirements of
     the cases that ran; the command line prints the verdict itself.
     """
     console = console or Console()
+    if result.spec is not None:
+        console.print(result.spec.describe(), markup=False, soft_wrap=True)  # one line
     table = Table(
         title=f"rosbridge conformance: {result.options.url} ({result.options.profile.value})"
     )
@@ -72,10 +76,13 @@ def write_junit(result: SuiteResult, path: Path) -> None:
         skipped=str(result.count(Outcome.SKIPPED)),
         time=f"{result.duration_s:.3f}",
     )
-    timing = _timing(result)
-    if timing is not None:
+    found: dict[str, object] = {}
+    if result.spec is not None:
+        found["spec_version"] = result.spec.as_json()
+    found.update(_timing(result) or {})
+    if found:
         properties = ET.SubElement(suite, "properties")
-        for name, value in timing.items():
+        for name, value in found.items():
             ET.SubElement(properties, "property", name=name, value=json.dumps(value))
     if result.verdict is not None:
         element = ET.SubElement(suite, "testcase", classname="rwt-conformance", name="run")
@@ -101,8 +108,10 @@ def write_junit(result: SuiteResult, path: Path) -> None:
 
 
 def write_json(result: SuiteResult, path: Path) -> None:
-    """Write the run as JSON: options, summary, the verdict, the pace, requirements with cases.
+    """Write the run as JSON: options, the spec version, summary, verdict, pace, requirements.
 
+    ``spec_version`` is ``{"version", "source", "detail"}`` (``SpecFinding``; source
+    ``version-endpoint``, ``probe`` or ``option``), null for a run stopped first.
     ``verdict`` is null, or why the run stopped early (``SuiteResult.verdict``).
     ``timing`` is the run's pace (docs/conformance.md lists its fields); each case
     has ``slow`` (null, or why it passed late) and ``retried``.
@@ -110,6 +119,7 @@ def write_json(result: SuiteResult, path: Path) -> None:
     document = {
         "url": result.options.url,
         "profile": result.options.profile.value,
+        "spec_version": None if result.spec is None else result.spec.as_json(),
         "summary": {o.value: result.count(o) for o in Outcome},
         "slow_cases": len(result.slow),
         "verdict": result.verdict,

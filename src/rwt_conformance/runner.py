@@ -68,10 +68,13 @@ from .liveness import check_answers
 from .match import JsonValue, describe, match, substitute
 from .model import Case, Dialect, Profile, Requirement, Step, StepKind, Suite
 from .pace import RETRY_BUDGET_S, RETRY_FACTOR, Pace, RoundTrips, Timing, waits_of
+from .specdetect import SpecFinding, find_spec_version
 
 if TYPE_CHECKING:
     import ssl
     from collections.abc import Callable
+
+    from .versions import SpecVersion
 
 __all__ = [
     "CaseResult",
@@ -123,6 +126,8 @@ class RunOptions:
             (``detect_dialect``).
         retry_budget_s: seconds the run may spend on retries of cases that
             missed a wait (``pace.RETRY_BUDGET_S``); 0: no retries.
+        spec_version: the spec version the server is judged by (requirements
+            outside it are skipped); None finds it first (``specdetect``).
     """
 
     url: str
@@ -137,6 +142,7 @@ class RunOptions:
     ssl_context: ssl.SSLContext | None = field(default=None, repr=False)
     dialect: Dialect | None = None
     retry_budget_s: float = RETRY_BUDGET_S
+    spec_version: SpecVersion | None = None
 
     @property
     def transport(self) -> str:
@@ -190,6 +196,8 @@ class CaseResult:
     suite's waits, failed or was skipped. ``retried``: it ran a second time, every
     wait longer, after missing one (``pace``). ``missed_wait``: it failed because a
     wait (or a send, or the case's bound) ran out, which a retry may cure.
+    ``off_version``: skipped because none of its requirements holds for the spec
+    version the server is judged by (``Case.version_skip``).
     """
 
     case: Case
@@ -200,6 +208,7 @@ class CaseResult:
     slow: Slowness | None = None
     retried: bool = False
     missed_wait: bool = False
+    off_version: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,6 +229,8 @@ class SuiteResult:
     answer, or the run went over ``run_timeout_s``), one line; None when every
     selected case ran. A stopped run grades only the requirements of the cases
     that ran. ``timing``: the round trips measured and the retries (``pace``).
+    ``spec``: the spec version the run judged by and where it came from; None
+    when the run stopped before finding it.
     """
 
     options: RunOptions
@@ -228,6 +239,7 @@ class SuiteResult:
     duration_s: float = 0.0
     verdict: str | None = None
     timing: Timing | None = None
+    spec: SpecFinding | None = None
 
     def count(self, outcome: Outcome) -> int:
         """How many requirements ended with ``outcome``."""
@@ -288,6 +300,10 @@ async def run_suite(
         on_dialect: called with the dialect the server was found to speak and
             how (when ``options.dialect`` is None and the server answers).
 
+    The spec version (``options.spec_version``, else found: ``specdetect``) is
+    the result's ``spec``; a requirement outside it is skipped, and so is a case
+    none of whose requirements holds for it (``Case.version_skip``).
+
     Returns:
         The results; never raises for what the server does. A server that
         cannot be reached, does not read or does not answer, and a run over
@@ -303,8 +319,10 @@ async def run_suite(
     if run.verdict is not None:  # graded: what ran
         ran = {r for c in run.results for r in c.case.requirements}
         requirements = [r for r in requirements if r.id in ran]
+    version = run.options.spec_version
     graded = tuple(
-        _grade(r, [c for c in run.results if r.id in c.case.requirements]) for r in requirements
+        _grade(r, [c for c in run.results if r.id in c.case.requirements], version)
+        for r in requirements
     )
     return SuiteResult(
         run.options,
@@ -313,6 +331,7 @@ async def run_suite(
         time.monotonic() - started,
         run.verdict,
         run.timing(),
+        run.spec,
     )
 
 
@@ -341,6 +360,9 @@ class _SuiteRun:
         self.retries = 0
         self.retry_s = 0.0
         self.not_retried = 0
+        self.spec: SpecFinding | None = None
+        if options.spec_version is not None:
+            self.spec = SpecFinding.given(options.spec_version)
 
     async def execute(self) -> None:
         self.verdict = await self._check_answers()
@@ -358,6 +380,16 @@ class _SuiteRun:
             self.options = options = replace(options, dialect=dialect)
             if self.on_dialect is not None:
                 self.on_dialect(dialect, how)
+        if self.spec is None:
+            self.spec = await find_spec_version(
+                options.url,
+                options.dialect or Dialect.ROS2,
+                options.ssl_context,
+                self.pace.wait_s(options.expect_timeout_s),
+                options.auth_secret,
+                options.max_frame_bytes,
+            )
+            self.options = options = replace(options, spec_version=self.spec.version)
         run_id = secrets.token_hex(3)
         for index, case in enumerate(self.cases):
             self.current = case
@@ -429,7 +461,7 @@ class _SuiteRun:
         where = (
             f"in case {self.current.id}, {len(self.results)} of {len(self.cases)} cases done"
             if self.current is not None
-            else "before the first case (checking the server and asking its dialect)"
+            else "before the first case (checking the server, asking its dialect and spec version)"
         )
         return (
             f"the run took longer than {self.options.run_timeout_s:g} s (--run-timeout):"
@@ -467,6 +499,10 @@ async def run_case(
     §12.x)``. ``pace`` scales the waits (``pace``; None: the suite's waits, no
     round trip measured before).
     """
+    if options.spec_version is not None:
+        off = case.version_skip(options.spec_version)
+        if off is not None:
+            return CaseResult(case, Outcome.SKIPPED, off, off_version=True)
     reason = _skip_reason(case, options)
     if reason is not None:
         return CaseResult(case, Outcome.SKIPPED, reason)
@@ -538,7 +574,12 @@ def _skip_reason(case: Case, options: RunOptions) -> str | None:
     return None
 
 
-def _grade(requirement: Requirement, results: list[CaseResult]) -> RequirementResult:
+def _grade(
+    requirement: Requirement, results: list[CaseResult], version: SpecVersion | None = None
+) -> RequirementResult:
+    if version is not None and not requirement.versions.holds(version):
+        detail = f"holds for {requirement.versions}; the server is judged by {version.label}"
+        return RequirementResult(requirement, Outcome.SKIPPED, detail, tuple(results))
     failed = [r for r in results if r.outcome is Outcome.FAILED]
     passed = [r for r in results if r.outcome is Outcome.PASSED]
     if failed:

@@ -58,6 +58,7 @@ from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, Ros
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
+from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
@@ -120,6 +121,9 @@ _ACCEPT_BACKOFF_S = 0.1
 """First pause of the accept loop after ``accept()`` failed (EMFILE...); doubles per failure."""
 _ACCEPT_BACKOFF_MAX_S = 1.0
 """Longest pause of the accept loop between two failed ``accept()`` calls."""
+
+_NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, which has none"
+"""``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
 
 _NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc", "mcp"})
 """Transports whose connections count against their host's share (not stdio, memory)."""
@@ -414,7 +418,11 @@ class RosbridgeServer:
         self.rosapi, self.tf = self._install_helpers()
         self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
         self.mcp = self._set_up_mcp(self.config.mcp)
-        version = VersionEndpoint(self._features, self.config.websocket.allowed_origins)
+        version = VersionEndpoint(
+            self._features,
+            self.config.websocket.allowed_origins,
+            _NO_VERSION if self.session_config.compat is Compat.ROSBRIDGE_2_1 else None,
+        )
         endpoints = (version, self._signalling, self.mcp)
         self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
         self._stop_requested = False

@@ -15,6 +15,11 @@ time, and the socket holds a connection slot as any). ``GET`` and ``HEAD`` answe
 200, ``OPTIONS`` 204 with ``Allow``, any other method 405. A browser's request is
 answered with CORS headers when ``--allowed-origins`` allows its origin (any
 origin when unset), 403 otherwise, as the other HTTP endpoints do.
+
+``rwt serve --compat rosbridge-2.1`` imitates rosbridge_suite 2.1.0, which has no
+such endpoint: there ``/version`` answers 404 to every method (``absent``), so a
+client that reads it (``rwt conformance``) takes the server for the 2.1.0 era it
+plays (D49).
 """
 
 from __future__ import annotations
@@ -126,13 +131,19 @@ class VersionEndpoint:
             added after the server was built shows).
         allowed_origins: fnmatch patterns of accepted ``Origin`` headers
             (``--allowed-origins``); empty: any origin.
+        absent: why there is no version to tell (``--compat rosbridge-2.1``):
+            every request is answered 404 with this text; None answers.
     """
 
     def __init__(
-        self, features: Callable[[], Features], allowed_origins: tuple[str, ...] = ()
+        self,
+        features: Callable[[], Features],
+        allowed_origins: tuple[str, ...] = (),
+        absent: str | None = None,
     ) -> None:
         self.features = features
         self.allowed_origins = allowed_origins
+        self.absent = absent
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
@@ -156,7 +167,11 @@ class VersionEndpoint:
             return
         method = opened.request.method
         allow = [(b"Allow", _ALLOW)]
-        if method in (b"GET", b"HEAD"):
+        if self.absent is not None:  # HEAD: no body (h11 refuses one)
+            status = 404
+            text = "" if method == b"HEAD" else self.absent
+            await reply(opened.conn, stream, status, text, opened.cors)
+        elif method in (b"GET", b"HEAD"):
             status = 200
             body = json.dumps(version_document(self.features())).encode()
             await _send_json(opened.conn, stream, body, opened.cors, head=method == b"HEAD")

@@ -24,6 +24,7 @@ RUN_LIMIT_S = 120  # a whole suite on a loaded machine: only a hang reaches it
 APPLIES = 'profiles = "strict"\ndialects = ["ros1", "ros2"]\n'
 SECRET = "conformance-secret-\u00e9"
 AUTH_REQUIREMENTS = {"D23", "spec1.auth.required"}
+OFF_VERSION = "holds for the unversioned spec (before 2.0.0); the server is judged by spec "
 
 
 def _serve(*args: str) -> tuple[subprocess.Popen[str], dict[str, str]]:
@@ -99,10 +100,17 @@ def test_strict_profile_passes_completely(
     summary = document["summary"]
     assert summary["failed"] == 0
     skipped = {r["id"]: r["detail"] for r in document["requirements"] if r["result"] == "skipped"}
+    # judged by protocol 2.1.0 (its GET /version), or over TCP, with no HTTP, by 2.0.0
+    # (a probe: its publish with type advertises); the unversioned spec's rule is left out
+    spec = document["spec_version"]
+    version, source = ("2.1.0", "version-endpoint") if transport == "ws" else ("2.0.0", "probe")
+    assert (spec["version"], spec["source"]) == (version, source)
+    assert run.stdout.splitlines()[1].startswith(f"spec version {version} (from ")
+    off_version = {"spec.publish.type-ignored": OFF_VERSION + version}
     if server == "secured":
-        assert skipped == {}
+        assert skipped == off_version
     else:  # skipped by design: an open server cannot show what a secured one does
-        assert skipped == dict.fromkeys(AUTH_REQUIREMENTS, NEEDS_SECRET)
+        assert skipped == dict.fromkeys(AUTH_REQUIREMENTS, NEEDS_SECRET) | off_version
     assert summary["passed"] == len(document["requirements"]) - len(skipped) >= 190 - 2
     last = run.stdout.strip().splitlines()[-1]
     assert last.startswith(f"{summary['passed']} passed, 0 failed, {len(skipped)} skipped")
@@ -164,3 +172,44 @@ def test_host_and_port_means_websocket(served_url: str) -> None:
     assert run.returncode == 0, run.stderr
     assert f"{served_url} (strict)" in run.stdout  # the table's title
     assert "1 passed, 0 failed, 0 skipped" in run.stdout
+
+
+def test_compat_rosbridge_2_1_passes_judged_by_the_unversioned_spec(tmp_path: Path) -> None:
+    """No GET /version there (rosbridge_suite 2.1.0 has none): the probe finds the old rule."""
+    process, urls = _serve("--compat", "rosbridge-2.1")
+    try:
+        report = tmp_path / "report.json"
+        run = run_rwt(
+            "conformance",
+            urls["ws"],
+            "--profile",
+            "reference",
+            "--json",
+            str(report),
+            timeout=RUN_LIMIT_S,
+        )
+    finally:
+        _stop(process)
+    assert run.returncode == 0, run.stdout[-3000:]
+    document = json.loads(report.read_text())
+    spec = document["spec_version"]
+    assert (spec["version"], spec["source"]) == ("unversioned", "probe")
+    assert "it was refused" in spec["detail"]
+    assert "GET /version: answered status 404" in spec["detail"]
+    assert "spec version unversioned (from a probe: it was refused" in run.stdout
+    [d48] = [r for r in document["requirements"] if r["id"] == "D48"]
+    assert d48["result"] == "skipped"
+    assert d48["detail"] == (
+        "holds for spec 2.0.0 and later; the server is judged by the unversioned spec"
+    )
+
+
+def test_spec_version_is_checked_and_given(served_url: str) -> None:
+    bad = run_rwt("conformance", served_url, "--spec-version", "2", timeout=RUN_LIMIT_S)
+    assert bad.returncode == 2
+    assert "not a spec version: '2' (X.Y, X.Y.Z or 'unversioned')" in bad.stderr
+    run = run_rwt(
+        "conformance", served_url, "--only", "D26", "--spec-version", "2.0", timeout=RUN_LIMIT_S
+    )
+    assert run.returncode == 0, run.stdout
+    assert "spec version 2.0.0 (given with --spec-version)" in run.stdout

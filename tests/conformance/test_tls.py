@@ -65,6 +65,8 @@ def test_the_whole_strict_suite_over_wss_closes_cleanly(
     run = run_rwt("conformance", urls["wss"], "--cafile", str(authority[0]), timeout=RUN_LIMIT_S)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr
     assert "Traceback" not in run.stderr and "SSLError" not in run.stdout + run.stderr
+    # GET /version over https, trusting the same --cafile (docs/conformance.md, "Spec versions")
+    assert "spec version 2.1.0 (from GET /version)" in run.stdout
 
 
 @pytest.mark.parametrize("scheme", ["wss", "tcp+tls"])

@@ -21,6 +21,8 @@ import pytest
 from rwt import RosbridgeServer, ServerConfig
 from rwt.server import FoxgloveOptions, WebSocketOptions
 from rwt_protocol.distribution import DISTRIBUTION
+from rwt_protocol.server.compat import Compat
+from rwt_protocol.server.session import SessionConfig
 from rwt_protocol.version import PROTOCOL_VERSION
 from rwt_transports.version_http import installed_version
 from tests.console.test_http import http_get
@@ -196,3 +198,19 @@ async def test_the_optional_qos_of_protocol_2_1_is_accepted() -> None:
             await ws.send({"op": "publish", "topic": topic, "msg": {"data": "hi"}, "qos": qos})
             message = await ws.expect(is_op("publish", topic=topic))
         assert message["msg"] == {"data": "hi"}
+
+
+async def test_compat_rosbridge_2_1_has_no_version_endpoint() -> None:
+    """rosbridge_suite 2.1.0 has no ``/version``: ``--compat rosbridge-2.1`` answers 404 (D49)."""
+    compat = ServerConfig(session=SessionConfig(compat=Compat.ROSBRIDGE_2_1))
+    async with running_server(compat) as harness:
+        url = version_url(harness)
+        for method in ("GET", "HEAD", "POST"):
+            status, _, body = await fetch_async(url, method)
+            assert status == 404, method
+        assert b"rosbridge_suite 2.1.0, which has none" in (await fetch_async(url))[2]
+    # --compat rosbridge (2.1.0's texts, publish with type advertising) still answers
+    rosbridge = ServerConfig(session=SessionConfig(compat=Compat.ROSBRIDGE))
+    async with running_server(rosbridge) as harness:
+        status, _, body = await fetch_async(version_url(harness))
+        assert status == 200 and json.loads(body)["protocol"]["minor"] == 1
