@@ -707,8 +707,7 @@ async def serve_websocket_connection(
         # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
         if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
             channel.frames = FrameReader(max_message_size)
-        # From the response on, the client may send: what it sends first is handled
-        # before what others send after it (admission.py).
+        # From the response on, what the client sends first goes before others' later input
         ticket = host.admission.hold()  # for frames sent with the request (in the parser)
         if channel.sees_input:  # else it counts as having input until its reader looks
             ticket.watch(channel.input_pending)
