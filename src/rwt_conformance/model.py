@@ -45,7 +45,8 @@ Where the reference breaks the spec, a case records what it does: steps with
 ``defect = "REF §12.x"`` (narrowed by ``profile``/``dialect`` to where it applies)
 are the reference's way, steps with ``unless_defect = true`` the spec's way they
 stand in for. Where a ``defect`` step applies, the runner tries the spec's way
-first and the reference's way on fresh connections if that fails; either
+first and, if that fails, the reference's way for each section cited (its own
+``defect`` steps, not the other sections') on fresh connections; any one
 passes, and the case's detail names the reference's way when that is the one
 that held. A server that keeps to the spec passes the reference profile too.
 

@@ -494,7 +494,8 @@ async def run_case(
 
     A case recording a reference defect where it applies (``Step.defect``,
     docs/conformance.md) runs the spec's way first and, if that fails, the
-    reference's way on fresh connections and names (``${ns}`` gets ``_ref``);
+    reference's way for each defect it cites, in order, on fresh connections
+    and names (``${ns}`` gets ``_ref``, ``_ref1``...);
     it passes when either holds, its detail then ``as the reference does (REF
     §12.x)``. ``pace`` scales the waits (``pace``; None: the suite's waits, no
     round trip measured before).
@@ -508,19 +509,21 @@ async def run_case(
         return CaseResult(case, Outcome.SKIPPED, reason)
     pace = pace or Pace(RoundTrips())
     defects = case.defects(options.profile, options.dialect or Dialect.ROS2)
-    spec = await _run_way(case, options, variables, pace, reference_way=False)
+    spec = await _run_way(case, options, variables, pace, reference_way=None)
     if not defects or spec.outcome is Outcome.PASSED:
         return spec
-    ns = f"{variables['ns']}_ref"
-    ref = await _run_way(case, options, {**variables, "ns": ns}, pace, reference_way=True)
-    cited = ", ".join(defects)
-    seconds = spec.duration_s + ref.duration_s
-    if ref.outcome is Outcome.PASSED:
-        detail = f"{AS_THE_REFERENCE} ({cited}); the spec's way: {spec.detail}"
-        return replace(ref, detail=detail, duration_s=seconds)
-    detail = f"the spec's way: {spec.detail}; the reference's way ({cited}): {ref.detail}"
-    unanswered = spec.unanswered and ref.unanswered
-    missed = spec.missed_wait or ref.missed_wait
+    seconds, details = spec.duration_s, [f"the spec's way: {spec.detail}"]
+    unanswered, missed = spec.unanswered, spec.missed_wait
+    for number, cited in enumerate(defects):
+        ns = f"{variables['ns']}_ref{number or ''}"
+        ref = await _run_way(case, options, {**variables, "ns": ns}, pace, reference_way=cited)
+        seconds += ref.duration_s
+        if ref.outcome is Outcome.PASSED:
+            detail = f"{AS_THE_REFERENCE} ({cited}); the spec's way: {spec.detail}"
+            return replace(ref, detail=detail, duration_s=seconds)
+        details.append(f"the reference's way ({cited}): {ref.detail}")
+        unanswered, missed = unanswered and ref.unanswered, missed or ref.missed_wait
+    detail = "; ".join(details)
     return CaseResult(case, Outcome.FAILED, detail, seconds, unanswered, missed_wait=missed)
 
 
@@ -530,11 +533,12 @@ async def _run_way(
     variables: dict[str, JsonValue],
     pace: Pace,
     *,
-    reference_way: bool,
+    reference_way: str | None,
 ) -> CaseResult:
-    """Run the case's steps one way: the spec's (no ``defect`` step) or the reference's.
+    """Run the case's steps one way: the spec's (``None``: no ``defect`` step) or the reference's.
 
-    The reference's way leaves out the ``unless_defect`` steps instead.
+    The reference's way for the defect section ``reference_way`` leaves out the
+    ``unless_defect`` steps and the steps of the case's other defects instead.
     """
     started = time.monotonic()
     run = _CaseRun(case, options, dict(variables), pace, reference_way=reference_way)
@@ -628,7 +632,7 @@ class _CaseRun:
         variables: dict[str, JsonValue],
         pace: Pace | None = None,
         *,
-        reference_way: bool = False,
+        reference_way: str | None = None,
     ) -> None:
         self.case = case
         self.reference_way = reference_way
@@ -677,7 +681,10 @@ class _CaseRun:
             self.step_number = number
             if not step.runs_in(self.options.profile, self.options.dialect or Dialect.ROS2):
                 continue
-            if step.unless_defect if self.reference_way else step.defect is not None:
+            if self.reference_way is None:
+                if step.defect is not None:
+                    continue
+            elif step.unless_defect or step.defect not in (None, self.reference_way):
                 continue
             where = self.where = f"step {number} ({step.kind.value} on {step.on})"
             try:

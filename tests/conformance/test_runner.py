@@ -109,7 +109,7 @@ async def test_our_server_passes_the_reference_profile() -> None:
     assert [r.requirement.id for r in result.requirements if r.outcome is Outcome.FAILED] == []
     # where the ROS 2 reference breaks the spec, rwt passes the spec's way
     recorded = [c for c in result.cases if c.case.defects(Profile.REFERENCE, Dialect.ROS2)]
-    assert len(recorded) == 7
+    assert len(recorded) == 10
     assert all(c.outcome is Outcome.PASSED and c.detail == "" for c in recorded)
 
 
