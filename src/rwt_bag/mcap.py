@@ -231,6 +231,7 @@ class CheckpointWriter(Writer):
         elif storage is not None:
             storage.conn.commit()
             self._write_metadata(storage)
+            self._publish_metadata()
 
     def _checkpoint_mcap(self, storage: _McapStorage, *, full: bool = True) -> None:
         file = storage.bio
@@ -256,9 +257,13 @@ class CheckpointWriter(Writer):
         except OSError:
             # the disk is full (or the file at its size limit): the new tail went out
             # in part, over the last summary. Put that summary back, so the bag reads
-            # as it did at the last checkpoint, and let the recorder stop.
+            # as it did at the last checkpoint (its metadata.yaml too), and let the
+            # recorder stop.
             self._restore(file, tail_start)
+            self._pending_metadata().unlink(missing_ok=True)
             raise
+        if full:  # only now: metadata.yaml never counts what the file does not hold yet
+            self._publish_metadata()
         file.seek(data_end)  # the next chunk goes over this summary
         # kept to restore it should the next checkpoint fail (a few KB: indexes, footer)
         self._summary = _last_bytes(tail.pieces(), tail.tell() - data_end)
@@ -272,8 +277,21 @@ class CheckpointWriter(Writer):
         except OSError:  # not even that: the bag ends where the disk stopped it
             return
 
+    def _pending_metadata(self) -> Path:
+        """Where a checkpoint's ``metadata.yaml`` waits until the file holds what it counts."""
+        return self.metapath.with_name(self.metapath.name + ".pending")
+
+    def _publish_metadata(self) -> None:
+        """Put the waiting ``metadata.yaml`` in place (a rename: a reader sees one or the other)."""
+        self._pending_metadata().replace(self.metapath)
+
     def _write_metadata(self, storage: Any) -> None:
-        """Run rosbags' ``close`` (storage tail, metadata.yaml) on a storage that stays open."""
+        """Run rosbags' ``close`` (storage tail, metadata.yaml) on a storage that stays open.
+
+        The metadata goes to ``_pending_metadata`` (``_publish_metadata`` puts it in
+        place): written first, a kill before the file's tail went out left a
+        ``metadata.yaml`` counting messages the file did not hold.
+        """
         real_close = storage.close
 
         def tail_only(version: int, metadata: str) -> None:
@@ -283,11 +301,14 @@ class CheckpointWriter(Writer):
                 self._metadata_connections = len(self.connections)
 
         storage.close = tail_only
+        metapath = self.metapath
+        self.metapath = self._pending_metadata()
         try:
             Writer.close(self)  # computes the metadata from the counts; sets storage None
         finally:
             del storage.close
             self.storage = storage
+            self.metapath = metapath
 
     def close(self) -> None:
         """Write the final tail and metadata, and close the file."""

@@ -23,6 +23,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import anyio
+import anyio.to_thread
 import pytest
 
 from rwt_ros2 import interfaces
@@ -179,13 +181,16 @@ async def test_roslib_tf_clients_on_ros2_tf(robot: ServerProcess) -> None:
 
 
 ROSLIBPY_BROADCASTER = """
+import pathlib
 import roslibpy
 
 tf = roslibpy.Topic(ros, "/tf", "tf2_msgs/msg/TFMessage")
 stamp = {"sec": 1, "nanosec": 0}
 pose = {"translation": {"x": 1.0, "y": 0.0, "z": 0.0}, "rotation": {"w": 1.0}}
 frame = {"header": {"stamp": stamp, "frame_id": "map"}, "child_frame_id": "odom"}
-for _ in range(40):
+# as a page does: at 20 Hz until it closes (the test says when), at most 30 s
+stop, start = pathlib.Path(STOP), time.monotonic()
+while not stop.exists() and time.monotonic() - start < 30:
     tf.publish(roslibpy.Message({"transforms": [{**frame, "transform": pose}]}))
     time.sleep(0.05)
 ros.terminate()
@@ -193,13 +198,23 @@ ros.terminate()
 
 
 async def test_a_rosbridge_clients_tf_reaches_an_rclpy_node(
-    robot: ServerProcess, tf_env: Path
+    robot: ServerProcess, tf_env: Path, tmp_path: Path
 ) -> None:
-    """A web page's localization (map -> odom on /tf) reaches the robot's tf2 listener."""
+    """A web page's localization (map -> odom on /tf) reaches the robot's tf2 listener.
+
+    The page broadcasts until the listener heard it: the link's /tf publisher, made
+    when the page advertises, and the listener discover each other in their own time.
+    """
+    stop = tmp_path / "stop"
+    page = roslibpy_prelude(robot.port) + ROSLIBPY_BROADCASTER.replace("STOP", repr(str(stop)))
     with Peer("tf_echo", "/tf", tf_env) as listener:
-        await run_python(roslibpy_prelude(robot.port) + ROSLIBPY_BROADCASTER)
-        heard: list[list[str]] = []
-        deadline = time.monotonic() + 20
-        while ["map", "odom"] not in heard:  # the robot's own /tf (odom -> base_link) too
-            assert time.monotonic() < deadline, "no map -> odom reached the rclpy node"
-            heard = listener.next()["frames"]
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(run_python, page)
+            try:
+                heard: list[list[str]] = []
+                deadline = time.monotonic() + 20
+                while ["map", "odom"] not in heard:  # the robot's own (odom -> base_link) too
+                    assert time.monotonic() < deadline, "no map -> odom reached the rclpy node"
+                    heard = (await anyio.to_thread.run_sync(listener.next))["frames"]
+            finally:
+                stop.touch()
