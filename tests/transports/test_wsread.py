@@ -180,21 +180,24 @@ def test_after_stop_a_begun_frame_and_the_rest_go_to_websockets() -> None:
     assert list(reader.feed(frame[100:])) == [frame[:100], frame[100:]]
 
 
+UPGRADE = (
+    b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+    b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+)
+"""A client's upgrade request, which the tests below send frames with."""
+
+
 @pytest.mark.anyio
 async def test_frames_sent_with_the_handshake_are_read_by_websockets() -> None:
     """A client that sends its first frame in the same packet as the upgrade request."""
     op = b'{"op": "call_service", "service": "/rosapi/topics", "id": "first"}'
-    request = (
-        b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-        b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
-    )
     async with running_server(ServerConfig()) as harness:
         with anyio.fail_after(10):
             stream = await anyio.connect_tcp("127.0.0.1", harness.port("websocket"))
             async with stream:
                 # the frame's first 3 bytes go with the request, the rest later
                 frame = Spec(Opcode.TEXT.value, op).encode()
-                await stream.send(request + frame[:3])
+                await stream.send(UPGRADE + frame[:3])
                 await anyio.sleep(0.2)
                 await stream.send(frame[3:])
                 received = b""
@@ -212,16 +215,12 @@ async def test_whole_frames_sent_with_the_handshake_are_answered_in_order() -> N
         json.dumps({"op": "call_service", "service": "/rosapi/topics", "id": f"early{n}"}).encode()
         for n in range(2)
     ]
-    request = (
-        b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-        b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
-    )
     async with running_server(ServerConfig()) as harness:
         with anyio.fail_after(10):
             stream = await anyio.connect_tcp("127.0.0.1", harness.port("websocket"))
             async with stream:
                 frames = b"".join(Spec(Opcode.TEXT.value, op).encode() for op in ops)
-                await stream.send(request + frames)
+                await stream.send(UPGRADE + frames)
                 received = b""
                 while b'"id":"early1"' not in received:
                     received += await stream.receive()
