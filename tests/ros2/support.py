@@ -35,6 +35,9 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 PEER = HERE / "peer.py"
 WAIT_S = 20.0
+READY_S = 60.0
+"""A bound on a peer that hangs starting, not a speed requirement: rclpy's import and a
+node's start take seconds of CPU, and a test may start four at once on a loaded machine."""
 
 #: Domains from 150: clear of the default 0 and of what other tools here use.
 DOMAIN_BASE = 150
@@ -96,7 +99,7 @@ class Peer:
 
     def wait_ready(self) -> None:
         """Until the node says it is ready (AssertionError with stderr if not in time)."""
-        assert self.next().get("ready"), self.stderr()
+        assert self.next(READY_S).get("ready"), self.stderr()
 
     def next(self, within: float = WAIT_S) -> dict[str, Any]:
         """The next JSON line (AssertionError with stderr if none in time)."""
