@@ -147,17 +147,13 @@ BURSTS = 10
 SEND_BUFFER = 16 * MiB  # --send-buffer-limit's default: what the non-reader may hold
 
 
-class _Tcp:
-    def __init__(self, port: int, rcvbuf: int | None = None) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        if rcvbuf is not None:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-        self.sock.settimeout(TIMEOUT_S)
-        self.sock.connect(("127.0.0.1", port))
-        self.buffer = b""
+class _Tcp(trickling_readers.TcpPeer):
+    """A TCP peer that reads whole JSON lines."""
 
-    def send(self, op: dict[str, Any]) -> None:
-        self.sock.sendall(json.dumps(op).encode())
+    def __init__(self, port: int, rcvbuf: int | None = None) -> None:
+        super().__init__(port, rcvbuf)
+        self.sock.settimeout(TIMEOUT_S)
+        self.buffer = b""
 
     def lines(self) -> list[bytes]:
         chunk = self.sock.recv(1 << 20)
@@ -166,7 +162,8 @@ class _Tcp:
         *lines, self.buffer = (self.buffer + chunk).split(b"\n")
         return lines
 
-    def settle(self, tag: str) -> None:
+    def settle_tagged(self, tag: str) -> None:
+        """Until the server answered a call sent now (everything before it is handled)."""
         self.send({"op": "call_service", "service": "/rosapi/get_time", "id": tag})
         while not any(f'"{tag}"'.encode() in line for line in self.lines()):
             pass
@@ -176,7 +173,7 @@ def _subscribe_png(peer: _Tcp, tag: str) -> None:
     peer.send(
         {"op": "subscribe", "topic": PNG_TOPIC, "type": "std_msgs/String", "compression": "png"}
     )
-    peer.settle(tag)
+    peer.settle_tagged(tag)
 
 
 def _publish(peer: _Tcp, first: int, count: int) -> None:
@@ -218,7 +215,7 @@ async def _png_readers(context: Context) -> Outcome:
         await anyio.to_thread.run_sync(_subscribe_png, reader, "r")
         await anyio.to_thread.run_sync(_subscribe_png, stalled, "s")
         publisher.send({"op": "advertise", "topic": PNG_TOPIC, "type": "std_msgs/String"})
-        await anyio.to_thread.run_sync(publisher.settle, "p")
+        await anyio.to_thread.run_sync(publisher.settle_tagged, "p")
         sizes = [12] * BURSTS + [1000]
         total = sum(sizes)
         deadline = time.monotonic() + context.seconds

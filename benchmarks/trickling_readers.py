@@ -70,8 +70,9 @@ class AttackResult:
     gaps: list[float]
 
 
-class _Peer:
-    """rosbridge over TCP, blocking: JSON values out, raw bytes in."""
+class TcpPeer:
+    """rosbridge over TCP, blocking: JSON values out, raw bytes in (the attack replays'
+    clients too)."""
 
     def __init__(self, port: int, rcvbuf: int | None = None) -> None:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -97,14 +98,14 @@ class _Peer:
         self.sock.close()
 
 
-def _subscriber(port: int, rcvbuf: int | None = None) -> _Peer:
-    peer = _Peer(port, rcvbuf)
+def _subscriber(port: int, rcvbuf: int | None = None) -> TcpPeer:
+    peer = TcpPeer(port, rcvbuf)
     peer.send({"op": "subscribe", "topic": TOPIC, "type": "std_msgs/String"})
     peer.settle()
     return peer
 
 
-def _publish(peer: _Peer, seconds: float) -> None:
+def _publish(peer: TcpPeer, seconds: float) -> None:
     peer.send({"op": "advertise", "topic": TOPIC, "type": "std_msgs/String"})
     frame = json.dumps({"op": "publish", "topic": TOPIC, "msg": {"data": "x" * PAYLOAD}}).encode()
     start = time.monotonic()
@@ -115,7 +116,7 @@ def _publish(peer: _Peer, seconds: float) -> None:
         peer.sock.sendall(frame)
 
 
-def _arrivals(peer: _Peer, done: threading.Event, out: list[float]) -> None:
+def _arrivals(peer: TcpPeer, done: threading.Event, out: list[float]) -> None:
     sock = peer.sock
     sock.settimeout(FROZEN_GAP_S)
     while True:
@@ -151,9 +152,9 @@ def drain(sock: socket.socket, until: float) -> None:
             continue
 
 
-def _attack(name: str, port: int, budget_s: float, done: threading.Event) -> list[_Peer]:
+def _attack(name: str, port: int, budget_s: float, done: threading.Event) -> list[TcpPeer]:
     """Run attack ``name`` until ``done``; the peers it opened (to close)."""
-    opened: list[_Peer] = []
+    opened: list[TcpPeer] = []
     if name in ("four", "staggered"):
         threads = []
         for _ in range(4):
@@ -182,10 +183,10 @@ def _attack(name: str, port: int, budget_s: float, done: threading.Event) -> lis
 def run_attack(name: str, port: int, seconds: float, budget_s: float) -> AttackResult:
     """One attack against the server on TCP ``port``, ``seconds`` of publishing."""
     bystander = _subscriber(port)
-    publisher = _Peer(port)
+    publisher = TcpPeer(port)
     done = threading.Event()
     arrivals: list[float] = []
-    opened: list[_Peer] = []
+    opened: list[TcpPeer] = []
     watcher = threading.Thread(target=_arrivals, args=(bystander, done, arrivals))
     attacker = threading.Thread(
         target=lambda: opened.extend(_attack(name, port, budget_s, done)), daemon=True
