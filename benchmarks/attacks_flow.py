@@ -24,17 +24,13 @@ from websockets.typing import Subprotocol
 
 from . import trickling_readers
 from .attack_kit import Attack, Context, Outcome
+from .rawws import masked_text, stalled_websocket
 from .servers import ROOT
 
 __all__ = ["ATTACKS"]
 
 MiB = 1024 * 1024
 TIMEOUT_S = 60.0
-_UPGRADE = (
-    "GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-    "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
-    "Sec-WebSocket-Protocol: {subprotocol}\r\n\r\n"
-)
 
 
 def _supports(option: str) -> bool:
@@ -43,29 +39,6 @@ def _supports(option: str) -> bool:
     src = Path(os.environ.get("RWT_BENCH_SRC") or ROOT / "src")
     name = option.removeprefix("--").replace("-", "_")
     return any(name in path.read_text() for path in (src / "rwt_cli").glob("*.py"))
-
-
-def masked_text(payload: bytes) -> bytes:
-    """One client text frame (all-zero mask, RFC 6455 5.3)."""
-    if len(payload) < 126:
-        return bytes((0x81, 0x80 | len(payload))) + bytes(4) + payload
-    return bytes((0x81, 0xFE)) + struct.pack("!H", len(payload)) + bytes(4) + payload
-
-
-def stalled_websocket(port: int, subprotocol: str, until: bytes) -> socket.socket:
-    """A WebSocket that reads until ``until`` came, then never again (4 KB receive buffer)."""
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.settimeout(TIMEOUT_S)
-    sock.connect(("127.0.0.1", port))
-    sock.sendall(_UPGRADE.format(subprotocol=subprotocol).encode())
-    received = b""
-    while until not in received:
-        chunk = sock.recv(4096)
-        if not chunk:
-            raise EOFError("the server closed the connection")
-        received += chunk
-    return sock
 
 
 # ---- 16: Foxglove clients that fetch a large asset and never read ---------------------------
