@@ -9,31 +9,26 @@ Every socket has a timeout, so a broken server fails the test instead of hanging
 from __future__ import annotations
 
 import json
-import socket
 from collections import deque
 from contextlib import ExitStack
 from typing import Any
 
 from websockets.sync.client import ClientConnection, connect
 
+from benchmarks import trickling_readers
+
 Message = dict[str, Any]
 TIMEOUT_S = 60.0
 
 
-class TcpPeer:
+class TcpPeer(trickling_readers.TcpPeer):
     """rosbridge over TCP: JSON values out, JSON lines in."""
 
     def __init__(self, port: int, rcvbuf: int | None = None) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        if rcvbuf is not None:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        super().__init__(port, rcvbuf)
         self.sock.settimeout(TIMEOUT_S)
-        self.sock.connect(("127.0.0.1", port))
         self._buffer = b""
         self._lines: deque[bytes] = deque()
-
-    def send(self, op: Message) -> None:
-        self.sock.sendall(json.dumps(op).encode())
 
     def send_raw(self, data: bytes) -> None:
         self.sock.sendall(data)
@@ -46,9 +41,6 @@ class TcpPeer:
             *lines, self._buffer = (self._buffer + chunk).split(b"\n")
             self._lines.extend(lines)
         return json.loads(self._lines.popleft())  # type: ignore[no-any-return]
-
-    def close(self) -> None:
-        self.sock.close()
 
 
 class WsPeer:
