@@ -592,6 +592,9 @@ async def _handshake(
             events = protocol.events_received()
             for index, event in enumerate(events):
                 if isinstance(event, Request):
+                    if protocol.parser_exc is not None:  # a frame sent with it broke the rules
+                        await _refuse_malformed(stream, protocol, protocol.parser_exc)
+                        return None
                     at_frame_start = received.find(b"\r\n\r\n") + 4 == len(received)
                     early = [e for e in events[index + 1 :] if isinstance(e, Frame)]
                     return event, at_frame_start, early
@@ -600,13 +603,20 @@ async def _handshake(
     return None
 
 
-async def _refuse_malformed(stream: ByteStream, protocol: ServerProtocol) -> None:
+async def _refuse_malformed(
+    stream: ByteStream, protocol: ServerProtocol, frame_exc: Exception | None = None
+) -> None:
     """Answer a request websockets cannot parse with a 400 that says why.
 
-    The peer hears at once instead of waiting for the handshake timeout; the
-    caller closes the stream.
+    ``frame_exc``: the request was whole, but a frame sent with it broke the
+    protocol (too large, not masked): websockets has failed the connection, so it
+    is refused before it opens. The peer hears at once instead of waiting for the
+    handshake timeout; the caller closes the stream.
     """
-    reason = str(protocol.handshake_exc) or "malformed HTTP request"
+    if frame_exc is not None:
+        reason = f"a frame sent with the request: {frame_exc}"
+    else:
+        reason = str(protocol.handshake_exc) or "malformed HTTP request"
     response = protocol.reject(400, f"{reason}\n")
     with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
         await stream.send(response.serialize())

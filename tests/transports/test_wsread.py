@@ -9,6 +9,7 @@ same state as a channel on which websockets reads everything.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import os
@@ -226,3 +227,22 @@ async def test_whole_frames_sent_with_the_handshake_are_answered_in_order() -> N
                     received += await stream.receive()
     assert received.startswith(b"HTTP/1.1 101")
     assert 0 < received.index(b'"id":"early0"') < received.index(b'"id":"early1"')
+
+
+@pytest.mark.anyio
+async def test_a_frame_over_the_limit_sent_with_the_handshake_is_refused_with_a_reason() -> None:
+    """websockets fails such a connection while parsing the request: it gets a 400 saying
+    why, never an upgrade written after the failure (once a logged bug and no answer)."""
+    op = json.dumps({"op": "publish", "topic": "/x", "msg": {"data": "y" * 5000}}).encode()
+    async with running_server(ServerConfig(max_message_size=1000)) as harness:
+        with anyio.fail_after(10):
+            stream = await anyio.connect_tcp("127.0.0.1", harness.port("websocket"))
+            async with stream:
+                await stream.send(UPGRADE + Spec(Opcode.TEXT.value, op).encode())
+                received = b""
+                with contextlib.suppress(anyio.EndOfStream):
+                    while True:
+                        received += await stream.receive()
+    assert received.startswith(b"HTTP/1.1 400")
+    assert b"a frame sent with the request" in received
+    assert b"exceeds limit of 1000 bytes" in received
