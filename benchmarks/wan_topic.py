@@ -151,9 +151,9 @@ TRANSPORTS: dict[str, Transport] = {
 """The browser's transports of the 1 kHz topic by name."""
 
 
-async def browse(transport: str, duration: float) -> dict[str, Any]:
+async def browse(transport: str, duration: float, warmup_s: float = WARMUP_S) -> dict[str, Any]:
     """Subscribe over ``transport`` for ``duration`` s from its first message; the figures
-    after the warm-up (a slow connection on a busy machine shortens no run)."""
+    after the first ``warmup_s`` s (a slow connection on a busy machine shortens no run)."""
     ages: list[float] = []
     arrivals: list[float] = []
     start = 0.0
@@ -167,7 +167,7 @@ async def browse(transport: str, duration: float) -> dict[str, Any]:
             if not start:
                 start = now
                 scope.deadline = anyio.current_time() + duration
-            if now - start < WARMUP_S:
+            if now - start < warmup_s:
                 continue
             ages.append(now - float(message["msg"]["data"]))
             arrivals.append(now)
@@ -352,10 +352,12 @@ PICTURES: dict[str, Callable[[], Pictures]] = {
 """The browser's transports of the camera by name: each yields decoded pictures."""
 
 
-async def browse_pictures(transport: str, duration: float) -> dict[str, Any]:
+async def browse_pictures(
+    transport: str, duration: float, warmup_s: float = WARMUP_S
+) -> dict[str, Any]:
     """Watch ``CAMERA`` over ``transport`` for ``duration`` s from its first picture.
 
-    The figures (after the warm-up): pictures a second, their age (the stamp painted
+    The figures (after the first ``warmup_s`` s): pictures a second, their age (the stamp painted
     into each at publish, read back from the decoded picture) and the longest time
     between two; pictures whose stamp does not read are counted, not aged.
     """
@@ -370,7 +372,7 @@ async def browse_pictures(transport: str, duration: float) -> dict[str, Any]:
             if not start:
                 start = now
                 scope.deadline = anyio.current_time() + duration
-            if now - start < WARMUP_S:
+            if now - start < warmup_s:
                 continue
             arrivals.append(now)
             sent = read_stamp(gray, now)
@@ -498,12 +500,14 @@ def _dropped(log: Path, kind: str, before: int) -> int | None:
     return None
 
 
-def _browse_in(ns: str, transport: str, duration: float, log: Path) -> dict[str, Any]:
+def _browse_in(
+    ns: str, transport: str, duration: float, warmup_s: float, log: Path
+) -> dict[str, Any]:
     """One transport's browser run in ``ns``: its figures and the server's drops."""
     kind = "webrtc" if "webrtc" in transport else "ws"
     before = len(_disconnects(log, kind))
     done = subprocess.run(
-        _in(ns, "browser", transport, "--duration", str(duration)),
+        _in(ns, "browser", transport, "--duration", str(duration), "--warmup", str(warmup_s)),
         env=ENV,
         capture_output=True,
         text=True,
@@ -522,8 +526,10 @@ def run(
     rate: float,
     profile: LinkProfile,
     trace_sctp: bool = False,
+    warmup_s: float = WARMUP_S,
 ) -> list[Any]:
-    """Namespaces, the link, the robot, then each transport's browser in turn: their figures.
+    """Namespaces, the link, the robot, then each transport's browser in turn: their figures
+    (``duration`` s each from its first message, the first ``warmup_s`` s left out).
 
     The robot's log (its path printed first) holds its sessions and, with ``trace_sctp``,
     aiortc's SCTP state each second.
@@ -548,7 +554,7 @@ def run(
             rows = []
             for transport in transports:
                 cpu, wall = _cpu_s(server.pid), time.monotonic()
-                row = _browse_in(browser_ns, transport, duration, log)
+                row = _browse_in(browser_ns, transport, duration, warmup_s, log)
                 used = (_cpu_s(server.pid) - cpu) / (time.monotonic() - wall)
                 row["robot_cpu_pct"] = round(100 * used)  # of one core, the browser's run
                 rows.append(row)
@@ -568,6 +574,9 @@ def main() -> None:
     parser.add_argument("transport_name", nargs="?", default=None)
     parser.add_argument("--transport", action="append", choices=[*TRANSPORTS, *PICTURES])
     parser.add_argument("--duration", type=float, default=15.0)
+    parser.add_argument(
+        "--warmup", type=float, default=WARMUP_S, help="seconds of each run left out first"
+    )
     parser.add_argument("--rate", type=float, default=1000.0)
     parser.add_argument("--delay-ms", type=float, default=30.0)
     parser.add_argument("--jitter-ms", type=float, default=10.0)
@@ -582,16 +591,16 @@ def main() -> None:
         return
     if args.role == "browser":
         if args.transport_name in PICTURES:
-            row = anyio.run(browse_pictures, args.transport_name, args.duration)
+            row = anyio.run(browse_pictures, args.transport_name, args.duration, args.warmup)
         else:
-            row = anyio.run(browse, args.transport_name, args.duration)
+            row = anyio.run(browse, args.transport_name, args.duration, args.warmup)
         print(json.dumps(row), flush=True)
         return
     profile = LinkProfile(
         args.delay_ms / 1000, args.jitter_ms / 1000, args.loss, args.rate_mbit * 1e6
     )
     chosen = args.transport or [*TRANSPORTS, *PICTURES]
-    rows = run(chosen, args.duration, args.rate, profile, args.trace_sctp)
+    rows = run(chosen, args.duration, args.rate, profile, args.trace_sctp, args.warmup)
     link = (
         f"{args.delay_ms:g} ms +- {args.jitter_ms:g} ms, {args.loss:.0%} loss,"
         f" {args.rate_mbit:g} Mbit/s"

@@ -92,34 +92,29 @@ def test_packets_through_the_link_between_two_namespaces() -> None:
     assert link.a_to_b.stats.packets == count and link.a_to_b.stats.lost == count - len(got)
 
 
-def test_the_wan_benchmark_runs_both_transports_through_the_link() -> None:
-    """A smoke run of benchmarks/wan_topic.py: each transport's subscriber gets the topic."""
+SMOKE_WARMUP_S = 0.5
+"""The smoke runs' warm-up: what is checked is that each transport delivers, not its figures."""
+
+
+def test_the_wan_benchmark_runs_every_transport_through_the_link() -> None:
+    """A smoke run of benchmarks/wan_topic.py, one robot for all: each transport's subscriber
+    gets the topic (the lossy channel too), and the camera's transports get pictures whose
+    stamp (painted at publish) reads back after decoding."""
     reason = netns.unavailable(("tun",))
     if reason is not None:
         pytest.skip(reason)
-    pytest.importorskip("aiortc", reason="the data channel's row needs aiortc")
-    from benchmarks.wan_topic import WARMUP_S, run  # noqa: PLC0415 (after the skips)
+    pytest.importorskip("aiortc", reason="the data channels' and the track's rows need aiortc")
+    from benchmarks.wan_topic import run  # noqa: PLC0415 (after the skips)
 
-    rows = run(["websocket", "webrtc"], WARMUP_S + 1, 100.0, LinkProfile(loss=0.0))
-    assert [row["transport"] for row in rows] == ["websocket", "webrtc"]
-    for row in rows:
-        assert row["received"] > 10 and row["server_dropped"] == 0, row
-        assert row["age_p50_ms"] >= 20  # the link's delay (30 ms +- 10 ms) is in every age
-
-
-def test_the_wan_benchmark_reads_the_picture_stamps_through_the_link() -> None:
-    """A smoke run of the lossy channel and the camera's transports: each gets its messages or
-    pictures, and every picture's stamp (painted at publish) reads back after decoding."""
-    reason = netns.unavailable(("tun",))
-    if reason is not None:
-        pytest.skip(reason)
-    pytest.importorskip("aiortc", reason="the data channel's and the track's rows need aiortc")
-    from benchmarks.wan_topic import WARMUP_S, run  # noqa: PLC0415 (after the skips)
-
-    transports = ["webrtc-lossy", "vp8", "mjpeg", "cbor-image"]
-    rows = run(transports, WARMUP_S + 2, 100.0, LinkProfile(loss=0.0))
+    transports = ["websocket", "webrtc", "webrtc-lossy", "vp8", "mjpeg", "cbor-image"]
+    rows = run(
+        transports, SMOKE_WARMUP_S + 1, 100.0, LinkProfile(loss=0.0), warmup_s=SMOKE_WARMUP_S
+    )
     assert [row["transport"] for row in rows] == transports
     for row in rows:
         assert row["received"] >= 1 and row.get("unread", 0) == 0, row
         assert row["age_p50_ms"] >= 20, row  # the link's delay (30 ms +- 10 ms) is in every age
-    assert rows[0]["received"] > 10  # 100 Hz on the lossy channel without loss
+    for row in rows[:3]:  # 100 Hz on the topic's transports, without loss
+        assert row["received"] > 10, row
+    for row in rows[:2]:  # the rosbridge sessions' drops, from the robot's log
+        assert row["server_dropped"] == 0, row

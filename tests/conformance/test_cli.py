@@ -87,7 +87,7 @@ def test_strict_profile_passes_completely(
     transport: str,
     server: str,
 ) -> None:
-    """Issue 6: every requirement passes over both transports; only the auth ones need a secret."""
+    """Every requirement passes over both transports; only the auth ones need a secret."""
     report = tmp_path / "report.json"
     junit = tmp_path / "junit.xml"
     auth = ["--auth-secret-file", str(secret_file)] if server == "secured" else []

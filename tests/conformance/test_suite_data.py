@@ -95,7 +95,7 @@ def test_a_repeated_case_id_is_refused(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
 def test_every_requirement_has_a_case_on_each_transport(transport: str) -> None:
-    """Issue 6: both transports pass every requirement, so each needs a case that runs there."""
+    """Both transports pass every requirement, so each needs a case that runs there."""
     covered = {r for c in SUITE.cases if transport in c.transports for r in c.requirements}
     assert set(SUITE.requirements) - covered == set()
 

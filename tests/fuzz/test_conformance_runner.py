@@ -21,6 +21,8 @@ from hypothesis import strategies as st
 from rwt_conformance import Outcome, RunOptions, load_suite, run_suite
 from rwt_conformance.frames import decode_frame
 from rwt_conformance.match import describe, match
+from rwt_conformance.model import Dialect
+from rwt_conformance.versions import SpecVersion
 from tests.conformance import hostile
 from tests.fuzz import grammar
 from tests.fuzz.conftest import FUZZ
@@ -59,6 +61,21 @@ def scripted() -> Iterator[tuple[str, Script]]:
         yield url, script
 
 
+def _options(url: str) -> RunOptions:
+    """What is fuzzed is how frames are judged, so the run waits as little as it can: the
+    dialect and spec version given (nothing to detect, which waits for answers a hostile
+    burst never holds), and no retry (a retried case waits twice)."""
+    return RunOptions(
+        url,
+        only=CASES,
+        expect_timeout_s=0.3,
+        case_timeout_s=10,
+        retry_budget_s=0,
+        dialect=Dialect.ROS2,
+        spec_version=SpecVersion.of(2, 1),
+    )
+
+
 def test_a_run_against_fuzzed_servers_judges_every_case(scripted: tuple[str, Script]) -> None:
     url, script = scripted
 
@@ -66,10 +83,7 @@ def test_a_run_against_fuzzed_servers_judges_every_case(scripted: tuple[str, Scr
     @given(rng=seeded)
     def one_run(rng: random.Random) -> None:
         script.burst = grammar.server_frames(rng)
-        # no retry: what is fuzzed is how frames are judged, and a retried case waits twice
-        options = RunOptions(
-            url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10, retry_budget_s=0
-        )
+        options = _options(url)
 
         async def run() -> None:
             with anyio.fail_after(60):
@@ -92,7 +106,7 @@ def test_a_fragment_named_by_an_integer_too_long_to_print_is_judged(
     url, script = scripted
     part = {"op": "fragment", "id": 10**5000, "num": 0, "total": 2, "data": '{"op":'}
     script.burst = [(cbor2.dumps(part), True)]
-    options = RunOptions(url, only=CASES, expect_timeout_s=0.3, case_timeout_s=10, retry_budget_s=0)
+    options = _options(url)
 
     async def run() -> None:
         result = await run_suite(SUITE, options)

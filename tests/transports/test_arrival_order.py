@@ -30,17 +30,22 @@ import anyio.to_thread
 import pytest
 from websockets.sync.client import connect
 
+from rwt_transports import pump
 from rwt_transports.admission import Admission
 from tests.support.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio
 
-ROUNDS = {"kept": 800, "new": 250}
+ROUNDS = {"kept": 100, "new": 120}
 """Rounds per case: a missed order shows only now and then. On kept connections a
 round sends 3 frames on A and B and 4 on C, so all three connections' read slices
-(``pump.READ_SLICE_FRAMES``, 256 frames) end in the same round after 256, 512 and
-768 rounds, where a reader resuming from its slice's yield once took later input
-first: 800 rounds cross each of them."""
+end in the same round every ``SLICE_FRAMES`` rounds, where a reader resuming from
+its slice's yield once took later input first: 100 rounds cross six of them."""
+
+SLICE_FRAMES = 16
+"""``pump.READ_SLICE_FRAMES`` for these tests (256 when serving): a smaller slice puts
+the slice ends that matter 16 rounds apart instead of 256, so a run crosses several
+in a hundred rounds."""
 
 TIMEOUT_S = 30.0
 MESSAGE_WAIT_S = 10.0
@@ -48,6 +53,12 @@ MESSAGE_WAIT_S = 10.0
 only a miss waits this long, and a machine that stalls the server for seconds (CI's
 is shared) is not taken for a miss."""
 STRING = "std_msgs/msg/String"
+
+
+@pytest.fixture(autouse=True)
+def _small_read_slices(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(pump, "READ_SLICE_FRAMES", SLICE_FRAMES)
+
 
 Message = dict[str, Any]
 Accepted = Callable[[int], None]

@@ -19,9 +19,9 @@ from tests.support.realclients import run_python
 
 pytestmark = pytest.mark.anyio
 
-CHURN_CONNECTIONS = 600
+CHURN_CONNECTIONS = 400
 """wss connections opened one after another (a lost upgrade request: one in a few hundred)."""
-TCP_CHURN_CONNECTIONS = 1000
+TCP_CHURN_CONNECTIONS = 500
 """TLS over TCP exchanges of the threaded client below (a lost first op: about one in 200)."""
 OPEN_S = 30.0
 """Far past the handshake timeout (10 s), which ends a stalled wss connection with an error."""
