@@ -27,11 +27,18 @@ onto the event loop (``loop.call_soon_threadsafe``), bounded:
   ``bufferedAmount`` (an atomic read) is polled every ``DRAIN_POLL_S`` while a
   writer waits for it to go down, and ``bufferedamountlow`` is emitted on the
   loop, as aiortc emits it.
-- callbacks are set before the peer connection can call them (the peer
-  connection's before the offer is set; a channel's inside the callback that
-  hands it over), and never reset while it runs; each holds only a small
-  ``_Hop`` whose target is dropped at close, so no cycle through C++ keeps a
-  peer connection alive.
+- for the same reason the peer connection has no state or gathering callback:
+  ``set_remote_description`` (GIL held) waits for libdatachannel's processing
+  thread, which would wait for the GIL in such a callback (seen: a hang as the
+  gathering completed). The state is read every ``STATE_POLL_S`` and the
+  gathering state every ``GATHER_POLL_S`` while an offer is answered (atomic
+  reads). The one callback left, the new data channel's, comes only after the
+  offer was set.
+- callbacks are set before the peer connection can call them (the data
+  channel's before the offer is set; a channel's inside the callback that hands
+  it over), and never reset while it runs; each holds only a small ``_Hop``
+  whose target is dropped at close, so no cycle through C++ keeps a peer
+  connection alive.
 """
 
 from __future__ import annotations
@@ -54,8 +61,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DRAIN_POLL_S",
+    "GATHER_POLL_S",
     "HOP_OVERHEAD_BYTES",
     "STACKS",
+    "STATE_POLL_S",
     "Inflow",
     "NativeDataChannel",
     "NativePeerConnection",
@@ -70,6 +79,12 @@ only), ``native`` (libdatachannel; video offers stay on aiortc) or ``aiortc``.""
 
 DRAIN_POLL_S = 0.002
 """Seconds between two reads of a channel's ``bufferedAmount`` while a writer waits."""
+
+STATE_POLL_S = 0.1
+"""Seconds between two reads of a peer connection's state (connected, failed, closed)."""
+
+GATHER_POLL_S = 0.005
+"""Seconds between two reads of the gathering state while an offer is answered."""
 
 HOP_OVERHEAD_BYTES = 256
 """What one message waiting for the loop is counted beyond its data (the callback and
@@ -178,9 +193,15 @@ class NativeDataChannel:
     """
 
     def __init__(
-        self, channel: Any, loop: asyncio.AbstractEventLoop, inflow: Inflow, max_message_size: int
+        self,
+        channel: Any,
+        loop: asyncio.AbstractEventLoop,
+        inflow: Inflow,
+        max_message_size: int,
+        close_peer: Callable[[], object] = lambda: None,
     ) -> None:
         self._channel = channel
+        self._close_peer = close_peer
         self._loop = loop
         self._inflow = inflow
         self._max = max_message_size
@@ -204,8 +225,8 @@ class NativeDataChannel:
         Messages that came before are handed over now, in order: libdatachannel
         keeps them until a message callback is set.
         """
-        hop, channel = self._hop, self._channel
-        channel.on_message(lambda message: self._arrived(hop, message))
+        hop, channel = self._hop, self._channel  # the callbacks hold the hop only, not self
+        channel.on_message(lambda message: _arrived(hop, message))
         channel.on_open(lambda: hop.post("_opened"))
         channel.on_closed(lambda: hop.post("_closed"))
 
@@ -302,12 +323,18 @@ class NativeDataChannel:
             self._watch()
 
     def close(self) -> None:
-        """Close the channel; ``close`` is emitted now (and not again)."""
+        """Close the channel by closing its peer connection; ``close`` is emitted now, once.
+
+        Not libdatachannel's ``close``: it resets the channel's callbacks, so from
+        the loop (GIL held) it would wait for a message callback waiting for the
+        GIL. A channel closes only as its session ends (a refused one is closed
+        before it has callbacks, ``NativePeerConnection``), so its peer
+        connection goes (its ``close`` releases the GIL).
+        """
         if self.readyState == "closed":
             return
-        with contextlib.suppress(RuntimeError):
-            self._channel.close()
         self._closed()
+        self._close_peer()
 
 
 class NativePeerConnection:
@@ -325,6 +352,11 @@ class NativePeerConnection:
         inflow: the peer's bound on messages waiting for the loop.
         answer_max_message_size: the answer's ``a=max-message-size``, bytes
             (``webrtc_sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states).
+        refusal: why a channel the peer opens is closed (label, ordered,
+            ``maxRetransmits``, ``maxPacketLifeTime`` in s; None: taken;
+            ``webrtc_peers.channel_refusal``). Asked on libdatachannel's thread,
+            where the channel is closed before it has callbacks; a second channel
+            of a label is refused too.
 
     Raises:
         RuntimeError: libdatachannel-py does not import (``native_missing``).
@@ -336,28 +368,27 @@ class NativePeerConnection:
         max_message_size: int,
         inflow: Inflow,
         answer_max_message_size: int,
+        refusal: Callable[[str, bool, int | None, float | None], str | None],
     ) -> None:
         ldc = _import()
         self._ldc = ldc
         self._loop = _running_loop()
         self._max = max_message_size
         self._inflow = inflow
+        self._refusal = refusal
+        self._labels: set[str] = set()  # the labels taken (libdatachannel's thread)
+        self._closing: set[asyncio.Task[None]] = set()
         config = ldc.Configuration()
         config.ice_servers = [_native_ice_server(ldc, server) for server in ice_servers]
         config.max_message_size = answer_max_message_size
         self._pc = ldc.PeerConnection(config)
         self._handlers: dict[str, list[Callable[[], object]]] = {}
         self._channel_handler: Callable[[NativeDataChannel], object] | None = None
-        self._gathered = anyio.Event()
         self.connectionState = "new"
         self.localSdp: str | None = None
         hop = self._hop = _Hop(self._loop, self)
-        gathered = ldc.PeerConnection.GatheringState.Complete
-        self._pc.on_state_change(lambda state: hop.post("_state", state.name))
-        self._pc.on_gathering_state_change(
-            lambda state: hop.post("_gathered_all") if state == gathered else None
-        )
-        self._pc.on_data_channel(lambda channel: self._channel(hop, channel))
+        self._pc.on_data_channel(lambda channel: _new_channel(hop, channel))
+        self._loop.call_later(STATE_POLL_S, self._poll_state)
 
     def on(self, event: str, handler: Callable[..., object]) -> None:
         """``datachannel`` (one ``NativeDataChannel``) or ``connectionstatechange`` (none)."""
@@ -370,9 +401,32 @@ class NativePeerConnection:
         """A channel the peer opened (a libdatachannel thread): wrap it, hand it to the loop."""
         if hop.target is None:
             return
-        wrapped = NativeDataChannel(channel, self._loop, self._inflow, self._max)
+        wrapped = NativeDataChannel(channel, self._loop, self._inflow, self._max, self._close_soon)
+        label = wrapped.label
+        reason = self._refusal(
+            label, wrapped.ordered, wrapped.maxRetransmits, wrapped.maxPacketLifeTime
+        )
+        if reason is None and label in self._labels:
+            reason = "second"
+        if reason is not None:  # closed here, before it has callbacks (close's docstring)
+            with contextlib.suppress(RuntimeError):
+                channel.close()
+            hop.post("_refused", label, reason)
+            return
+        self._labels.add(label)
         hop.post("_got_channel", wrapped)  # first: the loop takes it before its messages
         wrapped.listen()
+
+    @staticmethod
+    def _refused(label: str, reason: str) -> None:
+        logger.info("event=channel_refused label=%r reason=%s", label, reason)
+
+    def _close_soon(self) -> None:
+        """Close the peer connection (a channel of it closed, from the loop)."""
+        if self._hop.target is not None:
+            task = self._loop.create_task(self.close())
+            self._closing.add(task)
+            task.add_done_callback(self._closing.discard)
 
     def _got_channel(self, channel: NativeDataChannel) -> None:
         if self._channel_handler is not None:
@@ -380,13 +434,17 @@ class NativePeerConnection:
         else:
             channel.close()
 
-    def _state(self, name: str) -> None:
-        self.connectionState = _STATES.get(name, name.lower())
-        for handler in list(self._handlers.get("connectionstatechange", ())):
-            handler()
-
-    def _gathered_all(self) -> None:
-        self._gathered.set()
+    def _poll_state(self) -> None:
+        """Read the state (an atomic read); a change calls ``connectionstatechange``."""
+        if self._hop.target is None:
+            return
+        state = _STATES.get(self._pc.state().name, "failed")
+        if state != self.connectionState:
+            self.connectionState = state
+            for handler in list(self._handlers.get("connectionstatechange", ())):
+                handler()
+        if state != "closed":
+            self._loop.call_later(STATE_POLL_S, self._poll_state)
 
     async def answer(self, sdp: str) -> str:
         """Set the offer and gather every candidate (no trickle); the answer's SDP.
@@ -399,7 +457,10 @@ class NativePeerConnection:
             self._pc.set_remote_description(ldc.Description(sdp, ldc.Description.Type.Offer))
         except RuntimeError as exc:
             raise ValueError(str(exc) or type(exc).__name__) from exc
-        await self._gathered.wait()
+        complete = ldc.PeerConnection.GatheringState.Complete
+        # polled, not a callback (the module docstring); bounded by the caller's deadline
+        while self._pc.gathering_state() != complete:  # noqa: ASYNC110
+            await anyio.sleep(GATHER_POLL_S)
         description = self._pc.local_description()
         if description is None:
             raise ValueError("libdatachannel made no answer")
@@ -407,10 +468,29 @@ class NativePeerConnection:
         return self.localSdp
 
     async def close(self) -> None:
-        """Close the peer connection (in a worker thread: libdatachannel waits for its threads)."""
+        """Close the peer connection (in a worker thread: libdatachannel waits for its threads).
+
+        Its channels' ``close`` events come as libdatachannel closes them.
+        """
+        if self._hop.target is None and self.connectionState == "closed":
+            return
         self._hop.target = None
         self.connectionState = "closed"
         await anyio.to_thread.run_sync(self._pc.close, abandon_on_cancel=True)
+
+
+def _arrived(hop: _Hop, message: str | bytes) -> None:
+    """A channel's message (libdatachannel's thread), to its ``NativeDataChannel``."""
+    target = hop.target
+    if target is not None:
+        target._arrived(hop, message)
+
+
+def _new_channel(hop: _Hop, channel: Any) -> None:
+    """A channel the peer opened (libdatachannel's thread), to its ``NativePeerConnection``."""
+    target = hop.target
+    if target is not None:
+        target._channel(hop, channel)
 
 
 def _running_loop() -> asyncio.AbstractEventLoop:

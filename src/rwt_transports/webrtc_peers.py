@@ -103,6 +103,25 @@ _NO_DATA_CHANNEL = "the offer has no data channel (m=application) and asks for n
 _MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
 
 
+def channel_refusal(
+    label: str, ordered: bool, max_retransmits: int | None, max_lifetime: float | None
+) -> str | None:
+    """Why a data channel the peer opened is closed (None: it is taken).
+
+    ``rosbridge`` must be reliable and ordered, ``rosbridge-lossy`` unordered with
+    ``maxRetransmits`` 0 (D36); any other label is refused. (A second channel of a
+    label is refused too, by its peer connection.) Args: the channel's label, and
+    its reliability as RFC 8832's open message states it (lifetime in seconds).
+    """
+    if label == LOSSY_CHANNEL_LABEL:
+        lossy = not ordered and max_retransmits == 0 and max_lifetime is None
+        return None if lossy else "not_unordered_unreliable"
+    if label != DATA_CHANNEL_LABEL:
+        return "label"
+    reliable = max_retransmits is None and max_lifetime is None
+    return None if ordered and reliable else "not_reliable_ordered"
+
+
 def remote_max_message_size(sdp: str) -> int:
     """The largest message the peer accepts: its ``a=max-message-size`` (0: any size).
 
@@ -330,7 +349,11 @@ class WebRtcPeers:
         inflow = Inflow(INBOX_LIMIT_BYTES, lambda: dc.inbox_bytes)
         dc.held_below = lambda: inflow.pending
         return NativePeerConnection(
-            self.ice_servers, self.max_message_size, inflow, ANSWER_MAX_MESSAGE_SIZE
+            self.ice_servers,
+            self.max_message_size,
+            inflow,
+            ANSWER_MAX_MESSAGE_SIZE,
+            channel_refusal,
         )
 
     @staticmethod
@@ -421,17 +444,18 @@ class WebRtcPeers:
         if isinstance(channel, NativeDataChannel):
             channel.on("oversized", item.dc.oversized)
             channel.on("overflow", lambda: self._on_overflow(item))
+        refusal = channel_refusal(
+            channel.label, channel.ordered, channel.maxRetransmits, channel.maxPacketLifeTime
+        )
+        taken = item.lossy if channel.label == LOSSY_CHANNEL_LABEL else item.channel
+        if refusal is None and taken is not None:
+            refusal = "second"
+        if refusal is not None:
+            logger.info("event=channel_refused label=%r reason=%s", channel.label, refusal)
+            channel.close()
+            return
         if channel.label == LOSSY_CHANNEL_LABEL:
             self._on_lossy(item, channel)
-            return
-        reliable = channel.maxRetransmits is None and channel.maxPacketLifeTime is None
-        if channel.label != DATA_CHANNEL_LABEL or not channel.ordered or not reliable:
-            logger.info("event=channel_refused label=%r", channel.label)
-            channel.close()
-            return
-        if item.channel is not None:
-            logger.info("event=channel_refused label=%r reason=second", channel.label)
-            channel.close()
             return
         item.channel = channel
         item.dc.attach(channel)  # its messages wait for the session from now on
@@ -446,12 +470,6 @@ class WebRtcPeers:
         Its messages go to the session as any; the subscriptions made on it get
         their messages there.
         """
-        lossy = not channel.ordered and channel.maxRetransmits == 0
-        if not lossy or channel.maxPacketLifeTime is not None or item.lossy is not None:
-            reason = "second" if lossy and item.lossy is not None else "not_unordered_unreliable"
-            logger.info("event=channel_refused label=%r reason=%s", channel.label, reason)
-            channel.close()
-            return
         item.lossy = channel
         item.dc.attach_lossy(channel)
         item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)

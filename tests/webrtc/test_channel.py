@@ -18,6 +18,7 @@ from rwt_transports.webrtc_native import (
     NativePeerConnection,
     native_missing,
 )
+from rwt_transports.webrtc_peers import channel_refusal
 from rwt_transports.webrtc_sctp import ANSWER_MAX_MESSAGE_SIZE
 
 pytestmark = pytest.mark.anyio
@@ -74,7 +75,7 @@ async def test_the_native_stack_counts_messages_waiting_for_the_loop_in_the_boun
     channel = DataChannelChannel(None, max_message_size=1 << 20, remote_max_message_size=0)
     inflow = Inflow(limit, lambda: channel.inbox_bytes)
     channel.held_below = lambda: inflow.pending
-    answerer = NativePeerConnection((), 1 << 20, inflow, ANSWER_MAX_MESSAGE_SIZE)
+    answerer = NativePeerConnection((), 1 << 20, inflow, ANSWER_MAX_MESSAGE_SIZE, channel_refusal)
 
     def take(native: NativeDataChannel) -> None:  # before its first message, as the server
         native.on("overflow", channel.overflow)
