@@ -47,7 +47,7 @@ import msgspec
 from websockets.asyncio.client import connect as ws_connect
 
 import rwt
-from rwt_transports.webrtc_native import native_missing
+from rwt_transports.webrtc_native import Inflow, NativeDataChannel, native_missing
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
@@ -180,15 +180,14 @@ async def _publish(size: Size, ws_url: str, server_pid: int, counter: Counter) -
 async def native_subscriber(base: str, counter: Counter) -> AsyncIterator[None]:
     """A libdatachannel peer subscribed to ``/w1`` on ``base``/webrtc; closed on exit.
 
-    Each message hops onto the loop and is decoded there, ``fragment`` ops joined,
-    as rwt's client does.
+    Each message hops onto the loop (``NativeDataChannel``, as the server's do) and
+    is decoded there, ``fragment`` ops joined, as rwt's client does.
     """
     import httpx  # noqa: PLC0415 (the test extra's)
 
     ldc, loop = _ldc(), asyncio.get_running_loop()
     pc = ldc.PeerConnection(ldc.Configuration())
-    gathered, opened, answered = anyio.Event(), anyio.Event(), anyio.Event()
-    _on_gathered(ldc, pc, loop, gathered)
+    opened, answered = anyio.Event(), anyio.Event()
 
     parts: list[str] = []
 
@@ -207,12 +206,16 @@ async def native_subscriber(base: str, counter: Counter) -> AsyncIterator[None]:
         elif op == "service_response":
             answered.set()
 
-    channel = pc.create_data_channel("rosbridge")
-    channel.on_open(lambda: loop.call_soon_threadsafe(opened.set))
-    channel.on_message(lambda raw: loop.call_soon_threadsafe(on_message, raw))
+    # the server's face of a libdatachannel channel: its hop onto the loop, batched
+    channel = NativeDataChannel(
+        pc.create_data_channel("rosbridge"), loop, Inflow(1 << 40, lambda: 0), 1 << 30
+    )
+    channel.on("open", opened.set)
+    channel.on("message", on_message)
+    channel.listen()
     try:
         with anyio.fail_after(LIMIT_S):
-            await gathered.wait()
+            await gathered(ldc, pc)
             async with httpx.AsyncClient(base_url=base) as http:
                 reply = await http.post(
                     "/webrtc",
@@ -239,11 +242,13 @@ def _ldc() -> Any:
     return libdatachannel
 
 
-def _on_gathered(ldc: Any, pc: Any, loop: asyncio.AbstractEventLoop, event: anyio.Event) -> None:
+async def gathered(ldc: Any, pc: Any) -> None:
+    """Wait until ``pc`` gathered its candidates: polled, not a callback, as the server
+    does (rwt_transports.webrtc_native: a callback could wait for the GIL while
+    ``set_remote_description`` holds it)."""
     complete = ldc.PeerConnection.GatheringState.Complete
-    pc.on_gathering_state_change(
-        lambda state: loop.call_soon_threadsafe(event.set) if state == complete else None
-    )
+    while pc.gathering_state() != complete:  # noqa: ASYNC110 (the docstring)
+        await anyio.sleep(0.005)
 
 
 async def native_alone(size: Size) -> Run:
@@ -251,9 +256,7 @@ async def native_alone(size: Size) -> Run:
     ldc, loop = _ldc(), asyncio.get_running_loop()
     offerer, answerer = ldc.PeerConnection(), ldc.PeerConnection()
     counter = Counter(size.count)
-    offered, answered, opened = anyio.Event(), anyio.Event(), anyio.Event()
-    _on_gathered(ldc, offerer, loop, offered)
-    _on_gathered(ldc, answerer, loop, answered)
+    opened = anyio.Event()
     kept: list[Any] = []  # the answerer's channel lives as long as the run
 
     def on_channel(channel: Any) -> None:
@@ -265,9 +268,9 @@ async def native_alone(size: Size) -> Run:
     sending.on_open(lambda: loop.call_soon_threadsafe(opened.set))
     try:
         with anyio.fail_after(LIMIT_S):
-            await offered.wait()
+            await gathered(ldc, offerer)
             answerer.set_remote_description(offerer.local_description())
-            await answered.wait()
+            await gathered(ldc, answerer)
             offerer.set_remote_description(answerer.local_description())
             await opened.wait()
             frames = [_publish_frame(n, "x" * (size.data_bytes - 8)) for n in range(size.count)]

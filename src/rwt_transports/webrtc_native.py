@@ -46,6 +46,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
+from collections import deque
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
@@ -207,6 +208,8 @@ class NativeDataChannel:
         self._max = max_message_size
         self._handlers: dict[str, list[Callable[..., object]]] = {}
         self._threshold = 0
+        self._waiting: deque[tuple[str | bytes | None, int]] = deque()
+        self._scheduled = False  # a _deliver is on its way to the loop
         self._polling = False
         self._overflowed = False
         reliability = channel.reliability()
@@ -245,20 +248,35 @@ class NativeDataChannel:
         size = len(message)
         if size > self._max:  # the loop gets a marker, never the data
             if self._inflow.take(HOP_OVERHEAD_BYTES):
-                hop.post("_deliver", None, HOP_OVERHEAD_BYTES)
+                self._queue(hop, None, HOP_OVERHEAD_BYTES)
             return
         if not self._inflow.take(size + HOP_OVERHEAD_BYTES):
             self._overflowed = True
             hop.post("_emit", "overflow")
             return
-        hop.post("_deliver", message, size + HOP_OVERHEAD_BYTES)
+        self._queue(hop, message, size + HOP_OVERHEAD_BYTES)
 
-    def _deliver(self, message: str | bytes | None, charged: int) -> None:
-        self._inflow.give(charged)
-        if message is None:
-            self._emit("oversized")
-        else:
-            self._emit("message", message)
+    def _queue(self, hop: _Hop, message: str | bytes | None, charged: int) -> None:
+        """Queue a message (None: one over the size) for the loop; one wake-up a batch.
+
+        ``call_soon_threadsafe`` wakes the loop with a write to its pipe: once for
+        the messages that come while the loop has not drained the queue yet.
+        """
+        self._waiting.append((message, charged))
+        if not self._scheduled:
+            self._scheduled = True
+            hop.post("_deliver")
+
+    def _deliver(self) -> None:
+        """Hand the queued messages to the session (the loop), in order."""
+        self._scheduled = False  # first: one queued from now on schedules again
+        while self._waiting and self.readyState != "closed":
+            message, charged = self._waiting.popleft()
+            self._inflow.give(charged)
+            if message is None:
+                self._emit("oversized")
+            else:
+                self._emit("message", message)
 
     def _opened(self) -> None:
         if self.readyState == "connecting":
@@ -269,6 +287,8 @@ class NativeDataChannel:
         if self.readyState != "closed":
             self.readyState = "closed"
             self._hop.target = None
+            while self._waiting:  # never handed over: no longer held
+                self._inflow.give(self._waiting.popleft()[1])
             self._emit("close")
 
     @property
