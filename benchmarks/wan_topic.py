@@ -218,8 +218,9 @@ async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterato
             batch, inbox[:] = inbox[:], []
             for message in batch:
                 yield message
-    finally:
-        await anyio.to_thread.run_sync(pc.close)
+    finally:  # the run ends by cancelling: closed anyway (a peer connection left open aborts)
+        with anyio.CancelScope(shield=True):
+            await anyio.to_thread.run_sync(pc.close)
 
 
 TRANSPORTS: dict[str, Transport] = {

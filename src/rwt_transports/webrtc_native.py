@@ -69,6 +69,7 @@ __all__ = [
     "Inflow",
     "NativeDataChannel",
     "NativePeerConnection",
+    "native_ice_server",
     "native_missing",
 ]
 
@@ -313,13 +314,14 @@ class NativeDataChannel:
         """Send one message.
 
         Raises:
-            ConnectionError: the channel is closed.
+            ConnectionError: the channel is closed, or libdatachannel refused the
+                message (larger than the peer's ``a=max-message-size``).
         """
         if self.readyState != "open":
             raise ConnectionError("the data channel is not open")
         try:
             self._channel.send(data)
-        except RuntimeError as exc:  # libdatachannel: closed, or the message is too large
+        except (RuntimeError, ValueError) as exc:  # closed; over the peer's message size
             raise ConnectionError(str(exc)) from exc
         self._watch()
 
@@ -399,7 +401,7 @@ class NativePeerConnection:
         self._labels: set[str] = set()  # the labels taken (libdatachannel's thread)
         self._closing: set[asyncio.Task[None]] = set()
         config = ldc.Configuration()
-        config.ice_servers = [_native_ice_server(ldc, server) for server in ice_servers]
+        config.ice_servers = [native_ice_server(ldc, server) for server in ice_servers]
         config.max_message_size = answer_max_message_size
         self._pc = ldc.PeerConnection(config)
         self._handlers: dict[str, list[Callable[[], object]]] = {}
@@ -519,8 +521,14 @@ def _running_loop() -> asyncio.AbstractEventLoop:
     return asyncio.get_running_loop()
 
 
-def _native_ice_server(ldc: Any, server: IceServer) -> Any:
-    """The ``IceServer`` of libdatachannel for one parsed ``--ice-server`` (webrtc_ice.py)."""
+def native_ice_server(ldc: Any, server: IceServer) -> Any:
+    """The ``IceServer`` of libdatachannel for one parsed ``--ice-server`` (webrtc_ice.py).
+
+    Args:
+        ldc: the ``libdatachannel`` module.
+        server: ``stun:HOST:PORT``, or ``turn:``/``turns:`` with its credentials and
+            ``?transport=tcp`` (TURN over UDP, TCP or TLS: RFC 7065's forms).
+    """
     scheme, _, rest = server.url.partition(":")
     hostport, _, query = rest.partition("?")
     host, _, port = hostport.rpartition(":")

@@ -181,3 +181,24 @@ async def test_the_roslib_transport_obeys_allowed_origins() -> None:
         )
     assert bad.status_code == 403
     assert good.status_code == 200
+
+
+async def test_the_stack_answers_data_only_offers_and_aiortc_the_ones_with_media(
+    served_on: Served, stack: str
+) -> None:
+    """``--webrtc-stack`` (D51): an offer with an audio or video section stays on aiortc."""
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    pc.createDataChannel("rosbridge")
+    pc.addTransceiver("audio")
+    try:
+        with_media = await offer_sdp(pc)
+    finally:
+        await pc.close()
+    async with httpx.AsyncClient(base_url=served_on.base) as http:
+        data_only = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
+        mixed = await http.post("/webrtc", content=with_media, headers=SDP)
+    assert data_only.status_code == 201 and mixed.status_code == 201
+    libdatachannel = "o=rtc "  # its answers' origin line; aiortc's is "o=- "
+    assert (libdatachannel in data_only.text) is (stack == "native")
+    assert libdatachannel not in mixed.text
+    assert "m=audio " in mixed.text  # aiortc answered its audio section too
