@@ -61,6 +61,7 @@ if TYPE_CHECKING:
     from .webrtc_ice import IceServer
 
 __all__ = [
+    "CERTIFICATE_DAYS",
     "DRAIN_POLL_S",
     "GATHER_POLL_S",
     "HOP_OVERHEAD_BYTES",
@@ -69,6 +70,7 @@ __all__ = [
     "Inflow",
     "NativeDataChannel",
     "NativePeerConnection",
+    "certificate_files",
     "native_ice_server",
     "native_missing",
 ]
@@ -403,6 +405,7 @@ class NativePeerConnection:
         config = ldc.Configuration()
         config.ice_servers = [native_ice_server(ldc, server) for server in ice_servers]
         config.max_message_size = answer_max_message_size
+        config.certificate_pem_file, config.key_pem_file = certificate_files()
         self._pc = ldc.PeerConnection(config)
         self._handlers: dict[str, list[Callable[[], object]]] = {}
         self._channel_handler: Callable[[NativeDataChannel], object] | None = None
@@ -513,6 +516,62 @@ def _new_channel(hop: _Hop, channel: Any) -> None:
     target = hop.target
     if target is not None:
         target._channel(hop, channel)
+
+
+CERTIFICATE_DAYS = 30
+"""Days the server's DTLS certificate is valid (made once a process, ``certificate_files``)."""
+
+
+@cache
+def certificate_files() -> tuple[str, str]:
+    """The DTLS certificate and key of this process's native peer connections (PEM files).
+
+    Made once a process (ECDSA P-256, self-signed, ``CERTIFICATE_DAYS``) in a private
+    temporary folder, removed at exit. libdatachannel would otherwise make one a peer
+    connection on its shared thread pool, and the offer's answer waits for it with the GIL
+    held: a pool thread waiting for the GIL in another peer's callback (a channel closing)
+    then hangs the server (seen under ``rwt conformance``; D51). A peer checks the
+    certificate by its fingerprint in the answer (RFC 8827), so one a process is what a
+    browser's, kept per origin, is too.
+
+    Returns:
+        (certificate path, key path).
+    """
+    import atexit  # noqa: PLC0415 (the native stack only)
+    import datetime  # noqa: PLC0415
+    import shutil  # noqa: PLC0415
+    import tempfile  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    from cryptography import x509  # noqa: PLC0415 (aiortc's dependency, the same extra)
+    from cryptography.hazmat.primitives import hashes, serialization  # noqa: PLC0415
+    from cryptography.hazmat.primitives.asymmetric import ec  # noqa: PLC0415
+
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(x509.NameOID.COMMON_NAME, "rwt")])
+    now = datetime.datetime.now(datetime.UTC)
+    certificate = (
+        x509.CertificateBuilder()
+        .subject_name(name)
+        .issuer_name(name)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - datetime.timedelta(days=1))
+        .not_valid_after(now + datetime.timedelta(days=CERTIFICATE_DAYS))
+        .sign(key, hashes.SHA256())
+    )
+    folder = Path(tempfile.mkdtemp(prefix="rwt-webrtc-"))  # mode 0700
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    cert_path, key_path = folder / "cert.pem", folder / "key.pem"
+    cert_path.write_bytes(certificate.public_bytes(serialization.Encoding.PEM))
+    key_path.write_bytes(
+        key.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.NoEncryption(),
+        )
+    )
+    return str(cert_path), str(key_path)
 
 
 def _running_loop() -> asyncio.AbstractEventLoop:
