@@ -27,18 +27,26 @@ onto the event loop (``loop.call_soon_threadsafe``), bounded:
   ``bufferedAmount`` (an atomic read) is polled every ``DRAIN_POLL_S`` while a
   writer waits for it to go down, and ``bufferedamountlow`` is emitted on the
   loop, as aiortc emits it.
-- for the same reason the peer connection has no state or gathering callback:
-  ``set_remote_description`` (GIL held) waits for libdatachannel's processing
-  thread, which would wait for the GIL in such a callback (seen: a hang as the
-  gathering completed). The state is read every ``STATE_POLL_S`` and the
-  gathering state every ``GATHER_POLL_S`` while an offer is answered (atomic
-  reads). The one callback left, the new data channel's, comes only after the
-  offer was set.
-- callbacks are set before the peer connection can call them (the data
-  channel's before the offer is set; a channel's inside the callback that hands
-  it over), and never reset while it runs; each holds only a small ``_Hop``
-  whose target is dropped at close, so no cycle through C++ keeps a peer
-  connection alive.
+- for the same reason no call from the loop may wait for libdatachannel's
+  threads (its shared thread pool, a peer connection's processor), which may be
+  waiting for the GIL in some peer's callback. ``set_remote_description``
+  waits for the pool to make the peer's DTLS certificate: seen hanging with the
+  pool's threads in gathering callbacks, and under ``rwt conformance`` with them
+  in a closing channel's. So the certificate is made once a process
+  (``certificate_files``) and handed to each peer connection; the peer
+  connection has no state or gathering callback (both are read, every
+  ``STATE_POLL_S`` and, while an offer is answered, ``GATHER_POLL_S``); a
+  channel is closed only by closing its peer connection
+  (``NativeDataChannel.close``; the binding's ``close`` of a peer connection
+  releases the GIL), or, refused, on libdatachannel's thread before it has
+  callbacks.
+- callbacks are set before they can be called (the data channel's before the
+  offer is set; a channel's message, open and close ones inside the callback
+  that hands it over), and never reset while it runs; each holds only a small
+  ``_Hop`` whose target is dropped at close, so no cycle through C++ keeps a
+  peer connection alive. Messages hop in batches: one ``call_soon_threadsafe``
+  (a write to the loop's wake-up pipe) for those that come before the loop
+  drained the last.
 """
 
 from __future__ import annotations
