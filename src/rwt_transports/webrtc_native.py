@@ -488,7 +488,7 @@ class NativePeerConnection:
         ldc = self._ldc
         try:
             self._pc.set_remote_description(ldc.Description(sdp, ldc.Description.Type.Offer))
-        except RuntimeError as exc:
+        except Exception as exc:  # the binding maps C++'s exceptions to several types
             raise ValueError(str(exc) or type(exc).__name__) from exc
         complete = ldc.PeerConnection.GatheringState.Complete
         # polled, not a callback (the module docstring); bounded by the caller's deadline
