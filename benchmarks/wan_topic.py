@@ -9,7 +9,10 @@ each way, 2 % loss, 15 Mbit/s by default).
 The topic's transports (``TRANSPORTS``): ``websocket`` (TCP), ``webrtc`` (the
 ``rosbridge`` data channel, reliable and ordered: SCTP over DTLS over UDP) and
 ``webrtc-lossy`` (subscribed on the ``rosbridge-lossy`` channel: unordered, never
-retransmitted, the newest message of the topic; docs/webrtc.md). Per transport: messages
+retransmitted, the newest message of the topic; docs/webrtc.md), and where libdatachannel-py
+imports (Python 3.12+, D51) ``webrtc-native`` and ``webrtc-native-lossy``, the same on the
+native stack at both ends (the robot's second server, ``NATIVE_PORT``, and a libdatachannel
+peer). Per transport: messages
 delivered a second, messages the server dropped for the session (its slow-consumer rule,
 D24), the age of each message when it arrived (receive time - send time, the same clock:
 one machine) at p50 and p99, and the longest stall (the longest time between two
@@ -56,6 +59,9 @@ from benchmarks.wanlink import LinkProfile, WanLink
 ROBOT_ADDR = "198.18.5.1"
 BROWSER_ADDR = "198.18.5.2"
 PORT = 9090
+NATIVE_PORT = 9091
+"""The robot's second server, the same graph on the native WebRTC stack (D51), where
+libdatachannel-py imports."""
 TOPIC = "/wan_clock"
 WARMUP_S = 2.0
 """Seconds of each run left out of the figures (connecting, the first window)."""
@@ -143,10 +149,86 @@ async def _data_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[
         await pc.close()
 
 
+async def _webrtc_native(base: str, topic: str) -> AsyncIterator[str | bytes]:
+    async for message in _native_channel(base, topic, lossy=False):
+        yield message
+
+
+async def _webrtc_native_lossy(base: str, topic: str) -> AsyncIterator[str | bytes]:
+    async for message in _native_channel(base, topic, lossy=True):
+        yield message
+
+
+async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[str | bytes]:
+    """``_data_channel`` with libdatachannel on both ends: a libdatachannel peer (each
+    channel behind the server's ``NativeDataChannel``) to the robot's native server."""
+    import asyncio  # noqa: PLC0415 (the browser process only)
+
+    import httpx  # noqa: PLC0415
+    import libdatachannel as ldc  # noqa: PLC0415 (optional: Python 3.12+)
+
+    from benchmarks.webrtc import gathered  # noqa: PLC0415
+    from rwt_transports.webrtc_native import Inflow, NativeDataChannel  # noqa: PLC0415
+
+    base = base.replace(f":{PORT}", f":{NATIVE_PORT}")
+    loop = asyncio.get_running_loop()
+    pc = ldc.PeerConnection(ldc.Configuration())
+    inits = [None]
+    if lossy:  # the settings the server keeps the channel for (D36)
+        init, reliability = ldc.DataChannelInit(), ldc.Reliability()
+        reliability.unordered, reliability.max_retransmits = True, 0
+        init.reliability = reliability
+        inits.append(init)
+    labels = ["rosbridge", "rosbridge-lossy"]
+    channels = [
+        NativeDataChannel(pc.create_data_channel(label, init), loop, Inflow(1 << 40, int), 1 << 30)
+        for label, init in zip(labels, inits, strict=False)
+    ]
+    inbox: list[str | bytes] = []
+    arrived = anyio.Event()
+    opened = [anyio.Event() for _ in channels]
+
+    def on_message(message: str | bytes) -> None:
+        inbox.append(message)
+        arrived.set()
+
+    for channel, event in zip(channels, opened, strict=True):
+        channel.on("open", event.set)
+        channel.listen()
+    channels[-1].on("message", on_message)
+    try:
+        await gathered(ldc, pc)
+        async with httpx.AsyncClient() as http:
+            reply = await http.post(
+                f"http://{base}/webrtc",
+                content=str(pc.local_description()),
+                headers={"Content-Type": "application/sdp"},
+            )
+        reply.raise_for_status()
+        pc.set_remote_description(ldc.Description(reply.text, ldc.Description.Type.Answer))
+        with anyio.fail_after(20):
+            for event in opened:
+                await event.wait()
+        channels[-1].send(
+            json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
+        )
+        while True:
+            await arrived.wait()
+            arrived = anyio.Event()
+            batch, inbox[:] = inbox[:], []
+            for message in batch:
+                yield message
+    finally:  # the run ends by cancelling: closed anyway (a peer connection left open aborts)
+        with anyio.CancelScope(shield=True):
+            await anyio.to_thread.run_sync(pc.close)
+
+
 TRANSPORTS: dict[str, Transport] = {
     "websocket": _websocket,
     "webrtc": _webrtc,
     "webrtc-lossy": _webrtc_lossy,
+    "webrtc-native": _webrtc_native,
+    "webrtc-native-lossy": _webrtc_native_lossy,
 }
 """The browser's transports of the 1 kHz topic by name."""
 
@@ -412,8 +494,15 @@ async def robot(rate: float, trace_sctp: bool = False) -> None:
     logging.basicConfig(stream=sys.stderr, level=logging.WARNING)
     logging.getLogger("rwt").setLevel(logging.INFO)  # event=disconnect: the session's drops
     graph = Graph()
-    config = ServerConfig(host=ROBOT_ADDR, port=PORT, webrtc=WebRtcOptions())
+    from rwt_transports.webrtc_native import native_missing  # noqa: PLC0415
+
+    config = ServerConfig(host=ROBOT_ADDR, port=PORT, webrtc=WebRtcOptions(stack="aiortc"))
     server = RosbridgeServer(graph, config)
+    native = None
+    if native_missing() is None:  # the same graph on the native stack (D51)
+        options = WebRtcOptions(stack="native")
+        native_config = ServerConfig(host=ROBOT_ADDR, port=NATIVE_PORT, webrtc=options)
+        native = RosbridgeServer(graph, native_config)
     clock = graph.create_publisher(TOPIC, "std_msgs/msg/String", node="/robot")
     async with anyio.create_task_group() as tg:
         if trace_sctp:
@@ -422,6 +511,8 @@ async def robot(rate: float, trace_sctp: bool = False) -> None:
             sctp_trace.install()
             tg.start_soon(sctp_trace.report)
         await tg.start(server.serve)
+        if native is not None:
+            await tg.start(native.serve)
         await tg.start(serve_video, graph, VideoConfig(host=ROBOT_ADDR, port=VIDEO_PORT))
         tg.start_soon(_camera, graph)
         print("robot up", flush=True)

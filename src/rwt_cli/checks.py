@@ -20,6 +20,7 @@ import typer
 
 from rwt_protocol.errors import ConfigError
 from rwt_transports.webrtc_ice import parse_ice_servers
+from rwt_transports.webrtc_native import STACKS, native_missing
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -111,6 +112,20 @@ def check_ice_servers(urls: list[str] | None) -> list[str] | None:
     except ValueError as exc:
         raise OptionError(str(exc)) from None
     return urls
+
+
+def check_webrtc_stack(stack: str) -> str:
+    """Typer callback: ``--webrtc-stack`` is one of ``webrtc_native.STACKS``, and usable here.
+
+    Raises:
+        OptionError: another name, or ``native`` where libdatachannel-py does not
+            import (D51: Python 3.12+; ``native_missing`` says why).
+    """
+    if stack not in STACKS:
+        raise OptionError(f"{stack!r} is not one of {', '.join(STACKS)}")
+    if stack == "native" and (missing := native_missing()) is not None:
+        raise OptionError(missing)
+    return stack
 
 
 def check_glob_list(text: str) -> str:

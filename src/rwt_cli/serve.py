@@ -151,6 +151,8 @@ def _check_listeners(options: ServeOptions) -> None:
         )
     if listeners.webrtc and not listeners.websocket:
         raise usage_error("--webrtc answers on the WebSocket port: not with --no-websocket")
+    if listeners.webrtc_stack != "auto" and not listeners.webrtc:
+        raise usage_error("--webrtc-stack chooses --webrtc's stack: add --webrtc")
     if listeners.ice_server and not listeners.webrtc:
         raise usage_error("--ice-server gives --webrtc its STUN and TURN servers: add --webrtc")
     if listeners.mcp and not listeners.websocket:
@@ -197,7 +199,9 @@ def _server(
     if options.listeners.webrtc:  # an offer's bearer token is a video token (docs/webrtc.md)
         check = None if tokens is None else tokens.valid
         ice_servers = tuple(options.listeners.ice_server or ())
-        config = replace(config, webrtc=WebRtcOptions(bearer_token=check, ice_servers=ice_servers))
+        stack = options.listeners.webrtc_stack
+        webrtc = WebRtcOptions(bearer_token=check, ice_servers=ice_servers, stack=stack)
+        config = replace(config, webrtc=webrtc)
     if options.listeners.mcp:  # a new MCP session's bearer token is a video token (docs/mcp.md)
         check = None if tokens is None else tokens.valid
         mcp = McpOptions(read_only=options.listeners.mcp_read_only, bearer_token=check)

@@ -54,7 +54,13 @@ from .bag_options import (
     WaitForSubscribers,
     WaitTimeout,
 )
-from .checks import check_directories, check_glob_list, check_ice_servers, check_readable_file
+from .checks import (
+    check_directories,
+    check_glob_list,
+    check_ice_servers,
+    check_readable_file,
+    check_webrtc_stack,
+)
 from .options import MIB, PORT_RANGE, UVLOOP_EXTRA, VIDEO_PORT, LevelName, LogLevel
 from .zenoh_link import ZENOH_EXTRA
 
@@ -125,6 +131,16 @@ class Listeners:
             " (docs/webrtc.md; needs rwt-rosbridge[webrtc])."
         ),
     ] = False
+    webrtc_stack: Annotated[
+        str,
+        typer.Option(
+            metavar="STACK",
+            callback=check_webrtc_stack,
+            help="The WebRTC stack of --webrtc's data channels: native (libdatachannel,"
+            " Python 3.12+), aiortc, or auto (native where it is installed); offers with"
+            " video stay on aiortc (docs/webrtc.md, 'Which stack').",
+        ),
+    ] = "auto"
     ice_server: Annotated[
         list[str] | None,
         typer.Option(

@@ -59,6 +59,11 @@ if TYPE_CHECKING:
 
     from aiortc import RTCDataChannel
 
+    from .webrtc_native import NativeDataChannel
+
+    AnyDataChannel = RTCDataChannel | NativeDataChannel
+    """A data channel of either stack: aiortc's, or libdatachannel's (``NativeDataChannel``)."""
+
     from rwt_protocol.server.commands import CloseCode
     from rwt_protocol.server.contract import ServerSession
     from rwt_protocol.server.memory import MemoryAccount
@@ -119,7 +124,7 @@ class DataChannelChannel(PlainChannel):
 
     def __init__(
         self,
-        channel: RTCDataChannel | None,
+        channel: AnyDataChannel | None,
         max_message_size: int,
         remote_max_message_size: int,
         memory: MemoryAccount | None = None,
@@ -137,9 +142,9 @@ class DataChannelChannel(PlainChannel):
         self.held_below: Callable[[], int] = lambda: 0
         """Bytes the peer connection holds for the session below it (its SCTP reassembly,
         ``webrtc_sctp.SctpBound``): they count toward ``INBOX_LIMIT_BYTES`` with the inbox."""
-        self._channels: list[RTCDataChannel] = []  # every channel attached, to close
-        self._reliable: RTCDataChannel | None = None
-        self._lossy: RTCDataChannel | None = None
+        self._channels: list[AnyDataChannel] = []  # every channel attached, to close
+        self._reliable: AnyDataChannel | None = None
+        self._lossy: AnyDataChannel | None = None
         self._lossy_state = anyio.Event()  # the lossy channel came, or went
         self._lane_ready = anyio.Event()  # the session's lossy lane holds a message
         self._lossy_pending = False  # the lane holds messages: the reliable writer yields
@@ -148,12 +153,12 @@ class DataChannelChannel(PlainChannel):
             self.attach(channel)
 
     @property
-    def _dc(self) -> RTCDataChannel:
+    def _dc(self) -> AnyDataChannel:
         if self._reliable is None:  # the pump runs only once it is attached
             raise anyio.BrokenResourceError
         return self._reliable
 
-    def attach(self, channel: RTCDataChannel) -> None:
+    def attach(self, channel: AnyDataChannel) -> None:
         """Take the ``rosbridge`` channel (reliable, ordered): the session's input and output."""
         self._reliable = channel
         self._channels.append(channel)
@@ -164,7 +169,7 @@ class DataChannelChannel(PlainChannel):
         if channel.readyState in ("closing", "closed"):
             self._on_close()
 
-    def attach_lossy(self, channel: RTCDataChannel) -> None:
+    def attach_lossy(self, channel: AnyDataChannel) -> None:
         """Take the ``rosbridge-lossy`` channel (unordered, never retransmitted; D36).
 
         Its messages reach the session as ``LossyInFrame``; its output is the
@@ -374,7 +379,7 @@ class DataChannelChannel(PlainChannel):
             if self._lossy is channel:
                 await self._lane_ready.wait()
 
-    async def _room_for_lossy(self, channel: RTCDataChannel) -> bool:
+    async def _room_for_lossy(self, channel: AnyDataChannel) -> bool:
         """Wait until the channels buffer at most ``LOSSY_GATE_BYTES``; False if it closed.
 
         The lane keeps only each topic's latest message meanwhile, and the

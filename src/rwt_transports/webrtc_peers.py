@@ -56,16 +56,24 @@ from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .shares import HostPrefixes, HostShares, address_of
 from .webrtc import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
 from .webrtc_ice import parse_ice_servers
+from .webrtc_native import Inflow, NativeDataChannel, NativePeerConnection
 from .webrtc_offer import OfferError, check_offer
-from .webrtc_sctp import SctpBound, bound_sctp, incoming_message_limit
+from .webrtc_sctp import (
+    ANSWER_MAX_MESSAGE_SIZE,
+    SctpBound,
+    bound_sctp,
+    incoming_message_limit,
+)
 from .webrtc_signal import WEBRTC_PATH, Answer
 
 if TYPE_CHECKING:
-    from aiortc import RTCDataChannel, RTCSctpTransport
+    from aiortc import RTCSctpTransport
     from anyio.abc import TaskGroup
 
     from rwt_protocol.server.contract import ServerSession
 
+    from .webrtc import AnyDataChannel
+    from .webrtc_offer import OfferShape
     from .webrtc_signal import VideoRequest, WebRtcOptions
     from .webrtc_video import VideoBinding, WebRtcVideo
 
@@ -95,6 +103,25 @@ _NO_DATA_CHANNEL = "the offer has no data channel (m=application) and asks for n
 _MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
 
 
+def channel_refusal(
+    label: str, ordered: bool, max_retransmits: int | None, max_lifetime: float | None
+) -> str | None:
+    """Why a data channel the peer opened is closed (None: it is taken).
+
+    ``rosbridge`` must be reliable and ordered, ``rosbridge-lossy`` unordered with
+    ``maxRetransmits`` 0 (D36); any other label is refused. (A second channel of a
+    label is refused too, by its peer connection.) Args: the channel's label, and
+    its reliability as RFC 8832's open message states it (lifetime in seconds).
+    """
+    if label == LOSSY_CHANNEL_LABEL:
+        lossy = not ordered and max_retransmits == 0 and max_lifetime is None
+        return None if lossy else "not_unordered_unreliable"
+    if label != DATA_CHANNEL_LABEL:
+        return "label"
+    reliable = max_retransmits is None and max_lifetime is None
+    return None if ordered and reliable else "not_reliable_ordered"
+
+
 def remote_max_message_size(sdp: str) -> int:
     """The largest message the peer accepts: its ``a=max-message-size`` (0: any size).
 
@@ -109,13 +136,15 @@ class _Peer:
     """One peer connection and the session it carries."""
 
     session_id: str
-    pc: RTCPeerConnection
+    pc: RTCPeerConnection | NativePeerConnection
     session: ServerSession
     remote_max: int
     dc: DataChannelChannel
     ready: anyio.Event = field(default_factory=anyio.Event)
-    channel: RTCDataChannel | None = None
-    lossy: RTCDataChannel | None = None
+    data: bool = True
+    """It carries data channels (an SCTP association); False: video only."""
+    channel: AnyDataChannel | None = None
+    lossy: AnyDataChannel | None = None
     running: bool = False
     scope: anyio.CancelScope = field(default_factory=anyio.CancelScope)
     wake: list[ConnectionPump] = field(default_factory=list)
@@ -208,11 +237,21 @@ class WebRtcPeers:
             if isinstance(binding, Answer):
                 answer = binding
             else:
-                answer = await self._answer(sdp, peer, host, authenticated, binding)
+                native = binding is None and self._native_for(shape)
+                answer = await self._answer(sdp, peer, host, authenticated, binding, native=native)
             return answer
         finally:
             if answer.status != 201:  # refused: else its peer holds the slot until it connects
                 self._free_slot(host)
+
+    def _native_for(self, shape: OfferShape) -> bool:
+        """Whether the native stack answers an offer of this shape (D51).
+
+        With ``--webrtc-stack native`` or ``auto`` (where libdatachannel-py
+        imports) and data channels only: an offer with audio or video sections
+        stays on aiortc, whose answer makes them inactive or binds its tracks.
+        """
+        return self.options.native and set(shape.kinds) == {"application"}
 
     def _take_slot(self, host: str) -> bool:
         """Take a connecting slot for ``host``; False when there is none for it (D37).
@@ -261,7 +300,10 @@ class WebRtcPeers:
         host: str,
         authenticated: bool,
         video: VideoBinding | None,
+        *,
+        native: bool,
     ) -> Answer:
+        """Admit the session, answer the offer with ``native``'s stack, start the peer's run."""
         holder: list[_Peer] = []
         session = self.host.open_session(
             "webrtc",
@@ -271,53 +313,89 @@ class WebRtcPeers:
         )
         if session is None:
             return Answer(503, "too many connections")
-        pc = RTCPeerConnection(self._configuration())
         remote_max = remote_max_message_size(sdp)
         dc = DataChannelChannel(None, self.max_message_size, remote_max, session.memory)
+        pc = self._native_pc(dc) if native else RTCPeerConnection(self._configuration())
         item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc, video=video)
         holder.append(item)
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
         pc.on("connectionstatechange", lambda: self._on_state(item))
         refusal: Answer | None = Answer(503, "answering the offer took too long")
+        answer: str | None = None
         try:
             with anyio.move_on_after(OFFER_TIMEOUT_S):
-                refusal = await self._negotiate(item, sdp)
+                if isinstance(pc, NativePeerConnection):
+                    refusal, answer = await self._negotiate_native(pc, sdp)
+                else:
+                    refusal, answer = await self._negotiate(item, pc, sdp)
         finally:  # refused, failed or cancelled (shutdown): the session and its sockets go
-            if refusal is not None or pc.localDescription is None or self._tg is None:
+            if refusal is not None or answer is None or self._tg is None:
                 session.close()
                 if video is not None:
                     video.close()
                 await _close_pc(pc)
-        if refusal is not None or pc.localDescription is None or self._tg is None:
+        if refusal is not None or answer is None or self._tg is None:
             return refusal or Answer(503, "the server is stopping")
         item.host = host  # its connecting slot, until it connects (_release)
         self.peers[item.session_id] = item
         self._tg.start_soon(self._run, item)
-        return Answer(201, pc.localDescription.sdp, f"{WEBRTC_PATH}/{item.session_id}")
+        return Answer(201, answer, f"{WEBRTC_PATH}/{item.session_id}")
 
-    async def _negotiate(self, item: _Peer, sdp: str) -> Answer | None:
+    def _native_pc(self, dc: DataChannelChannel) -> NativePeerConnection:
+        """A libdatachannel peer connection for ``dc`` (webrtc_native.py, D51).
+
+        Its messages waiting for the loop count in ``dc``'s inbox bound.
+        """
+        inflow = Inflow(INBOX_LIMIT_BYTES, lambda: dc.inbox_bytes)
+        dc.held_below = lambda: inflow.pending
+        return NativePeerConnection(
+            self.ice_servers,
+            self.max_message_size,
+            inflow,
+            ANSWER_MAX_MESSAGE_SIZE,
+            channel_refusal,
+        )
+
+    @staticmethod
+    async def _negotiate_native(pc: NativePeerConnection, sdp: str) -> tuple[Answer | None, str]:
+        """Answer with libdatachannel: (None, the answer SDP), or (why not, "")."""
+        try:
+            return None, await pc.answer(sdp)
+        except ValueError as exc:
+            return Answer(400, f"the offer is not a usable SDP offer: {exc}"), ""
+
+    async def _negotiate(
+        self, item: _Peer, pc: RTCPeerConnection, sdp: str
+    ) -> tuple[Answer | None, str | None]:
         """Set the offer and the answer (gathering every candidate); None when it worked.
 
         The peer's SCTP transport is bounded before it starts (webrtc_sctp.py);
         its video tracks are bound to the offer's transceivers before the answer
         and their codecs checked after it (their streams start when it connects).
+
+        Returns:
+            (None, the answer SDP), or (why not, None).
         """
-        pc, video = item.pc, item.video
+        video = item.video
         try:
             await pc.setRemoteDescription(RTCSessionDescription(sdp=sdp, type="offer"))
         except Exception as exc:  # aiortc raises ValueError and others for a bad offer
-            return Answer(400, f"the offer is not a usable SDP offer: {exc or type(exc).__name__}")
+            reason = exc or type(exc).__name__
+            return Answer(400, f"the offer is not a usable SDP offer: {reason}"), None
+        item.data = pc.sctp is not None
         if pc.sctp is not None:
             self._bound_sctp(item, pc.sctp)
         if video is not None and (refusal := video.prepare(pc, sdp)) is not None:
-            return refusal
+            return refusal, None
         if pc.sctp is None and video is None:
-            return Answer(400, _NO_DATA_CHANNEL)
+            return Answer(400, _NO_DATA_CHANNEL), None
         try:
             await pc.setLocalDescription(await pc.createAnswer())
         except Exception as exc:  # an offer aiortc accepted but cannot answer
-            return Answer(400, f"the offer cannot be answered: {exc or type(exc).__name__}")
-        return video.negotiate(pc) if video is not None else None
+            return Answer(400, f"the offer cannot be answered: {exc or type(exc).__name__}"), None
+        refusal = video.negotiate(pc) if video is not None else None
+        local = pc.localDescription
+        return refusal, None if local is None else local.sdp
 
     def _bound_sctp(self, item: _Peer, transport: RTCSctpTransport) -> None:
         """Bound what ``item``'s SCTP holds below its session (D39, webrtc_sctp.py)."""
@@ -356,23 +434,28 @@ class WebRtcPeers:
         ]
         return RTCConfiguration(iceServers=servers)
 
-    def _on_channel(self, item: _Peer, channel: RTCDataChannel) -> None:
+    def _on_channel(self, item: _Peer, channel: AnyDataChannel) -> None:
         """Take one ``rosbridge`` channel (reliable, ordered) and one ``rosbridge-lossy``.
 
         The lossy one must be unordered with ``maxRetransmits`` 0 (D36); any other
-        channel is closed.
+        channel is closed. A native channel reports the inbox bounds itself
+        (webrtc_native.py): a message over the size, or past the bound.
         """
+        if isinstance(channel, NativeDataChannel):
+            channel.on("oversized", item.dc.oversized)
+            channel.on("overflow", lambda: self._on_overflow(item))
+        refusal = channel_refusal(
+            channel.label, channel.ordered, channel.maxRetransmits, channel.maxPacketLifeTime
+        )
+        taken = item.lossy if channel.label == LOSSY_CHANNEL_LABEL else item.channel
+        if refusal is None and taken is not None:
+            refusal = "second"
+        if refusal is not None:
+            logger.info("event=channel_refused label=%r reason=%s", channel.label, refusal)
+            channel.close()
+            return
         if channel.label == LOSSY_CHANNEL_LABEL:
             self._on_lossy(item, channel)
-            return
-        reliable = channel.maxRetransmits is None and channel.maxPacketLifeTime is None
-        if channel.label != DATA_CHANNEL_LABEL or not channel.ordered or not reliable:
-            logger.info("event=channel_refused label=%r", channel.label)
-            channel.close()
-            return
-        if item.channel is not None:
-            logger.info("event=channel_refused label=%r reason=second", channel.label)
-            channel.close()
             return
         item.channel = channel
         item.dc.attach(channel)  # its messages wait for the session from now on
@@ -381,18 +464,12 @@ class WebRtcPeers:
         else:
             channel.on("open", item.ready.set)
 
-    def _on_lossy(self, item: _Peer, channel: RTCDataChannel) -> None:
+    def _on_lossy(self, item: _Peer, channel: AnyDataChannel) -> None:
         """Take the ``rosbridge-lossy`` channel, opening the session's lossy lane (D36).
 
         Its messages go to the session as any; the subscriptions made on it get
         their messages there.
         """
-        lossy = not channel.ordered and channel.maxRetransmits == 0
-        if not lossy or channel.maxPacketLifeTime is not None or item.lossy is not None:
-            reason = "second" if lossy and item.lossy is not None else "not_unordered_unreliable"
-            logger.info("event=channel_refused label=%r reason=%s", channel.label, reason)
-            channel.close()
-            return
         item.lossy = channel
         item.dc.attach_lossy(channel)
         item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
@@ -406,7 +483,7 @@ class WebRtcPeers:
 
     def _on_state(self, item: _Peer) -> None:
         """A failed or closed peer connection ends its session."""
-        if item.pc.connectionState == "connected" and item.pc.sctp is None:
+        if item.pc.connectionState == "connected" and not item.data:
             item.ready.set()  # video only: connected is all it waits for
         if item.pc.connectionState in ("failed", "closed"):
             item.ready.set()
@@ -421,7 +498,7 @@ class WebRtcPeers:
             with item.scope:
                 with anyio.move_on_after(self.options.connect_timeout_s):
                     await item.ready.wait()
-                if item.pc.sctp is None:
+                if not item.data:
                     await self._run_video_only(item)
                     return
                 channel = item.channel
@@ -502,7 +579,7 @@ class WebRtcPeers:
                 item.scope.cancel()
 
 
-async def _close_pc(pc: RTCPeerConnection) -> None:
+async def _close_pc(pc: RTCPeerConnection | NativePeerConnection) -> None:
     """Close a peer connection, within ``CLOSE_WAIT_S`` even while cancelled."""
     with anyio.CancelScope(shield=True), anyio.move_on_after(CLOSE_WAIT_S):
         await pc.close()

@@ -61,6 +61,7 @@ if TYPE_CHECKING:
     from aiortc.rtcsctptransport import DataChunk
 
 __all__ = [
+    "ANSWER_MAX_MESSAGE_SIZE",
     "CHUNK_OVERHEAD_BYTES",
     "MAX_HELD_CHUNKS",
     "MAX_INBOUND_STREAMS",
@@ -84,6 +85,11 @@ disconnected. The server keeps two channels and closes the others (their streams
 CHUNK_OVERHEAD_BYTES = 256
 """What a held fragment costs beyond its data (aiortc's chunk object, its bytes' header,
 its TSN in the SACK set), counted toward ``webrtc.INBOX_LIMIT_BYTES``."""
+
+
+ANSWER_MAX_MESSAGE_SIZE: int = LOCAL_MAX_MESSAGE_SIZE
+"""The ``a=max-message-size`` an answer states, bytes (256 KiB, aiortc's; the native stack's
+answer states the same, webrtc_native.py)."""
 
 
 def incoming_message_limit(max_message_size: int) -> int:

@@ -34,6 +34,7 @@ from urllib.parse import parse_qsl
 
 from .http_endpoint import claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
+from .webrtc_native import STACKS, native_missing
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
@@ -103,18 +104,36 @@ class WebRtcOptions:
             ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
             and relayed candidates each answer carries (docs/webrtc.md, "Through
             NAT"); empty: host candidates only, and no traffic to any other host.
+        stack: which WebRTC stack answers an offer of data channels only
+            (``--webrtc-stack``, D51): ``native`` (libdatachannel,
+            webrtc_native.py), ``aiortc``, or ``auto``: native where
+            libdatachannel-py imports, else aiortc. An offer with video
+            m-sections is answered by aiortc whatever the choice (the video
+            tracks are aiortc's, docs/webrtc.md).
 
     Raises:
         ValueError: an ICE server URL aiortc cannot use, or more than one STUN or
-            TURN server (``parse_ice_servers``).
+            TURN server (``parse_ice_servers``); a ``stack`` not of
+            ``webrtc_native.STACKS``, or ``native`` where libdatachannel-py does
+            not import (``webrtc_native.native_missing`` says why).
     """
 
     connect_timeout_s: float = CONNECT_TIMEOUT_S
     bearer_token: Callable[[str], bool] | None = None
     ice_servers: tuple[str, ...] = field(default=(), repr=False)  # TURN passwords: no repr
+    stack: str = "auto"
 
     def __post_init__(self) -> None:
         parse_ice_servers(self.ice_servers)  # refuse a bad URL here, not at the first offer
+        if self.stack not in STACKS:
+            raise ValueError(f"WebRTC stack {self.stack!r} is not one of {', '.join(STACKS)}")
+        if self.stack == "native" and (missing := native_missing()) is not None:
+            raise ValueError(missing)
+
+    @property
+    def native(self) -> bool:
+        """Whether offers of data channels only are answered by the native stack."""
+        return self.stack == "native" or (self.stack == "auto" and native_missing() is None)
 
 
 @dataclass(frozen=True, slots=True)

@@ -59,7 +59,12 @@ HAS_AIORTC = _webrtc_runs_here()
 """Whether ``running_server`` answers WebRTC offers and ``Harness.connect("webrtc")`` works."""
 
 CONTRACT_TRANSPORTS = (*TRANSPORTS, "webrtc") if HAS_AIORTC else TRANSPORTS
-"""The transports tests/transports/test_contract.py runs its contract over."""
+"""The transports tests/transports/test_contract.py runs its contract over (``webrtc``: a
+server on aiortc)."""
+
+NATIVE_WEBRTC = "webrtc-native"
+"""The contract's WebRTC transport on the native stack (D51): an aiortc peer, a server
+whose ``running_server(webrtc_stack="native")`` answers with libdatachannel."""
 
 
 @dataclass
@@ -333,7 +338,7 @@ class Harness:
             return UdpClient(name, sock=sock, prefix=prefix)
         if transport == "stdio":
             return StreamClient(name, stream=self.stdio_client)
-        if transport == "webrtc":
+        if transport in ("webrtc", NATIVE_WEBRTC):
             base = f"http://127.0.0.1:{self.port('websocket')}"
             return await connect_webrtc(base, self.stack, name)
         raise ValueError(transport)
@@ -341,12 +346,13 @@ class Harness:
 
 @asynccontextmanager
 async def running_server(
-    config: ServerConfig | None = None, **server_kw: Any
+    config: ServerConfig | None = None, *, webrtc_stack: str = "aiortc", **server_kw: Any
 ) -> AsyncIterator[Harness]:
     """An in-process server with WebSocket, TCP, UDP and stdio (on pipes), all on free ports.
 
     With aiortc installed it answers WebRTC offers on the WebSocket port too
-    (``HAS_AIORTC``), unless ``config`` says otherwise.
+    (``HAS_AIORTC``) with ``webrtc_stack`` (``--webrtc-stack``), unless ``config``
+    says otherwise.
     """
     to_server_r, to_server_w = os.pipe()
     from_server_r, from_server_w = os.pipe()
@@ -359,7 +365,7 @@ async def running_server(
         stdio_fds=(to_server_r, from_server_w),
     )
     if HAS_AIORTC and config.webrtc is None:
-        config = replace(config, webrtc=WebRtcOptions())
+        config = replace(config, webrtc=WebRtcOptions(stack=webrtc_stack))
     server = RosbridgeServer(config=config, **server_kw)
     pipe = PipeStream(to_server_w, from_server_r)
     async with AsyncExitStack() as stack, anyio.create_task_group() as tg:

@@ -20,8 +20,11 @@ from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
 from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
+from rwt_transports.webrtc_native import native_missing
 from tests.support.clients import (
     CONTRACT_TRANSPORTS,
+    HAS_AIORTC,
+    NATIVE_WEBRTC,
     Client,
     Harness,
     StreamClient,
@@ -34,13 +37,22 @@ pytestmark = pytest.mark.anyio
 TIMEOUT_S = 10
 
 
+PAIRED = (*CONTRACT_TRANSPORTS, NATIVE_WEBRTC) if HAS_AIORTC else CONTRACT_TRANSPORTS
+"""``pair``'s transports: WebRTC on either stack (D51)."""
+
+
 @pytest.fixture
-async def harness() -> AsyncIterator[Harness]:
-    async with running_server() as h:
+async def harness(request: pytest.FixtureRequest) -> AsyncIterator[Harness]:
+    """The server; on the native WebRTC stack for ``pair``'s ``webrtc-native``."""
+    callspec = getattr(request.node, "callspec", None)
+    native = callspec is not None and callspec.params.get("pair") == NATIVE_WEBRTC
+    if native and (missing := native_missing()) is not None:
+        pytest.skip(missing)
+    async with running_server(webrtc_stack="native" if native else "aiortc") as h:
         yield h
 
 
-@pytest.fixture(params=CONTRACT_TRANSPORTS)
+@pytest.fixture(params=PAIRED)
 async def pair(request: pytest.FixtureRequest, harness: Harness) -> tuple[Client, Client]:
     client = await harness.connect(request.param)
     other = await harness.connect("memory", "other")

@@ -14,6 +14,7 @@ import pytest
 
 from rwt_protocol.distribution import install_hint
 from rwt_transports.server import ServerConfig
+from rwt_transports.webrtc_native import native_missing
 from rwt_transports.webrtc_signal import WebRtcOptions
 from tests.browser.conftest import browser  # noqa: F401 (Chromium, one a module)
 from tests.support.clients import HAS_AIORTC
@@ -37,9 +38,27 @@ CONNECT_TIMEOUT_S = 2.0
 
 @pytest.fixture
 async def served() -> AsyncIterator[Served]:
-    """An in-process server with WebRTC on its WebSocket port (port 0)."""
+    """An in-process server with WebRTC on its WebSocket port (port 0), on aiortc."""
     from tests.webrtc.peer import serving  # noqa: PLC0415 (aiortc: after the skip)
 
-    config = ServerConfig(port=0, webrtc=WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S))
-    async with serving(config) as running:
+    options = WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack="aiortc")
+    async with serving(ServerConfig(port=0, webrtc=options)) as running:
+        yield running
+
+
+@pytest.fixture(params=["aiortc", "native"])
+def stack(request: pytest.FixtureRequest) -> str:
+    """Each WebRTC stack of ``--webrtc-stack`` (D51); ``native`` skips where it does not import."""
+    if request.param == "native" and (missing := native_missing()) is not None:
+        pytest.skip(missing)
+    return str(request.param)
+
+
+@pytest.fixture
+async def served_on(stack: str) -> AsyncIterator[Served]:
+    """``served`` on each stack (``stack``): the tests that run on both."""
+    from tests.webrtc.peer import serving  # noqa: PLC0415 (aiortc: after the skip)
+
+    options = WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack=stack)
+    async with serving(ServerConfig(port=0, webrtc=options)) as running:
         yield running

@@ -111,9 +111,9 @@ def site() -> Iterator[str]:
 
 
 def test_roslib_in_chromium_talks_rosbridge_over_the_data_channel(
-    browser: Browser, site: str, tmp_path: Path
+    browser: Browser, site: str, tmp_path: Path, stack: str
 ) -> None:
-    server = ServerProcess(tmp_path, ("--webrtc",))
+    server = ServerProcess(tmp_path, ("--webrtc", "--webrtc-stack", stack))
     try:
         http_url = server.url.replace("ws://", "http://")
         page = browser.new_page()

@@ -26,12 +26,12 @@ def webrtc_url(served: Served) -> str:
     return served.base.replace("http://", "webrtc+http://") + "/webrtc"
 
 
-async def test_publish_subscribe_and_a_service_round_trip(served: Served) -> None:
-    served.graph.create_service(
+async def test_publish_subscribe_and_a_service_round_trip(served_on: Served) -> None:
+    served_on.graph.create_service(
         "/add", "example_interfaces/srv/AddTwoInts", lambda req: {"sum": req["a"] + req["b"]}
     )
     heard: list[object] = []
-    async with rwt.Ros(webrtc_url(served)) as ros:
+    async with rwt.Ros(webrtc_url(served_on)) as ros:
         echo = rwt.Topic(ros, "/echo", "std_msgs/String")
         arrived = anyio.Event()
 
@@ -46,14 +46,14 @@ async def test_publish_subscribe_and_a_service_round_trip(served: Served) -> Non
         reply = await rwt.Service(ros, "/add", "example_interfaces/AddTwoInts").call(
             {"a": 2, "b": 40}, timeout_s=10
         )
-        clients = served.server.sessions
+        clients = served_on.server.sessions
         assert any(str(client).startswith("webrtc:") for client in clients)
     assert heard == [{"data": "over the data channel"}]
     assert reply == {"sum": 42}
 
 
-async def test_a_big_message_comes_back_through_fragments(served: Served) -> None:
-    async with rwt.Ros(webrtc_url(served)) as ros:
+async def test_a_big_message_comes_back_through_fragments(served_on: Served) -> None:
+    async with rwt.Ros(webrtc_url(served_on)) as ros:
         echo = rwt.Topic(ros, "/big", "std_msgs/String")
         got: list[str] = []
         arrived = anyio.Event()

@@ -10,6 +10,7 @@ import re
 import pytest
 
 from rwt_transports.webrtc_ice import parse_ice_server, parse_ice_servers
+from rwt_transports.webrtc_native import native_ice_server, native_missing
 from rwt_transports.webrtc_signal import WebRtcOptions
 from tests.support.cli import invoke_rwt
 from tests.webrtc.conftest import NEEDS_AIORTC
@@ -102,3 +103,30 @@ def test_rwt_serve_refuses_a_bad_ice_server_before_starting() -> None:
     assert twice.exit_code == 2 and "more than one STUN server" in twice.output
     alone = invoke_rwt("serve", "--ice-server", "stun:a")
     assert alone.exit_code == 2 and "add --webrtc" in alone.output
+
+
+@pytest.mark.parametrize(
+    ("url", "host", "port", "relay"),
+    [
+        ("stun:stun.example.org", "stun.example.org", 3478, None),
+        ("turn:u%40x:p%3Aw@turn.example.org:3479", "turn.example.org", 3479, "TurnUdp"),
+        ("turn:u:p@turn.example.org?transport=tcp", "turn.example.org", 3478, "TurnTcp"),
+        ("turns:u:p@turn.example.org", "turn.example.org", 5349, "TurnTls"),
+    ],
+)
+def test_the_native_stack_takes_each_ice_server_form(
+    url: str, host: str, port: int, relay: str | None
+) -> None:
+    """``--ice-server``'s forms as libdatachannel's ``IceServer`` (D51): host, port, TURN's
+    credentials (percent-decoded) and its transport."""
+    if (missing := native_missing()) is not None:
+        pytest.skip(missing)
+    import libdatachannel  # noqa: PLC0415 (after the skip)
+
+    server = parse_ice_server(url)
+    native = native_ice_server(libdatachannel, server)
+    assert (native.hostname, native.port) == (host, port)
+    assert native.type.name == ("Stun" if relay is None else "Turn")
+    if relay is not None:
+        assert native.relay_type.name == relay
+        assert (native.username, native.password) == (server.username, server.credential)

@@ -51,9 +51,9 @@ def _lossy_messages(client: RtcClient) -> list[dict[str, object]]:
     ],
 )
 async def test_a_lossy_channel_that_is_ordered_or_retransmits_is_closed(
-    served: Served, options: dict[str, object]
+    served_on: Served, options: dict[str, object]
 ) -> None:
-    async with rtc_client(served.base, lossy=options) as client:
+    async with rtc_client(served_on.base, lossy=options) as client:
         assert client.lossy is not None
         with anyio.fail_after(RECEIVE_S):
             while client.lossy.readyState != "closed":
@@ -62,10 +62,10 @@ async def test_a_lossy_channel_that_is_ordered_or_retransmits_is_closed(
 
 
 async def test_a_subscription_on_the_lossy_channel_is_delivered_only_there(
-    served: Served,
+    served_on: Served,
 ) -> None:
-    counter = served.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
-    async with rtc_client(served.base, lossy=LOSSY) as client:
+    counter = served_on.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
+    async with rtc_client(served_on.base, lossy=LOSSY) as client:
         await _lossy_open(client)
         client.send_lossy({"op": "subscribe", "topic": "/count", "type": "std_msgs/Int32"})
         await _subscribed(client, "s")
@@ -83,10 +83,10 @@ async def test_a_subscription_on_the_lossy_channel_is_delivered_only_there(
 
 
 async def test_a_message_over_the_peers_size_limit_is_dropped_with_a_warning(
-    served: Served,
+    served_on: Served,
 ) -> None:
-    text = served.graph.create_publisher("/text", "std_msgs/msg/String", node="/robot")
-    async with rtc_client(served.base, lossy=LOSSY) as client:
+    text = served_on.graph.create_publisher("/text", "std_msgs/msg/String", node="/robot")
+    async with rtc_client(served_on.base, lossy=LOSSY) as client:
         await _lossy_open(client)
         client.send({"op": "set_level", "level": "warning"})
         client.send_lossy({"op": "subscribe", "topic": "/text", "type": "std_msgs/String"})
@@ -106,13 +106,13 @@ async def test_a_message_over_the_peers_size_limit_is_dropped_with_a_warning(
     assert not any(m["op"] == "status" and "/text" in str(m["msg"]) for m in later)  # once
 
 
-async def test_the_lossy_channel_stays_fresh_behind_a_reliable_backlog(served: Served) -> None:
+async def test_the_lossy_channel_stays_fresh_behind_a_reliable_backlog(served_on: Served) -> None:
     """The lossy channel's last sequence number reaches the publisher's own while the
     reliable channel, carrying 60 KB messages, is hundreds of messages behind."""
-    bulk = served.graph.create_publisher("/bulk", "std_msgs/msg/String", node="/robot")
-    seq = served.graph.create_publisher("/seq", "std_msgs/msg/Int32", node="/robot")
+    bulk = served_on.graph.create_publisher("/bulk", "std_msgs/msg/String", node="/robot")
+    seq = served_on.graph.create_publisher("/seq", "std_msgs/msg/Int32", node="/robot")
     count = 300  # 18 MB of bulk: more than aiortc sends meanwhile
-    async with rtc_client(served.base, lossy=LOSSY) as client:
+    async with rtc_client(served_on.base, lossy=LOSSY) as client:
         await _lossy_open(client)
         client.send({"op": "subscribe", "topic": "/bulk", "type": "std_msgs/String"})
         client.send_lossy({"op": "subscribe", "topic": "/seq", "type": "std_msgs/Int32"})

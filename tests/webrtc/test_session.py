@@ -27,11 +27,11 @@ from tests.webrtc.peer import RtcClient, Served, rtc_client, serving
 pytestmark = pytest.mark.anyio
 
 
-async def test_json_subscribe_publish_and_call_service(served: Served) -> None:
+async def test_json_subscribe_publish_and_call_service(served_on: Served) -> None:
     received: list[object] = []
-    served.graph.create_subscription("/from_browser", received.append, "std_msgs/msg/String")
-    robot = served.graph.create_publisher("/from_robot", "std_msgs/msg/String", node="/robot")
-    async with rtc_client(served.base) as client:
+    served_on.graph.create_subscription("/from_browser", received.append, "std_msgs/msg/String")
+    robot = served_on.graph.create_publisher("/from_robot", "std_msgs/msg/String", node="/robot")
+    async with rtc_client(served_on.base) as client:
         client.send({"op": "subscribe", "topic": "/from_robot", "type": "std_msgs/String"})
         client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c1"})
         reply = await client.next_op("service_response")
@@ -48,9 +48,9 @@ async def test_json_subscribe_publish_and_call_service(served: Served) -> None:
     assert [dict(m) for m in received] == [{"data": "hi"}]  # type: ignore[call-overload]
 
 
-async def test_cbor_in_and_out(served: Served) -> None:
-    robot = served.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
-    async with rtc_client(served.base) as client:
+async def test_cbor_in_and_out(served_on: Served) -> None:
+    robot = served_on.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
+    async with rtc_client(served_on.base) as client:
         client.send(
             {"op": "subscribe", "topic": "/count", "type": "std_msgs/Int32", "compression": "cbor"},
             cbor=True,
@@ -83,10 +83,10 @@ async def _next_raw(client: RtcClient) -> str | bytes:
             return raw
 
 
-async def test_a_message_above_64_kib_arrives_whole_through_fragments(served: Served) -> None:
-    robot = served.graph.create_publisher("/big", "std_msgs/msg/String", node="/robot")
+async def test_a_message_above_64_kib_arrives_whole_through_fragments(served_on: Served) -> None:
+    robot = served_on.graph.create_publisher("/big", "std_msgs/msg/String", node="/robot")
     text = "".join(chr(0x41 + i % 26) for i in range(200_000)) + '"\\é'
-    async with rtc_client(served.base) as client:
+    async with rtc_client(served_on.base) as client:
         client.send({"op": "subscribe", "topic": "/big", "type": "std_msgs/String"})
         client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c"})
         await client.next_op("service_response")
@@ -105,19 +105,21 @@ async def test_a_message_above_64_kib_arrives_whole_through_fragments(served: Se
     assert whole["op"] == "publish" and whole["msg"] == {"data": text}
 
 
-async def test_the_session_counts_in_connected_clients_and_delete_ends_it(served: Served) -> None:
-    async with rtc_client(served.base) as client:
+async def test_the_session_counts_in_connected_clients_and_delete_ends_it(
+    served_on: Served,
+) -> None:
+    async with rtc_client(served_on.base) as client:
         client.send({"op": "subscribe", "topic": "/client_count"})
         assert (await client.next_op("publish"))["msg"] == {"data": 1}
         client.send({"op": "subscribe", "topic": "/connected_clients"})
         clients = (await client.next_op("publish"))["msg"]["clients"]  # type: ignore[index]
         assert [c["ip_address"] for c in clients] == ["127.0.0.1"]
-        assert [cid.split(":")[0] for cid in served.server.sessions] == ["webrtc"]
-        async with httpx.AsyncClient(base_url=served.base) as http:
+        assert [cid.split(":")[0] for cid in served_on.server.sessions] == ["webrtc"]
+        async with httpx.AsyncClient(base_url=served_on.base) as http:
             assert (await http.delete(client.location)).status_code == 204
             with anyio.fail_after(10):
                 await client.closed.wait()  # the server closed the data channel
-                while served.server.sessions:
+                while served_on.server.sessions:
                     await anyio.sleep(0.02)
             assert (await http.delete(client.location)).status_code == 404
 
@@ -160,17 +162,17 @@ async def test_stopping_the_server_closes_webrtc_sessions() -> None:
     assert not server.sessions and server.webrtc is not None and not server.webrtc.peers
 
 
-async def test_the_data_channel_buffer_is_flow_controlled(served: Served) -> None:
+async def test_the_data_channel_buffer_is_flow_controlled(served_on: Served) -> None:
     """A burst far above the channel's buffer waits in the session, not in SCTP's queue."""
-    robot = served.graph.create_publisher("/burst", "std_msgs/msg/String", node="/robot")
+    robot = served_on.graph.create_publisher("/burst", "std_msgs/msg/String", node="/robot")
     payload = "y" * 100_000
     count = 100  # 10 MB of JSON: ten times the buffer's high-water mark
-    async with rtc_client(served.base) as client:
+    async with rtc_client(served_on.base) as client:
         client.send({"op": "subscribe", "topic": "/burst", "type": "std_msgs/String"})
         client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c"})
         await client.next_op("service_response")
-        assert served.server.webrtc is not None
-        (peer,) = served.server.webrtc.peers.values()
+        assert served_on.server.webrtc is not None
+        (peer,) = served_on.server.webrtc.peers.values()
         channel = peer.channel
         assert channel is not None
         highest = 0
@@ -196,8 +198,8 @@ async def test_the_data_channel_buffer_is_flow_controlled(served: Served) -> Non
     assert highest <= SEND_HIGH_WATER_BYTES + MAX_TEXT_FRAME_BYTES
 
 
-async def test_a_message_over_max_message_size_is_skipped_with_a_status() -> None:
-    config = ServerConfig(port=0, max_message_size=1000, webrtc=WebRtcOptions())
+async def test_a_message_over_max_message_size_is_skipped_with_a_status(stack: str) -> None:
+    config = ServerConfig(port=0, max_message_size=1000, webrtc=WebRtcOptions(stack=stack))
     async with serving(config) as running, rtc_client(running.base) as client:
         client.send({"op": "set_level", "level": "info", "id": "x" * 2000})
         status = await client.next_op("status")

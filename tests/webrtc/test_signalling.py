@@ -35,22 +35,22 @@ SDP = {"Content-Type": "application/sdp"}
     ],
 )
 async def test_a_bad_offer_gets_400_with_a_reason(
-    served: Served, body: str, headers: dict[str, str], status: int, text: str
+    served_on: Served, body: str, headers: dict[str, str], status: int, text: str
 ) -> None:
-    async with httpx.AsyncClient(base_url=served.base) as http:
+    async with httpx.AsyncClient(base_url=served_on.base) as http:
         reply = await http.post("/webrtc", content=body, headers=headers)
     assert reply.status_code == status and text in reply.text
-    assert not served.server.sessions  # a refused offer holds no session
+    assert not served_on.server.sessions  # a refused offer holds no session
 
 
-async def test_an_offer_without_a_data_channel_gets_400(served: Served) -> None:
+async def test_an_offer_without_a_data_channel_gets_400(served_on: Served) -> None:
     pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
     pc.addTransceiver("audio")
     try:
         sdp = await offer_sdp(pc)
     finally:
         await pc.close()
-    async with httpx.AsyncClient(base_url=served.base) as http:
+    async with httpx.AsyncClient(base_url=served_on.base) as http:
         reply = await http.post("/webrtc", content=sdp, headers=SDP)
     assert reply.status_code == 400 and "no data channel" in reply.text
 
@@ -101,21 +101,21 @@ async def test_allowed_origins_apply_to_signalling() -> None:
         assert bad.status_code == 403 and "not allowed" in bad.text
 
 
-async def test_a_peer_that_never_connects_is_freed_after_the_deadline(served: Served) -> None:
-    async with httpx.AsyncClient(base_url=served.base) as http:
+async def test_a_peer_that_never_connects_is_freed_after_the_deadline(served_on: Served) -> None:
+    async with httpx.AsyncClient(base_url=served_on.base) as http:
         reply = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
         assert reply.status_code == 201 and reply.headers["Content-Type"] == "application/sdp"
         assert "a=candidate" in reply.text  # gathered: no trickle
-        assert len(served.server.sessions) == 1  # admitted as it was answered
+        assert len(served_on.server.sessions) == 1  # admitted as it was answered
         with anyio.fail_after(15):  # connect_timeout_s is 2 here
-            while served.server.sessions:
+            while served_on.server.sessions:
                 await anyio.sleep(0.05)
-        assert served.server.webrtc is not None and not served.server.webrtc.peers
+        assert served_on.server.webrtc is not None and not served_on.server.webrtc.peers
         assert (await http.delete(reply.headers["Location"])).status_code == 404
 
 
-async def test_max_connections_refuses_an_offer_with_503() -> None:
-    config = ServerConfig(port=0, max_connections=1, webrtc=WebRtcOptions())
+async def test_max_connections_refuses_an_offer_with_503(stack: str) -> None:
+    config = ServerConfig(port=0, max_connections=1, webrtc=WebRtcOptions(stack=stack))
     async with serving(config) as running, rtc_client(running.base):
         async with httpx.AsyncClient(base_url=running.base) as http:
             reply = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
@@ -124,7 +124,7 @@ async def test_max_connections_refuses_an_offer_with_503() -> None:
 
 
 async def test_a_burst_of_offers_is_bounded_and_a_websocket_bystander_is_served(
-    served: Served,
+    served_on: Served,
 ) -> None:
     sdp = await closed_offer()
     statuses: list[int] = []
@@ -133,11 +133,11 @@ async def test_a_burst_of_offers_is_bounded_and_a_websocket_bystander_is_served(
         statuses.append((await http.post("/webrtc", content=sdp, headers=SDP)).status_code)
 
     limits = httpx.Limits(max_connections=MAX_CONNECTING * 3)
-    http = httpx.AsyncClient(base_url=served.base, limits=limits, timeout=30)
+    http = httpx.AsyncClient(base_url=served_on.base, limits=limits, timeout=30)
     async with http, anyio.create_task_group() as tg:
         for _ in range(MAX_CONNECTING * 2):
             tg.start_soon(post, http)
-        async with connect(served.base.replace("http://", "ws://")) as bystander:
+        async with connect(served_on.base.replace("http://", "ws://")) as bystander:
             await bystander.send(
                 json.dumps({"op": "call_service", "service": "/rosapi/nodes", "id": "b"})
             )
@@ -146,8 +146,8 @@ async def test_a_burst_of_offers_is_bounded_and_a_websocket_bystander_is_served(
             assert reply["id"] == "b" and reply["result"] is True
     assert sorted(set(statuses)) == [201, 503]
     assert statuses.count(201) <= MAX_CONNECTING
-    assert served.server.webrtc is not None
-    assert len(served.server.webrtc.peers) <= MAX_CONNECTING
+    assert served_on.server.webrtc is not None
+    assert len(served_on.server.webrtc.peers) <= MAX_CONNECTING
 
 
 async def test_the_roslib_transport_is_served_as_javascript_with_cors(served: Served) -> None:
@@ -181,3 +181,24 @@ async def test_the_roslib_transport_obeys_allowed_origins() -> None:
         )
     assert bad.status_code == 403
     assert good.status_code == 200
+
+
+async def test_the_stack_answers_data_only_offers_and_aiortc_the_ones_with_media(
+    served_on: Served, stack: str
+) -> None:
+    """``--webrtc-stack`` (D51): an offer with an audio or video section stays on aiortc."""
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    pc.createDataChannel("rosbridge")
+    pc.addTransceiver("audio")
+    try:
+        with_media = await offer_sdp(pc)
+    finally:
+        await pc.close()
+    async with httpx.AsyncClient(base_url=served_on.base) as http:
+        data_only = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
+        mixed = await http.post("/webrtc", content=with_media, headers=SDP)
+    assert data_only.status_code == 201 and mixed.status_code == 201
+    libdatachannel = "o=rtc "  # its answers' origin line; aiortc's is "o=- "
+    assert (libdatachannel in data_only.text) is (stack == "native")
+    assert libdatachannel not in mixed.text
+    assert "m=audio " in mixed.text  # aiortc answered its audio section too
