@@ -47,7 +47,7 @@ import sys
 import tempfile
 import time
 import zlib
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
@@ -99,19 +99,23 @@ async def _webrtc_lossy(base: str, topic: str) -> AsyncIterator[str | bytes]:
         yield message
 
 
-async def _data_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[str | bytes]:
-    """The topic over ``rosbridge``, or subscribed on ``rosbridge-lossy`` (docs/webrtc.md)."""
+async def _answer(base: str, offer: str) -> str:
+    """POST ``offer`` to the robot's ``/webrtc``: the answer's SDP."""
     import httpx  # noqa: PLC0415 (the browser process only)
-    from aiortc import (  # noqa: PLC0415
-        RTCConfiguration,
-        RTCPeerConnection,
-        RTCSessionDescription,
-    )
 
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    channels = [pc.createDataChannel("rosbridge")]
-    if lossy:  # the settings the server keeps the channel for (D36)
-        channels.append(pc.createDataChannel("rosbridge-lossy", ordered=False, maxRetransmits=0))
+    async with httpx.AsyncClient() as http:
+        reply = await http.post(
+            f"http://{base}/webrtc", content=offer, headers={"Content-Type": "application/sdp"}
+        )
+    reply.raise_for_status()
+    return reply.text
+
+
+async def _subscribed(
+    channels: list[Any], topic: str, connect: Callable[[], Awaitable[None]]
+) -> AsyncIterator[str | bytes]:
+    """Once ``connect`` made the peer connection and ``channels`` (aiortc's or the native
+    ones: ``on``, ``send``) opened, subscribe to ``topic`` on the last one: its messages."""
     inbox: list[str | bytes] = []
     arrived = anyio.Event()
     opened = [anyio.Event() for _ in channels]
@@ -123,28 +127,40 @@ async def _data_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[
     for channel, event in zip(channels, opened, strict=True):
         channel.on("open", event.set)
     channels[-1].on("message", on_message)
-    try:
+    await connect()
+    with anyio.fail_after(20):
+        for event in opened:
+            await event.wait()
+    channels[-1].send(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"}))
+    while True:
+        await arrived.wait()
+        arrived = anyio.Event()
+        batch, inbox[:] = inbox[:], []
+        for message in batch:
+            yield message
+
+
+async def _data_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[str | bytes]:
+    """The topic over ``rosbridge``, or subscribed on ``rosbridge-lossy`` (docs/webrtc.md)."""
+    from aiortc import (  # noqa: PLC0415
+        RTCConfiguration,
+        RTCPeerConnection,
+        RTCSessionDescription,
+    )
+
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    channels = [pc.createDataChannel("rosbridge")]
+    if lossy:  # the settings the server keeps the channel for (D36)
+        channels.append(pc.createDataChannel("rosbridge-lossy", ordered=False, maxRetransmits=0))
+
+    async def connect() -> None:
         await pc.setLocalDescription(await pc.createOffer())
-        async with httpx.AsyncClient() as http:
-            reply = await http.post(
-                f"http://{base}/webrtc",
-                content=pc.localDescription.sdp,
-                headers={"Content-Type": "application/sdp"},
-            )
-        reply.raise_for_status()
-        await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
-        with anyio.fail_after(20):
-            for event in opened:
-                await event.wait()
-        channels[-1].send(
-            json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
-        )
-        while True:
-            await arrived.wait()
-            arrived = anyio.Event()
-            batch, inbox[:] = inbox[:], []
-            for message in batch:
-                yield message
+        answer = await _answer(base, pc.localDescription.sdp)
+        await pc.setRemoteDescription(RTCSessionDescription(answer, "answer"))
+
+    try:
+        async for message in _subscribed(channels, topic, connect):
+            yield message
     finally:
         await pc.close()
 
@@ -164,7 +180,6 @@ async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterato
     channel behind the server's ``NativeDataChannel``) to the robot's native server."""
     import asyncio  # noqa: PLC0415 (the browser process only)
 
-    import httpx  # noqa: PLC0415
     import libdatachannel as ldc  # noqa: PLC0415 (optional: Python 3.12+)
 
     from benchmarks.webrtc import gathered  # noqa: PLC0415
@@ -184,40 +199,17 @@ async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterato
         NativeDataChannel(pc.create_data_channel(label, init), loop, Inflow(1 << 40, int), 1 << 30)
         for label, init in zip(labels, inits, strict=False)
     ]
-    inbox: list[str | bytes] = []
-    arrived = anyio.Event()
-    opened = [anyio.Event() for _ in channels]
-
-    def on_message(message: str | bytes) -> None:
-        inbox.append(message)
-        arrived.set()
-
-    for channel, event in zip(channels, opened, strict=True):
-        channel.on("open", event.set)
+    for channel in channels:
         channel.listen()
-    channels[-1].on("message", on_message)
-    try:
+
+    async def connect() -> None:
         await gathered(ldc, pc)
-        async with httpx.AsyncClient() as http:
-            reply = await http.post(
-                f"http://{base}/webrtc",
-                content=str(pc.local_description()),
-                headers={"Content-Type": "application/sdp"},
-            )
-        reply.raise_for_status()
-        pc.set_remote_description(ldc.Description(reply.text, ldc.Description.Type.Answer))
-        with anyio.fail_after(20):
-            for event in opened:
-                await event.wait()
-        channels[-1].send(
-            json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
-        )
-        while True:
-            await arrived.wait()
-            arrived = anyio.Event()
-            batch, inbox[:] = inbox[:], []
-            for message in batch:
-                yield message
+        answer = await _answer(base, str(pc.local_description()))
+        pc.set_remote_description(ldc.Description(answer, ldc.Description.Type.Answer))
+
+    try:
+        async for message in _subscribed(channels, topic, connect):
+            yield message
     finally:  # the run ends by cancelling: closed anyway (a peer connection left open aborts)
         with anyio.CancelScope(shield=True):
             await anyio.to_thread.run_sync(pc.close)

@@ -74,10 +74,14 @@ async def offer_sdp(pc: RTCPeerConnection) -> str:
     return pc.localDescription.sdp
 
 
-async def closed_offer() -> str:
-    """An offer from a real peer with a ``rosbridge`` channel, closed at once: it never connects."""
+async def closed_offer(*, channel: bool = True, audio: bool = False) -> str:
+    """An offer from a real peer, closed at once (it never connects): with a ``rosbridge``
+    channel, an audio section, or both."""
     pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    pc.createDataChannel("rosbridge")
+    if channel:
+        pc.createDataChannel("rosbridge")
+    if audio:
+        pc.addTransceiver("audio")
     try:
         return await offer_sdp(pc)
     finally:

@@ -12,14 +12,13 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
-from aiortc import RTCConfiguration, RTCPeerConnection
 from websockets.asyncio.client import connect
 
 from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_peers import MAX_CONNECTING
 from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
-from tests.webrtc.peer import Served, closed_offer, offer_sdp, rtc_client, serving
+from tests.webrtc.peer import Served, closed_offer, rtc_client, serving
 
 pytestmark = pytest.mark.anyio
 
@@ -44,12 +43,7 @@ async def test_a_bad_offer_gets_400_with_a_reason(
 
 
 async def test_an_offer_without_a_data_channel_gets_400(served_on: Served) -> None:
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    pc.addTransceiver("audio")
-    try:
-        sdp = await offer_sdp(pc)
-    finally:
-        await pc.close()
+    sdp = await closed_offer(channel=False, audio=True)
     async with httpx.AsyncClient(base_url=served_on.base) as http:
         reply = await http.post("/webrtc", content=sdp, headers=SDP)
     assert reply.status_code == 400 and "no data channel" in reply.text
@@ -187,13 +181,7 @@ async def test_the_stack_answers_data_only_offers_and_aiortc_the_ones_with_media
     served_on: Served, stack: str
 ) -> None:
     """``--webrtc-stack`` (D51): an offer with an audio or video section stays on aiortc."""
-    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-    pc.createDataChannel("rosbridge")
-    pc.addTransceiver("audio")
-    try:
-        with_media = await offer_sdp(pc)
-    finally:
-        await pc.close()
+    with_media = await closed_offer(audio=True)
     async with httpx.AsyncClient(base_url=served_on.base) as http:
         data_only = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
         mixed = await http.post("/webrtc", content=with_media, headers=SDP)
