@@ -52,7 +52,9 @@ def test_server_time_follows_the_bag_and_steps_on_a_seek(player: ServerProcess) 
     times = [int(ns) for ns in got["times"]]
     assert times == sorted(times) and times[0] >= T0
     assert {first + i * gap for i in range(4)} <= set(times)  # each told before its message
-    assert T0 <= int(got["stepBack"]) < first  # the seek to 0 shows as a step back
+    # the seek to 0 shows as a step back: to the bag's start, or (a loaded machine's timer
+    # looking later than the 100 ms to the first message) to the first message's time
+    assert T0 <= int(got["stepBack"]) <= first
     assert got["afterSeek"] == {"logTime": str(first), "data": "chatter 0 ✓"}
 
 
