@@ -49,7 +49,7 @@ from .loadgen.engine import GeneratorError, run_loop
 from .proctree import tree_cpu_ns
 from .servers import rwt_pythonpath
 
-__all__ = ["ScaleRow", "main", "measure", "scale_table"]
+__all__ = ["ScaleRow", "main", "measure", "scale_table", "serve_workers"]
 
 RESULTS = Path(__file__).resolve().parent / "results" / "scaleout_workers.json"
 START_TIMEOUT_S = 120.0
@@ -91,7 +91,7 @@ def _listening(port: int) -> int:
 
 
 @contextlib.contextmanager
-def _server(workers: int) -> Iterator[tuple[int, int]]:
+def serve_workers(workers: int) -> Iterator[tuple[int, int]]:
     """``rwt serve`` with ``workers`` workers (1: a plain server); yields (pid, port).
 
     Waits until every worker listens on the port (SO_REUSEPORT: one listening
@@ -171,7 +171,7 @@ def measure(workers: int, fanouts: int, subscribers: int, duration_s: float) -> 
         RuntimeError: the server did not start, or a generator failed to set up.
     """
     context = multiprocessing.get_context("spawn")
-    with _server(workers) as (pid, port):
+    with serve_workers(workers) as (pid, port):
         pipes: list[Connection] = []
         procs = []
         for index in range(fanouts):

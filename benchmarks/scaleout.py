@@ -48,6 +48,7 @@ from .zenoh_link import rclpy_available, run_pair
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results" / "scaleout.json"
+COSTS = REPO / "benchmarks" / "results" / "scaleout_costs.json"
 TIMEOUT_S = 120.0
 
 
@@ -538,7 +539,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--smoke", action="store_true", help="with --workers: 0.5 s bursts, nothing saved"
     )
+    parser.add_argument(
+        "--cost-model",
+        action="store_true",
+        help="the cost model's constants: 1, 2, 4 workers (or --workers) at 10, 50, 100 "
+        "subscribers, paired bursts (benchmarks/scale_costs.py)",
+    )
     args = parser.parse_args(argv)
+    if args.cost_model:
+        from .scale_costs import cost_table, measure_costs  # noqa: PLC0415
+
+        workers = args.workers or [1, 2, 4]
+        subscribers = [3, 6] if args.smoke else [10, 50, 100]
+        rounds, burst = (1, 0.3) if args.smoke else (3, 1.0)
+        found = measure_costs(subscribers, workers, rounds, burst)
+        print(cost_table(found, subscribers, workers))
+        if not args.smoke:
+            (args.out or COSTS).write_text(json.dumps(found, indent=2) + "\n", "utf-8")
+        return 0
     if args.workers:
         from .scale_workers import main as scale_main  # noqa: PLC0415
 

@@ -1,4 +1,4 @@
-"""The scale table (`scaleout --workers`) at its smallest: its shape, nothing dropped."""
+"""The scale table and the cost model (`scaleout --workers`, `--cost-model`) at their smallest."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 from benchmarks.__main__ import main
+from benchmarks.scale_costs import cost_table, fit
 
 pytest.importorskip("zenoh")
 
@@ -31,3 +32,19 @@ def test_the_scale_table_has_a_row_per_worker_count_and_drops_nothing(
 def test_worker_counts_below_one_are_refused() -> None:
     with pytest.raises(SystemExit):
         main(["scaleout", "--workers", "0,2"])
+
+
+def test_the_cost_model_recovers_its_constants_from_exact_figures() -> None:
+    m, e, r, subscribers, workers = 10.0, 17.0, 20.0, [10, 50, 100], [1, 2, 4]
+    per_delivery = {1: 3.0, 2: 3.5, 4: 4.0}
+    found = {
+        f"N{n} S{s}": {"us_per_msg": m + (e + (n - 1) * r if n > 1 else 0) + s * per_delivery[n]}
+        for n in workers
+        for s in subscribers
+    }
+    constants = fit(found, subscribers, workers)
+    assert constants == pytest.approx(
+        {"a1": m, "d1": 3.0, "a2": m + e + r, "d2": 3.5, "a4": m + e + 3 * r, "d4": 4.0}
+        | {"m": m, "e": e, "r": r}
+    )
+    assert "| constant | us |" in cost_table(found, subscribers, workers)
