@@ -537,7 +537,7 @@ def main(argv: list[str] | None = None) -> int:
         "--duration", type=float, default=3.0, help="with --workers: each burst, seconds"
     )
     parser.add_argument(
-        "--smoke", action="store_true", help="with --workers: 0.5 s bursts, nothing saved"
+        "--smoke", action="store_true", help="with --workers: 0.3 s bursts, nothing saved"
     )
     parser.add_argument(
         "--cost-model",
