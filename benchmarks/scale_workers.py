@@ -18,6 +18,9 @@ Per worker count the table gives:
   (the supervising parent and its workers) from ``/proc``, from just before the
   bursts start to just after the last delivery, over the deliveries; set-up
   (connections, subscriptions, probes) is not counted;
+- server cores: deliveries/s x CPU per delivery, the cores the server kept busy
+  (below the workers' count and the machine's free cores, something else bounds
+  the figure: the window against the latency of a message's path);
 - the generators' own CPU: in cores (their CPU seconds over the timed wall) and in
   us per delivery, so a reader sees when the generators, not the server, bound
   the figure (on a machine with fewer free cores than K + N they share them);
@@ -229,9 +232,9 @@ def scale_table(rows: list[ScaleRow]) -> str:
     base = rows[0]
     lines = [
         "| workers | fan-outs x subscribers | deliveries/s | x first row | "
-        "server CPU us/delivery | x first row | generators: cores; us/delivery | "
+        "server CPU us/delivery | x first row | server cores | generators: cores; us/delivery | "
         "delivered/expected | dropped |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         lines.append(
@@ -239,6 +242,7 @@ def scale_table(rows: list[ScaleRow]) -> str:
             f"{row.deliveries_per_s:,.0f} | {row.deliveries_per_s / base.deliveries_per_s:.2f} | "
             f"{row.server_us_per_delivery:.2f} | "
             f"{row.server_us_per_delivery / base.server_us_per_delivery:.2f} | "
+            f"{row.deliveries_per_s * row.server_us_per_delivery / 1e6:.2f} | "
             f"{row.generator_cores:.2f}; {row.generator_us_per_delivery:.2f} | "
             f"{row.delivered:,}/{row.expected:,} | {row.dropped} |"
         )

@@ -22,9 +22,9 @@ def test_the_scale_table_has_a_row_per_worker_count_and_drops_nothing(
     rows = [line.strip("|").split("|") for line in lines[2:]]
     assert [(r[0].strip(), r[1].strip()) for r in rows] == [("1", "2 x 3"), ("2", "2 x 3")]
     for row in rows:
-        delivered, expected = row[7].strip().replace(",", "").split("/")
+        delivered, expected = row[8].strip().replace(",", "").split("/")
         assert int(delivered) == int(expected) > 0
-        assert row[8].strip() == "0"
+        assert row[9].strip() == "0"
     assert rows[0][3].strip() == "1.00"  # the ratios are against the first row
     assert not (tmp_path / "scale.json").exists()  # a smoke run saves nothing
 
