@@ -22,6 +22,11 @@ are what carry over to another machine):
 The load generator is this one Python process (``websockets``), whose own CPU
 bounds what it can measure on a small machine; ``results/scaleout.json`` keeps
 every figure.
+
+Two more modes, each alone: ``--workers 1,2,4 --fanouts K [--subscribers S]``, the
+scale table (``scale_workers``: K parallel fan-outs per worker count, deliveries/s,
+server and generator CPU per delivery, dropped), and ``--cost-model``, the constants
+of docs/scaling.md's cost model (``scale_costs``).
 """
 
 from __future__ import annotations
