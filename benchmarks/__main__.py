@@ -107,6 +107,10 @@ def main(argv: list[str] | None = None) -> int:
         from .foxglove import main as foxglove_main  # noqa: PLC0415
 
         return foxglove_main(argv[1:])
+    if argv[:1] == ["scaleout"]:  # its own options (benchmarks/scaleout.py)
+        from .scaleout import main as scaleout_main  # noqa: PLC0415
+
+        return scaleout_main(argv[1:])
     if argv[:1] == ["rosbag"]:  # its own options (benchmarks/ros1_bag.py)
         from .ros1_bag import main as rosbag_main  # noqa: PLC0415
 
@@ -127,16 +131,9 @@ def main(argv: list[str] | None = None) -> int:
     p_run.add_argument("--uvloop", action="store_true", help="run both servers on uvloop")
     p_run.add_argument("--out", type=Path, default=RESULTS, help="where suite.json goes")
     p_run.add_argument("--frames", type=int, default=1_000_000, help="B18: fuzzed frames to send")
-    p_scale = sub.add_parser("scaleout", help="rwt over Zenoh: latency, --workers, vs bare Zenoh")
-    p_scale.add_argument("--quick", action="store_true", help="a tenth of the counts (smoke)")
-    p_scale.add_argument(
-        "--workers-cpu",
-        type=int,
-        metavar="ROUNDS",
-        help="only the Z2 servers' CPU per delivery: ROUNDS rounds of paired bursts",
-    )
-    p_scale.add_argument(
-        "--rate", type=float, metavar="HZ", help="with --workers-cpu: bursts paced at HZ msg/s"
+    sub.add_parser(
+        "scaleout",
+        help="rwt over Zenoh: latency, --workers, vs bare Zenoh; --workers 1,2,4: the scale table",
     )
     p_sweep = sub.add_parser("sweep", help="scaling sweep and its plots")
     p_sweep.add_argument("--runs", type=int, default=3)
@@ -144,12 +141,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command == "run":
         return run(args)
-    if args.command == "scaleout":
-        from .scaleout import main as scaleout  # noqa: PLC0415
-
-        rounds = ["--workers-cpu", str(args.workers_cpu)] if args.workers_cpu else []
-        rounds += ["--rate", str(args.rate)] if args.rate else []
-        return scaleout([*(["--quick"] if args.quick else []), *rounds])
     from .sweep import sweep  # noqa: PLC0415  (matplotlib only when plotting)
 
     return sweep(args)

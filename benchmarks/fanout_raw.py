@@ -43,7 +43,6 @@ __all__ = ["FanOut", "fan_out_raw"]
 
 TOPIC = "/fan"
 STRING = "std_msgs/msg/String"
-PROBE = msgs.publish_json(TOPIC, b'{"data":"probe"}')
 PROBE_EVERY_S = 0.05
 DISCOVERY_S = 120.0
 
@@ -51,16 +50,17 @@ DISCOVERY_S = 120.0
 class CountingSubscriber(Subscriber):
     """Counts the timed messages on ``/fan``; notes whether a probe came."""
 
-    def __init__(self, port: int) -> None:
-        super().__init__(port, "rwt", [msgs.subscribe(TOPIC, STRING)])
+    def __init__(self, port: int, topic: str = TOPIC) -> None:
+        super().__init__(port, "rwt", [msgs.subscribe(topic, STRING)])
         self.reader = FrameReader()
         self.probed = False
+        self.marker = b'"topic":"' + topic.encode() + b'"'
 
     def feed(self, data: bytes, now: float) -> None:
         for _, payload in self.reader.feed(data):
             if b'"data":"probe"' in payload:
                 self.probed = True
-            elif b'"topic":"/fan"' in payload:
+            elif self.marker in payload:
                 if self.first_s is None:
                     self.first_s = now
                 self.last_s = now
@@ -69,8 +69,9 @@ class CountingSubscriber(Subscriber):
                 raise GeneratorError(f"unexpected frame {payload[:120]!r}")
 
 
-def _probe(pub: WindowPublisher, subs: list[CountingSubscriber]) -> None:
-    """Send probes until every subscriber got one (step 2)."""
+def _probe(pub: WindowPublisher, subs: list[CountingSubscriber], topic: str = TOPIC) -> None:
+    """Send probes on ``topic`` until every subscriber got one (step 2)."""
+    probe = client_frame(msgs.publish_json(topic, b'{"data":"probe"}'))
     sel = selectors.DefaultSelector()
     for sub in subs:
         sub.start(time.perf_counter())
@@ -82,7 +83,7 @@ def _probe(pub: WindowPublisher, subs: list[CountingSubscriber]) -> None:
                 missing = sum(not sub.probed for sub in subs)
                 raise GeneratorError(f"{missing} subscribers never got a probe")
             pub.sock.setblocking(True)
-            pub.sock.sendall(client_frame(PROBE))
+            pub.sock.sendall(probe)
             pub.sock.setblocking(False)
             until = time.monotonic() + PROBE_EVERY_S
             while (left := until - time.monotonic()) > 0:
@@ -154,25 +155,25 @@ def fan_out_raw(
 
 
 class FanOut:
-    """One publisher and ``subscribers`` subscribers of ``/fan`` on ``port``, kept connected.
+    """One publisher and ``subscribers`` subscribers of ``topic`` on ``port``, kept connected.
 
     Raises:
         GeneratorError: a subscriber is never reached by a probe.
     """
 
-    def __init__(self, port: int, subscribers: int = 100) -> None:
-        self.subs = [CountingSubscriber(port) for _ in range(subscribers)]
-        frames = [client_frame(msgs.string_publish(TOPIC, i)) for i in range(256)]
+    def __init__(self, port: int, subscribers: int = 100, topic: str = TOPIC) -> None:
+        self.subs = [CountingSubscriber(port, topic) for _ in range(subscribers)]
+        frames = [client_frame(msgs.string_publish(topic, i)) for i in range(256)]
         self.pub = WindowPublisher(
             port,
             "rwt",
-            [msgs.advertise(TOPIC, STRING)],
+            [msgs.advertise(topic, STRING)],
             FrameBlock(b"".join(frames), len(frames[0])),
             window=512,
             duration_s=0.0,
         )
         self.pub.watch = list(self.subs)
-        _probe(self.pub, self.subs)
+        _probe(self.pub, self.subs, topic)
         time.sleep(0.5)  # probes in flight land first
 
     def burst(

@@ -22,6 +22,11 @@ are what carry over to another machine):
 The load generator is this one Python process (``websockets``), whose own CPU
 bounds what it can measure on a small machine; ``results/scaleout.json`` keeps
 every figure.
+
+Two more modes, each alone: ``--workers 1,2,4 --fanouts K [--subscribers S]``, the
+scale table (``scale_workers``: K parallel fan-outs per worker count, deliveries/s,
+server and generator CPU per delivery, dropped), and ``--cost-model``, the constants
+of docs/scaling.md's cost model (``scale_costs``).
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ from .zenoh_link import rclpy_available, run_pair
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results" / "scaleout.json"
+COSTS = REPO / "benchmarks" / "results" / "scaleout_costs.json"
 TIMEOUT_S = 120.0
 
 
@@ -497,11 +503,19 @@ def table(results: dict[str, Any]) -> str:
     return "\n".join(rows)
 
 
+def _counts(text: str) -> list[int]:
+    """``1,2,4`` as ``[1, 2, 4]``; each at least 1."""
+    counts = [int(part) for part in text.split(",") if part.strip()]
+    if not counts or min(counts) < 1:
+        raise argparse.ArgumentTypeError(f"worker counts of 1 or more, e.g. 1,2,4: {text!r}")
+    return counts
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the three measurements, print the table and save the figures."""
+    """Run the three measurements (or, with ``--workers``, the scale table) and print them."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks scaleout", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="a tenth of the counts (smoke)")
-    parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument("--out", type=Path, help="where the figures go (results/*.json)")
     parser.add_argument(
         "--workers-cpu",
         type=int,
@@ -514,7 +528,51 @@ def main(argv: list[str] | None = None) -> int:
         metavar="HZ",
         help="with --workers-cpu: bursts paced at HZ messages a second (2 s each)",
     )
+    parser.add_argument(
+        "--workers",
+        type=_counts,
+        metavar="N,N,...",
+        help="only the scale table: one server per worker count (benchmarks/scale_workers.py)",
+    )
+    parser.add_argument("--fanouts", type=int, default=1, help="with --workers: parallel fan-outs")
+    parser.add_argument(
+        "--subscribers", type=int, default=50, help="with --workers: subscribers per fan-out"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=3.0, help="with --workers: each burst, seconds"
+    )
+    parser.add_argument(
+        "--smoke", action="store_true", help="with --workers: 0.3 s bursts, nothing saved"
+    )
+    parser.add_argument(
+        "--cost-model",
+        action="store_true",
+        help="the cost model's constants: 1, 2, 4 workers (or --workers) at 10, 50, 100 "
+        "subscribers, paired bursts (benchmarks/scale_costs.py)",
+    )
     args = parser.parse_args(argv)
+    if args.cost_model:
+        from .scale_costs import cost_table, measure_costs  # noqa: PLC0415
+
+        workers = args.workers or [1, 2, 4]
+        subscribers = [3, 6] if args.smoke else [10, 50, 100]
+        rounds, burst = (1, 0.3) if args.smoke else (3, 1.0)
+        found = measure_costs(subscribers, workers, rounds, burst)
+        print(cost_table(found, subscribers, workers))
+        if not args.smoke:
+            (args.out or COSTS).write_text(json.dumps(found, indent=2) + "\n", "utf-8")
+        return 0
+    if args.workers:
+        from .scale_workers import main as scale_main  # noqa: PLC0415
+
+        return scale_main(
+            args.workers,
+            args.fanouts,
+            args.subscribers,
+            args.duration,
+            smoke=args.smoke,
+            out=args.out,
+        )
     if args.workers_cpu:
         burst = (1.0 if args.quick else 2.0) if args.rate else (0.5 if args.quick else 1.0)
         print(paired_table(asyncio.run(paired_bursts(args.workers_cpu, burst, args.rate))))
@@ -526,7 +584,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n{key}, per message:\n" + "\n".join(threads_table(results[key]["threads"])))
     results["elapsed_s"] = time.perf_counter() - started
     if not args.quick:
-        args.out.write_text(json.dumps(results, indent=2) + "\n", "utf-8")
+        (args.out or RESULTS).write_text(json.dumps(results, indent=2) + "\n", "utf-8")
     return 0
 
 

@@ -1,0 +1,273 @@
+"""``python -m benchmarks scaleout --workers 1,2,4 --fanouts K``: what ``--workers N`` buys.
+
+For each worker count N, one server (N = 1: a plain ``rwt serve``; else ``rwt
+serve --workers N``) and K parallel fan-outs, each 1 publisher and S subscribers
+(``--subscribers``, default 50) on a topic of its own (``/fan0`` ...). Each
+fan-out is driven by a generator process of its own (the suite's raw-socket
+generator, ``fanout_raw.FanOut``: a stream of 100 B ``std_msgs/String`` paced by a
+window of 512 messages ahead of its slowest subscriber, so nothing is dropped),
+connected and probed until every subscriber is reached; then all K bursts start
+together and last ``--duration`` seconds.
+
+Per worker count the table gives:
+
+- deliveries/s: every delivery of the K bursts over the time from the first
+  timed send to the last delivery (all generators read one monotonic clock);
+- x one worker: over the first row's figure (the smallest worker count);
+- server CPU per delivery (us): every thread of every process of the server
+  (the supervising parent and its workers) from ``/proc``, from just before the
+  bursts start to just after the last delivery, over the deliveries; set-up
+  (connections, subscriptions, probes) is not counted;
+- server cores: deliveries/s x CPU per delivery, the cores the server kept busy
+  (below the workers' count and the machine's free cores, something else bounds
+  the figure: the window against the latency of a message's path);
+- the generators' own CPU: in cores (their CPU seconds over the timed wall) and in
+  us per delivery, so a reader sees when the generators, not the server, bound
+  the figure (on a machine with fewer free cores than K + N they share them);
+- delivered / expected and dropped (must be 0).
+
+Ratios carry over to another machine, absolutes do not; CPU time on a shared
+virtual machine drifts by up to a factor of two from one minute to the next
+(benchmarks/JOURNAL.md, "Workers' CPU per delivery"), so compare rows of one run.
+``benchmarks/results/scaleout_workers.json`` keeps every figure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import multiprocessing
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from .fanout_raw import FanOut
+from .loadgen.engine import GeneratorError, run_loop
+from .proctree import tree_cpu_ns
+from .servers import rwt_pythonpath
+
+__all__ = ["ScaleRow", "main", "measure", "scale_table", "serve_workers"]
+
+RESULTS = Path(__file__).resolve().parent / "results" / "scaleout_workers.json"
+START_TIMEOUT_S = 120.0
+"""How long a server and its workers get to listen, seconds."""
+STALL_S = 5.0
+"""A burst with no delivery for this long is over: what is missing was dropped, seconds."""
+
+
+@dataclass(frozen=True)
+class ScaleRow:
+    """One worker count's figures (see the module's docstring)."""
+
+    workers: int
+    fanouts: int
+    subscribers: int
+    deliveries_per_s: float
+    server_us_per_delivery: float
+    generator_cores: float
+    generator_us_per_delivery: float
+    delivered: int
+    expected: int
+
+    @property
+    def dropped(self) -> int:
+        """Deliveries expected (messages sent x subscribers) that never came."""
+        return self.expected - self.delivered
+
+
+def _listening(port: int) -> int:
+    """How many sockets listen on TCP ``port`` (IPv4 and IPv6), from ``/proc/net``."""
+    count = 0
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        with contextlib.suppress(OSError):
+            for line in Path(table).read_text().splitlines()[1:]:
+                fields = line.split()
+                local, state = fields[1], fields[3]
+                count += state == "0A" and int(local.rsplit(":", 1)[1], 16) == port
+    return count
+
+
+@contextlib.contextmanager
+def serve_workers(workers: int) -> Iterator[tuple[int, int]]:
+    """``rwt serve`` with ``workers`` workers (1: a plain server); yields (pid, port).
+
+    Waits until every worker listens on the port (SO_REUSEPORT: one listening
+    socket each), so the kernel spreads the connections over all of them.
+
+    Raises:
+        RuntimeError: the server did not start or its workers did not all listen.
+    """
+    cmd = [sys.executable, "-m", "rwt", "serve", "--port", "0", "--no-tf"]
+    cmd += ["--log-level", "warning", *(["--workers", str(workers)] if workers > 1 else [])]
+    env = {**os.environ, "PYTHONPATH": rwt_pythonpath(), "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, env=env)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline().decode().strip()
+        if not line.startswith("listening on "):
+            raise RuntimeError(f"rwt serve did not start: {line!r}")
+        port = int(line.rsplit(":", 1)[1].split("/")[0])
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while _listening(port) < workers:
+            if time.monotonic() > deadline or proc.poll() is not None:
+                raise RuntimeError(f"{workers} workers did not all listen on {port}")
+            time.sleep(0.1)
+        yield proc.pid, port
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+def _generator(
+    port: int, subscribers: int, topic: str, duration_s: float, pipe: Connection
+) -> None:
+    """One fan-out in a process of its own: set up, say ``ready``, wait for ``go``, burst.
+
+    Sends back (delivered, sent, first send, last delivery (``perf_counter``, s), CPU s),
+    then waits for ``close`` before closing its connections (their teardown is not
+    the burst's). A set-up error is sent back as its text.
+    """
+    try:
+        fan = FanOut(port, subscribers, topic)
+    except (GeneratorError, OSError) as error:
+        pipe.send(f"{type(error).__name__}: {error}")
+        return
+    pub, subs = fan.pub, fan.subs
+    pipe.send("ready")
+    pipe.recv()
+    pub.duration_s = duration_s
+    for sub in subs:
+        sub.first_s = sub.last_s = None
+        sub.received = 0
+
+    def done() -> bool:
+        if not pub.finished:
+            return False
+        last = max((s.last_s or 0.0 for s in subs), default=0.0)
+        stalled = time.perf_counter() - max(last, pub.stop_s or 0.0) > STALL_S
+        return stalled or all(s.received >= pub.sent for s in subs)
+
+    loop = run_loop([pub], list(subs), done=done, limit_s=duration_s + 120.0)
+    delivered = sum(s.received for s in subs)
+    last = max((s.last_s or 0.0 for s in subs), default=0.0)
+    pipe.send((delivered, pub.sent, pub.first_s or 0.0, last, loop.generator_cpu_s))
+    pipe.recv()
+    fan.close()
+
+
+def measure(workers: int, fanouts: int, subscribers: int, duration_s: float) -> ScaleRow:
+    """One server of ``workers`` workers under ``fanouts`` parallel fan-outs (module doc).
+
+    Raises:
+        RuntimeError: the server did not start, or a generator failed to set up.
+    """
+    # fork: a generator starts in milliseconds, whatever ran this (a script on stdin,
+    # pytest); this process has no threads of its own to fork with
+    context = multiprocessing.get_context("fork")
+    with serve_workers(workers) as (pid, port):
+        pipes: list[Connection] = []
+        procs = []
+        for index in range(fanouts):
+            mine, theirs = context.Pipe()
+            proc = context.Process(
+                target=_generator,
+                args=(port, subscribers, f"/fan{index}", duration_s, theirs),
+            )
+            proc.start()
+            theirs.close()  # the child's end, its copy is the child's
+            pipes.append(mine)
+            procs.append(proc)
+        try:
+            for pipe in pipes:
+                answer = pipe.recv() if pipe.poll(START_TIMEOUT_S) else "no answer"
+                if answer != "ready":
+                    raise RuntimeError(f"a generator failed: {answer}")
+            time.sleep(0.5)  # probes still in flight land before the bursts
+            before = tree_cpu_ns(pid)
+            for pipe in pipes:
+                pipe.send("go")
+            found = [pipe.recv() for pipe in pipes]
+            server_ns = tree_cpu_ns(pid) - before
+            for pipe in pipes:
+                pipe.send("close")
+        finally:
+            for proc in procs:
+                proc.join(30)
+                if proc.is_alive():
+                    proc.kill()
+                    proc.join()
+                proc.close()
+            for pipe in pipes:
+                pipe.close()
+    delivered = sum(f[0] for f in found)
+    wall = max(f[3] for f in found) - min(f[2] for f in found)
+    generator_s = sum(f[4] for f in found)
+    return ScaleRow(
+        workers=workers,
+        fanouts=fanouts,
+        subscribers=subscribers,
+        deliveries_per_s=delivered / wall,
+        server_us_per_delivery=server_ns / 1e3 / max(delivered, 1),
+        generator_cores=generator_s / wall,
+        generator_us_per_delivery=generator_s * 1e6 / max(delivered, 1),
+        delivered=delivered,
+        expected=sum(f[1] for f in found) * subscribers,
+    )
+
+
+def scale_table(rows: list[ScaleRow]) -> str:
+    """The rows as a Markdown table, ratios against the first row."""
+    base = rows[0]
+    lines = [
+        "| workers | fan-outs x subscribers | deliveries/s | x first row | "
+        "server CPU us/delivery | x first row | server cores | generators: cores; us/delivery | "
+        "delivered/expected | dropped |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        lines.append(
+            f"| {row.workers} | {row.fanouts} x {row.subscribers} | "
+            f"{row.deliveries_per_s:,.0f} | {row.deliveries_per_s / base.deliveries_per_s:.2f} | "
+            f"{row.server_us_per_delivery:.2f} | "
+            f"{row.server_us_per_delivery / base.server_us_per_delivery:.2f} | "
+            f"{row.deliveries_per_s * row.server_us_per_delivery / 1e6:.2f} | "
+            f"{row.generator_cores:.2f}; {row.generator_us_per_delivery:.2f} | "
+            f"{row.delivered:,}/{row.expected:,} | {row.dropped} |"
+        )
+    return "\n".join(lines)
+
+
+def main(
+    workers: list[int],
+    fanouts: int,
+    subscribers: int,
+    duration_s: float,
+    *,
+    smoke: bool = False,
+    out: Path | None = None,
+) -> int:
+    """Measure each worker count in turn, print the table; exit status 1 if any dropped.
+
+    ``smoke``: 0.3 s bursts and nothing saved.
+    """
+    rows = []
+    for count in workers:
+        print(f"workers {count}", file=sys.stderr, flush=True)
+        rows.append(measure(count, fanouts, subscribers, 0.3 if smoke else duration_s))
+    print(scale_table(rows))
+    if not smoke:
+        record: dict[str, Any] = {"rows": [asdict(r) for r in rows], "duration_s": duration_s}
+        (out or RESULTS).write_text(json.dumps(record, indent=2) + "\n", "utf-8")
+    return 1 if any(r.dropped for r in rows) else 0
