@@ -49,6 +49,7 @@ import time
 import zlib
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import contextmanager, suppress
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -87,16 +88,6 @@ async def _websocket(base: str, topic: str) -> AsyncIterator[str | bytes]:
         await ws.send(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"}))
         async for raw in ws:
             yield raw
-
-
-async def _webrtc(base: str, topic: str) -> AsyncIterator[str | bytes]:
-    async for message in _data_channel(base, topic, lossy=False):
-        yield message
-
-
-async def _webrtc_lossy(base: str, topic: str) -> AsyncIterator[str | bytes]:
-    async for message in _data_channel(base, topic, lossy=True):
-        yield message
 
 
 async def _answer(base: str, offer: str) -> str:
@@ -165,16 +156,6 @@ async def _data_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[
         await pc.close()
 
 
-async def _webrtc_native(base: str, topic: str) -> AsyncIterator[str | bytes]:
-    async for message in _native_channel(base, topic, lossy=False):
-        yield message
-
-
-async def _webrtc_native_lossy(base: str, topic: str) -> AsyncIterator[str | bytes]:
-    async for message in _native_channel(base, topic, lossy=True):
-        yield message
-
-
 async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterator[str | bytes]:
     """``_data_channel`` with libdatachannel on both ends: a libdatachannel peer (each
     channel behind the server's ``NativeDataChannel``) to the robot's native server."""
@@ -217,10 +198,10 @@ async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterato
 
 TRANSPORTS: dict[str, Transport] = {
     "websocket": _websocket,
-    "webrtc": _webrtc,
-    "webrtc-lossy": _webrtc_lossy,
-    "webrtc-native": _webrtc_native,
-    "webrtc-native-lossy": _webrtc_native_lossy,
+    "webrtc": partial(_data_channel, lossy=False),
+    "webrtc-lossy": partial(_data_channel, lossy=True),
+    "webrtc-native": partial(_native_channel, lossy=False),
+    "webrtc-native-lossy": partial(_native_channel, lossy=True),
 }
 """The browser's transports of the 1 kHz topic by name."""
 
