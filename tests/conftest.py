@@ -37,6 +37,7 @@ from hypothesis import HealthCheck, settings
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import Session, SessionConfig
+from tests.support import warm
 
 # The test process's garbage collector: a worker holds every collected test module and
 # item and the caches of thousands of tests, so Python's default thresholds (700, 10, 10)
@@ -111,6 +112,13 @@ def peers(graph: Graph) -> Iterator[tuple[Peer, Peer]]:
     yield a, b
     a.session.close()
     b.session.close()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """In each process that runs tests, start its warm ``rwt`` (tests/support/zygote.py)."""
+    distributed = (getattr(config.option, "numprocesses", None) or 0) > 0
+    if os.environ.get("PYTEST_XDIST_WORKER") or not distributed:
+        warm.start()
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:

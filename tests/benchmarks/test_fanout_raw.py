@@ -10,7 +10,7 @@ from tests.integration.client_harness import ServerProcess
 
 
 def test_every_subscriber_gets_every_timed_message(tmp_path: Path) -> None:
-    server = ServerProcess(tmp_path, ("--no-tf",))
+    server = ServerProcess(tmp_path, ("--no-tf",), cold=True)
     try:
         result = fan_out_raw(server.port, 5, 0.3, window=16)
     finally:
@@ -21,7 +21,7 @@ def test_every_subscriber_gets_every_timed_message(tmp_path: Path) -> None:
 
 
 def test_kept_peers_count_each_burst_and_the_server_cpu_it_took(tmp_path: Path) -> None:
-    server = ServerProcess(tmp_path, ("--no-tf",))
+    server = ServerProcess(tmp_path, ("--no-tf",), cold=True)
     readings = iter([1_000, 5_000, 7_000, 7_500])
     asked: list[int] = []
 
@@ -46,7 +46,7 @@ def test_kept_peers_count_each_burst_and_the_server_cpu_it_took(tmp_path: Path) 
 
 
 def test_a_paced_burst_sends_no_faster_than_its_rate(tmp_path: Path) -> None:
-    server = ServerProcess(tmp_path, ("--no-tf",))
+    server = ServerProcess(tmp_path, ("--no-tf",), cold=True)
     try:
         fan = FanOut(server.port, 3)
         try:

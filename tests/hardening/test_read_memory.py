@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from tests.support.cli import RWT
+from tests.support.cli import RWT_COLD as RWT  # its pid and memory are the server's own
 from tests.support.realclients import REPO
 
 MiB = 1024 * 1024

@@ -29,6 +29,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tests.support.cli import RWT, RWT_COLD
+from tests.support.warm import rwt_env
+
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 JS_DIR = REPO / "tests" / "js"
@@ -126,12 +129,11 @@ class ServerProcess:
         cmd: list[str] | None = None,
         *,
         control: bool = False,
+        cold: bool = False,
     ) -> None:
         self.stderr_path = workdir / "rwt-serve.stderr"
         self.cmd = cmd or [
-            sys.executable,
-            "-m",
-            "rwt",
+            *(RWT_COLD if cold else RWT),
             "serve",
             "--host",
             "127.0.0.1",
@@ -140,9 +142,7 @@ class ServerProcess:
             *extra_args,
         ]
         self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
-        # This checkout's code, not whatever rwt an editable install points at.
-        path = os.pathsep.join(filter(None, [str(REPO / "src"), os.environ.get("PYTHONPATH")]))
-        env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=path)
+        env = rwt_env()  # this checkout's code, not whatever rwt an editable install points at
         self.proc = subprocess.Popen(
             [*AS_A_SHELL_STARTS_IT, *self.cmd],
             stdin=subprocess.PIPE if control else subprocess.DEVNULL,

@@ -8,7 +8,6 @@ small cases of options refused before anything starts.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from collections.abc import AsyncIterator, Mapping
@@ -20,7 +19,9 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from typer.testing import CliRunner
 
 from rwt_cli.app import app
-from tests.support.realclients import REPO
+from tests.support.warm import HERE, rwt_env
+
+WARM_RWT = HERE / "warm_rwt.py"
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -28,8 +29,11 @@ if TYPE_CHECKING:
     from anyio.abc import Process
     from click.testing import Result
 
-ENV = {**os.environ, "PYTHONPATH": str(REPO / "src"), "PYTHONUNBUFFERED": "1"}
-RWT = [sys.executable, "-m", "rwt"]
+ENV = rwt_env()
+#: ``rwt``, forked by this worker's warm ``rwt`` where it can be (tests/support/zygote.py).
+RWT = [sys.executable, "-S", str(WARM_RWT)]
+#: ``rwt`` started from scratch: for tests that look at the server's own process.
+RWT_COLD = [sys.executable, "-m", "rwt"]
 SERVE = [*RWT, "serve", "--host", "127.0.0.1"]
 TIMEOUT_S = 60  # a bound on a hung process, not a speed requirement
 

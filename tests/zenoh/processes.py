@@ -23,7 +23,7 @@ from anyio.abc import Process as AnyioProcess
 from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_zenoh.config import ZenohOptions
-from tests.support.cli import RWT
+from tests.support.cli import RWT_COLD as RWT  # tests read its pid, children and memory
 
 from .support import checked
 

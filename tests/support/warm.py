@@ -1,0 +1,52 @@
+"""Start this test process's warm ``rwt`` (zygote.py) and say where it listens.
+
+``start()`` runs once per test process that runs tests (each xdist worker, or the one
+process of ``-n 0``): it sets ``RWT_TEST_WARM`` in ``os.environ`` before any test
+builds a command's environment, and starts the zygote beside the collection. The
+zygote ends when this process does (its stdin is this process's pipe).
+``RWT_TEST_WARM=0`` in the environment keeps every run cold.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent.parent
+ZYGOTE = HERE / "zygote.py"
+_started: list[subprocess.Popen[bytes]] = []
+
+
+def rwt_env() -> dict[str, str]:
+    """The environment of an ``rwt`` the tests start: this checkout's src first, unbuffered."""
+    path = os.pathsep.join(filter(None, [str(REPO / "src"), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": path, "PYTHONUNBUFFERED": "1"}
+
+
+def start() -> None:
+    """Start the zygote and set ``RWT_TEST_WARM`` to its socket (once; not if set to 0)."""
+    if _started or os.environ.get("RWT_TEST_WARM") == "0":
+        return
+    folder = tempfile.mkdtemp(prefix="rwt-warm-")
+    path = os.path.join(folder, "zygote.sock")
+    os.environ["RWT_TEST_WARM"] = path
+    env = rwt_env()
+    given = os.path.join(folder, "env.json")
+    with open(given, "w", encoding="utf-8") as file:
+        json.dump(env, file)
+    _started.append(
+        subprocess.Popen(
+            [sys.executable, str(ZYGOTE), path, given],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            cwd=folder,
+            start_new_session=True,
+        )
+    )
