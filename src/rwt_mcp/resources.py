@@ -6,10 +6,13 @@ sorted by name, with MCP's cursor to the next page (``nextCursor``).
 ``resources/read`` answers the latest message, summarised as
 ``echo``'s are (``render.message_text``): the one kept for a subscribed topic,
 else the first to arrive within ``READ_WAIT_S`` (a latched topic's at once).
-``resources/subscribe`` subscribes the session's connection to the topic,
-throttled by the server to one message per ``UPDATE_INTERVAL_S``, and sends
-``notifications/resources/updated`` at most once per ``UPDATE_INTERVAL_S`` per
-topic, however fast it publishes (docs/limits.md, "MCP front end"); a session
+``resources/subscribe`` (2025-era clients) and ``subscriptions/listen`` with
+``resourceSubscriptions`` (2026-07-28 clients, D52) subscribe the session's
+connection to the topic, throttled by the server to one message per
+``UPDATE_INTERVAL_S``, and send ``notifications/resources/updated`` (on the
+session's event stream, or the listen request's) at most once per
+``UPDATE_INTERVAL_S`` per topic, however fast it publishes (docs/limits.md, "MCP
+front end"); a listen stream's topics are unsubscribed when it ends. A session
 subscribes to at most ``MAX_SUBSCRIBED`` topics, and a subscription the server
 refuses (``--max-subscriptions``) is an error with the server's reason. Each of
 these requests is rated as a tool call is (``guard.Guard.check_rate``).
@@ -24,17 +27,24 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 import pybase64
-from mcp.server.fastmcp.exceptions import ToolError
-from mcp.server.lowlevel.helper_types import ReadResourceContents
-from mcp.shared.exceptions import McpError
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.server.subscriptions import InMemorySubscriptionBus, ListenHandler, ResourceUpdated
+from mcp.shared.exceptions import MCPError
 from mcp.types import (
     INVALID_PARAMS,
-    ErrorData,
-    ListResourcesRequest,
+    EmptyResult,
     ListResourcesResult,
+    ListResourceTemplatesResult,
+    PaginatedRequestParams,
+    ReadResourceRequestParams,
+    ReadResourceResult,
     Resource,
     ResourceTemplate,
-    ServerResult,
+    SubscribeRequestParams,
+    SubscriptionsListenRequestParams,
+    SubscriptionsListenResult,
+    TextResourceContents,
+    UnsubscribeRequestParams,
 )
 from pydantic import AnyUrl
 
@@ -44,6 +54,7 @@ from rwt_protocol.errors import OpRefusedError, RwtError
 from .render import message_text
 
 if TYPE_CHECKING:
+    from mcp.server.context import ServerRequestContext
     from mcp.server.lowlevel import Server
     from mcp.server.session import ServerSession
 
@@ -77,17 +88,17 @@ def topic_of(uri: AnyUrl | str) -> str:
     """The topic name of a resource URI.
 
     Raises:
-        McpError: not a ``ros://topics/...`` URI.
+        MCPError: not a ``ros://topics/...`` URI.
     """
     text = str(uri)
     prefix = TOPIC_URI + "/"
     if not text.startswith(prefix) or len(text) == len(prefix):
-        raise McpError(ErrorData(code=INVALID_PARAMS, message=f"uri {text}: not {prefix}<topic>"))
+        raise MCPError(INVALID_PARAMS, f"uri {text}: not {prefix}<topic>")
     return "/" + text[len(prefix) :]
 
 
-def _refused(message: str) -> McpError:
-    return McpError(ErrorData(code=INVALID_PARAMS, message=message))
+def _refused(message: str) -> MCPError:
+    return MCPError(INVALID_PARAMS, message)
 
 
 def _cursor(after: str) -> str:
@@ -99,7 +110,7 @@ def _after(cursor: str | None) -> str:
     """The topic a cursor continues after; "" for the first page.
 
     Raises:
-        McpError: not a cursor this server gave.
+        MCPError: not a cursor this server gave.
     """
     if cursor is None:
         return ""
@@ -133,29 +144,69 @@ class TopicResources:
         self.link = link
         self.guard = guard
         self.watched: dict[str, _Watch] = {}
+        self.bus = InMemorySubscriptionBus()  # the listen streams' (2026-07-28)
+        self._holders: dict[str, int] = {}  # topic: listen streams and a subscribe
         self._session: ServerSession | None = None
         self._changed = anyio.Event()
         self._notifying = False
 
-    def register(self, server: Server[Any, Any]) -> None:
-        """Answer ``resources/*`` requests on ``server`` (the FastMCP's low-level server)."""
+    def register(self, server: Server[Any]) -> None:
+        """Answer ``resources/*`` and ``subscriptions/listen`` on ``server`` (MCPServer's low level)."""
 
-        async def list_page(request: ListResourcesRequest) -> ServerResult:
-            cursor = request.params.cursor if request.params is not None else None
-            return ServerResult(await self.list_resources(cursor))
+        async def list_page(
+            _ctx: ServerRequestContext[Any, Any], params: PaginatedRequestParams | None
+        ) -> ListResourcesResult:
+            return await self.list_resources(params.cursor if params is not None else None)
 
-        # a paginated answer needs the request: the handler is registered as the SDK's
-        # decorator would register a new-style one
-        server.request_handlers[ListResourcesRequest] = list_page
-        # the SDK's decorators are untyped; each registers the handler it is given
-        server.list_resource_templates()(self.list_templates)  # type: ignore[no-untyped-call]
-        server.read_resource()(self.read)  # type: ignore[no-untyped-call]
+        async def templates(
+            _ctx: ServerRequestContext[Any, Any], _params: PaginatedRequestParams | None
+        ) -> ListResourceTemplatesResult:
+            return ListResourceTemplatesResult(resourceTemplates=await self.list_templates())
 
-        async def subscribe(uri: AnyUrl) -> None:
-            await self.subscribe(uri, server.request_context.session)
+        async def read(
+            _ctx: ServerRequestContext[Any, Any], params: ReadResourceRequestParams
+        ) -> ReadResourceResult:
+            text = await self.read(params.uri)
+            contents = TextResourceContents(uri=params.uri, text=text, mimeType="application/json")
+            return ReadResourceResult(contents=[contents])
 
-        server.subscribe_resource()(subscribe)  # type: ignore[no-untyped-call]
-        server.unsubscribe_resource()(self.unsubscribe)  # type: ignore[no-untyped-call]
+        async def subscribe(
+            ctx: ServerRequestContext[Any, Any], params: SubscribeRequestParams
+        ) -> EmptyResult:
+            await self.subscribe(params.uri, ctx.session)
+            return EmptyResult()
+
+        async def unsubscribe(
+            _ctx: ServerRequestContext[Any, Any], params: UnsubscribeRequestParams
+        ) -> EmptyResult:
+            await self.unsubscribe(params.uri)
+            return EmptyResult()
+
+        listen = ListenHandler(self.bus)
+
+        async def listen_topics(
+            ctx: ServerRequestContext[Any, Any], params: SubscriptionsListenRequestParams
+        ) -> SubscriptionsListenResult:
+            uris = list(params.notifications.resource_subscriptions or ())
+            held: list[str] = []
+            try:
+                for uri in uris[: MAX_SUBSCRIBED + 1]:
+                    await self.subscribe(uri, None)
+                    held.append(uri)
+                return await listen(ctx, params)
+            finally:
+                for uri in held:
+                    await self.unsubscribe(uri, listening=True)
+
+        for method, params_type, handler in (
+            ("resources/list", PaginatedRequestParams, list_page),
+            ("resources/templates/list", PaginatedRequestParams, templates),
+            ("resources/read", ReadResourceRequestParams, read),
+            ("resources/subscribe", SubscribeRequestParams, subscribe),
+            ("resources/unsubscribe", UnsubscribeRequestParams, unsubscribe),
+            ("subscriptions/listen", SubscriptionsListenRequestParams, listen_topics),
+        ):
+            server.add_request_handler(method, params_type, handler)
 
     async def list_resources(self, cursor: str | None = None) -> ListResourcesResult:
         """A page of the robot's topics, each with its type as description.
@@ -169,7 +220,7 @@ class TopicResources:
             goes between two pages is listed or not, as it sorts.
 
         Raises:
-            McpError: a cursor this server did not give, the rate cap, or the
+            MCPError: a cursor this server did not give, the rate cap, or the
                 connection down.
         """
         self._rated("resources/list")
@@ -205,18 +256,18 @@ class TopicResources:
             )
         ]
 
-    async def read(self, uri: AnyUrl) -> list[ReadResourceContents]:
+    async def read(self, uri: AnyUrl | str) -> str:
         """The topic's latest message as JSON text (summarised, ``render.message_text``).
 
         Raises:
-            McpError: a bad URI, a topic the rules refuse, no message within
+            MCPError: a bad URI, a topic the rules refuse, no message within
                 ``READ_WAIT_S``, or the connection down.
         """
         self._rated("resources/read")
         topic = self._allowed(uri)
         watch = self.watched.get(topic)
         if watch is not None and watch.latest is not None:
-            return [ReadResourceContents(message_text(watch.latest), "application/json")]
+            return message_text(watch.latest)
         got: list[Any] = []
         arrived = anyio.Event()
 
@@ -241,21 +292,32 @@ class TopicResources:
             raise _refused(str(exc)) from None
         if not got:
             raise _refused(f"{topic}: no message within {READ_WAIT_S:g} s (READ_WAIT_S)")
-        return [ReadResourceContents(message_text(got[0]), "application/json")]
+        return message_text(got[0])
 
-    async def subscribe(self, uri: AnyUrl, session: ServerSession) -> None:
-        """Subscribe to the topic; updates go to ``session`` (``UPDATE_INTERVAL_S``).
+    async def subscribe(self, uri: AnyUrl | str, session: ServerSession | None) -> None:
+        """Subscribe to the topic; updates go to ``session`` and the listen streams.
+
+        Args:
+            uri: the topic's resource URI.
+            session: a 2025-era session's (``resources/subscribe``); None: a
+                listen stream's (2026-07-28), which unsubscribes when it ends.
 
         Raises:
-            McpError: a bad URI, a topic the rules refuse, ``MAX_SUBSCRIBED``
+            MCPError: a bad URI, a topic the rules refuse, ``MAX_SUBSCRIBED``
                 topics subscribed already, a subscription the server refused
                 (``--max-subscriptions``: its status text), or the connection down.
         """
         self._rated("resources/subscribe")
         topic = self._allowed(uri)
-        self._session = session
-        if topic in self.watched:
-            return
+        if session is not None:
+            self._session = session
+        if topic not in self.watched:
+            await self._watch(uri, topic)
+        if session is None:
+            self._holders[topic] = self._holders.get(topic, 0) + 1
+
+    async def _watch(self, uri: AnyUrl | str, topic: str) -> None:
+        """Subscribe the connection to ``topic``, throttled (``UPDATE_INTERVAL_S``)."""
         if len(self.watched) >= MAX_SUBSCRIBED:
             raise _refused(f"uri {uri}: {MAX_SUBSCRIBED} topics are subscribed (MAX_SUBSCRIBED)")
         throttle_ms = int(UPDATE_INTERVAL_S * 1000)
@@ -279,28 +341,44 @@ class TopicResources:
             self._notifying = True
             ros.spawn(self._notify)
 
-    async def unsubscribe(self, uri: AnyUrl) -> None:
-        """Stop the topic's updates (nothing if it was not subscribed)."""
-        watch = self.watched.pop(topic_of(uri), None)
+    async def unsubscribe(self, uri: AnyUrl | str, *, listening: bool = False) -> None:
+        """Stop the topic's updates (nothing if it was not subscribed).
+
+        Args:
+            uri: the topic's resource URI.
+            listening: a listen stream's end: the topic stays while another
+                stream or a ``resources/subscribe`` holds it.
+        """
+        topic = topic_of(uri)
+        if listening:
+            left = self._holders.get(topic, 0) - 1
+            if left > 0:
+                self._holders[topic] = left
+                return
+            self._holders.pop(topic, None)
+        watch = self.watched.pop(topic, None)
         if watch is not None:
             with contextlib.suppress(RwtError):  # the connection is down: nothing to undo
                 await watch.topic.unsubscribe()
 
     async def _notify(self) -> None:
         """Send ``notifications/resources/updated`` for changed topics, each round a pause."""
-        while self._session is not None:
+        while True:
             await self._changed.wait()
             self._changed = anyio.Event()
             for topic, watch in list(self.watched.items()):
                 if watch.fresh:
                     watch.fresh = False
-                    try:
-                        await self._session.send_resource_updated(AnyUrl(TOPIC_URI + topic))
-                    except (anyio.ClosedResourceError, anyio.BrokenResourceError):
-                        return  # the MCP session ended
+                    uri = TOPIC_URI + topic
+                    await self.bus.publish(ResourceUpdated(uri))  # the listen streams
+                    if self._session is not None:
+                        try:
+                            await self._session.send_resource_updated(uri)
+                        except (anyio.ClosedResourceError, anyio.BrokenResourceError):
+                            self._session = None  # the MCP session ended
             await anyio.sleep(UPDATE_INTERVAL_S)
 
-    def _allowed(self, uri: AnyUrl) -> str:
+    def _allowed(self, uri: AnyUrl | str) -> str:
         topic = topic_of(uri)
         try:
             self.guard.check_access("topics_sub", topic, "uri topic")

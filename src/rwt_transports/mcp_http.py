@@ -8,9 +8,20 @@ the host's share, which for MCP sessions applies from the first), runs under the
 same per-client limits and access rules, ends after ``--idle-timeout`` without a
 request in flight, and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s)
 drive it through rwt's client over a memory connection. The official MCP SDK
-answers the protocol (its ``StreamableHTTPServerTransport``, driven as an ASGI app
-over the request's socket; h11 parses the request). A refused session gets 503 and
-no MCP session.
+(2.x) answers the protocol (its ``StreamableHTTPServerTransport``, driven as an
+ASGI app over the request's socket; h11 parses the request). A refused session
+gets 503 and no MCP session.
+
+Both revisions answer here (D52): a 2025-era client opens a session with
+``initialize`` as above; a 2026-07-28 request (its ``MCP-Protocol-Version``
+header a revision without the handshake) carries no session: it is one
+rosbridge session of its own, opened for the request and closed after its
+answer (a ``subscriptions/listen`` stream holds it while it runs), answered by
+the SDK's single-exchange entry. Its rate caps are its host's
+(``MODERN_HOSTS_KEPT`` hosts kept). A goal it starts as a task keeps that
+session open until the goal ends or the task expires (``rwt_mcp.tasks``); the
+endpoint's ``TaskStore`` is shared by every session and request, so any of
+them polls or cancels it.
 
 Every socket a request holds is a connection slot (D40): a session holds
 ``SESSION_SLOTS`` (itself and its event stream, and one request), and a request
@@ -31,25 +42,32 @@ session's ``rwt_mcp.guard.Guard``. Refusals are logged once per episode.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hmac
 import logging
 import uuid
+from collections import OrderedDict
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import anyio
 import h11
+from mcp.server._streamable_http_modern import handle_modern_request
+from mcp.server.runner import serve_loop
 from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
 from mcp.server.transport_security import TransportSecuritySettings
+from mcp.shared.inbound import MCP_PROTOCOL_VERSION_HEADER
 from mcp.types import INVALID_REQUEST, PARSE_ERROR, ErrorData, JSONRPCError
+from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 
 from rwt_client import Ros
 from rwt_client.connectors import ConnectionClosedError
 from rwt_graph.ratelog import EpisodeLog
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
-from rwt_mcp.tools import build_server, initialization_options
+from rwt_mcp.tasks import TaskStore
+from rwt_mcp.tools import build_server
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
@@ -62,12 +80,19 @@ if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
 
     from anyio.abc import ByteStream, TaskGroup, TaskStatus
+    from mcp.server.lowlevel import Server
 
     from rwt_protocol.server.contract import ServerSession
 
     from .server import RosbridgeServer
 
-__all__ = ["MAX_REQUESTS_IN_FLIGHT", "MAX_REQUEST_BYTES", "SESSION_SLOTS", "McpEndpoint"]
+__all__ = [
+    "MAX_REQUESTS_IN_FLIGHT",
+    "MAX_REQUEST_BYTES",
+    "MODERN_HOSTS_KEPT",
+    "SESSION_SLOTS",
+    "McpEndpoint",
+]
 
 logger = logging.getLogger("rwt.mcp")
 _episodes = EpisodeLog(logger)  # a peer can trigger these at will
@@ -80,6 +105,9 @@ SESSION_SLOTS = 2
 """Connection slots an MCP session holds (``--max-connections``, the host's share): itself
 with its event stream, and one request at once, as the official client holds them; a
 request beyond them takes one more slot while it runs, or gets 503 (D40)."""
+MODERN_HOSTS_KEPT = 256
+"""Hosts whose 2026-07-28 requests' rate caps are kept (``rwt_mcp.guard.Guard``, per host:
+a request has no session); past them the least recently seen host's are dropped."""
 
 _METHODS = (b"POST", b"GET", b"DELETE", b"OPTIONS")
 _READ_SIZE = 65536
@@ -87,7 +115,8 @@ _CORS = [
     (b"Access-Control-Allow-Methods", b"POST, GET, DELETE, OPTIONS"),
     (
         b"Access-Control-Allow-Headers",
-        b"Authorization, Content-Type, Accept, Mcp-Session-Id, Mcp-Protocol-Version, Last-Event-ID",
+        b"Authorization, Content-Type, Accept, Mcp-Session-Id, Mcp-Protocol-Version, Mcp-Method,"
+        b" Mcp-Name, Last-Event-ID",
     ),
     (b"Access-Control-Expose-Headers", b"Mcp-Session-Id"),
     (b"Access-Control-Max-Age", b"600"),
@@ -210,6 +239,8 @@ class McpEndpoint:
         self.access = access
         self.auth_required = server.session_config.authenticator is not None
         self.sessions: dict[str, _Session] = {}
+        self.tasks = TaskStore()  # every session's and request's (rwt_mcp.tasks)
+        self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
 
     def bind(self, tg: TaskGroup | None) -> None:
@@ -249,12 +280,15 @@ class McpEndpoint:
             await reply(conn, stream, 204, "", cors)
             return
         session_id = headers.get(MCP_SESSION_ID_HEADER)
+        modern = session_id is None and _modern(headers)
         if request.method == b"POST":
-            problem = _body_refusal(opened.body, new_session=session_id is None)
+            problem = _body_refusal(opened.body, new_session=session_id is None and not modern)
             if problem is not None:
                 await exchange.refuse_jsonrpc(*problem)
                 return
-        if session_id is None:
+        if modern:
+            await self._modern(exchange)
+        elif session_id is None:
             await self._open(exchange, _bearer(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
@@ -374,12 +408,13 @@ class McpEndpoint:
                 link = RobotLink(ros.url, ros)
                 await link.connect(anyio.Event())
                 guard = Guard(session.client_id, self.options.read_only, self.access)
-                mcp = build_server(link, guard)
+                mcp, tasks = build_server(link, guard, self.tasks)
                 try:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
                         started = True
-                        await _serve_until_idle(mcp, session.transport, read, write)
+                        await _serve_until_idle(mcp._lowlevel_server, session.transport, read, write)
+                    await tasks.hold()  # the goals it started as tasks
                 finally:
                     await link.close()
         except Exception:  # a bug ends this session only
@@ -388,6 +423,67 @@ class McpEndpoint:
             if not started:
                 task_status.started()
             await self._discard(session_id)
+
+    async def _modern(self, exchange: _Exchange) -> None:
+        """A 2026-07-28 request: one rosbridge session for it, answered by the SDK (D52).
+
+        The session takes one connection slot (its socket's) while the request
+        runs, and while a goal it started as a task runs (``rwt_mcp.tasks``).
+        """
+        tg = self._tg
+        admitted = None if tg is None else await self._admit(exchange.peer)
+        if tg is None or admitted is None:
+            await exchange.refuse(503, "too many connections")
+            return
+        self.server.adopt_socket()
+        answered = anyio.Event()
+        try:
+            mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered)
+            if mcp is not None:
+                entry = functools.partial(handle_modern_request, mcp, _NO_SDK_CHECK, False, {})
+                await exchange.run(entry)
+        finally:
+            answered.set()
+
+    async def _run_modern(
+        self,
+        admitted: _Admitted,
+        peer: str,
+        answered: anyio.Event,
+        *,
+        task_status: TaskStatus[Server[Any] | None],
+    ) -> None:
+        """A 2026-07-28 request's session: until it is answered and its tasks' goals end."""
+        started = False
+        try:
+            async with admitted.client() as ros:
+                link = RobotLink(ros.url, ros)
+                await link.connect(anyio.Event())
+                mcp, tasks = build_server(link, self._modern_guard(peer), self.tasks)
+                try:
+                    task_status.started(mcp._lowlevel_server)
+                    started = True
+                    await answered.wait()
+                    await tasks.hold()
+                finally:
+                    await link.close()
+        except Exception:  # a bug ends this request only
+            logger.exception("event=bug task=mcp_request client=%s", admitted.session.client_id)
+        finally:
+            if not started:
+                task_status.started(None)
+
+    def _modern_guard(self, peer: str) -> Guard:
+        """The rules of a 2026-07-28 request from ``peer``: its host's rate caps (``MODERN_HOSTS_KEPT``)."""
+        host = peer.rpartition(":")[0] or peer
+        guard = self._modern_guards.get(host)
+        if guard is None:
+            guard = Guard(f"mcp:{host}", self.options.read_only, self.access)
+            self._modern_guards[host] = guard
+            if len(self._modern_guards) > MODERN_HOSTS_KEPT:
+                self._modern_guards.popitem(last=False)
+        self._modern_guards.move_to_end(host)
+        return guard
 
     async def _discard(self, session_id: str) -> None:
         """Forget the session (its id answers 404 from now) and end its transport."""
@@ -399,7 +495,7 @@ class McpEndpoint:
 
 
 async def _serve_until_idle(
-    mcp: Any, transport: StreamableHTTPServerTransport, read: Any, write: Any
+    mcp: Server[Any], transport: StreamableHTTPServerTransport, read: Any, write: Any
 ) -> None:
     """Run the MCP server on the transport's streams until it ends or goes idle."""
     async with anyio.create_task_group() as tg:
@@ -412,7 +508,10 @@ async def _serve_until_idle(
                 tg.cancel_scope.cancel()  # no request for the idle time: the session ends
 
             tg.start_soon(end_when_idle, idle)
-        await mcp._mcp_server.run(read, write, initialization_options(mcp), stateless=False)
+        async with mcp.lifespan(mcp) as state:
+            await serve_loop(
+                mcp, read, write, lifespan_state=state, session_id=transport.mcp_session_id
+            )
         tg.cancel_scope.cancel()
 
 
@@ -435,6 +534,16 @@ def _body_refusal(body: bytes, *, new_session: bool) -> tuple[int, str, int] | N
         text = "Bad Request: no Mcp-Session-Id: only an initialize request opens a session"
         return 400, text, INVALID_REQUEST
     return None
+
+
+def _modern(headers: dict[str, str]) -> bool:
+    """Whether a request without a session is of a revision without the handshake (2026-07-28).
+
+    The ``MCP-Protocol-Version`` header decides, as the SDK's session manager routes: a
+    handshake-era version, or none, is a 2025-era request (D52).
+    """
+    version = headers.get(MCP_PROTOCOL_VERSION_HEADER)
+    return version is not None and version not in HANDSHAKE_PROTOCOL_VERSIONS
 
 
 def _bearer(headers: dict[str, str]) -> str | None:
