@@ -76,7 +76,7 @@ async def agent(endpoint: str) -> AsyncIterator[ClientSession]:
     http = httpx.AsyncClient(timeout=httpx.Timeout(WAIT_S, read=300))
     async with (
         http,
-        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        streamable_http_client(endpoint, http_client=http) as (read, write),
         ClientSession(read, write) as session,
     ):
         await session.initialize()
@@ -209,11 +209,11 @@ def _kind(result: Any) -> str:
     text = _text(result)
     if any(isinstance(b, ImageContent) for b in result.content):
         return "an image"
-    if result.isError and "MAX_DECODE_PIXELS" in text:
+    if result.is_error and "MAX_DECODE_PIXELS" in text:
         return "error: over MAX_DECODE_PIXELS"
-    if result.isError and "times a second" in text:
+    if result.is_error and "times a second" in text:
         return "error: called too often"
-    return ("error: " if result.isError else "text: ") + text[:70]
+    return ("error: " if result.is_error else "text: ") + text[:70]
 
 
 async def _bomb(context: Context) -> Outcome:
@@ -255,7 +255,7 @@ async def _listings(context: Context) -> Outcome:
 
             async def listing() -> str:
                 result = await session.call_tool("list_topics", {})
-                if not result.isError:
+                if not result.is_error:
                     return "listed"
                 text = _text(result)
                 return "refused: rate" if "LISTING_CALLS_PER_S" in text else "error: " + text[:60]
@@ -441,7 +441,7 @@ async def _refusals(context: Context) -> Outcome:
 
 
 def _answer(result: Any) -> str:
-    return ("error: " if result.isError else "success: ") + _text(result)[:110]
+    return ("error: " if result.is_error else "success: ") + _text(result)[:110]
 
 
 # ---- 13: a flood of video tokens, then a victim's token -------------------------------------

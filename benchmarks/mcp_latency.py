@@ -110,7 +110,7 @@ async def over_http(url: str) -> AsyncIterator[ClientSession]:
     endpoint = url.replace("ws://", "http://") + "/mcp"
     async with (
         httpx.AsyncClient(timeout=httpx.Timeout(30, read=300)) as http,
-        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        streamable_http_client(endpoint, http_client=http) as (read, write),
         ClientSession(read, write) as session,
     ):
         await session.initialize()
@@ -140,7 +140,7 @@ async def measure(session: ClientSession, ros_mcp: bool, calls: int) -> dict[str
             result = await session.call_tool(tool, arguments)
             elapsed_ms = (time.perf_counter() - began) * 1000
             text = json.dumps([block.model_dump() for block in result.content])
-            if result.isError or '"error"' in text:
+            if result.is_error or '"error"' in text:
                 raise RuntimeError(f"{tool} failed: {text[:300]}")
             if round_ >= 2:
                 times[name].append(elapsed_ms)

@@ -147,11 +147,11 @@ async def test_the_access_globs_refuse_a_tool_call_naming_the_rule(serving: Any)
         }
         for tool, (what, rule) in refusals.items():
             result = await agent.result(tool, **arguments[tool])
-            assert result.isError, tool
+            assert result.is_error, tool
             assert f"{what}: refused by {rule}" in _text(result)
         assert (await agent.call("get_parameter", name="/robot:name"))["value"] == "r2"
         echoed = await agent.result("echo", topic="/battery")
-        assert not echoed.isError and json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
+        assert not echoed.is_error and json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
         with pytest.raises(Exception, match="refused by --topics-glob"):
             await agent.session.read_resource("ros://topics/cmd")  # type: ignore[arg-type]
     assert received == []
@@ -163,13 +163,13 @@ async def test_the_split_globs_hold_publishing_and_reading_apart(serving: Any) -
     access = AccessPolicy(topics_pub=("/cmd",), topics_sub=("/battery",))
     url, _ = await serving(robot_graph(received), _config(session=SessionConfig(access=access)))
     async with rwt_serve_mcp(url) as agent:
-        assert not (await agent.result("publish", **WRITES["publish"])).isError
+        assert not (await agent.result("publish", **WRITES["publish"])).is_error
         refused = await agent.result("echo", topic="/cmd", timeout_s=1)
         assert "topic /cmd: refused by --topics-sub-glob [/battery]" in _text(refused)
         battery = {"topic": "/battery", "type": "std_msgs/msg/String", "msg": {"data": "0%"}}
         refused = await agent.result("publish", **battery)
         assert "topic /battery: refused by --topics-pub-glob [/cmd]" in _text(refused)
-        assert not (await agent.result("echo", topic="/battery")).isError
+        assert not (await agent.result("echo", topic="/battery")).is_error
     assert received == [{"data": "go"}]
 
 
@@ -184,10 +184,10 @@ async def test_read_only_refuses_every_write_and_the_robot_hears_none(
         assert set(WRITES) == WRITE_TOOLS
         for tool, arguments in WRITES.items():
             result = await agent.result(tool, **arguments)
-            assert result.isError, tool
+            assert result.is_error, tool
             assert f"{tool}: refused, the MCP server is read-only" in _text(result)
         assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
-        assert not (await agent.result("echo", topic="/battery")).isError
+        assert not (await agent.result("echo", topic="/battery")).is_error
     assert received == []
 
 
@@ -199,10 +199,10 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
     async with rwt_serve_mcp(url) as agent:
         big = {"data": "x" * MAX_TOOL_ARGUMENT_BYTES}
         oversized = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg=big)
-        assert oversized.isError
+        assert oversized.is_error
         assert f"over {MAX_TOOL_ARGUMENT_BYTES} (MAX_TOOL_ARGUMENT_BYTES)" in _text(oversized)
         wrong = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg="go")
-        assert wrong.isError
+        assert wrong.is_error
         assert (
             _text(wrong)
             == "publish: bad arguments: msg: Input should be a valid dictionary (got str)"
@@ -224,7 +224,7 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
         started = time.monotonic()
         for _ in range(calls):
             result = await agent.result("action_goal_status", goal_id="nope")
-            assert result.isError  # no such goal, or too fast
+            assert result.is_error  # no such goal, or too fast
             refused += "(TOOL_CALLS_PER_S)" in _text(result)
         elapsed = time.monotonic() - started
         assert refused >= 1
@@ -249,9 +249,9 @@ async def test_a_subscribed_topic_is_updated_at_a_bounded_rate(
 
     async def on_message(message: Any) -> None:
         if isinstance(message, ServerNotification) and isinstance(
-            message.root, ResourceUpdatedNotification
+            message, ResourceUpdatedNotification
         ):
-            updates.append(str(message.root.params.uri))
+            updates.append(str(message.params.uri))
 
     opened = (
         rwt_serve_mcp(url, on_message=on_message)

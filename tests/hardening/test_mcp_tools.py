@@ -142,7 +142,7 @@ async def test_resources_are_listed_a_page_at_a_time() -> None:
             page = await agent.session.list_resources(cursor)  # type: ignore[arg-type]
             assert len(page.resources) <= RESOURCES_PER_PAGE
             listed += [resource.name for resource in page.resources]
-            cursor = page.nextCursor
+            cursor = page.next_cursor
         assert cursor is None  # the last page says so
         assert [name for name in listed if name.startswith("/t/")] == names
         with pytest.raises(McpError, match="not a cursor of this server's resources/list"):
@@ -163,7 +163,7 @@ def _robot() -> Graph:
 
 async def _refused_text(agent: Agent, tool: str, **arguments: object) -> str:
     result = await agent.result(tool, **arguments)
-    assert result.isError, result.content
+    assert result.is_error, result.content
     return _text(result)
 
 
@@ -206,4 +206,4 @@ async def _subscriptions_refused(agent: Agent) -> None:
             await agent.session.read_resource("ros://topics/scan")  # type: ignore[arg-type]
         await agent.session.unsubscribe_resource("ros://topics/odom")  # type: ignore[arg-type]
         echoed = await agent.result("echo", topic="/scan")  # room again
-        assert not echoed.isError and json.loads(echoed.content[1].text) == {"data": "/scan"}  # type: ignore[union-attr]
+        assert not echoed.is_error and json.loads(echoed.content[1].text) == {"data": "/scan"}  # type: ignore[union-attr]
