@@ -46,7 +46,6 @@ from mcp.types import (
     TextResourceContents,
     UnsubscribeRequestParams,
 )
-from pydantic import AnyUrl
 
 from rwt_client import Topic
 from rwt_protocol.errors import OpRefusedError, RwtError
@@ -63,6 +62,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_SUBSCRIBED",
+    "Watched",
     "READ_WAIT_S",
     "RESOURCES_PER_PAGE",
     "TOPIC_URI",
@@ -84,7 +84,7 @@ RESOURCES_PER_PAGE = 200
 READ_WAIT_S = 2.0
 
 
-def topic_of(uri: AnyUrl | str) -> str:
+def topic_of(uri: str) -> str:
     """The topic name of a resource URI.
 
     Raises:
@@ -132,18 +132,28 @@ class _Watch:
         self.fresh = False
 
 
+Watched = dict[str, _Watch]
+"""Topics watched, by name: ``TopicResources.shared``."""
+
+
 class TopicResources:
     """The topics of the robot behind ``link`` as resources of ``server``.
 
     Args:
         link: the session's connection.
         guard: the session's access rules (a topic they refuse is an error).
+        shared: the topics watched by the front end's other servers, whose latest
+            message a read answers too (a 2026-07-28 request reads what another
+            request's listen stream holds); None: this server's own only.
     """
 
-    def __init__(self, link: RobotLink, guard: Guard) -> None:
+    def __init__(
+        self, link: RobotLink, guard: Guard, shared: dict[str, _Watch] | None = None
+    ) -> None:
         self.link = link
         self.guard = guard
         self.watched: dict[str, _Watch] = {}
+        self.shared = shared if shared is not None else self.watched
         self.bus = InMemorySubscriptionBus()  # the listen streams' (2026-07-28)
         self._holders: dict[str, int] = {}  # topic: listen streams and a subscribe
         self._session: ServerSession | None = None
@@ -233,7 +243,7 @@ class TopicResources:
         page = names[:RESOURCES_PER_PAGE]
         resources = [
             Resource(
-                uri=AnyUrl(TOPIC_URI + name if name.startswith("/") else f"{TOPIC_URI}/{name}"),
+                uri=TOPIC_URI + name if name.startswith("/") else f"{TOPIC_URI}/{name}",
                 name=name,
                 description=topics[name],
                 mimeType="application/json",
@@ -256,7 +266,7 @@ class TopicResources:
             )
         ]
 
-    async def read(self, uri: AnyUrl | str) -> str:
+    async def read(self, uri: str) -> str:
         """The topic's latest message as JSON text (summarised, ``render.message_text``).
 
         Raises:
@@ -265,7 +275,7 @@ class TopicResources:
         """
         self._rated("resources/read")
         topic = self._allowed(uri)
-        watch = self.watched.get(topic)
+        watch = self.watched.get(topic) or self.shared.get(topic)
         if watch is not None and watch.latest is not None:
             return message_text(watch.latest)
         got: list[Any] = []
@@ -294,7 +304,7 @@ class TopicResources:
             raise _refused(f"{topic}: no message within {READ_WAIT_S:g} s (READ_WAIT_S)")
         return message_text(got[0])
 
-    async def subscribe(self, uri: AnyUrl | str, session: ServerSession | None) -> None:
+    async def subscribe(self, uri: str, session: ServerSession | None) -> None:
         """Subscribe to the topic; updates go to ``session`` and the listen streams.
 
         Args:
@@ -316,7 +326,7 @@ class TopicResources:
         if session is None:
             self._holders[topic] = self._holders.get(topic, 0) + 1
 
-    async def _watch(self, uri: AnyUrl | str, topic: str) -> None:
+    async def _watch(self, uri: str, topic: str) -> None:
         """Subscribe the connection to ``topic``, throttled (``UPDATE_INTERVAL_S``)."""
         if len(self.watched) >= MAX_SUBSCRIBED:
             raise _refused(f"uri {uri}: {MAX_SUBSCRIBED} topics are subscribed (MAX_SUBSCRIBED)")
@@ -336,12 +346,12 @@ class TopicResources:
             ) from None
         except (RwtError, ToolError) as exc:
             raise _refused(str(exc)) from None
-        self.watched[topic] = watch
+        self.watched[topic] = self.shared[topic] = watch
         if not self._notifying:
             self._notifying = True
             ros.spawn(self._notify)
 
-    async def unsubscribe(self, uri: AnyUrl | str, *, listening: bool = False) -> None:
+    async def unsubscribe(self, uri: str, *, listening: bool = False) -> None:
         """Stop the topic's updates (nothing if it was not subscribed).
 
         Args:
@@ -358,6 +368,8 @@ class TopicResources:
             self._holders.pop(topic, None)
         watch = self.watched.pop(topic, None)
         if watch is not None:
+            if self.shared.get(topic) is watch:
+                del self.shared[topic]
             with contextlib.suppress(RwtError):  # the connection is down: nothing to undo
                 await watch.topic.unsubscribe()
 
@@ -378,7 +390,7 @@ class TopicResources:
                             self._session = None  # the MCP session ended
             await anyio.sleep(UPDATE_INTERVAL_S)
 
-    def _allowed(self, uri: AnyUrl | str) -> str:
+    def _allowed(self, uri: str) -> str:
         topic = topic_of(uri)
         try:
             self.guard.check_access("topics_sub", topic, "uri topic")

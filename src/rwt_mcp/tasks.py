@@ -268,7 +268,7 @@ class TasksExtension(Extension):
     def _report(record: Goal) -> dict[str, Any]:
         from .tools import goal_report  # tools imports this module
 
-        return goal_report(record)
+        return goal_report(record).model_dump(mode="json")
 
     async def hold(self) -> None:
         """Wait until the tasks this server started release their connection."""

@@ -38,7 +38,7 @@ from . import render
 from .guard import WRITE_TOOLS, Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
-from .resources import TopicResources
+from .resources import TopicResources, Watched
 from .tasks import TaskStore, TasksExtension
 
 __all__ = [
@@ -658,7 +658,10 @@ _TOOLS = (
 
 
 def build_server(
-    link: RobotLink, guard: Guard | None = None, tasks: TaskStore | None = None
+    link: RobotLink,
+    guard: Guard | None = None,
+    tasks: TaskStore | None = None,
+    watched: Watched | None = None,
 ) -> tuple[MCPServer, TasksExtension]:
     """An MCPServer whose tools and resources drive the robot behind ``link``.
 
@@ -673,6 +676,8 @@ def build_server(
         link: the session's connection.
         guard: the session's rules; None: a ``Guard()`` (no access rules, writes allowed).
         tasks: the front end's tasks; None: a store of this server's own.
+        watched: the front end's watched topics (``resources.TopicResources``'s
+            ``shared``); None: this server's own.
 
     Returns:
         The server, and its tasks extension (``TasksExtension.hold`` keeps the
@@ -680,7 +685,7 @@ def build_server(
     """
     guard = guard or Guard()
     tools = RobotTools(link)
-    resources = TopicResources(link, guard)
+    resources = TopicResources(link, guard, watched)
     extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal)
     server = MCPServer(
         "rwt",

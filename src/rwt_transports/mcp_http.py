@@ -66,6 +66,7 @@ from rwt_client.connectors import ConnectionClosedError
 from rwt_graph.ratelog import EpisodeLog
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
+from rwt_mcp.resources import Watched
 from rwt_mcp.tasks import TaskStore
 from rwt_mcp.tools import build_server
 from rwt_protocol.codecs.json import decode_json_text
@@ -240,6 +241,7 @@ class McpEndpoint:
         self.auth_required = server.session_config.authenticator is not None
         self.sessions: dict[str, _Session] = {}
         self.tasks = TaskStore()  # every session's and request's (rwt_mcp.tasks)
+        self._watched: Watched = {}  # topics the 2026-07-28 requests' listen streams hold
         self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
 
@@ -459,7 +461,8 @@ class McpEndpoint:
             async with admitted.client() as ros:
                 link = RobotLink(ros.url, ros)
                 await link.connect(anyio.Event())
-                mcp, tasks = build_server(link, self._modern_guard(peer), self.tasks)
+                guard = self._modern_guard(peer)
+                mcp, tasks = build_server(link, guard, self.tasks, self._watched)
                 try:
                     task_status.started(mcp._lowlevel_server)
                     started = True
