@@ -44,6 +44,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import hmac
+import json
 import logging
 import uuid
 from collections import OrderedDict
@@ -73,7 +74,7 @@ from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
 from .http_endpoint import claims_path, open_request, reply
-from .mcp_options import MCP_PATH, McpOptions
+from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
 
@@ -119,7 +120,7 @@ _CORS = [
         b"Authorization, Content-Type, Accept, Mcp-Session-Id, Mcp-Protocol-Version, Mcp-Method,"
         b" Mcp-Name, Last-Event-ID",
     ),
-    (b"Access-Control-Expose-Headers", b"Mcp-Session-Id"),
+    (b"Access-Control-Expose-Headers", b"Mcp-Session-Id, WWW-Authenticate"),
     (b"Access-Control-Max-Age", b"600"),
 ]
 # our own Origin check (--allowed-origins) replaces the SDK's Host check
@@ -251,8 +252,16 @@ class McpEndpoint:
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
-        """Whether the request starting with ``head`` is MCP's; None: too short to tell."""
-        return claims_path(head, _METHODS, MCP_PATH, lambda _method, after: after in (b" ", b"?"))
+        """Whether the request starting with ``head`` is MCP's; None: too short to tell.
+
+        MCP's are ``MCP_PATH`` and the protected-resource metadata (``METADATA_PATH``).
+        """
+        mcp = claims_path(head, _METHODS, MCP_PATH, lambda _method, after: after in (b" ", b"?"))
+        if mcp is not False:
+            return mcp
+        return claims_path(
+            head, (b"GET", b"OPTIONS"), METADATA_PATH, lambda _m, after: after in (b" ", b"/", b"?")
+        )
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
         """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
@@ -273,9 +282,14 @@ class McpEndpoint:
             return
         conn, request, headers, cors = opened.conn, opened.request, opened.headers, opened.cors
         exchange = _Exchange(conn, stream, request, opened.body, peer, cors)
+        path = request.target.decode("latin-1").split("?", 1)[0]
+        if path in (METADATA_PATH, METADATA_PATH + MCP_PATH):
+            body = "" if request.method == b"OPTIONS" else json.dumps(self._metadata(headers))
+            await reply(conn, stream, 204 if not body else 200, body, cors, "application/json")
+            return
         refusal = self._refusal(request, headers)
         if refusal is not None:
-            extra = [(b"WWW-Authenticate", b"Bearer")] if refusal[0] == 401 else []
+            extra = [(b"WWW-Authenticate", self._challenge(headers))] if refusal[0] == 401 else []
             await exchange.refuse(*refusal, extra)
             return
         if request.method == b"OPTIONS":
@@ -295,13 +309,40 @@ class McpEndpoint:
         else:
             await self._continue(exchange, self.sessions[session_id])
 
+    def _base(self, headers: dict[str, str]) -> str:
+        """``http(s)://HOST[:PORT]`` as the client reached the endpoint (its ``Host`` header)."""
+        scheme = "https" if self.server.config.certfile is not None else "http"
+        host = headers.get("host", "") or f"{self.server.config.host}:{self.server.config.port}"
+        return f"{scheme}://{host}"
+
+    def _metadata(self, headers: dict[str, str]) -> dict[str, Any]:
+        """The protected-resource metadata of ``/mcp`` (RFC 9728 section 2; D52)."""
+        document: dict[str, Any] = {
+            "resource": self._base(headers) + MCP_PATH,
+            "bearer_methods_supported": ["header"],
+            "resource_name": "rwt MCP server",
+            "resource_documentation": "https://modelcontextprotocol.io",
+        }
+        server = self.options.authorization_server
+        if server is not None:
+            document["authorization_servers"] = [server]
+        return document
+
+    def _challenge(self, headers: dict[str, str]) -> bytes:
+        """A 401's ``WWW-Authenticate``: Bearer, naming the metadata (RFC 9728 section 5.1)."""
+        url = self._base(headers) + METADATA_PATH + MCP_PATH
+        return f'Bearer resource_metadata="{url}"'.encode("latin-1")
+
     def _refusal(self, request: h11.Request, headers: dict[str, str]) -> tuple[int, str] | None:
         """Why the request is refused before MCP sees it (status, text), or None."""
-        path = request.target.decode("latin-1").split("?", 1)[0]
+        path, _, query = request.target.decode("latin-1").partition("?")
         if path != MCP_PATH:
             return 404, f"the MCP endpoint is {MCP_PATH}, not {path}"
         if request.method == b"OPTIONS":
             return None
+        credential = _credential_refusal(headers, query)
+        if credential is not None:
+            return 401, credential
         session_id = headers.get(MCP_SESSION_ID_HEADER)
         token = _bearer(headers)
         if session_id is None:
@@ -547,6 +588,23 @@ def _modern(headers: dict[str, str]) -> bool:
     """
     version = headers.get(MCP_PROTOCOL_VERSION_HEADER)
     return version is not None and version not in HANDSHAKE_PROTOCOL_VERSIONS
+
+
+def _credential_refusal(headers: dict[str, str], query: str) -> str | None:
+    """Why the request's credentials are refused, whatever ``--auth-secret-file`` says, or None.
+
+    Only ``Authorization: Bearer`` is taken (RFC 6750 section 2.1, as MCP's
+    authorization asks): another scheme (``Basic``, rosbridge's ``MAC``) and a
+    token in the URL's query (``token=``, ``access_token=``: a video stream's way)
+    are refused, never ignored (D52).
+    """
+    scheme = headers.get("authorization", "").partition(" ")[0]
+    if scheme and scheme.lower() != "bearer":
+        return f"the Authorization scheme {scheme[:32]!r} is not taken here: send Bearer <token>"
+    names = {part.partition("=")[0].lower() for part in query.split("&")}
+    if names & {"token", "access_token"}:
+        return "a token in the URL is refused: send it as Authorization: Bearer <token>"
+    return None
 
 
 def _bearer(headers: dict[str, str]) -> str | None:

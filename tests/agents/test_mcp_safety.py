@@ -28,6 +28,9 @@ from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
+import httpx2
+from mcp import Client
+from mcp.client.streamable_http import streamable_http_client
 from mcp.types import ResourceUpdatedNotification, ServerNotification, TextContent
 
 from rwt_mcp.guard import MAX_TOOL_ARGUMENT_BYTES, TOOL_BURST, TOOL_CALLS_PER_S, WRITE_TOOLS
@@ -99,14 +102,29 @@ async def test_a_session_needs_a_live_bearer_token_when_the_server_has_a_secret(
     tokens = VideoTokens()
     install_token_service(graph, tokens)
     authenticator = rosauth_authenticator("s3cret-s3cret-s3cret", graph.clock)
-    config = _config(McpOptions(bearer_token=tokens.valid))
+    auth_server = "https://login.example.com"
+    config = _config(McpOptions(bearer_token=tokens.valid, authorization_server=auth_server))
     url, server = await serving(graph, config, authenticator=authenticator)
     endpoint = url.replace("ws://", "http://") + "/mcp"
     async with httpx.AsyncClient(timeout=30) as http:
         missing = await http.post(endpoint, json=INITIALIZE, headers=ACCEPT)
         assert missing.status_code == 401
-        assert missing.headers["WWW-Authenticate"] == "Bearer"
+        metadata_url = url.replace("ws://", "http://") + "/.well-known/oauth-protected-resource"
+        challenge = f'Bearer resource_metadata="{metadata_url}/mcp"'
+        assert missing.headers["WWW-Authenticate"] == challenge  # RFC 9728 section 5.1
         assert "a bearer token is needed: call /rwt/video_token" in missing.text
+        metadata = (await http.get(metadata_url + "/mcp")).json()
+        assert metadata["resource"] == endpoint
+        assert metadata["authorization_servers"] == ["https://login.example.com"]
+        for other in ("Basic dXNlcjpwYXNz", "MAC a-rosbridge-mac"):  # other schemes: refused
+            answer = await http.post(endpoint, json=INITIALIZE, headers={**ACCEPT, "Authorization": other})
+            assert answer.status_code == 401 and "is not taken here" in answer.text
+            assert answer.headers["WWW-Authenticate"] == challenge
+        in_url = await http.post(endpoint + f"?token={tokens.issue()}", json=INITIALIZE, headers=ACCEPT)
+        assert in_url.status_code == 401 and "a token in the URL is refused" in in_url.text
+        modern = {**ACCEPT, "MCP-Protocol-Version": "2026-07-28"}
+        discover = {"jsonrpc": "2.0", "id": 1, "method": "server/discover", "params": {}}
+        assert (await http.post(endpoint, json=discover, headers=modern)).status_code == 401
         bad = {**ACCEPT, "Authorization": "Bearer not-a-token"}
         assert (await http.post(endpoint, json=INITIALIZE, headers=bad)).status_code == 401
         assert not server.sessions  # nothing was admitted
@@ -123,6 +141,11 @@ async def test_a_session_needs_a_live_bearer_token_when_the_server_has_a_secret(
         assert "not the one that opened this MCP session" in refused.text
     async with rwt_serve_mcp(url, token=tokens.issue()) as agent:
         assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
+    bearer = {"Authorization": f"Bearer {tokens.issue()}"}  # each 2026-07-28 request carries it
+    modern_http = httpx2.AsyncClient(headers=bearer, timeout=30)
+    async with Client(streamable_http_client(endpoint, http_client=modern_http), mode="auto") as c:
+        assert c.protocol_version == "2026-07-28"
+        assert (await c.call_tool("get_parameter", {"name": "/robot:max_speed"})).structured_content
 
 
 async def test_the_access_globs_refuse_a_tool_call_naming_the_rule(serving: Any) -> None:
