@@ -38,6 +38,7 @@ from mcp.types import (
     PaginatedRequestParams,
     ReadResourceRequestParams,
     ReadResourceResult,
+    RequestParams,
     Resource,
     ResourceTemplate,
     SubscribeRequestParams,
@@ -62,12 +63,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_SUBSCRIBED",
-    "Watched",
     "READ_WAIT_S",
     "RESOURCES_PER_PAGE",
     "TOPIC_URI",
     "UPDATE_INTERVAL_S",
     "TopicResources",
+    "Watched",
 ]
 
 logger = logging.getLogger("rwt.mcp")
@@ -161,7 +162,7 @@ class TopicResources:
         self._notifying = False
 
     def register(self, server: Server[Any]) -> None:
-        """Answer ``resources/*`` and ``subscriptions/listen`` on ``server`` (MCPServer's low level)."""
+        """Answer ``resources/*`` and ``subscriptions/listen`` on ``server`` (its low level)."""
 
         async def list_page(
             _ctx: ServerRequestContext[Any, Any], params: PaginatedRequestParams | None
@@ -171,13 +172,13 @@ class TopicResources:
         async def templates(
             _ctx: ServerRequestContext[Any, Any], _params: PaginatedRequestParams | None
         ) -> ListResourceTemplatesResult:
-            return ListResourceTemplatesResult(resourceTemplates=await self.list_templates())
+            return ListResourceTemplatesResult(resource_templates=await self.list_templates())
 
         async def read(
             _ctx: ServerRequestContext[Any, Any], params: ReadResourceRequestParams
         ) -> ReadResourceResult:
             text = await self.read(params.uri)
-            contents = TextResourceContents(uri=params.uri, text=text, mimeType="application/json")
+            contents = TextResourceContents(uri=params.uri, text=text, mime_type="application/json")
             return ReadResourceResult(contents=[contents])
 
         async def subscribe(
@@ -208,14 +209,15 @@ class TopicResources:
                 for uri in held:
                     await self.unsubscribe(uri, listening=True)
 
-        for method, params_type, handler in (
+        handlers: tuple[tuple[str, type[RequestParams], Any], ...] = (
             ("resources/list", PaginatedRequestParams, list_page),
             ("resources/templates/list", PaginatedRequestParams, templates),
             ("resources/read", ReadResourceRequestParams, read),
             ("resources/subscribe", SubscribeRequestParams, subscribe),
             ("resources/unsubscribe", UnsubscribeRequestParams, unsubscribe),
             ("subscriptions/listen", SubscriptionsListenRequestParams, listen_topics),
-        ):
+        )
+        for method, params_type, handler in handlers:  # each handler takes its params type
             server.add_request_handler(method, params_type, handler)
 
     async def list_resources(self, cursor: str | None = None) -> ListResourcesResult:
@@ -246,23 +248,23 @@ class TopicResources:
                 uri=TOPIC_URI + name if name.startswith("/") else f"{TOPIC_URI}/{name}",
                 name=name,
                 description=topics[name],
-                mimeType="application/json",
+                mime_type="application/json",
             )
             for name in page
         ]
         more = len(names) > len(page)
         return ListResourcesResult(
-            resources=resources, nextCursor=_cursor(page[-1]) if more else None
+            resources=resources, next_cursor=_cursor(page[-1]) if more else None
         )
 
     async def list_templates(self) -> list[ResourceTemplate]:
         """One template: ``ros://topics/{topic}``."""
         return [
             ResourceTemplate(
-                uriTemplate=TOPIC_URI + "/{topic}",
+                uri_template=TOPIC_URI + "/{topic}",
                 name="topic",
                 description="a topic's latest message, summarised (subscribe for updates)",
-                mimeType="application/json",
+                mime_type="application/json",
             )
         ]
 

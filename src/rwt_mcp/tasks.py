@@ -22,6 +22,7 @@ extension's 2026-07-28 schema (``Task``, ``CreateTaskResult``, ``GetTaskResult``
 
 from __future__ import annotations
 
+import contextlib
 import json
 import uuid
 from collections import OrderedDict
@@ -58,7 +59,7 @@ __all__ = [
 ]
 
 TASKS_EXTENSION = "io.modelcontextprotocol/tasks"
-"""The extension's identifier, in ``clientCapabilities.extensions`` and ``capabilities.extensions``."""
+"""The extension's identifier (``clientCapabilities.extensions``, ``capabilities.extensions``)."""
 #: Tasks one store holds (running, or finished and not yet expired).
 MAX_TASKS = 64
 #: Seconds a task lives from its creation (its ``ttlMs``); a goal running then is canceled.
@@ -113,7 +114,7 @@ class GoalTask:
             task["status"] = "completed"
             text = task["statusMessage"]
             result = CallToolResult(
-                content=[TextContent(type="text", text=text)], structuredContent=report
+                content=[TextContent(type="text", text=text)], structured_content=report
             )
             task["result"] = result.model_dump(mode="json", by_alias=True, exclude_none=True)
         return task
@@ -192,12 +193,8 @@ class TaskStore:
 
 def _cancel_on(link: RobotLink, task: GoalTask) -> None:
     """Ask for the goal's cancel on ``link``'s connection (sent with its next flush)."""
-    ros = link.ros
-    if ros is not None:
-        try:
-            ros.session.cancel_action_goal(task.record.action, task.record.handle.id)
-        except RwtError:
-            pass  # the connection is down: the goal's end is the server's
+    with contextlib.suppress(RwtError):  # the connection is down: the goal's end is the server's
+        link.ros.session.cancel_action_goal(task.record.action, task.record.handle.id)
 
 
 class _TaskIdParams(RequestParams):
@@ -228,14 +225,18 @@ class TasksExtension(Extension):
         store: the front end's tasks.
         link: this server's connection (goals it starts live on it).
         guard: this server's rules (``tasks/cancel`` is ``cancel_action_goal``'s call).
-        start_goal: ``(arguments) -> (Goal, report)``: admits and sends a goal of
+        start_goal: ``async (arguments) -> Goal``: admits and sends a goal of
             ``send_action_goal``'s arguments (``tools.RobotTools.start_goal``).
+        report: ``(Goal) -> dict``: the goal as the tool reports it (``tools.goal_report``).
     """
 
     identifier = TASKS_EXTENSION
 
-    def __init__(self, store: TaskStore, link: RobotLink, guard: Guard, start_goal: Any) -> None:
+    def __init__(
+        self, store: TaskStore, link: RobotLink, guard: Guard, start_goal: Any, report: Any
+    ) -> None:
         self.store, self.link, self.guard, self.start_goal = store, link, guard, start_goal
+        self.report = report
         self.started: list[GoalTask] = []
 
     def methods(self) -> list[MethodBinding]:
@@ -259,16 +260,10 @@ class TasksExtension(Extension):
             record = await self.start_goal(dict(params.arguments or {}))
         except (ToolError, ValidationError) as exc:
             text = f"Error executing tool {params.name}: {exc}"
-            return CallToolResult(content=[TextContent(type="text", text=text)], isError=True)
-        task = self.store.add(record, self.link, self._report)
+            return CallToolResult(content=[TextContent(type="text", text=text)], is_error=True)
+        task = self.store.add(record, self.link, self.report)
         self.started.append(task)
         return {"resultType": "task", **_handle(task)}
-
-    @staticmethod
-    def _report(record: Goal) -> dict[str, Any]:
-        from .tools import goal_report  # tools imports this module
-
-        return goal_report(record).model_dump(mode="json")
 
     async def hold(self) -> None:
         """Wait until the tasks this server started release their connection."""

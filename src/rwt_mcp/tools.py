@@ -39,7 +39,7 @@ from .guard import WRITE_TOOLS, Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
 from .resources import TopicResources, Watched
-from .tasks import TaskStore, TasksExtension
+from .tasks import TasksExtension, TaskStore
 
 __all__ = [
     "MAX_ECHO_CHARS",
@@ -308,7 +308,7 @@ class RobotTools:
                 except ImageError as exc:
                     raise ToolError(f"{topic}: {exc}") from None
                 encoded = pybase64.b64encode(data).decode()
-                content.append(ImageContent(type="image", data=encoded, mimeType=mime))
+                content.append(ImageContent(type="image", data=encoded, mime_type=mime))
             shown = {key: value for key, value in msg.items() if not (images and key == "data")}
             text = message_text(shown)
             chars += len(text)
@@ -423,7 +423,7 @@ class RobotTools:
         action: str,
         type: str,
         goal: Message,
-        ctx: Context,  # type: ignore[type-arg]
+        ctx: Context,
         timeout_s: float = 30.0,
     ) -> GoalReport:
         """Send a goal and wait up to ``timeout_s`` for its result; feedback as progress.
@@ -605,7 +605,7 @@ class _Latest:
 
 
 @asynccontextmanager
-async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:  # type: ignore[type-arg]
+async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:
     """Forward the goal's feedback as MCP progress notifications while the call waits.
 
     Feedback arriving while a notification is being sent replaces the one
@@ -686,7 +686,8 @@ def build_server(
     guard = guard or Guard()
     tools = RobotTools(link)
     resources = TopicResources(link, guard, watched)
-    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal)
+    report = functools.partial(_report_json, goal_report)
+    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report)
     server = MCPServer(
         "rwt",
         instructions=(
@@ -732,7 +733,7 @@ def _tool_template(name: str, function: Callable[..., Awaitable[Any]]) -> Tool:
             name=name,
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
-            annotations=ToolAnnotations(readOnlyHint=name not in WRITE_TOOLS),
+            annotations=ToolAnnotations(read_only_hint=name not in WRITE_TOOLS),
         )  # kept without this session's function, so that it keeps nothing of the session
         template = _TEMPLATES[name] = made.model_copy(update={"fn": _no_session})
     return template
@@ -771,6 +772,11 @@ def _call_tools(server: MCPServer) -> None:
     manager.call_tool = call_tool  # type: ignore[method-assign]
 
 
+def _report_json(report: Callable[[Goal], GoalReport], record: Goal) -> dict[str, Any]:
+    """The goal's report as JSON values (a task's ``statusMessage`` and result)."""
+    return report(record).model_dump(mode="json")
+
+
 def _bad_arguments(exc: ValidationError) -> str:
     """``bad arguments: <field>: <what is wrong> (got <type>); ...``, briefly."""
     wrong = [
@@ -807,7 +813,7 @@ def _as_result(structured: dict[str, Any]) -> CallToolResult:
     """
     text = json.dumps(structured, ensure_ascii=False, separators=(",", ":"))
     return CallToolResult(
-        content=[TextContent(type="text", text=text)], structuredContent=structured
+        content=[TextContent(type="text", text=text)], structured_content=structured
     )
 
 

@@ -67,7 +67,6 @@ from rwt_client.connectors import ConnectionClosedError
 from rwt_graph.ratelog import EpisodeLog
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
-from rwt_mcp.resources import Watched
 from rwt_mcp.tasks import TaskStore
 from rwt_mcp.tools import build_server
 from rwt_protocol.codecs.json import decode_json_text
@@ -84,6 +83,7 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream, TaskGroup, TaskStatus
     from mcp.server.lowlevel import Server
 
+    from rwt_mcp.resources import Watched
     from rwt_protocol.server.contract import ServerSession
 
     from .server import RosbridgeServer
@@ -456,7 +456,9 @@ class McpEndpoint:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
                         started = True
-                        await _serve_until_idle(mcp._lowlevel_server, session.transport, read, write)
+                        await _serve_until_idle(
+                            mcp._lowlevel_server, session.transport, read, write
+                        )
                     await tasks.hold()  # the goals it started as tasks
                 finally:
                     await link.close()
@@ -518,7 +520,7 @@ class McpEndpoint:
                 task_status.started(None)
 
     def _modern_guard(self, peer: str) -> Guard:
-        """The rules of a 2026-07-28 request from ``peer``: its host's rate caps (``MODERN_HOSTS_KEPT``)."""
+        """A 2026-07-28 request's rules: its host's rate caps (``MODERN_HOSTS_KEPT``)."""
         host = peer.rpartition(":")[0] or peer
         guard = self._modern_guards.get(host)
         if guard is None:

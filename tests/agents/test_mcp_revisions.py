@@ -122,16 +122,16 @@ async def served() -> AsyncIterator[tuple[str, Graph, list[str]]]:
 
 
 @asynccontextmanager
-async def connect(
-    url: str, front: str, mode: str, on_message: Any = None
-) -> AsyncIterator[Client]:
-    """An SDK client of ``mode`` (``legacy``, or ``auto``: discover) on ``/mcp`` or ``rwt mcp URL``."""
+async def connect(url: str, front: str, mode: str, on_message: Any = None) -> AsyncIterator[Client]:
+    """An SDK client of ``mode`` (``legacy``, or ``auto``: discover) on ``/mcp`` or stdio."""
     target: str | StdioServerParameters = "http://" + url.split("://", 1)[1] + "/mcp"
     if front == "stdio":
         args = ["-m", "rwt", "mcp", url]
         target = StdioServerParameters(command=sys.executable, args=args, env=dict(ENV))
     extensions = [Tasks()]
-    async with Client(target, mode=mode, extensions=extensions, message_handler=on_message) as client:
+    async with Client(
+        target, mode=mode, extensions=extensions, message_handler=on_message
+    ) as client:
         yield client
 
 
@@ -238,4 +238,3 @@ async def test_an_unknown_task_is_an_error(served: tuple[str, Graph, list[str]])
     async with connect(url, "http", AUTO) as client:
         with pytest.raises(Exception, match="no task 'nope'"):
             await task_request(client, "tasks/get", "nope")
-

@@ -117,10 +117,14 @@ async def test_a_session_needs_a_live_bearer_token_when_the_server_has_a_secret(
         assert metadata["resource"] == endpoint
         assert metadata["authorization_servers"] == ["https://login.example.com"]
         for other in ("Basic dXNlcjpwYXNz", "MAC a-rosbridge-mac"):  # other schemes: refused
-            answer = await http.post(endpoint, json=INITIALIZE, headers={**ACCEPT, "Authorization": other})
+            answer = await http.post(
+                endpoint, json=INITIALIZE, headers={**ACCEPT, "Authorization": other}
+            )
             assert answer.status_code == 401 and "is not taken here" in answer.text
             assert answer.headers["WWW-Authenticate"] == challenge
-        in_url = await http.post(endpoint + f"?token={tokens.issue()}", json=INITIALIZE, headers=ACCEPT)
+        in_url = await http.post(
+            endpoint + f"?token={tokens.issue()}", json=INITIALIZE, headers=ACCEPT
+        )
         assert in_url.status_code == 401 and "a token in the URL is refused" in in_url.text
         modern = {**ACCEPT, "MCP-Protocol-Version": "2026-07-28"}
         discover = {"jsonrpc": "2.0", "id": 1, "method": "server/discover", "params": {}}

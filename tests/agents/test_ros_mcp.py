@@ -24,16 +24,16 @@ import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_graph.actions import GoalCanceledError, GoalContext
-
 from tests.support.ros_mcp import ros_mcp_python
 
 pytest.importorskip("mcp", reason="the MCP client is not installed (pip install 'rwt[test]')")
-ROS_MCP_PYTHON, _why = ros_mcp_python()  # its own environment: it holds mcp below 2 (D52)
-if ROS_MCP_PYTHON is None:
-    pytest.skip(f"ros-mcp 3.1.2 cannot run here: {_why}", allow_module_level=True)
 
 from mcp import ClientSession, StdioServerParameters
 from mcp.client.stdio import stdio_client
+
+ROS_MCP_PYTHON, _why = ros_mcp_python()  # its own environment: it holds mcp below 2 (D52)
+if ROS_MCP_PYTHON is None:
+    pytest.skip(f"ros-mcp 3.1.2 cannot run here: {_why}", allow_module_level=True)
 
 pytestmark = pytest.mark.anyio
 
