@@ -20,7 +20,7 @@ import anyio
 import httpx
 from mcp import ClientSession
 from mcp.client.streamable_http import streamable_http_client
-from mcp.shared.exceptions import McpError
+from mcp.shared.exceptions import MCPError
 from mcp.types import ImageContent, TextContent
 from PIL import Image
 from websockets.asyncio.client import connect
@@ -430,7 +430,7 @@ async def _refusals(context: Context) -> Outcome:
             answers["resources/subscribe (the session's one subscription)"] = "ok"
             await session.subscribe_resource("ros://topics/scan")  # type: ignore[arg-type]
             answers["resources/subscribe past --max-subscriptions 1"] = "success"
-        except McpError as error:
+        except MCPError as error:
             answers["resources/subscribe past --max-subscriptions 1"] = "error: " + str(error)[:110]
         result = await session.call_tool("echo", {"topic": "/battery", "timeout_s": 2})
         answers["echo past --max-subscriptions 1"] = _answer(result)
