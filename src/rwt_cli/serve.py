@@ -165,7 +165,10 @@ def _check_listeners(options: ServeOptions) -> None:
         if not listeners.mcp_authorization_server.startswith(("https://", "http://")):
             raise usage_error("--mcp-authorization-server: an issuer URL, https://HOST[/PATH]")
     if listeners.mcp and options.scale_out.workers > 1:  # each request is a connection of its own
-        raise usage_error("--mcp keeps its sessions in one process: not with --workers")
+        raise usage_error(
+            "--mcp keeps its sessions and tasks in one process: not with --workers"
+            " (docs/mcp.md, 'Tasks and workers')"
+        )
 
 
 def _set_up_process(process: Process) -> None:
