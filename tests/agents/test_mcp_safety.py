@@ -364,7 +364,8 @@ async def test_a_request_outside_a_session_gets_a_status_saying_why(serving: Any
         )
         assert allowed.status_code == 200
         assert allowed.headers["Access-Control-Allow-Origin"] == "https://ok.example"
-        assert allowed.headers["Access-Control-Expose-Headers"] == "Mcp-Session-Id"
+        expose = allowed.headers["Access-Control-Expose-Headers"]
+        assert expose == "Mcp-Session-Id, WWW-Authenticate"
         # another path is the WebSocket listener's own: no console here, so it asks for an upgrade
         assert (await http.get(url.replace("ws://", "http://") + "/mcpx")).status_code == 426
     assert [client for client in server.sessions if client.startswith("mcp:")] != []
