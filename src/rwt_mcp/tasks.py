@@ -181,11 +181,19 @@ class TaskStore:
         task.released.set()
 
     async def hold(self, task: GoalTask) -> None:
-        """Wait until ``task``'s goal ends or the task expires, then release it."""
+        """Wait until ``task``'s goal ends or the task expires, then release it.
+
+        A goal still running at the task's expiry is canceled on its connection,
+        sent before the connection is let go.
+        """
         remaining = task.created + TASK_TTL_S - self._clock()
         with anyio.move_on_after(max(remaining, 0.0)):
             await task.record.done.wait()
         self.expire()
+        if not task.record.done.is_set():
+            _cancel_on(task.link, task)
+            with contextlib.suppress(RwtError), anyio.move_on_after(1.0):
+                await task.link.ros.flush()
         if task.record.done.is_set():
             task.touch()
         task.released.set()

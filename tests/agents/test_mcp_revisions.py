@@ -27,10 +27,13 @@ pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test
 
 from mcp import Client, StdioServerParameters
 from mcp.client.extension import ClaimContext, ClientExtension, ResultClaim
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.shared.exceptions import MCPError
 from mcp.types import CallToolResult, Request, RequestParams, Result, TextContent
 from pydantic import ConfigDict
 
-from rwt_mcp.tasks import TASKS_EXTENSION
+from rwt_mcp.link import Goal
+from rwt_mcp.tasks import MAX_TASKS, TASK_TTL_S, TASKS_EXTENSION, TaskStore
 from rwt_transports.mcp_options import McpOptions
 from tests.support.cli import ENV
 
@@ -238,3 +241,43 @@ async def test_an_unknown_task_is_an_error(served: tuple[str, Graph, list[str]])
     async with connect(url, "http", AUTO) as client:
         with pytest.raises(Exception, match="no task 'nope'"):
             await task_request(client, "tasks/get", "nope")
+
+
+class _Handle:
+    def __init__(self, goal_id: str) -> None:
+        self.id = goal_id
+
+
+class _Link:
+    """A link whose connection takes cancels (the expiry's), counting them."""
+
+    def __init__(self) -> None:
+        self.canceled: list[str] = []
+        self.ros = self
+        self.session = self
+
+    def cancel_action_goal(self, _action: str, goal_id: str) -> None:
+        self.canceled.append(goal_id)
+
+
+async def test_a_store_holds_max_tasks_and_forgets_them_after_their_ttl() -> None:
+    now = [0.0]
+    store = TaskStore(clock=lambda: now[0])
+    link = _Link()
+
+    def report(record: Goal) -> Message:
+        return {"state": "succeeded" if record.done.is_set() else "running"}
+
+    goals = [Goal("/fibonacci", _Handle(f"g{n}")) for n in range(MAX_TASKS)]  # type: ignore[arg-type]
+    tasks = [store.add(goal, link, report) for goal in goals]  # type: ignore[arg-type]
+    with pytest.raises(ToolError, match=f"{MAX_TASKS} tasks are running"):
+        store.add(Goal("/fibonacci", _Handle("late")), link, report)  # type: ignore[arg-type]
+    goals[0].done.set()  # a finished task makes room: the oldest finished goes
+    store.add(Goal("/fibonacci", _Handle("next")), link, report)  # type: ignore[arg-type]
+    with pytest.raises(MCPError, match="unknown, or expired"):
+        store.get(tasks[0].task_id)
+    assert store.get(tasks[1].task_id).wire()["status"] == "working"
+    now[0] = TASK_TTL_S  # every task's life is over: forgotten, running goals canceled
+    with pytest.raises(MCPError, match="unknown, or expired"):
+        store.get(tasks[1].task_id)
+    assert len(link.canceled) == MAX_TASKS and not store.tasks
