@@ -18,6 +18,7 @@ from typing import Any
 
 import anyio
 import httpx
+import httpx2
 from mcp import ClientSession
 from mcp.client.streamable_http import streamable_http_client
 from mcp.shared.exceptions import MCPError
@@ -73,7 +74,7 @@ async def open_raw(
 @asynccontextmanager
 async def agent(endpoint: str) -> AsyncIterator[ClientSession]:
     """The official MCP client, initialized; its session ends with the context."""
-    http = httpx.AsyncClient(timeout=httpx.Timeout(WAIT_S, read=300))
+    http = httpx2.AsyncClient(timeout=httpx2.Timeout(WAIT_S, read=300))
     async with (
         http,
         streamable_http_client(endpoint, http_client=http) as (read, write),
