@@ -224,7 +224,10 @@ def test_block_runs(
         python, why = ros_mcp_python()
         if python is None:
             pytest.skip(f"ros-mcp 3.1.2 cannot run here: {why}")
-        monkeypatch.setenv("PATH", f"{python.parent}{os.pathsep}{os.environ['PATH']}")
+        only = tmp_path / "ros-mcp-bin"  # its command alone: not its env's python
+        only.mkdir()
+        (only / "ros-mcp").symlink_to(python.parent / "ros-mcp")
+        monkeypatch.setenv("PATH", f"{only}{os.pathsep}{os.environ['PATH']}")
     if block.language == "json":
         try:
             json.loads(block.text)
