@@ -46,6 +46,7 @@ import functools
 import hmac
 import json
 import logging
+import re
 import uuid
 from collections import OrderedDict
 from contextlib import asynccontextmanager
@@ -112,6 +113,7 @@ MODERN_HOSTS_KEPT = 256
 a request has no session); past them the least recently seen host's are dropped."""
 
 _METHODS = (b"POST", b"GET", b"DELETE", b"OPTIONS")
+_HOST = re.compile(r"[^A-Za-z0-9.:\[\]_-]")  # what a Host header may keep in a URL
 _READ_SIZE = 65536
 _CORS = [
     (b"Access-Control-Allow-Methods", b"POST, GET, DELETE, OPTIONS"),
@@ -312,8 +314,8 @@ class McpEndpoint:
     def _base(self, headers: dict[str, str]) -> str:
         """``http(s)://HOST[:PORT]`` as the client reached the endpoint (its ``Host`` header)."""
         scheme = "https" if self.server.config.certfile is not None else "http"
-        host = headers.get("host", "") or f"{self.server.config.host}:{self.server.config.port}"
-        return f"{scheme}://{host}"
+        host = _HOST.sub("", headers.get("host", ""))[:255]  # the peer's text, in a header
+        return f"{scheme}://{host or f'{self.server.config.host}:{self.server.config.port}'}"
 
     def _metadata(self, headers: dict[str, str]) -> dict[str, Any]:
         """The protected-resource metadata of ``/mcp`` (RFC 9728 section 2; D52)."""
