@@ -486,9 +486,11 @@ class McpEndpoint:
         answered = anyio.Event()
         try:
             mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered)
-            if mcp is not None:
-                entry = functools.partial(handle_modern_request, mcp, _NO_SDK_CHECK, False, {})
-                await exchange.run(entry)
+            if mcp is None:  # its connection failed before it could run (logged)
+                await exchange.refuse(503, "the MCP request's connection failed")
+                return
+            entry = functools.partial(handle_modern_request, mcp, _NO_SDK_CHECK, False, {})
+            await exchange.run(entry)
         finally:
             answered.set()
 
