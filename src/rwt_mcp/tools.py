@@ -78,6 +78,10 @@ Message = dict[str, Any]
 # The SDK logs every request at INFO ("Processing request of type CallToolRequest"): a
 # line per request, at the rate a peer chooses (docs/limits.md, "Logs a peer can trigger")
 logging.getLogger("mcp.server.lowlevel.server").setLevel(logging.WARNING)
+# ... and a line per failed tool call or read (MCPServer, INFO: the agent gets the error),
+# per malformed notification (the runner, WARNING): a peer's to trigger at will
+logging.getLogger("mcp.server.mcpserver.server").setLevel(logging.WARNING)
+logging.getLogger("mcp.server.runner").setLevel(logging.ERROR)
 
 
 # The listings are typed dicts, not models: a model of 1000 topics took 5 to 12 ms
