@@ -18,9 +18,10 @@ from typing import Any
 
 import anyio
 import httpx
+import httpx2
 from mcp import ClientSession
 from mcp.client.streamable_http import streamable_http_client
-from mcp.shared.exceptions import McpError
+from mcp.shared.exceptions import MCPError
 from mcp.types import ImageContent, TextContent
 from PIL import Image
 from websockets.asyncio.client import connect
@@ -73,10 +74,10 @@ async def open_raw(
 @asynccontextmanager
 async def agent(endpoint: str) -> AsyncIterator[ClientSession]:
     """The official MCP client, initialized; its session ends with the context."""
-    http = httpx.AsyncClient(timeout=httpx.Timeout(WAIT_S, read=300))
+    http = httpx2.AsyncClient(timeout=httpx2.Timeout(WAIT_S, read=300))
     async with (
         http,
-        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        streamable_http_client(endpoint, http_client=http) as (read, write),
         ClientSession(read, write) as session,
     ):
         await session.initialize()
@@ -209,11 +210,11 @@ def _kind(result: Any) -> str:
     text = _text(result)
     if any(isinstance(b, ImageContent) for b in result.content):
         return "an image"
-    if result.isError and "MAX_DECODE_PIXELS" in text:
+    if result.is_error and "MAX_DECODE_PIXELS" in text:
         return "error: over MAX_DECODE_PIXELS"
-    if result.isError and "times a second" in text:
+    if result.is_error and "times a second" in text:
         return "error: called too often"
-    return ("error: " if result.isError else "text: ") + text[:70]
+    return ("error: " if result.is_error else "text: ") + text[:70]
 
 
 async def _bomb(context: Context) -> Outcome:
@@ -255,7 +256,7 @@ async def _listings(context: Context) -> Outcome:
 
             async def listing() -> str:
                 result = await session.call_tool("list_topics", {})
-                if not result.isError:
+                if not result.is_error:
                     return "listed"
                 text = _text(result)
                 return "refused: rate" if "LISTING_CALLS_PER_S" in text else "error: " + text[:60]
@@ -430,7 +431,7 @@ async def _refusals(context: Context) -> Outcome:
             answers["resources/subscribe (the session's one subscription)"] = "ok"
             await session.subscribe_resource("ros://topics/scan")  # type: ignore[arg-type]
             answers["resources/subscribe past --max-subscriptions 1"] = "success"
-        except McpError as error:
+        except MCPError as error:
             answers["resources/subscribe past --max-subscriptions 1"] = "error: " + str(error)[:110]
         result = await session.call_tool("echo", {"topic": "/battery", "timeout_s": 2})
         answers["echo past --max-subscriptions 1"] = _answer(result)
@@ -441,7 +442,7 @@ async def _refusals(context: Context) -> Outcome:
 
 
 def _answer(result: Any) -> str:
-    return ("error: " if result.isError else "success: ") + _text(result)[:110]
+    return ("error: " if result.is_error else "success: ") + _text(result)[:110]
 
 
 # ---- 13: a flood of video tokens, then a victim's token -------------------------------------

@@ -7,8 +7,9 @@ official MCP Python client in this process:
 
 - ``rwt serve --mcp``: Streamable HTTP at the robot's own ``/mcp``;
 - ``rwt mcp URL``: stdio, one persistent rosbridge connection;
-- ros-mcp 3.1.2 (``pip install ros-mcp==3.1.2``): stdio, a rosbridge connection
-  per tool call.
+- ros-mcp 3.1.2: stdio, a rosbridge connection per tool call. It holds mcp below 2,
+  so it runs from an environment of its own (docs/decisions.md D52): ``--ros-mcp-python``
+  (or ``RWT_ROS_MCP_PYTHON``) names its Python.
 
 Four comparable calls: list the topics, read one latched message, publish one
 message, call a service. Each is timed from the client's ``call_tool`` to its
@@ -32,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import anyio
-import httpx
+import httpx2
 from mcp import ClientSession, StdioServerParameters
 from mcp.client.stdio import stdio_client
 from mcp.client.streamable_http import streamable_http_client
@@ -109,8 +110,8 @@ async def robot() -> AsyncIterator[str]:
 async def over_http(url: str) -> AsyncIterator[ClientSession]:
     endpoint = url.replace("ws://", "http://") + "/mcp"
     async with (
-        httpx.AsyncClient(timeout=httpx.Timeout(30, read=300)) as http,
-        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        httpx2.AsyncClient(timeout=httpx2.Timeout(30, read=300)) as http,
+        streamable_http_client(endpoint, http_client=http) as (read, write),
         ClientSession(read, write) as session,
     ):
         await session.initialize()
@@ -118,8 +119,10 @@ async def over_http(url: str) -> AsyncIterator[ClientSession]:
 
 
 @asynccontextmanager
-async def over_stdio(args: list[str], errlog: Path) -> AsyncIterator[ClientSession]:
-    params = StdioServerParameters(command=sys.executable, args=args, env=ENV)
+async def over_stdio(
+    args: list[str], errlog: Path, python: str = sys.executable
+) -> AsyncIterator[ClientSession]:
+    params = StdioServerParameters(command=python, args=args, env=ENV)
     with errlog.open("w") as log:
         async with (
             stdio_client(params, errlog=log) as (read, write),
@@ -140,7 +143,7 @@ async def measure(session: ClientSession, ros_mcp: bool, calls: int) -> dict[str
             result = await session.call_tool(tool, arguments)
             elapsed_ms = (time.perf_counter() - began) * 1000
             text = json.dumps([block.model_dump() for block in result.content])
-            if result.isError or '"error"' in text:
+            if result.is_error or '"error"' in text:
                 raise RuntimeError(f"{tool} failed: {text[:300]}")
             if round_ >= 2:
                 times[name].append(elapsed_ms)
@@ -153,7 +156,7 @@ def _p(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
-async def main(calls: int) -> dict[str, dict[str, dict[str, float]]]:
+async def main(calls: int, ros_mcp_python: str) -> dict[str, dict[str, dict[str, float]]]:
     results: dict[str, dict[str, dict[str, float]]] = {}
     logs = Path(os.environ.get("TMPDIR", "/tmp"))
     async with robot() as url:
@@ -164,7 +167,9 @@ async def main(calls: int) -> dict[str, dict[str, dict[str, float]]]:
                 False,
             ),
             "ros-mcp 3.1.2 (stdio)": (
-                lambda: over_stdio(["-m", "ros_mcp.main"], logs / "b23-ros-mcp.log"),
+                lambda: over_stdio(
+                    ["-m", "ros_mcp.main"], logs / "b23-ros-mcp.log", ros_mcp_python
+                ),
                 True,
             ),
         }
@@ -203,8 +208,13 @@ def table(results: dict[str, dict[str, dict[str, float]]]) -> str:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--calls", type=int, default=30, help="timed calls of each tool")
+    parser.add_argument(
+        "--ros-mcp-python",
+        default=os.environ.get("RWT_ROS_MCP_PYTHON", sys.executable),
+        help="a Python with ros-mcp 3.1.2 installed (its own environment)",
+    )
     options = parser.parse_args()
-    measured = anyio.run(main, options.calls)
+    measured = anyio.run(main, options.calls, options.ros_mcp_python)
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "mcp_latency.json").write_text(json.dumps(measured, indent=2) + "\n")
     print(table(measured))

@@ -159,8 +159,16 @@ def _check_listeners(options: ServeOptions) -> None:
         raise usage_error("--mcp answers on the WebSocket port: not with --no-websocket")
     if listeners.mcp_read_only and not listeners.mcp:
         raise usage_error("--mcp-read-only is a setting of --mcp: add --mcp")
+    if listeners.mcp_authorization_server is not None:
+        if not listeners.mcp:
+            raise usage_error("--mcp-authorization-server is a setting of --mcp: add --mcp")
+        if not listeners.mcp_authorization_server.startswith(("https://", "http://")):
+            raise usage_error("--mcp-authorization-server: an issuer URL, https://HOST[/PATH]")
     if listeners.mcp and options.scale_out.workers > 1:  # each request is a connection of its own
-        raise usage_error("--mcp keeps its sessions in one process: not with --workers")
+        raise usage_error(
+            "--mcp keeps its sessions and tasks in one process: not with --workers"
+            " (docs/mcp.md, 'Tasks and workers')"
+        )
 
 
 def _set_up_process(process: Process) -> None:
@@ -204,7 +212,11 @@ def _server(
         config = replace(config, webrtc=webrtc)
     if options.listeners.mcp:  # a new MCP session's bearer token is a video token (docs/mcp.md)
         check = None if tokens is None else tokens.valid
-        mcp = McpOptions(read_only=options.listeners.mcp_read_only, bearer_token=check)
+        mcp = McpOptions(
+            read_only=options.listeners.mcp_read_only,
+            bearer_token=check,
+            authorization_server=options.listeners.mcp_authorization_server,
+        )
         config = replace(config, mcp=mcp)
     if site is not None:
         site.limits = _limits(config)

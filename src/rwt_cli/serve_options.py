@@ -165,6 +165,14 @@ class Listeners:
             " cancel, set_parameter)."
         ),
     ] = False
+    mcp_authorization_server: Annotated[
+        str | None,
+        typer.Option(
+            help="With --mcp: the OAuth 2.1 authorization server (its issuer URL, https://...)"
+            " that /.well-known/oauth-protected-resource names for /mcp (RFC 9728;"
+            " docs/mcp.md, 'Authorization')."
+        ),
+    ] = None
     websocket_ping_interval: Annotated[
         float, typer.Option(help="Seconds between WebSocket keepalive pings (0: none).")
     ] = 0.0

@@ -20,7 +20,8 @@ from rwt_protocol.errors import ConfigError
 
 from .guard import Guard
 from .link import RobotLink
-from .tools import build_server, initialization_options
+from .tasks import TaskStore
+from .tools import build_server
 
 __all__ = ["mcp_command", "serve_stdio"]
 
@@ -29,20 +30,26 @@ async def serve_stdio(url: str, *, read_only: bool = False) -> None:
     """Serve MCP on this process's stdin and stdout until stdin closes.
 
     One rosbridge connection to ``url`` for the whole session, made in the
-    background: tools called before it is up fail with the client's reason.
+    background: tools called before it is up fail with the client's reason. The
+    client's first request decides the protocol's era (the SDK's dual-era loop,
+    D52): a 2025-era client's ``initialize``, or a 2026-07-28 client's requests,
+    each with its ``_meta``.
 
     Args:
         url: the rosbridge server (``rwt_client.connectors.server_url``'s forms).
         read_only: refuse the tools that change the robot (``guard.WRITE_TOOLS``).
     """
     link = RobotLink(url)
-    server = build_server(link, Guard(client=f"stdio:{url}", read_only=read_only))
+    server, _tasks = build_server(
+        link, Guard(client=f"stdio:{url}", read_only=read_only), TaskStore()
+    )
+    lowlevel = server._lowlevel_server
     ended = anyio.Event()
 
     async def stdio() -> None:
         try:
             async with stdio_server() as (read, write):
-                await server._mcp_server.run(read, write, initialization_options(server))
+                await lowlevel.run(read, write, lowlevel.create_initialization_options())
         finally:
             ended.set()
 

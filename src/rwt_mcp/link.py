@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import anyio
-from mcp.server.fastmcp.exceptions import ToolError
+from mcp.server.mcpserver.exceptions import ToolError
 
 from rwt_client import Action, GoalHandle, Ros, Topic
 from rwt_client.connectors import ConnectionClosedError

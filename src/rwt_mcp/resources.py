@@ -6,10 +6,13 @@ sorted by name, with MCP's cursor to the next page (``nextCursor``).
 ``resources/read`` answers the latest message, summarised as
 ``echo``'s are (``render.message_text``): the one kept for a subscribed topic,
 else the first to arrive within ``READ_WAIT_S`` (a latched topic's at once).
-``resources/subscribe`` subscribes the session's connection to the topic,
-throttled by the server to one message per ``UPDATE_INTERVAL_S``, and sends
-``notifications/resources/updated`` at most once per ``UPDATE_INTERVAL_S`` per
-topic, however fast it publishes (docs/limits.md, "MCP front end"); a session
+``resources/subscribe`` (2025-era clients) and ``subscriptions/listen`` with
+``resourceSubscriptions`` (2026-07-28 clients, D52) subscribe the session's
+connection to the topic, throttled by the server to one message per
+``UPDATE_INTERVAL_S``, and send ``notifications/resources/updated`` (on the
+session's event stream, or the listen request's) at most once per
+``UPDATE_INTERVAL_S`` per topic, however fast it publishes (docs/limits.md, "MCP
+front end"); a listen stream's topics are unsubscribed when it ends. A session
 subscribes to at most ``MAX_SUBSCRIBED`` topics, and a subscription the server
 refuses (``--max-subscriptions``) is an error with the server's reason. Each of
 these requests is rated as a tool call is (``guard.Guard.check_rate``).
@@ -24,19 +27,26 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 import pybase64
-from mcp.server.fastmcp.exceptions import ToolError
-from mcp.server.lowlevel.helper_types import ReadResourceContents
-from mcp.shared.exceptions import McpError
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.server.subscriptions import InMemorySubscriptionBus, ListenHandler, ResourceUpdated
+from mcp.shared.exceptions import MCPError
 from mcp.types import (
     INVALID_PARAMS,
-    ErrorData,
-    ListResourcesRequest,
+    EmptyResult,
     ListResourcesResult,
+    ListResourceTemplatesResult,
+    PaginatedRequestParams,
+    ReadResourceRequestParams,
+    ReadResourceResult,
+    RequestParams,
     Resource,
     ResourceTemplate,
-    ServerResult,
+    SubscribeRequestParams,
+    SubscriptionsListenRequestParams,
+    SubscriptionsListenResult,
+    TextResourceContents,
+    UnsubscribeRequestParams,
 )
-from pydantic import AnyUrl
 
 from rwt_client import Topic
 from rwt_protocol.errors import OpRefusedError, RwtError
@@ -44,6 +54,7 @@ from rwt_protocol.errors import OpRefusedError, RwtError
 from .render import message_text
 
 if TYPE_CHECKING:
+    from mcp.server.context import ServerRequestContext
     from mcp.server.lowlevel import Server
     from mcp.server.session import ServerSession
 
@@ -57,6 +68,7 @@ __all__ = [
     "TOPIC_URI",
     "UPDATE_INTERVAL_S",
     "TopicResources",
+    "Watched",
 ]
 
 logger = logging.getLogger("rwt.mcp")
@@ -73,21 +85,21 @@ RESOURCES_PER_PAGE = 200
 READ_WAIT_S = 2.0
 
 
-def topic_of(uri: AnyUrl | str) -> str:
+def topic_of(uri: str) -> str:
     """The topic name of a resource URI.
 
     Raises:
-        McpError: not a ``ros://topics/...`` URI.
+        MCPError: not a ``ros://topics/...`` URI.
     """
     text = str(uri)
     prefix = TOPIC_URI + "/"
     if not text.startswith(prefix) or len(text) == len(prefix):
-        raise McpError(ErrorData(code=INVALID_PARAMS, message=f"uri {text}: not {prefix}<topic>"))
+        raise MCPError(INVALID_PARAMS, f"uri {text}: not {prefix}<topic>")
     return "/" + text[len(prefix) :]
 
 
-def _refused(message: str) -> McpError:
-    return McpError(ErrorData(code=INVALID_PARAMS, message=message))
+def _refused(message: str) -> MCPError:
+    return MCPError(INVALID_PARAMS, message)
 
 
 def _cursor(after: str) -> str:
@@ -99,7 +111,7 @@ def _after(cursor: str | None) -> str:
     """The topic a cursor continues after; "" for the first page.
 
     Raises:
-        McpError: not a cursor this server gave.
+        MCPError: not a cursor this server gave.
     """
     if cursor is None:
         return ""
@@ -121,41 +133,92 @@ class _Watch:
         self.fresh = False
 
 
+Watched = dict[str, _Watch]
+"""Topics watched, by name: ``TopicResources.shared``."""
+
+
 class TopicResources:
     """The topics of the robot behind ``link`` as resources of ``server``.
 
     Args:
         link: the session's connection.
         guard: the session's access rules (a topic they refuse is an error).
+        shared: the topics watched by the front end's other servers, whose latest
+            message a read answers too (a 2026-07-28 request reads what another
+            request's listen stream holds); None: this server's own only.
     """
 
-    def __init__(self, link: RobotLink, guard: Guard) -> None:
+    def __init__(
+        self, link: RobotLink, guard: Guard, shared: dict[str, _Watch] | None = None
+    ) -> None:
         self.link = link
         self.guard = guard
         self.watched: dict[str, _Watch] = {}
+        self.shared = shared if shared is not None else self.watched
+        self.bus = InMemorySubscriptionBus()  # the listen streams' (2026-07-28)
+        self._holders: dict[str, int] = {}  # topic: listen streams and a subscribe
         self._session: ServerSession | None = None
         self._changed = anyio.Event()
         self._notifying = False
 
-    def register(self, server: Server[Any, Any]) -> None:
-        """Answer ``resources/*`` requests on ``server`` (the FastMCP's low-level server)."""
+    def register(self, server: Server[Any]) -> None:
+        """Answer ``resources/*`` and ``subscriptions/listen`` on ``server`` (its low level)."""
 
-        async def list_page(request: ListResourcesRequest) -> ServerResult:
-            cursor = request.params.cursor if request.params is not None else None
-            return ServerResult(await self.list_resources(cursor))
+        async def list_page(
+            _ctx: ServerRequestContext[Any, Any], params: PaginatedRequestParams | None
+        ) -> ListResourcesResult:
+            return await self.list_resources(params.cursor if params is not None else None)
 
-        # a paginated answer needs the request: the handler is registered as the SDK's
-        # decorator would register a new-style one
-        server.request_handlers[ListResourcesRequest] = list_page
-        # the SDK's decorators are untyped; each registers the handler it is given
-        server.list_resource_templates()(self.list_templates)  # type: ignore[no-untyped-call]
-        server.read_resource()(self.read)  # type: ignore[no-untyped-call]
+        async def templates(
+            _ctx: ServerRequestContext[Any, Any], _params: PaginatedRequestParams | None
+        ) -> ListResourceTemplatesResult:
+            return ListResourceTemplatesResult(resource_templates=await self.list_templates())
 
-        async def subscribe(uri: AnyUrl) -> None:
-            await self.subscribe(uri, server.request_context.session)
+        async def read(
+            _ctx: ServerRequestContext[Any, Any], params: ReadResourceRequestParams
+        ) -> ReadResourceResult:
+            text = await self.read(params.uri)
+            contents = TextResourceContents(uri=params.uri, text=text, mime_type="application/json")
+            return ReadResourceResult(contents=[contents])
 
-        server.subscribe_resource()(subscribe)  # type: ignore[no-untyped-call]
-        server.unsubscribe_resource()(self.unsubscribe)  # type: ignore[no-untyped-call]
+        async def subscribe(
+            ctx: ServerRequestContext[Any, Any], params: SubscribeRequestParams
+        ) -> EmptyResult:
+            await self.subscribe(params.uri, ctx.session)
+            return EmptyResult()
+
+        async def unsubscribe(
+            _ctx: ServerRequestContext[Any, Any], params: UnsubscribeRequestParams
+        ) -> EmptyResult:
+            await self.unsubscribe(params.uri)
+            return EmptyResult()
+
+        listen = ListenHandler(self.bus)
+
+        async def listen_topics(
+            ctx: ServerRequestContext[Any, Any], params: SubscriptionsListenRequestParams
+        ) -> SubscriptionsListenResult:
+            uris = list(params.notifications.resource_subscriptions or ())
+            held: list[str] = []
+            try:
+                for uri in uris[: MAX_SUBSCRIBED + 1]:
+                    await self.subscribe(uri, None)
+                    held.append(uri)
+                return await listen(ctx, params)
+            finally:
+                for uri in held:
+                    await self.unsubscribe(uri, listening=True)
+
+        handlers: tuple[tuple[str, type[RequestParams], Any], ...] = (
+            ("resources/list", PaginatedRequestParams, list_page),
+            ("resources/templates/list", PaginatedRequestParams, templates),
+            ("resources/read", ReadResourceRequestParams, read),
+            ("resources/subscribe", SubscribeRequestParams, subscribe),
+            ("resources/unsubscribe", UnsubscribeRequestParams, unsubscribe),
+            ("subscriptions/listen", SubscriptionsListenRequestParams, listen_topics),
+        )
+        for method, params_type, handler in handlers:  # each handler takes its params type
+            server.add_request_handler(method, params_type, handler)
 
     async def list_resources(self, cursor: str | None = None) -> ListResourcesResult:
         """A page of the robot's topics, each with its type as description.
@@ -169,7 +232,7 @@ class TopicResources:
             goes between two pages is listed or not, as it sorts.
 
         Raises:
-            McpError: a cursor this server did not give, the rate cap, or the
+            MCPError: a cursor this server did not give, the rate cap, or the
                 connection down.
         """
         self._rated("resources/list")
@@ -182,41 +245,41 @@ class TopicResources:
         page = names[:RESOURCES_PER_PAGE]
         resources = [
             Resource(
-                uri=AnyUrl(TOPIC_URI + name if name.startswith("/") else f"{TOPIC_URI}/{name}"),
+                uri=TOPIC_URI + name if name.startswith("/") else f"{TOPIC_URI}/{name}",
                 name=name,
                 description=topics[name],
-                mimeType="application/json",
+                mime_type="application/json",
             )
             for name in page
         ]
         more = len(names) > len(page)
         return ListResourcesResult(
-            resources=resources, nextCursor=_cursor(page[-1]) if more else None
+            resources=resources, next_cursor=_cursor(page[-1]) if more else None
         )
 
     async def list_templates(self) -> list[ResourceTemplate]:
         """One template: ``ros://topics/{topic}``."""
         return [
             ResourceTemplate(
-                uriTemplate=TOPIC_URI + "/{topic}",
+                uri_template=TOPIC_URI + "/{topic}",
                 name="topic",
                 description="a topic's latest message, summarised (subscribe for updates)",
-                mimeType="application/json",
+                mime_type="application/json",
             )
         ]
 
-    async def read(self, uri: AnyUrl) -> list[ReadResourceContents]:
+    async def read(self, uri: str) -> str:
         """The topic's latest message as JSON text (summarised, ``render.message_text``).
 
         Raises:
-            McpError: a bad URI, a topic the rules refuse, no message within
+            MCPError: a bad URI, a topic the rules refuse, no message within
                 ``READ_WAIT_S``, or the connection down.
         """
         self._rated("resources/read")
         topic = self._allowed(uri)
-        watch = self.watched.get(topic)
+        watch = self.watched.get(topic) or self.shared.get(topic)
         if watch is not None and watch.latest is not None:
-            return [ReadResourceContents(message_text(watch.latest), "application/json")]
+            return message_text(watch.latest)
         got: list[Any] = []
         arrived = anyio.Event()
 
@@ -241,21 +304,32 @@ class TopicResources:
             raise _refused(str(exc)) from None
         if not got:
             raise _refused(f"{topic}: no message within {READ_WAIT_S:g} s (READ_WAIT_S)")
-        return [ReadResourceContents(message_text(got[0]), "application/json")]
+        return message_text(got[0])
 
-    async def subscribe(self, uri: AnyUrl, session: ServerSession) -> None:
-        """Subscribe to the topic; updates go to ``session`` (``UPDATE_INTERVAL_S``).
+    async def subscribe(self, uri: str, session: ServerSession | None) -> None:
+        """Subscribe to the topic; updates go to ``session`` and the listen streams.
+
+        Args:
+            uri: the topic's resource URI.
+            session: a 2025-era session's (``resources/subscribe``); None: a
+                listen stream's (2026-07-28), which unsubscribes when it ends.
 
         Raises:
-            McpError: a bad URI, a topic the rules refuse, ``MAX_SUBSCRIBED``
+            MCPError: a bad URI, a topic the rules refuse, ``MAX_SUBSCRIBED``
                 topics subscribed already, a subscription the server refused
                 (``--max-subscriptions``: its status text), or the connection down.
         """
         self._rated("resources/subscribe")
         topic = self._allowed(uri)
-        self._session = session
-        if topic in self.watched:
-            return
+        if session is not None:
+            self._session = session
+        if topic not in self.watched:
+            await self._watch(uri, topic)
+        if session is None:
+            self._holders[topic] = self._holders.get(topic, 0) + 1
+
+    async def _watch(self, uri: str, topic: str) -> None:
+        """Subscribe the connection to ``topic``, throttled (``UPDATE_INTERVAL_S``)."""
         if len(self.watched) >= MAX_SUBSCRIBED:
             raise _refused(f"uri {uri}: {MAX_SUBSCRIBED} topics are subscribed (MAX_SUBSCRIBED)")
         throttle_ms = int(UPDATE_INTERVAL_S * 1000)
@@ -274,33 +348,51 @@ class TopicResources:
             ) from None
         except (RwtError, ToolError) as exc:
             raise _refused(str(exc)) from None
-        self.watched[topic] = watch
+        self.watched[topic] = self.shared[topic] = watch
         if not self._notifying:
             self._notifying = True
             ros.spawn(self._notify)
 
-    async def unsubscribe(self, uri: AnyUrl) -> None:
-        """Stop the topic's updates (nothing if it was not subscribed)."""
-        watch = self.watched.pop(topic_of(uri), None)
+    async def unsubscribe(self, uri: str, *, listening: bool = False) -> None:
+        """Stop the topic's updates (nothing if it was not subscribed).
+
+        Args:
+            uri: the topic's resource URI.
+            listening: a listen stream's end: the topic stays while another
+                stream or a ``resources/subscribe`` holds it.
+        """
+        topic = topic_of(uri)
+        if listening:
+            left = self._holders.get(topic, 0) - 1
+            if left > 0:
+                self._holders[topic] = left
+                return
+            self._holders.pop(topic, None)
+        watch = self.watched.pop(topic, None)
         if watch is not None:
+            if self.shared.get(topic) is watch:
+                del self.shared[topic]
             with contextlib.suppress(RwtError):  # the connection is down: nothing to undo
                 await watch.topic.unsubscribe()
 
     async def _notify(self) -> None:
         """Send ``notifications/resources/updated`` for changed topics, each round a pause."""
-        while self._session is not None:
+        while True:
             await self._changed.wait()
             self._changed = anyio.Event()
             for topic, watch in list(self.watched.items()):
                 if watch.fresh:
                     watch.fresh = False
-                    try:
-                        await self._session.send_resource_updated(AnyUrl(TOPIC_URI + topic))
-                    except (anyio.ClosedResourceError, anyio.BrokenResourceError):
-                        return  # the MCP session ended
+                    uri = TOPIC_URI + topic
+                    await self.bus.publish(ResourceUpdated(uri))  # the listen streams
+                    if self._session is not None:
+                        try:
+                            await self._session.send_resource_updated(uri)
+                        except (anyio.ClosedResourceError, anyio.BrokenResourceError):
+                            self._session = None  # the MCP session ended
             await anyio.sleep(UPDATE_INTERVAL_S)
 
-    def _allowed(self, uri: AnyUrl) -> str:
+    def _allowed(self, uri: str) -> str:
         topic = topic_of(uri)
         try:
             self.guard.check_access("topics_sub", topic, "uri topic")

@@ -1,7 +1,8 @@
 """The MCP tools: a robot's graph, topics, services, actions, parameters and TF.
 
 Each tool is a method of ``RobotTools`` over the session's one connection
-(``link.RobotLink``); ``build_server`` registers them on a FastMCP server. Every
+(``link.RobotLink``); ``build_server`` registers them on an MCPServer (the official
+SDK's, 2.x: it answers the 2026-07-28 revision and 2025-era clients, D52). Every
 wait and size is bounded by a constant of this module or of ``render``
 (docs/limits.md, "MCP front end"); an error of the server (a refused call, a
 timeout, a connection down) becomes an MCP tool error with its text.
@@ -21,10 +22,9 @@ from typing import Any
 
 import anyio
 import pybase64
-from mcp.server.fastmcp import Context, FastMCP
-from mcp.server.fastmcp.exceptions import ToolError
-from mcp.server.fastmcp.tools import Tool
-from mcp.server.models import InitializationOptions
+from mcp.server.mcpserver import Context, MCPServer
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.server.mcpserver.tools import Tool
 from mcp.types import CallToolResult, ImageContent, TextContent, ToolAnnotations
 from pydantic import BaseModel, ValidationError
 from typing_extensions import TypedDict  # pydantic reads it on Python 3.11
@@ -38,7 +38,8 @@ from . import render
 from .guard import WRITE_TOOLS, Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
-from .resources import TopicResources
+from .resources import TopicResources, Watched
+from .tasks import TasksExtension, TaskStore
 
 __all__ = [
     "MAX_ECHO_CHARS",
@@ -50,7 +51,7 @@ __all__ = [
     "MAX_WAIT_S",
     "RobotTools",
     "build_server",
-    "initialization_options",
+    "goal_report",
 ]
 
 #: Any wait a tool takes (echo, service call, goal, cancel, transform), in seconds.
@@ -77,6 +78,10 @@ Message = dict[str, Any]
 # The SDK logs every request at INFO ("Processing request of type CallToolRequest"): a
 # line per request, at the rate a peer chooses (docs/limits.md, "Logs a peer can trigger")
 logging.getLogger("mcp.server.lowlevel.server").setLevel(logging.WARNING)
+# ... and a line per failed tool call or read (MCPServer, INFO: the agent gets the error),
+# per malformed notification (the runner, WARNING): a peer's to trigger at will
+logging.getLogger("mcp.server.mcpserver.server").setLevel(logging.WARNING)
+logging.getLogger("mcp.server.runner").setLevel(logging.ERROR)
 
 
 # The listings are typed dicts, not models: a model of 1000 topics took 5 to 12 ms
@@ -202,6 +207,7 @@ class RobotTools:
 
     def __init__(self, link: RobotLink) -> None:
         self.link = link
+        self.guard = Guard()
 
     # ---- the graph ------------------------------------------------------------------
 
@@ -306,7 +312,7 @@ class RobotTools:
                 except ImageError as exc:
                     raise ToolError(f"{topic}: {exc}") from None
                 encoded = pybase64.b64encode(data).decode()
-                content.append(ImageContent(type="image", data=encoded, mimeType=mime))
+                content.append(ImageContent(type="image", data=encoded, mime_type=mime))
             shown = {key: value for key, value in msg.items() if not (images and key == "data")}
             text = message_text(shown)
             chars += len(text)
@@ -421,7 +427,7 @@ class RobotTools:
         action: str,
         type: str,
         goal: Message,
-        ctx: Context,  # type: ignore[type-arg]
+        ctx: Context,
         timeout_s: float = 30.0,
     ) -> GoalReport:
         """Send a goal and wait up to ``timeout_s`` for its result; feedback as progress.
@@ -441,7 +447,24 @@ class RobotTools:
             record = await self.link.send_goal(action, type, goal)
         async with _progress(record, ctx):
             await self._settle(record, seconds)
-        return _report(record)
+        return goal_report(record)
+
+    async def start_goal(self, arguments: dict[str, Any]) -> Goal:
+        """Send a goal of ``send_action_goal``'s ``arguments`` without waiting (a task's start).
+
+        Raises:
+            ToolError: arguments that fail the tool's schema (each wrong field
+                named), the guard's refusal, or the server's.
+        """
+        template = _TEMPLATES["send_action_goal"]
+        try:
+            valid = template.fn_metadata.validate_arguments(arguments)
+        except ValidationError as exc:
+            raise ToolError(_bad_arguments(exc)) from None
+        _wait(valid.get("timeout_s", 30.0))
+        self.guard.admit("send_action_goal", arguments)
+        with _tool_errors():
+            return await self.link.send_goal(valid["action"], valid["type"], valid["goal"])
 
     async def cancel_action_goal(
         self, action: str, goal_id: str, timeout_s: float = 5.0
@@ -470,7 +493,7 @@ class RobotTools:
                 last_feedback=None,
             )
         await self._settle(record, seconds)
-        return _report(record)
+        return goal_report(record)
 
     async def action_goal_status(self, goal_id: str) -> GoalReport:
         """A goal of this session: running, or how it ended and its result."""
@@ -478,7 +501,7 @@ class RobotTools:
         if record is None:
             known = ", ".join(self.link.goals) or "none"
             raise ToolError(f"no goal {goal_id!r} in this session (goals: {known})")
-        return _report(record)
+        return goal_report(record)
 
     @staticmethod
     async def _settle(record: Goal, timeout_s: float) -> None:
@@ -546,7 +569,8 @@ class RobotTools:
         )
 
 
-def _report(record: Goal) -> GoalReport:
+def goal_report(record: Goal) -> GoalReport:
+    """The goal as ``send_action_goal`` reports it: running, or how it ended (D18)."""
     status = record.status
     if record.error is not None:
         state = f"unknown: {record.error}"
@@ -585,7 +609,7 @@ class _Latest:
 
 
 @asynccontextmanager
-async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:  # type: ignore[type-arg]
+async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:
     """Forward the goal's feedback as MCP progress notifications while the call waits.
 
     Feedback arriving while a notification is being sent replaces the one
@@ -637,21 +661,38 @@ _TOOLS = (
 )
 
 
-def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
-    """A FastMCP server whose tools and resources drive the robot behind ``link``.
+def build_server(
+    link: RobotLink,
+    guard: Guard | None = None,
+    tasks: TaskStore | None = None,
+    watched: Watched | None = None,
+) -> tuple[MCPServer, TasksExtension]:
+    """An MCPServer whose tools and resources drive the robot behind ``link``.
 
     Every tool call passes ``guard`` first (``guard.Guard.admit``: access rules,
     read-only mode, rate and size caps); the topics are resources
-    (``resources.TopicResources``). The caller connects ``link`` beside it
-    (``cli.serve_stdio``, ``http.McpEndpoint``) and runs it with
-    ``initialization_options``.
+    (``resources.TopicResources``), with ``resources/subscribe`` for 2025-era
+    clients and ``subscriptions/listen`` for 2026-07-28 ones; ``send_action_goal``
+    answers a task to a client that takes tasks (``tasks.TasksExtension``). The
+    caller connects ``link`` beside it (``cli.serve_stdio``, ``http.McpEndpoint``).
 
     Args:
         link: the session's connection.
         guard: the session's rules; None: a ``Guard()`` (no access rules, writes allowed).
+        tasks: the front end's tasks; None: a store of this server's own.
+        watched: the front end's watched topics (``resources.TopicResources``'s
+            ``shared``); None: this server's own.
+
+    Returns:
+        The server, and its tasks extension (``TasksExtension.hold`` keeps the
+        connection of the goals it started).
     """
     guard = guard or Guard()
-    server = FastMCP(
+    tools = RobotTools(link)
+    resources = TopicResources(link, guard, watched)
+    report = functools.partial(_report_json, goal_report)
+    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report)
+    server = MCPServer(
         "rwt",
         instructions=(
             "Tools of a ROS robot behind a rosbridge server: list its graph, read "
@@ -665,15 +706,17 @@ def build_server(link: RobotLink, guard: Guard | None = None) -> FastMCP:
                 else ""
             )
         ),
+        extensions=[extension],
+        subscriptions=resources.bus,
     )
-    tools = RobotTools(link)
     manager = server._tool_manager  # the SDK's registry: a tool made once, shared below
     for name in _TOOLS:
         function = _guarded(guard, name, getattr(tools, name))
         manager._tools[name] = _tool_template(name, function).model_copy(update={"fn": function})
-    TopicResources(link, guard).register(server._mcp_server)  # the SDK's way to add handlers
+    tools.guard = guard
+    resources.register(server._lowlevel_server)  # the SDK's way to add handlers
     _call_tools(server)
-    return server
+    return server, extension
 
 
 _TEMPLATES: dict[str, Tool] = {}
@@ -694,7 +737,7 @@ def _tool_template(name: str, function: Callable[..., Awaitable[Any]]) -> Tool:
             name=name,
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
-            annotations=ToolAnnotations(readOnlyHint=name not in WRITE_TOOLS),
+            annotations=ToolAnnotations(read_only_hint=name not in WRITE_TOOLS),
         )  # kept without this session's function, so that it keeps nothing of the session
         template = _TEMPLATES[name] = made.model_copy(update={"fn": _no_session})
     return template
@@ -705,11 +748,11 @@ async def _no_session(**_: Any) -> None:
     raise RuntimeError("a tool template was called instead of a session's tool")
 
 
-def _call_tools(server: FastMCP) -> None:
-    """Call the tools as FastMCP does, but for two things.
+def _call_tools(server: MCPServer) -> None:
+    """Call the tools as MCPServer does, but for two things.
 
     Arguments that fail a tool's input schema are a tool error naming each field,
-    briefly (FastMCP's own text is pydantic's whole report, with links). A result
+    briefly (MCPServer's own text is pydantic's whole report, with links). A result
     the tool made already (``_as_result``: a typed answer, built to its output
     schema) goes out as it is, not validated again against the schema.
     """
@@ -717,19 +760,14 @@ def _call_tools(server: FastMCP) -> None:
     call = manager.call_tool
 
     async def call_tool(
-        name: str, arguments: dict[str, Any], context: Any = None, convert_result: bool = False
+        name: str, arguments: dict[str, Any], context: Any, convert_result: bool = False
     ) -> Any:
         try:
             result = await call(name, arguments, context=context, convert_result=False)
         except ToolError as exc:
             if not isinstance(exc.__cause__, ValidationError):
                 raise
-            wrong = [
-                f"{'.'.join(map(str, error['loc'])) or 'arguments'}: {error['msg']}"
-                + ("" if error["type"] == "missing" else f" (got {type(error['input']).__name__})")
-                for error in exc.__cause__.errors()[:_MAX_FIELD_ERRORS]
-            ]
-            raise ToolError(f"{name}: bad arguments: {'; '.join(wrong)}") from None
+            raise ToolError(f"{name}: {_bad_arguments(exc.__cause__)}") from None
         tool = manager.get_tool(name)
         if not convert_result or isinstance(result, CallToolResult) or tool is None:
             return result
@@ -738,16 +776,19 @@ def _call_tools(server: FastMCP) -> None:
     manager.call_tool = call_tool  # type: ignore[method-assign]
 
 
-def initialization_options(server: FastMCP) -> InitializationOptions:
-    """The MCP ``initialize`` answer of ``server``, saying it takes resource subscriptions.
+def _report_json(report: Callable[[Goal], GoalReport], record: Goal) -> dict[str, Any]:
+    """The goal's report as JSON values (a task's ``statusMessage`` and result)."""
+    return report(record).model_dump(mode="json")
 
-    (FastMCP's own says ``subscribe: false``; ``resources.TopicResources`` answers them.)
-    """
-    options = server._mcp_server.create_initialization_options()
-    resources = options.capabilities.resources
-    if resources is not None:
-        resources.subscribe = True
-    return options
+
+def _bad_arguments(exc: ValidationError) -> str:
+    """``bad arguments: <field>: <what is wrong> (got <type>); ...``, briefly."""
+    wrong = [
+        f"{'.'.join(map(str, error['loc'])) or 'arguments'}: {error['msg']}"
+        + ("" if error["type"] == "missing" else f" (got {type(error['input']).__name__})")
+        for error in exc.errors()[:_MAX_FIELD_ERRORS]
+    ]
+    return f"bad arguments: {'; '.join(wrong)}"
 
 
 def _guarded(
@@ -776,7 +817,7 @@ def _as_result(structured: dict[str, Any]) -> CallToolResult:
     """
     text = json.dumps(structured, ensure_ascii=False, separators=(",", ":"))
     return CallToolResult(
-        content=[TextContent(type="text", text=text)], structuredContent=structured
+        content=[TextContent(type="text", text=text)], structured_content=structured
     )
 
 

@@ -8,9 +8,20 @@ the host's share, which for MCP sessions applies from the first), runs under the
 same per-client limits and access rules, ends after ``--idle-timeout`` without a
 request in flight, and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s)
 drive it through rwt's client over a memory connection. The official MCP SDK
-answers the protocol (its ``StreamableHTTPServerTransport``, driven as an ASGI app
-over the request's socket; h11 parses the request). A refused session gets 503 and
-no MCP session.
+(2.x) answers the protocol (its ``StreamableHTTPServerTransport``, driven as an
+ASGI app over the request's socket; h11 parses the request). A refused session
+gets 503 and no MCP session.
+
+Both revisions answer here (D52): a 2025-era client opens a session with
+``initialize`` as above; a 2026-07-28 request (its ``MCP-Protocol-Version``
+header a revision without the handshake) carries no session: it is one
+rosbridge session of its own, opened for the request and closed after its
+answer (a ``subscriptions/listen`` stream holds it while it runs), answered by
+the SDK's single-exchange entry. Its rate caps are its host's
+(``MODERN_HOSTS_KEPT`` hosts kept). A goal it starts as a task keeps that
+session open until the goal ends or the task expires (``rwt_mcp.tasks``); the
+endpoint's ``TaskStore`` is shared by every session and request, so any of
+them polls or cancels it.
 
 Every socket a request holds is a connection slot (D40): a session holds
 ``SESSION_SLOTS`` (itself and its event stream, and one request), and a request
@@ -31,30 +42,39 @@ session's ``rwt_mcp.guard.Guard``. Refusals are logged once per episode.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hmac
+import json
 import logging
+import re
 import uuid
+from collections import OrderedDict
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import anyio
 import h11
+from mcp.server._streamable_http_modern import handle_modern_request
+from mcp.server.runner import serve_loop
 from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
 from mcp.server.transport_security import TransportSecuritySettings
+from mcp.shared.inbound import MCP_PROTOCOL_VERSION_HEADER
 from mcp.types import INVALID_REQUEST, PARSE_ERROR, ErrorData, JSONRPCError
+from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 
 from rwt_client import Ros
 from rwt_client.connectors import ConnectionClosedError
 from rwt_graph.ratelog import EpisodeLog
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
-from rwt_mcp.tools import build_server, initialization_options
+from rwt_mcp.tasks import TaskStore
+from rwt_mcp.tools import build_server
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
 from .http_endpoint import claims_path, open_request, reply
-from .mcp_options import MCP_PATH, McpOptions
+from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
 
@@ -62,12 +82,20 @@ if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
 
     from anyio.abc import ByteStream, TaskGroup, TaskStatus
+    from mcp.server.lowlevel import Server
 
+    from rwt_mcp.resources import Watched
     from rwt_protocol.server.contract import ServerSession
 
     from .server import RosbridgeServer
 
-__all__ = ["MAX_REQUESTS_IN_FLIGHT", "MAX_REQUEST_BYTES", "SESSION_SLOTS", "McpEndpoint"]
+__all__ = [
+    "MAX_REQUESTS_IN_FLIGHT",
+    "MAX_REQUEST_BYTES",
+    "MODERN_HOSTS_KEPT",
+    "SESSION_SLOTS",
+    "McpEndpoint",
+]
 
 logger = logging.getLogger("rwt.mcp")
 _episodes = EpisodeLog(logger)  # a peer can trigger these at will
@@ -80,16 +108,21 @@ SESSION_SLOTS = 2
 """Connection slots an MCP session holds (``--max-connections``, the host's share): itself
 with its event stream, and one request at once, as the official client holds them; a
 request beyond them takes one more slot while it runs, or gets 503 (D40)."""
+MODERN_HOSTS_KEPT = 256
+"""Hosts whose 2026-07-28 requests' rate caps are kept (``rwt_mcp.guard.Guard``, per host:
+a request has no session); past them the least recently seen host's are dropped."""
 
 _METHODS = (b"POST", b"GET", b"DELETE", b"OPTIONS")
+_HOST = re.compile(r"[^A-Za-z0-9.:\[\]_-]")  # what a Host header may keep in a URL
 _READ_SIZE = 65536
 _CORS = [
     (b"Access-Control-Allow-Methods", b"POST, GET, DELETE, OPTIONS"),
     (
         b"Access-Control-Allow-Headers",
-        b"Authorization, Content-Type, Accept, Mcp-Session-Id, Mcp-Protocol-Version, Last-Event-ID",
+        b"Authorization, Content-Type, Accept, Mcp-Session-Id, Mcp-Protocol-Version, Mcp-Method,"
+        b" Mcp-Name, Last-Event-ID",
     ),
-    (b"Access-Control-Expose-Headers", b"Mcp-Session-Id"),
+    (b"Access-Control-Expose-Headers", b"Mcp-Session-Id, WWW-Authenticate"),
     (b"Access-Control-Max-Age", b"600"),
 ]
 # our own Origin check (--allowed-origins) replaces the SDK's Host check
@@ -210,6 +243,9 @@ class McpEndpoint:
         self.access = access
         self.auth_required = server.session_config.authenticator is not None
         self.sessions: dict[str, _Session] = {}
+        self.tasks = TaskStore()  # every session's and request's (rwt_mcp.tasks)
+        self._watched: Watched = {}  # topics the 2026-07-28 requests' listen streams hold
+        self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
 
     def bind(self, tg: TaskGroup | None) -> None:
@@ -218,8 +254,16 @@ class McpEndpoint:
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
-        """Whether the request starting with ``head`` is MCP's; None: too short to tell."""
-        return claims_path(head, _METHODS, MCP_PATH, lambda _method, after: after in (b" ", b"?"))
+        """Whether the request starting with ``head`` is MCP's; None: too short to tell.
+
+        MCP's are ``MCP_PATH`` and the protected-resource metadata (``METADATA_PATH``).
+        """
+        mcp = claims_path(head, _METHODS, MCP_PATH, lambda _method, after: after in (b" ", b"?"))
+        if mcp is not False:
+            return mcp
+        return claims_path(
+            head, (b"GET", b"OPTIONS"), METADATA_PATH, lambda _m, after: after in (b" ", b"/", b"?")
+        )
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
         """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
@@ -240,32 +284,67 @@ class McpEndpoint:
             return
         conn, request, headers, cors = opened.conn, opened.request, opened.headers, opened.cors
         exchange = _Exchange(conn, stream, request, opened.body, peer, cors)
+        path = request.target.decode("latin-1").split("?", 1)[0]
+        if path in (METADATA_PATH, METADATA_PATH + MCP_PATH):
+            body = "" if request.method == b"OPTIONS" else json.dumps(self._metadata(headers))
+            await reply(conn, stream, 204 if not body else 200, body, cors, "application/json")
+            return
         refusal = self._refusal(request, headers)
         if refusal is not None:
-            extra = [(b"WWW-Authenticate", b"Bearer")] if refusal[0] == 401 else []
+            extra = [(b"WWW-Authenticate", self._challenge(headers))] if refusal[0] == 401 else []
             await exchange.refuse(*refusal, extra)
             return
         if request.method == b"OPTIONS":
             await reply(conn, stream, 204, "", cors)
             return
         session_id = headers.get(MCP_SESSION_ID_HEADER)
+        modern = session_id is None and _modern(headers)
         if request.method == b"POST":
-            problem = _body_refusal(opened.body, new_session=session_id is None)
+            problem = _body_refusal(opened.body, new_session=session_id is None and not modern)
             if problem is not None:
                 await exchange.refuse_jsonrpc(*problem)
                 return
-        if session_id is None:
+        if modern:
+            await self._modern(exchange)
+        elif session_id is None:
             await self._open(exchange, _bearer(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
 
+    def _base(self, headers: dict[str, str]) -> str:
+        """``http(s)://HOST[:PORT]`` as the client reached the endpoint (its ``Host`` header)."""
+        scheme = "https" if self.server.config.certfile is not None else "http"
+        host = _HOST.sub("", headers.get("host", ""))[:255]  # the peer's text, in a header
+        return f"{scheme}://{host or f'{self.server.config.host}:{self.server.config.port}'}"
+
+    def _metadata(self, headers: dict[str, str]) -> dict[str, Any]:
+        """The protected-resource metadata of ``/mcp`` (RFC 9728 section 2; D52)."""
+        document: dict[str, Any] = {
+            "resource": self._base(headers) + MCP_PATH,
+            "bearer_methods_supported": ["header"],
+            "resource_name": "rwt MCP server",
+            "resource_documentation": "https://modelcontextprotocol.io",
+        }
+        server = self.options.authorization_server
+        if server is not None:
+            document["authorization_servers"] = [server]
+        return document
+
+    def _challenge(self, headers: dict[str, str]) -> bytes:
+        """A 401's ``WWW-Authenticate``: Bearer, naming the metadata (RFC 9728 section 5.1)."""
+        url = self._base(headers) + METADATA_PATH + MCP_PATH
+        return f'Bearer resource_metadata="{url}"'.encode("latin-1")
+
     def _refusal(self, request: h11.Request, headers: dict[str, str]) -> tuple[int, str] | None:
         """Why the request is refused before MCP sees it (status, text), or None."""
-        path = request.target.decode("latin-1").split("?", 1)[0]
+        path, _, query = request.target.decode("latin-1").partition("?")
         if path != MCP_PATH:
             return 404, f"the MCP endpoint is {MCP_PATH}, not {path}"
         if request.method == b"OPTIONS":
             return None
+        credential = _credential_refusal(headers, query)
+        if credential is not None:
+            return 401, credential
         session_id = headers.get(MCP_SESSION_ID_HEADER)
         token = _bearer(headers)
         if session_id is None:
@@ -374,12 +453,15 @@ class McpEndpoint:
                 link = RobotLink(ros.url, ros)
                 await link.connect(anyio.Event())
                 guard = Guard(session.client_id, self.options.read_only, self.access)
-                mcp = build_server(link, guard)
+                mcp, tasks = build_server(link, guard, self.tasks)
                 try:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
                         started = True
-                        await _serve_until_idle(mcp, session.transport, read, write)
+                        await _serve_until_idle(
+                            mcp._lowlevel_server, session.transport, read, write
+                        )
+                    await tasks.hold()  # the goals it started as tasks
                 finally:
                     await link.close()
         except Exception:  # a bug ends this session only
@@ -388,6 +470,70 @@ class McpEndpoint:
             if not started:
                 task_status.started()
             await self._discard(session_id)
+
+    async def _modern(self, exchange: _Exchange) -> None:
+        """A 2026-07-28 request: one rosbridge session for it, answered by the SDK (D52).
+
+        The session takes one connection slot (its socket's) while the request
+        runs, and while a goal it started as a task runs (``rwt_mcp.tasks``).
+        """
+        tg = self._tg
+        admitted = None if tg is None else await self._admit(exchange.peer)
+        if tg is None or admitted is None:
+            await exchange.refuse(503, "too many connections")
+            return
+        self.server.adopt_socket()
+        answered = anyio.Event()
+        try:
+            mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered)
+            if mcp is None:  # its connection failed before it could run (logged)
+                await exchange.refuse(503, "the MCP request's connection failed")
+                return
+            entry = functools.partial(handle_modern_request, mcp, _NO_SDK_CHECK, False, {})
+            await exchange.run(entry)
+        finally:
+            answered.set()
+
+    async def _run_modern(
+        self,
+        admitted: _Admitted,
+        peer: str,
+        answered: anyio.Event,
+        *,
+        task_status: TaskStatus[Server[Any] | None],
+    ) -> None:
+        """A 2026-07-28 request's session: until it is answered and its tasks' goals end."""
+        started = False
+        try:
+            async with admitted.client() as ros:
+                link = RobotLink(ros.url, ros)
+                await link.connect(anyio.Event())
+                guard = self._modern_guard(peer)
+                mcp, tasks = build_server(link, guard, self.tasks, self._watched)
+                try:
+                    task_status.started(mcp._lowlevel_server)
+                    started = True
+                    await answered.wait()
+                    await tasks.hold()
+                finally:
+                    await link.close()
+        except Exception:  # a bug ends this request only
+            logger.exception("event=bug task=mcp_request client=%s", admitted.session.client_id)
+        finally:
+            if not started:
+                task_status.started(None)
+
+    def _modern_guard(self, peer: str) -> Guard:
+        """A 2026-07-28 request's rules: its host's rate caps (``MODERN_HOSTS_KEPT``)."""
+        host = peer.rpartition(":")[0] or peer
+        guard = self._modern_guards.get(host)
+        if guard is None:
+            guard = Guard(f"mcp:{host}", self.options.read_only, self.access)
+            self._modern_guards[host] = guard
+            if len(self._modern_guards) > MODERN_HOSTS_KEPT:
+                self._modern_guards.popitem(last=False)
+        self._modern_guards.move_to_end(host)
+        return guard
 
     async def _discard(self, session_id: str) -> None:
         """Forget the session (its id answers 404 from now) and end its transport."""
@@ -399,7 +545,7 @@ class McpEndpoint:
 
 
 async def _serve_until_idle(
-    mcp: Any, transport: StreamableHTTPServerTransport, read: Any, write: Any
+    mcp: Server[Any], transport: StreamableHTTPServerTransport, read: Any, write: Any
 ) -> None:
     """Run the MCP server on the transport's streams until it ends or goes idle."""
     async with anyio.create_task_group() as tg:
@@ -412,7 +558,10 @@ async def _serve_until_idle(
                 tg.cancel_scope.cancel()  # no request for the idle time: the session ends
 
             tg.start_soon(end_when_idle, idle)
-        await mcp._mcp_server.run(read, write, initialization_options(mcp), stateless=False)
+        async with mcp.lifespan(mcp) as state:
+            await serve_loop(
+                mcp, read, write, lifespan_state=state, session_id=transport.mcp_session_id
+            )
         tg.cancel_scope.cancel()
 
 
@@ -434,6 +583,33 @@ def _body_refusal(body: bytes, *, new_session: bool) -> tuple[int, str, int] | N
     ):
         text = "Bad Request: no Mcp-Session-Id: only an initialize request opens a session"
         return 400, text, INVALID_REQUEST
+    return None
+
+
+def _modern(headers: dict[str, str]) -> bool:
+    """Whether a request without a session is of a revision without the handshake (2026-07-28).
+
+    The ``MCP-Protocol-Version`` header decides, as the SDK's session manager routes: a
+    handshake-era version, or none, is a 2025-era request (D52).
+    """
+    version = headers.get(MCP_PROTOCOL_VERSION_HEADER)
+    return version is not None and version not in HANDSHAKE_PROTOCOL_VERSIONS
+
+
+def _credential_refusal(headers: dict[str, str], query: str) -> str | None:
+    """Why the request's credentials are refused, whatever ``--auth-secret-file`` says, or None.
+
+    Only ``Authorization: Bearer`` is taken (RFC 6750 section 2.1, as MCP's
+    authorization asks): another scheme (``Basic``, rosbridge's ``MAC``) and a
+    token in the URL's query (``token=``, ``access_token=``: a video stream's way)
+    are refused, never ignored (D52).
+    """
+    scheme = headers.get("authorization", "").partition(" ")[0]
+    if scheme and scheme.lower() != "bearer":
+        return f"the Authorization scheme {scheme[:32]!r} is not taken here: send Bearer <token>"
+    names = {part.partition("=")[0].lower() for part in query.split("&")}
+    if names & {"token", "access_token"}:
+        return "a token in the URL is refused: send it as Authorization: Bearer <token>"
     return None
 
 

@@ -14,10 +14,13 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-__all__ = ["MCP_PATH", "McpOptions"]
+__all__ = ["MCP_PATH", "METADATA_PATH", "McpOptions"]
 
 MCP_PATH = "/mcp"
 """The MCP endpoint (Streamable HTTP): every request of an MCP client goes here."""
+METADATA_PATH = "/.well-known/oauth-protected-resource"
+"""The endpoint's OAuth 2.0 protected-resource metadata (RFC 9728 section 3; also
+answered with ``MCP_PATH`` appended, the form of section 3.1 for the resource ``/mcp``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,7 +34,12 @@ class McpOptions:
             token of a new session's ``Authorization: Bearer`` header (the video
             tokens of ``/rwt/video_token``, ``rwt_video.VideoTokens.valid``);
             None: every new session gets 401.
+        authorization_server: the issuer URL of the OAuth 2.1 authorization server
+            the protected-resource metadata names (``--mcp-authorization-server``;
+            ``METADATA_PATH``); None: the metadata names none (rwt issues no tokens
+            but its video tokens).
     """
 
     read_only: bool = False
     bearer_token: Callable[[str], bool] | None = None
+    authorization_server: str | None = None

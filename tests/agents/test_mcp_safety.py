@@ -28,6 +28,9 @@ from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
+import httpx2
+from mcp import Client
+from mcp.client.streamable_http import streamable_http_client
 from mcp.types import ResourceUpdatedNotification, ServerNotification, TextContent
 
 from rwt_mcp.guard import MAX_TOOL_ARGUMENT_BYTES, TOOL_BURST, TOOL_CALLS_PER_S, WRITE_TOOLS
@@ -99,14 +102,33 @@ async def test_a_session_needs_a_live_bearer_token_when_the_server_has_a_secret(
     tokens = VideoTokens()
     install_token_service(graph, tokens)
     authenticator = rosauth_authenticator("s3cret-s3cret-s3cret", graph.clock)
-    config = _config(McpOptions(bearer_token=tokens.valid))
+    auth_server = "https://login.example.com"
+    config = _config(McpOptions(bearer_token=tokens.valid, authorization_server=auth_server))
     url, server = await serving(graph, config, authenticator=authenticator)
     endpoint = url.replace("ws://", "http://") + "/mcp"
     async with httpx.AsyncClient(timeout=30) as http:
         missing = await http.post(endpoint, json=INITIALIZE, headers=ACCEPT)
         assert missing.status_code == 401
-        assert missing.headers["WWW-Authenticate"] == "Bearer"
+        metadata_url = url.replace("ws://", "http://") + "/.well-known/oauth-protected-resource"
+        challenge = f'Bearer resource_metadata="{metadata_url}/mcp"'
+        assert missing.headers["WWW-Authenticate"] == challenge  # RFC 9728 section 5.1
         assert "a bearer token is needed: call /rwt/video_token" in missing.text
+        metadata = (await http.get(metadata_url + "/mcp")).json()
+        assert metadata["resource"] == endpoint
+        assert metadata["authorization_servers"] == ["https://login.example.com"]
+        for other in ("Basic dXNlcjpwYXNz", "MAC a-rosbridge-mac"):  # other schemes: refused
+            answer = await http.post(
+                endpoint, json=INITIALIZE, headers={**ACCEPT, "Authorization": other}
+            )
+            assert answer.status_code == 401 and "is not taken here" in answer.text
+            assert answer.headers["WWW-Authenticate"] == challenge
+        in_url = await http.post(
+            endpoint + f"?token={tokens.issue()}", json=INITIALIZE, headers=ACCEPT
+        )
+        assert in_url.status_code == 401 and "a token in the URL is refused" in in_url.text
+        modern = {**ACCEPT, "MCP-Protocol-Version": "2026-07-28"}
+        discover = {"jsonrpc": "2.0", "id": 1, "method": "server/discover", "params": {}}
+        assert (await http.post(endpoint, json=discover, headers=modern)).status_code == 401
         bad = {**ACCEPT, "Authorization": "Bearer not-a-token"}
         assert (await http.post(endpoint, json=INITIALIZE, headers=bad)).status_code == 401
         assert not server.sessions  # nothing was admitted
@@ -123,6 +145,11 @@ async def test_a_session_needs_a_live_bearer_token_when_the_server_has_a_secret(
         assert "not the one that opened this MCP session" in refused.text
     async with rwt_serve_mcp(url, token=tokens.issue()) as agent:
         assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
+    bearer = {"Authorization": f"Bearer {tokens.issue()}"}  # each 2026-07-28 request carries it
+    modern_http = httpx2.AsyncClient(headers=bearer, timeout=30)
+    async with Client(streamable_http_client(endpoint, http_client=modern_http), mode="auto") as c:
+        assert c.protocol_version == "2026-07-28"
+        assert (await c.call_tool("get_parameter", {"name": "/robot:max_speed"})).structured_content
 
 
 async def test_the_access_globs_refuse_a_tool_call_naming_the_rule(serving: Any) -> None:
@@ -147,11 +174,11 @@ async def test_the_access_globs_refuse_a_tool_call_naming_the_rule(serving: Any)
         }
         for tool, (what, rule) in refusals.items():
             result = await agent.result(tool, **arguments[tool])
-            assert result.isError, tool
+            assert result.is_error, tool
             assert f"{what}: refused by {rule}" in _text(result)
         assert (await agent.call("get_parameter", name="/robot:name"))["value"] == "r2"
         echoed = await agent.result("echo", topic="/battery")
-        assert not echoed.isError and json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
+        assert not echoed.is_error and json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
         with pytest.raises(Exception, match="refused by --topics-glob"):
             await agent.session.read_resource("ros://topics/cmd")  # type: ignore[arg-type]
     assert received == []
@@ -163,13 +190,13 @@ async def test_the_split_globs_hold_publishing_and_reading_apart(serving: Any) -
     access = AccessPolicy(topics_pub=("/cmd",), topics_sub=("/battery",))
     url, _ = await serving(robot_graph(received), _config(session=SessionConfig(access=access)))
     async with rwt_serve_mcp(url) as agent:
-        assert not (await agent.result("publish", **WRITES["publish"])).isError
+        assert not (await agent.result("publish", **WRITES["publish"])).is_error
         refused = await agent.result("echo", topic="/cmd", timeout_s=1)
         assert "topic /cmd: refused by --topics-sub-glob [/battery]" in _text(refused)
         battery = {"topic": "/battery", "type": "std_msgs/msg/String", "msg": {"data": "0%"}}
         refused = await agent.result("publish", **battery)
         assert "topic /battery: refused by --topics-pub-glob [/cmd]" in _text(refused)
-        assert not (await agent.result("echo", topic="/battery")).isError
+        assert not (await agent.result("echo", topic="/battery")).is_error
     assert received == [{"data": "go"}]
 
 
@@ -184,10 +211,10 @@ async def test_read_only_refuses_every_write_and_the_robot_hears_none(
         assert set(WRITES) == WRITE_TOOLS
         for tool, arguments in WRITES.items():
             result = await agent.result(tool, **arguments)
-            assert result.isError, tool
+            assert result.is_error, tool
             assert f"{tool}: refused, the MCP server is read-only" in _text(result)
         assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
-        assert not (await agent.result("echo", topic="/battery")).isError
+        assert not (await agent.result("echo", topic="/battery")).is_error
     assert received == []
 
 
@@ -199,10 +226,10 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
     async with rwt_serve_mcp(url) as agent:
         big = {"data": "x" * MAX_TOOL_ARGUMENT_BYTES}
         oversized = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg=big)
-        assert oversized.isError
+        assert oversized.is_error
         assert f"over {MAX_TOOL_ARGUMENT_BYTES} (MAX_TOOL_ARGUMENT_BYTES)" in _text(oversized)
         wrong = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg="go")
-        assert wrong.isError
+        assert wrong.is_error
         assert (
             _text(wrong)
             == "publish: bad arguments: msg: Input should be a valid dictionary (got str)"
@@ -224,7 +251,7 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
         started = time.monotonic()
         for _ in range(calls):
             result = await agent.result("action_goal_status", goal_id="nope")
-            assert result.isError  # no such goal, or too fast
+            assert result.is_error  # no such goal, or too fast
             refused += "(TOOL_CALLS_PER_S)" in _text(result)
         elapsed = time.monotonic() - started
         assert refused >= 1
@@ -249,9 +276,9 @@ async def test_a_subscribed_topic_is_updated_at_a_bounded_rate(
 
     async def on_message(message: Any) -> None:
         if isinstance(message, ServerNotification) and isinstance(
-            message.root, ResourceUpdatedNotification
+            message, ResourceUpdatedNotification
         ):
-            updates.append(str(message.root.params.uri))
+            updates.append(str(message.params.uri))
 
     opened = (
         rwt_serve_mcp(url, on_message=on_message)
@@ -337,7 +364,8 @@ async def test_a_request_outside_a_session_gets_a_status_saying_why(serving: Any
         )
         assert allowed.status_code == 200
         assert allowed.headers["Access-Control-Allow-Origin"] == "https://ok.example"
-        assert allowed.headers["Access-Control-Expose-Headers"] == "Mcp-Session-Id"
+        expose = allowed.headers["Access-Control-Expose-Headers"]
+        assert expose == "Mcp-Session-Id, WWW-Authenticate"
         # another path is the WebSocket listener's own: no console here, so it asks for an upgrade
         assert (await http.get(url.replace("ws://", "http://") + "/mcpx")).status_code == 426
     assert [client for client in server.sessions if client.startswith("mcp:")] != []

@@ -1,7 +1,8 @@
 """ros-mcp-server (PyPI ``ros-mcp``), the MCP server AI agents drive robots with, against rwt.
 
-The official MCP Python client (``mcp``) starts the real ros-mcp 3.1.2 as an MCP
-stdio server, points it at an rwt server with ``connect_to_robot`` and calls each
+The official MCP Python client (``mcp``, 2.x) starts the real ros-mcp 3.1.2 as an MCP
+stdio server (from an environment of its own, ``tests.support.ros_mcp``: it holds mcp
+below 2), points it at an rwt server with ``connect_to_robot`` and calls each
 of its tools that concerns a robot on a small graph: a latched topic, a
 subscription, a service, an action whose long goals run until canceled, and a
 node's parameters. Each answer is checked for what ros-mcp says it found
@@ -13,9 +14,7 @@ connections (D35).
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -25,13 +24,16 @@ import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_graph.actions import GoalCanceledError, GoalContext
+from tests.support.ros_mcp import ros_mcp_python
 
 pytest.importorskip("mcp", reason="the MCP client is not installed (pip install 'rwt[test]')")
-if importlib.util.find_spec("ros_mcp") is None:  # not imported here: it runs in its own process
-    pytest.skip("ros-mcp is not installed (pip install 'rwt[test]')", allow_module_level=True)
 
 from mcp import ClientSession, StdioServerParameters
 from mcp.client.stdio import stdio_client
+
+ROS_MCP_PYTHON, _why = ros_mcp_python()  # its own environment: it holds mcp below 2 (D52)
+if ROS_MCP_PYTHON is None:
+    pytest.skip(f"ros-mcp 3.1.2 cannot run here: {_why}", allow_module_level=True)
 
 pytestmark = pytest.mark.anyio
 
@@ -94,7 +96,7 @@ class Agent:
 
     async def call(self, tool: str, **arguments: object) -> Message:
         result = await self.session.call_tool(tool, arguments)
-        assert not result.isError, result.content
+        assert not result.is_error, result.content
         answer = json.loads(result.content[0].text)  # type: ignore[union-attr]
         assert isinstance(answer, dict)
         return answer
@@ -104,7 +106,7 @@ class Agent:
 async def agent(tmp_path: Path) -> AsyncIterator[Agent]:
     """ros-mcp 3.1.2 started as an MCP stdio server by the official client."""
     params = StdioServerParameters(
-        command=sys.executable, args=["-m", "ros_mcp.main"], cwd=str(tmp_path)
+        command=str(ROS_MCP_PYTHON), args=["-m", "ros_mcp.main"], cwd=str(tmp_path)
     )
     with (tmp_path / "ros-mcp.log").open("w") as errlog:
         async with (

@@ -131,9 +131,9 @@ class Agent:
     async def call(self, tool: str, **arguments: object) -> Any:
         """The tool's structured answer; fails the test on a tool error."""
         result = await self.result(tool, **arguments)
-        assert not result.isError, result.content
-        assert result.structuredContent is not None
-        return result.structuredContent
+        assert not result.is_error, result.content
+        assert result.structured_content is not None
+        return result.structured_content
 
 
 @asynccontextmanager
@@ -168,7 +168,7 @@ async def rwt_serve_mcp(
     http = httpx.AsyncClient(headers=headers, timeout=httpx.Timeout(30, read=300))
     async with (
         http,
-        streamable_http_client(endpoint, http_client=http) as (read, write, _),
+        streamable_http_client(endpoint, http_client=http) as (read, write),
         ClientSession(read, write, message_handler=on_message) as session,
     ):
         await session.initialize()
@@ -190,7 +190,7 @@ async def test_rwt_mcp_drives_a_robot(served: tuple[str, list[Message]], agent: 
     with anyio.fail_after(30):  # every step is bounded; a hang fails here
         listed = (await agent.session.list_tools()).tools
         assert {tool.name for tool in listed} == TOOLS
-        assert all(tool.inputSchema["type"] == "object" for tool in listed)
+        assert all(tool.input_schema["type"] == "object" for tool in listed)
         echo = next(tool for tool in listed if tool.name == "echo")
         assert f"MAX_ECHO_COUNT ({MAX_ECHO_COUNT})" in (echo.description or "")  # its bound
         await _graph(agent)
@@ -213,12 +213,12 @@ async def _graph(agent: Agent) -> None:
     vector = schema["properties"]["linear"]["$ref"].removeprefix("#/$defs/").replace("~1", "/")
     assert schema["$defs"][vector]["properties"]["x"] == {"type": "number"}
     unknown = await agent.result("type_definition", type="no_pkg/msg/Nothing")
-    assert unknown.isError
+    assert unknown.is_error
 
 
 async def _topics(agent: Agent, received: list[Message]) -> None:
     echoed = await agent.result("echo", topic="/battery", count=1, timeout_s=5)
-    assert not echoed.isError
+    assert not echoed.is_error
     texts = [block.text for block in echoed.content if isinstance(block, TextContent)]
     assert json.loads(texts[0]) == {
         "topic": "/battery",
@@ -235,7 +235,7 @@ async def _topics(agent: Agent, received: list[Message]) -> None:
 
     image = await agent.result("echo", topic="/camera/image", timeout_s=5)
     shown = [block for block in image.content if isinstance(block, ImageContent)]
-    assert len(shown) == 1 and shown[0].mimeType == "image/png"
+    assert len(shown) == 1 and shown[0].mime_type == "image/png"
     picture = Image.open(io.BytesIO(base64.b64decode(shown[0].data)))
     assert picture.size == (WIDTH, HEIGHT) and picture.getpixel((0, 0)) == (255, 0, 0)
 
@@ -261,14 +261,14 @@ async def _topics(agent: Agent, received: list[Message]) -> None:
     clash = await agent.result(
         "publish", topic="/battery", type="std_msgs/msg/Int32", msg={"data": 1}
     )
-    assert clash.isError  # the server's refusal of the advertisement, in its words
+    assert clash.is_error  # the server's refusal of the advertisement, in its words
     assert "is established with type std_msgs/msg/String" in clash.content[0].text  # type: ignore[union-attr]
     too_long = await agent.result("echo", topic="/battery", timeout_s=1000)
-    assert too_long.isError and "timeout_s must be in (0, 60]" in too_long.content[0].text  # type: ignore[union-attr]
+    assert too_long.is_error and "timeout_s must be in (0, 60]" in too_long.content[0].text  # type: ignore[union-attr]
     too_fast = await agent.result(
         "publish_for", topic="/cmd", type="std_msgs/msg/String", msg={}, rate_hz=1e6, duration_s=1
     )
-    assert too_fast.isError and "rate_hz" in too_fast.content[0].text  # type: ignore[union-attr]
+    assert too_fast.is_error and "rate_hz" in too_fast.content[0].text  # type: ignore[union-attr]
 
 
 async def _services_and_parameters(agent: Agent) -> None:
@@ -277,7 +277,7 @@ async def _services_and_parameters(agent: Agent) -> None:
     )
     assert answer["values"]["success"] is True
     missing = await agent.result("call_service", service="/no_such_service", timeout_s=5)
-    assert missing.isError
+    assert missing.is_error
     assert "/no_such_service" in missing.content[0].text  # type: ignore[union-attr]
 
     assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
@@ -299,8 +299,8 @@ async def _actions(agent: Agent) -> None:
         {"action": "/fibonacci", "type": FIB, "goal": {"order": 5}, "timeout_s": 10},
         progress_callback=on_progress,
     )
-    assert not done.isError, done.content
-    report = done.structuredContent
+    assert not done.is_error, done.content
+    report = done.structured_content
     assert report is not None
     assert report["state"] == "succeeded" and report["status"] == 4
     assert report["result"] == {"sequence": [0, 1, 1, 2, 3, 5]}
@@ -320,7 +320,7 @@ async def _actions(agent: Agent) -> None:
     assert canceled["state"] == "canceled" and canceled["status"] == 5
     status = await agent.call("action_goal_status", goal_id=held["goal_id"])
     assert status["state"] == "canceled"
-    assert (await agent.result("action_goal_status", goal_id="nope")).isError
+    assert (await agent.result("action_goal_status", goal_id="nope")).is_error
 
 
 async def _tf(agent: Agent) -> None:
@@ -332,7 +332,7 @@ async def _tf(agent: Agent) -> None:
     lost = await agent.result(
         "lookup_transform", target_frame="base_link", source_frame="nowhere", timeout_s=1
     )
-    assert lost.isError and "nowhere" in lost.content[0].text  # type: ignore[union-attr]
+    assert lost.is_error and "nowhere" in lost.content[0].text  # type: ignore[union-attr]
 
 
 def free_port() -> int:
@@ -355,16 +355,16 @@ async def test_one_connection_made_in_the_background_and_again_after_a_drop(
     async with rwt_mcp(f"127.0.0.1:{port}", tmp_path) as agent:  # HOST:PORT, nothing there yet
         with anyio.fail_after(25):
             down = await agent.result("list_topics")
-            assert down.isError
+            assert down.is_error
             assert f"not connected to ws://127.0.0.1:{port}" in down.content[0].text  # type: ignore[union-attr]
             for _ in range(2):  # the robot comes up, goes away, and comes back
                 async with anyio.create_task_group() as tg:
                     config = ServerConfig(host="127.0.0.1", port=port)
                     await tg.start(RosbridgeServer(graph, config).serve)
-                    while (await agent.result("get_parameter", name="/robot:name")).isError:
+                    while (await agent.result("get_parameter", name="/robot:name")).is_error:
                         await anyio.sleep(0.1)  # (a listing's rate is lower: LISTING_CALLS_PER_S)
                     first = await _clients(agent)
-                    assert not (await agent.result("echo", topic="/battery")).isError
+                    assert not (await agent.result("echo", topic="/battery")).is_error
                     await agent.call("get_parameter", name="/robot:max_speed")
                     assert len(first) == 1 and await _clients(agent) == first
                     tg.cancel_scope.cancel()

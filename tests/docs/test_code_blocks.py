@@ -20,6 +20,7 @@ import pytest
 import trustme
 
 from rwt_protocol.distribution import DISTRIBUTION
+from tests.support.ros_mcp import ros_mcp_python
 
 from .blocks import LANGUAGES, REPO, Block, bash_commands, blocks_of, markdown_files
 
@@ -216,7 +217,17 @@ def _shell(args: list[str], cwd: Path) -> None:
 
 
 @pytest.mark.parametrize("block", RUNNABLE, ids=[b.name for b in RUNNABLE])
-def test_block_runs(block: Block, workdir: Path, tmp_path: Path) -> None:
+def test_block_runs(
+    block: Block, workdir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    if block.language == "python" and '"ros-mcp"' in block.text:  # its own environment (D52)
+        python, why = ros_mcp_python()
+        if python is None:
+            pytest.skip(f"ros-mcp 3.1.2 cannot run here: {why}")
+        only = tmp_path / "ros-mcp-bin"  # its command alone: not its env's python
+        only.mkdir()
+        (only / "ros-mcp").symlink_to(python.parent / "ros-mcp")
+        monkeypatch.setenv("PATH", f"{only}{os.pathsep}{os.environ['PATH']}")
     if block.language == "json":
         try:
             json.loads(block.text)

@@ -55,7 +55,7 @@ async def test_an_image_bomb_is_refused_from_its_header() -> None:
     async with serving(graph) as url, rwt_serve_mcp(url) as agent:
         with anyio.fail_after(20):  # main decoded it for seconds of CPU, then answered an image
             refused = await agent.result("echo", topic="/camera/compressed")
-    assert refused.isError
+    assert refused.is_error
     assert _text(refused).endswith(
         f"/camera/compressed: a 6300x6300 image is over {MAX_DECODE_PIXELS} pixels"
         " (MAX_DECODE_PIXELS)"
@@ -85,7 +85,7 @@ async def test_images_are_decoded_off_the_event_loop() -> None:
             loop_cpu, all_cpu = time.thread_time() - loop_cpu, time.process_time() - all_cpu
             tg.cancel_scope.cancel()
     images = [block for block in echoed.content if isinstance(block, ImageContent)]
-    assert len(images) == 2 and images[0].mimeType == "image/jpeg"
+    assert len(images) == 2 and images[0].mime_type == "image/jpeg"
     # each image: ~0.2 s of CPU to decode, scale and encode, all of it in an image thread
     # (main: all of it on the event loop, the loop's thread took ~all the process's CPU)
     assert loop_cpu < 0.5 * all_cpu, (loop_cpu, all_cpu)

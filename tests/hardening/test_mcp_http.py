@@ -32,6 +32,7 @@ from typing import Any
 
 import anyio
 import httpx
+import httpx2
 import pytest
 from anyio.streams.buffered import BufferedByteReceiveStream
 from websockets.asyncio.client import connect
@@ -70,13 +71,12 @@ async def serving(**fields: Any) -> AsyncIterator[tuple[str, RosbridgeServer]]:
 @asynccontextmanager
 async def agent(endpoint: str, *, terminate: bool = True) -> AsyncIterator[ClientSession]:
     """The official MCP client, initialized (``terminate``: it DELETEs its session at the end)."""
-    http = httpx.AsyncClient(timeout=WAIT_S)
+    http = httpx2.AsyncClient(timeout=WAIT_S)
     async with (
         http,
         streamable_http_client(endpoint, http_client=http, terminate_on_close=terminate) as (
             read,
             write,
-            _,
         ),
         ClientSession(read, write) as session,
     ):

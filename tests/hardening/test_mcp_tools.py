@@ -29,8 +29,8 @@ from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
-from mcp.shared.exceptions import McpError
-from mcp.types import TextContent
+from mcp.shared.exceptions import MCPError
+from mcp.types import PaginatedRequestParams, TextContent
 
 from rwt_mcp.guard import LISTING_BURST, LISTING_CALLS_PER_S
 from rwt_mcp.resources import RESOURCES_PER_PAGE
@@ -139,15 +139,15 @@ async def test_resources_are_listed_a_page_at_a_time() -> None:
         listed: list[str] = []
         cursor = None
         for _ in range(3):
-            page = await agent.session.list_resources(cursor)  # type: ignore[arg-type]
+            page = await agent.session.list_resources(params=PaginatedRequestParams(cursor=cursor))
             assert len(page.resources) <= RESOURCES_PER_PAGE
             listed += [resource.name for resource in page.resources]
-            cursor = page.nextCursor
+            cursor = page.next_cursor
         assert cursor is None  # the last page says so
         assert [name for name in listed if name.startswith("/t/")] == names
-        with pytest.raises(McpError, match="not a cursor of this server's resources/list"):
-            await agent.session.list_resources("bm9wZQ")  # type: ignore[arg-type]
-        with pytest.raises(McpError, match=r"listings called more than 2 times a second"):
+        with pytest.raises(MCPError, match="not a cursor of this server's resources/list"):
+            await agent.session.list_resources(params=PaginatedRequestParams(cursor="bm9wZQ"))
+        with pytest.raises(MCPError, match=r"listings called more than 2 times a second"):
             for _ in range(LISTING_BURST + 2):  # rated with the listing tools
                 await agent.session.list_resources()
     assert len(keep) == len(names)
@@ -163,7 +163,7 @@ def _robot() -> Graph:
 
 async def _refused_text(agent: Agent, tool: str, **arguments: object) -> str:
     result = await agent.result(tool, **arguments)
-    assert result.isError, result.content
+    assert result.is_error, result.content
     return _text(result)
 
 
@@ -197,13 +197,13 @@ async def _subscriptions_refused(agent: Agent) -> None:
         await agent.session.subscribe_resource("ros://topics/battery")  # type: ignore[arg-type]
         await agent.session.subscribe_resource("ros://topics/odom")  # type: ignore[arg-type]
         limit = "subscriptions: this connection holds 2 already (the server's limit)"
-        with pytest.raises(McpError, match="the server refused the subscription") as refused:
+        with pytest.raises(MCPError, match="the server refused the subscription") as refused:
             await agent.session.subscribe_resource("ros://topics/scan")  # type: ignore[arg-type]
         assert limit in str(refused.value)  # main: success, and no update ever
         text = await _refused_text(agent, "echo", topic="/scan", timeout_s=10)
         assert f"echo /scan: the server refused the subscription: subscribe: {limit}" in text
-        with pytest.raises(McpError, match=re.escape(limit)):
+        with pytest.raises(MCPError, match=re.escape(limit)):
             await agent.session.read_resource("ros://topics/scan")  # type: ignore[arg-type]
         await agent.session.unsubscribe_resource("ros://topics/odom")  # type: ignore[arg-type]
         echoed = await agent.result("echo", topic="/scan")  # room again
-        assert not echoed.isError and json.loads(echoed.content[1].text) == {"data": "/scan"}  # type: ignore[union-attr]
+        assert not echoed.is_error and json.loads(echoed.content[1].text) == {"data": "/scan"}  # type: ignore[union-attr]

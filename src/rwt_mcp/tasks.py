@@ -1,0 +1,317 @@
+"""Goals as MCP tasks: the Tasks extension (``io.modelcontextprotocol/tasks``).
+
+A 2026-07-28 client that declares the extension in its request's capabilities
+gets ``send_action_goal`` answered with a task handle (``resultType: "task"``)
+instead of a result it would wait for (docs/mcp.md, "Goals as tasks"). The task
+follows the goal: ``tasks/get`` answers its state (``working`` with the goal's
+report, feedback count and last feedback as ``statusMessage``; ``completed`` with
+the tool's result; ``cancelled``; ``failed`` when the connection that holds the
+goal dropped), and ``tasks/cancel`` cancels the goal through the connection that
+asks, as any connection the access rules allow on the action may (D35). The tasks
+live in a ``TaskStore`` the front end shares between its sessions and requests
+(one per ``rwt serve --mcp`` endpoint, one per ``rwt mcp`` process), so a task
+started on one connection is polled and canceled from another.
+
+Bounds (docs/limits.md, "MCP front end"): a store holds at most ``MAX_TASKS``
+tasks (a new one drops the oldest finished one; with all of them running it is a
+tool error), and a task lives ``TASK_TTL_S`` from its creation (``ttlMs``): then
+it is forgotten, and a goal still running is canceled. The wire shapes are the
+extension's 2026-07-28 schema (``Task``, ``CreateTaskResult``, ``GetTaskResult``);
+``tasks/update`` answers an error, since a goal asks for no input.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import uuid
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import TYPE_CHECKING, Any
+
+import anyio
+from mcp.server.extension import Extension, MethodBinding
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.shared.exceptions import MCPError
+from mcp.types import INVALID_PARAMS, CallToolRequestParams, CallToolResult, TextContent
+from mcp.types.version import MODERN_PROTOCOL_VERSIONS
+from mcp_types import RequestParams
+from pydantic import Field, ValidationError
+
+from rwt_protocol.errors import RwtError
+
+if TYPE_CHECKING:
+    from mcp.server.context import CallNext, HandlerResult, ServerRequestContext
+
+    from .guard import Guard
+    from .link import Goal, RobotLink
+
+__all__ = [
+    "MAX_TASKS",
+    "POLL_INTERVAL_MS",
+    "TASKS_EXTENSION",
+    "TASK_TOOLS",
+    "TASK_TTL_S",
+    "GoalTask",
+    "TaskStore",
+    "TasksExtension",
+]
+
+TASKS_EXTENSION = "io.modelcontextprotocol/tasks"
+"""The extension's identifier (``clientCapabilities.extensions``, ``capabilities.extensions``)."""
+#: Tasks one store holds (running, or finished and not yet expired).
+MAX_TASKS = 64
+#: Seconds a task lives from its creation (its ``ttlMs``); a goal running then is canceled.
+TASK_TTL_S = 600.0
+#: The polling interval a task suggests to its client, in ms.
+POLL_INTERVAL_MS = 1000
+#: The tools answered with a task when the client takes tasks: those that wait past a call.
+TASK_TOOLS = frozenset({"send_action_goal"})
+
+
+def _now_iso() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+@dataclass
+class GoalTask:
+    """One task: the goal it follows and the connection that holds the goal.
+
+    ``released`` is set once the goal's connection may close: the goal ended,
+    or the task expired (``TaskStore``).
+    """
+
+    task_id: str
+    record: Goal
+    link: RobotLink
+    report: Any  # (Goal) -> dict: the tool's report of the goal (``tools._report``)
+    created: float
+    created_at: str = field(default_factory=_now_iso)
+    last_updated_at: str = field(default_factory=_now_iso)
+    released: anyio.Event = field(default_factory=anyio.Event)
+
+    def wire(self) -> dict[str, Any]:
+        """The task as ``tasks/get`` answers it: a ``DetailedTask`` of the extension's schema."""
+        report: dict[str, Any] = self.report(self.record)
+        state = str(report["state"])
+        task: dict[str, Any] = {
+            "taskId": self.task_id,
+            "createdAt": self.created_at,
+            "lastUpdatedAt": self.last_updated_at,
+            "ttlMs": int(TASK_TTL_S * 1000),
+            "pollIntervalMs": POLL_INTERVAL_MS,
+            "statusMessage": json.dumps(report, ensure_ascii=False, separators=(",", ":")),
+        }
+        if state == "running":
+            task["status"] = "working"
+        elif state == "canceled":
+            task["status"] = "cancelled"
+        elif state.startswith("unknown"):
+            task["status"] = "failed"
+            task["error"] = {"code": -32603, "message": f"goal {self.record.handle.id}: {state}"}
+        else:  # succeeded, aborted: the call completed; its result says how the goal ended
+            task["status"] = "completed"
+            text = task["statusMessage"]
+            result = CallToolResult(
+                content=[TextContent(type="text", text=text)], structured_content=report
+            )
+            task["result"] = result.model_dump(mode="json", by_alias=True, exclude_none=True)
+        return task
+
+    def touch(self) -> None:
+        """Note a change of the goal (feedback, its end): ``lastUpdatedAt``."""
+        self.last_updated_at = _now_iso()
+
+
+class TaskStore:
+    """The tasks of one front end, by id (``MAX_TASKS``, ``TASK_TTL_S``).
+
+    Args:
+        clock: monotonic seconds (``anyio.current_time`` by default).
+    """
+
+    def __init__(self, clock: Any = None) -> None:
+        self.tasks: OrderedDict[str, GoalTask] = OrderedDict()
+        self._clock = clock or anyio.current_time
+
+    def add(self, record: Goal, link: RobotLink, report: Any) -> GoalTask:
+        """A new task following ``record``, a goal sent on ``link``.
+
+        Raises:
+            ToolError: ``MAX_TASKS`` tasks running already.
+        """
+        self.expire()
+        if len(self.tasks) >= MAX_TASKS:
+            finished = next((t for t in self.tasks.values() if t.record.done.is_set()), None)
+            if finished is None:
+                raise ToolError(f"{MAX_TASKS} tasks are running (MAX_TASKS): cancel one first")
+            self._drop(finished)
+        task = GoalTask(uuid.uuid4().hex, record, link, report, self._clock())
+        self.tasks[task.task_id] = task
+
+        def changed(_values: object = None) -> None:
+            task.touch()
+
+        record.listeners.append(changed)
+        return task
+
+    def get(self, task_id: str) -> GoalTask:
+        """The task ``task_id``.
+
+        Raises:
+            MCPError: no such task (never made, or expired): ``INVALID_PARAMS``.
+        """
+        self.expire()
+        task = self.tasks.get(task_id)
+        if task is None:
+            raise MCPError(INVALID_PARAMS, f"no task {task_id[:64]!r} (unknown, or expired)")
+        return task
+
+    def expire(self) -> None:
+        """Forget the tasks past ``TASK_TTL_S``; a goal still running is canceled."""
+        now = self._clock()
+        for task in [t for t in self.tasks.values() if now - t.created >= TASK_TTL_S]:
+            if not task.record.done.is_set():
+                _cancel_on(task.link, task)
+            self._drop(task)
+
+    def _drop(self, task: GoalTask) -> None:
+        self.tasks.pop(task.task_id, None)
+        task.released.set()
+
+    async def hold(self, task: GoalTask) -> None:
+        """Wait until ``task``'s goal ends or the task expires, then release it.
+
+        A goal still running at the task's expiry is canceled on its connection,
+        sent before the connection is let go.
+        """
+        remaining = task.created + TASK_TTL_S - self._clock()
+        with anyio.move_on_after(max(remaining, 0.0)):
+            await task.record.done.wait()
+        self.expire()
+        if not task.record.done.is_set():
+            _cancel_on(task.link, task)
+            with contextlib.suppress(RwtError), anyio.move_on_after(1.0):
+                await task.link.ros.flush()
+        if task.record.done.is_set():
+            task.touch()
+        task.released.set()
+
+
+def _cancel_on(link: RobotLink, task: GoalTask) -> None:
+    """Ask for the goal's cancel on ``link``'s connection (sent with its next flush)."""
+    with contextlib.suppress(RwtError):  # the connection is down: the goal's end is the server's
+        link.ros.session.cancel_action_goal(task.record.action, task.record.handle.id)
+
+
+class _TaskIdParams(RequestParams):
+    """``tasks/get`` and ``tasks/cancel``'s params: ``{taskId}``."""
+
+    task_id: str = Field(alias="taskId", max_length=128)
+
+
+class _UpdateParams(_TaskIdParams):
+    """``tasks/update``'s params: ``{taskId, inputResponses}``."""
+
+    input_responses: dict[str, Any] = Field(alias="inputResponses", default_factory=dict)
+
+
+def takes_tasks(ctx: ServerRequestContext[Any, Any]) -> bool:
+    """Whether the request's client takes tasks: 2026-07-28 and the extension declared."""
+    if ctx.protocol_version not in MODERN_PROTOCOL_VERSIONS:
+        return False  # a task handle is 2026-era vocabulary (the SDK's rule)
+    capabilities = ctx.session.client_capabilities
+    declared = capabilities.extensions if capabilities is not None else None
+    return bool(declared) and TASKS_EXTENSION in (declared or {})
+
+
+class TasksExtension(Extension):
+    """The Tasks extension on one MCP server (a session's, a request's).
+
+    Args:
+        store: the front end's tasks.
+        link: this server's connection (goals it starts live on it).
+        guard: this server's rules (``tasks/cancel`` is ``cancel_action_goal``'s call).
+        start_goal: ``async (arguments) -> Goal``: admits and sends a goal of
+            ``send_action_goal``'s arguments (``tools.RobotTools.start_goal``).
+        report: ``(Goal) -> dict``: the goal as the tool reports it (``tools.goal_report``).
+    """
+
+    identifier = TASKS_EXTENSION
+
+    def __init__(
+        self, store: TaskStore, link: RobotLink, guard: Guard, start_goal: Any, report: Any
+    ) -> None:
+        self.store, self.link, self.guard, self.start_goal = store, link, guard, start_goal
+        self.report = report
+        self.started: list[GoalTask] = []
+
+    def methods(self) -> list[MethodBinding]:
+        """``tasks/get``, ``tasks/update``, ``tasks/cancel``."""
+        return [
+            MethodBinding("tasks/get", _TaskIdParams, self._get),
+            MethodBinding("tasks/update", _UpdateParams, self._update),
+            MethodBinding("tasks/cancel", _TaskIdParams, self._cancel),
+        ]
+
+    async def intercept_tool_call(
+        self,
+        params: CallToolRequestParams,
+        ctx: ServerRequestContext[Any, Any],
+        call_next: CallNext,
+    ) -> HandlerResult:
+        """A task for a ``TASK_TOOLS`` call of a client that takes tasks; else the call."""
+        if params.name not in TASK_TOOLS or not takes_tasks(ctx):
+            return await call_next(ctx)
+        try:
+            record = await self.start_goal(dict(params.arguments or {}))
+        except (ToolError, ValidationError) as exc:
+            text = f"Error executing tool {params.name}: {exc}"
+            return CallToolResult(content=[TextContent(type="text", text=text)], is_error=True)
+        task = self.store.add(record, self.link, self.report)
+        self.started.append(task)
+        return {"resultType": "task", **_handle(task)}
+
+    async def hold(self) -> None:
+        """Wait until the tasks this server started release their connection."""
+        for task in self.started:
+            await self.store.hold(task)
+
+    async def _get(self, ctx: ServerRequestContext[Any, Any], params: _TaskIdParams) -> Any:
+        self._rated("tasks/get")
+        return {"resultType": "complete", **self.store.get(params.task_id).wire()}
+
+    async def _update(self, ctx: ServerRequestContext[Any, Any], params: _UpdateParams) -> Any:
+        self.store.get(params.task_id)
+        raise MCPError(INVALID_PARAMS, "a goal's task asks for no input: nothing to update")
+
+    async def _cancel(self, ctx: ServerRequestContext[Any, Any], params: _TaskIdParams) -> Any:
+        task = self.store.get(params.task_id)
+        record = task.record
+        try:
+            self.guard.admit("cancel_action_goal", {"action": record.action, "goal_id": ""})
+            ros = await self.link.connected()
+            ros.session.cancel_action_goal(record.action, record.handle.id)  # D35
+            await ros.flush()
+        except (ToolError, RwtError) as exc:
+            raise MCPError(INVALID_PARAMS, f"tasks/cancel: {exc}") from None
+        return {"resultType": "complete"}
+
+    def _rated(self, request: str) -> None:
+        try:
+            self.guard.check_rate(request)
+        except ToolError as exc:
+            raise MCPError(INVALID_PARAMS, str(exc)) from None
+
+
+def _handle(task: GoalTask) -> dict[str, Any]:
+    """The ``Task`` fields of a new task (``CreateTaskResult`` without ``resultType``)."""
+    return {
+        "taskId": task.task_id,
+        "status": "working",
+        "createdAt": task.created_at,
+        "lastUpdatedAt": task.last_updated_at,
+        "ttlMs": int(TASK_TTL_S * 1000),
+        "pollIntervalMs": POLL_INTERVAL_MS,
+    }

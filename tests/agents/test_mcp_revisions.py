@@ -1,0 +1,283 @@
+"""Both MCP revisions from one endpoint, and goals as tasks, with the official SDK's client.
+
+The SDK's client (2.x) speaks the 2026-07-28 revision (no handshake, ``_meta`` on
+every request, ``server/discover``, ``subscriptions/listen``, the Tasks extension)
+or, with ``mode="legacy"``, a 2025-era client's (``initialize``, a session,
+``resources/subscribe``). Each drives ``rwt serve --mcp`` (in-process) and ``rwt
+mcp URL`` (a process the client starts): tools, resources, updates and a goal.
+A goal started as a task is polled and canceled from another connection, and
+the robot's action server sees the cancel (docs/mcp.md, "Goals as tasks"; D35, D52).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any, Literal
+
+import anyio
+import pytest
+
+from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt_graph.actions import GoalCanceledError, GoalContext
+
+pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
+
+from mcp import Client, StdioServerParameters
+from mcp.client.extension import ClaimContext, ClientExtension, ResultClaim
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.shared.exceptions import MCPError
+from mcp.types import CallToolResult, Request, RequestParams, Result, TextContent
+from pydantic import ConfigDict
+
+from rwt_mcp.link import Goal
+from rwt_mcp.tasks import MAX_TASKS, TASK_TTL_S, TASKS_EXTENSION, TaskStore
+from rwt_transports.mcp_options import McpOptions
+from tests.support.cli import ENV
+
+pytestmark = pytest.mark.anyio
+
+FIB = "example_interfaces/action/Fibonacci"
+HOLD_ORDER = 100  # a goal of this order runs until canceled
+MODERN = "2026-07-28"
+AUTO = "auto"  # server/discover first, then 2026-07-28 where the server speaks it
+
+Message = dict[str, Any]
+
+
+class TaskHandle(Result):
+    """A task handle (``resultType: "task"``), the extension's ``CreateTaskResult``."""
+
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+    result_type: Literal["task"] = "task"
+    task_id: str
+    status: str
+
+
+class TaskState(Result):
+    """``tasks/get``'s answer: the task's fields, inlined."""
+
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+    task_id: str
+    status: str
+    status_message: str | None = None
+
+
+class _TaskIdParams(RequestParams):
+    task_id: str
+
+
+class Tasks(ClientExtension):
+    """The Tasks extension of a client: declares it; a task handle is kept as it is."""
+
+    identifier = TASKS_EXTENSION
+
+    def claims(self) -> list[ResultClaim[Any]]:
+        return [ResultClaim(result_type="task", model=TaskHandle, resolve=_unresolved)]
+
+
+async def _unresolved(handle: TaskHandle, _ctx: ClaimContext) -> CallToolResult:
+    return CallToolResult(content=[TextContent(type="text", text=handle.task_id)])
+
+
+async def task_request(client: Client, method: str, task_id: str) -> TaskState | Result:
+    """``tasks/get`` or ``tasks/cancel`` for ``task_id``, through the client's session."""
+    request = Request[_TaskIdParams, str](method=method, params=_TaskIdParams(task_id=task_id))
+    answer = TaskState if method == "tasks/get" else Result
+    return await client.session.send_request(request, answer)
+
+
+def robot(canceled: list[str]) -> Graph:
+    """A battery topic, a counter, and ``/fibonacci``, whose long goals run until canceled."""
+    graph = Graph()
+    battery = graph.create_publisher("/battery", "std_msgs/msg/String", latch=True)
+    battery.publish({"data": "87%"})
+
+    async def fibonacci(goal: Message, context: GoalContext) -> Message:
+        sequence = [0, 1]
+        if goal["order"] >= HOLD_ORDER:
+            context.publish_feedback({"sequence": sequence})
+            while not context.cancel_requested:
+                await anyio.sleep(0.01)
+            canceled.append(context.goal_id)
+            raise GoalCanceledError
+        for _ in range(1, goal["order"]):
+            sequence.append(sequence[-1] + sequence[-2])
+            context.publish_feedback({"sequence": sequence})
+        return {"sequence": sequence}
+
+    graph.create_action_server("/fibonacci", FIB, fibonacci)
+    return graph
+
+
+@pytest.fixture
+async def served() -> AsyncIterator[tuple[str, Graph, list[str]]]:
+    """rwt serving ``robot`` with ``--mcp``, in-process: ``(ws url, graph, goals canceled)``."""
+    canceled: list[str] = []
+    graph = robot(canceled)
+    server = RosbridgeServer(graph, ServerConfig(host="127.0.0.1", port=0, mcp=McpOptions()))
+    async with anyio.create_task_group() as tg:
+        url = await tg.start(server.serve)
+        yield url, graph, canceled
+        tg.cancel_scope.cancel()
+
+
+@asynccontextmanager
+async def connect(url: str, front: str, mode: str, on_message: Any = None) -> AsyncIterator[Client]:
+    """An SDK client of ``mode`` (``legacy``, or ``auto``: discover) on ``/mcp`` or stdio."""
+    target: str | StdioServerParameters = "http://" + url.split("://", 1)[1] + "/mcp"
+    if front == "stdio":
+        args = ["-m", "rwt", "mcp", url]
+        target = StdioServerParameters(command=sys.executable, args=args, env=dict(ENV))
+    extensions = [Tasks()]
+    async with Client(
+        target, mode=mode, extensions=extensions, message_handler=on_message
+    ) as client:
+        yield client
+
+
+async def _goal_task(client: Client, order: int) -> str:
+    arguments = {"action": "/fibonacci", "type": FIB, "goal": {"order": order}}
+    handle = await client.session.call_tool("send_action_goal", arguments, allow_claimed=True)
+    assert isinstance(handle, TaskHandle), handle
+    assert handle.status == "working"
+    return handle.task_id
+
+
+async def _settled(client: Client, task_id: str) -> TaskState:
+    while True:
+        state = await task_request(client, "tasks/get", task_id)
+        assert isinstance(state, TaskState)
+        if state.status != "working":
+            return state
+        await anyio.sleep(0.05)
+
+
+@pytest.mark.parametrize("front", ["http", "stdio"])
+async def test_a_2026_client_lists_reads_listens_and_drives_a_task(
+    served: tuple[str, Graph, list[str]], front: str
+) -> None:
+    url, graph, _ = served
+    counter = graph.create_publisher("/counter", "std_msgs/msg/Int32")
+    with anyio.fail_after(60):
+        async with connect(url, front, AUTO) as client:
+            assert client.protocol_version == MODERN  # no initialize: _meta on each request
+            assert TASKS_EXTENSION in (client.server_capabilities.extensions or {})
+            assert len((await client.list_tools()).tools) == 16
+            echoed = await client.call_tool("echo", {"topic": "/battery"})
+            assert json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
+            listed = await client.list_resources()
+            assert "ros://topics/battery" in {str(r.uri) for r in listed.resources}
+            read = await client.read_resource("ros://topics/battery")
+            assert json.loads(read.contents[0].text) == {"data": "87%"}  # type: ignore[union-attr]
+
+            async with client.listen(resource_subscriptions=["ros://topics/counter"]) as events:
+                counter.publish({"data": 7})
+                event = await events.__anext__()
+                assert getattr(event, "uri", None) == "ros://topics/counter"
+                latest = await client.read_resource("ros://topics/counter")
+                assert json.loads(latest.contents[0].text) == {"data": 7}  # type: ignore[union-attr]
+
+            state = await _settled(client, await _goal_task(client, 5))
+            assert state.status == "completed"
+            report = state.model_extra["result"]["structuredContent"]  # type: ignore[index]
+            assert report["state"] == "succeeded"
+            assert report["result"] == {"sequence": [0, 1, 1, 2, 3, 5]}
+
+
+@pytest.mark.parametrize("front", ["http", "stdio"])
+async def test_a_2025_client_still_opens_a_session_and_subscribes(
+    served: tuple[str, Graph, list[str]], front: str
+) -> None:
+    url, graph, _ = served
+    counter = graph.create_publisher("/counter", "std_msgs/msg/Int32")
+    updated = anyio.Event()
+
+    async def on_message(message: Any) -> None:
+        if getattr(message, "method", None) == "notifications/resources/updated":
+            updated.set()
+
+    with anyio.fail_after(60):
+        async with connect(url, front, "legacy", on_message) as client:
+            assert client.protocol_version == "2025-11-25"  # the initialize handshake
+            assert len((await client.list_tools()).tools) == 16
+            await client.subscribe_resource("ros://topics/counter")
+            counter.publish({"data": 3})
+            await updated.wait()
+            latest = await client.read_resource("ros://topics/counter")
+            assert json.loads(latest.contents[0].text) == {"data": 3}  # type: ignore[union-attr]
+            arguments = {"action": "/fibonacci", "type": FIB, "goal": {"order": 3}}
+            result = await client.call_tool("send_action_goal", arguments)  # no task: a result
+            assert result.structured_content is not None
+            assert result.structured_content["state"] == "succeeded"
+
+
+async def test_a_task_is_polled_and_canceled_from_a_new_connection(
+    served: tuple[str, Graph, list[str]],
+) -> None:
+    url, _, canceled = served
+    with anyio.fail_after(60):
+        async with connect(url, "http", AUTO) as first:
+            task_id = await _goal_task(first, HOLD_ORDER)
+            state = await task_request(first, "tasks/get", task_id)
+            assert isinstance(state, TaskState) and state.status == "working"
+        # the agent reconnects: the task, and its goal, are the endpoint's
+        async with connect(url, "http", AUTO) as second:
+            state = await task_request(second, "tasks/get", task_id)
+            assert isinstance(state, TaskState) and state.status == "working"
+            goal_id = json.loads(state.status_message or "{}")["goal_id"]
+            assert goal_id.startswith("send_action_goal:/fibonacci:")
+            await task_request(second, "tasks/cancel", task_id)
+            ended = await _settled(second, task_id)
+            assert ended.status == "cancelled"
+            assert json.loads(ended.status_message or "{}")["goal_id"] == goal_id
+        assert len(canceled) == 1  # the robot's action server saw the cancel
+
+
+async def test_an_unknown_task_is_an_error(served: tuple[str, Graph, list[str]]) -> None:
+    url, _, _ = served
+    async with connect(url, "http", AUTO) as client:
+        with pytest.raises(Exception, match="no task 'nope'"):
+            await task_request(client, "tasks/get", "nope")
+
+
+class _Handle:
+    def __init__(self, goal_id: str) -> None:
+        self.id = goal_id
+
+
+class _Link:
+    """A link whose connection takes cancels (the expiry's), counting them."""
+
+    def __init__(self) -> None:
+        self.canceled: list[str] = []
+        self.ros = self
+        self.session = self
+
+    def cancel_action_goal(self, _action: str, goal_id: str) -> None:
+        self.canceled.append(goal_id)
+
+
+async def test_a_store_holds_max_tasks_and_forgets_them_after_their_ttl() -> None:
+    now = [0.0]
+    store = TaskStore(clock=lambda: now[0])
+    link = _Link()
+
+    def report(record: Goal) -> Message:
+        return {"state": "succeeded" if record.done.is_set() else "running"}
+
+    goals = [Goal("/fibonacci", _Handle(f"g{n}")) for n in range(MAX_TASKS)]  # type: ignore[arg-type]
+    tasks = [store.add(goal, link, report) for goal in goals]  # type: ignore[arg-type]
+    with pytest.raises(ToolError, match=f"{MAX_TASKS} tasks are running"):
+        store.add(Goal("/fibonacci", _Handle("late")), link, report)  # type: ignore[arg-type]
+    goals[0].done.set()  # a finished task makes room: the oldest finished goes
+    store.add(Goal("/fibonacci", _Handle("next")), link, report)  # type: ignore[arg-type]
+    with pytest.raises(MCPError, match="unknown, or expired"):
+        store.get(tasks[0].task_id)
+    assert store.get(tasks[1].task_id).wire()["status"] == "working"
+    now[0] = TASK_TTL_S  # every task's life is over: forgotten, running goals canceled
+    with pytest.raises(MCPError, match="unknown, or expired"):
+        store.get(tasks[1].task_id)
+    assert len(link.canceled) == MAX_TASKS and not store.tasks

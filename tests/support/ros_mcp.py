@@ -1,0 +1,47 @@
+"""An environment of its own for ros-mcp-server 3.1.2, which holds mcp below 2 (D52).
+
+rwt's MCP server is on the SDK's 2.x line; ros-mcp 3.1.2 (through FastMCP 2)
+needs 1.x, so the two cannot share an environment, and ros-mcp runs from one of
+its own, as a user installs it (``pipx install ros-mcp==3.1.2``). ``RWT_ROS_MCP_PYTHON``
+names a Python that has it; else one is made once under ``~/.cache/rwt-tests``
+with pip (about 20 s), and reused after. Without either the caller skips.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+__all__ = ["ROS_MCP_PIN", "ros_mcp_python"]
+
+ROS_MCP_PIN = "ros-mcp==3.1.2"
+"""The release tests/agents/test_ros_mcp.py checks tool by tool (31 tools)."""
+_HOME = Path.home() / ".cache" / "rwt-tests" / ROS_MCP_PIN.replace("==", "-")
+
+
+def _has_ros_mcp(python: Path) -> bool:
+    probe = [str(python), "-c", "import ros_mcp.main"]
+    return subprocess.run(probe, capture_output=True, check=False, timeout=120).returncode == 0
+
+
+def ros_mcp_python() -> tuple[Path | None, str]:
+    """A Python that runs ros-mcp 3.1.2: ``(path, "")``, or ``(None, why not)``."""
+    named = os.environ.get("RWT_ROS_MCP_PYTHON")
+    if named:
+        path = Path(named)
+        return (path, "") if _has_ros_mcp(path) else (None, f"{named} cannot import ros_mcp")
+    python = _HOME / ("Scripts/python.exe" if sys.platform == "win32" else "bin/python")
+    if python.exists() and _has_ros_mcp(python):
+        return python, ""
+    try:
+        venv.create(_HOME, with_pip=True, clear=True)
+        install = [str(python), "-m", "pip", "install", "-q", ROS_MCP_PIN]
+        done = subprocess.run(install, capture_output=True, text=True, check=False, timeout=600)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return None, f"could not make an environment for {ROS_MCP_PIN}: {exc}"
+    if done.returncode != 0:
+        return None, f"pip install {ROS_MCP_PIN} failed: {done.stderr.strip()[-300:]}"
+    return python, ""
