@@ -99,7 +99,7 @@ async def test_a_duration_ends_the_recording_when_the_server_vanished(tmp_path: 
         finally:
             if recorder.returncode is None:
                 recorder.kill()
-                await recorder.wait()
+            await recorder.aclose()
     text = stderr.decode()
     assert recorder.returncode == 0, text
     assert stdout.endswith(f"-> {bag}\n")

@@ -44,7 +44,7 @@ async def serving(*args: str, listeners: int = 1) -> AsyncIterator[list[str]]:
     finally:
         if process.returncode is None:
             process.kill()
-        await process.wait()
+        await process.aclose()
 
 
 async def protocol_of(url: str, offered: list[str] | None) -> str:

@@ -93,7 +93,7 @@ async def rwt_serve(
         if process.returncode is None:
             process.kill()
         with anyio.fail_after(10):
-            await process.wait()
+            await process.aclose()  # its pipes too: a killed run may hold them a moment longer
 
 
 def port(url: str) -> int:
