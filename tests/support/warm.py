@@ -9,8 +9,10 @@ zygote ends when this process does (its stdin is this process's pipe).
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -39,14 +41,16 @@ def start() -> None:
     given = os.path.join(folder, "env.json")
     with open(given, "w", encoding="utf-8") as file:
         json.dump(env, file)
-    _started.append(
-        subprocess.Popen(
-            [sys.executable, str(ZYGOTE), path, given],
-            env=env,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            cwd=folder,
-            start_new_session=True,
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    with open(os.path.join(folder, "zygote.log"), "wb") as log:
+        _started.append(
+            subprocess.Popen(
+                [sys.executable, str(ZYGOTE), path, given],
+                env=env,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+                cwd=folder,
+                start_new_session=True,
+            )
         )
-    )

@@ -199,22 +199,34 @@ class Zygote:
         return [key.fd for key in self.selector.get_map().values()] + [self.selector.fileno()]
 
     def serve(self) -> None:
+        """Serve runs until the test worker ends; a run's trouble never ends the zygote."""
         while True:
             for key, _ in self.selector.select():
-                if key.data is None:
-                    conn, _ = self.listener.accept()
-                    run = _Run(conn)
-                    self.runs.add(run)
-                    self.selector.register(conn, selectors.EVENT_READ, run)
-                elif key.data == "parent":  # the test worker's pipe: closed when it ends
-                    if not os.read(sys.stdin.fileno(), 4096):
-                        for run in list(self.runs):
-                            self._drop(run, kill=True)
+                if self.selector.get_map().get(key.fd) is not key:
+                    continue  # unregistered by an event before it in this batch
+                try:
+                    if self._event(key.data):
                         return
-                elif isinstance(key.data, tuple):
-                    self._ended(key.data[0])
-                else:
-                    self._readable(key.data)
+                except Exception:  # logged; the worker's other runs go on
+                    traceback.print_exc()
+
+    def _event(self, data: object) -> bool:
+        """Handle one ready source; True when the worker has ended."""
+        if data is None:
+            conn, _ = self.listener.accept()
+            run = _Run(conn)
+            self.runs.add(run)
+            self.selector.register(conn, selectors.EVENT_READ, run)
+        elif data == "parent":  # the test worker's pipe: closed when it ends
+            if not os.read(sys.stdin.fileno(), 4096):
+                for run in list(self.runs):
+                    self._drop(run, kill=True)
+                return True
+        elif isinstance(data, tuple):
+            self._ended(data[0])
+        elif isinstance(data, _Run):
+            self._readable(data)
+        return False
 
     def _readable(self, run: _Run) -> None:
         try:
@@ -259,7 +271,8 @@ class Zygote:
         self._reply(run, f"pid {pid}\n".encode())
 
     def _ended(self, run: _Run) -> None:
-        assert run.pid is not None
+        if run.pid is None:
+            return
         _, status = os.waitpid(run.pid, 0)
         self._close_pidfd(run)
         run.pid = None
@@ -280,7 +293,9 @@ class Zygote:
         if kill and run.pid is not None:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(run.pid, signal.SIGKILL)
-            os.waitpid(run.pid, 0)
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(run.pid, 0)
+            run.pid = None
             self._close_pidfd(run)
         for fd in run.fds:
             os.close(fd)
