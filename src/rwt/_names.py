@@ -105,7 +105,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),
-        "rwt_protocol.server.access": (
+        "rwt_protocol.runtime.access": (
             "AccessDeniedError",
             "AccessPolicy",
             "Family",

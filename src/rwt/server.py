@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from rwt_foxglove.session import FoxgloveLimits
     from rwt_protocol.auth import auth_query, rosauth_op
     from rwt_protocol.ops import Auth
-    from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family, TopicUse
+    from rwt_protocol.runtime.access import AccessDeniedError, AccessPolicy, Family, TopicUse
     from rwt_protocol.server.compat import Compat
     from rwt_protocol.shortcuts import shortcut_report
     from rwt_transports.allocator import tune_allocator

@@ -23,7 +23,7 @@ from rwt_console import ConsoleSite, console_for
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.access import AccessPolicy, parse_glob_list, parse_split_glob
+from rwt_protocol.runtime.access import AccessPolicy, parse_glob_list, parse_split_glob
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit

@@ -18,8 +18,8 @@ import typer
 from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.server.compat import Compat
-from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
 from rwt_transports.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6

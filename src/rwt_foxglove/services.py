@@ -44,8 +44,8 @@ from .wire import decode_wire, encode_wire
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
-    from rwt_protocol.server.callbook import BookedCall, CallBook
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.callbook import BookedCall, CallBook
+    from rwt_protocol.runtime.outbox import OutFrame
 
     from .graphindex import GraphIndex
     from .output import SessionOutput

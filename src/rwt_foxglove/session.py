@@ -40,9 +40,9 @@ from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError, RwtError
 from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
-from rwt_protocol.server.access import Family, TopicUse
-from rwt_protocol.server.connection import SessionBase
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.access import Family, TopicUse
+from rwt_protocol.runtime.connection import SessionBase
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.server.session import SessionConfig
 from rwt_protocol.shortcuts import enabled
 
@@ -95,9 +95,9 @@ if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
-    from rwt_protocol.server.contract import Job
-    from rwt_protocol.server.memory import MemoryBudget
-    from rwt_protocol.server.timers import Timer
+    from rwt_protocol.runtime.contract import Job
+    from rwt_protocol.runtime.memory import MemoryBudget
+    from rwt_protocol.runtime.timers import Timer
 
     from .assetrequests import AssetReader
 

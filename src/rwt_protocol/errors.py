@@ -12,7 +12,7 @@ package is drawn here::
     │   ├── RemoteProtocolError           the peer's fault: becomes a status frame (D1)
     │   │   ├── LimitError                a per-connection cap (docs/limits.md)
     │   │   ├── MessageTooBigError        rwt_protocol.framing.messages: over --max-message-size
-    │   │   ├── AccessDeniedError         rwt_protocol.server.access: a --*-glob rule
+    │   │   ├── AccessDeniedError         rwt_protocol.runtime.access: a --*-glob rule
     │   │   ├── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
     │   │   ├── FoxgloveInputError        rwt_foxglove.protocol: what a Foxglove client sent
     │   │   │                             cannot be used (an error status)

@@ -20,8 +20,8 @@ if TYPE_CHECKING:
 
     from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.ports import GraphPort
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.memory import MemoryBudget
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.server.session import SessionConfig
 
 __all__ = ["AuthMode", "FrontEnd", "FrontEnds", "SessionRequest"]

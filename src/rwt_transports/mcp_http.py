@@ -63,7 +63,7 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream, TaskGroup, TaskStatus
 
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .server import RosbridgeServer
 

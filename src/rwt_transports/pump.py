@@ -3,7 +3,7 @@
 Every transport (WebSocket, TCP, UDP, stdio, in-memory) reduces a connection to a
 ``Channel`` (channel.py): receive a batch of frames, send a batch of frames, close;
 every protocol's session (rosbridge's, Foxglove's, a third's) implements
-``rwt_protocol.server.contract.ServerSession``. The pump runs the rest the same way
+``rwt_protocol.runtime.contract.ServerSession``. The pump runs the rest the same way
 for all of them (D22, one dispatcher behind all transports; docs/architecture.md,
 "One connection runtime"), in four tasks per connection:
 
@@ -69,8 +69,8 @@ from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
-from rwt_protocol.server.commands import CloseCode, CloseConnection
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.commands import CloseCode, CloseConnection
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.shortcuts import enabled
 
 from .admission import Admission, Ticket, current_ticket
@@ -81,7 +81,7 @@ from .holding import Held, wait_for
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Sequence
 
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .channel import Channel
     from .frontends import FrontEnd

@@ -58,8 +58,8 @@ from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, Ros
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
+from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.compat import Compat
-from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
@@ -90,8 +90,8 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
     from rwt_protocol.ops import Auth
-    from rwt_protocol.server.access import AccessPolicy
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.access import AccessPolicy
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .holding import Held
     from .mcp_http import McpEndpoint
@@ -163,7 +163,7 @@ class ServerConfig:
             ``max_fragment_memory``) and WebRTC input not read yet. While it is full,
             clients that do not read lose their oldest topic messages and are closed
             as slow consumers, and what would grow it is refused
-            (``rwt_protocol.server.memory.MemoryBudget``, docs/limits.md).
+            (``rwt_protocol.runtime.memory.MemoryBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake, and an MCP session holds
@@ -184,7 +184,7 @@ class ServerConfig:
             default the /64 one machine gets).
         idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
             sent nothing and that holds nothing is closed (``--idle-timeout``;
-            ``rwt_protocol.server.idle``), and an MCP session without a request in
+            ``rwt_protocol.runtime.idle``), and an MCP session without a request in
             flight ends (D40); None: never. UDP has ``udp.idle_timeout_s``.
         certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
         keyfile: PEM private key for it (``--keyfile``).
@@ -1312,7 +1312,7 @@ def _access_check(policy: AccessPolicy) -> Callable[[str, str], str | None]:
     ``topics_sub`` check a topic's use (D50); the rule is named as its option,
     with the patterns that refused (``--topics-sub-glob [/a, /b]``).
     """
-    from rwt_protocol.server.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
+    from rwt_protocol.runtime.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
 
     def check(family: str, name: str) -> str | None:
         kind, _, use_name = family.partition("_")

@@ -26,9 +26,9 @@ from .tcp import encode_stream_frames
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["StdioChannel"]
 

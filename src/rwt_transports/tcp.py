@@ -31,9 +31,9 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream
 
     from rwt_protocol.framing.fragments import FragmentBudget
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 

@@ -40,9 +40,9 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup, UDPSocket
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["UdpOptions", "serve_udp"]
 

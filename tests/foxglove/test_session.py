@@ -11,7 +11,7 @@ from rwt_foxglove import FoxgloveLimits
 from rwt_foxglove.protocol import select_subprotocol
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from tests.foxglove.sansio import Client, cdr
 

@@ -1,6 +1,6 @@
 """Every protocol's session meets the connection runtime's contract; the graph meets its port's.
 
-The pump drives any ``rwt_protocol.server.contract.ServerSession`` and a
+The pump drives any ``rwt_protocol.runtime.contract.ServerSession`` and a
 protocol front end types against ``rwt_graph.port.GraphFront``
 (docs/architecture.md, "One connection runtime"). mypy checks the places that
 assign one to the other; this checks every member each contract names, on the
@@ -19,7 +19,7 @@ from rwt_foxglove import FoxgloveSession
 from rwt_graph.graph import Graph
 from rwt_graph.port import GraphFront
 from rwt_protocol.ports import GraphPort
-from rwt_protocol.server.contract import Job, ServerSession
+from rwt_protocol.runtime.contract import Job, ServerSession
 from rwt_protocol.server.pngout import PngPublishJob
 from rwt_protocol.server.session import Session, SessionConfig
 

@@ -17,7 +17,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed
 
 from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_native import native_missing

@@ -25,9 +25,9 @@ from rwt_graph.graph import Graph
 from rwt_protocol.errors import RwtError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ports import MessageEvent
-from rwt_protocol.server.access import AccessPolicy, Family
-from rwt_protocol.server.connection import SessionBase
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.access import AccessPolicy, Family
+from rwt_protocol.runtime.connection import SessionBase
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.frontends import FrontEnd, SessionRequest
 from rwt_transports.server import RosbridgeServer, ServerConfig

@@ -43,19 +43,19 @@ from ..framing.fragments import FragmentBudget, Reassembler
 from ..levels import StatusLevel
 from ..ops import OpModel, PublishView, Status
 from ..ops.base import Compression
+from ..runtime.access import AccessPolicy
+from ..runtime.commands import CloseCode, CloseConnection, Command
+from ..runtime.connection import SessionBase
+from ..runtime.lifecycle import State
+from ..runtime.outbox import FRAME_OVERHEAD_BYTES
 from ..shortcuts import enabled
 from . import gates
-from .access import AccessPolicy
-from .commands import CloseCode, CloseConnection, Command
 from .compat import Compat, initial_status_level
-from .connection import SessionBase
 from .encoding import EncodeFailure, publish_text_size, safe_op_frames, safe_publish_frames
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .holdings import Holdings
 from .inflate import InflateJob, TokenBucket
-from .lifecycle import State
-from .outbox import FRAME_OVERHEAD_BYTES
 from .pngout import PngPublishJob, PngWaiting
 
 if TYPE_CHECKING:
@@ -64,11 +64,11 @@ if TYPE_CHECKING:
     from ..auth import Authenticator
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
-    from .contract import Job
-    from .memory import MemoryBudget
-    from .outbox import OutFrame
+    from ..runtime.contract import Job
+    from ..runtime.memory import MemoryBudget
+    from ..runtime.outbox import OutFrame
+    from ..runtime.timers import Timer
     from .subscriptions import TopicSubscription
-    from .timers import Timer
 
 __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]
 

@@ -44,9 +44,9 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from ..ports import ClientId, GraphPort
+    from ..server.session import SessionConfig
     from .contract import Job
     from .memory import MemoryAccount, MemoryBudget
-    from .session import SessionConfig
 
 __all__ = ["SessionBase"]
 
