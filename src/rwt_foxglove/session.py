@@ -5,7 +5,7 @@ runtime (``rwt_transports.pump``) hands it each received frame
 (``receive_frame``), runs its timers (server time, service call deadlines, the
 announcement of what changed in the graph) and its background jobs (asset files
 read off the event loop), and sends what ``frames_to_send`` gives; it is bound
-by the same per-client rules (``SessionConfig``: the send buffer and its
+by the same per-client rules (``ClientRules``: the send buffer and its
 slow-consumer rule, subscriptions, calls in flight, the idle timeout), plus the
 Foxglove section (``FoxgloveLimits``). Graph messages reach it
 through one ``TopicSink`` per subscribed topic, which only queues (a slow client
@@ -43,7 +43,7 @@ from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.runtime.access import Family, TopicUse
 from rwt_protocol.runtime.connection import SessionBase
 from rwt_protocol.runtime.outbox import OutFrame
-from rwt_protocol.server.session import SessionConfig
+from rwt_protocol.runtime.rules import ClientRules
 from rwt_protocol.shortcuts import enabled
 
 from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetJob, AssetRequests
@@ -234,7 +234,7 @@ class FoxgloveSession(SessionBase):
             client publishers go through on behalf of ``client_id``.
         client_id: this connection's identity in the graph.
         session_id: sent in ``serverInfo`` (clients tell a restarted server by it).
-        config: the per-client rules every protocol shares (``SessionConfig``: the
+        config: the per-client rules every protocol shares (``ClientRules``: the
             access globs, ``--send-buffer-limit``, ``--send-timeout``,
             ``--max-subscriptions``, ``--max-pending-calls``, ``--call-timeout``,
             ``--idle-timeout``, ``--hold-budget``).
@@ -265,7 +265,7 @@ class FoxgloveSession(SessionBase):
         client_id: str,
         *,
         session_id: str,
-        config: SessionConfig | None = None,
+        config: ClientRules | None = None,
         limits: FoxgloveLimits | None = None,
         on_output: Callable[[], None] | None = None,
         peer: str = "",
@@ -276,7 +276,7 @@ class FoxgloveSession(SessionBase):
         show_plumbing: bool = False,
         memory: MemoryBudget | None = None,
     ) -> None:
-        config = config or SessionConfig()
+        config = config or ClientRules()
         self.limits = limits or FoxgloveLimits()
         super().__init__(
             graph,

@@ -45,7 +45,8 @@ class SessionRequest:
         client_id: the connection's id in the graph (``ws:127.0.0.1:5000#3``).
         transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``stdio`` or ``memory``.
         peer: the peer's address.
-        config: the per-client rules (``SessionConfig``) for this transport.
+        config: the per-client settings for this transport: rosbridge's
+            ``SessionConfig``, whose ``ClientRules`` part every front end reads.
         on_output: the pump's wake-up.
         on_closed: the server's bookkeeping when the session closes.
         fragment_budget: the server-wide budget of incomplete messages.

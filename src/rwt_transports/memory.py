@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.framing.streams import FramerEvent, InFrame
+from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.runtime.outbox import OutFrame
 
 from .channel import PlainChannel

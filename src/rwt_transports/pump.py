@@ -66,10 +66,10 @@ import anyio.to_thread
 
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.codecs.json import encode_op
-from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
 from rwt_protocol.runtime.commands import CloseCode, CloseConnection
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.shortcuts import enabled
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.framing.streams import FramerEvent, LineFramer
+from rwt_protocol.framing.streams import LineFramer
 
 from .channel import PlainChannel
 from .tcp import encode_stream_frames
@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 
     from rwt_protocol.runtime.commands import CloseCode
     from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.inframes import FramerEvent
     from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["StdioChannel"]

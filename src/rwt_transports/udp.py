@@ -25,8 +25,8 @@ import anyio
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.datagrams import fragment_datagrams
-from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
 from rwt_protocol.ops import Status
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame
 
 from .channel import PlainChannel
 from .pump import ConnectionPump, SessionHost, run_connection

@@ -50,7 +50,7 @@ from aiortc.exceptions import InvalidStateError
 
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.framing.datagrams import fragment_datagrams
-from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame, LossyInFrame
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame, LossyInFrame
 
 from .channel import PlainChannel
 

@@ -14,7 +14,7 @@ for it hold, and the slow-consumer rule while the budget is full). rosbridge's
 ``session.Session`` and the Foxglove protocol's session are subclasses: each
 adds its ops and says how its peer is told of a problem (``report``), what it
 holds (``holds_anything``) and what it releases (``release``). Limits come
-from one ``SessionConfig`` (docs/limits.md, "Per connection"), whichever
+from one ``rules.ClientRules`` (docs/limits.md, "Per connection"), whichever
 protocol the client speaks.
 
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
@@ -44,9 +44,9 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from ..ports import ClientId, GraphPort
-    from ..server.session import SessionConfig
     from .contract import Job
     from .memory import MemoryAccount, MemoryBudget
+    from .rules import ClientRules
 
 __all__ = ["SessionBase"]
 
@@ -60,7 +60,7 @@ class SessionBase:
     Args:
         graph: the graph the session operates on.
         client_id: the connection's identity in the graph; unique per server.
-        config: the per-client limits (``SessionConfig``; docs/limits.md).
+        config: the per-client rules (``rules.ClientRules``; docs/limits.md).
         on_output: called (synchronously, without arguments) whenever frames or
             commands become available or a timer is set, so the transport can
             wake its writer and look at ``get_timer`` again.
@@ -81,7 +81,7 @@ class SessionBase:
         graph: GraphPort,
         client_id: ClientId,
         *,
-        config: SessionConfig,
+        config: ClientRules,
         on_output: Callable[[], None] | None = None,
         peer: str = "",
         on_closed: Callable[[ClientId], None] | None = None,
@@ -377,13 +377,13 @@ class SessionBase:
         return self._peer
 
     @property
-    def config(self) -> SessionConfig:
+    def config(self) -> ClientRules:
         """This connection's settings."""
         return self._config
 
     @property
     def hold_budget_s(self) -> float:
-        """Seconds this connection, as a reader, may be held (``SessionConfig.hold_budget_s``)."""
+        """Seconds this connection, as a reader, may be held (``ClientRules.hold_budget_s``)."""
         return self._config.hold_budget_s
 
     @property
@@ -598,7 +598,7 @@ class SessionBase:
     ) -> None:
         """The access gate of every protocol: refuse what the access rules deny.
 
-        The rules are the server's (``SessionConfig.access``: ``--topics-glob``
+        The rules are the server's (``ClientRules.access``: ``--topics-glob``
         and friends); a refusal is logged as rosbridge's are
         (``event=access_denied``, once per episode, repeats counted), naming the
         glob that refused (``glob=topics_sub_glob``, D50).

@@ -27,8 +27,10 @@ if TYPE_CHECKING:
     from .lossy import LossyLane
     from .memory import MemoryAccount
     from .outbox import OutFrame
+    from .rules import ClientRules
+    from .timers import Timer
 
-__all__ = ["Job", "ServerSession"]
+__all__ = ["Job", "ServerSession", "WatchedSession"]
 
 
 class Job(Protocol):
@@ -43,6 +45,44 @@ class Job(Protocol):
 
     def run(self) -> object:
         """Do the work (in a worker thread); its result, or an exception, goes to ``finish_job``."""
+
+
+class WatchedSession(Protocol):
+    """What the session's own watches (slow consumer, idle) see of it (``SessionBase``).
+
+    They are parts of the session that hold it; typing them against this, not
+    ``SessionBase``, keeps the runtime's modules free of an import circle.
+    """
+
+    @property
+    def protocol(self) -> str:
+        """The protocol's name in logs."""
+
+    @property
+    def client_id(self) -> str:
+        """The connection's identity in the graph."""
+
+    @property
+    def config(self) -> ClientRules:
+        """The connection's per-client rules."""
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` once ``now >= deadline`` (monotonic seconds)."""
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Tell the peer of a problem in its protocol's status."""
+
+    def warn_dropping(self, text: str) -> None:
+        """Tell the peer that its oldest topic messages are being dropped."""
+
+    def dropping_over(self) -> None:
+        """The episode of drops is over."""
+
+    def holds_anything(self) -> bool:
+        """Whether the client holds something in the graph (the idle rule)."""
+
+    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
+        """Ask the transport to close after the frames queued so far."""
 
 
 class ServerSession(Protocol):

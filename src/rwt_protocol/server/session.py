@@ -32,7 +32,7 @@ any frames for ``send_timeout_s`` is closed with a reason.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..auth import AUTH_CHALLENGE_ID, new_challenge
@@ -43,11 +43,11 @@ from ..framing.fragments import FragmentBudget, Reassembler
 from ..levels import StatusLevel
 from ..ops import OpModel, PublishView, Status
 from ..ops.base import Compression
-from ..runtime.access import AccessPolicy
 from ..runtime.commands import CloseCode, CloseConnection, Command
 from ..runtime.connection import SessionBase
 from ..runtime.lifecycle import State
 from ..runtime.outbox import FRAME_OVERHEAD_BYTES
+from ..runtime.rules import ClientRules, MiB
 from ..shortcuts import enabled
 from . import gates
 from .compat import Compat, initial_status_level
@@ -61,9 +61,11 @@ from .pngout import PngPublishJob, PngWaiting
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from ..auth import Authenticator
+    # what the fields ``SessionConfig`` takes from ``ClientRules`` name, for its __init__
+    from ..auth import Authenticator  # noqa: F401
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
+    from ..runtime.access import AccessPolicy  # noqa: F401
     from ..runtime.contract import Job
     from ..runtime.memory import MemoryBudget
     from ..runtime.outbox import OutFrame
@@ -74,44 +76,24 @@ __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig"
 
 logger = logging.getLogger("rwt.session")
 
-MiB = 1024 * 1024
-
-HOLD_BUDGET_S = 5.0
-"""Default ``SessionConfig.hold_budget_s``: seconds a publisher (or caller) may be held
-back by the congested connections it fills, in all, regaining a tenth of a second a
-second (docs/limits.md, input backpressure).
-
-Long enough for a subscriber that reads to take a burst whole (B19: 200,000
-messages, the publisher held about half of the time), short against a stream
-a subscriber cannot keep up with: after it, that subscriber loses its own
-oldest messages and the publisher and every other subscriber go at full rate.
-"""
-
-
 _PUBLISH_DECODE = enabled("publish-decode")  # docs/shortcuts.md
 
 
 @dataclass(frozen=True)
-class SessionConfig:
-    """Per-connection settings.
+class SessionConfig(ClientRules):
+    """Per-connection settings of a rosbridge client: every protocol's rules and rosbridge's.
+
+    The rules every protocol shares (``send_buffer_limit``, ``send_timeout_s``,
+    ``hold_budget_s``, ``access``, ``authenticator``, ``call_timeout_s``,
+    ``max_subscriptions``, ``max_advertisements``, ``max_pending_calls``,
+    ``idle_timeout_s``) are ``ClientRules``'s (``rwt_protocol.runtime.rules``),
+    taken by the same keywords; the server makes one ``SessionConfig`` and every
+    front end reads the part it knows.
 
     Attributes:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         compat: whose behaviour the connection follows where rwt and rosbridge_suite
             differ (``compat.Compat``, ``--compat``; docs/differences.md).
-        send_buffer_limit: bytes of outgoing frames kept queued before the oldest
-            topic messages are dropped (D24, ``--send-buffer-limit``); each frame
-            counts its payload plus ``outbox.FRAME_OVERHEAD_BYTES``, so the
-            limit bounds the memory a stalled peer holds.
-        send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
-            without taking any frame before it is closed (D24, ``--send-timeout``).
-        hold_budget_s: seconds this connection, as a reader, may be held back
-            by the congested outboxes it fills (input backpressure,
-            ``--hold-budget``), in all, whoever it waits for, regaining it
-            slowly; a connection it was waiting for when it ran out is slow and
-            loses its own oldest topic messages (D24) instead (docs/limits.md).
-        access: the access rules (``--topics-glob`` and friends).
-        authenticator: when set, the first op must be an ``auth`` it admits (D23).
         auth_challenge: with an authenticator, send each connection a challenge
             first (a ``status`` with ``id`` ``auth_challenge`` and the nonce as
             ``msg``) and admit only an ``auth`` whose ``rand`` is that nonce
@@ -129,23 +111,10 @@ class SessionConfig:
         max_queue_length: the most messages a throttled subscription queues; a
             larger ``queue_length`` is capped with a warning (D12, D24,
             ``--max-queue-length``).
-        call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
-            it fails (D16, ``--call-timeout``); None waits for ever.
-        max_subscriptions: topics one connection may subscribe to at once
-            (``--max-subscriptions``); the next ``subscribe`` gets an error status.
-        max_advertisements: topics, services and actions one connection may
-            advertise at once, together (``--max-advertisements``).
         max_ids_per_topic: ``subscribe`` or ``advertise`` ids one connection may
             hold on one topic (merged per D11).
-        max_pending_calls: ``call_service`` ops of one connection waiting for their
-            reply (``--max-pending-calls``); the next is answered ``result: false``.
         max_pending_goals: ``send_action_goal`` ops of one connection waiting for
             their result (``--max-pending-goals``); the next gets a failed result.
-        idle_timeout_s: seconds after which a connection whose peer sent nothing and
-            that holds nothing (no subscription, advertisement, offer, goal, pending
-            call or goal, incomplete message) is closed (``idle.IdleWatch``); None:
-            never. A ``RosbridgeServer`` sets it from ``ServerConfig.idle_timeout_s``
-            for WebSocket and TCP connections (``--idle-timeout``).
         png_inflate_rate: bytes a second of ``png`` images one connection may have
             inflated, after a burst of ``max_message_size`` (``--png-inflate-rate``;
             ``inflate.TokenBucket``): past it, its later ``png`` ops wait.
@@ -154,24 +123,14 @@ class SessionConfig:
 
     status_level: StatusLevel = StatusLevel.ERROR
     compat: Compat = Compat.RWT
-    send_buffer_limit: int = 16 * MiB
-    send_timeout_s: float = 30.0
-    hold_budget_s: float = HOLD_BUDGET_S
-    access: AccessPolicy = field(default_factory=AccessPolicy)
-    authenticator: Authenticator | None = None
     auth_challenge: bool = False
     max_message_size: int = 10 * MiB
     max_pending_fragments: int = 16
     fragment_timeout_s: float = 600.0
     max_queue_length: int = 100
-    call_timeout_s: float | None = 30.0
-    max_subscriptions: int = 1000
-    max_advertisements: int = 1000
     max_ids_per_topic: int = 100
-    max_pending_calls: int = 1000
     max_pending_goals: int = 1000
     png_inflate_rate: int = 8 * MiB
-    idle_timeout_s: float | None = None
 
 
 class Session(SessionBase):
@@ -219,6 +178,7 @@ class Session(SessionBase):
         memory: MemoryBudget | None = None,
     ) -> None:
         config = config or SessionConfig()
+        self._config: SessionConfig = config  # (``SessionBase`` keeps it as ``ClientRules``)
         super().__init__(
             graph,
             client_id,
@@ -406,6 +366,11 @@ class Session(SessionBase):
         )
 
     # ---- outputs ------------------------------------------------------------
+
+    @property
+    def config(self) -> SessionConfig:
+        """This connection's settings: the rules every protocol shares and rosbridge's."""
+        return self._config
 
     @property
     def holdings(self) -> Holdings:
