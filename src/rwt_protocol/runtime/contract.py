@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Sequence
 
     from ..levels import StatusLevel
     from .commands import CloseCode, CloseConnection, Command
@@ -116,7 +116,7 @@ class ServerSession(Protocol):
         """The transport serves the connection from ``now`` (monotonic seconds)."""
 
     def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
-        """Handle one whole incoming frame; never raises for what the peer sent."""
+        """Handle one whole incoming frame; never raises (a bug in it is contained)."""
 
     def receive_lossy_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
         """Handle one frame that came on the transport's lossy channel (D36)."""
@@ -133,6 +133,15 @@ class ServerSession(Protocol):
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Tell the peer of a problem (a framing error) in its protocol's status."""
 
+    def status_frames(
+        self, level: StatusLevel, text: str, op_id: str | int | None = None
+    ) -> Sequence[OutFrame]:
+        """The frames of the protocol's status saying ``text``, not queued.
+
+        The pump sends them as the last word before it cuts the connection for a
+        bug of its own (the transport's; the session contains its own bugs).
+        """
+
     def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one)."""
 
@@ -146,7 +155,7 @@ class ServerSession(Protocol):
         """When ``handle_timer`` must next be called (monotonic seconds), or None."""
 
     def handle_timer(self, now: float) -> None:
-        """Run what was due at or before ``now``."""
+        """Run what was due at or before ``now``; never raises (a bug in it is contained)."""
 
     @property
     def has_jobs(self) -> bool:
@@ -159,7 +168,10 @@ class ServerSession(Protocol):
         """The oldest background job (the reader goes on meanwhile), or None."""
 
     def finish_job(self, job: Job, result: object, now: float) -> None:
-        """Take a job's outcome: what ``run`` returned, or the exception it raised."""
+        """Take a job's outcome: what ``run`` returned, or the exception it raised.
+
+        Never raises: a failed job, or a bug taking its outcome, is contained.
+        """
 
     def run_jobs(self) -> None:
         """The transport runs the jobs from now on (else a session does them at once)."""

@@ -214,8 +214,10 @@ class Session(SessionBase):
 
     # ---- inputs -------------------------------------------------------------
 
-    def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+    def handle_frame(self, frame: str | bytes, now: float, binary: bool) -> None:
         """Process one incoming frame: one JSON text, or one CBOR item when ``binary``.
+
+        ``receive_frame`` (``SessionBase``) calls it while the session takes input.
 
         Args:
             frame: the frame's payload.
@@ -223,12 +225,9 @@ class Session(SessionBase):
             binary: the frame came as binary (a WebSocket binary message, a CBOR
                 item on a stream): CBOR (D21, D27).
 
-        Never raises for anything the peer sent; see the module docstring.
-        Frames arriving after the session asked to close are ignored.
+        Never raises for anything the peer sent; see the module docstring. A
+        refusal or a bug is reported with the op's name and id (``contain``).
         """
-        if not self._state.takes_input:
-            return
-        self.received(now)
         op_name: str | None = None
         op_id: str | int | None = None
         try:
@@ -257,8 +256,8 @@ class Session(SessionBase):
                 self._admitted = True
         except RwtError as exc:
             self._refused(exc, op_name, op_id)
-        except Exception:
-            self._bug(op_name, op_id)
+        except Exception as exc:
+            self.contain(exc, op_name, op_id)
 
     def receive_lossy_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
         """Process a frame that came on the transport's lossy channel (D36).
@@ -297,8 +296,10 @@ class Session(SessionBase):
             return
         self.add_job(InflateJob(png, op_id, now + wait))
 
-    def finish_job(self, job: Job, result: object, now: float) -> None:
+    def job_done(self, job: Job, result: object, now: float) -> None:
         """Take a job's outcome: its text is handled as a frame, its error reported.
+
+        ``finish_job`` (``SessionBase``) calls it and contains what it raises.
 
         Args:
             job: what ``take_job`` gave (an ``InflateJob``), or
@@ -310,15 +311,15 @@ class Session(SessionBase):
         if isinstance(job, PngPublishJob):
             self._png_done(job, result)
             return
-        if not self._state.takes_input or not isinstance(job, InflateJob):
+        if not isinstance(job, InflateJob):
+            super().job_done(job, result, now)
+            return
+        if not self._state.takes_input:
             return
         if isinstance(result, RwtError):
             self._refused(result, "png", job.op_id)
-        elif isinstance(result, BaseException):
-            try:  # a bug in the job: reported and logged with its traceback, as in a handler
-                raise result
-            except Exception:
-                self._bug("png", job.op_id)
+        elif isinstance(result, Exception):  # a bug in the job: reported and logged
+            self.contain(result, "png", job.op_id, source="job")
         elif isinstance(result, bytes | str):
             self.receive_frame(result, now)
 
@@ -451,7 +452,7 @@ class Session(SessionBase):
         frames, failure = safe_op_frames(op)
         if failure is not None:
             self._unencodable(failure)
-        outbox = self._outbox
+        outbox = self.outbox
         if not outbox.fits_kept(frames):
             raise GraphError(
                 f"{what}: provider busy: {outbox.undroppable_bytes} bytes of requests wait "
@@ -495,6 +496,19 @@ class Session(SessionBase):
             return  # no status is sent at level none (``admits`` never lets it through)
         self.send(Status(level=wire, msg=text, id=op_id))
 
+    def status_frames(
+        self, level: StatusLevel, text: str, op_id: str | int | None = None
+    ) -> Sequence[OutFrame]:
+        """A ``status`` op's frames (spec 3.2), whatever the connection's level, not queued.
+
+        Empty at level ``none``, which has no status.
+        """
+        wire = level.wire
+        if wire == "none":
+            return ()
+        frames, _ = safe_op_frames(Status(level=wire, msg=text, id=op_id))
+        return frames
+
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, in the subscription's merged encoding.
 
@@ -526,10 +540,10 @@ class Session(SessionBase):
     def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
         """``deliver`` each of ``events`` (a run of one topic's messages), in order.
 
-        A message that is one frame (not fragmented) is queued in the fewest steps
-        (``Outbox.push_timed``, ``push_droppable``) and the transport is woken
-        once for the run, so a burst to many subscribers costs each little more
-        than its frame (``rosbridge-batch-sink``, ``rwt_protocol.shortcuts``).
+        The messages that are one frame (not fragmented) are queued as one run
+        (``SessionBase.queue_run``) and the transport is woken once for it, so a
+        burst to many subscribers costs each little more than its frame
+        (``rosbridge-batch-sink``, ``rwt_protocol.shortcuts``).
         Everything else goes as ``deliver`` sends it: PNG, the lossy lane,
         fragments, a message that cannot be encoded.
         """
@@ -541,36 +555,31 @@ class Session(SessionBase):
             for event in events:
                 self.deliver(subscription, event)
             return
-        if not self._state.sends:
+        if not self._sends:
             return
-        outbox = self._outbox
         spelling, size = subscription.spelling, params.fragment_size
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        was_empty = len(outbox) == 0
+        run: list[OutFrame] = []  # one-frame messages of one lifespan and time, queued at once
+        run_now = run_lifespan = 0.0
         for event in events:
-            now = self._now = max(self._now, event.now)
             frames = safe_publish_frames(event, spelling, compression, size)
             if isinstance(frames, EncodeFailure):
                 self._encode_failed(subscription, frames, compression)
                 continue
-            frame = frames[0]
-            if len(frames) > 1 or not frame.droppable:  # fragments: as ``send_frames`` queues them
-                self.send_frames(frames, spelling, event.lifespan)
-                dropped, oversized = outbox.dropped, outbox.dropped_oversized
+            lifespan = event.lifespan
+            if run and (lifespan != run_lifespan or (lifespan > 0 and event.now != run_now)):
+                self.queue_run(run, spelling, run_now, run_lifespan)
+                run = []
+            if len(frames) > 1 or not frames[0].droppable:  # fragments: as ``deliver`` sends them
+                if run:
+                    self.queue_run(run, spelling, run_now, run_lifespan)
+                    run = []
+                self._now = max(self._now, event.now)
+                self.send_frames(frames, spelling, lifespan)
                 continue
-            if event.lifespan > 0:
-                outbox.push_timed(frame, now, event.lifespan, spelling)
-            else:
-                outbox.push_droppable(frame)
-            if outbox.dropped != dropped:  # the slow-consumer rule, as ``send_frames`` asks it
-                self._watch.after_push(dropped, oversized, now, frames, spelling)
-                dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.settle()  # the memory budget, once for the run (D44)
-        if outbox.dropped != dropped or outbox.held_bytes:
-            self._watch.after_push(dropped, oversized, self._now, (), spelling)
-        if was_empty or outbox.fill_bytes > self.wake_above_bytes:
-            self._wake()
-        self.sweep_memory()
+            run.append(frames[0])
+            run_now = event.now if event.now > run_now else run_now
+            run_lifespan = lifespan
+        self.queue_run(run, spelling, run_now, run_lifespan)
 
     def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
         """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.
@@ -618,7 +627,7 @@ class Session(SessionBase):
         self._bound_waiting(spelling)
         memory = self._memory
         if memory is not None:
-            excess = memory.excess(self._outbox.limit_bytes)
+            excess = memory.excess(self.outbox.limit_bytes)
             if excess:
                 self.make_room(excess, self._now)
         if self.fill_bytes > self.wake_above_bytes:
@@ -627,12 +636,10 @@ class Session(SessionBase):
 
     def _bound_waiting(self, topic: str) -> None:
         """Keep the outbox and the png messages waiting within ``--send-buffer-limit`` (D24)."""
-        outbox = self._outbox
+        outbox = self.outbox
         limit = outbox.limit_bytes
         if outbox.queued_bytes + self._pending_bytes > limit:
-            dropped, oversized = outbox.dropped, outbox.dropped_oversized
-            self.shed_topic_messages(limit)
-            self._watch.after_push(dropped, oversized, self._now, (), topic)
+            self.shed(limit, topic)
 
     def shed_topic_messages(self, cap: int) -> None:
         """Drop the oldest topic messages, queued then waiting for png, down to ``cap`` bytes.
@@ -640,7 +647,7 @@ class Session(SessionBase):
         The newest waiting message stays: as in the outbox, a message is never
         dropped for being the only one.
         """
-        outbox, waiting = self._outbox, self._png_waiting
+        outbox, waiting = self.outbox, self._png_waiting
         outbox.shed_to(max(0, cap - waiting.bytes))
         while len(waiting) > 1 and outbox.queued_bytes + waiting.bytes > cap:
             job = waiting.oldest()
@@ -658,11 +665,8 @@ class Session(SessionBase):
         subscription = job.subscription
         if not self._state.sends or not subscription.requests:
             return
-        if isinstance(result, BaseException):
-            try:  # a bug in the encoder: reported and logged, as in a handler
-                raise result
-            except Exception:
-                self._bug("subscribe")
+        if isinstance(result, Exception):  # a bug in the encoder: reported and logged
+            self.contain(result, "subscribe", source="job")
             return
         if isinstance(result, EncodeFailure):
             self._encode_failed(subscription, result, Compression.PNG)
