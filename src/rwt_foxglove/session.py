@@ -184,7 +184,7 @@ class _TopicSink:
         session, channel = self._session, self._channel
         if subscriptions is None:
             subscriptions = channel.subscriptions
-        if not subscriptions or session.closing:
+        if not subscriptions:
             return
         clock = session._time
         now = None if clock is None else clock.now()

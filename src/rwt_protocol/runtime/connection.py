@@ -606,10 +606,13 @@ class SessionBase:
                     self._watch.after_push(dropped, oversized, now, (frame,), topic)
                     dropped, oversized = outbox.dropped, outbox.dropped_oversized
         outbox.settle()  # the memory budget, once for the run (D44)
-        if outbox.dropped != dropped or outbox.held_bytes:
+        if outbox.dropped != dropped or outbox._held_frames:  # (``held_bytes``, inline)
             self._watch.after_push(dropped, oversized, now, (), topic)
-        if was_empty or self.wakes_each_run or outbox.fill_bytes > self.wake_above_bytes:
-            self._wake()  # above the high watermark too: the transport applies backpressure
+        on_output = self._on_output  # (``_wake`` inline: a call less per run and client)
+        if on_output is not None and (
+            was_empty or self.wakes_each_run or outbox.fill_bytes > self.wake_above_bytes
+        ):
+            on_output()  # above the high watermark too: the transport applies backpressure
         self.sweep_memory()
 
     def shed(self, cap: int, topic: str | None) -> None:
