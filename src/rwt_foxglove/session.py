@@ -195,10 +195,6 @@ class _TopicSink:
         append = run.append
         try:  # fails for the first frame or none: a message's frames share payload and time
             for event in events:
-                payload = event.wire  # as it came (a link's CDR, a bag's record): no call
-                if payload is None:
-                    payload = session._payload(channel, event)
-                log_time = int(event.stamp * 1e9) if now is None else now
                 memos = event.memos if share else {}  # the shortcut off: one for each
                 for sid in subscriptions:  # (not a comprehension: its closure costs a call)
                     # made once per message, subscription id and log time (which a bag's
@@ -206,7 +202,12 @@ class _TopicSink:
                     # that are not these frames' are strings or start with one
                     key = sid if now is None else (sid, now)
                     frame: OutFrame | None = memos.get(key)  # type: ignore[assignment]
-                    if frame is None:  # positional: keywords to a class cost a dict per call
+                    if frame is None:  # the payload only then: every other client shares it
+                        payload = event.wire  # as it came (a link's CDR, a bag's record)
+                        if payload is None:
+                            payload = session._payload(channel, event)
+                        log_time = int(event.stamp * 1e9) if now is None else now
+                        # positional: keywords to a class cost a dict per call
                         frame = memos[key] = OutFrame(
                             payload, True, True, None, None, encode_message_header(sid, log_time)
                         )
