@@ -53,7 +53,7 @@ from rwt_mcp.tools import build_server, initialization_options
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
-from .http_endpoint import claims_path, open_request, reply
+from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
@@ -255,7 +255,7 @@ class McpEndpoint:
                 await exchange.refuse_jsonrpc(*problem)
                 return
         if session_id is None:
-            await self._open(exchange, _bearer(headers))
+            await self._open(exchange, bearer(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
 
@@ -267,7 +267,7 @@ class McpEndpoint:
         if request.method == b"OPTIONS":
             return None
         session_id = headers.get(MCP_SESSION_ID_HEADER)
-        token = _bearer(headers)
+        token = bearer(headers)
         if session_id is None:
             if request.method != b"POST":
                 return 400, "no Mcp-Session-Id: POST an initialize request first"
@@ -437,10 +437,6 @@ def _body_refusal(body: bytes, *, new_session: bool) -> tuple[int, str, int] | N
     return None
 
 
-def _bearer(headers: dict[str, str]) -> str | None:
-    """The token of ``Authorization: Bearer <token>``, or None."""
-    scheme, _, token = headers.get("authorization", "").partition(" ")
-    return token.strip() or None if scheme.lower() == "bearer" else None
 
 
 def _log_refusal(peer: str, status: int, text: str) -> None:

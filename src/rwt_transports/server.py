@@ -29,7 +29,7 @@ import math
 import socket
 import ssl
 import sys
-from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Mapping
 from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -68,6 +68,7 @@ from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
 from .foxglove import FoxgloveOptions, foxglove_frontend
 from .frontends import AuthMode, FrontEnd, FrontEnds, SessionRequest
+from .frontends_registry import HTTP_FRONTENDS
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
@@ -125,8 +126,8 @@ _ACCEPT_BACKOFF_MAX_S = 1.0
 _NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, which has none"
 """``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
 
-_NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc", "mcp"})
-"""Transports whose connections count against their host's share (not stdio, memory)."""
+_LOCAL = frozenset({"stdio", "memory"})
+"""Transports whose connections do not count against a host's share (every other does)."""
 
 _SHARED_FROM_FIRST = frozenset({"mcp"})
 """Transports whose sessions count against their host's share from the first (D40): an
@@ -220,6 +221,13 @@ class ServerConfig:
         use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
             is the graph's timeline, which Foxglove clients get as server time
             (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
+        http_options: the options of an HTTP front end of the registry
+            (``frontends_registry.HTTP_FRONTENDS``) by its name; None turns it
+            off (``{"http": None}``: ``rwt serve --no-http-api``, docs/http.md);
+            one not named runs with its default options.
+        bearer_token: with an authenticator, checks the ``Authorization: Bearer``
+            token of an HTTP front end's request (the video server's tokens,
+            ``/rwt/video_token``); None: such requests are refused (401).
     """
 
     host: str = "127.0.0.1"
@@ -253,6 +261,8 @@ class ServerConfig:
     use_sim_time: bool = False
     webrtc: WebRtcOptions | None = None
     mcp: McpOptions | None = None
+    http_options: Mapping[str, object] = field(default_factory=dict)
+    bearer_token: Callable[[str], bool] | None = None
 
 
 def rosauth_authenticator(
@@ -423,7 +433,7 @@ class RosbridgeServer:
             self.config.websocket.allowed_origins,
             _NO_VERSION if self.session_config.compat is Compat.ROSBRIDGE_2_1 else None,
         )
-        endpoints = (version, self._signalling, self.mcp)
+        endpoints = (version, self._signalling, self.mcp, *self._http_frontends())
         self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
         self._stop_requested = False
         self._stop: anyio.Event | None = None
@@ -492,6 +502,15 @@ class RosbridgeServer:
         policy = self.session_config.access
         access = _access_check(policy) if policy.restricted else None
         return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
+
+    def _http_frontends(self) -> list[HttpEndpoint]:
+        """The endpoints of the registry's HTTP front ends not turned off (``http_options``)."""
+        made = []
+        for frontend in HTTP_FRONTENDS:
+            options = self.config.http_options.get(frontend.name, frontend.options)
+            if options is not None:
+                made.append(frontend.make_endpoint(self, options))
+        return made
 
     def _features(self) -> Features:
         """What this server offers, for ``GET /version``'s ``rwt`` object (D49).
@@ -1057,7 +1076,7 @@ class RosbridgeServer:
         if self._stopping or (limit is not None and taken >= limit):
             return None
         address = address_of(peer)
-        host = self._host_prefixes.host(address) if transport in _NETWORK else None
+        host = self._host_prefixes.host(address) if transport not in _LOCAL else None
         if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
             self._refused(peer, host, "host share", self._shares.held(host), self._shares.share)
             return None
