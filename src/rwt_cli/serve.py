@@ -206,6 +206,10 @@ def _server(
         check = None if tokens is None else tokens.valid
         mcp = McpOptions(read_only=options.listeners.mcp_read_only, bearer_token=check)
         config = replace(config, mcp=mcp)
+    if not options.listeners.http_api:  # docs/http.md
+        config = replace(config, http_options={"http": None})
+    if tokens is not None:  # an HTTP API request's bearer token is a video token (docs/http.md)
+        config = replace(config, bearer_token=tokens.valid)
     if site is not None:
         site.limits = _limits(config)
     authenticator = (
@@ -470,12 +474,13 @@ def _video_tokens(options: ServeOptions, graph: Graph) -> VideoTokens | None:
     """With --auth-secret-file: the tokens of ``/rwt/video_token`` on ``graph``, if used.
 
     The video server's streams (docs/video.md, D32) and WebRTC offers
-    (docs/webrtc.md) and MCP sessions (docs/mcp.md) take them; None without --video,
-    --video-port, --webrtc or --mcp.
+    (docs/webrtc.md), MCP sessions (docs/mcp.md) and HTTP API requests (docs/http.md)
+    take them; None without --video, --video-port, --webrtc, --mcp or the HTTP API.
     """
     media = options.media
     listeners = options.listeners
-    if not (media.video or media.video_port is not None or listeners.webrtc or listeners.mcp):
+    wanted = (media.video, media.video_port is not None, listeners.webrtc, listeners.mcp)
+    if not (any(wanted) or listeners.http_api):
         return None
     # the video package (Pillow, numpy) loads only when used (B11: base memory)
     from rwt_video import VideoTokens, install_token_service  # noqa: PLC0415

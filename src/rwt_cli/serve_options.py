@@ -151,6 +151,13 @@ class Listeners:
             " repeatable, one of each (docs/webrtc.md, 'Through NAT').",
         ),
     ] = None
+    http_api: Annotated[
+        bool,
+        typer.Option(
+            help="Answer the HTTP API on --port: /api/topics, /api/services, /api/actions"
+            " (JSON, Server-Sent Events) and /openapi.json (docs/http.md; --no-http-api: off)."
+        ),
+    ] = True
     mcp: Annotated[
         bool,
         typer.Option(

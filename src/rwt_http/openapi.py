@@ -107,9 +107,9 @@ def _message_schema(graph: GraphFront, mtype: MessageType, schemas: dict[str, ob
 
 
 def _components_refs(value: object) -> object:
-    """``value`` with its ``#/$defs/pkg~1Type`` references made ``#/components/schemas/pkg.Type``."""
+    """``value`` with its ``#/$defs/pkg~1Type`` references as ``#/components/schemas/pkg.Type``."""
     if isinstance(value, dict):
-        out = {}
+        out: dict[str, object] = {}
         for k, v in value.items():
             if k == "$ref" and isinstance(v, str) and v.startswith("#/$defs/"):
                 name = v.removeprefix("#/$defs/").replace("~1", "/").replace("~0", "~")
@@ -203,7 +203,10 @@ def _service(name: str, type_name: str, request: object, answer: object) -> dict
         "operationId": _op_id("call", name),
         "summary": f"Call {name} ({type_name})",
         "requestBody": {"required": False, "content": _json(request)},
-        "responses": {"200": {"description": "the response", "content": _json(answer)}, "default": _ERROR},
+        "responses": {
+            "200": {"description": "the response", "content": _json(answer)},
+            "default": _ERROR,
+        },
     }
 
 

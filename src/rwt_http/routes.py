@@ -4,8 +4,8 @@
 (``/api/topics/robot/odom`` is ``/robot/odom``). A topic's event stream is its
 path with ``/events`` added, so ``GET /api/topics/a/events`` is always the stream of
 ``/a``: the latest message of a topic named ``/a/events`` is not reachable by GET
-(its stream is, at ``/api/topics/a/events/events``). The query's ``type``, ``throttle_rate`` and ``queue_length`` keep rosbridge's names
-(spec 3.4.2-3.4.3).
+(its stream is, at ``/api/topics/a/events/events``). The query's ``type``,
+``throttle_rate`` and ``queue_length`` keep rosbridge's names (spec 3.4.2-3.4.3).
 """
 
 from __future__ import annotations

@@ -20,8 +20,8 @@ or answer in time; 500 a bug (contained: logged once, the server goes on).
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING
 
 from rwt_graph.feed import EntityKind
@@ -29,7 +29,6 @@ from rwt_graph.visibility import Visibility
 from rwt_protocol.codecs.json import decode_json_text, encode_json
 from rwt_protocol.errors import GraphError, RwtError, UnknownNameError
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ports import GoalStatus
 from rwt_protocol.runtime.access import AccessDeniedError, Family, TopicUse
 from rwt_protocol.runtime.commands import CloseCode
 from rwt_protocol.runtime.connection import SessionBase
@@ -43,13 +42,12 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from rwt_graph.port import GraphFront
-    from rwt_protocol.ports import MessageEvent
+    from rwt_protocol.ports import GoalStatus, MessageEvent
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.rules import ClientRules
 
 __all__ = ["HttpApiOptions", "HttpSession"]
 
-logger = logging.getLogger("rwt.http")
 
 
 @dataclass(frozen=True, slots=True)
@@ -196,9 +194,8 @@ class HttpSession(SessionBase):
         visibility = Visibility.of(self.config.access)
         found: dict[str, str] = {}
         for change in self._front.feed.snapshot()[1]:
-            if change.kind in (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION):
-                if visibility.sees(change):
-                    found.setdefault(change.name, change.type_name)
+            if change.kind in _TOPIC_KINDS and visibility.sees(change):
+                found.setdefault(change.name, change.type_name)
         names = sorted(found)
         self._answer(200, {"topics": names, "types": [found[n] for n in names]})
 
@@ -207,10 +204,7 @@ class HttpSession(SessionBase):
         if given:
             return given
         for change in self._front.feed.snapshot()[1]:
-            if change.name == name and change.kind in (
-                EntityKind.PUBLISHER,
-                EntityKind.SUBSCRIPTION,
-            ):
+            if change.name == name and change.kind in _TOPIC_KINDS:
                 return change.type_name
         return None
 
@@ -267,7 +261,7 @@ class HttpSession(SessionBase):
             if gap and each.now - self._last_sent < gap:
                 continue  # rosbridge's throttle_rate: at most one message a gap
             self._last_sent = each.now
-            data = each.encoded(_SSE_KEY, lambda e=each: event(encode_json(e.msg)))
+            data = each.encoded(_SSE_KEY, partial(_sse, each))
             run.append(OutFrame(data, True, True))
         self.queue_run(run, self.route.name, events[-1].now)
 
@@ -309,6 +303,8 @@ class HttpSession(SessionBase):
         self.graph.send_action_goal(self.client_id, route.name, goal, done, feedback)
 
 
+_TOPIC_KINDS = (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION)
+
 _SSE_KEY = "rwt_http.sse"
 """The key of a message's Server-Sent Event in ``MessageEvent.encoded``: made once for all."""
 
@@ -321,6 +317,11 @@ _HANDLERS: dict[RouteKind, Callable[[HttpSession, Route, str | bytes], None]] = 
     RouteKind.SERVICE: HttpSession._service,
     RouteKind.ACTION: HttpSession._action,
 }
+
+
+def _sse(message: MessageEvent) -> bytes:
+    """``message`` as one Server-Sent Event, made once for every stream (``encoded``)."""
+    return event(encode_json(message.msg))
 
 
 class _LatestSink:

@@ -13,7 +13,15 @@ from http import HTTPStatus
 
 from rwt_protocol.codecs.json import encode_json
 
-__all__ = ["Headers", "error_response", "event", "json_response", "no_content", "response", "stream_head"]
+__all__ = [
+    "Headers",
+    "error_response",
+    "event",
+    "json_response",
+    "no_content",
+    "response",
+    "stream_head",
+]
 
 Headers = tuple[tuple[bytes, bytes], ...]
 

@@ -194,9 +194,15 @@ class HttpApiEndpoint:
 _CHALLENGE = (b"WWW-Authenticate", b"Bearer")
 
 
-async def _send(stream: ByteStream, status: int, text: str, headers: Sequence[tuple[bytes, bytes]]) -> None:
+async def _send(
+    stream: ByteStream, status: int, text: str, headers: Sequence[tuple[bytes, bytes]]
+) -> None:
     """Answer a request refused before any session: ``{"error": text}`` (204: nothing)."""
-    data = no_content(tuple(headers)) if status == 204 else error_response(status, text, tuple(headers))
+    data = (
+        no_content(tuple(headers))
+        if status == 204
+        else error_response(status, text, tuple(headers))
+    )
     try:
         await stream.send(data)
     except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
@@ -204,7 +210,9 @@ async def _send(stream: ByteStream, status: int, text: str, headers: Sequence[tu
 
 
 def _endpoint(server: RosbridgeServer, options: object) -> HttpEndpoint:
-    return HttpApiEndpoint(server, options if isinstance(options, HttpApiOptions) else HttpApiOptions())
+    return HttpApiEndpoint(
+        server, options if isinstance(options, HttpApiOptions) else HttpApiOptions()
+    )
 
 
 HTTP_API = HttpFrontEnd("http", (API_PREFIX, OPENAPI_PATH), _endpoint, HttpApiOptions())

@@ -26,7 +26,12 @@ if TYPE_CHECKING:
 __all__ = [
     "HttpRequest",
     "bearer",
-    "claims_path", "cors_headers", "open_request", "read_request", "reply"]
+    "claims_path",
+    "cors_headers",
+    "open_request",
+    "read_request",
+    "reply",
+]
 
 Headers = list[tuple[bytes, bytes]]
 

@@ -437,8 +437,6 @@ def _body_refusal(body: bytes, *, new_session: bool) -> tuple[int, str, int] | N
     return None
 
 
-
-
 def _log_refusal(peer: str, status: int, text: str) -> None:
     """``event=mcp_refused``, once per episode of each status (docs/limits.md, logs)."""
     _episodes.log(
