@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import anyio
-
 from benchmarks.http_sse import measure
 
 
