@@ -49,7 +49,6 @@ if TYPE_CHECKING:
 __all__ = ["HttpApiOptions", "HttpSession"]
 
 
-
 @dataclass(frozen=True, slots=True)
 class HttpApiOptions:
     """The HTTP API's settings (docs/http.md).
