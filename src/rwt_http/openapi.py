@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING
 
 from rwt_graph.feed import EntityKind
 from rwt_graph.rosapi.typedefs import typedef_name, typedefs
-from rwt_mcp.render import json_schema
 
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
@@ -98,6 +97,8 @@ def _key(type_name: str) -> str:
 
 def _message_schema(graph: GraphFront, mtype: MessageType, schemas: dict[str, object]) -> object:
     """A ``$ref`` to ``mtype``'s schema, adding it and its nested types to ``schemas``."""
+    from rwt_mcp.render import json_schema  # noqa: PLC0415 (Pillow, numpy: at the first document)
+
     key = _key(mtype.name)
     if key not in schemas:
         schema = json_schema([dict(d) for d in typedefs(mtype, graph.registry.message)])

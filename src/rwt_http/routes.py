@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from enum import Enum
 from urllib.parse import parse_qs, unquote, urlsplit
 
+from rwt_protocol.errors import RemoteProtocolError
+
 __all__ = ["API_PREFIX", "OPENAPI_PATH", "Route", "RouteError", "RouteKind", "parse_route"]
 
 API_PREFIX = "/api/"
@@ -60,7 +62,7 @@ class Route:
     queue_length: int = 0
 
 
-class RouteError(ValueError):
+class RouteError(RemoteProtocolError):
     """A request the API cannot take: ``status`` (404, 405, 400) and the text."""
 
     def __init__(self, status: int, text: str) -> None:

@@ -19,6 +19,8 @@ package is drawn here::
     │   │   ├── AssetError                rwt_foxglove.assets: a package:// URI not served
     │   │   ├── OfferError                rwt_transports.webrtc_offer: a WebRTC offer refused
     │   │   │                             before anything is built for it (HTTP 400, D38)
+    │   │   ├── RouteError                rwt_http.routes: a request the HTTP API has no path or
+    │   │   │                             method for, or a bad query (HTTP 404, 405, 400)
     │   │   └── CdrError                  rwt_graph.types.wire: bytes that are not the type's CDR
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation
