@@ -104,6 +104,7 @@ __all__ = [
     "SERVER_NODE",
     "RosbridgeServer",
     "ServerConfig",
+    "Ticket",
     "rosauth_authenticator",
     "spawner_for",
     "visibility_of",
@@ -928,10 +929,11 @@ class RosbridgeServer:
         frontend: FrontEnd | None = None,
         auth_nonce: str | None = None,
         authenticated: bool = False,
+        ticket: Ticket | None = None,
     ) -> ServerSession | None:
         """Admit a new connection and make its session on this server's graph.
 
-        Admission (``_admit``) is the same for every protocol; the front end only
+        Admission (``admit``) is the same for every protocol; the front end only
         makes the session, under the per-client rules of its transport.
 
         Args:
@@ -946,6 +948,9 @@ class RosbridgeServer:
                 makes and sends one if it needs one.
             authenticated: the transport already admitted the connection with
                 the authenticator (a URL token).
+            ticket: the connection was admitted already (``admit``): its session
+                takes the ticket's slot and id, and ``transport`` and ``peer`` are
+                the ticket's.
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
@@ -953,10 +958,16 @@ class RosbridgeServer:
             MCP session's host: its share of MCP sessions, from the first, D40),
             or the server is stopping.
         """
-        admitted = self._admit(transport, peer)
-        if admitted is None:
+        if ticket is None:
+            admitted = self._admit(transport, peer)
+            if admitted is None:
+                return None
+            client_id, host, address = admitted
+        elif not self._redeem(ticket):
             return None
-        client_id, host, address = admitted
+        else:
+            client_id, host, address = ticket.client_id, ticket.host, ticket.address
+            transport, peer = ticket.transport, ticket.peer
         stream = transport in ("ws", "tcp", "tls", "webrtc")
         request = SessionRequest(
             self.graph.port,
@@ -986,6 +997,43 @@ class RosbridgeServer:
         }
         self._clients_churned()
         return session
+
+    def admit(self, transport: str, peer: str) -> Ticket | None:
+        """Admission without a session yet: a slot and the host's share, held by a ticket.
+
+        The same admission as ``open_session``'s (``--max-connections``, the host
+        shares, a socket's handshake deadline lifted), for a front end that makes
+        its session later or never (a WebRTC peer before its data channel): the
+        ticket holds a slot until ``open_session(ticket=...)`` makes the session
+        or ``release`` gives it back.
+
+        Returns:
+            The ticket; None when ``open_session`` would refuse (full, stopping,
+            the host holds its share).
+        """
+        admitted = self._admit(transport, peer)
+        if admitted is None:
+            return None
+        client_id, host, address = admitted
+        self._extra_slots += 1
+        if host is not None:
+            self._shares.add(host)
+        return Ticket(client_id, transport, peer, host, address)
+
+    def release(self, ticket: Ticket) -> None:
+        """Give back the slot of a ticket no session took (``admit``); idempotent."""
+        if self._redeem(ticket):
+            self._free_slot()
+
+    def _redeem(self, ticket: Ticket) -> bool:
+        """Take ``ticket``'s slot back from it once: whether it still held one."""
+        if ticket.redeemed:
+            return False
+        ticket.redeemed = True
+        self._extra_slots -= 1
+        if ticket.host is not None:
+            self._shares.remove(ticket.host)
+        return True
 
     def adopt_socket(self) -> None:
         """The socket of this task carries a request of a session admitted already.
@@ -1168,6 +1216,27 @@ class RosbridgeServer:
             self._client_count.publish({"data": len(self.sessions)})
         if self._connected_clients is not None:  # entries are built once, at connect
             self._connected_clients.publish({"clients": list(self._connected.values())})
+
+
+@dataclass(slots=True)
+class Ticket:
+    """An admitted connection without a session yet (``RosbridgeServer.admit``).
+
+    Attributes:
+        client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
+        transport: the transport it was admitted on.
+        peer: the peer's address.
+        host: the host whose share it counts against; None for a local transport.
+        address: the peer's address without its port.
+        redeemed: a session took it, or it was released.
+    """
+
+    client_id: str
+    transport: str
+    peer: str
+    host: str | None
+    address: str
+    redeemed: bool = False
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
