@@ -102,9 +102,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SERVER_NODE",
+    "Admitted",
     "RosbridgeServer",
     "ServerConfig",
-    "Ticket",
     "rosauth_authenticator",
     "spawner_for",
     "visibility_of",
@@ -929,7 +929,7 @@ class RosbridgeServer:
         frontend: FrontEnd | None = None,
         auth_nonce: str | None = None,
         authenticated: bool = False,
-        ticket: Ticket | None = None,
+        ticket: Admitted | None = None,
     ) -> ServerSession | None:
         """Admit a new connection and make its session on this server's graph.
 
@@ -998,7 +998,7 @@ class RosbridgeServer:
         self._clients_churned()
         return session
 
-    def admit(self, transport: str, peer: str) -> Ticket | None:
+    def admit(self, transport: str, peer: str) -> Admitted | None:
         """Admission without a session yet: a slot and the host's share, held by a ticket.
 
         The same admission as ``open_session``'s (``--max-connections``, the host
@@ -1018,14 +1018,14 @@ class RosbridgeServer:
         self._extra_slots += 1
         if host is not None:
             self._shares.add(host)
-        return Ticket(client_id, transport, peer, host, address)
+        return Admitted(client_id, transport, peer, host, address)
 
-    def release(self, ticket: Ticket) -> None:
+    def release(self, ticket: Admitted) -> None:
         """Give back the slot of a ticket no session took (``admit``); idempotent."""
         if self._redeem(ticket):
             self._free_slot()
 
-    def _redeem(self, ticket: Ticket) -> bool:
+    def _redeem(self, ticket: Admitted) -> bool:
         """Take ``ticket``'s slot back from it once: whether it still held one."""
         if ticket.redeemed:
             return False
@@ -1219,8 +1219,8 @@ class RosbridgeServer:
 
 
 @dataclass(slots=True)
-class Ticket:
-    """An admitted connection without a session yet (``RosbridgeServer.admit``).
+class Admitted:
+    """An admitted connection without a session yet (``RosbridgeServer.admit``): its ticket.
 
     Attributes:
         client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
