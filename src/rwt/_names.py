@@ -96,7 +96,8 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_client.connectors": ("Connection",),
     },
     "rwt.server": {
-        "rwt_transports.server": ("rosauth_authenticator",),
+        "rwt_transports.server": ("Admitted", "rosauth_authenticator"),
+        "rwt_http.session": ("HttpApiOptions",),
         "rwt_protocol.auth": ("auth_query", "rosauth_op"),
         "rwt_transports.websocket": ("WebSocketOptions",),
         "rwt_transports.udp": ("UdpOptions",),
@@ -105,7 +106,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),
-        "rwt_protocol.server.access": (
+        "rwt_protocol.runtime.access": (
             "AccessDeniedError",
             "AccessPolicy",
             "Family",

@@ -9,8 +9,10 @@ topic's ``TopicUse``, and the ``AccessDeniedError`` a client gets), authenticati
 and off in this process (``shortcut_report``, docs/shortcuts.md), and ``Compat``, the
 drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
-docs/foxglove.md), WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md), and the
-MCP endpoint's (``McpOptions``, docs/mcp.md).
+docs/foxglove.md), WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md), the
+MCP endpoint's (``McpOptions``, docs/mcp.md) and the HTTP API's (``HttpApiOptions``,
+docs/http.md; ``ServerConfig.http_options["http"]``), and ``Admitted``, the ticket of
+a connection admitted without a session (``RosbridgeServer.admit``).
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """
@@ -24,16 +26,17 @@ from rwt._names import load
 if TYPE_CHECKING:
     from rwt_console.site import ConsoleSite
     from rwt_foxglove.session import FoxgloveLimits
+    from rwt_http.session import HttpApiOptions
     from rwt_protocol.auth import auth_query, rosauth_op
     from rwt_protocol.ops import Auth
-    from rwt_protocol.server.access import AccessDeniedError, AccessPolicy, Family, TopicUse
+    from rwt_protocol.runtime.access import AccessDeniedError, AccessPolicy, Family, TopicUse
     from rwt_protocol.server.compat import Compat
     from rwt_protocol.shortcuts import shortcut_report
     from rwt_transports.allocator import tune_allocator
     from rwt_transports.foxglove import FoxgloveOptions
     from rwt_transports.mcp_options import McpOptions
     from rwt_transports.memory import MemoryConnection
-    from rwt_transports.server import rosauth_authenticator
+    from rwt_transports.server import Admitted, rosauth_authenticator
     from rwt_transports.udp import UdpOptions
     from rwt_transports.webrtc_signal import WebRtcOptions
     from rwt_transports.websocket import WebSocketOptions
@@ -41,12 +44,14 @@ if TYPE_CHECKING:
 __all__ = [
     "AccessDeniedError",
     "AccessPolicy",
+    "Admitted",
     "Auth",
     "Compat",
     "ConsoleSite",
     "Family",
     "FoxgloveLimits",
     "FoxgloveOptions",
+    "HttpApiOptions",
     "McpOptions",
     "MemoryConnection",
     "TopicUse",

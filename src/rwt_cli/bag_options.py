@@ -275,7 +275,7 @@ def topic_selection(
     Raises:
         typer.BadParameter: an expression that is not a regular expression.
     """
-    from rwt_protocol.server.access import parse_glob_list  # noqa: PLC0415 - see checks
+    from rwt_protocol.runtime.access import parse_glob_list  # noqa: PLC0415 - see checks
 
     excluded = [name.strip() for item in exclude_topics or () for name in item.split(",")]
     try:
@@ -388,7 +388,7 @@ def play_options(
     if not paths:
         return None
     from rwt_bag.jobs import PlayOptions  # noqa: PLC0415 - see record_options
-    from rwt_protocol.server.access import parse_glob_list  # noqa: PLC0415 - see checks
+    from rwt_protocol.runtime.access import parse_glob_list  # noqa: PLC0415 - see checks
 
     until_ns = None
     if until_sec is not None:

@@ -141,7 +141,7 @@ def check_glob_list(text: str) -> str:
         OptionError: naming the pattern and its problem.
     """
     # the server's access module loads its ops: rwt bag and rwt record need neither
-    from rwt_protocol.server.access import parse_glob_list  # noqa: PLC0415
+    from rwt_protocol.runtime.access import parse_glob_list  # noqa: PLC0415
 
     for pattern in parse_glob_list(text):
         problem = _pattern_problem(pattern)

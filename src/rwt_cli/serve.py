@@ -23,7 +23,7 @@ from rwt_console import ConsoleSite, console_for
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.access import AccessPolicy, parse_glob_list, parse_split_glob
+from rwt_protocol.runtime.access import AccessPolicy, parse_glob_list, parse_split_glob
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit
@@ -218,6 +218,10 @@ def _server(
             authorization_server=options.listeners.mcp_authorization_server,
         )
         config = replace(config, mcp=mcp)
+    if not options.listeners.http_api:  # docs/http.md
+        config = replace(config, http_options={"http": None})
+    if tokens is not None:  # an HTTP API request's bearer token is a video token (docs/http.md)
+        config = replace(config, bearer_token=tokens.valid)
     if site is not None:
         site.limits = _limits(config)
     authenticator = (
@@ -482,12 +486,13 @@ def _video_tokens(options: ServeOptions, graph: Graph) -> VideoTokens | None:
     """With --auth-secret-file: the tokens of ``/rwt/video_token`` on ``graph``, if used.
 
     The video server's streams (docs/video.md, D32) and WebRTC offers
-    (docs/webrtc.md) and MCP sessions (docs/mcp.md) take them; None without --video,
-    --video-port, --webrtc or --mcp.
+    (docs/webrtc.md), MCP sessions (docs/mcp.md) and HTTP API requests (docs/http.md)
+    take them; None without --video, --video-port, --webrtc, --mcp or the HTTP API.
     """
     media = options.media
     listeners = options.listeners
-    if not (media.video or media.video_port is not None or listeners.webrtc or listeners.mcp):
+    wanted = (media.video, media.video_port is not None, listeners.webrtc, listeners.mcp)
+    if not (any(wanted) or listeners.http_api):
         return None
     # the video package (Pillow, numpy) loads only when used (B11: base memory)
     from rwt_video import VideoTokens, install_token_service  # noqa: PLC0415

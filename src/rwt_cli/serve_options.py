@@ -18,9 +18,9 @@ import typer
 from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_protocol.distribution import install_hint
 from rwt_protocol.levels import StatusLevel
+from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET
+from rwt_protocol.runtime.rules import HOLD_BUDGET_S
 from rwt_protocol.server.compat import Compat
-from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET
-from rwt_protocol.server.session import HOLD_BUDGET_S
 from rwt_transports.allocator import HEAP_KEEP_MIB
 from rwt_transports.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
 from rwt_zenoh.limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
@@ -151,6 +151,13 @@ class Listeners:
             " repeatable, one of each (docs/webrtc.md, 'Through NAT').",
         ),
     ] = None
+    http_api: Annotated[
+        bool,
+        typer.Option(
+            help="Answer the HTTP API on --port: /api/topics, /api/services, /api/actions"
+            " (JSON, Server-Sent Events) and /openapi.json (docs/http.md; --no-http-api: off)."
+        ),
+    ] = True
     mcp: Annotated[
         bool,
         typer.Option(

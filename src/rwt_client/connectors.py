@@ -43,7 +43,8 @@ from websockets.uri import parse_uri
 
 from rwt_protocol.errors import ConfigError, TransportError
 from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
-from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
+from rwt_protocol.framing.streams import JsonStreamFramer
+from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

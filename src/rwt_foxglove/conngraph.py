@@ -27,7 +27,7 @@ from .protocol import AdvertisedService, ConnectionGraphUpdate, PublishedTopic, 
 
 if TYPE_CHECKING:
     from rwt_graph.feed import GraphChange
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.outbox import OutFrame
 
     from .graphindex import GraphIndex
     from .output import SessionOutput

@@ -1,10 +1,10 @@
 """The Foxglove section of a client's bounds (docs/limits.md, Foxglove clients).
 
 A Foxglove client is bound by the same per-client rules as a rosbridge client,
-from the same ``SessionConfig`` (``--send-buffer-limit``, ``--send-timeout``,
-``--max-subscriptions``, ``--max-pending-calls``, ``--call-timeout``,
-``--idle-timeout``, ``--hold-budget``); ``FoxgloveLimits`` holds only what the
-Foxglove protocol has and rosbridge does not.
+the shared ``ClientRules`` (``rwt_protocol.runtime.rules``: ``--send-buffer-limit``,
+``--send-timeout``, ``--max-subscriptions``, ``--max-pending-calls``,
+``--call-timeout``, ``--idle-timeout``, ``--hold-budget``); ``FoxgloveLimits``
+holds only what the Foxglove protocol has and rosbridge does not.
 """
 
 from __future__ import annotations

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Protocol
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rwt_protocol.server.outbox import OutFrame
-    from rwt_protocol.server.timers import Timer
+    from rwt_protocol.runtime.outbox import OutFrame
+    from rwt_protocol.runtime.timers import Timer
 
     from .protocol import ServerOp
 

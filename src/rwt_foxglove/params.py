@@ -39,7 +39,7 @@ import msgspec
 from rwt_graph.parameters.store import ParameterError, Parameters, ParamValue, ros2_value
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import MAX_NAME_LENGTH
-from rwt_protocol.server.access import AccessPolicy, Family
+from rwt_protocol.runtime.access import AccessPolicy, Family
 
 from .protocol import (
     GetParameters,
@@ -56,7 +56,7 @@ if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable
 
     from rwt_graph.port import GraphFront
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.outbox import OutFrame
 
     from .limits import FoxgloveLimits
     from .output import SessionOutput

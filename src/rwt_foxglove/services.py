@@ -11,10 +11,10 @@ wire encoding (CDR for ROS 2); it becomes a graph call of this client, and its
 answer a binary ``serviceCallResponse`` with the same call id, or a
 ``serviceCallFailure`` (unknown service, an encoding other than the wire one,
 a request that does not decode, too many calls in flight, the provider gone or
-refusing, no answer within ``--call-timeout``, ``SessionConfig.call_timeout_s``,
+refusing, no answer within ``--call-timeout``, ``ClientRules.call_timeout_s``,
 a deadline timer of the session). Calls in flight are independent: each is
 answered by its call id when its answer comes, once. The number in flight is
-``--max-pending-calls`` (``SessionConfig.max_pending_calls``), as for a rosbridge
+``--max-pending-calls`` (``ClientRules.max_pending_calls``), as for a rosbridge
 client: one set of per-client rules (docs/limits.md).
 """
 
@@ -44,8 +44,8 @@ from .wire import decode_wire, encode_wire
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType, ServiceType
-    from rwt_protocol.server.callbook import BookedCall, CallBook
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.callbook import BookedCall, CallBook
+    from rwt_protocol.runtime.outbox import OutFrame
 
     from .graphindex import GraphIndex
     from .output import SessionOutput

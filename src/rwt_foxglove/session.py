@@ -5,7 +5,7 @@ runtime (``rwt_transports.pump``) hands it each received frame
 (``receive_frame``), runs its timers (server time, service call deadlines, the
 announcement of what changed in the graph) and its background jobs (asset files
 read off the event loop), and sends what ``frames_to_send`` gives; it is bound
-by the same per-client rules (``SessionConfig``: the send buffer and its
+by the same per-client rules (``ClientRules``: the send buffer and its
 slow-consumer rule, subscriptions, calls in flight, the idle timeout), plus the
 Foxglove section (``FoxgloveLimits``). Graph messages reach it
 through one ``TopicSink`` per subscribed topic, which only queues (a slow client
@@ -40,10 +40,10 @@ from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError, RwtError
 from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
-from rwt_protocol.server.access import Family, TopicUse
-from rwt_protocol.server.connection import SessionBase
-from rwt_protocol.server.outbox import OutFrame
-from rwt_protocol.server.session import SessionConfig
+from rwt_protocol.runtime.access import Family, TopicUse
+from rwt_protocol.runtime.connection import SessionBase
+from rwt_protocol.runtime.outbox import OutFrame
+from rwt_protocol.runtime.rules import ClientRules
 from rwt_protocol.shortcuts import enabled
 
 from .assetrequests import ASSETS_CAPABILITY, MAX_PENDING_ASSETS, AssetJob, AssetRequests
@@ -95,9 +95,9 @@ if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent
-    from rwt_protocol.server.contract import Job
-    from rwt_protocol.server.memory import MemoryBudget
-    from rwt_protocol.server.timers import Timer
+    from rwt_protocol.runtime.contract import Job
+    from rwt_protocol.runtime.memory import MemoryBudget
+    from rwt_protocol.runtime.timers import Timer
 
     from .assetrequests import AssetReader
 
@@ -184,46 +184,37 @@ class _TopicSink:
         session, channel = self._session, self._channel
         if subscriptions is None:
             subscriptions = channel.subscriptions
-        if not session._sends or not subscriptions:
+        if not subscriptions:
             return
         clock = session._time
         now = None if clock is None else clock.now()
-        outbox = session._outbox
-        push = outbox.push_droppable
         share = session._share
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if now is not None:  # on the bag's clock, told first (a client reads time from it)
-            session._told_time(now)
-        frame: OutFrame | None = None
+        # on the bag's clock, told first (a client reads time from it)
+        time_frame = None if now is None else session._time_frame(now)
+        run: list[OutFrame] = [] if time_frame is None else [time_frame]
+        append = run.append
         try:  # fails for the first frame or none: a message's frames share payload and time
             for event in events:
-                payload = event.wire  # as it came (a link's CDR, a bag's record): no call
-                if payload is None:
-                    payload = session._payload(channel, event)
-                log_time = int(event.stamp * 1e9) if now is None else now
                 memos = event.memos if share else {}  # the shortcut off: one for each
                 for sid in subscriptions:  # (not a comprehension: its closure costs a call)
                     # made once per message, subscription id and log time (which a bag's
                     # could move); keyed by the id itself: the keys of ``MessageEvent.memos``
                     # that are not these frames' are strings or start with one
                     key = sid if now is None else (sid, now)
-                    frame = memos.get(key)  # type: ignore[assignment]
-                    if frame is None:  # positional: keywords to a class cost a dict per call
+                    frame: OutFrame | None = memos.get(key)  # type: ignore[assignment]
+                    if frame is None:  # the payload only then: every other client shares it
+                        payload = event.wire  # as it came (a link's CDR, a bag's record)
+                        if payload is None:
+                            payload = session._payload(channel, event)
+                        log_time = int(event.stamp * 1e9) if now is None else now
+                        # positional: keywords to a class cost a dict per call
                         frame = memos[key] = OutFrame(
                             payload, True, True, None, None, encode_message_header(sid, log_time)
                         )
-                    push(frame)
+                    append(frame)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-        outbox.settle()  # the memory budget, once for the run (D44)
-        if outbox.dropped != dropped or outbox._held_frames:  # the slow-consumer rule
-            session._now = max(session._now, events[-1].now)
-            sent = () if frame is None else (frame,)
-            session._watch.after_push(dropped, oversized, session._now, sent, channel.topic)
-        on_output = session._on_output  # (``_wake``, a call less per message and client)
-        if on_output is not None:
-            on_output()
-        session.sweep_memory()
+        session.queue_run(run, channel.topic, events[-1].now)
 
 
 class FoxgloveSession(SessionBase):
@@ -234,7 +225,7 @@ class FoxgloveSession(SessionBase):
             client publishers go through on behalf of ``client_id``.
         client_id: this connection's identity in the graph.
         session_id: sent in ``serverInfo`` (clients tell a restarted server by it).
-        config: the per-client rules every protocol shares (``SessionConfig``: the
+        config: the per-client rules every protocol shares (``ClientRules``: the
             access globs, ``--send-buffer-limit``, ``--send-timeout``,
             ``--max-subscriptions``, ``--max-pending-calls``, ``--call-timeout``,
             ``--idle-timeout``, ``--hold-budget``).
@@ -258,6 +249,7 @@ class FoxgloveSession(SessionBase):
     """
 
     protocol = "foxglove"
+    wakes_each_run = True  # its bursts gathered into few writes (``SessionBase.queue_run``)
 
     def __init__(
         self,
@@ -265,7 +257,7 @@ class FoxgloveSession(SessionBase):
         client_id: str,
         *,
         session_id: str,
-        config: SessionConfig | None = None,
+        config: ClientRules | None = None,
         limits: FoxgloveLimits | None = None,
         on_output: Callable[[], None] | None = None,
         peer: str = "",
@@ -276,7 +268,7 @@ class FoxgloveSession(SessionBase):
         show_plumbing: bool = False,
         memory: MemoryBudget | None = None,
     ) -> None:
-        config = config or SessionConfig()
+        config = config or ClientRules()
         self.limits = limits or FoxgloveLimits()
         super().__init__(
             graph,
@@ -382,11 +374,14 @@ class FoxgloveSession(SessionBase):
         self.tick()
         self._tick_timer = self.call_at(now + TIME_INTERVAL_S, self._on_tick)
 
-    def report(self, level: Level, text: str, op_id: str | int | None = None) -> None:
+    def status_frames(
+        self, level: Level, text: str, op_id: str | int | None = None
+    ) -> tuple[OutFrame, ...]:
         """An error or warning ``status`` for the client (info and debug are not sent)."""
         foxglove_level = _LEVELS.get(level)
-        if foxglove_level is not None:
-            self._status(foxglove_level, text)
+        if foxglove_level is None:
+            return ()
+        return (OutFrame(encode_op(Status(level=int(foxglove_level), message=text))),)
 
     def holds_anything(self) -> bool:
         """Whether the client subscribes, publishes, waits for calls or follows updates."""
@@ -432,12 +427,12 @@ class FoxgloveSession(SessionBase):
     @property
     def queued_messages(self) -> int:
         """Topic messages (and time frames) waiting to be taken."""
-        return self._outbox.topic_frames
+        return self.outbox.topic_frames
 
     @property
     def dropped(self) -> int:
         """Message data frames dropped for this client so far (it read too slowly)."""
-        return self._outbox.dropped
+        return self.outbox.dropped
 
     # ---- SessionOutput: what the services, parameters and graph parts send --------
 
@@ -485,31 +480,31 @@ class FoxgloveSession(SessionBase):
         if self._time is None or not self._state.sends:
             return
         now = self._time.now()
-        told = now is not None and self._told_time(now)
+        told = None if now is None else self._time_frame(now)
         state = None if self._playback is None else self._playback.frame()
+        run = [] if told is None else [told]
         if state is not None:  # droppable as time frames are
-            self.push_topic_frame(OutFrame(state, True, True))
-        if told or state is not None:
-            self._wake()
+            run.append(OutFrame(state, True, True))
+        self.queue_run(run, None, self._now)
 
-    def _told_time(self, now: int) -> bool:
+    def _time_frame(self, now: int) -> OutFrame | None:
+        """The server time frame of ``now`` (ns) if it moved since told, else None.
+
+        Droppable: a client that reads nothing cannot grow the queue with them.
+        """
         frame = None if self._time is None else self._time.frame(now)
-        if frame is not None:  # droppable: a client that reads nothing cannot grow the queue
-            self.push_topic_frame(OutFrame(frame, True, True))
-        return frame is not None
+        return None if frame is None else OutFrame(frame, True, True)
 
     # ---- input --------------------------------------------------------------------
 
-    def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
+    def handle_frame(self, frame: bytes | str, now: float, binary: bool) -> None:
         """Handle one frame of the client; its answers are queued (``frames_to_send``).
 
-        Never raises for what the client sent: each problem is an error ``status``;
-        a bug in a handler is reported as ``internal error`` and the session goes
-        on, as rosbridge's does.
+        ``receive_frame`` (``SessionBase``) calls it while the session takes input.
+        Each problem with what the client sent is an error ``status``; a bug in a
+        handler is contained (``contain``: ``internal error``) and the session
+        goes on, as rosbridge's does.
         """
-        if not self._state.takes_input:
-            return
-        self.received(now)
         data = frame.encode() if isinstance(frame, str) else frame
         try:
             if binary:
@@ -525,8 +520,6 @@ class FoxgloveSession(SessionBase):
             self._handlers[type(op)](op)
         except RwtError as exc:
             self._status(StatusLevel.ERROR, exc.message)
-        except Exception:
-            self._bug(None)
 
     def _playback_request(self, request: PlaybackControlRequest) -> None:
         if self._playback is None:  # as the SDK's server: an error status
@@ -658,9 +651,15 @@ class FoxgloveSession(SessionBase):
             self.answer(encode_fetch_asset_response(request.requestId, None, error), binary=True)
         self.sweep_memory()
 
-    def finish_job(self, job: Job, result: object, now: float) -> None:
-        """Queue the response to an asset job: its file, or the reason it has none."""
-        if not isinstance(job, AssetJob) or self._assets is None:
+    def job_done(self, job: Job, result: object, now: float) -> None:
+        """Queue the response to an asset job: its file, or the reason it has none.
+
+        ``finish_job`` (``SessionBase``) calls it and contains what it raises.
+        """
+        if not isinstance(job, AssetJob):
+            super().job_done(job, result, now)
+            return
+        if self._assets is None:
             return
         self._assets.reading = False
         if not self._state.sends:
@@ -854,8 +853,8 @@ class FoxgloveSession(SessionBase):
             logger.info(
                 "event=foxglove_closed client=%s dropped=%d queue_peak_bytes=%d",
                 self._client_id,
-                self._outbox.dropped,
-                self._outbox.peak_bytes,
+                self.outbox.dropped,
+                self.outbox.peak_bytes,
             )
             self._subscriptions.clear()
             self._client_channels.clear()

@@ -1,6 +1,6 @@
 """Which names a client may see: one rule for every listing of the graph.
 
-A server's access rules (``rwt_protocol.server.access.AccessPolicy``, the
+A server's access rules (``rwt_protocol.runtime.access.AccessPolicy``, the
 ``--*-glob`` options) decide which topics, services, parameters and actions a
 client may use; a client sees no more than that. ``Visibility`` is that rule
 for listings, built once from the policy (``Visibility.of``) and shared by
@@ -25,14 +25,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rwt_protocol.server.access import Family
+from rwt_protocol.runtime.access import Family
 
 from .feed import EntityKind
 from .nodes import Role
 
 if TYPE_CHECKING:
     from rwt_protocol.ports import ClientId
-    from rwt_protocol.server.access import AccessPolicy
+    from rwt_protocol.runtime.access import AccessPolicy
 
     from .feed import GraphChange
 

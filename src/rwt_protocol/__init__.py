@@ -10,6 +10,10 @@ pyproject.toml); each subpackage's docstring lists its modules:
   two roles never import each other.
 - ``framing``: cutting and joining: byte streams into frames, WebSocket frames into
   messages, large messages into ``fragment`` ops and back, messages into datagrams.
+- ``runtime``: the connection runtime every protocol's server session shares
+  (``runtime.connection.SessionBase``, the contract the pump drives, the outbox,
+  the per-client rules ``runtime.rules.ClientRules``); it knows no protocol: it
+  imports none of ``server``, ``ops``, ``codecs`` or ``framing``.
 - ``codecs``: one op as JSON, CBOR or PNG. Beside them, ``auth``: the rosauth MAC,
   which the client computes and the server checks.
 - ``ports``: the session's interface to a graph, which ``rwt_graph`` implements;

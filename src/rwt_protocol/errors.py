@@ -12,13 +12,15 @@ package is drawn here::
     │   ├── RemoteProtocolError           the peer's fault: becomes a status frame (D1)
     │   │   ├── LimitError                a per-connection cap (docs/limits.md)
     │   │   ├── MessageTooBigError        rwt_protocol.framing.messages: over --max-message-size
-    │   │   ├── AccessDeniedError         rwt_protocol.server.access: a --*-glob rule
+    │   │   ├── AccessDeniedError         rwt_protocol.runtime.access: a --*-glob rule
     │   │   ├── WireError                 rwt_zenoh.wire: not rmw_zenoh's wire form
     │   │   ├── FoxgloveInputError        rwt_foxglove.protocol: what a Foxglove client sent
     │   │   │                             cannot be used (an error status)
     │   │   ├── AssetError                rwt_foxglove.assets: a package:// URI not served
     │   │   ├── OfferError                rwt_transports.webrtc_offer: a WebRTC offer refused
     │   │   │                             before anything is built for it (HTTP 400, D38)
+    │   │   ├── RouteError                rwt_http.routes: a request the HTTP API has no path or
+    │   │   │                             method for, or a bad query (HTTP 404, 405, 400)
     │   │   └── CdrError                  rwt_graph.types.wire: bytes that are not the type's CDR
     │   └── LocalProtocolError            embedding code misused the API
     ├── GraphError                        the graph refused an operation

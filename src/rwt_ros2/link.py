@@ -120,7 +120,7 @@ that did waits up to that timeout (``rwt_graph.services.DiscoveryWait``)."""
 SAMPLE_LIFESPAN_S = 0.020
 """Seconds of a topic's samples from ROS 2 a subscriber's queue (its outbox) holds: a
 sample that came more than this before the newest queued one of its topic is dropped
-there (``MessageEvent.lifespan``, ``rwt_protocol.server.outbox``; docs/ros2.md,
+there (``MessageEvent.lifespan``, ``rwt_protocol.runtime.outbox``; docs/ros2.md,
 "Latency under rate"). A ROS 2 publisher cannot be slowed, so a reader that falls
 behind gets the newest samples, as from a ROS 2 subscription's history, not a growing
 backlog; a burst that came within it reaches the reader whole."""

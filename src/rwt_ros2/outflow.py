@@ -29,7 +29,7 @@ import anyio
 
 from rwt_graph.ratelog import EpisodeLog
 from rwt_graph.tasks import start_soon
-from rwt_protocol.server.outbox import water_marks
+from rwt_protocol.runtime.outbox import water_marks
 
 if TYPE_CHECKING:
     from collections.abc import Callable

@@ -17,10 +17,10 @@ from .flow import ChannelAbilities
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from rwt_protocol.framing.streams import FramerEvent
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.inframes import FramerEvent
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["NO_ABILITIES", "Channel", "PlainChannel"]
 

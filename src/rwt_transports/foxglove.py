@@ -7,7 +7,7 @@ speaks only Foxglove (foxglove_bridge's default port is 8765).
 
 A Foxglove connection is one connection of the server like any other: admitted
 the same way (``--max-connections``, the host shares, ``/connected_clients``), run
-by the same pump under the same per-client rules (``SessionConfig``: the send
+by the same pump under the same per-client rules (``ClientRules``: the send
 buffer, the slow-consumer rule, ``--max-subscriptions``, ``--max-pending-calls``,
 ``--call-timeout``, ``--idle-timeout``, the hold budget) and flow control;
 ``foxglove_frontend`` only says how its session is made. With an authenticator

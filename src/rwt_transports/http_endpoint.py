@@ -23,7 +23,15 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream
 
-__all__ = ["HttpRequest", "claims_path", "cors_headers", "open_request", "read_request", "reply"]
+__all__ = [
+    "HttpRequest",
+    "bearer",
+    "claims_path",
+    "cors_headers",
+    "open_request",
+    "read_request",
+    "reply",
+]
 
 Headers = list[tuple[bytes, bytes]]
 
@@ -58,6 +66,16 @@ def claims_path(
         if head.startswith(prefix):
             return accepts(method, head[len(prefix) : len(prefix) + 1])
     return False
+
+
+def bearer(headers: dict[str, str]) -> str | None:
+    """The token of ``Authorization: Bearer <token>`` (RFC 6750 2.1), or None.
+
+    The one reading of a bearer token for every HTTP front end (WebRTC's offers,
+    MCP's sessions, the HTTP API); ``headers`` has lower-case names.
+    """
+    scheme, _, token = headers.get("authorization", "").partition(" ")
+    return token.strip() or None if scheme.lower() == "bearer" else None
 
 
 def cors_headers(origin: str | None, allowed: Sequence[str], base: Headers) -> Headers | None:

@@ -73,7 +73,7 @@ from rwt_mcp.tools import build_server
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.errors import RemoteProtocolError
 
-from .http_endpoint import claims_path, open_request, reply
+from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
@@ -85,7 +85,7 @@ if TYPE_CHECKING:
     from mcp.server.lowlevel import Server
 
     from rwt_mcp.resources import Watched
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .server import RosbridgeServer
 
@@ -307,7 +307,7 @@ class McpEndpoint:
         if modern:
             await self._modern(exchange)
         elif session_id is None:
-            await self._open(exchange, _bearer(headers))
+            await self._open(exchange, bearer(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
 
@@ -346,7 +346,7 @@ class McpEndpoint:
         if credential is not None:
             return 401, credential
         session_id = headers.get(MCP_SESSION_ID_HEADER)
-        token = _bearer(headers)
+        token = bearer(headers)
         if session_id is None:
             if request.method != b"POST":
                 return 400, "no Mcp-Session-Id: POST an initialize request first"
@@ -611,12 +611,6 @@ def _credential_refusal(headers: dict[str, str], query: str) -> str | None:
     if names & {"token", "access_token"}:
         return "a token in the URL is refused: send it as Authorization: Bearer <token>"
     return None
-
-
-def _bearer(headers: dict[str, str]) -> str | None:
-    """The token of ``Authorization: Bearer <token>``, or None."""
-    scheme, _, token = headers.get("authorization", "").partition(" ")
-    return token.strip() or None if scheme.lower() == "bearer" else None
 
 
 def _log_refusal(peer: str, status: int, text: str) -> None:

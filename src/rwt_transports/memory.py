@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.framing.streams import FramerEvent, InFrame
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.inframes import FramerEvent, InFrame
+from rwt_protocol.runtime.outbox import OutFrame
 
 from .channel import PlainChannel
 
@@ -23,8 +23,8 @@ if TYPE_CHECKING:
 
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
 
 __all__ = ["MemoryChannel", "MemoryConnection", "memory_pair"]
 

@@ -3,7 +3,7 @@
 Every transport (WebSocket, TCP, UDP, stdio, in-memory) reduces a connection to a
 ``Channel`` (channel.py): receive a batch of frames, send a batch of frames, close;
 every protocol's session (rosbridge's, Foxglove's, a third's) implements
-``rwt_protocol.server.contract.ServerSession``. The pump runs the rest the same way
+``rwt_protocol.runtime.contract.ServerSession``. The pump runs the rest the same way
 for all of them (D22, one dispatcher behind all transports; docs/architecture.md,
 "One connection runtime"), in four tasks per connection:
 
@@ -65,12 +65,9 @@ import anyio.lowlevel
 import anyio.to_thread
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.codecs.json import encode_op
-from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ops import Status
-from rwt_protocol.server.commands import CloseCode, CloseConnection
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.commands import CloseCode, CloseConnection
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.shortcuts import enabled
 
 from .admission import Admission, Ticket, current_ticket
@@ -81,7 +78,7 @@ from .holding import Held, wait_for
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Sequence
 
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .channel import Channel
     from .frontends import FrontEnd
@@ -191,9 +188,6 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
             anyio.current_time() - started,
         )
 
-
-INTERNAL_ERROR_STATUS = encode_op(Status(level="error", msg="internal error"))
-"""What a peer is told before its connection is closed for a bug in the server."""
 
 _BROKEN = (
     anyio.BrokenResourceError,
@@ -469,10 +463,13 @@ class ConnectionPump(Held):
     async def run(self, session: ServerSession) -> None:
         """Serve ``session`` until the peer leaves or the session closes, then close it.
 
-        Never raises for a bug in this connection's tasks (reader, writer, timers,
-        the channel's background task): it is logged with its traceback, the
-        connection is closed (WebSocket: 1011 ``internal error``) and released,
-        and every other connection goes on (docs/limits.md, containment).
+        A bug in the session's handling of a frame, a timer or a job is the
+        session's to contain (``SessionBase.contain``): the peer is told and the
+        connection goes on. What is left is the transport's: a bug in this
+        connection's tasks (reader, writer, timers, the channel's background
+        task) is logged with its traceback, the connection is closed (WebSocket:
+        1011 ``internal error``) and released, and every other connection goes
+        on (docs/limits.md, containment). Never raises for it.
         """
         self._session = session
         # its marks, budget and cool-down (a reconnection: its host's)
@@ -511,13 +508,18 @@ class ConnectionPump(Held):
     async def _close_after_bug(self) -> None:
         """Tell the peer (best effort, bounded): the connection cannot go on.
 
-        An error status first (the only word a TCP, stdio or UDP peer gets), then the
-        close (WebSocket: 1011 ``internal error``).
+        An error status in its protocol's words first (``status_frames``: the only
+        word a TCP, stdio or UDP peer gets), then the close (WebSocket: 1011
+        ``internal error``).
         """
         with anyio.move_on_after(CLOSE_WAIT_S, shield=True):
             try:
-                await self.channel.send([OutFrame(INTERNAL_ERROR_STATUS)])
-            except Exception:  # the channel may be what broke
+                session = self._session
+                if session is not None:
+                    last = session.status_frames(StatusLevel.ERROR, "internal error")
+                    if last:
+                        await self.channel.send(list(last))
+            except Exception:  # the channel, or the session, may be what broke
                 logger.debug("error status after a bug not sent", exc_info=True)
             try:
                 await self.channel.close(CloseCode.INTERNAL_ERROR, "internal error")

@@ -29,7 +29,7 @@ import math
 import socket
 import ssl
 import sys
-from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Mapping
 from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -58,8 +58,8 @@ from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, Ros
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
+from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.compat import Compat
-from rwt_protocol.server.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
@@ -68,6 +68,7 @@ from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
 from .foxglove import FoxgloveOptions, foxglove_frontend
 from .frontends import AuthMode, FrontEnd, FrontEnds, SessionRequest
+from .frontends_registry import HTTP_FRONTENDS
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
@@ -90,8 +91,8 @@ if TYPE_CHECKING:
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
     from rwt_protocol.ops import Auth
-    from rwt_protocol.server.access import AccessPolicy
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.access import AccessPolicy
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .holding import Held
     from .mcp_http import McpEndpoint
@@ -101,6 +102,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SERVER_NODE",
+    "Admitted",
     "RosbridgeServer",
     "ServerConfig",
     "rosauth_authenticator",
@@ -125,8 +127,8 @@ _ACCEPT_BACKOFF_MAX_S = 1.0
 _NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, which has none"
 """``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
 
-_NETWORK = frozenset({"ws", "tcp", "tls", "udp", "webrtc", "mcp"})
-"""Transports whose connections count against their host's share (not stdio, memory)."""
+_LOCAL = frozenset({"stdio", "memory"})
+"""Transports whose connections do not count against a host's share (every other does)."""
 
 _SHARED_FROM_FIRST = frozenset({"mcp"})
 """Transports whose sessions count against their host's share from the first (D40): an
@@ -163,7 +165,7 @@ class ServerConfig:
             ``max_fragment_memory``) and WebRTC input not read yet. While it is full,
             clients that do not read lose their oldest topic messages and are closed
             as slow consumers, and what would grow it is refused
-            (``rwt_protocol.server.memory.MemoryBudget``, docs/limits.md).
+            (``rwt_protocol.runtime.memory.MemoryBudget``, docs/limits.md).
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake, and an MCP session holds
@@ -184,7 +186,7 @@ class ServerConfig:
             default the /64 one machine gets).
         idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
             sent nothing and that holds nothing is closed (``--idle-timeout``;
-            ``rwt_protocol.server.idle``), and an MCP session without a request in
+            ``rwt_protocol.runtime.idle``), and an MCP session without a request in
             flight ends (D40); None: never. UDP has ``udp.idle_timeout_s``.
         certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
         keyfile: PEM private key for it (``--keyfile``).
@@ -220,6 +222,13 @@ class ServerConfig:
         use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
             is the graph's timeline, which Foxglove clients get as server time
             (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
+        http_options: the options of an HTTP front end of the registry
+            (``frontends_registry.HTTP_FRONTENDS``) by its name; None turns it
+            off (``{"http": None}``: ``rwt serve --no-http-api``, docs/http.md);
+            one not named runs with its default options.
+        bearer_token: with an authenticator, checks the ``Authorization: Bearer``
+            token of an HTTP front end's request (the video server's tokens,
+            ``/rwt/video_token``); None: such requests are refused (401).
     """
 
     host: str = "127.0.0.1"
@@ -253,6 +262,8 @@ class ServerConfig:
     use_sim_time: bool = False
     webrtc: WebRtcOptions | None = None
     mcp: McpOptions | None = None
+    http_options: Mapping[str, object] = field(default_factory=dict)
+    bearer_token: Callable[[str], bool] | None = None
 
 
 def rosauth_authenticator(
@@ -423,7 +434,7 @@ class RosbridgeServer:
             self.config.websocket.allowed_origins,
             _NO_VERSION if self.session_config.compat is Compat.ROSBRIDGE_2_1 else None,
         )
-        endpoints = (version, self._signalling, self.mcp)
+        endpoints = (version, self._signalling, self.mcp, *self._http_frontends())
         self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
         self._stop_requested = False
         self._stop: anyio.Event | None = None
@@ -492,6 +503,15 @@ class RosbridgeServer:
         policy = self.session_config.access
         access = _access_check(policy) if policy.restricted else None
         return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
+
+    def _http_frontends(self) -> list[HttpEndpoint]:
+        """The endpoints of the registry's HTTP front ends not turned off (``http_options``)."""
+        made = []
+        for frontend in HTTP_FRONTENDS:
+            options = self.config.http_options.get(frontend.name, frontend.options)
+            if options is not None:
+                made.append(frontend.make_endpoint(self, options))
+        return made
 
     def _features(self) -> Features:
         """What this server offers, for ``GET /version``'s ``rwt`` object (D49).
@@ -909,10 +929,11 @@ class RosbridgeServer:
         frontend: FrontEnd | None = None,
         auth_nonce: str | None = None,
         authenticated: bool = False,
+        ticket: Admitted | None = None,
     ) -> ServerSession | None:
         """Admit a new connection and make its session on this server's graph.
 
-        Admission (``_admit``) is the same for every protocol; the front end only
+        Admission (``admit``) is the same for every protocol; the front end only
         makes the session, under the per-client rules of its transport.
 
         Args:
@@ -927,6 +948,9 @@ class RosbridgeServer:
                 makes and sends one if it needs one.
             authenticated: the transport already admitted the connection with
                 the authenticator (a URL token).
+            ticket: the connection was admitted already (``admit``): its session
+                takes the ticket's slot and id, and ``transport`` and ``peer`` are
+                the ticket's.
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
@@ -934,10 +958,16 @@ class RosbridgeServer:
             MCP session's host: its share of MCP sessions, from the first, D40),
             or the server is stopping.
         """
-        admitted = self._admit(transport, peer)
-        if admitted is None:
+        if ticket is None:
+            admitted = self._admit(transport, peer)
+            if admitted is None:
+                return None
+            client_id, host, address = admitted
+        elif not self._redeem(ticket):
             return None
-        client_id, host, address = admitted
+        else:
+            client_id, host, address = ticket.client_id, ticket.host, ticket.address
+            transport, peer = ticket.transport, ticket.peer
         stream = transport in ("ws", "tcp", "tls", "webrtc")
         request = SessionRequest(
             self.graph.port,
@@ -967,6 +997,43 @@ class RosbridgeServer:
         }
         self._clients_churned()
         return session
+
+    def admit(self, transport: str, peer: str) -> Admitted | None:
+        """Admission without a session yet: a slot and the host's share, held by a ticket.
+
+        The same admission as ``open_session``'s (``--max-connections``, the host
+        shares, a socket's handshake deadline lifted), for a front end that makes
+        its session later or never (a WebRTC peer before its data channel): the
+        ticket holds a slot until ``open_session(ticket=...)`` makes the session
+        or ``release`` gives it back.
+
+        Returns:
+            The ticket; None when ``open_session`` would refuse (full, stopping,
+            the host holds its share).
+        """
+        admitted = self._admit(transport, peer)
+        if admitted is None:
+            return None
+        client_id, host, address = admitted
+        self._extra_slots += 1
+        if host is not None:
+            self._shares.add(host)
+        return Admitted(client_id, transport, peer, host, address)
+
+    def release(self, ticket: Admitted) -> None:
+        """Give back the slot of a ticket no session took (``admit``); idempotent."""
+        if self._redeem(ticket):
+            self._free_slot()
+
+    def _redeem(self, ticket: Admitted) -> bool:
+        """Take ``ticket``'s slot back from it once: whether it still held one."""
+        if ticket.redeemed:
+            return False
+        ticket.redeemed = True
+        self._extra_slots -= 1
+        if ticket.host is not None:
+            self._shares.remove(ticket.host)
+        return True
 
     def adopt_socket(self) -> None:
         """The socket of this task carries a request of a session admitted already.
@@ -1057,7 +1124,7 @@ class RosbridgeServer:
         if self._stopping or (limit is not None and taken >= limit):
             return None
         address = address_of(peer)
-        host = self._host_prefixes.host(address) if transport in _NETWORK else None
+        host = self._host_prefixes.host(address) if transport not in _LOCAL else None
         if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
             self._refused(peer, host, "host share", self._shares.held(host), self._shares.share)
             return None
@@ -1149,6 +1216,27 @@ class RosbridgeServer:
             self._client_count.publish({"data": len(self.sessions)})
         if self._connected_clients is not None:  # entries are built once, at connect
             self._connected_clients.publish({"clients": list(self._connected.values())})
+
+
+@dataclass(slots=True)
+class Admitted:
+    """An admitted connection without a session yet (``RosbridgeServer.admit``): its ticket.
+
+    Attributes:
+        client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
+        transport: the transport it was admitted on.
+        peer: the peer's address.
+        host: the host whose share it counts against; None for a local transport.
+        address: the peer's address without its port.
+        redeemed: a session took it, or it was released.
+    """
+
+    client_id: str
+    transport: str
+    peer: str
+    host: str | None
+    address: str
+    redeemed: bool = False
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
@@ -1312,7 +1400,7 @@ def _access_check(policy: AccessPolicy) -> Callable[[str, str], str | None]:
     ``topics_sub`` check a topic's use (D50); the rule is named as its option,
     with the patterns that refused (``--topics-sub-glob [/a, /b]``).
     """
-    from rwt_protocol.server.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
+    from rwt_protocol.runtime.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
 
     def check(family: str, name: str) -> str | None:
         kind, _, use_name = family.partition("_")

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.framing.streams import FramerEvent, LineFramer
+from rwt_protocol.framing.streams import LineFramer
 
 from .channel import PlainChannel
 from .tcp import encode_stream_frames
@@ -26,9 +26,10 @@ from .tcp import encode_stream_frames
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.inframes import FramerEvent
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["StdioChannel"]
 

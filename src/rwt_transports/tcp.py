@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import anyio
 
 from rwt_protocol.codecs.json import encode_op
-from rwt_protocol.framing.streams import FramerEvent, JsonStreamFramer
+from rwt_protocol.framing.streams import JsonStreamFramer
 from rwt_protocol.ops import Status
 
 from . import admission
@@ -31,9 +31,10 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream
 
     from rwt_protocol.framing.fragments import FragmentBudget
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.inframes import FramerEvent
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 

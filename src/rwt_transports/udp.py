@@ -25,8 +25,8 @@ import anyio
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.datagrams import fragment_datagrams
-from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame
 from rwt_protocol.ops import Status
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame
 
 from .channel import PlainChannel
 from .pump import ConnectionPump, SessionHost, run_connection
@@ -40,9 +40,9 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup, UDPSocket
     from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = ["UdpOptions", "serve_udp"]
 

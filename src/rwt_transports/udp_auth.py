@@ -32,8 +32,8 @@ from dataclasses import dataclass
 from rwt_protocol.codecs.cbor import decode_cbor
 from rwt_protocol.codecs.json import decode_json, encode_op, parse_object, peek_id
 from rwt_protocol.errors import RwtError
-from rwt_protocol.framing.streams import FramerEvent, FramingError
 from rwt_protocol.ops import Auth, OpModel, Status
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.server.gates import AUTH_REQUIRED, FIRST_OP_NOT_AUTH
 from rwt_protocol.server.replies import failure_reply
 

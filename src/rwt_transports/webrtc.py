@@ -50,7 +50,7 @@ from aiortc.exceptions import InvalidStateError
 
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.framing.datagrams import fragment_datagrams
-from rwt_protocol.framing.streams import FramerEvent, FramingError, InFrame, LossyInFrame
+from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame, LossyInFrame
 
 from .channel import PlainChannel
 
@@ -64,10 +64,10 @@ if TYPE_CHECKING:
     AnyDataChannel = RTCDataChannel | NativeDataChannel
     """A data channel of either stack: aiortc's, or libdatachannel's (``NativeDataChannel``)."""
 
-    from rwt_protocol.server.commands import CloseCode
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.memory import MemoryAccount
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.commands import CloseCode
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.memory import MemoryAccount
+    from rwt_protocol.runtime.outbox import OutFrame
 
 __all__ = [
     "INBOX_LIMIT_BYTES",

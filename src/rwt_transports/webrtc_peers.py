@@ -50,7 +50,7 @@ import anyio
 from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSessionDescription
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.server.commands import CloseCode
+from rwt_protocol.runtime.commands import CloseCode
 
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .shares import HostPrefixes, HostShares, address_of
@@ -70,7 +70,7 @@ if TYPE_CHECKING:
     from aiortc import RTCSctpTransport
     from anyio.abc import TaskGroup
 
-    from rwt_protocol.server.contract import ServerSession
+    from rwt_protocol.runtime.contract import ServerSession
 
     from .webrtc import AnyDataChannel
     from .webrtc_offer import OfferShape

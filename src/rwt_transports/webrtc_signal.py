@@ -32,7 +32,7 @@ from importlib import resources
 from typing import TYPE_CHECKING, Protocol
 from urllib.parse import parse_qsl
 
-from .http_endpoint import claims_path, open_request, reply
+from .http_endpoint import bearer, claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
 from .webrtc_native import STACKS, native_missing
 
@@ -261,9 +261,9 @@ class WebRtcSignalling:
             return Answer(400, f"the offer must be sent as Content-Type: {_SDP}, not {kind!r}")
         authenticated = False
         if self.auth_required and "authorization" in headers:
-            scheme, _, token = headers["authorization"].partition(" ")
+            token = bearer(headers)
             check = self.options.bearer_token
-            if scheme.lower() != "bearer" or check is None or not check(token.strip()):
+            if token is None or check is None or not check(token):
                 return Answer(401, "the bearer token is wrong or expired: call /rwt/video_token")
             authenticated = True
         try:

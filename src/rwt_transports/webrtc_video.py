@@ -47,7 +47,7 @@ from aiortc.sdp import SessionDescription
 
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import resolve_name
-from rwt_protocol.server.access import Family, TopicUse
+from rwt_protocol.runtime.access import Family, TopicUse
 from rwt_video.encoders import VideoPacket
 from rwt_video.hub import StreamHub
 from rwt_video.params import StreamParamError, StreamParams, StreamType, parse_stream_params
@@ -63,7 +63,7 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup
 
     from rwt_graph.graph import Graph
-    from rwt_protocol.server.access import AccessPolicy
+    from rwt_protocol.runtime.access import AccessPolicy
     from rwt_video.encoders import Part
     from rwt_video.hub import SharedStream
 

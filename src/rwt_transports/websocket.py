@@ -46,8 +46,8 @@ from websockets.typing import Subprotocol
 from rwt_console.site import ConsoleSite, http_response_bytes
 from rwt_protocol.framing.fragments import BudgetCharge
 from rwt_protocol.framing.messages import FrameKind, MessageAssembler, MessageTooBigError
-from rwt_protocol.framing.streams import FramerEvent, InFrame
-from rwt_protocol.server.commands import CloseCode
+from rwt_protocol.runtime.commands import CloseCode
+from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
@@ -67,8 +67,8 @@ if TYPE_CHECKING:
     from websockets.extensions.base import ServerExtensionFactory
 
     from rwt_protocol.framing.fragments import FragmentBudget
-    from rwt_protocol.server.contract import ServerSession
-    from rwt_protocol.server.outbox import OutFrame
+    from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.outbox import OutFrame
 
     from .frontends import FrontEnds
     from .urltoken import TokenGate

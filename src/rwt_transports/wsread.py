@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, NamedTuple
 
-from rwt_protocol.framing.streams import InFrame
+from rwt_protocol.runtime.inframes import InFrame
 
 if TYPE_CHECKING:
     from collections.abc import Iterator

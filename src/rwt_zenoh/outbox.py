@@ -24,7 +24,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.server.outbox import water_marks
+from rwt_protocol.runtime.outbox import water_marks
 
 from .deferred import Deferred
 from .inbox import Inbox, Sample

@@ -23,7 +23,7 @@ import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_client import Ros, Service, Topic
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")

@@ -238,6 +238,8 @@ NEVER_IN_RWT = {
     "Compat",
     "Connection",
     "McpOptions",
+    "HttpApiOptions",
+    "Admitted",
     "FoxgloveLimits",
     "FoxgloveOptions",
     "PlaybackStatus",

@@ -34,7 +34,7 @@ from rwt_graph.graph import Graph
 from rwt_protocol.errors import ConfigError, OpRefusedError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Status
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from tests.conformance import hostile

@@ -7,7 +7,7 @@ import struct
 
 from rwt_foxglove import FoxgloveSession
 from rwt_graph.graph import Graph
-from rwt_protocol.server.session import SessionConfig
+from rwt_protocol.runtime.rules import ClientRules
 
 
 class Client:
@@ -26,7 +26,7 @@ class Client:
         if with_params:
             kwargs["params"] = graph.params
         if "access" in kwargs:  # the one per-client rule a test names most
-            kwargs["config"] = SessionConfig(access=kwargs.pop("access"))  # type: ignore[arg-type]
+            kwargs["config"] = ClientRules(access=kwargs.pop("access"))  # type: ignore[arg-type]
         self.session = FoxgloveSession(
             graph.port,
             client_id,

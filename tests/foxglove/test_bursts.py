@@ -26,7 +26,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
 from rwt_graph.types.registry import codec_for
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_transports import gather
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.websocket import WebSocketChannel

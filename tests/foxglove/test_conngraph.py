@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from rwt_graph.graph import Graph
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from tests.conftest import Peer
 from tests.foxglove.sansio import Client
 

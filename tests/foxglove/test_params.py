@@ -10,7 +10,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.parameters.store import Parameters
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from tests.conftest import Peer
 from tests.foxglove.sansio import Client
 

@@ -17,7 +17,7 @@ from websockets.exceptions import InvalidStatus
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig

@@ -10,8 +10,8 @@ from rwt_foxglove.wire import decode_wire
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.server.access import AccessPolicy
-from rwt_protocol.server.session import SessionConfig
+from rwt_protocol.runtime.access import AccessPolicy
+from rwt_protocol.runtime.rules import ClientRules
 from tests.conftest import Peer
 from tests.foxglove.sansio import Client, cdr
 
@@ -103,7 +103,7 @@ def test_concurrent_calls_to_a_rosbridge_provider_are_answered_by_call_id(graph:
 def test_failures_come_by_call_id_and_the_session_goes_on(graph: Graph) -> None:
     peer = _rosbridge_adder(graph)
     graph.create_service("/local_add", ADD, lambda req: {"sum": req["a"] + req["b"]})
-    client = Client(graph, config=SessionConfig(max_pending_calls=2))  # --max-pending-calls
+    client = Client(graph, config=ClientRules(max_pending_calls=2))  # --max-pending-calls
     sid = int(client.service("/rb_add")["id"])  # type: ignore[call-overload]
     local = int(client.service("/local_add")["id"])  # type: ignore[call-overload]
     client.call(9999, 1, _request(graph, 1, 2))
@@ -145,7 +145,7 @@ def test_failures_come_by_call_id_and_the_session_goes_on(graph: Graph) -> None:
 def test_a_call_without_answer_times_out_and_a_late_answer_goes_nowhere(graph: Graph) -> None:
     """``--call-timeout`` binds a Foxglove client's calls, on a timer of their own."""
     peer = _rosbridge_adder(graph)
-    client = Client(graph, config=SessionConfig(call_timeout_s=5.0))
+    client = Client(graph, config=ClientRules(call_timeout_s=5.0))
     sid = int(client.service("/rb_add")["id"])  # type: ignore[call-overload]
     client.now = 100.0
     client.call(sid, 1, _request(graph, 1, 2))

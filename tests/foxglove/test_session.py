@@ -11,8 +11,8 @@ from rwt_foxglove import FoxgloveLimits
 from rwt_foxglove.protocol import select_subprotocol
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.server.access import AccessPolicy
-from rwt_protocol.server.session import SessionConfig
+from rwt_protocol.runtime.access import AccessPolicy
+from rwt_protocol.runtime.rules import ClientRules
 from tests.foxglove.sansio import Client, cdr
 
 
@@ -315,7 +315,7 @@ def test_subscription_limits_and_reused_ids(ros2_types: TypeRegistry) -> None:
     graph = Graph(ros2_types)
     graph.create_publisher("/a", "std_msgs/msg/String")
     graph.create_publisher("/b", "std_msgs/msg/String")
-    client = Client(graph, config=SessionConfig(max_subscriptions=1))
+    client = Client(graph, config=ClientRules(max_subscriptions=1))
     cid = client.channel("/a")["id"]
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": cid}]})

@@ -5,7 +5,7 @@ from __future__ import annotations
 from rwt_graph.graph import Graph
 from rwt_graph.rosapi import listing
 from rwt_graph.visibility import EVERYTHING, Visibility
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from tests.foxglove.sansio import Client
 
 STRING = "std_msgs/msg/String"

@@ -22,7 +22,8 @@ from anyio.abc import ByteStream
 from websockets.asyncio.client import ClientConnection
 from websockets.exceptions import ConnectionClosed
 
-from rwt_protocol.framing.streams import FramingError, InFrame, JsonStreamFramer
+from rwt_protocol.framing.streams import JsonStreamFramer
+from rwt_protocol.runtime.inframes import FramingError, InFrame
 from rwt_transports.memory import MemoryConnection
 from tests.support.clients import validate_udp
 

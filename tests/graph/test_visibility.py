@@ -14,7 +14,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.nodes import Role
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.visibility import EVERYTHING, Visibility
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 
 
 def _changes(graph: Graph) -> dict[str, GraphChange]:

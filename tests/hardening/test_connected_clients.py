@@ -15,7 +15,8 @@ import anyio
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
 
-from rwt_protocol.framing.streams import InFrame, JsonStreamFramer
+from rwt_protocol.framing.streams import JsonStreamFramer
+from rwt_protocol.runtime.inframes import InFrame
 from rwt_transports.server import RosbridgeServer, ServerConfig
 
 pytestmark = pytest.mark.anyio

@@ -22,8 +22,8 @@ import pytest
 from rwt_graph import ratelog
 from rwt_graph.graph import Graph
 from rwt_protocol import ratelog as core_ratelog
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server import gates
-from rwt_protocol.server.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports import server
 from rwt_transports.server import ServerConfig, rosauth_authenticator

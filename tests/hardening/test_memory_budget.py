@@ -28,7 +28,7 @@ import anyio
 import anyio.to_thread
 import pytest
 
-from rwt_protocol.server.memory import READER_KEEP
+from rwt_protocol.runtime.memory import READER_KEEP
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.server import RosbridgeServer, ServerConfig

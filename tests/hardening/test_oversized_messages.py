@@ -32,7 +32,7 @@ from websockets.frames import Opcode
 from websockets.http11 import Response
 from websockets.uri import parse_uri
 
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 from rwt_transports.server import ServerConfig
 from rwt_transports.tcp import stream_writes

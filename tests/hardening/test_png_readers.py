@@ -29,7 +29,7 @@ import anyio.to_thread
 import pytest
 
 from rwt_protocol.codecs.png import decode_png
-from rwt_protocol.server.outbox import FRAME_OVERHEAD_BYTES
+from rwt_protocol.runtime.outbox import FRAME_OVERHEAD_BYTES
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import TcpPeer, settle

@@ -16,7 +16,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import Dialect, TypeRegistry
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.support.clients import TRANSPORTS, Client, Harness, is_op, running_server

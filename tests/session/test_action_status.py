@@ -17,7 +17,7 @@ from rwt_graph.action_status import FINISHED_KEPT, STATUS_SUFFIX
 from rwt_graph.actions import MAX_LEFT_GOALS, GoalCanceledError, GoalContext
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.access import AccessPolicy, parse_glob_list
+from rwt_protocol.runtime.access import AccessPolicy, parse_glob_list
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import running_handlers
 from tests.conftest import Peer

@@ -22,9 +22,9 @@ from hypothesis import strategies as st
 from rwt_graph.graph import Graph
 from rwt_graph.types import codec_for
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.commands import CloseCode
+from rwt_protocol.runtime.commands import CloseCode
+from rwt_protocol.runtime.outbox import Outbox, OutFrame
 from rwt_protocol.server.handlers import topics as topic_handlers
-from rwt_protocol.server.outbox import Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 from rwt_protocol.server.subscriptions import BatchTopicSubscription
 

@@ -1,7 +1,7 @@
 """The call book every protocol's session keeps: a cap, a deadline each, one answer.
 
 A rosbridge ``call_service`` and a Foxglove ``serviceCallRequest`` both go
-through ``SessionBase.calls`` (rwt_protocol/server/callbook.py); here the
+through ``SessionBase.calls`` (rwt_protocol/runtime/callbook.py); here the
 rosbridge side, through a session, against a provider that never answers.
 """
 

@@ -24,8 +24,8 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import ServiceResponse
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.ports import MessageEvent
+from rwt_protocol.runtime.outbox import FRAME_OVERHEAD_BYTES, Outbox, OutFrame
 from rwt_protocol.server import encoding
-from rwt_protocol.server.outbox import FRAME_OVERHEAD_BYTES, Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 from tests.conftest import FakeClock, Peer
 

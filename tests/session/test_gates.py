@@ -15,17 +15,18 @@ from rwt_protocol.errors import LocalProtocolError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Auth, CallService, Subscribe
 from rwt_protocol.ratelog import EpisodeLog
-from rwt_protocol.server import gates
-from rwt_protocol.server.access import (
+from rwt_protocol.runtime.access import (
     AccessPolicy,
     Family,
     TopicUse,
     parse_glob_list,
     parse_split_glob,
 )
+from rwt_protocol.runtime.lifecycle import TRANSITIONS, State, advance
+from rwt_protocol.runtime.outbox import Outbox, OutFrame
+from rwt_protocol.server import gates
 from rwt_protocol.server.handlers import HANDLERS
-from rwt_protocol.server.lifecycle import TRANSITIONS, State, advance
-from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.server.op_access import check_op
 from rwt_protocol.server.replies import failure_reply
 from rwt_protocol.server.session import CloseCode, CloseConnection, Session, SessionConfig
 from tests.conftest import FakeClock, Peer
@@ -536,7 +537,7 @@ def test_failure_replies_without_an_id_have_none() -> None:
 def test_parameter_services_without_a_name_are_left_to_rosapi(graph: Graph) -> None:
     policy = AccessPolicy(params=("/public/*",))
     for args in (None, [], {"name": 5}, "x"):
-        policy.check(CallService(service="/rosapi/get_param", args=args))
+        check_op(policy, CallService(service="/rosapi/get_param", args=args))
 
 
 def test_the_transport_is_woken_for_output_and_closes_are_idempotent(graph: Graph) -> None:

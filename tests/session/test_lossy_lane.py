@@ -6,8 +6,8 @@ import json
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.lossy import LossyLane
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.lossy import LossyLane
+from rwt_protocol.runtime.outbox import OutFrame
 from tests.conftest import Peer
 
 

@@ -1,4 +1,4 @@
-"""The server-wide memory budget as sessions meet it (D44; ``rwt_protocol.server.memory``).
+"""The server-wide memory budget as sessions meet it (D44; ``rwt_protocol.runtime.memory``).
 
 Sans-IO: sessions on one graph share one ``MemoryBudget``; the test takes (or
 does not take) their frames and moves the clock by hand. What the network tests
@@ -15,8 +15,8 @@ import pytest
 from rwt_graph.graph import Graph
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.commands import CloseConnection
-from rwt_protocol.server.memory import (
+from rwt_protocol.runtime.commands import CloseConnection
+from rwt_protocol.runtime.memory import (
     PRESSURE_FLOOR_BYTES,
     PRESSURE_STALL_S,
     READER_KEEP,

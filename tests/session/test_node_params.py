@@ -16,7 +16,7 @@ from rwt_graph.graph import Graph
 from rwt_graph.parameters.services import MAX_ANSWER_BYTES
 from rwt_graph.rosapi import install_rosapi
 from rwt_graph.visibility import Visibility
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from tests.conftest import Peer
 from tests.session.rosapi_support import call, call_raw, connect
 

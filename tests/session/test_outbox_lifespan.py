@@ -16,7 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rwt_graph.link import LinkRules, Relays
-from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.runtime.outbox import Outbox, OutFrame
 from rwt_ros2.link import SAMPLE_LIFESPAN_S
 
 if TYPE_CHECKING:

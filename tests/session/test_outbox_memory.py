@@ -11,7 +11,7 @@ import json
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.outbox import FRAME_OVERHEAD_BYTES, Outbox, OutFrame
+from rwt_protocol.runtime.outbox import FRAME_OVERHEAD_BYTES, Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 
 PAYLOAD = 100

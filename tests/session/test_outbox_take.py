@@ -11,7 +11,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.runtime.outbox import Outbox, OutFrame
 
 # a message's parts share its kind: a topic message's are droppable, a reply's are not
 FRAMES = st.lists(

@@ -13,7 +13,7 @@ import json
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.outbox import Outbox, OutFrame
+from rwt_protocol.runtime.outbox import Outbox, OutFrame
 from rwt_protocol.server.session import Session, SessionConfig
 
 LIMIT = 64 * 1024

@@ -14,7 +14,7 @@ import pytest
 
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import SessionConfig
 from tests.conftest import Peer

@@ -1,27 +1,39 @@
 """Every protocol's session meets the connection runtime's contract; the graph meets its port's.
 
-The pump drives any ``rwt_protocol.server.contract.ServerSession`` and a
+The pump drives any ``rwt_protocol.runtime.contract.ServerSession`` and a
 protocol front end types against ``rwt_graph.port.GraphFront``
 (docs/architecture.md, "One connection runtime"). mypy checks the places that
 assign one to the other; this checks every member each contract names, on the
 real objects, so a member added to a contract and forgotten by a protocol (or
 one renamed in a session) fails here at once, whatever typing sees.
+
+Containment is the runtime's (``SessionBase.contain``), for every protocol: a
+timer or a job that fails is reported to the peer in its protocol's own words
+(rosbridge's ``status`` op, Foxglove's ``status`` message, the test double's
+text line) and the connection stays open (docs/limits.md, containment).
 """
 
 from __future__ import annotations
 
 import inspect
+import json
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import pytest
 
 from rwt_foxglove import FoxgloveSession
+from rwt_foxglove.protocol import StatusLevel as FoxgloveLevel
 from rwt_graph.graph import Graph
 from rwt_graph.port import GraphFront
 from rwt_protocol.ports import GraphPort
-from rwt_protocol.server.contract import Job, ServerSession
+from rwt_protocol.runtime.connection import SessionBase
+from rwt_protocol.runtime.contract import Job, ServerSession
+from rwt_protocol.runtime.rules import ClientRules
 from rwt_protocol.server.pngout import PngPublishJob
 from rwt_protocol.server.session import Session, SessionConfig
+from rwt_transports.frontends import SessionRequest
+from tests.support.echo import EchoSession
 
 
 def _members(protocol: type) -> set[str]:
@@ -78,3 +90,105 @@ def test_the_graph_core_is_a_front_and_a_port() -> None:
 def test_a_background_job_has_what_the_pump_runs() -> None:
     fields = set(PngPublishJob.__dataclass_fields__)  # ``ready_at`` lives on instances
     assert all(name in fields or callable(getattr(PngPublishJob, name)) for name in _members(Job))
+
+
+def _echo(graph: Graph) -> EchoSession:
+    request = SessionRequest(
+        graph.port, "client#1", "memory", "", SessionConfig(), lambda: None, lambda _: None
+    )
+    return EchoSession(request)
+
+
+def _rosbridge_words(frame: bytes) -> bool:
+    return json.loads(frame) == {"op": "status", "level": "error", "msg": "internal error"}
+
+
+def _foxglove_words(frame: bytes) -> bool:
+    message = json.loads(frame)
+    return message.get("op") == "status" and (message["level"], message["message"]) == (
+        int(FoxgloveLevel.ERROR),
+        "internal error",
+    )
+
+
+def _echo_words(frame: bytes) -> bool:
+    return frame == b"error: internal error"
+
+
+PROTOCOLS = [
+    pytest.param(_rosbridge, _rosbridge_words, id="rosbridge"),
+    pytest.param(_foxglove, _foxglove_words, id="foxglove"),
+    pytest.param(_echo, _echo_words, id="test-double"),
+]
+
+
+def _fresh(make: Callable[[Graph], SessionBase]) -> SessionBase:
+    session = make(Graph())
+    session.start(0.0)
+    session.frames_to_send()  # its greeting (Foxglove's serverInfo, ...)
+    return session
+
+
+def _told(session: SessionBase) -> list[bytes]:
+    return [bytes(frame.data) for frame in session.frames_to_send()]
+
+
+def _still_open(session: SessionBase) -> bool:
+    ran: list[float] = []
+    session.call_at(session.now + 1.0, ran.append)
+    session.handle_timer(session.now + 1.0)  # a later timer still runs
+    return not session.closing and session.commands_to_run() == [] and ran != []
+
+
+def _boom(now: float) -> None:
+    raise ZeroDivisionError(now)  # a bug in a timer
+
+
+@dataclass
+class _FailingJob:
+    ready_at: float = 0.0
+
+    def run(self) -> object:
+        raise ZeroDivisionError  # a bug in a job
+
+
+@pytest.mark.parametrize(("make", "words"), PROTOCOLS)
+def test_a_failing_timer_is_contained_and_told_in_the_protocols_words(
+    make: Callable[[Graph], SessionBase], words: Callable[[bytes], bool]
+) -> None:
+    session = _fresh(make)
+    session.call_at(1.0, _boom)
+    session.handle_timer(1.0)  # does not raise
+    told = _told(session)
+    assert len(told) == 1 and words(told[0]), told
+    assert _still_open(session)
+    session.close()
+
+
+@pytest.mark.parametrize(("make", "words"), PROTOCOLS)
+@pytest.mark.parametrize("background", [False, True], ids=["input-job", "background-job"])
+def test_a_failing_job_is_contained_and_told_in_the_protocols_words(
+    make: Callable[[Graph], SessionBase], words: Callable[[bytes], bool], background: bool
+) -> None:
+    session = _fresh(make)
+    session.run_jobs()
+    session.add_job(_FailingJob(), background=background)
+    job = session.take_background_job() if background else session.take_job()
+    assert job is not None
+    try:
+        outcome: object = job.run()
+    except ZeroDivisionError as exc:  # as the pump hands it back
+        outcome = exc
+    session.finish_job(job, outcome, 1.0)  # does not raise
+    told = _told(session)
+    assert len(told) == 1 and words(told[0]), told
+    assert _still_open(session)
+    session.close()
+
+
+def test_the_shared_rules_are_what_rosbridges_settings_extend() -> None:
+    rules = ClientRules()
+    settings = SessionConfig(max_subscriptions=3, max_pending_goals=5)
+    assert isinstance(settings, ClientRules)
+    assert settings.max_subscriptions == 3 and rules.max_subscriptions == 1000
+    assert not hasattr(rules, "max_pending_goals")  # rosbridge's own stay rosbridge's

@@ -16,8 +16,9 @@ import cbor2
 import pytest
 from websockets.exceptions import ConnectionClosed
 
-from rwt_protocol.framing.streams import FramerEvent, InFrame, JsonStreamFramer
-from rwt_protocol.server.access import AccessPolicy
+from rwt_protocol.framing.streams import JsonStreamFramer
+from rwt_protocol.runtime.access import AccessPolicy
+from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_native import native_missing

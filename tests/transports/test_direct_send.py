@@ -22,7 +22,7 @@ import pytest
 import trustme
 
 from rwt_graph.graph import Graph
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import ENV_VAR
 from rwt_transports.flow import ChannelAbilities, FlowControl

@@ -13,7 +13,7 @@ import struct
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_transports import websocket
 from rwt_transports.writes import WRITE_BATCH, coalesce
 

@@ -2,12 +2,13 @@
 
 docs/architecture.md, "How to add a protocol": a session that subclasses
 ``SessionBase`` and a ``FrontEnd`` that makes it, handed to ``RosbridgeServer``
-(``add_frontend``), and nothing else. The protocol here is a few lines ("sub TOPIC" subscribes, any
-other text is echoed); what it never restates comes from the server, over a
-real WebSocket: admission (``--max-connections``), ``--max-subscriptions``, the
-access globs (with their log), the idle timeout, and the slow-consumer rule
-(a client that reads nothing loses its oldest data and is closed after
-``--send-timeout``) and a bug in a handler contained.
+(``add_frontend``), and nothing else. The protocol is a few lines
+(tests/support/echo.py: "sub TOPIC" subscribes, any other text is echoed); what
+it never restates comes from the server, over a real WebSocket: admission
+(``--max-connections``), ``--max-subscriptions``, the access globs (with their
+log), the idle timeout, and the slow-consumer rule (a client that reads nothing
+loses its oldest data and is closed after ``--send-timeout``) and a bug in a
+handler contained.
 """
 
 from __future__ import annotations
@@ -22,79 +23,13 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rwt_graph.graph import Graph
-from rwt_protocol.errors import RwtError
-from rwt_protocol.levels import StatusLevel
-from rwt_protocol.ports import MessageEvent
-from rwt_protocol.server.access import AccessPolicy, Family
-from rwt_protocol.server.connection import SessionBase
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
-from rwt_transports.frontends import FrontEnd, SessionRequest
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.support.echo import ECHO, FRONTEND
 from tests.support.rawws import masked_text, raw_websocket
 
 pytestmark = pytest.mark.anyio
-
-ECHO = "rwt.test.echo"
-
-
-class EchoSession(SessionBase):
-    """The whole protocol: ``sub TOPIC`` subscribes (its messages come as their text),
-    ``boom`` is a bug, anything else comes back."""
-
-    protocol = "echo"
-
-    def __init__(self, request: SessionRequest) -> None:
-        super().__init__(
-            request.graph,
-            request.client_id,
-            config=request.config,
-            on_output=request.on_output,
-            peer=request.peer,
-            on_closed=request.on_closed,
-        )
-        self.topics: set[str] = set()
-
-    def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
-        if not self._state.takes_input:
-            return
-        self.received(now)
-        text = frame.decode() if isinstance(frame, bytes) else frame
-        try:
-            if text == "boom":
-                raise ZeroDivisionError  # a bug in a handler
-            if text.startswith("sub "):
-                self._subscribe(text[4:])
-            else:
-                self.send_frames((OutFrame(text.encode()),))
-        except RwtError as exc:
-            self.report(exc.level, exc.message)
-        except Exception:
-            self._bug("echo")
-
-    def _subscribe(self, topic: str) -> None:
-        self.require_access(Family.TOPICS, topic, "sub")
-        self.check_cap(len(self.topics), self._config.max_subscriptions, "subscriptions")
-        self._graph.subscribe(self._client_id, topic, "std_msgs/msg/String", _Sink(self))
-        self.topics.add(topic)
-
-    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
-        self.send_frames((OutFrame(f"{level.wire}: {text}".encode()),))
-
-    def holds_anything(self) -> bool:
-        return bool(self.topics)
-
-
-class _Sink:
-    def __init__(self, session: EchoSession) -> None:
-        self._session = session
-
-    def on_message(self, event: MessageEvent) -> None:
-        self._session.push_topic_frame(OutFrame(str(event.msg["data"]).encode(), False, True))
-        self._session.wake()
-
-
-FRONTEND = FrontEnd("echo", (ECHO,), EchoSession)
 
 
 @asynccontextmanager
@@ -118,7 +53,7 @@ async def test_the_registry_picks_it_by_subprotocol_and_rosbridge_stays_the_defa
             await ws.send("hello")
             assert await ws.recv() == "hello"
             await ws.send("boom")  # a bug: reported, and the connection goes on
-            assert await ws.recv() == "error: echo: internal error"
+            assert await ws.recv() == "error: internal error"
             await ws.send("still here")
             assert await ws.recv() == "still here"
         async with connect(url) as ws:  # no subprotocol: rosbridge

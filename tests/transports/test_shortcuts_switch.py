@@ -22,7 +22,7 @@ from anyio.abc import SocketAttribute
 from websockets.protocol import State
 from websockets.server import ServerProtocol
 
-from rwt_protocol.server.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.shortcuts import ENV_VAR, SHORTCUTS
 from rwt_transports import pump
 from rwt_transports.direct import DirectReader, DirectWriter

@@ -25,7 +25,7 @@ from websockets.protocol import State
 from websockets.server import ServerProtocol
 from websockets.utils import apply_mask
 
-from rwt_protocol.framing.streams import InFrame
+from rwt_protocol.runtime.inframes import InFrame
 from rwt_transports.server import ServerConfig
 from rwt_transports.websocket import WebSocketChannel, WebSocketOptions
 from rwt_transports.wsread import FrameReader

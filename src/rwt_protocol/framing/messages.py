@@ -12,7 +12,7 @@ from __future__ import annotations
 from enum import IntEnum
 
 from ..errors import RemoteProtocolError
-from .streams import InFrame
+from ..runtime.inframes import InFrame
 
 __all__ = ["FrameKind", "MessageAssembler", "MessageTooBigError"]
 

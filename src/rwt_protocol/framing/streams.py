@@ -31,20 +31,12 @@ JSON never starts a line that way).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from enum import Enum, auto
-from typing import ClassVar
 
+from ..runtime.inframes import FramerEvent, FramingError, InFrame
 from .fragments import BudgetCharge, FragmentBudget
 
-__all__ = [
-    "FramerEvent",
-    "FramingError",
-    "InFrame",
-    "JsonStreamFramer",
-    "LineFramer",
-    "LossyInFrame",
-]
+__all__ = ["JsonStreamFramer", "LineFramer"]
 
 _NOT_SPACE = re.compile(rb"[^ \t\r\n]")
 _CONTAINER_STOP = re.compile(rb'[{}\[\]"\n]')
@@ -57,45 +49,6 @@ _BACKSLASH = ord("\\")
 _NEWLINE = ord("\n")
 _NEXT_OP = b'{"op"'  # a line starting like this starts a new message (resync, see _scan_json)
 _CBOR_FIRST = range(0x80, 0xC0)  # CBOR arrays (major type 4) and maps (major type 5)
-
-
-@dataclass(frozen=True, slots=True)
-class InFrame:
-    """One whole incoming frame.
-
-    Attributes:
-        data: the frame's bytes (a JSON text, or one CBOR item when ``binary``).
-        binary: the frame is CBOR (D21), not JSON text.
-        lossy: it came on the transport's lossy channel (``LossyInFrame``, D36).
-    """
-
-    data: bytes
-    binary: bool = False
-    lossy: ClassVar[bool] = False
-
-
-@dataclass(frozen=True, slots=True)
-class LossyInFrame(InFrame):
-    """One whole frame that came on a transport's lossy channel (WebRTC's, D36)."""
-
-    lossy: ClassVar[bool] = True
-
-
-@dataclass(frozen=True, slots=True)
-class FramingError:
-    """Something in the stream could not become a frame (it was skipped).
-
-    Attributes:
-        message: lowercase text for a ``status`` frame (D1).
-        fatal: the stream cannot be followed any more; the connection must close.
-    """
-
-    message: str
-    fatal: bool = False
-
-
-FramerEvent = InFrame | FramingError
-"""What a framer yields: frames, and reports of what it skipped."""
 
 
 class _Mode(Enum):

@@ -1,23 +1,21 @@
-"""The server role of the protocol: one connection's session and everything it holds.
+"""The server role of rosbridge: one connection's session and everything it holds.
 
 ``session.Session`` is the state machine a transport drives (frames and timer
-ticks in, frames and commands out): a ``connection.SessionBase``, the part every
-protocol's session shares (the contract the connection runtime drives is
-``contract.ServerSession``). Around it, one module a job:
+ticks in, frames and commands out): a ``rwt_protocol.runtime.connection.SessionBase``,
+the part every protocol's session shares (the outbox, the slow-consumer watch,
+timers, the idle timeout, the call book, the access rules and the rest of the
+connection runtime live in ``rwt_protocol.runtime``). Its settings,
+``session.SessionConfig``, are the shared ``runtime.rules.ClientRules`` and
+rosbridge's own. Around it, one module a job:
 
 - ``handlers``: one handler per op, over ``handlers.HandlerContext`` (the session
   as handlers see it);
-- ``lifecycle`` (its states), ``holdings`` (what it holds in the graph),
-  ``subscriptions`` (one topic's merged subscriptions);
-- ``callbook`` (the calls in flight: a cap, a deadline each, answered once);
-- ``gates`` (authentication, then ``access`` rules, before each handler) and
-  ``replies`` (what a refused request gets besides its status);
+- ``holdings`` (what it holds in the graph), ``subscriptions`` (one topic's
+  merged subscriptions);
+- ``gates`` (authentication, then the access rules, before each handler;
+  ``op_access`` says which name of which op each glob checks) and ``replies``
+  (what a refused request gets besides its status);
 - ``encoding`` (topic messages and replies in each subscriber's encoding),
-  ``outbox`` (the bounded queue of outgoing frames), ``lossy`` (the latest
-  message of each topic subscribed on a transport's lossy channel, D36),
-  ``backpressure`` (slow consumers), ``inflate`` (the png inflation budget),
-  ``pngout`` (png messages deflated off the event loop), ``memory`` (the
-  server-wide memory budget every connection is charged to, D44);
-- ``timers``, ``idle`` (closing silent connections), ``commands`` (what the
-  session asks its transport to do).
+  ``inflate`` (the png inflation budget), ``pngout`` (png messages deflated off
+  the event loop), ``compat`` (rosbridge_suite's texts and statuses).
 """

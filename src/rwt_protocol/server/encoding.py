@@ -43,7 +43,7 @@ from ..framing.fragments import fragment_frames, fresh_id
 from ..ops import ActionResult, OpModel, Png, Publish, ServiceResponse, Status
 from ..ops.base import Compression
 from ..ports import GoalStatus, MessageCodec, MessageEvent
-from .outbox import OutFrame
+from ..runtime.outbox import OutFrame
 
 __all__ = [
     "EncodeFailure",

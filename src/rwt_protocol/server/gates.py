@@ -22,7 +22,8 @@ from ..errors import RemoteProtocolError
 from ..levels import StatusLevel
 from ..ops import Auth, OpModel, PublishView
 from ..ratelog import EpisodeLog
-from .access import AccessDeniedError
+from ..runtime.access import AccessDeniedError
+from .op_access import check_op
 from .replies import failure_reply
 
 if TYPE_CHECKING:
@@ -95,7 +96,7 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
             outside the rules.
     """
     try:
-        session.config.access.check(op)
+        check_op(session.config.access, op)
     except AccessDeniedError as exc:
         name: str = op.op
         _episodes.log(

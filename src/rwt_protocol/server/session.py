@@ -32,7 +32,7 @@ any frames for ``send_timeout_s`` is closed with a reason.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..auth import AUTH_CHALLENGE_ID, new_challenge
@@ -43,75 +43,57 @@ from ..framing.fragments import FragmentBudget, Reassembler
 from ..levels import StatusLevel
 from ..ops import OpModel, PublishView, Status
 from ..ops.base import Compression
+from ..runtime.commands import CloseCode, CloseConnection, Command
+from ..runtime.connection import SessionBase
+from ..runtime.lifecycle import State
+from ..runtime.outbox import FRAME_OVERHEAD_BYTES
+from ..runtime.rules import ClientRules, MiB
 from ..shortcuts import enabled
 from . import gates
-from .access import AccessPolicy
-from .commands import CloseCode, CloseConnection, Command
 from .compat import Compat, initial_status_level
-from .connection import SessionBase
 from .encoding import EncodeFailure, publish_text_size, safe_op_frames, safe_publish_frames
 from .handlers import HANDLERS
 from .handlers.providers import ProviderLink
 from .holdings import Holdings
 from .inflate import InflateJob, TokenBucket
-from .lifecycle import State
-from .outbox import FRAME_OVERHEAD_BYTES
 from .pngout import PngPublishJob, PngWaiting
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from ..auth import Authenticator
+    # what the fields ``SessionConfig`` takes from ``ClientRules`` name, for its __init__
+    from ..auth import Authenticator  # noqa: F401
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
-    from .contract import Job
-    from .memory import MemoryBudget
-    from .outbox import OutFrame
+    from ..runtime.access import AccessPolicy  # noqa: F401
+    from ..runtime.contract import Job
+    from ..runtime.memory import MemoryBudget
+    from ..runtime.outbox import OutFrame
+    from ..runtime.timers import Timer
     from .subscriptions import TopicSubscription
-    from .timers import Timer
 
 __all__ = ["CloseCode", "CloseConnection", "Command", "Session", "SessionConfig", "State"]
 
 logger = logging.getLogger("rwt.session")
 
-MiB = 1024 * 1024
-
-HOLD_BUDGET_S = 5.0
-"""Default ``SessionConfig.hold_budget_s``: seconds a publisher (or caller) may be held
-back by the congested connections it fills, in all, regaining a tenth of a second a
-second (docs/limits.md, input backpressure).
-
-Long enough for a subscriber that reads to take a burst whole (B19: 200,000
-messages, the publisher held about half of the time), short against a stream
-a subscriber cannot keep up with: after it, that subscriber loses its own
-oldest messages and the publisher and every other subscriber go at full rate.
-"""
-
-
 _PUBLISH_DECODE = enabled("publish-decode")  # docs/shortcuts.md
 
 
 @dataclass(frozen=True)
-class SessionConfig:
-    """Per-connection settings.
+class SessionConfig(ClientRules):
+    """Per-connection settings of a rosbridge client: every protocol's rules and rosbridge's.
+
+    The rules every protocol shares (``send_buffer_limit``, ``send_timeout_s``,
+    ``hold_budget_s``, ``access``, ``authenticator``, ``call_timeout_s``,
+    ``max_subscriptions``, ``max_advertisements``, ``max_pending_calls``,
+    ``idle_timeout_s``) are ``ClientRules``'s (``rwt_protocol.runtime.rules``),
+    taken by the same keywords; the server makes one ``SessionConfig`` and every
+    front end reads the part it knows.
 
     Attributes:
         status_level: the level a new connection starts at (D2, ``--status-level``).
         compat: whose behaviour the connection follows where rwt and rosbridge_suite
             differ (``compat.Compat``, ``--compat``; docs/differences.md).
-        send_buffer_limit: bytes of outgoing frames kept queued before the oldest
-            topic messages are dropped (D24, ``--send-buffer-limit``); each frame
-            counts its payload plus ``outbox.FRAME_OVERHEAD_BYTES``, so the
-            limit bounds the memory a stalled peer holds.
-        send_timeout_s: seconds a connection may stay over ``send_buffer_limit``
-            without taking any frame before it is closed (D24, ``--send-timeout``).
-        hold_budget_s: seconds this connection, as a reader, may be held back
-            by the congested outboxes it fills (input backpressure,
-            ``--hold-budget``), in all, whoever it waits for, regaining it
-            slowly; a connection it was waiting for when it ran out is slow and
-            loses its own oldest topic messages (D24) instead (docs/limits.md).
-        access: the access rules (``--topics-glob`` and friends).
-        authenticator: when set, the first op must be an ``auth`` it admits (D23).
         auth_challenge: with an authenticator, send each connection a challenge
             first (a ``status`` with ``id`` ``auth_challenge`` and the nonce as
             ``msg``) and admit only an ``auth`` whose ``rand`` is that nonce
@@ -129,23 +111,10 @@ class SessionConfig:
         max_queue_length: the most messages a throttled subscription queues; a
             larger ``queue_length`` is capped with a warning (D12, D24,
             ``--max-queue-length``).
-        call_timeout_s: seconds a ``call_service`` without ``timeout`` waits before
-            it fails (D16, ``--call-timeout``); None waits for ever.
-        max_subscriptions: topics one connection may subscribe to at once
-            (``--max-subscriptions``); the next ``subscribe`` gets an error status.
-        max_advertisements: topics, services and actions one connection may
-            advertise at once, together (``--max-advertisements``).
         max_ids_per_topic: ``subscribe`` or ``advertise`` ids one connection may
             hold on one topic (merged per D11).
-        max_pending_calls: ``call_service`` ops of one connection waiting for their
-            reply (``--max-pending-calls``); the next is answered ``result: false``.
         max_pending_goals: ``send_action_goal`` ops of one connection waiting for
             their result (``--max-pending-goals``); the next gets a failed result.
-        idle_timeout_s: seconds after which a connection whose peer sent nothing and
-            that holds nothing (no subscription, advertisement, offer, goal, pending
-            call or goal, incomplete message) is closed (``idle.IdleWatch``); None:
-            never. A ``RosbridgeServer`` sets it from ``ServerConfig.idle_timeout_s``
-            for WebSocket and TCP connections (``--idle-timeout``).
         png_inflate_rate: bytes a second of ``png`` images one connection may have
             inflated, after a burst of ``max_message_size`` (``--png-inflate-rate``;
             ``inflate.TokenBucket``): past it, its later ``png`` ops wait.
@@ -154,24 +123,14 @@ class SessionConfig:
 
     status_level: StatusLevel = StatusLevel.ERROR
     compat: Compat = Compat.RWT
-    send_buffer_limit: int = 16 * MiB
-    send_timeout_s: float = 30.0
-    hold_budget_s: float = HOLD_BUDGET_S
-    access: AccessPolicy = field(default_factory=AccessPolicy)
-    authenticator: Authenticator | None = None
     auth_challenge: bool = False
     max_message_size: int = 10 * MiB
     max_pending_fragments: int = 16
     fragment_timeout_s: float = 600.0
     max_queue_length: int = 100
-    call_timeout_s: float | None = 30.0
-    max_subscriptions: int = 1000
-    max_advertisements: int = 1000
     max_ids_per_topic: int = 100
-    max_pending_calls: int = 1000
     max_pending_goals: int = 1000
     png_inflate_rate: int = 8 * MiB
-    idle_timeout_s: float | None = None
 
 
 class Session(SessionBase):
@@ -219,6 +178,7 @@ class Session(SessionBase):
         memory: MemoryBudget | None = None,
     ) -> None:
         config = config or SessionConfig()
+        self._config: SessionConfig = config  # (``SessionBase`` keeps it as ``ClientRules``)
         super().__init__(
             graph,
             client_id,
@@ -254,8 +214,10 @@ class Session(SessionBase):
 
     # ---- inputs -------------------------------------------------------------
 
-    def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+    def handle_frame(self, frame: str | bytes, now: float, binary: bool) -> None:
         """Process one incoming frame: one JSON text, or one CBOR item when ``binary``.
+
+        ``receive_frame`` (``SessionBase``) calls it while the session takes input.
 
         Args:
             frame: the frame's payload.
@@ -263,12 +225,9 @@ class Session(SessionBase):
             binary: the frame came as binary (a WebSocket binary message, a CBOR
                 item on a stream): CBOR (D21, D27).
 
-        Never raises for anything the peer sent; see the module docstring.
-        Frames arriving after the session asked to close are ignored.
+        Never raises for anything the peer sent; see the module docstring. A
+        refusal or a bug is reported with the op's name and id (``contain``).
         """
-        if not self._state.takes_input:
-            return
-        self.received(now)
         op_name: str | None = None
         op_id: str | int | None = None
         try:
@@ -297,8 +256,8 @@ class Session(SessionBase):
                 self._admitted = True
         except RwtError as exc:
             self._refused(exc, op_name, op_id)
-        except Exception:
-            self._bug(op_name, op_id)
+        except Exception as exc:
+            self.contain(exc, op_name, op_id)
 
     def receive_lossy_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
         """Process a frame that came on the transport's lossy channel (D36).
@@ -337,8 +296,10 @@ class Session(SessionBase):
             return
         self.add_job(InflateJob(png, op_id, now + wait))
 
-    def finish_job(self, job: Job, result: object, now: float) -> None:
+    def job_done(self, job: Job, result: object, now: float) -> None:
         """Take a job's outcome: its text is handled as a frame, its error reported.
+
+        ``finish_job`` (``SessionBase``) calls it and contains what it raises.
 
         Args:
             job: what ``take_job`` gave (an ``InflateJob``), or
@@ -350,15 +311,15 @@ class Session(SessionBase):
         if isinstance(job, PngPublishJob):
             self._png_done(job, result)
             return
-        if not self._state.takes_input or not isinstance(job, InflateJob):
+        if not isinstance(job, InflateJob):
+            super().job_done(job, result, now)
+            return
+        if not self._state.takes_input:
             return
         if isinstance(result, RwtError):
             self._refused(result, "png", job.op_id)
-        elif isinstance(result, BaseException):
-            try:  # a bug in the job: reported and logged with its traceback, as in a handler
-                raise result
-            except Exception:
-                self._bug("png", job.op_id)
+        elif isinstance(result, Exception):  # a bug in the job: reported and logged
+            self.contain(result, "png", job.op_id, source="job")
         elif isinstance(result, bytes | str):
             self.receive_frame(result, now)
 
@@ -406,6 +367,11 @@ class Session(SessionBase):
         )
 
     # ---- outputs ------------------------------------------------------------
+
+    @property
+    def config(self) -> SessionConfig:
+        """This connection's settings: the rules every protocol shares and rosbridge's."""
+        return self._config
 
     @property
     def holdings(self) -> Holdings:
@@ -486,7 +452,7 @@ class Session(SessionBase):
         frames, failure = safe_op_frames(op)
         if failure is not None:
             self._unencodable(failure)
-        outbox = self._outbox
+        outbox = self.outbox
         if not outbox.fits_kept(frames):
             raise GraphError(
                 f"{what}: provider busy: {outbox.undroppable_bytes} bytes of requests wait "
@@ -530,6 +496,19 @@ class Session(SessionBase):
             return  # no status is sent at level none (``admits`` never lets it through)
         self.send(Status(level=wire, msg=text, id=op_id))
 
+    def status_frames(
+        self, level: StatusLevel, text: str, op_id: str | int | None = None
+    ) -> Sequence[OutFrame]:
+        """A ``status`` op's frames (spec 3.2), whatever the connection's level, not queued.
+
+        Empty at level ``none``, which has no status.
+        """
+        wire = level.wire
+        if wire == "none":
+            return ()
+        frames, _ = safe_op_frames(Status(level=wire, msg=text, id=op_id))
+        return frames
+
     def deliver(self, subscription: TopicSubscription, event: MessageEvent) -> None:
         """Queue one topic message for the peer, in the subscription's merged encoding.
 
@@ -561,10 +540,10 @@ class Session(SessionBase):
     def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
         """``deliver`` each of ``events`` (a run of one topic's messages), in order.
 
-        A message that is one frame (not fragmented) is queued in the fewest steps
-        (``Outbox.push_timed``, ``push_droppable``) and the transport is woken
-        once for the run, so a burst to many subscribers costs each little more
-        than its frame (``rosbridge-batch-sink``, ``rwt_protocol.shortcuts``).
+        The messages that are one frame (not fragmented) are queued as one run
+        (``SessionBase.queue_run``) and the transport is woken once for it, so a
+        burst to many subscribers costs each little more than its frame
+        (``rosbridge-batch-sink``, ``rwt_protocol.shortcuts``).
         Everything else goes as ``deliver`` sends it: PNG, the lossy lane,
         fragments, a message that cannot be encoded.
         """
@@ -576,36 +555,31 @@ class Session(SessionBase):
             for event in events:
                 self.deliver(subscription, event)
             return
-        if not self._state.sends:
+        if not self._sends:
             return
-        outbox = self._outbox
         spelling, size = subscription.spelling, params.fragment_size
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        was_empty = len(outbox) == 0
+        run: list[OutFrame] = []  # one-frame messages of one lifespan and time, queued at once
+        run_now = run_lifespan = 0.0
         for event in events:
-            now = self._now = max(self._now, event.now)
             frames = safe_publish_frames(event, spelling, compression, size)
             if isinstance(frames, EncodeFailure):
                 self._encode_failed(subscription, frames, compression)
                 continue
-            frame = frames[0]
-            if len(frames) > 1 or not frame.droppable:  # fragments: as ``send_frames`` queues them
-                self.send_frames(frames, spelling, event.lifespan)
-                dropped, oversized = outbox.dropped, outbox.dropped_oversized
+            lifespan = event.lifespan
+            if run and (lifespan != run_lifespan or (lifespan > 0 and event.now != run_now)):
+                self.queue_run(run, spelling, run_now, run_lifespan)
+                run = []
+            if len(frames) > 1 or not frames[0].droppable:  # fragments: as ``deliver`` sends them
+                if run:
+                    self.queue_run(run, spelling, run_now, run_lifespan)
+                    run = []
+                self._now = max(self._now, event.now)
+                self.send_frames(frames, spelling, lifespan)
                 continue
-            if event.lifespan > 0:
-                outbox.push_timed(frame, now, event.lifespan, spelling)
-            else:
-                outbox.push_droppable(frame)
-            if outbox.dropped != dropped:  # the slow-consumer rule, as ``send_frames`` asks it
-                self._watch.after_push(dropped, oversized, now, frames, spelling)
-                dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.settle()  # the memory budget, once for the run (D44)
-        if outbox.dropped != dropped or outbox.held_bytes:
-            self._watch.after_push(dropped, oversized, self._now, (), spelling)
-        if was_empty or outbox.fill_bytes > self.wake_above_bytes:
-            self._wake()
-        self.sweep_memory()
+            run.append(frames[0])
+            run_now = event.now if event.now > run_now else run_now
+            run_lifespan = lifespan
+        self.queue_run(run, spelling, run_now, run_lifespan)
 
     def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
         """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.
@@ -653,7 +627,7 @@ class Session(SessionBase):
         self._bound_waiting(spelling)
         memory = self._memory
         if memory is not None:
-            excess = memory.excess(self._outbox.limit_bytes)
+            excess = memory.excess(self.outbox.limit_bytes)
             if excess:
                 self.make_room(excess, self._now)
         if self.fill_bytes > self.wake_above_bytes:
@@ -662,12 +636,10 @@ class Session(SessionBase):
 
     def _bound_waiting(self, topic: str) -> None:
         """Keep the outbox and the png messages waiting within ``--send-buffer-limit`` (D24)."""
-        outbox = self._outbox
+        outbox = self.outbox
         limit = outbox.limit_bytes
         if outbox.queued_bytes + self._pending_bytes > limit:
-            dropped, oversized = outbox.dropped, outbox.dropped_oversized
-            self.shed_topic_messages(limit)
-            self._watch.after_push(dropped, oversized, self._now, (), topic)
+            self.shed(limit, topic)
 
     def shed_topic_messages(self, cap: int) -> None:
         """Drop the oldest topic messages, queued then waiting for png, down to ``cap`` bytes.
@@ -675,7 +647,7 @@ class Session(SessionBase):
         The newest waiting message stays: as in the outbox, a message is never
         dropped for being the only one.
         """
-        outbox, waiting = self._outbox, self._png_waiting
+        outbox, waiting = self.outbox, self._png_waiting
         outbox.shed_to(max(0, cap - waiting.bytes))
         while len(waiting) > 1 and outbox.queued_bytes + waiting.bytes > cap:
             job = waiting.oldest()
@@ -693,11 +665,8 @@ class Session(SessionBase):
         subscription = job.subscription
         if not self._state.sends or not subscription.requests:
             return
-        if isinstance(result, BaseException):
-            try:  # a bug in the encoder: reported and logged, as in a handler
-                raise result
-            except Exception:
-                self._bug("subscribe")
+        if isinstance(result, Exception):  # a bug in the encoder: reported and logged
+            self.contain(result, "subscribe", source="job")
             return
         if isinstance(result, EncodeFailure):
             self._encode_failed(subscription, result, Compression.PNG)

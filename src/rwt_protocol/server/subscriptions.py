@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..ops.base import Compression
-from .timers import Timer
+from ..runtime.timers import Timer
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -24,10 +24,10 @@ if TYPE_CHECKING:
     from ...levels import StatusLevel
     from ...ops import OpModel
     from ...ports import ClientId, GraphPort, MessageCodec, MessageEvent
-    from ..callbook import CallBook
+    from ...runtime.callbook import CallBook
+    from ...runtime.timers import Timer
     from ..holdings import Holdings
     from ..subscriptions import TopicSubscription
-    from ..timers import Timer
     from .providers import ProviderLink
 
 __all__ = ["HandlerContext"]

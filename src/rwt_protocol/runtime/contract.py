@@ -20,15 +20,17 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Sequence
 
     from ..levels import StatusLevel
     from .commands import CloseCode, CloseConnection, Command
     from .lossy import LossyLane
     from .memory import MemoryAccount
     from .outbox import OutFrame
+    from .rules import ClientRules
+    from .timers import Timer
 
-__all__ = ["Job", "ServerSession"]
+__all__ = ["Job", "ServerSession", "WatchedSession"]
 
 
 class Job(Protocol):
@@ -43,6 +45,44 @@ class Job(Protocol):
 
     def run(self) -> object:
         """Do the work (in a worker thread); its result, or an exception, goes to ``finish_job``."""
+
+
+class WatchedSession(Protocol):
+    """What the session's own watches (slow consumer, idle) see of it (``SessionBase``).
+
+    They are parts of the session that hold it; typing them against this, not
+    ``SessionBase``, keeps the runtime's modules free of an import circle.
+    """
+
+    @property
+    def protocol(self) -> str:
+        """The protocol's name in logs."""
+
+    @property
+    def client_id(self) -> str:
+        """The connection's identity in the graph."""
+
+    @property
+    def config(self) -> ClientRules:
+        """The connection's per-client rules."""
+
+    def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
+        """Run ``callback(now)`` once ``now >= deadline`` (monotonic seconds)."""
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Tell the peer of a problem in its protocol's status."""
+
+    def warn_dropping(self, text: str) -> None:
+        """Tell the peer that its oldest topic messages are being dropped."""
+
+    def dropping_over(self) -> None:
+        """The episode of drops is over."""
+
+    def holds_anything(self) -> bool:
+        """Whether the client holds something in the graph (the idle rule)."""
+
+    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
+        """Ask the transport to close after the frames queued so far."""
 
 
 class ServerSession(Protocol):
@@ -76,7 +116,7 @@ class ServerSession(Protocol):
         """The transport serves the connection from ``now`` (monotonic seconds)."""
 
     def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
-        """Handle one whole incoming frame; never raises for what the peer sent."""
+        """Handle one whole incoming frame; never raises (a bug in it is contained)."""
 
     def receive_lossy_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
         """Handle one frame that came on the transport's lossy channel (D36)."""
@@ -93,6 +133,15 @@ class ServerSession(Protocol):
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
         """Tell the peer of a problem (a framing error) in its protocol's status."""
 
+    def status_frames(
+        self, level: StatusLevel, text: str, op_id: str | int | None = None
+    ) -> Sequence[OutFrame]:
+        """The frames of the protocol's status saying ``text``, not queued.
+
+        The pump sends them as the last word before it cuts the connection for a
+        bug of its own (the transport's; the session contains its own bugs).
+        """
+
     def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
         """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one)."""
 
@@ -106,7 +155,7 @@ class ServerSession(Protocol):
         """When ``handle_timer`` must next be called (monotonic seconds), or None."""
 
     def handle_timer(self, now: float) -> None:
-        """Run what was due at or before ``now``."""
+        """Run what was due at or before ``now``; never raises (a bug in it is contained)."""
 
     @property
     def has_jobs(self) -> bool:
@@ -119,7 +168,10 @@ class ServerSession(Protocol):
         """The oldest background job (the reader goes on meanwhile), or None."""
 
     def finish_job(self, job: Job, result: object, now: float) -> None:
-        """Take a job's outcome: what ``run`` returned, or the exception it raised."""
+        """Take a job's outcome: what ``run`` returned, or the exception it raised.
+
+        Never raises: a failed job, or a bug taking its outcome, is contained.
+        """
 
     def run_jobs(self) -> None:
         """The transport runs the jobs from now on (else a session does them at once)."""

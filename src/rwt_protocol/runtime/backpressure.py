@@ -39,7 +39,7 @@ from .memory import MEMORY_BUDGET_OPTION
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from .connection import SessionBase
+    from .contract import WatchedSession
     from .outbox import Outbox, OutFrame
     from .timers import Timer
 
@@ -48,7 +48,7 @@ __all__ = ["SEND_BUFFER_OPTION", "SlowConsumerWatch"]
 logger = logging.getLogger("rwt.session")
 
 SEND_BUFFER_OPTION = "--send-buffer-limit"
-"""The option that sets ``SessionConfig.send_buffer_limit``, named to a peer that needs it."""
+"""The option that sets ``ClientRules.send_buffer_limit``, named to a peer that needs it."""
 
 
 class SlowConsumerWatch:
@@ -59,7 +59,7 @@ class SlowConsumerWatch:
         outbox: that outbox.
     """
 
-    def __init__(self, session: SessionBase, outbox: Outbox) -> None:
+    def __init__(self, session: WatchedSession, outbox: Outbox) -> None:
         self.session = session
         self.outbox = outbox
         self.takes = 0  # how many times the transport took frames: progress

@@ -11,16 +11,18 @@ what it subscribes to: unset (None), each is ``topics_glob`` as it is; set, even
 to an empty list, it is its own patterns plus ``topics_glob``'s, and an empty
 result allows nothing. A listing shows a topic either one allows
 (``TopicUse``: None). Every refusal names the glob that refused it
-(``AccessPolicy.refusal``, ``AccessDeniedError.glob``). The session checks every op
-against the policy before dispatch, by op family and name, so every handler is
-covered without knowing about it. Unlike the reference, which drops a denied op
-with only a log line (a denied ``call_service`` then waits forever), a denied op
-gets an error ``status`` (D1) and its natural failure reply (D4).
+(``AccessPolicy.refusal``, ``AccessDeniedError.glob``). Every protocol's session
+asks it (``SessionBase.require_access``); rosbridge's checks every op against it
+before dispatch, by op family and name (``rwt_protocol.server.op_access``), so
+every handler is covered without knowing about it. Unlike the reference, which
+drops a denied op with only a log line (a denied ``call_service`` then waits
+forever), a denied op gets an error ``status`` (D1) and its natural failure reply
+(D4).
 
 As in rosbridge, the built-in ``/rosapi/*`` services stay reachable when service
 patterns are set; rosapi itself lists only what the policy allows
 (``AccessPolicy.filter``), and its parameter services check the parameter name
-against the parameter patterns here.
+against the parameter patterns (``op_access``).
 """
 
 from __future__ import annotations
@@ -33,26 +35,9 @@ from typing import TYPE_CHECKING
 
 from ..errors import RemoteProtocolError
 from ..names import resolve_name
-from ..ops import (
-    Advertise,
-    AdvertiseAction,
-    AdvertiseService,
-    CallService,
-    CancelActionGoal,
-    OpModel,
-    Publish,
-    PublishFrame,
-    PublishView,
-    SendActionGoal,
-    Subscribe,
-    Unadvertise,
-    UnadvertiseAction,
-    UnadvertiseService,
-    Unsubscribe,
-)
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable, Mapping, Sequence
+    from collections.abc import Iterable, Sequence
 
 __all__ = [
     "AccessDeniedError",
@@ -64,10 +49,6 @@ __all__ = [
 ]
 
 ROSAPI_PREFIX = "/rosapi/"
-_PARAM_SERVICES = frozenset(
-    f"{ROSAPI_PREFIX}{name}"
-    for name in ("get_param", "set_param", "has_param", "delete_param", "search_param")
-)
 
 
 class Family(StrEnum):
@@ -99,33 +80,6 @@ class AccessDeniedError(RemoteProtocolError):
         super().__init__(message)
         self.glob = glob
 
-
-_OP_FAMILIES: Mapping[type, tuple[Family, str]] = {
-    Advertise: (Family.TOPICS, "topic"),
-    Unadvertise: (Family.TOPICS, "topic"),
-    Publish: (Family.TOPICS, "topic"),
-    PublishFrame: (Family.TOPICS, "topic"),
-    Subscribe: (Family.TOPICS, "topic"),
-    Unsubscribe: (Family.TOPICS, "topic"),
-    CallService: (Family.SERVICES, "service"),
-    AdvertiseService: (Family.SERVICES, "service"),
-    UnadvertiseService: (Family.SERVICES, "service"),
-    SendActionGoal: (Family.ACTIONS, "action"),
-    CancelActionGoal: (Family.ACTIONS, "action"),
-    AdvertiseAction: (Family.ACTIONS, "action"),
-    UnadvertiseAction: (Family.ACTIONS, "action"),
-}
-"""Op model -> (family, name of the field holding the checked name)."""
-
-_TOPIC_USES: Mapping[type, TopicUse] = {
-    Advertise: TopicUse.PUBLISH,
-    Unadvertise: TopicUse.PUBLISH,
-    Publish: TopicUse.PUBLISH,
-    PublishFrame: TopicUse.PUBLISH,
-    Subscribe: TopicUse.SUBSCRIBE,
-    Unsubscribe: TopicUse.SUBSCRIBE,
-}
-"""Topic op model -> the split glob that decides it (REF §13.5)."""
 
 _NOTHING = re.compile(r"(?!)")
 """Matches no name: a set glob whose list is empty (``"[]"``, REF §13.5)."""
@@ -251,16 +205,14 @@ class AccessPolicy:
         """
         return self.refusal(family, name, use) is None
 
-    def refusal(self, family: Family, name: str, use: TopicUse | None = None) -> str | None:
+    def refusal(
+        self, family: Family, name: str, use: TopicUse | None = None, *, calling: bool = True
+    ) -> str | None:
         """The glob refusing ``name``, as rosbridge names it (``topics_sub_glob``), or None.
 
-        Args as for ``allows``.
+        Args as for ``allows``, and ``calling``: the client calls ``name`` (a
+        service), so ``/rosapi/*`` stays allowed; False for advertising it.
         """
-        return self._refusal(family, name, use, calling=True)
-
-    def _refusal(
-        self, family: Family, name: str, use: TopicUse | None, *, calling: bool
-    ) -> str | None:
         if family is Family.TOPICS:
             return self._topic_refusal(name, use)
         matcher = self._matchers[family]
@@ -285,37 +237,3 @@ class AccessPolicy:
     def filter(self, family: Family, names: Iterable[str]) -> list[str]:
         """The names a client may see, in their order (for rosapi's listings)."""
         return [name for name in names if self.allows(family, name)]
-
-    def check(self, op: OpModel | PublishView) -> None:
-        """Refuse an op that names something not allowed; do nothing otherwise.
-
-        Raises:
-            AccessDeniedError: the op's topic, service, action or (for rosapi's
-                parameter services) parameter name is not allowed.
-        """
-        entry = _OP_FAMILIES.get(type(op))
-        if entry is None:
-            return
-        family, attribute = entry
-        name: str = getattr(op, attribute)
-        use = _TOPIC_USES.get(type(op))
-        glob = self._refusal(family, name, use, calling=isinstance(op, CallService))
-        if glob is not None:
-            text = f"{family.value[:-1]} {name} is not allowed on this server"
-            raise AccessDeniedError(text, glob)
-        if isinstance(op, CallService) and resolve_name(op.service) in _PARAM_SERVICES:
-            param = _param_name(op.args)
-            if param is not None and not self.allows(Family.PARAMS, param):
-                text = f"parameter {param} is not allowed on this server"
-                raise AccessDeniedError(text, "params_glob")
-
-
-def _param_name(args: object) -> str | None:
-    """The ``name`` argument of a rosapi parameter call, keyword or first positional (D25)."""
-    if isinstance(args, dict):
-        value = args.get("name")
-    elif isinstance(args, list) and args:
-        value = args[0]
-    else:
-        return None
-    return value if isinstance(value, str) else None

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 from .commands import CloseCode
 
 if TYPE_CHECKING:
-    from .connection import SessionBase
+    from .contract import WatchedSession
     from .timers import Timer
 
 __all__ = ["IdleWatch"]
@@ -39,7 +39,7 @@ class IdleWatch:
 
     __slots__ = ("_session", "_timer", "last_input", "timeout_s")
 
-    def __init__(self, session: SessionBase, timeout_s: float) -> None:
+    def __init__(self, session: WatchedSession, timeout_s: float) -> None:
         self._session = session
         self.timeout_s = timeout_s
         self.last_input = 0.0

@@ -51,13 +51,22 @@ class TimerQueue:
             heapq.heappop(self._heap)
         return self._heap[0][0] if self._heap else None
 
-    def run_due(self, now: float) -> None:
-        """Run every live timer whose deadline is at or before ``now``, earliest first."""
+    def run_due(self, now: float, on_error: Callable[[Exception], None]) -> None:
+        """Run every live timer whose deadline is at or before ``now``, earliest first.
+
+        Args:
+            now: monotonic seconds.
+            on_error: given what a callback raised; the later timers still run
+                (the session contains it, ``SessionBase.handle_timer``).
+        """
         while self._heap and self._heap[0][0] <= now:
             _, _, timer = heapq.heappop(self._heap)
             if not timer.cancelled:
                 timer.cancelled = True
-                timer.callback(now)
+                try:
+                    timer.callback(now)
+                except Exception as exc:  # a bug in one timer: the others still run
+                    on_error(exc)
 
     def clear(self) -> None:
         """Drop every timer."""

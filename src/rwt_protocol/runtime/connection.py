@@ -7,14 +7,16 @@ them), the slow-consumer watch (``backpressure.SlowConsumerWatch``: the first
 drop of an episode told, a peer that stays over its limit without reading
 closed after ``send_timeout_s``, undroppable frames past the limit close it
 too), the timers, the idle timeout (``idle.IdleWatch``), jobs the transport runs
-off the event loop, containment of a bug in a handler, one log line per
+off the event loop, containment of a bug (``contain``: in a frame's handler, a
+timer or a job, reported in the protocol's own words), one log line per
 kind of trouble, and the connection's account of the server's memory budget
 (``memory.MemoryAccount``, D44: what its outbox and the messages being prepared
 for it hold, and the slow-consumer rule while the budget is full). rosbridge's
 ``session.Session`` and the Foxglove protocol's session are subclasses: each
-adds its ops and says how its peer is told of a problem (``report``), what it
-holds (``holds_anything``) and what it releases (``release``). Limits come
-from one ``SessionConfig`` (docs/limits.md, "Per connection"), whichever
+adds its ops (``handle_frame``, ``job_done``) and says how its peer is told of a
+problem (``status_frames``), what it holds (``holds_anything``) and what it
+releases (``release``). Limits come
+from one ``rules.ClientRules`` (docs/limits.md, "Per connection"), whichever
 protocol the client speaks.
 
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
@@ -26,7 +28,7 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING, ClassVar
 
-from ..errors import LimitError
+from ..errors import LimitError, RwtError
 from ..levels import StatusLevel
 from ..ratelog import EpisodeLog
 from .access import AccessDeniedError, Family, TopicUse
@@ -46,7 +48,7 @@ if TYPE_CHECKING:
     from ..ports import ClientId, GraphPort
     from .contract import Job
     from .memory import MemoryAccount, MemoryBudget
-    from .session import SessionConfig
+    from .rules import ClientRules
 
 __all__ = ["SessionBase"]
 
@@ -60,7 +62,7 @@ class SessionBase:
     Args:
         graph: the graph the session operates on.
         client_id: the connection's identity in the graph; unique per server.
-        config: the per-client limits (``SessionConfig``; docs/limits.md).
+        config: the per-client rules (``rules.ClientRules``; docs/limits.md).
         on_output: called (synchronously, without arguments) whenever frames or
             commands become available or a timer is set, so the transport can
             wake its writer and look at ``get_timer`` again.
@@ -76,12 +78,18 @@ class SessionBase:
     protocol: ClassVar[str] = "rosbridge"
     """The protocol's name in logs (``event=connect ... protocol=foxglove``)."""
 
+    wakes_each_run: ClassVar[bool] = False
+    """Whether ``queue_run`` wakes the transport after every run, not only when the
+    outbox was empty or is past ``wake_above_bytes`` (``ServerSession``: a protocol may
+    wake more often). A Foxglove client's bursts are gathered into fewer writes so
+    (``rwt_transports.gather``: output during a gathering marks a burst)."""
+
     def __init__(
         self,
         graph: GraphPort,
         client_id: ClientId,
         *,
-        config: SessionConfig,
+        config: ClientRules,
         on_output: Callable[[], None] | None = None,
         peer: str = "",
         on_closed: Callable[[ClientId], None] | None = None,
@@ -124,8 +132,29 @@ class SessionBase:
 
     # ---- what each protocol says -------------------------------------------------
 
+    def status_frames(
+        self, level: StatusLevel, text: str, op_id: str | int | None = None
+    ) -> Sequence[OutFrame]:
+        """The frames of the protocol's status saying ``text``, not queued (each protocol's).
+
+        Empty where the protocol says nothing at ``level``. The pump sends them
+        as the last word before it cuts a connection for a bug of its own.
+        """
+        raise NotImplementedError
+
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
-        """Tell the peer of a problem or an event in its protocol's ``status``."""
+        """Tell the peer of a problem or an event in its protocol's status (``status_frames``)."""
+        frames = self.status_frames(level, text, op_id)
+        if frames:
+            self.send_frames(frames)
+
+    def handle_frame(self, frame: str | bytes, now: float, binary: bool) -> None:
+        """Handle one whole incoming frame (each protocol's; ``receive_frame`` contains it).
+
+        Raises:
+            RwtError: the peer's frame was refused: reported at its level.
+            Exception: a bug: reported as ``internal error`` (``contain``).
+        """
         raise NotImplementedError
 
     def holds_anything(self) -> bool:
@@ -146,9 +175,16 @@ class SessionBase:
     def taken(self, frames: list[OutFrame]) -> None:
         """The transport took ``frames`` (a protocol that tracks its frames looks here)."""
 
-    def finish_job(self, job: Job, result: object, now: float) -> None:
-        """Take a job's outcome: what ``job.run()`` returned, or the exception it raised."""
-        raise NotImplementedError
+    def job_done(self, job: Job, result: object, now: float) -> None:
+        """Take the outcome of a job the protocol made (each protocol's; ``finish_job`` calls it).
+
+        A protocol handles the jobs it knows and leaves the others here.
+
+        Raises:
+            Exception: ``result``, when the job failed: ``finish_job`` contains it.
+        """
+        if isinstance(result, Exception):
+            raise result
 
     # ---- the transport's side ------------------------------------------------------
 
@@ -274,8 +310,31 @@ class SessionBase:
         self.receive_frame(frame, now, binary=binary)
 
     def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
-        """Handle one whole incoming frame (each protocol's)."""
-        raise NotImplementedError
+        """Handle one whole incoming frame (``handle_frame``); never raises.
+
+        Frames after the session stopped taking input are ignored. What the
+        protocol's handler raises is contained (``contain``): the peer is told
+        in its protocol's words and the session goes on (docs/limits.md,
+        containment).
+        """
+        if not self._state.takes_input:
+            return
+        self.received(now)
+        try:
+            self.handle_frame(frame, now, binary)
+        except Exception as exc:  # the protocol's handler let it out: contained here
+            self.contain(exc, None)
+
+    def finish_job(self, job: Job, result: object, now: float) -> None:
+        """Take a job's outcome (``job_done``): what ``job.run()`` returned, or what it raised.
+
+        Never raises: a job that failed, or a bug taking its outcome, is
+        contained (``contain``) and the session goes on.
+        """
+        try:
+            self.job_done(job, result, now)
+        except Exception as exc:
+            self.contain(exc, None, source="job")
 
     def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
         """Open the lane of the transport's lossy channel (D36; ``lossy.LossyLane``).
@@ -346,7 +405,7 @@ class SessionBase:
         """Run whatever was due at or before ``now`` (timers from ``get_timer``)."""
         if self._state is not State.CLOSED:
             self._now = max(self._now, now)
-            self._timers.run_due(now)
+            self._timers.run_due(now, self._timer_failed)
             self.sweep_memory()
 
     # ---- what the transport reads --------------------------------------------------
@@ -377,13 +436,13 @@ class SessionBase:
         return self._peer
 
     @property
-    def config(self) -> SessionConfig:
+    def config(self) -> ClientRules:
         """This connection's settings."""
         return self._config
 
     @property
     def hold_budget_s(self) -> float:
-        """Seconds this connection, as a reader, may be held (``SessionConfig.hold_budget_s``)."""
+        """Seconds this connection, as a reader, may be held (``ClientRules.hold_budget_s``)."""
         return self._config.hold_budget_s
 
     @property
@@ -447,6 +506,15 @@ class SessionBase:
         return self._pending_bytes
 
     @property
+    def outbox(self) -> Outbox:
+        """The bounded queue of frames for the peer (``outbox.Outbox``), to read its counts.
+
+        What a protocol queues goes through ``send_frames`` and ``queue_run``,
+        never into the outbox directly: they apply the slow-consumer rule.
+        """
+        return self._outbox
+
+    @property
     def memory(self) -> MemoryAccount | None:
         """This connection's account of the server's memory budget (D44), or None."""
         return self._memory
@@ -494,18 +562,70 @@ class SessionBase:
             self._wake()  # above the high watermark too: the transport applies backpressure
         self.sweep_memory()
 
-    def push_topic_frame(self, frame: OutFrame, topic: str | None = None) -> None:
-        """Queue one whole topic message frame (droppable, no parts) without waking anyone.
+    def queue_run(
+        self, frames: Sequence[OutFrame], topic: str | None, now: float, lifespan: float = 0.0
+    ) -> None:
+        """Queue a run of topic messages, one whole droppable frame each, and wake once.
 
-        ``send_frames`` of one frame in the fewest steps, for a protocol that
-        queues a burst and wakes the transport once after it (``wake``).
+        The one hot-path entry of every protocol (docs/architecture.md, "How to
+        add a protocol"): past the limit the oldest topic messages go (D24), the
+        slow-consumer rule sees each drop (``backpressure``), the memory budget
+        is settled once for the run (D44), and the transport is woken when the
+        outbox was empty or is past ``wake_above_bytes``. A message of several
+        frames, or a reply, goes through ``send_frames``.
+
+        Args:
+            frames: the messages, in order; each a droppable frame shared with
+                other connections (never copied).
+            topic: their topic, as the peer spells it, for a drop's status; None
+                for frames of no topic (a protocol's time frames).
+            now: when they were made (monotonic seconds): the session's time moves
+                to it, and a ``lifespan`` counts from it.
+            lifespan: seconds of ``topic``'s messages the outbox holds at most
+                (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
+        """
+        if not self._sends or not frames:
+            return
+        if now > self._now:  # (``max``, inline: a call less per run and client)
+            self._now = now
+        else:
+            now = self._now
+        outbox = self._outbox
+        wake = self.wakes_each_run or len(outbox) == 0  # (no ``len`` call for those that wake)
+        dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        if lifespan > 0:
+            key = topic or ""
+            for frame in frames:
+                outbox.push_timed(frame, now, lifespan, key)
+                if outbox.dropped != dropped:  # the slow-consumer rule, message by message
+                    self._watch.after_push(dropped, oversized, now, (frame,), topic)
+                    dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        else:
+            push = outbox.push_droppable
+            for frame in frames:
+                push(frame)
+                if outbox.dropped != dropped:
+                    self._watch.after_push(dropped, oversized, now, (frame,), topic)
+                    dropped, oversized = outbox.dropped, outbox.dropped_oversized
+        outbox.settle()  # the memory budget, once for the run (D44)
+        if outbox.dropped != dropped or outbox._held_frames:  # (``held_bytes``, inline)
+            self._watch.after_push(dropped, oversized, now, (), topic)
+        on_output = self._on_output  # (``_wake`` inline: a call less per run and client)
+        if on_output is not None and (wake or outbox.fill_bytes > self.wake_above_bytes):
+            on_output()  # above the high watermark too: the transport applies backpressure
+        self.sweep_memory()
+
+    def shed(self, cap: int, topic: str | None) -> None:
+        """Drop the oldest topic messages down to ``cap`` bytes, under the slow-consumer rule.
+
+        What waits for the peer (``shed_topic_messages``) is cut to ``cap``; the
+        drops start an episode as the outbox's own do (D24), the status naming
+        ``topic``.
         """
         outbox = self._outbox
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.push_droppable(frame)
-        outbox.settle()
-        if outbox.dropped != dropped or outbox.held_bytes:
-            self._watch.after_push(dropped, oversized, self._now, (frame,), topic)
+        self.shed_topic_messages(cap)
+        self._watch.after_push(dropped, oversized, self._now, (), topic)
 
     def sweep_memory(self) -> None:
         """While the server's memory budget is full, let it sweep its connections (D44).
@@ -598,7 +718,7 @@ class SessionBase:
     ) -> None:
         """The access gate of every protocol: refuse what the access rules deny.
 
-        The rules are the server's (``SessionConfig.access``: ``--topics-glob``
+        The rules are the server's (``ClientRules.access``: ``--topics-glob``
         and friends); a refusal is logged as rosbridge's are
         (``event=access_denied``, once per episode, repeats counted), naming the
         glob that refused (``glob=topics_sub_glob``, D50).
@@ -629,10 +749,6 @@ class SessionBase:
         )
         raise AccessDeniedError(text, glob)
 
-    def wake(self) -> None:
-        """Tell the transport that output is ready (after ``push_topic_frame``)."""
-        self._wake()
-
     def _wake(self) -> None:
         if self._on_output is not None:
             self._on_output()
@@ -649,16 +765,59 @@ class SessionBase:
         self._logged.add(kind)
         return True
 
-    def _bug(self, what: str | None, op_id: str | int | None = None) -> None:
-        """Report an exception that is not an ``RwtError``: a bug, logged once per connection.
+    def _timer_failed(self, exc: Exception) -> None:
+        """A timer's callback raised (``handle_timer``): contained as any bug."""
+        self.contain(exc, None, source="timer")
 
-        The peer gets an ``internal error`` status for ``what`` and the session goes
+    def contain(
+        self,
+        exc: Exception,
+        what: str | None,
+        op_id: str | int | None = None,
+        *,
+        source: str = "frame",
+    ) -> None:
+        """The one containment point: what a frame, a timer or a job raised (docs/limits.md).
+
+        An ``RwtError`` is reported at its level with its message; anything else
+        is a bug (``_bug``). Either way the peer hears it in its protocol's words
+        (``report``) and the session goes on, whichever protocol it speaks.
+
+        Args:
+            exc: what was raised.
+            what: the op or request it was for, as the peer's status names it
+                (``set_level: internal error``); None: none.
+            op_id: the request's id, for the status.
+            source: ``frame``, ``timer`` or ``job``, for the log.
+        """
+        if isinstance(exc, RwtError):
+            text = exc.message if what is None else f"{what}: {exc.message}"
+            try:
+                self.report(exc.level, text, op_id)
+            except Exception:  # the report is total; a bug there must not reach the transport
+                logger.debug("cannot report to %s", self._client_id, exc_info=True)
+            return
+        self._bug(what, op_id, source=source, exc=exc)
+
+    def _bug(
+        self,
+        what: str | None,
+        op_id: str | int | None = None,
+        *,
+        source: str = "frame",
+        exc: Exception | None = None,
+    ) -> None:
+        """Report a bug: ``exc``, or the exception being handled, which is not an ``RwtError``.
+
+        Logged with its traceback once per connection (then at debug level); the
+        peer gets an ``internal error`` status for ``what`` and the session goes
         on (docs/limits.md, containment), whichever protocol it speaks.
         """
-        if self._log_once("bug"):
-            logger.exception("bug while handling a frame from %s", self._client_id)
-        else:
-            logger.debug("bug while handling a frame from %s", self._client_id, exc_info=True)
+        exc_info: Exception | bool = True if exc is None else exc
+        level = logging.ERROR if self._log_once("bug") else logging.DEBUG
+        logger.log(
+            level, "bug while handling a %s from %s", source, self._client_id, exc_info=exc_info
+        )
         try:
             text = "internal error" if what is None else f"{what}: internal error"
             self.report(StatusLevel.ERROR, text, op_id)

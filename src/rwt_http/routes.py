@@ -1,0 +1,131 @@
+"""A request's method and target read as a ``Route`` of the HTTP API (docs/http.md).
+
+``<name>`` in a path is the ROS name without its leading slash
+(``/api/topics/robot/odom`` is ``/robot/odom``). A topic's event stream is its
+path with ``/events`` added, so ``GET /api/topics/a/events`` is always the stream of
+``/a``: the latest message of a topic named ``/a/events`` is not reachable by GET
+(its stream is, at ``/api/topics/a/events/events``). The query's ``type``,
+``throttle_rate`` and ``queue_length`` keep rosbridge's names (spec 3.4.2-3.4.3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from urllib.parse import parse_qs, unquote, urlsplit
+
+from rwt_protocol.errors import RemoteProtocolError
+
+__all__ = ["API_PREFIX", "OPENAPI_PATH", "Route", "RouteError", "RouteKind", "parse_route"]
+
+API_PREFIX = "/api/"
+"""Where the API's paths start."""
+
+OPENAPI_PATH = "/openapi.json"
+"""Where the OpenAPI document is answered."""
+
+MAX_QUEUE_LENGTH = 10_000
+"""Largest ``queue_length`` an event stream may ask for (messages held for it)."""
+
+
+class RouteKind(Enum):
+    """What a request asks for."""
+
+    OPENAPI = "openapi"
+    TOPICS = "topics"
+    LATEST = "latest"
+    PUBLISH = "publish"
+    EVENTS = "events"
+    SERVICE = "service"
+    ACTION = "action"
+
+
+@dataclass(frozen=True, slots=True)
+class Route:
+    """One request of the API.
+
+    Attributes:
+        kind: what it asks for.
+        name: the resolved ROS name (``/robot/odom``); empty for the listing and
+            the document.
+        type_name: the ``type`` query parameter, or None.
+        throttle_rate_ms: ``throttle_rate``: at least this many milliseconds
+            between two messages of an event stream (0: none).
+        queue_length: ``queue_length``: at most this many messages wait for an
+            event stream's client (0: the send buffer's bytes only).
+    """
+
+    kind: RouteKind
+    name: str = ""
+    type_name: str | None = None
+    throttle_rate_ms: int = 0
+    queue_length: int = 0
+
+
+class RouteError(RemoteProtocolError):
+    """A request the API cannot take: ``status`` (404, 405, 400) and the text."""
+
+    def __init__(self, status: int, text: str) -> None:
+        super().__init__(text)
+        self.status = status
+        self.text = text
+
+
+_BY_FAMILY = {
+    ("topics", "GET"): RouteKind.LATEST,
+    ("topics", "HEAD"): RouteKind.LATEST,
+    ("topics", "POST"): RouteKind.PUBLISH,
+    ("services", "POST"): RouteKind.SERVICE,
+    ("actions", "POST"): RouteKind.ACTION,
+}
+
+
+def parse_route(method: str, target: str) -> Route:
+    """The route of ``method`` on ``target`` (a request target: path and query).
+
+    Raises:
+        RouteError: 404 for a path the API does not have, 405 for a method its
+            path does not take, 400 for a bad query value.
+    """
+    parts = urlsplit(target)
+    path, query = unquote(parts.path), parse_qs(parts.query)
+    if path == OPENAPI_PATH:
+        return _checked(method, ("GET", "HEAD"), Route(RouteKind.OPENAPI))
+    if not path.startswith(API_PREFIX):
+        raise RouteError(404, f"no such path: {path}")
+    family, _, rest = path[len(API_PREFIX) :].partition("/")
+    if family == "topics" and not rest.strip("/"):
+        return _checked(method, ("GET", "HEAD"), Route(RouteKind.TOPICS))
+    name = "/" + rest.strip("/")
+    if family not in ("topics", "services", "actions") or name == "/" or "//" in name:
+        raise RouteError(404, f"no such path: {path}")
+    if family == "topics" and name.endswith("/events") and name != "/events":
+        route = Route(RouteKind.EVENTS, name.removesuffix("/events"), *_stream(query))
+        return _checked(method, ("GET",), route)
+    kind = _BY_FAMILY.get((family, method))
+    if kind is None:
+        allowed = sorted(m for f, m in _BY_FAMILY if f == family)
+        raise RouteError(405, f"{API_PREFIX}{family}/<name> takes {', '.join(allowed)}")
+    return Route(kind, name, _one(query, "type"))
+
+
+def _checked(method: str, allowed: tuple[str, ...], route: Route) -> Route:
+    if method not in allowed:
+        raise RouteError(405, f"this path takes {', '.join(allowed)}")
+    return route
+
+
+def _one(query: dict[str, list[str]], key: str) -> str | None:
+    values = query.get(key)
+    return values[-1] if values else None
+
+
+def _stream(query: dict[str, list[str]]) -> tuple[str | None, int, int]:
+    """``type``, ``throttle_rate`` and ``queue_length`` of an event stream's query."""
+    numbers = []
+    for key, top in (("throttle_rate", 3_600_000), ("queue_length", MAX_QUEUE_LENGTH)):
+        text = _one(query, key) or "0"
+        if not text.isdigit() or int(text) > top:
+            raise RouteError(400, f"{key} must be an integer from 0 to {top}")
+        numbers.append(int(text))
+    return _one(query, "type"), numbers[0], numbers[1]

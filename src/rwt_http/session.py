@@ -1,0 +1,346 @@
+"""One HTTP API request as a session of the connection runtime (docs/http.md).
+
+``HttpSession`` subclasses ``SessionBase`` (docs/architecture.md, "How to add a
+protocol"): the transport (``rwt_transports.http_api``) reads the request, the
+server admits it as any connection (``--max-connections``, the host shares) and
+the pump runs the session; the request's body is its one frame. It answers with
+one whole response and closes, or, for an event stream (a topic's ``/events``,
+an action's goal), with the stream's head and then one Server-Sent Event per
+message. The events go through ``queue_run``, so the send buffer's bound and the
+slow-consumer rule are the same as every client's (D24): a stream that is not
+read loses its oldest messages, then is cut after ``--send-timeout``. Names are
+checked against the access rules (``require_access``), the listing and the
+document show what they let one see (``rwt_graph.visibility``); the calls are
+the graph's port's, as a rosbridge or Foxglove client's.
+
+Status codes: 400 bad input (JSON, a type), 403 the access rules, 404 an unknown
+topic, service or action, 502 a service that failed (its text), 504 no message
+or answer in time; 500 a bug (contained: logged once, the server goes on).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+from typing import TYPE_CHECKING
+
+from rwt_graph.feed import EntityKind
+from rwt_graph.visibility import Visibility
+from rwt_protocol.codecs.json import decode_json_text, encode_json
+from rwt_protocol.errors import GraphError, RwtError, UnknownNameError
+from rwt_protocol.levels import StatusLevel
+from rwt_protocol.runtime.access import AccessDeniedError, Family, TopicUse
+from rwt_protocol.runtime.commands import CloseCode
+from rwt_protocol.runtime.connection import SessionBase
+from rwt_protocol.runtime.outbox import OutFrame
+
+from .openapi import openapi_document
+from .routes import Route, RouteKind
+from .wire import Headers, error_response, event, json_response, stream_head
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from rwt_graph.port import GraphFront
+    from rwt_protocol.ports import GoalStatus, MessageEvent
+    from rwt_protocol.runtime.memory import MemoryBudget
+    from rwt_protocol.runtime.rules import ClientRules
+
+__all__ = ["HttpApiOptions", "HttpSession"]
+
+
+@dataclass(frozen=True, slots=True)
+class HttpApiOptions:
+    """The HTTP API's settings (docs/http.md).
+
+    Attributes:
+        latest_wait_s: how long ``GET /api/topics/<name>`` waits for a message
+            when the topic has no latched one (then 504).
+        max_body_bytes: largest request body (a message, service arguments, a
+            goal); None: the server's ``--max-message-size``.
+    """
+
+    latest_wait_s: float = 5.0
+    max_body_bytes: int | None = None
+
+
+class HttpSession(SessionBase):
+    """One request of the HTTP API (the module's text).
+
+    Args:
+        graph: the served graph's port (``GraphFront``: its feed and types too).
+        client_id: the connection's id in the graph (``http:127.0.0.1:5000#3``).
+        route: what the request asks (``routes.parse_route``).
+        headers: the headers every response carries (CORS).
+        config: the per-client rules (``ClientRules``).
+        options: the API's settings.
+        version: the server's version, for the OpenAPI document.
+        head_only: a HEAD request: the response's head alone.
+        on_output: the pump's wake-up.
+        peer: the peer's address.
+        on_closed: the server's bookkeeping when it closes.
+        memory: the server's memory budget (D44).
+    """
+
+    protocol = "http"
+
+    def __init__(
+        self,
+        graph: GraphFront,
+        client_id: str,
+        route: Route,
+        *,
+        headers: Headers = (),
+        config: ClientRules,
+        options: HttpApiOptions | None = None,
+        version: str = "0",
+        head_only: bool = False,
+        on_output: Callable[[], None] | None = None,
+        peer: str = "",
+        on_closed: Callable[[str], None] | None = None,
+        memory: MemoryBudget | None = None,
+    ) -> None:
+        super().__init__(
+            graph,
+            client_id,
+            config=config,
+            on_output=on_output,
+            peer=peer,
+            on_closed=on_closed,
+            max_messages=route.queue_length or None,
+            memory=memory,
+        )
+        self._front = graph
+        self.route = route
+        self._headers = headers
+        self._options = options or HttpApiOptions()
+        self._version = version
+        self._head_only = head_only
+        self._answered = False  # a response (or a stream's head) is queued
+        self._streaming = False
+        self._holds = False  # a subscription or a call waits in the graph
+        self._last_sent = -1.0e18  # an event stream's last message (throttle_rate)
+
+    # ---- what the runtime asks ----------------------------------------------------
+
+    def status_frames(
+        self, level: StatusLevel, text: str, op_id: str | int | None = None
+    ) -> Sequence[OutFrame]:
+        """An error response (500) before the answer, an ``error`` event in a stream."""
+        if level not in (StatusLevel.ERROR, StatusLevel.WARNING):
+            return ()
+        if self._streaming:
+            data = encode_json({"level": level.wire, "text": text})
+            return (OutFrame(event(data, "status")),)
+        if self._answered or level is not StatusLevel.ERROR:
+            return ()
+        return (OutFrame(error_response(500, text, self._headers)),)
+
+    def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
+        """Tell the client (``status_frames``); a request not yet answered is then over."""
+        answered = self._answered
+        super().report(level, text, op_id)
+        if level is StatusLevel.ERROR and not answered and not self._streaming:
+            self._answered = True
+            self.request_close(CloseCode.NORMAL, text)
+
+    def holds_anything(self) -> bool:
+        """Whether a subscription or a call of this request waits in the graph."""
+        return self._holds
+
+    # ---- the request --------------------------------------------------------------
+
+    def handle_frame(self, frame: str | bytes, now: float, binary: bool) -> None:
+        """The request's body (its one frame): do what the route asks.
+
+        Raises:
+            Exception: a bug, contained by ``receive_frame`` (500).
+        """
+        if self._answered:
+            return  # more bytes after the request: one request a connection
+        route = self.route
+        try:
+            handler = _HANDLERS[route.kind]
+            handler(self, route, frame)
+        except AccessDeniedError as exc:
+            self._answer(403, {"error": exc.message})
+        except UnknownNameError as exc:
+            self._answer(404, {"error": exc.message})
+        except (GraphError, RwtError) as exc:
+            self._answer(400, {"error": exc.message})
+
+    def _answer(self, status: int, value: object) -> None:
+        """Queue the whole response and close after it."""
+        if self._answered:
+            return
+        self._answered = True
+        body = json_response(status, value, self._headers, head_only=self._head_only)
+        self.send_frames((OutFrame(body),))
+        self.request_close(CloseCode.NORMAL, f"answered {status}")
+
+    def _body(self, frame: str | bytes, what: str, *, required: bool) -> object:
+        if not frame:
+            if required:
+                raise GraphError(f"{what}: a JSON body is needed")
+            return None
+        return decode_json_text(frame, what)
+
+    def _openapi(self, route: Route, frame: str | bytes) -> None:
+        visibility = Visibility.of(self.config.access)
+        self._answer(200, openapi_document(self._front, visibility, self._version))
+
+    def _topics(self, route: Route, frame: str | bytes) -> None:
+        visibility = Visibility.of(self.config.access)
+        found: dict[str, str] = {}
+        for change in self._front.feed.snapshot()[1]:
+            if change.kind in _TOPIC_KINDS and visibility.sees(change):
+                found.setdefault(change.name, change.type_name)
+        names = sorted(found)
+        self._answer(200, {"topics": names, "types": [found[n] for n in names]})
+
+    def _topic_type(self, name: str, given: str | None) -> str | None:
+        """``given``, or the type ``name`` has in the graph now (None: unknown topic)."""
+        if given:
+            return given
+        for change in self._front.feed.snapshot()[1]:
+            if change.name == name and change.kind in _TOPIC_KINDS:
+                return change.type_name
+        return None
+
+    def _latest(self, route: Route, frame: str | bytes) -> None:
+        self.require_access(Family.TOPICS, route.name, "subscribe", TopicUse.SUBSCRIBE)
+        latched = self._front.latched(route.name)
+        if latched is not None:
+            self._answer(200, latched.msg)
+            return
+        if self._topic_type(route.name, route.type_name) is None:
+            self._answer(404, {"error": f"topic {route.name} does not exist"})
+            return
+        self.graph.subscribe(self.client_id, route.name, route.type_name, _LatestSink(self))
+        self._holds = True
+        wait = self._options.latest_wait_s
+        self.call_at(self.now + wait, lambda now: self._no_message(wait))
+
+    def _no_message(self, wait: float) -> None:
+        self._answer(504, {"error": f"no message on {self.route.name} within {wait:g} s"})
+
+    def _got_latest(self, event_: MessageEvent) -> None:
+        self._answer(200, event_.msg)
+
+    def _publish(self, route: Route, frame: str | bytes) -> None:
+        self.require_access(Family.TOPICS, route.name, "publish", TopicUse.PUBLISH)
+        msg = self._body(frame, "publish", required=True)
+        if not isinstance(msg, dict):
+            raise GraphError("publish: the body must be a JSON object (the message)")
+        type_name = self._topic_type(route.name, route.type_name)
+        if type_name is None:
+            raise UnknownNameError("topic", f"{route.name} (give its ?type=)")
+        type_name = self.graph.advertise(self.client_id, route.name, type_name)
+        self.graph.publish(self.client_id, route.name, msg)
+        self._answer(200, {"topic": route.name, "type": type_name})
+
+    def _events(self, route: Route, frame: str | bytes) -> None:
+        self.require_access(Family.TOPICS, route.name, "subscribe", TopicUse.SUBSCRIBE)
+        if route.type_name is None and self._topic_type(route.name, None) is None:
+            self._answer(404, {"error": f"topic {route.name} does not exist"})
+            return
+        self._open_stream()
+        self.graph.subscribe(self.client_id, route.name, route.type_name, _StreamSink(self))
+        self._holds = True
+
+    def _open_stream(self) -> None:
+        self._answered = self._streaming = True
+        self.send_frames((OutFrame(stream_head(self._headers)),))
+
+    def _stream_messages(self, events: Sequence[MessageEvent]) -> None:
+        """Queue ``events`` as Server-Sent Events, under ``throttle_rate``."""
+        gap = self.route.throttle_rate_ms / 1000.0
+        run = []
+        for each in events:
+            if gap and each.now - self._last_sent < gap:
+                continue  # rosbridge's throttle_rate: at most one message a gap
+            self._last_sent = each.now
+            data = each.encoded(_SSE_KEY, partial(_sse, each))
+            run.append(OutFrame(data, True, True))
+        self.queue_run(run, self.route.name, events[-1].now)
+
+    def _service(self, route: Route, frame: str | bytes) -> None:
+        self.require_access(Family.SERVICES, route.name, "call_service")
+        args = self._body(frame, "call_service", required=False)
+        self._holds = True
+
+        def reply(result: bool, values: object) -> None:
+            self._holds = False
+            if result:
+                self._answer(200, values)
+            else:
+                self._answer(502, {"error": str(values)})
+
+        timeout = self.config.call_timeout_s
+        self.graph.call_service(self.client_id, route.name, args, reply, timeout_s=timeout)
+        if timeout is not None and not self._answered:
+            self.call_at(self.now + timeout, lambda now: self._timed_out(timeout))
+
+    def _timed_out(self, timeout: float) -> None:
+        self._answer(504, {"error": f"no response within {timeout:g} s"})
+
+    def _action(self, route: Route, frame: str | bytes) -> None:
+        self.require_access(Family.ACTIONS, route.name, "send_action_goal")
+        goal = self._body(frame, "send_action_goal", required=True)
+        self._holds = True
+        self._open_stream()
+
+        def feedback(values: dict[str, object]) -> None:
+            self.send_frames((OutFrame(event(encode_json(values), "feedback"), True, True),))
+
+        def done(status: GoalStatus, result: bool, values: object) -> None:
+            self._holds = False
+            value = {"status": int(status), "result": result, "values": values}
+            self.send_frames((OutFrame(event(encode_json(value), "result")),))
+            self.request_close(CloseCode.NORMAL, "goal done")
+
+        self.graph.send_action_goal(self.client_id, route.name, goal, done, feedback)
+
+
+_TOPIC_KINDS = (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION)
+
+_SSE_KEY = "rwt_http.sse"
+"""The key of a message's Server-Sent Event in ``MessageEvent.encoded``: made once for all."""
+
+_HANDLERS: dict[RouteKind, Callable[[HttpSession, Route, str | bytes], None]] = {
+    RouteKind.OPENAPI: HttpSession._openapi,
+    RouteKind.TOPICS: HttpSession._topics,
+    RouteKind.LATEST: HttpSession._latest,
+    RouteKind.PUBLISH: HttpSession._publish,
+    RouteKind.EVENTS: HttpSession._events,
+    RouteKind.SERVICE: HttpSession._service,
+    RouteKind.ACTION: HttpSession._action,
+}
+
+
+def _sse(message: MessageEvent) -> bytes:
+    """``message`` as one Server-Sent Event, made once for every stream (``encoded``)."""
+    return event(encode_json(message.msg))
+
+
+class _LatestSink:
+    """The first message of a topic, for ``GET /api/topics/<name>``."""
+
+    def __init__(self, session: HttpSession) -> None:
+        self._session = session
+
+    def on_message(self, event_: MessageEvent) -> None:
+        self._session._got_latest(event_)
+
+
+class _StreamSink:
+    """A topic's messages for an event stream (a ``BatchSink``: a turn's run in one call)."""
+
+    def __init__(self, session: HttpSession) -> None:
+        self._session = session
+
+    def on_message(self, event_: MessageEvent) -> None:
+        self._session._stream_messages((event_,))
+
+    def on_messages(self, events: list[MessageEvent]) -> None:
+        self._session._stream_messages(events)

@@ -1,0 +1,21 @@
+"""The connection runtime every protocol's server session shares, defined once.
+
+No protocol lives here: rosbridge's session (``rwt_protocol.server``) and the
+Foxglove protocol's (``rwt_foxglove``) are built on it, and so is a third
+(docs/architecture.md, "How to add a protocol"). One module a job, each importing
+only those listed after it (an import-linter contract keeps it so):
+
+- ``connection``: ``SessionBase``, the per-client rules every protocol's session
+  shares (the lifecycle, the bounded outbox and its slow-consumer watch, timers,
+  the idle timeout, jobs, the access gate, containment of a bug), over
+- ``backpressure`` (the slow-consumer watch), ``idle`` (closing silent
+  connections), ``callbook`` (the calls in flight: a cap, a deadline each,
+  answered once), ``lossy`` (the lane of a transport's lossy channel, D36);
+- ``contract``: ``ServerSession``, what the connection runtime
+  (``rwt_transports.pump``) sees of a session, and ``Job``;
+- ``outbox`` (the bounded queue of outgoing frames), ``timers``,
+  ``lifecycle`` (a connection's states and their moves);
+- ``access`` (the access rules), ``memory`` (the server-wide memory budget
+  every connection is charged to, D44), ``commands`` (what a session asks its
+  transport to do), ``inframes`` (what a transport hands a session).
+"""

@@ -1,0 +1,72 @@
+"""A client generated from the OpenAPI document by openapi-python-client drives the robot.
+
+The generator is a tool, not a dependency of the tests (its typer pin is older than
+rwt's): the test runs where it is on PATH or named by ``RWT_OPENAPI_PYTHON_CLIENT``
+(``pipx install openapi-python-client``), and is skipped elsewhere.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import anyio
+import pytest
+
+from rwt_graph.graph import Graph
+
+from .support import api_server, curl
+
+pytestmark = pytest.mark.anyio
+
+PACKAGE = "rwt_http_api_client"  # from the document's title, "rwt HTTP API"
+
+
+async def test_a_generated_client_publishes_reads_and_calls(tmp_path: Path) -> None:
+    generator = os.environ.get("RWT_OPENAPI_PYTHON_CLIENT") or shutil.which("openapi-python-client")
+    if generator is None:
+        pytest.skip("openapi-python-client is not installed (pipx install openapi-python-client)")
+    graph = Graph()
+    velocity = graph.create_publisher("/velocity", "geometry_msgs/msg/Twist", latch=True)
+    graph.create_subscription("/cmd_vel", velocity.publish, "geometry_msgs/msg/Twist")
+    graph.create_service("/lights", "std_srvs/srv/SetBool", lambda r: {"success": r["data"]})
+    async with api_server(graph) as (_, url):
+        status, document = await curl(f"{url}/openapi.json")
+        assert status == 200
+        (tmp_path / "openapi.json").write_text(document, "utf-8")
+        command = [generator, "generate", "--path", "openapi.json", "--output-path", "out"]
+        generated = await anyio.to_thread.run_sync(
+            lambda: subprocess.run(
+                command, check=False, cwd=tmp_path, capture_output=True, text=True
+            )
+        )
+        assert generated.returncode == 0, generated.stdout + generated.stderr
+        sys.path.insert(0, str(tmp_path / "out"))
+        try:
+            results = await anyio.to_thread.run_sync(_use_the_client, url)
+        finally:
+            sys.path.remove(str(tmp_path / "out"))
+            for name in [n for n in sys.modules if n.split(".")[0] == PACKAGE]:
+                del sys.modules[name]
+    lights, echoed = results
+    assert lights.success is True
+    assert echoed.linear.x == 0.5 and echoed.angular.z == 0.0
+
+
+def _use_the_client(url: str) -> tuple[Any, Any]:
+    client_module = importlib.import_module(f"{PACKAGE}.client")
+    default = f"{PACKAGE}.api.default"
+    call_lights = importlib.import_module(f"{default}.call_lights")
+    publish_cmd_vel = importlib.import_module(f"{default}.publish_cmd_vel")
+    get_velocity = importlib.import_module(f"{default}.get_velocity")
+    models = importlib.import_module(f"{PACKAGE}.models")
+    client = client_module.Client(base_url=url)
+    lights = call_lights.sync(client=client, body=models.SetBoolRequest(data=True))
+    twist = models.Twist.from_dict({"linear": {"x": 0.5, "y": 0, "z": 0}})
+    publish_cmd_vel.sync(client=client, body=twist)  # the robot echoes it on /velocity
+    return lights, get_velocity.sync(client=client)
