@@ -11,6 +11,7 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import pytest
 
 from tests.integration.client_harness import AS_A_SHELL_STARTS_IT
 from tests.support.cli import ENV, RWT, RWT_COLD
+from tests.support.warm import PYTHON
 
 TIMEOUT_S = 60  # a hang guard
 
@@ -81,3 +83,19 @@ def test_a_run_is_forked_by_the_workers_zygote(tmp_path: Path) -> None:
     assert lines[0].startswith("pid ")
     assert lines[1] == "exit 0"
     assert out.read_text().startswith("rwt ")
+
+
+CLIENT = """
+import sys
+import roslibpy
+print(sys.argv[1:], __name__, sys.path[0] == "", roslibpy.__name__)
+sys.exit(int(sys.argv[1]))
+"""
+
+
+@pytest.mark.parametrize("code", ["0", "3"])
+def test_a_warm_python_client_runs_as_a_cold_one(code: str) -> None:
+    warm, cold = _run(PYTHON, "-c", CLIENT, code), _run([sys.executable], "-c", CLIENT, code)
+    seen = warm.returncode, warm.stdout, warm.stderr
+    assert seen == (cold.returncode, cold.stdout, cold.stderr)
+    assert warm.stdout == f"['{code}'] __main__ True roslibpy\n"

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from tests.support.cli import RWT, RWT_COLD
-from tests.support.warm import rwt_env
+from tests.support.warm import PYTHON, rwt_env
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
@@ -249,7 +249,8 @@ def run_client_script(
     server = ServerProcess(workdir, server_args)
     try:
         done = subprocess.run(
-            [sys.executable, "-c", script.format(port=server.port)],
+            [*PYTHON, "-c", script.format(port=server.port)],
+            env=rwt_env(),
             capture_output=True,
             text=True,
             timeout=60,
@@ -279,7 +280,7 @@ class Driver:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             json.dump(scenario, f)
         if client == "roslibpy":
-            cmd = [sys.executable, str(PY_DRIVER), url, path]
+            cmd = [*PYTHON, str(PY_DRIVER), url, path]
             cwd = HERE
         elif client == "roslibjs":
             node = shutil.which("node")
@@ -297,6 +298,7 @@ class Driver:
             stdout=subprocess.PIPE,
             stderr=self._stderr,
             cwd=cwd,
+            env=rwt_env(),
         )
         self._stdout = _LineReader(self.proc.stdout, f"{label}-stdout")
         self.result: dict | None = None

@@ -19,9 +19,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from typer.testing import CliRunner
 
 from rwt_cli.app import app
-from tests.support.warm import HERE, rwt_env
-
-WARM_RWT = HERE / "warm_rwt.py"
+from tests.support.warm import WARM_RWT, rwt_env
 
 if TYPE_CHECKING:
     from pathlib import Path

@@ -5,11 +5,12 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
 import anyio
+
+from tests.support.warm import PYTHON
 
 REPO = Path(__file__).resolve().parents[2]
 JS_DIR = REPO / "tests" / "js"
@@ -31,7 +32,7 @@ async def run_python(code: str, env: dict[str, str] | None = None) -> str:
     Raises:
         AssertionError: it failed or timed out; the message has its stderr.
     """
-    return await _run([sys.executable, "-c", textwrap.dedent(code)], env, REPO)
+    return await _run([*PYTHON, "-c", textwrap.dedent(code)], env, REPO)
 
 
 async def run_node(code: str) -> str:

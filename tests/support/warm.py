@@ -21,6 +21,10 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 ZYGOTE = HERE / "zygote.py"
+WARM_RWT = HERE / "warm_rwt.py"
+#: ``python`` for the tests' Python clients: ``[*PYTHON, "-c", CODE]`` or ``[*PYTHON, SCRIPT]``,
+#: forked by this worker's zygote with roslibpy's libraries loaded, or cold.
+PYTHON = [sys.executable, "-S", str(WARM_RWT), "--python"]
 _started: list[subprocess.Popen[bytes]] = []
 
 

@@ -7,6 +7,9 @@ this process stands for it: signals sent here are passed on, and it ends as the 
 ended (its exit code, or killed by the same signal). If it is killed outright, the
 zygote kills the run. Anything else (no zygote, a ``cold`` answer, an error) execs the
 real ``python -m rwt ARGS`` in this process, as if nothing had been here.
+
+``warm_rwt.py --python ARGS`` does the same for a Python command line (``-c CODE ...``
+or ``SCRIPT ...``): the tests' Python clients, with roslibpy's libraries preloaded.
 """
 
 import array
@@ -20,8 +23,14 @@ import sys
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGUSR1, signal.SIGUSR2)
 
 
+#: ``--python ARGS``: a Python command line (``-c CODE ...``, ``SCRIPT ...``), not ``rwt``.
+PYTHON = sys.argv[1:2] == ["--python"]
+ARGV = sys.argv[2:] if PYTHON else sys.argv[1:]
+
+
 def cold() -> None:
-    os.execv(sys.executable, [sys.executable, "-m", "rwt", *sys.argv[1:]])
+    command = [] if PYTHON else ["-m", "rwt"]
+    os.execv(sys.executable, [sys.executable, *command, *ARGV])
 
 
 def warm(path: str) -> None:
@@ -29,7 +38,8 @@ def warm(path: str) -> None:
     try:
         conn.connect(path)
         request = {
-            "argv": sys.argv[1:],
+            "argv": ARGV,
+            "python": PYTHON,
             "cwd": os.getcwd(),
             "env": dict(os.environ),
             "nofile": list(resource.getrlimit(resource.RLIMIT_NOFILE)),

@@ -39,6 +39,8 @@ import socket
 import sys
 import threading
 import traceback
+import types
+from collections.abc import Callable
 
 #: The commands a test worker runs most (``rwt mcp`` loads the MCP SDK: left cold-loaded).
 PRELOAD = (
@@ -48,6 +50,17 @@ PRELOAD = (
     "rwt_cli.record",
     "rwt_cli.bag",
     "rwt_conformance.cli",
+)
+#: What Python clients of the tests import before they connect (roslibpy's twisted and
+#: autobahn): preloaded for ``--python`` runs. Not the reactor, which opens a descriptor.
+PRELOAD_CLIENTS = (
+    "twisted.internet.epollreactor",
+    "twisted.internet.protocol",
+    "twisted.internet.defer",
+    "twisted.internet.task",
+    "twisted.internet.threads",
+    "autobahn.twisted.websocket",
+    "roslibpy",
 )
 #: Variables read while Python starts or rwt imports: a run whose values differ is cold.
 IMPORT_TIME = ("PYTHON", "RWT_", "LD_", "LANG", "LC_")
@@ -118,10 +131,7 @@ def _run_child(request: dict, fds: list[int], own: list[int]) -> None:
         if (soft, hard) != resource.getrlimit(resource.RLIMIT_NOFILE):
             resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
         _reset_stdio()
-        _set_path(os.getcwd())
-        main = importlib.import_module("rwt").__file__
-        sys.argv = [os.path.join(os.path.dirname(main or ""), "__main__.py"), *request["argv"]]
-        status = _main()
+        status = _main(_runner(request))
     finally:
         with contextlib.suppress(BaseException):
             threading._shutdown()  # type: ignore[attr-defined] # as the interpreter's exit
@@ -133,10 +143,35 @@ def _run_child(request: dict, fds: list[int], own: list[int]) -> None:
         os._exit(status)
 
 
-def _main() -> int:
-    """Run ``rwt`` as ``python -m rwt`` would; its exit status."""
+def _runner(request: dict) -> Callable[[], object]:
+    """Set ``sys.argv`` and ``sys.path`` as the interpreter would for the run; what runs it.
+
+    ``rwt ARGS``, or with ``"python"`` a Python command line: ``-c CODE ARGS`` or
+    ``SCRIPT ARGS`` (``sys.path[0]`` then ``''`` or the script's folder, as Python sets it).
+    """
+    argv = request["argv"]
+    if not request.get("python"):
+        _set_path(os.getcwd())
+        main = importlib.import_module("rwt").__file__
+        sys.argv = [os.path.join(os.path.dirname(main or ""), "__main__.py"), *argv]
+        return lambda: runpy.run_module("rwt", run_name="__main__", alter_sys=True)
+    if argv[0] == "-c":
+        _set_path("")
+        sys.argv = ["-c", *argv[2:]]
+        code = compile(argv[1], "<string>", "exec")
+        main = types.ModuleType("__main__")
+        sys.modules["__main__"] = main
+        return lambda: exec(code, main.__dict__)
+    script = os.path.abspath(argv[0])
+    _set_path(os.path.dirname(script))
+    sys.argv = list(argv)
+    return lambda: runpy.run_path(script, run_name="__main__")
+
+
+def _main(run: Callable[[], object]) -> int:
+    """Run as the interpreter runs its main module; the exit status."""
     try:
-        runpy.run_module("rwt", run_name="__main__", alter_sys=True)
+        run()
     except SystemExit as exc:
         if exc.code is None:
             return 0
@@ -182,6 +217,7 @@ class Zygote:
         self.site_set = {k: v for k, v in os.environ.items() if given.get(k) != v}
         self.site_unset = [k for k in given if k not in os.environ]
         self.warm = True
+        self.warm_python = True
         self.runs: set[_Run] = set()
 
     def preload(self) -> None:
@@ -190,8 +226,15 @@ class Zygote:
                 importlib.import_module(name)
             except Exception:  # a command that cannot load runs cold
                 self.warm = False
+        for name in PRELOAD_CLIENTS:
+            try:
+                importlib.import_module(name)
+            except Exception:  # a client that cannot load runs cold
+                self.warm_python = False
         if os.getenv("COVERAGE_PROCESS_START") or os.getenv("COVERAGE_PROCESS_CONFIG"):
             self.warm = False  # coverage of subprocesses: each run measured from its start
+        if "twisted.internet.reactor" in sys.modules:  # its poller would be every run's
+            self.warm = self.warm_python = False
         if threading.active_count() > 1:  # a fork would copy a thread's locks, not the thread
             self.warm = False
 
@@ -251,7 +294,8 @@ class Zygote:
         self._start(run, json.loads(run.buffer))
 
     def _start(self, run: _Run, request: dict) -> None:
-        if not self.warm or len(run.fds) != 3 or _import_env(request["env"]) != self.env:
+        warm = self.warm and (self.warm_python or not request.get("python"))
+        if not warm or len(run.fds) != 3 or _import_env(request["env"]) != self.env:
             self._reply(run, b"cold\n")
             self._drop(run, kill=False)
             return
