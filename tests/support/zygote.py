@@ -51,15 +51,16 @@ PRELOAD = (
     "rwt_cli.bag",
     "rwt_conformance.cli",
 )
-#: What Python clients of the tests import before they connect (roslibpy's twisted and
-#: autobahn): preloaded for ``--python`` runs. Not the reactor, which opens a descriptor.
+#: What Python clients of the tests import before they connect (roslibpy's twisted):
+#: preloaded for ``--python`` runs. Not the reactor, which opens a descriptor, nor
+#: autobahn's twisted half, which sets txaio to twisted for good (roslibpy's asyncio
+#: transport needs it unset).
 PRELOAD_CLIENTS = (
     "twisted.internet.epollreactor",
     "twisted.internet.protocol",
     "twisted.internet.defer",
     "twisted.internet.task",
     "twisted.internet.threads",
-    "autobahn.twisted.websocket",
     "roslibpy",
 )
 #: Variables read while Python starts or rwt imports: a run whose values differ is cold.
