@@ -15,6 +15,7 @@ from enum import Enum
 from urllib.parse import parse_qs, unquote, urlsplit
 
 from rwt_protocol.errors import RemoteProtocolError
+from rwt_protocol.names import name_problem
 
 __all__ = ["API_PREFIX", "OPENAPI_PATH", "Route", "RouteError", "RouteKind", "parse_route"]
 
@@ -85,28 +86,43 @@ def parse_route(method: str, target: str) -> Route:
 
     Raises:
         RouteError: 404 for a path the API does not have, 405 for a method its
-            path does not take, 400 for a bad query value.
+            path does not take, 400 for a bad query value or a name that is not a
+            ROS name (``rwt_protocol.names``, as a rosbridge op's name is checked).
     """
     parts = urlsplit(target)
     path, query = unquote(parts.path), parse_qs(parts.query)
     if path == OPENAPI_PATH:
         return _checked(method, ("GET", "HEAD"), Route(RouteKind.OPENAPI))
     if not path.startswith(API_PREFIX):
-        raise RouteError(404, f"no such path: {path}")
+        raise RouteError(404, f"no such path: {_shown(path)}")
     family, _, rest = path[len(API_PREFIX) :].partition("/")
     if family == "topics" and not rest.strip("/"):
         return _checked(method, ("GET", "HEAD"), Route(RouteKind.TOPICS))
     name = "/" + rest.strip("/")
     if family not in ("topics", "services", "actions") or name == "/" or "//" in name:
-        raise RouteError(404, f"no such path: {path}")
+        raise RouteError(404, f"no such path: {_shown(path)}")
     if family == "topics" and name.endswith("/events") and name != "/events":
-        route = Route(RouteKind.EVENTS, name.removesuffix("/events"), *_stream(query))
+        route = Route(RouteKind.EVENTS, _named(name.removesuffix("/events")), *_stream(query))
         return _checked(method, ("GET",), route)
+    _named(name)
     kind = _BY_FAMILY.get((family, method))
     if kind is None:
         allowed = sorted(m for f, m in _BY_FAMILY if f == family)
         raise RouteError(405, f"{API_PREFIX}{family}/<name> takes {', '.join(allowed)}")
     return Route(kind, name, _one(query, "type"))
+
+
+def _shown(text: str) -> str:
+    """``text`` as an error may quote it: escaped (no control or bidi characters), cut."""
+    return ascii(text if len(text) <= 80 else text[:77] + "...")
+
+
+def _named(name: str) -> str:
+    """``name`` when it is a ROS name; else a 400 naming the problem (cut and escaped)."""
+    problem = name_problem(name)
+    if problem is not None:
+        raise RouteError(400, ascii(problem)[1:-1])
+    return name
 
 
 def _checked(method: str, allowed: tuple[str, ...], route: Route) -> Route:

@@ -220,3 +220,17 @@ async def test_a_body_that_is_not_json_is_a_400() -> None:
     async with api_server(Graph()) as (_, url):
         status, body = await curl("-d", "{not json", f"{url}/api/topics/x?type=std_msgs/String")
     assert status == 400 and json.loads(body)["error"]
+
+
+@pytest.mark.parametrize(
+    "path",
+    ["a%20b", "1x", "%00", "a%E2%80%AEb", "n" * 5000, "a%0Ab/events", "%FF%FE"],
+)
+async def test_a_name_that_is_not_a_ros_name_is_a_400_quoted_escaped_and_cut(path: str) -> None:
+    """As a rosbridge op's name (docs/limits.md): refused, never echoed raw or whole."""
+    async with api_server(Graph()) as (_, url):
+        status, body = await curl(f"{url}/api/topics/{path}")
+        error = json.loads(body)["error"]
+        assert status == 400, body
+        assert error.startswith(("invalid name", "name longer than")), error
+        assert error.isascii() and error.isprintable() and len(error) < 300, error
