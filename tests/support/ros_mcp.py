@@ -9,6 +9,7 @@ with pip (about 20 s), and reused after. Without either the caller skips.
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
@@ -27,6 +28,18 @@ def _has_ros_mcp(python: Path) -> bool:
     return subprocess.run(probe, capture_output=True, check=False, timeout=120).returncode == 0
 
 
+def _installed(home: Path) -> bool:
+    """Whether the environment at ``home`` holds ros-mcp, read from its files.
+
+    Test modules ask at collection, in every worker: importing ``ros_mcp.main`` to
+    know took 1.4 s a time; a made environment was checked by import when made.
+    """
+    return any(home.glob("lib/python3*/site-packages/ros_mcp/main.py")) or any(
+        home.glob("Lib/site-packages/ros_mcp/main.py")
+    )
+
+
+@functools.cache
 def ros_mcp_python() -> tuple[Path | None, str]:
     """A Python that runs ros-mcp 3.1.2: ``(path, "")``, or ``(None, why not)``."""
     named = os.environ.get("RWT_ROS_MCP_PYTHON")
@@ -34,7 +47,7 @@ def ros_mcp_python() -> tuple[Path | None, str]:
         path = Path(named)
         return (path, "") if _has_ros_mcp(path) else (None, f"{named} cannot import ros_mcp")
     python = _HOME / ("Scripts/python.exe" if sys.platform == "win32" else "bin/python")
-    if python.exists() and _has_ros_mcp(python):
+    if python.exists() and _installed(_HOME):
         return python, ""
     try:
         venv.create(_HOME, with_pip=True, clear=True)
@@ -44,4 +57,6 @@ def ros_mcp_python() -> tuple[Path | None, str]:
         return None, f"could not make an environment for {ROS_MCP_PIN}: {exc}"
     if done.returncode != 0:
         return None, f"pip install {ROS_MCP_PIN} failed: {done.stderr.strip()[-300:]}"
+    if not _has_ros_mcp(python):
+        return None, f"{ROS_MCP_PIN} was installed in {_HOME} but cannot be imported"
     return python, ""
