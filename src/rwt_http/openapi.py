@@ -6,7 +6,7 @@ paths (``GET`` its latest message, ``POST`` a message, ``GET .../events`` its
 stream), each service its ``POST``, each action its ``POST`` (a stream of
 feedback and the result). Every message type is one schema under
 ``components/schemas`` (JSON Schema 2020-12, the dialect of OpenAPI 3.1), named
-``pkg.Type`` and made by the same rule as the MCP tools' (``rwt_mcp.render.json_schema``
+``pkg.Type`` and made by the same rule as the MCP tools' (``rwt_graph.types.jsonschema``
 over rosapi's type definitions, ``rwt_graph.rosapi.typedefs``): a ``uint8[]`` is
 base64 text or a list of 0-255, as rosbridge's JSON has it.
 """
@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 from rwt_graph.feed import EntityKind
 from rwt_graph.rosapi.typedefs import typedef_name, typedefs
+from rwt_graph.types.jsonschema import json_schema
 
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
@@ -97,8 +98,6 @@ def _key(type_name: str) -> str:
 
 def _message_schema(graph: GraphFront, mtype: MessageType, schemas: dict[str, object]) -> object:
     """A ``$ref`` to ``mtype``'s schema, adding it and its nested types to ``schemas``."""
-    from rwt_mcp.render import json_schema  # noqa: PLC0415 (Pillow, numpy: at the first document)
-
     key = _key(mtype.name)
     if key not in schemas:
         schema = json_schema([dict(d) for d in typedefs(mtype, graph.registry.message)])
