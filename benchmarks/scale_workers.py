@@ -9,6 +9,14 @@ window of 512 messages ahead of its slowest subscriber, so nothing is dropped),
 connected and probed until every subscriber is reached; then all K bursts start
 together and last ``--duration`` seconds.
 
+Two more loads, for the many-connections and many-topics cases of docs/scaling.md:
+``--topics-per-fanout T`` makes each generator drive T fan-outs (a topic each, every
+burst in its one loop: K x T topics in all); ``--idle N`` adds N idle clients in a
+process of their own, each a connection with a subscription to a topic nothing
+publishes (a dashboard that waits), connected before the bursts and held through them
+(the open-file limit is raised for it within the hard limit, since the server sizes
+``--max-connections`` from it).
+
 Per worker count the table gives:
 
 - deliveries/s: every delivery of the K bursts over the time from the first
@@ -24,7 +32,8 @@ Per worker count the table gives:
 - the generators' own CPU: in cores (their CPU seconds over the timed wall) and in
   us per delivery, so a reader sees when the generators, not the server, bound
   the figure (on a machine with fewer free cores than K + N they share them);
-- delivered / expected and dropped (must be 0).
+- delivered / expected and dropped (must be 0);
+- the server's resident memory (every process, after set-up, before the bursts).
 
 Ratios carry over to another machine, absolutes do not; CPU time on a shared
 virtual machine drifts by up to a factor of two from one minute to the next
@@ -38,6 +47,8 @@ import contextlib
 import json
 import multiprocessing
 import os
+import resource
+import socket
 import subprocess
 import sys
 import time
@@ -47,8 +58,10 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from .fanout_raw import FanOut
+from . import msgs
+from .fanout_raw import STRING, FanOut
 from .loadgen.engine import GeneratorError, run_loop
+from .loadgen.wire import client_frame, connect
 from .proctree import tree_cpu_ns
 from .servers import rwt_pythonpath
 
@@ -74,6 +87,12 @@ class ScaleRow:
     generator_us_per_delivery: float
     delivered: int
     expected: int
+    topics: int = 1
+    """fan-outs per generator, a topic each"""
+    idle: int = 0
+    """idle clients beside them (a connection and a subscription to a quiet topic each)"""
+    server_rss_bytes: int = 0
+    """resident memory of the server's processes after set-up, before the bursts"""
 
     @property
     def dropped(self) -> int:
@@ -131,44 +150,110 @@ def serve_workers(workers: int) -> Iterator[tuple[int, int]]:
 
 
 def _generator(
-    port: int, subscribers: int, topic: str, duration_s: float, pipe: Connection
+    port: int, subscribers: int, topics: list[str], duration_s: float, pipe: Connection
 ) -> None:
-    """One fan-out in a process of its own: set up, say ``ready``, wait for ``go``, burst.
+    """Fan-outs (one per topic) in a process of its own: set up, say ``ready``, wait for
+    ``go``, burst them all together in one loop.
 
-    Sends back (delivered, sent, first send, last delivery (``perf_counter``, s), CPU s),
-    then waits for ``close`` before closing its connections (their teardown is not
-    the burst's). A set-up error is sent back as its text.
+    Sends back (delivered, expected, first send, last delivery (``perf_counter``, s),
+    CPU s), then waits for ``close`` before closing its connections (their teardown
+    is not the burst's). A set-up error is sent back as its text.
     """
+    fans: list[FanOut] = []
     try:
-        fan = FanOut(port, subscribers, topic)
+        for topic in topics:
+            fans.append(FanOut(port, subscribers, topic))
     except (GeneratorError, OSError) as error:
         pipe.send(f"{type(error).__name__}: {error}")
+        for fan in fans:
+            fan.close()
         return
-    pub, subs = fan.pub, fan.subs
+    pubs = [fan.pub for fan in fans]
+    subs = [sub for fan in fans for sub in fan.subs]
     pipe.send("ready")
     pipe.recv()
-    pub.duration_s = duration_s
+    for pub in pubs:
+        pub.duration_s = duration_s
     for sub in subs:
         sub.first_s = sub.last_s = None
         sub.received = 0
 
     def done() -> bool:
-        if not pub.finished:
+        if not all(pub.finished for pub in pubs):
             return False
         last = max((s.last_s or 0.0 for s in subs), default=0.0)
-        stalled = time.perf_counter() - max(last, pub.stop_s or 0.0) > STALL_S
-        return stalled or all(s.received >= pub.sent for s in subs)
+        stopped = max(pub.stop_s or 0.0 for pub in pubs)
+        stalled = time.perf_counter() - max(last, stopped) > STALL_S
+        return stalled or all(s.received >= f.pub.sent for f in fans for s in f.subs)
 
-    loop = run_loop([pub], list(subs), done=done, limit_s=duration_s + 120.0)
+    loop = run_loop(pubs, subs, done=done, limit_s=duration_s + 120.0)
     delivered = sum(s.received for s in subs)
+    expected = sum(fan.pub.sent * len(fan.subs) for fan in fans)
     last = max((s.last_s or 0.0 for s in subs), default=0.0)
-    pipe.send((delivered, pub.sent, pub.first_s or 0.0, last, loop.generator_cpu_s))
+    first = min(pub.first_s or 0.0 for pub in pubs)
+    pipe.send((delivered, expected, first, last, loop.generator_cpu_s))
     pipe.recv()
-    fan.close()
+    for fan in fans:
+        fan.close()
 
 
-def measure(workers: int, fanouts: int, subscribers: int, duration_s: float) -> ScaleRow:
-    """One server of ``workers`` workers under ``fanouts`` parallel fan-outs (module doc).
+def _idle_holder(port: int, count: int, pipe: Connection) -> None:
+    """``count`` idle clients in a process of its own: each a WebSocket connection with
+    one subscription to a topic nothing publishes (``/quiet``), as a dashboard that
+    waits holds; says ``ready`` once all are subscribed, closes them on ``close``."""
+    socks: list[socket.socket] = []
+    try:
+        frame = client_frame(msgs.subscribe("/quiet", STRING))
+        for _ in range(count):
+            sock, _rest = connect(port)
+            sock.sendall(frame)
+            socks.append(sock)
+    except OSError as error:
+        pipe.send(f"{type(error).__name__}: {error}")
+    else:
+        pipe.send("ready")
+        pipe.recv()
+    for sock in socks:
+        sock.close()
+
+
+def _raise_fd_limit(wanted: int) -> None:
+    """The soft open-file limit raised towards ``wanted`` (within the hard one), for this
+    process and what it starts: the server sizes ``--max-connections`` from it."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    target = wanted if hard == resource.RLIM_INFINITY else min(wanted, hard)
+    if soft != resource.RLIM_INFINITY and soft < target:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
+
+
+def tree_rss_bytes(pid: int) -> int:
+    """Resident memory of ``pid`` and its live descendants, bytes (``/proc``)."""
+    total, pending, seen = 0, [pid], set()
+    while pending:
+        current = pending.pop()
+        if current in seen:
+            continue
+        seen.add(current)
+        with contextlib.suppress(OSError, ValueError):
+            for line in Path(f"/proc/{current}/status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    total += int(line.split()[1]) * 1024
+            for task in Path(f"/proc/{current}/task").iterdir():
+                pending += [int(c) for c in (task / "children").read_text().split()]
+    return total
+
+
+def measure(
+    workers: int,
+    fanouts: int,
+    subscribers: int,
+    duration_s: float,
+    *,
+    topics: int = 1,
+    idle: int = 0,
+) -> ScaleRow:
+    """One server of ``workers`` workers under ``fanouts`` parallel generators, each
+    driving ``topics`` fan-outs (a topic each), beside ``idle`` idle clients (module doc).
 
     Raises:
         RuntimeError: the server did not start, or a generator failed to set up.
@@ -176,29 +261,37 @@ def measure(workers: int, fanouts: int, subscribers: int, duration_s: float) -> 
     # fork: a generator starts in milliseconds, whatever ran this (a script on stdin,
     # pytest); this process has no threads of its own to fork with
     context = multiprocessing.get_context("fork")
+    if idle:
+        _raise_fd_limit(2 * (idle + fanouts * topics * (subscribers + 1)) + 4096)
     with serve_workers(workers) as (pid, port):
         pipes: list[Connection] = []
         procs = []
-        for index in range(fanouts):
+        jobs: list[tuple[Any, tuple[Any, ...]]] = [
+            (_generator, (port, subscribers, [f"/fan{i * topics + t}" for t in range(topics)]))
+            for i in range(fanouts)
+        ]
+        if idle:
+            jobs.append((_idle_holder, (port, idle)))
+        for target, args in jobs:
             mine, theirs = context.Pipe()
-            proc = context.Process(
-                target=_generator,
-                args=(port, subscribers, f"/fan{index}", duration_s, theirs),
-            )
+            extra = (duration_s, theirs) if target is _generator else (theirs,)
+            proc = context.Process(target=target, args=(*args, *extra))
             proc.start()
             theirs.close()  # the child's end, its copy is the child's
             pipes.append(mine)
             procs.append(proc)
+        generators = pipes[:fanouts]
         try:
             for pipe in pipes:
                 answer = pipe.recv() if pipe.poll(START_TIMEOUT_S) else "no answer"
                 if answer != "ready":
                     raise RuntimeError(f"a generator failed: {answer}")
             time.sleep(0.5)  # probes still in flight land before the bursts
+            rss = tree_rss_bytes(pid)
             before = tree_cpu_ns(pid)
-            for pipe in pipes:
+            for pipe in generators:
                 pipe.send("go")
-            found = [pipe.recv() for pipe in pipes]
+            found = [pipe.recv() for pipe in generators]
             server_ns = tree_cpu_ns(pid) - before
             for pipe in pipes:
                 pipe.send("close")
@@ -223,7 +316,10 @@ def measure(workers: int, fanouts: int, subscribers: int, duration_s: float) -> 
         generator_cores=generator_s / wall,
         generator_us_per_delivery=generator_s * 1e6 / max(delivered, 1),
         delivered=delivered,
-        expected=sum(f[1] for f in found) * subscribers,
+        expected=sum(f[1] for f in found),
+        topics=topics,
+        idle=idle,
+        server_rss_bytes=rss,
     )
 
 
@@ -233,18 +329,24 @@ def scale_table(rows: list[ScaleRow]) -> str:
     lines = [
         "| workers | fan-outs x subscribers | deliveries/s | x first row | "
         "server CPU us/delivery | x first row | server cores | generators: cores; us/delivery | "
-        "delivered/expected | dropped |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "delivered/expected | dropped | server RSS MB |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
+        load = f"{row.fanouts} x {row.subscribers}"
+        if row.topics > 1:
+            load = f"{row.fanouts} x {row.topics} topics x {row.subscribers}"
+        if row.idle:
+            load += f" + {row.idle:,} idle"
         lines.append(
-            f"| {row.workers} | {row.fanouts} x {row.subscribers} | "
+            f"| {row.workers} | {load} | "
             f"{row.deliveries_per_s:,.0f} | {row.deliveries_per_s / base.deliveries_per_s:.2f} | "
             f"{row.server_us_per_delivery:.2f} | "
             f"{row.server_us_per_delivery / base.server_us_per_delivery:.2f} | "
             f"{row.deliveries_per_s * row.server_us_per_delivery / 1e6:.2f} | "
             f"{row.generator_cores:.2f}; {row.generator_us_per_delivery:.2f} | "
-            f"{row.delivered:,}/{row.expected:,} | {row.dropped} |"
+            f"{row.delivered:,}/{row.expected:,} | {row.dropped} | "
+            f"{row.server_rss_bytes / 2**20:,.0f} |"
         )
     return "\n".join(lines)
 
@@ -257,6 +359,8 @@ def main(
     *,
     smoke: bool = False,
     out: Path | None = None,
+    topics: int = 1,
+    idle: int = 0,
 ) -> int:
     """Measure each worker count in turn, print the table; exit status 1 if any dropped.
 
@@ -265,7 +369,8 @@ def main(
     rows = []
     for count in workers:
         print(f"workers {count}", file=sys.stderr, flush=True)
-        rows.append(measure(count, fanouts, subscribers, 0.3 if smoke else duration_s))
+        duration = 0.3 if smoke else duration_s
+        rows.append(measure(count, fanouts, subscribers, duration, topics=topics, idle=idle))
     print(scale_table(rows))
     if not smoke:
         record: dict[str, Any] = {"rows": [asdict(r) for r in rows], "duration_s": duration_s}

@@ -25,8 +25,9 @@ every figure.
 
 Two more modes, each alone: ``--workers 1,2,4 --fanouts K [--subscribers S]``, the
 scale table (``scale_workers``: K parallel fan-outs per worker count, deliveries/s,
-server and generator CPU per delivery, dropped), and ``--cost-model``, the constants
-of docs/scaling.md's cost model (``scale_costs``).
+server and generator CPU per delivery, dropped, the server's memory; with
+``--topics-per-fanout T`` many topics, with ``--idle N`` many idle clients beside),
+and ``--cost-model``, the constants of docs/scaling.md's cost model (``scale_costs``).
 """
 
 from __future__ import annotations
@@ -542,6 +543,21 @@ def main(argv: list[str] | None = None) -> int:
         "--duration", type=float, default=3.0, help="with --workers: each burst, seconds"
     )
     parser.add_argument(
+        "--topics-per-fanout",
+        type=int,
+        default=1,
+        metavar="T",
+        help="with --workers: each generator drives T fan-outs, a topic each (many topics)",
+    )
+    parser.add_argument(
+        "--idle",
+        type=int,
+        default=0,
+        metavar="N",
+        help="with --workers: N idle clients beside the fan-outs (a subscription each to a "
+        "topic nothing publishes)",
+    )
+    parser.add_argument(
         "--smoke", action="store_true", help="with --workers: 0.3 s bursts, nothing saved"
     )
     parser.add_argument(
@@ -572,6 +588,8 @@ def main(argv: list[str] | None = None) -> int:
             args.duration,
             smoke=args.smoke,
             out=args.out,
+            topics=args.topics_per_fanout,
+            idle=args.idle,
         )
     if args.workers_cpu:
         burst = (1.0 if args.quick else 2.0) if args.rate else (0.5 if args.quick else 1.0)

@@ -25,7 +25,7 @@ import contextlib
 import itertools
 import logging
 import time
-from collections import deque
+from collections import Counter, deque
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from functools import partial
@@ -74,7 +74,7 @@ from .wire import (
 )
 
 if TYPE_CHECKING:
-    from collections.abc import AsyncIterator, Callable, Sized
+    from collections.abc import AsyncIterator, Callable, Iterable, Sized
 
     from anyio.abc import TaskStatus
 
@@ -102,6 +102,13 @@ _KINDS = {
     GraphKind.SUBSCRIPTION: EntityKind.SUBSCRIPTION,
     GraphKind.SERVICE: EntityKind.SERVICE,
 }
+
+
+def _release(counter: Counter[Any], ref: object) -> None:
+    """One reference to ``ref`` fewer; none left, no entry (``in`` then says it is gone)."""
+    counter[ref] -= 1
+    if counter[ref] <= 0:
+        del counter[ref]
 
 
 @dataclass(eq=False)
@@ -229,6 +236,11 @@ class ZenohLink:
         self._ids = itertools.count(1)  # node and entity ids share one counter, as in rmw_zenoh
         self._node_ids: dict[str, int] = {}
         self._exports: dict[tuple[EntityKind, ClientId, str], _Export] = {}
+        # how many exports name each node, and each (kind, name): what the sweeps after a
+        # change ask, answered without walking every export (10,000 clients subscribing
+        # one by one made that quadratic)
+        self._node_refs: Counter[str] = Counter()
+        self._name_refs: Counter[tuple[EntityKind, str]] = Counter()
         # the local entities to share, from the graph's change feed; its backlog is
         # applied in the link's task as soon as it fills (``_share``)
         self.outward = Exports(graph.port.feed, self.rules, on_backlog=self._share_soon)
@@ -602,25 +614,31 @@ class ZenohLink:
         looked at (``Exports.take``): the graph is not walked.
         """
         changed = self.outward.take()
+        nodes: set[str] = set()
+        names: set[str] = set()
         for (kind, client, name), change in changed.items():
             wire_kind = _KINDS.get(kind)
             if wire_kind is None:
                 continue  # an action: ``link_actions`` shares it
             key = (wire_kind, client, name)
+            names.add(name)
             export = self._exports.get(key)
             if export is not None and (
                 change is None
                 or (export.type_name, export.latched) != (change.type_name, change.latched)
                 or (change.node is not None and change.node != export.node)
             ):
+                nodes.add(export.node)
                 self._unexport(key)
                 export = None
             if export is None and change is not None:
-                self._export(key, change.type_name, latched=change.latched)
+                export = self._export(key, change.type_name, latched=change.latched)
+                if export is not None:
+                    nodes.add(export.node)
         if changed:
-            self._sweep_nodes()
-            self._sweep_subscribers()
-            self._sweep_publishers()
+            self._sweep_nodes(nodes)
+            self._sweep_subscribers(names)
+            self._sweep_publishers(names)
             self._actions.sweep()
 
     def _node_id(self, node: str) -> int:
@@ -685,57 +703,80 @@ class ZenohLink:
                 keyexpr, lambda query: self._soon(serve_query, self, name, type_name, query)
             )
         self._exports[key] = export
+        self._node_refs[node_name] += 1
+        self._name_refs[kind, name] += 1
         return export
 
     def _unexport(self, key: tuple[EntityKind, ClientId, str]) -> None:
         export = self._exports.pop(key)
+        kind, _, name = key
+        _release(self._node_refs, export.node)
+        _release(self._name_refs, (kind, name))
         if export.queryable is not None:
             guarded("undeclaring a queryable", export.queryable.undeclare)
         guarded("undeclaring a token", export.token.undeclare)
 
-    def _sweep_nodes(self) -> None:
-        nodes = {self.graph.nodes.name_of(client) for _, client, _ in self._exports}
-        nodes |= self.clients.nodes()
-        for node in list(self._node_tokens):
-            if node not in nodes:
+    def _sweep_nodes(self, touched: set[str] | None = None) -> None:
+        """A liveliness token for each node with exports or callers, none for the others.
+
+        ``touched``: only these nodes changed (their exports came or went); None
+        looks at every node (the periodic sweep, and a caller's node).
+        """
+        callers = self.clients.nodes()
+        if touched is None:
+            nodes = {self.graph.nodes.name_of(client) for _, client, _ in self._exports}
+            nodes |= callers
+            candidates: Iterable[str] = [*self._node_tokens, *nodes]
+        else:
+            candidates = touched
+
+        for node in set(candidates):
+            wanted = node in self._node_refs or node in callers
+            if not wanted and node in self._node_tokens:
                 guarded("undeclaring a node token", self._node_tokens.pop(node).undeclare)
-        for node in nodes - self._node_tokens.keys():
-            token = self._node_entity(node).token()
-            self._node_tokens[node] = self.session.liveliness().declare_token(token)
+            elif wanted and node not in self._node_tokens:
+                token = self._node_entity(node).token()
+                self._node_tokens[node] = self.session.liveliness().declare_token(token)
 
-    def _sweep_subscribers(self) -> None:
-        """A Zenoh subscriber for each topic local subscribers listen to, of its type."""
-        listening: dict[str, str] = {}
-        for kind, _, name in self._exports:
+    def _sweep_subscribers(self, touched: Iterable[str] | None = None) -> None:
+        """A Zenoh subscriber for each topic local subscribers listen to, of its type.
+
+        ``touched``: only these topics changed; None looks at every one.
+        """
+        names = set(self._subs) | {n for k, n in self._name_refs if k is EntityKind.SUBSCRIPTION}
+        for name in names if touched is None else set(touched):
             entry = self.graph.topics.get(name)
-            if entry is not None and kind is EntityKind.SUBSCRIPTION:
-                listening[name] = entry.msgtype.name
-        for name, data in list(self._subs.items()):
-            if listening.get(name) != data.type_name:
+            listening = None
+            if entry is not None and (EntityKind.SUBSCRIPTION, name) in self._name_refs:
+                listening = entry.msgtype.name
+            data = self._subs.get(name)
+            if data is not None and data.type_name != listening:
                 guarded("undeclaring a subscriber", self._subs.pop(name).handle.undeclare)
-        for name, type_name in listening.items():
-            if name not in self._subs:
-                self._subscribe(name, type_name)
+                data = None
+            if data is None and listening is not None:
+                self._subscribe(name, listening)
 
-    def _sweep_publishers(self) -> None:
-        """Zenoh publishers only while local ones publish; the latched cache while one latches."""
-        publishing: dict[str, bool] = {}
-        for kind, _, name in self._exports:
+    def _sweep_publishers(self, touched: Iterable[str] | None = None) -> None:
+        """Zenoh publishers only while local ones publish; the latched cache while one latches.
+
+        ``touched``: only these topics changed; None looks at every one.
+        """
+        names = set(self._pubs) | {n for k, n in self._name_refs if k is EntityKind.PUBLISHER}
+        for name in names if touched is None else set(touched):
             entry = self.graph.topics.get(name)
-            if entry is not None and kind is EntityKind.PUBLISHER:
-                latched = any(
-                    flag for c, flag in entry.publishers.items() if not self.rules.ours(c)
-                )
-                publishing[name] = publishing.get(name, False) or latched
-        for name, data in list(self._pubs.items()):
-            entry = self.graph.topics.get(name)
-            if name not in publishing or entry is None or entry.msgtype.name != data.type_name:
-                self._drop_publisher(name)
-            elif not publishing[name] and data.latched is not None:
-                guarded("undeclaring a latched publisher", data.latched.undeclare)
-                data.latched = data.latched_sent = None
-        for name, latched in publishing.items():
-            entry = self.graph.topics.get(name)
+            publishing = entry is not None and (EntityKind.PUBLISHER, name) in self._name_refs
+            latched = (
+                publishing
+                and entry is not None
+                and any(flag for c, flag in entry.publishers.items() if not self.rules.ours(c))
+            )
+            data = self._pubs.get(name)
+            if data is not None:
+                if not publishing or entry is None or entry.msgtype.name != data.type_name:
+                    self._drop_publisher(name)
+                elif not latched and data.latched is not None:
+                    guarded("undeclaring a latched publisher", data.latched.undeclare)
+                    data.latched = data.latched_sent = None
             if not latched or entry is None or entry.latched is None:
                 continue
             owner = entry.latched_by
@@ -829,7 +870,8 @@ class ZenohLink:
             export = self._export(
                 key, entry.msgtype.name, latched=entry.publishers.get(client, False)
             )
-            self._sweep_nodes()
+            if export is not None:
+                self._sweep_nodes({export.node})
         return export
 
     def _put_latched(self, entry: GraphTopic, event: MessageEvent, client: ClientId) -> None:

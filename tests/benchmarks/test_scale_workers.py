@@ -14,17 +14,21 @@ pytest.importorskip("zenoh")
 def test_the_scale_table_has_a_row_per_worker_count_and_drops_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    # many topics (2 generators x 2 topics) beside idle clients, at their smallest
     argv = ["scaleout", "--workers", "1,2", "--fanouts", "2", "--subscribers", "3", "--smoke"]
+    argv += ["--topics-per-fanout", "2", "--idle", "20"]
     status = main([*argv, "--out", str(tmp_path / "scale.json")])
     lines = capsys.readouterr().out.strip().splitlines()
     assert status == 0
     assert lines[0].startswith("| workers | fan-outs x subscribers | deliveries/s |")
     rows = [line.strip("|").split("|") for line in lines[2:]]
-    assert [(r[0].strip(), r[1].strip()) for r in rows] == [("1", "2 x 3"), ("2", "2 x 3")]
+    load = "2 x 2 topics x 3 + 20 idle"
+    assert [(r[0].strip(), r[1].strip()) for r in rows] == [("1", load), ("2", load)]
     for row in rows:
         delivered, expected = row[8].strip().replace(",", "").split("/")
         assert int(delivered) == int(expected) > 0
         assert row[9].strip() == "0"
+        assert int(row[10].strip().replace(",", "")) > 0  # the server's memory, MB
     assert rows[0][3].strip() == "1.00"  # the ratios are against the first row
     assert not (tmp_path / "scale.json").exists()  # a smoke run saves nothing
 
