@@ -7,6 +7,11 @@ official MCP Python client in this process:
 
 - ``rwt serve --mcp``: Streamable HTTP at the robot's own ``/mcp``;
 - ``rwt mcp URL``: stdio, one persistent rosbridge connection;
+
+each of these two by a 2025-era client (the ``initialize`` handshake, a session:
+2025-11-25) and by a 2026-07-28 one (the SDK's ``Client`` discovering the revision:
+no handshake, ``_meta`` on every request), in the same run;
+
 - ros-mcp 3.1.2: stdio, a rosbridge connection per tool call. It holds mcp below 2,
   so it runs from an environment of its own (docs/decisions.md D52): ``--ros-mcp-python``
   (or ``RWT_ROS_MCP_PYTHON``) names its Python.
@@ -35,14 +40,17 @@ from typing import Any
 import anyio
 import httpx2
 from mcp import ClientSession, StdioServerParameters
+from mcp.client.client import Client
 from mcp.client.stdio import stdio_client
 from mcp.client.streamable_http import streamable_http_client
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SRC = Path(__file__).resolve().parents[1] / "src"
 ENV = {**os.environ, "PYTHONPATH": str(SRC)}
-PACE_S = 0.15
-"""Seconds between two calls of one tool: under rwt's 10 a second (TOOL_CALLS_PER_S)."""
+PACE_S = 0.55
+"""Seconds between two calls of one tool: under rwt's caps, 10 calls of a tool a second
+(TOOL_CALLS_PER_S) and 2 listings a second (LISTING_CALLS_PER_S, which the listing of
+the topics counts against)."""
 
 # each call as (rwt's tool, its arguments), (ros-mcp's tool, its arguments)
 CALLS: dict[str, tuple[tuple[str, dict[str, Any]], tuple[str, dict[str, Any]]]] = {
@@ -132,8 +140,20 @@ async def over_stdio(
             yield session
 
 
-async def measure(session: ClientSession, ros_mcp: bool, calls: int) -> dict[str, list[float]]:
-    """Milliseconds of each call, ``calls`` times each (after two warm-up rounds)."""
+@asynccontextmanager
+async def modern(target: str | StdioServerParameters) -> AsyncIterator[ClientSession]:
+    """A 2026-07-28 client (``server/discover``, then no handshake) on ``target``."""
+    async with Client(target, mode="auto") as client:
+        if client.protocol_version != "2026-07-28":
+            raise RuntimeError(f"the client speaks {client.protocol_version}, not 2026-07-28")
+        yield client.session
+
+
+async def measure(
+    session: ClientSession, ros_mcp: bool, calls: int, pace_s: float = PACE_S
+) -> dict[str, list[float]]:
+    """Milliseconds of each call, ``calls`` times each (after two warm-up rounds), a round
+    every ``pace_s`` seconds at most."""
     times: dict[str, list[float]] = {name: [] for name in CALLS}
     for round_ in range(calls + 2):
         started = time.perf_counter()
@@ -147,7 +167,7 @@ async def measure(session: ClientSession, ros_mcp: bool, calls: int) -> dict[str
                 raise RuntimeError(f"{tool} failed: {text[:300]}")
             if round_ >= 2:
                 times[name].append(elapsed_ms)
-        await anyio.sleep(max(0.0, PACE_S - (time.perf_counter() - started)))
+        await anyio.sleep(max(0.0, pace_s - (time.perf_counter() - started)))
     return times
 
 
@@ -156,16 +176,26 @@ def _p(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
-async def main(calls: int, ros_mcp_python: str) -> dict[str, dict[str, dict[str, float]]]:
+async def main(
+    calls: int, ros_mcp_python: str, pace_s: float = PACE_S
+) -> dict[str, dict[str, dict[str, float]]]:
     results: dict[str, dict[str, dict[str, float]]] = {}
     logs = Path(os.environ.get("TMPDIR", "/tmp"))
     async with robot() as url:
+        stdio = StdioServerParameters(
+            command=sys.executable, args=["-m", "rwt", "mcp", url], env=ENV
+        )
         fronts: dict[str, tuple[Callable[[], AbstractAsyncContextManager[ClientSession]], bool]] = {
             "rwt serve --mcp (HTTP)": (lambda: over_http(url), False),
+            "rwt serve --mcp (HTTP, 2026-07-28)": (
+                lambda: modern(url.replace("ws://", "http://") + "/mcp"),
+                False,
+            ),
             "rwt mcp URL (stdio)": (
                 lambda: over_stdio(["-m", "rwt", "mcp", url], logs / "b23-rwt-mcp.log"),
                 False,
             ),
+            "rwt mcp URL (stdio, 2026-07-28)": (lambda: modern(stdio), False),
             "ros-mcp 3.1.2 (stdio)": (
                 lambda: over_stdio(
                     ["-m", "ros_mcp.main"], logs / "b23-ros-mcp.log", ros_mcp_python
@@ -178,7 +208,7 @@ async def main(calls: int, ros_mcp_python: str) -> dict[str, dict[str, dict[str,
                 if ros_mcp:
                     port = int(url.rsplit(":", 1)[1])
                     await session.call_tool("connect_to_robot", {"ip": "127.0.0.1", "port": port})
-                times = await measure(session, ros_mcp, calls)
+                times = await measure(session, ros_mcp, calls, pace_s)
             results[front] = {
                 name: {
                     "p50_ms": statistics.median(values),
