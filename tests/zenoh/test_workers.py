@@ -3,7 +3,9 @@
 roslibpy clients connect to the one announced port (the kernel spreads them over
 the workers); a publisher's messages reach every subscriber whichever worker it
 landed on. A worker killed with SIGKILL is restarted (logged); SIGTERM on the
-parent stops every worker and the parent exits 0.
+parent stops every worker and the parent exits 0. Workers that are Zenoh clients of
+a router share one graph with a server of another machine through it
+(docs/scaling.md, "Workers on several machines").
 """
 
 from __future__ import annotations
@@ -17,13 +19,17 @@ import pytest
 
 from rwt_transports.workers import reserve_port
 
-from .processes import Process, python_client, rwt, started
+from .processes import Process, python_client, rwt, serving, started
+from .support import endpoint
 
 FAN_OUT = """
 import sys, time, threading
 import roslibpy
-host, port = sys.argv[1].removeprefix("ws://").rsplit(":", 1)
-clients = [roslibpy.Ros(host, int(port)) for _ in range(6)]
+urls = sys.argv[1].split()  # the publisher's first; the subscribers' in turn
+def ros(url):
+    host, port = url.removeprefix("ws://").rsplit(":", 1)
+    return roslibpy.Ros(host, int(port))
+clients = [ros(urls[i % len(urls)]) for i in range(6)]
 for ros in clients:
     ros.run(timeout=20)
 got = [set() for _ in clients[1:]]
@@ -48,8 +54,9 @@ def workers_of(parent: int) -> list[int]:
     return [int(pid) for pid in text.split()]
 
 
-async def fan_out(url: str) -> None:
-    code = FAN_OUT.replace("sys.argv[1]", repr(url))
+async def fan_out(*urls: str) -> None:
+    """A publisher on ``urls[0]``, five subscribers over ``urls`` in turn: all get its messages."""
+    code = FAN_OUT.replace("sys.argv[1]", repr(" ".join(urls)))
     async with python_client(code, "roslibpy") as client:
         assert (await client.line(within=60)).strip() == "all"
 
@@ -89,6 +96,24 @@ async def test_two_workers_share_the_port_and_the_graph_and_are_supervised() -> 
         for child in children:
             assert _gone(child)
         assert "listening on" not in await parent.rest()  # the line came once
+
+
+@pytest.mark.anyio
+@pytest.mark.skipif(not os.path.exists("/proc/self/task"), reason="needs Linux /proc")
+async def test_workers_share_the_graph_with_another_machine_through_a_router() -> None:
+    router_ep = endpoint()
+    client_mode = ("--zenoh-mode", "client", "--zenoh-connect", router_ep)
+    async with started(rwt("router", "--listen", router_ep), "router") as router:
+        assert (await router.line()).strip() == f"router listening on {router_ep}"
+        workers = rwt("serve", "--port", "0", "--no-tf", "--workers", "2", *client_mode)
+        async with (
+            started(workers, "workers") as parent,
+            serving("other machine", connect=(router_ep,), extra=client_mode[:2]) as (_, other),
+        ):
+            url = (await parent.line(within=60)).strip().removeprefix("listening on ")
+            assert len(workers_of(parent.process.pid)) == 2
+            await fan_out(url, other)  # the publisher on the workers' port
+            await fan_out(other, url)  # the publisher on the other machine
 
 
 def _gone(pid: int) -> bool:
