@@ -69,7 +69,10 @@ __all__ = ["ScaleRow", "main", "measure", "scale_table", "serve_workers"]
 
 RESULTS = Path(__file__).resolve().parent / "results" / "scaleout_workers.json"
 START_TIMEOUT_S = 120.0
-"""How long a server and its workers get to listen, seconds."""
+"""How long a server and its workers get to listen, and the generators to set up, seconds."""
+IDLE_CONNECT_S = 0.03
+"""More set-up time per idle client (``--idle``), seconds: 10,000 took 60 s to connect
+and subscribe to two workers on the 2-core machine, under load."""
 STALL_S = 5.0
 """A burst with no delivery for this long is over: what is missing was dropped, seconds."""
 
@@ -282,8 +285,10 @@ def measure(
             procs.append(proc)
         generators = pipes[:fanouts]
         try:
+            deadline = time.monotonic() + START_TIMEOUT_S + idle * IDLE_CONNECT_S
             for pipe in pipes:
-                answer = pipe.recv() if pipe.poll(START_TIMEOUT_S) else "no answer"
+                ready = pipe.poll(max(0.0, deadline - time.monotonic()))
+                answer = pipe.recv() if ready else "no answer"
                 if answer != "ready":
                     raise RuntimeError(f"a generator failed: {answer}")
             time.sleep(0.5)  # probes still in flight land before the bursts
