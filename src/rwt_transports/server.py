@@ -1,13 +1,17 @@
-"""The rosbridge server: listeners on every transport, one graph, one session per connection.
+"""The server: listeners on every transport, one graph, the registry's front ends on it.
 
-``RosbridgeServer`` owns the graph and runs the listeners configured in
-``ServerConfig`` side by side: WebSocket (``ws``/``wss``), TCP (plain or TLS),
-UDP and stdio. Every connection, whatever its transport and its protocol
-(rosbridge, or a front end such as Foxglove's, ``frontends``), is admitted in one
-step (``open_session``: ``--max-connections``, the host shares,
-``/connected_clients``) and gets a session on the same graph through the same
-pump (D22), so a TCP client, a WebSocket client and a Foxglove client see each
-other's topics and services. The server also keeps the latched
+``GraphServer`` (``RosbridgeServer``, its first name, is the same class) owns the
+graph and runs the listeners configured in ``ServerConfig`` side by side:
+WebSocket (``ws``/``wss``), TCP (plain or TLS), UDP and stdio. The protocols it
+speaks are the front ends of the registry (``frontends_registry``): rosbridge by
+default, the others chosen by WebSocket subprotocol, WebRTC data-channel label or
+HTTP path; nothing here names one. Every connection, whatever its transport and
+its protocol, is admitted in one step (``admit``, or ``open_session``:
+``--max-connections``, the host shares, ``/connected_clients``) and proves who it
+is through one check (``entry``, ``rwt_protocol.credentials``), and its session
+runs on the same graph through the same pump (D22), so a TCP client, a WebSocket
+client, a Foxglove client and an HTTP request see each other's topics and
+services. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
 (D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
 ``/rosapi`` (listing only what the access rules let a client see) and
@@ -29,7 +33,7 @@ import math
 import socket
 import ssl
 import sys
-from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Mapping
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterable, Mapping
 from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -55,20 +59,20 @@ from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_graph.visibility import Visibility
 from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
+from rwt_protocol.credentials import EntryAuth
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
-from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
-from .foxglove import FoxgloveOptions, foxglove_frontend
-from .frontends import AuthMode, FrontEnd, FrontEnds, SessionRequest
-from .frontends_registry import HTTP_FRONTENDS
+from .foxglove import FoxgloveOptions
+from .frontends import FrontEnd, FrontEnds, SessionRequest
+from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
@@ -78,9 +82,7 @@ from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp import UdpOptions, serve_udp
 from .udp_auth import UdpAuth
-from .urltoken import url_token_gate
-from .version_http import Features, VersionEndpoint
-from .webrtc_signal import WebRtcOptions, WebRtcSignalling
+from .version_http import Features, ServedFrontEnd
 from .websocket import WebSocketOptions, serve_websocket_connection
 
 if TYPE_CHECKING:
@@ -95,14 +97,14 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
 
     from .holding import Held
-    from .mcp_http import McpEndpoint
     from .mcp_options import McpOptions
-    from .webrtc_peers import WebRtcPeers
+    from .webrtc_signal import WebRtcOptions
     from .websocket import HttpEndpoint
 
 __all__ = [
     "SERVER_NODE",
     "Admitted",
+    "GraphServer",
     "RosbridgeServer",
     "ServerConfig",
     "rosauth_authenticator",
@@ -114,7 +116,7 @@ logger = logging.getLogger("rwt.server")
 _episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
 MiB = 1024 * 1024
-# the listeners as a ListenError names them
+# the listeners as a ListenError names them (a front end's own port: "WebSocket (foxglove)")
 _LISTENER_NAMES = {"websocket": "WebSocket", "tcp": "TCP"}
 
 _TLS_FAILURES = (ssl.SSLError, OSError, anyio.BrokenResourceError, anyio.EndOfStream)
@@ -124,16 +126,8 @@ _ACCEPT_BACKOFF_S = 0.1
 _ACCEPT_BACKOFF_MAX_S = 1.0
 """Longest pause of the accept loop between two failed ``accept()`` calls."""
 
-_NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, which has none"
-"""``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
-
 _LOCAL = frozenset({"stdio", "memory"})
 """Transports whose connections do not count against a host's share (every other does)."""
-
-_SHARED_FROM_FIRST = frozenset({"mcp"})
-"""Transports whose sessions count against their host's share from the first (D40): an
-MCP session holds no socket of its own, so a ``--max-connections`` derived from the
-descriptors, and the shares that apply past ``shares.SHARES_FROM`` of it, bound it late."""
 
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
@@ -197,7 +191,8 @@ class ServerConfig:
         foxglove: where Foxglove clients are answered (docs/foxglove.md): on the
             WebSocket port by default, and on ``foxglove.port`` if set. With an
             authenticator, a Foxglove client is admitted by the token in its URL
-            (``urltoken.url_token_gate``; Foxglove has no ``auth`` op).
+            (``AuthMode.URL_TOKEN``, checked by ``GraphServer.entry``; Foxglove has no
+            ``auth`` op).
         udp: UDP settings.
         rosapi: offer the ``/rosapi/*`` services.
         rosapi_visibility: what each client may see through rosapi; by default
@@ -225,10 +220,12 @@ class ServerConfig:
         http_options: the options of an HTTP front end of the registry
             (``frontends_registry.HTTP_FRONTENDS``) by its name; None turns it
             off (``{"http": None}``: ``rwt serve --no-http-api``, docs/http.md);
-            one not named runs with its default options.
+            one not named runs with its default options (``webrtc`` and ``mcp``:
+            the fields above).
         bearer_token: with an authenticator, checks the ``Authorization: Bearer``
-            token of an HTTP front end's request (the video server's tokens,
-            ``/rwt/video_token``); None: such requests are refused (401).
+            token of every HTTP front end's request (the video server's tokens,
+            ``/rwt/video_token``; ``AuthMode.BEARER``); None: such requests are
+            refused (401), unless ``webrtc``'s or ``mcp``'s own check is set.
     """
 
     host: str = "127.0.0.1"
@@ -338,8 +335,13 @@ def _url_authenticator(authenticator: Authenticator) -> Authenticator:
 Runner = Callable[[TaskGroup], Coroutine[object, object, None]]
 
 
-class RosbridgeServer:
-    """Serves one graph to rosbridge clients over every configured transport.
+class GraphServer:
+    """Serves one graph over every configured transport, in every registered protocol.
+
+    The protocols are the registry's front ends (``frontends_registry``):
+    rosbridge by default, Foxglove's by subprotocol, the HTTP front ends
+    (``/version``, WebRTC, MCP, the HTTP API) by path. ``RosbridgeServer`` is the
+    same class, under its first name.
 
     Args:
         graph: the graph to serve; a new ROS 2 graph by default.
@@ -351,7 +353,8 @@ class RosbridgeServer:
 
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
-            its address's width (``shares.HostPrefixes``).
+            its address's width (``shares.HostPrefixes``); an HTTP front end's
+            options are not of its type.
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
             ``config.mcp`` is set but the MCP SDK is not (``rwt-rosbridge[mcp]``).
     """
@@ -368,12 +371,13 @@ class RosbridgeServer:
     ) -> None:
         self.config = config or ServerConfig()
         # a bad prefix is refused (ConfigError) before the graph is touched
-        self._host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
+        self.host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
+        """What names a peer's host for the host shares (``--host-prefix-v4``, ``-v6``)."""
         self.graph = graph or Graph()
         # one flow control for the connections and the links (it keeps the hosts' cool-downs);
         # links' deliveries are held back as readers are
         self.flow: FlowControl[Held] = FlowControl(
-            self.config.session.hold_budget_s, HostCoolDowns(self._host_prefixes)
+            self.config.session.hold_budget_s, HostCoolDowns(self.host_prefixes)
         )
         self.graph.port.inflow = InboundBatch(self.flow)
         # one order of first input for its connections, on its loop (admission.py)
@@ -391,27 +395,22 @@ class RosbridgeServer:
         # messages draw from it within their own
         self.memory = MemoryBudget(self.config.memory_budget)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory, self.memory)
-        # the protocols of the WebSocket listeners: rosbridge by default, Foxglove by
-        # subprotocol (on the rosbridge port unless --no-foxglove, and on its own port)
-        rosbridge = FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
-        foxglove = foxglove_frontend(self.graph.port, self.config.foxglove, self.graph.params)
-        on_port = [foxglove] if self.config.foxglove.on_rosbridge_port else []
-        self.frontends = FrontEnds(rosbridge, on_port)
-        self._foxglove_only = FrontEnds(None, [foxglove])
-        authenticator = session_config.authenticator
-        self._token_gate = (
-            None if authenticator is None else url_token_gate(_url_authenticator(authenticator))
-        )
+        self.entry = self._entry_auth(session_config.authenticator)
+        """The one check of every way in (``rwt_protocol.credentials``): each front end's
+        ``AuthMode`` and what its client presented."""
+        # the registry's protocols of the WebSocket listeners: rosbridge by default, the
+        # others by subprotocol, on the WebSocket port and on ports of their own
+        self.frontends, self._own_ports = self._socket_frontends()
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
             session_config, idle_timeout_s=self.config.idle_timeout_s or None
         )
         self._shares = HostShares(self.config.max_connections_per_host)
         self._hosts: dict[str, str] = {}  # client id -> its host, for the shares
-        # sessions of _SHARED_FROM_FIRST transports, per host, from the first (D40)
+        # sessions shared from the first (open_session's share_from_first), per host (D40)
         self._first_shares = HostShares(self.config.max_connections_per_host)
         self._first_hosts: dict[str, str] = {}  # client id -> its host, for those
-        self._extra_slots = 0  # slots held without a session of their own (take_slot)
+        self._extra_slots = 0  # slots held without a session of their own (take_slot, admit)
         self._refusals = EpisodeLog(logger)
         self.sessions: dict[str, ServerSession] = {}
         self.urls: dict[str, str] = {}
@@ -427,19 +426,45 @@ class RosbridgeServer:
         )
         self._publish_clients()
         self.rosapi, self.tf = self._install_helpers()
-        self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
-        self.mcp = self._set_up_mcp(self.config.mcp)
-        version = VersionEndpoint(
-            self._features,
-            self.config.websocket.allowed_origins,
-            _NO_VERSION if self.session_config.compat is Compat.ROSBRIDGE_2_1 else None,
-        )
-        endpoints = (version, self._signalling, self.mcp, *self._http_frontends())
-        self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
+        self.endpoints: dict[str, HttpEndpoint] = {}
+        """The HTTP front ends served on the WebSocket port, by their registry name
+        (``version``, ``webrtc``, ``mcp``, ``http``), in the order they claim requests."""
+        for frontend in HTTP_FRONTENDS:
+            options = frontend.options_in(self.config)
+            if options is not None:
+                self.endpoints[frontend.name] = frontend.make_endpoint(self, options)
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def _entry_auth(self, authenticator: Authenticator | None) -> EntryAuth:
+        """The one entry check for ``authenticator`` and ``ServerConfig.bearer_token``.
+
+        URL tokens are checked under their own MAC where rosauth's check binds
+        connections (``_url_authenticator``, D33).
+        """
+        url = None if authenticator is None else _url_authenticator(authenticator)
+        return EntryAuth(authenticator is not None, authenticator, url, self.config.bearer_token)
+
+    def _socket_frontends(self) -> tuple[FrontEnds, dict[str, tuple[int, FrontEnds]]]:
+        """The WebSocket listeners' front ends, from the registry.
+
+        Returns:
+            Those of the WebSocket port (rosbridge by default, the registered ones
+            the configuration puts there), and, by name, each registered front end's
+            own port with the front ends that answer there (``--foxglove-port``).
+        """
+        on_port: list[FrontEnd] = []
+        own: dict[str, tuple[int, FrontEnds]] = {}
+        for entry in SOCKET_FRONTENDS:
+            frontend = entry.make(self)
+            if entry.on_port(self.config):
+                on_port.append(frontend)
+            port = entry.own_port(self.config)
+            if port is not None:
+                own[entry.name] = (port, FrontEnds(None, [frontend]))
+        return FrontEnds(rosbridge_frontend(self._rosbridge_session), on_port), own
 
     def _install_helpers(self) -> tuple[Rosapi | None, TFRepublisher | None]:
         """The helpers: rosapi (showing what the access rules let one see), TF republisher."""
@@ -475,48 +500,11 @@ class RosbridgeServer:
             )
         return site, replace(config, websocket=replace(config.websocket, console=site))
 
-    def _set_up_webrtc(
-        self, options: WebRtcOptions | None
-    ) -> tuple[WebRtcPeers | None, WebRtcSignalling | None]:
-        """WebRTC's peers and its signalling on the WebSocket port (docs/webrtc.md), or none."""
-        if options is None:
-            return None, None
-        from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
-        from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
-
-        video = WebRtcVideo(self.graph, self.session_config.access)
-        peers = WebRtcPeers(self, options, self.config.max_message_size, video, self._host_prefixes)
-        signalling = WebRtcSignalling(
-            peers,
-            options,
-            self.config.websocket.allowed_origins,
-            auth_required=self.session_config.authenticator is not None,
-        )
-        return peers, signalling
-
-    def _set_up_mcp(self, options: McpOptions | None) -> McpEndpoint | None:
-        """The MCP endpoint on the WebSocket port (docs/mcp.md), or none."""
-        if options is None:
-            return None
-        from .mcp_http import McpEndpoint  # noqa: PLC0415 (the MCP SDK: only with --mcp)
-
-        policy = self.session_config.access
-        access = _access_check(policy) if policy.restricted else None
-        return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
-
-    def _http_frontends(self) -> list[HttpEndpoint]:
-        """The endpoints of the registry's HTTP front ends not turned off (``http_options``)."""
-        made = []
-        for frontend in HTTP_FRONTENDS:
-            options = self.config.http_options.get(frontend.name, frontend.options)
-            if options is not None:
-                made.append(frontend.make_endpoint(self, options))
-        return made
-
-    def _features(self) -> Features:
+    def features(self) -> Features:
         """What this server offers, for ``GET /version``'s ``rwt`` object (D49).
 
-        From the configuration and the front ends as they are now; nothing secret.
+        From the configuration and the registry's front ends as they are served now
+        (one added by ``add_frontend`` too); nothing secret.
         """
         config, tls = self.config, self.config.certfile is not None
         transports = [
@@ -526,26 +514,43 @@ class RosbridgeServer:
                 ("tcp+tls" if tls else "tcp", config.tcp_port is not None),
                 ("udp", config.udp_port is not None),
                 ("stdio", config.stdio),
-                ("webrtc", self.webrtc is not None),
             )
             if on
         ]
+        served = [each for each in HTTP_FRONTENDS if each.name in self.endpoints]
+        transports += [each.transport for each in served if each.transport is not None]
+        required = self.entry.required
+        frontends = [
+            ServedFrontEnd(
+                each.name,
+                each.subprotocols,
+                (*each.labels, *each.lossy_labels),
+                auth=each.auth.value if required else "none",
+            )
+            for each in self.frontends.every
+        ]
+        frontends += [
+            ServedFrontEnd(
+                each.name, paths=each.paths, auth=each.auth.value if required else "none"
+            )
+            for each in served
+        ]
         auth = "none"
-        if self.session_config.authenticator is not None:
+        if required:
             auth = "op-bound" if self.session_config.auth_challenge else "op"
         return Features(
             transports=tuple(transports),
             encodings=tuple(each.value for each in Compression),
             subprotocols=tuple(n for each in self.frontends.others for n in each.subprotocols),
-            webrtc=self.webrtc is not None,
-            mcp=self.mcp is not None,
+            frontends=tuple(frontends),
             auth=auth,
         )
 
     def add_frontend(self, frontend: FrontEnd) -> None:
         """Speak one more protocol on the WebSocket port, chosen by its subprotocols.
 
-        It gets the server's admission, per-client rules and flow control as
+        Its data-channel labels (``FrontEnd.labels``) select it on WebRTC too. It
+        gets the server's admission, per-client rules and flow control as
         rosbridge and Foxglove do (docs/architecture.md, "How to add a protocol").
         Call it before ``serve``.
         """
@@ -597,10 +602,8 @@ class RosbridgeServer:
                     with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
-                        if self.webrtc is not None:
-                            self.webrtc.bind(connections)
-                        if self.mcp is not None:
-                            self.mcp.bind(connections)
+                        for endpoint in self.endpoints.values():
+                            endpoint.bind(connections)
                         async with anyio.create_task_group() as accepting:
                             for runner in runners:
                                 accepting.start_soon(runner, connections)
@@ -608,10 +611,8 @@ class RosbridgeServer:
                             accepting.cancel_scope.cancel()
                         await self._shutdown(connections)
                 finally:
-                    if self.webrtc is not None:
-                        self.webrtc.bind(None)
-                    if self.mcp is not None:
-                        self.mcp.bind(None)
+                    for endpoint in self.endpoints.values():
+                        endpoint.bind(None)
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
 
@@ -631,11 +632,8 @@ class RosbridgeServer:
         sessions = list(self.sessions.values())
         logger.info("event=shutdown sessions=%d", len(sessions))
         self.graph.port.fail_pending("server shutting down")  # while callers can still read
-        if self.mcp is not None:  # no new MCP sessions; the open ones close with theirs
-            self.mcp.bind(None)
-        if self.webrtc is not None:  # not connected yet: nothing to close gracefully
-            self.webrtc.bind(None)
-            self.webrtc.stop_connecting()
+        for endpoint in self.endpoints.values():  # nothing new; what is not running yet goes
+            endpoint.bind(None)
         for session in sessions:
             session.begin_shutdown()
         for session in sessions:
@@ -652,12 +650,20 @@ class RosbridgeServer:
         tls = _tls_context(config.certfile, config.keyfile)
         runners: list[Runner] = []
         if config.port is not None:
-            runners.append(await self._stream_listener(stack, config.port, tls, "websocket"))
-        if config.foxglove.port is not None:
-            port = config.foxglove.port
-            runners.append(await self._stream_listener(stack, port, tls, "foxglove"))
+            websocket = self._websocket_handler(self.frontends, self.endpoints.values())
+            runners.append(
+                await self._stream_listener(stack, config.port, tls, "websocket", websocket)
+            )
+        for name, (port, frontends) in self._own_ports.items():  # a front end's own port
+            runners.append(
+                await self._stream_listener(
+                    stack, port, tls, name, self._websocket_handler(frontends)
+                )
+            )
         if config.tcp_port is not None:
-            runners.append(await self._stream_listener(stack, config.tcp_port, tls, "tcp"))
+            runners.append(
+                await self._stream_listener(stack, config.tcp_port, tls, "tcp", self._handle_tcp)
+            )
         if config.udp_port is not None:
             try:
                 sock = await anyio.create_udp_socket(
@@ -677,7 +683,7 @@ class RosbridgeServer:
                     self,
                     config.udp,
                     config.max_message_size,
-                    self._host_prefixes,
+                    self.host_prefixes,
                     auth=auth,
                 )
                 await _contained("udp endpoint", work)
@@ -689,25 +695,25 @@ class RosbridgeServer:
         return runners
 
     async def _stream_listener(
-        self, stack: AsyncExitStack, port: int, tls: ssl.SSLContext | None, kind: str
+        self,
+        stack: AsyncExitStack,
+        port: int,
+        tls: ssl.SSLContext | None,
+        kind: str,
+        handler: Callable[[ByteStream], Awaitable[None]],
     ) -> Runner:
+        """Listen on ``port`` for ``kind`` (``websocket``, ``tcp``, a front end's own port)."""
         try:
             listener = await anyio.create_tcp_listener(
                 local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
             )
         except OSError as exc:
-            raise ListenError(_LISTENER_NAMES[kind], self.config.host, port, exc) from exc
+            name = _LISTENER_NAMES.get(kind, f"WebSocket ({kind})")
+            raise ListenError(name, self.config.host, port, exc) from exc
         await stack.enter_async_context(listener)
         bound = listener.extra(SocketAttribute.local_port)
-        scheme = {"websocket": ("ws", "wss"), "foxglove": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[
-            kind
-        ][tls is not None]
-        self.urls[kind] = f"{scheme}://{_url_host(self.config.host)}:{bound}"
-        handler = {
-            "websocket": self._handle_websocket,
-            "foxglove": self._handle_foxglove,
-            "tcp": self._handle_tcp,
-        }[kind]
+        scheme = ("tcp", "tcp+tls") if kind == "tcp" else ("ws", "wss")
+        self.urls[kind] = f"{scheme[tls is not None]}://{_url_host(self.config.host)}:{bound}"
 
         async def run(connections: TaskGroup) -> None:
             async with anyio.create_task_group() as sockets:  # one per address family
@@ -763,7 +769,7 @@ class RosbridgeServer:
     async def _accept_slot(self) -> None:
         """Wait while the server holds all the sockets it may (slots and handshakes)."""
         while (limit := self._limit) is not None and (
-            self._slots_taken() + self._handshaking >= limit + REFUSING_SOCKETS
+            self.slots_taken + self._handshaking >= limit + REFUSING_SOCKETS
         ):
             if self._slot_freed is None or self._slot_freed.is_set():
                 self._slot_freed = anyio.Event()  # one for every listener waiting
@@ -773,8 +779,14 @@ class RosbridgeServer:
         if self._slot_freed is not None:
             self._slot_freed.set()
 
-    def _slots_taken(self) -> int:
-        """Connection slots held: one per session, and those taken without one (``take_slot``)."""
+    @property
+    def slots_taken(self) -> int:
+        """Connection slots held (``--max-connections``).
+
+        One per session, one per ticket without a session yet (``admit``: a WebRTC
+        peer before its data channel, a video-only one), and the sockets' own
+        (``take_slot``).
+        """
         return len(self.sessions) + self._extra_slots
 
     async def _serve_socket(
@@ -838,32 +850,26 @@ class RosbridgeServer:
 
     # ---- connections ------------------------------------------------------------
 
-    async def _handle_websocket(self, stream: ByteStream) -> None:
-        peer = _peer(stream)
-        await serve_websocket_connection(
-            stream,
-            peer,
-            self,
-            self.config.websocket,
-            self.config.max_message_size,
-            self.fragment_budget,
-            frontends=self.frontends,
-            token_gate=self._token_gate,
-            http=self._http,
-        )
+    def _websocket_handler(
+        self, frontends: FrontEnds, http: Iterable[HttpEndpoint] = ()
+    ) -> Callable[[ByteStream], Awaitable[None]]:
+        """The connections of a WebSocket listener speaking ``frontends``, answering ``http``."""
+        endpoints = list(http)
 
-    async def _handle_foxglove(self, stream: ByteStream) -> None:
-        """A connection to the Foxglove-only port (``--foxglove-port``)."""
-        await serve_websocket_connection(
-            stream,
-            _peer(stream),
-            self,
-            self.config.websocket,
-            self.config.max_message_size,
-            self.fragment_budget,
-            frontends=self._foxglove_only,
-            token_gate=self._token_gate,
-        )
+        async def handle(stream: ByteStream) -> None:
+            await serve_websocket_connection(
+                stream,
+                _peer(stream),
+                self,
+                self.config.websocket,
+                self.config.max_message_size,
+                self.fragment_budget,
+                frontends=frontends,
+                entry=self.entry,
+                http=endpoints,
+            )
+
+        return handle
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)
@@ -930,6 +936,7 @@ class RosbridgeServer:
         auth_nonce: str | None = None,
         authenticated: bool = False,
         ticket: Admitted | None = None,
+        share_from_first: bool = False,
     ) -> ServerSession | None:
         """Admit a new connection and make its session on this server's graph.
 
@@ -951,15 +958,20 @@ class RosbridgeServer:
             ticket: the connection was admitted already (``admit``): its session
                 takes the ticket's slot and id, and ``transport`` and ``peer`` are
                 the ticket's.
+            share_from_first: its host's share of such sessions applies from
+                the first, not only past
+                ``shares.SHARES_FROM`` of the slots (D40): a session that holds no
+                socket of its own (MCP's), which a ``--max-connections`` derived
+                from the descriptors would bound late.
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
-            still in their handshake count), the peer's host holds its share (an
-            MCP session's host: its share of MCP sessions, from the first, D40),
-            or the server is stopping.
+            still in their handshake count), the peer's host holds its share (with
+            ``share_from_first``, its share of those sessions), or the server is
+            stopping.
         """
         if ticket is None:
-            admitted = self._admit(transport, peer)
+            admitted = self._admit(transport, peer, from_first=share_from_first)
             if admitted is None:
                 return None
             client_id, host, address = admitted
@@ -982,12 +994,13 @@ class RosbridgeServer:
             authenticated,
             self.memory,
         )
-        session = (frontend or self.frontends.default or self._rosbridge).make_session(request)
+        made = frontend or self.frontends.default or rosbridge_frontend(self._rosbridge_session)
+        session = made.make_session(request)
         self.sessions[client_id] = session
         if host is not None:
             self._shares.add(host)
             self._hosts[client_id] = host
-            if transport in _SHARED_FROM_FIRST:
+            if share_from_first:
                 self._first_shares.add(host)
                 self._first_hosts[client_id] = host
         self.graph.nodes.attach(client_id, host=address)
@@ -1035,14 +1048,14 @@ class RosbridgeServer:
             self._shares.remove(ticket.host)
         return True
 
-    def adopt_socket(self) -> None:
-        """The socket of this task carries a request of a session admitted already.
+    def join_socket(self) -> None:
+        """The socket of this task carries a request of a connection admitted already.
 
-        An MCP session's requests come on sockets of their own (Streamable HTTP):
-        once one is known to belong to an admitted session its handshake deadline
-        is lifted and it no longer counts as a socket in its handshake; the slots
-        of its session cover it, or one it took (``take_slot``; docs/limits.md,
-        D40).
+        A front end whose connection spans requests on sockets of their own (an MCP
+        session, Streamable HTTP) calls it once a request is known to belong to an
+        admitted connection: its handshake deadline is lifted and it no longer counts
+        as a socket in its handshake; the slots of its connection cover it, or one it
+        took (``take_slot``; docs/limits.md, D40).
         """
         pending = _PENDING.get(None)
         if pending is not None and not pending.admitted:
@@ -1083,12 +1096,15 @@ class RosbridgeServer:
         self._shares.remove(host)
         self._free_slot()
 
-    def _admit(self, transport: str, peer: str) -> tuple[str, str | None, str] | None:
+    def _admit(
+        self, transport: str, peer: str, *, from_first: bool = False
+    ) -> tuple[str, str | None, str] | None:
         """Admission: a slot (``--max-connections``) and the host's share, or None.
 
         Returns the new client id, the peer's host for the shares (None for stdio
         and in-process connections) and its address. An admitted socket's
-        handshake deadline is lifted.
+        handshake deadline is lifted. ``from_first``: the host's share of such
+        sessions applies from the first (D40, ``open_session``).
         """
         pending = _PENDING.get(None)
         if pending is not None and pending.admitted:
@@ -1097,7 +1113,7 @@ class RosbridgeServer:
         if checked is None:
             return None
         host, address = checked
-        if host is not None and transport in _SHARED_FROM_FIRST:
+        if host is not None and from_first:
             share = self._first_shares.share
             if self._first_shares.held(host) >= share:  # D40: from the first session
                 held = self._first_shares.held(host)
@@ -1120,11 +1136,11 @@ class RosbridgeServer:
         """
         others = self._handshaking - own_socket
         limit = self._limit
-        taken = self._slots_taken() + others
+        taken = self.slots_taken + others
         if self._stopping or (limit is not None and taken >= limit):
             return None
         address = address_of(peer)
-        host = self._host_prefixes.host(address) if transport not in _LOCAL else None
+        host = self.host_prefixes.host(address) if transport not in _LOCAL else None
         if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
             self._refused(peer, host, "host share", self._shares.held(host), self._shares.share)
             return None
@@ -1142,10 +1158,6 @@ class RosbridgeServer:
             held,
             share,
         )
-
-    @property
-    def _rosbridge(self) -> FrontEnd:
-        return FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
 
     def _rosbridge_session(self, request: SessionRequest) -> Session:
         """A rosbridge session (``session_class``) for an admitted connection."""
@@ -1218,9 +1230,13 @@ class RosbridgeServer:
             self._connected_clients.publish({"clients": list(self._connected.values())})
 
 
+RosbridgeServer = GraphServer
+"""``GraphServer`` under its first name: the public API and the docs that use it stay valid."""
+
+
 @dataclass(slots=True)
 class Admitted:
-    """An admitted connection without a session yet (``RosbridgeServer.admit``): its ticket.
+    """An admitted connection without a session yet (``GraphServer.admit``): its ticket.
 
     Attributes:
         client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
@@ -1290,7 +1306,7 @@ async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
     """A task group in which ``graph``'s async in-process handlers run, without a server.
 
     For code that drives a graph without serving it (tests, benchmarks): inside,
-    async services and actions run as under ``RosbridgeServer.serve``
+    async services and actions run as under ``GraphServer.serve``
     (``GraphCore.serving``). Yields the task group; cancel its scope to stop.
     """
     async with anyio.create_task_group() as tg:
@@ -1391,27 +1407,6 @@ def _peer(stream: ByteStream | SocketStream) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
-
-
-def _access_check(policy: AccessPolicy) -> Callable[[str, str], str | None]:
-    """``policy`` as the MCP guard asks it: ``(family, name) -> the refusing rule`` or None.
-
-    ``family`` is an ``rwt_mcp.guard.AccessCheck`` family: ``topics_pub`` and
-    ``topics_sub`` check a topic's use (D50); the rule is named as its option,
-    with the patterns that refused (``--topics-sub-glob [/a, /b]``).
-    """
-    from rwt_protocol.runtime.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
-
-    def check(family: str, name: str) -> str | None:
-        kind, _, use_name = family.partition("_")
-        use = TopicUse(use_name) if use_name else None
-        glob = policy.refusal(Family(kind), name, use)
-        if glob is None:
-            return None
-        patterns = ", ".join(policy.patterns(glob))
-        return f"--{glob.replace('_', '-')} [{patterns}]"
-
-    return check
 
 
 def visibility_of(policy: AccessPolicy) -> VisibilityFor:
