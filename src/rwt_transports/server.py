@@ -650,7 +650,7 @@ class GraphServer:
         tls = _tls_context(config.certfile, config.keyfile)
         runners: list[Runner] = []
         if config.port is not None:
-            websocket = self._websocket_handler(self.frontends, self.endpoints.values())
+            websocket = self._websocket_handler(None, self.endpoints.values())
             runners.append(
                 await self._stream_listener(stack, config.port, tls, "websocket", websocket)
             )
@@ -851,9 +851,12 @@ class GraphServer:
     # ---- connections ------------------------------------------------------------
 
     def _websocket_handler(
-        self, frontends: FrontEnds, http: Iterable[HttpEndpoint] = ()
+        self, frontends: FrontEnds | None, http: Iterable[HttpEndpoint] = ()
     ) -> Callable[[ByteStream], Awaitable[None]]:
-        """The connections of a WebSocket listener speaking ``frontends``, answering ``http``."""
+        """The connections of a WebSocket listener speaking ``frontends``, answering ``http``.
+
+        None: the WebSocket port's, read at each connection (``add_frontend``).
+        """
         endpoints = list(http)
 
         async def handle(stream: ByteStream) -> None:
@@ -864,7 +867,7 @@ class GraphServer:
                 self.config.websocket,
                 self.config.max_message_size,
                 self.fragment_budget,
-                frontends=frontends,
+                frontends=self.frontends if frontends is None else frontends,
                 entry=self.entry,
                 http=endpoints,
             )
