@@ -11,7 +11,8 @@ its protocol, is admitted in one step (``admit``, or ``open_session``:
 is through one check (``entry``, ``rwt_protocol.credentials``), and its session
 runs on the same graph through the same pump (D22), so a TCP client, a WebSocket
 client, a Foxglove client and an HTTP request see each other's topics and
-services. The server also keeps the latched
+services. Its settings are ``ServerConfig`` (config.py), rosauth's check of the
+``auth`` op is rosauth.py's. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
 (D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
 ``/rosapi`` (listing only what the access rules let a client see) and
@@ -33,9 +34,9 @@ import math
 import socket
 import ssl
 import sys
-from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterable, Mapping
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterable
 from contextlib import AsyncExitStack, asynccontextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import anyio
@@ -58,47 +59,44 @@ from rwt_graph.tasks import start_soon
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_graph.visibility import Visibility
-from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
 from rwt_protocol.credentials import EntryAuth
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
-from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
-from rwt_protocol.server.session import CloseCode, Session, SessionConfig
+from rwt_protocol.runtime.memory import MemoryBudget
+from rwt_protocol.server.session import CloseCode, Session
 from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
+from .config import ServerConfig
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
-from .foxglove import FoxgloveOptions
 from .frontends import FrontEnd, FrontEnds, SessionRequest
 from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
-from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares, address_of
+from .rosauth import rosauth_authenticator, url_authenticator
+from .shares import HostPrefixes, HostShares, address_of
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
-from .udp import UdpOptions, serve_udp
+from .udp import serve_udp
 from .udp_auth import UdpAuth
 from .version_http import Features, ServedFrontEnd
-from .websocket import WebSocketOptions, serve_websocket_connection
+from .websocket import serve_websocket_connection
 
 if TYPE_CHECKING:
     from pathlib import Path
 
     from rwt_graph.calls import Soon, Spawner
-    from rwt_graph.clock import Clock
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
-    from rwt_protocol.ops import Auth
+    from rwt_protocol.auth import Authenticator
     from rwt_protocol.runtime.access import AccessPolicy
     from rwt_protocol.runtime.contract import ServerSession
 
     from .holding import Held
-    from .mcp_options import McpOptions
-    from .webrtc_signal import WebRtcOptions
     from .websocket import HttpEndpoint
 
 __all__ = [
@@ -113,9 +111,7 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.server")
-_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
-MiB = 1024 * 1024
 # the listeners as a ListenError names them (a front end's own port: "WebSocket (foxglove)")
 _LISTENER_NAMES = {"websocket": "WebSocket", "tcp": "TCP"}
 
@@ -131,205 +127,6 @@ _LOCAL = frozenset({"stdio", "memory"})
 
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
-
-
-@dataclass(frozen=True)
-class ServerConfig:
-    """Settings of a server (names follow rosbridge's parameters where it has one).
-
-    Attributes:
-        host: address every listener binds (``--host``).
-        port: WebSocket port (``--port``; 0 picks a free one; None: no WebSocket).
-        tcp_port: TCP port (``--tcp-port``; None: no TCP listener).
-        udp_port: UDP port (``--udp-port``; None: no UDP socket).
-        stdio: serve one session over stdin/stdout (``--stdio``); the server
-            stops when that session ends.
-        stdio_fds: the (read, write) file descriptors of that session when not
-            stdin/stdout (a pipe pair or a socket, for embedding and tests).
-        max_message_size: largest incoming message on every transport, bytes.
-        max_fragment_memory: bytes of incomplete ``fragment``/``png`` messages, and
-            of TCP and WebSocket frames still arriving, all connections may hold
-            together (``--max-fragment-memory``); a part past it is refused with an
-            error status and its message dropped, a frame skipped (TCP) or its
-            connection closed (WebSocket, 1013)
-            (``rwt_protocol.framing.fragments.FragmentBudget``, docs/limits.md).
-        memory_budget: bytes every connection together may make the server hold
-            (``--memory-budget``, D44): outboxes (topic messages, replies, asset
-            files), png messages waiting to be deflated, incomplete messages (within
-            ``max_fragment_memory``) and WebRTC input not read yet. While it is full,
-            clients that do not read lose their oldest topic messages and are closed
-            as slow consumers, and what would grow it is refused
-            (``rwt_protocol.runtime.memory.MemoryBudget``, docs/limits.md).
-        max_connections: most simultaneous connections over all transports
-            (``--max-connections``); a stream socket counts from ``accept()``,
-            before its TLS/WebSocket handshake, and an MCP session holds
-            ``mcp_http.SESSION_SLOTS`` plus one per request beyond them (D40).
-            None: derived from the soft RLIMIT_NOFILE when serving starts
-            (``fdlimit.default_max_connections``).
-        max_connections_per_host: connections one host (``host_prefix_v4``,
-            ``host_prefix_v6``) may hold once ``shares.SHARES_FROM`` of
-            ``max_connections`` are taken (``--max-connections-per-host``); before
-            that anyone gets one, so local use, where every client is 127.0.0.1, is
-            not limited. WebSocket, TCP, UDP, WebRTC and MCP count; stdio and
-            in-process connections do not. A host's MCP sessions count against
-            it from the first (D40).
-        host_prefix_v4: leading bits of an IPv4 source address (or IPv4-mapped
-            IPv6 one) that name its host for the per-host shares, 0 to 32
-            (``--host-prefix-v4``; 24: a /24 is one host).
-        host_prefix_v6: the same for IPv6, 0 to 128 (``--host-prefix-v6``; by
-            default the /64 one machine gets).
-        idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
-            sent nothing and that holds nothing is closed (``--idle-timeout``;
-            ``rwt_protocol.runtime.idle``), and an MCP session without a request in
-            flight ends (D40); None: never. UDP has ``udp.idle_timeout_s``.
-        certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
-        keyfile: PEM private key for it (``--keyfile``).
-        shutdown_grace_s: seconds a stopping server waits for connections to
-            close before cutting them.
-        session: per-connection protocol settings (limits, access, auth).
-        websocket: WebSocket settings.
-        foxglove: where Foxglove clients are answered (docs/foxglove.md): on the
-            WebSocket port by default, and on ``foxglove.port`` if set. With an
-            authenticator, a Foxglove client is admitted by the token in its URL
-            (``AuthMode.URL_TOKEN``, checked by ``GraphServer.entry``; Foxglove has no
-            ``auth`` op).
-        udp: UDP settings.
-        rosapi: offer the ``/rosapi/*`` services.
-        rosapi_visibility: what each client may see through rosapi; by default
-            what ``session.access`` allows.
-        tf: offer tf2_web_republisher's action, actionlib topics and service with a
-            TF buffer fed by ``/tf`` and ``/tf_static`` (``rwt serve --no-tf``: off).
-        handshake_timeout_s: seconds an accepted WebSocket or TLS socket has to
-            finish its handshake before it is closed (``--handshake-timeout``).
-        clients_interval_s: ``/client_count`` and ``/connected_clients`` are
-            published at most once per this many seconds, with the latest state
-            (the first change at once), so connection churn costs O(changes).
-        clients_fanout_per_s: most client-list entries (``/connected_clients``)
-            sent per second over all its subscribers: a publish sends the whole
-            list to each, clients x subscribers entries (about 60 bytes each), so
-            with many of both the interval grows to that over this rate.
-        reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
-            ``rwt serve --workers N`` share one port (Linux spreads connections).
-        webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
-            docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
-        mcp: serve MCP (Streamable HTTP) at ``/mcp`` on the WebSocket port
-            (``--mcp``, docs/mcp.md; needs ``rwt-rosbridge[mcp]``); None: no MCP.
-        use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
-            is the graph's timeline, which Foxglove clients get as server time
-            (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
-        http_options: the options of an HTTP front end of the registry
-            (``frontends_registry.HTTP_FRONTENDS``) by its name; None turns it
-            off (``{"http": None}``: ``rwt serve --no-http-api``, docs/http.md);
-            one not named runs with its default options (``webrtc`` and ``mcp``:
-            the fields above).
-        bearer_token: with an authenticator, checks the ``Authorization: Bearer``
-            token of every HTTP front end's request (the video server's tokens,
-            ``/rwt/video_token``; ``AuthMode.BEARER``); None: such requests are
-            refused (401), unless ``webrtc``'s or ``mcp``'s own check is set.
-    """
-
-    host: str = "127.0.0.1"
-    port: int | None = 9090
-    tcp_port: int | None = None
-    udp_port: int | None = None
-    stdio: bool = False
-    stdio_fds: tuple[int, int] | None = None
-    max_message_size: int = 10 * MiB
-    max_fragment_memory: int = 256 * MiB
-    memory_budget: int = DEFAULT_MEMORY_BUDGET
-    max_connections: int | None = None
-    max_connections_per_host: int = 64
-    host_prefix_v4: int = DEFAULT_PREFIX_V4
-    host_prefix_v6: int = DEFAULT_PREFIX_V6
-    idle_timeout_s: float | None = 600.0
-    certfile: Path | None = None
-    keyfile: Path | None = None
-    shutdown_grace_s: float = 5.0
-    session: SessionConfig = field(default_factory=SessionConfig)
-    websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
-    foxglove: FoxgloveOptions = field(default_factory=FoxgloveOptions)
-    udp: UdpOptions = field(default_factory=UdpOptions)
-    rosapi: bool = True
-    rosapi_visibility: VisibilityFor | None = None
-    tf: bool = True
-    handshake_timeout_s: float = 10.0
-    clients_interval_s: float = 0.5
-    clients_fanout_per_s: float = 200_000.0
-    reuse_port: bool = False
-    use_sim_time: bool = False
-    webrtc: WebRtcOptions | None = None
-    mcp: McpOptions | None = None
-    http_options: Mapping[str, object] = field(default_factory=dict)
-    bearer_token: Callable[[str], bool] | None = None
-
-
-def rosauth_authenticator(
-    secret: str,
-    clock: Clock,
-    max_skew_s: float = 5.0,
-    *,
-    bind_connection: bool = False,
-    url_token: bool = False,
-) -> Authenticator:
-    """The rosauth MAC check (D23) as an authenticator, reading wall time from ``clock``.
-
-    Args:
-        secret: the shared secret.
-        clock: where the current wall time comes from (the graph's clock).
-        max_skew_s: how far in the future ``t`` may be, seconds.
-        bind_connection: check ``bound_mac`` instead of rosauth's MAC
-            (``--auth-bind-connection``, D31); the sessions must then send a
-            challenge (``SessionConfig(auth_challenge=True)``).
-        url_token: check URL tokens (D33) rather than ``auth`` ops: with
-            ``bind_connection``, the bound MAC under ``URL_MAC_LABEL``. A
-            server makes the URL tokens' check from the ``auth`` ops' one itself.
-    """
-    label = URL_MAC_LABEL if url_token else BOUND_MAC_LABEL
-    verifier = RosauthVerifier(secret, max_skew_s, bound=bind_connection, label=label)
-    return _Rosauth(verifier, clock)
-
-
-@dataclass(frozen=True)
-class _Rosauth:
-    """rosauth's check as an ``Authenticator``: ``(op, peer) -> admitted`` (D23, D31, D33).
-
-    Attributes:
-        verifier: the MAC and time window check.
-        clock: the wall time's source.
-    """
-
-    verifier: RosauthVerifier
-    clock: Clock
-
-    def __call__(self, op: Auth, peer: str) -> bool:
-        """Whether ``op`` is valid now; a refusal is logged (rate-limited) with its reason."""
-        problem = self.verifier.problem(op, self.clock.wall())
-        if problem is not None:
-            _episodes.log(
-                logging.WARNING,
-                "auth_rejected",
-                "event=auth_rejected peer=%s reason=%r",
-                peer,
-                problem,
-            )
-        return problem is None
-
-    def for_url_tokens(self) -> _Rosauth:
-        """The same check for URL tokens: with a bound MAC, the URL token's (D33)."""
-        return replace(self, verifier=replace(self.verifier, label=URL_MAC_LABEL))
-
-
-def _url_authenticator(authenticator: Authenticator) -> Authenticator:
-    """The authenticator of URL tokens for a server whose ``auth`` ops ``authenticator`` checks.
-
-    rosauth's (``rosauth_authenticator``) checks URL tokens under their own MAC
-    with ``--auth-bind-connection`` (``for_url_tokens``), so a token opens only
-    what it was issued for; an embedding program's own callable decides both
-    (it gets the op and the peer, docs/embedding.md).
-    """
-    if isinstance(authenticator, _Rosauth):
-        return authenticator.for_url_tokens()
-    return authenticator
 
 
 Runner = Callable[[TaskGroup], Coroutine[object, object, None]]
@@ -442,9 +239,9 @@ class GraphServer:
         """The one entry check for ``authenticator`` and ``ServerConfig.bearer_token``.
 
         URL tokens are checked under their own MAC where rosauth's check binds
-        connections (``_url_authenticator``, D33).
+        connections (``rosauth.url_authenticator``, D33).
         """
-        url = None if authenticator is None else _url_authenticator(authenticator)
+        url = None if authenticator is None else url_authenticator(authenticator)
         return EntryAuth(authenticator is not None, authenticator, url, self.config.bearer_token)
 
     def _socket_frontends(self) -> tuple[FrontEnds, dict[str, tuple[int, FrontEnds]]]:
