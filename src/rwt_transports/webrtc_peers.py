@@ -46,7 +46,6 @@ and host shares) and never a session, and lasts as long as its peer connection
 
 from __future__ import annotations
 
-import functools
 import logging
 import re
 import secrets
@@ -341,7 +340,11 @@ class WebRtcPeers:
             return Answer(503, "too many connections")
         remote_max = remote_max_message_size(sdp)
         dc = DataChannelChannel(None, self.max_message_size, remote_max)
-        pc = self._native_pc(dc) if native else RTCPeerConnection(self._configuration())
+        pc = (
+            self._native_pc(dc, authenticated)
+            if native
+            else RTCPeerConnection(self._configuration())
+        )
         item = _Peer(secrets.token_urlsafe(16), pc, ticket, authenticated, remote_max, dc)
         item.video = video
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
@@ -373,20 +376,32 @@ class WebRtcPeers:
         if item.video is not None:
             item.video.close()
 
-    def _native_pc(self, dc: DataChannelChannel) -> NativePeerConnection:
+    def _native_pc(self, dc: DataChannelChannel, authenticated: bool) -> NativePeerConnection:
         """A libdatachannel peer connection for ``dc`` (webrtc_native.py, D51).
 
-        Its messages waiting for the loop count in ``dc``'s inbox bound; the
-        labels it takes are the registry's (``channel_refusal``).
+        Its messages waiting for the loop count in ``dc``'s inbox bound. Its channels
+        are judged on libdatachannel's thread, before they have callbacks (closing
+        one from the loop ends its peer connection): the registry's labels
+        (``channel_refusal``), and one protocol a peer, its first channel's.
         """
         inflow = Inflow(INBOX_LIMIT_BYTES, lambda: dc.inbox_bytes)
         dc.held_below = lambda: inflow.pending
+        frontends = self.host.frontends
+        first: list[FrontEnd] = []  # the protocol the first channel chose (that thread's)
+
+        def refusal(
+            label: str, ordered: bool, retransmits: int | None, lifetime: float | None
+        ) -> str | None:
+            reason = channel_refusal(frontends, label, ordered, retransmits, lifetime)
+            chosen = frontends.by_label(label)
+            if reason is None and chosen is not None:
+                reason = self._refusal(chosen, first[0] if first else None, authenticated)
+                if reason is None and not first:
+                    first.append(chosen.frontend)
+            return reason
+
         return NativePeerConnection(
-            self.ice_servers,
-            self.max_message_size,
-            inflow,
-            ANSWER_MAX_MESSAGE_SIZE,
-            functools.partial(channel_refusal, self.host.frontends),
+            self.ice_servers, self.max_message_size, inflow, ANSWER_MAX_MESSAGE_SIZE, refusal
         )
 
     @staticmethod
@@ -505,13 +520,22 @@ class WebRtcPeers:
 
     def _taken(self, item: _Peer, chosen: ChannelLabel) -> str | None:
         """Why a channel of a registered label is not taken by ``item`` (None: it is)."""
-        if item.frontend is not None and chosen.frontend is not item.frontend:
-            return f"another protocol than the session's ({item.frontend.name})"
-        if (item.lossy if chosen.lossy else item.channel) is not None:
-            return "second"
-        entry = self.host.entry
-        if entry.required and chosen.frontend.auth.at_entry and not item.authenticated:
-            # its front end's proof comes with the request, and the offer carried none
+        refusal = self._refusal(chosen, item.frontend, item.authenticated)
+        if refusal is None and (item.lossy if chosen.lossy else item.channel) is not None:
+            refusal = "second"
+        return refusal
+
+    def _refusal(
+        self, chosen: ChannelLabel, frontend: FrontEnd | None, authenticated: bool
+    ) -> str | None:
+        """Why a peer whose session speaks ``frontend`` (None: none yet) refuses ``chosen``.
+
+        One protocol a peer; a front end whose clients prove who they are with the
+        request (``AuthMode.at_entry``) only when the offer carried the bearer token.
+        """
+        if frontend is not None and chosen.frontend is not frontend:
+            return f"another protocol than the session's ({frontend.name})"
+        if self.host.entry.required and chosen.frontend.auth.at_entry and not authenticated:
             return f"{chosen.frontend.name} needs the offer's bearer token"
         return None
 

@@ -44,10 +44,11 @@ async def _closed(channel: RTCDataChannel) -> None:
 
 
 async def test_a_label_picks_its_registered_protocol_and_an_unknown_one_is_refused(
-    caplog: pytest.LogCaptureFixture,
+    stack: str, caplog: pytest.LogCaptureFixture
 ) -> None:
     caplog.set_level(logging.INFO, logger="rwt.webrtc")
-    async with serving(ServerConfig(port=0, webrtc=OPTIONS)) as served:
+    options = replace(OPTIONS, stack=stack)  # on both stacks: libdatachannel's judges on its thread
+    async with serving(ServerConfig(port=0, webrtc=options)) as served:
         # a protocol registered with a label of its own: WebRTC finds it in the registry
         served.server.add_frontend(replace(FRONTEND, labels=(ECHO,)))
         pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
