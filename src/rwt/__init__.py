@@ -5,7 +5,7 @@ What most programs need, in one import::
     import rwt
 
     graph = rwt.Graph()                                  # the in-memory robot graph
-    server = rwt.RosbridgeServer(graph, rwt.ServerConfig(port=9090))
+    server = rwt.GraphServer(graph, rwt.ServerConfig(port=9090))
     # await server.serve()  -- inside an anyio event loop
 
     # await rwt.call_service(graph, "/add_two_ints", {"a": 1, "b": 2})
@@ -65,7 +65,7 @@ if TYPE_CHECKING:
     from rwt_protocol.ports import GoalStatus
     from rwt_protocol.server.session import SessionConfig
     from rwt_transports.listen import ListenError
-    from rwt_transports.server import RosbridgeServer, ServerConfig
+    from rwt_transports.server import GraphServer, RosbridgeServer, ServerConfig
 
     # the namespaces, for type checkers (they load on first use)
     from . import bag as bag
@@ -93,6 +93,7 @@ __all__ = [
     "GoalStatus",
     "Graph",
     "GraphError",
+    "GraphServer",
     "ListenError",
     "LocalActionServer",
     "LocalPublisher",

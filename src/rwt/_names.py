@@ -31,7 +31,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_graph.actions": ("GoalCanceledError", "GoalContext"),
         "rwt_graph.async_calls": ("GoalOutcome", "call_service", "send_action_goal"),
         "rwt_protocol.ports": ("GoalStatus",),
-        "rwt_transports.server": ("RosbridgeServer", "ServerConfig"),
+        "rwt_transports.server": ("GraphServer", "RosbridgeServer", "ServerConfig"),
         "rwt_protocol.server.session": ("SessionConfig",),
         "rwt_client": (
             "Action",

@@ -12,7 +12,7 @@ the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits
 docs/foxglove.md), WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md), the
 MCP endpoint's (``McpOptions``, docs/mcp.md) and the HTTP API's (``HttpApiOptions``,
 docs/http.md; ``ServerConfig.http_options["http"]``), and ``Admitted``, the ticket of
-a connection admitted without a session (``RosbridgeServer.admit``).
+a connection admitted without a session (``GraphServer.admit``).
 
 Each name loads from its home on first use, as ``rwt``'s do.
 """

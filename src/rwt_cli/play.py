@@ -11,7 +11,7 @@ import typer
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
 from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
-from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt_transports.server import GraphServer, ServerConfig
 
 from .bag_options import (
     Check,
@@ -82,7 +82,7 @@ def play(
     """
     tune_allocator(HEAP_KEEP_MIB * 1024 * 1024)  # as rwt serve does: images, clouds
     graph = Graph(TypeRegistry(dialect_for(dialect, bag), interfaces or ()))
-    server = RosbridgeServer(graph, ServerConfig(host=host, port=port))
+    server = GraphServer(graph, ServerConfig(host=host, port=port))
     options = play_options(
         bag,
         rate=rate,

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
     from rwt_bag.jobs import BagJobs
     from rwt_ros2 import Ros2Options
-    from rwt_transports.server import RosbridgeServer
+    from rwt_transports.server import GraphServer
     from rwt_video import VideoConfig
     from rwt_zenoh.config import ZenohOptions
 
@@ -39,7 +39,7 @@ STARTUP_ERRORS: tuple[type[BaseException], ...] = (OSError, ValueError, BagError
 
 
 async def run_server(
-    server: RosbridgeServer,
+    server: GraphServer,
     video: VideoConfig | None,
     jobs: BagJobs | None = None,
     zenoh: ZenohOptions | None = None,
@@ -72,7 +72,7 @@ async def run_server(
             print(f"video on {video_url}", file=out, flush=True)
 
 
-async def _start_video(tg: TaskGroup, server: RosbridgeServer, video: VideoConfig) -> str:
+async def _start_video(tg: TaskGroup, server: GraphServer, video: VideoConfig) -> str:
     """Start the HTTP video server; the console on the WebSocket port links to it."""
     # the video server (Pillow, numpy) loads only with --video (B11: base memory)
     from rwt_video import serve_video  # noqa: PLC0415
@@ -90,7 +90,7 @@ async def _start_video(tg: TaskGroup, server: RosbridgeServer, video: VideoConfi
 
 
 async def _serve(
-    server: RosbridgeServer, tg: TaskGroup, out: TextIO, *, task_status: TaskStatus[str]
+    server: GraphServer, tg: TaskGroup, out: TextIO, *, task_status: TaskStatus[str]
 ) -> None:
     """Run the listeners; a graceful stop ends the video server and the links too."""
 
@@ -105,7 +105,7 @@ def _port(url: str) -> int | None:
     return urlsplit(url).port
 
 
-async def _stop_on_signal(server: RosbridgeServer, scope: anyio.CancelScope) -> None:
+async def _stop_on_signal(server: GraphServer, scope: anyio.CancelScope) -> None:
     """First SIGINT/SIGTERM: stop gracefully; a second one: stop at once."""
     with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
         async for signum in signals:

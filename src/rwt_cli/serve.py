@@ -30,7 +30,7 @@ from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.mcp_options import McpOptions
-from rwt_transports.server import RosbridgeServer, ServerConfig, rosauth_authenticator
+from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc_signal import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
@@ -187,7 +187,7 @@ def _set_up_process(process: Process) -> None:
 
 def _server(
     options: ServeOptions, graph: Graph, secret: str | None, tokens: VideoTokens | None
-) -> RosbridgeServer:
+) -> GraphServer:
     """The server of the options on ``graph``, its console listing its limits.
 
     ``tokens``: the video tokens an offer's ``Authorization: Bearer`` may carry (--webrtc),
@@ -231,7 +231,7 @@ def _server(
             secret, graph.clock, bind_connection=security.auth_bind_connection
         )
     )
-    return RosbridgeServer(graph, config, authenticator=authenticator)
+    return GraphServer(graph, config, authenticator=authenticator)
 
 
 def _server_config(
@@ -368,7 +368,7 @@ def _bag_jobs(graph: Graph, record: RecordOptions, play: PlayOptions) -> BagJobs
 
 
 def _run(
-    server: RosbridgeServer,
+    server: GraphServer,
     video: VideoConfig | None,
     jobs: BagJobs | None,
     zenoh: ZenohOptions | None,

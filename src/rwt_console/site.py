@@ -174,7 +174,7 @@ def console_for(
     them unless ``wanted`` says so (its origin must then be allowed too). With an
     authenticator it stays on: the page asks for the ``auth`` op first. ``rwt serve``
     (``--console``/``--no-console``, ``--allowed-origins``) and an embedded
-    ``RosbridgeServer`` (``WebSocketOptions.console``) both decide by this rule.
+    ``GraphServer`` (``WebSocketOptions.console``) both decide by this rule.
 
     Args:
         wanted: True or False as asked for; None for the default.

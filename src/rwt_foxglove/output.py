@@ -1,6 +1,7 @@
 """What the session's parts (services, parameters, connection graph) send through.
 
-The session implements it; the parts never touch its queue. A frame sent with
+The session implements it; the parts never touch its queue, and refuse a name
+through its access gate (``require_access``). A frame sent with
 ``tracked`` stays "unsent" until the driver took it (``FoxgloveSession.take``):
 a part that sends updates (parameter changes, the connection graph) sends the
 next one only then, merged, so a client that does not read holds at most one
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING, Protocol
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rwt_protocol.runtime.access import Family, TopicUse
     from rwt_protocol.runtime.outbox import OutFrame
     from rwt_protocol.runtime.timers import Timer
 
@@ -51,3 +53,12 @@ class SessionOutput(Protocol):
 
     def unsent(self, frame: OutFrame) -> bool:
         """Whether ``frame`` (from ``tracked``) is still waiting in the queue."""
+
+    def require_access(
+        self, family: Family, name: str, op: str, use: TopicUse | None = None
+    ) -> None:
+        """The one access gate (``SessionBase.require_access``): refuse and log a denied name.
+
+        Raises:
+            AccessDeniedError: ``name`` is outside the server's access rules.
+        """

@@ -39,7 +39,7 @@ import msgspec
 from rwt_graph.parameters.store import ParameterError, Parameters, ParamValue, ros2_value
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import MAX_NAME_LENGTH
-from rwt_protocol.runtime.access import AccessPolicy, Family
+from rwt_protocol.runtime.access import AccessDeniedError, AccessPolicy, Family
 
 from .protocol import (
     GetParameters,
@@ -92,8 +92,9 @@ class ParameterBridge:
     Args:
         graph: the graph's core (its nodes, and the spawner of node-owned sets).
         params: the graph's parameter store.
-        out: where answers and updates go.
-        access: which parameters the client may use (``--params-glob``).
+        out: where answers and updates go, and the session's access gate.
+        access: which parameters the client may list (``--params-glob``); a name it
+            asks for passes the gate (``out.require_access``).
         limits: ``max_parameter_subscriptions``.
         client_id: the connection's id in the graph, charged for what it sets.
     """
@@ -121,11 +122,27 @@ class ParameterBridge:
 
     # ---- names and values ----------------------------------------------------------
 
-    def _key(self, name: str) -> str:
-        """The store's key of a client's name.
+    def _key(self, name: str, op: str) -> str:
+        """The store's key of a client's name, through the access gate for ``op``.
+
+        A refusal passes the session's one access gate and its log line
+        (``SessionBase.require_access``, ``--params-glob``).
 
         Raises:
             ParameterError: a malformed name, or one the client may not use.
+        """
+        key = self._store_key(name)
+        try:
+            self._out.require_access(Family.PARAMS, key, op)
+        except AccessDeniedError:
+            raise ParameterError(f"parameter {key} is not allowed") from None
+        return key
+
+    def _store_key(self, name: str) -> str:
+        """The store's key of a client's name (no access check).
+
+        Raises:
+            ParameterError: a malformed name.
         """
         if len(name) > MAX_NAME_LENGTH:  # refused before any text echoes it whole
             raise ParameterError(f"parameter name longer than {MAX_NAME_LENGTH} characters")
@@ -134,10 +151,7 @@ class ParameterBridge:
             if not sep:
                 raise ParameterError(f"parameter name {name[:200]!r}: expected <node>.<parameter>")
             name = f"{node}:{param}"
-        key = self._params.key(name)
-        if not self._access.allows(Family.PARAMS, key):
-            raise ParameterError(f"parameter {key} is not allowed")
-        return key
+        return self._params.key(name)
 
     def _name(self, key: str) -> str:
         if self._params.ros1:
@@ -182,16 +196,16 @@ class ParameterBridge:
     def get(self, op: GetParameters) -> None:
         """Answer ``getParameters``: the values of the names that are set, with ``op.id``."""
         if op.parameterNames:
-            keys = self._keys(op.parameterNames)
+            keys = self._keys(op.parameterNames, "getParameters")
         else:
             keys = [key for key in self._params.names() if self._access.allows(Family.PARAMS, key)]
         self._reply(keys, op.id, "getParameters")
 
-    def _keys(self, names: list[str]) -> list[str]:
+    def _keys(self, names: list[str], op: str) -> list[str]:
         keys: list[str] = []
         for name in names:
             try:
-                keys.append(self._key(name))
+                keys.append(self._key(name, op))
             except ParameterError as exc:
                 self._out.error(f"getParameters: {exc.message}")
         return keys
@@ -229,7 +243,7 @@ class ParameterBridge:
         round_ = _SetRound(op.id, keys)
         for parameter in op.parameters:
             try:
-                key = self._key(parameter.name)
+                key = self._key(parameter.name, "setParameters")
                 self._set_one(key, parameter, round_)
             except RwtError as exc:
                 self._out.error(f"setParameters: {exc.message}")
@@ -288,7 +302,7 @@ class ParameterBridge:
         """Watch these parameters: their changes are pushed (``parameterValues``, no ``id``)."""
         for name in op.parameterNames:
             try:
-                key = self._key(name)
+                key = self._key(name, "subscribeParameterUpdates")
             except ParameterError as exc:
                 self._out.error(f"subscribeParameterUpdates: {exc.message}")
                 continue
@@ -304,7 +318,7 @@ class ParameterBridge:
         """Stop watching these parameters (names not watched are ignored, as the SDK does)."""
         for name in op.parameterNames:
             try:
-                key = self._key(name)
+                key = self._store_key(name)  # only what it watches: nothing to refuse
             except ParameterError:
                 continue
             watched = self._watched.pop(key, None)

@@ -7,7 +7,9 @@ the robot never hears of it. The rules (docs/mcp.md, "Safety"):
 - the server's access globs (``--topics-glob`` and friends, docs/server.md) for
   the topic, service, action or parameter a tool names (``TOOL_NAMES``): a tool
   that publishes is held to ``--topics-pub-glob``, one that reads a topic to
-  ``--topics-sub-glob`` (D50);
+  ``--topics-sub-glob`` (D50). A refusal passes the server's one access gate and
+  its log line (``rwt_protocol.runtime.access.gate``), and names the rule as its
+  option (``--topics-sub-glob [/battery]``);
 - read-only mode (``--mcp-read-only``, ``rwt mcp --read-only``): the tools that
   change the robot (``WRITE_TOOLS``) are refused;
 - a rate per tool and session (``TOOL_CALLS_PER_S``, a bucket of ``TOOL_BURST``),
@@ -30,6 +32,7 @@ from dataclasses import dataclass, field
 from mcp.server.mcpserver.exceptions import ToolError
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.runtime.access import AccessDeniedError, AccessPolicy, Family, TopicUse, gate
 
 __all__ = [
     "LISTINGS",
@@ -40,7 +43,6 @@ __all__ = [
     "TOOL_CALLS_PER_S",
     "TOOL_NAMES",
     "WRITE_TOOLS",
-    "AccessCheck",
     "Guard",
 ]
 
@@ -93,11 +95,17 @@ TOOL_NAMES: Mapping[str, tuple[str, str]] = {
     "set_parameter": ("params", "name"),
 }
 
-AccessCheck = Callable[[str, str], str | None]
-"""``(family, name) -> refusal``: the rule refusing ``name`` (``--topics-glob [/robot/*]``),
-or None if allowed; ``family`` is ``topics`` (a listing: either use),
-``topics_pub`` (publishing), ``topics_sub`` (subscribing, reading), ``services``,
-``actions`` or ``params``."""
+_FAMILIES: Mapping[str, tuple[Family, TopicUse | None]] = {
+    "topics": (Family.TOPICS, None),
+    "topics_pub": (Family.TOPICS, TopicUse.PUBLISH),
+    "topics_sub": (Family.TOPICS, TopicUse.SUBSCRIBE),
+    "services": (Family.SERVICES, None),
+    "actions": (Family.ACTIONS, None),
+    "params": (Family.PARAMS, None),
+}
+"""A ``TOOL_NAMES`` family as the access rules name it: ``topics`` (a listing: either
+use), ``topics_pub`` (publishing), ``topics_sub`` (subscribing, reading), ``services``,
+``actions``, ``params``."""
 
 
 @dataclass
@@ -113,13 +121,14 @@ class Guard:
     Attributes:
         client: who the session is, for the write log (``mcp:127.0.0.1:5123#3``).
         read_only: refuse ``WRITE_TOOLS``.
-        access: the server's access rules; None allows every name.
+        access: the server's access rules (``--topics-glob`` and friends); None
+            allows every name.
         clock: monotonic seconds.
     """
 
     client: str = "stdio"
     read_only: bool = False
-    access: AccessCheck | None = None
+    access: AccessPolicy | None = None
     clock: Callable[[], float] = time.monotonic
     _buckets: dict[str, _Bucket] = field(default_factory=dict, repr=False)
     _writes: EpisodeLog = field(default_factory=lambda: EpisodeLog(logger), repr=False)
@@ -161,19 +170,35 @@ class Guard:
         family, name_field = entry
         name = arguments.get(name_field)
         if isinstance(name, str):
-            self.check_access(family, name, name_field)
+            self.check_access(family, name, name_field, op=tool)
 
-    def check_access(self, family: str, name: str, what: str) -> None:
-        """Refuse ``name`` of ``family`` if the access rules do.
+    def check_access(self, family: str, name: str, what: str, op: str | None = None) -> None:
+        """Refuse ``name`` of ``family`` (a ``TOOL_NAMES`` family) if the access rules do.
+
+        Through the server's one access gate and its log line (``access.gate``),
+        which names ``op`` (the tool; by default ``what``).
 
         Raises:
-            ToolError: ``<what> <name>: refused by <rule>``.
+            ToolError: ``<what> <name>: refused by <rule>``, the rule named as its
+                option with its patterns (``--topics-sub-glob [/battery]``).
         """
         if self.access is None:
             return
-        refusal = self.access(family, name)
-        if refusal is not None:
-            raise ToolError(f"{what} {name}: refused by {refusal}")
+        kind, use = _FAMILIES[family]
+        try:
+            gate(
+                self.access,
+                kind,
+                name,
+                client=self.client,
+                op=op or what,
+                use=use,
+                now=self.clock(),
+            )
+        except AccessDeniedError as exc:
+            patterns = ", ".join(self.access.patterns(exc.glob))
+            rule = f"--{exc.glob.replace('_', '-')} [{patterns}]"
+            raise ToolError(f"{what} {name}: refused by {rule}") from None
 
     def _check_size(self, tool: str, arguments: Mapping[str, object]) -> None:
         size = len(json.dumps(arguments, default=repr).encode())

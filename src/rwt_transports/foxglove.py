@@ -10,9 +10,10 @@ the same way (``--max-connections``, the host shares, ``/connected_clients``), r
 by the same pump under the same per-client rules (``ClientRules``: the send
 buffer, the slow-consumer rule, ``--max-subscriptions``, ``--max-pending-calls``,
 ``--call-timeout``, ``--idle-timeout``, the hold budget) and flow control;
-``foxglove_frontend`` only says how its session is made. With an authenticator
-its clients authenticate with a URL token (``frontends.AuthMode.URL_TOKEN``,
-``urltoken``).
+``foxglove_frontend`` only says how its session is made, and ``FOXGLOVE`` is its
+entry in the registry (``frontends_registry``). With an authenticator its clients
+prove who they are with a URL token (``AuthMode.URL_TOKEN``,
+``rwt_protocol.credentials``).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import TYPE_CHECKING
 
 from rwt_foxglove import SUBPROTOCOLS, AssetRoots, FoxgloveLimits, FoxgloveSession
 
-from .frontends import AuthMode, FrontEnd
+from .frontends import AuthMode, FrontEnd, SocketFrontEnd
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -34,8 +35,9 @@ if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
 
     from .frontends import SessionRequest
+    from .server import GraphServer
 
-__all__ = ["FoxgloveOptions", "foxglove_frontend"]
+__all__ = ["FOXGLOVE", "FoxgloveOptions", "foxglove_frontend"]
 
 
 @dataclass(frozen=True)
@@ -102,3 +104,16 @@ def foxglove_frontend(
         )
 
     return FrontEnd("foxglove", SUBPROTOCOLS, make_session, AuthMode.URL_TOKEN)
+
+
+def _made(server: GraphServer) -> FrontEnd:
+    return foxglove_frontend(server.graph.port, server.config.foxglove, server.graph.params)
+
+
+FOXGLOVE = SocketFrontEnd(
+    "foxglove",
+    _made,
+    on_port=lambda config: config.foxglove.on_rosbridge_port,
+    own_port=lambda config: config.foxglove.port,
+)
+"""Foxglove's entry in the registry (``frontends_registry.SOCKET_FRONTENDS``)."""

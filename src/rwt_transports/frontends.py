@@ -2,20 +2,23 @@
 
 A front end names how a connection chooses it (a WebSocket subprotocol in the
 handshake, a WebRTC data channel's label), how its session is made, and how its
-clients authenticate; an HTTP front end (``HttpFrontEnd``) names the paths it
-answers on the WebSocket port and makes the endpoint that answers them. The
-listeners consult the registry (``FrontEnds``, and the server's HTTP front ends,
-``frontends_registry.HTTP_FRONTENDS``) and nothing else: admission (``--max-connections``, the
-host shares, ``/connected_clients``), the per-client limits, flow control, the
-idle timeout and the slow-consumer rule are the server's and the pump's, the same
-for every front end (docs/architecture.md, "How to add a protocol").
+clients prove who they are (``AuthMode``, ``rwt_protocol.credentials``); an HTTP
+front end (``HttpFrontEnd``) names the paths it answers on the WebSocket port and
+makes the endpoint that answers them. The registry (``frontends_registry``) lists
+them all; the listeners and the WebRTC peers consult it (``FrontEnds``, and the
+server's HTTP endpoints made from ``frontends_registry.HTTP_FRONTENDS``) and
+nothing else: admission (``--max-connections``, the host shares,
+``/connected_clients``), the per-client limits, flow control, the idle timeout and
+the slow-consumer rule are the server's and the pump's, the same for every front
+end (docs/architecture.md, "How to add a protocol").
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
 from typing import TYPE_CHECKING
+
+from rwt_protocol.credentials import AuthMode
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable, Sequence
@@ -26,21 +29,18 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.server.session import SessionConfig
 
-    from .server import RosbridgeServer
+    from .server import GraphServer, ServerConfig
     from .websocket import HttpEndpoint
 
-__all__ = ["AuthMode", "FrontEnd", "FrontEnds", "HttpFrontEnd", "SessionRequest"]
-
-
-class AuthMode(Enum):
-    """How a front end's clients authenticate when the server has an authenticator."""
-
-    OP = "op"
-    """With the protocol's first op (rosbridge's ``auth``, D23); the URL is not read."""
-    URL_TOKEN = "url"
-    """With a token in the handshake's URL, checked before any session (D33)."""
-    BEARER = "bearer"
-    """With ``Authorization: Bearer <token>`` on each request (``http_endpoint.bearer``)."""
+__all__ = [
+    "AuthMode",
+    "ChannelLabel",
+    "FrontEnd",
+    "FrontEnds",
+    "HttpFrontEnd",
+    "SessionRequest",
+    "SocketFrontEnd",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,8 +85,11 @@ class FrontEnd:
             preference; empty for the default front end (a client that offers
             none of the others).
         make_session: the session of an admitted connection.
-        auth: how its clients authenticate (``AuthMode``).
-        labels: WebRTC data-channel labels that select it (docs/webrtc.md).
+        auth: how its clients prove who they are (``AuthMode``).
+        labels: WebRTC data-channel labels that select it (docs/webrtc.md): a
+            reliable, ordered channel so labelled opens its session.
+        lossy_labels: labels of its session's lossy channel (unordered, never
+            retransmitted, D36), which opens the session's lossy lane.
     """
 
     name: str
@@ -94,6 +97,21 @@ class FrontEnd:
     make_session: Callable[[SessionRequest], ServerSession]
     auth: AuthMode = AuthMode.OP
     labels: tuple[str, ...] = ()
+    lossy_labels: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class ChannelLabel:
+    """What a WebRTC data channel's label selects (``FrontEnds.by_label``).
+
+    Attributes:
+        frontend: the protocol its session speaks.
+        lossy: the session's lossy channel (``FrontEnd.lossy_labels``), not its
+            reliable one.
+    """
+
+    frontend: FrontEnd
+    lossy: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,16 +123,52 @@ class HttpFrontEnd:
         paths: the paths (or path prefixes ending in ``/``) its endpoint claims.
         make_endpoint: its endpoint for a server and its options: an
             ``HttpEndpoint`` that claims and answers the requests; it admits
-            each through the server (``RosbridgeServer.open_session``).
-        options: its options when ``ServerConfig.http_options`` names none.
-        auth: how its clients authenticate.
+            each through the server (``GraphServer.admit``, ``open_session``)
+            and checks its clients' proofs with ``GraphServer.entry``.
+        options: its options when the configuration names none; None: off.
+        auth: how its clients prove who they are.
+        transport: the transport its sessions run on, when it is one of its own
+            (``webrtc``), for ``GET /version``'s list.
+        configured: where ``ServerConfig`` holds its options when it has a field
+            of its own (``ServerConfig.webrtc``); ``ServerConfig.http_options``
+            by its name comes first.
     """
 
     name: str
     paths: tuple[str, ...]
-    make_endpoint: Callable[[RosbridgeServer, object], HttpEndpoint]
+    make_endpoint: Callable[[GraphServer, object], HttpEndpoint]
     options: object = None
     auth: AuthMode = AuthMode.BEARER
+    transport: str | None = None
+    configured: Callable[[ServerConfig], object] | None = None
+
+    def options_in(self, config: ServerConfig) -> object:
+        """Its options under ``config``: ``http_options[name]``, its field, or the default.
+
+        None: it is off.
+        """
+        if self.name in config.http_options:
+            return config.http_options[self.name]
+        if self.configured is not None:
+            return self.configured(config)
+        return self.options
+
+
+@dataclass(frozen=True, slots=True)
+class SocketFrontEnd:
+    """A registered protocol of the WebSocket listeners besides the default (rosbridge).
+
+    Attributes:
+        name: its name (``foxglove``), also its own listener's in ``GraphServer.urls``.
+        make: its front end for one server (made once, when the server is).
+        on_port: whether ``ServerConfig`` puts it on the WebSocket port.
+        own_port: the port of a listener that speaks only it; None: none.
+    """
+
+    name: str
+    make: Callable[[GraphServer], FrontEnd]
+    on_port: Callable[[ServerConfig], bool]
+    own_port: Callable[[ServerConfig], int | None]
 
 
 class FrontEnds:
@@ -131,7 +185,12 @@ class FrontEnds:
         self.others = tuple(others)
         self._by_subprotocol = {name: each for each in self.others for name in each.subprotocols}
         every = (*([] if default is None else [default]), *self.others)
-        self._by_label = {label: each for each in every for label in each.labels}
+        self._by_label = {
+            label: ChannelLabel(each, lossy)
+            for each in every
+            for lossy, labels in ((False, each.labels), (True, each.lossy_labels))
+            for label in labels
+        }
 
     def select(self, offered: Iterable[str]) -> tuple[FrontEnd | None, str | None]:
         """The front end a handshake offering ``offered`` gets, and the subprotocol to answer.
@@ -145,9 +204,22 @@ class FrontEnds:
                 return frontend, name
         return self.default, None
 
-    def by_label(self, label: str) -> FrontEnd | None:
-        """The front end a WebRTC data channel labelled ``label`` speaks, or None."""
+    @property
+    def every(self) -> tuple[FrontEnd, ...]:
+        """The default front end (if any), then the others."""
+        return (*([] if self.default is None else [self.default]), *self.others)
+
+    def by_label(self, label: str) -> ChannelLabel | None:
+        """What a WebRTC data channel labelled ``label`` selects, or None: none registered.
+
+        Safe from any thread (libdatachannel's asks): the table is not changed
+        once the server serves.
+        """
         return self._by_label.get(label)
+
+    def labels(self) -> tuple[str, ...]:
+        """Every registered data-channel label, for a refusal that names them."""
+        return tuple(self._by_label)
 
     def refusal(self) -> str:
         """What a client that offers none of this listener's subprotocols is told (HTTP 400)."""

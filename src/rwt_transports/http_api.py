@@ -3,9 +3,9 @@
 The front end itself is ``rwt_http`` (sans-IO: routes, the session, the OpenAPI
 document; docs/http.md). Here: the endpoint claims ``/openapi.json`` and
 ``/api/...`` (an ``HttpEndpoint``), reads the request (bounded, CORS, through
-``http_endpoint``), checks the bearer token when the server has an authenticator
-(``ServerConfig.bearer_token``: the same tokens as WebRTC's and MCP's), has the
-server admit the connection (``open_session``: ``--max-connections``, the host
+``http_endpoint``), checks the bearer token through the server's one entry check
+(``GraphServer.entry``, ``AuthMode.BEARER``: the same tokens as WebRTC's and
+MCP's), has the server admit the connection (``open_session``: ``--max-connections``, the host
 shares, ``/connected_clients``) and runs the session with the connection pump
 over the socket (``HttpChannel``): the request's body is its one frame, what the
 session queues is written as it is (a whole response, or an event stream's head
@@ -20,6 +20,7 @@ It is registered as a ``frontends.HttpFrontEnd`` (``HTTP_API``) in
 from __future__ import annotations
 
 import logging
+import time
 from typing import TYPE_CHECKING
 
 import anyio
@@ -29,21 +30,21 @@ from rwt_http.wire import error_response, no_content
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 
 from .channel import PlainChannel
-from .frontends import FrontEnd, HttpFrontEnd, SessionRequest
-from .http_endpoint import bearer, claims_path, open_request
+from .frontends import AuthMode, FrontEnd, HttpFrontEnd, SessionRequest
+from .http_endpoint import claims_path, open_request
 from .pump import ConnectionPump, run_connection
 from .version_http import installed_version
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from anyio.abc import ByteStream
+    from anyio.abc import ByteStream, TaskGroup
 
     from rwt_protocol.runtime.commands import CloseCode
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.outbox import OutFrame
 
-    from .server import RosbridgeServer
+    from .server import GraphServer
     from .websocket import HttpEndpoint
 
 __all__ = ["HTTP_API", "HttpApiEndpoint", "HttpChannel"]
@@ -113,12 +114,14 @@ class HttpApiEndpoint:
         options: the API's settings.
     """
 
-    def __init__(self, server: RosbridgeServer, options: HttpApiOptions) -> None:
+    def __init__(self, server: GraphServer, options: HttpApiOptions) -> None:
         self.server = server
         self.options = options
         self.allowed_origins = server.config.websocket.allowed_origins
-        self.auth_required = server.session_config.authenticator is not None
         self.max_body = options.max_body_bytes or server.config.max_message_size
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Nothing to do: each request runs in its socket's task, admitted by the server."""
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
@@ -154,8 +157,11 @@ class HttpApiEndpoint:
         except RouteError as exc:
             await _send(stream, exc.status, exc.text, cors)
             return
-        if self.auth_required and not self._token_ok(opened.headers):
-            await _send(stream, 401, "a bearer token is needed", (*cors, _CHALLENGE))
+        refusal = self.server.entry.check(
+            HTTP_API.auth, peer, headers=opened.headers, now=time.monotonic()
+        )
+        if refusal is not None:
+            await _send(stream, refusal.status, refusal.text, (*cors, _CHALLENGE))
             return
         channel = HttpChannel(stream, opened.body)
         pump = ConnectionPump(channel, self.server.flow, self.server.admission)
@@ -185,11 +191,6 @@ class HttpApiEndpoint:
             return
         await run_connection(pump, session, f"route={route.kind.value} name={route.name}")
 
-    def _token_ok(self, headers: dict[str, str]) -> bool:
-        token = bearer(headers)
-        check = self.server.config.bearer_token
-        return token is not None and check is not None and check(token)
-
 
 _CHALLENGE = (b"WWW-Authenticate", b"Bearer")
 
@@ -209,11 +210,13 @@ async def _send(
         logger.debug("event=http_refused peer gone status=%d", status)
 
 
-def _endpoint(server: RosbridgeServer, options: object) -> HttpEndpoint:
+def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
     return HttpApiEndpoint(
         server, options if isinstance(options, HttpApiOptions) else HttpApiOptions()
     )
 
 
-HTTP_API = HttpFrontEnd("http", (API_PREFIX, OPENAPI_PATH), _endpoint, HttpApiOptions())
+HTTP_API = HttpFrontEnd(
+    "http", (API_PREFIX, OPENAPI_PATH), _endpoint, HttpApiOptions(), AuthMode.BEARER
+)
 """The HTTP API's entry in the registry (``frontends_registry``): on by default."""

@@ -5,6 +5,8 @@ endpoint (``/version``, WebRTC signalling, MCP) before the WebSocket handshake t
 (docs/architecture.md). Each endpoint answers one request a connection with h11:
 ``open_request`` reads it (bounded), answers the malformed, oversized and
 cross-origin ones itself, and ``reply`` sends a response and ends the connection.
+A bearer token is read by ``bearer`` (``rwt_protocol.credentials``, the one parser)
+and checked by the server's one entry check (``GraphServer.entry``).
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from typing import TYPE_CHECKING
 
 import anyio
 import h11
+
+from rwt_protocol.credentials import bearer  # the one reading of a bearer token
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -66,16 +70,6 @@ def claims_path(
         if head.startswith(prefix):
             return accepts(method, head[len(prefix) : len(prefix) + 1])
     return False
-
-
-def bearer(headers: dict[str, str]) -> str | None:
-    """The token of ``Authorization: Bearer <token>`` (RFC 6750 2.1), or None.
-
-    The one reading of a bearer token for every HTTP front end (WebRTC's offers,
-    MCP's sessions, the HTTP API); ``headers`` has lower-case names.
-    """
-    scheme, _, token = headers.get("authorization", "").partition(" ")
-    return token.strip() or None if scheme.lower() == "bearer" else None
 
 
 def cors_headers(origin: str | None, allowed: Sequence[str], base: Headers) -> Headers | None:

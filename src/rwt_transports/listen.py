@@ -1,6 +1,6 @@
 """The error of a listener that cannot bind its address, and how it words the address.
 
-``RosbridgeServer.serve`` raises ``ListenError`` for the WebSocket, TCP and UDP
+``GraphServer.serve`` raises ``ListenError`` for the WebSocket, TCP and UDP
 listeners; ``rwt serve`` raises it for the HTTP video server too, and prints its
 text as one line (docs/cli.md).
 """

@@ -25,28 +25,36 @@ them polls or cancels it.
 
 Every socket a request holds is a connection slot (D40): a session holds
 ``SESSION_SLOTS`` (itself and its event stream, and one request), and a request
-beyond them takes one more while it runs (``RosbridgeServer.take_slot``), or gets
+beyond them takes one more while it runs (``GraphServer.take_slot``), or gets
 503; so requests in flight cannot run the server out of descriptors.
 
 Safety (docs/mcp.md, "Safety"): with ``--auth-secret-file`` a new session needs
 ``Authorization: Bearer <token>``, a live token of ``/rwt/video_token`` (else
-401), and every later request of the session the same header; a request's body
+401; the server's one entry check, ``GraphServer.entry``, ``AuthMode.BEARER``),
+and every later request of the session the same header; a request's body
 is at most ``MAX_REQUEST_BYTES`` (413) of JSON under the rules of frames
 (``rwt_protocol.codecs.json``: nesting, integers, UTF-8; else 400 with a JSON-RPC
 parse error), and only an ``initialize`` request opens a session (400, before
 anything is built; D41); a session has at most ``MAX_REQUESTS_IN_FLIGHT`` requests at
 once (429); ``--allowed-origins`` applies (403). Each tool call passes the
-session's ``rwt_mcp.guard.Guard``. Refusals are logged once per episode.
+session's ``rwt_mcp.guard.Guard``, whose access refusals go through the server's one
+access gate and its log line. Refusals are logged once per episode.
+
+MCP is an HTTP front end of the registry (``mcp_options.MCP``), off unless
+``ServerConfig.mcp`` is set. Its requests' sockets are slots of the server
+(``GraphServer.take_slot``, ``join_socket``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import hmac
 import json
 import logging
 import re
+import time
 import uuid
 from collections import OrderedDict
 from contextlib import asynccontextmanager
@@ -71,6 +79,7 @@ from rwt_mcp.link import RobotLink
 from rwt_mcp.tasks import TaskStore
 from rwt_mcp.tools import build_server
 from rwt_protocol.codecs.json import decode_json_text
+from rwt_protocol.credentials import AuthMode, EntryAuth
 from rwt_protocol.errors import RemoteProtocolError
 
 from .http_endpoint import bearer, claims_path, open_request, reply
@@ -85,9 +94,10 @@ if TYPE_CHECKING:
     from mcp.server.lowlevel import Server
 
     from rwt_mcp.resources import Watched
+    from rwt_protocol.runtime.access import AccessPolicy
     from rwt_protocol.runtime.contract import ServerSession
 
-    from .server import RosbridgeServer
+    from .server import GraphServer
 
 __all__ = [
     "MAX_REQUESTS_IN_FLIGHT",
@@ -227,21 +237,26 @@ class McpEndpoint:
         options: the MCP settings.
         allowed_origins: fnmatch patterns of accepted ``Origin`` headers
             (``--allowed-origins``); empty: any origin.
-        access: the server's access rules as ``rwt_mcp.guard.AccessCheck``; None: none.
+        access: the access rules its tools' guard holds calls to; by default the
+            server's (``session_config.access``), None where they restrict nothing.
     """
 
     def __init__(
         self,
-        server: RosbridgeServer,
+        server: GraphServer,
         options: McpOptions,
         allowed_origins: tuple[str, ...] = (),
-        access: Callable[[str, str], str | None] | None = None,
+        access: AccessPolicy | None = None,
     ) -> None:
         self.server = server
         self.options = options
         self.allowed_origins = allowed_origins
-        self.access = access
-        self.auth_required = server.session_config.authenticator is not None
+        policy = access or server.session_config.access
+        self.access = policy if policy.restricted else None
+        self.entry: EntryAuth = server.entry
+        if options.bearer_token is not None:  # its own check of the tokens, set by embedding code
+            self.entry = dataclasses.replace(self.entry, token=options.bearer_token)
+        self.auth_required = self.entry.required
         self.sessions: dict[str, _Session] = {}
         self.tasks = TaskStore()  # every session's and request's (rwt_mcp.tasks)
         self._watched: Watched = {}  # topics the 2026-07-28 requests' listen streams hold
@@ -289,7 +304,7 @@ class McpEndpoint:
             body = "" if request.method == b"OPTIONS" else json.dumps(self._metadata(headers))
             await reply(conn, stream, 204 if not body else 200, body, cors, "application/json")
             return
-        refusal = self._refusal(request, headers)
+        refusal = self._refusal(request, headers, peer)
         if refusal is not None:
             extra = [(b"WWW-Authenticate", self._challenge(headers))] if refusal[0] == 401 else []
             await exchange.refuse(*refusal, extra)
@@ -335,7 +350,9 @@ class McpEndpoint:
         url = self._base(headers) + METADATA_PATH + MCP_PATH
         return f'Bearer resource_metadata="{url}"'.encode("latin-1")
 
-    def _refusal(self, request: h11.Request, headers: dict[str, str]) -> tuple[int, str] | None:
+    def _refusal(
+        self, request: h11.Request, headers: dict[str, str], peer: str
+    ) -> tuple[int, str] | None:
         """Why the request is refused before MCP sees it (status, text), or None."""
         path, _, query = request.target.decode("latin-1").partition("?")
         if path != MCP_PATH:
@@ -350,11 +367,8 @@ class McpEndpoint:
         if session_id is None:
             if request.method != b"POST":
                 return 400, "no Mcp-Session-Id: POST an initialize request first"
-            if self.auth_required:
-                check = self.options.bearer_token
-                if token is None or check is None or not check(token):
-                    return 401, "a bearer token is needed: call /rwt/video_token for one"
-            return None
+            entry = self.entry.check(AuthMode.BEARER, peer, headers=headers, now=time.monotonic())
+            return None if entry is None else (entry.status, entry.text)
         session = self.sessions.get(session_id)
         if session is None:
             return 404, f"no MCP session {session_id[:64]}: initialize a new one"
@@ -404,7 +418,10 @@ class McpEndpoint:
         channel, connection = memory_pair()
         channel.transport = "mcp"  # in the logs: an MCP session's connection
         pump = ConnectionPump(channel, self.server.flow, self.server.admission)
-        session = self.server.open_session("mcp", peer, pump.wake, authenticated=True)
+        # no socket of its own: its host's share applies from the first session (D40)
+        session = self.server.open_session(
+            "mcp", peer, pump.wake, authenticated=True, share_from_first=True
+        )
         if session is None:
             await _close_pair(connection)
             return None
@@ -422,7 +439,7 @@ class McpEndpoint:
             if slot is None:
                 await exchange.refuse(503, "too many connections")
                 return
-        self.server.adopt_socket()
+        self.server.join_socket()
         try:
             await self._handle(exchange, session)
         finally:
@@ -482,7 +499,7 @@ class McpEndpoint:
         if tg is None or admitted is None:
             await exchange.refuse(503, "too many connections")
             return
-        self.server.adopt_socket()
+        self.server.join_socket()
         answered = anyio.Event()
         try:
             mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered)

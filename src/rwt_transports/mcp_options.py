@@ -1,8 +1,9 @@
 """Settings of the MCP endpoint on the WebSocket port (``rwt serve --mcp``, docs/mcp.md).
 
 Apart from ``mcp_http`` so that the server's configuration names them without
-loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs. What bounds
-an MCP session as a client (its slots, its host's share, ``--idle-timeout``) is
+loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs; so is MCP's
+entry in the registry (``MCP``, ``frontends_registry``), whose endpoint loads it. What
+bounds an MCP session as a client (its slots, its host's share, ``--idle-timeout``) is
 the server's own configuration (D40).
 """
 
@@ -11,10 +12,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rwt_protocol.errors import ConfigError
+
+from .frontends import AuthMode, HttpFrontEnd
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-__all__ = ["MCP_PATH", "METADATA_PATH", "McpOptions"]
+    from .server import GraphServer
+    from .websocket import HttpEndpoint
+
+__all__ = ["MCP", "MCP_PATH", "METADATA_PATH", "McpOptions"]
 
 MCP_PATH = "/mcp"
 """The MCP endpoint (Streamable HTTP): every request of an MCP client goes here."""
@@ -33,7 +41,8 @@ class McpOptions:
         bearer_token: with an authenticator (``--auth-secret-file``), checks the
             token of a new session's ``Authorization: Bearer`` header (the video
             tokens of ``/rwt/video_token``, ``rwt_video.VideoTokens.valid``);
-            None: every new session gets 401.
+            None: the server's (``ServerConfig.bearer_token``), and without one
+            every new session gets 401.
         authorization_server: the issuer URL of the OAuth 2.1 authorization server
             the protected-resource metadata names (``--mcp-authorization-server``;
             ``METADATA_PATH``); None: the metadata names none (rwt issues no tokens
@@ -43,3 +52,29 @@ class McpOptions:
     read_only: bool = False
     bearer_token: Callable[[str], bool] | None = None
     authorization_server: str | None = None
+
+
+def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
+    """The MCP endpoint (the MCP SDK: loaded only when MCP is on).
+
+    Raises:
+        ConfigError: ``options`` is not an ``McpOptions``.
+        ImportError: the MCP SDK is not installed (``rwt-rosbridge[mcp]``).
+    """
+    if not isinstance(options, McpOptions):
+        raise ConfigError(f"MCP's options must be McpOptions, not {type(options).__name__}")
+    from .mcp_http import McpEndpoint  # noqa: PLC0415 (the MCP SDK: only with --mcp)
+
+    return McpEndpoint(server, options, server.config.websocket.allowed_origins)
+
+
+MCP = HttpFrontEnd(
+    "mcp",
+    (MCP_PATH, METADATA_PATH),
+    _endpoint,
+    None,
+    AuthMode.BEARER,
+    configured=lambda config: config.mcp,
+)
+"""MCP's entry in the registry (``frontends_registry``): on with ``ServerConfig.mcp``
+(``rwt serve --mcp``)."""

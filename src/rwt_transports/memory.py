@@ -1,6 +1,6 @@
 """In-process transport: a rosbridge connection made of two memory streams.
 
-``RosbridgeServer.connect_memory()`` gives embedding code (and tests) a client
+``GraphServer.connect_memory()`` gives embedding code (and tests) a client
 connection without a socket that goes through the same pump, gates and limits
 as every network client (D22).
 """

@@ -1,13 +1,18 @@
-"""The rosbridge server: listeners on every transport, one graph, one session per connection.
+"""The server: listeners on every transport, one graph, the registry's front ends on it.
 
-``RosbridgeServer`` owns the graph and runs the listeners configured in
-``ServerConfig`` side by side: WebSocket (``ws``/``wss``), TCP (plain or TLS),
-UDP and stdio. Every connection, whatever its transport and its protocol
-(rosbridge, or a front end such as Foxglove's, ``frontends``), is admitted in one
-step (``open_session``: ``--max-connections``, the host shares,
-``/connected_clients``) and gets a session on the same graph through the same
-pump (D22), so a TCP client, a WebSocket client and a Foxglove client see each
-other's topics and services. The server also keeps the latched
+``GraphServer`` (``RosbridgeServer``, its first name, is the same class) owns the
+graph and runs the listeners configured in ``ServerConfig`` side by side:
+WebSocket (``ws``/``wss``), TCP (plain or TLS), UDP and stdio. The protocols it
+speaks are the front ends of the registry (``frontends_registry``): rosbridge by
+default, the others chosen by WebSocket subprotocol, WebRTC data-channel label or
+HTTP path; nothing here names one. Every connection, whatever its transport and
+its protocol, is admitted in one step (``admit``, or ``open_session``:
+``--max-connections``, the host shares, ``/connected_clients``) and proves who it
+is through one check (``entry``, ``rwt_protocol.credentials``), and its session
+runs on the same graph through the same pump (D22), so a TCP client, a WebSocket
+client, a Foxglove client and an HTTP request see each other's topics and
+services. Its settings are ``ServerConfig`` (config.py), rosauth's check of the
+``auth`` op is rosauth.py's. The server also keeps the latched
 ``/client_count`` and ``/connected_clients`` topics that rosbridge publishes
 (D14), from node ``/rosbridge_websocket``, offers rosapi (REF §7.1) from node
 ``/rosapi`` (listing only what the access rules let a client see) and
@@ -29,9 +34,9 @@ import math
 import socket
 import ssl
 import sys
-from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Mapping
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterable
 from contextlib import AsyncExitStack, asynccontextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import anyio
@@ -54,55 +59,50 @@ from rwt_graph.tasks import start_soon
 from rwt_graph.tf.loop import install_tf_republisher
 from rwt_graph.types.convert import time_value
 from rwt_graph.visibility import Visibility
-from rwt_protocol.auth import BOUND_MAC_LABEL, URL_MAC_LABEL, Authenticator, RosauthVerifier
+from rwt_protocol.credentials import EntryAuth
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
-from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET, MemoryBudget
-from rwt_protocol.server.compat import Compat
-from rwt_protocol.server.session import CloseCode, Session, SessionConfig
+from rwt_protocol.runtime.memory import MemoryBudget
+from rwt_protocol.server.session import CloseCode, Session
 from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
+from .config import ServerConfig
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
-from .foxglove import FoxgloveOptions, foxglove_frontend
-from .frontends import AuthMode, FrontEnd, FrontEnds, SessionRequest
-from .frontends_registry import HTTP_FRONTENDS
+from .frontends import FrontEnd, FrontEnds, SessionRequest
+from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
-from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6, HostPrefixes, HostShares, address_of
+from .rosauth import rosauth_authenticator, url_authenticator
+from .shares import HostPrefixes, HostShares, address_of
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
-from .udp import UdpOptions, serve_udp
+from .udp import serve_udp
 from .udp_auth import UdpAuth
-from .urltoken import url_token_gate
-from .version_http import Features, VersionEndpoint
-from .webrtc_signal import WebRtcOptions, WebRtcSignalling
-from .websocket import WebSocketOptions, serve_websocket_connection
+from .version_http import Features, ServedFrontEnd
+from .websocket import serve_websocket_connection
 
 if TYPE_CHECKING:
     from pathlib import Path
 
     from rwt_graph.calls import Soon, Spawner
-    from rwt_graph.clock import Clock
     from rwt_graph.local import LocalPublisher
     from rwt_graph.tf import TFRepublisher
-    from rwt_protocol.ops import Auth
+    from rwt_protocol.auth import Authenticator
     from rwt_protocol.runtime.access import AccessPolicy
     from rwt_protocol.runtime.contract import ServerSession
 
     from .holding import Held
-    from .mcp_http import McpEndpoint
-    from .mcp_options import McpOptions
-    from .webrtc_peers import WebRtcPeers
     from .websocket import HttpEndpoint
 
 __all__ = [
     "SERVER_NODE",
     "Admitted",
+    "GraphServer",
     "RosbridgeServer",
     "ServerConfig",
     "rosauth_authenticator",
@@ -111,10 +111,8 @@ __all__ = [
 ]
 
 logger = logging.getLogger("rwt.server")
-_episodes = EpisodeLog(logger)  # a peer can trigger these at will
 
-MiB = 1024 * 1024
-# the listeners as a ListenError names them
+# the listeners as a ListenError names them (a front end's own port: "WebSocket (foxglove)")
 _LISTENER_NAMES = {"websocket": "WebSocket", "tcp": "TCP"}
 
 _TLS_FAILURES = (ssl.SSLError, OSError, anyio.BrokenResourceError, anyio.EndOfStream)
@@ -124,222 +122,23 @@ _ACCEPT_BACKOFF_S = 0.1
 _ACCEPT_BACKOFF_MAX_S = 1.0
 """Longest pause of the accept loop between two failed ``accept()`` calls."""
 
-_NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, which has none"
-"""``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
-
 _LOCAL = frozenset({"stdio", "memory"})
 """Transports whose connections do not count against a host's share (every other does)."""
-
-_SHARED_FROM_FIRST = frozenset({"mcp"})
-"""Transports whose sessions count against their host's share from the first (D40): an
-MCP session holds no socket of its own, so a ``--max-connections`` derived from the
-descriptors, and the shares that apply past ``shares.SHARES_FROM`` of it, bound it late."""
 
 #: The node of the server's own publishers, as rosbridge names it.
 SERVER_NODE = "/rosbridge_websocket"
 
 
-@dataclass(frozen=True)
-class ServerConfig:
-    """Settings of a server (names follow rosbridge's parameters where it has one).
-
-    Attributes:
-        host: address every listener binds (``--host``).
-        port: WebSocket port (``--port``; 0 picks a free one; None: no WebSocket).
-        tcp_port: TCP port (``--tcp-port``; None: no TCP listener).
-        udp_port: UDP port (``--udp-port``; None: no UDP socket).
-        stdio: serve one session over stdin/stdout (``--stdio``); the server
-            stops when that session ends.
-        stdio_fds: the (read, write) file descriptors of that session when not
-            stdin/stdout (a pipe pair or a socket, for embedding and tests).
-        max_message_size: largest incoming message on every transport, bytes.
-        max_fragment_memory: bytes of incomplete ``fragment``/``png`` messages, and
-            of TCP and WebSocket frames still arriving, all connections may hold
-            together (``--max-fragment-memory``); a part past it is refused with an
-            error status and its message dropped, a frame skipped (TCP) or its
-            connection closed (WebSocket, 1013)
-            (``rwt_protocol.framing.fragments.FragmentBudget``, docs/limits.md).
-        memory_budget: bytes every connection together may make the server hold
-            (``--memory-budget``, D44): outboxes (topic messages, replies, asset
-            files), png messages waiting to be deflated, incomplete messages (within
-            ``max_fragment_memory``) and WebRTC input not read yet. While it is full,
-            clients that do not read lose their oldest topic messages and are closed
-            as slow consumers, and what would grow it is refused
-            (``rwt_protocol.runtime.memory.MemoryBudget``, docs/limits.md).
-        max_connections: most simultaneous connections over all transports
-            (``--max-connections``); a stream socket counts from ``accept()``,
-            before its TLS/WebSocket handshake, and an MCP session holds
-            ``mcp_http.SESSION_SLOTS`` plus one per request beyond them (D40).
-            None: derived from the soft RLIMIT_NOFILE when serving starts
-            (``fdlimit.default_max_connections``).
-        max_connections_per_host: connections one host (``host_prefix_v4``,
-            ``host_prefix_v6``) may hold once ``shares.SHARES_FROM`` of
-            ``max_connections`` are taken (``--max-connections-per-host``); before
-            that anyone gets one, so local use, where every client is 127.0.0.1, is
-            not limited. WebSocket, TCP, UDP, WebRTC and MCP count; stdio and
-            in-process connections do not. A host's MCP sessions count against
-            it from the first (D40).
-        host_prefix_v4: leading bits of an IPv4 source address (or IPv4-mapped
-            IPv6 one) that name its host for the per-host shares, 0 to 32
-            (``--host-prefix-v4``; 24: a /24 is one host).
-        host_prefix_v6: the same for IPv6, 0 to 128 (``--host-prefix-v6``; by
-            default the /64 one machine gets).
-        idle_timeout_s: seconds after which a WebSocket or TCP connection whose peer
-            sent nothing and that holds nothing is closed (``--idle-timeout``;
-            ``rwt_protocol.runtime.idle``), and an MCP session without a request in
-            flight ends (D40); None: never. UDP has ``udp.idle_timeout_s``.
-        certfile: PEM certificate (chain) for TLS on WebSocket and TCP (``--certfile``).
-        keyfile: PEM private key for it (``--keyfile``).
-        shutdown_grace_s: seconds a stopping server waits for connections to
-            close before cutting them.
-        session: per-connection protocol settings (limits, access, auth).
-        websocket: WebSocket settings.
-        foxglove: where Foxglove clients are answered (docs/foxglove.md): on the
-            WebSocket port by default, and on ``foxglove.port`` if set. With an
-            authenticator, a Foxglove client is admitted by the token in its URL
-            (``urltoken.url_token_gate``; Foxglove has no ``auth`` op).
-        udp: UDP settings.
-        rosapi: offer the ``/rosapi/*`` services.
-        rosapi_visibility: what each client may see through rosapi; by default
-            what ``session.access`` allows.
-        tf: offer tf2_web_republisher's action, actionlib topics and service with a
-            TF buffer fed by ``/tf`` and ``/tf_static`` (``rwt serve --no-tf``: off).
-        handshake_timeout_s: seconds an accepted WebSocket or TLS socket has to
-            finish its handshake before it is closed (``--handshake-timeout``).
-        clients_interval_s: ``/client_count`` and ``/connected_clients`` are
-            published at most once per this many seconds, with the latest state
-            (the first change at once), so connection churn costs O(changes).
-        clients_fanout_per_s: most client-list entries (``/connected_clients``)
-            sent per second over all its subscribers: a publish sends the whole
-            list to each, clients x subscribers entries (about 60 bytes each), so
-            with many of both the interval grows to that over this rate.
-        reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
-            ``rwt serve --workers N`` share one port (Linux spreads connections).
-        webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
-            docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
-        mcp: serve MCP (Streamable HTTP) at ``/mcp`` on the WebSocket port
-            (``--mcp``, docs/mcp.md; needs ``rwt-rosbridge[mcp]``); None: no MCP.
-        use_sim_time: while serving, the latest ``/clock`` (rosgraph_msgs/msg/Clock)
-            is the graph's timeline, which Foxglove clients get as server time
-            (``--use-sim-time``; ``rwt_graph.simtime``, docs/foxglove.md).
-        http_options: the options of an HTTP front end of the registry
-            (``frontends_registry.HTTP_FRONTENDS``) by its name; None turns it
-            off (``{"http": None}``: ``rwt serve --no-http-api``, docs/http.md);
-            one not named runs with its default options.
-        bearer_token: with an authenticator, checks the ``Authorization: Bearer``
-            token of an HTTP front end's request (the video server's tokens,
-            ``/rwt/video_token``); None: such requests are refused (401).
-    """
-
-    host: str = "127.0.0.1"
-    port: int | None = 9090
-    tcp_port: int | None = None
-    udp_port: int | None = None
-    stdio: bool = False
-    stdio_fds: tuple[int, int] | None = None
-    max_message_size: int = 10 * MiB
-    max_fragment_memory: int = 256 * MiB
-    memory_budget: int = DEFAULT_MEMORY_BUDGET
-    max_connections: int | None = None
-    max_connections_per_host: int = 64
-    host_prefix_v4: int = DEFAULT_PREFIX_V4
-    host_prefix_v6: int = DEFAULT_PREFIX_V6
-    idle_timeout_s: float | None = 600.0
-    certfile: Path | None = None
-    keyfile: Path | None = None
-    shutdown_grace_s: float = 5.0
-    session: SessionConfig = field(default_factory=SessionConfig)
-    websocket: WebSocketOptions = field(default_factory=WebSocketOptions)
-    foxglove: FoxgloveOptions = field(default_factory=FoxgloveOptions)
-    udp: UdpOptions = field(default_factory=UdpOptions)
-    rosapi: bool = True
-    rosapi_visibility: VisibilityFor | None = None
-    tf: bool = True
-    handshake_timeout_s: float = 10.0
-    clients_interval_s: float = 0.5
-    clients_fanout_per_s: float = 200_000.0
-    reuse_port: bool = False
-    use_sim_time: bool = False
-    webrtc: WebRtcOptions | None = None
-    mcp: McpOptions | None = None
-    http_options: Mapping[str, object] = field(default_factory=dict)
-    bearer_token: Callable[[str], bool] | None = None
-
-
-def rosauth_authenticator(
-    secret: str,
-    clock: Clock,
-    max_skew_s: float = 5.0,
-    *,
-    bind_connection: bool = False,
-    url_token: bool = False,
-) -> Authenticator:
-    """The rosauth MAC check (D23) as an authenticator, reading wall time from ``clock``.
-
-    Args:
-        secret: the shared secret.
-        clock: where the current wall time comes from (the graph's clock).
-        max_skew_s: how far in the future ``t`` may be, seconds.
-        bind_connection: check ``bound_mac`` instead of rosauth's MAC
-            (``--auth-bind-connection``, D31); the sessions must then send a
-            challenge (``SessionConfig(auth_challenge=True)``).
-        url_token: check URL tokens (D33) rather than ``auth`` ops: with
-            ``bind_connection``, the bound MAC under ``URL_MAC_LABEL``. A
-            server makes the URL tokens' check from the ``auth`` ops' one itself.
-    """
-    label = URL_MAC_LABEL if url_token else BOUND_MAC_LABEL
-    verifier = RosauthVerifier(secret, max_skew_s, bound=bind_connection, label=label)
-    return _Rosauth(verifier, clock)
-
-
-@dataclass(frozen=True)
-class _Rosauth:
-    """rosauth's check as an ``Authenticator``: ``(op, peer) -> admitted`` (D23, D31, D33).
-
-    Attributes:
-        verifier: the MAC and time window check.
-        clock: the wall time's source.
-    """
-
-    verifier: RosauthVerifier
-    clock: Clock
-
-    def __call__(self, op: Auth, peer: str) -> bool:
-        """Whether ``op`` is valid now; a refusal is logged (rate-limited) with its reason."""
-        problem = self.verifier.problem(op, self.clock.wall())
-        if problem is not None:
-            _episodes.log(
-                logging.WARNING,
-                "auth_rejected",
-                "event=auth_rejected peer=%s reason=%r",
-                peer,
-                problem,
-            )
-        return problem is None
-
-    def for_url_tokens(self) -> _Rosauth:
-        """The same check for URL tokens: with a bound MAC, the URL token's (D33)."""
-        return replace(self, verifier=replace(self.verifier, label=URL_MAC_LABEL))
-
-
-def _url_authenticator(authenticator: Authenticator) -> Authenticator:
-    """The authenticator of URL tokens for a server whose ``auth`` ops ``authenticator`` checks.
-
-    rosauth's (``rosauth_authenticator``) checks URL tokens under their own MAC
-    with ``--auth-bind-connection`` (``for_url_tokens``), so a token opens only
-    what it was issued for; an embedding program's own callable decides both
-    (it gets the op and the peer, docs/embedding.md).
-    """
-    if isinstance(authenticator, _Rosauth):
-        return authenticator.for_url_tokens()
-    return authenticator
-
-
 Runner = Callable[[TaskGroup], Coroutine[object, object, None]]
 
 
-class RosbridgeServer:
-    """Serves one graph to rosbridge clients over every configured transport.
+class GraphServer:
+    """Serves one graph over every configured transport, in every registered protocol.
+
+    The protocols are the registry's front ends (``frontends_registry``):
+    rosbridge by default, Foxglove's by subprotocol, the HTTP front ends
+    (``/version``, WebRTC, MCP, the HTTP API) by path. ``RosbridgeServer`` is the
+    same class, under its first name.
 
     Args:
         graph: the graph to serve; a new ROS 2 graph by default.
@@ -351,7 +150,8 @@ class RosbridgeServer:
 
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
-            its address's width (``shares.HostPrefixes``).
+            its address's width (``shares.HostPrefixes``); an HTTP front end's
+            options are not of its type.
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
             ``config.mcp`` is set but the MCP SDK is not (``rwt-rosbridge[mcp]``).
     """
@@ -368,12 +168,13 @@ class RosbridgeServer:
     ) -> None:
         self.config = config or ServerConfig()
         # a bad prefix is refused (ConfigError) before the graph is touched
-        self._host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
+        self.host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
+        """What names a peer's host for the host shares (``--host-prefix-v4``, ``-v6``)."""
         self.graph = graph or Graph()
         # one flow control for the connections and the links (it keeps the hosts' cool-downs);
         # links' deliveries are held back as readers are
         self.flow: FlowControl[Held] = FlowControl(
-            self.config.session.hold_budget_s, HostCoolDowns(self._host_prefixes)
+            self.config.session.hold_budget_s, HostCoolDowns(self.host_prefixes)
         )
         self.graph.port.inflow = InboundBatch(self.flow)
         # one order of first input for its connections, on its loop (admission.py)
@@ -391,27 +192,22 @@ class RosbridgeServer:
         # messages draw from it within their own
         self.memory = MemoryBudget(self.config.memory_budget)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory, self.memory)
-        # the protocols of the WebSocket listeners: rosbridge by default, Foxglove by
-        # subprotocol (on the rosbridge port unless --no-foxglove, and on its own port)
-        rosbridge = FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
-        foxglove = foxglove_frontend(self.graph.port, self.config.foxglove, self.graph.params)
-        on_port = [foxglove] if self.config.foxglove.on_rosbridge_port else []
-        self.frontends = FrontEnds(rosbridge, on_port)
-        self._foxglove_only = FrontEnds(None, [foxglove])
-        authenticator = session_config.authenticator
-        self._token_gate = (
-            None if authenticator is None else url_token_gate(_url_authenticator(authenticator))
-        )
+        self.entry = self._entry_auth(session_config.authenticator)
+        """The one check of every way in (``rwt_protocol.credentials``): each front end's
+        ``AuthMode`` and what its client presented."""
+        # the registry's protocols of the WebSocket listeners: rosbridge by default, the
+        # others by subprotocol, on the WebSocket port and on ports of their own
+        self.frontends, self._own_ports = self._socket_frontends()
         # stream connections (not stdio, not in-process) close when idle
         self._stream_session_config = replace(
             session_config, idle_timeout_s=self.config.idle_timeout_s or None
         )
         self._shares = HostShares(self.config.max_connections_per_host)
         self._hosts: dict[str, str] = {}  # client id -> its host, for the shares
-        # sessions of _SHARED_FROM_FIRST transports, per host, from the first (D40)
+        # sessions shared from the first (open_session's share_from_first), per host (D40)
         self._first_shares = HostShares(self.config.max_connections_per_host)
         self._first_hosts: dict[str, str] = {}  # client id -> its host, for those
-        self._extra_slots = 0  # slots held without a session of their own (take_slot)
+        self._extra_slots = 0  # slots held without a session of their own (take_slot, admit)
         self._refusals = EpisodeLog(logger)
         self.sessions: dict[str, ServerSession] = {}
         self.urls: dict[str, str] = {}
@@ -427,19 +223,45 @@ class RosbridgeServer:
         )
         self._publish_clients()
         self.rosapi, self.tf = self._install_helpers()
-        self.webrtc, self._signalling = self._set_up_webrtc(self.config.webrtc)
-        self.mcp = self._set_up_mcp(self.config.mcp)
-        version = VersionEndpoint(
-            self._features,
-            self.config.websocket.allowed_origins,
-            _NO_VERSION if self.session_config.compat is Compat.ROSBRIDGE_2_1 else None,
-        )
-        endpoints = (version, self._signalling, self.mcp, *self._http_frontends())
-        self._http: list[HttpEndpoint] = [e for e in endpoints if e is not None]
+        self.endpoints: dict[str, HttpEndpoint] = {}
+        """The HTTP front ends served on the WebSocket port, by their registry name
+        (``version``, ``webrtc``, ``mcp``, ``http``), in the order they claim requests."""
+        for frontend in HTTP_FRONTENDS:
+            options = frontend.options_in(self.config)
+            if options is not None:
+                self.endpoints[frontend.name] = frontend.make_endpoint(self, options)
         self._stop_requested = False
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def _entry_auth(self, authenticator: Authenticator | None) -> EntryAuth:
+        """The one entry check for ``authenticator`` and ``ServerConfig.bearer_token``.
+
+        URL tokens are checked under their own MAC where rosauth's check binds
+        connections (``rosauth.url_authenticator``, D33).
+        """
+        url = None if authenticator is None else url_authenticator(authenticator)
+        return EntryAuth(authenticator is not None, authenticator, url, self.config.bearer_token)
+
+    def _socket_frontends(self) -> tuple[FrontEnds, dict[str, tuple[int, FrontEnds]]]:
+        """The WebSocket listeners' front ends, from the registry.
+
+        Returns:
+            Those of the WebSocket port (rosbridge by default, the registered ones
+            the configuration puts there), and, by name, each registered front end's
+            own port with the front ends that answer there (``--foxglove-port``).
+        """
+        on_port: list[FrontEnd] = []
+        own: dict[str, tuple[int, FrontEnds]] = {}
+        for entry in SOCKET_FRONTENDS:
+            frontend = entry.make(self)
+            if entry.on_port(self.config):
+                on_port.append(frontend)
+            port = entry.own_port(self.config)
+            if port is not None:
+                own[entry.name] = (port, FrontEnds(None, [frontend]))
+        return FrontEnds(rosbridge_frontend(self._rosbridge_session), on_port), own
 
     def _install_helpers(self) -> tuple[Rosapi | None, TFRepublisher | None]:
         """The helpers: rosapi (showing what the access rules let one see), TF republisher."""
@@ -475,48 +297,11 @@ class RosbridgeServer:
             )
         return site, replace(config, websocket=replace(config.websocket, console=site))
 
-    def _set_up_webrtc(
-        self, options: WebRtcOptions | None
-    ) -> tuple[WebRtcPeers | None, WebRtcSignalling | None]:
-        """WebRTC's peers and its signalling on the WebSocket port (docs/webrtc.md), or none."""
-        if options is None:
-            return None, None
-        from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
-        from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
-
-        video = WebRtcVideo(self.graph, self.session_config.access)
-        peers = WebRtcPeers(self, options, self.config.max_message_size, video, self._host_prefixes)
-        signalling = WebRtcSignalling(
-            peers,
-            options,
-            self.config.websocket.allowed_origins,
-            auth_required=self.session_config.authenticator is not None,
-        )
-        return peers, signalling
-
-    def _set_up_mcp(self, options: McpOptions | None) -> McpEndpoint | None:
-        """The MCP endpoint on the WebSocket port (docs/mcp.md), or none."""
-        if options is None:
-            return None
-        from .mcp_http import McpEndpoint  # noqa: PLC0415 (the MCP SDK: only with --mcp)
-
-        policy = self.session_config.access
-        access = _access_check(policy) if policy.restricted else None
-        return McpEndpoint(self, options, self.config.websocket.allowed_origins, access)
-
-    def _http_frontends(self) -> list[HttpEndpoint]:
-        """The endpoints of the registry's HTTP front ends not turned off (``http_options``)."""
-        made = []
-        for frontend in HTTP_FRONTENDS:
-            options = self.config.http_options.get(frontend.name, frontend.options)
-            if options is not None:
-                made.append(frontend.make_endpoint(self, options))
-        return made
-
-    def _features(self) -> Features:
+    def features(self) -> Features:
         """What this server offers, for ``GET /version``'s ``rwt`` object (D49).
 
-        From the configuration and the front ends as they are now; nothing secret.
+        From the configuration and the registry's front ends as they are served now
+        (one added by ``add_frontend`` too); nothing secret.
         """
         config, tls = self.config, self.config.certfile is not None
         transports = [
@@ -526,26 +311,43 @@ class RosbridgeServer:
                 ("tcp+tls" if tls else "tcp", config.tcp_port is not None),
                 ("udp", config.udp_port is not None),
                 ("stdio", config.stdio),
-                ("webrtc", self.webrtc is not None),
             )
             if on
         ]
+        served = [each for each in HTTP_FRONTENDS if each.name in self.endpoints]
+        transports += [each.transport for each in served if each.transport is not None]
+        required = self.entry.required
+        frontends = [
+            ServedFrontEnd(
+                each.name,
+                each.subprotocols,
+                (*each.labels, *each.lossy_labels),
+                auth=each.auth.value if required else "none",
+            )
+            for each in self.frontends.every
+        ]
+        frontends += [
+            ServedFrontEnd(
+                each.name, paths=each.paths, auth=each.auth.value if required else "none"
+            )
+            for each in served
+        ]
         auth = "none"
-        if self.session_config.authenticator is not None:
+        if required:
             auth = "op-bound" if self.session_config.auth_challenge else "op"
         return Features(
             transports=tuple(transports),
             encodings=tuple(each.value for each in Compression),
             subprotocols=tuple(n for each in self.frontends.others for n in each.subprotocols),
-            webrtc=self.webrtc is not None,
-            mcp=self.mcp is not None,
+            frontends=tuple(frontends),
             auth=auth,
         )
 
     def add_frontend(self, frontend: FrontEnd) -> None:
         """Speak one more protocol on the WebSocket port, chosen by its subprotocols.
 
-        It gets the server's admission, per-client rules and flow control as
+        Its data-channel labels (``FrontEnd.labels``) select it on WebRTC too. It
+        gets the server's admission, per-client rules and flow control as
         rosbridge and Foxglove do (docs/architecture.md, "How to add a protocol").
         Call it before ``serve``.
         """
@@ -597,10 +399,8 @@ class RosbridgeServer:
                     with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
-                        if self.webrtc is not None:
-                            self.webrtc.bind(connections)
-                        if self.mcp is not None:
-                            self.mcp.bind(connections)
+                        for endpoint in self.endpoints.values():
+                            endpoint.bind(connections)
                         async with anyio.create_task_group() as accepting:
                             for runner in runners:
                                 accepting.start_soon(runner, connections)
@@ -608,10 +408,8 @@ class RosbridgeServer:
                             accepting.cancel_scope.cancel()
                         await self._shutdown(connections)
                 finally:
-                    if self.webrtc is not None:
-                        self.webrtc.bind(None)
-                    if self.mcp is not None:
-                        self.mcp.bind(None)
+                    for endpoint in self.endpoints.values():
+                        endpoint.bind(None)
                     self._clients_changed = None
                     self._publish_clients()  # the final state, latched
 
@@ -631,11 +429,8 @@ class RosbridgeServer:
         sessions = list(self.sessions.values())
         logger.info("event=shutdown sessions=%d", len(sessions))
         self.graph.port.fail_pending("server shutting down")  # while callers can still read
-        if self.mcp is not None:  # no new MCP sessions; the open ones close with theirs
-            self.mcp.bind(None)
-        if self.webrtc is not None:  # not connected yet: nothing to close gracefully
-            self.webrtc.bind(None)
-            self.webrtc.stop_connecting()
+        for endpoint in self.endpoints.values():  # nothing new; what is not running yet goes
+            endpoint.bind(None)
         for session in sessions:
             session.begin_shutdown()
         for session in sessions:
@@ -652,12 +447,20 @@ class RosbridgeServer:
         tls = _tls_context(config.certfile, config.keyfile)
         runners: list[Runner] = []
         if config.port is not None:
-            runners.append(await self._stream_listener(stack, config.port, tls, "websocket"))
-        if config.foxglove.port is not None:
-            port = config.foxglove.port
-            runners.append(await self._stream_listener(stack, port, tls, "foxglove"))
+            websocket = self._websocket_handler(None, self.endpoints.values())
+            runners.append(
+                await self._stream_listener(stack, config.port, tls, "websocket", websocket)
+            )
+        for name, (port, frontends) in self._own_ports.items():  # a front end's own port
+            runners.append(
+                await self._stream_listener(
+                    stack, port, tls, name, self._websocket_handler(frontends)
+                )
+            )
         if config.tcp_port is not None:
-            runners.append(await self._stream_listener(stack, config.tcp_port, tls, "tcp"))
+            runners.append(
+                await self._stream_listener(stack, config.tcp_port, tls, "tcp", self._handle_tcp)
+            )
         if config.udp_port is not None:
             try:
                 sock = await anyio.create_udp_socket(
@@ -677,7 +480,7 @@ class RosbridgeServer:
                     self,
                     config.udp,
                     config.max_message_size,
-                    self._host_prefixes,
+                    self.host_prefixes,
                     auth=auth,
                 )
                 await _contained("udp endpoint", work)
@@ -689,25 +492,25 @@ class RosbridgeServer:
         return runners
 
     async def _stream_listener(
-        self, stack: AsyncExitStack, port: int, tls: ssl.SSLContext | None, kind: str
+        self,
+        stack: AsyncExitStack,
+        port: int,
+        tls: ssl.SSLContext | None,
+        kind: str,
+        handler: Callable[[ByteStream], Awaitable[None]],
     ) -> Runner:
+        """Listen on ``port`` for ``kind`` (``websocket``, ``tcp``, a front end's own port)."""
         try:
             listener = await anyio.create_tcp_listener(
                 local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
             )
         except OSError as exc:
-            raise ListenError(_LISTENER_NAMES[kind], self.config.host, port, exc) from exc
+            name = _LISTENER_NAMES.get(kind, f"WebSocket ({kind})")
+            raise ListenError(name, self.config.host, port, exc) from exc
         await stack.enter_async_context(listener)
         bound = listener.extra(SocketAttribute.local_port)
-        scheme = {"websocket": ("ws", "wss"), "foxglove": ("ws", "wss"), "tcp": ("tcp", "tcp+tls")}[
-            kind
-        ][tls is not None]
-        self.urls[kind] = f"{scheme}://{_url_host(self.config.host)}:{bound}"
-        handler = {
-            "websocket": self._handle_websocket,
-            "foxglove": self._handle_foxglove,
-            "tcp": self._handle_tcp,
-        }[kind]
+        scheme = ("tcp", "tcp+tls") if kind == "tcp" else ("ws", "wss")
+        self.urls[kind] = f"{scheme[tls is not None]}://{_url_host(self.config.host)}:{bound}"
 
         async def run(connections: TaskGroup) -> None:
             async with anyio.create_task_group() as sockets:  # one per address family
@@ -763,7 +566,7 @@ class RosbridgeServer:
     async def _accept_slot(self) -> None:
         """Wait while the server holds all the sockets it may (slots and handshakes)."""
         while (limit := self._limit) is not None and (
-            self._slots_taken() + self._handshaking >= limit + REFUSING_SOCKETS
+            self.slots_taken + self._handshaking >= limit + REFUSING_SOCKETS
         ):
             if self._slot_freed is None or self._slot_freed.is_set():
                 self._slot_freed = anyio.Event()  # one for every listener waiting
@@ -773,8 +576,14 @@ class RosbridgeServer:
         if self._slot_freed is not None:
             self._slot_freed.set()
 
-    def _slots_taken(self) -> int:
-        """Connection slots held: one per session, and those taken without one (``take_slot``)."""
+    @property
+    def slots_taken(self) -> int:
+        """Connection slots held (``--max-connections``).
+
+        One per session, one per ticket without a session yet (``admit``: a WebRTC
+        peer before its data channel, a video-only one), and the sockets' own
+        (``take_slot``).
+        """
         return len(self.sessions) + self._extra_slots
 
     async def _serve_socket(
@@ -838,32 +647,29 @@ class RosbridgeServer:
 
     # ---- connections ------------------------------------------------------------
 
-    async def _handle_websocket(self, stream: ByteStream) -> None:
-        peer = _peer(stream)
-        await serve_websocket_connection(
-            stream,
-            peer,
-            self,
-            self.config.websocket,
-            self.config.max_message_size,
-            self.fragment_budget,
-            frontends=self.frontends,
-            token_gate=self._token_gate,
-            http=self._http,
-        )
+    def _websocket_handler(
+        self, frontends: FrontEnds | None, http: Iterable[HttpEndpoint] = ()
+    ) -> Callable[[ByteStream], Awaitable[None]]:
+        """The connections of a WebSocket listener speaking ``frontends``, answering ``http``.
 
-    async def _handle_foxglove(self, stream: ByteStream) -> None:
-        """A connection to the Foxglove-only port (``--foxglove-port``)."""
-        await serve_websocket_connection(
-            stream,
-            _peer(stream),
-            self,
-            self.config.websocket,
-            self.config.max_message_size,
-            self.fragment_budget,
-            frontends=self._foxglove_only,
-            token_gate=self._token_gate,
-        )
+        None: the WebSocket port's, read at each connection (``add_frontend``).
+        """
+        endpoints = list(http)
+
+        async def handle(stream: ByteStream) -> None:
+            await serve_websocket_connection(
+                stream,
+                _peer(stream),
+                self,
+                self.config.websocket,
+                self.config.max_message_size,
+                self.fragment_budget,
+                frontends=self.frontends if frontends is None else frontends,
+                entry=self.entry,
+                http=endpoints,
+            )
+
+        return handle
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)
@@ -930,6 +736,7 @@ class RosbridgeServer:
         auth_nonce: str | None = None,
         authenticated: bool = False,
         ticket: Admitted | None = None,
+        share_from_first: bool = False,
     ) -> ServerSession | None:
         """Admit a new connection and make its session on this server's graph.
 
@@ -951,15 +758,20 @@ class RosbridgeServer:
             ticket: the connection was admitted already (``admit``): its session
                 takes the ticket's slot and id, and ``transport`` and ``peer`` are
                 the ticket's.
+            share_from_first: its host's share of such sessions applies from
+                the first, not only past
+                ``shares.SHARES_FROM`` of the slots (D40): a session that holds no
+                socket of its own (MCP's), which a ``--max-connections`` derived
+                from the descriptors would bound late.
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
-            still in their handshake count), the peer's host holds its share (an
-            MCP session's host: its share of MCP sessions, from the first, D40),
-            or the server is stopping.
+            still in their handshake count), the peer's host holds its share (with
+            ``share_from_first``, its share of those sessions), or the server is
+            stopping.
         """
         if ticket is None:
-            admitted = self._admit(transport, peer)
+            admitted = self._admit(transport, peer, from_first=share_from_first)
             if admitted is None:
                 return None
             client_id, host, address = admitted
@@ -982,12 +794,13 @@ class RosbridgeServer:
             authenticated,
             self.memory,
         )
-        session = (frontend or self.frontends.default or self._rosbridge).make_session(request)
+        made = frontend or self.frontends.default or rosbridge_frontend(self._rosbridge_session)
+        session = made.make_session(request)
         self.sessions[client_id] = session
         if host is not None:
             self._shares.add(host)
             self._hosts[client_id] = host
-            if transport in _SHARED_FROM_FIRST:
+            if share_from_first:
                 self._first_shares.add(host)
                 self._first_hosts[client_id] = host
         self.graph.nodes.attach(client_id, host=address)
@@ -1035,14 +848,14 @@ class RosbridgeServer:
             self._shares.remove(ticket.host)
         return True
 
-    def adopt_socket(self) -> None:
-        """The socket of this task carries a request of a session admitted already.
+    def join_socket(self) -> None:
+        """The socket of this task carries a request of a connection admitted already.
 
-        An MCP session's requests come on sockets of their own (Streamable HTTP):
-        once one is known to belong to an admitted session its handshake deadline
-        is lifted and it no longer counts as a socket in its handshake; the slots
-        of its session cover it, or one it took (``take_slot``; docs/limits.md,
-        D40).
+        A front end whose connection spans requests on sockets of their own (an MCP
+        session, Streamable HTTP) calls it once a request is known to belong to an
+        admitted connection: its handshake deadline is lifted and it no longer counts
+        as a socket in its handshake; the slots of its connection cover it, or one it
+        took (``take_slot``; docs/limits.md, D40).
         """
         pending = _PENDING.get(None)
         if pending is not None and not pending.admitted:
@@ -1083,12 +896,15 @@ class RosbridgeServer:
         self._shares.remove(host)
         self._free_slot()
 
-    def _admit(self, transport: str, peer: str) -> tuple[str, str | None, str] | None:
+    def _admit(
+        self, transport: str, peer: str, *, from_first: bool = False
+    ) -> tuple[str, str | None, str] | None:
         """Admission: a slot (``--max-connections``) and the host's share, or None.
 
         Returns the new client id, the peer's host for the shares (None for stdio
         and in-process connections) and its address. An admitted socket's
-        handshake deadline is lifted.
+        handshake deadline is lifted. ``from_first``: the host's share of such
+        sessions applies from the first (D40, ``open_session``).
         """
         pending = _PENDING.get(None)
         if pending is not None and pending.admitted:
@@ -1097,7 +913,7 @@ class RosbridgeServer:
         if checked is None:
             return None
         host, address = checked
-        if host is not None and transport in _SHARED_FROM_FIRST:
+        if host is not None and from_first:
             share = self._first_shares.share
             if self._first_shares.held(host) >= share:  # D40: from the first session
                 held = self._first_shares.held(host)
@@ -1120,11 +936,11 @@ class RosbridgeServer:
         """
         others = self._handshaking - own_socket
         limit = self._limit
-        taken = self._slots_taken() + others
+        taken = self.slots_taken + others
         if self._stopping or (limit is not None and taken >= limit):
             return None
         address = address_of(peer)
-        host = self._host_prefixes.host(address) if transport not in _LOCAL else None
+        host = self.host_prefixes.host(address) if transport not in _LOCAL else None
         if host is not None and limit is not None and not self._shares.admits(host, taken, limit):
             self._refused(peer, host, "host share", self._shares.held(host), self._shares.share)
             return None
@@ -1142,10 +958,6 @@ class RosbridgeServer:
             held,
             share,
         )
-
-    @property
-    def _rosbridge(self) -> FrontEnd:
-        return FrontEnd("rosbridge", (), self._rosbridge_session, AuthMode.OP)
 
     def _rosbridge_session(self, request: SessionRequest) -> Session:
         """A rosbridge session (``session_class``) for an admitted connection."""
@@ -1218,9 +1030,13 @@ class RosbridgeServer:
             self._connected_clients.publish({"clients": list(self._connected.values())})
 
 
+RosbridgeServer = GraphServer
+"""``GraphServer`` under its first name: the public API and the docs that use it stay valid."""
+
+
 @dataclass(slots=True)
 class Admitted:
-    """An admitted connection without a session yet (``RosbridgeServer.admit``): its ticket.
+    """An admitted connection without a session yet (``GraphServer.admit``): its ticket.
 
     Attributes:
         client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
@@ -1290,7 +1106,7 @@ async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
     """A task group in which ``graph``'s async in-process handlers run, without a server.
 
     For code that drives a graph without serving it (tests, benchmarks): inside,
-    async services and actions run as under ``RosbridgeServer.serve``
+    async services and actions run as under ``GraphServer.serve``
     (``GraphCore.serving``). Yields the task group; cancel its scope to stop.
     """
     async with anyio.create_task_group() as tg:
@@ -1391,27 +1207,6 @@ def _peer(stream: ByteStream | SocketStream) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
-
-
-def _access_check(policy: AccessPolicy) -> Callable[[str, str], str | None]:
-    """``policy`` as the MCP guard asks it: ``(family, name) -> the refusing rule`` or None.
-
-    ``family`` is an ``rwt_mcp.guard.AccessCheck`` family: ``topics_pub`` and
-    ``topics_sub`` check a topic's use (D50); the rule is named as its option,
-    with the patterns that refused (``--topics-sub-glob [/a, /b]``).
-    """
-    from rwt_protocol.runtime.access import Family, TopicUse  # noqa: PLC0415 (only with --mcp)
-
-    def check(family: str, name: str) -> str | None:
-        kind, _, use_name = family.partition("_")
-        use = TopicUse(use_name) if use_name else None
-        glob = policy.refusal(Family(kind), name, use)
-        if glob is None:
-            return None
-        patterns = ", ".join(policy.patterns(glob))
-        return f"--{glob.replace('_', '-')} [{patterns}]"
-
-    return check
 
 
 def visibility_of(policy: AccessPolicy) -> VisibilityFor:

@@ -20,6 +20,9 @@ origin when unset), 403 otherwise, as the other HTTP endpoints do.
 such endpoint: there ``/version`` answers 404 to every method (``absent``), so a
 client that reads it (``rwt conformance``) takes the server for the 2.1.0 era it
 plays (D49).
+
+It is an HTTP front end of the registry (``VERSION``, ``frontends_registry``), the
+smallest; the front ends it lists are the registry's as the server serves them.
 """
 
 from __future__ import annotations
@@ -36,19 +39,26 @@ import anyio
 import h11
 
 from rwt_protocol.distribution import DISTRIBUTION
+from rwt_protocol.server.compat import Compat
 from rwt_protocol.version import PROTOCOL_VERSION
 
+from .frontends import AuthMode, HttpFrontEnd
 from .http_endpoint import claims_path, open_request, reply
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from anyio.abc import ByteStream
+    from anyio.abc import ByteStream, TaskGroup
+
+    from .server import GraphServer
+    from .websocket import HttpEndpoint
 
 __all__ = [
     "MAX_BODY_BYTES",
+    "VERSION",
     "VERSION_PATH",
     "Features",
+    "ServedFrontEnd",
     "VersionEndpoint",
     "installed_version",
     "version_document",
@@ -69,6 +79,26 @@ _CORS = [(b"Access-Control-Allow-Methods", _ALLOW)]
 
 
 @dataclass(frozen=True, slots=True)
+class ServedFrontEnd:
+    """One front end a server serves, as ``GET /version`` lists it (the registry's entry).
+
+    Attributes:
+        name: its name (``rosbridge``, ``foxglove``, ``http``, ``webrtc``, ``mcp``...).
+        subprotocols: the WebSocket subprotocols that select it.
+        labels: the WebRTC data-channel labels that select it (its lossy ones too).
+        paths: the HTTP paths (or prefixes ending in ``/``) it answers.
+        auth: how its clients prove who they are (``AuthMode``'s value: ``op``,
+            ``url``, ``bearer``...); ``none`` when the server asks for no proof.
+    """
+
+    name: str
+    subprotocols: tuple[str, ...] = ()
+    labels: tuple[str, ...] = ()
+    paths: tuple[str, ...] = ()
+    auth: str = "none"
+
+
+@dataclass(frozen=True, slots=True)
 class Features:
     """What a server offers beyond the protocol: the ``rwt`` object of ``GET /version``.
 
@@ -79,8 +109,9 @@ class Features:
             3.3.4: ``none``, ``png``, ``cbor``, ``cbor-raw``; D20, D21).
         subprotocols: the WebSocket subprotocols that select another protocol on
             this port (Foxglove's, docs/foxglove.md); rosbridge needs none.
-        webrtc: offers are answered at ``/webrtc`` (docs/webrtc.md).
-        mcp: MCP is served at ``/mcp`` (docs/mcp.md).
+        frontends: every front end served, from the registry
+            (``frontends_registry``): the protocols on the WebSocket port and the
+            HTTP front ends.
         auth: how a client authenticates: ``none``; ``op``, the rosauth ``auth`` op
             first (a Foxglove client: a token in its URL; D23, D33); ``op-bound``,
             the same signed over the connection's ``auth_challenge`` (D31).
@@ -89,8 +120,7 @@ class Features:
     transports: tuple[str, ...]
     encodings: tuple[str, ...]
     subprotocols: tuple[str, ...]
-    webrtc: bool
-    mcp: bool
+    frontends: tuple[ServedFrontEnd, ...]
     auth: str
 
 
@@ -108,13 +138,26 @@ def version_document(features: Features) -> dict[str, object]:
 
     ``{"protocol": {"major": 2, "minor": 1, "patch": 0}, "server": "0.9.0",
     "rwt": {...}}``: the first two fields are rosbridge_server's
-    (docs/reference-behaviour.md §13.4), ``rwt`` is ``Features`` as an object.
+    (docs/reference-behaviour.md §13.4), ``rwt`` is ``Features`` as an object, with
+    ``webrtc`` and ``mcp`` (whether those front ends are served, D49's fields).
     """
     major, minor, patch = PROTOCOL_VERSION
+    names = {each.name for each in features.frontends}
     return {
         "protocol": {"major": major, "minor": minor, "patch": patch},
         "server": installed_version(),
-        "rwt": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(features).items()},
+        "rwt": {
+            "transports": list(features.transports),
+            "encodings": list(features.encodings),
+            "subprotocols": list(features.subprotocols),
+            "webrtc": "webrtc" in names,
+            "mcp": "mcp" in names,
+            "auth": features.auth,
+            "frontends": [
+                {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(each).items()}
+                for each in features.frontends
+            ],
+        },
     }
 
 
@@ -144,6 +187,9 @@ class VersionEndpoint:
         self.features = features
         self.allowed_origins = allowed_origins
         self.absent = absent
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Nothing runs beyond a request."""
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
@@ -213,3 +259,17 @@ async def _send_json(
             data += conn.send(h11.Data(data=body)) or b""
         data += conn.send(h11.EndOfMessage()) or b""
         await stream.send(data)
+
+
+_NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, which has none"
+"""``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
+
+
+def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
+    absent = _NO_VERSION if server.session_config.compat is Compat.ROSBRIDGE_2_1 else None
+    return VersionEndpoint(server.features, server.config.websocket.allowed_origins, absent)
+
+
+VERSION = HttpFrontEnd("version", (VERSION_PATH,), _endpoint, options=True, auth=AuthMode.NONE)
+"""``GET /version``'s entry in the registry (``frontends_registry``): on unless
+``ServerConfig.http_options["version"]`` is None."""

@@ -1,8 +1,9 @@
-"""The ``rosbridge`` WebRTC data channels as a pump ``Channel`` (docs/webrtc.md).
+"""A WebRTC peer's data channels as a pump ``Channel`` (docs/webrtc.md).
 
-A reliable, ordered data channel labelled ``rosbridge`` carries a rosbridge
-session exactly as a WebSocket connection does: one message per frame, JSON as
-text, CBOR as binary (D27). The session, its limits and its flow control are
+A reliable, ordered data channel of a registered label (``rosbridge``; the registry,
+``frontends_registry``, names them, webrtc_peers.py takes them) carries its
+front end's session exactly as a WebSocket connection does: one message per frame,
+for rosbridge JSON as text, CBOR as binary (D27). The session, its limits and its flow control are
 the server's (pump.py); this module only moves frames:
 
 - in: aiortc hands over whole messages from a callback, with no way to make the
@@ -21,7 +22,7 @@ the server's (pump.py); this module only moves frames:
   the channel's ``bufferedAmount`` is above ``SEND_HIGH_WATER_BYTES``, until
   its ``bufferedamountlow`` event, so a slow reader fills the session's outbox
   and the slow-consumer rule (D24) applies as on a WebSocket.
-- the ``rosbridge-lossy`` channel (unordered, no retransmission; D36) is the
+- the lossy channel (``rosbridge-lossy``: unordered, no retransmission; D36) is the
   same session's second way out: its incoming messages go to the session as
   any (``LossyInFrame``), and the messages of the subscriptions made on it wait
   in the session's lossy lane, latest-only per topic. aiortc sends every data
@@ -157,6 +158,18 @@ class DataChannelChannel(PlainChannel):
         if self._reliable is None:  # the pump runs only once it is attached
             raise anyio.BrokenResourceError
         return self._reliable
+
+    def charge_to(self, memory: MemoryAccount | None) -> None:
+        """Charge what waits for the session to ``memory`` (its account, D44), from now on.
+
+        The session is opened after the peer connection (its first data channel
+        opens it, webrtc_peers.py), so its account comes then.
+        """
+        if self._memory is not None:
+            self._memory.charge(-self._inbox_bytes)
+        self._memory = memory
+        if memory is not None:
+            memory.charge(self._inbox_bytes)
 
     def attach(self, channel: AnyDataChannel) -> None:
         """Take the ``rosbridge`` channel (reliable, ordered): the session's input and output."""

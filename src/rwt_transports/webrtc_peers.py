@@ -1,15 +1,20 @@
-"""The server's WebRTC peer connections: an offer in, a session on the pump out (docs/webrtc.md).
+"""The server's WebRTC peer connections: an offer in, sessions on the pump out (docs/webrtc.md).
 
-An offer is admitted as any connection is (``SessionHost.open_session``:
-``--max-connections``, host shares, ``/connected_clients``), then answered by
+An offer is admitted as any connection is, with the server's public ticket
+(``GraphServer.admit``: ``--max-connections``, host shares), then answered by
 aiortc with every ICE candidate gathered (no trickle): host candidates, and
 with ``--ice-server`` the server-reflexive and relayed ones its STUN and TURN
-servers give (aioice waits at most 5 s for them). The session starts
-when the peer opens its ``rosbridge`` data channel (webrtc.py) and runs on the
-connection pump like a WebSocket's. A ``rosbridge-lossy`` channel (unordered,
-``maxRetransmits`` 0) belongs to the same session: it opens the session's
-lossy lane (D36). Bounds, each enforced here
-(docs/limits.md):
+servers give (aioice waits at most 5 s for them). The ticket holds the peer's slot;
+no session exists yet. A data channel's label chooses its protocol from the
+server's one front-end registry (``FrontEnds.by_label``, ``frontends_registry``):
+rosbridge's ``rosbridge`` (reliable, ordered), or a registered protocol's label.
+The first such channel opens the session on the ticket (``open_session(ticket=)``,
+counted in ``/connected_clients`` from then), which runs on the connection pump
+like a WebSocket's once the channel is open (webrtc.py). A lossy label of the same
+front end (``rosbridge-lossy``: unordered, ``maxRetransmits`` 0) belongs to the same
+session: it opens the session's lossy lane (D36). A label the registry does not
+name is refused: the channel is closed and the log names the label and the ones
+served (``event=channel_refused``). Bounds, each enforced here (docs/limits.md):
 
 - the offer's form (webrtc_offer.py, D38): checked before anything else, so a
   malformed or oversized one (media sections, candidates and the addresses they
@@ -28,14 +33,15 @@ lossy lane (D36). Bounds, each enforced here
 
 A session ends when its data channel or peer connection closes or fails, on
 ``DELETE /webrtc/<id>``, on its idle timeout, or as any session does; its peer
-connection is closed with it.
+connection is closed with it, and the ticket's slot is given back.
 
 Video tracks (``?video=``, webrtc_video.py) are bound to the offer's video
 transceivers before the answer, join their shared streams when the peer connects
 (D37: a peer that never connects runs no encoder) and leave them when the peer
 connection ends. An offer with video and no data channel is a video-only peer:
-its session (admitted and counted as any) runs no rosbridge ops and lasts as
-long as its peer connection (until it fails or closes, ``DELETE``, shutdown).
+it holds its ticket (admitted and counted as any connection, by the same budget
+and host shares) and never a session, and lasts as long as its peer connection
+(until it fails or closes, ``DELETE``, shutdown).
 """
 
 from __future__ import annotations
@@ -52,8 +58,8 @@ from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSession
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.runtime.commands import CloseCode
 
-from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
-from .shares import HostPrefixes, HostShares, address_of
+from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
+from .shares import HostShares, address_of
 from .webrtc import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
 from .webrtc_ice import parse_ice_servers
 from .webrtc_native import Inflow, NativeDataChannel, NativePeerConnection
@@ -72,26 +78,21 @@ if TYPE_CHECKING:
 
     from rwt_protocol.runtime.contract import ServerSession
 
+    from .frontends import ChannelLabel, FrontEnd, FrontEnds
+    from .server import Admitted, GraphServer
     from .webrtc import AnyDataChannel
     from .webrtc_offer import OfferShape
     from .webrtc_signal import VideoRequest, WebRtcOptions
     from .webrtc_video import VideoBinding, WebRtcVideo
 
 __all__ = [
-    "DATA_CHANNEL_LABEL",
-    "LOSSY_CHANNEL_LABEL",
     "MAX_CONNECTING",
     "OFFER_TIMEOUT_S",
     "WebRtcPeers",
+    "channel_refusal",
 ]
 
 logger = logging.getLogger("rwt.webrtc")
-
-DATA_CHANNEL_LABEL = "rosbridge"
-"""The label of the data channel that carries the rosbridge session; others are closed."""
-
-LOSSY_CHANNEL_LABEL = "rosbridge-lossy"
-"""The label of the session's lossy channel (``ordered: false, maxRetransmits: 0``; D36)."""
 
 MAX_CONNECTING = 16
 """Offers being answered plus peers not yet connected, over the server; more get 503."""
@@ -104,20 +105,36 @@ _MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
 
 
 def channel_refusal(
-    label: str, ordered: bool, max_retransmits: int | None, max_lifetime: float | None
+    frontends: FrontEnds,
+    label: str,
+    ordered: bool,
+    max_retransmits: int | None,
+    max_lifetime: float | None,
 ) -> str | None:
     """Why a data channel the peer opened is closed (None: it is taken).
 
-    ``rosbridge`` must be reliable and ordered, ``rosbridge-lossy`` unordered with
-    ``maxRetransmits`` 0 (D36); any other label is refused. (A second channel of a
-    label is refused too, by its peer connection.) Args: the channel's label, and
-    its reliability as RFC 8832's open message states it (lifetime in seconds).
+    Its label must be one the registry names (``frontends.by_label``): a front end's
+    reliable label must come on a reliable, ordered channel, its lossy one on an
+    unordered channel with ``maxRetransmits`` 0 (D36). (A second channel of a label
+    is refused too, by its peer connection.) Safe on libdatachannel's threads.
+
+    Args:
+        frontends: the server's front ends (the one registry).
+        label: the channel's label.
+        ordered: its messages arrive in order (RFC 8832's open message).
+        max_retransmits: how often a message is sent again; None: until it arrives.
+        max_lifetime: how long a message is sent again, seconds; None: no bound.
+
+    Returns:
+        None, or the reason for the log: ``unknown label (served: rosbridge,
+        rosbridge-lossy)``, ``not_unordered_unreliable``, ``not_reliable_ordered``.
     """
-    if label == LOSSY_CHANNEL_LABEL:
+    chosen = frontends.by_label(label)
+    if chosen is None:
+        return f"unknown label (served: {', '.join(frontends.labels()) or 'none'})"
+    if chosen.lossy:
         lossy = not ordered and max_retransmits == 0 and max_lifetime is None
         return None if lossy else "not_unordered_unreliable"
-    if label != DATA_CHANNEL_LABEL:
-        return "label"
     reliable = max_retransmits is None and max_lifetime is None
     return None if ordered and reliable else "not_reliable_ordered"
 
@@ -133,13 +150,21 @@ def remote_max_message_size(sdp: str) -> int:
 
 @dataclass(eq=False)
 class _Peer:
-    """One peer connection and the session it carries."""
+    """One peer connection: its ticket, and the session its data channels carry once open."""
 
     session_id: str
     pc: RTCPeerConnection | NativePeerConnection
-    session: ServerSession
+    ticket: Admitted
+    """Its slot of the server's connection budget (``GraphServer.admit``), from the offer."""
+    authenticated: bool
+    """The offer carried a live bearer token (its sessions start authenticated)."""
     remote_max: int
     dc: DataChannelChannel
+    session: ServerSession | None = None
+    """Opened on the ticket by the first data channel of a registered label; None before
+    (and for ever, video only)."""
+    frontend: FrontEnd | None = None
+    """The protocol its session speaks (its first channel's label chose it)."""
     ready: anyio.Event = field(default_factory=anyio.Event)
     data: bool = True
     """It carries data channels (an SCTP association); False: video only."""
@@ -153,9 +178,14 @@ class _Peer:
     """The host whose connecting slot it holds (``WebRtcPeers``); None once connected."""
 
     @property
+    def client_id(self) -> str:
+        """Its id in logs: its ticket's, which its session takes."""
+        return self.ticket.client_id
+
+    @property
     def pumped(self) -> bool:
         """Its session runs on the pump (a data channel open), so it ends by ``request_close``."""
-        return self.running and self.channel is not None
+        return self.running and self.channel is not None and self.session is not None
 
     def on_output(self) -> None:
         """The session's output callback: the pump's, once the data channel opened."""
@@ -167,7 +197,9 @@ class WebRtcPeers:
     """Answers offers and runs each peer's session until it ends.
 
     Args:
-        host: admits connections and makes their sessions (the server).
+        server: admits the peers (``admit``), makes their sessions
+            (``open_session``) and names the protocols of their channels
+            (``frontends``, the one registry).
         options: the WebRTC settings.
         max_message_size: the largest incoming message, bytes (``--max-message-size``).
         video: the video tracks' streams (``?video=``); None: an offer asking for
@@ -178,18 +210,17 @@ class WebRtcPeers:
 
     def __init__(
         self,
-        host: SessionHost,
+        server: GraphServer,
         options: WebRtcOptions,
         max_message_size: int,
         video: WebRtcVideo | None = None,
-        hosts: HostPrefixes | None = None,
     ) -> None:
-        self.host = host
+        self.host = server
         self.video = video
         self.options = options
         self.max_message_size = incoming_message_limit(max_message_size)
         self.ice_servers = parse_ice_servers(options.ice_servers)
-        self.hosts = hosts or HostPrefixes()
+        self.hosts = server.host_prefixes
         self.peers: dict[str, _Peer] = {}
         self.connecting = 0
         """Offers being answered plus peers whose data channel is not open yet."""
@@ -233,7 +264,7 @@ class WebRtcPeers:
             return Answer(503, "too many WebRTC peers connecting: try again later")
         answer = Answer(503, "the server is stopping")
         try:
-            binding = self._video_binding(video)
+            binding = self._video_binding(video, peer)
             if isinstance(binding, Answer):
                 answer = binding
             else:
@@ -285,13 +316,13 @@ class WebRtcPeers:
             self._free_slot(item.host)
             item.host = None
 
-    def _video_binding(self, video: VideoRequest | None) -> VideoBinding | Answer | None:
+    def _video_binding(self, video: VideoRequest | None, peer: str) -> VideoBinding | Answer | None:
         """The tracks ``video`` asks for (None: none), or why not (webrtc_video.py)."""
         if video is None or not video.topics:
             return None
         if self.video is None:
             return Answer(501, "this server sends no video tracks")
-        return self.video.binding(video)
+        return self.video.binding(video, f"webrtc:{peer}")
 
     async def _answer(
         self,
@@ -303,21 +334,19 @@ class WebRtcPeers:
         *,
         native: bool,
     ) -> Answer:
-        """Admit the session, answer the offer with ``native``'s stack, start the peer's run."""
-        holder: list[_Peer] = []
-        session = self.host.open_session(
-            "webrtc",
-            peer,
-            lambda: holder[0].on_output() if holder else None,
-            authenticated=authenticated,
-        )
-        if session is None:
+        """Admit the peer (a ticket), answer the offer with ``native``'s stack, start its run."""
+        ticket = self.host.admit("webrtc", peer)
+        if ticket is None:
             return Answer(503, "too many connections")
         remote_max = remote_max_message_size(sdp)
-        dc = DataChannelChannel(None, self.max_message_size, remote_max, session.memory)
-        pc = self._native_pc(dc) if native else RTCPeerConnection(self._configuration())
-        item = _Peer(secrets.token_urlsafe(16), pc, session, remote_max, dc, video=video)
-        holder.append(item)
+        dc = DataChannelChannel(None, self.max_message_size, remote_max)
+        pc = (
+            self._native_pc(dc, authenticated)
+            if native
+            else RTCPeerConnection(self._configuration())
+        )
+        item = _Peer(secrets.token_urlsafe(16), pc, ticket, authenticated, remote_max, dc)
+        item.video = video
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
         pc.on("connectionstatechange", lambda: self._on_state(item))
         refusal: Answer | None = Answer(503, "answering the offer took too long")
@@ -328,11 +357,9 @@ class WebRtcPeers:
                     refusal, answer = await self._negotiate_native(pc, sdp)
                 else:
                     refusal, answer = await self._negotiate(item, pc, sdp)
-        finally:  # refused, failed or cancelled (shutdown): the session and its sockets go
+        finally:  # refused, failed or cancelled (shutdown): the ticket and the sockets go
             if refusal is not None or answer is None or self._tg is None:
-                session.close()
-                if video is not None:
-                    video.close()
+                self._end(item)
                 await _close_pc(pc)
         if refusal is not None or answer is None or self._tg is None:
             return refusal or Answer(503, "the server is stopping")
@@ -341,19 +368,40 @@ class WebRtcPeers:
         self._tg.start_soon(self._run, item)
         return Answer(201, answer, f"{WEBRTC_PATH}/{item.session_id}")
 
-    def _native_pc(self, dc: DataChannelChannel) -> NativePeerConnection:
+    def _end(self, item: _Peer) -> None:
+        """Free what ``item`` holds of the server: its session, its ticket, its video."""
+        if item.session is not None:
+            item.session.close()
+        self.host.release(item.ticket)  # none if its session took it
+        if item.video is not None:
+            item.video.close()
+
+    def _native_pc(self, dc: DataChannelChannel, authenticated: bool) -> NativePeerConnection:
         """A libdatachannel peer connection for ``dc`` (webrtc_native.py, D51).
 
-        Its messages waiting for the loop count in ``dc``'s inbox bound.
+        Its messages waiting for the loop count in ``dc``'s inbox bound. Its channels
+        are judged on libdatachannel's thread, before they have callbacks (closing
+        one from the loop ends its peer connection): the registry's labels
+        (``channel_refusal``), and one protocol a peer, its first channel's.
         """
         inflow = Inflow(INBOX_LIMIT_BYTES, lambda: dc.inbox_bytes)
         dc.held_below = lambda: inflow.pending
+        frontends = self.host.frontends
+        first: list[FrontEnd] = []  # the protocol the first channel chose (that thread's)
+
+        def refusal(
+            label: str, ordered: bool, retransmits: int | None, lifetime: float | None
+        ) -> str | None:
+            reason = channel_refusal(frontends, label, ordered, retransmits, lifetime)
+            chosen = frontends.by_label(label)
+            if reason is None and chosen is not None:
+                reason = self._refusal(chosen, first[0] if first else None, authenticated)
+                if reason is None and not first:
+                    first.append(chosen.frontend)
+            return reason
+
         return NativePeerConnection(
-            self.ice_servers,
-            self.max_message_size,
-            inflow,
-            ANSWER_MAX_MESSAGE_SIZE,
-            channel_refusal,
+            self.ice_servers, self.max_message_size, inflow, ANSWER_MAX_MESSAGE_SIZE, refusal
         )
 
     @staticmethod
@@ -435,26 +483,32 @@ class WebRtcPeers:
         return RTCConfiguration(iceServers=servers)
 
     def _on_channel(self, item: _Peer, channel: AnyDataChannel) -> None:
-        """Take one ``rosbridge`` channel (reliable, ordered) and one ``rosbridge-lossy``.
+        """Take a channel of a registered label: the first opens the session (module text).
 
-        The lossy one must be unordered with ``maxRetransmits`` 0 (D36); any other
-        channel is closed. A native channel reports the inbox bounds itself
-        (webrtc_native.py): a message over the size, or past the bound.
+        One reliable channel and one lossy one (unordered, ``maxRetransmits`` 0,
+        D36), of one front end; any other channel is closed, the reason logged. A
+        native channel reports the inbox bounds itself (webrtc_native.py): a
+        message over the size, or past the bound.
         """
         if isinstance(channel, NativeDataChannel):
             channel.on("oversized", item.dc.oversized)
             channel.on("overflow", lambda: self._on_overflow(item))
+        frontends = self.host.frontends
+        label = channel.label
         refusal = channel_refusal(
-            channel.label, channel.ordered, channel.maxRetransmits, channel.maxPacketLifeTime
+            frontends, label, channel.ordered, channel.maxRetransmits, channel.maxPacketLifeTime
         )
-        taken = item.lossy if channel.label == LOSSY_CHANNEL_LABEL else item.channel
-        if refusal is None and taken is not None:
-            refusal = "second"
-        if refusal is not None:
-            logger.info("event=channel_refused label=%r reason=%s", channel.label, refusal)
-            channel.close()
+        chosen = frontends.by_label(label)
+        if refusal is None and chosen is not None:
+            refusal = self._taken(item, chosen)
+        if refusal is not None or chosen is None:
+            self._refused(item, channel, refusal or "unknown label")
             return
-        if channel.label == LOSSY_CHANNEL_LABEL:
+        if item.session is None and not self._open(item, chosen.frontend):
+            self._refused(item, channel, "the server is full or stopping")
+            item.scope.cancel()
+            return
+        if chosen.lossy:
             self._on_lossy(item, channel)
             return
         item.channel = channel
@@ -464,20 +518,69 @@ class WebRtcPeers:
         else:
             channel.on("open", item.ready.set)
 
+    def _taken(self, item: _Peer, chosen: ChannelLabel) -> str | None:
+        """Why a channel of a registered label is not taken by ``item`` (None: it is)."""
+        refusal = self._refusal(chosen, item.frontend, item.authenticated)
+        if refusal is None and (item.lossy if chosen.lossy else item.channel) is not None:
+            refusal = "second"
+        return refusal
+
+    def _refusal(
+        self, chosen: ChannelLabel, frontend: FrontEnd | None, authenticated: bool
+    ) -> str | None:
+        """Why a peer whose session speaks ``frontend`` (None: none yet) refuses ``chosen``.
+
+        One protocol a peer; a front end whose clients prove who they are with the
+        request (``AuthMode.at_entry``) only when the offer carried the bearer token.
+        """
+        if frontend is not None and chosen.frontend is not frontend:
+            return f"another protocol than the session's ({frontend.name})"
+        if self.host.entry.required and chosen.frontend.auth.at_entry and not authenticated:
+            return f"{chosen.frontend.name} needs the offer's bearer token"
+        return None
+
+    def _open(self, item: _Peer, frontend: FrontEnd) -> bool:
+        """Open ``item``'s session on its ticket for ``frontend``; False: it was refused."""
+        session = self.host.open_session(
+            "webrtc",
+            item.ticket.peer,
+            item.on_output,
+            frontend=frontend,
+            authenticated=item.authenticated,
+            ticket=item.ticket,
+        )
+        if session is None:
+            return False
+        item.session, item.frontend = session, frontend
+        item.dc.charge_to(session.memory)  # what waits for it is the connection's (D44)
+        return True
+
+    @staticmethod
+    def _refused(item: _Peer, channel: AnyDataChannel, reason: str) -> None:
+        logger.info(
+            "event=channel_refused client=%s label=%r reason=%s",
+            item.client_id,
+            channel.label[:64],
+            reason,
+        )
+        channel.close()
+
     def _on_lossy(self, item: _Peer, channel: AnyDataChannel) -> None:
-        """Take the ``rosbridge-lossy`` channel, opening the session's lossy lane (D36).
+        """Take a lossy channel, opening the session's lossy lane (D36).
 
         Its messages go to the session as any; the subscriptions made on it get
         their messages there.
         """
+        session = item.session
+        assert session is not None  # opened by the caller
         item.lossy = channel
         item.dc.attach_lossy(channel)
-        item.session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
+        session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
         # closed: its subscriptions' next messages go on the reliable channel at once
-        channel.on("close", item.session.close_lossy_lane)
+        channel.on("close", session.close_lossy_lane)
         logger.info(
             "event=lossy_channel client=%s max_message_bytes=%d",
-            item.session.client_id,
+            item.client_id,
             item.remote_max,
         )
 
@@ -487,13 +590,13 @@ class WebRtcPeers:
             item.ready.set()  # video only: connected is all it waits for
         if item.pc.connectionState in ("failed", "closed"):
             item.ready.set()
-            if item.pumped:
+            if item.pumped and item.session is not None:
                 item.session.request_close(CloseCode.GOING_AWAY, "peer connection closed")
             else:
                 item.scope.cancel()
 
     async def _run(self, item: _Peer) -> None:
-        """Wait for the data channel, run the session on the pump, then free everything."""
+        """Wait for a data channel, run its session on the pump, then free everything."""
         try:
             with item.scope:
                 with anyio.move_on_after(self.options.connect_timeout_s):
@@ -501,8 +604,8 @@ class WebRtcPeers:
                 if not item.data:
                     await self._run_video_only(item)
                     return
-                channel = item.channel
-                if channel is None or channel.readyState != "open":
+                channel, session = item.channel, item.session
+                if channel is None or session is None or channel.readyState != "open":
                     self._not_connected(item)
                     return
                 if not self._connected(item):
@@ -510,13 +613,11 @@ class WebRtcPeers:
                 pump = ConnectionPump(item.dc, self.host.flow, self.host.admission)
                 item.wake.append(pump)
                 item.running = True
-                await run_connection(pump, item.session, f"webrtc={item.session_id}")
+                await run_connection(pump, session, f"webrtc={item.session_id}")
         finally:
             self._release(item)
             self.peers.pop(item.session_id, None)
-            item.session.close()
-            if item.video is not None:
-                item.video.close()
+            self._end(item)
             await _close_pc(item.pc)
 
     def _connected(self, item: _Peer) -> bool:
@@ -532,7 +633,7 @@ class WebRtcPeers:
                 logging.WARNING,
                 "webrtc_video_refused",
                 "event=webrtc_video_refused client=%s reason=%r: peer connection closed",
-                item.session.client_id,
+                item.client_id,
                 reason,
             )
         return reason is None
@@ -541,12 +642,12 @@ class WebRtcPeers:
     def _not_connected(item: _Peer) -> None:
         logger.info(
             "event=webrtc_not_connected client=%s state=%s",
-            item.session.client_id,
+            item.client_id,
             item.pc.connectionState,
         )
 
     async def _run_video_only(self, item: _Peer) -> None:
-        """A peer with video and no data channel: it lasts as long as its peer connection."""
+        """A peer with video and no data channel: on its ticket, as long as its peer connection."""
         if item.pc.connectionState != "connected":
             self._not_connected(item)
             return
@@ -555,8 +656,8 @@ class WebRtcPeers:
         item.running = True
         logger.info(
             "event=connect client=%s transport=webrtc protocol=video peer=%s webrtc=%s",
-            item.session.client_id,
-            item.session.peer,
+            item.client_id,
+            item.ticket.peer,
             item.session_id,
         )
         await anyio.sleep_forever()  # until failed, closed, DELETE or shutdown cancels it
@@ -566,7 +667,7 @@ class WebRtcPeers:
         item = self.peers.get(session_id)
         if item is None:
             return False
-        if item.pumped:
+        if item.pumped and item.session is not None:
             item.session.request_close(CloseCode.NORMAL, "ended by DELETE")
         else:
             item.scope.cancel()

@@ -14,25 +14,36 @@ methods and the path (``claims``; a ``GET`` only below ``/webrtc/``).
 HTTP/1.1 is parsed by h11 (sans-IO); one request per connection. The offer is
 at most ``MAX_OFFER_BYTES``. With an authenticator (``--auth-secret-file``) an
 offer carrying ``Authorization: Bearer <token>`` must carry a live video token
-(``/rwt/video_token``, docs/video.md), else 401; an offer without one opens a
-session that must send the ``auth`` op first, as a WebSocket client does (D23).
+(``/rwt/video_token``, docs/video.md), else 401; an offer without one opens
+sessions whose front end's own proof is asked for (rosbridge's ``auth`` op
+first, as a WebSocket client sends it, D23). Both go through the server's one
+entry check (``GraphServer.entry``, ``rwt_protocol.credentials``).
 
 Video tracks: ``POST /webrtc?video=/camera/image&video=/arm/image`` binds the
 offer's receiving video transceivers, in order, to those image topics (at most
 ``MAX_VIDEO_TRACKS``; webrtc_video.py); with an authenticator they need the
 bearer token, since a video-only peer has no data channel to authenticate on.
+
+WebRTC is an HTTP front end of the registry (``WEBRTC``, ``frontends_registry``),
+off unless ``ServerConfig.webrtc`` is set; the protocols its data channels carry
+are the registry's too, chosen by label (webrtc_peers.py).
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+import time
+from dataclasses import dataclass, field, replace
 from functools import cache
 from importlib import resources
 from typing import TYPE_CHECKING, Protocol
 from urllib.parse import parse_qsl
 
-from .http_endpoint import bearer, claims_path, open_request, reply
+from rwt_protocol.credentials import EntryAuth
+from rwt_protocol.errors import ConfigError
+
+from .frontends import AuthMode, HttpFrontEnd
+from .http_endpoint import claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
 from .webrtc_native import STACKS, native_missing
 
@@ -40,13 +51,17 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
     import h11
-    from anyio.abc import ByteStream
+    from anyio.abc import ByteStream, TaskGroup
+
+    from .server import GraphServer
+    from .websocket import HttpEndpoint
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "MAX_OFFER_BYTES",
     "MAX_VIDEO_TRACKS",
     "ROSLIB_TRANSPORT_PATH",
+    "WEBRTC",
     "WEBRTC_PATH",
     "Answer",
     "OfferHandler",
@@ -94,12 +109,13 @@ class WebRtcOptions:
     """Settings of WebRTC signalling (``rwt serve --webrtc``).
 
     Attributes:
-        connect_timeout_s: seconds from the answer for ICE, DTLS and the
-            ``rosbridge`` data channel to open; a peer that does not is freed
-            (``CONNECT_TIMEOUT_S``).
+        connect_timeout_s: seconds from the answer for ICE, DTLS and a data
+            channel of a registered label to open (or, video only, the peer to
+            connect); a peer that does not is freed (``CONNECT_TIMEOUT_S``).
         bearer_token: with an authenticator, checks the token of an offer's
             ``Authorization: Bearer`` header (the video server's tokens,
-            ``rwt_video.VideoTokens.valid``); None: such an offer gets 401.
+            ``rwt_video.VideoTokens.valid``); None: the server's
+            (``ServerConfig.bearer_token``), and without one such an offer gets 401.
         ice_servers: STUN and TURN server URLs (``--ice-server``, the forms of
             ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
             and relayed candidates each answer carries (docs/webrtc.md, "Through
@@ -182,6 +198,12 @@ class OfferHandler(Protocol):
     def delete(self, session_id: str) -> bool:
         """End the session ``session_id``; False if there is none."""
 
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Run sessions in ``tg`` (the server's connections); None: take no offers."""
+
+    def stop_connecting(self) -> None:
+        """Free the peers that are not connected yet (the server is stopping)."""
+
 
 class WebRtcSignalling:
     """Answers WebRTC signalling requests on the WebSocket port.
@@ -191,7 +213,8 @@ class WebRtcSignalling:
         options: the WebRTC settings.
         allowed_origins: fnmatch patterns of accepted ``Origin`` headers
             (``--allowed-origins``); empty: any origin, as on the WebSocket.
-        auth_required: the server has an authenticator (``--auth-secret-file``).
+        entry: the server's one entry check (``GraphServer.entry``), which an
+            offer's bearer token passes; by default none is required.
     """
 
     def __init__(
@@ -200,12 +223,18 @@ class WebRtcSignalling:
         options: WebRtcOptions,
         allowed_origins: tuple[str, ...] = (),
         *,
-        auth_required: bool = False,
+        entry: EntryAuth | None = None,
     ) -> None:
         self.peers = peers
         self.options = options
         self.allowed_origins = allowed_origins
-        self.auth_required = auth_required
+        self.entry = entry or EntryAuth()
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Answer offers in ``tg`` (the server's connections); None: free the unconnected."""
+        self.peers.bind(tg)
+        if tg is None:  # stopping: nothing connecting to close gracefully
+            self.peers.stop_connecting()
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
@@ -256,16 +285,15 @@ class WebRtcSignalling:
             return Answer(404, f"no WebRTC session at {path}")
         if path != WEBRTC_PATH:
             return Answer(404, f"post offers to {WEBRTC_PATH}, not {path}")
+        return await self._offer(request, headers, body, peer)
+
+    async def _offer(
+        self, request: h11.Request, headers: dict[str, str], body: bytes, peer: str
+    ) -> Answer:
+        """``POST /webrtc``: check the offer and its proof, then hand it to the peers."""
         kind = headers.get("content-type", "").split(";", 1)[0].strip().lower()
         if kind != _SDP:
             return Answer(400, f"the offer must be sent as Content-Type: {_SDP}, not {kind!r}")
-        authenticated = False
-        if self.auth_required and "authorization" in headers:
-            token = bearer(headers)
-            check = self.options.bearer_token
-            if token is None or check is None or not check(token):
-                return Answer(401, "the bearer token is wrong or expired: call /rwt/video_token")
-            authenticated = True
         try:
             sdp = body.decode("utf-8")
         except UnicodeDecodeError:
@@ -275,8 +303,14 @@ class WebRtcSignalling:
         video = video_request(request.target.decode("latin-1"))
         if isinstance(video, Answer):
             return video
-        if video.topics and self.auth_required and not authenticated:
-            return Answer(401, "video tracks need Authorization: Bearer <token> (/rwt/video_token)")
+        authenticated = False
+        # a bearer token sent must be live; video tracks need one (a video-only peer has
+        # no channel to send its protocol's proof on); else the channel's front end asks
+        if self.entry.required and ("authorization" in headers or video.topics):
+            refusal = self.entry.check(AuthMode.BEARER, peer, headers=headers, now=time.monotonic())
+            if refusal is not None:
+                return Answer(refusal.status, refusal.text)
+            authenticated = True
         return await self.peers.offer(sdp, peer, authenticated=authenticated, video=video)
 
 
@@ -293,3 +327,36 @@ def _bodiless(method: str, path: str) -> Answer:
 def roslib_transport() -> str:
     """The JavaScript served at ``ROSLIB_TRANSPORT_PATH``, read from the package once."""
     return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
+
+
+def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
+    """Signalling with its peers and their video (aiortc: loaded only when WebRTC is on).
+
+    Raises:
+        ConfigError: ``options`` is not a ``WebRtcOptions``.
+        ImportError: aiortc is not installed (``rwt-rosbridge[webrtc]``).
+    """
+    if not isinstance(options, WebRtcOptions):
+        raise ConfigError(f"WebRTC's options must be WebRtcOptions, not {type(options).__name__}")
+    from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
+    from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
+
+    video = WebRtcVideo(server.graph, server.session_config.access)
+    peers = WebRtcPeers(server, options, server.config.max_message_size, video)
+    entry = server.entry
+    if options.bearer_token is not None:  # its own check of the tokens, set by embedding code
+        entry = replace(entry, token=options.bearer_token)
+    return WebRtcSignalling(peers, options, server.config.websocket.allowed_origins, entry=entry)
+
+
+WEBRTC = HttpFrontEnd(
+    "webrtc",
+    (WEBRTC_PATH,),
+    _endpoint,
+    None,
+    AuthMode.BEARER,
+    transport="webrtc",
+    configured=lambda config: config.webrtc,
+)
+"""WebRTC signalling's entry in the registry (``frontends_registry``): on with
+``ServerConfig.webrtc`` (``rwt serve --webrtc``)."""

@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import fractions
 import logging
+import time
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -47,7 +48,7 @@ from aiortc.sdp import SessionDescription
 
 from rwt_protocol.errors import RwtError
 from rwt_protocol.names import resolve_name
-from rwt_protocol.runtime.access import Family, TopicUse
+from rwt_protocol.runtime.access import AccessDeniedError, Family, TopicUse, gate
 from rwt_video.encoders import VideoPacket
 from rwt_video.hub import StreamHub
 from rwt_video.params import StreamParamError, StreamParams, StreamType, parse_stream_params
@@ -336,8 +337,11 @@ class WebRtcVideo:
             node=VIDEO_NODE,
         )
 
-    def binding(self, request: VideoRequest) -> VideoBinding | Answer:
+    def binding(self, request: VideoRequest, client: str = "webrtc") -> VideoBinding | Answer:
         """The tracks ``request`` asks for, or why not.
+
+        A topic the access rules deny is refused through the one access gate and
+        its log line (``access.gate``; ``client`` names the peer there).
 
         Returns:
             The binding, or 403 (a topic the access rules deny), 404 (no such
@@ -351,7 +355,17 @@ class WebRtcVideo:
         for name in request.topics:
             topic = resolve_name(name)
             shown = topic if len(topic) <= 80 else topic[:77] + "..."
-            if not self.access.allows(Family.TOPICS, topic, TopicUse.SUBSCRIBE):
+            try:
+                gate(
+                    self.access,
+                    Family.TOPICS,
+                    topic,
+                    client=client,
+                    op="video",
+                    use=TopicUse.SUBSCRIBE,
+                    now=time.monotonic(),
+                )
+            except AccessDeniedError:
                 return Answer(403, f"topic {shown!r} is not allowed")
             type_name = _full(types.get(topic))
             if type_name is None:

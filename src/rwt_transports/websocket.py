@@ -31,8 +31,10 @@ import fnmatch
 import logging
 import os
 import struct
+import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final, Protocol
+from urllib.parse import urlsplit
 
 import anyio
 from websockets.exceptions import InvalidState
@@ -53,7 +55,6 @@ from rwt_protocol.shortcuts import enabled
 from . import admission
 from .direct import DirectReader, DirectWriter
 from .flow import ChannelAbilities
-from .frontends import AuthMode
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import WRITE_BATCH
@@ -62,16 +63,16 @@ from .wsread import FrameReader
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from anyio.abc import ByteStream
+    from anyio.abc import ByteStream, TaskGroup
     from websockets.datastructures import Headers
     from websockets.extensions.base import ServerExtensionFactory
 
+    from rwt_protocol.credentials import AuthMode, EntryAuth
     from rwt_protocol.framing.fragments import FragmentBudget
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.outbox import OutFrame
 
     from .frontends import FrontEnds
-    from .urltoken import TokenGate
 
 __all__ = ["HttpEndpoint", "WebSocketOptions", "serve_websocket_connection"]
 
@@ -109,7 +110,7 @@ class WebSocketOptions:
         console: answers plain HTTP GET/HEAD requests (no ``Upgrade``) with the
             web console (docs/console.md). True (the default): the server's own
             console, as ``rwt serve`` has it: on unless ``allowed_origins`` is set
-            (``rwt_console.console_for``; ``RosbridgeServer`` builds it from its
+            (``rwt_console.console_for``; ``GraphServer`` builds it from its
             settings). A ``ConsoleSite``: that one, whatever the origins
             (``--console``). False or None: off (``--no-console``), such requests
             fail the handshake.
@@ -517,13 +518,24 @@ def _make_protocol(
 
 
 class HttpEndpoint(Protocol):
-    """An HTTP front end on the WebSocket port (``/version``, WebRTC, MCP): it claims requests."""
+    """An HTTP front end on the WebSocket port (``/version``, WebRTC, MCP, the HTTP API).
+
+    It claims requests by their first bytes and answers them; the server makes it
+    from its registry entry (``frontends.HttpFrontEnd``) and binds it while serving.
+    """
 
     def claims(self, head: bytes) -> bool | None:
         """Whether the request starting with ``head`` is this endpoint's; None: too short."""
 
     async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
         """Answer the request on ``stream`` whose first bytes are ``head``."""
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Run what outlives a request in ``tg`` (the server's connections).
+
+        None: the server is stopping (or stopped): take nothing new, and free
+        what has not started.
+        """
 
 
 async def _read_head(
@@ -646,7 +658,7 @@ async def serve_websocket_connection(
     budget: FragmentBudget | None = None,
     *,
     frontends: FrontEnds,
-    token_gate: TokenGate | None = None,
+    entry: EntryAuth | None = None,
     http: Sequence[HttpEndpoint] = (),
 ) -> None:
     """Run one WebSocket connection to its end.
@@ -665,10 +677,11 @@ async def serve_websocket_connection(
         frontends: the protocols this listener speaks: the one a client's offered
             subprotocol selects, else the default (rosbridge); without a default a
             client that offers none is refused with HTTP 400.
-        token_gate: with an authenticator (``--auth-secret-file``), decides the
-            handshake of a front end whose clients authenticate with a URL token
-            (``AuthMode.URL_TOKEN``, a Foxglove client); an admitted one's session
-            starts authenticated. None: no authentication.
+        entry: the server's one entry check (``rwt_protocol.credentials``): the
+            handshake passes it for the chosen front end's ``AuthMode`` (a URL
+            token for a Foxglove client), and a session admitted so starts
+            authenticated; a front end of ``AuthMode.OP`` proves it in its
+            session. None: no authentication.
         http: the HTTP endpoints on this port, each answering the paths it claims
             (``/version``, ``/webrtc``, ``/mcp``; docs/server.md); the rest are the
             WebSocket's (or the console's).
@@ -695,15 +708,13 @@ async def serve_websocket_connection(
         frontend, _ = frontends.select(_offered(request))
         if refusal is None and frontend is None:
             refusal = 400, frontends.refusal()
-        gated = (
-            token_gate is not None and frontend is not None and frontend.auth is AuthMode.URL_TOKEN
-        )
-        if refusal is None and gated and token_gate is not None:
-            refusal = token_gate(request.path, peer)
+        proven = False
+        if refusal is None and entry is not None and frontend is not None and entry.required:
+            refusal, proven = _proof(entry, frontend.auth, request, peer)
         session = None
         if refusal is None:
             session = host.open_session(
-                channel.transport, peer, pump.wake, frontend=frontend, authenticated=gated
+                channel.transport, peer, pump.wake, frontend=frontend, authenticated=proven
             )
             if session is None:
                 refusal = 503, "too many connections"
@@ -746,6 +757,21 @@ async def _open(
             session.close()
         return
     await run_connection(pump, session, f"agent={_agent(request.headers)!r}")
+
+
+def _proof(
+    entry: EntryAuth, mode: AuthMode, request: Request, peer: str
+) -> tuple[tuple[int, str] | None, bool]:
+    """The handshake through the one entry check: (its refusal, or None; whether proven).
+
+    A front end of ``AuthMode.OP`` proves nothing here: its session asks for the op.
+    """
+    if not mode.at_entry:
+        return None, False
+    headers = {name.lower(): value for name, value in request.headers.raw_items()}
+    query = urlsplit(request.path).query
+    refused = entry.check(mode, peer, headers=headers, query=query, now=time.monotonic())
+    return (None, True) if refused is None else ((refused.status, refused.text), False)
 
 
 def _offered(request: Request) -> list[str]:

@@ -10,7 +10,9 @@ WebGL texture). HTTP/1.1 is parsed by h11 (sans-IO) over anyio streams, the
 same shape as the WebSocket transport.
 
 With ``VideoConfig.tokens`` (``rwt serve --auth-secret-file``) every path but the
-console's needs a live video token (``tokens``): 401 without one, 403 with a bad one.
+console's needs a live video token (``tokens``): 401 without one, 403 with a bad one,
+checked by the one entry check of every front end (``AuthMode.VIDEO_TOKEN``,
+``rwt_protocol.credentials``: ``?token=`` or ``Authorization: Bearer``).
 
 Differences, all answering with a status where web_video_server would hang or
 stream nothing: a topic that does not exist is 404, a topic of another type
@@ -23,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import logging
+import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -33,6 +36,7 @@ import h11
 from anyio.abc import SocketAttribute, SocketStream, TaskStatus
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.credentials import AuthMode, EntryAuth, video_token
 from rwt_protocol.errors import RwtError
 
 from .encoders import BOUNDARY, VIDEO_CONTENT_TYPES, EncodeError
@@ -258,8 +262,10 @@ async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.
         return
     url = urlsplit(request.target.decode("latin-1"))
     query = dict(parse_qsl(url.query, keep_blank_values=True))
-    token = query.pop("token", None) or _bearer(request)
-    if config.tokens is not None and not await _admitted(config.tokens, http, token):
+    query.pop("token", None)
+    headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in request.headers}
+    token = video_token(headers, url.query)
+    if config.tokens is not None and not await _admitted(config.tokens, http, headers, url.query):
         return
     if url.path in ("/", ""):
         topics = hub.graph.topic_names_and_types()
@@ -277,31 +283,26 @@ async def _route(hub: StreamHub, config: VideoConfig, http: _Http, request: h11.
         await http.error(exc.status, str(exc))
 
 
-def _bearer(request: h11.Request) -> str | None:
-    """The token of an ``Authorization: Bearer TOKEN`` header, if there is one."""
-    for name, value in request.headers:
-        if name == b"authorization":
-            scheme, _, token = value.decode("latin-1").partition(" ")
-            if scheme.lower() == "bearer" and token.strip():
-                return token.strip()
-    return None
+async def _admitted(tokens: VideoTokens, http: _Http, headers: dict[str, str], query: str) -> bool:
+    """Whether the request's video token opens the server; if not, the 401 or 403 is sent.
 
-
-async def _admitted(tokens: VideoTokens, http: _Http, token: str | None) -> bool:
-    """Whether ``token`` opens the server; if not, the 401 or 403 is sent."""
-    if token is None:
+    Through the one entry check (``EntryAuth``, ``AuthMode.VIDEO_TOKEN``).
+    """
+    entry = EntryAuth(required=True, token=tokens.valid)
+    refusal = entry.check(
+        AuthMode.VIDEO_TOKEN, "", headers=headers, query=query, now=time.monotonic()
+    )
+    if refusal is None:
+        return True
+    if refusal.status == 401:
+        body = f"401 {refusal.text}\n".encode()
         await http.reply(
-            401,
-            "text/plain; charset=utf-8",
-            b"401 a video token is needed: call /rwt/video_token and add ?token=\n",
-            WWW_Authenticate='Bearer realm="rwt video"',
+            401, "text/plain; charset=utf-8", body, WWW_Authenticate='Bearer realm="rwt video"'
         )
         return False
-    if not tokens.valid(token):
-        _episodes.log(logging.WARNING, "bad_token", "event=refused reason='bad video token'")
-        await http.error(403, "the video token is wrong or expired")
-        return False
-    return True
+    _episodes.log(logging.WARNING, "bad_token", "event=refused reason='bad video token'")
+    await http.error(refusal.status, refusal.text)
+    return False
 
 
 def _checked(graph: Graph, params: StreamParams) -> StreamParams:

@@ -397,7 +397,7 @@ async def test_a_session_holds_a_bounded_number_of_requests_at_once(serving: Any
         async with anyio.create_task_group() as tg:
             for call_id in range(MAX_REQUESTS_IN_FLIGHT):
                 tg.start_soon(wait_on_a_quiet_topic, 10 + call_id)
-            held = server.mcp.sessions[session["Mcp-Session-Id"]]
+            held = server.endpoints["mcp"].sessions[session["Mcp-Session-Id"]]
             with anyio.fail_after(10):
                 while held.in_flight < MAX_REQUESTS_IN_FLIGHT:
                     await anyio.sleep(0.05)

@@ -25,7 +25,7 @@ from rwt_protocol import ratelog as core_ratelog
 from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server import gates
 from rwt_protocol.server.session import SessionConfig
-from rwt_transports import server
+from rwt_transports import rosauth
 from rwt_transports.server import ServerConfig, rosauth_authenticator
 from rwt_video import VideoConfig, serve_video
 from tests.support.clients import TRANSPORTS, Client, is_op, running_server
@@ -113,7 +113,7 @@ async def test_refused_auth_on_many_connections_logs_once_per_episode(
     # Episodes are per process and keyed by kind: another test's refused auth within
     # 10 s would have opened this one, and its first line would not come.
     monkeypatch.setattr(gates, "_episodes", core_ratelog.EpisodeLog(gates.logger))
-    monkeypatch.setattr(server, "_episodes", ratelog.EpisodeLog(server.logger))
+    monkeypatch.setattr(rosauth, "_episodes", ratelog.EpisodeLog(rosauth.logger))
     graph = Graph()
     authenticator = rosauth_authenticator("secret", graph.clock)
     bad = {

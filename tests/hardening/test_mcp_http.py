@@ -232,10 +232,10 @@ async def test_an_mcp_session_ends_after_the_idle_timeout_without_a_request() ->
     async with serving(idle_timeout_s=1.0) as (endpoint, server):
         async with agent(endpoint, terminate=False) as session:
             assert (await session.list_tools()).tools
-            (session_id,) = server.mcp.sessions  # type: ignore[union-attr]
+            (session_id,) = server.endpoints["mcp"].sessions
         # the client left without DELETE (its event stream closed): nothing in flight now
         with anyio.fail_after(WAIT_S):  # before: 600 s whatever --idle-timeout said
-            while mcp_clients(server) or server.mcp.sessions:  # type: ignore[union-attr]
+            while mcp_clients(server) or server.endpoints["mcp"].sessions:
                 await anyio.sleep(0.1)
         async with httpx.AsyncClient(timeout=WAIT_S) as http:
             headers = {**ACCEPT, "Mcp-Session-Id": session_id}

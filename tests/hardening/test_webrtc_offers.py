@@ -30,7 +30,7 @@ from rwt_transports.webrtc_offer import (
 from rwt_transports.webrtc_peers import MAX_CONNECTING
 from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
 from tests.support.clients import HAS_AIORTC
-from tests.webrtc.peer import Served, closed_offer, rtc_client, serving
+from tests.webrtc.peer import Served, closed_offer, peers_of, rtc_client, serving
 
 pytestmark = [
     pytest.mark.anyio,
@@ -59,10 +59,9 @@ async def post(served: Served, sdp: str) -> httpx.Response:
 
 
 def held(served: Served) -> tuple[int, int, int]:
-    """Connecting slots, peers and sessions held (a refused offer adds to none)."""
-    peers = served.server.webrtc
-    assert peers is not None
-    return peers.connecting, len(peers.peers), len(served.server.sessions)
+    """Connecting slots, peers and connection slots held (a refused offer adds to none)."""
+    peers = peers_of(served.server)
+    return peers.connecting, len(peers.peers), served.server.slots_taken
 
 
 def added_nothing(served: Served, before: tuple[int, int, int]) -> bool:

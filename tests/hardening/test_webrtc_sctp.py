@@ -36,7 +36,7 @@ from rwt_transports.webrtc import INBOX_LIMIT_BYTES
 from rwt_transports.webrtc_sctp import MAX_HELD_CHUNKS, SctpBound, bound_sctp
 from rwt_transports.webrtc_signal import WebRtcOptions
 from tests.support.clients import HAS_AIORTC
-from tests.webrtc.peer import RtcClient, Served, rtc_client, serving
+from tests.webrtc.peer import RtcClient, Served, peers_of, rtc_client, serving
 
 pytestmark = [
     pytest.mark.anyio,
@@ -68,8 +68,7 @@ def withhold_last_fragment(client: RtcClient, size: int) -> None:
 
 
 def sctp_of(served: Served) -> RTCSctpTransport:
-    assert served.server.webrtc is not None
-    (peer,) = served.server.webrtc.peers.values()
+    (peer,) = peers_of(served.server).peers.values()
     assert peer.pc.sctp is not None
     return peer.pc.sctp
 

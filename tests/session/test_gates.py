@@ -15,6 +15,7 @@ from rwt_protocol.errors import LocalProtocolError
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.ops import Auth, CallService, Subscribe
 from rwt_protocol.ratelog import EpisodeLog
+from rwt_protocol.runtime import access
 from rwt_protocol.runtime.access import (
     AccessPolicy,
     Family,
@@ -24,7 +25,6 @@ from rwt_protocol.runtime.access import (
 )
 from rwt_protocol.runtime.lifecycle import TRANSITIONS, State, advance
 from rwt_protocol.runtime.outbox import Outbox, OutFrame
-from rwt_protocol.server import gates
 from rwt_protocol.server.handlers import HANDLERS
 from rwt_protocol.server.op_access import check_op
 from rwt_protocol.server.replies import failure_reply
@@ -374,7 +374,7 @@ def test_split_globs_follow_the_reference(
 def test_a_refused_subscribe_names_its_glob_and_a_publish_on_the_topic_passes(
     graph: Graph, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(gates, "_episodes", EpisodeLog(gates.logger))  # a new episode
+    monkeypatch.setattr(access, "_episodes", EpisodeLog(access.logger))  # a new episode
     caplog.set_level(logging.WARNING, logger="rwt.session")
     peer = GatedPeer(graph, "s", SessionConfig(access=split(pub="[/cmd]", sub="[/state]")))
     other = Peer(graph, "o")

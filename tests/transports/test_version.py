@@ -68,15 +68,27 @@ async def test_get_version_answers_the_references_fields_and_rwts_features() -> 
         assert answer["protocol"] == {"major": 2, "minor": 1, "patch": 0}
         assert answer["server"] == installed_version()
         features = answer["rwt"]
-        assert set(features) == {"transports", "encodings", "subprotocols", "webrtc", "mcp", "auth"}
+        assert set(features) == {
+            "transports", "encodings", "subprotocols", "webrtc", "mcp", "auth", "frontends"
+        }  # fmt: skip
         # running_server: WebSocket, TCP, UDP and stdio (and WebRTC where aiortc is installed)
         assert features["transports"][:4] == ["ws", "tcp", "udp", "stdio"]
-        assert features["webrtc"] is (harness.server.webrtc is not None)
+        assert features["webrtc"] is ("webrtc" in harness.server.endpoints)
         assert ("webrtc" in features["transports"]) is features["webrtc"]
         assert features["encodings"] == ["none", "png", "cbor", "cbor-raw"]
         assert "foxglove.websocket.v1" in features["subprotocols"]
         assert features["mcp"] is False
         assert features["auth"] == "none"
+        # every front end served, from the one registry: the protocols and the HTTP API too
+        frontends = {each.pop("name"): each for each in features["frontends"]}
+        assert frontends["rosbridge"] == {
+            "subprotocols": [], "labels": ["rosbridge", "rosbridge-lossy"], "paths": [],
+            "auth": "none",
+        }  # fmt: skip
+        assert "foxglove.sdk.v1" in frontends["foxglove"]["subprotocols"]
+        assert frontends["http"]["paths"] == ["/api/", "/openapi.json"]
+        assert frontends["version"]["paths"] == ["/version"]
+        assert ("webrtc" in frontends) is features["webrtc"] and "mcp" not in frontends
         # the WebSocket beside it is unchanged
         ws = await harness.connect("ws")
         await ws.send({"op": "call_service", "service": "/rosapi/get_time", "id": "t"})
@@ -150,6 +162,10 @@ async def test_auth_mode_and_features_follow_the_configuration() -> None:
         status, _, body = await fetch_async(url)
         assert status == 200
         assert json.loads(body)["rwt"]["auth"] == "op"
+        # how each front end's client proves who it is (AuthMode): the op, a URL token...
+        proofs = {each["name"]: each["auth"] for each in json.loads(body)["rwt"]["frontends"]}
+        assert proofs["rosbridge"] == "op" and proofs["foxglove"] == "url"
+        assert proofs["http"] == "bearer" and proofs["version"] == "none"
         # a browser page from an allowed origin may read it; another origin is refused
         status, headers, _ = await fetch_async(url, headers={"Origin": "https://robot.example"})
         assert status == 200

@@ -23,6 +23,8 @@ from aiortc import (
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from rwt_transports.webrtc_peers import WebRtcPeers
+from rwt_transports.webrtc_signal import WebRtcSignalling
 
 RECEIVE_S = 10.0
 """Longest wait for one message: a failure, not a measurement."""
@@ -65,6 +67,13 @@ class RtcClient:
             message = cbor2.loads(raw) if isinstance(raw, bytes) else msgspec.json.decode(raw)
             if message.get("op") == op:
                 return message  # type: ignore[no-any-return]
+
+
+def peers_of(server: RosbridgeServer) -> WebRtcPeers:
+    """The server's WebRTC peers: those of its ``webrtc`` front end (the registry's)."""
+    endpoint = server.endpoints["webrtc"]
+    assert isinstance(endpoint, WebRtcSignalling) and isinstance(endpoint.peers, WebRtcPeers)
+    return endpoint.peers
 
 
 async def offer_sdp(pc: RTCPeerConnection) -> str:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import anyio
 import pytest
 
@@ -11,6 +13,8 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
 from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
 
+from rwt_transports.frontends import FrontEnds
+from rwt_transports.frontends_registry import rosbridge_frontend
 from rwt_transports.webrtc import INBOX_LIMIT_BYTES, DataChannelChannel
 from rwt_transports.webrtc_native import (
     Inflow,
@@ -75,7 +79,9 @@ async def test_the_native_stack_counts_messages_waiting_for_the_loop_in_the_boun
     channel = DataChannelChannel(None, max_message_size=1 << 20, remote_max_message_size=0)
     inflow = Inflow(limit, lambda: channel.inbox_bytes)
     channel.held_below = lambda: inflow.pending
-    answerer = NativePeerConnection((), 1 << 20, inflow, ANSWER_MAX_MESSAGE_SIZE, channel_refusal)
+    labels = FrontEnds(rosbridge_frontend(lambda request: None))  # type: ignore[arg-type,return-value]
+    refusal = functools.partial(channel_refusal, labels)  # the registry's labels, rosbridge's
+    answerer = NativePeerConnection((), 1 << 20, inflow, ANSWER_MAX_MESSAGE_SIZE, refusal)
 
     def take(native: NativeDataChannel) -> None:  # before its first message, as the server
         native.on("overflow", channel.overflow)

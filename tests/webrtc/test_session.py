@@ -22,7 +22,7 @@ from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.webrtc import MAX_TEXT_FRAME_BYTES, SEND_HIGH_WATER_BYTES
 from rwt_transports.webrtc_signal import WebRtcOptions
-from tests.webrtc.peer import RtcClient, Served, rtc_client, serving
+from tests.webrtc.peer import RtcClient, Served, peers_of, rtc_client, serving
 
 pytestmark = pytest.mark.anyio
 
@@ -133,7 +133,7 @@ async def test_closing_the_peer_connection_frees_the_session(served: Served) -> 
         with anyio.fail_after(15):
             while served.server.sessions:
                 await anyio.sleep(0.05)
-    assert served.server.webrtc is not None and not served.server.webrtc.peers
+    assert not peers_of(served.server).peers
 
 
 async def test_an_idle_session_is_closed_as_on_other_transports() -> None:
@@ -145,7 +145,7 @@ async def test_an_idle_session_is_closed_as_on_other_transports() -> None:
             await client.closed.wait()  # nothing held, nothing sent: the server closed it
             while running.server.sessions:
                 await anyio.sleep(0.05)
-        assert running.server.webrtc is not None and not running.server.webrtc.peers
+        assert not peers_of(running.server).peers
 
 
 async def test_stopping_the_server_closes_webrtc_sessions() -> None:
@@ -159,7 +159,7 @@ async def test_stopping_the_server_closes_webrtc_sessions() -> None:
             server.stop()
             with anyio.fail_after(15):
                 await client.closed.wait()
-    assert not server.sessions and server.webrtc is not None and not server.webrtc.peers
+    assert not server.sessions and not peers_of(server).peers
 
 
 async def test_the_data_channel_buffer_is_flow_controlled(served_on: Served) -> None:
@@ -171,8 +171,7 @@ async def test_the_data_channel_buffer_is_flow_controlled(served_on: Served) -> 
         client.send({"op": "subscribe", "topic": "/burst", "type": "std_msgs/String"})
         client.send({"op": "call_service", "service": "/rosapi/topics", "id": "c"})
         await client.next_op("service_response")
-        assert served_on.server.webrtc is not None
-        (peer,) = served_on.server.webrtc.peers.values()
+        (peer,) = peers_of(served_on.server).peers.values()
         channel = peer.channel
         assert channel is not None
         highest = 0

@@ -18,7 +18,7 @@ from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_peers import MAX_CONNECTING
 from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
-from tests.webrtc.peer import Served, closed_offer, rtc_client, serving
+from tests.webrtc.peer import Served, closed_offer, peers_of, rtc_client, serving
 
 pytestmark = pytest.mark.anyio
 
@@ -39,7 +39,7 @@ async def test_a_bad_offer_gets_400_with_a_reason(
     async with httpx.AsyncClient(base_url=served_on.base) as http:
         reply = await http.post("/webrtc", content=body, headers=headers)
     assert reply.status_code == status and text in reply.text
-    assert not served_on.server.sessions  # a refused offer holds no session
+    assert not served_on.server.slots_taken  # a refused offer holds no slot, no session
 
 
 async def test_an_offer_without_a_data_channel_gets_400(served_on: Served) -> None:
@@ -100,11 +100,12 @@ async def test_a_peer_that_never_connects_is_freed_after_the_deadline(served_on:
         reply = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
         assert reply.status_code == 201 and reply.headers["Content-Type"] == "application/sdp"
         assert "a=candidate" in reply.text  # gathered: no trickle
-        assert len(served_on.server.sessions) == 1  # admitted as it was answered
+        # admitted as it was answered: its ticket holds a slot, no session before a channel
+        assert served_on.server.slots_taken == 1 and not served_on.server.sessions
         with anyio.fail_after(15):  # connect_timeout_s is 2 here
-            while served_on.server.sessions:
+            while served_on.server.slots_taken:
                 await anyio.sleep(0.05)
-        assert served_on.server.webrtc is not None and not served_on.server.webrtc.peers
+        assert not peers_of(served_on.server).peers
         assert (await http.delete(reply.headers["Location"])).status_code == 404
 
 
@@ -140,8 +141,7 @@ async def test_a_burst_of_offers_is_bounded_and_a_websocket_bystander_is_served(
             assert reply["id"] == "b" and reply["result"] is True
     assert sorted(set(statuses)) == [201, 503]
     assert statuses.count(201) <= MAX_CONNECTING
-    assert served_on.server.webrtc is not None
-    assert len(served_on.server.webrtc.peers) <= MAX_CONNECTING
+    assert len(peers_of(served_on.server).peers) <= MAX_CONNECTING
 
 
 async def test_the_roslib_transport_is_served_as_javascript_with_cors(served: Served) -> None:

@@ -32,7 +32,7 @@ from rwt_transports.webrtc_video import MAX_VIDEO_STREAMS, VideoTrack
 from rwt_video.encoders import VideoPacket
 from rwt_video.params import StreamParams
 from rwt_video.rtp import H264PassThrough, RtpEncoder
-from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, rtc_client, serving
+from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, peers_of, rtc_client, serving
 from tests.webrtc.whep import image, player, post_offer, recvonly_offer
 
 pytestmark = pytest.mark.anyio
@@ -58,8 +58,8 @@ async def camera(served: Served, size: tuple[int, int] = (160, 120)) -> AsyncIte
 
 
 def hub_of(served: Served):  # type: ignore[no-untyped-def]
-    assert served.server.webrtc is not None and served.server.webrtc.video is not None
-    hub = served.server.webrtc.video.hub
+    assert peers_of(served.server).video is not None
+    hub = peers_of(served.server).video.hub
     assert hub is not None
     return hub
 
@@ -80,7 +80,8 @@ async def test_a_whep_player_plays_an_image_topic(served: Served, codec: str) ->
         assert np.abs(mean - RED).max() < 25  # lossy, but red
         assert "a=msid:" in played.answer and "a=sendonly" in played.answer
         assert codec.split("/")[1] in played.answer
-        assert len(served.server.sessions) == 1  # a video-only peer is a connection too
+        # a video-only peer is a connection too: on its ticket, with no session
+        assert served.server.slots_taken == 1 and not served.server.sessions
         (stream,) = hub_of(served).streams
         assert stream.type.value == codec.split("/")[1].lower()
 
@@ -104,7 +105,7 @@ async def test_two_players_share_one_encoder_which_stops_with_the_last(served: S
             async with httpx.AsyncClient(base_url=served.base) as http:
                 assert (await http.delete(one.location)).status_code == 204
             with anyio.fail_after(RECEIVE_S):
-                while hub.streams or served.server.sessions:
+                while hub.streams or served.server.slots_taken:
                     await anyio.sleep(0.05)
         assert hub.started == 1
 
@@ -205,7 +206,7 @@ async def test_a_bad_video_request_is_refused_and_a_bystander_served(
     async with camera(served):
         reply = await post_offer(served.base, query, await a_video_offer())
         assert reply.status_code == status and text in reply.text
-        assert not served.server.sessions and not hub_of(served).streams
+        assert not served.server.slots_taken and not hub_of(served).streams
         async with player(served.base, f"video={CAMERA}") as played:
             await played.frame()
 
@@ -298,7 +299,7 @@ async def test_a_compressed_topic_needs_h264(served: Served) -> None:
     served.graph.create_publisher("/camera/h264", "sensor_msgs/msg/CompressedImage")
     reply = await post_offer(served.base, "video=/camera/h264", await a_video_offer())
     assert reply.status_code == 400 and "only H.264 passes through" in reply.text
-    assert not served.server.sessions and not hub_of(served).streams
+    assert not served.server.slots_taken and not hub_of(served).streams
 
 
 async def test_with_auth_video_needs_the_bearer_token() -> None:
@@ -328,9 +329,9 @@ async def test_a_video_peer_that_never_connects_runs_no_encoder_and_is_freed(
     async with camera(served):
         reply = await post_offer(served.base, f"video={CAMERA}", await a_video_offer())
         assert reply.status_code == 201
-        assert len(served.server.sessions) == 1  # admitted as it was answered
+        assert served.server.slots_taken == 1  # admitted as it was answered: its ticket
         with anyio.fail_after(CONNECT_TIMEOUT_S + RECEIVE_S):
-            while served.server.sessions:
+            while served.server.slots_taken:
                 assert not hub_of(served).streams
                 await anyio.sleep(0.05)
         assert hub_of(served).started == 0  # no encoder ever ran
@@ -353,7 +354,7 @@ async def test_distinct_streams_are_bounded(served: Served) -> None:
         assert refused.status_code == 503
         assert f"{MAX_VIDEO_STREAMS} distinct streams run already" in refused.text
         assert len(hub_of(served).streams) == MAX_VIDEO_STREAMS
-        assert len(served.server.sessions) == len(per_offer) - 1  # the refused one holds none
+        assert served.server.slots_taken == len(per_offer) - 1  # the refused one holds none
         async with rtc_client(served.base) as bystander:  # a data channel needs no stream
             bystander.send({"op": "call_service", "service": "/rosapi/topics", "id": "b"})
             assert (await bystander.next_op("service_response"))["result"] is True

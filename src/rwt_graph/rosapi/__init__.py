@@ -1,7 +1,7 @@
 """rosapi, built in: graph introspection and parameters as ``/rosapi/*`` services (REF §7.1).
 
 ``install_rosapi(graph)`` registers them as in-process services of node
-``/rosapi``; ``RosbridgeServer`` does so for every server. Listings answer for
+``/rosapi``; ``GraphServer`` does so for every server. Listings answer for
 the calling client through a ``Visibility`` (the hook for access rules).
 In ROS 2 it also makes each node with parameters answer its own parameter
 services (``nodeparams``), as ROS 2 tools expect.

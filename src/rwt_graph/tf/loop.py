@@ -2,7 +2,7 @@
 
 The rest of ``rwt_graph.tf`` holds the buffer and the republishing logic and knows
 no event loop; this module passes it ``anyio.sleep`` (a timer, no I/O).
-``RosbridgeServer`` calls it unless ``ServerConfig.tf`` is false (``rwt serve --no-tf``).
+``GraphServer`` calls it unless ``ServerConfig.tf`` is false (``rwt serve --no-tf``).
 """
 
 from __future__ import annotations

@@ -11,10 +11,16 @@ what it subscribes to: unset (None), each is ``topics_glob`` as it is; set, even
 to an empty list, it is its own patterns plus ``topics_glob``'s, and an empty
 result allows nothing. A listing shows a topic either one allows
 (``TopicUse``: None). Every refusal names the glob that refused it
-(``AccessPolicy.refusal``, ``AccessDeniedError.glob``). Every protocol's session
-asks it (``SessionBase.require_access``); rosbridge's checks every op against it
-before dispatch, by op family and name (``rwt_protocol.server.op_access``), so
-every handler is covered without knowing about it. Unlike the reference, which
+(``AccessPolicy.refusal``, ``AccessDeniedError.glob``).
+
+Every refusal goes through the one access gate, ``gate`` (or, for a refusal a
+protocol words itself, ``log_denied``), and its one log line
+(``event=access_denied client=... op=... glob=... reason=...``, once per episode,
+repeats counted): every protocol's session (``SessionBase.require_access``: Foxglove's
+topics and parameters, the HTTP API's names), rosbridge's op check (which checks every
+op before dispatch, by op family and name, ``rwt_protocol.server.op_access``, so every
+handler is covered without knowing about it), the MCP tools' guard and WebRTC's video
+tracks. Unlike the reference, which
 drops a denied op with only a log line (a denied ``call_service`` then waits
 forever), a denied op gets an error ``status`` (D1) and its natural failure reply
 (D4).
@@ -28,6 +34,7 @@ against the parameter patterns (``op_access``).
 from __future__ import annotations
 
 import fnmatch
+import logging
 import re
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -35,6 +42,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import RemoteProtocolError
 from ..names import resolve_name
+from ..ratelog import EpisodeLog
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
@@ -44,9 +52,14 @@ __all__ = [
     "AccessPolicy",
     "Family",
     "TopicUse",
+    "gate",
+    "log_denied",
     "parse_glob_list",
     "parse_split_glob",
 ]
+
+logger = logging.getLogger("rwt.session")
+_episodes = EpisodeLog(logger)  # a peer triggers these at will: one line per episode
 
 ROSAPI_PREFIX = "/rosapi/"
 
@@ -237,3 +250,56 @@ class AccessPolicy:
     def filter(self, family: Family, names: Iterable[str]) -> list[str]:
         """The names a client may see, in their order (for rosapi's listings)."""
         return [name for name in names if self.allows(family, name)]
+
+
+def gate(
+    policy: AccessPolicy,
+    family: Family,
+    name: str,
+    *,
+    client: str,
+    op: str,
+    use: TopicUse | None = None,
+    now: float,
+) -> None:
+    """The one access gate: refuse what ``policy`` denies, with the one log line.
+
+    Args:
+        policy: the server's access rules (``--topics-glob`` and friends).
+        family: what ``name`` is (topic, service, action, parameter).
+        name: the name the client asked for.
+        client: who asked (a client id, ``webrtc:HOST:PORT``), for the log.
+        op: what it asked for (``subscribe``, ``advertise``, ``video``, a tool's name).
+        use: for a topic, publishing or subscribing (the split globs, D50); None
+            checks it as a listing would.
+        now: the caller's monotonic seconds (the core reads no clock), for the log.
+
+    Raises:
+        AccessDeniedError: ``name`` is outside the rules; its ``glob`` names the
+            rule that refused (``topics_sub_glob``).
+    """
+    glob = policy.refusal(family, name, use)
+    if glob is None:
+        return
+    denied = AccessDeniedError(f"{family.value[:-1]} {name} is not allowed on this server", glob)
+    log_denied(denied, client=client, op=op, now=now)
+    raise denied
+
+
+def log_denied(denied: AccessDeniedError, *, client: str, op: str, now: float) -> None:
+    """The access gate's one log line, for a refusal ``denied`` (``gate`` writes it too).
+
+    ``event=access_denied client=... op=... glob=... reason=...``, once per episode
+    of refusals, repeats counted (``ratelog.EpisodeLog``): a client repeating them
+    cannot write the log at its own rate.
+    """
+    _episodes.log(
+        logging.WARNING,
+        "access_denied",
+        "event=access_denied client=%s op=%s glob=%s reason=%r",
+        client,
+        op,
+        denied.glob,
+        denied.message,
+        now=now,
+    )

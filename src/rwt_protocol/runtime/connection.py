@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, ClassVar
 from ..errors import LimitError, RwtError
 from ..levels import StatusLevel
 from ..ratelog import EpisodeLog
-from .access import AccessDeniedError, Family, TopicUse
+from .access import Family, TopicUse, gate
 from .backpressure import SlowConsumerWatch
 from .callbook import CallBook
 from .commands import CloseCode, CloseConnection, Command
@@ -719,9 +719,9 @@ class SessionBase:
         """The access gate of every protocol: refuse what the access rules deny.
 
         The rules are the server's (``ClientRules.access``: ``--topics-glob``
-        and friends); a refusal is logged as rosbridge's are
-        (``event=access_denied``, once per episode, repeats counted), naming the
-        glob that refused (``glob=topics_sub_glob``, D50).
+        and friends); a refusal passes the one access gate (``access.gate``) and
+        its one log line (``event=access_denied``, once per episode, repeats
+        counted), naming the glob that refused (``glob=topics_sub_glob``, D50).
 
         Args:
             family: what ``name`` is (topic, service, action, parameter).
@@ -733,21 +733,9 @@ class SessionBase:
         Raises:
             AccessDeniedError: ``name`` is outside the rules.
         """
-        glob = self._config.access.refusal(family, name, use)
-        if glob is None:
-            return
-        text = f"{family.value[:-1]} {name} is not allowed on this server"
-        _episodes.log(
-            logging.WARNING,
-            "access_denied",
-            "event=access_denied client=%s op=%s glob=%s reason=%r",
-            self._client_id,
-            op,
-            glob,
-            text,
-            now=self._now,
+        gate(
+            self._config.access, family, name, client=self._client_id, op=op, use=use, now=self._now
         )
-        raise AccessDeniedError(text, glob)
 
     def _wake(self) -> None:
         if self._on_output is not None:

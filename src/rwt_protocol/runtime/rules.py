@@ -65,7 +65,7 @@ class ClientRules:
             reply (``--max-pending-calls``); the next is answered as failed.
         idle_timeout_s: seconds after which a connection whose peer sent nothing and
             that holds nothing (``SessionBase.holds_anything``) is closed
-            (``idle.IdleWatch``); None: never. A ``RosbridgeServer`` sets it from
+            (``idle.IdleWatch``); None: never. A ``GraphServer`` sets it from
             ``ServerConfig.idle_timeout_s`` for WebSocket and TCP connections
             (``--idle-timeout``).
     """

@@ -7,22 +7,24 @@
 - Access rules (``AccessPolicy``, rosbridge's ``*_glob`` parameters): a denied
   op gets an error status and, for calls and goals, its failure reply (D1, D4).
 
-Both log a structured line (``event=auth_failed``, ``event=access_denied``) once
-per episode of refusals, repeats counted (``ratelog.EpisodeLog``): a client
-repeating them cannot write the log at its own rate.
+Both log a structured line (``event=auth_failed``; ``event=access_denied``, the
+one access gate's, ``runtime.access.log_denied``) once per episode of refusals,
+repeats counted (``ratelog.EpisodeLog``): a client repeating them cannot write the
+log at its own rate. The ``auth`` op is checked by the one check of auth ops
+(``credentials.op_refusal``), which URL tokens go through too.
 """
 
 from __future__ import annotations
 
-import hmac
 import logging
 from typing import TYPE_CHECKING
 
+from ..credentials import op_refusal
 from ..errors import RemoteProtocolError
 from ..levels import StatusLevel
 from ..ops import Auth, OpModel, PublishView
 from ..ratelog import EpisodeLog
-from ..runtime.access import AccessDeniedError
+from ..runtime.access import AccessDeniedError, log_denied
 from .op_access import check_op
 from .replies import failure_reply
 
@@ -61,25 +63,10 @@ def authenticate(session: Session, op: OpModel) -> bool:
     authenticator = session.config.authenticator
     if authenticator is None:  # pragma: no cover - the session only asks when there is one
         return True
-    nonce = session.auth_nonce
-    if nonce is not None and not hmac.compare_digest(op.rand.encode(), nonce.encode()):
-        # bound to the connection (D31): a captured auth op fails on any other one
-        _failed(session, "rand is not this connection's auth_challenge")
-        raise RemoteProtocolError("authentication failed")
-    try:
-        admitted = authenticator(op, session.peer)
-    except Exception:
-        _episodes.log(
-            logging.ERROR,
-            "authenticator_failed",
-            "authenticator failed for %s",
-            session.client_id,
-            exc_info=True,
-            now=session.now,
-        )
-        admitted = False
-    if not admitted:
-        _failed(session, "refused by the authenticator")
+    # the one check of an auth op (credentials.py), the URL token's too
+    why = op_refusal(authenticator, op, session.peer, nonce=session.auth_nonce, now=session.now)
+    if why is not None:
+        _failed(session, why)
         raise RemoteProtocolError("authentication failed")
     logger.info(
         "event=auth_ok client=%s peer=%s level=%s", session.client_id, session.peer, op.level
@@ -99,16 +86,7 @@ def check_access(session: Session, op: OpModel | PublishView) -> None:
         check_op(session.config.access, op)
     except AccessDeniedError as exc:
         name: str = op.op
-        _episodes.log(
-            logging.WARNING,
-            "access_denied",
-            "event=access_denied client=%s op=%s glob=%s reason=%r",
-            session.client_id,
-            name,
-            exc.glob,
-            exc.message,
-            now=session.now,
-        )
+        log_denied(exc, client=session.client_id, op=name, now=session.now)  # the one log line
         reply = failure_reply(op, f"{name}: {exc.message}") if isinstance(op, OpModel) else None
         if reply is not None:
             session.send(reply)

@@ -101,7 +101,7 @@ class SessionConfig(ClientRules):
             MAC that covers ``rand`` (``RosauthVerifier(bound=True)``).
         max_message_size: the largest message reassembled from ``fragment`` or
             ``png`` parts, and the most their pending parts may hold at once,
-            bytes (D19, D24, ``--max-message-size``). A ``RosbridgeServer`` sets
+            bytes (D19, D24, ``--max-message-size``). A ``GraphServer`` sets
             it from its ``ServerConfig.max_message_size``, the one limit of all
             its transports.
         max_pending_fragments: messages whose parts are still arriving, at most

@@ -1,0 +1,61 @@
+"""An environment of its own for openapi-python-client, the code generator of tests/http.
+
+tests/http/test_codegen.py generates a client from the HTTP API's OpenAPI document
+and drives the robot with it. The generator is a tool, not a dependency of the suite:
+its pins (typer below 0.28) are older than rwt's, so it runs from an environment of its
+own, as a user installs it (``pipx install openapi-python-client``).
+``RWT_OPENAPI_PYTHON_CLIENT`` names its command; else one on PATH; else one is made
+once under ``~/.cache/rwt-tests`` with pip (about 15 s) and reused after. ``.ci/run``
+makes it before the suite, so that its install stays out of the suite's time.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import shutil
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+__all__ = ["GENERATOR_PIN", "openapi_generator"]
+
+GENERATOR_PIN = "openapi-python-client==0.29.1"
+"""The release tests/http/test_codegen.py generates its client with."""
+_HOME = Path.home() / ".cache" / "rwt-tests" / GENERATOR_PIN.replace("==", "-")
+_BIN = _HOME / ("Scripts" if sys.platform == "win32" else "bin")
+
+
+def _command() -> Path:
+    return _BIN / (
+        "openapi-python-client.exe" if sys.platform == "win32" else "openapi-python-client"
+    )
+
+
+@functools.cache
+def openapi_generator() -> tuple[Path | None, str]:
+    """The generator's command: ``(path, "")``, or ``(None, why not)``."""
+    named = os.environ.get("RWT_OPENAPI_PYTHON_CLIENT") or shutil.which("openapi-python-client")
+    if named:
+        return Path(named), ""
+    command = _command()
+    if command.exists():  # made before (by .ci/run): checked when it was made
+        return command, ""
+    python = _BIN / ("python.exe" if sys.platform == "win32" else "python")
+    try:
+        venv.create(_HOME, with_pip=True, clear=True)
+        install = [str(python), "-m", "pip", "install", "-q", GENERATOR_PIN]
+        done = subprocess.run(install, capture_output=True, text=True, check=False, timeout=600)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return None, f"could not make an environment for {GENERATOR_PIN}: {exc}"
+    if done.returncode != 0:
+        shutil.rmtree(_HOME, ignore_errors=True)  # not half made: the next run tries again
+        return None, f"pip install {GENERATOR_PIN} failed: {done.stderr.strip()[-300:]}"
+    probe = subprocess.run(
+        [str(command), "--version"], capture_output=True, text=True, check=False, timeout=120
+    )
+    if probe.returncode != 0:
+        shutil.rmtree(_HOME, ignore_errors=True)
+        return None, f"{GENERATOR_PIN} was installed in {_HOME} but does not run"
+    return command, ""
