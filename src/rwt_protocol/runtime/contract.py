@@ -86,7 +86,15 @@ class WatchedSession(Protocol):
 
 
 class ServerSession(Protocol):
-    """One server-side connection's protocol state, as the connection runtime drives it."""
+    """One server-side connection's protocol state, as the connection runtime drives it.
+
+    Sans-IO: no method blocks or does I/O; each says on its docstring what the driver
+    (the transport's pump, ``rwt_transports.pump``) calls after it. In short: ``start``
+    first; then, in any order the transport's events come, ``receive_frame``,
+    ``handle_timer`` and ``finish_job``, each followed by ``commands_to_run``,
+    ``get_timer`` and, while ``has_jobs``, ``take_job``; ``frames_to_send`` whenever
+    ``on_output`` was called, ``frames_sent`` once written; ``close`` last.
+    """
 
     @property
     def client_id(self) -> str:
@@ -113,16 +121,33 @@ class ServerSession(Protocol):
     peer fall behind (flow.py, ``WATCH_SHARE``). A protocol may wake more often."""
 
     def start(self, now: float) -> None:
-        """The transport serves the connection from ``now`` (monotonic seconds)."""
+        """The transport serves the connection from ``now`` (monotonic seconds).
+
+        Call once, after setting ``on_job`` and ``on_timer`` and before any other method
+        but the properties; then call ``get_timer`` (it may set one, the idle timer) and
+        ``frames_to_send`` (a protocol may greet the peer, Foxglove's ``serverInfo``).
+        """
 
     def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
-        """Handle one whole incoming frame; never raises (a bug in it is contained)."""
+        """Handle one whole incoming frame; never raises (a bug in it is contained).
+
+        After it: ``commands_to_run`` (a close it asked for), ``take_job`` while
+        ``has_jobs`` (before the next frame: input jobs keep the frames' order), and
+        ``get_timer`` (it may have set an earlier one). Input that comes once
+        ``closing`` is ignored.
+        """
 
     def receive_lossy_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
-        """Handle one frame that came on the transport's lossy channel (D36)."""
+        """Handle one frame that came on the transport's lossy channel (D36).
+
+        Then as after ``receive_frame``.
+        """
 
     def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
-        """Open the lane whose messages go on the transport's lossy channel (D36)."""
+        """Open the lane whose messages go on the transport's lossy channel (D36).
+
+        ``on_output`` is called when the lane has a message: then ``lossy_frame_to_send``.
+        """
 
     def close_lossy_lane(self) -> None:
         """The lossy channel closed: its subscriptions' messages go on the reliable one."""
@@ -143,47 +168,83 @@ class ServerSession(Protocol):
         """
 
     def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
-        """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one)."""
+        """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one).
+
+        Call when ``on_output`` was called, until it returns none; write them, then call
+        ``frames_sent`` (they count against the memory budget until then), then
+        ``commands_to_run``: a close is queued after the frames it follows.
+        """
 
     def frames_sent(self) -> None:
-        """The transport wrote the frames it took (they count as held until then, D44)."""
+        """The transport wrote the frames it took (they count as held until then, D44).
+
+        Once per ``frames_to_send`` whose frames were written, before the next one.
+        """
 
     def commands_to_run(self) -> list[Command]:
-        """Take the commands queued for the transport (``CloseConnection``)."""
+        """Take the commands queued for the transport (``CloseConnection``).
+
+        After every input, timer, job and write; a ``CloseConnection`` is run once the
+        frames queued before it are written (``abort``: at once).
+        """
 
     def get_timer(self) -> float | None:
-        """When ``handle_timer`` must next be called (monotonic seconds), or None."""
+        """When ``handle_timer`` must next be called (monotonic seconds), or None.
+
+        Ask again after each input, timer and job, and when ``on_timer`` is called: an
+        earlier deadline replaces the one the driver waits for.
+        """
 
     def handle_timer(self, now: float) -> None:
-        """Run what was due at or before ``now``; never raises (a bug in it is contained)."""
+        """Run what was due at or before ``now``; never raises (a bug in it is contained).
+
+        Call once ``get_timer``'s time has come; then as after ``receive_frame``.
+        """
 
     @property
     def has_jobs(self) -> bool:
         """Whether input jobs wait: the transport runs them before the next frame."""
 
     def take_job(self) -> Job | None:
-        """The oldest input job (the reader waits for it), or None."""
+        """The oldest input job (the reader waits for it), or None.
+
+        Run it (off the event loop where ``run_jobs`` was called), then ``finish_job``
+        with its outcome, before the next frame is received.
+        """
 
     def take_background_job(self) -> Job | None:
-        """The oldest background job (the reader goes on meanwhile), or None."""
+        """The oldest background job (the reader goes on meanwhile), or None.
+
+        Call when ``on_job`` was called; run it, then ``finish_job``.
+        """
 
     def finish_job(self, job: Job, result: object, now: float) -> None:
         """Take a job's outcome: what ``run`` returned, or the exception it raised.
 
-        Never raises: a failed job, or a bug taking its outcome, is contained.
+        Never raises: a failed job, or a bug taking its outcome, is contained. Then as
+        after ``receive_frame``.
         """
 
     def run_jobs(self) -> None:
-        """The transport runs the jobs from now on (else a session does them at once)."""
+        """The transport runs the jobs from now on (else a session does them at once).
+
+        Call before ``start``, if at all.
+        """
 
     def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
         """Ask the transport to close after the frames queued so far."""
 
     def begin_shutdown(self) -> None:
-        """The server is stopping: take no more input, release what the client holds."""
+        """The server is stopping: take no more input, release what the client holds.
+
+        Then ``request_close`` (the server's going-away close) and write what is queued.
+        """
 
     def close(self) -> None:
-        """The connection is gone: release everything. Idempotent."""
+        """The connection is gone: release everything. Idempotent.
+
+        Last: after it the driver calls nothing but the properties.
+        """
 
     @property
     def close_request(self) -> CloseConnection | None:
