@@ -42,6 +42,9 @@ import traceback
 import types
 from collections.abc import Callable
 
+# run as a script: its folder is sys.path[0]
+from pycache import reuse_installed
+
 #: The commands a test worker runs most (``rwt mcp`` loads the MCP SDK: left cold-loaded).
 PRELOAD = (
     "rwt_cli.app",
@@ -352,6 +355,7 @@ class Zygote:
 
 
 def main() -> None:
+    reuse_installed()  # before the preload: installed modules' own bytecode (pycache.py)
     zygote = Zygote(sys.argv[1], sys.argv[2])
     zygote.preload()
     zygote.serve()
