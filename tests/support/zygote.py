@@ -27,6 +27,7 @@ from __future__ import annotations
 import array
 import atexit
 import contextlib
+import gc
 import importlib
 import io
 import json
@@ -241,6 +242,11 @@ class Zygote:
             self.warm = self.warm_python = False
         if threading.active_count() > 1:  # a fork would copy a thread's locks, not the thread
             self.warm = False
+        # What is loaded now is every run's: out of the collector's sight, so that a run's
+        # collections (rwt serve's own gc.freeze at start) do not walk it all again, nor
+        # touch its pages (copied on write).
+        gc.collect()
+        gc.freeze()
 
     def own_fds(self) -> list[int]:
         return [key.fd for key in self.selector.get_map().values()] + [self.selector.fileno()]
