@@ -20,6 +20,7 @@ import contextlib
 import os
 import py_compile
 import sys
+import threading
 from collections.abc import Iterable
 from fnmatch import fnmatch
 from importlib import _bootstrap_external  # type: ignore[attr-defined]
@@ -119,21 +120,53 @@ def prime(config: Any, folders: Iterable[str], tests: Iterable[str]) -> None:
                         sources.append((path, True))
                 else:
                     sources.append((path, name == "conftest.py"))
+    stale: list[tuple[Path, str, bool]] = []
     for path, rewritten in sources:
         source = Path(path)
         if rewritten:
             pyc = str(rewrite.get_cache_dir(source) / (source.name[:-3] + rewrite.PYC_TAIL))
         else:
             pyc = _bootstrap_external.cache_from_source(path)
+        with contextlib.suppress(OSError):
+            if not _fresh(pyc, source.stat()):
+                stale.append((source, pyc, rewritten))
+    # on every core (the workers wait for it): forked while this process has no other thread
+    forks = hasattr(os, "fork") and _single_threaded() and len(stale) > 50
+    shares = min(os.cpu_count() or 1, 4) if forks else 1
+    children = []
+    for share in range(1, shares):
+        pid = os.fork()
+        if pid == 0:
+            try:
+                _write(stale[share::shares], config, state)
+            finally:
+                os._exit(0)
+        children.append(pid)
+    _write(stale[::shares], config, state)
+    for pid in children:
+        os.waitpid(pid, 0)
+
+
+def _single_threaded() -> bool:
+    """Whether this process has one thread (native ones too, where /proc says): safe to fork."""
+    try:
+        return len(os.listdir("/proc/self/task")) == 1
+    except OSError:
+        return threading.active_count() == 1
+
+
+def _write(stale: list[tuple[Path, str, bool]], config: Any, state: Any) -> None:
+    """Compile or rewrite each of ``stale`` into its pyc file (``prime``)."""
+    from _pytest.assertion import rewrite  # noqa: PLC0415 - pytest's processes only
+
+    for source, pyc, rewritten in stale:
         try:
-            if _fresh(pyc, source.stat()):
-                continue
             if rewritten:
                 os.makedirs(os.path.dirname(pyc), exist_ok=True)
                 stat, code = rewrite._rewrite_test(source, config)
                 rewrite._write_pyc(state, code, stat, Path(pyc))
             else:
-                py_compile.compile(path, pyc, doraise=True, invalidation_mode=_TIMESTAMP)
+                py_compile.compile(str(source), pyc, doraise=True, invalidation_mode=_TIMESTAMP)
         except Exception:  # one that fails to compile: the workers say why
             continue
 
