@@ -28,6 +28,12 @@ if sys.dont_write_bytecode:
     sys.dont_write_bytecode = False
     os.environ["PYTHONPYCACHEPREFIX"] = _PYCACHE
     os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+from tests.support import pycache  # the standard library only
+
+if sys.pycache_prefix:
+    # ...but not the standard library's and the installed packages' (tests/support/pycache.py)
+    pycache.reuse_installed()
+    pycache.link_loaded()  # what this process loaded: the xdist workers load it at their start
 
 # (imported after the setting, so that rwt's modules are cached too)
 import pytest
@@ -119,6 +125,10 @@ def pytest_configure(config: pytest.Config) -> None:
     distributed = (getattr(config.option, "numprocesses", None) or 0) > 0
     if os.environ.get("PYTEST_XDIST_WORKER") or not distributed:
         warm.start()
+    else:  # the controller: the bytecode that each worker would write at once (pycache.py)
+        root = config.rootpath
+        folders = [str(root / name) for name in ("src", "tests", "benchmarks", "conformance")]
+        pycache.prime(config, folders, tests=config.args)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
