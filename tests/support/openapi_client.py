@@ -16,15 +16,16 @@ import os
 import shutil
 import subprocess
 import sys
-import venv
 from pathlib import Path
+
+from . import toolenv
 
 __all__ = ["GENERATOR_PIN", "openapi_generator"]
 
 GENERATOR_PIN = "openapi-python-client==0.29.1"
 """The release tests/http/test_codegen.py generates its client with."""
-_HOME = Path.home() / ".cache" / "rwt-tests" / GENERATOR_PIN.replace("==", "-")
-_BIN = _HOME / ("Scripts" if sys.platform == "win32" else "bin")
+_HOME = toolenv.HOME / GENERATOR_PIN.replace("==", "-")
+_BIN = toolenv.bin_dir(_HOME)
 
 
 def _command() -> Path:
@@ -42,16 +43,9 @@ def openapi_generator() -> tuple[Path | None, str]:
     command = _command()
     if command.exists():  # made before (by .ci/run): checked when it was made
         return command, ""
-    python = _BIN / ("python.exe" if sys.platform == "win32" else "python")
-    try:
-        venv.create(_HOME, with_pip=True, clear=True)
-        install = [str(python), "-m", "pip", "install", "-q", GENERATOR_PIN]
-        done = subprocess.run(install, capture_output=True, text=True, check=False, timeout=600)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return None, f"could not make an environment for {GENERATOR_PIN}: {exc}"
-    if done.returncode != 0:
-        shutil.rmtree(_HOME, ignore_errors=True)  # not half made: the next run tries again
-        return None, f"pip install {GENERATOR_PIN} failed: {done.stderr.strip()[-300:]}"
+    python, why = toolenv.make(_HOME, GENERATOR_PIN)
+    if python is None:
+        return None, why
     probe = subprocess.run(
         [str(command), "--version"], capture_output=True, text=True, check=False, timeout=120
     )

@@ -13,14 +13,15 @@ import functools
 import os
 import subprocess
 import sys
-import venv
 from pathlib import Path
+
+from . import toolenv
 
 __all__ = ["ROS_MCP_PIN", "ros_mcp_python"]
 
 ROS_MCP_PIN = "ros-mcp==3.1.2"
 """The release tests/agents/test_ros_mcp.py checks tool by tool (31 tools)."""
-_HOME = Path.home() / ".cache" / "rwt-tests" / ROS_MCP_PIN.replace("==", "-")
+_HOME = toolenv.HOME / ROS_MCP_PIN.replace("==", "-")
 
 
 def _has_ros_mcp(python: Path) -> bool:
@@ -46,17 +47,12 @@ def ros_mcp_python() -> tuple[Path | None, str]:
     if named:
         path = Path(named)
         return (path, "") if _has_ros_mcp(path) else (None, f"{named} cannot import ros_mcp")
-    python = _HOME / ("Scripts/python.exe" if sys.platform == "win32" else "bin/python")
+    python = toolenv.bin_dir(_HOME) / ("python.exe" if sys.platform == "win32" else "python")
     if python.exists() and _installed(_HOME):
         return python, ""
-    try:
-        venv.create(_HOME, with_pip=True, clear=True)
-        install = [str(python), "-m", "pip", "install", "-q", ROS_MCP_PIN]
-        done = subprocess.run(install, capture_output=True, text=True, check=False, timeout=600)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return None, f"could not make an environment for {ROS_MCP_PIN}: {exc}"
-    if done.returncode != 0:
-        return None, f"pip install {ROS_MCP_PIN} failed: {done.stderr.strip()[-300:]}"
+    made, why = toolenv.make(_HOME, ROS_MCP_PIN)
+    if made is None:
+        return None, why
     if not _has_ros_mcp(python):
         return None, f"{ROS_MCP_PIN} was installed in {_HOME} but cannot be imported"
     return python, ""
