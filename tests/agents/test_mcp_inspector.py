@@ -1,6 +1,7 @@
 """The MCP Inspector's command-line mode against ``rwt serve --mcp`` and ``rwt mcp URL``.
 
-The Inspector (npm ``@modelcontextprotocol/inspector``, pinned in tests/js) is
+The Inspector (npm ``@modelcontextprotocol/inspector``, pinned in tests/js/inspector
+and installed once in a folder of its own: tests/support/inspector.py) is
 the MCP project's own client for checking a server: in ``--cli`` mode it
 connects, makes one request and prints the answer as JSON. It lists the tools
 and calls one, over Streamable HTTP at ``/mcp`` of ``rwt serve --mcp`` and over
@@ -22,18 +23,14 @@ from websockets.asyncio.client import connect
 from rwt_protocol.auth import rosauth_mac
 from tests.agents.test_rwt_mcp import TOOLS
 from tests.support.cli import rwt_serve
-from tests.support.realclients import JS_DIR, node_missing, run_node_bin
+from tests.support.inspector import inspector_bin
+from tests.support.realclients import run_command
 
 pytestmark = pytest.mark.anyio
 
-INSPECTOR = "mcp-inspector"
 SECRET = "1234567890abcdef"
-_missing = node_missing() or (
-    None
-    if (JS_DIR / "node_modules" / ".bin" / INSPECTOR).exists()
-    else "the MCP Inspector is missing: run `npm ci --prefix tests/js`"
-)
-if _missing:
+INSPECTOR, _missing = inspector_bin()
+if INSPECTOR is None:
     pytest.skip(_missing, allow_module_level=True)
 
 
@@ -44,7 +41,7 @@ async def _inspect(*target: str, method: str, **tool: str) -> dict[str, object]:
         args += ["--tool-name", tool.pop("name")]
         for key, value in tool.items():
             args += ["--tool-arg", f"{key}={value}"]
-    return json.loads(await run_node_bin(INSPECTOR, "--cli", *args))  # type: ignore[no-any-return]
+    return json.loads(await run_command(str(INSPECTOR), "--cli", *args))  # type: ignore[no-any-return]
 
 
 async def test_the_inspector_lists_and_calls_the_tools_of_both_fronts() -> None:

@@ -45,9 +45,13 @@ async def run_node(code: str) -> str:
         script.unlink(missing_ok=True)
 
 
-async def run_node_bin(name: str, *args: str) -> str:
-    """Run a command of tests/js/node_modules/.bin (an npm package's CLI); return its stdout."""
-    return await _run([str(JS_DIR / "node_modules" / ".bin" / name), *args], None, JS_DIR)
+async def run_command(*cmd: str) -> str:
+    """Run ``cmd`` (a client's command line) in tests/js; return its stdout.
+
+    Raises:
+        AssertionError: it failed or timed out; the message has its stderr.
+    """
+    return await _run(list(cmd), None, JS_DIR)
 
 
 async def _run(cmd: list[str], env: dict[str, str] | None, cwd: Path) -> str:

@@ -23,7 +23,7 @@ from anyio.abc import Process as AnyioProcess
 from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_zenoh.config import ZenohOptions
-from tests.support.cli import RWT_COLD as RWT  # tests read its pid, children and memory
+from tests.support.cli import RWT, RWT_COLD
 
 from .support import checked
 
@@ -95,12 +95,15 @@ async def started(cmd: list[str], name: str, cwd: Path = REPO) -> AsyncIterator[
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(process.pid, signal.SIGKILL)
             with anyio.move_on_after(10):
-                await process.wait()
+                # its pipes too: a warm run's child holds them until the zygote has killed it
+                await process.aclose()
 
 
-def rwt(*args: str) -> list[str]:
-    """The command line of ``rwt ARGS`` from this interpreter."""
-    return [*RWT, *args]
+def rwt(*args: str, cold: bool = False) -> list[str]:
+    """The command line of ``rwt ARGS``: forked by the test worker's warm ``rwt``
+    (tests/support/zygote.py), or ``cold``, a new interpreter, for a test that reads
+    the server's own process (its pid, children or memory)."""
+    return [*(RWT_COLD if cold else RWT), *args]
 
 
 @contextlib.asynccontextmanager
@@ -110,8 +113,12 @@ async def serving(
     listen: str | None = None,
     connect: tuple[str, ...] = (),
     extra: tuple[str, ...] = (),
+    cold: bool = False,
 ) -> AsyncIterator[tuple[Process, str]]:
-    """``rwt serve --zenoh`` on 127.0.0.1 only; yields the process and its ws:// URL."""
+    """``rwt serve --zenoh`` on 127.0.0.1 only; yields the process and its ws:// URL.
+
+    ``cold``: a new interpreter (``rwt``), for a test that reads the server's process.
+    """
     args = ["serve", "--port", "0", "--zenoh", "--no-tf"]
     # the config the server makes of these options: loopback only, multicast off
     mode = extra[extra.index("--zenoh-mode") + 1] if "--zenoh-mode" in extra else "peer"
@@ -120,7 +127,7 @@ async def serving(
         args += ["--zenoh-listen", listen]
     for each in connect:
         args += ["--zenoh-connect", each]
-    async with started(rwt(*args, *extra), name) as process:
+    async with started(rwt(*args, *extra, cold=cold), name) as process:
         first = await process.line()
         assert first.startswith("listening on ws://"), first
         yield process, first.removeprefix("listening on ").strip()

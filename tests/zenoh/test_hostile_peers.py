@@ -106,7 +106,7 @@ class Flood:
 async def test_a_flood_of_1mb_samples_keeps_rss_bounded_and_a_bystander_is_served() -> None:
     ep = endpoint()
     async with (
-        serving("A", listen=ep) as (server, url),
+        serving("A", listen=ep, cold=True) as (server, url),  # its RSS is read
         connect(url, max_size=None) as subscriber,
     ):
         await subscribe(subscriber, "/flood")

@@ -71,7 +71,7 @@ async def until_logged(parent: Process, text: str, count: int) -> None:
 @pytest.mark.skipif(not os.path.exists("/proc/self/task"), reason="needs Linux /proc")
 async def test_two_workers_share_the_port_and_the_graph_and_are_supervised() -> None:
     async with started(
-        rwt("serve", "--port", "0", "--no-tf", "--workers", "2"), "parent"
+        rwt("serve", "--port", "0", "--no-tf", "--workers", "2", cold=True), "parent"
     ) as parent:
         first = (await parent.line(within=60)).strip()
         assert first.startswith("listening on ws://")
@@ -105,7 +105,7 @@ async def test_workers_share_the_graph_with_another_machine_through_a_router() -
     client_mode = ("--zenoh-mode", "client", "--zenoh-connect", router_ep)
     async with started(rwt("router", "--listen", router_ep), "router") as router:
         assert (await router.line()).strip() == f"router listening on {router_ep}"
-        workers = rwt("serve", "--port", "0", "--no-tf", "--workers", "2", *client_mode)
+        workers = rwt("serve", "--port", "0", "--no-tf", "--workers", "2", *client_mode, cold=True)
         async with (
             started(workers, "workers") as parent,
             serving("other machine", connect=(router_ep,), extra=client_mode[:2]) as (_, other),
