@@ -25,6 +25,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_protocol.distribution import install_hint
 from tests.integration.client_harness import ServerProcess, _LineReader
+from tests.support.warm import PYTHON, ros2_socket
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -87,8 +88,11 @@ class Peer:
         label = "-".join([mode, name.strip("/").replace("/", "_"), *([node] if node else [])])
         self.stderr_path = tmp / f"peer-{label}.stderr"
         self._stderr = open(self.stderr_path, "wb")  # noqa: SIM115 - closed in stop()
+        warm = ros2_socket()  # forked with rclpy loaded, or a new interpreter
+        python = [*PYTHON] if warm else [sys.executable]
         self.proc = subprocess.Popen(
-            [sys.executable, str(PEER), mode, name, *([node] if node else [])],
+            [*python, str(PEER), mode, name, *([node] if node else [])],
+            env={**os.environ, **({"RWT_TEST_WARM": warm} if warm else {})},
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,

@@ -67,6 +67,25 @@ PRELOAD_CLIENTS = (
     "twisted.internet.threads",
     "roslibpy",
 )
+#: What the tests' rclpy nodes (tests/ros2/peer.py) import: preloaded by a zygote of their
+#: own (``zygote.py SOCKET ENV ros2``, ``warm.ros2_socket``), which forks no ``rwt`` run:
+#: importing rclpy starts threads (C++ ones), and a fork copies their locks, not them.
+PRELOAD_ROS2 = (
+    "rclpy",
+    "rclpy.action",
+    "rclpy.callback_groups",
+    "rclpy.executors",
+    "rclpy.parameter",
+    "rclpy.qos",
+    "builtin_interfaces.msg",
+    "geometry_msgs.msg",
+    "rcl_interfaces.msg",
+    "rcl_interfaces.srv",
+    "rosgraph_msgs.msg",
+    "sensor_msgs.msg",
+    "std_msgs.msg",
+    "std_srvs.srv",
+)
 #: Variables read while Python starts or rwt imports: a run whose values differ is cold.
 IMPORT_TIME = ("PYTHON", "RWT_", "LD_", "LANG", "LC_")
 MAX_REQUEST = 1 << 20
@@ -242,15 +261,18 @@ class Zygote:
         self.site_unset = [k for k in given if k not in os.environ]
         self.warm = True
         self.warm_python = True
+        self.warm_rwt = True  # False in the rclpy zygote: its runs are Python command lines
         self.runs: set[_Run] = set()
 
-    def preload(self) -> None:
-        for name in PRELOAD:
+    def preload(self, kind: str = "rwt") -> None:
+        if kind == "ros2":
+            self.warm_rwt = False
+        for name in PRELOAD if self.warm_rwt else ():
             try:
                 importlib.import_module(name)
             except Exception:  # a command that cannot load runs cold
                 self.warm = False
-        for name in PRELOAD_CLIENTS:
+        for name in PRELOAD_CLIENTS if self.warm_rwt else PRELOAD_ROS2:
             try:
                 importlib.import_module(name)
             except Exception:  # a client that cannot load runs cold
@@ -261,7 +283,7 @@ class Zygote:
             self.warm = self.warm_python = False
         if threading.active_count() > 1:  # a fork would copy a thread's locks, not the thread
             self.warm = False
-        if self.warm:
+        if self.warm and self.warm_rwt:
             _prebuild()
         # What is loaded now is every run's: out of the collector's sight, so that a run's
         # collections (rwt serve's own gc.freeze at start) do not walk it all again, nor
@@ -325,7 +347,8 @@ class Zygote:
         self._start(run, json.loads(run.buffer))
 
     def _start(self, run: _Run, request: dict) -> None:
-        warm = self.warm and (self.warm_python or not request.get("python"))
+        python = bool(request.get("python"))
+        warm = self.warm and (self.warm_python if python else self.warm_rwt)
         if not warm or len(run.fds) != 3 or _import_env(request["env"]) != self.env:
             self._reply(run, b"cold\n")
             self._drop(run, kill=False)
@@ -384,7 +407,7 @@ class Zygote:
 def main() -> None:
     reuse_installed()  # before the preload: installed modules' own bytecode (pycache.py)
     zygote = Zygote(sys.argv[1], sys.argv[2])
-    zygote.preload()
+    zygote.preload(*sys.argv[3:4])  # "ros2": the tests' rclpy nodes
     zygote.serve()
 
 
