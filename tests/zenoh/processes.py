@@ -102,7 +102,11 @@ async def started(cmd: list[str], name: str, cwd: Path = REPO) -> AsyncIterator[
 def rwt(*args: str, cold: bool = False) -> list[str]:
     """The command line of ``rwt ARGS``: forked by the test worker's warm ``rwt``
     (tests/support/zygote.py), or ``cold``, a new interpreter, for a test that reads
-    the server's own process (its pid, children or memory)."""
+    the server's own process (its pid, children or memory). ``--workers`` is always
+    cold: its workers must be in the process group ``started`` kills (a warm run's
+    group is the zygote's, and its workers outlived the supervisor the zygote killed).
+    """
+    cold = cold or "--workers" in args
     return [*(RWT_COLD if cold else RWT), *args]
 
 

@@ -21,7 +21,7 @@ import anyio
 import pytest
 from websockets.asyncio.client import ClientConnection
 from websockets.asyncio.client import connect as ws_connect
-from websockets.exceptions import ConnectionClosed
+from websockets.exceptions import ConnectionClosed, InvalidHandshake
 
 from rwt_transports.workers import reserve_port
 
@@ -214,7 +214,7 @@ class Reader:
                     try:
                         await self.open()
                         break
-                    except OSError:
+                    except (OSError, InvalidHandshake):  # e.g. taken into the dead one's queue
                         await anyio.sleep(0.05)
             self.subscribed_again_at = self.sent[0]
             resubscribed.set()
