@@ -34,6 +34,7 @@ from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticat
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc_signal import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
+from rwt_transports.worker_counts import ConnectionCountWriter
 from rwt_transports.workers import run_workers
 
 from .bag_options import (
@@ -54,6 +55,7 @@ from .serve_options import ServeOptions
 from .zenoh_link import require_zenoh, zenoh_options
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
     from pathlib import Path
 
     from rwt_bag.jobs import BagJobs
@@ -282,7 +284,13 @@ def _server_config(
         use_sim_time=options.graph.use_sim_time,
         handshake_timeout_s=limits.handshake_timeout,
         reuse_port=options.scale_out.reuse_port,
+        on_connections=_worker_counter(options.scale_out.worker_state),
     )
+
+
+def _worker_counter(path: str | None) -> Callable[[int], None] | None:
+    """A worker's connection count, kept where its parent reads it (``worker_counts``)."""
+    return None if path is None else ConnectionCountWriter(path).write
 
 
 def _session_config(options: ServeOptions) -> SessionConfig:

@@ -685,6 +685,7 @@ class ScaleOut:
         ),
     ] = 1
     reuse_port: Annotated[bool, typer.Option(hidden=True)] = False
+    worker_state: Annotated[str | None, typer.Option(hidden=True)] = None
 
 
 @dataclass(frozen=True)

@@ -110,6 +110,9 @@ class ServerConfig:
             with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
+        on_connections: called with the number of connections served after each
+            one opens or closes (a worker's count for its parent,
+            ``worker_counts``); None: not called.
         webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
             docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
         mcp: serve MCP (Streamable HTTP) at ``/mcp`` on the WebSocket port
@@ -156,6 +159,7 @@ class ServerConfig:
     clients_interval_s: float = 0.5
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
+    on_connections: Callable[[int], None] | None = None
     use_sim_time: bool = False
     webrtc: WebRtcOptions | None = None
     mcp: McpOptions | None = None

@@ -990,6 +990,8 @@ class GraphServer:
 
     def _clients_churned(self) -> None:
         """A connection came or went: publish the client topics, coalesced while serving."""
+        if self.config.on_connections is not None:
+            self.config.on_connections(len(self.sessions))
         if self._clients_changed is None:
             self._publish_clients()
         else:

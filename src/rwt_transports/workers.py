@@ -5,18 +5,21 @@ listeners bound with SO_REUSEPORT on the same port (the kernel spreads new
 connections over them), and its graph linked to the others' over Zenoh on
 loopback: worker 0 listens on a hub endpoint the others connect to (peers then
 gossip and mesh). The parent serves nothing: it prints each ``listening on`` line
-once, restarts a worker that dies (logged, with a growing pause if it keeps
-dying), and on SIGTERM or SIGINT stops them all gracefully (docs/scaling.md).
+once, restarts a worker that dies (logged with the connections it held, with a
+growing pause if it keeps dying), and on SIGTERM or SIGINT stops them all
+gracefully (docs/scaling.md).
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 from typing import TYPE_CHECKING
 
 import anyio
@@ -25,6 +28,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from rwt_protocol.errors import ConfigError
 
 from .listen import ListenError
+from .worker_counts import read_count, reset_count
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
@@ -47,7 +51,7 @@ STABLE_S = 10.0
 """A worker that ran this long before dying is restarted after the first pause again."""
 
 #: serve options the parent sets itself for each worker (with their value).
-_REPLACED = ("--workers", "--port", "--tcp-port")
+_REPLACED = ("--workers", "--port", "--tcp-port", "--worker-state")
 
 
 def reuse_port_supported() -> bool:
@@ -95,15 +99,27 @@ class WorkerPlan:
         tcp_port: the TCP port all workers bind (None: no TCP).
         hub: the loopback endpoint worker 0 listens on; None when the workers
             reach each other otherwise (``--zenoh-mode client``: through a router).
+        state_dir: the folder of the workers' connection counts (``worker_counts``);
+            None: they keep none.
     """
 
     def __init__(
-        self, args: Sequence[str], port: int | None, tcp_port: int | None, hub: str | None
+        self,
+        args: Sequence[str],
+        port: int | None,
+        tcp_port: int | None,
+        hub: str | None,
+        state_dir: str | None = None,
     ) -> None:
         self.args = list(args)
         self.port = port
         self.tcp_port = tcp_port
         self.hub = hub
+        self.state_dir = state_dir
+
+    def state(self, index: int) -> str | None:
+        """The connection count file of worker ``index`` (None: not kept)."""
+        return None if self.state_dir is None else os.path.join(self.state_dir, f"worker-{index}")
 
     def command(self, index: int) -> list[str]:
         """The command line of worker ``index``."""
@@ -125,6 +141,8 @@ def child_args(plan: WorkerPlan, index: int) -> list[str]:
     args += ["--reuse-port", "--zenoh"]
     if plan.hub is not None:
         args += ["--zenoh-listen" if index == 0 else "--zenoh-connect", plan.hub]
+    if (state := plan.state(index)) is not None:
+        args += ["--worker-state", state]
     return args
 
 
@@ -159,7 +177,8 @@ def run_workers(
         if zenoh_mode == "peer":
             with reserve_port("127.0.0.1", 0) as probe:
                 hub = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
-        plan = WorkerPlan(args, ports[0], ports[1], hub)
+        state_dir = holds.enter_context(tempfile.TemporaryDirectory(prefix="rwt-workers-"))
+        plan = WorkerPlan(args, ports[0], ports[1], hub, state_dir)
         # the reservations go once the workers listen: they are in the same group
         return anyio.run(_supervise, plan, count, holds.pop_all())
 
@@ -199,7 +218,15 @@ async def _keep_running(
             failures = 0
         pause = RESTART_PAUSES_S[min(failures, len(RESTART_PAUSES_S) - 1)]
         failures += 1
-        logger.warning("event=worker_exit worker=%d code=%s restart_in_s=%g", index, code, pause)
+        state = plan.state(index)
+        held = read_count(state) if state is not None else None
+        logger.warning(
+            "event=worker_exit worker=%d code=%s connections=%s restart_in_s=%g",
+            index,
+            code,
+            "unknown" if held is None else held,
+            pause,
+        )
         with anyio.move_on_after(pause):
             await stopping.wait()
 
@@ -207,6 +234,8 @@ async def _keep_running(
 async def _run_once(
     plan: WorkerPlan, index: int, printed: set[str], stopping: anyio.Event
 ) -> int | None:
+    if (state := plan.state(index)) is not None:
+        reset_count(state)  # a restarted worker starts from none
     process = await anyio.open_process(plan.command(index), stdin=subprocess.DEVNULL, stderr=None)
     logger.info("event=worker_started worker=%d pid=%d", index, process.pid)
     assert process.stdout is not None

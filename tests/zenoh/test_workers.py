@@ -231,7 +231,7 @@ async def test_a_worker_killed_mid_burst_costs_its_own_clients_one_gap_and_the_o
     killed worker lose what was published from the kill until they had connected again
     (to the worker left, or the restarted one) and subscribed: one gap, in order on
     both sides of it (here about 5 of 600 at 2 ms apart). The parent logs the exit
-    and restarts the worker (docs/scaling.md).
+    with the number of connections the worker held, and restarts it (docs/scaling.md).
     """
     async with started(
         rwt("serve", "--port", "0", "--no-tf", "--workers", "2", cold=True), "parent"
@@ -295,3 +295,6 @@ async def test_a_worker_killed_mid_burst_costs_its_own_clients_one_gap_and_the_o
             assert after[0] <= reader.subscribed_again_at + 50, (len(before), after[0])
         await until_logged(parent, "event=worker_exit", 1)
         await until_logged(parent, "event=worker_started", 3)
+        # the parent says how many clients the crash dropped: those the kernel gave the victim
+        exits = [line for line in parent.stderr().splitlines() if "event=worker_exit" in line]
+        assert f"connections={len(on[victim])} " in exits[0], exits
