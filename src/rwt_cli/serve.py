@@ -218,6 +218,7 @@ def _server(
             read_only=options.listeners.mcp_read_only,
             bearer_token=check,
             authorization_server=options.listeners.mcp_authorization_server,
+            video_port=_video_port(options),
         )
         config = replace(config, mcp=mcp)
     if not options.listeners.http_api:  # docs/http.md
@@ -508,6 +509,15 @@ def _video_tokens(options: ServeOptions, graph: Graph) -> VideoTokens | None:
     tokens = VideoTokens()
     install_token_service(graph, tokens)
     return tokens
+
+
+def _video_port(options: ServeOptions) -> int | None:
+    """The video server's port where it is known before it listens (not ``--video-port 0``)."""
+    media = options.media
+    if not media.video and media.video_port is None:
+        return None
+    port = VIDEO_PORT if media.video_port is None else media.video_port
+    return port or None
 
 
 def _video_config(

@@ -18,12 +18,27 @@ from mcp.server.stdio import stdio_server
 from rwt_client.connectors import server_url
 from rwt_protocol.errors import ConfigError
 
+from .app import AppSite
 from .guard import Guard
 from .link import RobotLink
 from .tasks import TaskStore
 from .tools import build_server
 
-__all__ = ["mcp_command", "serve_stdio"]
+__all__ = ["mcp_command", "serve_stdio", "stdio_site"]
+
+
+def stdio_site(url: str) -> AppSite:
+    """Where the robot app looks for a remote server's video: WebRTC offers on its port.
+
+    ``url``'s WebSocket form (``ws://``, ``wss://``) as HTTP; whether that server
+    answers offers, or runs a video server, is not known from here: the app tries
+    WebRTC and says what the server answered. Other URLs (TCP): no video.
+    """
+    scheme, _, rest = url.partition("://")
+    web = {"ws": "http", "wss": "https", "http": "http", "https": "https"}.get(scheme)
+    if web is None:
+        return AppSite()
+    return AppSite(base=f"{web}://{rest.split('/', 1)[0]}")
 
 
 async def serve_stdio(url: str, *, read_only: bool = False) -> None:
@@ -40,9 +55,8 @@ async def serve_stdio(url: str, *, read_only: bool = False) -> None:
         read_only: refuse the tools that change the robot (``guard.WRITE_TOOLS``).
     """
     link = RobotLink(url)
-    server, _tasks = build_server(
-        link, Guard(client=f"stdio:{url}", read_only=read_only), TaskStore()
-    )
+    guard = Guard(client=f"stdio:{url}", read_only=read_only)
+    server, _tasks = build_server(link, guard, TaskStore(), site=stdio_site(url))
     lowlevel = server._lowlevel_server
     ended = anyio.Event()
 

@@ -93,6 +93,7 @@ TOOL_NAMES: Mapping[str, tuple[str, str]] = {
     "cancel_action_goal": ("actions", "action"),
     "get_parameter": ("params", "name"),
     "set_parameter": ("params", "name"),
+    "robot_app": ("topics_sub", "camera"),
 }
 
 _FAMILIES: Mapping[str, tuple[Family, TopicUse | None]] = {
@@ -169,7 +170,7 @@ class Guard:
             return
         family, name_field = entry
         name = arguments.get(name_field)
-        if isinstance(name, str):
+        if isinstance(name, str) and name:  # an empty one names nothing (robot_app's camera)
             self.check_access(family, name, name_field, op=tool)
 
     def check_access(self, family: str, name: str, what: str, op: str | None = None) -> None:

@@ -3,7 +3,9 @@
 A topic ``/robot/odom`` is the resource ``ros://topics/robot/odom``
 (``TOPIC_URI``). ``resources/list`` lists them ``RESOURCES_PER_PAGE`` at a time,
 sorted by name, with MCP's cursor to the next page (``nextCursor``).
-``resources/read`` answers the latest message, summarised as
+The first page starts with the robot app (``app.APP_URI``, MCP Apps), whose
+``resources/read`` is its HTML. ``resources/read`` of a topic answers the latest
+message, summarised as
 ``echo``'s are (``render.message_text``): the one kept for a subscribed topic,
 else the first to arrive within ``READ_WAIT_S`` (a latched topic's at once).
 ``resources/subscribe`` (2025-era clients) and ``subscriptions/listen`` with
@@ -51,6 +53,7 @@ from mcp.types import (
 from rwt_client import Topic
 from rwt_protocol.errors import OpRefusedError, RwtError
 
+from .app import APP_MIME, APP_URI, AppSite, app_html, app_resource_meta
 from .render import message_text
 
 if TYPE_CHECKING:
@@ -149,10 +152,15 @@ class TopicResources:
     """
 
     def __init__(
-        self, link: RobotLink, guard: Guard, shared: dict[str, _Watch] | None = None
+        self,
+        link: RobotLink,
+        guard: Guard,
+        shared: dict[str, _Watch] | None = None,
+        site: AppSite | None = None,
     ) -> None:
         self.link = link
         self.guard = guard
+        self.site = site or AppSite()
         self.watched: dict[str, _Watch] = {}
         self.shared = shared if shared is not None else self.watched
         self.bus = InMemorySubscriptionBus()  # the listen streams' (2026-07-28)
@@ -177,6 +185,15 @@ class TopicResources:
         async def read(
             _ctx: ServerRequestContext[Any, Any], params: ReadResourceRequestParams
         ) -> ReadResourceResult:
+            if params.uri == APP_URI:
+                self._rated("resources/read")
+                app = TextResourceContents(
+                    uri=APP_URI,
+                    text=app_html(),
+                    mime_type=APP_MIME,
+                    _meta=app_resource_meta(self.site),
+                )
+                return ReadResourceResult(contents=[app])
             text = await self.read(params.uri)
             contents = TextResourceContents(uri=params.uri, text=text, mime_type="application/json")
             return ReadResourceResult(contents=[contents])
@@ -242,7 +259,7 @@ class TopicResources:
         except (RwtError, ToolError) as exc:
             raise _refused(str(exc)) from None
         names = sorted(name for name in topics if name > after)
-        page = names[:RESOURCES_PER_PAGE]
+        page = names[: RESOURCES_PER_PAGE - (cursor is None)]  # the first page holds the app
         resources = [
             Resource(
                 uri=TOPIC_URI + name if name.startswith("/") else f"{TOPIC_URI}/{name}",
@@ -252,6 +269,15 @@ class TopicResources:
             )
             for name in page
         ]
+        if cursor is None:  # the robot app first (MCP Apps), then the topics
+            app = Resource(
+                uri=APP_URI,
+                name="robot app",
+                description="the camera and a pad that drives the robot while held "
+                "(the robot_app tool's app)",
+                mime_type=APP_MIME,
+            )
+            resources.insert(0, app)
         more = len(names) > len(page)
         return ListResourcesResult(
             resources=resources, next_cursor=_cursor(page[-1]) if more else None

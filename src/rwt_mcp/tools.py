@@ -35,6 +35,7 @@ from rwt_graph.media.threads import in_image_thread
 from rwt_protocol.errors import OpRefusedError, RwtError
 
 from . import render
+from .app import APP_URI, AppSite, RobotApp, app_settings
 from .guard import WRITE_TOOLS, Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
@@ -67,6 +68,10 @@ MAX_LIST_ITEMS = 1000
 #: ``publish_for``'s rate and duration.
 MAX_PUBLISH_RATE_HZ = 50.0
 MAX_PUBLISH_DURATION_S = 60.0
+#: The robot app's pad's top speeds (``robot_app``'s ``max_linear`` m/s, ``max_angular`` rad/s).
+MAX_APP_SPEED = 10.0
+#: The longest wait for the video token the robot app asks for, seconds.
+_TOKEN_WAIT_S = 5.0
 #: The status codes of ``action_msgs/GoalStatus`` a result may carry (D18).
 GOAL_STATES = {4: "succeeded", 5: "canceled", 6: "aborted"}
 _LAST_PROGRESS_S = 1.0  # sending the last feedback, once the goal ended
@@ -205,9 +210,10 @@ def _names(names: list[str]) -> Names:
 class RobotTools:
     """The tools over one connection (``RobotLink``); see docs/agents.md for each."""
 
-    def __init__(self, link: RobotLink) -> None:
+    def __init__(self, link: RobotLink, site: AppSite | None = None) -> None:
         self.link = link
         self.guard = Guard()
+        self.site = site or AppSite()
 
     # ---- the graph ------------------------------------------------------------------
 
@@ -509,6 +515,58 @@ class RobotTools:
         with anyio.move_on_after(timeout_s):
             await record.done.wait()
 
+    # ---- the robot app -------------------------------------------------------------
+
+    async def robot_app(
+        self,
+        camera: str = "",
+        cmd_vel: str = "/cmd_vel",
+        max_linear: float = 0.5,
+        max_angular: float = 1.0,
+    ) -> RobotApp:
+        """Show the robot in an app: its camera, and a pad that drives it while held.
+
+        A host that renders MCP Apps shows ``ui://rwt/robot`` with this answer: the
+        camera's video (WebRTC, else MJPEG), and a pad publishing
+        geometry_msgs/msg/Twist on ``cmd_vel`` only while it is held, a zero Twist
+        when let go. Other hosts get the settings as text.
+
+        Args:
+            camera: an image topic to show (sensor_msgs/msg/Image); empty: no camera.
+            cmd_vel: the geometry_msgs/msg/Twist topic the pad drives.
+            max_linear: the pad's top speed, m/s (at most MAX_APP_SPEED).
+            max_angular: the pad's top turn rate, rad/s (at most MAX_APP_SPEED).
+        """
+        for name, value in (("max_linear", max_linear), ("max_angular", max_angular)):
+            if not 0 < value <= MAX_APP_SPEED:
+                raise ToolError(f"{name} must be in (0, {MAX_APP_SPEED:g}]")
+        refused = None
+        if self.guard.read_only:
+            refused = "the MCP server is read-only"
+        else:
+            try:
+                self.guard.check_access("topics_pub", cmd_vel, "cmd_vel", op="robot_app")
+            except ToolError as exc:
+                refused = str(exc)
+        token = await self._video_token() if camera and self.site.auth is not False else None
+        return app_settings(
+            self.site, camera or None, token, cmd_vel, refused, max_linear, max_angular
+        )
+
+    async def _video_token(self) -> str | None:
+        """A video token for the app's camera (``/rwt/video_token``); None: none to have."""
+        try:
+            ros = await self.link.connected()
+            answer = await ros.call_service(
+                "/rwt/video_token", {}, type_name="std_srvs/srv/Trigger", timeout_s=_TOKEN_WAIT_S
+            )
+        except (RwtError, TimeoutError, ToolError):  # no auth secret, or not offered
+            return None
+        if not isinstance(answer, dict) or not answer.get("success"):
+            return None
+        token = answer.get("message")
+        return token if isinstance(token, str) else None
+
     # ---- TF ---------------------------------------------------------------------------
 
     async def lookup_transform(
@@ -658,7 +716,10 @@ _TOOLS = (
     "get_parameter",
     "set_parameter",
     "lookup_transform",
+    "robot_app",
 )
+#: The tools a host shows as an app (MCP Apps: the tool's ``_meta.ui``).
+_TOOL_META: dict[str, dict[str, Any]] = {"robot_app": {"ui": {"resourceUri": APP_URI}}}
 
 
 def build_server(
@@ -666,6 +727,7 @@ def build_server(
     guard: Guard | None = None,
     tasks: TaskStore | None = None,
     watched: Watched | None = None,
+    site: AppSite | None = None,
 ) -> tuple[MCPServer, TasksExtension]:
     """An MCPServer whose tools and resources drive the robot behind ``link``.
 
@@ -682,14 +744,16 @@ def build_server(
         tasks: the front end's tasks; None: a store of this server's own.
         watched: the front end's watched topics (``resources.TopicResources``'s
             ``shared``); None: this server's own.
+        site: where the robot app finds the server's video (``app.AppSite``);
+            None: not known.
 
     Returns:
         The server, and its tasks extension (``TasksExtension.hold`` keeps the
         connection of the goals it started).
     """
     guard = guard or Guard()
-    tools = RobotTools(link)
-    resources = TopicResources(link, guard, watched)
+    tools = RobotTools(link, site)
+    resources = TopicResources(link, guard, watched, site)
     report = functools.partial(_report_json, goal_report)
     extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report)
     server = MCPServer(
@@ -738,6 +802,7 @@ def _tool_template(name: str, function: Callable[..., Awaitable[Any]]) -> Tool:
             description=_described(inspect.getdoc(function) or ""),
             structured_output=name != "echo",
             annotations=ToolAnnotations(read_only_hint=name not in WRITE_TOOLS),
+            meta=_TOOL_META.get(name),
         )  # kept without this session's function, so that it keeps nothing of the session
         template = _TEMPLATES[name] = made.model_copy(update={"fn": _no_session})
     return template

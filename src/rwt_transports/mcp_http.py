@@ -60,6 +60,7 @@ from collections import OrderedDict
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
+from urllib.parse import urlsplit
 
 import anyio
 import h11
@@ -74,6 +75,7 @@ from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 from rwt_client import Ros
 from rwt_client.connectors import ConnectionClosedError
 from rwt_graph.ratelog import EpisodeLog
+from rwt_mcp.app import AppSite
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tasks import TaskStore
@@ -320,9 +322,9 @@ class McpEndpoint:
                 await exchange.refuse_jsonrpc(*problem)
                 return
         if modern:
-            await self._modern(exchange)
+            await self._modern(exchange, self._site(headers))
         elif session_id is None:
-            await self._open(exchange, bearer(headers))
+            await self._open(exchange, bearer(headers), self._site(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
 
@@ -331,6 +333,17 @@ class McpEndpoint:
         scheme = "https" if self.server.config.certfile is not None else "http"
         host = _HOST.sub("", headers.get("host", ""))[:255]  # the peer's text, in a header
         return f"{scheme}://{host or f'{self.server.config.host}:{self.server.config.port}'}"
+
+    def _site(self, headers: dict[str, str]) -> AppSite:
+        """Where the robot app finds this server's video, as the client reached it."""
+        base = self._base(headers)
+        video = None
+        if self.options.video_port is not None:
+            host = urlsplit(base).hostname or self.server.config.host
+            host = f"[{host}]" if ":" in host else host  # an IPv6 address, in a URL
+            video = f"http://{host}:{self.options.video_port}"  # the video server: no TLS
+        webrtc = self.server.config.webrtc is not None
+        return AppSite(base=base, webrtc=webrtc, video=video, auth=self.auth_required)
 
     def _metadata(self, headers: dict[str, str]) -> dict[str, Any]:
         """The protected-resource metadata of ``/mcp`` (RFC 9728 section 2; D52)."""
@@ -380,7 +393,7 @@ class McpEndpoint:
             return 429, f"{MAX_REQUESTS_IN_FLIGHT} requests of this MCP session are in flight"
         return None
 
-    async def _open(self, exchange: _Exchange, token: str | None) -> None:
+    async def _open(self, exchange: _Exchange, token: str | None, site: AppSite) -> None:
         """A request without a session: admit a new session and let it answer (initialize).
 
         The session takes ``SESSION_SLOTS`` slots: one more (taken first) beside its own.
@@ -406,7 +419,7 @@ class McpEndpoint:
         self.sessions[session_id] = session
         established = False
         try:
-            await tg.start(self._run, session_id, session, admitted)
+            await tg.start(self._run, session_id, session, admitted, site)
             status = await self._handle(exchange, session)
             established = status is not None and status < 400
         finally:
@@ -460,6 +473,7 @@ class McpEndpoint:
         session_id: str,
         session: _Session,
         admitted: _Admitted,
+        site: AppSite,
         *,
         task_status: TaskStatus[None],
     ) -> None:
@@ -470,7 +484,7 @@ class McpEndpoint:
                 link = RobotLink(ros.url, ros)
                 await link.connect(anyio.Event())
                 guard = Guard(session.client_id, self.options.read_only, self.access)
-                mcp, tasks = build_server(link, guard, self.tasks)
+                mcp, tasks = build_server(link, guard, self.tasks, site=site)
                 try:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
@@ -488,7 +502,7 @@ class McpEndpoint:
                 task_status.started()
             await self._discard(session_id)
 
-    async def _modern(self, exchange: _Exchange) -> None:
+    async def _modern(self, exchange: _Exchange, site: AppSite) -> None:
         """A 2026-07-28 request: one rosbridge session for it, answered by the SDK (D52).
 
         The session takes one connection slot (its socket's) while the request
@@ -502,7 +516,7 @@ class McpEndpoint:
         self.server.join_socket()
         answered = anyio.Event()
         try:
-            mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered)
+            mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered, site)
             if mcp is None:  # its connection failed before it could run (logged)
                 await exchange.refuse(503, "the MCP request's connection failed")
                 return
@@ -516,6 +530,7 @@ class McpEndpoint:
         admitted: _Admitted,
         peer: str,
         answered: anyio.Event,
+        site: AppSite,
         *,
         task_status: TaskStatus[Server[Any] | None],
     ) -> None:
@@ -526,7 +541,7 @@ class McpEndpoint:
                 link = RobotLink(ros.url, ros)
                 await link.connect(anyio.Event())
                 guard = self._modern_guard(peer)
-                mcp, tasks = build_server(link, guard, self.tasks, self._watched)
+                mcp, tasks = build_server(link, guard, self.tasks, self._watched, site)
                 try:
                     task_status.started(mcp._lowlevel_server)
                     started = True

@@ -47,11 +47,15 @@ class McpOptions:
             the protected-resource metadata names (``--mcp-authorization-server``;
             ``METADATA_PATH``); None: the metadata names none (rwt issues no tokens
             but its video tokens).
+        video_port: the video server's port (``--video``), on the host clients reach
+            ``/mcp`` by, for the robot app's MJPEG fallback (``rwt_mcp.app``); None:
+            none, or not known.
     """
 
     read_only: bool = False
     bearer_token: Callable[[str], bool] | None = None
     authorization_server: str | None = None
+    video_port: int | None = None
 
 
 def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:

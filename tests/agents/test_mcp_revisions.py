@@ -165,7 +165,7 @@ async def test_a_2026_client_lists_reads_listens_and_drives_a_task(
         async with connect(url, front, AUTO) as client:
             assert client.protocol_version == MODERN  # no initialize: _meta on each request
             assert TASKS_EXTENSION in (client.server_capabilities.extensions or {})
-            assert len((await client.list_tools()).tools) == 16
+            assert len((await client.list_tools()).tools) == 17
             echoed = await client.call_tool("echo", {"topic": "/battery"})
             assert json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
             listed = await client.list_resources()
@@ -202,7 +202,7 @@ async def test_a_2025_client_still_opens_a_session_and_subscribes(
     with anyio.fail_after(60):
         async with connect(url, front, "legacy", on_message) as client:
             assert client.protocol_version == "2025-11-25"  # the initialize handshake
-            assert len((await client.list_tools()).tools) == 16
+            assert len((await client.list_tools()).tools) == 17
             await client.subscribe_resource("ros://topics/counter")
             counter.publish({"data": 3})
             await updated.wait()

@@ -64,6 +64,7 @@ TOOLS = {
     "get_parameter",
     "set_parameter",
     "lookup_transform",
+    "robot_app",
 }
 
 Message = dict[str, Any]

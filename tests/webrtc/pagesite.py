@@ -1,8 +1,8 @@
 """A local web site for the browser tests: generated pages, and tests/js/node_modules.
 
 ``serve_pages(page)`` serves ``page(path, query)``'s HTML where it returns some, and
-the files of tests/js (``/node_modules/...``) elsewhere, with the JavaScript type that
-module scripts need.
+the files of tests/js (``/node_modules/...``, or of another folder) elsewhere, with
+the JavaScript type that module scripts need.
 """
 
 from __future__ import annotations
@@ -24,10 +24,14 @@ MODULES = REPO / "tests" / "js" / "node_modules"
 
 class _Site(http.server.SimpleHTTPRequestHandler):
     def __init__(
-        self, *args: object, page: Callable[[str, str], str | None], **kwargs: object
+        self,
+        *args: object,
+        page: Callable[[str, str], str | None],
+        folder: Path,
+        **kwargs: object,
     ) -> None:
         self._page = page
-        super().__init__(*args, directory=str(MODULES.parent), **kwargs)  # type: ignore[arg-type]
+        super().__init__(*args, directory=str(folder), **kwargs)  # type: ignore[arg-type]
 
     def do_GET(self) -> None:
         path, _, query = self.path.partition("?")
@@ -52,9 +56,14 @@ class _Site(http.server.SimpleHTTPRequestHandler):
 
 
 @contextmanager
-def serve_pages(page: Callable[[str, str], str | None]) -> Iterator[str]:
-    """Serve the site on a free port of 127.0.0.1; yields its base URL."""
-    handler = functools.partial(_Site, page=page)
+def serve_pages(
+    page: Callable[[str, str], str | None], folder: Path | None = None
+) -> Iterator[str]:
+    """Serve the site on a free port of 127.0.0.1; yields its base URL.
+
+    ``folder``: whose files are served where ``page`` gives none (default: tests/js).
+    """
+    handler = functools.partial(_Site, page=page, folder=folder or MODULES.parent)
     httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     thread = threading.Thread(target=httpd.serve_forever, daemon=True)
     thread.start()
