@@ -44,6 +44,7 @@ from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import Session, SessionConfig
 from tests.support import warm
+from tests.support.file_order import UNKNOWN_S, file_seconds
 
 # The test process's garbage collector: a worker holds every collected test module and
 # item and the caches of thousands of tests, so Python's default thresholds (700, 10, 10)
@@ -129,6 +130,25 @@ def pytest_configure(config: pytest.Config) -> None:
         root = config.rootpath
         folders = [str(root / name) for name in ("src", "tests", "benchmarks", "conformance")]
         pycache.prime(config, folders, tests=config.args)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The longest files first, for xdist's loadfile (tests/support/file_order.py).
+
+    A stable sort by each file's seconds: a file's tests keep their order, together.
+    """
+    seconds = file_seconds()
+    root = config.rootpath
+
+    def longest_first(item: pytest.Item) -> float:
+        try:
+            path = item.path.relative_to(root).as_posix()
+        except ValueError:
+            return -UNKNOWN_S
+        return -seconds.get(path, UNKNOWN_S)
+
+    items.sort(key=longest_first)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
