@@ -38,7 +38,9 @@ print(json.dumps({
 }), flush=True)
 input()  # the talker stops meanwhile
 gone = wait_for(lambda: "/graph_talk" not in ros.get_topics())
-print(json.dumps({"gone": gone, "nodes": ros.get_nodes()}))
+# the node goes after its publisher: DDS discovery says each when it learns it
+node_gone = wait_for(lambda: "/peer_talk" not in ros.get_nodes())
+print(json.dumps({"gone": gone, "node_gone": node_gone, "nodes": ros.get_nodes()}))
 ros.terminate()
 """
 
@@ -63,7 +65,7 @@ async def test_rosapi_lists_the_ros2_graph_as_it_changes(
     assert described["subscribers"] == ["/peer_listen"]
     assert described["service_type"] == "std_srvs/srv/SetBool"
     assert {"/peer_talk", "/peer_listen", "/peer_serve", "/rwt"} <= set(described["nodes"])
-    assert after["gone"] is True
+    assert after["gone"] is True and after["node_gone"] is True
     assert "/peer_talk" not in after["nodes"]
     assert "/peer_listen" in after["nodes"]
 
