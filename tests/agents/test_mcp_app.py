@@ -18,6 +18,8 @@ import anyio
 import pytest
 
 from rwt import RosbridgeServer, ServerConfig
+from rwt_protocol.ratelog import EpisodeLog
+from rwt_protocol.runtime import access as access_gate
 from rwt_protocol.runtime.access import AccessPolicy, parse_split_glob
 from rwt_protocol.server.session import SessionConfig
 
@@ -115,8 +117,11 @@ def connect_with_token(url: str, token: str) -> Any:
 
 
 async def test_read_only_mode_and_the_access_rules_turn_the_pad_off_saying_why(
-    serve: Any, caplog: pytest.LogCaptureFixture
+    serve: Any, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    # the gate logs one line per episode of refusals in the process: a new episode here,
+    # not one another test of this process began
+    monkeypatch.setattr(access_gate, "_episodes", EpisodeLog(access_gate.logger))
     url = await serve(McpOptions(read_only=True))
     async with connect(url, "http", AUTO) as client:
         settings = (await client.call_tool("robot_app", ARGS)).structured_content
@@ -136,7 +141,8 @@ async def test_read_only_mode_and_the_access_rules_turn_the_pad_off_saying_why(
     assert settings["teleop"] is False
     assert settings["teleop_refused"] == "cmd_vel /cmd_vel: refused by --topics-pub-glob [/robot/*]"
     assert allowed["teleop"] is True
-    denied = [r.message for r in caplog.records if "event=access_denied" in r.message]
+    denied = [r.getMessage() for r in caplog.records]
+    denied = [line for line in denied if line.startswith("event=access_denied")]
     assert len(denied) == 1 and "op=robot_app" in denied[0], denied  # logged once, by the gate
     assert refused.is_error
     assert "max_linear must be in (0, 10]" in refused.content[0].text  # type: ignore[union-attr]
