@@ -16,7 +16,9 @@ the robot never hears of it. The rules (docs/mcp.md, "Safety"):
   the listings' together a lower one (``LISTINGS``: ``LISTING_CALLS_PER_S``, a
   bucket of ``LISTING_BURST``), and a size for a call's arguments
   (``MAX_TOOL_ARGUMENT_BYTES``);
-- every write is logged with its client, once per episode (``rwt.mcp`` logger).
+- every write is logged with its client, once per episode (``rwt.mcp`` logger);
+  every refusal by read-only mode or a cap is logged by the access log as a glob's
+  is (``access.log_refused``: ``event=access_denied ... rule=TOOL_CALLS_PER_S``).
 
 No I/O: the time comes from ``clock``.
 """
@@ -28,11 +30,19 @@ import logging
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 from mcp.server.mcpserver.exceptions import ToolError
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.runtime.access import AccessDeniedError, AccessPolicy, Family, TopicUse, gate
+from rwt_protocol.runtime.access import (
+    AccessDeniedError,
+    AccessPolicy,
+    Family,
+    TopicUse,
+    gate,
+    log_refused,
+)
 
 __all__ = [
     "LISTINGS",
@@ -143,7 +153,7 @@ class Guard:
                 faster than ``TOOL_CALLS_PER_S``. The text names the rule.
         """
         if self.read_only and tool in WRITE_TOOLS:
-            raise ToolError(f"{tool}: refused, the MCP server is read-only (--mcp-read-only)")
+            self._refuse(tool, "--mcp-read-only", "refused, the MCP server is read-only")
         self._check_size(tool, arguments)
         self.check_name(tool, arguments)
         self.check_rate(tool)
@@ -201,13 +211,20 @@ class Guard:
             rule = f"--{exc.glob.replace('_', '-')} [{patterns}]"
             raise ToolError(f"{what} {name}: refused by {rule}") from None
 
+    def _refuse(self, tool: str, rule: str, why: str, then: str = "") -> NoReturn:
+        """Refuse a call of ``tool`` by ``rule`` (not a glob), logged and said.
+
+        The access log's line, once per episode (``access.log_refused``), and the tool
+        error ``<tool>: <why> (<rule>)`` followed by ``then`` (what to do).
+        """
+        log_refused(client=self.client, op=tool, rule=rule, reason=why, now=self.clock())
+        raise ToolError(f"{tool}: {why} ({rule}){then}")
+
     def _check_size(self, tool: str, arguments: Mapping[str, object]) -> None:
         size = len(json.dumps(arguments, default=repr).encode())
         if size > MAX_TOOL_ARGUMENT_BYTES:
-            raise ToolError(
-                f"{tool}: the arguments are {size} bytes, over {MAX_TOOL_ARGUMENT_BYTES}"
-                " (MAX_TOOL_ARGUMENT_BYTES)"
-            )
+            why = f"the arguments are {size} bytes, over {MAX_TOOL_ARGUMENT_BYTES}"
+            self._refuse(tool, "MAX_TOOL_ARGUMENT_BYTES", why)
 
     def check_rate(self, tool: str) -> None:
         """A token bucket per tool: ``TOOL_BURST`` calls, refilled at ``TOOL_CALLS_PER_S``.
@@ -236,7 +253,6 @@ class Guard:
         bucket.at = now
         if bucket.tokens < 1:
             bound = "LISTING_CALLS_PER_S" if tool in LISTINGS else "TOOL_CALLS_PER_S"
-            raise ToolError(
-                f"{tool}: {name} more than {rate:g} times a second ({bound}): wait and call again"
-            )
+            why = f"{name} more than {rate:g} times a second"
+            self._refuse(tool, bound, why, ": wait and call again")
         bucket.tokens -= 1

@@ -23,6 +23,8 @@ import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_client import Ros, Service, Topic
+from rwt_protocol.ratelog import EpisodeLog
+from rwt_protocol.runtime import access as access_gate
 from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 
@@ -202,8 +204,14 @@ async def test_the_split_globs_hold_publishing_and_reading_apart(serving: Any) -
 
 @pytest.mark.parametrize("front", ["http", "stdio"])
 async def test_read_only_refuses_every_write_and_the_robot_hears_none(
-    serving: Any, front: str, tmp_path: Path
+    serving: Any,
+    front: str,
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    monkeypatch.setattr(access_gate, "_episodes", EpisodeLog(access_gate.logger))
+    caplog.set_level(logging.INFO, logger="rwt")
     received: list[Message] = []
     url, _ = await serving(robot_graph(received), _config(McpOptions(read_only=True)))
     opened = rwt_serve_mcp(url) if front == "http" else rwt_mcp(url, tmp_path, "--read-only")
@@ -216,11 +224,23 @@ async def test_read_only_refuses_every_write_and_the_robot_hears_none(
         assert (await agent.call("get_parameter", name="/robot:max_speed"))["value"] == 1.5
         assert not (await agent.result("echo", topic="/battery")).is_error
     assert received == []
+    if front == "http":  # logged by the server (rwt mcp logs to its own stderr)
+        [line] = _denied(caplog)  # once for the episode of six refusals
+        assert "op=publish rule=--mcp-read-only reason='refused, the MCP server is" in line
+
+
+def _denied(caplog: pytest.LogCaptureFixture) -> list[str]:
+    """The access log's lines so far (``event=access_denied``)."""
+    lines = [record.getMessage() for record in caplog.records]
+    return [line for line in lines if line.startswith("event=access_denied")]
 
 
 async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
-    serving: Any, caplog: pytest.LogCaptureFixture
+    serving: Any, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    # a refusal episode of its own (the access log writes one line per episode, process-wide)
+    monkeypatch.setattr(access_gate, "_episodes", EpisodeLog(access_gate.logger))
+    caplog.set_level(logging.INFO, logger="rwt")
     received: list[Message] = []
     url, _ = await serving(robot_graph(received), _config())
     async with rwt_serve_mcp(url) as agent:
@@ -228,6 +248,8 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
         oversized = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg=big)
         assert oversized.is_error
         assert f"over {MAX_TOOL_ARGUMENT_BYTES} (MAX_TOOL_ARGUMENT_BYTES)" in _text(oversized)
+        [line] = _denied(caplog)  # the cap's refusal in the one access log, with its rule
+        assert "op=publish rule=MAX_TOOL_ARGUMENT_BYTES reason='the arguments are" in line
         wrong = await agent.result("publish", topic="/cmd", type="std_msgs/msg/String", msg="go")
         assert wrong.is_error
         assert (
@@ -256,6 +278,7 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
         elapsed = time.monotonic() - started
         assert refused >= 1
         assert calls - refused <= TOOL_BURST + TOOL_CALLS_PER_S * elapsed + 1
+        assert len(_denied(caplog)) == 1  # the rate's refusals: the same episode, counted
 
         endpoint = url.replace("ws://", "http://") + "/mcp"
         async with httpx.AsyncClient(timeout=30) as http:

@@ -395,6 +395,22 @@ def test_a_refused_subscribe_names_its_glob_and_a_publish_on_the_topic_passes(
     assert list(graph.topics["/cmd"].subscribers) == ["o"]
 
 
+def test_a_refusal_by_a_rule_that_is_not_a_glob_shares_the_access_logs_episodes(
+    caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(access, "_episodes", EpisodeLog(access.logger))  # a new episode
+    caplog.set_level(logging.WARNING, logger="rwt.session")
+    why = "refused, the MCP server is read-only"
+    access.log_refused(client="mcp:h#1", op="publish", rule="--mcp-read-only", reason=why, now=0)
+    denied = access.AccessDeniedError("topic /x is not allowed on this server", "topics_glob")
+    access.log_denied(denied, client="mcp:h#1", op="echo", now=1)  # the same episode
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines == [
+        "event=access_denied client=mcp:h#1 op=publish rule=--mcp-read-only"
+        " reason='refused, the MCP server is read-only'"
+    ]
+
+
 # ---- slow consumers (D24) ----------------------------------------------------------------
 
 

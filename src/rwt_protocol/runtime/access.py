@@ -54,6 +54,7 @@ __all__ = [
     "TopicUse",
     "gate",
     "log_denied",
+    "log_refused",
     "parse_glob_list",
     "parse_split_glob",
 ]
@@ -301,5 +302,25 @@ def log_denied(denied: AccessDeniedError, *, client: str, op: str, now: float) -
         op,
         denied.glob,
         denied.message,
+        now=now,
+    )
+
+
+def log_refused(*, client: str, op: str, rule: str, reason: str, now: float) -> None:
+    """The access log's line for a refusal by a rule that is not a glob (D53).
+
+    ``event=access_denied client=... op=... rule=... reason=...``: read-only mode
+    (``rule=--mcp-read-only``), a rate or size cap (``rule=TOOL_CALLS_PER_S``), in the
+    same episodes as ``log_denied``'s lines, so an operator greps one event for every
+    refusal and a client repeating them cannot write the log at its own rate.
+    """
+    _episodes.log(
+        logging.WARNING,
+        "access_denied",
+        "event=access_denied client=%s op=%s rule=%s reason=%r",
+        client,
+        op,
+        rule,
+        reason,
         now=now,
     )
