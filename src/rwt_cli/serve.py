@@ -290,8 +290,17 @@ def _server_config(
 
 
 def _worker_counter(path: str | None) -> Callable[[int], None] | None:
-    """A worker's connection count, kept where its parent reads it (``worker_counts``)."""
-    return None if path is None else ConnectionCountWriter(path).write
+    """A worker's connection count, kept where its parent reads it (``worker_counts``).
+
+    A file that cannot be mapped costs the parent's log its count, not the worker.
+    """
+    if path is None:
+        return None
+    try:
+        return ConnectionCountWriter(path).write
+    except OSError as exc:
+        logging.getLogger("rwt.workers").warning("event=worker_state_unavailable error=%r", exc)
+        return None
 
 
 def _session_config(options: ServeOptions) -> SessionConfig:

@@ -235,7 +235,8 @@ async def _run_once(
     plan: WorkerPlan, index: int, printed: set[str], stopping: anyio.Event
 ) -> int | None:
     if (state := plan.state(index)) is not None:
-        reset_count(state)  # a restarted worker starts from none
+        with contextlib.suppress(OSError):  # without it the log says connections=unknown
+            reset_count(state)  # a restarted worker starts from none
     process = await anyio.open_process(plan.command(index), stdin=subprocess.DEVNULL, stderr=None)
     logger.info("event=worker_started worker=%d pid=%d", index, process.pid)
     assert process.stdout is not None

@@ -67,8 +67,12 @@ class Process:
         return b"".join(chunks).decode("utf-8", "replace")
 
     def stderr(self) -> str:
-        """What it wrote on stderr so far (the last 4000 characters)."""
-        return self.log.read_text("utf-8", "replace")[-4000:]
+        """What it wrote on stderr so far (the last 4000 characters: for a message)."""
+        return self.whole_stderr()[-4000:]
+
+    def whole_stderr(self) -> str:
+        """Everything it wrote on stderr so far (to count lines in)."""
+        return self.log.read_text("utf-8", "replace")
 
     def kill(self) -> None:
         """SIGKILL it (a crash, as far as others can tell)."""
