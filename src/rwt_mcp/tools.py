@@ -33,6 +33,7 @@ from rwt_client import Param, Topic
 from rwt_graph.media.images import ImageError
 from rwt_graph.media.threads import in_image_thread
 from rwt_protocol.errors import OpRefusedError, RwtError
+from rwt_protocol.names import name_problem
 
 from . import render
 from .app import APP_URI, AppSite, RobotApp, app_settings
@@ -540,6 +541,10 @@ class RobotTools:
         for name, value in (("max_linear", max_linear), ("max_angular", max_angular)):
             if not 0 < value <= MAX_APP_SPEED:
                 raise ToolError(f"{name} must be in (0, {MAX_APP_SPEED:g}]")
+        for name, topic in (("camera", camera), ("cmd_vel", cmd_vel)):
+            problem = name_problem(topic) if topic or name == "cmd_vel" else None
+            if problem is not None:  # it goes into URLs and the app's calls: a name or none
+                raise ToolError(f"{name}: not a topic name: {problem}")
         refused = None
         if self.guard.read_only:
             refused = "the MCP server is read-only"

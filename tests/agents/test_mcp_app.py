@@ -25,8 +25,14 @@ from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
+from mcp.server.mcpserver.exceptions import ToolError
+from mcp.shared.exceptions import MCPError
+
 from rwt_mcp.app import APP_MIME, APP_URI, AppSite
 from rwt_mcp.cli import stdio_site
+from rwt_mcp.link import RobotLink
+from rwt_mcp.tools import RobotTools
+from rwt_protocol.names import MAX_NAME_LENGTH
 from rwt_transports.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
 from rwt_video import VideoTokens, install_token_service
@@ -146,6 +152,36 @@ async def test_read_only_mode_and_the_access_rules_turn_the_pad_off_saying_why(
     assert len(denied) == 1 and "op=robot_app" in denied[0], denied  # logged once, by the gate
     assert refused.is_error
     assert "max_linear must be in (0, 10]" in refused.content[0].text  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "said"),
+    [
+        ("cmd_vel", "a b", "cmd_vel: not a topic name"),
+        ("camera", "/" + "x" * MAX_NAME_LENGTH, "camera: not a topic name: name longer than"),
+        ("max_linear", -1, "max_linear must be in (0, 10]"),
+    ],
+    ids=["space", "long", "negative"],
+)
+async def test_hostile_arguments_are_tool_errors_and_the_server_serves_on(
+    serve: Any, field: str, value: object, said: str
+) -> None:
+    url = await serve(McpOptions(video_port=8089))
+    async with connect(url, "http", AUTO) as client:
+        refused = await client.call_tool("robot_app", {**ARGS, field: value})
+        assert refused.is_error
+        assert said in refused.content[0].text  # type: ignore[union-attr]
+        with pytest.raises(MCPError, match="an integer does not fit in 64 bits"):
+            await client.call_tool("robot_app", {**ARGS, "max_angular": 10**400})
+        settings = (await client.call_tool("robot_app", ARGS)).structured_content
+    assert settings is not None and settings["teleop"] is True
+
+
+async def test_a_lone_surrogate_in_a_name_is_a_tool_error() -> None:
+    """JSON may carry one (``"\\ud800"``); it never reaches a URL the app would load."""
+    tools = RobotTools(RobotLink("ws://127.0.0.1:1"))
+    with pytest.raises(ToolError, match="camera: not a topic name"):
+        await tools.robot_app(camera="/cam\ud800era")
 
 
 def test_rwt_mcp_looks_for_webrtc_on_the_servers_port() -> None:

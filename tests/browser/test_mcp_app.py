@@ -125,6 +125,15 @@ def _mouse(page: Page, kind: str, x: float, y: float) -> None:
     page.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
 
 
+def _show(server: ServerProcess, page: Page) -> tuple[str, dict[str, Any]]:
+    """Have the host call ``robot_app`` and render its app: the app's URI, the host's state."""
+    endpoint = server.url.replace("ws://", "http://") + "/mcp"
+    show = f"showRobotApp({json.dumps({'endpoint': endpoint, 'token': None, 'args': ARGS})})"
+    uri = page.evaluate(show)
+    host = page.wait_for("window.host.initialized && window.host", 20, "the app's handshake")
+    return uri, host
+
+
 def _near(pixel: tuple[int, ...], rgb: tuple[int, int, int]) -> bool:
     return max(abs(a - b) for a, b in zip(pixel[:3], rgb, strict=True)) < 50
 
@@ -133,10 +142,8 @@ def test_a_host_renders_the_app_the_camera_shows_and_the_pad_drives_only_while_h
     robot: tuple[ServerProcess, Robot], host_page: Page
 ) -> None:
     server, bot = robot
-    endpoint = server.url.replace("ws://", "http://") + "/mcp"
-    show = f"showRobotApp({json.dumps({'endpoint': endpoint, 'token': None, 'args': ARGS})})"
-    assert host_page.evaluate(show) == "ui://rwt/robot"  # the tool's _meta.ui names the app
-    host = host_page.wait_for("window.host.initialized && window.host", 20, "the app's handshake")
+    uri, host = _show(server, host_page)
+    assert uri == "ui://rwt/robot"  # the tool's _meta.ui names the app
     http = server.url.replace("ws://", "http://")
     settings = host["result"]["structuredContent"]
     assert settings["webrtc_url"] == f"{http}/webrtc?video=/camera/image"
@@ -188,11 +195,7 @@ def test_a_host_renders_the_app_the_camera_shows_and_the_pad_drives_only_while_h
 def test_without_webrtc_the_app_shows_the_camera_as_mjpeg(
     robot: tuple[ServerProcess, Robot], host_page: Page
 ) -> None:
-    server, _ = robot
-    endpoint = server.url.replace("ws://", "http://") + "/mcp"
-    show = f"showRobotApp({json.dumps({'endpoint': endpoint, 'token': None, 'args': ARGS})})"
-    host_page.evaluate(show)
-    host = host_page.wait_for("window.host.initialized && window.host", 20, "the app's handshake")
+    _, host = _show(robot[0], host_page)
     settings = host["result"]["structuredContent"]
     assert settings["webrtc_url"] is None and "/stream?topic=/camera/image" in settings["mjpeg_url"]
     wait_until(lambda: _camera(host_page), 30, "the camera's MJPEG picture in the app")
