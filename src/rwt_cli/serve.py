@@ -30,6 +30,7 @@ from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.mcp_options import McpOptions
+from rwt_transports.mcp_siblings import Siblings
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc_signal import WebRtcOptions
@@ -166,11 +167,6 @@ def _check_listeners(options: ServeOptions) -> None:
             raise usage_error("--mcp-authorization-server is a setting of --mcp: add --mcp")
         if not listeners.mcp_authorization_server.startswith(("https://", "http://")):
             raise usage_error("--mcp-authorization-server: an issuer URL, https://HOST[/PATH]")
-    if listeners.mcp and options.scale_out.workers > 1:  # each request is a connection of its own
-        raise usage_error(
-            "--mcp keeps its sessions and tasks in one process: not with --workers"
-            " (docs/mcp.md, 'Tasks and workers')"
-        )
 
 
 def _set_up_process(process: Process) -> None:
@@ -219,6 +215,7 @@ def _server(
             bearer_token=check,
             authorization_server=options.listeners.mcp_authorization_server,
             video_port=_video_port(options),
+            siblings=_siblings(options.scale_out.worker_state),
         )
         config = replace(config, mcp=mcp)
     if not options.listeners.http_api:  # docs/http.md
@@ -287,6 +284,11 @@ def _server_config(
         reuse_port=options.scale_out.reuse_port,
         on_connections=_worker_counter(options.scale_out.worker_state),
     )
+
+
+def _siblings(state: str | None) -> Siblings | None:
+    """A worker's place among the others, whose MCP sessions and tasks it reaches."""
+    return None if state is None else Siblings.of_state(state)
 
 
 def _worker_counter(path: str | None) -> Callable[[int], None] | None:

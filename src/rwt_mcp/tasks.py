@@ -42,6 +42,8 @@ from pydantic import Field, ValidationError
 from rwt_protocol.errors import RwtError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from mcp.server.context import CallNext, HandlerResult, ServerRequestContext
 
     from .guard import Guard
@@ -129,11 +131,14 @@ class TaskStore:
 
     Args:
         clock: monotonic seconds (``anyio.current_time`` by default).
+        new_id: makes a new task's ``taskId`` (a uuid4's 32 hex digits by default;
+            a worker of ``rwt serve --workers`` names itself in it).
     """
 
-    def __init__(self, clock: Any = None) -> None:
+    def __init__(self, clock: Any = None, new_id: Callable[[], str] | None = None) -> None:
         self.tasks: OrderedDict[str, GoalTask] = OrderedDict()
         self._clock = clock or anyio.current_time
+        self._new_id = new_id or (lambda: uuid.uuid4().hex)
 
     def add(self, record: Goal, link: RobotLink, report: Any) -> GoalTask:
         """A new task following ``record``, a goal sent on ``link``.
@@ -147,7 +152,7 @@ class TaskStore:
             if finished is None:
                 raise ToolError(f"{MAX_TASKS} tasks are running (MAX_TASKS): cancel one first")
             self._drop(finished)
-        task = GoalTask(uuid.uuid4().hex, record, link, report, self._clock())
+        task = GoalTask(self._new_id(), record, link, report, self._clock())
         self.tasks[task.task_id] = task
 
         def changed(_values: object = None) -> None:
@@ -290,10 +295,12 @@ class TasksExtension(Extension):
         task = self.store.get(params.task_id)
         record = task.record
         try:
+            # any connection the rules allow may cancel it (D35); it goes through the
+            # goal's own, where its id names it alone (other connections' goals may
+            # have the same id, and a cancel from elsewhere names the newest)
             self.guard.admit("cancel_action_goal", {"action": record.action, "goal_id": ""})
-            ros = await self.link.connected()
-            ros.session.cancel_action_goal(record.action, record.handle.id)  # D35
-            await ros.flush()
+            task.link.ros.session.cancel_action_goal(record.action, record.handle.id)
+            await task.link.ros.flush()
         except (ToolError, RwtError) as exc:
             raise MCPError(INVALID_PARAMS, f"tasks/cancel: {exc}") from None
         return {"resultType": "complete"}

@@ -260,14 +260,37 @@ class McpEndpoint:
             self.entry = dataclasses.replace(self.entry, token=options.bearer_token)
         self.auth_required = self.entry.required
         self.sessions: dict[str, _Session] = {}
-        self.tasks = TaskStore()  # every session's and request's (rwt_mcp.tasks)
+        self.siblings = options.siblings  # the other workers' (--workers; mcp_siblings)
+        new_id = None if self.siblings is None else self.siblings.new_id
+        self._new_id = new_id or (lambda: uuid.uuid4().hex)
+        self.tasks = TaskStore(new_id=new_id)  # every session's and request's (rwt_mcp.tasks)
         self._watched: Watched = {}  # topics the 2026-07-28 requests' listen streams hold
         self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
+        self._forwarded: anyio.CancelScope | None = None
 
     def bind(self, tg: TaskGroup | None) -> None:
-        """Run sessions in ``tg`` (the server's connections); None: open no new ones."""
+        """Run sessions in ``tg`` (the server's connections); None: open no new ones.
+
+        A worker of ``--workers`` also takes the requests the others pass it
+        (``mcp_siblings``) while bound.
+        """
         self._tg = tg
+        if tg is None and self._forwarded is not None:
+            self._forwarded.cancel()
+            self._forwarded = None
+        elif tg is not None and self.siblings is not None and self._forwarded is None:
+            self._forwarded = anyio.CancelScope()
+            tg.start_soon(self._take_forwarded, self._forwarded)
+
+    async def _take_forwarded(self, scope: anyio.CancelScope) -> None:
+        """Answer the requests of the sessions and tasks this worker holds (``mcp_siblings``)."""
+        assert self.siblings is not None  # only bound so
+        with scope:
+            try:
+                await self.siblings.serve(functools.partial(self.serve, forwarded=True))
+            except OSError as exc:  # its sessions and tasks answer only on sockets it accepts
+                logger.warning("event=mcp_siblings_unavailable error=%r", exc)
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
@@ -282,12 +305,16 @@ class McpEndpoint:
             head, (b"GET", b"OPTIONS"), METADATA_PATH, lambda _m, after: after in (b" ", b"/", b"?")
         )
 
-    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
+    async def serve(
+        self, stream: ByteStream, head: bytes, peer: str, *, forwarded: bool = False
+    ) -> None:
         """Answer the one request on ``stream`` whose first bytes are ``head``, then return.
 
         The caller bounds the time until the request is read (the handshake
         timeout); an admitted request then runs as long as MCP needs (an event
         stream, a long tool call), bounded per session by ``MAX_REQUESTS_IN_FLIGHT``.
+        A worker passes a request of another worker's session or task to it
+        (``mcp_siblings``); ``forwarded``: this one was passed here, and is answered here.
         """
         opened = await open_request(
             stream,
@@ -305,6 +332,9 @@ class McpEndpoint:
         if path in (METADATA_PATH, METADATA_PATH + MCP_PATH):
             body = "" if request.method == b"OPTIONS" else json.dumps(self._metadata(headers))
             await reply(conn, stream, 204 if not body else 200, body, cors, "application/json")
+            return
+        owner = None if forwarded else self._owner(headers, opened.body)
+        if owner is not None and await self._forward(exchange, owner):
             return
         refusal = self._refusal(request, headers, peer)
         if refusal is not None:
@@ -327,6 +357,44 @@ class McpEndpoint:
             await self._open(exchange, bearer(headers), self._site(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
+
+    def _owner(self, headers: dict[str, str], body: bytes) -> int | None:
+        """The other worker holding the request's session or task; None: this one, or none."""
+        if self.siblings is None:
+            return None
+        session_id = headers.get(MCP_SESSION_ID_HEADER)
+        if session_id is not None:
+            return self.siblings.owner(session_id)
+        if b'"tasks/' not in body:  # the cheap test first: most requests name no task
+            return None
+        try:
+            message = decode_json_text(body, "Parse error")
+        except RemoteProtocolError:
+            return None  # refused where it is answered
+        params = message.get("params") if isinstance(message, dict) else None
+        task_id = params.get("taskId") if isinstance(params, dict) else None
+        method = message.get("method") if isinstance(message, dict) else None
+        if not isinstance(task_id, str) or not str(method).startswith("tasks/"):
+            return None
+        return self.siblings.owner(task_id)
+
+    async def _forward(self, exchange: _Exchange, owner: int) -> bool:
+        """Pass the request to worker ``owner``; False: it is gone (answered here, then).
+
+        Its socket here takes a connection slot while the answer is relayed (D40).
+        """
+        assert self.siblings is not None  # an owner is only found so
+        slot = self.server.take_slot("mcp", exchange.peer)
+        if slot is None:
+            await exchange.refuse(503, "too many connections")
+            return True
+        self.server.join_socket()  # an event stream or a long call outlives the handshake
+        try:
+            return await self.siblings.forward(
+                owner, exchange.peer, exchange.request, exchange.body, exchange.stream
+            )
+        finally:
+            self.server.give_slot(slot)
 
     def _base(self, headers: dict[str, str]) -> str:
         """``http(s)://HOST[:PORT]`` as the client reached the endpoint (its ``Host`` header)."""
@@ -407,7 +475,7 @@ class McpEndpoint:
             await exchange.refuse(503, "too many connections")
             return
         transport = StreamableHTTPServerTransport(
-            mcp_session_id=uuid.uuid4().hex,
+            mcp_session_id=self._new_id(),
             security_settings=_NO_SDK_CHECK,
             idle_timeout=self.server.config.idle_timeout_s or None,  # --idle-timeout (D40)
         )

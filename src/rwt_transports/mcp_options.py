@@ -19,6 +19,7 @@ from .frontends import AuthMode, HttpFrontEnd
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from .mcp_siblings import Siblings
     from .server import GraphServer
     from .websocket import HttpEndpoint
 
@@ -50,12 +51,15 @@ class McpOptions:
         video_port: the video server's port (``--video``), on the host clients reach
             ``/mcp`` by, for the robot app's MJPEG fallback (``rwt_mcp.app``); None:
             none, or not known.
+        siblings: this worker's place among the workers of ``--workers N``, whose
+            sessions and tasks it reaches (``mcp_siblings``); None: not a worker.
     """
 
     read_only: bool = False
     bearer_token: Callable[[str], bool] | None = None
     authorization_server: str | None = None
     video_port: int | None = None
+    siblings: Siblings | None = None
 
 
 def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:

@@ -14,8 +14,10 @@ import mmap
 import os
 import struct
 
-__all__ = ["ConnectionCountWriter", "read_count", "reset_count"]
+__all__ = ["STATE_PREFIX", "ConnectionCountWriter", "read_count", "reset_count"]
 
+STATE_PREFIX = "worker-"
+"""A worker's count file is ``<state folder>/worker-<index>`` (``workers.WorkerPlan.state``)."""
 _COUNT = struct.Struct("<q")
 
 

@@ -28,7 +28,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from rwt_protocol.errors import ConfigError
 
 from .listen import ListenError
-from .worker_counts import read_count, reset_count
+from .worker_counts import STATE_PREFIX, read_count, reset_count
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
@@ -119,7 +119,9 @@ class WorkerPlan:
 
     def state(self, index: int) -> str | None:
         """The connection count file of worker ``index`` (None: not kept)."""
-        return None if self.state_dir is None else os.path.join(self.state_dir, f"worker-{index}")
+        if self.state_dir is None:
+            return None
+        return os.path.join(self.state_dir, f"{STATE_PREFIX}{index}")
 
     def command(self, index: int) -> list[str]:
         """The command line of worker ``index``."""

@@ -236,6 +236,30 @@ async def test_a_task_is_polled_and_canceled_from_a_new_connection(
         assert len(canceled) == 1  # the robot's action server saw the cancel
 
 
+async def test_a_cancel_ends_its_own_task_where_two_goals_share_an_id(
+    served: tuple[str, Graph, list[str]],
+) -> None:
+    """Each request's connection numbers its goals from 1: two tasks' goals have one id."""
+    url, _, canceled = served
+    with anyio.fail_after(60):
+        async with connect(url, "http", AUTO) as client:
+            first = await _goal_task(client, HOLD_ORDER)
+            second = await _goal_task(client, HOLD_ORDER)
+            ids = set()
+            for task_id in (first, second):
+                state = await task_request(client, "tasks/get", task_id)
+                assert isinstance(state, TaskState)
+                ids.add(json.loads(state.status_message or "{}")["goal_id"])
+            assert len(ids) == 1  # the same id on two connections
+            await task_request(client, "tasks/cancel", first)
+            assert (await _settled(client, first)).status == "cancelled"
+            state = await task_request(client, "tasks/get", second)
+            assert isinstance(state, TaskState) and state.status == "working"
+            await task_request(client, "tasks/cancel", second)
+            assert (await _settled(client, second)).status == "cancelled"
+        assert len(canceled) == 2
+
+
 async def test_an_unknown_task_is_an_error(served: tuple[str, Graph, list[str]]) -> None:
     url, _, _ = served
     async with connect(url, "http", AUTO) as client:

@@ -212,10 +212,6 @@ def test_a_missing_interfaces_folder_is_named(tmp_path: Path) -> None:
         ),
         (["serve", "--mcp-read-only"], "rwt serve: --mcp-read-only is a setting of --mcp"),
         (
-            ["serve", "--mcp", "--workers", "2"],
-            "rwt serve: --mcp keeps its sessions and tasks in one process",
-        ),
-        (
             ["serve", "--mcp-authorization-server", "https://login.example.com"],
             "rwt serve: --mcp-authorization-server is a setting of --mcp",
         ),

@@ -23,6 +23,8 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rwt_graph.graph import Graph
+from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.runtime import access
 from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
@@ -61,7 +63,10 @@ async def test_the_registry_picks_it_by_subprotocol_and_rosbridge_stays_the_defa
             assert '"service_response"' in str(await ws.recv())
 
 
-async def test_admission_limits_and_access_rules_bind_it(caplog: pytest.LogCaptureFixture) -> None:
+async def test_admission_limits_and_access_rules_bind_it(
+    caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(access, "_episodes", EpisodeLog(access.logger))  # a new episode
     graph = Graph()
     for topic in ("/a", "/b", "/secret"):
         graph.create_publisher(topic, "std_msgs/msg/String")
