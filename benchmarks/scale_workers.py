@@ -52,7 +52,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -116,8 +116,10 @@ def _listening(port: int) -> int:
 
 
 @contextlib.contextmanager
-def serve_workers(workers: int) -> Iterator[tuple[int, int]]:
+def serve_workers(workers: int, extra: Sequence[str] = ()) -> Iterator[tuple[int, int]]:
     """``rwt serve`` with ``workers`` workers (1: a plain server); yields (pid, port).
+
+    ``extra``: more ``serve`` options (``--mcp``).
 
     Waits until every worker listens on the port (SO_REUSEPORT: one listening
     socket each), so the kernel spreads the connections over all of them.
@@ -127,6 +129,7 @@ def serve_workers(workers: int) -> Iterator[tuple[int, int]]:
     """
     cmd = [sys.executable, "-m", "rwt", "serve", "--port", "0", "--no-tf"]
     cmd += ["--log-level", "warning", *(["--workers", str(workers)] if workers > 1 else [])]
+    cmd += extra
     env = {**os.environ, "PYTHONPATH": rwt_pythonpath(), "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, env=env)
     try:
