@@ -1,17 +1,20 @@
-"""A rosbridge WebSocket client that times one round trip every 50 ms, in a process of its own.
+"""A rosbridge (or Foxglove) WebSocket client timing one round trip every 50 ms, in a process.
 
-``python -m benchmarks.bystander URL [--host 127.0.0.2] [--secret S]`` connects to
-``URL`` from ``--host`` (another host than the attackers' 127.0.0.1), authenticates
-with rosauth when given the server's secret, then calls ``/rosapi/get_time`` one call
-at a time, a call due every ``PERIOD_S`` (a late answer delays the next call; a
-missed period is not made up). Each answer is a line on stdout: the call's send time
-and its round trip, both in seconds, the send time on the system's monotonic clock
-(``time.monotonic``, the same in every process of the machine), so the parent splits
-the round trips by the phases it timed. ``ready`` is printed once connected; a call
-still unanswered when the process is told to stop (SIGTERM) is printed with the time
-it waited so far and ``open`` (its round trip is at least that).
+``python -m benchmarks.bystander URL [--host 127.0.0.2] [--secret S] [--foxglove]``
+connects to ``URL`` from ``--host`` (another host than the attackers' 127.0.0.1),
+authenticates with rosauth when given the server's secret, then calls
+``/rosapi/get_time`` (``--foxglove``: a Foxglove client's ``getParameters``, answered
+by ``parameterValues`` with its id) one call at a time, a call due every ``PERIOD_S``
+(a late answer delays the next call; a missed period is not made up). Each answer is a
+line on stdout: the call's send time and its round trip, both in seconds, the send time
+on the system's monotonic clock (``time.monotonic``, the same in every process of the
+machine), so the parent splits the round trips by the phases it timed. ``ready`` is
+printed once connected; a call still unanswered when the process is told to stop
+(SIGTERM) is printed with the time it waited so far and ``open`` (its round trip is at
+least that).
 
-Used by ``benchmarks/attacks.py``; it never imports rwt, so any server's version works.
+Used by ``benchmarks/attacks.py`` and ``benchmarks/mcp_flood.py``; it never imports rwt, so
+any server's version works.
 """
 
 from __future__ import annotations
@@ -27,12 +30,15 @@ import sys
 import time
 
 from websockets.asyncio.client import connect
+from websockets.typing import Subprotocol
 
 __all__ = ["PERIOD_S", "auth_op", "main"]
 
 PERIOD_S = 0.05
 """Seconds between the starts of two calls."""
 SERVICE = "/rosapi/get_time"
+FOXGLOVE = "foxglove.websocket.v1"
+"""The subprotocol of a ``--foxglove`` bystander (Foxglove's WebSocket protocol)."""
 
 
 def auth_op(secret: str, client: str, dest: str, rand: str) -> dict[str, object]:
@@ -52,11 +58,14 @@ def auth_op(secret: str, client: str, dest: str, rand: str) -> dict[str, object]
     }
 
 
-async def _run(url: str, host: str, secret: str | None) -> None:
+async def _run(url: str, host: str, secret: str | None, foxglove: bool = False) -> None:
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     loop.add_signal_handler(signal.SIGTERM, stop.set)
-    async with connect(url, local_addr=(host, 0), open_timeout=60, max_size=None) as ws:
+    protocols = [Subprotocol(FOXGLOVE)] if foxglove else None
+    async with connect(
+        url, local_addr=(host, 0), open_timeout=60, max_size=None, subprotocols=protocols
+    ) as ws:
         if secret is not None:
             await ws.send(json.dumps(auth_op(secret, host, "127.0.0.1", "bystander")))
         print("ready", flush=True)
@@ -65,7 +74,9 @@ async def _run(url: str, host: str, secret: str | None) -> None:
         while not stop.is_set():
             n += 1
             sent = time.monotonic()
-            call = {"op": "call_service", "service": SERVICE, "id": f"b{n}"}
+            call: dict[str, object] = {"op": "call_service", "service": SERVICE, "id": f"b{n}"}
+            if foxglove:
+                call = {"op": "getParameters", "parameterNames": [], "id": f"b{n}"}
             await ws.send(json.dumps(call))
             answer = asyncio.ensure_future(_answer(ws, f"b{n}"))
             halt = asyncio.ensure_future(stop.wait())
@@ -84,7 +95,7 @@ async def _run(url: str, host: str, secret: str | None) -> None:
 async def _answer(ws: object, call_id: str) -> None:
     while True:
         frame = await ws.recv()  # type: ignore[attr-defined]
-        if f'"{call_id}"' in frame:
+        if isinstance(frame, str) and f'"{call_id}"' in frame:  # Foxglove's binary: not it
             return
 
 
@@ -94,9 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("url")
     parser.add_argument("--host", default="127.0.0.2")
     parser.add_argument("--secret")
+    parser.add_argument("--foxglove", action="store_true")
     args = parser.parse_args(argv)
     try:
-        asyncio.run(_run(args.url, args.host, args.secret))
+        asyncio.run(_run(args.url, args.host, args.secret, args.foxglove))
     except (OSError, EOFError) as error:
         print(f"error {error}", file=sys.stderr, flush=True)
         return 1

@@ -54,6 +54,7 @@ __all__ = [
     "RobotTools",
     "build_server",
     "goal_report",
+    "warm_up",
 ]
 
 #: Any wait a tool takes (echo, service call, goal, cancel, transform), in seconds.
@@ -786,6 +787,17 @@ def build_server(
     resources.register(server._lowlevel_server)  # the SDK's way to add handlers
     _call_tools(server)
     return server, extension
+
+
+def warm_up() -> None:
+    """Build what a session's first server builds once (the tools' models, the SDK's parts).
+
+    A front end calls it while it starts (``http.McpEndpoint``), before the server
+    freezes its start-up objects (``rwt_transports.gcfreeze``): otherwise the first
+    request builds them while every client waits on the event loop (tens of ms), and
+    full collections walk them ever after. Nothing is connected.
+    """
+    build_server(RobotLink("ws://127.0.0.1:9"))
 
 
 _TEMPLATES: dict[str, Tool] = {}

@@ -69,7 +69,14 @@ from mcp.server.runner import serve_loop
 from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
 from mcp.server.transport_security import TransportSecuritySettings
 from mcp.shared.inbound import MCP_PROTOCOL_VERSION_HEADER
-from mcp.types import INVALID_REQUEST, PARSE_ERROR, ErrorData, JSONRPCError
+from mcp.types import (
+    INVALID_REQUEST,
+    PARSE_ERROR,
+    CallToolResult,
+    ErrorData,
+    JSONRPCError,
+    TextContent,
+)
 from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 
 from rwt_client import Ros
@@ -79,11 +86,13 @@ from rwt_mcp.app import AppSite
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tasks import TaskStore
-from rwt_mcp.tools import build_server
+from rwt_mcp.tools import build_server, warm_up
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.credentials import AuthMode, EntryAuth
 from rwt_protocol.errors import RemoteProtocolError
+from rwt_protocol.runtime.access import log_refused
 
+from .host_rates import HostPace
 from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
@@ -102,6 +111,9 @@ if TYPE_CHECKING:
     from .server import GraphServer
 
 __all__ = [
+    "HOST_REFUSAL_WAIT_S",
+    "HOST_SESSIONS_PER_S",
+    "HOST_SESSION_WAIT_S",
     "MAX_REQUESTS_IN_FLIGHT",
     "MAX_REQUEST_BYTES",
     "MODERN_HOSTS_KEPT",
@@ -123,6 +135,21 @@ request beyond them takes one more slot while it runs, or gets 503 (D40)."""
 MODERN_HOSTS_KEPT = 256
 """Hosts whose 2026-07-28 requests' rate caps are kept (``rwt_mcp.guard.Guard``, per host:
 a request has no session); past them the least recently seen host's are dropped."""
+
+HOST_SESSIONS_PER_S = 20.0
+"""MCP sessions one host may open a second: a 2025-era ``initialize``, or a 2026-07-28 request
+(each is a rosbridge session of its own, its server built), spaced ``1 / 20`` s apart
+(``host_rates.HostPace``): one that comes early waits its turn, up to
+``HOST_SESSION_WAIT_S``; past that it is refused before anything is built for it (a tool
+call gets a tool error naming the bound, another request a JSON-RPC error with 429). A
+flood from one host then costs the event loop one session at a time, never a burst
+(docs/limits.md). The requests of an open 2025-era session are bounded by its own caps."""
+HOST_SESSION_WAIT_S = 1.0
+"""The longest a new session waits for its host's turn (``HOST_SESSIONS_PER_S``), seconds."""
+HOST_REFUSAL_WAIT_S = 1.0
+"""Seconds a refused session waits for its answer: a client sending back to back gets a
+few answers a second per connection, not as many as the server can write (the wait holds
+a socket, not the event loop)."""
 
 _METHODS = (b"POST", b"GET", b"DELETE", b"OPTIONS")
 _HOST = re.compile(r"[^A-Za-z0-9.:\[\]_-]")  # what a Host header may keep in a URL
@@ -268,6 +295,8 @@ class McpEndpoint:
         self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
         self._forwarded: anyio.CancelScope | None = None
+        self._host_pace = HostPace(HOST_SESSIONS_PER_S, HOST_SESSION_WAIT_S, MODERN_HOSTS_KEPT)
+        warm_up()  # before the server freezes its start-up objects (gcfreeze)
 
     def bind(self, tg: TaskGroup | None) -> None:
         """Run sessions in ``tg`` (the server's connections); None: open no new ones.
@@ -351,6 +380,12 @@ class McpEndpoint:
             if problem is not None:
                 await exchange.refuse_jsonrpc(*problem)
                 return
+            if session_id is None and not forwarded:  # a session opens: its host's turn
+                wait = self._host_pace.turn(peer)
+                if wait is None:
+                    await _refuse_host_rate(exchange)
+                    return
+                await anyio.sleep(wait)
         if modern:
             await self._modern(exchange, self._site(headers))
         elif session_id is None:
@@ -665,6 +700,49 @@ async def _serve_until_idle(
         tg.cancel_scope.cancel()
 
 
+async def _refuse_host_rate(exchange: _Exchange) -> None:
+    """Answer a session over ``HOST_SESSIONS_PER_S``, after ``HOST_REFUSAL_WAIT_S``.
+
+    A tool call gets a tool error naming the bound (what the agent shows its model),
+    another request a JSON-RPC error (429); the access log has one line per episode.
+    """
+    await anyio.sleep(HOST_REFUSAL_WAIT_S)
+    why = f"over {HOST_SESSIONS_PER_S:g} MCP sessions a second from this host"
+    message = decode_json_text(exchange.body, "Parse error")  # checked: _body_refusal
+    method = message.get("method") if isinstance(message, dict) else None
+    params = message.get("params") if isinstance(message, dict) else None
+    tool = params.get("name") if isinstance(params, dict) else None
+    op = str(tool if method == "tools/call" and isinstance(tool, str) else method)[:64]
+    log_refused(
+        client=f"mcp:{exchange.peer}",
+        op=op,
+        rule="HOST_SESSIONS_PER_S",
+        reason=why,
+        now=time.monotonic(),
+    )
+    text = f"{op}: {why} (HOST_SESSIONS_PER_S): wait and call again"
+    if method != "tools/call" or not isinstance(message, dict):
+        await exchange.refuse_jsonrpc(429, text, INVALID_REQUEST, [(b"Retry-After", b"1")])
+        return
+    result = CallToolResult(
+        content=[TextContent(type="text", text=f"Error executing tool {op}: {text}")],
+        is_error=True,
+    )
+    answer = {
+        "jsonrpc": "2.0",
+        "id": message.get("id"),
+        "result": result.model_dump(mode="json", by_alias=True, exclude_none=True),
+    }
+    await reply(
+        exchange.conn,
+        exchange.stream,
+        200,
+        json.dumps(answer, separators=(",", ":")),
+        exchange.cors,
+        "application/json",
+    )
+
+
 def _body_refusal(body: bytes, *, new_session: bool) -> tuple[int, str, int] | None:
     """Why a POST's body is refused before MCP sees it: (HTTP status, text, JSON-RPC code).
 
@@ -748,14 +826,17 @@ class _Exchange:
         _log_refusal(self.peer, status, text)
         await reply(self.conn, self.stream, status, text, self.cors + (extra or []))
 
-    async def refuse_jsonrpc(self, status: int, text: str, code: int) -> None:
+    async def refuse_jsonrpc(
+        self, status: int, text: str, code: int, extra: list[tuple[bytes, bytes]] | None = None
+    ) -> None:
         """Answer ``status`` with a JSON-RPC error ``code`` saying ``text``, as the SDK does."""
         _log_refusal(self.peer, status, text)
         error = JSONRPCError(
             jsonrpc="2.0", id="server-error", error=ErrorData(code=code, message=text)
         )
         body = error.model_dump_json(by_alias=True, exclude_none=True)
-        await reply(self.conn, self.stream, status, body, self.cors, "application/json")
+        headers = self.cors + (extra or [])
+        await reply(self.conn, self.stream, status, body, headers, "application/json")
 
     async def run(self, app: Callable[..., Any]) -> int | None:
         """Run ``app`` (ASGI 3) for the request; the response's status, None if none was sent."""
