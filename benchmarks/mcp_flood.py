@@ -210,6 +210,8 @@ def _process(cmd: list[str], ready: str) -> Iterator[subprocess.Popen[str]]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
 
 
 def _round_trips(proc: subprocess.Popen[str]) -> list[tuple[float, float]]:
