@@ -51,8 +51,7 @@ TASKS = "io.modelcontextprotocol/tasks"
 START_S = 60.0
 
 _ENV = {**os.environ, "PYTHONPATH": rwt_pythonpath(), "PYTHONUNBUFFERED": "1"}
-_ROBOT = (
-    """
+_ROBOT = """
 import sys
 import anyio
 from rwt_client import Action, Ros
@@ -65,14 +64,12 @@ async def main() -> None:
                 await goal.cancel_requested.wait()
                 goal.canceled()
             return {"sequence": [0, 1]}
-        await Action(ros, "/fibonacci", "%s").advertise(fibonacci)
+        await Action(ros, "/fibonacci", sys.argv[2]).advertise(fibonacci)
         print("ready", flush=True)
         await anyio.sleep_forever()
 
 anyio.run(main)
 """
-    % FIB
-)
 
 
 @dataclass(frozen=True)
@@ -155,10 +152,12 @@ async def _flood(port: int, seconds: float, agents: int, listeners: int) -> Coun
     async def agent() -> None:
         task_id = "w0-" + "0" * 32
         while time.monotonic() < end:
-            for request in (echo, goal, "tasks/get", "tasks/cancel"):
-                if isinstance(request, str):
-                    params = {"taskId": task_id, "_meta": _meta(tasks=True)}
-                    request = _post(port, request, params)
+            for step in (echo, goal, "tasks/get", "tasks/cancel"):
+                if isinstance(step, str):
+                    params: dict[str, object] = {"taskId": task_id, "_meta": _meta(tasks=True)}
+                    request = _post(port, step, params)
+                else:
+                    request = step
                 try:
                     answer = await _exchange(port, request)
                 except OSError as exc:
@@ -236,7 +235,7 @@ def main(
         server = stack.enter_context(_process(serve, "listening on "))
         url = server.first_line.removeprefix("listening on ")  # type: ignore[attr-defined]
         port = int(url.rsplit(":", 1)[1])
-        stack.enter_context(_process([sys.executable, "-c", _ROBOT, url], "ready"))
+        stack.enter_context(_process([sys.executable, "-c", _ROBOT, url, FIB], "ready"))
         bystanders = {
             "rosbridge": stack.enter_context(
                 _process([sys.executable, "-m", "benchmarks.bystander", url], "ready")
