@@ -10,7 +10,8 @@ and off in this process (``shortcut_report``, docs/shortcuts.md), and ``Compat``
 drop-in mode for clients written against rosbridge_suite (docs/differences.md), and
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
 docs/foxglove.md), WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md), the
-MCP endpoint's (``McpOptions``, docs/mcp.md) and the HTTP API's (``HttpApiOptions``,
+MCP endpoint's (``McpOptions``, docs/mcp.md; ``McpSiblings``, a worker's place among
+the others of ``--workers``) and the HTTP API's (``HttpApiOptions``,
 docs/http.md; ``ServerConfig.http_options["http"]``), and ``Admitted``, the ticket of
 a connection admitted without a session (``GraphServer.admit``).
 
@@ -35,6 +36,7 @@ if TYPE_CHECKING:
     from rwt_transports.allocator import tune_allocator
     from rwt_transports.foxglove import FoxgloveOptions
     from rwt_transports.mcp_options import McpOptions
+    from rwt_transports.mcp_siblings import McpSiblings
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import Admitted, rosauth_authenticator
     from rwt_transports.udp import UdpOptions
@@ -53,6 +55,7 @@ __all__ = [
     "FoxgloveOptions",
     "HttpApiOptions",
     "McpOptions",
+    "McpSiblings",
     "MemoryConnection",
     "TopicUse",
     "UdpOptions",

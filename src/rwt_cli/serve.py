@@ -30,7 +30,7 @@ from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.mcp_options import McpOptions
-from rwt_transports.mcp_siblings import Siblings
+from rwt_transports.mcp_siblings import McpSiblings
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc_signal import WebRtcOptions
@@ -286,9 +286,9 @@ def _server_config(
     )
 
 
-def _siblings(state: str | None) -> Siblings | None:
+def _siblings(state: str | None) -> McpSiblings | None:
     """A worker's place among the others, whose MCP sessions and tasks it reaches."""
-    return None if state is None else Siblings.of_state(state)
+    return None if state is None else McpSiblings.of_state(state)
 
 
 def _worker_counter(path: str | None) -> Callable[[int], None] | None:

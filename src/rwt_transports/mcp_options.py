@@ -19,7 +19,7 @@ from .frontends import AuthMode, HttpFrontEnd
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from .mcp_siblings import Siblings
+    from .mcp_siblings import McpSiblings
     from .server import GraphServer
     from .websocket import HttpEndpoint
 
@@ -59,7 +59,7 @@ class McpOptions:
     bearer_token: Callable[[str], bool] | None = None
     authorization_server: str | None = None
     video_port: int | None = None
-    siblings: Siblings | None = None
+    siblings: McpSiblings | None = None
 
 
 def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:

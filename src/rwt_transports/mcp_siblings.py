@@ -5,7 +5,7 @@ answers it (SO_REUSEPORT; the graph is one through the workers' links). Two thin
 stay where they were made: a 2025-era session (its ``Mcp-Session-Id``) and a task
 (its ``taskId``: the goal lives on a connection of that worker, and its feedback
 and result arrive there). Their ids name the worker that holds them
-(``w<index>-<32 hex digits>``, ``Siblings.new_id``); a worker given a request for
+(``w<index>-<32 hex digits>``, ``McpSiblings.new_id``); a worker given a request for
 another's session, or a ``tasks/*`` request naming another's task, passes the
 request to that worker over a Unix socket in the workers' private state folder
 (the parent's ``--worker-state`` folder, mode 0700) and relays its answer, an
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream
 
-__all__ = ["PEER_PREAMBLE", "Siblings"]
+__all__ = ["PEER_PREAMBLE", "McpSiblings"]
 
 logger = logging.getLogger("rwt.mcp")
 _episodes = EpisodeLog(logger)
@@ -58,7 +58,7 @@ _ID = re.compile(r"w(\d{1,4})-[0-9a-f]{32}")
 
 
 @dataclass(frozen=True)
-class Siblings:
+class McpSiblings:
     """One worker's place among the workers of one ``rwt serve --workers N``.
 
     Attributes:
@@ -70,7 +70,7 @@ class Siblings:
     index: int
 
     @classmethod
-    def of_state(cls, state: str) -> Siblings | None:
+    def of_state(cls, state: str) -> McpSiblings | None:
         """The place of the worker whose ``--worker-state`` file is ``state``; None: not one."""
         folder, name = os.path.split(state)
         number = name.removeprefix(STATE_PREFIX)

@@ -31,7 +31,7 @@ from mcp.client.streamable_http import streamable_http_client
 
 from rwt_client import Action, Ros
 from rwt_client.ros import ServerGoal
-from rwt_transports.mcp_siblings import PEER_PREAMBLE, Siblings
+from rwt_transports.mcp_siblings import PEER_PREAMBLE, McpSiblings
 from tests.agents.test_mcp_revisions import (
     FIB,
     HOLD_ORDER,
@@ -156,10 +156,10 @@ async def test_both_revisions_and_tasks_across_two_workers() -> None:
 
 
 def test_a_worker_knows_its_ids_from_the_others() -> None:
-    place = Siblings.of_state("/run/rwt-workers-x/worker-1")
-    assert place == Siblings("/run/rwt-workers-x", 1)
-    assert Siblings.of_state("/run/rwt-workers-x/counts") is None
-    mine, theirs = place.new_id(), Siblings("/f", 0).new_id()
+    place = McpSiblings.of_state("/run/rwt-workers-x/worker-1")
+    assert place == McpSiblings("/run/rwt-workers-x", 1)
+    assert McpSiblings.of_state("/run/rwt-workers-x/counts") is None
+    mine, theirs = place.new_id(), McpSiblings("/f", 0).new_id()
     assert place.owner(mine) is None and place.owner(theirs) == 0
     for foreign in ("0123456789abcdef0123456789abcdef", "w0-short", "w0-" + "G" * 32, ""):
         assert place.owner(foreign) is None  # not a worker's id: answered here
@@ -167,7 +167,7 @@ def test_a_worker_knows_its_ids_from_the_others() -> None:
 
 
 async def test_a_request_for_a_gone_worker_is_answered_where_it_came(tmp_path: Path) -> None:
-    place = Siblings(str(tmp_path), 0)  # worker 1 has no socket: it died, or never was
+    place = McpSiblings(str(tmp_path), 0)  # worker 1 has no socket: it died, or never was
     request = h11.Request(method="POST", target="/mcp", headers=[("host", "x")])
     client, server = await _socket_pair()
     async with client, server:
@@ -175,7 +175,7 @@ async def test_a_request_for_a_gone_worker_is_answered_where_it_came(tmp_path: P
 
 
 async def test_a_forwarded_request_keeps_its_peer_and_body(tmp_path: Path) -> None:
-    owner, sender = Siblings(str(tmp_path), 1), Siblings(str(tmp_path), 0)
+    owner, sender = McpSiblings(str(tmp_path), 1), McpSiblings(str(tmp_path), 0)
     seen: list[tuple[str, bytes]] = []
 
     async def answer(stream: anyio.abc.ByteStream, head: bytes, peer: str) -> None:

@@ -239,6 +239,7 @@ NEVER_IN_RWT = {
     "Compat",
     "Connection",
     "McpOptions",
+    "McpSiblings",
     "HttpApiOptions",
     "Admitted",
     "FoxgloveLimits",
