@@ -44,6 +44,8 @@ from rwt_protocol.runtime.access import (
     log_refused,
 )
 
+from .catalog import LISTINGS, TOOL_NAMES, WRITE_TOOLS
+
 __all__ = [
     "LISTINGS",
     "LISTING_BURST",
@@ -64,48 +66,10 @@ TOOL_CALLS_PER_S = 10.0
 TOOL_BURST = 10
 #: A call's arguments, as JSON, in bytes: a larger call is a tool error.
 MAX_TOOL_ARGUMENT_BYTES = 64 * 1024
-#: The requests that list the graph: the largest answers (a listing of 1000 topics is
-#: about 130 KB to serialise and send, ten times a plain call's cost), so they share
-#: one bucket per session, of a lower rate; one more is an error.
-LISTINGS = frozenset(
-    {
-        "list_topics",
-        "list_services",
-        "list_nodes",
-        "list_actions",
-        "list_parameters",
-        "resources/list",
-    }
-)
 #: Listings a second one session may make, all of them together, on average.
 LISTING_CALLS_PER_S = 2.0
 #: Listings a session may make at once after a quiet spell.
 LISTING_BURST = 5
-#: The tools that change the robot: refused in read-only mode, logged when they run.
-WRITE_TOOLS = frozenset(
-    {
-        "publish",
-        "publish_for",
-        "call_service",
-        "send_action_goal",
-        "cancel_action_goal",
-        "set_parameter",
-    }
-)
-#: For each tool that names something: the access family and the argument naming it
-#: (a topic's family says which split glob decides: ``topics_pub``, ``topics_sub``, D50).
-TOOL_NAMES: Mapping[str, tuple[str, str]] = {
-    "echo": ("topics_sub", "topic"),
-    "publish": ("topics_pub", "topic"),
-    "publish_for": ("topics_pub", "topic"),
-    "call_service": ("services", "service"),
-    "send_action_goal": ("actions", "action"),
-    "cancel_action_goal": ("actions", "action"),
-    "get_parameter": ("params", "name"),
-    "set_parameter": ("params", "name"),
-    "robot_app": ("topics_sub", "camera"),
-}
-
 _FAMILIES: Mapping[str, tuple[Family, TopicUse | None]] = {
     "topics": (Family.TOPICS, None),
     "topics_pub": (Family.TOPICS, TopicUse.PUBLISH),

@@ -41,6 +41,8 @@ from pydantic import Field, ValidationError
 
 from rwt_protocol.errors import RwtError
 
+from .catalog import TASK_TOOLS
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -68,8 +70,6 @@ MAX_TASKS = 64
 TASK_TTL_S = 600.0
 #: The polling interval a task suggests to its client, in ms.
 POLL_INTERVAL_MS = 1000
-#: The tools answered with a task when the client takes tasks: those that wait past a call.
-TASK_TOOLS = frozenset({"send_action_goal"})
 
 
 def _now_iso() -> str:

@@ -37,7 +37,8 @@ from rwt_protocol.names import name_problem
 
 from . import render
 from .app import APP_URI, AppSite, RobotApp, app_settings
-from .guard import WRITE_TOOLS, Guard
+from .catalog import APP_TOOLS, TOOLS, WRITE_TOOLS
+from .guard import Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
 from .resources import TopicResources, Watched
@@ -705,27 +706,10 @@ async def _progress(record: Goal, ctx: Context) -> AsyncIterator[None]:
         record.listeners.remove(latest.put)
 
 
-_TOOLS = (
-    "list_topics",
-    "list_services",
-    "list_nodes",
-    "list_actions",
-    "list_parameters",
-    "type_definition",
-    "echo",
-    "publish",
-    "publish_for",
-    "call_service",
-    "send_action_goal",
-    "cancel_action_goal",
-    "action_goal_status",
-    "get_parameter",
-    "set_parameter",
-    "lookup_transform",
-    "robot_app",
-)
-#: The tools a host shows as an app (MCP Apps: the tool's ``_meta.ui``).
-_TOOL_META: dict[str, dict[str, Any]] = {"robot_app": {"ui": {"resourceUri": APP_URI}}}
+_TOOL_META: dict[str, dict[str, Any]] = {
+    name: {"ui": {"resourceUri": APP_URI}} for name in APP_TOOLS
+}
+"""The tools a host shows as an app (MCP Apps: the tool's ``_meta.ui``)."""
 
 
 def build_server(
@@ -780,7 +764,7 @@ def build_server(
         subscriptions=resources.bus,
     )
     manager = server._tool_manager  # the SDK's registry: a tool made once, shared below
-    for name in _TOOLS:
+    for name in TOOLS:
         function = _guarded(guard, name, getattr(tools, name))
         manager._tools[name] = _tool_template(name, function).model_copy(update={"fn": function})
     tools.guard = guard
