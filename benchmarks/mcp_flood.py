@@ -39,7 +39,7 @@ from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from .servers import rwt_pythonpath
+from .servers import rwt_pythonpath, stop_process
 
 __all__ = ["Phase", "main", "table"]
 
@@ -203,14 +203,7 @@ def _process(cmd: list[str], ready: str) -> Iterator[subprocess.Popen[str]]:
         proc.first_line = line.strip()  # type: ignore[attr-defined]
         yield proc
     finally:
-        proc.terminate()
-        try:
-            proc.wait(15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        if proc.stdout is not None:
-            proc.stdout.close()
+        stop_process(proc)
 
 
 def _round_trips(proc: subprocess.Popen[str]) -> list[tuple[float, float]]:

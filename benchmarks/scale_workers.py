@@ -63,7 +63,7 @@ from .fanout_raw import STRING, FanOut
 from .loadgen.engine import GeneratorError, run_loop
 from .loadgen.wire import client_frame, connect
 from .proctree import tree_cpu_ns
-from .servers import rwt_pythonpath
+from .servers import rwt_pythonpath, stop_process
 
 __all__ = ["ScaleRow", "main", "measure", "scale_table", "serve_workers"]
 
@@ -145,14 +145,7 @@ def serve_workers(workers: int, extra: Sequence[str] = ()) -> Iterator[tuple[int
             time.sleep(0.1)
         yield proc.pid, port
     finally:
-        proc.terminate()
-        try:
-            proc.wait(15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        if proc.stdout is not None:
-            proc.stdout.close()
+        stop_process(proc)
 
 
 def _generator(

@@ -16,9 +16,17 @@ import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
-__all__ = ["ROOT", "ProcStats", "Server", "proc_stats", "rwt_pythonpath", "start_server"]
+__all__ = [
+    "ROOT",
+    "ProcStats",
+    "Server",
+    "proc_stats",
+    "rwt_pythonpath",
+    "start_server",
+    "stop_process",
+]
 
 ROOT = Path(__file__).resolve().parent.parent
 _TICK_S = 1.0 / os.sysconf("SC_CLK_TCK")
@@ -38,6 +46,18 @@ class ProcStats:
 
     cpu_s: float
     rss_bytes: int
+
+
+def stop_process(proc: subprocess.Popen[Any], grace_s: float = 15.0) -> None:
+    """SIGTERM ``proc``, SIGKILL it after ``grace_s``, and close its stdout pipe."""
+    proc.terminate()
+    try:
+        proc.wait(grace_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+    if proc.stdout is not None:
+        proc.stdout.close()
 
 
 def proc_stats(pid: int) -> ProcStats:

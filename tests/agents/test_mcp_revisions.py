@@ -146,13 +146,14 @@ async def _goal_task(client: Client, order: int) -> str:
     return handle.task_id
 
 
-async def _settled(client: Client, task_id: str) -> TaskState:
+async def _settled(client: Client, task_id: str, every_s: float = 0.05) -> TaskState:
+    """The task once it ended, polled every ``every_s``."""
     while True:
         state = await task_request(client, "tasks/get", task_id)
         assert isinstance(state, TaskState)
         if state.status != "working":
             return state
-        await anyio.sleep(0.05)
+        await anyio.sleep(every_s)
 
 
 @pytest.mark.parametrize("front", ["http", "stdio"])

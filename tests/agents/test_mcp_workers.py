@@ -38,6 +38,7 @@ from tests.agents.test_mcp_revisions import (
     Tasks,
     TaskState,
     _goal_task,
+    _settled,
     task_request,
 )
 from tests.zenoh.processes import rwt, started
@@ -68,16 +69,6 @@ async def _robot(url: str, canceled: list[str]) -> AsyncIterator[None]:
 
         await Action(ros, "/fibonacci", FIB).advertise(fibonacci)
         yield
-
-
-async def _settled(client: Client, task_id: str) -> TaskState:
-    """The task once it ended, polled under the per-host cap of ``tasks/get`` (10 a second)."""
-    while True:
-        state = await task_request(client, "tasks/get", task_id)
-        assert isinstance(state, TaskState)
-        if state.status != "working":
-            return state
-        await anyio.sleep(0.25)
 
 
 async def _tasks_on_both(endpoint: str) -> dict[str, str]:
@@ -145,7 +136,7 @@ async def test_both_revisions_and_tasks_across_two_workers() -> None:
                         assert report["action"] == "/fibonacci"
                         await task_request(client, "tasks/cancel", task_id)
                     async with modern(endpoint) as client:
-                        ended = await _settled(client, task_id)
+                        ended = await _settled(client, task_id, every_s=0.25)  # the cap
                         assert ended.status == "cancelled", ended
                 assert len(canceled) == 2  # the robot saw both cancels
                 assert await _session_of_each(endpoint) == {"w0", "w1"}
