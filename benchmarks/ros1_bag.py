@@ -70,11 +70,11 @@ from .loadgen.engine import BARRIER
 from .loadgen.wire import FrameReader, client_frame, connect
 from .msgs import advertise, publish_json, subscribe
 from .ros1_nodes import IMAGE_HEIGHT, IMAGE_WIDTH, string_data, tree_cpu_s
-from .servers import ROOT
+from .servers import ROOT, ROS1_PROBES, ROS1_PYTHON, imports_ok
 
 __all__ = ["Measure", "missing", "run", "table", "verdict"]
 
-ROS_PYTHON = "/usr/bin/python3"
+ROS_PYTHON = ROS1_PYTHON
 NODES = Path(__file__).with_name("ros1_nodes.py")
 RESULTS = Path(__file__).parent / "results" / "ros1_bag.json"
 TOPIC = "/b22"
@@ -91,11 +91,7 @@ def missing() -> str | None:
     for tool in ("roscore", "rosbag"):
         if shutil.which(tool) is None:
             return f"{tool} is not installed (Debian: ros-core, python3-rosbag)"
-    probe = "import rospy, std_msgs.msg, sensor_msgs.msg"
-    if (
-        not Path(ROS_PYTHON).exists()
-        or subprocess.run([ROS_PYTHON, "-c", probe], capture_output=True, check=False).returncode
-    ):
+    if not imports_ok(ROS_PYTHON, ROS1_PROBES["rospy"]):
         return f"{ROS_PYTHON} cannot import rospy, std_msgs and sensor_msgs (Debian: python3-rospy)"
     return None
 

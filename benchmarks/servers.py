@@ -9,6 +9,7 @@ for the baseline), the bare relay is ``benchmarks/relay.py``. Each prints
 
 from __future__ import annotations
 
+import hashlib
 import os
 import signal
 import subprocess
@@ -20,8 +21,11 @@ from typing import IO, Any
 
 __all__ = [
     "ROOT",
+    "ROS1_PROBES",
+    "ROS1_PYTHON",
     "ProcStats",
     "Server",
+    "imports_ok",
     "proc_stats",
     "rwt_pythonpath",
     "start_server",
@@ -46,6 +50,35 @@ class ProcStats:
 
     cpu_s: float
     rss_bytes: int
+
+
+ROS1_PYTHON = "/usr/bin/python3"
+"""Debian's Python, whose packages bring ROS 1 (``python3-rospy``, ``python3-rosbag``)."""
+ROS1_PROBES = {
+    "rospy": "import rospy, std_msgs.msg, sensor_msgs.msg",
+    "rosbag": "import rosbag, sensor_msgs.msg, tf2_msgs.msg",
+}
+"""What the ROS 1 benchmarks and tests import from ``ROS1_PYTHON`` (``imports_ok``)."""
+
+
+def imports_ok(python: str, code: str) -> bool:
+    """Whether ``python`` (another interpreter: Debian's ROS 1) runs ``code`` (its imports).
+
+    Asked once per process tree: the answer is kept in this process's environment
+    (``RWT_PROBE_<digest>``), which the processes it starts inherit; the test suite's
+    controller asks before its workers start (tests/conftest.py), so no worker asks again.
+    """
+    key = "RWT_PROBE_" + hashlib.sha1(f"{python}\0{code}".encode()).hexdigest()[:16]
+    known = os.environ.get(key)
+    if known is None:
+        ran = (
+            Path(python).exists()
+            and not subprocess.run(
+                [python, "-c", code], capture_output=True, check=False
+            ).returncode
+        )
+        known = os.environ[key] = "1" if ran else "0"
+    return known == "1"
 
 
 def stop_process(proc: subprocess.Popen[Any], grace_s: float = 15.0) -> None:

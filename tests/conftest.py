@@ -130,6 +130,17 @@ def pytest_configure(config: pytest.Config) -> None:
         root = config.rootpath
         folders = [str(root / name) for name in ("src", "tests", "benchmarks", "conformance")]
         pycache.prime(config, folders, tests=config.args)
+        _ask_other_pythons()
+
+
+def _ask_other_pythons() -> None:
+    """Ask Debian's Python once for the files that skip without ROS 1, before the workers
+    start: they read the answers from the environment (``benchmarks.servers.imports_ok``)
+    instead of each starting it again at collection (0.3 s a question, in every worker)."""
+    from benchmarks.servers import ROS1_PROBES, ROS1_PYTHON, imports_ok  # noqa: PLC0415
+
+    for code in ROS1_PROBES.values():
+        imports_ok(ROS1_PYTHON, code)
 
 
 @pytest.hookimpl(trylast=True)

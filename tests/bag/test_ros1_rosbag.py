@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
+from benchmarks.servers import ROS1_PROBES, ROS1_PYTHON, imports_ok
 
 from rwt_bag import BagError
 from rwt_bag.reindex import reindex
@@ -35,16 +36,9 @@ from .test_record_roundtrip import roslibpy_publisher
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
-SYSTEM_PYTHON = "/usr/bin/python3"
-HAVE_ROSBAG = (
-    shutil.which("rosbag") is not None
-    and Path(SYSTEM_PYTHON).exists()
-    and subprocess.run(
-        [SYSTEM_PYTHON, "-c", "import rosbag, sensor_msgs.msg, tf2_msgs.msg"],
-        check=False,
-        capture_output=True,
-    ).returncode
-    == 0
+SYSTEM_PYTHON = ROS1_PYTHON
+HAVE_ROSBAG = shutil.which("rosbag") is not None and imports_ok(
+    SYSTEM_PYTHON, ROS1_PROBES["rosbag"]
 )
 pytestmark = pytest.mark.skipif(
     not HAVE_ROSBAG,

@@ -17,10 +17,9 @@ from rwt_graph.graph import Graph
 from rwt_graph.types.names import Dialect as GraphDialect
 from rwt_graph.types.registry import TypeRegistry
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.support.shipped_suite import SUITE
 
 pytestmark = pytest.mark.anyio
-
-SUITE = load_suite()
 
 
 def _server(dialect: GraphDialect) -> RosbridgeServer:

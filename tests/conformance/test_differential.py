@@ -13,12 +13,11 @@ from pathlib import Path
 import pytest
 
 from conformance import differential
-from rwt_conformance import Outcome, Profile, load_suite
+from rwt_conformance import Outcome, Profile
 from rwt_conformance.model import Dialect
 from rwt_conformance.runner import AS_THE_REFERENCE
 from tests.support.cli import RWT
-
-SUITE = load_suite()
+from tests.support.shipped_suite import SUITE
 
 PEER = os.environ.get(differential.PEER_ENV)
 needs_peer = pytest.mark.skipif(

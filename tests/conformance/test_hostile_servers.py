@@ -23,16 +23,16 @@ import anyio
 import pytest
 
 from rwt_client.connectors import connect
-from rwt_conformance import Outcome, RunOptions, SuiteResult, load_suite, run_suite
+from rwt_conformance import Outcome, RunOptions, SuiteResult, run_suite
 from rwt_conformance.bounds import CASE_BUDGET_BYTES
 from rwt_conformance.frames import NESTING_PROBLEM
 from rwt_conformance.model import Dialect
 from tests.conformance import hostile
 from tests.support.cli import RWT
+from tests.support.shipped_suite import SUITE
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC}
-SUITE = load_suite()
 TWO_CASES = ("topics.publish-example", "topics.advertise-then-infer")
 RWT_CONFORMANCE = [*RWT, "conformance"]
 RUN_LIMIT_S = 120  # far above what a bounded run takes: only a hang reaches it

@@ -14,7 +14,6 @@ from rwt_conformance import (
     Profile,
     RunOptions,
     SuiteResult,
-    load_suite,
     run_suite,
 )
 from rwt_conformance.model import Dialect
@@ -32,10 +31,9 @@ from rwt_transports.server import (
     ServerConfig,
     rosauth_authenticator,
 )
+from tests.support.shipped_suite import SUITE
 
 pytestmark = pytest.mark.anyio
-
-SUITE = load_suite()
 
 
 class SilentSession(Session):

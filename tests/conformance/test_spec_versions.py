@@ -29,6 +29,7 @@ from rwt_conformance.versions import SpecVersion, VersionRange
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import RosbridgeServer, ServerConfig
+from tests.support.shipped_suite import SUITE
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
@@ -37,7 +38,6 @@ if TYPE_CHECKING:
 
 pytestmark = pytest.mark.anyio
 
-SUITE = load_suite()
 VERSIONED = ("D48", "spec.publish.type-ignored")
 """The requirement of 2.0.0 on (D48) and the one of the unversioned spec before it."""
 UNVERSIONED = SpecVersion.UNVERSIONED

@@ -18,8 +18,8 @@ from rwt_conformance.model import (
     load_suite,
 )
 from rwt_protocol.ops import OP_MODELS
+from tests.support.shipped_suite import SUITE
 
-SUITE = load_suite()
 APPLIES = 'profiles = "strict"\ndialects = ["ros1", "ros2"]\n'
 
 

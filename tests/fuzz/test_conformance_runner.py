@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rwt_conformance import Outcome, RunOptions, load_suite, run_suite
+from rwt_conformance import Outcome, RunOptions, run_suite
 from rwt_conformance.frames import decode_frame
 from rwt_conformance.match import describe, match
 from rwt_conformance.model import Dialect
@@ -26,8 +26,8 @@ from rwt_conformance.versions import SpecVersion
 from tests.conformance import hostile
 from tests.fuzz import grammar
 from tests.fuzz.conftest import FUZZ
+from tests.support.shipped_suite import SUITE
 
-SUITE = load_suite()
 CASES = ("topics.publish-example",)
 seeded = st.randoms(use_true_random=False)
 
