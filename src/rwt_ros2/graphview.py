@@ -122,7 +122,11 @@ def digest(ros: RosNode) -> tuple[object, ...]:
 
 
 def _read_nodes(ros: RosNode, graph: RosGraph) -> None:
-    """The other nodes, their service servers and action servers."""
+    """The other nodes, their service servers and action servers.
+
+    A node that leaves between being listed and being asked of (rcl then raises) is
+    left out, as if it had left before: the next sweep sees the graph as it is.
+    """
     from rclpy.action.graph import get_action_server_names_and_types_by_node  # noqa: PLC0415
 
     node = ros.node
@@ -130,11 +134,16 @@ def _read_nodes(ros: RosNode, graph: RosGraph) -> None:
         fqn = _fqn(name, namespace)
         if fqn == ros.fqn:
             continue
+        try:
+            services = node.get_service_names_and_types_by_node(name, namespace)
+            actions = get_action_server_names_and_types_by_node(node, name, namespace)
+        except RuntimeError:  # rclpy's RCLError: the node left since it was listed
+            continue  # as if it had left before: the next sweep sees what is there
         graph.nodes.add(fqn)
-        for service, types in node.get_service_names_and_types_by_node(name, namespace):
+        for service, types in services:
             if types and ACTION_PART not in service:
                 graph.services[(fqn, service)] = types[0]
-        for action, types in get_action_server_names_and_types_by_node(node, name, namespace):
+        for action, types in actions:
             if types:
                 graph.actions[(fqn, action)] = types[0]
 
@@ -147,8 +156,11 @@ def _read_endpoints(ros: RosNode, graph: RosGraph) -> None:
     for topic, _types in node.get_topic_names_and_types():
         if ACTION_PART in topic:
             continue
-        infos = [("publisher", i) for i in node.get_publishers_info_by_topic(topic)]
-        infos += [("subscription", i) for i in node.get_subscriptions_info_by_topic(topic)]
+        try:
+            infos = [("publisher", i) for i in node.get_publishers_info_by_topic(topic)]
+            infos += [("subscription", i) for i in node.get_subscriptions_info_by_topic(topic)]
+        except RuntimeError:  # rclpy's RCLError: the topic's last endpoint left meanwhile
+            continue
         for kind, info in infos:
             if info.node_name == UNKNOWN_NODE:
                 continue  # its node is not discovered yet: the next sweep has it

@@ -302,7 +302,13 @@ class Ros2Link:
         return self.loop.call_later(DISCOVERY_WAIT_S, expire).cancel
 
     async def _sweep_once(self, *, periodic: bool) -> None:
-        view = await anyio.to_thread.run_sync(snapshot, self.ros)
+        try:
+            view = await anyio.to_thread.run_sync(snapshot, self.ros)
+        except RuntimeError as exc:  # rclpy's RCLError: the graph changed under a query
+            # the ROS 2 graph is other processes' to change at any time: this sweep
+            # is skipped, the next one reads it again; the server serves on
+            self.episodes.log(logging.WARNING, "sweep", "event=ros2_sweep_failed error=%r", exc)
+            return
         if not self._closed:
             self._apply(view)
             self._sweep_local(periodic=periodic)
