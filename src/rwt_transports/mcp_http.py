@@ -356,14 +356,16 @@ class McpEndpoint:
         if opened is None:
             return
         conn, request, headers, cors = opened.conn, opened.request, opened.headers, opened.cors
-        exchange = _Exchange(conn, stream, request, opened.body, peer, cors)
+        exchange = _Exchange(conn, stream, request, opened.body, peer, cors, headers)
         path = request.target.decode("latin-1").split("?", 1)[0]
         if path in (METADATA_PATH, METADATA_PATH + MCP_PATH):
             body = "" if request.method == b"OPTIONS" else json.dumps(self._metadata(headers))
             await reply(conn, stream, 204 if not body else 200, body, cors, "application/json")
             return
-        owner = None if forwarded else self._owner(headers, opened.body)
-        if owner is not None and await self._forward(exchange, owner):
+        opens = request.method == b"POST" and MCP_SESSION_ID_HEADER not in headers
+        # a request another worker passed here took its turn there
+        answered, paced = (False, True) if forwarded else await self._pass_on(exchange, opens)
+        if answered:
             return
         refusal = self._refusal(request, headers, peer)
         if refusal is not None:
@@ -380,18 +382,40 @@ class McpEndpoint:
             if problem is not None:
                 await exchange.refuse_jsonrpc(*problem)
                 return
-            if session_id is None and not forwarded:  # a session opens: its host's turn
-                wait = self._host_pace.turn(peer)
-                if wait is None:
-                    await _refuse_host_rate(exchange)
-                    return
-                await anyio.sleep(wait)
+            if opens and not paced and not await self._take_turn(exchange):
+                return
         if modern:
             await self._modern(exchange, self._site(headers))
         elif session_id is None:
             await self._open(exchange, bearer(headers), self._site(headers))
         else:
             await self._continue(exchange, self.sessions[session_id])
+
+    async def _pass_on(self, exchange: _Exchange, opens: bool) -> tuple[bool, bool]:
+        """Pass a request of another worker's session or task to it: (answered, paced).
+
+        A task's request opens a session where it is answered: it takes its turn
+        here first (``_take_turn``), where it came in. Not answered: it is this
+        worker's, or its owner is gone (answered here as an unknown one).
+        """
+        owner = self._owner(exchange.headers, exchange.body)
+        if owner is None:
+            return False, False
+        if opens and not await self._take_turn(exchange):  # a task's: valid JSON (_owner)
+            return True, True
+        return await self._forward(exchange, owner), True
+
+    async def _take_turn(self, exchange: _Exchange) -> bool:
+        """Wait for the host's turn to open a session (``HOST_SESSIONS_PER_S``).
+
+        False: past ``HOST_SESSION_WAIT_S``, refused and answered (a tool error, a 429).
+        """
+        wait = self._host_pace.turn(exchange.peer)
+        if wait is None:
+            await _refuse_host_rate(exchange)
+            return False
+        await anyio.sleep(wait)
+        return True
 
     def _owner(self, headers: dict[str, str], body: bytes) -> int | None:
         """The other worker holding the request's session or task; None: this one, or none."""
@@ -814,9 +838,10 @@ class _Exchange:
         body: bytes,
         peer: str,
         cors: list[tuple[bytes, bytes]],
+        headers: dict[str, str],
     ) -> None:
         self.conn, self.stream, self.request, self.body = conn, stream, request, body
-        self.peer, self.cors = peer, cors
+        self.peer, self.cors, self.headers = peer, cors, headers
         self.status: int | None = None
 
     async def refuse(

@@ -71,13 +71,16 @@ async def test_a_sample_that_congested_a_subscriber_holds_its_topic_alone() -> N
     handoff.put(gate.calls.append, "odom 1", size=10, topic="/odom")
     task = asyncio.create_task(handoff.drain(lambda: gate))
     await settle()
-    # /cam 2 waits for the hold; /odom goes on, and so does an event that is no sample
-    assert delivered(gate) == ["cam 1", "odom 1", "hold"]
+    # /cam 2 waits for the hold; /odom goes on, and so does an event that is no sample.
+    # The hold starts after cam 1's turn: in it, or after it where the turn's time
+    # (TURN_S) ran out at cam 1 on a busy machine; either way before /odom's next sample
+    assert sorted(delivered(gate)) == ["cam 1", "hold", "odom 1"]
+    assert delivered(gate)[0] == "cam 1"
     handoff.put(gate.calls.append, "cam 3", size=10, topic="/cam")
     handoff.put(gate.calls.append, "odom 2", size=10, topic="/odom")
     handoff.put(gate.calls.append, "event")
     await settle()
-    assert delivered(gate) == ["cam 1", "odom 1", "hold", "odom 2", "event"]
+    assert delivered(gate)[3:] == ["odom 2", "event"]
     assert handoff.queued_bytes == 20  # the held samples still count against the bound
     gate.holds[0].release.set()
     await settle()
