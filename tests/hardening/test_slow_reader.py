@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import base64
 import json
+import logging
 import threading
 import time
 from collections.abc import AsyncIterator
@@ -243,9 +244,17 @@ ros.terminate()
 
 
 async def test_a_roslibpy_bystander_keeps_up_beside_a_slow_reader(
-    harness: Harness, opened: list[Peer], tmp_path: Path
+    harness: Harness, opened: list[Peer], tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
-    """roslibpy, the real client, as the bystander over WebSocket."""
+    """roslibpy, the real client, as the bystander over WebSocket.
+
+    As for the raw bystander (``assert_bystander_kept_up``): on a loaded machine
+    roslibpy's own thread may stall past the hold budget, and then it is a slow
+    reader too. roslibpy cannot show the status that says so (it has no handler for
+    ``status``), so the server's account stands in for it: every frame it did not
+    get is counted as dropped for its connection (``event=disconnect ... dropped=N``).
+    """
+    caplog.set_level(logging.INFO, logger="rwt.server")
     addresses = ports(harness)
     frames = image_frames(FRAMES)
     ready = f"{tmp_path}/ready"
@@ -276,9 +285,27 @@ async def test_a_roslibpy_bystander_keeps_up_beside_a_slow_reader(
             tg.start_soon(anyio.to_thread.run_sync, slow.read_until, FRAMES - 1)
             await publish()
     count, in_order = output[0].split()[-2:]
-    # at least 90 % (all of them on a quiet machine: see ``assert_bystander_kept_up``)
-    assert int(count) >= 0.9 * FRAMES and in_order == "True", output[0]
+    assert in_order == "True", output[0]
+    if int(count) < 0.9 * FRAMES:  # stalled: a slow reader too, and counted as one (D24)
+        dropped = await _dropped_for(caplog, "AutobahnPython")
+        assert dropped >= FRAMES - int(count), (output[0], dropped)
     assert_slow_reader_lost_its_oldest(slow, taken_meanwhile[0])
+
+
+async def _dropped_for(caplog: pytest.LogCaptureFixture, agent: str) -> int:
+    """The messages the server dropped for the connection of ``agent``, once it closed."""
+    with anyio.fail_after(30):
+        while True:
+            lines = [record.getMessage() for record in caplog.records]
+            clients = [
+                line.split("client=", 1)[1].split()[0]
+                for line in lines
+                if line.startswith("event=connect ") and f"agent='{agent}" in line
+            ]
+            for line in lines:
+                if clients and line.startswith(f"event=disconnect client={clients[0]} "):
+                    return int(line.split("dropped=", 1)[1].split()[0])
+            await anyio.sleep(0.1)
 
 
 async def test_a_slow_in_process_reader_does_not_hold_the_others(harness: Harness) -> None:
