@@ -12,7 +12,6 @@ video token an authenticated rosbridge connection asked for.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -22,7 +21,7 @@ from websockets.asyncio.client import connect
 
 from rwt_protocol.auth import rosauth_mac
 from tests.agents.test_rwt_mcp import TOOLS
-from tests.support.cli import rwt_serve
+from tests.support.cli import RWT, rwt_serve
 from tests.support.inspector import inspector_bin
 from tests.support.realclients import run_command
 
@@ -48,7 +47,7 @@ async def test_the_inspector_lists_and_calls_the_tools_of_both_fronts() -> None:
     async with rwt_serve("--port", "0", "--mcp") as (_, urls):
         url = urls["ws"]
         http = (url.replace("ws://", "http://") + "/mcp", "--transport", "http")
-        stdio = (sys.executable, "-m", "rwt", "mcp", url)
+        stdio = (*RWT, "mcp", url)  # forked by this worker's warm rwt
         for target in (http, stdio):
             listed = await _inspect(*target, method="tools/list")
             assert {tool["name"] for tool in listed["tools"]} == TOOLS  # type: ignore[attr-defined]

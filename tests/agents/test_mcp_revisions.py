@@ -12,7 +12,6 @@ the robot's action server sees the cancel (docs/mcp.md, "Goals as tasks"; D35, D
 from __future__ import annotations
 
 import json
-import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any, Literal
@@ -35,7 +34,7 @@ from pydantic import ConfigDict
 from rwt_mcp.link import Goal
 from rwt_mcp.tasks import MAX_TASKS, TASK_TTL_S, TASKS_EXTENSION, TaskStore
 from rwt_transports.mcp_options import McpOptions
-from tests.support.cli import ENV
+from tests.support.cli import ENV, RWT
 
 pytestmark = pytest.mark.anyio
 
@@ -129,8 +128,8 @@ async def connect(url: str, front: str, mode: str, on_message: Any = None) -> As
     """An SDK client of ``mode`` (``legacy``, or ``auto``: discover) on ``/mcp`` or stdio."""
     target: str | StdioServerParameters = "http://" + url.split("://", 1)[1] + "/mcp"
     if front == "stdio":
-        args = ["-m", "rwt", "mcp", url]
-        target = StdioServerParameters(command=sys.executable, args=args, env=dict(ENV))
+        args = [*RWT[1:], "mcp", url]  # forked by this worker's warm rwt
+        target = StdioServerParameters(command=RWT[0], args=args, env=dict(ENV))
     extensions = [Tasks()]
     async with Client(
         target, mode=mode, extensions=extensions, message_handler=on_message

@@ -16,7 +16,6 @@ import base64
 import io
 import json
 import socket
-import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -28,7 +27,7 @@ import pytest
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_graph.actions import GoalCanceledError, GoalContext
-from tests.support.cli import ENV, invoke_rwt
+from tests.support.cli import ENV, RWT, invoke_rwt
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
@@ -142,9 +141,9 @@ async def rwt_mcp(
     url: str, tmp_path: Path, *options: str, on_message: MessageHandler | None = None
 ) -> AsyncIterator[Agent]:
     """``rwt mcp URL [OPTIONS]`` (this checkout's) started by the official MCP client over stdio."""
-    params = StdioServerParameters(
-        command=sys.executable,
-        args=["-m", "rwt", "mcp", url, *options],
+    params = StdioServerParameters(  # forked by this worker's warm rwt (tests/support/cli.py)
+        command=RWT[0],
+        args=[*RWT[1:], "mcp", url, *options],
         env=ENV,
         cwd=str(tmp_path),
     )

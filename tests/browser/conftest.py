@@ -1,4 +1,4 @@
-"""Fixtures of the browser tests: one Chromium and one `rwt serve --video` per module."""
+"""Fixtures of the browser tests: one Chromium a test process, one `rwt serve --video` a module."""
 
 from __future__ import annotations
 
@@ -16,8 +16,13 @@ from tests.integration.client_harness import ServerProcess, _LineReader
 from .cdp import Browser, chromium_path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def browser() -> Iterator[Browser]:
+    """One Chromium a test process, for every module that asks (0.6 s of CPU a start).
+
+    Each test opens its pages and closes them; pages of different servers never share
+    an origin (each server has a port of its own).
+    """
     executable = chromium_path()
     if executable is None:
         pytest.skip("chromium is not installed (apt-get install chromium; .ci/run does it as root)")

@@ -77,10 +77,11 @@ class Robot:
             self.ws.send(json.dumps({"op": "publish", "topic": ARGS["camera"], "msg": msg}))
 
     def close(self) -> None:
+        # the camera stops before the socket closes: a frame sent after would raise in its thread
         self.stop.set()
+        self.threads[1].join(5)
         self.ws.close()
-        for thread in self.threads:
-            thread.join(5)
+        self.threads[0].join(5)
 
 
 IMAGE = "sensor_msgs/msg/Image"

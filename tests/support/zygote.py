@@ -46,7 +46,7 @@ from collections.abc import Callable
 # run as a script: its folder is sys.path[0]
 from pycache import reuse_installed
 
-#: The commands a test worker runs most (``rwt mcp`` loads the MCP SDK: left cold-loaded).
+#: The commands a test worker runs most.
 PRELOAD = (
     "rwt_cli.app",
     "rwt_cli.serve",
@@ -55,6 +55,10 @@ PRELOAD = (
     "rwt_cli.bag",
     "rwt_conformance.cli",
 )
+#: What ``rwt mcp`` and ``rwt serve --mcp`` load (the MCP SDK, 0.6 s of CPU a start), for
+#: the 20 or so runs a suite makes of them; without the SDK those commands refuse to start,
+#: and every other run stays warm.
+PRELOAD_OPTIONAL = ("rwt_mcp.cli", "rwt_transports.mcp_http")
 #: What Python clients of the tests import before they connect (roslibpy's twisted):
 #: preloaded for ``--python`` runs. Not the reactor, which opens a descriptor, nor
 #: autobahn's twisted half, which sets txaio to twisted for good (roslibpy's asyncio
@@ -272,6 +276,9 @@ class Zygote:
                 importlib.import_module(name)
             except Exception:  # a command that cannot load runs cold
                 self.warm = False
+        for name in PRELOAD_OPTIONAL if self.warm_rwt else ():
+            with contextlib.suppress(ImportError):
+                importlib.import_module(name)
         for name in PRELOAD_CLIENTS if self.warm_rwt else PRELOAD_ROS2:
             try:
                 importlib.import_module(name)

@@ -16,7 +16,7 @@ from rwt_protocol.distribution import install_hint
 from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_native import native_missing
 from rwt_transports.webrtc_signal import WebRtcOptions
-from tests.browser.conftest import browser  # noqa: F401 (Chromium, one a module)
+from tests.browser.conftest import browser  # noqa: F401 (Chromium, one a test process)
 from tests.support.clients import HAS_AIORTC
 
 if TYPE_CHECKING:
