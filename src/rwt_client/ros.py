@@ -538,13 +538,18 @@ class ServerGoal:
         await self.ros.flush()
 
 
+#: The jitter's own generator: the ``random`` module's shared one belongs to the
+#: application (a seeded simulation, a property-based test drawing its examples).
+_JITTER = random.Random()
+
+
 def jittered(delay_s: float) -> float:
     """One wait between reconnection attempts: ``delay_s`` times a random 0.5-1.5.
 
     The jitter keeps the clients of a restarted server from all coming back in
     the same instant (and again at each doubling of the back-off).
     """
-    return delay_s * random.uniform(0.5, 1.5)
+    return delay_s * _JITTER.uniform(0.5, 1.5)
 
 
 def _values(waiter: _Waiter, name: str) -> object:

@@ -71,8 +71,11 @@ class Browser:
             args, stdin=subprocess.DEVNULL, stdout=self.log, stderr=self.log
         )
         # entered as a context manager: websockets 17.1 warns about a bare connect()
+        # no keepalive pings: each draws from the random module, which a property-based
+        # test running meanwhile in this process (the browser lives for the session)
+        # sees as a strategy using it; a local pipe to Chromium needs none
         self.ws = connect(
-            self._devtools_url(), max_size=None, open_timeout=START_TIMEOUT_S
+            self._devtools_url(), max_size=None, open_timeout=START_TIMEOUT_S, ping_interval=None
         ).__enter__()
         self._ids = itertools.count(1)
         self._replies: dict[int, Message] = {}
