@@ -208,6 +208,11 @@ def main() -> None:
         if not client.wait_for_service(timeout_sec=20):
             say(error="no service")
             return
+        # wait_for_service sees the server from this side; the server's response writer
+        # may not have matched this client yet, and a response sent before it has is lost
+        # (DDS discovery is not symmetric): a moment's spin lets it match
+        rclpy.spin_once(node, timeout_sec=0.5)
+        time.sleep(0.5)
         future = client.call_async(SetBool.Request(data=True))
         rclpy.spin_until_future_complete(node, future, timeout_sec=20)
         if future.done():

@@ -25,7 +25,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_protocol.distribution import install_hint
 from tests.integration.client_harness import ServerProcess, _LineReader
-from tests.support.warm import PYTHON, ros2_socket
+from tests.support.warm import PYTHON, ros2_socket, rwt_env
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -92,7 +92,9 @@ class Peer:
         python = [*PYTHON] if warm else [sys.executable]
         self.proc = subprocess.Popen(
             [*python, str(PEER), mode, name, *([node] if node else [])],
-            env={**os.environ, **({"RWT_TEST_WARM": warm} if warm else {})},
+            # rwt_env: the environment the zygote started with (this checkout's src first),
+            # without which every peer was answered ``cold`` and started from scratch
+            env={**rwt_env(), **({"RWT_TEST_WARM": warm} if warm else {})},
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,
