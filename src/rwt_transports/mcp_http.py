@@ -86,7 +86,7 @@ from rwt_mcp.app import AppSite
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tasks import TaskStore
-from rwt_mcp.tools import build_server, warm_up
+from rwt_mcp.tools import build_server, release_server, warm_up
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.credentials import AuthMode, EntryAuth
 from rwt_protocol.errors import RemoteProtocolError
@@ -675,6 +675,7 @@ class McpEndpoint:
                     await answered.wait()
                     await tasks.hold()
                 finally:
+                    release_server(mcp)
                     await link.close()
         except Exception:  # a bug ends this request only
             logger.exception("event=bug task=mcp_request client=%s", admitted.session.client_id)
