@@ -51,6 +51,10 @@ PACE_S = 0.55
 """Seconds between two calls of one tool: under rwt's caps, 10 calls of a tool a second
 (TOOL_CALLS_PER_S) and 2 listings a second (LISTING_CALLS_PER_S, which the listing of
 the topics counts against)."""
+GAP_S = 0.06
+"""Seconds between two calls of a round: over ``1 / HOST_SESSIONS_PER_S`` (50 ms), the
+pace of a host's 2026-07-28 requests (D55), so each call's time is its own and not its
+wait for the host's turn."""
 
 # each call as (rwt's tool, its arguments), (ros-mcp's tool, its arguments)
 CALLS: dict[str, tuple[tuple[str, dict[str, Any]], tuple[str, dict[str, Any]]]] = {
@@ -167,6 +171,7 @@ async def measure(
                 raise RuntimeError(f"{tool} failed: {text[:300]}")
             if round_ >= 2:
                 times[name].append(elapsed_ms)
+            await anyio.sleep(GAP_S)
         await anyio.sleep(max(0.0, pace_s - (time.perf_counter() - started)))
     return times
 

@@ -1,15 +1,9 @@
-"""What an MCP session may do: access rules, read-only mode, rate and size caps, the write log.
+"""What an MCP session may do: read-only mode, rate and size caps, the write log.
 
 Every tool call passes ``Guard.admit`` before it runs (``tools.build_server``
 wraps each tool): a call refused here is a tool error that names the rule, and
 the robot never hears of it. The rules (docs/mcp.md, "Safety"):
 
-- the server's access globs (``--topics-glob`` and friends, docs/server.md) for
-  the topic, service, action or parameter a tool names (``TOOL_NAMES``): a tool
-  that publishes is held to ``--topics-pub-glob``, one that reads a topic to
-  ``--topics-sub-glob`` (D50). A refusal passes the server's one access gate and
-  its log line (``rwt_protocol.runtime.access.gate``), and names the rule as its
-  option (``--topics-sub-glob [/battery]``);
 - read-only mode (``--mcp-read-only``, ``rwt mcp --read-only``): the tools that
   change the robot (``WRITE_TOOLS``) are refused;
 - a rate per tool and session (``TOOL_CALLS_PER_S``, a bucket of ``TOOL_BURST``),
@@ -19,6 +13,11 @@ the robot never hears of it. The rules (docs/mcp.md, "Safety"):
 - every write is logged with its client, once per episode (``rwt.mcp`` logger);
   every refusal by read-only mode or a cap is logged by the access log as a glob's
   is (``access.log_refused``: ``event=access_denied ... rule=TOOL_CALLS_PER_S``).
+
+The access rules (``--topics-glob`` and friends) are not the guard's: the robot
+checks each name it is asked for (``session.McpSession``, through the server's one
+access gate; ``rwt mcp URL``'s server, for its own connection). ``refusal_text`` is
+the tool error they give.
 
 No I/O: the time comes from ``clock``.
 """
@@ -35,18 +34,12 @@ from typing import NoReturn
 from mcp.server.mcpserver.exceptions import ToolError
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.runtime.access import (
-    AccessDeniedError,
-    AccessPolicy,
-    Family,
-    TopicUse,
-    gate,
-    log_refused,
-)
+from rwt_protocol.runtime.access import AccessPolicy, Family, TopicUse, log_refused
 
 from .catalog import LISTINGS, TOOL_NAMES, WRITE_TOOLS
 
 __all__ = [
+    "FAMILIES",
     "LISTINGS",
     "LISTING_BURST",
     "LISTING_CALLS_PER_S",
@@ -56,6 +49,7 @@ __all__ = [
     "TOOL_NAMES",
     "WRITE_TOOLS",
     "Guard",
+    "refusal_text",
 ]
 
 logger = logging.getLogger("rwt.mcp")
@@ -70,7 +64,7 @@ MAX_TOOL_ARGUMENT_BYTES = 64 * 1024
 LISTING_CALLS_PER_S = 2.0
 #: Listings a session may make at once after a quiet spell.
 LISTING_BURST = 5
-_FAMILIES: Mapping[str, tuple[Family, TopicUse | None]] = {
+FAMILIES: Mapping[str, tuple[Family, TopicUse | None]] = {
     "topics": (Family.TOPICS, None),
     "topics_pub": (Family.TOPICS, TopicUse.PUBLISH),
     "topics_sub": (Family.TOPICS, TopicUse.SUBSCRIBE),
@@ -96,14 +90,11 @@ class Guard:
     Attributes:
         client: who the session is, for the write log (``mcp:127.0.0.1:5123#3``).
         read_only: refuse ``WRITE_TOOLS``.
-        access: the server's access rules (``--topics-glob`` and friends); None
-            allows every name.
         clock: monotonic seconds.
     """
 
     client: str = "stdio"
     read_only: bool = False
-    access: AccessPolicy | None = None
     clock: Callable[[], float] = time.monotonic
     _buckets: dict[str, _Bucket] = field(default_factory=dict, repr=False)
     _writes: EpisodeLog = field(default_factory=lambda: EpisodeLog(logger), repr=False)
@@ -112,14 +103,13 @@ class Guard:
         """Let a call of ``tool`` with ``arguments`` run, or refuse it.
 
         Raises:
-            ToolError: read-only mode and a write; a name the access rules refuse;
-                the arguments over ``MAX_TOOL_ARGUMENT_BYTES``; the tool called
-                faster than ``TOOL_CALLS_PER_S``. The text names the rule.
+            ToolError: read-only mode and a write; the arguments over
+                ``MAX_TOOL_ARGUMENT_BYTES``; the tool called faster than
+                ``TOOL_CALLS_PER_S``. The text names the rule.
         """
         if self.read_only and tool in WRITE_TOOLS:
             self._refuse(tool, "--mcp-read-only", "refused, the MCP server is read-only")
         self._check_size(tool, arguments)
-        self.check_name(tool, arguments)
         self.check_rate(tool)
         if tool in WRITE_TOOLS:
             family_field = TOOL_NAMES.get(tool)
@@ -132,48 +122,6 @@ class Guard:
                 tool,
                 target,
             )
-
-    def check_name(self, tool: str, arguments: Mapping[str, object]) -> None:
-        """Refuse a call naming a topic, service, action or parameter the rules refuse.
-
-        Raises:
-            ToolError: ``<field> <name>: refused by <rule>``.
-        """
-        entry = TOOL_NAMES.get(tool)
-        if entry is None or self.access is None:
-            return
-        family, name_field = entry
-        name = arguments.get(name_field)
-        if isinstance(name, str) and name:  # an empty one names nothing (robot_app's camera)
-            self.check_access(family, name, name_field, op=tool)
-
-    def check_access(self, family: str, name: str, what: str, op: str | None = None) -> None:
-        """Refuse ``name`` of ``family`` (a ``TOOL_NAMES`` family) if the access rules do.
-
-        Through the server's one access gate and its log line (``access.gate``),
-        which names ``op`` (the tool; by default ``what``).
-
-        Raises:
-            ToolError: ``<what> <name>: refused by <rule>``, the rule named as its
-                option with its patterns (``--topics-sub-glob [/battery]``).
-        """
-        if self.access is None:
-            return
-        kind, use = _FAMILIES[family]
-        try:
-            gate(
-                self.access,
-                kind,
-                name,
-                client=self.client,
-                op=op or what,
-                use=use,
-                now=self.clock(),
-            )
-        except AccessDeniedError as exc:
-            patterns = ", ".join(self.access.patterns(exc.glob))
-            rule = f"--{exc.glob.replace('_', '-')} [{patterns}]"
-            raise ToolError(f"{what} {name}: refused by {rule}") from None
 
     def _refuse(self, tool: str, rule: str, why: str, then: str = "") -> NoReturn:
         """Refuse a call of ``tool`` by ``rule`` (not a glob), logged and said.
@@ -220,3 +168,14 @@ class Guard:
             why = f"{name} more than {rate:g} times a second"
             self._refuse(tool, bound, why, ": wait and call again")
         bucket.tokens -= 1
+
+
+def refusal_text(policy: AccessPolicy, glob: str, what: str, name: str) -> str:
+    """The tool error for ``name`` refused by ``glob`` of ``policy`` (the agent reads it).
+
+    ``<what> <name>: refused by <rule>``, the rule named as its option with its
+    patterns (``topic /cmd: refused by --topics-sub-glob [/battery]``); ``what`` is
+    the tool argument that named it (``topic``, ``service``, ``action``, ``name``).
+    """
+    patterns = ", ".join(policy.patterns(glob))
+    return f"{what} {name}: refused by --{glob.replace('_', '-')} [{patterns}]"

@@ -1,8 +1,10 @@
-"""The MCP session's one rosbridge connection, its publishers and the goals it sent.
+"""The MCP session's one robot, its publishers and the goals it sent.
 
-One ``rwt_client.Ros`` for the whole MCP session (docs/agents.md): connected in
-the background at start, reconnected by the client when it drops. A tool called
-while it is down fails at once with the client's reason.
+One ``robot.Robot`` for the whole MCP session (docs/agents.md): for ``rwt mcp URL``
+a rosbridge client (``robot.ClientRobot``), connected in the background at start
+and reconnected by the client when it drops, a tool called while it is down
+failing at once with the client's reason; for ``rwt serve --mcp`` the session's
+own ``session.McpSession`` on the server's graph.
 """
 
 from __future__ import annotations
@@ -15,10 +17,12 @@ from typing import Any
 import anyio
 from mcp.server.mcpserver.exceptions import ToolError
 
-from rwt_client import Action, GoalHandle, Ros, Topic
+from rwt_client import Ros
 from rwt_client.connectors import ConnectionClosedError
 from rwt_client.ros import jittered
 from rwt_protocol.errors import RwtError
+
+from .robot import ClientRobot, GoalRun, Publisher, Robot
 
 __all__ = ["FIRST_CONNECT_WAIT_S", "MAX_GOALS", "MAX_PUBLISHERS", "Goal", "RobotLink"]
 
@@ -41,7 +45,7 @@ class Goal:
     """A goal sent by ``send_action_goal``: its handle, and what came back so far."""
 
     action: str
-    handle: GoalHandle
+    handle: GoalRun
     feedback_count: int = 0
     last_feedback: Any = None
     status: int | None = None
@@ -60,30 +64,30 @@ class Goal:
     async def watch(self) -> None:
         """Wait for the result (a task of the client's) and keep it; then ``done`` is set."""
         try:
-            reply = await self.handle.result()
+            end = await self.handle.result()
         except RwtError as exc:  # the connection dropped: the goal's end is not known
             self.error = str(exc)
         else:
-            self.status = reply.status if reply.status is not None else (4 if reply.result else 6)
-            self.result = reply.values
+            self.status = end.status if end.status is not None else (4 if end.result else 6)
+            self.result = end.values
         finally:
             self.done.set()
 
 
 class RobotLink:
-    """The rosbridge connection an MCP session uses, made once.
+    """The robot an MCP session uses, reached once.
 
     Args:
         url: the server, as ``rwt_client.connectors.server_url`` returns it.
-        ros: the client to use (an in-process connection, ``rwt serve --mcp``);
-            None: one to ``url`` that reconnects when the connection drops.
+        robot: the robot to use (``rwt serve --mcp``'s session); None: a client
+            of ``url`` that reconnects when the connection drops.
     """
 
-    def __init__(self, url: str, ros: Ros | None = None) -> None:
+    def __init__(self, url: str, robot: Robot | None = None) -> None:
         self.url = url
-        self.ros = ros or Ros(url, reconnect=True)
+        self.robot: Robot = robot or ClientRobot(Ros(url, reconnect=True))
         self.goals: OrderedDict[str, Goal] = OrderedDict()
-        self._publishers: OrderedDict[tuple[str, str], Topic] = OrderedDict()
+        self._publishers: OrderedDict[tuple[str, str], Publisher] = OrderedDict()
         self._ready = anyio.Event()  # the first connection was made
 
     async def connect(self, stop: anyio.Event) -> None:
@@ -95,19 +99,20 @@ class RobotLink:
         delay_s = 0.1
         while not stop.is_set():
             try:
-                await self.ros.connect()
+                await self.robot.connect()
             except ConnectionClosedError as exc:
                 logger.warning("%s; retrying", exc.message)
                 with anyio.move_on_after(jittered(delay_s)):  # back-off, as the client's
                     await stop.wait()
                 delay_s = min(delay_s * 2, _RECONNECT_MAX_S)
                 continue
-            logger.info("connected to %s", self.url)
+            if isinstance(self.robot, ClientRobot):  # a server's own session: nothing to say
+                logger.info("connected to %s", self.url)
             self._ready.set()
             return
 
-    async def connected(self) -> Ros:
-        """The client, once connected.
+    async def connected(self) -> Robot:
+        """The robot, once connected.
 
         A tool called while the first connection is still being made waits for
         it, ``FIRST_CONNECT_WAIT_S`` at most.
@@ -118,20 +123,24 @@ class RobotLink:
         with anyio.move_on_after(FIRST_CONNECT_WAIT_S):
             await self._ready.wait()
         try:
-            self.ros.require_connection()
+            self.robot.require_connection()
         except ConnectionClosedError as exc:
             raise ToolError(exc.message) from None
-        return self.ros
+        return self.robot
 
-    async def publisher(self, topic: str, message_type: str) -> Topic:
-        """The advertised ``Topic`` for ``topic``, advertised on first use (bounded cache)."""
+    async def publisher(self, topic: str, message_type: str) -> Publisher:
+        """The publisher of ``topic``, advertised on first use (bounded cache).
+
+        Raises:
+            OpRefusedError: the robot refused the advertisement.
+            ToolError: the access rules refuse it, or the robot cannot be reached.
+        """
         key = (topic, message_type)
         found = self._publishers.get(key)
         if found is not None:
             self._publishers.move_to_end(key)
             return found
-        publisher = Topic(await self.connected(), topic, message_type)
-        await publisher.advertise()
+        publisher = await (await self.connected()).advertise(topic, message_type)
         self._publishers[key] = publisher
         if len(self._publishers) > MAX_PUBLISHERS:
             _, oldest = self._publishers.popitem(last=False)
@@ -151,11 +160,10 @@ class RobotLink:
             if record is not None:
                 record.on_feedback(values)
 
-        handle = await Action(await self.connected(), action, action_type).send_goal(
-            goal, on_feedback=on_feedback
-        )
+        robot = await self.connected()
+        handle = await robot.send_goal(action, action_type, goal, on_feedback)
         record = self.goals[handle.id] = Goal(action, handle)
-        self.ros.spawn(record.watch)
+        robot.spawn(record.watch)
         return record
 
     def _make_room(self) -> None:
@@ -167,6 +175,15 @@ class RobotLink:
                 return
         raise ToolError(f"{MAX_GOALS} goals of this session are running: cancel one or wait for it")
 
+    async def cancel(self, record: Goal) -> None:
+        """Ask to cancel ``record``'s goal on the robot it was sent to (D35).
+
+        Raises:
+            RwtError: the robot refused the cancel, or cannot be reached.
+            ToolError: the access rules refuse the action.
+        """
+        await self.robot.cancel_goal(record.action, record.handle.id)
+
     async def close(self) -> None:
-        """Close the connection (idempotent)."""
-        await self.ros.close()
+        """Let the robot go (idempotent)."""
+        await self.robot.aclose()

@@ -50,7 +50,6 @@ from mcp.types import (
     UnsubscribeRequestParams,
 )
 
-from rwt_client import Topic
 from rwt_protocol.errors import OpRefusedError, RwtError
 
 from .app import APP_MIME, APP_URI, AppSite, app_html, app_resource_meta
@@ -63,6 +62,7 @@ if TYPE_CHECKING:
 
     from .guard import Guard
     from .link import RobotLink
+    from .robot import Subscription
 
 __all__ = [
     "MAX_SUBSCRIBED",
@@ -130,8 +130,8 @@ def _after(cursor: str | None) -> str:
 class _Watch:
     """One subscribed topic: its subscription and the latest message."""
 
-    def __init__(self, topic: Topic) -> None:
-        self.topic = topic
+    def __init__(self) -> None:
+        self.subscription: Subscription | None = None
         self.latest: Any = None
         self.fresh = False
 
@@ -315,8 +315,7 @@ class TopicResources:
                 arrived.set()
 
         try:
-            subscription = Topic(await self.link.connected(), topic)
-            await subscription.subscribe(take, confirm=True)
+            subscription = await (await self.link.connected()).subscribe(topic, None, take)
             try:
                 with anyio.move_on_after(READ_WAIT_S):
                     await arrived.wait()
@@ -361,13 +360,15 @@ class TopicResources:
         throttle_ms = int(UPDATE_INTERVAL_S * 1000)
         try:
             ros = await self.link.connected()
-            watch = _Watch(Topic(ros, topic, throttle_rate=throttle_ms, queue_length=1))
+            watch = _Watch()
 
             def take(msg: Any) -> None:
                 watch.latest, watch.fresh = msg, True
                 self._changed.set()
 
-            await watch.topic.subscribe(take, confirm=True)
+            watch.subscription = await ros.subscribe(
+                topic, None, take, throttle_ms=throttle_ms, queue_length=1
+            )
         except OpRefusedError as exc:
             raise _refused(
                 f"uri {uri}: the server refused the subscription: {exc.reason}"
@@ -399,7 +400,8 @@ class TopicResources:
             if self.shared.get(topic) is watch:
                 del self.shared[topic]
             with contextlib.suppress(RwtError):  # the connection is down: nothing to undo
-                await watch.topic.unsubscribe()
+                if watch.subscription is not None:
+                    await watch.subscription.unsubscribe()
 
     async def _notify(self) -> None:
         """Send ``notifications/resources/updated`` for changed topics, each round a pause."""
@@ -421,7 +423,7 @@ class TopicResources:
     def _allowed(self, uri: str) -> str:
         topic = topic_of(uri)
         try:
-            self.guard.check_access("topics_sub", topic, "uri topic")
+            self.link.robot.check_access("topics_sub", topic, "uri topic", "resources/read")
         except ToolError as exc:
             raise _refused(str(exc)) from None
         return topic

@@ -23,6 +23,7 @@ extension's 2026-07-28 schema (``Task``, ``CreateTaskResult``, ``GetTaskResult``
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import uuid
 from collections import OrderedDict
@@ -39,7 +40,7 @@ from mcp.types.version import MODERN_PROTOCOL_VERSIONS
 from mcp_types import RequestParams
 from pydantic import Field, ValidationError
 
-from rwt_protocol.errors import RwtError
+from rwt_protocol.errors import GraphError, RwtError
 
 from .catalog import TASK_TOOLS
 
@@ -177,8 +178,8 @@ class TaskStore:
         """Forget the tasks past ``TASK_TTL_S``; a goal still running is canceled."""
         now = self._clock()
         for task in [t for t in self.tasks.values() if now - t.created >= TASK_TTL_S]:
-            if not task.record.done.is_set():
-                _cancel_on(task.link, task)
+            if not task.record.done.is_set():  # sent from the robot's task group
+                task.link.robot.spawn(functools.partial(_cancel_quietly, task.link, task.record))
             self._drop(task)
 
     def _drop(self, task: GoalTask) -> None:
@@ -196,18 +197,17 @@ class TaskStore:
             await task.record.done.wait()
         self.expire()
         if not task.record.done.is_set():
-            _cancel_on(task.link, task)
-            with contextlib.suppress(RwtError), anyio.move_on_after(1.0):
-                await task.link.ros.flush()
+            with anyio.move_on_after(1.0):
+                await _cancel_quietly(task.link, task.record)
         if task.record.done.is_set():
             task.touch()
         task.released.set()
 
 
-def _cancel_on(link: RobotLink, task: GoalTask) -> None:
-    """Ask for the goal's cancel on ``link``'s connection (sent with its next flush)."""
-    with contextlib.suppress(RwtError):  # the connection is down: the goal's end is the server's
-        link.ros.session.cancel_action_goal(task.record.action, task.record.handle.id)
+async def _cancel_quietly(link: RobotLink, record: Goal) -> None:
+    """Ask for the goal's cancel; a robot gone or refusing leaves its end to the robot."""
+    with contextlib.suppress(RwtError, ToolError):
+        await link.cancel(record)
 
 
 class _TaskIdParams(RequestParams):
@@ -299,8 +299,9 @@ class TasksExtension(Extension):
             # goal's own, where its id names it alone (other connections' goals may
             # have the same id, and a cancel from elsewhere names the newest)
             self.guard.admit("cancel_action_goal", {"action": record.action, "goal_id": ""})
-            task.link.ros.session.cancel_action_goal(record.action, record.handle.id)
-            await task.link.ros.flush()
+            await task.link.cancel(record)
+        except GraphError:
+            pass  # its goal is no longer in flight: it ended, as ``tasks/get`` says
         except (ToolError, RwtError) as exc:
             raise MCPError(INVALID_PARAMS, f"tasks/cancel: {exc}") from None
         return {"resultType": "complete"}

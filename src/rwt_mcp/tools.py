@@ -29,10 +29,9 @@ from mcp.types import CallToolResult, ImageContent, TextContent, ToolAnnotations
 from pydantic import BaseModel, ValidationError
 from typing_extensions import TypedDict  # pydantic reads it on Python 3.11
 
-from rwt_client import Param, Topic
 from rwt_graph.media.images import ImageError
 from rwt_graph.media.threads import in_image_thread
-from rwt_protocol.errors import OpRefusedError, RwtError
+from rwt_protocol.errors import GraphError, OpRefusedError, RwtError
 from rwt_protocol.names import name_problem
 
 from . import render
@@ -42,6 +41,7 @@ from .guard import Guard
 from .link import Goal, RobotLink
 from .render import IMAGE_TYPES, encode_image, json_schema, message_text, summarise
 from .resources import TopicResources, Watched
+from .robot import Robot, Subscription
 from .tasks import TasksExtension, TaskStore
 
 __all__ = [
@@ -182,19 +182,25 @@ def _tool_errors() -> Iterator[None]:
         raise ToolError(str(exc)) from None
 
 
-async def subscribe_confirmed(topic: Topic, callback: Callable[[Any], None], what: str) -> None:
-    """Subscribe ``topic``, waiting one round trip for the server's refusal (D43).
+async def subscribe_confirmed(
+    robot: Robot,
+    topic: str,
+    type_name: str | None,
+    callback: Callable[[Any], None],
+    what: str,
+) -> Subscription:
+    """Subscribe to ``topic``, knowing whether the robot refused it (D43).
 
-    rosbridge does not acknowledge ``subscribe``: without the round trip a
-    subscription the server refused (``--max-subscriptions``, a type conflict)
-    would look like a quiet topic (``rwt_client.Topic.subscribe(confirm=True)``).
+    rosbridge does not acknowledge ``subscribe``: a client waits one round trip
+    for the refusal (``robot.ClientRobot``), else a subscription the server refused
+    (``--max-subscriptions``, a type conflict) would look like a quiet topic.
 
     Raises:
         ToolError: ``<what>: the server refused the subscription: <its status text>``,
-            or the connection's error.
+            the access rules' refusal, or the connection's error.
     """
     try:
-        await topic.subscribe(callback, confirm=True)
+        return await robot.subscribe(topic, type_name, callback)
     except OpRefusedError as exc:
         raise ToolError(f"{what}: the server refused the subscription: {exc.reason}") from None
     except RwtError as exc:
@@ -297,8 +303,9 @@ class RobotTools:
             if len(received) >= wanted:
                 enough.set()
 
-        subscription = Topic(ros, topic, message_type or None)
-        await subscribe_confirmed(subscription, take, f"echo {topic}")
+        subscription = await subscribe_confirmed(
+            ros, topic, message_type or None, take, f"echo {topic}"
+        )
         with _tool_errors():
             try:
                 with anyio.move_on_after(seconds):
@@ -416,7 +423,7 @@ class RobotTools:
     async def get_parameter(self, name: str) -> ParameterValue:
         """A parameter's value (rosapi; ROS 2 names are ``/node:param``); null if unset."""
         with _tool_errors():
-            value = await Param(await self.link.connected(), name).get()
+            value = await (await self.link.connected()).get_param(name)
         return ParameterValue(name=name, value=summarise(value))
 
     async def set_parameter(self, name: str, value: Any) -> ParameterValue:
@@ -426,9 +433,9 @@ class RobotTools:
         ``successful: false``, or a failed call).
         """
         with _tool_errors():
-            parameter = Param(await self.link.connected(), name)
-            await parameter.set(value)
-            return ParameterValue(name=name, value=summarise(await parameter.get()))
+            robot = await self.link.connected()
+            await robot.set_param(name, value)
+            return ParameterValue(name=name, value=summarise(await robot.get_param(name)))
 
     # ---- actions --------------------------------------------------------------------
 
@@ -488,10 +495,14 @@ class RobotTools:
         """
         seconds = _wait(timeout_s)
         ros = await self.link.connected()
-        with _tool_errors():
-            ros.session.cancel_action_goal(action, goal_id)
-            await ros.flush()
         record = self.link.goals.get(goal_id)
+        try:
+            await ros.cancel_goal(action, goal_id)
+        except GraphError as exc:  # no such goal in flight: this session's has ended
+            if record is None:
+                raise ToolError(str(exc)) from None
+        except RwtError as exc:
+            raise ToolError(str(exc)) from None
         if record is None:
             return GoalReport(
                 goal_id=goal_id,
@@ -553,7 +564,7 @@ class RobotTools:
             refused = "the MCP server is read-only"
         else:
             try:
-                self.guard.check_access("topics_pub", cmd_vel, "cmd_vel", op="robot_app")
+                self.link.robot.check_access("topics_pub", cmd_vel, "cmd_vel", op="robot_app")
             except ToolError as exc:
                 refused = str(exc)
         token = await self._video_token() if camera and self.site.auth is not False else None
@@ -615,8 +626,9 @@ class RobotTools:
             name = answer.get("topic_name") if isinstance(answer, dict) else None
             if not isinstance(name, str):
                 raise ToolError(f"/republish_tfs answered no topic_name: {answer!r}")
-            topic = Topic(ros, name, "tf2_web_republisher/msg/TFArray")
-            await subscribe_confirmed(topic, take, f"lookup_transform {name}")
+            topic = await subscribe_confirmed(
+                ros, name, "tf2_web_republisher/msg/TFArray", take, f"lookup_transform {name}"
+            )
             try:
                 await got.wait()
             finally:

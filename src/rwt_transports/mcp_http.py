@@ -79,12 +79,11 @@ from mcp.types import (
 )
 from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 
-from rwt_client import Ros
-from rwt_client.connectors import ConnectionClosedError
 from rwt_graph.ratelog import EpisodeLog
 from rwt_mcp.app import AppSite
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
+from rwt_mcp.session import McpSession
 from rwt_mcp.tasks import TaskStore
 from rwt_mcp.tools import build_server, release_server, warm_up
 from rwt_protocol.codecs.json import decode_json_text
@@ -92,6 +91,7 @@ from rwt_protocol.credentials import AuthMode, EntryAuth
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.runtime.access import log_refused
 
+from .frontends import FrontEnd, SessionRequest
 from .host_rates import HostPace
 from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
@@ -105,8 +105,6 @@ if TYPE_CHECKING:
     from mcp.server.lowlevel import Server
 
     from rwt_mcp.resources import Watched
-    from rwt_protocol.runtime.access import AccessPolicy
-    from rwt_protocol.runtime.contract import ServerSession
 
     from .server import GraphServer
 
@@ -188,67 +186,92 @@ logging.getLogger("mcp.server.streamable_http").addFilter(_not_a_closed_event_st
 class _Session:
     """One MCP session: its transport, the token that opened it, requests in flight.
 
-    ``slot``: the host of the slot it holds besides its session's
-    (``SESSION_SLOTS``), given back when it ends.
+    ``runtime``: its session on the connection runtime (each request is its input,
+    ``--idle-timeout``). ``slot``: the host of the slot it holds besides its
+    session's (``SESSION_SLOTS``), given back when it ends.
     """
 
     transport: StreamableHTTPServerTransport
     token: str | None
-    client_id: str
+    runtime: McpSession
     slot: str
     in_flight: int = 0
 
+    @property
+    def client_id(self) -> str:
+        """The session's id in the graph and the logs."""
+        return self.runtime.client_id
 
-class _InProcess:
-    """A memory connection as ``rwt_client``'s ``Connection``."""
 
-    def __init__(self, url: str, connection: MemoryConnection) -> None:
-        self.url = url
-        self.connection = connection
+def _make_session(request: SessionRequest) -> McpSession:
+    return McpSession(
+        request.graph,
+        request.client_id,
+        config=request.config,
+        on_output=request.on_output,
+        peer=request.peer,
+        on_closed=request.on_closed,
+        memory=request.memory,
+    )
 
-    async def send(self, frame: str | bytes) -> None:
-        try:
-            await self.connection.send_frame(frame, binary=isinstance(frame, bytes))
-        except (anyio.ClosedResourceError, anyio.BrokenResourceError):
-            raise ConnectionClosedError(self._why()) from None
 
-    async def receive(self) -> str | bytes:
-        try:
-            return await self.connection.receive_frame()
-        except (anyio.EndOfStream, anyio.ClosedResourceError, anyio.BrokenResourceError):
-            raise ConnectionClosedError(self._why()) from None
-
-    async def aclose(self) -> None:
-        await self.connection.aclose()
-
-    def _why(self) -> str:
-        reason = self.connection.channel.close_reason
-        return f"the server closed the MCP session's connection: {reason or 'closed'}"
+_FRONTEND = FrontEnd("mcp", (), _make_session, AuthMode.BEARER)
+"""The MCP sessions' protocol on the runtime: ``rwt_mcp.session.McpSession``."""
 
 
 @dataclass
 class _Admitted:
-    """A rosbridge session admitted for a new MCP session, not yet running."""
+    """An MCP session admitted by the server, not yet running.
 
-    pump: ConnectionPump
-    session: ServerSession
-    connection: MemoryConnection
+    ``pump`` and ``connection``: a 2025-era session's pump (the runtime's timers,
+    ``--idle-timeout``, its close) over a connection that carries no frames; None
+    for a 2026-07-28 request's, which lives as long as its request.
+    """
+
+    session: McpSession
+    pump: ConnectionPump | None = None
+    connection: MemoryConnection | None = None
 
     @asynccontextmanager
-    async def client(self) -> AsyncIterator[Ros]:
-        """Run the session's pump; yield a client of it (connect it before use)."""
-        url = f"mcp:{self.session.client_id}"
-        connection = _InProcess(url, self.connection)
+    async def running(self) -> AsyncIterator[McpSession]:
+        """Run the session; yield it, and close it after.
 
-        async def connector() -> _InProcess:
-            return connection
-
-        async with anyio.create_task_group() as tg:
-            tg.start_soon(run_connection, self.pump, self.session)
+        With a pump, the runtime closing the session (``--idle-timeout``, the
+        server stopping) ends what the caller runs with it. Without, the session
+        is the caller's to the end: no task is made for it, nor for its
+        timers, unless its tools leave work running (a goal's watcher).
+        """
+        if self.pump is None:
+            self.session.start(anyio.current_time())
             try:
-                yield Ros(url, reconnect=False, connector=connector)
+                async with anyio.create_task_group() as work:
+                    self.session.bind(work)
+                    self.session.on_close_requested = work.cancel_scope.cancel
+                    try:
+                        yield self.session
+                    finally:
+                        work.cancel_scope.cancel()  # the goals' watchers, the throttles
             finally:
+                self.session.close()
+            return
+        async with anyio.create_task_group() as tg:
+
+            async def pump() -> None:
+                assert self.pump is not None  # checked above
+                await run_connection(self.pump, self.session)
+                tg.cancel_scope.cancel()  # closed by the runtime: the MCP session ends
+
+            tg.start_soon(pump)
+            self.session.bind(tg)
+            try:
+                yield self.session
+            finally:
+                assert self.connection is not None  # made with the pump
                 await _close_pair(self.connection)
+
+
+def _no_output() -> None:
+    """A 2026-07-28 request's session sends no frames: nothing to wake."""
 
 
 async def _close_pair(connection: MemoryConnection) -> None:
@@ -275,13 +298,10 @@ class McpEndpoint:
         server: GraphServer,
         options: McpOptions,
         allowed_origins: tuple[str, ...] = (),
-        access: AccessPolicy | None = None,
     ) -> None:
         self.server = server
         self.options = options
         self.allowed_origins = allowed_origins
-        policy = access or server.session_config.access
-        self.access = policy if policy.restricted else None
         self.entry: EntryAuth = server.entry
         if options.bearer_token is not None:  # its own check of the tokens, set by embedding code
             self.entry = dataclasses.replace(self.entry, token=options.bearer_token)
@@ -540,9 +560,7 @@ class McpEndpoint:
         )
         session_id = transport.mcp_session_id
         assert session_id is not None  # given just above
-        session = _Session(
-            transport, token if self.auth_required else None, admitted.session.client_id, slot
-        )
+        session = _Session(transport, token if self.auth_required else None, admitted.session, slot)
         self.sessions[session_id] = session
         established = False
         try:
@@ -553,19 +571,33 @@ class McpEndpoint:
             if not established:
                 await self._discard(session_id)
 
-    async def _admit(self, peer: str) -> _Admitted | None:
-        """The server's admission for a new MCP session: an in-process rosbridge session."""
-        channel, connection = memory_pair()
-        channel.transport = "mcp"  # in the logs: an MCP session's connection
-        pump = ConnectionPump(channel, self.server.flow, self.server.admission)
+    async def _admit(self, peer: str, *, pumped: bool = True) -> _Admitted | None:
+        """The server's admission for a new MCP session (``rwt_mcp.session.McpSession``).
+
+        ``pumped``: run it under a pump (a 2025-era session); False for a
+        2026-07-28 request's, which needs no timers of the runtime's.
+        """
+        pump = connection = None
+        on_output: Callable[[], None] = _no_output
+        if pumped:
+            channel, connection = memory_pair()
+            channel.transport = "mcp"  # in the logs: an MCP session's connection
+            pump = ConnectionPump(channel, self.server.flow, self.server.admission)
+            on_output = pump.wake
         # no socket of its own: its host's share applies from the first session (D40)
         session = self.server.open_session(
-            "mcp", peer, pump.wake, authenticated=True, share_from_first=True
+            "mcp",
+            peer,
+            on_output,
+            frontend=_FRONTEND,
+            authenticated=True,
+            share_from_first=True,
         )
-        if session is None:
-            await _close_pair(connection)
+        if not isinstance(session, McpSession):
+            if connection is not None:
+                await _close_pair(connection)
             return None
-        return _Admitted(pump, session, connection)
+        return _Admitted(session, pump, connection)
 
     async def _continue(self, exchange: _Exchange, session: _Session) -> None:
         """A request of a session: the socket joins it (no handshake deadline), MCP answers.
@@ -590,6 +622,7 @@ class McpEndpoint:
 
     async def _handle(self, exchange: _Exchange, session: _Session) -> int | None:
         session.in_flight += 1
+        session.runtime.received(anyio.current_time())  # input: the idle rule counts from it
         try:
             return await exchange.run(session.transport.handle_request)
         finally:
@@ -607,10 +640,10 @@ class McpEndpoint:
         """One MCP session, to its end (DELETE, idle, the server stopping, its connection gone)."""
         started = False
         try:
-            async with admitted.client() as ros:
-                link = RobotLink(ros.url, ros)
-                await link.connect(anyio.Event())
-                guard = Guard(session.client_id, self.options.read_only, self.access)
+            async with admitted.running() as robot:
+                link = RobotLink(robot.url, robot)
+                await link.connect(anyio.Event())  # at once: the graph is here
+                guard = Guard(session.client_id, self.options.read_only)
                 mcp, tasks = build_server(link, guard, self.tasks, site=site)
                 try:
                     async with session.transport.connect() as (read, write):
@@ -636,7 +669,7 @@ class McpEndpoint:
         runs, and while a goal it started as a task runs (``rwt_mcp.tasks``).
         """
         tg = self._tg
-        admitted = None if tg is None else await self._admit(exchange.peer)
+        admitted = None if tg is None else await self._admit(exchange.peer, pumped=False)
         if tg is None or admitted is None:
             await exchange.refuse(503, "too many connections")
             return
@@ -664,9 +697,9 @@ class McpEndpoint:
         """A 2026-07-28 request's session: until it is answered and its tasks' goals end."""
         started = False
         try:
-            async with admitted.client() as ros:
-                link = RobotLink(ros.url, ros)
-                await link.connect(anyio.Event())
+            async with admitted.running() as robot:
+                link = RobotLink(robot.url, robot)
+                await link.connect(anyio.Event())  # at once: the graph is here
                 guard = self._modern_guard(peer)
                 mcp, tasks = build_server(link, guard, self.tasks, self._watched, site)
                 try:
@@ -688,7 +721,7 @@ class McpEndpoint:
         host = peer.rpartition(":")[0] or peer
         guard = self._modern_guards.get(host)
         if guard is None:
-            guard = Guard(f"mcp:{host}", self.options.read_only, self.access)
+            guard = Guard(f"mcp:{host}", self.options.read_only)
             self._modern_guards[host] = guard
             if len(self._modern_guards) > MODERN_HOSTS_KEPT:
                 self._modern_guards.popitem(last=False)

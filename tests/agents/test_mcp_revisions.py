@@ -12,7 +12,7 @@ the robot's action server sees the cancel (docs/mcp.md, "Goals as tasks"; D35, D
 from __future__ import annotations
 
 import json
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
 from typing import Any, Literal
 
@@ -239,7 +239,7 @@ async def test_a_task_is_polled_and_canceled_from_a_new_connection(
 async def test_a_cancel_ends_its_own_task_where_two_goals_share_an_id(
     served: tuple[str, Graph, list[str]],
 ) -> None:
-    """Each request's connection numbers its goals from 1: two tasks' goals have one id."""
+    """Two tasks' goals, sent by two requests: a cancel ends its own goal alone."""
     url, _, canceled = served
     with anyio.fail_after(60):
         async with connect(url, "http", AUTO) as client:
@@ -250,7 +250,7 @@ async def test_a_cancel_ends_its_own_task_where_two_goals_share_an_id(
                 state = await task_request(client, "tasks/get", task_id)
                 assert isinstance(state, TaskState)
                 ids.add(json.loads(state.status_message or "{}")["goal_id"])
-            assert len(ids) == 1  # the same id on two connections
+            assert len(ids) == 2  # ids unique on the server: a cancel names one goal (D35)
             await task_request(client, "tasks/cancel", first)
             assert (await _settled(client, first)).status == "cancelled"
             state = await task_request(client, "tasks/get", second)
@@ -273,15 +273,18 @@ class _Handle:
 
 
 class _Link:
-    """A link whose connection takes cancels (the expiry's), counting them."""
+    """A link whose robot takes cancels (the expiry's, sent from its task group), counting them."""
 
     def __init__(self) -> None:
         self.canceled: list[str] = []
-        self.ros = self
-        self.session = self
+        self.spawned: list[Callable[[], Awaitable[None]]] = []
+        self.robot = self
 
-    def cancel_action_goal(self, _action: str, goal_id: str) -> None:
-        self.canceled.append(goal_id)
+    def spawn(self, function: Callable[[], Awaitable[None]]) -> None:
+        self.spawned.append(function)
+
+    async def cancel(self, record: Goal) -> None:
+        self.canceled.append(record.handle.id)
 
 
 async def test_a_store_holds_max_tasks_and_forgets_them_after_their_ttl() -> None:
@@ -304,4 +307,6 @@ async def test_a_store_holds_max_tasks_and_forgets_them_after_their_ttl() -> Non
     now[0] = TASK_TTL_S  # every task's life is over: forgotten, running goals canceled
     with pytest.raises(MCPError, match="unknown, or expired"):
         store.get(tasks[1].task_id)
+    for send in link.spawned:
+        await send()
     assert len(link.canceled) == MAX_TASKS and not store.tasks

@@ -1,7 +1,7 @@
 """Every refusal of the access rules goes through the one gate and its one log line.
 
 ``rwt_protocol.runtime.access.gate``: the three paths that once refused without it
-(a Foxglove client's parameters, the MCP tools' guard, WebRTC video tracks) now say
+(a Foxglove client's parameters, an MCP session's tools, WebRTC video tracks) now say
 what they refused as every session does, ``event=access_denied client=... op=...
 glob=...``, while each client is told in its own protocol's words.
 """
@@ -18,6 +18,7 @@ from rwt_graph.graph import Graph
 from rwt_protocol.ratelog import EpisodeLog
 from rwt_protocol.runtime import access
 from rwt_protocol.runtime.access import AccessPolicy
+from rwt_protocol.runtime.rules import ClientRules
 from tests.foxglove.sansio import Client
 
 pytestmark = pytest.mark.anyio
@@ -49,18 +50,21 @@ def test_a_foxglove_clients_parameter_is_refused_through_the_gate(denials: Denia
     ]
 
 
-def test_an_mcp_tool_call_is_refused_through_the_gate(denials: Denials) -> None:
+async def test_an_mcp_tool_call_is_refused_through_the_gate(denials: Denials) -> None:
     pytest.importorskip("mcp", reason="the MCP tests need the MCP SDK", exc_type=ImportError)
     from mcp.server.mcpserver.exceptions import ToolError  # noqa: PLC0415
 
-    from rwt_mcp.guard import Guard  # noqa: PLC0415
+    from rwt_mcp.session import McpSession  # noqa: PLC0415
 
-    guard = Guard("mcp:127.0.0.1:5000#3", access=AccessPolicy(topics_sub=("/battery",)))
+    graph = Graph()
+    rules = ClientRules(access=AccessPolicy(topics_sub=("/battery",)))
+    session = McpSession(graph.port, "mcp:127.0.0.1:5000#3", config=rules)
     with pytest.raises(ToolError, match=r"topic /cmd: refused by --topics-sub-glob \[/battery\]"):
-        guard.admit("echo", {"topic": "/cmd"})
-    guard.admit("echo", {"topic": "/battery"})
+        await session.subscribe("/cmd", "std_msgs/msg/String", lambda _msg: None)
+    subscription = await session.subscribe("/battery", "std_msgs/msg/String", lambda _msg: None)
+    await subscription.unsubscribe()
     assert denials() == [
-        "event=access_denied client=mcp:127.0.0.1:5000#3 op=echo glob=topics_sub_glob "
+        "event=access_denied client=mcp:127.0.0.1:5000#3 op=subscribe glob=topics_sub_glob "
         "reason='topic /cmd is not allowed on this server'"
     ]
 

@@ -50,6 +50,7 @@ __all__ = [
     "decode_publish_one_pass",
     "encode_json",
     "encode_op",
+    "encode_other",
     "encode_publish_json",
     "op_object",
     "parse_object",
@@ -169,15 +170,19 @@ def _check_unicode(frame: str | bytes, value: object) -> None:
             stack.extend(item)
 
 
-def _encode_other(value: object) -> object:
-    """Msgspec's hook for values it does not know: numpy arrays and scalars (D27)."""
+def encode_other(value: object) -> object:
+    """Msgspec's hook for values it does not know: numpy arrays and scalars as lists (D27).
+
+    Raises:
+        TypeError: any other value.
+    """
     tolist = getattr(value, "tolist", None)  # duck-typed: no numpy import here
     if tolist is None:
         raise TypeError(f"cannot encode {type(value).__name__} as JSON")
     return tolist()
 
 
-_encoder = msgspec.json.Encoder(enc_hook=_encode_other)
+_encoder = msgspec.json.Encoder(enc_hook=encode_other)
 _publish_decoder = msgspec.json.Decoder(PublishFrame)
 
 _EXPECTED = {

@@ -55,6 +55,7 @@ __all__ = [
     "gate",
     "log_denied",
     "log_refused",
+    "param_call_name",
     "parse_glob_list",
     "parse_split_glob",
 ]
@@ -324,3 +325,28 @@ def log_refused(*, client: str, op: str, rule: str, reason: str, now: float) -> 
         reason,
         now=now,
     )
+
+
+_PARAM_SERVICES = frozenset(
+    f"{ROSAPI_PREFIX}{name}"
+    for name in ("get_param", "set_param", "has_param", "delete_param", "search_param")
+)
+"""rosapi's parameter services: a call names its parameter (``param_call_name``)."""
+
+
+def param_call_name(service: str, args: object) -> str | None:
+    """The parameter a call of ``service`` names, if it is one of rosapi's parameter services.
+
+    Its ``name`` argument, keyword or first positional (D25); None for any other
+    service, or a call that names none. Every protocol that calls rosapi checks
+    this name against ``--params-glob`` (REF §1.2).
+    """
+    if resolve_name(service) not in _PARAM_SERVICES:
+        return None
+    if isinstance(args, dict):
+        value = args.get("name")
+    elif isinstance(args, list) and args:
+        value = args[0]
+    else:
+        return None
+    return value if isinstance(value, str) else None

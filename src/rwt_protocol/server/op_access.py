@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..names import resolve_name
 from ..ops import (
     Advertise,
     AdvertiseAction,
@@ -29,7 +28,7 @@ from ..ops import (
     UnadvertiseService,
     Unsubscribe,
 )
-from ..runtime.access import ROSAPI_PREFIX, AccessDeniedError, Family, TopicUse
+from ..runtime.access import AccessDeniedError, Family, TopicUse, param_call_name
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -37,11 +36,6 @@ if TYPE_CHECKING:
     from ..runtime.access import AccessPolicy
 
 __all__ = ["check_op"]
-
-_PARAM_SERVICES = frozenset(
-    f"{ROSAPI_PREFIX}{name}"
-    for name in ("get_param", "set_param", "has_param", "delete_param", "search_param")
-)
 
 _OP_FAMILIES: Mapping[type, tuple[Family, str]] = {
     Advertise: (Family.TOPICS, "topic"),
@@ -88,19 +82,8 @@ def check_op(policy: AccessPolicy, op: OpModel | PublishView) -> None:
     if glob is not None:
         text = f"{family.value[:-1]} {name} is not allowed on this server"
         raise AccessDeniedError(text, glob)
-    if isinstance(op, CallService) and resolve_name(op.service) in _PARAM_SERVICES:
-        param = _param_name(op.args)
+    if isinstance(op, CallService):
+        param = param_call_name(op.service, op.args)
         if param is not None and not policy.allows(Family.PARAMS, param):
             text = f"parameter {param} is not allowed on this server"
             raise AccessDeniedError(text, "params_glob")
-
-
-def _param_name(args: object) -> str | None:
-    """The ``name`` argument of a rosapi parameter call, keyword or first positional (D25)."""
-    if isinstance(args, dict):
-        value = args.get("name")
-    elif isinstance(args, list) and args:
-        value = args[0]
-    else:
-        return None
-    return value if isinstance(value, str) else None
