@@ -877,6 +877,8 @@ class _Exchange:
         self.conn, self.stream, self.request, self.body = conn, stream, request, body
         self.peer, self.cors, self.headers = peer, cors, headers
         self.status: int | None = None
+        self._answered = False  # the response's last byte went out
+        self._waiting: anyio.CancelScope | None = None  # a ``_receive`` waiting on the socket
 
     async def refuse(
         self, status: int, text: str, extra: list[tuple[bytes, bytes]] | None = None
@@ -921,20 +923,30 @@ class _Exchange:
         return self.status
 
     async def _receive(self) -> dict[str, Any]:
-        """The body, then (waiting on the socket) the client's disconnect."""
+        """The body, then (waiting on the socket) the client's disconnect, or the answer's end.
+
+        Once the response is sent the exchange is over, and a waiting ``_receive``
+        says so (``_send``): the SDK's watcher of the disconnect then returns
+        instead of being canceled, which would leave a reference cycle (its
+        ``CancelledError`` and its frames) for the collector with each request.
+        """
         if self.body is not None:
             body, self.body = self.body, None  # type: ignore[assignment]
             return {"type": "http.request", "body": body, "more_body": False}
-        while True:  # bytes after the request are dropped: one request per connection
-            try:
-                await self.stream.receive(_READ_SIZE)
-            except (
-                anyio.EndOfStream,
-                anyio.BrokenResourceError,
-                anyio.ClosedResourceError,
-                OSError,
-            ):
-                return {"type": "http.disconnect"}
+        if not self._answered:
+            with anyio.CancelScope() as self._waiting:
+                while True:  # bytes after the request are dropped: one request per connection
+                    try:
+                        await self.stream.receive(_READ_SIZE)
+                    except (
+                        anyio.EndOfStream,
+                        anyio.BrokenResourceError,
+                        anyio.ClosedResourceError,
+                        OSError,
+                    ):
+                        break
+            self._waiting = None
+        return {"type": "http.disconnect"}
 
     async def _send(self, message: dict[str, Any]) -> None:
         if message["type"] == "http.response.start":
@@ -952,3 +964,8 @@ class _Exchange:
             return
         if data:
             await self.stream.send(data)
+        if message["type"] == "http.response.body" and not message.get("more_body", False):
+            self._answered = True
+            if self._waiting is not None:  # the watcher of the disconnect: it returns now
+                self._waiting.cancel()
+                await anyio.lowlevel.checkpoint()

@@ -688,11 +688,13 @@ async def serve_websocket_connection(
 
     Never raises for what the peer does; the stream is closed on return.
     """
-    protocol = _make_protocol(options, max_message_size, frontends)
     async with stream:
         head = await _claimed(stream, http, peer) if http else b""
         if head is None:
             return
+        # made once no HTTP endpoint took the request: websockets' parser (a generator
+        # of the protocol's) makes it a reference cycle, garbage for the collector
+        protocol = _make_protocol(options, max_message_size, frontends)
         handshake = await _handshake(stream, protocol, head)
         if handshake is None:
             return
