@@ -692,8 +692,7 @@ async def serve_websocket_connection(
         head = await _claimed(stream, http, peer) if http else b""
         if head is None:
             return
-        # made once no HTTP endpoint took the request: websockets' parser (a generator
-        # of the protocol's) makes it a reference cycle, garbage for the collector
+        # only for a WebSocket: websockets' parser generator makes it a reference cycle
         protocol = _make_protocol(options, max_message_size, frontends)
         handshake = await _handshake(stream, protocol, head)
         if handshake is None:
