@@ -32,6 +32,7 @@ from __future__ import annotations
 import logging
 import time
 import uuid
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import anyio
@@ -72,6 +73,7 @@ logger = logging.getLogger("rwt.mcp")
 
 DEFAULT_CALL_TIMEOUT_S = 30.0
 """Seconds a service call waits when neither the tool nor the server (``call_timeout_s``) says."""
+_JSON_FORM = ("mcp", "json")  # ``MessageEvent.memo``'s key of the JSON form
 _ABORTED = 6  # action_msgs/GoalStatus: a goal the graph refused ends so (D4)
 _WHAT = {
     Family.TOPICS: "topic",
@@ -129,8 +131,8 @@ class _Watcher:
             self._deliver(event)
 
     def _deliver(self, event: MessageEvent) -> None:
-        try:
-            self.callback(jsonable(event.msg))
+        try:  # made once per message for every MCP subscriber (read, never changed)
+            self.callback(event.memo(_JSON_FORM, partial(jsonable, event.msg)))
         except Exception:  # a tool's callback: its bug ends nothing else
             logger.exception("event=bug task=mcp_message client=%s", self.session.client_id)
 
