@@ -34,9 +34,15 @@ __all__ = ["cost_table", "fit", "measure_costs"]
 
 
 def measure_costs(
-    subscribers: list[int], workers: list[int], rounds: int, burst_s: float
+    subscribers: list[int],
+    workers: list[int],
+    rounds: int,
+    burst_s: float,
+    placement: str = "none",
 ) -> dict[str, Any]:
     """Median server CPU per message (us) per (workers, subscribers), in paired bursts.
+
+    ``placement``: the ``--placement`` of the servers of more than one worker (D57).
 
     Returns:
         ``"N{n} S{s}"``: ``us_per_msg`` (median of the bursts), ``bursts`` (each
@@ -45,7 +51,12 @@ def measure_costs(
     found: dict[str, Any] = {}
     for subs in subscribers:
         with contextlib.ExitStack() as stack:
-            servers = {n: stack.enter_context(serve_workers(n)) for n in workers}
+            servers = {
+                n: stack.enter_context(
+                    serve_workers(n, ["--placement", placement] if n > 1 else [])
+                )
+                for n in workers
+            }
             fans = {}
             for n, (_, port) in servers.items():
                 fans[n] = FanOut(port, subs)

@@ -15,7 +15,9 @@ burst in its one loop: K x T topics in all); ``--idle N`` adds N idle clients in
 process of their own, each a connection with a subscription to a topic nothing
 publishes (a dashboard that waits), connected before the bursts and held through them
 (the open-file limit is raised for it within the hard limit, since the server sizes
-``--max-connections`` from it).
+``--max-connections`` from it). ``--placement topic`` runs the servers of more than one
+worker with ``--placement topic`` (D57: a topic's connections on the worker that owns
+it), so a topic's messages stay in one worker.
 
 Per worker count the table gives:
 
@@ -96,6 +98,8 @@ class ScaleRow:
     """idle clients beside them (a connection and a subscription to a quiet topic each)"""
     server_rss_bytes: int = 0
     """resident memory of the server's processes after set-up, before the bursts"""
+    placement: str = "none"
+    """``--placement`` of a server of more than one worker (D57)"""
 
     @property
     def dropped(self) -> int:
@@ -250,6 +254,7 @@ def measure(
     *,
     topics: int = 1,
     idle: int = 0,
+    placement: str = "none",
 ) -> ScaleRow:
     """One server of ``workers`` workers under ``fanouts`` parallel generators, each
     driving ``topics`` fan-outs (a topic each), beside ``idle`` idle clients (module doc).
@@ -262,7 +267,9 @@ def measure(
     context = multiprocessing.get_context("fork")
     if idle:
         _raise_fd_limit(2 * (idle + fanouts * topics * (subscribers + 1)) + 4096)
-    with serve_workers(workers) as (pid, port):
+    if workers == 1:
+        placement = "none"  # one worker: nowhere to place
+    with serve_workers(workers, ["--placement", placement] if workers > 1 else []) as (pid, port):
         pipes: list[Connection] = []
         procs = []
         jobs: list[tuple[Any, tuple[Any, ...]]] = [
@@ -321,6 +328,7 @@ def measure(
         topics=topics,
         idle=idle,
         server_rss_bytes=rss,
+        placement=placement,
     )
 
 
@@ -339,8 +347,9 @@ def scale_table(rows: list[ScaleRow]) -> str:
             load = f"{row.fanouts} x {row.topics} topics x {row.subscribers}"
         if row.idle:
             load += f" + {row.idle:,} idle"
+        placed = " (placed by topic)" if row.placement == "topic" else ""
         lines.append(
-            f"| {row.workers} | {load} | "
+            f"| {row.workers}{placed} | {load} | "
             f"{row.deliveries_per_s:,.0f} | {row.deliveries_per_s / base.deliveries_per_s:.2f} | "
             f"{row.server_us_per_delivery:.2f} | "
             f"{row.server_us_per_delivery / base.server_us_per_delivery:.2f} | "
@@ -362,6 +371,7 @@ def main(
     out: Path | None = None,
     topics: int = 1,
     idle: int = 0,
+    placement: str = "none",
 ) -> int:
     """Measure each worker count in turn, print the table; exit status 1 if any dropped.
 
@@ -371,7 +381,11 @@ def main(
     for count in workers:
         print(f"workers {count}", file=sys.stderr, flush=True)
         duration = 0.3 if smoke else duration_s
-        rows.append(measure(count, fanouts, subscribers, duration, topics=topics, idle=idle))
+        rows.append(
+            measure(
+                count, fanouts, subscribers, duration, topics=topics, idle=idle, placement=placement
+            )
+        )
     print(scale_table(rows))
     if not smoke:
         record: dict[str, Any] = {"rows": [asdict(r) for r in rows], "duration_s": duration_s}

@@ -561,6 +561,13 @@ def main(argv: list[str] | None = None) -> int:
         "--smoke", action="store_true", help="with --workers: 0.3 s bursts, nothing saved"
     )
     parser.add_argument(
+        "--placement",
+        choices=("none", "topic"),
+        default="none",
+        help="with --workers or --cost-model: the servers' --placement (D57: 'topic', a "
+        "topic's connections on one worker)",
+    )
+    parser.add_argument(
         "--cost-model",
         action="store_true",
         help="the cost model's constants: 1, 2, 4 workers (or --workers) at 10, 50, 100 "
@@ -573,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
         workers = args.workers or [1, 2, 4]
         subscribers = [3, 6] if args.smoke else [10, 50, 100]
         rounds, burst = (1, 0.3) if args.smoke else (3, 1.0)
-        found = measure_costs(subscribers, workers, rounds, burst)
+        found = measure_costs(subscribers, workers, rounds, burst, args.placement)
         print(cost_table(found, subscribers, workers))
         if not args.smoke:
             (args.out or COSTS).write_text(json.dumps(found, indent=2) + "\n", "utf-8")
@@ -590,6 +597,7 @@ def main(argv: list[str] | None = None) -> int:
             out=args.out,
             topics=args.topics_per_fanout,
             idle=args.idle,
+            placement=args.placement,
         )
     if args.workers_cpu:
         burst = (1.0 if args.quick else 2.0) if args.rate else (0.5 if args.quick else 1.0)

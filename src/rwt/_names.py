@@ -104,6 +104,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.webrtc_signal": ("WebRtcOptions",),
         "rwt_transports.mcp_options": ("McpOptions",),
         "rwt_transports.mcp_siblings": ("McpSiblings",),
+        "rwt_transports.placement": ("Placement",),
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),

@@ -11,7 +11,8 @@ drop-in mode for clients written against rosbridge_suite (docs/differences.md), 
 the Foxglove WebSocket listener's options (``FoxgloveOptions``, ``FoxgloveLimits``;
 docs/foxglove.md), WebRTC signalling's (``WebRtcOptions``, docs/webrtc.md), the
 MCP endpoint's (``McpOptions``, docs/mcp.md; ``McpSiblings``, a worker's place among
-the others of ``--workers``) and the HTTP API's (``HttpApiOptions``,
+the others of ``--workers``; ``Placement``, its place for ``--placement topic``, D57) and
+the HTTP API's (``HttpApiOptions``,
 docs/http.md; ``ServerConfig.http_options["http"]``), and ``Admitted``, the ticket of
 a connection admitted without a session (``GraphServer.admit``).
 
@@ -38,6 +39,7 @@ if TYPE_CHECKING:
     from rwt_transports.mcp_options import McpOptions
     from rwt_transports.mcp_siblings import McpSiblings
     from rwt_transports.memory import MemoryConnection
+    from rwt_transports.placement import Placement
     from rwt_transports.server import Admitted, rosauth_authenticator
     from rwt_transports.udp import UdpOptions
     from rwt_transports.webrtc_signal import WebRtcOptions
@@ -57,6 +59,7 @@ __all__ = [
     "McpOptions",
     "McpSiblings",
     "MemoryConnection",
+    "Placement",
     "TopicUse",
     "UdpOptions",
     "WebRtcOptions",

@@ -31,6 +31,7 @@ from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.mcp_options import McpOptions
 from rwt_transports.mcp_siblings import McpSiblings
+from rwt_transports.placement import Placement
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc_signal import WebRtcOptions
@@ -52,7 +53,7 @@ from .groups import grouped_command
 from .options import MCP_EXTRA, UVLOOP_EXTRA, VIDEO_PORT, WEBRTC_EXTRA
 from .ros2_link import ros2_interface_dirs, ros2_options
 from .running import STARTUP_ERRORS, run_server
-from .serve_options import ServeOptions
+from .serve_options import PlacementMode, ServeOptions
 from .zenoh_link import require_zenoh, zenoh_options
 
 if TYPE_CHECKING:
@@ -283,7 +284,16 @@ def _server_config(
         handshake_timeout_s=limits.handshake_timeout,
         reuse_port=options.scale_out.reuse_port,
         on_connections=_worker_counter(options.scale_out.worker_state),
+        placement=_placement(options.scale_out),
     )
+
+
+def _placement(scale_out: ScaleOut) -> Placement | None:
+    """A worker's place for ``--placement topic`` (D57); None: connections stay."""
+    state = scale_out.worker_state
+    if scale_out.placement is not PlacementMode.TOPIC or state is None:
+        return None
+    return Placement.of_state(state, scale_out.worker_count)
 
 
 def _siblings(state: str | None) -> McpSiblings | None:

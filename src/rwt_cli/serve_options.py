@@ -88,6 +88,13 @@ class ZenohMode(StrEnum):
     CLIENT = "client"
 
 
+class PlacementMode(StrEnum):
+    """``rwt serve --workers N --placement``: where a connection is served (D57)."""
+
+    NONE = "none"
+    TOPIC = "topic"
+
+
 class ZenohRmwCompat(StrEnum):
     """Which rmw_zenoh's token defaults ``rwt serve --zenoh`` speaks (docs/zenoh.md)."""
 
@@ -684,8 +691,17 @@ class ScaleOut:
             "over Zenoh on loopback; restarted when they die.",
         ),
     ] = 1
+    placement: Annotated[
+        PlacementMode,
+        typer.Option(
+            help="With --workers: 'topic' moves a rosbridge WebSocket connection to the worker "
+            "that owns the topic of its first subscribe, advertise or publish, so a topic's "
+            "messages stay in one worker; 'none' serves each where the kernel put it.",
+        ),
+    ] = PlacementMode.NONE
     reuse_port: Annotated[bool, typer.Option(hidden=True)] = False
     worker_state: Annotated[str | None, typer.Option(hidden=True)] = None
+    worker_count: Annotated[int, typer.Option(hidden=True, min=1)] = 1
 
 
 @dataclass(frozen=True)

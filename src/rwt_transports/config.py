@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from rwt_graph.rosapi import VisibilityFor
 
     from .mcp_options import McpOptions
+    from .placement import Placement
     from .webrtc_signal import WebRtcOptions
 
 __all__ = ["MiB", "ServerConfig"]
@@ -113,6 +114,9 @@ class ServerConfig:
         on_connections: called with the number of connections served after each
             one opens or closes (a worker's count for its parent,
             ``worker_counts``); None: not called.
+        placement: move a rosbridge WebSocket connection to the worker that owns its
+            first topic (``rwt serve --workers N --placement topic``, placement.py,
+            D57); None: every connection stays where the kernel put it.
         webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
             docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.
         mcp: serve MCP (Streamable HTTP) at ``/mcp`` on the WebSocket port
@@ -160,6 +164,7 @@ class ServerConfig:
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
     on_connections: Callable[[int], None] | None = None
+    placement: Placement | None = None
     use_sim_time: bool = False
     webrtc: WebRtcOptions | None = None
     mcp: McpOptions | None = None

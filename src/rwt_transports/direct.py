@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 from rwt_protocol.shortcuts import enabled
 
-__all__ = ["DirectReader", "DirectWriter"]
+__all__ = ["DirectReader", "DirectWriter", "asyncio_parts"]
 
 _IOV_MAX = 1024  # buffers one ``writev`` takes at most (Linux's IOV_MAX)
 
@@ -61,6 +61,8 @@ class _Transport(Protocol):
 
     def get_extra_info(self, name: str, default: Any = None) -> Any: ...
 
+    def abort(self) -> None: ...
+
 
 class _StreamProtocol(Protocol):
     """The part of anyio's asyncio ``StreamProtocol`` used here."""
@@ -71,7 +73,7 @@ class _StreamProtocol(Protocol):
     is_at_eof: bool
 
 
-def _asyncio_parts(stream: object) -> tuple[_Transport, _StreamProtocol] | None:
+def asyncio_parts(stream: object) -> tuple[_Transport, _StreamProtocol] | None:
     """The transport and protocol of a plain anyio asyncio socket stream, else None.
 
     Relies on anyio's asyncio ``SocketStream`` keeping them in ``_transport``
@@ -92,6 +94,7 @@ def _asyncio_parts(stream: object) -> tuple[_Transport, _StreamProtocol] | None:
             "pause_reading",
             "resume_reading",
             "get_extra_info",
+            "abort",
         )
     ) or not all(
         hasattr(protocol, name) for name in ("read_queue", "read_event", "exception", "is_at_eof")
@@ -134,7 +137,7 @@ class DirectWriter:
         None when ``stream`` is not a plain asyncio socket or the ``direct-write``
         shortcut is off.
         """
-        parts = _asyncio_parts(stream) if enabled("direct-write") else None
+        parts = asyncio_parts(stream) if enabled("direct-write") else None
         return None if parts is None else cls(*parts)
 
     @property
@@ -228,7 +231,7 @@ class DirectReader:
         None when ``stream`` is not a plain asyncio socket or the ``direct-read``
         shortcut is off.
         """
-        parts = _asyncio_parts(stream) if enabled("direct-read") else None
+        parts = asyncio_parts(stream) if enabled("direct-read") else None
         return None if parts is None else cls(stream, *parts)
 
     async def receive(self, max_bytes: int) -> bytes:

@@ -97,6 +97,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
 
     from .holding import Held
+    from .placement import Placement
     from .websocket import HttpEndpoint
 
 __all__ = [
@@ -451,6 +452,8 @@ class GraphServer:
             runners.append(
                 await self._stream_listener(stack, config.port, tls, "websocket", websocket)
             )
+            if config.placement is not None and tls is None:  # TLS connections stay
+                runners.append(self._placed_runner(config.placement))
         for name, (port, frontends) in self._own_ports.items():  # a front end's own port
             runners.append(
                 await self._stream_listener(
@@ -656,6 +659,9 @@ class GraphServer:
         """
         endpoints = list(http)
 
+        # the WebSocket port's rosbridge connections may move by topic (placement.py)
+        placement = self.config.placement if frontends is None else None
+
         async def handle(stream: ByteStream) -> None:
             await serve_websocket_connection(
                 stream,
@@ -667,9 +673,42 @@ class GraphServer:
                 frontends=self.frontends if frontends is None else frontends,
                 entry=self.entry,
                 http=endpoints,
+                placement=placement,
             )
 
         return handle
+
+    def _placed_runner(self, placement: Placement) -> Runner:
+        """Serve the connections other workers hand here by their first topic (placement.py).
+
+        Each is one more socket in handshake, as an accepted one is, and runs as the
+        WebSocket port's connections do, reading first what the other worker read.
+        """
+
+        async def run(connections: TaskGroup) -> None:
+            def take(sock: socket.socket, record: bytes) -> None:
+                async def handle(stream: ByteStream) -> None:
+                    await serve_websocket_connection(
+                        stream,
+                        _peer(stream),
+                        self,
+                        self.config.websocket,
+                        self.config.max_message_size,
+                        self.fragment_budget,
+                        frontends=self.frontends,
+                        entry=self.entry,
+                        resumed=record,
+                    )
+
+                self._handshaking += 1
+                connections.start_soon(self._serve_socket, sock, handle, None)
+
+            try:
+                await placement.serve(take)
+            except OSError as exc:  # the state folder is gone: connections stay where they land
+                logger.warning("event=placement_unavailable error=%r", exc)
+
+        return run
 
     async def _handle_tcp(self, stream: ByteStream) -> None:
         peer = _peer(stream)

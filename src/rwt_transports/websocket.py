@@ -53,8 +53,9 @@ from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
-from .direct import DirectReader, DirectWriter
+from .direct import DirectReader, DirectWriter, asyncio_parts
 from .flow import ChannelAbilities
+from .placement import RECORD_LIMIT_BYTES, placed_topic
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import WRITE_BATCH
@@ -72,7 +73,8 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.outbox import OutFrame
 
-    from .frontends import FrontEnds
+    from .frontends import FrontEnd, FrontEnds
+    from .placement import Placement
 
 __all__ = ["HttpEndpoint", "WebSocketOptions", "serve_websocket_connection"]
 
@@ -179,6 +181,10 @@ class WebSocketChannel:
         self._closing_deadline: float | None = None  # set by the first read after our close
         self.early: list[Frame] = []
         """Whole frames the client sent with its upgrade request, parsed with it: read first."""
+        self.placement: Placement | None = None
+        """Where this connection's first topic may move it (placement.py); None: it stays."""
+        self.record: bytearray | None = None
+        """Every byte read from the socket until the first message (``placement``'s)."""
 
     async def receive(self) -> Sequence[FramerEvent]:
         """Read, parse, answer control frames; return the whole data messages."""
@@ -189,6 +195,8 @@ class WebSocketChannel:
             messages, control = self._take_frames(early)
             if control or self.protocol.state is not State.OPEN:
                 await self.flush()
+            if self.record is not None and messages and await self._placed(messages):
+                raise anyio.EndOfStream
             return messages
         try:
             if self.protocol.state is State.OPEN:
@@ -199,6 +207,10 @@ class WebSocketChannel:
             self.protocol.receive_eof()
             self._eof = True
             raise anyio.EndOfStream from None
+        if self.record is not None:
+            self.record += data
+            if len(self.record) > RECORD_LIMIT_BYTES:
+                self.record = None  # a first message this long is served here
         messages, control = self.read_chunk(data)
         # Only a control frame (a ping to answer, the close handshake) or a failure
         # (1002, 1009) makes the protocol write; data frames alone never do, and
@@ -207,7 +219,45 @@ class WebSocketChannel:
             if self._reader is not None:
                 self._reader.pause()  # nothing piles up while the peer is slow to read
             await self.flush()
+        if self.record is not None and messages and await self._placed(messages):
+            raise anyio.EndOfStream
         return messages
+
+    async def _placed(self, messages: Sequence[FramerEvent]) -> bool:
+        """Whether the connection went to the worker owning its first topic (placement.py).
+
+        Decided once, on the first message, before the session sees it. The socket's
+        reading stops, and what the loop read ahead goes with the record; a hand-off
+        that fails leaves both where they were, and the connection is served here.
+        After a hand-off (or one the owner did not confirm) this worker closes its
+        descriptor without a byte more: the peer's connection is the owner's.
+        """
+        record, self.record = self.record, None
+        placement, parts = self.placement, asyncio_parts(self.stream)
+        if placement is None or record is None or parts is None:
+            return False
+        topic = placed_topic(messages[0])
+        if topic is None or self.protocol.state is not State.OPEN or self._failed is not None:
+            return False
+        owner = placement.owner(topic)
+        transport, read = parts
+        sock = transport.get_extra_info("socket")
+        if owner == placement.index or sock is None:
+            return False
+        transport.pause_reading()  # the next ``receive`` resumes it if the connection stays
+        record += b"".join(read.read_queue)
+        if len(record) > RECORD_LIMIT_BYTES:
+            return False
+        taken = await placement.hand_off(owner, sock.fileno(), bytes(record))
+        if taken is False:
+            return False
+        logger.info("event=placed topic=%r owner=%d confirmed=%s", topic, owner, taken is True)
+        read.read_queue.clear()
+        transport.abort()  # our descriptor only: the owner's keeps the connection
+        self._eof = True
+        with contextlib.suppress(Exception):
+            self.protocol.receive_eof()  # websockets sends nothing more (1006: no close frame)
+        return True
 
     async def _read(self) -> bytes:
         reader = self._reader
@@ -576,14 +626,15 @@ async def _claimed(
 
 async def _handshake(
     stream: ByteStream, protocol: ServerProtocol, head: bytes = b""
-) -> tuple[Request, bool, list[Frame]] | None:
-    """Read the upgrade request, whether it ended where the bytes read end, its frames.
+) -> tuple[Request, bool, list[Frame], bytearray] | None:
+    """Read the upgrade request: it, whether it ended with the bytes read, its frames, the bytes.
 
-    ``head``: the request's first bytes, read already. Only when the request
-    ends where the bytes read end does the next byte start a frame that
-    websockets has not begun to parse, so that ``FrameReader`` may read from there.
-    websockets parses frames sent with the request at once, with it: they are
-    kept for the connection to read first (frames are handled in the order
+    ``head``: the request's first bytes, read already (for a connection another
+    worker handed here, every byte it read: placement.py). Only when the bytes read
+    end with the request, or with whole messages after it, does the next byte start
+    a frame that websockets has not begun to parse, so that ``FrameReader`` may read
+    from there. websockets parses frames sent with the request at once, with it:
+    they are kept for the connection to read first (frames are handled in the order
     they reached the server, docs/limits.md).
     """
     received = bytearray()  # bounded: websockets refuses an oversized request
@@ -607,12 +658,31 @@ async def _handshake(
                     if protocol.parser_exc is not None:  # a frame sent with it broke the rules
                         await _refuse_malformed(stream, protocol, protocol.parser_exc)
                         return None
-                    at_frame_start = received.find(b"\r\n\r\n") + 4 == len(received)
+                    at_frame_start = _whole_messages(received, received.find(b"\r\n\r\n") + 4)
                     early = [e for e in events[index + 1 :] if isinstance(e, Frame)]
-                    return event, at_frame_start, early
+                    return event, at_frame_start, early, received
             if protocol.state is not State.CONNECTING:
                 return None
     return None
+
+
+def _whole_messages(data: bytearray, at: int) -> bool:
+    """Whether ``data`` from ``at`` on is whole frames, each a whole message or control.
+
+    A frame's header says how long it is (RFC 6455 5.2); a fragment (no FIN, or a
+    continuation) counts as not whole: its message goes on in websockets' assembler.
+    """
+    while at < len(data):
+        if len(data) - at < 2 or not data[at] & 0x80 or not data[at] & 0x0F:
+            return False
+        size, head = data[at + 1] & 0x7F, 2
+        if size >= 126:
+            head = 4 if size == 126 else 10
+            if len(data) - at < head:
+                return False
+            size = int.from_bytes(data[at + 2 : at + head], "big")
+        at += head + (4 if data[at + 1] & 0x80 else 0) + size
+    return at == len(data)
 
 
 async def _refuse_malformed(
@@ -660,6 +730,8 @@ async def serve_websocket_connection(
     frontends: FrontEnds,
     entry: EntryAuth | None = None,
     http: Sequence[HttpEndpoint] = (),
+    placement: Placement | None = None,
+    resumed: bytes | None = None,
 ) -> None:
     """Run one WebSocket connection to its end.
 
@@ -685,11 +757,18 @@ async def serve_websocket_connection(
         http: the HTTP endpoints on this port, each answering the paths it claims
             (``/version``, ``/webrtc``, ``/mcp``; docs/server.md); the rest are the
             WebSocket's (or the console's).
+        placement: where a rosbridge connection's first topic may move it
+            (``--placement topic``, placement.py); None: it stays.
+        resumed: the bytes another worker read from this connection before handing it
+            here (placement.py): read first, and the upgrade response is not sent
+            again; a connection refused now (full) is closed with 1013.
 
     Never raises for what the peer does; the stream is closed on return.
     """
     async with stream:
-        head = await _claimed(stream, http, peer) if http else b""
+        head = resumed
+        if head is None:
+            head = await _claimed(stream, http, peer) if http else b""
         if head is None:
             return
         # only for a WebSocket: websockets' parser generator makes it a reference cycle
@@ -697,7 +776,7 @@ async def serve_websocket_connection(
         handshake = await _handshake(stream, protocol, head)
         if handshake is None:
             return
-        request, at_frame_start, early = handshake
+        request, at_frame_start, early, received = handshake
         if isinstance(options.console, ConsoleSite) and not _is_upgrade(request):
             await _serve_console(stream, request, options.console, peer)
             return
@@ -705,27 +784,12 @@ async def serve_websocket_connection(
         channel.early = early
         # the upgrade response goes once the reader listens (``hello``: arrival order)
         pump = ConnectionPump(channel, host.flow, host.admission, hello=channel.flush)
-        refusal = _refusal(request, options)
-        frontend, _ = frontends.select(_offered(request))
-        if refusal is None and frontend is None:
-            refusal = 400, frontends.refusal()
-        proven = False
-        if refusal is None and entry is not None and frontend is not None and entry.required:
-            refusal, proven = _proof(entry, frontend.auth, request, peer)
-        session = None
-        if refusal is None:
-            session = host.open_session(
-                channel.transport, peer, pump.wake, frontend=frontend, authenticated=proven
-            )
-            if session is None:
-                refusal = 503, "too many connections"
-        response: Response
-        if refusal is not None:
-            logger.info("event=refused peer=%s status=%d reason=%r", peer, *refusal)
-            response = protocol.reject(refusal[0], refusal[1] + "\n")
-        else:
-            response = protocol.accept(request)
-        protocol.send_response(response)
+        session, refusal, frontend = _admit(
+            request, options, frontends, entry, host, channel.transport, peer, pump
+        )
+        _respond(protocol, request, refusal, resumed=resumed is not None)
+        if _placeable(placement, frontend, session, protocol):
+            channel.placement, channel.record = placement, received
         # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
         if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
             channel.frames = FrameReader(max_message_size)
@@ -739,6 +803,84 @@ async def serve_websocket_connection(
         finally:
             ticket.release()
             channel.release()
+
+
+def _placeable(
+    placement: Placement | None,
+    frontend: FrontEnd | None,
+    session: ServerSession | None,
+    protocol: ServerProtocol,
+) -> bool:
+    """Whether the connection may move by its first topic (placement.py).
+
+    A rosbridge session only (Foxglove's sends on open), and without permessage-deflate
+    (its compression context is this process's).
+    """
+    return (
+        placement is not None
+        and session is not None
+        and frontend is not None
+        and frontend.name == "rosbridge"
+        and not protocol.extensions
+    )
+
+
+def _admit(
+    request: Request,
+    options: WebSocketOptions,
+    frontends: FrontEnds,
+    entry: EntryAuth | None,
+    host: SessionHost,
+    transport: str,
+    peer: str,
+    pump: ConnectionPump,
+) -> tuple[ServerSession | None, tuple[int, str] | None, FrontEnd | None]:
+    """The handshake's checks, then admission: (the session, or the refusal; the front end)."""
+    refusal = _refusal(request, options)
+    frontend, _ = frontends.select(_offered(request))
+    if refusal is None and frontend is None:
+        refusal = 400, frontends.refusal()
+    proven = False
+    if refusal is None and entry is not None and frontend is not None and entry.required:
+        refusal, proven = _proof(entry, frontend.auth, request, peer)
+    session = None
+    if refusal is None:
+        session = host.open_session(
+            transport, peer, pump.wake, frontend=frontend, authenticated=proven
+        )
+        if session is None:
+            refusal = 503, "too many connections"
+    if refusal is not None:
+        logger.info("event=refused peer=%s status=%d reason=%r", peer, *refusal)
+    return session, refusal, frontend
+
+
+def _respond(
+    protocol: ServerProtocol,
+    request: Request,
+    refusal: tuple[int, str] | None,
+    *,
+    resumed: bool,
+) -> None:
+    """Queue the upgrade's response: accepted, or refused with an HTTP status and reason.
+
+    ``resumed``: another worker handed the connection here (placement.py) and sent the
+    response; it is made again, for websockets' state, and not sent. A refusal here
+    (the server is full) can no longer be an HTTP status: the connection closes with
+    1013 (try again later) and the reason.
+    """
+    if resumed:
+        protocol.send_response(protocol.accept(request))
+        protocol.data_to_send()  # the response: sent already
+        if refusal is not None:
+            protocol.fail(int(CloseCode.TRY_AGAIN_LATER), refusal[1][:_MAX_REASON])
+        return
+    response: Response
+    if refusal is not None:
+        response = protocol.reject(refusal[0], refusal[1] + "\n")
+    else:
+        response = protocol.accept(request)
+    protocol.send_response(response)
 
 
 async def _open(

@@ -51,7 +51,7 @@ STABLE_S = 10.0
 """A worker that ran this long before dying is restarted after the first pause again."""
 
 #: serve options the parent sets itself for each worker (with their value).
-_REPLACED = ("--workers", "--port", "--tcp-port", "--worker-state")
+_REPLACED = ("--workers", "--port", "--tcp-port", "--worker-state", "--worker-count")
 
 
 def reuse_port_supported() -> bool:
@@ -101,6 +101,7 @@ class WorkerPlan:
             reach each other otherwise (``--zenoh-mode client``: through a router).
         state_dir: the folder of the workers' connection counts (``worker_counts``);
             None: they keep none.
+        count: the number of workers (``--placement topic`` places by it).
     """
 
     def __init__(
@@ -110,8 +111,10 @@ class WorkerPlan:
         tcp_port: int | None,
         hub: str | None,
         state_dir: str | None = None,
+        count: int = 1,
     ) -> None:
         self.args = list(args)
+        self.count = count
         self.port = port
         self.tcp_port = tcp_port
         self.hub = hub
@@ -144,7 +147,7 @@ def child_args(plan: WorkerPlan, index: int) -> list[str]:
     if plan.hub is not None:
         args += ["--zenoh-listen" if index == 0 else "--zenoh-connect", plan.hub]
     if (state := plan.state(index)) is not None:
-        args += ["--worker-state", state]
+        args += ["--worker-state", state, "--worker-count", str(plan.count)]
     return args
 
 
@@ -180,7 +183,7 @@ def run_workers(
             with reserve_port("127.0.0.1", 0) as probe:
                 hub = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
         state_dir = holds.enter_context(tempfile.TemporaryDirectory(prefix="rwt-workers-"))
-        plan = WorkerPlan(args, ports[0], ports[1], hub, state_dir)
+        plan = WorkerPlan(args, ports[0], ports[1], hub, state_dir, count)
         # the reservations go once the workers listen: they are in the same group
         return anyio.run(_supervise, plan, count, holds.pop_all())
 

@@ -240,6 +240,7 @@ NEVER_IN_RWT = {
     "Connection",
     "McpOptions",
     "McpSiblings",
+    "Placement",
     "HttpApiOptions",
     "Admitted",
     "FoxgloveLimits",

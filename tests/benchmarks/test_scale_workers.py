@@ -33,6 +33,19 @@ def test_the_scale_table_has_a_row_per_worker_count_and_drops_nothing(
     assert not (tmp_path / "scale.json").exists()  # a smoke run saves nothing
 
 
+def test_the_scale_table_with_topic_placement_drops_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["scaleout", "--workers", "1,2", "--fanouts", "2", "--subscribers", "3", "--smoke"]
+    status = main([*argv, "--placement", "topic", "--out", str(tmp_path / "scale.json")])
+    rows = [line.strip("|").split("|") for line in capsys.readouterr().out.splitlines()[2:]]
+    assert status == 0
+    assert [r[0].strip() for r in rows if r[0].strip()] == ["1", "2 (placed by topic)"]
+    for row in rows:
+        delivered, expected = row[8].strip().replace(",", "").split("/")
+        assert int(delivered) == int(expected) > 0
+
+
 def test_worker_counts_below_one_are_refused() -> None:
     with pytest.raises(SystemExit):
         main(["scaleout", "--workers", "0,2"])
