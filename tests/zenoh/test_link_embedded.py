@@ -466,3 +466,29 @@ async def test_a_goals_feedback_reaches_it_before_its_result_while_subscribers_c
         assert outcome.result == {"sequence": [0, 1, 1, 2, 3, 5]}
         assert feedback == [{"sequence": [0, 1, 1, 2, 3, 5][: n + 3]} for n in range(4)]
         tg.cancel_scope.cancel()
+
+
+async def test_a_message_no_graph_on_zenoh_subscribes_to_is_not_put_on_zenoh() -> None:
+    """A put no subscriber matches goes nowhere: the link skips its encoding and put (D57)."""
+    async with linked(2) as [(a, link_a), (b, _)]:
+        puts: list[str] = []
+        outbox = link_a._outbox
+        put = outbox.put
+        outbox.put = lambda key, *rest: (puts.append(key), put(key, *rest))[1]  # type: ignore[method-assign]
+        here: list[dict[str, object]] = []
+        a.create_subscription("/quiet", here.append, "std_msgs/msg/Int32", node="/local")
+        talker = a.create_publisher("/quiet", "std_msgs/msg/Int32", node="/talker")
+        await until(lambda: "/talker" in publishers(b, EVERYTHING, "/quiet"), "publisher")
+        for number in range(10):
+            talker.publish({"data": number})
+        assert len(here) == 10  # the local subscriber got them all
+        assert puts == []
+        there: list[dict[str, object]] = []
+        b.create_subscription("/quiet", there.append, "std_msgs/msg/Int32", node="/remote")
+        await until(lambda: "/remote" in subscribers(a, EVERYTHING, "/quiet"), "subscriber")
+        with anyio.fail_after(WAIT_S):
+            while not there:  # Zenoh's routing knows B's subscriber a moment after the token
+                talker.publish({"data": 99})
+                await anyio.sleep(0.05)
+        assert len(puts) >= len(there) and len(set(puts)) == 1  # /quiet's, once B subscribed
+        assert {msg["data"] for msg in there} == {99}
