@@ -34,6 +34,8 @@ from rwt_transports.mcp_siblings import McpSiblings
 from rwt_transports.placement import Placement
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
+from rwt_transports.webrtc_ice import parse_ice_servers
+from rwt_transports.webrtc_native import native_ice_refusal
 from rwt_transports.webrtc_signal import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.worker_counts import ConnectionCountWriter
@@ -159,6 +161,10 @@ def _check_listeners(options: ServeOptions) -> None:
         raise usage_error("--webrtc-stack chooses --webrtc's stack: add --webrtc")
     if listeners.ice_server and not listeners.webrtc:
         raise usage_error("--ice-server gives --webrtc its STUN and TURN servers: add --webrtc")
+    if listeners.webrtc_stack == "native" and (
+        refused := native_ice_refusal(parse_ice_servers(listeners.ice_server or ()))
+    ):
+        raise usage_error(f"--webrtc-stack native: {refused}")
     if listeners.mcp and not listeners.websocket:
         raise usage_error("--mcp answers on the WebSocket port: not with --no-websocket")
     if listeners.mcp_read_only and not listeners.mcp:

@@ -79,6 +79,7 @@ __all__ = [
     "NativeDataChannel",
     "NativePeerConnection",
     "certificate_files",
+    "native_ice_refusal",
     "native_ice_server",
     "native_missing",
 ]
@@ -586,6 +587,24 @@ def _running_loop() -> asyncio.AbstractEventLoop:
     import asyncio  # noqa: PLC0415 (the native stack hops onto asyncio's loop)
 
     return asyncio.get_running_loop()
+
+
+def native_ice_refusal(servers: Sequence[IceServer]) -> str | None:
+    """Why the native stack cannot use ``servers`` (None: it can).
+
+    libdatachannel-py builds libdatachannel with libjuice for ICE, which reaches TURN
+    servers over UDP only: libdatachannel 0.24 ignores a ``turns:`` or
+    ``turn:...?transport=tcp`` server with a warning, so a peer that only that relay
+    could reach would never connect (tests/webrtc/test_nat.py). aiortc's ICE (aioice)
+    speaks TURN over TCP and TLS.
+    """
+    for server in servers:
+        if server.url.startswith("turns:") or server.url.endswith("?transport=tcp"):
+            return (
+                f"the native WebRTC stack (libjuice) reaches TURN servers over UDP only, "
+                f"not {server.url}: use --webrtc-stack aiortc, or a turn: URL over UDP"
+            )
+    return None
 
 
 def native_ice_server(ldc: Any, server: IceServer) -> Any:

@@ -45,7 +45,7 @@ from rwt_protocol.errors import ConfigError
 from .frontends import AuthMode, HttpFrontEnd
 from .http_endpoint import claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
-from .webrtc_native import STACKS, native_missing
+from .webrtc_native import STACKS, native_ice_refusal, native_missing
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
@@ -123,7 +123,8 @@ class WebRtcOptions:
         stack: which WebRTC stack answers an offer of data channels only
             (``--webrtc-stack``, D51): ``native`` (libdatachannel,
             webrtc_native.py), ``aiortc``, or ``auto``: native where
-            libdatachannel-py imports, else aiortc. An offer with video
+            libdatachannel-py imports and every ICE server is one it reaches
+            (TURN over UDP: ``native_ice_refusal``), else aiortc. An offer with video
             m-sections is answered by aiortc whatever the choice (the video
             tracks are aiortc's, docs/webrtc.md).
 
@@ -131,7 +132,8 @@ class WebRtcOptions:
         ValueError: an ICE server URL aiortc cannot use, or more than one STUN or
             TURN server (``parse_ice_servers``); a ``stack`` not of
             ``webrtc_native.STACKS``, or ``native`` where libdatachannel-py does
-            not import (``webrtc_native.native_missing`` says why).
+            not import (``webrtc_native.native_missing`` says why) or with a TURN
+            server over TCP or TLS (``webrtc_native.native_ice_refusal``).
     """
 
     connect_timeout_s: float = CONNECT_TIMEOUT_S
@@ -140,16 +142,21 @@ class WebRtcOptions:
     stack: str = "auto"
 
     def __post_init__(self) -> None:
-        parse_ice_servers(self.ice_servers)  # refuse a bad URL here, not at the first offer
+        servers = parse_ice_servers(self.ice_servers)  # a bad URL: here, not at an offer
         if self.stack not in STACKS:
             raise ValueError(f"WebRTC stack {self.stack!r} is not one of {', '.join(STACKS)}")
         if self.stack == "native" and (missing := native_missing()) is not None:
             raise ValueError(missing)
+        if self.stack == "native" and (refused := native_ice_refusal(servers)) is not None:
+            raise ValueError(refused)
 
     @property
     def native(self) -> bool:
         """Whether offers of data channels only are answered by the native stack."""
-        return self.stack == "native" or (self.stack == "auto" and native_missing() is None)
+        if self.stack != "auto":
+            return self.stack == "native"
+        servers = parse_ice_servers(self.ice_servers)
+        return native_missing() is None and native_ice_refusal(servers) is None
 
 
 @dataclass(frozen=True, slots=True)

@@ -294,6 +294,16 @@ class Topology:
                 "iptables", "-A", "FORWARD", "-s", source, "-d", target, "-p", "udp", "-j", "DROP"
             )
 
+    def turn_only_over_tcp(self) -> None:
+        """Drop UDP from the robot's NAT to the TURN server's port: the robot reaches it
+        over TCP only (``turn:...?transport=tcp``), as behind a firewall that lets out
+        TCP alone; the relayed data still leaves coturn over UDP.
+        """
+        self.internet.run(
+            "iptables", "-A", "FORWARD", "-s", NAT_PUBLIC, "-d", TURN,
+            "-p", "udp", "--dport", "3478", "-j", "DROP",
+        )  # fmt: skip
+
     def close(self) -> None:
         """End every process in the namespaces (only this topology's), then delete them."""
         _close(self.hosts)

@@ -10,7 +10,7 @@ import re
 import pytest
 
 from rwt_transports.webrtc_ice import parse_ice_server, parse_ice_servers
-from rwt_transports.webrtc_native import native_ice_server, native_missing
+from rwt_transports.webrtc_native import native_ice_refusal, native_ice_server, native_missing
 from rwt_transports.webrtc_signal import WebRtcOptions
 from tests.support.cli import invoke_rwt
 from tests.webrtc.conftest import NEEDS_AIORTC
@@ -130,3 +130,40 @@ def test_the_native_stack_takes_each_ice_server_form(
     if relay is not None:
         assert native.relay_type.name == relay
         assert (native.username, native.password) == (server.username, server.credential)
+
+
+@pytest.mark.parametrize(
+    ("urls", "refused"),
+    [
+        (["stun:stun.example.org", "turn:u:p@turn.example.org"], None),
+        (["turn:u:p@turn.example.org?transport=udp"], None),
+        (["turn:u:p@turn.example.org?transport=tcp"], "turn:turn.example.org:3478?transport=tcp"),
+        (["stun:a", "turns:u:p@turn.example.org"], "turns:turn.example.org:5349"),
+    ],
+)
+def test_the_native_stack_refuses_a_turn_server_it_reaches_over_tcp_or_tls(
+    urls: list[str], refused: str | None
+) -> None:
+    """libjuice reaches TURN over UDP only (libdatachannel ignores the others): said at start."""
+    reason = native_ice_refusal(parse_ice_servers(urls))
+    if refused is None:
+        assert reason is None
+    else:
+        assert reason is not None and refused in reason and "--webrtc-stack aiortc" in reason
+
+
+def test_with_a_tcp_turn_server_auto_answers_on_aiortc_and_native_is_refused_at_start() -> None:
+    """``auto`` keeps such a server working (aiortc's ICE speaks TURN over TCP and TLS); an
+    explicit ``native`` would never reach it, so it is refused before serving."""
+    tcp = ("turn:u:p@turn.example.org?transport=tcp",)
+    assert not WebRtcOptions(ice_servers=tcp, stack="auto").native
+    assert WebRtcOptions(ice_servers=("turn:u:p@turn.example.org",), stack="auto").native == (
+        native_missing() is None
+    )
+    if (missing := native_missing()) is not None:
+        pytest.skip(missing)
+    with pytest.raises(ValueError, match="over UDP only"):
+        WebRtcOptions(ice_servers=tcp, stack="native")
+    result = invoke_rwt("serve", "--webrtc", "--webrtc-stack", "native", "--ice-server", tcp[0])
+    assert result.exit_code == 2
+    assert "--webrtc-stack native: the native WebRTC stack (libjuice)" in result.output

@@ -125,6 +125,23 @@ async def test_through_turn_when_the_browser_reaches_only_the_turn_server(
     assert result["remote"][0] == netns.TURN  # type: ignore[index]  # relayed by coturn
 
 
+async def test_through_turn_over_tcp_when_the_robot_may_send_no_udp_to_the_turn_server(
+    topology: netns.Topology, tmp_path: Path, stack: str
+) -> None:
+    """``--ice-server turn:...?transport=tcp``: the robot's leg to coturn is a TCP connection."""
+    if stack == "native":
+        pytest.skip("the native stack refuses TURN over TCP: libjuice reaches TURN over UDP only")
+    topology.only_turn_reachable()
+    topology.turn_only_over_tcp()
+    await _serve_robot(topology, tmp_path, f"{TURN}?transport=tcp", stack=stack)
+    result = _browser_round_trip(topology, tmp_path)
+    assert result["echo"] == {"data": "through the NAT"}
+    assert "relay" in result["candidates"]  # type: ignore[operator]
+    assert result["remote"][0] == netns.TURN  # type: ignore[index]  # relayed by coturn
+    # the allocation went over TCP: with plain ``turn:`` (UDP) this block leaves no relay
+    assert "TURN allocation created" in (tmp_path / "robot.log").read_text("utf-8", "replace")
+
+
 async def test_without_ice_servers_the_peers_never_meet(
     topology: netns.Topology, tmp_path: Path, stack: str
 ) -> None:
