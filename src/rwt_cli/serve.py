@@ -124,6 +124,8 @@ def serve(options: ServeOptions) -> None:
     scale_out = options.scale_out
     if (scale_out.zenoh or scale_out.workers > 1) and dialect is not Dialect.ROS2:
         raise usage_error("--zenoh and --workers speak rmw_zenoh's ROS 2 types: not --dialect ros1")
+    if scale_out.placement is not PlacementMode.NONE and _alone(scale_out):
+        raise usage_error("--placement places connections among workers: add --workers N")
     if scale_out.workers > 1:
         _serve_workers(options)
     zenoh_link = _zenoh_options(scale_out) if scale_out.zenoh else None
@@ -292,6 +294,11 @@ def _server_config(
         on_connections=_worker_counter(options.scale_out.worker_state),
         placement=_placement(options.scale_out),
     )
+
+
+def _alone(scale_out: ScaleOut) -> bool:
+    """Whether this server is neither the parent of workers nor one (``--worker-state``)."""
+    return scale_out.workers == 1 and scale_out.worker_state is None
 
 
 def _placement(scale_out: ScaleOut) -> Placement | None:

@@ -25,6 +25,7 @@ from rwt_transports.config import ServerConfig
 from rwt_transports.placement import RECORD_LIMIT_BYTES, Placement, placed_topic
 from rwt_transports.server import RosbridgeServer
 from rwt_transports.websocket import _whole_messages
+from tests.support.cli import invoke_rwt
 from tests.support.rawws import server_frame, upgrade_with
 
 pytestmark = pytest.mark.anyio
@@ -261,3 +262,9 @@ def test_a_record_of_whole_messages_lets_the_fast_reader_take_over_after_it() ->
     assert not _whole_messages(request + long[:5], at)  # within its length field
     assert not _whole_messages(request + first, at)  # a message goes on
     assert not _whole_messages(request + first + rest, at)
+
+
+def test_placement_without_workers_is_refused_before_serving() -> None:
+    result = invoke_rwt("serve", "--placement", "topic")
+    assert result.exit_code == 2
+    assert "--placement places connections among workers: add --workers N" in result.stderr
