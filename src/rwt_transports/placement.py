@@ -27,8 +27,9 @@ Not moved, and served where they landed as before: TLS (its state is this proces
 permessage-deflate (its compression context), another front end (Foxglove sends on
 open), a first message that is anything else (``auth``, a service call: what the
 session held would be lost), CBOR, or longer than the record allows, and any
-connection whose owner cannot take it at once (restarting, full: the connection stays
-and works over the link as without placement).
+connection whose owner cannot be reached at once (restarting: the connection stays and
+works over the link as without placement). An owner that is full closes the connection
+it was handed with 1013 (try again later): its upgrade was accepted already.
 """
 
 from __future__ import annotations
