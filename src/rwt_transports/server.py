@@ -651,16 +651,21 @@ class GraphServer:
     # ---- connections ------------------------------------------------------------
 
     def _websocket_handler(
-        self, frontends: FrontEnds | None, http: Iterable[HttpEndpoint] = ()
+        self,
+        frontends: FrontEnds | None,
+        http: Iterable[HttpEndpoint] = (),
+        resumed: bytes | None = None,
     ) -> Callable[[ByteStream], Awaitable[None]]:
         """The connections of a WebSocket listener speaking ``frontends``, answering ``http``.
 
         None: the WebSocket port's, read at each connection (``add_frontend``).
+        ``resumed``: a connection another worker handed here with the bytes it read
+        (placement.py); it is not moved again.
         """
         endpoints = list(http)
 
         # the WebSocket port's rosbridge connections may move by topic (placement.py)
-        placement = self.config.placement if frontends is None else None
+        placement = self.config.placement if frontends is None and resumed is None else None
 
         async def handle(stream: ByteStream) -> None:
             await serve_websocket_connection(
@@ -674,6 +679,7 @@ class GraphServer:
                 entry=self.entry,
                 http=endpoints,
                 placement=placement,
+                resumed=resumed,
             )
 
         return handle
@@ -687,20 +693,8 @@ class GraphServer:
 
         async def run(connections: TaskGroup) -> None:
             def take(sock: socket.socket, record: bytes) -> None:
-                async def handle(stream: ByteStream) -> None:
-                    await serve_websocket_connection(
-                        stream,
-                        _peer(stream),
-                        self,
-                        self.config.websocket,
-                        self.config.max_message_size,
-                        self.fragment_budget,
-                        frontends=self.frontends,
-                        entry=self.entry,
-                        resumed=record,
-                    )
-
                 self._handshaking += 1
+                handle = self._websocket_handler(None, resumed=record)
                 connections.start_soon(self._serve_socket, sock, handle, None)
 
             try:

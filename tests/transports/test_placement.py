@@ -50,6 +50,8 @@ def test_a_first_topic_op_places_the_connection_by_its_topic(op: str) -> None:
         text({"op": "subscribe"}),
         text({"op": "subscribe", "topic": 7}),
         text({"op": "subscribe", "topic": ""}),
+        text({"op": "subscribe", "topic": 10**400}),  # a huge int: not a name
+        InFrame(b'{"op": "subscribe", "topic": "/a", "topic": [0]}'),  # the last key counts
         text(["subscribe", "/chatter"]),
         InFrame(b'{"op": "subscribe", "topic": "/chatter"', False),  # not JSON
         InFrame(b"\xa2bopisubscribeetopich/chatter", True),  # CBOR stays
@@ -80,6 +82,17 @@ def test_past_the_claims_or_without_a_folder_a_topics_hash_names_its_owner(
     assert len(list(tmp_path.iterdir())) == 2  # no more claims than that
     gone = Placement(str(tmp_path / "gone"), 1, 4)
     assert gone.owner("/tf") == zlib.crc32(b"/tf") % 4
+
+
+def test_an_odd_topic_still_names_one_owner_and_stays_within_the_claims(tmp_path: Path) -> None:
+    """A lone surrogate, a reserved name, a 1 MB name: one owner each, a small file each.
+
+    The session refuses such names afterwards, on whichever worker, as ever.
+    """
+    workers = [Placement(str(tmp_path), index, 2) for index in range(2)]
+    for topic in (json.loads('"/\\ud800"'), "/rosout", "/" + "x" * 1_000_000):
+        assert workers[0].owner(topic) == workers[1].owner(topic) in (0, 1)
+    assert all(len(path.name) < 64 for path in tmp_path.iterdir())
 
 
 def test_a_worker_knows_its_place_from_its_state_file() -> None:
