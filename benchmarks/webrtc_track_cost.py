@@ -12,6 +12,13 @@ stack in turn:
   offered track with libdatachannel's H.264 packetizer, RTCP sender reports and NACK
   responder, the frames handed over with ``send_frame`` from one thread at 30 Hz.
 
+With ``--through rwt`` the robot is rwt's own server instead (``RosbridgeServer`` with
+``WebRtcOptions(stack=...)``, a 640x480 ``sensor_msgs/msg/Image`` camera at 30 Hz on its
+graph), and each viewer posts its offer to ``/webrtc?video=/camera/image`` preferring
+H.264: the whole path, its shared encoder included (paid once whatever the viewers, so
+the difference between the stacks is the viewers' cost). On the native stack
+libdatachannel sends the track (``webrtc_native_video.py``), on aiortc aiortc does.
+
 The viewers are aiortc peers in another process (receive only, H.264, decoding each
 frame); the table gives the robot process's CPU (every thread, from ``/proc``) while
 they watch, in % of a core and per viewer, and the frames a second each viewer decoded.
@@ -20,8 +27,8 @@ answers: whether moving the video tracks to the native stack would make a viewer
 cheaper for the robot (issue's "video where it is cheapest").
 
 Run (Python 3.12+ with the ``webrtc`` extra, both stacks):
-``python -m benchmarks.webrtc_track_cost [--viewers 1,4,8] [--seconds 8]``.
-Results: ``results/webrtc_track_cost.json``.
+``python -m benchmarks.webrtc_track_cost [--viewers 1,4,8] [--seconds 8] [--through rwt]``.
+Results: ``results/webrtc_track_cost.json`` (``webrtc_track_cost_rwt.json`` through rwt).
 """
 
 from __future__ import annotations
@@ -38,6 +45,8 @@ from pathlib import Path
 from typing import Any
 
 RESULTS = Path(__file__).resolve().parent / "results" / "webrtc_track_cost.json"
+RESULTS_RWT = RESULTS.with_name("webrtc_track_cost_rwt.json")
+CAMERA = "/camera/image"
 FPS = 30
 WARMUP_S = 2.0
 STACKS = ("native", "aiortc")
@@ -68,8 +77,11 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _viewers(pipe: Any, count: int, seconds: float) -> None:
-    """``count`` aiortc viewers: offers out, answers in, then frames decoded a second each."""
+def _viewers(pipe: Any, count: int, seconds: float, server: str | None = None) -> None:
+    """``count`` aiortc viewers: offers out, answers in, then frames decoded a second each.
+
+    ``server``: rwt's HTTP base URL, where each offer is posted; None: over ``pipe``.
+    """
 
     async def main() -> None:
         from aiortc import RTCPeerConnection, RTCSessionDescription  # noqa: PLC0415
@@ -96,8 +108,12 @@ def _viewers(pipe: Any, count: int, seconds: float) -> None:
 
             await peer.setLocalDescription(await peer.createOffer())
             peers.append(peer)
-        pipe.send([peer.localDescription.sdp for peer in peers])
-        for peer, answer in zip(peers, pipe.recv(), strict=True):
+        offers = [peer.localDescription.sdp for peer in peers]
+        answers = await _posted(server, offers) if server else None
+        if answers is None:
+            pipe.send(offers)
+            answers = pipe.recv()
+        for peer, answer in zip(peers, answers, strict=True):
             await peer.setRemoteDescription(RTCSessionDescription(answer, "answer"))
         await asyncio.sleep(WARMUP_S)
         before = list(counts)
@@ -171,6 +187,72 @@ def _answer_native(offers: list[str]) -> tuple[list[Any], list[Any], list[str]]:
     return peers, tracks, answers
 
 
+async def _posted(server: str, offers: list[str]) -> list[str]:
+    """Each offer posted to rwt's ``/webrtc?video=``: the answers."""
+    import httpx  # noqa: PLC0415
+
+    answers = []
+    async with httpx.AsyncClient(base_url=server, timeout=30) as http:
+        for offer in offers:
+            reply = await http.post(
+                f"/webrtc?video={CAMERA}",
+                content=offer,
+                headers={"Content-Type": "application/sdp"},
+            )
+            reply.raise_for_status()
+            answers.append(reply.text)
+    return answers
+
+
+def _frames(count: int = FPS) -> list[Any]:
+    """``count`` 640x480 rgb8 pictures of a moving pattern (numpy)."""
+    import numpy as np  # noqa: PLC0415
+
+    x = np.arange(640, dtype=np.uint16)[None, :]
+    y = np.arange(480, dtype=np.uint16)[:, None]
+    frames = []
+    for i in range(count):
+        planes = [(x * 3 + y + i * 7) % 256, (y * 2 + x + i * 5) % 256, (x + y * 3) % 256]
+        frames.append(np.stack(planes, axis=-1).astype(np.uint8))
+    return frames
+
+
+def _rwt(stack: str, pipe: Any, out: Any) -> None:
+    """rwt's server on ``stack`` with a 30 Hz camera: its URL out, then its CPU share."""
+    import anyio  # noqa: PLC0415
+
+    from rwt import Graph, RosbridgeServer, ServerConfig  # noqa: PLC0415
+    from rwt_graph.media import array_to_image  # noqa: PLC0415
+    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+
+    frames = _frames()
+
+    async def main() -> None:
+        graph = Graph()
+        config = ServerConfig(host="127.0.0.1", port=0, webrtc=WebRtcOptions(stack=stack))
+        server = RosbridgeServer(graph, config)
+        publisher = graph.create_publisher(CAMERA, "sensor_msgs/msg/Image", node="/camera")
+
+        async def camera() -> None:
+            start = time.monotonic()
+            for index in range(10**9):
+                publisher.publish(array_to_image(frames[index % len(frames)], "rgb8"))
+                await anyio.sleep(max(0.0, start + (index + 1) / FPS - time.monotonic()))
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(camera)
+            url = await tg.start(server.serve)
+            pipe.send(str(url).replace("ws://", "http://"))
+            await anyio.to_thread.run_sync(pipe.recv)  # "go"
+            cpu, start = _cpu_s(os.getpid()), time.monotonic()
+            fps = await anyio.to_thread.run_sync(pipe.recv)
+            out.send(((_cpu_s(os.getpid()) - cpu) / (time.monotonic() - start), fps))
+            server.stop()
+            tg.cancel_scope.cancel()
+
+    anyio.run(main)
+
+
 def _robot(stack: str, pipe: Any, out: Any) -> None:
     """Answer the viewers' offers on ``stack``, send to them, report CPU share and their fps."""
     units = encode()
@@ -217,17 +299,28 @@ def _robot(stack: str, pipe: Any, out: Any) -> None:
         peer.close()
 
 
-def measure(stack: str, viewers: int, seconds: float) -> dict[str, Any]:
-    """One case: the robot's CPU (share of a core) and each viewer's frames a second."""
+def measure(stack: str, viewers: int, seconds: float, through: str = "bare") -> dict[str, Any]:
+    """One case: the robot's CPU (share of a core) and each viewer's frames a second.
+
+    ``through``: ``bare`` (a robot process sending pre-encoded frames) or ``rwt``
+    (rwt's server with a camera).
+    """
     context = multiprocessing.get_context("spawn")
     to_viewers, to_robot = context.Pipe()
     mine, theirs = context.Pipe()
-    procs = [
-        context.Process(target=_viewers, args=(to_viewers, viewers, seconds)),
-        context.Process(target=_robot, args=(stack, to_robot, theirs)),
-    ]
-    for proc in procs:
-        proc.start()
+    robot = context.Process(
+        target=_rwt if through == "rwt" else _robot, args=(stack, to_robot, theirs)
+    )
+    robot.start()
+    server = None
+    if through == "rwt":
+        if not to_viewers.poll(60):
+            robot.kill()
+            raise RuntimeError(f"rwt on {stack}: no URL")
+        server = to_viewers.recv()
+    viewer = context.Process(target=_viewers, args=(to_viewers, viewers, seconds, server))
+    viewer.start()
+    procs = [viewer, robot]
     try:
         if not mine.poll(seconds + 60):
             raise RuntimeError(f"{stack} with {viewers} viewers: no result")
@@ -241,15 +334,23 @@ def measure(stack: str, viewers: int, seconds: float) -> dict[str, Any]:
 
 
 def table(rows: list[dict[str, Any]]) -> str:
-    """The rows as Markdown, with native over aiortc per viewer count."""
+    """The rows as Markdown; past one viewer, what each further viewer added (% of a core)."""
+    one = {row["stack"]: row["cpu_share"] for row in rows if row["viewers"] == 1}
     lines = [
-        "| viewers | stack | robot CPU, % of a core | per viewer | frames/s each (min) |",
-        "|---|---|---|---|---|",
+        "| viewers | stack | robot CPU, % of a core | per viewer | each viewer past the first "
+        "| frames/s each (min) |",
+        "|---|---|---|---|---|---|",
     ]
     for row in rows:
+        n, share = row["viewers"], row["cpu_share"]
+        extra = (
+            f"{(share - one[row['stack']]) * 100 / (n - 1):.2f}"
+            if n > 1 and row["stack"] in one
+            else ""
+        )
         lines.append(
-            f"| {row['viewers']} | {row['stack']} | {row['cpu_share'] * 100:.1f} | "
-            f"{row['cpu_share'] * 100 / row['viewers']:.2f} | {min(row['fps']):.1f} |"
+            f"| {n} | {row['stack']} | {share * 100:.1f} | {share * 100 / n:.2f} | {extra} | "
+            f"{min(row['fps']):.1f} |"
         )
     return "\n".join(lines)
 
@@ -261,6 +362,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=8.0, help="each case's measurement")
     parser.add_argument("--stacks", default=",".join(STACKS))
     parser.add_argument("--out", type=Path, help="where the figures go (default: results/)")
+    parser.add_argument(
+        "--through",
+        choices=("bare", "rwt"),
+        default="bare",
+        help="bare: the stacks alone; rwt: rwt's server with a camera, offers over HTTP",
+    )
     parser.add_argument("--smoke", action="store_true", help="1 s a case, nothing saved")
     args = parser.parse_args(argv)
     seconds = 1.0 if args.smoke else args.seconds
@@ -268,11 +375,12 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for round_index, viewers in enumerate(int(n) for n in args.viewers.split(",")):
         for stack in stacks if round_index % 2 == 0 else reversed(stacks):
-            rows.append(measure(stack, viewers, seconds))
+            rows.append(measure(stack, viewers, seconds, args.through))
     rows.sort(key=lambda row: (row["viewers"], row["stack"]))
     print(table(rows))
     if not args.smoke:
-        (args.out or RESULTS).write_text(json.dumps(rows, indent=2) + "\n", "utf-8")
+        default = RESULTS_RWT if args.through == "rwt" else RESULTS
+        (args.out or default).write_text(json.dumps(rows, indent=2) + "\n", "utf-8")
     return 0
 
 

@@ -1,7 +1,8 @@
 """The native WebRTC stack under the data channels: libdatachannel (docs/webrtc.md, D51).
 
 ``rwt serve --webrtc-stack native`` (or ``auto`` where it imports) answers an
-offer that asks only for data channels with libdatachannel (usrsctp's SCTP,
+offer that asks only for data channels (or for video it sends as H.264,
+webrtc_native_video.py) with libdatachannel (usrsctp's SCTP,
 libjuice's ICE, in C++) through Shiguredo's ``libdatachannel-py`` binding, in
 place of aiortc's SCTP and DTLS in Python. Everything above the peer
 connection is the same: signalling, the offer's checks, the connecting and
@@ -87,8 +88,9 @@ __all__ = [
 logger = logging.getLogger("rwt.webrtc")
 
 STACKS = ("auto", "native", "aiortc")
-"""``--webrtc-stack``: ``auto`` (native where it imports, for offers of data channels
-only), ``native`` (libdatachannel; video offers stay on aiortc) or ``aiortc``."""
+"""``--webrtc-stack``: ``auto`` (native where it imports), ``native`` (libdatachannel, for
+offers of data channels only or of H.264 video, webrtc_native_video.py; other video
+offers stay on aiortc) or ``aiortc``."""
 
 DRAIN_POLL_S = 0.002
 """Seconds between two reads of a channel's ``bufferedAmount`` while a writer waits."""
@@ -390,6 +392,9 @@ class NativePeerConnection:
             ``webrtc_peers.channel_refusal``). Asked on libdatachannel's thread,
             where the channel is closed before it has callbacks; a second channel
             of a label is refused too.
+        tracks: the offer has media sections the caller gives tracks to
+            (webrtc_native_video.py): ``set_offer`` returns libdatachannel's tracks
+            of them, and the answer is made only after (``local_answer``).
 
     Raises:
         RuntimeError: libdatachannel-py does not import (``native_missing``).
@@ -402,6 +407,8 @@ class NativePeerConnection:
         inflow: Inflow,
         answer_max_message_size: int,
         refusal: Callable[[str, bool, int | None, float | None], str | None],
+        *,
+        tracks: bool = False,
     ) -> None:
         ldc = _import()
         self._ldc = ldc
@@ -415,7 +422,12 @@ class NativePeerConnection:
         config.ice_servers = [native_ice_server(ldc, server) for server in ice_servers]
         config.max_message_size = answer_max_message_size
         config.certificate_pem_file, config.key_pem_file = certificate_files()
+        config.disable_auto_negotiation = tracks
+        self._manual = tracks
         self._pc = ldc.PeerConnection(config)
+        self._offered: list[Any] = []  # set_remote_description calls back on this thread
+        if tracks:
+            self._pc.on_track(self._offered.append)
         self._handlers: dict[str, list[Callable[[], object]]] = {}
         self._channel_handler: Callable[[NativeDataChannel], object] | None = None
         self.connectionState = "new"
@@ -480,8 +492,8 @@ class NativePeerConnection:
         if state != "closed":
             self._loop.call_later(STATE_POLL_S, self._poll_state)
 
-    async def answer(self, sdp: str) -> str:
-        """Set the offer and gather every candidate (no trickle); the answer's SDP.
+    def set_offer(self, sdp: str) -> list[Any]:
+        """Set the offer; libdatachannel's tracks of its media sections (with ``tracks``).
 
         Raises:
             ValueError: libdatachannel refused the offer (the message says why).
@@ -491,8 +503,25 @@ class NativePeerConnection:
             self._pc.set_remote_description(ldc.Description(sdp, ldc.Description.Type.Offer))
         except Exception as exc:  # the binding maps C++'s exceptions to several types
             raise ValueError(str(exc) or type(exc).__name__) from exc
-        complete = ldc.PeerConnection.GatheringState.Complete
-        # polled, not a callback (the module docstring); bounded by the caller's deadline
+        offered = list(self._offered)
+        self._offered.clear()  # the callback's list: it keeps no track
+        return offered
+
+    async def local_answer(self) -> str:
+        """Make the answer (with ``tracks``: their descriptions as set), gather every candidate.
+
+        No trickle: the answer carries its candidates. Bounded by the caller's deadline.
+
+        Raises:
+            ValueError: libdatachannel made no answer.
+        """
+        if self._manual:
+            try:
+                self._pc.set_local_description()
+            except Exception as exc:  # the binding maps C++'s exceptions to several types
+                raise ValueError(str(exc) or type(exc).__name__) from exc
+        complete = self._ldc.PeerConnection.GatheringState.Complete
+        # polled, not a callback (the module docstring)
         while self._pc.gathering_state() != complete:  # noqa: ASYNC110
             await anyio.sleep(GATHER_POLL_S)
         description = self._pc.local_description()
@@ -500,6 +529,15 @@ class NativePeerConnection:
             raise ValueError("libdatachannel made no answer")
         self.localSdp = str(description)
         return self.localSdp
+
+    async def answer(self, sdp: str) -> str:
+        """Set the offer and gather every candidate (no trickle); the answer's SDP.
+
+        Raises:
+            ValueError: libdatachannel refused the offer (the message says why).
+        """
+        self.set_offer(sdp)
+        return await self.local_answer()
 
     async def close(self) -> None:
         """Close the peer connection (in a worker thread: libdatachannel waits for its threads).

@@ -46,6 +46,7 @@ and host shares) and never a session, and lasts as long as its peer connection
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import re
 import secrets
@@ -63,6 +64,7 @@ from .shares import HostShares, address_of
 from .webrtc import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
 from .webrtc_ice import parse_ice_servers
 from .webrtc_native import Inflow, NativeDataChannel, NativePeerConnection
+from .webrtc_native_video import VideoSection, native_video_plan, prepare_native_tracks
 from .webrtc_offer import OfferError, check_offer
 from .webrtc_sctp import (
     ANSWER_MAX_MESSAGE_SIZE,
@@ -268,21 +270,31 @@ class WebRtcPeers:
             if isinstance(binding, Answer):
                 answer = binding
             else:
-                native = binding is None and self._native_for(shape)
-                answer = await self._answer(sdp, peer, host, authenticated, binding, native=native)
+                plan = self._native_plan(shape, sdp, binding)
+                answer = await self._answer(
+                    sdp, peer, host, authenticated, binding, plan, data=shape.data_channel
+                )
             return answer
         finally:
             if answer.status != 201:  # refused: else its peer holds the slot until it connects
                 self._free_slot(host)
 
-    def _native_for(self, shape: OfferShape) -> bool:
-        """Whether the native stack answers an offer of this shape (D51).
+    def _native_plan(
+        self, shape: OfferShape, sdp: str, video: VideoBinding | None
+    ) -> list[VideoSection] | None:
+        """Whether the native stack answers this offer, and its video sections (D51).
 
         With ``--webrtc-stack native`` or ``auto`` (where libdatachannel-py
-        imports) and data channels only: an offer with audio or video sections
-        stays on aiortc, whose answer makes them inactive or binds its tracks.
+        imports): an offer of data channels only (no sections), or one whose
+        video the server sends as H.264 (``native_video_plan``). Any other
+        offer stays on aiortc, whose answer makes sections inactive or binds
+        its VP8 and H.264 tracks. None: aiortc answers.
         """
-        return self.options.native and set(shape.kinds) == {"application"}
+        if not self.options.native:
+            return None
+        if video is None:
+            return [] if set(shape.kinds) == {"application"} else None
+        return native_video_plan(sdp, len(video.tracks))
 
     def _take_slot(self, host: str) -> bool:
         """Take a connecting slot for ``host``; False when there is none for it (D37).
@@ -331,19 +343,24 @@ class WebRtcPeers:
         host: str,
         authenticated: bool,
         video: VideoBinding | None,
+        plan: list[VideoSection] | None,
         *,
-        native: bool,
+        data: bool,
     ) -> Answer:
-        """Admit the peer (a ticket), answer the offer with ``native``'s stack, start its run."""
+        """Admit the peer (a ticket), answer the offer, start its run.
+
+        ``plan``: None, aiortc answers; else the native stack, sending these video
+        sections (``_native_plan``). ``data``: the offer has a data channel.
+        """
         ticket = self.host.admit("webrtc", peer)
         if ticket is None:
             return Answer(503, "too many connections")
         remote_max = remote_max_message_size(sdp)
         dc = DataChannelChannel(None, self.max_message_size, remote_max)
         pc = (
-            self._native_pc(dc, authenticated)
-            if native
-            else RTCPeerConnection(self._configuration())
+            RTCPeerConnection(self._configuration())
+            if plan is None
+            else self._native_pc(dc, authenticated, tracks=bool(plan))
         )
         item = _Peer(secrets.token_urlsafe(16), pc, ticket, authenticated, remote_max, dc)
         item.video = video
@@ -354,7 +371,8 @@ class WebRtcPeers:
         try:
             with anyio.move_on_after(OFFER_TIMEOUT_S):
                 if isinstance(pc, NativePeerConnection):
-                    refusal, answer = await self._negotiate_native(pc, sdp)
+                    item.data = data
+                    refusal, answer = await self._negotiate_native(pc, sdp, video, plan or [])
                 else:
                     refusal, answer = await self._negotiate(item, pc, sdp)
         finally:  # refused, failed or cancelled (shutdown): the ticket and the sockets go
@@ -376,7 +394,9 @@ class WebRtcPeers:
         if item.video is not None:
             item.video.close()
 
-    def _native_pc(self, dc: DataChannelChannel, authenticated: bool) -> NativePeerConnection:
+    def _native_pc(
+        self, dc: DataChannelChannel, authenticated: bool, *, tracks: bool
+    ) -> NativePeerConnection:
         """A libdatachannel peer connection for ``dc`` (webrtc_native.py, D51).
 
         Its messages waiting for the loop count in ``dc``'s inbox bound. Its channels
@@ -401,16 +421,42 @@ class WebRtcPeers:
             return reason
 
         return NativePeerConnection(
-            self.ice_servers, self.max_message_size, inflow, ANSWER_MAX_MESSAGE_SIZE, refusal
+            self.ice_servers,
+            self.max_message_size,
+            inflow,
+            ANSWER_MAX_MESSAGE_SIZE,
+            refusal,
+            tracks=tracks,
         )
 
     @staticmethod
-    async def _negotiate_native(pc: NativePeerConnection, sdp: str) -> tuple[Answer | None, str]:
-        """Answer with libdatachannel: (None, the answer SDP), or (why not, "")."""
+    async def _negotiate_native(
+        pc: NativePeerConnection,
+        sdp: str,
+        video: VideoBinding | None,
+        plan: list[VideoSection],
+    ) -> tuple[Answer | None, str]:
+        """Answer with libdatachannel, its tracks sending ``plan``'s sections.
+
+        Returns:
+            (None, the answer SDP), or (why not, "").
+        """
         try:
-            return None, await pc.answer(sdp)
+            offered = pc.set_offer(sdp)
         except ValueError as exc:
             return Answer(400, f"the offer is not a usable SDP offer: {exc}"), ""
+        if video is not None and plan:
+            loop = asyncio.get_running_loop()
+            try:
+                refusal = prepare_native_tracks(video, offered, plan, loop)
+            except (RuntimeError, ValueError, TypeError) as exc:  # the binding's C++ errors
+                return Answer(400, f"the offer cannot be answered: {exc}"), ""
+            if refusal is not None:
+                return refusal, ""
+        try:
+            return None, await pc.local_answer()
+        except ValueError as exc:
+            return Answer(400, f"the offer cannot be answered: {exc}"), ""
 
     async def _negotiate(
         self, item: _Peer, pc: RTCPeerConnection, sdp: str

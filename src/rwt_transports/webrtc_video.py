@@ -37,7 +37,7 @@ import fractions
 import logging
 import time
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import anyio
 import av
@@ -74,6 +74,7 @@ __all__ = [
     "DEFAULT_BITRATE",
     "MAX_VIDEO_STREAMS",
     "VIDEO_NODE",
+    "FrameFeed",
     "VideoBinding",
     "VideoTrack",
     "WebRtcVideo",
@@ -99,37 +100,93 @@ _COMPRESSED = "sensor_msgs/msg/CompressedImage"
 _CODECS = {"video/vp8": StreamType.VP8, "video/h264": StreamType.H264}
 
 
-class VideoTrack(MediaStreamTrack):
-    """One peer's video track of a shared stream: yields its encoded frames as packets.
+class FrameFeed:
+    """One peer's track of a shared stream, whatever the stack sends it with.
+
+    What both stacks' tracks share: the stream they are bound to, the key frame
+    they wait for after a drop, and the feedback they pass on to the shared
+    encoder (a PLI or FIR: a key frame; a REMB: the stream's rate is its peers'
+    lowest estimate).
 
     Args:
         params: the stream asked for (its ``type`` is set by the negotiated codec).
         type_name: the topic's type.
 
     Attributes:
-        sent: frames handed to the peer's sender.
+        sent: frames handed to the peer's stack.
         dropped: frames dropped because the peer had not taken the one before.
         remb: the peer's last receiver estimate, bit/s (None before one).
     """
 
-    kind = "video"
-
     def __init__(self, params: StreamParams, type_name: str) -> None:
-        super().__init__()
         self.params = params
         self.type_name = type_name
         self.stream: SharedStream | None = None
         self.sent = 0
         self.dropped = 0
         self.remb: int | None = None
-        self._pending: VideoPacket | None = None
         self._waiting_for_keyframe = True
-        self._ready = anyio.Event()
 
-    def bind(self, stream: SharedStream) -> VideoTrack:
+    def bind(self, stream: SharedStream) -> Self:
         """Take frames from ``stream`` (``StreamHub.watching``'s ``make_viewer``)."""
         self.stream = stream
         return self
+
+    def offer(self, items: list[Part] | list[VideoPacket]) -> None:
+        """The stream's newest frames: each goes to ``deliver`` from a key frame on."""
+        for packet in items:
+            if isinstance(packet, VideoPacket):
+                self._take(packet)
+
+    def _take(self, packet: VideoPacket) -> None:
+        if self._waiting_for_keyframe and not packet.keyframe:
+            return
+        self._waiting_for_keyframe = False
+        self.deliver(packet)
+
+    def deliver(self, packet: VideoPacket) -> None:
+        """Hand one frame to the peer's stack; must not block (a stack's own)."""
+        raise NotImplementedError
+
+    def resync(self) -> None:
+        """A frame was dropped: wait for a key frame, and ask for one."""
+        self.dropped += 1
+        self._waiting_for_keyframe = True
+        self.request_keyframe()
+
+    def stop(self) -> None:
+        """End the track: nothing more is sent to its peer."""
+
+    def request_keyframe(self) -> None:
+        """Ask the shared encoder for a key frame (a PLI or FIR, or this peer resuming)."""
+        if self.stream is not None:
+            self.stream.request_keyframe()
+
+    def on_remb(self, bitrate: int) -> None:
+        """The peer's estimate (REMB): the stream's rate is its peers' lowest."""
+        self.remb = bitrate
+        stream = self.stream
+        if stream is None or not isinstance(stream.encoder, RtpFrameEncoder):
+            return
+        estimates = [v.remb for v in stream.viewers if isinstance(v, FrameFeed) and v.remb]
+        stream.encoder.set_bitrate(min(estimates, default=bitrate))
+
+
+class VideoTrack(MediaStreamTrack, FrameFeed):
+    """One peer's aiortc video track of a shared stream: yields its encoded frames as packets.
+
+    Args:
+        params: the stream asked for (its ``type`` is set by the negotiated codec).
+        type_name: the topic's type.
+    """
+
+    kind = "video"
+
+    def __init__(self, params: StreamParams, type_name: str) -> None:
+        MediaStreamTrack.__init__(self)
+        FrameFeed.__init__(self, params, type_name)
+        self._pending: VideoPacket | None = None
+        self._ready = anyio.Event()
 
     def offer(self, items: list[Part] | list[VideoPacket]) -> None:
         """Keep the newest frame; one the peer did not take yet is dropped (never queued)."""
@@ -138,14 +195,13 @@ class VideoTrack(MediaStreamTrack):
                 continue
             if self._pending is not None:  # the peer is behind: drop, resume at a key frame
                 self._pending = None
-                self.dropped += 1
-                self._waiting_for_keyframe = True
-                self.request_keyframe()
-            if self._waiting_for_keyframe and not packet.keyframe:
-                continue
-            self._waiting_for_keyframe = False
-            self._pending = packet
-            self._ready.set()
+                self.resync()
+            self._take(packet)
+
+    def deliver(self, packet: VideoPacket) -> None:
+        """Hold ``packet`` until the sender takes it (``recv``)."""
+        self._pending = packet
+        self._ready.set()
 
     async def recv(self) -> av.Packet[Any]:
         """The next frame as an ``av.Packet`` (pts in ms), for the sender to packetize.
@@ -169,20 +225,6 @@ class VideoTrack(MediaStreamTrack):
         """End the track (its sender's loop then ends)."""
         super().stop()
         self._ready.set()
-
-    def request_keyframe(self) -> None:
-        """Ask the shared encoder for a key frame (a PLI or FIR, or this peer resuming)."""
-        if self.stream is not None:
-            self.stream.request_keyframe()
-
-    def on_remb(self, bitrate: int) -> None:
-        """The peer's estimate (REMB): the stream's rate is its peers' lowest."""
-        self.remb = bitrate
-        stream = self.stream
-        if stream is None or not isinstance(stream.encoder, RtpFrameEncoder):
-            return
-        estimates = [v.remb for v in stream.viewers if isinstance(v, VideoTrack) and v.remb]
-        stream.encoder.set_bitrate(min(estimates, default=bitrate))
 
 
 def _hook_rtcp(sender: RTCRtpSender, track: VideoTrack) -> None:
@@ -211,7 +253,7 @@ class VideoBinding:
         tracks: one per ``video`` parameter, in order.
     """
 
-    def __init__(self, hub: StreamHub, tracks: Sequence[VideoTrack]) -> None:
+    def __init__(self, hub: StreamHub, tracks: Sequence[FrameFeed]) -> None:
         self.hub = hub
         self.tracks = list(tracks)
         self._stack = contextlib.ExitStack()
@@ -237,6 +279,7 @@ class VideoBinding:
             transceiver.direction = "inactive"  # audio, and video beyond the topics
         for mid, track in zip(receiving, self.tracks, strict=False):
             transceiver = by_mid[mid]
+            assert isinstance(track, VideoTrack)  # aiortc answers with aiortc's tracks
             transceiver.sender.replaceTrack(track)
             transceiver.direction = "sendonly"
             _hook_rtcp(transceiver.sender, track)
@@ -267,6 +310,19 @@ class VideoBinding:
             if track.type_name == _COMPRESSED and codec is not StreamType.H264:
                 return Answer(400, f"{track.params.topic} is compressed: only H.264 passes through")
             track.params = replace(track.params, type=codec)
+        return self._bounded()
+
+    def adopt(self, tracks: Sequence[FrameFeed]) -> Answer | None:
+        """The native stack's tracks in place of these (webrtc_native_video.py), checked.
+
+        Returns:
+            None, or 503 when the streams they would add pass ``max_streams``.
+        """
+        self.tracks = list(tracks)
+        return self._bounded()
+
+    def _bounded(self) -> Answer | None:
+        """503 when the streams this offer would add pass ``max_streams`` with those running."""
         new = {t.params for t in self.tracks} - set(self.hub.streams)
         if new and len(self.hub.streams) + len(new) > self.hub.max_streams:
             return Answer(503, f"{self.hub.max_streams} distinct streams run already")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import signal
+import sys
 
 import anyio
 import anyio.abc
@@ -35,7 +36,8 @@ async def camera(graph: Graph) -> None:
 async def main() -> None:
     logging.basicConfig(level=logging.INFO)  # the connection log, to stderr
     graph = Graph()
-    config = ServerConfig(host="127.0.0.1", port=0, webrtc=WebRtcOptions())
+    stack = sys.argv[1] if len(sys.argv) > 1 else "auto"  # --webrtc-stack's choices
+    config = ServerConfig(host="127.0.0.1", port=0, webrtc=WebRtcOptions(stack=stack))
     server = RosbridgeServer(graph, config)
     async with anyio.create_task_group() as tg:
         tg.start_soon(camera, graph)

@@ -99,7 +99,9 @@ window.sample = () => {  // the size, the time, and the colours left and right
   context.drawImage(video, 0, 0);
   const at = (x) => Array.from(context.getImageData(x, canvas.height / 2, 1, 1).data.slice(0, 3));
   return { width: video.videoWidth, height: video.videoHeight, time: video.currentTime,
-           left: at(canvas.width / 8), right: at(canvas.width * 7 / 8) };
+           left: at(canvas.width / 8), right: at(canvas.width * 7 / 8),
+           // 20 px on: the camera's 8 px white bar covers at most one of each pair
+           left2: at(canvas.width / 8 + 20), right2: at(canvas.width * 7 / 8 - 20) };
 };
 """
 
@@ -124,6 +126,7 @@ const server = new URL(location.href).searchParams.get("server");
   if (reply.status !== 201) { window.failure = await reply.text(); return; }
   const answer = await reply.text();
   window.codec = (answer.match(/a=rtpmap:\\d+ (\\w+)\\/90000/) || [])[1];
+  window.answerer = (answer.match(/\\no=(\\S+)/) || [])[1];  // "rtc": libdatachannel
   await pc.setRemoteDescription({ type: "answer", sdp: answer });
 })().catch((e) => { window.failure = String(e); });
 """
@@ -153,10 +156,18 @@ def _near(pixel: list[int], rgb: tuple[int, int, int]) -> bool:
     return max(abs(a - b) for a, b in zip(pixel, rgb, strict=True)) < 40
 
 
-def _watch(browser: Browser, site: str, tmp_path: Path, path: str) -> tuple[Any, Any, str]:
-    """Open ``path`` against a camera server: the first sample playing, a later one, the log."""
+def _coloured(sample: dict[str, Any]) -> bool:
+    """Red on the left, blue on the right (one of each pair of points: the white bar moves)."""
+    left = _near(sample["left"], RED) or _near(sample["left2"], RED)
+    return left and (_near(sample["right"], BLUE) or _near(sample["right2"], BLUE))
+
+
+def _watch(
+    browser: Browser, site: str, tmp_path: Path, path: str, stack: str = "aiortc"
+) -> tuple[Any, Any, str]:
+    """Open ``path`` against a camera server on ``stack``: two samples playing, the log."""
     script = Path(__file__).with_name("camera_robot.py")
-    server = ServerProcess(tmp_path, cmd=[sys.executable, str(script)])
+    server = ServerProcess(tmp_path, cmd=[sys.executable, str(script), stack])
     try:
         http_url = server.url.replace("ws://", "http://")
         page = browser.new_page()
@@ -173,6 +184,7 @@ def _watch(browser: Browser, site: str, tmp_path: Path, path: str) -> tuple[Any,
                 f"window.sample().time > {first['time']} && window.sample()", 20, "playing on"
             )
             later["codec"] = page.evaluate("window.codec || null")
+            later["answerer"] = page.evaluate("window.answerer || null")
         finally:
             page.close()
     finally:
@@ -186,13 +198,17 @@ def test_a_whep_player_in_chromium_plays_the_camera(
     first, later, log = _watch(browser, site, tmp_path, "/")
     assert (first["width"], first["height"]) == (320, 240)
     assert later["time"] > first["time"]  # it plays: the element's time advances
-    assert _near(later["left"], RED) and _near(later["right"], BLUE), later
+    assert _coloured(later), later
     assert "protocol=video" in log  # a video-only WebRTC peer
 
 
-def test_chromium_preferring_h264_gets_h264(browser: Browser, site: str, tmp_path: Path) -> None:
-    first, later, _ = _watch(browser, site, tmp_path, "/h264")
+def test_chromium_preferring_h264_gets_h264(
+    browser: Browser, site: str, tmp_path: Path, stack: str
+) -> None:
+    """On the native stack libdatachannel sends the H.264 track (D51)."""
+    first, later, _ = _watch(browser, site, tmp_path, "/h264", stack)
     assert later["codec"] == "H264"  # the offer's preference decided
+    assert (later["answerer"] == "rtc") == (stack == "native"), later
     assert (first["width"], first["height"]) == (320, 240)
     assert later["time"] > first["time"]
-    assert _near(later["left"], RED) and _near(later["right"], BLUE), later
+    assert _coloured(later), later

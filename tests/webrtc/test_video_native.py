@@ -1,0 +1,316 @@
+"""Video tracks on the native stack: H.264 sent by libdatachannel (docs/webrtc.md, D51).
+
+Each test runs with ``--webrtc-stack native`` and skips where libdatachannel-py does
+not import (Python 3.11); ``.ci/run`` runs them on Python 3.12 (``-k native``). The
+player is aiortc's, as in test_video.py; Chromium plays one in test_whep_player.py.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import AsyncIterator
+from contextlib import AsyncExitStack, asynccontextmanager
+
+import anyio
+import numpy as np
+import pytest
+
+from tests.webrtc.conftest import CONNECT_TIMEOUT_S, NEEDS_AIORTC
+
+pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
+
+from aiortc import MediaStreamTrack, RTCConfiguration, RTCPeerConnection, RTCSessionDescription
+from aiortc.rtp import RTCP_PSFB_APP, RtcpPsfbPacket, pack_remb_fci
+
+from rwt_transports.server import ServerConfig
+from rwt_transports.webrtc_native import native_missing
+from rwt_transports.webrtc_native_video import NativeVideoTrack, native_video_plan
+from rwt_transports.webrtc_signal import MAX_VIDEO_TRACKS, WebRtcOptions
+from rwt_transports.webrtc_video import MAX_VIDEO_STREAMS
+from rwt_video.rtp import H264PassThrough, RtpEncoder
+from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, serving
+from tests.webrtc.test_video import CAMERA, RED, camera, h264_frames, hub_of, streams_running
+from tests.webrtc.whep import player, post_offer, recvonly_offer
+
+pytestmark = pytest.mark.anyio
+
+H264 = "video/H264"
+
+
+@pytest.fixture
+async def native() -> AsyncIterator[Served]:
+    """A server answering on the native stack where it can (``--webrtc-stack native``)."""
+    if (missing := native_missing()) is not None:
+        pytest.skip(missing)
+    options = WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack="native")
+    async with serving(ServerConfig(port=0, webrtc=options)) as running:
+        yield running
+
+
+def answered_natively(answer: str) -> bool:
+    """libdatachannel's answer (its origin line), not aiortc's."""
+    return answer.startswith("v=0") and "\no=rtc " in answer.replace("\r\n", "\n")
+
+
+def native_viewers(served: Served) -> list[NativeVideoTrack]:
+    return [
+        viewer
+        for stream in hub_of(served).streams.values()
+        for viewer in stream.viewers
+        if isinstance(viewer, NativeVideoTrack)
+    ]
+
+
+async def test_native_h264_player_plays_the_camera_from_libdatachannel(native: Served) -> None:
+    async with camera(native), player(native.base, f"video={CAMERA}", codec=H264) as played:
+        frame = await played.frame(after=2)
+        assert (frame.width, frame.height) == (160, 120)
+        mean = frame.to_ndarray(format="rgb24").reshape(-1, 3).mean(axis=0)
+        assert np.abs(mean - RED).max() < 25
+        answer = played.answer
+        assert answered_natively(answer), answer
+        assert "a=sendonly" in answer and "a=msid:" in answer and "H264/90000" in answer
+        # one payload type, sent with an SSRC and a stream id of its own
+        (line,) = re.findall(r"m=video \d+ UDP/TLS/RTP/SAVPF ([\d ]+)", answer)
+        assert len(line.split()) == 1
+        assert re.search(r"a=ssrc:\d+ msid:\w+ video0", answer)
+        assert native.server.slots_taken == 1 and not native.server.sessions
+        (params,) = hub_of(native).streams
+        assert params.type.value == "h264"
+        (viewer,) = native_viewers(native)
+        assert viewer.sent >= 2
+
+
+async def test_native_vp8_player_is_answered_by_aiortc(native: Served) -> None:
+    async with camera(native), player(native.base, f"video={CAMERA}") as played:
+        await played.frame(after=1)
+        assert not answered_natively(played.answer)
+        assert "VP8/90000" in played.answer
+        assert not native_viewers(native)
+
+
+async def test_native_and_aiortc_viewers_share_one_encoder(native: Served) -> None:
+    """An H.264 viewer on each stack: one encoder, both playing; it stops with the last."""
+    async with camera(native), player(native.base, f"video={CAMERA}", codec=H264) as one:
+        async with aiortc_h264_player(native.base, f"video={CAMERA}") as two:
+            await one.frame(after=3)
+            await two.wait()
+            hub = hub_of(native)
+            assert hub.started == 1 and len(hub.streams) == 1
+            (stream,) = hub.streams.values()
+            assert len(stream.viewers) == 2 and len(native_viewers(native)) == 1
+        with anyio.fail_after(RECEIVE_S):
+            while len(hub.streams[stream.params].viewers) != 1:
+                await anyio.sleep(0.05)
+    with anyio.fail_after(RECEIVE_S):
+        while hub.streams or native.server.slots_taken:
+            await anyio.sleep(0.05)
+
+
+class _Played:
+    def __init__(self) -> None:
+        self.frames = 0
+        self.arrived = anyio.Event()
+
+    async def wait(self, count: int = 2) -> None:
+        with anyio.fail_after(RECEIVE_S):
+            while self.frames < count:
+                await self.arrived.wait()
+                self.arrived = anyio.Event()
+
+
+def aiortc_h264_player(base: str, query: str):  # type: ignore[no-untyped-def]
+    """An H.264 player whose offer has an audio section too, so aiortc answers it."""
+
+    @asynccontextmanager
+    async def run() -> AsyncIterator[_Played]:
+        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+        recvonly_offer(pc, 1, H264)
+        pc.addTransceiver("audio", direction="recvonly")
+        played = _Played()
+
+        async def play(track: MediaStreamTrack) -> None:
+            while True:
+                await track.recv()
+                played.frames += 1
+                played.arrived.set()
+
+        async with anyio.create_task_group() as tg:
+            try:
+                pc.on("track", lambda track: track.kind == "video" and tg.start_soon(play, track))
+                reply = await post_offer(base, query, await offer_sdp(pc))
+                assert reply.status_code == 201, reply.text
+                assert not answered_natively(reply.text)
+                await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+                yield played
+            finally:
+                tg.cancel_scope.cancel()
+                with anyio.CancelScope(shield=True):
+                    await pc.close()
+
+    return run()
+
+
+async def test_native_picture_loss_gets_a_key_frame(native: Served) -> None:
+    query = f"video={CAMERA}&gop=1000"
+    async with camera(native), player(native.base, query, codec=H264) as played:
+        await played.frame(after=3)
+        (stream,) = hub_of(native).streams.values()
+        assert isinstance(stream.encoder, RtpEncoder)
+        before = stream.encoder.keyframes
+        (transceiver,) = played.pc.getTransceivers()
+        (source,) = transceiver.receiver.getSynchronizationSources()
+        await transceiver.receiver._send_rtcp_pli(source.source)
+        with anyio.fail_after(RECEIVE_S):
+            while stream.encoder.keyframes == before:
+                await anyio.sleep(0.05)
+        assert stream.encoder.keyframes > before  # gop=1000: none would come for a minute
+
+
+async def test_native_receiver_estimate_sets_the_bit_rate(native: Served) -> None:
+    query = f"video={CAMERA}&bitrate=2000000"
+    async with camera(native), player(native.base, query, codec=H264) as played:
+        await played.frame(after=1)
+        (stream,) = hub_of(native).streams.values()
+        assert isinstance(stream.encoder, RtpEncoder)
+        (transceiver,) = played.pc.getTransceivers()
+        (source,) = transceiver.receiver.getSynchronizationSources()
+        remb = RtcpPsfbPacket(
+            fmt=RTCP_PSFB_APP, ssrc=1, media_ssrc=0, fci=pack_remb_fci(300_000, [source.source])
+        )
+        await transceiver.receiver._send_rtcp(remb)
+        with anyio.fail_after(RECEIVE_S):
+            while stream.encoder.target_bitrate != 300_000:
+                await anyio.sleep(0.05)
+        (viewer,) = native_viewers(native)
+        assert viewer.remb == 300_000
+
+
+async def test_native_two_topics_and_a_data_channel_in_one_offer(native: Served) -> None:
+    arm = native.graph.create_publisher("/arm/image", "sensor_msgs/msg/Image", node="/arm")
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    channel = pc.createDataChannel("rosbridge")
+    recvonly_offer(pc, 2, H264)
+    opened = anyio.Event()
+    channel.on("open", opened.set)
+    counts = [0, 0]
+    sizes: list[tuple[int, int]] = [(0, 0), (0, 0)]
+
+    async def play(index: int, track: MediaStreamTrack) -> None:
+        while True:
+            frame = await track.recv()
+            sizes[index] = (frame.width, frame.height)  # type: ignore[union-attr]
+            counts[index] += 1
+
+    try:
+        async with camera(native), anyio.create_task_group() as tg:
+            tracks: list[MediaStreamTrack] = []
+            pc.on("track", tracks.append)
+            reply = await post_offer(
+                native.base, f"video={CAMERA}&video=/arm/image", await offer_sdp(pc)
+            )
+            assert reply.status_code == 201, reply.text
+            assert answered_natively(reply.text)
+            await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+            for index, track in enumerate(tracks):
+                tg.start_soon(play, index, track)
+            with anyio.fail_after(RECEIVE_S):
+                await opened.wait()
+                while counts[1] < 2 or counts[0] < 2:
+                    arm.publish(_blue())
+                    await anyio.sleep(1 / 15)
+            assert sizes == [(160, 120), (64, 48)]
+            assert len(native.server.sessions) == 1  # the data channel's session beside
+            tg.cancel_scope.cancel()
+    finally:
+        await pc.close()
+
+
+def _blue() -> dict[str, object]:
+    from tests.webrtc.whep import image  # noqa: PLC0415
+
+    return image(64, 48, (20, 20, 220))
+
+
+async def test_native_h264_from_a_compressed_topic_passes_through(native: Served) -> None:
+    frames = h264_frames(30, (96, 64), (40, 200, 40))
+    topic = "/camera/h264"
+    publisher = native.graph.create_publisher(topic, "sensor_msgs/msg/CompressedImage")
+    async with player(native.base, f"video={topic}", codec=H264) as played:
+        assert answered_natively(played.answer)
+        await streams_running(native, 1)
+        (stream,) = hub_of(native).streams.values()
+        assert isinstance(stream.encoder, H264PassThrough)
+        for stamp, unit in enumerate(frames * 4):
+            header = {"stamp": {"sec": stamp, "nanosec": 0}, "frame_id": "camera"}
+            publisher.publish({"header": header, "format": "h264", "data": unit})
+            await anyio.sleep(1 / 15)
+            if played.counts[0] > 2:
+                break
+        frame = await played.frame(after=2)
+        assert (frame.width, frame.height) == (96, 64)
+        assert frame.to_ndarray(format="rgb24").reshape(-1, 3).mean(axis=0)[1] > 150
+
+
+async def test_native_video_plan_takes_only_what_it_can_send() -> None:
+    """H.264 first in every receiving video section, one a topic, no audio: native."""
+
+    async def offer(*codecs: str, audio: bool = False, data: bool = False) -> str:
+        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+        try:
+            for codec in codecs:
+                recvonly_offer(pc, 1, codec)
+            if audio:
+                pc.addTransceiver("audio", direction="recvonly")
+            if data:
+                pc.createDataChannel("rosbridge")
+            return await offer_sdp(pc)
+        finally:
+            await pc.close()
+
+    h264 = await offer(H264)
+    (section,) = native_video_plan(h264, 1) or []
+    assert section.mid == "0" and section.mid_extension is not None
+    assert native_video_plan(h264, 2) is None  # a topic without its section
+    assert native_video_plan(await offer("video/VP8"), 1) is None
+    assert native_video_plan(await offer(H264, audio=True), 1) is None
+    assert native_video_plan(await offer(H264, "video/VP8"), 2) is None
+    two = native_video_plan(await offer(H264, H264, data=True), 2)
+    assert two is not None and [s.mid for s in two] == ["0", "1"]
+    assert native_video_plan("v=0\r\nnot sdp", 1) is None
+    same_mid = (await offer(H264, H264)).replace("a=mid:1", "a=mid:0")
+    assert native_video_plan(same_mid, 2) is None  # aiortc answers (and refuses) it
+
+
+async def h264_offer(tracks: int = 1) -> str:
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    try:
+        recvonly_offer(pc, tracks, H264)
+        return await offer_sdp(pc)
+    finally:
+        await pc.close()
+
+
+async def test_native_video_refusals_are_the_same(native: Served) -> None:
+    """404, 400 and 503 as on aiortc, for offers the native stack would answer."""
+    topics = [f"/camera{n}/image" for n in range(MAX_VIDEO_STREAMS + 1)]
+    for topic in topics:  # no frame comes: nothing is encoded, the streams only exist
+        native.graph.create_publisher(topic, "sensor_msgs/msg/Image")
+    missing = await post_offer(native.base, "video=/nowhere", await h264_offer())
+    assert missing.status_code == 404, missing.text
+    bad = await post_offer(native.base, f"video={topics[0]}&bitrate=lots", await h264_offer())
+    assert bad.status_code == 400, bad.text
+    per_offer = [topics[n : n + MAX_VIDEO_TRACKS] for n in range(0, len(topics), MAX_VIDEO_TRACKS)]
+    async with AsyncExitStack() as players:
+        for group in per_offer[:-1]:  # connected players hold the streams
+            query = "&".join(f"video={topic}" for topic in group)
+            played = await players.enter_async_context(
+                player(native.base, query, tracks=len(group), codec=H264)
+            )
+            assert answered_natively(played.answer)
+        await streams_running(native, MAX_VIDEO_STREAMS)
+        refused = await post_offer(native.base, f"video={per_offer[-1][0]}", await h264_offer())
+        assert refused.status_code == 503
+        assert f"{MAX_VIDEO_STREAMS} distinct streams run already" in refused.text
+        assert len(hub_of(native).streams) == MAX_VIDEO_STREAMS
+        assert native.server.slots_taken == len(per_offer) - 1  # the refused one holds none
