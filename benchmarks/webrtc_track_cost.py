@@ -28,7 +28,11 @@ cheaper for the robot (issue's "video where it is cheapest").
 
 Run (Python 3.12+ with the ``webrtc`` extra, both stacks):
 ``python -m benchmarks.webrtc_track_cost [--viewers 1,4,8] [--seconds 8] [--through rwt]``.
-Results: ``results/webrtc_track_cost.json`` (``webrtc_track_cost_rwt.json`` through rwt).
+``--codec VP8``: the stream and the viewers are VP8 (libvpx); on the native stack the
+packets are made as rwt makes them there (``webrtc_native_video.Vp8Rtp``: aiortc's VP8
+payloader, libdatachannel's SRTP, reports and NACK responder).
+Results: ``results/webrtc_track_cost.json`` (``webrtc_track_cost_rwt.json`` through rwt;
+``_vp8`` before ``.json`` with VP8).
 """
 
 from __future__ import annotations
@@ -52,15 +56,19 @@ WARMUP_S = 2.0
 STACKS = ("native", "aiortc")
 
 
-def encode(count: int = FPS * 4) -> list[bytes]:
-    """``count`` H.264 access units (Annex B) of a moving synthetic picture."""
+def encode(count: int = FPS * 4, name: str = "H264") -> list[bytes]:
+    """``count`` H.264 access units (Annex B) or VP8 frames of a moving synthetic picture."""
     import av  # noqa: PLC0415 (the webrtc extra)
 
-    codec = av.CodecContext.create("libx264", "w")
+    codec = av.CodecContext.create("libx264" if name == "H264" else "libvpx", "w")
     codec.width, codec.height, codec.pix_fmt = 640, 480, "yuv420p"
     codec.framerate = fractions.Fraction(FPS, 1)
     codec.bit_rate = 1_000_000
-    codec.options = {"tune": "zerolatency", "profile": "baseline", "g": str(FPS)}
+    codec.options = (
+        {"tune": "zerolatency", "profile": "baseline", "g": str(FPS)}
+        if name == "H264"
+        else {"deadline": "realtime", "cpu-used": "8", "lag-in-frames": "0", "g": str(FPS)}
+    )
     units = []
     for index in range(count):
         frame = av.VideoFrame(640, 480, "yuv420p")
@@ -77,10 +85,13 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _viewers(pipe: Any, count: int, seconds: float, server: str | None = None) -> None:
+def _viewers(
+    pipe: Any, count: int, seconds: float, server: str | None = None, codec: str = "H264"
+) -> None:
     """``count`` aiortc viewers: offers out, answers in, then frames decoded a second each.
 
     ``server``: rwt's HTTP base URL, where each offer is posted; None: over ``pipe``.
+    ``codec``: the one the viewers offer (``H264``, or ``VP8`` through rwt).
     """
 
     async def main() -> None:
@@ -89,7 +100,7 @@ def _viewers(pipe: Any, count: int, seconds: float, server: str | None = None) -
 
         counts = [0] * count
         peers = []
-        h264 = [c for c in RTCRtpSender.getCapabilities("video").codecs if "H264" in c.mimeType]
+        h264 = [c for c in RTCRtpSender.getCapabilities("video").codecs if codec in c.mimeType]
         for index in range(count):
             peer = RTCPeerConnection()
             peer.addTransceiver("video", direction="recvonly").setCodecPreferences(h264)
@@ -161,8 +172,11 @@ async def _answer_aiortc(offers: list[str], units: list[bytes]) -> tuple[list[An
     return peers, answers
 
 
-def _answer_native(offers: list[str]) -> tuple[list[Any], list[Any], list[str]]:
+def _answer_native(offers: list[str], name: str) -> tuple[list[Any], list[Any], list[str]]:
+    """libdatachannel's answers; each track with its VP8 packetizer (None for H.264)."""
     import libdatachannel as ldc  # noqa: PLC0415 (Python 3.12+)
+
+    from rwt_transports.webrtc_native_video import Vp8Rtp  # noqa: PLC0415
 
     peers, tracks, answers = [], [], []
     for index, sdp in enumerate(offers):
@@ -175,15 +189,20 @@ def _answer_native(offers: list[str]) -> tuple[list[Any], list[Any], list[str]]:
         answers.append(str(peer.local_description()))
         track = offered[0]
         media = track.description()
-        kind = next(p for p in media.payload_types() if media.rtp_map(p).format == "H264")
+        kind = next(p for p in media.payload_types() if media.rtp_map(p).format == name)
         config = ldc.RtpPacketizationConfig(1000 + index, f"robot{index}", kind, 90000)
-        track.set_media_handler(
-            ldc.H264RtpPacketizer(ldc.NalUnit.Separator.LongStartSequence, config)
-        )
-        track.chain_media_handler(ldc.RtcpSrReporter(config))
+        rtp = None
+        if name == "H264":
+            track.set_media_handler(
+                ldc.H264RtpPacketizer(ldc.NalUnit.Separator.LongStartSequence, config)
+            )
+            track.chain_media_handler(ldc.RtcpSrReporter(config))
+        else:  # rwt's VP8 path on this stack: aiortc's payloader, libdatachannel's chain
+            rtp = Vp8Rtp(1000 + index, kind, track.mid(), None)
+            track.set_media_handler(ldc.RtcpSrReporter(config))
         track.chain_media_handler(ldc.RtcpNackResponder())
         peers.append(peer)
-        tracks.append(track)
+        tracks.append((track, rtp))
     return peers, tracks, answers
 
 
@@ -217,7 +236,7 @@ def _frames(count: int = FPS) -> list[Any]:
     return frames
 
 
-def _rwt(stack: str, pipe: Any, out: Any) -> None:
+def _rwt(stack: str, pipe: Any, out: Any, name: str = "H264") -> None:
     """rwt's server on ``stack`` with a 30 Hz camera: its URL out, then its CPU share."""
     import anyio  # noqa: PLC0415
 
@@ -253,9 +272,9 @@ def _rwt(stack: str, pipe: Any, out: Any) -> None:
     anyio.run(main)
 
 
-def _robot(stack: str, pipe: Any, out: Any) -> None:
+def _robot(stack: str, pipe: Any, out: Any, name: str = "H264") -> None:
     """Answer the viewers' offers on ``stack``, send to them, report CPU share and their fps."""
-    units = encode()
+    units = encode(name=name)
     offers = pipe.recv()
     if stack == "aiortc":
 
@@ -273,7 +292,9 @@ def _robot(stack: str, pipe: Any, out: Any) -> None:
         return
     import libdatachannel as ldc  # noqa: PLC0415
 
-    peers, tracks, answers = _answer_native(offers)
+    from rwt_video.encoders import VideoPacket  # noqa: PLC0415
+
+    peers, tracks, answers = _answer_native(offers, name)
     pipe.send(answers)
     stop = threading.Event()
 
@@ -281,9 +302,16 @@ def _robot(stack: str, pipe: Any, out: Any) -> None:
         index, start = 0, time.monotonic()
         while not stop.is_set():
             info = ldc.FrameInfo(index * 90000 // FPS)
-            for track in tracks:
-                if track.is_open():
-                    track.send_frame(units[index % len(units)], info)
+            unit = units[index % len(units)]
+            frame = VideoPacket(unit, index * 1000 // FPS, keyframe=index % FPS == 0)
+            for track, rtp in tracks:
+                if not track.is_open():
+                    continue
+                if rtp is None:
+                    track.send_frame(unit, info)
+                else:
+                    for packet in rtp.packets(frame):
+                        track.send(packet)
             index += 1
             time.sleep(max(0.0, start + index / FPS - time.monotonic()))
 
@@ -299,7 +327,9 @@ def _robot(stack: str, pipe: Any, out: Any) -> None:
         peer.close()
 
 
-def measure(stack: str, viewers: int, seconds: float, through: str = "bare") -> dict[str, Any]:
+def measure(
+    stack: str, viewers: int, seconds: float, through: str = "bare", codec: str = "H264"
+) -> dict[str, Any]:
     """One case: the robot's CPU (share of a core) and each viewer's frames a second.
 
     ``through``: ``bare`` (a robot process sending pre-encoded frames) or ``rwt``
@@ -309,7 +339,7 @@ def measure(stack: str, viewers: int, seconds: float, through: str = "bare") -> 
     to_viewers, to_robot = context.Pipe()
     mine, theirs = context.Pipe()
     robot = context.Process(
-        target=_rwt if through == "rwt" else _robot, args=(stack, to_robot, theirs)
+        target=_rwt if through == "rwt" else _robot, args=(stack, to_robot, theirs, codec)
     )
     robot.start()
     server = None
@@ -318,7 +348,7 @@ def measure(stack: str, viewers: int, seconds: float, through: str = "bare") -> 
             robot.kill()
             raise RuntimeError(f"rwt on {stack}: no URL")
         server = to_viewers.recv()
-    viewer = context.Process(target=_viewers, args=(to_viewers, viewers, seconds, server))
+    viewer = context.Process(target=_viewers, args=(to_viewers, viewers, seconds, server, codec))
     viewer.start()
     procs = [viewer, robot]
     try:
@@ -330,7 +360,7 @@ def measure(stack: str, viewers: int, seconds: float, through: str = "bare") -> 
             proc.join(30)
             if proc.is_alive():
                 proc.kill()
-    return {"stack": stack, "viewers": viewers, "cpu_share": share, "fps": fps}
+    return {"stack": stack, "viewers": viewers, "cpu_share": share, "fps": fps, "codec": codec}
 
 
 def table(rows: list[dict[str, Any]]) -> str:
@@ -368,6 +398,9 @@ def main(argv: list[str] | None = None) -> int:
         default="bare",
         help="bare: the stacks alone; rwt: rwt's server with a camera, offers over HTTP",
     )
+    parser.add_argument(
+        "--codec", choices=("H264", "VP8"), default="H264", help="the viewers' codec"
+    )
     parser.add_argument("--smoke", action="store_true", help="1 s a case, nothing saved")
     args = parser.parse_args(argv)
     seconds = 1.0 if args.smoke else args.seconds
@@ -375,11 +408,13 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for round_index, viewers in enumerate(int(n) for n in args.viewers.split(",")):
         for stack in stacks if round_index % 2 == 0 else reversed(stacks):
-            rows.append(measure(stack, viewers, seconds, args.through))
+            rows.append(measure(stack, viewers, seconds, args.through, args.codec))
     rows.sort(key=lambda row: (row["viewers"], row["stack"]))
     print(table(rows))
     if not args.smoke:
         default = RESULTS_RWT if args.through == "rwt" else RESULTS
+        if args.codec == "VP8":
+            default = default.with_name(default.stem + "_vp8.json")
         (args.out or default).write_text(json.dumps(rows, indent=2) + "\n", "utf-8")
     return 0
 

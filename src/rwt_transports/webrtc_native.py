@@ -1,7 +1,7 @@
 """The native WebRTC stack under the data channels: libdatachannel (docs/webrtc.md, D51).
 
 ``rwt serve --webrtc-stack native`` (or ``auto`` where it imports) answers an
-offer that asks only for data channels (or for video it sends as H.264,
+offer that asks only for data channels (or for video tracks,
 webrtc_native_video.py) with libdatachannel (usrsctp's SCTP,
 libjuice's ICE, in C++) through Shiguredo's ``libdatachannel-py`` binding, in
 place of aiortc's SCTP and DTLS in Python. Everything above the peer
@@ -89,8 +89,8 @@ logger = logging.getLogger("rwt.webrtc")
 
 STACKS = ("auto", "native", "aiortc")
 """``--webrtc-stack``: ``auto`` (native where it imports), ``native`` (libdatachannel, for
-offers of data channels only or of H.264 video, webrtc_native_video.py; other video
-offers stay on aiortc) or ``aiortc``."""
+offers of data channels only or asking for video tracks, webrtc_native_video.py; other
+offers with audio or video sections stay on aiortc) or ``aiortc``."""
 
 DRAIN_POLL_S = 0.002
 """Seconds between two reads of a channel's ``bufferedAmount`` while a writer waits."""

@@ -2,7 +2,8 @@
 
 An offer is admitted as any connection is, with the server's public ticket
 (``GraphServer.admit``: ``--max-connections``, host shares), then answered by
-aiortc with every ICE candidate gathered (no trickle): host candidates, and
+aiortc, or libdatachannel (``--webrtc-stack``, ``_native_plan``, D51), with every
+ICE candidate gathered (no trickle): host candidates, and
 with ``--ice-server`` the server-reflexive and relayed ones its STUN and TURN
 servers give (aioice waits at most 5 s for them). The ticket holds the peer's slot;
 no session exists yet. A data channel's label chooses its protocol from the
@@ -35,13 +36,13 @@ A session ends when its data channel or peer connection closes or fails, on
 ``DELETE /webrtc/<id>``, on its idle timeout, or as any session does; its peer
 connection is closed with it, and the ticket's slot is given back.
 
-Video tracks (``?video=``, webrtc_video.py) are bound to the offer's video
-transceivers before the answer, join their shared streams when the peer connects
-(D37: a peer that never connects runs no encoder) and leave them when the peer
-connection ends. An offer with video and no data channel is a video-only peer:
-it holds its ticket (admitted and counted as any connection, by the same budget
-and host shares) and never a session, and lasts as long as its peer connection
-(until it fails or closes, ``DELETE``, shutdown).
+Video tracks (``?video=``, webrtc_video.py; webrtc_native_video.py on the native
+stack) are bound to the offer's video transceivers before the answer, join their
+shared streams when the peer connects (D37: a peer that never connects runs no
+encoder) and leave them when the peer connection ends. An offer with video and no
+data channel is a video-only peer: it holds its ticket (admitted and counted as
+any connection, by the same budget and host shares) and never a session, and lasts
+as long as its peer connection (until it fails or closes, ``DELETE``, shutdown).
 """
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ from .shares import HostShares, address_of
 from .webrtc import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
 from .webrtc_ice import parse_ice_servers
 from .webrtc_native import Inflow, NativeDataChannel, NativePeerConnection
-from .webrtc_native_video import VideoSection, native_video_plan, prepare_native_tracks
+from .webrtc_native_video import VideoPlan, native_video_plan, prepare_native_tracks
 from .webrtc_offer import OfferError, check_offer
 from .webrtc_sctp import (
     ANSWER_MAX_MESSAGE_SIZE,
@@ -281,19 +282,20 @@ class WebRtcPeers:
 
     def _native_plan(
         self, shape: OfferShape, sdp: str, video: VideoBinding | None
-    ) -> list[VideoSection] | None:
-        """Whether the native stack answers this offer, and its video sections (D51).
+    ) -> VideoPlan | None:
+        """Whether the native stack answers this offer, and how its media sections (D51).
 
         With ``--webrtc-stack native`` or ``auto`` (where libdatachannel-py
-        imports): an offer of data channels only (no sections), or one whose
-        video the server sends as H.264 (``native_video_plan``). Any other
-        offer stays on aiortc, whose answer makes sections inactive or binds
-        its VP8 and H.264 tracks. None: aiortc answers.
+        imports): an offer of data channels only (no media section), or one
+        asking for video tracks that libdatachannel can send
+        (``native_video_plan``). Any other offer stays on aiortc: an audio or
+        video section without ``?video=``, or an offer aiortc refuses. None:
+        aiortc answers.
         """
         if not self.options.native:
             return None
         if video is None:
-            return [] if set(shape.kinds) == {"application"} else None
+            return VideoPlan() if set(shape.kinds) == {"application"} else None
         return native_video_plan(sdp, len(video.tracks))
 
     def _take_slot(self, host: str) -> bool:
@@ -343,7 +345,7 @@ class WebRtcPeers:
         host: str,
         authenticated: bool,
         video: VideoBinding | None,
-        plan: list[VideoSection] | None,
+        plan: VideoPlan | None,
         *,
         data: bool,
     ) -> Answer:
@@ -360,7 +362,7 @@ class WebRtcPeers:
         pc = (
             RTCPeerConnection(self._configuration())
             if plan is None
-            else self._native_pc(dc, authenticated, tracks=bool(plan))
+            else self._native_pc(dc, authenticated, tracks=plan.tracks)
         )
         item = _Peer(secrets.token_urlsafe(16), pc, ticket, authenticated, remote_max, dc)
         item.video = video
@@ -372,7 +374,9 @@ class WebRtcPeers:
             with anyio.move_on_after(OFFER_TIMEOUT_S):
                 if isinstance(pc, NativePeerConnection):
                     item.data = data
-                    refusal, answer = await self._negotiate_native(pc, sdp, video, plan or [])
+                    refusal, answer = await self._negotiate_native(
+                        pc, sdp, video, plan or VideoPlan()
+                    )
                 else:
                     refusal, answer = await self._negotiate(item, pc, sdp)
         finally:  # refused, failed or cancelled (shutdown): the ticket and the sockets go
@@ -434,7 +438,7 @@ class WebRtcPeers:
         pc: NativePeerConnection,
         sdp: str,
         video: VideoBinding | None,
-        plan: list[VideoSection],
+        plan: VideoPlan,
     ) -> tuple[Answer | None, str]:
         """Answer with libdatachannel, its tracks sending ``plan``'s sections.
 
@@ -445,7 +449,7 @@ class WebRtcPeers:
             offered = pc.set_offer(sdp)
         except ValueError as exc:
             return Answer(400, f"the offer is not a usable SDP offer: {exc}"), ""
-        if video is not None and plan:
+        if video is not None and plan.tracks:
             loop = asyncio.get_running_loop()
             try:
                 refusal = prepare_native_tracks(video, offered, plan, loop)
@@ -701,10 +705,11 @@ class WebRtcPeers:
             return
         item.running = True
         logger.info(
-            "event=connect client=%s transport=webrtc protocol=video peer=%s webrtc=%s",
+            "event=connect client=%s transport=webrtc protocol=video peer=%s webrtc=%s stack=%s",
             item.client_id,
             item.ticket.peer,
             item.session_id,
+            "native" if isinstance(item.pc, NativePeerConnection) else "aiortc",
         )
         await anyio.sleep_forever()  # until failed, closed, DELETE or shutdown cancels it
 

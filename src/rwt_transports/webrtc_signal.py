@@ -120,14 +120,14 @@ class WebRtcOptions:
             ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
             and relayed candidates each answer carries (docs/webrtc.md, "Through
             NAT"); empty: host candidates only, and no traffic to any other host.
-        stack: which WebRTC stack answers an offer of data channels only, or of
-            video the server sends as H.264 (``--webrtc-stack``, D51): ``native``
+        stack: which WebRTC stack answers an offer of data channels only, or one
+            asking for video tracks (``--webrtc-stack``, D51): ``native``
             (libdatachannel, webrtc_native.py and webrtc_native_video.py),
             ``aiortc``, or ``auto``: native where libdatachannel-py imports and
             every ICE server is one it reaches (TURN over UDP:
             ``native_ice_refusal``), else aiortc. Any other offer with video or
-            audio m-sections is answered by aiortc whatever the choice
-            (docs/webrtc.md, "Which stack").
+            audio m-sections (or one aiortc would refuse) is answered by aiortc
+            whatever the choice (docs/webrtc.md, "Which stack").
 
     Raises:
         ValueError: an ICE server URL aiortc cannot use, or more than one STUN or

@@ -1,4 +1,4 @@
-"""Video tracks on the native stack: H.264 sent by libdatachannel (docs/webrtc.md, D51).
+"""Video tracks on the native stack: H.264 and VP8 sent by libdatachannel (docs/webrtc.md, D51).
 
 Each test runs with ``--webrtc-stack native`` and skips where libdatachannel-py does
 not import (Python 3.11); ``.ci/run`` runs them on Python 3.12 (``-k native``). The
@@ -8,10 +8,12 @@ player is aiortc's, as in test_video.py; Chromium plays one in test_whep_player.
 from __future__ import annotations
 
 import re
+import time
 from collections.abc import AsyncIterator
-from contextlib import AsyncExitStack, asynccontextmanager
+from contextlib import AsyncExitStack
 
 import anyio
+import httpx
 import numpy as np
 import pytest
 
@@ -27,7 +29,7 @@ from rwt_transports.webrtc_native import native_missing
 from rwt_transports.webrtc_native_video import NativeVideoTrack, native_video_plan
 from rwt_transports.webrtc_signal import MAX_VIDEO_TRACKS, WebRtcOptions
 from rwt_transports.webrtc_video import MAX_VIDEO_STREAMS
-from rwt_video.rtp import H264PassThrough, RtpEncoder
+from rwt_video.rtp import KEYFRAME_MIN_INTERVAL_S, H264PassThrough, RtpEncoder
 from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, serving
 from tests.webrtc.test_video import CAMERA, RED, camera, h264_frames, hub_of, streams_running
 from tests.webrtc.whep import player, post_offer, recvonly_offer
@@ -81,74 +83,80 @@ async def test_native_h264_player_plays_the_camera_from_libdatachannel(native: S
         assert viewer.sent >= 2
 
 
-async def test_native_vp8_player_is_answered_by_aiortc(native: Served) -> None:
+async def test_native_vp8_player_plays_the_camera_from_libdatachannel(native: Served) -> None:
+    """VP8 cut by aiortc's payloader, sent through libdatachannel's chain."""
     async with camera(native), player(native.base, f"video={CAMERA}") as played:
-        await played.frame(after=1)
-        assert not answered_natively(played.answer)
-        assert "VP8/90000" in played.answer
-        assert not native_viewers(native)
+        frame = await played.frame(after=3)
+        assert (frame.width, frame.height) == (160, 120)
+        mean = frame.to_ndarray(format="rgb24").reshape(-1, 3).mean(axis=0)
+        assert np.abs(mean - RED).max() < 25
+        assert answered_natively(played.answer), played.answer
+        assert "VP8/90000" in played.answer and "H264" not in played.answer
+        (params,) = hub_of(native).streams
+        assert params.type.value == "vp8"
+        (viewer,) = native_viewers(native)
+        assert viewer.rtp is not None and viewer.sent >= 3
 
 
-async def test_native_and_aiortc_viewers_share_one_encoder(native: Served) -> None:
-    """An H.264 viewer on each stack: one encoder, both playing; it stops with the last."""
-    async with camera(native), player(native.base, f"video={CAMERA}", codec=H264) as one:
-        async with aiortc_h264_player(native.base, f"video={CAMERA}") as two:
-            await one.frame(after=3)
-            await two.wait()
-            hub = hub_of(native)
-            assert hub.started == 1 and len(hub.streams) == 1
-            (stream,) = hub.streams.values()
-            assert len(stream.viewers) == 2 and len(native_viewers(native)) == 1
+async def test_native_vp8_picture_loss_gets_a_key_frame(native: Served) -> None:
+    async with camera(native), player(native.base, f"video={CAMERA}&gop=1000") as played:
+        await played.frame(after=3)
+        (stream,) = hub_of(native).streams.values()
+        assert isinstance(stream.encoder, RtpEncoder)
+        before = stream.encoder.keyframes
+        (transceiver,) = played.pc.getTransceivers()
+        (source,) = transceiver.receiver.getSynchronizationSources()
+        await transceiver.receiver._send_rtcp_pli(source.source)
         with anyio.fail_after(RECEIVE_S):
-            while len(hub.streams[stream.params].viewers) != 1:
+            while stream.encoder.keyframes == before:
                 await anyio.sleep(0.05)
-    with anyio.fail_after(RECEIVE_S):
-        while hub.streams or native.server.slots_taken:
-            await anyio.sleep(0.05)
 
 
-class _Played:
-    def __init__(self) -> None:
-        self.frames = 0
-        self.arrived = anyio.Event()
+async def test_native_offer_with_audio_gets_it_inactive(native: Served) -> None:
+    """A player's audio transceiver is answered inactive, as aiortc answers it."""
+    pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+    pc.addTransceiver("audio", direction="recvonly")
+    recvonly_offer(pc, 1, H264)
+    frames = anyio.Event()
 
-    async def wait(self, count: int = 2) -> None:
-        with anyio.fail_after(RECEIVE_S):
-            while self.frames < count:
-                await self.arrived.wait()
-                self.arrived = anyio.Event()
+    async def play(track: MediaStreamTrack) -> None:
+        await track.recv()
+        frames.set()
+
+    try:
+        async with camera(native), anyio.create_task_group() as tg:
+            pc.on("track", lambda track: track.kind == "video" and tg.start_soon(play, track))
+            reply = await post_offer(native.base, f"video={CAMERA}", await offer_sdp(pc))
+            assert reply.status_code == 201, reply.text
+            assert answered_natively(reply.text)
+            audio, video = reply.text.split("m=video")
+            assert "m=audio" in audio and "a=inactive" in audio
+            assert "a=sendonly" in video
+            await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+            with anyio.fail_after(RECEIVE_S):
+                await frames.wait()
+            tg.cancel_scope.cancel()
+    finally:
+        await pc.close()
 
 
-def aiortc_h264_player(base: str, query: str):  # type: ignore[no-untyped-def]
-    """An H.264 player whose offer has an audio section too, so aiortc answers it."""
-
-    @asynccontextmanager
-    async def run() -> AsyncIterator[_Played]:
-        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-        recvonly_offer(pc, 1, H264)
-        pc.addTransceiver("audio", direction="recvonly")
-        played = _Played()
-
-        async def play(track: MediaStreamTrack) -> None:
-            while True:
-                await track.recv()
-                played.frames += 1
-                played.arrived.set()
-
-        async with anyio.create_task_group() as tg:
-            try:
-                pc.on("track", lambda track: track.kind == "video" and tg.start_soon(play, track))
-                reply = await post_offer(base, query, await offer_sdp(pc))
-                assert reply.status_code == 201, reply.text
-                assert not answered_natively(reply.text)
-                await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
-                yield played
-            finally:
-                tg.cancel_scope.cancel()
-                with anyio.CancelScope(shield=True):
-                    await pc.close()
-
-    return run()
+async def test_native_players_share_one_encoder_which_stops_with_the_last(
+    native: Served,
+) -> None:
+    async with camera(native):
+        async with player(native.base, f"video={CAMERA}", codec=H264) as one:
+            async with player(native.base, f"video={CAMERA}", codec=H264) as two:
+                await one.frame(after=3)
+                await two.frame(after=3)
+                hub = hub_of(native)
+                assert hub.started == 1 and len(hub.streams) == 1
+                assert len(native_viewers(native)) == 2
+            async with httpx.AsyncClient(base_url=native.base) as http:
+                assert (await http.delete(one.location)).status_code == 204
+            with anyio.fail_after(RECEIVE_S):
+                while hub.streams or native.server.slots_taken:
+                    await anyio.sleep(0.05)
+        assert hub.started == 1
 
 
 async def test_native_picture_loss_gets_a_key_frame(native: Served) -> None:
@@ -252,16 +260,16 @@ async def test_native_h264_from_a_compressed_topic_passes_through(native: Served
         assert frame.to_ndarray(format="rgb24").reshape(-1, 3).mean(axis=0)[1] > 150
 
 
-async def test_native_video_plan_takes_only_what_it_can_send() -> None:
-    """H.264 first in every receiving video section, one a topic, no audio: native."""
+async def test_native_video_plan_binds_sections_as_aiortc_does() -> None:
+    """Receiving video sections to the topics in order, the rest inactive; else aiortc."""
 
     async def offer(*codecs: str, audio: bool = False, data: bool = False) -> str:
         pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
         try:
-            for codec in codecs:
-                recvonly_offer(pc, 1, codec)
             if audio:
                 pc.addTransceiver("audio", direction="recvonly")
+            for codec in codecs:
+                recvonly_offer(pc, 1, codec)
             if data:
                 pc.createDataChannel("rosbridge")
             return await offer_sdp(pc)
@@ -269,14 +277,18 @@ async def test_native_video_plan_takes_only_what_it_can_send() -> None:
             await pc.close()
 
     h264 = await offer(H264)
-    (section,) = native_video_plan(h264, 1) or []
-    assert section.mid == "0" and section.mid_extension is not None
-    assert native_video_plan(h264, 2) is None  # a topic without its section
-    assert native_video_plan(await offer("video/VP8"), 1) is None
-    assert native_video_plan(await offer(H264, audio=True), 1) is None
-    assert native_video_plan(await offer(H264, "video/VP8"), 2) is None
-    two = native_video_plan(await offer(H264, H264, data=True), 2)
-    assert two is not None and [s.mid for s in two] == ["0", "1"]
+    plan = native_video_plan(h264, 1)
+    assert plan is not None and not plan.inactive
+    (section,) = plan.sections
+    assert (section.mid, section.codec) == ("0", "H264") and section.mid_extension is not None
+    assert native_video_plan(h264, 2) is None  # a topic without its section: aiortc's 400
+    assert native_video_plan(h264, 0) is None
+    with_audio = native_video_plan(await offer(H264, "video/VP8", audio=True), 1)
+    assert with_audio is not None
+    assert [(s.mid, s.codec) for s in with_audio.sections] == [("1", "H264")]
+    assert with_audio.inactive == ("0", "2")  # the audio, and the video past the topics
+    mixed = native_video_plan(await offer(H264, "video/VP8", data=True), 2)
+    assert mixed is not None and [s.codec for s in mixed.sections] == ["H264", "VP8"]
     assert native_video_plan("v=0\r\nnot sdp", 1) is None
     same_mid = (await offer(H264, H264)).replace("a=mid:1", "a=mid:0")
     assert native_video_plan(same_mid, 2) is None  # aiortc answers (and refuses) it
@@ -314,3 +326,27 @@ async def test_native_video_refusals_are_the_same(native: Served) -> None:
         assert f"{MAX_VIDEO_STREAMS} distinct streams run already" in refused.text
         assert len(hub_of(native).streams) == MAX_VIDEO_STREAMS
         assert native.server.slots_taken == len(per_offer) - 1  # the refused one holds none
+
+
+async def test_native_pli_flood_gets_key_frames_at_their_bound(native: Served) -> None:
+    """2,000 PLIs: a key frame per ``KEYFRAME_MIN_INTERVAL_S`` at most, the track plays on."""
+    async with (
+        camera(native),
+        player(native.base, f"video={CAMERA}&gop=1000", codec=H264) as played,
+    ):
+        await played.frame(after=2)
+        (stream,) = hub_of(native).streams.values()
+        assert isinstance(stream.encoder, RtpEncoder)
+        before = stream.encoder.keyframes
+        (transceiver,) = played.pc.getTransceivers()
+        (source,) = transceiver.receiver.getSynchronizationSources()
+        start = time.monotonic()
+        for _ in range(2000):
+            await transceiver.receiver._send_rtcp_pli(source.source)
+        elapsed = time.monotonic() - start
+        await played.frame(after=played.counts[0] + 3)  # still playing
+        keyframes = stream.encoder.keyframes - before
+        assert 1 <= keyframes <= (time.monotonic() - start) / KEYFRAME_MIN_INTERVAL_S + 2, (
+            keyframes,
+            elapsed,
+        )

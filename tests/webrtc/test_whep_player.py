@@ -193,13 +193,15 @@ def _watch(
 
 
 def test_a_whep_player_in_chromium_plays_the_camera(
-    browser: Browser, site: str, tmp_path: Path
+    browser: Browser, site: str, tmp_path: Path, stack: str
 ) -> None:
-    first, later, log = _watch(browser, site, tmp_path, "/")
+    """On the native stack too: its offer (VP8 first, video only) goes to libdatachannel."""
+    first, later, log = _watch(browser, site, tmp_path, "/", stack)
     assert (first["width"], first["height"]) == (320, 240)
     assert later["time"] > first["time"]  # it plays: the element's time advances
     assert _coloured(later), later
-    assert "protocol=video" in log  # a video-only WebRTC peer
+    assert "protocol=video peer=" in log  # a video-only WebRTC peer
+    assert f"stack={stack}" in log, log
 
 
 def test_chromium_preferring_h264_gets_h264(
