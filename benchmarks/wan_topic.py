@@ -19,9 +19,10 @@ one machine) at p50 and p99, and the longest stall (the longest time between two
 messages, where 1 ms is expected).
 
 The camera's transports (``PICTURES``): ``vp8`` and ``h264`` (video tracks,
-docs/webrtc.md), ``mjpeg`` (the video server's ``/stream``, as an ``<img>`` shows it) and
-``cbor-image`` (a rosbridge subscription with ``compression: cbor`` over the WebSocket, as
-a roslib page makes it). Each picture carries its publish time painted in as blocks
+docs/webrtc.md; ``vp8-native`` and ``h264-native`` from the native stack's server),
+``mjpeg`` (the video server's ``/stream``, as an ``<img>`` shows it) and ``cbor-image``
+(a rosbridge subscription with ``compression: cbor`` over the WebSocket, as a roslib page
+makes it). Each picture carries its publish time painted in as blocks
 (``stamp_picture``), read back from the decoded picture (``read_stamp``): pictures a
 second, their age at p50 and p99, the longest stall, and pictures whose stamp did not read.
 
@@ -295,8 +296,9 @@ Pictures = AsyncIterator[Any]
 """A picture transport's decoded pictures, each as (height, width) luminance."""
 
 
-async def _video_track(codec: str) -> Pictures:
-    """``CAMERA`` played as a video track in ``codec`` (``VP8``, ``H264``)."""
+async def _video_track(codec: str, port: int = PORT) -> Pictures:
+    """``CAMERA`` played as a video track in ``codec`` (``VP8``, ``H264``) from ``port``'s
+    server (``NATIVE_PORT``: libdatachannel sends it, D51)."""
     import httpx  # noqa: PLC0415 (the browser process only)
     from aiortc import (  # noqa: PLC0415
         RTCConfiguration,
@@ -317,21 +319,29 @@ async def _video_track(codec: str) -> Pictures:
         got_track.set()
 
     pc.on("track", on_track)
+    base, location = f"http://{ROBOT_ADDR}:{port}", None
     try:
         await pc.setLocalDescription(await pc.createOffer())
         async with httpx.AsyncClient() as http:
             reply = await http.post(
-                f"http://{ROBOT_ADDR}:{PORT}/webrtc?video={CAMERA}",
+                f"{base}/webrtc?video={CAMERA}",
                 content=pc.localDescription.sdp,
                 headers={"Content-Type": "application/sdp"},
             )
         reply.raise_for_status()
+        location = reply.headers.get("Location")
         await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
         await got_track.wait()
         while True:
             frame = await tracks[0].recv()
             yield frame.to_ndarray(format="gray")
     finally:
+        # as a WHEP player stops: DELETE, so the robot's stream stops now, not when the
+        # peer connection's close (lost on the lossy link, maybe) or consent ends it
+        with anyio.move_on_after(5, shield=True), suppress(httpx.HTTPError):
+            if location:
+                async with httpx.AsyncClient() as http:
+                    await http.delete(base + location)
         await pc.close()
 
 
@@ -342,6 +352,16 @@ async def _vp8() -> Pictures:
 
 async def _h264() -> Pictures:
     async for picture in _video_track("H264"):
+        yield picture
+
+
+async def _vp8_native() -> Pictures:
+    async for picture in _video_track("VP8", NATIVE_PORT):
+        yield picture
+
+
+async def _h264_native() -> Pictures:
+    async for picture in _video_track("H264", NATIVE_PORT):
         yield picture
 
 
@@ -401,6 +421,8 @@ async def _cbor_image() -> Pictures:
 PICTURES: dict[str, Callable[[], Pictures]] = {
     "vp8": _vp8,
     "h264": _h264,
+    "vp8-native": _vp8_native,
+    "h264-native": _h264_native,
     "mjpeg": _mjpeg,
     "cbor-image": _cbor_image,
 }
@@ -664,6 +686,11 @@ def main() -> None:
         args.delay_ms / 1000, args.jitter_ms / 1000, args.loss, args.rate_mbit * 1e6
     )
     chosen = args.transport or [*TRANSPORTS, *PICTURES]
+    from rwt_transports.webrtc_native import native_missing  # noqa: PLC0415
+
+    if (missing := native_missing()) is not None and any("native" in t for t in chosen):
+        print(f"without the native stack's rows: {missing}", file=sys.stderr)
+        chosen = [t for t in chosen if "native" not in t]
     rows = run(chosen, args.duration, args.rate, profile, args.trace_sctp, args.warmup)
     link = (
         f"{args.delay_ms:g} ms +- {args.jitter_ms:g} ms, {args.loss:.0%} loss,"
