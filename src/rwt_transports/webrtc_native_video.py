@@ -356,6 +356,8 @@ def prepare_native_tracks(
             return Answer(400, f"the offer cannot be answered: no track for mid {section.mid!r}")
         if asked.type_name == _COMPRESSED and section.codec != "H264":
             return Answer(400, f"{asked.params.topic} is compressed: only H.264 passes through")
+        if section.payload_type not in track.description().payload_types():
+            return Answer(400, f"the offer cannot be answered: no codec for mid {section.mid!r}")
         ssrc = secrets.randbits(31) + 1
         _describe(track, section, ssrc, stream_id, f"video{index}")
         params = replace(asked.params, type=_CODECS[section.codec])

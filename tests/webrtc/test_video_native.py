@@ -340,9 +340,12 @@ async def test_native_pli_flood_gets_key_frames_at_their_bound(native: Served) -
         before = stream.encoder.keyframes
         (transceiver,) = played.pc.getTransceivers()
         (source,) = transceiver.receiver.getSynchronizationSources()
+        await anyio.sleep(KEYFRAME_MIN_INTERVAL_S + 0.1)  # past the joining key frame's bound
         start = time.monotonic()
-        for _ in range(2000):
+        for index in range(2000):  # over about a second
             await transceiver.receiver._send_rtcp_pli(source.source)
+            if index % 100 == 0:
+                await anyio.sleep(0.05)
         elapsed = time.monotonic() - start
         await played.frame(after=played.counts[0] + 3)  # still playing
         keyframes = stream.encoder.keyframes - before
@@ -350,3 +353,15 @@ async def test_native_pli_flood_gets_key_frames_at_their_bound(native: Served) -
             keyframes,
             elapsed,
         )
+
+
+async def test_native_video_peer_that_never_connects_runs_no_encoder(native: Served) -> None:
+    async with camera(native):
+        reply = await post_offer(native.base, f"video={CAMERA}", await h264_offer())
+        assert reply.status_code == 201 and answered_natively(reply.text)
+        assert native.server.slots_taken == 1
+        with anyio.fail_after(CONNECT_TIMEOUT_S + RECEIVE_S):
+            while native.server.slots_taken:
+                assert not hub_of(native).streams
+                await anyio.sleep(0.05)
+        assert hub_of(native).started == 0  # no encoder ever ran
