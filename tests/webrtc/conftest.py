@@ -36,16 +36,6 @@ CONNECT_TIMEOUT_S = 2.0
 """The tests' ICE+DTLS deadline: short, so a peer that never connects is freed soon."""
 
 
-@pytest.fixture
-async def served() -> AsyncIterator[Served]:
-    """An in-process server with WebRTC on its WebSocket port (port 0), on aiortc."""
-    from tests.webrtc.peer import serving  # noqa: PLC0415 (aiortc: after the skip)
-
-    options = WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack="aiortc")
-    async with serving(ServerConfig(port=0, webrtc=options)) as running:
-        yield running
-
-
 @pytest.fixture(params=["aiortc", "native"])
 def stack(request: pytest.FixtureRequest) -> str:
     """Each WebRTC stack of ``--webrtc-stack`` (D51); ``native`` skips where it does not import."""
@@ -56,9 +46,17 @@ def stack(request: pytest.FixtureRequest) -> str:
 
 @pytest.fixture
 async def served_on(stack: str) -> AsyncIterator[Served]:
-    """``served`` on each stack (``stack``): the tests that run on both."""
+    """An in-process server with WebRTC on its WebSocket port (port 0), on each stack
+    (``stack``): every test of a served peer runs on both (``.ci/run`` runs the native
+    ones on Python 3.12)."""
     from tests.webrtc.peer import serving  # noqa: PLC0415 (aiortc: after the skip)
 
     options = WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack=stack)
     async with serving(ServerConfig(port=0, webrtc=options)) as running:
         yield running
+
+
+@pytest.fixture
+def served(served_on: Served) -> Served:
+    """``served_on``: the same server, on each stack."""
+    return served_on

@@ -177,10 +177,11 @@ async def test_the_roslib_transport_obeys_allowed_origins() -> None:
     assert good.status_code == 200
 
 
-async def test_the_stack_answers_data_only_offers_and_aiortc_the_ones_with_media(
+async def test_the_stack_answers_data_only_offers_and_aiortc_media_without_tracks(
     served_on: Served, stack: str
 ) -> None:
-    """``--webrtc-stack`` (D51): an offer with an audio or video section stays on aiortc."""
+    """``--webrtc-stack`` (D51): an offer with an audio or video section and no ``?video=``
+    stays on aiortc (one asking for tracks: test_video_native.py)."""
     with_media = await closed_offer(audio=True)
     async with httpx.AsyncClient(base_url=served_on.base) as http:
         data_only = await http.post("/webrtc", content=await closed_offer(), headers=SDP)
