@@ -138,9 +138,9 @@ def test_roslib_in_chromium_talks_rosbridge_over_the_data_channel(
 
 
 def test_the_console_talks_over_the_data_channel_with_webrtc_in_its_url(
-    browser: Browser, tmp_path: Path
+    browser: Browser, tmp_path: Path, stack: str
 ) -> None:
-    server = ServerProcess(tmp_path, ("--webrtc",))
+    server = ServerProcess(tmp_path, ("--webrtc", "--webrtc-stack", stack))
     try:
         page = browser.new_page()
         try:

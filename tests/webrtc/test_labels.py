@@ -82,8 +82,11 @@ async def test_a_label_picks_its_registered_protocol_and_an_unknown_one_is_refus
     assert "label='rosbridge' reason=another protocol than the session's (echo)" in logged
 
 
-async def test_a_video_only_peer_holds_a_ticket_counted_by_the_connection_budget() -> None:
-    config = ServerConfig(port=0, max_connections=1, webrtc=OPTIONS)
+async def test_a_video_only_peer_holds_a_ticket_counted_by_the_connection_budget(
+    stack: str,
+) -> None:
+    options = WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack=stack)
+    config = ServerConfig(port=0, max_connections=1, webrtc=options)
     async with serving(config) as served:
         served.graph.create_publisher("/camera/image", "sensor_msgs/msg/Image")
         pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))

@@ -136,8 +136,8 @@ async def test_closing_the_peer_connection_frees_the_session(served: Served) -> 
     assert not peers_of(served.server).peers
 
 
-async def test_an_idle_session_is_closed_as_on_other_transports() -> None:
-    config = ServerConfig(port=0, idle_timeout_s=0.5, webrtc=WebRtcOptions())
+async def test_an_idle_session_is_closed_as_on_other_transports(stack: str) -> None:
+    config = ServerConfig(port=0, idle_timeout_s=0.5, webrtc=WebRtcOptions(stack=stack))
     async with serving(config) as running, rtc_client(running.base) as client:
         client.send({"op": "set_level", "level": "info", "id": "hello"})
         await client.next_op("status")
@@ -148,9 +148,9 @@ async def test_an_idle_session_is_closed_as_on_other_transports() -> None:
         assert not peers_of(running.server).peers
 
 
-async def test_stopping_the_server_closes_webrtc_sessions() -> None:
+async def test_stopping_the_server_closes_webrtc_sessions(stack: str) -> None:
     graph = Graph()
-    server = RosbridgeServer(graph, ServerConfig(port=0, webrtc=WebRtcOptions()))
+    server = RosbridgeServer(graph, ServerConfig(port=0, webrtc=WebRtcOptions(stack=stack)))
     async with anyio.create_task_group() as tg:
         url = await tg.start(server.serve)
         async with rtc_client(url.replace("ws://", "http://")) as client:

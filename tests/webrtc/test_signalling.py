@@ -82,11 +82,11 @@ async def test_cors_preflight_and_answer_headers(served: Served) -> None:
         assert client.location.startswith("/webrtc/")
 
 
-async def test_allowed_origins_apply_to_signalling() -> None:
+async def test_allowed_origins_apply_to_signalling(stack: str) -> None:
     config = ServerConfig(
         port=0,
         websocket=WebSocketOptions(allowed_origins=("https://ok.example",)),
-        webrtc=WebRtcOptions(),
+        webrtc=WebRtcOptions(stack=stack),
     )
     async with serving(config) as running, httpx.AsyncClient(base_url=running.base) as http:
         bad = await http.post(

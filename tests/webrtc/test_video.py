@@ -216,10 +216,10 @@ async def test_a_video_only_offer_without_video_parameters_is_refused(served: Se
     assert reply.status_code == 400 and "no data channel" in reply.text
 
 
-async def test_access_rules_apply_to_video_topics() -> None:
+async def test_access_rules_apply_to_video_topics(stack: str) -> None:
     config = ServerConfig(
         port=0,
-        webrtc=WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S),
+        webrtc=WebRtcOptions(connect_timeout_s=CONNECT_TIMEOUT_S, stack=stack),
         session=SessionConfig(access=AccessPolicy(topics=["/camera/*"])),
     )
     async with serving(config) as served:
@@ -302,11 +302,13 @@ async def test_a_compressed_topic_needs_h264(served: Served) -> None:
     assert not served.server.slots_taken and not hub_of(served).streams
 
 
-async def test_with_auth_video_needs_the_bearer_token() -> None:
+async def test_with_auth_video_needs_the_bearer_token(stack: str) -> None:
     config = ServerConfig(
         port=0,
         webrtc=WebRtcOptions(
-            connect_timeout_s=CONNECT_TIMEOUT_S, bearer_token=lambda token: token == "live"
+            connect_timeout_s=CONNECT_TIMEOUT_S,
+            bearer_token=lambda token: token == "live",
+            stack=stack,
         ),
         session=SessionConfig(authenticator=rosauth_authenticator("s" * 16, Graph().clock)),
     )
