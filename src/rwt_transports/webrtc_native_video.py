@@ -21,7 +21,9 @@ packet is sent again from its history) and the feedback handlers: a PLI or FIR a
 the shared encoder for a key frame and a REMB sets its rate (``FrameFeed``), as
 aiortc's tracks do.
 
-Threads (D51): the feedback handlers are called on libdatachannel's threads, so
+Threads (D51): the feedback handlers are called on libdatachannel's thread pool (the
+DTLS transport's receiving task, which unprotects RTCP; never libjuice's polling
+thread, whose lock the loop may need), as the data channels' callbacks are, so
 each only sets a flag and, if none was set, hops once onto the loop
 (``call_soon_threadsafe``): a flood of PLIs costs the loop one call a hop, and the
 encoder gives at most one key frame per ``rtp.KEYFRAME_MIN_INTERVAL_S``. Frames are
