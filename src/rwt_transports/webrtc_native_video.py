@@ -3,11 +3,11 @@
 Measured (``python -m benchmarks.webrtc_track_cost``), a viewer of a 30 frames/s
 track costs the robot about a third of aiortc's CPU when libdatachannel protects
 and sends the packets in C++. So with the native stack an offer's video is answered
-by libdatachannel when it can answer the whole offer: its receiving video sections
-are the topics' (one each, each with a mid of its own), it has no audio section, and
-each section's first codec that the server sends (VP8, or H.264 in packetization
-mode 1 with a Baseline profile) picks the track's codec, as on aiortc. Any other
-offer with video stays on aiortc, as before.
+by libdatachannel, its sections bound as aiortc binds them: the receiving video
+sections to the topics in order, the other video sections and every audio section
+inactive, and each track in the first codec of its section's list that the server
+sends (VP8, or H.264 in packetization mode 1 with a Baseline profile, matched as
+aiortc matches it). An offer aiortc would refuse stays on aiortc, which says why.
 
 Each section's answer sends that one payload type, with an SSRC and a media stream
 id of its own (a WHEP player shows a track only inside a stream), the MID header
@@ -43,7 +43,9 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import av
+from aiortc.codecs import CODECS
 from aiortc.codecs.vpx import Vp8Encoder
+from aiortc.rtcpeerconnection import find_common_codecs
 from aiortc.rtcrtpparameters import RTCRtpHeaderExtensionParameters, RTCRtpParameters
 from aiortc.rtp import HeaderExtensionsMap, RtpPacket
 from aiortc.sdp import SessionDescription
@@ -76,9 +78,6 @@ _MID_URI = "urn:ietf:params:rtp-hdrext:sdes:mid"
 _CNAME = "rwt"
 _COMPRESSED = "sensor_msgs/msg/CompressedImage"
 _CLOCK_RATE = 90_000
-_BASELINE = ("42001f", "42e01f")
-"""The H.264 profiles sent (Baseline and Constrained Baseline, level 3.1), as aiortc's:
-the shared encoder's constrained baseline stream plays on either."""
 _MS = fractions.Fraction(1, 1000)
 _CODECS = {"VP8": StreamType.VP8, "H264": StreamType.H264}
 
@@ -100,17 +99,17 @@ class VideoSection:
     mid_extension: int | None
 
 
-def _sent_codec(codec: Any) -> str | None:
-    """``VP8`` or ``H264`` if the server sends ``codec`` (an aiortc ``RTCRtpCodecParameters``)."""
-    name = codec.mimeType.lower()
-    if name == "video/vp8":
-        return "VP8"
-    if name == "video/h264":
-        params = codec.parameters
-        mode = str(params.get("packetization-mode", "0"))
-        profile = str(params.get("profile-level-id", "")).lower()
-        if mode == "1" and profile in _BASELINE:
-            return "H264"
+def _first_sent(codecs: list[Any]) -> tuple[str, int] | None:
+    """The codec aiortc's answer would send for a section offering ``codecs``, with its type.
+
+    The first of the offer's list that aiortc has (its ``find_common_codecs`` over its
+    capabilities, so an H.264 profile matches as aiortc matches it): (``VP8`` or
+    ``H264``, its payload type); None: none in common.
+    """
+    for codec in find_common_codecs(CODECS["video"], codecs):
+        name = codec.mimeType.lower()
+        if name in ("video/vp8", "video/h264") and codec.payloadType is not None:
+            return ("VP8" if name == "video/vp8" else "H264"), codec.payloadType
     return None
 
 
@@ -167,12 +166,11 @@ def native_video_plan(offer: str, topics: int) -> VideoPlan | None:
         if not receiving or len(sections) == topics:
             inactive.append(mid)
             continue
-        sent = [(c, kind) for c in media.rtp.codecs if (kind := _sent_codec(c)) is not None]
-        payload_type = sent[0][0].payloadType if sent else None
-        if not sent or payload_type is None:
+        sent = _first_sent(media.rtp.codecs)
+        if sent is None:
             return None
         extension = next((e.id for e in media.rtp.headerExtensions if e.uri == _MID_URI), None)
-        sections.append(VideoSection(mid, sent[0][1], payload_type, extension))
+        sections.append(VideoSection(mid, sent[0], sent[1], extension))
     if topics == 0 or len(sections) < topics:
         return None
     return VideoPlan(tuple(sections), tuple(inactive))

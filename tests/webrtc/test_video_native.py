@@ -155,6 +155,12 @@ async def test_native_video_plan_binds_sections_as_aiortc_does() -> None:
     mixed = native_video_plan(await offer(H264, "video/VP8", data=True), 2)
     assert mixed is not None and [s.codec for s in mixed.sections] == ["H264", "VP8"]
     assert native_video_plan("v=0\r\nnot sdp", 1) is None
+    # H.264 profiles match as aiortc matches them: by profile, not level
+    level_52 = h264.replace("42001f", "42e034").replace("42e01f", "42e034")
+    matched = native_video_plan(level_52, 1)
+    assert matched is not None and matched.sections[0].codec == "H264"
+    high = h264.replace("42001f", "640c1f").replace("42e01f", "640c1f")
+    assert native_video_plan(high, 1) is None  # no codec in common: aiortc's 400
     same_mid = (await offer(H264, H264)).replace("a=mid:1", "a=mid:0")
     assert native_video_plan(same_mid, 2) is None  # aiortc answers (and refuses) it
 
