@@ -20,7 +20,13 @@ from tests.webrtc.conftest import CONNECT_TIMEOUT_S, NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
-from aiortc import MediaStreamTrack, RTCConfiguration, RTCPeerConnection, RTCSessionDescription
+from aiortc import (
+    MediaStreamTrack,
+    RTCConfiguration,
+    RTCPeerConnection,
+    RTCRtpReceiver,
+    RTCSessionDescription,
+)
 from aiortc.rtp import RTCP_PSFB_APP, RtcpPsfbPacket, pack_remb_fci
 
 from rwt_graph.graph import Graph
@@ -33,7 +39,7 @@ from rwt_video.encoders import VideoPacket
 from rwt_video.params import StreamParams
 from rwt_video.rtp import H264PassThrough, RtpEncoder
 from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, peers_of, rtc_client, serving
-from tests.webrtc.whep import image, player, post_offer, recvonly_offer
+from tests.webrtc.whep import Player, image, player, post_offer, recvonly_offer
 
 pytestmark = pytest.mark.anyio
 
@@ -126,42 +132,43 @@ async def test_two_topics_in_one_offer_and_a_data_channel_beside(served: Served)
         assert blue.to_ndarray(format="rgb24").reshape(-1, 3).mean(axis=0)[2] > 150
 
 
+def feedback_target(served: Served, played: Player) -> tuple[RtpEncoder, RTCRtpReceiver, int]:
+    """The one stream's encoder, the player's receiver, and the SSRC its RTCP names."""
+    (stream,) = hub_of(served).streams.values()
+    assert isinstance(stream.encoder, RtpEncoder)
+    (transceiver,) = played.pc.getTransceivers()
+    (source,) = transceiver.receiver.getSynchronizationSources()
+    return stream.encoder, transceiver.receiver, source.source
+
+
 async def test_a_picture_loss_gets_a_key_frame(served: Served) -> None:
     async with camera(served), player(served.base, f"video={CAMERA}&gop=1000") as played:
         await played.frame(after=3)
-        (stream,) = hub_of(served).streams.values()
-        assert isinstance(stream.encoder, RtpEncoder)
-        before = stream.encoder.keyframes
-        (transceiver,) = played.pc.getTransceivers()
-        (source,) = transceiver.receiver.getSynchronizationSources()
-        ssrc = source.source
-        await transceiver.receiver._send_rtcp_pli(ssrc)
+        encoder, receiver, ssrc = feedback_target(served, played)
+        before = encoder.keyframes
+        await receiver._send_rtcp_pli(ssrc)
         with anyio.fail_after(RECEIVE_S):
-            while stream.encoder.keyframes == before:
+            while encoder.keyframes == before:
                 await anyio.sleep(0.05)
-        assert stream.encoder.keyframes > before  # gop=1000: none would come for a minute
+        assert encoder.keyframes > before  # gop=1000: none would come for a minute
 
 
 async def test_a_receiver_estimate_sets_the_bit_rate(served: Served) -> None:
     async with camera(served), player(served.base, f"video={CAMERA}&bitrate=2000000") as played:
         await played.frame(after=1)
-        (stream,) = hub_of(served).streams.values()
-        assert isinstance(stream.encoder, RtpEncoder)
-        (transceiver,) = played.pc.getTransceivers()
-        (source,) = transceiver.receiver.getSynchronizationSources()
-        ssrc = source.source
+        encoder, receiver, ssrc = feedback_target(served, played)
         # the player's own estimates would race this one: only ours is sent
-        transceiver.receiver._RTCRtpReceiver__remote_bitrate_estimator = None  # type: ignore[attr-defined]
+        receiver._RTCRtpReceiver__remote_bitrate_estimator = None  # type: ignore[attr-defined]
         remb = RtcpPsfbPacket(
             fmt=RTCP_PSFB_APP, ssrc=1, media_ssrc=0, fci=pack_remb_fci(300_000, [ssrc])
         )
-        await transceiver.receiver._send_rtcp(remb)
+        await receiver._send_rtcp(remb)
         with anyio.fail_after(RECEIVE_S):
-            while stream.encoder.target_bitrate != 300_000:
+            while encoder.target_bitrate != 300_000:
                 await anyio.sleep(0.05)
-        opened = stream.encoder.opened
+        opened = encoder.opened
         with anyio.fail_after(RECEIVE_S):  # the codec is reopened at the new rate
-            while stream.encoder.opened == opened:
+            while encoder.opened == opened:
                 await anyio.sleep(0.05)
 
 

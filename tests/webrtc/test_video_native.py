@@ -28,9 +28,9 @@ from rwt_transports.server import ServerConfig
 from rwt_transports.webrtc_native import native_missing
 from rwt_transports.webrtc_native_video import NativeVideoTrack, native_video_plan
 from rwt_transports.webrtc_signal import WebRtcOptions
-from rwt_video.rtp import KEYFRAME_MIN_INTERVAL_S, RtpEncoder
+from rwt_video.rtp import KEYFRAME_MIN_INTERVAL_S
 from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, serving
-from tests.webrtc.test_video import CAMERA, RED, camera, hub_of
+from tests.webrtc.test_video import CAMERA, RED, camera, feedback_target, hub_of
 from tests.webrtc.whep import player, post_offer, recvonly_offer
 
 pytestmark = pytest.mark.anyio
@@ -172,20 +172,17 @@ async def test_native_pli_flood_gets_key_frames_at_their_bound(native: Served) -
         player(native.base, f"video={CAMERA}&gop=1000", codec=H264) as played,
     ):
         await played.frame(after=2)
-        (stream,) = hub_of(native).streams.values()
-        assert isinstance(stream.encoder, RtpEncoder)
-        before = stream.encoder.keyframes
-        (transceiver,) = played.pc.getTransceivers()
-        (source,) = transceiver.receiver.getSynchronizationSources()
+        encoder, receiver, ssrc = feedback_target(native, played)
+        before = encoder.keyframes
         await anyio.sleep(KEYFRAME_MIN_INTERVAL_S + 0.1)  # past the joining key frame's bound
         start = time.monotonic()
         for index in range(2000):  # over about a second
-            await transceiver.receiver._send_rtcp_pli(source.source)
+            await receiver._send_rtcp_pli(ssrc)
             if index % 100 == 0:
                 await anyio.sleep(0.05)
         elapsed = time.monotonic() - start
         await played.frame(after=played.counts[0] + 3)  # still playing
-        keyframes = stream.encoder.keyframes - before
+        keyframes = encoder.keyframes - before
         assert 1 <= keyframes <= (time.monotonic() - start) / KEYFRAME_MIN_INTERVAL_S + 2, (
             keyframes,
             elapsed,
