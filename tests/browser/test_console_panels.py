@@ -24,7 +24,7 @@ from PIL import Image
 from tests.integration.client_harness import ServerProcess
 
 from .cdp import Browser, Page, wait_until
-from .userinput import CTRL, click, press, type_into
+from .userinput import CTRL, click, click_until, press, type_into
 
 ROW = '#param-editor tr[data-name="{}"]'
 GRAPH_VALUE = '#params tr[data-name="{}"] td:last-child'
@@ -195,8 +195,7 @@ def test_plots_fields_of_two_topics_on_one_axis(page: Page) -> None:
         what="the echo to fill",
     )
     add = "#plot-fields button[aria-label='plot /temperature data on the Plot tab']"
-    click(page, add)
-    assert page.text(add) == "✓"
+    click_until(page, add, f"document.querySelector({json.dumps(add)}).textContent === '✓'", "✓")
     click(page, '#tabs button[data-tab="plot"]')
     assert legend(page) == ["/odom pose.pose.position.x", "/temperature data"]
     values = page.wait_for(

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 
-from .cdp import Page
+from .cdp import CdpError, Page
 
 CTRL = 2  # Input.dispatchKeyEvent's modifiers bit for Control
 
@@ -42,6 +42,26 @@ def click(page: Page, selector: str) -> None:
     page.send("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y)
     for kind in ("mousePressed", "mouseReleased"):
         page.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
+
+
+def click_until(page: Page, selector: str, expression: str, what: str, tries: int = 3) -> None:
+    """Click ``selector`` until ``expression`` holds, as a user clicks again when nothing happened.
+
+    On a page that renders as messages come, a layout change between the pointer's aim and
+    its press (an echo row of another height prepended above a button) can make a click
+    land beside its target; on a loaded machine that happens now and then.
+
+    Raises:
+        CdpError: ``expression`` still falsy after ``tries`` clicks, 2 s apart.
+    """
+    for attempt in range(tries):
+        click(page, selector)
+        try:
+            page.wait_for(expression, timeout_s=2.0, what=what)
+            return
+        except CdpError:
+            if attempt == tries - 1:
+                raise
 
 
 def type_into(page: Page, selector: str, text: str) -> None:
