@@ -43,7 +43,7 @@ from hypothesis import HealthCheck, settings
 from rwt_graph.graph import Graph
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.server.session import Session, SessionConfig
-from tests.support import warm
+from tests.support import helper_envs, warm
 from tests.support.file_order import UNKNOWN_S, file_seconds
 
 # The test process's garbage collector: a worker holds every collected test module and
@@ -122,7 +122,8 @@ def peers(graph: Graph) -> Iterator[tuple[Peer, Peer]]:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """In each process that runs tests, start its warm ``rwt`` (tests/support/zygote.py)."""
+    """In each process that runs tests, start its warm ``rwt`` (tests/support/zygote.py);
+    in the xdist controller, prepare what every worker would otherwise do at once."""
     distributed = (getattr(config.option, "numprocesses", None) or 0) > 0
     if os.environ.get("PYTEST_XDIST_WORKER") or not distributed:
         warm.start()
@@ -131,6 +132,7 @@ def pytest_configure(config: pytest.Config) -> None:
         folders = [str(root / name) for name in ("src", "tests", "benchmarks", "conformance")]
         pycache.prime(config, folders, tests=config.args)
         _ask_other_pythons()
+        helper_envs.start(root / "tests", config.args)  # a new machine's tools, made once
 
 
 def _ask_other_pythons() -> None:

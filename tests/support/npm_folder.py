@@ -23,10 +23,14 @@ LOCK_FILES = ("package.json", "package-lock.json")
 
 
 def _current(home: Path, source: Path, files: tuple[str, ...], ready: str) -> bool:
-    """Whether ``home`` was made from ``source``'s files as they are now."""
-    return (home / ready).exists() and all(
-        (home / name).is_file() and (home / name).read_bytes() == (source / name).read_bytes()
-        for name in files
+    """Whether ``home`` was made to its end from ``source``'s files as they are now."""
+    return (
+        toolenv.is_ready(home)
+        and (home / ready).exists()
+        and all(
+            (home / name).is_file() and (home / name).read_bytes() == (source / name).read_bytes()
+            for name in files
+        )
     )
 
 
@@ -53,11 +57,29 @@ def npm_folder(
     npm = shutil.which("npm")
     if npm is None or shutil.which("node") is None:
         return None, f"node and npm are needed for {source.name}"
+    with toolenv.locked(home):  # every xdist worker may ask at once (toolenv)
+        if _current(home, source, files, ready):
+            return home, ""
+        why = _install(npm, source, home, files, build)
+        if why or not (home / ready).exists():
+            shutil.rmtree(home, ignore_errors=True)  # the next run tries again
+            return None, why or f"{source.name}: {ready} was not made"
+        toolenv.mark_ready(home)
+    return home, ""
+
+
+def _install(
+    npm: str,
+    source: Path,
+    home: Path,
+    files: tuple[str, ...],
+    build: Callable[[Path], str | None] | None,
+) -> str:
+    """``npm ci`` of ``source``'s files in a new ``home``, then ``build``: why it failed, or ""."""
     shutil.rmtree(home, ignore_errors=True)
     home.mkdir(parents=True)
     for name in files:
         shutil.copyfile(source / name, home / name)
-    why = ""
     try:
         done = subprocess.run(
             [npm, "ci", "--no-audit", "--no-fund", "--prefix", str(home)],
@@ -67,13 +89,7 @@ def npm_folder(
             timeout=600,
         )
     except (OSError, subprocess.TimeoutExpired) as exc:
-        why = f"npm ci of {source.name} failed: {exc}"
-    else:
-        if done.returncode != 0:
-            why = f"npm ci of {source.name} failed: {done.stderr.strip()[-300:]}"
-    if not why and build is not None:
-        why = build(home) or ""
-    if why or not (home / ready).exists():
-        shutil.rmtree(home, ignore_errors=True)  # the next run tries again
-        return None, why or f"{source.name}: {ready} was not made"
-    return home, ""
+        return f"npm ci of {source.name} failed: {exc}"
+    if done.returncode != 0:
+        return f"npm ci of {source.name} failed: {done.stderr.strip()[-300:]}"
+    return (build(home) or "") if build is not None else ""

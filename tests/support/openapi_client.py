@@ -41,15 +41,19 @@ def openapi_generator() -> tuple[Path | None, str]:
     if named:
         return Path(named), ""
     command = _command()
-    if command.exists():  # made before (by .ci/run): checked when it was made
+    if toolenv.is_ready(_HOME):  # made (by an earlier run or another process) and checked
         return command, ""
-    python, why = toolenv.make(_HOME, GENERATOR_PIN)
-    if python is None:
-        return None, why
-    probe = subprocess.run(
-        [str(command), "--version"], capture_output=True, text=True, check=False, timeout=120
-    )
-    if probe.returncode != 0:
-        shutil.rmtree(_HOME, ignore_errors=True)
-        return None, f"{GENERATOR_PIN} was installed in {_HOME} but does not run"
+    with toolenv.locked(_HOME):
+        if toolenv.is_ready(_HOME):
+            return command, ""
+        python, why = toolenv.make(_HOME, GENERATOR_PIN)
+        if python is None:
+            return None, why
+        probe = subprocess.run(
+            [str(command), "--version"], capture_output=True, text=True, check=False, timeout=120
+        )
+        if probe.returncode != 0:
+            shutil.rmtree(_HOME, ignore_errors=True)
+            return None, f"{GENERATOR_PIN} was installed in {_HOME} but does not run"
+        toolenv.mark_ready(_HOME)
     return command, ""

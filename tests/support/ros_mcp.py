@@ -29,17 +29,6 @@ def _has_ros_mcp(python: Path) -> bool:
     return subprocess.run(probe, capture_output=True, check=False, timeout=120).returncode == 0
 
 
-def _installed(home: Path) -> bool:
-    """Whether the environment at ``home`` holds ros-mcp, read from its files.
-
-    Test modules ask at collection, in every worker: importing ``ros_mcp.main`` to
-    know took 1.4 s a time; a made environment was checked by import when made.
-    """
-    return any(home.glob("lib/python3*/site-packages/ros_mcp/main.py")) or any(
-        home.glob("Lib/site-packages/ros_mcp/main.py")
-    )
-
-
 @functools.cache
 def ros_mcp_python() -> tuple[Path | None, str]:
     """A Python that runs ros-mcp 3.1.2: ``(path, "")``, or ``(None, why not)``."""
@@ -48,11 +37,15 @@ def ros_mcp_python() -> tuple[Path | None, str]:
         path = Path(named)
         return (path, "") if _has_ros_mcp(path) else (None, f"{named} cannot import ros_mcp")
     python = toolenv.bin_dir(_HOME) / ("python.exe" if sys.platform == "win32" else "python")
-    if python.exists() and _installed(_HOME):
+    if toolenv.is_ready(_HOME):  # made and checked by import before: collection asks often
         return python, ""
-    made, why = toolenv.make(_HOME, ROS_MCP_PIN)
-    if made is None:
-        return None, why
-    if not _has_ros_mcp(python):
-        return None, f"{ROS_MCP_PIN} was installed in {_HOME} but cannot be imported"
+    with toolenv.locked(_HOME):
+        if toolenv.is_ready(_HOME):  # another process made it while this one waited
+            return python, ""
+        made, why = toolenv.make(_HOME, ROS_MCP_PIN)
+        if made is None:
+            return None, why
+        if not _has_ros_mcp(python):
+            return None, f"{ROS_MCP_PIN} was installed in {_HOME} but cannot be imported"
+        toolenv.mark_ready(_HOME)
     return python, ""
