@@ -331,6 +331,8 @@ def decode_publish_one_pass(frame: str | bytes) -> PublishView | None:
     op_id = op.id
     if op_id is not None and type(op_id) is int and not INT64_MIN <= op_id <= INT64_MAX:
         return None
+    if op.qos is not None or op.queue_size is not None:  # the model checks these (D62)
+        return None
     if len(frame) > 2 * MAX_NESTING:  # shorter frames cannot nest deeper (see _openings)
         try:
             check_nesting(op.msg, _openings(frame), level=2)
