@@ -18,6 +18,12 @@ Throttle and queue follow D12 (REF §5.3 for the reference's behaviour):
 - changing the parameters keeps the time of the last send and the queue; a
   lower throttle takes effect at once (0 flushes the queue).
 
+Its QoS (protocol 2.1.0's ``qos``, ``subscription_qos``): the history bounds the
+throttle queue as the queue of frames (D63), the lifespan and reliability go with
+each message to the outbox (``rule``, ``lifespan_s``), and a deadline the topic
+misses warns the client once per episode, checked at most every
+``DEADLINE_CHECK_S`` (D65).
+
 A subscription made on a transport's lossy channel (D36) is ``lossy`` while
 every id it holds came on that channel: its messages go on the lossy lane,
 latest-only. One id from the reliable channel makes the merged subscription
@@ -29,6 +35,7 @@ here reads a clock.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,14 +43,26 @@ from typing import TYPE_CHECKING
 
 from ..ops.base import Compression
 from ..runtime.timers import Timer
+from .subscription_qos import SubscriptionQos
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from ..ops import Subscribe
     from ..ports import MessageEvent
+    from ..qos import QosProfile
 
-__all__ = ["BatchTopicSubscription", "MergedParams", "TopicSubscription", "merge"]
+__all__ = [
+    "DEADLINE_CHECK_S",
+    "BatchTopicSubscription",
+    "MergedParams",
+    "TopicSubscription",
+    "merge",
+]
+
+DEADLINE_CHECK_S = 0.05
+"""The shortest time between two checks of a subscription's deadline, seconds (D65):
+a deadline of 1 ms costs a timer every 50 ms at most, not a thousand a second."""
 
 _STRENGTH: dict[Compression, int] = {
     Compression.NONE: 0,
@@ -57,6 +76,9 @@ SubscriptionKey = str | int | None
 
 Schedule = Callable[[float, Callable[[float], None]], Timer]
 """Runs a callback with ``now`` at a monotonic deadline (``Session.call_at``)."""
+
+Warn = Callable[["TopicSubscription", str], None]
+"""Tells the client of a subscription's QoS event (a warning status)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +126,14 @@ class TopicSubscription:
         schedule: runs a callback at a monotonic deadline (the session's timers).
         max_queue: the most messages queued whatever ``queue_length`` asks
             (a size the peer controls, D24).
+        warn: tells the client of a QoS event (left out of the topic, a missed
+            deadline); None: nobody is told.
+        default_lifespan_s: the server's lifespan for subscriptions giving none
+            (``--qos-lifespan``, D63; inf: none).
+
+    Attributes:
+        rule, lifespan_s: what its messages take to the outbox (``subscription_qos``;
+            ``rule`` None: no QoS at all, the plain path).
     """
 
     def __init__(
@@ -114,6 +144,8 @@ class TopicSubscription:
         schedule: Schedule,
         *,
         max_queue: int = 100,
+        warn: Warn | None = None,
+        default_lifespan_s: float = math.inf,
     ) -> None:
         self.topic = topic
         self.spelling = spelling
@@ -129,6 +161,14 @@ class TopicSubscription:
         self._lossy_ids: set[SubscriptionKey] = set()
         self.lossy = False
         """Every id came on the lossy channel: messages go on the lossy lane (D36)."""
+        self._warn = warn
+        self.qos = SubscriptionQos(default_lifespan_s)
+        self.rule = self.qos.rule
+        self.lifespan_s = self.qos.lifespan_s
+        self._latest: Callable[[], float] | None = None  # the topic's latest message time
+        self._since = 0.0  # when its deadline started counting (monotonic seconds)
+        self._deadline_timer: Timer | None = None
+        self._missed_after: float | None = None  # the last message before a missed deadline
 
     def add(self, request: Subscribe, now: float, *, lossy: bool = False) -> None:
         """Add or replace the subscription ``request.id`` and re-merge (D11).
@@ -144,6 +184,8 @@ class TopicSubscription:
         else:
             self._lossy_ids.discard(request.id)
         self.spelling = request.topic
+        if not self._since:
+            self._since = now
         self._remerge(now)
 
     def remove(self, key: SubscriptionKey, now: float) -> bool:
@@ -156,6 +198,11 @@ class TopicSubscription:
             self._remerge(now)
         return True
 
+    @property
+    def requested_qos(self) -> QosProfile | None:
+        """The merged ``qos`` of its ids (D11, D63), or None when none gave one."""
+        return self.qos.requested
+
     def close(self) -> None:
         """Stop delivering: cancel the pending window and drop queued messages."""
         self.requests.clear()
@@ -164,6 +211,62 @@ class TopicSubscription:
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
+        if self._deadline_timer is not None:
+            self._deadline_timer.cancel()
+            self._deadline_timer = None
+        self._latest = None
+
+    def on_qos_offered(
+        self, offered: QosProfile | None, reasons: list[str], latest: Callable[[], float]
+    ) -> None:
+        """The topic's QoS offer, why this subscription is left out of it, its latest message.
+
+        The graph calls it (``rwt_graph.topic_qos``) when the subscription starts
+        and whenever the offer changes; a subscription left out tells its client
+        why (D64), and its deadline follows the offer's when it gives none (D65).
+        """
+        if not self.requests:
+            return  # closed meanwhile
+        left_out = self.qos.offer(offered, reasons) and reasons
+        self._latest = latest
+        self._qos_changed()
+        if left_out and self._warn is not None:
+            self._warn(self, self.qos.excluded_text(self.spelling))
+
+    def _qos_changed(self) -> None:
+        self.rule = self.qos.rule
+        self.lifespan_s = self.qos.lifespan_s
+        self._trim()
+        self._watch_deadline()
+
+    def _watch_deadline(self) -> None:
+        """(Re)arm the deadline's check for the current deadline and latest message (D65)."""
+        if self._deadline_timer is not None:
+            self._deadline_timer.cancel()
+            self._deadline_timer = None
+        deadline = self.qos.deadline_s
+        if math.isinf(deadline) or self._latest is None or not self.requests:
+            return
+        last = max(self._latest(), self._since)
+        self._deadline_timer = self._schedule(
+            max(last + deadline, self._since + DEADLINE_CHECK_S), self._deadline_due
+        )
+
+    def _deadline_due(self, now: float) -> None:
+        """Warn once if no message came within the deadline; check again (D65)."""
+        self._deadline_timer = None
+        deadline, latest = self.qos.deadline_s, self._latest
+        if math.isinf(deadline) or latest is None or not self.requests:
+            return
+        last = max(latest(), self._since)
+        if now - last >= deadline:
+            if self._missed_after != last and self._warn is not None:
+                self._missed_after = last  # one warning per episode: until a message comes
+                self._warn(self, self.qos.deadline_text(self.spelling))
+            due = now + max(deadline, DEADLINE_CHECK_S)
+        else:
+            due = max(last + deadline, now + DEADLINE_CHECK_S)
+        self._deadline_timer = self._schedule(due, self._deadline_due)
 
     def on_message(self, event: MessageEvent) -> None:
         """Receive one message from the graph (``TopicSink``); throttle and queue it (D12)."""
@@ -185,6 +288,9 @@ class TopicSubscription:
 
     def _trim(self) -> None:
         keep = min(max(1, self.params.queue_length), self._max_queue)
+        rule = self.rule
+        if rule is not None and rule.depth:
+            keep = min(keep, rule.depth)  # the history's depth bounds this queue too (D63)
         while len(self.queue) > keep:
             self.queue.popleft()
 
@@ -212,6 +318,9 @@ class TopicSubscription:
     def _remerge(self, now: float) -> None:
         self.params = merge(list(self.requests.values()))
         self.lossy = self._lossy_ids.issuperset(self.requests)
+        asked = (None if r.qos is None else r.qos.profile() for r in self.requests.values())
+        if self.qos.request(asked):
+            self._qos_changed()
         self._trim()
         if self._timer is not None:
             # A changed throttle moves the end of the current window.
@@ -245,13 +354,28 @@ class BatchTopicSubscription(TopicSubscription):
         schedule: Schedule,
         *,
         max_queue: int = 100,
+        warn: Warn | None = None,
+        default_lifespan_s: float = math.inf,
     ) -> None:
-        super().__init__(topic, spelling, deliver, schedule, max_queue=max_queue)
+        super().__init__(
+            topic,
+            spelling,
+            deliver,
+            schedule,
+            max_queue=max_queue,
+            warn=warn,
+            default_lifespan_s=default_lifespan_s,
+        )
         self._deliver_many = deliver_many
 
     def on_messages(self, events: Sequence[MessageEvent]) -> None:
         """Receive a run of one topic's messages (``BatchSink``), as ``on_message`` would each."""
-        if self.queue or self._timer is not None or self.params.throttle_s > 0:
+        if (
+            self.queue
+            or self._timer is not None
+            or self.params.throttle_s > 0
+            or (self.rule is not None)
+        ):
             for event in events:
                 self.on_message(event)
             return

@@ -116,6 +116,9 @@ class HandlerContext(Protocol):
     def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
         """Queue a run of one topic's messages for the peer, in order (a batch sink's)."""
 
+    def warn_subscription(self, subscription: TopicSubscription, text: str) -> None:
+        """Warn the peer of a QoS event of ``subscription`` (D64, D65), with its latest id."""
+
 
 if TYPE_CHECKING:
     from ..session import SessionConfig as SessionSettings
