@@ -130,6 +130,8 @@ class TopicSubscription:
             deadline); None: nobody is told.
         default_lifespan_s: the server's lifespan for subscriptions giving none
             (``--qos-lifespan``, D63; inf: none).
+        reads_qos: whether the ops' ``qos`` is honoured (not with ``--compat
+            rosbridge-2.1``, ``compat.Compat.reads_qos``).
 
     Attributes:
         rule, lifespan_s: what its messages take to the outbox (``subscription_qos``;
@@ -146,6 +148,7 @@ class TopicSubscription:
         max_queue: int = 100,
         warn: Warn | None = None,
         default_lifespan_s: float = math.inf,
+        reads_qos: bool = True,
     ) -> None:
         self.topic = topic
         self.spelling = spelling
@@ -162,6 +165,7 @@ class TopicSubscription:
         self.lossy = False
         """Every id came on the lossy channel: messages go on the lossy lane (D36)."""
         self._warn = warn
+        self._reads_qos = reads_qos
         self.qos = SubscriptionQos(default_lifespan_s)
         self.rule = self.qos.rule
         self.lifespan_s = self.qos.lifespan_s
@@ -318,7 +322,10 @@ class TopicSubscription:
     def _remerge(self, now: float) -> None:
         self.params = merge(list(self.requests.values()))
         self.lossy = self._lossy_ids.issuperset(self.requests)
-        asked = (None if r.qos is None else r.qos.profile() for r in self.requests.values())
+        asked = (
+            None if r.qos is None or not self._reads_qos else r.qos.profile()
+            for r in self.requests.values()
+        )
         if self.qos.request(asked):
             self._qos_changed()
         self._trim()
@@ -356,6 +363,7 @@ class BatchTopicSubscription(TopicSubscription):
         max_queue: int = 100,
         warn: Warn | None = None,
         default_lifespan_s: float = math.inf,
+        reads_qos: bool = True,
     ) -> None:
         super().__init__(
             topic,
@@ -365,6 +373,7 @@ class BatchTopicSubscription(TopicSubscription):
             max_queue=max_queue,
             warn=warn,
             default_lifespan_s=default_lifespan_s,
+            reads_qos=reads_qos,
         )
         self._deliver_many = deliver_many
 

@@ -73,7 +73,7 @@ def _register(
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
     elif op_id not in ids:
         session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {spelling}")
-    profile = None if qos is None else qos.profile()
+    profile = None if qos is None or not session.config.compat.reads_qos else qos.profile()
     canonical = session.graph.advertise(
         session.client_id, spelling, type_name, latch=latch and profile is None, qos=profile
     )
@@ -214,7 +214,7 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
                 subscription,
                 qos=subscription.requested_qos,
             )
-    if op.qos is not None:
+    if op.qos is not None and session.config.compat.reads_qos:
         _report_capped(session, "subscribe", op.qos.profile(), op.id)
     cap = session.config.max_queue_length
     if op.queue_length > cap:
@@ -251,6 +251,7 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
     """A subscription of ``session`` to ``topic``: one that takes runs unless switched off."""
     max_queue = session.config.max_queue_length
     warn, lifespan = session.warn_subscription, session.config.qos_lifespan_s
+    reads_qos = session.config.compat.reads_qos
     if _BATCH_SINK:
         return BatchTopicSubscription(
             topic,
@@ -261,6 +262,7 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
             max_queue=max_queue,
             warn=warn,
             default_lifespan_s=lifespan,
+            reads_qos=reads_qos,
         )
     return TopicSubscription(
         topic,
@@ -270,4 +272,5 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
         max_queue=max_queue,
         warn=warn,
         default_lifespan_s=lifespan,
+        reads_qos=reads_qos,
     )
