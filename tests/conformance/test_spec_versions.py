@@ -273,11 +273,11 @@ class _ForgetQos:
             await listener.serve(self._connection)
 
     async def _connection(self, client: SocketStream) -> None:
-        async with client, await anyio.connect_tcp("127.0.0.1", self.port) as server:
-            async with anyio.create_task_group() as tg:
-                tg.start_soon(self._pipe, server, client, b"")
-                await self._pipe(client, server, b'"qos"')
-                tg.cancel_scope.cancel()
+        server = await anyio.connect_tcp("127.0.0.1", self.port)
+        async with client, server, anyio.create_task_group() as tg:
+            tg.start_soon(self._pipe, server, client, b"")
+            await self._pipe(client, server, b'"qos"')
+            tg.cancel_scope.cancel()
 
     @staticmethod
     async def _pipe(source: ByteStream, sink: ByteStream, field: bytes) -> None:

@@ -87,7 +87,8 @@ for (const ros of [reliable, matched]) {
   ros.on("/scan", (message) => got.push(message.msg.data));
   scanned.push(got);
 }
-new ROSLIB.Topic({ ros: pub, name: "/scan", messageType: "std_msgs/String" }).publish({ data: "s" });
+const scan = new ROSLIB.Topic({ ros: pub, name: "/scan", messageType: "std_msgs/String" });
+scan.publish({ data: "s" });
 await ask((ok, fail) => pub.getTopics(ok, fail));
 for (const ros of [reliable, matched]) await ask((ok, fail) => ros.getTopics(ok, fail));
 result.scan = { reliable: scanned[0], best_available: scanned[1], warned };
