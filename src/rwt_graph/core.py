@@ -472,11 +472,12 @@ class GraphCore:
         self.nodes.name_of(client)
         is_new = entry.add_subscriber(client, sink)
         self._hold(client, entry.name)
-        self.feed.put(SUBSCRIPTION, entry.name, client, entry.msgtype.name)
         state = entry.qos if qos is None else self.topic_qos(entry)
+        if state is not None:  # (before the feed: a link reads the request with the change)
+            state.add_subscriber(client, qos, sink)
+        self.feed.put(SUBSCRIPTION, entry.name, client, entry.msgtype.name)
         latched = entry.latched
         if state is not None:
-            state.add_subscriber(client, qos, sink)
             if is_new and not state.replay(client, sink):
                 latched = None  # volatile, or left out (D63, D64)
             elif latched is not None and any(kept is latched for kept in state.store):
