@@ -34,6 +34,7 @@ from ..errors import RemoteProtocolError
 from ..names import name_problem
 from ..ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
 from ..ops.base import INT64_MAX, INT64_MIN, json_type_name
+from ..ops.qos import Qos
 from ..shortcuts import enabled
 
 if TYPE_CHECKING:
@@ -173,11 +174,15 @@ def _check_unicode(frame: str | bytes, value: object) -> None:
 def encode_other(value: object) -> object:
     """Msgspec's hook for values it does not know: numpy arrays and scalars as lists (D27).
 
+    Also an op's ``qos`` object (``ops.qos.Qos``), as sent.
+
     Raises:
         TypeError: any other value.
     """
     tolist = getattr(value, "tolist", None)  # duck-typed: no numpy import here
     if tolist is None:
+        if isinstance(value, Qos):
+            return value.wire()
         raise TypeError(f"cannot encode {type(value).__name__} as JSON")
     return tolist()
 

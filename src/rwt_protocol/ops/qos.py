@@ -23,6 +23,7 @@ field (``$.qos.depth``); nothing is registered with it (D1, D62).
 from __future__ import annotations
 
 import math
+from enum import StrEnum
 from typing import Annotated, Any
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainValidator
@@ -118,6 +119,21 @@ class Qos(BaseModel):
     durability: Annotated[Annotated[Durability, Field(strict=False)] | None, _LOWER] = None
     deadline: Annotated[float | str | None, PlainValidator(_deadline)] = None
     lifespan: Annotated[float | None, PlainValidator(_lifespan)] = None
+
+    @classmethod
+    def of(cls, profile: QosProfile) -> Qos:
+        """The ``qos`` object a client sends for ``profile`` (every policy given)."""
+        return cls.model_validate(profile.to_json())
+
+    def wire(self) -> dict[str, object]:
+        """The object as sent: the fields given, durations as seconds or ``"infinite"``."""
+        wire: dict[str, object] = {}
+        for name, value in self.__dict__.items():
+            if isinstance(value, float) and math.isinf(value):
+                wire[name] = "infinite"
+            elif value is not None:
+                wire[name] = value.value if isinstance(value, StrEnum) else value
+        return wire
 
     def profile(self) -> QosProfile:
         """The profile this object asks for: each field left out at the system default (D62).
