@@ -305,7 +305,9 @@ class GraphCore:
         state = entry.qos
         if state is None:
             state = entry.qos = TopicQos(entry, self._clock.monotonic, self.max_store_bytes)
-            vars(entry)["fan_out"] = state.fan_out  # (the instance's: ``Topic.qos``)
+            # the instance's own (``Topic.qos``); an attribute, not ``vars(entry)``, which
+            # would make the instance's dict a real one and its reads slower
+            object.__setattr__(entry, "fan_out", state.fan_out)
             entry.changed()
         return state
 
@@ -319,7 +321,7 @@ class GraphCore:
         state = entry.qos
         if state is not None and state.idle:
             entry.qos = None
-            vars(entry).pop("fan_out", None)
+            object.__delattr__(entry, "fan_out")
             entry.changed()
 
     def unadvertise(self, client: ClientId, topic: str) -> None:

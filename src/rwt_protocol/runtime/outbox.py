@@ -349,17 +349,17 @@ class Outbox:
         """
         if frames and frames[0].droppable:
             self.topic_messages += 1
-        if self._refused(frames, rule is not None and now is not None and expires <= now):
+        if self._held_frames and frames and frames[0].droppable:
+            self.dropped += 1  # the queue is full with the held message
+            return
+        if rule is not None and now is not None and expires <= now:
+            self.dropped += 1  # past its lifespan already (D63): never queued
+            self.expired += 1
             return
         timed = self._note_timing(frames, now, lifespan, key, rule is not None)
         message = self._append(frames)
         if timed is not None:
-            timed.cost = message
-            oldest = self._by_key[key][0]
-            if timed.came - oldest.came > oldest.lifespan:
-                self._expire(key, timed.came)
-            if rule is not None:
-                self._apply_rule(timed, rule, expires)
+            self._timed_queued(timed, message, rule, expires)
         if self._bytes > self.limit_bytes:
             if message > self.limit_bytes and frames[0].droppable:
                 self._hold(len(frames), message)
@@ -372,16 +372,16 @@ class Outbox:
         if self.account is not None:
             self._settle()
 
-    def _refused(self, frames: Sequence[OutFrame], expired: bool) -> bool:
-        """Whether a message is dropped on arrival: a held one fills the queue, or ``expired``."""
-        if self._held_frames and frames and frames[0].droppable:
-            self.dropped += 1  # the queue is full with the held message
-            return True
-        if expired:
-            self.dropped += 1  # past its lifespan already (D63): never queued
-            self.expired += 1
-            return True
-        return False
+    def _timed_queued(
+        self, timed: _Timed, cost: int, rule: QueueRule | None, expires: float
+    ) -> None:
+        """Note the cost of a message with a lifespan or a rule just queued, and apply them."""
+        timed.cost = cost
+        oldest = self._by_key[timed.key][0]
+        if timed.came - oldest.came > oldest.lifespan:
+            self._expire(timed.key, timed.came)
+        if rule is not None:
+            self._apply_rule(timed, rule, expires)
 
     def _append(self, frames: Sequence[OutFrame]) -> int:
         """Queue ``frames`` as they are (``extend``'s first step); return their cost, bytes."""

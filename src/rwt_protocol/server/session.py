@@ -537,19 +537,38 @@ class Session(SessionBase):
         )
         if isinstance(frames, EncodeFailure):
             self._encode_failed(subscription, frames, params.compression)
+        elif lossy:
+            self._queue_lossy(subscription, frames)
+        else:
+            self.send_frames(frames, subscription.spelling, event.lifespan)
+
+    def deliver_ruled(self, subscription: TopicSubscription, event: MessageEvent) -> None:
+        """``deliver`` for a subscription with QoS (``TopicSubscription.rule``, D63, D64).
+
+        The message goes to the outbox with the subscription's rule and the end
+        of its lifespan, the earlier of its topic's and the subscription's; it is
+        never sent after that. A subscription without QoS takes ``deliver``, so
+        the plain path pays nothing for it.
+        """
+        self._now = max(self._now, event.now)
+        params = subscription.params
+        lossy = subscription.lossy and self._lossy is not None
+        if params.compression is Compression.PNG and self._runs_jobs:
+            self._deflate_later(subscription, event, None if lossy else params.fragment_size)
             return
-        rule = subscription.rule
-        if rule is None:  # no QoS (the plain path)
-            if lossy:
-                self._queue_lossy(subscription, frames)
-            else:
-                self.send_frames(frames, subscription.spelling, event.lifespan)
-            return
-        # the earlier of its topic's lifespan and the subscription's (D63)
+        frames = safe_publish_frames(
+            event,
+            subscription.spelling,
+            params.compression,
+            None if lossy else params.fragment_size,
+        )
         expires = min(event.expires, event.now + subscription.lifespan_s)
-        if lossy:
+        if isinstance(frames, EncodeFailure):
+            self._encode_failed(subscription, frames, params.compression)
+        elif lossy:
             self._queue_lossy(subscription, frames, expires)
         else:
+            rule = subscription.rule
             self.send_frames(frames, subscription.spelling, event.lifespan, rule, expires)
 
     def warn_subscription(self, subscription: TopicSubscription, text: str) -> None:
@@ -572,10 +591,8 @@ class Session(SessionBase):
         """
         params = subscription.params
         compression = params.compression
-        if (
-            (compression is Compression.PNG and self._runs_jobs)
-            or (subscription.lossy and self._lossy is not None)
-            or subscription.rule is not None  # QoS: each message with its own (D63)
+        if (compression is Compression.PNG and self._runs_jobs) or (
+            subscription.lossy and self._lossy is not None
         ):
             for event in events:
                 self.deliver(subscription, event)

@@ -123,6 +123,8 @@ class TopicSubscription:
         topic: the resolved topic name.
         spelling: the name as the client wrote it; delivered messages carry it (D26).
         deliver: sends one message to the client now (encoding is the caller's).
+        deliver_ruled: sends one message of a subscription with QoS (``rule``);
+            None: ``deliver`` sends those too.
         schedule: runs a callback at a monotonic deadline (the session's timers).
         max_queue: the most messages queued whatever ``queue_length`` asks
             (a size the peer controls, D24).
@@ -149,6 +151,7 @@ class TopicSubscription:
         warn: Warn | None = None,
         default_lifespan_s: float = math.inf,
         reads_qos: bool = True,
+        deliver_ruled: Callable[[TopicSubscription, MessageEvent], None] | None = None,
     ) -> None:
         self.topic = topic
         self.spelling = spelling
@@ -157,7 +160,9 @@ class TopicSubscription:
         self.type_name = ""
         self.queue: deque[MessageEvent] = deque()
         self.last_sent: float | None = None
-        self._deliver = deliver
+        self._deliver = self._plain = deliver
+        self._ruled = deliver_ruled or deliver
+        self._each_set = False  # ``BatchTopicSubscription``'s own ``on_messages`` is set
         self._schedule = schedule
         self._max_queue = max(1, max_queue)
         self._timer: Timer | None = None
@@ -173,6 +178,7 @@ class TopicSubscription:
         self._since = 0.0  # when its deadline started counting (monotonic seconds)
         self._deadline_timer: Timer | None = None
         self._missed_after: float | None = None  # the last message before a missed deadline
+        self._qos_changed()  # the server's default lifespan may give it a rule already
 
     def add(self, request: Subscribe, now: float, *, lossy: bool = False) -> None:
         """Add or replace the subscription ``request.id`` and re-merge (D11).
@@ -240,6 +246,8 @@ class TopicSubscription:
     def _qos_changed(self) -> None:
         self.rule = self.qos.rule
         self.lifespan_s = self.qos.lifespan_s
+        # the QoS path only for a subscription with QoS: the plain one checks nothing
+        self._deliver = self._plain if self.rule is None else self._ruled
         self._trim()
         self._watch_deadline()
 
@@ -364,6 +372,7 @@ class BatchTopicSubscription(TopicSubscription):
         warn: Warn | None = None,
         default_lifespan_s: float = math.inf,
         reads_qos: bool = True,
+        deliver_ruled: Callable[[TopicSubscription, MessageEvent], None] | None = None,
     ) -> None:
         super().__init__(
             topic,
@@ -374,20 +383,35 @@ class BatchTopicSubscription(TopicSubscription):
             warn=warn,
             default_lifespan_s=default_lifespan_s,
             reads_qos=reads_qos,
+            deliver_ruled=deliver_ruled,
         )
         self._deliver_many = deliver_many
 
+    def _each(self, events: Sequence[MessageEvent]) -> None:
+        """``on_messages`` of a subscription with QoS: ``on_message`` of each."""
+        for event in events:
+            self.on_message(event)
+
     def on_messages(self, events: Sequence[MessageEvent]) -> None:
         """Receive a run of one topic's messages (``BatchSink``), as ``on_message`` would each."""
-        if (
-            self.queue
-            or self._timer is not None
-            or self.params.throttle_s > 0
-            or (self.rule is not None)
-        ):
+        if self.queue or self._timer is not None or self.params.throttle_s > 0:
             for event in events:
                 self.on_message(event)
             return
         if events:
             self.last_sent = events[-1].now
             self._deliver_many(self, events)
+
+    def _qos_changed(self) -> None:
+        super()._qos_changed()
+        # a run goes message by message with QoS (each its own end of lifespan, D63):
+        # the instance's own ``on_messages`` then, so the plain one checks nothing.
+        # (Set and deleted as attributes: ``vars(self)`` would make the instance's
+        # dict a real one, and every attribute read of the hot path slower.)
+        each = self.rule is not None
+        if each != self._each_set:
+            self._each_set = each
+            if each:
+                object.__setattr__(self, "on_messages", self._each)
+            else:
+                object.__delattr__(self, "on_messages")

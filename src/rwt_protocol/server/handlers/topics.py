@@ -263,6 +263,7 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
             warn=warn,
             default_lifespan_s=lifespan,
             reads_qos=reads_qos,
+            deliver_ruled=session.deliver_ruled,
         )
     return TopicSubscription(
         topic,
@@ -273,4 +274,5 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
         warn=warn,
         default_lifespan_s=lifespan,
         reads_qos=reads_qos,
+        deliver_ruled=session.deliver_ruled,
     )
