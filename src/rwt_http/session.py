@@ -20,6 +20,7 @@ or answer in time; 500 a bug (contained: logged once, the server goes on).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING
@@ -32,7 +33,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.access import AccessDeniedError, Family, TopicUse
 from rwt_protocol.runtime.commands import CloseCode
 from rwt_protocol.runtime.connection import SessionBase
-from rwt_protocol.runtime.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame, QueueRule
 
 from .openapi import openapi_document
 from .routes import Route, RouteKind
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
 
     from rwt_graph.port import GraphFront
     from rwt_protocol.ports import GoalStatus, MessageEvent
+    from rwt_protocol.qos import QosProfile
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.rules import ClientRules
 
@@ -120,6 +122,8 @@ class HttpSession(SessionBase):
         self._streaming = False
         self._holds = False  # a subscription or a call waits in the graph
         self._last_sent = -1.0e18  # an event stream's last message (throttle_rate)
+        self._stream_rule: QueueRule | None = None  # an event stream's QoS (``stream_qos``)
+        self._stream_lifespan_s = math.inf
 
     # ---- what the runtime asks ----------------------------------------------------
 
@@ -235,7 +239,7 @@ class HttpSession(SessionBase):
         type_name = self._topic_type(route.name, route.type_name)
         if type_name is None:
             raise UnknownNameError("topic", f"{route.name} (give its ?type=)")
-        type_name = self.graph.advertise(self.client_id, route.name, type_name)
+        type_name = self.graph.advertise(self.client_id, route.name, type_name, qos=route.qos)
         self.graph.publish(self.client_id, route.name, msg)
         self._answer(200, {"topic": route.name, "type": type_name})
 
@@ -245,7 +249,8 @@ class HttpSession(SessionBase):
             self._answer(404, {"error": f"topic {route.name} does not exist"})
             return
         self._open_stream()
-        self.graph.subscribe(self.client_id, route.name, route.type_name, _StreamSink(self))
+        sink = _StreamSink(self)
+        self.graph.subscribe(self.client_id, route.name, route.type_name, sink, qos=route.qos)
         self._holds = True
 
     def _open_stream(self) -> None:
@@ -253,16 +258,36 @@ class HttpSession(SessionBase):
         self.send_frames((OutFrame(stream_head(self._headers)),))
 
     def _stream_messages(self, events: Sequence[MessageEvent]) -> None:
-        """Queue ``events`` as Server-Sent Events, under ``throttle_rate``."""
+        """Queue ``events`` as Server-Sent Events, under ``throttle_rate`` (and the QoS)."""
         gap = self.route.throttle_rate_ms / 1000.0
         run = []
+        sent = []
         for each in events:
             if gap and each.now - self._last_sent < gap:
                 continue  # rosbridge's throttle_rate: at most one message a gap
             self._last_sent = each.now
             data = each.encoded(_SSE_KEY, partial(_sse, each))
             run.append(OutFrame(data, True, True))
-        self.queue_run(run, self.route.name, events[-1].now)
+            sent.append(each)
+        rule = self._stream_rule
+        if rule is None:
+            self.queue_run(run, self.route.name, events[-1].now)
+            return
+        for frame, each in zip(run, sent, strict=True):  # each with its lifespan's end (D63)
+            expires = min(each.expires, each.now + self._stream_lifespan_s)
+            self.send_frames((frame,), self.route.name, 0.0, rule, expires)
+
+    def stream_qos(self, offered: QosProfile | None) -> None:
+        """The stream's topic has a QoS (``_StreamSink.on_qos_offered``, D63): its rule."""
+        asked = self.route.qos
+        if asked is None and offered is None:
+            self._stream_rule = None
+            return
+        effective = None if asked is None else asked.for_subscription(offered)
+        self._stream_lifespan_s = math.inf if effective is None else effective.lifespan_s
+        self._stream_rule = (
+            QueueRule() if effective is None else QueueRule(effective.keep, effective.best_effort)
+        )
 
     def _service(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.SERVICES, route.name, "call_service")
@@ -338,6 +363,12 @@ class _StreamSink:
 
     def __init__(self, session: HttpSession) -> None:
         self._session = session
+
+    def on_qos_offered(
+        self, offered: QosProfile | None, reasons: list[str], latest: Callable[[], float]
+    ) -> None:
+        """The topic's QoS (``rwt_graph.topic_qos``): the stream's rule follows it (D63)."""
+        self._session.stream_qos(offered)
 
     def on_message(self, event_: MessageEvent) -> None:
         self._session._stream_messages((event_,))
