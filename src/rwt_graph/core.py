@@ -60,7 +60,7 @@ from .link import OPEN_GATE, OPEN_OUTFLOW, InflowGate, OutflowGate
 from .nodes import Nodes
 from .ratelog import EpisodeLog
 from .services import ServiceEntry, Services
-from .topic_qos import STORE_MAX_BYTES, TopicQos
+from .topic_qos import STORE_MAX_BYTES, StoreBudget, TopicQos
 from .topics import Tap, Topic
 from .types import Dialect, MessageType, TypeRegistry, codec_for
 from .types.wire import wire_encoding
@@ -125,6 +125,8 @@ class GraphCore:
             server installs its own, else ``OPEN_OUTFLOW``.
         max_store_bytes: the bytes a topic's transient-local store keeps at most
             (``topic_qos``, D63); the server sets its ``--send-buffer-limit``.
+        stores: the bytes all topics' stores keep together, and their bound
+            (``topic_qos.StoreBudget``); the server sets its ``--memory-budget``.
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -156,6 +158,7 @@ class GraphCore:
         self.inflow: InflowGate = OPEN_GATE
         self.outflow: OutflowGate = OPEN_OUTFLOW
         self.max_store_bytes = STORE_MAX_BYTES
+        self.stores = StoreBudget()
         # client -> the topics it publishes or subscribes to, so that its release
         # costs what it holds, not the size of the graph (a peer's thousands of
         # entities leave one by one: docs/limits.md, "Zenoh peers")
@@ -304,7 +307,9 @@ class GraphCore:
         """The QoS state of ``entry``, made (and made its ``fan_out``) on first use (D62)."""
         state = entry.qos
         if state is None:
-            state = entry.qos = TopicQos(entry, self._clock.monotonic, self.max_store_bytes)
+            state = entry.qos = TopicQos(
+                entry, self._clock.monotonic, self.max_store_bytes, self.stores
+            )
             # the instance's own (``Topic.qos``); an attribute, not ``vars(entry)``, which
             # would make the instance's dict a real one and its reads slower
             object.__setattr__(entry, "fan_out", state.fan_out)

@@ -12,8 +12,10 @@ delivery is what it always was (D13's latching, no per-message work here).
   gave no ``qos`` neither fix nor end it.
 - **Transient local** (D63). With a transient-local offer, the topic keeps its
   last ``keep`` messages (``qos.MAX_DEPTH`` at most, and ``max_store_bytes`` of
-  them), dropping the oldest, and a new subscriber that asks for transient local
-  (or asks nothing: the adaptive default) gets those not past their lifespan, in
+  them, and all topics' stores together at most their ``StoreBudget``, each
+  keeping its newest message as a latched topic does), dropping the oldest, and a
+  new subscriber that asks for transient local (or asks nothing: the adaptive
+  default) gets those not past their lifespan, in
   order, before anything newer: the last ``min(offer's, its own)`` of them. The
   kept messages go when the offer does, as a transient-local sample lives with
   its writer.
@@ -39,6 +41,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from rwt_protocol.qos import QosProfile, incompatibilities
@@ -52,7 +55,7 @@ if TYPE_CHECKING:
 
     from .topics import Topic
 
-__all__ = ["STORE_MAX_BYTES", "TopicQos", "event_bytes"]
+__all__ = ["STORES_MAX_BYTES", "STORE_MAX_BYTES", "StoreBudget", "TopicQos", "event_bytes"]
 
 logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)
@@ -61,6 +64,25 @@ STORE_MAX_BYTES = 16 * 1024 * 1024
 """Bytes of messages one topic's transient-local store keeps at most (D63): the default
 ``--send-buffer-limit``, so a late subscriber's replay fits its queue. The server sets
 it from its own limit (``GraphCore.max_store_bytes``); past it the oldest go."""
+
+
+STORES_MAX_BYTES = 256 * 1024 * 1024
+"""Bytes all topics' transient-local stores keep together at most (D63), without a server;
+a server sets its ``--memory-budget``. Past it, the store being added to drops its
+oldest messages, down to its newest one (what D13 keeps of a latched topic)."""
+
+
+@dataclass
+class StoreBudget:
+    """The bytes all of a graph's transient-local stores hold, and their bound (D63).
+
+    Attributes:
+        limit: the most bytes the stores keep together.
+        used: the bytes they keep now.
+    """
+
+    limit: int = STORES_MAX_BYTES
+    used: int = 0
 
 
 def event_bytes(event: MessageEvent) -> int:
@@ -88,6 +110,7 @@ class TopicQos:
         topic: the topic.
         clock: the graph's monotonic clock (seconds).
         max_store_bytes: the store's byte bound.
+        budget: the bound of all the graph's stores together (shared).
 
     Attributes:
         offered: the offer, resolved for a publisher (``for_publisher``), or None.
@@ -97,10 +120,17 @@ class TopicQos:
         store: the kept messages, oldest first (transient local, D63).
     """
 
-    def __init__(self, topic: Topic, clock: Callable[[], float], max_store_bytes: int) -> None:
+    def __init__(
+        self,
+        topic: Topic,
+        clock: Callable[[], float],
+        max_store_bytes: int,
+        budget: StoreBudget | None = None,
+    ) -> None:
         self.topic = topic
         self._clock = clock
         self.max_store_bytes = max_store_bytes
+        self.budget = budget or StoreBudget()
         self.offered: QosProfile | None = None
         self.asked: dict[ClientId, QosProfile] = {}
         self.requested: dict[ClientId, QosProfile] = {}
@@ -165,6 +195,7 @@ class TopicQos:
         """Make ``offered`` the topic's offer; judge and tell every subscriber again."""
         self.offered = offered
         if offered is None or not offered.transient_local:
+            self.budget.used -= self.store_bytes
             self.store.clear()
             self._store_sizes.clear()
             self.store_bytes = 0
@@ -210,14 +241,22 @@ class TopicQos:
     def _keep(self, event: MessageEvent, keep: int) -> None:
         """Keep ``event`` in the store, dropping the oldest past ``keep`` or the byte bound."""
         size = event_bytes(event)
+        budget = self.budget
         self.store.append(event)
         self._store_sizes.append(size)
         self.store_bytes += size
+        budget.used += size
         while len(self.store) > keep or (
-            self.store_bytes > self.max_store_bytes and len(self.store) > 1
+            len(self.store) > 1
+            and (self.store_bytes > self.max_store_bytes or budget.used > budget.limit)
         ):
-            self.store.popleft()
-            self.store_bytes -= self._store_sizes.popleft()
+            self._drop_oldest()
+
+    def _drop_oldest(self) -> None:
+        self.store.popleft()
+        size = self._store_sizes.popleft()
+        self.store_bytes -= size
+        self.budget.used -= size
 
     def replay(self, client: ClientId, sink: TopicSink) -> bool:
         """Give a new subscriber what the store keeps for it (D63), oldest first.
@@ -235,8 +274,7 @@ class TopicQos:
             return True
         now = self._clock()
         while self.store and self.store[0].expires <= now:  # past its lifespan: never replayed
-            self.store.popleft()
-            self.store_bytes -= self._store_sizes.popleft()
+            self._drop_oldest()
         keep = len(self.store) if asked is None else min(len(self.store), asked.keep)
         for event in list(self.store)[len(self.store) - keep :]:
             sink.on_message(event)

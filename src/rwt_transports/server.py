@@ -189,8 +189,10 @@ class GraphServer:
         self.console, self.config = self._console_site()
         # a link's queue for the other middleware holds publishers back as a subscriber does
         self.graph.port.outflow = OutboundHold(self.flow)
-        # a topic's transient-local store fits a late subscriber's queue (D63)
+        # a topic's transient-local store fits a late subscriber's queue, and all of
+        # them the server's memory budget (D63)
         self.graph.port.max_store_bytes = session_config.send_buffer_limit
+        self.graph.port.stores.limit = self.config.memory_budget
         # one budget for what every connection makes the server hold (D44); incomplete
         # messages draw from it within their own
         self.memory = MemoryBudget(self.config.memory_budget)

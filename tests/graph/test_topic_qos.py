@@ -60,3 +60,22 @@ def test_a_topic_without_qos_keeps_no_state_and_batches_as_before() -> None:
     assert got == ["kept"]  # D13 as before
     entry = graph.topics["/plain"]
     assert entry.qos is None and "fan_out" not in vars(entry)
+
+
+def test_all_stores_together_keep_the_graphs_bound_each_its_newest() -> None:
+    graph = rwt.Graph()
+    graph.port.stores.limit = 2000
+    deep = rwt.QosProfile(durability=Durability.TRANSIENT_LOCAL, depth=100)
+    publishers = [graph.create_publisher(f"/t{n}", STRING, qos=deep) for n in range(4)]
+    for i in range(20):
+        for publisher in publishers:
+            publisher.publish({"data": f"{i:03}" + "x" * 97})
+    states = [graph.topics[f"/t{n}"].qos for n in range(4)]
+    assert all(state is not None and len(state.store) >= 1 for state in states)
+    assert graph.port.stores.used == sum(s.store_bytes for s in states if s is not None)
+    assert graph.port.stores.used <= 2000 + 3 * 120  # the others' newest stay
+    for state in states:
+        assert state is not None and state.store[-1].msg["data"].startswith("019")
+    for publisher in publishers:
+        publisher.close()
+    assert graph.port.stores.used == 0  # the stores went with their offers
