@@ -90,9 +90,7 @@ class RobotLink:
         self.url = url
         self.robot: Robot = robot or ClientRobot(Ros(url, reconnect=True))
         self.goals: OrderedDict[str, Goal] = OrderedDict()
-        self._publishers: OrderedDict[tuple[str, str, QosProfile | None], Publisher] = (
-            OrderedDict()
-        )
+        self._publishers: OrderedDict[tuple[str, str, QosProfile | None], Publisher] = OrderedDict()
         self._ready = anyio.Event()  # the first connection was made
 
     async def connect(self, stop: anyio.Event) -> None:
