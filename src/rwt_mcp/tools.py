@@ -466,12 +466,20 @@ class RobotTools:
             await self._settle(record, seconds)
         return goal_report(record)
 
-    async def start_goal(self, arguments: dict[str, Any]) -> Goal:
+    async def start_goal(
+        self, arguments: dict[str, Any], before_send: Callable[[], None] | None = None
+    ) -> Goal:
         """Send a goal of ``send_action_goal``'s ``arguments`` without waiting (a task's start).
+
+        Args:
+            arguments: the tool's arguments, as the client sent them.
+            before_send: called once the arguments and the guard passed, before
+                the goal is sent (a task's running slot, ``tasks.TaskStore.reserve``);
+                its ``ToolError`` refuses the goal, and nothing is sent.
 
         Raises:
             ToolError: arguments that fail the tool's schema (each wrong field
-                named), the guard's refusal, or the server's.
+                named), the guard's refusal, ``before_send``'s, or the server's.
         """
         template = _TEMPLATES["send_action_goal"]
         try:
@@ -480,6 +488,8 @@ class RobotTools:
             raise ToolError(_bad_arguments(exc)) from None
         _wait(valid.get("timeout_s", 30.0))
         self.guard.admit("send_action_goal", arguments)
+        if before_send is not None:
+            before_send()
         with _tool_errors():
             return await self.link.send_goal(valid["action"], valid["type"], valid["goal"])
 
@@ -731,6 +741,7 @@ def build_server(
     tasks: TaskStore | None = None,
     watched: Watched | None = None,
     site: AppSite | None = None,
+    host: str = "",
 ) -> tuple[MCPServer, TasksExtension]:
     """An MCPServer whose tools and resources drive the robot behind ``link``.
 
@@ -749,6 +760,8 @@ def build_server(
             ``shared``); None: this server's own.
         site: where the robot app finds the server's video (``app.AppSite``);
             None: not known.
+        host: the client's host, for its share of ``tasks``' running slots
+            (``tasks.TaskStore.reserve``, D60); ``""``: the front end's one client.
 
     Returns:
         The server, and its tasks extension (``TasksExtension.hold`` keeps the
@@ -758,7 +771,7 @@ def build_server(
     tools = RobotTools(link, site)
     resources = TopicResources(link, guard, watched, site)
     report = functools.partial(_report_json, goal_report)
-    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report)
+    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report, host)
     server = MCPServer(
         "rwt",
         instructions=(

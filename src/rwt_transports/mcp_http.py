@@ -84,7 +84,7 @@ from rwt_mcp.app import AppSite
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.session import McpSession
-from rwt_mcp.tasks import TaskStore
+from rwt_mcp.tasks import MAX_TASKS, TaskStore
 from rwt_mcp.tools import build_server, release_server, warm_up
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.credentials import AuthMode, EntryAuth
@@ -97,6 +97,7 @@ from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
+from .shares import HostShares, address_of
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
@@ -310,7 +311,8 @@ class McpEndpoint:
         self.siblings = options.siblings  # the other workers' (--workers; mcp_siblings)
         new_id = None if self.siblings is None else self.siblings.new_id
         self._new_id = new_id or (lambda: uuid.uuid4().hex)
-        self.tasks = TaskStore(new_id=new_id)  # every session's and request's (rwt_mcp.tasks)
+        # every session's and request's (rwt_mcp.tasks), each host with its share of them (D60)
+        self.tasks = TaskStore(new_id=new_id, shares=HostShares(MAX_TASKS))
         self._watched: Watched = {}  # topics the 2026-07-28 requests' listen streams hold
         self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
@@ -564,7 +566,7 @@ class McpEndpoint:
         self.sessions[session_id] = session
         established = False
         try:
-            await tg.start(self._run, session_id, session, admitted, site)
+            await tg.start(self._run, session_id, session, admitted, site, exchange.peer)
             status = await self._handle(exchange, session)
             established = status is not None and status < 400
         finally:
@@ -634,6 +636,7 @@ class McpEndpoint:
         session: _Session,
         admitted: _Admitted,
         site: AppSite,
+        peer: str,
         *,
         task_status: TaskStatus[None],
     ) -> None:
@@ -644,7 +647,7 @@ class McpEndpoint:
                 link = RobotLink(robot.url, robot)
                 await link.connect(anyio.Event())  # at once: the graph is here
                 guard = Guard(session.client_id, self.options.read_only)
-                mcp, tasks = build_server(link, guard, self.tasks, site=site)
+                mcp, tasks = build_server(link, guard, self.tasks, site=site, host=self._host(peer))
                 try:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
@@ -701,7 +704,9 @@ class McpEndpoint:
                 link = RobotLink(robot.url, robot)
                 await link.connect(anyio.Event())  # at once: the graph is here
                 guard = self._modern_guard(peer)
-                mcp, tasks = build_server(link, guard, self.tasks, self._watched, site)
+                mcp, tasks = build_server(
+                    link, guard, self.tasks, self._watched, site, self._host(peer)
+                )
                 try:
                     task_status.started(mcp._lowlevel_server)
                     started = True
@@ -715,6 +720,10 @@ class McpEndpoint:
         finally:
             if not started:
                 task_status.started(None)
+
+    def _host(self, peer: str) -> str:
+        """The host ``peer`` (``ADDRESS:PORT``) counts as for the shares (``--host-prefix-v4``)."""
+        return self.server.host_prefixes.host(address_of(peer))
 
     def _modern_guard(self, peer: str) -> Guard:
         """A 2026-07-28 request's rules: its host's rate caps (``MODERN_HOSTS_KEPT``)."""

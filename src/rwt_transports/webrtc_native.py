@@ -21,6 +21,12 @@ onto the event loop (``loop.call_soon_threadsafe``), bounded:
   (``event=webrtc_overflow``). A message above the incoming size is not queued
   either: the session gets its error status. So what waits between the threads
   is part of the same 16 MiB a peer may send ahead of its session.
+- libdatachannel cuts a message longer than its own size at that size and
+  hands the cut on as the whole message. Its size is set one byte over what the
+  answer states (``a=max-message-size``, rewritten in the answer), so a message
+  over the answer's size always arrives over the incoming size, and is refused
+  whole as on aiortc (never a cut op executed); the cut holds at most that size
+  and one read (64 KiB) of libdatachannel's.
 - the binding holds the GIL while it runs libdatachannel's calls (``send``),
   and libdatachannel runs its buffered-amount callback with its send lock
   held: a Python callback there could wait for the GIL while the loop waits
@@ -54,6 +60,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import threading
 from collections import deque
 from functools import cache
@@ -386,7 +393,9 @@ class NativePeerConnection:
             skipped (the session answers an error status).
         inflow: the peer's bound on messages waiting for the loop.
         answer_max_message_size: the answer's ``a=max-message-size``, bytes
-            (``webrtc_sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states).
+            (``webrtc_sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states);
+            libdatachannel's own is one byte more (the module text says why), so
+            ``max_message_size`` must be at most this.
         refusal: why a channel the peer opens is closed (label, ordered,
             ``maxRetransmits``, ``maxPacketLifeTime`` in s; None: taken;
             ``webrtc_peers.channel_refusal``). Asked on libdatachannel's thread,
@@ -420,7 +429,9 @@ class NativePeerConnection:
         self._closing: set[asyncio.Task[None]] = set()
         config = ldc.Configuration()
         config.ice_servers = [native_ice_server(ldc, server) for server in ice_servers]
-        config.max_message_size = answer_max_message_size
+        # one byte over the answer: a message libdatachannel cuts is over it (module text)
+        config.max_message_size = answer_max_message_size + 1
+        self._answer_max = answer_max_message_size
         config.certificate_pem_file, config.key_pem_file = certificate_files()
         config.disable_auto_negotiation = tracks
         self._manual = tracks
@@ -527,7 +538,7 @@ class NativePeerConnection:
         description = self._pc.local_description()
         if description is None:
             raise ValueError("libdatachannel made no answer")
-        self.localSdp = str(description)
+        self.localSdp = _stated_size(str(description), self._answer_max)
         return self.localSdp
 
     async def answer(self, sdp: str) -> str:
@@ -549,6 +560,14 @@ class NativePeerConnection:
         self._hop.target = None
         self.connectionState = "closed"
         await anyio.to_thread.run_sync(self._pc.close, abandon_on_cancel=True)
+
+
+def _stated_size(sdp: str, size: int) -> str:
+    """``sdp`` (the answer) stating ``size`` as its ``a=max-message-size`` (RFC 8841).
+
+    libdatachannel states its own size, one byte more (``NativePeerConnection``).
+    """
+    return re.sub(r"^a=max-message-size:\d+", f"a=max-message-size:{size}", sdp, flags=re.M)
 
 
 def _arrived(hop: _Hop, message: str | bytes) -> None:
