@@ -127,12 +127,17 @@ class TypeDefinition(BaseModel):
 
 
 class Published(BaseModel):
-    """What ``publish`` and ``publish_for`` sent: messages, and whether a final one."""
+    """What ``publish`` and ``publish_for`` sent: messages, and whether a final one.
+
+    ``safety``: what the robot's safety envelope did (a field clamped, a message
+    dropped past its rate), each told once.
+    """
 
     topic: str
     type: str
     count: int
     final_sent: bool = False
+    safety: list[str] = []
 
 
 class ServiceAnswer(BaseModel):
@@ -351,8 +356,8 @@ class RobotTools:
         """
         with _tool_errors():
             publisher = await self.link.publisher(topic, type)
-            await publisher.publish(msg)
-        return Published(topic=topic, type=type, count=1)
+            note = await publisher.publish(msg)
+        return Published(topic=topic, type=type, count=1, safety=[note] if note else [])
 
     async def publish_for(
         self,
@@ -380,6 +385,7 @@ class RobotTools:
         if not 0 < duration_s <= MAX_PUBLISH_DURATION_S:
             raise ToolError(f"duration_s must be in (0, {MAX_PUBLISH_DURATION_S:g}]")
         count = 0
+        notes: dict[str, None] = {}  # each told once, in order
         with _tool_errors():
             publisher = await self.link.publisher(topic, type)
             start = anyio.current_time()
@@ -388,14 +394,20 @@ class RobotTools:
                 # the deadline is checked between publishes, never cancels one: a publish
                 # cut off after its frame went out would be sent and not counted
                 while anyio.current_time() < deadline:
-                    await publisher.publish(msg)
+                    _noted(notes, await publisher.publish(msg))
                     count += 1
                     await anyio.sleep_until(min(deadline, start + count / rate_hz))
             finally:
                 if final_msg is not None:
                     with anyio.CancelScope(shield=True):  # the stop goes out, whatever happens
-                        await publisher.publish(final_msg)
-        return Published(topic=topic, type=type, count=count, final_sent=final_msg is not None)
+                        _noted(notes, await publisher.publish(final_msg))
+        return Published(
+            topic=topic,
+            type=type,
+            count=count,
+            final_sent=final_msg is not None,
+            safety=list(notes),
+        )
 
     # ---- services and parameters ----------------------------------------------------
 
@@ -645,6 +657,15 @@ class RobotTools:
             translation=values.get("translation", {}),
             rotation=values.get("rotation", {}),
         )
+
+
+_MAX_NOTES = 4  # distinct safety notes one ``publish_for`` reports
+
+
+def _noted(notes: dict[str, None], note: str | None) -> None:
+    """Keep ``note`` (a safety envelope's word on one publish) once, at most ``_MAX_NOTES``."""
+    if note and len(notes) < _MAX_NOTES:
+        notes[note] = None
 
 
 def goal_report(record: Goal) -> GoalReport:

@@ -597,6 +597,9 @@ class McpEndpoint:
             if connection is not None:
                 await _close_pair(connection)
             return None
+        session.request_scoped = (
+            not pumped
+        )  # a 2026-07-28 request: a command, not a commander (D68)
         return _Admitted(session, pump, connection)
 
     async def _continue(self, exchange: _Exchange, session: _Session) -> None:

@@ -153,6 +153,7 @@ class GraphServer:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
             its address's width (``shares.HostPrefixes``); an HTTP front end's
             options are not of its type.
+        RulesError: ``config.safety`` does not fit the graph's types (a ``ConfigError``).
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
             ``config.mcp`` is set but the MCP SDK is not (``rwt-rosbridge[mcp]``).
     """
@@ -172,6 +173,8 @@ class GraphServer:
         self.host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
         """What names a peer's host for the host shares (``--host-prefix-v4``, ``-v6``)."""
         self.graph = graph or Graph()
+        if self.config.safety is not None and self.graph.safety is None:
+            self.graph.use_safety(self.config.safety)  # RulesError: they do not fit its types
         # one flow control for the connections and the links (it keeps the hosts' cool-downs);
         # links' deliveries are held back as readers are
         self.flow: FlowControl[Held] = FlowControl(
@@ -830,6 +833,9 @@ class GraphServer:
         made = frontend or self.frontends.default or rosbridge_frontend(self._rosbridge_session)
         session = made.make_session(request)
         self.sessions[client_id] = session
+        envelope = self.graph.safety
+        if envelope is not None:  # its audit names the front end (docs/safety.md)
+            envelope.connected(client_id, made.name)
         if host is not None:
             self._shares.add(host)
             self._hosts[client_id] = host

@@ -308,16 +308,15 @@ class Envelope:
                 (an HTTP request, a 2026-07-28 MCP request): its command stands
                 until ``deadman_s`` passes.
         """
+        if ended:
+            now = self.clock()
+            for guarded in self._topics.values():
+                if guarded.commanders.pop(client, None) is None:
+                    continue
+                deadman = guarded.rule.deadman_s or 0.0
+                if not any(now - last < deadman for last in guarded.commanders.values()):
+                    self._stop(guarded, client, "its connection ended")
         self._frontends.pop(client, None)
-        if not ended:
-            return
-        now = self.clock()
-        for guarded in self._topics.values():
-            if guarded.commanders.pop(client, None) is None:
-                continue
-            deadman = guarded.rule.deadman_s or 0.0
-            if not any(now - last < deadman for last in guarded.commanders.values()):
-                self._stop(guarded, client, "its connection ended")
 
     def next_deadline(self) -> float | None:
         """When the next dead-man falls due (the ``clock``'s seconds), or None: none commanded."""
