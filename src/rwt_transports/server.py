@@ -69,6 +69,7 @@ from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
 from .config import ServerConfig
+from .deadman import run_deadman
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
 from .frontends import FrontEnd, FrontEnds, SessionRequest
@@ -403,6 +404,8 @@ class GraphServer:
                     with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
+                        if self.graph.safety is not None:  # the dead-man's timer (docs/safety.md)
+                            connections.start_soon(run_deadman, self.graph.safety)
                         for endpoint in self.endpoints.values():
                             endpoint.bind(connections)
                         async with anyio.create_task_group() as accepting:
