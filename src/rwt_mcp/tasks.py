@@ -49,6 +49,7 @@ if TYPE_CHECKING:
 
     from mcp.server.context import CallNext, HandlerResult, ServerRequestContext
 
+    from .approval import Approvals
     from .guard import Guard
     from .link import Goal, RobotLink
 
@@ -251,6 +252,8 @@ class TasksExtension(Extension):
         self.store, self.link, self.guard, self.start_goal = store, link, guard, start_goal
         self.report = report
         self.started: list[GoalTask] = []
+        self.approvals: Approvals | None = None
+        """The calls that wait for a person: such a goal is asked for first, as the tool's."""
 
     def methods(self) -> list[MethodBinding]:
         """``tasks/get``, ``tasks/update``, ``tasks/cancel``."""
@@ -269,6 +272,9 @@ class TasksExtension(Extension):
         """A task for a ``TASK_TOOLS`` call of a client that takes tasks; else the call."""
         if params.name not in TASK_TOOLS or not takes_tasks(ctx):
             return await call_next(ctx)
+        approvals = self.approvals
+        if approvals is not None and approvals.target(params.name, dict(params.arguments or {})):
+            return await call_next(ctx)  # a person's yes first (docs/safety.md): not a task
         try:
             record = await self.start_goal(dict(params.arguments or {}))
         except (ToolError, ValidationError) as exc:

@@ -25,7 +25,14 @@ import pybase64
 from mcp.server.mcpserver import Context, MCPServer
 from mcp.server.mcpserver.exceptions import ToolError
 from mcp.server.mcpserver.tools import Tool
-from mcp.types import CallToolResult, ImageContent, TextContent, ToolAnnotations
+from mcp.server.request_state import RequestStateSecurity
+from mcp.types import (
+    CallToolResult,
+    ImageContent,
+    InputRequiredResult,
+    TextContent,
+    ToolAnnotations,
+)
 from pydantic import BaseModel, ValidationError
 from typing_extensions import TypedDict  # pydantic reads it on Python 3.11
 
@@ -36,6 +43,7 @@ from rwt_protocol.names import name_problem
 
 from . import render
 from .app import APP_URI, AppSite, RobotApp, app_settings
+from .approval import Approvals
 from .catalog import APP_TOOLS, TOOLS, WRITE_TOOLS
 from .guard import Guard
 from .link import Goal, RobotLink
@@ -229,6 +237,7 @@ class RobotTools:
         self.link = link
         self.guard = Guard()
         self.site = site or AppSite()
+        self.approvals: Approvals | None = None  # what waits for a person (docs/safety.md)
 
     # ---- the graph ------------------------------------------------------------------
 
@@ -346,13 +355,14 @@ class RobotTools:
             summary["timed_out"] = True
         return [TextContent(type="text", text=json.dumps(summary)), *content]
 
-    async def publish(self, topic: str, type: str, msg: Message) -> Published:
+    async def publish(self, topic: str, type: str, msg: Message, ctx: Context) -> Published:
         """Publish one message (the topic is advertised on first use and stays advertised).
 
         Args:
             topic: the topic name.
             type: its message type (see ``type_definition``).
             msg: the message as JSON.
+            ctx: the MCP request (a person's approval is asked through it, where needed).
         """
         with _tool_errors():
             publisher = await self.link.publisher(topic, type)
@@ -366,6 +376,7 @@ class RobotTools:
         msg: Message,
         rate_hz: float,
         duration_s: float,
+        ctx: Context,
         final_msg: Message | None = None,
     ) -> Published:
         """Publish ``msg`` at ``rate_hz`` for ``duration_s`` seconds, then ``final_msg`` once.
@@ -378,6 +389,7 @@ class RobotTools:
             msg: the message repeated.
             rate_hz: messages a second (at most MAX_PUBLISH_RATE_HZ).
             duration_s: seconds (at most MAX_PUBLISH_DURATION_S).
+            ctx: the MCP request (a person's approval is asked through it, where needed).
             final_msg: sent once at the end, also when the call is cancelled.
         """
         if not 0 < rate_hz <= MAX_PUBLISH_RATE_HZ:
@@ -414,6 +426,7 @@ class RobotTools:
     async def call_service(
         self,
         service: str,
+        ctx: Context,
         type: str | None = None,
         args: Message | None = None,
         timeout_s: float = 10.0,
@@ -422,6 +435,7 @@ class RobotTools:
 
         Args:
             service: the service name.
+            ctx: the MCP request (a person's approval is asked through it, where needed).
             type: its service type (optional; rosbridge servers look it up).
             args: the request as JSON (omitted: an empty request).
             timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
@@ -574,6 +588,8 @@ class RobotTools:
         refused = None
         if self.guard.read_only:
             refused = "the MCP server is read-only"
+        elif self.approvals is not None and self.approvals.target("publish", {"topic": cmd_vel}):
+            refused = f"cmd_vel {cmd_vel}: each command needs a person's approval (docs/safety.md)"
         else:
             try:
                 self.link.robot.check_access("topics_pub", cmd_vel, "cmd_vel", op="robot_app")
@@ -752,6 +768,8 @@ def build_server(
     tasks: TaskStore | None = None,
     watched: Watched | None = None,
     site: AppSite | None = None,
+    approvals: Approvals | None = None,
+    request_state: RequestStateSecurity | None = None,
 ) -> tuple[MCPServer, TasksExtension]:
     """An MCPServer whose tools and resources drive the robot behind ``link``.
 
@@ -770,6 +788,11 @@ def build_server(
             ``shared``); None: this server's own.
         site: where the robot app finds the server's video (``app.AppSite``);
             None: not known.
+        approvals: the calls that wait for a person's approval (``approval.Approvals``,
+            docs/safety.md); None: none.
+        request_state: how a 2026-07-28 round's request state is sealed, shared by
+            every server of a front end so that any of them takes the next round
+            (the SDK's ``RequestStateSecurity``); None: a key of this server's own.
 
     Returns:
         The server, and its tasks extension (``TasksExtension.hold`` keeps the
@@ -777,9 +800,11 @@ def build_server(
     """
     guard = guard or Guard()
     tools = RobotTools(link, site)
+    tools.approvals = approvals
     resources = TopicResources(link, guard, watched, site)
     report = functools.partial(_report_json, goal_report)
     extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report)
+    extension.approvals = approvals
     server = MCPServer(
         "rwt",
         instructions=(
@@ -796,10 +821,11 @@ def build_server(
         ),
         extensions=[extension],
         subscriptions=resources.bus,
+        request_state_security=request_state,
     )
     manager = server._tool_manager  # the SDK's registry: a tool made once, shared below
     for name in TOOLS:
-        function = _guarded(guard, name, getattr(tools, name))
+        function = _guarded(guard, name, getattr(tools, name), approvals)
         manager._tools[name] = _tool_template(name, function).model_copy(update={"fn": function})
     tools.guard = guard
     resources.register(server._lowlevel_server)  # the SDK's way to add handlers
@@ -888,7 +914,8 @@ def _call_tools(server: MCPServer) -> None:
                 raise
             raise ToolError(f"{name}: {_bad_arguments(exc.__cause__)}") from None
         tool = manager.get_tool(name)
-        if not convert_result or isinstance(result, CallToolResult) or tool is None:
+        answered = isinstance(result, CallToolResult | InputRequiredResult)
+        if not convert_result or answered or tool is None:
             return result
         return tool.fn_metadata.convert_result(result)
 
@@ -911,13 +938,25 @@ def _bad_arguments(exc: ValidationError) -> str:
 
 
 def _guarded(
-    guard: Guard, name: str, function: Callable[..., Awaitable[Any]]
+    guard: Guard,
+    name: str,
+    function: Callable[..., Awaitable[Any]],
+    approvals: Approvals | None = None,
 ) -> Callable[..., Awaitable[Any]]:
-    """``function`` (a tool) run only once ``guard`` admits the call (same signature)."""
+    """``function`` (a tool) run only once ``guard`` admits the call (same signature).
+
+    Then, where ``approvals`` say so, once a person approved it (``Approvals.confirm``):
+    a 2026-07-28 call is answered with the question this round.
+    """
 
     @functools.wraps(function)
     async def guarded(*args: Any, **kwargs: Any) -> Any:
-        guard.admit(name, {k: v for k, v in kwargs.items() if k != "ctx"})
+        arguments = {k: v for k, v in kwargs.items() if k != "ctx"}
+        guard.admit(name, arguments)
+        if approvals is not None:
+            asked = await approvals.confirm(name, arguments, kwargs.get("ctx"))
+            if asked is not None:
+                return asked
         result = await function(*args, **kwargs)
         if isinstance(result, BaseModel):
             return _as_result(result.model_dump(mode="json"))
