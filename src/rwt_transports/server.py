@@ -346,6 +346,7 @@ class GraphServer:
             subprotocols=tuple(n for each in self.frontends.others for n in each.subprotocols),
             frontends=tuple(frontends),
             auth=auth,
+            safety=self.graph.safety is not None,
         )
 
     def add_frontend(self, frontend: FrontEnd) -> None:

@@ -14,8 +14,9 @@ import pytest
 from rwt import Graph
 from rwt_graph.safety.envelope import STATUS_TOPIC
 from rwt_graph.safety.rules import RulesError, load_rules, parse_rules
-from tests.safety.example import EXAMPLE, example_file
+from tests.safety.example import EXAMPLE, docs_page, example_file
 from tests.support.cli import run_rwt
+from tests.support.realclients import REPO
 
 
 def test_the_example_reads_as_written() -> None:
@@ -164,3 +165,8 @@ def test_array_elements_and_every_element_are_bounded() -> None:
     assert list(heard[0]["velocity"]) == [2.0, -1.0, -2.0]  # type: ignore[call-overload]
     with pytest.raises(RulesError, match=r"position is an array: name an element"):
         Graph(safety=parse_rules(text.replace('"position[0]"', '"position"'), "joints.toml"))
+
+
+def test_the_shipped_example_and_the_docs_show_the_file_the_tests_use() -> None:
+    assert (REPO / "examples" / "safety.toml").read_text("utf-8") == EXAMPLE
+    assert f"```text\n{EXAMPLE}```" in docs_page()

@@ -40,7 +40,7 @@ from rwt_protocol.names import resolve_name
 from rwt_protocol.ports import PublishNote
 
 from .audit import AuditTrail, SafetyEvent
-from .fields import BoundedField, FieldProblem, compile_field, non_finite, replaced
+from .fields import BoundedField, compile_field, non_finite, replaced
 from .rules import RulesError, SafetyRules, TopicRule
 
 if TYPE_CHECKING:
@@ -140,7 +140,7 @@ class Envelope:
         for path, (low, high) in rule.bounds.items():
             try:
                 fields.append(compile_field(msgtype, path, low, high, self.registry.message))
-            except (FieldProblem, GraphError) as exc:
+            except (ValueError, GraphError) as exc:  # the path, or a nested type
                 raise RulesError(f"{rule.where(f'bounds.{path}')}: {exc}") from None
         guarded = _Guarded(rule, msgtype, tuple(fields))
         if rule.stop is not None:

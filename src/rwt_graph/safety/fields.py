@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
     from ..types import MessageType
 
-__all__ = ["BoundedField", "FieldProblem", "compile_field", "non_finite", "replaced"]
+__all__ = ["BoundedField", "compile_field", "non_finite", "replaced"]
 
 EVERY = -1
 """An index meaning every element (``[*]``)."""
@@ -38,10 +38,6 @@ _SEGMENT = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)(?:\[(\d+|\*)\])?$")
 
 Path = tuple[str | int, ...]
 """A concrete place in a message: field names and element indices."""
-
-
-class FieldProblem(ValueError):
-    """A path that does not name a numeric field of the type (the text says why)."""
 
 
 @dataclass(frozen=True)
@@ -90,7 +86,7 @@ def compile_field(
         lookup: finds a nested message type by its name (the registry's ``message``).
 
     Raises:
-        FieldProblem: no such field, an array named without an index, a field that
+        ValueError: no such field, an array named without an index, a field that
             is not a number (bool, string, a message), or ``uint8[]`` (held as bytes).
     """
     segments = text.split(".")
@@ -99,33 +95,33 @@ def compile_field(
     for number, segment in enumerate(segments, 1):
         found = _SEGMENT.match(segment)
         if found is None:
-            raise FieldProblem(f"{text!r}: {segment!r} is not a field (name, name[N], name[*])")
+            raise ValueError(f"{text!r}: {segment!r} is not a field (name, name[N], name[*])")
         name, index_text = found[1], found[2]
         spec = next((each for each in current.fields if each.name == name), None)
         if spec is None:
-            raise FieldProblem(f"{current.name} has no field {name!r} ({text!r})")
+            raise ValueError(f"{current.name} has no field {name!r} ({text!r})")
         kind = spec.type
         index = None if index_text is None else EVERY if index_text == "*" else int(index_text)
         if kind.array is ArrayKind.NONE and index is not None:
-            raise FieldProblem(f"{text!r}: {name} is not an array")
+            raise ValueError(f"{text!r}: {name} is not an array")
         if kind.array is not ArrayKind.NONE and index is None:
-            raise FieldProblem(
+            raise ValueError(
                 f"{text!r}: {name} is an array: name an element, {name}[0], or all, {name}[*]"
             )
         fixed = kind.array is ArrayKind.FIXED and kind.length is not None
         if fixed and index is not None and index >= (kind.length or 0):
-            raise FieldProblem(f"{text!r}: {name} has {kind.length} elements")
+            raise ValueError(f"{text!r}: {name} has {kind.length} elements")
         steps.append((name, index))
         last = number == len(segments)
         if not last:
             if not kind.is_message:
-                raise FieldProblem(f"{text!r}: {name} is a {kind.base}, not a message")
+                raise ValueError(f"{text!r}: {name} is a {kind.base}, not a message")
             current = lookup(kind.base)
             continue
         if kind.is_message or kind.base not in _NUMERIC:
-            raise FieldProblem(f"{text!r}: {name} is a {kind.spelled()}, not a number field")
+            raise ValueError(f"{text!r}: {name} is a {kind.spelled()}, not a number field")
         if kind.array is not ArrayKind.NONE and is_bytes_base(kind.base):
-            raise FieldProblem(f"{text!r}: {kind.spelled()} is held as bytes: not bounded")
+            raise ValueError(f"{text!r}: {kind.spelled()} is held as bytes: not bounded")
     integer = kind.base not in _FLOATS
     return BoundedField(text, tuple(steps), integer, low, high)
 
