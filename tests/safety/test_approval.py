@@ -158,14 +158,15 @@ async def test_the_robot_app_does_not_drive_a_topic_that_needs_approval() -> Non
     assert "needs a person's approval" in settings["teleop_refused"]
 
 
-async def test_rwt_mcp_url_asks_the_same(tmp_path: Path) -> None:
+@pytest.mark.parametrize("mode", [MODERN, LEGACY])
+async def test_rwt_mcp_url_asks_the_same(tmp_path: Path, mode: str) -> None:
     rules = example_file(tmp_path)
     async with served() as (robot, url, _):
         args = [*RWT[1:], "mcp", url, "--safety", str(rules)]
         stdio = StdioServerParameters(command=RWT[0], args=args, env=dict(ENV))
         for answer in ("decline", "accept"):
             with anyio.fail_after(60):
-                async with Client(stdio, mode=MODERN, elicitation_callback=Person(answer)) as c:
+                async with Client(stdio, mode=mode, elicitation_callback=Person(answer)) as c:
                     result = await c.call_tool("publish", DRIVE)
             assert result.is_error == (answer == "decline"), _text(result)
         await robot.wait_for(lambda: robot.cmd_vel, "the accepted command")
@@ -199,3 +200,34 @@ async def test_a_goal_that_needs_approval_is_asked_for_not_made_a_task() -> None
             assert result.is_error == (answer == "decline"), _text(result)
             assert "send a goal to /fibonacci" in person.asked[0]
         assert goals == [2]
+
+
+LONG_DEADMAN = """\
+[[topic]]
+name = "/cmd_vel"
+type = "geometry_msgs/msg/Twist"
+on_violation = "clamp"
+deadman_s = 60
+[topic.bounds]
+"linear.x" = [-0.5, 0.5]
+[topic.stop]
+linear = { x = 0.0, y = 0.0, z = 0.0 }
+angular = { x = 0.0, y = 0.0, z = 0.0 }
+"""
+
+
+async def test_a_2025_session_that_ends_gets_the_stop_and_the_agent_is_told_of_clamps() -> None:
+    """No approval here: the clamp in the tool's result, the stop when the session ends.
+
+    With ``deadman_s`` 60 the stop within the hang guard can only be the session's end.
+    """
+    async with served(LONG_DEADMAN) as (robot, url, _):
+        async with Client(_mcp(url), mode=LEGACY) as client:
+            result = await client.call_tool("publish", {**DRIVE, "msg": twist(2.0)})
+            assert not result.is_error, _text(result)
+            assert (result.structured_content or {})["safety"] == [
+                "/cmd_vel: linear.x 2 clamped to 0.5 (bound [-0.5, 0.5])"
+            ]
+            await robot.wait_for(lambda: robot.cmd_vel, "the command")
+        await robot.wait_for(lambda: len(robot.cmd_vel) == 2, "the stop at the session's end")
+    assert robot.twists == [twist(0.5), STOP]

@@ -170,3 +170,11 @@ def test_array_elements_and_every_element_are_bounded() -> None:
 def test_the_shipped_example_and_the_docs_show_the_file_the_tests_use() -> None:
     assert (REPO / "examples" / "safety.toml").read_text("utf-8") == EXAMPLE
     assert f"```text\n{EXAMPLE}```" in docs_page()
+
+
+def test_rwt_mcp_refuses_a_file_that_does_not_parse(tmp_path: Path) -> None:
+    path = example_file(tmp_path, "[[topic]\n")
+    run = run_rwt("mcp", "ws://127.0.0.1:9", "--safety", str(path))
+    assert run.returncode == 2
+    assert "--safety" in run.stderr
+    assert f"{path} line 1: expected ']]'" in run.stderr

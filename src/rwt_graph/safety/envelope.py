@@ -306,16 +306,21 @@ class Envelope:
                 commanded and no one else did within ``deadman_s`` gets its stop now.
                 False: one request of a front end without connections was answered
                 (an HTTP request, a 2026-07-28 MCP request): its command stands
-                until ``deadman_s`` passes.
+                until ``deadman_s`` passes, kept under one key per transport
+                (``http:requests``), so a flood of requests holds one entry, not one each.
         """
-        if ended:
-            now = self.clock()
-            for guarded in self._topics.values():
-                if guarded.commanders.pop(client, None) is None:
-                    continue
-                deadman = guarded.rule.deadman_s or 0.0
-                if not any(now - last < deadman for last in guarded.commanders.values()):
-                    self._stop(guarded, client, "its connection ended")
+        now = self.clock()
+        for guarded in self._topics.values():
+            last = guarded.commanders.pop(client, None)
+            if last is None:
+                continue
+            if not ended:  # its command stands, kept under one key for all such requests
+                requests = f"{client.split(':', 1)[0]}:requests"
+                guarded.commanders[requests] = max(last, guarded.commanders.get(requests, last))
+                continue
+            deadman = guarded.rule.deadman_s or 0.0
+            if not any(now - each < deadman for each in guarded.commanders.values()):
+                self._stop(guarded, client, "its connection ended")
         self._frontends.pop(client, None)
 
     def next_deadline(self) -> float | None:
