@@ -91,13 +91,16 @@ class Robot:
         return [msg for _, msg in self.cmd_vel]
 
     async def wait_for(self, done: Any, what: str) -> None:
-        """Wait until ``done()`` is true, within the hang guard."""
-        with anyio.fail_after(HANG_S):
-            while not done():
-                self._heard = anyio.Event()
-                if done():
-                    return
-                await self._heard.wait()
+        """Wait until ``done()`` is true, within the hang guard (then fail naming ``what``)."""
+        try:
+            with anyio.fail_after(HANG_S):
+                while not done():
+                    self._heard = anyio.Event()
+                    if done():
+                        return
+                    await self._heard.wait()
+        except TimeoutError:
+            raise AssertionError(f"no {what} within {HANG_S:g} s: heard {self.cmd_vel}") from None
 
 
 def twist(x: float = 0.0, z: float = 0.0) -> Message:

@@ -178,3 +178,12 @@ def test_rwt_mcp_refuses_a_file_that_does_not_parse(tmp_path: Path) -> None:
     assert run.returncode == 2
     assert "--safety" in run.stderr
     assert f"{path} line 1: expected ']]'" in run.stderr
+
+
+def test_a_bound_in_an_inline_table_names_its_line() -> None:
+    text = (
+        '[[topic]]\nname = "/cmd_vel"\ntype = "geometry_msgs/msg/Twist"\n'
+        'bounds = { "linear.q" = [0, 1] }\n'
+    )
+    with pytest.raises(RulesError, match=r"^safety.toml line 4: /cmd_vel: .* has no field 'q'"):
+        Graph(safety=parse_rules(text, "safety.toml"))

@@ -95,8 +95,14 @@ class TopicRule:
     source: str = field(default="", compare=False, repr=False)
 
     def where(self, key: str = "") -> str:
-        """``FILE line N: /topic`` for the key (its table's line when unknown), for errors."""
-        line = self.lines.get(key) or self.lines.get("")
+        """``FILE line N: /topic`` for the key, for errors.
+
+        A key not found in the text (``bounds.linear.x`` written in an inline table)
+        names the line of the nearest key around it (``bounds``), else its table's.
+        """
+        parts = key.split(".")
+        found = (self.lines.get(".".join(parts[:end])) for end in range(len(parts), 0, -1))
+        line = next((each for each in found if each), None) or self.lines.get("")
         place = self.source or "safety rules"
         return f"{place} line {line}: {self.name}" if line else f"{place}: {self.name}"
 
