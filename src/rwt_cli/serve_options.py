@@ -327,6 +327,15 @@ class Security:
             help="Serve UDP peers without validating their address (only on a trusted link)."
         ),
     ] = False
+    safety: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file,
+            metavar="FILE",
+            help="Safety rules (TOML) for what remote clients command: field bounds "
+            "(clamp or reject), rates, dead-man stops, a person's approval for MCP agents.",
+        ),
+    ] = None
 
 
 @dataclass(frozen=True)

@@ -94,7 +94,7 @@ if TYPE_CHECKING:
     from rwt_graph.parameters.store import Parameters
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
-    from rwt_protocol.ports import MessageEvent
+    from rwt_protocol.ports import MessageEvent, PublishNote
     from rwt_protocol.runtime.contract import Job
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.timers import Timer
@@ -693,12 +693,19 @@ class FoxgloveSession(SessionBase):
             raise FoxgloveInputError(f"message data on unknown client channel {op.channel_id}")
         if channel.encoding == JSON:
             value = decode_json_text(bytes(op.payload), "message")
-            self._graph.publish(self._client_id, channel.topic, value)
+            self._graph.publish(self._client_id, channel.topic, value, notes=self._noted)
             return
         # checked by decoding it once; the client's bytes then go on as they are to every
         # subscriber that sends the wire form (Foxglove clients, cbor-raw)
         data = bytes(op.payload)
-        self._graph.publish_serialized(self._client_id, channel.topic, data, encoding=self._wire)
+        self._graph.publish_serialized(
+            self._client_id, channel.topic, data, encoding=self._wire, notes=self._noted
+        )
+
+    def _noted(self, note: PublishNote) -> None:
+        """The safety envelope's clamp or drop: a warning status, once per episode (D67)."""
+        if note.first:
+            self._status(StatusLevel.WARNING, note.text)
 
     # ---- the graph ----------------------------------------------------------------
 

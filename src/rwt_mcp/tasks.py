@@ -54,6 +54,7 @@ if TYPE_CHECKING:
 
     from mcp.server.context import CallNext, HandlerResult, ServerRequestContext
 
+    from .approval import Approvals
     from .guard import Guard
     from .link import Goal, RobotLink
 
@@ -358,6 +359,8 @@ class TasksExtension(Extension):
         self.store, self.link, self.guard, self.start_goal = store, link, guard, start_goal
         self.report, self.host = report, host
         self.started: list[GoalTask] = []
+        self.approvals: Approvals | None = None
+        """The calls that wait for a person: such a goal is asked for first, as the tool's."""
 
     def methods(self) -> list[MethodBinding]:
         """``tasks/get``, ``tasks/update``, ``tasks/cancel``."""
@@ -376,6 +379,9 @@ class TasksExtension(Extension):
         """A task for a ``TASK_TOOLS`` call of a client that takes tasks; else the call."""
         if params.name not in TASK_TOOLS or not takes_tasks(ctx):
             return await call_next(ctx)
+        approvals = self.approvals
+        if approvals is not None and approvals.target(params.name, dict(params.arguments or {})):
+            return await call_next(ctx)  # a person's yes first (docs/safety.md): not a task
         reserved = False
 
         def reserve() -> None:  # the arguments passed: a running slot, or the refusal

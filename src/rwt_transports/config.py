@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from rwt_graph.rosapi import VisibilityFor
+    from rwt_graph.safety.rules import SafetyRules
 
     from .mcp_options import McpOptions
     from .placement import Placement
@@ -133,6 +134,10 @@ class ServerConfig:
             token of every HTTP front end's request (the video server's tokens,
             ``/rwt/video_token``; ``AuthMode.BEARER``); None: such requests are
             refused (401), unless ``webrtc``'s or ``mcp``'s own check is set.
+        safety: the safety envelope's rules (``--safety FILE``, docs/safety.md):
+            bounds, rates, dead-man stops and approvals for what remote clients
+            command, put on the graph when the server is made (``Graph.use_safety``;
+            a graph made with its own is kept); None: none.
     """
 
     host: str = "127.0.0.1"
@@ -170,3 +175,4 @@ class ServerConfig:
     mcp: McpOptions | None = None
     http_options: Mapping[str, object] = field(default_factory=dict)
     bearer_token: Callable[[str], bool] | None = None
+    safety: SafetyRules | None = None

@@ -53,6 +53,7 @@ import functools
 import hmac
 import json
 import logging
+import os
 import re
 import time
 import uuid
@@ -65,6 +66,7 @@ from urllib.parse import urlsplit
 import anyio
 import h11
 from mcp.server._streamable_http_modern import handle_modern_request
+from mcp.server.request_state import RequestStateSecurity
 from mcp.server.runner import serve_loop
 from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
 from mcp.server.transport_security import TransportSecuritySettings
@@ -80,7 +82,9 @@ from mcp.types import (
 from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_graph.safety.rules import APPROVAL_TIMEOUT_S
 from rwt_mcp.app import AppSite
+from rwt_mcp.approval import Approvals
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.session import McpSession
@@ -105,8 +109,10 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream, TaskGroup, TaskStatus
     from mcp.server.lowlevel import Server
 
+    from rwt_graph.safety.envelope import Envelope
     from rwt_mcp.resources import Watched
 
+    from .mcp_siblings import McpSiblings
     from .server import GraphServer
 
 __all__ = [
@@ -116,6 +122,7 @@ __all__ = [
     "MAX_REQUESTS_IN_FLIGHT",
     "MAX_REQUEST_BYTES",
     "MODERN_HOSTS_KEPT",
+    "REQUEST_STATE_TTL_S",
     "SESSION_SLOTS",
     "McpEndpoint",
 ]
@@ -146,6 +153,9 @@ flood from one host then costs the event loop one session at a time, never a bur
 HOST_SESSION_WAIT_S = 1.0
 """The longest a new session waits for its host's turn (``HOST_SESSIONS_PER_S``), seconds."""
 HOST_REFUSAL_WAIT_S = 1.0
+REQUEST_STATE_TTL_S = 600.0
+"""Seconds a 2026-07-28 round's request state stays valid at least (the SDK's default): past
+it the next round is refused as stale (D69)."""
 """Seconds a refused session waits for its answer: a client sending back to back gets a
 few answers a second per connection, not as many as the server can write (the wait holds
 a socket, not the event loop)."""
@@ -318,7 +328,17 @@ class McpEndpoint:
         self._tg: TaskGroup | None = None
         self._forwarded: anyio.CancelScope | None = None
         self._host_pace = HostPace(HOST_SESSIONS_PER_S, HOST_SESSION_WAIT_S, MODERN_HOSTS_KEPT)
+        self.request_state = _request_state(self.siblings, server.graph.safety)
+        """How every server of this front end seals a 2026-07-28 round's request state: any
+        of them (and any worker's) takes the next round (a person's approval, D69)."""
         warm_up()  # before the server freezes its start-up objects (gcfreeze)
+
+    def _approvals(self, client: str) -> Approvals | None:
+        """What a session's tool calls ask a person first: the graph's safety rules' (D69)."""
+        envelope = self.server.graph.safety
+        if envelope is None:
+            return None
+        return Approvals(envelope.rules, client, envelope.record_approval)
 
     def bind(self, tg: TaskGroup | None) -> None:
         """Run sessions in ``tg`` (the server's connections); None: open no new ones.
@@ -599,6 +619,9 @@ class McpEndpoint:
             if connection is not None:
                 await _close_pair(connection)
             return None
+        session.request_scoped = (
+            not pumped
+        )  # a 2026-07-28 request: a command, not a commander (D68)
         return _Admitted(session, pump, connection)
 
     async def _continue(self, exchange: _Exchange, session: _Session) -> None:
@@ -647,7 +670,15 @@ class McpEndpoint:
                 link = RobotLink(robot.url, robot)
                 await link.connect(anyio.Event())  # at once: the graph is here
                 guard = Guard(session.client_id, self.options.read_only)
-                mcp, tasks = build_server(link, guard, self.tasks, site=site, host=self._host(peer))
+                mcp, tasks = build_server(
+                    link,
+                    guard,
+                    self.tasks,
+                    site=site,
+                    host=self._host(peer),
+                    approvals=self._approvals(session.client_id),
+                    request_state=self.request_state,
+                )
                 try:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
@@ -705,7 +736,14 @@ class McpEndpoint:
                 await link.connect(anyio.Event())  # at once: the graph is here
                 guard = self._modern_guard(peer)
                 mcp, tasks = build_server(
-                    link, guard, self.tasks, self._watched, site, self._host(peer)
+                    link,
+                    guard,
+                    self.tasks,
+                    self._watched,
+                    site,
+                    self._host(peer),
+                    approvals=self._approvals(admitted.session.client_id),
+                    request_state=self.request_state,
                 )
                 try:
                     task_status.started(mcp._lowlevel_server)
@@ -744,6 +782,17 @@ class McpEndpoint:
             self.server.give_slot(session.slot)
             with anyio.CancelScope(shield=True):
                 await session.transport.terminate()
+
+
+def _request_state(siblings: McpSiblings | None, envelope: Envelope | None) -> RequestStateSecurity:
+    """The sealing of request states: the workers' shared key (``--workers``), else this one's.
+
+    It lives at least ``REQUEST_STATE_TTL_S``, and twice the time a person has to
+    answer an approval, so a late answer is told it is late, not refused as stale.
+    """
+    key = os.urandom(32) if siblings is None else siblings.state_key()
+    timeout = APPROVAL_TIMEOUT_S if envelope is None else envelope.rules.approval_timeout_s
+    return RequestStateSecurity(keys=[key], ttl=max(REQUEST_STATE_TTL_S, 2 * timeout))
 
 
 async def _serve_until_idle(

@@ -55,6 +55,8 @@ _CONNECT_TIMEOUT_S = 2.0  # a live worker accepts at once; a stuck one is not wa
 _PREAMBLE_TIMEOUT_S = 5.0
 _READ_SIZE = 65536
 _ID = re.compile(r"w(\d{1,4})-[0-9a-f]{32}")
+STATE_KEY = "mcp-request-state.key"
+"""The workers' key of 2026-07-28 request states, in their state folder (``state_key``)."""
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,25 @@ class McpSiblings:
 
     folder: str
     index: int
+
+    def state_key(self) -> bytes:
+        """The key every worker seals a 2026-07-28 round's request state with (32 bytes).
+
+        Made once, by the first worker that asks, as a file of the private state folder
+        (mode 0600, linked into place whole, so a worker reads all of it or none), so
+        that the round after a person's answer may land on any worker (D69).
+        """
+        path = os.path.join(self.folder, STATE_KEY)
+        if not os.path.exists(path):
+            made = f"{path}.{os.getpid()}"
+            descriptor = os.open(made, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            with os.fdopen(descriptor, "wb") as file:
+                file.write(os.urandom(32))
+            with contextlib.suppress(FileExistsError):  # another worker's came first
+                os.link(made, path)
+            os.unlink(made)
+        with open(path, "rb") as file:
+            return file.read()
 
     @classmethod
     def of_state(cls, state: str) -> McpSiblings | None:

@@ -69,6 +69,7 @@ from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
 from .config import ServerConfig
+from .deadman import run_deadman
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
 from .frontends import FrontEnd, FrontEnds, SessionRequest
@@ -153,6 +154,7 @@ class GraphServer:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
             its address's width (``shares.HostPrefixes``); an HTTP front end's
             options are not of its type.
+        RulesError: ``config.safety`` does not fit the graph's types (a ``ConfigError``).
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
             ``config.mcp`` is set but the MCP SDK is not (``rwt-rosbridge[mcp]``).
     """
@@ -172,6 +174,8 @@ class GraphServer:
         self.host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
         """What names a peer's host for the host shares (``--host-prefix-v4``, ``-v6``)."""
         self.graph = graph or Graph()
+        if self.config.safety is not None and self.graph.safety is None:
+            self.graph.use_safety(self.config.safety)  # RulesError: they do not fit its types
         # one flow control for the connections and the links (it keeps the hosts' cool-downs);
         # links' deliveries are held back as readers are
         self.flow: FlowControl[Held] = FlowControl(
@@ -342,6 +346,7 @@ class GraphServer:
             subprotocols=tuple(n for each in self.frontends.others for n in each.subprotocols),
             frontends=tuple(frontends),
             auth=auth,
+            safety=self.graph.safety is not None,
         )
 
     def add_frontend(self, frontend: FrontEnd) -> None:
@@ -400,6 +405,8 @@ class GraphServer:
                     with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
+                        if self.graph.safety is not None:  # the dead-man's timer (docs/safety.md)
+                            connections.start_soon(run_deadman, self.graph.safety)
                         for endpoint in self.endpoints.values():
                             endpoint.bind(connections)
                         async with anyio.create_task_group() as accepting:
@@ -830,6 +837,9 @@ class GraphServer:
         made = frontend or self.frontends.default or rosbridge_frontend(self._rosbridge_session)
         session = made.make_session(request)
         self.sessions[client_id] = session
+        envelope = self.graph.safety
+        if envelope is not None:  # its audit names the front end (docs/safety.md)
+            envelope.connected(client_id, made.name)
         if host is not None:
             self._shares.add(host)
             self._hosts[client_id] = host

@@ -12,6 +12,7 @@ from ..subscriptions import BatchTopicSubscription, TopicSubscription
 
 if TYPE_CHECKING:
     from ...ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
+    from ...ports import PublishNote
     from .context import HandlerContext
 
 __all__ = [
@@ -106,17 +107,24 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
     advertises it first, as ``advertise`` with the op's ``id`` and ``latch`` would
     (D48; protocol 2.0.0, docs/reference-behaviour.md §13.3), unless the server
     runs ``--compat rosbridge-2.1``. Once the client advertises the topic, ``type``
-    is not read again. A warning lists the fields filled with defaults (spec 3.3.3, D7).
+    is not read again. A warning lists the fields filled with defaults (spec 3.3.3, D7),
+    and one tells of the safety envelope's clamp or drop, once per episode (D67).
 
     Raises:
         GraphError: unknown topic type, a ``type`` other than the topic's, or a
-            message that does not fit it (D9); nothing is published.
+            message that does not fit it (D9), or the safety envelope refused it
+            (D67); nothing is published.
         LimitError: the advertisement is past ``--max-advertisements``.
     """
     if op.type is not None and _advertises(session, op.topic):
         _register(session, "publish", op.topic, op.type, op.id, latch=op.latch)
+
+    def noted(note: PublishNote) -> None:
+        if note.first:  # a stream of commands: one warning per episode
+            session.report(StatusLevel.WARNING, f"publish: {note.text}", op.id)
+
     missing = session.graph.publish(
-        session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg"
+        session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg", notes=noted
     )
     if missing:
         listed = ", ".join(missing[:_MAX_LISTED])
