@@ -176,13 +176,10 @@ def figures(rows: list[float], warmup_s: float) -> dict[str, Any]:
 
 
 def available_stacks() -> list[str]:
-    """The WebRTC stacks that import here (``webrtc_native.STACKS`` less ``auto``)."""
-    from rwt_transports.webrtc_native import native_missing  # noqa: PLC0415
+    """The WebRTC stacks that import here (``webrtc_stacks.stack_refusal``)."""
+    from rwt_transports.webrtc_stacks import stack_refusal  # noqa: PLC0415
 
-    found = ["aiortc"]
-    if native_missing() is None:
-        found.append("native")
-    return found
+    return [stack for stack in STACK_PORTS if stack_refusal(stack) is None]
 
 
 async def robot(rate: float, stacks: list[str]) -> None:

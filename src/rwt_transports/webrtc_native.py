@@ -87,10 +87,12 @@ __all__ = [
 
 logger = logging.getLogger("rwt.webrtc")
 
-STACKS = ("auto", "native", "aiortc")
-"""``--webrtc-stack``: ``auto`` (native where it imports), ``native`` (libdatachannel, for
-offers of data channels only or asking for video tracks, webrtc_native_video.py; other
-offers with audio or video sections stay on aiortc) or ``aiortc``."""
+STACKS = ("auto", "reactor", "native", "aiortc")
+"""``--webrtc-stack``: ``auto`` (the best that imports, webrtc_stacks.py, D72), ``reactor``
+(libwebrtc's dcsctp, for offers of data channels only, webrtc_reactor.py, D70),
+``native`` (libdatachannel, for offers of data channels only or asking for video
+tracks, webrtc_native_video.py; other offers with audio or video sections stay on
+aiortc) or ``aiortc``."""
 
 DRAIN_POLL_S = 0.002
 """Seconds between two reads of a channel's ``bufferedAmount`` while a writer waits."""
