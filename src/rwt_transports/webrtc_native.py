@@ -207,6 +207,12 @@ class NativeDataChannel:
         inflow: the peer's bound on messages waiting for the loop.
         max_message_size: the largest incoming message, bytes; a larger one is
             not queued, ``oversized`` is emitted.
+        close_peer: closes the channel's peer connection (``close``).
+        amount_ttl_s: how long a read of the stack's buffered amount stands, s (0:
+            each ``bufferedAmount`` reads it). Meanwhile ``bufferedAmount`` is that read
+            plus the bytes sent since: never below what the stack holds, for a read
+            that waits for another thread (libwebrtc's, about 50 us on a busy
+            machine: webrtc_reactor.py) costs more than a message's send.
     """
 
     def __init__(
@@ -216,8 +222,13 @@ class NativeDataChannel:
         inflow: Inflow,
         max_message_size: int,
         close_peer: Callable[[], object] = lambda: None,
+        amount_ttl_s: float = 0.0,
     ) -> None:
         self._channel = channel
+        self._amount_ttl_s = amount_ttl_s
+        self._amount_read = 0
+        self._amount_read_at = float("-inf")
+        self._sent_since_read = 0
         self._close_peer = close_peer
         self._loop = loop
         self._inflow = inflow
@@ -309,11 +320,20 @@ class NativeDataChannel:
 
     @property
     def bufferedAmount(self) -> int:
-        """Bytes sent and not yet handed to SCTP (libdatachannel's ``buffered_amount``)."""
+        """Bytes sent and not yet handed to SCTP (the stack's ``buffered_amount``).
+
+        Within ``amount_ttl_s`` of the last read: that read and the bytes sent since.
+        """
+        now = self._loop.time()
+        if now - self._amount_read_at < self._amount_ttl_s:
+            return self._amount_read + self._sent_since_read
         try:
-            return int(self._channel.buffered_amount())
+            amount = int(self._channel.buffered_amount())
         except RuntimeError:  # closed
-            return 0
+            amount = 0
+        if self._amount_ttl_s:
+            self._amount_read, self._amount_read_at, self._sent_since_read = amount, now, 0
+        return amount
 
     @property
     def bufferedAmountLowThreshold(self) -> int:
@@ -338,14 +358,22 @@ class NativeDataChannel:
             self._channel.send(data)
         except (RuntimeError, ValueError) as exc:  # closed; over the peer's message size
             raise ConnectionError(str(exc)) from exc
-        self._watch()
+        self._sent_since_read += len(data)
+        self._watch(sent=True)
 
-    def _watch(self) -> None:
-        """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``."""
+    def _watch(self, *, sent: bool = False) -> None:
+        """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``.
+
+        ``sent``: a message was just handed over: poll once at least, whatever the
+        amount reads now. libwebrtc (the reactor stack, webrtc_reactor.py) counts a
+        message on its network thread, after ``send`` returns, so a read at once can
+        show the amount before it; a writer that then waits for the event would wait
+        for a poll nobody scheduled.
+        """
         if (
             not self._polling
             and self.readyState == "open"
-            and self.bufferedAmount > self._threshold
+            and (sent or self.bufferedAmount > self._threshold)
         ):
             self._polling = True
             self._loop.call_later(DRAIN_POLL_S, self._poll)

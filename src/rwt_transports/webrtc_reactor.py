@@ -50,6 +50,7 @@ if TYPE_CHECKING:
     from .webrtc_native import Inflow
 
 __all__ = [
+    "AMOUNT_TTL_S",
     "GATHER_TIMEOUT_S",
     "SCTP_TUNING",
     "ReactorPeerConnection",
@@ -65,6 +66,10 @@ SCTP_TUNING: dict[str, int] = {"min_cwnd_mtus": 16, "delayed_ack_max_ms": 20, "r
 after a loss the window stays at 16 packets at least (upstream: 4), SACKs wait at most
 20 ms (200), and a retransmission timeout is 120 ms at least (400). Measured on a
 2 Mbit/s bottleneck beside a TCP download, docs/webrtc.md ("Which stack")."""
+
+AMOUNT_TTL_S = 0.005
+"""How long a read of a channel's buffered amount stands (``NativeDataChannel``'s
+``amount_ttl_s``): each read waits for libwebrtc's signalling thread."""
 
 GATHER_TIMEOUT_S = 5.0
 """Seconds an answer waits for its candidates (STUN and TURN servers' included)."""
@@ -236,7 +241,7 @@ class ReactorPeerConnection:
         if hop.target is None:
             return
         wrapped = NativeDataChannel(
-            _Channel(channel), self._loop, self._inflow, self._max, self._close_soon
+            _Channel(channel), self._loop, self._inflow, self._max, self._close_soon, AMOUNT_TTL_S
         )
         label = wrapped.label
         reason = self._refusal(
