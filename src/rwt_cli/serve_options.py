@@ -143,10 +143,10 @@ class Listeners:
         typer.Option(
             metavar="STACK",
             callback=check_webrtc_stack,
-            help="The WebRTC stack of --webrtc's data channels and video tracks: native"
-            " (libdatachannel, Python 3.12+), aiortc, or auto (native where it is"
-            " installed); offers with audio or video and no ?video= stay on aiortc"
-            " (docs/webrtc.md, 'Which stack').",
+            help="The WebRTC stack of --webrtc's data channels: reactor (libwebrtc's SCTP),"
+            " native (libdatachannel, Python 3.12+; also video tracks), aiortc, or auto"
+            " (the best installed); offers with audio or video and no ?video= stay on"
+            " aiortc (docs/webrtc.md, 'Which stack').",
         ),
     ] = "auto"
     ice_server: Annotated[

@@ -74,6 +74,7 @@ __all__ = [
     "INBOX_LIMIT_BYTES",
     "LOSSY_GATE_BYTES",
     "MAX_TEXT_FRAME_BYTES",
+    "RECHECK_S",
     "SEND_HIGH_WATER_BYTES",
     "SEND_LOW_WATER_BYTES",
     "DataChannelChannel",
@@ -97,6 +98,11 @@ SEND_HIGH_WATER_BYTES = 1 * MiB
 
 SEND_LOW_WATER_BYTES = 256 * 1024
 """``send`` goes on when the channel's buffer is back under this (``bufferedamountlow``)."""
+
+RECHECK_S = 0.05
+"""A writer waiting for a channel's buffer re-reads it this often, whatever the events say:
+a stack that counts a message after ``send`` returns (libwebrtc) can let the one
+``bufferedamountlow`` a writer waits for go by (webrtc_native.py, ``_watch``)."""
 
 LOSSY_GATE_BYTES = 2 * 1024
 """A lossy message is handed to aiortc only while the session's data channels buffer at most
@@ -338,7 +344,8 @@ class DataChannelChannel(PlainChannel):
             if self._ended:
                 raise anyio.BrokenResourceError
             self._drained = anyio.Event()
-            await self._drained.wait()
+            with anyio.move_on_after(RECHECK_S):
+                await self._drained.wait()
 
     async def _yield_to_lossy(self) -> None:
         """Wait while the lossy lane holds messages: they go first (D36).
@@ -405,7 +412,8 @@ class DataChannelChannel(PlainChannel):
                 if self._lossy is not channel or self._ended:
                     return False
                 self._room = anyio.Event()
-                await self._room.wait()
+                with anyio.move_on_after(RECHECK_S):
+                    await self._room.wait()
         finally:
             reliable.bufferedAmountLowThreshold = SEND_LOW_WATER_BYTES
         return self._lossy is channel

@@ -94,10 +94,12 @@ __all__ = [
 
 logger = logging.getLogger("rwt.webrtc")
 
-STACKS = ("auto", "native", "aiortc")
-"""``--webrtc-stack``: ``auto`` (native where it imports), ``native`` (libdatachannel, for
-offers of data channels only or asking for video tracks, webrtc_native_video.py; other
-offers with audio or video sections stay on aiortc) or ``aiortc``."""
+STACKS = ("auto", "reactor", "native", "aiortc")
+"""``--webrtc-stack``: ``auto`` (the best that imports, webrtc_stacks.py, D72), ``reactor``
+(libwebrtc's dcsctp, for offers of data channels only, webrtc_reactor.py, D70),
+``native`` (libdatachannel, for offers of data channels only or asking for video
+tracks, webrtc_native_video.py; other offers with audio or video sections stay on
+aiortc) or ``aiortc``."""
 
 DRAIN_POLL_S = 0.002
 """Seconds between two reads of a channel's ``bufferedAmount`` while a writer waits."""
@@ -212,6 +214,12 @@ class NativeDataChannel:
         inflow: the peer's bound on messages waiting for the loop.
         max_message_size: the largest incoming message, bytes; a larger one is
             not queued, ``oversized`` is emitted.
+        close_peer: closes the channel's peer connection (``close``).
+        amount_ttl_s: how long a read of the stack's buffered amount stands, s (0:
+            each ``bufferedAmount`` reads it). Meanwhile ``bufferedAmount`` is that read
+            plus the bytes sent since: never below what the stack holds, for a read
+            that waits for another thread (libwebrtc's, about 50 us on a busy
+            machine: webrtc_reactor.py) costs more than a message's send.
     """
 
     def __init__(
@@ -221,8 +229,13 @@ class NativeDataChannel:
         inflow: Inflow,
         max_message_size: int,
         close_peer: Callable[[], object] = lambda: None,
+        amount_ttl_s: float = 0.0,
     ) -> None:
         self._channel = channel
+        self._amount_ttl_s = amount_ttl_s
+        self._amount_read = 0
+        self._amount_read_at = float("-inf")
+        self._sent_since_read = 0
         self._close_peer = close_peer
         self._loop = loop
         self._inflow = inflow
@@ -314,11 +327,20 @@ class NativeDataChannel:
 
     @property
     def bufferedAmount(self) -> int:
-        """Bytes sent and not yet handed to SCTP (libdatachannel's ``buffered_amount``)."""
+        """Bytes sent and not yet handed to SCTP (the stack's ``buffered_amount``).
+
+        Within ``amount_ttl_s`` of the last read: that read and the bytes sent since.
+        """
+        now = self._loop.time()
+        if now - self._amount_read_at < self._amount_ttl_s:
+            return self._amount_read + self._sent_since_read
         try:
-            return int(self._channel.buffered_amount())
+            amount = int(self._channel.buffered_amount())
         except RuntimeError:  # closed
-            return 0
+            amount = 0
+        if self._amount_ttl_s:
+            self._amount_read, self._amount_read_at, self._sent_since_read = amount, now, 0
+        return amount
 
     @property
     def bufferedAmountLowThreshold(self) -> int:
@@ -343,14 +365,22 @@ class NativeDataChannel:
             self._channel.send(data)
         except (RuntimeError, ValueError) as exc:  # closed; over the peer's message size
             raise ConnectionError(str(exc)) from exc
-        self._watch()
+        self._sent_since_read += len(data)
+        self._watch(sent=True)
 
-    def _watch(self) -> None:
-        """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``."""
+    def _watch(self, *, sent: bool = False) -> None:
+        """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``.
+
+        ``sent``: a message was just handed over: poll once at least, whatever the
+        amount reads now. libwebrtc (the reactor stack, webrtc_reactor.py) counts a
+        message on its network thread, after ``send`` returns, so a read at once can
+        show the amount before it; a writer that then waits for the event would wait
+        for a poll nobody scheduled.
+        """
         if (
             not self._polling
             and self.readyState == "open"
-            and self.bufferedAmount > self._threshold
+            and (sent or self.bufferedAmount > self._threshold)
         ):
             self._polling = True
             self._loop.call_later(DRAIN_POLL_S, self._poll)
