@@ -1,10 +1,12 @@
 """What the HTTP endpoints on the WebSocket port share: claiming, reading, answering.
 
 The WebSocket listener reads the start of a connection and offers it to each HTTP
-endpoint (``/version``, WebRTC signalling, MCP) before the WebSocket handshake takes it
-(docs/architecture.md). Each endpoint answers one request a connection with h11:
-``open_request`` reads it (bounded), answers the malformed, oversized and
-cross-origin ones itself, and ``reply`` sends a response and ends the connection.
+endpoint (``/version``, WebRTC signalling, MCP, the HTTP API) before the WebSocket
+handshake takes it (docs/architecture.md). Each endpoint answers one request a
+connection with h11: ``open_request``, the one reader, reads it (bounded before the
+request is admitted by the socket's ``pending`` record, and by the work it costs,
+D58), answers the malformed, oversized, refused and cross-origin ones itself, and
+``reply`` sends a response and ends the connection.
 A bearer token is read by ``bearer`` (``rwt_protocol.credentials``, the one parser)
 and checked by the server's one entry check (``GraphServer.entry``).
 """
@@ -162,7 +164,7 @@ async def open_request(
     return HttpRequest(conn, reader.request, read, headers, allowed)
 
 
-READ_SLICE_EVENTS = 128
+READ_SLICE_EVENTS = 64
 """h11 events (a chunk of a chunked body is one, some 12 us of h11's work) the reader
 handles before it lets the event loop turn, however few reads brought them (D58)."""
 

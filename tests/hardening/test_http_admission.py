@@ -165,8 +165,9 @@ async def test_bodies_held_by_one_host_stay_within_its_share_and_come_back() -> 
             assert reply.status_code == 200, reply.text
             await wait_until(lambda: bool(heard))
             assert heard == ["y" * MiB]
-            # rosbridge clients, of another host
+            # rosbridge clients, of another host and of the hog (a head whole in one read)
             assert "time" in (await rosbridge_call(port, OTHER))["values"]
+            assert "time" in (await rosbridge_call(port, HOG))["values"]
             tg.cancel_scope.cancel()
         await s.aclose()  # the held sockets close
         await wait_until(lambda: server.pending.held(HOG) == 0)
