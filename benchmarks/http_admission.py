@@ -48,7 +48,7 @@ from anyio.abc import SocketStream
 from .attack_kit import OTHER_HOST, Attack, Context, Outcome, Replay, replay
 from .servers import proc_stats
 
-__all__ = ["ATTACKS", "main"]
+__all__ = ["ATTACKS", "held_attack", "main"]
 
 RESULTS = Path(__file__).resolve().parent / "results" / "http_admission.json"
 MiB = 1024 * 1024
@@ -281,6 +281,17 @@ ATTACKS = [
 ]
 
 
+def held_attack(sockets: int = SOCKETS, heap_keep_mib: int | None = None) -> Attack:
+    """The ``held`` class with ``sockets`` sockets, on ``rwt serve --heap-keep`` (MiB)."""
+    (held,) = [a for a in ATTACKS if a.number == "held"]
+    return replace(
+        held,
+        serve=partial(_serve_held, heap_keep_mib=heap_keep_mib),
+        attack=partial(_held_bodies, sockets=sockets, heap_keep_mib=heap_keep_mib),
+        scaled=f"{sockets} sockets (--sockets), held {HOLD_S:.0f} s",
+    )
+
+
 def _source() -> str:
     src = os.environ.get("RWT_BENCH_SRC")
     if not src:
@@ -317,28 +328,23 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     chosen = [a for a in ATTACKS if args.attack is None or a.number in args.attack]
-    load = os.getloadavg()
-    print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}", file=sys.stderr)
-    results = []
-    for attack in chosen:
-        if attack.number == "held":
-            attack = replace(  # noqa: PLW2901 (a copy with the asked size)
-                attack,
-                serve=partial(_serve_held, heap_keep_mib=args.heap_keep),
-                attack=partial(_held_bodies, sockets=args.sockets, heap_keep_mib=args.heap_keep),
-                scaled=f"{args.sockets} sockets (--sockets), held {HOLD_S:.0f} s",
-            )
-        result = anyio.run(partial(replay, attack, scale=args.scale))
-        print(_row(result), file=sys.stderr, flush=True)
-        results.append(asdict(result))
     saved: dict[str, Any] = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    saved[_source()] = {
-        "when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-        "load_average": [round(x, 1) for x in os.getloadavg()],
-        "replays": results,
-    }
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps(saved, indent=1) + "\n")
+    runs = saved.setdefault(_source(), {})
+    for attack in chosen:
+        name = attack.number
+        if attack.number == "held":
+            attack = held_attack(args.sockets, args.heap_keep)  # noqa: PLW2901 (as asked)
+            name += "" if args.heap_keep is None else f" --heap-keep {args.heap_keep}"
+        load = [round(x, 1) for x in os.getloadavg()]
+        result = anyio.run(partial(replay, attack, scale=args.scale))
+        print(f"load average {load}\n{_row(result)}", file=sys.stderr, flush=True)
+        runs[name] = {  # the latest run of each class, per source
+            "when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+            "load_average_before": load,
+            "replay": asdict(result),
+        }
+        RESULTS.parent.mkdir(exist_ok=True)
+        RESULTS.write_text(json.dumps(saved, indent=1) + "\n")
     return 0
 
 

@@ -373,27 +373,31 @@ async def _refuse(reader: _RequestReader, status: int, text: str, headers: Heade
     stream, so that a client still sending its body sees the answer, not a reset.
     """
     if reader.socket is not None:
-        reader.socket.release()
+        reader.socket.refused()
     conn, stream = reader.conn, reader.stream
     if reader.request is None and conn.their_state is not h11.ERROR:
         await _send_raw(stream, status, text, headers)  # no head yet: h11 cannot answer
     else:
         await reply(conn, stream, status, text, headers)
-    await drain_refused(stream)
+    await drain_refused(stream, reader.socket)
 
 
-async def drain_refused(stream: ByteStream) -> None:
+async def drain_refused(stream: ByteStream, socket: PendingSocket | None) -> None:
     """After the answer to a refused request: end our side, drop what the peer still sends.
 
     For up to ``REFUSED_DRAIN_S``, or until the peer's end: closing a socket with
     bytes unread makes the kernel reset the connection, and a client still sending
-    its request (a body, a head) would read the reset instead of the answer.
+    its request (a body, a head) would read the reset instead of the answer. Each
+    read waits for the turn of ``socket``'s host (``PendingSocket.wait_turn``), so a
+    host's refused sockets cost the others one read a turn of the event loop.
     """
     with contextlib.suppress(Exception):  # TLS has no half-close; a peer gone is done
         await stream.send_eof()
     with anyio.move_on_after(REFUSED_DRAIN_S):
         with contextlib.suppress(anyio.EndOfStream, anyio.BrokenResourceError, OSError):
             while True:
+                if socket is not None:
+                    await socket.wait_turn()
                 await stream.receive(_READ_SIZE)
 
 

@@ -229,16 +229,17 @@ class PendingSocket:
         async with record.turn:
             yield
 
-    def admit(self) -> None:
-        """The server admitted the socket: give back what it holds here (idempotent)."""
-        self.admitted = True
-        self._end()
+    async def wait_turn(self) -> None:
+        """Wait for the host's turn, and pass it on (a refused socket's next read)."""
+        async with self.turn():
+            pass
 
-    def release(self) -> None:
-        """The socket closed: give back what it holds here (idempotent)."""
-        self._end()
+    def refused(self) -> None:
+        """Its request was refused: give back its bytes and its place in the host's count.
 
-    def _end(self) -> None:
+        It keeps its place in the host's turns until it is released: what the refused
+        socket still reads, and drops, takes turns with the host's other sockets.
+        """
         record = self._record
         if record is None:
             return
@@ -246,6 +247,18 @@ class PendingSocket:
         if self._counted:
             record.requests -= 1
             self._counted = False
+
+    def admit(self) -> None:
+        """The server admitted the socket: give back what it holds here (idempotent)."""
+        self.admitted = True
+        self.release()
+
+    def release(self) -> None:
+        """The socket closed: give back what it holds here (idempotent)."""
+        record = self._record
+        if record is None:
+            return
+        self.refused()
         self._record = None
         self._owner._drop(self.host, record)
 

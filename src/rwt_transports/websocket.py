@@ -689,13 +689,15 @@ async def _head_refused(stream: ByteStream, protocol: ServerProtocol, received: 
         refused = refusal.status, refusal.text, (("Retry-After", str(RETRY_AFTER_S)),)
     if refused is None:
         return False
+    if socket is not None:
+        socket.refused()  # nothing held for it while what else comes is dropped
     status, text, headers = refused
     response = protocol.reject(status, text + "\n")
     for name, value in headers:
         response.headers[name] = value
     with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
         await stream.send(response.serialize())
-    await drain_refused(stream)
+    await drain_refused(stream, socket)
     return True
 
 
