@@ -21,8 +21,9 @@ server hold 3 GB outside every budget. What such a socket holds is its
 - **count**: a host has at most ``--max-connections-per-host`` HTTP requests read and
   not admitted at once, from the first (as MCP sessions, D40): one more gets 429.
 - **turns**: a host's requests are parsed one slice at a time (``PendingSocket.turn``),
-  so that however many sockets a host reads at once, they take one reader's share of
-  the event loop (``http_endpoint.READ_SLICE_EVENTS``).
+  and what its refused sockets still send is read one read at a time (``wait_turn``),
+  so that however many sockets a host has, they take one reader's share of the event
+  loop (``http_endpoint.READ_SLICE_EVENTS``).
 
 Both refusals carry ``Retry-After: RETRY_AFTER_S`` (docs/limits.md). Everything a
 socket holds here is given back when it is admitted (``PendingSocket.admit``: its
