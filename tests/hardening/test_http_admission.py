@@ -108,6 +108,25 @@ def post_head(path: str, length: int, extra: str = "") -> bytes:
     ).encode()
 
 
+async def post_held(stream: SocketStream, request: bytes) -> tuple[int, dict[str, str], str]:
+    """Send ``request`` (its body short of its end) while reading the answer, if one comes.
+
+    Read as it is sent: a refused request's socket is cut after its drain, and a reset
+    loses what the client had not read yet. Waits (a request held gets no answer) until
+    cancelled, or ``WAIT_S``.
+    """
+    async with anyio.create_task_group() as tg:
+
+        async def send() -> None:
+            with contextlib.suppress(anyio.BrokenResourceError, OSError):  # refused, cut
+                await stream.send(request)
+
+        tg.start_soon(send)
+        got = await answer(stream)
+        tg.cancel_scope.cancel()
+    return got
+
+
 async def rosbridge_call(port: int, source: str) -> dict[str, Any]:
     """A rosbridge client from ``source`` calling ``/rosapi/get_time``: its reply."""
     async with connect(f"ws://127.0.0.1:{port}", local_addr=(source, 0)) as ws:
@@ -137,9 +156,7 @@ async def test_bodies_held_by_one_host_stay_within_its_share_and_come_back() -> 
         async def hold() -> None:  # a 1 MiB body short of its last byte, from the hog
             stream = await anyio.connect_tcp("127.0.0.1", port, local_host=HOG)
             s.push_async_callback(anyio.aclose_forcefully, stream)
-            with contextlib.suppress(anyio.BrokenResourceError, OSError):  # refused, cut
-                await stream.send(post_head(PUBLISH, MiB) + b"x" * (MiB - 1))
-            refusals.append(await answer(stream))
+            refusals.append(await post_held(stream, post_head(PUBLISH, MiB) + b"x" * (MiB - 1)))
 
         async with anyio.create_task_group() as tg:
             for _ in range(12):
@@ -227,10 +244,8 @@ async def test_rss_of_held_bodies_stays_within_the_share_and_is_given_back() -> 
         async def hold() -> None:
             stream = await anyio.connect_tcp("127.0.0.1", port, local_host=HOG)
             held.append(stream)
-            head = post_head(PUBLISH, RSS_BODY)
-            with contextlib.suppress(anyio.BrokenResourceError, OSError):  # refused, cut
-                await stream.send(head + b"x" * (RSS_BODY - 1))
-            answered.append((await answer(stream))[0])
+            request = post_head(PUBLISH, RSS_BODY) + b"x" * (RSS_BODY - 1)
+            answered.append((await post_held(stream, request))[0])
 
         async with anyio.create_task_group() as tg:
             for _ in range(RSS_SOCKETS):
