@@ -26,7 +26,6 @@ cut.
 from __future__ import annotations
 
 import asyncio
-import contextvars
 import errno
 import itertools
 import logging
@@ -77,6 +76,7 @@ from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_fron
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
+from .pending import PendingRequests, PendingSocket, current_socket, serve_socket
 from .pump import ConnectionPump, run_connection
 from .rosauth import rosauth_authenticator, url_authenticator
 from .shares import HostPrefixes, HostShares, address_of
@@ -197,6 +197,11 @@ class GraphServer:
         # messages draw from it within their own
         self.memory = MemoryBudget(self.config.memory_budget)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory, self.memory)
+        self.pending = PendingRequests(
+            self.fragment_budget, self.host_prefixes, self.config.max_connections_per_host
+        )
+        """What sockets not yet admitted hold, by host (D58): their requests' bytes within
+        the budgets above and the host's share, the requests each host reads at once."""
         self.entry = self._entry_auth(session_config.authenticator)
         """The one check of every way in (``rwt_protocol.credentials``): each front end's
         ``AuthMode`` and what its client presented."""
@@ -609,8 +614,7 @@ class GraphServer:
         ``ticket``: held from accept until the reader handled the input already
         there (admission.py).
         """
-        pending = _Pending()
-        _PENDING.set(pending)  # this task's context: open_session finds it
+        pending: PendingSocket | None = None
         if ticket is not None:
             ticket.serve()
         stream: SocketStream | None = None
@@ -618,6 +622,9 @@ class GraphServer:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # as anyio's accept does
             stream = await SocketStream.from_socket(sock)
             peer = _peer(stream)
+            # what it holds until admitted (D58); this task's: open_session finds it
+            pending = self.pending.socket(peer)
+            serve_socket(pending)
             with anyio.CancelScope(
                 deadline=anyio.current_time() + self.config.handshake_timeout_s
             ) as pending.scope:
@@ -633,7 +640,9 @@ class GraphServer:
                 await anyio.aclose_forcefully(stream)
             else:
                 sock.close()
-            if not pending.admitted:
+            if pending is not None:
+                pending.release()
+            if pending is None or not pending.admitted:
                 self._handshaking -= 1
                 self._free_slot()
 
@@ -900,9 +909,9 @@ class GraphServer:
         as a socket in its handshake; the slots of its connection cover it, or one it
         took (``take_slot``; docs/limits.md, D40).
         """
-        pending = _PENDING.get(None)
-        if pending is not None and not pending.admitted:
-            pending.admitted = True
+        pending = current_socket()
+        if pending is not None:
+            pending.admit()
             pending.scope.deadline = math.inf
             self._handshaking -= 1
             self._free_slot()
@@ -924,8 +933,7 @@ class GraphServer:
             socket is closed. None: refused (the server is full or stopping, or
             the host holds its share), as ``open_session`` refuses a connection.
         """
-        pending = _PENDING.get(None)
-        checked = self._check_slot(transport, peer, pending is not None and not pending.admitted)
+        checked = self._check_slot(transport, peer, current_socket() is not None)
         if checked is None:
             return None
         host = checked[0] or address_of(peer)
@@ -949,9 +957,7 @@ class GraphServer:
         handshake deadline is lifted. ``from_first``: the host's share of such
         sessions applies from the first (D40, ``open_session``).
         """
-        pending = _PENDING.get(None)
-        if pending is not None and pending.admitted:
-            pending = None  # a task of an admitted connection, not a new one
+        pending = current_socket()  # None: a task of an admitted connection, not a new one
         checked = self._check_slot(transport, peer, pending is not None)
         if checked is None:
             return None
@@ -963,7 +969,7 @@ class GraphServer:
                 self._refused(peer, host, f"host share of {transport} sessions", held, share)
                 return None
         if pending is not None:  # the socket's handshake is over: no deadline, a session now
-            pending.admitted = True
+            pending.admit()
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         return f"{transport}:{peer}#{next(self._ids)}", host, address
@@ -1157,22 +1163,6 @@ async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
     async with anyio.create_task_group() as tg:
         with graph.port.serving(spawner_for(tg), loop_soon()):
             yield tg
-
-
-class _Pending:
-    """An accepted socket still in its handshake: its deadline, and whether it got a session."""
-
-    __slots__ = ("admitted", "scope")
-
-    def __init__(self) -> None:
-        self.admitted = False
-        self.scope = anyio.CancelScope()
-
-
-_PENDING: contextvars.ContextVar[_Pending | None] = contextvars.ContextVar(
-    "rwt_pending_socket", default=None
-)
-"""The socket the current connection task serves, so ``open_session`` can lift its deadline."""
 
 
 async def _contained(what: str, work: Awaitable[None]) -> None:
