@@ -189,7 +189,7 @@ class DataChannelChannel(PlainChannel):
             self._on_close()
 
     def attach_lossy(self, channel: AnyDataChannel) -> None:
-        """Take the ``rosbridge-lossy`` channel (unordered, never retransmitted; D36).
+        """Take the ``rosbridge-lossy`` channel (unordered, sent again once at most; D36, D73).
 
         Its messages reach the session as ``LossyInFrame``; its output is the
         session's lossy lane, which the caller opens (``lossy_ready`` is the
