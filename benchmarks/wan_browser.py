@@ -37,7 +37,7 @@ stamp that no presented frame showed) and stalls (gaps over ``STALL_MS``, 33 ms 
 
 Run (root: network namespaces; Chromium installed; ``npm ci --prefix tests/js``)::
 
-    nice -n 10 python -m benchmarks.wan_browser --duration 20 [--stack reactor ...]
+    nice -n 10 python -m benchmarks.wan_browser --duration 20 [--stack reactor ...] [--no-video]
 
 With Python 3.12 and libdatachannel-py, the ``native`` stack's rows come too.
 Results: a table on stdout and ``benchmarks/results/wan_browser.json``.
