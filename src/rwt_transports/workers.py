@@ -11,8 +11,9 @@ the connections it had queued for a worker that was killed: the first connection
 after a kill could be reset.) The graphs are linked over Zenoh on loopback: worker 0
 listens on a hub endpoint the others connect to (peers then gossip and mesh). The
 parent serves nothing: it prints each ``listening on`` line once (when every worker
-has said it: they all accept), restarts a worker that dies (logged with the connections it held, with a growing pause if it keeps
-dying), and on SIGTERM or SIGINT stops them all gracefully (docs/scaling.md).
+has said it: they all accept), restarts a worker that dies (logged with the
+connections it held, with a growing pause if it keeps dying), and on SIGTERM or
+SIGINT stops them all gracefully (docs/scaling.md).
 """
 
 from __future__ import annotations
