@@ -113,18 +113,22 @@ class Topic:
         self.latched = event
         self.latched_by = client
 
-    def report_lost(self, count: int, now: float) -> None:
+    def report_lost(self, count: int, now: float) -> bool:
         """``count`` messages were lost before they reached this server: tell the subscribers.
 
         Every subscriber's sink that takes such a report (``rwt_protocol.ports.LossSink``)
         is told at ``now`` (monotonic seconds), at most once per
         ``LOSS_REPORT_EVERY_S``: a report within that time of the last one is kept
         and added to the next (D61). A link calls it on a gap in a remote
-        publisher's messages.
+        publisher's messages, and with ``count`` 0 later (its sweep), until
+        nothing is kept.
+
+        Returns:
+            Whether lost messages are kept for a later report.
         """
         self._lost += count
-        if now - self._lost_told < LOSS_REPORT_EVERY_S:
-            return
+        if not self._lost or now - self._lost_told < LOSS_REPORT_EVERY_S:
+            return self._lost > 0
         lost, self._lost, self._lost_told = self._lost, 0, now
         for subscriber, sink in list(self.subscribers.items()):
             on_lost = getattr(sink, "on_lost", None)
@@ -134,6 +138,7 @@ class Topic:
                 on_lost(lost)
             except Exception:  # a broken subscriber must not hurt the others
                 self._failed(subscriber)
+        return False
 
     def check_type(self, msgtype: MessageType) -> None:
         """Refuse a participant that names another type (spec 3.3.1).

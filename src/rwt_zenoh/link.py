@@ -268,6 +268,7 @@ class ZenohLink:
         self._remote: dict[str, ClientId] = {}  # token -> its participant
         self._relays = Relays(graph, self.rules, LINK_NODE, self._publisher_of)
         self._gaps = SequenceGaps()  # remote publishers' sequence numbers (D61)
+        self._losses_kept: set[str] = set()  # topics with lost messages not told yet
         self._sample_publisher: ClientId | None = None  # of the sample being delivered
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         # A ROS 2 service keeps requests by client GID and sequence number, and refuses
@@ -623,6 +624,15 @@ class ZenohLink:
         self._relays.sweep(self._subs)
         self._params.sweep()
         self._mirror.retry()  # the local provider that shadowed one may have gone
+        self._tell_losses()
+
+    def _tell_losses(self) -> None:
+        """Tell the subscribers of the lost messages kept for a later report (D61)."""
+        now = time.monotonic()
+        for topic in list(self._losses_kept):
+            entry = self.graph.topics.get(topic)
+            if entry is None or not entry.report_lost(0, now):
+                self._losses_kept.discard(topic)
 
     def _share_soon(self) -> None:
         """The feed's backlog filled (inside a graph call): share it in the link's task."""
@@ -1002,8 +1012,8 @@ class ZenohLink:
             # a hold this sample starts is charged to its publisher's budget (D61)
             self._sample_publisher = self._publisher_of(source)
             lost = self._gaps.seen(source, sequence)
-            if lost:  # lost on the way here: its subscribers are told (D61)
-                entry.report_lost(lost, time.monotonic())
+            if lost and entry.report_lost(lost, time.monotonic()):  # told now or by a sweep
+                self._losses_kept.add(topic)
         try:  # by its publisher's participant, or a relay until its token comes
             # a sample tells nothing of its publisher's durability: the relay hands
             # it over as latched once the token says the publisher is transient local

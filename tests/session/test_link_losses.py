@@ -3,8 +3,8 @@
 A link that finds a gap in a remote publisher's messages reports it on the topic
 (``Topic.report_lost``); each subscriber whose connection asks for warnings gets one
 ``warning`` status in its own spelling of the topic, at most once a second however
-many gaps come (``LOSS_REPORT_EVERY_S``), the counts of the gaps between added to the
-next. A subscriber at the default level (``error``, D2) is not sent it, as no warning.
+many gaps come (``LOSS_REPORT_EVERY_S``), the counts of the gaps between kept for the
+next report, which the link's sweep makes if no gap comes. A subscriber at the default level (``error``, D2) is not sent it, as no warning.
 A Foxglove client gets it as a warning status.
 """
 
@@ -49,10 +49,12 @@ def test_a_gap_on_a_topic_is_a_warning_to_each_subscriber_that_asks(
     topic.report_lost(1, clock.monotonic())
     [status] = told.statuses()
     assert str(status["msg"]).startswith("lost 3 messages of burst")  # 1 + 1 + 1
-    clock.now += LOSS_REPORT_EVERY_S
-    topic.report_lost(1, clock.monotonic())
+    assert topic.report_lost(1, clock.monotonic())  # kept again, for a later report
+    assert not topic.report_lost(0, clock.monotonic() + LOSS_REPORT_EVERY_S)  # the link's sweep
     [status] = told.statuses()
     assert str(status["msg"]).startswith("lost 1 message of burst on the way")
+    assert not topic.report_lost(0, clock.monotonic() + 3 * LOSS_REPORT_EVERY_S)  # nothing kept
+    assert told.statuses() == []
 
 
 def test_a_foxglove_subscriber_is_told_too(graph: Graph, clock: FakeClock) -> None:

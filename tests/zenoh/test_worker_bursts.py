@@ -53,7 +53,7 @@ with connect(url, max_size=None) as ws:
     numbers, statuses = [], []
     while True:
         try:
-            message = json.loads(ws.recv(timeout=float(sys.argv[3])))
+            message = json.loads(ws.recv(timeout=float(sys.argv[3]) if numbers else 60))
         except TimeoutError:
             break
         if message["op"] == "publish":
@@ -129,7 +129,11 @@ class Publisher:
 async def subscriber_on(
     workers: Workers, pid: int, stack: contextlib.AsyncExitStack, last: int, idle_s: float
 ) -> Process:
-    """A subscriber process whose connection the worker ``pid`` serves (others are closed)."""
+    """A subscriber process whose connection the worker ``pid`` serves (others are closed).
+
+    It reads until message ``last`` (0: none) or, once messages came, ``idle_s`` seconds
+    without one.
+    """
     for _ in range(64):
         code = SUBSCRIBER.replace("sys.argv[1]", repr(workers.url))
         code = code.replace("sys.argv[2]", repr(str(last))).replace("sys.argv[3]", repr(idle_s))
@@ -188,23 +192,28 @@ async def test_a_burst_reaches_a_reading_subscriber_on_the_other_worker_whole() 
 
 
 async def test_messages_lost_between_the_workers_are_told_to_the_subscriber() -> None:
+    burst = BURST // 3  # 10 MB: far past the link's queue and Zenoh's
     small = ("--hold-budget", "0", "--zenoh-outbox-bytes", str(256 * 1024))
     async with two_workers(*small) as workers, contextlib.AsyncExitStack() as stack:
         publisher = Publisher(workers)
         home = await publisher.open()
         other = next(pid for pid in workers.pids if pid != home)
-        remote = await subscriber_on(workers, other, stack, BURST, 10.0)
+        remote = await subscriber_on(workers, other, stack, 0, 3.0)  # until 3 s without one
         await anyio.sleep(1.0)
         os.kill(other, signal.SIGSTOP)  # the other worker takes nothing: its link's queue fills
         try:
-            await publisher.burst(BURST)
-            await anyio.sleep(2.0)  # the publishing worker puts what it can, drops the rest
+            await publisher.burst(burst)
+            await anyio.sleep(1.0)  # the publishing worker puts what it can, drops the rest
         finally:
             os.kill(other, signal.SIGCONT)
         numbers, statuses = await outcome(remote)
-    assert 0 < len(numbers) < BURST, (len(numbers), statuses, workers.parent.whole_stderr()[-3000:])
+        log = workers.parent.whole_stderr()
+    assert 0 < len(numbers) < burst, (len(numbers), statuses, log[-3000:])
     assert numbers == sorted(numbers)  # what came, in order
-    assert statuses, "the subscriber was not told"
-    assert all("on the way to this server" in status for status in statuses), statuses
-    told = sum(int(status.split()[1]) for status in statuses)
-    assert told <= BURST - len(numbers)  # reported losses are losses (some may be its own)
+    lost = [status for status in statuses if "on the way to this server" in status]
+    assert lost, (statuses, log[-3000:])
+    told = sum(int(status.split()[1]) for status in lost)
+    if lost == statuses:  # it lost none itself (D24): each message it missed was told
+        assert told == burst - len(numbers)
+    else:  # and those it lost itself, "dropping the oldest topic messages"
+        assert told < burst - len(numbers)
