@@ -417,8 +417,9 @@ class FlowControl(Generic[OutletT]):
     Used on that loop only; sans-IO: every method takes the time and returns.
 
     Args:
-        hold_budget_s: seconds the links' deliveries may be held, all links as
-            one reader (``--hold-budget``, ``links``).
+        hold_budget_s: seconds a link's deliveries of one remote publisher may be
+            held (``--hold-budget``, ``link_account``), and those of no known
+            publisher, all links as one reader (``links``).
         cool_downs: the server's per-host cool-downs; None: a connection's
             cool-down ends with it.
     """

@@ -1,7 +1,8 @@
 """MCP under ``rwt serve --mcp --workers N``: a request goes to the worker holding its state.
 
-A 2026-07-28 request carries no session, so the worker the kernel gave its socket
-answers it (SO_REUSEPORT; the graph is one through the workers' links). Two things
+A 2026-07-28 request carries no session, so the worker that accepted its socket
+answers it (the workers accept from one listening socket, workers.py; the graph is
+one through the workers' links). Two things
 stay where they were made: a 2025-era session (its ``Mcp-Session-Id``) and a task
 (its ``taskId``: the goal lives on a connection of that worker, and its feedback
 and result arrive there). Their ids name the worker that holds them

@@ -4,8 +4,9 @@ A link that finds a gap in a remote publisher's messages reports it on the topic
 (``Topic.report_lost``); each subscriber whose connection asks for warnings gets one
 ``warning`` status in its own spelling of the topic, at most once a second however
 many gaps come (``LOSS_REPORT_EVERY_S``), the counts of the gaps between kept for the
-next report, which the link's sweep makes if no gap comes. A subscriber at the default level (``error``, D2) is not sent it, as no warning.
-A Foxglove client gets it as a warning status.
+next report, which the link's sweep makes if no gap comes. A subscriber at the default
+level (``error``, D2) is not sent it, as no warning. A Foxglove client gets it as a
+warning status.
 """
 
 from __future__ import annotations
