@@ -3,25 +3,24 @@
 A client publishes a burst as fast as its socket takes it, on one worker; a subscriber
 on the same worker and one on the other, each a WebSocket client reading as fast as it
 can in a process of its own, get every message, in order, and no warning. The
-subscriber's worker is kept busy meanwhile (stopped four fifths of the time: a worker
-that shares its core, as on a loaded machine): its link delivers the burst faster
-than it writes to the subscriber, and the subscriber, which took everything the
-worker gave it, was judged not to read and lost thousands of messages (only
-``event=slow_consumer`` in the log said so, and a warning it had to ask for: in four
-runs of five before D61). When a message is lost between the
-workers (here: the publisher is never held, ``--hold-budget 0``, and the link's queue
-for the other worker is small), the subscriber is told, with a ``warning`` status
-(docs/scaling.md, D61).
+subscriber's worker is short of CPU meanwhile (stopped for 1-1.5 s at a time, running
+150 ms between): its link hands the burst over faster than it writes to the
+subscriber, which takes all it is sent. Before D61 that subscriber was judged not to
+read and lost thousands of messages, in five runs of five on a loaded machine (only
+``event=slow_consumer`` in the log said so, and a warning it had to ask for). When a
+message is lost between the workers (here: the publisher is never held,
+``--hold-budget 0``, and the link's queue for the other worker is small), the
+subscriber is told, with a ``warning`` status (docs/scaling.md, D61).
 """
 
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import signal
 import threading
-import time
 from collections.abc import AsyncIterator, Iterator
 
 import anyio
@@ -40,7 +39,9 @@ pytestmark = [
 STRING = "std_msgs/msg/String"
 PAD = "x" * 1000  # about 1 KB a message: a burst of 30,000 is twice a send buffer
 BURST = 30_000
-BUSY = (0.03, 0.12)  # the other worker runs 30 ms, then is stopped 120 ms, over and over
+# the other worker stopped 1 s, then runs 150 ms, is stopped 1.5 s, runs 150 ms, over again:
+# a worker short of CPU, stalled past the 1 s in which a subscriber must show it reads
+BUSY = ((1.0, 0.15), (1.5, 0.15))
 
 SUBSCRIBER = """
 import json, sys
@@ -152,16 +153,21 @@ async def outcome(client: Process) -> tuple[list[int], list[str]]:
 
 
 @contextlib.contextmanager
-def kept_busy(pid: int, run_s: float, stop_s: float) -> Iterator[None]:
-    """Stop and continue ``pid`` in turn while the block runs (a worker short of CPU)."""
+def kept_busy(pid: int, pattern: tuple[tuple[float, float], ...]) -> Iterator[None]:
+    """Stop ``pid``, then continue and stop it in turn while the block runs.
+
+    ``pattern``: (seconds stopped, seconds running) pairs, repeated: a worker short
+    of CPU, whose subscribers read all the while.
+    """
     done = threading.Event()
 
     def cycle() -> None:
-        while not done.is_set():
+        for stop_s, run_s in itertools.cycle(pattern):
             os.kill(pid, signal.SIGSTOP)
-            time.sleep(stop_s)
+            stopped = done.wait(stop_s)
             os.kill(pid, signal.SIGCONT)
-            done.wait(run_s)
+            if stopped or done.wait(run_s):
+                return
 
     thread = threading.Thread(target=cycle, daemon=True)
     thread.start()
@@ -181,7 +187,7 @@ async def test_a_burst_reaches_a_reading_subscriber_on_the_other_worker_whole() 
         local = await subscriber_on(workers, home, stack, BURST, 30.0)
         remote = await subscriber_on(workers, other, stack, BURST, 30.0)
         await anyio.sleep(1.0)  # the subscriptions known to both workers (over Zenoh)
-        with kept_busy(other, *BUSY):
+        with kept_busy(other, BUSY):
             await publisher.burst(BURST)
             got = [await outcome(local), await outcome(remote)]
         log = workers.parent.whole_stderr()
