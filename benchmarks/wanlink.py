@@ -170,6 +170,8 @@ class WanLink:
             IPv4 addresses on the link (a /32 each, the other as its peer).
         profile: both directions' delay, jitter, loss and rate.
         seed: the random source's seed (None: a fresh one).
+        back: the profile from ``ns_b`` to ``ns_a``, where it differs from ``profile``
+            (a link that loses packets one way only).
 
     ``start()`` makes the devices and starts the forwarding thread; ``stop()``
     ends it and closes them (the devices go with their fds).
@@ -183,11 +185,12 @@ class WanLink:
         addr_b: str,
         profile: LinkProfile,
         seed: int | None = None,
+        back: LinkProfile | None = None,
     ) -> None:
         self.ends = ((ns_a, addr_a, addr_b), (ns_b, addr_b, addr_a))
         rng = random.Random(seed)
         self.a_to_b = LinkModel(profile, random.Random(rng.random()))
-        self.b_to_a = LinkModel(profile, random.Random(rng.random()))
+        self.b_to_a = LinkModel(back or profile, random.Random(rng.random()))
         self._fds: list[int] = []
         self._stop_r, self._stop_w = os.pipe()
         self._thread = threading.Thread(target=self._forward, name="wanlink", daemon=True)

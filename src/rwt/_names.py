@@ -181,6 +181,18 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_ros2": ("Ros2Link", "Ros2Options", "Ros2Unavailable", "open_ros2_link"),
         "rwt_ros2.runtime": ("ament_interface_dirs",),
     },
+    "rwt.safety": {
+        "rwt_graph.safety.rules": (
+            "CallRule",
+            "RulesError",
+            "SafetyRules",
+            "TopicRule",
+            "load_rules",
+            "parse_rules",
+        ),
+        "rwt_graph.safety.envelope": ("Envelope", "EnvelopeError"),
+        "rwt_graph.safety.audit": ("AuditTrail", "SafetyEvent"),
+    },
 }
 #: the namespaces below ``rwt``, as ``rwt.<name>``
 NAMESPACES = tuple(space.removeprefix("rwt.") for space in PUBLIC if space != "rwt")

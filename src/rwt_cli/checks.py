@@ -20,7 +20,7 @@ import typer
 
 from rwt_protocol.errors import ConfigError
 from rwt_transports.webrtc_ice import parse_ice_servers
-from rwt_transports.webrtc_native import STACKS, native_missing
+from rwt_transports.webrtc_stacks import stack_refusal
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -118,13 +118,12 @@ def check_webrtc_stack(stack: str) -> str:
     """Typer callback: ``--webrtc-stack`` is one of ``webrtc_native.STACKS``, and usable here.
 
     Raises:
-        OptionError: another name, or ``native`` where libdatachannel-py does not
-            import (D51: Python 3.12+; ``native_missing`` says why).
+        OptionError: another name, or a stack that does not import here (``native``:
+            libdatachannel-py, Python 3.12+, D51; ``reactor``: reactor-webrtc, D70;
+            ``webrtc_stacks.stack_refusal`` says why).
     """
-    if stack not in STACKS:
-        raise OptionError(f"{stack!r} is not one of {', '.join(STACKS)}")
-    if stack == "native" and (missing := native_missing()) is not None:
-        raise OptionError(missing)
+    if (refused := stack_refusal(stack)) is not None:
+        raise OptionError(refused)
     return stack
 
 

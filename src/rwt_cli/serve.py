@@ -22,6 +22,8 @@ import typer
 
 from rwt_console import ConsoleSite, console_for
 from rwt_graph.graph import Graph
+from rwt_graph.safety.envelope import Envelope
+from rwt_graph.safety.rules import RulesError, SafetyRules, load_rules
 from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.access import AccessPolicy, parse_glob_list, parse_split_glob
@@ -40,7 +42,7 @@ from rwt_transports.webrtc_native import native_ice_refusal
 from rwt_transports.webrtc_signal import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.worker_counts import ConnectionCountWriter
-from rwt_transports.workers import run_workers
+from rwt_transports.workers import parse_listen_fds, run_workers
 
 from .bag_options import (
     bag_jobs,
@@ -121,6 +123,11 @@ def serve(options: ServeOptions) -> None:
         fail(f"--webrtc needs aiortc: {WEBRTC_EXTRA}")
     if options.listeners.mcp and importlib.util.find_spec("mcp") is None:
         fail(f"--mcp needs the MCP SDK: {MCP_EXTRA}")
+    interface_dirs = list(options.graph.interfaces or ())
+    if options.ros2.ros2:  # the robot's own definitions, after the user's
+        interface_dirs += ros2_interface_dirs()
+    registry = TypeRegistry(dialect, interface_dirs)
+    safety = _safety_rules(options.security.safety, registry)  # before the logs: one line
     _set_up_process(options.process)
     scale_out = options.scale_out
     if (scale_out.zenoh or scale_out.workers > 1) and dialect is not Dialect.ROS2:
@@ -128,13 +135,10 @@ def serve(options: ServeOptions) -> None:
     if scale_out.placement is not PlacementMode.NONE and _alone(scale_out):
         raise usage_error("--placement places connections among workers: add --workers N")
     if scale_out.workers > 1:
-        _serve_workers(options)
+        _serve_workers(options)  # each worker reads --safety again
     zenoh_link = _zenoh_options(scale_out) if scale_out.zenoh else None
     ros2_link = _ros2_options(options, dialect) if options.ros2.ros2 else None
-    interface_dirs = list(options.graph.interfaces or ())
-    if ros2_link is not None:  # the robot's own definitions, after the user's
-        interface_dirs += ros2_interface_dirs()
-    graph = Graph(TypeRegistry(dialect, interface_dirs))
+    graph = Graph(registry, safety=safety)  # the rules fit its types: checked above
     tokens = _video_tokens(options, graph) if secret is not None else None
     server = _server(options, graph, secret, tokens)
     media = options.media
@@ -292,6 +296,7 @@ def _server_config(
         use_sim_time=options.graph.use_sim_time,
         handshake_timeout_s=limits.handshake_timeout,
         reuse_port=options.scale_out.reuse_port,
+        listen_fds=parse_listen_fds(options.scale_out.listen_fd or ()),
         on_connections=_worker_counter(options.scale_out.worker_state),
         placement=_placement(options.scale_out),
     )
@@ -486,6 +491,23 @@ def _zenoh_options(scale_out: ScaleOut) -> ZenohOptions:
         outbox_bytes=scale_out.zenoh_outbox_bytes,
         max_entities=scale_out.zenoh_max_entities,
     )
+
+
+def _safety_rules(path: Path | None, registry: TypeRegistry) -> SafetyRules | None:
+    """The rules of ``--safety FILE``, checked against ``registry``'s types.
+
+    Raises:
+        OptionError: the file does not parse, or a rule does not fit the types
+            (exit 2, the message naming the file's line).
+    """
+    if path is None:
+        return None
+    try:
+        rules = load_rules(path)
+        Envelope(rules, registry)  # the types, fields and stops, as the graph will check them
+    except RulesError as exc:
+        raise OptionError(exc.message, param_hint="--safety") from None
+    return rules
 
 
 def _secret_checked(path: Path | None, bind_connection: bool) -> str | None:

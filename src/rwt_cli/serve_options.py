@@ -143,10 +143,10 @@ class Listeners:
         typer.Option(
             metavar="STACK",
             callback=check_webrtc_stack,
-            help="The WebRTC stack of --webrtc's data channels and video tracks: native"
-            " (libdatachannel, Python 3.12+), aiortc, or auto (native where it is"
-            " installed); offers with audio or video and no ?video= stay on aiortc"
-            " (docs/webrtc.md, 'Which stack').",
+            help="The WebRTC stack of --webrtc's data channels: reactor (libwebrtc's SCTP),"
+            " native (libdatachannel, Python 3.12+; also video tracks), aiortc, or auto"
+            " (the best installed); offers with audio or video and no ?video= stay on"
+            " aiortc (docs/webrtc.md, 'Which stack').",
         ),
     ] = "auto"
     ice_server: Annotated[
@@ -327,6 +327,15 @@ class Security:
             help="Serve UDP peers without validating their address (only on a trusted link)."
         ),
     ] = False
+    safety: Annotated[
+        Path | None,
+        typer.Option(
+            callback=check_readable_file,
+            metavar="FILE",
+            help="Safety rules (TOML) for what remote clients command: field bounds "
+            "(clamp or reject), rates, dead-man stops, a person's approval for MCP agents.",
+        ),
+    ] = None
 
 
 @dataclass(frozen=True)
@@ -696,8 +705,8 @@ class ScaleOut:
         int,
         typer.Option(
             min=1,
-            help="Server processes sharing the ports (SO_REUSEPORT, Linux) and one graph "
-            "over Zenoh on loopback; restarted when they die.",
+            help="Server processes accepting from the same listening ports (Linux) and "
+            "sharing one graph over Zenoh on loopback; restarted when they die.",
         ),
     ] = 1
     placement: Annotated[
@@ -709,6 +718,7 @@ class ScaleOut:
         ),
     ] = PlacementMode.NONE
     reuse_port: Annotated[bool, typer.Option(hidden=True)] = False
+    listen_fd: Annotated[list[str] | None, typer.Option(hidden=True)] = None
     worker_state: Annotated[str | None, typer.Option(hidden=True)] = None
     worker_count: Annotated[int, typer.Option(hidden=True, min=1)] = 1
 

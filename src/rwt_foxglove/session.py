@@ -41,6 +41,7 @@ from rwt_protocol.errors import RemoteProtocolError, RwtError
 from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.runtime.access import Family, TopicUse
+from rwt_protocol.runtime.backpressure import lost_text
 from rwt_protocol.runtime.connection import SessionBase
 from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.runtime.rules import ClientRules
@@ -94,7 +95,7 @@ if TYPE_CHECKING:
     from rwt_graph.parameters.store import Parameters
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
-    from rwt_protocol.ports import MessageEvent
+    from rwt_protocol.ports import MessageEvent, PublishNote
     from rwt_protocol.runtime.contract import Job
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.timers import Timer
@@ -161,6 +162,10 @@ class _TopicSink:
         latched message is replayed to. ``on_messages`` of one message.
         """
         self.on_messages((event,), subscriptions)
+
+    def on_lost(self, count: int) -> None:
+        """``count`` messages were lost before they reached the server (``LossSink``, D61)."""
+        self._session.report(Level.WARNING, lost_text(count, self._channel.topic))
 
     def on_messages(
         self,
@@ -693,12 +698,19 @@ class FoxgloveSession(SessionBase):
             raise FoxgloveInputError(f"message data on unknown client channel {op.channel_id}")
         if channel.encoding == JSON:
             value = decode_json_text(bytes(op.payload), "message")
-            self._graph.publish(self._client_id, channel.topic, value)
+            self._graph.publish(self._client_id, channel.topic, value, notes=self._noted)
             return
         # checked by decoding it once; the client's bytes then go on as they are to every
         # subscriber that sends the wire form (Foxglove clients, cbor-raw)
         data = bytes(op.payload)
-        self._graph.publish_serialized(self._client_id, channel.topic, data, encoding=self._wire)
+        self._graph.publish_serialized(
+            self._client_id, channel.topic, data, encoding=self._wire, notes=self._noted
+        )
+
+    def _noted(self, note: PublishNote) -> None:
+        """The safety envelope's clamp or drop: a warning status, once per episode (D67)."""
+        if note.first:
+            self._status(StatusLevel.WARNING, note.text)
 
     # ---- the graph ----------------------------------------------------------------
 

@@ -54,5 +54,7 @@ Subpackages:
   each node's own ROS 2 parameter services (``nodeparams``).
 - ``tf``: a transform buffer and the built-in tf2_web_republisher.
 - ``media``: images as numpy arrays and the depth-cloud codec.
+- ``safety``: the safety envelope: rules, bounded fields, the check every remote
+  client's publish passes, dead-man stops, the audit trail (docs/safety.md).
 - ``interfaces``, ``interfaces_ros1``: the shipped message definitions (data, no code).
 """

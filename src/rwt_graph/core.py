@@ -39,6 +39,7 @@ from rwt_protocol.ports import (
     GoalHandle,
     MessageEvent,
     Pending,
+    PublishNotes,
     ServiceProvider,
     ServiceReply,
     TopicSink,
@@ -72,6 +73,7 @@ if TYPE_CHECKING:
 
     from .calls import Offer
     from .playback import Playback
+    from .safety.envelope import Envelope
 
 
 __all__ = ["GraphCore"]
@@ -123,6 +125,8 @@ class GraphCore:
         outflow: the backpressure local publishers follow when a link's queue
             for the other middleware is congested (``link.OutflowGate``); the
             server installs its own, else ``OPEN_OUTFLOW``.
+        envelope: the safety envelope every remote client's publish passes
+            (``safety.envelope.Envelope.install``), or None (docs/safety.md).
         max_store_bytes: the bytes a topic's transient-local store keeps at most
             (``topic_qos``, D63); the server sets its ``--send-buffer-limit``.
         stores: the bytes all topics' stores keep together, and their bound
@@ -157,6 +161,7 @@ class GraphCore:
         self.type_checks: list[Callable[[str], str | None]] = []
         self.inflow: InflowGate = OPEN_GATE
         self.outflow: OutflowGate = OPEN_OUTFLOW
+        self.envelope: Envelope | None = None
         self.max_store_bytes = STORE_MAX_BYTES
         self.stores = StoreBudget()
         # client -> the topics it publishes or subscribes to, so that its release
@@ -341,12 +346,22 @@ class GraphCore:
             self.feed.drop(PUBLISHER, entry.name, client)
 
     def publish(
-        self, client: ClientId, topic: str, msg: object, *, latch: bool = False, path: str = "$"
+        self,
+        client: ClientId,
+        topic: str,
+        msg: object,
+        *,
+        latch: bool = False,
+        path: str = "$",
+        notes: PublishNotes | None = None,
     ) -> tuple[str, ...]:
         """Validate ``msg`` against the type of ``topic`` and deliver it (spec 3.3.3).
 
         Publishing without advertising is allowed once the topic's type is known
-        (REF §2.3); the client then counts as a publisher until it leaves.
+        (REF §2.3); the client then counts as a publisher until it leaves. A
+        remote client's message passes the safety envelope first, if there is one
+        (``envelope``, docs/safety.md): clamped, dropped (``notes`` hears of both)
+        or refused.
 
         Args:
             client: the publishing participant.
@@ -354,15 +369,23 @@ class GraphCore:
             msg: the message as decoded JSON (a dict).
             latch: keep the message for later subscribers (D13).
             path: JSON path of ``msg``, for error texts.
+            notes: where the envelope's clamps and drops are told (None: nowhere).
 
         Returns:
             Paths of the fields that were filled with defaults (D7).
 
         Raises:
-            GraphError: the topic's type is unknown.
+            GraphError: the topic's type is unknown; ``EnvelopeError`` (a
+                ``GraphError``): the envelope refused the message.
             FieldError: ``msg`` does not fit the type (D9).
         """
         entry, converted, missing = self.convert_publish(topic, msg, path=path)
+        envelope = self.envelope
+        if envelope is not None and not is_local(client):  # the one hook (safety.envelope)
+            admitted = envelope.admit(client, entry, converted, notes)
+            if admitted is None:
+                return missing
+            converted = admitted
         latched = entry.publishers.get(client)
         if latched is None:  # the first publish of this client: check it once
             self._join(client, entry)
@@ -371,7 +394,13 @@ class GraphCore:
         return missing
 
     def publish_serialized(
-        self, client: ClientId, topic: str, data: bytes, *, encoding: str
+        self,
+        client: ClientId,
+        topic: str,
+        data: bytes,
+        *,
+        encoding: str,
+        notes: PublishNotes | None = None,
     ) -> None:
         """Publish ``data``, a message in the graph's wire form, as it is (spec 3.3.3).
 
@@ -385,10 +414,12 @@ class GraphCore:
         (``MessageEvent.wire``: Foxglove clients, cbor-raw, the links), never
         serialized again, and the values decoded to the others (JSON, CBOR,
         Python callbacks), never decoded again. Publishing without advertising
-        is allowed as for ``publish``.
+        is allowed as for ``publish``, and the safety envelope checks the values
+        as it does there (``notes``); a message it clamps goes on as values.
 
         Raises:
-            GraphError: the topic's type is unknown, or ``encoding`` is not the graph's.
+            GraphError: the topic's type is unknown, or ``encoding`` is not the graph's;
+                ``EnvelopeError``: the envelope refused the message.
             CdrError: ``data`` is not a message of the topic's type in that form.
         """
         entry = self.topics.get(topic)
@@ -403,11 +434,19 @@ class GraphCore:
         if codec is None:
             codec = entry.codec = codec_for(self.registry, entry.msgtype)
         msg = codec.deserialize(data)
+        wire: bytes | None = data
+        envelope = self.envelope
+        if envelope is not None and not is_local(client):  # the one hook (safety.envelope)
+            admitted = envelope.admit(client, entry, msg, notes)
+            if admitted is None:
+                return
+            if admitted is not msg:  # clamped: the client's bytes are not the message now
+                msg, wire = admitted, None
         latched = entry.publishers.get(client)
         if latched is None:
             self._join(client, entry)
             latched = False
-        self.deliver(entry, msg, latched, client, data)
+        self.deliver(entry, msg, latched, client, wire)
 
     def _join(self, client: ClientId, entry: Topic) -> None:
         """Make ``client`` a publisher of ``entry`` at its first publish (REF §2.3)."""
@@ -505,15 +544,23 @@ class GraphCore:
             self._collect(entry)
             self.feed.drop(SUBSCRIPTION, entry.name, client)
 
-    def release(self, client: ClientId) -> None:
+    def release(self, client: ClientId, *, ended: bool = True) -> None:
         """Drop every registration of ``client`` (it disconnected).
 
         Its services and actions go, failing their pending callers (D15); its own
         calls and goals are forgotten. Each step runs even if an earlier one
         failed (logged as a bug), so nothing of the client stays registered.
         Its cost is proportional to what ``client`` holds, not to the graph's size.
+        ``ended``: its connection ended (the safety envelope's dead-man stops a
+        topic it alone commanded, at once); False for the end of one request of a
+        front end without connections (``GraphPort.release``).
         """
         self.flush()
+        envelope = self.envelope
+        if envelope is not None:
+            guarded(
+                f"the envelope's release of {client}", partial(envelope.gone, client, ended=ended)
+            )
         for name in sorted(self._held.pop(client, ())):
             entry = self.topics.get(name)
             if entry is not None:

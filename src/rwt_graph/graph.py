@@ -30,6 +30,8 @@ if TYPE_CHECKING:
     from rwt_protocol.qos import QosProfile
 
     from .clock import Clock
+    from .safety.envelope import Envelope
+    from .safety.rules import SafetyRules
     from .types import TypeRegistry
 
 __all__ = ["Graph"]
@@ -49,6 +51,11 @@ class Graph:
         registry: the message types; a ROS 2 registry by default. Its dialect is
             also the naming of the parameters (``params``).
         clock: time source; the system clock by default.
+        safety: the safety rules every remote client's publish is held to
+            (docs/safety.md); None: none (``use_safety`` adds them later).
+
+    Raises:
+        RulesError: ``safety`` does not fit the graph's types (``use_safety``).
 
     Attributes:
         params: the parameter store (``graph.params.set("/robot:speed", 1.0)``).
@@ -65,7 +72,13 @@ class Graph:
             running ROS sets that ROS's own (docs/ros2.md).
     """
 
-    def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
+    def __init__(
+        self,
+        registry: TypeRegistry | None = None,
+        *,
+        clock: Clock | None = None,
+        safety: SafetyRules | None = None,
+    ) -> None:
         self.port = core = GraphCore(registry, clock=clock)
         # the core's containers themselves (never rebound), for code that reads the graph
         self.registry = core.registry
@@ -77,6 +90,34 @@ class Graph:
         self.type_checks = core.type_checks
         self.params = Parameters(self.registry.dialect, nodes=self.nodes)
         self.ros_distro = DEFAULT_ROS_DISTRO
+        if safety is not None:
+            self.use_safety(safety)
+
+    @property
+    def safety(self) -> Envelope | None:
+        """The safety envelope (``use_safety``), or None."""
+        return self.port.envelope
+
+    def use_safety(self, rules: SafetyRules) -> Envelope:
+        """Hold every remote client's publish to ``rules`` from now on (docs/safety.md).
+
+        In-process code and the links are not bound. The envelope holds each
+        bounded topic as a publisher of its type (node ``/rwt_safety``); its
+        dead-man timer runs while a server serves the graph.
+
+        Returns:
+            The envelope.
+
+        Raises:
+            RulesError: a rule does not fit the graph's types (an unknown type or
+                field, a bound on a field that is not a number, a bad stop), a
+                bounded topic exists with another type, or the graph has rules already.
+        """
+        from .safety.envelope import Envelope  # noqa: PLC0415  # only for graphs that use it
+
+        envelope = Envelope(rules, self.registry)
+        envelope.install(self.port)
+        return envelope
 
     @property
     def clock(self) -> Clock:

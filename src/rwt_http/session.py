@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from rwt_graph.port import GraphFront
-    from rwt_protocol.ports import GoalStatus, MessageEvent
+    from rwt_protocol.ports import GoalStatus, MessageEvent, PublishNote
     from rwt_protocol.qos import QosProfile
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.rules import ClientRules
@@ -113,6 +113,7 @@ class HttpSession(SessionBase):
             memory=memory,
         )
         self._front = graph
+        self.request_scoped = True  # a request is a command, not a commander's connection (D68)
         self.route = route
         self._headers = headers
         self._options = options or HttpApiOptions()
@@ -240,8 +241,15 @@ class HttpSession(SessionBase):
         if type_name is None:
             raise UnknownNameError("topic", f"{route.name} (give its ?type=)")
         type_name = self.graph.advertise(self.client_id, route.name, type_name, qos=route.qos)
-        self.graph.publish(self.client_id, route.name, msg)
-        self._answer(200, {"topic": route.name, "type": type_name})
+        notes: list[PublishNote] = []
+        self.graph.publish(self.client_id, route.name, msg, notes=notes.append)
+        if any(note.dropped for note in notes):  # the safety envelope's rate (docs/safety.md)
+            self._answer(429, {"error": "; ".join(note.text for note in notes)})
+            return
+        answer: dict[str, object] = {"topic": route.name, "type": type_name}
+        if notes:  # a request is one command: each is told what the envelope did (D67)
+            answer["warnings"] = [note.text for note in notes]
+        self._answer(200, answer)
 
     def _events(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.TOPICS, route.name, "subscribe", TopicUse.SUBSCRIBE)

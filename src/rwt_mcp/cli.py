@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import logging
 import sys
+from pathlib import Path
 from typing import Annotated
 
 import anyio
@@ -16,9 +17,12 @@ import typer
 from mcp.server.stdio import stdio_server
 
 from rwt_client.connectors import server_url
+from rwt_graph.safety.audit import AuditTrail, SafetyEvent
+from rwt_graph.safety.rules import RulesError, SafetyRules, load_rules
 from rwt_protocol.errors import ConfigError
 
 from .app import AppSite
+from .approval import Approvals
 from .guard import Guard
 from .link import RobotLink
 from .tasks import TaskStore
@@ -41,7 +45,19 @@ def stdio_site(url: str) -> AppSite:
     return AppSite(base=f"{web}://{rest.split('/', 1)[0]}")
 
 
-async def serve_stdio(url: str, *, read_only: bool = False) -> None:
+def stdio_approvals(rules: SafetyRules, client: str) -> Approvals:
+    """The approvals of ``rules`` for the stdio front end, its audit trail on stderr (D69)."""
+    trail = AuditTrail()
+
+    def record(kind: str, who: str, target: str, detail: str) -> None:
+        trail.record(SafetyEvent(kind, who, "mcp", target, detail=detail))
+
+    return Approvals(rules, client, record)
+
+
+async def serve_stdio(
+    url: str, *, read_only: bool = False, safety: SafetyRules | None = None
+) -> None:
     """Serve MCP on this process's stdin and stdout until stdin closes.
 
     One rosbridge connection to ``url`` for the whole session, made in the
@@ -53,10 +69,16 @@ async def serve_stdio(url: str, *, read_only: bool = False) -> None:
     Args:
         url: the rosbridge server (``rwt_client.connectors.server_url``'s forms).
         read_only: refuse the tools that change the robot (``guard.WRITE_TOOLS``).
+        safety: safety rules whose approvals this front end asks a person for
+            (``approval.Approvals``); the bounds are the server's (docs/safety.md).
     """
     link = RobotLink(url)
-    guard = Guard(client=f"stdio:{url}", read_only=read_only)
-    server, _tasks = build_server(link, guard, TaskStore(), site=stdio_site(url))
+    client = f"stdio:{url}"
+    guard = Guard(client=client, read_only=read_only)
+    approvals = None if safety is None else stdio_approvals(safety, client)
+    server, _tasks = build_server(
+        link, guard, TaskStore(), site=stdio_site(url), approvals=approvals
+    )
     lowlevel = server._lowlevel_server
     ended = anyio.Event()
 
@@ -92,6 +114,15 @@ def mcp_command(
             " send_action_goal, cancel_action_goal, set_parameter.",
         ),
     ] = False,
+    safety: Annotated[
+        Path | None,
+        typer.Option(
+            "--safety",
+            metavar="FILE",
+            help="Safety rules (TOML, as rwt serve --safety): the topics, services and"
+            " actions marked approval = true wait for a person's yes (elicitation).",
+        ),
+    ] = None,
 ) -> None:
     """Serve MCP (Model Context Protocol) over stdio in front of a rosbridge server.
 
@@ -104,6 +135,10 @@ def mcp_command(
         target = server_url(url)
     except ConfigError as exc:
         raise typer.BadParameter(str(exc), param_hint="URL") from None
+    try:
+        rules = None if safety is None else load_rules(safety)
+    except RulesError as exc:
+        raise typer.BadParameter(exc.message, param_hint="--safety") from None
     # stdout carries MCP: logs go to stderr, a line per retry to connect (back-off up to 5 s)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="rwt mcp: %(message)s")
-    anyio.run(functools.partial(serve_stdio, target, read_only=read_only))
+    anyio.run(functools.partial(serve_stdio, target, read_only=read_only, safety=rules))

@@ -57,8 +57,12 @@ class Subscription(Protocol):
 class Publisher(Protocol):
     """A topic advertised for publishing."""
 
-    async def publish(self, msg: object) -> None:
+    async def publish(self, msg: object) -> str | None:
         """Publish ``msg`` (a dict in rosbridge's JSON form).
+
+        Returns:
+            What the robot's safety envelope did to it (a clamp, a drop), where the
+            robot says at once (``rwt serve --mcp``), else None (docs/safety.md).
 
         Raises:
             RwtError: the message does not fit the type, or the robot refused it.

@@ -62,7 +62,7 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup
 
     from rwt_protocol.levels import StatusLevel
-    from rwt_protocol.ports import GoalStatus, GraphPort, MessageEvent, Pending
+    from rwt_protocol.ports import GoalStatus, GraphPort, MessageEvent, Pending, PublishNote
     from rwt_protocol.qos import QosProfile
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.outbox import OutFrame
@@ -171,10 +171,10 @@ class _Publisher:
         self._topic = topic
         self._advertised = True
 
-    async def publish(self, msg: object) -> None:
+    async def publish(self, msg: object) -> str | None:
         if not self._advertised:
             raise RemoteProtocolError(f"publish: {self._topic} is not advertised")
-        self._session.publish(self._topic, msg)
+        return self._session.publish(self._topic, msg)
 
     async def unadvertise(self) -> None:
         if self._advertised:
@@ -425,14 +425,20 @@ class McpSession(SessionBase, RosapiMixin):
         self._advertised[topic] = self._advertised.get(topic, 0) + 1
         return _Publisher(self, topic)
 
-    def publish(self, topic: str, msg: object) -> None:
+    def publish(self, topic: str, msg: object) -> str | None:
         """Publish ``msg`` (JSON form) as the session's publisher of ``topic``.
 
+        Returns:
+            What the safety envelope did to it (a clamp, a drop), or None (docs/safety.md).
+
         Raises:
-            RwtError: the message does not fit the type (D9), or the session is closed.
+            RwtError: the message does not fit the type (D9), the safety envelope
+                refused it (D67), or the session is closed.
         """
         self.require_connection()
-        self._graph.publish(self.client_id, topic, msg, path="$.msg")
+        notes: list[PublishNote] = []
+        self._graph.publish(self.client_id, topic, msg, path="$.msg", notes=notes.append)
+        return "; ".join(note.text for note in notes) or None
 
     def drop_advertisement(self, topic: str) -> None:
         """One publisher of ``topic`` fewer; the graph's advertisement goes with the last."""

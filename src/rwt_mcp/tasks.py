@@ -12,11 +12,15 @@ live in a ``TaskStore`` the front end shares between its sessions and requests
 (one per ``rwt serve --mcp`` endpoint, one per ``rwt mcp`` process), so a task
 started on one connection is polled and canceled from another.
 
-Bounds (docs/limits.md, "MCP front end"): a store holds at most ``MAX_TASKS``
-tasks (a new one drops the oldest finished one; with all of them running it is a
-tool error), and a task lives ``TASK_TTL_S`` from its creation (``ttlMs``): then
-it is forgotten, and a goal still running is canceled. The wire shapes are the
-extension's 2026-07-28 schema (``Task``, ``CreateTaskResult``, ``GetTaskResult``);
+Bounds (docs/limits.md, "MCP front end"): at most ``MAX_TASKS`` goals of a
+store run at once, and a host's share of them is bound as the connection slots'
+(the endpoint's ``HostShares``, D60): a task past either is a tool error, given
+before its goal is sent (``TaskStore.reserve``). A store holds at most
+``MAX_TASKS`` tasks (a new one drops the oldest finished one), and a task lives
+``TASK_TTL_S`` from its creation (``ttlMs``): then it is forgotten, and a goal
+still running is canceled. The wire shapes are the extension's 2026-07-28 schema
+(``Task``, ``CreateTaskResult``, ``GetTaskResult``); ``tasks/cancel`` acknowledges
+with the task as it stands (a goal that ended first: its end, D60), and
 ``tasks/update`` answers an error, since a goal asks for no input.
 """
 
@@ -29,7 +33,7 @@ import uuid
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import anyio
 from mcp.server.extension import Extension, MethodBinding
@@ -41,6 +45,7 @@ from mcp_types import RequestParams
 from pydantic import Field, ValidationError
 
 from rwt_protocol.errors import GraphError, RwtError
+from rwt_protocol.runtime.access import log_refused
 
 from .catalog import TASK_TOOLS
 
@@ -49,28 +54,59 @@ if TYPE_CHECKING:
 
     from mcp.server.context import CallNext, HandlerResult, ServerRequestContext
 
+    from .approval import Approvals
     from .guard import Guard
     from .link import Goal, RobotLink
 
 __all__ = [
+    "CANCEL_SETTLE_S",
     "MAX_TASKS",
     "POLL_INTERVAL_MS",
     "TASKS_EXTENSION",
     "TASK_TOOLS",
     "TASK_TTL_S",
     "GoalTask",
+    "HostShare",
     "TaskStore",
     "TasksExtension",
 ]
 
 TASKS_EXTENSION = "io.modelcontextprotocol/tasks"
 """The extension's identifier (``clientCapabilities.extensions``, ``capabilities.extensions``)."""
-#: Tasks one store holds (running, or finished and not yet expired).
+#: Tasks one store holds (running, or finished and not yet expired), and goals of its
+#: tasks running at once (a host's share of them: ``HostShare``, D60).
 MAX_TASKS = 64
 #: Seconds a task lives from its creation (its ``ttlMs``); a goal running then is canceled.
 TASK_TTL_S = 600.0
 #: The polling interval a task suggests to its client, in ms.
 POLL_INTERVAL_MS = 1000
+#: Seconds ``tasks/cancel`` waits for a goal's end when its connection refused the cancel
+#: as closed: a goal whose connection closes ends with it (D60).
+CANCEL_SETTLE_S = 1.0
+
+
+class HostShare(Protocol):
+    """How many of a pool's slots each host may hold (``rwt_transports.shares.HostShares``).
+
+    The rule of the server's connection slots, given to the store by the front end
+    that knows its clients' hosts (D60); this package names it only.
+    """
+
+    def admits(self, host: str, taken: int, limit: int) -> bool:
+        """Whether ``host`` may take a slot while ``taken`` of ``limit`` are taken."""
+        ...
+
+    def held(self, host: str) -> int:
+        """Slots ``host`` holds."""
+        ...
+
+    def add(self, host: str) -> None:
+        """``host`` took a slot."""
+        ...
+
+    def remove(self, host: str) -> None:
+        """``host`` freed a slot."""
+        ...
 
 
 def _now_iso() -> str:
@@ -82,7 +118,10 @@ class GoalTask:
     """One task: the goal it follows and the connection that holds the goal.
 
     ``released`` is set once the goal's connection may close: the goal ended,
-    or the task expired (``TaskStore``).
+    or the task expired (``TaskStore``). ``host``: the client's host, as the
+    front end groups addresses (``""`` where it has one client); ``counted``:
+    the task holds one of the store's running slots (its goal had not ended when
+    the store last looked).
     """
 
     task_id: str
@@ -90,6 +129,8 @@ class GoalTask:
     link: RobotLink
     report: Any  # (Goal) -> dict: the tool's report of the goal (``tools._report``)
     created: float
+    host: str = ""
+    counted: bool = True
     created_at: str = field(default_factory=_now_iso)
     last_updated_at: str = field(default_factory=_now_iso)
     released: anyio.Event = field(default_factory=anyio.Event)
@@ -130,30 +171,75 @@ class GoalTask:
 class TaskStore:
     """The tasks of one front end, by id (``MAX_TASKS``, ``TASK_TTL_S``).
 
+    A task takes a running slot before its goal is sent (``reserve``), and holds
+    it while its goal runs: at most ``MAX_TASKS`` run at once, and with
+    ``shares`` a host holds at most its share of them (D60).
+
     Args:
         clock: monotonic seconds (``anyio.current_time`` by default).
         new_id: makes a new task's ``taskId`` (a uuid4's 32 hex digits by default;
             a worker of ``rwt serve --workers`` names itself in it).
+        shares: the hosts' shares of the running slots (``rwt serve --mcp``: the
+            connection slots' rule, ``rwt_transports.shares.HostShares``); None:
+            one client (``rwt mcp``), no share.
     """
 
-    def __init__(self, clock: Any = None, new_id: Callable[[], str] | None = None) -> None:
+    def __init__(
+        self,
+        clock: Any = None,
+        new_id: Callable[[], str] | None = None,
+        shares: HostShare | None = None,
+    ) -> None:
         self.tasks: OrderedDict[str, GoalTask] = OrderedDict()
+        self.running = 0
+        """Running slots taken: tasks whose goal runs, and goals being sent (``reserve``)."""
         self._clock = clock or anyio.current_time
         self._new_id = new_id or (lambda: uuid.uuid4().hex)
+        self._shares = shares
 
-    def add(self, record: Goal, link: RobotLink, report: Any) -> GoalTask:
-        """A new task following ``record``, a goal sent on ``link``.
+    def reserve(self, host: str) -> None:
+        """Take a running slot for a goal ``host`` is about to send as a task.
+
+        Called before the goal is sent, so a refused task sends nothing; the
+        slot is the task's once ``add`` makes it, else ``unreserve`` gives it back.
 
         Raises:
-            ToolError: ``MAX_TASKS`` tasks running already.
+            ToolError: ``MAX_TASKS`` goals of tasks run (or are being sent), or
+                ``host`` holds its share of them (``HostShare.admits``, D60).
         """
         self.expire()
+        self._settle()
+        if self.running >= MAX_TASKS:
+            raise ToolError(
+                f"{MAX_TASKS} tasks are running (MAX_TASKS): cancel one or wait for its end"
+            )
+        if self._shares is not None and not self._shares.admits(host, self.running, MAX_TASKS):
+            raise ToolError(
+                f"this host's {self._shares.held(host)} running tasks are its share of the "
+                f"{MAX_TASKS} (MAX_TASKS, {self.running} running): cancel one or wait for its end"
+            )
+        self.running += 1
+        if self._shares is not None:
+            self._shares.add(host)
+
+    def unreserve(self, host: str) -> None:
+        """Give back a slot ``reserve`` took for ``host`` whose goal was not sent."""
+        self.running -= 1
+        if self._shares is not None:
+            self._shares.remove(host)
+
+    def add(self, record: Goal, link: RobotLink, report: Any, host: str = "") -> GoalTask:
+        """A new task following ``record``, a goal sent on ``link`` for ``host``.
+
+        It holds the running slot ``reserve`` took for ``host``. A store holding
+        ``MAX_TASKS`` tasks forgets its oldest finished one (there is one: the
+        slots bound the running ones).
+        """
         if len(self.tasks) >= MAX_TASKS:
             finished = next((t for t in self.tasks.values() if t.record.done.is_set()), None)
-            if finished is None:
-                raise ToolError(f"{MAX_TASKS} tasks are running (MAX_TASKS): cancel one first")
-            self._drop(finished)
-        task = GoalTask(self._new_id(), record, link, report, self._clock())
+            if finished is not None:
+                self._drop(finished)
+        task = GoalTask(self._new_id(), record, link, report, self._clock(), host=host)
         self.tasks[task.task_id] = task
 
         def changed(_values: object = None) -> None:
@@ -161,6 +247,16 @@ class TaskStore:
 
         record.listeners.append(changed)
         return task
+
+    def _settle(self) -> None:
+        """Free the running slots of the tasks whose goal ended."""
+        for task in self.tasks.values():
+            if task.counted and task.record.done.is_set():
+                self._uncount(task)
+
+    def _uncount(self, task: GoalTask) -> None:
+        task.counted = False
+        self.unreserve(task.host)
 
     def get(self, task_id: str) -> GoalTask:
         """The task ``task_id``.
@@ -184,6 +280,8 @@ class TaskStore:
 
     def _drop(self, task: GoalTask) -> None:
         self.tasks.pop(task.task_id, None)
+        if task.counted:
+            self._uncount(task)
         task.released.set()
 
     async def hold(self, task: GoalTask) -> None:
@@ -238,19 +336,31 @@ class TasksExtension(Extension):
         store: the front end's tasks.
         link: this server's connection (goals it starts live on it).
         guard: this server's rules (``tasks/cancel`` is ``cancel_action_goal``'s call).
-        start_goal: ``async (arguments) -> Goal``: admits and sends a goal of
-            ``send_action_goal``'s arguments (``tools.RobotTools.start_goal``).
+        start_goal: ``async (arguments, before_send) -> Goal``: admits and sends a
+            goal of ``send_action_goal``'s arguments, calling ``before_send()`` (which
+            may raise ``ToolError``) once they passed, before the goal is sent
+            (``tools.RobotTools.start_goal``).
         report: ``(Goal) -> dict``: the goal as the tool reports it (``tools.goal_report``).
+        host: the client's host, as the front end groups addresses for its share
+            of the running tasks (``TaskStore.reserve``); ``""``: its one client.
     """
 
     identifier = TASKS_EXTENSION
 
     def __init__(
-        self, store: TaskStore, link: RobotLink, guard: Guard, start_goal: Any, report: Any
+        self,
+        store: TaskStore,
+        link: RobotLink,
+        guard: Guard,
+        start_goal: Any,
+        report: Any,
+        host: str = "",
     ) -> None:
         self.store, self.link, self.guard, self.start_goal = store, link, guard, start_goal
-        self.report = report
+        self.report, self.host = report, host
         self.started: list[GoalTask] = []
+        self.approvals: Approvals | None = None
+        """The calls that wait for a person: such a goal is asked for first, as the tool's."""
 
     def methods(self) -> list[MethodBinding]:
         """``tasks/get``, ``tasks/update``, ``tasks/cancel``."""
@@ -269,12 +379,38 @@ class TasksExtension(Extension):
         """A task for a ``TASK_TOOLS`` call of a client that takes tasks; else the call."""
         if params.name not in TASK_TOOLS or not takes_tasks(ctx):
             return await call_next(ctx)
+        approvals = self.approvals
+        if approvals is not None and approvals.target(params.name, dict(params.arguments or {})):
+            return await call_next(ctx)  # a person's yes first (docs/safety.md): not a task
+        reserved = False
+
+        def reserve() -> None:  # the arguments passed: a running slot, or the refusal
+            nonlocal reserved
+            try:
+                self.store.reserve(self.host)
+            except ToolError as exc:
+                now = self.guard.clock()
+                log_refused(
+                    client=self.guard.client,
+                    op=params.name,
+                    rule="MAX_TASKS",
+                    reason=str(exc),
+                    now=now,
+                )
+                raise ToolError(f"{params.name}: {exc}") from None
+            reserved = True
+
+        record: Goal | None = None
         try:
-            record = await self.start_goal(dict(params.arguments or {}))
+            record = await self.start_goal(dict(params.arguments or {}), reserve)
         except (ToolError, ValidationError) as exc:
             text = f"Error executing tool {params.name}: {exc}"
             return CallToolResult(content=[TextContent(type="text", text=text)], is_error=True)
-        task = self.store.add(record, self.link, self.report)
+        finally:
+            if reserved and record is None:  # refused or failed after its slot: nothing sent
+                self.store.unreserve(self.host)
+        assert record is not None  # sent: else returned above
+        task = self.store.add(record, self.link, self.report, self.host)
         self.started.append(task)
         return {"resultType": "task", **_handle(task)}
 
@@ -292,6 +428,12 @@ class TasksExtension(Extension):
         raise MCPError(INVALID_PARAMS, "a goal's task asks for no input: nothing to update")
 
     async def _cancel(self, ctx: ServerRequestContext[Any, Any], params: _TaskIdParams) -> Any:
+        """Cancel the task's goal; the answer is the task as it stands (D60).
+
+        The extension's acknowledgement (``resultType: "complete"``) carries the
+        task's fields, as ``tasks/get`` answers them: ``working`` while the cancel
+        is on its way, the goal's end where it ended first.
+        """
         task = self.store.get(params.task_id)
         record = task.record
         try:
@@ -299,12 +441,19 @@ class TasksExtension(Extension):
             # goal's own, where its id names it alone (other connections' goals may
             # have the same id, and a cancel from elsewhere names the newest)
             self.guard.admit("cancel_action_goal", {"action": record.action, "goal_id": ""})
-            await task.link.cancel(record)
+            if not record.done.is_set():
+                await task.link.cancel(record)
         except GraphError:
             pass  # its goal is no longer in flight: it ended, as ``tasks/get`` says
-        except (ToolError, RwtError) as exc:
+        except RwtError as exc:
+            # the goal's connection closed: its goal ended with it, or is ending
+            with anyio.move_on_after(CANCEL_SETTLE_S):
+                await record.done.wait()
+            if not record.done.is_set():
+                raise MCPError(INVALID_PARAMS, f"tasks/cancel: {exc}") from None
+        except ToolError as exc:
             raise MCPError(INVALID_PARAMS, f"tasks/cancel: {exc}") from None
-        return {"resultType": "complete"}
+        return {"resultType": "complete", **task.wire()}
 
     def _rated(self, request: str) -> None:
         try:

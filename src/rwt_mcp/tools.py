@@ -25,7 +25,14 @@ import pybase64
 from mcp.server.mcpserver import Context, MCPServer
 from mcp.server.mcpserver.exceptions import ToolError
 from mcp.server.mcpserver.tools import Tool
-from mcp.types import CallToolResult, ImageContent, TextContent, ToolAnnotations
+from mcp.server.request_state import RequestStateSecurity
+from mcp.types import (
+    CallToolResult,
+    ImageContent,
+    InputRequiredResult,
+    TextContent,
+    ToolAnnotations,
+)
 from pydantic import BaseModel, ValidationError
 from typing_extensions import TypedDict  # pydantic reads it on Python 3.11
 
@@ -38,6 +45,7 @@ from rwt_protocol.qos import QosProfile
 
 from . import render
 from .app import APP_URI, AppSite, RobotApp, app_settings
+from .approval import Approvals
 from .catalog import APP_TOOLS, TOOLS, WRITE_TOOLS
 from .guard import Guard
 from .link import Goal, RobotLink
@@ -129,12 +137,17 @@ class TypeDefinition(BaseModel):
 
 
 class Published(BaseModel):
-    """What ``publish`` and ``publish_for`` sent: messages, and whether a final one."""
+    """What ``publish`` and ``publish_for`` sent: messages, and whether a final one.
+
+    ``safety``: what the robot's safety envelope did (a field clamped, a message
+    dropped past its rate), each told once.
+    """
 
     topic: str
     type: str
     count: int
     final_sent: bool = False
+    safety: list[str] = []
 
 
 class ServiceAnswer(BaseModel):
@@ -243,6 +256,7 @@ class RobotTools:
         self.link = link
         self.guard = Guard()
         self.site = site or AppSite()
+        self.approvals: Approvals | None = None  # what waits for a person (docs/safety.md)
 
     # ---- the graph ------------------------------------------------------------------
 
@@ -366,7 +380,7 @@ class RobotTools:
         return [TextContent(type="text", text=json.dumps(summary)), *content]
 
     async def publish(
-        self, topic: str, type: str, msg: Message, qos: Message | None = None
+        self, topic: str, type: str, msg: Message, ctx: Context, qos: Message | None = None
     ) -> Published:
         """Publish one message (the topic is advertised on first use and stays advertised).
 
@@ -374,6 +388,7 @@ class RobotTools:
             topic: the topic name.
             type: its message type (see ``type_definition``).
             msg: the message as JSON.
+            ctx: the MCP request (a person's approval is asked through it, where needed).
             qos: rosbridge's QoS object the topic is advertised with (history, depth,
                 reliability, durability, deadline, lifespan): {"durability":
                 "transient_local", "depth": 1} keeps it for late subscribers.
@@ -381,8 +396,8 @@ class RobotTools:
         profile = tool_qos(qos)
         with _tool_errors():
             publisher = await self.link.publisher(topic, type, profile)
-            await publisher.publish(msg)
-        return Published(topic=topic, type=type, count=1)
+            note = await publisher.publish(msg)
+        return Published(topic=topic, type=type, count=1, safety=[note] if note else [])
 
     async def publish_for(
         self,
@@ -391,6 +406,7 @@ class RobotTools:
         msg: Message,
         rate_hz: float,
         duration_s: float,
+        ctx: Context,
         final_msg: Message | None = None,
     ) -> Published:
         """Publish ``msg`` at ``rate_hz`` for ``duration_s`` seconds, then ``final_msg`` once.
@@ -403,6 +419,7 @@ class RobotTools:
             msg: the message repeated.
             rate_hz: messages a second (at most MAX_PUBLISH_RATE_HZ).
             duration_s: seconds (at most MAX_PUBLISH_DURATION_S).
+            ctx: the MCP request (a person's approval is asked through it, where needed).
             final_msg: sent once at the end, also when the call is cancelled.
         """
         if not 0 < rate_hz <= MAX_PUBLISH_RATE_HZ:
@@ -410,6 +427,7 @@ class RobotTools:
         if not 0 < duration_s <= MAX_PUBLISH_DURATION_S:
             raise ToolError(f"duration_s must be in (0, {MAX_PUBLISH_DURATION_S:g}]")
         count = 0
+        notes: dict[str, None] = {}  # each told once, in order
         with _tool_errors():
             publisher = await self.link.publisher(topic, type)
             start = anyio.current_time()
@@ -418,20 +436,27 @@ class RobotTools:
                 # the deadline is checked between publishes, never cancels one: a publish
                 # cut off after its frame went out would be sent and not counted
                 while anyio.current_time() < deadline:
-                    await publisher.publish(msg)
+                    _noted(notes, await publisher.publish(msg))
                     count += 1
                     await anyio.sleep_until(min(deadline, start + count / rate_hz))
             finally:
                 if final_msg is not None:
                     with anyio.CancelScope(shield=True):  # the stop goes out, whatever happens
-                        await publisher.publish(final_msg)
-        return Published(topic=topic, type=type, count=count, final_sent=final_msg is not None)
+                        _noted(notes, await publisher.publish(final_msg))
+        return Published(
+            topic=topic,
+            type=type,
+            count=count,
+            final_sent=final_msg is not None,
+            safety=list(notes),
+        )
 
     # ---- services and parameters ----------------------------------------------------
 
     async def call_service(
         self,
         service: str,
+        ctx: Context,
         type: str | None = None,
         args: Message | None = None,
         timeout_s: float = 10.0,
@@ -440,6 +465,7 @@ class RobotTools:
 
         Args:
             service: the service name.
+            ctx: the MCP request (a person's approval is asked through it, where needed).
             type: its service type (optional; rosbridge servers look it up).
             args: the request as JSON (omitted: an empty request).
             timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
@@ -496,12 +522,20 @@ class RobotTools:
             await self._settle(record, seconds)
         return goal_report(record)
 
-    async def start_goal(self, arguments: dict[str, Any]) -> Goal:
+    async def start_goal(
+        self, arguments: dict[str, Any], before_send: Callable[[], None] | None = None
+    ) -> Goal:
         """Send a goal of ``send_action_goal``'s ``arguments`` without waiting (a task's start).
+
+        Args:
+            arguments: the tool's arguments, as the client sent them.
+            before_send: called once the arguments and the guard passed, before
+                the goal is sent (a task's running slot, ``tasks.TaskStore.reserve``);
+                its ``ToolError`` refuses the goal, and nothing is sent.
 
         Raises:
             ToolError: arguments that fail the tool's schema (each wrong field
-                named), the guard's refusal, or the server's.
+                named), the guard's refusal, ``before_send``'s, or the server's.
         """
         template = _TEMPLATES["send_action_goal"]
         try:
@@ -510,6 +544,8 @@ class RobotTools:
             raise ToolError(_bad_arguments(exc)) from None
         _wait(valid.get("timeout_s", 30.0))
         self.guard.admit("send_action_goal", arguments)
+        if before_send is not None:
+            before_send()
         with _tool_errors():
             return await self.link.send_goal(valid["action"], valid["type"], valid["goal"])
 
@@ -592,6 +628,8 @@ class RobotTools:
         refused = None
         if self.guard.read_only:
             refused = "the MCP server is read-only"
+        elif self.approvals is not None and self.approvals.target("publish", {"topic": cmd_vel}):
+            refused = f"cmd_vel {cmd_vel}: each command needs a person's approval (docs/safety.md)"
         else:
             try:
                 self.link.robot.check_access("topics_pub", cmd_vel, "cmd_vel", op="robot_app")
@@ -675,6 +713,15 @@ class RobotTools:
             translation=values.get("translation", {}),
             rotation=values.get("rotation", {}),
         )
+
+
+_MAX_NOTES = 4  # distinct safety notes one ``publish_for`` reports
+
+
+def _noted(notes: dict[str, None], note: str | None) -> None:
+    """Keep ``note`` (a safety envelope's word on one publish) once, at most ``_MAX_NOTES``."""
+    if note and len(notes) < _MAX_NOTES:
+        notes[note] = None
 
 
 def goal_report(record: Goal) -> GoalReport:
@@ -761,6 +808,9 @@ def build_server(
     tasks: TaskStore | None = None,
     watched: Watched | None = None,
     site: AppSite | None = None,
+    host: str = "",
+    approvals: Approvals | None = None,
+    request_state: RequestStateSecurity | None = None,
 ) -> tuple[MCPServer, TasksExtension]:
     """An MCPServer whose tools and resources drive the robot behind ``link``.
 
@@ -779,6 +829,13 @@ def build_server(
             ``shared``); None: this server's own.
         site: where the robot app finds the server's video (``app.AppSite``);
             None: not known.
+        host: the client's host, for its share of ``tasks``' running slots
+            (``tasks.TaskStore.reserve``, D60); ``""``: the front end's one client.
+        approvals: the calls that wait for a person's approval (``approval.Approvals``,
+            docs/safety.md); None: none.
+        request_state: how a 2026-07-28 round's request state is sealed, shared by
+            every server of a front end so that any of them takes the next round
+            (the SDK's ``RequestStateSecurity``); None: a key of this server's own.
 
     Returns:
         The server, and its tasks extension (``TasksExtension.hold`` keeps the
@@ -786,9 +843,11 @@ def build_server(
     """
     guard = guard or Guard()
     tools = RobotTools(link, site)
+    tools.approvals = approvals
     resources = TopicResources(link, guard, watched, site)
     report = functools.partial(_report_json, goal_report)
-    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report)
+    extension = TasksExtension(tasks or TaskStore(), link, guard, tools.start_goal, report, host)
+    extension.approvals = approvals
     server = MCPServer(
         "rwt",
         instructions=(
@@ -805,10 +864,11 @@ def build_server(
         ),
         extensions=[extension],
         subscriptions=resources.bus,
+        request_state_security=request_state,
     )
     manager = server._tool_manager  # the SDK's registry: a tool made once, shared below
     for name in TOOLS:
-        function = _guarded(guard, name, getattr(tools, name))
+        function = _guarded(guard, name, getattr(tools, name), approvals)
         manager._tools[name] = _tool_template(name, function).model_copy(update={"fn": function})
     tools.guard = guard
     resources.register(server._lowlevel_server)  # the SDK's way to add handlers
@@ -897,7 +957,8 @@ def _call_tools(server: MCPServer) -> None:
                 raise
             raise ToolError(f"{name}: {_bad_arguments(exc.__cause__)}") from None
         tool = manager.get_tool(name)
-        if not convert_result or isinstance(result, CallToolResult) or tool is None:
+        answered = isinstance(result, CallToolResult | InputRequiredResult)
+        if not convert_result or answered or tool is None:
             return result
         return tool.fn_metadata.convert_result(result)
 
@@ -920,13 +981,25 @@ def _bad_arguments(exc: ValidationError) -> str:
 
 
 def _guarded(
-    guard: Guard, name: str, function: Callable[..., Awaitable[Any]]
+    guard: Guard,
+    name: str,
+    function: Callable[..., Awaitable[Any]],
+    approvals: Approvals | None = None,
 ) -> Callable[..., Awaitable[Any]]:
-    """``function`` (a tool) run only once ``guard`` admits the call (same signature)."""
+    """``function`` (a tool) run only once ``guard`` admits the call (same signature).
+
+    Then, where ``approvals`` say so, once a person approved it (``Approvals.confirm``):
+    a 2026-07-28 call is answered with the question this round.
+    """
 
     @functools.wraps(function)
     async def guarded(*args: Any, **kwargs: Any) -> Any:
-        guard.admit(name, {k: v for k, v in kwargs.items() if k != "ctx"})
+        arguments = {k: v for k, v in kwargs.items() if k != "ctx"}
+        guard.admit(name, arguments)
+        if approvals is not None:
+            asked = await approvals.confirm(name, arguments, kwargs.get("ctx"))
+            if asked is not None:
+                return asked
         result = await function(*args, **kwargs)
         if isinstance(result, BaseModel):
             return _as_result(result.model_dump(mode="json"))

@@ -34,13 +34,17 @@ package is drawn here::
     │   │   └── ParameterStoreFullError   no room: the store is full, or the node holds its share
     │   ├── ImageError                    rwt_graph.media: an image or depth cloud that cannot
     │   │                                 be read or encoded (also a ValueError)
+    │   ├── EnvelopeError                 rwt_graph.safety.envelope: a command the safety
+    │   │                                 envelope refused (out of bounds, not finite; D67)
     │   └── TFError                       rwt_graph.tf
     │       ├── UnknownFrameError         no such frame in the buffer
     │       ├── DisconnectedFramesError   the two frames are in different trees
     │       └── ExtrapolationError        the time is outside the buffered range
     ├── ConfigError                       an argument, option or setting that cannot be used
-    │                                     (also a ValueError): a bad URL, a bad --zenoh-*
-    │                                     option, a malformed secret file, RWT_NO_SHORTCUTS
+    │   │                                 (also a ValueError): a bad URL, a bad --zenoh-*
+    │   │                                 option, a malformed secret file, RWT_NO_SHORTCUTS
+    │   └── RulesError                    rwt_graph.safety.rules: safety rules that cannot be
+    │                                     used, naming the file's line (D66)
     ├── ServiceCallError                  a call or goal answered ``result: false``
     │   └── CallTimeoutError              ... or not answered in time (also a TimeoutError)
     ├── OpRefusedError                    rwt_client: the server answered an op with an error status

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Hashable, Mapping
 from enum import IntEnum
-from typing import TYPE_CHECKING, Protocol, TypeVar
+from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar
 
 if TYPE_CHECKING:
     from .ops import CallService, CancelActionGoal, SendActionGoal
@@ -44,9 +44,12 @@ __all__ = [
     "GoalHandle",
     "GoalStatus",
     "GraphPort",
+    "LossSink",
     "MessageCodec",
     "MessageEvent",
     "Pending",
+    "PublishNote",
+    "PublishNotes",
     "ServicePort",
     "ServiceProvider",
     "ServiceReply",
@@ -256,6 +259,20 @@ class BatchSink(TopicSink, Protocol):
         """Take ``events`` in order, as ``on_message`` would one by one; never blocks or raises."""
 
 
+class LossSink(Protocol):
+    """A ``TopicSink`` that can be told of messages lost before they reached this server.
+
+    A link that learns its topic's messages were lost on the way (a gap in a remote
+    publisher's sequence numbers: a full queue between the server's processes, or
+    the other middleware dropped them) tells the topic's subscribers through
+    ``Topic.report_lost``; each sink with ``on_lost`` tells its client in its
+    protocol's words (a ``warning`` status, D61). A sink without it is not told.
+    """
+
+    def on_lost(self, count: int) -> None:
+        """``count`` messages of the topic were lost before they reached this server."""
+
+
 class GoalStatus(IntEnum):
     """``action_msgs/msg/GoalStatus`` codes (spec 3.3.15, REF §6.3)."""
 
@@ -335,6 +352,26 @@ class ActionProvider(Protocol):
 
     def on_action_lost(self, action: str, reason: str) -> None:
         """The action was taken away from this provider (replaced, D15)."""
+
+
+class PublishNote(NamedTuple):
+    """What the graph's safety envelope did to a client's publish (docs/safety.md, D67).
+
+    Attributes:
+        text: what happened, for the publisher (``/cmd_vel: linear.x 2 clamped to 0.5
+            (bound [-0.5, 0.5])``).
+        dropped: nothing was delivered (past the topic's rate).
+        first: the first of its episode: a stream's front end tells its client of
+            this one only (one warning per episode), a request's of each.
+    """
+
+    text: str
+    dropped: bool
+    first: bool
+
+
+PublishNotes = Callable[[PublishNote], None]
+"""Where a publish's ``PublishNote`` goes: its front end's way of telling its client."""
 
 
 class ServicePort(Protocol):
@@ -484,16 +521,31 @@ class GraphPort(ServicePort, Protocol):
         """Remove ``client`` as a publisher of ``topic``."""
 
     def publish(
-        self, client: ClientId, topic: str, msg: object, *, latch: bool = False, path: str = "$"
+        self,
+        client: ClientId,
+        topic: str,
+        msg: object,
+        *,
+        latch: bool = False,
+        path: str = "$",
+        notes: PublishNotes | None = None,
     ) -> tuple[str, ...]:
         """Validate and publish ``msg`` on ``topic``; return the paths filled with defaults (D7).
 
         ``msg`` is decoded JSON (a dict); ``path`` is its JSON path in the op,
-        for error texts (``$.msg``).
+        for error texts (``$.msg``). A remote client's message passes the graph's
+        safety envelope, if it has one (docs/safety.md): ``notes`` hears of a clamp
+        or a drop; a refusal raises (a ``GraphError``).
         """
 
     def publish_serialized(
-        self, client: ClientId, topic: str, data: bytes, *, encoding: str
+        self,
+        client: ClientId,
+        topic: str,
+        data: bytes,
+        *,
+        encoding: str,
+        notes: PublishNotes | None = None,
     ) -> None:
         """Validate and publish ``data``, a message of ``topic``'s type in the graph's wire form.
 
@@ -503,6 +555,8 @@ class GraphPort(ServicePort, Protocol):
         ``RemoteProtocolError``, and reaches no subscriber); then ``data`` itself
         goes on (``MessageEvent.wire``) to every subscriber that sends that form,
         never serialized again, and the decoded values to the others.
+        The safety envelope checks the decoded values as ``publish``'s (``notes``);
+        a clamped message goes on as values, serialized again where needed.
         """
 
     def subscribe(
@@ -525,8 +579,13 @@ class GraphPort(ServicePort, Protocol):
     def unsubscribe(self, client: ClientId, topic: str) -> None:
         """Detach ``client``'s sink from ``topic``."""
 
-    def release(self, client: ClientId) -> None:
-        """Drop everything ``client`` holds (it disconnected)."""
+    def release(self, client: ClientId, *, ended: bool = True) -> None:
+        """Drop everything ``client`` holds (it disconnected).
+
+        ``ended``: its connection ended; False for the end of one request of a front
+        end without connections (HTTP, a 2026-07-28 MCP request), whose commands of a
+        dead-man topic stand until it falls due (docs/safety.md, D68).
+        """
 
     def type_warning(self, type_name: str) -> str | None:
         """Why a link of the graph cannot carry ``type_name`` (what to install), or None."""

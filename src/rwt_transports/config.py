@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from rwt_graph.rosapi import VisibilityFor
+    from rwt_graph.safety.rules import SafetyRules
 
     from .mcp_options import McpOptions
     from .placement import Placement
@@ -111,6 +112,10 @@ class ServerConfig:
             with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
+        listen_fds: listening sockets this process inherited, by listener kind
+            (``websocket``, ``tcp``): descriptors it accepts from instead of
+            binding that kind's port (a worker of ``rwt serve --workers N``,
+            whose parent listens: workers.py); each is closed with the server.
         on_connections: called with the number of connections served after each
             one opens or closes (a worker's count for its parent,
             ``worker_counts``); None: not called.
@@ -133,6 +138,10 @@ class ServerConfig:
             token of every HTTP front end's request (the video server's tokens,
             ``/rwt/video_token``; ``AuthMode.BEARER``); None: such requests are
             refused (401), unless ``webrtc``'s or ``mcp``'s own check is set.
+        safety: the safety envelope's rules (``--safety FILE``, docs/safety.md):
+            bounds, rates, dead-man stops and approvals for what remote clients
+            command, put on the graph when the server is made (``Graph.use_safety``;
+            a graph made with its own is kept); None: none.
     """
 
     host: str = "127.0.0.1"
@@ -163,6 +172,7 @@ class ServerConfig:
     clients_interval_s: float = 0.5
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
+    listen_fds: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
     on_connections: Callable[[int], None] | None = None
     placement: Placement | None = None
     use_sim_time: bool = False
@@ -170,3 +180,4 @@ class ServerConfig:
     mcp: McpOptions | None = None
     http_options: Mapping[str, object] = field(default_factory=dict)
     bearer_token: Callable[[str], bool] | None = None
+    safety: SafetyRules | None = None

@@ -53,6 +53,7 @@ import functools
 import hmac
 import json
 import logging
+import os
 import re
 import time
 import uuid
@@ -65,6 +66,7 @@ from urllib.parse import urlsplit
 import anyio
 import h11
 from mcp.server._streamable_http_modern import handle_modern_request
+from mcp.server.request_state import RequestStateSecurity
 from mcp.server.runner import serve_loop
 from mcp.server.streamable_http import MCP_SESSION_ID_HEADER, StreamableHTTPServerTransport
 from mcp.server.transport_security import TransportSecuritySettings
@@ -80,11 +82,13 @@ from mcp.types import (
 from mcp.types.version import HANDSHAKE_PROTOCOL_VERSIONS
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_graph.safety.rules import APPROVAL_TIMEOUT_S
 from rwt_mcp.app import AppSite
+from rwt_mcp.approval import Approvals
 from rwt_mcp.guard import Guard
 from rwt_mcp.link import RobotLink
 from rwt_mcp.session import McpSession
-from rwt_mcp.tasks import TaskStore
+from rwt_mcp.tasks import MAX_TASKS, TaskStore
 from rwt_mcp.tools import build_server, release_server, warm_up
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.credentials import AuthMode, EntryAuth
@@ -97,6 +101,7 @@ from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
 from .memory import MemoryConnection, memory_pair
 from .pump import ConnectionPump, run_connection
+from .shares import HostShares, address_of
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
@@ -104,8 +109,10 @@ if TYPE_CHECKING:
     from anyio.abc import ByteStream, TaskGroup, TaskStatus
     from mcp.server.lowlevel import Server
 
+    from rwt_graph.safety.envelope import Envelope
     from rwt_mcp.resources import Watched
 
+    from .mcp_siblings import McpSiblings
     from .server import GraphServer
 
 __all__ = [
@@ -115,6 +122,7 @@ __all__ = [
     "MAX_REQUESTS_IN_FLIGHT",
     "MAX_REQUEST_BYTES",
     "MODERN_HOSTS_KEPT",
+    "REQUEST_STATE_TTL_S",
     "SESSION_SLOTS",
     "McpEndpoint",
 ]
@@ -145,6 +153,9 @@ flood from one host then costs the event loop one session at a time, never a bur
 HOST_SESSION_WAIT_S = 1.0
 """The longest a new session waits for its host's turn (``HOST_SESSIONS_PER_S``), seconds."""
 HOST_REFUSAL_WAIT_S = 1.0
+REQUEST_STATE_TTL_S = 600.0
+"""Seconds a 2026-07-28 round's request state stays valid at least (the SDK's default): past
+it the next round is refused as stale (D69)."""
 """Seconds a refused session waits for its answer: a client sending back to back gets a
 few answers a second per connection, not as many as the server can write (the wait holds
 a socket, not the event loop)."""
@@ -310,13 +321,24 @@ class McpEndpoint:
         self.siblings = options.siblings  # the other workers' (--workers; mcp_siblings)
         new_id = None if self.siblings is None else self.siblings.new_id
         self._new_id = new_id or (lambda: uuid.uuid4().hex)
-        self.tasks = TaskStore(new_id=new_id)  # every session's and request's (rwt_mcp.tasks)
+        # every session's and request's (rwt_mcp.tasks), each host with its share of them (D60)
+        self.tasks = TaskStore(new_id=new_id, shares=HostShares(MAX_TASKS))
         self._watched: Watched = {}  # topics the 2026-07-28 requests' listen streams hold
         self._modern_guards: OrderedDict[str, Guard] = OrderedDict()
         self._tg: TaskGroup | None = None
         self._forwarded: anyio.CancelScope | None = None
         self._host_pace = HostPace(HOST_SESSIONS_PER_S, HOST_SESSION_WAIT_S, MODERN_HOSTS_KEPT)
+        self.request_state = _request_state(self.siblings, server.graph.safety)
+        """How every server of this front end seals a 2026-07-28 round's request state: any
+        of them (and any worker's) takes the next round (a person's approval, D69)."""
         warm_up()  # before the server freezes its start-up objects (gcfreeze)
+
+    def _approvals(self, client: str) -> Approvals | None:
+        """What a session's tool calls ask a person first: the graph's safety rules' (D69)."""
+        envelope = self.server.graph.safety
+        if envelope is None:
+            return None
+        return Approvals(envelope.rules, client, envelope.record_approval)
 
     def bind(self, tg: TaskGroup | None) -> None:
         """Run sessions in ``tg`` (the server's connections); None: open no new ones.
@@ -564,7 +586,7 @@ class McpEndpoint:
         self.sessions[session_id] = session
         established = False
         try:
-            await tg.start(self._run, session_id, session, admitted, site)
+            await tg.start(self._run, session_id, session, admitted, site, exchange.peer)
             status = await self._handle(exchange, session)
             established = status is not None and status < 400
         finally:
@@ -597,6 +619,9 @@ class McpEndpoint:
             if connection is not None:
                 await _close_pair(connection)
             return None
+        session.request_scoped = (
+            not pumped
+        )  # a 2026-07-28 request: a command, not a commander (D68)
         return _Admitted(session, pump, connection)
 
     async def _continue(self, exchange: _Exchange, session: _Session) -> None:
@@ -634,6 +659,7 @@ class McpEndpoint:
         session: _Session,
         admitted: _Admitted,
         site: AppSite,
+        peer: str,
         *,
         task_status: TaskStatus[None],
     ) -> None:
@@ -644,7 +670,15 @@ class McpEndpoint:
                 link = RobotLink(robot.url, robot)
                 await link.connect(anyio.Event())  # at once: the graph is here
                 guard = Guard(session.client_id, self.options.read_only)
-                mcp, tasks = build_server(link, guard, self.tasks, site=site)
+                mcp, tasks = build_server(
+                    link,
+                    guard,
+                    self.tasks,
+                    site=site,
+                    host=self._host(peer),
+                    approvals=self._approvals(session.client_id),
+                    request_state=self.request_state,
+                )
                 try:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
@@ -701,7 +735,16 @@ class McpEndpoint:
                 link = RobotLink(robot.url, robot)
                 await link.connect(anyio.Event())  # at once: the graph is here
                 guard = self._modern_guard(peer)
-                mcp, tasks = build_server(link, guard, self.tasks, self._watched, site)
+                mcp, tasks = build_server(
+                    link,
+                    guard,
+                    self.tasks,
+                    self._watched,
+                    site,
+                    self._host(peer),
+                    approvals=self._approvals(admitted.session.client_id),
+                    request_state=self.request_state,
+                )
                 try:
                     task_status.started(mcp._lowlevel_server)
                     started = True
@@ -715,6 +758,10 @@ class McpEndpoint:
         finally:
             if not started:
                 task_status.started(None)
+
+    def _host(self, peer: str) -> str:
+        """The host ``peer`` (``ADDRESS:PORT``) counts as for the shares (``--host-prefix-v4``)."""
+        return self.server.host_prefixes.host(address_of(peer))
 
     def _modern_guard(self, peer: str) -> Guard:
         """A 2026-07-28 request's rules: its host's rate caps (``MODERN_HOSTS_KEPT``)."""
@@ -735,6 +782,17 @@ class McpEndpoint:
             self.server.give_slot(session.slot)
             with anyio.CancelScope(shield=True):
                 await session.transport.terminate()
+
+
+def _request_state(siblings: McpSiblings | None, envelope: Envelope | None) -> RequestStateSecurity:
+    """The sealing of request states: the workers' shared key (``--workers``), else this one's.
+
+    It lives at least ``REQUEST_STATE_TTL_S``, and twice the time a person has to
+    answer an approval, so a late answer is told it is late, not refused as stale.
+    """
+    key = os.urandom(32) if siblings is None else siblings.state_key()
+    timeout = APPROVAL_TIMEOUT_S if envelope is None else envelope.rules.approval_timeout_s
+    return RequestStateSecurity(keys=[key], ttl=max(REQUEST_STATE_TTL_S, 2 * timeout))
 
 
 async def _serve_until_idle(

@@ -26,7 +26,6 @@ cut.
 from __future__ import annotations
 
 import asyncio
-import contextvars
 import errno
 import itertools
 import logging
@@ -48,6 +47,7 @@ from anyio.abc import (
     TaskGroup,
     TaskStatus,
 )
+from anyio.streams.stapled import MultiListener
 from anyio.streams.tls import TLSStream
 
 from rwt_console.site import ConsoleSite, console_for
@@ -69,6 +69,7 @@ from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
 from .config import ServerConfig
+from .deadman import run_deadman
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
 from .frontends import FrontEnd, FrontEnds, SessionRequest
@@ -76,6 +77,7 @@ from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_fron
 from .gates import InboundBatch, OutboundHold
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
+from .pending import PendingRequests, PendingSocket, current_socket, serve_socket
 from .pump import ConnectionPump, run_connection
 from .rosauth import rosauth_authenticator, url_authenticator
 from .shares import HostPrefixes, HostShares, address_of
@@ -153,6 +155,7 @@ class GraphServer:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
             its address's width (``shares.HostPrefixes``); an HTTP front end's
             options are not of its type.
+        RulesError: ``config.safety`` does not fit the graph's types (a ``ConfigError``).
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
             ``config.mcp`` is set but the MCP SDK is not (``rwt-rosbridge[mcp]``).
     """
@@ -172,6 +175,8 @@ class GraphServer:
         self.host_prefixes = HostPrefixes(self.config.host_prefix_v4, self.config.host_prefix_v6)
         """What names a peer's host for the host shares (``--host-prefix-v4``, ``-v6``)."""
         self.graph = graph or Graph()
+        if self.config.safety is not None and self.graph.safety is None:
+            self.graph.use_safety(self.config.safety)  # RulesError: they do not fit its types
         # one flow control for the connections and the links (it keeps the hosts' cool-downs);
         # links' deliveries are held back as readers are
         self.flow: FlowControl[Held] = FlowControl(
@@ -187,16 +192,16 @@ class GraphServer:
         self.session_config = session_config
         # the web console of the WebSocket port, or None; the config then names it
         self.console, self.config = self._console_site()
-        # a link's queue for the other middleware holds publishers back as a subscriber does
-        self.graph.port.outflow = OutboundHold(self.flow)
-        # a topic's transient-local store fits a late subscriber's queue, and all of
-        # them the server's memory budget (D63)
-        self.graph.port.max_store_bytes = session_config.send_buffer_limit
-        self.graph.port.stores.limit = self.config.memory_budget
+        self._hold_graph(session_config.send_buffer_limit)
         # one budget for what every connection makes the server hold (D44); incomplete
         # messages draw from it within their own
         self.memory = MemoryBudget(self.config.memory_budget)
         self.fragment_budget = FragmentBudget(self.config.max_fragment_memory, self.memory)
+        self.pending = PendingRequests(
+            self.fragment_budget, self.host_prefixes, self.config.max_connections_per_host
+        )
+        """What sockets not yet admitted hold, by host (D58): their requests' bytes within
+        the budgets above and the host's share, the requests each host reads at once."""
         self.entry = self._entry_auth(session_config.authenticator)
         """The one check of every way in (``rwt_protocol.credentials``): each front end's
         ``AuthMode`` and what its client presented."""
@@ -239,6 +244,15 @@ class GraphServer:
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def _hold_graph(self, send_buffer_limit: int) -> None:
+        """Bind the graph's publishers and stores to this server's limits."""
+        # a link's queue for the other middleware holds publishers back as a subscriber does
+        self.graph.port.outflow = OutboundHold(self.flow)
+        # a topic's transient-local store fits a late subscriber's queue, and all of
+        # them the server's memory budget (D63)
+        self.graph.port.max_store_bytes = send_buffer_limit
+        self.graph.port.stores.limit = self.config.memory_budget
 
     def _entry_auth(self, authenticator: Authenticator | None) -> EntryAuth:
         """The one entry check for ``authenticator`` and ``ServerConfig.bearer_token``.
@@ -346,6 +360,7 @@ class GraphServer:
             subprotocols=tuple(n for each in self.frontends.others for n in each.subprotocols),
             frontends=tuple(frontends),
             auth=auth,
+            safety=self.graph.safety is not None,
         )
 
     def add_frontend(self, frontend: FrontEnd) -> None:
@@ -404,6 +419,8 @@ class GraphServer:
                     with self.graph.port.serving(spawner_for(connections), loop_soon()):
                         self._clients_changed = anyio.Event()
                         connections.start_soon(self._publish_clients_loop)
+                        if self.graph.safety is not None:  # the dead-man's timer (docs/safety.md)
+                            connections.start_soon(run_deadman, self.graph.safety)
                         for endpoint in self.endpoints.values():
                             endpoint.bind(connections)
                         async with anyio.create_task_group() as accepting:
@@ -506,11 +523,19 @@ class GraphServer:
         kind: str,
         handler: Callable[[ByteStream], Awaitable[None]],
     ) -> Runner:
-        """Listen on ``port`` for ``kind`` (``websocket``, ``tcp``, a front end's own port)."""
+        """Listen on ``port`` for ``kind`` (``websocket``, ``tcp``, a front end's own port).
+
+        A kind whose sockets this process inherited (``ServerConfig.listen_fds``)
+        accepts from them instead.
+        """
         try:
-            listener = await anyio.create_tcp_listener(
-                local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
-            )
+            inherited = self.config.listen_fds.get(kind)
+            if inherited:
+                listener = MultiListener([await _inherited_listener(fd) for fd in inherited])
+            else:
+                listener = await anyio.create_tcp_listener(
+                    local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
+                )
         except OSError as exc:
             name = _LISTENER_NAMES.get(kind, f"WebSocket ({kind})")
             raise ListenError(name, self.config.host, port, exc) from exc
@@ -606,8 +631,7 @@ class GraphServer:
         ``ticket``: held from accept until the reader handled the input already
         there (admission.py).
         """
-        pending = _Pending()
-        _PENDING.set(pending)  # this task's context: open_session finds it
+        pending: PendingSocket | None = None
         if ticket is not None:
             ticket.serve()
         stream: SocketStream | None = None
@@ -615,6 +639,9 @@ class GraphServer:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # as anyio's accept does
             stream = await SocketStream.from_socket(sock)
             peer = _peer(stream)
+            # what it holds until admitted (D58); this task's: open_session finds it
+            pending = self.pending.socket(peer)
+            serve_socket(pending)
             with anyio.CancelScope(
                 deadline=anyio.current_time() + self.config.handshake_timeout_s
             ) as pending.scope:
@@ -630,7 +657,9 @@ class GraphServer:
                 await anyio.aclose_forcefully(stream)
             else:
                 sock.close()
-            if not pending.admitted:
+            if pending is not None:
+                pending.release()
+            if pending is None or not pending.admitted:
                 self._handshaking -= 1
                 self._free_slot()
 
@@ -834,6 +863,9 @@ class GraphServer:
         made = frontend or self.frontends.default or rosbridge_frontend(self._rosbridge_session)
         session = made.make_session(request)
         self.sessions[client_id] = session
+        envelope = self.graph.safety
+        if envelope is not None:  # its audit names the front end (docs/safety.md)
+            envelope.connected(client_id, made.name)
         if host is not None:
             self._shares.add(host)
             self._hosts[client_id] = host
@@ -894,9 +926,9 @@ class GraphServer:
         as a socket in its handshake; the slots of its connection cover it, or one it
         took (``take_slot``; docs/limits.md, D40).
         """
-        pending = _PENDING.get(None)
-        if pending is not None and not pending.admitted:
-            pending.admitted = True
+        pending = current_socket()
+        if pending is not None:
+            pending.admit()
             pending.scope.deadline = math.inf
             self._handshaking -= 1
             self._free_slot()
@@ -918,8 +950,7 @@ class GraphServer:
             socket is closed. None: refused (the server is full or stopping, or
             the host holds its share), as ``open_session`` refuses a connection.
         """
-        pending = _PENDING.get(None)
-        checked = self._check_slot(transport, peer, pending is not None and not pending.admitted)
+        checked = self._check_slot(transport, peer, current_socket() is not None)
         if checked is None:
             return None
         host = checked[0] or address_of(peer)
@@ -943,9 +974,7 @@ class GraphServer:
         handshake deadline is lifted. ``from_first``: the host's share of such
         sessions applies from the first (D40, ``open_session``).
         """
-        pending = _PENDING.get(None)
-        if pending is not None and pending.admitted:
-            pending = None  # a task of an admitted connection, not a new one
+        pending = current_socket()  # None: a task of an admitted connection, not a new one
         checked = self._check_slot(transport, peer, pending is not None)
         if checked is None:
             return None
@@ -957,7 +986,7 @@ class GraphServer:
                 self._refused(peer, host, f"host share of {transport} sessions", held, share)
                 return None
         if pending is not None:  # the socket's handshake is over: no deadline, a session now
-            pending.admitted = True
+            pending.admit()
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         return f"{transport}:{peer}#{next(self._ids)}", host, address
@@ -1153,22 +1182,6 @@ async def running_handlers(graph: Graph) -> AsyncIterator[TaskGroup]:
             yield tg
 
 
-class _Pending:
-    """An accepted socket still in its handshake: its deadline, and whether it got a session."""
-
-    __slots__ = ("admitted", "scope")
-
-    def __init__(self) -> None:
-        self.admitted = False
-        self.scope = anyio.CancelScope()
-
-
-_PENDING: contextvars.ContextVar[_Pending | None] = contextvars.ContextVar(
-    "rwt_pending_socket", default=None
-)
-"""The socket the current connection task serves, so ``open_session`` can lift its deadline."""
-
-
 async def _contained(what: str, work: Awaitable[None]) -> None:
     """Await ``work``, containing any exception it raises.
 
@@ -1208,6 +1221,18 @@ def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext 
     context.load_cert_chain(certfile, keyfile)
     context.num_tickets = 0
     return context
+
+
+async def _inherited_listener(fd: int) -> SocketListener:
+    """A listener on the listening socket of descriptor ``fd``, inherited (non-blocking).
+
+    Raises:
+        OSError: ``fd`` is no socket of this process.
+        ValueError: it is no bound stream socket.
+    """
+    sock = socket.socket(fileno=fd)
+    sock.setblocking(False)  # the parent's is already: the flag is the shared file's
+    return await SocketListener.from_socket(sock)
 
 
 async def _accept(listener: socket.socket) -> socket.socket:

@@ -115,6 +115,8 @@ class Features:
         auth: how a client authenticates: ``none``; ``op``, the rosauth ``auth`` op
             first (a Foxglove client: a token in its URL; D23, D33); ``op-bound``,
             the same signed over the connection's ``auth_challenge`` (D31).
+        safety: whether a safety envelope holds what remote clients command
+            (``--safety``, docs/safety.md); its rules are not told here (D49).
     """
 
     transports: tuple[str, ...]
@@ -122,6 +124,7 @@ class Features:
     subprotocols: tuple[str, ...]
     frontends: tuple[ServedFrontEnd, ...]
     auth: str
+    safety: bool = False
 
 
 @cache
@@ -139,7 +142,8 @@ def version_document(features: Features) -> dict[str, object]:
     ``{"protocol": {"major": 2, "minor": 1, "patch": 0}, "server": "0.9.0",
     "rwt": {...}}``: the first two fields are rosbridge_server's
     (docs/reference-behaviour.md §13.4), ``rwt`` is ``Features`` as an object, with
-    ``webrtc`` and ``mcp`` (whether those front ends are served, D49's fields).
+    ``webrtc`` and ``mcp`` (whether those front ends are served, D49's fields) and
+    ``safety`` (whether an envelope holds remote commands, docs/safety.md).
     """
     major, minor, patch = PROTOCOL_VERSION
     names = {each.name for each in features.frontends}
@@ -153,6 +157,7 @@ def version_document(features: Features) -> dict[str, object]:
             "webrtc": "webrtc" in names,
             "mcp": "mcp" in names,
             "auth": features.auth,
+            "safety": features.safety,
             "frontends": [
                 {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(each).items()}
                 for each in features.frontends

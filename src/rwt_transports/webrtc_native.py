@@ -21,6 +21,12 @@ onto the event loop (``loop.call_soon_threadsafe``), bounded:
   (``event=webrtc_overflow``). A message above the incoming size is not queued
   either: the session gets its error status. So what waits between the threads
   is part of the same 16 MiB a peer may send ahead of its session.
+- libdatachannel cuts a message longer than its own size at that size and
+  hands the cut on as the whole message. Its size is set one byte over what the
+  answer states (``a=max-message-size``, rewritten in the answer), so a message
+  over the answer's size always arrives over the incoming size, and is refused
+  whole as on aiortc (never a cut op executed); the cut holds at most that size
+  and one read (64 KiB) of libdatachannel's.
 - the binding holds the GIL while it runs libdatachannel's calls (``send``),
   and libdatachannel runs its buffered-amount callback with its send lock
   held: a Python callback there could wait for the GIL while the loop waits
@@ -54,6 +60,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import threading
 from collections import deque
 from functools import cache
@@ -87,10 +94,12 @@ __all__ = [
 
 logger = logging.getLogger("rwt.webrtc")
 
-STACKS = ("auto", "native", "aiortc")
-"""``--webrtc-stack``: ``auto`` (native where it imports), ``native`` (libdatachannel, for
-offers of data channels only or asking for video tracks, webrtc_native_video.py; other
-offers with audio or video sections stay on aiortc) or ``aiortc``."""
+STACKS = ("auto", "reactor", "native", "aiortc")
+"""``--webrtc-stack``: ``auto`` (the best that imports, webrtc_stacks.py, D72), ``reactor``
+(libwebrtc's dcsctp, for offers of data channels only, webrtc_reactor.py, D70),
+``native`` (libdatachannel, for offers of data channels only or asking for video
+tracks, webrtc_native_video.py; other offers with audio or video sections stay on
+aiortc) or ``aiortc``."""
 
 DRAIN_POLL_S = 0.002
 """Seconds between two reads of a channel's ``bufferedAmount`` while a writer waits."""
@@ -205,6 +214,14 @@ class NativeDataChannel:
         inflow: the peer's bound on messages waiting for the loop.
         max_message_size: the largest incoming message, bytes; a larger one is
             not queued, ``oversized`` is emitted.
+        close_peer: closes the channel's peer connection (``close``).
+        bounded: a read of the stack's buffered amount waits for another thread
+            (libwebrtc's signalling thread, 50-300 us on a busy machine:
+            webrtc_reactor.py), more than a message's send: keep an upper bound
+            instead (``bufferedBound``: the last read plus the bytes sent since; the
+            amount only falls between two reads but by sending), and read only when
+            the bound is over the limit asked about (``buffered_over``). False: the
+            amount is an atomic read (libdatachannel), each ``bufferedAmount`` reads it.
     """
 
     def __init__(
@@ -214,8 +231,12 @@ class NativeDataChannel:
         inflow: Inflow,
         max_message_size: int,
         close_peer: Callable[[], object] = lambda: None,
+        bounded: bool = False,
     ) -> None:
         self._channel = channel
+        self._bounded = bounded
+        self._amount_read = 0
+        self._sent_since_read = 0
         self._close_peer = close_peer
         self._loop = loop
         self._inflow = inflow
@@ -307,11 +328,28 @@ class NativeDataChannel:
 
     @property
     def bufferedAmount(self) -> int:
-        """Bytes sent and not yet handed to SCTP (libdatachannel's ``buffered_amount``)."""
+        """Bytes sent and not yet handed to SCTP: a read of the stack's ``buffered_amount``."""
         try:
-            return int(self._channel.buffered_amount())
+            amount = int(self._channel.buffered_amount())
         except RuntimeError:  # closed
-            return 0
+            amount = 0
+        if self._bounded:
+            self._amount_read, self._sent_since_read = amount, 0
+        return amount
+
+    @property
+    def bufferedBound(self) -> int:
+        """At least the bytes ``bufferedAmount`` would read, without reading it when ``bounded``.
+
+        The last read plus the bytes sent since (webrtc.py compares it first).
+        """
+        if self._bounded:
+            return self._amount_read + self._sent_since_read
+        return self.bufferedAmount
+
+    def buffered_over(self, limit: int) -> bool:
+        """Whether the stack buffers more than ``limit`` bytes; read only if the bound is over."""
+        return self.bufferedBound > limit and self.bufferedAmount > limit
 
     @property
     def bufferedAmountLowThreshold(self) -> int:
@@ -336,15 +374,18 @@ class NativeDataChannel:
             self._channel.send(data)
         except (RuntimeError, ValueError) as exc:  # closed; over the peer's message size
             raise ConnectionError(str(exc)) from exc
+        self._sent_since_read += len(data)
         self._watch()
 
     def _watch(self) -> None:
-        """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``."""
-        if (
-            not self._polling
-            and self.readyState == "open"
-            and self.bufferedAmount > self._threshold
-        ):
+        """Poll the buffered amount while above the threshold; then emit ``bufferedamountlow``.
+
+        Judged on ``bufferedBound`` (which counts what was just sent): libwebrtc (the
+        reactor stack, webrtc_reactor.py) counts a message on its network thread,
+        after ``send`` returns, so a read at once can show the amount before it, and
+        a writer that then waited for the event would wait for a poll nobody scheduled.
+        """
+        if not self._polling and self.readyState == "open" and self.bufferedBound > self._threshold:
             self._polling = True
             self._loop.call_later(DRAIN_POLL_S, self._poll)
 
@@ -352,7 +393,7 @@ class NativeDataChannel:
         self._polling = False
         if self.readyState != "open":
             return
-        if self.bufferedAmount <= self._threshold:
+        if not self.buffered_over(self._threshold):
             self._emit("bufferedamountlow")
         else:
             self._watch()
@@ -386,7 +427,9 @@ class NativePeerConnection:
             skipped (the session answers an error status).
         inflow: the peer's bound on messages waiting for the loop.
         answer_max_message_size: the answer's ``a=max-message-size``, bytes
-            (``webrtc_sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states).
+            (``webrtc_sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states);
+            libdatachannel's own is one byte more (the module text says why), so
+            ``max_message_size`` must be at most this.
         refusal: why a channel the peer opens is closed (label, ordered,
             ``maxRetransmits``, ``maxPacketLifeTime`` in s; None: taken;
             ``webrtc_peers.channel_refusal``). Asked on libdatachannel's thread,
@@ -420,7 +463,9 @@ class NativePeerConnection:
         self._closing: set[asyncio.Task[None]] = set()
         config = ldc.Configuration()
         config.ice_servers = [native_ice_server(ldc, server) for server in ice_servers]
-        config.max_message_size = answer_max_message_size
+        # one byte over the answer: a message libdatachannel cuts is over it (module text)
+        config.max_message_size = answer_max_message_size + 1
+        self._answer_max = answer_max_message_size
         config.certificate_pem_file, config.key_pem_file = certificate_files()
         config.disable_auto_negotiation = tracks
         self._manual = tracks
@@ -527,7 +572,7 @@ class NativePeerConnection:
         description = self._pc.local_description()
         if description is None:
             raise ValueError("libdatachannel made no answer")
-        self.localSdp = str(description)
+        self.localSdp = _stated_size(str(description), self._answer_max)
         return self.localSdp
 
     async def answer(self, sdp: str) -> str:
@@ -549,6 +594,14 @@ class NativePeerConnection:
         self._hop.target = None
         self.connectionState = "closed"
         await anyio.to_thread.run_sync(self._pc.close, abandon_on_cancel=True)
+
+
+def _stated_size(sdp: str, size: int) -> str:
+    """``sdp`` (the answer) stating ``size`` as its ``a=max-message-size`` (RFC 8841).
+
+    libdatachannel states its own size, one byte more (``NativePeerConnection``).
+    """
+    return re.sub(r"^a=max-message-size:\d+", f"a=max-message-size:{size}", sdp, flags=re.M)
 
 
 def _arrived(hop: _Hop, message: str | bytes) -> None:

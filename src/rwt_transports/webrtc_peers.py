@@ -2,7 +2,7 @@
 
 An offer is admitted as any connection is, with the server's public ticket
 (``GraphServer.admit``: ``--max-connections``, host shares), then answered by
-aiortc, or libdatachannel (``--webrtc-stack``, ``_native_plan``, D51), with every
+aiortc, libdatachannel or libwebrtc (``--webrtc-stack``, ``_plan``, D51, D70), with every
 ICE candidate gathered (no trickle): host candidates, and
 with ``--ice-server`` the server-reflexive and relayed ones its STUN and TURN
 servers give (aioice waits at most 5 s for them). The ticket holds the peer's slot;
@@ -12,7 +12,7 @@ rosbridge's ``rosbridge`` (reliable, ordered), or a registered protocol's label.
 The first such channel opens the session on the ticket (``open_session(ticket=)``,
 counted in ``/connected_clients`` from then), which runs on the connection pump
 like a WebSocket's once the channel is open (webrtc.py). A lossy label of the same
-front end (``rosbridge-lossy``: unordered, ``maxRetransmits`` 0) belongs to the same
+front end (``rosbridge-lossy``: unordered, ``maxRetransmits`` 0 or 1) belongs to the same
 session: it opens the session's lossy lane (D36). A label the registry does not
 name is refused: the channel is closed and the log names the label and the ones
 served (``event=channel_refused``). Bounds, each enforced here (docs/limits.md):
@@ -67,6 +67,7 @@ from .webrtc_ice import parse_ice_servers
 from .webrtc_native import Inflow, NativeDataChannel, NativePeerConnection
 from .webrtc_native_video import VideoPlan, native_video_plan, prepare_native_tracks
 from .webrtc_offer import OfferError, check_offer
+from .webrtc_reactor import ReactorPeerConnection
 from .webrtc_sctp import (
     ANSWER_MAX_MESSAGE_SIZE,
     SctpBound,
@@ -89,6 +90,7 @@ if TYPE_CHECKING:
     from .webrtc_video import VideoBinding, WebRtcVideo
 
 __all__ = [
+    "LOSSY_MAX_RETRANSMITS",
     "MAX_CONNECTING",
     "OFFER_TIMEOUT_S",
     "WebRtcPeers",
@@ -102,6 +104,12 @@ MAX_CONNECTING = 16
 
 OFFER_TIMEOUT_S = 10.0
 """Seconds answering one offer (ICE gathering) may take; then 503."""
+
+LOSSY_MAX_RETRANSMITS = 1
+"""The most ``maxRetransmits`` a lossy channel may ask for (D73; 0 or 1, rwt's roslib
+transport asks for 1): each send of a message that is lost leaves a gap only a FORWARD
+TSN closes, one gap a round trip in libwebrtc's SCTP, fewer than a 1 kHz topic opens
+on a 2 % loss link; a message sent again once closes its gap itself."""
 
 _NO_DATA_CHANNEL = "the offer has no data channel (m=application) and asks for no video"
 _MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
@@ -118,7 +126,8 @@ def channel_refusal(
 
     Its label must be one the registry names (``frontends.by_label``): a front end's
     reliable label must come on a reliable, ordered channel, its lossy one on an
-    unordered channel with ``maxRetransmits`` 0 (D36). (A second channel of a label
+    unordered channel with ``maxRetransmits`` 0 or 1 (D36, D73:
+    ``LOSSY_MAX_RETRANSMITS``) and no packet lifetime. (A second channel of a label
     is refused too, by its peer connection.) Safe on libdatachannel's threads.
 
     Args:
@@ -136,7 +145,12 @@ def channel_refusal(
     if chosen is None:
         return f"unknown label (served: {', '.join(frontends.labels()) or 'none'})"
     if chosen.lossy:
-        lossy = not ordered and max_retransmits == 0 and max_lifetime is None
+        lossy = (
+            not ordered
+            and max_retransmits is not None
+            and 0 <= max_retransmits <= LOSSY_MAX_RETRANSMITS
+            and max_lifetime is None
+        )
         return None if lossy else "not_unordered_unreliable"
     reliable = max_retransmits is None and max_lifetime is None
     return None if ordered and reliable else "not_reliable_ordered"
@@ -156,7 +170,7 @@ class _Peer:
     """One peer connection: its ticket, and the session its data channels carry once open."""
 
     session_id: str
-    pc: RTCPeerConnection | NativePeerConnection
+    pc: RTCPeerConnection | NativePeerConnection | ReactorPeerConnection
     ticket: Admitted
     """Its slot of the server's connection budget (``GraphServer.admit``), from the offer."""
     authenticated: bool
@@ -271,32 +285,36 @@ class WebRtcPeers:
             if isinstance(binding, Answer):
                 answer = binding
             else:
-                plan = self._native_plan(shape, sdp, binding)
+                stack, plan = self._plan(shape, sdp, binding)
                 answer = await self._answer(
-                    sdp, peer, host, authenticated, binding, plan, data=shape.data_channel
+                    sdp, peer, host, authenticated, binding, (stack, plan), shape.data_channel
                 )
             return answer
         finally:
             if answer.status != 201:  # refused: else its peer holds the slot until it connects
                 self._free_slot(host)
 
-    def _native_plan(
+    def _plan(
         self, shape: OfferShape, sdp: str, video: VideoBinding | None
-    ) -> VideoPlan | None:
-        """Whether the native stack answers this offer, and how its media sections (D51).
+    ) -> tuple[str, VideoPlan | None]:
+        """Which stack answers this offer, and the native stack's media sections (D51, D70).
 
-        With ``--webrtc-stack native`` or ``auto`` (where libdatachannel-py
-        imports): an offer of data channels only (no media section), or one
-        asking for video tracks that libdatachannel can send
-        (``native_video_plan``). Any other offer stays on aiortc: an audio or
-        video section without ``?video=``, or an offer aiortc refuses. None:
-        aiortc answers.
+        An offer of data channels only (no media section): the chosen stack
+        (``WebRtcOptions.data_stack``). One asking for video tracks: libdatachannel
+        where ``WebRtcOptions.native`` and it can send them (``native_video_plan``).
+        Any other offer stays on aiortc: an audio or video section without
+        ``?video=``, or an offer aiortc refuses.
+
+        Returns:
+            (``reactor``, ``native`` or ``aiortc``; the native stack's plan, else None).
         """
-        if not self.options.native:
-            return None
         if video is None:
-            return VideoPlan() if set(shape.kinds) == {"application"} else None
-        return native_video_plan(sdp, len(video.tracks))
+            if set(shape.kinds) != {"application"}:
+                return "aiortc", None
+            stack = self.options.data_stack
+            return stack, (VideoPlan() if stack == "native" else None)
+        plan = native_video_plan(sdp, len(video.tracks)) if self.options.native else None
+        return ("aiortc", None) if plan is None else ("native", plan)
 
     def _take_slot(self, host: str) -> bool:
         """Take a connecting slot for ``host``; False when there is none for it (D37).
@@ -345,25 +363,21 @@ class WebRtcPeers:
         host: str,
         authenticated: bool,
         video: VideoBinding | None,
-        plan: VideoPlan | None,
-        *,
+        chosen: tuple[str, VideoPlan | None],
         data: bool,
     ) -> Answer:
         """Admit the peer (a ticket), answer the offer, start its run.
 
-        ``plan``: None, aiortc answers; else the native stack, sending these video
-        sections (``_native_plan``). ``data``: the offer has a data channel.
+        ``chosen``: the stack that answers and the native stack's video sections
+        (``_plan``). ``data``: the offer has a data channel.
         """
         ticket = self.host.admit("webrtc", peer)
         if ticket is None:
             return Answer(503, "too many connections")
         remote_max = remote_max_message_size(sdp)
         dc = DataChannelChannel(None, self.max_message_size, remote_max)
-        pc = (
-            RTCPeerConnection(self._configuration())
-            if plan is None
-            else self._native_pc(dc, authenticated, tracks=plan.tracks)
-        )
+        stack, plan = chosen
+        pc = self._peer_connection(stack, dc, authenticated, plan)
         item = _Peer(secrets.token_urlsafe(16), pc, ticket, authenticated, remote_max, dc)
         item.video = video
         pc.on("datachannel", lambda channel: self._on_channel(item, channel))
@@ -377,6 +391,8 @@ class WebRtcPeers:
                     refusal, answer = await self._negotiate_native(
                         pc, sdp, video, plan or VideoPlan()
                     )
+                elif isinstance(pc, ReactorPeerConnection):
+                    refusal, answer = await _negotiate_reactor(pc, sdp)
                 else:
                     refusal, answer = await self._negotiate(item, pc, sdp)
         finally:  # refused, failed or cancelled (shutdown): the ticket and the sockets go
@@ -398,13 +414,21 @@ class WebRtcPeers:
         if item.video is not None:
             item.video.close()
 
+    def _peer_connection(
+        self, stack: str, dc: DataChannelChannel, authenticated: bool, plan: VideoPlan | None
+    ) -> RTCPeerConnection | NativePeerConnection | ReactorPeerConnection:
+        """``stack``'s peer connection for ``dc`` (aiortc's, ``_native_pc``'s)."""
+        if stack == "aiortc":
+            return RTCPeerConnection(self._configuration())
+        return self._native_pc(dc, authenticated, tracks=bool(plan and plan.tracks), stack=stack)
+
     def _native_pc(
-        self, dc: DataChannelChannel, authenticated: bool, *, tracks: bool
-    ) -> NativePeerConnection:
-        """A libdatachannel peer connection for ``dc`` (webrtc_native.py, D51).
+        self, dc: DataChannelChannel, authenticated: bool, *, tracks: bool, stack: str
+    ) -> NativePeerConnection | ReactorPeerConnection:
+        """A libdatachannel (D51) or libwebrtc (D70) peer connection for ``dc``.
 
         Its messages waiting for the loop count in ``dc``'s inbox bound. Its channels
-        are judged on libdatachannel's thread, before they have callbacks (closing
+        are judged on the stack's thread, before they have callbacks (closing
         one from the loop ends its peer connection): the registry's labels
         (``channel_refusal``), and one protocol a peer, its first channel's.
         """
@@ -424,6 +448,8 @@ class WebRtcPeers:
                     first.append(chosen.frontend)
             return reason
 
+        if stack == "reactor":
+            return ReactorPeerConnection(self.ice_servers, self.max_message_size, inflow, refusal)
         return NativePeerConnection(
             self.ice_servers,
             self.max_message_size,
@@ -535,8 +561,8 @@ class WebRtcPeers:
     def _on_channel(self, item: _Peer, channel: AnyDataChannel) -> None:
         """Take a channel of a registered label: the first opens the session (module text).
 
-        One reliable channel and one lossy one (unordered, ``maxRetransmits`` 0,
-        D36), of one front end; any other channel is closed, the reason logged. A
+        One reliable channel and one lossy one (unordered, ``maxRetransmits`` 0 or 1,
+        D36, D73), of one front end; any other channel is closed, the reason logged. A
         native channel reports the inbox bounds itself (webrtc_native.py): a
         message over the size, or past the bound.
         """
@@ -709,7 +735,7 @@ class WebRtcPeers:
             item.client_id,
             item.ticket.peer,
             item.session_id,
-            "native" if isinstance(item.pc, NativePeerConnection) else "aiortc",
+            _stack_of(item.pc),
         )
         await anyio.sleep_forever()  # until failed, closed, DELETE or shutdown cancels it
 
@@ -731,7 +757,22 @@ class WebRtcPeers:
                 item.scope.cancel()
 
 
-async def _close_pc(pc: RTCPeerConnection | NativePeerConnection) -> None:
+def _stack_of(pc: RTCPeerConnection | NativePeerConnection | ReactorPeerConnection) -> str:
+    """The name of the stack ``pc`` is of, for the logs (``--webrtc-stack``'s names)."""
+    if isinstance(pc, ReactorPeerConnection):
+        return "reactor"
+    return "native" if isinstance(pc, NativePeerConnection) else "aiortc"
+
+
+async def _negotiate_reactor(pc: ReactorPeerConnection, sdp: str) -> tuple[Answer | None, str]:
+    """Answer with libwebrtc (webrtc_reactor.py): (None, the answer SDP), or (why not, "")."""
+    try:
+        return None, await pc.answer(sdp)
+    except ValueError as exc:
+        return Answer(400, f"the offer is not a usable SDP offer: {exc}"), ""
+
+
+async def _close_pc(pc: RTCPeerConnection | NativePeerConnection | ReactorPeerConnection) -> None:
     """Close a peer connection, within ``CLOSE_WAIT_S`` even while cancelled."""
     with anyio.CancelScope(shield=True), anyio.move_on_after(CLOSE_WAIT_S):
         await pc.close()

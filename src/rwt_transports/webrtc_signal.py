@@ -45,7 +45,7 @@ from rwt_protocol.errors import ConfigError
 from .frontends import AuthMode, HttpFrontEnd
 from .http_endpoint import claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
-from .webrtc_native import STACKS, native_ice_refusal, native_missing
+from .webrtc_stacks import data_stack, stack_refusal, video_native
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
@@ -120,21 +120,22 @@ class WebRtcOptions:
             ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
             and relayed candidates each answer carries (docs/webrtc.md, "Through
             NAT"); empty: host candidates only, and no traffic to any other host.
-        stack: which WebRTC stack answers an offer of data channels only, or one
-            asking for video tracks (``--webrtc-stack``, D51): ``native``
-            (libdatachannel, webrtc_native.py and webrtc_native_video.py),
-            ``aiortc``, or ``auto``: native where libdatachannel-py imports and
-            every ICE server is one it reaches (TURN over UDP:
-            ``native_ice_refusal``), else aiortc. Any other offer with video or
-            audio m-sections (or one aiortc would refuse) is answered by aiortc
-            whatever the choice (docs/webrtc.md, "Which stack").
+        stack: which WebRTC stack answers an offer of data channels only
+            (``--webrtc-stack``, D51, D70, D72; webrtc_stacks.py): ``reactor``
+            (libwebrtc's dcsctp, webrtc_reactor.py), ``native`` (libdatachannel,
+            webrtc_native.py), ``aiortc``, or ``auto``: the first of
+            ``webrtc_stacks.AUTO_ORDER`` that imports and reaches every ICE server.
+            An offer asking for video tracks is answered by libdatachannel where it
+            imports (webrtc_native_video.py), unless ``aiortc`` is chosen; any other
+            offer with video or audio m-sections (or one aiortc would refuse) by
+            aiortc whatever the choice (docs/webrtc.md, "Which stack").
 
     Raises:
         ValueError: an ICE server URL aiortc cannot use, or more than one STUN or
             TURN server (``parse_ice_servers``); a ``stack`` not of
-            ``webrtc_native.STACKS``, or ``native`` where libdatachannel-py does
-            not import (``webrtc_native.native_missing`` says why) or with a TURN
-            server over TCP or TLS (``webrtc_native.native_ice_refusal``).
+            ``webrtc_native.STACKS``, or one that cannot serve here
+            (``webrtc_stacks.stack_refusal`` says why: not installed, or ``native``
+            with a TURN server over TCP or TLS).
     """
 
     connect_timeout_s: float = CONNECT_TIMEOUT_S
@@ -144,20 +145,21 @@ class WebRtcOptions:
 
     def __post_init__(self) -> None:
         servers = parse_ice_servers(self.ice_servers)  # a bad URL: here, not at an offer
-        if self.stack not in STACKS:
-            raise ValueError(f"WebRTC stack {self.stack!r} is not one of {', '.join(STACKS)}")
-        if self.stack == "native" and (missing := native_missing()) is not None:
-            raise ValueError(missing)
-        if self.stack == "native" and (refused := native_ice_refusal(servers)) is not None:
+        if (refused := stack_refusal(self.stack, servers)) is not None:
             raise ValueError(refused)
 
     @property
+    def data_stack(self) -> str:
+        """The stack that answers offers of data channels only: ``auto`` resolved.
+
+        ``reactor``, ``native`` or ``aiortc`` (``webrtc_stacks.data_stack``).
+        """
+        return data_stack(self.stack, parse_ice_servers(self.ice_servers))
+
+    @property
     def native(self) -> bool:
-        """Whether offers of data channels only are answered by the native stack."""
-        if self.stack != "auto":
-            return self.stack == "native"
-        servers = parse_ice_servers(self.ice_servers)
-        return native_missing() is None and native_ice_refusal(servers) is None
+        """Whether offers asking for video tracks are answered by the native stack."""
+        return video_native(self.stack, parse_ice_servers(self.ice_servers))
 
 
 @dataclass(frozen=True, slots=True)

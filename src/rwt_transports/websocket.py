@@ -55,6 +55,8 @@ from rwt_protocol.shortcuts import enabled
 from . import admission
 from .direct import DirectReader, DirectWriter, asyncio_parts
 from .flow import ChannelAbilities
+from .http_endpoint import MAX_HEAD_BYTES, drain_refused
+from .pending import RETRY_AFTER_S, current_socket
 from .placement import RECORD_LIMIT_BYTES, placed_topic
 from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
 from .sendqueue import stream_unsent_bytes
@@ -636,8 +638,12 @@ async def _handshake(
     from there. websockets parses frames sent with the request at once, with it:
     they are kept for the connection to read first (frames are handled in the order
     they reached the server, docs/limits.md).
+
+    What it keeps until the request is admitted is charged to the socket's pending
+    record, as the HTTP endpoints' requests are (``pending``, D58; the same refusals:
+    429 or 503 with ``Retry-After``), and a head over ``MAX_HEAD_BYTES`` gets 431.
     """
-    received = bytearray()  # bounded: websockets refuses an oversized request
+    received = bytearray()  # bounded: MAX_HEAD_BYTES, and the pending record's charge
     with anyio.move_on_after(_HANDSHAKE_LIMIT_S):
         while True:
             if head:
@@ -663,7 +669,36 @@ async def _handshake(
                     return event, at_frame_start, early, received
             if protocol.state is not State.CONNECTING:
                 return None
+            if await _head_refused(stream, protocol, len(received)):  # not whole yet
+                return None
     return None
+
+
+async def _head_refused(stream: ByteStream, protocol: ServerProtocol, received: int) -> bool:
+    """Refuse a request whose ``received`` bytes (its head, not yet whole) are too many.
+
+    431 past ``MAX_HEAD_BYTES``; 429 or 503 when the socket's pending record cannot
+    keep them (``pending.PendingSocket.hold``, D58). Whether it was refused (answered).
+    """
+    refused: tuple[int, str, tuple[tuple[str, str], ...]] | None = None
+    if received > MAX_HEAD_BYTES:
+        refused = 431, f"the request's head is over {MAX_HEAD_BYTES} bytes", ()
+    socket = current_socket()
+    refusal = socket.hold(received) if socket is not None and refused is None else None
+    if refusal is not None:
+        refused = refusal.status, refusal.text, (("Retry-After", str(RETRY_AFTER_S)),)
+    if refused is None:
+        return False
+    if socket is not None:
+        socket.refused()  # nothing held for it while what else comes is dropped
+    status, text, headers = refused
+    response = protocol.reject(status, text + "\n")
+    for name, value in headers:
+        response.headers[name] = value
+    with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+        await stream.send(response.serialize())
+    await drain_refused(stream, socket)
+    return True
 
 
 def _whole_messages(data: bytearray, at: int) -> bool:

@@ -34,6 +34,7 @@ from pydantic import ConfigDict
 from rwt_mcp.link import Goal
 from rwt_mcp.tasks import MAX_TASKS, TASK_TTL_S, TASKS_EXTENSION, TaskStore
 from rwt_transports.mcp_options import McpOptions
+from rwt_transports.shares import HostShares
 from tests.support.cli import ENV, RWT
 
 pytestmark = pytest.mark.anyio
@@ -88,13 +89,18 @@ async def task_request(client: Client, method: str, task_id: str) -> TaskState |
     return await client.session.send_request(request, answer)
 
 
-def robot(canceled: list[str]) -> Graph:
-    """A battery topic, a counter, and ``/fibonacci``, whose long goals run until canceled."""
+def robot(canceled: list[str], started: list[str] | None = None) -> Graph:
+    """A battery topic, a counter, and ``/fibonacci``, whose long goals run until canceled.
+
+    ``started``: each goal's id as the action server gets it.
+    """
     graph = Graph()
     battery = graph.create_publisher("/battery", "std_msgs/msg/String", latch=True)
     battery.publish({"data": "87%"})
 
     async def fibonacci(goal: Message, context: GoalContext) -> Message:
+        if started is not None:
+            started.append(context.goal_id)
         sequence = [0, 1]
         if goal["order"] >= HOLD_ORDER:
             context.publish_feedback({"sequence": sequence})
@@ -287,26 +293,54 @@ class _Link:
         self.canceled.append(record.handle.id)
 
 
-async def test_a_store_holds_max_tasks_and_forgets_them_after_their_ttl() -> None:
-    now = [0.0]
-    store = TaskStore(clock=lambda: now[0])
-    link = _Link()
+def _started(store: TaskStore, link: _Link, name: str, host: str = "") -> tuple[Goal, Any]:
+    """A goal ``name`` started as a task of ``store`` for ``host``: reserved, then added."""
 
     def report(record: Goal) -> Message:
         return {"state": "succeeded" if record.done.is_set() else "running"}
 
-    goals = [Goal("/fibonacci", _Handle(f"g{n}")) for n in range(MAX_TASKS)]  # type: ignore[arg-type]
-    tasks = [store.add(goal, link, report) for goal in goals]  # type: ignore[arg-type]
-    with pytest.raises(ToolError, match=f"{MAX_TASKS} tasks are running"):
-        store.add(Goal("/fibonacci", _Handle("late")), link, report)  # type: ignore[arg-type]
-    goals[0].done.set()  # a finished task makes room: the oldest finished goes
-    store.add(Goal("/fibonacci", _Handle("next")), link, report)  # type: ignore[arg-type]
+    store.reserve(host)
+    goal = Goal("/fibonacci", _Handle(name))  # type: ignore[arg-type]
+    return goal, store.add(goal, link, report, host)  # type: ignore[arg-type]
+
+
+async def test_a_store_runs_max_tasks_and_forgets_them_after_their_ttl() -> None:
+    now = [0.0]
+    store = TaskStore(clock=lambda: now[0])  # one client (rwt mcp): no host share
+    link = _Link()
+    started = [_started(store, link, f"g{n}") for n in range(MAX_TASKS)]
+    with pytest.raises(ToolError, match=f"{MAX_TASKS} tasks are running \\(MAX_TASKS\\)"):
+        store.reserve("")
+    started[0][0].done.set()  # a finished task makes room: its slot, and the oldest finished
+    _started(store, link, "next")
     with pytest.raises(MCPError, match="unknown, or expired"):
-        store.get(tasks[0].task_id)
-    assert store.get(tasks[1].task_id).wire()["status"] == "working"
+        store.get(started[0][1].task_id)
+    assert store.get(started[1][1].task_id).wire()["status"] == "working"
     now[0] = TASK_TTL_S  # every task's life is over: forgotten, running goals canceled
     with pytest.raises(MCPError, match="unknown, or expired"):
-        store.get(tasks[1].task_id)
+        store.get(started[1][1].task_id)
     for send in link.spawned:
         await send()
-    assert len(link.canceled) == MAX_TASKS and not store.tasks
+    assert len(link.canceled) == MAX_TASKS and not store.tasks and store.running == 0
+
+
+def test_a_host_holds_its_share_of_the_running_tasks() -> None:
+    store = TaskStore(clock=lambda: 0.0, shares=HostShares(MAX_TASKS))
+    link = _Link()
+    hog = [_started(store, link, f"a{n}", "a") for n in range(MAX_TASKS * 3 // 4)]
+    with pytest.raises(ToolError, match="this host's 48 running tasks are its share of the 64"):
+        store.reserve("a")
+    assert [_started(store, link, f"b{n}", "b") for n in range(8)]  # half of the 16 free
+    with pytest.raises(ToolError, match="this host's 8 running tasks"):
+        store.reserve("b")
+    hosts = ["c"] * 4 + ["d"] * 2 + ["e", "f"]  # each half of what is free, the last to one
+    for n, host in enumerate(hosts):
+        _started(store, link, f"{host}{n}", host)
+    with pytest.raises(ToolError, match=f"{MAX_TASKS} tasks are running \\(MAX_TASKS\\)"):
+        store.reserve("g")
+    hog[0][0].done.set()  # an ended goal frees its slot: the last goes to a host holding none
+    with pytest.raises(ToolError, match="this host's 47 running tasks"):
+        store.reserve("a")
+    store.reserve("g")
+    store.unreserve("g")  # its goal was refused after: the slot is back
+    store.reserve("h")

@@ -33,6 +33,14 @@ from tests.docs.api_reference import namespace_of, ours
 PLUMBING = {
     "AccessPolicy.check",
     "ConsoleSite.answer",
+    "Envelope.admit",  # the graph's publish hook, the server's timer and audit (rwt_graph.safety)
+    "Envelope.connected",
+    "Envelope.expire",
+    "Envelope.gone",
+    "Envelope.install",
+    "Envelope.next_deadline",
+    "Envelope.publish_status",
+    "Envelope.record_approval",
     "LocalSubscription.on_message",
     "GraphServer.add_frontend",
     "GraphServer.features",
@@ -48,6 +56,7 @@ PLUMBING = {
 # Classes rwt hands out (from create_*, open_*, send_goal...) and never asks a user
 # to build: their constructors are internal.
 HANDED_OUT = {
+    "Envelope",
     "GoalContext",
     "GoalHandle",
     "LocalActionServer",
@@ -255,6 +264,17 @@ NEVER_IN_RWT = {
     "Durability",  # protocol 2.1.0's QoS policies: in rwt.types from the first
     "History",
     "Reliability",
+    # rwt.safety (docs/safety.md)
+    "AuditTrail",
+    "CallRule",
+    "Envelope",
+    "EnvelopeError",
+    "RulesError",
+    "SafetyEvent",
+    "SafetyRules",
+    "TopicRule",
+    "load_rules",
+    "parse_rules",
 }
 
 

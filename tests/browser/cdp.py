@@ -46,7 +46,10 @@ class CdpError(RuntimeError):
 class Browser:
     """One headless Chromium with a DevTools connection; ``close()`` ends it."""
 
-    def __init__(self, executable: str) -> None:
+    def __init__(self, executable: str, reachable: tuple[str, ...] = ()) -> None:
+        """Start Chromium (``executable``); ``reachable``: addresses besides 127.0.0.1
+        and localhost that its resolver leaves alone (a benchmark's robot)."""
+        rules = ", ".join(f"EXCLUDE {a}" for a in ("127.0.0.1", "localhost", *reachable))
         self.profile = Path(tempfile.mkdtemp(prefix="rwt-chromium-"))
         self.log = open(self.profile / "stderr.log", "wb")  # noqa: SIM115 - closed in close()
         args = [
@@ -61,7 +64,7 @@ class Browser:
             "--disable-background-networking",
             "--disable-component-update",
             "--remote-debugging-port=0",
-            "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1, EXCLUDE localhost",
+            f"--host-resolver-rules=MAP * ~NOTFOUND, {rules}",
             f"--user-data-dir={self.profile}",
             "about:blank",
         ]

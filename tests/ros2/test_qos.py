@@ -79,7 +79,8 @@ async def test_a_late_transient_local_rclpy_subscription_gets_the_last_five(
     async with connect(f"ws://127.0.0.1:{server.port}", ping_interval=None) as ws:
         with (
             Peer("qos_info", "/qos_kept", ros_env, node="peer_qos_kept") as info,
-            Peer("listen", "/qos_kept", ros_env) as live,
+            # durable itself, so it hears m7 however late it matches the link's publisher
+            Peer("durable_listen", "/qos_kept", ros_env, node="peer_qos_live") as live,
         ):
             await ws.send(
                 json.dumps({"op": "advertise", "topic": "/qos_kept", "type": STRING, "qos": qos})

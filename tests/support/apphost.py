@@ -3,8 +3,8 @@
 ``@modelcontextprotocol/ext-apps``' AppBridge (the host side of MCP Apps) and the
 official MCP client, bundled by esbuild into ``host.bundle.js`` for Chromium
 (tests/js/apphost: ``host.mjs``, ``host.html``, the pinned lock file), installed
-under ``~/.cache/rwt-tests`` once (``npm_folder``); ``.ci/run`` makes it before the
-suite. Without node or npm the caller skips.
+under ``~/.cache/rwt-tests`` once (``npm_folder``); the xdist controller starts it
+before its workers (``helper_envs``). Without node or npm the caller skips.
 """
 
 from __future__ import annotations

@@ -66,6 +66,10 @@ NATIVE_WEBRTC = "webrtc-native"
 """The contract's WebRTC transport on the native stack (D51): an aiortc peer, a server
 whose ``running_server(webrtc_stack="native")`` answers with libdatachannel."""
 
+REACTOR_WEBRTC = "webrtc-reactor"
+"""The contract's WebRTC transport on the reactor stack (D70): an aiortc peer, a server
+whose ``running_server(webrtc_stack="reactor")`` answers with libwebrtc."""
+
 
 @dataclass
 class Client:
@@ -338,7 +342,7 @@ class Harness:
             return UdpClient(name, sock=sock, prefix=prefix)
         if transport == "stdio":
             return StreamClient(name, stream=self.stdio_client)
-        if transport in ("webrtc", NATIVE_WEBRTC):
+        if transport in ("webrtc", NATIVE_WEBRTC, REACTOR_WEBRTC):
             base = f"http://127.0.0.1:{self.port('websocket')}"
             return await connect_webrtc(base, self.stack, name)
         raise ValueError(transport)

@@ -5,8 +5,8 @@ dependencies: 260 of the 294 packages tests/js would hold, and most of its
 ``npm ci`` time, for one test module (tests/agents/test_mcp_inspector.py).
 So, as ros-mcp has its own Python environment (``toolenv``), the Inspector has
 its own npm folder under ``~/.cache/rwt-tests``, installed from the pinned
-lock file in tests/js/inspector (about 8 s, once) and reused after; ``.ci/run``
-makes it before the suite. Without node or npm the caller skips.
+lock file in tests/js/inspector (about 8 s, once) and reused after; the xdist
+controller starts it before its workers (``helper_envs``). Without node or npm the caller skips.
 """
 
 from __future__ import annotations

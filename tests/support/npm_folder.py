@@ -4,8 +4,9 @@ Some real clients bring many npm packages for one test module (the MCP Inspector
 web UI's worth; the MCP Apps host, with a bundler): each has its lock file in a folder
 of tests/js and is installed with ``npm ci`` into a folder of its own under
 ``~/.cache/rwt-tests``, named by its pin, once, and reused while its files are the
-same (an edited lock file installs again). ``.ci/run`` makes them before the suite,
-so their installs stay out of its time. Without node or npm the caller skips.
+same (an edited lock file installs again). The xdist controller starts them before
+its workers (``helper_envs``), so that their installs overlap the workers' start.
+Without node or npm the caller skips.
 """
 
 from __future__ import annotations

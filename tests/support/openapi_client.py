@@ -5,8 +5,8 @@ and drives the robot with it. The generator is a tool, not a dependency of the s
 its pins (typer below 0.28) are older than rwt's, so it runs from an environment of its
 own, as a user installs it (``pipx install openapi-python-client``).
 ``RWT_OPENAPI_PYTHON_CLIENT`` names its command; else one on PATH; else one is made
-once under ``~/.cache/rwt-tests`` with pip (about 15 s) and reused after. ``.ci/run``
-makes it before the suite, so that its install stays out of the suite's time.
+once under ``~/.cache/rwt-tests`` with pip (about 15 s) and reused after. The xdist
+controller starts it before its workers (``helper_envs``).
 """
 
 from __future__ import annotations

@@ -21,11 +21,12 @@ from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_native import native_missing
+from rwt_transports.webrtc_stacks import stack_refusal
 from tests.support.clients import (
     CONTRACT_TRANSPORTS,
     HAS_AIORTC,
     NATIVE_WEBRTC,
+    REACTOR_WEBRTC,
     Client,
     Harness,
     StreamClient,
@@ -38,18 +39,23 @@ pytestmark = pytest.mark.anyio
 TIMEOUT_S = 10
 
 
-PAIRED = (*CONTRACT_TRANSPORTS, NATIVE_WEBRTC) if HAS_AIORTC else CONTRACT_TRANSPORTS
-"""``pair``'s transports: WebRTC on either stack (D51)."""
+PAIRED = (
+    (*CONTRACT_TRANSPORTS, NATIVE_WEBRTC, REACTOR_WEBRTC) if HAS_AIORTC else CONTRACT_TRANSPORTS
+)
+"""``pair``'s transports: WebRTC on each stack (D51, D70)."""
+
+_STACKS = {NATIVE_WEBRTC: "native", REACTOR_WEBRTC: "reactor"}
 
 
 @pytest.fixture
 async def harness(request: pytest.FixtureRequest) -> AsyncIterator[Harness]:
-    """The server; on the native WebRTC stack for ``pair``'s ``webrtc-native``."""
+    """The server; on the native (reactor) WebRTC stack for ``pair``'s ``webrtc-native``
+    (``webrtc-reactor``)."""
     callspec = getattr(request.node, "callspec", None)
-    native = callspec is not None and callspec.params.get("pair") == NATIVE_WEBRTC
-    if native and (missing := native_missing()) is not None:
+    stack = _STACKS.get(callspec.params.get("pair") if callspec is not None else None, "aiortc")
+    if (missing := stack_refusal(stack)) is not None:
         pytest.skip(missing)
-    async with running_server(webrtc_stack="native" if native else "aiortc") as h:
+    async with running_server(webrtc_stack=stack) as h:
         yield h
 
 

@@ -69,8 +69,10 @@ async def test_get_version_answers_the_references_fields_and_rwts_features() -> 
         assert answer["server"] == installed_version()
         features = answer["rwt"]
         assert set(features) == {
-            "transports", "encodings", "subprotocols", "webrtc", "mcp", "auth", "frontends"
+            "transports", "encodings", "subprotocols", "webrtc", "mcp", "auth", "safety",
+            "frontends",
         }  # fmt: skip
+        assert features["safety"] is False  # no --safety (tests/safety: with it)
         # running_server: WebSocket, TCP, UDP and stdio (and WebRTC where aiortc is installed)
         assert features["transports"][:4] == ["ws", "tcp", "udp", "stdio"]
         assert features["webrtc"] is ("webrtc" in harness.server.endpoints)

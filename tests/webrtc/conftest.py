@@ -14,8 +14,8 @@ import pytest
 
 from rwt_protocol.distribution import install_hint
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_native import native_missing
 from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc_stacks import stack_refusal, video_native
 from tests.browser.conftest import browser  # noqa: F401 (Chromium, one a test process)
 from tests.support.clients import HAS_AIORTC
 
@@ -36,18 +36,25 @@ CONNECT_TIMEOUT_S = 2.0
 """The tests' ICE+DTLS deadline: short, so a peer that never connects is freed soon."""
 
 
-@pytest.fixture(params=["aiortc", "native"])
+@pytest.fixture(params=["aiortc", "native", "reactor"])
 def stack(request: pytest.FixtureRequest) -> str:
-    """Each WebRTC stack of ``--webrtc-stack`` (D51); ``native`` skips where it does not import."""
-    if request.param == "native" and (missing := native_missing()) is not None:
+    """Each WebRTC stack of ``--webrtc-stack`` (D51, D70); one skips where it does not import
+    (``native``: Python 3.12+)."""
+    if (missing := stack_refusal(str(request.param))) is not None:
         pytest.skip(missing)
     return str(request.param)
+
+
+def video_stack(stack: str) -> str:
+    """The stack that sends the video tracks of a server on ``stack`` (D51, D70):
+    libdatachannel where it imports (the reactor stack answers data channels only)."""
+    return "native" if video_native(stack) else "aiortc"
 
 
 @pytest.fixture
 async def served_on(stack: str) -> AsyncIterator[Served]:
     """An in-process server with WebRTC on its WebSocket port (port 0), on each stack
-    (``stack``): every test of a served peer runs on both (``.ci/run`` runs the native
+    (``stack``): every test of a served peer runs on each (``.ci/run`` runs the native
     ones on Python 3.12)."""
     from tests.webrtc.peer import serving  # noqa: PLC0415 (aiortc: after the skip)
 

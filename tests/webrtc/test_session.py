@@ -21,6 +21,7 @@ import anyio.lowlevel
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
 from rwt_transports.webrtc import MAX_TEXT_FRAME_BYTES, SEND_HIGH_WATER_BYTES
+from rwt_transports.webrtc_sctp import ANSWER_MAX_MESSAGE_SIZE
 from rwt_transports.webrtc_signal import WebRtcOptions
 from tests.webrtc.peer import RtcClient, Served, peers_of, rtc_client, serving
 
@@ -206,3 +207,31 @@ async def test_a_message_over_max_message_size_is_skipped_with_a_status(stack: s
         assert status["msg"] == "message larger than 1000 bytes skipped"
         client.send({"op": "set_level", "level": "info", "id": "after"})  # the session goes on
         assert (await client.next_op("status"))["id"] == "after"
+
+
+async def test_a_message_over_the_answers_size_is_refused_whole_on_each_stack(
+    served_on: Served,
+) -> None:
+    # libdatachannel cut such a message at the answer's size and handed the start on as
+    # the whole message: JSON padded with spaces, its start a whole op, was executed
+    received: list[object] = []
+    served_on.graph.create_subscription("/cmd", received.append, "std_msgs/msg/String")
+    async with rtc_client(served_on.base) as client:
+        sctp = client.pc.sctp
+        assert sctp is not None
+        limit = sctp._remote_max_message_size  # the answer's a=max-message-size
+        assert limit == ANSWER_MAX_MESSAGE_SIZE
+        sctp._remote_max_message_size = 0  # no bound: aiortc's own refuses to send more
+        client.send({"op": "advertise", "topic": "/cmd", "type": "std_msgs/String"})
+        over = json.dumps({"op": "publish", "topic": "/cmd", "msg": {"data": "cut"}})
+        client.channel.send(over + " " * (limit + 1 - len(over)))  # one byte over
+        status = await client.next_op("status")
+        assert status["level"] == "error"
+        assert status["msg"] == f"message larger than {limit} bytes skipped"
+        at_limit = json.dumps({"op": "publish", "topic": "/cmd", "msg": {"data": "whole"}})
+        client.channel.send(at_limit + " " * (limit - len(at_limit)))  # the largest taken
+        client.send({"op": "publish", "topic": "/cmd", "msg": {"data": "after"}})
+        with anyio.fail_after(10):
+            while len(received) < 2:
+                await anyio.sleep(0.02)
+    assert [dict(m) for m in received] == [{"data": "whole"}, {"data": "after"}]  # type: ignore[call-overload]

@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from tests.webrtc.conftest import NEEDS_AIORTC
+from tests.webrtc.conftest import NEEDS_AIORTC, video_stack
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
@@ -201,7 +201,7 @@ def test_a_whep_player_in_chromium_plays_the_camera(
     assert later["time"] > first["time"]  # it plays: the element's time advances
     assert _coloured(later), later
     assert "protocol=video peer=" in log  # a video-only WebRTC peer
-    assert f"stack={stack}" in log, log
+    assert f"stack={video_stack(stack)}" in log, log
 
 
 def test_chromium_preferring_h264_gets_h264(
@@ -210,7 +210,7 @@ def test_chromium_preferring_h264_gets_h264(
     """On the native stack libdatachannel sends the H.264 track (D51)."""
     first, later, _ = _watch(browser, site, tmp_path, "/h264", stack)
     assert later["codec"] == "H264"  # the offer's preference decided
-    assert (later["answerer"] == "rtc") == (stack == "native"), later
+    assert (later["answerer"] == "rtc") == (video_stack(stack) == "native"), later
     assert (first["width"], first["height"]) == (320, 240)
     assert later["time"] > first["time"]
     assert _coloured(later), later

@@ -10,6 +10,7 @@ import { MapView } from './map.js';
 import { NodeGraphView } from './nodegraph.js';
 import { TeleopView } from './teleop.js';
 import { Rosbridge } from './rosbridge.js';
+import { watchSafety } from './safety.js';
 import { TfView } from './tf.js';
 import { TfBuffer } from './tfbuffer.js';
 import { TopicView } from './topic.js';
@@ -284,6 +285,7 @@ async function main() {
       if (!clientsWatched) {
         clientsWatched = true;
         watchClients(ros, types);
+        watchSafety(ros, types);
       }
     } catch (error) {
       logStatus({ level: 'error', msg: `refresh failed: ${error.message}` });

@@ -130,6 +130,10 @@ class SessionBase:
         self._now = 0.0  # the latest monotonic time seen, for output without one
         self._logged: set[str] = set()  # kinds of trouble already logged (one line each)
         self._lossy: LossyLane | None = None  # a transport's lossy channel (D36)
+        self.request_scoped = False
+        """The session is one request of a front end without connections (an HTTP
+        request, a 2026-07-28 MCP request), not a connection: its end is not its
+        client leaving, for the safety envelope's dead-man (``GraphPort.release``, D68)."""
 
     # ---- what each protocol says -------------------------------------------------
 
@@ -164,7 +168,7 @@ class SessionBase:
 
     def release(self) -> None:
         """Drop what the client holds in the graph (it leaves, or the server stops)."""
-        self._graph.release(self._client_id)
+        self._graph.release(self._client_id, ended=not self.request_scoped)
 
     def warn_dropping(self, text: str) -> None:
         """Tell the peer that its oldest topic messages are being dropped (an episode began)."""

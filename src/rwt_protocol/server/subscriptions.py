@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..ops.base import Compression
+from ..runtime.backpressure import lost_text
 from ..runtime.timers import Timer
 from .subscription_qos import SubscriptionQos
 
@@ -129,7 +130,8 @@ class TopicSubscription:
         schedule: runs a callback at a monotonic deadline (the session's timers).
         max_queue: the most messages queued whatever ``queue_length`` asks
             (a size the peer controls, D24).
-        warn: tells the client of a QoS event (left out of the topic, a missed
+        warn: tells the client a ``warning`` (``on_lost``); None: it is not told.
+        qos_warn: tells the client of a QoS event (left out of the topic, a missed
             deadline); None: nobody is told.
         default_lifespan_s: the server's lifespan for subscriptions giving none
             (``--qos-lifespan``, D63; inf: none).
@@ -149,7 +151,8 @@ class TopicSubscription:
         schedule: Schedule,
         *,
         max_queue: int = 100,
-        warn: Warn | None = None,
+        warn: Callable[[str], None] | None = None,
+        qos_warn: Warn | None = None,
         default_lifespan_s: float = math.inf,
         reads_qos: bool = True,
         deliver_ruled: Callable[[TopicSubscription, MessageEvent], None] | None = None,
@@ -168,9 +171,10 @@ class TopicSubscription:
         self._max_queue = max(1, max_queue)
         self._timer: Timer | None = None
         self._lossy_ids: set[SubscriptionKey] = set()
+        self._warn = warn
         self.lossy = False
         """Every id came on the lossy channel: messages go on the lossy lane (D36)."""
-        self._warn = warn
+        self._qos_warn = qos_warn
         self._reads_qos = reads_qos
         self.qos = SubscriptionQos(default_lifespan_s)
         self.rule = self.qos.rule
@@ -241,8 +245,8 @@ class TopicSubscription:
         left_out = self.qos.offer(offered, reasons) and reasons
         self._latest = latest
         self._qos_changed()
-        if left_out and self._warn is not None:
-            self._warn(self, self.qos.excluded_text(self.spelling))
+        if left_out and self._qos_warn is not None:
+            self._qos_warn(self, self.qos.excluded_text(self.spelling))
 
     def _qos_changed(self) -> None:
         self.rule = self.qos.rule
@@ -273,9 +277,9 @@ class TopicSubscription:
             return
         last = max(latest(), self._since)
         if now - last >= deadline:
-            if self._missed_after != last and self._warn is not None:
+            if self._missed_after != last and self._qos_warn is not None:
                 self._missed_after = last  # one warning per episode: until a message comes
-                self._warn(self, self.qos.deadline_text(self.spelling))
+                self._qos_warn(self, self.qos.deadline_text(self.spelling))
             due = now + max(deadline, DEADLINE_CHECK_S)
         else:
             due = max(last + deadline, now + DEADLINE_CHECK_S)
@@ -291,6 +295,11 @@ class TopicSubscription:
         self.queue.append(event)
         self._trim()
         self._arm(now)
+
+    def on_lost(self, count: int) -> None:
+        """``count`` messages were lost before they reached the server (``LossSink``, D61)."""
+        if self._warn is not None:
+            self._warn(lost_text(count, self.spelling))
 
     def _open(self, now: float, window: float) -> bool:
         return window <= 0 or self.last_sent is None or now - self.last_sent >= window
@@ -370,7 +379,8 @@ class BatchTopicSubscription(TopicSubscription):
         schedule: Schedule,
         *,
         max_queue: int = 100,
-        warn: Warn | None = None,
+        warn: Callable[[str], None] | None = None,
+        qos_warn: Warn | None = None,
         default_lifespan_s: float = math.inf,
         reads_qos: bool = True,
         deliver_ruled: Callable[[TopicSubscription, MessageEvent], None] | None = None,
@@ -382,6 +392,7 @@ class BatchTopicSubscription(TopicSubscription):
             schedule,
             max_queue=max_queue,
             warn=warn,
+            qos_warn=qos_warn,
             default_lifespan_s=default_lifespan_s,
             reads_qos=reads_qos,
             deliver_ruled=deliver_ruled,

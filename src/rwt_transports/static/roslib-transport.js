@@ -11,10 +11,19 @@
 //   });
 //
 // Options: lossyTopics, topics whose subscriptions go on the `rosbridge-lossy` channel
-// (latest-only, never retransmitted: D36); token, a video token sent as
-// `Authorization: Bearer` with the offer; rtcConfiguration, for RTCPeerConnection.
+// (latest-only, unordered, a lost message sent again once at most: D36, D73); token, a
+// video token sent as `Authorization: Bearer` with the offer; rtcConfiguration, for
+// RTCPeerConnection.
 
-const LOSSY = { ordered: false, maxRetransmits: 0 };
+// One retransmission, not none (D73): with none, each lost packet leaves a gap that only
+// a FORWARD TSN closes, one a round trip in libwebrtc's SCTP; a browser's SACK reports 20
+// gaps, so on a lossy link a fast topic's gaps pile up and the channel stalls for seconds.
+const LOSSY = { ordered: false, maxRetransmits: 1 };
+// A subscribe sent on the lossy channel is itself not reliable: lost on the way (twice),
+// the subscription would deliver nothing. So it is sent again after each of these
+// delays (ms) until its topic's first message comes on the lossy channel, or it is
+// unsubscribed (the server takes a subscribe of the same id again as the same one).
+const RESEND_MS = [200, 400, 800, 1600, 3200, 3200, 3200, 3200];
 
 export function webrtcTransportFactory(AbstractTransport, options = {}) {
   const { lossyTopics = [], token = null, rtcConfiguration = {} } = options;
@@ -24,6 +33,8 @@ export function webrtcTransportFactory(AbstractTransport, options = {}) {
     constructor(pc, channel, lossyChannel, session) {
       super();
       Object.assign(this, { pc, channel, lossyChannel, session });
+      this.unconfirmed = new Map();  // topic -> timer of a lossy subscribe not yet confirmed
+      this.onLossyNow = false;  // the message being handled came on the lossy channel
       const channels = lossyChannel ? [channel, lossyChannel] : [channel];
       let announced = false;
       const opened = () => {  // both settled: roslib may subscribe on either
@@ -36,18 +47,52 @@ export function webrtcTransportFactory(AbstractTransport, options = {}) {
       for (const c of channels) {
         c.binaryType = "arraybuffer";
         c.onopen = opened;
-        c.onmessage = (e) => this.handleRawMessage(e.data);
+        c.onmessage = (e) => {
+          this.onLossyNow = c === lossyChannel;
+          this.handleRawMessage(e.data);
+          this.onLossyNow = false;
+        };
       }
       if (lossyChannel) lossyChannel.onclose = opened;
-      channel.onclose = (e) => this.emit("close", e);
+      channel.onclose = (e) => {
+        this.forgetAll();
+        this.emit("close", e);
+      };
       channel.onerror = (e) => this.emit("error", e);
     }
     send(message) {
       const onLossy = message.op === "subscribe" && lossy.has(message.topic)
         && this.lossyChannel && this.lossyChannel.readyState === "open";
-      (onLossy ? this.lossyChannel : this.channel).send(JSON.stringify(message));
+      if (message.op === "unsubscribe") this.forget(message.topic);
+      const text = JSON.stringify(message);
+      (onLossy ? this.lossyChannel : this.channel).send(text);
+      if (onLossy) this.resend(message.topic, text, 0);
+    }
+    resend(topic, text, attempt) {  // until the topic's first lossy message (RESEND_MS)
+      this.forget(topic);
+      if (attempt >= RESEND_MS.length) return;
+      this.unconfirmed.set(topic, setTimeout(() => {
+        this.unconfirmed.delete(topic);
+        if (this.lossyChannel.readyState !== "open") return;
+        this.lossyChannel.send(text);
+        this.resend(topic, text, attempt + 1);
+      }, RESEND_MS[attempt]));
+    }
+    forget(topic) {
+      clearTimeout(this.unconfirmed.get(topic));
+      this.unconfirmed.delete(topic);
+    }
+    forgetAll() {
+      for (const topic of [...this.unconfirmed.keys()]) this.forget(topic);
+    }
+    handleRosbridgeMessage(message) {  // decoded (JSON or CBOR), before fragments and png
+      if (this.onLossyNow && this.unconfirmed.size && message.op === "publish") {
+        this.forget(message.topic);  // the subscription reached the server
+      }
+      super.handleRosbridgeMessage(message);
     }
     close() {
+      this.forgetAll();
       fetch(this.session, { method: "DELETE" }).catch(() => {});
       if (this.lossyChannel) this.lossyChannel.close();
       this.channel.close();

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 from ...errors import GraphError
@@ -14,6 +15,7 @@ from ..subscriptions import BatchTopicSubscription, TopicSubscription
 if TYPE_CHECKING:
     from ...ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
     from ...ops.qos import Qos
+    from ...ports import PublishNote
     from ...qos import QosProfile
     from .context import HandlerContext
 
@@ -151,17 +153,24 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
     advertises it first, as ``advertise`` with the op's ``id`` and ``latch`` would
     (D48; protocol 2.0.0, docs/reference-behaviour.md §13.3), unless the server
     runs ``--compat rosbridge-2.1``. Once the client advertises the topic, ``type``
-    is not read again. A warning lists the fields filled with defaults (spec 3.3.3, D7).
+    is not read again. A warning lists the fields filled with defaults (spec 3.3.3, D7),
+    and one tells of the safety envelope's clamp or drop, once per episode (D67).
 
     Raises:
         GraphError: unknown topic type, a ``type`` other than the topic's, or a
-            message that does not fit it (D9); nothing is published.
+            message that does not fit it (D9), or the safety envelope refused it
+            (D67); nothing is published.
         LimitError: the advertisement is past ``--max-advertisements``.
     """
     if op.type is not None and _advertises(session, op.topic):
         _register(session, "publish", op.topic, op.type, op.id, latch=op.latch, qos=op.qos)
+
+    def noted(note: PublishNote) -> None:
+        if note.first:  # a stream of commands: one warning per episode
+            session.report(StatusLevel.WARNING, f"publish: {note.text}", op.id)
+
     missing = session.graph.publish(
-        session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg"
+        session.client_id, op.topic, op.msg, latch=op.latch, path="$.msg", notes=noted
     )
     if missing:
         listed = ", ".join(missing[:_MAX_LISTED])
@@ -249,9 +258,11 @@ def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
 
 def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> TopicSubscription:
     """A subscription of ``session`` to ``topic``: one that takes runs unless switched off."""
-    max_queue = session.config.max_queue_length
-    warn, lifespan = session.warn_subscription, session.config.qos_lifespan_s
-    reads_qos = session.config.compat.reads_qos
+    config = session.config
+    max_queue = config.max_queue_length
+    warn = functools.partial(session.report, StatusLevel.WARNING)
+    qos_warn, lifespan = session.warn_subscription, config.qos_lifespan_s
+    reads_qos = config.compat.reads_qos
     if _BATCH_SINK:
         return BatchTopicSubscription(
             topic,
@@ -261,6 +272,7 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
             session.call_at,
             max_queue=max_queue,
             warn=warn,
+            qos_warn=qos_warn,
             default_lifespan_s=lifespan,
             reads_qos=reads_qos,
             deliver_ruled=session.deliver_ruled,
@@ -272,6 +284,7 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
         session.call_at,
         max_queue=max_queue,
         warn=warn,
+        qos_warn=qos_warn,
         default_lifespan_s=lifespan,
         reads_qos=reads_qos,
         deliver_ruled=session.deliver_ruled,
