@@ -132,8 +132,8 @@ class RosNode:
         removes one: a node whose entities come and go grows by a dead reference
         (about 100 bytes with its slot in the set) per entity. The link's
         publishers come and go with the topics clients advertise and leave: some
-        13 a second at the churn soak's rates, 6 MB an hour (docs/benchmarks.md,
-        B26). The link calls this every sweep, from the event loop's thread, which
+        12 a second at the churn soak's rates, about 5 MB an hour
+        (docs/benchmarks.md, B26). The link calls this every sweep, from the event loop's thread, which
         creates the entities; the executor's thread only looks them up.
 
         Returns:
