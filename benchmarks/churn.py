@@ -539,6 +539,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = parser.parse_args(argv)
     rates = _rates(args.rate)
     if args.only:
+        unknown = set(args.only) - set(rates)
+        if unknown:
+            raise SystemExit(f"--only {', '.join(sorted(unknown))}: one of {', '.join(rates)}")
         rates = {name: (hz if name in args.only else 0.0) for name, hz in rates.items()}
     config = Config(
         minutes=args.minutes,
