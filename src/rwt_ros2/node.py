@@ -133,8 +133,9 @@ class RosNode:
         (about 100 bytes with its slot in the set) per entity. The link's
         publishers come and go with the topics clients advertise and leave: some
         12 a second at the churn soak's rates, about 5 MB an hour
-        (docs/benchmarks.md, B26). The link calls this every sweep, from the event loop's thread, which
-        creates the entities; the executor's thread only looks them up.
+        (docs/benchmarks.md, B26). The link calls this every sweep, from the event
+        loop's thread, which creates the entities; the executor's thread only looks
+        them up.
 
         Returns:
             How many references were dropped.
