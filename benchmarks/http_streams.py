@@ -5,10 +5,11 @@
 one after another: rosbridge WebSocket subscribers of ``--topic`` (``ws``) or
 ``GET /api/topics/<topic>/events`` (``sse``), then prints one line of JSON,
 ``{"ready": N, "statuses": {...}}`` (the HTTP status each request got; a refused one is
-closed). It then reads every open connection and drops what it reads, counting the
-messages (``data: `` lines, or ``"op":"publish"`` frames: counted in the bytes, no
-parsing, so both kinds cost this process the same), until it is told to stop (SIGTERM
-or its stdin closed), and prints ``{"messages": M, "bytes": B, "open": K}``.
+closed; the open ones are read meanwhile). It then reads every open connection and drops
+what it reads, counting the messages (``data: `` lines, or ``"op":"publish"`` frames:
+counted in the bytes, no parsing, so both kinds cost this process the same), until it is
+told to stop (SIGTERM or its stdin closed), and prints
+``{"messages": M, "bytes": B, "open": K}``.
 
 It is the load of ``benchmarks/attacks_http.py``'s classes; it never imports rwt, so any
 server's version works.
@@ -73,6 +74,27 @@ def open_reader(kind: str, port: int, host: str, topic: str) -> tuple[int, socke
     return status, sock
 
 
+def _drain(selector: selectors.BaseSelector, timeout: float, marker: bytes) -> tuple[int, int]:
+    """Read what every ready reader has (waiting at most ``timeout``): messages and bytes."""
+    messages = total = 0
+    for key, _ in selector.select(timeout):
+        sock = key.fileobj
+        assert isinstance(sock, socket.socket)
+        try:
+            data = sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            continue
+        except OSError:
+            data = b""
+        if not data:
+            selector.unregister(sock)
+            sock.close()
+            continue
+        total += len(data)
+        messages += data.count(marker)
+    return messages, total
+
+
 def main(argv: list[str] | None = None) -> None:
     """The command line (the module's docstring)."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.http_streams")
@@ -84,35 +106,24 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     _, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
+    marker = b"data: " if args.kind == "sse" else b'"op":"publish"'
     statuses: Counter[int] = Counter()
     selector = selectors.DefaultSelector()
+    messages = total = 0
     for _ in range(args.count):
         status, sock = open_reader(args.kind, args.port, args.host, args.topic)
         statuses[status] += 1
         if sock is not None:
             selector.register(sock, selectors.EVENT_READ)
+        got = _drain(selector, 0, marker)  # those open keep reading while the next opens
+        messages, total = messages + got[0], total + got[1]
     print(json.dumps({"ready": len(selector.get_map()), "statuses": statuses}), flush=True)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
-    marker = b"data: " if args.kind == "sse" else b'"op":"publish"'
-    messages = total = 0
     while not stop.is_set():
-        for key, _ in selector.select(0.1):
-            sock = key.fileobj
-            assert isinstance(sock, socket.socket)
-            try:
-                data = sock.recv(65536)
-            except (BlockingIOError, InterruptedError):
-                continue
-            except OSError:
-                data = b""
-            if not data:
-                selector.unregister(sock)
-                sock.close()
-                continue
-            total += len(data)
-            messages += data.count(marker)
+        got = _drain(selector, 0.1, marker)
+        messages, total = messages + got[0], total + got[1]
     opened = len(selector.get_map())
     print(json.dumps({"messages": messages, "bytes": total, "open": opened}), flush=True)
 

@@ -101,3 +101,22 @@ async def test_the_document_offers_only_what_the_split_globs_allow() -> None:
         assert (await client.get(f"{url}/api/topics/state/odom")).status_code == 200
         assert (await client.get(f"{url}/api/topics/cmd/vel")).status_code == 403
         assert (await client.post(f"{url}/api/topics/state/odom", json={})).status_code == 403
+
+
+async def test_a_topic_named_events_leaves_its_path_to_the_stream_before_it() -> None:
+    """``/api/topics/a/events`` is ``/a``'s stream (routes.py): the document says so once."""
+    graph = Graph()
+    graph.create_publisher("/a", "std_msgs/msg/String")
+    graph.create_publisher("/a/events", "std_msgs/msg/Int32")
+    async with api_server(graph) as (_, url), httpx.AsyncClient() as client:
+        answer = await client.get(f"{url}/openapi.json")
+        assert answer.content.count(b'"/api/topics/a/events":') == 1
+        document = answer.json()
+        validate(document)
+        paths = document["paths"]
+        assert set(paths["/api/topics/a"]) == {"get", "post"}
+        stream = paths["/api/topics/a/events"]["get"]["responses"]["200"]["content"]
+        assert stream["text/event-stream"]["x-rwt-data"] == {
+            "$ref": "#/components/schemas/std_msgs.String"
+        }
+        assert "/api/topics/a/events/events" in paths
