@@ -3,11 +3,15 @@ goals checked before their stream, the OpenAPI document fetched a bounded number
 
 from __future__ import annotations
 
+import json
 import socket
+import time
 from collections.abc import AsyncIterator
 from contextlib import AsyncExitStack, asynccontextmanager
+from typing import Any
 
 import anyio
+import anyio.lowlevel
 import anyio.to_thread
 import httpx
 import pytest
@@ -153,3 +157,51 @@ async def test_a_host_fetches_the_document_a_bounded_number_of_times_at_once() -
                 await anyio.sleep(0.05)
         assert answer.status_code == 200
         assert answer.headers["etag"] == served.headers["etag"]
+
+
+def _slow_read(port: int, request: bytes) -> bytes:
+    """The whole answer to ``request``, read 4 KB at a time with pauses: a slow reader."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.settimeout(30)
+    sock.connect(("127.0.0.1", port))
+    sock.sendall(request)
+    data = bytearray()
+    with sock:
+        while chunk := sock.recv(4096):
+            data += chunk
+            time.sleep(0.0002)
+    return bytes(data)
+
+
+async def test_a_slow_reader_gets_an_action_stream_whole_to_its_result() -> None:
+    """Events written from the publish path while the socket is full keep their order, and
+    the stream still ends with the whole result (8 MB of feedback to a slow reader)."""
+    graph = Graph()
+
+    async def chatty(goal: dict[str, object], context: Any) -> dict[str, object]:
+        for n in range(int(goal["order"])):  # type: ignore[call-overload]
+            context.publish_feedback({"sequence": [n] * 2000})
+            if n % 50 == 0:
+                await anyio.lowlevel.checkpoint()
+        return {"sequence": [7]}
+
+    graph.create_action_server("/chatty", "example_interfaces/action/Fibonacci", chatty)
+    async with api_server(graph) as (_, url):
+        port = int(url.rsplit(":", 1)[1])
+        body = b'{"order": 1000}'
+        request = (
+            b"POST /api/actions/chatty HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            b"Content-Length: %d\r\n\r\n%s" % (len(body), body)
+        )
+        for _ in range(3):
+            answer = await anyio.to_thread.run_sync(_slow_read, port, request)
+            assert answer.startswith(b"HTTP/1.1 200 OK")
+            events = answer.partition(b"\r\n\r\n")[2].split(b"\n\n")
+            assert events[-1] == b""  # the stream ended after a whole event
+            assert all(e.startswith(b"event: feedback\ndata: {") for e in events[:-2])
+            firsts = [json.loads(e.partition(b"data: ")[2])["sequence"][0] for e in events[:-2]]
+            assert firsts == sorted(set(firsts))  # in order, none twice (the oldest may drop)
+            last = events[-2]
+            assert last.startswith(b"event: result\ndata: "), last[:80]
+            assert json.loads(last.partition(b"data: ")[2])["values"] == {"sequence": [7]}
