@@ -27,13 +27,24 @@ from rwt_protocol.ops.qos import Qos
 if TYPE_CHECKING:
     from rwt_protocol.qos import QosProfile
 
-__all__ = ["API_PREFIX", "OPENAPI_PATH", "Route", "RouteError", "RouteKind", "parse_route"]
+__all__ = [
+    "API_PREFIX",
+    "EVENTS_SUFFIX",
+    "OPENAPI_PATH",
+    "Route",
+    "RouteError",
+    "RouteKind",
+    "parse_route",
+]
 
 API_PREFIX = "/api/"
 """Where the API's paths start."""
 
 OPENAPI_PATH = "/openapi.json"
 """Where the OpenAPI document is answered."""
+
+EVENTS_SUFFIX = "/events"
+"""What a topic's path ends with for its event stream (``/api/topics/a/events``)."""
 
 MAX_QUEUE_LENGTH = 10_000
 """Largest ``queue_length`` an event stream may ask for (messages held for it)."""
@@ -113,9 +124,11 @@ def parse_route(method: str, target: str) -> Route:
     name = "/" + rest.strip("/")
     if family not in ("topics", "services", "actions") or name == "/" or "//" in name:
         raise RouteError(404, f"no such path: {_shown(path)}")
-    if family == "topics" and name.endswith("/events") and name != "/events":
+    if family == "topics" and name.endswith(EVENTS_SUFFIX) and name != EVENTS_SUFFIX:
         stream = _stream(query)
-        route = Route(RouteKind.EVENTS, _named(name.removesuffix("/events")), *stream, _qos(query))
+        route = Route(
+            RouteKind.EVENTS, _named(name.removesuffix(EVENTS_SUFFIX)), *stream, _qos(query)
+        )
         return _checked(method, ("GET",), route)
     _named(name)
     kind = _BY_FAMILY.get((family, method))

@@ -50,3 +50,14 @@ async def test_a_bad_policy_is_a_400_naming_it() -> None:
         assert bad.status_code == 400 and bad.json()["error"].startswith("depth: ")
         bad = await client.get(f"{url}/api/topics/t/events?lifespan=soon")
         assert bad.status_code == 400 and bad.json()["error"].startswith("lifespan: ")
+
+
+async def test_the_openapi_document_names_the_qos_parameters() -> None:
+    graph = Graph()
+    graph.create_publisher("/t", STRING)
+    async with api_server(graph) as (_, url), httpx.AsyncClient() as client:
+        paths = (await client.get(f"{url}/openapi.json")).json()["paths"]
+    policies = ["history", "depth", "reliability", "durability", "deadline", "lifespan"]
+    for operation in (paths["/api/topics/t/events"]["get"], paths["/api/topics/t"]["post"]):
+        names = [parameter["name"] for parameter in operation["parameters"]]
+        assert names[-6:] == policies
