@@ -26,6 +26,7 @@ given by the caller.
 from __future__ import annotations
 
 import logging
+import math
 from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import LimitError, RwtError
@@ -39,7 +40,7 @@ from .idle import IdleWatch
 from .lifecycle import State, advance
 from .lossy import LossyLane
 from .memory import PRESSURE_FLOOR_BYTES
-from .outbox import Outbox, OutFrame
+from .outbox import Outbox, OutFrame, QueueRule
 from .timers import Timer, TimerQueue
 
 if TYPE_CHECKING:
@@ -365,25 +366,36 @@ class SessionBase:
         """The lane of the transport's lossy channel, while it is open (D36)."""
         return self._lossy
 
-    def lossy_frame_to_send(self) -> OutFrame | None:
-        """Take the lossy lane's message that waited longest, or None (D36)."""
+    def lossy_frame_to_send(self, now: float | None = None) -> OutFrame | None:
+        """Take the lossy lane's message that waited longest, or None (D36).
+
+        ``now``: monotonic seconds; a message past its lifespan is not taken (D63).
+        """
         lane = self._lossy
         if lane is None:
             return None
-        frame = lane.pop()
+        frame = lane.pop(self._now if now is None else now)
         if frame is not None:
             self._outbox.taken_frames += 1
         return frame
 
-    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+    def frames_to_send(
+        self, max_bytes: int | None = None, now: float | None = None
+    ) -> list[OutFrame]:
         """Take the frames queued for the peer, oldest first.
 
         Args:
             max_bytes: take at most about this many payload bytes (at least one
                 frame); None takes every frame. Taking frames counts as progress
                 for the send timeout (D24).
+            now: monotonic seconds of the take: a message past its lifespan is
+                dropped, not taken (``outbox``, D63); None: the session's latest time.
         """
-        frames = self._outbox.take(max_bytes)
+        if now is None:
+            now = self._now
+        elif now > self._now:
+            self._now = now
+        frames = self._outbox.take(max_bytes, now)
         if frames:
             if self._memory is not None:
                 self._memory.took(self._now)
@@ -531,7 +543,12 @@ class SessionBase:
     # ---- what the protocol's handlers use ------------------------------------------
 
     def send_frames(
-        self, frames: Sequence[OutFrame], topic: str | None = None, lifespan: float = 0.0
+        self,
+        frames: Sequence[OutFrame],
+        topic: str | None = None,
+        lifespan: float = 0.0,
+        rule: QueueRule | None = None,
+        expires: float = math.inf,
     ) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
@@ -546,6 +563,10 @@ class SessionBase:
             topic: the topic of a message, as the peer spells it, for the status of a drop.
             lifespan: seconds of ``topic``'s messages its queue holds at most
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
+            rule: the subscription's QoS for a topic message (``outbox.QueueRule``,
+                D63, D64): its depth and reliability in the queue.
+            expires: with ``rule``, the monotonic time after which the message is
+                never sent (its lifespan's end, D63).
         """
         if not self._state.sends:
             return
@@ -560,7 +581,7 @@ class SessionBase:
             return
         was_empty = len(outbox) == 0
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.extend(frames, self._now, lifespan, topic or "")
+        outbox.extend(frames, self._now, lifespan, topic or "", rule, expires)
         self._watch.after_push(dropped, oversized, self._now, frames, topic)
         if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure
