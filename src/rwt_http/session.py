@@ -323,8 +323,10 @@ class HttpSession(SessionBase):
             return
         gap = self.route.throttle_rate_ms / 1000.0
         name = self.route.name
+        timeless = self.config.qos_lifespan_s == math.inf  # no server lifespan (D63)
         run: list[OutFrame] = []
         run_now = run_lifespan = 0.0
+        run_end = math.inf  # the run's end (``message_end``, D63)
         for each in events:
             if gap:
                 if each.now - self._last_sent < gap:
@@ -334,13 +336,16 @@ class HttpSession(SessionBase):
             if frame is None:  # (``encoded``, inline above: a call less per stream)
                 frame = each.encoded(_SSE_KEY, partial(_sse, each))
             lifespan = each.lifespan
-            if run and (lifespan != run_lifespan or (lifespan > 0 and each.now != run_now)):
-                self.queue_run(run, name, run_now, run_lifespan)
+            end = each.expires if timeless else self.message_end(each)
+            if run and (
+                lifespan != run_lifespan or end != run_end or (lifespan > 0 and each.now != run_now)
+            ):
+                self.queue_run(run, name, run_now, run_lifespan, run_end)
                 run = []
             run.append(frame)
             run_now = each.now if each.now > run_now else run_now
-            run_lifespan = lifespan
-        self.queue_run(run, name, run_now, run_lifespan)
+            run_lifespan, run_end = lifespan, end
+        self.queue_run(run, name, run_now, run_lifespan, run_end)
 
     def _send_ruled(self, events: Sequence[MessageEvent], rule: QueueRule) -> None:
         """Queue ``events`` of a stream with QoS, each with its lifespan's end (D63)."""
@@ -351,7 +356,7 @@ class HttpSession(SessionBase):
                     continue  # rosbridge's throttle_rate: at most one message a gap
                 self._last_sent = each.now
             frame = each.encoded(_SSE_KEY, partial(_sse, each))
-            expires = min(each.expires, each.now + self._stream_lifespan_s)
+            expires = self.message_end(each, self._stream_lifespan_s)
             self.send_frames((frame,), self.route.name, 0.0, rule, expires)
 
     def stream_qos(self, offered: QosProfile | None) -> None:

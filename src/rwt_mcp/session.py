@@ -127,9 +127,13 @@ class _Watcher:
     async def _later(self) -> None:
         await anyio.sleep(max(self.last + self.throttle_s - time.monotonic(), 0.0))
         event, self.pending = self.pending, None
-        if event is not None and not self.closed:
-            self.last = time.monotonic()
-            self._deliver(event)
+        if event is None or self.closed:
+            return
+        now = time.monotonic()
+        if self.session.message_end(event) <= now:
+            return  # past its lifespan while it waited (D63): never delivered
+        self.last = now
+        self._deliver(event)
 
     def _deliver(self, event: MessageEvent) -> None:
         try:  # made once per message for every MCP subscriber (read, never changed)

@@ -46,7 +46,7 @@ from .timers import Timer, TimerQueue
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from ..ports import ClientId, GraphPort
+    from ..ports import ClientId, GraphPort, MessageEvent
     from .contract import Job
     from .memory import MemoryAccount, MemoryBudget
     from .rules import ClientRules
@@ -542,6 +542,23 @@ class SessionBase:
 
     # ---- what the protocol's handlers use ------------------------------------------
 
+    def message_end(self, event: MessageEvent, lifespan_s: float = math.inf) -> float:
+        """The monotonic time after which ``event`` is never sent to this peer (D63).
+
+        One rule for every front end that subscribes: the earlier of the end its
+        topic's offer gave it (``MessageEvent.expires``) and its publication plus
+        the subscription's lifespan, seconds: ``lifespan_s`` where the
+        subscription asked one, else the server's (``ClientRules.qos_lifespan_s``,
+        ``--qos-lifespan``). What the protocol queues with this end
+        (``send_frames``, ``queue_run``) the outbox never gives the transport after
+        it (``outbox``). ``math.inf``: none.
+        """
+        if lifespan_s == math.inf:
+            lifespan_s = self._config.qos_lifespan_s
+        if lifespan_s == math.inf:
+            return event.expires
+        return min(event.expires, event.now + lifespan_s)
+
     def send_frames(
         self,
         frames: Sequence[OutFrame],
@@ -565,8 +582,8 @@ class SessionBase:
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
             rule: the subscription's QoS for a topic message (``outbox.QueueRule``,
                 D63, D64): its depth and reliability in the queue.
-            expires: with ``rule``, the monotonic time after which the message is
-                never sent (its lifespan's end, D63).
+            expires: the monotonic time after which a topic message is never sent
+                (its lifespan's end, ``message_end``; D63), with or without ``rule``.
         """
         if not self._state.sends:
             return
@@ -588,7 +605,12 @@ class SessionBase:
         self.sweep_memory()
 
     def queue_run(
-        self, frames: Sequence[OutFrame], topic: str | None, now: float, lifespan: float = 0.0
+        self,
+        frames: Sequence[OutFrame],
+        topic: str | None,
+        now: float,
+        lifespan: float = 0.0,
+        expires: float = math.inf,
     ) -> None:
         """Queue a run of topic messages, one whole droppable frame each, and wake once.
 
@@ -608,6 +630,8 @@ class SessionBase:
                 to it, and a ``lifespan`` counts from it.
             lifespan: seconds of ``topic``'s messages the outbox holds at most
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
+            expires: the monotonic time after which none of them is sent (their
+                lifespan's end, ``message_end``; D63): a run shares one.
         """
         if not self._sends or not frames:
             return
@@ -618,10 +642,10 @@ class SessionBase:
         outbox = self._outbox
         wake = self.wakes_each_run or len(outbox) == 0  # (no ``len`` call for those that wake)
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if lifespan > 0:
+        if lifespan > 0 or expires != math.inf:
             key = topic or ""
             for frame in frames:
-                outbox.push_timed(frame, now, lifespan, key)
+                outbox.push_timed(frame, now, lifespan, key, expires)
                 if outbox.dropped != dropped:  # the slow-consumer rule, message by message
                     self._watch.after_push(dropped, oversized, now, (frame,), topic)
                     dropped, oversized = outbox.dropped, outbox.dropped_oversized
