@@ -57,6 +57,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.rules import ClientRules
 
     from .document import Document, DocumentSource
+    from .standing import StandingOffers
 
 __all__ = ["HttpApiOptions", "HttpSession"]
 
@@ -96,6 +97,8 @@ class HttpSession(SessionBase):
             None: made here at once, whole.
         if_none_match: the request's ``If-None-Match`` header: the document is
             answered 304 when it names the current one.
+        offers: the API's standing registrations, which keep a publish's ``qos``
+            past its request (``standing``, D63); None: it lasts the request.
     """
 
     protocol = "http"
@@ -117,6 +120,7 @@ class HttpSession(SessionBase):
         memory: MemoryBudget | None = None,
         documents: DocumentSource | None = None,
         if_none_match: str | None = None,
+        offers: StandingOffers | None = None,
     ) -> None:
         super().__init__(
             graph,
@@ -137,6 +141,7 @@ class HttpSession(SessionBase):
         self._head_only = head_only
         self._documents = documents
         self._if_none_match = if_none_match
+        self._offers = offers
         self._answered = False  # a response (or a stream's head) is queued
         self._streaming = False
         self._holds = False  # a subscription or a call waits in the graph
@@ -291,10 +296,29 @@ class HttpSession(SessionBase):
         if any(note.dropped for note in notes):  # the safety envelope's rate (docs/safety.md)
             self._answer(429, {"error": "; ".join(note.text for note in notes)})
             return
+        warnings = [note.text for note in notes]  # a request is one command (D67)
+        if route.qos is not None:
+            warnings += self._keep_offer(route.name, type_name, route.qos)
         answer: dict[str, object] = {"topic": route.name, "type": type_name}
-        if notes:  # a request is one command: each is told what the envelope did (D67)
-            answer["warnings"] = [note.text for note in notes]
+        if warnings:
+            answer["warnings"] = warnings
         self._answer(200, answer)
+
+    def _keep_offer(self, topic: str, type_name: str, qos: QosProfile) -> list[str]:
+        """Keep the publish's ``qos`` past the request (``standing``, D63); what to warn of.
+
+        A topic that keeps another registration's QoS is said so, as a rosbridge
+        client's ``advertise`` is (D62).
+        """
+        if self._offers is not None:
+            self._offers.hold(topic, type_name, qos)
+        offered = self.graph.offered_qos(topic)
+        if offered is None or offered == qos.for_publisher():
+            return []
+        return [
+            f"{topic} keeps the QoS of its first registration ({offered.describe()});"
+            f" this one's ({qos.describe()}) is not used"
+        ]
 
     def _events(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.TOPICS, route.name, "subscribe", TopicUse.SUBSCRIBE)
