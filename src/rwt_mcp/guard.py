@@ -37,7 +37,7 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.names import name_problem
 from rwt_protocol.runtime.access import AccessPolicy, Family, TopicUse, log_refused
 
-from .catalog import LISTINGS, TOOL_NAMES, WRITE_TOOLS
+from .catalog import APP_TOOLS, LISTINGS, TOOL_NAMES, WRITE_TOOLS
 
 __all__ = [
     "FAMILIES",
@@ -116,7 +116,8 @@ class Guard:
         self.check_rate(tool)
         family_field = TOOL_NAMES.get(tool)
         target = arguments.get(family_field[1]) if family_field else None
-        named = family_field is not None and family_field[0] != "params"
+        # An app checks each name it takes itself, naming the field (and "" is no camera).
+        named = family_field is not None and family_field[0] != "params" and tool not in APP_TOOLS
         if named and isinstance(target, str) and (problem := name_problem(target)):
             raise ToolError(f"{tool}: {problem}")  # as a rosbridge op's name is checked
         if tool in WRITE_TOOLS:
