@@ -96,7 +96,8 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_client.connectors": ("Connection",),
     },
     "rwt.server": {
-        "rwt_transports.server": ("Admitted", "rosauth_authenticator"),
+        "rwt_transports.server": ("rosauth_authenticator",),
+        "rwt_transports.host": ("Admitted",),
         "rwt_http.session": ("HttpApiOptions",),
         "rwt_protocol.auth": ("auth_query", "rosauth_op"),
         "rwt_transports.websocket": ("WebSocketOptions",),

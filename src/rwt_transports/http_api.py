@@ -4,7 +4,7 @@ The front end itself is ``rwt_http`` (sans-IO: routes, the session, the OpenAPI
 document; docs/http.md). Here: the endpoint claims ``/openapi.json`` and
 ``/api/...`` (an ``HttpEndpoint``), reads the request (bounded, CORS, through
 ``http_endpoint``), checks the bearer token through the server's one entry check
-(``GraphServer.entry``, ``AuthMode.BEARER``: the same tokens as WebRTC's and
+(``FrontEndHost.entry``, ``AuthMode.BEARER``: the same tokens as WebRTC's and
 MCP's), has the server admit the connection (``open_session``: ``--max-connections``, the host
 shares, ``/connected_clients``) and runs the session with the connection pump
 over the socket (``HttpChannel``): the request's body is its one frame, what the
@@ -12,9 +12,8 @@ session queues is written as it is (a whole response, or an event stream's head
 and events), the writer's backpressure and the slow-consumer rule are the
 pump's, as for every connection.
 
-It is registered as a ``frontends.HttpFrontEnd`` (``HTTP_API``) in
-``frontends_registry``; ``ServerConfig.http_options["http"] = None`` turns it off
-(``rwt serve --no-http-api``).
+It is registered as ``frontends_registry.HTTP_API``;
+``ServerConfig.http_options["http"] = None`` turns it off (``rwt serve --no-http-api``).
 """
 
 from __future__ import annotations
@@ -30,7 +29,7 @@ from rwt_http.wire import error_response, no_content
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 
 from .channel import PlainChannel
-from .frontends import AuthMode, FrontEnd, HttpFrontEnd, SessionRequest
+from .frontends import AuthMode, FrontEnd
 from .http_endpoint import claims_path, open_request
 from .pump import ConnectionPump, run_connection
 from .version_http import installed_version
@@ -43,11 +42,11 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.commands import CloseCode
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.outbox import OutFrame
+    from rwt_protocol.runtime.request import SessionRequest
 
-    from .server import GraphServer
-    from .websocket import HttpEndpoint
+    from .host import FrontEndHost
 
-__all__ = ["HTTP_API", "HttpApiEndpoint", "HttpChannel"]
+__all__ = ["API_PATHS", "HttpApiEndpoint", "HttpChannel", "http_api_endpoint"]
 
 logger = logging.getLogger("rwt.http")
 
@@ -110,15 +109,15 @@ class HttpApiEndpoint:
     """Answers the HTTP API's paths on the WebSocket port (an ``HttpEndpoint``; the module's text).
 
     Args:
-        server: the server whose graph it serves and which admits its requests.
+        host: the server whose graph it serves and which admits its requests.
         options: the API's settings.
     """
 
-    def __init__(self, server: GraphServer, options: HttpApiOptions) -> None:
-        self.server = server
+    def __init__(self, host: FrontEndHost, options: HttpApiOptions) -> None:
+        self.host = host
         self.options = options
-        self.allowed_origins = server.config.websocket.allowed_origins
-        self.max_body = options.max_body_bytes or server.config.max_message_size
+        self.allowed_origins = host.settings.allowed_origins
+        self.max_body = options.max_body_bytes or host.settings.max_message_size
 
     def bind(self, tg: TaskGroup | None) -> None:
         """Nothing to do: each request runs in its socket's task, admitted by the server."""
@@ -157,22 +156,22 @@ class HttpApiEndpoint:
         except RouteError as exc:
             await _send(stream, exc.status, exc.text, cors)
             return
-        refusal = self.server.entry.check(
-            HTTP_API.auth, peer, headers=opened.headers, now=time.monotonic()
+        refusal = self.host.entry.check(
+            AuthMode.BEARER, peer, headers=opened.headers, now=time.monotonic()
         )
         if refusal is not None:
             await _send(stream, refusal.status, refusal.text, (*cors, _CHALLENGE))
             return
         channel = HttpChannel(stream, opened.body)
-        pump = ConnectionPump(channel, self.server.flow, self.server.admission)
+        pump = ConnectionPump(channel, self.host.flow, self.host.admission)
 
         def make(request: SessionRequest) -> HttpSession:
             return HttpSession(
-                self.server.graph.port,
+                self.host.graph.port,
                 request.client_id,
                 route,
                 headers=cors,
-                config=request.config,
+                config=request.rules,
                 options=self.options,
                 version=installed_version(),
                 head_only=method == "HEAD",
@@ -183,7 +182,7 @@ class HttpApiEndpoint:
             )
 
         frontend = FrontEnd("http", (), make)
-        session = self.server.open_session(
+        session = self.host.open_session(
             "http", peer, pump.wake, frontend=frontend, authenticated=True
         )
         if session is None:
@@ -210,13 +209,12 @@ async def _send(
         logger.debug("event=http_refused peer gone status=%d", status)
 
 
-def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
+API_PATHS = (API_PREFIX, OPENAPI_PATH)
+"""The paths the API answers on the WebSocket port: ``/api/...`` and its OpenAPI document."""
+
+
+def http_api_endpoint(host: FrontEndHost, options: object) -> HttpApiEndpoint:
+    """The HTTP API of ``host`` (``frontends_registry.HTTP_API``); other options: the defaults."""
     return HttpApiEndpoint(
-        server, options if isinstance(options, HttpApiOptions) else HttpApiOptions()
+        host, options if isinstance(options, HttpApiOptions) else HttpApiOptions()
     )
-
-
-HTTP_API = HttpFrontEnd(
-    "http", (API_PREFIX, OPENAPI_PATH), _endpoint, HttpApiOptions(), AuthMode.BEARER
-)
-"""The HTTP API's entry in the registry (``frontends_registry``): on by default."""

@@ -8,7 +8,7 @@ request is admitted by the socket's ``pending`` record, and by the work it costs
 D58), answers the malformed, oversized, refused and cross-origin ones itself, and
 ``reply`` sends a response and ends the connection.
 A bearer token is read by ``bearer`` (``rwt_protocol.credentials``, the one parser)
-and checked by the server's one entry check (``GraphServer.entry``).
+and checked by the server's one entry check (``FrontEndHost.entry``).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import fnmatch
 from dataclasses import dataclass
 from enum import Enum
 from http import HTTPStatus
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import anyio
 import h11
@@ -31,7 +31,7 @@ from .pump import READ_SLICE_BYTES
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable, Sequence
 
-    from anyio.abc import ByteStream
+    from anyio.abc import ByteStream, TaskGroup
 
     from .pending import PendingSocket
 
@@ -39,6 +39,7 @@ __all__ = [
     "MAX_HEAD_BYTES",
     "READ_SLICE_EVENTS",
     "REFUSED_DRAIN_S",
+    "HttpEndpoint",
     "HttpRequest",
     "bearer",
     "claims_path",
@@ -55,6 +56,27 @@ _READ_SIZE = 65536
 MAX_HEAD_BYTES = 64 * 1024
 """The longest request head read on the WebSocket port (its request line and headers),
 bytes: tornado's default, rosbridge_suite's server's; longer gets 431 (D58)."""
+
+
+class HttpEndpoint(Protocol):
+    """An HTTP front end on the WebSocket port (``/version``, WebRTC, MCP, the HTTP API).
+
+    It claims requests by their first bytes and answers them; the server makes it
+    from its registry entry (``frontends_registry.HttpFrontEnd``) and binds it while serving.
+    """
+
+    def claims(self, head: bytes) -> bool | None:
+        """Whether the request starting with ``head`` is this endpoint's; None: too short."""
+
+    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
+        """Answer the request on ``stream`` whose first bytes are ``head``."""
+
+    def bind(self, tg: TaskGroup | None) -> None:
+        """Run what outlives a request in ``tg`` (the server's connections).
+
+        None: the server is stopping (or stopped): take nothing new, and free
+        what has not started.
+        """
 
 
 def claims_path(

@@ -25,12 +25,12 @@ them polls or cancels it.
 
 Every socket a request holds is a connection slot (D40): a session holds
 ``SESSION_SLOTS`` (itself and its event stream, and one request), and a request
-beyond them takes one more while it runs (``GraphServer.take_slot``), or gets
+beyond them takes one more while it runs (``FrontEndHost.take_slot``), or gets
 503; so requests in flight cannot run the server out of descriptors.
 
 Safety (docs/mcp.md, "Safety"): with ``--auth-secret-file`` a new session needs
 ``Authorization: Bearer <token>``, a live token of ``/rwt/video_token`` (else
-401; the server's one entry check, ``GraphServer.entry``, ``AuthMode.BEARER``),
+401; the server's one entry check, ``FrontEndHost.entry``, ``AuthMode.BEARER``),
 and every later request of the session the same header; a request's body
 is at most ``MAX_REQUEST_BYTES`` (413) of JSON under the rules of frames
 (``rwt_protocol.codecs.json``: nesting, integers, UTF-8; else 400 with a JSON-RPC
@@ -42,7 +42,7 @@ access gate and its log line. Refusals are logged once per episode.
 
 MCP is an HTTP front end of the registry (``mcp_options.MCP``), off unless
 ``ServerConfig.mcp`` is set. Its requests' sockets are slots of the server
-(``GraphServer.take_slot``, ``join_socket``).
+(``FrontEndHost.take_slot``, ``join_socket``).
 """
 
 from __future__ import annotations
@@ -92,10 +92,10 @@ from rwt_mcp.tasks import MAX_TASKS, TaskStore
 from rwt_mcp.tools import build_server, release_server, warm_up
 from rwt_protocol.codecs.json import decode_json_text
 from rwt_protocol.credentials import AuthMode, EntryAuth
-from rwt_protocol.errors import RemoteProtocolError
+from rwt_protocol.errors import ConfigError, RemoteProtocolError
 from rwt_protocol.runtime.access import log_refused
 
-from .frontends import FrontEnd, SessionRequest
+from .frontends import FrontEnd
 from .host_rates import HostPace
 from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
@@ -111,9 +111,10 @@ if TYPE_CHECKING:
 
     from rwt_graph.safety.envelope import Envelope
     from rwt_mcp.resources import Watched
+    from rwt_protocol.runtime.request import SessionRequest
 
+    from .host import FrontEndHost
     from .mcp_siblings import McpSiblings
-    from .server import GraphServer
 
 __all__ = [
     "HOST_REFUSAL_WAIT_S",
@@ -125,6 +126,7 @@ __all__ = [
     "REQUEST_STATE_TTL_S",
     "SESSION_SLOTS",
     "McpEndpoint",
+    "mcp_endpoint",
 ]
 
 logger = logging.getLogger("rwt.mcp")
@@ -218,7 +220,7 @@ def _make_session(request: SessionRequest) -> McpSession:
     return McpSession(
         request.graph,
         request.client_id,
-        config=request.config,
+        config=request.rules,
         on_output=request.on_output,
         peer=request.peer,
         on_closed=request.on_closed,
@@ -296,24 +298,22 @@ class McpEndpoint:
     """Answers MCP requests on the WebSocket port (``/mcp``).
 
     Args:
-        server: admits the sessions and holds the access rules.
+        host: admits the sessions and holds the access rules (``host.FrontEndHost``).
         options: the MCP settings.
         allowed_origins: fnmatch patterns of accepted ``Origin`` headers
             (``--allowed-origins``); empty: any origin.
-        access: the access rules its tools' guard holds calls to; by default the
-            server's (``session_config.access``), None where they restrict nothing.
     """
 
     def __init__(
         self,
-        server: GraphServer,
+        host: FrontEndHost,
         options: McpOptions,
         allowed_origins: tuple[str, ...] = (),
     ) -> None:
-        self.server = server
+        self.host = host
         self.options = options
         self.allowed_origins = allowed_origins
-        self.entry: EntryAuth = server.entry
+        self.entry: EntryAuth = host.entry
         if options.bearer_token is not None:  # its own check of the tokens, set by embedding code
             self.entry = dataclasses.replace(self.entry, token=options.bearer_token)
         self.auth_required = self.entry.required
@@ -328,14 +328,14 @@ class McpEndpoint:
         self._tg: TaskGroup | None = None
         self._forwarded: anyio.CancelScope | None = None
         self._host_pace = HostPace(HOST_SESSIONS_PER_S, HOST_SESSION_WAIT_S, MODERN_HOSTS_KEPT)
-        self.request_state = _request_state(self.siblings, server.graph.safety)
+        self.request_state = _request_state(self.siblings, host.graph.safety)
         """How every server of this front end seals a 2026-07-28 round's request state: any
         of them (and any worker's) takes the next round (a person's approval, D69)."""
         warm_up()  # before the server freezes its start-up objects (gcfreeze)
 
     def _approvals(self, client: str) -> Approvals | None:
         """What a session's tool calls ask a person first: the graph's safety rules' (D69)."""
-        envelope = self.server.graph.safety
+        envelope = self.host.graph.safety
         if envelope is None:
             return None
         return Approvals(envelope.rules, client, envelope.record_approval)
@@ -485,33 +485,34 @@ class McpEndpoint:
         Its socket here takes a connection slot while the answer is relayed (D40).
         """
         assert self.siblings is not None  # an owner is only found so
-        slot = self.server.take_slot("mcp", exchange.peer)
+        slot = self.host.take_slot("mcp", exchange.peer)
         if slot is None:
             await exchange.refuse(503, "too many connections")
             return True
-        self.server.join_socket()  # an event stream or a long call outlives the handshake
+        self.host.join_socket()  # an event stream or a long call outlives the handshake
         try:
             return await self.siblings.forward(
                 owner, exchange.peer, exchange.request, exchange.body, exchange.stream
             )
         finally:
-            self.server.give_slot(slot)
+            self.host.give_slot(slot)
 
     def _base(self, headers: dict[str, str]) -> str:
         """``http(s)://HOST[:PORT]`` as the client reached the endpoint (its ``Host`` header)."""
-        scheme = "https" if self.server.config.certfile is not None else "http"
+        settings = self.host.settings
+        scheme = "https" if settings.tls else "http"
         host = _HOST.sub("", headers.get("host", ""))[:255]  # the peer's text, in a header
-        return f"{scheme}://{host or f'{self.server.config.host}:{self.server.config.port}'}"
+        return f"{scheme}://{host or f'{settings.host}:{settings.port}'}"
 
     def _site(self, headers: dict[str, str]) -> AppSite:
         """Where the robot app finds this server's video, as the client reached it."""
         base = self._base(headers)
         video = None
         if self.options.video_port is not None:
-            host = urlsplit(base).hostname or self.server.config.host
+            host = urlsplit(base).hostname or self.host.settings.host
             host = f"[{host}]" if ":" in host else host  # an IPv6 address, in a URL
             video = f"http://{host}:{self.options.video_port}"  # the video server: no TLS
-        webrtc = self.server.config.webrtc is not None
+        webrtc = "webrtc" in self.host.features().transports
         return AppSite(base=base, webrtc=webrtc, video=video, auth=self.auth_required)
 
     def _metadata(self, headers: dict[str, str]) -> dict[str, Any]:
@@ -568,17 +569,17 @@ class McpEndpoint:
         The session takes ``SESSION_SLOTS`` slots: one more (taken first) beside its own.
         """
         tg = self._tg
-        slot = None if tg is None else self.server.take_slot("mcp", exchange.peer)
+        slot = None if tg is None else self.host.take_slot("mcp", exchange.peer)
         admitted = None if slot is None else await self._admit(exchange.peer)
         if tg is None or slot is None or admitted is None:
             if slot is not None:
-                self.server.give_slot(slot)
+                self.host.give_slot(slot)
             await exchange.refuse(503, "too many connections")
             return
         transport = StreamableHTTPServerTransport(
             mcp_session_id=self._new_id(),
             security_settings=_NO_SDK_CHECK,
-            idle_timeout=self.server.config.idle_timeout_s or None,  # --idle-timeout (D40)
+            idle_timeout=self.host.settings.idle_timeout_s or None,  # --idle-timeout (D40)
         )
         session_id = transport.mcp_session_id
         assert session_id is not None  # given just above
@@ -604,10 +605,10 @@ class McpEndpoint:
         if pumped:
             channel, connection = memory_pair()
             channel.transport = "mcp"  # in the logs: an MCP session's connection
-            pump = ConnectionPump(channel, self.server.flow, self.server.admission)
+            pump = ConnectionPump(channel, self.host.flow, self.host.admission)
             on_output = pump.wake
         # no socket of its own: its host's share applies from the first session (D40)
-        session = self.server.open_session(
+        session = self.host.open_session(
             "mcp",
             peer,
             on_output,
@@ -632,16 +633,16 @@ class McpEndpoint:
         """
         slot = None
         if session.in_flight >= SESSION_SLOTS:  # the session's own slots are in use
-            slot = self.server.take_slot("mcp", exchange.peer)
+            slot = self.host.take_slot("mcp", exchange.peer)
             if slot is None:
                 await exchange.refuse(503, "too many connections")
                 return
-        self.server.join_socket()
+        self.host.join_socket()
         try:
             await self._handle(exchange, session)
         finally:
             if slot is not None:
-                self.server.give_slot(slot)
+                self.host.give_slot(slot)
         if session.transport.is_terminated and session.transport.mcp_session_id:
             await self._discard(session.transport.mcp_session_id)  # the client's DELETE
 
@@ -707,7 +708,7 @@ class McpEndpoint:
         if tg is None or admitted is None:
             await exchange.refuse(503, "too many connections")
             return
-        self.server.join_socket()
+        self.host.join_socket()
         answered = anyio.Event()
         try:
             mcp = await tg.start(self._run_modern, admitted, exchange.peer, answered, site)
@@ -761,7 +762,7 @@ class McpEndpoint:
 
     def _host(self, peer: str) -> str:
         """The host ``peer`` (``ADDRESS:PORT``) counts as for the shares (``--host-prefix-v4``)."""
-        return self.server.host_prefixes.host(address_of(peer))
+        return self.host.host_prefixes.host(address_of(peer))
 
     def _modern_guard(self, peer: str) -> Guard:
         """A 2026-07-28 request's rules: its host's rate caps (``MODERN_HOSTS_KEPT``)."""
@@ -779,7 +780,7 @@ class McpEndpoint:
         """Forget the session (its id answers 404 from now) and end its transport."""
         session = self.sessions.pop(session_id, None)
         if session is not None:
-            self.server.give_slot(session.slot)
+            self.host.give_slot(session.slot)
             with anyio.CancelScope(shield=True):
                 await session.transport.terminate()
 
@@ -1027,3 +1028,14 @@ class _Exchange:
             if self._waiting is not None:  # the watcher of the disconnect: it returns now
                 self._waiting.cancel()
                 await anyio.lowlevel.checkpoint()
+
+
+def mcp_endpoint(host: FrontEndHost, options: object) -> McpEndpoint:
+    """The MCP endpoint of ``host`` (``frontends_registry.MCP``).
+
+    Raises:
+        ConfigError: ``options`` is not an ``McpOptions``.
+    """
+    if not isinstance(options, McpOptions):
+        raise ConfigError(f"MCP's options must be McpOptions, not {type(options).__name__}")
+    return McpEndpoint(host, options, host.settings.allowed_origins)

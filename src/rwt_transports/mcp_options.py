@@ -1,8 +1,8 @@
 """Settings of the MCP endpoint on the WebSocket port (``rwt serve --mcp``, docs/mcp.md).
 
 Apart from ``mcp_http`` so that the server's configuration names them without
-loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs; so is MCP's
-entry in the registry (``MCP``, ``frontends_registry``), whose endpoint loads it. What
+loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs: the registry
+(``frontends_registry.MCP``) loads ``mcp_http`` only when MCP is on. What
 bounds an MCP session as a client (its slots, its host's share, ``--idle-timeout``) is
 the server's own configuration (D40).
 """
@@ -12,18 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rwt_protocol.errors import ConfigError
-
-from .frontends import AuthMode, HttpFrontEnd
-
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from .mcp_siblings import McpSiblings
-    from .server import GraphServer
-    from .websocket import HttpEndpoint
 
-__all__ = ["MCP", "MCP_PATH", "METADATA_PATH", "McpOptions"]
+__all__ = ["MCP_PATH", "METADATA_PATH", "McpOptions"]
 
 MCP_PATH = "/mcp"
 """The MCP endpoint (Streamable HTTP): every request of an MCP client goes here."""
@@ -60,29 +54,3 @@ class McpOptions:
     authorization_server: str | None = None
     video_port: int | None = None
     siblings: McpSiblings | None = None
-
-
-def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
-    """The MCP endpoint (the MCP SDK: loaded only when MCP is on).
-
-    Raises:
-        ConfigError: ``options`` is not an ``McpOptions``.
-        ImportError: the MCP SDK is not installed (``rwt-rosbridge[mcp]``).
-    """
-    if not isinstance(options, McpOptions):
-        raise ConfigError(f"MCP's options must be McpOptions, not {type(options).__name__}")
-    from .mcp_http import McpEndpoint  # noqa: PLC0415 (the MCP SDK: only with --mcp)
-
-    return McpEndpoint(server, options, server.config.websocket.allowed_origins)
-
-
-MCP = HttpFrontEnd(
-    "mcp",
-    (MCP_PATH, METADATA_PATH),
-    _endpoint,
-    None,
-    AuthMode.BEARER,
-    configured=lambda config: config.mcp,
-)
-"""MCP's entry in the registry (``frontends_registry``): on with ``ServerConfig.mcp``
-(``rwt serve --mcp``)."""

@@ -58,7 +58,7 @@ import asyncio
 import contextlib
 import logging
 import weakref
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import anyio
 import anyio.lowlevel
@@ -81,12 +81,10 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
 
     from .channel import Channel
-    from .frontends import FrontEnd
 
 __all__ = [
     "CLOSE_WAIT_S",
     "ConnectionPump",
-    "SessionHost",
     "flush_deferred",
     "run_connection",
 ]
@@ -130,35 +128,6 @@ def _limiter(limiters: _Limiters, threads: int) -> anyio.CapacityLimiter:
     if limiter is None:
         limiter = limiters[loop] = anyio.CapacityLimiter(threads)
     return limiter
-
-
-class SessionHost(Protocol):
-    """What a transport needs from the server: sessions on its one graph (D22)."""
-
-    flow: FlowControl[Held]
-    """The server's flow control, shared by its connections' pumps and its links' gates."""
-
-    admission: Admission
-    """The server's starting connections, whose first input goes first (admission.py)."""
-
-    def open_session(
-        self,
-        transport: str,
-        peer: str,
-        on_output: Callable[[], None],
-        *,
-        frontend: FrontEnd | None = None,
-        auth_nonce: str | None = None,
-        authenticated: bool = False,
-    ) -> ServerSession | None:
-        """Admit a new connection and make its session.
-
-        ``frontend``: the protocol it speaks (``frontends.FrontEnd``; None:
-        rosbridge); ``auth_nonce``: its auth challenge, when the transport sent
-        it (``Session``); ``authenticated``: the transport already admitted it
-        (a URL token). None when the server is full (``--max-connections``) or
-        stopping.
-        """
 
 
 async def run_connection(pump: ConnectionPump, session: ServerSession, detail: str = "") -> None:
@@ -262,9 +231,9 @@ class ConnectionPump(Held):
 
     Args:
         channel: the connection.
-        flow: the server's flow control (``SessionHost.flow``); None: one of its
+        flow: the server's flow control (``host.SessionHost.flow``); None: one of its
             own (a pump that no server runs).
-        admission: the server's starting connections (``SessionHost.admission``);
+        admission: the server's starting connections (``host.SessionHost.admission``);
             None: its own (none but this one's).
         hello: the connection's first write, made once its reader listens (a
             WebSocket upgrade response): the peer may send only after it, so its

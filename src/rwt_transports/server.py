@@ -35,7 +35,7 @@ import ssl
 import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterable
 from contextlib import AsyncExitStack, asynccontextmanager
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import anyio
@@ -63,7 +63,8 @@ from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
 from rwt_protocol.runtime.memory import MemoryBudget
-from rwt_protocol.server.session import CloseCode, Session
+from rwt_protocol.runtime.request import SessionRequest
+from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
 from .admission import Admission, Ticket
@@ -71,9 +72,10 @@ from .config import ServerConfig
 from .deadman import run_deadman
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .flow import FlowControl, HostCoolDowns
-from .frontends import FrontEnd, FrontEnds, SessionRequest
+from .frontends import FrontEnd, FrontEnds
 from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
 from .gates import InboundBatch, OutboundHold
+from .host import Admitted, Features, HostSettings, ServedFrontEnd
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
 from .pending import PendingRequests, PendingSocket, current_socket, serve_socket
@@ -84,7 +86,6 @@ from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp import serve_udp
 from .udp_auth import UdpAuth
-from .version_http import Features, ServedFrontEnd
 from .websocket import serve_websocket_connection
 
 if TYPE_CHECKING:
@@ -96,14 +97,14 @@ if TYPE_CHECKING:
     from rwt_protocol.auth import Authenticator
     from rwt_protocol.runtime.access import AccessPolicy
     from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.rules import ClientRules
 
     from .holding import Held
+    from .http_endpoint import HttpEndpoint
     from .placement import Placement
-    from .websocket import HttpEndpoint
 
 __all__ = [
     "SERVER_NODE",
-    "Admitted",
     "GraphServer",
     "RosbridgeServer",
     "ServerConfig",
@@ -265,7 +266,7 @@ class GraphServer:
         on_port: list[FrontEnd] = []
         own: dict[str, tuple[int, FrontEnds]] = {}
         for entry in SOCKET_FRONTENDS:
-            frontend = entry.make(self)
+            frontend = entry.make(self, entry.options(self.config))
             if entry.on_port(self.config):
                 on_port.append(frontend)
             port = entry.own_port(self.config)
@@ -829,16 +830,14 @@ class GraphServer:
         else:
             client_id, host, address = ticket.client_id, ticket.host, ticket.address
             transport, peer = ticket.transport, ticket.peer
-        stream = transport in ("ws", "tcp", "tls", "webrtc")
         request = SessionRequest(
             self.graph.port,
             client_id,
             transport,
             peer,
-            self._stream_session_config if stream else self.session_config,
+            self._session_config_for(transport),
             on_output,
             self._session_closed,
-            self.fragment_budget,
             auth_nonce,
             authenticated,
             self.memory,
@@ -1008,16 +1007,40 @@ class GraphServer:
             share,
         )
 
+    @property
+    def settings(self) -> HostSettings:
+        """What its front ends read of its settings (``host.FrontEndHost``)."""
+        return _settings_of(self.config, self.session_config)
+
+    def _session_config_for(self, transport: str) -> SessionConfig:
+        """The per-client settings of a connection on ``transport``.
+
+        Stream connections (``ws``, ``tcp``, ``tls``, ``webrtc``) close when idle
+        (``--idle-timeout``); the others (stdio, in-process, UDP's own rule, HTTP,
+        MCP's own) by their own rules.
+        """
+        stream = transport in ("ws", "tcp", "tls", "webrtc")
+        return self._stream_session_config if stream else self.session_config
+
+    @property
+    def rules(self) -> ClientRules:
+        """The per-client rules of every protocol (``ServerConfig.session``'s ``ClientRules``)."""
+        return self.session_config
+
     def _rosbridge_session(self, request: SessionRequest) -> Session:
-        """A rosbridge session (``session_class``) for an admitted connection."""
+        """A rosbridge session (``session_class``) for an admitted connection.
+
+        Its section is rosbridge's ``SessionConfig``, the server's, whose
+        ``ClientRules`` part is the request's rules (``_session_config_for``).
+        """
         return self.session_class(
             request.graph,
             request.client_id,
-            config=request.config,
+            config=self._session_config_for(request.transport),
             on_output=request.on_output,
             peer=request.peer,
             on_closed=request.on_closed,
-            fragment_budget=request.fragment_budget,
+            fragment_budget=self.fragment_budget,
             auth_nonce=request.auth_nonce,
             authenticated=request.authenticated,
             memory=request.memory,
@@ -1083,27 +1106,6 @@ class GraphServer:
 
 RosbridgeServer = GraphServer
 """``GraphServer`` under its first name: the public API and the docs that use it stay valid."""
-
-
-@dataclass(slots=True)
-class Admitted:
-    """An admitted connection without a session yet (``GraphServer.admit``): its ticket.
-
-    Attributes:
-        client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
-        transport: the transport it was admitted on.
-        peer: the peer's address.
-        host: the host whose share it counts against; None for a local transport.
-        address: the peer's address without its port.
-        redeemed: a session took it, or it was released.
-    """
-
-    client_id: str
-    transport: str
-    peer: str
-    host: str | None
-    address: str
-    redeemed: bool = False
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
@@ -1176,6 +1178,19 @@ async def _contained(what: str, work: Awaitable[None]) -> None:
         await work
     except* Exception as group:
         logger.error("event=bug task=%r", what, exc_info=group.exceptions[0])
+
+
+def _settings_of(config: ServerConfig, session: SessionConfig) -> HostSettings:
+    """What a front end reads of ``config`` (``host.HostSettings``)."""
+    return HostSettings(
+        config.host,
+        config.port,
+        config.certfile is not None,
+        config.websocket.allowed_origins,
+        config.max_message_size,
+        config.idle_timeout_s,
+        session.compat,
+    )
 
 
 def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:

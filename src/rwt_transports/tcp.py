@@ -21,7 +21,7 @@ from rwt_protocol.ops import Status
 from . import admission
 from .direct import DirectReader, DirectWriter
 from .flow import ChannelAbilities
-from .pump import ConnectionPump, SessionHost, run_connection
+from .pump import ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import coalesce
 
@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.inframes import FramerEvent
     from rwt_protocol.runtime.outbox import OutFrame
+
+    from .host import SessionHost
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 

@@ -29,7 +29,7 @@ from rwt_protocol.ops import Status
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame
 
 from .channel import PlainChannel
-from .pump import ConnectionPump, SessionHost, run_connection
+from .pump import ConnectionPump, run_connection
 from .shares import HostPrefixes, HostShares
 from .udp_auth import Refusal, UdpAuth, read_first
 from .udp_validation import AddressValidator, split_token
@@ -43,6 +43,8 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.commands import CloseCode
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.outbox import OutFrame
+
+    from .host import SessionHost
 
 __all__ = ["UdpOptions", "serve_udp"]
 

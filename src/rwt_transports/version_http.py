@@ -5,7 +5,7 @@ with ``{"protocol": {"major", "minor", "patch"}, "server": "<version>"}`` as
 ``application/json`` (docs/reference-behaviour.md §13.4). rwt answers the same
 fields, the protocol version from ``rwt_protocol.version.PROTOCOL_VERSION`` and the
 server's from the installed distribution, plus ``rwt``: what this server offers
-(``Features``), built from its configuration when the request comes. No
+(``host.Features``), built from its configuration when the request comes. No
 authentication, whatever ``--auth-secret-file`` says, as the reference's (D49):
 the answer names no secret, topic, client, port or address.
 
@@ -21,7 +21,7 @@ such endpoint: there ``/version`` answers 404 to every method (``absent``), so a
 client that reads it (``rwt conformance``) takes the server for the 2.1.0 era it
 plays (D49).
 
-It is an HTTP front end of the registry (``VERSION``, ``frontends_registry``), the
+It is an HTTP front end of the registry (``frontends_registry.VERSION``), the
 smallest; the front ends it lists are the registry's as the server serves them.
 """
 
@@ -31,7 +31,7 @@ import contextlib
 import importlib.metadata
 import json
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from functools import cache
 from typing import TYPE_CHECKING
 
@@ -42,7 +42,6 @@ from rwt_protocol.distribution import DISTRIBUTION
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.version import PROTOCOL_VERSION
 
-from .frontends import AuthMode, HttpFrontEnd
 from .http_endpoint import claims_path, open_request, reply
 
 if TYPE_CHECKING:
@@ -50,18 +49,15 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream, TaskGroup
 
-    from .server import GraphServer
-    from .websocket import HttpEndpoint
+    from .host import Features, FrontEndHost
 
 __all__ = [
     "MAX_BODY_BYTES",
-    "VERSION",
     "VERSION_PATH",
-    "Features",
-    "ServedFrontEnd",
     "VersionEndpoint",
     "installed_version",
     "version_document",
+    "version_endpoint",
 ]
 
 logger = logging.getLogger("rwt.websocket")
@@ -76,55 +72,6 @@ _METHODS = (b"GET", b"HEAD", b"OPTIONS", b"POST", b"PUT", b"PATCH", b"DELETE")
 _ALLOW = b"GET, HEAD, OPTIONS"
 _JSON = "application/json"
 _CORS = [(b"Access-Control-Allow-Methods", _ALLOW)]
-
-
-@dataclass(frozen=True, slots=True)
-class ServedFrontEnd:
-    """One front end a server serves, as ``GET /version`` lists it (the registry's entry).
-
-    Attributes:
-        name: its name (``rosbridge``, ``foxglove``, ``http``, ``webrtc``, ``mcp``...).
-        subprotocols: the WebSocket subprotocols that select it.
-        labels: the WebRTC data-channel labels that select it (its lossy ones too).
-        paths: the HTTP paths (or prefixes ending in ``/``) it answers.
-        auth: how its clients prove who they are (``AuthMode``'s value: ``op``,
-            ``url``, ``bearer``...); ``none`` when the server asks for no proof.
-    """
-
-    name: str
-    subprotocols: tuple[str, ...] = ()
-    labels: tuple[str, ...] = ()
-    paths: tuple[str, ...] = ()
-    auth: str = "none"
-
-
-@dataclass(frozen=True, slots=True)
-class Features:
-    """What a server offers beyond the protocol: the ``rwt`` object of ``GET /version``.
-
-    Attributes:
-        transports: the ways in, as the server's URLs name them: ``ws`` or ``wss``,
-            ``tcp`` or ``tcp+tls``, ``udp``, ``stdio``, ``webrtc`` (docs/server.md).
-        encodings: the ``compression`` values a ``subscribe`` may ask for (spec
-            3.3.4: ``none``, ``png``, ``cbor``, ``cbor-raw``; D20, D21).
-        subprotocols: the WebSocket subprotocols that select another protocol on
-            this port (Foxglove's, docs/foxglove.md); rosbridge needs none.
-        frontends: every front end served, from the registry
-            (``frontends_registry``): the protocols on the WebSocket port and the
-            HTTP front ends.
-        auth: how a client authenticates: ``none``; ``op``, the rosauth ``auth`` op
-            first (a Foxglove client: a token in its URL; D23, D33); ``op-bound``,
-            the same signed over the connection's ``auth_challenge`` (D31).
-        safety: whether a safety envelope holds what remote clients command
-            (``--safety``, docs/safety.md); its rules are not told here (D49).
-    """
-
-    transports: tuple[str, ...]
-    encodings: tuple[str, ...]
-    subprotocols: tuple[str, ...]
-    frontends: tuple[ServedFrontEnd, ...]
-    auth: str
-    safety: bool = False
 
 
 @cache
@@ -270,11 +217,7 @@ _NO_VERSION = "no /version: --compat rosbridge-2.1 plays rosbridge_suite 2.1.0, 
 """``GET /version``'s 404 text in ``--compat rosbridge-2.1`` (``VersionEndpoint.absent``)."""
 
 
-def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
-    absent = _NO_VERSION if server.session_config.compat is Compat.ROSBRIDGE_2_1 else None
-    return VersionEndpoint(server.features, server.config.websocket.allowed_origins, absent)
-
-
-VERSION = HttpFrontEnd("version", (VERSION_PATH,), _endpoint, options=True, auth=AuthMode.NONE)
-"""``GET /version``'s entry in the registry (``frontends_registry``): on unless
-``ServerConfig.http_options["version"]`` is None."""
+def version_endpoint(host: FrontEndHost, options: object) -> VersionEndpoint:
+    """``GET /version`` of ``host`` (``frontends_registry.VERSION``; on whatever ``options``)."""
+    absent = _NO_VERSION if host.settings.compat is Compat.ROSBRIDGE_2_1 else None
+    return VersionEndpoint(host.features, host.settings.allowed_origins, absent)

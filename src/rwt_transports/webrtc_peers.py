@@ -1,7 +1,7 @@
 """The server's WebRTC peer connections: an offer in, sessions on the pump out (docs/webrtc.md).
 
 An offer is admitted as any connection is, with the server's public ticket
-(``GraphServer.admit``: ``--max-connections``, host shares), then answered by
+(``FrontEndHost.admit``: ``--max-connections``, host shares), then answered by
 aiortc, libdatachannel or libwebrtc (``--webrtc-stack``, ``_plan``, D51, D70), with every
 ICE candidate gathered (no trickle): host candidates, and
 with ``--ice-server`` the server-reflexive and relayed ones its STUN and TURN
@@ -51,13 +51,14 @@ import asyncio
 import logging
 import re
 import secrets
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import anyio
 from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSessionDescription
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.errors import ConfigError
 from rwt_protocol.runtime.commands import CloseCode
 
 from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
@@ -74,7 +75,8 @@ from .webrtc_sctp import (
     bound_sctp,
     incoming_message_limit,
 )
-from .webrtc_signal import WEBRTC_PATH, Answer
+from .webrtc_signal import WEBRTC_PATH, Answer, WebRtcOptions, WebRtcSignalling
+from .webrtc_video import WebRtcVideo
 
 if TYPE_CHECKING:
     from aiortc import RTCSctpTransport
@@ -83,17 +85,18 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
 
     from .frontends import ChannelLabel, FrontEnd, FrontEnds
-    from .server import Admitted, GraphServer
+    from .host import Admitted, FrontEndHost
     from .webrtc import AnyDataChannel
     from .webrtc_offer import OfferShape
-    from .webrtc_signal import VideoRequest, WebRtcOptions
-    from .webrtc_video import VideoBinding, WebRtcVideo
+    from .webrtc_signal import VideoRequest
+    from .webrtc_video import VideoBinding
 
 __all__ = [
     "MAX_CONNECTING",
     "OFFER_TIMEOUT_S",
     "WebRtcPeers",
     "channel_refusal",
+    "webrtc_endpoint",
 ]
 
 logger = logging.getLogger("rwt.webrtc")
@@ -159,7 +162,7 @@ class _Peer:
     session_id: str
     pc: RTCPeerConnection | NativePeerConnection | ReactorPeerConnection
     ticket: Admitted
-    """Its slot of the server's connection budget (``GraphServer.admit``), from the offer."""
+    """Its slot of the server's connection budget (``FrontEndHost.admit``), from the offer."""
     authenticated: bool
     """The offer carried a live bearer token (its sessions start authenticated)."""
     remote_max: int
@@ -201,7 +204,7 @@ class WebRtcPeers:
     """Answers offers and runs each peer's session until it ends.
 
     Args:
-        server: admits the peers (``admit``), makes their sessions
+        host: admits the peers (``admit``), makes their sessions
             (``open_session``) and names the protocols of their channels
             (``frontends``, the one registry).
         options: the WebRTC settings.
@@ -214,17 +217,17 @@ class WebRtcPeers:
 
     def __init__(
         self,
-        server: GraphServer,
+        host: FrontEndHost,
         options: WebRtcOptions,
         max_message_size: int,
         video: WebRtcVideo | None = None,
     ) -> None:
-        self.host = server
+        self.host = host
         self.video = video
         self.options = options
         self.max_message_size = incoming_message_limit(max_message_size)
         self.ice_servers = parse_ice_servers(options.ice_servers)
-        self.hosts = server.host_prefixes
+        self.hosts = host.host_prefixes
         self.peers: dict[str, _Peer] = {}
         self.connecting = 0
         """Offers being answered plus peers whose data channel is not open yet."""
@@ -763,3 +766,20 @@ async def _close_pc(pc: RTCPeerConnection | NativePeerConnection | ReactorPeerCo
     """Close a peer connection, within ``CLOSE_WAIT_S`` even while cancelled."""
     with anyio.CancelScope(shield=True), anyio.move_on_after(CLOSE_WAIT_S):
         await pc.close()
+
+
+def webrtc_endpoint(host: FrontEndHost, options: object) -> WebRtcSignalling:
+    """WebRTC signalling of ``host``, its peers and their video (``frontends_registry.WEBRTC``).
+
+    Raises:
+        ConfigError: ``options`` is not a ``WebRtcOptions``.
+        ImportError: aiortc is not installed (``rwt-rosbridge[webrtc]``).
+    """
+    if not isinstance(options, WebRtcOptions):
+        raise ConfigError(f"WebRTC's options must be WebRtcOptions, not {type(options).__name__}")
+    video = WebRtcVideo(host.graph, host.rules.access)
+    peers = WebRtcPeers(host, options, host.settings.max_message_size, video)
+    entry = host.entry
+    if options.bearer_token is not None:  # its own check of the tokens, set by embedding code
+        entry = replace(entry, token=options.bearer_token)
+    return WebRtcSignalling(peers, options, host.settings.allowed_origins, entry=entry)

@@ -17,14 +17,14 @@ offer carrying ``Authorization: Bearer <token>`` must carry a live video token
 (``/rwt/video_token``, docs/video.md), else 401; an offer without one opens
 sessions whose front end's own proof is asked for (rosbridge's ``auth`` op
 first, as a WebSocket client sends it, D23). Both go through the server's one
-entry check (``GraphServer.entry``, ``rwt_protocol.credentials``).
+entry check (``FrontEndHost.entry``, ``rwt_protocol.credentials``).
 
 Video tracks: ``POST /webrtc?video=/camera/image&video=/arm/image`` binds the
 offer's receiving video transceivers, in order, to those image topics (at most
 ``MAX_VIDEO_TRACKS``; webrtc_video.py); with an authenticator they need the
 bearer token, since a video-only peer has no data channel to authenticate on.
 
-WebRTC is an HTTP front end of the registry (``WEBRTC``, ``frontends_registry``),
+WebRTC is an HTTP front end of the registry (``frontends_registry.WEBRTC``),
 off unless ``ServerConfig.webrtc`` is set; the protocols its data channels carry
 are the registry's too, chosen by label (webrtc_peers.py).
 """
@@ -33,16 +33,15 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
 from typing import TYPE_CHECKING, Protocol
 from urllib.parse import parse_qsl
 
 from rwt_protocol.credentials import EntryAuth
-from rwt_protocol.errors import ConfigError
 
-from .frontends import AuthMode, HttpFrontEnd
+from .frontends import AuthMode
 from .http_endpoint import claims_path, open_request, reply
 from .webrtc_ice import parse_ice_servers
 from .webrtc_stacks import data_stack, stack_refusal, video_native
@@ -53,15 +52,11 @@ if TYPE_CHECKING:
     import h11
     from anyio.abc import ByteStream, TaskGroup
 
-    from .server import GraphServer
-    from .websocket import HttpEndpoint
-
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "MAX_OFFER_BYTES",
     "MAX_VIDEO_TRACKS",
     "ROSLIB_TRANSPORT_PATH",
-    "WEBRTC",
     "WEBRTC_PATH",
     "Answer",
     "OfferHandler",
@@ -223,7 +218,7 @@ class WebRtcSignalling:
         options: the WebRTC settings.
         allowed_origins: fnmatch patterns of accepted ``Origin`` headers
             (``--allowed-origins``); empty: any origin, as on the WebSocket.
-        entry: the server's one entry check (``GraphServer.entry``), which an
+        entry: the server's one entry check (``FrontEndHost.entry``), which an
             offer's bearer token passes; by default none is required.
     """
 
@@ -337,36 +332,3 @@ def _bodiless(method: str, path: str) -> Answer:
 def roslib_transport() -> str:
     """The JavaScript served at ``ROSLIB_TRANSPORT_PATH``, read from the package once."""
     return resources.files(__package__).joinpath("static", "roslib-transport.js").read_text("utf-8")
-
-
-def _endpoint(server: GraphServer, options: object) -> HttpEndpoint:
-    """Signalling with its peers and their video (aiortc: loaded only when WebRTC is on).
-
-    Raises:
-        ConfigError: ``options`` is not a ``WebRtcOptions``.
-        ImportError: aiortc is not installed (``rwt-rosbridge[webrtc]``).
-    """
-    if not isinstance(options, WebRtcOptions):
-        raise ConfigError(f"WebRTC's options must be WebRtcOptions, not {type(options).__name__}")
-    from .webrtc_peers import WebRtcPeers  # noqa: PLC0415 (aiortc: only with --webrtc)
-    from .webrtc_video import WebRtcVideo  # noqa: PLC0415 (aiortc's PyAV: only with --webrtc)
-
-    video = WebRtcVideo(server.graph, server.session_config.access)
-    peers = WebRtcPeers(server, options, server.config.max_message_size, video)
-    entry = server.entry
-    if options.bearer_token is not None:  # its own check of the tokens, set by embedding code
-        entry = replace(entry, token=options.bearer_token)
-    return WebRtcSignalling(peers, options, server.config.websocket.allowed_origins, entry=entry)
-
-
-WEBRTC = HttpFrontEnd(
-    "webrtc",
-    (WEBRTC_PATH,),
-    _endpoint,
-    None,
-    AuthMode.BEARER,
-    transport="webrtc",
-    configured=lambda config: config.webrtc,
-)
-"""WebRTC signalling's entry in the registry (``frontends_registry``): on with
-``ServerConfig.webrtc`` (``rwt serve --webrtc``)."""

@@ -33,7 +33,7 @@ import os
 import struct
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import TYPE_CHECKING, Final
 from urllib.parse import urlsplit
 
 import anyio
@@ -58,7 +58,7 @@ from .flow import ChannelAbilities
 from .http_endpoint import MAX_HEAD_BYTES, drain_refused
 from .pending import RETRY_AFTER_S, current_socket
 from .placement import RECORD_LIMIT_BYTES, placed_topic
-from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
+from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import WRITE_BATCH
 from .wsread import FrameReader
@@ -66,7 +66,7 @@ from .wsread import FrameReader
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from anyio.abc import ByteStream, TaskGroup
+    from anyio.abc import ByteStream
     from websockets.datastructures import Headers
     from websockets.extensions.base import ServerExtensionFactory
 
@@ -76,9 +76,11 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.outbox import OutFrame
 
     from .frontends import FrontEnd, FrontEnds
+    from .host import SessionHost
+    from .http_endpoint import HttpEndpoint
     from .placement import Placement
 
-__all__ = ["HttpEndpoint", "WebSocketOptions", "serve_websocket_connection"]
+__all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
 logger = logging.getLogger("rwt.websocket")
 
@@ -567,27 +569,6 @@ def _make_protocol(
         extensions=extensions,
         select_subprotocol=select if frontends.others else None,
     )
-
-
-class HttpEndpoint(Protocol):
-    """An HTTP front end on the WebSocket port (``/version``, WebRTC, MCP, the HTTP API).
-
-    It claims requests by their first bytes and answers them; the server makes it
-    from its registry entry (``frontends.HttpFrontEnd``) and binds it while serving.
-    """
-
-    def claims(self, head: bytes) -> bool | None:
-        """Whether the request starting with ``head`` is this endpoint's; None: too short."""
-
-    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
-        """Answer the request on ``stream`` whose first bytes are ``head``."""
-
-    def bind(self, tg: TaskGroup | None) -> None:
-        """Run what outlives a request in ``tg`` (the server's connections).
-
-        None: the server is stopping (or stopped): take nothing new, and free
-        what has not started.
-        """
 
 
 async def _read_head(

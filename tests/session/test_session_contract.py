@@ -29,10 +29,10 @@ from rwt_graph.port import GraphFront
 from rwt_protocol.ports import GraphPort
 from rwt_protocol.runtime.connection import SessionBase
 from rwt_protocol.runtime.contract import Job, ServerSession
+from rwt_protocol.runtime.request import SessionRequest
 from rwt_protocol.runtime.rules import ClientRules
 from rwt_protocol.server.pngout import PngPublishJob
 from rwt_protocol.server.session import Session, SessionConfig
-from rwt_transports.frontends import SessionRequest
 from tests.support.echo import EchoSession
 
 
