@@ -1,0 +1,79 @@
+"""The house's rules that a reading of the code checks (docs/architecture.md).
+
+Each rule here is a fact of the source, read with ``ast``: which module imports
+what, how many modules a package holds at one level. The import contracts in
+pyproject.toml (``lint-imports``) check the layers; these check what a contract
+cannot say.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from tests.support.packages import SRC
+
+TRANSPORTS = SRC / "rwt_transports"
+
+SERVER_OWN = {"server.py", "config.py", "frontends_registry.py"}
+"""The server's own modules: the only ones that may know the server and rosbridge's settings."""
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imports_of(path: Path) -> set[str]:
+    """Every module and ``module.name`` that ``path`` imports, type-only ones included.
+
+    Relative imports are made absolute, so ``from .server import X`` gives
+    ``rwt_transports.server`` and ``rwt_transports.server.X``.
+    """
+    module = _module_name(path)
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join([*parent, base] if base else parent)
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names)
+    return found
+
+
+def front_end_modules() -> list[Path]:
+    """The modules of the front ends and the transports below the server.
+
+    Every module of ``rwt_transports`` but the server's own (``SERVER_OWN``), and the
+    front ends' own packages (``rwt_http``, ``rwt_mcp``, ``rwt_foxglove``).
+    """
+    paths = [
+        p
+        for p in TRANSPORTS.rglob("*.py")
+        if p.relative_to(TRANSPORTS).as_posix() not in SERVER_OWN
+    ]
+    for package in ("rwt_http", "rwt_mcp", "rwt_foxglove"):
+        paths += (SRC / package).rglob("*.py")
+    return sorted(paths)
+
+
+def test_no_front_end_knows_the_server_or_rosbridge_settings() -> None:
+    """A front end is written against ``rwt_transports.host.FrontEndHost``, not the server."""
+    found = {
+        str(path.relative_to(SRC)): sorted(
+            name
+            for name in imports_of(path)
+            if name == "rwt_transports.server"
+            or name.startswith("rwt_transports.server.")
+            or name.endswith(".SessionConfig")
+        )
+        for path in front_end_modules()
+    }
+    assert {path: names for path, names in found.items() if names} == {}
