@@ -33,21 +33,15 @@ or the budget ran out while it was waited for) is left to its own drop rules
 (D24 for a connection, the link's byte bound for a link): a connection for
 ``COOL_DOWN_BUDGETS`` budgets, and so is every connection its host opens
 meanwhile, whether it catches up or reconnects; a link until it catches up.
-
-What a channel can do beyond receive, send and close comes as one value,
-``ChannelAbilities``, that the channel reports.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Generic, Protocol, TypeVar
 
 if TYPE_CHECKING:
     from collections.abc import Callable
-
-from .shares import HostPrefixes, address_of
 
 __all__ = [
     "COOL_DOWN_BUDGETS",
@@ -55,11 +49,11 @@ __all__ = [
     "INPUT_STALL_S",
     "READING_SHARE",
     "WATCH_SHARE",
-    "ChannelAbilities",
     "FlowControl",
     "Hold",
     "HoldAccount",
     "HostCoolDowns",
+    "HostNames",
     "Outlet",
     "PendingOutput",
     "ReadingWindow",
@@ -98,28 +92,6 @@ COOL_DOWN_BUDGETS = 20.0
 """Hold budgets' worth of seconds a connection found slow, and every connection its
 host opens meanwhile, is not waited for (100 s at the default 5 s budget): one
 host can hold a publisher back for at most one budget in 21."""
-
-
-@dataclass(frozen=True, slots=True)
-class ChannelAbilities:
-    """What a connection's channel can do beyond receive, send and close.
-
-    Attributes:
-        pause_reading: its socket can stop being read between ``receive`` calls
-            (``pause_reading``), so a held reader's peer is pushed back by TCP.
-        probe_input: it can tell whether input is already here without reading
-            it (``input_pending``): a starting connection's first input goes
-            first (admission.py).
-        unsent_bytes: it can read its kernel's send queue (``unsent_bytes``,
-            sendqueue.py): progress no completed send shows.
-        send_now: it can write without awaiting when ``can_send_now`` says so
-            (``send_now``): the ``deferred-send`` path.
-    """
-
-    pause_reading: bool = False
-    probe_input: bool = False
-    unsent_bytes: bool = False
-    send_now: bool = False
 
 
 class HoldAccount:
@@ -199,24 +171,31 @@ def send_queue_shrank(before: int | None, after: int | None) -> bool:
     return before is not None and after is not None and after < before
 
 
+class HostNames(Protocol):
+    """How peers group into hosts (the server's: ``rwt_transports.shares.HostPrefixes``)."""
+
+    def host_of(self, peer: str) -> str:
+        """The host a peer address (``host:port``, ``stdio``, ``memory``) counts as."""
+
+
 class HostCoolDowns:
     """Until when each host's connections are not waited for, after one was found slow.
 
-    Hosts are grouped as for the connection shares (``shares.HostPrefixes``).
-    Memory: one entry per host found slow within its cool-down; expired ones go
-    at the next verdict.
+    Hosts are grouped as for the connection shares (``HostNames``: the server's
+    ``--host-prefix-v4`` and ``-v6``). Memory: one entry per host found slow within
+    its cool-down; expired ones go at the next verdict.
 
     Args:
         hosts: the server's host grouping.
     """
 
-    def __init__(self, hosts: HostPrefixes) -> None:
+    def __init__(self, hosts: HostNames) -> None:
         self._hosts = hosts
         self._until: dict[str, float] = {}
 
     def host(self, peer: str) -> str:
         """The host a peer address (``host:port``, ``stdio``, ``memory``) counts as."""
-        return self._hosts.host(address_of(peer))
+        return self._hosts.host_of(peer)
 
     def until(self, host: str) -> float:
         """The time until which ``host``'s new connections are not waited for (-inf: none)."""

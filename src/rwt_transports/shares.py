@@ -99,6 +99,10 @@ class HostPrefixes:
             return str(ip)
         return str(ipaddress.ip_network((ip, bits), strict=False))
 
+    def host_of(self, peer: str) -> str:
+        """The host a peer (``HOST:PORT``, ``stdio``, ``memory``) counts as (``host``)."""
+        return self.host(address_of(peer))
+
 
 class HostShares:
     """The slots each host holds, and whether it may take one more.

@@ -19,8 +19,8 @@ from rwt_protocol.framing.streams import JsonStreamFramer
 from rwt_protocol.ops import Status
 
 from . import admission
+from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter
-from .flow import ChannelAbilities
 from .pump import ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import coalesce

@@ -53,8 +53,8 @@ from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.shortcuts import enabled
 
 from . import admission
+from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter, asyncio_parts
-from .flow import ChannelAbilities
 from .http_endpoint import MAX_HEAD_BYTES, drain_refused
 from .pending import RETRY_AFTER_S, current_socket
 from .placement import RECORD_LIMIT_BYTES, placed_topic

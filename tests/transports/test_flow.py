@@ -17,11 +17,11 @@ from dataclasses import dataclass
 
 import pytest
 
+from rwt_transports.channel import ChannelAbilities
 from rwt_transports.flow import (
     COOL_DOWN_BUDGETS,
     HOLD_REFILL,
     INPUT_STALL_S,
-    ChannelAbilities,
     FlowControl,
     HoldAccount,
     HostCoolDowns,
