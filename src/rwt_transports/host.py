@@ -25,11 +25,11 @@ if TYPE_CHECKING:
     from rwt_graph.graph import Graph
     from rwt_protocol.credentials import EntryAuth
     from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.flow import FlowControl
     from rwt_protocol.runtime.rules import ClientRules
     from rwt_protocol.server.compat import Compat
 
     from .admission import Admission
-    from .flow import FlowControl
     from .frontends import FrontEnd, FrontEnds
     from .holding import Held
     from .shares import HostPrefixes

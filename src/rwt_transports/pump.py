@@ -35,7 +35,7 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   (``ChannelAbilities.pause_reading``) until that outbox is back under the low
   watermark (a quarter), within its hold budget, while its peer reads. Who
   congested a batch, how long to wait and who is slow is decided by the
-  server's ``flow.FlowControl`` (sans-IO, one per event loop); the pump carries
+  server's ``rwt_protocol.runtime.flow.FlowControl`` (sans-IO, one per event loop); the pump carries
   it out (``holding.wait_for``). A reader waits for its own outbox only for the
   replies and statuses in it (they are never dropped), so a peer sending
   garbage faster than it reads the answers is slowed, not buffered without
@@ -67,11 +67,11 @@ import anyio.to_thread
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.commands import CloseCode, CloseConnection
+from rwt_protocol.runtime.flow import FlowControl, HoldAccount, ReadingWindow
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.shortcuts import enabled
 
 from .admission import Admission, Ticket, current_ticket
-from .flow import FlowControl, HoldAccount, ReadingWindow
 from .gather import GATHER_BYTES, Gatherer
 from .holding import Held, wait_for
 
@@ -318,7 +318,7 @@ class ConnectionPump(Held):
                 flow.note_congested(self, anyio.current_time())
 
     def _fell_behind(self, session: ServerSession) -> None:
-        """The outbox passed its ``watch_water``: its reading window starts (flow.py).
+        """The outbox passed its ``watch_water``: its reading window starts (runtime's flow.py).
 
         The session wakes this pump again only past the high watermark, until
         the peer is back at its ``watch_water`` (``_took``).
@@ -331,7 +331,7 @@ class ConnectionPump(Held):
         """The transport took frames: the peer makes progress; wake readers waiting on it.
 
         Having taken everything queued, the peer caught up (a slow one stays
-        slow until its cool-down ends: ``flow.FlowControl.found_slow``); back at
+        slow until its cool-down ends: ``FlowControl.found_slow``); back at
         its ``watch_water``, it is no longer behind: its reading window ends, and
         the session wakes this pump at the next output past the mark. ``sent``:
         the transport wrote them, so they are no longer held (D44).
@@ -372,7 +372,7 @@ class ConnectionPump(Held):
         self._deferred = True
 
     def flush_deferred(self) -> None:
-        """Write what was deferred now, or wake the writer (``flow.PendingOutput``)."""
+        """Write what was deferred now, or wake the writer (``FlowControl``'s ``PendingOutput``)."""
         self._deferred = False
         try:
             sent = self._writer_idle and self._send_now()

@@ -62,6 +62,7 @@ from rwt_protocol.credentials import EntryAuth
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
+from rwt_protocol.runtime.flow import FlowControl, HostCoolDowns
 from rwt_protocol.runtime.memory import MemoryBudget
 from rwt_protocol.runtime.request import SessionRequest
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
@@ -71,7 +72,6 @@ from .admission import Admission, Ticket
 from .config import ServerConfig
 from .deadman import run_deadman
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
-from .flow import FlowControl, HostCoolDowns
 from .frontends import FrontEnd, FrontEnds
 from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
 from .gates import InboundBatch, OutboundHold

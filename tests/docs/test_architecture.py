@@ -18,7 +18,7 @@ from tests.support.packages import REPO, SRC, packages
 
 MAP_PAGES = [REPO / "docs" / "architecture.md", REPO / "CONTRIBUTING.md"]
 
-# ``rwt_graph.mirror``, ``rwt_transports.flow.FlowControl``, ``rwt_protocol/ops/``
+# ``rwt_graph.mirror``, ``rwt_protocol.runtime.flow.FlowControl``, ``rwt_protocol/ops/``
 DOTTED = re.compile(r"`(rwt_[a-z0-9_]+(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`")
 SLASHED = re.compile(r"`((?:rwt_[a-z0-9_]+|tests)(?:/[A-Za-z0-9_.]+)+/?)`")
 

@@ -17,8 +17,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from rwt_transports.channel import ChannelAbilities
-from rwt_transports.flow import (
+from rwt_protocol.runtime.flow import (
     COOL_DOWN_BUDGETS,
     HOLD_REFILL,
     INPUT_STALL_S,
@@ -29,6 +28,7 @@ from rwt_transports.flow import (
     ReadingWindow,
     send_queue_shrank,
 )
+from rwt_transports.channel import ChannelAbilities
 from rwt_transports.shares import HostPrefixes
 
 MiB = 1024 * 1024

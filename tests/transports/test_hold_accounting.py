@@ -13,7 +13,7 @@ import math
 
 import pytest
 
-from rwt_transports.flow import (
+from rwt_protocol.runtime.flow import (
     HOLD_REFILL,
     INPUT_STALL_S,
     READING_SHARE,

@@ -12,10 +12,13 @@ only those listed after it (an import-linter contract keeps it so):
   connections), ``callbook`` (the calls in flight: a cap, a deadline each,
   answered once), ``lossy`` (the lane of a transport's lossy channel, D36);
 - ``contract``: ``ServerSession``, what the connection runtime
-  (``rwt_transports.pump``) sees of a session, and ``Job``;
+  (``rwt_transports.pump``) sees of a session, and ``Job``; ``request``:
+  ``SessionRequest``, what a front end makes a session from (the shared rules);
 - ``outbox`` (the bounded queue of outgoing frames), ``timers``,
   ``lifecycle`` (a connection's states and their moves);
 - ``access`` (the access rules), ``memory`` (the server-wide memory budget
   every connection is charged to, D44), ``commands`` (what a session asks its
-  transport to do), ``inframes`` (what a transport hands a session).
+  transport to do), ``inframes`` (what a transport hands a session), ``flow``
+  (flow control: who waits for whom, and for how long; sans-IO, one per event
+  loop, which the pump and the links' gates carry out).
 """

@@ -18,7 +18,7 @@ and progress, the hold budgets (``HoldAccount``), the stall rule
 from the moment it falls behind) and the slow verdicts with their cool-downs
 (``HostCoolDowns``). Its methods take the time (``now``, seconds of
 the event loop's clock) and byte counts and return decisions; the pump
-(pump.py, holding.py) and the links' gates (gates.py) carry them out: pause a
+(``rwt_transports.pump``, ``holding``) and the links' gates (``gates``) carry them out: pause a
 socket, wait for a consumer's next take, write deferred output.
 
 The time waited is charged to the reader being held (a publishing connection,
@@ -69,7 +69,7 @@ start of a hold: a reader held for it waits only for what is left of them. Its q
 then drops and it is closed after ``--send-timeout`` (D24)."""
 
 READING_SHARE = 1 / 16
-"""Share of its backlog (outbox plus the socket's send queue, sendqueue.py) a peer
+"""Share of its backlog (outbox plus the socket's send queue, ``rwt_transports.sendqueue``) a peer
 must take per ``INPUT_STALL_S`` while it is behind to count as reading. A viewer
 drawing three 300 KB frames a second from a full 16 MiB connection (8 MiB queued,
 4 MiB in the kernel) takes 7 %; one reading 64 KB every 0.5 s of a 10 MB/s topic,
