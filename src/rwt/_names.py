@@ -102,7 +102,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_protocol.auth": ("auth_query", "rosauth_op"),
         "rwt_transports.websocket": ("WebSocketOptions",),
         "rwt_transports.udp": ("UdpOptions",),
-        "rwt_transports.webrtc_signal": ("WebRtcOptions",),
+        "rwt_transports.webrtc.signalling": ("WebRtcOptions",),
         "rwt_transports.mcp_options": ("McpOptions",),
         "rwt_transports.mcp_siblings": ("McpSiblings",),
         "rwt_transports.placement": ("Placement",),

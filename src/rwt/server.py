@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from rwt_transports.placement import Placement
     from rwt_transports.server import rosauth_authenticator
     from rwt_transports.udp import UdpOptions
-    from rwt_transports.webrtc_signal import WebRtcOptions
+    from rwt_transports.webrtc.signalling import WebRtcOptions
     from rwt_transports.websocket import WebSocketOptions
 
 __all__ = [

@@ -36,9 +36,9 @@ from rwt_transports.mcp_siblings import McpSiblings
 from rwt_transports.placement import Placement
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
-from rwt_transports.webrtc_ice import parse_ice_servers
-from rwt_transports.webrtc_native import native_ice_refusal
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.ice import parse_ice_servers
+from rwt_transports.webrtc.native import native_ice_refusal
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.worker_counts import ConnectionCountWriter
 from rwt_transports.workers import run_workers

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
     from .mcp_options import McpOptions
     from .placement import Placement
-    from .webrtc_signal import WebRtcOptions
+    from .webrtc.signalling import WebRtcOptions
 
 __all__ = ["MiB", "ServerConfig"]
 

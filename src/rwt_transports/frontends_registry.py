@@ -33,7 +33,7 @@ from .frontends import AuthMode, FrontEnd
 from .http_api import API_PATHS, http_api_endpoint
 from .mcp_options import MCP_PATH, METADATA_PATH
 from .version_http import VERSION_PATH, version_endpoint
-from .webrtc_signal import WEBRTC_PATH
+from .webrtc.signalling import WEBRTC_PATH
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -124,13 +124,13 @@ class SocketFrontEnd:
 
 
 def webrtc_endpoint(host: FrontEndHost, options: object) -> HttpEndpoint:
-    """WebRTC's endpoint (``webrtc_peers.webrtc_endpoint``): aiortc is loaded only now.
+    """WebRTC's endpoint (``webrtc.peers.webrtc_endpoint``): aiortc is loaded only now.
 
     Raises:
         ConfigError: ``options`` is not a ``WebRtcOptions``.
         ImportError: aiortc is not installed (``rwt-rosbridge[webrtc]``).
     """
-    from .webrtc_peers import webrtc_endpoint as made  # noqa: PLC0415 (only with --webrtc)
+    from .webrtc.peers import webrtc_endpoint as made  # noqa: PLC0415 (only with --webrtc)
 
     return made(host, options)
 

@@ -272,7 +272,7 @@ async def test_a_host_reads_a_bounded_number_of_requests_on_every_endpoint(path:
     pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
     pytest.importorskip("aiortc", reason="aiortc is not installed (the webrtc or test extra)")
     from rwt_transports.mcp_options import McpOptions  # noqa: PLC0415 (after the skips)
-    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_transports.webrtc.signalling import WebRtcOptions  # noqa: PLC0415
 
     fields = {"max_connections_per_host": 2, "mcp": McpOptions(), "webrtc": WebRtcOptions()}
     async with serving(**fields) as server, AsyncExitStack() as stack:

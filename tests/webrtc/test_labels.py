@@ -27,7 +27,7 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
 
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from tests.webrtc.peer import RECEIVE_S, offer_sdp, serving
 from tests.webrtc.whep import SDP, post_offer, recvonly_offer
 

@@ -89,7 +89,7 @@ its TSN in the SACK set), counted toward ``webrtc.INBOX_LIMIT_BYTES``."""
 
 ANSWER_MAX_MESSAGE_SIZE: int = LOCAL_MAX_MESSAGE_SIZE
 """The ``a=max-message-size`` an answer states, bytes (256 KiB, aiortc's; the native stack's
-answer states the same, webrtc_native.py)."""
+answer states the same, native.py)."""
 
 
 def incoming_message_limit(max_message_size: int) -> int:

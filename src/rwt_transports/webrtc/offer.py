@@ -54,7 +54,7 @@ __all__ = [
 
 MAX_MEDIA_SECTIONS = 8
 """Media sections (``m=`` lines) of one offer: the data channel, the four video tracks an
-offer may ask for (``webrtc_signal.MAX_VIDEO_TRACKS``) and room for the audio transceivers a
+offer may ask for (``webrtc.signalling.MAX_VIDEO_TRACKS``) and room for the audio transceivers a
 player adds (answered inactive). Past it, 400."""
 
 MAX_SECTION_CANDIDATES = 32
@@ -132,7 +132,7 @@ def check_offer(sdp: str) -> OfferShape:
     """Check an offer SDP (the rules of the module's docstring).
 
     Args:
-        sdp: the offer's text, at most ``webrtc_signal.MAX_OFFER_BYTES``.
+        sdp: the offer's text, at most ``webrtc.signalling.MAX_OFFER_BYTES``.
 
     Returns:
         Its media kinds and candidate addresses.

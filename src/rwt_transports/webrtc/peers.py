@@ -11,13 +11,13 @@ server's one front-end registry (``FrontEnds.by_label``, ``frontends_registry``)
 rosbridge's ``rosbridge`` (reliable, ordered), or a registered protocol's label.
 The first such channel opens the session on the ticket (``open_session(ticket=)``,
 counted in ``/connected_clients`` from then), which runs on the connection pump
-like a WebSocket's once the channel is open (webrtc.py). A lossy label of the same
+like a WebSocket's once the channel is open (channel.py). A lossy label of the same
 front end (``rosbridge-lossy``: unordered, ``maxRetransmits`` 0) belongs to the same
 session: it opens the session's lossy lane (D36). A label the registry does not
 name is refused: the channel is closed and the log names the label and the ones
 served (``event=channel_refused``). Bounds, each enforced here (docs/limits.md):
 
-- the offer's form (webrtc_offer.py, D38): checked before anything else, so a
+- the offer's form (offer.py, D38): checked before anything else, so a
   malformed or oversized one (media sections, candidates and the addresses they
   name) costs a read of its text.
 - ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
@@ -29,14 +29,14 @@ served (``event=channel_refused``). Bounds, each enforced here (docs/limits.md):
   included); after it, 503.
 - ``WebRtcOptions.connect_timeout_s``: from the answer to an open data channel
   (ICE, DTLS, SCTP); a peer that never gets there is freed.
-- what a peer's SCTP holds below its session (webrtc_sctp.py, D39): messages
+- what a peer's SCTP holds below its session (sctp.py, D39): messages
   over the size abandoned as they arrive, held fragments counted in the inbox.
 
 A session ends when its data channel or peer connection closes or fails, on
 ``DELETE /webrtc/<id>``, on its idle timeout, or as any session does; its peer
 connection is closed with it, and the ticket's slot is given back.
 
-Video tracks (``?video=``, webrtc_video.py; webrtc_native_video.py on the native
+Video tracks (``?video=``, video.py; native_video.py on the native
 stack) are bound to the offer's video transceivers before the answer, join their
 shared streams when the peer connects (D37: a peer that never connects runs no
 encoder) and leave them when the peer connection ends. An offer with video and no
@@ -61,22 +61,22 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import ConfigError
 from rwt_protocol.runtime.commands import CloseCode
 
-from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
-from .shares import HostShares, address_of
-from .webrtc import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
-from .webrtc_ice import parse_ice_servers
-from .webrtc_native import Inflow, NativeDataChannel, NativePeerConnection
-from .webrtc_native_video import VideoPlan, native_video_plan, prepare_native_tracks
-from .webrtc_offer import OfferError, check_offer
-from .webrtc_reactor import ReactorPeerConnection
-from .webrtc_sctp import (
+from ..pump import CLOSE_WAIT_S, ConnectionPump, run_connection
+from ..shares import HostShares, address_of
+from .channel import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
+from .ice import parse_ice_servers
+from .native import Inflow, NativeDataChannel, NativePeerConnection
+from .native_video import VideoPlan, native_video_plan, prepare_native_tracks
+from .offer import OfferError, check_offer
+from .reactor import ReactorPeerConnection
+from .sctp import (
     ANSWER_MAX_MESSAGE_SIZE,
     SctpBound,
     bound_sctp,
     incoming_message_limit,
 )
-from .webrtc_signal import WEBRTC_PATH, Answer, WebRtcOptions, WebRtcSignalling
-from .webrtc_video import WebRtcVideo
+from .signalling import WEBRTC_PATH, Answer, WebRtcOptions, WebRtcSignalling
+from .video import WebRtcVideo
 
 if TYPE_CHECKING:
     from aiortc import RTCSctpTransport
@@ -84,12 +84,12 @@ if TYPE_CHECKING:
 
     from rwt_protocol.runtime.contract import ServerSession
 
-    from .frontends import ChannelLabel, FrontEnd, FrontEnds
-    from .host import Admitted, FrontEndHost
-    from .webrtc import AnyDataChannel
-    from .webrtc_offer import OfferShape
-    from .webrtc_signal import VideoRequest
-    from .webrtc_video import VideoBinding
+    from ..frontends import ChannelLabel, FrontEnd, FrontEnds
+    from ..host import Admitted, FrontEndHost
+    from .channel import AnyDataChannel
+    from .offer import OfferShape
+    from .signalling import VideoRequest
+    from .video import VideoBinding
 
 __all__ = [
     "MAX_CONNECTING",
@@ -246,7 +246,7 @@ class WebRtcPeers:
     ) -> Answer:
         """Admit and answer an offer, with the video tracks ``video`` asks for.
 
-        The offer is checked first (``webrtc_offer.check_offer``, D38), then it
+        The offer is checked first (``webrtc.offer.check_offer``, D38), then it
         takes a connecting slot of its host's share (D37), which its peer holds
         until it connects.
 
@@ -339,7 +339,7 @@ class WebRtcPeers:
             item.host = None
 
     def _video_binding(self, video: VideoRequest | None, peer: str) -> VideoBinding | Answer | None:
-        """The tracks ``video`` asks for (None: none), or why not (webrtc_video.py)."""
+        """The tracks ``video`` asks for (None: none), or why not (video.py)."""
         if video is None or not video.topics:
             return None
         if self.video is None:
@@ -483,7 +483,7 @@ class WebRtcPeers:
     ) -> tuple[Answer | None, str | None]:
         """Set the offer and the answer (gathering every candidate); None when it worked.
 
-        The peer's SCTP transport is bounded before it starts (webrtc_sctp.py);
+        The peer's SCTP transport is bounded before it starts (sctp.py);
         its video tracks are bound to the offer's transceivers before the answer
         and their codecs checked after it (their streams start when it connects).
 
@@ -512,7 +512,7 @@ class WebRtcPeers:
         return refusal, None if local is None else local.sdp
 
     def _bound_sctp(self, item: _Peer, transport: RTCSctpTransport) -> None:
-        """Bound what ``item``'s SCTP holds below its session (D39, webrtc_sctp.py)."""
+        """Bound what ``item``'s SCTP holds below its session (D39, sctp.py)."""
         bound = SctpBound(
             self.max_message_size,
             INBOX_LIMIT_BYTES,
@@ -553,7 +553,7 @@ class WebRtcPeers:
 
         One reliable channel and one lossy one (unordered, ``maxRetransmits`` 0,
         D36), of one front end; any other channel is closed, the reason logged. A
-        native channel reports the inbox bounds itself (webrtc_native.py): a
+        native channel reports the inbox bounds itself (native.py): a
         message over the size, or past the bound.
         """
         if isinstance(channel, NativeDataChannel):
@@ -755,7 +755,7 @@ def _stack_of(pc: RTCPeerConnection | NativePeerConnection | ReactorPeerConnecti
 
 
 async def _negotiate_reactor(pc: ReactorPeerConnection, sdp: str) -> tuple[Answer | None, str]:
-    """Answer with libwebrtc (webrtc_reactor.py): (None, the answer SDP), or (why not, "")."""
+    """Answer with libwebrtc (reactor.py): (None, the answer SDP), or (why not, "")."""
     try:
         return None, await pc.answer(sdp)
     except ValueError as exc:

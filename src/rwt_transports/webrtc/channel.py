@@ -1,16 +1,16 @@
 """A WebRTC peer's data channels as a pump ``Channel`` (docs/webrtc.md).
 
 A reliable, ordered data channel of a registered label (``rosbridge``; the registry,
-``frontends_registry``, names them, webrtc_peers.py takes them) carries its
+``frontends_registry``, names them, peers.py takes them) carries its
 front end's session exactly as a WebSocket connection does: one message per frame,
 for rosbridge JSON as text, CBOR as binary (D27). The session, its limits and its flow control are
 the server's (pump.py); this module only moves frames:
 
 - in: aiortc hands over whole messages from a callback, with no way to make the
   peer wait, so the messages the pump has not read yet, with the fragments its
-  SCTP holds for the session (``held_below``, webrtc_sctp.py), are bounded by
+  SCTP holds for the session (``held_below``, sctp.py), are bounded by
   ``INBOX_LIMIT_BYTES``; past it the peer is disconnected. A message above
-  ``--max-message-size`` is skipped with an error status, as UDP does (webrtc_sctp.py
+  ``--max-message-size`` is skipped with an error status, as UDP does (sctp.py
   abandons it as it arrives). What waits for the session is charged to the
   server's memory budget (``--memory-budget``, D44) as the connection's, never
   refused by it: it is a reader's input.
@@ -53,14 +53,14 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.framing.datagrams import fragment_datagrams
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame, LossyInFrame
 
-from .channel import PlainChannel
+from ..channel import PlainChannel
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from aiortc import RTCDataChannel
 
-    from .webrtc_native import NativeDataChannel
+    from .native import NativeDataChannel
 
     AnyDataChannel = RTCDataChannel | NativeDataChannel
     """A data channel of either stack: aiortc's, or libdatachannel's (``NativeDataChannel``)."""
@@ -102,7 +102,7 @@ SEND_LOW_WATER_BYTES = 256 * 1024
 RECHECK_S = 0.05
 """A writer waiting for a channel's buffer re-reads it this often, whatever the events say:
 a stack that counts a message after ``send`` returns (libwebrtc) can let the one
-``bufferedamountlow`` a writer waits for go by (webrtc_native.py, ``_watch``)."""
+``bufferedamountlow`` a writer waits for go by (native.py, ``_watch``)."""
 
 LOSSY_GATE_BYTES = 2 * 1024
 """A lossy message is handed to aiortc only while the session's data channels buffer at most
@@ -148,7 +148,7 @@ class DataChannelChannel(PlainChannel):
         """The peer sent more than ``INBOX_LIMIT_BYTES`` ahead of the session: it was cut."""
         self.held_below: Callable[[], int] = lambda: 0
         """Bytes the peer connection holds for the session below it (its SCTP reassembly,
-        ``webrtc_sctp.SctpBound``): they count toward ``INBOX_LIMIT_BYTES`` with the inbox."""
+        ``webrtc.sctp.SctpBound``): they count toward ``INBOX_LIMIT_BYTES`` with the inbox."""
         self._channels: list[AnyDataChannel] = []  # every channel attached, to close
         self._reliable: AnyDataChannel | None = None
         self._lossy: AnyDataChannel | None = None
@@ -169,7 +169,7 @@ class DataChannelChannel(PlainChannel):
         """Charge what waits for the session to ``memory`` (its account, D44), from now on.
 
         The session is opened after the peer connection (its first data channel
-        opens it, webrtc_peers.py), so its account comes then.
+        opens it, peers.py), so its account comes then.
         """
         if self._memory is not None:
             self._memory.charge(-self._inbox_bytes)
@@ -241,7 +241,7 @@ class DataChannelChannel(PlainChannel):
     def oversized(self) -> None:
         """A message over ``max_message_size`` was skipped: the session answers an error.
 
-        Skipped here, or abandoned below as it arrived (webrtc_sctp.py); the
+        Skipped here, or abandoned below as it arrived (sctp.py); the
         status is the one UDP answers.
         """
         if not self._ended:

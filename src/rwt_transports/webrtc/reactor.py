@@ -6,9 +6,9 @@ the ``reactor-webrtc`` binding (PyO3, one abi3 wheel for CPython 3.10 and later)
 Its factory tunes dcsctp's congestion control (``SCTP_TUNING``): a window that never
 falls below 16 packets after a loss, SACKs held at most 20 ms, a minimum
 retransmission timeout of 120 ms. Everything above the peer connection is the
-other stacks' (webrtc_peers.py): signalling, the offer's checks, the connecting
+other stacks' (peers.py): signalling, the offer's checks, the connecting
 and offer bounds, admission, the session, ``DataChannelChannel`` with its flow
-control and lossy lane. The channels go through webrtc_native.py's
+control and lossy lane. The channels go through native.py's
 ``NativeDataChannel`` (its hop onto the loop, its inbox bound, its polled
 ``bufferedAmount``), behind ``_Channel``, a face of the few libdatachannel calls it makes.
 
@@ -40,14 +40,14 @@ import anyio
 
 from rwt_protocol.distribution import install_hint
 
-from .webrtc_native import NativeDataChannel, _Hop, _running_loop
+from .native import NativeDataChannel, _Hop, _running_loop
 
 if TYPE_CHECKING:
     import asyncio
     from collections.abc import Callable, Sequence
 
-    from .webrtc_ice import IceServer
-    from .webrtc_native import Inflow
+    from .ice import IceServer
+    from .native import Inflow
 
 __all__ = [
     "AMOUNT_TTL_S",
@@ -176,19 +176,19 @@ class _Channel:
 class ReactorPeerConnection:
     """A libwebrtc peer connection (reactor-webrtc) answering one offer of data channels.
 
-    The face of ``webrtc_native.NativePeerConnection``: ``connectionState`` in aiortc's
+    The face of ``webrtc.native.NativePeerConnection``: ``connectionState`` in aiortc's
     names, ``on("datachannel"|"connectionstatechange", ...)`` called on the loop,
     ``answer`` and ``close``.
 
     Args:
-        ice_servers: the STUN and TURN servers (``--ice-server``, webrtc_ice.py:
+        ice_servers: the STUN and TURN servers (``--ice-server``, ice.py:
             TURN over UDP, TCP or TLS); none: host candidates only.
         max_message_size: the largest incoming message, bytes; a larger one is
             skipped (the session answers an error status).
         inflow: the peer's bound on messages waiting for the loop.
         refusal: why a channel the peer opens is closed (label, ordered,
             ``maxRetransmits``, ``maxPacketLifeTime``; None: taken;
-            ``webrtc_peers.channel_refusal``), asked on libwebrtc's thread; a second
+            ``webrtc.peers.channel_refusal``), asked on libwebrtc's thread; a second
             channel of a label is refused too.
 
     Raises:

@@ -1,8 +1,8 @@
 """Which WebRTC stack answers an offer (``--webrtc-stack``; docs/webrtc.md, "Which stack").
 
-Three stacks serve the same session (webrtc_peers.py): aiortc (SCTP and DTLS in
-Python), ``native`` (libdatachannel: usrsctp, libjuice; webrtc_native.py, D51) and
-``reactor`` (libwebrtc's dcsctp, tuned; webrtc_reactor.py, D70). ``auto`` (the
+Three stacks serve the same session (peers.py): aiortc (SCTP and DTLS in
+Python), ``native`` (libdatachannel: usrsctp, libjuice; native.py, D51) and
+``reactor`` (libwebrtc's dcsctp, tuned; reactor.py, D70). ``auto`` (the
 default) takes, for offers of data channels only, the first of ``AUTO_ORDER`` that
 imports here and reaches every ``--ice-server`` (D72: the order of the browser table,
 docs/benchmarks.md). Offers asking for video tracks (``?video=``) go to libdatachannel
@@ -14,13 +14,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .webrtc_native import STACKS, native_ice_refusal, native_missing
-from .webrtc_reactor import reactor_missing
+from .native import STACKS, native_ice_refusal, native_missing
+from .reactor import reactor_missing
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from .webrtc_ice import IceServer
+    from .ice import IceServer
 
 __all__ = ["AUTO_ORDER", "STACKS", "data_stack", "stack_refusal", "video_native"]
 

@@ -54,7 +54,7 @@ from rwt_video.hub import StreamHub
 from rwt_video.params import StreamParamError, StreamParams, StreamType, parse_stream_params
 from rwt_video.rtp import RtpFrameEncoder, make_rtp_encoder
 
-from .webrtc_signal import Answer
+from .signalling import Answer
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Coroutine, Sequence
@@ -68,7 +68,7 @@ if TYPE_CHECKING:
     from rwt_video.encoders import Part
     from rwt_video.hub import SharedStream
 
-    from .webrtc_signal import VideoRequest
+    from .signalling import VideoRequest
 
 __all__ = [
     "DEFAULT_BITRATE",
@@ -313,7 +313,7 @@ class VideoBinding:
         return self._bounded()
 
     def adopt(self, tracks: Sequence[FrameFeed]) -> Answer | None:
-        """The native stack's tracks in place of these (webrtc_native_video.py), checked.
+        """The native stack's tracks in place of these (native_video.py), checked.
 
         Returns:
             None, or 503 when the streams they would add pass ``max_streams``.

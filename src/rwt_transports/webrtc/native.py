@@ -2,12 +2,12 @@
 
 ``rwt serve --webrtc-stack native`` (or ``auto`` where it imports) answers an
 offer that asks only for data channels (or for video tracks,
-webrtc_native_video.py) with libdatachannel (usrsctp's SCTP,
+native_video.py) with libdatachannel (usrsctp's SCTP,
 libjuice's ICE, in C++) through Shiguredo's ``libdatachannel-py`` binding, in
 place of aiortc's SCTP and DTLS in Python. Everything above the peer
 connection is the same: signalling, the offer's checks, the connecting and
-offer bounds, admission, the session on the pump (webrtc_peers.py), and
-``DataChannelChannel`` (webrtc.py), which this module feeds through
+offer bounds, admission, the session on the pump (peers.py), and
+``DataChannelChannel`` (channel.py), which this module feeds through
 ``NativeDataChannel``, a face of the few members of aiortc's ``RTCDataChannel``
 it uses.
 
@@ -74,7 +74,7 @@ if TYPE_CHECKING:
     import asyncio
     from collections.abc import Callable, Sequence
 
-    from .webrtc_ice import IceServer
+    from .ice import IceServer
 
 __all__ = [
     "CERTIFICATE_DAYS",
@@ -95,10 +95,10 @@ __all__ = [
 logger = logging.getLogger("rwt.webrtc")
 
 STACKS = ("auto", "reactor", "native", "aiortc")
-"""``--webrtc-stack``: ``auto`` (the best that imports, webrtc_stacks.py, D72), ``reactor``
-(libwebrtc's dcsctp, for offers of data channels only, webrtc_reactor.py, D70),
+"""``--webrtc-stack``: ``auto`` (the best that imports, stacks.py, D72), ``reactor``
+(libwebrtc's dcsctp, for offers of data channels only, reactor.py, D70),
 ``native`` (libdatachannel, for offers of data channels only or asking for video
-tracks, webrtc_native_video.py; other offers with audio or video sections stay on
+tracks, native_video.py; other offers with audio or video sections stay on
 aiortc) or ``aiortc``."""
 
 DRAIN_POLL_S = 0.002
@@ -112,7 +112,7 @@ GATHER_POLL_S = 0.005
 
 HOP_OVERHEAD_BYTES = 256
 """What one message waiting for the loop is counted beyond its data (the callback and
-its frame; the same per-fragment charge as webrtc_sctp.py's)."""
+its frame; the same per-fragment charge as sctp.py's)."""
 
 _STATES = {
     "New": "new",
@@ -219,7 +219,7 @@ class NativeDataChannel:
             each ``bufferedAmount`` reads it). Meanwhile ``bufferedAmount`` is that read
             plus the bytes sent since: never below what the stack holds, for a read
             that waits for another thread (libwebrtc's, about 50 us on a busy
-            machine: webrtc_reactor.py) costs more than a message's send.
+            machine: reactor.py) costs more than a message's send.
     """
 
     def __init__(
@@ -372,7 +372,7 @@ class NativeDataChannel:
         """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``.
 
         ``sent``: a message was just handed over: poll once at least, whatever the
-        amount reads now. libwebrtc (the reactor stack, webrtc_reactor.py) counts a
+        amount reads now. libwebrtc (the reactor stack, reactor.py) counts a
         message on its network thread, after ``send`` returns, so a read at once can
         show the amount before it; a writer that then waits for the event would wait
         for a poll nobody scheduled.
@@ -417,22 +417,22 @@ class NativePeerConnection:
     ...)`` are called on the loop.
 
     Args:
-        ice_servers: the STUN and TURN servers (``--ice-server``, webrtc_ice.py);
+        ice_servers: the STUN and TURN servers (``--ice-server``, ice.py);
             none: host candidates only, no traffic to any other host.
         max_message_size: the largest incoming message, bytes; a larger one is
             skipped (the session answers an error status).
         inflow: the peer's bound on messages waiting for the loop.
         answer_max_message_size: the answer's ``a=max-message-size``, bytes
-            (``webrtc_sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states);
+            (``webrtc.sctp.ANSWER_MAX_MESSAGE_SIZE``, as aiortc's answer states);
             libdatachannel's own is one byte more (the module text says why), so
             ``max_message_size`` must be at most this.
         refusal: why a channel the peer opens is closed (label, ordered,
             ``maxRetransmits``, ``maxPacketLifeTime`` in s; None: taken;
-            ``webrtc_peers.channel_refusal``). Asked on libdatachannel's thread,
+            ``webrtc.peers.channel_refusal``). Asked on libdatachannel's thread,
             where the channel is closed before it has callbacks; a second channel
             of a label is refused too.
         tracks: the offer has media sections the caller gives tracks to
-            (webrtc_native_video.py): ``set_offer`` returns libdatachannel's tracks
+            (native_video.py): ``set_offer`` returns libdatachannel's tracks
             of them, and the answer is made only after (``local_answer``).
 
     Raises:
@@ -695,7 +695,7 @@ def native_ice_refusal(servers: Sequence[IceServer]) -> str | None:
 
 
 def native_ice_server(ldc: Any, server: IceServer) -> Any:
-    """The ``IceServer`` of libdatachannel for one parsed ``--ice-server`` (webrtc_ice.py).
+    """The ``IceServer`` of libdatachannel for one parsed ``--ice-server`` (ice.py).
 
     Args:
         ldc: the ``libdatachannel`` module.

@@ -21,12 +21,12 @@ entry check (``FrontEndHost.entry``, ``rwt_protocol.credentials``).
 
 Video tracks: ``POST /webrtc?video=/camera/image&video=/arm/image`` binds the
 offer's receiving video transceivers, in order, to those image topics (at most
-``MAX_VIDEO_TRACKS``; webrtc_video.py); with an authenticator they need the
+``MAX_VIDEO_TRACKS``; video.py); with an authenticator they need the
 bearer token, since a video-only peer has no data channel to authenticate on.
 
 WebRTC is an HTTP front end of the registry (``frontends_registry.WEBRTC``),
 off unless ``ServerConfig.webrtc`` is set; the protocols its data channels carry
-are the registry's too, chosen by label (webrtc_peers.py).
+are the registry's too, chosen by label (peers.py).
 """
 
 from __future__ import annotations
@@ -41,10 +41,10 @@ from urllib.parse import parse_qsl
 
 from rwt_protocol.credentials import EntryAuth
 
-from .frontends import AuthMode
-from .http_endpoint import claims_path, open_request, reply
-from .webrtc_ice import parse_ice_servers
-from .webrtc_stacks import data_stack, stack_refusal, video_native
+from ..frontends import AuthMode
+from ..http_endpoint import claims_path, open_request, reply
+from .ice import parse_ice_servers
+from .stacks import data_stack, stack_refusal, video_native
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
@@ -112,24 +112,24 @@ class WebRtcOptions:
             ``rwt_video.VideoTokens.valid``); None: the server's
             (``ServerConfig.bearer_token``), and without one such an offer gets 401.
         ice_servers: STUN and TURN server URLs (``--ice-server``, the forms of
-            ``rwt_transports.webrtc_ice.parse_ice_server``), whose server-reflexive
+            ``rwt_transports.webrtc.ice.parse_ice_server``), whose server-reflexive
             and relayed candidates each answer carries (docs/webrtc.md, "Through
             NAT"); empty: host candidates only, and no traffic to any other host.
         stack: which WebRTC stack answers an offer of data channels only
-            (``--webrtc-stack``, D51, D70, D72; webrtc_stacks.py): ``reactor``
-            (libwebrtc's dcsctp, webrtc_reactor.py), ``native`` (libdatachannel,
-            webrtc_native.py), ``aiortc``, or ``auto``: the first of
-            ``webrtc_stacks.AUTO_ORDER`` that imports and reaches every ICE server.
+            (``--webrtc-stack``, D51, D70, D72; stacks.py): ``reactor``
+            (libwebrtc's dcsctp, reactor.py), ``native`` (libdatachannel,
+            native.py), ``aiortc``, or ``auto``: the first of
+            ``webrtc.stacks.AUTO_ORDER`` that imports and reaches every ICE server.
             An offer asking for video tracks is answered by libdatachannel where it
-            imports (webrtc_native_video.py), unless ``aiortc`` is chosen; any other
+            imports (native_video.py), unless ``aiortc`` is chosen; any other
             offer with video or audio m-sections (or one aiortc would refuse) by
             aiortc whatever the choice (docs/webrtc.md, "Which stack").
 
     Raises:
         ValueError: an ICE server URL aiortc cannot use, or more than one STUN or
             TURN server (``parse_ice_servers``); a ``stack`` not of
-            ``webrtc_native.STACKS``, or one that cannot serve here
-            (``webrtc_stacks.stack_refusal`` says why: not installed, or ``native``
+            ``webrtc.native.STACKS``, or one that cannot serve here
+            (``webrtc.stacks.stack_refusal`` says why: not installed, or ``native``
             with a TURN server over TCP or TLS).
     """
 
@@ -147,7 +147,7 @@ class WebRtcOptions:
     def data_stack(self) -> str:
         """The stack that answers offers of data channels only: ``auto`` resolved.
 
-        ``reactor``, ``native`` or ``aiortc`` (``webrtc_stacks.data_stack``).
+        ``reactor``, ``native`` or ``aiortc`` (``webrtc.stacks.data_stack``).
         """
         return data_stack(self.stack, parse_ice_servers(self.ice_servers))
 
@@ -193,7 +193,7 @@ def video_request(target: str) -> VideoRequest | Answer:
 
 
 class OfferHandler(Protocol):
-    """The peer connections behind signalling (``webrtc_peers.WebRtcPeers``)."""
+    """The peer connections behind signalling (``webrtc.peers.WebRtcPeers``)."""
 
     async def offer(
         self, sdp: str, peer: str, *, authenticated: bool, video: VideoRequest | None = None

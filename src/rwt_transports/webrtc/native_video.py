@@ -52,8 +52,8 @@ from aiortc.sdp import SessionDescription
 
 from rwt_video.params import StreamParams, StreamType
 
-from .webrtc_signal import Answer
-from .webrtc_video import FrameFeed
+from .signalling import Answer
+from .video import FrameFeed
 
 if TYPE_CHECKING:
     import asyncio
@@ -61,7 +61,7 @@ if TYPE_CHECKING:
 
     from rwt_video.encoders import VideoPacket
 
-    from .webrtc_video import VideoBinding
+    from .video import VideoBinding
 
 __all__ = [
     "NativeVideoTrack",
@@ -134,12 +134,12 @@ class VideoPlan:
 def native_video_plan(offer: str, topics: int) -> VideoPlan | None:
     """How the native stack answers an offer with ``topics`` video tracks; None: aiortc.
 
-    As aiortc's answer does (``webrtc_video.VideoBinding``), the receiving video
+    As aiortc's answer does (``webrtc.video.VideoBinding``), the receiving video
     sections are bound to the topics in order, and the other video sections and every
     audio section are answered inactive.
 
     Args:
-        offer: the offer's SDP (checked already, ``webrtc_offer.check_offer``).
+        offer: the offer's SDP (checked already, ``webrtc.offer.check_offer``).
         topics: how many ``video`` parameters the offer came with.
 
     Returns:
