@@ -37,8 +37,8 @@ if TYPE_CHECKING:
     from rwt_transports.allocator import tune_allocator
     from rwt_transports.foxglove import FoxgloveOptions
     from rwt_transports.host import Admitted
-    from rwt_transports.mcp_options import McpOptions
-    from rwt_transports.mcp_siblings import McpSiblings
+    from rwt_transports.http.mcp_options import McpOptions
+    from rwt_transports.http.mcp_siblings import McpSiblings
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.placement import Placement
     from rwt_transports.server import rosauth_authenticator

@@ -31,8 +31,8 @@ from rwt_transports.allocator import tune_allocator
 from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
-from rwt_transports.mcp_options import McpOptions
-from rwt_transports.mcp_siblings import McpSiblings
+from rwt_transports.http.mcp_options import McpOptions
+from rwt_transports.http.mcp_siblings import McpSiblings
 from rwt_transports.placement import Placement
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions

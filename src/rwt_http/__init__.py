@@ -13,7 +13,7 @@ Foxglove client. The modules, each over the next:
 - ``wire``: the bytes of a response and of a Server-Sent Event.
 
 The transport's side (reading the request, the bearer token, running the pump)
-is ``rwt_transports.http_api``.
+is ``rwt_transports.http.api``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """One HTTP API request as a session of the connection runtime (docs/http.md).
 
 ``HttpSession`` subclasses ``SessionBase`` (docs/architecture.md, "How to add a
-protocol"): the transport (``rwt_transports.http_api``) reads the request, the
+protocol"): the transport (``rwt_transports.http.api``) reads the request, the
 server admits it as any connection (``--max-connections``, the host shares) and
 the pump runs the session; the request's body is its one frame. It answers with
 one whole response and closes, or, for an event stream (a topic's ``/events``,

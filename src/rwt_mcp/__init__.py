@@ -3,7 +3,7 @@
 AI agents drive a robot through its tools (docs/agents.md, docs/mcp.md), over
 one persistent rosbridge connection made with rwt's client (``rwt_client``):
 a WebSocket or TCP one for ``rwt mcp URL``, an in-process one for each
-session of ``rwt serve --mcp`` (``rwt_transports.mcp_http``, which reuses
+session of ``rwt serve --mcp`` (``rwt_transports.http.mcp``, which reuses
 everything here):
 
 - ``cli``: the ``rwt mcp`` command, MCP over stdio;

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from rwt_graph.rosapi import VisibilityFor
     from rwt_graph.safety.rules import SafetyRules
 
-    from .mcp_options import McpOptions
+    from .http.mcp_options import McpOptions
     from .placement import Placement
     from .webrtc.signalling import WebRtcOptions
 
@@ -65,7 +65,7 @@ class ServerConfig:
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake, and an MCP session holds
-            ``mcp_http.SESSION_SLOTS`` plus one per request beyond them (D40).
+            ``http.mcp.SESSION_SLOTS`` plus one per request beyond them (D40).
             None: derived from the soft RLIMIT_NOFILE when serving starts
             (``fdlimit.default_max_connections``).
         max_connections_per_host: connections one host (``host_prefix_v4``,

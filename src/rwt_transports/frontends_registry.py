@@ -30,9 +30,9 @@ from rwt_http import HttpApiOptions
 
 from .foxglove import foxglove_for
 from .frontends import AuthMode, FrontEnd
-from .http_api import API_PATHS, http_api_endpoint
-from .mcp_options import MCP_PATH, METADATA_PATH
-from .version_http import VERSION_PATH, version_endpoint
+from .http.api import API_PATHS, http_api_endpoint
+from .http.mcp_options import MCP_PATH, METADATA_PATH
+from .http.version import VERSION_PATH, version_endpoint
 from .webrtc.signalling import WEBRTC_PATH
 
 if TYPE_CHECKING:
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
     from .config import ServerConfig
     from .host import FrontEndHost
-    from .http_endpoint import HttpEndpoint
+    from .http.endpoint import HttpEndpoint
 
 __all__ = [
     "DATA_CHANNEL_LABEL",
@@ -136,13 +136,13 @@ def webrtc_endpoint(host: FrontEndHost, options: object) -> HttpEndpoint:
 
 
 def mcp_endpoint(host: FrontEndHost, options: object) -> HttpEndpoint:
-    """MCP's endpoint (``mcp_http.mcp_endpoint``): the MCP SDK is loaded only now.
+    """MCP's endpoint (``http.mcp.mcp_endpoint``): the MCP SDK is loaded only now.
 
     Raises:
         ConfigError: ``options`` is not an ``McpOptions``.
         ImportError: the MCP SDK is not installed (``rwt-rosbridge[mcp]``).
     """
-    from .mcp_http import mcp_endpoint as made  # noqa: PLC0415 (only with --mcp)
+    from .http.mcp import mcp_endpoint as made  # noqa: PLC0415 (only with --mcp)
 
     return made(host, options)
 

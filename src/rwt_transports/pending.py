@@ -1,7 +1,7 @@
 """What a socket holds before its request is admitted: bytes, a count and a turn per host (D58).
 
 A socket on the WebSocket port is read before anything admits it: an HTTP request
-(the HTTP API, ``/mcp``, ``/webrtc``, ``/version``; ``http_endpoint.open_request``,
+(the HTTP API, ``/mcp``, ``/webrtc``, ``/version``; ``http.endpoint.open_request``,
 the one reader) is read whole, head and body, before its endpoint asks the server for
 a session, a slot or a ticket (``GraphServer.open_session``, ``take_slot``, ``admit``,
 ``join_socket``), and a WebSocket upgrade (or the console's request) is read up to its
@@ -23,7 +23,7 @@ server hold 3 GB outside every budget. What such a socket holds is its
 - **turns**: a host's requests are parsed one slice at a time (``PendingSocket.turn``),
   and what its refused sockets still send is read one read at a time (``wait_turn``),
   so that however many sockets a host has, they take one reader's share of the event
-  loop (``http_endpoint.READ_SLICE_EVENTS``).
+  loop (``http.endpoint.READ_SLICE_EVENTS``).
 
 Both refusals carry ``Retry-After: RETRY_AFTER_S`` (docs/limits.md). Everything a
 socket holds here is given back when it is admitted (``PendingSocket.admit``: its

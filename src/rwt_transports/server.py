@@ -100,7 +100,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.rules import ClientRules
 
     from .holding import Held
-    from .http_endpoint import HttpEndpoint
+    from .http.endpoint import HttpEndpoint
     from .placement import Placement
 
 __all__ = [

@@ -55,7 +55,7 @@ from rwt_protocol.shortcuts import enabled
 from . import admission
 from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter, asyncio_parts
-from .http_endpoint import MAX_HEAD_BYTES, drain_refused
+from .http.endpoint import MAX_HEAD_BYTES, drain_refused
 from .pending import RETRY_AFTER_S, current_socket
 from .placement import RECORD_LIMIT_BYTES, placed_topic
 from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
@@ -77,7 +77,7 @@ if TYPE_CHECKING:
 
     from .frontends import FrontEnd, FrontEnds
     from .host import SessionHost
-    from .http_endpoint import HttpEndpoint
+    from .http.endpoint import HttpEndpoint
     from .placement import Placement
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]

@@ -42,7 +42,7 @@ from urllib.parse import parse_qsl
 from rwt_protocol.credentials import EntryAuth
 
 from ..frontends import AuthMode
-from ..http_endpoint import claims_path, open_request, reply
+from ..http.endpoint import claims_path, open_request, reply
 from .ice import parse_ice_servers
 from .stacks import data_stack, stack_refusal, video_native
 

@@ -9,7 +9,7 @@ server's from the installed distribution, plus ``rwt``: what this server offers
 authentication, whatever ``--auth-secret-file`` says, as the reference's (D49):
 the answer names no secret, topic, client, port or address.
 
-One request a connection, read by h11 through ``http_endpoint`` (a body over
+One request a connection, read by h11 through ``endpoint`` (a body over
 ``MAX_BODY_BYTES`` is refused with 413; the caller's handshake timeout bounds the
 time, and the socket holds a connection slot as any). ``GET`` and ``HEAD`` answer
 200, ``OPTIONS`` 204 with ``Allow``, any other method 405. A browser's request is
@@ -42,14 +42,14 @@ from rwt_protocol.distribution import DISTRIBUTION
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.version import PROTOCOL_VERSION
 
-from .http_endpoint import claims_path, open_request, reply
+from .endpoint import claims_path, open_request, reply
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from anyio.abc import ByteStream, TaskGroup
 
-    from .host import Features, FrontEndHost
+    from ..host import Features, FrontEndHost
 
 __all__ = [
     "MAX_BODY_BYTES",
@@ -195,7 +195,7 @@ async def _send_json(
 ) -> None:
     """Send ``body`` as JSON and end the connection; for HEAD its length and no body.
 
-    ``http_endpoint.reply`` cannot answer HEAD: h11 refuses a body there.
+    ``endpoint.reply`` cannot answer HEAD: h11 refuses a body there.
     """
     fields = [
         *headers,

@@ -1,8 +1,8 @@
 """Settings of the MCP endpoint on the WebSocket port (``rwt serve --mcp``, docs/mcp.md).
 
-Apart from ``mcp_http`` so that the server's configuration names them without
+Apart from ``mcp`` so that the server's configuration names them without
 loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs: the registry
-(``frontends_registry.MCP``) loads ``mcp_http`` only when MCP is on. What
+(``frontends_registry.MCP``) loads ``mcp`` only when MCP is on. What
 bounds an MCP session as a client (its slots, its host's share, ``--idle-timeout``) is
 the server's own configuration (D40).
 """

@@ -25,15 +25,15 @@ import h11
 
 from rwt_protocol.credentials import bearer  # the one reading of a bearer token
 
-from .pending import RETRY_AFTER_S, PendingRefusal, current_socket
-from .pump import READ_SLICE_BYTES
+from ..pending import RETRY_AFTER_S, PendingRefusal, current_socket
+from ..pump import READ_SLICE_BYTES
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable, Sequence
 
     from anyio.abc import ByteStream, TaskGroup
 
-    from .pending import PendingSocket
+    from ..pending import PendingSocket
 
 __all__ = [
     "MAX_HEAD_BYTES",
@@ -431,7 +431,7 @@ async def reply(
     headers: list[tuple[bytes, bytes]],
     kind: str = "text/plain; charset=utf-8",
 ) -> None:
-    """Send one response and let the connection end (``Connection: close``; also ``mcp_http``'s)."""
+    """Send one response and let the connection end (``Connection: close``; also ``mcp``'s)."""
     body = (text + "\n" if text and kind.startswith("text/") else text).encode()
     fields = [*headers, (b"Connection", b"close")]
     if status != 204:  # no content: no type, no length (RFC 9110 8.6)

@@ -3,7 +3,7 @@
 The front end itself is ``rwt_http`` (sans-IO: routes, the session, the OpenAPI
 document; docs/http.md). Here: the endpoint claims ``/openapi.json`` and
 ``/api/...`` (an ``HttpEndpoint``), reads the request (bounded, CORS, through
-``http_endpoint``), checks the bearer token through the server's one entry check
+``endpoint``), checks the bearer token through the server's one entry check
 (``FrontEndHost.entry``, ``AuthMode.BEARER``: the same tokens as WebRTC's and
 MCP's), has the server admit the connection (``open_session``: ``--max-connections``, the host
 shares, ``/connected_clients``) and runs the session with the connection pump
@@ -28,11 +28,11 @@ from rwt_http import API_PREFIX, OPENAPI_PATH, HttpApiOptions, HttpSession, Rout
 from rwt_http.wire import error_response, no_content
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 
-from .channel import PlainChannel
-from .frontends import AuthMode, FrontEnd
-from .http_endpoint import claims_path, open_request
-from .pump import ConnectionPump, run_connection
-from .version_http import installed_version
+from ..channel import PlainChannel
+from ..frontends import AuthMode, FrontEnd
+from ..pump import ConnectionPump, run_connection
+from .endpoint import claims_path, open_request
+from .version import installed_version
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.outbox import OutFrame
     from rwt_protocol.runtime.request import SessionRequest
 
-    from .host import FrontEndHost
+    from ..host import FrontEndHost
 
 __all__ = ["API_PATHS", "HttpApiEndpoint", "HttpChannel", "http_api_endpoint"]
 

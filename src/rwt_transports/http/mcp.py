@@ -95,13 +95,13 @@ from rwt_protocol.credentials import AuthMode, EntryAuth
 from rwt_protocol.errors import ConfigError, RemoteProtocolError
 from rwt_protocol.runtime.access import log_refused
 
-from .frontends import FrontEnd
+from ..frontends import FrontEnd
+from ..memory import MemoryConnection, memory_pair
+from ..pump import ConnectionPump, run_connection
+from ..shares import HostShares, address_of
+from .endpoint import bearer, claims_path, open_request, reply
 from .host_rates import HostPace
-from .http_endpoint import bearer, claims_path, open_request, reply
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
-from .memory import MemoryConnection, memory_pair
-from .pump import ConnectionPump, run_connection
-from .shares import HostShares, address_of
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator, Callable
@@ -113,7 +113,7 @@ if TYPE_CHECKING:
     from rwt_mcp.resources import Watched
     from rwt_protocol.runtime.request import SessionRequest
 
-    from .host import FrontEndHost
+    from ..host import FrontEndHost
     from .mcp_siblings import McpSiblings
 
 __all__ = [

@@ -1,0 +1,1 @@
+"""The HTTP front ends on the WebSocket port: the HTTP API, /version, MCP."""
