@@ -105,7 +105,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.webrtc.signalling": ("WebRtcOptions",),
         "rwt_transports.http.mcp_options": ("McpOptions",),
         "rwt_transports.http.mcp_siblings": ("McpSiblings",),
-        "rwt_transports.placement": ("Placement",),
+        "rwt_transports.workers.placement": ("Placement",),
         "rwt_transports.memory": ("MemoryConnection",),
         "rwt_transports.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),

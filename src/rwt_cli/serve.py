@@ -33,15 +33,15 @@ from rwt_transports.foxglove import FoxgloveOptions
 from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.http.mcp_options import McpOptions
 from rwt_transports.http.mcp_siblings import McpSiblings
-from rwt_transports.placement import Placement
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
 from rwt_transports.udp import UdpOptions
 from rwt_transports.webrtc.ice import parse_ice_servers
 from rwt_transports.webrtc.native import native_ice_refusal
 from rwt_transports.webrtc.signalling import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
-from rwt_transports.worker_counts import ConnectionCountWriter
-from rwt_transports.workers import run_workers
+from rwt_transports.workers.counts import ConnectionCountWriter
+from rwt_transports.workers.placement import Placement
+from rwt_transports.workers.supervisor import run_workers
 
 from .bag_options import (
     bag_jobs,

@@ -27,8 +27,8 @@ if TYPE_CHECKING:
     from rwt_graph.safety.rules import SafetyRules
 
     from .http.mcp_options import McpOptions
-    from .placement import Placement
     from .webrtc.signalling import WebRtcOptions
+    from .workers.placement import Placement
 
 __all__ = ["MiB", "ServerConfig"]
 
@@ -116,7 +116,7 @@ class ServerConfig:
             one opens or closes (a worker's count for its parent,
             ``worker_counts``); None: not called.
         placement: move a rosbridge WebSocket connection to the worker that owns its
-            first topic (``rwt serve --workers N --placement topic``, placement.py,
+            first topic (``rwt serve --workers N --placement topic``, workers/placement.py,
             D57); None: every connection stays where the kernel put it.
         webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
             docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.

@@ -101,7 +101,7 @@ if TYPE_CHECKING:
 
     from .holding import Held
     from .http.endpoint import HttpEndpoint
-    from .placement import Placement
+    from .workers.placement import Placement
 
 __all__ = [
     "SERVER_NODE",
@@ -677,11 +677,11 @@ class GraphServer:
 
         None: the WebSocket port's, read at each connection (``add_frontend``).
         ``resumed``: a connection another worker handed here with the bytes it read
-        (placement.py); it is not moved again.
+        (workers/placement.py); it is not moved again.
         """
         endpoints = list(http)
 
-        # the WebSocket port's rosbridge connections may move by topic (placement.py)
+        # the WebSocket port's rosbridge connections may move by topic (workers/placement.py)
         placement = self.config.placement if frontends is None and resumed is None else None
 
         async def handle(stream: ByteStream) -> None:
@@ -702,7 +702,7 @@ class GraphServer:
         return handle
 
     def _placed_runner(self, placement: Placement) -> Runner:
-        """Serve the connections other workers hand here by their first topic (placement.py).
+        """Serve the connections other workers hand by their first topic here (workers/placement).
 
         Each is one more socket in handshake, as an accepted one is, and runs as the
         WebSocket port's connections do, reading first what the other worker read.

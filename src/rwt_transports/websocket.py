@@ -57,9 +57,9 @@ from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter, asyncio_parts
 from .http.endpoint import MAX_HEAD_BYTES, drain_refused
 from .pending import RETRY_AFTER_S, current_socket
-from .placement import RECORD_LIMIT_BYTES, placed_topic
 from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
+from .workers.placement import RECORD_LIMIT_BYTES, placed_topic
 from .writes import WRITE_BATCH
 from .wsread import FrameReader
 
@@ -78,7 +78,7 @@ if TYPE_CHECKING:
     from .frontends import FrontEnd, FrontEnds
     from .host import SessionHost
     from .http.endpoint import HttpEndpoint
-    from .placement import Placement
+    from .workers.placement import Placement
 
 __all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
@@ -186,7 +186,7 @@ class WebSocketChannel:
         self.early: list[Frame] = []
         """Whole frames the client sent with its upgrade request, parsed with it: read first."""
         self.placement: Placement | None = None
-        """Where this connection's first topic may move it (placement.py); None: it stays."""
+        """Where its first topic may move this connection (workers/placement.py); None: stays."""
         self.record: bytearray | None = None
         """Every byte read from the socket until the first message (``placement``'s)."""
 
@@ -228,7 +228,7 @@ class WebSocketChannel:
         return messages
 
     async def _placed(self, messages: Sequence[FramerEvent]) -> bool:
-        """Whether the connection went to the worker owning its first topic (placement.py).
+        """Whether the connection went to the worker owning its first topic (workers/placement.py).
 
         Decided once, on the first message, before the session sees it. The socket's
         reading stops, and what the loop read ahead goes with the record; a hand-off
@@ -613,7 +613,7 @@ async def _handshake(
     """Read the upgrade request: it, whether it ended with the bytes read, its frames, the bytes.
 
     ``head``: the request's first bytes, read already (for a connection another
-    worker handed here, every byte it read: placement.py). Only when the bytes read
+    worker handed here, every byte it read: workers/placement.py). Only when the bytes read
     end with the request, or with whole messages after it, does the next byte start
     a frame that websockets has not begun to parse, so that ``FrameReader`` may read
     from there. websockets parses frames sent with the request at once, with it:
@@ -774,9 +774,9 @@ async def serve_websocket_connection(
             (``/version``, ``/webrtc``, ``/mcp``; docs/server.md); the rest are the
             WebSocket's (or the console's).
         placement: where a rosbridge connection's first topic may move it
-            (``--placement topic``, placement.py); None: it stays.
+            (``--placement topic``, workers/placement.py); None: it stays.
         resumed: the bytes another worker read from this connection before handing it
-            here (placement.py): read first, and the upgrade response is not sent
+            here (workers/placement.py): read first, and the upgrade response is not sent
             again; a connection refused now (full) is closed with 1013.
 
     Never raises for what the peer does; the stream is closed on return.
@@ -827,7 +827,7 @@ def _placeable(
     session: ServerSession | None,
     protocol: ServerProtocol,
 ) -> bool:
-    """Whether the connection may move by its first topic (placement.py).
+    """Whether the connection may move by its first topic (workers/placement.py).
 
     A rosbridge session only (Foxglove's sends on open), and without permessage-deflate
     (its compression context is this process's).
@@ -880,7 +880,7 @@ def _respond(
 ) -> None:
     """Queue the upgrade's response: accepted, or refused with an HTTP status and reason.
 
-    ``resumed``: another worker handed the connection here (placement.py) and sent the
+    ``resumed``: another worker handed the connection here (workers/placement.py) and sent the
     response; it is made again, for websockets' state, and not sent. A refusal here
     (the server is full) can no longer be an HTTP status: the connection closes with
     1013 (try again later) and the reason.

@@ -1,4 +1,4 @@
-"""A worker's connection count outlives it (``rwt_transports.worker_counts``)."""
+"""A worker's connection count outlives it (``rwt_transports.workers.counts``)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from rwt_transports.worker_counts import ConnectionCountWriter, read_count, reset_count
-from rwt_transports.workers import WorkerPlan, child_args
+from rwt_transports.workers.counts import ConnectionCountWriter, read_count, reset_count
+from rwt_transports.workers.supervisor import WorkerPlan, child_args
 
 
 def test_the_count_a_killed_process_wrote_is_read_after_it(tmp_path: Path) -> None:
@@ -18,7 +18,7 @@ def test_the_count_a_killed_process_wrote_is_read_after_it(tmp_path: Path) -> No
     assert read_count(path) == 0
     code = (
         "import os, signal, sys\n"
-        "from rwt_transports.worker_counts import ConnectionCountWriter\n"
+        "from rwt_transports.workers.counts import ConnectionCountWriter\n"
         "w = ConnectionCountWriter(sys.argv[1])\n"
         "for n in (1, 2, 3, 2, 7): w.write(n)\n"
         "os.kill(os.getpid(), signal.SIGKILL)\n"

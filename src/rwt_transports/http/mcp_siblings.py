@@ -36,7 +36,7 @@ import h11
 
 from rwt_graph.ratelog import EpisodeLog
 
-from ..worker_counts import STATE_PREFIX
+from ..workers.counts import STATE_PREFIX
 
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable

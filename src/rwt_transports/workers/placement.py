@@ -50,7 +50,7 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_graph.ratelog import EpisodeLog
 
-from .worker_counts import STATE_PREFIX
+from .counts import STATE_PREFIX
 
 if TYPE_CHECKING:
     from collections.abc import Callable

@@ -27,8 +27,8 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_protocol.errors import ConfigError
 
-from .listen import ListenError
-from .worker_counts import STATE_PREFIX, read_count, reset_count
+from ..listen import ListenError
+from .counts import STATE_PREFIX, read_count, reset_count
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence

@@ -1,0 +1,1 @@
+"""The processes of ``rwt serve --workers N``: supervised, counted, placing connections."""
