@@ -101,7 +101,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_http.session": ("HttpApiOptions",),
         "rwt_protocol.auth": ("auth_query", "rosauth_op"),
         "rwt_transports.websocket": ("WebSocketOptions",),
-        "rwt_transports.udp": ("UdpOptions",),
+        "rwt_transports.udp.transport": ("UdpOptions",),
         "rwt_transports.webrtc.signalling": ("WebRtcOptions",),
         "rwt_transports.http.mcp_options": ("McpOptions",),
         "rwt_transports.http.mcp_siblings": ("McpSiblings",),

@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from rwt_transports.http.mcp_siblings import McpSiblings
     from rwt_transports.memory import MemoryConnection
     from rwt_transports.server import rosauth_authenticator
-    from rwt_transports.udp import UdpOptions
+    from rwt_transports.udp.transport import UdpOptions
     from rwt_transports.webrtc.signalling import WebRtcOptions
     from rwt_transports.websocket import WebSocketOptions
     from rwt_transports.workers.placement import Placement

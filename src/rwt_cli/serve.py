@@ -34,7 +34,7 @@ from rwt_transports.gcfreeze import freeze_startup_objects
 from rwt_transports.http.mcp_options import McpOptions
 from rwt_transports.http.mcp_siblings import McpSiblings
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
-from rwt_transports.udp import UdpOptions
+from rwt_transports.udp.transport import UdpOptions
 from rwt_transports.webrtc.ice import parse_ice_servers
 from rwt_transports.webrtc.native import native_ice_refusal
 from rwt_transports.webrtc.signalling import WebRtcOptions

@@ -16,7 +16,7 @@ from rwt_protocol.server.session import SessionConfig
 
 from .foxglove import FoxgloveOptions
 from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
-from .udp import UdpOptions
+from .udp.transport import UdpOptions
 from .websocket import WebSocketOptions
 
 if TYPE_CHECKING:

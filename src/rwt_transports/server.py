@@ -84,8 +84,8 @@ from .rosauth import rosauth_authenticator, url_authenticator
 from .shares import HostPrefixes, HostShares, address_of
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
-from .udp import serve_udp
-from .udp_auth import UdpAuth
+from .udp.auth import UdpAuth
+from .udp.transport import serve_udp
 from .websocket import serve_websocket_connection
 
 if TYPE_CHECKING:

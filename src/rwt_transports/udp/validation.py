@@ -31,7 +31,7 @@ start-up; one is accepted for a new session during its epoch and the next one.
 With ``--auth-bind-connection`` (D31) the answer is two datagrams, the challenge
 and the address's ``auth_challenge`` status (``auth_challenge``, another HMAC of
 the address and the epoch): the client can sign it before its first op, so that
-op can be its ``auth`` (``udp_auth``). Both count towards ``AMPLIFICATION`` and
+op can be its ``auth`` (``auth``). Both count towards ``AMPLIFICATION`` and
 ``CHALLENGE_BUDGET_BYTES``. Nothing is kept per unvalidated address but the bytes
 sent to it this epoch.
 """

@@ -1,7 +1,7 @@
 """UDP transport: one datagram per message, one session per peer address (D22).
 
 Every (host, port) that proves it receives at its address gets a session
-(``udp_validation``: a token exchange, and the token on every datagram, so a
+(``validation``: a token exchange, and the token on every datagram, so a
 forged source address can neither draw a stream nor act inside another peer's
 session; ``trust_source_address`` restores rosbridge_udp's trust in the address
 for trusted links, REF §3.6). A datagram is one frame: JSON text, or CBOR when
@@ -9,7 +9,7 @@ its first byte says so (D21). Outgoing messages larger than ``datagram_bytes`` g
 ``fragment`` ops (spec 3.1.1, D19), each within the size, so no message is
 silently lost to the datagram limit. UDP has no connection close: a peer that
 sends nothing for ``idle_timeout_s`` is forgotten (its session closed). With an
-authenticator a session begins with the peer's ``auth`` op (``udp_auth``): other
+authenticator a session begins with the peer's ``auth`` op (``auth``): other
 datagrams from a peer without a session are refused and open nothing.
 """
 
@@ -28,11 +28,11 @@ from rwt_protocol.framing.datagrams import fragment_datagrams
 from rwt_protocol.ops import Status
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame
 
-from .channel import PlainChannel
-from .pump import ConnectionPump, run_connection
-from .shares import HostPrefixes, HostShares
-from .udp_auth import Refusal, UdpAuth, read_first
-from .udp_validation import AddressValidator, split_token
+from ..channel import PlainChannel
+from ..pump import ConnectionPump, run_connection
+from ..shares import HostPrefixes, HostShares
+from .auth import Refusal, UdpAuth, read_first
+from .validation import AddressValidator, split_token
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.outbox import OutFrame
 
-    from .host import SessionHost
+    from ..host import SessionHost
 
 __all__ = ["UdpOptions", "serve_udp"]
 

@@ -18,7 +18,7 @@ first op, so the challenge cannot come from the session: it is the address's
 epoch, so nothing is stored for it) and goes out with the address validation and
 with every refusal. What the client does (docs/server.md, authentication):
 
-1. Validate the address (``udp_validation``): the answer to the probe is the
+1. Validate the address (``validation``): the answer to the probe is the
    token, then ``{"op":"status","level":"info","id":"auth_challenge","msg":NONCE}``.
 2. Have ``NONCE`` signed as ``rand`` (``rwt_protocol.auth.bound_mac``) and send
    the ``auth`` op as the first datagram with the token.
