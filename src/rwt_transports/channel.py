@@ -33,7 +33,7 @@ class ChannelAbilities:
             (``pause_reading``), so a held reader's peer is pushed back by TCP.
         probe_input: it can tell whether input is already here without reading
             it (``input_pending``): a starting connection's first input goes
-            first (admission.py).
+            first (admission/arrival.py).
         unsent_bytes: it can read its kernel's send queue (``unsent_bytes``,
             sendqueue.py): progress no completed send shows.
         send_now: it can write without awaiting when ``can_send_now`` says so

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.server.session import SessionConfig
 
+from .admission.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
 from .foxglove import FoxgloveOptions
-from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
 from .udp.transport import UdpOptions
 from .websocket import WebSocketOptions
 
@@ -69,7 +69,7 @@ class ServerConfig:
             None: derived from the soft RLIMIT_NOFILE when serving starts
             (``fdlimit.default_max_connections``).
         max_connections_per_host: connections one host (``host_prefix_v4``,
-            ``host_prefix_v6``) may hold once ``shares.SHARES_FROM`` of
+            ``host_prefix_v6``) may hold once ``admission.shares.SHARES_FROM`` of
             ``max_connections`` are taken (``--max-connections-per-host``); before
             that anyone gets one, so local use, where every client is 127.0.0.1, is
             not limited. WebSocket, TCP, UDP, WebRTC and MCP count; stdio and

@@ -29,10 +29,10 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.rules import ClientRules
     from rwt_protocol.server.compat import Compat
 
-    from .admission import Admission
+    from .admission.arrival import Admission
+    from .admission.shares import HostPrefixes
     from .frontends import FrontEnd, FrontEnds
     from .holding import Held
-    from .shares import HostPrefixes
 
 __all__ = [
     "Admitted",
@@ -148,7 +148,7 @@ class SessionHost(Protocol):
 
     @property
     def admission(self) -> Admission:
-        """The server's starting connections, whose first input goes first (admission.py)."""
+        """The server's starting connections, whose first input goes first (``arrival``)."""
 
     def open_session(
         self,

@@ -71,7 +71,7 @@ from rwt_protocol.runtime.flow import FlowControl, HoldAccount, ReadingWindow
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.shortcuts import enabled
 
-from .admission import Admission, Ticket, current_ticket
+from .admission.arrival import Admission, Ticket, current_ticket
 from .gather import GATHER_BYTES, Gatherer
 from .holding import Held, wait_for
 
@@ -238,7 +238,7 @@ class ConnectionPump(Held):
         hello: the connection's first write, made once its reader listens (a
             WebSocket upgrade response): the peer may send only after it, so its
             first input reaches a reader that waits, and the event loop reports
-            it in the order it arrived among every connection's (admission.py).
+            it in the order it arrived among every connection's (admission/arrival.py).
 
     Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
     """
@@ -497,7 +497,7 @@ class ConnectionPump(Held):
 
     async def _reader(self, session: ServerSession) -> None:
         # A starting connection's first input goes before what the others got
-        # after it (admission.py): their readers ask this probe.
+        # after it (admission/arrival.py): their readers ask this probe.
         ticket = current_ticket()
         channel = self.channel
         if ticket is not None:
@@ -546,7 +546,7 @@ class ConnectionPump(Held):
             # A full slice yields when the next batch is in hand (``_handle`` stops
             # at once), never here: a reader resuming from a yield with nothing read
             # would read input that came after another connection's and handle it
-            # first (arrival order, admission.py); one holding its input resumes
+            # first (arrival order, admission/arrival.py); one holding its input resumes
             # before the input the loop finds meanwhile.
             del events
 
@@ -639,7 +639,7 @@ class ConnectionPump(Held):
         The socket stays read: a turn reads at most one more chunk, and a socket
         paused here would be read again after the others that got input
         meanwhile, so its frames would lose their place (arrival order,
-        admission.py).
+        admission/arrival.py).
         """
         self._slice_frames = self._slice_bytes = 0
         await anyio.lowlevel.checkpoint()

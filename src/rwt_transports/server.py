@@ -68,7 +68,9 @@ from rwt_protocol.runtime.request import SessionRequest
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
-from .admission import Admission, Ticket
+from .admission.arrival import Admission, Ticket
+from .admission.pending import PendingRequests, PendingSocket, current_socket, serve_socket
+from .admission.shares import HostPrefixes, HostShares, address_of
 from .config import ServerConfig
 from .deadman import run_deadman
 from .fdlimit import REFUSING_SOCKETS, default_max_connections
@@ -78,10 +80,8 @@ from .gates import InboundBatch, OutboundHold
 from .host import Admitted, Features, HostSettings, ServedFrontEnd
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
-from .pending import PendingRequests, PendingSocket, current_socket, serve_socket
 from .pump import ConnectionPump, run_connection
 from .rosauth import rosauth_authenticator, url_authenticator
-from .shares import HostPrefixes, HostShares, address_of
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp.auth import UdpAuth
@@ -153,7 +153,7 @@ class GraphServer:
 
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
-            its address's width (``shares.HostPrefixes``); an HTTP front end's
+            its address's width (``admission.shares.HostPrefixes``); an HTTP front end's
             options are not of its type.
         RulesError: ``config.safety`` does not fit the graph's types (a ``ConfigError``).
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
@@ -183,7 +183,7 @@ class GraphServer:
             self.config.session.hold_budget_s, HostCoolDowns(self.host_prefixes)
         )
         self.graph.port.inflow = InboundBatch(self.flow)
-        # one order of first input for its connections, on its loop (admission.py)
+        # one order of first input for its connections, on its loop (admission/arrival.py)
         self.admission = Admission()
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
@@ -574,7 +574,7 @@ class GraphServer:
                 logger.info("event=accept_resumed")
                 delay = 0.0
             self._handshaking += 1
-            # Plain TCP: the client may have sent already; handle that first (admission.py).
+            # Plain TCP: the client may have sent already; handle that first (admission/arrival.py).
             # TLS waits for the peer's handshake first, WebSocket for its request.
             ticket = self.admission.hold() if handler == self._handle_tcp and tls is None else None
             connections.start_soon(self._serve_socket, sock, handler, tls, ticket)
@@ -613,7 +613,7 @@ class GraphServer:
 
         ``open_session`` lifts the handshake deadline; a bug ends this socket only.
         ``ticket``: held from accept until the reader handled the input already
-        there (admission.py).
+        there (admission/arrival.py).
         """
         pending: PendingSocket | None = None
         if ticket is not None:
@@ -725,7 +725,7 @@ class GraphServer:
         peer = _peer(stream)
         transport = "tls" if self.config.certfile is not None else "tcp"
         # TLS: from the end of its handshake the client may send; that goes first
-        # (admission.py). Plain TCP holds its ticket from accept.
+        # (admission/arrival.py). Plain TCP holds its ticket from accept.
         ticket = self.admission.hold() if transport == "tls" else None
         if ticket is not None:
             ticket.serve()
@@ -810,7 +810,7 @@ class GraphServer:
                 the ticket's.
             share_from_first: its host's share of such sessions applies from
                 the first, not only past
-                ``shares.SHARES_FROM`` of the slots (D40): a session that holds no
+                ``admission.shares.SHARES_FROM`` of the slots (D40): a session that holds no
                 socket of its own (MCP's), which a ``--max-connections`` derived
                 from the descriptors would bound late.
 
@@ -1226,7 +1226,7 @@ async def _accept(listener: socket.socket) -> socket.socket:
 
     Not anyio's ``accept``, which sets the stream up before it returns: the
     server would learn of the connection only a few loop turns later, after
-    the older connections' input that arrived meanwhile (admission.py).
+    the older connections' input that arrived meanwhile (admission/arrival.py).
 
     Raises:
         OSError: ``accept()`` failed (EMFILE, ENFILE, ENOBUFS, ENOMEM, ...).

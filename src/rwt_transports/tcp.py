@@ -18,7 +18,7 @@ from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import JsonStreamFramer
 from rwt_protocol.ops import Status
 
-from . import admission
+from .admission import arrival as admission
 from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter
 from .pump import ConnectionPump, run_connection
@@ -117,9 +117,9 @@ class StreamChannel:
         self._framer.release()
 
     def input_pending(self) -> bool | None:
-        """Whether input is here already (a new connection's first read, admission.py).
+        """Whether input is here already (a new connection's first read, admission/arrival.py).
 
-        None when none is seen but anyio may hold some (``admission.stream_probe``).
+        None when none is seen but anyio may hold some (``admission.arrival.stream_probe``).
         """
         return self._probe()
 

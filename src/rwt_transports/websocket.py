@@ -52,11 +52,11 @@ from rwt_protocol.runtime.commands import CloseCode
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.shortcuts import enabled
 
-from . import admission
+from .admission import arrival as admission
+from .admission.pending import RETRY_AFTER_S, current_socket
 from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter, asyncio_parts
 from .http.endpoint import MAX_HEAD_BYTES, drain_refused
-from .pending import RETRY_AFTER_S, current_socket
 from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
 from .workers.placement import RECORD_LIMIT_BYTES, placed_topic
@@ -289,11 +289,11 @@ class WebSocketChannel:
         raise anyio.EndOfStream
 
     def input_pending(self) -> bool | None:
-        """Whether input is here already (a new connection's first read, admission.py).
+        """Whether input is here already (a new connection's first read, admission/arrival.py).
 
         Bytes websockets' parser or the frame reader hold count (a client that sent
         frames with its upgrade request). None when none is seen but anyio may hold
-        some (``admission.stream_probe``).
+        some (``admission.arrival.stream_probe``).
         """
         frames = self.frames
         if self.early or _parser_held(self.protocol) or (frames is not None and frames.held):
@@ -659,7 +659,7 @@ async def _head_refused(stream: ByteStream, protocol: ServerProtocol, received: 
     """Refuse a request whose ``received`` bytes (its head, not yet whole) are too many.
 
     431 past ``MAX_HEAD_BYTES``; 429 or 503 when the socket's pending record cannot
-    keep them (``pending.PendingSocket.hold``, D58). Whether it was refused (answered).
+    keep them (``admission.pending.PendingSocket.hold``, D58). Whether it was refused (answered).
     """
     refused: tuple[int, str, tuple[tuple[str, str], ...]] | None = None
     if received > MAX_HEAD_BYTES:

@@ -33,8 +33,8 @@ from pydantic import ConfigDict
 
 from rwt_mcp.link import Goal
 from rwt_mcp.tasks import MAX_TASKS, TASK_TTL_S, TASKS_EXTENSION, TaskStore
+from rwt_transports.admission.shares import HostShares
 from rwt_transports.http.mcp_options import McpOptions
-from rwt_transports.shares import HostShares
 from tests.support.cli import ENV, RWT
 
 pytestmark = pytest.mark.anyio

@@ -7,7 +7,7 @@ sockets, each a 10 MiB body short of its last byte, and took the server's RSS fr
 MB to 3.1 GB, outside ``--memory-budget``, the host shares and the connection slots
 (1.5 GB stayed after they closed); and four sockets sending chunked bodies of one
 byte a chunk held the event loop through each read's thousands of chunks (a rosbridge
-client's round trip went from 1 ms to 530 ms). Now (``rwt_transports.pending``,
+client's round trip went from 1 ms to 530 ms). Now (``rwt_transports.admission.pending``,
 ``http.endpoint.open_request``, docs/limits.md):
 
 - what a request holds before it is admitted counts in the budget of input still
@@ -41,8 +41,8 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from websockets.asyncio.client import connect
 
 from rwt import Graph, RosbridgeServer, ServerConfig
+from rwt_transports.admission.pending import HOST_INPUT_SHARE, RETRY_AFTER_S
 from rwt_transports.http.endpoint import MAX_HEAD_BYTES, READ_SLICE_EVENTS, open_request
-from rwt_transports.pending import HOST_INPUT_SHARE, RETRY_AFTER_S
 from tests.support.cli import ENV, RWT_COLD, rwt_serve
 from tests.support.realclients import REPO
 

@@ -20,8 +20,8 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
 
+from rwt_transports.admission.shares import SHARES_FROM
 from rwt_transports.server import ServerConfig
-from rwt_transports.shares import SHARES_FROM
 from rwt_transports.webrtc.offer import (
     MAX_CANDIDATE_ADDRESSES,
     MAX_MEDIA_SECTIONS,

@@ -28,8 +28,8 @@ from rwt_protocol.runtime.flow import (
     ReadingWindow,
     send_queue_shrank,
 )
+from rwt_transports.admission.shares import HostPrefixes
 from rwt_transports.channel import ChannelAbilities
-from rwt_transports.shares import HostPrefixes
 
 MiB = 1024 * 1024
 HIGH, LOW = 8 * MiB, 4 * MiB  # a 16 MiB send buffer's watermarks

@@ -21,7 +21,7 @@ from rwt_protocol.runtime.flow import (
     HostCoolDowns,
     ReadingWindow,
 )
-from rwt_transports.shares import HostPrefixes
+from rwt_transports.admission.shares import HostPrefixes
 
 MiB = 1024 * 1024
 

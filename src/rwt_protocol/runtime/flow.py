@@ -172,7 +172,7 @@ def send_queue_shrank(before: int | None, after: int | None) -> bool:
 
 
 class HostNames(Protocol):
-    """How peers group into hosts (the server's: ``rwt_transports.shares.HostPrefixes``)."""
+    """How peers group into hosts (the server's ``HostPrefixes``, ``rwt_transports.admission``)."""
 
     def host_of(self, peer: str) -> str:
         """The host a peer address (``host:port``, ``stdio``, ``memory``) counts as."""

@@ -25,7 +25,7 @@ import h11
 
 from rwt_protocol.credentials import bearer  # the one reading of a bearer token
 
-from ..pending import RETRY_AFTER_S, PendingRefusal, current_socket
+from ..admission.pending import RETRY_AFTER_S, PendingRefusal, current_socket
 from ..pump import READ_SLICE_BYTES
 
 if TYPE_CHECKING:
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream, TaskGroup
 
-    from ..pending import PendingSocket
+    from ..admission.pending import PendingSocket
 
 __all__ = [
     "MAX_HEAD_BYTES",
@@ -148,7 +148,7 @@ async def open_request(
 
     The one reader of every HTTP endpoint on the WebSocket port (docs/limits.md, D58):
     what it keeps of the request before the server admits it is charged to the
-    socket's ``pending.PendingSocket`` (the budgets and its host's share), and it
+    socket's ``admission.pending.PendingSocket`` (the budgets and its host's share), and it
     yields to the event loop by the work it did (``READ_SLICE_EVENTS``,
     ``READ_SLICE_BYTES``), not by the reads, so a body of 1-byte chunks costs the
     other clients no more than its bytes would. Answers itself: 400 to what h11

@@ -95,10 +95,10 @@ from rwt_protocol.credentials import AuthMode, EntryAuth
 from rwt_protocol.errors import ConfigError, RemoteProtocolError
 from rwt_protocol.runtime.access import log_refused
 
+from ..admission.shares import HostShares, address_of
 from ..frontends import FrontEnd
 from ..memory import MemoryConnection, memory_pair
 from ..pump import ConnectionPump, run_connection
-from ..shares import HostShares, address_of
 from .endpoint import bearer, claims_path, open_request, reply
 from .host_rates import HostPace
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions

@@ -28,9 +28,9 @@ from rwt_protocol.framing.datagrams import fragment_datagrams
 from rwt_protocol.ops import Status
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame
 
+from ..admission.shares import HostPrefixes, HostShares
 from ..channel import PlainChannel
 from ..pump import ConnectionPump, run_connection
-from ..shares import HostPrefixes, HostShares
 from .auth import Refusal, UdpAuth, read_first
 from .validation import AddressValidator, split_token
 
@@ -73,8 +73,8 @@ class UdpOptions:
         max_sessions: most UDP sessions at once (``--udp-max-sessions``), within
             the server's ``max_connections``.
         max_sessions_per_host: UDP sessions one host (source address by
-            ``shares.HostPrefixes``, as for ``--max-connections-per-host``) may hold once
-            ``shares.SHARES_FROM`` of ``max_sessions`` are taken
+            ``admission.shares.HostPrefixes``, as for ``--max-connections-per-host``) may hold once
+            ``admission.shares.SHARES_FROM`` of ``max_sessions`` are taken
             (``--udp-max-sessions-per-host``); before that anyone gets one.
         trust_source_address: serve any source address without validation, as
             rosbridge_udp does (``--udp-trust-source-address``): only on a link

@@ -21,7 +21,7 @@ served (``event=channel_refused``). Bounds, each enforced here (docs/limits.md):
   malformed or oversized one (media sections, candidates and the addresses they
   name) costs a read of its text.
 - ``MAX_CONNECTING``: offers being answered plus peers not yet connected, over
-  the server, shared per host as the connections are (``shares.HostShares``,
+  the server, shared per host as the connections are (``admission.shares.HostShares``,
   D37); more get 503. Each holds UDP sockets and aiortc's ICE and DTLS state,
   and answering one makes a key pair, so a burst of offers is bounded, and one
   host cannot hold every slot.
@@ -61,8 +61,8 @@ from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import ConfigError
 from rwt_protocol.runtime.commands import CloseCode
 
+from ..admission.shares import HostShares, address_of
 from ..pump import CLOSE_WAIT_S, ConnectionPump, run_connection
-from ..shares import HostShares, address_of
 from .channel import INBOX_LIMIT_BYTES, MAX_TEXT_FRAME_BYTES, DataChannelChannel
 from .ice import parse_ice_servers
 from .native import Inflow, NativeDataChannel, NativePeerConnection
@@ -310,7 +310,7 @@ class WebRtcPeers:
         """Take a connecting slot for ``host``; False when there is none for it (D37).
 
         Fewer than ``MAX_CONNECTING`` must be taken, and past three quarters of
-        them ``host`` must hold fewer than are free (``shares.HostShares``).
+        them ``host`` must hold fewer than are free (``admission.shares.HostShares``).
         """
         taken = self.connecting
         if taken >= MAX_CONNECTING or not self._shares.admits(host, taken, MAX_CONNECTING):

@@ -65,7 +65,7 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream
 
-    from .direct import DirectReader
+    from ..direct import DirectReader
 
 __all__ = [
     "START_WAIT_S",

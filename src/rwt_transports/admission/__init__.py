@@ -1,0 +1,1 @@
+"""How a connection gets in: its turn, its host's share, what it holds before admission."""
