@@ -107,7 +107,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_transports.http.mcp_siblings": ("McpSiblings",),
         "rwt_transports.workers.placement": ("Placement",),
         "rwt_transports.memory": ("MemoryConnection",),
-        "rwt_transports.allocator": ("tune_allocator",),
+        "rwt_transports.process.allocator": ("tune_allocator",),
         "rwt_protocol.shortcuts": ("shortcut_report",),
         "rwt_protocol.runtime.access": (
             "AccessDeniedError",

@@ -869,7 +869,7 @@ def warm_up() -> None:
     """Build what a session's first server builds once (the tools' models, the SDK's parts).
 
     A front end calls it while it starts (``http.McpEndpoint``), before the server
-    freezes its start-up objects (``rwt_transports.gcfreeze``): otherwise the first
+    freezes its start-up objects (``rwt_transports.process.gcfreeze``): otherwise the first
     request builds them while every client waits on the event loop (tens of ms), and
     full collections walk them ever after. Nothing is connected.
     """

@@ -67,7 +67,7 @@ class ServerConfig:
             before its TLS/WebSocket handshake, and an MCP session holds
             ``http.mcp.SESSION_SLOTS`` plus one per request beyond them (D40).
             None: derived from the soft RLIMIT_NOFILE when serving starts
-            (``fdlimit.default_max_connections``).
+            (``process.fdlimit.default_max_connections``).
         max_connections_per_host: connections one host (``host_prefix_v4``,
             ``host_prefix_v6``) may hold once ``admission.shares.SHARES_FROM`` of
             ``max_connections`` are taken (``--max-connections-per-host``); before

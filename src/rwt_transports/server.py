@@ -73,13 +73,13 @@ from .admission.pending import PendingRequests, PendingSocket, current_socket, s
 from .admission.shares import HostPrefixes, HostShares, address_of
 from .config import ServerConfig
 from .deadman import run_deadman
-from .fdlimit import REFUSING_SOCKETS, default_max_connections
 from .frontends import FrontEnd, FrontEnds
 from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
 from .gates import InboundBatch, OutboundHold
 from .host import Admitted, Features, HostSettings, ServedFrontEnd
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
+from .process.fdlimit import REFUSING_SOCKETS, default_max_connections
 from .pump import ConnectionPump, run_connection
 from .rosauth import rosauth_authenticator, url_authenticator
 from .stdio import StdioChannel
