@@ -77,3 +77,13 @@ def test_no_front_end_knows_the_server_or_rosbridge_settings() -> None:
         for path in front_end_modules()
     }
     assert {path: names for path, names in found.items() if names} == {}
+
+
+def test_the_server_package_keeps_its_top_level_small() -> None:
+    """At most 25 modules at ``rwt_transports``' top level: the rest live in its rooms.
+
+    The server, the pump, the channel, the stream transports, the registry and what
+    they share stay; WebRTC, the HTTP front ends, UDP, admission, the workers and the
+    process's tuning are rooms (sub-packages), each mapped by its docstring.
+    """
+    assert len(list(TRANSPORTS.glob("*.py"))) <= 25

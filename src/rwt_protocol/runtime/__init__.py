@@ -15,7 +15,8 @@ only those listed after it (an import-linter contract keeps it so):
   (``rwt_transports.pump``) sees of a session, and ``Job``; ``request``:
   ``SessionRequest``, what a front end makes a session from (the shared rules);
 - ``outbox`` (the bounded queue of outgoing frames), ``timers``,
-  ``lifecycle`` (a connection's states and their moves);
+  ``lifecycle`` (a connection's states and their moves), ``rules``
+  (``ClientRules``, the per-client rules every protocol's session is bound by);
 - ``access`` (the access rules), ``memory`` (the server-wide memory budget
   every connection is charged to, D44), ``commands`` (what a session asks its
   transport to do), ``inframes`` (what a transport hands a session), ``flow``
