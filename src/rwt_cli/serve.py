@@ -41,7 +41,7 @@ from rwt_transports.webrtc.signalling import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
 from rwt_transports.workers.counts import ConnectionCountWriter
 from rwt_transports.workers.placement import Placement
-from rwt_transports.workers.supervisor import run_workers
+from rwt_transports.workers.supervisor import parse_listen_fds, run_workers
 
 from .bag_options import (
     bag_jobs,
@@ -295,6 +295,7 @@ def _server_config(
         use_sim_time=options.graph.use_sim_time,
         handshake_timeout_s=limits.handshake_timeout,
         reuse_port=options.scale_out.reuse_port,
+        listen_fds=parse_listen_fds(options.scale_out.listen_fd or ()),
         on_connections=_worker_counter(options.scale_out.worker_state),
         placement=_placement(options.scale_out),
     )

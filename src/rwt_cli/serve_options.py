@@ -697,8 +697,8 @@ class ScaleOut:
         int,
         typer.Option(
             min=1,
-            help="Server processes sharing the ports (SO_REUSEPORT, Linux) and one graph "
-            "over Zenoh on loopback; restarted when they die.",
+            help="Server processes accepting from the same listening ports (Linux) and "
+            "sharing one graph over Zenoh on loopback; restarted when they die.",
         ),
     ] = 1
     placement: Annotated[
@@ -710,6 +710,7 @@ class ScaleOut:
         ),
     ] = PlacementMode.NONE
     reuse_port: Annotated[bool, typer.Option(hidden=True)] = False
+    listen_fd: Annotated[list[str] | None, typer.Option(hidden=True)] = None
     worker_state: Annotated[str | None, typer.Option(hidden=True)] = None
     worker_count: Annotated[int, typer.Option(hidden=True, min=1)] = 1
 

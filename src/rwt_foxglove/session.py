@@ -41,6 +41,7 @@ from rwt_protocol.errors import RemoteProtocolError, RwtError
 from rwt_protocol.levels import StatusLevel as Level
 from rwt_protocol.names import name_problem, resolve_name
 from rwt_protocol.runtime.access import Family, TopicUse
+from rwt_protocol.runtime.backpressure import lost_text
 from rwt_protocol.runtime.connection import SessionBase
 from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.runtime.rules import ClientRules
@@ -161,6 +162,10 @@ class _TopicSink:
         latched message is replayed to. ``on_messages`` of one message.
         """
         self.on_messages((event,), subscriptions)
+
+    def on_lost(self, count: int) -> None:
+        """``count`` messages were lost before they reached the server (``LossSink``, D61)."""
+        self._session.report(Level.WARNING, lost_text(count, self._channel.topic))
 
     def on_messages(
         self,

@@ -32,8 +32,9 @@ same rules, written here once:
   between ``Graph.port.inflow.begin()`` and ``end()``. A delivery that pushed a
   local subscriber's outbox over its high watermark holds back its topic
   (``topic_holds.TopicHolds``): that topic's later samples wait in the link,
-  in order, until the outbox is under its low watermark, within its hold
-  budget, as a publishing connection's reader waits (docs/limits.md); the
+  in order, until the outbox is under its low watermark, within the hold
+  budget of the remote publisher whose sample congested it, as a publishing
+  connection's reader waits on its own (docs/limits.md, D61); the
   link's queue then holds the other middleware back. Every other topic, and
   every event that is no sample, goes on meanwhile: a slow reader of one topic
   holds no other. Without a server the gate is open (``OPEN_GATE``).
@@ -470,8 +471,15 @@ class InflowGate(Protocol):
         """
         ...
 
-    def take_hold(self) -> InflowHold | None:
-        """What the deliveries since the last call congested, to wait for; None if nothing."""
+    def take_hold(self, publisher: ClientId | None = None) -> InflowHold | None:
+        """What the deliveries since the last call congested, to wait for; None if nothing.
+
+        ``publisher``: the participant whose sample congested them (a remote
+        publisher the link mirrors): the wait is charged to that publisher's hold
+        budget, as a local publisher's reader is charged for the subscribers it
+        congests; None (a relay's sample, a link that cannot tell): to the
+        links' own (D61).
+        """
         ...
 
 
@@ -487,7 +495,7 @@ class _OpenGate:
     def congested(self) -> bool:
         return False
 
-    def take_hold(self) -> InflowHold | None:
+    def take_hold(self, publisher: ClientId | None = None) -> InflowHold | None:
         return None
 
 

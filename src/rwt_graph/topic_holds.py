@@ -28,6 +28,8 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 if TYPE_CHECKING:
     from collections.abc import Callable, Coroutine
 
+    from rwt_protocol.ports import ClientId
+
     from .link import InflowGate, InflowHold
 
 __all__ = ["TopicHolds"]
@@ -71,15 +73,19 @@ class TopicHolds(Generic[Item]):
         waiting.append(item)
         return True
 
-    def delivered(self, topic: str | None, gate: InflowGate) -> None:
+    def delivered(
+        self, topic: str | None, gate: InflowGate, publisher: ClientId | None = None
+    ) -> None:
         """After a delivery of ``topic``: hold the topic if it congested a subscriber.
 
         ``topic`` None: the delivery was no sample (a reply, a graph event),
-        which is never held; what it congested is not waited for.
+        which is never held; what it congested is not waited for. ``publisher``:
+        the participant that published the sample, whose hold budget the hold is
+        charged to (``InflowGate.take_hold``).
         """
         if not gate.congested():
             return
-        hold = gate.take_hold()
+        hold = gate.take_hold(publisher)
         if hold is None or topic is None or topic in self._held or topic in self._never:
             return
         self._held[topic] = []

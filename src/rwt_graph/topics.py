@@ -22,10 +22,16 @@ if TYPE_CHECKING:
 
     from .types import MessageType
 
-__all__ = ["Tap", "Topic"]
+__all__ = ["LOSS_REPORT_EVERY_S", "Tap", "Topic"]
 
 logger = logging.getLogger("rwt.graph")
 _episodes = EpisodeLog(logger)  # a peer can trigger these per message
+
+LOSS_REPORT_EVERY_S = 1.0
+"""Seconds between two reports of lost messages to a topic's subscribers, at least
+(``Topic.report_lost``): the first of an episode goes at once, later ones carry the
+count since the last report, so a lossy link costs its subscribers one status a
+second at most."""
 
 Tap = Callable[["Topic", "MessageEvent", "ClientId", bool], None]
 """Sees every message published in a graph: ``tap(topic, event, publisher, latched)``.
@@ -65,6 +71,8 @@ class Topic:
     batchable: bool = field(default=False, repr=False, compare=False)
     """Every sink ``fan_out`` calls takes a batch (``BatchSink``), and there is one; known
     once ``sinks`` (or a fan-out) ran since the subscribers last changed (False until then)."""
+    _lost: int = field(default=0, repr=False, compare=False)  # lost, not reported yet
+    _lost_told: float = field(default=float("-inf"), repr=False, compare=False)
 
     @property
     def in_use(self) -> bool:
@@ -104,6 +112,33 @@ class Topic:
         """
         self.latched = event
         self.latched_by = client
+
+    def report_lost(self, count: int, now: float) -> bool:
+        """``count`` messages were lost before they reached this server: tell the subscribers.
+
+        Every subscriber's sink that takes such a report (``rwt_protocol.ports.LossSink``)
+        is told at ``now`` (monotonic seconds), at most once per
+        ``LOSS_REPORT_EVERY_S``: a report within that time of the last one is kept
+        and added to the next (D61). A link calls it on a gap in a remote
+        publisher's messages, and with ``count`` 0 later (its sweep), until
+        nothing is kept.
+
+        Returns:
+            Whether lost messages are kept for a later report.
+        """
+        self._lost += count
+        if not self._lost or now - self._lost_told < LOSS_REPORT_EVERY_S:
+            return self._lost > 0
+        lost, self._lost, self._lost_told = self._lost, 0, now
+        for subscriber, sink in list(self.subscribers.items()):
+            on_lost = getattr(sink, "on_lost", None)
+            if on_lost is None:
+                continue
+            try:
+                on_lost(lost)
+            except Exception:  # a broken subscriber must not hurt the others
+                self._failed(subscriber)
+        return False
 
     def check_type(self, msgtype: MessageType) -> None:
         """Refuse a participant that names another type (spec 3.3.1).

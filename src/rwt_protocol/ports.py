@@ -41,6 +41,7 @@ __all__ = [
     "GoalHandle",
     "GoalStatus",
     "GraphPort",
+    "LossSink",
     "MessageCodec",
     "MessageEvent",
     "Pending",
@@ -227,6 +228,20 @@ class BatchSink(TopicSink, Protocol):
 
     def on_messages(self, events: list[MessageEvent]) -> None:
         """Take ``events`` in order, as ``on_message`` would one by one; never blocks or raises."""
+
+
+class LossSink(Protocol):
+    """A ``TopicSink`` that can be told of messages lost before they reached this server.
+
+    A link that learns its topic's messages were lost on the way (a gap in a remote
+    publisher's sequence numbers: a full queue between the server's processes, or
+    the other middleware dropped them) tells the topic's subscribers through
+    ``Topic.report_lost``; each sink with ``on_lost`` tells its client in its
+    protocol's words (a ``warning`` status, D61). A sink without it is not told.
+    """
+
+    def on_lost(self, count: int) -> None:
+        """``count`` messages of the topic were lost before they reached this server."""
 
 
 class GoalStatus(IntEnum):

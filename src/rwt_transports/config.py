@@ -112,6 +112,10 @@ class ServerConfig:
             with many of both the interval grows to that over this rate.
         reuse_port: bind WebSocket and TCP with SO_REUSEPORT, so the workers of
             ``rwt serve --workers N`` share one port (Linux spreads connections).
+        listen_fds: listening sockets this process inherited, by listener kind
+            (``websocket``, ``tcp``): descriptors it accepts from instead of
+            binding that kind's port (a worker of ``rwt serve --workers N``,
+            whose parent listens: workers.py); each is closed with the server.
         on_connections: called with the number of connections served after each
             one opens or closes (a worker's count for its parent,
             ``worker_counts``); None: not called.
@@ -168,6 +172,7 @@ class ServerConfig:
     clients_interval_s: float = 0.5
     clients_fanout_per_s: float = 200_000.0
     reuse_port: bool = False
+    listen_fds: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
     on_connections: Callable[[int], None] | None = None
     placement: Placement | None = None
     use_sim_time: bool = False

@@ -151,8 +151,8 @@ DATA_CHANNEL_LABEL = "rosbridge"
 """The label of the reliable, ordered data channel that carries a rosbridge session."""
 
 LOSSY_CHANNEL_LABEL = "rosbridge-lossy"
-"""The label of a rosbridge session's lossy channel (``ordered: false, maxRetransmits: 0``;
-D36)."""
+"""The label of a rosbridge session's lossy channel (``ordered: false, maxRetransmits`` 0 or
+1; D36, D73)."""
 
 FOXGLOVE = SocketFrontEnd(
     "foxglove",

@@ -17,7 +17,7 @@ from .pump import flush_deferred
 
 if TYPE_CHECKING:
     from rwt_graph.link import Backlog
-    from rwt_protocol.runtime.flow import FlowControl
+    from rwt_protocol.runtime.flow import FlowControl, HoldAccount
 
 __all__ = ["InboundBatch", "InboundHold", "OutboundHold"]
 
@@ -25,16 +25,19 @@ __all__ = ["InboundBatch", "InboundHold", "OutboundHold"]
 class InboundHold:
     """The subscribers some of a link's deliveries congested (``InboundBatch.take_hold``)."""
 
-    def __init__(self, flow: FlowControl[Held], congested: list[Held]) -> None:
+    def __init__(
+        self, flow: FlowControl[Held], congested: list[Held], account: HoldAccount
+    ) -> None:
         self._flow = flow
         self._congested = congested
+        self._account = account
 
     async def wait(self) -> None:
-        """Wait until each is under its low watermark, within the links' hold budget."""
+        """Wait until each is under its low watermark, within the publisher's hold budget."""
         flow = self._flow
         for held in self._congested:
             if held.over_water(own=False, mark=held.high_water):
-                await wait_for(flow, held, own=False, account=flow.links)
+                await wait_for(flow, held, own=False, account=self._account)
 
 
 class InboundBatch:
@@ -46,11 +49,12 @@ class InboundBatch:
     write each (as in a reader's batch). ``take_hold`` hands the link what the
     deliveries since its last call congested, for the link to hold back the
     topic they were of (``rwt_graph.topic_holds``) until those outboxes drain
-    to their low watermark, within one hold budget for all the links'
-    deliveries (``rwt_protocol.runtime.flow.FlowControl.links``): a burst from another process
-    reaches a subscriber that keeps up on average whole, a slow one is left to
-    the drop and close rules (D24) once the budget is spent, as with a local
-    publisher, and the link's other topics go on meanwhile.
+    to their low watermark, within the hold budget of the remote publisher
+    whose sample congested them (``rwt_protocol.runtime.flow.FlowControl.link_account``, D61): a
+    burst from another process reaches a subscriber that keeps up on average
+    whole, a slow one is left to the drop and close rules (D24) once that
+    publisher's budget is spent, as with a local publisher, and the link's
+    other topics go on meanwhile.
 
     Args:
         flow: the server's flow control.
@@ -72,10 +76,15 @@ class InboundBatch:
         """Whether a delivery since the last ``take_hold`` pushed an outbox over its high mark."""
         return self.flow.has_congested()
 
-    def take_hold(self) -> InboundHold | None:
-        """What the deliveries since the last call congested, to wait for; None if nothing."""
+    def take_hold(self, publisher: str | None = None) -> InboundHold | None:
+        """What the deliveries since the last call congested, to wait for; None if nothing.
+
+        The wait is charged to ``publisher``'s hold budget (None: the links' own).
+        """
         congested = self.flow.take_congested()
-        return InboundHold(self.flow, congested) if congested else None
+        if not congested:
+            return None
+        return InboundHold(self.flow, congested, self.flow.link_account(publisher))
 
 
 class OutboundHold:

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_protocol.runtime.flow import INPUT_STALL_S, Outlet, send_queue_shrank
+from rwt_protocol.runtime.flow import INPUT_STALL_S, Outlet, Progress, send_queue_shrank
 
 if TYPE_CHECKING:
     from rwt_graph.link import Backlog
@@ -44,15 +44,16 @@ class Held(Outlet):
         """Bytes its consumer has yet to take: queued, and in the socket's send queue."""
         raise NotImplementedError
 
-    def progress(self) -> tuple[int, int]:
+    def progress(self) -> Progress:
         """Bytes its consumer has taken so far (a count that only grows) and bytes left.
 
         By default the count is the backlog's shrinking (minus the backlog): right
         only while nothing is added, so such an outlet's reading window lasts one
-        hold (``counts_taken`` False); a connection counts what it sent.
+        hold (``counts_taken`` False); a connection counts what it sent, and says
+        what its socket's send queue holds.
         """
         backlog = self.backlog_bytes()
-        return -backlog, backlog
+        return Progress(-backlog, backlog)
 
     def unsent_bytes(self) -> int | None:
         """Bytes past the outbox that its consumer has not taken yet, or None.
@@ -86,9 +87,12 @@ async def wait_for(
 
     Another outbox is waited for while ``flow``'s hold says so (it reads, and
     ``account``, the held reader's budget, has time left), the time waited
-    charged to ``account``. A reader's own outbox (replies only, never dropped;
-    ``account`` unused) is waited for while its peer takes frames, or its
-    socket's send queue shrinks.
+    charged to ``account``: but for a wait after which its socket's send queue is
+    empty, where it can be read: its peer took all the server gave it, and what
+    waits is the server's own (its writer behind its deliveries: a link's burst,
+    a process short of CPU), not the peer's (D61). A reader's own outbox
+    (replies only, never dropped; ``account`` unused) is waited for while its
+    peer takes frames, or its socket's send queue shrinks.
     """
     if own:
         await _wait_for_own(held)
@@ -105,7 +109,8 @@ async def wait_for(
             return
         await held.next_take(wait_s)
         end = clock()
-        hold.waited(now, end)
+        if held.unsent_bytes() != 0:  # None (not known), or its peer is behind
+            hold.waited(now, end)
         now = end
 
 

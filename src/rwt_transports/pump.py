@@ -67,7 +67,7 @@ import anyio.to_thread
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.commands import CloseCode, CloseConnection
-from rwt_protocol.runtime.flow import FlowControl, HoldAccount, ReadingWindow
+from rwt_protocol.runtime.flow import FlowControl, HoldAccount, Progress, ReadingWindow
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.shortcuts import enabled
 
@@ -324,7 +324,7 @@ class ConnectionPump(Held):
         the peer is back at its ``watch_water`` (``_took``).
         """
         if self.window is None:  # (a hold may have started one)
-            self.window = ReadingWindow(*self.progress(), anyio.current_time())
+            self.window = ReadingWindow.of(self.progress(), anyio.current_time())
         session.wake_above_bytes = self.high_water
 
     def _took(self, *, sent: bool = True) -> None:
@@ -679,7 +679,7 @@ class ConnectionPump(Held):
         queued = 0 if session is None else session.queued_bytes + session.pending_bytes
         return queued + (self.unsent_bytes() or 0)
 
-    def progress(self) -> tuple[int, int]:
+    def progress(self) -> Progress:
         """What the peer took so far (sent, less the socket's send queue) and has yet to.
 
         Bytes as the outbox counts them, taken counted from the frames handed to
@@ -689,8 +689,9 @@ class ConnectionPump(Held):
         """
         session = self._session
         queued = 0 if session is None else session.queued_bytes
-        unsent = self.unsent_bytes() or 0
-        return self._sent - unsent, queued + unsent
+        unsent = self.unsent_bytes()
+        held = unsent or 0
+        return Progress(self._sent - held, queued + held, unsent)
 
     async def _writer(self, session: ServerSession, scope: anyio.CancelScope) -> None:
         try:

@@ -47,6 +47,7 @@ from anyio.abc import (
     TaskGroup,
     TaskStatus,
 )
+from anyio.streams.stapled import MultiListener
 from anyio.streams.tls import TLSStream
 
 from rwt_console.site import ConsoleSite, console_for
@@ -515,11 +516,19 @@ class GraphServer:
         kind: str,
         handler: Callable[[ByteStream], Awaitable[None]],
     ) -> Runner:
-        """Listen on ``port`` for ``kind`` (``websocket``, ``tcp``, a front end's own port)."""
+        """Listen on ``port`` for ``kind`` (``websocket``, ``tcp``, a front end's own port).
+
+        A kind whose sockets this process inherited (``ServerConfig.listen_fds``)
+        accepts from them instead.
+        """
         try:
-            listener = await anyio.create_tcp_listener(
-                local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
-            )
+            inherited = self.config.listen_fds.get(kind)
+            if inherited:
+                listener = MultiListener([await _inherited_listener(fd) for fd in inherited])
+            else:
+                listener = await anyio.create_tcp_listener(
+                    local_host=self.config.host, local_port=port, reuse_port=self.config.reuse_port
+                )
         except OSError as exc:
             name = _LISTENER_NAMES.get(kind, f"WebSocket ({kind})")
             raise ListenError(name, self.config.host, port, exc) from exc
@@ -1219,6 +1228,18 @@ def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext 
     context.load_cert_chain(certfile, keyfile)
     context.num_tickets = 0
     return context
+
+
+async def _inherited_listener(fd: int) -> SocketListener:
+    """A listener on the listening socket of descriptor ``fd``, inherited (non-blocking).
+
+    Raises:
+        OSError: ``fd`` is no socket of this process.
+        ValueError: it is no bound stream socket.
+    """
+    sock = socket.socket(fileno=fd)
+    sock.setblocking(False)  # the parent's is already: the flag is the shared file's
+    return await SocketListener.from_socket(sock)
 
 
 async def _accept(listener: socket.socket) -> socket.socket:

@@ -47,6 +47,7 @@ from rwt_protocol.errors import RwtError
 
 from .config import ZenohOptions, make_config
 from .deferred import Deferred, DeferredEncoder, held_payload, payload_bytes
+from .gaps import SequenceGaps
 from .inbox import Inbox, Sample
 from .limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES, RELIABLE_WAIT_S
 from .link_actions import ActionLink
@@ -65,7 +66,7 @@ from .wire import (
     RmwCompat,
     Topic,
     WireError,
-    attachment_gid,
+    attachment_source,
     dds_type_name,
     pack_attachment,
     reply_attachment,
@@ -266,6 +267,9 @@ class ZenohLink:
         self._subs: dict[str, _Data] = {}
         self._remote: dict[str, ClientId] = {}  # token -> its participant
         self._relays = Relays(graph, self.rules, LINK_NODE, self._publisher_of)
+        self._gaps = SequenceGaps()  # remote publishers' sequence numbers (D61)
+        self._losses_kept: set[str] = set()  # topics with lost messages not told yet
+        self._sample_publisher: ClientId | None = None  # of the sample being delivered
         self._caller = f"{PARTICIPANT_PREFIX}caller"
         # A ROS 2 service keeps requests by client GID and sequence number, and refuses
         # a second request with both equal (rmw_service_data.cpp ``take_request``):
@@ -365,8 +369,9 @@ class ZenohLink:
                             callback, args, topic = event
                             if topic and holds.park(topic, event):
                                 continue
+                            self._sample_publisher = None
                             self._guarded(callback, *args)
-                            holds.delivered(topic or None, gate)
+                            holds.delivered(topic or None, gate, self._sample_publisher)
                             if self._drained_bytes >= _DRAIN_BYTES:
                                 break
                     finally:
@@ -619,6 +624,15 @@ class ZenohLink:
         self._relays.sweep(self._subs)
         self._params.sweep()
         self._mirror.retry()  # the local provider that shadowed one may have gone
+        self._tell_losses()
+
+    def _tell_losses(self) -> None:
+        """Tell the subscribers of the lost messages kept for a later report (D61)."""
+        now = time.monotonic()
+        for topic in list(self._losses_kept):
+            entry = self.graph.topics.get(topic)
+            if entry is None or not entry.report_lost(0, now):
+                self._losses_kept.discard(topic)
 
     def _share_soon(self) -> None:
         """The feed's backlog filled (inside a graph call): share it in the link's task."""
@@ -984,7 +998,7 @@ class ZenohLink:
         try:
             data = payload_bytes(payload)
             msg = decode_message(self.graph.registry, entry.msgtype, data)
-            source = None if attachment is None else attachment_gid(attachment)
+            sequence, source = (0, None) if attachment is None else attachment_source(attachment)
         except (WireError, RwtError) as exc:
             self.peer_log.log(
                 logging.WARNING,
@@ -994,6 +1008,12 @@ class ZenohLink:
                 str(exc),
             )
             return
+        if source is not None:
+            # a hold this sample starts is charged to its publisher's budget (D61)
+            self._sample_publisher = self._publisher_of(source)
+            lost = self._gaps.seen(source, sequence)
+            if lost and entry.report_lost(lost, time.monotonic()):  # told now or by a sweep
+                self._losses_kept.add(topic)
         try:  # by its publisher's participant, or a relay until its token comes
             # a sample tells nothing of its publisher's durability: the relay hands
             # it over as latched once the token says the publisher is transient local

@@ -52,6 +52,7 @@ __all__ = [
     "RmwCompat",
     "WireError",
     "attachment_gid",
+    "attachment_source",
     "dds_type_name",
     "demangle",
     "gid_of",
@@ -505,6 +506,20 @@ def reply_attachment(request: bytes | None, source_timestamp: int) -> bytes:
     if asked is None:
         return pack_attachment(0, source_timestamp, bytes(GID_SIZE))
     return pack_attachment(asked.sequence_number, source_timestamp, asked.source_gid)
+
+
+def attachment_source(data: bytes) -> tuple[int, bytes]:
+    """The sequence number and source GID of an attachment (``Attachment.decode``, cheaper).
+
+    Raises:
+        WireError: not 33 bytes of rmw_zenoh's layout.
+    """
+    if len(data) != _ATTACHMENT.size or data[16] != GID_SIZE:
+        raise WireError(f"attachment of {len(data)} bytes is not rmw_zenoh's")
+    return _SEQUENCE.unpack_from(data)[0], data[17:]
+
+
+_SEQUENCE = struct.Struct("<q")
 
 
 def attachment_gid(data: bytes) -> bytes:

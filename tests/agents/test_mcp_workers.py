@@ -8,13 +8,17 @@ say which worker made them (``w0-``, ``w1-``): tasks and sessions of both
 workers are made, and each is used from connections landing anywhere. A goal
 started as a task on one worker is polled and canceled from a fresh client, and
 the robot (a rosbridge client advertising the action on whichever worker it
-reached) sees the cancel (docs/mcp.md, "Tasks and workers").
+reached) sees the cancel (docs/mcp.md, "Tasks and workers"). Relayed requests leave
+no error in the server's log.
 """
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import json
 import os
+import select
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -143,7 +147,11 @@ async def test_both_revisions_and_tasks_across_two_workers() -> None:
                 async with modern(endpoint) as client:  # a task of no worker: an error
                     with pytest.raises(Exception, match="no task"):
                         await task_request(client, "tasks/get", "w7-" + "0" * 32)
-        assert "event=bug" not in parent.whole_stderr()
+        log = parent.whole_stderr()
+        assert "event=bug" not in log
+        # relayed requests, streams whose client left included, leave no error: neither
+        # asyncio's (a callback on a cancelled read) nor the SDK's (a write to a closed relay)
+        assert " ERROR " not in log, log
 
 
 def test_a_worker_knows_its_ids_from_the_others() -> None:
@@ -203,3 +211,56 @@ async def _socket_pair() -> tuple[anyio.abc.SocketStream, anyio.abc.SocketStream
         client = await anyio.connect_tcp("127.0.0.1", port)
         server = await listener.listeners[0].accept()  # type: ignore[attr-defined]
     return client, server
+
+
+async def test_a_client_leaving_a_relayed_stream_leaves_no_loop_error(tmp_path: Path) -> None:
+    """The owner stops watching for the client's leaving in the loop turn it learns of it.
+
+    The owner's answer is an event stream that watches its socket for the client's
+    disconnect, as the MCP endpoint does (``_Exchange._receive``), and stops watching
+    (a cancel) as soon as the socket is readable: when the client closes, the relay
+    tells the owner (the end of the request stream). That cancel in the turn the
+    socket became readable made asyncio log ``Exception in callback
+    Future.set_result(None)`` under anyio's Unix streams; the owner's last writes
+    then met a reader, not a broken pipe.
+    """
+    loop = asyncio.get_running_loop()
+    errors: list[str] = []
+    loop.set_exception_handler(lambda _loop, context: errors.append(context["message"]))
+    owner, sender = McpSiblings(str(tmp_path), 1), McpSiblings(str(tmp_path), 0)
+    wrote_after: list[bool] = []
+
+    async def answer(stream: anyio.abc.ByteStream, head: bytes, peer: str) -> None:
+        raw = stream.extra(anyio.abc.SocketAttribute.raw_socket)
+        await stream.send(b"HTTP/1.1 200 OK\r\ncontent-type: text/event-stream\r\n\r\n")
+        async with anyio.create_task_group() as tg:
+            watching = anyio.CancelScope()
+
+            async def watch() -> None:
+                with watching, contextlib.suppress(anyio.EndOfStream):
+                    while True:
+                        await stream.receive()
+
+            tg.start_soon(watch)
+            while not select.select([raw], [], [], 0)[0]:  # each turn: has the client left?
+                await anyio.lowlevel.checkpoint()
+            watching.cancel()  # in the turn the socket became readable
+        try:
+            await stream.send(b"data: last\n\n")  # the stream's end, after the client left
+            wrote_after.append(True)
+        except (anyio.BrokenResourceError, OSError):
+            wrote_after.append(False)
+
+    request = h11.Request(method="GET", target="/mcp", headers=[("host", "x")])
+    async with anyio.create_task_group() as tg:
+        await tg.start(owner.serve, answer)
+        for _ in range(20):
+            client, server = await _socket_pair()
+            async with server, anyio.create_task_group() as relay:
+                relay.start_soon(sender.forward, 1, "127.0.0.1:1", request, b"", server)
+                await client.receive()  # the stream began
+                await client.aclose()  # the client leaves
+            await anyio.sleep(0.01)  # the owner's answer ends
+        tg.cancel_scope.cancel()
+    assert wrote_after == [True] * 20
+    assert errors == []

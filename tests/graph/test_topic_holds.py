@@ -35,7 +35,7 @@ class _Gate:
     def congested(self) -> bool:
         return self.hold is not None
 
-    def take_hold(self) -> _Hold | None:
+    def take_hold(self, publisher: str | None = None) -> _Hold | None:
         hold, self.hold = self.hold, None
         return hold
 

@@ -41,7 +41,7 @@ class RecordingGate:
     def congested(self) -> bool:
         return self.congest
 
-    def take_hold(self) -> Hold | None:
+    def take_hold(self, publisher: str | None = None) -> Hold | None:
         if not self.congest:
             return None
         self.congest = False

@@ -30,5 +30,5 @@ class CongestedGate:
     def congested(self) -> bool:
         return True
 
-    def take_hold(self) -> _Hold:
+    def take_hold(self, publisher: str | None = None) -> _Hold:
         return _Hold(self._drain_s)

@@ -25,6 +25,7 @@ from rwt_protocol.runtime.flow import (
     HoldAccount,
     HostCoolDowns,
     Outlet,
+    Progress,
     ReadingWindow,
     send_queue_shrank,
 )
@@ -63,7 +64,7 @@ def hold_for(
         return now
     while True:
         queued = peer.queued(now)
-        progress = (peer.backlog - queued, queued)
+        progress = Progress(peer.backlog - queued, queued)
         wait = hold.wait_s(now, queued > outlet.low_water, lambda: progress)  # noqa: B023
         if wait is None:
             break
@@ -225,9 +226,13 @@ def test_a_link_found_slow_is_waited_for_again_once_it_caught_up() -> None:
     outlet = link_outlet()
     hold = flow.hold(outlet, flow.links, 0.0)
     assert hold is not None
-    assert hold.next_wait(0.0, (-2000, 2000)) == INPUT_STALL_S  # (taken: the backlog's shrinking)
+    assert (
+        hold.next_wait(0.0, Progress(-2000, 2000)) == INPUT_STALL_S
+    )  # (taken: the backlog's shrinking)
     hold.waited(0.0, INPUT_STALL_S)
-    assert hold.next_wait(INPUT_STALL_S, (-2000, 2000)) is None  # nothing taken in the window
+    assert (
+        hold.next_wait(INPUT_STALL_S, Progress(-2000, 2000)) is None
+    )  # nothing taken in the window
     assert outlet.is_slow(1000.0)  # however long after
     outlet.took(caught_up=False)
     assert outlet.is_slow(1000.0)

@@ -1,10 +1,10 @@
 """Input backpressure's accounting, with numbers and a made-up clock (flow.py).
 
 The hold budget is charged to the reader being held, whatever it waits for, and
-regained at ``HOLD_REFILL`` a second; a peer reads when it takes
-``READING_SHARE`` of its backlog per ``INPUT_STALL_S`` since it fell behind; a
-host found slow is not waited for until its cool-down ends (docs/limits.md,
-input backpressure).
+regained at ``HOLD_REFILL`` a second (a link's holds to the remote publisher's); a
+peer reads when it takes ``READING_SHARE`` of its backlog per ``INPUT_STALL_S``
+since it fell behind, or most of what reached its socket; a host found slow is not
+waited for until its cool-down ends (docs/limits.md, input backpressure).
 """
 
 from __future__ import annotations
@@ -16,9 +16,12 @@ import pytest
 from rwt_protocol.runtime.flow import (
     HOLD_REFILL,
     INPUT_STALL_S,
+    LINK_ACCOUNTS,
     READING_SHARE,
+    FlowControl,
     HoldAccount,
     HostCoolDowns,
+    Outlet,
     ReadingWindow,
 )
 from rwt_transports.admission.shares import HostPrefixes
@@ -126,3 +129,41 @@ def test_cool_downs_keep_the_latest_end_and_forget_expired_hosts() -> None:
     cool_downs.cool("192.0.2.2", 60.0, now=40.0)  # the first one's is over: it goes
     assert cool_downs.until("192.0.2.1") == -math.inf
     assert len(cool_downs) == 1
+
+
+@pytest.mark.parametrize(
+    ("unsent_before", "written", "unsent_after", "reading"),
+    [
+        (0, 232 * 1024, 0, True),  # took all the server gave it: the server fell behind
+        (64 * 1024, 128 * 1024, 64 * 1024, True),  # took most of it
+        (0, 2 * MiB, 2 * MiB, False),  # took nothing of it: its socket's queue grew
+        (3 * MiB, 0, 3 * MiB, False),  # nothing new, and it left what was there
+        (0, 0, 0, False),  # nothing reached it: the share rule alone
+    ],
+)
+def test_a_peer_that_took_what_reached_its_socket_reads_whatever_its_backlog(
+    unsent_before: int, written: int, unsent_after: int, reading: bool
+) -> None:
+    """D61: 8 MiB wait in the server for a peer that the server wrote little to."""
+    window = ReadingWindow(5 * MiB, 1 * MiB + unsent_before, 10.0, unsent_before)
+    taken = 5 * MiB + written + unsent_before - unsent_after
+    assert window.reading(taken, 8 * MiB + unsent_after, window.ends, unsent_after) is reading
+    if reading and written < MiB // 2:  # where the queue cannot be read: the share rule alone
+        blind = ReadingWindow(5 * MiB, 1 * MiB + unsent_before, 10.0)
+        assert not blind.reading(taken, 8 * MiB + unsent_after, blind.ends)
+
+
+def test_each_remote_publisher_is_held_on_a_budget_of_its_own() -> None:
+    """D61: a link's holds are charged to the publisher whose sample congested, as a local
+    publisher's reader is; the links' own budget for samples of no known publisher."""
+    flow: FlowControl[Outlet] = FlowControl(hold_budget_s=5.0)
+    first = flow.link_account("zenoh:a:1")
+    assert first is flow.link_account("zenoh:a:1")
+    assert first is not flow.link_account("zenoh:a:2") and first is not flow.links
+    assert flow.link_account(None) is flow.links
+    first.charge(0.0, 5.0)  # spent by one burst
+    assert first.left(5.0) == 0.0
+    assert flow.link_account("zenoh:b:1").left(5.0) == 5.0  # another publisher's is whole
+    for n in range(LINK_ACCOUNTS):  # a bounded table: the least recently held goes
+        flow.link_account(f"zenoh:c:{n}")
+    assert flow.link_account("zenoh:a:1").left(5.0) == 5.0

@@ -1,4 +1,4 @@
-"""A worker's connection count outlives it (``rwt_transports.workers.counts``)."""
+"""A worker's connection count outlives it (``rwt_transports.workers.counts``); its command line."""
 
 from __future__ import annotations
 
@@ -8,8 +8,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from rwt_transports.workers.counts import ConnectionCountWriter, read_count, reset_count
-from rwt_transports.workers.supervisor import WorkerPlan, child_args
+from rwt_transports.workers.supervisor import (
+    LISTEN_FD_OPTION,
+    WorkerPlan,
+    child_args,
+    parse_listen_fds,
+)
 
 
 def test_the_count_a_killed_process_wrote_is_read_after_it(tmp_path: Path) -> None:
@@ -47,3 +54,16 @@ def test_each_worker_gets_a_file_of_its_own_and_a_users_option_is_replaced() -> 
     assert "/elsewhere" not in args
     assert args[args.index("--worker-state") + 1] == os.path.join("/run/w", "worker-1")
     assert "--worker-state" not in child_args(WorkerPlan(["--no-tf"], 9090, None, None), 0)
+
+
+def test_every_worker_inherits_the_parents_listening_sockets() -> None:
+    fds = {"websocket": (5, 6), "tcp": (7,)}
+    plan = WorkerPlan(["--no-tf", "--listen-fd", "websocket:99"], 9090, 9091, None, listen_fds=fds)
+    assert plan.inherited() == (5, 6, 7)
+    for index in (0, 1):
+        args = child_args(plan, index)
+        given = [args[i + 1] for i, arg in enumerate(args) if arg == LISTEN_FD_OPTION]
+        assert given == ["websocket:5", "websocket:6", "tcp:7"]  # a user's is replaced
+        assert parse_listen_fds(given) == fds
+    with pytest.raises(ValueError, match="KIND:FD"):
+        parse_listen_fds(["websocket"])

@@ -22,6 +22,8 @@ from tests.webrtc.peer import RECEIVE_S, RtcClient, Served, rtc_client
 pytestmark = pytest.mark.anyio
 
 LOSSY = {"ordered": False, "maxRetransmits": 0}
+ONE_RETRANSMISSION = {"ordered": False, "maxRetransmits": 1}
+"""What rwt's roslib transport asks for (D73)."""
 
 
 async def _lossy_open(client: RtcClient) -> None:
@@ -47,15 +49,21 @@ def _lossy_messages(client: RtcClient) -> list[dict[str, object]]:
     [
         {"ordered": True, "maxRetransmits": 0},
         {"ordered": False},
+        {"ordered": False, "maxRetransmits": 2},
         {"ordered": False, "maxPacketLifeTime": 100},
     ],
 )
 async def test_a_lossy_channel_that_is_ordered_or_retransmits_is_closed(
     served_on: Served, options: dict[str, object], stack: str
 ) -> None:
-    if stack == "reactor" and "maxPacketLifeTime" in options:
+    unreliable = "maxPacketLifeTime" in options or "maxRetransmits" in options
+    if stack == "reactor" and unreliable and not options.get("ordered", True):
         await _taken_as_lossy_on_the_reactor_stack(served_on, options)
-        return
+    else:
+        await _closed(served_on, options)
+
+
+async def _closed(served_on: Served, options: dict[str, object]) -> None:
     async with rtc_client(served_on.base, lossy=options) as client:
         assert client.lossy is not None
         with anyio.fail_after(RECEIVE_S):
@@ -67,8 +75,8 @@ async def test_a_lossy_channel_that_is_ordered_or_retransmits_is_closed(
 async def _taken_as_lossy_on_the_reactor_stack(
     served_on: Served, options: dict[str, object]
 ) -> None:
-    """libwebrtc's binding tells whether a channel is reliable, not its lifetime: there an
-    unordered channel with a ``maxPacketLifeTime`` is taken as the lossy one (D70)."""
+    """libwebrtc's binding tells whether a channel is reliable, not its retransmissions or
+    lifetime: there an unordered channel that limits either is taken as the lossy one (D70)."""
     counter = served_on.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
     async with rtc_client(served_on.base, lossy=options) as client:
         await _lossy_open(client)
@@ -81,11 +89,13 @@ async def _taken_as_lossy_on_the_reactor_stack(
         assert client.lossy is not None and client.lossy.readyState == "open"
 
 
+@pytest.mark.parametrize("options", [LOSSY, ONE_RETRANSMISSION], ids=["none", "once"])
 async def test_a_subscription_on_the_lossy_channel_is_delivered_only_there(
-    served_on: Served,
+    served_on: Served, options: dict[str, object]
 ) -> None:
+    """With ``maxRetransmits`` 0, or 1 as rwt's roslib transport asks (D73)."""
     counter = served_on.graph.create_publisher("/count", "std_msgs/msg/Int32", node="/robot")
-    async with rtc_client(served_on.base, lossy=LOSSY) as client:
+    async with rtc_client(served_on.base, lossy=options) as client:
         await _lossy_open(client)
         client.send_lossy({"op": "subscribe", "topic": "/count", "type": "std_msgs/Int32"})
         await _subscribed(client, "s")

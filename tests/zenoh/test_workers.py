@@ -15,6 +15,7 @@ import contextlib
 import json
 import os
 import signal
+from collections.abc import Awaitable
 from pathlib import Path
 
 import anyio
@@ -303,3 +304,61 @@ async def test_a_worker_killed_mid_burst_costs_its_own_clients_one_gap_and_the_o
         # the parent says how many clients the crash dropped: those the kernel gave the victim
         exits = [line for line in parent.whole_stderr().splitlines() if "event=worker_exit" in line]
         assert f"connections={len(on[victim])} " in exits[0], exits
+
+
+async def _round_trip(url: str) -> str:
+    """Connect, ask the server for its time, and say how it went: ``ok`` or the failure."""
+    try:
+        async with ws_connect(url, open_timeout=30) as ws:
+            request = {"op": "call_service", "service": "/rosapi/get_time", "id": "t"}
+            await ws.send(json.dumps(request))
+            with anyio.fail_after(30):
+                answer = json.loads(await ws.recv())
+            return "ok" if answer.get("result") is True else f"answer {answer}"
+    except (OSError, InvalidHandshake, ConnectionClosed, TimeoutError) as exc:
+        return f"{type(exc).__name__}: {exc}"
+
+
+@pytest.mark.anyio
+@pytest.mark.skipif(not os.path.exists("/proc/self/task"), reason="needs Linux /proc")
+async def test_connections_waiting_for_a_killed_worker_are_served_by_another() -> None:
+    """A worker hangs (SIGSTOP) while clients connect, then is killed: every client is served.
+
+    The workers accept from the parent's listening socket: a connection waits in its
+    one queue until a running worker takes it, so none waits on the hung worker nor is
+    reset when it dies (with a socket of each worker's own, the kernel queued about
+    half of them for the hung one and reset them at its death). Its replacement then
+    serves as the others do.
+    """
+    command = rwt("serve", "--port", "0", "--no-tf", "--workers", "2", cold=True)
+    async with started(command, "parent") as parent:
+        url = (await parent.line(within=60)).strip().removeprefix("listening on ")
+        port = int(url.rsplit(":", 1)[1])
+        workers = workers_of(parent.process.pid)
+        with anyio.fail_after(60):
+            while not all(_listening(pid, port) for pid in workers):
+                await anyio.sleep(0.1)
+        victim = workers[0]
+        os.kill(victim, signal.SIGSTOP)
+        results: list[str] = []
+        try:
+            async with anyio.create_task_group() as clients:
+                for _ in range(8):
+                    clients.start_soon(lambda: _append(results, _round_trip(url)))
+                await anyio.sleep(1.0)  # connected: served, or queued
+                os.kill(victim, signal.SIGKILL)
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(victim, signal.SIGKILL)
+        assert results == ["ok"] * 8, results
+        await until_logged(parent, "event=worker_started", 3)  # its replacement
+        with anyio.fail_after(60):
+            while len(replaced := workers_of(parent.process.pid)) < 2 or not all(
+                _listening(pid, port) for pid in replaced
+            ):
+                await anyio.sleep(0.1)
+        assert [await _round_trip(url) for _ in range(8)] == ["ok"] * 8
+
+
+async def _append(results: list[str], outcome: Awaitable[str]) -> None:
+    results.append(await outcome)

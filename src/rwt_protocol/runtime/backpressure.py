@@ -43,12 +43,25 @@ if TYPE_CHECKING:
     from .outbox import Outbox, OutFrame
     from .timers import Timer
 
-__all__ = ["SEND_BUFFER_OPTION", "SlowConsumerWatch"]
+__all__ = ["SEND_BUFFER_OPTION", "SlowConsumerWatch", "lost_text"]
 
 logger = logging.getLogger("rwt.session")
 
 SEND_BUFFER_OPTION = "--send-buffer-limit"
 """The option that sets ``ClientRules.send_buffer_limit``, named to a peer that needs it."""
+
+
+def lost_text(count: int, topic: str) -> str:
+    """What a subscriber of ``topic`` is told when ``count`` of its messages were lost.
+
+    Lost on the way to the server (``rwt_protocol.ports.LossSink``, D61), as a
+    ``warning`` in its protocol's words; its own drops are ``SlowConsumerWatch``'s.
+    """
+    plural = "s" if count != 1 else ""
+    return (
+        f"lost {count} message{plural} of {topic} on the way to this server: a queue "
+        f"between the server's processes or a link was full"
+    )
 
 
 class SlowConsumerWatch:

@@ -38,7 +38,8 @@ meanwhile, whether it catches up or reconnects; a link until it catches up.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Generic, Protocol, TypeVar
+from collections import OrderedDict
+from typing import TYPE_CHECKING, Generic, NamedTuple, Protocol, TypeVar
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -47,6 +48,8 @@ __all__ = [
     "COOL_DOWN_BUDGETS",
     "HOLD_REFILL",
     "INPUT_STALL_S",
+    "LINK_ACCOUNTS",
+    "NO_PROGRESS",
     "READING_SHARE",
     "WATCH_SHARE",
     "FlowControl",
@@ -56,6 +59,7 @@ __all__ = [
     "HostNames",
     "Outlet",
     "PendingOutput",
+    "Progress",
     "ReadingWindow",
     "send_queue_shrank",
 ]
@@ -87,6 +91,11 @@ HOLD_REFILL = 0.1
 """Seconds of hold budget a reader regains per second, up to the whole budget: over
 any ``t`` seconds it is held at most ``--hold-budget`` + ``HOLD_REFILL`` x ``t``, a
 tenth of the time in the long run, whoever it waits for."""
+
+LINK_ACCOUNTS = 1024
+"""Remote publishers whose hold budgets a server keeps (``FlowControl.link_account``):
+past it the least recently held one's is forgotten (the publishers come from the
+network, so the table is bounded)."""
 
 COOL_DOWN_BUDGETS = 20.0
 """Hold budgets' worth of seconds a connection found slow, and every connection its
@@ -134,6 +143,27 @@ class HoldAccount:
             self._charged_to = end
 
 
+class Progress(NamedTuple):
+    """An outlet's progress at one moment (``holding.Held.progress``), bytes.
+
+    Attributes:
+        taken: what its consumer has taken so far (a count that only grows).
+        backlog: what it has yet to take (outbox and send queue).
+        unsent: of the backlog, what the socket's send queue holds (sendqueue.py):
+            handed to the peer's connection, not yet taken; None where that
+            cannot be told (then what the server has not handed over yet cannot
+            be told from what the peer has not taken).
+    """
+
+    taken: int
+    backlog: int
+    unsent: int | None = None
+
+
+NO_PROGRESS = Progress(0, 0)
+"""What ``Hold.wait_s`` passes on when no reading window starts or ends (not read)."""
+
+
 class ReadingWindow:
     """Whether a peer reads, judged over at least ``INPUT_STALL_S`` while it is behind.
 
@@ -142,25 +172,44 @@ class ReadingWindow:
             ``holding.Held.progress``).
         backlog: bytes waiting for it at ``now`` (outbox and send queue).
         now: the window's start, seconds.
+        unsent: of ``backlog``, bytes in its socket's send queue (``Progress.unsent``).
     """
 
-    def __init__(self, taken: int, backlog: int, now: float) -> None:
+    def __init__(self, taken: int, backlog: int, now: float, unsent: int | None = None) -> None:
         self.taken = taken
         self.backlog = backlog
+        self.unsent = unsent
         self.start = now
         self.ends = now + INPUT_STALL_S
 
-    def reading(self, taken: int, backlog: int, now: float) -> bool:
+    @classmethod
+    def of(cls, progress: Progress, now: float) -> ReadingWindow:
+        """The window starting at ``now`` (seconds) with the outlet's ``progress``."""
+        return cls(progress.taken, progress.backlog, now, progress.unsent)
+
+    def reading(self, taken: int, backlog: int, now: float, unsent: int | None = None) -> bool:
         """Whether the peer took ``READING_SHARE`` per ``INPUT_STALL_S`` since the start.
 
-        ``taken`` and ``backlog`` as at the start, at ``now`` (at or after
-        ``ends``). The share is of the larger backlog, the start's or this one,
-        so a window that started when the peer fell behind asks the rate its
+        ``taken``, ``backlog`` and ``unsent`` as at the start, at ``now`` (at or
+        after ``ends``). The share is of the larger backlog, the start's or this
+        one, so a window that started when the peer fell behind asks the rate its
         backlog has reached since.
+
+        A peer that took at least half of what reached its socket in the window
+        (what its send queue held at the start, and what the server handed to it
+        since; something) reads, whatever the share: its backlog waits in the
+        server, whose writer fell behind (its event loop busy with a link's burst,
+        or short of CPU), not in the peer (D61). Known only where the send queue
+        can be read. A window in which nothing reached it is judged by the share.
         """
         elapsed = max(now - self.start, INPUT_STALL_S)
         share = READING_SHARE * elapsed / INPUT_STALL_S
-        return taken - self.taken >= max(self.backlog, backlog) * share
+        if taken - self.taken >= max(self.backlog, backlog) * share:
+            return True
+        if self.unsent is None or unsent is None:
+            return False
+        offered = (taken + unsent) - (self.taken + self.unsent) + self.unsent
+        return offered > 0 and unsent * 2 <= offered
 
 
 def send_queue_shrank(before: int | None, after: int | None) -> bool:
@@ -292,24 +341,23 @@ class Hold(Generic[OutletT]):
         window = self._outlet.window
         return window is None or now >= window.ends
 
-    def next_wait(self, now: float, progress: tuple[int, int]) -> float | None:
+    def next_wait(self, now: float, progress: Progress) -> float | None:
         """Seconds to wait for the consumer's next take at ``now``, or None: stop waiting.
 
         Args:
             now: the time, seconds.
-            progress: bytes its consumer has taken so far and bytes it has yet to
-                take (outbox and send queue), ``holding.Held.progress``; read
-                only when ``needs_progress`` said so.
+            progress: what its consumer has taken so far and has yet to take,
+                ``holding.Held.progress``; read only when ``needs_progress`` said so.
         """
         outlet = self._outlet
         window = outlet.window
         if window is None:
-            window = outlet.window = ReadingWindow(*progress, now)
+            window = outlet.window = ReadingWindow.of(progress, now)
         elif now >= window.ends:
-            if not window.reading(*progress, now):
+            if not window.reading(progress.taken, progress.backlog, now, progress.unsent):
                 self._flow.found_slow(outlet, now)
                 return None
-            window = outlet.window = ReadingWindow(*progress, now)
+            window = outlet.window = ReadingWindow.of(progress, now)
         left = self._account.left(now)
         if left <= 0:
             if self._waited:  # it kept the reader until the budget ran out
@@ -317,9 +365,7 @@ class Hold(Generic[OutletT]):
             return None
         return min(window.ends - now, left)
 
-    def wait_s(
-        self, now: float, over_low: bool, progress: Callable[[], tuple[int, int]]
-    ) -> float | None:
+    def wait_s(self, now: float, over_low: bool, progress: Callable[[], Progress]) -> float | None:
         """The hold loop's one decision at ``now``: seconds to wait, or None: go on.
 
         Args:
@@ -333,7 +379,7 @@ class Hold(Generic[OutletT]):
         """
         wait = None
         if over_low:
-            wait = self.next_wait(now, progress() if self.needs_progress(now) else (0, 0))
+            wait = self.next_wait(now, progress() if self.needs_progress(now) else NO_PROGRESS)
         if wait is None and not self._outlet.counts_taken:
             self._outlet.window = None  # its window lasts one hold
         return wait
@@ -350,20 +396,41 @@ class FlowControl(Generic[OutletT]):
     Used on that loop only; sans-IO: every method takes the time and returns.
 
     Args:
-        hold_budget_s: seconds the links' deliveries may be held, all links as
-            one reader (``--hold-budget``, ``links``).
+        hold_budget_s: seconds a link's deliveries of one remote publisher may be
+            held (``--hold-budget``, ``link_account``), and those of no known
+            publisher, all links as one reader (``links``).
         cool_downs: the server's per-host cool-downs; None: a connection's
             cool-down ends with it.
     """
 
     def __init__(self, hold_budget_s: float = 0.0, cool_downs: HostCoolDowns | None = None) -> None:
         self.links = HoldAccount(hold_budget_s)
-        """The hold budget of the links' deliveries (``InflowGate``), one for all."""
+        """The hold budget of the links' deliveries (``InflowGate``) of no known publisher."""
+        self._publishers: OrderedDict[str, HoldAccount] = OrderedDict()
         self.cool_downs = cool_downs
         self.in_batch = False
         """A reader (or a link's deliveries) is handling a batch, and flushes at its end."""
         self._congested: list[OutletT] = []  # over the high watermark in this batch
         self._deferred: list[PendingOutput] = []  # output to write at the batch's end
+
+    def link_account(self, publisher: str | None) -> HoldAccount:
+        """The hold budget a link's deliveries of ``publisher``'s samples are charged to.
+
+        Each remote publisher (a participant a link mirrors) has its own, of the
+        size a local publisher's reader has (``--hold-budget``, as ``links``), as
+        if it were held at its source (D61); None (no publisher known): ``links``.
+        At most ``LINK_ACCOUNTS`` are kept, the least recently used forgotten.
+        """
+        if publisher is None:
+            return self.links
+        account = self._publishers.get(publisher)
+        if account is None:
+            account = self._publishers[publisher] = HoldAccount(self.links.budget_s)
+            if len(self._publishers) > LINK_ACCOUNTS:
+                self._publishers.popitem(last=False)
+        else:
+            self._publishers.move_to_end(publisher)
+        return account
 
     # -- a batch and who congested it
 

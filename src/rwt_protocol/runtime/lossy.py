@@ -1,4 +1,4 @@
-"""A session's lossy lane: the latest message of each topic, for a channel that never retransmits.
+"""A session's lossy lane: the latest message of each topic, for an unreliable channel.
 
 A transport with a second, unreliable and unordered channel beside the
 session's reliable one (WebRTC's ``rosbridge-lossy`` data channel, D36,

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..ops.base import Compression
+from ..runtime.backpressure import lost_text
 from ..runtime.timers import Timer
 
 if TYPE_CHECKING:
@@ -104,6 +105,7 @@ class TopicSubscription:
         schedule: runs a callback at a monotonic deadline (the session's timers).
         max_queue: the most messages queued whatever ``queue_length`` asks
             (a size the peer controls, D24).
+        warn: tells the client a ``warning`` (``on_lost``); None: it is not told.
     """
 
     def __init__(
@@ -114,6 +116,7 @@ class TopicSubscription:
         schedule: Schedule,
         *,
         max_queue: int = 100,
+        warn: Callable[[str], None] | None = None,
     ) -> None:
         self.topic = topic
         self.spelling = spelling
@@ -127,6 +130,7 @@ class TopicSubscription:
         self._max_queue = max(1, max_queue)
         self._timer: Timer | None = None
         self._lossy_ids: set[SubscriptionKey] = set()
+        self._warn = warn
         self.lossy = False
         """Every id came on the lossy channel: messages go on the lossy lane (D36)."""
 
@@ -175,6 +179,11 @@ class TopicSubscription:
         self.queue.append(event)
         self._trim()
         self._arm(now)
+
+    def on_lost(self, count: int) -> None:
+        """``count`` messages were lost before they reached the server (``LossSink``, D61)."""
+        if self._warn is not None:
+            self._warn(lost_text(count, self.spelling))
 
     def _open(self, now: float, window: float) -> bool:
         return window <= 0 or self.last_sent is None or now - self.last_sent >= window
@@ -245,8 +254,9 @@ class BatchTopicSubscription(TopicSubscription):
         schedule: Schedule,
         *,
         max_queue: int = 100,
+        warn: Callable[[str], None] | None = None,
     ) -> None:
-        super().__init__(topic, spelling, deliver, schedule, max_queue=max_queue)
+        super().__init__(topic, spelling, deliver, schedule, max_queue=max_queue, warn=warn)
         self._deliver_many = deliver_many
 
     def on_messages(self, events: Sequence[MessageEvent]) -> None:

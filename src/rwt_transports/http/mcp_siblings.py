@@ -1,7 +1,8 @@
 """MCP under ``rwt serve --mcp --workers N``: a request goes to the worker holding its state.
 
-A 2026-07-28 request carries no session, so the worker the kernel gave its socket
-answers it (SO_REUSEPORT; the graph is one through the workers' links). Two things
+A 2026-07-28 request carries no session, so the worker that accepted its socket
+answers it (the workers accept from one listening socket, workers.py; the graph is
+one through the workers' links). Two things
 stay where they were made: a 2025-era session (its ``Mcp-Session-Id``) and a task
 (its ``taskId``: the goal lives on a connection of that worker, and its feedback
 and result arrive there). Their ids name the worker that holds them
@@ -19,6 +20,18 @@ reach the socket). A request is passed once: a forwarded one is answered
 where it lands. An owner that cannot be reached (it died: its sessions and tasks
 died with it) leaves the request to the worker that got it, which answers as for
 any unknown session or task (404, "no task").
+
+The relay is the client's stand-in, and leaves as a client does: when the client
+closes, the forwarding worker shuts its side of the Unix socket for writing (the
+owner reads the end of the request stream, as from a client that closed) and reads
+what the owner still writes, to drop it, until the owner ends its answer
+(``DRAIN_S`` at most): the owner's last writes find a reader, not a broken pipe.
+Both ends of the Unix socket run on the event loop's transports
+(``SocketStream.from_socket``), not anyio's Unix streams: those wait for the socket
+with a future that the loop's readiness callback completes, and a read cancelled in
+the loop turn that found the socket ready made that callback fail, logged by
+asyncio at ERROR (``Exception in callback Future.set_result(None)``); a relay's
+reads are cancelled whenever its client or its answer ends.
 """
 
 from __future__ import annotations
@@ -27,12 +40,14 @@ import contextlib
 import logging
 import os
 import re
+import socket
 import uuid
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import anyio
 import h11
+from anyio.abc import SocketStream
 
 from rwt_graph.ratelog import EpisodeLog
 
@@ -43,7 +58,7 @@ if TYPE_CHECKING:
 
     from anyio.abc import ByteStream
 
-__all__ = ["PEER_PREAMBLE", "McpSiblings"]
+__all__ = ["DRAIN_S", "PEER_PREAMBLE", "McpSiblings"]
 
 logger = logging.getLogger("rwt.mcp")
 _episodes = EpisodeLog(logger)
@@ -54,6 +69,12 @@ _PREAMBLE_MAX = 300  # bytes: the prefix, an address (IPv6 with port), CRLF
 _CONNECT_TIMEOUT_S = 2.0  # a live worker accepts at once; a stuck one is not waited on
 _PREAMBLE_TIMEOUT_S = 5.0
 _READ_SIZE = 65536
+_ACCEPT_BACKOFF_S = 0.1  # out of descriptors: the forwarded requests wait in the backlog
+
+DRAIN_S = 5.0
+"""Seconds a forwarding worker whose client left reads (and drops) what the owner still
+writes, after telling it the request stream ended: the owner ends an answer whose client
+left at once, so this bounds only an owner that does not."""
 _ID = re.compile(r"w(\d{1,4})-[0-9a-f]{32}")
 STATE_KEY = "mcp-request-state.key"
 """The workers' key of 2026-07-28 request states, in their state folder (``state_key``)."""
@@ -129,7 +150,7 @@ class McpSiblings:
         """
         try:
             with anyio.fail_after(_CONNECT_TIMEOUT_S):
-                sibling = await anyio.connect_unix(self.path(owner))
+                sibling = await _connect(self.path(owner))
         except (OSError, TimeoutError) as exc:
             _failed(owner, exc)
             return False
@@ -141,14 +162,7 @@ class McpSiblings:
             except (anyio.BrokenResourceError, OSError) as exc:
                 _failed(owner, exc)
                 return False
-            async with anyio.create_task_group() as tg:
-                tg.start_soon(_cancel_when_gone, stream, tg.cancel_scope)
-                with contextlib.suppress(
-                    anyio.EndOfStream, anyio.BrokenResourceError, anyio.ClosedResourceError, OSError
-                ):
-                    async for chunk in sibling:
-                        await stream.send(chunk)
-                tg.cancel_scope.cancel()
+            await _relay(sibling, stream)
         return True
 
     async def serve(
@@ -165,23 +179,104 @@ class McpSiblings:
         path = self.path(self.index)
         with contextlib.suppress(FileNotFoundError):
             os.unlink(path)  # this worker's predecessor's (it died)
-        listener = await anyio.create_unix_listener(path)
-        task_status.started()
+        listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            listener.bind(path)
+            listener.listen()
+            listener.setblocking(False)
+            task_status.started()
 
-        async def one(stream: ByteStream) -> None:
-            async with stream:
-                read = None
-                with anyio.move_on_after(_PREAMBLE_TIMEOUT_S):
-                    read = await _preamble(stream)
-                if read is None:
-                    return
+            async def one(sock: socket.socket) -> None:
                 try:
-                    await answer(stream, read[1], read[0])
-                except Exception:  # a bug ends this request only
-                    logger.exception("event=bug task=mcp_forwarded peer=%s", read[0])
+                    stream = await SocketStream.from_socket(sock)
+                except OSError:  # the sibling left already
+                    sock.close()
+                    return
+                async with stream:
+                    read = None
+                    with anyio.move_on_after(_PREAMBLE_TIMEOUT_S):
+                        read = await _preamble(stream)
+                    if read is None:
+                        return
+                    try:
+                        await answer(stream, read[1], read[0])
+                    except Exception:  # a bug ends this request only
+                        logger.exception("event=bug task=mcp_forwarded peer=%s", read[0])
 
-        async with listener:
-            await listener.serve(one)
+            async with anyio.create_task_group() as tg:
+                while True:
+                    tg.start_soon(one, await _accept(listener))
+        finally:
+            listener.close()
+
+
+async def _connect(path: str) -> SocketStream:
+    """A stream to the Unix socket at ``path`` on the event loop's transports (module text).
+
+    Raises:
+        OSError: nothing listens there (the worker died), or the connect failed.
+    """
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        sock.setblocking(False)
+        while True:
+            try:
+                sock.connect(path)
+                break
+            except BlockingIOError:  # the listener's backlog is full: again once it is not
+                await anyio.wait_writable(sock)
+        return await SocketStream.from_socket(sock)
+    except BaseException:
+        sock.close()
+        raise
+
+
+async def _accept(listener: socket.socket) -> socket.socket:
+    """The next connection of ``listener`` (non-blocking); waits out a lack of descriptors."""
+    while True:
+        await anyio.wait_readable(listener)
+        try:
+            sock, _ = listener.accept()
+        except BlockingIOError:
+            continue
+        except OSError as exc:  # EMFILE, ENFILE, ENOBUFS: the sibling waits in the backlog
+            _episodes.log(
+                logging.WARNING, "mcp_accept_failed", "event=mcp_accept_failed error=%r", exc
+            )
+            await anyio.sleep(_ACCEPT_BACKOFF_S)
+            continue
+        return sock
+
+
+async def _relay(sibling: SocketStream, stream: ByteStream) -> None:
+    """Copy the owner's answer from ``sibling`` to the client's ``stream`` until it ends.
+
+    If the client leaves first, the owner is told the request stream ended and what it
+    still writes is read and dropped, ``DRAIN_S`` at most (module text).
+    """
+    gone = anyio.Event()
+    async with anyio.create_task_group() as tg:
+
+        async def leave_when_gone() -> None:
+            await _until_gone(stream)
+            gone.set()
+            with contextlib.suppress(anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+                await sibling.send_eof()
+            await anyio.sleep(DRAIN_S)  # the answer's end cancels this first
+            tg.cancel_scope.cancel()
+
+        tg.start_soon(leave_when_gone)
+        with contextlib.suppress(
+            anyio.EndOfStream, anyio.BrokenResourceError, anyio.ClosedResourceError, OSError
+        ):
+            async for chunk in sibling:
+                if gone.is_set():
+                    continue  # read and dropped: the owner's writes find a reader
+                try:
+                    await stream.send(chunk)
+                except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
+                    gone.set()  # the client's side broke: its reader learns it too
+        tg.cancel_scope.cancel()  # the answer ended: the client's reader too
 
 
 def _failed(owner: int, exc: BaseException) -> None:
@@ -191,14 +286,13 @@ def _failed(owner: int, exc: BaseException) -> None:
     )
 
 
-async def _cancel_when_gone(stream: ByteStream, scope: anyio.CancelScope) -> None:
-    """Cancel ``scope`` when the client closes (bytes it sends are dropped: one request)."""
+async def _until_gone(stream: ByteStream) -> None:
+    """Return when the client closes (bytes it sends are dropped: one request)."""
     with contextlib.suppress(
         anyio.EndOfStream, anyio.BrokenResourceError, anyio.ClosedResourceError, OSError
     ):
         while True:
             await stream.receive(_READ_SIZE)
-    scope.cancel()
 
 
 async def _preamble(stream: ByteStream) -> tuple[str, bytes] | None:

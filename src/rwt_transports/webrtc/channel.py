@@ -189,7 +189,7 @@ class DataChannelChannel(PlainChannel):
             self._on_close()
 
     def attach_lossy(self, channel: AnyDataChannel) -> None:
-        """Take the ``rosbridge-lossy`` channel (unordered, never retransmitted; D36).
+        """Take the ``rosbridge-lossy`` channel (unordered, sent again once at most; D36, D73).
 
         Its messages reach the session as ``LossyInFrame``; its output is the
         session's lossy lane, which the caller opens (``lossy_ready`` is the
@@ -197,7 +197,7 @@ class DataChannelChannel(PlainChannel):
         """
         self._lossy = channel
         self._channels.append(channel)
-        channel.bufferedAmountLowThreshold = 0
+        channel.bufferedAmountLowThreshold = _UNWATCHED  # watched while the gate waits
         channel.on("message", lambda message: self._on_message(message, lossy=True))
         channel.on("close", self._on_lossy_close)
         channel.on("bufferedamountlow", self._on_low)
@@ -340,7 +340,7 @@ class DataChannelChannel(PlainChannel):
     async def _drain(self) -> None:
         """Wait while the channel buffers more than ``SEND_HIGH_WATER_BYTES`` for the peer."""
         channel = self._dc
-        while channel.bufferedAmount > SEND_HIGH_WATER_BYTES:
+        while _over(channel, SEND_HIGH_WATER_BYTES):
             if self._ended:
                 raise anyio.BrokenResourceError
             self._drained = anyio.Event()
@@ -403,11 +403,16 @@ class DataChannelChannel(PlainChannel):
         """Wait until the channels buffer at most ``LOSSY_GATE_BYTES``; False if it closed.
 
         The lane keeps only each topic's latest message meanwhile, and the
-        reliable writer waits (``_yield_to_lossy``).
+        reliable writer waits (``_yield_to_lossy``). Judged on the channels' bounds
+        first (``_bound``: on the reactor stack a read waits for libwebrtc's thread);
+        read, and watched (``bufferedamountlow``), only while the bounds say no.
         """
         reliable = self._dc
+        if _bound(reliable) + _bound(channel) <= LOSSY_GATE_BYTES:
+            return self._lossy is channel
         try:
             reliable.bufferedAmountLowThreshold = LOSSY_GATE_BYTES
+            channel.bufferedAmountLowThreshold = 0
             while reliable.bufferedAmount + channel.bufferedAmount > LOSSY_GATE_BYTES:
                 if self._lossy is not channel or self._ended:
                     return False
@@ -416,4 +421,26 @@ class DataChannelChannel(PlainChannel):
                     await self._room.wait()
         finally:
             reliable.bufferedAmountLowThreshold = SEND_LOW_WATER_BYTES
+            channel.bufferedAmountLowThreshold = _UNWATCHED
         return self._lossy is channel
+
+
+_UNWATCHED = (1 << 32) - 1
+"""The lossy channel's ``bufferedAmountLowThreshold`` while no writer waits for it: the
+largest the API takes (an unsigned long, WebRTC's ``RTCDataChannel``), never reached."""
+
+
+def _bound(channel: AnyDataChannel) -> int:
+    """At least the bytes ``channel`` buffers, without waiting for another thread.
+
+    ``bufferedBound`` where a read of ``bufferedAmount`` waits for one (the reactor
+    stack, webrtc_native.py), else ``bufferedAmount`` (aiortc's counter; libdatachannel's
+    atomic read).
+    """
+    bound: int | None = getattr(channel, "bufferedBound", None)
+    return channel.bufferedAmount if bound is None else bound
+
+
+def _over(channel: AnyDataChannel, limit: int) -> bool:
+    """Whether ``channel`` buffers more than ``limit`` bytes, read only if its bound is over."""
+    return _bound(channel) > limit and channel.bufferedAmount > limit

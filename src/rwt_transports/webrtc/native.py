@@ -215,11 +215,13 @@ class NativeDataChannel:
         max_message_size: the largest incoming message, bytes; a larger one is
             not queued, ``oversized`` is emitted.
         close_peer: closes the channel's peer connection (``close``).
-        amount_ttl_s: how long a read of the stack's buffered amount stands, s (0:
-            each ``bufferedAmount`` reads it). Meanwhile ``bufferedAmount`` is that read
-            plus the bytes sent since: never below what the stack holds, for a read
-            that waits for another thread (libwebrtc's, about 50 us on a busy
-            machine: reactor.py) costs more than a message's send.
+        bounded: a read of the stack's buffered amount waits for another thread
+            (libwebrtc's signalling thread, 50-300 us on a busy machine:
+            reactor.py), more than a message's send: keep an upper bound
+            instead (``bufferedBound``: the last read plus the bytes sent since; the
+            amount only falls between two reads but by sending), and read only when
+            the bound is over the limit asked about (``buffered_over``). False: the
+            amount is an atomic read (libdatachannel), each ``bufferedAmount`` reads it.
     """
 
     def __init__(
@@ -229,12 +231,11 @@ class NativeDataChannel:
         inflow: Inflow,
         max_message_size: int,
         close_peer: Callable[[], object] = lambda: None,
-        amount_ttl_s: float = 0.0,
+        bounded: bool = False,
     ) -> None:
         self._channel = channel
-        self._amount_ttl_s = amount_ttl_s
+        self._bounded = bounded
         self._amount_read = 0
-        self._amount_read_at = float("-inf")
         self._sent_since_read = 0
         self._close_peer = close_peer
         self._loop = loop
@@ -327,20 +328,28 @@ class NativeDataChannel:
 
     @property
     def bufferedAmount(self) -> int:
-        """Bytes sent and not yet handed to SCTP (the stack's ``buffered_amount``).
-
-        Within ``amount_ttl_s`` of the last read: that read and the bytes sent since.
-        """
-        now = self._loop.time()
-        if now - self._amount_read_at < self._amount_ttl_s:
-            return self._amount_read + self._sent_since_read
+        """Bytes sent and not yet handed to SCTP: a read of the stack's ``buffered_amount``."""
         try:
             amount = int(self._channel.buffered_amount())
         except RuntimeError:  # closed
             amount = 0
-        if self._amount_ttl_s:
-            self._amount_read, self._amount_read_at, self._sent_since_read = amount, now, 0
+        if self._bounded:
+            self._amount_read, self._sent_since_read = amount, 0
         return amount
+
+    @property
+    def bufferedBound(self) -> int:
+        """At least the bytes ``bufferedAmount`` would read, without reading it when ``bounded``.
+
+        The last read plus the bytes sent since (webrtc.py compares it first).
+        """
+        if self._bounded:
+            return self._amount_read + self._sent_since_read
+        return self.bufferedAmount
+
+    def buffered_over(self, limit: int) -> bool:
+        """Whether the stack buffers more than ``limit`` bytes; read only if the bound is over."""
+        return self.bufferedBound > limit and self.bufferedAmount > limit
 
     @property
     def bufferedAmountLowThreshold(self) -> int:
@@ -366,22 +375,17 @@ class NativeDataChannel:
         except (RuntimeError, ValueError) as exc:  # closed; over the peer's message size
             raise ConnectionError(str(exc)) from exc
         self._sent_since_read += len(data)
-        self._watch(sent=True)
+        self._watch()
 
-    def _watch(self, *, sent: bool = False) -> None:
-        """Poll ``bufferedAmount`` while above the threshold; then emit ``bufferedamountlow``.
+    def _watch(self) -> None:
+        """Poll the buffered amount while above the threshold; then emit ``bufferedamountlow``.
 
-        ``sent``: a message was just handed over: poll once at least, whatever the
-        amount reads now. libwebrtc (the reactor stack, reactor.py) counts a
-        message on its network thread, after ``send`` returns, so a read at once can
-        show the amount before it; a writer that then waits for the event would wait
-        for a poll nobody scheduled.
+        Judged on ``bufferedBound`` (which counts what was just sent): libwebrtc (the
+        reactor stack, reactor.py) counts a message on its network thread,
+        after ``send`` returns, so a read at once can show the amount before it, and
+        a writer that then waited for the event would wait for a poll nobody scheduled.
         """
-        if (
-            not self._polling
-            and self.readyState == "open"
-            and (sent or self.bufferedAmount > self._threshold)
-        ):
+        if not self._polling and self.readyState == "open" and self.bufferedBound > self._threshold:
             self._polling = True
             self._loop.call_later(DRAIN_POLL_S, self._poll)
 
@@ -389,7 +393,7 @@ class NativeDataChannel:
         self._polling = False
         if self.readyState != "open":
             return
-        if self.bufferedAmount <= self._threshold:
+        if not self.buffered_over(self._threshold):
             self._emit("bufferedamountlow")
         else:
             self._watch()

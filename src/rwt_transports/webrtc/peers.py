@@ -12,7 +12,7 @@ rosbridge's ``rosbridge`` (reliable, ordered), or a registered protocol's label.
 The first such channel opens the session on the ticket (``open_session(ticket=)``,
 counted in ``/connected_clients`` from then), which runs on the connection pump
 like a WebSocket's once the channel is open (channel.py). A lossy label of the same
-front end (``rosbridge-lossy``: unordered, ``maxRetransmits`` 0) belongs to the same
+front end (``rosbridge-lossy``: unordered, ``maxRetransmits`` 0 or 1) belongs to the same
 session: it opens the session's lossy lane (D36). A label the registry does not
 name is refused: the channel is closed and the log names the label and the ones
 served (``event=channel_refused``). Bounds, each enforced here (docs/limits.md):
@@ -92,6 +92,7 @@ if TYPE_CHECKING:
     from .video import VideoBinding
 
 __all__ = [
+    "LOSSY_MAX_RETRANSMITS",
     "MAX_CONNECTING",
     "OFFER_TIMEOUT_S",
     "WebRtcPeers",
@@ -106,6 +107,12 @@ MAX_CONNECTING = 16
 
 OFFER_TIMEOUT_S = 10.0
 """Seconds answering one offer (ICE gathering) may take; then 503."""
+
+LOSSY_MAX_RETRANSMITS = 1
+"""The most ``maxRetransmits`` a lossy channel may ask for (D73; 0 or 1, rwt's roslib
+transport asks for 1): each send of a message that is lost leaves a gap only a FORWARD
+TSN closes, one gap a round trip in libwebrtc's SCTP, fewer than a 1 kHz topic opens
+on a 2 % loss link; a message sent again once closes its gap itself."""
 
 _NO_DATA_CHANNEL = "the offer has no data channel (m=application) and asks for no video"
 _MAX_MESSAGE_SIZE = re.compile(r"^a=max-message-size:(\d+)\s*$", re.MULTILINE)
@@ -122,7 +129,8 @@ def channel_refusal(
 
     Its label must be one the registry names (``frontends.by_label``): a front end's
     reliable label must come on a reliable, ordered channel, its lossy one on an
-    unordered channel with ``maxRetransmits`` 0 (D36). (A second channel of a label
+    unordered channel with ``maxRetransmits`` 0 or 1 (D36, D73:
+    ``LOSSY_MAX_RETRANSMITS``) and no packet lifetime. (A second channel of a label
     is refused too, by its peer connection.) Safe on libdatachannel's threads.
 
     Args:
@@ -140,7 +148,12 @@ def channel_refusal(
     if chosen is None:
         return f"unknown label (served: {', '.join(frontends.labels()) or 'none'})"
     if chosen.lossy:
-        lossy = not ordered and max_retransmits == 0 and max_lifetime is None
+        lossy = (
+            not ordered
+            and max_retransmits is not None
+            and 0 <= max_retransmits <= LOSSY_MAX_RETRANSMITS
+            and max_lifetime is None
+        )
         return None if lossy else "not_unordered_unreliable"
     reliable = max_retransmits is None and max_lifetime is None
     return None if ordered and reliable else "not_reliable_ordered"
@@ -551,8 +564,8 @@ class WebRtcPeers:
     def _on_channel(self, item: _Peer, channel: AnyDataChannel) -> None:
         """Take a channel of a registered label: the first opens the session (module text).
 
-        One reliable channel and one lossy one (unordered, ``maxRetransmits`` 0,
-        D36), of one front end; any other channel is closed, the reason logged. A
+        One reliable channel and one lossy one (unordered, ``maxRetransmits`` 0 or 1,
+        D36, D73), of one front end; any other channel is closed, the reason logged. A
         native channel reports the inbox bounds itself (native.py): a
         message over the size, or past the bound.
         """

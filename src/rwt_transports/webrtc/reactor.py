@@ -10,7 +10,8 @@ other stacks' (peers.py): signalling, the offer's checks, the connecting
 and offer bounds, admission, the session, ``DataChannelChannel`` with its flow
 control and lossy lane. The channels go through native.py's
 ``NativeDataChannel`` (its hop onto the loop, its inbox bound, its polled
-``bufferedAmount``), behind ``_Channel``, a face of the few libdatachannel calls it makes.
+``bufferedAmount``, here ``bounded``: each read of it waits for libwebrtc's signalling
+thread), behind ``_Channel``, a face of the few libdatachannel calls it makes.
 
 Threads and the GIL: libwebrtc calls back on its signalling thread, with the GIL
 taken; the binding releases the GIL in every call that waits for a libwebrtc thread
@@ -50,7 +51,6 @@ if TYPE_CHECKING:
     from .native import Inflow
 
 __all__ = [
-    "AMOUNT_TTL_S",
     "GATHER_TIMEOUT_S",
     "SCTP_TUNING",
     "ReactorPeerConnection",
@@ -66,10 +66,6 @@ SCTP_TUNING: dict[str, int] = {"min_cwnd_mtus": 16, "delayed_ack_max_ms": 20, "r
 after a loss the window stays at 16 packets at least (upstream: 4), SACKs wait at most
 20 ms (200), and a retransmission timeout is 120 ms at least (400). Measured on a
 2 Mbit/s bottleneck beside a TCP download, docs/webrtc.md ("Which stack")."""
-
-AMOUNT_TTL_S = 0.005
-"""How long a read of a channel's buffered amount stands (``NativeDataChannel``'s
-``amount_ttl_s``): each read waits for libwebrtc's signalling thread."""
 
 GATHER_TIMEOUT_S = 5.0
 """Seconds an answer waits for its candidates (STUN and TURN servers' included)."""
@@ -241,7 +237,7 @@ class ReactorPeerConnection:
         if hop.target is None:
             return
         wrapped = NativeDataChannel(
-            _Channel(channel), self._loop, self._inflow, self._max, self._close_soon, AMOUNT_TTL_S
+            _Channel(channel), self._loop, self._inflow, self._max, self._close_soon, bounded=True
         )
         label = wrapped.label
         reason = self._refusal(

@@ -1,13 +1,19 @@
 """``rwt serve --workers N``: N server processes on one port and one graph, supervised.
 
-Each worker is ``rwt serve`` itself with the same options, its WebSocket and TCP
-listeners bound with SO_REUSEPORT on the same port (the kernel spreads new
-connections over them), and its graph linked to the others' over Zenoh on
-loopback: worker 0 listens on a hub endpoint the others connect to (peers then
-gossip and mesh). The parent serves nothing: it prints each ``listening on`` line
-once, restarts a worker that dies (logged with the connections it held, with a
-growing pause if it keeps dying), and on SIGTERM or SIGINT stops them all
-gracefully (docs/scaling.md).
+Each worker is ``rwt serve`` itself with the same options. The parent listens on the
+WebSocket and TCP ports and every worker accepts from those listening sockets,
+inherited (``--listen-fd``): one queue of new connections for all, which a worker
+takes from while it runs. A worker that dies takes only the connections it had
+accepted; those waiting in the queue, and those that come while it restarts, go to a
+worker that is up. (With a listening socket of each worker's own, bound with
+SO_REUSEPORT, the kernel chose a worker for each connection as it arrived, and reset
+the connections it had queued for a worker that was killed: the first connection
+after a kill could be reset.) The graphs are linked over Zenoh on loopback: worker 0
+listens on a hub endpoint the others connect to (peers then gossip and mesh). The
+parent serves nothing: it prints each ``listening on`` line once (when every worker
+has said it: they all accept), restarts a worker that dies (logged with the
+connections it held, with a growing pause if it keeps dying), and on SIGTERM or
+SIGINT stops them all gracefully (docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import tempfile
 from typing import TYPE_CHECKING
 
 import anyio
+from anyio.abc import SocketAttribute
 from anyio.streams.buffered import BufferedByteReceiveStream
 
 from rwt_protocol.errors import ConfigError
@@ -31,11 +38,16 @@ from ..listen import ListenError
 from .counts import STATE_PREFIX, read_count, reset_count
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator, Sequence
+    from collections.abc import Iterator, Mapping, Sequence
+
+    from anyio.abc import SocketStream
+    from anyio.streams.stapled import MultiListener
 
 __all__ = [
+    "LISTEN_FD_OPTION",
     "WorkerPlan",
     "child_args",
+    "parse_listen_fds",
     "reserve_port",
     "reuse_port_supported",
     "run_workers",
@@ -50,8 +62,19 @@ RESTART_PAUSES_S = (0.5, 1.0, 2.0, 5.0)
 STABLE_S = 10.0
 """A worker that ran this long before dying is restarted after the first pause again."""
 
+LISTEN_FD_OPTION = "--listen-fd"
+"""A worker's option naming a listening socket it inherits: ``KIND:FD`` (``websocket``
+or ``tcp``, and the descriptor), once per socket (``parse_listen_fds``)."""
+
 #: serve options the parent sets itself for each worker (with their value).
-_REPLACED = ("--workers", "--port", "--tcp-port", "--worker-state", "--worker-count")
+_REPLACED = (
+    "--workers",
+    "--port",
+    "--tcp-port",
+    "--worker-state",
+    "--worker-count",
+    LISTEN_FD_OPTION,
+)
 
 
 def reuse_port_supported() -> bool:
@@ -102,6 +125,9 @@ class WorkerPlan:
         state_dir: the folder of the workers' connection counts (``worker_counts``);
             None: they keep none.
         count: the number of workers (``--placement topic`` places by it).
+        listen_fds: the parent's listening sockets every worker inherits, by kind
+            (``websocket``, ``tcp``): their descriptors, one per address bound;
+            none for a kind: each worker binds its own.
     """
 
     def __init__(
@@ -112,6 +138,7 @@ class WorkerPlan:
         hub: str | None,
         state_dir: str | None = None,
         count: int = 1,
+        listen_fds: Mapping[str, Sequence[int]] | None = None,
     ) -> None:
         self.args = list(args)
         self.count = count
@@ -119,6 +146,11 @@ class WorkerPlan:
         self.tcp_port = tcp_port
         self.hub = hub
         self.state_dir = state_dir
+        self.listen_fds = {kind: tuple(fds) for kind, fds in (listen_fds or {}).items()}
+
+    def inherited(self) -> tuple[int, ...]:
+        """The descriptors every worker inherits (``pass_fds``)."""
+        return tuple(fd for fds in self.listen_fds.values() for fd in fds)
 
     def state(self, index: int) -> str | None:
         """The connection count file of worker ``index`` (None: not kept)."""
@@ -148,7 +180,25 @@ def child_args(plan: WorkerPlan, index: int) -> list[str]:
         args += ["--zenoh-listen" if index == 0 else "--zenoh-connect", plan.hub]
     if (state := plan.state(index)) is not None:
         args += ["--worker-state", state, "--worker-count", str(plan.count)]
+    for kind, fds in plan.listen_fds.items():
+        for fd in fds:
+            args += [LISTEN_FD_OPTION, f"{kind}:{fd}"]
     return args
+
+
+def parse_listen_fds(values: Sequence[str]) -> dict[str, tuple[int, ...]]:
+    """The ``--listen-fd KIND:FD`` values of a worker, as ``{kind: descriptors}``.
+
+    Raises:
+        ValueError: a value is not ``KIND:FD`` with a non-negative integer descriptor.
+    """
+    fds: dict[str, tuple[int, ...]] = {}
+    for value in values:
+        kind, _, number = value.partition(":")
+        if not kind or not number.isdigit():
+            raise ValueError(f"{LISTEN_FD_OPTION} takes KIND:FD, got {value!r}")
+        fds[kind] = (*fds.get(kind, ()), int(number))
+    return fds
 
 
 def run_workers(
@@ -156,8 +206,9 @@ def run_workers(
 ) -> int:
     """Run and supervise ``count`` workers until SIGTERM or SIGINT; the exit status.
 
-    The ``serve`` options are read from ``sys.argv`` (after ``serve``); a port 0
-    becomes one free port all workers share, held by the parent until they run.
+    The ``serve`` options are read from ``sys.argv`` (after ``serve``). The parent
+    listens on the WebSocket and TCP ports (0: a free one) and every worker inherits
+    those sockets (module text).
 
     Raises:
         ConfigError: SO_REUSEPORT is not available (not Linux).
@@ -167,36 +218,81 @@ def run_workers(
         raise ConfigError("--workers needs SO_REUSEPORT to share ports: Linux only")
     argv = sys.argv[1:]
     args = argv[argv.index("serve") + 1 :] if "serve" in argv else argv
-    with contextlib.ExitStack() as holds:
-        ports: list[int | None] = []
-        for listener, wanted in (("WebSocket", port), ("TCP", tcp_port)):
-            if wanted is None:
-                ports.append(None)
-                continue
-            try:
-                sock = holds.enter_context(reserve_port(host, wanted))
-            except OSError as exc:
-                raise ListenError(listener, host, wanted, exc) from exc
-            ports.append(sock.getsockname()[1])
-        hub = None
-        if zenoh_mode == "peer":
-            with reserve_port("127.0.0.1", 0) as probe:
-                hub = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
-        state_dir = holds.enter_context(tempfile.TemporaryDirectory(prefix="rwt-workers-"))
-        plan = WorkerPlan(args, ports[0], ports[1], hub, state_dir, count)
-        # the reservations go once the workers listen: they are in the same group
-        return anyio.run(_supervise, plan, count, holds.pop_all())
+    hub = None
+    if zenoh_mode == "peer":
+        with reserve_port("127.0.0.1", 0) as probe:
+            hub = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
+    with tempfile.TemporaryDirectory(prefix="rwt-workers-") as state_dir:
+        plan = WorkerPlan(args, None, None, hub, state_dir, count)
+        return anyio.run(_supervise, plan, host, {"websocket": port, "tcp": tcp_port})
 
 
-async def _supervise(plan: WorkerPlan, count: int, holds: contextlib.ExitStack) -> int:
-    printed: set[str] = set()
+async def _listen(
+    host: str, wanted: Mapping[str, int | None], stack: contextlib.AsyncExitStack
+) -> dict[str, MultiListener[SocketStream]]:
+    """The parent's listening sockets, by kind, held open by ``stack`` while it runs.
+
+    Raises:
+        ListenError: a port cannot be bound.
+    """
+    names = {"websocket": "WebSocket", "tcp": "TCP"}
+    listeners = {}
+    for kind, port in wanted.items():
+        if port is None:
+            continue
+        try:
+            listener = await anyio.create_tcp_listener(local_host=host, local_port=port)
+        except OSError as exc:
+            raise ListenError(names[kind], host, port, exc) from exc
+        listeners[kind] = await stack.enter_async_context(listener)
+    return listeners
+
+
+async def _supervise(plan: WorkerPlan, host: str, wanted: Mapping[str, int | None]) -> int:
+    """Listen on the ports ``wanted`` (by kind; 0: a free one), then run the workers."""
+    printed = _Announcer(plan.count)
     stopping = anyio.Event()
-    with holds:  # the reserved ports, released when supervision ends
-        return await _supervise_all(plan, count, printed, stopping)
+    async with contextlib.AsyncExitStack() as stack:  # the sockets, held until the end
+        listeners = await _listen(host, wanted, stack)
+        ports = {kind: each.extra(SocketAttribute.local_port) for kind, each in listeners.items()}
+        plan.port, plan.tcp_port = ports.get("websocket"), ports.get("tcp")
+        plan.listen_fds = {
+            kind: tuple(one.extra(SocketAttribute.raw_socket).fileno() for one in each.listeners)
+            for kind, each in listeners.items()
+        }
+        return await _supervise_all(plan, plan.count, printed, stopping)
+
+
+class _Announcer:
+    """The parent's stdout: each distinct line of the workers' once.
+
+    A ``listening on`` line is printed once every worker has said it, so a client that
+    connects on seeing it finds them all accepting; any other line when first said.
+
+    Args:
+        count: the number of workers.
+    """
+
+    def __init__(self, count: int) -> None:
+        self._count = count
+        self._printed: set[str] = set()
+        self._said: dict[str, set[int]] = {}  # a listening line: the workers that said it
+
+    def said(self, index: int, line: str) -> None:
+        """Worker ``index`` wrote ``line`` on its stdout."""
+        if line in self._printed:
+            return
+        if line.startswith("listening on "):
+            workers = self._said.setdefault(line, set())
+            workers.add(index)
+            if len(workers) < self._count:
+                return
+        self._printed.add(line)
+        print(line, flush=True)  # noqa: T201 - the serve command's stdout
 
 
 async def _supervise_all(
-    plan: WorkerPlan, count: int, printed: set[str], stopping: anyio.Event
+    plan: WorkerPlan, count: int, printed: _Announcer, stopping: anyio.Event
 ) -> int:
     async with anyio.create_task_group() as tg:
         for index in range(count):
@@ -210,7 +306,7 @@ async def _supervise_all(
 
 
 async def _keep_running(
-    plan: WorkerPlan, index: int, printed: set[str], stopping: anyio.Event
+    plan: WorkerPlan, index: int, printed: _Announcer, stopping: anyio.Event
 ) -> None:
     failures = 0
     while not stopping.is_set():
@@ -237,26 +333,26 @@ async def _keep_running(
 
 
 async def _run_once(
-    plan: WorkerPlan, index: int, printed: set[str], stopping: anyio.Event
+    plan: WorkerPlan, index: int, printed: _Announcer, stopping: anyio.Event
 ) -> int | None:
     if (state := plan.state(index)) is not None:
         with contextlib.suppress(OSError):  # without it the log says connections=unknown
             reset_count(state)  # a restarted worker starts from none
-    process = await anyio.open_process(plan.command(index), stdin=subprocess.DEVNULL, stderr=None)
+    process = await anyio.open_process(
+        plan.command(index), stdin=subprocess.DEVNULL, stderr=None, pass_fds=plan.inherited()
+    )
     logger.info("event=worker_started worker=%d pid=%d", index, process.pid)
     assert process.stdout is not None
     stdout = BufferedByteReceiveStream(process.stdout)
 
     async def relay() -> None:
-        """Print each distinct stdout line once, whichever worker says it first."""
+        """Print each distinct stdout line once (``_Announcer``)."""
         with contextlib.suppress(
             anyio.EndOfStream, anyio.IncompleteRead, anyio.BrokenResourceError
         ):
             while True:
                 line = (await stdout.receive_until(b"\n", 65536)).decode("utf-8", "replace")
-                if line not in printed:
-                    printed.add(line)
-                    print(line, flush=True)  # noqa: T201 - the serve command's stdout
+                printed.said(index, line)
 
     async def stop_when_asked() -> None:
         await stopping.wait()

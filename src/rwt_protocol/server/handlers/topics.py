@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 from ...errors import GraphError
@@ -203,6 +204,7 @@ def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
 def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> TopicSubscription:
     """A subscription of ``session`` to ``topic``: one that takes runs unless switched off."""
     max_queue = session.config.max_queue_length
+    warn = functools.partial(session.report, StatusLevel.WARNING)
     if _BATCH_SINK:
         return BatchTopicSubscription(
             topic,
@@ -211,5 +213,8 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
             session.deliver_many,
             session.call_at,
             max_queue=max_queue,
+            warn=warn,
         )
-    return TopicSubscription(topic, spelling, session.deliver, session.call_at, max_queue=max_queue)
+    return TopicSubscription(
+        topic, spelling, session.deliver, session.call_at, max_queue=max_queue, warn=warn
+    )

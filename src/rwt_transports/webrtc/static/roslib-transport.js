@@ -11,11 +11,15 @@
 //   });
 //
 // Options: lossyTopics, topics whose subscriptions go on the `rosbridge-lossy` channel
-// (latest-only, never retransmitted: D36); token, a video token sent as
-// `Authorization: Bearer` with the offer; rtcConfiguration, for RTCPeerConnection.
+// (latest-only, unordered, a lost message sent again once at most: D36, D73); token, a
+// video token sent as `Authorization: Bearer` with the offer; rtcConfiguration, for
+// RTCPeerConnection.
 
-const LOSSY = { ordered: false, maxRetransmits: 0 };
-// A subscribe sent on the lossy channel is itself never retransmitted: lost on the way,
+// One retransmission, not none (D73): with none, each lost packet leaves a gap that only
+// a FORWARD TSN closes, one a round trip in libwebrtc's SCTP; a browser's SACK reports 20
+// gaps, so on a lossy link a fast topic's gaps pile up and the channel stalls for seconds.
+const LOSSY = { ordered: false, maxRetransmits: 1 };
+// A subscribe sent on the lossy channel is itself not reliable: lost on the way (twice),
 // the subscription would deliver nothing. So it is sent again after each of these
 // delays (ms) until its topic's first message comes on the lossy channel, or it is
 // unsubscribed (the server takes a subscribe of the same id again as the same one).
