@@ -85,6 +85,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CLOSE_WAIT_S",
     "ConnectionPump",
+    "drive_timers",
     "flush_deferred",
     "run_connection",
 ]
@@ -156,6 +157,29 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
             session.taken_frames,
             anyio.current_time() - started,
         )
+
+
+async def drive_timers(session: ServerSession) -> None:
+    """Run ``session``'s timers until it closes: for a session no pump runs.
+
+    A 2026-07-28 MCP request's session has no connection to pump, yet its timers
+    come due (a call's deadline, a throttled message, the idle watch): this waits
+    for ``get_timer``'s time and calls ``handle_timer``, woken by ``on_timer`` when
+    an earlier one is set, as the pump's timer task does. ``start`` is the caller's.
+    """
+    wake = anyio.Event()
+
+    def woken() -> None:
+        wake.set()  # the one being waited for (set again per wait)
+
+    session.on_timer = woken
+    while not session.closing:
+        wake = anyio.Event()
+        deadline = session.get_timer()
+        delay = None if deadline is None else max(0.0, deadline - anyio.current_time())
+        with anyio.move_on_after(delay):
+            await wake.wait()
+        session.handle_timer(anyio.current_time())
 
 
 _BROKEN = (
