@@ -1024,11 +1024,12 @@ class GraphServer:
     def _session_config_for(self, transport: str) -> SessionConfig:
         """The per-client settings of a connection on ``transport``.
 
-        Stream connections (``ws``, ``tcp``, ``tls``, ``webrtc``) close when idle
-        (``--idle-timeout``); the others (stdio, in-process, UDP's own rule, HTTP,
-        MCP's own) by their own rules.
+        Stream connections (``ws``, ``tcp``, ``tls``, ``webrtc``) and MCP sessions
+        close when idle (``--idle-timeout``; an MCP session's input is its requests,
+        D40); the others (stdio, in-process, UDP with its own rule, an HTTP request)
+        never do.
         """
-        stream = transport in ("ws", "tcp", "tls", "webrtc")
+        stream = transport in ("ws", "tcp", "tls", "webrtc", "mcp")
         return self._stream_session_config if stream else self.session_config
 
     @property

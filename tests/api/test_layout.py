@@ -87,3 +87,16 @@ def test_the_server_package_keeps_its_top_level_small() -> None:
     process's tuning are rooms (sub-packages), each mapped by its docstring.
     """
     assert len(list(TRANSPORTS.glob("*.py"))) <= 25
+
+
+def test_the_mcp_session_keeps_no_clock_deadline_or_call_book_of_its_own() -> None:
+    """``rwt_mcp.session`` is wholly on the runtime (D74): its time comes from its
+    transport, its deadlines are the session's timers, its calls the runtime's book."""
+    tree = ast.parse((SRC / "rwt_mcp" / "session.py").read_text(encoding="utf-8"))
+    names = {
+        node.attr if isinstance(node, ast.Attribute) else node.id
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute | ast.Name)
+    }
+    assert "time" not in imports_of(SRC / "rwt_mcp" / "session.py")
+    assert names & {"monotonic", "fail_after", "move_on_after", "sleep", "_calls"} == set()

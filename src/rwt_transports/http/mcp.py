@@ -2,12 +2,14 @@
 
 An MCP client posts JSON-RPC to ``/mcp`` (``mcp_options.MCP_PATH``); the
 WebSocket listener hands such a request here (``claims``). Each MCP session is
-one rosbridge session of the server, opened in-process (``open_session`` with
-transport ``mcp``): it is admitted as every connection is (``--max-connections``,
-the host's share, which for MCP sessions applies from the first), runs under the
-same per-client limits and access rules, ends after ``--idle-timeout`` without a
-request in flight, and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s)
-drive it through rwt's client over a memory connection. The official MCP SDK
+a session of the server's connection runtime, ``rwt_mcp.session.McpSession``
+(``open_session`` with transport ``mcp``): it is admitted as every connection is
+(``--max-connections``, the host's share, which for MCP sessions applies from the
+first), runs under the same per-client limits, access rules and call book, ends
+after ``--idle-timeout`` without a request in flight (the runtime's idle watch, as
+every connection's; its pump runs its timers over a connection that carries no
+frames), and the MCP tools (``rwt_mcp.tools``, the same as ``rwt mcp``'s) drive the
+graph through it, with no rosbridge between them. The official MCP SDK
 (2.x) answers the protocol (its ``StreamableHTTPServerTransport``, driven as an
 ASGI app over the request's socket; h11 parses the request). A refused session
 gets 503 and no MCP session.
@@ -15,10 +17,10 @@ gets 503 and no MCP session.
 Both revisions answer here (D52): a 2025-era client opens a session with
 ``initialize`` as above; a 2026-07-28 request (its ``MCP-Protocol-Version``
 header a revision without the handshake) carries no session: it is one
-rosbridge session of its own, opened for the request and closed after its
-answer (a ``subscriptions/listen`` stream holds it while it runs), answered by
-the SDK's single-exchange entry. Its rate caps are its host's
-(``MODERN_HOSTS_KEPT`` hosts kept). A goal it starts as a task keeps that
+``McpSession`` of its own, opened for the request and closed after its answer (a
+``subscriptions/listen`` stream holds it while it runs), its timers driven without
+a pump (``pump.drive_timers``), answered by the SDK's single-exchange entry. Its
+rate caps are its host's (``MODERN_HOSTS_KEPT`` hosts kept). A goal it starts as a task keeps that
 session open until the goal ends or the task expires (``rwt_mcp.tasks``); the
 endpoint's ``TaskStore`` is shared by every session and request, so any of
 them polls or cancels it.
@@ -40,7 +42,7 @@ once (429); ``--allowed-origins`` applies (403). Each tool call passes the
 session's ``rwt_mcp.guard.Guard``, whose access refusals go through the server's one
 access gate and its log line. Refusals are logged once per episode.
 
-MCP is an HTTP front end of the registry (``mcp_options.MCP``), off unless
+MCP is an HTTP front end of the registry (``frontends_registry.MCP``), off unless
 ``ServerConfig.mcp`` is set. Its requests' sockets are slots of the server
 (``FrontEndHost.take_slot``, ``join_socket``).
 """
@@ -98,7 +100,7 @@ from rwt_protocol.runtime.access import log_refused
 from ..admission.shares import HostShares, address_of
 from ..frontends import FrontEnd
 from ..memory import MemoryConnection, memory_pair
-from ..pump import ConnectionPump, run_connection
+from ..pump import ConnectionPump, drive_timers, run_connection
 from .endpoint import bearer, claims_path, open_request, reply
 from .host_rates import HostPace
 from .mcp_options import MCP_PATH, METADATA_PATH, McpOptions
@@ -146,7 +148,7 @@ a request has no session); past them the least recently seen host's are dropped.
 
 HOST_SESSIONS_PER_S = 20.0
 """MCP sessions one host may open a second: a 2025-era ``initialize``, or a 2026-07-28 request
-(each is a rosbridge session of its own, its server built), spaced ``1 / 20`` s apart
+(each is a session of its own, its server built), spaced ``1 / 20`` s apart
 (``host_rates.HostPace``): one that comes early waits its turn, up to
 ``HOST_SESSION_WAIT_S``; past that it is refused before anything is built for it (a tool
 call gets a tool error naming the bound, another request a JSON-RPC error with 429). A
@@ -251,19 +253,20 @@ class _Admitted:
 
         With a pump, the runtime closing the session (``--idle-timeout``, the
         server stopping) ends what the caller runs with it. Without, the session
-        is the caller's to the end: no task is made for it, nor for its
-        timers, unless its tools leave work running (a goal's watcher).
+        is the caller's to the end, its timers driven by one task
+        (``pump.drive_timers``: its calls' deadlines, its throttles).
         """
         if self.pump is None:
             self.session.start(anyio.current_time())
             try:
                 async with anyio.create_task_group() as work:
-                    self.session.bind(work)
+                    self.session.bind(work, anyio.current_time)
                     self.session.on_close_requested = work.cancel_scope.cancel
+                    work.start_soon(drive_timers, self.session)
                     try:
                         yield self.session
                     finally:
-                        work.cancel_scope.cancel()  # the goals' watchers, the throttles
+                        work.cancel_scope.cancel()  # the goals' watchers, the timers
             finally:
                 self.session.close()
             return
@@ -275,7 +278,7 @@ class _Admitted:
                 tg.cancel_scope.cancel()  # closed by the runtime: the MCP session ends
 
             tg.start_soon(pump)
-            self.session.bind(tg)
+            self.session.bind(tg, anyio.current_time)
             try:
                 yield self.session
             finally:
@@ -579,8 +582,7 @@ class McpEndpoint:
         transport = StreamableHTTPServerTransport(
             mcp_session_id=self._new_id(),
             security_settings=_NO_SDK_CHECK,
-            idle_timeout=self.host.settings.idle_timeout_s or None,  # --idle-timeout (D40)
-        )
+        )  # no idle timeout of the SDK's: the runtime's (--idle-timeout, D40)
         session_id = transport.mcp_session_id
         assert session_id is not None  # given just above
         session = _Session(transport, token if self.auth_required else None, admitted.session, slot)
@@ -648,11 +650,12 @@ class McpEndpoint:
 
     async def _handle(self, exchange: _Exchange, session: _Session) -> int | None:
         session.in_flight += 1
-        session.runtime.received(anyio.current_time())  # input: the idle rule counts from it
+        session.runtime.begin_request(anyio.current_time())  # input, held until answered
         try:
             return await exchange.run(session.transport.handle_request)
         finally:
             session.in_flight -= 1
+            session.runtime.end_request(anyio.current_time())  # the idle time counts from here
 
     async def _run(
         self,
@@ -684,9 +687,7 @@ class McpEndpoint:
                     async with session.transport.connect() as (read, write):
                         task_status.started()
                         started = True
-                        await _serve_until_idle(
-                            mcp._lowlevel_server, session.transport, read, write
-                        )
+                        await _serve(mcp._lowlevel_server, session.transport, read, write)
                     await tasks.hold()  # the goals it started as tasks
                 finally:
                     await link.close()
@@ -698,7 +699,7 @@ class McpEndpoint:
             await self._discard(session_id)
 
     async def _modern(self, exchange: _Exchange, site: AppSite) -> None:
-        """A 2026-07-28 request: one rosbridge session for it, answered by the SDK (D52).
+        """A 2026-07-28 request: one ``McpSession`` for it, answered by the SDK (D52).
 
         The session takes one connection slot (its socket's) while the request
         runs, and while a goal it started as a task runs (``rwt_mcp.tasks``).
@@ -716,7 +717,11 @@ class McpEndpoint:
                 await exchange.refuse(503, "the MCP request's connection failed")
                 return
             entry = functools.partial(handle_modern_request, mcp, _NO_SDK_CHECK, False, {})
-            await exchange.run(entry)
+            admitted.session.begin_request(anyio.current_time())
+            try:
+                await exchange.run(entry)
+            finally:
+                admitted.session.end_request(anyio.current_time())
         finally:
             answered.set()
 
@@ -796,25 +801,14 @@ def _request_state(siblings: McpSiblings | None, envelope: Envelope | None) -> R
     return RequestStateSecurity(keys=[key], ttl=max(REQUEST_STATE_TTL_S, 2 * timeout))
 
 
-async def _serve_until_idle(
+async def _serve(
     mcp: Server[Any], transport: StreamableHTTPServerTransport, read: Any, write: Any
 ) -> None:
-    """Run the MCP server on the transport's streams until it ends or goes idle."""
-    async with anyio.create_task_group() as tg:
-        idle = transport.idle_scope
-        if idle is not None:
-
-            async def end_when_idle(scope: anyio.CancelScope) -> None:
-                with scope:
-                    await anyio.sleep_forever()
-                tg.cancel_scope.cancel()  # no request for the idle time: the session ends
-
-            tg.start_soon(end_when_idle, idle)
-        async with mcp.lifespan(mcp) as state:
-            await serve_loop(
-                mcp, read, write, lifespan_state=state, session_id=transport.mcp_session_id
-            )
-        tg.cancel_scope.cancel()
+    """Run the MCP server on the transport's streams until they end (DELETE, its session's end)."""
+    async with mcp.lifespan(mcp) as state:
+        await serve_loop(
+            mcp, read, write, lifespan_state=state, session_id=transport.mcp_session_id
+        )
 
 
 async def _refuse_host_rate(exchange: _Exchange) -> None:
