@@ -119,7 +119,7 @@ class HttpSession(SessionBase):
         self._head_only = head_only
         self._answered = False  # a response (or a stream's head) is queued
         self._streaming = False
-        self._holds = False  # a subscription or a call waits in the graph
+        self._holds = False  # a subscription waits in the graph (a call: the call book)
         self._last_sent = -1.0e18  # an event stream's last message (throttle_rate)
 
     # ---- what the runtime asks ----------------------------------------------------
@@ -147,7 +147,7 @@ class HttpSession(SessionBase):
 
     def holds_anything(self) -> bool:
         """Whether a subscription or a call of this request waits in the graph."""
-        return self._holds
+        return self._holds or self.calls.in_flight > 0
 
     # ---- the request --------------------------------------------------------------
 
@@ -275,19 +275,27 @@ class HttpSession(SessionBase):
     def _service(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.SERVICES, route.name, "call_service")
         args = self._body(frame, "call_service", required=False)
-        self._holds = True
+        calls = self.calls
+        booked = calls.book()  # settled once: the answer, the deadline or the close
 
         def reply(result: bool, values: object) -> None:
-            self._holds = False
+            if not booked.settle():
+                return
             if result:
                 self._answer(200, values)
             else:
                 self._answer(502, {"error": str(values)})
 
         timeout = self.config.call_timeout_s
-        self.graph.call_service(self.client_id, route.name, args, reply, timeout_s=timeout)
-        if timeout is not None and not self._answered:
-            self.call_at(self.now + timeout, lambda now: self._timed_out(timeout))
+        try:
+            booked.pending = self.graph.call_service(
+                self.client_id, route.name, args, reply, timeout_s=timeout
+            )
+        except RwtError:
+            booked.settle()
+            raise
+        if timeout is not None:
+            calls.expire_at(booked, self.now + timeout, lambda now: self._timed_out(timeout))
 
     def _timed_out(self, timeout: float) -> None:
         self._answer(504, {"error": f"no response within {timeout:g} s"})
@@ -295,19 +303,25 @@ class HttpSession(SessionBase):
     def _action(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.ACTIONS, route.name, "send_action_goal")
         goal = self._body(frame, "send_action_goal", required=True)
-        self._holds = True
+        booked = self.calls.book()  # held until it ends: the goal's answer or the close
         self._open_stream()
 
         def feedback(values: dict[str, object]) -> None:
             self.send_frames((OutFrame(event(encode_json(values), "feedback"), True, True),))
 
         def done(status: GoalStatus, result: bool, values: object) -> None:
-            self._holds = False
+            booked.settle()
             value = {"status": int(status), "result": result, "values": values}
             self.send_frames((OutFrame(event(encode_json(value), "result")),))
             self.request_close(CloseCode.NORMAL, "goal done")
 
-        self.graph.send_action_goal(self.client_id, route.name, goal, done, feedback)
+        try:
+            booked.pending = self.graph.send_action_goal(
+                self.client_id, route.name, goal, done, feedback
+            )
+        except RwtError:
+            booked.settle()
+            raise
 
 
 _TOPIC_KINDS = (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION)
