@@ -2,9 +2,9 @@
 
 Apart from ``mcp`` so that the server's configuration names them without
 loading the MCP SDK (the ``mcp`` extra), which only ``--mcp`` needs: the registry
-(``frontends_registry.MCP``) loads ``mcp`` only when MCP is on. What
-bounds an MCP session as a client (its slots, its host's share, ``--idle-timeout``) is
-the server's own configuration (D40).
+(``frontends_registry.MCP``) loads ``mcp`` only when MCP is on. What bounds an MCP
+session as a connection of the server (its slots, its host's share, the per-client
+caps, ``--idle-timeout``) is the server's own configuration (D40).
 """
 
 from __future__ import annotations
