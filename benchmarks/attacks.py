@@ -17,7 +17,8 @@ on another address (127.0.0.2), calls ``/rosapi/get_time`` every 50 ms
 
 The classes, how each was scaled to fit about 20 s, and their modules:
 ``benchmarks/attacks_webrtc.py`` (1, 2, 3, 6, 14, 15), ``benchmarks/attacks_mcp.py``
-(4, 5, 7-13) and ``benchmarks/attacks_flow.py`` (16, 17, 19).
+(4, 5, 7-13), ``benchmarks/attacks_flow.py`` (16, 17, 19) and ``benchmarks/attacks_http.py``
+(30-32).
 
 Run: ``python -m benchmarks.attacks [--class 1 --class 9 ...] [--scale 1]``,
 ``RWT_BENCH_SRC=/path/to/before/src python -m benchmarks.attacks`` for the figures before;
@@ -50,13 +51,14 @@ RESULTS = Path(__file__).resolve().parent / "results" / "attacks.json"
 def all_attacks() -> list[Attack]:
     """Every class, in the campaign's order."""
     from .attacks_flow import ATTACKS as FLOW  # noqa: PLC0415 (aiortc and mcp load late)
+    from .attacks_http import ATTACKS as HTTP  # noqa: PLC0415
     from .attacks_mcp import ATTACKS as MCP  # noqa: PLC0415
     from .attacks_webrtc import ATTACKS as WEBRTC  # noqa: PLC0415
 
     def order(attack: Attack) -> int:
         return int(attack.number.split("+")[0])
 
-    return sorted([*WEBRTC, *MCP, *FLOW], key=order)
+    return sorted([*WEBRTC, *MCP, *FLOW, *HTTP], key=order)
 
 
 def run(numbers: list[str] | None, scale: float = 1.0, log: bool = True) -> list[Replay]:

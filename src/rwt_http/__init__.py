@@ -8,12 +8,15 @@ Foxglove client. The modules, each over the next:
 
 - ``session``: ``HttpSession``, one request's work on the graph (list, latest
   message, publish, event stream, service call, action goal) and its answer.
-- ``openapi``: the OpenAPI 3.1 document of the live graph (``GET /openapi.json``).
+- ``document``: the OpenAPI document made in slices, once per change of the graph,
+  and kept per set of access rules (D59).
+- ``openapi``: the OpenAPI 3.1 document's parts (``GET /openapi.json``).
 - ``routes``: a request's method and target read as a ``Route``.
 - ``wire``: the bytes of a response and of a Server-Sent Event.
 
 The transport's side (reading the request, the bearer token, running the pump)
-is ``rwt_transports.http.api``.
+is ``rwt_transports.http.api``; the document's builds run in
+``rwt_transports.http.documents``.
 """
 
 from __future__ import annotations

@@ -1,36 +1,46 @@
-"""The OpenAPI 3.1 document of the live graph (``GET /openapi.json``, docs/http.md).
+"""The OpenAPI 3.1 document of the live graph (``GET /openapi.json``, docs/http.md): its parts.
 
-Made at each request from the graph's change feed, so it lists what is there now:
-each topic a client may see (``rwt_graph.visibility``, the access rules) gets its
-paths (``GET`` its latest message, ``POST`` a message, ``GET .../events`` its
-stream), each service its ``POST``, each action its ``POST`` (a stream of
-feedback and the result). Every message type is one schema under
-``components/schemas`` (JSON Schema 2020-12, the dialect of OpenAPI 3.1), named
-``pkg.Type`` and made by the same rule as the MCP tools' (``rwt_graph.types.jsonschema``
-over rosapi's type definitions, ``rwt_graph.rosapi.typedefs``): a ``uint8[]`` is
-base64 text or a list of 0-255, as rosbridge's JSON has it.
+Each topic a client may see (``rwt_graph.visibility``, the access rules) gets its
+paths: ``GET`` its latest message and ``GET .../events`` its stream where the rules
+let the client subscribe to it, ``POST`` a message where they let it publish
+(``--topics-sub-glob`` and ``--topics-pub-glob``, D50), so the document offers no
+operation the server would refuse with 403. Each service gets its ``POST``, each
+action its ``POST`` (a stream of feedback and the result). Every message type is
+one schema under ``components/schemas`` (JSON Schema 2020-12, the dialect of
+OpenAPI 3.1), named ``pkg.Type`` and made by the same rule as the MCP tools'
+(``rwt_graph.types.jsonschema`` over rosapi's type definitions,
+``rwt_graph.rosapi.typedefs``): a ``uint8[]`` is base64 text or a list of 0-255,
+as rosbridge's JSON has it.
+
+The document is made in slices and cached (``document``); this module makes one
+entity's paths (``paths_of``) and the text around them (``document_prefix``,
+``document_suffix``).
 """
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from rwt_graph.feed import EntityKind
 from rwt_graph.rosapi.typedefs import typedef_name, typedefs
 from rwt_graph.types.jsonschema import json_schema
+from rwt_protocol.codecs.json import encode_json
+from rwt_protocol.runtime.access import Family
+
+from .routes import EVENTS_SUFFIX
 
 if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
-    from rwt_graph.visibility import Visibility
 
-__all__ = ["openapi_document"]
+__all__ = ["Entry", "document_prefix", "document_suffix", "listing_path", "paths_of"]
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9_]")
 _ERROR = {
     "description": "refused (400 bad input, 401 no or a wrong bearer token, 403 the access "
-    "rules, 404 unknown, 502 the provider failed, 504 no answer in time)",
+    "rules, 404 unknown, 502 the provider failed, 503 the server or this host's share of it "
+    "is full, 504 no answer in time)",
     "content": {
         "application/json": {
             "schema": {
@@ -43,52 +53,79 @@ _ERROR = {
 }
 
 
-def openapi_document(graph: GraphFront, visibility: Visibility, version: str) -> dict[str, object]:
-    """The document for a client who sees ``visibility`` of ``graph``.
+@dataclass(frozen=True, slots=True)
+class Entry:
+    """One topic, service or action of the document, as a client under its rules sees it.
+
+    Attributes:
+        family: ``Family.TOPICS``, ``SERVICES`` or ``ACTIONS``.
+        name: the resolved name (``/robot/odom``).
+        type_name: its type (``nav_msgs/msg/Odometry``).
+        read: a topic the rules let the client subscribe to: its ``GET`` and stream.
+        write: a topic the rules let the client publish on: its ``POST``.
+    """
+
+    family: Family
+    name: str
+    type_name: str
+    read: bool = True
+    write: bool = True
+
+
+def document_prefix(version: str) -> bytes:
+    """The document's text before its paths: ``{"openapi":...,"info":...,"paths":{``.
 
     Args:
-        graph: the served graph (its feed for the entities, its registry for the types).
-        visibility: what the client may see (``Visibility.of`` the access rules).
         version: the server's version, for ``info.version``.
     """
-    schemas: dict[str, object] = {}
-    paths: dict[str, object] = {"/api/topics": {"get": _listing()}}
-    _, entities = graph.feed.snapshot()
-    seen: set[tuple[EntityKind, str]] = set()
-    for change in sorted(entities, key=lambda c: (c.kind, c.name)):
-        key = (change.kind, change.name)
-        if key in seen or not visibility.sees(change):
-            continue
-        seen.add(key)
-        if change.kind in (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION):
-            ref = _message_schema(graph, graph.registry.message(change.type_name), schemas)
-            paths.update(_topic_paths(change.name, change.type_name, ref))
-        elif change.kind is EntityKind.SERVICE:
-            service = graph.registry.service(change.type_name)
-            request = _message_schema(graph, service.request, schemas)
-            answer = _message_schema(graph, service.response, schemas)
-            paths[f"/api/services{change.name}"] = {
-                "post": _service(change.name, service.name, request, answer)
-            }
-        elif change.kind is EntityKind.ACTION:
-            action = graph.registry.action(change.type_name)
-            goal = _message_schema(graph, action.goal, schemas)
-            _message_schema(graph, action.feedback, schemas)
-            _message_schema(graph, action.result, schemas)
-            paths[f"/api/actions{change.name}"] = {"post": _action(change.name, action.name, goal)}
-    return {
-        "openapi": "3.1.0",
-        "info": {
-            "title": "rwt HTTP API",
-            "version": version,
-            "description": "The ROS graph over HTTP and Server-Sent Events (docs/http.md).",
-        },
-        "components": {
-            "schemas": schemas,
-            "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer"}},
-        },
-        "paths": paths,
+    info = {
+        "title": "rwt HTTP API",
+        "version": version,
+        "description": "The ROS graph over HTTP and Server-Sent Events (docs/http.md).",
     }
+    return b'{"openapi":"3.1.0","info":' + encode_json(info) + b',"paths":{'
+
+
+def document_suffix(schemas: dict[str, object]) -> bytes:
+    """The document's text after its paths: the components with ``schemas``, and the end."""
+    components = {
+        "schemas": schemas,
+        "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer"}},
+    }
+    return b'},"components":' + encode_json(components) + b"}"
+
+
+def listing_path() -> dict[str, object]:
+    """The path of ``GET /api/topics``, first in every document."""
+    return {"/api/topics": {"get": _listing()}}
+
+
+def paths_of(graph: GraphFront, entry: Entry, schemas: dict[str, object]) -> dict[str, object]:
+    """The path items of ``entry``, its message types added to ``schemas``.
+
+    A topic whose name ends in ``/events`` has no path of its own: that path is
+    the stream of the topic before it (``routes``), so only its stream is listed.
+
+    Raises:
+        GraphError: a type the graph's registry cannot resolve.
+    """
+    if entry.family is Family.TOPICS:
+        ref = _message_schema(graph, graph.registry.message(entry.type_name), schemas)
+        return _topic_paths(entry, ref)
+    if entry.family is Family.SERVICES:
+        service = graph.registry.service(entry.type_name)
+        request = _message_schema(graph, service.request, schemas)
+        answer = _message_schema(graph, service.response, schemas)
+        return {
+            f"/api/services{entry.name}": {
+                "post": _service(entry.name, service.name, request, answer)
+            }
+        }
+    action = graph.registry.action(entry.type_name)
+    goal = _message_schema(graph, action.goal, schemas)
+    _message_schema(graph, action.feedback, schemas)
+    _message_schema(graph, action.result, schemas)
+    return {f"/api/actions{entry.name}": {"post": _action(entry.name, action.name, goal)}}
 
 
 def _key(type_name: str) -> str:
@@ -155,36 +192,42 @@ _STREAM_PARAMETERS = [
 ]
 
 
-def _topic_paths(name: str, type_name: str, ref: object) -> dict[str, object]:
-    type_parameter = {
-        "name": "type",
-        "in": "query",
-        "required": False,
-        "schema": {"type": "string", "default": type_name},
-    }
-    stream = {"text/event-stream": {"schema": {"type": "string"}, "x-rwt-data": ref}}
-    return {
-        f"/api/topics{name}": {
-            "get": {
-                "operationId": _op_id("get", name),
-                "summary": f"The latest message of {name} ({type_name})",
-                "responses": {
-                    "200": {"description": "the message", "content": _json(ref)},
-                    "default": _ERROR,
-                },
+def _topic_paths(entry: Entry, ref: object) -> dict[str, object]:
+    """The paths of a topic: its own (GET, POST) and its stream's, as the rules allow."""
+    name, type_name = entry.name, entry.type_name
+    own: dict[str, object] = {}
+    paths: dict[str, object] = {}
+    if entry.read:
+        own["get"] = {
+            "operationId": _op_id("get", name),
+            "summary": f"The latest message of {name} ({type_name})",
+            "responses": {
+                "200": {"description": "the message", "content": _json(ref)},
+                "default": _ERROR,
             },
-            "post": {
-                "operationId": _op_id("publish", name),
-                "summary": f"Publish a message on {name} ({type_name})",
-                "parameters": [type_parameter],
-                "requestBody": {"required": True, "content": _json(ref)},
-                "responses": {
-                    "200": {"description": "published", "content": _json({"type": "object"})},
-                    "default": _ERROR,
-                },
+        }
+    if entry.write:
+        type_parameter = {
+            "name": "type",
+            "in": "query",
+            "required": False,
+            "schema": {"type": "string", "default": type_name},
+        }
+        own["post"] = {
+            "operationId": _op_id("publish", name),
+            "summary": f"Publish a message on {name} ({type_name})",
+            "parameters": [type_parameter],
+            "requestBody": {"required": True, "content": _json(ref)},
+            "responses": {
+                "200": {"description": "published", "content": _json({"type": "object"})},
+                "default": _ERROR,
             },
-        },
-        f"/api/topics{name}/events": {
+        }
+    if own and not (name.endswith(EVENTS_SUFFIX) and name != EVENTS_SUFFIX):
+        paths[f"/api/topics{name}"] = own
+    if entry.read:
+        stream = {"text/event-stream": {"schema": {"type": "string"}, "x-rwt-data": ref}}
+        paths[f"/api/topics{name}{EVENTS_SUFFIX}"] = {
             "get": {
                 "operationId": _op_id("stream", name),
                 "summary": f"The messages of {name} as Server-Sent Events (one JSON each)",
@@ -194,8 +237,8 @@ def _topic_paths(name: str, type_name: str, ref: object) -> dict[str, object]:
                     "default": _ERROR,
                 },
             }
-        },
-    }
+        }
+    return paths
 
 
 def _service(name: str, type_name: str, request: object, answer: object) -> dict[str, object]:

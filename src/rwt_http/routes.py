@@ -17,13 +17,24 @@ from urllib.parse import parse_qs, unquote, urlsplit
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.names import name_problem
 
-__all__ = ["API_PREFIX", "OPENAPI_PATH", "Route", "RouteError", "RouteKind", "parse_route"]
+__all__ = [
+    "API_PREFIX",
+    "EVENTS_SUFFIX",
+    "OPENAPI_PATH",
+    "Route",
+    "RouteError",
+    "RouteKind",
+    "parse_route",
+]
 
 API_PREFIX = "/api/"
 """Where the API's paths start."""
 
 OPENAPI_PATH = "/openapi.json"
 """Where the OpenAPI document is answered."""
+
+EVENTS_SUFFIX = "/events"
+"""What a topic's path ends with for its event stream (``/api/topics/a/events``)."""
 
 MAX_QUEUE_LENGTH = 10_000
 """Largest ``queue_length`` an event stream may ask for (messages held for it)."""
@@ -101,8 +112,8 @@ def parse_route(method: str, target: str) -> Route:
     name = "/" + rest.strip("/")
     if family not in ("topics", "services", "actions") or name == "/" or "//" in name:
         raise RouteError(404, f"no such path: {_shown(path)}")
-    if family == "topics" and name.endswith("/events") and name != "/events":
-        route = Route(RouteKind.EVENTS, _named(name.removesuffix("/events")), *_stream(query))
+    if family == "topics" and name.endswith(EVENTS_SUFFIX) and name != EVENTS_SUFFIX:
+        route = Route(RouteKind.EVENTS, _named(name.removesuffix(EVENTS_SUFFIX)), *_stream(query))
         return _checked(method, ("GET",), route)
     _named(name)
     kind = _BY_FAMILY.get((family, method))

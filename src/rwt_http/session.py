@@ -34,9 +34,17 @@ from rwt_protocol.runtime.commands import CloseCode
 from rwt_protocol.runtime.connection import SessionBase
 from rwt_protocol.runtime.outbox import OutFrame
 
-from .openapi import openapi_document
+from .document import DocumentBuild
 from .routes import Route, RouteKind
-from .wire import Headers, error_response, event, json_response, stream_head
+from .wire import (
+    Headers,
+    error_response,
+    event,
+    json_response,
+    not_modified,
+    response_head,
+    stream_head,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -45,6 +53,8 @@ if TYPE_CHECKING:
     from rwt_protocol.ports import GoalStatus, MessageEvent, PublishNote
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.rules import ClientRules
+
+    from .document import Document, DocumentSource
 
 __all__ = ["HttpApiOptions", "HttpSession"]
 
@@ -80,6 +90,10 @@ class HttpSession(SessionBase):
         peer: the peer's address.
         on_closed: the server's bookkeeping when it closes.
         memory: the server's memory budget (D44).
+        documents: where the OpenAPI document is made and kept (``document``, D59);
+            None: made here at once, whole.
+        if_none_match: the request's ``If-None-Match`` header: the document is
+            answered 304 when it names the current one.
     """
 
     protocol = "http"
@@ -99,6 +113,8 @@ class HttpSession(SessionBase):
         peer: str = "",
         on_closed: Callable[[str], None] | None = None,
         memory: MemoryBudget | None = None,
+        documents: DocumentSource | None = None,
+        if_none_match: str | None = None,
     ) -> None:
         super().__init__(
             graph,
@@ -117,6 +133,8 @@ class HttpSession(SessionBase):
         self._options = options or HttpApiOptions()
         self._version = version
         self._head_only = head_only
+        self._documents = documents
+        self._if_none_match = if_none_match
         self._answered = False  # a response (or a stream's head) is queued
         self._streaming = False
         self._holds = False  # a subscription waits in the graph (a call: the call book)
@@ -187,8 +205,35 @@ class HttpSession(SessionBase):
         return decode_json_text(frame, what)
 
     def _openapi(self, route: Route, frame: str | bytes) -> None:
-        visibility = Visibility.of(self.config.access)
-        self._answer(200, openapi_document(self._front, visibility, self._version))
+        policy = self.config.access
+        if self._documents is None:
+            self._send_document(DocumentBuild(self._front, policy, self._version).run())
+            return
+        self._holds = True
+        self._documents.fetch(policy, self._send_document)
+
+    def _send_document(self, document: Document | None) -> None:
+        """Answer with ``document`` (its bytes shared, not copied), or 304 if the client has it.
+
+        None: its build failed (a bug, logged where it ran): 500.
+        """
+        self._holds = False
+        if self._answered:
+            return
+        if document is None:
+            self._answer(500, {"error": "internal error: the document could not be made"})
+            return
+        self._answered = True
+        tag = ((b"ETag", document.etag.encode()),)
+        frames: tuple[OutFrame, ...]
+        if document.matches(self._if_none_match):
+            frames = (OutFrame(not_modified((*self._headers, *tag))),)
+        else:
+            kind, length = "application/json", len(document.body)
+            head = OutFrame(response_head(200, kind, length, (*self._headers, *tag)))
+            frames = (head,) if self._head_only else (head, OutFrame(document.body))
+        self.send_frames(frames)
+        self.request_close(CloseCode.NORMAL, "answered the document")
 
     def _topics(self, route: Route, frame: str | bytes) -> None:
         visibility = Visibility.of(self.config.access)
@@ -261,16 +306,32 @@ class HttpSession(SessionBase):
         self.send_frames((OutFrame(stream_head(self._headers)),))
 
     def _stream_messages(self, events: Sequence[MessageEvent]) -> None:
-        """Queue ``events`` as Server-Sent Events, under ``throttle_rate``."""
+        """Queue ``events`` as Server-Sent Events, under ``throttle_rate``.
+
+        As a rosbridge subscriber's (``Session.deliver_many``): each message's event is
+        one ``OutFrame`` made once for every stream (``_SSE_KEY``), queued in runs of
+        one lifespan (a ROS 2 sample's, docs/ros2.md) and woken for once a run.
+        """
         gap = self.route.throttle_rate_ms / 1000.0
-        run = []
+        name = self.route.name
+        run: list[OutFrame] = []
+        run_now = run_lifespan = 0.0
         for each in events:
-            if gap and each.now - self._last_sent < gap:
-                continue  # rosbridge's throttle_rate: at most one message a gap
-            self._last_sent = each.now
-            data = each.encoded(_SSE_KEY, partial(_sse, each))
-            run.append(OutFrame(data, True, True))
-        self.queue_run(run, self.route.name, events[-1].now)
+            if gap:
+                if each.now - self._last_sent < gap:
+                    continue  # rosbridge's throttle_rate: at most one message a gap
+                self._last_sent = each.now
+            frame: OutFrame | None = each.memos.get(_SSE_KEY)  # type: ignore[assignment]
+            if frame is None:  # (``encoded``, inline above: a call less per stream)
+                frame = each.encoded(_SSE_KEY, partial(_sse, each))
+            lifespan = each.lifespan
+            if run and (lifespan != run_lifespan or (lifespan > 0 and each.now != run_now)):
+                self.queue_run(run, name, run_now, run_lifespan)
+                run = []
+            run.append(frame)
+            run_now = each.now if each.now > run_now else run_now
+            run_lifespan = lifespan
+        self.queue_run(run, name, run_now, run_lifespan)
 
     def _service(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.SERVICES, route.name, "call_service")
@@ -301,20 +362,38 @@ class HttpSession(SessionBase):
         self._answer(504, {"error": f"no response within {timeout:g} s"})
 
     def _action(self, route: Route, frame: str | bytes) -> None:
+        """Send the goal; its stream opens once the graph took it (404, 400 before: D59).
+
+        What the goal says before the stream's head is queued (a provider that
+        answers within the call) waits in ``early`` and follows the head.
+        """
         self.require_access(Family.ACTIONS, route.name, "send_action_goal")
         goal = self._body(frame, "send_action_goal", required=True)
+        if not isinstance(goal, dict):
+            raise GraphError("send_action_goal: the body must be a JSON object (the goal)")
+        early: list[OutFrame] = []
+        ended = False
         booked = self.calls.book()  # held until it ends: the goal's answer or the close
-        self._open_stream()
+
+        def send(out: OutFrame) -> None:
+            if self._streaming:
+                self.send_frames((out,))
+            else:
+                early.append(out)
 
         def feedback(values: dict[str, object]) -> None:
-            self.send_frames((OutFrame(event(encode_json(values), "feedback"), True, True),))
+            send(OutFrame(event(encode_json(values), "feedback"), True, True))
 
         def done(status: GoalStatus, result: bool, values: object) -> None:
+            nonlocal ended
             booked.settle()
             value = {"status": int(status), "result": result, "values": values}
-            self.send_frames((OutFrame(event(encode_json(value), "result")),))
-            self.request_close(CloseCode.NORMAL, "goal done")
+            send(OutFrame(event(encode_json(value), "result")))
+            ended = True
+            if self._streaming:
+                self.request_close(CloseCode.NORMAL, "goal done")
 
+        # raises UnknownNameError (404), FieldError (400) before anything is sent
         try:
             booked.pending = self.graph.send_action_goal(
                 self.client_id, route.name, goal, done, feedback
@@ -322,12 +401,17 @@ class HttpSession(SessionBase):
         except RwtError:
             booked.settle()
             raise
+        self._open_stream()
+        for out in early:
+            self.send_frames((out,))
+        if ended:
+            self.request_close(CloseCode.NORMAL, "goal done")
 
 
 _TOPIC_KINDS = (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION)
 
 _SSE_KEY = "rwt_http.sse"
-"""The key of a message's Server-Sent Event in ``MessageEvent.encoded``: made once for all."""
+"""The key of a message's Server-Sent Event frame in ``MessageEvent.memos``: made once for all."""
 
 _HANDLERS: dict[RouteKind, Callable[[HttpSession, Route, str | bytes], None]] = {
     RouteKind.OPENAPI: HttpSession._openapi,
@@ -340,9 +424,9 @@ _HANDLERS: dict[RouteKind, Callable[[HttpSession, Route, str | bytes], None]] = 
 }
 
 
-def _sse(message: MessageEvent) -> bytes:
-    """``message`` as one Server-Sent Event, made once for every stream (``encoded``)."""
-    return event(encode_json(message.msg))
+def _sse(message: MessageEvent) -> OutFrame:
+    """``message`` as one Server-Sent Event's frame, made once for every stream (``encoded``)."""
+    return OutFrame(event(encode_json(message.msg)), True, True)
 
 
 class _LatestSink:

@@ -19,7 +19,9 @@ __all__ = [
     "event",
     "json_response",
     "no_content",
+    "not_modified",
     "response",
+    "response_head",
     "stream_head",
 ]
 
@@ -52,6 +54,20 @@ def response(
         (b"Content-Length", str(len(body)).encode()),
     )
     return _head(status, fields) + (b"" if head_only else body)
+
+
+def response_head(status: int, kind: str, length: int, headers: Headers = ()) -> bytes:
+    """The head of a response whose ``length`` bytes of body go as a frame of their own.
+
+    A body many responses share (the OpenAPI document) is so sent without a copy.
+    """
+    fields = (*headers, (b"Content-Type", kind.encode()), (b"Content-Length", str(length).encode()))
+    return _head(status, fields)
+
+
+def not_modified(headers: Headers = ()) -> bytes:
+    """304: the client's copy (its ``If-None-Match``) is current; a head alone (RFC 9110 15.4.5)."""
+    return _head(304, headers)
 
 
 def json_response(

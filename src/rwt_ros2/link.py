@@ -312,6 +312,8 @@ class Ros2Link:
         if not self._closed:
             self._apply(view)
             self._sweep_local(periodic=periodic)
+            if periodic:
+                self.ros.forget_destroyed()
             if self._params is not None:  # nodes whose parameter services are mirrored
                 listing = PARAM_SERVICES["list_parameters"]
                 self._params.sweep(

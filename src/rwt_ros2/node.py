@@ -123,6 +123,34 @@ class RosNode:
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
 
+    def forget_destroyed(self) -> int:
+        """Drop the weak references rclpy keeps to the node's destroyed entities.
+
+        rclpy's ``CallbackGroup.add_entity`` (rclpy 9, ROS 2 Kilted) keeps a
+        ``weakref.ref`` of every subscription, client, service, timer and waitable
+        added to a group, a publisher's QoS event handlers among them, and never
+        removes one: a node whose entities come and go grows by a dead reference
+        (about 100 bytes with its slot in the set) per entity. The link's
+        publishers come and go with the topics clients advertise and leave: some
+        12 a second at the churn soak's rates, about 5 MB an hour
+        (docs/benchmarks.md, B26). The link calls this every sweep, from the event
+        loop's thread, which creates the entities; the executor's thread only looks
+        them up.
+
+        Returns:
+            How many references were dropped.
+        """
+        dropped = 0
+        for group in {id(g): g for g in (self.group, self.node.default_callback_group)}.values():
+            entities = getattr(group, "entities", None)
+            if not isinstance(entities, set):  # another rclpy: nothing of ours to tidy
+                continue
+            dead = [ref for ref in list(entities) if ref() is None]
+            for ref in dead:
+                entities.discard(ref)
+            dropped += len(dead)
+        return dropped
+
     def owns(self, node: str, namespace: str) -> bool:
         """Whether the endpoint of ``node`` in ``namespace`` is this node's."""
         return f"{namespace.rstrip('/')}/{node}" == self.fqn

@@ -216,9 +216,10 @@ class GraphServer:
         )
         self._shares = HostShares(self.config.max_connections_per_host)
         self._hosts: dict[str, str] = {}  # client id -> its host, for the shares
-        # sessions shared from the first (open_session's share_from_first), per host (D40)
-        self._first_shares = HostShares(self.config.max_connections_per_host)
-        self._first_hosts: dict[str, str] = {}  # client id -> its host, for those
+        # sessions shared from the first (open_session's share_from_first), per transport and
+        # host (D40: MCP sessions; D59: the HTTP API's event streams)
+        self._first_shares: dict[str, HostShares] = {}
+        self._first_hosts: dict[str, tuple[str, str]] = {}  # client id -> transport, host
         self._extra_slots = 0  # slots held without a session of their own (take_slot, admit)
         self._refusals = EpisodeLog(logger)
         self.sessions: dict[str, ServerSession] = {}
@@ -817,11 +818,12 @@ class GraphServer:
             ticket: the connection was admitted already (``admit``): its session
                 takes the ticket's slot and id, and ``transport`` and ``peer`` are
                 the ticket's.
-            share_from_first: its host's share of such sessions applies from
-                the first, not only past
-                ``admission.shares.SHARES_FROM`` of the slots (D40): a session that holds no
-                socket of its own (MCP's), which a ``--max-connections`` derived
-                from the descriptors would bound late.
+            share_from_first: its host's share of such sessions of ``transport``
+                applies from the first, not only past
+                ``admission.shares.SHARES_FROM`` of the slots: a session that holds no
+                socket of its own (MCP's, D40), which a ``--max-connections`` derived
+                from the descriptors would bound late, or that costs the loop
+                for as long as it lasts (the HTTP API's event streams, D59).
 
         Returns:
             The session, or None when ``max_connections`` is reached (sockets
@@ -861,8 +863,8 @@ class GraphServer:
             self._shares.add(host)
             self._hosts[client_id] = host
             if share_from_first:
-                self._first_shares.add(host)
-                self._first_hosts[client_id] = host
+                self._first_share(transport).add(host)
+                self._first_hosts[client_id] = (transport, host)
         self.graph.nodes.attach(client_id, host=address)
         self._connected[client_id] = {
             "ip_address": address,
@@ -971,16 +973,24 @@ class GraphServer:
             return None
         host, address = checked
         if host is not None and from_first:
-            share = self._first_shares.share
-            if self._first_shares.held(host) >= share:  # D40: from the first session
-                held = self._first_shares.held(host)
-                self._refused(peer, host, f"host share of {transport} sessions", held, share)
+            shares = self._first_share(transport)
+            held = shares.held(host)
+            if held >= shares.share:  # D40, D59: from the first session
+                self._refused(peer, host, f"host share of {transport} sessions", held, shares.share)
                 return None
         if pending is not None:  # the socket's handshake is over: no deadline, a session now
             pending.admit()
             pending.scope.deadline = math.inf
             self._handshaking -= 1
         return f"{transport}:{peer}#{next(self._ids)}", host, address
+
+    def _first_share(self, transport: str) -> HostShares:
+        """The hosts' shares of ``transport``'s sessions counted from the first (D40, D59)."""
+        shares = self._first_shares.get(transport)
+        if shares is None:
+            shares = HostShares(self.config.max_connections_per_host)
+            self._first_shares[transport] = shares
+        return shares
 
     def _check_slot(
         self, transport: str, peer: str, own_socket: bool
@@ -1063,7 +1073,7 @@ class GraphServer:
             self._shares.remove(host)
         first = self._first_hosts.pop(client_id, None)
         if first is not None:
-            self._first_shares.remove(first)
+            self._first_share(first[0]).remove(first[1])
         self._connected.pop(client_id, None)
         self._free_slot()
         if not self.sessions and self._all_closed is not None:

@@ -8,6 +8,7 @@ requests whose first bytes it claims, before the WebSocket handshake takes them
 
 - ``api``: the HTTP API's transport (docs/http.md): its paths, one pump per request
   over ``HttpChannel``; the front end itself is ``rwt_http``;
+- ``documents``: the OpenAPI documents' builds, a slice a turn of the loop (D59);
 - ``mcp``: MCP over Streamable HTTP (``rwt serve --mcp``, docs/mcp.md): each MCP
   session, and each 2026-07-28 request, a session of the connection runtime;
 - ``version``: ``GET /version``: the protocol and server versions, and what the

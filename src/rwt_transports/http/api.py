@@ -20,18 +20,33 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from typing import TYPE_CHECKING
 
 import anyio
 
-from rwt_http import API_PREFIX, OPENAPI_PATH, HttpApiOptions, HttpSession, RouteError, parse_route
+from rwt_http import (
+    API_PREFIX,
+    OPENAPI_PATH,
+    HttpApiOptions,
+    HttpSession,
+    Route,
+    RouteError,
+    RouteKind,
+    parse_route,
+)
 from rwt_http.wire import error_response, no_content
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 
-from ..channel import PlainChannel
+from ..admission.shares import address_of
+from ..channel import ChannelAbilities, PlainChannel
+from ..direct import DirectWriter
 from ..frontends import AuthMode, FrontEnd
 from ..pump import ConnectionPump, run_connection
-from .endpoint import claims_path, open_request
+from ..sendqueue import stream_unsent_bytes
+from ..writes import coalesce
+from .documents import DocumentBuilds
+from .endpoint import HttpRequest, claims_path, open_request
 from .version import installed_version
 
 if TYPE_CHECKING:
@@ -46,7 +61,13 @@ if TYPE_CHECKING:
 
     from ..host import FrontEndHost
 
-__all__ = ["API_PATHS", "HttpApiEndpoint", "HttpChannel", "http_api_endpoint"]
+__all__ = [
+    "API_PATHS",
+    "DOCUMENT_FETCHES_PER_HOST",
+    "HttpApiEndpoint",
+    "HttpChannel",
+    "http_api_endpoint",
+]
 
 logger = logging.getLogger("rwt.http")
 
@@ -58,21 +79,34 @@ _CORS = [
 ]
 _READ_SIZE = 65536
 
+DOCUMENT_FETCHES_PER_HOST = 2
+"""Requests for ``/openapi.json`` one host has in flight at once (D59); the next gets 429."""
+
+_STREAMS = (RouteKind.EVENTS, RouteKind.ACTION)
+"""Routes answered with an event stream: under the host's share from the first (D59)."""
+
 
 class HttpChannel(PlainChannel):
     """One request's socket as a pump ``Channel``: the body in, the session's bytes out.
 
     ``receive`` gives the request's body once as the session's one frame, then reads
     (and drops) what else comes until the peer leaves (``anyio.EndOfStream``): an
-    event stream's client that goes away is seen so.
+    event stream's client that goes away is seen so. Out, it writes as a TCP
+    connection does (``tcp.StreamChannel``): small frames joined, a large one (a
+    cached OpenAPI document) as it is, and on a plain socket from the publish path
+    at once (``send_now``), so an event stream's message costs what a WebSocket
+    subscriber's does (no writer task woken per message).
     """
 
     transport = "http"
     awaits_peer_close = False
+    abilities = ChannelAbilities(unsent_bytes=True, send_now=True)
+    """A socket: its send queue read, written at once; it is never read for input to hold."""
 
     def __init__(self, stream: ByteStream, body: bytes) -> None:
         self._stream = stream
         self._body: bytes | None = body
+        self._direct = DirectWriter.for_stream(stream)
 
     async def receive(self) -> Sequence[FramerEvent]:
         """The body first, then nothing until the peer leaves (bytes after it are dropped)."""
@@ -86,8 +120,28 @@ class HttpChannel(PlainChannel):
         return []
 
     async def send(self, frames: Sequence[OutFrame]) -> None:
-        """Write the frames' bytes as they are (the session made the HTTP)."""
-        await self._stream.send(b"".join(frame.prefix + frame.data for frame in frames))
+        """Write the frames' bytes as they are (the session made the HTTP), few writes."""
+        for data in _writes(frames):
+            await self._stream.send(data)
+
+    def unsent_bytes(self) -> int | None:
+        """Bytes the socket's kernel still holds for the peer (sendqueue.py)."""
+        return stream_unsent_bytes(self._stream)
+
+    def can_send_now(self) -> bool:
+        """Whether ``send_now`` may write at once: a plain socket, nothing buffered."""
+        return self._direct is not None and self._direct.ready
+
+    def send_now(self, frames: Sequence[OutFrame]) -> None:
+        """Write the frames without awaiting; call only when ``can_send_now`` is True.
+
+        Raises:
+            RuntimeError: not a plain socket, or the transport started closing.
+        """
+        if self._direct is None:
+            raise RuntimeError("not a plain socket: send through the writer")
+        for data in _writes(frames):
+            self._direct.write(data)
 
     async def close(self, code: CloseCode, reason: str) -> None:
         """End the response: close the socket (``Connection: close``)."""
@@ -95,6 +149,11 @@ class HttpChannel(PlainChannel):
 
     async def background(self, session: ServerSession) -> None:
         """Nothing to do."""
+
+
+def _writes(frames: Sequence[OutFrame]) -> list[bytes]:
+    """The writes of ``frames``: small ones joined, a large payload not copied (``coalesce``)."""
+    return coalesce((frame.prefix, frame.data, b"") for frame in frames)
 
 
 def _names_api(_method: bytes, after: bytes) -> bool:
@@ -118,9 +177,16 @@ class HttpApiEndpoint:
         self.options = options
         self.allowed_origins = host.settings.allowed_origins
         self.max_body = options.max_body_bytes or host.settings.max_message_size
+        self.documents = DocumentBuilds(host.graph.port, installed_version())
+        """The OpenAPI documents, made once per change of the graph and kept (D59)."""
+        self._fetching: Counter[str] = Counter()  # hosts' requests for the document in flight
 
     def bind(self, tg: TaskGroup | None) -> None:
-        """Nothing to do: each request runs in its socket's task, admitted by the server."""
+        """Make documents in ``tg``; None: the server is stopping.
+
+        Each request runs in its socket's task, admitted by the server.
+        """
+        self.documents.bind(tg)
 
     @staticmethod
     def claims(head: bytes) -> bool | None:
@@ -162,6 +228,33 @@ class HttpApiEndpoint:
         if refusal is not None:
             await _send(stream, refusal.status, refusal.text, (*cors, _CHALLENGE))
             return
+        if route.kind is not RouteKind.OPENAPI:
+            await self._run(stream, opened, route, peer)
+            return
+        host = self.host.host_prefixes.host(address_of(peer))
+        if self._fetching[host] >= DOCUMENT_FETCHES_PER_HOST:
+            text = (
+                f"this host fetches {OPENAPI_PATH} {DOCUMENT_FETCHES_PER_HOST} times at once "
+                "already (DOCUMENT_FETCHES_PER_HOST): ask again when one is answered"
+            )
+            await _send(stream, 429, text, (*cors, (b"Retry-After", b"1")))
+            return
+        self._fetching[host] += 1
+        try:
+            await self._run(stream, opened, route, peer)
+        finally:
+            self._fetching[host] -= 1
+            if self._fetching[host] <= 0:
+                del self._fetching[host]
+
+    async def _run(self, stream: ByteStream, opened: HttpRequest, route: Route, peer: str) -> None:
+        """Have the server admit the request and run its session over ``stream``.
+
+        An event stream counts under its host's share from the first (D59); a
+        request the server refuses gets 503.
+        """
+        cors = tuple(opened.cors)
+        method = opened.request.method.decode("latin-1")
         channel = HttpChannel(stream, opened.body)
         pump = ConnectionPump(channel, self.host.flow, self.host.admission)
 
@@ -173,17 +266,24 @@ class HttpApiEndpoint:
                 headers=cors,
                 config=request.rules,
                 options=self.options,
-                version=installed_version(),
+                version=self.documents.cache.version,
                 head_only=method == "HEAD",
                 on_output=request.on_output,
                 peer=request.peer,
                 on_closed=request.on_closed,
                 memory=request.memory,
+                documents=self.documents,
+                if_none_match=opened.headers.get("if-none-match"),
             )
 
         frontend = FrontEnd("http", (), make)
         session = self.host.open_session(
-            "http", peer, pump.wake, frontend=frontend, authenticated=True
+            "http",
+            peer,
+            pump.wake,
+            frontend=frontend,
+            authenticated=True,
+            share_from_first=route.kind in _STREAMS,
         )
         if session is None:
             await _send(stream, 503, "too many connections", cors)
