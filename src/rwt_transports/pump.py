@@ -45,7 +45,7 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   ``READ_SLICE_BYTES`` bytes, then yields to the loop for a turn, so a flood
   of tiny frames on one connection does not hold the others up;
 - jobs: a frame that left the session a job (a ``png`` op to inflate,
-  ``Session.take_job``) stops the slice; the reader waits until the job's
+  ``Jobs.take``) stops the slice; the reader waits until the job's
   ``ready_at`` (the connection's own budget), runs it in a worker thread (at
   most ``INFLATE_THREADS`` at once over the server) and hands the result back
   before it handles the next frame, so ops keep their order and only the
@@ -67,6 +67,7 @@ import anyio.to_thread
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.commands import CloseCode, CloseConnection
+from rwt_protocol.runtime.contract import LossySession
 from rwt_protocol.runtime.flow import FlowControl, HoldAccount, Progress, ReadingWindow
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.shortcuts import enabled
@@ -138,7 +139,7 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
         "event=connect client=%s transport=%s protocol=%s peer=%s%s",
         session.client_id,
         channel.transport,
-        getattr(session, "protocol", "rosbridge"),
+        session.protocol,
         session.peer,
         f" {detail}" if detail else "",
     )
@@ -151,10 +152,10 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
             "frames_sent=%d duration_s=%.1f",
             session.client_id,
             pump.close_reason,
-            session.topic_messages,
-            session.dropped_frames,
-            session.expired_messages,
-            session.taken_frames,
+            session.stats.topic_messages,
+            session.stats.dropped_frames,
+            session.stats.expired_messages,
+            session.stats.taken_frames,
             anyio.current_time() - started,
         )
 
@@ -290,6 +291,7 @@ class ConnectionPump(Held):
         self._reader_done = anyio.Event()
         self._writer_closed = anyio.Event()
         self._session: ServerSession | None = None
+        self._lossy: LossySession | None = None  # the session, if it has a lossy lane (D36)
         self._jobs_wake = anyio.Event()
         self._timer_deadline: float | None = None
         # The ``deferred-send`` shortcut: off, the pump never writes from the publish path.
@@ -318,7 +320,7 @@ class ConnectionPump(Held):
             # asked meanwhile goes when the gathering ends: ``_send_now`` leaves it to
             # the writer)
             gatherer.more = True
-            if session.queued_bytes >= GATHER_BYTES:
+            if session.stats.queued_bytes >= GATHER_BYTES:
                 self.flush_deferred()  # enough for a write of its own
             return
         if session.close_request is not None:
@@ -335,7 +337,7 @@ class ConnectionPump(Held):
         if session.closing:  # shutting down, closed: the timer task ends the connection
             self._timer_wake.set()
         if flow.in_batch:
-            fill = session.fill_bytes
+            fill = session.stats.fill_bytes
             if fill > self.watch_water and session.wake_above_bytes < self.high_water:
                 self._fell_behind(session)
             if flow.congests(self, fill):
@@ -367,12 +369,12 @@ class ConnectionPump(Held):
         if sent:
             session.frames_sent()
         watch = self.watch_water
-        if session.fill_bytes <= watch and (
+        if session.stats.fill_bytes <= watch and (
             self.window is not None or session.wake_above_bytes != watch
         ):
             self.window = None
             session.wake_above_bytes = watch
-        self.note_take(session.queued_bytes == 0)
+        self.note_take(session.stats.queued_bytes == 0)
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer.
@@ -426,10 +428,10 @@ class ConnectionPump(Held):
             or not channel.can_send_now()
         ):
             return False
-        queued = session.queued_bytes
+        queued = session.stats.queued_bytes
         frames = session.frames_to_send(BATCH_BYTES)
         if frames:
-            self._sent += queued - session.queued_bytes
+            self._sent += queued - session.stats.queued_bytes
             try:
                 channel.send_now(frames)
             except Exception:  # a publish must never fail for another peer's socket
@@ -440,7 +442,7 @@ class ConnectionPump(Held):
             if not written:
                 self._unwritten = True
                 return False
-        return session.queued_bytes == 0
+        return session.stats.queued_bytes == 0
 
     def _wake_timers(self) -> None:
         """Wake the timer task only when it has something new to look at.
@@ -465,13 +467,14 @@ class ConnectionPump(Held):
         on (docs/limits.md, containment). Never raises for it.
         """
         self._session = session
+        self._lossy = session if isinstance(session, LossySession) else None
         # its marks, budget and cool-down (a reconnection: its host's)
         self._account = self.flow.open_connection(
             self, session.peer, session.hold_budget_s, session.water_marks
         )
         session.wake_above_bytes = self.watch_water  # to see the peer fall behind
-        session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
-        session.on_job = self._jobs_wake.set
+        session.jobs.transport_runs = True  # ``_run_jobs`` inflates png ops off the loop
+        session.jobs.on_background = self._jobs_wake.set
         session.on_timer = self._wake_timers
         with contextlib.suppress(RuntimeError):  # the loop's gathering (gather.py)
             self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
@@ -560,7 +563,7 @@ class ConnectionPump(Held):
                     ticket = None
                 self._wake_timers()  # handlers may have scheduled timers
                 await self._apply_backpressure()
-                if session.has_jobs:
+                if session.jobs.waiting:
                     await self._run_jobs(session, clock)
                 if start >= count:
                     break
@@ -582,6 +585,7 @@ class ConnectionPump(Held):
         flow.begin()
         frames, size = self._slice_frames, self._slice_bytes
         index, count = start, len(events)
+        jobs, lossy = session.jobs, self._lossy
         try:
             while index < count and frames < READ_SLICE_FRAMES and size < READ_SLICE_BYTES:
                 event = events[index]
@@ -593,11 +597,11 @@ class ConnectionPump(Held):
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
                     size += len(event.data)
-                    if event.lossy:  # WebRTC's lossy channel (D36)
-                        session.receive_lossy_frame(event.data, now, binary=event.binary)
+                    if event.lossy and lossy is not None:  # WebRTC's lossy channel (D36)
+                        lossy.receive_lossy_frame(event.data, now, binary=event.binary)
                     else:
                         session.receive_frame(event.data, now, binary=event.binary)
-                    if session.has_jobs:  # run it before the next frame (order)
+                    if jobs.waiting:  # run it before the next frame (order)
                         break
         finally:
             flow.end()
@@ -609,7 +613,7 @@ class ConnectionPump(Held):
 
         The socket is not read meanwhile: the sender waits for its own budget.
         """
-        while (job := session.take_job()) is not None:
+        while (job := session.jobs.take()) is not None:
             self._slice_frames = self._slice_bytes = 0  # this waits: the others run
             if self._pausable:
                 self.channel.pause_reading()
@@ -620,7 +624,7 @@ class ConnectionPump(Held):
                     await self._job_wait.wait()
                 self._job_wait = None
             if session.closing:  # nothing more is handled; read on, for the peer's close
-                while session.take_job() is not None:
+                while session.jobs.take() is not None:
                     pass
                 return
             result: object
@@ -641,10 +645,10 @@ class ConnectionPump(Held):
         outcome goes back to the session (``finish_job``), whose output is written.
         """
         while not session.closing:
-            job = session.take_background_job()
+            job = session.jobs.take_background()
             if job is None:
                 self._jobs_wake = anyio.Event()
-                session.on_job = self._jobs_wake.set
+                session.jobs.on_background = self._jobs_wake.set
                 await self._jobs_wake.wait()
                 continue
             result: object
@@ -691,7 +695,7 @@ class ConnectionPump(Held):
         session = self._session
         if session is None or session.closing:
             return False
-        return (session.queued_reply_bytes if own else session.fill_bytes) > mark
+        return (session.stats.queued_reply_bytes if own else session.stats.fill_bytes) > mark
 
     def unsent_bytes(self) -> int | None:
         """The socket's send queue, where the channel can read it (``holding.wait_for``)."""
@@ -700,7 +704,7 @@ class ConnectionPump(Held):
     def backlog_bytes(self) -> int:
         """What the peer has yet to read: its outbox, what is made for it, the send queue."""
         session = self._session
-        queued = 0 if session is None else session.queued_bytes + session.pending_bytes
+        queued = 0 if session is None else session.stats.queued_bytes + session.stats.pending_bytes
         return queued + (self.unsent_bytes() or 0)
 
     def progress(self) -> Progress:
@@ -712,7 +716,7 @@ class ConnectionPump(Held):
         ``BATCH_BYTES`` or so) counts as taken.
         """
         session = self._session
-        queued = 0 if session is None else session.queued_bytes
+        queued = 0 if session is None else session.stats.queued_bytes
         unsent = self.unsent_bytes()
         held = unsent or 0
         return Progress(self._sent - held, queued + held, unsent)
@@ -725,10 +729,10 @@ class ConnectionPump(Held):
             while True:
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
-                queued = session.queued_bytes
+                queued = session.stats.queued_bytes
                 frames = session.frames_to_send(BATCH_BYTES)
                 if frames:
-                    self._sent += queued - session.queued_bytes
+                    self._sent += queued - session.stats.queued_bytes
                     await self.channel.send(frames)
                     self._unwritten = False  # (its send waited for what came before too)
                     self._took()

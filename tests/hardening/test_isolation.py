@@ -182,7 +182,7 @@ async def test_a_bug_in_a_subscriber_s_output_spares_the_publisher(
         real = Session.frames_to_send
 
         def frames_to_send(self: Session, max_bytes: int | None = None):  # type: ignore[no-untyped-def]
-            if self.client_id in victims and self.queued_bytes:
+            if self.client_id in victims and self.stats.queued_bytes:
                 raise RuntimeError("injected bug in a subscriber's output")
             return real(self, max_bytes)
 

@@ -33,7 +33,8 @@ from rwt_graph.port import GraphFront
 from rwt_http import HttpSession, parse_route
 from rwt_protocol.ports import GraphPort
 from rwt_protocol.runtime.connection import SessionBase
-from rwt_protocol.runtime.contract import Job, ServerSession
+from rwt_protocol.runtime.contract import ServerSession
+from rwt_protocol.runtime.jobs import Job
 from rwt_protocol.runtime.request import SessionRequest
 from rwt_protocol.runtime.rules import ClientRules
 from rwt_protocol.server.pngout import PngPublishJob
@@ -222,9 +223,9 @@ def test_a_failing_job_is_contained_and_told_in_the_protocols_words(
     make: Callable[[Graph], SessionBase], words: Callable[[list[bytes]], bool], background: bool
 ) -> None:
     session = _fresh(make)
-    session.run_jobs()
+    session.jobs.transport_runs = True
     session.add_job(_FailingJob(), background=background)
-    job = session.take_background_job() if background else session.take_job()
+    job = session.jobs.take_background() if background else session.jobs.take()
     assert job is not None
     try:
         outcome: object = job.run()

@@ -51,6 +51,7 @@ from aiortc.exceptions import InvalidStateError
 
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.framing.datagrams import fragment_datagrams
+from rwt_protocol.runtime.contract import LossySession
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame, LossyInFrame
 
 from ..channel import PlainChannel
@@ -371,8 +372,12 @@ class DataChannelChannel(PlainChannel):
     async def background(self, session: ServerSession) -> None:
         """Send the session's lossy lane on the ``rosbridge-lossy`` channel while it is open.
 
-        SCTP has its own heartbeat: nothing else to do.
+        SCTP has its own heartbeat: nothing else to do. A session without a lossy lane
+        (``LossySession``) sends nothing here.
         """
+        if not isinstance(session, LossySession):
+            await anyio.sleep_forever()
+            return
         while True:
             self._lane_ready = anyio.Event()
             self._lossy_state = anyio.Event()

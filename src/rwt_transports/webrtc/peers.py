@@ -60,6 +60,7 @@ from aiortc import RTCConfiguration, RTCIceServer, RTCPeerConnection, RTCSession
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import ConfigError
 from rwt_protocol.runtime.commands import CloseCode
+from rwt_protocol.runtime.contract import LossySession
 
 from ..admission.shares import HostShares, address_of
 from ..pump import CLOSE_WAIT_S, ConnectionPump, run_connection
@@ -652,6 +653,9 @@ class WebRtcPeers:
         """
         session = item.session
         assert session is not None  # opened by the caller
+        if not isinstance(session, LossySession):  # its protocol sends on one way only
+            self._refused(item, channel, "no lossy lane in its protocol")
+            return
         item.lossy = channel
         item.dc.attach_lossy(channel)
         session.open_lossy_lane(item.remote_max, item.dc.lossy_ready)
