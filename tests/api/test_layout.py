@@ -100,3 +100,20 @@ def test_the_mcp_session_keeps_no_clock_deadline_or_call_book_of_its_own() -> No
     }
     assert "time" not in imports_of(SRC / "rwt_mcp" / "session.py")
     assert names & {"monotonic", "fail_after", "move_on_after", "sleep", "_calls"} == set()
+
+
+def test_the_session_contract_is_narrow_and_the_session_base_small() -> None:
+    """What the pump drives is at most 28 members (counts and gauges one ``stats``,
+    jobs one ``jobs``, the lossy lane an optional ``LossySession``); ``SessionBase``
+    is at most 450 lines, made of its sender, jobs and lifecycle."""
+    contract = SRC / "rwt_protocol" / "runtime" / "contract.py"
+    tree = ast.parse(contract.read_text(encoding="utf-8"))
+    [session] = [n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "ServerSession"]
+    members = [
+        node.name if isinstance(node, ast.FunctionDef) else ast.unparse(node.target)
+        for node in session.body
+        if isinstance(node, ast.FunctionDef | ast.AnnAssign)
+    ]
+    assert len(members) == len(set(members)) <= 28
+    connection = SRC / "rwt_protocol" / "runtime" / "connection.py"
+    assert len(connection.read_text(encoding="utf-8").splitlines()) <= 450
