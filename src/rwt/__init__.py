@@ -63,6 +63,7 @@ if TYPE_CHECKING:
     )
     from rwt_protocol.levels import StatusLevel
     from rwt_protocol.ports import GoalStatus
+    from rwt_protocol.qos import QosProfile
     from rwt_protocol.server.session import SessionConfig
     from rwt_transports.listen import ListenError
     from rwt_transports.server import GraphServer, RosbridgeServer, ServerConfig
@@ -102,6 +103,7 @@ __all__ = [
     "OpRefusedError",
     "Param",
     "ProtocolError",
+    "QosProfile",
     "Ros",
     "RosbridgeServer",
     "RwtError",

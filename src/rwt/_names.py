@@ -57,6 +57,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
         "rwt_client.connectors": ("ConnectionClosedError",),
         "rwt_transports.listen": ("ListenError",),
         "rwt_protocol.levels": ("StatusLevel",),
+        "rwt_protocol.qos": ("QosProfile",),
     },
     "rwt.errors": {
         "rwt_protocol.errors": (
@@ -89,6 +90,7 @@ PUBLIC: dict[str, dict[str, tuple[str, ...]]] = {
             "UnknownTypeError",
         ),
         "rwt_graph.types.wire": ("CdrError",),
+        "rwt_protocol.qos": ("Durability", "History", "Reliability"),
     },
     "rwt.client": {
         "rwt_protocol.ops": ("ActionResult",),

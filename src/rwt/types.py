@@ -1,5 +1,8 @@
 """Message, service and action types: the registry and what it resolves (docs/embedding.md).
 
+Also the policies of a topic's QoS (``History``, ``Reliability``, ``Durability``)
+that ``rwt.QosProfile`` takes (protocol 2.1.0).
+
 ``rwt.Graph`` takes a ``TypeRegistry`` (``graph.registry``); it reads interface
 files and the rosbags stores of a dialect (ROS 2 or ROS 1, D6) and resolves a
 type string to a ``MessageType``, ``ServiceType`` or ``ActionType``.
@@ -30,6 +33,7 @@ if TYPE_CHECKING:
         UnknownTypeError,
     )
     from rwt_graph.types.wire import CdrError
+    from rwt_protocol.qos import Durability, History, Reliability
 
 __all__ = [
     "ActionType",
@@ -39,10 +43,13 @@ __all__ = [
     "Converted",
     "DefinitionError",
     "Dialect",
+    "Durability",
     "FieldSpec",
     "FieldType",
+    "History",
     "InvalidTypeNameError",
     "MessageType",
+    "Reliability",
     "ServiceType",
     "TypeRegistry",
     "UnknownTypeError",

@@ -250,7 +250,8 @@ class Recorder(BackgroundJob):
                 # often clients bring a topic back
                 logger.info("event=record topic=%s type=%s", name, entry.msgtype.name)
             latched = any(entry.publishers.values()) or entry.latched is not None
-            info = TopicInfo(name, entry.msgtype.rosbags_name, latched)
+            offered = None if entry.qos is None else entry.qos.offered  # (D62)
+            info = TopicInfo(name, entry.msgtype.rosbags_name, latched, offered)
             callback = self._sink(info, entry.msgtype)
             self._subscriptions[name] = self.graph.create_subscription(
                 name, callback, node="/rwt_recorder"

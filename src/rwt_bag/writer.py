@@ -10,6 +10,7 @@ registry's typestore. A split starts a new bag next to the first:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -25,6 +26,7 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
 
+from rwt_protocol.qos import History
 from rwt_protocol.shortcuts import enabled
 
 from .errors import BagError
@@ -35,6 +37,8 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rosbags.typesys.store import Typestore
+
+    from rwt_protocol.qos import QosProfile
 
 __all__ = [
     "BagFormat",
@@ -53,11 +57,16 @@ class TopicInfo:
         topic: resolved name.
         msgtype: rosbags' name of the type (``std_msgs/msg/String``).
         latched: transient-local (ROS 2 QoS) or latching (ROS 1 connection header).
+        offered: the QoS the topic's publishers offer (protocol 2.1.0's, fixed by
+            its first registration with one, D62), which a ROS 2 bag stores as
+            ``ros2 bag record`` stores its publishers' offered profiles; None: the
+            one ``latched`` stands for.
     """
 
     topic: str
     msgtype: str
     latched: bool
+    offered: QosProfile | None = None
 
 
 #: Bytes written between two looks at the size of the chunk in memory.
@@ -66,20 +75,48 @@ _CHECK_BYTES = 64 * 1024
 _INFINITE = QosTime(sec=2147483647, nsec=4294967295)
 
 
-def _qos(latched: bool) -> Qos:
-    """The offered QoS a rosbag2 player reads back to latch a topic (or not)."""
-    durability = QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE
+def _qos(info: TopicInfo) -> Qos:
+    """The offered QoS of a topic, which a rosbag2 player reads back (to latch it, or not).
+
+    The topic's offer when it has one (every policy, durations as rosbag2 writes
+    them), else what ``latched`` stands for.
+    """
+    offered = info.offered
+    if offered is None:
+        durability = QosDurability.TRANSIENT_LOCAL if info.latched else QosDurability.VOLATILE
+        return Qos(
+            history=QosHistory.KEEP_LAST,
+            depth=1 if info.latched else 10,
+            reliability=QosReliability.RELIABLE,
+            durability=durability,
+            deadline=_INFINITE,
+            lifespan=_INFINITE,
+            liveliness=QosLiveliness.AUTOMATIC,
+            liveliness_lease_duration=_INFINITE,
+            avoid_ros_namespace_conventions=False,
+        )
+    keep_all = offered.history is History.KEEP_ALL
     return Qos(
-        history=QosHistory.KEEP_LAST,
-        depth=1 if latched else 10,
-        reliability=QosReliability.RELIABLE,
-        durability=durability,
-        deadline=_INFINITE,
-        lifespan=_INFINITE,
+        history=QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST,
+        depth=0 if keep_all else offered.keep,
+        reliability=QosReliability.BEST_EFFORT if offered.best_effort else QosReliability.RELIABLE,
+        durability=QosDurability.TRANSIENT_LOCAL
+        if offered.transient_local
+        else QosDurability.VOLATILE,
+        deadline=_time(offered.deadline_s),
+        lifespan=_time(offered.lifespan_s),
         liveliness=QosLiveliness.AUTOMATIC,
         liveliness_lease_duration=_INFINITE,
         avoid_ros_namespace_conventions=False,
     )
+
+
+def _time(seconds: float) -> QosTime:
+    """Seconds as rosbag2's QoS time; infinite as its largest."""
+    if math.isinf(seconds):
+        return _INFINITE
+    ns = round(seconds * 1e9)
+    return QosTime(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
 
 
 def split_path(path: Path, index: int) -> Path:
@@ -167,7 +204,7 @@ class _File:
             info.topic,
             info.msgtype,
             typestore=self._typestore,
-            offered_qos_profiles=[_qos(info.latched)],
+            offered_qos_profiles=[_qos(info)],
         )
 
     @property

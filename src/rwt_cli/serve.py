@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import logging
+import math
 import sys
 from dataclasses import replace
 from typing import TYPE_CHECKING, NoReturn
@@ -360,6 +361,7 @@ def _session_config(options: ServeOptions) -> SessionConfig:
         max_pending_goals=limits.max_pending_goals,
         auth_challenge=security.auth_bind_connection,
         png_inflate_rate=limits.png_inflate_rate,
+        qos_lifespan_s=limits.qos_lifespan if limits.qos_lifespan > 0 else math.inf,
     )
 
 
@@ -539,6 +541,7 @@ def _limits(config: ServerConfig) -> dict[str, object]:
         "--max-connections": config.max_connections or "from the open-files limit",
         "--send-buffer-limit": session.send_buffer_limit,
         "--max-queue-length": session.max_queue_length,
+        "--qos-lifespan": "none" if math.isinf(session.qos_lifespan_s) else session.qos_lifespan_s,
         "--max-subscriptions": session.max_subscriptions,
         "--max-advertisements": session.max_advertisements,
         "--max-pending-calls": session.max_pending_calls,

@@ -377,6 +377,14 @@ class Limits:
     max_queue_length: Annotated[
         int, typer.Option(min=1, help="Cap on a throttled subscription's queue_length.")
     ] = 100
+    qos_lifespan: Annotated[
+        float,
+        typer.Option(
+            min=0.0,
+            help="Seconds after its publication a message is no longer sent to a subscriber"
+            " whose qos gives no lifespan (protocol 2.1.0; 0: none, as rosbridge_suite).",
+        ),
+    ] = 0.0
     max_subscriptions: Annotated[
         int, typer.Option(min=1, help="Topics one connection may subscribe to at once.")
     ] = 1000

@@ -8,6 +8,7 @@ import anyio
 
 from rwt_protocol.errors import ConfigError
 from rwt_protocol.ops import ActionResult
+from rwt_protocol.ops.qos import Qos
 
 from .connectors import ConnectionClosedError
 from .ros import Callback, CallTimeoutError, Ros, ServiceCallError
@@ -15,6 +16,8 @@ from .typed import MessageClass, to_wire
 
 if TYPE_CHECKING:
     from collections.abc import Callable
+
+    from rwt_protocol.qos import QosProfile
 
 __all__ = ["Action", "GoalHandle", "Param", "Service", "Topic"]
 
@@ -35,6 +38,10 @@ class Topic:
         queue_size: publisher queue size (ROS 1 edition).
         message_class: deliver instances of this class (``typed.message_class``)
             instead of dicts.
+        qos: protocol 2.1.0's QoS (``rwt.QosProfile``), sent with this object's
+            ``subscribe`` (what it asks of the topic) and ``advertise`` (what it
+            offers; the server then reads no ``latch`` or ``queue_size``); None:
+            no ``qos`` is sent, as before 2.1.0.
     """
 
     def __init__(
@@ -50,6 +57,7 @@ class Topic:
         latch: bool = False,
         queue_size: int = 100,
         message_class: MessageClass | None = None,
+        qos: QosProfile | None = None,
     ) -> None:
         self.ros = ros
         self.name = name
@@ -60,6 +68,9 @@ class Topic:
             "compression": compression,
             "fragment_size": fragment_size,
         }
+        if qos is not None:
+            self.options["qos"] = Qos.of(qos)
+        self.qos = qos
         self.latch = latch
         self.queue_size = queue_size
         self.message_class = message_class
@@ -134,7 +145,11 @@ class Topic:
         if self.message_type is None:
             raise ConfigError(f"advertising {self.name} needs a message type")
         self._adv_id = await self.ros.advertise(
-            self.name, self.message_type, latch=self.latch, queue_size=self.queue_size
+            self.name,
+            self.message_type,
+            latch=self.latch,
+            queue_size=self.queue_size,
+            qos=self.qos,
         )
 
     async def unadvertise(self) -> None:

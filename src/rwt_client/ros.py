@@ -49,6 +49,7 @@ from rwt_protocol.ops import (
     ServiceResponse,
     Status,
 )
+from rwt_protocol.ops.qos import Qos
 
 from .connectors import Connection, ConnectionClosedError, connect
 from .rosapi import RosapiMixin
@@ -59,6 +60,7 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup
 
     from rwt_protocol.levels import StatusLevel
+    from rwt_protocol.qos import QosProfile
 
 __all__ = ["CLOSE_TIMEOUT_S", "CallTimeoutError", "Callback", "Ros", "ServiceCallError"]
 
@@ -279,9 +281,17 @@ class Ros(RosapiMixin):
         return _values(waiter, service)
 
     async def advertise(
-        self, topic: str, type_name: str, *, latch: bool = False, queue_size: int = 100
+        self,
+        topic: str,
+        type_name: str,
+        *,
+        latch: bool = False,
+        queue_size: int = 100,
+        qos: QosProfile | None = None,
     ) -> str:
         """Advertise ``topic`` and wait until the server took it (spec 3.3.1).
+
+        ``qos``: the QoS offered (protocol 2.1.0; sent only when given).
 
         The protocol does not acknowledge ``advertise``: one round trip after it
         (a ``/rosapi/topic_type`` call, answered or refused, by any rosbridge
@@ -297,7 +307,13 @@ class Ros(RosapiMixin):
                 rule, a limit); it is not replayed after a reconnect.
             ConnectionClosedError: the connection dropped first.
         """
-        adv_id = self.session.advertise(topic, type_name, latch=latch, queue_size=queue_size)
+        adv_id = self.session.advertise(
+            topic,
+            type_name,
+            latch=latch,
+            queue_size=queue_size,
+            qos=None if qos is None else Qos.of(qos),
+        )
         refusal = await self.refusal("advertise", adv_id, topic)
         if refusal is not None:
             self.session.forget_advertisement(adv_id)

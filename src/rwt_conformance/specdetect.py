@@ -15,9 +15,13 @@ In order (docs/conformance.md, "Spec versions"):
    nobody advertised, then ``/rosapi/topic_type`` of that topic, asked until it
    names the type or ``PROBE_SETTLE_S`` have passed (a ROS 2 graph learns a new
    publisher a moment later). A topic that has the type was advertised by the
-   publish: 2.0.0. One that stays unknown was refused: the unversioned spec. A
-   server whose rosapi does not answer cannot tell; it is taken to be
-   unversioned, "assumed".
+   publish: 2.0.0 or later. One that stays unknown was refused: the unversioned
+   spec. A server whose rosapi does not answer cannot tell; it is taken to be
+   unversioned, "assumed". Then, for a server that advertised, a probe of what
+   2.1.0 added: the same ``publish`` to a second fresh topic with a ``qos`` no
+   server that reads it can take (``{"depth": -1}``, refused by rosbridge_suite
+   2.7.0/3.3.0/4.2.0 and by rwt, D62): a topic that stays unknown was refused for
+   its ``qos``: 2.1.0; one advertised ignored it: 2.0.0.
 
 ``--spec-version`` skips both (``SpecFinding.given``).
 """
@@ -259,7 +263,10 @@ async def probe_spec_version(
     auth_secret: str | None = None,
     max_frame_bytes: int = MAX_FRAME_BYTES,
 ) -> tuple[SpecVersion, str]:
-    """Whether a ``publish`` with ``type`` advertises (2.0.0) or not (unversioned).
+    """Which of unversioned, 2.0.0 and 2.1.0 a server follows, by the probe (module text).
+
+    A ``publish`` with ``type`` that advertises: 2.0.0 or later; then one with a bad
+    ``qos`` that is refused: 2.1.0.
 
     Returns:
         The version and what the probe saw, one line; never raises for what the
@@ -278,21 +285,44 @@ async def probe_spec_version(
         if auth_secret is not None:
             host = urlsplit(url).hostname or ""
             await send_within(conn, json.dumps(auth_op(auth_secret, {}, host)), timeout_s)
-        publish = {"op": "publish", "topic": topic, "type": type_name, "id": _PROBE_ID}
-        await send_within(conn, json.dumps({**publish, "msg": {"data": "probe"}}), timeout_s)
-        told = await _topic_type(conn, topic, timeout_s)
+        told = await _publish_and_ask(conn, topic, type_name, timeout_s)
+        what = f"a publish with type to an unknown topic, then /rosapi/topic_type: {told}"
+        if not told.startswith("names "):
+            if told.startswith("no type"):
+                return unversioned, f"it was refused ({what})"
+            return unversioned, f"assumed ({what})"
+        return await _probe_qos(conn, topic, type_name, timeout_s, what)
     except ConnectionClosedError as exc:
         return unversioned, f"assumed (the server closed the probe's connection: {exc.message})"
     except SendTimeoutError as exc:
         return unversioned, f"assumed ({exc})"
     finally:
         await close_within(conn)
-    what = f"a publish with type to an unknown topic, then /rosapi/topic_type: {told}"
-    if told.startswith("names "):
-        return SpecVersion.of(2), f"it was advertised ({what})"
+
+
+async def _publish_and_ask(
+    conn: Connection, topic: str, type_name: str, timeout_s: float, qos: object = None
+) -> str:
+    """A ``publish`` with ``type`` (and ``qos``, when given) to ``topic``; its type told after."""
+    publish: dict[str, object] = {"op": "publish", "topic": topic, "type": type_name}
+    if qos is not None:
+        publish["qos"] = qos
+    publish.update(id=_PROBE_ID, msg={"data": "probe"})
+    await send_within(conn, json.dumps(publish), timeout_s)
+    return await _topic_type(conn, topic, timeout_s)
+
+
+async def _probe_qos(
+    conn: Connection, topic: str, type_name: str, timeout_s: float, before: str
+) -> tuple[SpecVersion, str]:
+    """2.1.0 or 2.0.0, for a server whose ``publish`` with ``type`` advertised (module text)."""
+    told = await _publish_and_ask(conn, f"{topic}_qos", type_name, timeout_s, {"depth": -1})
+    what = f"{before}; the same with qos depth -1 to another: {told}"
     if told.startswith("no type"):
-        return unversioned, f"it was refused ({what})"
-    return unversioned, f"assumed ({what})"
+        return SpecVersion.of(2, 1), f"it was advertised, and refused for its qos ({what})"
+    if told.startswith("names "):
+        return SpecVersion.of(2), f"it was advertised, and its qos ignored ({what})"
+    return SpecVersion.of(2), f"it was advertised; its qos could not be told ({what})"
 
 
 async def _topic_type(conn: Connection, topic: str, timeout_s: float) -> str:

@@ -20,6 +20,8 @@ Modules:
 - ``visibility``: which names a client may see, one rule for rosapi's and
   Foxglove's listings, built from the access rules.
 - ``topics``: topics: advertisers, subscribers, latching, delivery (spec 3.3.1-3.3.5).
+- ``topic_qos``: a topic's QoS (protocol 2.1.0's ``qos``): its offer, the
+  transient-local store, lifespan, subscribers a request cannot match (D62-D64).
 - ``services``: services: providers, calls and their replies (spec 3.3.6-3.3.9).
 - ``actions``: actions: goals, feedback, results, cancels (spec 3.3.10-3.3.15).
 - ``action_status``: each served action's ``_action/status`` topic (ROS 2), as

@@ -61,12 +61,15 @@ from .link import OPEN_GATE, OPEN_OUTFLOW, InflowGate, OutflowGate
 from .nodes import Nodes
 from .ratelog import EpisodeLog
 from .services import ServiceEntry, Services
+from .topic_qos import STORE_MAX_BYTES, StoreBudget, TopicQos
 from .topics import Tap, Topic
 from .types import Dialect, MessageType, TypeRegistry, codec_for
 from .types.wire import wire_encoding
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator, Sequence
+
+    from rwt_protocol.qos import QosProfile
 
     from .calls import Offer
     from .playback import Playback
@@ -124,6 +127,10 @@ class GraphCore:
             server installs its own, else ``OPEN_OUTFLOW``.
         envelope: the safety envelope every remote client's publish passes
             (``safety.envelope.Envelope.install``), or None (docs/safety.md).
+        max_store_bytes: the bytes a topic's transient-local store keeps at most
+            (``topic_qos``, D63); the server sets its ``--send-buffer-limit``.
+        stores: the bytes all topics' stores keep together, and their bound
+            (``topic_qos.StoreBudget``); the server sets its ``--memory-budget``.
     """
 
     def __init__(self, registry: TypeRegistry | None = None, *, clock: Clock | None = None) -> None:
@@ -155,6 +162,8 @@ class GraphCore:
         self.inflow: InflowGate = OPEN_GATE
         self.outflow: OutflowGate = OPEN_OUTFLOW
         self.envelope: Envelope | None = None
+        self.max_store_bytes = STORE_MAX_BYTES
+        self.stores = StoreBudget()
         # client -> the topics it publishes or subscribes to, so that its release
         # costs what it holds, not the size of the graph (a peer's thousands of
         # entities leave one by one: docs/limits.md, "Zenoh peers")
@@ -264,11 +273,20 @@ class GraphCore:
     # ---- GraphPort ------------------------------------------------------------
 
     def advertise(
-        self, client: ClientId, topic: str, type_name: str, *, latch: bool = False
+        self,
+        client: ClientId,
+        topic: str,
+        type_name: str,
+        *,
+        latch: bool = False,
+        qos: QosProfile | None = None,
     ) -> str:
         """Register ``client`` as a publisher of ``topic`` (spec 3.3.1); ``latch`` latches (D13).
 
-        A publisher that latches stays latched until it goes.
+        A publisher that latches stays latched until it goes. ``qos`` (protocol
+        2.1.0): the first publisher that gives one fixes the topic's offered QoS
+        while such a publisher remains (``topic_qos``, D62); ``latch`` is then
+        read no more than the reference reads it (not at all for the offer).
 
         Returns:
             The canonical type name.
@@ -284,8 +302,37 @@ class GraphCore:
         self.nodes.name_of(client)
         latched = entry.publishers[client] = latch or entry.publishers.get(client, False)
         self._hold(client, entry.name)
+        if qos is not None:
+            self.flush()  # a batch goes before the topic's messages go one by one
+            self.topic_qos(entry).add_publisher(client, qos)
         self.feed.put(PUBLISHER, entry.name, client, entry.msgtype.name, latched=latched)
         return entry.msgtype.name
+
+    def topic_qos(self, entry: Topic) -> TopicQos:
+        """The QoS state of ``entry``, made (and made its ``fan_out``) on first use (D62)."""
+        state = entry.qos
+        if state is None:
+            state = entry.qos = TopicQos(
+                entry, self._clock.monotonic, self.max_store_bytes, self.stores
+            )
+            # the instance's own (``Topic.qos``); an attribute, not ``vars(entry)``, which
+            # would make the instance's dict a real one and its reads slower
+            object.__setattr__(entry, "fan_out", state.fan_out)
+            entry.changed()
+        return state
+
+    def offered_qos(self, topic: str) -> QosProfile | None:
+        """The QoS offered on ``topic`` (its first publisher registration's, D62), or None."""
+        entry = self.topics.get(resolve_name(topic))
+        return None if entry is None or entry.qos is None else entry.qos.offered
+
+    def _settle_qos(self, entry: Topic) -> None:
+        """Drop ``entry``'s QoS state once nothing in it is in force (no offer, no request)."""
+        state = entry.qos
+        if state is not None and state.idle:
+            entry.qos = None
+            object.__delattr__(entry, "fan_out")
+            entry.changed()
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
         """Remove ``client`` as a publisher; the topic goes when nobody uses it."""
@@ -293,6 +340,7 @@ class GraphCore:
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
             entry.remove_publisher(client)
+            self._settle_qos(entry)
             self._unhold(client, entry)
             self._collect(entry)
             self.feed.drop(PUBLISHER, entry.name, client)
@@ -435,11 +483,22 @@ class GraphCore:
         return entry, result.msg, result.missing
 
     def subscribe(
-        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
+        self,
+        client: ClientId,
+        topic: str,
+        type_name: str | None,
+        sink: TopicSink,
+        *,
+        qos: QosProfile | None = None,
     ) -> str:
         """Attach ``sink`` as ``client``'s subscriber of ``topic`` (spec 3.3.4).
 
         A new subscriber receives the latched message, if any, at once (D13).
+        ``qos`` (protocol 2.1.0): what it asks of the topic (``topic_qos``): with a
+        transient-local offer it gets the kept messages first unless it asks for
+        volatile (D63); one incompatible with the offer receives nothing while
+        the offer stands (D64). A subscriber of a topic with QoS is told the offer
+        (``on_qos_offered``) either way.
 
         Returns:
             The canonical type name.
@@ -459,9 +518,19 @@ class GraphCore:
         self.nodes.name_of(client)
         is_new = entry.add_subscriber(client, sink)
         self._hold(client, entry.name)
+        state = entry.qos if qos is None else self.topic_qos(entry)
+        if state is not None:  # (before the feed: a link reads the request with the change)
+            state.add_subscriber(client, qos, sink)
         self.feed.put(SUBSCRIPTION, entry.name, client, entry.msgtype.name)
-        if is_new and entry.latched is not None:
-            sink.on_message(entry.latched)
+        latched = entry.latched
+        if state is not None:
+            if is_new and not state.replay(client, sink):
+                latched = None  # volatile, or left out (D63, D64)
+            elif latched is not None and any(kept is latched for kept in state.store):
+                latched = None  # replayed already
+            self._settle_qos(entry)
+        if is_new and latched is not None:
+            sink.on_message(latched)
         return entry.msgtype.name
 
     def unsubscribe(self, client: ClientId, topic: str) -> None:
@@ -470,6 +539,7 @@ class GraphCore:
         entry = self.topics.get(resolve_name(topic))
         if entry is not None:
             entry.remove_subscriber(client)
+            self._settle_qos(entry)
             self._unhold(client, entry)
             self._collect(entry)
             self.feed.drop(SUBSCRIPTION, entry.name, client)
@@ -515,6 +585,7 @@ class GraphCore:
     def _drop(self, entry: Topic, client: ClientId) -> None:
         entry.remove_publisher(client)
         entry.remove_subscriber(client)
+        self._settle_qos(entry)
         self._collect(entry)
         self.feed.drop(PUBLISHER, entry.name, client)
         self.feed.drop(SUBSCRIPTION, entry.name, client)

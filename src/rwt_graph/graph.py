@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
     from rwt_protocol.ports import ClientId
+    from rwt_protocol.qos import QosProfile
 
     from .clock import Clock
     from .safety.envelope import Envelope
@@ -131,6 +132,7 @@ class Graph:
         latch: bool = False,
         node: str = DEFAULT_NODE,
         reserved: bool = False,
+        qos: QosProfile | None = None,
     ) -> LocalPublisher:
         """Publish on ``topic`` from Python code in this process.
 
@@ -140,6 +142,9 @@ class Graph:
             latch: transient-local durability: late subscribers get the last message.
             node: the node rosapi lists as the publisher (``/rwt`` by default).
             reserved: only in-process code may publish on the topic (``reserve_topic``).
+            qos: the QoS offered on the topic (protocol 2.1.0's policies, D62-D65
+                of docs/decisions.md): the topic's first publisher with one fixes
+                it for every publisher; ``latch`` is then not read.
 
         Raises:
             InvalidTypeNameError, UnknownTypeError, GraphError: as ``advertise``; a bad node name.
@@ -147,8 +152,9 @@ class Graph:
         name = resolve_name(topic)
         if reserved:
             self.reserve_topic(name)
+        latch = latch and qos is None
         with self._participant(node) as client:
-            self.port.advertise(client, name, type_name, latch=latch)
+            self.port.advertise(client, name, type_name, latch=latch, qos=qos)
         return LocalPublisher(self.port, client, self.topics[name], latch=latch)
 
     def create_subscription(
@@ -158,6 +164,7 @@ class Graph:
         type_name: str | None = None,
         *,
         node: str = DEFAULT_NODE,
+        qos: QosProfile | None = None,
     ) -> LocalSubscription:
         """Call ``callback(msg)`` with each message on ``topic``, in this process.
 
@@ -165,14 +172,19 @@ class Graph:
         ``uint8[]``; other numeric arrays are lists, or read-only numpy arrays
         when a client sent them as CBOR typed arrays, D27); treat it as
         read-only, it is shared with other subscribers.
-        ``node`` is the node rosapi lists as the subscriber.
+        ``node`` is the node rosapi lists as the subscriber. ``qos``: what it
+        asks of the topic (D63-D65): a transient-local one gets the messages
+        the topic keeps at once; one incompatible with the topic's offer gets
+        nothing while it stands. The callback runs as each message is
+        published, so no queue holds it: depth, reliability and lifespan
+        bound nothing here.
 
         Raises:
             GraphError, InvalidTypeNameError, UnknownTypeError: as ``subscribe``; a bad node name.
         """
         with self._participant(node) as client:
             subscription = LocalSubscription(self.port, client, resolve_name(topic), callback)
-            self.port.subscribe(client, topic, type_name, subscription)
+            self.port.subscribe(client, topic, type_name, subscription, qos=qos)
         return subscription
 
     def create_service(

@@ -20,6 +20,7 @@ from .ratelog import EpisodeLog
 if TYPE_CHECKING:
     from rwt_protocol.ports import ClientId, MessageCodec, MessageEvent, TopicSink
 
+    from .topic_qos import TopicQos
     from .types import MessageType
 
 __all__ = ["LOSS_REPORT_EVERY_S", "Tap", "Topic"]
@@ -56,6 +57,11 @@ class Topic:
             subscriber once (D13).
         latched_by: the publisher of ``latched``; the message goes when it does
             (a transient-local sample lives with its publisher).
+        qos: the topic's QoS (protocol 2.1.0, ``topic_qos``), from its first
+            registration that gave one; None for a topic nobody gave one. While
+            it exists it is the topic's ``fan_out`` (an attribute of the
+            instance, so other topics pay nothing), and its excluded subscribers
+            are left out of ``sinks`` (D64).
     """
 
     name: str
@@ -70,7 +76,9 @@ class Topic:
     """``msgtype``'s codec, which the graph gives each event (kept here on first use)."""
     batchable: bool = field(default=False, repr=False, compare=False)
     """Every sink ``fan_out`` calls takes a batch (``BatchSink``), and there is one; known
-    once ``sinks`` (or a fan-out) ran since the subscribers last changed (False until then)."""
+    once ``sinks`` (or a fan-out) ran since the subscribers last changed (False until then).
+    Never for a topic with ``qos``: its messages go one by one through its ``fan_out``."""
+    qos: TopicQos | None = field(default=None, repr=False, compare=False)
     _lost: int = field(default=0, repr=False, compare=False)  # lost, not reported yet
     _lost_told: float = field(default=float("-inf"), repr=False, compare=False)
 
@@ -87,15 +95,15 @@ class Topic:
         """
         is_new = client not in self.subscribers
         self.subscribers[client] = sink
-        self._calls = None
-        self.batchable = False
+        self.changed()
         return is_new
 
     def remove_subscriber(self, client: ClientId) -> None:
         """Forget ``client`` as a subscriber (nothing if it was none)."""
         if self.subscribers.pop(client, None) is not None:
-            self._calls = None
-            self.batchable = False
+            self.changed()
+        if self.qos is not None:
+            self.qos.remove_subscriber(client)
 
     def remove_publisher(self, client: ClientId) -> None:
         """Forget ``client`` as a publisher, and its latched message (D13)."""
@@ -103,6 +111,13 @@ class Topic:
         if self.latched_by == client:
             self.latched = None
             self.latched_by = None
+        if self.qos is not None:
+            self.qos.remove_publisher(client)
+
+    def changed(self) -> None:
+        """The sinks a fan-out calls changed: ``sinks`` makes them again."""
+        self._calls = None
+        self.batchable = False
 
     def keep(self, event: MessageEvent, client: ClientId | None) -> None:
         """Keep ``event`` as the latched message, ``client``'s, without delivering it (D13).
@@ -195,13 +210,16 @@ class Topic:
         """The (client, sink) pairs a fan-out calls; sets ``batchable``."""
         if self._calls is not None:
             return self._calls
+        excluded = {} if self.qos is None else self.qos.excluded  # (D64)
         calls = self._calls = tuple(
             (subscriber, sink)
             for subscriber, sink in self.subscribers.items()
-            if not getattr(sink, "drops_messages", False)
+            if not getattr(sink, "drops_messages", False) and subscriber not in excluded
         )
-        self.batchable = bool(calls) and all(
-            callable(getattr(sink, "on_messages", None)) for _, sink in calls
+        self.batchable = (
+            bool(calls)
+            and self.qos is None
+            and all(callable(getattr(sink, "on_messages", None)) for _, sink in calls)
         )
         return calls
 

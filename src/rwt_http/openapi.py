@@ -191,6 +191,31 @@ _STREAM_PARAMETERS = [
     )
 ]
 
+_DURATION: dict[str, object] = {"oneOf": [{"type": "number", "minimum": 0}, {"type": "string"}]}
+_QOS_PARAMETERS: list[dict[str, object]] = [
+    {
+        "name": name,
+        "in": "query",
+        "required": False,
+        "description": f"protocol 2.1.0's qos.{name} (docs/http.md, D62)",
+        "schema": schema,
+    }
+    for name, schema in (
+        ("history", {"type": "string", "enum": ["keep_last", "keep_all"]}),
+        ("depth", {"type": "integer", "minimum": 0}),
+        ("reliability", {"type": "string", "enum": ["reliable", "best_effort", "best_available"]}),
+        (
+            "durability",
+            {"type": "string", "enum": ["transient_local", "volatile", "best_available"]},
+        ),
+        ("deadline", _DURATION),
+        ("lifespan", _DURATION),
+    )
+]
+"""Protocol 2.1.0's ``qos``, one query parameter a policy (``routes._qos``)."""
+
+_STREAM_PARAMETERS += _QOS_PARAMETERS
+
 
 def _topic_paths(entry: Entry, ref: object) -> dict[str, object]:
     """The paths of a topic: its own (GET, POST) and its stream's, as the rules allow."""
@@ -216,7 +241,7 @@ def _topic_paths(entry: Entry, ref: object) -> dict[str, object]:
         own["post"] = {
             "operationId": _op_id("publish", name),
             "summary": f"Publish a message on {name} ({type_name})",
-            "parameters": [type_parameter],
+            "parameters": [type_parameter, *_QOS_PARAMETERS],
             "requestBody": {"required": True, "content": _json(ref)},
             "responses": {
                 "200": {"description": "published", "content": _json({"type": "object"})},

@@ -5,17 +5,27 @@
 path with ``/events`` added, so ``GET /api/topics/a/events`` is always the stream of
 ``/a``: the latest message of a topic named ``/a/events`` is not reachable by GET
 (its stream is, at ``/api/topics/a/events/events``). The query's ``type``,
-``throttle_rate`` and ``queue_length`` keep rosbridge's names (spec 3.4.2-3.4.3).
+``throttle_rate`` and ``queue_length`` keep rosbridge's names (spec 3.4.2-3.4.3);
+``history``, ``depth``, ``reliability``, ``durability``, ``deadline`` and ``lifespan``
+are protocol 2.1.0's ``qos`` of a publish or an event stream, spelled as in the op
+(D62): ``?durability=transient_local&depth=5``, ``?lifespan=0.2``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, unquote, urlsplit
+
+from pydantic import ValidationError
 
 from rwt_protocol.errors import RemoteProtocolError
 from rwt_protocol.names import name_problem
+from rwt_protocol.ops.qos import Qos
+
+if TYPE_CHECKING:
+    from rwt_protocol.qos import QosProfile
 
 __all__ = [
     "API_PREFIX",
@@ -65,6 +75,7 @@ class Route:
             between two messages of an event stream (0: none).
         queue_length: ``queue_length``: at most this many messages wait for an
             event stream's client (0: the send buffer's bytes only).
+        qos: the QoS its query gives (protocol 2.1.0, D62), or None.
     """
 
     kind: RouteKind
@@ -72,6 +83,7 @@ class Route:
     type_name: str | None = None
     throttle_rate_ms: int = 0
     queue_length: int = 0
+    qos: QosProfile | None = None
 
 
 class RouteError(RemoteProtocolError):
@@ -113,14 +125,18 @@ def parse_route(method: str, target: str) -> Route:
     if family not in ("topics", "services", "actions") or name == "/" or "//" in name:
         raise RouteError(404, f"no such path: {_shown(path)}")
     if family == "topics" and name.endswith(EVENTS_SUFFIX) and name != EVENTS_SUFFIX:
-        route = Route(RouteKind.EVENTS, _named(name.removesuffix(EVENTS_SUFFIX)), *_stream(query))
+        stream = _stream(query)
+        route = Route(
+            RouteKind.EVENTS, _named(name.removesuffix(EVENTS_SUFFIX)), *stream, _qos(query)
+        )
         return _checked(method, ("GET",), route)
     _named(name)
     kind = _BY_FAMILY.get((family, method))
     if kind is None:
         allowed = sorted(m for f, m in _BY_FAMILY if f == family)
         raise RouteError(405, f"{API_PREFIX}{family}/<name> takes {', '.join(allowed)}")
-    return Route(kind, name, _one(query, "type"))
+    qos = _qos(query) if kind is RouteKind.PUBLISH else None
+    return Route(kind, name, _one(query, "type"), qos=qos)
 
 
 def _shown(text: str) -> str:
@@ -145,6 +161,41 @@ def _checked(method: str, allowed: tuple[str, ...], route: Route) -> Route:
 def _one(query: dict[str, list[str]], key: str) -> str | None:
     values = query.get(key)
     return values[-1] if values else None
+
+
+_QOS_FIELDS = ("history", "depth", "reliability", "durability", "deadline", "lifespan")
+
+
+def _qos(query: dict[str, list[str]]) -> QosProfile | None:
+    """The QoS a query gives (``ops.qos.Qos``'s rules, D62), None when it names no policy.
+
+    Raises:
+        RouteError: 400 naming the parameter of a bad value.
+    """
+    given: dict[str, object] = {}
+    for key in _QOS_FIELDS:
+        text = _one(query, key)
+        if text is None:
+            continue
+        value: object = text
+        if key == "depth":
+            digits = text.removeprefix("-")
+            value = int(text) if digits.isdigit() and len(digits) < 20 else text
+        elif key in ("deadline", "lifespan"):
+            try:
+                value = float(text)
+            except ValueError:
+                value = text  # "infinite", "best_available": the model reads those
+        given[key] = value
+    if not given:
+        return None
+    try:
+        return Qos.model_validate(given).profile()
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        field = ".".join(str(part) for part in error["loc"]) or "qos"
+        text = error["msg"][:1].lower() + error["msg"][1:]
+        raise RouteError(400, f"{field}: {text}"[:200]) from None
 
 
 def _stream(query: dict[str, list[str]]) -> tuple[str | None, int, int]:

@@ -20,6 +20,7 @@ or answer in time; 500 a bug (contained: logged once, the server goes on).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING
@@ -32,7 +33,7 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.access import AccessDeniedError, Family, TopicUse
 from rwt_protocol.runtime.commands import CloseCode
 from rwt_protocol.runtime.connection import SessionBase
-from rwt_protocol.runtime.outbox import OutFrame
+from rwt_protocol.runtime.outbox import OutFrame, QueueRule
 
 from .document import DocumentBuild
 from .routes import Route, RouteKind
@@ -51,6 +52,7 @@ if TYPE_CHECKING:
 
     from rwt_graph.port import GraphFront
     from rwt_protocol.ports import GoalStatus, MessageEvent, PublishNote
+    from rwt_protocol.qos import QosProfile
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.rules import ClientRules
 
@@ -139,6 +141,8 @@ class HttpSession(SessionBase):
         self._streaming = False
         self._holds = False  # a subscription waits in the graph (a call: the call book)
         self._last_sent = -1.0e18  # an event stream's last message (throttle_rate)
+        self._stream_rule: QueueRule | None = None  # an event stream's QoS (``stream_qos``)
+        self._stream_lifespan_s = math.inf
 
     # ---- what the runtime asks ----------------------------------------------------
 
@@ -281,7 +285,7 @@ class HttpSession(SessionBase):
         type_name = self._topic_type(route.name, route.type_name)
         if type_name is None:
             raise UnknownNameError("topic", f"{route.name} (give its ?type=)")
-        type_name = self.graph.advertise(self.client_id, route.name, type_name)
+        type_name = self.graph.advertise(self.client_id, route.name, type_name, qos=route.qos)
         notes: list[PublishNote] = []
         self.graph.publish(self.client_id, route.name, msg, notes=notes.append)
         if any(note.dropped for note in notes):  # the safety envelope's rate (docs/safety.md)
@@ -298,7 +302,8 @@ class HttpSession(SessionBase):
             self._answer(404, {"error": f"topic {route.name} does not exist"})
             return
         self._open_stream()
-        self.graph.subscribe(self.client_id, route.name, route.type_name, _StreamSink(self))
+        sink = _StreamSink(self)
+        self.graph.subscribe(self.client_id, route.name, route.type_name, sink, qos=route.qos)
         self._holds = True
 
     def _open_stream(self) -> None:
@@ -306,12 +311,16 @@ class HttpSession(SessionBase):
         self.send_frames((OutFrame(stream_head(self._headers)),))
 
     def _stream_messages(self, events: Sequence[MessageEvent]) -> None:
-        """Queue ``events`` as Server-Sent Events, under ``throttle_rate``.
+        """Queue ``events`` as Server-Sent Events, under ``throttle_rate`` (and the QoS).
 
         As a rosbridge subscriber's (``Session.deliver_many``): each message's event is
         one ``OutFrame`` made once for every stream (``_SSE_KEY``), queued in runs of
-        one lifespan (a ROS 2 sample's, docs/ros2.md) and woken for once a run.
+        one lifespan (a ROS 2 sample's, docs/ros2.md) and woken for once a run. A
+        stream with QoS (``stream_qos``) queues each by its rule (``_send_ruled``).
         """
+        if self._stream_rule is not None:
+            self._send_ruled(events, self._stream_rule)
+            return
         gap = self.route.throttle_rate_ms / 1000.0
         name = self.route.name
         run: list[OutFrame] = []
@@ -332,6 +341,30 @@ class HttpSession(SessionBase):
             run_now = each.now if each.now > run_now else run_now
             run_lifespan = lifespan
         self.queue_run(run, name, run_now, run_lifespan)
+
+    def _send_ruled(self, events: Sequence[MessageEvent], rule: QueueRule) -> None:
+        """Queue ``events`` of a stream with QoS, each with its lifespan's end (D63)."""
+        gap = self.route.throttle_rate_ms / 1000.0
+        for each in events:
+            if gap:
+                if each.now - self._last_sent < gap:
+                    continue  # rosbridge's throttle_rate: at most one message a gap
+                self._last_sent = each.now
+            frame = each.encoded(_SSE_KEY, partial(_sse, each))
+            expires = min(each.expires, each.now + self._stream_lifespan_s)
+            self.send_frames((frame,), self.route.name, 0.0, rule, expires)
+
+    def stream_qos(self, offered: QosProfile | None) -> None:
+        """The stream's topic has a QoS (``_StreamSink.on_qos_offered``, D63): its rule."""
+        asked = self.route.qos
+        if asked is None and offered is None:
+            self._stream_rule = None
+            return
+        effective = None if asked is None else asked.for_subscription(offered)
+        self._stream_lifespan_s = math.inf if effective is None else effective.lifespan_s
+        self._stream_rule = (
+            QueueRule() if effective is None else QueueRule(effective.keep, effective.best_effort)
+        )
 
     def _service(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.SERVICES, route.name, "call_service")
@@ -444,6 +477,12 @@ class _StreamSink:
 
     def __init__(self, session: HttpSession) -> None:
         self._session = session
+
+    def on_qos_offered(
+        self, offered: QosProfile | None, reasons: list[str], latest: Callable[[], float]
+    ) -> None:
+        """The topic's QoS (``rwt_graph.topic_qos``): the stream's rule follows it (D63)."""
+        self._session.stream_qos(offered)
 
     def on_message(self, event_: MessageEvent) -> None:
         self._session._stream_messages((event_,))

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import anyio
 from mcp.server.mcpserver.exceptions import ToolError
@@ -23,6 +23,9 @@ from rwt_client.ros import jittered
 from rwt_protocol.errors import RwtError
 
 from .robot import ClientRobot, GoalRun, Publisher, Robot
+
+if TYPE_CHECKING:
+    from rwt_protocol.qos import QosProfile
 
 __all__ = ["FIRST_CONNECT_WAIT_S", "MAX_GOALS", "MAX_PUBLISHERS", "Goal", "RobotLink"]
 
@@ -87,7 +90,7 @@ class RobotLink:
         self.url = url
         self.robot: Robot = robot or ClientRobot(Ros(url, reconnect=True))
         self.goals: OrderedDict[str, Goal] = OrderedDict()
-        self._publishers: OrderedDict[tuple[str, str], Publisher] = OrderedDict()
+        self._publishers: OrderedDict[tuple[str, str, QosProfile | None], Publisher] = OrderedDict()
         self._ready = anyio.Event()  # the first connection was made
 
     async def connect(self, stop: anyio.Event) -> None:
@@ -128,19 +131,23 @@ class RobotLink:
             raise ToolError(exc.message) from None
         return self.robot
 
-    async def publisher(self, topic: str, message_type: str) -> Publisher:
+    async def publisher(
+        self, topic: str, message_type: str, qos: QosProfile | None = None
+    ) -> Publisher:
         """The publisher of ``topic``, advertised on first use (bounded cache).
+
+        ``qos``: what it offers (D62); a publisher is kept per topic, type and QoS.
 
         Raises:
             OpRefusedError: the robot refused the advertisement.
             ToolError: the access rules refuse it, or the robot cannot be reached.
         """
-        key = (topic, message_type)
+        key = (topic, message_type, qos)
         found = self._publishers.get(key)
         if found is not None:
             self._publishers.move_to_end(key)
             return found
-        publisher = await (await self.connected()).advertise(topic, message_type)
+        publisher = await (await self.connected()).advertise(topic, message_type, qos)
         self._publishers[key] = publisher
         if len(self._publishers) > MAX_PUBLISHERS:
             _, oldest = self._publishers.popitem(last=False)

@@ -18,10 +18,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from rwt_client import Action, Ros, Topic
 from rwt_client.rosapi import RosapiMixin
+
+if TYPE_CHECKING:
+    from rwt_protocol.qos import QosProfile
 
 __all__ = ["ClientRobot", "GoalEnd", "GoalRun", "Publisher", "Robot", "Subscription"]
 
@@ -157,10 +160,12 @@ class Robot(Protocol):
         *,
         throttle_ms: int = 0,
         queue_length: int = 0,
+        qos: QosProfile | None = None,
     ) -> Subscription:
         """Deliver ``topic``'s messages (rosbridge's JSON form) to ``callback``.
 
-        ``throttle_ms`` and ``queue_length`` as ``subscribe``'s (spec 3.3.4).
+        ``throttle_ms`` and ``queue_length`` as ``subscribe``'s (spec 3.3.4); ``qos``
+        protocol 2.1.0's (D62-D65), what the subscription asks of the topic.
 
         Raises:
             OpRefusedError: the robot refused it (a cap, a type conflict); the
@@ -169,8 +174,12 @@ class Robot(Protocol):
         """
         ...
 
-    async def advertise(self, topic: str, type_name: str) -> Publisher:
+    async def advertise(
+        self, topic: str, type_name: str, qos: QosProfile | None = None
+    ) -> Publisher:
         """Advertise ``topic`` of ``type_name``, once the robot took it.
+
+        ``qos``: protocol 2.1.0's (D62), what it offers.
 
         Raises:
             OpRefusedError: the robot refused it (a type conflict, a cap).
@@ -276,17 +285,25 @@ class ClientRobot(RosapiMixin):
         *,
         throttle_ms: int = 0,
         queue_length: int = 0,
+        qos: QosProfile | None = None,
     ) -> Subscription:
         """As ``Robot.subscribe``: one round trip for the server's refusal (D43)."""
         subscription = Topic(
-            self.ros, topic, type_name, throttle_rate=throttle_ms, queue_length=queue_length
+            self.ros,
+            topic,
+            type_name,
+            throttle_rate=throttle_ms,
+            queue_length=queue_length,
+            qos=qos,
         )
         await subscription.subscribe(callback, confirm=True)
         return _ClientSubscription(subscription)
 
-    async def advertise(self, topic: str, type_name: str) -> Publisher:
+    async def advertise(
+        self, topic: str, type_name: str, qos: QosProfile | None = None
+    ) -> Publisher:
         """As ``Robot.advertise``."""
-        publisher = Topic(self.ros, topic, type_name)
+        publisher = Topic(self.ros, topic, type_name, qos=qos)
         await publisher.advertise()
         return publisher
 

@@ -65,6 +65,7 @@ if TYPE_CHECKING:
 
     from rwt_protocol.levels import StatusLevel
     from rwt_protocol.ports import GoalStatus, GraphPort, MessageEvent, PublishNote
+    from rwt_protocol.qos import QosProfile
     from rwt_protocol.runtime.callbook import BookedCall
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.outbox import OutFrame
@@ -426,8 +427,12 @@ class McpSession(SessionBase, RosapiMixin):
         *,
         throttle_ms: int = 0,
         queue_length: int = 0,
+        qos: QosProfile | None = None,
     ) -> Subscription:
         """Deliver ``topic``'s messages to ``callback`` (``Robot.subscribe``).
+
+        ``qos``: what the session's subscription of ``topic`` asks of it, given by
+        its first watcher (D62-D63; the session holds one subscription a topic).
 
         Raises:
             ToolError: the access rules refuse the topic.
@@ -443,7 +448,7 @@ class McpSession(SessionBase, RosapiMixin):
                 self.check_cap(len(self._fans), self.config.max_subscriptions, "subscriptions")
                 fan = self._fans[topic] = _Fan()
                 fan.watchers.append(watcher)  # a latched message comes at once (D13)
-                self._graph.subscribe(self.client_id, topic, type_name, fan)
+                self._graph.subscribe(self.client_id, topic, type_name, fan, qos=qos)
             except RwtError as exc:
                 self._fans.pop(topic, None)
                 raise OpRefusedError("subscribe", topic, f"subscribe: {exc}") from None
@@ -463,8 +468,10 @@ class McpSession(SessionBase, RosapiMixin):
             if not self.closed:
                 self._graph.unsubscribe(self.client_id, topic)
 
-    async def advertise(self, topic: str, type_name: str) -> Publisher:
-        """Advertise ``topic`` (``Robot.advertise``).
+    async def advertise(
+        self, topic: str, type_name: str, qos: QosProfile | None = None
+    ) -> Publisher:
+        """Advertise ``topic`` (``Robot.advertise``); ``qos`` what it offers (D62).
 
         Raises:
             ToolError: the access rules refuse the topic.
@@ -477,7 +484,7 @@ class McpSession(SessionBase, RosapiMixin):
             if topic not in self._advertised:
                 cap = self.config.max_advertisements
                 self.check_cap(len(self._advertised), cap, "advertisements")
-            self._graph.advertise(self.client_id, topic, type_name)
+            self._graph.advertise(self.client_id, topic, type_name, qos=qos)
         except RwtError as exc:
             raise OpRefusedError("advertise", topic, f"advertise: {exc}") from None
         self._advertised[topic] = self._advertised.get(topic, 0) + 1

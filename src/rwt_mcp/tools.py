@@ -40,6 +40,8 @@ from rwt_graph.media.images import ImageError
 from rwt_graph.media.threads import in_image_thread
 from rwt_protocol.errors import GraphError, OpRefusedError, RwtError
 from rwt_protocol.names import name_problem
+from rwt_protocol.ops.qos import Qos
+from rwt_protocol.qos import QosProfile
 
 from . import render
 from .app import APP_URI, AppSite, RobotApp, app_settings
@@ -195,12 +197,29 @@ def _tool_errors() -> Iterator[None]:
         raise ToolError(str(exc)) from None
 
 
+def tool_qos(qos: Message | None) -> QosProfile | None:
+    """A tool's ``qos`` argument, read as a rosbridge op's (protocol 2.1.0, D62).
+
+    Raises:
+        ToolError: ``qos.<field>: <what is wrong>``.
+    """
+    if qos is None:
+        return None
+    try:
+        return Qos.model_validate(qos).profile()
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        field = ".".join(["qos", *(str(part) for part in error["loc"])])
+        raise ToolError(f"{field}: {error['msg']}"[:200]) from None
+
+
 async def subscribe_confirmed(
     robot: Robot,
     topic: str,
     type_name: str | None,
     callback: Callable[[Any], None],
     what: str,
+    qos: QosProfile | None = None,
 ) -> Subscription:
     """Subscribe to ``topic``, knowing whether the robot refused it (D43).
 
@@ -213,7 +232,7 @@ async def subscribe_confirmed(
             the access rules' refusal, or the connection's error.
     """
     try:
-        return await robot.subscribe(topic, type_name, callback)
+        return await robot.subscribe(topic, type_name, callback, qos=qos)
     except OpRefusedError as exc:
         raise ToolError(f"{what}: the server refused the subscription: {exc.reason}") from None
     except RwtError as exc:
@@ -290,6 +309,7 @@ class RobotTools:
         count: int = 1,
         timeout_s: float = 5.0,
         type: str | None = None,
+        qos: Message | None = None,
     ) -> list[TextContent | ImageContent]:
         """Up to ``count`` messages of a topic, or those of ``timeout_s`` seconds.
 
@@ -301,7 +321,11 @@ class RobotTools:
             count: messages wanted (1 to MAX_ECHO_COUNT; images: MAX_ECHO_IMAGES).
             timeout_s: the longest wait, seconds (at most MAX_WAIT_S).
             type: the message type; None asks the server.
+            qos: rosbridge's QoS object (history, depth, reliability, durability,
+                deadline, lifespan): {"durability": "transient_local"} gets what a
+                latched topic keeps at once.
         """
+        profile = tool_qos(qos)
         seconds = _wait(timeout_s)
         ros = await self.link.connected()
         with _tool_errors():
@@ -318,7 +342,7 @@ class RobotTools:
                 enough.set()
 
         subscription = await subscribe_confirmed(
-            ros, topic, message_type or None, take, f"echo {topic}"
+            ros, topic, message_type or None, take, f"echo {topic}", profile
         )
         with _tool_errors():
             try:
@@ -355,7 +379,9 @@ class RobotTools:
             summary["timed_out"] = True
         return [TextContent(type="text", text=json.dumps(summary)), *content]
 
-    async def publish(self, topic: str, type: str, msg: Message, ctx: Context) -> Published:
+    async def publish(
+        self, topic: str, type: str, msg: Message, ctx: Context, qos: Message | None = None
+    ) -> Published:
         """Publish one message (the topic is advertised on first use and stays advertised).
 
         Args:
@@ -363,9 +389,13 @@ class RobotTools:
             type: its message type (see ``type_definition``).
             msg: the message as JSON.
             ctx: the MCP request (a person's approval is asked through it, where needed).
+            qos: rosbridge's QoS object the topic is advertised with (history, depth,
+                reliability, durability, deadline, lifespan): {"durability":
+                "transient_local", "depth": 1} keeps it for late subscribers.
         """
+        profile = tool_qos(qos)
         with _tool_errors():
-            publisher = await self.link.publisher(topic, type)
+            publisher = await self.link.publisher(topic, type, profile)
             note = await publisher.publish(msg)
         return Published(topic=topic, type=type, count=1, safety=[note] if note else [])
 

@@ -20,7 +20,8 @@ pyproject.toml); each subpackage's docstring lists its modules:
   its calls take the op models.
 - ``ops``: one pydantic model per op.
 - The vocabulary every part shares: ``errors`` (the error tree), ``levels``
-  (status levels), ``names`` (ROS names), ``shortcuts`` (the fast paths' switch),
+  (status levels), ``names`` (ROS names), ``qos`` (protocol 2.1.0's QoS profile and
+  its rules, D62-D65), ``shortcuts`` (the fast paths' switch),
   ``ratelog`` (log lines a peer can trigger), ``distribution`` (the name rwt
   installs under, and the install hints of its extras), ``version`` (the protocol
   version rwt speaks, ``PROTOCOL_VERSION``).

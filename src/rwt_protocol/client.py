@@ -61,6 +61,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
     from .levels import StatusLevel, WireLevel
+    from .ops.qos import Qos
 
 __all__ = ["ClientEvent", "ClientSession", "UnknownOp"]
 
@@ -187,15 +188,27 @@ class ClientSession:
         self.send(Unsubscribe(topic=topic, id=sub_id))
 
     def advertise(
-        self, topic: str, type_name: str, *, latch: bool = False, queue_size: int = 100
+        self,
+        topic: str,
+        type_name: str,
+        *,
+        latch: bool = False,
+        queue_size: int = 100,
+        qos: Qos | None = None,
     ) -> str:
         """Queue ``advertise`` (spec 3.3.1; ``latch``/``queue_size`` ROS 1 3.4.1, D13).
+
+        ``qos``: protocol 2.1.0's, sent only when given (the server then reads no
+        ``latch`` or ``queue_size``).
 
         Returns:
             The advertisement id, for ``unadvertise``.
         """
         adv_id = self.new_id(f"advertise:{topic}")
-        op = AdvertiseOp(topic=topic, type=type_name, id=adv_id, latch=latch, queue_size=queue_size)
+        fields: dict[str, Any] = {} if qos is None else {"qos": qos}
+        op = AdvertiseOp(
+            topic=topic, type=type_name, id=adv_id, latch=latch, queue_size=queue_size, **fields
+        )
         self.advertisements[adv_id] = op
         self.send(op)
         return adv_id

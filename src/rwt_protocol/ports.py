@@ -25,17 +25,20 @@ same few fields (``service``, ``args``, ``id``) a tuple of them would carry.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Hashable, Mapping
 from enum import IntEnum
 from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar
 
 if TYPE_CHECKING:
     from .ops import CallService, CancelActionGoal, SendActionGoal
+    from .qos import QosProfile
 
 __all__ = [
     "ActionProvider",
     "BatchSink",
     "ClientId",
+    "ExpiringEvent",
     "GoalDone",
     "GoalFeedback",
     "GoalHandle",
@@ -119,6 +122,11 @@ class MessageEvent:
         lifespan: seconds a subscriber's queue may keep it waiting while a newer
             message of the topic waits behind it (a ROS 2 sample: docs/ros2.md,
             "Latency under rate"); 0: as long as the queue's byte bound allows.
+        expires: the monotonic time (seconds) after which it is never delivered:
+            ``now`` plus the lifespan of its topic's QoS (protocol 2.1.0, D63),
+            ``math.inf`` without one. Only an event made by ``expiring`` has one
+            of its own; every other reads the class's ``math.inf`` (no cost
+            per message).
         memos: the forms ``encoded`` and ``memo`` made, by key; a hot path may
             read and fill it directly with the same care for keys (no call).
             Those keys are strings or tuples that start with one; an ``int``
@@ -166,6 +174,19 @@ class MessageEvent:
         self.encodings_made = 0
         self.memos: dict[Hashable, object] = {}
 
+    expires: float = math.inf  # (``ExpiringEvent`` has its own; the attributes' text)
+
+    def expiring(self, expires: float) -> MessageEvent:
+        """This message with ``expires`` (monotonic seconds): a copy sharing its forms (D63).
+
+        The copy shares ``memos``, so a form made for either serves both.
+        """
+        event = ExpiringEvent.__new__(ExpiringEvent)
+        for name in MessageEvent.__slots__:
+            setattr(event, name, getattr(self, name))
+        event.expires = expires
+        return event
+
     @property
     def msg(self) -> dict[str, object]:
         """The message in the internal form, decoded from ``wire`` on first use if need be.
@@ -206,6 +227,14 @@ class MessageEvent:
             return self.memos[key]  # type: ignore[return-value]
         value = self.memos[key] = make()
         return value
+
+
+class ExpiringEvent(MessageEvent):
+    """A ``MessageEvent`` with an ``expires`` of its own (``MessageEvent.expiring``)."""
+
+    __slots__ = ("expires",)
+
+    expires: float
 
 
 class TopicSink(Protocol):
@@ -471,12 +500,22 @@ class GraphPort(ServicePort, Protocol):
     """
 
     def advertise(
-        self, client: ClientId, topic: str, type_name: str, *, latch: bool = False
+        self,
+        client: ClientId,
+        topic: str,
+        type_name: str,
+        *,
+        latch: bool = False,
+        qos: QosProfile | None = None,
     ) -> str:
         """Register ``client`` as a publisher of ``topic`` (latched when ``latch``).
 
-        Returns the topic's canonical type.
+        ``qos`` (protocol 2.1.0): the topic's first publisher registration with
+        one fixes its offered QoS (D62). Returns the topic's canonical type.
         """
+
+    def offered_qos(self, topic: str) -> QosProfile | None:
+        """The QoS ``topic``'s publishers offer (its first registration's, D62), or None."""
 
     def unadvertise(self, client: ClientId, topic: str) -> None:
         """Remove ``client`` as a publisher of ``topic``."""
@@ -521,12 +560,20 @@ class GraphPort(ServicePort, Protocol):
         """
 
     def subscribe(
-        self, client: ClientId, topic: str, type_name: str | None, sink: TopicSink
+        self,
+        client: ClientId,
+        topic: str,
+        type_name: str | None,
+        sink: TopicSink,
+        *,
+        qos: QosProfile | None = None,
     ) -> str:
         """Attach ``sink`` for ``client`` to ``topic`` (replacing an earlier one).
 
         ``type_name``, when given, must be the topic's type (or makes the topic);
-        returns the canonical type.
+        returns the canonical type. ``qos`` (protocol 2.1.0): what the subscriber
+        asks of the topic (D63-D65); a sink with ``on_qos_offered`` is told the
+        topic's offer (``rwt_graph.topic_qos``).
         """
 
     def unsubscribe(self, client: ClientId, topic: str) -> None:

@@ -12,7 +12,11 @@ from typing import TYPE_CHECKING, Any
 
 from rwt_graph.link import DEFAULT_DEPTH
 
+from .qos import rclpy_qos
+
 if TYPE_CHECKING:
+    from rwt_protocol.qos import QosProfile
+
     from .node import RosNode
 
 __all__ = [
@@ -45,11 +49,15 @@ class Qos:
         reliable: reliable, not best effort.
         transient_local: transient local durability, not volatile.
         depth: history depth (KEEP_LAST); 0 for KEEP_ALL or unknown.
+        asked: the whole profile a client of the graph asked for (protocol 2.1.0,
+            ``rwt_ros2.qos``), which the link's endpoint takes as it is; None: the
+            link's own rules (the three fields above).
     """
 
     reliable: bool = True
     transient_local: bool = False
     depth: int = DEFAULT_DEPTH
+    asked: QosProfile | None = None
 
 
 @dataclass(frozen=True)
@@ -230,7 +238,9 @@ def publisher_depth(subscriptions: list[Qos]) -> int:
 
 
 def rclpy_profile(qos: Qos) -> Any:
-    """The ``rclpy.qos.QoSProfile`` of ``qos``."""
+    """The ``rclpy.qos.QoSProfile`` of ``qos`` (a client's whole profile when it asked one)."""
+    if qos.asked is not None:
+        return rclpy_qos(qos.asked)
     from rclpy.qos import (  # noqa: PLC0415
         DurabilityPolicy,
         HistoryPolicy,

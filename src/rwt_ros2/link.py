@@ -54,6 +54,7 @@ from rwt_graph.parameters.services import param_nodes
 from rwt_graph.parameters.wire import PARAM_SERVICES
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.errors import RwtError
+from rwt_protocol.qos import Reliability
 from rwt_protocol.shortcuts import enabled
 
 from .actions import serve_action_to_ros
@@ -82,6 +83,7 @@ if TYPE_CHECKING:
     from rwt_graph.graph import Graph
     from rwt_graph.topics import Topic as GraphTopic
     from rwt_protocol.ports import ClientId, MessageEvent
+    from rwt_protocol.qos import QosProfile
 
     from .answer import Answer
 
@@ -177,6 +179,7 @@ class _Pub:
     lane: Lane  # its samples on their way (``outflow``)
     latched_sent: object = None
     gids: set[bytes] = field(default_factory=set)
+    asked: QosProfile | None = None  # the topic's offer it was made with (``_offered_qos``)
 
 
 class Ros2Link:
@@ -447,13 +450,35 @@ class Ros2Link:
                 self._subscribe(name, type_name)
 
     def _qos_for(self, topic: str) -> Qos:
+        """The QoS of the link's subscription of ``topic``.
+
+        The first local subscriber's that asked one (protocol 2.1.0, D62;
+        ``rwt_ros2.qos``), else one matching every ROS 2 publisher of it.
+        """
+        entry = self.graph.topics.get(topic)
+        state = None if entry is None else entry.qos
+        for client, asked in () if state is None else state.requested.items():
+            if not self.rules.ours(client):
+                return Qos(
+                    reliable=asked.reliability is not Reliability.BEST_EFFORT,
+                    transient_local=asked.transient_local,
+                    depth=asked.keep,
+                    asked=asked,
+                )
         return matching_qos(self._publisher_qos.get(topic, []))
+
+    def _offered_qos(self, topic: str) -> QosProfile | None:
+        """The QoS the graph's publishers of ``topic`` offer (its first registration's, D62)."""
+        entry = self.graph.topics.get(topic)
+        return None if entry is None or entry.qos is None else entry.qos.offered
 
     def _subscribe(self, name: str, type_name: str) -> None:
         ros_type = self._ros_type(name, type_name)
         if ros_type is None:
             return
         qos = self._qos_for(name)
+        if qos.asked is not None:
+            _report_qos(name, "subscription", qos.asked)
         on_batch = self._hand_over(name, type_name, qos.transient_local)
         takes = self.ros.takes
         if takes is not None:  # ``ros2-take-loop``: its own thread, one batch per wake-up
@@ -607,8 +632,10 @@ class Ros2Link:
     def _sweep_publishers(self, publishing: dict[str, tuple[str, bool]]) -> None:
         carried: dict[str, tuple[str, list[bytes]]] = {}  # what waited in a replaced lane
         for name, pub in list(self._pubs.items()):
-            if publishing.get(name) != (pub.type_name, pub.latched) or pub.depth < self._depth(
-                name, pub.latched
+            if (
+                publishing.get(name) != (pub.type_name, pub.latched)
+                or pub.asked != self._offered_qos(name)  # the topic's offer came or went (D62)
+                or (pub.asked is None and pub.depth < self._depth(name, pub.latched))
             ):  # a deeper subscription came: a history that holds its bursts
                 carried[name] = (pub.type_name, self._drop_publisher(name))
         for name, (type_name, latched) in publishing.items():
@@ -628,7 +655,12 @@ class Ros2Link:
         ros_type = self._ros_type(name, type_name)
         if ros_type is None or self._outflow is None:  # not running yet
             return None
-        qos = Qos(transient_local=latched, depth=self._depth(name, latched))
+        offered = self._offered_qos(name)
+        if offered is None:
+            qos = Qos(transient_local=latched, depth=self._depth(name, latched))
+        else:  # the client's QoS, as it fixed it (D62)
+            qos = Qos(transient_local=offered.transient_local, depth=offered.keep, asked=offered)
+            _report_qos(name, "publisher", offered)
         node = self.ros.node
         before = self._own_publishers(name)
         handle = node.create_publisher(ros_type, name, rclpy_profile(qos))
@@ -636,9 +668,11 @@ class Ros2Link:
         # node's other publishers, such as rcl's /rosout one, are ROS 2's, not the graph's)
         gids = self._own_publishers(name) - before
         self._own_gids |= gids
-        expected = 0 if latched else self._expected_subscriptions(name)
+        expected = 0 if qos.transient_local else self._expected_subscriptions(name)
         lane = self._outflow.lane(name, handle, expected=expected)
-        pub = self._pubs[name] = _Pub(type_name, latched, handle, qos.depth, lane, gids=gids)
+        pub = self._pubs[name] = _Pub(
+            type_name, latched, handle, qos.depth, lane, gids=gids, asked=offered
+        )
         return pub
 
     def _expected_subscriptions(self, topic: str) -> int:
@@ -782,6 +816,11 @@ class Ros2Link:
                 )
                 offers.append(offer)
             self._param_servers[name] = offers
+
+
+def _report_qos(topic: str, role: str, profile: QosProfile) -> None:
+    """Say which client QoS the link gave an rclpy endpoint (docs/ros2.md, "QoS")."""
+    logger.info("event=ros2_qos topic=%s role=%s qos=%r", topic, role, profile.describe())
 
 
 def _destroy(destroy: Any, handle: Any) -> None:

@@ -296,6 +296,7 @@ class ConnectionPump(Held):
         self._timer_deadline: float | None = None
         # The ``deferred-send`` shortcut: off, the pump never writes from the publish path.
         self._direct = channel if abilities.send_now and enabled("deferred-send") else None
+        self._time: Callable[[], float] = anyio.current_time  # the loop's (``run``): takes' time
         self._writer_idle = False  # waiting for a wake-up, holding no frames
         self._deferred = False  # in the list of ``flush_deferred``
         self._gatherer: Gatherer | None = None  # the loop's (gather.py), at its first use
@@ -429,7 +430,7 @@ class ConnectionPump(Held):
         ):
             return False
         queued = session.stats.queued_bytes
-        frames = session.frames_to_send(BATCH_BYTES)
+        frames = session.frames_to_send(BATCH_BYTES, self._time())
         if frames:
             self._sent += queued - session.stats.queued_bytes
             try:
@@ -478,7 +479,8 @@ class ConnectionPump(Held):
         session.on_timer = self._wake_timers
         with contextlib.suppress(RuntimeError):  # the loop's gathering (gather.py)
             self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
-        session.start(_clock()())
+        self._time = _clock()
+        session.start(self._time())
         try:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._writer, session, tg.cancel_scope)
@@ -722,6 +724,7 @@ class ConnectionPump(Held):
         return Progress(self._sent - held, queued + held, unsent)
 
     async def _writer(self, session: ServerSession, scope: anyio.CancelScope) -> None:
+        clock = self._time  # the take's time: a message past its lifespan is not sent (D63)
         try:
             if self._hello is not None:
                 await self._listening.wait()
@@ -730,7 +733,7 @@ class ConnectionPump(Held):
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
                 queued = session.stats.queued_bytes
-                frames = session.frames_to_send(BATCH_BYTES)
+                frames = session.frames_to_send(BATCH_BYTES, clock())
                 if frames:
                     self._sent += queued - session.stats.queued_bytes
                     await self.channel.send(frames)

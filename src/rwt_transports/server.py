@@ -193,8 +193,7 @@ class GraphServer:
         self.session_config = session_config
         # the web console of the WebSocket port, or None; the config then names it
         self.console, self.config = self._console_site()
-        # a link's queue for the other middleware holds publishers back as a subscriber does
-        self.graph.port.outflow = OutboundHold(self.flow)
+        self._hold_graph(session_config.send_buffer_limit)
         # one budget for what every connection makes the server hold (D44); incomplete
         # messages draw from it within their own
         self.memory = MemoryBudget(self.config.memory_budget)
@@ -247,6 +246,15 @@ class GraphServer:
         self._stop: anyio.Event | None = None
         self._all_closed: anyio.Event | None = None
         self._stopping = False
+
+    def _hold_graph(self, send_buffer_limit: int) -> None:
+        """Bind the graph's publishers and stores to this server's limits."""
+        # a link's queue for the other middleware holds publishers back as a subscriber does
+        self.graph.port.outflow = OutboundHold(self.flow)
+        # a topic's transient-local store fits a late subscriber's queue, and all of
+        # them the server's memory budget (D63)
+        self.graph.port.max_store_bytes = send_buffer_limit
+        self.graph.port.stores.limit = self.config.memory_budget
 
     def _entry_auth(self, authenticator: Authenticator | None) -> EntryAuth:
         """The one entry check for ``authenticator`` and ``ServerConfig.bearer_token``.

@@ -2,6 +2,7 @@
 
 - ``wire`` and ``payload``: the rmw_zenoh mapping, sans-IO (key expressions,
   liveliness tokens, QoS strings, type names and hashes, attachments, CDR).
+- ``token_qos``: the QoS the link's own tokens carry: what it delivers (D62).
 - ``config``: the Zenoh session of ``rwt serve --zenoh`` (loopback and no
   multicast unless told otherwise).
 - ``link``: ``ZenohLink``/``open_zenoh_link``, a graph's topics and services mirrored

@@ -57,12 +57,14 @@ from .link_remotes import REMOTE_KINDS, ZenohRemotes, remote_entity
 from .link_services import serve_query
 from .outbox import Outbox
 from .payload import decode_message, encode_message, prepare_codecs, service_hash, type_hash
+from .token_qos import token_qos
 from .wire import (
     LATCHED_QOS,
     VOLATILE_QOS,
     Durability,
     Entity,
     EntityKind,
+    QoS,
     RmwCompat,
     Topic,
     WireError,
@@ -182,6 +184,12 @@ class _Data:
     handle: Any
     latched: Any = None  # the cache-keeping publisher of latched samples
     latched_sent: object = None  # the last latched event put there
+
+
+def _kept(entry: GraphTopic) -> bool:
+    """Whether ``entry``'s offer is transient local: its samples go through the cache (D62)."""
+    state = entry.qos
+    return state is not None and state.offered is not None and state.offered.transient_local
 
 
 def _caching_publisher(session: zenoh.Session, keyexpr: str, depth: int) -> Any:
@@ -711,7 +719,7 @@ class ZenohLink:
         except (RwtError, WireError) as exc:
             logger.debug("zenoh link: %s %s is not shared: %s", kind.name.lower(), name, exc)
             return None
-        qos = LATCHED_QOS if latched else VOLATILE_QOS
+        qos = self._token_qos(kind, client, name, latched=latched)
         topic = Topic(name, dds_type_name(type_name), type_hash_text, qos)
         entity = Entity(
             self.domain_id,
@@ -737,6 +745,18 @@ class ZenohLink:
         self._node_refs[node_name] += 1
         self._name_refs[kind, name] += 1
         return export
+
+    def _token_qos(self, kind: EntityKind, client: ClientId, name: str, *, latched: bool) -> QoS:
+        """The QoS a token of the graph's endpoint says (``token_qos``; D62, docs/zenoh.md)."""
+        entry = self.graph.topics.get(name)
+        state = None if entry is None else entry.qos
+        if state is not None:
+            if kind is EntityKind.PUBLISHER and state.offered is not None:
+                return token_qos(state.offered)
+            asked = state.resolved(client) if kind is EntityKind.SUBSCRIPTION else None
+            if asked is not None:
+                return token_qos(asked)
+        return LATCHED_QOS if latched else VOLATILE_QOS
 
     def _unexport(self, key: tuple[EntityKind, ClientId, str]) -> None:
         export = self._exports.pop(key)
@@ -799,7 +819,10 @@ class ZenohLink:
             latched = (
                 publishing
                 and entry is not None
-                and any(flag for c, flag in entry.publishers.items() if not self.rules.ours(c))
+                and (
+                    _kept(entry)
+                    or any(flag for c, flag in entry.publishers.items() if not self.rules.ours(c))
+                )
             )
             data = self._pubs.get(name)
             if data is not None:
@@ -877,7 +900,7 @@ class ZenohLink:
         """Forward what a local publisher published (the graph calls this on the loop)."""
         if self._closed or not self.rules.forwards(client, entry.name):
             return
-        if latch:
+        if latch or _kept(entry):
             self._put_latched(entry, event, client)
             return
         export = self._publisher_export(entry, client)
@@ -915,7 +938,9 @@ class ZenohLink:
         if data.latched_sent is event:
             return
         if data.latched is None:
-            data.latched = _caching_publisher(self.session, data.key, LATCHED_QOS.depth)
+            offered = None if entry.qos is None else entry.qos.offered
+            depth = LATCHED_QOS.depth if offered is None else offered.keep  # (D62)
+            data.latched = _caching_publisher(self.session, data.key, depth)
         data.latched.put(self._encode(entry, event), attachment=self._attachment(export))
         data.latched_sent = event
 

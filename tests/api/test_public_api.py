@@ -263,6 +263,9 @@ NEVER_IN_RWT = {
     "auth_query",
     "rosauth_op",
     "shortcut_report",
+    "Durability",  # protocol 2.1.0's QoS policies: in rwt.types from the first
+    "History",
+    "Reliability",
     # rwt.safety (docs/safety.md)
     "AuditTrail",
     "CallRule",

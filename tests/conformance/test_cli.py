@@ -100,10 +100,11 @@ def test_strict_profile_passes_completely(
     summary = document["summary"]
     assert summary["failed"] == 0
     skipped = {r["id"]: r["detail"] for r in document["requirements"] if r["result"] == "skipped"}
-    # judged by protocol 2.1.0 (its GET /version), or over TCP, with no HTTP, by 2.0.0
-    # (a probe: its publish with type advertises); the unversioned spec's rule is left out
+    # judged by protocol 2.1.0, from its GET /version, or over TCP, with no HTTP, from a
+    # probe (its publish with type advertises, and one with a malformed qos is refused);
+    # the unversioned spec's rule is left out
     spec = document["spec_version"]
-    version, source = ("2.1.0", "version-endpoint") if transport == "ws" else ("2.0.0", "probe")
+    version, source = "2.1.0", "version-endpoint" if transport == "ws" else "probe"
     assert (spec["version"], spec["source"]) == (version, source)
     assert run.stdout.splitlines()[1].startswith(f"spec version {version} (from ")
     off_version = {"spec.publish.type-ignored": OFF_VERSION + version}

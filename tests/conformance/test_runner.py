@@ -54,11 +54,13 @@ def forgetful_graph() -> Graph:
     graph = Graph()
     subscribe = graph.port.subscribe
 
-    def forgetful(client: str, topic: str, type_name: str | None, sink: TopicSink) -> str:
+    def forgetful(
+        client: str, topic: str, type_name: str | None, sink: TopicSink, **qos: Any
+    ) -> str:
         entry = graph.topics.get(resolve_name(topic))
         if entry is not None:
             entry.latched = None
-        return subscribe(client, topic, type_name, sink)
+        return subscribe(client, topic, type_name, sink, **qos)
 
     graph.port.subscribe = forgetful  # type: ignore[method-assign]
     return graph

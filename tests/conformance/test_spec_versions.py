@@ -2,10 +2,12 @@
 
 A requirement holds for a range of spec versions; the runner judges a server by
 the version its ``GET /version`` tells, else by a probe of what 2.0.0 changed (a
-``publish`` with ``type`` advertises), else by ``--spec-version``; a case none of
+``publish`` with ``type`` advertises) and of what 2.1.0 added (such a ``publish`` with a
+bad ``qos`` is refused), else by ``--spec-version``; a case none of
 whose requirements holds there is skipped, naming the version. In-process servers:
 rwt as it is (protocol 2.1.0), ``--compat rosbridge-2.1`` (no ``/version``, a
-publish with type refused), and rwt behind a hostile ``/version``.
+publish with type refused), rwt behind a hostile ``/version``, and rwt behind a proxy
+that hides each op's ``qos`` (a 2.0.0 server).
 """
 
 from __future__ import annotations
@@ -244,10 +246,66 @@ async def test_a_hostile_version_falls_back_to_the_probe_and_says_why() -> None:
     server.endpoints["version"] = HostileVersion(answer)  # a test's hostile endpoint
     result = await _run(server)
     assert result.spec is not None
-    assert (result.spec.version, result.spec.source) == (SpecVersion.of(2), SpecSource.PROBE)
+    assert (result.spec.version, result.spec.source) == (SpecVersion.of(2, 1), SpecSource.PROBE)
     assert result.spec.detail == (
-        "it was advertised (a publish with type to an unknown topic, then /rosapi/topic_type:"
-        " names std_msgs/msg/String); GET /version: the answer has no protocol.major, .minor"
+        "it was advertised, and refused for its qos (a publish with type to an unknown topic,"
+        " then /rosapi/topic_type: names std_msgs/msg/String; the same with qos depth -1 to"
+        " another: no type after 1 s); GET /version: the answer has no protocol.major, .minor"
         " and .patch as small integers"
     )
     assert _outcomes(result)["D48"][0] is Outcome.PASSED
+
+
+class _ForgetQos:
+    """rwt behind a TCP proxy that renames each op's ``qos`` field: a 2.0.0 server.
+
+    rwt ignores a field it does not know, as a server of 2.0.0 ignores ``qos``
+    (rosbridge_suite 2.6.0, 3.2.0, 4.1.0); the name keeps its length, so the
+    stream's framing is untouched.
+    """
+
+    def __init__(self, port: int) -> None:
+        self.port = port
+
+    async def serve(self, task_status: anyio.abc.TaskStatus[int]) -> None:
+        async with await anyio.create_tcp_listener(local_host="127.0.0.1") as listener:
+            task_status.started(listener.extra(anyio.abc.SocketAttribute.local_port))
+            await listener.serve(self._connection)
+
+    async def _connection(self, client: SocketStream) -> None:
+        server = await anyio.connect_tcp("127.0.0.1", self.port)
+        async with client, server, anyio.create_task_group() as tg:
+            tg.start_soon(self._pipe, server, client, b"")
+            await self._pipe(client, server, b'"qos"')
+            tg.cancel_scope.cancel()
+
+    @staticmethod
+    async def _pipe(source: ByteStream, sink: ByteStream, field: bytes) -> None:
+        with contextlib.suppress(anyio.EndOfStream, anyio.BrokenResourceError):
+            while True:
+                data = await source.receive()
+                await sink.send(data.replace(field, b'"xqs"') if field else data)
+
+
+async def test_the_probe_tells_2_1_0_from_2_0_0_by_a_qos_refused_or_ignored() -> None:
+    """Over TCP (no ``GET /version``): rwt refuses a bad ``qos``, a 2.0.0 server ignores it."""
+    server = RosbridgeServer(config=ServerConfig(port=None, tcp_port=0))
+    only = ("qos.invalid", "D48")
+    async with anyio.create_task_group() as tg:
+        await tg.start(server.serve)
+        tcp = int(server.urls["tcp"].rsplit(":", 1)[1])
+        proxy = await tg.start(_ForgetQos(tcp).serve)
+        rwt = await run_suite(SUITE, RunOptions(f"tcp://127.0.0.1:{tcp}", only=only))
+        old = await run_suite(SUITE, RunOptions(f"tcp://127.0.0.1:{proxy}", only=only))
+        tg.cancel_scope.cancel()
+    assert rwt.spec is not None and old.spec is not None
+    assert (rwt.spec.version, rwt.spec.source) == (SpecVersion.of(2, 1), SpecSource.PROBE)
+    assert "refused for its qos" in rwt.spec.detail
+    assert (old.spec.version, old.spec.source) == (SpecVersion.of(2), SpecSource.PROBE), old.spec
+    assert "its qos ignored" in old.spec.detail
+    assert _outcomes(rwt)["spec.qos.invalid"][0] is Outcome.PASSED
+    assert _outcomes(old)["spec.qos.invalid"] == (
+        Outcome.SKIPPED,
+        "holds for spec 2.1.0 and later; the server is judged by spec 2.0.0",
+    )
+    assert _outcomes(old)["D48"][0] is Outcome.PASSED

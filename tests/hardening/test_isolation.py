@@ -181,10 +181,12 @@ async def test_a_bug_in_a_subscriber_s_output_spares_the_publisher(
         assert len(victims) == 1
         real = Session.frames_to_send
 
-        def frames_to_send(self: Session, max_bytes: int | None = None):  # type: ignore[no-untyped-def]
+        def frames_to_send(  # type: ignore[no-untyped-def]
+            self: Session, max_bytes: int | None = None, now: float | None = None
+        ):
             if self.client_id in victims and self.stats.queued_bytes:
                 raise RuntimeError("injected bug in a subscriber's output")
-            return real(self, max_bytes)
+            return real(self, max_bytes, now)
 
         monkeypatch.setattr(Session, "frames_to_send", frames_to_send)
         await publisher.send({"op": "publish", "topic": "/chatter", "msg": {"data": "hi"}})

@@ -64,6 +64,12 @@ Modes (each prints ``ready`` once its entities exist, then JSON lines):
                         every 50 ms: odom -> base_link at (0.01 n, 0, 0), turned 90 deg
                         about z, stamped now
   tf_echo TOPIC         prints {"frames": [[parent, child], ...]} for each tf2_msgs/TFMessage
+  qos_info TOPIC        prints {"publishers": [...], "subscriptions": [...]} of TOPIC's endpoints
+                        of other nodes whenever they change, each {node, reliability,
+                        durability, history, depth, deadline_ns, lifespan_ns} as rclpy's
+                        get_publishers_info_by_topic / get_subscriptions_info_by_topic tell
+  durable_listen TOPIC  a reliable transient-local std_msgs/String subscription of depth 5;
+                        prints {"heard": data} for each
   (the tf modes need tf2_msgs for rclpy: python -m rwt_ros2.build, test_tf.py)
 Bounded: every mode exits after 60 s.
 """
@@ -366,6 +372,15 @@ def main() -> None:
         tick = tick_clock
     elif mode == "log":
         tick = lambda: node.get_logger().info(name)  # noqa: E731
+    elif mode == "qos_info":
+        tick = qos_reporter(node, name)
+    elif mode == "durable_listen":
+        durable = QoSProfile(
+            depth=5,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
+        node.create_subscription(String, name, lambda m: say(heard=m.data), durable)
     elif mode in ("tf", "tf_static"):
         tick = tf_broadcaster(node, name, static=mode == "tf_static")
     elif mode == "tf_echo":
@@ -383,6 +398,37 @@ def main() -> None:
         if tick is not None:
             tick()
         rclpy.spin_once(node, timeout_sec=0.05)
+
+
+def qos_reporter(node, topic):
+    """A tick printing the QoS of ``topic``'s endpoints of other nodes when it changes."""
+    told = {}
+
+    def describe(info):
+        qos = info.qos_profile
+        return {
+            "node": info.node_name,
+            "reliability": qos.reliability.name,
+            "durability": qos.durability.name,
+            "history": qos.history.name,
+            "depth": qos.depth,
+            "deadline_ns": qos.deadline.nanoseconds,
+            "lifespan_ns": qos.lifespan.nanoseconds,
+        }
+
+    def tick():
+        seen = {
+            "publishers": [describe(i) for i in node.get_publishers_info_by_topic(topic)],
+            "subscriptions": [describe(i) for i in node.get_subscriptions_info_by_topic(topic)],
+        }
+        for endpoints in seen.values():
+            endpoints[:] = [e for e in endpoints if e["node"] != node.get_name()]
+        if seen != told:
+            told.clear()
+            told.update(seen)
+            say(**seen)
+
+    return tick
 
 
 def read_params(node, target):

@@ -34,6 +34,7 @@ from ..errors import RemoteProtocolError
 from ..names import name_problem
 from ..ops import OP_MODELS, OpModel, Publish, PublishFrame, PublishView
 from ..ops.base import INT64_MAX, INT64_MIN, json_type_name
+from ..ops.qos import Qos
 from ..shortcuts import enabled
 
 if TYPE_CHECKING:
@@ -173,11 +174,15 @@ def _check_unicode(frame: str | bytes, value: object) -> None:
 def encode_other(value: object) -> object:
     """Msgspec's hook for values it does not know: numpy arrays and scalars as lists (D27).
 
+    Also an op's ``qos`` object (``ops.qos.Qos``), as sent.
+
     Raises:
         TypeError: any other value.
     """
     tolist = getattr(value, "tolist", None)  # duck-typed: no numpy import here
     if tolist is None:
+        if isinstance(value, Qos):
+            return value.wire()
         raise TypeError(f"cannot encode {type(value).__name__} as JSON")
     return tolist()
 
@@ -330,6 +335,8 @@ def decode_publish_one_pass(frame: str | bytes) -> PublishView | None:
         return None
     op_id = op.id
     if op_id is not None and type(op_id) is int and not INT64_MIN <= op_id <= INT64_MAX:
+        return None
+    if op.qos is not None or op.queue_size is not None:  # the model checks these (D62)
         return None
     if len(frame) > 2 * MAX_NESTING:  # shorter frames cannot nest deeper (see _openings)
         try:

@@ -35,6 +35,7 @@ __all__ = [
     "OpModel",
     "PositiveInt",
     "Seconds",
+    "WireAs",
     "json_type_name",
 ]
 
@@ -88,6 +89,20 @@ FragmentSize = Annotated[int, Field(ge=1, le=INT64_MAX)]
 
 Seconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 """A positive, finite duration in seconds."""
+
+
+class WireAs:
+    """``Annotated`` metadata: the type a field has in the op's msgspec twin (``ops.wire``).
+
+    For a field whose model type msgspec cannot decode (a nested pydantic model,
+    ``ops.qos.Qos``): the twin takes ``type`` there and leaves the checks to the model.
+    """
+
+    __slots__ = ("type",)
+
+    def __init__(self, type_: Any) -> None:
+        """Give the twin's type of the field."""
+        self.type = type_
 
 
 def _check_name(value: str) -> str:

@@ -15,6 +15,7 @@ from .base import (
     NonNegativeInt,
     OpModel,
 )
+from .qos import QosField
 
 __all__ = ["Advertise", "Publish", "Subscribe", "Unadvertise", "Unsubscribe"]
 
@@ -23,7 +24,8 @@ class Advertise(OpModel):
     """Announce that this client publishes ``topic`` of ``type`` (spec 3.3.1).
 
     ``latch`` and ``queue_size`` come from the ROS 1 edition; roslibjs and roslibpy
-    always send them (REF §2.1).
+    always send them (REF §2.1). ``qos`` (protocol 2.1.0, ``ops.qos``) replaces
+    them when given (D62).
     """
 
     op: Literal["advertise"] = "advertise"
@@ -32,6 +34,7 @@ class Advertise(OpModel):
     id: MessageId | None = None
     latch: bool = False
     queue_size: NonNegativeInt = 100
+    qos: QosField = None
 
 
 class Unadvertise(OpModel):
@@ -49,7 +52,8 @@ class Publish(OpModel):
     field paths (D9). ``latch`` is the ROS 1 extension (D13). ``type``, from a
     client, advertises the topic for it when it has not (protocol 2.0.0,
     rosbridge_suite 2.6.0/3.2.0/4.1.0; docs/reference-behaviour.md §13.3, D48);
-    the server never sends it.
+    the server never sends it. ``queue_size`` and ``qos`` (protocol 2.1.0,
+    ``ops.qos``) are read only by the publish that advertises (D62).
     """
 
     op: Literal["publish"] = "publish"
@@ -58,13 +62,16 @@ class Publish(OpModel):
     id: MessageId | None = None
     latch: bool = False
     type: str | None = None
+    queue_size: NonNegativeInt | None = None
+    qos: QosField = None
 
 
 class Subscribe(OpModel):
     """Subscribe to ``topic`` (spec 3.3.4).
 
     ``throttle_rate`` is in milliseconds; ``fragment_size`` in characters;
-    ``queue_length`` in messages (0 = no queueing).
+    ``queue_length`` in messages (0 = no queueing). ``qos`` (protocol 2.1.0,
+    ``ops.qos``): what the subscription asks of the topic (D62-D65).
     """
 
     op: Literal["subscribe"] = "subscribe"
@@ -75,6 +82,7 @@ class Subscribe(OpModel):
     queue_length: NonNegativeInt = 0
     fragment_size: FragmentSize | None = None
     compression: CompressionField = Compression.NONE
+    qos: QosField = None
 
 
 class Unsubscribe(OpModel):

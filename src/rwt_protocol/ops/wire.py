@@ -19,19 +19,27 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal, Protocol, Union, get_
 
 import msgspec
 
+from .base import WireAs
 from .topics import Publish
 
 if TYPE_CHECKING:
     from pydantic.fields import FieldInfo
 
     from .base import OpModel
+    from .qos import Qos
 
 __all__ = ["PublishFrame", "PublishView", "wire_struct"]
 
 
 def _plain(annotation: Any) -> Any:
-    """The annotation without pydantic's validators (``Annotated`` metadata)."""
+    """The annotation without pydantic's validators (``Annotated`` metadata).
+
+    A ``WireAs`` in the metadata gives the twin's type instead.
+    """
     if get_origin(annotation) is Annotated:
+        given = [meta for meta in annotation.__metadata__ if isinstance(meta, WireAs)]
+        if given:
+            return given[0].type
         return _plain(get_args(annotation)[0])
     args = get_args(annotation)
     if args and get_origin(annotation) in (Union, type(int | str)):
@@ -110,3 +118,11 @@ class PublishView(Protocol):
     @property
     def type(self) -> str | None:
         """The ``type`` field (D48)."""
+
+    @property
+    def queue_size(self) -> int | None:
+        """The ``queue_size`` field (read by a publish that advertises, D62)."""
+
+    @property
+    def qos(self) -> Qos | None:
+        """The ``qos`` field (protocol 2.1.0): always None from the twin (D62)."""

@@ -162,12 +162,16 @@ class ServerSession(Protocol):
         bug of its own (the transport's; the session contains its own bugs).
         """
 
-    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+    def frames_to_send(
+        self, max_bytes: int | None = None, now: float | None = None
+    ) -> list[OutFrame]:
         """Take queued frames, oldest first, about ``max_bytes`` of payload (at least one).
 
         Call when ``on_output`` was called, until it returns none; write them, then call
         ``frames_sent`` (they count against the memory budget until then), then
-        ``commands_to_run``: a close is queued after the frames it follows.
+        ``commands_to_run``: a close is queued after the frames it follows. ``now``:
+        the monotonic time of the take, by which a message past its lifespan is
+        dropped rather than sent (D63); None: the session's latest time.
         """
 
     def frames_sent(self) -> None:
@@ -250,5 +254,8 @@ class LossySession(Protocol):
     def close_lossy_lane(self) -> None:
         """The lossy channel closed: its subscriptions' messages go on the reliable one."""
 
-    def lossy_frame_to_send(self) -> OutFrame | None:
-        """Take the lossy lane's message that waited longest, or None."""
+    def lossy_frame_to_send(self, now: float | None = None) -> OutFrame | None:
+        """Take the lossy lane's message that waited longest, or None.
+
+        ``now``: the take's monotonic time; a message past its lifespan is not taken (D63).
+        """

@@ -12,12 +12,15 @@ subscription's messages stay on the outbox and the reliable channel.
 Bounds (docs/limits.md): a message above ``max_message_bytes`` (the peer's
 ``max-message-size``: the lane sends no fragments) is refused, and the lane
 holds at most ``limit_bytes`` of messages (the connection's send buffer
-limit), its oldest topics' messages dropped past it. Nothing here awaits or
-reads a clock.
+limit), its oldest topics' messages dropped past it. A message may come with
+the end of its lifespan (``put``'s ``expires``, D63): it is not taken after it
+(``pop``'s ``now``), and counts as ``expired``. Nothing here awaits or reads a
+clock.
 """
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -44,6 +47,7 @@ class LossyLane:
         replaced: messages replaced by a newer one of their topic before they were sent.
         dropped: messages dropped past ``limit_bytes``.
         refused: messages over ``max_message_bytes``, never queued.
+        expired: messages past their lifespan when their turn came, never sent.
     """
 
     def __init__(
@@ -53,11 +57,13 @@ class LossyLane:
         self.limit_bytes = limit_bytes
         self._on_output = on_output
         self._latest: dict[str, OutFrame] = {}
+        self._expires: dict[str, float] = {}  # the topics whose message has a lifespan
         self._bytes = 0
         self.queued = 0
         self.replaced = 0
         self.dropped = 0
         self.refused = 0
+        self.expired = 0
 
     def __len__(self) -> int:
         return len(self._latest)
@@ -71,10 +77,11 @@ class LossyLane:
         """Whether a message of ``size`` bytes may go on the lane (``max_message_bytes``)."""
         return not self.max_message_bytes or size <= self.max_message_bytes
 
-    def put(self, topic: str, frame: OutFrame) -> bool:
+    def put(self, topic: str, frame: OutFrame, expires: float = math.inf) -> bool:
         """Queue ``frame`` as ``topic``'s latest message, replacing an unsent older one.
 
         The topic keeps its place among those waiting (the oldest topic goes first).
+        ``expires``: the monotonic time after which it is not sent (D63).
 
         Returns:
             False when the frame is over ``max_message_bytes``: it was not queued.
@@ -89,6 +96,10 @@ class LossyLane:
             self.replaced += 1
             self._bytes -= len(older.data)
         self._latest[topic] = frame
+        if math.isinf(expires):
+            self._expires.pop(topic, None)
+        else:
+            self._expires[topic] = expires
         self._bytes += size
         self.queued += 1
         while self._bytes > self.limit_bytes and len(self._latest) > 1:
@@ -97,21 +108,30 @@ class LossyLane:
                 self._latest[topic] = self._latest.pop(topic)
                 continue
             self._bytes -= len(self._latest.pop(oldest).data)
+            self._expires.pop(oldest, None)
             self.dropped += 1
         if was_empty:
             self._on_output()
         return True
 
-    def pop(self) -> OutFrame | None:
-        """Take the message of the topic that waited longest; None when none waits."""
-        if not self._latest:
-            return None
-        topic = next(iter(self._latest))
-        frame = self._latest.pop(topic)
-        self._bytes -= len(frame.data)
-        return frame
+    def pop(self, now: float | None = None) -> OutFrame | None:
+        """Take the message of the topic that waited longest; None when none waits.
+
+        ``now``: monotonic seconds; a message whose lifespan ended before it is
+        dropped (``expired``) and the next one taken.
+        """
+        while self._latest:
+            topic = next(iter(self._latest))
+            frame = self._latest.pop(topic)
+            self._bytes -= len(frame.data)
+            expires = self._expires.pop(topic, math.inf) if self._expires else math.inf
+            if now is None or expires >= now:
+                return frame
+            self.expired += 1
+        return None
 
     def clear(self) -> None:
         """Drop every waiting message (the channel or the connection closed)."""
         self._latest.clear()
+        self._expires.clear()
         self._bytes = 0

@@ -43,6 +43,17 @@ message of a topic always stays. Messages without a lifespan (a rosbridge
 client's, which input backpressure paces, replies) never expire: the byte
 bound alone applies.
 
+A topic message may also come with a subscription's QoS (protocol 2.1.0, D63-D64;
+``extend``'s ``rule``, a ``QueueRule``, and its ``expires``): it is never taken
+after ``expires`` (the monotonic time its lifespan ends; ``take`` is given the
+time, and such a message reaching the head too late is dropped and counted in
+``dropped`` and ``expired``), at most ``rule.depth`` of its key's messages wait
+(the oldest go, counted in ``dropped``), and a best-effort one
+(``rule.best_effort``) is dropped first whenever the queue is over its high
+watermark, oldest first, the newest staying: it never holds a publisher back
+(input backpressure) and never pushes out a reliable subscription's messages.
+What such a message was queued with is checked per message only for those.
+
 A queue may also be charged to the server's memory budget (``account``, a
 ``memory.MemoryAccount``; D44): what it holds is charged as it changes, with
 what the transport took and is still writing (until ``sent``; the hot paths,
@@ -54,6 +65,7 @@ newest staying, as past its own limit.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -63,7 +75,14 @@ if TYPE_CHECKING:
 
     from .memory import MemoryAccount
 
-__all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox", "SessionStats", "water_marks"]
+__all__ = [
+    "FRAME_OVERHEAD_BYTES",
+    "OutFrame",
+    "Outbox",
+    "QueueRule",
+    "SessionStats",
+    "water_marks",
+]
 
 FRAME_OVERHEAD_BYTES = 192
 """Memory a queued frame costs beyond its payload, in bytes, charged against the limit.
@@ -88,10 +107,33 @@ def water_marks(limit_bytes: int) -> tuple[int, int]:
     return limit_bytes // 2, limit_bytes // 4
 
 
-class _Timed:
-    """A queued message with a lifespan: shared by the timing entries of its frames."""
+@dataclass(frozen=True, slots=True)
+class QueueRule:
+    """What a subscription's QoS asks of its messages in a queue (D63, D64; module text).
 
-    __slots__ = ("came", "cost", "dead", "frames", "key", "lifespan", "queued")
+    Attributes:
+        depth: at most this many of the key's messages wait (0: no count bound).
+        best_effort: dropped first while the queue is over its high watermark.
+    """
+
+    depth: int = 0
+    best_effort: bool = False
+
+
+class _Timed:
+    """A queued message with a lifespan or a rule: shared by the timing entries of its frames."""
+
+    __slots__ = (
+        "best_effort",
+        "came",
+        "cost",
+        "dead",
+        "expires",
+        "frames",
+        "key",
+        "lifespan",
+        "queued",
+    )
 
     def __init__(self, came: float, lifespan: float, key: str, frames: int) -> None:
         self.came = came  # monotonic seconds
@@ -101,6 +143,8 @@ class _Timed:
         self.cost = 0  # bytes charged for its frames
         self.dead = False  # dropped for its lifespan; its frames still in the queue
         self.queued = True  # among its key's (``_by_key``): none of its frames left yet
+        self.expires = math.inf  # monotonic seconds after which it is never taken
+        self.best_effort = False
 
 
 @dataclass(slots=True)
@@ -209,6 +253,9 @@ class Outbox:
         self._times: deque[_Timed | None] | None = None
         self._by_key: dict[str, deque[_Timed]] = {}
         self._dead_frames = 0
+        self._expiring = 0  # queued messages with an ``expires`` (their key's list holds them)
+        self._held_timed: _Timed | None = None  # the held message's record, if it has one
+        self._best_effort: deque[_Timed] = deque()  # best-effort messages, oldest first
         self.account: MemoryAccount | None = None
         self._charged = 0  # bytes charged to ``account``
         self._in_flight = 0  # bytes taken by the transport and not yet ``sent``
@@ -286,6 +333,8 @@ class Outbox:
         now: float | None = None,
         lifespan: float = 0.0,
         key: str = "",
+        rule: QueueRule | None = None,
+        expires: float = math.inf,
     ) -> None:
         """Queue the frames of one message (all its parts), then drop if over the bound.
 
@@ -300,14 +349,49 @@ class Outbox:
             now: when the message came (monotonic seconds), for ``lifespan``.
             lifespan: with ``now``, seconds of ``key``'s topic messages this queue
                 holds at most (module text); 0: no such bound.
-            key: the message's topic, for ``lifespan``.
+            key: the message's topic, for ``lifespan`` and ``rule``.
+            rule: with ``now``, the subscription's QoS for a topic message (D63, D64).
+            expires: with ``rule``, the monotonic time after which the message is
+                never taken (its lifespan's end).
         """
         if frames and frames[0].droppable:
             self.topic_messages += 1
         if self._held_frames and frames and frames[0].droppable:
             self.dropped += 1  # the queue is full with the held message
             return
-        timed = self._note_timing(frames, now, lifespan, key)
+        if rule is not None and now is not None and expires <= now:
+            self.dropped += 1  # past its lifespan already (D63): never queued
+            self.expired += 1
+            return
+        timed = self._note_timing(frames, now, lifespan, key, rule is not None)
+        message = self._append(frames)
+        if timed is not None:
+            self._timed_queued(timed, message, rule, expires)
+        if self._bytes > self.limit_bytes:
+            if message > self.limit_bytes and frames[0].droppable:
+                self._hold(len(frames), message)
+                if self._held_frames:
+                    self._held_timed = timed
+            elif not self._held_frames:  # a held message is the only droppable one
+                self._shed()
+        elif self.max_messages is not None and self._topic_frames > self.max_messages:
+            self._shed()
+        if self.account is not None:
+            self._settle()
+
+    def _timed_queued(
+        self, timed: _Timed, cost: int, rule: QueueRule | None, expires: float
+    ) -> None:
+        """Note the cost of a message with a lifespan or a rule just queued, and apply them."""
+        timed.cost = cost
+        oldest = self._by_key[timed.key][0]
+        if timed.came - oldest.came > oldest.lifespan:
+            self._expire(timed.key, timed.came)
+        if rule is not None:
+            self._apply_rule(timed, rule, expires)
+
+    def _append(self, frames: Sequence[OutFrame]) -> int:
+        """Queue ``frames`` as they are (``extend``'s first step); return their cost, bytes."""
         overhead = self.frame_overhead_bytes
         message = 0
         for frame in frames:
@@ -319,20 +403,7 @@ class Outbox:
                 self._kept_bytes += cost
             else:
                 self._topic_frames += 1
-        if timed is not None:
-            timed.cost = message
-            oldest = self._by_key[key][0]
-            if timed.came - oldest.came > oldest.lifespan:
-                self._expire(key, timed.came)
-        if self._bytes > self.limit_bytes:
-            if message > self.limit_bytes and frames[0].droppable:
-                self._hold(len(frames), message)
-            elif not self._held_frames:  # a held message is the only droppable one
-                self._shed()
-        elif self.max_messages is not None and self._topic_frames > self.max_messages:
-            self._shed()
-        if self.account is not None:
-            self._settle()
+        return message
 
     def push_droppable(self, frame: OutFrame) -> None:
         """``push`` one whole topic message (``droppable``, no ``group``): the hot path.
@@ -412,36 +483,34 @@ class Outbox:
         self._held_frames = count
         self._held_bytes = cost
 
-    def take(self, max_bytes: int | None = None) -> list[OutFrame]:
+    def take(self, max_bytes: int | None = None, now: float | None = None) -> list[OutFrame]:
         """Remove and return the oldest frames, oldest first.
 
         Args:
             max_bytes: stop once this many payload bytes are taken (at least one
                 frame is taken when any is queued); None takes everything.
+            now: monotonic seconds: a message whose lifespan ended before it is
+                dropped instead of taken (``extend``'s ``expires``, D63); None
+                checks none.
         """
         overhead = self.frame_overhead_bytes
         self._peak = max(self._peak, self._bytes)
         queued = self._frames
         count = len(queued) - self._dead_frames
-        if count and (max_bytes is None or self._bytes - count * overhead <= max_bytes):
-            # everything fits (a burst a writer takes whole): no per-frame bookkeeping
-            whole = self._live() if self._dead_frames else list(queued)
-            self._in_flight += self._bytes
-            queued.clear()
-            self._bytes = self._kept_bytes = self._topic_frames = 0
-            self._held_frames = self._held_bytes = 0
-            self.taken_frames += count
-            self._sending_group = None
-            if self._times is not None:
-                self._times.clear()
-                self._by_key.clear()
-                self._dead_frames = 0
-            if self.account is not None:
-                self._settle()
-            return whole
+        expiring = self._expiring and now is not None
+        if (
+            count
+            and not expiring
+            and (max_bytes is None or self._bytes - count * overhead <= max_bytes)
+        ):
+            return self._take_all(count)
         frames: list[OutFrame] = []
         taken = 0  # payload: what the transport will write
-        self._skip_dead()
+        if expiring:
+            assert now is not None  # (``expiring``)
+            self._skip_expired(now)
+        else:
+            self._skip_dead()
         while self._frames and (
             max_bytes is None or not frames or taken + len(self._frames[0].data) <= max_bytes
         ):
@@ -456,7 +525,11 @@ class Outbox:
                 if self._held_frames:  # the first droppable frames are the held message's
                     self._held_frames -= 1
                     self._held_bytes -= len(frame.data) + overhead
-            self._skip_dead()
+            if expiring:
+                assert now is not None  # (``expiring``)
+                self._skip_expired(now)
+            else:
+                self._skip_dead()
         self._bytes -= taken + len(frames) * overhead
         self._in_flight += taken + len(frames) * overhead
         self.taken_frames += len(frames)
@@ -466,6 +539,26 @@ class Outbox:
         if self.account is not None:
             self._settle()
         return frames
+
+    def _take_all(self, count: int) -> list[OutFrame]:
+        """``take`` of everything (a burst a writer takes whole): no per-frame bookkeeping."""
+        queued = self._frames
+        whole = self._live() if self._dead_frames else list(queued)
+        self._in_flight += self._bytes
+        queued.clear()
+        self._bytes = self._kept_bytes = self._topic_frames = 0
+        self._held_frames = self._held_bytes = 0
+        self._held_timed = None
+        self.taken_frames += count
+        self._sending_group = None
+        if self._times is not None:
+            self._times.clear()
+            self._by_key.clear()
+            self._best_effort.clear()
+            self._dead_frames = 0
+        if self.account is not None:
+            self._settle()
+        return whole
 
     def sent(self) -> None:
         """The transport wrote what it took: it is no longer held (nor charged)."""
@@ -568,6 +661,58 @@ class Outbox:
         if times is not None:
             times.extendleft(reversed(kept_times))
 
+    def _apply_rule(self, timed: _Timed, rule: QueueRule, expires: float) -> None:
+        """Apply a subscription's QoS to the message just queued (D63, D64; module text)."""
+        if not math.isinf(expires):
+            timed.expires = expires
+            self._expiring += 1
+        if rule.depth:
+            waiting = self._by_key[timed.key]
+            while len(waiting) > rule.depth:  # the history keeps the newest ``depth``
+                self._kill(waiting[0], expired=False)
+        if rule.best_effort:
+            timed.best_effort = True
+            self._best_effort.append(timed)
+        if self._best_effort and self.fill_bytes > self.high_water_bytes:
+            self._shed_best_effort()
+
+    def _shed_best_effort(self) -> None:
+        """Drop best-effort messages, oldest first, while over the high watermark (D64).
+
+        The newest best-effort message stays, so a subscription that reads at all
+        gets the latest.
+        """
+        waiting = self._best_effort
+        while waiting and (waiting[0].dead or not waiting[0].queued):
+            waiting.popleft()
+        while len(waiting) > 1 and self.fill_bytes > self.high_water_bytes:
+            timed = waiting.popleft()
+            if timed.queued and not timed.dead:
+                self._kill(timed, expired=False)
+
+    def _kill(self, timed: _Timed, *, expired: bool) -> None:
+        """Drop a queued message whose frames stay in place, dead (``_expire``'s way)."""
+        waiting = self._by_key[timed.key]
+        if waiting[0] is timed:
+            waiting.popleft()
+        else:
+            waiting.remove(timed)
+        if not waiting:
+            del self._by_key[timed.key]
+        timed.dead = True
+        timed.queued = False
+        if not math.isinf(timed.expires):
+            self._expiring -= 1
+        if timed is self._held_timed:  # the held message goes: the queue takes others again
+            self._held_timed = None
+            self._held_frames = self._held_bytes = 0
+        self._bytes -= timed.cost
+        self._topic_frames -= timed.frames
+        self._dead_frames += timed.frames
+        self.dropped += 1
+        if expired:
+            self.expired += 1
+
     def _expire(self, key: str, newest: float) -> None:
         """Drop ``key``'s messages that came more than their lifespan before ``newest``.
 
@@ -578,6 +723,8 @@ class Outbox:
             timed = waiting.popleft()
             timed.dead = True
             timed.queued = False
+            if not math.isinf(timed.expires):
+                self._expiring -= 1
             self._bytes -= timed.cost
             self._topic_frames -= timed.frames
             self._dead_frames += timed.frames
@@ -585,21 +732,26 @@ class Outbox:
             self.expired += 1
 
     def _note_timing(
-        self, frames: Sequence[OutFrame], now: float | None, lifespan: float, key: str
+        self,
+        frames: Sequence[OutFrame],
+        now: float | None,
+        lifespan: float,
+        key: str,
+        ruled: bool = False,
     ) -> _Timed | None:
-        """Record the lifespan of the message ``frames`` is about to queue (``extend``).
+        """Record the lifespan (or rule, ``ruled``) of the message ``frames`` is about to queue.
 
         Returns:
-            Its record, or None if it has no lifespan.
+            Its record, or None if it has neither.
         """
         times = self._times
-        if now is None or lifespan <= 0 or not frames or not frames[0].droppable:
+        if now is None or (lifespan <= 0 and not ruled) or not frames or not frames[0].droppable:
             if times is not None:
                 times.extend([None] * len(frames))
             return None
         if times is None:
             times = self._times = deque([None] * len(self._frames))
-        timed = _Timed(now, lifespan, key, len(frames))
+        timed = _Timed(now, lifespan if lifespan > 0 else math.inf, key, len(frames))
         if len(frames) == 1:
             times.append(timed)
         else:
@@ -626,6 +778,8 @@ class Outbox:
             self._dead_frames -= 1
         elif timed.queued:
             timed.queued = False
+            if not math.isinf(timed.expires):
+                self._expiring -= 1
             waiting = self._by_key[timed.key]
             if last:
                 waiting.pop()
@@ -634,6 +788,24 @@ class Outbox:
             if not waiting:
                 del self._by_key[timed.key]
         return timed
+
+    def _skip_expired(self, now: float) -> None:
+        """``_skip_dead``, and drop a message at the head whose lifespan ended before ``now``.
+
+        Only a message none of whose frames left yet (``queued``): a message is
+        never cut once its first part went.
+        """
+        times = self._times
+        while times and self._frames:
+            timed = times[0]
+            if timed is None:
+                return
+            if not timed.dead:
+                if not timed.queued or timed.expires >= now:
+                    return
+                self._kill(timed, expired=True)
+            self._frames.popleft()
+            self._forget()
 
     def _skip_dead(self) -> None:
         """Pop the dead frames at the head (their bytes were uncharged when they died)."""

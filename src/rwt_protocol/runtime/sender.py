@@ -19,6 +19,7 @@ session's own attributes (its time, whether it sends), with no call between.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, ClassVar
 
 from .commands import CloseCode
@@ -31,7 +32,7 @@ if TYPE_CHECKING:
     from .backpressure import SlowConsumerWatch
     from .lifecycle import State
     from .memory import MemoryAccount
-    from .outbox import Outbox, OutFrame, SessionStats
+    from .outbox import Outbox, OutFrame, QueueRule, SessionStats
     from .rules import ClientRules
     from .timers import Timer
 
@@ -81,7 +82,12 @@ class Sender:
             raise NotImplementedError
 
     def send_frames(
-        self, frames: Sequence[OutFrame], topic: str | None = None, lifespan: float = 0.0
+        self,
+        frames: Sequence[OutFrame],
+        topic: str | None = None,
+        lifespan: float = 0.0,
+        rule: QueueRule | None = None,
+        expires: float = math.inf,
     ) -> None:
         """Queue the frames of one message (its parts stay together, D24) and wake the transport.
 
@@ -96,6 +102,10 @@ class Sender:
             topic: the topic of a message, as the peer spells it, for the status of a drop.
             lifespan: seconds of ``topic``'s messages its queue holds at most
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
+            rule: the subscription's QoS for a topic message (``outbox.QueueRule``,
+                D63, D64): its depth and reliability in the queue.
+            expires: with ``rule``, the monotonic time after which the message is
+                never sent (its lifespan's end, D63).
         """
         if not self._state.sends:
             return
@@ -110,7 +120,7 @@ class Sender:
             return
         was_empty = len(outbox) == 0
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.extend(frames, self._now, lifespan, topic or "")
+        outbox.extend(frames, self._now, lifespan, topic or "", rule, expires)
         self._watch.after_push(dropped, oversized, self._now, frames, topic)
         if was_empty or outbox.fill_bytes > self.wake_above_bytes:
             self._wake()  # above the high watermark too: the transport applies backpressure
@@ -244,15 +254,23 @@ class Sender:
         if account.held > PRESSURE_FLOOR_BYTES:
             self._watch.memory_pressed(now)
 
-    def frames_to_send(self, max_bytes: int | None = None) -> list[OutFrame]:
+    def frames_to_send(
+        self, max_bytes: int | None = None, now: float | None = None
+    ) -> list[OutFrame]:
         """Take the frames queued for the peer, oldest first.
 
         Args:
             max_bytes: take at most about this many payload bytes (at least one
                 frame); None takes every frame. Taking frames counts as progress
                 for the send timeout (D24).
+            now: monotonic seconds of the take: a message past its lifespan is
+                dropped, not taken (``outbox``, D63); None: the session's latest time.
         """
-        frames = self._outbox.take(max_bytes)
+        if now is None:
+            now = self._now
+        elif now > self._now:
+            self._now = now
+        frames = self._outbox.take(max_bytes, now)
         if frames:
             if self._memory is not None:
                 self._memory.took(self._now)
@@ -313,12 +331,15 @@ class Sender:
         """The lane of the transport's lossy channel, while it is open (D36)."""
         return self._lossy
 
-    def lossy_frame_to_send(self) -> OutFrame | None:
-        """Take the lossy lane's message that waited longest, or None (D36)."""
+    def lossy_frame_to_send(self, now: float | None = None) -> OutFrame | None:
+        """Take the lossy lane's message that waited longest, or None (D36).
+
+        ``now``: monotonic seconds; a message past its lifespan is not taken (D63).
+        """
         lane = self._lossy
         if lane is None:
             return None
-        frame = lane.pop()
+        frame = lane.pop(self._now if now is None else now)
         if frame is not None:
             self._outbox.taken_frames += 1
         return frame

@@ -11,7 +11,8 @@ rosbridge's own. Around it, one module a job:
 - ``handlers``: one handler per op, over ``handlers.HandlerContext`` (the session
   as handlers see it);
 - ``holdings`` (what it holds in the graph), ``subscriptions`` (one topic's
-  merged subscriptions);
+  merged subscriptions), ``subscription_qos`` (their QoS: what it asks, what the
+  topic offers, the rules that follow, D63-D65);
 - ``gates`` (authentication, then the access rules, before each handler;
   ``op_access`` says which name of which op each glob checks) and ``replies``
   (what a refused request gets besides its status);

@@ -17,7 +17,9 @@ The reply is sent in both modes (D4): rosbridge_suite answers a missing service 
 ``Compat.ROSBRIDGE_2_1`` (``--compat rosbridge-2.1``) is ``Compat.ROSBRIDGE`` plus
 rosbridge_suite 2.1.0's ``publish``: a ``publish`` carrying ``type`` does not advertise
 the topic (D48; it does from rosbridge_suite 2.6.0, 3.2.0 and 4.1.0,
-docs/reference-behaviour.md §13.3), so one to a topic the graph does not know is refused.
+docs/reference-behaviour.md §13.3), so one to a topic the graph does not know is refused,
+and no ``qos`` is read (protocol 2.1.0's, which 2.1.0 of the suite does not know: a
+well-formed one changes nothing; the op's model still refuses a malformed one, D1).
 """
 
 from __future__ import annotations
@@ -51,6 +53,15 @@ class Compat(StrEnum):
 
         False for ``ROSBRIDGE_2_1`` only: rosbridge_suite before 2.6.0, 3.2.0 and
         4.1.0 reads no ``type`` on ``publish`` (docs/reference-behaviour.md §13.3).
+        """
+        return self is not Compat.ROSBRIDGE_2_1
+
+    @property
+    def reads_qos(self) -> bool:
+        """Whether an op's ``qos`` (protocol 2.1.0) is honoured (D62).
+
+        False for ``ROSBRIDGE_2_1`` only: rosbridge_suite reads it from 2.7.0,
+        3.3.0 and 4.2.0 (docs/reference-behaviour.md §13.2).
         """
         return self is not Compat.ROSBRIDGE_2_1
 

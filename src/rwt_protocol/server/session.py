@@ -32,6 +32,7 @@ any frames for ``send_timeout_s`` is closed with a reason.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -118,6 +119,9 @@ class SessionConfig(ClientRules):
         png_inflate_rate: bytes a second of ``png`` images one connection may have
             inflated, after a burst of ``max_message_size`` (``--png-inflate-rate``;
             ``inflate.TokenBucket``): past it, its later ``png`` ops wait.
+        qos_lifespan_s: the lifespan a subscription gets when its ``qos`` gives none
+            (or it has none), seconds: no message older than this is sent to it
+            (``--qos-lifespan``, D63; inf: none, as rosbridge_suite).
         All caps are listed with what a client sees in docs/limits.md.
     """
 
@@ -131,6 +135,7 @@ class SessionConfig(ClientRules):
     max_ids_per_topic: int = 100
     max_pending_goals: int = 1000
     png_inflate_rate: int = 8 * MiB
+    qos_lifespan_s: float = math.inf
 
 
 class Session(SessionBase):
@@ -538,6 +543,43 @@ class Session(SessionBase):
         else:
             self.send_frames(frames, subscription.spelling, event.lifespan)
 
+    def deliver_ruled(self, subscription: TopicSubscription, event: MessageEvent) -> None:
+        """``deliver`` for a subscription with QoS (``TopicSubscription.rule``, D63, D64).
+
+        The message goes to the outbox with the subscription's rule and the end
+        of its lifespan, the earlier of its topic's and the subscription's; it is
+        never sent after that. A subscription without QoS takes ``deliver``, so
+        the plain path pays nothing for it.
+        """
+        self._now = max(self._now, event.now)
+        params = subscription.params
+        lossy = subscription.lossy and self._lossy is not None
+        if params.compression is Compression.PNG and self.jobs.transport_runs:
+            self._deflate_later(subscription, event, None if lossy else params.fragment_size)
+            return
+        frames = safe_publish_frames(
+            event,
+            subscription.spelling,
+            params.compression,
+            None if lossy else params.fragment_size,
+        )
+        expires = min(event.expires, event.now + subscription.lifespan_s)
+        if isinstance(frames, EncodeFailure):
+            self._encode_failed(subscription, frames, params.compression)
+        elif lossy:
+            self._queue_lossy(subscription, frames, expires)
+        else:
+            rule = subscription.rule
+            self.send_frames(frames, subscription.spelling, event.lifespan, rule, expires)
+
+    def warn_subscription(self, subscription: TopicSubscription, text: str) -> None:
+        """Warn the peer of a QoS event of ``subscription`` (D64, D65), with its latest id.
+
+        A warning status: the peer's level decides whether it hears it (D2).
+        """
+        op_id = next(reversed(subscription.requests), None) if subscription.requests else None
+        self.report(StatusLevel.WARNING, f"subscribe: {text}", op_id)
+
     def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
         """``deliver`` each of ``events`` (a run of one topic's messages), in order.
 
@@ -582,18 +624,25 @@ class Session(SessionBase):
             run_lifespan = lifespan
         self.queue_run(run, spelling, run_now, run_lifespan)
 
-    def _queue_lossy(self, subscription: TopicSubscription, frames: Sequence[OutFrame]) -> None:
+    def _queue_lossy(
+        self,
+        subscription: TopicSubscription,
+        frames: Sequence[OutFrame],
+        expires: float = math.inf,
+    ) -> None:
         """Queue a topic message on the lossy lane, latest-only (D36); tell of one too large.
 
         The warning is sent once per topic (a peer's subscriptions bound the topics).
+        ``expires``: the end of its lifespan (D63), after which it is not sent.
         """
         lane = self._lossy
         if lane is None:  # the lossy channel closed: the reliable one carries it
-            self.send_frames(frames, subscription.spelling)
+            rule = subscription.rule
+            self.send_frames(frames, subscription.spelling, 0.0, rule, expires)
             return
         # one frame: the lane's messages are made without fragment_size (no parts)
         size = sum(len(frame.data) for frame in frames)
-        if len(frames) == 1 and lane.put(subscription.topic, frames[0]):
+        if len(frames) == 1 and lane.put(subscription.topic, frames[0], expires):
             return
         if len(frames) > 1:
             lane.refused += 1  # (``put`` counts the one-frame refusals)
@@ -671,10 +720,15 @@ class Session(SessionBase):
             return
         if isinstance(result, EncodeFailure):
             self._encode_failed(subscription, result, Compression.PNG)
-        elif subscription.lossy:
-            self._queue_lossy(subscription, result)  # type: ignore[arg-type]
+            return
+        event, rule = job.event, subscription.rule
+        expires = (
+            math.inf if rule is None else min(event.expires, event.now + subscription.lifespan_s)
+        )
+        if subscription.lossy:
+            self._queue_lossy(subscription, result, expires)  # type: ignore[arg-type]
         else:
-            self.send_frames(result, subscription.spelling)  # type: ignore[arg-type]
+            self.send_frames(result, subscription.spelling, 0.0, rule, expires)  # type: ignore[arg-type]
             if self.stats.pending_bytes:  # its png op may be larger than what it was charged
                 self._bound_waiting(subscription.spelling)
 

@@ -18,6 +18,12 @@ Throttle and queue follow D12 (REF §5.3 for the reference's behaviour):
 - changing the parameters keeps the time of the last send and the queue; a
   lower throttle takes effect at once (0 flushes the queue).
 
+Its QoS (protocol 2.1.0's ``qos``, ``subscription_qos``): the history bounds the
+throttle queue as the queue of frames (D63), the lifespan and reliability go with
+each message to the outbox (``rule``, ``lifespan_s``), and a deadline the topic
+misses warns the client once per episode, checked at most every
+``DEADLINE_CHECK_S`` (D65).
+
 A subscription made on a transport's lossy channel (D36) is ``lossy`` while
 every id it holds came on that channel: its messages go on the lossy lane,
 latest-only. One id from the reliable channel makes the merged subscription
@@ -29,6 +35,7 @@ here reads a clock.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -37,14 +44,27 @@ from typing import TYPE_CHECKING
 from ..ops.base import Compression
 from ..runtime.backpressure import lost_text
 from ..runtime.timers import Timer
+from .subscription_qos import SubscriptionQos
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from ..ops import Subscribe
     from ..ports import MessageEvent
+    from ..qos import QosProfile
 
-__all__ = ["BatchTopicSubscription", "MergedParams", "TopicSubscription", "merge"]
+__all__ = [
+    "DEADLINE_CHECK_S",
+    "BatchTopicSubscription",
+    "MergedParams",
+    "TopicSubscription",
+    "merge",
+]
+
+DEADLINE_CHECK_S = 0.1
+"""The shortest time between two checks of a subscription's deadline, seconds (D65):
+a deadline of 1 ms costs a timer every 100 ms at most, not a thousand a second: a
+client's 1,000 subscriptions (``--max-subscriptions``) cost 10,000 checks a second at most."""
 
 _STRENGTH: dict[Compression, int] = {
     Compression.NONE: 0,
@@ -58,6 +78,9 @@ SubscriptionKey = str | int | None
 
 Schedule = Callable[[float, Callable[[float], None]], Timer]
 """Runs a callback with ``now`` at a monotonic deadline (``Session.call_at``)."""
+
+Warn = Callable[["TopicSubscription", str], None]
+"""Tells the client of a subscription's QoS event (a warning status)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,10 +125,22 @@ class TopicSubscription:
         topic: the resolved topic name.
         spelling: the name as the client wrote it; delivered messages carry it (D26).
         deliver: sends one message to the client now (encoding is the caller's).
+        deliver_ruled: sends one message of a subscription with QoS (``rule``);
+            None: ``deliver`` sends those too.
         schedule: runs a callback at a monotonic deadline (the session's timers).
         max_queue: the most messages queued whatever ``queue_length`` asks
             (a size the peer controls, D24).
         warn: tells the client a ``warning`` (``on_lost``); None: it is not told.
+        qos_warn: tells the client of a QoS event (left out of the topic, a missed
+            deadline); None: nobody is told.
+        default_lifespan_s: the server's lifespan for subscriptions giving none
+            (``--qos-lifespan``, D63; inf: none).
+        reads_qos: whether the ops' ``qos`` is honoured (not with ``--compat
+            rosbridge-2.1``, ``compat.Compat.reads_qos``).
+
+    Attributes:
+        rule, lifespan_s: what its messages take to the outbox (``subscription_qos``;
+            ``rule`` None: no QoS at all, the plain path).
     """
 
     def __init__(
@@ -117,6 +152,10 @@ class TopicSubscription:
         *,
         max_queue: int = 100,
         warn: Callable[[str], None] | None = None,
+        qos_warn: Warn | None = None,
+        default_lifespan_s: float = math.inf,
+        reads_qos: bool = True,
+        deliver_ruled: Callable[[TopicSubscription, MessageEvent], None] | None = None,
     ) -> None:
         self.topic = topic
         self.spelling = spelling
@@ -125,7 +164,9 @@ class TopicSubscription:
         self.type_name = ""
         self.queue: deque[MessageEvent] = deque()
         self.last_sent: float | None = None
-        self._deliver = deliver
+        self._deliver = self._plain = deliver
+        self._ruled = deliver_ruled or deliver
+        self._each_set = False  # ``BatchTopicSubscription``'s own ``on_messages`` is set
         self._schedule = schedule
         self._max_queue = max(1, max_queue)
         self._timer: Timer | None = None
@@ -133,6 +174,16 @@ class TopicSubscription:
         self._warn = warn
         self.lossy = False
         """Every id came on the lossy channel: messages go on the lossy lane (D36)."""
+        self._qos_warn = qos_warn
+        self._reads_qos = reads_qos
+        self.qos = SubscriptionQos(default_lifespan_s)
+        self.rule = self.qos.rule
+        self.lifespan_s = self.qos.lifespan_s
+        self._latest: Callable[[], float] | None = None  # the topic's latest message time
+        self._since = 0.0  # when its deadline started counting (monotonic seconds)
+        self._deadline_timer: Timer | None = None
+        self._missed_after: float | None = None  # the last message before a missed deadline
+        self._qos_changed()  # the server's default lifespan may give it a rule already
 
     def add(self, request: Subscribe, now: float, *, lossy: bool = False) -> None:
         """Add or replace the subscription ``request.id`` and re-merge (D11).
@@ -148,6 +199,8 @@ class TopicSubscription:
         else:
             self._lossy_ids.discard(request.id)
         self.spelling = request.topic
+        if not self._since:
+            self._since = now
         self._remerge(now)
 
     def remove(self, key: SubscriptionKey, now: float) -> bool:
@@ -160,6 +213,11 @@ class TopicSubscription:
             self._remerge(now)
         return True
 
+    @property
+    def requested_qos(self) -> QosProfile | None:
+        """The merged ``qos`` of its ids (D11, D63), or None when none gave one."""
+        return self.qos.requested
+
     def close(self) -> None:
         """Stop delivering: cancel the pending window and drop queued messages."""
         self.requests.clear()
@@ -168,6 +226,64 @@ class TopicSubscription:
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
+        if self._deadline_timer is not None:
+            self._deadline_timer.cancel()
+            self._deadline_timer = None
+        self._latest = None
+
+    def on_qos_offered(
+        self, offered: QosProfile | None, reasons: list[str], latest: Callable[[], float]
+    ) -> None:
+        """The topic's QoS offer, why this subscription is left out of it, its latest message.
+
+        The graph calls it (``rwt_graph.topic_qos``) when the subscription starts
+        and whenever the offer changes; a subscription left out tells its client
+        why (D64), and its deadline follows the offer's when it gives none (D65).
+        """
+        if not self.requests:
+            return  # closed meanwhile
+        left_out = self.qos.offer(offered, reasons) and reasons
+        self._latest = latest
+        self._qos_changed()
+        if left_out and self._qos_warn is not None:
+            self._qos_warn(self, self.qos.excluded_text(self.spelling))
+
+    def _qos_changed(self) -> None:
+        self.rule = self.qos.rule
+        self.lifespan_s = self.qos.lifespan_s
+        # the QoS path only for a subscription with QoS: the plain one checks nothing
+        self._deliver = self._plain if self.rule is None else self._ruled
+        self._trim()
+        self._watch_deadline()
+
+    def _watch_deadline(self) -> None:
+        """(Re)arm the deadline's check for the current deadline and latest message (D65)."""
+        if self._deadline_timer is not None:
+            self._deadline_timer.cancel()
+            self._deadline_timer = None
+        deadline = self.qos.deadline_s
+        if math.isinf(deadline) or self._latest is None or not self.requests:
+            return
+        last = max(self._latest(), self._since)
+        self._deadline_timer = self._schedule(
+            max(last + deadline, self._since + DEADLINE_CHECK_S), self._deadline_due
+        )
+
+    def _deadline_due(self, now: float) -> None:
+        """Warn once if no message came within the deadline; check again (D65)."""
+        self._deadline_timer = None
+        deadline, latest = self.qos.deadline_s, self._latest
+        if math.isinf(deadline) or latest is None or not self.requests:
+            return
+        last = max(latest(), self._since)
+        if now - last >= deadline:
+            if self._missed_after != last and self._qos_warn is not None:
+                self._missed_after = last  # one warning per episode: until a message comes
+                self._qos_warn(self, self.qos.deadline_text(self.spelling))
+            due = now + max(deadline, DEADLINE_CHECK_S)
+        else:
+            due = max(last + deadline, now + DEADLINE_CHECK_S)
+        self._deadline_timer = self._schedule(due, self._deadline_due)
 
     def on_message(self, event: MessageEvent) -> None:
         """Receive one message from the graph (``TopicSink``); throttle and queue it (D12)."""
@@ -194,6 +310,9 @@ class TopicSubscription:
 
     def _trim(self) -> None:
         keep = min(max(1, self.params.queue_length), self._max_queue)
+        rule = self.rule
+        if rule is not None and rule.depth:
+            keep = min(keep, rule.depth)  # the history's depth bounds this queue too (D63)
         while len(self.queue) > keep:
             self.queue.popleft()
 
@@ -221,6 +340,12 @@ class TopicSubscription:
     def _remerge(self, now: float) -> None:
         self.params = merge(list(self.requests.values()))
         self.lossy = self._lossy_ids.issuperset(self.requests)
+        asked = (
+            None if r.qos is None or not self._reads_qos else r.qos.profile()
+            for r in self.requests.values()
+        )
+        if self.qos.request(asked):
+            self._qos_changed()
         self._trim()
         if self._timer is not None:
             # A changed throttle moves the end of the current window.
@@ -255,9 +380,29 @@ class BatchTopicSubscription(TopicSubscription):
         *,
         max_queue: int = 100,
         warn: Callable[[str], None] | None = None,
+        qos_warn: Warn | None = None,
+        default_lifespan_s: float = math.inf,
+        reads_qos: bool = True,
+        deliver_ruled: Callable[[TopicSubscription, MessageEvent], None] | None = None,
     ) -> None:
-        super().__init__(topic, spelling, deliver, schedule, max_queue=max_queue, warn=warn)
+        super().__init__(
+            topic,
+            spelling,
+            deliver,
+            schedule,
+            max_queue=max_queue,
+            warn=warn,
+            qos_warn=qos_warn,
+            default_lifespan_s=default_lifespan_s,
+            reads_qos=reads_qos,
+            deliver_ruled=deliver_ruled,
+        )
         self._deliver_many = deliver_many
+
+    def _each(self, events: Sequence[MessageEvent]) -> None:
+        """``on_messages`` of a subscription with QoS: ``on_message`` of each."""
+        for event in events:
+            self.on_message(event)
 
     def on_messages(self, events: Sequence[MessageEvent]) -> None:
         """Receive a run of one topic's messages (``BatchSink``), as ``on_message`` would each."""
@@ -268,3 +413,17 @@ class BatchTopicSubscription(TopicSubscription):
         if events:
             self.last_sent = events[-1].now
             self._deliver_many(self, events)
+
+    def _qos_changed(self) -> None:
+        super()._qos_changed()
+        # a run goes message by message with QoS (each its own end of lifespan, D63):
+        # the instance's own ``on_messages`` then, so the plain one checks nothing.
+        # (Set and deleted as attributes: ``vars(self)`` would make the instance's
+        # dict a real one, and every attribute read of the hot path slower.)
+        each = self.rule is not None
+        if each != self._each_set:
+            self._each_set = each
+            if each:
+                object.__setattr__(self, "on_messages", self._each)
+            else:
+                object.__delattr__(self, "on_messages")

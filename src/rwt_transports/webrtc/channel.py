@@ -391,7 +391,7 @@ class DataChannelChannel(PlainChannel):
                 and self._lossy_pending
                 and await self._room_for_lossy(channel)
             ):
-                frame = session.lossy_frame_to_send()
+                frame = session.lossy_frame_to_send(anyio.current_time())
                 if frame is None:  # the lane is empty: the reliable writer goes on
                     self._lossy_pending = False
                     self._drained.set()

@@ -116,6 +116,12 @@ class HandlerContext(Protocol):
     def deliver_many(self, subscription: TopicSubscription, events: Sequence[MessageEvent]) -> None:
         """Queue a run of one topic's messages for the peer, in order (a batch sink's)."""
 
+    def deliver_ruled(self, subscription: TopicSubscription, event: MessageEvent) -> None:
+        """Queue one topic message of a subscription with QoS (its rule and lifespan)."""
+
+    def warn_subscription(self, subscription: TopicSubscription, text: str) -> None:
+        """Warn the peer of a QoS event of ``subscription`` (D64, D65), with its latest id."""
+
 
 if TYPE_CHECKING:
     from ..session import SessionConfig as SessionSettings

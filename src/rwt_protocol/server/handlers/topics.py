@@ -8,12 +8,15 @@ from typing import TYPE_CHECKING
 from ...errors import GraphError
 from ...levels import StatusLevel
 from ...names import resolve_name
+from ...qos import MAX_DEPTH
 from ...shortcuts import enabled
 from ..subscriptions import BatchTopicSubscription, TopicSubscription
 
 if TYPE_CHECKING:
     from ...ops import Advertise, PublishView, Subscribe, Unadvertise, Unsubscribe
+    from ...ops.qos import Qos
     from ...ports import PublishNote
+    from ...qos import QosProfile
     from .context import HandlerContext
 
 __all__ = [
@@ -34,11 +37,14 @@ _BATCH_SINK = enabled("rosbridge-batch-sink")
 def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
     """Register the client as a publisher of ``op.topic`` (spec 3.3.1).
 
+    A ``qos`` (protocol 2.1.0) replaces ``latch`` and ``queue_size``, as the spec
+    says; the topic's first registration with one fixes its QoS (D62).
+
     Raises:
         GraphError: bad or unknown type, or the topic has another type.
         LimitError: past ``--max-advertisements`` or ``max_ids_per_topic``.
     """
-    _register(session, "advertise", op.topic, op.type, op.id, latch=op.latch)
+    _register(session, "advertise", op.topic, op.type, op.id, latch=op.latch, qos=op.qos)
 
 
 def _register(
@@ -49,11 +55,14 @@ def _register(
     op_id: str | int | None,
     *,
     latch: bool,
+    qos: Qos | None = None,
 ) -> None:
     """Advertise ``spelling`` as ``type_name`` for the client, under ``op_id``.
 
     What ``advertise`` does, and a ``publish`` with ``type`` the client has not
     advertised (D48): the caps, the graph's checks, the id kept for ``unadvertise``.
+    With ``qos``, ``latch`` is not read (spec 4.3.1 of 2.1.0) and the client is
+    warned when the topic keeps another registration's QoS (D62).
 
     Raises:
         GraphError: bad or unknown type, or the topic has another type.
@@ -66,10 +75,46 @@ def _register(
         session.check_cap(holdings.offered(), session.config.max_advertisements, "advertisements")
     elif op_id not in ids:
         session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {spelling}")
-    canonical = session.graph.advertise(session.client_id, spelling, type_name, latch=latch)
+    profile = None if qos is None or not session.config.compat.reads_qos else qos.profile()
+    canonical = session.graph.advertise(
+        session.client_id, spelling, type_name, latch=latch and profile is None, qos=profile
+    )
     holdings.add_advertisement(topic, op_id)
     report_type_warning(session, op_name, canonical, op_id)
+    if profile is not None:
+        _report_offer(session, op_name, spelling, profile, op_id)
     session.report(StatusLevel.INFO, f"{op_name}: {spelling} advertised as {canonical}", op_id)
+
+
+def _report_offer(
+    session: HandlerContext,
+    op_name: str,
+    spelling: str,
+    profile: QosProfile,
+    op_id: str | int | None,
+) -> None:
+    """Warn of a capped depth, and of a topic that keeps another registration's QoS (D62)."""
+    _report_capped(session, op_name, profile, op_id)
+    offered = session.graph.offered_qos(spelling)
+    if offered is not None and offered != profile.for_publisher():
+        session.report(
+            StatusLevel.WARNING,
+            f"{op_name}: {spelling} keeps the QoS of its first registration"
+            f" ({offered.describe()}); this one's ({profile.describe()}) is not used",
+            op_id,
+        )
+
+
+def _report_capped(
+    session: HandlerContext, op_name: str, profile: QosProfile, op_id: str | int | None
+) -> None:
+    """Warn when a ``qos.depth`` (or ``keep_all``) is more than the server keeps (D63)."""
+    if profile.capped:
+        session.report(
+            StatusLevel.WARNING,
+            f"{op_name}: qos.depth {profile.depth} capped at {MAX_DEPTH}",
+            op_id,
+        )
 
 
 def report_type_warning(
@@ -118,7 +163,7 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
         LimitError: the advertisement is past ``--max-advertisements``.
     """
     if op.type is not None and _advertises(session, op.topic):
-        _register(session, "publish", op.topic, op.type, op.id, latch=op.latch)
+        _register(session, "publish", op.topic, op.type, op.id, latch=op.latch, qos=op.qos)
 
     def noted(note: PublishNote) -> None:
         if note.first:  # a stream of commands: one warning per episode
@@ -144,7 +189,8 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
     """Add a subscription to ``op.topic`` (spec 3.3.4, merging per D11).
 
     One made on the transport's lossy channel gets its messages there while all
-    its ids came there (D36, ``TopicSubscription.lossy``).
+    its ids came there (D36, ``TopicSubscription.lossy``). Its ``qos`` (protocol
+    2.1.0), merged with its other ids', is what it asks of the topic (D63-D65).
 
     Raises:
         GraphError: the type is unknown, cannot be inferred, or conflicts.
@@ -162,14 +208,23 @@ def subscribe(session: HandlerContext, op: Subscribe, now: float) -> None:
         subscription = _new_subscription(session, topic, op.topic)
         subscription.add(op, now, lossy=session.input_lossy)
         subscription.type_name = session.graph.subscribe(
-            session.client_id, op.topic, op.type, subscription
+            session.client_id, op.topic, op.type, subscription, qos=subscription.requested_qos
         )
         session.holdings.add_subscription(topic, subscription)
         report_type_warning(session, "subscribe", subscription.type_name, op.id)
     else:
-        if op.type is not None:
-            session.graph.subscribe(session.client_id, op.topic, op.type, subscription)
+        asked = subscription.requested_qos
         subscription.add(op, now, lossy=session.input_lossy)
+        if op.type is not None or subscription.requested_qos != asked:
+            session.graph.subscribe(
+                session.client_id,
+                op.topic,
+                op.type,
+                subscription,
+                qos=subscription.requested_qos,
+            )
+    if op.qos is not None and session.config.compat.reads_qos:
+        _report_capped(session, "subscribe", op.qos.profile(), op.id)
     cap = session.config.max_queue_length
     if op.queue_length > cap:
         session.report(
@@ -203,8 +258,11 @@ def unsubscribe(session: HandlerContext, op: Unsubscribe, now: float) -> None:
 
 def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> TopicSubscription:
     """A subscription of ``session`` to ``topic``: one that takes runs unless switched off."""
-    max_queue = session.config.max_queue_length
+    config = session.config
+    max_queue = config.max_queue_length
     warn = functools.partial(session.report, StatusLevel.WARNING)
+    qos_warn, lifespan = session.warn_subscription, config.qos_lifespan_s
+    reads_qos = config.compat.reads_qos
     if _BATCH_SINK:
         return BatchTopicSubscription(
             topic,
@@ -214,7 +272,20 @@ def _new_subscription(session: HandlerContext, topic: str, spelling: str) -> Top
             session.call_at,
             max_queue=max_queue,
             warn=warn,
+            qos_warn=qos_warn,
+            default_lifespan_s=lifespan,
+            reads_qos=reads_qos,
+            deliver_ruled=session.deliver_ruled,
         )
     return TopicSubscription(
-        topic, spelling, session.deliver, session.call_at, max_queue=max_queue, warn=warn
+        topic,
+        spelling,
+        session.deliver,
+        session.call_at,
+        max_queue=max_queue,
+        warn=warn,
+        qos_warn=qos_warn,
+        default_lifespan_s=lifespan,
+        reads_qos=reads_qos,
+        deliver_ruled=session.deliver_ruled,
     )
