@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import anyio
 import pytest
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 
 from rwt import RosbridgeServer, ServerConfig
 from rwt_graph.graph import Graph
