@@ -14,9 +14,11 @@ order):
 - ``websocket``, ``tcp``, ``stdio``: the stream transports' listeners and channels;
   ``udp``: the datagram transport; ``gates``: the links' gates, by which a served
   graph's links take part in flow control;
-- ``foxglove``: the Foxglove WebSocket protocol as a front end; ``http``: the HTTP
-  front ends on the WebSocket port (the HTTP API, ``/version``, MCP); ``webrtc``:
-  WebRTC: signalling, peers, their data channels and video tracks;
+- ``rosbridge``: rosbridge, the default front end (its labels, and the hooks the
+  transports ask of it); ``foxglove``: the Foxglove WebSocket protocol as a front
+  end; ``http``: the HTTP front ends on the WebSocket port (the HTTP API,
+  ``/version``, MCP); ``webrtc``: WebRTC: signalling, peers, their data channels and
+  video tracks;
 - ``memory``: the in-process transport; ``workers``: the processes of
   ``rwt serve --workers N`` and topic placement;
 - ``host``: ``FrontEndHost`` and ``SessionHost``, what a front end and a listener

@@ -2,8 +2,9 @@
 
 A front end names how a connection chooses it (a WebSocket subprotocol in the
 handshake, a WebRTC data channel's label), how its session is made from the
-runtime's ``SessionRequest``, and how its clients prove who they are
-(``AuthMode``, ``rwt_protocol.credentials``). The registry
+runtime's ``SessionRequest``, how its clients prove who they are (``AuthMode``,
+``rwt_protocol.credentials``), and what a transport, which speaks no protocol,
+needs to know of its frames (``first_topic``, ``split_text``). The registry
 (``frontends_registry``) lists them all, with the HTTP front ends that answer
 paths on the WebSocket port; the listeners and the WebRTC peers consult it
 (``FrontEnds``, and the server's HTTP endpoints made from
@@ -25,6 +26,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterable, Sequence
 
     from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.inframes import FramerEvent
     from rwt_protocol.runtime.request import SessionRequest
 
 __all__ = ["AuthMode", "ChannelLabel", "FrontEnd", "FrontEnds"]
@@ -45,6 +47,13 @@ class FrontEnd:
             reliable, ordered channel so labelled opens its session.
         lossy_labels: labels of its session's lossy channel (unordered, never
             retransmitted, D36), which opens the session's lossy lane.
+        first_topic: the topic a connection's first message names, by which
+            ``--placement topic`` moves it to the worker owning that topic (D57);
+            None: its connections stay where they land.
+        split_text: a text frame too large for a channel's message (a WebRTC data
+            channel's 64 KiB) cut into parts its peer reassembles (rosbridge's
+            ``fragment`` ops, D19): ``split_text(frame, max_bytes)``; None: such a
+            frame goes whole where the peer takes it, else it is dropped and logged.
     """
 
     name: str
@@ -53,6 +62,8 @@ class FrontEnd:
     auth: AuthMode = AuthMode.OP
     labels: tuple[str, ...] = ()
     lossy_labels: tuple[str, ...] = ()
+    first_topic: Callable[[FramerEvent], str | None] | None = None
+    split_text: Callable[[bytes, int], Sequence[bytes]] | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -4,10 +4,10 @@ A front end is found here by what selects it (``frontends``):
 
 - a WebSocket subprotocol in the handshake (``SOCKET_FRONTENDS``: Foxglove's,
   ``FOXGLOVE``); a client that offers none gets the default, rosbridge
-  (``rosbridge_frontend``);
-- a WebRTC data channel's label: rosbridge's ``rosbridge`` (``DATA_CHANNEL_LABEL``)
-  and its lossy ``rosbridge-lossy`` (``LOSSY_CHANNEL_LABEL``, D36), or a
-  registered protocol's (``FrontEnd.labels``); any other label is refused;
+  (``rosbridge_frontend``, ``rosbridge``);
+- a WebRTC data channel's label: rosbridge's ``rosbridge`` and its lossy
+  ``rosbridge-lossy`` (``rosbridge.DATA_CHANNEL_LABEL``, ``LOSSY_CHANNEL_LABEL``,
+  D36), or a registered protocol's (``FrontEnd.labels``); any other label is refused;
 - an HTTP path on the WebSocket port (``HTTP_FRONTENDS``): ``/version``
   (``VERSION``), WebRTC's signalling (``WEBRTC``), MCP (``MCP``), the HTTP API
   (``HTTP_API``).
@@ -33,24 +33,20 @@ from .frontends import AuthMode, FrontEnd
 from .http.api import API_PATHS, http_api_endpoint
 from .http.mcp_options import MCP_PATH, METADATA_PATH
 from .http.version import VERSION_PATH, version_endpoint
+from .rosbridge import rosbridge_frontend
 from .webrtc.signalling import WEBRTC_PATH
 
 if TYPE_CHECKING:
     from collections.abc import Callable
-
-    from rwt_protocol.runtime.contract import ServerSession
-    from rwt_protocol.runtime.request import SessionRequest
 
     from .config import ServerConfig
     from .host import FrontEndHost
     from .http.endpoint import HttpEndpoint
 
 __all__ = [
-    "DATA_CHANNEL_LABEL",
     "FOXGLOVE",
     "HTTP_API",
     "HTTP_FRONTENDS",
-    "LOSSY_CHANNEL_LABEL",
     "MCP",
     "SOCKET_FRONTENDS",
     "VERSION",
@@ -147,13 +143,6 @@ def mcp_endpoint(host: FrontEndHost, options: object) -> HttpEndpoint:
     return made(host, options)
 
 
-DATA_CHANNEL_LABEL = "rosbridge"
-"""The label of the reliable, ordered data channel that carries a rosbridge session."""
-
-LOSSY_CHANNEL_LABEL = "rosbridge-lossy"
-"""The label of a rosbridge session's lossy channel (``ordered: false, maxRetransmits`` 0 or
-1; D36, D73)."""
-
 FOXGLOVE = SocketFrontEnd(
     "foxglove",
     foxglove_for,
@@ -202,15 +191,3 @@ HTTP_FRONTENDS: tuple[HttpFrontEnd, ...] = (VERSION, WEBRTC, MCP, HTTP_API)
 """The HTTP front ends, in the order they are offered a request: ``GET /version``
 (docs/server.md), WebRTC signalling (docs/webrtc.md; off unless ``ServerConfig.webrtc``),
 MCP (docs/mcp.md; off unless ``ServerConfig.mcp``), the HTTP API (docs/http.md)."""
-
-
-def rosbridge_frontend(make_session: Callable[[SessionRequest], ServerSession]) -> FrontEnd:
-    """rosbridge, the default front end: no subprotocol, its data-channel labels, the auth op."""
-    return FrontEnd(
-        "rosbridge",
-        (),
-        make_session,
-        AuthMode.OP,
-        labels=(DATA_CHANNEL_LABEL,),
-        lossy_labels=(LOSSY_CHANNEL_LABEL,),
-    )

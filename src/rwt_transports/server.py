@@ -75,7 +75,7 @@ from .admission.shares import HostPrefixes, HostShares, address_of
 from .config import ServerConfig
 from .deadman import run_deadman
 from .frontends import FrontEnd, FrontEnds
-from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
+from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS
 from .gates import InboundBatch, OutboundHold
 from .host import Admitted, Features, HostSettings, ServedFrontEnd
 from .listen import ListenError
@@ -83,6 +83,7 @@ from .memory import MemoryConnection, memory_pair
 from .process.fdlimit import REFUSING_SOCKETS, default_max_connections
 from .pump import ConnectionPump, run_connection
 from .rosauth import rosauth_authenticator, url_authenticator
+from .rosbridge import rosbridge_frontend
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
 from .udp.auth import UdpAuth

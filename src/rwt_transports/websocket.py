@@ -59,12 +59,12 @@ from .direct import DirectReader, DirectWriter, asyncio_parts
 from .http.endpoint import MAX_HEAD_BYTES, drain_refused
 from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
-from .workers.placement import RECORD_LIMIT_BYTES, placed_topic
+from .workers.placement import RECORD_LIMIT_BYTES
 from .writes import WRITE_BATCH
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
     from anyio.abc import ByteStream
     from websockets.datastructures import Headers
@@ -186,6 +186,8 @@ class WebSocketChannel:
         self.early: list[Frame] = []
         """Whole frames the client sent with its upgrade request, parsed with it: read first."""
         self.placement: Placement | None = None
+        self.first_topic: Callable[[FramerEvent], str | None] | None = None
+        """The front end's reading of a first message's topic (``FrontEnd.first_topic``)."""
         """Where its first topic may move this connection (workers/placement.py); None: stays."""
         self.record: bytearray | None = None
         """Every byte read from the socket until the first message (``placement``'s)."""
@@ -238,9 +240,9 @@ class WebSocketChannel:
         """
         record, self.record = self.record, None
         placement, parts = self.placement, asyncio_parts(self.stream)
-        if placement is None or record is None or parts is None:
+        if placement is None or self.first_topic is None or record is None or parts is None:
             return False
-        topic = placed_topic(messages[0])
+        topic = self.first_topic(messages[0])
         if topic is None or self.protocol.state is not State.OPEN or self._failed is not None:
             return False
         owner = placement.owner(topic)
@@ -773,7 +775,8 @@ async def serve_websocket_connection(
         http: the HTTP endpoints on this port, each answering the paths it claims
             (``/version``, ``/webrtc``, ``/mcp``; docs/server.md); the rest are the
             WebSocket's (or the console's).
-        placement: where a rosbridge connection's first topic may move it
+        placement: where a connection's first topic may move it (a front end that
+            reads one, ``FrontEnd.first_topic``: rosbridge's)
             (``--placement topic``, workers/placement.py); None: it stays.
         resumed: the bytes another worker read from this connection before handing it
             here (workers/placement.py): read first, and the upgrade response is not sent
@@ -805,7 +808,9 @@ async def serve_websocket_connection(
         )
         _respond(protocol, request, refusal, resumed=resumed is not None)
         if _placeable(placement, frontend, session, protocol):
+            assert frontend is not None  # placeable: its front end reads first topics
             channel.placement, channel.record = placement, received
+            channel.first_topic = frontend.first_topic
         # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
         if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
             channel.frames = FrameReader(max_message_size)
@@ -829,14 +834,15 @@ def _placeable(
 ) -> bool:
     """Whether the connection may move by its first topic (workers/placement.py).
 
-    A rosbridge session only (Foxglove's sends on open), and without permessage-deflate
-    (its compression context is this process's).
+    A front end that reads one (``FrontEnd.first_topic``: rosbridge's; Foxglove's
+    sends on open and reads none), and without permessage-deflate (its compression
+    context is this process's).
     """
     return (
         placement is not None
         and session is not None
         and frontend is not None
-        and frontend.name == "rosbridge"
+        and frontend.first_topic is not None
         and not protocol.extensions
     )
 

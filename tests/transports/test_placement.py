@@ -21,10 +21,11 @@ from websockets.frames import Frame, Opcode
 
 from rwt_protocol.runtime.inframes import InFrame
 from rwt_transports.config import ServerConfig
+from rwt_transports.rosbridge import first_topic as placed_topic
 from rwt_transports.server import RosbridgeServer
 from rwt_transports.websocket import _whole_messages
 from rwt_transports.workers import placement
-from rwt_transports.workers.placement import RECORD_LIMIT_BYTES, Placement, placed_topic
+from rwt_transports.workers.placement import RECORD_LIMIT_BYTES, Placement
 from tests.support.cli import invoke_rwt
 from tests.support.rawws import server_frame, upgrade_with
 

@@ -14,7 +14,7 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
 
 from rwt_transports.frontends import FrontEnds
-from rwt_transports.frontends_registry import rosbridge_frontend
+from rwt_transports.rosbridge import rosbridge_frontend
 from rwt_transports.webrtc.channel import INBOX_LIMIT_BYTES, DataChannelChannel
 from rwt_transports.webrtc.native import (
     Inflow,

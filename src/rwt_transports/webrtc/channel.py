@@ -14,10 +14,12 @@ the server's (pump.py); this module only moves frames:
   abandons it as it arrives). What waits for the session is charged to the
   server's memory budget (``--memory-budget``, D44) as the connection's, never
   refused by it: it is a reader's input.
-- out: a JSON frame above ``MAX_TEXT_FRAME_BYTES`` (64 KiB, the size every
-  peer accepts, RFC 8841 6.1) goes out as ``fragment`` ops (spec 3.1.1, D19),
-  which the client reassembles. A CBOR frame cannot be cut so: it goes whole if
-  the peer's ``a=max-message-size`` allows it, else it is dropped and logged.
+- out: a text frame above ``MAX_TEXT_FRAME_BYTES`` (64 KiB, the size every
+  peer accepts, RFC 8841 6.1) is cut by the session's front end
+  (``FrontEnd.split_text``: rosbridge's goes out as ``fragment`` ops, spec 3.1.1,
+  D19, which the client reassembles). Any other frame (CBOR, or text of a front end
+  that cuts none) goes whole if the peer's ``a=max-message-size`` allows it, else
+  it is dropped and logged (D74).
 - the SCTP send buffer is flow-controlled like a socket's: ``send`` waits while
   the channel's ``bufferedAmount`` is above ``SEND_HIGH_WATER_BYTES``, until
   its ``bufferedamountlow`` event, so a slow reader fills the session's outbox
@@ -41,7 +43,6 @@ the server's (pump.py); this module only moves frames:
 
 from __future__ import annotations
 
-import itertools
 import logging
 from collections import deque
 from typing import TYPE_CHECKING
@@ -50,7 +51,6 @@ import anyio
 from aiortc.exceptions import InvalidStateError
 
 from rwt_graph.ratelog import EpisodeLog
-from rwt_protocol.framing.datagrams import fragment_datagrams
 from rwt_protocol.runtime.contract import LossySession
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError, InFrame, LossyInFrame
 
@@ -111,8 +111,6 @@ this together; while one waits, the reliable writer keeps its channel under it t
 A few small messages: what waits in aiortc's queue is not latest-only, and at 64 KiB a
 1 kHz topic on a lossy WAN link queued there 1.5 s (docs/benchmarks.md, "Over a WAN link")."""
 
-_ids = itertools.count(1)
-
 
 class DataChannelChannel(PlainChannel):
     """A peer's ``rosbridge`` data channel, and its ``rosbridge-lossy`` one, as a pump ``Channel``.
@@ -146,6 +144,9 @@ class DataChannelChannel(PlainChannel):
         self._drained = anyio.Event()
         self._ended = False
         self.overflowed = False
+        self.split_text: Callable[[bytes, int], Sequence[bytes]] | None = None
+        """How the session's front end cuts a text frame too large for a message
+        (``FrontEnd.split_text``; set when the session opens); None: sent whole."""
         """The peer sent more than ``INBOX_LIMIT_BYTES`` ahead of the session: it was cut."""
         self.held_below: Callable[[], int] = lambda: 0
         """Bytes the peer connection holds for the session below it (its SCTP reassembly,
@@ -303,32 +304,43 @@ class DataChannelChannel(PlainChannel):
     async def send(self, frames: Sequence[OutFrame]) -> None:
         """Send the frames in order, waiting while the channel's buffer is full.
 
+        A text frame goes as the session's front end cuts it (``split_text``:
+        rosbridge's ``fragment`` ops above ``MAX_TEXT_FRAME_BYTES``, D19); any other
+        frame goes whole, or is dropped and logged if the peer's
+        ``a=max-message-size`` is smaller (D74).
+
         Raises:
             anyio.BrokenResourceError: the data channel closed.
         """
         for frame in frames:
             data = frame.prefix + frame.data if frame.prefix else frame.data
-            if frame.binary:
-                limit = self.remote_max_message_size
-                if limit and len(data) > limit:
-                    _episodes.log(
-                        logging.WARNING,
-                        "webrtc_drop",
-                        "event=webrtc_drop bytes=%d limit=%d: CBOR frame above the peer's "
-                        "max-message-size dropped",
-                        len(data),
-                        limit,
-                    )
-                    continue
-                await self._yield_to_lossy()
-                self._send(data)
-            else:
-                parts = fragment_datagrams(data, MAX_TEXT_FRAME_BYTES, f"webrtc:{next(_ids)}")
-                for part in parts:
+            split = None if frame.binary else self.split_text
+            if split is not None:
+                for part in split(data, MAX_TEXT_FRAME_BYTES):
                     await self._yield_to_lossy()
                     self._send(part.decode("utf-8"))
                     await self._drain()
+            else:
+                if self._beyond_peer(data):
+                    continue
+                await self._yield_to_lossy()
+                self._send(data if frame.binary else data.decode("utf-8"))
             await self._drain()
+
+    def _beyond_peer(self, data: bytes) -> bool:
+        """Whether the peer takes no message as large as ``data``: dropped, logged (an episode)."""
+        limit = self.remote_max_message_size
+        if not limit or len(data) <= limit:
+            return False
+        _episodes.log(
+            logging.WARNING,
+            "webrtc_drop",
+            "event=webrtc_drop bytes=%d limit=%d: a frame above the peer's max-message-size "
+            "dropped",
+            len(data),
+            limit,
+        )
+        return True
 
     def _send(self, data: str | bytes) -> None:
         if self._ended:

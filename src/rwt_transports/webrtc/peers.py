@@ -633,6 +633,7 @@ class WebRtcPeers:
             return False
         item.session, item.frontend = session, frontend
         item.dc.charge_to(session.memory)  # what waits for it is the connection's (D44)
+        item.dc.split_text = frontend.split_text  # a text frame too large: its front end's
         return True
 
     @staticmethod

@@ -12,8 +12,8 @@ The rule (docs/decisions.md D57): each topic has one owner. The first worker to 
 connection by a topic claims it for the next worker in turn (a file in the workers'
 state folder, made atomically, so every worker, restarted ones included, reads the same
 owner); past ``MAX_CLAIMS`` topics the owner is ``crc32(topic) % N``. A plain WebSocket
-connection of the rosbridge protocol whose **first message** is a ``subscribe``,
-``advertise`` or ``publish`` names its topic; if another worker owns it, the
+connection whose front end reads a topic in its **first message** (``FrontEnd.first_topic``:
+rosbridge's ``subscribe``, ``advertise`` or ``publish``) names it; if another worker owns it, the
 connection is handed to that worker before its session has seen any message: the
 socket's descriptor (``SCM_RIGHTS``) and every byte read from it so far (the upgrade
 request, the first message and anything after it, at most ``RECORD_LIMIT_BYTES``) go
@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
 import logging
 import os
 import socket
@@ -57,15 +56,12 @@ if TYPE_CHECKING:
 
     from anyio.abc import SocketStream, UNIXSocketStream
 
-    from rwt_protocol.runtime.inframes import FramerEvent
 
-__all__ = ["PLACED_OPS", "RECORD_LIMIT_BYTES", "Placement", "placed_topic"]
+__all__ = ["RECORD_LIMIT_BYTES", "Placement"]
 
 logger = logging.getLogger("rwt.workers")
 _episodes = EpisodeLog(logger)
 
-PLACED_OPS = frozenset({"subscribe", "advertise", "publish"})
-"""First ops whose topic places a connection (rosbridge v2 protocol sections 3.4.2-3.4.4)."""
 RECORD_LIMIT_BYTES = 64 * 1024
 """Most bytes read from a connection (upgrade request, first message, what followed) that a
 hand-off carries; a connection whose first message completes later is served where it is."""
@@ -78,26 +74,6 @@ takes one at once. Past it the connection is served where it landed, or closed i
 owner may have taken it (its descriptor left)."""
 _HEADER = struct.Struct("!I")  # the record's length, bytes
 _TAKEN = b"\x01"
-
-
-def placed_topic(frame: FramerEvent) -> str | None:
-    """The topic a connection's first message places it by, or None (it stays).
-
-    Only a JSON text of one of ``PLACED_OPS`` with a string ``topic`` counts; anything
-    else (CBOR, another op, JSON the session will refuse) stays, and its session answers
-    it as ever.
-    """
-    data = getattr(frame, "data", None)
-    if not isinstance(data, bytes) or getattr(frame, "binary", True):
-        return None
-    try:
-        message = json.loads(data)
-    except ValueError:
-        return None
-    if not isinstance(message, dict) or message.get("op") not in PLACED_OPS:
-        return None
-    topic = message.get("topic")
-    return topic if isinstance(topic, str) and topic else None
 
 
 @dataclass(frozen=True)
