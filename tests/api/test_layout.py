@@ -117,3 +117,35 @@ def test_the_session_contract_is_narrow_and_the_session_base_small() -> None:
     assert len(members) == len(set(members)) <= 28
     connection = SRC / "rwt_protocol" / "runtime" / "connection.py"
     assert len(connection.read_text(encoding="utf-8").splitlines()) <= 450
+
+
+TRANSPORTS_SPEAKING_NO_PROTOCOL = [
+    TRANSPORTS / "pump.py",
+    TRANSPORTS / "websocket.py",
+    TRANSPORTS / "workers" / "placement.py",
+    *sorted((TRANSPORTS / "webrtc").glob("*.py")),
+]
+"""The modules that carry any protocol's frames and know none (docs/architecture.md)."""
+
+
+def test_the_transports_name_no_protocol() -> None:
+    """No ``"rosbridge"`` default, no ``fragment_datagrams``, no ``PLACED_OPS``: what a
+    transport needs of a front end's frames is its hook (``FrontEnd.first_topic``,
+    ``split_text``; rosbridge's are ``rwt_transports.rosbridge``'s)."""
+    found = []
+    for path in TRANSPORTS_SPEAKING_NO_PROTOCOL:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            named = (
+                node.id
+                if isinstance(node, ast.Name)
+                else node.attr
+                if isinstance(node, ast.Attribute)
+                else node.name
+                if isinstance(node, ast.alias)
+                else node.value
+                if isinstance(node, ast.Constant)
+                else None
+            )
+            if named in ("rosbridge", "fragment_datagrams", "PLACED_OPS"):
+                found.append(f"{path.relative_to(SRC)}:{getattr(node, 'lineno', '?')} {named}")
+    assert found == []
