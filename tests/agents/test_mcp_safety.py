@@ -269,11 +269,12 @@ async def test_the_size_and_rate_caps_and_bad_input_are_tool_errors(
         assert writes[0].startswith("event=mcp_write client=mcp:127.0.0.1:")
         assert writes[0].endswith("tool=publish target=/cmd")
 
-        calls, refused = 40, 0
+        calls, refused = 0, 0
         started = time.monotonic()
-        for _ in range(calls):
+        while calls < 40 or (not refused and calls < 400):  # a loaded machine calls slower
             result = await agent.result("action_goal_status", goal_id="nope")
             assert result.is_error  # no such goal, or too fast
+            calls += 1
             refused += "(TOOL_CALLS_PER_S)" in _text(result)
         elapsed = time.monotonic() - started
         assert refused >= 1
