@@ -37,8 +37,8 @@ from mcp.types import ResourceUpdatedNotification, ServerNotification, TextConte
 
 from rwt_mcp.guard import MAX_TOOL_ARGUMENT_BYTES, TOOL_BURST, TOOL_CALLS_PER_S, WRITE_TOOLS
 from rwt_mcp.resources import UPDATE_INTERVAL_S
-from rwt_transports.mcp_http import MAX_REQUEST_BYTES, MAX_REQUESTS_IN_FLIGHT
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp import MAX_REQUEST_BYTES, MAX_REQUESTS_IN_FLIGHT
+from rwt_transports.http.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
 from rwt_transports.websocket import WebSocketOptions
 from rwt_video import VideoTokens, install_token_service

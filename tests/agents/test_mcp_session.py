@@ -25,7 +25,7 @@ from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_mcp_safety import WRITES, _text
 from tests.agents.test_rwt_mcp import Message, robot_graph, rwt_serve_mcp
 
