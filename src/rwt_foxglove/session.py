@@ -98,7 +98,7 @@ if TYPE_CHECKING:
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent, PublishNote
     from rwt_protocol.qos import QosProfile
-    from rwt_protocol.runtime.contract import Job
+    from rwt_protocol.runtime.jobs import Job
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.timers import Timer
 

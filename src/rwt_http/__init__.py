@@ -16,8 +16,8 @@ Foxglove client. The modules, each over the next:
 - ``wire``: the bytes of a response and of a Server-Sent Event.
 
 The transport's side (reading the request, the bearer token, running the pump)
-is ``rwt_transports.http_api``; the document's builds run in
-``rwt_transports.http_documents``.
+is ``rwt_transports.http.api``; the document's builds run in
+``rwt_transports.http.documents``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """One HTTP API request as a session of the connection runtime (docs/http.md).
 
 ``HttpSession`` subclasses ``SessionBase`` (docs/architecture.md, "How to add a
-protocol"): the transport (``rwt_transports.http_api``) reads the request, the
+protocol"): the transport (``rwt_transports.http.api``) reads the request, the
 server admits it as any connection (``--max-connections``, the host shares) and
 the pump runs the session; the request's body is its one frame. It answers with
 one whole response and closes, or, for an event stream (a topic's ``/events``,
@@ -144,7 +144,7 @@ class HttpSession(SessionBase):
         self._offers = offers
         self._answered = False  # a response (or a stream's head) is queued
         self._streaming = False
-        self._holds = False  # a subscription or a call waits in the graph
+        self._holds = False  # a subscription waits in the graph (a call: the call book)
         self._last_sent = -1.0e18  # an event stream's last message (throttle_rate)
         self._stream_rule: QueueRule | None = None  # an event stream's QoS (``stream_qos``)
         self._stream_lifespan_s = math.inf
@@ -174,7 +174,7 @@ class HttpSession(SessionBase):
 
     def holds_anything(self) -> bool:
         """Whether a subscription or a call of this request waits in the graph."""
-        return self._holds
+        return self._holds or self.calls.in_flight > 0
 
     # ---- the request --------------------------------------------------------------
 
@@ -398,19 +398,27 @@ class HttpSession(SessionBase):
     def _service(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.SERVICES, route.name, "call_service")
         args = self._body(frame, "call_service", required=False)
-        self._holds = True
+        calls = self.calls
+        booked = calls.book()  # settled once: the answer, the deadline or the close
 
         def reply(result: bool, values: object) -> None:
-            self._holds = False
+            if not booked.settle():
+                return
             if result:
                 self._answer(200, values)
             else:
                 self._answer(502, {"error": str(values)})
 
         timeout = self.config.call_timeout_s
-        self.graph.call_service(self.client_id, route.name, args, reply, timeout_s=timeout)
-        if timeout is not None and not self._answered:
-            self.call_at(self.now + timeout, lambda now: self._timed_out(timeout))
+        try:
+            booked.pending = self.graph.call_service(
+                self.client_id, route.name, args, reply, timeout_s=timeout
+            )
+        except RwtError:
+            booked.settle()
+            raise
+        if timeout is not None:
+            calls.expire_at(booked, self.now + timeout, lambda now: self._timed_out(timeout))
 
     def _timed_out(self, timeout: float) -> None:
         self._answer(504, {"error": f"no response within {timeout:g} s"})
@@ -427,6 +435,7 @@ class HttpSession(SessionBase):
             raise GraphError("send_action_goal: the body must be a JSON object (the goal)")
         early: list[OutFrame] = []
         ended = False
+        booked = self.calls.book()  # held until it ends: the goal's answer or the close
 
         def send(out: OutFrame) -> None:
             if self._streaming:
@@ -439,7 +448,7 @@ class HttpSession(SessionBase):
 
         def done(status: GoalStatus, result: bool, values: object) -> None:
             nonlocal ended
-            self._holds = False
+            booked.settle()
             value = {"status": int(status), "result": result, "values": values}
             send(OutFrame(event(encode_json(value), "result")))
             ended = True
@@ -447,8 +456,13 @@ class HttpSession(SessionBase):
                 self.request_close(CloseCode.NORMAL, "goal done")
 
         # raises UnknownNameError (404), FieldError (400) before anything is sent
-        self.graph.send_action_goal(self.client_id, route.name, goal, done, feedback)
-        self._holds = not ended
+        try:
+            booked.pending = self.graph.send_action_goal(
+                self.client_id, route.name, goal, done, feedback
+            )
+        except RwtError:
+            booked.settle()
+            raise
         self._open_stream()
         for out in early:
             self.send_frames((out,))

@@ -887,7 +887,7 @@ def release_server(server: MCPServer) -> None:
 
     Its handlers are its own bound methods and closures, so a server is a cycle of some
     400 objects that only the cyclic collector frees. A 2026-07-28 request builds one
-    (``rwt_transports.mcp_http``): under a flood they piled up into collections of 15,000-
+    (``rwt_transports.http.mcp``): under a flood they piled up into collections of 15,000-
     20,000 objects that stopped the event loop 8-10 ms, which every other client waited
     out (benchmarks B25). Emptied here, they go when their last reference does.
     """
@@ -905,7 +905,7 @@ def warm_up() -> None:
     """Build what a session's first server builds once (the tools' models, the SDK's parts).
 
     A front end calls it while it starts (``http.McpEndpoint``), before the server
-    freezes its start-up objects (``rwt_transports.gcfreeze``): otherwise the first
+    freezes its start-up objects (``rwt_transports.process.gcfreeze``): otherwise the first
     request builds them while every client waits on the event loop (tens of ms), and
     full collections walk them ever after. Nothing is connected.
     """

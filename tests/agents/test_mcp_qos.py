@@ -19,7 +19,7 @@ import rwt
 from rwt import RosbridgeServer, ServerConfig
 from rwt.types import Durability
 from rwt_graph.graph import Graph
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_rwt_mcp import rwt_mcp, rwt_serve_mcp
 
 if TYPE_CHECKING:

@@ -91,7 +91,7 @@ def test_a_queued_message_past_its_lifespan_is_never_taken(graph: Graph, clock: 
         clock.now += 0.05
     # taken at 100.5: m0 (100.0) .. m5 (100.25) are past 0.2 s; m6 (100.3) is not
     assert _data(_taken(sub, clock.now)) == ["m6", "m7", "m8", "m9"]
-    assert sub.session.expired_messages == 6
+    assert sub.session.stats.expired_messages == 6
 
 
 def test_the_topics_lifespan_binds_a_subscriber_that_gave_none(
@@ -130,7 +130,7 @@ def test_depth_bounds_what_a_subscribers_queue_keeps(graph: Graph) -> None:
     _publish(pub, *"abcdefg")
     assert _data(_taken(sub)) == ["e", "f", "g"]
     assert _data(_taken(plain)) == list("abcdefg")
-    assert sub.session.dropped_frames == 4
+    assert sub.session.stats.dropped_frames == 4
 
 
 def test_depth_bounds_a_throttled_subscriptions_queue_too(graph: Graph, clock: FakeClock) -> None:

@@ -77,7 +77,14 @@ if TYPE_CHECKING:
 
     from .memory import MemoryAccount
 
-__all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox", "QueueRule", "water_marks"]
+__all__ = [
+    "FRAME_OVERHEAD_BYTES",
+    "OutFrame",
+    "Outbox",
+    "QueueRule",
+    "SessionStats",
+    "water_marks",
+]
 
 FRAME_OVERHEAD_BYTES = 192
 """Memory a queued frame costs beyond its payload, in bytes, charged against the limit.
@@ -844,3 +851,57 @@ class Outbox:
         elif frame.group not in groups:
             groups.add(frame.group)
             self.dropped += 1
+
+
+class SessionStats:
+    """A session's counts and gauges, read live from its outbox (``ServerSession.stats``).
+
+    One value the transport keeps for the connection's life: each read is the
+    count or the gauge at that moment.
+
+    Attributes:
+        pending_bytes: bytes of topic messages being made for the outbox off the
+            loop (png, ``rwt_protocol.server.pngout``), counted in ``fill_bytes``;
+            the protocol that makes them keeps it.
+    """
+
+    __slots__ = ("_outbox", "pending_bytes")
+
+    def __init__(self, outbox: Outbox) -> None:
+        self._outbox = outbox
+        self.pending_bytes = 0
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes charged for the frames waiting to be taken."""
+        return self._outbox.queued_bytes
+
+    @property
+    def queued_reply_bytes(self) -> int:
+        """Bytes of queued frames that are never dropped (replies, statuses; D24)."""
+        return self._outbox.undroppable_bytes
+
+    @property
+    def fill_bytes(self) -> int:
+        """How full the outbox is for the watermarks, ``pending_bytes`` included."""
+        return self._outbox.fill_bytes + self.pending_bytes
+
+    @property
+    def topic_messages(self) -> int:
+        """Topic messages queued so far, those dropped since included."""
+        return self._outbox.topic_messages
+
+    @property
+    def dropped_frames(self) -> int:
+        """Topic messages dropped so far because the peer read too slowly (D24)."""
+        return self._outbox.dropped
+
+    @property
+    def expired_messages(self) -> int:
+        """Of ``dropped_frames``, messages a newer one outdated (``Outbox.expired``)."""
+        return self._outbox.expired
+
+    @property
+    def taken_frames(self) -> int:
+        """Frames the transport took so far (topic messages and replies)."""
+        return self._outbox.taken_frames
